@@ -1,0 +1,32 @@
+"""Element-wise linear algebra on state arrays (rows, N) for the steppers."""
+
+import warp as wp
+
+f64 = wp.float64
+wp.set_module_options({"enable_backward": False})
+
+
+@wp.kernel
+def axpby(a: f64, x: wp.array2d(dtype=f64), b: f64, y: wp.array2d(dtype=f64), out: wp.array2d(dtype=f64)):
+    """out = a·x + b·y (out may alias x or y). Dim (rows, N)."""
+    r, p = wp.tid()
+    out[r, p] = a * x[r, p] + b * y[r, p]
+
+
+@wp.kernel
+def axpbypcz(a: f64, x: wp.array2d(dtype=f64), b: f64, y: wp.array2d(dtype=f64), c: f64, z: wp.array2d(dtype=f64), out: wp.array2d(dtype=f64)):
+    """out = a·x + b·y + c·z (out may alias any input). Dim (rows, N)."""
+    r, p = wp.tid()
+    out[r, p] = a * x[r, p] + b * y[r, p] + c * z[r, p]
+
+
+@wp.kernel
+def first_bad_node(x: wp.array2d(dtype=f64), check_depth: int, first: wp.array(dtype=wp.int32)):
+    """first[0] = min index p where u, v or h is not finite, or (if check_depth) h ≤ 0;
+    unchanged if there is none. Dim N."""
+    p = wp.tid()
+    ok = wp.isfinite(x[0, p]) and wp.isfinite(x[1, p]) and wp.isfinite(x[2, p])
+    if check_depth != 0:
+        ok = ok and x[2, p] > f64(0.0)
+    if not ok:
+        wp.atomic_min(first, 0, p)

@@ -1,0 +1,128 @@
+"""Spectral-element operators on the sphere (HOMME ``derivative_mod``).
+
+``gradient_sphere``, ``divergence_sphere``, ``vorticity_sphere`` are the strong
+forms; ``laplace_wk_flux`` + ``laplace_wk_div`` the weak Laplacian
+``∫ φ Δf = −∫ ∇φ·∇f`` (HOMME ``laplace_sphere_wk``), which gives the
+Laplacian after the DSS. Reference derivatives use ``dvv[i, m] = l_m'(ξ_i)``.
+"""
+
+import warp as wp
+
+f64 = wp.float64
+wp.set_module_options({"enable_backward": False})
+
+
+@wp.func
+def d_xi(f: wp.array2d(dtype=f64), row: int, base: int, i: int, j: int, np: int, dvv: wp.array2d(dtype=f64)):
+    """∂f/∂ξ at node (i, j) of the element starting at ``base``."""
+    s = f64(0.0)
+    for m in range(np):
+        s += dvv[i, m] * f[row, base + j * np + m]
+    return s
+
+
+@wp.func
+def d_eta(f: wp.array2d(dtype=f64), row: int, base: int, i: int, j: int, np: int, dvv: wp.array2d(dtype=f64)):
+    """∂f/∂η at node (i, j) of the element starting at ``base``."""
+    s = f64(0.0)
+    for m in range(np):
+        s += dvv[j, m] * f[row, base + m * np + i]
+    return s
+
+
+@wp.func
+def vorticity_at(x: wp.array2d(dtype=f64), p: int, np: int, D: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64)):
+    """Relative vorticity (s⁻¹) at node p of the wind in rows 0, 1 of x:
+    ζ = (∂ξ v₂ − ∂η v₁)/metdet with covariant components v_c = Dᵀ v."""
+    npp = np * np
+    e = p / npp
+    r = p - e * npp
+    j = r / np
+    i = r - j * np
+    base = e * npp
+    dv2 = f64(0.0)
+    dv1 = f64(0.0)
+    for m in range(np):
+        q = base + j * np + m
+        dv2 += dvv[i, m] * (D[1, q] * x[0, q] + D[3, q] * x[1, q])
+        q = base + m * np + i
+        dv1 += dvv[j, m] * (D[0, q] * x[0, q] + D[2, q] * x[1, q])
+    return (dv2 - dv1) / metdet[p]
+
+
+@wp.kernel
+def gradient_sphere(f: wp.array2d(dtype=f64), row: int, Dinv: wp.array2d(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, out: wp.array2d(dtype=f64)):
+    """out[0:2, p] = ∇f (east, north; units of f per m) = Dinvᵀ (∂ξ f, ∂η f)."""
+    p = wp.tid()
+    npp = np * np
+    e = p / npp
+    r = p - e * npp
+    j = r / np
+    i = r - j * np
+    a = d_xi(f, row, e * npp, i, j, np, dvv)
+    b = d_eta(f, row, e * npp, i, j, np, dvv)
+    out[0, p] = Dinv[0, p] * a + Dinv[2, p] * b
+    out[1, p] = Dinv[1, p] * a + Dinv[3, p] * b
+
+
+@wp.kernel
+def divergence_sphere(x: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, out: wp.array(dtype=f64)):
+    """out[p] = ∇·v (s⁻¹) of the wind in rows 0, 1 of x:
+    (∂ξ(metdet c¹) + ∂η(metdet c²))/metdet with contravariant c = Dinv v."""
+    p = wp.tid()
+    npp = np * np
+    e = p / npp
+    r = p - e * npp
+    j = r / np
+    i = r - j * np
+    base = e * npp
+    s = f64(0.0)
+    for m in range(np):
+        q = base + j * np + m
+        s += dvv[i, m] * metdet[q] * (Dinv[0, q] * x[0, q] + Dinv[1, q] * x[1, q])
+        q = base + m * np + i
+        s += dvv[j, m] * metdet[q] * (Dinv[2, q] * x[0, q] + Dinv[3, q] * x[1, q])
+    out[p] = s / metdet[p]
+
+
+@wp.kernel
+def vorticity_sphere(x: wp.array2d(dtype=f64), D: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, out: wp.array(dtype=f64)):
+    """out[p] = k·∇×v (s⁻¹) of the wind in rows 0, 1 of x."""
+    p = wp.tid()
+    out[p] = vorticity_at(x, p, np, D, metdet, dvv)
+
+
+@wp.kernel
+def laplace_wk_flux(f: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), spheremp: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, flux: wp.array2d(dtype=f64)):
+    """First half of the weak Laplacian, for every row r of f:
+    flux[2r:2r+2, p] = spheremp · Dinv Dinvᵀ (∂ξ f, ∂η f), the quadrature-weighted
+    contravariant gradient. Launch with dim (rows, N)."""
+    r, p = wp.tid()
+    npp = np * np
+    e = p / npp
+    k = p - e * npp
+    j = k / np
+    i = k - j * np
+    a = d_xi(f, r, e * npp, i, j, np, dvv)
+    b = d_eta(f, r, e * npp, i, j, np, dvv)
+    gx = Dinv[0, p] * a + Dinv[2, p] * b
+    gy = Dinv[1, p] * a + Dinv[3, p] * b
+    flux[2 * r, p] = spheremp[p] * (Dinv[0, p] * gx + Dinv[1, p] * gy)
+    flux[2 * r + 1, p] = spheremp[p] * (Dinv[2, p] * gx + Dinv[3, p] * gy)
+
+
+@wp.kernel
+def laplace_wk_div(flux: wp.array2d(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, out: wp.array2d(dtype=f64)):
+    """Second half: out[r, (m, n)] = −Σ_i dvv[i, m] flux¹(i, n) − Σ_j dvv[j, n] flux²(m, j),
+    i.e. −∫ ∇φ_mn·∇f over the element (m² × units of f / m²). Launch with dim (rows, N)."""
+    r, p = wp.tid()
+    npp = np * np
+    e = p / npp
+    k = p - e * npp
+    n = k / np
+    m = k - n * np
+    base = e * npp
+    s = f64(0.0)
+    for q in range(np):
+        s += dvv[q, m] * flux[2 * r, base + n * np + q] + dvv[q, n] * flux[2 * r + 1, base + q * np + m]
+    out[r, p] = -s

@@ -1,0 +1,246 @@
+"""Initial states, Coriolis parameter, surface height and exact solutions.
+
+Williamson, Drake, Hack, Jakob & Swarztrauber (1992), J. Comput. Phys. 102,
+211–224 (cases 1, 2, 5, 6; equation numbers below are theirs) and Galewsky,
+Scott & Polvani (2004), Tellus 56A, 429–440 (barotropic jet).
+
+Every function takes latitude and longitude in radians (any shape) and returns
+numpy arrays of that shape: winds ``u`` (eastward), ``v`` (northward) in m s⁻¹,
+fluid depth ``h`` and surface height ``hs`` in m, ``fcor`` in s⁻¹.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.integrate import cumulative_simpson
+from scipy.interpolate import CubicSpline
+
+from .constants import DAY, EARTH
+
+
+def _xyz(lat, lon):
+    return np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)])
+
+
+def _rotate(xyz, axis, angle):
+    """Rodrigues rotation of unit vectors xyz (3, ...) about unit ``axis`` by ``angle`` (rad)."""
+    axis = np.asarray(axis, dtype=float).reshape(3, *([1] * (xyz.ndim - 1)))
+    c, s = math.cos(angle), math.sin(angle)
+    cross = np.cross(axis, xyz, axis=0)
+    dot = np.sum(axis * xyz, axis=0)
+    return xyz * c + cross * s + axis * dot * (1 - c)
+
+
+def _great_circle(lat, lon, lat_c, lon_c):
+    """Great-circle angle (rad) between (lat, lon) and (lat_c, lon_c)."""
+    cosr = np.sin(lat_c) * np.sin(lat) + np.cos(lat_c) * np.cos(lat) * np.cos(lon - lon_c)
+    return np.arccos(np.clip(cosr, -1.0, 1.0))
+
+
+@dataclass(frozen=True)
+class Case:
+    """Base class: a case supplies fcor, hs, the initial state and, if known, the exact solution."""
+
+    planet = EARTH
+    exact_solution = False
+
+    def fcor(self, lat, lon):
+        return 2 * self.planet.omega * np.sin(lat)
+
+    def hs(self, lat, lon):
+        return np.zeros_like(lat)
+
+    def initial(self, lat, lon):
+        """Return (u, v, h) at t = 0."""
+        raise NotImplementedError
+
+    def exact(self, lat, lon, t):
+        """Return (u, v, h) at time t (s); only for cases with ``exact_solution``."""
+        raise NotImplementedError(f"{type(self).__name__} has no exact solution")
+
+
+@dataclass(frozen=True)
+class SolidBody(Case):
+    """Solid-body rotation about an axis tilted by ``alpha`` from the pole (eqs. 75–76)."""
+
+    alpha: float = 0.0
+
+    @property
+    def u0(self):
+        return 2 * math.pi * self.planet.a / (12 * DAY)
+
+    @property
+    def axis(self):
+        return np.array([-math.sin(self.alpha), 0.0, math.cos(self.alpha)])
+
+    def wind(self, lat, lon):
+        a = self.alpha
+        u = self.u0 * (np.cos(lat) * math.cos(a) + np.sin(lat) * np.cos(lon) * math.sin(a))
+        v = -self.u0 * np.sin(lon) * math.sin(a)
+        return u, v
+
+    def _rotated_back(self, lat, lon, t):
+        """Lat/lon of the departure points of a solid-body rotation over time t."""
+        xyz = _rotate(_xyz(lat, lon), self.axis, -self.u0 / self.planet.a * t)
+        return np.arcsin(np.clip(xyz[2], -1, 1)), np.arctan2(xyz[1], xyz[0])
+
+
+@dataclass(frozen=True)
+class CosineBell(SolidBody):
+    """Case 1: cosine bell advected once around the sphere in 12 days (eqs. 73–76)."""
+
+    exact_solution = True
+    h0: float = 1000.0
+    lat_c: float = 0.0
+    lon_c: float = 1.5 * math.pi
+
+    def _bell(self, lat, lon):
+        R = self.planet.a / 3
+        r = self.planet.a * _great_circle(lat, lon, self.lat_c, self.lon_c)
+        return np.where(r < R, 0.5 * self.h0 * (1 + np.cos(math.pi * r / R)), 0.0)
+
+    def initial(self, lat, lon):
+        return (*self.wind(lat, lon), self._bell(lat, lon))
+
+    def exact(self, lat, lon, t):
+        return (*self.wind(lat, lon), self._bell(*self._rotated_back(lat, lon, t)))
+
+
+@dataclass(frozen=True)
+class SteadyZonal(SolidBody):
+    """Case 2: global steady-state nonlinear geostrophic flow (eqs. 90–95)."""
+
+    exact_solution = True
+    gh0: float = 2.94e4  # m² s⁻²
+
+    def _rot_sin(self, lat, lon):
+        a = self.alpha
+        return -np.cos(lon) * np.cos(lat) * math.sin(a) + np.sin(lat) * math.cos(a)
+
+    def fcor(self, lat, lon):
+        return 2 * self.planet.omega * self._rot_sin(lat, lon)
+
+    def initial(self, lat, lon):
+        p = self.planet
+        gh = self.gh0 - (p.a * p.omega * self.u0 + 0.5 * self.u0**2) * self._rot_sin(lat, lon) ** 2
+        return (*self.wind(lat, lon), gh / p.g)
+
+    def exact(self, lat, lon, t):
+        return self.initial(lat, lon)
+
+
+@dataclass(frozen=True)
+class Mountain(Case):
+    """Case 5: zonal flow over an isolated conical mountain (eqs. 130–135, α = 0)."""
+
+    u0: float = 20.0
+    h0: float = 5960.0
+    hs0: float = 2000.0
+    radius: float = math.pi / 9
+    lat_c: float = math.pi / 6
+    lon_c: float = 1.5 * math.pi
+
+    def hs(self, lat, lon):
+        r2 = np.minimum(self.radius**2, (lon - self.lon_c) ** 2 + (lat - self.lat_c) ** 2)
+        return self.hs0 * (1 - np.sqrt(r2) / self.radius)
+
+    def initial(self, lat, lon):
+        p = self.planet
+        surface = self.h0 - (p.a * p.omega * self.u0 + 0.5 * self.u0**2) * np.sin(lat) ** 2 / p.g
+        return self.u0 * np.cos(lat), np.zeros_like(lat), surface - self.hs(lat, lon)
+
+
+@dataclass(frozen=True)
+class RossbyHaurwitz(Case):
+    """Case 6: Rossby–Haurwitz wave of wavenumber R = 4 (eqs. 143–146)."""
+
+    omega_w: float = 7.848e-6
+    K: float = 7.848e-6
+    R: int = 4
+    h0: float = 8000.0
+
+    def initial(self, lat, lon):
+        p, w, K, R = self.planet, self.omega_w, self.K, self.R
+        a, Om = p.a, p.omega
+        c, s = np.cos(lat), np.sin(lat)
+        u = a * w * c + a * K * c ** (R - 1) * (R * s**2 - c**2) * np.cos(R * lon)
+        v = -a * K * R * c ** (R - 1) * s * np.sin(R * lon)
+        A = 0.5 * w * (2 * Om + w) * c**2 + 0.25 * K**2 * (
+            c ** (2 * R) * ((R + 1) * c**2 + (2 * R**2 - R - 2)) - 2 * R**2 * c ** (2 * R - 2)
+        )
+        B = 2 * (Om + w) * K / ((R + 1) * (R + 2)) * c**R * ((R**2 + 2 * R + 2) - (R + 1) ** 2 * c**2)
+        C = 0.25 * K**2 * c ** (2 * R) * ((R + 1) * c**2 - (R + 2))
+        gh = p.g * self.h0 + a**2 * (A + B * np.cos(R * lon) + C * np.cos(2 * R * lon))
+        return u, v, gh / p.g
+
+
+@dataclass(frozen=True)
+class Galewsky(Case):
+    """Galewsky et al. (2004): balanced mid-latitude jet (eqs. 2–3), mean depth 10 km,
+    plus the localized height perturbation of their eq. 4 unless ``perturbed`` is False."""
+
+    perturbed: bool = True
+    umax: float = 80.0
+    lat0: float = math.pi / 7
+    lat1: float = math.pi / 2 - math.pi / 7
+    mean_depth: float = 10000.0
+    hhat: float = 120.0
+    alpha_p: float = 1.0 / 3.0
+    beta_p: float = 1.0 / 15.0
+    lat2: float = math.pi / 4
+
+    def jet(self, lat):
+        en = math.exp(-4.0 / (self.lat1 - self.lat0) ** 2)
+        inside = (lat > self.lat0) & (lat < self.lat1)
+        arg = np.where(inside, (lat - self.lat0) * (lat - self.lat1), -1.0)
+        return np.where(inside, self.umax / en * np.exp(1.0 / arg), 0.0)
+
+    def _balanced_height(self):
+        """h(lat) from gradient-wind balance (their eq. 3), integrated on a fine grid."""
+        p = self.planet
+        phi = np.linspace(-math.pi / 2, math.pi / 2, 20001)
+        u = self.jet(phi)
+        dgh = -p.a * u * (2 * p.omega * np.sin(phi) + np.tan(phi) * u / p.a)
+        gh = cumulative_simpson(dgh, x=phi, initial=0.0)
+        h = gh / p.g
+        # shift so that the global mean depth is mean_depth: mean = ½∫ h cosφ dφ
+        mean = 0.5 * np.trapezoid(h * np.cos(phi), phi)
+        return CubicSpline(phi, h + self.mean_depth - mean)
+
+    def initial(self, lat, lon):
+        h = self._balanced_height()(lat)
+        if self.perturbed:
+            lam = np.mod(lon + math.pi, 2 * math.pi) - math.pi  # (-π, π]
+            h = h + self.hhat * np.cos(lat) * np.exp(-((lam / self.alpha_p) ** 2)) * np.exp(
+                -(((self.lat2 - lat) / self.beta_p) ** 2)
+            )
+        return self.jet(lat), np.zeros_like(lat), h
+
+
+# name → (class, allowed parameters with their types)
+CASES: dict[str, tuple[type[Case], dict[str, type]]] = {
+    "tc1_cosine_bell": (CosineBell, {"alpha": float}),
+    "tc2_steady": (SteadyZonal, {"alpha": float}),
+    "tc5_mountain": (Mountain, {}),
+    "tc6_rossby_haurwitz": (RossbyHaurwitz, {}),
+    "galewsky": (Galewsky, {"perturbed": bool}),
+}
+
+
+def make_case(name: str, params: dict | None = None) -> Case:
+    """Build a case by name with keyword parameters; ValueError names an unknown case or parameter."""
+    if name not in CASES:
+        raise ValueError(f"unknown case {name!r} (known: {', '.join(CASES)})")
+    cls, allowed = CASES[name]
+    params = dict(params or {})
+    for key, value in params.items():
+        if key not in allowed:
+            raise ValueError(f"unknown parameter case.{key} for {name} (allowed: {', '.join(allowed) or 'none'})")
+        if allowed[key] is float and (isinstance(value, bool) or not isinstance(value, (int, float))):
+            raise ValueError(f"case.{key} must be a number (got {value!r})")
+        if allowed[key] is bool and not isinstance(value, bool):
+            raise ValueError(f"case.{key} must be true or false (got {value!r})")
+    return cls(**params)

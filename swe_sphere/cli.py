@@ -1,0 +1,128 @@
+"""Command line: ``swe-sphere run SCENE`` and ``swe-sphere list``.
+
+Exit status: 0 success, 2 bad input (one line naming the field or value, no
+output file), 3 blow-up (message with step, model time and place; the output
+file keeps every good output time).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+EXIT_BAD_INPUT, EXIT_BLOWUP = 2, 3
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, exit 2
+        self.exit(EXIT_BAD_INPUT, f"swe-sphere: error: {message}\n")
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="swe-sphere", description="Spectral-element shallow-water model on the cubed sphere.")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    r = sub.add_parser("run", help="run a scene (a TOML file under testcases/, or its name)")
+    r.add_argument("scene", help="scene file, e.g. testcases/tc5_mountain.toml, or a bundled scene name")
+    r.add_argument("--ne", type=int, help="elements along a cube edge")
+    r.add_argument("--np", type=int, help="GLL points per element direction (2..8)")
+    r.add_argument("--dt", type=float, help="time step in seconds")
+    r.add_argument("--days", type=float, help="run length in days")
+    r.add_argument("--stepper", help="time stepper (see `swe-sphere list`)")
+    r.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
+    r.add_argument("--output", type=Path, help="netCDF output file (default: <scene>_ne<ne>np<np>_<stepper>.nc)")
+    r.add_argument("--no-progress", action="store_true", help="no progress bar")
+    sub.add_parser("list", help="list bundled scenes, steppers and terms")
+    return p
+
+
+def _fail(message: str, code: int) -> int:
+    print(f"swe-sphere: error: {message}", file=sys.stderr)
+    return code
+
+
+def _cmd_list() -> int:
+    from .config import list_scenes, load_scene
+    from .model import TERMS
+    from .steppers import STEPPERS
+
+    print("scenes:")
+    for path in list_scenes():
+        s = load_scene(path)
+        print(f"  {path.stem:32s} {s.description}")
+        print(f"  {'':32s} ne={s.ne} np={s.np} {s.stepper} dt={s.dt:g}s {s.days:g} days; terms: {', '.join(s.terms)}")
+    print("steppers:")
+    for name, cls in STEPPERS.items():
+        print(f"  {name:32s} {cls.__doc__.split(chr(10))[0]}")
+    print("terms:")
+    print("  " + ", ".join(TERMS))
+    return 0
+
+
+def _cmd_run(args) -> int:
+    from .config import SceneError, load_scene
+    from .output import check_writable
+
+    try:
+        scene = load_scene(args.scene, ne=args.ne, np=args.np, dt=args.dt, days=args.days, stepper=args.stepper)
+        output = args.output or Path(f"{scene.name}_ne{scene.ne}np{scene.np}_{scene.stepper}.nc")
+        check_writable(output)
+    except (SceneError, ValueError) as err:
+        return _fail(str(err), EXIT_BAD_INPUT)
+
+    import warp as wp
+
+    wp.config.log_level = wp.LOG_ERROR  # no init banner or per-module load lines
+    from .model import default_device
+    from .simulation import BlowUp, Simulation
+
+    device = args.device or default_device()
+    if device == "cuda" and not wp.is_cuda_available():
+        return _fail("device cuda is not available on this machine (use --device cpu)", EXIT_BAD_INPUT)
+
+    sim = Simulation(scene, device, progress=not args.no_progress)
+    g = sim.grid
+    c = sim.courant()
+    print(f"scene       {scene.name}: {scene.description}")
+    print(f"grid        ne={g.ne} np={g.np}: {g.nelem} elements, {g.nunique} unique nodes, min node spacing {g.dx.min() / 1e3:.1f} km")
+    print(f"terms       {', '.join(scene.terms)}" + (f" (nu = {scene.nu:.3g} m^4/s, subcycle {scene.hypervis_subcycle})" if scene.nu else ""))
+    print(f"stepper     {scene.stepper}, dt = {scene.dt:g} s, {scene.nsteps} steps to day {scene.days:g}, device {device}")
+    grav = "" if math.isnan(c["courant_gravity"]) else f", gravity-wave {c['courant_gravity']:.3f}"
+    print(f"Courant     advective {c['courant_advective']:.3f}{grav} (max over nodes at t = 0)")
+    for note in scene.notes:
+        print(f"note        {note}")
+    print(f"output      {output} (every {scene.output_every_days:g} days)")
+    print(f"setup       {sim.setup_time:.2f} s")
+    try:
+        result = sim.run(output)
+    except BlowUp as err:
+        print(f"swe-sphere: {err}; the last good state is in {output}", file=sys.stderr)
+        return EXIT_BLOWUP
+    _summary(result)
+    return 0
+
+
+def _summary(r) -> None:
+    d = r.diagnostics
+    print("summary")
+    print(f"  wall time   {r.wall_time:.2f} s for {r.steps} steps ({1e3 * r.wall_time / max(r.steps, 1):.2f} ms/step), setup {r.setup_time:.2f} s")
+    print(f"  RHS evals   {r.rhs_evals}")
+    for k in ("mass", "total_energy", "potential_enstrophy"):
+        if k in d:
+            print(f"  {k:20s} {d[k]:.10e}  relative change {d[k + '_change']:+.3e}")
+    if "l2_h" in d:
+        print(f"  error h     l1 {d['l1_h']:.3e}  l2 {d['l2_h']:.3e}  linf {d['linf_h']:.3e}")
+        print(f"  error wind  l1 {d['l1_wind']:.3e}  l2 {d['l2_wind']:.3e}  linf {d['linf_wind']:.3e}")
+    print(f"  output      {r.output}")
+
+
+def main(argv=None) -> int:
+    args = _parser().parse_args(argv)
+    if args.command == "list":
+        return _cmd_list()
+    return _cmd_run(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,246 @@
+"""Scenes: a TOML file per test case, validated once into a frozen ``Scene``.
+
+A scene names its case, the terms it simulates, the grid, stepper and step,
+the run length, the output interval and the hyperviscosity. Layout::
+
+    description = "..."
+    terms = ["continuity", "momentum_advection", ...]
+    [case]            name = "tc5_mountain" (+ case parameters, e.g. alpha)
+    [grid]            ne = 30, np = 4
+    [time]            stepper = "leapfrog_trapezoidal", dt = 90.0, days = 15.0
+    [output]          every_days = 1.0
+    [hyperviscosity]  nu = 1.5e15, subcycle = 1
+    [leapfrog]        robert_asselin = 0.05
+
+Every problem raises ``SceneError`` (a ValueError) with a one-line message
+naming the offending key or value.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass, field
+from importlib.resources import files
+from pathlib import Path
+
+from .cases import make_case
+from .constants import DAY
+from .gll import NP_MAX, NP_MIN
+from .model import TERMS
+from .steppers import STEPPER_OPTIONS, STEPPERS
+
+HYPERVIS_EXPONENT = 3.2  # ν ∝ Δx^3.2 (HOMME's resolution scaling; Dennis et al. 2012)
+
+
+class SceneError(ValueError):
+    """Invalid scene or override; the message names the field or value."""
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated, resolved scene (all values final, overrides applied).
+
+    dt in s, days in days, nu in m⁴ s⁻¹ (already scaled to this grid).
+    """
+
+    name: str
+    description: str
+    case: str
+    case_params: dict
+    terms: tuple
+    ne: int
+    np: int
+    stepper: str
+    stepper_options: dict
+    dt: float
+    days: float
+    output_every_days: float
+    nu: float
+    hypervis_subcycle: int
+    notes: tuple = field(default=())
+
+    @property
+    def nsteps(self) -> int:
+        return round(self.days * DAY / self.dt)
+
+    def make_case(self):
+        return make_case(self.case, self.case_params)
+
+    def as_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+_SCHEMA = {
+    "description": str,
+    "terms": list,
+    "case": dict,
+    "grid": {"ne": int, "np": int},
+    "time": {"stepper": str, "dt": float, "days": float},
+    "output": {"every_days": float},
+    "hyperviscosity": {"nu": float, "subcycle": int},
+    "leapfrog": {"robert_asselin": float},
+}
+
+
+def scene_dir() -> Path:
+    """Folder of the bundled scenes (testcases/)."""
+    return Path(str(files("swe_sphere.testcases")))
+
+
+def list_scenes() -> list[Path]:
+    return sorted(scene_dir().glob("*.toml"))
+
+
+def resolve_path(spec: str) -> Path:
+    """A scene path, or the name of a bundled scene (with or without .toml)."""
+    p = Path(spec)
+    if p.exists():
+        return p
+    bundled = scene_dir() / (p.name if p.suffix == ".toml" else p.name + ".toml")
+    if bundled.exists() and p.parent == Path("."):
+        return bundled
+    raise SceneError(f"scene file not found: {spec}")
+
+
+def _check_type(key, value, kind):
+    if kind is float and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if kind is int and isinstance(value, float) and value.is_integer():
+        value = int(value)
+    if not isinstance(value, kind) or (kind is not bool and isinstance(value, bool)):
+        raise SceneError(f"{key} must be {kind.__name__} (got {value!r})")
+    if kind is float and not math.isfinite(value):
+        raise SceneError(f"{key} must be finite (got {value!r})")
+    return value
+
+
+def _validate(raw: dict) -> dict:
+    out = {}
+    for key, value in raw.items():
+        if key not in _SCHEMA:
+            raise SceneError(f"unknown key {key!r} in scene (known: {', '.join(_SCHEMA)})")
+        spec = _SCHEMA[key]
+        if isinstance(spec, dict):
+            if not isinstance(value, dict):
+                raise SceneError(f"[{key}] must be a table")
+            sub = {}
+            for k, v in value.items():
+                if k not in spec:
+                    raise SceneError(f"unknown key {key}.{k} in scene (known: {', '.join(spec)})")
+                sub[k] = _check_type(f"{key}.{k}", v, spec[k])
+            out[key] = sub
+        else:
+            out[key] = _check_type(key, value, spec)
+    return out
+
+
+def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None) -> Scene:
+    """Read, validate and resolve a scene file, applying command-line overrides.
+
+    When the grid is overridden and dt is not, dt scales with the smallest
+    grid spacing (∝ 1/(ne·(np−1))) and is shortened to divide the output
+    interval; ν scales as Δx^3.2. Raises ``SceneError``.
+    """
+    path = resolve_path(str(path))
+    try:
+        raw = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as err:
+        raise SceneError(f"malformed TOML in {path}: {err}") from None
+    except OSError as err:
+        raise SceneError(f"cannot read scene {path}: {err.strerror}") from None
+    s = _validate(raw)
+    notes = []
+
+    case = dict(s.get("case", {}))
+    if "name" not in case:
+        raise SceneError("case.name is missing")
+    case_name = case.pop("name")
+    try:
+        make_case(case_name, case)
+    except ValueError as err:
+        raise SceneError(str(err)) from None
+
+    terms = s.get("terms")
+    if not terms:
+        raise SceneError("terms is missing or empty")
+    for t in terms:
+        if t not in TERMS:
+            raise SceneError(f"unknown term {t!r} (known: {', '.join(TERMS)})")
+
+    grid = s.get("grid", {})
+    ne0, np0 = grid.get("ne", 16), grid.get("np", 4)
+    ne1 = ne0 if ne is None else ne
+    np1 = np0 if np is None else np
+    if isinstance(ne1, bool) or int(ne1) != ne1 or ne1 < 1:
+        raise SceneError(f"ne must be an integer >= 1 (got {ne1})")
+    if isinstance(np1, bool) or int(np1) != np1 or not NP_MIN <= np1 <= NP_MAX:
+        raise SceneError(f"np must be an integer in {NP_MIN}..{NP_MAX} (got {np1})")
+    ratio = (ne0 * (np0 - 1)) / (ne1 * (np1 - 1))  # Δx_new / Δx_scene
+
+    t = s.get("time", {})
+    stepper1 = stepper or t.get("stepper", "ssprk3")
+    if stepper1 not in STEPPERS:
+        raise SceneError(f"unknown stepper {stepper1!r} (known: {', '.join(STEPPERS)})")
+    every = s.get("output", {}).get("every_days", 1.0)
+    if not every > 0:
+        raise SceneError(f"output.every_days must be > 0 (got {every})")
+    days1 = t.get("days", 1.0) if days is None else days
+    if not (isinstance(days1, (int, float)) and math.isfinite(days1) and days1 > 0):
+        raise SceneError(f"days must be > 0 (got {days1})")
+    if dt is None:
+        dt1 = t.get("dt")
+        if dt1 is None:
+            raise SceneError("time.dt is missing")
+        if not dt1 > 0:
+            raise SceneError(f"time.dt must be > 0 (got {dt1})")
+        if ratio != 1.0:
+            interval = every * DAY
+            dt1 = interval / math.ceil(interval / (dt1 * ratio) - 1e-9)
+            notes.append(f"dt scaled with the grid spacing to {dt1:g} s")
+    else:
+        dt1 = dt
+    if not (math.isfinite(dt1) and dt1 > 0):
+        raise SceneError(f"dt must be > 0 (got {dt1})")
+    nsteps = round(days1 * DAY / dt1)
+    if nsteps < 1 or abs(nsteps * dt1 - days1 * DAY) > 1e-6 * dt1:
+        raise SceneError(f"dt = {dt1:g} s does not divide the run length of {days1:g} days")
+
+    options = {}
+    if stepper1 in STEPPER_OPTIONS and "leapfrog" in s:
+        options = {k: v for k, v in s["leapfrog"].items() if k in STEPPER_OPTIONS[stepper1]}
+    eps = options.get("robert_asselin", 0.05)
+    if not 0 <= eps < 0.5:
+        raise SceneError(f"leapfrog.robert_asselin must be in [0, 0.5) (got {eps})")
+
+    hv = s.get("hyperviscosity", {})
+    nu = hv.get("nu", 0.0)
+    if nu < 0:
+        raise SceneError(f"hyperviscosity.nu must be >= 0 (got {nu})")
+    if "hyperviscosity" in terms and nu == 0:
+        raise SceneError("the hyperviscosity term needs hyperviscosity.nu > 0")
+    if ratio != 1.0 and nu > 0:
+        nu = nu * ratio**HYPERVIS_EXPONENT
+        notes.append(f"nu scaled as dx^{HYPERVIS_EXPONENT} to {nu:.3g} m^4/s")
+    subcycle = hv.get("subcycle", 1)
+    if subcycle < 1:
+        raise SceneError(f"hyperviscosity.subcycle must be >= 1 (got {subcycle})")
+
+    return Scene(
+        name=path.stem,
+        description=s.get("description", ""),
+        case=case_name,
+        case_params=case,
+        terms=tuple(terms),
+        ne=int(ne1),
+        np=int(np1),
+        stepper=stepper1,
+        stepper_options=options,
+        dt=float(dt1),
+        days=float(days1),
+        output_every_days=float(every),
+        nu=float(nu if "hyperviscosity" in terms else 0.0),
+        hypervis_subcycle=int(subcycle),
+        notes=tuple(notes),
+    )

@@ -1,0 +1,199 @@
+"""The shallow-water model: right-hand side, hyperviscosity and diagnostics operators.
+
+``ShallowWater`` uploads the grid once, allocates its work arrays once and
+records every kernel launch the first time it is used on a given pair of
+arrays; afterwards ``rhs`` and ``hyperviscosity`` only replay recorded
+launches (no allocation in the time loop). Only the scene's terms are
+launched. Mirrors HOMME's ``compute_and_apply_rhs`` + ``advance_hypervis``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from .constants import EARTH
+from .grid import CubedSphere
+from .kernels import blas, dss, hyperviscosity, operators, tendencies
+
+TERMS = (
+    "continuity",
+    "momentum_advection",
+    "coriolis",
+    "pressure_gradient",
+    "topography",
+    "hyperviscosity",
+)
+
+f64 = wp.float64
+
+
+def default_device() -> str:
+    """'cuda' when Warp sees a CUDA device, else 'cpu'."""
+    return "cuda" if wp.is_cuda_available() else "cpu"
+
+
+class ShallowWater:
+    """Vector-invariant shallow-water equations on a cubed-sphere SE grid.
+
+    Parameters
+    ----------
+    grid : CubedSphere
+    terms : iterable of names from ``TERMS``; a term not named launches no kernel.
+    fcor, hs : (N,) Coriolis parameter (s⁻¹) and surface height (m), element-local.
+    nu : hyperviscosity coefficient (m⁴ s⁻¹), used if "hyperviscosity" is a term.
+    hypervis_subcycle : forward-Euler substeps per ``hyperviscosity`` call.
+    device : "cpu" or "cuda".
+
+    The state is a ``wp.array2d`` (3, N) of rows u, v (m s⁻¹, east/north) and h
+    (fluid depth, m), element-local and continuous (equal on all copies).
+
+    Raises ``ValueError`` for an unknown term or a negative ν.
+    """
+
+    def __init__(self, grid: CubedSphere, terms, fcor, hs, *, nu=0.0, hypervis_subcycle=1, g=EARTH.g, device="cpu"):
+        terms = tuple(terms)
+        for t in terms:
+            if t not in TERMS:
+                raise ValueError(f"unknown term {t!r} (known: {', '.join(TERMS)})")
+        if nu < 0:
+            raise ValueError(f"hyperviscosity nu must be >= 0 (got {nu})")
+        self.grid, self.terms, self.device = grid, terms, device
+        self.nu, self.hypervis_subcycle, self.g = float(nu), int(hypervis_subcycle), float(g)
+        N = grid.npts
+        self.N = N
+
+        def up(a, dtype=f64):
+            return wp.array(np.ascontiguousarray(a), dtype=dtype, device=device)
+
+        self.D, self.Dinv = up(grid.D), up(grid.Dinv)
+        self.metdet, self.spheremp, self.rspheremp = up(grid.metdet), up(grid.spheremp), up(grid.rspheremp)
+        self.dvv = up(grid.rule.dvv)
+        self.gid, self.offsets, self.copies = up(grid.gid, wp.int32), up(grid.dss_offsets, wp.int32), up(grid.dss_copies, wp.int32)
+        self.xyz, self.east, self.north = up(grid.xyz), up(grid.east), up(grid.north)
+        self.fcor, self.hs = up(fcor), up(hs)
+        self.hs_np = np.asarray(hs, dtype=float)
+
+        self.tend = wp.zeros((3, N), dtype=f64, device=device)
+        self.scalar = wp.zeros((1, N), dtype=f64, device=device)
+        self.scalar_dss = wp.zeros((1, N), dtype=f64, device=device)
+        self.scalar_flat = self.scalar.flatten()
+        self.bad = wp.zeros(1, dtype=wp.int32, device=device)
+        self.topo_forcing = None
+        if "topography" in terms:
+            self.topo_forcing = wp.zeros((2, N), dtype=f64, device=device)
+            hs2 = wp.array(np.asarray(hs, dtype=float)[None, :], dtype=f64, device=device)
+            wp.launch(operators.gradient_sphere, N, [hs2, 0, self.Dinv, self.dvv, grid.np, self.topo_forcing], device=device)
+            forcing = -self.g * self.topo_forcing.numpy()
+            self.topo_forcing.assign(forcing)
+        if "hyperviscosity" in terms:
+            self.hv_X = wp.zeros((4, N), dtype=f64, device=device)
+            self.hv_flux = wp.zeros((8, N), dtype=f64, device=device)
+            self.hv_L = wp.zeros((4, N), dtype=f64, device=device)
+        self._recorded: dict[tuple, list] = {}
+
+    # -- launch recording ---------------------------------------------------
+    def _launch(self, kernel, dim, inputs):
+        return wp.launch(kernel, dim, inputs, device=self.device, record_cmd=True)
+
+    def _replay(self, key, build):
+        launches = self._recorded.get(key)
+        if launches is None:
+            launches = self._recorded[key] = build()
+        for launch in launches:
+            launch.launch()
+        return launches
+
+    def _dss(self, x, weighted, out):
+        rows = x.shape[0]
+        return self._launch(
+            dss.dss, (rows, self.N), [x, weighted, self.spheremp, self.rspheremp, self.gid, self.offsets, self.copies, out]
+        )
+
+    # -- right-hand side ----------------------------------------------------
+    def _build_rhs(self, x, out):
+        g, N, np_, t = self.grid, self.N, self.grid.np, self.terms
+        launches = []
+        if "continuity" in t:
+            launches.append(self._launch(tendencies.continuity, N, [x, self.Dinv, self.metdet, self.dvv, np_, self.tend]))
+        if "momentum_advection" in t:
+            launches.append(
+                self._launch(tendencies.momentum_advection, N, [x, self.D, self.Dinv, self.metdet, self.dvv, np_, self.tend])
+            )
+        if "coriolis" in t:
+            launches.append(self._launch(tendencies.coriolis, N, [x, self.fcor, self.tend]))
+        if "pressure_gradient" in t:
+            launches.append(self._launch(tendencies.pressure_gradient, N, [x, self.g, self.Dinv, self.dvv, np_, self.tend]))
+        if "topography" in t:
+            launches.append(self._launch(tendencies.add_wind_forcing, N, [self.topo_forcing, self.tend]))
+        launches.append(self._dss(self.tend, 1, out))
+        return launches
+
+    def rhs(self, x: wp.array2d, out: wp.array2d) -> None:
+        """out = F(x): the DSS'd tendency (3, N) of the non-dissipative terms
+        (du/dt, dv/dt in m s⁻²; dh/dt in m s⁻¹). ``out`` must not alias ``x``."""
+        self.tend.zero_()
+        self._replay(("rhs", x.ptr, out.ptr), lambda: self._build_rhs(x, out))
+
+    def rhs_kernels(self, x: wp.array2d, out: wp.array2d) -> list[str]:
+        """Names of the kernels ``rhs(x, out)`` launches (recorded on first use)."""
+        key = ("rhs", x.ptr, out.ptr)
+        if key not in self._recorded:
+            self.rhs(x, out)
+        return [launch.kernel.key for launch in self._recorded[key]]
+
+    # -- hyperviscosity -----------------------------------------------------
+    def _build_hv(self, x, coef):
+        N, np_ = self.N, self.grid.np
+        X, flux, L = self.hv_X, self.hv_flux, self.hv_L
+
+        def laplacian():  # X → DSS'd weak Laplacian in X
+            return [
+                self._launch(operators.laplace_wk_flux, (4, N), [X, self.Dinv, self.spheremp, self.dvv, np_, flux]),
+                self._launch(operators.laplace_wk_div, (4, N), [flux, self.dvv, np_, L]),
+                self._dss(L, 0, X),
+            ]
+
+        return [
+            self._launch(hyperviscosity.to_cartesian, N, [x, self.hs, self.east, self.north, X]),
+            *laplacian(),
+            self._launch(hyperviscosity.project_tangent, N, [X, self.xyz]),
+            *laplacian(),
+            self._launch(hyperviscosity.apply, N, [X, f64(coef), self.east, self.north, x]),
+        ]
+
+    def hyperviscosity(self, x: wp.array2d, dt: float) -> None:
+        """Apply ∇⁴ hyperviscosity over dt (s) in place, split from the dynamics:
+        ``hypervis_subcycle`` forward-Euler steps of x −= (dt/n) ν ∇⁴x (HOMME
+        ``advance_hypervis``). Does nothing (launches nothing) without the term."""
+        if "hyperviscosity" not in self.terms or self.nu == 0.0:
+            return
+        coef = -self.nu * dt / self.hypervis_subcycle
+        for _ in range(self.hypervis_subcycle):
+            self._replay(("hv", x.ptr, coef), lambda: self._build_hv(x, coef))
+
+    # -- diagnostics helpers ------------------------------------------------
+    def vorticity(self, x: wp.array2d) -> np.ndarray:
+        """Relative vorticity ζ (s⁻¹), (N,) numpy, with the model's operator and a DSS."""
+        wp.launch(
+            operators.vorticity_sphere, self.N, [x, self.D, self.metdet, self.dvv, self.grid.np, self.scalar_flat], device=self.device
+        )
+        wp.launch(dss.dss, (1, self.N), [self.scalar, 1, self.spheremp, self.rspheremp, self.gid, self.offsets, self.copies, self.scalar_dss], device=self.device)
+        return self.scalar_dss.numpy()[0].copy()
+
+    def first_bad_node(self, x: wp.array2d) -> int | None:
+        """Index of the first node with a non-finite value or (when the scene
+        has a pressure gradient, so h is a depth) h ≤ 0; None if all are good."""
+        self.bad.fill_(self.N)
+        check_depth = 1 if "pressure_gradient" in self.terms else 0
+        self._replay(("guard", x.ptr), lambda: [self._launch(blas.first_bad_node, self.N, [x, check_depth, self.bad])])
+        first = int(self.bad.numpy()[0])
+        return None if first == self.N else first
+
+    def new_state(self, u=None, v=None, h=None) -> wp.array2d:
+        """A (3, N) device state from element-local numpy rows (zeros where None)."""
+        a = np.zeros((3, self.N))
+        for r, f in enumerate((u, v, h)):
+            if f is not None:
+                a[r] = f
+        return wp.array(a, dtype=f64, device=self.device)

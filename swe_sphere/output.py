@@ -1,0 +1,119 @@
+"""netCDF output of a run (HOMME/EAM native-output style, CF attributes).
+
+Fields on unique nodes ``(time, ncol)`` with ``lat``, ``lon`` (degrees) and
+``area`` (m²) on ``ncol``; diagnostics as time series on ``time``. The file is
+written under a temporary name beside the target and renamed when closed, so
+the target appears complete or not at all; a run that blows up closes it with
+every good output time kept.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import netCDF4
+import numpy as np
+
+from .grid import CubedSphere
+
+FIELDS = {
+    "h": dict(units="m", long_name="fluid depth", standard_name="lwe_thickness_of_water"),
+    "hs": dict(units="m", long_name="surface height", standard_name="surface_altitude"),
+    "u": dict(units="m s-1", long_name="eastward wind", standard_name="eastward_wind"),
+    "v": dict(units="m s-1", long_name="northward wind", standard_name="northward_wind"),
+}
+
+SERIES_ATTRS = {
+    "mass": dict(units="m3", long_name="mass (area integral of h)"),
+    "total_energy": dict(units="m5 s-2", long_name="total energy"),
+    "potential_enstrophy": dict(units="m s-2", long_name="potential enstrophy"),
+    "mass_change": dict(units="1", long_name="relative change of mass since t = 0"),
+    "total_energy_change": dict(units="1", long_name="relative change of total energy since t = 0"),
+    "potential_enstrophy_change": dict(units="1", long_name="relative change of potential enstrophy since t = 0"),
+    "rhs_evals": dict(units="1", long_name="cumulative right-hand-side evaluations"),
+    "wall_time": dict(units="s", long_name="cumulative wall time of the time loop"),
+    "steps": dict(units="1", long_name="time steps taken"),
+}
+for _f in ("h", "wind"):
+    for _n, _long in (("l1", "normalized l1"), ("l2", "normalized l2"), ("linf", "normalized l-infinity")):
+        SERIES_ATTRS[f"{_n}_{_f}"] = dict(units="1", long_name=f"{_long} error of {_f} against the exact solution (Williamson et al. 1992)")
+
+
+def check_writable(path: Path) -> None:
+    """Raise ValueError (one line) if ``path`` cannot be created."""
+    parent = path.resolve().parent
+    if path.is_dir():
+        raise ValueError(f"output path is a directory: {path}")
+    if not parent.is_dir():
+        raise ValueError(f"output directory does not exist: {parent}")
+    if not os.access(parent, os.W_OK):
+        raise ValueError(f"output directory is not writable: {parent}")
+
+
+class RunWriter:
+    """Writes one run to ``path`` (netCDF4), via ``path.part`` until ``close``.
+
+    ``attrs``: global attributes (strings or numbers; dicts become JSON).
+    ``series``: names of the diagnostics time series (see ``SERIES_ATTRS``).
+    """
+
+    def __init__(self, path, grid: CubedSphere, hs: np.ndarray, attrs: dict, series):
+        self.path = Path(path)
+        self.tmp = self.path.with_name(self.path.name + ".part")
+        self.grid = grid
+        ds = self.ds = netCDF4.Dataset(self.tmp, "w", format="NETCDF4")
+        ds.Conventions = "CF-1.8"
+        for k, v in attrs.items():
+            setattr(ds, k, json.dumps(v) if isinstance(v, (dict, list, tuple)) else v)
+        ds.createDimension("time", None)
+        ds.createDimension("ncol", grid.nunique)
+        t = ds.createVariable("time", "f8", ("time",))
+        t.units, t.calendar, t.standard_name, t.axis = "days since 0001-01-01 00:00:00", "noleap", "time", "T"
+        for name, deg, std in (("lat", np.degrees(grid.lat), "latitude"), ("lon", np.degrees(grid.lon), "longitude")):
+            var = ds.createVariable(name, "f8", ("ncol",))
+            var.units = "degrees_north" if name == "lat" else "degrees_east"
+            var.standard_name = std
+            var[:] = grid.to_unique(deg)
+        area = ds.createVariable("area", "f8", ("ncol",))
+        area.units, area.long_name, area.standard_name = "m2", "area of the node's quadrature cell (assembled spheremp)", "cell_area"
+        area[:] = grid.area
+        hsv = ds.createVariable("hs", "f8", ("ncol",))
+        hsv.setncatts({**FIELDS["hs"], "coordinates": "lat lon"})
+        hsv[:] = grid.to_unique(hs)
+        for name in ("h", "u", "v"):
+            var = ds.createVariable(name, "f8", ("time", "ncol"), zlib=False)
+            var.setncatts({**FIELDS[name], "coordinates": "lat lon", "cell_measures": "area: area"})
+        for name in series:
+            var = ds.createVariable(name, "f8", ("time",))
+            var.setncatts(SERIES_ATTRS[name])
+        self.n = 0
+
+    def append(self, time_s: float, u, v, h, series: dict) -> None:
+        """Add one output time (s since start); fields element-local (N,)."""
+        ds, n, g = self.ds, self.n, self.grid
+        ds["time"][n] = time_s / 86400.0
+        ds["u"][n, :] = g.to_unique(u)
+        ds["v"][n, :] = g.to_unique(v)
+        ds["h"][n, :] = g.to_unique(h)
+        for k, val in series.items():
+            ds[k][n] = val
+        ds.sync()
+        self.n += 1
+
+    def set_attrs(self, **attrs) -> None:
+        for k, v in attrs.items():
+            setattr(self.ds, k, json.dumps(v) if isinstance(v, (dict, list, tuple)) else v)
+
+    def close(self) -> None:
+        """Finish the file and move it to its final name."""
+        self.ds.close()
+        os.replace(self.tmp, self.path)
+
+    def abort(self) -> None:
+        """Drop the partial file."""
+        try:
+            self.ds.close()
+        finally:
+            self.tmp.unlink(missing_ok=True)

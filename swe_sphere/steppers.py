@@ -1,0 +1,222 @@
+"""Time steppers behind one interface.
+
+A stepper is built with the model, the step ``dt`` (s) and its options; it
+allocates its buffers and records its launches once, then ``step(x)``
+advances the state ``x`` (3, N) in place by dt and returns a ``StepStats``.
+Hyperviscosity is applied after each step, split from the dynamics, as in
+HOMME (``advance_hypervis``): forward Euler over the span the step covers.
+The semi-implicit and implicit steppers join this registry later.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import warp as wp
+
+from .kernels import blas
+from .model import ShallowWater
+
+f64 = wp.float64
+
+
+@dataclass
+class StepStats:
+    """What one step cost: RHS evaluations and solver iterations (by solver name)."""
+
+    rhs_evals: int
+    iterations: dict = field(default_factory=dict)
+
+
+class Stepper:
+    """Base class. Subclasses set ``name`` and implement ``step``."""
+
+    name = ""
+    options: dict[str, type] = {}
+
+    def __init__(self, model: ShallowWater, dt: float):
+        if not dt > 0:
+            raise ValueError(f"dt must be > 0 (got {dt})")
+        self.model, self.dt = model, float(dt)
+        self.N = model.N
+
+    def _buffer(self):
+        return wp.zeros((3, self.N), dtype=f64, device=self.model.device)
+
+    def _lincomb(self, out, *terms):
+        """Record out = Σ c·x for two or three (c, x) pairs; returns the launch."""
+        args = [a for c, x in terms for a in (f64(c), x)]
+        kernel = blas.axpby if len(terms) == 2 else blas.axpbypcz
+        return wp.launch(kernel, (3, self.N), [*args, out], device=self.model.device, record_cmd=True)
+
+    def step(self, x: wp.array2d) -> StepStats:
+        raise NotImplementedError
+
+
+class SSPRK3(Stepper):
+    """Three-stage, third-order strong-stability-preserving Runge–Kutta
+    (Shu & Osher 1988, eq. 2.18). 3 RHS evaluations per step."""
+
+    name = "ssprk3"
+
+    def __init__(self, model, dt):
+        super().__init__(model, dt)
+        self.k, self.s1, self.s2 = self._buffer(), self._buffer(), self._buffer()
+        self._x = None
+
+    def _record(self, x):
+        dt, k, s1, s2 = self.dt, self.k, self.s1, self.s2
+        self._x = x
+        self._l1 = self._lincomb(s1, (1.0, x), (dt, k))
+        self._l2 = self._lincomb(s2, (0.75, x), (0.25, s1), (0.25 * dt, k))
+        self._l3 = self._lincomb(x, (1.0 / 3.0, x), (2.0 / 3.0, s2), (2.0 / 3.0 * dt, k))
+
+    def step(self, x):
+        if self._x is not x:
+            self._record(x)
+        m = self.model
+        m.rhs(x, self.k)
+        self._l1.launch()
+        m.rhs(self.s1, self.k)
+        self._l2.launch()
+        m.rhs(self.s2, self.k)
+        self._l3.launch()
+        m.hyperviscosity(x, self.dt)
+        return StepStats(3)
+
+
+class RK4(Stepper):
+    """Classical fourth-order Runge–Kutta. 4 RHS evaluations per step."""
+
+    name = "rk4"
+
+    def __init__(self, model, dt):
+        super().__init__(model, dt)
+        self.k, self.s, self.acc = self._buffer(), self._buffer(), self._buffer()
+        self._x = None
+
+    def _record(self, x):
+        dt, k, s, acc = self.dt, self.k, self.s, self.acc
+        self._x = x
+        self._stages = [
+            (x, [self._lincomb(s, (1.0, x), (dt / 2, k)), self._lincomb(acc, (1.0, x), (dt / 6, k))]),
+            (s, [self._lincomb(acc, (1.0, acc), (dt / 3, k)), self._lincomb(s, (1.0, x), (dt / 2, k))]),
+            (s, [self._lincomb(acc, (1.0, acc), (dt / 3, k)), self._lincomb(s, (1.0, x), (dt, k))]),
+            (s, [self._lincomb(x, (1.0, acc), (dt / 6, k))]),
+        ]
+
+    def step(self, x):
+        if self._x is not x:
+            self._record(x)
+        for arg, launches in self._stages:
+            self.model.rhs(arg, self.k)
+            for launch in launches:
+                launch.launch()
+        self.model.hyperviscosity(x, self.dt)
+        return StepStats(4)
+
+
+class _LeapfrogFamily(Stepper):
+    """Three-level schemes: keep x(n−1); the first step is the explicit
+    midpoint rule (second order, 2 RHS evaluations)."""
+
+    def __init__(self, model, dt):
+        super().__init__(model, dt)
+        self.old, self.k, self.new = self._buffer(), self._buffer(), self._buffer()
+        self._x = None
+
+    def _record(self, x):
+        dt = self.dt
+        self._x = x
+        self._start_mid = self._lincomb(self.new, (1.0, x), (dt / 2, self.k))
+        self._start_keep = self._lincomb(self.old, (1.0, x), (0.0, x))
+        self._start_end = self._lincomb(x, (1.0, x), (dt, self.k))
+        self._copy_new = self._lincomb(x, (1.0, self.new), (0.0, self.new))
+        self._record_scheme(x)
+
+    def step(self, x):
+        if self._x is not x:
+            self._record(x)
+            m = self.model
+            m.rhs(x, self.k)
+            self._start_mid.launch()
+            m.rhs(self.new, self.k)
+            self._start_keep.launch()
+            self._start_end.launch()
+            m.hyperviscosity(x, self.dt)
+            return StepStats(2)
+        return self._step(x)
+
+
+class Leapfrog(_LeapfrogFamily):
+    """Leapfrog x(n+1) = x(n−1) + 2Δt F(x(n)) with the Robert–Asselin filter
+    x(n) += ε (x(n−1) − 2x(n) + x(n+1)) (Robert 1966; Asselin 1972).
+    Hyperviscosity acts on x(n+1) over 2Δt. 1 RHS evaluation per step."""
+
+    name = "leapfrog"
+
+    def __init__(self, model, dt, robert_asselin: float = 0.05):
+        super().__init__(model, dt)
+        if not 0 <= robert_asselin < 0.5:
+            raise ValueError(f"robert_asselin must be in [0, 0.5) (got {robert_asselin})")
+        self.eps = float(robert_asselin)
+
+    def _record_scheme(self, x):
+        eps = self.eps
+        self._lf = self._lincomb(self.new, (1.0, self.old), (2 * self.dt, self.k))
+        self._ra = self._lincomb(self.old, (1 - 2 * eps, x), (eps, self.old), (eps, self.new))
+
+    def _step(self, x):
+        m = self.model
+        m.rhs(x, self.k)
+        self._lf.launch()
+        m.hyperviscosity(self.new, 2 * self.dt)
+        self._ra.launch()
+        self._copy_new.launch()
+        return StepStats(1)
+
+
+class LeapfrogTrapezoidal(_LeapfrogFamily):
+    """HOMME's leapfrog-trapezoidal step (LFTfreq = 1; Kurihara 1965): a leapfrog
+    predictor x* = x(n−1) + 2Δt F(x(n)) and a trapezoidal corrector
+    x(n+1) = x(n) + Δt/2 (F(x(n)) + F(x*)). No filter; the corrector damps
+    the computational mode. Hyperviscosity over Δt. 2 RHS evaluations per step."""
+
+    name = "leapfrog_trapezoidal"
+
+    def __init__(self, model, dt):
+        super().__init__(model, dt)
+        self.k2 = self._buffer()
+
+    def _record_scheme(self, x):
+        dt = self.dt
+        self._pred = self._lincomb(self.new, (1.0, self.old), (2 * dt, self.k))
+        self._keep = self._lincomb(self.old, (1.0, x), (0.0, x))
+        self._corr = self._lincomb(x, (1.0, x), (dt / 2, self.k), (dt / 2, self.k2))
+
+    def _step(self, x):
+        m = self.model
+        m.rhs(x, self.k)
+        self._pred.launch()
+        m.rhs(self.new, self.k2)
+        self._keep.launch()
+        self._corr.launch()
+        m.hyperviscosity(x, self.dt)
+        return StepStats(2)
+
+
+STEPPERS: dict[str, type[Stepper]] = {
+    cls.name: cls for cls in (Leapfrog, LeapfrogTrapezoidal, SSPRK3, RK4)
+}
+STEPPER_OPTIONS = {"leapfrog": {"robert_asselin": float}}
+
+
+def make_stepper(name: str, model: ShallowWater, dt: float, **options) -> Stepper:
+    """Build a registered stepper; ValueError names an unknown stepper or option."""
+    if name not in STEPPERS:
+        raise ValueError(f"unknown stepper {name!r} (known: {', '.join(STEPPERS)})")
+    allowed = STEPPER_OPTIONS.get(name, {})
+    for key in options:
+        if key not in allowed:
+            raise ValueError(f"unknown option {key!r} for stepper {name}")
+    return STEPPERS[name](model, dt, **options)

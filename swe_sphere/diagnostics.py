@@ -42,11 +42,9 @@ def invariants(grid: CubedSphere, u, v, h, hs, zeta, fcor, g) -> dict[str, float
     Williamson et al. (1992) ask to be monitored."""
     w = grid.spheremp
     energy = 0.5 * h * (u * u + v * v) + 0.5 * g * ((h + hs) ** 2 - hs**2)
-    return {
-        "mass": float(np.dot(w, h)),
-        "total_energy": float(np.dot(w, energy)),
-        "potential_enstrophy": float(np.dot(w, 0.5 * (zeta + fcor) ** 2 / h)),
-    }
+    with np.errstate(divide="ignore", invalid="ignore"):  # h = 0 where h is a tracer (TC1)
+        enstrophy = float(np.dot(w, 0.5 * (zeta + fcor) ** 2 / h))
+    return {"mass": float(np.dot(w, h)), "total_energy": float(np.dot(w, energy)), "potential_enstrophy": enstrophy}
 
 
 def courant_numbers(grid: CubedSphere, u, v, h, dt, g, gravity_waves=True) -> dict[str, float]:

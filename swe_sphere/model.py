@@ -90,19 +90,20 @@ class ShallowWater:
             self.hv_X = wp.zeros((4, N), dtype=f64, device=device)
             self.hv_flux = wp.zeros((8, N), dtype=f64, device=device)
             self.hv_L = wp.zeros((4, N), dtype=f64, device=device)
-        self._recorded: dict[tuple, list] = {}
+        self._recorded: dict[tuple, tuple] = {}
 
     # -- launch recording ---------------------------------------------------
     def _launch(self, kernel, dim, inputs):
         return wp.launch(kernel, dim, inputs, device=self.device, record_cmd=True)
 
-    def _replay(self, key, build):
-        launches = self._recorded.get(key)
-        if launches is None:
-            launches = self._recorded[key] = build()
-        for launch in launches:
+    def _replay(self, key, arrays, build):
+        """Replay the launches recorded under ``key``, recording them first if new.
+        The cache holds ``arrays`` so that their addresses (part of the key) stay theirs."""
+        entry = self._recorded.get(key)
+        if entry is None:
+            entry = self._recorded[key] = (build(), arrays)
+        for launch in entry[0]:
             launch.launch()
-        return launches
 
     def _dss(self, x, weighted, out):
         rows = x.shape[0]
@@ -133,14 +134,14 @@ class ShallowWater:
         """out = F(x): the DSS'd tendency (3, N) of the non-dissipative terms
         (du/dt, dv/dt in m s⁻²; dh/dt in m s⁻¹). ``out`` must not alias ``x``."""
         self.tend.zero_()
-        self._replay(("rhs", x.ptr, out.ptr), lambda: self._build_rhs(x, out))
+        self._replay(("rhs", x.ptr, out.ptr), (x, out), lambda: self._build_rhs(x, out))
 
     def rhs_kernels(self, x: wp.array2d, out: wp.array2d) -> list[str]:
         """Names of the kernels ``rhs(x, out)`` launches (recorded on first use)."""
         key = ("rhs", x.ptr, out.ptr)
         if key not in self._recorded:
             self.rhs(x, out)
-        return [launch.kernel.key for launch in self._recorded[key]]
+        return [launch.kernel.key for launch in self._recorded[key][0]]
 
     # -- hyperviscosity -----------------------------------------------------
     def _build_hv(self, x, coef):
@@ -170,7 +171,7 @@ class ShallowWater:
             return
         coef = -self.nu * dt / self.hypervis_subcycle
         for _ in range(self.hypervis_subcycle):
-            self._replay(("hv", x.ptr, coef), lambda: self._build_hv(x, coef))
+            self._replay(("hv", x.ptr, coef), (x,), lambda: self._build_hv(x, coef))
 
     # -- diagnostics helpers ------------------------------------------------
     def vorticity(self, x: wp.array2d) -> np.ndarray:
@@ -186,7 +187,7 @@ class ShallowWater:
         has a pressure gradient, so h is a depth) h ≤ 0; None if all are good."""
         self.bad.fill_(self.N)
         check_depth = 1 if "pressure_gradient" in self.terms else 0
-        self._replay(("guard", x.ptr), lambda: [self._launch(blas.first_bad_node, self.N, [x, check_depth, self.bad])])
+        self._replay(("guard", x.ptr), (x,), lambda: [self._launch(blas.first_bad_node, self.N, [x, check_depth, self.bad])])
         first = int(self.bad.numpy()[0])
         return None if first == self.N else first
 

@@ -39,6 +39,11 @@ SERIES_ATTRS = {
 for _f in ("h", "wind"):
     for _n, _long in (("l1", "normalized l1"), ("l2", "normalized l2"), ("linf", "normalized l-infinity")):
         SERIES_ATTRS[f"{_n}_{_f}"] = dict(units="1", long_name=f"{_long} error of {_f} against the exact solution (Williamson et al. 1992)")
+for _f, _what in (("h_surface", "free-surface height h + hs"), ("wind", "wind")):
+    for _n, _long in (("l1", "normalized l1"), ("l2", "normalized l2"), ("linf", "normalized l-infinity")):
+        SERIES_ATTRS[f"ref_{_n}_{_f}"] = dict(
+            units="1", long_name=f"{_long} error of the {_what} against the T213 reference (NaN where it stores no output)"
+        )
 
 
 def check_writable(path: Path) -> None:

@@ -19,6 +19,7 @@ from .diagnostics import courant_numbers, invariants, williamson_norms, williams
 from .grid import CubedSphere
 from .model import ShallowWater
 from .output import RunWriter
+from .reference import Reference, find_reference
 from .steppers import make_stepper
 
 
@@ -59,6 +60,8 @@ class Simulation:
             grid, scene.terms, self.fcor, self.hs, nu=scene.nu, hypervis_subcycle=scene.hypervis_subcycle, g=self.g, device=device
         )
         self.stepper = make_stepper(scene.stepper, self.model, scene.dt, **scene.stepper_options)
+        ref_path = find_reference(scene.case, scene.case_params.get("perturbed", True))
+        self.reference = Reference(ref_path) if ref_path is not None else None
         u, v, h = case.initial(grid.lat, grid.lon)
         self.x = self.model.new_state(u, v, h)
         self.last_good = wp.clone(self.x)
@@ -75,8 +78,8 @@ class Simulation:
         u, v, h = self.fields(x)
         zeta = self.model.vorticity(self.x if x is None else x)
         d = invariants(self.grid, u, v, h, self.hs, zeta, self.fcor, self.g)
-        if "continuity" in self.scene.terms and "pressure_gradient" not in self.scene.terms:
-            d.pop("total_energy"), d.pop("potential_enstrophy")  # h is a tracer, not a depth
+        if "pressure_gradient" not in self.scene.terms:  # h is a tracer (TC1), not a depth
+            d = {"mass": d["mass"]}
         if hasattr(self, "initial"):
             for k in list(d):
                 d[f"{k}_change"] = (d[k] - self.initial[k]) / abs(self.initial[k])
@@ -86,7 +89,20 @@ class Simulation:
             ue, ve, he = self.case.exact(self.grid.lat, self.grid.lon, t)
             d.update({f"{k}_h": val for k, val in williamson_norms(self.grid, h, he).items()})
             d.update({f"{k}_wind": val for k, val in williamson_vector_norms(self.grid, u, v, ue, ve).items()})
+        if self.reference is not None:
+            d.update(self._reference_errors(t / DAY, u, v, h))
         return d
+
+    def _reference_errors(self, day, u, v, h) -> dict:
+        """Normalized errors of the free surface h + hs and of the wind against the
+        T213 reference (NaN at days the reference does not store)."""
+        names = [f"ref_{k}_{f}" for f in ("h_surface", "wind") for k in ("l1", "l2", "linf")]
+        if np.min(np.abs(self.reference.days - day)) > 1e-6:
+            return dict.fromkeys(names, float("nan"))
+        r = self.reference.at(day, self.grid.lat, self.grid.lon)
+        out = {f"ref_{k}_h_surface": val for k, val in williamson_norms(self.grid, h + self.hs, r["h_surface"]).items()}
+        out.update({f"ref_{k}_wind": val for k, val in williamson_vector_norms(self.grid, u, v, r["u"], r["v"]).items()})
+        return out
 
     def courant(self) -> dict:
         u, v, h = self.fields()
@@ -149,7 +165,8 @@ class Simulation:
                     rhs_evals += stats.rhs_evals
                     if bad is not None:
                         blowup = self._blowup_message(n, bad)
-                        record(n - 1, self.last_good)
+                        if n - 1 not in out_steps:
+                            record(n - 1, self.last_good)
                         if writer is not None:
                             writer.set_attrs(blowup=blowup)
                         break

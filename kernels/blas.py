@@ -21,6 +21,13 @@ def axpbypcz(a: f64, x: wp.array2d(dtype=f64), b: f64, y: wp.array2d(dtype=f64),
 
 
 @wp.kernel
+def axpby1d(a: f64, x: wp.array(dtype=f64), b: f64, y: wp.array(dtype=f64), out: wp.array(dtype=f64)):
+    """out = a·x + b·y on 1-D arrays (out may alias x or y)."""
+    i = wp.tid()
+    out[i] = a * x[i] + b * y[i]
+
+
+@wp.kernel
 def first_bad_node(x: wp.array2d(dtype=f64), check_depth: int, first: wp.array(dtype=wp.int32)):
     """first[0] = min index p where u, v or h is not finite, or (if check_depth) h ≤ 0;
     unchanged if there is none. Dim N."""

@@ -37,3 +37,29 @@ def dss(
         else:
             s += x[r, c]
     out[r, p] = rspheremp[p] * s
+
+
+@wp.kernel
+def assemble(
+    x: wp.array2d(dtype=f64),
+    row: int,
+    spheremp: wp.array(dtype=f64),
+    offsets: wp.array(dtype=wp.int32),
+    copies: wp.array(dtype=wp.int32),
+    out: wp.array(dtype=f64),
+):
+    """Unique-node vector out[g] = Σ_copies c of g spheremp[c]·x[row, c]: the assembled
+    mass matrix times a continuous field (m² × units of x). Dim nunique."""
+    g = wp.tid()
+    s = f64(0.0)
+    for k in range(offsets[g], offsets[g + 1]):
+        c = copies[k]
+        s += spheremp[c] * x[row, c]
+    out[g] = s
+
+
+@wp.kernel
+def scatter(y: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32), row: int, out: wp.array2d(dtype=f64)):
+    """Element-local out[row, p] = y[gid[p]] from a unique-node vector. Dim N."""
+    p = wp.tid()
+    out[row, p] = y[gid[p]]

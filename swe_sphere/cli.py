@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -35,6 +36,20 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
     sub.add_parser("list", help="list bundled scenes, steppers and terms")
     return p
+
+
+def _quiet_warp_init(wp) -> None:
+    """Initialise Warp with the process's stderr closed: its native code prints a
+    CUDA-driver warning there on machines without a GPU, below Python's reach."""
+    sys.stderr.flush()
+    saved, null = os.dup(2), os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, 2)
+        wp.init()
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(null)
 
 
 def _fail(message: str, code: int) -> int:
@@ -74,6 +89,7 @@ def _cmd_run(args) -> int:
     import warp as wp
 
     wp.config.log_level = wp.LOG_ERROR  # no init banner or per-module load lines
+    _quiet_warp_init(wp)
     from .model import default_device
     from .simulation import BlowUp, Simulation
 
@@ -108,6 +124,8 @@ def _summary(r) -> None:
     print("summary")
     print(f"  wall time   {r.wall_time:.2f} s for {r.steps} steps ({1e3 * r.wall_time / max(r.steps, 1):.2f} ms/step), setup {r.setup_time:.2f} s")
     print(f"  RHS evals   {r.rhs_evals}")
+    for k, total in r.iterations.items():
+        print(f"  {k:11s} {total} iterations, {total / max(r.steps, 1):.1f} per step")
     for k in ("mass", "total_energy", "potential_enstrophy"):
         if k in d:
             print(f"  {k:20s} {d[k]:.10e}  relative change {d[k + '_change']:+.3e}")

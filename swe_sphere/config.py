@@ -10,7 +10,8 @@ the run length, the output interval and the hyperviscosity. Layout::
     [time]            stepper = "leapfrog_trapezoidal", dt = 90.0, days = 15.0
     [output]          every_days = 1.0
     [hyperviscosity]  nu = 1.5e15, subcycle = 1
-    [leapfrog]        robert_asselin = 0.05
+    [leapfrog]        robert_asselin = 0.05   (a table per stepper, named after
+                      it, holds that stepper's options)
 
 Every problem raises ``SceneError`` (a ValueError) with a one-line message
 naming the offending key or value.
@@ -29,7 +30,7 @@ from .cases import make_case
 from .constants import DAY
 from .gll import NP_MAX, NP_MIN
 from .model import TERMS
-from .steppers import STEPPER_OPTIONS, STEPPERS
+from .steppers import STEPPERS
 
 HYPERVIS_EXPONENT = 3.2  # ν ∝ Δx^3.2 (HOMME's resolution scaling; Dennis et al. 2012)
 
@@ -80,7 +81,8 @@ _SCHEMA = {
     "time": {"stepper": str, "dt": float, "days": float},
     "output": {"every_days": float},
     "hyperviscosity": {"nu": float, "subcycle": int},
-    "leapfrog": {"robert_asselin": float},
+    # one table per stepper, named after it, with the stepper's own options
+    **{name: dict(cls.options) for name, cls in STEPPERS.items() if cls.options},
 }
 
 
@@ -206,13 +208,15 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None) -> S
     nsteps = round(days1 * DAY / dt1)
     if nsteps < 1 or abs(nsteps * dt1 - days1 * DAY) > 1e-6 * dt1:
         raise SceneError(f"dt = {dt1:g} s does not divide the run length of {days1:g} days")
+    per_output = round(every * DAY / dt1)
+    if days1 > every and (per_output < 1 or abs(per_output * dt1 - every * DAY) > 1e-6 * dt1):
+        raise SceneError(f"dt = {dt1:g} s does not divide the output interval of {every:g} days")
 
-    options = {}
-    if stepper1 in STEPPER_OPTIONS and "leapfrog" in s:
-        options = {k: v for k, v in s["leapfrog"].items() if k in STEPPER_OPTIONS[stepper1]}
-    eps = options.get("robert_asselin", 0.05)
-    if not 0 <= eps < 0.5:
-        raise SceneError(f"leapfrog.robert_asselin must be in [0, 0.5) (got {eps})")
+    options = dict(s.get(stepper1, {}))
+    try:
+        STEPPERS[stepper1].check_options(**options)
+    except ValueError as err:
+        raise SceneError(f"{stepper1}.{err}") from None
 
     hv = s.get("hyperviscosity", {})
     nu = hv.get("nu", 0.0)

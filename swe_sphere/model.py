@@ -9,6 +9,8 @@ launched. Mirrors HOMME's ``compute_and_apply_rhs`` + ``advance_hypervis``.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import warp as wp
 
@@ -78,6 +80,7 @@ class ShallowWater:
         self.scalar = wp.zeros((1, N), dtype=f64, device=device)
         self.scalar_dss = wp.zeros((1, N), dtype=f64, device=device)
         self.scalar_flat = self.scalar.flatten()
+        self.vec_work = wp.zeros((2, N), dtype=f64, device=device)
         self.bad = wp.zeros(1, dtype=wp.int32, device=device)
         self.topo_forcing = None
         if "topography" in terms:
@@ -91,6 +94,7 @@ class ShallowWater:
             self.hv_flux = wp.zeros((8, N), dtype=f64, device=device)
             self.hv_L = wp.zeros((4, N), dtype=f64, device=device)
         self._recorded: dict[tuple, tuple] = {}
+        self._substeps: dict[float, int] = {}
 
     # -- launch recording ---------------------------------------------------
     def _launch(self, kernel, dim, inputs):
@@ -163,15 +167,70 @@ class ShallowWater:
             self._launch(hyperviscosity.apply, N, [X, f64(coef), self.east, self.north, x]),
         ]
 
+    def biharmonic_radius(self, iterations: int = 20) -> float:
+        """Largest eigenvalue λ (m⁻⁴) of the discrete ∇⁴ operator (DSS'd weak
+        Laplacian twice, wind and height together), by power iteration from a
+        fixed random continuous state. Forward Euler on dx/dt = −ν∇⁴x is stable
+        for ν Δt λ ≤ 2."""
+        if getattr(self, "_biharmonic_radius", None) is None:
+            rng = np.random.default_rng(0)
+            z = wp.array(rng.standard_normal((3, self.N)), dtype=f64, device=self.device)
+            w, zc = wp.zeros_like(z), wp.zeros_like(z)
+            self._launch(dss.dss, (3, self.N), [z, 1, self.spheremp, self.rspheremp, self.gid, self.offsets, self.copies, zc]).launch()
+            lam = 0.0
+            hs, self.hs = self.hs, wp.zeros_like(self.hs)  # the operator without the hs offset
+            scale = float(self.grid.dx.min()) ** 4  # coef·λ = O(1): w − z keeps its digits
+            launches = self._build_hv(w, scale)
+            for _ in range(iterations):
+                a = zc.numpy()
+                zc.assign(a / np.linalg.norm(a))
+                wp.copy(w, zc)
+                for launch in launches:
+                    launch.launch()
+                d = (w.numpy() - zc.numpy()) / scale  # ∇⁴ z
+                lam = float(np.linalg.norm(d))
+                zc.assign(d)
+            self.hs = hs
+            self._biharmonic_radius = lam
+        return self._biharmonic_radius
+
+    def hypervis_substeps(self, dt: float) -> int:
+        """Forward-Euler substeps for ``hyperviscosity`` over dt: at least the
+        scene's ``hypervis_subcycle``, and enough that ν (Δt/n) λ ≤ 1.5."""
+        return max(self.hypervis_subcycle, math.ceil(self.nu * dt * self.biharmonic_radius() / 1.5))
+
     def hyperviscosity(self, x: wp.array2d, dt: float) -> None:
         """Apply ∇⁴ hyperviscosity over dt (s) in place, split from the dynamics:
-        ``hypervis_subcycle`` forward-Euler steps of x −= (dt/n) ν ∇⁴x (HOMME
-        ``advance_hypervis``). Does nothing (launches nothing) without the term."""
+        n = ``hypervis_substeps(dt)`` forward-Euler steps of x −= (dt/n) ν ∇⁴x
+        (HOMME ``advance_hypervis`` with ``hypervis_subcycle``). Does nothing
+        (launches nothing) without the term."""
         if "hyperviscosity" not in self.terms or self.nu == 0.0:
             return
-        coef = -self.nu * dt / self.hypervis_subcycle
-        for _ in range(self.hypervis_subcycle):
+        n = self._substeps.get(dt)
+        if n is None:
+            n = self._substeps[dt] = self.hypervis_substeps(dt)
+        coef = -self.nu * dt / n
+        for _ in range(n):
             self._replay(("hv", x.ptr, coef), (x,), lambda: self._build_hv(x, coef))
+
+    # -- DSS'd operators for the (semi-)implicit solvers --------------------
+    def gradient(self, x: wp.array2d, row: int, out: wp.array2d) -> None:
+        """out (2, N) = G f = DSS(∇ x[row]) (units of x per m)."""
+        wp.launch(operators.gradient_sphere, self.N, [x, row, self.Dinv, self.dvv, self.grid.np, self.vec_work], device=self.device)
+        wp.launch(dss.dss, (2, self.N), [self.vec_work, 1, self.spheremp, self.rspheremp, self.gid, self.offsets, self.copies, out], device=self.device)
+
+    def divergence(self, x: wp.array2d, out: wp.array2d) -> None:
+        """out (1, N) = D v = DSS(∇·v) of the wind in rows 0, 1 of x (s⁻¹ × units)."""
+        wp.launch(operators.divergence_sphere, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.scalar_flat], device=self.device)
+        wp.launch(dss.dss, (1, self.N), [self.scalar, 1, self.spheremp, self.rspheremp, self.gid, self.offsets, self.copies, out], device=self.device)
+
+    def assemble(self, x: wp.array2d, row: int, out: wp.array) -> None:
+        """Unique-node out (nunique,) = M x[row]: assembled mass times a continuous field."""
+        wp.launch(dss.assemble, self.grid.nunique, [x, row, self.spheremp, self.offsets, self.copies, out], device=self.device)
+
+    def scatter(self, y: wp.array, out: wp.array2d, row: int) -> None:
+        """Element-local out[row] from a unique-node vector y."""
+        wp.launch(dss.scatter, self.N, [y, self.gid, row, out], device=self.device)
 
     # -- diagnostics helpers ------------------------------------------------
     def vorticity(self, x: wp.array2d) -> np.ndarray:

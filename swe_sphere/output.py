@@ -34,6 +34,9 @@ SERIES_ATTRS = {
     "potential_enstrophy_change": dict(units="1", long_name="relative change of potential enstrophy since t = 0"),
     "rhs_evals": dict(units="1", long_name="cumulative right-hand-side evaluations"),
     "wall_time": dict(units="s", long_name="cumulative wall time of the time loop"),
+    "cg_iterations": dict(units="1", long_name="cumulative conjugate-gradient iterations (semi-implicit Helmholtz solves)"),
+    "newton_iterations": dict(units="1", long_name="cumulative Newton iterations"),
+    "gmres_iterations": dict(units="1", long_name="cumulative GMRES iterations"),
     "steps": dict(units="1", long_name="time steps taken"),
 }
 for _f in ("h", "wind"):
@@ -51,6 +54,8 @@ def check_writable(path: Path) -> None:
     parent = path.resolve().parent
     if path.is_dir():
         raise ValueError(f"output path is a directory: {path}")
+    if parent.exists() and not parent.is_dir():
+        raise ValueError(f"output path's parent is not a directory: {parent}")
     if not parent.is_dir():
         raise ValueError(f"output directory does not exist: {parent}")
     if not os.access(parent, os.W_OK):

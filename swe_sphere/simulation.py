@@ -20,7 +20,7 @@ from .grid import CubedSphere
 from .model import ShallowWater
 from .output import RunWriter
 from .reference import Reference, find_reference
-from .steppers import make_stepper
+from .steppers import StepFailure, make_stepper
 
 
 class BlowUp(RuntimeError):
@@ -40,6 +40,7 @@ class RunResult:
     output: Path | None
     blowup: str | None = None
     history: list = field(default_factory=list)
+    iterations: dict = field(default_factory=dict)
 
 
 class Simulation:
@@ -123,7 +124,8 @@ class Simulation:
         """
         s, model, stepper = self.scene, self.model, self.stepper
         courant = self.courant()
-        series = ["steps", "rhs_evals", "wall_time", *self.initial.keys()]
+        solver_series = [f"{k}_iterations" for k in stepper.solvers]
+        series = ["steps", "rhs_evals", *solver_series, "wall_time", *self.initial.keys()]
         writer = None
         if output is not None:
             attrs = {
@@ -141,11 +143,12 @@ class Simulation:
             }
             writer = RunWriter(output, self.grid, self.hs, attrs, series)
         out_steps = self.output_steps()
-        rhs_evals, wall, history = 0, 0.0, []
+        rhs_evals, wall, history, iterations = 0, 0.0, [], {k: 0 for k in stepper.solvers}
 
         def record(step, x=None):
             d = self.diagnose(step * s.dt, x)
             d.update(steps=step, rhs_evals=rhs_evals, wall_time=wall)
+            d.update({f"{k}_iterations": iterations.get(k, 0) for k in stepper.solvers})
             history.append(d)
             if writer is not None:
                 writer.append(step * s.dt, *self.fields(x), {k: d[k] for k in series})
@@ -158,13 +161,22 @@ class Simulation:
                 for n in range(1, s.nsteps + 1):
                     t0 = time.perf_counter()
                     wp.copy(self.last_good, self.x)
-                    stats = stepper.step(self.x)
-                    bad = model.first_bad_node(self.x)
+                    try:
+                        stats = stepper.step(self.x)
+                        failure = None
+                    except StepFailure as err:
+                        stats, failure = None, str(err)
+                    bad = model.first_bad_node(self.x) if failure is None else None
                     wp.synchronize_device(self.device)
                     wall += time.perf_counter() - t0
-                    rhs_evals += stats.rhs_evals
-                    if bad is not None:
-                        blowup = self._blowup_message(n, bad)
+                    if stats is not None:
+                        rhs_evals += stats.rhs_evals
+                        for k, it in stats.iterations.items():
+                            iterations[k] = iterations.get(k, 0) + it
+                    if bad is not None or failure is not None:
+                        blowup = self._blowup_message(n, bad) if failure is None else (
+                            f"step {n} failed (model time {n * s.dt / DAY:.4f} days): {failure}"
+                        )
                         if n - 1 not in out_steps:
                             record(n - 1, self.last_good)
                         if writer is not None:
@@ -191,6 +203,7 @@ class Simulation:
             output=output,
             blowup=blowup,
             history=history,
+            iterations=iterations,
         )
         if blowup is not None:
             err = BlowUp(blowup)

@@ -1,56 +1,12 @@
-"""Time steppers behind one interface.
+"""Explicit steppers: leapfrog (Robert–Asselin), leapfrog-trapezoidal, SSP-RK3, RK4.
 
-A stepper is built with the model, the step ``dt`` (s) and its options; it
-allocates its buffers and records its launches once, then ``step(x)``
-advances the state ``x`` (3, N) in place by dt and returns a ``StepStats``.
 Hyperviscosity is applied after each step, split from the dynamics, as in
 HOMME (``advance_hypervis``): forward Euler over the span the step covers.
-The semi-implicit and implicit steppers join this registry later.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
-import warp as wp
-
-from .kernels import blas
-from .model import ShallowWater
-
-f64 = wp.float64
-
-
-@dataclass
-class StepStats:
-    """What one step cost: RHS evaluations and solver iterations (by solver name)."""
-
-    rhs_evals: int
-    iterations: dict = field(default_factory=dict)
-
-
-class Stepper:
-    """Base class. Subclasses set ``name`` and implement ``step``."""
-
-    name = ""
-    options: dict[str, type] = {}
-
-    def __init__(self, model: ShallowWater, dt: float):
-        if not dt > 0:
-            raise ValueError(f"dt must be > 0 (got {dt})")
-        self.model, self.dt = model, float(dt)
-        self.N = model.N
-
-    def _buffer(self):
-        return wp.zeros((3, self.N), dtype=f64, device=self.model.device)
-
-    def _lincomb(self, out, *terms):
-        """Record out = Σ c·x for two or three (c, x) pairs; returns the launch."""
-        args = [a for c, x in terms for a in (f64(c), x)]
-        kernel = blas.axpby if len(terms) == 2 else blas.axpbypcz
-        return wp.launch(kernel, (3, self.N), [*args, out], device=self.model.device, record_cmd=True)
-
-    def step(self, x: wp.array2d) -> StepStats:
-        raise NotImplementedError
+from .base import Stepper, StepStats
 
 
 class SSPRK3(Stepper):
@@ -154,11 +110,16 @@ class Leapfrog(_LeapfrogFamily):
     Hyperviscosity acts on x(n+1) over 2Δt. 1 RHS evaluation per step."""
 
     name = "leapfrog"
+    options = {"robert_asselin": float}
+
+    @classmethod
+    def check_options(cls, robert_asselin: float = 0.05):
+        if not 0 <= robert_asselin < 0.5:
+            raise ValueError(f"robert_asselin must be in [0, 0.5) (got {robert_asselin})")
 
     def __init__(self, model, dt, robert_asselin: float = 0.05):
         super().__init__(model, dt)
-        if not 0 <= robert_asselin < 0.5:
-            raise ValueError(f"robert_asselin must be in [0, 0.5) (got {robert_asselin})")
+        self.check_options(robert_asselin)
         self.eps = float(robert_asselin)
 
     def _record_scheme(self, x):
@@ -203,20 +164,3 @@ class LeapfrogTrapezoidal(_LeapfrogFamily):
         self._corr.launch()
         m.hyperviscosity(x, self.dt)
         return StepStats(2)
-
-
-STEPPERS: dict[str, type[Stepper]] = {
-    cls.name: cls for cls in (Leapfrog, LeapfrogTrapezoidal, SSPRK3, RK4)
-}
-STEPPER_OPTIONS = {"leapfrog": {"robert_asselin": float}}
-
-
-def make_stepper(name: str, model: ShallowWater, dt: float, **options) -> Stepper:
-    """Build a registered stepper; ValueError names an unknown stepper or option."""
-    if name not in STEPPERS:
-        raise ValueError(f"unknown stepper {name!r} (known: {', '.join(STEPPERS)})")
-    allowed = STEPPER_OPTIONS.get(name, {})
-    for key in options:
-        if key not in allowed:
-            raise ValueError(f"unknown option {key!r} for stepper {name}")
-    return STEPPERS[name](model, dt, **options)

@@ -1,0 +1,30 @@
+"""Time steppers behind one interface (``base.Stepper``), by name.
+
+Explicit: ``leapfrog``, ``leapfrog_trapezoidal``, ``ssprk3``, ``rk4``;
+``semi_implicit`` (Helmholtz solve by CG).
+"""
+
+from __future__ import annotations
+
+from ..model import ShallowWater
+from .base import StepFailure, Stepper, StepStats
+from .explicit import RK4, SSPRK3, Leapfrog, LeapfrogTrapezoidal
+from .semi_implicit import SemiImplicit
+
+STEPPERS: dict[str, type[Stepper]] = {
+    cls.name: cls for cls in (Leapfrog, LeapfrogTrapezoidal, SSPRK3, RK4, SemiImplicit)
+}
+
+
+def make_stepper(name: str, model: ShallowWater, dt: float, **options) -> Stepper:
+    """Build a registered stepper; ValueError names an unknown stepper or option."""
+    if name not in STEPPERS:
+        raise ValueError(f"unknown stepper {name!r} (known: {', '.join(STEPPERS)})")
+    cls = STEPPERS[name]
+    for key in options:
+        if key not in cls.options:
+            raise ValueError(f"unknown option {key!r} for stepper {name}")
+    return cls(model, dt, **options)
+
+
+__all__ = ["STEPPERS", "StepFailure", "Stepper", "StepStats", "make_stepper"]

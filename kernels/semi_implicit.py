@@ -39,13 +39,6 @@ def height_rhs(
 
 
 @wp.kernel
-def new_height(R: wp.array2d(dtype=f64), x_new: wp.array2d(dtype=f64)):
-    """h⁺ = R + δ (R in row 0, the CG increment δ in row 1)."""
-    p = wp.tid()
-    x_new[2, p] = R[0, p] + R[1, p]
-
-
-@wp.kernel
 def new_wind(
     x_old: wp.array2d(dtype=f64),
     F: wp.array2d(dtype=f64),

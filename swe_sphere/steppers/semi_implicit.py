@@ -3,18 +3,10 @@
 The linear gravity-wave terms about a mean depth H — the pressure gradient
 −g∇h and −H∇·v — are averaged over levels n−1 and n+1; everything else
 (N = F − L) is leapfrogged at level n. Eliminating v(n+1) leaves a Helmholtz
-equation for the height, solved matrix-free by preconditioned CG
-(``warp.optim.linear.cg``, CPU and CUDA) on the DSS'd spectral-element
-operator D∘G (the strong divergence of the DSS'd strong gradient: the same
-discrete operators as the explicit RHS, so the elimination is exact):
+equation for the height (``helmholtz.Helmholtz``: CG on the DSS'd operators
+of the explicit RHS, so the elimination is exact and mass is kept to round-off):
 
     (I − Δt² gH DG) h(n+1) = R,    v(n+1) = v(n−1) + 2Δt N_v − Δt g G(h(n+1) + h(n−1)).
-
-M·DG is symmetric negative semi-definite (M the assembled mass; Taylor &
-Fournier 2010), so the system is solved in unique-node space as
-M(I − cDG) y = b, with the inverse mass as diagonal preconditioner. CG solves
-for the increment h(n+1) − R, whose iterates keep zero area integral, so
-mass is conserved to round-off.
 
 Dissipation: HOMME disallows hyperviscosity with SI; here the scene's ∇⁴
 hyperviscosity is applied after the step as for the explicit leapfrog (split,
@@ -28,12 +20,11 @@ from __future__ import annotations
 
 import numpy as np
 import warp as wp
-import warp.optim.linear as wpl
 
-from ..kernels import blas
 from ..kernels import semi_implicit as si
-from .base import StepFailure, StepStats
+from .base import StepStats
 from .explicit import Leapfrog
+from .helmholtz import Helmholtz
 
 f64 = wp.float64
 
@@ -43,17 +34,20 @@ class SemiImplicit(Leapfrog):
 
     Options (scene table ``[semi_implicit]``): ``robert_asselin`` (0.05),
     ``tol`` (CG relative residual, 1e-10), ``maxiter`` (500), ``mean_depth``
-    (H in m; 0 = the initial state's mean depth). Reports CG iterations per step.
+    (H in m; 0 = the initial state's mean depth), ``linear_solver`` ("scipy" on
+    CPU, "warp" on CUDA by default). Reports CG iterations per step.
     Raises ValueError without the continuity and pressure-gradient terms.
     """
 
     name = "semi_implicit"
-    options = {"robert_asselin": float, "tol": float, "maxiter": int, "mean_depth": float}
+    options = {"robert_asselin": float, "tol": float, "maxiter": int, "mean_depth": float, "linear_solver": str}
     solvers = ("cg",)
 
     @classmethod
-    def check_options(cls, robert_asselin=0.05, tol=1e-10, maxiter=500, mean_depth=0.0):
+    def check_options(cls, robert_asselin=0.05, tol=1e-10, maxiter=500, mean_depth=0.0, linear_solver=""):
         super().check_options(robert_asselin)
+        if linear_solver not in ("", "scipy", "warp"):
+            raise ValueError(f"linear_solver must be 'scipy' or 'warp' (got {linear_solver!r})")
         if not 0 < tol < 1:
             raise ValueError(f"tol must be in (0, 1) (got {tol})")
         if maxiter < 1:
@@ -61,43 +55,24 @@ class SemiImplicit(Leapfrog):
         if mean_depth < 0:
             raise ValueError(f"mean_depth must be >= 0 (got {mean_depth})")
 
-    def __init__(self, model, dt, robert_asselin=0.05, tol=1e-10, maxiter=500, mean_depth=0.0):
+    def __init__(self, model, dt, robert_asselin=0.05, tol=1e-10, maxiter=500, mean_depth=0.0, linear_solver=""):
         super().__init__(model, dt, robert_asselin)
-        self.check_options(robert_asselin, tol, maxiter, mean_depth)
+        self.check_options(robert_asselin, tol, maxiter, mean_depth, linear_solver)
         for term in ("continuity", "pressure_gradient"):
             if term not in model.terms:
                 raise ValueError(f"semi_implicit needs the {term} term")
         self.tol, self.maxiter, self.H = float(tol), int(maxiter), float(mean_depth)
-        dev, N, nu = model.device, self.N, model.grid.nunique
+        dev, N = model.device, self.N
 
         def z(rows):
             return wp.zeros((rows, N), dtype=f64, device=dev)
 
-        self.F, self.W, self.Y = z(3), z(3), z(3)
-        self.Gh, self.Gh_old, self.Gh_new, self.GY = z(2), z(2), z(2), z(2)
-        self.Dv, self.Dw, self.DGh, self.DGY = z(1), z(1), z(1), z(1)
-        self.R = z(2)  # row 0: R, row 1: the CG increment δ
+        self.F, self.W = z(3), z(3)
+        self.Gh, self.Gh_old, self.Gh_new = z(2), z(2), z(2)
+        self.Dv, self.Dw, self.DGh = z(1), z(1), z(1)
+        self.R = z(1)
         self.Dv1, self.Dw1, self.DGh1 = self.Dv.flatten(), self.Dw.flatten(), self.DGh.flatten()
-        self.b, self.y, self.tmp = (wp.zeros(nu, dtype=f64, device=dev) for _ in range(3))
-        self.minv = wp.array(1.0 / model.grid.area, dtype=f64, device=dev)
-        self.c = 0.0
-        self.A = wpl.LinearOperator((nu, nu), f64, dev, self._matvec)
-        self.cg = wpl.cg(
-            self.A, self.b, self.y, tol=self.tol, maxiter=self.maxiter, M=self.minv, run=False, check_every=1, use_cuda_graph=False
-        )
-
-    def _DG(self, x, row, Gout, DGout):
-        self.model.gradient(x, row, Gout)
-        self.model.divergence(Gout, DGout)
-
-    def _matvec(self, x, y, z, alpha, beta):
-        """z = alpha·A x + beta·y with A = M(I − c DG) on unique nodes."""
-        m, dev = self.model, self.model.device
-        m.scatter(x, self.Y, 2)
-        self._DG(self.Y, 2, self.GY, self.DGY)
-        wp.launch(si.helmholtz, self.N, [self.Y, f64(self.c), self.DGY], device=dev)
-        m.assemble(self.DGY, 0, self.tmp)
-        wp.launch(blas.axpby1d, x.shape[0], [f64(alpha), self.tmp, f64(beta), y, z], device=dev)
+        self.helmholtz = Helmholtz(model, tol, maxiter, linear_solver or None)
 
     def _si(self, old, cur, new, dt):
         """new = semi-implicit leapfrog from old over 2dt, explicit terms at cur. Returns CG iterations."""
@@ -105,32 +80,19 @@ class SemiImplicit(Leapfrog):
         if self.H == 0.0:
             h = cur.numpy()[2]
             self.H = float(np.dot(m.grid.spheremp, h) / m.grid.spheremp.sum())
-        c = self.c = dt * dt * g * self.H
+        c = dt * dt * g * self.H
         m.rhs(cur, self.F)
         m.gradient(cur, 2, self.Gh)
         m.divergence(cur, self.Dv)
         wp.launch(si.half_wind, N, [old, self.F, f64(g), self.Gh, f64(dt), self.W], device=dev)
         m.divergence(self.W, self.Dw)
-        self._DG(old, 2, self.Gh_old, self.DGh)
-        wp.launch(
-            si.height_rhs,
-            N,
-            [old, self.F, f64(self.H), self.Dv1, self.Dw1, f64(c), self.DGh1, f64(dt), self.R],
-            device=dev,
-        )
-        # (I − cDG) δ = c DG R for δ = h(n+1) − R: b = M c DG R
-        self._DG(self.R, 0, self.GY, self.DGY)
-        m.assemble(self.DGY, 0, self.b)
-        wp.launch(blas.axpby1d, self.b.shape[0], [f64(c), self.b, f64(0.0), self.b, self.b], device=dev)
-        self.y.zero_()
-        iterations, residual, atol = self.cg()
-        if not residual <= atol:
-            raise StepFailure(f"semi-implicit CG did not converge: residual {float(residual):.3e} > {float(atol):.3e} after {int(iterations)} iterations")
-        m.scatter(self.y, self.R, 1)
-        wp.launch(si.new_height, N, [self.R, new], device=dev)
+        m.gradient(old, 2, self.Gh_old)
+        m.divergence(self.Gh_old, self.DGh)
+        wp.launch(si.height_rhs, N, [old, self.F, f64(self.H), self.Dv1, self.Dw1, f64(c), self.DGh1, f64(dt), self.R], device=dev)
+        iterations = self.helmholtz.solve(self.R, 0, c, new, 2)
         m.gradient(new, 2, self.Gh_new)
         wp.launch(si.new_wind, N, [old, self.F, f64(g), self.Gh, self.Gh_new, self.Gh_old, f64(dt), new], device=dev)
-        return int(iterations)
+        return iterations
 
     def step(self, x):
         m = self.model

@@ -1,0 +1,260 @@
+"""Time steppers: stability and cost on TC2, observed temporal order on TC6.
+
+Temporal order is measured on the Rossby–Haurwitz wave (TC6) at ne = 4, np = 4
+without hyperviscosity, after half a day, against an rk4 run with 4096 steps on
+the same grid (so only the time error is seen). Measured on Warp's CPU backend
+(error ratios when halving dt, h and wind):
+
+    rk4                   256 -> 512 steps    rate 4.00 / 4.00
+    ssprk3                256 -> 512 steps    rate 3.00 / 3.00
+    leapfrog_trapezoidal  512 -> 1024 steps   rate 1.99 / 2.00
+    leapfrog, eps = 0     256 -> 512 steps    rate 2.00 / 2.01
+    leapfrog, eps = 0.05  1024 -> 2048 steps  rate 1.02 / 1.01  (the Robert–Asselin
+                          filter makes leapfrog first order: 1.54 at 128 -> 256,
+                          1.30 at 256 -> 512, 1.10 at 512 -> 1024)
+
+The default Robert–Asselin coefficient is 0.05; a scene sets it in its
+``[leapfrog]`` table (``robert_asselin``), which reaches the stepper through
+``Scene.stepper_options``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+
+import numpy as np
+import pytest
+
+from swe_sphere.config import load_scene
+from swe_sphere.constants import DAY
+from swe_sphere.simulation import Simulation
+from swe_sphere.steppers import STEPPERS
+
+DEVICE = "cpu"
+
+# RHS evaluations: (first step, every later step), as the steppers document them.
+DOCUMENTED_RHS = {
+    "leapfrog": (2, 1),  # explicit-midpoint start, then one per leapfrog step
+    "leapfrog_trapezoidal": (2, 2),
+    "ssprk3": (3, 3),
+    "rk4": (4, 4),
+    "semi_implicit": (1, 1),  # one RHS (and one CG solve) per step, the start included
+}
+
+
+def _quiet(*args, **kwargs):
+    pass
+
+
+def make_sim(scene):
+    return Simulation(scene, DEVICE, progress=False, log=_quiet)
+
+
+def count_rhs_calls(sim):
+    """Wrap ``sim.model.rhs`` to count the calls the stepper really makes."""
+    calls = []
+    real = sim.model.rhs
+
+    def rhs(x, out):
+        calls.append(1)
+        return real(x, out)
+
+    sim.model.rhs = rhs
+    return calls
+
+
+# -- every registered stepper on TC2 -------------------------------------------
+
+
+@pytest.mark.parametrize("name", list(STEPPERS))
+def test_stepper_runs_tc2_stably(name):
+    """TC2, ne = 4, np = 4, one day at the scene's dt scaled to the grid (1200 s,
+    gravity-wave Courant number 0.42). Measured l2(h): leapfrog 1.654e-4,
+    leapfrog_trapezoidal 1.662e-4, ssprk3 1.696e-4, rk4 1.711e-4 (spatial error)."""
+    scene = load_scene("tc2_steady", ne=4, days=1.0, stepper=name)
+    sim = make_sim(scene)
+    calls = count_rhs_calls(sim)
+    result = sim.run()
+    d = result.diagnostics
+    print(f"\n{name}: dt {scene.dt:g} s, {result.steps} steps, {result.rhs_evals} RHS, l2(h) {d['l2_h']:.4e}, "
+          f"linf(h) {d['linf_h']:.4e}, l2(wind) {d['l2_wind']:.4e}, mass change {d['mass_change']:.1e}")
+    assert result.blowup is None
+    assert result.steps == scene.nsteps == 72
+    assert len(result.history) == 2
+    assert d["l2_h"] < 5e-4
+    assert d["linf_h"] < 2e-3
+    assert d["l2_wind"] < 5e-3
+    assert max(abs(h["mass_change"]) for h in result.history) < 1e-12
+    assert abs(d["total_energy_change"]) < 1e-6
+    if name in DOCUMENTED_RHS:
+        first, later = DOCUMENTED_RHS[name]
+        expected = first + later * (scene.nsteps - 1)
+        assert result.rhs_evals == expected
+        assert len(calls) == expected  # what the stepper reports is what it does
+
+
+@pytest.mark.parametrize("name", list(STEPPERS))
+def test_step_stats_report_rhs_evals(name):
+    """StepStats per step, and RunResult.rhs_evals is their sum."""
+    scene = load_scene("tc2_steady", ne=4, days=8 * 1200.0 / DAY, stepper=name, dt=1200.0)
+    sim = make_sim(scene)
+    calls = count_rhs_calls(sim)
+    counts = []
+    for _ in range(4):
+        before = len(calls)
+        stats = sim.stepper.step(sim.x)
+        counts.append(stats.rhs_evals)
+        if name in DOCUMENTED_RHS:
+            assert len(calls) - before == stats.rhs_evals
+    if name in DOCUMENTED_RHS:
+        first, later = DOCUMENTED_RHS[name]
+        assert counts == [first, later, later, later]
+    else:
+        assert all(isinstance(c, int) and c >= 0 for c in counts)
+    # a fresh run reports the sum of its steps' counts
+    sim2 = make_sim(scene)
+    stepper, total = sim2.stepper, []
+    real_step = stepper.step
+
+    def step(x):
+        stats = real_step(x)
+        total.append(stats.rhs_evals)
+        return stats
+
+    stepper.step = step
+    result = sim2.run()
+    assert result.rhs_evals == sum(total)
+    assert len(total) == scene.nsteps == 8
+
+
+# -- leapfrog's Robert–Asselin coefficient --------------------------------------
+
+
+LEAPFROG_SCENE = """
+description = "TC2 with leapfrog{title}"
+terms = ["continuity", "momentum_advection", "coriolis", "pressure_gradient"]
+
+[case]
+name = "tc2_steady"
+
+[grid]
+ne = 4
+np = 4
+
+[time]
+stepper = "leapfrog"
+dt = 1200.0
+days = 0.5
+{table}
+"""
+
+
+def _leapfrog_scene(tmp_path, eps):
+    table = "" if eps is None else f"\n[leapfrog]\nrobert_asselin = {eps!r}\n"
+    path = tmp_path / f"lf_{eps}.toml"
+    path.write_text(LEAPFROG_SCENE.format(title="" if eps is None else f", eps = {eps}", table=table))
+    return load_scene(path)
+
+
+def test_leapfrog_robert_asselin_from_scene(tmp_path):
+    default = _leapfrog_scene(tmp_path, None)
+    zero = _leapfrog_scene(tmp_path, 0.0)
+    tenth = _leapfrog_scene(tmp_path, 0.1)
+    assert default.stepper_options == {}
+    assert zero.stepper_options == {"robert_asselin": 0.0}
+    assert tenth.stepper_options == {"robert_asselin": 0.1}
+
+    def final(scene):
+        sim = make_sim(scene)
+        sim.run()
+        return sim.x.numpy()
+
+    x_default, x_zero, x_tenth = final(default), final(zero), final(tenth)
+    # the default is eps = 0.05: the same as setting it explicitly
+    x_005 = final(dataclasses.replace(default, stepper_options={"robert_asselin": 0.05}))
+    np.testing.assert_array_equal(x_default, x_005)
+    # and the option does reach the stepper
+    assert not np.array_equal(x_default, x_zero)
+    assert not np.array_equal(x_default, x_tenth)
+    x_zero_direct = final(dataclasses.replace(default, stepper_options={"robert_asselin": 0.0}))
+    np.testing.assert_array_equal(x_zero, x_zero_direct)
+
+
+def test_leapfrog_robert_asselin_in_other_stepper_table_is_ignored(tmp_path):
+    """The [leapfrog] table holds leapfrog's options only: another stepper's scene keeps none."""
+    scene = _leapfrog_scene(tmp_path, 0.1)
+    path = tmp_path / "lf_0.1.toml"
+    other = load_scene(path, stepper="ssprk3")
+    assert scene.stepper_options == {"robert_asselin": 0.1}
+    assert other.stepper_options == {}
+
+
+# -- temporal order on TC6 -----------------------------------------------------
+
+ORDER_DAYS = 0.5
+ORDER_REF_STEPS = 4096  # rk4 reference, dt = 10.5 s
+
+
+@functools.lru_cache(maxsize=None)
+def tc6_base():
+    scene = load_scene("tc6_rossby_haurwitz", ne=4, np=4, days=ORDER_DAYS)
+    terms = tuple(t for t in scene.terms if t != "hyperviscosity")
+    return dataclasses.replace(scene, terms=terms, nu=0.0, output_every_days=ORDER_DAYS)
+
+
+@functools.lru_cache(maxsize=None)
+def tc6_final(stepper: str, nsteps: int, eps: float | None = None):
+    base = tc6_base()
+    dt = ORDER_DAYS * DAY / nsteps
+    options = {} if eps is None else {"robert_asselin": eps}
+    scene = dataclasses.replace(base, stepper=stepper, dt=dt, stepper_options=options)
+    assert scene.nsteps == nsteps and abs(scene.nsteps * scene.dt - ORDER_DAYS * DAY) < 1e-6
+    sim = make_sim(scene)
+    result = sim.run()
+    assert result.blowup is None
+    return sim.x.numpy().copy(), sim.grid.spheremp
+
+
+def tc6_errors(stepper, nsteps, eps=None):
+    """Relative l2 errors (h, wind) against the rk4 reference on the same grid."""
+    ref, w = tc6_final("rk4", ORDER_REF_STEPS)
+    x, _ = tc6_final(stepper, nsteps, eps)
+    eh = math.sqrt(w @ (x[2] - ref[2]) ** 2 / (w @ ref[2] ** 2))
+    ew = math.sqrt(w @ ((x[0] - ref[0]) ** 2 + (x[1] - ref[1]) ** 2) / (w @ (ref[0] ** 2 + ref[1] ** 2)))
+    return eh, ew
+
+
+@pytest.mark.parametrize(
+    "stepper, eps, nsteps, lo, hi",
+    [
+        ("rk4", None, 256, 3.7, 4.3),
+        ("ssprk3", None, 256, 2.8, 3.2),
+        ("leapfrog_trapezoidal", None, 512, 1.8, 2.2),
+        ("leapfrog", 0.0, 256, 1.8, 2.2),
+        ("leapfrog", 0.05, 1024, 0.8, 1.25),
+    ],
+    ids=["rk4", "ssprk3", "leapfrog_trapezoidal", "leapfrog_eps0", "leapfrog_eps0.05"],
+)
+def test_temporal_order_tc6(stepper, eps, nsteps, lo, hi):
+    coarse = tc6_errors(stepper, nsteps, eps)
+    fine = tc6_errors(stepper, 2 * nsteps, eps)
+    rate = [math.log2(c / f) for c, f in zip(coarse, fine)]
+    dt = ORDER_DAYS * DAY / nsteps
+    print(f"\n{stepper} eps={eps} dt {dt:g} -> {dt / 2:g} s: err(h) {coarse[0]:.3e} -> {fine[0]:.3e}, "
+          f"err(wind) {coarse[1]:.3e} -> {fine[1]:.3e}, ratio {coarse[0] / fine[0]:.2f} / {coarse[1] / fine[1]:.2f}, "
+          f"rate {rate[0]:.3f} / {rate[1]:.3f}")
+    for r in rate:
+        assert lo <= r <= hi, (stepper, eps, coarse, fine, rate)
+    # the reference's own error (rk4 at dt/16 or less) must not pollute the finer run
+    assert fine[0] > 1e-10
+
+
+def test_robert_asselin_filter_costs_accuracy():
+    """At the same dt the filtered leapfrog is less accurate than the unfiltered one
+    and the gap widens as dt shrinks (O(dt) against O(dt^2))."""
+    e0 = [tc6_errors("leapfrog", n, 0.0)[0] for n in (256, 1024)]
+    e5 = [tc6_errors("leapfrog", n, 0.05)[0] for n in (256, 1024)]
+    assert e5[0] > e0[0] and e5[1] > e0[1]
+    assert e5[1] / e0[1] > 2 * e5[0] / e0[0]

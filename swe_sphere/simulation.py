@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import warp as wp
+from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from . import __version__
@@ -153,6 +154,9 @@ class Simulation:
             if writer is not None:
                 writer.append(step * s.dt, *self.fields(x), {k: d[k] for k in series})
 
+        # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
+        # pay, and on a busy machine OpenBLAS's spinning threads made a norm cost 10 ms
+        limits = threadpool_limits(limits=1, user_api="blas")
         try:
             record(0)
             bar = tqdm(total=s.nsteps, unit="step", disable=not self.progress, file=sys.stderr, dynamic_ncols=True)
@@ -191,6 +195,8 @@ class Simulation:
             if writer is not None:
                 writer.abort()
             raise
+        finally:
+            limits.restore_original_limits()
         if writer is not None:
             writer.close()
         result = RunResult(

@@ -1,7 +1,7 @@
 """Time steppers behind one interface (``base.Stepper``), by name.
 
 Explicit: ``leapfrog``, ``leapfrog_trapezoidal``, ``ssprk3``, ``rk4``;
-``semi_implicit`` (Helmholtz solve by CG).
+``semi_implicit`` (Helmholtz solve by CG); ``implicit`` (JFNK θ-method / BDF2).
 """
 
 from __future__ import annotations
@@ -9,10 +9,11 @@ from __future__ import annotations
 from ..model import ShallowWater
 from .base import StepFailure, Stepper, StepStats
 from .explicit import RK4, SSPRK3, Leapfrog, LeapfrogTrapezoidal
+from .implicit import Implicit
 from .semi_implicit import SemiImplicit
 
 STEPPERS: dict[str, type[Stepper]] = {
-    cls.name: cls for cls in (Leapfrog, LeapfrogTrapezoidal, SSPRK3, RK4, SemiImplicit)
+    cls.name: cls for cls in (Leapfrog, LeapfrogTrapezoidal, SSPRK3, RK4, SemiImplicit, Implicit)
 }
 
 

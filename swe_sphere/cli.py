@@ -129,6 +129,9 @@ def _summary(r) -> None:
     for k in ("mass", "total_energy", "potential_enstrophy"):
         if k in d:
             print(f"  {k:20s} {d[k]:.10e}  relative change {d[k + '_change']:+.3e}")
+    cmax = {k: max(h[k] for h in r.history) for k in ("courant_advective", "courant_gravity")}
+    grav = "" if math.isnan(cmax["courant_gravity"]) else f", gravity-wave {cmax['courant_gravity']:.3f}"
+    print(f"  Courant     max over output times: advective {cmax['courant_advective']:.3f}{grav}")
     if "l2_h" in d:
         print(f"  error h     l1 {d['l1_h']:.3e}  l2 {d['l2_h']:.3e}  linf {d['linf_h']:.3e}")
         print(f"  error wind  l1 {d['l1_wind']:.3e}  l2 {d['l2_wind']:.3e}  linf {d['linf_wind']:.3e}")

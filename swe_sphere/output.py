@@ -34,6 +34,8 @@ SERIES_ATTRS = {
     "potential_enstrophy_change": dict(units="1", long_name="relative change of potential enstrophy since t = 0"),
     "rhs_evals": dict(units="1", long_name="cumulative right-hand-side evaluations"),
     "wall_time": dict(units="s", long_name="cumulative wall time of the time loop"),
+    "courant_advective": dict(units="1", long_name="maximum advective Courant number |v| dt / dx over the nodes"),
+    "courant_gravity": dict(units="1", long_name="maximum gravity-wave Courant number sqrt(g h) dt / dx over the nodes"),
     "cg_iterations": dict(units="1", long_name="cumulative conjugate-gradient iterations (semi-implicit Helmholtz solves)"),
     "newton_iterations": dict(units="1", long_name="cumulative Newton iterations"),
     "gmres_iterations": dict(units="1", long_name="cumulative GMRES iterations"),

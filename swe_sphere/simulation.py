@@ -93,6 +93,7 @@ class Simulation:
             d.update({f"{k}_wind": val for k, val in williamson_vector_norms(self.grid, u, v, ue, ve).items()})
         if self.reference is not None:
             d.update(self._reference_errors(t / DAY, u, v, h))
+        d.update(courant_numbers(self.grid, u, v, h, self.scene.dt, self.g, "pressure_gradient" in self.scene.terms))
         return d
 
     def _reference_errors(self, day, u, v, h) -> dict:
@@ -107,8 +108,8 @@ class Simulation:
         return out
 
     def courant(self) -> dict:
-        u, v, h = self.fields()
-        return courant_numbers(self.grid, u, v, h, self.scene.dt, self.g, "pressure_gradient" in self.scene.terms)
+        """Advective and gravity-wave Courant numbers of the scene's dt on the current state."""
+        return courant_numbers(self.grid, *self.fields(), self.scene.dt, self.g, "pressure_gradient" in self.scene.terms)
 
     # -- the loop -----------------------------------------------------------
     def output_steps(self) -> set[int]:

@@ -35,6 +35,13 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--output", type=Path, help="netCDF output file (default: <scene>_ne<ne>np<np>_<stepper>.nc)")
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
     sub.add_parser("list", help="list bundled scenes, steppers and terms")
+    st = sub.add_parser("stability", help="largest stable dt of each stepper on the hard cases, by bisection")
+    st.add_argument("cases", nargs="*", help="case labels (default: all hard cases; see `swe-sphere stability --help`)")
+    st.add_argument("--steppers", default="leapfrog,ssprk3,semi_implicit,implicit", help="comma-separated stepper names")
+    st.add_argument("--ne", type=int, default=8, help="coarse grid for cases that do not fix one (default 8)")
+    st.add_argument("--np", type=int, help="GLL points (default: the scene's)")
+    st.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
+    st.add_argument("--output", type=Path, default=Path("."), help="directory for stability.csv and stability.nc")
     return p
 
 
@@ -75,6 +82,43 @@ def _cmd_list() -> int:
     return 0
 
 
+def _warp_device(requested):
+    """Initialise Warp quietly; return the device name, or None if CUDA was asked for and is absent."""
+    import warp as wp
+
+    wp.config.log_level = wp.LOG_ERROR  # no init banner or per-module load lines
+    _quiet_warp_init(wp)
+    from .model import default_device
+
+    device = requested or default_device()
+    return None if device == "cuda" and not wp.is_cuda_available() else device
+
+
+def _cmd_stability(args) -> int:
+    from .stability import HARD_CASES, format_table, run_suite, write_table
+    from .steppers import STEPPERS
+
+    known = {c[0]: c for c in HARD_CASES}
+    for label in args.cases:
+        if label not in known:
+            return _fail(f"unknown stability case {label!r} (known: {', '.join(known)})", EXIT_BAD_INPUT)
+    steppers = [s for s in args.steppers.split(",") if s]
+    for s in steppers:
+        if s not in STEPPERS:
+            return _fail(f"unknown stepper {s!r} (known: {', '.join(STEPPERS)})", EXIT_BAD_INPUT)
+    if not args.output.is_dir():
+        return _fail(f"output directory does not exist: {args.output}", EXIT_BAD_INPUT)
+    device = _warp_device(args.device)
+    if device is None:
+        return _fail("device cuda is not available on this machine (use --device cpu)", EXIT_BAD_INPUT)
+    cases = [known[c] for c in args.cases] if args.cases else list(HARD_CASES)
+    results = run_suite(cases, steppers, device, ne=args.ne, np=args.np)
+    print(format_table(results))
+    for path in write_table(results, args.output):
+        print(f"wrote {path}")
+    return 0
+
+
 def _cmd_run(args) -> int:
     from .config import SceneError, load_scene
     from .output import check_writable
@@ -86,16 +130,10 @@ def _cmd_run(args) -> int:
     except (SceneError, ValueError) as err:
         return _fail(str(err), EXIT_BAD_INPUT)
 
-    import warp as wp
-
-    wp.config.log_level = wp.LOG_ERROR  # no init banner or per-module load lines
-    _quiet_warp_init(wp)
-    from .model import default_device
-    from .simulation import BlowUp, Simulation
-
-    device = args.device or default_device()
-    if device == "cuda" and not wp.is_cuda_available():
+    device = _warp_device(args.device)
+    if device is None:
         return _fail("device cuda is not available on this machine (use --device cpu)", EXIT_BAD_INPUT)
+    from .simulation import BlowUp, Simulation
 
     sim = Simulation(scene, device, progress=not args.no_progress)
     g = sim.grid
@@ -145,6 +183,8 @@ def main(argv=None) -> int:
     args = _parser().parse_args(argv)
     if args.command == "list":
         return _cmd_list()
+    if args.command == "stability":
+        return _cmd_stability(args)
     return _cmd_run(args)
 
 

@@ -11,19 +11,23 @@ from __future__ import annotations
 
 import json
 import os
+from contextlib import contextmanager
 from pathlib import Path
 
 import netCDF4
 import numpy as np
 
 from .grid import CubedSphere
+from .ugrid import write_mesh
 
 FIELDS = {
     "h": dict(units="m", long_name="fluid depth", standard_name="lwe_thickness_of_water"),
     "hs": dict(units="m", long_name="surface height", standard_name="surface_altitude"),
     "u": dict(units="m s-1", long_name="eastward wind", standard_name="eastward_wind"),
     "v": dict(units="m s-1", long_name="northward wind", standard_name="northward_wind"),
+    "vorticity": dict(units="s-1", long_name="relative vorticity", standard_name="atmosphere_relative_vorticity"),
 }
+UGRID_NODE = {"mesh": "mesh_topology", "location": "node"}  # on every node field (see ugrid.py)
 
 SERIES_ATTRS = {
     "mass": dict(units="m3", long_name="mass (area integral of h)"),
@@ -92,23 +96,28 @@ class RunWriter:
         area.units, area.long_name, area.standard_name = "m2", "area of the node's quadrature cell (assembled spheremp)", "cell_area"
         area[:] = grid.area
         hsv = ds.createVariable("hs", "f8", ("ncol",))
-        hsv.setncatts({**FIELDS["hs"], "coordinates": "lat lon"})
+        hsv.setncatts({**FIELDS["hs"], "coordinates": "lat lon", **UGRID_NODE})
         hsv[:] = grid.to_unique(hs)
-        for name in ("h", "u", "v"):
-            var = ds.createVariable(name, "f8", ("time", "ncol"), zlib=False)
-            var.setncatts({**FIELDS[name], "coordinates": "lat lon", "cell_measures": "area: area"})
+        write_mesh(ds, grid, "ncol")
+        for name in ("h", "u", "v", "vorticity"):
+            fill = dict(fill_value=np.nan) if name == "vorticity" else {}  # NaN where a writer got none
+            var = ds.createVariable(name, "f8", ("time", "ncol"), zlib=False, **fill)
+            var.setncatts({**FIELDS[name], "coordinates": "lat lon", "cell_measures": "area: area", **UGRID_NODE})
         for name in series:
             var = ds.createVariable(name, "f8", ("time",))
             var.setncatts(SERIES_ATTRS[name])
         self.n = 0
 
-    def append(self, time_s: float, u, v, h, series: dict) -> None:
-        """Add one output time (s since start); fields element-local (N,)."""
+    def append(self, time_s: float, u, v, h, series: dict, vorticity=None) -> None:
+        """Add one output time (s since start); fields element-local (N,); ``vorticity``
+        (s⁻¹, DSS'd, element-local) is optional (NaN in the file without it)."""
         ds, n, g = self.ds, self.n, self.grid
         ds["time"][n] = time_s / 86400.0
         ds["u"][n, :] = g.to_unique(u)
         ds["v"][n, :] = g.to_unique(v)
         ds["h"][n, :] = g.to_unique(h)
+        if vorticity is not None:
+            ds["vorticity"][n, :] = g.to_unique(vorticity)
         for k, val in series.items():
             ds[k][n] = val
         ds.sync()
@@ -129,3 +138,15 @@ class RunWriter:
             self.ds.close()
         finally:
             self.tmp.unlink(missing_ok=True)
+
+
+@contextmanager
+def atomic_path(path: Path):
+    """Yield a temporary path beside ``path``; move it onto ``path`` if the block succeeds."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".part")
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)

@@ -28,7 +28,7 @@ from pathlib import Path
 
 from .cases import make_case
 from .constants import DAY
-from .gll import NP_MAX, NP_MIN
+from .gll import NP_MAX, NP_MIN, gll
 from .model import TERMS
 from .steppers import STEPPERS
 
@@ -106,6 +106,11 @@ def resolve_path(spec: str) -> Path:
     raise SceneError(f"scene file not found: {spec}")
 
 
+def _first_gll_gap(npts: int) -> float:
+    x = gll(npts).points
+    return float(x[1] - x[0])
+
+
 def _check_type(key, value, kind):
     if kind is float and isinstance(value, int) and not isinstance(value, bool):
         value = float(value)
@@ -142,8 +147,9 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None) -> S
     """Read, validate and resolve a scene file, applying command-line overrides.
 
     When the grid is overridden and dt is not, dt scales with the smallest
-    grid spacing (∝ 1/(ne·(np−1))) and is shortened to divide the output
-    interval; ν scales as Δx^3.2. Raises ``SceneError``.
+    node spacing (first GLL interval / ne) and is shortened to divide the
+    output interval (or the run, if shorter); ν scales as the mean spacing
+    1/(ne·(np−1)) to the power 3.2. Raises ``SceneError``.
     """
     path = resolve_path(str(path))
     try:
@@ -179,7 +185,9 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None) -> S
         raise SceneError(f"ne must be an integer >= 1 (got {ne1})")
     if isinstance(np1, bool) or int(np1) != np1 or not NP_MIN <= np1 <= NP_MAX:
         raise SceneError(f"np must be an integer in {NP_MIN}..{NP_MAX} (got {np1})")
-    ratio = (ne0 * (np0 - 1)) / (ne1 * (np1 - 1))  # Δx_new / Δx_scene
+    ratio = (ne0 * (np0 - 1)) / (ne1 * (np1 - 1))  # mean node spacing, new / scene's
+    # smallest node spacing (sets the explicit limit), new / scene's
+    min_ratio = (_first_gll_gap(np1) / ne1) / (_first_gll_gap(np0) / ne0)
 
     t = s.get("time", {})
     stepper1 = stepper or t.get("stepper", "ssprk3")
@@ -197,10 +205,10 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None) -> S
             raise SceneError("time.dt is missing")
         if not dt1 > 0:
             raise SceneError(f"time.dt must be > 0 (got {dt1})")
-        if ratio != 1.0:
-            interval = every * DAY
-            dt1 = interval / math.ceil(interval / (dt1 * ratio) - 1e-9)
-            notes.append(f"dt scaled with the grid spacing to {dt1:g} s")
+        if min_ratio != 1.0:
+            interval = min(every, days1) * DAY
+            dt1 = interval / math.ceil(interval / (dt1 * min_ratio) - 1e-9)
+            notes.append(f"dt scaled with the smallest node spacing to {dt1:g} s")
     else:
         dt1 = dt
     if not (math.isfinite(dt1) and dt1 > 0):

@@ -13,7 +13,8 @@
   16 (np = 4); l2 ~ 3e-2 at ne = 16 sits in the range published for HOMME-like
   SE np = 4 on this non-smooth field; mass change <= 6e-14.
 
-Longer (ne = 32) variants are marked slow.
+Longer (ne = 32) variants are marked slow (measured: TC2 l2 = 3.432e-8 / 3.365e-8,
+rates 16 -> 32 of 4.03 / 4.05; TC1 l2 = 5.99e-3, l2(16)/l2(32) = 5.5, mass change 1.1e-13).
 """
 
 from __future__ import annotations
@@ -147,7 +148,7 @@ def tc1_run(ne: int):
     return run_scene(scene)[0]
 
 
-TC1_L2_BOUND = {4: 0.7, 8: 0.32, 16: 0.045, 32: 0.01}  # measured 0.589, 0.262, 0.0330, (ne=32 slow)
+TC1_L2_BOUND = {4: 0.7, 8: 0.32, 16: 0.045, 32: 0.008}  # measured 0.589, 0.262, 0.0330, 0.00599
 
 
 def _check_tc1(nes):
@@ -178,4 +179,4 @@ def test_tc1_cosine_bell_converges_and_conserves_mass():
 @pytest.mark.slow
 def test_tc1_cosine_bell_ne32():
     l2 = _check_tc1((8, 16, 32))
-    assert l2[1] / l2[2] > 2
+    assert l2[1] / l2[2] > 3  # measured 5.5

@@ -35,6 +35,8 @@ from swe_sphere.steppers import STEPPERS
 DEVICE = "cpu"
 
 # RHS evaluations: (first step, every later step), as the steppers document them.
+# A registered stepper missing here (e.g. an iterative implicit one, whose count
+# varies) gets the generic checks only: StepStats summed == RunResult.rhs_evals.
 DOCUMENTED_RHS = {
     "leapfrog": (2, 1),  # explicit-midpoint start, then one per leapfrog step
     "leapfrog_trapezoidal": (2, 2),

@@ -55,9 +55,10 @@ class Helmholtz:
         self.minv = wp.array(1.0 / model.grid.area, dtype=f64, device=dev)
         self.c = 0.0
         if self.backend == "warp":
-            self.A = wpl.LinearOperator((nu, nu), f64, dev, self._matvec)
+            self.A = wpl.LinearOperator((nu, nu), f64, wp.get_device(dev), self._matvec)
             self.cg = wpl.cg(
-                self.A, self.b, self.y, tol=self.tol, maxiter=self.maxiter, M=self.minv, run=False, check_every=1, use_cuda_graph=False
+                self.A, self.b, self.y, tol=self.tol, atol=0.0, maxiter=self.maxiter, M=self.minv, run=False, check_every=1,
+                use_cuda_graph=False,
             )
         else:
             y_np, tmp_np, minv_np = self.y.numpy(), self.tmp.numpy(), self.minv.numpy()

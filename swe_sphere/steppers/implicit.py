@@ -132,10 +132,10 @@ class Implicit(Stepper):
         if self.krylov == "scipy":
             self.op = spla.LinearOperator((n3, n3), matvec=self._host_matvec, dtype=np.float64)
         else:
-            self.op = wpl.LinearOperator((n3, n3), f64, dev, self._device_matvec)
+            self.op = wpl.LinearOperator((n3, n3), f64, wp.get_device(dev), self._device_matvec)
             flat = self.w.reshape((n3,))
             self.gmres = wpl.gmres(
-                self.op, self.minus_R.reshape((n3,)), flat, tol=o["gmres_tol"], restart=o["gmres_restart"],
+                self.op, self.minus_R.reshape((n3,)), flat, tol=o["gmres_tol"], atol=0.0, restart=o["gmres_restart"],
                 maxiter=o["gmres_maxiter"], run=False, check_every=o["gmres_restart"], use_cuda_graph=False,
             )
 

@@ -13,6 +13,16 @@ wp.set_module_options({"enable_backward": False})
 
 
 @wp.func
+def element_node(p: int, np: int):
+    """Node p = e*np*np + j*np + i → (e*np*np, i, j): its element's first index and GLL indices."""
+    npp = np * np
+    e = p / npp
+    k = p - e * npp
+    j = k / np
+    return e * npp, k - j * np, j
+
+
+@wp.func
 def d_xi(f: wp.array2d(dtype=f64), row: int, base: int, i: int, j: int, np: int, dvv: wp.array2d(dtype=f64)):
     """∂f/∂ξ at node (i, j) of the element starting at ``base``."""
     s = f64(0.0)
@@ -34,12 +44,7 @@ def d_eta(f: wp.array2d(dtype=f64), row: int, base: int, i: int, j: int, np: int
 def vorticity_at(x: wp.array2d(dtype=f64), p: int, np: int, D: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64)):
     """Relative vorticity (s⁻¹) at node p of the wind in rows 0, 1 of x:
     ζ = (∂ξ v₂ − ∂η v₁)/metdet with covariant components v_c = Dᵀ v."""
-    npp = np * np
-    e = p / npp
-    r = p - e * npp
-    j = r / np
-    i = r - j * np
-    base = e * npp
+    base, i, j = element_node(p, np)
     dv2 = f64(0.0)
     dv1 = f64(0.0)
     for m in range(np):
@@ -54,13 +59,9 @@ def vorticity_at(x: wp.array2d(dtype=f64), p: int, np: int, D: wp.array2d(dtype=
 def gradient_sphere(f: wp.array2d(dtype=f64), row: int, Dinv: wp.array2d(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, out: wp.array2d(dtype=f64)):
     """out[0:2, p] = ∇f (east, north; units of f per m) = Dinvᵀ (∂ξ f, ∂η f)."""
     p = wp.tid()
-    npp = np * np
-    e = p / npp
-    r = p - e * npp
-    j = r / np
-    i = r - j * np
-    a = d_xi(f, row, e * npp, i, j, np, dvv)
-    b = d_eta(f, row, e * npp, i, j, np, dvv)
+    base, i, j = element_node(p, np)
+    a = d_xi(f, row, base, i, j, np, dvv)
+    b = d_eta(f, row, base, i, j, np, dvv)
     out[0, p] = Dinv[0, p] * a + Dinv[2, p] * b
     out[1, p] = Dinv[1, p] * a + Dinv[3, p] * b
 
@@ -70,12 +71,7 @@ def divergence_sphere(x: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), met
     """out[p] = ∇·v (s⁻¹) of the wind in rows 0, 1 of x:
     (∂ξ(metdet c¹) + ∂η(metdet c²))/metdet with contravariant c = Dinv v."""
     p = wp.tid()
-    npp = np * np
-    e = p / npp
-    r = p - e * npp
-    j = r / np
-    i = r - j * np
-    base = e * npp
+    base, i, j = element_node(p, np)
     s = f64(0.0)
     for m in range(np):
         q = base + j * np + m
@@ -98,13 +94,9 @@ def laplace_wk_flux(f: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), spher
     flux[2r:2r+2, p] = spheremp · Dinv Dinvᵀ (∂ξ f, ∂η f), the quadrature-weighted
     contravariant gradient. Launch with dim (rows, N)."""
     r, p = wp.tid()
-    npp = np * np
-    e = p / npp
-    k = p - e * npp
-    j = k / np
-    i = k - j * np
-    a = d_xi(f, r, e * npp, i, j, np, dvv)
-    b = d_eta(f, r, e * npp, i, j, np, dvv)
+    base, i, j = element_node(p, np)
+    a = d_xi(f, r, base, i, j, np, dvv)
+    b = d_eta(f, r, base, i, j, np, dvv)
     gx = Dinv[0, p] * a + Dinv[2, p] * b
     gy = Dinv[1, p] * a + Dinv[3, p] * b
     flux[2 * r, p] = spheremp[p] * (Dinv[0, p] * gx + Dinv[1, p] * gy)
@@ -116,12 +108,7 @@ def laplace_wk_div(flux: wp.array2d(dtype=f64), dvv: wp.array2d(dtype=f64), np: 
     """Second half: out[r, (m, n)] = −Σ_i dvv[i, m] flux¹(i, n) − Σ_j dvv[j, n] flux²(m, j),
     i.e. −∫ ∇φ_mn·∇f over the element (m² × units of f / m²). Launch with dim (rows, N)."""
     r, p = wp.tid()
-    npp = np * np
-    e = p / npp
-    k = p - e * npp
-    n = k / np
-    m = k - n * np
-    base = e * npp
+    base, m, n = element_node(p, np)
     s = f64(0.0)
     for q in range(np):
         s += dvv[q, m] * flux[2 * r, base + n * np + q] + dvv[q, n] * flux[2 * r + 1, base + q * np + m]

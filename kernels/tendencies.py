@@ -11,7 +11,7 @@ scene names, then applies the DSS. Dim N.
 
 import warp as wp
 
-from .operators import d_eta, d_xi, vorticity_at
+from .operators import d_eta, d_xi, element_node, vorticity_at
 
 f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
@@ -21,12 +21,7 @@ wp.set_module_options({"enable_backward": False})
 def continuity(x: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, tend: wp.array2d(dtype=f64)):
     """dh/dt −= ∇·(h v)."""
     p = wp.tid()
-    npp = np * np
-    e = p / npp
-    k = p - e * npp
-    j = k / np
-    i = k - j * np
-    base = e * npp
+    base, i, j = element_node(p, np)
     s = f64(0.0)
     for m in range(np):
         q = base + j * np + m
@@ -40,12 +35,7 @@ def continuity(x: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), metdet: wp
 def momentum_advection(x: wp.array2d(dtype=f64), D: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, tend: wp.array2d(dtype=f64)):
     """dv/dt += −ζ k×v − ∇(½|v|²)."""
     p = wp.tid()
-    npp = np * np
-    e = p / npp
-    k = p - e * npp
-    j = k / np
-    i = k - j * np
-    base = e * npp
+    base, i, j = element_node(p, np)
     a = f64(0.0)
     b = f64(0.0)
     for m in range(np):
@@ -70,13 +60,9 @@ def coriolis(x: wp.array2d(dtype=f64), fcor: wp.array(dtype=f64), tend: wp.array
 def pressure_gradient(x: wp.array2d(dtype=f64), g: f64, Dinv: wp.array2d(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, tend: wp.array2d(dtype=f64)):
     """dv/dt += −g ∇h."""
     p = wp.tid()
-    npp = np * np
-    e = p / npp
-    k = p - e * npp
-    j = k / np
-    i = k - j * np
-    a = d_xi(x, 2, e * npp, i, j, np, dvv)
-    b = d_eta(x, 2, e * npp, i, j, np, dvv)
+    base, i, j = element_node(p, np)
+    a = d_xi(x, 2, base, i, j, np, dvv)
+    b = d_eta(x, 2, base, i, j, np, dvv)
     tend[0, p] = tend[0, p] - g * (Dinv[0, p] * a + Dinv[2, p] * b)
     tend[1, p] = tend[1, p] - g * (Dinv[1, p] * a + Dinv[3, p] * b)
 

@@ -21,6 +21,9 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_BAD_INPUT, f"swe-sphere: error: {message}\n")
 
 
+PLOT_FIELDS = ("h", "h_surface", "u", "v", "speed", "vorticity")  # = plotting.MAP_FIELDS (not imported: matplotlib)
+
+
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog="swe-sphere", description="Spectral-element shallow-water model on the cubed sphere.")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -35,6 +38,17 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--output", type=Path, help="netCDF output file (default: <scene>_ne<ne>np<np>_<stepper>.nc)")
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
     sub.add_parser("list", help="list bundled scenes, steppers and terms")
+    pl = sub.add_parser("plot", help="PNG lat-lon maps of a run file's fields and its invariants/errors against time")
+    pl.add_argument("run", type=Path, help="run file (netCDF written by `swe-sphere run`)")
+    pl.add_argument("--field", nargs="+", choices=PLOT_FIELDS, default=["h_surface"], help="field(s) to map (default h_surface = h + hs)")
+    pl.add_argument("--day", nargs="+", type=float, help="model day(s) to map, each an output time (default: the last)")
+    pl.add_argument("--diff", type=Path, metavar="REFERENCE", help="map the difference to another run file or a T213 reference file")
+    pl.add_argument("--output", type=Path, default=Path("."), metavar="DIR", help="folder for the PNGs (default: .)")
+    pl.add_argument("--lat-range", nargs=2, type=float, metavar=("SOUTH", "NORTH"), help="map only this latitude band (degrees)")
+    rm = sub.add_parser("remap", help="a run file on a regular lat-lon grid (CF netCDF), by GLL interpolation")
+    rm.add_argument("run", type=Path, help="run file (netCDF written by `swe-sphere run`)")
+    rm.add_argument("--resolution", type=float, default=1.0, help="grid spacing in degrees; must divide 180 (default 1.0)")
+    rm.add_argument("--output", type=Path, help="netCDF output file (default: <run>_latlon<resolution>.nc)")
     st = sub.add_parser("stability", help="largest stable dt of each stepper on the hard cases, by bisection")
     st.add_argument("cases", nargs="*", help="case labels (default: all hard cases; see `swe-sphere stability --help`)")
     st.add_argument("--steppers", default="leapfrog,ssprk3,semi_implicit,implicit", help="comma-separated stepper names")
@@ -179,12 +193,53 @@ def _summary(r) -> None:
     print(f"  output      {r.output}")
 
 
+def _cmd_plot(args) -> int:
+    try:
+        from .plotting import plot_run
+
+        written = plot_run(args.run, args.field, args.day, args.diff, args.output, args.lat_range)
+    except (FileNotFoundError, ValueError) as err:
+        return _fail(str(err), EXIT_BAD_INPUT)
+    for path in written:
+        print(path)
+    return 0
+
+
+def _cmd_remap(args) -> int:
+    from .output import check_writable
+    from .remap import latlon_grid, remap_file, run_grid
+
+    import xarray as xr
+
+    output = args.output or Path(f"{args.run.stem}_latlon{args.resolution:g}.nc")
+    try:
+        lat, lon = latlon_grid(args.resolution)
+        if not args.run.is_file():
+            raise ValueError(f"file not found: {args.run}")
+        check_writable(output)
+        try:
+            ds = xr.open_dataset(args.run, decode_times=False)
+        except Exception as exc:
+            raise ValueError(f"{args.run}: not a readable netCDF file ({type(exc).__name__})") from None
+        with ds:
+            grid = run_grid(ds)
+    except ValueError as err:
+        return _fail(str(err), EXIT_BAD_INPUT)
+    remap_file(args.run, args.resolution, output)
+    print(f"{output}: ne={grid.ne} np={grid.np} -> {lat.size} x {lon.size} lat-lon points ({args.resolution:g} degrees)")
+    return 0
+
+
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
     if args.command == "list":
         return _cmd_list()
     if args.command == "stability":
         return _cmd_stability(args)
+    if args.command == "plot":
+        return _cmd_plot(args)
+    if args.command == "remap":
+        return _cmd_remap(args)
     return _cmd_run(args)
 
 

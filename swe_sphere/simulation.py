@@ -153,7 +153,8 @@ class Simulation:
             d.update({f"{k}_iterations": iterations.get(k, 0) for k in stepper.solvers})
             history.append(d)
             if writer is not None:
-                writer.append(step * s.dt, *self.fields(x), {k: d[k] for k in series})
+                zeta = model.vorticity(self.x if x is None else x)  # DSS'd, element-local (s-1)
+                writer.append(step * s.dt, *self.fields(x), {k: d[k] for k in series}, vorticity=zeta)
 
         # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
         # pay, and on a busy machine OpenBLAS's spinning threads made a norm cost 10 ms

@@ -1,0 +1,430 @@
+"""Pictures of a run: lat-lon maps of its fields, its invariants and errors against time.
+
+Maps are drawn from the spectral-element solution itself: each element's GLL
+polynomial evaluated (``remap.Remapper``) at the centres of a regular lat-lon
+grid finer than the GLL spacing, shown cell by cell (``imshow``) on a plain global
+longitude-latitude (equirectangular) projection — no gaps, no seams at the
+cube edges, the date line or the poles. matplotlib draws through its Agg canvas
+directly (no pyplot, no global backend change), so this works headless.
+
+Functions other modules reuse: :func:`plot_map`, :func:`plot_series`,
+:func:`line_plot` (generic x-y lines), :func:`sweep_plot` (error against wall time or Δt
+per stepper, for ``swe_sphere.sweep``),
+:func:`field_at_nodes`, :func:`open_run`, :func:`open_reference`.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from .remap import Remapper, cached_grid, run_grid
+
+# name → (long name, units on the colour bar, scale applied before drawing, colour map, symmetric about 0)
+MAP_FIELDS = {
+    "h": ("fluid depth h", "m", 1.0, "viridis", False),
+    "h_surface": ("free-surface height h + hs", "m", 1.0, "viridis", False),
+    "u": ("eastward wind u", "m s$^{-1}$", 1.0, "RdBu_r", True),
+    "v": ("northward wind v", "m s$^{-1}$", 1.0, "RdBu_r", True),
+    "speed": ("wind speed |v|", "m s$^{-1}$", 1.0, "magma_r", False),
+    "vorticity": ("relative vorticity ζ", "10$^{-5}$ s$^{-1}$", 1e5, "RdBu_r", True),
+}
+INVARIANTS = ("mass_change", "total_energy_change", "potential_enstrophy_change")
+FIGSIZE, DPI = (12.0, 6.0), 100  # map: 1200 × 600 pixels
+SERIES_FIGSIZE = (12.0, 5.0)  # 1200 × 500 pixels
+DAY_TOL = 1e-6
+
+
+# -- reading -----------------------------------------------------------------
+def open_run(path) -> xr.Dataset:
+    """A swe_sphere run file, times as model days (``decode_times=False``).
+    Raises ``FileNotFoundError`` / ``ValueError`` (one line) for a missing or unreadable file."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"file not found: {path}")
+    try:
+        ds = xr.open_dataset(path, decode_times=False)
+    except Exception as exc:  # netCDF4 / xarray raise several types
+        raise ValueError(f"{path}: not a readable netCDF file ({type(exc).__name__})") from None
+    if "ncol" not in ds.dims:
+        ds.close()
+        raise ValueError(f"{path}: not a swe_sphere run file (no ncol dimension)")
+    ds.attrs.setdefault("_path", str(path))
+    return ds
+
+
+def _name(ds) -> str:
+    return Path(ds.attrs.get("_path", "run")).name
+
+
+def days_of(ds) -> np.ndarray:
+    return np.asarray(ds["time"].values, dtype=np.float64) if "time" in ds.variables else np.zeros(0)
+
+
+def time_index(ds, day: float) -> int:
+    """Index of the output time at ``day`` (within 1e-6 day); ``ValueError`` if not stored."""
+    days = days_of(ds)
+    hits = np.flatnonzero(np.abs(days - day) <= DAY_TOL)
+    if hits.size == 0:
+        stored = ", ".join(f"{d:g}" for d in days)
+        raise ValueError(f"day {day:g} not in {_name(ds)} (stored: {stored})")
+    return int(hits[0])
+
+
+def field_at_nodes(ds, field: str, day: float) -> np.ndarray:
+    """``field`` (one of ``MAP_FIELDS``) of a run at ``day`` on its unique nodes (ncol,),
+    in the file's units (s⁻¹ for vorticity). ``ValueError`` if it cannot be had."""
+    if field not in MAP_FIELDS:
+        raise ValueError(f"unknown field {field!r} (known: {', '.join(MAP_FIELDS)})")
+    it = time_index(ds, day)
+
+    def get(name):
+        if name not in ds.variables:
+            raise ValueError(f"{_name(ds)} has no {name!r}")
+        var = ds[name]
+        return np.asarray(var.isel(time=it).values if "time" in var.dims else var.values, dtype=np.float64)
+
+    if field == "h_surface":
+        return get("h") + get("hs")
+    if field == "speed":
+        return np.hypot(get("u"), get("v"))
+    values = get(field)
+    if field == "vorticity" and not np.all(np.isfinite(values)):
+        raise ValueError(f"{_name(ds)} has no vorticity at day {day:g}")
+    return values
+
+
+@dataclass
+class _T213:
+    """A T213 reference file (``reference.Reference``) as a comparison source."""
+
+    ref: object
+    label: str
+
+    def check(self, field: str, day: float) -> None:
+        if field == "vorticity":
+            raise ValueError(f"{self.label} has no vorticity (T213 files hold h_surface, u, v)")
+        if np.min(np.abs(self.ref.days - day), initial=np.inf) > DAY_TOL:
+            raise ValueError(f"day {day:g} not in {self.label} (stored: {', '.join(f'{d:g}' for d in self.ref.days)})")
+
+    def values(self, field: str, day: float, lat, lon) -> np.ndarray:
+        r = self.ref.at(day, lat, lon)
+        return np.hypot(r["u"], r["v"]) if field == "speed" else r[field]
+
+
+@dataclass
+class _Run:
+    """Another run file as a comparison source, interpolated by its own GLL polynomials."""
+
+    ds: xr.Dataset
+    label: str
+
+    def check(self, field: str, day: float) -> None:
+        field_at_nodes(self.ds, field, day)
+
+    def values(self, field: str, day: float, lat, lon) -> np.ndarray:
+        return Remapper(run_grid(self.ds), lat, lon)(field_at_nodes(self.ds, field, day))
+
+
+def open_reference(path):
+    """A comparison source for ``--diff``: another run file (has ``ncol``) or a T213
+    reference file (``h_surface`` on lat/lon). Raises ``FileNotFoundError``/``ValueError``."""
+    from .reference import Reference
+
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"reference file not found: {path}")
+    try:
+        with xr.open_dataset(path, decode_times=False) as probe:
+            is_run = "ncol" in probe.dims
+    except Exception as exc:
+        raise ValueError(f"{path}: not a readable netCDF file ({type(exc).__name__})") from None
+    if is_run:
+        ds = open_run(path)
+        run_grid(ds)  # validates ne/np against lat/lon
+        return _Run(ds, path.name)
+    return _T213(Reference(path), path.name)
+
+
+# -- drawing -------------------------------------------------------------------
+def _figure(figsize):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize, dpi=DPI, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig, path) -> Path:
+    path = Path(path)
+    tmp = path.with_name(path.name + ".part.png")
+    try:
+        fig.savefig(tmp, dpi=DPI)  # no bbox_inches: the pixel size is figsize × DPI
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    tmp.replace(path)
+    return path
+
+
+def plot_resolution(grid) -> float:
+    """Spacing (degrees) of the cell-centre grid maps are drawn on: 0.5°, or 0.25° when the
+    mean GLL spacing 90/(ne (np−1)) is below 1°."""
+    return 0.5 if 90.0 / (grid.ne * (grid.np - 1)) >= 1.0 else 0.25
+
+
+@functools.lru_cache(maxsize=2)
+def _plot_remapper(ne: int, np_: int, res: float) -> Remapper:
+    """Remapper of an ne/np grid to the cell centres of the ``res``-degree plotting grid."""
+    lat_c, lon_c = _centres(*plot_edges(res))
+    return Remapper(cached_grid(ne, np_), lat_c, lon_c)
+
+
+def plot_edges(res: float) -> tuple[np.ndarray, np.ndarray]:
+    """Cell edges (degrees) of the global plotting grid: lat −90..90, lon 0..360."""
+    return np.linspace(-90.0, 90.0, round(180 / res) + 1), np.linspace(0.0, 360.0, round(360 / res) + 1)
+
+
+def _centres(lat_e, lon_e):
+    """Cell centres (radians) as broadcastable (nlat, 1), (1, nlon)."""
+    return np.radians(0.5 * (lat_e[1:] + lat_e[:-1]))[:, None], np.radians(0.5 * (lon_e[1:] + lon_e[:-1]))[None, :]
+
+
+def check_lat_range(lat_range) -> tuple[float, float]:
+    """(south, north) degrees with −90 ≤ south < north ≤ 90, else ``ValueError``."""
+    south, north = (float(x) for x in lat_range)
+    if not (-90 <= south < north <= 90):
+        raise ValueError(f"latitude range must satisfy -90 <= south < north <= 90 (got {south:g} {north:g})")
+    return south, north
+
+
+def normalized_l2(area, f, ref) -> float:
+    """sqrt(Σ area (f − ref)²) / sqrt(Σ area ref²) (Williamson et al. 1992, eq. 83)."""
+    return float(np.sqrt(np.sum(area * (f - ref) ** 2) / np.sum(area * ref**2)))
+
+
+def draw_map(fig, ax, lon_edges, lat_edges, values, *, cmap, symmetric, label, contours=None):
+    """``values`` (nlat, nlon), cells of a regular grid with the given edges (degrees), on a
+    lon-lat axes with a colour bar labelled ``label``; ``contours``: levels (an int or a
+    sequence) of black contour lines drawn over it (negative ones dashed), or None.
+    Equal degrees in x and y when the edges span the globe's latitudes, else stretched."""
+    vmin, vmax = float(np.nanmin(values)), float(np.nanmax(values))
+    if symmetric:
+        vmax = max(abs(vmin), abs(vmax)) or 1.0
+        vmin = -vmax
+    # a regular grid: imshow draws the same cells as pcolormesh, an order of magnitude faster
+    extent = (lon_edges[0], lon_edges[-1], lat_edges[0], lat_edges[-1])
+    mesh = ax.imshow(values, cmap=cmap, vmin=vmin, vmax=vmax, origin="lower", extent=extent, interpolation="nearest")
+    if contours is not None and vmax > vmin:
+        lon_c = 0.5 * (lon_edges[1:] + lon_edges[:-1])
+        lat_c = 0.5 * (lat_edges[1:] + lat_edges[:-1])
+        ax.contour(lon_c, lat_c, values, levels=contours, colors="k", linewidths=0.5)
+    ax.set_xlim(lon_edges[0], lon_edges[-1])
+    ax.set_ylim(lat_edges[0], lat_edges[-1])
+    span = lat_edges[-1] - lat_edges[0]
+    ax.set_aspect("equal" if span > 179 else "auto")
+    ax.set_xticks(np.arange(0, 361, 60))
+    step = 30 if span > 120 else 15 if span > 45 else 5
+    ax.set_yticks(np.arange(-90, 91, step)[(np.arange(-90, 91, step) >= lat_edges[0]) & (np.arange(-90, 91, step) <= lat_edges[-1])])
+    ax.set_xlabel("longitude (°E)")
+    ax.set_ylabel("latitude (°N)")
+    cbar = fig.colorbar(mesh, ax=ax, shrink=0.85, pad=0.02)
+    cbar.set_label(label)
+    return mesh
+
+
+def plot_map(ds, field: str, day: float, path, diff=None, lat_range=None) -> dict:
+    """Draw ``field`` of the run ``ds`` (from :func:`open_run`) at ``day`` to the PNG ``path``
+    (1200 × 600 pixels). ``diff``: a source from :func:`open_reference`; then the map is
+    run − reference with a symmetric colour map, and the title carries the normalized
+    l2 of the difference over the run's nodes (area-weighted). ``lat_range`` (south, north)
+    in degrees draws only that band (e.g. (0, 90) for Galewsky et al. 2004, Fig. 4).
+    Height fields get contour lines (14 levels), vorticity contours every 2e-5 s⁻¹.
+
+    Returns ``{"path", "min", "max", "colorbar_label", "title"}`` (min/max of the drawn
+    values in file units), plus ``"l2"`` with diff."""
+    grid = run_grid(ds)
+    long_name, units, scale, cmap, symmetric = MAP_FIELDS[field]
+    nodes = field_at_nodes(ds, field, day)
+    if diff is not None:
+        diff.check(field, day)
+    res = plot_resolution(grid)
+    lat_e, lon_e = plot_edges(res)
+    lat_c, lon_c = _centres(lat_e, lon_e)
+    values = _plot_remapper(grid.ne, grid.np, res)(nodes)
+    if lat_range is not None:
+        south, north = check_lat_range(lat_range)
+        rows = np.flatnonzero((lat_e[1:] > south) & (lat_e[:-1] < north))
+        lat_e = np.clip(lat_e[rows[0] : rows[-1] + 2], south, north)
+        lat_c, values = lat_c[rows], values[rows]
+    scene = _scene_label(ds)
+    info = {"path": Path(path)}
+    if diff is None:
+        title = f"{long_name}, {scene}, day {day:g}"
+        shown = values
+        draw_symmetric, draw_cmap, label = symmetric, cmap, f"{field} ({units})"
+    else:
+        ref_grid = diff.values(field, day, lat_c, lon_c)
+        lat_n, lon_n = np.radians(ds["lat"].values), np.radians(ds["lon"].values)
+        ref_nodes = diff.values(field, day, lat_n, lon_n)
+        l2 = normalized_l2(np.asarray(ds["area"].values), nodes, ref_nodes)
+        info["l2"] = l2
+        shown = values - ref_grid
+        title = f"{long_name}: {scene} − {diff.label}, day {day:g}; normalized l2 = {l2:.3e}"
+        draw_symmetric, draw_cmap, label = True, "RdBu_r", f"Δ {field} ({units})"
+    info["min"], info["max"] = float(np.nanmin(shown)), float(np.nanmax(shown))
+    fig = _figure(FIGSIZE)
+    ax = fig.add_subplot()
+    info["colorbar_label"], info["title"] = label, title
+    contours = None
+    if diff is None and field in ("h", "h_surface"):
+        contours = 14
+    elif diff is None and field == "vorticity":
+        top = np.ceil(np.nanmax(np.abs(shown * scale)) / 2) * 2
+        contours = [c for c in np.arange(-top, top + 1, 2.0) if c != 0]  # 2e-5 s-1, as Galewsky et al.
+    draw_map(fig, ax, lon_e, lat_e, shown * scale, cmap=draw_cmap, symmetric=draw_symmetric, label=label, contours=contours)
+    ax.set_title(title, fontsize=11)
+    _save(fig, path)
+    return info
+
+
+def _scene_label(ds) -> str:
+    try:
+        s = json.loads(ds.attrs["scene"])
+        return f"{s['name']} ne{s['ne']} np{s['np']}"
+    except (KeyError, ValueError, TypeError):
+        return _name(ds)
+
+
+def _lines(ax, lines, *, logx=False, logy=False, markers=True, xlabel="", ylabel="", title=""):
+    drawn = 0
+    for label, x, y in lines:
+        x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+        ok = np.isfinite(x) & np.isfinite(y) & ((y > 0) if logy else True) & ((x > 0) if logx else True)
+        if not ok.any():
+            continue
+        ax.plot(x[ok], y[ok], marker="o" if markers else None, markersize=3, linewidth=1.2, label=label)
+        drawn += 1
+    if logx and drawn:
+        from matplotlib.ticker import FuncFormatter
+
+        ax.set_xscale("log")
+        # minor labels at 2 and 5 × 10^k only: readable within a decade, no crowding
+        ax.xaxis.set_minor_formatter(FuncFormatter(lambda v, _: f"{v:g}" if f"{v:.0e}"[0] in "25" else ""))
+    if logy and drawn:
+        ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    if title:
+        ax.set_title(title, fontsize=11)
+    ax.grid(True, which="major", alpha=0.3)
+    if drawn:
+        ax.legend(fontsize=8)
+    return drawn
+
+
+def line_plot(path, lines, *, xlabel="", ylabel="", title="", logx=False, logy=False, markers=True, figsize=(8.0, 5.0)) -> Path:
+    """Generic x-y line figure to the PNG ``path`` (figsize × 100 dpi pixels).
+
+    ``lines``: iterable of ``(label, x, y)``; non-finite points (and non-positive ones
+    on a log axis) are left out. For sweeps: error against wall time, Δt, ..."""
+    fig = _figure(figsize)
+    ax = fig.add_subplot()
+    if not _lines(ax, lines, logx=logx, logy=logy, markers=markers, xlabel=xlabel, ylabel=ylabel, title=title):
+        ax.text(0.5, 0.5, "no data", ha="center", va="center", transform=ax.transAxes)
+    return _save(fig, path)
+
+
+def sweep_plot(path, rows, x: str, *, xlabel: str = "", floor: float | None = None, y: str = "temporal_error", figsize=(8.0, 5.0)) -> Path:
+    """Sweep figure (``swe_sphere.sweep``): ``y`` against ``x`` per stepper, log-log, for the
+    stable runs of ``rows`` (dicts with ``stepper``, ``stable``, ``x``, ``y``). ``floor``: the
+    spatial error, drawn as a dashed line with the sufficient-accuracy level 0.1 × floor dotted."""
+    steppers = list(dict.fromkeys(r["stepper"] for r in rows))
+    lines = []
+    for st in steppers:
+        pts = sorted((float(r[x]), float(r[y])) for r in rows if r["stepper"] == st and r.get("stable", True))
+        lines.append((st, [p[0] for p in pts], [p[1] for p in pts]))
+    fig = _figure(figsize)
+    ax = fig.add_subplot()
+    drawn = _lines(ax, lines, logx=True, logy=True, xlabel=xlabel or x, ylabel=y.replace("_", " "), title=f"{y.replace('_', ' ')} against {xlabel or x}")
+    if floor is not None and math.isfinite(floor) and floor > 0:
+        ax.axhline(floor, color="0.4", linestyle="--", linewidth=1, label="spatial error")
+        ax.axhline(0.1 * floor, color="0.4", linestyle=":", linewidth=1, label="sufficient accuracy (10 %)")
+        ax.set_yscale("log")
+        ax.legend(fontsize=8)
+    if not drawn:
+        ax.text(0.5, 0.5, "no stable run", ha="center", va="center", transform=ax.transAxes)
+    return _save(fig, path)
+
+
+def plot_series(ds, path) -> Path:
+    """Invariants' |relative change| and the error norms in the file against model day,
+    two panels, to the PNG ``path`` (1200 × 500 pixels)."""
+    days = days_of(ds)
+    fig = _figure(SERIES_FIGSIZE)
+    left, right = fig.subplots(1, 2)
+    inv = [(k.replace("_change", ""), days, np.abs(ds[k].values)) for k in INVARIANTS if k in ds.variables]
+    if not _lines(left, inv, logy=True, xlabel="day", ylabel="|relative change since t = 0|", title="invariants"):
+        left.text(0.5, 0.5, "no invariants in this file (or all exactly conserved)", ha="center", va="center", transform=left.transAxes)
+    norm_names = [
+        f"{pre}{n}_{f}" for pre in ("", "ref_") for f in ("h", "h_surface", "wind") for n in ("l1", "l2", "linf")
+    ]
+    norms = [(k, days, ds[k].values) for k in norm_names if k in ds.variables]
+    if not _lines(right, norms, logy=True, xlabel="day", ylabel="normalized error", title="error norms (ref_: against T213)"):
+        right.text(0.5, 0.5, "no exact or reference solution for this case", ha="center", va="center", transform=right.transAxes)
+    fig.suptitle(_scene_label(ds), fontsize=12)
+    return _save(fig, path)
+
+
+# -- the command ---------------------------------------------------------------
+def map_name(run_path, field: str, day: float, diff: bool, lat_range=None) -> str:
+    band = f"_lat{lat_range[0]:g}to{lat_range[1]:g}" if lat_range is not None else ""
+    return f"{Path(run_path).stem}_{field}_day{day:g}{band}{'_diff' if diff else ''}.png"
+
+
+def plot_run(run_path, fields=("h_surface",), days=None, diff_path=None, outdir=".", lat_range=None) -> list[Path]:
+    """``swe-sphere plot``: maps of ``fields`` at ``days`` (default: the last output
+    time) and the time-series figure, PNGs in ``outdir`` (created if missing).
+
+    Every input is checked before anything is written; raises ``FileNotFoundError`` or
+    ``ValueError`` (one line) for a missing file, an unknown field or a missing day."""
+    outdir = Path(outdir)
+    if lat_range is not None:
+        check_lat_range(lat_range)
+    if outdir.exists() and not outdir.is_dir():
+        raise ValueError(f"output path is not a directory: {outdir}")
+    ds = open_run(run_path)
+    diff = None
+    try:
+        run_grid(ds)
+        stored = days_of(ds)
+        if stored.size == 0:
+            raise ValueError(f"{_name(ds)} holds no output time")
+        days = [float(stored[-1])] if not days else [float(d) for d in days]
+        diff = open_reference(diff_path) if diff_path is not None else None
+        for field in fields:
+            for day in days:
+                field_at_nodes(ds, field, day)
+                if not math.isfinite(day):
+                    raise ValueError(f"day must be finite (got {day})")
+                if diff is not None:
+                    diff.check(field, day)
+        outdir.mkdir(parents=True, exist_ok=True)
+        written = []
+        for field in fields:
+            for day in days:
+                path = outdir / map_name(run_path, field, day, diff is not None, lat_range)
+                written.append(plot_map(ds, field, day, path, diff, lat_range)["path"])
+        written.append(plot_series(ds, outdir / f"{Path(run_path).stem}_series.png"))
+        return written
+    finally:
+        ds.close()
+        if isinstance(diff, _Run):
+            diff.ds.close()

@@ -1,0 +1,234 @@
+"""Step-size efficiency sweeps: error against Δt against wall time, per stepper.
+
+For each (stepper, Δt) the scene is run on one grid; recorded are the wall
+time of the time loop (compilation and start-up measured apart, in a warm-up
+run per stepper), RHS evaluations, solver iterations, stability, the total
+error at the final time (against the exact solution for TC1/TC2, else the T213
+reference) and the temporal error (against a same-grid run with a small Δt:
+RK4 at a quarter of the smallest Δt swept, made once and reused), and the
+drift of the invariants. Each run's result is written atomically as JSON
+under ``DIR/runs/``; a restarted sweep skips the runs already there.
+
+"Sufficient accuracy" (Evans, Taylor & Drake 2010): temporal error ≤ 10 % of
+the spatial error, the spatial error being the small-Δt run's total error.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .config import Scene
+from .constants import DAY
+from .diagnostics import williamson_norms, williamson_vector_norms
+from .output import atomic_path
+from .simulation import BlowUp, Simulation
+
+EXPLICIT = ("leapfrog", "leapfrog_trapezoidal", "ssprk3", "rk4")
+SUFFICIENT = 0.1  # temporal error ≤ 10 % of the spatial error
+
+
+def dt_for_day(dt: float, run_days: float) -> float:
+    """The largest Δt ≤ dt that divides a day (or the run, if shorter)."""
+    span = min(1.0, run_days) * DAY
+    return span / math.ceil(span / dt - 1e-9)
+
+
+def explicit_limits(scene: Scene, device: str) -> dict:
+    """The Δt at which the gravity-wave and the advective Courant numbers of the
+    initial state are 1 (``dt_gravity``, ``dt_advective``), on the scene's grid."""
+    c = Simulation(dataclasses.replace(scene, days=scene.dt / DAY), device, progress=False).courant()
+    return {"dt_gravity": scene.dt / c["courant_gravity"], "dt_advective": scene.dt / c["courant_advective"]}
+
+
+def _final_state(sim: Simulation) -> np.ndarray:
+    return sim.x.numpy().copy()
+
+
+def _errors(sim: Simulation, x: np.ndarray, x_ref: np.ndarray | None) -> dict:
+    """Total error at the end (exact solution or T213) and temporal error against x_ref."""
+    d = sim.diagnose(sim.scene.days * DAY, None)
+    total = d.get("l2_h", d.get("ref_l2_h_surface", math.nan))
+    out = {"total_error": total}
+    if x_ref is not None:
+        hs = sim.hs
+        out["temporal_error"] = williamson_norms(sim.grid, x[2] + hs, x_ref[2] + hs)["l2"]
+        out["temporal_error_wind"] = williamson_vector_norms(sim.grid, x[0], x[1], x_ref[0], x_ref[1])["l2"]
+    return out
+
+
+@dataclass
+class Sweep:
+    """A sweep over ``scenes`` (stepper name → its resolved scene, same case and
+    grid) × ``dts`` (s), results under ``directory``."""
+
+    scenes: dict
+    dts: list
+    directory: Path
+    device: str
+    log: object = print
+
+    def __post_init__(self):
+        self.directory = Path(self.directory)
+        (self.directory / "runs").mkdir(parents=True, exist_ok=True)
+        self.base = next(iter(self.scenes.values()))
+
+    # -- reference ----------------------------------------------------------------
+    def reference(self) -> dict:
+        """The small-Δt run (RK4, a quarter of the smallest Δt): final state and spatial error."""
+        dt = dt_for_day(min(self.dts) / 4, self.base.days)
+        path = self.directory / "runs" / f"reference_rk4_{dt:.6g}.npz"
+        if path.exists():
+            data = np.load(path)
+            return {"x": data["x"], "total_error": float(data["total_error"]), "dt": dt}
+        self.log(f"reference run: rk4, dt = {dt:.6g} s")
+        scene = dataclasses.replace(self.base, stepper="rk4", stepper_options={}, dt=dt)
+        sim = Simulation(scene, self.device, progress=False)
+        sim.run(None)
+        x = _final_state(sim)
+        total = _errors(sim, x, None)["total_error"]
+        with atomic_path(path) as tmp:
+            with open(tmp, "wb") as f:
+                np.savez(f, x=x, total_error=total)
+        return {"x": x, "total_error": total, "dt": dt}
+
+    # -- one run ------------------------------------------------------------------
+    def run_one(self, stepper: str, dt: float, x_ref) -> dict:
+        """Run (or read back) one (stepper, Δt); returns its row."""
+        path = self.directory / "runs" / f"{stepper}_{dt:.6g}.json"
+        if path.exists():
+            return json.loads(path.read_text())
+        scene = dataclasses.replace(self.scenes[stepper], dt=dt)
+        t0 = time.perf_counter()
+        sim = Simulation(scene, self.device, progress=False)
+        row = {"stepper": stepper, "dt": dt, "setup_time": time.perf_counter() - t0}
+        try:
+            result = sim.run(None)
+            stable, reason = True, ""
+        except BlowUp as err:
+            result, stable, reason = err.result, False, str(err)
+        growth = max(h.get("total_energy_change", 0.0) for h in result.history)
+        if stable and growth > 0.01:
+            stable, reason = False, f"total energy grew by {growth:.2%}"
+        row.update(stable=stable, reason=reason, wall_time=result.wall_time, steps=result.steps, rhs_evals=result.rhs_evals)
+        row.update({f"{k}_iterations": v for k, v in result.iterations.items()})
+        final = result.history[-1]
+        for k in ("mass_change", "total_energy_change", "potential_enstrophy_change"):
+            row[k] = final.get(k, math.nan)
+        if stable:
+            row.update(_errors(sim, _final_state(sim), x_ref))
+        with atomic_path(path) as tmp:
+            tmp.write_text(json.dumps(row))
+        return row
+
+    def warm_up(self, stepper: str) -> float:
+        """Compile and load every kernel a stepper uses (a two-step run); returns its time."""
+        t0 = time.perf_counter()
+        dt = min(self.dts)
+        span = 2 * dt / DAY
+        scene = dataclasses.replace(self.scenes[stepper], dt=dt, days=span, output_every_days=span)
+        Simulation(scene, self.device, progress=False).run(None)
+        return time.perf_counter() - t0
+
+    def run(self) -> tuple[list[dict], dict]:
+        """All runs (resuming); returns the rows and the reference run's summary."""
+        ref = self.reference()
+        rows, total, k = [], len(self.scenes) * len(self.dts), 0
+        for stepper in self.scenes:
+            startup = self.warm_up(stepper)
+            for dt in self.dts:
+                k += 1
+                self.log(f"[{k}/{total}] {stepper} dt = {dt:.6g} s")
+                row = self.run_one(stepper, dt, ref["x"])
+                row["startup_time"] = startup
+                rows.append(row)
+        return rows, {"spatial_error": ref["total_error"], "reference_dt": ref["dt"]}
+
+
+COLUMNS = (
+    "stepper", "dt", "dt_over_gravity_limit", "dt_over_advective_limit", "stable", "wall_time", "startup_time",
+    "setup_time", "steps", "rhs_evals", "newton_iterations", "gmres_iterations", "cg_iterations", "total_error",
+    "temporal_error", "temporal_error_wind", "mass_change", "total_energy_change", "potential_enstrophy_change", "reason",
+)
+
+
+def table(rows, limits) -> list[dict]:
+    """Rows with every column (NaN where not applicable) and Δt as multiples of the limits."""
+    out = []
+    for r in rows:
+        row = {c: r.get(c, math.nan) for c in COLUMNS}
+        row["dt_over_gravity_limit"] = r["dt"] / limits["dt_gravity"]
+        row["dt_over_advective_limit"] = r["dt"] / limits["dt_advective"]
+        out.append(row)
+    return out
+
+
+def cheapest_sufficient(rows, spatial_error) -> dict:
+    """Per stepper, the fastest stable run whose temporal error ≤ 10 % of the spatial error."""
+    best = {}
+    for r in rows:
+        if r["stable"] and r["temporal_error"] <= SUFFICIENT * spatial_error:
+            if r["stepper"] not in best or r["wall_time"] < best[r["stepper"]]["wall_time"]:
+                best[r["stepper"]] = r
+    return best
+
+
+def format_summary(rows, info) -> str:
+    """The table and, per stepper, the cheapest sufficiently accurate run."""
+    head = (
+        f"{'stepper':22s} {'dt [s]':>9s} {'dt/gw':>6s} {'dt/adv':>6s} {'stable':>6s} {'wall [s]':>9s} {'RHS':>8s} "
+        f"{'Newton':>7s} {'GMRES':>7s} {'CG':>7s} {'total err':>10s} {'time err':>10s} {'energy chg':>10s}"
+    )
+    lines = [head]
+    for r in rows:
+        lines.append(
+            f"{r['stepper']:22s} {r['dt']:9.2f} {r['dt_over_gravity_limit']:6.2f} {r['dt_over_advective_limit']:6.2f} "
+            f"{'yes' if r['stable'] else 'NO':>6s} {r['wall_time']:9.2f} {r['rhs_evals']:8.0f} {r['newton_iterations']:7.0f} "
+            f"{r['gmres_iterations']:7.0f} {r['cg_iterations']:7.0f} {r['total_error']:10.3e} {r['temporal_error']:10.3e} "
+            f"{r['total_energy_change']:10.2e}"
+        )
+    spatial = info["spatial_error"]
+    lines.append(f"spatial error (RK4 at dt = {info['reference_dt']:.4g} s): {spatial:.3e}; sufficient accuracy: temporal error <= {SUFFICIENT * spatial:.3e}")
+    best = cheapest_sufficient(rows, spatial)
+    explicit = [best[s]["wall_time"] for s in best if s in EXPLICIT]
+    ref_time = min(explicit) if explicit else math.nan
+    for stepper in dict.fromkeys(r["stepper"] for r in rows):
+        if stepper not in best:
+            lines.append(f"  {stepper:22s} no run reached sufficient accuracy")
+            continue
+        b = best[stepper]
+        lines.append(
+            f"  {stepper:22s} cheapest sufficient: dt = {b['dt']:.4g} s = {b['dt_over_gravity_limit']:.2f} x gravity-wave limit, "
+            f"{b['dt_over_advective_limit']:.2f} x advective limit; wall {b['wall_time']:.2f} s = {b['wall_time'] / ref_time:.2f} x best explicit"
+        )
+    return "\n".join(lines)
+
+
+def write_outputs(rows, info, limits, directory) -> list[Path]:
+    """sweep.csv, sweep.nc (dims stepper × dt) and the two PNGs; returns the paths."""
+    import pandas as pd
+
+    from .plotting import sweep_plot
+
+    directory = Path(directory)
+    df = pd.DataFrame(rows, columns=list(COLUMNS))
+    df["stable"] = df["stable"].astype(int)
+    csv, nc = directory / "sweep.csv", directory / "sweep.nc"
+    with atomic_path(csv) as tmp:
+        df.to_csv(tmp, index=False)
+    ds = df.set_index(["stepper", "dt"]).to_xarray()
+    ds["dt"].attrs["units"] = "s"
+    ds["wall_time"].attrs["units"] = "s"
+    ds.attrs.update({k: float(v) for k, v in {**info, **limits}.items()})
+    with atomic_path(nc) as tmp:
+        ds.to_netcdf(tmp)
+    paths = [csv, nc]
+    for x, name, label in (("wall_time", "error_vs_wall_time.png", "wall time [s]"), ("dt", "error_vs_dt.png", "dt [s]")):
+        paths.append(sweep_plot(directory / name, rows, x, xlabel=label, floor=info["spatial_error"]))
+    return paths

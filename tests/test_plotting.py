@@ -1,0 +1,219 @@
+"""``swe-sphere plot`` and ``swe_sphere.plotting``: PNG maps (right pixel size, not
+blank, units on the colour bar), differences to a T213 reference or another run with
+the normalized l2 the run itself reports, the time-series figure, the generic line
+plot, and bad input (exit 2, one line, nothing written)."""
+
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from swe_sphere import cli, plotting
+from swe_sphere.cli import main
+from swe_sphere.grid import CubedSphere
+from swe_sphere.output import RunWriter
+from swe_sphere.reference import find_reference
+
+TC5_REF = find_reference("tc5_mountain")
+
+
+def png_size(path: Path) -> tuple[int, int]:
+    """(width, height) from the PNG header."""
+    data = Path(path).read_bytes()[:24]
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and data[12:16] == b"IHDR"
+    return struct.unpack(">II", data[16:24])
+
+
+def distinct_colours(path: Path) -> int:
+    import matplotlib.image
+
+    img = (matplotlib.image.imread(path)[..., :3] * 255).round().astype(np.uint32)
+    return len(np.unique(img[..., 0] << 16 | img[..., 1] << 8 | img[..., 2]))
+
+
+def cli_run(capsys, *args):
+    try:
+        code = main([str(a) for a in args])
+    except SystemExit as exc:
+        code = exc.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture(scope="module")
+def run_file(tmp_path_factory):
+    out = tmp_path_factory.mktemp("plot") / "tc5.nc"
+    code = main(["run", "tc5_mountain", "--ne", "2", "--np", "4", "--device", "cpu", "--no-progress", "--days", "1", "--output", str(out)])
+    assert code == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def old_file(tmp_path_factory):
+    """A run file as written before vorticity existed: no vorticity values (NaN)."""
+    grid = CubedSphere(2, 3)
+    out = tmp_path_factory.mktemp("old") / "old.nc"
+    attrs = {"scene": {"name": "synthetic", "ne": 2, "np": 3}}
+    w = RunWriter(out, grid, np.zeros(grid.npts), attrs, ["mass_change"])
+    h = 1000 + 100 * np.sin(grid.lat)
+    w.append(0.0, np.cos(grid.lat), 0 * grid.lat, h, {"mass_change": 0.0})
+    w.close()
+    return out
+
+
+def test_cli_fields_are_the_plotting_fields():
+    assert cli.PLOT_FIELDS == tuple(plotting.MAP_FIELDS)
+
+
+def test_plot_cli_writes_maps_and_series(run_file, tmp_path, capsys):
+    outdir = tmp_path / "figs"
+    code, out, err = cli_run(capsys, "plot", run_file, "--field", "h_surface", "vorticity", "speed", "--day", "0", "1", "--output", outdir)
+    assert code == 0, err
+    names = sorted(p.name for p in outdir.iterdir())
+    expected = sorted([f"tc5_{f}_day{d}.png" for f in ("h_surface", "vorticity", "speed") for d in (0, 1)] + ["tc5_series.png"])
+    assert names == expected
+    assert sorted(Path(line).name for line in out.split()) == expected
+    for name in names:
+        path = outdir / name
+        assert path.stat().st_size > 10_000, name
+        assert png_size(path) == ((1200, 500) if name.endswith("series.png") else (1200, 600)), name
+        assert distinct_colours(path) > 100, name  # a picture, not a blank canvas
+
+
+def test_plot_default_is_h_surface_at_the_last_day(run_file, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = cli_run(capsys, "plot", run_file)
+    assert code == 0, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["tc5_h_surface_day1.png", "tc5_series.png"]
+
+
+def test_plot_map_values_and_colour_bar_units(run_file, tmp_path):
+    ds = plotting.open_run(run_file)
+    with ds:
+        info = plotting.plot_map(ds, "h_surface", 1.0, tmp_path / "h.png")
+        nodes = ds.h.isel(time=1).values + ds.hs.values
+        # the drawn field (GLL interpolant at cell centres) stays within the node range up to
+        # the interpolant's small over/undershoot
+        span = nodes.max() - nodes.min()
+        assert nodes.min() - 0.02 * span < info["min"] < nodes.min() + 0.05 * span
+        assert nodes.max() - 0.05 * span < info["max"] < nodes.max() + 0.02 * span
+        info = plotting.plot_map(ds, "vorticity", 1.0, tmp_path / "z.png")
+        assert abs(info["max"]) < 1e-3 and info["max"] > 0 > info["min"]  # s-1, both signs
+        assert info["colorbar_label"] == "vorticity (10$^{-5}$ s$^{-1}$)"  # drawn scaled, labelled so
+        assert "day 1" in info["title"] and "tc5_mountain ne2 np4" in info["title"]
+        labels = {f: plotting.plot_map(ds, f, 0.0, tmp_path / f"{f}.png")["colorbar_label"] for f in ("h", "u", "speed")}
+    assert labels == {"h": "h (m)", "u": "u (m s$^{-1}$)", "speed": "speed (m s$^{-1}$)"}
+
+
+def test_diff_to_t213_carries_the_runs_own_normalized_l2(run_file, tmp_path, capsys):
+    ds = plotting.open_run(run_file)
+    with ds:
+        ref = plotting.open_reference(TC5_REF)
+        info = plotting.plot_map(ds, "h_surface", 1.0, tmp_path / "d.png", diff=ref)
+        # the same number the run wrote for day 1 (ref_l2_h_surface, measured 1.30e-3)
+        assert info["l2"] == pytest.approx(float(ds.ref_l2_h_surface.values[1]), rel=1e-10)
+        assert 1e-4 < info["l2"] < 1e-2
+        assert info["min"] < 0 < info["max"]
+    code, out, err = cli_run(capsys, "plot", run_file, "--day", "1", "--diff", TC5_REF, "--output", tmp_path / "cli")
+    assert code == 0, err
+    path = tmp_path / "cli" / "tc5_h_surface_day1_diff.png"
+    assert png_size(path) == (1200, 600) and distinct_colours(path) > 100
+
+
+def test_diff_to_itself_is_zero(run_file, tmp_path):
+    ds = plotting.open_run(run_file)
+    with ds:
+        ref = plotting.open_reference(run_file)
+        for field in ("h", "vorticity", "u"):
+            info = plotting.plot_map(ds, field, 1.0, tmp_path / f"{field}.png", diff=ref)
+            # the run interpolated to its own nodes: zero up to round-off
+            assert info["l2"] < 1e-14 and max(abs(info["min"]), abs(info["max"])) < 1e-12 * (1e-5 if field == "vorticity" else 1e4)
+        ref.ds.close()
+
+
+def test_lat_range_draws_a_band(run_file, tmp_path, capsys):
+    code, out, err = cli_run(capsys, "plot", run_file, "--field", "vorticity", "--lat-range", "0", "90", "--output", tmp_path)
+    assert code == 0, err
+    path = tmp_path / "tc5_vorticity_day1_lat0to90.png"
+    assert png_size(path) == (1200, 600) and distinct_colours(path) > 100
+    ds = plotting.open_run(run_file)
+    with ds:
+        band = plotting.plot_map(ds, "h", 1.0, tmp_path / "band.png", lat_range=(-90, 0))
+        whole = plotting.plot_map(ds, "h", 1.0, tmp_path / "whole.png")
+    # the shallowest water is over the mountain (30°N), outside the southern band
+    assert whole["min"] < band["min"] - 500 and band["max"] <= whole["max"]
+    for bad in (("90", "0"), ("-100", "10")):
+        code, out, err = cli_run(capsys, "plot", run_file, "--lat-range", *bad, "--output", tmp_path / "bad")
+        assert code == 2 and "latitude range" in err and not (tmp_path / "bad").exists()
+
+
+def test_old_files_without_vorticity_still_plot(old_file, tmp_path, capsys):
+    code, out, err = cli_run(capsys, "plot", old_file, "--field", "h", "u", "--output", tmp_path)
+    assert code == 0, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["old_h_day0.png", "old_series.png", "old_u_day0.png"]
+    assert png_size(tmp_path / "old_series.png") == (1200, 500)
+
+
+def test_line_plot(tmp_path):
+    x = np.array([1.0, 2.0, 4.0, 8.0])
+    path = plotting.line_plot(
+        tmp_path / "lines.png",
+        [("a", x, 1 / x), ("b", x, 1 / x**2), ("empty", x, np.full(4, np.nan))],
+        xlabel="wall time (s)", ylabel="l2 error", logx=True, logy=True, title="sweep",
+    )
+    assert path.is_file() and png_size(path) == (800, 500)
+    assert png_size(plotting.line_plot(tmp_path / "big.png", [("a", x, x)], figsize=(6, 3))) == (600, 300)
+
+
+def test_sweep_plot(tmp_path):
+    rows = [
+        {"stepper": st, "dt": dt, "wall_time": 100 / dt * k, "temporal_error": 1e-9 * dt**p, "stable": dt < 900}
+        for st, k, p in (("ssprk3", 3, 3), ("leapfrog", 1, 2))
+        for dt in (100.0, 200.0, 400.0, 800.0, 1600.0)
+    ]
+    path = plotting.sweep_plot(tmp_path / "s.png", rows, "wall_time", xlabel="wall time [s]", floor=1e-4)
+    assert png_size(path) == (800, 500) and distinct_colours(path) > 20
+    path = plotting.sweep_plot(tmp_path / "none.png", [{**r, "stable": False} for r in rows], "dt", floor=float("nan"))
+    assert png_size(path) == (800, 500)
+
+
+@pytest.mark.parametrize(
+    "args,message",
+    [
+        (["missing.nc"], "not found"),
+        (["RUN", "--day", "3"], "day 3 not in"),
+        (["RUN", "--diff", "missing_ref.nc"], "not found"),
+        (["RUN", "--diff", "REF", "--day", "0.5"], "day 0.5 not in"),
+        (["RUN", "--field", "vorticity", "--diff", "REF"], "no vorticity"),
+        (["RUN", "--field", "divergence"], "invalid choice"),
+        (["OLD", "--field", "vorticity"], "no vorticity"),
+        (["REF"], "not a swe_sphere run"),
+    ],
+)
+def test_bad_input_exits_2_one_line_nothing_written(run_file, old_file, tmp_path, monkeypatch, capsys, args, message):
+    monkeypatch.chdir(tmp_path)
+    subst = {"RUN": str(run_file), "OLD": str(old_file), "REF": str(TC5_REF)}
+    args = [subst.get(a, a) for a in args]
+    code, out, err = cli_run(capsys, "plot", *args, "--output", tmp_path / "figs")
+    assert code == 2
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1 and message in lines[0], err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_remapped_file_can_be_plotted_by_xarray_users(run_file, tmp_path):
+    """The lat-lon file is plain CF: xarray's own plotting draws it."""
+    out = tmp_path / "ll.nc"
+    assert main(["remap", str(run_file), "--resolution", "2", "--output", str(out)]) == 0
+    with xr.open_dataset(out) as r:
+        field = r.h_surface.isel(time=-1)
+        assert field.dims == ("lat", "lon") and field.shape == (91, 180)
+        fig = plotting._figure((6, 3))
+        ax = fig.add_subplot()
+        field.plot(ax=ax)
+        plotting._save(fig, tmp_path / "xr.png")
+    assert png_size(tmp_path / "xr.png") == (600, 300)

@@ -1,0 +1,120 @@
+"""The UGRID description in every run file: the sub-cell mesh of quads between GLL
+nodes (``swe_sphere.ugrid``), its topology and the attributes that tools read;
+uxarray opens it when it is installed (skipped otherwise: it is not a dependency)."""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+
+import netCDF4
+import numpy as np
+import pytest
+import xarray as xr
+
+from swe_sphere.cli import main
+from swe_sphere.ugrid import orientation, subcell_quads
+
+GRIDS = [(1, 2), (2, 4), (3, 2), (2, 8), (4, 3)]
+
+
+def unique_xyz(grid):
+    return grid.xyz.T[grid.first]
+
+
+@pytest.mark.parametrize("ne,np_", GRIDS)
+def test_subcell_quads_cover_every_node_once_per_corner(grid_factory, ne, np_):
+    grid = grid_factory(ne, np_)
+    quads = subcell_quads(grid)
+    nface = 6 * ne**2 * (np_ - 1) ** 2
+    assert quads.shape == (nface, 4) and quads.dtype == np.int32
+    assert np.array_equal(np.unique(quads), np.arange(grid.nunique))  # every GLL node used, no other id
+    assert all(len(set(q)) == 4 for q in quads.tolist())  # no degenerate quad
+    # a closed surface: every edge shared by exactly two quads, and V − E + F = 2 (a sphere)
+    edges = Counter()
+    for q in quads.tolist():
+        for k in range(4):
+            a, b = q[k], q[(k + 1) % 4]
+            edges[(min(a, b), max(a, b))] += 1
+    assert set(edges.values()) == {2}
+    assert grid.nunique - len(edges) + nface == 2
+
+
+@pytest.mark.parametrize("ne,np_", GRIDS)
+def test_subcells_are_counter_clockwise_seen_from_outside(grid_factory, ne, np_):
+    grid = grid_factory(ne, np_)
+    quads = subcell_quads(grid)
+    xyz = unique_xyz(grid)
+    o = orientation(xyz, quads)
+    assert (o > 0).all(), f"{(o <= 0).sum()} quads clockwise or degenerate"
+    # the same test by hand on the first triangle of every quad: ((b − a) × (c − a)) · a > 0
+    a, b, c = xyz[quads[:, 0]], xyz[quads[:, 1]], xyz[quads[:, 2]]
+    assert (np.einsum("ij,ij->i", np.cross(b - a, c - a), a) > 0).all()
+    # and every directed edge appears once: consistently oriented neighbours
+    directed = Counter((q[k], q[(k + 1) % 4]) for q in quads.tolist() for k in range(4))
+    assert max(directed.values()) == 1
+    # the flat quads tile the sphere: their area is 4π less a chord-sag deficit that
+    # shrinks with the sub-cell size (2/π for the inscribed cube at ne=1 np=2)
+    d = xyz[quads[:, 3]]
+    flat = 0.5 * np.linalg.norm(np.cross(c - a, d - b), axis=1)
+    ratio = flat.sum() / (4 * math.pi)
+    assert 0.63 < ratio < 1.0
+    if (ne, np_) == (1, 2):
+        assert ratio == pytest.approx(2 / math.pi, rel=1e-12)
+
+
+@pytest.fixture(scope="module")
+def run_file(tmp_path_factory):
+    out = tmp_path_factory.mktemp("ugrid") / "tc5.nc"
+    code = main(["run", "tc5_mountain", "--ne", "2", "--np", "4", "--device", "cpu", "--no-progress", "--days", "1", "--output", str(out)])
+    assert code == 0
+    return out
+
+
+def test_run_file_carries_the_mesh_topology(run_file, grid_factory):
+    grid = grid_factory(2, 4)
+    with netCDF4.Dataset(run_file) as nc:
+        mesh = nc["mesh_topology"]
+        assert mesh.cf_role == "mesh_topology"
+        assert int(mesh.topology_dimension) == 2
+        assert mesh.node_coordinates == "lon lat"
+        assert mesh.face_node_connectivity == "face_node_connectivity"
+        conn = nc["face_node_connectivity"]
+        assert conn.cf_role == "face_node_connectivity"
+        assert int(conn.start_index) == 0
+        assert conn.dimensions == ("nface", "nmax_face")
+        assert nc.dimensions["nface"].size == 6 * 2**2 * 3**2 == 216
+        assert nc.dimensions["nmax_face"].size == 4
+        assert np.array_equal(conn[:], subcell_quads(grid))
+        for name in ("h", "u", "v", "hs", "vorticity"):
+            assert nc[name].mesh == "mesh_topology" and nc[name].location == "node", name
+    with xr.open_dataset(run_file) as ds:  # xarray still opens it; the mesh adds no data on ncol
+        assert ds["face_node_connectivity"].dims == ("nface", "nmax_face")
+        assert ds["h"].dims == ("time", "ncol")
+        conn = ds["face_node_connectivity"].values
+        assert conn.min() == 0 and conn.max() == ds.sizes["ncol"] - 1
+        # corners in the file's own lat/lon are counter-clockwise too
+        lat, lon = np.radians(ds.lat.values), np.radians(ds.lon.values)
+        xyz = np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=1)
+        assert (orientation(xyz, conn) > 0).all()
+
+
+def test_uxarray_opens_and_plots_the_run(run_file):
+    ux = pytest.importorskip("uxarray")
+    uxds = ux.open_dataset(run_file, run_file)
+    grid = uxds.uxgrid
+    assert grid.n_node == 218 and grid.n_face == 216
+    assert grid.validate()
+    # uxarray's spherical face areas of the sub-cells add up to the sphere (measured 1 + 1.0e-6)
+    assert abs(float(grid.face_areas.values.sum()) / (4 * math.pi) - 1) < 1e-4
+    h = uxds["h"].isel(time=-1)
+    assert h.sizes["n_node"] == 218
+    assert np.allclose(h.values, xr.open_dataset(run_file)["h"].isel(time=-1).values)
+    face_mean = h.topological_mean(destination="face")
+    assert face_mean.shape == (216,) and np.isfinite(face_mean.values).all()
+    try:  # drawing needs cartopy, an optional dependency of uxarray itself
+        pc = face_mean.to_polycollection()
+    except Exception as exc:  # uxarray raises its own OptionalDependencyNotFoundError
+        pytest.skip(f"uxarray cannot draw here: {exc}")
+    # uxarray leaves out the few polygons it splits at the antimeridian (202 of 216 drawn here)
+    assert 180 <= len(pc.get_paths()) <= 216

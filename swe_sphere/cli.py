@@ -1,4 +1,4 @@
-"""Command line: ``swe-sphere run SCENE`` and ``swe-sphere list``.
+"""Command line: ``swe-sphere run | list | plot | remap | sweep | stability``.
 
 Exit status: 0 success, 2 bad input (one line naming the field or value, no
 output file), 3 blow-up (message with step, model time and place; the output
@@ -49,6 +49,17 @@ def _parser() -> argparse.ArgumentParser:
     rm.add_argument("run", type=Path, help="run file (netCDF written by `swe-sphere run`)")
     rm.add_argument("--resolution", type=float, default=1.0, help="grid spacing in degrees; must divide 180 (default 1.0)")
     rm.add_argument("--output", type=Path, help="netCDF output file (default: <run>_latlon<resolution>.nc)")
+    sw = sub.add_parser("sweep", help="error against dt against wall time for several steppers (resumable)")
+    sw.add_argument("scene", help="scene file or bundled scene name")
+    sw.add_argument("--steppers", default="leapfrog,ssprk3,semi_implicit,implicit", help="comma-separated stepper names")
+    group = sw.add_mutually_exclusive_group()
+    group.add_argument("--dt", help="comma-separated time steps in seconds")
+    group.add_argument("--courant", help="comma-separated multiples of the explicit gravity-wave limit (default 0.5,1,2,5,10,30,60)")
+    sw.add_argument("--ne", type=int, help="elements along a cube edge")
+    sw.add_argument("--np", type=int, help="GLL points per element direction (2..8)")
+    sw.add_argument("--days", type=float, help="run length in days")
+    sw.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
+    sw.add_argument("--output", type=Path, default=Path("sweep"), help="directory for results (default ./sweep); reruns resume")
     st = sub.add_parser("stability", help="largest stable dt of each stepper on the hard cases, by bisection")
     st.add_argument("cases", nargs="*", help="case labels (default: all hard cases; see `swe-sphere stability --help`)")
     st.add_argument("--steppers", default="leapfrog,ssprk3,semi_implicit,implicit", help="comma-separated stepper names")
@@ -106,6 +117,57 @@ def _warp_device(requested):
 
     device = requested or default_device()
     return None if device == "cuda" and not wp.is_cuda_available() else device
+
+
+def _numbers(text: str, name: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise ValueError(f"--{name} must be comma-separated numbers (got {text!r})") from None
+    if not values or not all(math.isfinite(v) and v > 0 for v in values):
+        raise ValueError(f"--{name} values must be > 0 (got {text!r})")
+    return values
+
+
+def _cmd_sweep(args) -> int:
+    from .config import SceneError, load_scene
+    from .steppers import STEPPERS
+
+    steppers = [s for s in args.steppers.split(",") if s]
+    try:
+        for s in steppers:
+            if s not in STEPPERS:
+                raise ValueError(f"unknown stepper {s!r} (known: {', '.join(STEPPERS)})")
+        scenes = {s: load_scene(args.scene, ne=args.ne, np=args.np, days=args.days, stepper=s) for s in steppers}
+        dts = _numbers(args.dt, "dt") if args.dt else None
+        factors = _numbers(args.courant or "0.5,1,2,5,10,30,60", "courant") if dts is None else None
+        args.output.mkdir(parents=True, exist_ok=True)
+    except (SceneError, ValueError) as err:
+        return _fail(str(err), EXIT_BAD_INPUT)
+    except OSError as err:
+        return _fail(f"cannot create output directory {args.output}: {err.strerror}", EXIT_BAD_INPUT)
+    device = _warp_device(args.device)
+    if device is None:
+        return _fail("device cuda is not available on this machine (use --device cpu)", EXIT_BAD_INPUT)
+    from .sweep import Sweep, dt_for_day, explicit_limits, format_summary, table, write_outputs
+
+    base = next(iter(scenes.values()))
+    limits = explicit_limits(base, device)
+    if dts is None:
+        dts = sorted({dt_for_day(f * limits["dt_gravity"], base.days) for f in factors})
+    for dt in dts:
+        if abs(round(base.days * 86400 / dt) * dt - base.days * 86400) > 1e-6 * dt:
+            return _fail(f"dt = {dt:g} s does not divide the run length of {base.days:g} days", EXIT_BAD_INPUT)
+    print(
+        f"sweep {base.name} ne={base.ne} np={base.np}, {base.days:g} days; explicit limits: gravity-wave dt = "
+        f"{limits['dt_gravity']:.1f} s, advective dt = {limits['dt_advective']:.1f} s; dt = {', '.join(f'{d:.4g}' for d in dts)}"
+    )
+    rows, info = Sweep(scenes, dts, args.output, device).run()
+    rows = table(rows, limits)
+    print(format_summary(rows, info))
+    for path in write_outputs(rows, info, limits, args.output):
+        print(f"wrote {path}")
+    return 0
 
 
 def _cmd_stability(args) -> int:
@@ -236,6 +298,8 @@ def main(argv=None) -> int:
         return _cmd_list()
     if args.command == "stability":
         return _cmd_stability(args)
+    if args.command == "sweep":
+        return _cmd_sweep(args)
     if args.command == "plot":
         return _cmd_plot(args)
     if args.command == "remap":

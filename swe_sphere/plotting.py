@@ -344,8 +344,9 @@ def line_plot(path, lines, *, xlabel="", ylabel="", title="", logx=False, logy=F
 
 def sweep_plot(path, rows, x: str, *, xlabel: str = "", floor: float | None = None, y: str = "temporal_error", figsize=(8.0, 5.0)) -> Path:
     """Sweep figure (``swe_sphere.sweep``): ``y`` against ``x`` per stepper, log-log, for the
-    stable runs of ``rows`` (dicts with ``stepper``, ``stable``, ``x``, ``y``). ``floor``: the
-    spatial error, drawn as a dashed line with the sufficient-accuracy level 0.1 × floor dotted."""
+    stable runs of ``rows`` (dicts with ``stepper``, ``stable``, ``x``, ``y``); unstable runs
+    are crosses along the top edge at their x. ``floor``: the spatial error, drawn as a
+    dashed line, with the sufficient-accuracy level 0.1 × floor dotted for a temporal error."""
     steppers = list(dict.fromkeys(r["stepper"] for r in rows))
     lines = []
     for st in steppers:
@@ -356,8 +357,17 @@ def sweep_plot(path, rows, x: str, *, xlabel: str = "", floor: float | None = No
     drawn = _lines(ax, lines, logx=True, logy=True, xlabel=xlabel or x, ylabel=y.replace("_", " "), title=f"{y.replace('_', ' ')} against {xlabel or x}")
     if floor is not None and math.isfinite(floor) and floor > 0:
         ax.axhline(floor, color="0.4", linestyle="--", linewidth=1, label="spatial error")
-        ax.axhline(0.1 * floor, color="0.4", linestyle=":", linewidth=1, label="sufficient accuracy (10 %)")
+        if y.startswith("temporal"):
+            ax.axhline(0.1 * floor, color="0.4", linestyle=":", linewidth=1, label="sufficient accuracy (10 %)")
         ax.set_yscale("log")
+        ax.legend(fontsize=8)
+    unstable = [(r["stepper"], float(r[x])) for r in rows if not r.get("stable", True) and float(r[x]) > 0]
+    if unstable:  # crosses along the top edge, coloured as their stepper's line
+        colours = {line.get_label(): line.get_color() for line in ax.get_lines()}
+        top = ax.get_xaxis_transform()
+        for st, xv in unstable:
+            ax.plot([xv], [0.97], marker="x", color=colours.get(st, "k"), transform=top, clip_on=False)
+        ax.plot([], [], "kx", label="unstable (at its x)")
         ax.legend(fontsize=8)
     if not drawn:
         ax.text(0.5, 0.5, "no stable run", ha="center", va="center", transform=ax.transAxes)

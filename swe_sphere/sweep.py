@@ -229,6 +229,11 @@ def write_outputs(rows, info, limits, directory) -> list[Path]:
     with atomic_path(nc) as tmp:
         ds.to_netcdf(tmp)
     paths = [csv, nc]
-    for x, name, label in (("wall_time", "error_vs_wall_time.png", "wall time [s]"), ("dt", "error_vs_dt.png", "dt [s]")):
-        paths.append(sweep_plot(directory / name, rows, x, xlabel=label, floor=info["spatial_error"]))
+    floor = info["spatial_error"]
+    for x, y, name, label in (
+        ("wall_time", "total_error", "error_vs_wall_time.png", "wall time [s]"),
+        ("dt", "total_error", "error_vs_dt.png", "dt [s]"),
+        ("dt", "temporal_error", "temporal_error_vs_dt.png", "dt [s]"),
+    ):
+        paths.append(sweep_plot(directory / name, rows, x, y=y, xlabel=label, floor=floor))
     return paths

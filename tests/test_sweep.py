@@ -1,0 +1,83 @@
+"""Sweep bookkeeping on a tiny grid: two steppers × two Δt, resumable, outputs that open."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+import xarray as xr
+
+from swe_sphere import sweep as sweep_mod
+from swe_sphere.cli import main
+from swe_sphere.simulation import Simulation
+
+
+@pytest.fixture(scope="module")
+def swept(tmp_path_factory):
+    out = tmp_path_factory.mktemp("sweep")
+    args = ["sweep", "tc2_steady", "--ne", "2", "--days", "1", "--steppers", "ssprk3,implicit", "--dt", "3600,14400",
+            "--device", "cpu", "--output", str(out)]
+    assert main(args) == 0
+    return out, args
+
+
+def test_sweep_rows_and_files(swept):
+    out, _ = swept
+    df = pd.read_csv(out / "sweep.csv")
+    assert list(df["stepper"]) == ["ssprk3", "ssprk3", "implicit", "implicit"]
+    assert list(df["dt"]) == [3600.0, 14400.0, 3600.0, 14400.0]
+    # ssprk3 blows up at 14400 s (gravity-wave Courant ~ 2.6 at ne=2); the implicit stepper does not
+    assert list(df["stable"]) == [1, 0, 1, 1]
+    assert df.loc[1, "reason"].startswith("blow-up")
+    steps = df["steps"].to_numpy()
+    assert steps[0] == 24 and steps[2] == 24 and steps[3] == 6
+    assert df.loc[0, "rhs_evals"] == 3 * 24  # ssprk3: 3 per step
+    assert df.loc[2, "newton_iterations"] >= 24 and df.loc[2, "gmres_iterations"] > df.loc[2, "newton_iterations"]
+    # errors: total error at the spatial level, temporal error far below it at the small step
+    stable = df[df["stable"] == 1]
+    assert (stable["total_error"] > 0).all() and (stable["total_error"] < 1e-2).all()
+    assert df.loc[0, "temporal_error"] < 0.1 * df.loc[0, "total_error"]
+    assert df.loc[3, "temporal_error"] > df.loc[2, "temporal_error"]  # longer step, larger time error
+    assert (stable["mass_change"].abs() < 1e-12).all()
+    np.testing.assert_allclose(df["dt_over_gravity_limit"] / df["dt"], df["dt_over_gravity_limit"][0] / 3600.0)
+    ds = xr.open_dataset(out / "sweep.nc")
+    assert dict(ds.sizes) == {"stepper": 2, "dt": 2}
+    assert float(ds["wall_time"].sel(stepper="implicit", dt=14400.0)) > 0
+    for png in ("error_vs_wall_time.png", "error_vs_dt.png", "temporal_error_vs_dt.png"):
+        assert (out / png).stat().st_size > 10_000
+
+
+def test_sweep_resumes_without_rerunning(swept, monkeypatch, capsys):
+    out, args = swept
+    before = {p.name: p.read_text() for p in (out / "runs").glob("*.json")}
+    assert len(before) == 4 and len(list((out / "runs").glob("reference_*.npz"))) == 1
+    runs = []
+    real_run = Simulation.run
+    monkeypatch.setattr(Simulation, "run", lambda self, output=None: runs.append(self.scene.dt) or real_run(self, output))
+    assert main(args) == 0
+    # only the two warm-up runs (2 steps each) ran again; every (stepper, dt) was read back
+    assert len(runs) == 2
+    after = {p.name: p.read_text() for p in (out / "runs").glob("*.json")}
+    assert after == before
+    assert "[4/4] implicit dt = 14400 s" in capsys.readouterr().out
+    row = json.loads((out / "runs" / "ssprk3_3600.json").read_text())
+    assert row["stable"] is True and row["steps"] == 24
+
+
+def test_cheapest_sufficient_picks_fastest_accurate_run():
+    rows = [
+        {"stepper": "a", "stable": True, "temporal_error": 1e-6, "wall_time": 5.0},
+        {"stepper": "a", "stable": True, "temporal_error": 5e-6, "wall_time": 2.0},
+        {"stepper": "a", "stable": True, "temporal_error": 5e-5, "wall_time": 1.0},  # not accurate enough
+        {"stepper": "b", "stable": False, "temporal_error": float("nan"), "wall_time": 0.1},
+    ]
+    best = sweep_mod.cheapest_sufficient(rows, spatial_error=1e-4)
+    assert best["a"]["wall_time"] == 2.0 and "b" not in best
+
+
+def test_sweep_bad_input_exits_2(tmp_path, capsys):
+    assert main(["sweep", "tc2_steady", "--steppers", "euler", "--output", str(tmp_path / "o")]) == 2
+    assert main(["sweep", "tc2_steady", "--dt", "-5", "--output", str(tmp_path / "o")]) == 2
+    assert main(["sweep", "tc2_steady", "--ne", "2", "--dt", "7000", "--output", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 3 and "euler" in err[0] and "-5" in err[1] and "7000" in err[2]

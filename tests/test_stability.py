@@ -1,0 +1,63 @@
+"""The stability suite: bisection bookkeeping (fast) and the hard cases at small size (slow)."""
+
+import dataclasses
+import math
+
+import pandas as pd
+import pytest
+import xarray as xr
+
+from swe_sphere import stability
+from swe_sphere.config import load_scene
+from swe_sphere.constants import DAY
+from swe_sphere.steppers import STEPPERS
+from swe_sphere.sweep import explicit_limits
+
+
+def test_bisection_brackets_a_known_limit(monkeypatch, tmp_path):
+    """With a fake criterion 'stable iff dt <= 1000 s' the search ends with a stable
+    dt <= 1000 s and an unstable one above it, within the 5 % tolerance."""
+    monkeypatch.setattr(stability, "run_is_stable", lambda scene, device: (scene.dt <= 1000.0, "", 0.0))
+    scene = load_scene("tc2_steady", ne=2, days=1.0, stepper="ssprk3")
+    r = stability.largest_stable_dt(scene, "cpu", log=lambda *_: None)
+    assert r.dt_stable == DAY / 87 and r.dt_stable <= 1000.0 < r.dt_unstable <= 1.05 * r.dt_stable
+    assert all((dt <= 1000.0) == ok for dt, ok, _, _ in r.trials)
+    assert r.courant_gravity == pytest.approx(r.dt_stable / scene.dt * load_courant(scene), rel=1e-12)
+    csv, nc = stability.write_table([r, dataclasses.replace(r, stepper="rk4")], tmp_path)
+    df = pd.read_csv(csv)
+    assert list(df["stepper"]) == ["ssprk3", "rk4"] and df["dt_stable"][0] == pytest.approx(DAY / 87)
+    assert xr.open_dataset(nc)["dt_stable"].sel(case="tc2_steady", stepper="rk4") == pytest.approx(DAY / 87)
+
+
+def load_courant(scene):
+    from swe_sphere.simulation import Simulation
+
+    return Simulation(scene, "cpu", progress=False).courant()["courant_gravity"]
+
+
+def test_unstable_run_is_detected():
+    scene = load_scene("tc2_steady", ne=2, days=2.0, stepper="ssprk3", dt=21600.0)
+    ok, reason, _ = stability.run_is_stable(scene, "cpu")
+    assert not ok and "blow-up" in reason
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("label", [c[0] for c in stability.HARD_CASES])
+def test_every_stepper_stable_at_default_dt(label):
+    """Every stepper finishes each hard case at its scene's default Δt (small grid)."""
+    _, scene_name, days, _ = next(c for c in stability.HARD_CASES if c[0] == label)
+    for name in STEPPERS:
+        scene = load_scene(scene_name, ne=4, days=days, stepper=name)
+        ok, reason, _ = stability.run_is_stable(scene, "cpu")
+        assert ok, f"{label} {name} dt={scene.dt}: {reason}"
+
+
+@pytest.mark.slow
+def test_fully_implicit_stable_at_30x_gravity_wave_limit_on_tc5():
+    base = load_scene("tc5_mountain", ne=4, stepper="implicit")
+    dt_gw = explicit_limits(base, "cpu")["dt_gravity"]
+    n = math.floor(DAY / (30 * dt_gw))  # the shortest whole-day fraction that is >= 30x the limit
+    scene = dataclasses.replace(base, dt=DAY / n)
+    assert scene.dt >= 30 * dt_gw
+    ok, reason, _ = stability.run_is_stable(scene, "cpu")
+    assert ok, reason

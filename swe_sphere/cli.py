@@ -54,7 +54,7 @@ def _parser() -> argparse.ArgumentParser:
     sw.add_argument("--steppers", default="leapfrog,ssprk3,semi_implicit,implicit", help="comma-separated stepper names")
     group = sw.add_mutually_exclusive_group()
     group.add_argument("--dt", help="comma-separated time steps in seconds")
-    group.add_argument("--courant", help="comma-separated multiples of the explicit gravity-wave limit (default 0.5,1,2,5,10,30,60)")
+    group.add_argument("--courant", help="comma-separated multiples of the explicit gravity-wave limit (default 0.5,1,2,5,10,30,60,100)")
     sw.add_argument("--ne", type=int, help="elements along a cube edge")
     sw.add_argument("--np", type=int, help="GLL points per element direction (2..8)")
     sw.add_argument("--days", type=float, help="run length in days")
@@ -140,7 +140,7 @@ def _cmd_sweep(args) -> int:
                 raise ValueError(f"unknown stepper {s!r} (known: {', '.join(STEPPERS)})")
         scenes = {s: load_scene(args.scene, ne=args.ne, np=args.np, days=args.days, stepper=s) for s in steppers}
         dts = _numbers(args.dt, "dt") if args.dt else None
-        factors = _numbers(args.courant or "0.5,1,2,5,10,30,60", "courant") if dts is None else None
+        factors = _numbers(args.courant or "0.5,1,2,5,10,30,60,100", "courant") if dts is None else None
         args.output.mkdir(parents=True, exist_ok=True)
     except (SceneError, ValueError) as err:
         return _fail(str(err), EXIT_BAD_INPUT)

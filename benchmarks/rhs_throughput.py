@@ -1,13 +1,28 @@
-"""RHS throughput and time per step, Warp against vectorised numpy, in one run.
+"""RHS throughput and time per step beside their limits, in one run.
 
-Prints, per grid, the median time of one RHS evaluation (all TC5 terms + DSS)
-with Warp and with the numpy reference of the same operators (tests/numpy_ops.py),
-element-local points per second (nelem·np² per evaluation), their ratio, the
-median time of one hyperviscosity application, and the median time per step of
-each stepper; then a STREAM-like triad (numpy, a = b + s·c) for the machine's
-memory bandwidth.
+Prints, in this order (all float64, TC5 terms, medians of ``--repeat`` timings):
 
-    python benchmarks/rhs_throughput.py [--ne 8 16 30] [--np 4 8] [--device cpu] [--repeat 10]
+1. The machine's memory bandwidth: a STREAM-like triad ``a = b + s·c`` in numpy
+   on 1 thread and on ``--threads`` threads (each on its own slice; numpy
+   releases the GIL), 5 passes of 8 bytes per element counted.
+2. RHS throughput per grid: one RHS evaluation (all TC5 terms + DSS) with Warp
+   on 1 thread and on ``--threads`` threads (the two models timed alternately in
+   this process), and with the vectorised numpy reference of the same operators
+   (tests/numpy_ops.py); element-local points per second (nelem·np² per
+   evaluation), the ratio to numpy, the compulsory bytes per point (state in,
+   tendency out, and every metric/index array the RHS reads, each once) and the
+   bandwidth that implies, as a share of the triad's.
+3. A full step of each stepper per grid (``--step-ne``, np = 4) with its
+   breakdown: time inside ``model.rhs`` (of which the DSS, estimated from the
+   DSS launch timed alone), inside ``model.hyperviscosity``, and the rest
+   (solver, linear combinations, norms, host round trips). Explicit steppers at
+   the scene's Δt, semi_implicit and implicit at ``--implicit-dt-factor``× it.
+   The implicit (JFNK) row's RHS share is the figure to watch. BLAS is limited to
+   one thread here, as in ``Simulation.run``.
+
+    python benchmarks/rhs_throughput.py                     # ne 8 16 30, np 4 8; steps at ne 16 30
+    python benchmarks/rhs_throughput.py --ne 60 --np 4 --step-ne 60
+    SWE_SPHERE_THREADS=1 python benchmarks/rhs_throughput.py   # pins "threads" to 1
 """
 
 from __future__ import annotations
@@ -15,23 +30,27 @@ from __future__ import annotations
 import argparse
 import statistics
 import sys
+import threading
 import time
 from pathlib import Path
 
 import numpy as np
 import warp as wp
+from threadpoolctl import threadpool_limits
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.numpy_ops
 
-from swe_sphere.cases import make_case  # noqa: E402
+from swe_sphere.config import load_scene  # noqa: E402
 from swe_sphere.grid import CubedSphere  # noqa: E402
-from swe_sphere.model import TERMS, ShallowWater, default_device  # noqa: E402
+from swe_sphere.model import ShallowWater, default_device  # noqa: E402
+from swe_sphere.parallel import SplitLaunch, default_threads  # noqa: E402
 from swe_sphere.steppers import STEPPERS, make_stepper  # noqa: E402
 from tests.numpy_ops import NumpyOps  # noqa: E402
 
 
-def median_time(fn, repeat, sync_device=None):
-    fn()  # warm-up (compiles, records launches)
+def median_time(fn, repeat, sync_device=None, warmup=True):
+    if warmup:
+        fn()  # compiles, records launches
     times = []
     for _ in range(repeat):
         t0 = time.perf_counter()
@@ -42,62 +61,197 @@ def median_time(fn, repeat, sync_device=None):
     return statistics.median(times)
 
 
-def triad_bandwidth(n=20_000_000, repeat=5):
-    """Bytes moved per second by a = b + s·c over float64 arrays (3 × 8 bytes per element)."""
+def interleaved_times(fns, repeat, sync_device=None):
+    """Median time of each of ``fns``, timed alternately (one call of each per round)."""
+    for fn in fns:
+        fn()
+    times = [[] for _ in fns]
+    for _ in range(repeat):
+        for k, fn in enumerate(fns):
+            t0 = time.perf_counter()
+            fn()
+            if sync_device is not None:
+                wp.synchronize_device(sync_device)
+            times[k].append(time.perf_counter() - t0)
+    return [statistics.median(t) for t in times]
+
+
+def triad_bandwidth(threads=1, n=20_000_000, repeat=5):
+    """Bytes per second moved by a = b + s·c over float64 arrays on ``threads`` threads
+    (the numpy triad reads c, writes a, reads a and b, writes a: 5 passes of 8 bytes)."""
     b, c = np.random.rand(n), np.random.rand(n)
     a = np.empty_like(b)
+    cuts = [round(k * n / threads) for k in range(threads + 1)]
+    parts = [(a[i:j], b[i:j], c[i:j]) for i, j in zip(cuts[:-1], cuts[1:])]
+
+    def triad_part(a_, b_, c_):
+        np.multiply(c_, 3.0, out=a_)
+        np.add(a_, b_, out=a_)
 
     def triad():
-        np.multiply(c, 3.0, out=a)
-        np.add(a, b, out=a)
+        workers = [threading.Thread(target=triad_part, args=p) for p in parts[1:]]
+        for w in workers:
+            w.start()
+        triad_part(*parts[0])
+        for w in workers:
+            w.join()
 
-    # the numpy triad reads c, writes a, reads a and b, writes a: 5 passes of 8 bytes
-    t = median_time(triad, repeat)
-    return 5 * 8 * n / t
+    return 5 * 8 * n / median_time(triad, repeat)
+
+
+def build(ne, np_, threads, device, stepper=None, dt_factor=1.0):
+    """TC5 scene on (ne, np): grid, scene, case fields, model, initial state."""
+    scene = load_scene("tc5_mountain", ne=ne, np=np_)
+    if stepper is not None:
+        scene = load_scene("tc5_mountain", ne=ne, np=np_, stepper=stepper, dt=scene.dt * dt_factor)
+    grid = CubedSphere(ne, np_)
+    case = scene.make_case()
+    fcor, hs = case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon)
+    model = ShallowWater(grid, scene.terms, fcor, hs, nu=scene.nu, hypervis_subcycle=scene.hypervis_subcycle, g=case.planet.g, device=device, threads=threads)
+    u, v, h = case.initial(grid.lat, grid.lon)
+    return grid, scene, (fcor, hs, np.stack([u, v, h])), model
+
+
+def rhs_compulsory_bytes(model) -> int:
+    """Bytes an RHS evaluation must move at least: the state read and the tendency
+    written once, and each array the recorded RHS launches read (metric terms,
+    Coriolis, forcing, DSS indices and masses), once. The tendency work array
+    (written and re-read between the term kernels) is not compulsory."""
+    x = model.new_state()
+    out = wp.zeros_like(x)
+    model.rhs(x, out)
+    arrays = {}
+    for launch in model._recorded[("rhs", x.ptr, out.ptr)][0]:
+        launch = launch.whole if isinstance(launch, SplitLaunch) else launch
+        for arg in launch.fwd_args or []:
+            if isinstance(arg, wp.array) and arg.ptr not in (x.ptr, out.ptr, model.tend.ptr):
+                arrays[arg.ptr] = arg.capacity
+    return sum(arrays.values()) + x.capacity + out.capacity
+
+
+def dss_launch(model, x, out):
+    """The recorded DSS launch of ``model.rhs(x, out)`` (its last launch)."""
+    return model._recorded[("rhs", x.ptr, out.ptr)][0][-1]
+
+
+class Timers:
+    """Wall time inside model.rhs and model.hyperviscosity (instance-level wrappers)."""
+
+    def __init__(self, model, device):
+        self.t = {"rhs": 0.0, "hv": 0.0}
+        self.n = {"rhs": 0, "hv": 0}
+        for name, attr in (("rhs", "rhs"), ("hv", "hyperviscosity")):
+            setattr(model, attr, self._wrap(name, getattr(model, attr), device))
+
+    def _wrap(self, name, fn, device):
+        def timed(*args):
+            t0 = time.perf_counter()
+            fn(*args)
+            wp.synchronize_device(device)
+            self.t[name] += time.perf_counter() - t0
+            self.n[name] += 1
+
+        return timed
+
+    def reset(self):
+        for k in self.t:
+            self.t[k], self.n[k] = 0.0, 0
+
+
+def rhs_table(args, threads, triad):
+    print(f"\nRHS throughput (all TC5 terms + DSS), medians of {args.repeat}; Warp 1 thread and {threads} threads timed alternately")
+    head = (
+        f"{'ne':>4} {'np':>3} {'points':>9} | {'1-thr ms':>8} {'Mpts/s':>7} | {f'{threads}-thr ms':>8} {'Mpts/s':>7} | "
+        f"{'numpy ms':>9} {'Mpts/s':>7} | {'warp/numpy':>10} | {'B/pt':>5} {'GB/s':>6} {'% triad':>7}"
+    )
+    print(head)
+    print("-" * len(head))
+    for np_ in args.np:
+        for ne in args.ne:
+            grid, scene, (fcor, hs, state), m1 = build(ne, np_, 1, args.device)
+            mt = build(ne, np_, threads, args.device)[3] if threads > 1 else m1
+            xs = [m.new_state(*state) for m in (m1, mt)]
+            outs = [wp.zeros_like(x) for x in xs]
+            t1, tt = interleaved_times([lambda: m1.rhs(xs[0], outs[0]), lambda: mt.rhs(xs[1], outs[1])], args.repeat, args.device)
+            ops = NumpyOps(grid)
+            rhs_terms = [t for t in scene.terms if t != "hyperviscosity"]
+            t_np = median_time(lambda: ops.sw_rhs(state, rhs_terms, fcor, hs, m1.g), max(3, args.repeat // 3))
+            pts = grid.npts
+            bpp = rhs_compulsory_bytes(m1) / pts
+            best = min(t1, tt)
+            gbs = bpp * pts / best / 1e9
+            print(
+                f"{ne:>4} {np_:>3} {pts:>9} | {1e3 * t1:>8.3f} {pts / t1 / 1e6:>7.2f} | {1e3 * tt:>8.3f} {pts / tt / 1e6:>7.2f} | "
+                f"{1e3 * t_np:>9.3f} {pts / t_np / 1e6:>7.2f} | {t_np / best:>9.1f}x | {bpp:>5.0f} {gbs:>6.2f} {100 * gbs * 1e9 / triad:>6.1f}%"
+            )
+
+
+def step_table(args, threads):
+    with threadpool_limits(limits=1, user_api="blas"):  # as Simulation.run: single-threaded BLAS for the Krylov solvers
+        _step_table(args, threads)
+
+
+def _step_table(args, threads):
+    print(
+        f"\nOne step per stepper, TC5, np=4, {threads} thread(s); ms per step (median of {args.step_repeat}) and its breakdown; "
+        f"semi_implicit/implicit at {args.implicit_dt_factor:g}x the scene dt"
+    )
+    head = (
+        f"{'ne':>4} {'stepper':<21} {'dt s':>6} | {'step ms':>9} {'ns/pt':>7} | {'RHS ms':>8} {'evals':>5} {'(DSS)':>7} | "
+        f"{'HV ms':>7} | {'other ms':>9} | {'RHS %':>5} | iterations"
+    )
+    print(head)
+    print("-" * len(head))
+    for ne in args.step_ne:
+        for name in STEPPERS:
+            implicit = name in ("semi_implicit", "implicit")
+            grid, scene, (_, _, state), model = build(ne, 4, threads, args.device, name, args.implicit_dt_factor if implicit else 1.0)
+            x = model.new_state(*state)
+            stepper = make_stepper(name, model, scene.dt, **scene.stepper_options)
+            stepper.step(x)  # leapfrog family: the start step; compiles and records
+            k = wp.zeros_like(x)
+            model.rhs(x, k)
+            t_dss = median_time(dss_launch(model, x, k).launch, 20, args.device)
+            timers = Timers(model, args.device)
+            steps, its = [], {}
+            for _ in range(args.step_repeat):
+                timers.reset()
+                t0 = time.perf_counter()
+                stats = stepper.step(x)
+                wp.synchronize_device(args.device)
+                steps.append((time.perf_counter() - t0, dict(timers.t), dict(timers.n), stats))
+            steps.sort(key=lambda s: s[0])
+            t, tt, nn, stats = steps[len(steps) // 2]
+            other = t - tt["rhs"] - tt["hv"]
+            its = ", ".join(f"{k} {v}" for k, v in stats.iterations.items())
+            print(
+                f"{ne:>4} {name:<21} {scene.dt:>6.0f} | {1e3 * t:>9.2f} {1e9 * t / grid.npts:>7.0f} | {1e3 * tt['rhs']:>8.2f} {nn['rhs']:>5} "
+                f"{1e3 * t_dss * nn['rhs']:>7.2f} | {1e3 * tt['hv']:>7.2f} | {1e3 * other:>9.2f} | {100 * tt['rhs'] / t:>4.0f}% | {its}"
+            )
 
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--ne", type=int, nargs="+", default=[8, 16, 30])
     p.add_argument("--np", type=int, nargs="+", default=[4, 8])
+    p.add_argument("--step-ne", type=int, nargs="*", default=[16, 30], help="grids (np=4) of the step table; none to skip it")
     p.add_argument("--device", default=default_device())
-    p.add_argument("--repeat", type=int, default=10)
+    p.add_argument("--threads", type=int, default=None, help="CPU threads of the multi-threaded column (default: the model's default)")
+    p.add_argument("--repeat", type=int, default=20)
+    p.add_argument("--step-repeat", type=int, default=5)
+    p.add_argument("--implicit-dt-factor", type=float, default=4.0)
     args = p.parse_args(argv)
+    wp.config.quiet = True  # Warp < 1.10
     wp.config.log_level = wp.LOG_ERROR
-    case = make_case("tc5_mountain")
-    terms = [t for t in TERMS]
-    print(f"device {args.device}; terms: all six (TC5); medians of {args.repeat} repeats")
-    header = f"{'ne':>4} {'np':>3} {'points':>9} | {'warp RHS ms':>11} {'Mpts/s':>7} | {'numpy RHS ms':>12} {'Mpts/s':>7} | {'speed-up':>8} | {'HV ms':>7} | " + " ".join(
-        f"{name + ' ms/step':>26}" for name in STEPPERS
-    )
-    print(header)
-    for np_ in args.np:
-        for ne in args.ne:
-            grid = CubedSphere(ne, np_)
-            fcor, hs = case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon)
-            model = ShallowWater(grid, terms, fcor, hs, nu=1.5e15 * (30 * 3 / (ne * (np_ - 1))) ** 3.2, device=args.device)
-            u, v, h = case.initial(grid.lat, grid.lon)
-            x = model.new_state(u, v, h)
-            out = wp.zeros_like(x)
-            sync = args.device
-            t_warp = median_time(lambda: model.rhs(x, out), args.repeat, sync)
-            ops = NumpyOps(grid)
-            state = np.stack([u, v, h])
-            t_np = median_time(lambda: ops.sw_rhs(state, terms, fcor, hs, model.g), max(3, args.repeat // 3))
-            t_hv = median_time(lambda: model.hyperviscosity(x, 1e-9), args.repeat, sync)
-            steps = []
-            for name in STEPPERS:
-                xs = model.new_state(u, v, h)
-                stepper = make_stepper(name, model, 1.0)
-                stepper.step(xs)  # leapfrog family: the start step
-                steps.append(median_time(lambda: stepper.step(xs), args.repeat, sync))
-            pts = grid.npts
-            print(
-                f"{ne:>4} {np_:>3} {pts:>9} | {1e3 * t_warp:>11.3f} {pts / t_warp / 1e6:>7.2f} | {1e3 * t_np:>12.3f} {pts / t_np / 1e6:>7.2f} | "
-                f"{t_np / t_warp:>7.1f}x | {1e3 * t_hv:>7.3f} | " + " ".join(f"{1e3 * t:>26.3f}" for t in steps)
-            )
-    bw = triad_bandwidth()
-    print(f"memory bandwidth (numpy triad a = b + s*c, median): {bw / 1e9:.1f} GB/s")
+    wp.init()
+    threads = args.threads or default_threads(args.device)
+    print(f"Warp {wp.__version__}, device {args.device}, threads {threads}")
+    triad1 = triad_bandwidth(1)
+    triad = triad_bandwidth(threads) if threads > 1 else triad1
+    print(f"memory bandwidth (numpy triad a = b + s*c, median): 1 thread {triad1 / 1e9:.1f} GB/s, {threads} threads {triad / 1e9:.1f} GB/s")
+    rhs_table(args, threads, max(triad, triad1))
+    if args.step_ne:
+        step_table(args, threads)
 
 
 if __name__ == "__main__":

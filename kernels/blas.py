@@ -7,16 +7,18 @@ wp.set_module_options({"enable_backward": False})
 
 
 @wp.kernel
-def axpby(a: f64, x: wp.array2d(dtype=f64), b: f64, y: wp.array2d(dtype=f64), out: wp.array2d(dtype=f64)):
+def axpby(a: f64, x: wp.array2d(dtype=f64), b: f64, y: wp.array2d(dtype=f64), out: wp.array2d(dtype=f64), offset: int):
     """out = a·x + b·y (out may alias x or y). Dim (rows, N)."""
     r, p = wp.tid()
+    p = p + offset
     out[r, p] = a * x[r, p] + b * y[r, p]
 
 
 @wp.kernel
-def axpbypcz(a: f64, x: wp.array2d(dtype=f64), b: f64, y: wp.array2d(dtype=f64), c: f64, z: wp.array2d(dtype=f64), out: wp.array2d(dtype=f64)):
+def axpbypcz(a: f64, x: wp.array2d(dtype=f64), b: f64, y: wp.array2d(dtype=f64), c: f64, z: wp.array2d(dtype=f64), out: wp.array2d(dtype=f64), offset: int):
     """out = a·x + b·y + c·z (out may alias any input). Dim (rows, N)."""
     r, p = wp.tid()
+    p = p + offset
     out[r, p] = a * x[r, p] + b * y[r, p] + c * z[r, p]
 
 
@@ -35,10 +37,10 @@ def add_row(x: wp.array2d(dtype=f64), row: int, out: wp.array2d(dtype=f64), out_
 
 
 @wp.kernel
-def first_bad_node(x: wp.array2d(dtype=f64), check_depth: int, first: wp.array(dtype=wp.int32)):
+def first_bad_node(x: wp.array2d(dtype=f64), check_depth: int, first: wp.array(dtype=wp.int32), offset: int):
     """first[0] = min index p where u, v or h is not finite, or (if check_depth) h ≤ 0;
     unchanged if there is none. Dim N."""
-    p = wp.tid()
+    p = wp.tid() + offset
     ok = wp.isfinite(x[0, p]) and wp.isfinite(x[1, p]) and wp.isfinite(x[2, p])
     if check_depth != 0:
         ok = ok and x[2, p] > f64(0.0)

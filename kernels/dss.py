@@ -4,6 +4,8 @@ Every element-local copy of a unique node gathers the sum over all copies, so
 the kernel needs no atomics and gives the same bits on CPU and CUDA.
 """
 
+import functools
+
 import warp as wp
 
 f64 = wp.float64
@@ -20,23 +22,68 @@ def dss(
     offsets: wp.array(dtype=wp.int32),
     copies: wp.array(dtype=wp.int32),
     out: wp.array2d(dtype=f64),
+    offset: int,
 ):
     """out[r, p] = rspheremp[p] · Σ_copies c of p's node (spheremp[c] if weighted else 1) · x[r, c].
 
     ``weighted = 1`` for a strong-form field (mass-weighted average: continuous
     result, area integral kept); ``0`` for a weak form already integrated
-    against the test functions. ``out`` must not alias ``x``. Dim (rows, N).
+    against the test functions. ``out`` must not alias ``x``. Dim N: each thread
+    does every row of its node (the node's copy list is read once).
     """
-    r, p = wp.tid()
+    p = wp.tid() + offset
     g = gid[p]
-    s = f64(0.0)
-    for k in range(offsets[g], offsets[g + 1]):
-        c = copies[k]
-        if weighted != 0:
-            s += spheremp[c] * x[r, c]
-        else:
-            s += x[r, c]
-    out[r, p] = rspheremp[p] * s
+    k0 = offsets[g]
+    k1 = offsets[g + 1]
+    rs = rspheremp[p]
+    for r in range(x.shape[0]):
+        s = f64(0.0)
+        for k in range(k0, k1):
+            c = copies[k]
+            if weighted != 0:
+                s += spheremp[c] * x[r, c]
+            else:
+                s += x[r, c]
+        out[r, p] = rs * s
+
+
+@functools.cache
+def dss_rows(rows: int, weighted: bool):
+    """``dss`` compiled for a fixed row count and weighting (its own Warp module):
+    same arguments without ``weighted``, same bits, each copy's index and mass
+    read once for all rows and the row sums kept in registers (2–3× faster on
+    the CPU than ``dss``). Kernel key ``dss``. Dim N."""
+    R, W = int(rows), bool(weighted)
+    acc = wp.types.vector(length=R, dtype=f64)
+
+    def dss(
+        x: wp.array2d(dtype=f64),
+        spheremp: wp.array(dtype=f64),
+        rspheremp: wp.array(dtype=f64),
+        gid: wp.array(dtype=wp.int32),
+        offsets: wp.array(dtype=wp.int32),
+        copies: wp.array(dtype=wp.int32),
+        out: wp.array2d(dtype=f64),
+        offset: int,
+    ):
+        p = wp.tid() + offset
+        g = gid[p]
+        s = acc()
+        for k in range(offsets[g], offsets[g + 1]):
+            c = copies[k]
+            if wp.static(W):
+                w = spheremp[c]
+                for r in range(R):
+                    s[r] += w * x[r, c]
+            else:
+                for r in range(R):
+                    s[r] += x[r, c]
+        rs = rspheremp[p]
+        for r in range(R):
+            out[r, p] = rs * s[r]
+
+    dss.__qualname__ = "dss"  # the kernel's key, as the generic kernel's
+    return wp.kernel(dss, enable_backward=False, module="unique")
 
 
 @wp.kernel
@@ -47,10 +94,11 @@ def assemble(
     offsets: wp.array(dtype=wp.int32),
     copies: wp.array(dtype=wp.int32),
     out: wp.array(dtype=f64),
+    offset: int,
 ):
     """Unique-node vector out[g] = Σ_copies c of g spheremp[c]·x[row, c]: the assembled
     mass matrix times a continuous field (m² × units of x). Dim nunique."""
-    g = wp.tid()
+    g = wp.tid() + offset
     s = f64(0.0)
     for k in range(offsets[g], offsets[g + 1]):
         c = copies[k]
@@ -59,7 +107,7 @@ def assemble(
 
 
 @wp.kernel
-def scatter(y: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32), row: int, out: wp.array2d(dtype=f64)):
+def scatter(y: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32), row: int, out: wp.array2d(dtype=f64), offset: int):
     """Element-local out[row, p] = y[gid[p]] from a unique-node vector. Dim N."""
-    p = wp.tid()
+    p = wp.tid() + offset
     out[row, p] = y[gid[p]]

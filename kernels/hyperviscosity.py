@@ -14,27 +14,27 @@ wp.set_module_options({"enable_backward": False})
 
 
 @wp.kernel
-def to_cartesian(x: wp.array2d(dtype=f64), hs: wp.array(dtype=f64), east: wp.array2d(dtype=f64), north: wp.array2d(dtype=f64), X: wp.array2d(dtype=f64)):
+def to_cartesian(x: wp.array2d(dtype=f64), hs: wp.array(dtype=f64), east: wp.array2d(dtype=f64), north: wp.array2d(dtype=f64), X: wp.array2d(dtype=f64), offset: int):
     """X[0:3] = u·east + v·north; X[3] = h + hs."""
-    p = wp.tid()
+    p = wp.tid() + offset
     for c in range(3):
         X[c, p] = x[0, p] * east[c, p] + x[1, p] * north[c, p]
     X[3, p] = x[2, p] + hs[p]
 
 
 @wp.kernel
-def project_tangent(X: wp.array2d(dtype=f64), xyz: wp.array2d(dtype=f64)):
+def project_tangent(X: wp.array2d(dtype=f64), xyz: wp.array2d(dtype=f64), offset: int):
     """X[0:3] −= (X·r̂) r̂: keep the part of the Cartesian vector tangent to the sphere."""
-    p = wp.tid()
+    p = wp.tid() + offset
     d = X[0, p] * xyz[0, p] + X[1, p] * xyz[1, p] + X[2, p] * xyz[2, p]
     for c in range(3):
         X[c, p] = X[c, p] - d * xyz[c, p]
 
 
 @wp.kernel
-def apply(Y: wp.array2d(dtype=f64), coef: f64, east: wp.array2d(dtype=f64), north: wp.array2d(dtype=f64), x: wp.array2d(dtype=f64)):
+def apply(Y: wp.array2d(dtype=f64), coef: f64, east: wp.array2d(dtype=f64), north: wp.array2d(dtype=f64), x: wp.array2d(dtype=f64), offset: int):
     """x += coef·Y with Y's Cartesian wind taken back to (east, north) components."""
-    p = wp.tid()
+    p = wp.tid() + offset
     ye = f64(0.0)
     yn = f64(0.0)
     for c in range(3):

@@ -56,9 +56,9 @@ def vorticity_at(x: wp.array2d(dtype=f64), p: int, np: int, D: wp.array2d(dtype=
 
 
 @wp.kernel
-def gradient_sphere(f: wp.array2d(dtype=f64), row: int, Dinv: wp.array2d(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, out: wp.array2d(dtype=f64)):
+def gradient_sphere(f: wp.array2d(dtype=f64), row: int, Dinv: wp.array2d(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, out: wp.array2d(dtype=f64), offset: int):
     """out[0:2, p] = ∇f (east, north; units of f per m) = Dinvᵀ (∂ξ f, ∂η f)."""
-    p = wp.tid()
+    p = wp.tid() + offset
     base, i, j = element_node(p, np)
     a = d_xi(f, row, base, i, j, np, dvv)
     b = d_eta(f, row, base, i, j, np, dvv)
@@ -67,10 +67,10 @@ def gradient_sphere(f: wp.array2d(dtype=f64), row: int, Dinv: wp.array2d(dtype=f
 
 
 @wp.kernel
-def divergence_sphere(x: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, out: wp.array(dtype=f64)):
+def divergence_sphere(x: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, out: wp.array(dtype=f64), offset: int):
     """out[p] = ∇·v (s⁻¹) of the wind in rows 0, 1 of x:
     (∂ξ(metdet c¹) + ∂η(metdet c²))/metdet with contravariant c = Dinv v."""
-    p = wp.tid()
+    p = wp.tid() + offset
     base, i, j = element_node(p, np)
     s = f64(0.0)
     for m in range(np):
@@ -82,34 +82,42 @@ def divergence_sphere(x: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), met
 
 
 @wp.kernel
-def vorticity_sphere(x: wp.array2d(dtype=f64), D: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, out: wp.array(dtype=f64)):
+def vorticity_sphere(x: wp.array2d(dtype=f64), D: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, out: wp.array(dtype=f64), offset: int):
     """out[p] = k·∇×v (s⁻¹) of the wind in rows 0, 1 of x."""
-    p = wp.tid()
+    p = wp.tid() + offset
     out[p] = vorticity_at(x, p, np, D, metdet, dvv)
 
 
 @wp.kernel
-def laplace_wk_flux(f: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), spheremp: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, flux: wp.array2d(dtype=f64)):
+def laplace_wk_flux(f: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), spheremp: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, flux: wp.array2d(dtype=f64), offset: int):
     """First half of the weak Laplacian, for every row r of f:
     flux[2r:2r+2, p] = spheremp · Dinv Dinvᵀ (∂ξ f, ∂η f), the quadrature-weighted
-    contravariant gradient. Launch with dim (rows, N)."""
-    r, p = wp.tid()
+    contravariant gradient. Launch with dim N (each thread does every row of its node)."""
+    p = wp.tid() + offset
     base, i, j = element_node(p, np)
-    a = d_xi(f, r, base, i, j, np, dvv)
-    b = d_eta(f, r, base, i, j, np, dvv)
-    gx = Dinv[0, p] * a + Dinv[2, p] * b
-    gy = Dinv[1, p] * a + Dinv[3, p] * b
-    flux[2 * r, p] = spheremp[p] * (Dinv[0, p] * gx + Dinv[1, p] * gy)
-    flux[2 * r + 1, p] = spheremp[p] * (Dinv[2, p] * gx + Dinv[3, p] * gy)
+    d0 = Dinv[0, p]
+    d1 = Dinv[1, p]
+    d2 = Dinv[2, p]
+    d3 = Dinv[3, p]
+    w = spheremp[p]
+    for r in range(f.shape[0]):
+        a = d_xi(f, r, base, i, j, np, dvv)
+        b = d_eta(f, r, base, i, j, np, dvv)
+        gx = d0 * a + d2 * b
+        gy = d1 * a + d3 * b
+        flux[2 * r, p] = w * (d0 * gx + d1 * gy)
+        flux[2 * r + 1, p] = w * (d2 * gx + d3 * gy)
 
 
 @wp.kernel
-def laplace_wk_div(flux: wp.array2d(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, out: wp.array2d(dtype=f64)):
+def laplace_wk_div(flux: wp.array2d(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, out: wp.array2d(dtype=f64), offset: int):
     """Second half: out[r, (m, n)] = −Σ_i dvv[i, m] flux¹(i, n) − Σ_j dvv[j, n] flux²(m, j),
-    i.e. −∫ ∇φ_mn·∇f over the element (m² × units of f / m²). Launch with dim (rows, N)."""
-    r, p = wp.tid()
+    i.e. −∫ ∇φ_mn·∇f over the element (m² × units of f / m²). Launch with dim N
+    (each thread does every row of its node)."""
+    p = wp.tid() + offset
     base, m, n = element_node(p, np)
-    s = f64(0.0)
-    for q in range(np):
-        s += dvv[q, m] * flux[2 * r, base + n * np + q] + dvv[q, n] * flux[2 * r + 1, base + q * np + m]
-    out[r, p] = -s
+    for r in range(out.shape[0]):
+        s = f64(0.0)
+        for q in range(np):
+            s += dvv[q, m] * flux[2 * r, base + n * np + q] + dvv[q, n] * flux[2 * r + 1, base + q * np + m]
+        out[r, p] = -s

@@ -18,9 +18,9 @@ wp.set_module_options({"enable_backward": False})
 
 
 @wp.kernel
-def continuity(x: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, tend: wp.array2d(dtype=f64)):
+def continuity(x: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, tend: wp.array2d(dtype=f64), offset: int):
     """dh/dt −= ∇·(h v)."""
-    p = wp.tid()
+    p = wp.tid() + offset
     base, i, j = element_node(p, np)
     s = f64(0.0)
     for m in range(np):
@@ -32,9 +32,9 @@ def continuity(x: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), metdet: wp
 
 
 @wp.kernel
-def momentum_advection(x: wp.array2d(dtype=f64), D: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, tend: wp.array2d(dtype=f64)):
+def momentum_advection(x: wp.array2d(dtype=f64), D: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, tend: wp.array2d(dtype=f64), offset: int):
     """dv/dt += −ζ k×v − ∇(½|v|²)."""
-    p = wp.tid()
+    p = wp.tid() + offset
     base, i, j = element_node(p, np)
     a = f64(0.0)
     b = f64(0.0)
@@ -49,17 +49,17 @@ def momentum_advection(x: wp.array2d(dtype=f64), D: wp.array2d(dtype=f64), Dinv:
 
 
 @wp.kernel
-def coriolis(x: wp.array2d(dtype=f64), fcor: wp.array(dtype=f64), tend: wp.array2d(dtype=f64)):
+def coriolis(x: wp.array2d(dtype=f64), fcor: wp.array(dtype=f64), tend: wp.array2d(dtype=f64), offset: int):
     """dv/dt += −f k×v."""
-    p = wp.tid()
+    p = wp.tid() + offset
     tend[0, p] = tend[0, p] + fcor[p] * x[1, p]
     tend[1, p] = tend[1, p] - fcor[p] * x[0, p]
 
 
 @wp.kernel
-def pressure_gradient(x: wp.array2d(dtype=f64), g: f64, Dinv: wp.array2d(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, tend: wp.array2d(dtype=f64)):
+def pressure_gradient(x: wp.array2d(dtype=f64), g: f64, Dinv: wp.array2d(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, tend: wp.array2d(dtype=f64), offset: int):
     """dv/dt += −g ∇h."""
-    p = wp.tid()
+    p = wp.tid() + offset
     base, i, j = element_node(p, np)
     a = d_xi(x, 2, base, i, j, np, dvv)
     b = d_eta(x, 2, base, i, j, np, dvv)
@@ -68,8 +68,8 @@ def pressure_gradient(x: wp.array2d(dtype=f64), g: f64, Dinv: wp.array2d(dtype=f
 
 
 @wp.kernel
-def add_wind_forcing(forcing: wp.array2d(dtype=f64), tend: wp.array2d(dtype=f64)):
+def add_wind_forcing(forcing: wp.array2d(dtype=f64), tend: wp.array2d(dtype=f64), offset: int):
     """dv/dt += a time-independent forcing (rows 0, 1), e.g. the topographic −g∇hs."""
-    p = wp.tid()
+    p = wp.tid() + offset
     tend[0, p] = tend[0, p] + forcing[0, p]
     tend[1, p] = tend[1, p] + forcing[1, p]

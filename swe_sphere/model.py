@@ -17,6 +17,7 @@ import warp as wp
 from .constants import EARTH
 from .grid import CubedSphere
 from .kernels import blas, dss, hyperviscosity, operators, tendencies
+from .parallel import default_threads, record
 
 TERMS = (
     "continuity",
@@ -28,6 +29,11 @@ TERMS = (
 )
 
 f64 = wp.float64
+
+
+def _id(a: wp.array) -> tuple:
+    """What a recorded launch fixes of an array: its address, shape and strides."""
+    return (a.ptr, a.shape, a.strides)
 
 
 def default_device() -> str:
@@ -46,6 +52,10 @@ class ShallowWater:
     nu : hyperviscosity coefficient (m⁴ s⁻¹), used if "hyperviscosity" is a term.
     hypervis_subcycle : forward-Euler substeps per ``hyperviscosity`` call.
     device : "cpu" or "cuda".
+    threads : CPU threads per launch (None: ``SWE_SPHERE_THREADS``, else the
+        usable CPUs; ignored on CUDA). Each element-local launch runs as that
+        many disjoint node ranges at once (``swe_sphere.parallel``); the
+        results are the same bits for any thread count.
 
     The state is a ``wp.array2d`` (3, N) of rows u, v (m s⁻¹, east/north) and h
     (fluid depth, m), element-local and continuous (equal on all copies).
@@ -53,7 +63,7 @@ class ShallowWater:
     Raises ``ValueError`` for an unknown term or a negative ν.
     """
 
-    def __init__(self, grid: CubedSphere, terms, fcor, hs, *, nu=0.0, hypervis_subcycle=1, g=EARTH.g, device="cpu"):
+    def __init__(self, grid: CubedSphere, terms, fcor, hs, *, nu=0.0, hypervis_subcycle=1, g=EARTH.g, device="cpu", threads=None):
         terms = tuple(terms)
         for t in terms:
             if t not in TERMS:
@@ -61,6 +71,9 @@ class ShallowWater:
         if nu < 0:
             raise ValueError(f"hyperviscosity nu must be >= 0 (got {nu})")
         self.grid, self.terms, self.device = grid, terms, device
+        self.threads = default_threads(device) if threads is None else int(threads)
+        if self.threads < 1:
+            raise ValueError(f"threads must be >= 1 (got {threads})")
         self.nu, self.hypervis_subcycle, self.g = float(nu), int(hypervis_subcycle), float(g)
         N = grid.npts
         self.N = N
@@ -81,12 +94,12 @@ class ShallowWater:
         self.scalar_dss = wp.zeros((1, N), dtype=f64, device=device)
         self.scalar_flat = self.scalar.flatten()
         self.vec_work = wp.zeros((2, N), dtype=f64, device=device)
-        self.bad = wp.zeros(1, dtype=wp.int32, device=device)
+        self.bad = wp.zeros(max(1, self.threads), dtype=wp.int32, device=device)  # a slot per thread
         self.topo_forcing = None
         if "topography" in terms:
             self.topo_forcing = wp.zeros((2, N), dtype=f64, device=device)
             hs2 = wp.array(np.asarray(hs, dtype=float)[None, :], dtype=f64, device=device)
-            wp.launch(operators.gradient_sphere, N, [hs2, 0, self.Dinv, self.dvv, grid.np, self.topo_forcing], device=device)
+            wp.launch(operators.gradient_sphere, N, [hs2, 0, self.Dinv, self.dvv, grid.np, self.topo_forcing, 0], device=device)
             forcing = -self.g * self.topo_forcing.numpy()
             self.topo_forcing.assign(forcing)
         if "hyperviscosity" in terms:
@@ -97,8 +110,10 @@ class ShallowWater:
         self._substeps: dict[float, int] = {}
 
     # -- launch recording ---------------------------------------------------
-    def _launch(self, kernel, dim, inputs):
-        return wp.launch(kernel, dim, inputs, device=self.device, record_cmd=True)
+    def _launch(self, kernel, dim, inputs, per_part=None):
+        """Record a launch of a kernel with a trailing ``offset`` argument (not in
+        ``inputs``) over dim N or (rows, N): split over ``threads`` node ranges on CPU."""
+        return record(kernel, dim, inputs, device=self.device, threads=self.threads, block=self.grid.np**2, per_part=per_part)
 
     def _replay(self, key, arrays, build):
         """Replay the launches recorded under ``key``, recording them first if new.
@@ -110,9 +125,8 @@ class ShallowWater:
             launch.launch()
 
     def _dss(self, x, weighted, out):
-        rows = x.shape[0]
         return self._launch(
-            dss.dss, (rows, self.N), [x, weighted, self.spheremp, self.rspheremp, self.gid, self.offsets, self.copies, out]
+            dss.dss_rows(x.shape[0], bool(weighted)), self.N, [x, self.spheremp, self.rspheremp, self.gid, self.offsets, self.copies, out]
         )
 
     # -- right-hand side ----------------------------------------------------
@@ -154,8 +168,8 @@ class ShallowWater:
 
         def laplacian():  # X → DSS'd weak Laplacian in X
             return [
-                self._launch(operators.laplace_wk_flux, (4, N), [X, self.Dinv, self.spheremp, self.dvv, np_, flux]),
-                self._launch(operators.laplace_wk_div, (4, N), [flux, self.dvv, np_, L]),
+                self._launch(operators.laplace_wk_flux, N, [X, self.Dinv, self.spheremp, self.dvv, np_, flux]),
+                self._launch(operators.laplace_wk_div, N, [flux, self.dvv, np_, L]),
                 self._dss(L, 0, X),
             ]
 
@@ -176,7 +190,7 @@ class ShallowWater:
             rng = np.random.default_rng(0)
             z = wp.array(rng.standard_normal((3, self.N)), dtype=f64, device=self.device)
             w, zc = wp.zeros_like(z), wp.zeros_like(z)
-            self._launch(dss.dss, (3, self.N), [z, 1, self.spheremp, self.rspheremp, self.gid, self.offsets, self.copies, zc]).launch()
+            self._dss(z, 1, zc).launch()
             lam = 0.0
             hs, self.hs = self.hs, wp.zeros_like(self.hs)  # the operator without the hs offset
             scale = float(self.grid.dx.min()) ** 4  # coef·λ = O(1): w − z keeps its digits
@@ -216,29 +230,49 @@ class ShallowWater:
     # -- DSS'd operators for the (semi-)implicit solvers --------------------
     def gradient(self, x: wp.array2d, row: int, out: wp.array2d) -> None:
         """out (2, N) = G f = DSS(∇ x[row]) (units of x per m)."""
-        wp.launch(operators.gradient_sphere, self.N, [x, row, self.Dinv, self.dvv, self.grid.np, self.vec_work], device=self.device)
-        wp.launch(dss.dss, (2, self.N), [self.vec_work, 1, self.spheremp, self.rspheremp, self.gid, self.offsets, self.copies, out], device=self.device)
+        self._replay(
+            ("grad", _id(x), row, _id(out)),
+            (x, out),
+            lambda: [
+                self._launch(operators.gradient_sphere, self.N, [x, row, self.Dinv, self.dvv, self.grid.np, self.vec_work]),
+                self._dss(self.vec_work, 1, out),
+            ],
+        )
 
     def divergence(self, x: wp.array2d, out: wp.array2d) -> None:
         """out (1, N) = D v = DSS(∇·v) of the wind in rows 0, 1 of x (s⁻¹ × units)."""
-        wp.launch(operators.divergence_sphere, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.scalar_flat], device=self.device)
-        wp.launch(dss.dss, (1, self.N), [self.scalar, 1, self.spheremp, self.rspheremp, self.gid, self.offsets, self.copies, out], device=self.device)
+        self._replay(
+            ("div", _id(x), _id(out)),
+            (x, out),
+            lambda: [
+                self._launch(operators.divergence_sphere, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.scalar_flat]),
+                self._dss(self.scalar, 1, out),
+            ],
+        )
 
     def assemble(self, x: wp.array2d, row: int, out: wp.array) -> None:
         """Unique-node out (nunique,) = M x[row]: assembled mass times a continuous field."""
-        wp.launch(dss.assemble, self.grid.nunique, [x, row, self.spheremp, self.offsets, self.copies, out], device=self.device)
+        self._replay(
+            ("assemble", _id(x), row, _id(out)),
+            (x, out),
+            lambda: [self._launch(dss.assemble, self.grid.nunique, [x, row, self.spheremp, self.offsets, self.copies, out])],
+        )
 
     def scatter(self, y: wp.array, out: wp.array2d, row: int) -> None:
         """Element-local out[row] from a unique-node vector y."""
-        wp.launch(dss.scatter, self.N, [y, self.gid, row, out], device=self.device)
+        self._replay(("scatter", _id(y), _id(out), row), (y, out), lambda: [self._launch(dss.scatter, self.N, [y, self.gid, row, out])])
 
     # -- diagnostics helpers ------------------------------------------------
     def vorticity(self, x: wp.array2d) -> np.ndarray:
         """Relative vorticity ζ (s⁻¹), (N,) numpy, with the model's operator and a DSS."""
-        wp.launch(
-            operators.vorticity_sphere, self.N, [x, self.D, self.metdet, self.dvv, self.grid.np, self.scalar_flat], device=self.device
+        self._replay(
+            ("vort", _id(x)),
+            (x,),
+            lambda: [
+                self._launch(operators.vorticity_sphere, self.N, [x, self.D, self.metdet, self.dvv, self.grid.np, self.scalar_flat]),
+                self._dss(self.scalar, 1, self.scalar_dss),
+            ],
         )
-        wp.launch(dss.dss, (1, self.N), [self.scalar, 1, self.spheremp, self.rspheremp, self.gid, self.offsets, self.copies, self.scalar_dss], device=self.device)
         return self.scalar_dss.numpy()[0].copy()
 
     def first_bad_node(self, x: wp.array2d) -> int | None:
@@ -246,8 +280,11 @@ class ShallowWater:
         has a pressure gradient, so h is a depth) h ≤ 0; None if all are good."""
         self.bad.fill_(self.N)
         check_depth = 1 if "pressure_gradient" in self.terms else 0
-        self._replay(("guard", x.ptr), (x,), lambda: [self._launch(blas.first_bad_node, self.N, [x, check_depth, self.bad])])
-        first = int(self.bad.numpy()[0])
+        slots = [self.bad[k : k + 1] for k in range(self.bad.shape[0])]  # one per thread: CPU atomics are plain
+        self._replay(
+            ("guard", x.ptr), (x,), lambda: [self._launch(blas.first_bad_node, self.N, [x, check_depth, self.bad], {"first": slots})]
+        )
+        first = int(self.bad.numpy().min())
         return None if first == self.N else first
 
     def new_state(self, u=None, v=None, h=None) -> wp.array2d:

@@ -48,19 +48,19 @@ def w2(a) -> wp.array:
 
 def wp_gradient(m, f):
     out = wp.zeros((2, m.N), dtype=wp.float64, device=DEV)
-    wp.launch(operators.gradient_sphere, m.N, [w2(f), 0, m.Dinv, m.dvv, m.grid.np, out], device=DEV)
+    wp.launch(operators.gradient_sphere, m.N, [w2(f), 0, m.Dinv, m.dvv, m.grid.np, out, 0], device=DEV)
     return out.numpy()
 
 
 def wp_divergence(m, u, v):
     out = wp.zeros(m.N, dtype=wp.float64, device=DEV)
-    wp.launch(operators.divergence_sphere, m.N, [w2([u, v]), m.Dinv, m.metdet, m.dvv, m.grid.np, out], device=DEV)
+    wp.launch(operators.divergence_sphere, m.N, [w2([u, v]), m.Dinv, m.metdet, m.dvv, m.grid.np, out, 0], device=DEV)
     return out.numpy()
 
 
 def wp_vorticity(m, u, v):
     out = wp.zeros(m.N, dtype=wp.float64, device=DEV)
-    wp.launch(operators.vorticity_sphere, m.N, [w2([u, v]), m.D, m.metdet, m.dvv, m.grid.np, out], device=DEV)
+    wp.launch(operators.vorticity_sphere, m.N, [w2([u, v]), m.D, m.metdet, m.dvv, m.grid.np, out, 0], device=DEV)
     return out.numpy()
 
 
@@ -69,8 +69,8 @@ def wp_laplace_wk(m, F):
     rows = F.shape[0]
     flux = wp.zeros((2 * rows, m.N), dtype=wp.float64, device=DEV)
     out = wp.zeros((rows, m.N), dtype=wp.float64, device=DEV)
-    wp.launch(operators.laplace_wk_flux, (rows, m.N), [F, m.Dinv, m.spheremp, m.dvv, m.grid.np, flux], device=DEV)
-    wp.launch(operators.laplace_wk_div, (rows, m.N), [flux, m.dvv, m.grid.np, out], device=DEV)
+    wp.launch(operators.laplace_wk_flux, m.N, [F, m.Dinv, m.spheremp, m.dvv, m.grid.np, flux, 0], device=DEV)
+    wp.launch(operators.laplace_wk_div, m.N, [flux, m.dvv, m.grid.np, out, 0], device=DEV)
     return out.numpy()
 
 
@@ -78,7 +78,7 @@ def wp_dss(m, x, weighted=True):
     x = w2(x)
     out = wp.zeros(x.shape, dtype=wp.float64, device=DEV)
     wp.launch(
-        dss_k.dss, x.shape, [x, int(weighted), m.spheremp, m.rspheremp, m.gid, m.offsets, m.copies, out], device=DEV
+        dss_k.dss, x.shape[1], [x, int(weighted), m.spheremp, m.rspheremp, m.gid, m.offsets, m.copies, out, 0], device=DEV
     )
     return out.numpy()
 
@@ -518,3 +518,15 @@ def test_cuda_matches_cpu():
     for r in range(3):
         assert np.abs(res["cuda"][0][r] - res["cpu"][0][r]).max() <= 1e-13 * scale[r]
     assert np.allclose(res["cuda"][1], res["cpu"][1], rtol=1e-13, atol=0)
+
+
+@pytest.mark.parametrize("rows", [1, 2, 3, 4])
+@pytest.mark.parametrize("weighted", [True, False])
+def test_specialised_dss_equals_generic_bitwise(rows, weighted, rng):
+    """The model's row-specialised DSS kernels give the generic kernel's bits."""
+    g, m = cached_grid(3, 4), bare_model(3, 4)
+    x = w2(rng.standard_normal((rows, g.npts)))
+    out = wp.zeros_like(x)
+    wp.launch(dss_k.dss_rows(rows, weighted), g.npts, [x, m.spheremp, m.rspheremp, m.gid, m.offsets, m.copies, out, 0], device=DEV)
+    assert dss_k.dss_rows(rows, weighted).key == "dss"
+    assert np.array_equal(out.numpy(), wp_dss(m, x.numpy(), weighted))

@@ -50,10 +50,11 @@ class Stepper:
         return wp.zeros((3, self.N), dtype=f64, device=self.model.device)
 
     def _lincomb(self, out, *terms):
-        """Record out = Σ c·x for two or three (c, x) pairs; returns the launch."""
+        """Record out = Σ c·x for two or three (c, x) pairs; returns the launch
+        (split over the model's CPU threads like the model's own launches)."""
         args = [a for c, x in terms for a in (f64(c), x)]
         kernel = blas.axpby if len(terms) == 2 else blas.axpbypcz
-        return wp.launch(kernel, (3, self.N), [*args, out], device=self.model.device, record_cmd=True)
+        return self.model._launch(kernel, (3, self.N), [*args, out])
 
     def step(self, x: wp.array2d) -> StepStats:
         raise NotImplementedError

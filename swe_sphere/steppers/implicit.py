@@ -150,7 +150,7 @@ class Implicit(Stepper):
         return self._norm(a) / math.sqrt(3 * self.N)
 
     def _axpby(self, a, x, b, y, out):
-        wp.launch(blas.axpby, (3, self.N), [f64(a), x, f64(b), y, out], device=self.model.device)
+        wp.launch(blas.axpby, (3, self.N), [f64(a), x, f64(b), y, out, 0], device=self.model.device)
 
     def _F(self, x, out):
         self.model.rhs(x, out)

@@ -1,0 +1,150 @@
+"""Multi-core execution of recorded Warp CPU launches.
+
+Warp runs a CPU launch as one serial loop over its threads. Every kernel the
+model records takes a trailing ``offset: int`` (its node index is
+``wp.tid() + offset``, or ``p + offset`` for the last of a 2-D tid), so a
+launch over N nodes can run as ``parts`` launches over disjoint node ranges,
+cut at element boundaries. A ``SplitLaunch`` runs the first range on the
+calling thread and the others on a shared pool of worker threads (Warp's CPU
+entry point is a ``ctypes.CFUNCTYPE`` call, which releases the GIL), and
+returns when all are done: the next launch may read any node the previous one
+wrote. Every kernel writes only its own nodes and reads only nodes written by
+earlier launches (the DSS is a gather), so the results are the same bits as
+one serial launch.
+
+The number of threads: ``SWE_SPHERE_THREADS`` if set, else the CPUs this
+process may run on; 1 on CUDA devices (nothing is split there).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import copy
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
+import warp as wp
+
+MIN_POINTS_PER_PART = 2048  # below this a split costs more in hand-offs than it gains
+
+_pools: dict[int, ThreadPoolExecutor] = {}
+_pools_lock = threading.Lock()
+
+
+def default_threads(device) -> int:
+    """Threads for CPU launches on ``device``: SWE_SPHERE_THREADS, else the usable CPUs; 1 on CUDA."""
+    if not wp.get_device(device).is_cpu:
+        return 1
+    env = os.environ.get("SWE_SPHERE_THREADS", "").strip()
+    if env:
+        n = int(env)
+        if n < 1:
+            raise ValueError(f"SWE_SPHERE_THREADS must be >= 1 (got {env!r})")
+        return n
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _pool(workers: int) -> ThreadPoolExecutor:
+    """The process's pool of ``workers`` threads (created on first use)."""
+    pool = _pools.get(workers)
+    if pool is None:
+        with _pools_lock:
+            pool = _pools.get(workers)
+            if pool is None:
+                pool = _pools[workers] = ThreadPoolExecutor(workers, thread_name_prefix="swe-sphere-cpu")
+    return pool
+
+
+def _forget_pools_after_fork():  # a forked child has none of its parent's threads
+    global _pools_lock
+    _pools.clear()
+    _pools_lock = threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_pools_after_fork)
+
+
+class _Part:
+    """One node range of a recorded CPU launch, called straight through Warp's CPU
+    entry point with its argument struct built once."""
+
+    def __init__(self, launch: wp.Launch):
+        self.launch = launch
+        hooks = launch.hooks
+        if launch.block_dim > 1 or hooks.forward is None or launch.adjoint:
+            self.run = launch.launch  # Warp's own path (cooperative CPU blocks, adjoints)
+            return
+        try:  # Warp internals (1.19): fall back to the public launch if they change
+            kernel = launch.kernel
+            fields = [(a.label, type(p)) for a, p in zip(kernel.adj.args, launch.params[1:])]
+            args = type("ArgsStruct", (ctypes.Structure,), {"_fields_": fields})()
+            for (name, _), value in zip(fields, launch.params[1:]):
+                setattr(args, name, value)
+            forward, bounds_ref, args_ref = hooks.forward, ctypes.byref(launch.bounds), ctypes.byref(args)
+        except (AttributeError, TypeError):
+            self.run = launch.launch
+            return
+        self._args = args
+        self.run = lambda: forward(bounds_ref, args_ref)
+
+
+class SplitLaunch:
+    """A recorded launch run as ``len(starts) - 1`` disjoint node ranges on as many
+    threads. ``kernel`` and ``launch()`` as on ``wp.Launch``.
+
+    ``per_part`` maps a kernel argument name to one value per range (e.g. a
+    private output slot where a kernel would otherwise race)."""
+
+    def __init__(self, launch: wp.Launch, rows: int | None, starts: list[int], per_part: dict | None = None):
+        self.kernel, self.whole = launch.kernel, launch
+        self.parts = []
+        for k in range(len(starts) - 1):
+            part = copy.copy(launch)
+            part.params = list(launch.params)
+            part.fwd_args = list(launch.fwd_args) if launch.fwd_args is not None else None
+            n = starts[k + 1] - starts[k]
+            part.set_dim(n if rows is None else (rows, n))
+            part.set_param_by_name("offset", starts[k])
+            for name, values in (per_part or {}).items():
+                part.set_param_by_name(name, values[k])
+            self.parts.append(_Part(part))
+        self._workers = len(self.parts) - 1
+
+    def launch(self) -> None:
+        first, *rest = self.parts
+        pool = _pool(self._workers)
+        futures = [pool.submit(p.run) for p in rest]
+        first.run()
+        for f in futures:
+            f.result()
+
+
+def split_points(n: int, block: int, parts: int) -> list[int]:
+    """Range boundaries 0 = s0 < s1 < ... < s_parts = n, cut at multiples of ``block``."""
+    nblocks = n // block if n % block == 0 else None
+    if nblocks is None:
+        return [round(k * n / parts) for k in range(parts + 1)]
+    return [round(k * nblocks / parts) * block for k in range(parts + 1)]
+
+
+def record(kernel, dim, inputs, *, device, threads: int, block: int = 1, per_part=None):
+    """Record ``kernel`` over ``dim`` (N, or (rows, N) with the node index last);
+    ``inputs`` without the trailing offset. With ``threads`` > 1 on a CPU device and
+    at least MIN_POINTS_PER_PART nodes per thread, returns a ``SplitLaunch`` over
+    that many node ranges (cut at multiples of ``block``); otherwise a plain
+    ``wp.Launch`` (``per_part`` values of the first range)."""
+    rows, n = (None, dim) if isinstance(dim, int) else dim
+    parts = min(threads, n // MIN_POINTS_PER_PART) if wp.get_device(device).is_cpu else 1
+    if n % block == 0:
+        parts = min(parts, n // block)  # no empty range
+    launch = wp.launch(kernel, dim, [*inputs, 0], device=device, record_cmd=True)
+    if parts <= 1:
+        for name, values in (per_part or {}).items():
+            launch.set_param_by_name(name, values[0])
+        return launch
+    return SplitLaunch(launch, rows, split_points(n, block, parts), per_part)

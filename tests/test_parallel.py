@@ -1,0 +1,113 @@
+"""Multi-threaded CPU launches (``swe_sphere.parallel``): the same bits as one thread."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import warp as wp
+
+from swe_sphere import parallel
+from swe_sphere.cases import make_case
+from swe_sphere.model import TERMS, ShallowWater
+from swe_sphere.steppers import STEPPERS, make_stepper
+
+from conftest import cached_grid
+
+
+@pytest.fixture
+def small_parts(monkeypatch):
+    """Split launches on a tiny grid (ne=3, np=4: 864 nodes)."""
+    monkeypatch.setattr(parallel, "MIN_POINTS_PER_PART", 64)
+    return cached_grid(3, 4)
+
+
+def tc5_model(g, threads):
+    c = make_case("tc5_mountain")
+    m = ShallowWater(g, TERMS, c.fcor(g.lat, g.lon), c.hs(g.lat, g.lon), nu=1e15, device="cpu", threads=threads)
+    return m, np.array(c.initial(g.lat, g.lon))
+
+
+def test_split_points_cut_at_elements():
+    assert parallel.split_points(864, 16, 2) == [0, 432, 864]
+    assert parallel.split_points(864, 16, 5) == [0, 176, 352, 512, 688, 864]
+    assert parallel.split_points(100, 16, 2) == [0, 50, 100]  # not whole elements: plain halves
+
+
+def test_threads_env_and_validation(monkeypatch):
+    monkeypatch.setenv("SWE_SPHERE_THREADS", "3")
+    assert parallel.default_threads("cpu") == 3
+    monkeypatch.setenv("SWE_SPHERE_THREADS", "0")
+    with pytest.raises(ValueError):
+        parallel.default_threads("cpu")
+    g = cached_grid(1, 2)
+    z = np.zeros(g.npts)
+    with pytest.raises(ValueError):
+        ShallowWater(g, [], z, z, threads=0)
+
+
+@pytest.mark.parametrize("threads", [2, 3])
+def test_operators_bitwise_equal_to_one_thread(small_parts, threads, rng):
+    g = small_parts
+    res = {}
+    for n in (1, threads):
+        m, st = tc5_model(g, n)
+        x = m.new_state(*st)
+        out = wp.zeros_like(x)
+        m.rhs(x, out)
+        assert m.rhs_kernels(x, out) == ["continuity", "momentum_advection", "coriolis", "pressure_gradient", "add_wind_forcing", "dss"]
+        if n > 1:
+            assert all(isinstance(launch, parallel.SplitLaunch) for launch in m._recorded[("rhs", x.ptr, out.ptr)][0])
+        m.hyperviscosity(x, 3600.0)
+        grad, div = wp.zeros((2, m.N), dtype=wp.float64), wp.zeros((1, m.N), dtype=wp.float64)
+        m.gradient(x, 2, grad)
+        m.divergence(x, div)
+        unique = wp.zeros(g.nunique, dtype=wp.float64)
+        m.assemble(x, 2, unique)
+        back = wp.zeros((3, m.N), dtype=wp.float64)
+        m.scatter(unique, back, 1)
+        bad = x.numpy().copy()  # numpy() is a view of a CPU array
+        bad[1, [700, 800]] = np.nan  # the first bad node lies in the last part
+        res[n] = [out.numpy(), x.numpy(), grad.numpy(), div.numpy(), unique.numpy(), back.numpy(), m.vorticity(x)]
+        res[n].append(m.first_bad_node(wp.array(bad, dtype=wp.float64)))
+    assert res[1][-1] == res[threads][-1] == 700
+    names = ["rhs", "hyperviscosity", "gradient", "divergence", "assemble", "scatter", "vorticity"]
+    for name, a, b in zip(names, res[1], res[threads]):
+        assert np.array_equal(a, b), name
+
+
+@pytest.mark.parametrize("name", STEPPERS)
+def test_steps_bitwise_equal_to_one_thread(small_parts, name):
+    g = small_parts
+    final = {}
+    for n in (1, 2):
+        m, st = tc5_model(g, n)
+        x = m.new_state(*st)
+        stepper = make_stepper(name, m, 600.0)
+        for _ in range(3):
+            stepper.step(x)
+        final[n] = x.numpy()
+    assert np.array_equal(final[1], final[2])
+
+
+def test_split_launches_work_in_a_forked_child(small_parts):
+    """A fork after the worker threads exist gets fresh ones (no deadlock)."""
+    import multiprocessing as mp
+
+    m, st = tc5_model(small_parts, 2)
+    x = m.new_state(*st)
+    out = wp.zeros_like(x)
+    m.rhs(x, out)  # starts the pool in the parent
+    ctx = mp.get_context("fork")
+    q = ctx.Queue()
+    p = ctx.Process(target=_child_rhs, args=(m, x, q))
+    p.start()
+    child = q.get(timeout=60)
+    p.join(60)
+    assert p.exitcode == 0
+    assert np.array_equal(child, out.numpy())
+
+
+def _child_rhs(m, x, q):
+    out = wp.zeros_like(x)
+    m.rhs(x, out)
+    q.put(out.numpy().copy())

@@ -61,8 +61,10 @@ def run_is_stable(scene: Scene, device: str) -> tuple[bool, str, float]:
 def largest_stable_dt(scene: Scene, device: str, *, tolerance: float = 0.05, log=print) -> StabilityResult:
     """Bracket and bisect the largest stable Δt of ``scene`` (its stepper, grid and length).
 
-    Starts from the scene's Δt, doubles or halves it to bracket the limit, then
-    bisects on steps per day until the bracket is within ``tolerance`` (relative).
+    Starts from the scene's Δt, doubles or halves it to bracket the limit (down
+    to 1/16 of the scene's Δt: below that the case counts as unstable at every
+    Δt, dt_stable NaN), then bisects on steps per day until the bracket is
+    within ``tolerance`` (relative).
     """
     trials = []
 
@@ -88,7 +90,7 @@ def largest_stable_dt(scene: Scene, device: str, *, tolerance: float = 0.05, log
         lo = n
         while hi is None:
             m = lo * 2
-            if m > 1_000_000:
+            if m > 16 * n:  # unstable down to 1/16 of the scene's dt: report no stable dt
                 break
             if stable(m):
                 hi = m

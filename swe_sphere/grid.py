@@ -86,7 +86,7 @@ class CubedSphere:
 
     def integrate(self, f: np.ndarray) -> float:
         """Area integral ∫ f dA (m² × units of f) of a continuous element-local field f (N,)."""
-        return float(np.dot(self.spheremp, f))
+        return float(np.sum(self.spheremp * f))  # not np.dot: the same bits whatever BLAS's threads
 
     def to_unique(self, f: np.ndarray) -> np.ndarray:
         """Element-local (..., N) → unique nodes (..., nunique)."""

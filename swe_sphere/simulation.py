@@ -67,6 +67,7 @@ class Simulation:
         u, v, h = case.initial(grid.lat, grid.lon)
         self.x = self.model.new_state(u, v, h)
         self.last_good = wp.clone(self.x)
+        self.initial = None
         self.initial = self.diagnose(0.0)
         self.setup_time = time.perf_counter() - t0
 
@@ -82,11 +83,9 @@ class Simulation:
         d = invariants(self.grid, u, v, h, self.hs, zeta, self.fcor, self.g)
         if "pressure_gradient" not in self.scene.terms:  # h is a tracer (TC1), not a depth
             d = {"mass": d["mass"]}
-        if hasattr(self, "initial"):
-            for k in list(d):
-                d[f"{k}_change"] = (d[k] - self.initial[k]) / abs(self.initial[k])
-        else:
-            d.update({f"{k}_change": 0.0 for k in list(d)})
+        start = self.initial or d  # diagnosing the initial state itself
+        for k in list(d):
+            d[f"{k}_change"] = (d[k] - start[k]) / abs(start[k])
         if self.case.exact_solution:
             ue, ve, he = self.case.exact(self.grid.lat, self.grid.lon, t)
             d.update({f"{k}_h": val for k, val in williamson_norms(self.grid, h, he).items()})

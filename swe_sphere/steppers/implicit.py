@@ -276,7 +276,7 @@ class Implicit(Stepper):
         o, m = self.o, self.model
         self.rhs_evals, self._cg_its = 0, 0
         if self.H == 0.0 and o["preconditioner"] == "helmholtz":
-            self.H = float(np.dot(m.grid.spheremp, x.numpy()[2]) / m.grid.spheremp.sum())
+            self.H = m.grid.integrate(x.numpy()[2]) / m.grid.area.sum()  # mean depth
         wp.copy(self.xn, x)
         if o["method"] == "bdf2" and self.steps_taken > 0:
             self.beta = 2.0 / 3.0

@@ -18,7 +18,6 @@ x(−1) = x(0).
 
 from __future__ import annotations
 
-import numpy as np
 import warp as wp
 
 from ..kernels import semi_implicit as si
@@ -79,7 +78,7 @@ class SemiImplicit(Leapfrog):
         m, dev, N, g = self.model, self.model.device, self.N, self.model.g
         if self.H == 0.0:
             h = cur.numpy()[2]
-            self.H = float(np.dot(m.grid.spheremp, h) / m.grid.spheremp.sum())
+            self.H = m.grid.integrate(h) / m.grid.area.sum()  # mean depth
         c = dt * dt * g * self.H
         m.rhs(cur, self.F)
         m.gradient(cur, 2, self.Gh)

@@ -12,47 +12,15 @@ f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
 
 
-@wp.kernel
-def dss(
-    x: wp.array2d(dtype=f64),
-    weighted: int,
-    spheremp: wp.array(dtype=f64),
-    rspheremp: wp.array(dtype=f64),
-    gid: wp.array(dtype=wp.int32),
-    offsets: wp.array(dtype=wp.int32),
-    copies: wp.array(dtype=wp.int32),
-    out: wp.array2d(dtype=f64),
-    offset: int,
-):
-    """out[r, p] = rspheremp[p] · Σ_copies c of p's node (spheremp[c] if weighted else 1) · x[r, c].
-
-    ``weighted = 1`` for a strong-form field (mass-weighted average: continuous
-    result, area integral kept); ``0`` for a weak form already integrated
-    against the test functions. ``out`` must not alias ``x``. Dim N: each thread
-    does every row of its node (the node's copy list is read once).
-    """
-    p = wp.tid() + offset
-    g = gid[p]
-    k0 = offsets[g]
-    k1 = offsets[g + 1]
-    rs = rspheremp[p]
-    for r in range(x.shape[0]):
-        s = f64(0.0)
-        for k in range(k0, k1):
-            c = copies[k]
-            if weighted != 0:
-                s += spheremp[c] * x[r, c]
-            else:
-                s += x[r, c]
-        out[r, p] = rs * s
-
-
 @functools.cache
 def dss_rows(rows: int, weighted: bool):
-    """``dss`` compiled for a fixed row count and weighting (its own Warp module):
-    same arguments without ``weighted``, same bits, each copy's index and mass
-    read once for all rows and the row sums kept in registers (2–3× faster on
-    the CPU than ``dss``). Kernel key ``dss``. Dim N."""
+    """The DSS kernel for ``rows`` rows (its own Warp module, kernel key ``dss``):
+    out[r, p] = rspheremp[p] · Σ_copies c of p's node (spheremp[c] if weighted
+    else 1) · x[r, c]. ``weighted`` for a strong-form field (mass-weighted
+    average: continuous result, area integral kept); unweighted for a weak form
+    already integrated against the test functions. ``out`` must not alias ``x``.
+    Each copy's index and mass are read once for all rows and the row sums kept
+    in registers (2–3× faster on the CPU than a row-generic loop). Dim N."""
     R, W = int(rows), bool(weighted)
     acc = wp.types.vector(length=R, dtype=f64)
 

@@ -87,7 +87,6 @@ class ShallowWater:
         self.gid, self.offsets, self.copies = up(grid.gid, wp.int32), up(grid.dss_offsets, wp.int32), up(grid.dss_copies, wp.int32)
         self.xyz, self.east, self.north = up(grid.xyz), up(grid.east), up(grid.north)
         self.fcor, self.hs = up(fcor), up(hs)
-        self.hs_np = np.asarray(hs, dtype=float)
 
         self.tend = wp.zeros((3, N), dtype=f64, device=device)
         self.scalar = wp.zeros((1, N), dtype=f64, device=device)

@@ -130,27 +130,21 @@ class ShallowWater:
 
     # -- right-hand side ----------------------------------------------------
     def _build_rhs(self, x, out):
-        g, N, np_, t = self.grid, self.N, self.grid.np, self.terms
+        N, np_ = self.N, self.grid.np
+        terms = tuple(term for term in tendencies.TENDENCY_TERMS if term in self.terms)
         launches = []
-        if "continuity" in t:
-            launches.append(self._launch(tendencies.continuity, N, [x, self.Dinv, self.metdet, self.dvv, np_, self.tend]))
-        if "momentum_advection" in t:
+        if terms:
+            forcing = self.topo_forcing if self.topo_forcing is not None else self.vec_work  # read only with topography
+            kernel = tendencies.tendency(terms)
             launches.append(
-                self._launch(tendencies.momentum_advection, N, [x, self.D, self.Dinv, self.metdet, self.dvv, np_, self.tend])
+                self._launch(kernel, N, [x, self.D, self.Dinv, self.metdet, self.fcor, forcing, self.dvv, np_, self.g, self.tend])
             )
-        if "coriolis" in t:
-            launches.append(self._launch(tendencies.coriolis, N, [x, self.fcor, self.tend]))
-        if "pressure_gradient" in t:
-            launches.append(self._launch(tendencies.pressure_gradient, N, [x, self.g, self.Dinv, self.dvv, np_, self.tend]))
-        if "topography" in t:
-            launches.append(self._launch(tendencies.add_wind_forcing, N, [self.topo_forcing, self.tend]))
         launches.append(self._dss(self.tend, 1, out))
         return launches
 
     def rhs(self, x: wp.array2d, out: wp.array2d) -> None:
         """out = F(x): the DSS'd tendency (3, N) of the non-dissipative terms
         (du/dt, dv/dt in m s⁻²; dh/dt in m s⁻¹). ``out`` must not alias ``x``."""
-        self.tend.zero_()
         self._replay(("rhs", x.ptr, out.ptr), (x, out), lambda: self._build_rhs(x, out))
 
     def rhs_kernels(self, x: wp.array2d, out: wp.array2d) -> list[str]:

@@ -425,12 +425,12 @@ def launch_log(monkeypatch):
 @pytest.mark.parametrize(
     "terms,expected",
     [
-        (["continuity"], ["continuity", "dss"]),
-        (["coriolis", "pressure_gradient"], ["coriolis", "pressure_gradient", "dss"]),
+        (["continuity"], ["tendency__continuity", "dss"]),
+        (["pressure_gradient", "coriolis"], ["tendency__coriolis__pressure_gradient", "dss"]),
         (["hyperviscosity"], ["dss"]),
         (
             list(TERMS),
-            ["continuity", "momentum_advection", "coriolis", "pressure_gradient", "add_wind_forcing", "dss"],
+            ["tendency__continuity__momentum_advection__coriolis__pressure_gradient__topography", "dss"],
         ),
     ],
 )

@@ -3,8 +3,9 @@
 ``ShallowWater`` uploads the grid once, allocates its work arrays once and
 records every kernel launch the first time it is used on a given pair of
 arrays; afterwards ``rhs`` and ``hyperviscosity`` only replay recorded
-launches (no allocation in the time loop). Only the scene's terms are
-launched. Mirrors HOMME's ``compute_and_apply_rhs`` + ``advance_hypervis``.
+launches (no allocation in the time loop). The tendency kernel is compiled
+for the scene's terms alone (``kernels.tendencies.tendency``); the
+hyperviscosity kernels run only when it is a term. Mirrors HOMME's ``compute_and_apply_rhs`` + ``advance_hypervis``.
 """
 
 from __future__ import annotations
@@ -47,7 +48,7 @@ class ShallowWater:
     Parameters
     ----------
     grid : CubedSphere
-    terms : iterable of names from ``TERMS``; a term not named launches no kernel.
+    terms : iterable of names from ``TERMS``; a term not named is neither compiled nor run.
     fcor, hs : (N,) Coriolis parameter (s⁻¹) and surface height (m), element-local.
     nu : hyperviscosity coefficient (m⁴ s⁻¹), used if "hyperviscosity" is a term.
     hypervis_subcycle : forward-Euler substeps per ``hyperviscosity`` call.

@@ -1,20 +1,17 @@
-"""Probe (not used by the model): what a fused RHS kernel would give on the CPU.
+"""Probe (not used by the model): a per-element tendency kernel on the CPU.
 
-The model launches one kernel per term (continuity, momentum advection,
-Coriolis, pressure gradient, topographic forcing), each one thread per node,
-each re-reading its element's neighbours and accumulating into a tendency work
-array, then the DSS. This probe times, for the same state and on one thread:
+The model's tendency is one fused kernel per node (``kernels.tendencies``),
+which re-reads each element's row and column per node. This probe times, for
+the same state and on one thread:
 
-* the model's per-term kernels (tend.zero_() + one launch per term),
-* ``fused_node``: every term in one kernel, one thread per node,
+* the model's tendency kernel,
 * ``fused_elem``: every term in one kernel, one thread per element, the
   element's fluxes computed once into local vectors (np² values each) and the
   derivatives taken from them (loops unrolled: np is a compile-time constant),
 * the model's DSS launch,
 
 and the largest difference from the model's tendency relative to the largest
-single-term scale (the fused kernels take ∇(½|v|² + g h) in one derivative,
-so they agree to round-off, not bit for bit).
+single-term scale (they agree to round-off, not bit for bit).
 
     python benchmarks/probe_fused_rhs.py [--ne 30] [--np 4]
 """
@@ -36,45 +33,6 @@ from swe_sphere.kernels.operators import element_node  # noqa: E402
 from swe_sphere.model import ShallowWater  # noqa: E402
 
 f64 = wp.float64
-
-
-@wp.kernel
-def fused_node(x: wp.array2d(dtype=f64), D: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64),
-               fcor: wp.array(dtype=f64), forcing: wp.array2d(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, g: f64,
-               tend: wp.array2d(dtype=f64), offset: int):
-    p = wp.tid() + offset
-    base, i, j = element_node(p, np)
-    div = f64(0.0)
-    ex = f64(0.0)
-    ee = f64(0.0)
-    dv2 = f64(0.0)
-    dv1 = f64(0.0)
-    for m in range(np):
-        q = base + j * np + m
-        w = dvv[i, m]
-        u = x[0, q]
-        v = x[1, q]
-        h = x[2, q]
-        J = metdet[q]
-        div += w * J * h * (Dinv[0, q] * u + Dinv[1, q] * v)
-        ex += w * (f64(0.5) * (u * u + v * v) + g * h)
-        dv2 += w * (D[1, q] * u + D[3, q] * v)
-        q = base + m * np + i
-        w = dvv[j, m]
-        u = x[0, q]
-        v = x[1, q]
-        h = x[2, q]
-        J = metdet[q]
-        div += w * J * h * (Dinv[2, q] * u + Dinv[3, q] * v)
-        ee += w * (f64(0.5) * (u * u + v * v) + g * h)
-        dv1 += w * (D[0, q] * u + D[2, q] * v)
-    rJ = f64(1.0) / metdet[p]
-    zf = (dv2 - dv1) * rJ + fcor[p]
-    u = x[0, p]
-    v = x[1, p]
-    tend[0, p] = zf * v - (Dinv[0, p] * ex + Dinv[2, p] * ee) + forcing[0, p]
-    tend[1, p] = -zf * u - (Dinv[1, p] * ex + Dinv[3, p] * ee) + forcing[1, p]
-    tend[2, p] = -div * rJ
 
 
 def make_fused_elem(NP):
@@ -156,10 +114,8 @@ def main(argv=None):
     m.rhs(x, out)
     ref = m.tend.numpy().copy()
     N = grid.npts
-    t_node, t_elem = wp.zeros_like(x), wp.zeros_like(x)
-    ln = wp.launch(fused_node, N, [x, m.D, m.Dinv, m.metdet, m.fcor, m.topo_forcing, m.dvv, np_, f64(m.g), t_node, 0], device="cpu", record_cmd=True)
+    t_elem = wp.zeros_like(x)
     le = wp.launch(make_fused_elem(np_), grid.nelem, [x, m.D, m.Dinv, m.metdet, m.fcor, m.topo_forcing, m.dvv, f64(m.g), t_elem, 0], device="cpu", record_cmd=True)
-    ln.launch()
     le.launch()
     per_term = []
     for t in terms:
@@ -169,19 +125,13 @@ def main(argv=None):
         per_term.append(np.abs(mt.tend.numpy()).max(axis=1))
     scale = np.max(per_term, axis=0)
     scale = np.array([scale[:2].max(), scale[:2].max(), scale[2]])
-    err = {k: (np.abs(a.numpy() - ref).max(axis=1) / scale).max() for k, a in (("node", t_node), ("elem", t_elem))}
-    launches = m._recorded[("rhs", x.ptr, out.ptr)][0]
-
-    def per_term_kernels():
-        m.tend.zero_()
-        for launch in launches[:-1]:
-            launch.launch()
-
-    t0, t1, t2, t3 = (median_time(f) for f in (per_term_kernels, ln.launch, le.launch, launches[-1].launch))
+    err = (np.abs(t_elem.numpy() - ref).max(axis=1) / scale).max()
+    tendency, dss = m._recorded[("rhs", x.ptr, out.ptr)][0]
+    t0, t2, t3 = (median_time(f) for f in (tendency.launch, le.launch, dss.launch))
     print(f"ne={ne} np={np_} N={N}, 1 thread, medians of 30 (ms):")
-    print(f"  per-term kernels {1e3 * t0:7.3f}   fused per node {1e3 * t1:7.3f} (x{t0 / t1:.1f})   fused per element {1e3 * t2:7.3f} (x{t0 / t2:.1f})   DSS {1e3 * t3:7.3f}")
+    print(f"  model tendency (per node) {1e3 * t0:7.3f}   per element {1e3 * t2:7.3f} (x{t0 / t2:.1f})   DSS {1e3 * t3:7.3f}")
     print(f"  RHS (tendency + DSS): now {N / (t0 + t3) / 1e6:.1f} Mpts/s; with the per-element kernel {N / (t2 + t3) / 1e6:.1f} Mpts/s")
-    print(f"  max difference / largest single-term scale: per node {err['node']:.1e}, per element {err['elem']:.1e}")
+    print(f"  max difference / largest single-term scale: {err:.1e}")
 
 
 if __name__ == "__main__":

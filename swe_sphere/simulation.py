@@ -50,9 +50,9 @@ class Simulation:
     ``device``: "cpu" or "cuda" (Warp device names). ``progress``: show a tqdm bar.
     """
 
-    def __init__(self, scene: Scene, device: str, *, progress: bool = True, log=print):
+    def __init__(self, scene: Scene, device: str, *, progress: bool = True):
         t0 = time.perf_counter()
-        self.scene, self.device, self.progress, self.log = scene, device, progress, log
+        self.scene, self.device, self.progress = scene, device, progress
         self.grid = grid = CubedSphere(scene.ne, scene.np)
         self.case = case = scene.make_case()
         self.fcor = case.fcor(grid.lat, grid.lon)

@@ -33,13 +33,9 @@ DEVICE = "cpu"
 MASS_TOL = 1e-12
 
 
-def _quiet(*args, **kwargs):
-    pass
-
-
 def run_scene(scene):
     """Run a scene; return (RunResult, final state (3, N) numpy, Simulation)."""
-    sim = Simulation(scene, DEVICE, progress=False, log=_quiet)
+    sim = Simulation(scene, DEVICE, progress=False)
     result = sim.run()
     return result, sim.x.numpy().copy(), sim
 

@@ -63,12 +63,8 @@ DEVICE = "cpu"
 EPS = np.finfo(float).eps
 
 
-def _quiet(*args, **kwargs):
-    pass
-
-
 def make_sim(scene):
-    return Simulation(scene, DEVICE, progress=False, log=_quiet)
+    return Simulation(scene, DEVICE, progress=False)
 
 
 def run(scene):

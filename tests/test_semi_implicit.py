@@ -49,12 +49,8 @@ SI_FACTOR = 1.78  # the SI step in units of dt_limit (largest stable: ~1.85)
 UNSTABLE_FACTOR = 2.2
 
 
-def _quiet(*args, **kwargs):
-    pass
-
-
 def make_sim(scene):
-    return Simulation(scene, DEVICE, progress=False, log=_quiet)
+    return Simulation(scene, DEVICE, progress=False)
 
 
 def run(scene):

@@ -46,12 +46,8 @@ DOCUMENTED_RHS = {
 }
 
 
-def _quiet(*args, **kwargs):
-    pass
-
-
 def make_sim(scene):
-    return Simulation(scene, DEVICE, progress=False, log=_quiet)
+    return Simulation(scene, DEVICE, progress=False)
 
 
 def count_rhs_calls(sim):

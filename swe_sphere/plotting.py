@@ -350,7 +350,8 @@ def sweep_plot(path, rows, x: str, *, xlabel: str = "", floor: float | None = No
     steppers = list(dict.fromkeys(r["stepper"] for r in rows))
     lines = []
     for st in steppers:
-        pts = sorted((float(r[x]), float(r[y])) for r in rows if r["stepper"] == st and r.get("stable", True))
+        # joined in order of Δt, so a line reads as the stepper's cost-accuracy path
+        pts = [(float(r[x]), float(r[y])) for r in sorted(rows, key=lambda r: r.get("dt", 0.0)) if r["stepper"] == st and r.get("stable", True)]
         lines.append((st, [p[0] for p in pts], [p[1] for p in pts]))
     fig = _figure(figsize)
     ax = fig.add_subplot()

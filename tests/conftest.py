@@ -40,3 +40,28 @@ def small_grid():
 @pytest.fixture
 def rng():
     return np.random.default_rng(20240611)
+
+
+TC2_SCENE = """
+description = "TC2 for a test"
+terms = ["continuity", "momentum_advection", "coriolis", "pressure_gradient"]
+
+[case]
+name = "tc2_steady"
+
+[grid]
+ne = {ne}
+np = 4
+
+[time]
+stepper = "{stepper}"
+dt = {dt!r}
+days = {days!r}
+{tables}
+"""
+
+
+def write_tc2_scene(path, *, stepper="ssprk3", ne=2, dt=3600.0, days=1.0, tables=""):
+    """Write a TC2 scene file (``tables``: extra TOML, e.g. a stepper's options); returns its path."""
+    path.write_text(TC2_SCENE.format(ne=ne, stepper=stepper, dt=dt, days=days, tables=tables))
+    return path

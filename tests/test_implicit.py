@@ -56,7 +56,7 @@ from swe_sphere.constants import DAY
 from swe_sphere.simulation import BlowUp, Simulation
 from swe_sphere.steppers import StepFailure
 
-from conftest import cached_grid
+from conftest import cached_grid, write_tc2_scene
 from numpy_ops import NumpyOps
 
 DEVICE = "cpu"
@@ -373,29 +373,8 @@ def test_warp_gmres_matches_scipy_gmres():
 
 # -- failures and bad input through the command line ---------------------------------
 
-TC2_TINY = """
-description = "TC2 on a tiny grid{title}"
-terms = ["continuity", "momentum_advection", "coriolis", "pressure_gradient"]
-
-[case]
-name = "tc2_steady"
-
-[grid]
-ne = 2
-np = 4
-
-[time]
-stepper = "ssprk3"
-dt = 3600.0
-days = 1.0
-{table}
-"""
-
-
 def scene_file(tmp_path, table: str, name="scene.toml") -> str:
-    path = tmp_path / name
-    path.write_text(TC2_TINY.format(title=", " + name, table=table))
-    return str(path)
+    return str(write_tc2_scene(tmp_path / name, tables=table))
 
 
 def run_cli(capsys, *args):

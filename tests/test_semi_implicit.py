@@ -35,6 +35,7 @@ import numpy as np
 import pytest
 import warp as wp
 
+from conftest import write_tc2_scene
 from swe_sphere.cli import main
 from swe_sphere.config import load_scene
 from swe_sphere.constants import DAY
@@ -223,27 +224,6 @@ def test_semi_implicit_linear_solver_warp_matches_scipy():
 
 # -- bad options ---------------------------------------------------------------------------
 
-TC2_TINY = """
-description = "TC2 on a tiny grid"
-terms = ["continuity", "momentum_advection", "coriolis", "pressure_gradient"]
-
-[case]
-name = "tc2_steady"
-
-[grid]
-ne = 2
-np = 4
-
-[time]
-stepper = "semi_implicit"
-dt = 3600.0
-days = 1.0
-
-[semi_implicit]
-{option}
-"""
-
-
 @pytest.mark.parametrize(
     "option, needle",
     [
@@ -259,7 +239,7 @@ days = 1.0
 def test_bad_semi_implicit_option_exits_2(option, needle, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     path = tmp_path / "scene.toml"
-    path.write_text(TC2_TINY.format(option=option))
+    write_tc2_scene(path, stepper="semi_implicit", tables=f"[semi_implicit]\n{option}\n")
     output = tmp_path / "bad.nc"
     try:
         code = main(["run", str(path), "--device", "cpu", "--output", str(output), "--no-progress"])

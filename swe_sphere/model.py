@@ -57,6 +57,9 @@ class ShallowWater:
         usable CPUs; ignored on CUDA). Each element-local launch runs as that
         many disjoint node ranges at once (``swe_sphere.parallel``); the
         results are the same bits for any thread count.
+    per_element : the kernels' layout: one thread per element (None: on a CPU
+        device, where a launch is a serial loop and the element's data stays
+        in cache) or one thread per node (on CUDA). Same results to round-off.
 
     The state is a ``wp.array2d`` (3, N) of rows u, v (m s⁻¹, east/north) and h
     (fluid depth, m), element-local and continuous (equal on all copies).
@@ -64,7 +67,7 @@ class ShallowWater:
     Raises ``ValueError`` for an unknown term or a negative ν.
     """
 
-    def __init__(self, grid: CubedSphere, terms, fcor, hs, *, nu=0.0, hypervis_subcycle=1, g=EARTH.g, device="cpu", threads=None):
+    def __init__(self, grid: CubedSphere, terms, fcor, hs, *, nu=0.0, hypervis_subcycle=1, g=EARTH.g, device="cpu", threads=None, per_element=None):
         terms = tuple(terms)
         for t in terms:
             if t not in TERMS:
@@ -76,6 +79,8 @@ class ShallowWater:
         if self.threads < 1:
             raise ValueError(f"threads must be >= 1 (got {threads})")
         self.nu, self.hypervis_subcycle, self.g = float(nu), int(hypervis_subcycle), float(g)
+        self.per_element = wp.get_device(device).is_cpu if per_element is None else bool(per_element)
+        self.dvv_const = tuple(map(tuple, grid.rule.dvv.tolist()))  # compiled into the per-element kernels
         N = grid.npts
         self.N = N
 
@@ -86,6 +91,7 @@ class ShallowWater:
         self.metdet, self.spheremp, self.rspheremp = up(grid.metdet), up(grid.spheremp), up(grid.rspheremp)
         self.dvv = up(grid.rule.dvv)
         self.gid, self.offsets, self.copies = up(grid.gid, wp.int32), up(grid.dss_offsets, wp.int32), up(grid.dss_copies, wp.int32)
+        self.dss_table = up(grid.dss_table, wp.int32)
         self.xyz, self.east, self.north = up(grid.xyz), up(grid.east), up(grid.north)
         self.fcor, self.hs = up(fcor), up(hs)
 
@@ -115,6 +121,10 @@ class ShallowWater:
         ``inputs``) over dim N or (rows, N): split over ``threads`` node ranges on CPU."""
         return record(kernel, dim, inputs, device=self.device, threads=self.threads, block=self.grid.np**2, per_part=per_part)
 
+    def _launch_elements(self, kernel, inputs):
+        """Record a per-element kernel (dim nelem, trailing element ``offset``)."""
+        return record(kernel, self.grid.nelem, inputs, device=self.device, threads=self.threads, nodes_per_index=self.grid.np**2)
+
     def _replay(self, key, arrays, build):
         """Replay the launches recorded under ``key``, recording them first if new.
         The cache holds ``arrays`` so that their addresses (part of the key) stay theirs."""
@@ -126,20 +136,22 @@ class ShallowWater:
 
     def _dss(self, x, weighted, out):
         return self._launch(
-            dss.dss_rows(x.shape[0], bool(weighted)), self.N, [x, self.spheremp, self.rspheremp, self.gid, self.offsets, self.copies, out]
+            dss.dss_rows(x.shape[0], bool(weighted), self.dss_table.shape[1]), self.N, [x, self.spheremp, self.rspheremp, self.dss_table, out]
         )
 
     # -- right-hand side ----------------------------------------------------
     def _build_rhs(self, x, out):
-        N, np_ = self.N, self.grid.np
         terms = tuple(term for term in tendencies.TENDENCY_TERMS if term in self.terms)
         launches = []
         if terms:
             forcing = self.topo_forcing if self.topo_forcing is not None else self.vec_work  # read only with topography
-            kernel = tendencies.tendency(terms)
-            launches.append(
-                self._launch(kernel, N, [x, self.D, self.Dinv, self.metdet, self.fcor, forcing, self.dvv, np_, self.g, self.tend])
-            )
+            args = [x, self.D, self.Dinv, self.metdet, self.fcor, forcing]
+            if self.per_element:
+                kernel = tendencies.tendency_element(terms, self.dvv_const)
+                launches.append(self._launch_elements(kernel, [*args, self.g, self.tend]))
+            else:
+                kernel = tendencies.tendency(terms)
+                launches.append(self._launch(kernel, self.N, [*args, self.dvv, self.grid.np, self.g, self.tend]))
         launches.append(self._dss(self.tend, 1, out))
         return launches
 

@@ -132,14 +132,15 @@ def split_points(n: int, block: int, parts: int) -> list[int]:
     return [round(k * nblocks / parts) * block for k in range(parts + 1)]
 
 
-def record(kernel, dim, inputs, *, device, threads: int, block: int = 1, per_part=None):
-    """Record ``kernel`` over ``dim`` (N, or (rows, N) with the node index last);
-    ``inputs`` without the trailing offset. With ``threads`` > 1 on a CPU device and
-    at least MIN_POINTS_PER_PART nodes per thread, returns a ``SplitLaunch`` over
-    that many node ranges (cut at multiples of ``block``); otherwise a plain
+def record(kernel, dim, inputs, *, device, threads: int, block: int = 1, per_part=None, nodes_per_index: int = 1):
+    """Record ``kernel`` over ``dim`` (N, or (rows, N) with the node index last;
+    or the element count, with ``nodes_per_index`` = np²); ``inputs`` without
+    the trailing offset. With ``threads`` > 1 on a CPU device and at least
+    MIN_POINTS_PER_PART nodes per thread, returns a ``SplitLaunch`` over that
+    many index ranges (cut at multiples of ``block``); otherwise a plain
     ``wp.Launch`` (``per_part`` values of the first range)."""
     rows, n = (None, dim) if isinstance(dim, int) else dim
-    parts = min(threads, n // MIN_POINTS_PER_PART) if wp.get_device(device).is_cpu else 1
+    parts = min(threads, n * nodes_per_index // MIN_POINTS_PER_PART) if wp.get_device(device).is_cpu else 1
     if n % block == 0:
         parts = min(parts, n // block)  # no empty range
     launch = wp.launch(kernel, dim, [*inputs, 0], device=device, record_cmd=True)

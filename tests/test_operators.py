@@ -77,8 +77,8 @@ def wp_laplace_wk(m, F):
 def wp_dss(m, x, weighted=True):
     x = w2(x)
     out = wp.zeros(x.shape, dtype=wp.float64, device=DEV)
-    kernel = dss_k.dss_rows(x.shape[0], bool(weighted))
-    wp.launch(kernel, x.shape[1], [x, m.spheremp, m.rspheremp, m.gid, m.offsets, m.copies, out, 0], device=DEV)
+    kernel = dss_k.dss_rows(x.shape[0], bool(weighted), m.dss_table.shape[1])
+    wp.launch(kernel, x.shape[1], [x, m.spheremp, m.rspheremp, m.dss_table, out, 0], device=DEV)
     return out.numpy()
 
 
@@ -272,8 +272,8 @@ def tc5(g):
     return c.fcor(g.lat, g.lon), c.hs(g.lat, g.lon), np.array(c.initial(g.lat, g.lon))
 
 
-def run_rhs(g, terms, fcor, hs, state):
-    m = ShallowWater(g, terms, fcor, hs, device=DEV)
+def run_rhs(g, terms, fcor, hs, state, per_element=None):
+    m = ShallowWater(g, terms, fcor, hs, device=DEV, per_element=per_element)
     x = m.new_state(*state)
     out = wp.zeros_like(x)
     m.rhs(x, out)
@@ -288,8 +288,10 @@ def rhs_scales(ops, state, fcor, hs, g_):
     return np.array([wind, wind, per[:, 2].max()])
 
 
+@pytest.mark.parametrize("per_element", [True, False], ids=["per-element", "per-node"])
 @pytest.mark.parametrize("np_", [4, 7])
-def test_rhs_matches_numpy(np_, rng):
+def test_rhs_matches_numpy(np_, per_element, rng):
+    """Both kernel layouts (per element: the CPU default; per node: CUDA's) on this device."""
     g = cached_grid(2, np_)
     ops = NumpyOps(g)
     fcor, hs, st = tc5(g)
@@ -297,7 +299,7 @@ def test_rhs_matches_numpy(np_, rng):
     for state in (st, perturbed):
         scale = rhs_scales(ops, state, fcor, hs, 9.80616)
         for terms in [(t,) for t in RHS_TERMS] + [RHS_TERMS, ("continuity", "coriolis")]:
-            m, got = run_rhs(g, terms, fcor, hs, state)
+            m, got = run_rhs(g, terms, fcor, hs, state, per_element)
             ref = ops.sw_rhs(state, terms, fcor, hs, m.g)
             for r in range(3):
                 assert np.abs(got[r] - ref[r]).max() <= 1e-13 * scale[r], (terms, r)
@@ -525,6 +527,10 @@ def test_dss_kernels_for_each_row_count_match_numpy(rows, weighted, rng):
     """The DSS compiled per row count (kernel key "dss") equals the numpy reference."""
     g, m = cached_grid(3, 4), bare_model(3, 4)
     x = rng.standard_normal((rows, g.npts))
-    assert dss_k.dss_rows(rows, weighted).key == "dss"
+    assert dss_k.dss_rows(rows, weighted, 4).key == "dss"
     ref = NumpyOps(g).dss(x, weighted=weighted)
-    assert np.abs(wp_dss(m, x, weighted) - ref).max() <= 1e-14 * np.abs(ref).max()
+    out = wp_dss(m, x, weighted)
+    assert np.abs(out - ref).max() <= 1e-14 * np.abs(ref).max()
+    # every copy of a node gets the same bits: the result is exactly continuous
+    first = out[:, g.first][:, g.gid]
+    assert np.array_equal(out, first)

@@ -1,16 +1,94 @@
-"""Pointwise pieces of the ∇⁴ hyperviscosity (HOMME ``advance_hypervis``).
+"""The ∇⁴ hyperviscosity's kernels (HOMME ``advance_hypervis``).
 
 The wind is diffused through its 3-D Cartesian components, which are smooth
 across the poles and panel edges; the tangential projection of the
 componentwise Laplacian is the vector Laplacian ∇(∇·v) − ∇×∇×v. The height
 diffused is the free surface h + hs (smooth over the TC5 cone, unlike h).
-Rows of the work array X: 0..2 Cartesian wind, 3 free surface. Dim N.
+Rows of the work array X: 0..2 Cartesian wind, 3 free surface.
+
+Two layouts, as for the tendency: on CUDA the pointwise kernels below
+(dim N) around ``operators.laplace_wk_flux``/``laplace_wk_div``; on the CPU
+``laplacian_element`` (dim nelem), which does the pointwise step and the whole
+weak Laplacian of an element in one pass.
 """
+
+import functools
 
 import warp as wp
 
+from .operators import CPU_FAST
+
 f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
+
+
+@functools.cache
+def laplacian_element(tangent: bool, dvv: tuple):
+    """Element-local weak Laplacian (``operators.laplace_wk_*`` in one pass,
+    one thread per element, ``dvv`` compiled in) of the four rows
+    ``tangent=False``: X = (u·east + v·north, h + hs) of the state ``src``;
+    ``tangent=True``: X = ``src`` with its wind projected tangent to the sphere.
+    Arguments: src (3 or 4, N), hs (N), east, north, xyz (3, N), Dinv (4, N),
+    spheremp (N), L (4, N) output, offset (in elements). Dim nelem."""
+    NP = len(dvv)
+    NPP = NP * NP
+    vec = wp.types.vector(length=NPP, dtype=f64)
+    rows = wp.types.matrix(shape=(4, NPP), dtype=f64)
+    DVV = wp.constant(wp.types.matrix(shape=(NP, NP), dtype=f64)(*[float(a) for row in dvv for a in row]))
+    T = bool(tangent)
+
+    def kernel(
+        src: wp.array2d(dtype=f64),
+        hs: wp.array(dtype=f64),
+        east: wp.array2d(dtype=f64),
+        north: wp.array2d(dtype=f64),
+        xyz: wp.array2d(dtype=f64),
+        Dinv: wp.array2d(dtype=f64),
+        spheremp: wp.array(dtype=f64),
+        L: wp.array2d(dtype=f64),
+        offset: int,
+    ):
+        base = (wp.tid() + offset) * NPP
+        X = rows()
+        for k in range(NPP):
+            q = base + k
+            if wp.static(T):
+                d = src[0, q] * xyz[0, q] + src[1, q] * xyz[1, q] + src[2, q] * xyz[2, q]
+                for c in range(3):
+                    X[c, k] = src[c, q] - d * xyz[c, q]
+                X[3, k] = src[3, q]
+            else:
+                for c in range(3):
+                    X[c, k] = src[0, q] * east[c, q] + src[1, q] * north[c, q]
+                X[3, k] = src[2, q] + hs[q]
+        for r in range(4):
+            fx = vec()  # spheremp · Dinv Dinvᵀ ∇_ref X[r]: quadrature-weighted contravariant gradient
+            fy = vec()
+            for j in range(NP):
+                for i in range(NP):
+                    a = f64(0.0)
+                    b = f64(0.0)
+                    for m in range(NP):
+                        a += DVV[i, m] * X[r, j * NP + m]
+                        b += DVV[j, m] * X[r, m * NP + i]
+                    q = base + j * NP + i
+                    d0 = Dinv[0, q]
+                    d1 = Dinv[1, q]
+                    d2 = Dinv[2, q]
+                    d3 = Dinv[3, q]
+                    gx = d0 * a + d2 * b
+                    gy = d1 * a + d3 * b
+                    fx[j * NP + i] = spheremp[q] * (d0 * gx + d1 * gy)
+                    fy[j * NP + i] = spheremp[q] * (d2 * gx + d3 * gy)
+            for n in range(NP):
+                for m in range(NP):
+                    s = f64(0.0)
+                    for k in range(NP):
+                        s += DVV[k, m] * fx[n * NP + k] + DVV[k, n] * fy[k * NP + m]
+                    L[r, base + n * NP + m] = -s
+
+    kernel.__qualname__ = kernel.__name__ = "laplacian_element__tangent" if T else "laplacian_element__cartesian"
+    return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)
 
 
 @wp.kernel

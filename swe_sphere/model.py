@@ -110,7 +110,7 @@ class ShallowWater:
             self.topo_forcing.assign(forcing)
         if "hyperviscosity" in terms:
             self.hv_X = wp.zeros((4, N), dtype=f64, device=device)
-            self.hv_flux = wp.zeros((8, N), dtype=f64, device=device)
+            self.hv_flux = None if self.per_element else wp.zeros((8, N), dtype=f64, device=device)
             self.hv_L = wp.zeros((4, N), dtype=f64, device=device)
         self._recorded: dict[tuple, tuple] = {}
         self._substeps: dict[float, int] = {}
@@ -171,6 +171,18 @@ class ShallowWater:
     def _build_hv(self, x, coef):
         N, np_ = self.N, self.grid.np
         X, flux, L = self.hv_X, self.hv_flux, self.hv_L
+        def apply():  # x += coef X, X back to (east, north) components
+            return self._launch(hyperviscosity.apply, N, [X, f64(coef), self.east, self.north, x])
+
+        if self.per_element:
+            def laplacian(src, tangent):  # → DSS'd weak Laplacian in X
+                kernel = hyperviscosity.laplacian_element(tangent, self.dvv_const)
+                return [
+                    self._launch_elements(kernel, [src, self.hs, self.east, self.north, self.xyz, self.Dinv, self.spheremp, L]),
+                    self._dss(L, 0, X),
+                ]
+
+            return [*laplacian(x, False), *laplacian(X, True), apply()]
 
         def laplacian():  # X → DSS'd weak Laplacian in X
             return [
@@ -184,7 +196,7 @@ class ShallowWater:
             *laplacian(),
             self._launch(hyperviscosity.project_tangent, N, [X, self.xyz]),
             *laplacian(),
-            self._launch(hyperviscosity.apply, N, [X, f64(coef), self.east, self.north, x]),
+            apply(),
         ]
 
     def biharmonic_radius(self, iterations: int = 20) -> float:

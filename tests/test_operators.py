@@ -329,17 +329,18 @@ def test_rhs_replay_uses_current_state(rng):
         assert np.abs(got[r] - ref[r]).max() <= 1e-13 * scale[r]
 
 
+@pytest.mark.parametrize("per_element", [True, False], ids=["per-element", "per-node"])
 @pytest.mark.parametrize("np_,subcycle", [(4, 1), (7, 2)])
-def test_hyperviscosity_matches_numpy(np_, subcycle, rng):
+def test_hyperviscosity_matches_numpy(np_, subcycle, per_element, rng):
     """x ← x − (dt/n) ν ∇⁴x, n times, on a state with grid-scale noise; ν is
     chosen so the change is of the size of the state (no digits lost in the
-    difference)."""
+    difference). Both kernel layouts."""
     g = cached_grid(2, np_)
     ops = NumpyOps(g)
     fcor, hs, st = tc5(g)
     state = st + ops.dss(rng.standard_normal((3, g.npts)) * np.array([[10.0], [10.0], [100.0]]))
     dt = 0.5
-    m = ShallowWater(g, ["hyperviscosity"], fcor, hs, nu=1.0, hypervis_subcycle=subcycle, device=DEV)
+    m = ShallowWater(g, ["hyperviscosity"], fcor, hs, nu=1.0, hypervis_subcycle=subcycle, device=DEV, per_element=per_element)
     # ν at the forward-Euler limit the model allows per substep: the largest change it makes
     m.nu = nu = 1.4 * subcycle / (dt * m.biharmonic_radius())
     n = m.hypervis_substeps(dt)
@@ -468,16 +469,21 @@ def test_hyperviscosity_launches_nothing_without_the_term(terms, nu, launch_log)
     assert np.array_equal(x.numpy(), st)
 
 
-def test_hyperviscosity_launch_list(launch_log):
+@pytest.mark.parametrize("per_element", [True, False], ids=["per-element", "per-node"])
+def test_hyperviscosity_launch_list(per_element, launch_log):
     g = cached_grid(2, 4)
     fcor, hs, st = tc5(g)
-    m = ShallowWater(g, ["hyperviscosity"], fcor, hs, nu=1e15, hypervis_subcycle=2, device=DEV)
+    m = ShallowWater(g, ["hyperviscosity"], fcor, hs, nu=1e15, hypervis_subcycle=2, device=DEV, per_element=per_element)
     x = m.new_state(*st)
     m.biharmonic_radius()  # its power iteration launches the same kernels
     launch_log.clear()
     m.hyperviscosity(x, 10.0)
-    lap = ["laplace_wk_flux", "laplace_wk_div", "dss"]
-    assert launch_log == ["to_cartesian", *lap, "project_tangent", *lap, "apply"]
+    if per_element:
+        expected = ["laplacian_element__cartesian", "dss", "laplacian_element__tangent", "dss", "apply"]
+    else:
+        lap = ["laplace_wk_flux", "laplace_wk_div", "dss"]
+        expected = ["to_cartesian", *lap, "project_tangent", *lap, "apply"]
+    assert launch_log == expected
 
 
 def test_unknown_term_and_negative_nu_raise():

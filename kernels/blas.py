@@ -1,4 +1,10 @@
-"""Element-wise linear algebra on state arrays (rows, N) for the steppers."""
+"""Element-wise linear algebra on state arrays (rows, N) for the steppers.
+
+Pointwise kernels over (rows, N) take ``block``: each thread does ``block``
+consecutive nodes (np² on the CPU, where Warp's per-thread cost would
+otherwise exceed the arithmetic; 1 on CUDA). Dim (rows, N/block); ``offset``
+counts blocks.
+"""
 
 import warp as wp
 
@@ -7,19 +13,24 @@ wp.set_module_options({"enable_backward": False})
 
 
 @wp.kernel
-def axpby(a: f64, x: wp.array2d(dtype=f64), b: f64, y: wp.array2d(dtype=f64), out: wp.array2d(dtype=f64), offset: int):
-    """out = a·x + b·y (out may alias x or y). Dim (rows, N)."""
-    r, p = wp.tid()
-    p = p + offset
-    out[r, p] = a * x[r, p] + b * y[r, p]
+def axpby(a: f64, x: wp.array2d(dtype=f64), b: f64, y: wp.array2d(dtype=f64), out: wp.array2d(dtype=f64), block: int, offset: int):
+    """out = a·x + b·y (out may alias x or y). Dim (rows, N/block)."""
+    r, k = wp.tid()
+    start = (k + offset) * block
+    for p in range(start, start + block):
+        out[r, p] = a * x[r, p] + b * y[r, p]
 
 
 @wp.kernel
-def axpbypcz(a: f64, x: wp.array2d(dtype=f64), b: f64, y: wp.array2d(dtype=f64), c: f64, z: wp.array2d(dtype=f64), out: wp.array2d(dtype=f64), offset: int):
-    """out = a·x + b·y + c·z (out may alias any input). Dim (rows, N)."""
-    r, p = wp.tid()
-    p = p + offset
-    out[r, p] = a * x[r, p] + b * y[r, p] + c * z[r, p]
+def axpbypcz(
+    a: f64, x: wp.array2d(dtype=f64), b: f64, y: wp.array2d(dtype=f64), c: f64, z: wp.array2d(dtype=f64), out: wp.array2d(dtype=f64),
+    block: int, offset: int,
+):
+    """out = a·x + b·y + c·z (out may alias any input). Dim (rows, N/block)."""
+    r, k = wp.tid()
+    start = (k + offset) * block
+    for p in range(start, start + block):
+        out[r, p] = a * x[r, p] + b * y[r, p] + c * z[r, p]
 
 
 @wp.kernel

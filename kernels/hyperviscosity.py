@@ -110,14 +110,16 @@ def project_tangent(X: wp.array2d(dtype=f64), xyz: wp.array2d(dtype=f64), offset
 
 
 @wp.kernel
-def apply(Y: wp.array2d(dtype=f64), coef: f64, east: wp.array2d(dtype=f64), north: wp.array2d(dtype=f64), x: wp.array2d(dtype=f64), offset: int):
-    """x += coef·Y with Y's Cartesian wind taken back to (east, north) components."""
-    p = wp.tid() + offset
-    ye = f64(0.0)
-    yn = f64(0.0)
-    for c in range(3):
-        ye += Y[c, p] * east[c, p]
-        yn += Y[c, p] * north[c, p]
-    x[0, p] = x[0, p] + coef * ye
-    x[1, p] = x[1, p] + coef * yn
-    x[2, p] = x[2, p] + coef * Y[3, p]
+def apply(Y: wp.array2d(dtype=f64), coef: f64, east: wp.array2d(dtype=f64), north: wp.array2d(dtype=f64), x: wp.array2d(dtype=f64), block: int, offset: int):
+    """x += coef·Y with Y's Cartesian wind taken back to (east, north) components.
+    Dim N/block, ``block`` consecutive nodes a thread (as ``blas.axpby``)."""
+    start = (wp.tid() + offset) * block
+    for p in range(start, start + block):
+        ye = f64(0.0)
+        yn = f64(0.0)
+        for c in range(3):
+            ye += Y[c, p] * east[c, p]
+            yn += Y[c, p] * north[c, p]
+        x[0, p] = x[0, p] + coef * ye
+        x[1, p] = x[1, p] + coef * yn
+        x[2, p] = x[2, p] + coef * Y[3, p]

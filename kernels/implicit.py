@@ -10,17 +10,27 @@ wp.set_module_options({"enable_backward": False})
 
 
 @wp.kernel
-def residual(x: wp.array2d(dtype=f64), b: wp.array2d(dtype=f64), F: wp.array2d(dtype=f64), inv_dt: f64, beta: f64, R: wp.array2d(dtype=f64)):
-    """R = (x − b)/Δt − β F(x). Dim (3, N)."""
-    r, p = wp.tid()
-    R[r, p] = (x[r, p] - b[r, p]) * inv_dt - beta * F[r, p]
+def residual(
+    x: wp.array2d(dtype=f64), b: wp.array2d(dtype=f64), F: wp.array2d(dtype=f64), inv_dt: f64, beta: f64, R: wp.array2d(dtype=f64),
+    block: int, offset: int,
+):
+    """R = (x − b)/Δt − β F(x). Dim (3, N/block), as ``blas.axpby``."""
+    r, k = wp.tid()
+    start = (k + offset) * block
+    for p in range(start, start + block):
+        R[r, p] = (x[r, p] - b[r, p]) * inv_dt - beta * F[r, p]
 
 
 @wp.kernel
-def jacobian_vector(v: wp.array2d(dtype=f64), F: wp.array2d(dtype=f64), Fp: wp.array2d(dtype=f64), inv_dt: f64, beta_over_eps: f64, out: wp.array2d(dtype=f64)):
-    """J v ≈ v/Δt − β (F(x + εv) − F(x))/ε. Dim (3, N)."""
-    r, p = wp.tid()
-    out[r, p] = v[r, p] * inv_dt - beta_over_eps * (Fp[r, p] - F[r, p])
+def jacobian_vector(
+    v: wp.array2d(dtype=f64), F: wp.array2d(dtype=f64), Fp: wp.array2d(dtype=f64), inv_dt: f64, beta_over_eps: f64,
+    out: wp.array2d(dtype=f64), block: int, offset: int,
+):
+    """J v ≈ v/Δt − β (F(x + εv) − F(x))/ε. Dim (3, N/block), as ``blas.axpby``."""
+    r, k = wp.tid()
+    start = (k + offset) * block
+    for p in range(start, start + block):
+        out[r, p] = v[r, p] * inv_dt - beta_over_eps * (Fp[r, p] - F[r, p])
 
 
 @wp.kernel

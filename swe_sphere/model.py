@@ -125,6 +125,16 @@ class ShallowWater:
         """Record a per-element kernel (dim nelem, trailing element ``offset``)."""
         return record(kernel, self.grid.nelem, inputs, device=self.device, threads=self.threads, nodes_per_index=self.grid.np**2)
 
+    def _launch_pointwise(self, kernel, rows, inputs):
+        """Record a pointwise kernel with trailing ``block`` and ``offset`` arguments
+        (``kernels.blas``) over (rows, N), or N if ``rows`` is None: np² nodes a
+        thread with the per-element layout, one on CUDA."""
+        block = self.grid.np**2 if self.per_element else 1
+        n = self.N // block
+        return record(
+            kernel, n if rows is None else (rows, n), [*inputs, block], device=self.device, threads=self.threads, nodes_per_index=block
+        )
+
     def _replay(self, key, arrays, build):
         """Replay the launches recorded under ``key``, recording them first if new.
         The cache holds ``arrays`` so that their addresses (part of the key) stay theirs."""
@@ -172,7 +182,7 @@ class ShallowWater:
         N, np_ = self.N, self.grid.np
         X, flux, L = self.hv_X, self.hv_flux, self.hv_L
         def apply():  # x += coef X, X back to (east, north) components
-            return self._launch(hyperviscosity.apply, N, [X, f64(coef), self.east, self.north, x])
+            return self._launch_pointwise(hyperviscosity.apply, None, [X, f64(coef), self.east, self.north, x])
 
         if self.per_element:
             def laplacian(src, tangent):  # → DSS'd weak Laplacian in X

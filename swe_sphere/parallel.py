@@ -92,6 +92,14 @@ class _Part:
         self._args = args
         self.run = lambda: forward(bounds_ref, args_ref)
 
+    def set_param_by_name(self, name: str, value) -> None:
+        """Change one (non-array) argument of the recorded launch."""
+        self.launch.set_param_by_name(name, value)
+        args = getattr(self, "_args", None)
+        if args is not None:
+            index = [a.label for a in self.launch.kernel.adj.args].index(name)
+            setattr(args, name, self.launch.params[index + 1])
+
 
 class SplitLaunch:
     """A recorded launch run as ``len(starts) - 1`` disjoint node ranges on as many
@@ -114,6 +122,11 @@ class SplitLaunch:
                 part.set_param_by_name(name, values[k])
             self.parts.append(_Part(part))
         self._workers = len(self.parts) - 1
+
+    def set_param_by_name(self, name: str, value) -> None:
+        """Change one (non-array) argument of every range, as ``wp.Launch.set_param_by_name``."""
+        for part in self.parts:
+            part.set_param_by_name(name, value)
 
     def launch(self) -> None:
         first, *rest = self.parts

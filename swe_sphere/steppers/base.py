@@ -54,7 +54,21 @@ class Stepper:
         (split over the model's CPU threads like the model's own launches)."""
         args = [a for c, x in terms for a in (f64(c), x)]
         kernel = blas.axpby if len(terms) == 2 else blas.axpbypcz
-        return self.model._launch(kernel, (3, self.N), [*args, out])
+        return self.model._launch_pointwise(kernel, 3, [*args, out])
+
+    def _pointwise(self, kernel, *inputs) -> None:
+        """Run a pointwise (rows 3, ``block``) kernel on ``inputs``: recorded on the
+        first call with these arrays, later calls only set its scalar arguments."""
+        key = (kernel.key, *(a.ptr if isinstance(a, wp.array) else None for a in inputs))
+        recorded = self.__dict__.setdefault("_pointwise_launches", {})
+        launch = recorded.get(key)
+        if launch is None:
+            launch = recorded[key] = self.model._launch_pointwise(kernel, 3, list(inputs))
+        else:
+            for arg, value in zip(kernel.adj.args, inputs):
+                if not isinstance(value, wp.array):
+                    launch.set_param_by_name(arg.label, value)
+        launch.launch()
 
     def step(self, x: wp.array2d) -> StepStats:
         raise NotImplementedError

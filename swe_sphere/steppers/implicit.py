@@ -152,14 +152,14 @@ class Implicit(Stepper):
         return self._norm(a) / math.sqrt(3 * self.N)
 
     def _axpby(self, a, x, b, y, out):
-        wp.launch(blas.axpby, (3, self.N), [f64(a), x, f64(b), y, out, 0], device=self.model.device)
+        self._pointwise(blas.axpby, f64(a), x, f64(b), y, out)
 
     def _F(self, x, out):
         self.model.rhs(x, out)
         self.rhs_evals += 1
 
     def _residual(self, x, F, R):
-        wp.launch(ik.residual, (3, self.N), [x, self.b, F, f64(1.0 / self.dt), f64(self.beta), R], device=self.model.device)
+        self._pointwise(ik.residual, x, self.b, F, f64(1.0 / self.dt), f64(self.beta), R)
 
     # -- the linear operator: J P⁻¹ ----------------------------------------------
     def _precondition(self, r, z):
@@ -183,10 +183,13 @@ class Implicit(Stepper):
         eps = _SQRT_EPS * (1.0 + self.xnorm) / vnorm
         self._axpby(1.0, self.x, eps, v, self.xp)
         self._F(self.xp, self.Fp)
-        wp.launch(ik.jacobian_vector, (3, self.N), [v, self.Fx, self.Fp, f64(1.0 / self.dt), f64(self.beta / eps), out], device=self.model.device)
+        self._pointwise(ik.jacobian_vector, v, self.Fx, self.Fp, f64(1.0 / self.dt), f64(self.beta / eps), out)
 
     def _apply(self, w, out):
         """out = J P⁻¹ w."""
+        if self.o["preconditioner"] == "none":
+            self._jv(w, out)
+            return
         self._precondition(w, self.z)
         self._jv(self.z, out)
 

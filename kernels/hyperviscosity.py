@@ -33,9 +33,31 @@ def laplacian_element(tangent: bool, dvv: tuple):
     NP = len(dvv)
     NPP = NP * NP
     vec = wp.types.vector(length=NPP, dtype=f64)
-    rows = wp.types.matrix(shape=(4, NPP), dtype=f64)
     DVV = wp.constant(wp.types.matrix(shape=(NP, NP), dtype=f64)(*[float(a) for row in dvv for a in row]))
     T = bool(tangent)
+
+    def weak_laplacian(f: vec, G11: vec, G12: vec, G22: vec, L: wp.array2d(dtype=f64), r: int, base: int):
+        fx = vec()  # G ∇_ref f: the quadrature-weighted contravariant gradient
+        fy = vec()
+        for j in range(NP):
+            for i in range(NP):
+                a = f64(0.0)
+                b = f64(0.0)
+                for m in range(NP):
+                    a += DVV[i, m] * f[j * NP + m]
+                    b += DVV[j, m] * f[m * NP + i]
+                k = j * NP + i
+                fx[k] = G11[k] * a + G12[k] * b
+                fy[k] = G12[k] * a + G22[k] * b
+        for n in range(NP):
+            for m in range(NP):
+                s = f64(0.0)
+                for k in range(NP):
+                    s += DVV[k, m] * fx[n * NP + k] + DVV[k, n] * fy[k * NP + m]
+                L[r, base + n * NP + m] = -s
+
+    weak_laplacian.__qualname__ = weak_laplacian.__name__ = f"weak_laplacian_np{NP}"
+    lap = wp.func(weak_laplacian)
 
     def kernel(
         src: wp.array2d(dtype=f64),
@@ -49,43 +71,38 @@ def laplacian_element(tangent: bool, dvv: tuple):
         offset: int,
     ):
         base = (wp.tid() + offset) * NPP
-        X = rows()
+        X0 = vec()  # the four rows of X
+        X1 = vec()
+        X2 = vec()
+        X3 = vec()
+        G11 = vec()  # spheremp · Dinv Dinvᵀ (symmetric): the weak Laplacian's metric, once for all rows
+        G12 = vec()
+        G22 = vec()
         for k in range(NPP):
             q = base + k
             if wp.static(T):
                 d = src[0, q] * xyz[0, q] + src[1, q] * xyz[1, q] + src[2, q] * xyz[2, q]
-                for c in range(3):
-                    X[c, k] = src[c, q] - d * xyz[c, q]
-                X[3, k] = src[3, q]
+                X0[k] = src[0, q] - d * xyz[0, q]
+                X1[k] = src[1, q] - d * xyz[1, q]
+                X2[k] = src[2, q] - d * xyz[2, q]
+                X3[k] = src[3, q]
             else:
-                for c in range(3):
-                    X[c, k] = src[0, q] * east[c, q] + src[1, q] * north[c, q]
-                X[3, k] = src[2, q] + hs[q]
-        for r in range(4):
-            fx = vec()  # spheremp · Dinv Dinvᵀ ∇_ref X[r]: quadrature-weighted contravariant gradient
-            fy = vec()
-            for j in range(NP):
-                for i in range(NP):
-                    a = f64(0.0)
-                    b = f64(0.0)
-                    for m in range(NP):
-                        a += DVV[i, m] * X[r, j * NP + m]
-                        b += DVV[j, m] * X[r, m * NP + i]
-                    q = base + j * NP + i
-                    d0 = Dinv[0, q]
-                    d1 = Dinv[1, q]
-                    d2 = Dinv[2, q]
-                    d3 = Dinv[3, q]
-                    gx = d0 * a + d2 * b
-                    gy = d1 * a + d3 * b
-                    fx[j * NP + i] = spheremp[q] * (d0 * gx + d1 * gy)
-                    fy[j * NP + i] = spheremp[q] * (d2 * gx + d3 * gy)
-            for n in range(NP):
-                for m in range(NP):
-                    s = f64(0.0)
-                    for k in range(NP):
-                        s += DVV[k, m] * fx[n * NP + k] + DVV[k, n] * fy[k * NP + m]
-                    L[r, base + n * NP + m] = -s
+                X0[k] = src[0, q] * east[0, q] + src[1, q] * north[0, q]
+                X1[k] = src[0, q] * east[1, q] + src[1, q] * north[1, q]
+                X2[k] = src[0, q] * east[2, q] + src[1, q] * north[2, q]
+                X3[k] = src[2, q] + hs[q]
+            d0 = Dinv[0, q]
+            d1 = Dinv[1, q]
+            d2 = Dinv[2, q]
+            d3 = Dinv[3, q]
+            w = spheremp[q]
+            G11[k] = w * (d0 * d0 + d1 * d1)
+            G12[k] = w * (d0 * d2 + d1 * d3)
+            G22[k] = w * (d2 * d2 + d3 * d3)
+        lap(X0, G11, G12, G22, L, 0, base)
+        lap(X1, G11, G12, G22, L, 1, base)
+        lap(X2, G11, G12, G22, L, 2, base)
+        lap(X3, G11, G12, G22, L, 3, base)
 
     kernel.__qualname__ = kernel.__name__ = "laplacian_element__tangent" if T else "laplacian_element__cartesian"
     return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)

@@ -1,6 +1,9 @@
 """Pointwise pieces of the Jacobian-free Newton–Krylov stepper (HOMME ``implicit_mod``,
-``residual``): residual, finite-difference Jacobian-vector product and the
-gravity-wave (Helmholtz) preconditioner's element-wise updates. Dim (3, N) or N.
+``residual``): residual, finite-difference Jacobian-vector product, the moves
+between element-local (3, N) states and the Krylov vectors (3·nunique, row r
+of unique node g at r·nunique + g; the state is continuous, so one copy per
+node carries it all) and the gravity-wave (Helmholtz) preconditioner's
+element-wise updates.
 """
 
 import warp as wp
@@ -22,15 +25,39 @@ def residual(
 
 
 @wp.kernel
-def jacobian_vector(
-    v: wp.array2d(dtype=f64), F: wp.array2d(dtype=f64), Fp: wp.array2d(dtype=f64), inv_dt: f64, beta_over_eps: f64,
+def scatter_perturb(
+    a: f64, x: wp.array2d(dtype=f64), eps: f64, w: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32), nu: int,
     out: wp.array2d(dtype=f64), block: int, offset: int,
 ):
-    """J v ≈ v/Δt − β (F(x + εv) − F(x))/ε. Dim (3, N/block), as ``blas.axpby``."""
+    """out = a·x + ε·w, the Krylov vector w put on every copy of its node (a = 0:
+    x is not read). Dim (3, N/block), as ``blas.axpby``."""
     r, k = wp.tid()
     start = (k + offset) * block
     for p in range(start, start + block):
-        out[r, p] = v[r, p] * inv_dt - beta_over_eps * (Fp[r, p] - F[r, p])
+        s = eps * w[r * nu + gid[p]]
+        if a != f64(0.0):
+            s += a * x[r, p]
+        out[r, p] = s
+
+
+@wp.kernel
+def gather(a: f64, v: wp.array2d(dtype=f64), first: wp.array(dtype=wp.int32), nu: int, out: wp.array(dtype=f64), offset: int):
+    """out = a·v at one copy of each unique node (v continuous). Dim (3, nunique)."""
+    r, g = wp.tid()
+    g = g + offset
+    out[r * nu + g] = a * v[r, first[g]]
+
+
+@wp.kernel
+def jacobian_vector(
+    w: wp.array(dtype=f64), F: wp.array2d(dtype=f64), Fp: wp.array2d(dtype=f64), first: wp.array(dtype=wp.int32), nu: int,
+    inv_dt: f64, beta_over_eps: f64, out: wp.array(dtype=f64), offset: int,
+):
+    """J w ≈ w/Δt − β (F(x + εw) − F(x))/ε on unique nodes. Dim (3, nunique)."""
+    r, g = wp.tid()
+    g = g + offset
+    q = first[g]
+    out[r * nu + g] = w[r * nu + g] * inv_dt - beta_over_eps * (Fp[r, q] - F[r, q])
 
 
 @wp.kernel

@@ -56,14 +56,17 @@ class Stepper:
         kernel = blas.axpby if len(terms) == 2 else blas.axpbypcz
         return self.model._launch_pointwise(kernel, 3, [*args, out])
 
-    def _pointwise(self, kernel, *inputs) -> None:
-        """Run a pointwise (rows 3, ``block``) kernel on ``inputs``: recorded on the
-        first call with these arrays, later calls only set its scalar arguments."""
+    def _pointwise(self, kernel, *inputs, unique=False) -> None:
+        """Run a pointwise kernel on ``inputs``, over (3, N) with ``block`` (or over
+        (3, nunique) if ``unique``): recorded on the first call with these arrays,
+        later calls only set its scalar arguments."""
         key = (kernel.key, *(a.ptr if isinstance(a, wp.array) else None for a in inputs))
         recorded = self.__dict__.setdefault("_pointwise_launches", {})
         launch = recorded.get(key)
         if launch is None:
-            launch = recorded[key] = self.model._launch_pointwise(kernel, 3, list(inputs))
+            m = self.model
+            build = m._launch(kernel, (3, m.grid.nunique), list(inputs)) if unique else m._launch_pointwise(kernel, 3, list(inputs))
+            launch = recorded[key] = build
         else:
             for arg, value in zip(kernel.adj.args, inputs):
                 if not isinstance(value, wp.array):

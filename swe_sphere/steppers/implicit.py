@@ -123,11 +123,16 @@ class Implicit(Stepper):
                     raise ValueError(f"the helmholtz preconditioner needs the {term} term")
             self.helmholtz = Helmholtz(model, o["cg_tol"], 1000, "scipy" if self.krylov == "scipy" else "warp")
         self.H = o["mean_depth"]
-        n3 = 3 * N
-        names = ("xn", "xprev", "b", "Fx", "R", "delta", "trial", "Ft", "Rt", "v", "xp", "Fp", "Jv", "z", "w", "minus_R")
-        for name in names:
+        for name in ("xn", "xprev", "b", "Fx", "R", "delta", "trial", "Ft", "Rt", "v", "xp", "Fp", "z"):
             setattr(self, name, wp.zeros((3, N), dtype=f64, device=dev))
         self.hrhs, self.Dr, self.Gz = (wp.zeros((k, N), dtype=f64, device=dev) for k in (1, 1, 2))
+        # Krylov vectors live on unique nodes (3·nunique: 0.56× the element-local length at np = 4)
+        grid = model.grid
+        self.nu = grid.nunique
+        n3 = 3 * self.nu
+        self.gid, self.first = (wp.array(a, dtype=wp.int32, device=dev) for a in (grid.gid, grid.first))
+        for name in ("w", "w_in", "minus_R", "zu", "Jv", "xu"):
+            setattr(self, name, wp.zeros(n3, dtype=f64, device=dev))
         self.steps_taken = 0
         self.residual_history: list[float] = []
         self._cg_its = 0
@@ -135,18 +140,18 @@ class Implicit(Stepper):
             self.op = spla.LinearOperator((n3, n3), matvec=self._host_matvec, dtype=np.float64)
         else:
             self.op = wpl.LinearOperator((n3, n3), f64, wp.get_device(dev), self._device_matvec)
-            flat = self.w.reshape((n3,))
             self.gmres = wpl.gmres(
-                self.op, self.minus_R.reshape((n3,)), flat, tol=o["gmres_tol"], atol=0.0, restart=o["gmres_restart"],
+                self.op, self.minus_R, self.w, tol=o["gmres_tol"], atol=0.0, restart=o["gmres_restart"],
                 maxiter=o["gmres_maxiter"], run=False, check_every=o["gmres_restart"], use_cuda_graph=False,
             )
 
     # -- vector helpers ----------------------------------------------------------
     def _norm(self, a) -> float:
-        """Euclidean norm of a (3, N) array."""
+        """Euclidean norm of an array (3, N) or (3·nunique,)."""
         if wp.get_device(self.model.device).is_cpu:
             return float(np.linalg.norm(a.numpy()))
-        return math.sqrt(float(wp.utils.array_inner(a.reshape((3 * self.N,)), a.reshape((3 * self.N,)))))
+        flat = a.flatten()
+        return math.sqrt(float(wp.utils.array_inner(flat, flat)))
 
     def _rms(self, a) -> float:
         return self._norm(a) / math.sqrt(3 * self.N)
@@ -163,10 +168,7 @@ class Implicit(Stepper):
 
     # -- the linear operator: J P⁻¹ ----------------------------------------------
     def _precondition(self, r, z):
-        """z = P⁻¹ r with P = I/Δt − β L (see the module docstring); z = r without it."""
-        if self.o["preconditioner"] == "none":
-            wp.copy(z, r)
-            return
+        """z = P⁻¹ r with P = I/Δt − β L (see the module docstring)."""
         m, dt, beta = self.model, self.dt, self.beta
         m.divergence(r, self.Dr)
         wp.launch(ik.precond_height, self.N, [r, self.Dr, f64(dt), f64(beta * dt * self.H), self.hrhs], device=m.device)
@@ -174,53 +176,67 @@ class Implicit(Stepper):
         m.gradient(z, 2, self.Gz)
         wp.launch(ik.precond_wind, self.N, [r, self.Gz, f64(dt), f64(beta * m.g), z], device=m.device)
 
-    def _jv(self, v, out):
-        """out = J v by a forward difference of F about the current iterate x."""
-        vnorm = self._norm(v)
-        if vnorm == 0.0:
+    def _scatter(self, u, out):
+        """Element-local out (3, N) from the unique-node vector u."""
+        self._pointwise(ik.scatter_perturb, f64(0.0), out, f64(1.0), u, self.gid, self.nu, out)
+
+    def _gather(self, a, v, out):
+        """Unique-node out = a·v from a continuous (3, N) v."""
+        self._pointwise(ik.gather, f64(a), v, self.first, self.nu, out, unique=True)
+
+    def _jv(self, w, out):
+        """out = J w (unique-node vectors) by a forward difference of F about the current iterate x."""
+        wnorm = self._norm(w)
+        if wnorm == 0.0:
             out.zero_()
             return
-        eps = _SQRT_EPS * (1.0 + self.xnorm) / vnorm
-        self._axpby(1.0, self.x, eps, v, self.xp)
+        eps = _SQRT_EPS * (1.0 + self.xnorm) / wnorm
+        self._pointwise(ik.scatter_perturb, f64(1.0), self.x, f64(eps), w, self.gid, self.nu, self.xp)
         self._F(self.xp, self.Fp)
-        self._pointwise(ik.jacobian_vector, v, self.Fx, self.Fp, f64(1.0 / self.dt), f64(self.beta / eps), out)
+        self._pointwise(ik.jacobian_vector, w, self.Fx, self.Fp, self.first, self.nu, f64(1.0 / self.dt), f64(self.beta / eps), out, unique=True)
 
     def _apply(self, w, out):
-        """out = J P⁻¹ w."""
+        """out = J P⁻¹ w (unique-node vectors)."""
         if self.o["preconditioner"] == "none":
             self._jv(w, out)
             return
-        self._precondition(w, self.z)
-        self._jv(self.z, out)
+        self._scatter(w, self.v)
+        self._precondition(self.v, self.z)
+        self._gather(1.0, self.z, self.zu)
+        self._jv(self.zu, out)
 
     def _host_matvec(self, w):
-        self.v.numpy().reshape(-1)[:] = w
-        self._apply(self.v, self.Jv)
-        return self.Jv.numpy().reshape(-1).copy()
+        self.w_in.numpy()[:] = w
+        self._apply(self.w_in, self.Jv)
+        return self.Jv.numpy()  # scipy copies it into its basis before the next product overwrites it
 
     def _device_matvec(self, x, y, z, alpha, beta):
-        self._apply(x.reshape((3, self.N)), self.Jv)
-        wp.launch(blas.axpby1d, x.shape[0], [f64(alpha), self.Jv.reshape((3 * self.N,)), f64(beta), y, z], device=self.model.device)
+        self._apply(x, self.Jv)
+        wp.launch(blas.axpby1d, x.shape[0], [f64(alpha), self.Jv, f64(beta), y, z], device=self.model.device)
 
     def _gmres(self, eta) -> int:
-        """Solve J P⁻¹ w = −R to relative tolerance eta; delta = P⁻¹ w. Returns iterations."""
+        """Solve J P⁻¹ w = −R (on unique nodes) to relative tolerance eta; delta = P⁻¹ w. Returns iterations."""
         o = self.o
-        self._axpby(-1.0, self.R, 0.0, self.R, self.minus_R)
+        self._gather(-1.0, self.R, self.minus_R)
         if self.krylov == "scipy":
             count = [0]
             w, info = spla.gmres(
-                self.op, self.minus_R.numpy().reshape(-1), rtol=eta, atol=0.0, restart=o["gmres_restart"],
+                self.op, self.minus_R.numpy(), rtol=eta, atol=0.0, restart=o["gmres_restart"],
                 maxiter=max(1, o["gmres_maxiter"] // o["gmres_restart"]), callback=lambda _: count.__setitem__(0, count[0] + 1),
                 callback_type="pr_norm",
             )
-            self.w.numpy().reshape(-1)[:] = w
+            self.w.numpy()[:] = w
             iterations = count[0]
         else:
             self.w.zero_()
             self.gmres._tol = eta  # the functor reads its tolerance at each run; no setter exists
             iterations, _, _ = self.gmres()
             iterations = int(iterations)
-        self._precondition(self.w, self.delta)
+        if self.o["preconditioner"] == "none":
+            self._scatter(self.w, self.delta)
+        else:
+            self._scatter(self.w, self.v)
+            self._precondition(self.v, self.delta)
         return iterations
 
     # -- Newton ------------------------------------------------------------------------
@@ -255,7 +271,8 @@ class Implicit(Stepper):
             if not math.isfinite(rnorm):
                 raise StepFailure("Newton residual is not finite")
             eta = self._eta(newton, rnorm, rprev, eta)
-            self.xnorm = self._norm(x)
+            self._gather(1.0, x, self.xu)
+            self.xnorm = self._norm(self.xu)
             gmres += self._gmres(eta)
             lam = 1.0
             for _ in range(9):

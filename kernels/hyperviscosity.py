@@ -16,7 +16,7 @@ import functools
 
 import warp as wp
 
-from .operators import CPU_FAST
+from .operators import CPU_FAST, dvv_constant
 
 f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
@@ -33,7 +33,7 @@ def laplacian_element(tangent: bool, dvv: tuple):
     NP = len(dvv)
     NPP = NP * NP
     vec = wp.types.vector(length=NPP, dtype=f64)
-    DVV = wp.constant(wp.types.matrix(shape=(NP, NP), dtype=f64)(*[float(a) for row in dvv for a in row]))
+    DVV = dvv_constant(dvv)
     T = bool(tangent)
 
     def weak_laplacian(f: vec, G11: vec, G12: vec, G22: vec, L: wp.array2d(dtype=f64), r: int, base: int):

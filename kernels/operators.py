@@ -1,10 +1,13 @@
 """Spectral-element operators on the sphere (HOMME ``derivative_mod``).
 
 ``gradient_sphere``, ``divergence_sphere``, ``vorticity_sphere`` are the strong
-forms; ``laplace_wk_flux`` + ``laplace_wk_div`` the weak Laplacian
+forms (one thread per node, for CUDA; ``gradient_element`` and
+``divergence_element`` are the same for the CPU, one thread per element); ``laplace_wk_flux`` + ``laplace_wk_div`` the weak Laplacian
 ``∫ φ Δf = −∫ ∇φ·∇f`` (HOMME ``laplace_sphere_wk``), which gives the
 Laplacian after the DSS. Reference derivatives use ``dvv[i, m] = l_m'(ξ_i)``.
 """
+
+import functools
 
 import warp as wp
 
@@ -125,3 +128,66 @@ def laplace_wk_div(flux: wp.array2d(dtype=f64), dvv: wp.array2d(dtype=f64), np: 
         for q in range(np):
             s += dvv[q, m] * flux[2 * r, base + n * np + q] + dvv[q, n] * flux[2 * r + 1, base + q * np + m]
         out[r, p] = -s
+
+
+def dvv_constant(dvv: tuple):
+    """``dvv`` (np rows of np values) as a compile-time constant matrix."""
+    n = len(dvv)
+    return wp.constant(wp.types.matrix(shape=(n, n), dtype=f64)(*[float(a) for row in dvv for a in row]))
+
+
+@functools.cache
+def gradient_element(dvv: tuple):
+    """``gradient_sphere`` with one thread per element and ``dvv`` compiled in:
+    out[0:2] = ∇ f[row]. Arguments: f, row, Dinv, out, offset (in elements). Dim nelem."""
+    NP = len(dvv)
+    NPP = NP * NP
+    DVV = dvv_constant(dvv)
+    vec = wp.types.vector(length=NPP, dtype=f64)
+
+    def gradient_element(f: wp.array2d(dtype=f64), row: int, Dinv: wp.array2d(dtype=f64), out: wp.array2d(dtype=f64), offset: int):
+        base = (wp.tid() + offset) * NPP
+        v = vec()
+        for k in range(NPP):
+            v[k] = f[row, base + k]
+        for j in range(NP):
+            for i in range(NP):
+                a = f64(0.0)
+                b = f64(0.0)
+                for m in range(NP):
+                    a += DVV[i, m] * v[j * NP + m]
+                    b += DVV[j, m] * v[m * NP + i]
+                p = base + j * NP + i
+                out[0, p] = Dinv[0, p] * a + Dinv[2, p] * b
+                out[1, p] = Dinv[1, p] * a + Dinv[3, p] * b
+
+    return wp.kernel(gradient_element, enable_backward=False, module="unique", module_options=CPU_FAST)
+
+
+@functools.cache
+def divergence_element(dvv: tuple):
+    """``divergence_sphere`` with one thread per element and ``dvv`` compiled in:
+    out = ∇·v of the wind in rows 0, 1 of x. Arguments: x, Dinv, metdet, out (N),
+    offset (in elements). Dim nelem."""
+    NP = len(dvv)
+    NPP = NP * NP
+    DVV = dvv_constant(dvv)
+    vec = wp.types.vector(length=NPP, dtype=f64)
+
+    def divergence_element(x: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), out: wp.array(dtype=f64), offset: int):
+        base = (wp.tid() + offset) * NPP
+        f1 = vec()  # metdet c¹, metdet c²
+        f2 = vec()
+        for k in range(NPP):
+            q = base + k
+            f1[k] = metdet[q] * (Dinv[0, q] * x[0, q] + Dinv[1, q] * x[1, q])
+            f2[k] = metdet[q] * (Dinv[2, q] * x[0, q] + Dinv[3, q] * x[1, q])
+        for j in range(NP):
+            for i in range(NP):
+                s = f64(0.0)
+                for m in range(NP):
+                    s += DVV[i, m] * f1[j * NP + m] + DVV[j, m] * f2[m * NP + i]
+                p = base + j * NP + i
+                out[p] = s / metdet[p]
+
+    return wp.kernel(divergence_element, enable_backward=False, module="unique", module_options=CPU_FAST)

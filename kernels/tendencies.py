@@ -23,7 +23,7 @@ import functools
 
 import warp as wp
 
-from .operators import CPU_FAST, element_node
+from .operators import CPU_FAST, dvv_constant, element_node
 
 f64 = wp.float64
 
@@ -143,7 +143,7 @@ def tendency_element(terms: tuple, dvv: tuple):
     NP = len(dvv)
     NPP = NP * NP
     vec = wp.types.vector(length=NPP, dtype=f64)
-    DVV = wp.constant(wp.types.matrix(shape=(NP, NP), dtype=f64)(*[float(a) for row in dvv for a in row]))
+    DVV = dvv_constant(dvv)
 
     def kernel(
         x: wp.array2d(dtype=f64),

@@ -262,7 +262,9 @@ class ShallowWater:
             ("grad", _id(x), row, _id(out)),
             (x, out),
             lambda: [
-                self._launch(operators.gradient_sphere, self.N, [x, row, self.Dinv, self.dvv, self.grid.np, self.vec_work]),
+                self._launch_elements(operators.gradient_element(self.dvv_const), [x, row, self.Dinv, self.vec_work])
+                if self.per_element
+                else self._launch(operators.gradient_sphere, self.N, [x, row, self.Dinv, self.dvv, self.grid.np, self.vec_work]),
                 self._dss(self.vec_work, 1, out),
             ],
         )
@@ -273,7 +275,9 @@ class ShallowWater:
             ("div", _id(x), _id(out)),
             (x, out),
             lambda: [
-                self._launch(operators.divergence_sphere, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.scalar_flat]),
+                self._launch_elements(operators.divergence_element(self.dvv_const), [x, self.Dinv, self.metdet, self.scalar_flat])
+                if self.per_element
+                else self._launch(operators.divergence_sphere, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.scalar_flat]),
                 self._dss(self.scalar, 1, out),
             ],
         )

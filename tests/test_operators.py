@@ -58,6 +58,18 @@ def wp_divergence(m, u, v):
     return out.numpy()
 
 
+def wp_gradient_element(m, f):
+    out = wp.zeros((2, m.N), dtype=wp.float64, device=DEV)
+    wp.launch(operators.gradient_element(m.dvv_const), m.grid.nelem, [w2(f), 0, m.Dinv, out, 0], device=DEV)
+    return out.numpy()
+
+
+def wp_divergence_element(m, u, v):
+    out = wp.zeros(m.N, dtype=wp.float64, device=DEV)
+    wp.launch(operators.divergence_element(m.dvv_const), m.grid.nelem, [w2([u, v]), m.Dinv, m.metdet, out, 0], device=DEV)
+    return out.numpy()
+
+
 def wp_vorticity(m, u, v):
     out = wp.zeros(m.N, dtype=wp.float64, device=DEV)
     wp.launch(operators.vorticity_sphere, m.N, [w2([u, v]), m.D, m.metdet, m.dvv, m.grid.np, out, 0], device=DEV)
@@ -249,6 +261,8 @@ def test_operator_kernels_match_numpy(np_, rng):
     for f, u, v in ((s["f"], s["u"], s["v"]), tuple(rng.standard_normal((3, g.npts)))):
         assert close(wp_gradient(m, f), ops.gradient(f))
         assert close(wp_divergence(m, u, v), ops.divergence(u, v))
+        assert close(wp_gradient_element(m, f), ops.gradient(f))  # the CPU layout
+        assert close(wp_divergence_element(m, u, v), ops.divergence(u, v))
         assert close(wp_vorticity(m, u, v), ops.vorticity(u, v))
         F = np.stack([f, u, v])
         assert close(wp_laplace_wk(m, F), ops.laplace_wk(F))

@@ -16,7 +16,7 @@ import functools
 
 import warp as wp
 
-from .operators import CPU_FAST, dvv_constant
+from .operators import CPU_FAST, dvv_constant, reference_gradient
 
 f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
@@ -34,6 +34,7 @@ def laplacian_element(tangent: bool, dvv: tuple):
     NPP = NP * NP
     vec = wp.types.vector(length=NPP, dtype=f64)
     DVV = dvv_constant(dvv)
+    grad = reference_gradient(dvv)
     T = bool(tangent)
 
     def weak_laplacian(f: vec, G11: vec, G12: vec, G22: vec, L: wp.array2d(dtype=f64), r: int, base: int):
@@ -41,11 +42,7 @@ def laplacian_element(tangent: bool, dvv: tuple):
         fy = vec()
         for j in range(NP):
             for i in range(NP):
-                a = f64(0.0)
-                b = f64(0.0)
-                for m in range(NP):
-                    a += DVV[i, m] * f[j * NP + m]
-                    b += DVV[j, m] * f[m * NP + i]
+                a, b = grad(f, i, j)
                 k = j * NP + i
                 fx[k] = G11[k] * a + G12[k] * b
                 fy[k] = G12[k] * a + G22[k] * b

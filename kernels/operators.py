@@ -137,12 +137,32 @@ def dvv_constant(dvv: tuple):
 
 
 @functools.cache
+def reference_gradient(dvv: tuple):
+    """A ``wp.func`` (v, i, j) → (∂ξ v, ∂η v) at node (i, j) of an element's
+    values v (a vector of np² in element order), ``dvv`` compiled in."""
+    NP = len(dvv)
+    DVV = dvv_constant(dvv)
+    vec = wp.types.vector(length=NP * NP, dtype=f64)
+
+    def reference_gradient(v: vec, i: int, j: int):
+        a = f64(0.0)
+        b = f64(0.0)
+        for m in range(NP):
+            a += DVV[i, m] * v[j * NP + m]
+            b += DVV[j, m] * v[m * NP + i]
+        return a, b
+
+    reference_gradient.__qualname__ = reference_gradient.__name__ = f"reference_gradient_np{NP}"
+    return wp.func(reference_gradient)
+
+
+@functools.cache
 def gradient_element(dvv: tuple):
     """``gradient_sphere`` with one thread per element and ``dvv`` compiled in:
     out[0:2] = ∇ f[row]. Arguments: f, row, Dinv, out, offset (in elements). Dim nelem."""
     NP = len(dvv)
     NPP = NP * NP
-    DVV = dvv_constant(dvv)
+    grad = reference_gradient(dvv)
     vec = wp.types.vector(length=NPP, dtype=f64)
 
     def gradient_element(f: wp.array2d(dtype=f64), row: int, Dinv: wp.array2d(dtype=f64), out: wp.array2d(dtype=f64), offset: int):
@@ -152,11 +172,7 @@ def gradient_element(dvv: tuple):
             v[k] = f[row, base + k]
         for j in range(NP):
             for i in range(NP):
-                a = f64(0.0)
-                b = f64(0.0)
-                for m in range(NP):
-                    a += DVV[i, m] * v[j * NP + m]
-                    b += DVV[j, m] * v[m * NP + i]
+                a, b = grad(v, i, j)
                 p = base + j * NP + i
                 out[0, p] = Dinv[0, p] * a + Dinv[2, p] * b
                 out[1, p] = Dinv[1, p] * a + Dinv[3, p] * b

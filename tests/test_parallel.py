@@ -21,9 +21,9 @@ def small_parts(monkeypatch):
     return cached_grid(3, 4)
 
 
-def tc5_model(g, threads):
+def tc5_model(g, threads, per_element=None):
     c = make_case("tc5_mountain")
-    m = ShallowWater(g, TERMS, c.fcor(g.lat, g.lon), c.hs(g.lat, g.lon), nu=1e15, device="cpu", threads=threads)
+    m = ShallowWater(g, TERMS, c.fcor(g.lat, g.lon), c.hs(g.lat, g.lon), nu=1e15, device="cpu", threads=threads, per_element=per_element)
     return m, np.array(c.initial(g.lat, g.lon))
 
 
@@ -87,6 +87,25 @@ def test_steps_bitwise_equal_to_one_thread(small_parts, name):
             stepper.step(x)
         final[n] = x.numpy()
     assert np.array_equal(final[1], final[2])
+
+
+@pytest.mark.parametrize("name", STEPPERS)
+def test_steps_same_with_per_node_kernels(small_parts, name):
+    """CUDA's per-node layout (run here on the CPU) steps to the CPU layout's
+    state up to round-off (FMA contraction, summation order): 3 steps of 600 s.
+    Measured: ≤ 2.4e-13 of each row's change (semi_implicit)."""
+    final = {}
+    for per_element in (True, False):
+        m, st = tc5_model(small_parts, 2, per_element)
+        x = m.new_state(*st)
+        stepper = make_stepper(name, m, 600.0)
+        for _ in range(3):
+            stepper.step(x)
+        final[per_element] = x.numpy()
+    change = np.abs(final[True] - st).max(axis=1)
+    diff = np.abs(final[True] - final[False]).max(axis=1)
+    print(f"\n{name}: |per-node - per-element| / change per row {diff / change}")
+    assert np.all(diff <= 1e-11 * change), (diff, change)
 
 
 def test_split_launches_work_in_a_forked_child(small_parts):

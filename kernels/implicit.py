@@ -26,18 +26,15 @@ def residual(
 
 @wp.kernel
 def scatter_perturb(
-    a: f64, x: wp.array2d(dtype=f64), eps: f64, w: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32), nu: int,
+    x: wp.array2d(dtype=f64), eps: f64, w: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32), nu: int,
     out: wp.array2d(dtype=f64), block: int, offset: int,
 ):
-    """out = a·x + ε·w, the Krylov vector w put on every copy of its node (a = 0:
-    x is not read). Dim (3, N/block), as ``blas.axpby``."""
+    """out = x + ε·w, the Krylov vector w put on every copy of its node.
+    Dim (3, N/block), as ``blas.axpby``."""
     r, k = wp.tid()
     start = (k + offset) * block
     for p in range(start, start + block):
-        s = eps * w[r * nu + gid[p]]
-        if a != f64(0.0):
-            s += a * x[r, p]
-        out[r, p] = s
+        out[r, p] = x[r, p] + eps * w[r * nu + gid[p]]
 
 
 @wp.kernel

@@ -45,6 +45,7 @@ class Stepper:
             raise ValueError(f"dt must be > 0 (got {dt})")
         self.model, self.dt = model, float(dt)
         self.N = model.N
+        self._pointwise_launches: dict[tuple, object] = {}
 
     def _buffer(self):
         return wp.zeros((3, self.N), dtype=f64, device=self.model.device)
@@ -61,12 +62,11 @@ class Stepper:
         (3, nunique) if ``unique``): recorded on the first call with these arrays,
         later calls only set its scalar arguments."""
         key = (kernel.key, *(a.ptr if isinstance(a, wp.array) else None for a in inputs))
-        recorded = self.__dict__.setdefault("_pointwise_launches", {})
-        launch = recorded.get(key)
+        launch = self._pointwise_launches.get(key)
         if launch is None:
             m = self.model
             build = m._launch(kernel, (3, m.grid.nunique), list(inputs)) if unique else m._launch_pointwise(kernel, 3, list(inputs))
-            launch = recorded[key] = build
+            launch = self._pointwise_launches[key] = build
         else:
             for arg, value in zip(kernel.adj.args, inputs):
                 if not isinstance(value, wp.array):

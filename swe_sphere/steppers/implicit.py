@@ -130,7 +130,7 @@ class Implicit(Stepper):
         grid = model.grid
         self.nu = grid.nunique
         n3 = 3 * self.nu
-        self.gid, self.first = (wp.array(a, dtype=wp.int32, device=dev) for a in (grid.gid, grid.first))
+        self.first = wp.array(grid.first, dtype=wp.int32, device=dev)
         for name in ("w", "w_in", "minus_R", "zu", "Jv", "xu"):
             setattr(self, name, wp.zeros(n3, dtype=f64, device=dev))
         self.steps_taken = 0
@@ -178,7 +178,9 @@ class Implicit(Stepper):
 
     def _scatter(self, u, out):
         """Element-local out (3, N) from the unique-node vector u."""
-        self._pointwise(ik.scatter_perturb, f64(0.0), out, f64(1.0), u, self.gid, self.nu, out)
+        nu = self.nu
+        for r in range(3):
+            self.model.scatter(u[r * nu : (r + 1) * nu], out, r)
 
     def _gather(self, a, v, out):
         """Unique-node out = a·v from a continuous (3, N) v."""
@@ -191,7 +193,7 @@ class Implicit(Stepper):
             out.zero_()
             return
         eps = _SQRT_EPS * (1.0 + self.xnorm) / wnorm
-        self._pointwise(ik.scatter_perturb, f64(1.0), self.x, f64(eps), w, self.gid, self.nu, self.xp)
+        self._pointwise(ik.scatter_perturb, self.x, f64(eps), w, self.model.gid, self.nu, self.xp)
         self._F(self.xp, self.Fp)
         self._pointwise(ik.jacobian_vector, w, self.Fx, self.Fp, self.first, self.nu, f64(1.0 / self.dt), f64(self.beta / eps), out, unique=True)
 

@@ -53,29 +53,13 @@ import xarray as xr
 from swe_sphere.cli import main
 from swe_sphere.config import load_scene
 from swe_sphere.constants import DAY
-from swe_sphere.simulation import BlowUp, Simulation
-from swe_sphere.steppers import StepFailure
+from swe_sphere.simulation import BlowUp
 
-from conftest import cached_grid, write_tc2_scene
+from conftest import cached_grid, make_sim, run, tc6_inviscid, write_tc2_scene
 from numpy_ops import NumpyOps
 
 DEVICE = "cpu"
 EPS = np.finfo(float).eps
-
-
-def make_sim(scene):
-    return Simulation(scene, DEVICE, progress=False)
-
-
-def run(scene):
-    """(RunResult, Simulation, wall seconds); a blow-up returns its partial result."""
-    sim = make_sim(scene)
-    t0 = time.perf_counter()
-    try:
-        result = sim.run()
-    except BlowUp as err:
-        result = err.result
-    return result, sim, time.perf_counter() - t0
 
 
 def single_output(scene, **changes):
@@ -144,15 +128,8 @@ ORDER_ATOL = 1e-12
 
 
 @functools.lru_cache(maxsize=None)
-def tc6_base():
-    scene = load_scene("tc6_rossby_haurwitz", ne=4, np=4, days=ORDER_DAYS)
-    terms = tuple(t for t in scene.terms if t != "hyperviscosity")
-    return dataclasses.replace(scene, terms=terms, nu=0.0, output_every_days=ORDER_DAYS)
-
-
-@functools.lru_cache(maxsize=None)
 def tc6_final(stepper: str, nsteps: int, options: tuple = ()):
-    scene = dataclasses.replace(tc6_base(), stepper=stepper, dt=ORDER_DAYS * DAY / nsteps, stepper_options=dict(options))
+    scene = dataclasses.replace(tc6_inviscid(ORDER_DAYS), stepper=stepper, dt=ORDER_DAYS * DAY / nsteps, stepper_options=dict(options))
     assert scene.nsteps == nsteps
     result, sim, wall = run(scene)
     assert result.blowup is None, result.blowup

@@ -35,11 +35,10 @@ import numpy as np
 import pytest
 import warp as wp
 
-from conftest import write_tc2_scene
+from conftest import make_sim, run, write_tc2_scene
 from swe_sphere.cli import main
 from swe_sphere.config import load_scene
 from swe_sphere.constants import DAY
-from swe_sphere.simulation import BlowUp, Simulation
 from swe_sphere.steppers.helmholtz import Helmholtz
 
 from numpy_ops import NumpyOps
@@ -48,21 +47,6 @@ DEVICE = "cpu"
 STEADY_DAYS = 5.0
 SI_FACTOR = 1.78  # the SI step in units of dt_limit (largest stable: ~1.85)
 UNSTABLE_FACTOR = 2.2
-
-
-def make_sim(scene):
-    return Simulation(scene, DEVICE, progress=False)
-
-
-def run(scene):
-    """(RunResult, Simulation, wall seconds); a blow-up returns its partial result."""
-    sim = make_sim(scene)
-    t0 = time.perf_counter()
-    try:
-        result = sim.run()
-    except BlowUp as err:
-        result = err.result
-    return result, sim, time.perf_counter() - t0
 
 
 def at_multiple(base, stepper, factor, limit, **options):

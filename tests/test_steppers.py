@@ -27,13 +27,11 @@ import math
 import numpy as np
 import pytest
 
-from conftest import write_tc2_scene
+from conftest import make_sim, tc6_inviscid, write_tc2_scene
 from swe_sphere.config import load_scene
 from swe_sphere.constants import DAY
-from swe_sphere.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
 
-DEVICE = "cpu"
 
 # RHS evaluations: (first step, every later step), as the steppers document them.
 # A registered stepper missing here (e.g. an iterative implicit one, whose count
@@ -45,10 +43,6 @@ DOCUMENTED_RHS = {
     "rk4": (4, 4),
     "semi_implicit": (1, 1),  # one RHS (and one CG solve) per step, the start included
 }
-
-
-def make_sim(scene):
-    return Simulation(scene, DEVICE, progress=False)
 
 
 def count_rhs_calls(sim):
@@ -176,15 +170,8 @@ ORDER_REF_STEPS = 4096  # rk4 reference, dt = 10.5 s
 
 
 @functools.lru_cache(maxsize=None)
-def tc6_base():
-    scene = load_scene("tc6_rossby_haurwitz", ne=4, np=4, days=ORDER_DAYS)
-    terms = tuple(t for t in scene.terms if t != "hyperviscosity")
-    return dataclasses.replace(scene, terms=terms, nu=0.0, output_every_days=ORDER_DAYS)
-
-
-@functools.lru_cache(maxsize=None)
 def tc6_final(stepper: str, nsteps: int, eps: float | None = None):
-    base = tc6_base()
+    base = tc6_inviscid(ORDER_DAYS)
     dt = ORDER_DAYS * DAY / nsteps
     options = {} if eps is None else {"robert_asselin": eps}
     scene = dataclasses.replace(base, stepper=stepper, dt=dt, stepper_options=options)

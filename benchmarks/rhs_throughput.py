@@ -204,7 +204,7 @@ def _step_table(args, threads):
     print("-" * len(head))
     for ne in args.step_ne:
         for name in STEPPERS:
-            implicit = name in ("semi_implicit", "implicit")
+            implicit = not STEPPERS[name].explicit
             grid, scene, (_, _, state), model = build(ne, 4, threads, args.device, name, args.implicit_dt_factor if implicit else 1.0)
             x = model.new_state(*state)
             stepper = make_stepper(name, model, scene.dt, **scene.stepper_options)

@@ -30,7 +30,7 @@ from .cases import make_case
 from .constants import DAY
 from .gll import NP_MAX, NP_MIN, gll
 from .model import TERMS
-from .steppers import STEPPERS
+from .steppers import STEPPERS, option_types
 
 HYPERVIS_EXPONENT = 3.2  # ν ∝ Δx^3.2 (HOMME's resolution scaling; Dennis et al. 2012)
 
@@ -82,7 +82,7 @@ _SCHEMA = {
     "output": {"every_days": float},
     "hyperviscosity": {"nu": float, "subcycle": int},
     # one table per stepper, named after it, with the stepper's own options
-    **{name: dict(cls.options) for name, cls in STEPPERS.items() if cls.options},
+    **{name: option_types(cls.Options) for name, cls in STEPPERS.items() if option_types(cls.Options)},
 }
 
 
@@ -222,7 +222,7 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None) -> S
 
     options = dict(s.get(stepper1, {}))
     try:
-        STEPPERS[stepper1].check_options(**options)
+        STEPPERS[stepper1].make_options(**options)
     except ValueError as err:
         raise SceneError(f"{stepper1}.{err}") from None
 

@@ -29,8 +29,8 @@ from .constants import DAY
 from .diagnostics import williamson_norms, williamson_vector_norms
 from .output import atomic_path
 from .simulation import BlowUp, Simulation
+from .steppers import STEPPERS
 
-EXPLICIT = ("leapfrog", "leapfrog_trapezoidal", "ssprk3", "rk4")
 SUFFICIENT = 0.1  # temporal error ≤ 10 % of the spatial error
 
 
@@ -196,7 +196,7 @@ def format_summary(rows, info) -> str:
     spatial = info["spatial_error"]
     lines.append(f"spatial error (RK4 at dt = {info['reference_dt']:.4g} s): {spatial:.3e}; sufficient accuracy: temporal error <= {SUFFICIENT * spatial:.3e}")
     best = cheapest_sufficient(rows, spatial)
-    explicit = [best[s]["wall_time"] for s in best if s in EXPLICIT]
+    explicit = [best[s]["wall_time"] for s in best if STEPPERS[s].explicit]
     ref_time = min(explicit) if explicit else math.nan
     for stepper in dict.fromkeys(r["stepper"] for r in rows):
         if stepper not in best:

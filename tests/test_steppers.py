@@ -223,3 +223,82 @@ def test_robert_asselin_filter_costs_accuracy():
     e5 = [tc6_errors("leapfrog", n, 0.05)[0] for n in (256, 1024)]
     assert e5[0] > e0[0] and e5[1] > e0[1]
     assert e5[1] / e0[1] > 2 * e5[0] / e0[0]
+
+
+# -- explicit state: state() / restore() continue bitwise --------------------------
+
+# every registered stepper, and the variants whose history differs (BDF2's x(n−1),
+# the helmholtz preconditioner's mean depth fixed at the first step)
+RESTART_VARIANTS = [(name, {}) for name in STEPPERS] + [
+    ("implicit", {"method": "bdf2"}),
+    ("implicit", {"preconditioner": "helmholtz"}),
+]
+
+
+@pytest.mark.parametrize(
+    "name, options", RESTART_VARIANTS, ids=[n + "".join(f"-{v}" for v in o.values()) for n, o in RESTART_VARIANTS]
+)
+def test_state_restore_continues_bitwise(name, options):
+    """k steps, then x and state() into a fresh simulation, restore, k more steps:
+    bitwise equal to 2k uninterrupted steps. Without restore (x alone), a stepper
+    with a previous level does not continue the same run (the state is needed).
+    (TC2 keeps its mass, so a mean depth H re-taken from x(k) happens to equal the
+    restored one; the restore of H is what makes it exact in general.)"""
+    scene = load_scene("tc2_steady", ne=2, dt=1800.0, days=6 * 1800.0 / DAY, stepper=name)
+    scene = dataclasses.replace(scene, stepper_options=options)
+    k = 3
+    whole = make_sim(scene)
+    for _ in range(2 * k):
+        whole.stepper.step(whole.x)
+    first = make_sim(scene)
+    for _ in range(k):
+        first.stepper.step(first.x)
+    state, x = first.stepper.state(), first.x.numpy().copy()
+    assert state["steps"] == k
+    assert all(isinstance(v, (int, float, np.ndarray)) for v in state.values())
+    second = make_sim(scene)
+    second.x.assign(x)
+    second.stepper.restore(state)
+    for _ in range(k):
+        second.stepper.step(second.x)
+    np.testing.assert_array_equal(second.x.numpy(), whole.x.numpy())
+    assert second.stepper.steps == 2 * k
+    if "previous" in state:  # a three-level history: x alone is not enough
+        fresh = make_sim(scene)
+        fresh.x.assign(x)
+        for _ in range(k):
+            fresh.stepper.step(fresh.x)
+        assert not np.array_equal(fresh.x.numpy(), whole.x.numpy())
+
+
+def test_restore_rejects_a_misshapen_state():
+    scene = load_scene("tc2_steady", ne=2, dt=1800.0, days=1800.0 / DAY, stepper="leapfrog")
+    sim = make_sim(scene)
+    with pytest.raises(ValueError, match="previous"):
+        sim.stepper.restore({"steps": 2, "previous": np.zeros((3, 5))})
+    with pytest.raises(ValueError, match="lacks 'previous'"):
+        sim.stepper.restore({"steps": 2})
+
+
+def test_options_dataclass_defaults_checks_and_schema():
+    """Each stepper's options: one frozen dataclass whose fields are the scene
+    table's keys; unknown keys and bad values raise ValueError naming them."""
+    from swe_sphere.config import _SCHEMA
+    from swe_sphere.steppers import option_types
+
+    for name, cls in STEPPERS.items():
+        types = option_types(cls.Options)
+        assert _SCHEMA.get(name, {}) == types
+        opts = cls.make_options()
+        assert opts == cls.Options()
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            opts.x = 1
+        with pytest.raises(ValueError, match=f"unknown option 'bogus' for stepper {name}"):
+            cls.make_options(bogus=1)
+    assert STEPPERS["leapfrog"].Options().robert_asselin == 0.05
+    assert STEPPERS["implicit"].Options().atol == 1e-10
+    with pytest.raises(ValueError, match=r"robert_asselin must be in \[0, 0.5\)"):
+        STEPPERS["semi_implicit"].make_options(robert_asselin=0.5)
+    with pytest.raises(ValueError, match="method must be"):
+        STEPPERS["implicit"].make_options(method="bdf3")
+    assert {n for n, c in STEPPERS.items() if c.explicit} == {"leapfrog", "leapfrog_trapezoidal", "ssprk3", "rk4"}

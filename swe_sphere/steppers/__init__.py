@@ -7,7 +7,7 @@ Explicit: ``leapfrog``, ``leapfrog_trapezoidal``, ``ssprk3``, ``rk4``;
 from __future__ import annotations
 
 from ..model import ShallowWater
-from .base import StepFailure, Stepper, StepStats
+from .base import StepFailure, Stepper, StepStats, option_types
 from .explicit import RK4, SSPRK3, Leapfrog, LeapfrogTrapezoidal
 from .implicit import Implicit
 from .semi_implicit import SemiImplicit
@@ -18,14 +18,12 @@ STEPPERS: dict[str, type[Stepper]] = {
 
 
 def make_stepper(name: str, model: ShallowWater, dt: float, **options) -> Stepper:
-    """Build a registered stepper; ValueError names an unknown stepper or option."""
+    """Build a registered stepper from its options as keywords (the scene's
+    ``[<name>]`` table); ValueError names an unknown stepper, option or value."""
     if name not in STEPPERS:
         raise ValueError(f"unknown stepper {name!r} (known: {', '.join(STEPPERS)})")
     cls = STEPPERS[name]
-    for key in options:
-        if key not in cls.options:
-            raise ValueError(f"unknown option {key!r} for stepper {name}")
-    return cls(model, dt, **options)
+    return cls(model, dt, cls.make_options(**options))
 
 
-__all__ = ["STEPPERS", "StepFailure", "Stepper", "StepStats", "make_stepper"]
+__all__ = ["STEPPERS", "StepFailure", "Stepper", "StepStats", "make_stepper", "option_types"]

@@ -1,14 +1,25 @@
 """The stepper interface.
 
-A stepper is built with the model, the step ``dt`` (s) and its options; it
-allocates its buffers and records its launches once, then ``step(x)``
-advances the state ``x`` (3, N) in place by dt and returns a ``StepStats``.
+A stepper is built with the model, the step ``dt`` (s) and its options (a
+frozen ``Options`` dataclass per stepper: defaults and checks in one place; the
+scene's ``[<name>]`` table is read into it). It allocates its buffers and records
+its launches once, then ``step(x)`` advances the state ``x`` (3, N) in place by dt
+and returns a ``StepStats``.
+
+Everything a stepper carries from one step to the next besides x (the step
+count, leapfrog's x(n−1), BDF2's x(n−1), a mean depth fixed at the first step)
+is explicit: ``state()`` returns it as numpy arrays and scalars and
+``restore(state)`` sets it, so a stepper restored into a fresh process continues
+bitwise as if it had never stopped (restart files, ``swe_sphere.checkpoint``).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import typing
 from dataclasses import dataclass, field
 
+import numpy as np
 import warp as wp
 
 from ..kernels import blas
@@ -29,23 +40,87 @@ class StepFailure(RuntimeError):
     """A step could not be completed (a solver did not converge); the message says why."""
 
 
+@dataclass(frozen=True)
+class NoOptions:
+    """A stepper without options."""
+
+
+def option_types(options_cls) -> dict[str, type]:
+    """Option name → type (float, int, str) of an options dataclass (the scene schema's table)."""
+    hints = typing.get_type_hints(options_cls)
+    return {f.name: hints[f.name] for f in dataclasses.fields(options_cls)}
+
+
+
 class Stepper:
-    """Base class. Subclasses set ``name`` and implement ``step``."""
+    """Base class. Subclasses set ``name`` (the registry key and scene table),
+    ``Options`` (a frozen dataclass; its ``__post_init__`` raises ValueError
+    "<option> must ..."), ``explicit`` (True: stable only below a Courant
+    limit), ``solvers`` (names of the iteration counts in StepStats) and
+    implement ``advance(x)``; those with history extend ``state``/``restore``.
+    """
 
     name = ""
-    options: dict[str, type] = {}  # scene table [<name>]: option → type
-    solvers: tuple[str, ...] = ()  # names of the iteration counts in StepStats
+    Options: type = NoOptions
+    explicit = False
+    solvers: tuple[str, ...] = ()
 
     @classmethod
-    def check_options(cls, **options) -> None:
-        """Raise ValueError '<option> must ...' for an invalid option value."""
+    def make_options(cls, **options):
+        """The stepper's options from keyword values (defaults for the rest).
+        Raises ValueError naming an unknown option or an invalid value."""
+        known = option_types(cls.Options)
+        for key in options:
+            if key not in known:
+                raise ValueError(f"unknown option {key!r} for stepper {cls.name} (known: {', '.join(known) or 'none'})")
+        return cls.Options(**options)
 
-    def __init__(self, model: ShallowWater, dt: float):
+    def __init__(self, model: ShallowWater, dt: float, options=None):
         if not dt > 0:
             raise ValueError(f"dt must be > 0 (got {dt})")
-        self.model, self.dt = model, float(dt)
+        if options is None:
+            options = self.Options()
+        if not isinstance(options, self.Options):
+            raise TypeError(f"{self.name} options must be {self.Options.__name__} (got {type(options).__name__})")
+        self.model, self.dt, self.options = model, float(dt), options
         self.N = model.N
+        self.steps = 0  # steps taken since the initial state
         self._pointwise_launches: dict[tuple, object] = {}
+
+    # -- what carries over between steps -------------------------------------------
+    def state(self) -> dict:
+        """Everything besides x that the next step depends on: numpy arrays
+        (copies) and Python scalars, keyed by name."""
+        return {"steps": self.steps}
+
+    def restore(self, state: dict) -> None:
+        """Continue from ``state()`` of a stepper of the same kind, options, dt and grid.
+        Raises ValueError naming a missing or misshapen entry."""
+        self.steps = int(self._entry(state, "steps"))
+
+    def _entry(self, state, key):
+        if key not in state:
+            raise ValueError(f"{self.name} stepper state lacks {key!r}")
+        return state[key]
+
+    def _save(self, a: wp.array) -> np.ndarray:
+        return a.numpy().copy()
+
+    def _load(self, a: wp.array, state, key) -> None:
+        values = np.asarray(self._entry(state, key), dtype=np.float64)
+        if values.shape != a.shape:
+            raise ValueError(f"{self.name} stepper state {key!r} has shape {values.shape}, expected {a.shape}")
+        a.assign(values)
+
+    # -- stepping ----------------------------------------------------------------------
+    def step(self, x: wp.array2d) -> StepStats:
+        """Advance x (3, N) in place by dt; count the step."""
+        stats = self.advance(x)
+        self.steps += 1
+        return stats
+
+    def advance(self, x: wp.array2d) -> StepStats:
+        raise NotImplementedError
 
     def _buffer(self):
         return wp.zeros((3, self.N), dtype=f64, device=self.model.device)
@@ -72,6 +147,3 @@ class Stepper:
                 if not isinstance(value, wp.array):
                     launch.set_param_by_name(arg.label, value)
         launch.launch()
-
-    def step(self, x: wp.array2d) -> StepStats:
-        raise NotImplementedError

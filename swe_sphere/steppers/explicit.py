@@ -6,6 +6,8 @@ HOMME (``advance_hypervis``): forward Euler over the span the step covers.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from .base import Stepper, StepStats
 
 
@@ -14,9 +16,10 @@ class SSPRK3(Stepper):
     (Shu & Osher 1988, eq. 2.18). 3 RHS evaluations per step."""
 
     name = "ssprk3"
+    explicit = True
 
-    def __init__(self, model, dt):
-        super().__init__(model, dt)
+    def __init__(self, model, dt, options=None):
+        super().__init__(model, dt, options)
         self.k, self.s1, self.s2 = self._buffer(), self._buffer(), self._buffer()
         self._x = None
 
@@ -27,7 +30,7 @@ class SSPRK3(Stepper):
         self._l2 = self._lincomb(s2, (0.75, x), (0.25, s1), (0.25 * dt, k))
         self._l3 = self._lincomb(x, (1.0 / 3.0, x), (2.0 / 3.0, s2), (2.0 / 3.0 * dt, k))
 
-    def step(self, x):
+    def advance(self, x):
         if self._x is not x:
             self._record(x)
         m = self.model
@@ -45,9 +48,10 @@ class RK4(Stepper):
     """Classical fourth-order Runge–Kutta. 4 RHS evaluations per step."""
 
     name = "rk4"
+    explicit = True
 
-    def __init__(self, model, dt):
-        super().__init__(model, dt)
+    def __init__(self, model, dt, options=None):
+        super().__init__(model, dt, options)
         self.k, self.s, self.acc = self._buffer(), self._buffer(), self._buffer()
         self._x = None
 
@@ -61,7 +65,7 @@ class RK4(Stepper):
             (s, [self._lincomb(x, (1.0, acc), (dt / 6, k))]),
         ]
 
-    def step(self, x):
+    def advance(self, x):
         if self._x is not x:
             self._record(x)
         for arg, launches in self._stages:
@@ -73,15 +77,30 @@ class RK4(Stepper):
 
 
 class _LeapfrogFamily(Stepper):
-    """Three-level schemes: keep x(n−1); the first step is the explicit
-    midpoint rule (second order, 2 RHS evaluations)."""
+    """Three-level schemes: keep x(n−1) (``old``; in ``state()`` as "previous");
+    the first step (``steps == 0``) is the explicit midpoint rule (second order,
+    2 RHS evaluations)."""
 
-    def __init__(self, model, dt):
-        super().__init__(model, dt)
+    explicit = True
+
+    def __init__(self, model, dt, options=None):
+        super().__init__(model, dt, options)
         self.old, self.k, self.new = self._buffer(), self._buffer(), self._buffer()
         self._x = None
 
+    def state(self):
+        s = super().state()
+        if self.steps:
+            s["previous"] = self._save(self.old)
+        return s
+
+    def restore(self, state):
+        super().restore(state)
+        if self.steps:
+            self._load(self.old, state, "previous")
+
     def _record(self, x):
+        """Record the launches on x (once per state array)."""
         dt = self.dt
         self._x = x
         self._start_mid = self._lincomb(self.new, (1.0, x), (dt / 2, self.k))
@@ -90,9 +109,10 @@ class _LeapfrogFamily(Stepper):
         self._copy_new = self._lincomb(x, (1.0, self.new), (0.0, self.new))
         self._record_scheme(x)
 
-    def step(self, x):
+    def advance(self, x):
         if self._x is not x:
             self._record(x)
+        if self.steps == 0:
             m = self.model
             m.rhs(x, self.k)
             self._start_mid.launch()
@@ -104,26 +124,27 @@ class _LeapfrogFamily(Stepper):
         return self._step(x)
 
 
+@dataclass(frozen=True)
+class LeapfrogOptions:
+    """Scene table ``[leapfrog]``: the Robert–Asselin coefficient ε."""
+
+    robert_asselin: float = 0.05
+
+    def __post_init__(self):
+        if not 0 <= self.robert_asselin < 0.5:
+            raise ValueError(f"robert_asselin must be in [0, 0.5) (got {self.robert_asselin})")
+
+
 class Leapfrog(_LeapfrogFamily):
     """Leapfrog x(n+1) = x(n−1) + 2Δt F(x(n)) with the Robert–Asselin filter
     x(n) += ε (x(n−1) − 2x(n) + x(n+1)) (Robert 1966; Asselin 1972).
     Hyperviscosity acts on x(n+1) over 2Δt. 1 RHS evaluation per step."""
 
     name = "leapfrog"
-    options = {"robert_asselin": float}
-
-    @classmethod
-    def check_options(cls, robert_asselin: float = 0.05):
-        if not 0 <= robert_asselin < 0.5:
-            raise ValueError(f"robert_asselin must be in [0, 0.5) (got {robert_asselin})")
-
-    def __init__(self, model, dt, robert_asselin: float = 0.05):
-        super().__init__(model, dt)
-        self.check_options(robert_asselin)
-        self.eps = float(robert_asselin)
+    Options = LeapfrogOptions
 
     def _record_scheme(self, x):
-        eps = self.eps
+        eps = self.options.robert_asselin
         self._lf = self._lincomb(self.new, (1.0, self.old), (2 * self.dt, self.k))
         self._ra = self._lincomb(self.old, (1 - 2 * eps, x), (eps, self.old), (eps, self.new))
 
@@ -145,8 +166,8 @@ class LeapfrogTrapezoidal(_LeapfrogFamily):
 
     name = "leapfrog_trapezoidal"
 
-    def __init__(self, model, dt):
-        super().__init__(model, dt)
+    def __init__(self, model, dt, options=None):
+        super().__init__(model, dt, options)
         self.k2 = self._buffer()
 
     def _record_scheme(self, x):

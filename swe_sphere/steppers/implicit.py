@@ -34,7 +34,9 @@ a term that only damps the grid scale.
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse.linalg as spla
@@ -48,6 +50,44 @@ from .helmholtz import Helmholtz
 
 f64 = wp.float64
 _SQRT_EPS = math.sqrt(np.finfo(float).eps)
+
+
+@dataclass(frozen=True)
+class ImplicitOptions:
+    """Scene table ``[implicit]`` (see ``Implicit``)."""
+
+    method: str = "theta"
+    theta: float = 0.5
+    atol: float = 1e-10
+    rtol: float = 0.0
+    maxiter: int = 30
+    gmres_tol: float = 1e-11
+    gmres_restart: int = 30
+    gmres_maxiter: int = 300
+    krylov: str = ""
+    preconditioner: str = "none"
+    cg_tol: float = 1e-8
+    mean_depth: float = 0.0
+
+    def __post_init__(self):
+        if self.method not in ("theta", "bdf2"):
+            raise ValueError(f"method must be 'theta' or 'bdf2' (got {self.method!r})")
+        if not 0.5 <= self.theta <= 1.0:
+            raise ValueError(f"theta must be in [0.5, 1] (got {self.theta})")
+        if self.atol < 0 or self.rtol < 0 or (self.atol == 0 and self.rtol == 0):
+            raise ValueError(f"atol and rtol must be >= 0, one of them > 0 (got {self.atol}, {self.rtol})")
+        for name in ("maxiter", "gmres_restart", "gmres_maxiter"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be >= 1 (got {getattr(self, name)})")
+        for name in ("gmres_tol", "cg_tol"):
+            if not 0 < getattr(self, name) < 1:
+                raise ValueError(f"{name} must be in (0, 1) (got {getattr(self, name)})")
+        if self.krylov not in ("", "scipy", "warp"):
+            raise ValueError(f"krylov must be 'scipy' or 'warp' (got {self.krylov!r})")
+        if self.preconditioner not in ("none", "helmholtz"):
+            raise ValueError(f"preconditioner must be 'none' or 'helmholtz' (got {self.preconditioner!r})")
+        if self.mean_depth < 0:
+            raise ValueError(f"mean_depth must be >= 0 (got {self.mean_depth})")
 
 
 class Implicit(Stepper):
@@ -66,53 +106,12 @@ class Implicit(Stepper):
     """
 
     name = "implicit"
-    options = {
-        "method": str,
-        "theta": float,
-        "atol": float,
-        "rtol": float,
-        "maxiter": int,
-        "gmres_tol": float,
-        "gmres_restart": int,
-        "gmres_maxiter": int,
-        "krylov": str,
-        "preconditioner": str,
-        "cg_tol": float,
-        "mean_depth": float,
-    }
+    Options = ImplicitOptions
     solvers = ("newton", "gmres", "cg")
 
-    @classmethod
-    def check_options(
-        cls, method="theta", theta=0.5, atol=1e-10, rtol=0.0, maxiter=30, gmres_tol=1e-11, gmres_restart=30,
-        gmres_maxiter=300, krylov="", preconditioner="none", cg_tol=1e-8, mean_depth=0.0,
-    ):
-        if method not in ("theta", "bdf2"):
-            raise ValueError(f"method must be 'theta' or 'bdf2' (got {method!r})")
-        if not 0.5 <= theta <= 1.0:
-            raise ValueError(f"theta must be in [0.5, 1] (got {theta})")
-        if atol < 0 or rtol < 0 or (atol == 0 and rtol == 0):
-            raise ValueError(f"atol and rtol must be >= 0, one of them > 0 (got {atol}, {rtol})")
-        for name, value in (("maxiter", maxiter), ("gmres_restart", gmres_restart), ("gmres_maxiter", gmres_maxiter)):
-            if value < 1:
-                raise ValueError(f"{name} must be >= 1 (got {value})")
-        for name, value in (("gmres_tol", gmres_tol), ("cg_tol", cg_tol)):
-            if not 0 < value < 1:
-                raise ValueError(f"{name} must be in (0, 1) (got {value})")
-        if krylov not in ("", "scipy", "warp"):
-            raise ValueError(f"krylov must be 'scipy' or 'warp' (got {krylov!r})")
-        if preconditioner not in ("none", "helmholtz"):
-            raise ValueError(f"preconditioner must be 'none' or 'helmholtz' (got {preconditioner!r})")
-        if mean_depth < 0:
-            raise ValueError(f"mean_depth must be >= 0 (got {mean_depth})")
-
-    def __init__(self, model, dt, **options):
-        super().__init__(model, dt)
-        self.check_options(**options)
-        o = dict(method="theta", theta=0.5, atol=1e-10, rtol=0.0, maxiter=30, gmres_tol=1e-11, gmres_restart=30,
-                 gmres_maxiter=300, krylov="", preconditioner="none", cg_tol=1e-8, mean_depth=0.0)
-        o.update(options)
-        self.o = o
+    def __init__(self, model, dt, options=None):
+        super().__init__(model, dt, options)
+        o = self.o = dataclasses.asdict(self.options)
         dev, N = model.device, self.N
         self.krylov = o["krylov"] or ("scipy" if wp.get_device(dev).is_cpu else "warp")
         if self.krylov == "scipy" and not wp.get_device(dev).is_cpu:
@@ -133,7 +132,6 @@ class Implicit(Stepper):
         self.first = wp.array(grid.first, dtype=wp.int32, device=dev)
         for name in ("w", "w_in", "minus_R", "zu", "Jv", "xu"):
             setattr(self, name, wp.zeros(n3, dtype=f64, device=dev))
-        self.steps_taken = 0
         self.residual_history: list[float] = []
         self._cg_its = 0
         if self.krylov == "scipy":
@@ -296,13 +294,28 @@ class Implicit(Stepper):
         self.residual_history = history
         return newton, gmres
 
-    def step(self, x):
+    def state(self):
+        s = super().state()
+        if self.o["preconditioner"] == "helmholtz":
+            s["mean_depth"] = self.H  # 0 until fixed by the first step
+        if self.o["method"] == "bdf2" and self.steps:
+            s["previous"] = self._save(self.xprev)
+        return s
+
+    def restore(self, state):
+        super().restore(state)
+        if self.o["preconditioner"] == "helmholtz":
+            self.H = float(self._entry(state, "mean_depth"))
+        if self.o["method"] == "bdf2" and self.steps:
+            self._load(self.xprev, state, "previous")
+
+    def advance(self, x):
         o, m = self.o, self.model
         self.rhs_evals, self._cg_its = 0, 0
         if self.H == 0.0 and o["preconditioner"] == "helmholtz":
             self.H = m.grid.integrate(x.numpy()[2]) / m.grid.area.sum()  # mean depth
         wp.copy(self.xn, x)
-        if o["method"] == "bdf2" and self.steps_taken > 0:
+        if o["method"] == "bdf2" and self.steps > 0:
             self.beta = 2.0 / 3.0
             self._axpby(4.0 / 3.0, x, -1.0 / 3.0, self.xprev, self.b)
         elif o["method"] == "bdf2":
@@ -314,6 +327,5 @@ class Implicit(Stepper):
             self._axpby(1.0, x, self.dt * (1.0 - o["theta"]), self.Fx, self.b)
         newton, gmres = self._newton(x, Fx_known=o["method"] == "theta")
         wp.copy(self.xprev, self.xn)
-        self.steps_taken += 1
         m.hyperviscosity(x, self.dt)
         return StepStats(self.rhs_evals, {"newton": newton, "gmres": gmres, "cg": self._cg_its})

@@ -18,14 +18,37 @@ x(−1) = x(0).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import warp as wp
 
 from ..kernels import semi_implicit as si
 from .base import StepStats
-from .explicit import Leapfrog
+from .explicit import Leapfrog, LeapfrogOptions
 from .helmholtz import Helmholtz
 
 f64 = wp.float64
+
+
+@dataclass(frozen=True)
+class SemiImplicitOptions(LeapfrogOptions):
+    """Scene table ``[semi_implicit]`` (see ``SemiImplicit``)."""
+
+    tol: float = 1e-10
+    maxiter: int = 500
+    mean_depth: float = 0.0
+    linear_solver: str = ""
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.linear_solver not in ("", "scipy", "warp"):
+            raise ValueError(f"linear_solver must be 'scipy' or 'warp' (got {self.linear_solver!r})")
+        if not 0 < self.tol < 1:
+            raise ValueError(f"tol must be in (0, 1) (got {self.tol})")
+        if self.maxiter < 1:
+            raise ValueError(f"maxiter must be >= 1 (got {self.maxiter})")
+        if self.mean_depth < 0:
+            raise ValueError(f"mean_depth must be >= 0 (got {self.mean_depth})")
 
 
 class SemiImplicit(Leapfrog):
@@ -39,28 +62,17 @@ class SemiImplicit(Leapfrog):
     """
 
     name = "semi_implicit"
-    options = {"robert_asselin": float, "tol": float, "maxiter": int, "mean_depth": float, "linear_solver": str}
+    Options = SemiImplicitOptions
+    explicit = False
     solvers = ("cg",)
 
-    @classmethod
-    def check_options(cls, robert_asselin=0.05, tol=1e-10, maxiter=500, mean_depth=0.0, linear_solver=""):
-        super().check_options(robert_asselin)
-        if linear_solver not in ("", "scipy", "warp"):
-            raise ValueError(f"linear_solver must be 'scipy' or 'warp' (got {linear_solver!r})")
-        if not 0 < tol < 1:
-            raise ValueError(f"tol must be in (0, 1) (got {tol})")
-        if maxiter < 1:
-            raise ValueError(f"maxiter must be >= 1 (got {maxiter})")
-        if mean_depth < 0:
-            raise ValueError(f"mean_depth must be >= 0 (got {mean_depth})")
-
-    def __init__(self, model, dt, robert_asselin=0.05, tol=1e-10, maxiter=500, mean_depth=0.0, linear_solver=""):
-        super().__init__(model, dt, robert_asselin)
-        self.check_options(robert_asselin, tol, maxiter, mean_depth, linear_solver)
+    def __init__(self, model, dt, options=None):
+        super().__init__(model, dt, options)
         for term in ("continuity", "pressure_gradient"):
             if term not in model.terms:
                 raise ValueError(f"semi_implicit needs the {term} term")
-        self.tol, self.maxiter, self.H = float(tol), int(maxiter), float(mean_depth)
+        o = self.options
+        self.H = o.mean_depth
         dev, N = model.device, self.N
 
         def z(rows):
@@ -71,7 +83,7 @@ class SemiImplicit(Leapfrog):
         self.Dv, self.Dw, self.DGh = z(1), z(1), z(1)
         self.R = z(1)
         self.Dv1, self.Dw1, self.DGh1 = self.Dv.flatten(), self.Dw.flatten(), self.DGh.flatten()
-        self.helmholtz = Helmholtz(model, tol, maxiter, linear_solver or None)
+        self.helmholtz = Helmholtz(model, o.tol, o.maxiter, o.linear_solver or None)
 
     def _si(self, old, cur, new, dt):
         """new = semi-implicit leapfrog from old over 2dt, explicit terms at cur. Returns CG iterations."""
@@ -93,10 +105,18 @@ class SemiImplicit(Leapfrog):
         wp.launch(si.new_wind, N, [old, self.F, f64(g), self.Gh, self.Gh_new, self.Gh_old, f64(dt), new], device=dev)
         return iterations
 
-    def step(self, x):
+    def state(self):
+        return {**super().state(), "mean_depth": self.H}  # H = 0 until fixed by the first step
+
+    def restore(self, state):
+        super().restore(state)
+        self.H = float(self._entry(state, "mean_depth"))
+
+    def advance(self, x):
         m = self.model
         if self._x is not x:
             self._record(x)
+        if self.steps == 0:
             self._start_keep.launch()  # x(−1) = x(0)
             it = self._si(self.old, x, self.new, self.dt / 2)
             self._copy_new.launch()

@@ -1,4 +1,17 @@
-"""swe_sphere: spectral-element shallow-water model on the cubed sphere (HOMME/CAM-SE) in NVIDIA Warp."""
+"""swe_sphere: spectral-element shallow-water model on the cubed sphere (HOMME/CAM-SE) in NVIDIA Warp.
+
+Python API (see the README's "Python" section)::
+
+    import swe_sphere
+    ds = swe_sphere.run("tc5_mountain", ne=8, days=2, hyperviscosity={"nu": 5e14})
+    ds.h.sel(time=2).mean()
+
+``run`` is the whole pipeline; beneath it, importable from here: ``load_scene``
+(a TOML scene → a validated ``Scene``), ``Simulation`` (grid, case, model and
+stepper of a scene; ``run``, ``from_checkpoint``), ``CubedSphere``,
+``ShallowWater`` (the RHS), ``make_stepper`` and ``STEPPERS`` (the registry).
+Importing them initialises Warp quietly (``swe_sphere.runtime.init_warp``).
+"""
 
 from importlib.metadata import PackageNotFoundError, version
 
@@ -6,3 +19,34 @@ try:
     __version__ = version("swe-sphere")
 except PackageNotFoundError:  # running from a source tree without installation
     __version__ = "0.0.0+unknown"
+
+_LAZY = {
+    "load_scene": "config",
+    "Scene": "config",
+    "Simulation": "simulation",
+    "CubedSphere": "grid",
+    "ShallowWater": "model",
+    "make_stepper": "steppers",
+    "STEPPERS": "steppers",
+}
+
+
+def run(scene, **kwargs):
+    """Run a scene; returns an ``xarray.Dataset``. See ``swe_sphere.api.run``."""
+    from .api import run as _run
+
+    return _run(scene, **kwargs)
+
+
+def __getattr__(name):  # the heavy modules (Warp) load on first use, quietly
+    if name not in _LAZY:
+        raise AttributeError(f"module 'swe_sphere' has no attribute {name!r}")
+    import importlib
+
+    from .runtime import init_warp
+
+    init_warp()
+    return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+
+
+__all__ = ["__version__", "run", *_LAZY]

@@ -46,6 +46,10 @@ class Case:
 
     planet = EARTH
     exact_solution = False
+    # the terms a scene of this case must simulate (it may add hyperviscosity, ...):
+    # the full shallow-water dynamics unless the case says less is valid
+    required_terms = frozenset({"continuity", "momentum_advection", "coriolis", "pressure_gradient"})
+    h_is_depth = True  # False: h is a tracer carried by a prescribed wind (TC1)
 
     def fcor(self, lat, lon):
         return 2 * self.planet.omega * np.sin(lat)
@@ -93,6 +97,8 @@ class CosineBell(SolidBody):
     """Case 1: cosine bell advected once around the sphere in 12 days (eqs. 73–76)."""
 
     exact_solution = True
+    required_terms = frozenset({"continuity"})  # the prescribed wind carries h alone
+    h_is_depth = False
     h0: float = 1000.0
     lat_c: float = 0.0
     lon_c: float = 1.5 * math.pi
@@ -135,6 +141,8 @@ class SteadyZonal(SolidBody):
 @dataclass(frozen=True)
 class Mountain(Case):
     """Case 5: zonal flow over an isolated conical mountain (eqs. 130–135, α = 0)."""
+
+    required_terms = Case.required_terms | {"topography"}
 
     u0: float = 20.0
     h0: float = 5960.0

@@ -1,8 +1,11 @@
 """Command line: ``swe-sphere run | list | plot | remap | sweep | stability``.
 
-Exit status: 0 success, 2 bad input (one line naming the field or value, no
-output file), 3 blow-up (message with step, model time and place; the output
-file keeps every good output time).
+Exit status: 0 success; 2 bad input (one line naming the field or value, no
+output file); 3 blow-up, solver failure or too little memory (message with
+step, model time and place; the output file keeps every good output time);
+130 / 143 interrupted by SIGINT / SIGTERM (output so far and a restart file
+kept); 1 an internal error. Every failure is one line on stderr; ``--debug``
+(or SWE_SPHERE_DEBUG=1) shows the traceback instead.
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ import os
 import sys
 from pathlib import Path
 
-EXIT_BAD_INPUT, EXIT_BLOWUP = 2, 3
+EXIT_INTERNAL, EXIT_BAD_INPUT, EXIT_BLOWUP = 1, 2, 3
 
 
 class _Parser(argparse.ArgumentParser):
@@ -25,10 +28,15 @@ PLOT_FIELDS = ("h", "h_surface", "u", "v", "speed", "vorticity")  # = plotting.M
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="swe-sphere", description="Spectral-element shallow-water model on the cubed sphere.")
+    from . import __version__
+
+    common = _Parser(add_help=False)
+    common.add_argument("--debug", action="store_true", help="show the traceback of a failure")
+    p = _Parser(prog="swe-sphere", description="Spectral-element shallow-water model on the cubed sphere.", parents=[common])
+    p.add_argument("--version", action="version", version=f"swe-sphere {__version__}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    r = sub.add_parser("run", help="run a scene (a TOML file under testcases/, or its name)")
-    r.add_argument("scene", help="scene file, e.g. testcases/tc5_mountain.toml, or a bundled scene name")
+    r = sub.add_parser("run", help="run a scene (a TOML file under testcases/, or its name)", parents=[common])
+    r.add_argument("scene", nargs="?", help="scene file, e.g. testcases/tc5_mountain.toml, or a bundled scene name")
     r.add_argument("--ne", type=int, help="elements along a cube edge")
     r.add_argument("--np", type=int, help="GLL points per element direction (2..8)")
     r.add_argument("--dt", type=float, help="time step in seconds")
@@ -37,19 +45,28 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
     r.add_argument("--output", type=Path, help="netCDF output file (default: <scene>_ne<ne>np<np>_<stepper>.nc)")
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
-    sub.add_parser("list", help="list bundled scenes, steppers and terms")
-    pl = sub.add_parser("plot", help="PNG lat-lon maps of a run file's fields and its invariants/errors against time")
+    r.add_argument("-s", "--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                   help="override a scene value, e.g. -s hyperviscosity.nu=5e14 (TOML value; validated like the file)")
+    r.add_argument("--overwrite", action="store_true", help="replace an existing output (and restart) file")
+    r.add_argument("--restart-every", type=float, metavar="DAYS", help="write a restart file <output stem>.restart.nc every DAYS model days and at the end")
+    r.add_argument("--continue", dest="continue_from", type=Path, metavar="CHECKPOINT",
+                   help="continue a restart file (bitwise as if never stopped); --days sets the new end day")
+    r.add_argument("--compress", action="store_true", help="store fields as float32 with zlib (smaller, not bitwise)")
+    sub.add_parser("list", help="list bundled scenes, steppers and terms", parents=[common])
+    pl = sub.add_parser("plot", help="PNG lat-lon maps of a run file's fields and its invariants/errors against time", parents=[common])
     pl.add_argument("run", type=Path, help="run file (netCDF written by `swe-sphere run`)")
     pl.add_argument("--field", nargs="+", choices=PLOT_FIELDS, default=["h_surface"], help="field(s) to map (default h_surface = h + hs)")
     pl.add_argument("--day", nargs="+", type=float, help="model day(s) to map, each an output time (default: the last)")
     pl.add_argument("--diff", type=Path, metavar="REFERENCE", help="map the difference to another run file or a T213 reference file")
     pl.add_argument("--output", type=Path, default=Path("."), metavar="DIR", help="folder for the PNGs (default: .)")
     pl.add_argument("--lat-range", nargs=2, type=float, metavar=("SOUTH", "NORTH"), help="map only this latitude band (degrees)")
-    rm = sub.add_parser("remap", help="a run file on a regular lat-lon grid (CF netCDF), by GLL interpolation")
+    pl.add_argument("--force", action="store_true", help="--diff against a run of another case or grid")
+    rm = sub.add_parser("remap", help="a run file on a regular lat-lon grid (CF netCDF), by GLL interpolation", parents=[common])
     rm.add_argument("run", type=Path, help="run file (netCDF written by `swe-sphere run`)")
     rm.add_argument("--resolution", type=float, default=1.0, help="grid spacing in degrees; must divide 180 (default 1.0)")
     rm.add_argument("--output", type=Path, help="netCDF output file (default: <run>_latlon<resolution>.nc)")
-    sw = sub.add_parser("sweep", help="error against dt against wall time for several steppers (resumable)")
+    rm.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    sw = sub.add_parser("sweep", help="error against dt against wall time for several steppers (resumable)", parents=[common])
     sw.add_argument("scene", help="scene file or bundled scene name")
     sw.add_argument("--steppers", default="leapfrog,ssprk3,semi_implicit,implicit", help="comma-separated stepper names")
     group = sw.add_mutually_exclusive_group()
@@ -60,7 +77,7 @@ def _parser() -> argparse.ArgumentParser:
     sw.add_argument("--days", type=float, help="run length in days")
     sw.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
     sw.add_argument("--output", type=Path, default=Path("sweep"), help="directory for results (default ./sweep); reruns resume")
-    st = sub.add_parser("stability", help="largest stable dt of each stepper on the hard cases, by bisection")
+    st = sub.add_parser("stability", help="largest stable dt of each stepper on the hard cases, by bisection", parents=[common])
     st.add_argument("cases", nargs="*", help="case labels (default: all hard cases; see `swe-sphere stability --help`)")
     st.add_argument("--steppers", default="leapfrog,ssprk3,semi_implicit,implicit", help="comma-separated stepper names")
     st.add_argument("--ne", type=int, default=8, help="coarse grid for cases that do not fix one (default 8)")
@@ -68,25 +85,6 @@ def _parser() -> argparse.ArgumentParser:
     st.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
     st.add_argument("--output", type=Path, default=Path("."), help="directory for stability.csv and stability.nc")
     return p
-
-
-def _quiet_warp_init(wp) -> None:
-    """Initialise Warp with the process's stderr closed: its native code prints a
-    CUDA-driver warning there on machines without a GPU, below Python's reach."""
-    sys.stderr.flush()
-    saved, null = os.dup(2), os.open(os.devnull, os.O_WRONLY)
-    try:
-        os.dup2(null, 2)
-        wp.init()
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
-        os.close(null)
-
-
-def _fail(message: str, code: int) -> int:
-    print(f"swe-sphere: error: {message}", file=sys.stderr)
-    return code
 
 
 def _cmd_list() -> int:
@@ -108,15 +106,9 @@ def _cmd_list() -> int:
 
 
 def _warp_device(requested):
-    """Initialise Warp quietly; return the device name, or None if CUDA was asked for and is absent."""
-    import warp as wp
+    from .runtime import pick_device
 
-    wp.config.log_level = wp.LOG_ERROR  # no init banner or per-module load lines
-    _quiet_warp_init(wp)
-    from .model import default_device
-
-    device = requested or default_device()
-    return None if device == "cuda" and not wp.is_cuda_available() else device
+    return pick_device(requested)
 
 
 def _numbers(text: str, name: str) -> list[float]:
@@ -129,26 +121,28 @@ def _numbers(text: str, name: str) -> list[float]:
     return values
 
 
-def _cmd_sweep(args) -> int:
-    from .config import SceneError, load_scene
+def _steppers(text: str) -> list[str]:
     from .steppers import STEPPERS
 
-    steppers = [s for s in args.steppers.split(",") if s]
+    steppers = [s for s in text.split(",") if s]
+    for s in steppers:
+        if s not in STEPPERS:
+            raise ValueError(f"unknown stepper {s!r} (known: {', '.join(STEPPERS)})")
+    return steppers
+
+
+def _cmd_sweep(args) -> int:
+    from .config import load_scene
+
+    steppers = _steppers(args.steppers)
+    scenes = {s: load_scene(args.scene, ne=args.ne, np=args.np, days=args.days, stepper=s) for s in steppers}
+    dts = _numbers(args.dt, "dt") if args.dt else None
+    factors = _numbers(args.courant or "0.5,1,2,5,10,30,60,100", "courant") if dts is None else None
     try:
-        for s in steppers:
-            if s not in STEPPERS:
-                raise ValueError(f"unknown stepper {s!r} (known: {', '.join(STEPPERS)})")
-        scenes = {s: load_scene(args.scene, ne=args.ne, np=args.np, days=args.days, stepper=s) for s in steppers}
-        dts = _numbers(args.dt, "dt") if args.dt else None
-        factors = _numbers(args.courant or "0.5,1,2,5,10,30,60,100", "courant") if dts is None else None
         args.output.mkdir(parents=True, exist_ok=True)
-    except (SceneError, ValueError) as err:
-        return _fail(str(err), EXIT_BAD_INPUT)
     except OSError as err:
-        return _fail(f"cannot create output directory {args.output}: {err.strerror}", EXIT_BAD_INPUT)
+        raise ValueError(f"cannot create output directory {args.output}: {err.strerror}") from None
     device = _warp_device(args.device)
-    if device is None:
-        return _fail("device cuda is not available on this machine (use --device cpu)", EXIT_BAD_INPUT)
     from .sweep import Sweep, dt_for_day, explicit_limits, format_summary, table, write_outputs
 
     base = next(iter(scenes.values()))
@@ -157,7 +151,7 @@ def _cmd_sweep(args) -> int:
         dts = sorted({dt_for_day(f * limits["dt_gravity"], base.days) for f in factors})
     for dt in dts:
         if abs(round(base.days * 86400 / dt) * dt - base.days * 86400) > 1e-6 * dt:
-            return _fail(f"dt = {dt:g} s does not divide the run length of {base.days:g} days", EXIT_BAD_INPUT)
+            raise ValueError(f"dt = {dt:g} s does not divide the run length of {base.days:g} days")
     print(
         f"sweep {base.name} ne={base.ne} np={base.np}, {base.days:g} days; explicit limits: gravity-wave dt = "
         f"{limits['dt_gravity']:.1f} s, advective dt = {limits['dt_advective']:.1f} s; dt = {', '.join(f'{d:.4g}' for d in dts)}"
@@ -171,22 +165,19 @@ def _cmd_sweep(args) -> int:
 
 
 def _cmd_stability(args) -> int:
+    from .config import SceneError
     from .stability import HARD_CASES, format_table, run_suite, write_table
-    from .steppers import STEPPERS
 
     known = {c[0]: c for c in HARD_CASES}
     for label in args.cases:
         if label not in known:
-            return _fail(f"unknown stability case {label!r} (known: {', '.join(known)})", EXIT_BAD_INPUT)
-    steppers = [s for s in args.steppers.split(",") if s]
-    for s in steppers:
-        if s not in STEPPERS:
-            return _fail(f"unknown stepper {s!r} (known: {', '.join(STEPPERS)})", EXIT_BAD_INPUT)
+            raise ValueError(f"unknown stability case {label!r} (known: {', '.join(known)})")
+    steppers = _steppers(args.steppers)
+    if args.ne < 1:
+        raise SceneError(f"--ne must be an integer >= 1 (got {args.ne})")
     if not args.output.is_dir():
-        return _fail(f"output directory does not exist: {args.output}", EXIT_BAD_INPUT)
+        raise ValueError(f"output directory does not exist: {args.output}")
     device = _warp_device(args.device)
-    if device is None:
-        return _fail("device cuda is not available on this machine (use --device cpu)", EXIT_BAD_INPUT)
     cases = [known[c] for c in args.cases] if args.cases else list(HARD_CASES)
     results = run_suite(cases, steppers, device, ne=args.ne, np=args.np)
     print(format_table(results))
@@ -195,37 +186,88 @@ def _cmd_stability(args) -> int:
     return 0
 
 
+def _overrides(pairs) -> dict:
+    """``-s section.key=value`` pairs → {"section.key": value} (TOML values; a bare word is a string)."""
+    import tomllib
+
+    out = {}
+    for pair in pairs:
+        key, sep, text = pair.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise ValueError(f"-s needs SECTION.KEY=VALUE (got {pair!r})")
+        try:
+            value = tomllib.loads(f"v = {text.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text.strip()
+        out[key] = value
+    return out
+
+
+def _continued(args, device):
+    """The Simulation of ``run --continue``: refuses a changed scene, grid, stepper or dt."""
+    from . import checkpoint
+    from .config import load_scene
+    from .simulation import Simulation
+
+    ck = checkpoint.read(args.continue_from)
+    for flag, value, have in (("--ne", args.ne, ck.scene.ne), ("--np", args.np, ck.scene.np), ("--dt", args.dt, ck.scene.dt),
+                              ("--stepper", args.stepper, ck.scene.stepper)):
+        if value is not None and value != have:
+            raise checkpoint.CheckpointError(f"{args.continue_from} is a run with {flag.lstrip('-')} = {have}; it cannot continue with {flag} {value}")
+    if args.set:
+        raise checkpoint.CheckpointError("-s cannot change a checkpointed scene")
+    if args.scene is not None:
+        given = load_scene(args.scene, ne=args.ne, np=args.np)
+        mine = {k: v for k, v in ck.scene.as_dict().items() if k not in ("days", "notes")}
+        theirs = {k: v for k, v in given.as_dict().items() if k not in ("days", "notes")}
+        if mine != theirs:
+            differ = ", ".join(k for k in mine if mine[k] != theirs.get(k))
+            raise checkpoint.CheckpointError(f"{args.continue_from} is a run of another scene than {args.scene} (differs in: {differ})")
+    return Simulation.from_checkpoint(ck, device, days=args.days, progress=not args.no_progress)
+
+
 def _cmd_run(args) -> int:
-    from .config import SceneError, load_scene
-    from .output import check_writable
+    from .config import load_scene
+    from .output import check_target
+    from .simulation import BlowUp, Simulation, restart_path
 
-    try:
-        scene = load_scene(args.scene, ne=args.ne, np=args.np, dt=args.dt, days=args.days, stepper=args.stepper)
+    if args.continue_from is None:
+        if args.scene is None:
+            raise ValueError("run needs a SCENE (or --continue CHECKPOINT)")
+        scene = load_scene(args.scene, ne=args.ne, np=args.np, dt=args.dt, days=args.days, stepper=args.stepper,
+                           overrides=_overrides(args.set))
         output = args.output or Path(f"{scene.name}_ne{scene.ne}np{scene.np}_{scene.stepper}.nc")
-        check_writable(output)
-    except (SceneError, ValueError) as err:
-        return _fail(str(err), EXIT_BAD_INPUT)
-
+    else:
+        stem = args.continue_from.name.removesuffix(".nc").removesuffix(".restart")
+        output = args.output or args.continue_from.with_name(f"{stem}_continued.nc")
+    check_target(output, args.overwrite)
+    if args.restart_every is not None:
+        check_target(restart_path(output), args.overwrite)
     device = _warp_device(args.device)
-    if device is None:
-        return _fail("device cuda is not available on this machine (use --device cpu)", EXIT_BAD_INPUT)
-    from .simulation import BlowUp, Simulation
-
-    sim = Simulation(scene, device, progress=not args.no_progress)
+    sim = Simulation(scene, device, progress=not args.no_progress) if args.continue_from is None else _continued(args, device)
+    scene = sim.scene
+    if args.restart_every is not None:
+        sim.restart_steps(args.restart_every)  # checks the interval before the run
     g = sim.grid
     c = sim.courant()
     print(f"scene       {scene.name}: {scene.description}")
     print(f"grid        ne={g.ne} np={g.np}: {g.nelem} elements, {g.nunique} unique nodes, min node spacing {g.dx.min() / 1e3:.1f} km")
     print(f"terms       {', '.join(scene.terms)}" + (f" (nu = {scene.nu:.3g} m^4/s, subcycle {scene.hypervis_subcycle})" if scene.nu else ""))
     print(f"stepper     {scene.stepper}, dt = {scene.dt:g} s, {scene.nsteps} steps to day {scene.days:g}, device {device}")
+    if sim.step:
+        print(f"continue    from {args.continue_from} at step {sim.step} (day {sim.step * scene.dt / 86400:g})")
     grav = "" if math.isnan(c["courant_gravity"]) else f", gravity-wave {c['courant_gravity']:.3f}"
-    print(f"Courant     advective {c['courant_advective']:.3f}{grav} (max over nodes at t = 0)")
+    print(f"Courant     advective {c['courant_advective']:.3f}{grav} (max over nodes at t = {sim.step * scene.dt / 86400:g} d)")
     for note in scene.notes:
         print(f"note        {note}")
     print(f"output      {output} (every {scene.output_every_days:g} days)")
+    if args.restart_every is not None:
+        print(f"restart     {restart_path(output)} (every {args.restart_every:g} days and at the end)")
     print(f"setup       {sim.setup_time:.2f} s")
     try:
-        result = sim.run(output)
+        result = sim.run(output, overwrite=args.overwrite, restart_every=args.restart_every, compress=args.compress,
+                         history=" ".join(["swe-sphere", *(sys.argv[1:] if args.argv is None else args.argv)]))
     except BlowUp as err:
         print(f"swe-sphere: {err}; the last good state is in {output}", file=sys.stderr)
         return EXIT_BLOWUP
@@ -235,8 +277,13 @@ def _cmd_run(args) -> int:
 
 def _summary(r) -> None:
     d = r.diagnostics
+    steps, loop = r.steps - r.first_step, r.loop_time
     print("summary")
-    print(f"  wall time   {r.wall_time:.2f} s for {r.steps} steps ({1e3 * r.wall_time / max(r.steps, 1):.2f} ms/step), setup {r.setup_time:.2f} s")
+    print(f"  wall time   {loop:.2f} s for {steps} steps, setup {r.setup_time:.2f} s" + (
+        f" (cumulative since t = 0: {r.wall_time:.2f} s)" if r.first_step else ""))
+    if steps:
+        rest = f", then {1e3 * (loop - r.first_step_time) / (steps - 1):.2f} ms/step over {steps - 1} steps" if steps > 1 else ""
+        print(f"  time        compile {r.compile_time:.2f} s (setup and loop), first step {r.first_step_time:.3f} s{rest}")
     print(f"  RHS evals   {r.rhs_evals}")
     for k, total in r.iterations.items():
         print(f"  {k:11s} {total} iterations, {total / max(r.steps, 1):.1f} per step")
@@ -253,58 +300,96 @@ def _summary(r) -> None:
         print(f"  vs T213 h+hs l1 {d['ref_l1_h_surface']:.3e}  l2 {d['ref_l2_h_surface']:.3e}  linf {d['ref_linf_h_surface']:.3e}")
         print(f"  vs T213 wind l1 {d['ref_l1_wind']:.3e}  l2 {d['ref_l2_wind']:.3e}  linf {d['ref_linf_wind']:.3e}")
     print(f"  output      {r.output}")
+    if r.checkpoint is not None:
+        print(f"  restart     {r.checkpoint}")
 
 
 def _cmd_plot(args) -> int:
-    try:
-        from .plotting import plot_run
+    from .plotting import plot_run
 
-        written = plot_run(args.run, args.field, args.day, args.diff, args.output, args.lat_range)
-    except (FileNotFoundError, ValueError) as err:
-        return _fail(str(err), EXIT_BAD_INPUT)
-    for path in written:
+    for path in plot_run(args.run, args.field, args.day, args.diff, args.output, args.lat_range, force=args.force):
         print(path)
     return 0
 
 
 def _cmd_remap(args) -> int:
-    from .output import check_writable
-    from .remap import latlon_grid, remap_file, run_grid
-
     import xarray as xr
 
+    from .output import check_target
+    from .remap import latlon_grid, remap_file, run_grid
+
     output = args.output or Path(f"{args.run.stem}_latlon{args.resolution:g}.nc")
+    lat, lon = latlon_grid(args.resolution)
+    if not args.run.is_file():
+        raise ValueError(f"file not found: {args.run}")
+    check_target(output, args.overwrite)
     try:
-        lat, lon = latlon_grid(args.resolution)
-        if not args.run.is_file():
-            raise ValueError(f"file not found: {args.run}")
-        check_writable(output)
-        try:
-            ds = xr.open_dataset(args.run, decode_times=False)
-        except Exception as exc:
-            raise ValueError(f"{args.run}: not a readable netCDF file ({type(exc).__name__})") from None
-        with ds:
-            grid = run_grid(ds)
-    except ValueError as err:
-        return _fail(str(err), EXIT_BAD_INPUT)
-    remap_file(args.run, args.resolution, output)
+        ds = xr.open_dataset(args.run, decode_times=False)
+    except Exception as exc:
+        raise ValueError(f"{args.run}: not a readable netCDF file ({type(exc).__name__})") from None
+    with ds:
+        grid = run_grid(ds)
+    remap_file(args.run, args.resolution, output, overwrite=args.overwrite)
     print(f"{output}: ne={grid.ne} np={grid.np} -> {lat.size} x {lon.size} lat-lon points ({args.resolution:g} degrees)")
     return 0
 
 
+COMMANDS = {"list": lambda args: _cmd_list(), "stability": _cmd_stability, "sweep": _cmd_sweep, "plot": _cmd_plot,
+            "remap": _cmd_remap, "run": _cmd_run}
+
+
+def _classify(err: BaseException) -> tuple[int, str]:
+    """(exit status, one-line message) of a failure."""
+    import signal
+
+    from .runtime import ResourceError
+    from .simulation import Interrupted
+    from .steppers import StepFailure
+
+    if isinstance(err, Interrupted):
+        return 128 + err.signum, str(err)
+    if isinstance(err, KeyboardInterrupt):  # outside the time loop (its handler stops after a step)
+        signum = getattr(err, "signum", signal.SIGINT)
+        return 128 + signum, f"interrupted by {signal.Signals(signum).name} outside the time loop; no output was written"
+    if isinstance(err, (StepFailure, ResourceError)):
+        return EXIT_BLOWUP, str(err)
+    if isinstance(err, MemoryError):
+        return EXIT_BLOWUP, "out of memory" + (f" ({err})" if str(err) else "")
+    if isinstance(err, (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError)):
+        return EXIT_BAD_INPUT, f"{err.filename}: {err.strerror}" if err.filename else str(err)
+    if isinstance(err, OSError):
+        return EXIT_BLOWUP, f"{err.filename + ': ' if err.filename else ''}{err.strerror or err}"
+    if isinstance(err, ValueError):
+        return EXIT_BAD_INPUT, str(err)
+    return EXIT_INTERNAL, f"internal error: {type(err).__name__}: {err} (run with --debug for the traceback)"
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM outside the time loop, unwound like Ctrl-C (partial files dropped)."""
+
+    signum = 15
+
+
+def _on_sigterm(signum, frame):
+    raise _Terminated()
+
+
 def main(argv=None) -> int:
+    import signal
+
     args = _parser().parse_args(argv)
-    if args.command == "list":
-        return _cmd_list()
-    if args.command == "stability":
-        return _cmd_stability(args)
-    if args.command == "sweep":
-        return _cmd_sweep(args)
-    if args.command == "plot":
-        return _cmd_plot(args)
-    if args.command == "remap":
-        return _cmd_remap(args)
-    return _cmd_run(args)
+    args.argv = argv
+    debug = args.debug or os.environ.get("SWE_SPHERE_DEBUG", "") not in ("", "0")
+    if argv is None and signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:  # the console script, not a caller's process
+        signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        return COMMANDS[args.command](args)
+    except (Exception, KeyboardInterrupt) as err:
+        if debug:
+            raise
+        code, message = _classify(err)
+        print(f"swe-sphere: {'error: ' if code in (EXIT_BAD_INPUT, EXIT_INTERNAL) else ''}{message}", file=sys.stderr)
+        return code
 
 
 if __name__ == "__main__":

@@ -73,6 +73,14 @@ class Scene:
         return dataclasses.asdict(self)
 
 
+def scene_from_dict(d: dict) -> Scene:
+    """A Scene from ``Scene.as_dict()`` (e.g. read back from JSON). ValueError if the keys differ."""
+    names = {f.name for f in dataclasses.fields(Scene)}
+    if set(d) != names:
+        raise ValueError(f"scene keys differ from this version's: {', '.join(sorted(set(d) ^ names))}")
+    return Scene(**{**d, "terms": tuple(d["terms"]), "notes": tuple(d["notes"])})
+
+
 _SCHEMA = {
     "description": str,
     "terms": list,
@@ -104,6 +112,26 @@ def resolve_path(spec: str) -> Path:
     if bundled.exists() and p.parent == Path("."):
         return bundled
     raise SceneError(f"scene file not found: {spec}")
+
+
+def _check_schedule(dt: float, days: float, every: float) -> None:
+    """dt must divide the run length and (if shorter than the run) the output interval."""
+    nsteps = round(days * DAY / dt)
+    if nsteps > MAX_STEPS:
+        raise SceneError(f"dt = {dt:g} s gives {nsteps:.3g} steps to day {days:g} (more than {MAX_STEPS:.0e})")
+    if nsteps < 1 or abs(nsteps * dt - days * DAY) > 1e-6 * dt:
+        raise SceneError(f"dt = {dt:g} s does not divide the run length of {days:g} days")
+    per_output = round(every * DAY / dt)
+    if days > every and (per_output < 1 or abs(per_output * dt - every * DAY) > 1e-6 * dt):
+        raise SceneError(f"dt = {dt:g} s does not divide the output interval of {every:g} days")
+
+
+def with_days(scene: Scene, days: float) -> Scene:
+    """The scene run to ``days`` (from t = 0) instead. Raises ``SceneError``."""
+    if not (isinstance(days, (int, float)) and math.isfinite(days) and days > 0):
+        raise SceneError(f"days must be > 0 (got {days})")
+    _check_schedule(scene.dt, days, scene.output_every_days)
+    return dataclasses.replace(scene, days=float(days))
 
 
 def _first_gll_gap(npts: int) -> float:
@@ -143,13 +171,35 @@ def _validate(raw: dict) -> dict:
     return out
 
 
-def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None) -> Scene:
+MAX_STEPS = 10**9  # a run longer than this is a typo in dt, not a plan
+
+
+def _apply_overrides(raw: dict, overrides: dict) -> None:
+    """Set ``"section.key": value`` (or ``"key": value``) in the raw TOML dict."""
+    for key, value in overrides.items():
+        section, _, name = key.rpartition(".")
+        if not name:
+            raise SceneError(f"override {key!r} must be SECTION.KEY or KEY")
+        if section:
+            table = raw.setdefault(section, {})
+            if not isinstance(table, dict):
+                raise SceneError(f"override {key}: {section} is not a table")
+            table[name] = value
+        else:
+            raw[name] = value
+
+
+def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, overrides: dict | None = None) -> Scene:
     """Read, validate and resolve a scene file, applying command-line overrides.
 
+    ``overrides``: {"section.key": value} set in the file's values before they
+    are validated (``-s hyperviscosity.nu=5e14``), so they are checked like the file.
     When the grid is overridden and dt is not, dt scales with the smallest
     node spacing (first GLL interval / ne) and is shortened to divide the
-    output interval (or the run, if shorter); ν scales as the mean spacing
-    1/(ne·(np−1)) to the power 3.2. Raises ``SceneError``.
+    output interval (or the run, if shorter; a note warns when that cuts dt by
+    more than 2×); ν scales as the mean spacing 1/(ne·(np−1)) to the power 3.2.
+    Duplicate terms, and terms that omit what the case needs
+    (``Case.required_terms``), are refused. Raises ``SceneError``.
     """
     path = resolve_path(str(path))
     try:
@@ -158,6 +208,7 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None) -> S
         raise SceneError(f"malformed TOML in {path}: {err}") from None
     except OSError as err:
         raise SceneError(f"cannot read scene {path}: {err.strerror}") from None
+    _apply_overrides(raw, overrides or {})
     s = _validate(raw)
     notes = []
 
@@ -166,16 +217,21 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None) -> S
         raise SceneError("case.name is missing")
     case_name = case.pop("name")
     try:
-        make_case(case_name, case)
+        case_obj = make_case(case_name, case)
     except ValueError as err:
         raise SceneError(str(err)) from None
 
     terms = s.get("terms")
     if not terms:
         raise SceneError("terms is missing or empty")
-    for t in terms:
+    for i, t in enumerate(terms):
         if t not in TERMS:
             raise SceneError(f"unknown term {t!r} (known: {', '.join(TERMS)})")
+        if t in terms[:i]:
+            raise SceneError(f"term {t!r} is listed twice in terms")
+    missing = [t for t in TERMS if t in case_obj.required_terms and t not in terms]
+    if missing:
+        raise SceneError(f"case {case_name} needs the term(s) {', '.join(missing)} (terms = {terms})")
 
     grid = s.get("grid", {})
     ne0, np0 = grid.get("ne", 16), grid.get("np", 4)
@@ -207,18 +263,16 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None) -> S
             raise SceneError(f"time.dt must be > 0 (got {dt1})")
         if min_ratio != 1.0:
             interval = min(every, days1) * DAY
-            dt1 = interval / math.ceil(interval / (dt1 * min_ratio) - 1e-9)
+            scaled = dt1 * min_ratio
+            dt1 = interval / max(1, math.ceil(interval / scaled - 1e-9))
             notes.append(f"dt scaled with the smallest node spacing to {dt1:g} s")
+            if scaled / dt1 > 2:
+                notes.append(f"warning: dt cut {scaled / dt1:.3g}x (from {scaled:g} s) to divide the output interval of {every:g} days")
     else:
         dt1 = dt
     if not (math.isfinite(dt1) and dt1 > 0):
         raise SceneError(f"dt must be > 0 (got {dt1})")
-    nsteps = round(days1 * DAY / dt1)
-    if nsteps < 1 or abs(nsteps * dt1 - days1 * DAY) > 1e-6 * dt1:
-        raise SceneError(f"dt = {dt1:g} s does not divide the run length of {days1:g} days")
-    per_output = round(every * DAY / dt1)
-    if days1 > every and (per_output < 1 or abs(per_output * dt1 - every * DAY) > 1e-6 * dt1):
-        raise SceneError(f"dt = {dt1:g} s does not divide the output interval of {every:g} days")
+    _check_schedule(dt1, days1, every)
 
     options = dict(s.get(stepper1, {}))
     try:

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import os
-from contextlib import contextmanager
 from pathlib import Path
 
 import netCDF4
@@ -55,29 +54,97 @@ for _f, _what in (("h_surface", "free-surface height h + hs"), ("wind", "wind"))
         )
 
 
-def check_writable(path: Path) -> None:
-    """Raise ValueError (one line) if ``path`` cannot be created."""
-    parent = path.resolve().parent
-    if path.is_dir():
-        raise ValueError(f"output path is a directory: {path}")
+class OutputError(ValueError):
+    """An output path that must not be written; the message names it."""
+
+
+def check_target(path: Path, overwrite: bool = False) -> None:
+    """Raise ``OutputError`` (one line) unless ``path`` may be written: its folder
+    exists and is writable, and it does not exist (or ``overwrite`` and it is a
+    writable regular file). A symbolic link or a non-regular file (directory,
+    FIFO, device) is never written, with or without ``overwrite``."""
+    path = Path(path)
+    parent = path.absolute().parent
+    if path.is_symlink():
+        raise OutputError(f"output path is a symbolic link (not written through): {path}")
+    if path.exists():
+        if path.is_dir():
+            raise OutputError(f"output path is a directory: {path}")
+        if not path.is_file():
+            raise OutputError(f"output path is not a regular file: {path}")
+        if not overwrite:
+            raise OutputError(f"output file exists: {path} (use --overwrite to replace it)")
+        if not os.access(path, os.W_OK):
+            raise OutputError(f"output file is read-only: {path}")
     if parent.exists() and not parent.is_dir():
-        raise ValueError(f"output path's parent is not a directory: {parent}")
+        raise OutputError(f"output path's parent is not a directory: {parent}")
     if not parent.is_dir():
-        raise ValueError(f"output directory does not exist: {parent}")
+        raise OutputError(f"output directory does not exist: {parent}")
     if not os.access(parent, os.W_OK):
-        raise ValueError(f"output directory is not writable: {parent}")
+        raise OutputError(f"output directory is not writable: {parent}")
+
+
+class ExclusiveFile:
+    """Write ``path`` through ``path.part``, created exclusively (O_EXCL, never
+    through a link), so two processes never write the same file: the second gets
+    ``OutputError``. ``commit`` moves the finished part onto ``path`` (without
+    ``overwrite``, only if ``path`` still does not exist); ``discard`` drops it.
+    As a context manager it yields the part's path and commits on success."""
+
+    def __init__(self, path, *, overwrite: bool = False):
+        self.path, self.overwrite = Path(path), overwrite
+        self.tmp = self.path.with_name(self.path.name + ".part")
+        check_target(self.path, overwrite)
+        try:
+            fd = os.open(self.tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o644)
+        except FileExistsError:
+            raise OutputError(
+                f"{self.tmp} exists: another run is writing {self.path} (if none is, a killed run left it; remove it)"
+            ) from None
+        except OSError as err:
+            raise OutputError(f"cannot create {self.tmp}: {err.strerror}") from None
+        os.close(fd)
+
+    def commit(self) -> None:
+        check_target(self.path, self.overwrite)
+        if self.overwrite:
+            os.replace(self.tmp, self.path)
+            return
+        try:
+            os.link(self.tmp, self.path)  # fails if the target appeared meanwhile
+        except FileExistsError:
+            raise OutputError(f"{self.path} appeared while it was written; the result is kept in {self.tmp}") from None
+        os.unlink(self.tmp)
+
+    def discard(self) -> None:
+        self.tmp.unlink(missing_ok=True)
+
+    def __enter__(self) -> Path:
+        return self.tmp
+
+    def __exit__(self, kind, value, tb):
+        if kind is None:
+            self.commit()
+        else:
+            self.discard()
 
 
 class RunWriter:
-    """Writes one run to ``path`` (netCDF4), via ``path.part`` until ``close``.
+    """Writes one run to ``path`` (netCDF4), via an exclusive ``path.part`` until
+    ``close`` (see ``ExclusiveFile``; ``OutputError`` if the path may not be written).
 
     ``attrs``: global attributes (strings or numbers; dicts become JSON).
     ``series``: names of the diagnostics time series (see ``SERIES_ATTRS``).
+    ``time`` is plain model time in days (``units = "days"``: xarray leaves it
+    numeric, so ``ds.h.sel(time=3)`` works). ``compress``: the (time, ncol)
+    fields as float32 with zlib (about 3× smaller; not for bitwise comparisons).
     """
 
-    def __init__(self, path, grid: CubedSphere, hs: np.ndarray, attrs: dict, series):
+    def __init__(self, path, grid: CubedSphere, hs: np.ndarray, attrs: dict, series, *, overwrite: bool = False,
+                 compress: bool = False):
         self.path = Path(path)
-        self.tmp = self.path.with_name(self.path.name + ".part")
+        self.file = ExclusiveFile(self.path, overwrite=overwrite)
+        self.tmp = self.file.tmp
         self.grid = grid
         ds = self.ds = netCDF4.Dataset(self.tmp, "w", format="NETCDF4")
         ds.Conventions = "CF-1.8"
@@ -86,7 +153,7 @@ class RunWriter:
         ds.createDimension("time", None)
         ds.createDimension("ncol", grid.nunique)
         t = ds.createVariable("time", "f8", ("time",))
-        t.units, t.calendar, t.standard_name, t.axis = "days since 0001-01-01 00:00:00", "noleap", "time", "T"
+        t.units, t.long_name, t.standard_name, t.axis = "days", "model time since the initial state", "time", "T"
         for name, deg, std in (("lat", np.degrees(grid.lat), "latitude"), ("lon", np.degrees(grid.lon), "longitude")):
             var = ds.createVariable(name, "f8", ("ncol",))
             var.units = "degrees_north" if name == "lat" else "degrees_east"
@@ -101,7 +168,7 @@ class RunWriter:
         write_mesh(ds, grid, "ncol")
         for name in ("h", "u", "v", "vorticity"):
             fill = dict(fill_value=np.nan) if name == "vorticity" else {}  # NaN where a writer got none
-            var = ds.createVariable(name, "f8", ("time", "ncol"), zlib=False, **fill)
+            var = ds.createVariable(name, "f4" if compress else "f8", ("time", "ncol"), zlib=compress, **fill)
             var.setncatts({**FIELDS[name], "coordinates": "lat lon", "cell_measures": "area: area", **UGRID_NODE})
         for name in series:
             var = ds.createVariable(name, "f8", ("time",))
@@ -130,23 +197,16 @@ class RunWriter:
     def close(self) -> None:
         """Finish the file and move it to its final name."""
         self.ds.close()
-        os.replace(self.tmp, self.path)
+        self.file.commit()
 
     def abort(self) -> None:
         """Drop the partial file."""
         try:
             self.ds.close()
         finally:
-            self.tmp.unlink(missing_ok=True)
+            self.file.discard()
 
 
-@contextmanager
-def atomic_path(path: Path):
-    """Yield a temporary path beside ``path``; move it onto ``path`` if the block succeeds."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".part")
-    try:
-        yield tmp
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+def atomic_path(path: Path, *, overwrite: bool = True) -> ExclusiveFile:
+    """``with atomic_path(p) as tmp:`` write tmp; it is moved onto ``p`` if the block succeeds."""
+    return ExclusiveFile(path, overwrite=overwrite)

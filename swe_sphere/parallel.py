@@ -38,7 +38,10 @@ def default_threads(device) -> int:
         return 1
     env = os.environ.get("SWE_SPHERE_THREADS", "").strip()
     if env:
-        n = int(env)
+        try:
+            n = int(env)
+        except ValueError:
+            raise ValueError(f"SWE_SPHERE_THREADS must be an integer >= 1 (got {env!r})") from None
         if n < 1:
             raise ValueError(f"SWE_SPHERE_THREADS must be >= 1 (got {env!r})")
         return n

@@ -400,12 +400,40 @@ def map_name(run_path, field: str, day: float, diff: bool, lat_range=None) -> st
     return f"{Path(run_path).stem}_{field}_day{day:g}{band}{'_diff' if diff else ''}.png"
 
 
-def plot_run(run_path, fields=("h_surface",), days=None, diff_path=None, outdir=".", lat_range=None) -> list[Path]:
+def _run_identity(ds) -> tuple[str, dict, int, int]:
+    """(case, case parameters, ne, np) of a run file (its ``scene`` attribute)."""
+    try:
+        scene = json.loads(ds.attrs["scene"])
+        return scene["case"], scene.get("case_params", {}), int(scene["ne"]), int(scene["np"])
+    except (KeyError, ValueError, TypeError):
+        return ds.attrs.get("case", "?"), {}, int(ds.attrs.get("ne", 0)), int(ds.attrs.get("np", 0))
+
+
+def check_comparable(ds, diff, diff_path) -> None:
+    """Refuse (ValueError) a ``--diff`` against a run of another case (or case
+    parameters) or grid, or against the T213 reference of another case."""
+    from .reference import _FILES, find_reference
+
+    case, params, ne, np_ = _run_identity(ds)
+    if isinstance(diff, _Run):
+        other = _run_identity(diff.ds)
+        if (case, params) != other[:2]:
+            raise ValueError(f"{diff.label} is a run of case {other[0]} {other[1] or ''}, not {case} {params or ''} (--force to compare anyway)")
+        if (ne, np_) != other[2:]:
+            raise ValueError(f"{diff.label} is a run on ne={other[2]} np={other[3]}, not ne={ne} np={np_} (--force to compare anyway)")
+    elif Path(diff_path).name in _FILES.values():
+        mine = find_reference(case, params.get("perturbed", True))
+        if mine is None or mine.name != Path(diff_path).name:
+            raise ValueError(f"{diff.label} is the T213 reference of another case than {case} (--force to compare anyway)")
+
+
+def plot_run(run_path, fields=("h_surface",), days=None, diff_path=None, outdir=".", lat_range=None, *, force=False) -> list[Path]:
     """``swe-sphere plot``: maps of ``fields`` at ``days`` (default: the last output
     time) and the time-series figure, PNGs in ``outdir`` (created if missing).
 
     Every input is checked before anything is written; raises ``FileNotFoundError`` or
-    ``ValueError`` (one line) for a missing file, an unknown field or a missing day."""
+    ``ValueError`` (one line) for a missing file, an unknown field or a missing day,
+    and (unless ``force``) a ``diff_path`` of another case or grid."""
     outdir = Path(outdir)
     if lat_range is not None:
         check_lat_range(lat_range)
@@ -420,6 +448,8 @@ def plot_run(run_path, fields=("h_surface",), days=None, diff_path=None, outdir=
             raise ValueError(f"{_name(ds)} holds no output time")
         days = [float(stored[-1])] if not days else [float(d) for d in days]
         diff = open_reference(diff_path) if diff_path is not None else None
+        if diff is not None and not force:
+            check_comparable(ds, diff, diff_path)
         for field in fields:
             for day in days:
                 field_at_nodes(ds, field, day)

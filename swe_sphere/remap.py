@@ -28,6 +28,7 @@ from scipy.sparse import csr_matrix
 
 from .grid import _FACES, CubedSphere
 from .output import atomic_path
+from .runtime import check_memory
 
 #: node fields (time, ncol) or (ncol,) that ``remap_dataset`` carries to the lat-lon grid
 NODE_FIELDS = ("h", "hs", "u", "v", "vorticity")
@@ -153,12 +154,21 @@ def latlon_grid(resolution: float) -> tuple[np.ndarray, np.ndarray]:
     return lat, lon
 
 
+def remap_bytes(points: int, np_: int, ntime: int) -> int:
+    """Estimated peak bytes of ``remap_dataset`` onto ``points`` lat-lon points: the
+    locator's temporaries (~40 floats), the interpolation weights and sparse matrix
+    (~6 np² words) and the remapped fields h, hs, u, v, vorticity, h_surface
+    (ntime each, twice: computed and written)."""
+    return 8 * points * (40 + 6 * np_ * np_ + 12 * ntime)
+
+
 def remap_dataset(ds: xr.Dataset, resolution: float) -> xr.Dataset:
     """A run (opened with ``decode_times=False``) on the regular lat-lon grid of
     ``latlon_grid(resolution)``: node fields on (time, lat, lon) or (lat, lon),
     ``h_surface`` = h + hs, the diagnostics time series and the global attributes."""
     grid = run_grid(ds)
     lat, lon = latlon_grid(resolution)
+    check_memory(remap_bytes(lat.size * lon.size, grid.np, ds.sizes.get("time", 1)), f"remapping to {resolution:g} degrees ({lat.size} x {lon.size} points)")
     rm = Remapper(grid, np.radians(lat)[:, None], np.radians(lon)[None, :])
     out = xr.Dataset(
         coords=dict(
@@ -194,14 +204,15 @@ def remap_dataset(ds: xr.Dataset, resolution: float) -> xr.Dataset:
     return out
 
 
-def remap_file(path, resolution: float, output) -> Path:
-    """Write ``remap_dataset`` of the run ``path`` to ``output`` (netCDF4), via
-    ``output.part`` renamed when complete. Returns the output path."""
+def remap_file(path, resolution: float, output, *, overwrite: bool = False) -> Path:
+    """Write ``remap_dataset`` of the run ``path`` to ``output`` (netCDF4), via an
+    exclusive ``output.part`` renamed when complete (``output.OutputError`` if
+    ``output`` exists and not ``overwrite``). Returns the output path."""
     output = Path(output)
     with xr.open_dataset(path, decode_times=False) as ds:
         out = remap_dataset(ds, resolution)
         encoding = {k: {"_FillValue": None} for k in ("lat", "lon")}
         encoding.update({k: {"_FillValue": np.nan} for k in out.data_vars if out[k].dtype.kind == "f"})
-        with atomic_path(output) as tmp:
+        with atomic_path(output, overwrite=overwrite) as tmp:
             out.to_netcdf(tmp, format="NETCDF4", encoding=encoding, unlimited_dims=("time",) if "time" in out.dims else None)
     return output

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
+import signal
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -14,18 +17,58 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from . import __version__
-from .config import Scene
+from . import checkpoint as ckpt
+from .config import Scene, with_days
 from .constants import DAY
 from .diagnostics import courant_numbers, invariants, williamson_norms, williamson_vector_norms
 from .grid import CubedSphere
 from .model import ShallowWater
-from .output import RunWriter
+from .output import RunWriter, check_target
 from .reference import Reference, find_reference
+from .runtime import check_memory, run_bytes
 from .steppers import StepFailure, make_stepper
 
 
 class BlowUp(RuntimeError):
     """The state became non-finite or the depth non-positive; the message gives step, time and place."""
+
+
+class Interrupted(RuntimeError):
+    """SIGINT or SIGTERM stopped the run after a complete step; ``signum``, ``result``
+    and ``checkpoint`` (the restart file written, or None) are attached."""
+
+
+def restart_path(output: Path) -> Path:
+    """The restart file beside a run's output: ``run.nc`` → ``run.restart.nc``."""
+    output = Path(output)
+    return output.with_name(output.stem + ".restart.nc")
+
+
+@contextlib.contextmanager
+def _compile_timer(acc: list):
+    """Add the seconds spent loading (compiling on a cold cache) Warp modules to acc[0]."""
+    try:
+        from warp._src.context import Module  # private: without it, compilation counts as stepping
+    except ImportError:
+        yield
+        return
+    real, depth = Module.load, [0]
+
+    def load(self, *args, **kwargs):
+        depth[0] += 1
+        t0 = time.perf_counter()
+        try:
+            return real(self, *args, **kwargs)
+        finally:
+            depth[0] -= 1
+            if depth[0] == 0:
+                acc[0] += time.perf_counter() - t0
+
+    Module.load = load
+    try:
+        yield
+    finally:
+        Module.load = real
 
 
 @dataclass
@@ -34,7 +77,7 @@ class RunResult:
 
     steps: int
     rhs_evals: int
-    wall_time: float
+    wall_time: float  # s in the time loop, compilation included (cumulative over restarts)
     setup_time: float
     diagnostics: dict
     courant: dict
@@ -42,16 +85,29 @@ class RunResult:
     blowup: str | None = None
     history: list = field(default_factory=list)
     iterations: dict = field(default_factory=dict)
+    compile_time: float = 0.0  # s of Warp module loading/compiling, setup and loop, this process
+    first_step_time: float = math.nan  # s of this process's first step (launch recording, compilation)
+    first_step: int = 0  # the step the run started from (0, or a checkpoint's)
+    loop_time: float = 0.0  # s in this process's time loop
+    checkpoint: Path | None = None  # the last restart file written
 
 
 class Simulation:
     """Build the grid, case, model and stepper of a scene; ``run`` integrates it.
 
     ``device``: "cpu" or "cuda" (Warp device names). ``progress``: show a tqdm bar.
+    ``from_checkpoint`` continues a restart file instead of starting at t = 0.
     """
 
     def __init__(self, scene: Scene, device: str, *, progress: bool = True):
         t0 = time.perf_counter()
+        self._compile = [0.0]
+        with _compile_timer(self._compile):
+            self._build(scene, device, progress)
+        self.setup_time = time.perf_counter() - t0
+
+    def _build(self, scene, device, progress):
+        check_memory(run_bytes(scene.ne, scene.np, scene.stepper), f"ne={scene.ne} np={scene.np} with {scene.stepper}")
         self.scene, self.device, self.progress = scene, device, progress
         self.grid = grid = CubedSphere(scene.ne, scene.np)
         self.case = case = scene.make_case()
@@ -69,7 +125,37 @@ class Simulation:
         self.last_good = wp.clone(self.x)
         self.initial = None
         self.initial = self.diagnose(0.0)
-        self.setup_time = time.perf_counter() - t0
+        self.step = 0  # steps taken since t = 0
+        self.counters = {"rhs_evals": 0, "wall_time": 0.0, "iterations": {k: 0 for k in self.stepper.solvers}}
+
+    # -- restart --------------------------------------------------------------
+    @classmethod
+    def from_checkpoint(cls, checkpoint, device: str, *, days: float | None = None, progress: bool = True) -> Simulation:
+        """A simulation that continues a restart file (path or ``checkpoint.Checkpoint``),
+        to ``days`` (from t = 0; default the checkpointed scene's). Raises
+        ``checkpoint.CheckpointError`` or ``config.SceneError`` (one line)."""
+        ck = checkpoint if isinstance(checkpoint, ckpt.Checkpoint) else ckpt.read(checkpoint)
+        scene = ck.scene if days is None else with_days(ck.scene, days)
+        if scene.nsteps < ck.step:
+            raise ckpt.CheckpointError(f"the run length {scene.days:g} days ends before the checkpoint (day {ck.step * scene.dt / DAY:g})")
+        sim = cls(scene, device, progress=progress)
+        sim.restore(ck)
+        return sim
+
+    def restore(self, ck: ckpt.Checkpoint) -> None:
+        """Set the state, stepper history, counters and t = 0 invariants from a checkpoint."""
+        if ck.x.shape != (3, self.model.N):
+            raise ckpt.CheckpointError(f"checkpoint state has shape {ck.x.shape}, the grid needs {(3, self.model.N)}")
+        self.x.assign(ck.x)
+        try:
+            self.stepper.restore(ck.stepper_state)
+        except ValueError as err:
+            raise ckpt.CheckpointError(f"checkpoint does not fit the stepper: {err}") from None
+        self.step, self.counters, self.initial = ck.step, ck.counters, ck.initial
+
+    def write_checkpoint(self, path, *, overwrite: bool = True) -> Path:
+        """Write a restart file of the current step (see ``checkpoint``)."""
+        return ckpt.write(path, self.scene, self.step, self.x.numpy(), self.stepper.state(), self.counters, self.initial, overwrite=overwrite)
 
     # -- diagnostics --------------------------------------------------------
     def fields(self, x=None):
@@ -81,7 +167,7 @@ class Simulation:
         u, v, h = self.fields(x)
         zeta = self.model.vorticity(self.x if x is None else x)
         d = invariants(self.grid, u, v, h, self.hs, zeta, self.fcor, self.g)
-        if "pressure_gradient" not in self.scene.terms:  # h is a tracer (TC1), not a depth
+        if not self.case.h_is_depth:  # h is a tracer (TC1): only its mass is an invariant
             d = {"mass": d["mass"]}
         start = self.initial or d  # diagnosing the initial state itself
         for k in list(d):
@@ -117,20 +203,47 @@ class Simulation:
         n_out = math.floor(s.days / s.output_every_days + 1e-9)
         return {min(s.nsteps, round(k * every)) for k in range(n_out + 1)} | {s.nsteps}
 
-    def run(self, output: Path | None = None) -> RunResult:
-        """Integrate the scene; write ``output`` (netCDF) if given.
+    def restart_steps(self, every_days: float) -> set[int]:
+        """Steps at which a run with ``--restart-every every_days`` writes its restart
+        file (and the last step). Raises ValueError unless dt divides the interval."""
+        s = self.scene
+        per = round(every_days * DAY / s.dt)
+        if not (math.isfinite(every_days) and every_days > 0) or per < 1 or abs(per * s.dt - every_days * DAY) > 1e-6 * s.dt:
+            raise ValueError(f"restart interval must be a positive multiple of dt = {s.dt:g} s (got {every_days:g} days)")
+        return set(range(per, s.nsteps + 1, per)) | {s.nsteps}
 
-        Raises ``BlowUp`` after closing the output with every good output time
-        and the last good state (the step before the failure) appended.
+    def run(self, output: Path | None = None, *, overwrite: bool = False, restart_every: float | None = None,
+            restart_file: Path | None = None, catch_signals: bool = True, compress: bool = False,
+            history: str | None = None) -> RunResult:
+        """Integrate the scene from the current step; write ``output`` (netCDF) if given.
+
+        ``overwrite``: replace an existing output (and restart) file; else
+        ``output.OutputError``. ``restart_every`` (days): write ``restart_file``
+        (default ``restart_path(output)``) every so many days and at the end.
+        ``catch_signals`` (main thread only): SIGINT/SIGTERM finish the current
+        step, close the output (global attributes ``interrupted``,
+        ``interrupted_at_day``) and write the restart file, then raise
+        ``Interrupted``. ``compress``: float32 + zlib fields. ``history``: the
+        command line, for the file's ``history`` attribute. Raises ``BlowUp`` after closing the output with every
+        good output time and the last good state (the step before the failure).
         """
         s, model, stepper = self.scene, self.model, self.stepper
+        if restart_file is None and output is not None:
+            restart_file = restart_path(output)
+        ck_steps = self.restart_steps(restart_every) if restart_every is not None else set()
+        if restart_every is not None and restart_file is None:
+            raise ValueError("a restart interval needs an output or restart file")
+        if restart_file is not None:
+            check_target(restart_file, overwrite)
         courant = self.courant()
         solver_series = [f"{k}_iterations" for k in stepper.solvers]
         series = ["steps", "rhs_evals", *solver_series, "wall_time", *self.initial.keys()]
         writer = None
         if output is not None:
+            stamp = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
             attrs = {
                 "title": f"swe_sphere run of scene {s.name}",
+                "history": f"{stamp}: {history or f'swe_sphere.Simulation.run of scene {s.name}'} (swe_sphere {__version__})",
                 "source": f"swe_sphere {__version__}",
                 "swe_sphere_version": __version__,
                 "scene": s.as_dict(),
@@ -140,81 +253,127 @@ class Simulation:
                 "stepper": s.stepper,
                 "dt": s.dt,
                 "device": self.device,
+                **({"continued_from_day": self.step * s.dt / DAY} if self.step else {}),
                 **{k: v for k, v in courant.items() if math.isfinite(v)},
             }
-            writer = RunWriter(output, self.grid, self.hs, attrs, series)
+            writer = RunWriter(output, self.grid, self.hs, attrs, series, overwrite=overwrite, compress=compress)
         out_steps = self.output_steps()
-        rhs_evals, wall, history, iterations = 0, 0.0, [], {k: 0 for k in stepper.solvers}
+        c, history = self.counters, []
+        first_step, first_time, written, wall0 = self.step, math.nan, [None], c["wall_time"]
 
         def record(step, x=None):
             d = self.diagnose(step * s.dt, x)
-            d.update(steps=step, rhs_evals=rhs_evals, wall_time=wall)
-            d.update({f"{k}_iterations": iterations.get(k, 0) for k in stepper.solvers})
+            d.update(steps=step, rhs_evals=c["rhs_evals"], wall_time=c["wall_time"])
+            d.update({f"{k}_iterations": c["iterations"].get(k, 0) for k in stepper.solvers})
             history.append(d)
             if writer is not None:
                 zeta = model.vorticity(self.x if x is None else x)  # DSS'd, element-local (s-1)
                 writer.append(step * s.dt, *self.fields(x), {k: d[k] for k in series}, vorticity=zeta)
 
+        def save_restart():
+            written[0] = self.write_checkpoint(restart_file, overwrite=overwrite or written[0] is not None)
+
+        stop: list[int] = []
+        handlers = {}
+        if catch_signals and threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                if signal.getsignal(sig) is not signal.SIG_IGN:  # respect a parent's "ignore" (nohup, `&`)
+                    handlers[sig] = signal.signal(sig, lambda signum, frame: stop.append(signum))
         # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
         # pay, and on a busy machine OpenBLAS's spinning threads made a norm cost 10 ms
         limits = threadpool_limits(limits=1, user_api="blas")
+        blowup = interrupted = None
         try:
-            record(0)
-            bar = tqdm(total=s.nsteps, unit="step", disable=not self.progress, file=sys.stderr, dynamic_ncols=True)
-            blowup = None
-            with bar:
-                for n in range(1, s.nsteps + 1):
-                    t0 = time.perf_counter()
-                    wp.copy(self.last_good, self.x)
-                    try:
-                        stats = stepper.step(self.x)
-                        failure = None
-                    except StepFailure as err:
-                        stats, failure = None, str(err)
-                    bad = model.first_bad_node(self.x) if failure is None else None
-                    wp.synchronize_device(self.device)
-                    wall += time.perf_counter() - t0
-                    if stats is not None:
-                        rhs_evals += stats.rhs_evals
-                        for k, it in stats.iterations.items():
-                            iterations[k] = iterations.get(k, 0) + it
-                    if bad is not None or failure is not None:
-                        blowup = self._blowup_message(n, bad) if failure is None else (
-                            f"step {n} failed (model time {n * s.dt / DAY:.4f} days): {failure}"
-                        )
-                        if n - 1 not in out_steps:
-                            record(n - 1, self.last_good)
+            with _compile_timer(self._compile):
+                record(self.step)
+                bar = tqdm(initial=self.step, total=s.nsteps, unit="step", disable=not self.progress, file=sys.stderr, dynamic_ncols=True)
+                with bar:
+                    while self.step < s.nsteps:
+                        if stop:
+                            interrupted = stop[0]
+                            break
+                        n = self.step + 1
+                        t0 = time.perf_counter()
+                        wp.copy(self.last_good, self.x)
+                        try:
+                            stats = stepper.step(self.x)
+                            failure = None
+                        except StepFailure as err:
+                            stats, failure = None, str(err)
+                        bad = model.first_bad_node(self.x) if failure is None else None
+                        wp.synchronize_device(self.device)
+                        dt_wall = time.perf_counter() - t0
+                        c["wall_time"] += dt_wall
+                        if n == first_step + 1:
+                            first_time = dt_wall
+                        if stats is not None:
+                            c["rhs_evals"] += stats.rhs_evals
+                            for k, it in stats.iterations.items():
+                                c["iterations"][k] = c["iterations"].get(k, 0) + it
+                        if bad is not None or failure is not None:
+                            blowup = self._blowup_message(n, bad) if failure is None else (
+                                f"step {n} failed (model time {n * s.dt / DAY:.4f} days): {failure}"
+                            )
+                            if n - 1 not in out_steps:
+                                record(n - 1, self.last_good)
+                            if writer is not None:
+                                writer.set_attrs(blowup=blowup)
+                            break
+                        self.step = n
+                        if n in out_steps:
+                            record(n)
+                        if n in ck_steps:
+                            save_restart()
+                        bar.update(1)
+                        if n % 50 == 0 or n == s.nsteps:
+                            bar.set_postfix(day=f"{n * s.dt / DAY:.2f}", sim_days_per_s=f"{n * s.dt / DAY / max(c['wall_time'], 1e-9):.3g}")
+                    if interrupted is not None:
+                        if self.step not in out_steps:
+                            record(self.step)
+                        if restart_file is not None and self.step not in ck_steps:
+                            save_restart()
                         if writer is not None:
-                            writer.set_attrs(blowup=blowup)
-                        break
-                    if n in out_steps:
-                        record(n)
-                    bar.update(1)
-                    if n % 50 == 0 or n == s.nsteps:
-                        bar.set_postfix(day=f"{n * s.dt / DAY:.2f}", sim_days_per_s=f"{n * s.dt / DAY / max(wall, 1e-9):.3g}")
+                            writer.set_attrs(interrupted=signal.Signals(interrupted).name, interrupted_at_step=self.step,
+                                             interrupted_at_day=self.step * s.dt / DAY)
         except BaseException:
             if writer is not None:
                 writer.abort()
             raise
         finally:
             limits.restore_original_limits()
+            for sig, handler in handlers.items():
+                signal.signal(sig, handler)
         if writer is not None:
             writer.close()
         result = RunResult(
-            steps=n if blowup is None else n - 1,
-            rhs_evals=rhs_evals,
-            wall_time=wall,
+            steps=self.step,
+            rhs_evals=c["rhs_evals"],
+            wall_time=c["wall_time"],
             setup_time=self.setup_time,
             diagnostics=history[-1],
             courant=courant,
             output=output,
             blowup=blowup,
             history=history,
-            iterations=iterations,
+            iterations=dict(c["iterations"]),
+            compile_time=self._compile[0],
+            first_step_time=first_time,
+            first_step=first_step,
+            loop_time=c["wall_time"] - wall0,
+            checkpoint=written[0],
         )
         if blowup is not None:
             err = BlowUp(blowup)
             err.result = result
+            raise err
+        if interrupted is not None:
+            name = signal.Signals(interrupted).name
+            where = f"; restart file {written[0]}" if written[0] is not None else ""
+            err = Interrupted(
+                f"interrupted by {name} at step {self.step} (model time {self.step * s.dt / DAY:.4f} days); "
+                f"output so far in {output}{where}"
+            )
+            err.signum, err.result, err.checkpoint = interrupted, result, written[0]
             raise err
         return result
 

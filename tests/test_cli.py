@@ -178,16 +178,17 @@ def test_run_writes_a_complete_netcdf_file(which, tc2_run, tc5_run):
             assert "l2_h" not in ds  # no exact solution for TC5
 
 
-def test_time_has_cf_units_and_whole_days(tc2_run):
+def test_time_is_plain_model_days(tc2_run):
+    """time in days (units "days", no calendar): xarray leaves it numeric, so
+    ``.sel(time=1)`` and ``.plot()`` work without cftime or nc-time-axis."""
     _, out = tc2_run
-    with xr.open_dataset(out, decode_times=False) as ds:
-        units = ds.time.attrs["units"]
-        assert re.fullmatch(r"(days|hours|minutes|seconds) since \d{1,4}-\d{1,2}-\d{1,2}( [\d:]+)?", units), units
-        assert ds.time.attrs.get("calendar")
-        scale = {"days": 1.0, "hours": 1 / 24, "minutes": 1 / 1440, "seconds": 1 / 86400}[units.split()[0]]
-        np.testing.assert_allclose(ds.time.values * scale, [0.0, 1.0], atol=1e-12)
-    with xr.open_dataset(out) as ds:  # decodes with the CF units
-        assert ds.time.size == 2
+    with xr.open_dataset(out) as ds:
+        assert ds.time.attrs["units"] == "days" and "calendar" not in ds.time.attrs
+        assert ds.time.dtype == np.float64
+        np.testing.assert_allclose(ds.time.values, [0.0, 1.0], atol=1e-12)
+        assert ds.h.sel(time=1).shape == (ds.sizes["ncol"],)
+        assert ds.mass_change.sel(time=1) == ds.mass_change.values[-1]
+        assert "swe-sphere run tc2_steady" in ds.attrs["history"]
 
 
 def test_output_file_never_exists_while_writing(monkeypatch, capsys, tmp_path):
@@ -207,24 +208,28 @@ def test_output_file_never_exists_while_writing(monkeypatch, capsys, tmp_path):
     assert out.is_file() and nc_files(tmp_path) == [out]
 
 
-def test_an_interrupted_run_leaves_no_file(monkeypatch, capsys, tmp_path):
+def test_an_internal_failure_is_one_line_and_leaves_no_file(monkeypatch, capsys, tmp_path):
+    """An unexpected exception mid-run: exit 1, one line naming it, no file; --debug re-raises it."""
     out = tmp_path / "run.nc"
     calls = []
     original = RunWriter.append
 
-    class Interrupted(Exception):
+    class Broken(Exception):
         pass
 
     def failing_append(self, *args, **kwargs):
         calls.append(1)
-        if len(calls) == 2:
-            raise Interrupted
+        if len(calls) % 2 == 0:
+            raise Broken("disk on fire")
         return original(self, *args, **kwargs)
 
     monkeypatch.setattr(RunWriter, "append", failing_append)
-    with pytest.raises(Interrupted):
-        main(["run", "tc2_steady", *TINY, "--days", "2", "--output", str(out)])
-    capsys.readouterr()
+    code = main(["run", "tc2_steady", *TINY, "--days", "2", "--output", str(out)])
+    err = capsys.readouterr().err
+    assert code == 1 and stderr_lines(err) == ["swe-sphere: error: internal error: Broken: disk on fire (run with --debug for the traceback)"]
+    assert nc_files(tmp_path) == []
+    with pytest.raises(Broken):
+        main(["run", "tc2_steady", *TINY, "--days", "2", "--output", str(out), "--debug"])
     assert nc_files(tmp_path) == []
 
 

@@ -1,0 +1,93 @@
+"""The machine a run meets: Warp initialised quietly, the device chosen, memory
+estimated before anything large is allocated.
+
+Memory figures are from ``benchmarks/memory.py`` (tc5_mountain ne = 60 np = 4,
+leapfrog_trapezoidal): a run's resident memory above the import baseline is
+about 1 020 bytes per element-local node (state, metric, model and stepper work
+arrays, the host grid and its construction temporaries, output buffers). The
+semi-implicit and implicit steppers add their own buffers (below).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+RUN_BYTES_PER_NODE = 1100  # measured 1 020 (benchmarks/README.md, "Memory"), rounded up
+STEPPER_BYTES_PER_NODE = {
+    "semi_implicit": 400,  # ~10 more (k, N) rows and the Helmholtz CG's unique-node vectors
+    "implicit": 1200,  # 13 (3, N) buffers, 6 unique-node vectors and a GMRES basis of 30
+}
+
+
+class ResourceError(RuntimeError):
+    """The machine cannot do what was asked (too little memory); the message says how much is needed."""
+
+
+def init_warp(verbose: bool = False):
+    """Import and initialise Warp. Unless ``verbose``, without its banner, its
+    per-module load lines and the CUDA-driver warning its native code prints to
+    stderr on machines without a GPU (below Python's reach: fd 2 is closed
+    around ``wp.init``). Returns the ``warp`` module."""
+    import warp as wp
+
+    if verbose:
+        wp.init()
+        return wp
+    wp.config.quiet = True  # Warp < 1.10
+    if hasattr(wp, "LOG_ERROR"):
+        wp.config.log_level = wp.LOG_ERROR
+    sys.stderr.flush()
+    saved, null = os.dup(2), os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, 2)
+        wp.init()
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(null)
+    return wp
+
+
+def pick_device(requested: str | None = None, *, verbose: bool = False) -> str:
+    """The Warp device to run on: ``requested`` ("cpu" | "cuda"), else CUDA when
+    present. Raises ValueError when CUDA is asked for and absent."""
+    wp = init_warp(verbose)
+    from .model import default_device
+
+    device = requested or default_device()
+    if device == "cuda" and not wp.is_cuda_available():
+        raise ValueError("device cuda is not available on this machine (use --device cpu)")
+    return device
+
+
+def available_memory() -> int:
+    """Bytes the process may still allocate: MemAvailable (Linux), else physical memory."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_AVPHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return 1 << 62  # unknown: do not refuse
+
+
+def run_bytes(ne: int, np_: int, stepper: str) -> int:
+    """Estimated bytes of a run on the grid ne × np with ``stepper``."""
+    nodes = 6 * ne * ne * np_ * np_
+    return nodes * (RUN_BYTES_PER_NODE + STEPPER_BYTES_PER_NODE.get(stepper, 0))
+
+
+def check_memory(need: int, what: str) -> None:
+    """Raise ``ResourceError`` (one line) when ``need`` bytes exceed the available memory."""
+    have = available_memory()
+    if need > have:
+        raise ResourceError(f"{what} needs about {_gib(need)} of memory; {_gib(have)} is available")
+
+
+def _gib(n: int) -> str:
+    return f"{n / 2**30:.3g} GiB"

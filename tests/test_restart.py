@@ -1,0 +1,223 @@
+"""Restart files, interrupts and exclusive outputs.
+
+A continued run is bitwise the uninterrupted one for every registered stepper
+(and BDF2); a checkpoint of another grid, scene or version is refused with one
+line; SIGINT / SIGTERM sent to a real ``swe-sphere run`` leave a valid output
+and a restart file that continues bitwise; outputs are never overwritten
+without --overwrite, never written through a symlink, and never by two writers.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import netCDF4
+import numpy as np
+import pytest
+import xarray as xr
+
+from conftest import make_sim, write_tc2_scene
+from swe_sphere import __version__
+from swe_sphere import checkpoint as ckpt
+from swe_sphere.cli import main
+from swe_sphere.config import load_scene
+from swe_sphere.constants import DAY
+from swe_sphere.output import ExclusiveFile, OutputError
+from swe_sphere.simulation import Simulation
+from swe_sphere.steppers import STEPPERS
+
+VARIANTS = [(name, {}) for name in STEPPERS] + [("implicit", {"method": "bdf2"})]
+DT = 1800.0
+
+
+def tc2(stepper, options=None, steps=6, every_steps=None):
+    """TC2 on ne = 2 np = 4, ``steps`` steps of 30 min (output every ``every_steps``)."""
+    scene = load_scene("tc2_steady", ne=2, np=4, dt=DT, days=steps * DT / DAY, stepper=stepper)
+    every = (every_steps or steps) * DT / DAY
+    return dataclasses.replace(scene, stepper_options=dict(options or {}), output_every_days=every)
+
+
+@pytest.mark.parametrize("name, options", VARIANTS, ids=[n + "".join(f"-{v}" for v in o.values()) for n, o in VARIANTS])
+def test_continued_run_is_bitwise_the_uninterrupted_one(tmp_path, name, options):
+    """6 steps straight against 3 steps + restart file + a fresh Simulation from it
+    for 3 more: the final state, the last output record and its diagnostics
+    (relative changes against the original t = 0) are the same bits."""
+    whole = make_sim(tc2(name, options, 6, 3))
+    whole.run(tmp_path / "whole.nc")
+    half = make_sim(tc2(name, options, 3, 3))
+    r = half.run(tmp_path / "half.nc", restart_every=3 * DT / DAY)
+    assert r.checkpoint == tmp_path / "half.restart.nc" and r.checkpoint.is_file()
+    cont = Simulation.from_checkpoint(r.checkpoint, "cpu", days=6 * DT / DAY, progress=False)
+    assert cont.step == 3 and cont.scene == whole.scene
+    cont.run(tmp_path / "cont.nc")
+    np.testing.assert_array_equal(cont.x.numpy(), whole.x.numpy())
+    with xr.open_dataset(tmp_path / "whole.nc") as a, xr.open_dataset(tmp_path / "cont.nc") as b:
+        assert list(b.time.values) == [3 * DT / DAY, 6 * DT / DAY]
+        assert b.attrs["continued_from_day"] == 3 * DT / DAY
+        for v in ("h", "u", "v", "vorticity", "mass_change", "total_energy_change", "l2_h", "rhs_evals", "steps"):
+            np.testing.assert_array_equal(b[v].sel(time=6 * DT / DAY).values, a[v].sel(time=6 * DT / DAY).values, err_msg=v)
+
+
+def test_checkpoint_contents_and_refusals(tmp_path):
+    sim = make_sim(tc2("leapfrog", steps=2))
+    r = sim.run(tmp_path / "run.nc", restart_every=2 * DT / DAY)
+    with netCDF4.Dataset(r.checkpoint) as ds:
+        assert ds.swe_sphere_version == __version__
+        assert ds.step == 2 and ds.stepper_steps == 2
+        assert ds["stepper_previous"].shape == ds["x"].shape == (3, sim.model.N)
+        assert json.loads(ds.scene)["stepper"] == "leapfrog"
+    # another version
+    bad = tmp_path / "old.restart.nc"
+    bad.write_bytes(r.checkpoint.read_bytes())
+    with netCDF4.Dataset(bad, "a") as ds:
+        ds.swe_sphere_version = "0.0.1"
+    with pytest.raises(ckpt.CheckpointError, match=f"written by swe_sphere 0.0.1; this is {__version__}"):
+        ckpt.read(bad)
+    # a run file is not a checkpoint; a text file is not netCDF
+    with pytest.raises(ckpt.CheckpointError, match="not a swe_sphere checkpoint"):
+        ckpt.read(tmp_path / "run.nc")
+    (tmp_path / "junk.nc").write_text("junk")
+    with pytest.raises(ckpt.CheckpointError, match="not a readable netCDF file"):
+        ckpt.read(tmp_path / "junk.nc")
+    # a state of another grid does not fit
+    other = make_sim(dataclasses.replace(tc2("leapfrog"), ne=3))
+    with pytest.raises(ckpt.CheckpointError, match="shape"):
+        other.restore(ckpt.read(r.checkpoint))
+
+
+def test_cli_restart_every_and_continue(tmp_path, capsys):
+    """Through the CLI: a 2-day run with a restart file every day, cut at day 1 and
+    continued to day 2, ends on the same bits; a changed grid, scene or stepper is
+    refused with one line, exit 2."""
+    scene = write_tc2_scene(tmp_path / "s.toml", stepper="leapfrog_trapezoidal", ne=2, dt=DT, days=2.0)
+    args = ["run", str(scene), "--device", "cpu", "--no-progress"]
+    assert main([*args, "--output", str(tmp_path / "full.nc")]) == 0
+    assert main([*args, "--days", "1", "--output", str(tmp_path / "cut.nc"), "--restart-every", "1"]) == 0
+    ck = tmp_path / "cut.restart.nc"
+    capsys.readouterr()
+    assert main(["run", "--continue", str(ck), "--days", "2", "--no-progress", "--device", "cpu"]) == 0
+    out = capsys.readouterr().out
+    assert "from " + str(ck) in out and "compile" in out and "ms/step" in out
+    with xr.open_dataset(tmp_path / "full.nc") as a, xr.open_dataset(tmp_path / "cut_continued.nc") as b:
+        np.testing.assert_array_equal(a.h.sel(time=2).values, b.h.sel(time=2).values)
+        np.testing.assert_array_equal(a.u.sel(time=2).values, b.u.sel(time=2).values)
+    for extra, word in ((["--ne", "3"], "ne = 2"), (["--stepper", "rk4"], "stepper = leapfrog_trapezoidal"),
+                        (["tc2_steady"], "another scene")):
+        code = main(["run", "--continue", str(ck), *extra, "--output", str(tmp_path / "x.nc"), "--device", "cpu"])
+        err = capsys.readouterr().err
+        assert code == 2 and word in err and len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "x.nc").exists()
+
+
+# -- signals, through a real process -------------------------------------------
+
+
+def _run_and_signal(tmp_path, sig):
+    """Start ``swe-sphere run`` (TC2, ne = 2, 60 s steps for 20 days) in a child
+    process, wait until it is stepping, send ``sig``; returns (process, output)."""
+    scene = write_tc2_scene(tmp_path / "long.toml", stepper="leapfrog", ne=2, dt=60.0, days=20.0)
+    out = tmp_path / "long.nc"
+    env = {**os.environ, "SWE_SPHERE_THREADS": "1"}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "swe_sphere.cli", "run", str(scene), "--device", "cpu", "--output", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=tmp_path,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # even if our runner ignores SIGINT
+    )
+    # the progress bar's first update is written once the loop runs
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not (tmp_path / "long.nc.part").exists():
+        time.sleep(0.1)
+    time.sleep(1.5)
+    proc.send_signal(sig)
+    stdout, stderr = proc.communicate(timeout=120)
+    return proc.returncode, stdout, stderr, out
+
+
+@pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)], ids=["SIGINT", "SIGTERM"])
+def test_signal_keeps_output_and_a_restart_file_that_continues_bitwise(tmp_path, sig, code):
+    rc, stdout, stderr, out = _run_and_signal(tmp_path, sig)
+    lines = [line for line in stderr.splitlines() if line.strip() and "step/s" not in line and "%|" not in line]
+    assert rc == code, stderr
+    assert len(lines) == 1 and f"interrupted by {sig.name}" in lines[0] and "Traceback" not in stderr, stderr
+    ck = tmp_path / "long.restart.nc"
+    assert out.is_file() and ck.is_file() and not (tmp_path / "long.nc.part").exists()
+    with xr.open_dataset(out) as ds:
+        step = int(ds.attrs["interrupted_at_step"])
+        assert ds.attrs["interrupted"] == sig.name
+        assert ds.attrs["interrupted_at_day"] == pytest.approx(step * 60.0 / DAY)
+        assert 0 < step < 28800
+        assert float(ds.time[-1]) == pytest.approx(step * 60.0 / DAY)
+        h_last = ds.h.values[-1]
+    # continue 30 more steps, and run the same 30 + step straight: the same bits
+    end_days = (step + 30) * 60.0 / DAY
+    cont = Simulation.from_checkpoint(ck, "cpu", days=end_days, progress=False)
+    np.testing.assert_array_equal(cont.grid.to_unique(cont.x.numpy()[2]), h_last)
+    cont.run(None)
+    straight = make_sim(load_scene(tmp_path / "long.toml", days=end_days))
+    straight.run(None)
+    np.testing.assert_array_equal(cont.x.numpy(), straight.x.numpy())
+
+
+# -- exclusive outputs -----------------------------------------------------------
+
+
+def test_output_is_never_overwritten_or_written_through_links(tmp_path, capsys):
+    scene = write_tc2_scene(tmp_path / "s.toml", stepper="ssprk3", ne=2, dt=DT, days=0.25)
+    run = ["run", str(scene), "--device", "cpu", "--no-progress", "--output"]
+    out = tmp_path / "a.nc"
+    out.write_text("precious")
+    assert main([*run, str(out)]) == 2
+    assert "output file exists" in capsys.readouterr().err and out.read_text() == "precious"
+    assert main([*run, str(out), "--overwrite"]) == 0
+    with xr.open_dataset(out) as ds:
+        assert ds.sizes["time"] == 2
+    target = tmp_path / "target.nc"
+    target.write_text("target")
+    link = tmp_path / "link.nc"
+    link.symlink_to(target)
+    for extra in ([], ["--overwrite"]):
+        assert main([*run, str(link), *extra]) == 2
+        assert "symbolic link" in capsys.readouterr().err
+    assert link.is_symlink() and target.read_text() == "target"
+    fifo = tmp_path / "fifo.nc"
+    os.mkfifo(fifo)
+    assert main([*run, str(fifo), "--overwrite"]) == 2
+    assert "not a regular file" in capsys.readouterr().err
+    ro = tmp_path / "ro.nc"
+    ro.write_text("ro")
+    ro.chmod(0o444)
+    if not os.access(ro, os.W_OK):  # root may write anyway
+        assert main([*run, str(ro), "--overwrite"]) == 2
+        assert "read-only" in capsys.readouterr().err
+    # remap refuses an existing output too
+    (tmp_path / "r.nc").write_text("keep")
+    assert main(["remap", str(out), "--output", str(tmp_path / "r.nc")]) == 2
+    assert (tmp_path / "r.nc").read_text() == "keep"
+
+
+def test_concurrent_writers(tmp_path, capsys):
+    """While one writer holds ``a.nc.part`` (O_EXCL), a second run to ``a.nc`` gets one
+    line and exit 2 and touches nothing; the first then finishes a valid file."""
+    scene = write_tc2_scene(tmp_path / "s.toml", stepper="ssprk3", ne=2, dt=DT, days=0.25)
+    out = tmp_path / "a.nc"
+    first = make_sim(load_scene(scene))
+    from swe_sphere.output import RunWriter
+
+    writer = RunWriter(out, first.grid, first.hs, {"title": "first"}, ["mass"])
+    code = main(["run", str(scene), "--device", "cpu", "--no-progress", "--output", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and "another run is writing" in err and len(err.strip().splitlines()) == 1
+    writer.append(0.0, *first.fields(), {"mass": 1.0})
+    writer.close()
+    with xr.open_dataset(out) as ds:
+        assert ds.attrs["title"] == "first" and ds.sizes["time"] == 1
+    with pytest.raises(OutputError, match="another run is writing"):
+        with ExclusiveFile(tmp_path / "b.nc"):
+            ExclusiveFile(tmp_path / "b.nc")

@@ -259,7 +259,10 @@ def _cmd_run(args) -> int:
         print(f"continue    from {args.continue_from} at step {sim.step} (day {sim.step * scene.dt / 86400:g})")
     grav = "" if math.isnan(c["courant_gravity"]) else f", gravity-wave {c['courant_gravity']:.3f}"
     print(f"Courant     advective {c['courant_advective']:.3f}{grav} (max over nodes at t = {sim.step * scene.dt / 86400:g} d)")
-    for note in scene.notes:
+    warning = sim.stability_warning()
+    for note in (*scene.notes, *([warning] if warning else [])):
+        if note.startswith("warning: "):
+            print(f"swe-sphere: {note}", file=sys.stderr)  # seen even with stdout redirected
         print(f"note        {note}")
     print(f"output      {output} (every {scene.output_every_days:g} days)")
     if args.restart_every is not None:

@@ -418,7 +418,10 @@ def check_comparable(ds, diff, diff_path) -> None:
     if isinstance(diff, _Run):
         other = _run_identity(diff.ds)
         if (case, params) != other[:2]:
-            raise ValueError(f"{diff.label} is a run of case {other[0]} {other[1] or ''}, not {case} {params or ''} (--force to compare anyway)")
+            def label(c, p):
+                return c + "".join(f" {k}={v}" for k, v in p.items())
+
+            raise ValueError(f"{diff.label} is a run of case {label(*other[:2])}, not {label(case, params)} (--force to compare anyway)")
         if (ne, np_) != other[2:]:
             raise ValueError(f"{diff.label} is a run on ne={other[2]} np={other[3]}, not ne={ne} np={np_} (--force to compare anyway)")
     elif Path(diff_path).name in _FILES.values():

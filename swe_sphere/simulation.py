@@ -192,6 +192,17 @@ class Simulation:
         out.update({f"ref_{k}_wind": val for k, val in williamson_vector_norms(self.grid, u, v, r["u"], r["v"]).items()})
         return out
 
+    def stability_warning(self) -> str | None:
+        """A one-line warning when an explicit stepper's Δt exceeds its measured
+        stability limit (``Stepper.courant_limit``) on the current state, else None."""
+        limit = type(self.stepper).courant_limit
+        c = self.courant()
+        speed = c["courant_advective"] + (0.0 if math.isnan(c["courant_gravity"]) else c["courant_gravity"])
+        if limit is None or speed <= limit:
+            return None
+        return (f"warning: dt = {self.scene.dt:g} s gives a Courant number (|v| + sqrt(g h)) dt/dx of {speed:.3g}, above "
+                f"{self.scene.stepper}'s stability limit of about {limit:g}; expect a blow-up (dt <= {self.scene.dt * limit / speed:.4g} s)")
+
     def courant(self) -> dict:
         """Advective and gravity-wave Courant numbers of the scene's dt on the current state."""
         return courant_numbers(self.grid, *self.fields(), self.scene.dt, self.g, "pressure_gradient" in self.scene.terms)

@@ -191,3 +191,18 @@ def test_compress_stores_float32(tmp_path):
         assert c.h.encoding["dtype"] == np.float32 and c.h.encoding["zlib"]
         assert f.h.encoding["dtype"] == np.float64
         np.testing.assert_allclose(c.h.values, f.h.values, rtol=1e-7)
+
+
+def test_explicit_dt_above_the_stability_limit_warns(tmp_path):
+    """leapfrog on TC2 ne = 2: dt = 3600 s (Courant sum 0.77 > 0.58) warns and does blow
+    up; dt = 1800 s (0.38) neither warns nor blows up."""
+    from conftest import make_sim, run
+
+    fast = make_sim(load_scene(write_tc2_scene(tmp_path / "a.toml", stepper="leapfrog", dt=3600.0, days=2.0)))
+    warning = fast.stability_warning()
+    assert warning is not None and "leapfrog's stability limit of about 0.58" in warning
+    slow = load_scene(write_tc2_scene(tmp_path / "b.toml", stepper="leapfrog", dt=1800.0, days=2.0))
+    assert make_sim(slow).stability_warning() is None
+    assert run(fast.scene)[0].blowup is not None
+    assert run(slow)[0].blowup is None
+    assert make_sim(dataclasses.replace(slow, stepper="implicit", dt=7200.0)).stability_warning() is None

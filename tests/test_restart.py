@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from conftest import make_sim, write_tc2_scene
+from conftest import make_sim, requires_cuda, write_tc2_scene
 from swe_sphere import __version__
 from swe_sphere import checkpoint as ckpt
 from swe_sphere.cli import main
@@ -63,6 +63,18 @@ def test_continued_run_is_bitwise_the_uninterrupted_one(tmp_path, name, options)
         assert b.attrs["continued_from_day"] == 3 * DT / DAY
         for v in ("h", "u", "v", "vorticity", "mass_change", "total_energy_change", "l2_h", "rhs_evals", "steps"):
             np.testing.assert_array_equal(b[v].sel(time=6 * DT / DAY).values, a[v].sel(time=6 * DT / DAY).values, err_msg=v)
+
+
+@requires_cuda
+@pytest.mark.parametrize("name, options", VARIANTS, ids=[n + "".join(f"-{v}" for v in o.values()) for n, o in VARIANTS])
+def test_continued_run_is_bitwise_on_cuda(tmp_path, name, options):
+    whole = Simulation(tc2(name, options, 6), "cuda", progress=False)
+    whole.run(None)
+    half = Simulation(tc2(name, options, 3), "cuda", progress=False)
+    r = half.run(tmp_path / "half.nc", restart_every=3 * DT / DAY)
+    cont = Simulation.from_checkpoint(r.checkpoint, "cuda", days=6 * DT / DAY, progress=False)
+    cont.run(None)
+    np.testing.assert_array_equal(cont.x.numpy(), whole.x.numpy())
 
 
 def test_checkpoint_contents_and_refusals(tmp_path):

@@ -57,12 +57,18 @@ class Stepper:
     ``Options`` (a frozen dataclass; its ``__post_init__`` raises ValueError
     "<option> must ..."), ``explicit`` (True: stable only below a Courant
     limit), ``solvers`` (names of the iteration counts in StepStats) and
-    implement ``advance(x)``; those with history extend ``state``/``restore``.
+    implement ``advance(x)``; those with history extend ``state``/``restore``;
+    explicit ones set ``courant_limit``.
     """
 
     name = ""
     Options: type = NoOptions
     explicit = False
+    # explicit steppers: the largest stable (|v| + sqrt(g h)) Δt / Δx at t = 0, Δx the
+    # nearest-node distance: the smallest of bisections on TC2 (5 days) at ne 4 np 4,
+    # ne 8 np 4 and ne 3 np 6 (leapfrog 0.618 / 0.580 / 0.646, leapfrog_trapezoidal
+    # 0.926 / 0.883 / 1.005, ssprk3 1.195 / 1.108 / 1.242, rk4 1.853 / 1.726 / 1.919)
+    courant_limit: float | None = None
     solvers: tuple[str, ...] = ()
 
     @classmethod

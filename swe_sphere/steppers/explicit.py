@@ -17,6 +17,7 @@ class SSPRK3(Stepper):
 
     name = "ssprk3"
     explicit = True
+    courant_limit = 1.11
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
@@ -49,6 +50,7 @@ class RK4(Stepper):
 
     name = "rk4"
     explicit = True
+    courant_limit = 1.73
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
@@ -142,6 +144,7 @@ class Leapfrog(_LeapfrogFamily):
 
     name = "leapfrog"
     Options = LeapfrogOptions
+    courant_limit = 0.58
 
     def _record_scheme(self, x):
         eps = self.options.robert_asselin
@@ -165,6 +168,7 @@ class LeapfrogTrapezoidal(_LeapfrogFamily):
     the computational mode. Hyperviscosity over Δt. 2 RHS evaluations per step."""
 
     name = "leapfrog_trapezoidal"
+    courant_limit = 0.88
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)

@@ -64,6 +64,7 @@ class SemiImplicit(Leapfrog):
     name = "semi_implicit"
     Options = SemiImplicitOptions
     explicit = False
+    courant_limit = None
     solvers = ("cg",)
 
     def __init__(self, model, dt, options=None):

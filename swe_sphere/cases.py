@@ -50,6 +50,7 @@ class Case:
     # the full shallow-water dynamics unless the case says less is valid
     required_terms = frozenset({"continuity", "momentum_advection", "coriolis", "pressure_gradient"})
     h_is_depth = True  # False: h is a tracer carried by a prescribed wind (TC1)
+    reference_file = None  # name of its T213 reference under testcases/reference/, if any
 
     def fcor(self, lat, lon):
         return 2 * self.planet.omega * np.sin(lat)
@@ -143,6 +144,7 @@ class Mountain(Case):
     """Case 5: zonal flow over an isolated conical mountain (eqs. 130–135, α = 0)."""
 
     required_terms = Case.required_terms | {"topography"}
+    reference_file = "tc5_mountain_T213.nc"
 
     u0: float = 20.0
     h0: float = 5960.0
@@ -164,6 +166,8 @@ class Mountain(Case):
 @dataclass(frozen=True)
 class RossbyHaurwitz(Case):
     """Case 6: Rossby–Haurwitz wave of wavenumber R = 4 (eqs. 143–146)."""
+
+    reference_file = "tc6_rossby_haurwitz_T213.nc"
 
     omega_w: float = 7.848e-6
     K: float = 7.848e-6
@@ -192,6 +196,7 @@ class Galewsky(Case):
 
     perturbed: bool = True
     umax: float = 80.0
+
     lat0: float = math.pi / 7
     lat1: float = math.pi / 2 - math.pi / 7
     mean_depth: float = 10000.0
@@ -199,6 +204,10 @@ class Galewsky(Case):
     alpha_p: float = 1.0 / 3.0
     beta_p: float = 1.0 / 15.0
     lat2: float = math.pi / 4
+
+    @property
+    def reference_file(self):
+        return "galewsky_T213.nc" if self.perturbed else "galewsky_balanced_T213.nc"
 
     def jet(self, lat):
         en = math.exp(-4.0 / (self.lat1 - self.lat0) ** 2)

@@ -114,6 +114,10 @@ class ExclusiveFile:
             os.link(self.tmp, self.path)  # fails if the target appeared meanwhile
         except FileExistsError:
             raise OutputError(f"{self.path} appeared while it was written; the result is kept in {self.tmp}") from None
+        except OSError:  # a file system without hard links: check, then rename
+            check_target(self.path, False)
+            os.rename(self.tmp, self.path)
+            return
         os.unlink(self.tmp)
 
     def discard(self) -> None:

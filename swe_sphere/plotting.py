@@ -412,7 +412,7 @@ def _run_identity(ds) -> tuple[str, dict, int, int]:
 def check_comparable(ds, diff, diff_path) -> None:
     """Refuse (ValueError) a ``--diff`` against a run of another case (or case
     parameters) or grid, or against the T213 reference of another case."""
-    from .reference import _FILES, find_reference
+    from .cases import make_case
 
     case, params, ne, np_ = _run_identity(ds)
     if isinstance(diff, _Run):
@@ -424,10 +424,13 @@ def check_comparable(ds, diff, diff_path) -> None:
             raise ValueError(f"{diff.label} is a run of case {label(*other[:2])}, not {label(case, params)} (--force to compare anyway)")
         if (ne, np_) != other[2:]:
             raise ValueError(f"{diff.label} is a run on ne={other[2]} np={other[3]}, not ne={ne} np={np_} (--force to compare anyway)")
-    elif Path(diff_path).name in _FILES.values():
-        mine = find_reference(case, params.get("perturbed", True))
-        if mine is None or mine.name != Path(diff_path).name:
-            raise ValueError(f"{diff.label} is the T213 reference of another case than {case} (--force to compare anyway)")
+    else:
+        try:
+            expected = make_case(case, params).reference_file
+        except ValueError:  # a run file without a scene this version knows: nothing to check against
+            return
+        if expected != Path(diff_path).name:
+            raise ValueError(f"{diff.label} is not the T213 reference of case {case} (--force to compare anyway)")
 
 
 def plot_run(run_path, fields=("h_surface",), days=None, diff_path=None, outdir=".", lat_range=None, *, force=False) -> list[Path]:

@@ -19,14 +19,6 @@ _VARIABLES = ("lat", "lon", "time", "h_surface", "hs", "u", "v")
 _PAD = 6  # grid rows/columns added across each pole and each longitude edge
 _DAY_TOL = 1e-6
 
-_FILES = {
-    ("tc5_mountain", True): "tc5_mountain_T213.nc",
-    ("tc6_rossby_haurwitz", True): "tc6_rossby_haurwitz_T213.nc",
-    ("galewsky", True): "galewsky_T213.nc",
-    ("galewsky", False): "galewsky_balanced_T213.nc",
-}
-
-
 class Reference:
     """T213 reference solution read from one netCDF file.
 
@@ -117,8 +109,16 @@ class Reference:
         return out
 
 
+def reference_path(case) -> Path | None:
+    """The installed reference file of a case object (``Case.reference_file``), or None."""
+    if case.reference_file is None:
+        return None
+    path = Path(str(importlib.resources.files("swe_sphere.testcases") / "reference" / case.reference_file))
+    return path if path.is_file() else None
+
+
 def find_reference(case_name: str, perturbed: bool = True) -> Path | None:
-    """Bundled reference file for a case name, or None.
+    """Bundled reference file of a case (``Case.reference_file``), or None.
 
     'tc5_mountain' → ``testcases/reference/tc5_mountain_T213.nc``,
     'tc6_rossby_haurwitz' → ``tc6_rossby_haurwitz_T213.nc``, 'galewsky' →
@@ -126,8 +126,6 @@ def find_reference(case_name: str, perturbed: bool = True) -> Path | None:
     False. None for other cases, and if the file is not installed. The folder is
     ``importlib.resources.files('swe_sphere.testcases') / 'reference'``.
     """
-    name = _FILES.get((case_name, bool(perturbed) if case_name == "galewsky" else True))
-    if name is None:
-        return None
-    path = Path(str(importlib.resources.files("swe_sphere.testcases") / "reference" / name))
-    return path if path.is_file() else None
+    from .cases import make_case
+
+    return reference_path(make_case(case_name, {"perturbed": bool(perturbed)} if case_name == "galewsky" else {}))

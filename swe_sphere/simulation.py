@@ -24,7 +24,7 @@ from .diagnostics import courant_numbers, invariants, williamson_norms, williams
 from .grid import CubedSphere
 from .model import ShallowWater
 from .output import RunWriter, check_target
-from .reference import Reference, find_reference
+from .reference import Reference, reference_path
 from .runtime import check_memory, run_bytes
 from .steppers import StepFailure, make_stepper
 
@@ -118,7 +118,7 @@ class Simulation:
             grid, scene.terms, self.fcor, self.hs, nu=scene.nu, hypervis_subcycle=scene.hypervis_subcycle, g=self.g, device=device
         )
         self.stepper = make_stepper(scene.stepper, self.model, scene.dt, **scene.stepper_options)
-        ref_path = find_reference(scene.case, scene.case_params.get("perturbed", True))
+        ref_path = reference_path(case)
         self.reference = Reference(ref_path) if ref_path is not None else None
         u, v, h = case.initial(grid.lat, grid.lon)
         self.x = self.model.new_state(u, v, h)
@@ -379,11 +379,9 @@ class Simulation:
             raise err
         if interrupted is not None:
             name = signal.Signals(interrupted).name
-            where = f"; restart file {written[0]}" if written[0] is not None else ""
-            err = Interrupted(
-                f"interrupted by {name} at step {self.step} (model time {self.step * s.dt / DAY:.4f} days); "
-                f"output so far in {output}{where}"
-            )
+            kept = [f"output so far in {output}"] if output is not None else []
+            kept += [f"restart file {written[0]}"] if written[0] is not None else []
+            err = Interrupted("; ".join([f"interrupted by {name} at step {self.step} (model time {self.step * s.dt / DAY:.4f} days)", *kept]))
             err.signum, err.result, err.checkpoint = interrupted, result, written[0]
             raise err
         return result

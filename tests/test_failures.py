@@ -128,6 +128,10 @@ def test_plot_diff_refuses_another_case_unless_forced(tmp_path, capsys):
     capsys.readouterr()
     one_line(capsys, ["plot", "tc2.nc", "--diff", "tc6.nc", "--output", "png"], 2, "case tc6_rossby_haurwitz", "--force")
     one_line(capsys, ["plot", "tc2.nc", "--diff", "tc2ne3.nc", "--output", "png"], 2, "ne=3 np=4", "--force")
+    from swe_sphere.reference import find_reference
+
+    one_line(capsys, ["plot", "tc2.nc", "--diff", str(find_reference("tc5_mountain")), "--output", "png"], 2,
+             "tc5_mountain_T213.nc is not the T213 reference of case tc2_steady")
     assert not (tmp_path / "png").exists()
     assert main(["plot", "tc2.nc", "--diff", "tc6.nc", "--output", "png", "--force"]) == 0
     assert len(list((tmp_path / "png").glob("*.png"))) == 2

@@ -59,18 +59,21 @@ def assemble(
     x: wp.array2d(dtype=f64),
     row: int,
     spheremp: wp.array(dtype=f64),
-    offsets: wp.array(dtype=wp.int32),
-    copies: wp.array(dtype=wp.int32),
+    table: wp.array2d(dtype=wp.int32),
+    first: wp.array(dtype=wp.int32),
     out: wp.array(dtype=f64),
     offset: int,
 ):
-    """Unique-node vector out[g] = Σ_copies c of g spheremp[c]·x[row, c]: the assembled
-    mass matrix times a continuous field (m² × units of x). Dim nunique."""
+    """Unique-node vector out[g] = Σ_copies c of g spheremp[c]·x[row, c] (in the
+    ``dss_table`` order of node first[g]): the assembled mass matrix times a
+    continuous field (m² × units of x). Dim nunique."""
     g = wp.tid() + offset
+    p = first[g]
     s = f64(0.0)
-    for k in range(offsets[g], offsets[g + 1]):
-        c = copies[k]
-        s += spheremp[c] * x[row, c]
+    for k in range(table.shape[1]):
+        c = table[p, k]
+        if c >= 0:
+            s += spheremp[c] * x[row, c]
     out[g] = s
 
 

@@ -17,8 +17,9 @@ import warp as wp
 
 from .constants import EARTH
 from .grid import CubedSphere
-from .kernels import blas, dss, hyperviscosity, operators, tendencies
+from .kernels import blas, hyperviscosity, operators, tendencies
 from .parallel import default_threads, record
+from .topology import Topology
 
 TERMS = (
     "continuity",
@@ -60,6 +61,8 @@ class ShallowWater:
     per_element : the kernels' layout: one thread per element (None: on a CPU
         device, where a launch is a serial loop and the element's data stays
         in cache) or one thread per node (on CUDA). Same results to round-off.
+    topology : the ``Topology`` that assembles the grid's elements (DSS,
+        unique-node vectors, global reductions); None: one over the whole grid.
 
     The state is a ``wp.array2d`` (3, N) of rows u, v (m s⁻¹, east/north) and h
     (fluid depth, m), element-local and continuous (equal on all copies).
@@ -67,7 +70,7 @@ class ShallowWater:
     Raises ``ValueError`` for an unknown term or a negative ν.
     """
 
-    def __init__(self, grid: CubedSphere, terms, fcor, hs, *, nu=0.0, hypervis_subcycle=1, g=EARTH.g, device="cpu", threads=None, per_element=None):
+    def __init__(self, grid: CubedSphere, terms, fcor, hs, *, nu=0.0, hypervis_subcycle=1, g=EARTH.g, device="cpu", threads=None, per_element=None, topology=None):
         terms = tuple(terms)
         for t in terms:
             if t not in TERMS:
@@ -88,10 +91,9 @@ class ShallowWater:
             return wp.array(np.ascontiguousarray(a), dtype=dtype, device=device)
 
         self.D, self.Dinv = up(grid.D), up(grid.Dinv)
-        self.metdet, self.spheremp, self.rspheremp = up(grid.metdet), up(grid.spheremp), up(grid.rspheremp)
+        self.topology = topo = Topology(grid, device, self.threads) if topology is None else topology
+        self.metdet, self.spheremp = up(grid.metdet), topo.spheremp
         self.dvv = up(grid.rule.dvv)
-        self.gid, self.offsets, self.copies = up(grid.gid, wp.int32), up(grid.dss_offsets, wp.int32), up(grid.dss_copies, wp.int32)
-        self.dss_table = up(grid.dss_table, wp.int32)
         self.xyz, self.east, self.north = up(grid.xyz), up(grid.east), up(grid.north)
         self.fcor, self.hs = up(fcor), up(hs)
 
@@ -145,9 +147,7 @@ class ShallowWater:
             launch.launch()
 
     def _dss(self, x, weighted, out):
-        return self._launch(
-            dss.dss_rows(x.shape[0], bool(weighted), self.dss_table.shape[1]), self.N, [x, self.spheremp, self.rspheremp, self.dss_table, out]
-        )
+        return self.topology.dss(x, weighted, out)
 
     # -- right-hand side ----------------------------------------------------
     def _build_rhs(self, x, out):
@@ -162,7 +162,7 @@ class ShallowWater:
             else:
                 kernel = tendencies.tendency(terms)
                 launches.append(self._launch(kernel, self.N, [*args, self.dvv, self.grid.np, self.g, self.tend]))
-        launches.append(self._dss(self.tend, 1, out))
+        launches.extend(self._dss(self.tend, 1, out))
         return launches
 
     def rhs(self, x: wp.array2d, out: wp.array2d) -> None:
@@ -189,7 +189,7 @@ class ShallowWater:
                 kernel = hyperviscosity.laplacian_element(tangent, self.dvv_const)
                 return [
                     self._launch_elements(kernel, [src, self.hs, self.east, self.north, self.xyz, self.Dinv, self.spheremp, L]),
-                    self._dss(L, 0, X),
+                    *self._dss(L, 0, X),
                 ]
 
             return [*laplacian(x, False), *laplacian(X, True), apply()]
@@ -198,7 +198,7 @@ class ShallowWater:
             return [
                 self._launch(operators.laplace_wk_flux, N, [X, self.Dinv, self.spheremp, self.dvv, np_, flux]),
                 self._launch(operators.laplace_wk_div, N, [flux, self.dvv, np_, L]),
-                self._dss(L, 0, X),
+                *self._dss(L, 0, X),
             ]
 
         return [
@@ -218,20 +218,19 @@ class ShallowWater:
             rng = np.random.default_rng(0)
             z = wp.array(rng.standard_normal((3, self.N)), dtype=f64, device=self.device)
             w, zc = wp.zeros_like(z), wp.zeros_like(z)
-            self._dss(z, 1, zc).launch()
+            for launch in self._dss(z, 1, zc):
+                launch.launch()
             lam = 0.0
             hs, self.hs = self.hs, wp.zeros_like(self.hs)  # the operator without the hs offset
             scale = float(self.grid.dx.min()) ** 4  # coef·λ = O(1): w − z keeps its digits
             launches = self._build_hv(w, scale)
             for _ in range(iterations):
-                a = zc.numpy()
-                zc.assign(a / np.linalg.norm(a))
+                zc.assign(zc.numpy() / self.topology.norm(zc))
                 wp.copy(w, zc)
                 for launch in launches:
                     launch.launch()
-                d = (w.numpy() - zc.numpy()) / scale  # ∇⁴ z
-                lam = float(np.linalg.norm(d))
-                zc.assign(d)
+                zc.assign((w.numpy() - zc.numpy()) / scale)  # ∇⁴ z
+                lam = self.topology.norm(zc)
             self.hs = hs
             self._biharmonic_radius = lam
         return self._biharmonic_radius
@@ -265,7 +264,7 @@ class ShallowWater:
                 self._launch_elements(operators.gradient_element(self.dvv_const), [x, row, self.Dinv, self.vec_work])
                 if self.per_element
                 else self._launch(operators.gradient_sphere, self.N, [x, row, self.Dinv, self.dvv, self.grid.np, self.vec_work]),
-                self._dss(self.vec_work, 1, out),
+                *self._dss(self.vec_work, 1, out),
             ],
         )
 
@@ -278,21 +277,17 @@ class ShallowWater:
                 self._launch_elements(operators.divergence_element(self.dvv_const), [x, self.Dinv, self.metdet, self.scalar_flat])
                 if self.per_element
                 else self._launch(operators.divergence_sphere, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.scalar_flat]),
-                self._dss(self.scalar, 1, out),
+                *self._dss(self.scalar, 1, out),
             ],
         )
 
     def assemble(self, x: wp.array2d, row: int, out: wp.array) -> None:
         """Unique-node out (nunique,) = M x[row]: assembled mass times a continuous field."""
-        self._replay(
-            ("assemble", _id(x), row, _id(out)),
-            (x, out),
-            lambda: [self._launch(dss.assemble, self.grid.nunique, [x, row, self.spheremp, self.offsets, self.copies, out])],
-        )
+        self._replay(("assemble", _id(x), row, _id(out)), (x, out), lambda: self.topology.assemble(x, row, out))
 
     def scatter(self, y: wp.array, out: wp.array2d, row: int) -> None:
         """Element-local out[row] from a unique-node vector y."""
-        self._replay(("scatter", _id(y), _id(out), row), (y, out), lambda: [self._launch(dss.scatter, self.N, [y, self.gid, row, out])])
+        self._replay(("scatter", _id(y), _id(out), row), (y, out), lambda: self.topology.scatter(y, out, row))
 
     # -- diagnostics helpers ------------------------------------------------
     def vorticity(self, x: wp.array2d) -> np.ndarray:
@@ -302,7 +297,7 @@ class ShallowWater:
             (x,),
             lambda: [
                 self._launch(operators.vorticity_sphere, self.N, [x, self.D, self.metdet, self.dvv, self.grid.np, self.scalar_flat]),
-                self._dss(self.scalar, 1, self.scalar_dss),
+                *self._dss(self.scalar, 1, self.scalar_dss),
             ],
         )
         return self.scalar_dss.numpy()[0].copy()

@@ -89,8 +89,8 @@ def wp_laplace_wk(m, F):
 def wp_dss(m, x, weighted=True):
     x = w2(x)
     out = wp.zeros(x.shape, dtype=wp.float64, device=DEV)
-    kernel = dss_k.dss_rows(x.shape[0], bool(weighted), m.dss_table.shape[1])
-    wp.launch(kernel, x.shape[1], [x, m.spheremp, m.rspheremp, m.dss_table, out, 0], device=DEV)
+    for launch in m.topology.dss(x, weighted, out):
+        launch.launch()
     return out.numpy()
 
 

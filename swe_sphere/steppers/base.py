@@ -146,7 +146,7 @@ class Stepper:
         launch = self._pointwise_launches.get(key)
         if launch is None:
             m = self.model
-            build = m._launch(kernel, (3, m.grid.nunique), list(inputs)) if unique else m._launch_pointwise(kernel, 3, list(inputs))
+            build = m._launch(kernel, (3, m.topology.nunique), list(inputs)) if unique else m._launch_pointwise(kernel, 3, list(inputs))
             launch = self._pointwise_launches[key] = build
         else:
             for arg, value in zip(kernel.adj.args, inputs):

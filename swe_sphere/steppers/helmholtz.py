@@ -42,7 +42,7 @@ class Helmholtz:
 
     def __init__(self, model: ShallowWater, tol: float, maxiter: int, backend: str | None = None):
         self.model, self.tol, self.maxiter = model, float(tol), int(maxiter)
-        dev, N, nu = model.device, model.N, model.grid.nunique
+        dev, N, nu = model.device, model.N, model.topology.nunique
         self.backend = backend or ("scipy" if wp.get_device(dev).is_cpu else "warp")
         if self.backend not in ("scipy", "warp"):
             raise ValueError(f"unknown linear solver backend {self.backend!r} (scipy, warp)")
@@ -52,7 +52,7 @@ class Helmholtz:
         self.GY = wp.zeros((2, N), dtype=f64, device=dev)
         self.DGY = wp.zeros((1, N), dtype=f64, device=dev)
         self.b, self.y, self.tmp = (wp.zeros(nu, dtype=f64, device=dev) for _ in range(3))
-        self.minv = wp.array(1.0 / model.grid.area, dtype=f64, device=dev)
+        self.minv = wp.array(1.0 / model.topology.area, dtype=f64, device=dev)
         self.c = 0.0
         if self.backend == "warp":
             self.A = wpl.LinearOperator((nu, nu), f64, wp.get_device(dev), self._matvec)

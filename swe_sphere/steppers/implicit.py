@@ -126,10 +126,9 @@ class Implicit(Stepper):
             setattr(self, name, wp.zeros((3, N), dtype=f64, device=dev))
         self.hrhs, self.Dr, self.Gz = (wp.zeros((k, N), dtype=f64, device=dev) for k in (1, 1, 2))
         # Krylov vectors live on unique nodes (3·nunique: 0.56× the element-local length at np = 4)
-        grid = model.grid
-        self.nu = grid.nunique
+        self.topology = topo = model.topology
+        self.nu = topo.nunique
         n3 = 3 * self.nu
-        self.first = wp.array(grid.first, dtype=wp.int32, device=dev)
         for name in ("w", "w_in", "minus_R", "zu", "Jv", "xu"):
             setattr(self, name, wp.zeros(n3, dtype=f64, device=dev))
         self.residual_history: list[float] = []
@@ -146,13 +145,11 @@ class Implicit(Stepper):
     # -- vector helpers ----------------------------------------------------------
     def _norm(self, a) -> float:
         """Euclidean norm of an array (3, N) or (3·nunique,)."""
-        if wp.get_device(self.model.device).is_cpu:
-            return float(np.linalg.norm(a.numpy()))
-        flat = a.flatten()
-        return math.sqrt(float(wp.utils.array_inner(flat, flat)))
+        return self.topology.norm(a)
 
     def _rms(self, a) -> float:
-        return self._norm(a) / math.sqrt(3 * self.N)
+        """RMS over the element-local nodes of the whole grid of a (3, N) array."""
+        return self._norm(a) / math.sqrt(3 * self.topology.npts_total)
 
     def _axpby(self, a, x, b, y, out):
         self._pointwise(blas.axpby, f64(a), x, f64(b), y, out)
@@ -182,7 +179,7 @@ class Implicit(Stepper):
 
     def _gather(self, a, v, out):
         """Unique-node out = a·v from a continuous (3, N) v."""
-        self._pointwise(ik.gather, f64(a), v, self.first, self.nu, out, unique=True)
+        self._pointwise(ik.gather, f64(a), v, self.topology.first, self.nu, out, unique=True)
 
     def _jv(self, w, out):
         """out = J w (unique-node vectors) by a forward difference of F about the current iterate x."""
@@ -191,9 +188,9 @@ class Implicit(Stepper):
             out.zero_()
             return
         eps = _SQRT_EPS * (1.0 + self.xnorm) / wnorm
-        self._pointwise(ik.scatter_perturb, self.x, f64(eps), w, self.model.gid, self.nu, self.xp)
+        self._pointwise(ik.scatter_perturb, self.x, f64(eps), w, self.topology.gid, self.nu, self.xp)
         self._F(self.xp, self.Fp)
-        self._pointwise(ik.jacobian_vector, w, self.Fx, self.Fp, self.first, self.nu, f64(1.0 / self.dt), f64(self.beta / eps), out, unique=True)
+        self._pointwise(ik.jacobian_vector, w, self.Fx, self.Fp, self.topology.first, self.nu, f64(1.0 / self.dt), f64(self.beta / eps), out, unique=True)
 
     def _apply(self, w, out):
         """out = J P⁻¹ w (unique-node vectors)."""
@@ -313,7 +310,7 @@ class Implicit(Stepper):
         o, m = self.o, self.model
         self.rhs_evals, self._cg_its = 0, 0
         if self.H == 0.0 and o["preconditioner"] == "helmholtz":
-            self.H = m.grid.integrate(x.numpy()[2]) / m.grid.area.sum()  # mean depth
+            self.H = m.topology.mean(x.numpy()[2])  # mean depth
         wp.copy(self.xn, x)
         if o["method"] == "bdf2" and self.steps > 0:
             self.beta = 2.0 / 3.0

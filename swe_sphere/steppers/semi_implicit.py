@@ -90,8 +90,7 @@ class SemiImplicit(Leapfrog):
         """new = semi-implicit leapfrog from old over 2dt, explicit terms at cur. Returns CG iterations."""
         m, dev, N, g = self.model, self.model.device, self.N, self.model.g
         if self.H == 0.0:
-            h = cur.numpy()[2]
-            self.H = m.grid.integrate(h) / m.grid.area.sum()  # mean depth
+            self.H = m.topology.mean(cur.numpy()[2])  # mean depth
         c = dt * dt * g * self.H
         m.rhs(cur, self.F)
         m.gradient(cur, 2, self.Gh)

@@ -242,8 +242,7 @@ def _cmd_run(args) -> int:
         stem = args.continue_from.name.removesuffix(".nc").removesuffix(".restart")
         output = args.output or args.continue_from.with_name(f"{stem}_continued.nc")
     check_target(output, args.overwrite)
-    if args.restart_every is not None:
-        check_target(restart_path(output), args.overwrite)
+    check_target(restart_path(output), args.overwrite)  # written at --restart-every and on SIGINT/SIGTERM
     device = _warp_device(args.device)
     sim = Simulation(scene, device, progress=not args.no_progress) if args.continue_from is None else _continued(args, device)
     scene = sim.scene

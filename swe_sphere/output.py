@@ -9,6 +9,7 @@ every good output time kept.
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 from pathlib import Path
@@ -85,43 +86,91 @@ def check_target(path: Path, overwrite: bool = False) -> None:
 
 
 class ExclusiveFile:
-    """Write ``path`` through ``path.part``, created exclusively (O_EXCL, never
-    through a link), so two processes never write the same file: the second gets
-    ``OutputError``. ``commit`` moves the finished part onto ``path`` (without
-    ``overwrite``, only if ``path`` still does not exist); ``discard`` drops it.
-    As a context manager it yields the part's path and commits on success."""
+    """Write ``path`` through ``path.part``, so two processes never write the
+    same file and a file is never written through a link: the writer holds an
+    exclusive ``flock`` on ``path.lock`` (removed when done) and creates the
+    part with O_EXCL | O_NOFOLLOW. A second writer gets ``OutputError``; a
+    ``.part`` left by a killed run (its lock is free) is replaced with
+    ``overwrite``, else refused. ``commit`` moves the finished part onto
+    ``path`` (without ``overwrite``, only if ``path`` still does not exist);
+    ``discard`` drops it. As a context manager it yields the part's path and
+    commits on success.
+
+    (The lock is a file of its own: HDF5 locks the file it writes itself, and a
+    POSIX lock on it would be released when the netCDF library closes it.)
+    """
 
     def __init__(self, path, *, overwrite: bool = False):
         self.path, self.overwrite = Path(path), overwrite
         self.tmp = self.path.with_name(self.path.name + ".part")
+        self.lock = self.path.with_name(self.path.name + ".lock")
         check_target(self.path, overwrite)
+        self.lock_fd = self._acquire()
         try:
-            fd = os.open(self.tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o644)
+            try:
+                self._create()
+            except FileExistsError:  # we hold the lock: whoever wrote it is gone
+                if not overwrite:
+                    raise OutputError(f"{self.tmp} was left by a run that was killed; use --overwrite to replace it") from None
+                self.tmp.unlink()
+                self._create()
+        except BaseException:
+            self._release()
+            raise
+
+    def _acquire(self) -> int:
+        while True:
+            try:
+                fd = os.open(self.lock, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o644)
+            except OSError as err:
+                raise OutputError(f"cannot create {self.lock}: {err.strerror}") from None
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                os.close(fd)
+                raise OutputError(f"another run is writing {self.path} (it holds {self.lock})") from None
+            try:  # the previous holder may have removed the file between our open and lock
+                if os.stat(self.lock, follow_symlinks=False).st_ino == os.fstat(fd).st_ino:
+                    return fd
+            except FileNotFoundError:
+                pass
+            os.close(fd)
+
+    def _create(self) -> None:
+        try:
+            os.close(os.open(self.tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o644))
         except FileExistsError:
-            raise OutputError(
-                f"{self.tmp} exists: another run is writing {self.path} (if none is, a killed run left it; remove it)"
-            ) from None
+            raise
         except OSError as err:
             raise OutputError(f"cannot create {self.tmp}: {err.strerror}") from None
-        os.close(fd)
+
+    def _release(self) -> None:
+        if self.lock_fd is not None:
+            self.lock.unlink(missing_ok=True)
+            os.close(self.lock_fd)
+            self.lock_fd = None
 
     def commit(self) -> None:
-        check_target(self.path, self.overwrite)
-        if self.overwrite:
-            os.replace(self.tmp, self.path)
-            return
         try:
-            os.link(self.tmp, self.path)  # fails if the target appeared meanwhile
-        except FileExistsError:
-            raise OutputError(f"{self.path} appeared while it was written; the result is kept in {self.tmp}") from None
-        except OSError:  # a file system without hard links: check, then rename
-            check_target(self.path, False)
-            os.rename(self.tmp, self.path)
-            return
-        os.unlink(self.tmp)
+            check_target(self.path, self.overwrite)
+            if self.overwrite:
+                os.replace(self.tmp, self.path)
+                return
+            try:
+                os.link(self.tmp, self.path)  # fails if the target appeared meanwhile
+            except FileExistsError:
+                raise OutputError(f"{self.path} appeared while it was written; the result is kept in {self.tmp}") from None
+            except OSError:  # a file system without hard links: check, then rename
+                check_target(self.path, False)
+                os.rename(self.tmp, self.path)
+                return
+            os.unlink(self.tmp)
+        finally:
+            self._release()
 
     def discard(self) -> None:
         self.tmp.unlink(missing_ok=True)
+        self._release()
 
     def __enter__(self) -> Path:
         return self.tmp
@@ -150,6 +199,14 @@ class RunWriter:
         self.file = ExclusiveFile(self.path, overwrite=overwrite)
         self.tmp = self.file.tmp
         self.grid = grid
+        try:
+            self._create(attrs, hs, series, compress)
+        except BaseException:
+            self.abort()
+            raise
+
+    def _create(self, attrs, hs, series, compress):
+        grid = self.grid
         ds = self.ds = netCDF4.Dataset(self.tmp, "w", format="NETCDF4")
         ds.Conventions = "CF-1.8"
         for k, v in attrs.items():
@@ -206,7 +263,8 @@ class RunWriter:
     def abort(self) -> None:
         """Drop the partial file."""
         try:
-            self.ds.close()
+            if getattr(self, "ds", None) is not None and self.ds.isopen():
+                self.ds.close()
         finally:
             self.file.discard()
 

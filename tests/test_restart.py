@@ -16,7 +16,6 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import netCDF4
 import numpy as np
@@ -214,18 +213,48 @@ def test_output_is_never_overwritten_or_written_through_links(tmp_path, capsys):
     assert (tmp_path / "r.nc").read_text() == "keep"
 
 
+def test_a_part_left_by_sigkill_is_replaced_only_with_overwrite(tmp_path, capsys):
+    """SIGKILL cannot be caught: the run leaves ``.part`` (and its lock file, no longer
+    held). The next run to that path says so (exit 2) and replaces it with --overwrite."""
+    scene = write_tc2_scene(tmp_path / "long.toml", stepper="leapfrog", ne=2, dt=60.0, days=20.0)
+    out = tmp_path / "k.nc"
+    proc = subprocess.Popen([sys.executable, "-m", "swe_sphere.cli", "run", str(scene), "--device", "cpu", "--no-progress",
+                             "--output", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=tmp_path)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not (tmp_path / "k.nc.part").exists():
+        time.sleep(0.1)
+    time.sleep(0.5)
+    proc.kill()
+    proc.wait(timeout=60)
+    assert (tmp_path / "k.nc.part").exists() and not out.exists()
+    short = write_tc2_scene(tmp_path / "short.toml", stepper="ssprk3", ne=2, dt=DT, days=0.25)
+    run = ["run", str(short), "--device", "cpu", "--no-progress", "--output", str(out)]
+    assert main(run) == 2
+    err = capsys.readouterr().err
+    assert "k.nc.part was left by a run that was killed; use --overwrite" in err and len(err.strip().splitlines()) == 1
+    assert main([*run, "--overwrite"]) == 0
+    with xr.open_dataset(out) as ds:
+        assert ds.sizes["time"] == 2
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith("k.nc")) == ["k.nc"]
+
+
 def test_concurrent_writers(tmp_path, capsys):
-    """While one writer holds ``a.nc.part`` (O_EXCL), a second run to ``a.nc`` gets one
-    line and exit 2 and touches nothing; the first then finishes a valid file."""
+    """While one writer holds ``a.nc.lock`` (and its O_EXCL ``a.nc.part``), a second
+    run to ``a.nc`` gets one line and exit 2 and touches nothing; the first then
+    finishes a valid file. Also with --overwrite, and from another process."""
     scene = write_tc2_scene(tmp_path / "s.toml", stepper="ssprk3", ne=2, dt=DT, days=0.25)
     out = tmp_path / "a.nc"
     first = make_sim(load_scene(scene))
     from swe_sphere.output import RunWriter
 
     writer = RunWriter(out, first.grid, first.hs, {"title": "first"}, ["mass"])
-    code = main(["run", str(scene), "--device", "cpu", "--no-progress", "--output", str(out)])
-    err = capsys.readouterr().err
-    assert code == 2 and "another run is writing" in err and len(err.strip().splitlines()) == 1
+    for extra in ([], ["--overwrite"]):
+        code = main(["run", str(scene), "--device", "cpu", "--no-progress", "--output", str(out), *extra])
+        err = capsys.readouterr().err
+        assert code == 2 and "another run is writing" in err and len(err.strip().splitlines()) == 1
+    proc = subprocess.run([sys.executable, "-m", "swe_sphere.cli", "run", str(scene), "--device", "cpu", "--output", str(out),
+                           "--overwrite"], capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert proc.returncode == 2 and proc.stderr.strip() == f"swe-sphere: error: another run is writing {out} (it holds {out}.lock)"
     writer.append(0.0, *first.fields(), {"mass": 1.0})
     writer.close()
     with xr.open_dataset(out) as ds:

@@ -46,7 +46,8 @@ def __getattr__(name):  # the heavy modules (Warp) load on first use, quietly
     from .runtime import init_warp
 
     init_warp()
-    return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    value = globals()[name] = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    return value
 
 
 __all__ = ["__version__", "run", *_LAZY]

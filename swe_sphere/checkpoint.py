@@ -48,7 +48,13 @@ class Checkpoint:
 
 def write(path, scene: Scene, step: int, x: np.ndarray, stepper_state: dict, counters: dict, initial: dict,
           *, overwrite: bool = True) -> Path:
-    """Write a checkpoint to ``path`` atomically (via an exclusive ``.part``)."""
+    """Write a checkpoint to ``path`` atomically (via ``output.ExclusiveFile``).
+
+    ``x``: (3, N) element-local state (u, v in m s⁻¹, h in m) at ``step``
+    (model time step·dt); ``stepper_state``: ``Stepper.state()`` (arrays (3, N),
+    scalars); ``counters``: {"rhs_evals", "wall_time" (s), "iterations": {solver: n}};
+    ``initial``: the diagnostics at t = 0. Raises ``output.OutputError`` when
+    ``path`` exists and not ``overwrite`` (or is a link / being written)."""
     path = Path(path)
     with ExclusiveFile(path, overwrite=overwrite) as tmp:
         with netCDF4.Dataset(tmp, "w", format="NETCDF4") as ds:

@@ -30,9 +30,10 @@ PLOT_FIELDS = ("h", "h_surface", "u", "v", "speed", "vorticity")  # = plotting.M
 def _parser() -> argparse.ArgumentParser:
     from . import __version__
 
-    common = _Parser(add_help=False)
-    common.add_argument("--debug", action="store_true", help="show the traceback of a failure")
-    p = _Parser(prog="swe-sphere", description="Spectral-element shallow-water model on the cubed sphere.", parents=[common])
+    p = _Parser(prog="swe-sphere", description="Spectral-element shallow-water model on the cubed sphere.")
+    p.add_argument("--debug", action="store_true", help="show the traceback of a failure")
+    common = _Parser(add_help=False)  # --debug after the command too, without resetting one given before it
+    common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show the traceback of a failure")
     p.add_argument("--version", action="version", version=f"swe-sphere {__version__}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
     r = sub.add_parser("run", help="run a scene (a TOML file under testcases/, or its name)", parents=[common])

@@ -230,6 +230,8 @@ def test_an_internal_failure_is_one_line_and_leaves_no_file(monkeypatch, capsys,
     assert nc_files(tmp_path) == []
     with pytest.raises(Broken):
         main(["run", "tc2_steady", *TINY, "--days", "2", "--output", str(out), "--debug"])
+    with pytest.raises(Broken):
+        main(["--debug", "run", "tc2_steady", *TINY, "--days", "2", "--output", str(out)])
     assert nc_files(tmp_path) == []
 
 

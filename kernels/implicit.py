@@ -2,8 +2,7 @@
 ``residual``): residual, finite-difference Jacobian-vector product, the moves
 between element-local (3, N) states and the Krylov vectors (3·nunique, row r
 of unique node g at r·nunique + g; the state is continuous, so one copy per
-node carries it all) and the gravity-wave (Helmholtz) preconditioner's
-element-wise updates.
+node carries it all).
 """
 
 import warp as wp
@@ -55,18 +54,3 @@ def jacobian_vector(
     g = g + offset
     q = first[g]
     out[r * nu + g] = w[r * nu + g] * inv_dt - beta_over_eps * (Fp[r, q] - F[r, q])
-
-
-@wp.kernel
-def precond_height(r: wp.array2d(dtype=f64), Dr: wp.array2d(dtype=f64), dt: f64, beta_dt_H: f64, out: wp.array2d(dtype=f64)):
-    """out[0] = Δt (r_h − βΔtH D r_v): the Helmholtz right-hand side. Dim N."""
-    p = wp.tid()
-    out[0, p] = dt * (r[2, p] - beta_dt_H * Dr[0, p])
-
-
-@wp.kernel
-def precond_wind(r: wp.array2d(dtype=f64), Gz: wp.array2d(dtype=f64), dt: f64, beta_g: f64, z: wp.array2d(dtype=f64)):
-    """z_v = Δt (r_v − βg G z_h). Dim N."""
-    p = wp.tid()
-    for c in range(2):
-        z[c, p] = dt * (r[c, p] - beta_g * Gz[c, p])

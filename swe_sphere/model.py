@@ -115,6 +115,7 @@ class ShallowWater:
             self.hv_flux = None if self.per_element else wp.zeros((8, N), dtype=f64, device=device)
             self.hv_L = wp.zeros((4, N), dtype=f64, device=device)
         self._recorded: dict[tuple, tuple] = {}
+        self._pointwise_launches: dict[tuple, object] = {}
         self._substeps: dict[float, int] = {}
 
     # -- launch recording ---------------------------------------------------
@@ -136,6 +137,22 @@ class ShallowWater:
         return record(
             kernel, n if rows is None else (rows, n), [*inputs, block], device=self.device, threads=self.threads, nodes_per_index=block
         )
+
+    def pointwise(self, kernel, *inputs, unique=False) -> None:
+        """Run a pointwise kernel (``kernels.blas`` convention: trailing ``block``,
+        ``offset``) on ``inputs`` over (3, N), or over (3, nunique) if ``unique``
+        (trailing ``offset`` only): recorded on the first call with these arrays,
+        later calls only set its scalar arguments."""
+        key = (kernel.key, *(a.ptr if isinstance(a, wp.array) else None for a in inputs))
+        launch = self._pointwise_launches.get(key)
+        if launch is None:
+            build = self._launch(kernel, (3, self.topology.nunique), list(inputs)) if unique else self._launch_pointwise(kernel, 3, list(inputs))
+            launch = self._pointwise_launches[key] = build
+        else:
+            for arg, value in zip(kernel.adj.args, inputs):
+                if not isinstance(value, wp.array):
+                    launch.set_param_by_name(arg.label, value)
+        launch.launch()
 
     def _replay(self, key, arrays, build):
         """Replay the launches recorded under ``key``, recording them first if new.

@@ -153,7 +153,8 @@ class Sweep:
 
 COLUMNS = (
     "stepper", "dt", "dt_over_gravity_limit", "dt_over_advective_limit", "stable", "wall_time", "startup_time",
-    "setup_time", "steps", "rhs_evals", "newton_iterations", "gmres_iterations", "cg_iterations", "total_error",
+    "setup_time", "steps", "rhs_evals", "newton_iterations", "gmres_iterations", "precond_iterations",
+    "helmholtz_iterations", "total_error",
     "temporal_error", "temporal_error_wind", "mass_change", "total_energy_change", "potential_enstrophy_change", "reason",
 )
 
@@ -183,14 +184,14 @@ def format_summary(rows, info) -> str:
     """The table and, per stepper, the cheapest sufficiently accurate run."""
     head = (
         f"{'stepper':22s} {'dt [s]':>9s} {'dt/gw':>6s} {'dt/adv':>6s} {'stable':>6s} {'wall [s]':>9s} {'RHS':>8s} "
-        f"{'Newton':>7s} {'GMRES':>7s} {'CG':>7s} {'total err':>10s} {'time err':>10s} {'energy chg':>10s}"
+        f"{'Newton':>7s} {'GMRES':>7s} {'Helmh.':>7s} {'total err':>10s} {'time err':>10s} {'energy chg':>10s}"
     )
     lines = [head]
     for r in rows:
         lines.append(
             f"{r['stepper']:22s} {r['dt']:9.2f} {r['dt_over_gravity_limit']:6.2f} {r['dt_over_advective_limit']:6.2f} "
             f"{'yes' if r['stable'] else 'NO':>6s} {r['wall_time']:9.2f} {r['rhs_evals']:8.0f} {r['newton_iterations']:7.0f} "
-            f"{r['gmres_iterations']:7.0f} {r['cg_iterations']:7.0f} {r['total_error']:10.3e} {r['temporal_error']:10.3e} "
+            f"{r['gmres_iterations']:7.0f} {r['helmholtz_iterations']:7.0f} {r['total_error']:10.3e} {r['temporal_error']:10.3e} "
             f"{r['total_energy_change']:10.2e}"
         )
     spatial = info["spatial_error"]

@@ -91,7 +91,6 @@ class Stepper:
         self.model, self.dt, self.options = model, float(dt), options
         self.N = model.N
         self.steps = 0  # steps taken since the initial state
-        self._pointwise_launches: dict[tuple, object] = {}
 
     # -- what carries over between steps -------------------------------------------
     def state(self) -> dict:
@@ -139,17 +138,5 @@ class Stepper:
         return self.model._launch_pointwise(kernel, 3, [*args, out])
 
     def _pointwise(self, kernel, *inputs, unique=False) -> None:
-        """Run a pointwise kernel on ``inputs``, over (3, N) with ``block`` (or over
-        (3, nunique) if ``unique``): recorded on the first call with these arrays,
-        later calls only set its scalar arguments."""
-        key = (kernel.key, *(a.ptr if isinstance(a, wp.array) else None for a in inputs))
-        launch = self._pointwise_launches.get(key)
-        if launch is None:
-            m = self.model
-            build = m._launch(kernel, (3, m.topology.nunique), list(inputs)) if unique else m._launch_pointwise(kernel, 3, list(inputs))
-            launch = self._pointwise_launches[key] = build
-        else:
-            for arg, value in zip(kernel.adj.args, inputs):
-                if not isinstance(value, wp.array):
-                    launch.set_param_by_name(arg.label, value)
-        launch.launch()
+        """``model.pointwise``: run a pointwise kernel, recorded once per set of arrays."""
+        self.model.pointwise(kernel, *inputs, unique=unique)

@@ -1,120 +1,323 @@
-"""The gravity-wave Helmholtz solve shared by the semi-implicit stepper and the
-physics-based JFNK preconditioner.
+"""The linear gravity-wave operator shared by the semi-implicit stepper, the
+JFNK preconditioner and the IMEX stepper.
 
-Solves (I − c DG) δ = c DG r for δ, element-local, where G = DSS∘grad and
-D = DSS∘div are the model's own strong operators and c = (βΔt)²gH. M·DG is
-symmetric negative semi-definite (M the assembled mass; Taylor & Fournier
-2010), so the system is solved on unique nodes as M(I − cDG) y = b by
-preconditioned CG (``warp.optim.linear.cg``, CPU and CUDA) with the inverse
-mass as diagonal preconditioner. The right-hand side c DG r has zero area
-integral and CG keeps its iterates there, so h = r + δ has the mass of r to
-round-off (HOMME ``advance_si_nonstag`` solves the same equation for h directly).
+About a mean depth H, the gravity-wave part of the shallow-water RHS is
 
-Two CG implementations, chosen by ``backend``: ``"warp"``
-(``warp.optim.linear.cg``, on the device; the CUDA default) and ``"scipy"``
-(``scipy.sparse.linalg.cg`` on zero-copy host views; the CPU default, because
-Warp's CPU reductions cost milliseconds per dot product).
+    L_v = −g G h,    L_h = −H D v,
+
+with G = DSS∘grad and D = DSS∘div the model's own strong operators (so the
+split F = (F − L) + L of the model's RHS is exact). ``GravityWave.solve``
+inverts (I − aL) for any a through its Schur complement, the Helmholtz
+equation for the height (HOMME ``advance_si_nonstag``; Lott, Woodward &
+Evans 2015 for its use as a preconditioner):
+
+    (I − a²gH DG) z_h = r_h − aH D r_v,    z_v = r_v − a g G z_h.
+
+On unique nodes, multiplied by the assembled mass M, the Helmholtz operator
+is M + c K with K = −M D G (c = a²gH): K is symmetric positive
+semi-definite (the SE divergence and gradient are adjoint under the GLL
+quadrature; Taylor & Fournier 2010), K·1 = 0, so M + cK is SPD.
+``helmholtz_matrix`` assembles K once per grid as a scipy sparse matrix by
+probing the model's element kernels (it is the matrix-free operator, to
+round-off), and the solve is, by name (``SOLVERS``):
+
+* ``"cg"``: CG on the assembled matrix with the inverse mass as (Jacobi)
+  preconditioner, to the relative tolerance ``tol`` (scipy, CPU);
+* ``"amg"``: CG preconditioned by one pyamg smoothed-aggregation V-cycle
+  (Vaněk, Mandel & Brezina 1996), to ``tol`` (CPU);
+* ``"chebyshev"``: ``maxiter`` steps of mass-preconditioned Chebyshev
+  iteration (Saad 2003, Alg. 12.1) on the eigenvalue interval [1, 1 + cμ],
+  μ = λmax(M⁻¹K): a fixed polynomial, hence a fixed linear approximate
+  inverse for a preconditioner, with no inner products (CPU);
+* ``"vcycle"``: one AMG V-cycle, a fixed approximate inverse (CPU);
+* ``"warp_cg"``: matrix-free mass-preconditioned CG with the model's
+  operators on the device (``warp.optim.linear.cg``; the CUDA default, as
+  scipy and pyamg run on the host only).
+
+Measured (TC5 ne16, 2 busy cores): one pyamg V-cycle costs 15–28 sparse
+products with K (its Python overhead per level dominates at 14k unknowns),
+so AMG-CG needs fewer iterations than Jacobi-CG (13 / 30 / 59 against
+84 / ~200 / 472 to 1e-10 at 4 / 10 / 30× the gravity-wave limit) but more
+time (≈ 370 / 830 / 1400 against 84 / 200 / 472 products).
+
+The height's area integral is set to that of the right-hand side after the
+solve (the exact solution has it, since ∫D v = 0), so a loose solve still
+keeps mass to round-off.
 """
 
 from __future__ import annotations
 
 import numpy as np
+import pyamg
+import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 import warp as wp
 import warp.optim.linear as wpl
 
 from ..kernels import blas
-from ..kernels import semi_implicit as si
+from ..kernels import gravity_wave as gk
 from ..model import ShallowWater
 from .base import StepFailure
 
 f64 = wp.float64
+SOLVERS = ("cg", "amg", "chebyshev", "vcycle", "warp_cg")
+_HOST_SOLVERS = ("cg", "amg", "chebyshev", "vcycle")
+# Two symmetric Gauss–Seidel sweeps before and after each coarse correction: TC5
+# ne16, random right-hand side to 1e-10, CG iterations at 4x / 30x the gravity-wave
+# limit 13 / 59 against 18 / 84 with pyamg's default one sweep (Jacobi-CG: 84 / 472).
+_SMOOTHER = ("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2})
 
 
-class Helmholtz:
-    """CG solver for (I − c DG) h = r on the model's grid; buffers allocated once.
+def default_solver(device) -> str:
+    """The measured default: Jacobi-CG on the assembled matrix on the CPU (the
+    cheapest per step as an accurate solve and, loose, as a preconditioner;
+    ``benchmarks/implicit_cost.py``), the matrix-free Warp CG on CUDA."""
+    return "cg" if wp.get_device(device).is_cpu else "warp_cg"
 
-    ``solve(r, row, c, out, out_row)``: r[row] (element-local, continuous) →
-    out[out_row] = h. Returns the CG iterations. Raises ``StepFailure`` when CG
-    does not reach ``tol`` (relative) within ``maxiter``; ``ValueError`` for an
-    unknown backend or "scipy" on a CUDA device.
+
+def helmholtz_matrix(model: ShallowWater) -> sp.csr_matrix:
+    """K = −M D G (nunique × nunique, dimensionless: M in m², D G in m⁻²) on unique nodes, symmetrised (its asymmetry is round-off, ~1e-15 relative).
+
+    Built from the model's own element kernels: ``model.gradient`` and
+    ``model.divergence`` leave the element-local (pre-DSS) result in
+    ``model.vec_work`` / ``model.scalar``, so np² (gradient) and 2np²
+    (divergence) probes with a unit value at one local node of every element
+    give the element matrices Ĝ, D̂ exactly; with P the scatter (unique →
+    element-local), W = diag(spheremp) and the DSS S = P M⁻¹ Pᵀ W,
+    K = −Pᵀ W D̂ S Ĝ P. The whole grid on one process (the host solvers').
+    """
+    grid, N = model.grid, model.N
+    npp, nu = grid.np**2, grid.nunique
+    base = np.arange(grid.nelem) * npp
+    x = wp.zeros((3, N), dtype=f64, device=model.device)
+    G2, D1 = wp.zeros((2, N), dtype=f64, device=model.device), wp.zeros((1, N), dtype=f64, device=model.device)
+    nodes = np.arange(N)  # element-major: the rows of element e are e·np² … (e+1)·np² − 1
+    grow, gcol, gval, drow, dcol, dval = [], [], [], [], [], []
+    unit = np.zeros((3, N))
+    for k in range(npp):
+        col = np.repeat(base + k, npp)  # the probed column of each row's element
+        unit[:] = 0.0
+        unit[2, base + k] = 1.0
+        x.assign(unit)
+        model.gradient(x, 2, G2)
+        g = model.vec_work.numpy()
+        for c in range(2):
+            grow.append(c * N + nodes), gcol.append(col), gval.append(g[c].copy())
+        for c in range(2):
+            unit[:] = 0.0
+            unit[c, base + k] = 1.0
+            x.assign(unit)
+            model.divergence(x, D1)
+            drow.append(nodes), dcol.append(c * N + col), dval.append(model.scalar.numpy()[0].copy())
+    G_hat = sp.csr_matrix((np.concatenate(gval), (np.concatenate(grow), np.concatenate(gcol))), shape=(2 * N, N))
+    D_hat = sp.csr_matrix((np.concatenate(dval), (np.concatenate(drow), np.concatenate(dcol))), shape=(N, 2 * N))
+    G_hat.eliminate_zeros()
+    D_hat.eliminate_zeros()
+    P = sp.csr_matrix((np.ones(N), (nodes, grid.gid)), shape=(N, nu))
+    PtW = (P.T @ sp.diags(grid.spheremp)).tocsr()
+    inv_area = sp.diags(np.tile(1.0 / grid.area, 2))
+    G = inv_area @ sp.block_diag((PtW, PtW)) @ G_hat @ P  # (2 nunique, nunique): DSS'd gradient on unique nodes
+    K = -(PtW @ D_hat @ sp.block_diag((P, P)) @ G)
+    K = ((K + K.T) * 0.5).tocsr()
+    K.eliminate_zeros()
+    return K
+
+
+class GravityWave:
+    """The linear gravity-wave operator L and solves of (I − aL) z = s·r.
+
+    Parameters: the model; ``mean_depth`` H (m; 0 = the mean depth of the first
+    state passed to ``set_depth``); ``solver`` (one of ``SOLVERS``; None = the
+    CPU/CUDA default for an accurate solve), ``tol`` (relative residual of the
+    CG solvers) and ``maxiter``; ``warm``: start each CG from the last
+    solution (for a sequence of similar solves, as the semi-implicit steps).
+
+    ``apply(x, out)``: out = L x (states (3, N), element-local). ``solve(r, a,
+    z, scale)``: z = (I − aL)⁻¹ (scale·r); returns the Helmholtz iterations
+    (CG iterations; 1 for a V-cycle). Raises ``StepFailure`` when CG does not
+    reach ``tol`` within ``maxiter``; ``ValueError`` for an unknown solver, a
+    host solver on CUDA, or a model without continuity and pressure gradient.
     """
 
-    def __init__(self, model: ShallowWater, tol: float, maxiter: int, backend: str | None = None):
-        self.model, self.tol, self.maxiter = model, float(tol), int(maxiter)
+    def __init__(self, model: ShallowWater, mean_depth=0.0, solver=None, tol=1e-10, maxiter=500, warm=False):
+        for term in ("continuity", "pressure_gradient"):
+            if term not in model.terms:
+                raise ValueError(f"the gravity-wave operator needs the {term} term")
+        solver = solver or default_solver(model.device)
+        if solver not in SOLVERS:
+            raise ValueError(f"unknown Helmholtz solver {solver!r} (known: {', '.join(SOLVERS)})")
+        if solver in _HOST_SOLVERS and not wp.get_device(model.device).is_cpu:
+            raise ValueError(f"the Helmholtz solver {solver!r} runs on the CPU only; use 'warp_cg' on CUDA")
+        self.model, self.H, self.solver = model, float(mean_depth), solver
+        self.tol, self.maxiter, self.warm = float(tol), int(maxiter), bool(warm)
         dev, N, nu = model.device, model.N, model.topology.nunique
-        self.backend = backend or ("scipy" if wp.get_device(dev).is_cpu else "warp")
-        if self.backend not in ("scipy", "warp"):
-            raise ValueError(f"unknown linear solver backend {self.backend!r} (scipy, warp)")
-        if self.backend == "scipy" and not wp.get_device(dev).is_cpu:
-            raise ValueError("the scipy linear solver runs on the CPU only; use backend 'warp' on CUDA")
+        self.Gh, self.Dv = wp.zeros((2, N), dtype=f64, device=dev), wp.zeros((1, N), dtype=f64, device=dev)
+        self.b, self.y = wp.zeros(nu, dtype=f64, device=dev), wp.zeros(nu, dtype=f64, device=dev)
+        self.area = model.topology.area
+        self.c = None
+        if solver in _HOST_SOLVERS:
+            self.K = helmholtz_matrix(model)
+            self._amg: dict[float, object] = {}
+            self._A: dict[float, sp.csr_matrix] = {}
+            self._mu = None
+        else:
+            self._matrix_free(model)
+
+    # -- what carries over between solves (for bitwise restarts) ----------------------
+    def state(self) -> dict:
+        """The mean depth (0 until fixed) and, with ``warm``, the last solution."""
+        s = {"mean_depth": self.H}
+        if self.warm:
+            s["helmholtz_guess"] = self.y.numpy().copy()
+        return s
+
+    def restore(self, state: dict, entry) -> None:
+        """Set what ``state()`` returned; ``entry(state, key)`` raises ValueError for a missing key."""
+        self.H = float(entry(state, "mean_depth"))
+        if self.warm:
+            y = np.asarray(entry(state, "helmholtz_guess"), dtype=np.float64)
+            if y.shape != self.y.shape:
+                raise ValueError(f"stepper state 'helmholtz_guess' has shape {y.shape}, expected {self.y.shape}")
+            self.y.assign(y)
+
+    # -- L and the Schur complement (element-local) ---------------------------------
+    def set_depth(self, x) -> None:
+        """Take H as the area mean of x's depth if no mean depth was given."""
+        if self.H == 0.0:
+            self.H = self.model.topology.mean(x.numpy()[2])
+
+    def apply(self, x, out) -> None:
+        """out = L x = (−g G h, −H D v)."""
+        m = self.model
+        m.gradient(x, 2, self.Gh)
+        m.divergence(x, self.Dv)
+        m.pointwise(gk.apply, self.Gh, self.Dv, f64(m.g), f64(self.H), out)
+
+    def solve(self, r, a: float, z, scale: float = 1.0) -> int:
+        """z = (I − aL)⁻¹ (scale·r) through the Helmholtz equation; z may alias r."""
+        m = self.model
+        m.divergence(r, self.Dv)
+        m.pointwise(gk.schur_height, r, self.Dv, f64(scale), f64(a * self.H), z)
+        m.assemble(z, 2, self.b)
+        iterations = self._helmholtz(a * a * m.g * self.H)
+        m.scatter(self.y, z, 2)
+        m.gradient(z, 2, self.Gh)
+        m.pointwise(gk.schur_wind, r, self.Gh, f64(scale), f64(a * m.g), z)
+        return iterations
+
+    # -- the Helmholtz solve on unique nodes: (M + cK) y = b --------------------------
+    def _helmholtz(self, c: float) -> int:
+        if self.solver in _HOST_SOLVERS:
+            b, y = self.b.numpy(), self.y.numpy()
+            if not self.warm:
+                y[:] = 0.0
+            iterations = self._host(c, b, y)
+            y += (b.sum() - self.area @ y) / self.area.sum()  # ∫z_h = ∫(right-hand side)
+            return iterations
+        return self._device(c)
+
+    def matrix(self, c: float) -> sp.csr_matrix:
+        """M + cK (cached for the last few c: a stepper uses one or two)."""
+        A = self._A.get(c)
+        if A is None:
+            if len(self._A) >= 4:
+                self._A.pop(next(iter(self._A)))
+            A = self._A[c] = (sp.diags(self.area) + c * self.K).tocsr()
+        return A
+
+    def hierarchy(self, c: float):
+        """The pyamg smoothed-aggregation hierarchy for M + cK (built once per c)."""
+        ml = self._amg.get(c)
+        if ml is None:
+            if len(self._amg) >= 4:
+                self._amg.pop(next(iter(self._amg)))
+            ml = self._amg[c] = pyamg.smoothed_aggregation_solver(self.matrix(c), symmetry="symmetric", presmoother=_SMOOTHER, postsmoother=_SMOOTHER)
+            ml.vcycle = ml.aspreconditioner(cycle="V")
+        return ml
+
+    def _host(self, c, b, y) -> int:
+        if self.solver == "vcycle":
+            y[:] = self.hierarchy(c).vcycle @ b
+            return 1
+        if self.solver == "chebyshev":
+            y[:] = self._chebyshev(c, b)
+            return self.maxiter
+        A = self.matrix(c)
+        if self.solver == "amg":
+            M = self.hierarchy(c).vcycle
+        else:
+            inv_area = 1.0 / self.area
+            M = spla.LinearOperator(A.shape, matvec=lambda v: inv_area * v, dtype=np.float64)
+        count = [0]
+        x, info = spla.cg(A, b, x0=y.copy(), rtol=self.tol, atol=0.0, maxiter=self.maxiter, M=M,
+                          callback=lambda _: count.__setitem__(0, count[0] + 1))
+        if info != 0:
+            raise StepFailure(f"Helmholtz {self.solver} did not converge in {count[0]} iterations (scipy cg info {info})")
+        y[:] = x
+        return count[0]
+
+    def _chebyshev(self, c, b):
+        """``maxiter`` Chebyshev steps from 0 for (M + cK) y = b, preconditioned by M,
+        on the interval [1, 1 + cμ] that holds the spectrum of I + cM⁻¹K."""
+        if self._mu is None:  # λmax(M⁻¹K) = λmax(M^-½ K M^-½), 5 % margin
+            s = 1.0 / np.sqrt(self.area)
+            S = sp.diags(s) @ self.K @ sp.diags(s)
+            self._mu = 1.05 * float(spla.eigsh(S, k=1, which="LA", tol=1e-3, return_eigenvectors=False)[0])
+        A, inv_area = self.matrix(c), 1.0 / self.area
+        lo, hi = 1.0, 1.0 + c * self._mu
+        theta, delta = 0.5 * (hi + lo), 0.5 * (hi - lo)
+        sigma = theta / delta
+        rho = 1.0 / sigma
+        r = b.copy()
+        d = inv_area * r / theta
+        y = np.zeros_like(b)
+        for k in range(self.maxiter):
+            y += d
+            if k == self.maxiter - 1:
+                break
+            r -= A @ d
+            rho_new = 1.0 / (2.0 * sigma - rho)
+            d = rho_new * rho * d + (2.0 * rho_new / delta) * (inv_area * r)
+            rho = rho_new
+        return y
+
+    # -- matrix-free CG on the device (the "warp_cg" solver) ------------------------------
+    def _matrix_free(self, model):
+        dev, N, nu = model.device, model.N, model.topology.nunique
         self.Y = wp.zeros((3, N), dtype=f64, device=dev)
         self.GY = wp.zeros((2, N), dtype=f64, device=dev)
         self.DGY = wp.zeros((1, N), dtype=f64, device=dev)
-        self.b, self.y, self.tmp = (wp.zeros(nu, dtype=f64, device=dev) for _ in range(3))
-        self.minv = wp.array(1.0 / model.topology.area, dtype=f64, device=dev)
-        self.c = 0.0
-        if self.backend == "warp":
-            self.A = wpl.LinearOperator((nu, nu), f64, wp.get_device(dev), self._matvec)
-            self.cg = wpl.cg(
-                self.A, self.b, self.y, tol=self.tol, atol=0.0, maxiter=self.maxiter, M=self.minv, run=False, check_every=1,
-                use_cuda_graph=False,
-            )
-        else:
-            y_np, tmp_np, minv_np = self.y.numpy(), self.tmp.numpy(), self.minv.numpy()
+        self.tmp = wp.zeros(nu, dtype=f64, device=dev)
+        self.minv = wp.array(1.0 / self.area, dtype=f64, device=dev)
+        self.area_wp = wp.array(self.area, dtype=f64, device=dev)
+        self.ones = wp.ones(nu, dtype=f64, device=dev)
+        self.A = wpl.LinearOperator((nu, nu), f64, wp.get_device(dev), self._warp_matvec)
+        self.cg = wpl.cg(self.A, self.b, self.y, tol=self.tol, atol=0.0, maxiter=self.maxiter, M=self.minv, run=False,
+                         check_every=1, use_cuda_graph=False)
 
-            def apply(v):
-                y_np[:] = v
-                self._apply(self.y, self.tmp)
-                return tmp_np.copy()
-
-            self.A = spla.LinearOperator((nu, nu), matvec=apply, dtype=np.float64)
-            self.M = spla.LinearOperator((nu, nu), matvec=lambda v: minv_np * v, dtype=np.float64)
-
-    def DG(self, x, row):
-        """DGY[0] = D G x[row] (GY holds G x[row])."""
-        self.model.gradient(x, row, self.GY)
-        self.model.divergence(self.GY, self.DGY)
-
-    def _apply(self, x, out):
-        """out = M(I − c DG) x on unique nodes."""
+    def _apply_matrix_free(self, y, out):
+        """out = (M + cK) y = M (I − c DG) y with the model's operators."""
         m = self.model
-        m.scatter(x, self.Y, 2)
-        self.DG(self.Y, 2)
-        wp.launch(si.helmholtz, m.N, [self.Y, f64(self.c), self.DGY], device=m.device)
+        m.scatter(y, self.Y, 2)
+        m.gradient(self.Y, 2, self.GY)
+        m.divergence(self.GY, self.DGY)
+        wp.launch(gk.helmholtz, m.N, [self.Y, f64(self.c), self.DGY], device=m.device)
         m.assemble(self.DGY, 0, out)
 
-    def _matvec(self, x, y, z, alpha, beta):
+    def _warp_matvec(self, x, y, z, alpha, beta):
         """warp.optim.linear interface: z = alpha·A x + beta·y."""
-        self._apply(x, self.tmp)
+        self._apply_matrix_free(x, self.tmp)
         wp.launch(blas.axpby1d, x.shape[0], [f64(alpha), self.tmp, f64(beta), y, z], device=self.model.device)
 
-    def _run_cg(self) -> int:
-        if self.backend == "warp":
-            iterations, residual, atol = self.cg()
-            converged = float(residual) <= float(atol)
-            detail = f"residual {float(residual):.3e} > {float(atol):.3e}"
-        else:
-            count = [0]
-            b = self.b.numpy()
-            if not np.any(b):
-                self.y.zero_()
-                return 0
-            y, info = spla.cg(self.A, b, rtol=self.tol, maxiter=self.maxiter, M=self.M, callback=lambda _: count.__setitem__(0, count[0] + 1))
-            self.y.numpy()[:] = y
-            iterations, converged, detail = count[0], info == 0, f"scipy cg info {info}"
-        if not converged:
-            raise StepFailure(f"Helmholtz CG did not converge after {int(iterations)} iterations ({detail})")
+    def _device(self, c) -> int:
+        self.c = c
+        if not self.warm:
+            self.y.zero_()
+        iterations, residual, atol = self.cg()
+        if float(residual) > float(atol):
+            raise StepFailure(f"Helmholtz warp_cg did not converge in {int(iterations)} iterations "
+                              f"(residual {float(residual):.3e} > {float(atol):.3e})")
+        u, topo = wp.utils, self.model.topology
+        shift = (topo.sum(float(u.array_sum(self.b))) - topo.sum(float(u.array_inner(self.area_wp, self.y)))) / topo.total_area
+        wp.launch(blas.axpby1d, self.y.shape[0], [f64(1.0), self.y, f64(shift), self.ones, self.y], device=self.model.device)
         return int(iterations)
-
-    def solve(self, r, row, c, out, out_row) -> int:
-        m, dev = self.model, self.model.device
-        self.c = float(c)
-        self.DG(r, row)
-        m.assemble(self.DGY, 0, self.b)
-        wp.launch(blas.axpby1d, self.b.shape[0], [f64(c), self.b, f64(0.0), self.b, self.b], device=dev)
-        self.y.zero_()
-        iterations = self._run_cg()
-        m.scatter(self.y, out, out_row)  # δ
-        wp.launch(blas.add_row, m.N, [r, row, out, out_row], device=dev)  # h = r + δ
-        return iterations

@@ -3,10 +3,11 @@
 The linear gravity-wave terms about a mean depth H — the pressure gradient
 −g∇h and −H∇·v — are averaged over levels n−1 and n+1; everything else
 (N = F − L) is leapfrogged at level n. Eliminating v(n+1) leaves a Helmholtz
-equation for the height (``helmholtz.Helmholtz``: CG on the DSS'd operators
-of the explicit RHS, so the elimination is exact and mass is kept to round-off):
+equation for the height, solved by the shared gravity-wave operator
+(``helmholtz.GravityWave``: L is built from the DSS'd operators of the
+explicit RHS, so the elimination is exact and mass is kept to round-off):
 
-    (I − Δt² gH DG) h(n+1) = R,    v(n+1) = v(n−1) + 2Δt N_v − Δt g G(h(n+1) + h(n−1)).
+    (I − Δt L) x(n+1) = x(n−1) + 2Δt F(x(n)) + Δt L (x(n−1) − 2x(n)).
 
 Dissipation: HOMME disallows hyperviscosity with SI; here the scene's ∇⁴
 hyperviscosity is applied after the step as for the explicit leapfrog (split,
@@ -22,10 +23,10 @@ from dataclasses import dataclass
 
 import warp as wp
 
-from ..kernels import semi_implicit as si
+from ..kernels import blas
 from .base import StepStats
 from .explicit import Leapfrog, LeapfrogOptions
-from .helmholtz import Helmholtz
+from .helmholtz import GravityWave
 
 f64 = wp.float64
 
@@ -37,12 +38,12 @@ class SemiImplicitOptions(LeapfrogOptions):
     tol: float = 1e-10
     maxiter: int = 500
     mean_depth: float = 0.0
-    linear_solver: str = ""
+    helmholtz_solver: str = ""
 
     def __post_init__(self):
         super().__post_init__()
-        if self.linear_solver not in ("", "scipy", "warp"):
-            raise ValueError(f"linear_solver must be 'scipy' or 'warp' (got {self.linear_solver!r})")
+        if self.helmholtz_solver not in ("", "cg", "amg", "warp_cg"):
+            raise ValueError(f"helmholtz_solver must be 'cg', 'amg' or 'warp_cg' (got {self.helmholtz_solver!r})")
         if not 0 < self.tol < 1:
             raise ValueError(f"tol must be in (0, 1) (got {self.tol})")
         if self.maxiter < 1:
@@ -52,65 +53,54 @@ class SemiImplicitOptions(LeapfrogOptions):
 
 
 class SemiImplicit(Leapfrog):
-    """Semi-implicit leapfrog: 1 RHS evaluation and one CG solve per step.
+    """Semi-implicit leapfrog: 1 RHS evaluation and one Helmholtz solve per step.
 
     Options (scene table ``[semi_implicit]``): ``robert_asselin`` (0.05),
-    ``tol`` (CG relative residual, 1e-10), ``maxiter`` (500), ``mean_depth``
-    (H in m; 0 = the initial state's mean depth), ``linear_solver`` ("scipy" on
-    CPU, "warp" on CUDA by default). Reports CG iterations per step.
-    Raises ValueError without the continuity and pressure-gradient terms.
+    ``tol`` (the Helmholtz CG's relative residual, 1e-10), ``maxiter`` (500),
+    ``mean_depth`` (H in m; 0 = the initial state's mean depth),
+    ``helmholtz_solver`` ("cg" on the CPU, "warp_cg" on CUDA, or "amg"; see
+    ``helmholtz.SOLVERS``; each solve starts from the last one's solution).
+    TC5 ne16 at 4x / 10x the gravity-wave limit: "amg" 8 / 19 iterations a
+    step, "cg" 59 / 144, but "cg" is the cheaper (2.65 / 2.04 against
+    3.15 / 3.23 times ssprk3's cost per day; ``benchmarks/implicit_cost.py``).
+    Reports the Helmholtz iterations per step. Raises ValueError without the
+    continuity and pressure-gradient terms.
     """
 
     name = "semi_implicit"
     Options = SemiImplicitOptions
     explicit = False
     courant_limit = None
-    solvers = ("cg",)
+    solvers = ("helmholtz",)
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
-        for term in ("continuity", "pressure_gradient"):
-            if term not in model.terms:
-                raise ValueError(f"semi_implicit needs the {term} term")
         o = self.options
-        self.H = o.mean_depth
-        dev, N = model.device, self.N
+        self.gw = GravityWave(model, o.mean_depth, o.helmholtz_solver or None, o.tol, o.maxiter, warm=True)
+        self.F, self.W, self.LW = self._buffer(), self._buffer(), self._buffer()
 
-        def z(rows):
-            return wp.zeros((rows, N), dtype=f64, device=dev)
-
-        self.F, self.W = z(3), z(3)
-        self.Gh, self.Gh_old, self.Gh_new = z(2), z(2), z(2)
-        self.Dv, self.Dw, self.DGh = z(1), z(1), z(1)
-        self.R = z(1)
-        self.Dv1, self.Dw1, self.DGh1 = self.Dv.flatten(), self.Dw.flatten(), self.DGh.flatten()
-        self.helmholtz = Helmholtz(model, o.tol, o.maxiter, o.linear_solver or None)
+    @property
+    def H(self) -> float:
+        """The mean depth H (m) of the linear gravity-wave terms."""
+        return self.gw.H
 
     def _si(self, old, cur, new, dt):
-        """new = semi-implicit leapfrog from old over 2dt, explicit terms at cur. Returns CG iterations."""
-        m, dev, N, g = self.model, self.model.device, self.N, self.model.g
-        if self.H == 0.0:
-            self.H = m.topology.mean(cur.numpy()[2])  # mean depth
-        c = dt * dt * g * self.H
+        """new = semi-implicit leapfrog from old over 2dt, explicit terms at cur. Returns Helmholtz iterations."""
+        m, gw = self.model, self.gw
+        gw.set_depth(cur)
         m.rhs(cur, self.F)
-        m.gradient(cur, 2, self.Gh)
-        m.divergence(cur, self.Dv)
-        wp.launch(si.half_wind, N, [old, self.F, f64(g), self.Gh, f64(dt), self.W], device=dev)
-        m.divergence(self.W, self.Dw)
-        m.gradient(old, 2, self.Gh_old)
-        m.divergence(self.Gh_old, self.DGh)
-        wp.launch(si.height_rhs, N, [old, self.F, f64(self.H), self.Dv1, self.Dw1, f64(c), self.DGh1, f64(dt), self.R], device=dev)
-        iterations = self.helmholtz.solve(self.R, 0, c, new, 2)
-        m.gradient(new, 2, self.Gh_new)
-        wp.launch(si.new_wind, N, [old, self.F, f64(g), self.Gh, self.Gh_new, self.Gh_old, f64(dt), new], device=dev)
-        return iterations
+        self._pointwise(blas.axpby, f64(1.0), old, f64(-2.0), cur, self.W)
+        gw.apply(self.W, self.LW)
+        self._pointwise(blas.axpbypcz, f64(1.0), old, f64(2.0 * dt), self.F, f64(dt), self.LW, new)
+        return gw.solve(new, dt, new)
 
     def state(self):
-        return {**super().state(), "mean_depth": self.H}  # H = 0 until fixed by the first step
+        # H = 0 until fixed by the first step; each Helmholtz solve starts from the last one's solution
+        return {**super().state(), **self.gw.state()}
 
     def restore(self, state):
         super().restore(state)
-        self.H = float(self._entry(state, "mean_depth"))
+        self.gw.restore(state, self._entry)
 
     def advance(self, x):
         m = self.model
@@ -121,9 +111,9 @@ class SemiImplicit(Leapfrog):
             it = self._si(self.old, x, self.new, self.dt / 2)
             self._copy_new.launch()
             m.hyperviscosity(x, self.dt)
-            return StepStats(1, {"cg": it})
+            return StepStats(1, {"helmholtz": it})
         it = self._si(self.old, x, self.new, self.dt)
         m.hyperviscosity(self.new, 2 * self.dt)
         self._ra.launch()
         self._copy_new.launch()
-        return StepStats(1, {"cg": it})
+        return StepStats(1, {"helmholtz": it})

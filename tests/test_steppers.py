@@ -41,7 +41,7 @@ DOCUMENTED_RHS = {
     "leapfrog_trapezoidal": (2, 2),
     "ssprk3": (3, 3),
     "rk4": (4, 4),
-    "semi_implicit": (1, 1),  # one RHS (and one CG solve) per step, the start included
+    "semi_implicit": (1, 1),  # one RHS (and one Helmholtz solve) per step, the start included
 }
 
 
@@ -228,10 +228,11 @@ def test_robert_asselin_filter_costs_accuracy():
 # -- explicit state: state() / restore() continue bitwise --------------------------
 
 # every registered stepper, and the variants whose history differs (BDF2's x(n−1),
-# the helmholtz preconditioner's mean depth fixed at the first step)
+# JFNK without the preconditioner's mean depth or without the extrapolated guess's x(n−1))
 RESTART_VARIANTS = [(name, {}) for name in STEPPERS] + [
     ("implicit", {"method": "bdf2"}),
-    ("implicit", {"preconditioner": "helmholtz"}),
+    ("implicit", {"preconditioner": "none"}),
+    ("implicit", {"initial_guess": "previous"}),
 ]
 
 
@@ -296,7 +297,7 @@ def test_options_dataclass_defaults_checks_and_schema():
         with pytest.raises(ValueError, match=f"unknown option 'bogus' for stepper {name}"):
             cls.make_options(bogus=1)
     assert STEPPERS["leapfrog"].Options().robert_asselin == 0.05
-    assert STEPPERS["implicit"].Options().atol == 1e-10
+    assert STEPPERS["implicit"].Options().atol == 1e-8
     with pytest.raises(ValueError, match=r"robert_asselin must be in \[0, 0.5\)"):
         STEPPERS["semi_implicit"].make_options(robert_asselin=0.5)
     with pytest.raises(ValueError, match="method must be"):

@@ -165,20 +165,23 @@ class GravityWave:
 
     # -- what carries over between solves (for bitwise restarts) ----------------------
     def state(self) -> dict:
-        """The mean depth (0 until fixed) and, with ``warm``, the last solution."""
+        """The mean depth (0 until fixed) and, with ``warm``, the last solution: a
+        height, stored element-local in row 2 of a (3, N) array like a state."""
         s = {"mean_depth": self.H}
         if self.warm:
-            s["helmholtz_guess"] = self.y.numpy().copy()
+            guess = np.zeros((3, self.model.N))
+            guess[2] = self.y.numpy()[self.model.grid.gid]
+            s["helmholtz_guess"] = guess
         return s
 
     def restore(self, state: dict, entry) -> None:
         """Set what ``state()`` returned; ``entry(state, key)`` raises ValueError for a missing key."""
         self.H = float(entry(state, "mean_depth"))
         if self.warm:
-            y = np.asarray(entry(state, "helmholtz_guess"), dtype=np.float64)
-            if y.shape != self.y.shape:
-                raise ValueError(f"stepper state 'helmholtz_guess' has shape {y.shape}, expected {self.y.shape}")
-            self.y.assign(y)
+            guess = np.asarray(entry(state, "helmholtz_guess"), dtype=np.float64)
+            if guess.shape != (3, self.model.N):
+                raise ValueError(f"stepper state 'helmholtz_guess' has shape {guess.shape}, expected {(3, self.model.N)}")
+            self.y.assign(guess[2][self.model.grid.first])
 
     # -- L and the Schur complement (element-local) ---------------------------------
     def set_depth(self, x) -> None:

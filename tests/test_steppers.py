@@ -42,6 +42,7 @@ DOCUMENTED_RHS = {
     "ssprk3": (3, 3),
     "rk4": (4, 4),
     "semi_implicit": (1, 1),  # one RHS (and one Helmholtz solve) per step, the start included
+    "imex": (4, 4),  # ARS(3,4,3): four stages, three Helmholtz solves
 }
 
 

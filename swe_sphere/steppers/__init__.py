@@ -1,7 +1,9 @@
 """Time steppers behind one interface (``base.Stepper``), by name.
 
 Explicit: ``leapfrog``, ``leapfrog_trapezoidal``, ``ssprk3``, ``rk4``;
-``semi_implicit`` (Helmholtz solve by CG); ``implicit`` (JFNK θ-method / BDF2).
+``semi_implicit`` (leapfrog, gravity waves averaged over n ± 1); ``implicit``
+(JFNK θ-method / BDF2); ``imex`` (ARS IMEX Runge–Kutta). The last three share
+the linear gravity-wave operator ``helmholtz.GravityWave``.
 """
 
 from __future__ import annotations
@@ -9,11 +11,12 @@ from __future__ import annotations
 from ..model import ShallowWater
 from .base import StepFailure, Stepper, StepStats, option_types
 from .explicit import RK4, SSPRK3, Leapfrog, LeapfrogTrapezoidal
+from .imex import Imex
 from .implicit import Implicit
 from .semi_implicit import SemiImplicit
 
 STEPPERS: dict[str, type[Stepper]] = {
-    cls.name: cls for cls in (Leapfrog, LeapfrogTrapezoidal, SSPRK3, RK4, SemiImplicit, Implicit)
+    cls.name: cls for cls in (Leapfrog, LeapfrogTrapezoidal, SSPRK3, RK4, SemiImplicit, Implicit, Imex)
 }
 
 

@@ -1,0 +1,164 @@
+"""IMEX additive Runge–Kutta (Ascher, Ruuth & Spiteri 1997, Appl. Numer. Math.
+25, 151; "ARS"): the linear gravity-wave terms L (``helmholtz.GravityWave``)
+implicit, the rest N = F − L explicit, as HOMME-NH and ClimaTimeSteppers split.
+
+With the explicit tableau (Â, b̂) and the implicit one (A, b) of s + 1 stages
+(stage 0 is x(n); ARS: A's first row and column are zero, A_ii = γ),
+
+    Y_i = x(n) + Δt Σ_{j<i} (Â_ij N(Y_j) + A_ij L Y_j) + Δt γ L Y_i,
+    x(n+1) = x(n) + Δt Σ_j (b̂_j N(Y_j) + b_j L Y_j).
+
+Each stage is one solve of (I − γΔt L) Y_i = rhs_i through the Helmholtz
+equation, and L Y_i = (Y_i − rhs_i)/(γΔt) follows from it without another
+product. For ARS b̂ = b, so x(n+1) = x(n) + Δt Σ_j b_j F(Y_j) with F the model's
+RHS: s + 1 RHS evaluations, s solves and one product with L a step.
+Both schemes are stiffly accurate in A (b = last row), not in Â, so F is
+evaluated at the last stage.
+
+* ``ars232``: ARS(2,3,2), §2.5: γ = 1 − 1/√2, δ = −2√2/3; second order.
+* ``ars343``: ARS(3,4,3), §2.7: γ the root 0.4358665215… of
+  6γ³ − 18γ² + 9γ − 1 = 0 (L-stable SDIRK3), b = (0, β₁, β₂, γ) with
+  β₁ = −3γ²/2 + 4γ − 1/4, β₂ = 3γ²/2 − 5γ + 5/4; Â₄₂ = Â₄₃ = 0.55292914803…,
+  Â₄₁ = 1 − 2Â₄₂ and Â₃₁, Â₃₂ from the third-order conditions (the paper
+  prints them to 10 digits; ClimaTimeSteppers' closed forms); third order.
+
+Mass: every stage keeps ∫h (F_h and L_h integrate to zero; the solve fixes
+∫z_h), so x(n+1) has the mass of x(n) to round-off. Hyperviscosity is split
+after the step, as for every stepper.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from ..kernels import blas
+from .base import Stepper, StepStats
+from .helmholtz import GravityWave
+
+f64 = wp.float64
+
+
+def _ars232():
+    g, d = 1.0 - 1.0 / math.sqrt(2.0), -2.0 * math.sqrt(2.0) / 3.0
+    A_exp = np.array([[0, 0, 0], [g, 0, 0], [d, 1 - d, 0]])
+    A_imp = np.array([[0, 0, 0], [0, g, 0], [0, 1 - g, g]])
+    return A_exp, A_imp, A_imp[-1].copy(), 2
+
+
+def _ars343():
+    g = 0.4358665215084590
+    b1, b2 = -1.5 * g * g + 4 * g - 0.25, 1.5 * g * g - 5 * g + 1.25
+    a42 = a43 = 0.5529291480359398
+    a31 = (1 - 4.5 * g + 1.5 * g * g) * a42 + (2.75 - 10.5 * g + 3.75 * g * g) * a43 - 3.5 + 13 * g - 4.5 * g * g
+    a32 = (-1 + 4.5 * g - 1.5 * g * g) * a42 + (-2.75 + 10.5 * g - 3.75 * g * g) * a43 + 4 - 12.5 * g + 4.5 * g * g
+    A_exp = np.array([[0, 0, 0, 0], [g, 0, 0, 0], [a31, a32, 0, 0], [1 - 2 * a42, a42, a43, 0]])
+    A_imp = np.array([[0, 0, 0, 0], [0, g, 0, 0], [0, (1 - g) / 2, g, 0], [0, b1, b2, g]])
+    return A_exp, A_imp, A_imp[-1].copy(), 3
+
+
+SCHEMES = {"ars232": _ars232, "ars343": _ars343}
+
+
+def tableau(scheme: str):
+    """(Â, A, b, order) of an ARS scheme: explicit and implicit stage matrices
+    (s+1)×(s+1) and the weights shared by both (b̂ = b)."""
+    return SCHEMES[scheme]()
+
+
+@dataclass(frozen=True)
+class ImexOptions:
+    """Scene table ``[imex]`` (see ``Imex``)."""
+
+    scheme: str = "ars343"
+    tol: float = 1e-10
+    maxiter: int = 500
+    mean_depth: float = 0.0
+    helmholtz_solver: str = ""
+
+    def __post_init__(self):
+        if self.scheme not in SCHEMES:
+            raise ValueError(f"scheme must be one of {', '.join(SCHEMES)} (got {self.scheme!r})")
+        if self.helmholtz_solver not in ("", "cg", "amg", "warp_cg"):
+            raise ValueError(f"helmholtz_solver must be 'cg', 'amg' or 'warp_cg' (got {self.helmholtz_solver!r})")
+        if not 0 < self.tol < 1:
+            raise ValueError(f"tol must be in (0, 1) (got {self.tol})")
+        if self.maxiter < 1:
+            raise ValueError(f"maxiter must be >= 1 (got {self.maxiter})")
+        if self.mean_depth < 0:
+            raise ValueError(f"mean_depth must be >= 0 (got {self.mean_depth})")
+
+
+class Imex(Stepper):
+    """IMEX Runge–Kutta ARS(2,3,2) / ARS(3,4,3): gravity waves implicit, the rest explicit.
+
+    Options (scene table ``[imex]``): ``scheme`` ("ars343" | "ars232"), ``tol``
+    (the Helmholtz CG's relative residual, 1e-10), ``maxiter`` (500),
+    ``mean_depth`` (H, m; 0 = the initial mean depth), ``helmholtz_solver``
+    ("cg" on the CPU, "warp_cg" on CUDA, or "amg"; each stage's solve starts
+    from the last one's solution). s + 1 RHS evaluations and s Helmholtz
+    solves a step (s = 2, 3); reports the Helmholtz iterations. Raises
+    ValueError without the continuity and pressure-gradient terms.
+    """
+
+    name = "imex"
+    Options = ImexOptions
+    solvers = ("helmholtz",)
+
+    def __init__(self, model, dt, options=None):
+        super().__init__(model, dt, options)
+        o = self.options
+        self.gw = GravityWave(model, o.mean_depth, o.helmholtz_solver or None, o.tol, o.maxiter, warm=True)
+        self.A_exp, self.A_imp, self.b, self.order = tableau(o.scheme)
+        stages = self.A_exp.shape[0]
+        self.gamma = float(self.A_imp[1, 1])
+        self.xn = self._buffer()
+        self.F = [self._buffer() for _ in range(stages)]  # F(Y_j)
+        self.L = [self._buffer() for _ in range(stages)]  # L Y_j
+        self.Y = self._buffer()
+
+    def state(self):
+        # the mean depth (0 until fixed by the first step) and the warm Helmholtz guess
+        return {**super().state(), **self.gw.state()}
+
+    def restore(self, state):
+        super().restore(state)
+        self.gw.restore(state, self._entry)
+
+    def _combine(self, out, base, terms):
+        """out = base + Σ c·x over the nonzero (c, x) of ``terms``, two at a time."""
+        terms = [(c, x) for c, x in terms if c != 0.0]
+        src = base
+        for k in range(0, len(terms), 2):
+            pair = terms[k : k + 2]
+            if len(pair) == 2:
+                (c1, x1), (c2, x2) = pair
+                self._pointwise(blas.axpbypcz, f64(1.0), src, f64(c1), x1, f64(c2), x2, out)
+            else:
+                self._pointwise(blas.axpby, f64(1.0), src, f64(pair[0][0]), pair[0][1], out)
+            src = out
+        if src is base:
+            wp.copy(out, base)
+
+    def advance(self, x):
+        m, gw, dt = self.model, self.gw, self.dt
+        gw.set_depth(x)
+        A_exp, A_imp, stages = self.A_exp, self.A_imp, self.A_exp.shape[0]
+        wp.copy(self.xn, x)
+        m.rhs(x, self.F[0])
+        gw.apply(x, self.L[0])
+        a = self.gamma * dt
+        iterations = 0
+        for i in range(1, stages):
+            terms = [(dt * A_exp[i, j], self.F[j]) for j in range(i)]
+            terms += [(dt * (A_imp[i, j] - A_exp[i, j]), self.L[j]) for j in range(i)]
+            self._combine(self.L[i], self.xn, terms)  # rhs_i, kept to form L Y_i
+            iterations += gw.solve(self.L[i], a, self.Y)
+            self._pointwise(blas.axpby, f64(1.0 / a), self.Y, f64(-1.0 / a), self.L[i], self.L[i])  # L Y_i
+            m.rhs(self.Y, self.F[i])
+        self._combine(x, self.xn, [(dt * self.b[j], self.F[j]) for j in range(stages)])
+        m.hyperviscosity(x, dt)
+        return StepStats(stages, {"helmholtz": iterations})

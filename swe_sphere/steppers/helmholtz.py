@@ -75,6 +75,19 @@ def default_solver(device) -> str:
     return "cg" if wp.get_device(device).is_cpu else "warp_cg"
 
 
+def check_solve_options(o) -> None:
+    """The checks of a stepper's accurate-solve options ``helmholtz_solver``, ``tol``,
+    ``maxiter``, ``mean_depth`` (semi-implicit, IMEX): ValueError '<option> must ...'."""
+    if o.helmholtz_solver not in ("", "cg", "amg", "warp_cg"):
+        raise ValueError(f"helmholtz_solver must be 'cg', 'amg' or 'warp_cg' (got {o.helmholtz_solver!r})")
+    if not 0 < o.tol < 1:
+        raise ValueError(f"tol must be in (0, 1) (got {o.tol})")
+    if o.maxiter < 1:
+        raise ValueError(f"maxiter must be >= 1 (got {o.maxiter})")
+    if o.mean_depth < 0:
+        raise ValueError(f"mean_depth must be >= 0 (got {o.mean_depth})")
+
+
 def helmholtz_matrix(model: ShallowWater) -> sp.csr_matrix:
     """K = −M D G (nunique × nunique, dimensionless: M in m², D G in m⁻²) on unique nodes, symmetrised (its asymmetry is round-off, ~1e-15 relative).
 

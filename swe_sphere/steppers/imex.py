@@ -37,7 +37,7 @@ import warp as wp
 
 from ..kernels import blas
 from .base import Stepper, StepStats
-from .helmholtz import GravityWave
+from .helmholtz import GravityWave, check_solve_options
 
 f64 = wp.float64
 
@@ -82,14 +82,7 @@ class ImexOptions:
     def __post_init__(self):
         if self.scheme not in SCHEMES:
             raise ValueError(f"scheme must be one of {', '.join(SCHEMES)} (got {self.scheme!r})")
-        if self.helmholtz_solver not in ("", "cg", "amg", "warp_cg"):
-            raise ValueError(f"helmholtz_solver must be 'cg', 'amg' or 'warp_cg' (got {self.helmholtz_solver!r})")
-        if not 0 < self.tol < 1:
-            raise ValueError(f"tol must be in (0, 1) (got {self.tol})")
-        if self.maxiter < 1:
-            raise ValueError(f"maxiter must be >= 1 (got {self.maxiter})")
-        if self.mean_depth < 0:
-            raise ValueError(f"mean_depth must be >= 0 (got {self.mean_depth})")
+        check_solve_options(self)
 
 
 class Imex(Stepper):

@@ -258,64 +258,64 @@ class ShallowWater:
         return max(self.hypervis_subcycle, math.ceil(self.nu * dt * self.biharmonic_radius() / 1.5))
 
     def hypervis_stages(self, dt: float) -> int:
-        """RKL2 stages s for ``hyperviscosity`` over dt: the fewest (≥ 2) whose
-        stability interval (s² + s − 2)/4 forward-Euler steps (Meyer, Balsara &
-        Aslam 2014, eq. 16) covers ν dt λ / 1.5."""
+        """RKL1 stages s for ``hyperviscosity`` over dt: the fewest (≥ 2) whose
+        stability interval, (s² + s)/2 forward-Euler limits (Meyer, Balsara &
+        Aslam 2014, §3), covers ν dt λ / 1.5 (the same 1.5/2 margin as the substeps)."""
         n = self.nu * dt * self.biharmonic_radius() / 1.5
-        return max(2, math.ceil((math.sqrt(9.0 + 16.0 * n) - 1.0) / 2.0 - 1e-12))
+        return max(2, math.ceil((math.sqrt(1.0 + 8.0 * n) - 1.0) / 2.0 - 1e-12))
 
     def hyperviscosity(self, x: wp.array2d, dt: float) -> None:
         """Apply ∇⁴ hyperviscosity over dt (s) in place, split from the dynamics:
         n = ``hypervis_substeps(dt)`` forward-Euler steps of x −= (dt/n) ν ∇⁴x
         (HOMME ``advance_hypervis`` with ``hypervis_subcycle``), or, when that
-        takes more ∇⁴ evaluations than an s-stage RKL2 super-time-step
-        (``hypervis_stages``, s < n: long steps), the RKL2 step, whose cost
-        grows as √(ν dt λ) instead of linearly. Measured on TC5 ne16 (dt_g
-        the gravity-wave limit, 506 s): n / s = 5 / 4, 12 / 6, 34 / 10 at 4, 10,
-        30 dt_g. Does nothing (launches nothing) without the term."""
+        takes at least twice the ∇⁴ evaluations of an s-stage RKL1
+        super-time-step (``hypervis_stages``; n ≥ 2s, n set by stability rather
+        than by the scene's subcycle: long steps only, so explicit steppers at
+        their steps keep forward Euler), the RKL1 step, whose cost grows as
+        √(ν dt λ) instead of linearly (TC5 ne16, dt_g the gravity-wave limit:
+        n / s = 6 / 3, 15 / 5, 45 / 9 at 4, 10, 30 dt_g).
+        Why RKL1 and not the second-order RKL2: RKL2's amplification of the
+        stiff modes is ≈ 1/2 a step (a_s + b_s P_s, a_s, b_s → 1/2) where the
+        exact factor is ~0; with it IMEX ARS(2,3,2) at 12 dt_g on TC5 ne8 blew
+        up on day 4, as with forward Euler it does not. RKL1's P_s damps the
+        interior of its interval to ≲ 0.3; the split is first order anyway.
+        Does nothing (launches nothing) without the term."""
         if "hyperviscosity" not in self.terms or self.nu == 0.0:
             return
         ns = self._substeps.get(dt)
         if ns is None:
             ns = self._substeps[dt] = (self.hypervis_substeps(dt), self.hypervis_stages(dt))
         n, s = ns
-        if s < n:
-            self._rkl2(x, dt, s)
+        if n >= 2 * s and n > self.hypervis_subcycle:
+            self._rkl1(x, dt, s)
             return
         coef = -self.nu * dt / n
         for _ in range(n):
             self._replay(("hv", x.ptr, coef), (x,), lambda: self._build_hv(x, coef))
 
-    def _rkl2(self, x, dt, s):
-        """One s-stage RKL2 step (Meyer, Balsara & Aslam 2014, eqs. 16–18) of
-        dx/dt = M(x) = −ν∇⁴x over dt, second order, stable for ν dt λ ≤ (s² + s − 2)/2.
-        With w₁ = 4/(s² + s − 2), each stage's μ̃_j Δt M(Y_{j−1}) = μ_j (E(Y_{j−1}) − Y_{j−1})
-        where E is one forward-Euler step of w₁Δt, so only the recorded ∇⁴ step is used:
-        Y_j = μ_j E(Y_{j−1}) + ν_j Y_{j−2} + (1 − μ_j − ν_j) Y_0 − a_{j−1} μ_j D₀,
-        D₀ = E(Y_0) − Y_0, Y_1 = Y_0 + b_1 D₀."""
+    def _rkl1(self, x, dt, s):
+        """One s-stage RKL1 step (Meyer, Balsara & Aslam 2014, eqs. 10–11) of
+        dx/dt = M(x) = −ν∇⁴x over dt: Y_0 = x, Y_1 = E(Y_0),
+        Y_j = μ_j E(Y_{j−1}) + ν_j Y_{j−2}, μ_j = (2j − 1)/j, ν_j = −(j − 1)/j,
+        with E one forward-Euler step of w₁Δt, w₁ = 2/(s² + s) (so only the
+        recorded ∇⁴ step is used); first order, stable for ν dt λ ≤ s² + s."""
         if getattr(self, "_rkl_buffers", None) is None:
-            self._rkl_buffers = [wp.zeros_like(x) for _ in range(5)]
-        y0, d0, ym2, ym1, e = self._rkl_buffers
-        coef = -self.nu * dt * 4.0 / (s * s + s - 2)
+            self._rkl_buffers = [wp.zeros_like(x) for _ in range(3)]
+        ym2, ym1, e = self._rkl_buffers
+        coef = -self.nu * dt * 2.0 / (s * s + s)
 
         def euler(src):  # e = E(src)
             wp.copy(e, src)
             self._replay(("hv", e.ptr, coef), (e,), lambda: self._build_hv(e, coef))
 
-        b = [1.0 / 3.0] * 3 + [(j * j + j - 2.0) / (2.0 * j * (j + 1.0)) for j in range(3, s + 1)]
-        wp.copy(y0, x)
-        euler(y0)
-        self.pointwise(blas.axpby, f64(1.0), e, f64(-1.0), y0, d0)  # D₀
-        self.pointwise(blas.axpby, f64(1.0), y0, f64(b[1]), d0, ym1)  # Y_1
-        wp.copy(ym2, y0)
+        wp.copy(ym2, x)
+        euler(x)
+        wp.copy(ym1, e)  # Y_1
         for j in range(2, s + 1):
-            mu = (2.0 * j - 1.0) / j * b[j] / b[j - 1]
-            nu = -(j - 1.0) / j * b[j] / b[j - 2]
             euler(ym1)
-            new = x if j == s else ym2  # Y_{j−2} is not needed after this stage
-            self.pointwise(blas.axpbypcz, f64(mu), e, f64(nu), ym2, f64(1.0 - mu - nu), y0, new)
-            self.pointwise(blas.axpby, f64(1.0), new, f64(-(1.0 - b[j - 1]) * mu), d0, new)
-            ym2, ym1 = ym1, new
+            out = x if j == s else ym2  # Y_{j−2} is not needed after this stage
+            self.pointwise(blas.axpby, f64((2.0 * j - 1.0) / j), e, f64(-(j - 1.0) / j), ym2, out)
+            ym2, ym1 = ym1, out
 
     # -- DSS'd operators for the (semi-)implicit solvers --------------------
     def gradient(self, x: wp.array2d, row: int, out: wp.array2d) -> None:

@@ -12,9 +12,9 @@ both written R(x) = (x − b)/Δt − β F(x) with b fixed during the step. (HOM
 multiplies by the mass matrix M; F here is already M⁻¹-weighted by the DSS.)
 
 Newton: δ from J δ = −R by a right-preconditioned Krylov method —
-``krylov = "fgmres"`` (flexible GMRES, ``pyamg.krylov.fgmres``; the CPU
-default: the preconditioner may change between iterations, as an inexact
-inner solve does), ``"gmres"`` (scipy's GMRES on J P⁻¹, which needs a fixed
+``krylov = "fgmres"`` (flexible GMRES, ``krylov.FGMRES``; the CPU default:
+the preconditioner may change between iterations, as an inexact inner solve
+does), ``"gmres"`` (scipy's GMRES on J P⁻¹, which needs a fixed
 P⁻¹) or ``"warp"`` (``warp.optim.linear.gmres`` on J P⁻¹, on the device) —
 with J v a forward difference of F, ε = sqrt(ε_mach)(1 + ‖x‖)/‖v‖; forcing
 terms by Eisenstat & Walker (1996) choice 2 (γ = 0.9, α = 2, safeguarded,
@@ -45,7 +45,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import pyamg.krylov
 import scipy.sparse.linalg as spla
 import warp as wp
 import warp.optim.linear as wpl
@@ -54,6 +53,7 @@ from ..kernels import blas
 from ..kernels import implicit as ik
 from .base import StepFailure, Stepper, StepStats
 from .helmholtz import SOLVERS, GravityWave, default_solver
+from .krylov import FGMRES
 
 f64 = wp.float64
 _SQRT_EPS = math.sqrt(np.finfo(float).eps)
@@ -155,8 +155,7 @@ class Implicit(Stepper):
         self.residual_history: list[float] = []
         self._counts = dict.fromkeys(("gmres", "precond", "helmholtz"), 0)
         if self.krylov == "fgmres":
-            self.J_op = spla.LinearOperator((n3, n3), matvec=self._host_jv, dtype=np.float64)
-            self.P_op = spla.LinearOperator((n3, n3), matvec=self._host_precondition, dtype=np.float64)
+            self.fgmres = FGMRES(n3, o["gmres_restart"])
         elif self.krylov == "gmres":
             self.op = spla.LinearOperator((n3, n3), matvec=self._host_matvec, dtype=np.float64)
         else:
@@ -228,17 +227,12 @@ class Implicit(Stepper):
         self._jv(self.zu, out)
 
     def _host_jv(self, w):
-        """FGMRES's operator: J w. pyamg.fgmres applies the preconditioner before each
-        product of an iteration; a product without one is its restart's residual."""
-        if self._preconditioned:
-            self._counts["gmres"] += 1
-            self._preconditioned = False
+        """FGMRES's operator: J w."""
         self.w_in.numpy()[:] = w
         self._jv(self.w_in, self.Jv)
         return self.Jv.numpy().copy()
 
     def _host_precondition(self, w):
-        self._preconditioned = True
         if self.gw is None:
             return w
         self.w_in.numpy()[:] = w
@@ -261,8 +255,8 @@ class Implicit(Stepper):
         self._gather(-1.0, self.R, self.minus_R)
         restarts = max(1, o["gmres_maxiter"] // o["gmres_restart"])
         if self.krylov == "fgmres":
-            self._preconditioned = False
-            d, _ = pyamg.krylov.fgmres(self.J_op, self.minus_R.numpy(), tol=eta, restart=o["gmres_restart"], maxiter=restarts, M=self.P_op)
+            d, its, _ = self.fgmres.solve(self._host_jv, self._host_precondition, self.minus_R.numpy(), eta, o["gmres_maxiter"])
+            self._counts["gmres"] += its
             self.w.numpy()[:] = d
             self._scatter(self.w, self.delta)
             return

@@ -1,14 +1,13 @@
-"""Hyperviscosity over long steps: RKL2 super-time-stepping (``ShallowWater.hyperviscosity``).
+"""Hyperviscosity over long steps: RKL1 super-time-stepping (``ShallowWater.hyperviscosity``).
 
 Measured (TC5, hyperviscosity alone over T = 45 forward-Euler limits, ne = 4):
-RKL2 with s = 6 stages and k = 8 … 128 steps against k = 1024: error ratios
-32.2, 4.25, 4.12, 4.10 (second order once ν λ_max Δt is inside the stages'
-accurate range). At ne = 16 and 30 dt_g (gravity-wave limit) one call takes
-13 ∇⁴ evaluations instead of 45 forward-Euler substeps; its distance to
-the finely subcycled result is 0.7 % of the hyperviscous change (2.4 % at
-ne = 4; forward Euler with 45 substeps: 0.008 %): RKL2 damps the stiffest modes by about half a
-step instead of all but removing them, which is stable and still damps the
-grid scale.
+RKL1 with s = 6 stages and k = 16 … 128 steps against k = 1024: error ratios
+2.06, 2.05, 2.08, 2.15 (first order). At ne = 16 one call over 30 dt_g
+(gravity-wave limit) takes 9 ∇⁴ evaluations instead of 45 forward-Euler
+substeps. RKL2 (second order: ratios 4.12, 4.10 with s = 6) was tried first:
+it damps stiff modes only by ≈ 1/2 a step and IMEX ARS(2,3,2) at 12 dt_g on
+TC5 ne = 8 blew up with it on day 4 (stable with forward Euler and with RKL1:
+l2(h+hs) 9.51e-4 and 9.55e-4).
 """
 
 from __future__ import annotations
@@ -27,7 +26,7 @@ def _tc5(ne=4):
     return sim, m, dt_fe
 
 
-def test_rkl2_is_second_order():
+def test_rkl1_is_first_order():
     sim, m, dt_fe = _tc5()
     x0 = sim.x.numpy().copy()
     x = wp.array(x0, dtype=wp.float64, device="cpu")
@@ -36,37 +35,38 @@ def test_rkl2_is_second_order():
     def run(k, s=6):
         x.assign(x0)
         for _ in range(k):
-            m._rkl2(x, T / k, s)
+            m._rkl1(x, T / k, s)
         return x.numpy().copy()
 
     ref = run(1024)
-    errors = [np.linalg.norm(run(k) - ref) / np.linalg.norm(ref - x0) for k in (32, 64, 128)]
+    errors = [np.linalg.norm(run(k) - ref) / np.linalg.norm(ref - x0) for k in (16, 32, 64)]
     ratios = [errors[i] / errors[i + 1] for i in range(2)]
-    print(f"\nRKL2 s = 6, k = 32/64/128 steps: errors {errors}, ratios {ratios}")
-    assert all(3.6 <= r <= 4.5 for r in ratios)
+    print(f"\nRKL1 s = 6, k = 16/32/64 steps: errors {errors}, ratios {ratios}")
+    assert all(1.8 <= r <= 2.3 for r in ratios)
 
 
-def test_long_steps_use_rkl2_stably_and_conservatively(rng):
-    """At Δt = 45 forward-Euler limits: 13 RKL2 stages instead of 46 substeps;
+def test_long_steps_use_rkl1_stably_and_conservatively(rng):
+    """At Δt = 45 forward-Euler limits: 9 RKL1 stages instead of 46 substeps;
     close to the finely subcycled result; repeated calls on a rough field
     decay a random perturbation monotonically and keep the mass to round-off. At the scene's
     own step the forward-Euler path (and so every explicit result) is unchanged."""
     sim, m, dt_fe = _tc5()
     T = 45 * dt_fe
-    assert (m.hypervis_substeps(T), m.hypervis_stages(T)) == (46, 13)
-    assert m.hypervis_stages(sim.scene.dt) >= m.hypervis_substeps(sim.scene.dt)  # forward Euler there
+    assert (m.hypervis_substeps(T), m.hypervis_stages(T)) == (46, 9)
+    n, s = m.hypervis_substeps(sim.scene.dt), m.hypervis_stages(sim.scene.dt)
+    assert n < 2 * s  # forward Euler at the scene's step
 
     x0 = sim.x.numpy().copy()
     x = wp.array(x0, dtype=wp.float64, device="cpu")
     m.hyperviscosity(x, T)
-    rkl2 = x.numpy().copy()
+    rkl = x.numpy().copy()
     x.assign(x0)
     coef = -m.nu * T / 720
     for _ in range(720):
         m._replay(("hv", x.ptr, coef), (x,), lambda: m._build_hv(x, coef))
     fine = x.numpy()
-    distance = np.linalg.norm(rkl2 - fine) / np.linalg.norm(fine - x0)
-    print(f"\nRKL2 (13 stages) against 720 forward-Euler substeps: {distance:.2e} of the change")
+    distance = np.linalg.norm(rkl - fine) / np.linalg.norm(fine - x0)
+    print(f"\nRKL1 (9 stages) against 720 forward-Euler substeps: {distance:.2e} of the change")
     assert distance < 0.05
 
     w = sim.grid.spheremp

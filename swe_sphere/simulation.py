@@ -201,7 +201,8 @@ class Simulation:
         if limit is None or speed <= limit:
             return None
         return (f"warning: dt = {self.scene.dt:g} s gives a Courant number (|v| + sqrt(g h)) dt/dx of {speed:.3g}, above "
-                f"{self.scene.stepper}'s stability limit of about {limit:g}; expect a blow-up (dt <= {self.scene.dt * limit / speed:.4g} s)")
+                f"{self.scene.stepper}'s stability limit of about {limit:g} (measured on TC2); it may blow up "
+                f"(dt <= {self.scene.dt * limit / speed:.4g} s keeps below)")
 
     def courant(self) -> dict:
         """Advective and gravity-wave Courant numbers of the scene's dt on the current state."""

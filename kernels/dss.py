@@ -1,7 +1,10 @@
 """Direct stiffness summation (HOMME ``bndry_exchangev`` + ``rspheremp`` scaling), gather form.
 
 Every element-local copy of a unique node gathers the sum over all copies, so
-the kernel needs no atomics and gives the same bits on CPU and CUDA.
+the kernel needs no atomics and gives the same bits on CPU and CUDA. Copies
+held by other processes arrive in a ghost buffer (``pack`` on the sender,
+``swe_sphere.topology`` exchanges), and the sum runs over all copies in one
+global order, so the bits do not depend on which process holds which copy.
 """
 
 import functools
@@ -13,8 +16,8 @@ wp.set_module_options({"enable_backward": False})
 
 
 @functools.cache
-def dss_rows(rows: int, weighted: bool, copies: int):
-    """The DSS kernel for ``rows`` rows and ``copies`` columns of the grid's
+def dss_rows(rows: int, weighted: bool, copies: int, ghosts: bool = False):
+    """The DSS kernel for ``rows`` rows and ``copies`` columns of the
     ``dss_table`` (its own Warp module, kernel key ``dss``):
     out[r, p] = rspheremp[p] · Σ_copies c of p's node (spheremp[c] if weighted
     else 1) · x[r, c]. ``weighted`` for a strong-form field (mass-weighted
@@ -22,12 +25,18 @@ def dss_rows(rows: int, weighted: bool, copies: int):
     already integrated against the test functions. ``out`` must not alias ``x``.
     Every copy sums in the same order, so all copies get the same bits. The
     copies come from one table row per node (no CSR indirection) and the row
-    sums stay in registers: 2.6× faster on the CPU than a CSR gather. Dim N."""
-    R, W, C = int(rows), bool(weighted), int(copies)
+    sums stay in registers: 2.6× faster on the CPU than a CSR gather. Dim N.
+
+    With ``ghosts``, a copy c ≥ ``nlocal`` is another process's, read from
+    ghost[(c − nlocal)·rows + r] (``pack``'s layout); spheremp has an entry
+    for every c. Without, ghost and nlocal are not read."""
+    R, W, C, G = int(rows), bool(weighted), int(copies), bool(ghosts)
     acc = wp.types.vector(length=R, dtype=f64)
 
     def dss(
         x: wp.array2d(dtype=f64),
+        ghost: wp.array(dtype=f64),
+        nlocal: int,
         spheremp: wp.array(dtype=f64),
         rspheremp: wp.array(dtype=f64),
         table: wp.array2d(dtype=wp.int32),
@@ -39,13 +48,22 @@ def dss_rows(rows: int, weighted: bool, copies: int):
         for k in range(C):
             c = table[p, k]
             if c >= 0:
+                w = f64(1.0)
                 if wp.static(W):
                     w = spheremp[c]
-                    for r in range(R):
-                        s[r] += w * x[r, c]
-                else:
-                    for r in range(R):
-                        s[r] += x[r, c]
+                for r in range(R):
+                    v = f64(0.0)
+                    if wp.static(G):
+                        if c >= nlocal:
+                            v = ghost[(c - nlocal) * R + r]
+                        else:
+                            v = x[r, c]
+                    else:
+                        v = x[r, c]
+                    if wp.static(W):
+                        s[r] += w * v
+                    else:
+                        s[r] += v
         rs = rspheremp[p]
         for r in range(R):
             out[r, p] = rs * s[r]
@@ -75,6 +93,16 @@ def assemble(
         if c >= 0:
             s += spheremp[c] * x[row, c]
     out[g] = s
+
+
+@wp.kernel
+def pack(x: wp.array2d(dtype=f64), rows: int, index: wp.array(dtype=wp.int32), buf: wp.array(dtype=f64), offset: int):
+    """buf[k·rows + r] = x[r, index[k]] for r < rows: the copies another process
+    needs, node by node (HOMME ``edgeVpack``). Dim len(index)."""
+    k = wp.tid() + offset
+    p = index[k]
+    for r in range(rows):
+        buf[k * rows + r] = x[r, p]
 
 
 @wp.kernel

@@ -24,6 +24,10 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_BAD_INPUT, f"swe-sphere: error: {message}\n")
 
 
+WORKERS_HELP = (
+    "runs at once in as many processes, the CPUs shared among them (default 1); under mpiexec -n N "
+    "the N - 1 ranks after rank 0 run them, on any number of nodes"
+)
 PLOT_FIELDS = ("h", "h_surface", "u", "v", "speed", "vorticity")  # = plotting.MAP_FIELDS (not imported: matplotlib)
 
 
@@ -78,6 +82,7 @@ def _parser() -> argparse.ArgumentParser:
     sw.add_argument("--days", type=float, help="run length in days")
     sw.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
     sw.add_argument("--output", type=Path, default=Path("sweep"), help="directory for results (default ./sweep); reruns resume")
+    sw.add_argument("--workers", type=int, default=1, help=WORKERS_HELP)
     st = sub.add_parser("stability", help="largest stable dt of each stepper on the hard cases, by bisection", parents=[common])
     st.add_argument("cases", nargs="*", help="case labels (default: all hard cases; see `swe-sphere stability --help`)")
     st.add_argument("--steppers", default="leapfrog,ssprk3,semi_implicit,implicit", help="comma-separated stepper names")
@@ -85,6 +90,7 @@ def _parser() -> argparse.ArgumentParser:
     st.add_argument("--np", type=int, help="GLL points (default: the scene's)")
     st.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
     st.add_argument("--output", type=Path, default=Path("."), help="directory for stability.csv and stability.nc")
+    st.add_argument("--workers", type=int, default=1, help=WORKERS_HELP)
     return p
 
 
@@ -145,29 +151,34 @@ def _cmd_sweep(args) -> int:
         raise ValueError(f"cannot create output directory {args.output}: {err.strerror}") from None
     device = _warp_device(args.device)
     from .sweep import Sweep, dt_for_day, explicit_limits, format_summary, table, write_outputs
+    from .workers import executor
 
-    base = next(iter(scenes.values()))
-    limits = explicit_limits(base, device)
-    if dts is None:
-        dts = sorted({dt_for_day(f * limits["dt_gravity"], base.days) for f in factors})
-    for dt in dts:
-        if abs(round(base.days * 86400 / dt) * dt - base.days * 86400) > 1e-6 * dt:
-            raise ValueError(f"dt = {dt:g} s does not divide the run length of {base.days:g} days")
-    print(
-        f"sweep {base.name} ne={base.ne} np={base.np}, {base.days:g} days; explicit limits: gravity-wave dt = "
-        f"{limits['dt_gravity']:.1f} s, advective dt = {limits['dt_advective']:.1f} s; dt = {', '.join(f'{d:.4g}' for d in dts)}"
-    )
-    rows, info = Sweep(scenes, dts, args.output, device).run()
-    rows = table(rows, limits)
-    print(format_summary(rows, info))
-    for path in write_outputs(rows, info, limits, args.output):
-        print(f"wrote {path}")
+    with executor(args.workers) as pool:
+        if pool is None:  # an MPI worker rank: its share is done
+            return 0
+        base = next(iter(scenes.values()))
+        limits = explicit_limits(base, device)
+        if dts is None:
+            dts = sorted({dt_for_day(f * limits["dt_gravity"], base.days) for f in factors})
+        for dt in dts:
+            if abs(round(base.days * 86400 / dt) * dt - base.days * 86400) > 1e-6 * dt:
+                raise ValueError(f"dt = {dt:g} s does not divide the run length of {base.days:g} days")
+        print(
+            f"sweep {base.name} ne={base.ne} np={base.np}, {base.days:g} days; explicit limits: gravity-wave dt = "
+            f"{limits['dt_gravity']:.1f} s, advective dt = {limits['dt_advective']:.1f} s; dt = {', '.join(f'{d:.4g}' for d in dts)}"
+        )
+        rows, info = Sweep(scenes, dts, args.output, device).run(pool)
+        rows = table(rows, limits)
+        print(format_summary(rows, info))
+        for path in write_outputs(rows, info, limits, args.output):
+            print(f"wrote {path}")
     return 0
 
 
 def _cmd_stability(args) -> int:
     from .config import SceneError
     from .stability import HARD_CASES, format_table, run_suite, write_table
+    from .workers import executor
 
     known = {c[0]: c for c in HARD_CASES}
     for label in args.cases:
@@ -180,7 +191,10 @@ def _cmd_stability(args) -> int:
         raise ValueError(f"output directory does not exist: {args.output}")
     device = _warp_device(args.device)
     cases = [known[c] for c in args.cases] if args.cases else list(HARD_CASES)
-    results = run_suite(cases, steppers, device, ne=args.ne, np=args.np)
+    with executor(args.workers) as pool:
+        if pool is None:  # an MPI worker rank: its share is done
+            return 0
+        results = run_suite(cases, steppers, device, ne=args.ne, np=args.np, pool=pool)
     print(format_table(results))
     for path in write_table(results, args.output):
         print(f"wrote {path}")
@@ -205,7 +219,7 @@ def _overrides(pairs) -> dict:
     return out
 
 
-def _continued(args, device):
+def _continued(args, device, comm):
     """The Simulation of ``run --continue``: refuses a changed scene, grid, stepper or dt."""
     from . import checkpoint
     from .config import load_scene
@@ -225,11 +239,13 @@ def _continued(args, device):
         if mine != theirs:
             differ = ", ".join(k for k in mine if mine[k] != theirs.get(k))
             raise checkpoint.CheckpointError(f"{args.continue_from} is a run of another scene than {args.scene} (differs in: {differ})")
-    return Simulation.from_checkpoint(ck, device, days=args.days, progress=not args.no_progress)
+    return Simulation.from_checkpoint(ck, device, days=args.days, progress=not args.no_progress, comm=comm)
 
 
 def _cmd_run(args) -> int:
+    from . import mpi
     from .config import load_scene
+    from .workers import cpus, limit_threads
     from .output import check_target
     from .simulation import BlowUp, Simulation, restart_path
 
@@ -245,7 +261,15 @@ def _cmd_run(args) -> int:
     check_target(output, args.overwrite)
     check_target(restart_path(output), args.overwrite)  # written at --restart-every and on SIGINT/SIGTERM
     device = _warp_device(args.device)
-    sim = Simulation(scene, device, progress=not args.no_progress) if args.continue_from is None else _continued(args, device)
+    comm = mpi.world()  # under mpiexec: one run over all ranks
+    if comm is not None:
+        limit_threads(max(1, cpus() // mpi.node_local_size(comm)))
+    if args.continue_from is None:
+        sim = Simulation(scene, device, progress=not args.no_progress, comm=comm)
+    else:
+        sim = _continued(args, device, comm)
+    if not sim.root:  # rank 0 reports; the others' errors still reach stderr
+        sys.stdout = open(os.devnull, "w")
     scene = sim.scene
     if args.restart_every is not None:
         sim.restart_steps(args.restart_every)  # checks the interval before the run
@@ -255,6 +279,10 @@ def _cmd_run(args) -> int:
     print(f"grid        ne={g.ne} np={g.np}: {g.nelem} elements, {g.nunique} unique nodes, min node spacing {g.dx.min() / 1e3:.1f} km")
     print(f"terms       {', '.join(scene.terms)}" + (f" (nu = {scene.nu:.3g} m^4/s, subcycle {scene.hypervis_subcycle})" if scene.nu else ""))
     print(f"stepper     {scene.stepper}, dt = {scene.dt:g} s, {scene.nsteps} steps to day {scene.days:g}, device {device}")
+    if comm is not None:
+        sizes = [len(p) for p in sim.topology.parts]
+        print(f"ranks       {comm.size} MPI ranks: {min(sizes)}-{max(sizes)} elements each along a space-filling curve, "
+              f"{sim.model.threads} CPU threads each")
     if sim.step:
         print(f"continue    from {args.continue_from} at step {sim.step} (day {sim.step * scene.dt / 86400:g})")
     grav = "" if math.isnan(c["courant_gravity"]) else f", gravity-wave {c['courant_gravity']:.3f}"

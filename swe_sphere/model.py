@@ -233,13 +233,14 @@ class ShallowWater:
         for ν Δt λ ≤ 2."""
         if getattr(self, "_biharmonic_radius", None) is None:
             rng = np.random.default_rng(0)
-            z = wp.array(rng.standard_normal((3, self.N)), dtype=f64, device=self.device)
+            z = self.topology.local(rng.standard_normal((3, self.topology.npts_total)))  # the same vector on any ranks
+            z = wp.array(z, dtype=f64, device=self.device)
             w, zc = wp.zeros_like(z), wp.zeros_like(z)
             for launch in self._dss(z, 1, zc):
                 launch.launch()
             lam = 0.0
             hs, self.hs = self.hs, wp.zeros_like(self.hs)  # the operator without the hs offset
-            scale = float(self.grid.dx.min()) ** 4  # coef·λ = O(1): w − z keeps its digits
+            scale = (-self.topology.max(-float(self.grid.dx.min()))) ** 4  # coef·λ = O(1): w − z keeps its digits
             launches = self._build_hv(w, scale)
             for _ in range(iterations):
                 zc.assign(zc.numpy() / self.topology.norm(zc))
@@ -366,8 +367,9 @@ class ShallowWater:
         return self.scalar_dss.numpy()[0].copy()
 
     def first_bad_node(self, x: wp.array2d) -> int | None:
-        """Index of the first node with a non-finite value or (when the scene
-        has a pressure gradient, so h is a depth) h ≤ 0; None if all are good."""
+        """Whole-grid element-local index of the first node, over all ranks, with a
+        non-finite value or (when the scene has a pressure gradient, so h is a
+        depth) h ≤ 0; None if all are good."""
         self.bad.fill_(self.N)
         check_depth = 1 if "pressure_gradient" in self.terms else 0
         slots = [self.bad[k : k + 1] for k in range(self.bad.shape[0])]  # one per thread: CPU atomics are plain
@@ -375,7 +377,7 @@ class ShallowWater:
             ("guard", x.ptr), (x,), lambda: [self._launch(blas.first_bad_node, self.N, [x, check_depth, self.bad], {"first": slots})]
         )
         first = int(self.bad.numpy().min())
-        return None if first == self.N else first
+        return self.topology.first_node(None if first == self.N else first)
 
     def new_state(self, u=None, v=None, h=None) -> wp.array2d:
         """A (3, N) device state from element-local numpy rows (zeros where None)."""

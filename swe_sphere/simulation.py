@@ -24,9 +24,11 @@ from .diagnostics import courant_numbers, invariants, williamson_norms, williams
 from .grid import CubedSphere
 from .model import ShallowWater
 from .output import RunWriter, check_target
+from .parallel import default_threads
 from .reference import Reference, reference_path
 from .runtime import check_memory, run_bytes
-from .steppers import StepFailure, make_stepper
+from .steppers import STEPPERS, StepFailure, make_stepper
+from .topology import Topology
 
 
 class BlowUp(RuntimeError):
@@ -97,31 +99,41 @@ class Simulation:
 
     ``device``: "cpu" or "cuda" (Warp device names). ``progress``: show a tqdm bar.
     ``from_checkpoint`` continues a restart file instead of starting at t = 0.
+    ``comm``: an mpi4py communicator to run one simulation over its ranks
+    (``topology.Topology``: each rank steps its part of the elements; fields
+    are gathered for diagnostics, and rank 0 writes the files); None: this
+    process alone. Explicit steppers give the same bits on any number of ranks.
     """
 
-    def __init__(self, scene: Scene, device: str, *, progress: bool = True):
+    def __init__(self, scene: Scene, device: str, *, progress: bool = True, comm=None):
         t0 = time.perf_counter()
         self._compile = [0.0]
         with _compile_timer(self._compile):
-            self._build(scene, device, progress)
+            self._build(scene, device, progress, comm)
         self.setup_time = time.perf_counter() - t0
 
-    def _build(self, scene, device, progress):
+    def _build(self, scene, device, progress, comm):
         check_memory(run_bytes(scene.ne, scene.np, scene.stepper), f"ne={scene.ne} np={scene.np} with {scene.stepper}")
-        self.scene, self.device, self.progress = scene, device, progress
+        self.scene, self.device = scene, device
         self.grid = grid = CubedSphere(scene.ne, scene.np)
+        self.topology = topo = Topology(grid, device, default_threads(device), comm)
+        self.root = topo.comm.rank == 0  # the rank that writes files and shows progress
+        self.progress = progress and self.root
+        if not topo.complete and not STEPPERS[scene.stepper].explicit:
+            raise ValueError(f"stepper {scene.stepper} runs on one MPI rank only so far (its solvers iterate on unique-node vectors)")
         self.case = case = scene.make_case()
         self.fcor = case.fcor(grid.lat, grid.lon)
         self.hs = case.hs(grid.lat, grid.lon)
         self.g = case.planet.g
         self.model = ShallowWater(
-            grid, scene.terms, self.fcor, self.hs, nu=scene.nu, hypervis_subcycle=scene.hypervis_subcycle, g=self.g, device=device
+            topo.local_grid(), scene.terms, topo.local(self.fcor), topo.local(self.hs), nu=scene.nu,
+            hypervis_subcycle=scene.hypervis_subcycle, g=self.g, device=device, topology=topo,
         )
         self.stepper = make_stepper(scene.stepper, self.model, scene.dt, **scene.stepper_options)
         ref_path = reference_path(case)
         self.reference = Reference(ref_path) if ref_path is not None else None
         u, v, h = case.initial(grid.lat, grid.lon)
-        self.x = self.model.new_state(u, v, h)
+        self.x = self.model.new_state(*(topo.local(f) for f in (u, v, h)))
         self.last_good = wp.clone(self.x)
         self.initial = None
         self.initial = self.diagnose(0.0)
@@ -130,7 +142,7 @@ class Simulation:
 
     # -- restart --------------------------------------------------------------
     @classmethod
-    def from_checkpoint(cls, checkpoint, device: str, *, days: float | None = None, progress: bool = True) -> Simulation:
+    def from_checkpoint(cls, checkpoint, device: str, *, days: float | None = None, progress: bool = True, comm=None) -> Simulation:
         """A simulation that continues a restart file (path or ``checkpoint.Checkpoint``),
         to ``days`` (from t = 0; default the checkpointed scene's). Raises
         ``checkpoint.CheckpointError`` or ``config.SceneError`` (one line)."""
@@ -138,15 +150,15 @@ class Simulation:
         scene = ck.scene if days is None else with_days(ck.scene, days)
         if scene.nsteps < ck.step:
             raise ckpt.CheckpointError(f"the run length {scene.days:g} days ends before the checkpoint (day {ck.step * scene.dt / DAY:g})")
-        sim = cls(scene, device, progress=progress)
+        sim = cls(scene, device, progress=progress, comm=comm)
         sim.restore(ck)
         return sim
 
     def restore(self, ck: ckpt.Checkpoint) -> None:
         """Set the state, stepper history, counters and t = 0 invariants from a checkpoint."""
-        if ck.x.shape != (3, self.model.N):
-            raise ckpt.CheckpointError(f"checkpoint state has shape {ck.x.shape}, the grid needs {(3, self.model.N)}")
-        self.x.assign(ck.x)
+        if ck.x.shape != (3, self.grid.npts):
+            raise ckpt.CheckpointError(f"checkpoint state has shape {ck.x.shape}, the grid needs {(3, self.grid.npts)}")
+        self.x.assign(self.topology.local(ck.x))
         try:
             self.stepper.restore(ck.stepper_state)
         except ValueError as err:
@@ -154,18 +166,27 @@ class Simulation:
         self.step, self.counters, self.initial = ck.step, ck.counters, ck.initial
 
     def write_checkpoint(self, path, *, overwrite: bool = True) -> Path:
-        """Write a restart file of the current step (see ``checkpoint``)."""
-        return ckpt.write(path, self.scene, self.step, self.x.numpy(), self.stepper.state(), self.counters, self.initial, overwrite=overwrite)
+        """Write a restart file of the current step (see ``checkpoint``): whole-grid
+        fields, gathered from every rank (call on all), written by rank 0."""
+        x, state = self.topology.gather(self.x.numpy()), self.stepper.state()
+        if not self.root:
+            return Path(path)
+        return ckpt.write(path, self.scene, self.step, x, state, self.counters, self.initial, overwrite=overwrite)
 
     # -- diagnostics --------------------------------------------------------
     def fields(self, x=None):
-        a = (self.x if x is None else x).numpy()
+        """u, v, h (npts,) of the whole grid (gathered from every rank)."""
+        a = self.topology.gather((self.x if x is None else x).numpy())
         return a[0], a[1], a[2]
+
+    def vorticity(self, x=None) -> np.ndarray:
+        """Relative vorticity (npts,) of the whole grid, DSS'd (s⁻¹)."""
+        return self.topology.gather(self.model.vorticity(self.x if x is None else x))
 
     def diagnose(self, t: float, x=None) -> dict:
         """Invariants (and their relative change), errors against the exact solution if any."""
         u, v, h = self.fields(x)
-        zeta = self.model.vorticity(self.x if x is None else x)
+        zeta = self.vorticity(x)
         d = invariants(self.grid, u, v, h, self.hs, zeta, self.fcor, self.g)
         if not self.case.h_is_depth:  # h is a tracer (TC1): only its mass is an invariant
             d = {"mass": d["mass"]}
@@ -245,13 +266,13 @@ class Simulation:
         ck_steps = self.restart_steps(restart_every) if restart_every is not None else set()
         if restart_every is not None and restart_file is None:
             raise ValueError("a restart interval needs an output or restart file")
-        if restart_file is not None:
+        if restart_file is not None and self.root:
             check_target(restart_file, overwrite)
         courant = self.courant()
         solver_series = [f"{k}_iterations" for k in stepper.solvers]
         series = ["steps", "rhs_evals", *solver_series, "wall_time", *self.initial.keys()]
         writer = None
-        if output is not None:
+        if output is not None and self.root:
             stamp = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
             attrs = {
                 "title": f"swe_sphere run of scene {s.name}",
@@ -265,6 +286,7 @@ class Simulation:
                 "stepper": s.stepper,
                 "dt": s.dt,
                 "device": self.device,
+                "mpi_ranks": self.topology.comm.size,
                 **({"continued_from_day": self.step * s.dt / DAY} if self.step else {}),
                 **{k: v for k, v in courant.items() if math.isfinite(v)},
             }
@@ -278,9 +300,10 @@ class Simulation:
             d.update(steps=step, rhs_evals=c["rhs_evals"], wall_time=c["wall_time"])
             d.update({f"{k}_iterations": c["iterations"].get(k, 0) for k in stepper.solvers})
             history.append(d)
-            if writer is not None:
-                zeta = model.vorticity(self.x if x is None else x)  # DSS'd, element-local (s-1)
-                writer.append(step * s.dt, *self.fields(x), {k: d[k] for k in series}, vorticity=zeta)
+            if output is not None:  # on every rank: the fields are gathered
+                zeta, fields = self.vorticity(x), self.fields(x)  # DSS'd, element-local (s-1)
+                if writer is not None:
+                    writer.append(step * s.dt, *fields, {k: d[k] for k in series}, vorticity=zeta)
 
         def save_restart():
             written[0] = self.write_checkpoint(restart_file, overwrite=overwrite or written[0] is not None)
@@ -301,8 +324,9 @@ class Simulation:
                 bar = tqdm(initial=self.step, total=s.nsteps, unit="step", disable=not self.progress, file=sys.stderr, dynamic_ncols=True)
                 with bar:
                     while self.step < s.nsteps:
-                        if stop:
-                            interrupted = stop[0]
+                        signum = int(self.topology.max(stop[0] if stop else 0))  # every rank stops at the same step
+                        if signum:
+                            interrupted = signum
                             break
                         n = self.step + 1
                         t0 = time.perf_counter()

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from .config import Scene, load_scene
 from .constants import DAY
 from .simulation import BlowUp, Simulation
+from .workers import InProcess
 
 ENERGY_GROWTH_LIMIT = 0.01
 
@@ -120,17 +121,20 @@ def largest_stable_dt(scene: Scene, device: str, *, tolerance: float = 0.05, log
     )
 
 
-def run_suite(cases, steppers, device, *, ne=None, np=None, log=print) -> list[StabilityResult]:
+def run_suite(cases, steppers, device, *, ne=None, np=None, log=print, pool=None) -> list[StabilityResult]:
     """Largest stable Δt for every (case, stepper). ``cases``: entries of ``HARD_CASES``;
-    ``ne``/``np`` override the grid of cases that do not fix it."""
-    results = []
+    ``ne``/``np`` override the grid of cases that do not fix it. The bisections
+    are independent: ``pool`` (a concurrent.futures executor, ``swe_sphere.workers``;
+    None: here, one after another) runs them; results in (case, stepper) order."""
+    pool = pool or InProcess()
+    futures = []
     for label, scene_name, days, case_ne in cases:
         for stepper in steppers:
             scene = load_scene(scene_name, ne=case_ne or ne, np=np, days=days, stepper=stepper)
             scene = dataclasses.replace(scene, name=label)
             log(f"{label}: {stepper} on ne={scene.ne} np={scene.np}, {scene.days:g} days")
-            results.append(largest_stable_dt(scene, device, log=log))
-    return results
+            futures.append(pool.submit(largest_stable_dt, scene, device, log=log))
+    return [f.result() for f in futures]
 
 
 def write_table(results, directory) -> tuple:

@@ -7,7 +7,9 @@ error at the final time (against the exact solution for TC1/TC2, else the T213
 reference) and the temporal error (against a same-grid run with a small Δt:
 RK4 at a quarter of the smallest Δt swept, made once and reused), and the
 drift of the invariants. Each run's result is written atomically as JSON
-under ``DIR/runs/``; a restarted sweep skips the runs already there.
+under ``DIR/runs/``; a restarted sweep skips the runs already there. The runs
+are independent: ``Sweep.run(pool)`` spreads them over a ``concurrent.futures``
+executor (``swe_sphere.workers``), the warm-ups first.
 
 "Sufficient accuracy" (Evans, Taylor & Drake 2010): temporal error ≤ 10 % of
 the spatial error, the spatial error being the small-Δt run's total error.
@@ -30,6 +32,7 @@ from .diagnostics import williamson_norms, williamson_vector_norms
 from .output import atomic_path
 from .simulation import BlowUp, Simulation
 from .steppers import STEPPERS
+from .workers import InProcess
 
 SUFFICIENT = 0.1  # temporal error ≤ 10 % of the spatial error
 
@@ -99,11 +102,12 @@ class Sweep:
         return {"x": x, "total_error": total, "dt": dt}
 
     # -- one run ------------------------------------------------------------------
-    def run_one(self, stepper: str, dt: float, x_ref) -> dict:
-        """Run (or read back) one (stepper, Δt); returns its row."""
+    def run_one(self, stepper: str, dt: float) -> dict:
+        """Run (or read back) one (stepper, Δt); returns its row. The reference run must exist."""
         path = self.directory / "runs" / f"{stepper}_{dt:.6g}.json"
         if path.exists():
             return json.loads(path.read_text())
+        x_ref = self.reference()["x"]
         scene = dataclasses.replace(self.scenes[stepper], dt=dt)
         t0 = time.perf_counter()
         sim = Simulation(scene, self.device, progress=False)
@@ -136,18 +140,21 @@ class Sweep:
         Simulation(scene, self.device, progress=False).run(None)
         return time.perf_counter() - t0
 
-    def run(self) -> tuple[list[dict], dict]:
-        """All runs (resuming); returns the rows and the reference run's summary."""
+    def run(self, pool=None) -> tuple[list[dict], dict]:
+        """All runs (resuming), on ``pool`` (a concurrent.futures executor; None:
+        here, one after another); returns the rows in (stepper, Δt) order and
+        the reference run's summary."""
+        pool = pool or InProcess()
         ref = self.reference()
-        rows, total, k = [], len(self.scenes) * len(self.dts), 0
+        startups = {stepper: pool.submit(self.warm_up, stepper) for stepper in self.scenes}
+        for future in startups.values():  # every kernel compiled before a timed run starts
+            future.result()
+        runs, total = [], len(self.scenes) * len(self.dts)
         for stepper in self.scenes:
-            startup = self.warm_up(stepper)
             for dt in self.dts:
-                k += 1
-                self.log(f"[{k}/{total}] {stepper} dt = {dt:.6g} s")
-                row = self.run_one(stepper, dt, ref["x"])
-                row["startup_time"] = startup
-                rows.append(row)
+                self.log(f"[{len(runs) + 1}/{total}] {stepper} dt = {dt:.6g} s")
+                runs.append((stepper, pool.submit(self.run_one, stepper, dt)))
+        rows = [{**future.result(), "startup_time": startups[stepper].result()} for stepper, future in runs]
         return rows, {"spatial_error": ref["total_error"], "reference_dt": ref["dt"]}
 
 

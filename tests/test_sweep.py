@@ -81,3 +81,22 @@ def test_sweep_bad_input_exits_2(tmp_path, capsys):
     assert main(["sweep", "tc2_steady", "--ne", "2", "--dt", "7000", "--output", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 3 and "euler" in err[0] and "-5" in err[1] and "7000" in err[2]
+
+
+def test_sweep_with_two_workers_gives_the_serial_rows(swept, tmp_path):
+    """--workers 2 (a spawned process pool) writes the same rows as the serial sweep;
+    only the timings differ."""
+    out, args = swept
+    parallel = tmp_path / "parallel"
+    assert main([*args[:-1], str(parallel), "--workers", "2"]) == 0
+    timings = ["wall_time", "startup_time", "setup_time"]
+    serial_rows = pd.read_csv(out / "sweep.csv").drop(columns=timings)
+    parallel_rows = pd.read_csv(parallel / "sweep.csv").drop(columns=timings)
+    pd.testing.assert_frame_equal(parallel_rows, serial_rows, check_exact=True)
+    assert (pd.read_csv(parallel / "sweep.csv")["wall_time"] > 0).all()
+    assert sorted(p.name for p in (parallel / "runs").glob("*.json")) == sorted(p.name for p in (out / "runs").glob("*.json"))
+
+
+def test_sweep_refuses_zero_workers(tmp_path, capsys):
+    assert main(["sweep", "tc2_steady", "--ne", "2", "--dt", "3600", "--workers", "0", "--output", str(tmp_path / "o")]) == 2
+    assert "--workers must be >= 1 (got 0)" in capsys.readouterr().err

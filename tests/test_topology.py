@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from swe_sphere.topology import Topology
+from swe_sphere.topology import SerialComm, Topology
 
 from conftest import cached_grid
 
@@ -56,3 +56,45 @@ def test_assemble_scatter_and_reductions_bit_for_bit(rng):
     assert topo.total_area == pytest.approx(4 * np.pi * g.radius**2, rel=1e-14)
     assert topo.mean(np.full(g.npts, 7.5)) == pytest.approx(7.5, rel=1e-14)
     assert topo.npts_total == g.npts and topo.nunique == g.nunique
+
+
+class RankOf(SerialComm):
+    """Rank ``rank`` of ``size`` as far as building tables goes (reductions stay local)."""
+
+    def __init__(self, rank, size):
+        self.rank, self.size = rank, size
+
+
+@pytest.mark.parametrize("ranks", [2, 3, 5])
+def test_partitioned_dss_with_exchanged_copies_is_the_serial_dss_bit_for_bit(ranks, rng):
+    """Each rank packs (``kernels.dss.pack``) what its neighbours need; with those
+    buffers placed in its ghost buffer (the exchange, done here by hand), each
+    rank's DSS equals the one-process DSS on its nodes, bit for bit."""
+    g = cached_grid(3, 4)
+    x = rng.standard_normal((3, g.npts))
+    whole = wp.zeros((3, g.npts), dtype=wp.float64)
+    launch_all(Topology(g, "cpu").dss(wp.array(x, dtype=wp.float64), True, whole))
+    topos = [Topology(g, "cpu", 1, RankOf(r, ranks)) for r in range(ranks)]
+    assert np.array_equal(np.sort(np.concatenate([t.elements for t in topos])), np.arange(g.nelem))
+    outs, sent = [], []
+    for t in topos:  # pack on every rank
+        out = wp.zeros((3, t.N), dtype=wp.float64)
+        launches = t.dss(wp.array(x[:, t.nodes], dtype=wp.float64), True, out)
+        assert [launch.kernel.key for launch in launches] == ["pack", "exchange", "dss"]
+        launches[0].launch()
+        sent.append(t.send_buffer.numpy().copy())
+        outs.append((out, launches[-1]))
+        for a, b in t.send_ranges:  # each neighbour gets its copies in the global order
+            copies = t.nodes[t.send_index.numpy()[a:b]]
+            assert np.all(np.diff(copies) > 0)
+            assert np.array_equal(sent[-1][a * 3 : b * 3], x[:, copies].T.ravel())
+    for r, t in enumerate(topos):  # "exchange", then the DSS
+        ghost = t.ghost.numpy()
+        for s, (a, b) in zip(t.neighbours, t.recv_ranges):
+            c, d = topos[s].send_ranges[list(topos[s].neighbours).index(r)]
+            assert d - c == b - a
+            ghost[a * 3 : b * 3] = sent[s][c * 3 : d * 3]
+        out, launch = outs[r]
+        launch.launch()
+        assert np.array_equal(out.numpy(), whole.numpy()[:, t.nodes])
+        assert t.halo_copies == t.recv.size > 0

@@ -109,13 +109,15 @@ class Stepper:
         return state[key]
 
     def _save(self, a: wp.array) -> np.ndarray:
-        return a.numpy().copy()
+        """A whole-grid copy of a (rows, N) array (gathered from every rank)."""
+        return self.model.topology.gather(a.numpy()).copy()
 
     def _load(self, a: wp.array, state, key) -> None:
         values = np.asarray(self._entry(state, key), dtype=np.float64)
-        if values.shape != a.shape:
-            raise ValueError(f"{self.name} stepper state {key!r} has shape {values.shape}, expected {a.shape}")
-        a.assign(values)
+        shape = (a.shape[0], self.model.topology.npts_total)
+        if values.shape != shape:
+            raise ValueError(f"{self.name} stepper state {key!r} has shape {values.shape}, expected {shape}")
+        a.assign(self.model.topology.local(values))
 
     # -- stepping ----------------------------------------------------------------------
     def step(self, x: wp.array2d) -> StepStats:

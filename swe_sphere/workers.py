@@ -1,0 +1,72 @@
+"""Independent runs spread over processes (``sweep`` and ``stability --workers``).
+
+``executor(workers)`` yields a ``concurrent.futures`` executor:
+
+* under ``mpiexec -n N`` (N > 1): mpi4py's ``MPICommExecutor`` over
+  COMM_WORLD, rank 0 handing runs to the N − 1 others (one node or many);
+  on those other ranks it yields None once rank 0 is done, and the caller
+  just returns;
+* else with ``workers`` > 1: a local process pool (spawned processes: Warp
+  and its CPU thread pools are not fork-safe);
+* else ``InProcess()``: each run in this process when submitted.
+
+Each worker's CPU threads (``SWE_SPHERE_THREADS`` and BLAS) are set to the
+node's CPUs divided among the workers on the node, so that concurrent runs
+do not oversubscribe the cores; a ``SWE_SPHERE_THREADS`` set by the user wins.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import os
+from concurrent.futures import Future, ProcessPoolExecutor
+
+from . import mpi
+
+
+def cpus() -> int:
+    """CPUs this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:
+        return max(1, os.cpu_count() or 1)
+
+
+def limit_threads(threads: int) -> None:
+    """Use ``threads`` CPU threads in this process (unless SWE_SPHERE_THREADS is set)."""
+    from threadpoolctl import threadpool_limits
+
+    os.environ.setdefault("SWE_SPHERE_THREADS", str(threads))
+    threadpool_limits(int(os.environ["SWE_SPHERE_THREADS"]))
+
+
+@contextlib.contextmanager
+def executor(workers: int = 1):
+    """The executor for independent runs (see the module docstring); ValueError for workers < 1."""
+    if workers < 1:
+        raise ValueError(f"--workers must be >= 1 (got {workers})")
+    comm = mpi.world()
+    if comm is not None:
+        from mpi4py.futures import MPICommExecutor
+
+        limit_threads(max(1, cpus() // mpi.node_local_size(comm)))
+        with MPICommExecutor(comm, root=0) as pool:
+            yield pool
+        return
+    if workers == 1:
+        yield InProcess()
+        return
+    threads = max(1, cpus() // workers)
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"), initializer=limit_threads, initargs=(threads,)) as pool:
+        yield pool
+
+
+class InProcess:
+    """An executor that runs ``fn`` here and now when submitted (its exceptions
+    propagate at once) and hands back its result as a done Future."""
+
+    def submit(self, fn, /, *args, **kwargs) -> Future:
+        future: Future = Future()
+        future.set_result(fn(*args, **kwargs))
+        return future

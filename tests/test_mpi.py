@@ -1,0 +1,113 @@
+"""One run over several MPI ranks (``mpiexec -n N swe-sphere run``): explicit steppers give
+the same bits on 1, 2 and 3 ranks, and a run on N ranks continues on M.
+
+The ranks run as real processes under the mpich wheel's ``mpiexec`` (the test
+extra installs mpich and mpi4py); the tests skip, saying why, only where MPI
+cannot start.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from swe_sphere.cli import main
+
+
+def _beside_python(name: str) -> str | None:
+    beside = Path(sys.executable).with_name(name)
+    return str(beside) if beside.is_file() else shutil.which(name)
+
+
+@functools.cache
+def mpi_unavailable() -> str | None:
+    """Why MPI cannot start here (None: it can)."""
+    mpiexec, script = _beside_python("mpiexec"), _beside_python("swe-sphere")
+    if mpiexec is None or script is None:
+        return "no mpiexec or swe-sphere console script beside the interpreter (pip install mpich mpi4py)"
+    code = "from mpi4py import MPI; c = MPI.COMM_WORLD; print(c.allreduce(c.rank + 1))"
+    try:
+        proc = subprocess.run([mpiexec, "-n", "2", sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    except (OSError, subprocess.TimeoutExpired) as err:
+        return f"mpiexec -n 2 did not run: {err}"
+    if proc.returncode != 0 or proc.stdout.split() != ["3", "3"]:
+        return f"mpiexec -n 2 failed (exit {proc.returncode}): {(proc.stderr or proc.stdout).strip()[-300:]}"
+    return None
+
+
+@pytest.fixture
+def needs_mpi():
+    """Skip, giving the reason, where MPI cannot start."""
+    reason = mpi_unavailable()
+    if reason is not None:
+        pytest.skip(reason)
+
+
+def mpirun(ranks: int, args: list[str], cwd: Path) -> subprocess.CompletedProcess:
+    env = {**os.environ, "SWE_SPHERE_THREADS": "1"}
+    return subprocess.run(
+        [_beside_python("mpiexec"), "-n", str(ranks), _beside_python("swe-sphere"), *args],
+        cwd=cwd, capture_output=True, text=True, timeout=300, env=env,
+    )
+
+
+FIELDS = ("u", "v", "h", "vorticity", "mass", "total_energy", "potential_enstrophy")
+
+
+def assert_same_bits(a: Path, b: Path) -> None:
+    with xr.open_dataset(a) as x, xr.open_dataset(b) as y:
+        assert x.sizes["time"] == y.sizes["time"] >= 2
+        for name in FIELDS:
+            assert np.array_equal(x[name].values, y[name].values), name
+        assert y.attrs["mpi_ranks"] > x.attrs["mpi_ranks"] == 1
+
+
+@pytest.mark.usefixtures("needs_mpi")
+@pytest.mark.parametrize(
+    "scene,extra",
+    [
+        ("tc2_steady", ["--stepper", "rk4", "--days", "0.25"]),
+        ("tc5_mountain", ["--days", "0.1"]),  # leapfrog-trapezoidal with hyperviscosity and topography
+    ],
+)
+def test_explicit_run_same_bits_on_1_2_3_ranks(tmp_path, scene, extra):
+    args = ["run", scene, "--ne", "2", *extra, "--no-progress"]
+    assert main([*args, "--output", str(tmp_path / "r1.nc")]) == 0
+    for ranks in (2, 3):
+        out = tmp_path / f"r{ranks}.nc"
+        proc = mpirun(ranks, [*args, "--output", str(out)], tmp_path)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        assert f"ranks       {ranks} MPI ranks" in proc.stdout and proc.stdout.count("summary") == 1
+        assert_same_bits(tmp_path / "r1.nc", out)
+
+
+@pytest.mark.usefixtures("needs_mpi")
+def test_run_on_two_ranks_continues_on_three(tmp_path):
+    """Leapfrog (its x(n-1) in the restart file) stopped after half the run on 2 ranks and
+    continued on 3 ends with the bits of an uninterrupted 1-rank run."""
+    args = ["tc2_steady", "--ne", "2", "--stepper", "leapfrog", "--dt", "1800", "--no-progress"]
+    assert main(["run", *args, "--days", "0.5", "--output", str(tmp_path / "whole.nc")]) == 0
+    proc = mpirun(2, ["run", *args, "--days", "0.25", "--restart-every", "0.25", "--output", "half.nc"], tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert (tmp_path / "half.restart.nc").is_file()
+    proc = mpirun(3, ["run", "--continue", "half.restart.nc", "--days", "0.5", "--output", "rest.nc"], tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    with xr.open_dataset(tmp_path / "whole.nc") as whole, xr.open_dataset(tmp_path / "rest.nc") as rest:
+        for name in ("u", "v", "h"):
+            assert np.array_equal(whole[name].values[-1], rest[name].values[-1]), name
+
+
+@pytest.mark.usefixtures("needs_mpi")
+def test_solver_steppers_refused_on_several_ranks_in_one_line(tmp_path):
+    proc = mpirun(2, ["run", "tc2_steady", "--ne", "2", "--stepper", "semi_implicit", "--days", "0.1", "--output", "o.nc"], tmp_path)
+    assert proc.returncode == 2
+    assert "stepper semi_implicit runs on one MPI rank only so far" in proc.stderr
+    assert not (tmp_path / "o.nc").exists()

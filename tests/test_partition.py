@@ -1,0 +1,52 @@
+"""Space-filling-curve partition of the cube's elements (``swe_sphere.partition``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from swe_sphere import partition as P
+
+from conftest import cached_grid
+
+
+@pytest.mark.parametrize("ne", [1, 2, 3, 4, 5, 7, 8])
+def test_curve_visits_every_element_once_through_edge_neighbours(ne):
+    g = cached_grid(ne, 2)
+    order = P.sfc_order(g)
+    assert np.array_equal(np.sort(order), np.arange(g.nelem))
+    nbrs = P.element_neighbours(g.gid, g.nelem)
+    assert all(len(n) == 4 for n in nbrs)  # every element of the cube has four edge neighbours
+    steps = [order[k + 1] in nbrs[order[k]] for k in range(g.nelem - 1)]
+    assert all(steps), f"curve jumps at {steps.index(False)}"
+
+
+@pytest.mark.parametrize("ne,parts", [(2, 2), (3, 5), (4, 3), (4, 7), (5, 150)])
+def test_partition_covers_once_balanced_and_contiguous(ne, parts):
+    g = cached_grid(ne, 2)
+    chunks = P.partition(g, parts)
+    sizes = [len(c) for c in chunks]
+    assert len(chunks) == parts and sum(sizes) == g.nelem
+    assert max(sizes) - min(sizes) <= 1
+    assert np.array_equal(np.sort(np.concatenate(chunks)), np.arange(g.nelem))
+    # the chunks are consecutive pieces of the curve, in rank order
+    assert np.array_equal(np.concatenate(chunks), P.sfc_order(g))
+
+
+def test_edge_cut_of_whole_faces_and_halves():
+    """Six parts are the six faces (the curve finishes a face before the next):
+    the cut is the cube's 12 edges of ne element edges each."""
+    ne = 4
+    g = cached_grid(ne, 2)
+    faces = P.partition(g, 6)
+    assert sorted(int(c.min()) // (ne * ne) for c in faces) == list(range(6))
+    assert all(len(set((c // (ne * ne)).tolist())) == 1 for c in faces)
+    assert P.edge_cut(g, faces) == 12 * ne
+    assert P.edge_cut(g, P.partition(g, 1)) == 0
+
+
+def test_bad_part_counts_raise():
+    g = cached_grid(1, 2)
+    for parts in (0, 7):
+        with pytest.raises(ValueError, match="cannot split 6 elements"):
+            P.partition(g, parts)

@@ -1,0 +1,143 @@
+"""Domain decomposition over MPI ranks: partition quality, halo traffic, time per step.
+
+Prints, for each ``--ne`` (np = 4, TC5 terms with hyperviscosity, RK4 at the
+scene's Δt, one CPU thread per rank):
+
+1. The space-filling-curve partition for each rank count of ``--ranks`` (and of
+   ``--model-ranks``, partition only): elements per rank, edge cut (element
+   edges between ranks), neighbours per rank, ghost copies received per DSS and
+   their bytes per assembled row (max and mean over ranks). No MPI needed.
+2. For each rank count of ``--ranks`` (run under ``mpiexec -n R`` from here,
+   counts alternated ``--repeat`` times, medians): ms per RK4 step, of which in
+   the exchange (pack + messages + waiting, ``topology._Exchange``), DSS
+   exchanges per step, and the speed-up over one rank. Rank counts above the
+   machine's cores run oversubscribed: their times say nothing about scaling,
+   only that the run works (the note says so beside them).
+
+    python benchmarks/scaling.py                          # ne 16 30 60 on 1 2 ranks
+    python benchmarks/scaling.py --ne 16 --ranks 1 2 3 4 6 --steps 20
+    python benchmarks/scaling.py --ne 256 --np 2 --ranks --model-ranks 96 384 1536   # partition only (docs/scaling.md)
+
+The figures and the model built from them: ``docs/scaling.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def partition_table(ne: int, np_: int, ranks: list[int]) -> None:
+    from swe_sphere.grid import CubedSphere
+    from swe_sphere.partition import edge_cut, partition
+    from swe_sphere.topology import SerialComm, Topology
+
+    class RankOf(SerialComm):  # build one rank's tables without MPI
+        def __init__(self, rank, size):
+            self.rank, self.size = rank, size
+
+    grid = CubedSphere(ne, np_)
+    print(f"\nne={ne} np={np_}: {grid.nelem} elements, {grid.npts} element-local nodes")
+    print(f"{'ranks':>6s} {'elem/rank':>10s} {'edge cut':>9s} {'nbrs max':>9s} {'nbrs mean':>9s} {'ghosts max':>10s} "
+          f"{'ghosts mean':>11s} {'kB/row max':>10s} {'ghost/local':>11s}")
+    for size in ranks:
+        parts = partition(grid, size)
+        sample = range(size) if size <= 64 else np.linspace(0, size - 1, 32).astype(int)  # tables are O(N) per rank
+        topos = [Topology(grid, "cpu", 1, RankOf(int(r), size)) for r in sample]
+        nbrs = [len(t.neighbours) for t in topos]
+        ghosts = [t.halo_copies for t in topos]
+        print(f"{size:6d} {grid.nelem / size:10.1f} {edge_cut(grid, parts):9d} {max(nbrs):9d} {statistics.mean(nbrs):9.1f} "
+              f"{max(ghosts):10d} {statistics.mean(ghosts):11.1f} {8 * max(ghosts) / 1e3:10.2f} "
+              f"{statistics.mean(g / t.N for g, t in zip(ghosts, topos)):11.3f}")
+
+
+def worker(ne: int, steps: int) -> None:
+    """Under mpiexec: time RK4 steps on this communicator; rank 0 prints one JSON line."""
+    import warp as wp
+
+    wp.config.quiet = True
+    from mpi4py import MPI
+
+    from swe_sphere import topology
+    from swe_sphere.config import load_scene
+    from swe_sphere.simulation import Simulation
+
+    spent = [0.0, 0]
+    real = topology._Exchange.launch
+
+    def timed(self):
+        t0 = time.perf_counter()
+        real(self)
+        spent[0] += time.perf_counter() - t0
+        spent[1] += 1
+
+    topology._Exchange.launch = timed
+    comm = MPI.COMM_WORLD
+    scene = load_scene("tc5_mountain", ne=ne, np=4, stepper="rk4")
+    sim = Simulation(scene, "cpu", progress=False, comm=comm if comm.size > 1 else None)
+    for _ in range(2):  # record launches, load kernels
+        sim.stepper.step(sim.x)
+    comm.Barrier()
+    spent[:] = [0.0, 0]
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        sim.stepper.step(sim.x)
+    comm.Barrier()
+    wall = (time.perf_counter() - t0) / steps
+    exch = comm.allreduce(spent[0], MPI.MAX) / steps
+    if comm.rank == 0:
+        print(json.dumps({"ms_step": 1e3 * wall, "ms_exchange": 1e3 * exch, "exchanges": spent[1] / steps}))
+
+
+def time_table(ne_list, ranks, steps, repeat) -> None:
+    mpiexec = Path(sys.executable).with_name("mpiexec")
+    env = {**os.environ, "SWE_SPHERE_THREADS": "1"}
+    cores = len(os.sched_getaffinity(0))
+    for ne in ne_list:
+        runs = {r: [] for r in ranks}
+        for _ in range(repeat):
+            for r in ranks:  # alternated so that the machine's load falls on all alike
+                cmd = [str(mpiexec), "-n", str(r), sys.executable, __file__, "--worker", str(ne), str(steps)]
+                proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=3600)
+                if proc.returncode != 0:
+                    raise SystemExit(f"mpiexec -n {r} failed: {proc.stderr[-2000:]}")
+                runs[r].append(json.loads(proc.stdout.strip().splitlines()[-1]))
+        print(f"\nne={ne} np=4, RK4 TC5, {steps} steps, medians of {repeat} (load average {os.getloadavg()[0]:.1f}, {cores} cores)")
+        print(f"{'ranks':>6s} {'ms/step':>9s} {'exchange ms':>11s} {'share':>6s} {'DSS/step':>8s} {'speed-up':>8s}")
+        base = statistics.median(x["ms_step"] for x in runs[ranks[0]]) * ranks[0]
+        for r in ranks:
+            step = statistics.median(x["ms_step"] for x in runs[r])
+            exch = statistics.median(x["ms_exchange"] for x in runs[r])
+            note = "  (oversubscribed: correctness only)" if r > cores else ""
+            print(f"{r:6d} {step:9.2f} {exch:11.2f} {exch / step:6.1%} {runs[r][0]['exchanges']:8.0f} {base / step:8.2f}{note}")
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--ne", type=int, nargs="+", default=[16, 30, 60])
+    p.add_argument("--ranks", type=int, nargs="*", default=[1, 2])
+    p.add_argument("--model-ranks", type=int, nargs="*", default=[3, 6, 24])
+    p.add_argument("--np", type=int, default=4, help="GLL points of the partition tables (the timed runs use 4)")
+    p.add_argument("--steps", type=int, default=10)
+    p.add_argument("--repeat", type=int, default=3)
+    p.add_argument("--worker", type=int, nargs=2, help=argparse.SUPPRESS)
+    a = p.parse_args()
+    if a.worker:
+        worker(*a.worker)
+        return
+    for ne in a.ne:
+        partition_table(ne, a.np, sorted(set(a.ranks) | set(a.model_ranks)))
+    if a.ranks:
+        time_table(a.ne, a.ranks, a.steps, a.repeat)
+
+
+if __name__ == "__main__":
+    main()

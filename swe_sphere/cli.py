@@ -327,9 +327,11 @@ def _summary(r) -> None:
     if "l2_h" in d:
         print(f"  error h     l1 {d['l1_h']:.3e}  l2 {d['l2_h']:.3e}  linf {d['linf_h']:.3e}")
         print(f"  error wind  l1 {d['l1_wind']:.3e}  l2 {d['l2_wind']:.3e}  linf {d['linf_wind']:.3e}")
+        print(f"  error wind  l2 vorticity {d['l2_vorticity']:.3e}  l2 divergence {d['l2_divergence']:.3e}")
     if "ref_l2_h_surface" in d:
         print(f"  vs T213 h+hs l1 {d['ref_l1_h_surface']:.3e}  l2 {d['ref_l2_h_surface']:.3e}  linf {d['ref_linf_h_surface']:.3e}")
         print(f"  vs T213 wind l1 {d['ref_l1_wind']:.3e}  l2 {d['ref_l2_wind']:.3e}  linf {d['ref_linf_wind']:.3e}")
+        print(f"  vs T213 wind l2 vorticity {d['ref_l2_vorticity']:.3e}  l2 divergence {d['ref_l2_divergence']:.3e}")
     print(f"  output      {r.output}")
     if r.checkpoint is not None:
         print(f"  restart     {r.checkpoint}")

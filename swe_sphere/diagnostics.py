@@ -36,6 +36,19 @@ def williamson_vector_norms(grid: CubedSphere, u, v, u_true, v_true) -> dict[str
     }
 
 
+def rotational_divergent_errors(grid: CubedSphere, zeta_err, delta_err, zeta_true, delta_true) -> dict[str, float]:
+    """Normalized l2 errors of relative vorticity (the balanced flow) and of
+    divergence (gravity waves): sqrt(I ζe²) / n and sqrt(I δe²) / n with
+    n = sqrt(I(ζT² + δT²)), the true wind's velocity-gradient scale. One
+    normaliser for both (the true divergence may vanish, as on TC2), so that
+    their squares add up to the error of the wind's gradient in the same units.
+    ``zeta_err``, ``delta_err`` (s⁻¹, (N,)): vorticity and divergence of the
+    wind error; ``zeta_true``, ``delta_true``: those of the true wind."""
+    I = grid.integrate
+    n = np.sqrt(I(zeta_true**2 + delta_true**2))
+    return {"l2_vorticity": float(np.sqrt(I(zeta_err**2)) / n), "l2_divergence": float(np.sqrt(I(delta_err**2)) / n)}
+
+
 def invariants(grid: CubedSphere, u, v, h, hs, zeta, fcor, g) -> dict[str, float]:
     """Mass I h (m³), total energy I(½h|v|² + ½g((h+hs)² − hs²)) (m⁵ s⁻²) and
     potential enstrophy I(½(ζ+f)²/h) (m s⁻²), the integral invariants that

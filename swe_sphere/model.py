@@ -366,6 +366,12 @@ class ShallowWater:
         )
         return self.scalar_dss.numpy()[0].copy()
 
+    def wind_divergence(self, x: wp.array2d) -> np.ndarray:
+        """Divergence δ = ∇·v (s⁻¹) of the wind in rows 0, 1 of x, (N,) numpy: the
+        operator the model steps with (``divergence``), DSS'd."""
+        self.divergence(x, self.scalar_dss)
+        return self.scalar_dss.numpy()[0].copy()
+
     def first_bad_node(self, x: wp.array2d) -> int | None:
         """Whole-grid element-local index of the first node, over all ranks, with a
         non-finite value or (when the scene has a pressure gradient, so h is a

@@ -26,6 +26,7 @@ FIELDS = {
     "u": dict(units="m s-1", long_name="eastward wind", standard_name="eastward_wind"),
     "v": dict(units="m s-1", long_name="northward wind", standard_name="northward_wind"),
     "vorticity": dict(units="s-1", long_name="relative vorticity", standard_name="atmosphere_relative_vorticity"),
+    "divergence": dict(units="s-1", long_name="divergence of the wind", standard_name="divergence_of_wind"),
 }
 UGRID_NODE = {"mesh": "mesh_topology", "location": "node"}  # on every node field (see ugrid.py)
 
@@ -53,6 +54,13 @@ for _f, _what in (("h_surface", "free-surface height h + hs"), ("wind", "wind"))
     for _n, _long in (("l1", "normalized l1"), ("l2", "normalized l2"), ("linf", "normalized l-infinity")):
         SERIES_ATTRS[f"ref_{_n}_{_f}"] = dict(
             units="1", long_name=f"{_long} error of the {_what} against the T213 reference (NaN where it stores no output)"
+        )
+
+
+for _pre, _what in (("", "the exact solution"), ("ref_", "the T213 reference (NaN where it stores no output)")):
+    for _f, _part in (("vorticity", "relative vorticity (balanced flow)"), ("divergence", "divergence (gravity waves)")):
+        SERIES_ATTRS[f"{_pre}l2_{_f}"] = dict(
+            units="1", long_name=f"l2 of the {_part} of the wind error against {_what}, over that of the true wind's vorticity and divergence"
         )
 
 
@@ -228,8 +236,8 @@ class RunWriter:
         hsv.setncatts({**FIELDS["hs"], "coordinates": "lat lon", **UGRID_NODE})
         hsv[:] = grid.to_unique(hs)
         write_mesh(ds, grid, "ncol")
-        for name in ("h", "u", "v", "vorticity"):
-            fill = dict(fill_value=np.nan) if name == "vorticity" else {}  # NaN where a writer got none
+        for name in ("h", "u", "v", "vorticity", "divergence"):
+            fill = dict(fill_value=np.nan) if name in ("vorticity", "divergence") else {}  # NaN where a writer got none
             var = ds.createVariable(name, "f4" if compress else "f8", ("time", "ncol"), zlib=compress, **fill)
             var.setncatts({**FIELDS[name], "coordinates": "lat lon", "cell_measures": "area: area", **UGRID_NODE})
         for name in series:
@@ -237,9 +245,9 @@ class RunWriter:
             var.setncatts(SERIES_ATTRS[name])
         self.n = 0
 
-    def append(self, time_s: float, u, v, h, series: dict, vorticity=None) -> None:
+    def append(self, time_s: float, u, v, h, series: dict, vorticity=None, divergence=None) -> None:
         """Add one output time (s since start); fields element-local (N,); ``vorticity``
-        (s⁻¹, DSS'd, element-local) is optional (NaN in the file without it)."""
+        and ``divergence`` (s⁻¹, DSS'd, element-local) are optional (NaN in the file without them)."""
         ds, n, g = self.ds, self.n, self.grid
         ds["time"][n] = time_s / 86400.0
         ds["u"][n, :] = g.to_unique(u)
@@ -247,6 +255,8 @@ class RunWriter:
         ds["h"][n, :] = g.to_unique(h)
         if vorticity is not None:
             ds["vorticity"][n, :] = g.to_unique(vorticity)
+        if divergence is not None:
+            ds["divergence"][n, :] = g.to_unique(divergence)
         for k, val in series.items():
             ds[k][n] = val
         ds.sync()

@@ -31,7 +31,7 @@ from .output import atomic_path
 from .runtime import check_memory
 
 #: node fields (time, ncol) or (ncol,) that ``remap_dataset`` carries to the lat-lon grid
-NODE_FIELDS = ("h", "hs", "u", "v", "vorticity")
+NODE_FIELDS = ("h", "hs", "u", "v", "vorticity", "divergence")
 
 
 def lagrange_basis(nodes: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -157,9 +157,9 @@ def latlon_grid(resolution: float) -> tuple[np.ndarray, np.ndarray]:
 def remap_bytes(points: int, np_: int, ntime: int) -> int:
     """Estimated peak bytes of ``remap_dataset`` onto ``points`` lat-lon points: the
     locator's temporaries (~40 floats), the interpolation weights and sparse matrix
-    (~6 np² words) and the remapped fields h, hs, u, v, vorticity, h_surface
+    (~6 np² words) and the remapped fields h, hs, u, v, vorticity, divergence, h_surface
     (ntime each, twice: computed and written)."""
-    return 8 * points * (40 + 6 * np_ * np_ + 12 * ntime)
+    return 8 * points * (40 + 6 * np_ * np_ + 14 * ntime)
 
 
 def remap_dataset(ds: xr.Dataset, resolution: float) -> xr.Dataset:

@@ -20,7 +20,7 @@ from . import __version__
 from . import checkpoint as ckpt
 from .config import Scene, with_days
 from .constants import DAY
-from .diagnostics import courant_numbers, invariants, williamson_norms, williamson_vector_norms
+from .diagnostics import courant_numbers, invariants, rotational_divergent_errors, williamson_norms, williamson_vector_norms
 from .grid import CubedSphere
 from .model import ShallowWater
 from .output import RunWriter, check_target
@@ -135,6 +135,7 @@ class Simulation:
         u, v, h = case.initial(grid.lat, grid.lon)
         self.x = self.model.new_state(*(topo.local(f) for f in (u, v, h)))
         self.last_good = wp.clone(self.x)
+        self.scratch = self.model.new_state()  # a comparison wind, for its vorticity and divergence
         self.initial = None
         self.initial = self.diagnose(0.0)
         self.step = 0  # steps taken since t = 0
@@ -183,6 +184,10 @@ class Simulation:
         """Relative vorticity (npts,) of the whole grid, DSS'd (s⁻¹)."""
         return self.topology.gather(self.model.vorticity(self.x if x is None else x))
 
+    def divergence(self, x=None) -> np.ndarray:
+        """Divergence of the wind (npts,) of the whole grid, DSS'd (s⁻¹)."""
+        return self.topology.gather(self.model.wind_divergence(self.x if x is None else x))
+
     def diagnose(self, t: float, x=None) -> dict:
         """Invariants (and their relative change), errors against the exact solution if any."""
         u, v, h = self.fields(x)
@@ -197,6 +202,7 @@ class Simulation:
             ue, ve, he = self.case.exact(self.grid.lat, self.grid.lon, t)
             d.update({f"{k}_h": val for k, val in williamson_norms(self.grid, h, he).items()})
             d.update({f"{k}_wind": val for k, val in williamson_vector_norms(self.grid, u, v, ue, ve).items()})
+            d.update(self.wind_error_decomposition(u, v, ue, ve))
         if self.reference is not None:
             d.update(self._reference_errors(t / DAY, u, v, h))
         d.update(courant_numbers(self.grid, u, v, h, self.scene.dt, self.g, "pressure_gradient" in self.scene.terms))
@@ -206,12 +212,30 @@ class Simulation:
         """Normalized errors of the free surface h + hs and of the wind against the
         T213 reference (NaN at days the reference does not store)."""
         names = [f"ref_{k}_{f}" for f in ("h_surface", "wind") for k in ("l1", "l2", "linf")]
+        names += ["ref_l2_vorticity", "ref_l2_divergence"]
         if np.min(np.abs(self.reference.days - day)) > 1e-6:
             return dict.fromkeys(names, float("nan"))
         r = self.reference.at(day, self.grid.lat, self.grid.lon)
         out = {f"ref_{k}_h_surface": val for k, val in williamson_norms(self.grid, h + self.hs, r["h_surface"]).items()}
         out.update({f"ref_{k}_wind": val for k, val in williamson_vector_norms(self.grid, u, v, r["u"], r["v"]).items()})
+        out.update({f"ref_{k}": val for k, val in self.wind_error_decomposition(u, v, r["u"], r["v"]).items()})
         return out
+
+    def rotation_divergence(self, u, v) -> tuple[np.ndarray, np.ndarray]:
+        """Relative vorticity and divergence (s⁻¹, (npts,) each) of a continuous wind
+        on the whole grid (m s⁻¹, (npts,) each), by the model's operators + DSS
+        (call on every rank)."""
+        u, v = self.topology.local(u), self.topology.local(v)
+        self.scratch.assign(np.stack([u, v, np.zeros_like(u)]))
+        return self.vorticity(self.scratch), self.divergence(self.scratch)
+
+    def wind_error_decomposition(self, u, v, u_true, v_true) -> dict:
+        """``l2_vorticity``, ``l2_divergence``: the wind error split into its
+        rotational (balanced-flow) and divergent (gravity-wave) parts, as the
+        vorticity and divergence of v − vT by the model's operators (one operator
+        on both sides, so the derivative's own discretisation error cancels),
+        normalized as in ``diagnostics.rotational_divergent_errors``."""
+        return rotational_divergent_errors(self.grid, *self.rotation_divergence(u - u_true, v - v_true), *self.rotation_divergence(u_true, v_true))
 
     def stability_warning(self) -> str | None:
         """A one-line warning when an explicit stepper's Δt exceeds its measured
@@ -300,10 +324,10 @@ class Simulation:
             d.update(steps=step, rhs_evals=c["rhs_evals"], wall_time=c["wall_time"])
             d.update({f"{k}_iterations": c["iterations"].get(k, 0) for k in stepper.solvers})
             history.append(d)
-            if output is not None:  # on every rank: the fields are gathered
-                zeta, fields = self.vorticity(x), self.fields(x)  # DSS'd, element-local (s-1)
+            if output is not None:  # on every rank: the fields are gathered (DSS'd, element-local, s-1)
+                zeta, delta, fields = self.vorticity(x), self.divergence(x), self.fields(x)
                 if writer is not None:
-                    writer.append(step * s.dt, *fields, {k: d[k] for k in series}, vorticity=zeta)
+                    writer.append(step * s.dt, *fields, {k: d[k] for k in series}, vorticity=zeta, divergence=delta)
 
         def save_restart():
             written[0] = self.write_checkpoint(restart_file, overwrite=overwrite or written[0] is not None)

@@ -35,6 +35,7 @@ from .steppers import STEPPERS
 from .workers import InProcess
 
 SUFFICIENT = 0.1  # temporal error ≤ 10 % of the spatial error
+SPATIAL = ("total_error", "total_error_vorticity", "total_error_divergence")  # the small-Δt run's, against the truth
 
 
 def dt_for_day(dt: float, run_days: float) -> float:
@@ -55,14 +56,21 @@ def _final_state(sim: Simulation) -> np.ndarray:
 
 
 def _errors(sim: Simulation, x: np.ndarray, x_ref: np.ndarray | None) -> dict:
-    """Total error at the end (exact solution or T213) and temporal error against x_ref."""
+    """Total error at the end (exact solution or T213) of h (+ hs) and of the wind's
+    vorticity and divergence, and the same three against x_ref (temporal error)."""
     d = sim.diagnose(sim.scene.days * DAY, None)
-    total = d.get("l2_h", d.get("ref_l2_h_surface", math.nan))
-    out = {"total_error": total}
+    pre = "" if "l2_h" in d else "ref_"
+    out = {
+        "total_error": d.get("l2_h", d.get("ref_l2_h_surface", math.nan)),
+        "total_error_vorticity": d.get(f"{pre}l2_vorticity", math.nan),
+        "total_error_divergence": d.get(f"{pre}l2_divergence", math.nan),
+    }
     if x_ref is not None:
         hs = sim.hs
         out["temporal_error"] = williamson_norms(sim.grid, x[2] + hs, x_ref[2] + hs)["l2"]
         out["temporal_error_wind"] = williamson_vector_norms(sim.grid, x[0], x[1], x_ref[0], x_ref[1])["l2"]
+        split = sim.wind_error_decomposition(x[0], x[1], x_ref[0], x_ref[1])
+        out.update(temporal_error_vorticity=split["l2_vorticity"], temporal_error_divergence=split["l2_divergence"])
     return out
 
 
@@ -88,18 +96,18 @@ class Sweep:
         dt = dt_for_day(min(self.dts) / 4, self.base.days)
         path = self.directory / "runs" / f"reference_rk4_{dt:.6g}.npz"
         if path.exists():
-            data = np.load(path)
-            return {"x": data["x"], "total_error": float(data["total_error"]), "dt": dt}
+            with np.load(path) as data:
+                return {"dt": dt, "x": data["x"], **{k: float(data[k]) if k in data else math.nan for k in SPATIAL}}
         self.log(f"reference run: rk4, dt = {dt:.6g} s")
         scene = dataclasses.replace(self.base, stepper="rk4", stepper_options={}, dt=dt)
         sim = Simulation(scene, self.device, progress=False)
         sim.run(None)
         x = _final_state(sim)
-        total = _errors(sim, x, None)["total_error"]
+        errors = _errors(sim, x, None)
         with atomic_path(path) as tmp:
             with open(tmp, "wb") as f:
-                np.savez(f, x=x, total_error=total)
-        return {"x": x, "total_error": total, "dt": dt}
+                np.savez(f, x=x, **errors)
+        return {"x": x, "dt": dt, **errors}
 
     # -- one run ------------------------------------------------------------------
     def run_one(self, stepper: str, dt: float) -> dict:
@@ -155,14 +163,15 @@ class Sweep:
                 self.log(f"[{len(runs) + 1}/{total}] {stepper} dt = {dt:.6g} s")
                 runs.append((stepper, pool.submit(self.run_one, stepper, dt)))
         rows = [{**future.result(), "startup_time": startups[stepper].result()} for stepper, future in runs]
-        return rows, {"spatial_error": ref["total_error"], "reference_dt": ref["dt"]}
+        return rows, {"spatial_error": ref["total_error"], "spatial_error_vorticity": ref["total_error_vorticity"],
+                      "spatial_error_divergence": ref["total_error_divergence"], "reference_dt": ref["dt"]}
 
 
 COLUMNS = (
     "stepper", "dt", "dt_over_gravity_limit", "dt_over_advective_limit", "stable", "wall_time", "startup_time",
     "setup_time", "steps", "rhs_evals", "newton_iterations", "gmres_iterations", "precond_iterations",
-    "helmholtz_iterations", "total_error",
-    "temporal_error", "temporal_error_wind", "mass_change", "total_energy_change", "potential_enstrophy_change", "reason",
+    "helmholtz_iterations", "total_error", "total_error_vorticity", "total_error_divergence",
+    "temporal_error", "temporal_error_wind", "temporal_error_vorticity", "temporal_error_divergence", "mass_change", "total_energy_change", "potential_enstrophy_change", "reason",
 )
 
 

@@ -82,6 +82,9 @@ def _parser() -> argparse.ArgumentParser:
     sw.add_argument("--days", type=float, help="run length in days")
     sw.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
     sw.add_argument("--output", type=Path, default=Path("sweep"), help="directory for results (default ./sweep); reruns resume")
+    sw.add_argument("--filter-days", type=float, metavar="DAYS", help="also score the balanced flow: Lanczos low-pass in time with this cutoff period (runs go on past --days by the half window)")
+    sw.add_argument("--filter-window", type=float, metavar="DAYS", help="the filter's half window around the last day (default 1.5 x --filter-days)")
+    sw.add_argument("--filter-every", type=float, default=3.0, metavar="HOURS", help="the filter's snapshot interval (default 3 h)")
     sw.add_argument("--workers", type=int, default=1, help=WORKERS_HELP)
     st = sub.add_parser("stability", help="largest stable dt of each stepper on the hard cases, by bisection", parents=[common])
     st.add_argument("cases", nargs="*", help="case labels (default: all hard cases; see `swe-sphere stability --help`)")
@@ -145,6 +148,19 @@ def _cmd_sweep(args) -> int:
     scenes = {s: load_scene(args.scene, ne=args.ne, np=args.np, days=args.days, stepper=s) for s in steppers}
     dts = _numbers(args.dt, "dt") if args.dt else None
     factors = _numbers(args.courant or "0.5,1,2,5,10,30,60,100", "courant") if dts is None else None
+    base = next(iter(scenes.values()))
+    time_filter, span = None, base.days  # Δt must divide span (days)
+    if args.filter_days is not None:
+        from .timefilter import TimeFilter
+
+        time_filter = TimeFilter(args.filter_days, args.filter_every, args.filter_window)
+        time_filter.days(base.days)  # the window must start within the run
+        span = time_filter.every_hours / 24
+        if abs(base.days / span - round(base.days / span)) > 1e-9:
+            raise ValueError(f"the run length of {base.days:g} days is not a multiple of the filter's {time_filter.every_hours:g} h snapshots")
+    for dt in dts or ():
+        if abs(round(span * 86400 / dt) * dt - span * 86400) > 1e-6 * dt and time_filter is not None:
+            raise ValueError(f"dt = {dt:g} s does not divide the filter's snapshot interval of {time_filter.every_hours:g} h")
     try:
         args.output.mkdir(parents=True, exist_ok=True)
     except OSError as err:
@@ -156,10 +172,9 @@ def _cmd_sweep(args) -> int:
     with executor(args.workers) as pool:
         if pool is None:  # an MPI worker rank: its share is done
             return 0
-        base = next(iter(scenes.values()))
         limits = explicit_limits(base, device)
         if dts is None:
-            dts = sorted({dt_for_day(f * limits["dt_gravity"], base.days) for f in factors})
+            dts = sorted({dt_for_day(f * limits["dt_gravity"], span) for f in factors})
         for dt in dts:
             if abs(round(base.days * 86400 / dt) * dt - base.days * 86400) > 1e-6 * dt:
                 raise ValueError(f"dt = {dt:g} s does not divide the run length of {base.days:g} days")
@@ -167,7 +182,7 @@ def _cmd_sweep(args) -> int:
             f"sweep {base.name} ne={base.ne} np={base.np}, {base.days:g} days; explicit limits: gravity-wave dt = "
             f"{limits['dt_gravity']:.1f} s, advective dt = {limits['dt_advective']:.1f} s; dt = {', '.join(f'{d:.4g}' for d in dts)}"
         )
-        rows, info = Sweep(scenes, dts, args.output, device).run(pool)
+        rows, info = Sweep(scenes, dts, args.output, device, time_filter=time_filter).run(pool)
         rows = table(rows, limits)
         print(format_summary(rows, info))
         for path in write_outputs(rows, info, limits, args.output):

@@ -271,7 +271,7 @@ class Simulation:
 
     def run(self, output: Path | None = None, *, overwrite: bool = False, restart_every: float | None = None,
             restart_file: Path | None = None, catch_signals: bool = True, compress: bool = False,
-            history: str | None = None) -> RunResult:
+            history: str | None = None, on_output=None) -> RunResult:
         """Integrate the scene from the current step; write ``output`` (netCDF) if given.
 
         ``overwrite``: replace an existing output (and restart) file; else
@@ -281,7 +281,8 @@ class Simulation:
         step, close the output (global attributes ``interrupted``,
         ``interrupted_at_day``) and write the restart file, then raise
         ``Interrupted``. ``compress``: float32 + zlib fields. ``history``: the
-        command line, for the file's ``history`` attribute. Raises ``BlowUp`` after closing the output with every
+        command line, for the file's ``history`` attribute. ``on_output(step, x)``: called
+        at every output step with the (3, N) device state. Raises ``BlowUp`` after closing the output with every
         good output time and the last good state (the step before the failure).
         """
         s, model, stepper = self.scene, self.model, self.stepper
@@ -324,6 +325,8 @@ class Simulation:
             d.update(steps=step, rhs_evals=c["rhs_evals"], wall_time=c["wall_time"])
             d.update({f"{k}_iterations": c["iterations"].get(k, 0) for k in stepper.solvers})
             history.append(d)
+            if on_output is not None:
+                on_output(step, self.x if x is None else x)
             if output is not None:  # on every rank: the fields are gathered (DSS'd, element-local, s-1)
                 zeta, delta, fields = self.vorticity(x), self.divergence(x), self.fields(x)
                 if writer is not None:

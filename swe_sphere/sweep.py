@@ -39,26 +39,32 @@ SPATIAL = ("total_error", "total_error_vorticity", "total_error_divergence")  # 
 
 
 def dt_for_day(dt: float, run_days: float) -> float:
-    """The largest Δt ≤ dt that divides a day (or the run, if shorter)."""
+    """The largest Δt ≤ dt that divides a day (or ``run_days``, if shorter: the run,
+    or a time filter's snapshot interval)."""
     span = min(1.0, run_days) * DAY
     return span / math.ceil(span / dt - 1e-9)
 
 
 def explicit_limits(scene: Scene, device: str) -> dict:
     """The Δt at which the gravity-wave and the advective Courant numbers of the
-    initial state are 1 (``dt_gravity``, ``dt_advective``), on the scene's grid."""
-    c = Simulation(dataclasses.replace(scene, days=scene.dt / DAY), device, progress=False).courant()
-    return {"dt_gravity": scene.dt / c["courant_gravity"], "dt_advective": scene.dt / c["courant_advective"]}
+    initial state are 1 (``dt_gravity``, ``dt_advective``), on the scene's grid, and
+    leapfrog's measured stability limit there (``dt_leapfrog``: (|v| + sqrt(g h)) Δt/Δx
+    = ``courant_limit`` of the leapfrog stepper, 0.58), to quote multiples as papers
+    whose explicit reference is leapfrog do (presumably Evans, Taylor & Drake 2010)."""
+    sim = Simulation(dataclasses.replace(scene, days=scene.dt / DAY), device, progress=False)
+    c = sim.courant()
+    u, v, h = sim.fields()
+    speed = float(np.max((np.hypot(u, v) + np.sqrt(sim.g * np.maximum(h, 0.0))) / sim.grid.dx))
+    return {"dt_gravity": scene.dt / c["courant_gravity"], "dt_advective": scene.dt / c["courant_advective"],
+            "dt_leapfrog": STEPPERS["leapfrog"].courant_limit / speed}
 
 
-def _final_state(sim: Simulation) -> np.ndarray:
-    return sim.x.numpy().copy()
-
-
-def _errors(sim: Simulation, x: np.ndarray, x_ref: np.ndarray | None) -> dict:
-    """Total error at the end (exact solution or T213) of h (+ hs) and of the wind's
-    vorticity and divergence, and the same three against x_ref (temporal error)."""
-    d = sim.diagnose(sim.scene.days * DAY, None)
+def _errors(sim: Simulation, day: float, x: np.ndarray, x_ref: np.ndarray | None) -> dict:
+    """Total error at ``day`` (exact solution or T213) of h (+ hs) and of the wind's
+    vorticity and divergence, and the same three against x_ref (temporal error);
+    x, x_ref: (3, N) states at that day. Sets the simulation's state to x."""
+    sim.x.assign(x)
+    d = sim.diagnose(day * DAY, None)
     pre = "" if "l2_h" in d else "ref_"
     out = {
         "total_error": d.get("l2_h", d.get("ref_l2_h_surface", math.nan)),
@@ -74,67 +80,115 @@ def _errors(sim: Simulation, x: np.ndarray, x_ref: np.ndarray | None) -> dict:
     return out
 
 
+def _filtered_errors(sim: Simulation, xf: np.ndarray | None, xf_ref: np.ndarray | None) -> dict:
+    """l2 of the time-filtered difference of h + hs and of its wind's vorticity (NaN without both)."""
+    if xf is None or xf_ref is None:
+        return {"temporal_error_filtered": math.nan, "temporal_error_filtered_vorticity": math.nan}
+    hs = sim.hs
+    return {
+        "temporal_error_filtered": williamson_norms(sim.grid, xf[2] + hs, xf_ref[2] + hs)["l2"],
+        "temporal_error_filtered_vorticity": sim.wind_error_decomposition(xf[0], xf[1], xf_ref[0], xf_ref[1])["l2_vorticity"],
+    }
+
+
 @dataclass
 class Sweep:
     """A sweep over ``scenes`` (stepper name → its resolved scene, same case and
-    grid) × ``dts`` (s), results under ``directory``."""
+    grid) × ``dts`` (s), results under ``directory``. With ``time_filter``
+    (``timefilter.TimeFilter``) each run goes on for the filter's half window past
+    the scenes' last day (the target) and is also scored by the time-filtered
+    temporal error; wall time, RHS evaluations and iterations are those to the target."""
 
     scenes: dict
     dts: list
     directory: Path
     device: str
     log: object = print
+    time_filter: object = None
 
     def __post_init__(self):
         self.directory = Path(self.directory)
         (self.directory / "runs").mkdir(parents=True, exist_ok=True)
         self.base = next(iter(self.scenes.values()))
 
+    @property
+    def tag(self) -> str:
+        """File-name suffix of a filtered sweep's runs (they run longer)."""
+        f = self.time_filter
+        return "" if f is None else f"_lp{f.period_days:g}d{f.half_window_days:g}d{f.every_hours:g}h"
+
+    def simulate(self, scene):
+        """Run ``scene`` (beyond its last day by the filter's half window, when
+        filtering). Returns (simulation, RunResult, counters at the target day
+        (its history entry), state at the target, filtered state or None); a blow-up
+        gives its partial result and None states."""
+        f, target = self.time_filter, scene.days
+        n_target = round(target * DAY / scene.dt)
+        weights = {}
+        if f is not None:
+            weights = {round(d * DAY / scene.dt): w for d, w in zip(f.days(target), f.weights)}
+            scene = dataclasses.replace(scene, days=target + f.half_window_days, output_every_days=f.every_hours / 24)
+        kept = {"x": None, "filtered": 0.0, "seen": 0}
+
+        def on_output(step, x):
+            if step == n_target:
+                kept["x"] = x.numpy().copy()
+            if step in weights:
+                kept["filtered"] = kept["filtered"] + weights[step] * x.numpy()
+                kept["seen"] += 1
+
+        sim = Simulation(scene, self.device, progress=False)
+        try:
+            result = sim.run(None, on_output=on_output)
+        except BlowUp as err:
+            return sim, err.result, err.result.history[-1], None, None
+        at_target = next(h for h in result.history if h["steps"] == n_target)
+        filtered = kept["filtered"] if f is not None and kept["seen"] == len(weights) else None
+        return sim, result, at_target, kept["x"], filtered
+
     # -- reference ----------------------------------------------------------------
     def reference(self) -> dict:
         """The small-Δt run (RK4, a quarter of the smallest Δt): final state and spatial error."""
-        dt = dt_for_day(min(self.dts) / 4, self.base.days)
-        path = self.directory / "runs" / f"reference_rk4_{dt:.6g}.npz"
+        dt = dt_for_day(min(self.dts) / 4, self.base.days if self.time_filter is None else self.time_filter.every_hours / 24)
+        path = self.directory / "runs" / f"reference_rk4_{dt:.6g}{self.tag}.npz"
         if path.exists():
             with np.load(path) as data:
-                return {"dt": dt, "x": data["x"], **{k: float(data[k]) if k in data else math.nan for k in SPATIAL}}
+                return {"dt": dt, "x": data["x"], "filtered": data["filtered"] if "filtered" in data else None,
+                        **{k: float(data[k]) if k in data else math.nan for k in SPATIAL}}
         self.log(f"reference run: rk4, dt = {dt:.6g} s")
         scene = dataclasses.replace(self.base, stepper="rk4", stepper_options={}, dt=dt)
-        sim = Simulation(scene, self.device, progress=False)
-        sim.run(None)
-        x = _final_state(sim)
-        errors = _errors(sim, x, None)
+        sim, _, _, x, filtered = self.simulate(scene)
+        if x is None:
+            raise BlowUp(f"the reference run (rk4, dt = {dt:.6g} s) blew up")
+        errors = _errors(sim, self.base.days, x, None)
         with atomic_path(path) as tmp:
             with open(tmp, "wb") as f:
-                np.savez(f, x=x, **errors)
-        return {"x": x, "dt": dt, **errors}
+                np.savez(f, x=x, **errors, **({} if filtered is None else {"filtered": filtered}))
+        return {"x": x, "dt": dt, "filtered": filtered, **errors}
 
     # -- one run ------------------------------------------------------------------
     def run_one(self, stepper: str, dt: float) -> dict:
         """Run (or read back) one (stepper, Δt); returns its row. The reference run must exist."""
-        path = self.directory / "runs" / f"{stepper}_{dt:.6g}.json"
+        path = self.directory / "runs" / f"{stepper}_{dt:.6g}{self.tag}.json"
         if path.exists():
             return json.loads(path.read_text())
-        x_ref = self.reference()["x"]
+        ref = self.reference()
         scene = dataclasses.replace(self.scenes[stepper], dt=dt)
-        t0 = time.perf_counter()
-        sim = Simulation(scene, self.device, progress=False)
-        row = {"stepper": stepper, "dt": dt, "setup_time": time.perf_counter() - t0}
-        try:
-            result = sim.run(None)
-            stable, reason = True, ""
-        except BlowUp as err:
-            result, stable, reason = err.result, False, str(err)
+        sim, result, at, x, filtered = self.simulate(scene)
+        row = {"stepper": stepper, "dt": dt, "setup_time": sim.setup_time}
+        stable, reason = result.blowup is None, result.blowup or ""
         growth = max(h.get("total_energy_change", 0.0) for h in result.history)
         if stable and growth > 0.01:
             stable, reason = False, f"total energy grew by {growth:.2%}"
-        row.update(stable=stable, reason=reason, wall_time=result.wall_time, steps=result.steps, rhs_evals=result.rhs_evals)
-        row.update({f"{k}_iterations": v for k, v in result.iterations.items()})
+        row.update(stable=stable, reason=reason, wall_time=at["wall_time"], steps=at["steps"], rhs_evals=at["rhs_evals"])
+        row.update({f"{k}_iterations": at[f"{k}_iterations"] for k in result.iterations})
         final = result.history[-1]
         for k in ("mass_change", "total_energy_change", "potential_enstrophy_change"):
             row[k] = final.get(k, math.nan)
         if stable:
-            row.update(_errors(sim, _final_state(sim), x_ref))
+            row.update(_errors(sim, self.base.days, x, ref["x"]))
+            if self.time_filter is not None:
+                row.update(_filtered_errors(sim, filtered, ref["filtered"]))
         with atomic_path(path) as tmp:
             tmp.write_text(json.dumps(row))
         return row
@@ -168,10 +222,11 @@ class Sweep:
 
 
 COLUMNS = (
-    "stepper", "dt", "dt_over_gravity_limit", "dt_over_advective_limit", "stable", "wall_time", "startup_time",
+    "stepper", "dt", "dt_over_gravity_limit", "dt_over_advective_limit", "dt_over_leapfrog_limit", "stable", "wall_time", "startup_time",
     "setup_time", "steps", "rhs_evals", "newton_iterations", "gmres_iterations", "precond_iterations",
     "helmholtz_iterations", "total_error", "total_error_vorticity", "total_error_divergence",
-    "temporal_error", "temporal_error_wind", "temporal_error_vorticity", "temporal_error_divergence", "mass_change", "total_energy_change", "potential_enstrophy_change", "reason",
+    "temporal_error", "temporal_error_wind", "temporal_error_vorticity", "temporal_error_divergence",
+    "temporal_error_filtered", "temporal_error_filtered_vorticity", "mass_change", "total_energy_change", "potential_enstrophy_change", "reason",
 )
 
 
@@ -182,8 +237,59 @@ def table(rows, limits) -> list[dict]:
         row = {c: r.get(c, math.nan) for c in COLUMNS}
         row["dt_over_gravity_limit"] = r["dt"] / limits["dt_gravity"]
         row["dt_over_advective_limit"] = r["dt"] / limits["dt_advective"]
+        row["dt_over_leapfrog_limit"] = r["dt"] / limits["dt_leapfrog"]
         out.append(row)
     return out
+
+
+# criterion: (temporal-error column, spatial-error key of the sweep's info)
+CRITERIA = {
+    "total h+hs": ("temporal_error", "spatial_error"),
+    "balanced flow (vorticity)": ("temporal_error_vorticity", "spatial_error_vorticity"),
+    "balanced flow (filtered h+hs)": ("temporal_error_filtered", "spatial_error"),
+    "gravity waves (divergence)": ("temporal_error_divergence", "spatial_error_divergence"),
+}
+THRESHOLDS = (0.1, 0.5)  # temporal error as a fraction of the spatial error
+VERDICT_COLUMNS = ("criterion", "threshold", "stepper", "dt", "dt_over_gravity_limit", "dt_over_advective_limit",
+                   "dt_over_leapfrog_limit", "wall_time", "rhs_evals", "temporal_error", "spatial_error")
+
+
+def verdicts(rows, info) -> list[dict]:
+    """Per criterion (``CRITERIA``; the filtered one only where the sweep filtered),
+    threshold (``THRESHOLDS``) and stepper: the cheapest (least wall time) stable run
+    whose temporal error ≤ threshold × the spatial error of that criterion, with
+    its Δt multiples, wall time and RHS evaluations; dt NaN where no run qualifies."""
+    steppers = list(dict.fromkeys(r["stepper"] for r in rows))
+    out = []
+    for criterion, (column, spatial_key) in CRITERIA.items():
+        spatial = info.get(spatial_key, math.nan)
+        if not any(math.isfinite(r.get(column, math.nan)) for r in rows):
+            continue
+        for threshold in THRESHOLDS:
+            for stepper in steppers:
+                ok = [r for r in rows if r["stepper"] == stepper and r["stable"] and r.get(column, math.nan) <= threshold * spatial]
+                best = min(ok, key=lambda r: r["wall_time"], default=None)
+                v = {"criterion": criterion, "threshold": threshold, "stepper": stepper, "spatial_error": spatial}
+                v.update({c: math.nan for c in VERDICT_COLUMNS if c not in v})
+                if best is not None:
+                    v.update({c: best[c] for c in VERDICT_COLUMNS[3:-2]}, temporal_error=best[column])
+                out.append(v)
+    return out
+
+
+def format_verdicts(verdict_rows) -> str:
+    """One line per criterion × threshold × stepper."""
+    lines = []
+    for v in verdict_rows:
+        head = f"  {v['criterion']:30s} <= {v['threshold']:3.0%} {v['stepper']:22s}"
+        if not math.isfinite(v["dt"]):
+            lines.append(f"{head} no run qualifies")
+            continue
+        lines.append(
+            f"{head} dt = {v['dt']:.4g} s = {v['dt_over_gravity_limit']:.2f} x gravity-wave, {v['dt_over_advective_limit']:.2f} x "
+            f"advective, {v['dt_over_leapfrog_limit']:.2f} x leapfrog limit; wall {v['wall_time']:.3g} s, {v['rhs_evals']:.0f} RHS-eq"
+        )
+    return "\n".join(lines)
 
 
 def cheapest_sufficient(rows, spatial_error) -> dict:
@@ -224,6 +330,8 @@ def format_summary(rows, info) -> str:
             f"  {stepper:22s} cheapest sufficient: dt = {b['dt']:.4g} s = {b['dt_over_gravity_limit']:.2f} x gravity-wave limit, "
             f"{b['dt_over_advective_limit']:.2f} x advective limit; wall {b['wall_time']:.2f} s = {b['wall_time'] / ref_time:.2f} x best explicit"
         )
+    lines.append("verdicts: the cheapest run per criterion with temporal error <= 10 % / 50 % of that criterion's spatial error")
+    lines.append(format_verdicts(verdicts(rows, info)))
     return "\n".join(lines)
 
 
@@ -236,16 +344,18 @@ def write_outputs(rows, info, limits, directory) -> list[Path]:
     directory = Path(directory)
     df = pd.DataFrame(rows, columns=list(COLUMNS))
     df["stable"] = df["stable"].astype(int)
-    csv, nc = directory / "sweep.csv", directory / "sweep.nc"
+    csv, nc, vcsv = directory / "sweep.csv", directory / "sweep.nc", directory / "verdicts.csv"
     with atomic_path(csv) as tmp:
         df.to_csv(tmp, index=False)
+    with atomic_path(vcsv) as tmp:
+        pd.DataFrame(verdicts(rows, info), columns=list(VERDICT_COLUMNS)).to_csv(tmp, index=False)
     ds = df.set_index(["stepper", "dt"]).to_xarray()
     ds["dt"].attrs["units"] = "s"
     ds["wall_time"].attrs["units"] = "s"
     ds.attrs.update({k: float(v) for k, v in {**info, **limits}.items()})
     with atomic_path(nc) as tmp:
         ds.to_netcdf(tmp)
-    paths = [csv, nc]
+    paths = [csv, nc, vcsv]
     floor = info["spatial_error"]
     for x, y, name, label in (
         ("wall_time", "total_error", "error_vs_wall_time.png", "wall time [s]"),
@@ -253,4 +363,7 @@ def write_outputs(rows, info, limits, directory) -> list[Path]:
         ("dt", "temporal_error", "temporal_error_vs_dt.png", "dt [s]"),
     ):
         paths.append(sweep_plot(directory / name, rows, x, y=y, xlabel=label, floor=floor))
+    for part in ("vorticity", "divergence"):  # the frontier per criterion
+        paths.append(sweep_plot(directory / f"error_vs_wall_time_{part}.png", rows, "wall_time", y=f"total_error_{part}",
+                                xlabel="wall time [s]", floor=info[f"spatial_error_{part}"]))
     return paths

@@ -1,6 +1,7 @@
 """Sweep bookkeeping on a tiny grid: two steppers × two Δt, resumable, outputs that open."""
 
 import json
+import math
 
 import numpy as np
 import pandas as pd
@@ -59,7 +60,7 @@ def test_sweep_resumes_without_rerunning(swept, monkeypatch, capsys):
     assert len(before) == 4 and len(list((out / "runs").glob("reference_*.npz"))) == 1
     runs = []
     real_run = Simulation.run
-    monkeypatch.setattr(Simulation, "run", lambda self, output=None: runs.append(self.scene.dt) or real_run(self, output))
+    monkeypatch.setattr(Simulation, "run", lambda self, output=None, **kw: runs.append(self.scene.dt) or real_run(self, output, **kw))
     assert main(args) == 0
     # only the two warm-up runs (2 steps each) ran again; every (stepper, dt) was read back
     assert len(runs) == 2
@@ -106,3 +107,39 @@ def test_sweep_with_two_workers_gives_the_serial_rows(swept, tmp_path):
 def test_sweep_refuses_zero_workers(tmp_path, capsys):
     assert main(["sweep", "tc2_steady", "--ne", "2", "--dt", "3600", "--workers", "0", "--output", str(tmp_path / "o")]) == 2
     assert "--workers must be >= 1 (got 0)" in capsys.readouterr().err
+
+
+def test_verdicts_per_criterion_and_threshold():
+    """Each criterion picks its own cheapest qualifying run: the long step passes the
+    total and balanced-flow criteria at 50 % but not the gravity-wave one."""
+    base = {"stable": True, "dt_over_gravity_limit": 1.0, "dt_over_advective_limit": 0.1, "dt_over_leapfrog_limit": 2.0, "rhs_evals": 10}
+    rows = [
+        {**base, "stepper": "a", "dt": 100.0, "wall_time": 4.0, "temporal_error": 1e-6, "temporal_error_vorticity": 1e-5, "temporal_error_divergence": 1e-5},
+        {**base, "stepper": "a", "dt": 400.0, "wall_time": 1.0, "temporal_error": 3e-5, "temporal_error_vorticity": 3e-4, "temporal_error_divergence": 9e-4},
+        {**base, "stepper": "b", "dt": 100.0, "wall_time": 0.5, "stable": False},
+    ]
+    info = {"spatial_error": 1e-4, "spatial_error_vorticity": 1e-3, "spatial_error_divergence": 1e-3}
+    v = {(r["criterion"], r["threshold"], r["stepper"]): r for r in sweep_mod.verdicts(rows, info)}
+    assert len(v) == 3 * 2 * 2  # no filtered criterion: the sweep did not filter
+    assert v[("total h+hs", 0.1, "a")]["dt"] == 100.0 and v[("total h+hs", 0.5, "a")]["dt"] == 400.0
+    assert v[("balanced flow (vorticity)", 0.5, "a")]["dt"] == 400.0
+    assert v[("gravity waves (divergence)", 0.5, "a")]["dt"] == 100.0
+    assert v[("gravity waves (divergence)", 0.5, "a")]["wall_time"] == 4.0
+    assert math.isnan(v[("total h+hs", 0.5, "b")]["dt"])
+    text = sweep_mod.format_verdicts(sweep_mod.verdicts(rows, info))
+    assert "b                      no run qualifies" in text
+
+
+def test_tiny_sweep_verdicts(swept, capsys):
+    out, _ = swept
+    rows = pd.read_csv(out / "sweep.csv")
+    v = pd.read_csv(out / "verdicts.csv")
+    assert set(v["criterion"]) == {"total h+hs", "balanced flow (vorticity)", "gravity waves (divergence)"}
+    # ssprk3 is stable only at 3600 s, whose temporal errors are below 50 % of the spatial ones (test above)
+    for _, r in v[(v["stepper"] == "ssprk3") & (v["threshold"] == 0.5)].iterrows():
+        assert r["dt"] == 3600.0 and r["wall_time"] == rows.loc[0, "wall_time"] and r["rhs_evals"] == 72
+        assert r["dt_over_leapfrog_limit"] == pytest.approx(rows.loc[0, "dt_over_leapfrog_limit"])
+    # leapfrog's limit is 0.58 (|v| + c) dt/dx = 1: a shorter dt than the gravity-wave limit
+    assert (rows["dt_over_leapfrog_limit"] > rows["dt_over_gravity_limit"]).all()
+    for part in ("vorticity", "divergence"):
+        assert (out / f"error_vs_wall_time_{part}.png").stat().st_size > 10_000

@@ -9,8 +9,9 @@ scene's Δt, one CPU thread per rank):
    their bytes per assembled row (max and mean over ranks). No MPI needed.
 2. For each rank count of ``--ranks`` (run under ``mpiexec -n R`` from here,
    counts alternated ``--repeat`` times, medians): ms per RK4 step, of which in
-   the exchange (pack + messages + waiting, ``topology._Exchange``), DSS
-   exchanges per step, and the speed-up over one rank. Rank counts above the
+   the exchange (messages + waiting for the slower rank, ``topology._Exchange``),
+   DSS exchanges per step, the speed-up over one rank, and one 3-row pack +
+   exchange timed alone with the ranks in step (the message cost proper). Rank counts above the
    machine's cores run oversubscribed: their times say nothing about scaling,
    only that the run works (the note says so beside them).
 
@@ -93,8 +94,18 @@ def worker(ne: int, steps: int) -> None:
     comm.Barrier()
     wall = (time.perf_counter() - t0) / steps
     exch = comm.allreduce(spent[0], MPI.MAX) / steps
+    exchanges = spent[1] / steps
+    bare = []  # one 3-row exchange alone, all ranks in step: messages without the waiting for a slower rank
+    launches = sim.topology._exchange(sim.x)
+    for _ in range(50):
+        comm.Barrier()
+        t0 = time.perf_counter()
+        for launch in launches:
+            launch.launch()
+        bare.append(time.perf_counter() - t0)
+    bare_us = 1e6 * statistics.median(bare) if launches else 0.0
     if comm.rank == 0:
-        print(json.dumps({"ms_step": 1e3 * wall, "ms_exchange": 1e3 * exch, "exchanges": spent[1] / steps}))
+        print(json.dumps({"ms_step": 1e3 * wall, "ms_exchange": 1e3 * exch, "exchanges": exchanges, "us_bare": bare_us}))
 
 
 def time_table(ne_list, ranks, steps, repeat) -> None:
@@ -111,13 +122,14 @@ def time_table(ne_list, ranks, steps, repeat) -> None:
                     raise SystemExit(f"mpiexec -n {r} failed: {proc.stderr[-2000:]}")
                 runs[r].append(json.loads(proc.stdout.strip().splitlines()[-1]))
         print(f"\nne={ne} np=4, RK4 TC5, {steps} steps, medians of {repeat} (load average {os.getloadavg()[0]:.1f}, {cores} cores)")
-        print(f"{'ranks':>6s} {'ms/step':>9s} {'exchange ms':>11s} {'share':>6s} {'DSS/step':>8s} {'speed-up':>8s}")
+        print(f"{'ranks':>6s} {'ms/step':>9s} {'exchange ms':>11s} {'share':>6s} {'DSS/step':>8s} {'speed-up':>8s} {'bare exch us':>12s}")
         base = statistics.median(x["ms_step"] for x in runs[ranks[0]]) * ranks[0]
         for r in ranks:
             step = statistics.median(x["ms_step"] for x in runs[r])
             exch = statistics.median(x["ms_exchange"] for x in runs[r])
             note = "  (oversubscribed: correctness only)" if r > cores else ""
-            print(f"{r:6d} {step:9.2f} {exch:11.2f} {exch / step:6.1%} {runs[r][0]['exchanges']:8.0f} {base / step:8.2f}{note}")
+            bare = statistics.median(x["us_bare"] for x in runs[r])
+            print(f"{r:6d} {step:9.2f} {exch:11.2f} {exch / step:6.1%} {runs[r][0]['exchanges']:8.0f} {base / step:8.2f} {bare:12.1f}{note}")
 
 
 def main() -> None:

@@ -9,7 +9,9 @@ the run length, the output interval and the hyperviscosity. Layout::
     [grid]            ne = 30, np = 4
     [time]            stepper = "leapfrog_trapezoidal", dt = 90.0, days = 15.0
     [output]          every_days = 1.0
-    [hyperviscosity]  nu = 1.5e15, subcycle = 1
+    [hyperviscosity]  nu = 1.5e15, nu_div = ..., nu_s = ..., subcycle = 1
+                      (rotational wind, divergent wind, h + hs; HOMME's names;
+                      nu_div and nu_s default to nu)
     [leapfrog]        robert_asselin = 0.05   (a table per stepper, named after
                       it, holds that stepper's options)
 
@@ -43,7 +45,7 @@ class SceneError(ValueError):
 class Scene:
     """A validated, resolved scene (all values final, overrides applied).
 
-    dt in s, days in days, nu in m⁴ s⁻¹ (already scaled to this grid).
+    dt in s, days in days, nu, nu_div, nu_s in m⁴ s⁻¹ (already scaled to this grid).
     """
 
     name: str
@@ -60,6 +62,8 @@ class Scene:
     output_every_days: float
     nu: float
     hypervis_subcycle: int
+    nu_div: float = 0.0
+    nu_s: float = 0.0
     notes: tuple = field(default=())
 
     @property
@@ -88,7 +92,7 @@ _SCHEMA = {
     "grid": {"ne": int, "np": int},
     "time": {"stepper": str, "dt": float, "days": float},
     "output": {"every_days": float},
-    "hyperviscosity": {"nu": float, "subcycle": int},
+    "hyperviscosity": {"nu": float, "nu_div": float, "nu_s": float, "subcycle": int},
     # one table per stepper, named after it, with the stepper's own options
     **{name: option_types(cls.Options) for name, cls in STEPPERS.items() if option_types(cls.Options)},
 }
@@ -281,14 +285,17 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
         raise SceneError(f"{stepper1}.{err}") from None
 
     hv = s.get("hyperviscosity", {})
-    nu = hv.get("nu", 0.0)
-    if nu < 0:
-        raise SceneError(f"hyperviscosity.nu must be >= 0 (got {nu})")
-    if "hyperviscosity" in terms and nu == 0:
-        raise SceneError("the hyperviscosity term needs hyperviscosity.nu > 0")
-    if ratio != 1.0 and nu > 0:
-        nu = nu * ratio**HYPERVIS_EXPONENT
-        notes.append(f"nu scaled as dx^{HYPERVIS_EXPONENT} to {nu:.3g} m^4/s")
+    nus = {key: hv.get(key, hv.get("nu", 0.0)) for key in ("nu", "nu_div", "nu_s")}
+    for key, value in nus.items():
+        if value < 0:
+            raise SceneError(f"hyperviscosity.{key} must be >= 0 (got {value})")
+    if "hyperviscosity" in terms and max(nus.values()) == 0:
+        raise SceneError("the hyperviscosity term needs hyperviscosity.nu, nu_div or nu_s > 0")
+    if ratio != 1.0 and max(nus.values()) > 0:
+        nus = {key: value * ratio**HYPERVIS_EXPONENT for key, value in nus.items()}
+        notes.append(f"nu scaled as dx^{HYPERVIS_EXPONENT} to {nus['nu']:.3g} m^4/s")
+    if "hyperviscosity" not in terms:
+        nus = dict.fromkeys(nus, 0.0)
     subcycle = hv.get("subcycle", 1)
     if subcycle < 1:
         raise SceneError(f"hyperviscosity.subcycle must be >= 1 (got {subcycle})")
@@ -306,7 +313,9 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
         dt=float(dt1),
         days=float(days1),
         output_every_days=float(every),
-        nu=float(nu if "hyperviscosity" in terms else 0.0),
+        nu=float(nus["nu"]),
         hypervis_subcycle=int(subcycle),
+        nu_div=float(nus["nu_div"]),
+        nu_s=float(nus["nu_s"]),
         notes=tuple(notes),
     )

@@ -51,7 +51,10 @@ class ShallowWater:
     grid : CubedSphere
     terms : iterable of names from ``TERMS``; a term not named is neither compiled nor run.
     fcor, hs : (N,) Coriolis parameter (s⁻¹) and surface height (m), element-local.
-    nu : hyperviscosity coefficient (m⁴ s⁻¹), used if "hyperviscosity" is a term.
+    nu, nu_div, nu_s : hyperviscosity coefficients (m⁴ s⁻¹) of the rotational
+        wind, the divergent wind and the free surface h + hs (HOMME's names;
+        None: ``nu``), used if "hyperviscosity" is a term
+        (``kernels.hyperviscosity``).
     hypervis_subcycle : forward-Euler substeps per ``hyperviscosity`` call.
     device : "cpu" or "cuda".
     threads : CPU threads per launch (None: ``SWE_SPHERE_THREADS``, else the
@@ -70,13 +73,19 @@ class ShallowWater:
     Raises ``ValueError`` for an unknown term or a negative ν.
     """
 
-    def __init__(self, grid: CubedSphere, terms, fcor, hs, *, nu=0.0, hypervis_subcycle=1, g=EARTH.g, device="cpu", threads=None, per_element=None, topology=None):
+    def __init__(
+        self, grid: CubedSphere, terms, fcor, hs, *, nu=0.0, nu_div=None, nu_s=None, hypervis_subcycle=1, g=EARTH.g, device="cpu", threads=None, per_element=None, topology=None
+    ):
         terms = tuple(terms)
         for t in terms:
             if t not in TERMS:
                 raise ValueError(f"unknown term {t!r} (known: {', '.join(TERMS)})")
-        if nu < 0:
-            raise ValueError(f"hyperviscosity nu must be >= 0 (got {nu})")
+        nu_div = nu if nu_div is None else nu_div
+        nu_s = nu if nu_s is None else nu_s
+        for name, value in (("nu", nu), ("nu_div", nu_div), ("nu_s", nu_s)):
+            if value < 0:
+                raise ValueError(f"hyperviscosity {name} must be >= 0 (got {value})")
+        self.nu_div, self.nu_s = float(nu_div), float(nu_s)
         self.grid, self.terms, self.device = grid, terms, device
         self.threads = default_threads(device) if threads is None else int(threads)
         if self.threads < 1:
@@ -112,6 +121,8 @@ class ShallowWater:
             self.topo_forcing.assign(forcing)
         if "hyperviscosity" in terms:
             self.hv_X = wp.zeros((4, N), dtype=f64, device=device)
+            self.hv_Y = wp.zeros((4, N), dtype=f64, device=device)  # Y₁, kept for Y₂'s 2Y₁/a²
+            self.hv_G = wp.zeros((2, N), dtype=f64, device=device)  # ∇(∇·v), with ν_div ≠ ν
             self.hv_flux = None if self.per_element else wp.zeros((8, N), dtype=f64, device=device)
             self.hv_L = wp.zeros((4, N), dtype=f64, device=device)
         self._recorded: dict[tuple, tuple] = {}
@@ -195,42 +206,60 @@ class ShallowWater:
         return [launch.kernel.key for launch in self._recorded[key][0]]
 
     # -- hyperviscosity -----------------------------------------------------
-    def _build_hv(self, x, coef):
+    def _build_hv(self, x, coef, out=None, nus=None):
+        """Launches of out += coef·B x, B = ν∇⁴ the hyperviscosity operator
+        (``kernels.hyperviscosity``) with coefficients ``nus`` = (ν, ν_div, ν_s)
+        (None: the model's); out = x if None."""
         N, np_ = self.N, self.grid.np
-        X, flux, L = self.hv_X, self.hv_flux, self.hv_L
-        def apply():  # x += coef X, X back to (east, north) components
-            return self._launch_pointwise(hyperviscosity.apply, None, [X, f64(coef), self.east, self.north, x])
+        out = x if out is None else out
+        nu, nu_div, nu_s = (self.nu, self.nu_div, self.nu_s) if nus is None else nus
+        X, Y, G, flux, L = self.hv_X, self.hv_Y, self.hv_G, self.hv_flux, self.hv_L
+        shift = 2.0 / self.grid.radius**2  # HOMME: "so we dont damp rigid rotation"
+        c = wp.vec4d(nu, nu_div - nu, nu_s, shift)
+        launches = []
+        if nu_div != nu:  # G = DSS ∇ DSS(∇·v)
+            launches += [*self._build_div(x, self.scalar_dss), *self._build_grad(self.scalar_dss, 0, G)]
+
+        def finish():  # out += coef·(X + shift·Y)
+            return self._launch_pointwise(hyperviscosity.apply, None, [X, Y, f64(shift), f64(coef), self.east, self.north, out])
 
         if self.per_element:
-            def laplacian(src, tangent):  # → DSS'd weak Laplacian in X
-                kernel = hyperviscosity.laplacian_element(tangent, self.dvv_const)
-                return [
-                    self._launch_elements(kernel, [src, self.hs, self.east, self.north, self.xyz, self.Dinv, self.spheremp, L]),
-                    *self._dss(L, 0, X),
-                ]
+            def laplacian(second):  # → DSS'd weak Laplacian in X (and Y₁ in Y)
+                kernel = hyperviscosity.laplacian_element(second, self.dvv_const)
+                args = [X if second else x, x, G, c, self.hs, self.east, self.north, self.xyz, self.Dinv, self.spheremp, Y, L]
+                return [self._launch_elements(kernel, args), *self._dss(L, 0, X)]
 
-            return [*laplacian(x, False), *laplacian(X, True), apply()]
+            return [*launches, *laplacian(False), *laplacian(True), finish()]
 
-        def laplacian():  # X → DSS'd weak Laplacian in X
+        def laplacian(src):  # src → DSS'd weak Laplacian in X
             return [
-                self._launch(operators.laplace_wk_flux, N, [X, self.Dinv, self.spheremp, self.dvv, np_, flux]),
+                self._launch(operators.laplace_wk_flux, N, [src, self.Dinv, self.spheremp, self.dvv, np_, flux]),
                 self._launch(operators.laplace_wk_div, N, [flux, self.dvv, np_, L]),
                 *self._dss(L, 0, X),
             ]
 
         return [
+            *launches,
             self._launch(hyperviscosity.to_cartesian, N, [x, self.hs, self.east, self.north, X]),
-            *laplacian(),
-            self._launch(hyperviscosity.project_tangent, N, [X, self.xyz]),
-            *laplacian(),
-            apply(),
+            *laplacian(X),
+            self._launch(hyperviscosity.scale_first, N, [X, x, G, c, self.east, self.north, self.xyz, Y]),
+            *laplacian(Y),
+            finish(),
         ]
 
+    def hyperviscosity_operator(self, x: wp.array2d, out: wp.array2d) -> None:
+        """out (3, N) = B x, the hyperviscosity operator ν∇⁴ with the model's
+        ν, ν_div, ν_s applied to the state x (rows u, v in m s⁻² and h + hs in
+        m s⁻¹; ``kernels.hyperviscosity``): dx/dt = −B x is the dissipation.
+        ``out`` must not alias ``x``."""
+        out.zero_()
+        self._replay(("hvop", _id(x), _id(out)), (x, out), lambda: self._build_hv(x, 1.0, out))
+
     def biharmonic_radius(self, iterations: int = 20) -> float:
-        """Largest eigenvalue λ (m⁻⁴) of the discrete ∇⁴ operator (DSS'd weak
-        Laplacian twice, wind and height together), by power iteration from a
-        fixed random continuous state. Forward Euler on dx/dt = −ν∇⁴x is stable
-        for ν Δt λ ≤ 2."""
+        """Largest eigenvalue λ (m⁻⁴) of the discrete ∇⁴ operator with unit
+        coefficients (ν = ν_div = ν_s = 1 m⁴ s⁻¹, wind and height together), by
+        power iteration from a fixed random continuous state. Forward Euler on
+        dx/dt = −ν∇⁴x is stable for max(ν, ν_div, ν_s) Δt λ ≤ 2."""
         if getattr(self, "_biharmonic_radius", None) is None:
             rng = np.random.default_rng(0)
             z = self.topology.local(rng.standard_normal((3, self.topology.npts_total)))  # the same vector on any ranks
@@ -240,34 +269,39 @@ class ShallowWater:
                 launch.launch()
             lam = 0.0
             hs, self.hs = self.hs, wp.zeros_like(self.hs)  # the operator without the hs offset
-            scale = (-self.topology.max(-float(self.grid.dx.min()))) ** 4  # coef·λ = O(1): w − z keeps its digits
-            launches = self._build_hv(w, scale)
+            launches = self._build_hv(zc, 1.0, w, nus=(1.0, 1.0, 1.0))
+            self.hs = hs
             for _ in range(iterations):
                 zc.assign(zc.numpy() / self.topology.norm(zc))
-                wp.copy(w, zc)
+                w.zero_()
                 for launch in launches:
                     launch.launch()
-                zc.assign((w.numpy() - zc.numpy()) / scale)  # ∇⁴ z
-                lam = self.topology.norm(zc)
-            self.hs = hs
+                lam = self.topology.norm(w)  # ‖∇⁴ z‖
+                wp.copy(zc, w)
             self._biharmonic_radius = lam
         return self._biharmonic_radius
+
+    @property
+    def nu_max(self) -> float:
+        """The largest of ν, ν_div, ν_s (m⁴ s⁻¹): what limits explicit steps."""
+        return max(self.nu, self.nu_div, self.nu_s)
 
     def hypervis_substeps(self, dt: float) -> int:
         """Forward-Euler substeps for ``hyperviscosity`` over dt: at least the
         scene's ``hypervis_subcycle``, and enough that ν (Δt/n) λ ≤ 1.5."""
-        return max(self.hypervis_subcycle, math.ceil(self.nu * dt * self.biharmonic_radius() / 1.5))
+        return max(self.hypervis_subcycle, math.ceil(self.nu_max * dt * self.biharmonic_radius() / 1.5))
 
     def hypervis_stages(self, dt: float) -> int:
         """RKL1 stages s for ``hyperviscosity`` over dt: the fewest (≥ 2) whose
         stability interval, (s² + s)/2 forward-Euler limits (Meyer, Balsara &
         Aslam 2014, §3), covers ν dt λ / 1.5 (the same 1.5/2 margin as the substeps)."""
-        n = self.nu * dt * self.biharmonic_radius() / 1.5
+        n = self.nu_max * dt * self.biharmonic_radius() / 1.5
         return max(2, math.ceil((math.sqrt(1.0 + 8.0 * n) - 1.0) / 2.0 - 1e-12))
 
     def hyperviscosity(self, x: wp.array2d, dt: float) -> None:
         """Apply ∇⁴ hyperviscosity over dt (s) in place, split from the dynamics:
-        n = ``hypervis_substeps(dt)`` forward-Euler steps of x −= (dt/n) ν ∇⁴x
+        n = ``hypervis_substeps(dt)`` forward-Euler steps of x −= (dt/n) B x
+        (B: ``hyperviscosity_operator``, ν ∇⁴ with ν, ν_div, ν_s)
         (HOMME ``advance_hypervis`` with ``hypervis_subcycle``), or, when that
         takes at least twice the ∇⁴ evaluations of an s-stage RKL1
         super-time-step (``hypervis_stages``; n ≥ 2s, n set by stability rather
@@ -281,7 +315,7 @@ class ShallowWater:
         up on day 4, as with forward Euler it does not. RKL1's P_s damps the
         interior of its interval to ≲ 0.3; the split is first order anyway.
         Does nothing (launches nothing) without the term."""
-        if "hyperviscosity" not in self.terms or self.nu == 0.0:
+        if "hyperviscosity" not in self.terms or self.nu_max == 0.0:
             return
         ns = self._substeps.get(dt)
         if ns is None:
@@ -290,20 +324,20 @@ class ShallowWater:
         if n >= 2 * s and n > self.hypervis_subcycle:
             self._rkl1(x, dt, s)
             return
-        coef = -self.nu * dt / n
+        coef = -dt / n
         for _ in range(n):
             self._replay(("hv", x.ptr, coef), (x,), lambda: self._build_hv(x, coef))
 
     def _rkl1(self, x, dt, s):
         """One s-stage RKL1 step (Meyer, Balsara & Aslam 2014, eqs. 10–11) of
-        dx/dt = M(x) = −ν∇⁴x over dt: Y_0 = x, Y_1 = E(Y_0),
+        dx/dt = M(x) = −B x over dt: Y_0 = x, Y_1 = E(Y_0),
         Y_j = μ_j E(Y_{j−1}) + ν_j Y_{j−2}, μ_j = (2j − 1)/j, ν_j = −(j − 1)/j,
         with E one forward-Euler step of w₁Δt, w₁ = 2/(s² + s) (so only the
         recorded ∇⁴ step is used); first order, stable for ν dt λ ≤ s² + s."""
         if getattr(self, "_rkl_buffers", None) is None:
             self._rkl_buffers = [wp.zeros_like(x) for _ in range(3)]
         ym2, ym1, e = self._rkl_buffers
-        coef = -self.nu * dt * 2.0 / (s * s + s)
+        coef = -dt * 2.0 / (s * s + s)
 
         def euler(src):  # e = E(src)
             wp.copy(e, src)
@@ -319,31 +353,29 @@ class ShallowWater:
             ym2, ym1 = ym1, out
 
     # -- DSS'd operators for the (semi-)implicit solvers --------------------
+    def _build_grad(self, x, row, out):
+        return [
+            self._launch_elements(operators.gradient_element(self.dvv_const), [x, row, self.Dinv, self.vec_work])
+            if self.per_element
+            else self._launch(operators.gradient_sphere, self.N, [x, row, self.Dinv, self.dvv, self.grid.np, self.vec_work]),
+            *self._dss(self.vec_work, 1, out),
+        ]
+
+    def _build_div(self, x, out):
+        return [
+            self._launch_elements(operators.divergence_element(self.dvv_const), [x, self.Dinv, self.metdet, self.scalar_flat])
+            if self.per_element
+            else self._launch(operators.divergence_sphere, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.scalar_flat]),
+            *self._dss(self.scalar, 1, out),
+        ]
+
     def gradient(self, x: wp.array2d, row: int, out: wp.array2d) -> None:
         """out (2, N) = G f = DSS(∇ x[row]) (units of x per m)."""
-        self._replay(
-            ("grad", _id(x), row, _id(out)),
-            (x, out),
-            lambda: [
-                self._launch_elements(operators.gradient_element(self.dvv_const), [x, row, self.Dinv, self.vec_work])
-                if self.per_element
-                else self._launch(operators.gradient_sphere, self.N, [x, row, self.Dinv, self.dvv, self.grid.np, self.vec_work]),
-                *self._dss(self.vec_work, 1, out),
-            ],
-        )
+        self._replay(("grad", _id(x), row, _id(out)), (x, out), lambda: self._build_grad(x, row, out))
 
     def divergence(self, x: wp.array2d, out: wp.array2d) -> None:
         """out (1, N) = D v = DSS(∇·v) of the wind in rows 0, 1 of x (s⁻¹ × units)."""
-        self._replay(
-            ("div", _id(x), _id(out)),
-            (x, out),
-            lambda: [
-                self._launch_elements(operators.divergence_element(self.dvv_const), [x, self.Dinv, self.metdet, self.scalar_flat])
-                if self.per_element
-                else self._launch(operators.divergence_sphere, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.scalar_flat]),
-                *self._dss(self.scalar, 1, out),
-            ],
-        )
+        self._replay(("div", _id(x), _id(out)), (x, out), lambda: self._build_div(x, out))
 
     def assemble(self, x: wp.array2d, row: int, out: wp.array) -> None:
         """Unique-node out (nunique,) = M x[row]: assembled mass times a continuous field."""

@@ -126,7 +126,7 @@ class Simulation:
         self.hs = case.hs(grid.lat, grid.lon)
         self.g = case.planet.g
         self.model = ShallowWater(
-            topo.local_grid(), scene.terms, topo.local(self.fcor), topo.local(self.hs), nu=scene.nu,
+            topo.local_grid(), scene.terms, topo.local(self.fcor), topo.local(self.hs), nu=scene.nu, nu_div=scene.nu_div, nu_s=scene.nu_s,
             hypervis_subcycle=scene.hypervis_subcycle, g=self.g, device=device, topology=topo,
         )
         self.stepper = make_stepper(scene.stepper, self.model, scene.dt, **scene.stepper_options)

@@ -139,20 +139,28 @@ class NumpyOps:
         return self.dss(self.sw_tendency(state, terms, fcor, hs, g), weighted=True)
 
     # -- hyperviscosity --------------------------------------------------------------
-    def biharmonic(self, state, hs):
-        """(4, N) ∇⁴ of (Cartesian wind, free surface h + hs): componentwise
-        assembled Laplacian, tangent projection, assembled Laplacian again."""
+    def biharmonic(self, state, hs, nus=(1.0, 1.0, 1.0)):
+        """(4, N) B state, the hyperviscosity operator with (ν, ν_div, ν_s) of
+        (Cartesian wind, free surface h + hs) as in ``kernels.hyperviscosity``:
+        Y₁ = ν (P ΔX + 2v/a²) + (ν_div − ν) G∇·v, ν_s Δ(h + hs); Y₂ = ΔY₁ + 2Y₁/a²
+        (wind), with Δ the assembled Laplacian and G, ∇· the DSS'd strong operators."""
+        nu, nu_div, nu_s = nus
         u, v, h = (np.asarray(r, dtype=float) for r in state)
         g = self.grid
-        X = np.concatenate([u * g.east + v * g.north, (h + hs)[None]])
-        L = self.laplacian(X)
+        shift = 2.0 / g.radius**2
+        wind = u * g.east + v * g.north
+        L = self.laplacian(np.concatenate([wind, (h + hs)[None]]))
         rhat = g.xyz
         L[:3] -= np.sum(L[:3] * rhat, axis=0) * rhat
-        return self.laplacian(L)
+        grad_div = self.dss(self.gradient(self.dss(self.divergence(u, v))))
+        Y = np.concatenate([nu * (L[:3] + shift * wind) + (nu_div - nu) * (grad_div[0] * g.east + grad_div[1] * g.north), nu_s * L[3:]])
+        out = self.laplacian(Y)
+        out[:3] += shift * Y[:3]
+        return out
 
-    def hyperviscosity_step(self, state, hs, coef):
-        """state + coef·∇⁴ state, the wind taken back to (east, north)."""
-        Y = self.biharmonic(state, hs)
+    def hyperviscosity_step(self, state, hs, coef, nus=(1.0, 1.0, 1.0)):
+        """state + coef·B state, the wind taken back to (east, north)."""
+        Y = self.biharmonic(state, hs, nus)
         g = self.grid
         out = np.array(state, dtype=float)
         out[0] += coef * np.sum(Y[:3] * g.east, axis=0)

@@ -1,8 +1,10 @@
 """Initial states, Coriolis parameter, surface height and exact solutions.
 
 Williamson, Drake, Hack, Jakob & Swarztrauber (1992), J. Comput. Phys. 102,
-211–224 (cases 1, 2, 5, 6; equation numbers below are theirs) and Galewsky,
-Scott & Polvani (2004), Tellus 56A, 429–440 (barotropic jet).
+211–224 (cases 1, 2, 3, 5, 6; equation numbers below are theirs) and Galewsky,
+Scott & Polvani (2004), Tellus 56A, 429–440 (barotropic jet) and Läuter,
+Handorf & Dethloff (2005), J. Comput. Phys. 210, 535–553 (unsteady exact
+solution).
 
 Every function takes latitude and longitude in radians (any shape) and returns
 numpy arrays of that shape: winds ``u`` (eastward), ``v`` (northward) in m s⁻¹,
@@ -38,6 +40,19 @@ def _great_circle(lat, lon, lat_c, lon_c):
     """Great-circle angle (rad) between (lat, lon) and (lat_c, lon_c)."""
     cosr = np.sin(lat_c) * np.sin(lat) + np.cos(lat_c) * np.cos(lat) * np.cos(lon - lon_c)
     return np.arccos(np.clip(cosr, -1.0, 1.0))
+
+
+def zonal_balance(jet, planet, samples: int = 20001) -> CubicSpline:
+    """g·h(φ) − g·h(−π/2) (m² s⁻²) of a zonal flow u = jet(φ) (m s⁻¹, vectorized)
+    in gradient-wind balance, d(gh)/dφ = −a u (2Ω sin φ + u tan φ / a)
+    (Williamson et al. 1992 eq. 92 for case 3; Galewsky et al. 2004 eq. 3), by
+    cumulative Simpson quadrature on ``samples`` latitudes and a cubic spline
+    (error < 1e-12 of gh for the C∞ jets used here)."""
+    phi = np.linspace(-math.pi / 2, math.pi / 2, samples)
+    u = jet(phi)
+    with np.errstate(invalid="ignore"):  # tan φ at the poles, where u = 0
+        dgh = np.where(u == 0.0, 0.0, -planet.a * u * (2 * planet.omega * np.sin(phi) + np.tan(phi) * u / planet.a))
+    return CubicSpline(phi, cumulative_simpson(dgh, x=phi, initial=0.0))
 
 
 @dataclass(frozen=True)
@@ -140,6 +155,78 @@ class SteadyZonal(SolidBody):
 
 
 @dataclass(frozen=True)
+class CompactZonal(SteadyZonal):
+    """Case 3: steady nonlinear zonal geostrophic flow with compact support
+    (eqs. 96–105), about an axis tilted by ``alpha``. In the rotated frame
+    (latitude θ', sin θ' = r̂·axis) the flow is zonal,
+    u' = u0 b(x) b(xe − x) e^{4/xe}, x = xe (θ' − θb)/(θe − θb),
+    b(x) = e^{−1/x} for x > 0 else 0, and gh follows from the balance
+    (``zonal_balance``) with gh = gh0 at θ' = −π/2; fcor is rotated as in
+    case 2. The exact solution is steady and C∞ but not analytic."""
+
+    theta_b: float = -math.pi / 6
+    theta_e: float = math.pi / 2
+    x_e: float = 0.3
+
+    def jet(self, theta):
+        x = self.x_e * (theta - self.theta_b) / (self.theta_e - self.theta_b)
+
+        def b(y):
+            return np.where(y > 0, np.exp(-1.0 / np.where(y > 0, y, 1.0)), 0.0)
+
+        return self.u0 * b(x) * b(self.x_e - x) * math.exp(4.0 / self.x_e)
+
+    def _height(self):
+        gh = zonal_balance(self.jet, self.planet)
+        return lambda theta: (self.gh0 + gh(theta)) / self.planet.g
+
+    def initial(self, lat, lon):
+        r = _xyz(lat, lon)
+        axis = self.axis.reshape(3, *([1] * lat.ndim))
+        sin_t = np.clip(np.sum(axis * r, axis=0), -1.0, 1.0)
+        theta = np.arcsin(sin_t)
+        cos_t = np.sqrt(np.maximum(1.0 - sin_t**2, 0.0))
+        speed = self.jet(theta)  # 0 near the rotated poles (θe = π/2, θb > −π/2)
+        wind = np.cross(axis, r, axis=0) * np.where(speed == 0.0, 0.0, speed / np.where(cos_t > 0, cos_t, 1.0))
+        east = np.stack([-np.sin(lon), np.cos(lon), np.zeros_like(lon)])
+        north = np.stack([-np.sin(lat) * np.cos(lon), -np.sin(lat) * np.sin(lon), np.cos(lat)])
+        return np.sum(wind * east, axis=0), np.sum(wind * north, axis=0), self._height()(theta)
+
+
+@dataclass(frozen=True)
+class UnsteadySolidBody(SteadyZonal):
+    """Läuter, Handorf & Dethloff (2005), example 3: an unsteady exact solution
+    of the unforced equations. Case 2's tilted solid-body rotation held fixed
+    in the inertial frame, so that on the Earth it turns westward once a day:
+    with λ* = λ + Ωt, u = u0 (cos φ cos α + sin φ cos λ* sin α),
+    v = −u0 sin λ* sin α, and g(h + hs) = k1 − ½(u0 b + Ωa sin φ)² + ½(Ωa sin φ)²
+    with b = sin φ cos α − cos φ cos λ* sin α, over the surface height
+    hs = (Ωa sin φ)²/(2g) (which stands in for the centrifugal term the
+    equations leave out). Periodic with period 2π/Ω."""
+
+    alpha: float = math.pi / 4
+    k1: float = 133681.0  # m² s⁻²
+
+    def fcor(self, lat, lon):
+        return Case.fcor(self, lat, lon)
+
+    def hs(self, lat, lon):
+        p = self.planet
+        return (p.omega * p.a * np.sin(lat)) ** 2 / (2 * p.g)
+
+    def initial(self, lat, lon):
+        return self.exact(lat, lon, 0.0)
+
+    def exact(self, lat, lon, t):
+        p = self.planet
+        lon_t = lon + p.omega * t
+        u, v = self.wind(lat, lon_t)
+        b = self._rot_sin(lat, lon_t)
+        w = p.omega * p.a * np.sin(lat)
+        return u, v, (self.k1 - 0.5 * (self.u0 * b + w) ** 2) / p.g
+
+
+@dataclass(frozen=True)
 class Mountain(Case):
     """Case 5: zonal flow over an isolated conical mountain (eqs. 130–135, α = 0)."""
 
@@ -216,16 +303,12 @@ class Galewsky(Case):
         return np.where(inside, self.umax / en * np.exp(1.0 / arg), 0.0)
 
     def _balanced_height(self):
-        """h(lat) from gradient-wind balance (their eq. 3), integrated on a fine grid."""
-        p = self.planet
+        """h(lat) from gradient-wind balance (their eq. 3), shifted so that the
+        global mean depth is mean_depth: mean = ½∫ h cosφ dφ."""
+        gh = zonal_balance(self.jet, self.planet)
         phi = np.linspace(-math.pi / 2, math.pi / 2, 20001)
-        u = self.jet(phi)
-        dgh = -p.a * u * (2 * p.omega * np.sin(phi) + np.tan(phi) * u / p.a)
-        gh = cumulative_simpson(dgh, x=phi, initial=0.0)
-        h = gh / p.g
-        # shift so that the global mean depth is mean_depth: mean = ½∫ h cosφ dφ
-        mean = 0.5 * np.trapezoid(h * np.cos(phi), phi)
-        return CubicSpline(phi, h + self.mean_depth - mean)
+        mean = 0.5 * np.trapezoid(gh(phi) / self.planet.g * np.cos(phi), phi)
+        return lambda lat: gh(lat) / self.planet.g + self.mean_depth - mean
 
     def initial(self, lat, lon):
         h = self._balanced_height()(lat)
@@ -241,6 +324,8 @@ class Galewsky(Case):
 CASES: dict[str, tuple[type[Case], dict[str, type]]] = {
     "tc1_cosine_bell": (CosineBell, {"alpha": float}),
     "tc2_steady": (SteadyZonal, {"alpha": float}),
+    "tc3_compact_zonal": (CompactZonal, {"alpha": float}),
+    "lauter_unsteady": (UnsteadySolidBody, {"alpha": float}),
     "tc5_mountain": (Mountain, {}),
     "tc6_rossby_haurwitz": (RossbyHaurwitz, {}),
     "galewsky": (Galewsky, {"perturbed": bool}),

@@ -204,6 +204,8 @@ class UnsteadySolidBody(SteadyZonal):
     hs = (Ωa sin φ)²/(2g) (which stands in for the centrifugal term the
     equations leave out). Periodic with period 2π/Ω."""
 
+    required_terms = Case.required_terms | {"topography"}
+
     alpha: float = math.pi / 4
     k1: float = 133681.0  # m² s⁻²
 

@@ -2,7 +2,8 @@
 
 Runs a scene on one grid for each (ν, ν_div, ν_s) given (m⁴ s⁻¹, used as
 given, not rescaled) and prints the normalized l2 error of h + hs and of the
-wind against the T213 reference at every day the reference stores. One JSON
+wind against the T213 reference at every day the reference stores, and of the
+relative vorticity at the end (where grid-scale noise shows first). One JSON
 line per run is appended to --out (runs already there are skipped, so the
 study can be resumed or extended).
 
@@ -20,6 +21,7 @@ from pathlib import Path
 
 from swe_sphere.config import load_scene
 from swe_sphere.constants import DAY
+from swe_sphere.diagnostics import williamson_norms
 from swe_sphere.simulation import BlowUp, Simulation
 
 
@@ -61,12 +63,17 @@ def main():
             day = round(d["steps"] * scene.dt / DAY, 6)
             if math.isfinite(d.get("ref_l2_h_surface", math.nan)):
                 days[day] = {"h": d["ref_l2_h_surface"], "wind": d["ref_l2_wind"]}
-        row = {"key": list(key), "nu": nu, "nu_div": nu_div, "nu_s": nu_s, "errors": days, "blowup": blowup, "wall": result.wall_time}
+        vort = math.nan
+        last = round(result.history[-1]["steps"] * scene.dt / DAY, 6)
+        if blowup is None and sim.reference is not None and last in days:
+            ref = sim.reference.at(last, sim.grid.lat, sim.grid.lon)
+            vort = williamson_norms(sim.grid, sim.model.vorticity(sim.x), ref["vorticity"])["l2"]
+        row = {"key": list(key), "vorticity_l2_end": vort, "nu": nu, "nu_div": nu_div, "nu_s": nu_s, "errors": days, "blowup": blowup, "wall": result.wall_time}
         with args.out.open("a") as f:
             f.write(json.dumps(row) + "\n")
         cells = "  ".join(f"d{k:g} {v['h']:.3e}/{v['wind']:.3e}" for k, v in days.items() if k > 0)
         print(f"{base.name} ne{base.ne} np{base.np} nu {nu:.3g} nu_div {nu_div:.3g} nu_s {nu_s:.3g}: {cells}"
-              + (f"  BLOWUP {blowup}" if blowup else "") + f"  ({result.wall_time:.0f} s)", flush=True)
+              + f"  vort {vort:.3e}" + (f"  BLOWUP {blowup}" if blowup else "") + f"  ({result.wall_time:.0f} s)", flush=True)
 
 
 if __name__ == "__main__":

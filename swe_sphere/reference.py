@@ -62,6 +62,8 @@ class Reference:
             self.days = np.asarray(ds["time"].values, dtype=np.float64)
             fields = {k: ds[k].transpose("time", "lat", "lon").values for k in ("h_surface", "u", "v")}
             fields["hs"] = ds["hs"].transpose("lat", "lon").values[None]
+            if "vorticity" in ds.variables:  # optional: relative vorticity (s⁻¹)
+                fields["vorticity"] = ds["vorticity"].transpose("time", "lat", "lon").values
         dlon = 360.0 / lon.size
         if not (np.all(np.diff(lat) > 0) and np.allclose(lon, dlon * np.arange(lon.size)) and lon.size % 2 == 0):
             raise ValueError(f"{self.path}: lat must ascend and lon be 0, 360/n, ... with n even")
@@ -91,7 +93,8 @@ class Reference:
         ``lat``, ``lon``: radians, arrays of any equal (or broadcastable) shape;
         ``lon`` in any range. Returns float64 arrays of that shape:
         ``'h_surface'``, ``'h'``, ``'hs'`` (m) and ``'u'``, ``'v'`` (m s⁻¹),
-        with ``h = h_surface − hs``. Compare ``h_surface``: ``hs`` (hence ``h``)
+        with ``h = h_surface − hs``, and ``'vorticity'`` (s⁻¹) where the file
+        has it (the bundled ones do). Compare ``h_surface``: ``hs`` (hence ``h``)
         has a kink at the TC5 cone's edge and interpolates less accurately there.
 
         Raises ``ValueError`` if ``day`` is not stored (within 1e-6 day) or a
@@ -106,6 +109,8 @@ class Reference:
         x, y = lat.ravel(), np.mod(lon.ravel(), 2 * math.pi)
         out = {name: self._spline(int(hits[0]), name).ev(x, y).reshape(lat.shape) for name in ("h_surface", "hs", "u", "v")}
         out["h"] = out["h_surface"] - out["hs"]
+        if "vorticity" in self._fields:
+            out["vorticity"] = self._spline(int(hits[0]), "vorticity").ev(x, y).reshape(lat.shape)
         return out
 
 

@@ -34,7 +34,7 @@ def test_tc5_day0_matches_analytic_at_cubed_sphere_nodes(grid, tc5):
     u, v, h = case.initial(grid.lat, grid.lon)
     surface = h + case.hs(grid.lat, grid.lon)
     r = tc5.at(0.0, grid.lat, grid.lon)
-    assert set(r) == {"h_surface", "h", "hs", "u", "v"}
+    assert set(r) == {"h_surface", "h", "hs", "u", "v", "vorticity"}
     assert all(a.shape == grid.lat.shape and a.dtype == np.float64 for a in r.values())
     assert l2(grid, r["h_surface"], surface) <= 1e-6
     assert np.max(np.abs(r["h_surface"] - surface)) <= 5e-3  # m, out of ~5000 m
@@ -74,6 +74,16 @@ def test_tc6_day0_longitude_dependent_fields(grid):
         assert np.max(np.abs(r["h_surface"] - h)) <= 2e-3
         assert np.max(np.abs(r["u"] - u)) <= 1e-5
         assert np.max(np.abs(r["v"] - v)) <= 1e-5
+
+
+def test_tc6_day0_vorticity(grid):
+    """The stored vorticity at day 0 against the Rossby–Haurwitz wave's,
+    ζ = 2ω sin φ − K sin φ cos^R φ (R² + 3R + 2) cos Rλ (Williamson eq. 145)."""
+    ref = Reference(find_reference("tc6_rossby_haurwitz"))
+    c = make_case("tc6_rossby_haurwitz")
+    s, co = np.sin(grid.lat), np.cos(grid.lat)
+    zeta = 2 * c.omega_w * s - c.K * s * co**c.R * (c.R**2 + 3 * c.R + 2) * np.cos(c.R * grid.lon)
+    assert l2(grid, ref.at(0.0, grid.lat, grid.lon)["vorticity"], zeta) <= 1e-6
 
 
 def test_interpolation_reproduces_stored_grid_values(tc5):

@@ -22,7 +22,7 @@ from swe_sphere.config import load_scene
 def _tc5(ne=4):
     sim = make_sim(load_scene("tc5_mountain", ne=ne, np=4, days=1.0))
     m = sim.model
-    dt_fe = 1.5 / (m.nu * m.biharmonic_radius())  # the forward-Euler limit used for substeps
+    dt_fe = 1.5 / (m.nu_max * m.biharmonic_radius())  # the forward-Euler limit used for substeps
     return sim, m, dt_fe
 
 
@@ -52,7 +52,7 @@ def test_long_steps_use_rkl1_stably_and_conservatively(rng):
     own step the forward-Euler path (and so every explicit result) is unchanged."""
     sim, m, dt_fe = _tc5()
     T = 45 * dt_fe
-    assert (m.hypervis_substeps(T), m.hypervis_stages(T)) == (46, 9)
+    assert m.hypervis_substeps(T) in (45, 46) and m.hypervis_stages(T) == 9  # ceil(45 · (1 ± round-off))
     n, s = m.hypervis_substeps(sim.scene.dt), m.hypervis_stages(sim.scene.dt)
     assert n < 2 * s  # forward Euler at the scene's step
 
@@ -61,7 +61,7 @@ def test_long_steps_use_rkl1_stably_and_conservatively(rng):
     m.hyperviscosity(x, T)
     rkl = x.numpy().copy()
     x.assign(x0)
-    coef = -m.nu * T / 720
+    coef = -T / 720  # _build_hv applies coef·B x, B including ν
     for _ in range(720):
         m._replay(("hv", x.ptr, coef), (x,), lambda: m._build_hv(x, coef))
     fine = x.numpy()

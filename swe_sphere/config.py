@@ -9,9 +9,12 @@ the run length, the output interval and the hyperviscosity. Layout::
     [grid]            ne = 30, np = 4
     [time]            stepper = "leapfrog_trapezoidal", dt = 90.0, days = 15.0
     [output]          every_days = 1.0
-    [hyperviscosity]  nu = 1.5e15, nu_div = ..., nu_s = ..., subcycle = 1
-                      (rotational wind, divergent wind, h + hs; HOMME's names;
-                      nu_div and nu_s default to nu)
+    [hyperviscosity]  efold_hours = 3.0, nu = ..., nu_div = ..., nu_s = ..., subcycle = 1
+                      (efold_hours: e-folding time at the grid scale, which sets
+                      nu, nu_div, nu_s on every grid (``efold_nu``); nu, nu_div,
+                      nu_s (m^4/s at the scene's grid, scaled as dx^3.2): the
+                      rotational wind, divergent wind, h + hs (HOMME's names),
+                      given explicitly; without efold_hours nu_div, nu_s default to nu)
     [leapfrog]        robert_asselin = 0.05   (a table per stepper, named after
                       it, holds that stepper's options)
 
@@ -35,6 +38,15 @@ from .model import TERMS
 from .steppers import STEPPERS, option_types
 
 HYPERVIS_EXPONENT = 3.2  # ν ∝ Δx^3.2 (HOMME's resolution scaling; Dennis et al. 2012)
+
+
+def efold_nu(hours: float, ne: int, np: int, radius: float) -> float:
+    """ν (m⁴ s⁻¹) that e-folds a degree-L harmonic in ``hours``, L = 2 ne (np − 1)
+    the Nyquist degree of the 4 ne (np − 1) nodes around a great circle:
+    ν = a⁴ / (τ (L(L+1))²). The T213 references use the same rule (3 h at
+    l = 213: ν₄ = 7.34e13 m⁴ s⁻¹)."""
+    L = 2 * ne * (np - 1)
+    return radius**4 / (hours * 3600.0 * (L * (L + 1)) ** 2)
 
 
 class SceneError(ValueError):
@@ -92,7 +104,7 @@ _SCHEMA = {
     "grid": {"ne": int, "np": int},
     "time": {"stepper": str, "dt": float, "days": float},
     "output": {"every_days": float},
-    "hyperviscosity": {"nu": float, "nu_div": float, "nu_s": float, "subcycle": int},
+    "hyperviscosity": {"efold_hours": float, "nu": float, "nu_div": float, "nu_s": float, "subcycle": int},
     # one table per stepper, named after it, with the stepper's own options
     **{name: option_types(cls.Options) for name, cls in STEPPERS.items() if option_types(cls.Options)},
 }
@@ -285,15 +297,22 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
         raise SceneError(f"{stepper1}.{err}") from None
 
     hv = s.get("hyperviscosity", {})
-    nus = {key: hv.get(key, hv.get("nu", 0.0)) for key in ("nu", "nu_div", "nu_s")}
-    for key, value in nus.items():
-        if value < 0:
-            raise SceneError(f"hyperviscosity.{key} must be >= 0 (got {value})")
+    for key in ("efold_hours", "nu", "nu_div", "nu_s"):
+        if hv.get(key, 0.0) < 0 or (key == "efold_hours" and key in hv and hv[key] == 0):
+            raise SceneError(f"hyperviscosity.{key} must be {'> 0' if key == 'efold_hours' else '>= 0'} (got {hv[key]})")
+    # explicit coefficients (m^4/s at the scene's grid) scale as dx^3.2; efold_hours gives the rest on the run's grid
+    nus = {key: hv[key] * ratio**HYPERVIS_EXPONENT for key in ("nu", "nu_div", "nu_s") if key in hv}
+    if "efold_hours" in hv:
+        rule = efold_nu(hv["efold_hours"], ne1, np1, make_case(case_name, case).planet.a)
+        nus = {key: nus.get(key, rule) for key in ("nu", "nu_div", "nu_s")}
+        if ratio != 1.0:
+            notes.append(f"nu = {rule:.3g} m^4/s: {hv['efold_hours']:g} h e-folding at degree {2 * ne1 * (np1 - 1)}")
+    else:
+        nus = {key: nus.get(key, nus.get("nu", 0.0)) for key in ("nu", "nu_div", "nu_s")}
     if "hyperviscosity" in terms and max(nus.values()) == 0:
-        raise SceneError("the hyperviscosity term needs hyperviscosity.nu, nu_div or nu_s > 0")
-    if ratio != 1.0 and max(nus.values()) > 0:
-        nus = {key: value * ratio**HYPERVIS_EXPONENT for key, value in nus.items()}
-        notes.append(f"nu scaled as dx^{HYPERVIS_EXPONENT} to {nus['nu']:.3g} m^4/s")
+        raise SceneError("the hyperviscosity term needs hyperviscosity.nu, nu_div, nu_s or efold_hours > 0")
+    if ratio != 1.0 and any(k in hv for k in ("nu", "nu_div", "nu_s")) and max(nus.values()) > 0:
+        notes.append(f"nu scaled as dx^{HYPERVIS_EXPONENT}: nu, nu_div, nu_s = {nus['nu']:.3g}, {nus['nu_div']:.3g}, {nus['nu_s']:.3g} m^4/s")
     if "hyperviscosity" not in terms:
         nus = dict.fromkeys(nus, 0.0)
     subcycle = hv.get("subcycle", 1)

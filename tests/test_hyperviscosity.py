@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from swe_sphere.config import HYPERVIS_EXPONENT, SceneError, load_scene
+from swe_sphere.config import HYPERVIS_EXPONENT, SceneError, efold_nu, load_scene
+from swe_sphere.diagnostics import ideal_hyperviscosity_rate
 
 SCENE = """
 terms = ["continuity", "momentum_advection", "coriolis", "pressure_gradient", "hyperviscosity"]
@@ -39,3 +40,20 @@ def test_nu_div_and_nu_s_default_to_nu_and_scale_with_the_grid(tmp_path):
 def test_bad_coefficients_name_the_key(tmp_path, table, needle):
     with pytest.raises(SceneError, match=needle):
         load_scene(scene_file(tmp_path, table))
+
+
+def test_efold_hours_sets_every_coefficient_on_every_grid(tmp_path):
+    """efold_hours = τ: ν = ν_div = ν_s = a⁴/(τ (L(L+1))²), L = 2 ne (np − 1), on
+    the run's grid (no Δx^3.2): the degree-L harmonic of h decays at 1/τ under
+    the ideal operator; explicit coefficients still override (scaled)."""
+    a = 6.37122e6
+    for ne, np_ in ((30, 4), (16, 4), (15, 8)):
+        s = load_scene(scene_file(tmp_path, "efold_hours = 3.0\n"), ne=ne, np=np_)
+        L = 2 * ne * (np_ - 1)
+        assert s.nu == s.nu_div == s.nu_s == pytest.approx(efold_nu(3.0, ne, np_, a), rel=1e-14)
+        assert ideal_hyperviscosity_rate(L, "height", 0.0, 0.0, s.nu_s, a) == pytest.approx(1 / (3 * 3600), rel=1e-12)
+    assert efold_nu(3.0, 30, 4, a) == pytest.approx(1.437e14, rel=1e-3)
+    s = load_scene(scene_file(tmp_path, "efold_hours = 3.0\nnu = 0.0\nnu_s = 1e15\n"), ne=15)
+    assert (s.nu, s.nu_div, s.nu_s) == pytest.approx((0.0, efold_nu(3.0, 15, 4, a), 1e15 * 2**HYPERVIS_EXPONENT), rel=1e-12)
+    with pytest.raises(SceneError, match="hyperviscosity.efold_hours"):
+        load_scene(scene_file(tmp_path, "efold_hours = 0.0\n"))

@@ -300,14 +300,17 @@ def test_implicit_conserves_mass(atol):
     """TC5 (hyperviscosity on), ne = 4, one day in 4 steps of 21600 s. The Newton
     tolerance bounds the mass error by ~nsteps Δt sqrt(3) atol / mean(h) (1e-3 at
     atol 1e-6), but every Newton update has zero mass, so the change is round-off:
-    measured 1.5e-14 (atol 1e-6) and 5.4e-16 (atol 1e-10)."""
+    measured 1.5e-14 (atol 1e-6) and 5.4e-16 (atol 1e-10); with HOMME's vector
+    Laplacian in the ∇⁴ (+2v/a², a slightly different wind) the atol 1e-6 run
+    drifts by −1.1e-14, −2.9e-14, −9.4e-14, −1.6e-13 over its four steps, all from
+    the Newton updates (the ∇⁴ keeps mass to 3.6e-16 a call)."""
     scene = load_scene("tc5_mountain", ne=4, np=4, days=1.0, stepper="implicit", dt=21600.0)
     scene = dataclasses.replace(scene, stepper_options={"atol": atol})
     result, _, wall = run(scene)
     assert result.blowup is None
     changes = [h["mass_change"] for h in result.history]
     print(f"\natol {atol:g}: mass change {changes}, {result.iterations}, {wall:.2f} s")
-    assert max(abs(c) for c in changes) < 1e-13
+    assert max(abs(c) for c in changes) < 5e-13
 
 
 # -- the Helmholtz (gravity-wave Schur complement) preconditioner --------------------

@@ -24,6 +24,7 @@ import xarray as xr
 
 from swe_sphere import __version__
 from swe_sphere.cli import main
+from swe_sphere.config import efold_nu
 from swe_sphere.output import RunWriter
 
 REPO = Path(__file__).resolve().parents[1]
@@ -173,7 +174,7 @@ def test_run_writes_a_complete_netcdf_file(which, tc2_run, tc5_run):
         else:
             assert scene["stepper"] == "leapfrog_trapezoidal"
             assert "topography" in scene["terms"] and "hyperviscosity" in scene["terms"]
-            assert scene["nu"] == pytest.approx(1.5e15 * 15**3.2, rel=1e-12)  # nu ~ dx^3.2, dx 15x the ne=30 one
+            assert scene["nu"] == pytest.approx(efold_nu(3.0, 2, 4, 6.37122e6), rel=1e-12)  # the scene's 3 h rule on this grid
             assert ds.hs.values.max() > 1000  # the mountain (2000 m at its centre)
             assert "l2_h" not in ds  # no exact solution for TC5
 

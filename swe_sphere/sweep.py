@@ -254,6 +254,12 @@ VERDICT_COLUMNS = ("criterion", "threshold", "stepper", "dt", "dt_over_gravity_l
                    "dt_over_leapfrog_limit", "wall_time", "rhs_evals", "temporal_error", "spatial_error")
 
 
+def _cheapest(rows, stepper, column, limit):
+    """The stable run of ``stepper`` with the least wall time whose ``column`` ≤ limit (None if none)."""
+    ok = [r for r in rows if r["stepper"] == stepper and r["stable"] and r.get(column, math.nan) <= limit]
+    return min(ok, key=lambda r: r["wall_time"], default=None)
+
+
 def verdicts(rows, info) -> list[dict]:
     """Per criterion (``CRITERIA``; the filtered one only where the sweep filtered),
     threshold (``THRESHOLDS``) and stepper: the cheapest (least wall time) stable run
@@ -267,8 +273,7 @@ def verdicts(rows, info) -> list[dict]:
             continue
         for threshold in THRESHOLDS:
             for stepper in steppers:
-                ok = [r for r in rows if r["stepper"] == stepper and r["stable"] and r.get(column, math.nan) <= threshold * spatial]
-                best = min(ok, key=lambda r: r["wall_time"], default=None)
+                best = _cheapest(rows, stepper, column, threshold * spatial)
                 v = {"criterion": criterion, "threshold": threshold, "stepper": stepper, "spatial_error": spatial}
                 v.update({c: math.nan for c in VERDICT_COLUMNS if c not in v})
                 if best is not None:
@@ -294,12 +299,8 @@ def format_verdicts(verdict_rows) -> str:
 
 def cheapest_sufficient(rows, spatial_error) -> dict:
     """Per stepper, the fastest stable run whose temporal error ≤ 10 % of the spatial error."""
-    best = {}
-    for r in rows:
-        if r["stable"] and r["temporal_error"] <= SUFFICIENT * spatial_error:
-            if r["stepper"] not in best or r["wall_time"] < best[r["stepper"]]["wall_time"]:
-                best[r["stepper"]] = r
-    return best
+    best = {s: _cheapest(rows, s, "temporal_error", SUFFICIENT * spatial_error) for s in dict.fromkeys(r["stepper"] for r in rows)}
+    return {s: r for s, r in best.items() if r is not None}
 
 
 def format_summary(rows, info) -> str:

@@ -80,6 +80,8 @@ def _parser() -> argparse.ArgumentParser:
     sw.add_argument("--ne", type=int, help="elements along a cube edge")
     sw.add_argument("--np", type=int, help="GLL points per element direction (2..8)")
     sw.add_argument("--days", type=float, help="run length in days")
+    sw.add_argument("-s", "--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                    help="override a scene value in every run, e.g. -s case.initialization=dfi (as for run)")
     sw.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
     sw.add_argument("--output", type=Path, default=Path("sweep"), help="directory for results (default ./sweep); reruns resume")
     sw.add_argument("--filter-days", type=float, metavar="DAYS", help="also score the balanced flow: Lanczos low-pass in time with this cutoff period (runs go on past --days by the half window)")
@@ -145,7 +147,8 @@ def _cmd_sweep(args) -> int:
     from .config import load_scene
 
     steppers = _steppers(args.steppers)
-    scenes = {s: load_scene(args.scene, ne=args.ne, np=args.np, days=args.days, stepper=s) for s in steppers}
+    overrides = _overrides(args.set)
+    scenes = {s: load_scene(args.scene, ne=args.ne, np=args.np, days=args.days, stepper=s, overrides=overrides) for s in steppers}
     dts = _numbers(args.dt, "dt") if args.dt else None
     factors = _numbers(args.courant or "0.5,1,2,5,10,30,60,100", "courant") if dts is None else None
     base = next(iter(scenes.values()))
@@ -166,13 +169,14 @@ def _cmd_sweep(args) -> int:
     except OSError as err:
         raise ValueError(f"cannot create output directory {args.output}: {err.strerror}") from None
     device = _warp_device(args.device)
-    from .sweep import Sweep, dt_for_day, explicit_limits, format_summary, table, write_outputs
+    from .sweep import Sweep, dt_for_day, explicit_limits, format_summary, start_state, table, write_outputs
     from .workers import executor
 
     with executor(args.workers) as pool:
         if pool is None:  # an MPI worker rank: its share is done
             return 0
-        limits = explicit_limits(base, device)
+        start = start_state(base, args.output, device)  # a digital-filter start, made once for every run
+        limits = explicit_limits(base, device, start)
         if dts is None:
             dts = sorted({dt_for_day(f * limits["dt_gravity"], span) for f in factors})
         for dt in dts:
@@ -182,7 +186,10 @@ def _cmd_sweep(args) -> int:
             f"sweep {base.name} ne={base.ne} np={base.np}, {base.days:g} days; explicit limits: gravity-wave dt = "
             f"{limits['dt_gravity']:.1f} s, advective dt = {limits['dt_advective']:.1f} s; dt = {', '.join(f'{d:.4g}' for d in dts)}"
         )
-        rows, info = Sweep(scenes, dts, args.output, device, time_filter=time_filter).run(pool)
+        if start is not None:
+            print(f"start       digital-filter initialization (cutoff {base.digital_filter.cutoff_hours:g} h, span "
+                  f"{base.digital_filter.span_hours:g} h), the same state for every run")
+        rows, info = Sweep(scenes, dts, args.output, device, time_filter=time_filter, start=start).run(pool)
         rows = table(rows, limits)
         print(format_summary(rows, info))
         for path in write_outputs(rows, info, limits, args.output):
@@ -310,6 +317,8 @@ def _cmd_run(args) -> int:
     print(f"output      {output} (every {scene.output_every_days:g} days)")
     if args.restart_every is not None:
         print(f"restart     {restart_path(output)} (every {args.restart_every:g} days and at the end)")
+    if sim.dfi is not None:
+        print(f"initial     {sim.dfi.describe(scene.digital_filter)}")
     print(f"setup       {sim.setup_time:.2f} s")
     try:
         result = sim.run(output, overwrite=args.overwrite, restart_every=args.restart_every, compress=args.compress,
@@ -317,11 +326,11 @@ def _cmd_run(args) -> int:
     except BlowUp as err:
         print(f"swe-sphere: {err}; the last good state is in {output}", file=sys.stderr)
         return EXIT_BLOWUP
-    _summary(result)
+    _summary(result, sim)
     return 0
 
 
-def _summary(r) -> None:
+def _summary(r, sim) -> None:
     d = r.diagnostics
     steps, loop = r.steps - r.first_step, r.loop_time
     print("summary")
@@ -331,6 +340,11 @@ def _summary(r) -> None:
         rest = f", then {1e3 * (loop - r.first_step_time) / (steps - 1):.2f} ms/step over {steps - 1} steps" if steps > 1 else ""
         print(f"  time        compile {r.compile_time:.2f} s (setup and loop), first step {r.first_step_time:.3f} s{rest}")
     print(f"  RHS evals   {r.rhs_evals}")
+    if sim.dfi is not None:
+        print(f"  initial     digital-filter start: {sim.dfi.rhs_evals} RHS evals, {sim.dfi.wall_time:.2f} s (in setup); rms dh/dt "
+              f"{sim.dfi.dhdt_rms[0]:.3e} -> {sim.dfi.dhdt_rms[1]:.3e} m/s")
+    elif sim.scene.initialization is not None:
+        print(f"  initial     digital-filter start of the run continued (not redone)")
     for k, total in r.iterations.items():
         print(f"  {k:11s} {total} iterations, {total / max(r.steps, 1):.1f} per step")
     for k in ("mass", "total_energy", "potential_enstrophy"):

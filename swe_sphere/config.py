@@ -5,7 +5,9 @@ the run length, the output interval and the hyperviscosity. Layout::
 
     description = "..."
     terms = ["continuity", "momentum_advection", ...]
-    [case]            name = "tc5_mountain" (+ case parameters, e.g. alpha)
+    [case]            name = "tc5_mountain" (+ case parameters, e.g. alpha),
+                      initialization = "none" | "dfi" (a digital-filter balanced start)
+    [dfi]             span_hours = 144.0, cutoff_hours = 48.0 (``initialization.DigitalFilter``)
     [grid]            ne = 30, np = 4
     [time]            stepper = "leapfrog_trapezoidal", dt = 90.0, days = 15.0
     [output]          every_days = 1.0
@@ -34,6 +36,7 @@ from pathlib import Path
 from .cases import make_case
 from .constants import DAY
 from .gll import NP_MAX, NP_MIN, gll
+from .initialization import METHODS, DigitalFilter
 from .model import TERMS
 from .steppers import STEPPERS, option_types
 
@@ -58,6 +61,8 @@ class Scene:
     """A validated, resolved scene (all values final, overrides applied).
 
     dt in s, days in days, nu, nu_div, nu_s in m⁴ s⁻¹ (already scaled to this grid).
+    ``initialization``: None (the case's initial state) or {"method": "dfi",
+    "span_hours": ..., "cutoff_hours": ...} (``initialization.DigitalFilter``).
     """
 
     name: str
@@ -77,6 +82,7 @@ class Scene:
     nu_div: float = 0.0
     nu_s: float = 0.0
     notes: tuple = field(default=())
+    initialization: dict | None = None
 
     @property
     def nsteps(self) -> int:
@@ -84,6 +90,13 @@ class Scene:
 
     def make_case(self):
         return make_case(self.case, self.case_params)
+
+    @property
+    def digital_filter(self) -> DigitalFilter | None:
+        """The start's digital filter, or None for the case's own initial state."""
+        if self.initialization is None:
+            return None
+        return DigitalFilter(**{k: v for k, v in self.initialization.items() if k != "method"})
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -105,6 +118,7 @@ _SCHEMA = {
     "time": {"stepper": str, "dt": float, "days": float},
     "output": {"every_days": float},
     "hyperviscosity": {"efold_hours": float, "nu": float, "nu_div": float, "nu_s": float, "subcycle": int},
+    "dfi": {"span_hours": float, "cutoff_hours": float},
     # one table per stepper, named after it, with the stepper's own options
     **{name: option_types(cls.Options) for name, cls in STEPPERS.items() if option_types(cls.Options)},
 }
@@ -232,6 +246,9 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
     if "name" not in case:
         raise SceneError("case.name is missing")
     case_name = case.pop("name")
+    method = case.pop("initialization", "none")
+    if method not in METHODS:
+        raise SceneError(f"case.initialization must be one of {', '.join(METHODS)} (got {method!r})")
     try:
         case_obj = make_case(case_name, case)
     except ValueError as err:
@@ -248,6 +265,17 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
     missing = [t for t in TERMS if t in case_obj.required_terms and t not in terms]
     if missing:
         raise SceneError(f"case {case_name} needs the term(s) {', '.join(missing)} (terms = {terms})")
+
+    initialization = None
+    if method == "dfi":
+        if case_obj.exact_solution:
+            raise SceneError(f"case.initialization = \"dfi\" would spoil case {case_name}'s exact solution (its errors are "
+                             "measured against it); use it on cases without one (tc5_mountain, tc6_rossby_haurwitz, galewsky)")
+        try:
+            dfi = DigitalFilter(**s.get("dfi", {}))
+        except ValueError as err:
+            raise SceneError(str(err)) from None
+        initialization = {"method": "dfi", **dataclasses.asdict(dfi)}
 
     grid = s.get("grid", {})
     ne0, np0 = grid.get("ne", 16), grid.get("np", 4)
@@ -337,4 +365,5 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
         nu_div=float(nus["nu_div"]),
         nu_s=float(nus["nu_s"]),
         notes=tuple(notes),
+        initialization=initialization,
     )

@@ -70,6 +70,13 @@ def courant_numbers(grid: CubedSphere, u, v, h, dt, g, gravity_waves=True) -> di
     return {"courant_advective": adv, "courant_gravity": grav}
 
 
+def max_signal_rate(grid: CubedSphere, u, v, h, g) -> float:
+    """max over the nodes of (|v| + sqrt(g h)) / Δx (s⁻¹): the fastest signal (wind
+    plus gravity wave) over the nearest-node distance, whose product with Δt is the
+    Courant number an explicit stepper's stability limit is stated in."""
+    return float(np.max((np.hypot(u, v) + np.sqrt(g * np.maximum(h, 0.0))) / grid.dx))
+
+
 HARMONIC_KINDS = ("height", "rotational", "divergent")
 
 

@@ -22,6 +22,7 @@ from .config import Scene, with_days
 from .constants import DAY
 from .diagnostics import courant_numbers, invariants, rotational_divergent_errors, williamson_norms, williamson_vector_norms
 from .grid import CubedSphere
+from .initialization import digital_filter
 from .model import ShallowWater
 from .output import RunWriter, check_target
 from .parallel import default_threads
@@ -103,16 +104,22 @@ class Simulation:
     (``topology.Topology``: each rank steps its part of the elements; fields
     are gathered for diagnostics, and rank 0 writes the files); None: this
     process alone. Explicit steppers give the same bits on any number of ranks.
+    ``start``: a whole-grid state (3, npts) (u, v in m s⁻¹, h in m) to start from
+    instead of the case's initial state and the scene's initialization (a
+    restart's, or a digital-filter start made once for many runs, as a sweep's).
+    With the scene's ``initialization`` (a digital filter, see
+    ``initialization``) and no ``start``, the filter runs here (its cost is part
+    of ``setup_time``) and ``dfi`` holds its ``FilterResult``, else None.
     """
 
-    def __init__(self, scene: Scene, device: str, *, progress: bool = True, comm=None):
+    def __init__(self, scene: Scene, device: str, *, progress: bool = True, comm=None, start: np.ndarray | None = None):
         t0 = time.perf_counter()
         self._compile = [0.0]
         with _compile_timer(self._compile):
-            self._build(scene, device, progress, comm)
+            self._build(scene, device, progress, comm, start)
         self.setup_time = time.perf_counter() - t0
 
-    def _build(self, scene, device, progress, comm):
+    def _build(self, scene, device, progress, comm, start):
         check_memory(run_bytes(scene.ne, scene.np, scene.stepper), f"ne={scene.ne} np={scene.np} with {scene.stepper}")
         self.scene, self.device = scene, device
         self.grid = grid = CubedSphere(scene.ne, scene.np)
@@ -132,8 +139,15 @@ class Simulation:
         self.stepper = make_stepper(scene.stepper, self.model, scene.dt, **scene.stepper_options)
         ref_path = reference_path(case)
         self.reference = Reference(ref_path) if ref_path is not None else None
-        u, v, h = case.initial(grid.lat, grid.lon)
-        self.x = self.model.new_state(*(topo.local(f) for f in (u, v, h)))
+        self.dfi = None
+        if start is None:
+            start = np.stack(case.initial(grid.lat, grid.lon))
+            if scene.digital_filter is not None:
+                self.dfi = digital_filter(scene.digital_filter, topo.local(start), grid=topo.local_grid(), terms=scene.terms,
+                                          fcor=topo.local(self.fcor), hs=topo.local(self.hs), g=self.g, device=device, topology=topo)
+        elif np.shape(start) != (3, grid.npts):
+            raise ValueError(f"start state has shape {np.shape(start)}, the grid needs {(3, grid.npts)}")
+        self.x = self.model.new_state(*(self.dfi.x if self.dfi is not None else topo.local(np.asarray(start))))
         self.last_good = wp.clone(self.x)
         self.scratch = self.model.new_state()  # a comparison wind, for its vorticity and divergence
         self.initial = None
@@ -151,7 +165,7 @@ class Simulation:
         scene = ck.scene if days is None else with_days(ck.scene, days)
         if scene.nsteps < ck.step:
             raise ckpt.CheckpointError(f"the run length {scene.days:g} days ends before the checkpoint (day {ck.step * scene.dt / DAY:g})")
-        sim = cls(scene, device, progress=progress, comm=comm)
+        sim = cls(scene, device, progress=progress, comm=comm, start=ck.x)  # no second digital filter
         sim.restore(ck)
         return sim
 
@@ -312,6 +326,8 @@ class Simulation:
                 "dt": s.dt,
                 "device": self.device,
                 "mpi_ranks": self.topology.comm.size,
+                "initialization": "none" if s.initialization is None else s.initialization["method"],
+                **(self.dfi.attrs(s.digital_filter) if self.dfi is not None else {}),
                 **({"continued_from_day": self.step * s.dt / DAY} if self.step else {}),
                 **{k: v for k, v in courant.items() if math.isfinite(v)},
             }

@@ -28,7 +28,7 @@ import numpy as np
 
 from .config import Scene
 from .constants import DAY
-from .diagnostics import williamson_norms, williamson_vector_norms
+from .diagnostics import max_signal_rate, williamson_norms, williamson_vector_norms
 from .output import atomic_path
 from .simulation import BlowUp, Simulation
 from .steppers import STEPPERS
@@ -45,16 +45,37 @@ def dt_for_day(dt: float, run_days: float) -> float:
     return span / math.ceil(span / dt - 1e-9)
 
 
-def explicit_limits(scene: Scene, device: str) -> dict:
+def start_state(scene: Scene, directory, device: str) -> np.ndarray | None:
+    """The whole-grid initial state (3, npts) of a scene with a digital-filter start
+    (``Scene.initialization``), filtered once for a whole sweep and kept in
+    ``directory/runs/start_dfi<cutoff>h<span>h.npz`` (read back when there); None
+    for a scene that starts from its case's initial state."""
+    f = scene.digital_filter
+    if f is None:
+        return None
+    path = Path(directory) / "runs" / f"start_dfi{f.cutoff_hours:g}h{f.span_hours:g}h.npz"
+    if path.exists():
+        with np.load(path) as data:
+            return data["x"]
+    sim = Simulation(dataclasses.replace(scene, days=scene.dt / DAY, output_every_days=scene.dt / DAY), device, progress=False)
+    x = np.stack(sim.fields())
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as out:
+            np.savez(out, x=x)
+    return x
+
+
+def explicit_limits(scene: Scene, device: str, start: np.ndarray | None = None) -> dict:
     """The Δt at which the gravity-wave and the advective Courant numbers of the
-    initial state are 1 (``dt_gravity``, ``dt_advective``), on the scene's grid, and
+    initial state (``start``, see ``Simulation``; None: the scene's) are 1
+    (``dt_gravity``, ``dt_advective``), on the scene's grid, and
     leapfrog's measured stability limit there (``dt_leapfrog``: (|v| + sqrt(g h)) Δt/Δx
     = ``courant_limit`` of the leapfrog stepper, 0.58), to quote multiples as papers
     whose explicit reference is leapfrog do (presumably Evans, Taylor & Drake 2010)."""
-    sim = Simulation(dataclasses.replace(scene, days=scene.dt / DAY), device, progress=False)
+    sim = Simulation(dataclasses.replace(scene, days=scene.dt / DAY), device, progress=False, start=start)
     c = sim.courant()
-    u, v, h = sim.fields()
-    speed = float(np.max((np.hypot(u, v) + np.sqrt(sim.g * np.maximum(h, 0.0))) / sim.grid.dx))
+    speed = max_signal_rate(sim.grid, *sim.fields(), sim.g)
     return {"dt_gravity": scene.dt / c["courant_gravity"], "dt_advective": scene.dt / c["courant_advective"],
             "dt_leapfrog": STEPPERS["leapfrog"].courant_limit / speed}
 
@@ -97,7 +118,9 @@ class Sweep:
     grid) × ``dts`` (s), results under ``directory``. With ``time_filter``
     (``timefilter.TimeFilter``) each run goes on for the filter's half window past
     the scenes' last day (the target) and is also scored by the time-filtered
-    temporal error; wall time, RHS evaluations and iterations are those to the target."""
+    temporal error; wall time, RHS evaluations and iterations are those to the target.
+    ``start``: the whole-grid state every run starts from (``start_state``: a
+    digital-filter start made once), or None for the scenes' own."""
 
     scenes: dict
     dts: list
@@ -105,6 +128,7 @@ class Sweep:
     device: str
     log: object = print
     time_filter: object = None
+    start: np.ndarray | None = None
 
     def __post_init__(self):
         self.directory = Path(self.directory)
@@ -113,9 +137,11 @@ class Sweep:
 
     @property
     def tag(self) -> str:
-        """File-name suffix of a filtered sweep's runs (they run longer)."""
-        f = self.time_filter
-        return "" if f is None else f"_lp{f.period_days:g}d{f.half_window_days:g}d{f.every_hours:g}h"
+        """File-name suffix of a filtered sweep's runs (they run longer) and of a
+        digital-filter start's (they start elsewhere)."""
+        f, d = self.time_filter, self.base.digital_filter
+        return ("" if f is None else f"_lp{f.period_days:g}d{f.half_window_days:g}d{f.every_hours:g}h") + (
+            "" if d is None else f"_dfi{d.cutoff_hours:g}h{d.span_hours:g}h")
 
     def simulate(self, scene):
         """Run ``scene`` (beyond its last day by the filter's half window, when
@@ -137,7 +163,7 @@ class Sweep:
                 kept["filtered"] = kept["filtered"] + weights[step] * x.numpy()
                 kept["seen"] += 1
 
-        sim = Simulation(scene, self.device, progress=False)
+        sim = Simulation(scene, self.device, progress=False, start=self.start)
         try:
             result = sim.run(None, on_output=on_output)
         except BlowUp as err:
@@ -199,7 +225,7 @@ class Sweep:
         dt = min(self.dts)
         span = 2 * dt / DAY
         scene = dataclasses.replace(self.scenes[stepper], dt=dt, days=span, output_every_days=span)
-        Simulation(scene, self.device, progress=False).run(None)
+        Simulation(scene, self.device, progress=False, start=self.start).run(None)
         return time.perf_counter() - t0
 
     def run(self, pool=None) -> tuple[list[dict], dict]:
@@ -217,8 +243,10 @@ class Sweep:
                 self.log(f"[{len(runs) + 1}/{total}] {stepper} dt = {dt:.6g} s")
                 runs.append((stepper, pool.submit(self.run_one, stepper, dt)))
         rows = [{**future.result(), "startup_time": startups[stepper].result()} for stepper, future in runs]
+        d = self.base.digital_filter  # in the sweep's netCDF attributes: which start the runs share
         return rows, {"spatial_error": ref["total_error"], "spatial_error_vorticity": ref["total_error_vorticity"],
-                      "spatial_error_divergence": ref["total_error_divergence"], "reference_dt": ref["dt"]}
+                      "spatial_error_divergence": ref["total_error_divergence"], "reference_dt": ref["dt"],
+                      **({} if d is None else {"dfi_cutoff_hours": d.cutoff_hours, "dfi_span_hours": d.span_hours})}
 
 
 COLUMNS = (

@@ -1,7 +1,7 @@
 """Initial states, Coriolis parameter, surface height and exact solutions.
 
 Williamson, Drake, Hack, Jakob & Swarztrauber (1992), J. Comput. Phys. 102,
-211–224 (cases 1, 2, 3, 5, 6; equation numbers below are theirs) and Galewsky,
+211–224 (cases 1–6; equation numbers below are theirs) and Galewsky,
 Scott & Polvani (2004), Tellus 56A, 429–440 (barotropic jet) and Läuter,
 Handorf & Dethloff (2005), J. Comput. Phys. 210, 535–553 (unsteady exact
 solution).
@@ -21,6 +21,7 @@ from scipy.integrate import cumulative_simpson
 from scipy.interpolate import CubicSpline
 
 from .constants import DAY, EARTH
+from .kernels import forcing as forcing_kernels
 
 
 def _xyz(lat, lon):
@@ -66,6 +67,11 @@ class Case:
     required_terms = frozenset({"continuity", "momentum_advection", "coriolis", "pressure_gradient"})
     h_is_depth = True  # False: h is a tracer carried by a prescribed wind (TC1)
     reference_file = None  # name of its T213 reference under testcases/reference/, if any
+
+    def forcing(self):
+        """(kernel, params) of the case's analytic forcing for ``ShallowWater``'s
+        "forcing" term, or None: the case is unforced."""
+        return None
 
     def fcor(self, lat, lon):
         return 2 * self.planet.omega * np.sin(lat)
@@ -229,6 +235,67 @@ class UnsteadySolidBody(SteadyZonal):
 
 
 @dataclass(frozen=True)
+class ForcedLow(Case):
+    """Case 4: forced nonlinear system with a translating low (§3.4, eqs.
+    106–129; after Browning et al. 1989). The exact solution is
+    u = ū − (1/a) ∂ψ/∂φ, v = (1/(a cos φ)) ∂ψ/∂λ, g h = Φ̄(φ) + f ψ
+    with the jet ū = u0 sin¹⁴(2φ) in balance with
+    Φ̄ = Φ0 − ∫_{−π/2}^{φ} (a f + ū tan φ') ū dφ' (``zonal_balance``)
+    and the low ψ = ψ0 exp(−σ (1 − C)/(1 + C)),
+    C = sin φ0 sin φ + cos φ0 cos φ cos(λ − u0 t/a − λ0), which moves east at
+    u0 cos φ0 along φ0. Parameters (theirs): u0 = 20 m s⁻¹, Φ0 = 1e5 m² s⁻²,
+    ψ0 = −0.03 Φ0/f0 with f0 = 2Ω sin(π/4), σ = (2a/10⁶)², (λ0, φ0) = (0, π/4).
+    The solution holds under the forcing that the equations leave over on it
+    (``kernels.forcing.translating_low``, in closed form)."""
+
+    required_terms = Case.required_terms | {"forcing"}
+    exact_solution = True
+
+    u0: float = 20.0
+    phi0: float = 1.0e5  # m² s⁻²
+    lat0: float = math.pi / 4
+    lon0: float = 0.0
+
+    @property
+    def psi0(self) -> float:
+        return -0.03 * self.phi0 / (2 * self.planet.omega * math.sin(math.pi / 4))
+
+    @property
+    def sigma(self) -> float:
+        return (2 * self.planet.a / 1e6) ** 2
+
+    def jet(self, lat):
+        return self.u0 * np.sin(2 * lat) ** 14
+
+    def forcing(self):
+        p = self.planet
+        params = (self.psi0, self.sigma, self.lat0, self.lon0, self.u0, p.omega, p.a, p.g)
+        return forcing_kernels.translating_low, forcing_kernels.TranslatingLowParams(*params)
+
+    def initial(self, lat, lon):
+        return self.exact(lat, lon, 0.0)
+
+    def exact(self, lat, lon, t):
+        """(u, v, h) at time t (s), the wind v = ū ê + k×∇ψ taken
+        in Cartesian vectors, ψ's gradient (ψ_C/a)(p − C r̂) (finite at the poles)."""
+        p = self.planet
+        r = _xyz(lat, lon)
+        lonc = self.lon0 + self.u0 / p.a * t
+        centre = np.array([math.cos(self.lat0) * math.cos(lonc), math.cos(self.lat0) * math.sin(lonc), math.sin(self.lat0)])
+        C = np.tensordot(centre, r, axes=1)
+        with np.errstate(divide="ignore", over="ignore"):  # the antipode: ψ = 0
+            psi = np.where(C > -0.99, self.psi0 * np.exp(-self.sigma * (1 - C) / np.maximum(1 + C, 1e-2)), 0.0)
+        psi_c = 2 * self.sigma * psi / np.maximum(1 + C, 1e-2) ** 2
+        wind = (psi_c / p.a) * np.cross(r, centre.reshape(3, *([1] * lat.ndim)), axis=0)  # k×∇ψ
+        east = np.stack([-np.sin(lon), np.cos(lon), np.zeros_like(lon)])
+        north = np.stack([-np.sin(lat) * np.cos(lon), -np.sin(lat) * np.sin(lon), np.cos(lat)])
+        u = self.jet(lat) + np.sum(wind * east, axis=0)
+        v = np.sum(wind * north, axis=0)
+        gh = self.phi0 + zonal_balance(self.jet, p)(lat) + 2 * p.omega * np.sin(lat) * psi
+        return u, v, gh / p.g
+
+
+@dataclass(frozen=True)
 class Mountain(Case):
     """Case 5: zonal flow over an isolated conical mountain (eqs. 130–135, α = 0)."""
 
@@ -327,6 +394,7 @@ CASES: dict[str, tuple[type[Case], dict[str, type]]] = {
     "tc1_cosine_bell": (CosineBell, {"alpha": float}),
     "tc2_steady": (SteadyZonal, {"alpha": float}),
     "tc3_compact_zonal": (CompactZonal, {"alpha": float}),
+    "tc4_forced_low": (ForcedLow, {"u0": float}),
     "lauter_unsteady": (UnsteadySolidBody, {"alpha": float}),
     "tc5_mountain": (Mountain, {}),
     "tc6_rossby_haurwitz": (RossbyHaurwitz, {}),

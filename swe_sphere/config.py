@@ -265,6 +265,8 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
     missing = [t for t in TERMS if t in case_obj.required_terms and t not in terms]
     if missing:
         raise SceneError(f"case {case_name} needs the term(s) {', '.join(missing)} (terms = {terms})")
+    if "forcing" in terms and case_obj.forcing() is None:
+        raise SceneError(f"case {case_name} has no forcing: drop the term 'forcing'")
 
     initialization = None
     if method == "dfi":

@@ -5,7 +5,9 @@ records every kernel launch the first time it is used on a given pair of
 arrays; afterwards ``rhs`` and ``hyperviscosity`` only replay recorded
 launches (no allocation in the time loop). The tendency kernel is compiled
 for the scene's terms alone (``kernels.tendencies.tendency``); the
-hyperviscosity kernels run only when it is a term. Mirrors HOMME's ``compute_and_apply_rhs`` + ``advance_hypervis``.
+hyperviscosity kernels run only when it is a term, the forcing kernel (an
+analytic function of position and model time, ``set_time``) only when the
+scene names ``forcing``. Mirrors HOMME's ``compute_and_apply_rhs`` + ``advance_hypervis``.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ TERMS = (
     "pressure_gradient",
     "topography",
     "hyperviscosity",
+    "forcing",
 )
 
 f64 = wp.float64
@@ -56,6 +59,10 @@ class ShallowWater:
         None: ``nu``), used if "hyperviscosity" is a term
         (``kernels.hyperviscosity``).
     hypervis_subcycle : forward-Euler substeps per ``hyperviscosity`` call.
+    forcing : (kernel, params) of the "forcing" term, supplied by the case
+        (``cases.ForcedLow.forcing``): a pointwise kernel (xyz, east, north,
+        params, t, tend, block, offset) that adds the forcing at model time t
+        to the element-local tendency before its DSS (``kernels.forcing``).
     device : "cpu" or "cuda".
     threads : CPU threads per launch (None: ``SWE_SPHERE_THREADS``, else the
         usable CPUs; ignored on CUDA). Each element-local launch runs as that
@@ -70,16 +77,25 @@ class ShallowWater:
     The state is a ``wp.array2d`` (3, N) of rows u, v (m s⁻¹, east/north) and h
     (fluid depth, m), element-local and continuous (equal on all copies).
 
-    Raises ``ValueError`` for an unknown term or a negative ν.
+    Raises ``ValueError`` for an unknown term, a negative ν, or the forcing
+    term without a forcing or without any tendency term to add to.
     """
 
     def __init__(
-        self, grid: CubedSphere, terms, fcor, hs, *, nu=0.0, nu_div=None, nu_s=None, hypervis_subcycle=1, g=EARTH.g, device="cpu", threads=None, per_element=None, topology=None
+        self, grid: CubedSphere, terms, fcor, hs, *, nu=0.0, nu_div=None, nu_s=None, hypervis_subcycle=1, g=EARTH.g, device="cpu", threads=None, per_element=None, topology=None,
+        forcing=None,
     ):
         terms = tuple(terms)
         for t in terms:
             if t not in TERMS:
                 raise ValueError(f"unknown term {t!r} (known: {', '.join(TERMS)})")
+        if "forcing" in terms and forcing is None:
+            raise ValueError("the forcing term needs a forcing (kernel, params); the case supplies it")
+        if "forcing" in terms and not set(terms) & set(tendencies.TENDENCY_TERMS):
+            raise ValueError("the forcing term adds to the tendency: name at least one tendency term")
+        self.forcing = forcing if "forcing" in terms else None
+        self.time = 0.0  # s, the model time of the next RHS evaluation (``set_time``)
+        self._forcing_launches = []  # every recorded forcing launch, whose t set_time sets
         nu_div = nu if nu_div is None else nu_div
         nu_s = nu if nu_s is None else nu_s
         for name, value in (("nu", nu), ("nu_div", nu_div), ("nu_s", nu_s)):
@@ -190,12 +206,27 @@ class ShallowWater:
             else:
                 kernel = tendencies.tendency(terms)
                 launches.append(self._launch(kernel, self.N, [*args, self.dvv, self.grid.np, self.g, self.tend]))
+        if self.forcing is not None:
+            kernel, params = self.forcing
+            launch = self._launch_pointwise(kernel, None, [self.xyz, self.east, self.north, params, f64(self.time), self.tend])
+            self._forcing_launches.append(launch)
+            launches.append(launch)
         launches.extend(self._dss(self.tend, 1, out))
         return launches
 
+    def set_time(self, t: float) -> None:
+        """Set the model time t (s) at which ``rhs`` evaluates a time-dependent
+        term (the forcing): a kernel argument of the recorded launches, so
+        nothing is recompiled or re-recorded. Steppers call it before each RHS
+        evaluation with the stage time; without a forcing it only stores t."""
+        self.time = float(t)
+        for launch in self._forcing_launches:
+            launch.set_param_by_name("t", f64(t))
+
     def rhs(self, x: wp.array2d, out: wp.array2d) -> None:
-        """out = F(x): the DSS'd tendency (3, N) of the non-dissipative terms
-        (du/dt, dv/dt in m s⁻²; dh/dt in m s⁻¹). ``out`` must not alias ``x``."""
+        """out = F(x, t): the DSS'd tendency (3, N) of the non-dissipative terms
+        (du/dt, dv/dt in m s⁻²; dh/dt in m s⁻¹) at the model time t
+        (``set_time``; only the forcing depends on it). ``out`` must not alias ``x``."""
         self._replay(("rhs", x.ptr, out.ptr), (x, out), lambda: self._build_rhs(x, out))
 
     def rhs_kernels(self, x: wp.array2d, out: wp.array2d) -> list[str]:

@@ -135,6 +135,7 @@ class Simulation:
         self.model = ShallowWater(
             topo.local_grid(), scene.terms, topo.local(self.fcor), topo.local(self.hs), nu=scene.nu, nu_div=scene.nu_div, nu_s=scene.nu_s,
             hypervis_subcycle=scene.hypervis_subcycle, g=self.g, device=device, topology=topo,
+            forcing=case.forcing() if "forcing" in scene.terms else None,
         )
         self.stepper = make_stepper(scene.stepper, self.model, scene.dt, **scene.stepper_options)
         ref_path = reference_path(case)

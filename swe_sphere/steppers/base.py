@@ -129,6 +129,12 @@ class Stepper:
     def advance(self, x: wp.array2d) -> StepStats:
         raise NotImplementedError
 
+    def _at(self, c: float) -> None:
+        """Set the model time to t(n) + c·Δt, t(n) = steps·Δt, for the next RHS
+        evaluation (a stage's abscissa c; ``ShallowWater.set_time``: a time-dependent
+        forcing reads it, nothing else does)."""
+        self.model.set_time((self.steps + c) * self.dt)
+
     def _buffer(self):
         return wp.zeros((3, self.N), dtype=f64, device=self.model.device)
 

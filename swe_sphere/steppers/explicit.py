@@ -35,10 +35,13 @@ class SSPRK3(Stepper):
         if self._x is not x:
             self._record(x)
         m = self.model
+        self._at(0.0)
         m.rhs(x, self.k)
         self._l1.launch()
+        self._at(1.0)
         m.rhs(self.s1, self.k)
         self._l2.launch()
+        self._at(0.5)
         m.rhs(self.s2, self.k)
         self._l3.launch()
         m.hyperviscosity(x, self.dt)
@@ -60,17 +63,18 @@ class RK4(Stepper):
     def _record(self, x):
         dt, k, s, acc = self.dt, self.k, self.s, self.acc
         self._x = x
-        self._stages = [
-            (x, [self._lincomb(s, (1.0, x), (dt / 2, k)), self._lincomb(acc, (1.0, x), (dt / 6, k))]),
-            (s, [self._lincomb(acc, (1.0, acc), (dt / 3, k)), self._lincomb(s, (1.0, x), (dt / 2, k))]),
-            (s, [self._lincomb(acc, (1.0, acc), (dt / 3, k)), self._lincomb(s, (1.0, x), (dt, k))]),
-            (s, [self._lincomb(x, (1.0, acc), (dt / 6, k))]),
+        self._stages = [  # (stage abscissa, argument, launches after its RHS)
+            (0.0, x, [self._lincomb(s, (1.0, x), (dt / 2, k)), self._lincomb(acc, (1.0, x), (dt / 6, k))]),
+            (0.5, s, [self._lincomb(acc, (1.0, acc), (dt / 3, k)), self._lincomb(s, (1.0, x), (dt / 2, k))]),
+            (0.5, s, [self._lincomb(acc, (1.0, acc), (dt / 3, k)), self._lincomb(s, (1.0, x), (dt, k))]),
+            (1.0, s, [self._lincomb(x, (1.0, acc), (dt / 6, k))]),
         ]
 
     def advance(self, x):
         if self._x is not x:
             self._record(x)
-        for arg, launches in self._stages:
+        for c, arg, launches in self._stages:
+            self._at(c)
             self.model.rhs(arg, self.k)
             for launch in launches:
                 launch.launch()
@@ -116,8 +120,10 @@ class _LeapfrogFamily(Stepper):
             self._record(x)
         if self.steps == 0:
             m = self.model
+            self._at(0.0)
             m.rhs(x, self.k)
             self._start_mid.launch()
+            self._at(0.5)
             m.rhs(self.new, self.k)
             self._start_keep.launch()
             self._start_end.launch()
@@ -153,6 +159,7 @@ class Leapfrog(_LeapfrogFamily):
 
     def _step(self, x):
         m = self.model
+        self._at(0.0)
         m.rhs(x, self.k)
         self._lf.launch()
         m.hyperviscosity(self.new, 2 * self.dt)
@@ -182,8 +189,10 @@ class LeapfrogTrapezoidal(_LeapfrogFamily):
 
     def _step(self, x):
         m = self.model
+        self._at(0.0)
         m.rhs(x, self.k)
         self._pred.launch()
+        self._at(1.0)  # the predictor x* stands for x(n+1)
         m.rhs(self.new, self.k2)
         self._keep.launch()
         self._corr.launch()

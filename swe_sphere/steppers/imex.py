@@ -111,6 +111,7 @@ class Imex(Stepper):
         self.A_exp, self.A_imp, self.b, self.order = tableau(o.scheme)
         stages = self.A_exp.shape[0]
         self.gamma = float(self.A_imp[1, 1])
+        self.c = self.A_exp.sum(axis=1)  # stage abscissae (the same for A: ARS rows sum alike)
         self.xn = self._buffer()
         self.F = [self._buffer() for _ in range(stages)]  # F(Y_j)
         self.L = [self._buffer() for _ in range(stages)]  # L Y_j
@@ -144,6 +145,7 @@ class Imex(Stepper):
         gw.set_depth(x)
         A_exp, A_imp, stages = self.A_exp, self.A_imp, self.A_exp.shape[0]
         wp.copy(self.xn, x)
+        self._at(0.0)
         m.rhs(x, self.F[0])
         gw.apply(x, self.L[0])
         a = self.gamma * dt
@@ -154,6 +156,7 @@ class Imex(Stepper):
             self._combine(self.L[i], self.xn, terms)  # rhs_i, kept to form L Y_i
             iterations += gw.solve(self.L[i], a, self.Y)
             self._pointwise(blas.axpby, f64(1.0 / a), self.Y, f64(-1.0 / a), self.L[i], self.L[i])  # L Y_i
+            self._at(float(self.c[i]))
             m.rhs(self.Y, self.F[i])
         self._combine(x, self.xn, [(dt * self.b[j], self.F[j]) for j in range(stages)])
         m.hyperviscosity(x, dt)

@@ -363,12 +363,15 @@ class Implicit(Stepper):
             wp.copy(self.b, x)
         else:
             self.beta = o["theta"]
+            self._at(0.0)
             self._F(x, self.Fx)  # F(x(n)): the explicit part and, without extrapolation, Newton's first F
             self._axpby(1.0, x, self.dt * (1.0 - o["theta"]), self.Fx, self.b)
         extrapolate = o["initial_guess"] == "extrapolate" and self.steps > 0
+        self._at(1.0)  # every F in the residual is at t(n+1)
         if extrapolate:
             self._axpby(2.0, self.xn, -1.0, self.xprev, x)  # 2x(n) − x(n−1)
-        newton = self._newton(x, Fx_known=o["method"] == "theta" and not extrapolate)
+        # F(x(n)) at t(n) is Newton's first F only if no term depends on time
+        newton = self._newton(x, Fx_known=o["method"] == "theta" and not extrapolate and m.forcing is None)
         wp.copy(self.xprev, self.xn)
         m.hyperviscosity(x, self.dt)
         return StepStats(self.rhs_evals, {"newton": newton, **self._counts})

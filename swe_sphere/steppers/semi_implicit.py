@@ -84,6 +84,7 @@ class SemiImplicit(Leapfrog):
         """new = semi-implicit leapfrog from old over 2dt, explicit terms at cur. Returns Helmholtz iterations."""
         m, gw = self.model, self.gw
         gw.set_depth(cur)
+        self._at(0.0)  # cur is x(n)
         m.rhs(cur, self.F)
         self._pointwise(blas.axpby, f64(1.0), old, f64(-2.0), cur, self.W)
         gw.apply(self.W, self.LW)

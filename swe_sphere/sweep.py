@@ -3,8 +3,8 @@
 For each (stepper, Δt) the scene is run on one grid; recorded are the wall
 time of the time loop (compilation and start-up measured apart, in a warm-up
 run per stepper), RHS evaluations, solver iterations, stability, the total
-error at the final time (against the exact solution for TC1/TC2, else the T213
-reference) and the temporal error (against a same-grid run with a small Δt:
+error at the final time (against the exact solution where the case has one:
+TC1–TC4, Läuter; else the T213 reference) and the temporal error (against a same-grid run with a small Δt:
 RK4 at a quarter of the smallest Δt swept, made once and reused), and the
 drift of the invariants. Each run's result is written atomically as JSON
 under ``DIR/runs/``; a restarted sweep skips the runs already there. The runs

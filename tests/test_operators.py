@@ -26,7 +26,8 @@ from conftest import cached_grid, requires_cuda
 from numpy_ops import NumpyOps
 
 DEV = "cpu"
-RHS_TERMS = tuple(t for t in TERMS if t != "hyperviscosity")
+UNFORCED = tuple(t for t in TERMS if t != "forcing")  # every term but a forced case's (tests/test_forcing.py)
+RHS_TERMS = tuple(t for t in UNFORCED if t != "hyperviscosity")
 
 
 # -- Warp helpers ---------------------------------------------------------------
@@ -330,7 +331,7 @@ def test_rhs_replay_uses_current_state(rng):
     g = cached_grid(2, 4)
     ops = NumpyOps(g)
     fcor, hs, st = tc5(g)
-    m = ShallowWater(g, TERMS, fcor, hs, device=DEV)
+    m = ShallowWater(g, UNFORCED, fcor, hs, device=DEV)
     x = m.new_state(*st)
     out = wp.zeros_like(x)
     m.rhs(x, out)
@@ -451,7 +452,7 @@ def launch_log(monkeypatch):
         (["pressure_gradient", "coriolis"], ["tendency__coriolis__pressure_gradient", "dss"]),
         (["hyperviscosity"], ["dss"]),
         (
-            list(TERMS),
+            list(UNFORCED),
             ["tendency__continuity__momentum_advection__coriolis__pressure_gradient__topography", "dss"],
         ),
     ],
@@ -521,7 +522,7 @@ def test_rhs_conserves_mass(perturb, rng):
     fcor, hs, st = tc5(g)
     if perturb:
         st = st + NumpyOps(g).dss(rng.standard_normal((3, g.npts)) * np.array([[5.0], [5.0], [50.0]]))
-    _, r = run_rhs(g, TERMS, fcor, hs, st)
+    _, r = run_rhs(g, UNFORCED, fcor, hs, st)
     total = np.dot(g.spheremp, r[2])
     assert abs(total) <= 1e-13 * np.dot(g.spheremp, np.abs(r[2]))
 
@@ -534,7 +535,7 @@ def test_cuda_matches_cpu():
     fcor, hs, st = tc5(g)
     res = {}
     for dev in ("cpu", "cuda"):
-        m = ShallowWater(g, TERMS, fcor, hs, nu=1e15, device=dev)
+        m = ShallowWater(g, UNFORCED, fcor, hs, nu=1e15, device=dev)
         x = m.new_state(*st)
         out = wp.zeros_like(x)
         m.rhs(x, out)

@@ -75,6 +75,8 @@ def dss_rows(rows: int, weighted: bool, copies: int, ghosts: bool = False):
 @wp.kernel
 def assemble(
     x: wp.array2d(dtype=f64),
+    ghost: wp.array(dtype=f64),
+    nlocal: int,
     row: int,
     spheremp: wp.array(dtype=f64),
     table: wp.array2d(dtype=wp.int32),
@@ -84,14 +86,22 @@ def assemble(
 ):
     """Unique-node vector out[g] = Σ_copies c of g spheremp[c]·x[row, c] (in the
     ``dss_table`` order of node first[g]): the assembled mass matrix times a
-    continuous field (m² × units of x). Dim nunique."""
+    continuous field (m² × units of x). A copy c ≥ ``nlocal`` is another
+    process's, read from ghost[(c − nlocal)·rows + row] (``pack``'s layout of
+    all x.shape[0] rows). Dim nunique."""
     g = wp.tid() + offset
     p = first[g]
+    rows = x.shape[0]
     s = f64(0.0)
     for k in range(table.shape[1]):
         c = table[p, k]
         if c >= 0:
-            s += spheremp[c] * x[row, c]
+            v = f64(0.0)
+            if c >= nlocal:
+                v = ghost[(c - nlocal) * rows + row]
+            else:
+                v = x[row, c]
+            s += spheremp[c] * v
     out[g] = s
 
 
@@ -106,7 +116,16 @@ def pack(x: wp.array2d(dtype=f64), rows: int, index: wp.array(dtype=wp.int32), b
 
 
 @wp.kernel
-def scatter(y: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32), row: int, out: wp.array2d(dtype=f64), offset: int):
-    """Element-local out[row, p] = y[gid[p]] from a unique-node vector. Dim N."""
+def scatter(y: wp.array2d(dtype=f64), halo: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32), row: int, out: wp.array2d(dtype=f64), offset: int):
+    """Element-local out[row + r, p] = y[r, gid[p]] for r < rows = y.shape[0],
+    from a unique-node vector of ``rows`` rows (rows, nunique). A node owned by
+    another process (gid[p] ≥ nunique) is read from halo[(gid[p] − nunique)·rows + r]
+    (``pack``'s layout). Dim N."""
     p = wp.tid() + offset
-    out[row, p] = y[gid[p]]
+    g = gid[p]
+    n = y.shape[1]
+    for r in range(y.shape[0]):
+        if g < n:
+            out[row + r, p] = y[r, g]
+        else:
+            out[row + r, p] = halo[(g - n) * y.shape[0] + r]

@@ -24,19 +24,6 @@ def residual(
 
 
 @wp.kernel
-def scatter_perturb(
-    x: wp.array2d(dtype=f64), eps: f64, w: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32), nu: int,
-    out: wp.array2d(dtype=f64), block: int, offset: int,
-):
-    """out = x + ε·w, the Krylov vector w put on every copy of its node.
-    Dim (3, N/block), as ``blas.axpby``."""
-    r, k = wp.tid()
-    start = (k + offset) * block
-    for p in range(start, start + block):
-        out[r, p] = x[r, p] + eps * w[r * nu + gid[p]]
-
-
-@wp.kernel
 def gather(a: f64, v: wp.array2d(dtype=f64), first: wp.array(dtype=wp.int32), nu: int, out: wp.array(dtype=f64), offset: int):
     """out = a·v at one copy of each unique node (v continuous). Dim (3, nunique)."""
     r, g = wp.tid()

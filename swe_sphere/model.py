@@ -412,9 +412,9 @@ class ShallowWater:
         """Unique-node out (nunique,) = M x[row]: assembled mass times a continuous field."""
         self._replay(("assemble", _id(x), row, _id(out)), (x, out), lambda: self.topology.assemble(x, row, out))
 
-    def scatter(self, y: wp.array, out: wp.array2d, row: int) -> None:
-        """Element-local out[row] from a unique-node vector y."""
-        self._replay(("scatter", _id(y), _id(out), row), (y, out), lambda: self.topology.scatter(y, out, row))
+    def scatter(self, y: wp.array, out: wp.array2d, row: int, rows: int = 1) -> None:
+        """Element-local out[row : row + rows] from a unique-node vector y of ``rows`` rows."""
+        self._replay(("scatter", _id(y), _id(out), row, rows), (y, out), lambda: self.topology.scatter(y, out, row, rows))
 
     # -- diagnostics helpers ------------------------------------------------
     def vorticity(self, x: wp.array2d) -> np.ndarray:

@@ -28,7 +28,7 @@ from .output import RunWriter, check_target
 from .parallel import default_threads
 from .reference import Reference, reference_path
 from .runtime import check_memory, run_bytes
-from .steppers import STEPPERS, StepFailure, make_stepper
+from .steppers import StepFailure, make_stepper
 from .topology import Topology
 
 
@@ -126,8 +126,6 @@ class Simulation:
         self.topology = topo = Topology(grid, device, default_threads(device), comm)
         self.root = topo.comm.rank == 0  # the rank that writes files and shows progress
         self.progress = progress and self.root
-        if not topo.complete and not STEPPERS[scene.stepper].explicit:
-            raise ValueError(f"stepper {scene.stepper} runs on one MPI rank only so far (its solvers iterate on unique-node vectors)")
         self.case = case = scene.make_case()
         self.fcor = case.fcor(grid.lat, grid.lon)
         self.hs = case.hs(grid.lat, grid.lon)

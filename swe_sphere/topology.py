@@ -66,16 +66,16 @@ class GridPart:
 
 
 class _Exchange:
-    """One exchange of packed copies with the neighbouring ranks (HOMME
-    ``bndry_exchangeV``): nonblocking receives into the ghost buffer and sends
-    from the pack buffer, all completed before ``launch()`` returns (run like a
-    recorded launch)."""
+    """One exchange of packed values with the neighbouring ranks (HOMME
+    ``bndry_exchangeV``): nonblocking receives into ``recv`` and sends from
+    ``send`` (``rows`` values per entry), all completed before ``launch()``
+    returns (run like a recorded launch)."""
 
-    def __init__(self, topo, rows: int):
-        send, ghost = topo.send_buffer.numpy(), topo.ghost.numpy()  # CPU: zero-copy views
-        self.comm, self.tag = topo.comm, rows
-        self.recvs = [(ghost[a * rows : b * rows], int(s)) for s, (a, b) in zip(topo.neighbours, topo.recv_ranges)]
-        self.sends = [(send[a * rows : b * rows], int(s)) for s, (a, b) in zip(topo.neighbours, topo.send_ranges)]
+    def __init__(self, comm, halo: "_Halo", rows: int, tag: int):
+        send, recv = halo.send_buffer.numpy(), halo.recv_buffer.numpy()  # CPU: zero-copy views
+        self.comm, self.tag = comm, tag
+        self.recvs = [(recv[a * rows : b * rows], int(s)) for s, (a, b) in zip(halo.neighbours, halo.recv_ranges)]
+        self.sends = [(send[a * rows : b * rows], int(s)) for s, (a, b) in zip(halo.neighbours, halo.send_ranges)]
         self.kernel = type("exchange", (), {"key": "exchange"})  # named like a launch in launch lists
 
     def launch(self) -> None:
@@ -84,6 +84,26 @@ class _Exchange:
         requests = [self.comm.Irecv(buf, source=s, tag=self.tag) for buf, s in self.recvs]
         requests += [self.comm.Isend(buf, dest=s, tag=self.tag) for buf, s in self.sends]
         MPI.Request.Waitall(requests)
+
+
+class _Halo:
+    """What one rank sends to and receives from each neighbour in one pattern
+    (the DSS's element copies, or unique-node values from their owners):
+    ``send_index`` (positions packed for the neighbours, in order),
+    ``send_ranges``/``recv_ranges`` (each neighbour's slice, in entries) and the
+    device buffers of up to ``MAX_ROWS`` rows per entry."""
+
+    def __init__(self, neighbours, send: list, recv: list, device: str):
+        self.neighbours = np.asarray(neighbours, dtype=np.int64)
+        ends = np.cumsum([0, *map(len, send)]), np.cumsum([0, *map(len, recv)])
+        self.send_ranges = list(zip(ends[0][:-1], ends[0][1:]))
+        self.recv_ranges = list(zip(ends[1][:-1], ends[1][1:]))
+        self.send_index_np = np.concatenate(send).astype(np.int32) if send else np.zeros(0, dtype=np.int32)
+        self.size = int(ends[1][-1])  # entries received
+        self.send_index = wp.array(self.send_index_np, dtype=wp.int32, device=device)
+        self.send_buffer = wp.zeros(max(1, self.send_index_np.size) * MAX_ROWS, dtype=f64, device=device)
+        self.recv_buffer = wp.zeros(max(1, self.size) * MAX_ROWS, dtype=f64, device=device)
+        self.exchanges: dict[int, _Exchange] = {}
 
 
 class Topology:
@@ -97,16 +117,25 @@ class Topology:
     comm : an mpi4py communicator, or None (``SerialComm()``: all elements here).
         With several ranks, rank k holds chunk k of ``partition.partition``.
 
+    Unique-node vectors (what the Krylov solvers iterate on) are distributed:
+    a unique node belongs to the rank of its first copy in the grid's order,
+    each rank's vectors hold its own nodes (``nunique``), ``dot``/``norm`` sum
+    over ranks, and ``scatter`` receives the values of the nodes its elements
+    touch from their owners (a second halo, owner → touching ranks).
+
     Attributes (device arrays unless said)
     --------------------------------------
     elements (nelem_local,) numpy : the global element indices held, ascending
     nodes (N,) numpy : their element-local nodes' global indices
     N : element-local nodes held (int); nunique : unique nodes owned (int)
     npts_total : element-local nodes of the whole grid (int)
-    spheremp (N,) rspheremp (N,) : element mass and inverse assembled mass (m², m⁻²)
+    distributed : whether the elements are spread over several ranks (bool)
+    spheremp (N + ghosts,) rspheremp (N,) : element mass (local copies, then
+        the DSS ghosts) and inverse assembled mass (m², m⁻²)
     table (N, C) int32 : the copies of each node's unique node in the global
         summation order, −1-padded; c < N local, c ≥ N the ghost c − N
-    gid (N,) int32 : each node's index in the unique-node vectors
+    gid (N,) int32 : each node's index in the unique-node vectors: < nunique
+        owned here, else nunique + its place in the unique-node halo
     first (nunique,) int32 : one local copy of each owned unique node
     area (nunique,) numpy : assembled spheremp of the owned unique nodes (m²)
     total_area : Σ area over the sphere (m²; 4πa²)
@@ -121,6 +150,7 @@ class Topology:
         self.comm = comm if comm is not None else SerialComm()
         self._sum, self._max, self._min = _ops(self.comm)
         rank, size = self.comm.rank, self.comm.size
+        self.distributed = size > 1
         npe = grid.np**2
         if size == 1:  # skip the curve: one part in natural order is the whole grid
             parts = [np.arange(grid.nelem)]
@@ -134,7 +164,7 @@ class Topology:
         self.elements = parts[rank]
         self.nodes = (self.elements[:, None] * npe + np.arange(npe)).ravel()
         self.N, self.npts_total = self.nodes.size, grid.npts
-        self._build_halo(parts, rank, size, npe)
+        self._build_halos(parts, rank, size, npe)
 
         def up(a, dtype=f64):
             return wp.array(np.ascontiguousarray(a), dtype=dtype, device=device)
@@ -145,73 +175,82 @@ class Topology:
         self.table = up(self._table, wp.int32)
         self.gid, self.first = up(self._gid, wp.int32), up(self._first, wp.int32)
         self.nunique = self._first.size
-        self.complete = self.max(float(np.any(self._gid < 0))) == 0.0  # on every rank, every node's unique value is held
         self.total_area = self.sum(float(np.sum(self.area)))
-        self.send_index = up(self._send_index, wp.int32)
-        self.send_buffer = wp.zeros(max(1, self._send_index.size) * MAX_ROWS, dtype=f64, device=device)
-        self.ghost = wp.zeros(max(1, self.recv.size) * MAX_ROWS, dtype=f64, device=device)
-        self.halo_copies = int(self.recv.size)
+        # the DSS's pattern under the names the benchmarks and tests read
+        c = self.copies
+        self.neighbours, self.send_ranges, self.recv_ranges = c.neighbours, c.send_ranges, c.recv_ranges
+        self.send_index, self.send_buffer, self.ghost = c.send_index, c.send_buffer, c.recv_buffer
+        self.halo_copies = c.size
         self.halo_bytes_per_row = 8 * self.halo_copies
-        self._exchanges: dict[int, _Exchange] = {}
 
-    def _build_halo(self, parts, rank, size, npe):
-        """Local tables: which copies each neighbour sends and receives, in global
-        order, and the DSS table in local/ghost indices."""
+    def _build_halos(self, parts, rank, size, npe):
+        """Local tables: the DSS table in local/ghost indices; for each neighbour,
+        the element copies it sends and receives (``copies``), and the owned
+        unique-node values it sends and receives (``owned``), both in global order."""
         grid = self.grid
         gid, nodes = grid.gid, self.nodes
         elem_rank = np.empty(grid.nelem, dtype=np.int64)
         for k, p in enumerate(parts):
             elem_rank[p] = k
         copy_rank = np.repeat(elem_rank, npe)
+        owner = copy_rank[grid.first]  # a unique node belongs to the rank of its first copy
         loc = np.full(grid.npts, -1, dtype=np.int64)
         loc[nodes] = np.arange(nodes.size)
+        owned = np.flatnonzero(owner == rank)
+        unique_index = np.full(grid.nunique, -1, dtype=np.int64)
+        unique_index[owned] = np.arange(owned.size)
         touched = np.unique(gid.astype(np.int64) * size + copy_rank)  # (unique node, rank) pairs
         t_node, t_rank = np.divmod(touched, size)
         mine = np.zeros(grid.nunique, dtype=bool)
         mine[gid[nodes]] = True
-        self.neighbours = np.unique(t_rank[mine[t_node] & (t_rank != rank)])
-        recv, send, self.recv_ranges, self.send_ranges = [], [], [], []
-        for s in self.neighbours:
+        neighbours = np.unique(t_rank[mine[t_node] & (t_rank != rank)])
+        recv, send, unique_nbrs, unique_send, unique_recv = [], [], [], [], []
+        for s in neighbours:
             shared = np.zeros(grid.nunique, dtype=bool)
             shared[t_node[t_rank == s]] = True
             shared &= mine
-            r = np.flatnonzero((copy_rank == s) & shared[gid])  # ascending: the global order
-            m = nodes[shared[gid[nodes]]]
-            self.recv_ranges.append((sum(map(len, recv)), sum(map(len, recv)) + r.size))
-            self.send_ranges.append((sum(map(len, send)), sum(map(len, send)) + m.size))
-            recv.append(r)
-            send.append(m)
+            recv.append(np.flatnonzero((copy_rank == s) & shared[gid]))  # ascending: the global order
+            send.append(loc[nodes[shared[gid[nodes]]]])
+            out, into = np.flatnonzero(shared & (owner == rank)), np.flatnonzero(shared & (owner == s))
+            if out.size or into.size:
+                unique_nbrs.append(s), unique_send.append(unique_index[out]), unique_recv.append(into)
+        self.copies = _Halo(neighbours, send, recv, self.device)
+        self.owned = _Halo(unique_nbrs, unique_send, unique_recv, self.device)
         self.recv = np.concatenate(recv) if recv else np.zeros(0, dtype=np.int64)
-        self._send_index = loc[np.concatenate(send)] if send else np.zeros(0, dtype=np.int64)
         index = loc.copy()
         index[self.recv] = nodes.size + np.arange(self.recv.size)
         rows = grid.dss_table[nodes]
         self._table = np.where(rows >= 0, index[np.maximum(rows, 0)], -1)
         if np.any((rows >= 0) & (self._table < 0)):
             raise RuntimeError("a copy of a shared node is neither local nor received")
-        owner = copy_rank[grid.first]  # a unique node belongs to the rank of its first copy
-        owned = np.flatnonzero(owner == rank)
         self._first = loc[grid.first[owned]]
         self.area = grid.area[owned]
-        unique_index = np.full(grid.nunique, -1, dtype=np.int64)
-        unique_index[owned] = np.arange(owned.size)
-        self._gid = unique_index[gid[nodes]]  # −1: owned elsewhere (no halo of unique nodes yet)
+        if unique_recv:
+            unique_index[np.concatenate(unique_recv)] = owned.size + np.arange(sum(map(len, unique_recv)))
+        self._gid = unique_index[gid[nodes]]
+        if np.any(self._gid < 0):
+            raise RuntimeError("a node's unique value is neither owned nor received")
 
     def _record(self, kernel, dim, inputs):
         return record(kernel, dim, inputs, device=self.device, threads=self.threads, block=self.grid.np**2)
 
-    def _exchange(self, x: wp.array2d) -> list:
-        """Launches that fill the ghost buffer with the neighbours' copies of x's rows
-        (pack, then exchange); none without neighbours."""
-        if not len(self.neighbours):
+    def _exchange(self, x: wp.array2d, halo: _Halo | None = None) -> list:
+        """Launches that fill ``halo``'s receive buffer (default the DSS ghosts)
+        with the neighbours' entries of x's rows (pack, then exchange); none
+        without neighbours."""
+        halo = self.copies if halo is None else halo
+        if not len(halo.neighbours):
             return []
         rows = x.shape[0]
         if rows > MAX_ROWS:
-            raise ValueError(f"a DSS over more than {MAX_ROWS} rows (got {rows})")
-        exchange = self._exchanges.get(rows)
+            raise ValueError(f"an exchange of more than {MAX_ROWS} rows (got {rows})")
+        exchange = halo.exchanges.get(rows)
         if exchange is None:
-            exchange = self._exchanges[rows] = _Exchange(self, rows)
-        return [self._record(dss.pack, self._send_index.size, [x, rows, self.send_index, self.send_buffer]), exchange]
+            tag = rows if halo is self.copies else MAX_ROWS + rows
+            exchange = halo.exchanges[rows] = _Exchange(self.comm, halo, rows, tag)
+        if not halo.send_index_np.size:  # only receives from its neighbours
+            return [exchange]
+        return [self._record(dss.pack, halo.send_index_np.size, [x, rows, halo.send_index, halo.send_buffer]), exchange]
 
     # -- assembly (recorded launch lists: run each item's ``launch()`` in order) --
     def dss(self, x: wp.array2d, weighted: bool, out: wp.array2d) -> list:
@@ -225,20 +264,19 @@ class Topology:
         args = [x, self.ghost, self.N, self.spheremp, self.rspheremp, self.table, out]
         return [*self._exchange(x), self._record(kernel, self.N, args)]
 
-    def _unique_vectors(self):
-        if not self.complete:
-            raise NotImplementedError("unique-node vectors (implicit and semi-implicit steppers) run on one MPI rank only so far")
-
     def assemble(self, x: wp.array2d, row: int, out: wp.array) -> list:
         """Launches for the unique-node out (nunique,) = M x[row]: Σ over the copies
-        of spheremp·x[row] (assembled mass times a continuous field, m² × units of x)."""
-        self._unique_vectors()
-        return [self._record(dss.assemble, self.nunique, [x, row, self.spheremp, self.table, self.first, out])]
+        (the neighbours' exchanged first, all of x's rows) of spheremp·x[row]
+        (assembled mass times a continuous field, m² × units of x)."""
+        args = [x, self.ghost, self.N, int(row), self.spheremp, self.table, self.first, out]
+        return [*self._exchange(x), self._record(dss.assemble, self.nunique, args)]
 
-    def scatter(self, y: wp.array, out: wp.array2d, row: int) -> list:
-        """Launches for the element-local out[row] (N,) = y[gid] from a unique-node vector."""
-        self._unique_vectors()
-        return [self._record(dss.scatter, self.N, [y, self.gid, row, out])]
+    def scatter(self, y: wp.array, out: wp.array2d, row: int, rows: int = 1) -> list:
+        """Launches for the element-local out[row : row + rows] (rows, N) from the
+        unique-node vector y (rows·nunique, row r at r·nunique …): every copy of a
+        node gets its value, those owned elsewhere received from their owners."""
+        y2 = y.reshape((rows, self.nunique))
+        return [*self._exchange(y2, self.owned), self._record(dss.scatter, self.N, [y2, self.owned.recv_buffer, self.gid, int(row), out])]
 
     # -- between the whole grid and this rank's part (numpy) ------------------------
     def local_grid(self):
@@ -268,8 +306,8 @@ class Topology:
 
     # -- global reductions (numpy in, Python float out) ------------------------------
     def sum(self, value: float) -> float:
-        """Σ of a per-process value over all processes."""
-        return float(self.comm.allreduce(value, self._sum))
+        """Σ of a per-process value over all processes (as ``sums``)."""
+        return float(self.sums(np.float64(value)))
 
     def max(self, value: float) -> float:
         """Maximum of a per-process value over all processes."""
@@ -284,16 +322,32 @@ class Topology:
         """Area mean of a continuous element-local field f (N,)."""
         return self.integrate(f) / self.total_area
 
-    def dot(self, a: wp.array, b: wp.array) -> float:
-        """Σ a·b of two device arrays of one shape over all processes (element-local
-        arrays count every copy; unique-node vectors each owned node once): the
-        inner product a Krylov solver over the topology's vectors needs."""
-        if wp.get_device(self.device).is_cpu:
+    def sums(self, values: np.ndarray) -> np.ndarray:
+        """Elementwise Σ of a per-process numpy array over all processes: gathered
+        and added in rank order, so every rank gets the same bits whatever MPI's
+        reduction algorithm (a Krylov solver's ranks must take the same branches)."""
+        values = np.array(values, dtype=np.float64)  # C-contiguous, 0-d stays 0-d
+        if self._sum is None:  # one process
+            return values
+        parts = np.empty((self.comm.size, *values.shape))
+        self.comm.Allgather(values, parts)
+        total = parts[0].copy()
+        for part in parts[1:]:
+            total += part
+        return total
+
+    def dot(self, a, b) -> float:
+        """Σ a·b of two arrays of one shape (device or numpy) over all processes
+        (element-local arrays count every copy; unique-node vectors each owned
+        node once): the inner product a Krylov solver over the topology's vectors needs."""
+        if isinstance(a, np.ndarray):
+            local = float(a.ravel().dot(b.ravel()))
+        elif wp.get_device(self.device).is_cpu:
             local = float(a.numpy().ravel().dot(b.numpy().ravel()))  # as np.linalg.norm
         else:
             local = float(wp.utils.array_inner(a.flatten(), b.flatten()))
         return self.sum(local)
 
-    def norm(self, a: wp.array) -> float:
+    def norm(self, a) -> float:
         """Euclidean norm of a device array over all processes (as ``dot``)."""
         return float(np.sqrt(self.dot(a, a)))

@@ -32,7 +32,14 @@ round-off), and the solve is, by name (``SOLVERS``):
 * ``"vcycle"``: one AMG V-cycle, a fixed approximate inverse (CPU);
 * ``"warp_cg"``: matrix-free mass-preconditioned CG with the model's
   operators on the device (``warp.optim.linear.cg``; the CUDA default, as
-  scipy and pyamg run on the host only).
+  scipy and pyamg run on the host only);
+* ``"mf_cg"``: the same matrix-free mass-preconditioned CG on the host
+  (``krylov.cg``) with the inner products summed over MPI ranks: the solver
+  for runs on several ranks (their default), where the others cannot go —
+  the assembled matrix and the AMG hierarchy are the whole grid's, and
+  warp.optim's inner products are the process's own. The operator's bits do
+  not depend on the rank count (the DSS's do not), so a run on N ranks
+  differs from one on one rank only by the order of the inner products' sums.
 
 Measured (TC5 ne16, 2 busy cores): one pyamg V-cycle costs 15–28 sparse
 products with K (its Python overhead per level dominates at 14k unknowns),
@@ -58,28 +65,33 @@ from ..kernels import blas
 from ..kernels import gravity_wave as gk
 from ..model import ShallowWater
 from .base import StepFailure
+from .krylov import cg
 
 f64 = wp.float64
-SOLVERS = ("cg", "amg", "chebyshev", "vcycle", "warp_cg")
-_HOST_SOLVERS = ("cg", "amg", "chebyshev", "vcycle")
+SOLVERS = ("cg", "amg", "chebyshev", "vcycle", "warp_cg", "mf_cg")
+_HOST_SOLVERS = ("cg", "amg", "chebyshev", "vcycle", "mf_cg")
+_DISTRIBUTED_SOLVERS = ("mf_cg",)
 # Two symmetric Gauss–Seidel sweeps before and after each coarse correction: TC5
 # ne16, random right-hand side to 1e-10, CG iterations at 4x / 30x the gravity-wave
 # limit 13 / 59 against 18 / 84 with pyamg's default one sweep (Jacobi-CG: 84 / 472).
 _SMOOTHER = ("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2})
 
 
-def default_solver(device) -> str:
+def default_solver(model: ShallowWater) -> str:
     """The measured default: Jacobi-CG on the assembled matrix on the CPU (the
     cheapest per step as an accurate solve and, loose, as a preconditioner;
-    ``benchmarks/implicit_cost.py``), the matrix-free Warp CG on CUDA."""
-    return "cg" if wp.get_device(device).is_cpu else "warp_cg"
+    ``benchmarks/implicit_cost.py``), the matrix-free Warp CG on CUDA; over
+    several MPI ranks the matrix-free host CG with distributed inner products."""
+    if model.topology.distributed:
+        return "mf_cg"
+    return "cg" if wp.get_device(model.device).is_cpu else "warp_cg"
 
 
 def check_solve_options(o) -> None:
     """The checks of a stepper's accurate-solve options ``helmholtz_solver``, ``tol``,
     ``maxiter``, ``mean_depth`` (semi-implicit, IMEX): ValueError '<option> must ...'."""
-    if o.helmholtz_solver not in ("", "cg", "amg", "warp_cg"):
-        raise ValueError(f"helmholtz_solver must be 'cg', 'amg' or 'warp_cg' (got {o.helmholtz_solver!r})")
+    if o.helmholtz_solver not in ("", "cg", "amg", "warp_cg", "mf_cg"):
+        raise ValueError(f"helmholtz_solver must be 'cg', 'amg', 'warp_cg' or 'mf_cg' (got {o.helmholtz_solver!r})")
     if not 0 < o.tol < 1:
         raise ValueError(f"tol must be in (0, 1) (got {o.tol})")
     if o.maxiter < 1:
@@ -144,23 +156,27 @@ class GravityWave:
     CPU/CUDA default for an accurate solve), ``tol`` (relative residual of the
     CG solvers) and ``maxiter``; ``warm``: start each CG from the last
     solution (for a sequence of similar solves, as the semi-implicit steps).
+    Over several MPI ranks only ``"mf_cg"`` runs (the default there).
 
     ``apply(x, out)``: out = L x (states (3, N), element-local). ``solve(r, a,
     z, scale)``: z = (I − aL)⁻¹ (scale·r); returns the Helmholtz iterations
     (CG iterations; 1 for a V-cycle). Raises ``StepFailure`` when CG does not
     reach ``tol`` within ``maxiter``; ``ValueError`` for an unknown solver, a
-    host solver on CUDA, or a model without continuity and pressure gradient.
+    host solver on CUDA, a solver other than "mf_cg" over several MPI ranks,
+    or a model without continuity and pressure gradient.
     """
 
     def __init__(self, model: ShallowWater, mean_depth=0.0, solver=None, tol=1e-10, maxiter=500, warm=False):
         for term in ("continuity", "pressure_gradient"):
             if term not in model.terms:
                 raise ValueError(f"the gravity-wave operator needs the {term} term")
-        solver = solver or default_solver(model.device)
+        solver = solver or default_solver(model)
         if solver not in SOLVERS:
             raise ValueError(f"unknown Helmholtz solver {solver!r} (known: {', '.join(SOLVERS)})")
         if solver in _HOST_SOLVERS and not wp.get_device(model.device).is_cpu:
             raise ValueError(f"the Helmholtz solver {solver!r} runs on the CPU only; use 'warp_cg' on CUDA")
+        if model.topology.distributed and solver not in _DISTRIBUTED_SOLVERS:
+            raise ValueError(f"the Helmholtz solver {solver!r} runs on one MPI rank only; use 'mf_cg' over several ranks")
         self.model, self.H, self.solver = model, float(mean_depth), solver
         self.tol, self.maxiter, self.warm = float(tol), int(maxiter), bool(warm)
         dev, N, nu = model.device, model.N, model.topology.nunique
@@ -168,33 +184,36 @@ class GravityWave:
         self.b, self.y = wp.zeros(nu, dtype=f64, device=dev), wp.zeros(nu, dtype=f64, device=dev)
         self.area = model.topology.area
         self.c = None
-        if solver in _HOST_SOLVERS:
+        if solver in ("warp_cg", "mf_cg"):
+            self._matrix_free(model)
+        else:
             self.K = helmholtz_matrix(model)
             self._amg: dict[float, object] = {}
             self._A: dict[float, sp.csr_matrix] = {}
             self._mu = None
-        else:
-            self._matrix_free(model)
 
     # -- what carries over between solves (for bitwise restarts) ----------------------
     def state(self) -> dict:
         """The mean depth (0 until fixed) and, with ``warm``, the last solution: a
         height, stored element-local in row 2 of a (3, N) array like a state."""
         s = {"mean_depth": self.H}
-        if self.warm:
-            guess = np.zeros((3, self.model.N))
-            guess[2] = self.y.numpy()[self.model.grid.gid]
-            s["helmholtz_guess"] = guess
+        if self.warm:  # whole-grid, gathered from every rank (call on all)
+            topo = self.model.topology
+            guess = wp.zeros((3, self.model.N), dtype=f64, device=self.model.device)
+            for launch in topo.scatter(self.y, guess, 2):
+                launch.launch()
+            s["helmholtz_guess"] = topo.gather(guess.numpy())
         return s
 
     def restore(self, state: dict, entry) -> None:
         """Set what ``state()`` returned; ``entry(state, key)`` raises ValueError for a missing key."""
         self.H = float(entry(state, "mean_depth"))
         if self.warm:
+            topo = self.model.topology
             guess = np.asarray(entry(state, "helmholtz_guess"), dtype=np.float64)
-            if guess.shape != (3, self.model.N):
-                raise ValueError(f"stepper state 'helmholtz_guess' has shape {guess.shape}, expected {(3, self.model.N)}")
-            self.y.assign(guess[2][self.model.grid.first])
+            if guess.shape != (3, topo.npts_total):
+                raise ValueError(f"stepper state 'helmholtz_guess' has shape {guess.shape}, expected {(3, topo.npts_total)}")
+            self.y.assign(topo.local(guess)[2][topo.first.numpy()])
 
     # -- L and the Schur complement (element-local) ---------------------------------
     def set_depth(self, x) -> None:
@@ -223,14 +242,14 @@ class GravityWave:
 
     # -- the Helmholtz solve on unique nodes: (M + cK) y = b --------------------------
     def _helmholtz(self, c: float) -> int:
-        if self.solver in _HOST_SOLVERS:
-            b, y = self.b.numpy(), self.y.numpy()
-            if not self.warm:
-                y[:] = 0.0
-            iterations = self._host(c, b, y)
-            y += (b.sum() - self.area @ y) / self.area.sum()  # ∫z_h = ∫(right-hand side)
-            return iterations
-        return self._device(c)
+        if self.solver == "warp_cg":
+            return self._device(c)
+        b, y, topo = self.b.numpy(), self.y.numpy(), self.model.topology
+        if not self.warm:
+            y[:] = 0.0
+        iterations = self._host(c, b, y)
+        y += (topo.sum(b.sum()) - topo.sum(self.area @ y)) / topo.total_area  # ∫z_h = ∫(right-hand side)
+        return iterations
 
     def matrix(self, c: float) -> sp.csr_matrix:
         """M + cK (cached for the last few c: a stepper uses one or two)."""
@@ -258,6 +277,8 @@ class GravityWave:
         if self.solver == "chebyshev":
             y[:] = self._chebyshev(c, b)
             return self.maxiter
+        if self.solver == "mf_cg":
+            return self._mf_cg(c, b, y)
         A = self.matrix(c)
         if self.solver == "amg":
             M = self.hierarchy(c).vcycle
@@ -297,13 +318,16 @@ class GravityWave:
             rho = rho_new
         return y
 
-    # -- matrix-free CG on the device (the "warp_cg" solver) ------------------------------
+    # -- matrix-free CG: on the device ("warp_cg") or over MPI ranks ("mf_cg") -------------
     def _matrix_free(self, model):
         dev, N, nu = model.device, model.N, model.topology.nunique
         self.Y = wp.zeros((3, N), dtype=f64, device=dev)
         self.GY = wp.zeros((2, N), dtype=f64, device=dev)
         self.DGY = wp.zeros((1, N), dtype=f64, device=dev)
         self.tmp = wp.zeros(nu, dtype=f64, device=dev)
+        if self.solver == "mf_cg":
+            self.p = wp.zeros(nu, dtype=f64, device=dev)
+            return
         self.minv = wp.array(1.0 / self.area, dtype=f64, device=dev)
         self.area_wp = wp.array(self.area, dtype=f64, device=dev)
         self.ones = wp.ones(nu, dtype=f64, device=dev)
@@ -319,6 +343,21 @@ class GravityWave:
         m.divergence(self.GY, self.DGY)
         wp.launch(gk.helmholtz, m.N, [self.Y, f64(self.c), self.DGY], device=m.device)
         m.assemble(self.DGY, 0, out)
+
+    def _mf_cg(self, c, b, y) -> int:
+        """(M + cK) y = b by ``krylov.cg`` with the matrix-free operator, M⁻¹ as preconditioner."""
+        self.c = c
+        p, Ap, inv_area = self.p.numpy(), self.tmp.numpy(), 1.0 / self.area
+
+        def matvec(v):
+            p[:] = v
+            self._apply_matrix_free(self.p, self.tmp)
+            return Ap
+
+        iterations, converged = cg(matvec, lambda r: inv_area * r, b, y, self.tol, self.maxiter, self.model.topology.sums)
+        if not converged:
+            raise StepFailure(f"Helmholtz mf_cg did not converge in {iterations} iterations")
+        return iterations
 
     def _warp_matvec(self, x, y, z, alpha, beta):
         """warp.optim.linear interface: z = alpha·A x + beta·y."""

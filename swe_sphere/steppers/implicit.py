@@ -112,10 +112,11 @@ class Implicit(Stepper):
     against 1e-10, with 2.3 instead of 3.0 Newton iterations a step),
     ``rtol`` (0: off), ``maxiter`` (30), ``gmres_tol`` (1e-11, the floor of
     the forcing term), ``gmres_restart`` (30), ``gmres_maxiter`` (300 inner
-    iterations), ``krylov`` ("fgmres" on the CPU, "warp" on CUDA; "gmres"),
-    ``preconditioner`` ("helmholtz" | "none"), ``helmholtz_solver`` (the
-    preconditioner's Helmholtz solve: "cg" on the CPU, "warp_cg" on CUDA,
-    or "amg", "chebyshev", "vcycle"), ``helmholtz_tol`` (1e-2, the relative
+    iterations), ``krylov`` ("fgmres" on the CPU, "warp" on CUDA; "gmres";
+    only "fgmres" over several MPI ranks, whose inner products it sums over
+    them), ``preconditioner`` ("helmholtz" | "none"), ``helmholtz_solver``
+    (the preconditioner's Helmholtz solve: "cg" on the CPU, "warp_cg" on
+    CUDA, "mf_cg" over several MPI ranks, or "amg", "chebyshev", "vcycle"), ``helmholtz_tol`` (1e-2, the relative
     tolerance of the CG solvers there; Jacobi-CG to 1e-2 cost less per step
     than one V-cycle, AMG-CG and Chebyshev 4/8/16 on TC5 ne16 at 4x and 10x
     the gravity-wave limit; 1e-1 was 13 % cheaper still, but Newton stagnated
@@ -139,9 +140,11 @@ class Implicit(Stepper):
         self.krylov = o["krylov"] or ("fgmres" if cpu else "warp")
         if self.krylov != "warp" and not cpu:
             raise ValueError(f"krylov {self.krylov!r} runs on the CPU only; use 'warp' on CUDA")
+        if self.krylov != "fgmres" and model.topology.distributed:
+            raise ValueError(f"krylov {self.krylov!r} runs on one MPI rank only (its inner products are the process's own); use 'fgmres' over several ranks")
         self.gw = None
         if o["preconditioner"] == "helmholtz":
-            solver = o["helmholtz_solver"] or default_solver(dev)
+            solver = o["helmholtz_solver"] or default_solver(model)
             maxiter = o["chebyshev_degree"] if solver == "chebyshev" else 1000
             self.gw = GravityWave(model, o["mean_depth"], solver, o["helmholtz_tol"], maxiter)
         for name in ("xn", "xprev", "b", "Fx", "R", "delta", "trial", "Ft", "Rt", "v", "xp", "Fp", "z"):
@@ -155,7 +158,7 @@ class Implicit(Stepper):
         self.residual_history: list[float] = []
         self._counts = dict.fromkeys(("gmres", "precond", "helmholtz"), 0)
         if self.krylov == "fgmres":
-            self.fgmres = FGMRES(n3, o["gmres_restart"])
+            self.fgmres = FGMRES(n3, o["gmres_restart"], topo.sums)
         elif self.krylov == "gmres":
             self.op = spla.LinearOperator((n3, n3), matvec=self._host_matvec, dtype=np.float64)
         else:
@@ -192,9 +195,7 @@ class Implicit(Stepper):
 
     def _scatter(self, u, out):
         """Element-local out (3, N) from the unique-node vector u."""
-        nu = self.nu
-        for r in range(3):
-            self.model.scatter(u[r * nu : (r + 1) * nu], out, r)
+        self.model.scatter(u, out, 0, rows=3)
 
     def _gather(self, a, v, out):
         """Unique-node out = a·v from a continuous (3, N) v."""
@@ -207,7 +208,8 @@ class Implicit(Stepper):
             out.zero_()
             return
         eps = _SQRT_EPS * (1.0 + self.xnorm) / wnorm
-        self._pointwise(ik.scatter_perturb, self.x, f64(eps), w, self.topology.gid, self.nu, self.xp)
+        self._scatter(w, self.xp)
+        self._axpby(1.0, self.x, eps, self.xp, self.xp)  # x + ε w
         self._F(self.xp, self.Fp)
         self._pointwise(ik.jacobian_vector, w, self.Fx, self.Fp, self.topology.first, self.nu, f64(1.0 / self.dt), f64(self.beta / eps), out, unique=True)
 

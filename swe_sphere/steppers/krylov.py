@@ -1,4 +1,11 @@
-"""Flexible GMRES (Saad 1993, SIAM J. Sci. Comput. 14, 461) for the JFNK stepper.
+"""Krylov solvers over the topology's vectors: flexible GMRES (Saad 1993, SIAM
+J. Sci. Comput. 14, 461) for the JFNK stepper, preconditioned CG for the
+matrix-free Helmholtz solve.
+
+Both run on numpy vectors holding this process's part (on the CPU, zero-copy
+views of Warp arrays) and take their inner products through ``reduce``, the
+sum over processes of an array of partial sums (``Topology.sums``; the
+identity on one process), so they run unchanged on any number of MPI ranks.
 
 Right-preconditioned, so the residual it minimises is the true one, and the
 preconditioner may change from one iteration to the next (an inexact inner
@@ -18,24 +25,29 @@ import numpy as np
 from scipy.linalg import solve_triangular
 
 
+def _identity(values):
+    return values
+
+
 class FGMRES:
     """Solver for A x = b from x = 0 with ``restart``-long cycles and basis
-    storage for vectors of length ``n``.
+    storage for vectors of length ``n`` (this process's part), inner products
+    summed over processes by ``reduce``.
 
     ``solve(matvec, precond, b, rtol, maxiter)`` → (x, iterations, converged):
     stops when ‖b − A x‖ ≤ rtol ‖b‖ (the Arnoldi estimate) or after
     ``maxiter`` products with A.
     """
 
-    def __init__(self, n: int, restart: int):
-        self.restart = int(restart)
+    def __init__(self, n: int, restart: int, reduce=_identity):
+        self.restart, self.reduce = int(restart), reduce
         self.V = np.empty((self.restart + 1, n))
         self.Z = np.empty((self.restart, n))
 
     def solve(self, matvec, precond, b, rtol: float, maxiter: int):
-        V, Z, m = self.V, self.Z, self.restart
+        V, Z, m, reduce = self.V, self.Z, self.restart, self.reduce
         x = np.zeros_like(b)
-        beta = float(np.linalg.norm(b))
+        beta = float(np.sqrt(reduce(b @ b)))  # np.linalg.norm's bits on one process
         if beta == 0.0:
             return x, 0, True
         target = rtol * beta
@@ -50,12 +62,12 @@ class FGMRES:
                 Z[j] = precond(V[j])
                 w = matvec(Z[j])
                 its += 1
-                h = V[: j + 1] @ w
+                h = reduce(V[: j + 1] @ w)
                 w = w - h @ V[: j + 1]
-                h2 = V[: j + 1] @ w  # the second pass of classical Gram–Schmidt
+                h2 = reduce(V[: j + 1] @ w)  # the second pass of classical Gram–Schmidt
                 w -= h2 @ V[: j + 1]
                 H[: j + 1, j] = h + h2
-                H[j + 1, j] = hn = float(np.linalg.norm(w))
+                H[j + 1, j] = hn = float(np.sqrt(reduce(w @ w)))
                 if hn > 0.0:
                     V[j + 1] = w / hn
                 for i in range(j):  # earlier Givens rotations on the new column
@@ -78,3 +90,32 @@ class FGMRES:
             for i in reversed(range(k)):
                 e[i], e[i + 1] = cs[i] * e[i] - sn[i] * e[i + 1], sn[i] * e[i] + cs[i] * e[i + 1]
             r = e @ V[: k + 1]
+
+
+def cg(matvec, precond, b, x, rtol: float, maxiter: int, reduce=_identity):
+    """Preconditioned conjugate gradients (Saad 2003, Alg. 9.1) for SPD A x = b,
+    from the initial guess in x (updated in place), to ‖b − A x‖ ≤ rtol ‖b‖
+    (as ``scipy.sparse.linalg.cg``). ``matvec(p)`` → A p and ``precond(r)`` →
+    M⁻¹ r (numpy, this process's part; the result may be overwritten by the
+    next call). Two reductions an iteration. Returns (iterations, converged)."""
+    r = b - matvec(x)
+    bnorm2, rr = (float(v) for v in reduce(np.array([b @ b, r @ r])))
+    target2 = rtol * rtol * bnorm2
+    if rr <= target2:
+        return 0, True
+    z = precond(r)
+    rz = float(reduce(r @ z))
+    p = z.copy()
+    for its in range(1, maxiter + 1):
+        Ap = matvec(p)
+        alpha = rz / float(reduce(p @ Ap))
+        x += alpha * p
+        r -= alpha * Ap
+        z = precond(r)
+        rr, rz_new = (float(v) for v in reduce(np.array([r @ r, r @ z])))
+        if rr <= target2:
+            return its, True
+        p *= rz_new / rz
+        p += z
+        rz = rz_new
+    return maxiter, False

@@ -283,8 +283,8 @@ class ForcedLow(Case):
         lonc = self.lon0 + self.u0 / p.a * t
         centre = np.array([math.cos(self.lat0) * math.cos(lonc), math.cos(self.lat0) * math.sin(lonc), math.sin(self.lat0)])
         C = np.tensordot(centre, r, axes=1)
-        with np.errstate(divide="ignore", over="ignore"):  # the antipode: ψ = 0
-            psi = np.where(C > -0.99, self.psi0 * np.exp(-self.sigma * (1 - C) / np.maximum(1 + C, 1e-2)), 0.0)
+        arg = self.sigma * (1 - C) / np.maximum(1 + C, 1e-2)
+        psi = np.where((C > -0.99) & (arg < 700.0), self.psi0 * np.exp(-np.minimum(arg, 700.0)), 0.0)  # as the kernel
         psi_c = 2 * self.sigma * psi / np.maximum(1 + C, 1e-2) ** 2
         wind = (psi_c / p.a) * np.cross(r, centre.reshape(3, *([1] * lat.ndim)), axis=0)  # k×∇ψ
         east = np.stack([-np.sin(lon), np.cos(lon), np.zeros_like(lon)])

@@ -46,6 +46,10 @@ CONFIGS = [
     ("semi_implicit amg", "semi_implicit", {"helmholtz_solver": "amg"}),
     ("imex ars343", "imex", {"scheme": "ars343"}),
     ("imex ars232", "imex", {"scheme": "ars232"}),
+    # the matrix-free Helmholtz CG that runs over MPI ranks, on one
+    ("semi_implicit mf_cg", "semi_implicit", {"helmholtz_solver": "mf_cg"}),
+    ("implicit mf_cg 1e-2", "implicit", {"helmholtz_solver": "mf_cg"}),
+    ("imex ars343 mf_cg", "imex", {"scheme": "ars343", "helmholtz_solver": "mf_cg"}),
 ]
 
 

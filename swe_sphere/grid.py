@@ -16,9 +16,6 @@ from __future__ import annotations
 
 import math
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
 
 from .constants import EARTH
 from .gll import gll
@@ -96,6 +93,29 @@ class CubedSphere:
         return f[..., self.first]
 
 
+def _coincident(ne: int, npts: int, face, jb, ia) -> tuple[int, np.ndarray]:
+    """(count, label per node) of the coincident element-local nodes, from the
+    cube's topology in exact integer arithmetic (no search over coordinates).
+
+    Node (i, j) of element (face, jb, ia) sits at lattice point (k, l) =
+    (ia·(np−1) + i, jb·(np−1) + j) of its face, 0 ≤ k, l ≤ M = ne·(np−1),
+    and at the integer point M·c + (2k − M)·ea + (2l − M)·eb on the cube
+    scaled by M (c, ea, eb the face's axis vectors). The lattice coordinate of
+    an angle is odd about the face centre (the element edges and the GLL points
+    are symmetric), so every copy of a node on a cube edge or corner, seen from
+    any face, lands on the same integer point, and only those do."""
+    M = ne * (npts - 1)
+    per = npts * npts
+    i, j = np.tile(np.arange(npts), npts), np.repeat(np.arange(npts), npts)  # node index j·np + i
+    k = (np.repeat(ia, per) * (npts - 1) + np.tile(i, ia.size)).astype(np.int64)
+    l = (np.repeat(jb, per) * (npts - 1) + np.tile(j, jb.size)).astype(np.int64)
+    F = _FACES.astype(np.int64)[np.repeat(face, per)]
+    Q = M * F[:, 0] + (2 * k - M)[:, None] * F[:, 1] + (2 * l - M)[:, None] * F[:, 2] + M  # in [0, 2M]
+    key = (Q[:, 0] * (2 * M + 1) + Q[:, 1]) * (2 * M + 1) + Q[:, 2]
+    _, labels = np.unique(key, return_inverse=True)
+    return int(labels.max()) + 1, labels.ravel()
+
+
 def _build(ne: int, rule, radius: float) -> dict:
     npts = rule.np
     nelem = 6 * ne * ne
@@ -116,12 +136,10 @@ def _build(ne: int, rule, radius: float) -> dict:
     rP = np.linalg.norm(P, axis=1)
     xhat = P / rP[:, None]
 
-    # Unique nodes: cluster coincident points, then give every copy the
+    # Unique nodes: identify coincident copies, then give every copy the
     # coordinates of one representative so lat/lon/basis agree bit for bit.
-    pairs = cKDTree(xhat).query_pairs(r=1e-10 / ne, output_type="ndarray")
     n = xhat.shape[0]
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-    ncomp, labels = connected_components(graph, directed=False)
+    ncomp, labels = _coincident(ne, npts, face, jb, ia)
     expected = 6 * ne * ne * (npts - 1) ** 2 + 2
     if ncomp != expected:
         raise RuntimeError(f"grid has {ncomp} unique nodes, expected {expected}")

@@ -450,7 +450,16 @@ def main(argv=None) -> int:
         if debug:
             raise
         code, message = _classify(err)
-        print(f"swe-sphere: {'error: ' if code in (EXIT_BAD_INPUT, EXIT_INTERNAL) else ''}{message}", file=sys.stderr)
+        from . import mpi
+
+        comm = mpi.world() if args.command == "run" else None  # one run over several MPI ranks
+        if comm is None or comm.rank == 0 or code != EXIT_BAD_INPUT:  # bad input: every rank refuses it alike
+            print(f"swe-sphere: {'error: ' if code in (EXIT_BAD_INPUT, EXIT_INTERNAL) else ''}{message}", file=sys.stderr)
+        if comm is not None and comm.rank == 0 and code != EXIT_BAD_INPUT:
+            # rank 0, the writer, may fail alone (its output): the others would wait for it
+            # forever, so it ends the job, with its exit status, once its files are closed
+            sys.stderr.flush()
+            comm.Abort(code)
         return code
 
 

@@ -157,3 +157,28 @@ def test_host_matrix_solver_refused_on_several_ranks_in_one_line(tmp_path):
     assert proc.returncode == 2
     assert "the Helmholtz solver 'amg' runs on one MPI rank only; use 'mf_cg' over several ranks" in proc.stderr
     assert not (tmp_path / "o.nc").exists()
+
+
+FAIL_ON_RANK_0 = """
+import sys
+from mpi4py import MPI
+from swe_sphere import simulation
+from swe_sphere.cli import main
+
+def run(self, *args, **kwargs):  # rank 0 alone fails, as when its output's disk fills
+    raise OSError(28, "No space left on device")
+
+if MPI.COMM_WORLD.rank == 0:
+    simulation.Simulation.run = run
+sys.exit(main(["run", "tc2_steady", "--ne", "2", "--days", "0.1", "--no-progress", "--output", "o.nc"]))
+"""
+
+
+@pytest.mark.usefixtures("needs_mpi")
+def test_failure_on_rank_0_alone_ends_the_job_with_its_status(tmp_path):
+    """Rank 1 steps on and waits for rank 0 in the next collective; rank 0 ends the job
+    (MPI_Abort with its exit status) instead of leaving it hanging."""
+    proc = mpirun_python(2, ["-c", FAIL_ON_RANK_0], tmp_path)
+    assert proc.returncode == 3, proc.stderr[-2000:]
+    assert proc.stderr.count("swe-sphere: No space left on device") == 1
+    assert not (tmp_path / "o.nc").exists()

@@ -86,6 +86,8 @@ def assert_same_bits(a: Path, b: Path) -> None:
         ("tc2_steady", ["--stepper", "rk4", "--days", "0.25"]),
         ("tc5_mountain", ["--days", "0.1"]),  # leapfrog-trapezoidal with hyperviscosity and topography
         ("tc4_forced_low", ["--days", "0.25"]),  # ssprk3 with the time-dependent forcing
+        ("tc5_mountain", ["--stepper", "rk4", "--dt", "3600", "--days", "0.25", "-s", "case.initialization=dfi",
+                          "-s", "dfi.cutoff_hours=6", "-s", "dfi.span_hours=12"]),  # a digital-filter start on every rank
     ],
 )
 def test_explicit_run_same_bits_on_1_2_3_ranks(tmp_path, scene, extra):

@@ -7,7 +7,7 @@ the run length, the output interval and the hyperviscosity. Layout::
     terms = ["continuity", "momentum_advection", ...]
     [case]            name = "tc5_mountain" (+ case parameters, e.g. alpha),
                       initialization = "none" | "dfi" (a digital-filter balanced start)
-    [dfi]             span_hours = 144.0, cutoff_hours = 48.0 (``initialization.DigitalFilter``)
+    [dfi]             span_hours = 48.0, cutoff_hours = 24.0 (``initialization.DigitalFilter``)
     [grid]            ne = 30, np = 4
     [time]            stepper = "leapfrog_trapezoidal", dt = 90.0, days = 15.0
     [output]          every_days = 1.0

@@ -152,7 +152,7 @@ def test_sweep_filters_once_and_every_run_starts_there(tmp_path, monkeypatch):
         ("tc2_steady", ["case.initialization=\"dfi\""], "would spoil case tc2_steady's exact solution"),
         ("tc5_mountain", ["case.initialization=\"dfi\"", "dfi.cutoff_hours=0"], "dfi.cutoff_hours must be > 0 (got 0.0)"),
         ("tc5_mountain", ["case.initialization=\"dfi\"", "dfi.span_hours=-6"], "dfi.span_hours must be > 0"),
-        ("tc5_mountain", ["case.initialization=\"dfi\"", "dfi.span_hours=24"], "dfi.span_hours = 24 is too short for a cutoff of 48 h"),
+        ("tc5_mountain", ["case.initialization=\"dfi\"", "dfi.span_hours=30"], "dfi.span_hours = 30 is too short for a cutoff of 24 h"),
         ("tc5_mountain", ["dfi.window=3"], "unknown key dfi.window"),
     ],
 )

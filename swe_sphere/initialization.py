@@ -107,7 +107,8 @@ def digital_filter(f: DigitalFilter, x0: np.ndarray, *, grid, terms, fcor, hs, g
     """Filter the state ``x0`` ((3, N) element-local numpy, this rank's part) with
     ``f`` (see the module docstring). ``grid``, ``fcor``, ``hs`` (N,), ``topology``:
     this rank's part as for ``model.ShallowWater``; ``terms`` the scene's (the
-    hyperviscosity is left out). Collective over the topology's ranks. Raises
+    hyperviscosity is left out; ``forcing``, not time-reversible, is not expected:
+    the forced case TC4 has an exact solution, so its scenes refuse a filter). Collective over the topology's ranks. Raises
     ``ValueError`` if either integration ends with a non-finite value or a depth
     h ≤ 0 (the span is too long for the state)."""
     t0 = time.perf_counter()

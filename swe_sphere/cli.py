@@ -188,7 +188,8 @@ def _cmd_sweep(args) -> int:
         )
         if start is not None:
             print(f"start       digital-filter initialization (cutoff {base.digital_filter.cutoff_hours:g} h, span "
-                  f"{base.digital_filter.span_hours:g} h), the same state for every run")
+                  f"{base.digital_filter.span_hours:g} h), the same state for every run; the T213 reference starts "
+                  "impulsively, so the spatial error (and the verdicts' thresholds) include the gravity waves it keeps")
         rows, info = Sweep(scenes, dts, args.output, device, time_filter=time_filter, start=start).run(pool)
         rows = table(rows, limits)
         print(format_summary(rows, info))

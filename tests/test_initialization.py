@@ -163,3 +163,16 @@ def test_bad_options_exit_2_with_one_line(tmp_path, capsys, scene, sets, message
     err = capsys.readouterr().err.strip()
     assert message in err and "\n" not in err and "Traceback" not in err, err
     assert not out.exists()
+
+
+def test_cli_sweep_takes_the_start_as_an_override(tmp_path, capsys):
+    """``sweep -s case.initialization=dfi``: the start is said, shared and recorded in sweep.nc."""
+    out = tmp_path / "sweep"
+    args = ["sweep", "tc5_mountain", "--ne", "2", "--days", "0.25", "--steppers", "rk4", "--dt", "1800", "--device", "cpu",
+            "--output", str(out), "-s", "case.initialization=dfi", "-s", "dfi.cutoff_hours=6", "-s", "dfi.span_hours=12"]
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert "start       digital-filter initialization (cutoff 6 h, span 12 h)" in text and "gravity waves it keeps" in text
+    assert (out / "runs" / "start_dfi6h12h.npz").is_file()
+    with xr.open_dataset(out / "sweep.nc") as ds:
+        assert ds.attrs["dfi_cutoff_hours"] == 6.0 and ds.attrs["dfi_span_hours"] == 12.0

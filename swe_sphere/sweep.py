@@ -275,6 +275,9 @@ CRITERIA = {
     "total h+hs": ("temporal_error", "spatial_error"),
     "balanced flow (vorticity)": ("temporal_error_vorticity", "spatial_error_vorticity"),
     "balanced flow (filtered h+hs)": ("temporal_error_filtered", "spatial_error"),
+    # the time filter also removes the waves' own vorticity (geostrophic adjustment),
+    # and unlike filtered h+hs it barely feels the filter's leakage of the longest waves
+    "balanced flow (filtered vorticity)": ("temporal_error_filtered_vorticity", "spatial_error_vorticity"),
     "gravity waves (divergence)": ("temporal_error_divergence", "spatial_error_divergence"),
 }
 THRESHOLDS = (0.1, 0.5)  # temporal error as a fraction of the spatial error

@@ -72,5 +72,11 @@ def test_filtered_sweep_scores_the_balanced_flow(tmp_path):
     assert (df["temporal_error_filtered"] < 0.1 * df["temporal_error"]).all()
     assert df.loc[1, "temporal_error_filtered"] > df.loc[0, "temporal_error_filtered"]
     v = pd.read_csv(out / "verdicts.csv")
-    assert "balanced flow (filtered h+hs)" in set(v["criterion"])
+    assert {"balanced flow (filtered h+hs)", "balanced flow (filtered vorticity)"} <= set(v["criterion"])
+    for _, r in v[v["criterion"] == "balanced flow (filtered vorticity)"].iterrows():
+        limit = r["threshold"] * r["spatial_error"]
+        if np.isfinite(r["dt"]):  # the cheapest qualifying run, scored by its filtered vorticity
+            assert r["temporal_error"] == df.loc[df["dt"] == r["dt"], "temporal_error_filtered_vorticity"].iloc[0] <= limit
+        else:
+            assert (df["temporal_error_filtered_vorticity"] > limit).all()
     assert sorted((out / "runs").glob("*.json"))[0].name.endswith("_lp1d0.5d3h.json")

@@ -1,0 +1,136 @@
+"""Tables and figures of docs/efficiency.md from the sweeps' own files.
+
+Reads each sweep directory's ``sweep.csv`` and ``verdicts.csv`` (written by
+``swe-sphere sweep``) and prints, as Markdown, the main table (per case, grid
+and criterion: the cheapest run within 10 % of the spatial error, and the
+largest Δt at which Crank–Nicolson stays within 10 % and 50 %) and one table
+per sweep (the cheapest qualifying run of each stepper per criterion). With
+``--figures DIR`` it also draws, per sweep, the temporal error against
+Δt/Δt_g for each criterion (``DIR/<sweep>_temporal_error.png``).
+
+    python docs/efficiency/tables.py study/tc5_ne8 study/tc5_ne16 --figures docs/efficiency
+"""
+import argparse
+from pathlib import Path
+
+import pandas as pd
+
+CRITERIA = ["total h+hs", "balanced flow (vorticity)", "balanced flow (filtered h+hs)", "balanced flow (filtered vorticity)", "gravity waves (divergence)"]
+SHORT = {"balanced flow (filtered vorticity)": "filtered vorticity", "total h+hs": "total h+hs", "balanced flow (vorticity)": "vorticity", "balanced flow (filtered h+hs)": "filtered h+hs", "gravity waves (divergence)": "divergence"}
+
+
+def cell(r):
+    if pd.isna(r["dt"]):
+        return "—"
+    return f"{r.dt_over_gravity_limit:.2g}× ({r.dt_over_leapfrog_limit:.2g}×) · {r.wall_time:.1f} s · {int(r.rhs_evals)}"
+
+
+def per_stepper(d: Path, threshold: float) -> str:
+    v = pd.read_csv(d / "verdicts.csv")
+    v = v[v.threshold == threshold]
+    crit = [c for c in CRITERIA if c in set(v.criterion)]
+    steppers = list(dict.fromkeys(v.stepper))
+    out = ["| stepper | " + " | ".join(SHORT[c] for c in crit) + " |", "|---|" + "---|" * len(crit)]
+    spatial = {c: v[v.criterion == c].spatial_error.iloc[0] for c in crit}
+    out.append("| *spatial error* | " + " | ".join(f"*{spatial[c]:.3g}*" for c in crit) + " |")
+    for s in steppers:
+        row = [cell(v[(v.criterion == c) & (v.stepper == s)].iloc[0]) for c in crit]
+        out.append(f"| {s} | " + " | ".join(row) + " |")
+    return "\n".join(out)
+
+
+def cheapest(d: Path, threshold: float) -> list:
+    v = pd.read_csv(d / "verdicts.csv")
+    v = v[(v.threshold == threshold) & v.dt.notna()]
+    rows = []
+    for c in CRITERIA:
+        w = v[v.criterion == c]
+        if w.empty:
+            rows.append((c, None, None))
+            continue
+        best = w.loc[w.wall_time.idxmin()]
+        imp = w[w.stepper == "implicit"]
+        rows.append((c, best, imp.iloc[0] if len(imp) else None))
+    return rows
+
+
+COLUMN = {"total h+hs": "temporal_error", "balanced flow (vorticity)": "temporal_error_vorticity",
+          "balanced flow (filtered h+hs)": "temporal_error_filtered",
+          "balanced flow (filtered vorticity)": "temporal_error_filtered_vorticity",
+          "gravity waves (divergence)": "temporal_error_divergence"}
+
+
+def largest(s, stepper, criterion, limit):
+    """The largest Δt/Δt_g of a stable run of ``stepper`` within ``limit`` (None if none)."""
+    ok = s[(s.stepper == stepper) & s.stable.astype(bool) & (s[COLUMN[criterion]] <= limit)]
+    return None if ok.empty else ok.dt_over_gravity_limit.max()
+
+
+def summary(dirs) -> str:
+    out = ["| case | ne | criterion | spatial error | cheapest at ≤ 10 % | Δt/Δt_g (Δt/Δt_lf) | wall s | RHS-eq | CN: largest Δt/Δt_g at ≤ 10 % (≤ 50 %) |",
+           "|---|---:|---|---:|---|---|---:|---:|---|"]
+    for d in dirs:
+        s = pd.read_csv(d / "sweep.csv")
+        case, ne = d.name.rsplit("_ne", 1)
+        for c, best, imp in cheapest(d, 0.1):
+            if best is None:
+                continue
+            spatial = best.spatial_error
+            big = [largest(s, "implicit", c, t * spatial) for t in (0.1, 0.5)]
+            impc = " ".join(("—" if b is None else f"{b:.2g}×") if i == 0 else f"({'—' if b is None else f'{b:.2g}×'})" for i, b in enumerate(big))
+            out.append(f"| {case} | {ne} | {SHORT[c]} | {spatial:.3g} | {best.stepper} | {best.dt_over_gravity_limit:.2g}× ({best.dt_over_leapfrog_limit:.2g}×) | {best.wall_time:.1f} | {int(best.rhs_evals)} | {impc} |")
+    return "\n".join(out)
+
+
+COLORS = dict(zip(["leapfrog", "leapfrog_trapezoidal", "ssprk3", "rk4", "semi_implicit", "imex", "implicit"],
+                  ["C0", "C1", "C2", "C3", "C4", "C5", "C6"]))
+
+
+def figure(d: Path, out: Path):
+    """Temporal error against Δt/Δt_g per stepper, one panel per criterion, the 10 % line dashed."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    s = pd.read_csv(d / "sweep.csv")
+    s = s[s.stable.astype(bool)]
+    v = pd.read_csv(d / "verdicts.csv")
+    panels = [("temporal_error", "total h+hs", "total h+hs"),
+              ("temporal_error_filtered", "balanced flow (filtered h+hs)", "filtered h+hs (balanced flow)"),
+              ("temporal_error_vorticity", "balanced flow (vorticity)", "vorticity (balanced flow)"),
+              ("temporal_error_filtered_vorticity", "balanced flow (filtered vorticity)", "filtered vorticity (balanced flow)"),
+              ("temporal_error_divergence", "gravity waves (divergence)", "divergence (gravity waves)")]
+    panels = [p for p in panels if p[0] in s and s[p[0]].notna().any()]
+    fig, axes = plt.subplots(1, len(panels), figsize=(3.2 * len(panels), 3.2), sharex=True)
+    for ax, (col, crit, title) in zip(axes, panels):
+        for name, g in s.groupby("stepper", sort=False):
+            g = g.sort_values("dt")
+            ax.loglog(g.dt_over_gravity_limit, g[col], "o-", ms=3, label=name, color=COLORS[name])
+        spatial = v[v.criterion == crit].spatial_error.iloc[0]
+        ax.axhline(0.1 * spatial, ls="--", c="k", lw=0.8)
+        ax.axhline(spatial, ls=":", c="k", lw=0.8)
+        ax.set_title(title, fontsize=9)
+        ax.set_xlabel("Δt / Δt_g")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("temporal error (normalized l2)")
+    axes[-1].legend(fontsize=7)
+    fig.suptitle(f"{d.name}: temporal error; dotted: spatial error, dashed: 10 % of it", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(out, dpi=80)
+    plt.close(fig)
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("sweeps", nargs="+", type=Path, help="sweep directories (named <case>_ne<ne>)")
+    p.add_argument("--figures", type=Path, metavar="DIR", help="also draw the temporal-error figures into DIR")
+    args = p.parse_args()
+    print(summary(args.sweeps))
+    for d in args.sweeps:
+        print(f"\n### {d.name}\n")
+        print(per_stepper(d, 0.1))
+        if args.figures:
+            figure(d, args.figures / f"{d.name}_temporal_error.png")
+
+
+if __name__ == "__main__":
+    main()

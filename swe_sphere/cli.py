@@ -169,7 +169,7 @@ def _cmd_sweep(args) -> int:
     except OSError as err:
         raise ValueError(f"cannot create output directory {args.output}: {err.strerror}") from None
     device = _warp_device(args.device)
-    from .sweep import Sweep, dt_for_day, explicit_limits, format_summary, start_state, table, write_outputs
+    from .sweep import REFERENCE_MAX_GRAVITY_COURANT, Sweep, dt_for_day, explicit_limits, format_summary, start_state, table, write_outputs
     from .workers import executor
 
     with executor(args.workers) as pool:
@@ -190,7 +190,8 @@ def _cmd_sweep(args) -> int:
             print(f"start       digital-filter initialization (cutoff {base.digital_filter.cutoff_hours:g} h, span "
                   f"{base.digital_filter.span_hours:g} h), the same state for every run; the T213 reference starts "
                   "impulsively, so the spatial error (and the verdicts' thresholds) include the gravity waves it keeps")
-        rows, info = Sweep(scenes, dts, args.output, device, time_filter=time_filter, start=start).run(pool)
+        rows, info = Sweep(scenes, dts, args.output, device, time_filter=time_filter, start=start,
+                           reference_dt_max=REFERENCE_MAX_GRAVITY_COURANT * limits["dt_gravity"]).run(pool)
         rows = table(rows, limits)
         print(format_summary(rows, info))
         for path in write_outputs(rows, info, limits, args.output):

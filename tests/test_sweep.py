@@ -163,3 +163,17 @@ def test_sweep_of_the_forced_low_scores_against_its_exact_solution(tmp_path):
     for stepper, order in (("rk4", 4), ("ssprk3", 3)):
         e = df[df["stepper"] == stepper].sort_values("dt", ascending=False)["temporal_error"].to_numpy()
         assert math.log2(e[-2] / e[-1]) >= order - 0.3, (stepper, e)
+
+
+def test_sweep_of_large_steps_has_a_stable_reference(tmp_path):
+    """Every Δt far beyond the explicit limit: the reference RK4 run is capped at a
+    quarter of the gravity-wave limit (a quarter of the smallest Δt would blow up)."""
+    out = tmp_path / "large"
+    assert main(["sweep", "tc2_steady", "--ne", "2", "--days", "1", "--steppers", "implicit", "--courant", "12",
+                 "--device", "cpu", "--output", str(out)]) == 0
+    df = pd.read_csv(out / "sweep.csv")
+    dt_g = df["dt"].iloc[0] / df["dt_over_gravity_limit"].iloc[0]
+    (ref,) = (out / "runs").glob("reference_rk4_*.npz")
+    dt_ref = float(ref.name.removeprefix("reference_rk4_").removesuffix(".npz"))
+    assert dt_ref <= sweep_mod.REFERENCE_MAX_GRAVITY_COURANT * dt_g < df["dt"].iloc[0] / 4
+    assert bool(df["stable"].iloc[0]) and np.isfinite(df["temporal_error"].iloc[0]) and df["temporal_error"].iloc[0] > 0

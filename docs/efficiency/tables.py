@@ -15,7 +15,9 @@ from pathlib import Path
 
 import pandas as pd
 
-CRITERIA = ["total h+hs", "balanced flow (vorticity)", "balanced flow (filtered h+hs)", "balanced flow (filtered vorticity)", "gravity waves (divergence)"]
+from swe_sphere.sweep import CRITERIA as SWEEP_CRITERIA
+
+CRITERIA = list(SWEEP_CRITERIA)  # the verdicts' criteria, in their order
 SHORT = {"balanced flow (filtered vorticity)": "filtered vorticity", "total h+hs": "total h+hs", "balanced flow (vorticity)": "vorticity", "balanced flow (filtered h+hs)": "filtered h+hs", "gravity waves (divergence)": "divergence"}
 
 
@@ -54,10 +56,7 @@ def cheapest(d: Path, threshold: float) -> list:
     return rows
 
 
-COLUMN = {"total h+hs": "temporal_error", "balanced flow (vorticity)": "temporal_error_vorticity",
-          "balanced flow (filtered h+hs)": "temporal_error_filtered",
-          "balanced flow (filtered vorticity)": "temporal_error_filtered_vorticity",
-          "gravity waves (divergence)": "temporal_error_divergence"}
+COLUMN = {criterion: column for criterion, (column, _) in SWEEP_CRITERIA.items()}
 
 
 def largest(s, stepper, criterion, limit):

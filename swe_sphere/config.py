@@ -103,11 +103,20 @@ class Scene:
 
 
 def scene_from_dict(d: dict) -> Scene:
-    """A Scene from ``Scene.as_dict()`` (e.g. read back from JSON). ValueError if the keys differ."""
-    names = {f.name for f in dataclasses.fields(Scene)}
-    if set(d) != names:
-        raise ValueError(f"scene keys differ from this version's: {', '.join(sorted(set(d) ^ names))}")
-    return Scene(**{**d, "terms": tuple(d["terms"]), "notes": tuple(d["notes"])})
+    """A Scene from ``Scene.as_dict()`` (e.g. read back from JSON).
+
+    A key this version added with a default (e.g. ``initialization``) may be
+    missing: its default is the behaviour of the version that wrote ``d``, so a
+    restart file from before the key existed still continues bitwise. ValueError
+    for an unknown key or a missing key without a default.
+    """
+    fields = dataclasses.fields(Scene)
+    unknown = set(d) - {f.name for f in fields}
+    missing = {f.name for f in fields if f.name not in d
+               and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING}
+    if unknown or missing:
+        raise ValueError(f"scene keys differ from this version's: {', '.join(sorted(unknown | missing))}")
+    return Scene(**{**d, "terms": tuple(d["terms"]), "notes": tuple(d.get("notes", ()))})
 
 
 _SCHEMA = {

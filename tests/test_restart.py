@@ -127,6 +127,32 @@ def test_cli_restart_every_and_continue(tmp_path, capsys):
     assert not (tmp_path / "x.nc").exists()
 
 
+def test_checkpoint_from_before_a_defaulted_scene_key_continues_bitwise(tmp_path):
+    """A restart file written before a scene key with a default existed (its
+    scene lacks ``initialization``) continues bitwise; an unknown key, or a
+    missing key without a default, is refused as a damaged checkpoint."""
+    whole = make_sim(tc2("ssprk3", steps=4, every_steps=2))
+    whole.run(tmp_path / "whole.nc")
+    r = make_sim(tc2("ssprk3", steps=2)).run(tmp_path / "half.nc", restart_every=2 * DT / DAY)
+
+    def rewrite(edit):
+        with netCDF4.Dataset(r.checkpoint, "a") as ds:
+            scene = json.loads(ds.scene)
+            edit(scene)
+            ds.scene = json.dumps(scene)
+
+    rewrite(lambda scene: scene.pop("initialization"))
+    cont = Simulation.from_checkpoint(r.checkpoint, "cpu", days=4 * DT / DAY, progress=False)
+    assert cont.scene == whole.scene
+    cont.run(tmp_path / "cont.nc")
+    np.testing.assert_array_equal(cont.x.numpy(), whole.x.numpy())
+    for edit, key in ((lambda scene: scene.update(spin=1.0), "spin"), (lambda scene: scene.pop("dt"), "dt")):
+        rewrite(edit)
+        with pytest.raises(ckpt.CheckpointError, match=f"damaged checkpoint .*scene keys differ .*: {key}\\)$"):
+            ckpt.read(r.checkpoint)
+        rewrite(lambda scene: scene.pop("spin", None) or scene.setdefault("dt", DT))
+
+
 # -- signals, through a real process -------------------------------------------
 
 

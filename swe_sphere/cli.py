@@ -179,6 +179,11 @@ def _cmd_sweep(args) -> int:
         limits = explicit_limits(base, device, start)
         if dts is None:
             dts = sorted({dt_for_day(f * limits["dt_gravity"], span) for f in factors})
+            capped = [f for f in factors if f * limits["dt_gravity"] > span * 86400 * (1 + 1e-9)]
+            if capped and time_filter is not None:  # Δt must divide the filter's snapshot interval
+                print(f"note        --courant {','.join(f'{f:g}' for f in capped)}: dt capped at the filter's "
+                      f"{time_filter.every_hours:g} h snapshot interval ({span * 86400 / limits['dt_gravity']:.3g} x the "
+                      "gravity-wave limit); --filter-every sets it")
         for dt in dts:
             if abs(round(base.days * 86400 / dt) * dt - base.days * 86400) > 1e-6 * dt:
                 raise ValueError(f"dt = {dt:g} s does not divide the run length of {base.days:g} days")
@@ -407,7 +412,7 @@ def _classify(err: BaseException) -> tuple[int, str]:
     import signal
 
     from .runtime import ResourceError
-    from .simulation import Interrupted
+    from .simulation import BlowUp, Interrupted
     from .steppers import StepFailure
 
     if isinstance(err, Interrupted):
@@ -415,7 +420,7 @@ def _classify(err: BaseException) -> tuple[int, str]:
     if isinstance(err, KeyboardInterrupt):  # outside the time loop (its handler stops after a step)
         signum = getattr(err, "signum", signal.SIGINT)
         return 128 + signum, f"interrupted by {signal.Signals(signum).name} outside the time loop; no output was written"
-    if isinstance(err, (StepFailure, ResourceError)):
+    if isinstance(err, (BlowUp, StepFailure, ResourceError)):  # BlowUp here: a sweep's reference run
         return EXIT_BLOWUP, str(err)
     if isinstance(err, MemoryError):
         return EXIT_BLOWUP, "out of memory" + (f" ({err})" if str(err) else "")

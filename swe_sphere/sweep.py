@@ -190,9 +190,9 @@ class Sweep:
                         **{k: float(data[k]) if k in data else math.nan for k in SPATIAL}}
         self.log(f"reference run: rk4, dt = {dt:.6g} s")
         scene = dataclasses.replace(self.base, stepper="rk4", stepper_options={}, dt=dt)
-        sim, _, _, x, filtered = self.simulate(scene)
+        sim, result, _, x, filtered = self.simulate(scene)
         if x is None:
-            raise BlowUp(f"the reference run (rk4, dt = {dt:.6g} s) blew up")
+            raise BlowUp(f"the reference run (rk4, dt = {dt:.6g} s) failed: {result.blowup}")
         errors = _errors(sim, self.base.days, x, None)
         with atomic_path(path) as tmp:
             with open(tmp, "wb") as f:

@@ -179,3 +179,15 @@ def test_sweep_of_large_steps_has_a_stable_reference(tmp_path):
     dt_ref = float(ref.name.removeprefix("reference_rk4_").removesuffix(".npz"))
     assert dt_ref <= sweep_mod.REFERENCE_MAX_GRAVITY_COURANT * dt_g < df["dt"].iloc[0] / 4
     assert bool(df["stable"].iloc[0]) and np.isfinite(df["temporal_error"].iloc[0]) and df["temporal_error"].iloc[0] > 0
+
+
+def test_a_sweep_whose_reference_run_blows_up_exits_3_with_its_place(tmp_path, capsys):
+    """The reference run (RK4 at a quarter of the gravity-wave limit) is made to blow
+    up by a ∇⁴ coefficient far past its explicit limit: exit 3, one line naming the
+    reference run, the step, model time and place (not an "internal error")."""
+    args = ["sweep", "tc5_mountain", "--ne", "2", "--days", "1", "--steppers", "rk4", "--courant", "1", "--device", "cpu",
+            "-s", "hyperviscosity.nu=1e22", "--output", str(tmp_path / "sweep")]
+    assert main(args) == 3
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and err.startswith("swe-sphere: the reference run (rk4, dt = ")
+    assert "blow-up at step" in err and "model time" in err and "lat " in err

@@ -80,3 +80,17 @@ def test_filtered_sweep_scores_the_balanced_flow(tmp_path):
         else:
             assert (df["temporal_error_filtered_vorticity"] > limit).all()
     assert sorted((out / "runs").glob("*.json"))[0].name.endswith("_lp1d0.5d3h.json")
+
+
+def test_filtered_sweep_says_when_it_caps_the_courant_factor(tmp_path, capsys):
+    """Δt must divide the 3 h snapshot interval, so a --courant factor past it runs
+    at 3 h; the sweep says so in one line instead of silently."""
+    import pandas as pd
+
+    out = tmp_path / "sweep"
+    args = ["sweep", "tc2_steady", "--ne", "2", "--days", "1", "--steppers", "imex", "--courant", "1,5", "--device", "cpu",
+            "--output", str(out), "--filter-days", "1", "--filter-window", "0.5"]
+    assert main(args) == 0
+    notes = [line for line in capsys.readouterr().out.splitlines() if "capped" in line]
+    assert len(notes) == 1 and notes[0].startswith("note        --courant 5: dt capped at the filter's 3 h"), notes
+    assert pd.read_csv(out / "sweep.csv")["dt"].max() == 10800.0

@@ -103,6 +103,21 @@ def tc5_run(tmp_path_factory):
     return code, out
 
 
+@pytest.mark.parametrize("days, quoted", [(1.25, "(day 1, its last output time T213 stores)"), (0.25, None)])
+def test_summary_quotes_the_last_output_time_the_reference_stores(tmp_path, capsys, days, quoted):
+    """T213 stores whole days: a 1.25-day run quotes its day-1 errors (labelled),
+    a 0.25-day run says there is none (not "nan"); t = 0 is never quoted."""
+    assert main(["run", "tc5_mountain", *TINY, "--dt", "1800", "--days", str(days), "--output", str(tmp_path / "r.nc")]) == 0
+    lines = [line for line in capsys.readouterr().out.splitlines() if "vs T213" in line]
+    assert not any("nan" in line for line in lines)
+    if quoted is None:
+        assert lines == ["  vs T213     none: no output time after t = 0 is one the reference stores (whole days)"]
+    else:
+        assert len(lines) == 3 and lines[0].endswith(quoted)
+        with xr.open_dataset(tmp_path / "r.nc") as ds:  # the quoted l2 is the run file's day-1 value
+            assert f"l2 {float(ds.ref_l2_h_surface.sel(time=1.0)):.3e}" in lines[0]
+
+
 @pytest.mark.parametrize("which", ["tc2", "tc5"])
 def test_run_writes_a_complete_netcdf_file(which, tc2_run, tc5_run):
     code, out = tc2_run if which == "tc2" else tc5_run

@@ -36,9 +36,12 @@ _FACES = np.array(
 
 
 class CubedSphere:
-    """Cubed-sphere SE grid with ``ne``×``ne`` elements per face and ``np`` GLL points.
+    """Cubed-sphere SE grid with ``ne``×``ne`` elements per face and ``np`` GLL points,
+    or the part of it made of ``elements`` (an MPI rank's: only those are built and stored).
 
-    Arrays (float64 unless said; N = 6·ne²·np² element-local nodes):
+    Arrays (float64 unless said; N = nelem·np² element-local nodes held, those of
+    ``elements`` in order; "global" indices are those of the whole grid):
+      nodes (N,) int64   global element-local index of each node held
       xyz (3, N)       unit position vectors
       lat, lon (N,)    radians; lon in [0, 2π); lon = 0 at the poles
       east, north (3, N)  unit tangent basis of the (u, v) wind components; one
@@ -51,37 +54,46 @@ class CubedSphere:
       spheremp (N,)    GLL weight × metdet (m²): the element mass matrix
       rspheremp (N,)   1 / (DSS-summed spheremp): inverse assembled mass
       dx (N,)          distance to the nearest neighbouring GLL node (m), for CFL
-      gid (N,) int32   unique-node id; there are 6·ne²·(np−1)² + 2 ids
-      dss_offsets (nunique+1,), dss_copies (N,) int32   CSR list of the
-                       element-local copies of each unique node
-      dss_table (N, C) int32  the copies of node p's unique node, in dss_copies
-                       order, padded with −1 (C = most copies of a node: 4,
-                       3 at ne = 1): what the DSS gathers, one row per node
-      first (nunique,) int32  one element-local index per unique node (output)
-      area (nunique,)  assembled spheremp of each unique node (m²); sums to 4πa²
+      gid (N,) int32   global unique-node id; there are 6·ne²·(np−1)² + 2 ids,
+                       numbered in the order of their first copies
+      dss_table (N, C) int32  the global indices of all copies of node p's unique
+                       node, ascending (the DSS's summation order), padded with −1
+                       (C = most copies of a node: 4, 3 at ne = 1)
+      first (n,) int32  local index of the first copy of each unique node whose
+                       first copy is held, ascending gid (all nunique of them when whole)
+      area (n,)        assembled spheremp of those unique nodes (m²); sums to 4πa² when whole
+      halo (H,) int64, halo_spheremp (H,)  the other elements' copies of the nodes
+                       held (global indices, ascending) and their spheremp (m²)
 
-    Raises ``ValueError`` for ne < 1 or np outside 2..8.
+    A part's arrays are the whole grid's at its nodes, bit for bit: every value is
+    computed per node, the numbering from the cube's topology, and the area
+    correction from the analytic Jacobian (the same for any part).
+    Raises ``ValueError`` for ne < 1, np outside 2..8, or elements not ascending
+    distinct indices of the grid.
     """
 
-    def __init__(self, ne: int, np: int, radius: float = EARTH.a):
+    def __init__(self, ne: int, np: int, radius: float = EARTH.a, elements=None):
         if isinstance(ne, bool) or int(ne) != ne or ne < 1:
             raise ValueError(f"ne must be an integer >= 1 (got {ne})")
         self.ne, self.np, self.radius = int(ne), int(np), float(radius)
         self.rule = gll(self.np)  # validates np
-        for name, value in _build(self.ne, self.rule, self.radius).items():
+        self.elements = _elements(6 * self.ne * self.ne, elements)
+        for name, value in _build(self.ne, self.rule, self.radius, self.elements).items():
             setattr(self, name, value)
 
     @property
     def nelem(self) -> int:
-        return 6 * self.ne * self.ne
+        """Elements held (6·ne² for the whole grid)."""
+        return self.elements.size
 
     @property
     def npts(self) -> int:
-        """Element-local node count N = nelem·np²."""
+        """Element-local nodes held N = nelem·np²."""
         return self.nelem * self.np * self.np
 
     @property
     def nunique(self) -> int:
+        """Unique nodes of the whole grid."""
         return 6 * self.ne * self.ne * (self.np - 1) ** 2 + 2
 
     def integrate(self, f: np.ndarray) -> float:
@@ -89,13 +101,24 @@ class CubedSphere:
         return float(np.sum(self.spheremp * f))  # not np.dot: the same bits whatever BLAS's threads
 
     def to_unique(self, f: np.ndarray) -> np.ndarray:
-        """Element-local (..., N) → unique nodes (..., nunique)."""
+        """Element-local (..., N) → the unique nodes of ``first`` (..., n)."""
         return f[..., self.first]
 
 
-def _coincident(ne: int, npts: int, face, jb, ia) -> tuple[int, np.ndarray]:
-    """(count, label per node) of the coincident element-local nodes, from the
-    cube's topology in exact integer arithmetic (no search over coordinates).
+def _elements(nelem: int, elements) -> np.ndarray:
+    """The element indices a grid holds: all, or ``elements`` checked ascending and distinct."""
+    if elements is None:
+        return np.arange(nelem)
+    e = np.asarray(elements, dtype=np.int64)
+    if e.ndim != 1 or (e.size and (e[0] < 0 or e[-1] >= nelem or np.any(np.diff(e) <= 0))):
+        raise ValueError(f"elements must be ascending distinct indices in 0..{nelem - 1}")
+    return e
+
+
+class Numbering:
+    """The cube's unique nodes for ne, np from its topology, in exact integer
+    arithmetic (no search over coordinates), held for the elements' boundary
+    ("ring") nodes only (6·ne²·4(np−1) entries; interior nodes have one copy).
 
     Node (i, j) of element (face, jb, ia) sits at lattice point (k, l) =
     (ia·(np−1) + i, jb·(np−1) + j) of its face, 0 ≤ k, l ≤ M = ne·(np−1),
@@ -103,54 +126,128 @@ def _coincident(ne: int, npts: int, face, jb, ia) -> tuple[int, np.ndarray]:
     scaled by M (c, ea, eb the face's axis vectors). The lattice coordinate of
     an angle is odd about the face centre (the element edges and the GLL points
     are symmetric), so every copy of a node on a cube edge or corner, seen from
-    any face, lands on the same integer point, and only those do."""
-    M = ne * (npts - 1)
-    per = npts * npts
-    i, j = np.tile(np.arange(npts), npts), np.repeat(np.arange(npts), npts)  # node index j·np + i
-    k = (np.repeat(ia, per) * (npts - 1) + np.tile(i, ia.size)).astype(np.int64)
-    l = (np.repeat(jb, per) * (npts - 1) + np.tile(j, jb.size)).astype(np.int64)
-    F = _FACES.astype(np.int64)[np.repeat(face, per)]
-    Q = M * F[:, 0] + (2 * k - M)[:, None] * F[:, 1] + (2 * l - M)[:, None] * F[:, 2] + M  # in [0, 2M]
-    key = (Q[:, 0] * (2 * M + 1) + Q[:, 1]) * (2 * M + 1) + Q[:, 2]
-    _, labels = np.unique(key, return_inverse=True)
-    return int(labels.max()) + 1, labels.ravel()
+    any face, lands on the same integer point, and only those do. Unique nodes
+    are numbered in the order of their first copies (smallest global index):
+    an element's count of nodes first seen there is topological, so a prefix
+    sum over elements gives any node's number without the others' nodes.
+    """
+
+    def __init__(self, ne: int, npts: int):
+        self.ne, self.np = ne, npts
+        npe, nelem, M = npts * npts, 6 * ne * ne, ne * (npts - 1)
+        i, j = np.tile(np.arange(npts), npts), np.repeat(np.arange(npts), npts)  # node p = j·np + i
+        interior = (i > 0) & (i < npts - 1) & (j > 0) & (j < npts - 1)
+        self.ring = ring = np.flatnonzero(~interior)  # ascending p
+        R = ring.size
+        face, rest = np.divmod(np.arange(nelem), ne * ne)
+        jb, ia = np.divmod(rest, ne)
+        k = ia[:, None] * (npts - 1) + i[ring]
+        l = jb[:, None] * (npts - 1) + j[ring]
+        F = _FACES.astype(np.int64)[face][:, None]  # (nelem, 1, 3, 3)
+        Q = M * F[..., 0, :] + (2 * k - M)[..., None] * F[..., 1, :] + (2 * l - M)[..., None] * F[..., 2, :] + M  # in [0, 2M]
+        key = ((Q[..., 0] * (2 * M + 1) + Q[..., 1]) * (2 * M + 1) + Q[..., 2]).ravel()
+        order = np.argsort(key, kind="stable")  # by point, then ascending global index
+        sk = key[order]
+        starts = np.concatenate(([True], sk[1:] != sk[:-1]))
+        group = np.cumsum(starts) - 1
+        pos = np.arange(order.size) - np.flatnonzero(starts)[group]  # place among its point's copies
+        self.group = np.empty(order.size, dtype=np.int64)
+        self.group[order] = group
+        self.group = self.group.reshape(nelem, R)
+        self.members = np.full((int(group[-1]) + 1, int(pos.max()) + 1), -1, dtype=np.int64)
+        self.members[group, pos] = (order // R) * npe + ring[order % R]  # global copy indices
+        is_first = np.zeros(order.size, dtype=bool)
+        is_first[order] = starts
+        self.is_first = is_first = is_first.reshape(nelem, R)
+        count = int(interior.sum()) + is_first.sum(axis=1)
+        self.offset = np.concatenate(([0], np.cumsum(count)[:-1]))
+        if int(count.sum()) != 6 * ne * ne * (npts - 1) ** 2 + 2:
+            raise RuntimeError(f"grid has {int(count.sum())} unique nodes, expected {6 * ne * ne * (npts - 1) ** 2 + 2}")
+        before = np.cumsum(interior) - interior  # interior nodes before each p
+        rank = before[ring] + np.cumsum(is_first, axis=1) - 1
+        gid = np.empty(self.members.shape[0], dtype=np.int64)
+        gid[self.group[is_first]] = (self.offset[:, None] + rank)[is_first]
+        self.ring_gid = gid[self.group]
+
+    def rows(self, elements: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(gid (N,), table (N, C)) int64 of the nodes of ``elements``: unique-node
+        ids and the global indices of every copy, ascending, −1-padded."""
+        npe, ring = self.np * self.np, self.ring
+        mask = np.ones((elements.size, npe), dtype=bool)
+        mask[:, ring] = self.is_first[elements]
+        gid = self.offset[elements][:, None] + np.cumsum(mask, axis=1) - 1
+        gid[:, ring] = self.ring_gid[elements]
+        table = np.full((elements.size, npe, self.members.shape[1]), -1, dtype=np.int64)
+        table[:, :, 0] = elements[:, None] * npe + np.arange(npe)
+        table[:, ring] = self.members[self.group[elements]]
+        return gid.ravel(), table.reshape(elements.size * npe, -1)
 
 
-def _build(ne: int, rule, radius: float) -> dict:
-    npts = rule.np
+def element_neighbours(ne: int) -> np.ndarray:
+    """(6·ne², 4) int64: the four edge neighbours of each element (the elements
+    sharing two element corners with it), ascending."""
+    corners = Numbering(ne, 2).members // 4  # the elements at each element corner
     nelem = 6 * ne * ne
+    pairs = [
+        np.minimum(corners[:, a], corners[:, b]) * nelem + np.maximum(corners[:, a], corners[:, b])
+        for a in range(corners.shape[1]) for b in range(a + 1, corners.shape[1])
+    ]
+    pairs = np.concatenate(pairs)
+    pairs = pairs[pairs >= 0]  # both corners present (−1 · nelem + e < 0 otherwise)
+    code, shared = np.unique(pairs, return_counts=True)
+    lo, hi = np.divmod(code[shared >= 2], nelem)
+    a, b = np.concatenate([lo, hi]), np.concatenate([hi, lo])
+    order = np.lexsort((b, a))
+    if a.size != 4 * nelem or np.any(np.bincount(a, minlength=nelem) != 4):
+        raise RuntimeError(f"the cube's elements do not have four edge neighbours each (ne={ne})")
+    return b[order].reshape(nelem, 4)
+
+
+def _geometry(ne: int, rule, copies: np.ndarray):
+    """Per element-local node (global indices ``copies``): the equiangular angles
+    α, β, the face's axes ea, eb, |P| and the unit position P/|P| of P = c + tan α ea + tan β eb."""
+    npts = rule.np
+    e, p = np.divmod(copies, npts * npts)
+    j, i = np.divmod(p, npts)
+    face, rest = np.divmod(e, ne * ne)
+    jb, ia = np.divmod(rest, ne)
     edges = np.linspace(-math.pi / 4, math.pi / 4, ne + 1)
     dalpha = math.pi / 2 / ne
-    ref = rule.points
-    # Element-local angles: shapes (nelem, np(j), np(i)) flattened to N.
-    face, jb, ia = np.meshgrid(np.arange(6), np.arange(ne), np.arange(ne), indexing="ij")
-    face, jb, ia = face.ravel(), jb.ravel(), ia.ravel()
-    alpha = edges[ia][:, None, None] + (ref[None, None, :] + 1) * dalpha / 2
-    beta = edges[jb][:, None, None] + (ref[None, :, None] + 1) * dalpha / 2
-    alpha = np.broadcast_to(alpha, (nelem, npts, npts)).ravel()
-    beta = np.broadcast_to(beta, (nelem, npts, npts)).ravel()
-    fnode = np.repeat(face, npts * npts)
-    c, ea, eb = _FACES[fnode, 0], _FACES[fnode, 1], _FACES[fnode, 2]
-    ta, tb = np.tan(alpha), np.tan(beta)
-    P = c + ta[:, None] * ea + tb[:, None] * eb
+    alpha = edges[ia] + (rule.points[i] + 1) * dalpha / 2
+    beta = edges[jb] + (rule.points[j] + 1) * dalpha / 2
+    c, ea, eb = _FACES[face, 0], _FACES[face, 1], _FACES[face, 2]
+    P = c + np.tan(alpha)[:, None] * ea + np.tan(beta)[:, None] * eb
     rP = np.linalg.norm(P, axis=1)
-    xhat = P / rP[:, None]
+    return alpha, beta, ea, eb, rP, P / rP[:, None]
 
-    # Unique nodes: identify coincident copies, then give every copy the
-    # coordinates of one representative so lat/lon/basis agree bit for bit.
-    n = xhat.shape[0]
-    ncomp, labels = _coincident(ne, npts, face, jb, ia)
-    expected = 6 * ne * ne * (npts - 1) ** 2 + 2
-    if ncomp != expected:
-        raise RuntimeError(f"grid has {ncomp} unique nodes, expected {expected}")
-    # number unique nodes in order of first appearance
-    _, first = np.unique(labels, return_index=True)
-    order = np.argsort(first)
-    relabel = np.empty(ncomp, dtype=np.int64)
-    relabel[order] = np.arange(ncomp)
-    gid = relabel[labels]
-    first = np.sort(first)
-    xyz = xhat[first][gid]
+
+def _quadrature_area(ne: int, rule, radius: float) -> float:
+    """GLL quadrature of the sphere's area (m²) with the analytic Jacobian of the
+    equiangular map, a²(Δα/2)²(1 + tan²α)(1 + tan²β)/(1 + tan²α + tan²β)^(3/2),
+    the same on the six faces: what Σ metdet·w gives up to round-off, computed
+    alike by every process whatever elements it holds."""
+    dalpha = math.pi / 2 / ne
+    edges = np.linspace(-math.pi / 4, math.pi / 4, ne + 1)
+    t2 = np.tan((edges[:-1, None] + (rule.points[None, :] + 1) * dalpha / 2).ravel()) ** 2
+    w = np.tile(rule.weights, ne)
+    J = (1 + t2[:, None]) * (1 + t2[None, :]) / (1 + t2[:, None] + t2[None, :]) ** 1.5
+    return 6 * radius**2 * (dalpha / 2) ** 2 * float(np.sum(J * w[:, None] * w[None, :]))
+
+
+def _build(ne: int, rule, radius: float, elements: np.ndarray) -> dict:
+    npts = rule.np
+    npe = npts * npts
+    nodes = (elements[:, None] * npe + np.arange(npe)).ravel()
+    gid, table = Numbering(ne, npts).rows(elements)
+    # The nodes held and the other elements' copies of them (for the assembled
+    # mass); every copy gets the coordinates of its first copy, so lat/lon/basis
+    # agree bit for bit.
+    valid = table >= 0
+    ext = np.unique(table[valid])
+    rep = np.empty(ext.size, dtype=np.int64)
+    rep[np.searchsorted(ext, table[valid])] = np.broadcast_to(table[:, :1], table.shape)[valid]
+    alpha, beta, ea, eb, rP, xhat = _geometry(ne, rule, ext)
+    xyz = xhat[np.searchsorted(ext, rep)]
     xyz[np.abs(xyz) < 1e-15] = 0.0
     xyz /= np.linalg.norm(xyz, axis=1)[:, None]
     lat = np.arcsin(np.clip(xyz[:, 2], -1, 1))
@@ -159,10 +256,12 @@ def _build(ne: int, rule, radius: float) -> dict:
     north = np.stack([-np.sin(lat) * np.cos(lon), -np.sin(lat) * np.sin(lon), np.cos(lat)], axis=1)
 
     # Jacobian of X = a P/|P| w.r.t. the element reference coordinates (ξ, η).
+    dalpha = math.pi / 2 / ne
     proj = np.eye(3)[None] - xhat[:, :, None] * xhat[:, None, :]
     scale = radius * dalpha / 2 / rP
     dX_dxi = scale[:, None] * np.einsum("nij,nj->ni", proj, ea / np.cos(alpha)[:, None] ** 2)
     dX_deta = scale[:, None] * np.einsum("nij,nj->ni", proj, eb / np.cos(beta)[:, None] ** 2)
+    n = ext.size
     D = np.empty((n, 2, 2))
     D[:, 0, 0] = np.einsum("ni,ni->n", east, dX_dxi)
     D[:, 0, 1] = np.einsum("ni,ni->n", east, dX_deta)
@@ -177,48 +276,47 @@ def _build(ne: int, rule, radius: float) -> dict:
     # A single factor keeps element-edge fluxes consistent, hence mass
     # conservation to round-off; a per-element factor would not.
     w2 = np.outer(rule.weights, rule.weights).ravel()  # index j*np + i
-    quad_area = float(np.sum(metdet * np.tile(w2, nelem)))
-    s = math.sqrt(4 * math.pi * radius**2 / quad_area)
+    s = math.sqrt(4 * math.pi * radius**2 / _quadrature_area(ne, rule, radius))
     D *= s
     metdet = metdet * s**2
-    Dinv = np.linalg.inv(D)
-    spheremp = metdet * np.tile(w2, nelem)
+    spheremp = metdet * w2[ext % npe]
 
-    mass = np.bincount(gid, weights=spheremp, minlength=ncomp)
-    rspheremp = 1.0 / mass[gid]
-    copies = np.argsort(gid, kind="stable").astype(np.int32)
-    counts = np.bincount(gid, minlength=ncomp)
-    offsets = np.concatenate(([0], np.cumsum(counts))).astype(np.int32)
-    rank = np.arange(n) - offsets[gid[copies]]  # position of each copy in its node's list
-    table = np.full((ncomp, counts.max()), -1, dtype=np.int32)
-    table[gid[copies], rank] = copies
+    here = np.searchsorted(ext, nodes)
+    mass = np.zeros(nodes.size)  # Σ over the copies in table order, one add at a time
+    for column in table.T:
+        ok = column >= 0
+        mass[ok] += spheremp[np.searchsorted(ext, column[ok])]
+    first = np.flatnonzero(table[:, 0] == nodes)  # first copies held: ascending gid
+    halo = np.setdiff1d(ext, nodes, assume_unique=True)
 
     # Nearest-neighbour spacing along both element directions.
-    X = radius * xyz.reshape(nelem, npts, npts, 3)
+    X = radius * xyz[here].reshape(elements.size, npts, npts, 3)
     dist_i = np.linalg.norm(np.diff(X, axis=2), axis=3)  # (nelem, j, np-1)
     dist_j = np.linalg.norm(np.diff(X, axis=1), axis=3)  # (nelem, np-1, i)
-    dx = np.full((nelem, npts, npts), np.inf)
+    dx = np.full((elements.size, npts, npts), np.inf)
     dx[:, :, :-1] = np.minimum(dx[:, :, :-1], dist_i)
     dx[:, :, 1:] = np.minimum(dx[:, :, 1:], dist_i)
     dx[:, :-1, :] = np.minimum(dx[:, :-1, :], dist_j)
     dx[:, 1:, :] = np.minimum(dx[:, 1:, :], dist_j)
 
+    D = D[here]
     return dict(
-        xyz=np.ascontiguousarray(xyz.T),
-        lat=lat,
-        lon=lon,
-        east=np.ascontiguousarray(east.T),
-        north=np.ascontiguousarray(north.T),
-        D=np.ascontiguousarray(D.reshape(n, 4).T),
-        Dinv=np.ascontiguousarray(Dinv.reshape(n, 4).T),
-        metdet=metdet,
-        spheremp=spheremp,
-        rspheremp=rspheremp,
+        nodes=nodes,
+        xyz=np.ascontiguousarray(xyz[here].T),
+        lat=lat[here],
+        lon=lon[here],
+        east=np.ascontiguousarray(east[here].T),
+        north=np.ascontiguousarray(north[here].T),
+        D=np.ascontiguousarray(D.reshape(-1, 4).T),
+        Dinv=np.ascontiguousarray(np.linalg.inv(D).reshape(-1, 4).T),
+        metdet=metdet[here],
+        spheremp=spheremp[here],
+        rspheremp=1.0 / mass,
         dx=dx.ravel(),
         gid=gid.astype(np.int32),
-        dss_offsets=offsets,
-        dss_copies=copies,
-        dss_table=table[gid],
+        dss_table=table.astype(np.int32),
         first=first.astype(np.int32),
-        area=mass,
+        area=mass[first],
+        halo=halo,
+        halo_spheremp=spheremp[np.searchsorted(ext, halo)],
     )

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .grid import element_neighbours
+
 
 def _sgn(a: int) -> int:
     return (a > 0) - (a < 0)
@@ -65,33 +67,10 @@ def _orientations(ne: int) -> list[np.ndarray]:
     return variants
 
 
-def element_neighbours(gid: np.ndarray, nelem: int) -> list[set]:
-    """Edge neighbours of each element: the elements that share two or more
-    unique nodes with it (``gid`` element-local, nelem·np² long)."""
-    per = gid.reshape(nelem, -1)
-    owners: dict[int, list[int]] = {}
-    for e in range(nelem):
-        for g in set(per[e].tolist()):
-            owners.setdefault(g, []).append(e)
-    shared: dict[tuple, int] = {}
-    for es in owners.values():
-        for a in es:
-            for b in es:
-                if a < b:
-                    shared[(a, b)] = shared.get((a, b), 0) + 1
-    nbrs = [set() for _ in range(nelem)]
-    for (a, b), n in shared.items():
-        if n >= 2:
-            nbrs[a].add(b)
-            nbrs[b].add(a)
-    return nbrs
-
-
-def sfc_order(grid) -> np.ndarray:
-    """All elements of ``grid`` (a ``CubedSphere``) along one space-filling curve
-    over the cube: (nelem,) element indices, consecutive ones edge neighbours."""
-    ne = grid.ne
-    nbrs = element_neighbours(grid.gid, grid.nelem)
+def sfc_order(ne: int) -> np.ndarray:
+    """All 6·ne² elements of the cube along one space-filling curve: (6·ne²,)
+    element indices, consecutive ones edge neighbours."""
+    nbrs = element_neighbours(ne)
     variants = _orientations(ne)
 
     def chain(order, used):  # depth-first: the next face and orientation that continue the curve
@@ -115,21 +94,22 @@ def sfc_order(grid) -> np.ndarray:
     return np.concatenate(found)
 
 
-def partition(grid, parts: int) -> list[np.ndarray]:
-    """Cut the space-filling-curve order of ``grid``'s elements into ``parts``
-    contiguous chunks of ⌊nelem/parts⌋ or ⌈nelem/parts⌉ elements (chunk k for
-    rank k). Raises ValueError for parts < 1 or more parts than elements."""
-    if parts < 1 or parts > grid.nelem:
-        raise ValueError(f"cannot split {grid.nelem} elements into {parts} parts (1..{grid.nelem})")
-    order = sfc_order(grid)
-    bounds = [k * grid.nelem // parts for k in range(parts + 1)]
+def partition(ne: int, parts: int) -> list[np.ndarray]:
+    """Cut the space-filling-curve order of the cube's 6·ne² elements into
+    ``parts`` contiguous chunks of ⌊nelem/parts⌋ or ⌈nelem/parts⌉ elements
+    (chunk k for rank k). Raises ValueError for parts < 1 or more parts than elements."""
+    nelem = 6 * ne * ne
+    if parts < 1 or parts > nelem:
+        raise ValueError(f"cannot split {nelem} elements into {parts} parts (1..{nelem})")
+    order = sfc_order(ne)
+    bounds = [k * nelem // parts for k in range(parts + 1)]
     return [order[bounds[k] : bounds[k + 1]] for k in range(parts)]
 
 
-def edge_cut(grid, parts: list[np.ndarray]) -> int:
+def edge_cut(ne: int, parts: list[np.ndarray]) -> int:
     """Element edges whose two elements lie in different parts."""
-    owner = np.empty(grid.nelem, dtype=np.int64)
+    owner = np.empty(6 * ne * ne, dtype=np.int64)
     for k, elems in enumerate(parts):
         owner[elems] = k
-    nbrs = element_neighbours(grid.gid, grid.nelem)
-    return sum(1 for a in range(grid.nelem) for b in nbrs[a] if a < b and owner[a] != owner[b])
+    nbrs = element_neighbours(ne)
+    return int(np.sum(owner[:, None] != owner[nbrs])) // 2

@@ -131,7 +131,7 @@ class Simulation:
         self.hs = case.hs(grid.lat, grid.lon)
         self.g = case.planet.g
         self.model = ShallowWater(
-            topo.local_grid(), scene.terms, topo.local(self.fcor), topo.local(self.hs), nu=scene.nu, nu_div=scene.nu_div, nu_s=scene.nu_s,
+            topo.grid, scene.terms, topo.local(self.fcor), topo.local(self.hs), nu=scene.nu, nu_div=scene.nu_div, nu_s=scene.nu_s,
             hypervis_subcycle=scene.hypervis_subcycle, g=self.g, device=device, topology=topo,
             forcing=case.forcing() if "forcing" in scene.terms else None,
         )
@@ -142,7 +142,7 @@ class Simulation:
         if start is None:
             start = np.stack(case.initial(grid.lat, grid.lon))
             if scene.digital_filter is not None:
-                self.dfi = digital_filter(scene.digital_filter, topo.local(start), grid=topo.local_grid(), terms=scene.terms,
+                self.dfi = digital_filter(scene.digital_filter, topo.local(start), grid=topo.grid, terms=scene.terms,
                                           fcor=topo.local(self.fcor), hs=topo.local(self.hs), g=self.g, device=device, topology=topo)
         elif np.shape(start) != (3, grid.npts):
             raise ValueError(f"start state has shape {np.shape(start)}, the grid needs {(3, grid.npts)}")

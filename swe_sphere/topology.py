@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from .grid import CubedSphere
 from .kernels import dss
 from .parallel import record
 
@@ -52,17 +53,21 @@ def _ops(comm):
     return MPI.SUM, MPI.MAX, MPI.MIN
 
 
-class GridPart:
-    """The elements of a ``CubedSphere`` one rank holds: ne, np, radius, rule, and
-    the per-node arrays of ``NODE_ARRAYS`` for its nodes only (N = nelem·np²)."""
+def rank_parts(ne: int, size: int) -> list[np.ndarray]:
+    """The elements of each of ``size`` ranks, ascending: all of them on one rank,
+    else the chunks of ``partition.partition``."""
+    if size == 1:  # skip the curve: one part in natural order is the whole grid
+        return [np.arange(6 * ne * ne)]
+    from .partition import partition
 
-    NODE_ARRAYS = ("xyz", "lat", "lon", "east", "north", "D", "Dinv", "metdet", "spheremp", "rspheremp", "dx")
+    return [np.sort(p) for p in partition(ne, size)]
 
-    def __init__(self, grid, elements, nodes):
-        self.ne, self.np, self.radius, self.rule = grid.ne, grid.np, grid.radius, grid.rule
-        self.nelem, self.npts = len(elements), len(nodes)
-        for name in self.NODE_ARRAYS:
-            setattr(self, name, getattr(grid, name)[..., nodes])
+
+def _lookup(keys: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """The position in ``keys`` (distinct, not empty) of each of ``values``, −1 where absent."""
+    order = np.argsort(keys)
+    at = np.minimum(np.searchsorted(keys[order], values), keys.size - 1)
+    return np.where(keys[order][at] == values, order[at], -1)
 
 
 class _Exchange:
@@ -111,7 +116,9 @@ class Topology:
 
     Parameters
     ----------
-    grid : CubedSphere (the whole sphere)
+    grid : CubedSphere: the whole sphere, or this rank's part of it
+        (``CubedSphere(..., elements=rank_parts(ne, size)[rank])``); given the
+        whole sphere with several ranks, the rank builds its own part.
     device : Warp device name.
     threads : CPU threads a launch is split over (``swe_sphere.parallel``).
     comm : an mpi4py communicator, or None (``SerialComm()``: all elements here).
@@ -146,35 +153,31 @@ class Topology:
     """
 
     def __init__(self, grid, device: str = "cpu", threads: int = 1, comm=None):
-        self.grid, self.device, self.threads = grid, device, int(threads)
+        self.device, self.threads = device, int(threads)
         self.comm = comm if comm is not None else SerialComm()
         self._sum, self._max, self._min = _ops(self.comm)
         rank, size = self.comm.rank, self.comm.size
         self.distributed = size > 1
-        npe = grid.np**2
-        if size == 1:  # skip the curve: one part in natural order is the whole grid
-            parts = [np.arange(grid.nelem)]
-        else:
-            if not wp.get_device(device).is_cpu:
-                raise ValueError("runs over several MPI ranks are CPU-only so far (use --device cpu)")
-            from .partition import partition
-
-            parts = [np.sort(p) for p in partition(grid, size)]
-        self.parts = parts
-        self.elements = parts[rank]
-        self.nodes = (self.elements[:, None] * npe + np.arange(npe)).ravel()
-        self.N, self.npts_total = self.nodes.size, grid.npts
-        self._build_halos(parts, rank, size, npe)
+        if size > 1 and not wp.get_device(device).is_cpu:
+            raise ValueError("runs over several MPI ranks are CPU-only so far (use --device cpu)")
+        self.parts = parts = rank_parts(grid.ne, size)
+        if not np.array_equal(grid.elements, parts[rank]):
+            grid = CubedSphere(grid.ne, grid.np, grid.radius, elements=parts[rank])
+        self.grid = grid
+        self.elements, self.nodes = grid.elements, grid.nodes
+        self.N, self.npts_total = grid.npts, 6 * grid.ne**2 * grid.np**2
+        self._build_halos(parts, rank)
 
         def up(a, dtype=f64):
             return wp.array(np.ascontiguousarray(a), dtype=dtype, device=device)
 
-        self.spheremp_np = grid.spheremp[self.nodes]
-        self.spheremp = up(np.concatenate([self.spheremp_np, grid.spheremp[self.recv]]))
-        self.rspheremp = up(grid.rspheremp[self.nodes])
+        self.spheremp_np = grid.spheremp
+        self.spheremp = up(np.concatenate([grid.spheremp, grid.halo_spheremp[np.searchsorted(grid.halo, self.recv)]]))
+        self.rspheremp = up(grid.rspheremp)
         self.table = up(self._table, wp.int32)
-        self.gid, self.first = up(self._gid, wp.int32), up(self._first, wp.int32)
-        self.nunique = self._first.size
+        self.gid, self.first = up(self._gid, wp.int32), up(grid.first, wp.int32)
+        self.area = grid.area
+        self.nunique = grid.first.size
         self.total_area = self.sum(float(np.sum(self.area)))
         # the DSS's pattern under the names the benchmarks and tests read
         c = self.copies
@@ -183,51 +186,39 @@ class Topology:
         self.halo_copies = c.size
         self.halo_bytes_per_row = 8 * self.halo_copies
 
-    def _build_halos(self, parts, rank, size, npe):
-        """Local tables: the DSS table in local/ghost indices; for each neighbour,
-        the element copies it sends and receives (``copies``), and the owned
-        unique-node values it sends and receives (``owned``), both in global order."""
+    def _build_halos(self, parts, rank):
+        """Local tables from the rank's own nodes' rows of the global DSS table and
+        the element → rank map (no arrays over the whole grid's nodes): the DSS
+        table in local/ghost indices; for each neighbour, the element copies it
+        sends and receives (``copies``), and the owned unique-node values it sends
+        and receives (``owned``), both in global order."""
         grid = self.grid
-        gid, nodes = grid.gid, self.nodes
-        elem_rank = np.empty(grid.nelem, dtype=np.int64)
+        table, gid, N = grid.dss_table.astype(np.int64), grid.gid.astype(np.int64), grid.npts
+        elem_rank = np.empty(sum(map(len, parts)), dtype=np.int64)
         for k, p in enumerate(parts):
             elem_rank[p] = k
-        copy_rank = np.repeat(elem_rank, npe)
-        owner = copy_rank[grid.first]  # a unique node belongs to the rank of its first copy
-        loc = np.full(grid.npts, -1, dtype=np.int64)
-        loc[nodes] = np.arange(nodes.size)
-        owned = np.flatnonzero(owner == rank)
-        unique_index = np.full(grid.nunique, -1, dtype=np.int64)
-        unique_index[owned] = np.arange(owned.size)
-        touched = np.unique(gid.astype(np.int64) * size + copy_rank)  # (unique node, rank) pairs
-        t_node, t_rank = np.divmod(touched, size)
-        mine = np.zeros(grid.nunique, dtype=bool)
-        mine[gid[nodes]] = True
-        neighbours = np.unique(t_rank[mine[t_node] & (t_rank != rank)])
+        valid = table >= 0
+        copy_rank = np.where(valid, elem_rank[np.where(valid, table, 0) // grid.np**2], -1)
+        owner = copy_rank[:, 0]  # a unique node belongs to the rank of its first copy
+        owned_gid = gid[grid.first]  # ascending
         recv, send, unique_nbrs, unique_send, unique_recv = [], [], [], [], []
+        neighbours = np.unique(copy_rank[valid & (copy_rank != rank)])
         for s in neighbours:
-            shared = np.zeros(grid.nunique, dtype=bool)
-            shared[t_node[t_rank == s]] = True
-            shared &= mine
-            recv.append(np.flatnonzero((copy_rank == s) & shared[gid]))  # ascending: the global order
-            send.append(loc[nodes[shared[gid[nodes]]]])
-            out, into = np.flatnonzero(shared & (owner == rank)), np.flatnonzero(shared & (owner == s))
+            theirs = copy_rank == s
+            touched = np.any(theirs, axis=1)  # the nodes held here that s holds copies of
+            recv.append(np.unique(table[theirs]))  # ascending: the global order
+            send.append(np.flatnonzero(touched))
+            out = np.unique(gid[touched & (owner == rank)])
+            into = np.unique(gid[owner == s])
             if out.size or into.size:
-                unique_nbrs.append(s), unique_send.append(unique_index[out]), unique_recv.append(into)
+                unique_nbrs.append(s), unique_send.append(np.searchsorted(owned_gid, out)), unique_recv.append(into)
         self.copies = _Halo(neighbours, send, recv, self.device)
         self.owned = _Halo(unique_nbrs, unique_send, unique_recv, self.device)
         self.recv = np.concatenate(recv) if recv else np.zeros(0, dtype=np.int64)
-        index = loc.copy()
-        index[self.recv] = nodes.size + np.arange(self.recv.size)
-        rows = grid.dss_table[nodes]
-        self._table = np.where(rows >= 0, index[np.maximum(rows, 0)], -1)
-        if np.any((rows >= 0) & (self._table < 0)):
+        self._table = np.where(valid, _lookup(np.concatenate([grid.nodes, self.recv]), np.where(valid, table, -1)), -1)
+        if np.any(valid & (self._table < 0)):
             raise RuntimeError("a copy of a shared node is neither local nor received")
-        self._first = loc[grid.first[owned]]
-        self.area = grid.area[owned]
-        if unique_recv:
-            unique_index[np.concatenate(unique_recv)] = owned.size + np.arange(sum(map(len, unique_recv)))
-        self._gid = unique_index[gid[nodes]]
+        self._gid = _lookup(np.concatenate([owned_gid, *unique_recv]), gid)
         if np.any(self._gid < 0):
             raise RuntimeError("a node's unique value is neither owned nor received")
 
@@ -279,10 +270,6 @@ class Topology:
         return [*self._exchange(y2, self.owned), self._record(dss.scatter, self.N, [y2, self.owned.recv_buffer, self.gid, int(row), out])]
 
     # -- between the whole grid and this rank's part (numpy) ------------------------
-    def local_grid(self):
-        """The grid of this rank's elements (``GridPart``; the grid itself when whole)."""
-        return self.grid if self.N == self.npts_total else GridPart(self.grid, self.elements, self.nodes)
-
     def local(self, f: np.ndarray) -> np.ndarray:
         """This rank's part (..., N) of a whole-grid element-local field (..., npts_total)."""
         return f[..., self.nodes] if self.N != self.npts_total else f

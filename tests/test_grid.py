@@ -62,16 +62,62 @@ def test_copies_share_coordinates(ne, np_):
 @pytest.mark.parametrize("ne,np_", [(1, 3), (2, 4), (3, 7)])
 def test_dss_lists(ne, np_):
     g = cached_grid(ne, np_)
-    counts = np.diff(g.dss_offsets)
-    assert g.dss_offsets[0] == 0 and g.dss_offsets[-1] == g.npts
-    assert np.array_equal(np.sort(g.dss_copies), np.arange(g.npts))
-    assert np.array_equal(np.repeat(np.arange(g.nunique), counts), g.gid[g.dss_copies])
+    table = g.dss_table
+    counts = np.sum(table >= 0, axis=1)
+    # every row lists the copies of its node, ascending, itself among them
+    assert np.all(np.any(table == np.arange(g.npts)[:, None], axis=1))
+    rows = np.where(table >= 0, table, g.npts)
+    assert np.array_equal(np.sort(rows, axis=1), rows)
+    assert np.array_equal(g.gid[np.where(table >= 0, table, 0)][table >= 0], np.repeat(g.gid, counts))
+    assert np.array_equal(np.bincount(g.gid), counts[g.first])  # a row for each copy: the node's copy count
+    assert np.array_equal(table[:, 0], g.first[g.gid])  # the first copy leads
     # interior nodes have 1 copy, edge nodes 2, element corners 3 (cube corners) or 4
     assert set(np.unique(counts)) <= {1, 2, 3, 4}
-    assert np.sum(counts == 3) == 8
+    assert np.sum(counts[g.first] == 3) == 8
     mass = np.bincount(g.gid, weights=g.spheremp)
     assert np.allclose(g.area, mass, rtol=1e-14, atol=0)
     assert np.allclose(g.rspheremp, 1 / mass[g.gid], rtol=1e-14, atol=0)
+
+
+@pytest.mark.parametrize("ne,np_", [(1, 2), (2, 4), (3, 5), (4, 8)])
+def test_part_is_the_whole_grid_at_its_nodes_bit_for_bit(ne, np_):
+    """A grid built from some elements only (an MPI rank's) holds the whole grid's
+    values at its nodes, bit for bit; its unique nodes (``first``, ``area``) are
+    those whose first copy it holds; its halo lists the other elements' copies."""
+    g = cached_grid(ne, np_)
+    rng = np.random.default_rng(ne * 10 + np_)
+    for size in (1, g.nelem // 3 + 1, g.nelem - 1):
+        elements = np.sort(rng.choice(g.nelem, size=size, replace=False))
+        part = CubedSphere(ne, np_, elements=elements)
+        nodes = (elements[:, None] * np_**2 + np.arange(np_**2)).ravel()
+        assert np.array_equal(part.nodes, nodes) and part.nelem == size and part.npts == nodes.size
+        for name in ("xyz", "lat", "lon", "east", "north", "D", "Dinv", "metdet", "spheremp", "rspheremp", "dx", "gid"):
+            a = getattr(part, name)
+            assert a.shape[-1] == nodes.size, name  # sized by the elements held
+            assert np.array_equal(a, getattr(g, name)[..., nodes]), name
+        assert np.array_equal(part.dss_table, g.dss_table[nodes])
+        held = np.isin(g.first, nodes)
+        assert np.array_equal(part.nodes[part.first], g.first[held])
+        assert np.array_equal(part.area, g.area[held])
+        copies = np.unique(g.dss_table[nodes])
+        assert np.array_equal(part.halo, np.setdiff1d(copies[copies >= 0], nodes))
+        assert np.array_equal(part.halo_spheremp, g.spheremp[part.halo])
+
+
+def test_area_correction_is_the_quadrature_of_the_metric():
+    """The area correction takes the quadrature area from the analytic Jacobian
+    (so that every part computes the same factor); it equals Σ metdet·w of the
+    computed metric to round-off: Σ spheremp = 4πa² to a few ulps."""
+    for ne, np_ in ((1, 4), (3, 3), (8, 6)):
+        g = cached_grid(ne, np_)
+        exact = 4 * math.pi * g.radius**2
+        assert abs(float(np.sum(g.spheremp)) - exact) <= 4e-15 * exact
+
+
+def test_bad_element_lists_raise():
+    for elements in ([3, 2], [0, 0], [-1], [24], [[0, 1]]):
+        with pytest.raises(ValueError, match="elements must be ascending distinct"):
+            CubedSphere(2, 4, elements=elements)
 
 
 @pytest.mark.parametrize("ne,np_", [(1, 2), (2, 4), (3, 6), (2, 8)])

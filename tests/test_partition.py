@@ -13,10 +13,14 @@ from conftest import cached_grid
 @pytest.mark.parametrize("ne", [1, 2, 3, 4, 5, 7, 8])
 def test_curve_visits_every_element_once_through_edge_neighbours(ne):
     g = cached_grid(ne, 2)
-    order = P.sfc_order(g)
+    order = P.sfc_order(ne)
     assert np.array_equal(np.sort(order), np.arange(g.nelem))
-    nbrs = P.element_neighbours(g.gid, g.nelem)
-    assert all(len(n) == 4 for n in nbrs)  # every element of the cube has four edge neighbours
+    nbrs = P.element_neighbours(ne)
+    assert nbrs.shape == (g.nelem, 4)  # every element of the cube has four edge neighbours
+    corners = g.gid.reshape(g.nelem, 4)  # np = 2: the nodes are the corners
+    for e in range(g.nelem):  # the elements sharing two corners, and only those
+        shared = [len(set(corners[e]) & set(corners[f])) for f in range(g.nelem)]
+        assert sorted(f for f in range(g.nelem) if f != e and shared[f] == 2) == nbrs[e].tolist()
     steps = [order[k + 1] in nbrs[order[k]] for k in range(g.nelem - 1)]
     assert all(steps), f"curve jumps at {steps.index(False)}"
 
@@ -24,29 +28,27 @@ def test_curve_visits_every_element_once_through_edge_neighbours(ne):
 @pytest.mark.parametrize("ne,parts", [(2, 2), (3, 5), (4, 3), (4, 7), (5, 150)])
 def test_partition_covers_once_balanced_and_contiguous(ne, parts):
     g = cached_grid(ne, 2)
-    chunks = P.partition(g, parts)
+    chunks = P.partition(ne, parts)
     sizes = [len(c) for c in chunks]
     assert len(chunks) == parts and sum(sizes) == g.nelem
     assert max(sizes) - min(sizes) <= 1
     assert np.array_equal(np.sort(np.concatenate(chunks)), np.arange(g.nelem))
     # the chunks are consecutive pieces of the curve, in rank order
-    assert np.array_equal(np.concatenate(chunks), P.sfc_order(g))
+    assert np.array_equal(np.concatenate(chunks), P.sfc_order(ne))
 
 
 def test_edge_cut_of_whole_faces_and_halves():
     """Six parts are the six faces (the curve finishes a face before the next):
     the cut is the cube's 12 edges of ne element edges each."""
     ne = 4
-    g = cached_grid(ne, 2)
-    faces = P.partition(g, 6)
+    faces = P.partition(ne, 6)
     assert sorted(int(c.min()) // (ne * ne) for c in faces) == list(range(6))
     assert all(len(set((c // (ne * ne)).tolist())) == 1 for c in faces)
-    assert P.edge_cut(g, faces) == 12 * ne
-    assert P.edge_cut(g, P.partition(g, 1)) == 0
+    assert P.edge_cut(ne, faces) == 12 * ne
+    assert P.edge_cut(ne, P.partition(ne, 1)) == 0
 
 
 def test_bad_part_counts_raise():
-    g = cached_grid(1, 2)
     for parts in (0, 7):
         with pytest.raises(ValueError, match="cannot split 6 elements"):
-            P.partition(g, parts)
+            P.partition(1, parts)

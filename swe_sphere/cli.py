@@ -14,6 +14,7 @@ import argparse
 import math
 import os
 import sys
+import time
 from pathlib import Path
 
 EXIT_INTERNAL, EXIT_BAD_INPUT, EXIT_BLOWUP = 1, 2, 3
@@ -471,8 +472,11 @@ def main(argv=None) -> int:
             print(f"swe-sphere: {'error: ' if code in (EXIT_BAD_INPUT, EXIT_INTERNAL) else ''}{message}", file=sys.stderr)
         if comm is not None and comm.rank == 0 and code != EXIT_BAD_INPUT:
             # rank 0, the writer, may fail alone (its output): the others would wait for it
-            # forever, so it ends the job, with its exit status, once its files are closed
+            # forever, so it ends the job, with its exit status, once its files are closed.
+            # The process manager forwards stderr on its own time: aborting at once lost
+            # the line now and then (exit 3, empty stderr), so give it a moment.
             sys.stderr.flush()
+            time.sleep(0.5)
             comm.Abort(code)
         return code
 

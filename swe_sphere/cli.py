@@ -74,10 +74,13 @@ def _parser() -> argparse.ArgumentParser:
     rm.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     sw = sub.add_parser("sweep", help="error against dt against wall time for several steppers (resumable)", parents=[common])
     sw.add_argument("scene", help="scene file or bundled scene name")
-    sw.add_argument("--steppers", default="leapfrog,ssprk3,semi_implicit,implicit", help="comma-separated stepper names")
+    sw.add_argument("--steppers", help="comma-separated stepper names (default leapfrog,ssprk3,semi_implicit,implicit)")
     group = sw.add_mutually_exclusive_group()
     group.add_argument("--dt", help="comma-separated time steps in seconds")
     group.add_argument("--courant", help="comma-separated multiples of the explicit gravity-wave limit (default 0.5,1,2,5,10,30,60,100)")
+    group.add_argument("--runs", metavar="STEPPER@COURANT,...",
+                       help="only these (stepper, multiple of the gravity-wave limit) runs, e.g. rk4@1,imex@5,implicit@20, "
+                            "instead of every --steppers x --courant")
     sw.add_argument("--ne", type=int, help="elements along a cube edge")
     sw.add_argument("--np", type=int, help="GLL points per element direction (2..8)")
     sw.add_argument("--days", type=float, help="run length in days")
@@ -144,14 +147,30 @@ def _steppers(text: str) -> list[str]:
     return steppers
 
 
+def _runs(text: str) -> list[tuple[str, float]]:
+    """``--runs rk4@1,imex@5`` → [("rk4", 1.0), ("imex", 5.0)]."""
+    pairs = []
+    for item in text.split(","):
+        name, sep, factor = item.strip().partition("@")
+        if not sep:
+            raise ValueError(f"--runs needs STEPPER@COURANT pairs (got {item.strip()!r})")
+        pairs.append((_steppers(name)[0], _numbers(factor, "runs")[0]))
+    return pairs
+
+
 def _cmd_sweep(args) -> int:
     from .config import load_scene
 
-    steppers = _steppers(args.steppers)
+    if args.runs and args.steppers:
+        raise ValueError("--runs names its own steppers: give --steppers or --runs, not both")
+    pairs = _runs(args.runs) if args.runs else None  # (stepper, Courant factor)
+    steppers = list(dict.fromkeys(s for s, _ in pairs)) if pairs else _steppers(args.steppers or "leapfrog,ssprk3,semi_implicit,implicit")
     overrides = _overrides(args.set)
     scenes = {s: load_scene(args.scene, ne=args.ne, np=args.np, days=args.days, stepper=s, overrides=overrides) for s in steppers}
     dts = _numbers(args.dt, "dt") if args.dt else None
-    factors = _numbers(args.courant or "0.5,1,2,5,10,30,60,100", "courant") if dts is None else None
+    factors = sorted({f for _, f in pairs}) if pairs else None
+    if dts is None and factors is None:
+        factors = _numbers(args.courant or "0.5,1,2,5,10,30,60,100", "courant")
     base = next(iter(scenes.values()))
     time_filter, span = None, base.days  # Δt must divide span (days)
     if args.filter_days is not None:
@@ -179,7 +198,9 @@ def _cmd_sweep(args) -> int:
         start = start_state(base, args.output, device)  # a digital-filter start, made once for every run
         limits = explicit_limits(base, device, start)
         if dts is None:
-            dts = sorted({dt_for_day(f * limits["dt_gravity"], span) for f in factors})
+            dt_of = {f: dt_for_day(f * limits["dt_gravity"], span) for f in factors}
+            dts = sorted(set(dt_of.values()))
+            pairs = [(s, dt_of[f]) for s, f in pairs] if pairs else None
             capped = [f for f in factors if f * limits["dt_gravity"] > span * 86400 * (1 + 1e-9)]
             if capped and time_filter is not None:  # Δt must divide the filter's snapshot interval
                 print(f"note        --courant {','.join(f'{f:g}' for f in capped)}: dt capped at the filter's "
@@ -196,7 +217,7 @@ def _cmd_sweep(args) -> int:
             print(f"start       digital-filter initialization (cutoff {base.digital_filter.cutoff_hours:g} h, span "
                   f"{base.digital_filter.span_hours:g} h), the same state for every run; the T213 reference starts "
                   "impulsively, so the spatial error (and the verdicts' thresholds) include the gravity waves it keeps")
-        rows, info = Sweep(scenes, dts, args.output, device, time_filter=time_filter, start=start,
+        rows, info = Sweep(scenes, dts, args.output, device, time_filter=time_filter, start=start, pairs=pairs,
                            reference_dt_max=REFERENCE_MAX_GRAVITY_COURANT * limits["dt_gravity"]).run(pool)
         rows = table(rows, limits)
         print(format_summary(rows, info))

@@ -124,7 +124,9 @@ class Sweep:
     the scenes' last day (the target) and is also scored by the time-filtered
     temporal error; wall time, RHS evaluations and iterations are those to the target.
     ``start``: the whole-grid state every run starts from (``start_state``: a
-    digital-filter start made once), or None for the scenes' own."""
+    digital-filter start made once), or None for the scenes' own. ``pairs``:
+    the (stepper, Δt) runs to make, each Δt one of ``dts`` (None: every
+    stepper × every Δt)."""
 
     scenes: dict
     dts: list
@@ -134,11 +136,14 @@ class Sweep:
     time_filter: object = None
     start: np.ndarray | None = None
     reference_dt_max: float = math.inf
+    pairs: list | None = None
 
     def __post_init__(self):
         self.directory = Path(self.directory)
         (self.directory / "runs").mkdir(parents=True, exist_ok=True)
         self.base = next(iter(self.scenes.values()))
+        order = list(self.scenes)
+        self.pairs = sorted(self.pairs or [(s, dt) for s in self.scenes for dt in self.dts], key=lambda p: (order.index(p[0]), p[1]))
 
     @property
     def tag(self) -> str:
@@ -247,11 +252,10 @@ class Sweep:
         startups = {stepper: pool.submit(self.warm_up, stepper) for stepper in self.scenes}
         for future in startups.values():  # every kernel compiled before a timed run starts
             future.result()
-        runs, total = [], len(self.scenes) * len(self.dts)
-        for stepper in self.scenes:
-            for dt in self.dts:
-                self.log(f"[{len(runs) + 1}/{total}] {stepper} dt = {dt:.6g} s")
-                runs.append((stepper, pool.submit(self.run_one, stepper, dt)))
+        runs = []
+        for stepper, dt in self.pairs:
+            self.log(f"[{len(runs) + 1}/{len(self.pairs)}] {stepper} dt = {dt:.6g} s")
+            runs.append((stepper, pool.submit(self.run_one, stepper, dt)))
         rows = [{**future.result(), "startup_time": startups[stepper].result()} for stepper, future in runs]
         d = self.base.digital_filter  # in the sweep's netCDF attributes: which start the runs share
         return rows, {"spatial_error": ref["total_error"], "spatial_error_vorticity": ref["total_error_vorticity"],

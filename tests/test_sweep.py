@@ -191,3 +191,31 @@ def test_a_sweep_whose_reference_run_blows_up_exits_3_with_its_place(tmp_path, c
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and err.startswith("swe-sphere: the reference run (rk4, dt = ")
     assert "blow-up at step" in err and "model time" in err and "lat " in err
+
+
+def test_sweep_of_chosen_runs_makes_only_those(tmp_path, capsys):
+    """--runs STEPPER@COURANT,...: only the named (stepper, Δt) runs, the reference at a
+    quarter of the smallest; sweep.nc leaves the others NaN; --runs with --steppers,
+    an unknown stepper or a bad multiple exit 2 with one line."""
+    out = tmp_path / "sweep"
+    args = ["sweep", "tc2_steady", "--ne", "2", "--days", "1", "--runs", "implicit@4,ssprk3@0.5", "--device", "cpu",
+            "--output", str(out)]
+    assert main(args) == 0
+    df = pd.read_csv(out / "sweep.csv")
+    assert list(df["stepper"]) == ["implicit", "ssprk3"]  # in --runs order of first appearance, then by Δt
+    ratio = df["dt_over_gravity_limit"] / [4, 0.5]  # the largest Δt ≤ the multiple that divides a day
+    assert ((ratio > 0.9) & (ratio <= 1 + 1e-12)).all(), ratio
+    assert list(df["stable"]) == [1, 1] and (df["temporal_error"] > 0).all()
+    assert len(list((out / "runs").glob("*.json"))) == 2
+    ref = next((out / "runs").glob("reference_*.npz")).name
+    assert float(ref.split("_")[-1][:-4]) == pytest.approx(df["dt"].min() / 4, rel=1e-5)  # the name has 6 digits
+    with xr.open_dataset(out / "sweep.nc") as ds:
+        assert dict(ds.sizes) == {"stepper": 2, "dt": 2}
+        assert np.isnan(float(ds["wall_time"].sel(stepper="ssprk3", dt=df["dt"].max())))
+    capsys.readouterr()
+    for bad, word in ((["--runs", "rk4@1", "--steppers", "rk4"], "not both"), (["--runs", "euler@1"], "euler"),
+                      (["--runs", "rk4@-1"], "-1"), (["--runs", "rk4"], "STEPPER@COURANT")):
+        assert main(["sweep", "tc2_steady", "--ne", "2", *bad, "--output", str(tmp_path / "bad")]) == 2
+        err = capsys.readouterr().err.strip()
+        assert word in err and "\n" not in err, err
+    assert not (tmp_path / "bad").exists()

@@ -324,10 +324,11 @@ def _cmd_run(args) -> int:
     scene = sim.scene
     if args.restart_every is not None:
         sim.restart_steps(args.restart_every)  # checks the interval before the run
-    g = sim.grid
     c = sim.courant()
+    dx = -sim.topology.max(-float(sim.topology.grid.dx.min()))
     print(f"scene       {scene.name}: {scene.description}")
-    print(f"grid        ne={g.ne} np={g.np}: {g.nelem} elements, {g.nunique} unique nodes, min node spacing {g.dx.min() / 1e3:.1f} km")
+    print(f"grid        ne={scene.ne} np={scene.np}: {6 * scene.ne**2} elements, {sim.topology.grid.nunique} unique nodes, "
+          f"min node spacing {dx / 1e3:.1f} km")
     print(f"terms       {', '.join(scene.terms)}" + (f" (nu = {scene.nu:.3g} m^4/s, subcycle {scene.hypervis_subcycle})" if scene.nu else ""))
     print(f"stepper     {scene.stepper}, dt = {scene.dt:g} s, {scene.nsteps} steps to day {scene.days:g}, device {device}")
     if comm is not None:

@@ -234,6 +234,36 @@ def _quadrature_area(ne: int, rule, radius: float) -> float:
     return 6 * radius**2 * (dalpha / 2) ** 2 * float(np.sum(J * w[:, None] * w[None, :]))
 
 
+_CHUNK = 1 << 14  # nodes per piece of the metric's computation
+
+
+def _metric(ne: int, rule, radius: float, copies: np.ndarray, rep: np.ndarray):
+    """(xyz, lat, lon, east, north, D) of element-local nodes ``copies`` (global
+    indices) whose unique nodes' first copies are ``rep``: the position and
+    (east, north) basis are the first copy's, so every copy's agree bit for bit;
+    D (n, 2, 2) is the Jacobian of X = a P/|P| w.r.t. the element reference
+    coordinates (ξ, η) in that basis, before the area correction."""
+    alpha, beta, ea, eb, rP, xhat = _geometry(ne, rule, copies)
+    xyz = _geometry(ne, rule, rep)[-1]
+    xyz[np.abs(xyz) < 1e-15] = 0.0
+    xyz /= np.linalg.norm(xyz, axis=1)[:, None]
+    lat = np.arcsin(np.clip(xyz[:, 2], -1, 1))
+    lon = np.mod(np.arctan2(xyz[:, 1], xyz[:, 0]), 2 * math.pi)
+    east = np.stack([-np.sin(lon), np.cos(lon), np.zeros_like(lon)], axis=1)
+    north = np.stack([-np.sin(lat) * np.cos(lon), -np.sin(lat) * np.sin(lon), np.cos(lat)], axis=1)
+    dalpha = math.pi / 2 / ne
+    proj = np.eye(3)[None] - xhat[:, :, None] * xhat[:, None, :]
+    scale = radius * dalpha / 2 / rP
+    dX_dxi = scale[:, None] * np.einsum("nij,nj->ni", proj, ea / np.cos(alpha)[:, None] ** 2)
+    dX_deta = scale[:, None] * np.einsum("nij,nj->ni", proj, eb / np.cos(beta)[:, None] ** 2)
+    D = np.empty((copies.size, 2, 2))
+    D[:, 0, 0] = np.einsum("ni,ni->n", east, dX_dxi)
+    D[:, 0, 1] = np.einsum("ni,ni->n", east, dX_deta)
+    D[:, 1, 0] = np.einsum("ni,ni->n", north, dX_dxi)
+    D[:, 1, 1] = np.einsum("ni,ni->n", north, dX_deta)
+    return xyz, lat, lon, east, north, D
+
+
 def _build(ne: int, rule, radius: float, elements: np.ndarray) -> dict:
     npts = rule.np
     npe = npts * npts
@@ -246,27 +276,12 @@ def _build(ne: int, rule, radius: float, elements: np.ndarray) -> dict:
     ext = np.unique(table[valid])
     rep = np.empty(ext.size, dtype=np.int64)
     rep[np.searchsorted(ext, table[valid])] = np.broadcast_to(table[:, :1], table.shape)[valid]
-    alpha, beta, ea, eb, rP, xhat = _geometry(ne, rule, ext)
-    xyz = xhat[np.searchsorted(ext, rep)]
-    xyz[np.abs(xyz) < 1e-15] = 0.0
-    xyz /= np.linalg.norm(xyz, axis=1)[:, None]
-    lat = np.arcsin(np.clip(xyz[:, 2], -1, 1))
-    lon = np.mod(np.arctan2(xyz[:, 1], xyz[:, 0]), 2 * math.pi)
-    east = np.stack([-np.sin(lon), np.cos(lon), np.zeros_like(lon)], axis=1)
-    north = np.stack([-np.sin(lat) * np.cos(lon), -np.sin(lat) * np.sin(lon), np.cos(lat)], axis=1)
-
-    # Jacobian of X = a P/|P| w.r.t. the element reference coordinates (ξ, η).
-    dalpha = math.pi / 2 / ne
-    proj = np.eye(3)[None] - xhat[:, :, None] * xhat[:, None, :]
-    scale = radius * dalpha / 2 / rP
-    dX_dxi = scale[:, None] * np.einsum("nij,nj->ni", proj, ea / np.cos(alpha)[:, None] ** 2)
-    dX_deta = scale[:, None] * np.einsum("nij,nj->ni", proj, eb / np.cos(beta)[:, None] ** 2)
     n = ext.size
+    xyz, east, north, lat, lon = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty(n)
     D = np.empty((n, 2, 2))
-    D[:, 0, 0] = np.einsum("ni,ni->n", east, dX_dxi)
-    D[:, 0, 1] = np.einsum("ni,ni->n", east, dX_deta)
-    D[:, 1, 0] = np.einsum("ni,ni->n", north, dX_dxi)
-    D[:, 1, 1] = np.einsum("ni,ni->n", north, dX_deta)
+    for a in range(0, n, _CHUNK):  # per node: in pieces, to bound the temporaries
+        part = slice(a, a + _CHUNK)
+        xyz[part], lat[part], lon[part], east[part], north[part], D[part] = _metric(ne, rule, radius, ext[part], rep[part])
     metdet = np.linalg.det(D)
     if np.any(metdet <= 0):
         raise RuntimeError("non-positive metric determinant")

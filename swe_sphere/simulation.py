@@ -29,7 +29,7 @@ from .parallel import default_threads
 from .reference import Reference, reference_path
 from .runtime import check_memory, run_bytes
 from .steppers import StepFailure, make_stepper
-from .topology import Topology
+from .topology import Topology, rank_parts
 
 
 class BlowUp(RuntimeError):
@@ -122,31 +122,38 @@ class Simulation:
     def _build(self, scene, device, progress, comm, start):
         check_memory(run_bytes(scene.ne, scene.np, scene.stepper), f"ne={scene.ne} np={scene.np} with {scene.stepper}")
         self.scene, self.device = scene, device
-        self.grid = grid = CubedSphere(scene.ne, scene.np)
-        self.topology = topo = Topology(grid, device, default_threads(device), comm)
-        self.root = topo.comm.rank == 0  # the rank that writes files and shows progress
+        size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
+        parts = rank_parts(scene.ne, size)
+        local = CubedSphere(scene.ne, scene.np, elements=parts[rank])  # this rank's elements only
+        self.topology = topo = Topology(local, device, default_threads(device), comm, parts=parts)
+        self.root = rank == 0  # the rank that diagnoses, writes files and shows progress
         self.progress = progress and self.root
+        # the whole grid and fields for diagnostics and output: on rank 0 only (None elsewhere)
+        self.grid = None if not self.root else local if size == 1 else CubedSphere(scene.ne, scene.np)
         self.case = case = scene.make_case()
-        self.fcor = case.fcor(grid.lat, grid.lon)
-        self.hs = case.hs(grid.lat, grid.lon)
+        fcor, hs = case.fcor(local.lat, local.lon), case.hs(local.lat, local.lon)
+        self.fcor, self.hs = topo.gather(fcor), topo.gather(hs)
         self.g = case.planet.g
         self.model = ShallowWater(
-            topo.grid, scene.terms, topo.local(self.fcor), topo.local(self.hs), nu=scene.nu, nu_div=scene.nu_div, nu_s=scene.nu_s,
+            local, scene.terms, fcor, hs, nu=scene.nu, nu_div=scene.nu_div, nu_s=scene.nu_s,
             hypervis_subcycle=scene.hypervis_subcycle, g=self.g, device=device, topology=topo,
             forcing=case.forcing() if "forcing" in scene.terms else None,
         )
         self.stepper = make_stepper(scene.stepper, self.model, scene.dt, **scene.stepper_options)
         ref_path = reference_path(case)
-        self.reference = Reference(ref_path) if ref_path is not None else None
+        self.reference = Reference(ref_path) if ref_path is not None and self.root else None  # read on rank 0
+        self.reference_days = topo.bcast(self.reference.days if self.reference is not None else None)
         self.dfi = None
         if start is None:
-            start = np.stack(case.initial(grid.lat, grid.lon))
+            start = np.stack(case.initial(local.lat, local.lon))
             if scene.digital_filter is not None:
-                self.dfi = digital_filter(scene.digital_filter, topo.local(start), grid=topo.grid, terms=scene.terms,
-                                          fcor=topo.local(self.fcor), hs=topo.local(self.hs), g=self.g, device=device, topology=topo)
-        elif np.shape(start) != (3, grid.npts):
-            raise ValueError(f"start state has shape {np.shape(start)}, the grid needs {(3, grid.npts)}")
-        self.x = self.model.new_state(*(self.dfi.x if self.dfi is not None else topo.local(np.asarray(start))))
+                self.dfi = digital_filter(scene.digital_filter, start, grid=local, terms=scene.terms,
+                                          fcor=fcor, hs=hs, g=self.g, device=device, topology=topo)
+        elif np.shape(start) != (3, topo.npts_total):
+            raise ValueError(f"start state has shape {np.shape(start)}, the grid needs {(3, topo.npts_total)}")
+        else:
+            start = topo.local(np.asarray(start))
+        self.x = self.model.new_state(*(self.dfi.x if self.dfi is not None else start))
         self.last_good = wp.clone(self.x)
         self.scratch = self.model.new_state()  # a comparison wind, for its vorticity and divergence
         self.initial = None
@@ -170,8 +177,8 @@ class Simulation:
 
     def restore(self, ck: ckpt.Checkpoint) -> None:
         """Set the state, stepper history, counters and t = 0 invariants from a checkpoint."""
-        if ck.x.shape != (3, self.grid.npts):
-            raise ckpt.CheckpointError(f"checkpoint state has shape {ck.x.shape}, the grid needs {(3, self.grid.npts)}")
+        if ck.x.shape != (3, self.topology.npts_total):
+            raise ckpt.CheckpointError(f"checkpoint state has shape {ck.x.shape}, the grid needs {(3, self.topology.npts_total)}")
         self.x.assign(self.topology.local(ck.x))
         try:
             self.stepper.restore(ck.stepper_state)
@@ -188,57 +195,73 @@ class Simulation:
         return ckpt.write(path, self.scene, self.step, x, state, self.counters, self.initial, overwrite=overwrite)
 
     # -- diagnostics --------------------------------------------------------
+    # Fields are gathered on rank 0, which diagnoses the whole grid (the same
+    # arithmetic on any number of ranks) and broadcasts the figures.
     def fields(self, x=None):
-        """u, v, h (npts,) of the whole grid (gathered from every rank)."""
+        """u, v, h (npts,) of the whole grid, gathered on rank 0 (call on every rank;
+        (None, None, None) on the others)."""
         a = self.topology.gather((self.x if x is None else x).numpy())
-        return a[0], a[1], a[2]
+        return (None, None, None) if a is None else (a[0], a[1], a[2])
 
-    def vorticity(self, x=None) -> np.ndarray:
-        """Relative vorticity (npts,) of the whole grid, DSS'd (s⁻¹)."""
+    def vorticity(self, x=None) -> np.ndarray | None:
+        """Relative vorticity (npts,) of the whole grid, DSS'd (s⁻¹), on rank 0 (None elsewhere)."""
         return self.topology.gather(self.model.vorticity(self.x if x is None else x))
 
-    def divergence(self, x=None) -> np.ndarray:
-        """Divergence of the wind (npts,) of the whole grid, DSS'd (s⁻¹)."""
+    def divergence(self, x=None) -> np.ndarray | None:
+        """Divergence of the wind (npts,) of the whole grid, DSS'd (s⁻¹), on rank 0 (None elsewhere)."""
         return self.topology.gather(self.model.wind_divergence(self.x if x is None else x))
 
     def diagnose(self, t: float, x=None) -> dict:
-        """Invariants (and their relative change), errors against the exact solution if any."""
+        """Invariants (and their relative change), errors against the exact solution
+        and the reference if any, on every rank (call on every rank)."""
         u, v, h = self.fields(x)
         zeta = self.vorticity(x)
-        d = invariants(self.grid, u, v, h, self.hs, zeta, self.fcor, self.g)
-        if not self.case.h_is_depth:  # h is a tracer (TC1): only its mass is an invariant
-            d = {"mass": d["mass"]}
-        start = self.initial or d  # diagnosing the initial state itself
-        for k in list(d):
-            d[f"{k}_change"] = (d[k] - start[k]) / abs(start[k])
+        local, state = self.topology.grid, (self.x if x is None else x).numpy()
+        split = ref_split = None  # the wind errors' rotational/divergent parts (collective)
         if self.case.exact_solution:
-            ue, ve, he = self.case.exact(self.grid.lat, self.grid.lon, t)
-            d.update({f"{k}_h": val for k, val in williamson_norms(self.grid, h, he).items()})
-            d.update({f"{k}_wind": val for k, val in williamson_vector_norms(self.grid, u, v, ue, ve).items()})
-            d.update(self.wind_error_decomposition(u, v, ue, ve))
-        if self.reference is not None:
-            d.update(self._reference_errors(t / DAY, u, v, h))
-        d.update(courant_numbers(self.grid, u, v, h, self.scene.dt, self.g, "pressure_gradient" in self.scene.terms))
-        return d
+            ue, ve, _ = self.case.exact(local.lat, local.lon, t)
+            split = self.wind_error_decomposition(state[0], state[1], ue, ve)
+        r = None  # the reference interpolated to the whole grid, on rank 0, at a day it stores
+        if self.reference_days is not None and np.min(np.abs(self.reference_days - t / DAY)) <= 1e-6:
+            r = self.reference.at(t / DAY, self.grid.lat, self.grid.lon) if self.root else None
+            ur, vr = self.topology.distribute(np.stack([r["u"], r["v"]]) if self.root else None)
+            ref_split = self.wind_error_decomposition(state[0], state[1], ur, vr)
+        d = None
+        if self.root:
+            d = invariants(self.grid, u, v, h, self.hs, zeta, self.fcor, self.g)
+            if not self.case.h_is_depth:  # h is a tracer (TC1): only its mass is an invariant
+                d = {"mass": d["mass"]}
+            start = self.initial or d  # diagnosing the initial state itself
+            for k in list(d):
+                d[f"{k}_change"] = (d[k] - start[k]) / abs(start[k])
+            if self.case.exact_solution:
+                ue, ve, he = self.case.exact(self.grid.lat, self.grid.lon, t)
+                d.update({f"{k}_h": val for k, val in williamson_norms(self.grid, h, he).items()})
+                d.update({f"{k}_wind": val for k, val in williamson_vector_norms(self.grid, u, v, ue, ve).items()})
+                d.update(split)
+            if self.reference is not None:
+                d.update(self._reference_errors(u, v, h, r, ref_split))
+            d.update(courant_numbers(self.grid, u, v, h, self.scene.dt, self.g, "pressure_gradient" in self.scene.terms))
+        return self.topology.bcast(d)
 
-    def _reference_errors(self, day, u, v, h) -> dict:
+    def _reference_errors(self, u, v, h, r, split) -> dict:
         """Normalized errors of the free surface h + hs and of the wind against the
-        T213 reference (NaN at days the reference does not store)."""
+        T213 reference ``r`` on the whole grid, with the wind error's parts ``split``
+        (NaN at days the reference does not store: ``r`` None)."""
         names = [f"ref_{k}_{f}" for f in ("h_surface", "wind") for k in ("l1", "l2", "linf")]
         names += ["ref_l2_vorticity", "ref_l2_divergence"]
-        if np.min(np.abs(self.reference.days - day)) > 1e-6:
+        if r is None:
             return dict.fromkeys(names, float("nan"))
-        r = self.reference.at(day, self.grid.lat, self.grid.lon)
         out = {f"ref_{k}_h_surface": val for k, val in williamson_norms(self.grid, h + self.hs, r["h_surface"]).items()}
         out.update({f"ref_{k}_wind": val for k, val in williamson_vector_norms(self.grid, u, v, r["u"], r["v"]).items()})
-        out.update({f"ref_{k}": val for k, val in self.wind_error_decomposition(u, v, r["u"], r["v"]).items()})
+        out.update({f"ref_{k}": val for k, val in split.items()})
         return out
 
     def rotation_divergence(self, u, v) -> tuple[np.ndarray, np.ndarray]:
-        """Relative vorticity and divergence (s⁻¹, (npts,) each) of a continuous wind
-        on the whole grid (m s⁻¹, (npts,) each), by the model's operators + DSS
+        """Relative vorticity and divergence (s⁻¹, (npts,) each, whole grid, on rank 0;
+        None elsewhere) of a continuous wind given on this rank's nodes (m s⁻¹,
+        (N,) each; the whole grid on one rank), by the model's operators + DSS
         (call on every rank)."""
-        u, v = self.topology.local(u), self.topology.local(v)
         self.scratch.assign(np.stack([u, v, np.zeros_like(u)]))
         return self.vorticity(self.scratch), self.divergence(self.scratch)
 
@@ -247,8 +270,10 @@ class Simulation:
         rotational (balanced-flow) and divergent (gravity-wave) parts, as the
         vorticity and divergence of v − vT by the model's operators (one operator
         on both sides, so the derivative's own discretisation error cancels),
-        normalized as in ``diagnostics.rotational_divergent_errors``."""
-        return rotational_divergent_errors(self.grid, *self.rotation_divergence(u - u_true, v - v_true), *self.rotation_divergence(u_true, v_true))
+        normalized as in ``diagnostics.rotational_divergent_errors``. Winds on
+        this rank's nodes (N,) (call on every rank); the figures on every rank."""
+        err, true = self.rotation_divergence(u - u_true, v - v_true), self.rotation_divergence(u_true, v_true)
+        return self.topology.bcast(rotational_divergent_errors(self.grid, *err, *true) if self.root else None)
 
     def stability_warning(self) -> str | None:
         """A one-line warning when an explicit stepper's Δt exceeds its measured
@@ -263,8 +288,11 @@ class Simulation:
                 f"(dt <= {self.scene.dt * limit / speed:.4g} s keeps below)")
 
     def courant(self) -> dict:
-        """Advective and gravity-wave Courant numbers of the scene's dt on the current state."""
-        return courant_numbers(self.grid, *self.fields(), self.scene.dt, self.g, "pressure_gradient" in self.scene.terms)
+        """Advective and gravity-wave Courant numbers of the scene's dt on the current
+        state (call on every rank)."""
+        u, v, h = self.fields()
+        c = courant_numbers(self.grid, u, v, h, self.scene.dt, self.g, "pressure_gradient" in self.scene.terms) if self.root else None
+        return self.topology.bcast(c)
 
     # -- the loop -----------------------------------------------------------
     def output_steps(self) -> set[int]:
@@ -454,10 +482,13 @@ class Simulation:
         return result
 
     def _blowup_message(self, step: int, p: int) -> str:
+        """Where node p (whole-grid index) went bad, on every rank (call on every rank)."""
         u, v, h = self.fields()
+        if not self.root:
+            return self.topology.bcast(None)
         lat, lon = np.degrees(self.grid.lat[p]), np.degrees(self.grid.lon[p])
         what = "non-finite value" if not all(math.isfinite(f[p]) for f in (u, v, h)) else f"depth h = {h[p]:.4g} m <= 0"
-        return (
+        return self.topology.bcast(
             f"blow-up at step {step} (model time {step * self.scene.dt / DAY:.4f} days): {what} "
             f"at lat {lat:.2f}, lon {lon:.2f} degrees"
         )

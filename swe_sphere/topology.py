@@ -43,6 +43,9 @@ class SerialComm:
     def allgather(self, value):
         return [value]
 
+    def bcast(self, value, root=0):
+        return value
+
 
 def _ops(comm):
     """(SUM, MAX, MIN) reduction operations of ``comm``."""
@@ -123,6 +126,7 @@ class Topology:
     threads : CPU threads a launch is split over (``swe_sphere.parallel``).
     comm : an mpi4py communicator, or None (``SerialComm()``: all elements here).
         With several ranks, rank k holds chunk k of ``partition.partition``.
+    parts : ``rank_parts(grid.ne, comm.size)`` when the caller has it already.
 
     Unique-node vectors (what the Krylov solvers iterate on) are distributed:
     a unique node belongs to the rank of its first copy in the grid's order,
@@ -152,7 +156,7 @@ class Topology:
     Raises ValueError on a CUDA device with more than one rank (CPU only so far).
     """
 
-    def __init__(self, grid, device: str = "cpu", threads: int = 1, comm=None):
+    def __init__(self, grid, device: str = "cpu", threads: int = 1, comm=None, parts=None):
         self.device, self.threads = device, int(threads)
         self.comm = comm if comm is not None else SerialComm()
         self._sum, self._max, self._min = _ops(self.comm)
@@ -160,7 +164,7 @@ class Topology:
         self.distributed = size > 1
         if size > 1 and not wp.get_device(device).is_cpu:
             raise ValueError("runs over several MPI ranks are CPU-only so far (use --device cpu)")
-        self.parts = parts = rank_parts(grid.ne, size)
+        self.parts = parts = rank_parts(grid.ne, size) if parts is None else parts
         if not np.array_equal(grid.elements, parts[rank]):
             grid = CubedSphere(grid.ne, grid.np, grid.radius, elements=parts[rank])
         self.grid = grid
@@ -274,15 +278,46 @@ class Topology:
         """This rank's part (..., N) of a whole-grid element-local field (..., npts_total)."""
         return f[..., self.nodes] if self.N != self.npts_total else f
 
-    def gather(self, a: np.ndarray) -> np.ndarray:
-        """The whole-grid field (..., npts_total) from every rank's part (..., N), on every rank."""
-        if self.N == self.npts_total:
-            return a
+    def _part_nodes(self, k: int) -> np.ndarray:
+        """The whole-grid element-local indices of rank k's nodes, in its order."""
         npe = self.grid.np**2
-        out = np.empty(a.shape[:-1] + (self.npts_total,), dtype=a.dtype)
-        for elements, part in zip(self.parts, self.comm.allgather(a)):
-            out[..., (elements[:, None] * npe + np.arange(npe)).ravel()] = part
+        return (self.parts[k][:, None] * npe + np.arange(npe)).ravel()
+
+    def gather(self, a: np.ndarray) -> np.ndarray | None:
+        """The whole-grid field (..., npts_total) from every rank's part (..., N), on
+        rank 0 (``Gatherv``; call on every rank); None on the other ranks. On one
+        process, ``a`` itself."""
+        if not self.distributed:
+            return a
+        a = np.ascontiguousarray(a, dtype=np.float64)
+        counts = [a.size // self.N * p.size * self.grid.np**2 for p in self.parts]
+        flat = np.empty(sum(counts)) if self.comm.rank == 0 else None
+        self.comm.Gatherv(a, [flat, counts] if flat is not None else None, root=0)
+        if flat is None:
+            return None
+        out = np.empty(a.shape[:-1] + (self.npts_total,))
+        for k, piece in enumerate(np.split(flat, np.cumsum(counts)[:-1])):
+            out[..., self._part_nodes(k)] = piece.reshape(a.shape[:-1] + (-1,))
         return out
+
+    def distribute(self, whole: np.ndarray | None) -> np.ndarray:
+        """This rank's part (..., N) of a whole-grid field (..., npts_total) given on
+        rank 0 (``Scatterv``; call on every rank; ``whole`` is read on rank 0 only).
+        On one process, ``whole`` itself."""
+        if not self.distributed:
+            return whole
+        lead = self.bcast(np.shape(whole)[:-1] if self.comm.rank == 0 else None)
+        counts = [int(np.prod(lead, dtype=np.int64)) * p.size * self.grid.np**2 for p in self.parts]
+        flat = None
+        if self.comm.rank == 0:
+            flat = np.concatenate([np.asarray(whole, dtype=np.float64)[..., self._part_nodes(k)].ravel() for k in range(len(self.parts))])
+        out = np.empty(tuple(lead) + (self.N,))
+        self.comm.Scatterv([flat, counts] if flat is not None else None, out, root=0)
+        return out
+
+    def bcast(self, value):
+        """Rank 0's ``value`` (any picklable object) on every rank."""
+        return self.comm.bcast(value, root=0)
 
     def first_node(self, local: int | None) -> int | None:
         """The smallest whole-grid node index over all ranks of a local node index

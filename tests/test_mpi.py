@@ -72,10 +72,14 @@ FIELDS = ("u", "v", "h", "vorticity", "mass", "total_energy", "potential_enstrop
 
 
 def assert_same_bits(a: Path, b: Path) -> None:
+    """The fields and every diagnostic series (errors against exact solutions and
+    the T213 reference included), timings aside, are the same bits."""
     with xr.open_dataset(a) as x, xr.open_dataset(b) as y:
         assert x.sizes["time"] == y.sizes["time"] >= 2
-        for name in FIELDS:
-            assert np.array_equal(x[name].values, y[name].values), name
+        assert set(FIELDS) <= set(x.data_vars) and set(x.data_vars) == set(y.data_vars)
+        for name in x.data_vars:
+            if name != "wall_time":
+                assert np.array_equal(x[name].values, y[name].values, equal_nan=x[name].dtype.kind == "f"), name
         assert y.attrs["mpi_ranks"] > x.attrs["mpi_ranks"] == 1
 
 
@@ -86,8 +90,8 @@ def assert_same_bits(a: Path, b: Path) -> None:
         ("tc2_steady", ["--stepper", "rk4", "--days", "0.25"]),
         ("tc5_mountain", ["--days", "0.1"]),  # leapfrog-trapezoidal with hyperviscosity and topography
         ("tc4_forced_low", ["--days", "0.25"]),  # ssprk3 with the time-dependent forcing
-        ("tc5_mountain", ["--stepper", "rk4", "--dt", "3600", "--days", "0.25", "-s", "case.initialization=dfi",
-                          "-s", "dfi.cutoff_hours=6", "-s", "dfi.span_hours=12"]),  # a digital-filter start on every rank
+        ("tc5_mountain", ["--stepper", "rk4", "--dt", "3600", "--days", "1", "-s", "case.initialization=dfi",
+                          "-s", "dfi.cutoff_hours=6", "-s", "dfi.span_hours=12"]),  # a digital-filter start; T213 errors at day 1
     ],
 )
 def test_explicit_run_same_bits_on_1_2_3_ranks(tmp_path, scene, extra):

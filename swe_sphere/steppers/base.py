@@ -109,8 +109,10 @@ class Stepper:
         return state[key]
 
     def _save(self, a: wp.array) -> np.ndarray:
-        """A whole-grid copy of a (rows, N) array (gathered from every rank)."""
-        return self.model.topology.gather(a.numpy()).copy()
+        """A whole-grid copy of a (rows, N) array, gathered from every rank on rank 0
+        (call on every rank; None on the others)."""
+        whole = self.model.topology.gather(a.numpy())
+        return None if whole is None else whole.copy()
 
     def _load(self, a: wp.array, state, key) -> None:
         values = np.asarray(self._entry(state, key), dtype=np.float64)

@@ -197,7 +197,7 @@ class GravityWave:
         """The mean depth (0 until fixed) and, with ``warm``, the last solution: a
         height, stored element-local in row 2 of a (3, N) array like a state."""
         s = {"mean_depth": self.H}
-        if self.warm:  # whole-grid, gathered from every rank (call on all)
+        if self.warm:  # whole-grid, gathered from every rank on rank 0 (call on all)
             topo = self.model.topology
             guess = wp.zeros((3, self.model.N), dtype=f64, device=self.model.device)
             for launch in topo.scatter(self.y, guess, 2):

@@ -293,7 +293,7 @@ class ShallowWater:
         dx/dt = −ν∇⁴x is stable for max(ν, ν_div, ν_s) Δt λ ≤ 2."""
         if getattr(self, "_biharmonic_radius", None) is None:
             rng = np.random.default_rng(0)
-            z = self.topology.local(rng.standard_normal((3, self.topology.npts_total)))  # the same vector on any ranks
+            z = self.topology.standard_normal(rng, 3)  # the same vector on any ranks
             z = wp.array(z, dtype=f64, device=self.device)
             w, zc = wp.zeros_like(z), wp.zeros_like(z)
             for launch in self._dss(z, 1, zc):

@@ -129,7 +129,7 @@ class Simulation:
         self.root = rank == 0  # the rank that diagnoses, writes files and shows progress
         self.progress = progress and self.root
         # the whole grid and fields for diagnostics and output: on rank 0 only (None elsewhere)
-        self.grid = None if not self.root else local if size == 1 else CubedSphere(scene.ne, scene.np)
+        self.grid = topo.whole_grid()
         self.case = case = scene.make_case()
         fcor, hs = case.fcor(local.lat, local.lon), case.hs(local.lat, local.lon)
         self.fcor, self.hs = topo.gather(fcor), topo.gather(hs)

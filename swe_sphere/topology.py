@@ -56,6 +56,25 @@ def _ops(comm):
     return MPI.SUM, MPI.MAX, MPI.MIN
 
 
+class GatheredGrid:
+    """The whole grid as rank 0 diagnoses and writes it, gathered from the ranks'
+    parts rather than built (no metric, no DSS tables): ne, np, radius, rule,
+    nelem, npts, nunique; lat, lon, spheremp, dx (npts,) and gid (npts,) int32;
+    first (nunique,) int32 and area (nunique,); ``integrate`` and ``to_unique``
+    as ``CubedSphere``'s, whose values these are, bit for bit."""
+
+    nunique = CubedSphere.nunique
+    integrate = CubedSphere.integrate
+    to_unique = CubedSphere.to_unique
+
+    def __init__(self, part, fields: np.ndarray, first: np.ndarray, area: np.ndarray):
+        self.ne, self.np, self.radius, self.rule = part.ne, part.np, part.radius, part.rule
+        self.nelem, self.npts = 6 * part.ne**2, fields.shape[1]
+        self.lat, self.lon, self.spheremp, self.dx = fields[:4]
+        self.gid = fields[4].astype(np.int32)
+        self.first, self.area = first.astype(np.int32), area
+
+
 def rank_parts(ne: int, size: int) -> list[np.ndarray]:
     """The elements of each of ``size`` ranks, ascending: all of them on one rank,
     else the chunks of ``partition.partition``."""
@@ -315,9 +334,36 @@ class Topology:
         self.comm.Scatterv([flat, counts] if flat is not None else None, out, root=0)
         return out
 
+    def whole_grid(self):
+        """The whole grid on rank 0 (None elsewhere; call on every rank): the grid
+        itself on one process, else a ``GatheredGrid`` of the ranks' parts."""
+        if not self.distributed:
+            return self.grid
+        g = self.grid
+        fields = self.gather(np.stack([g.lat, g.lon, g.spheremp, g.dx, g.gid]))
+        owned = self.comm.gather((g.nodes[g.first], g.area), root=0)  # each unique node from its first copy's rank
+        if fields is None:
+            return None
+        first, area = (np.concatenate(a) for a in zip(*owned))
+        order = np.argsort(first)  # the first copies' order is the unique nodes' (gid) order
+        return GatheredGrid(g, fields, first[order], area[order])
+
     def bcast(self, value):
         """Rank 0's ``value`` (any picklable object) on every rank."""
         return self.comm.bcast(value, root=0)
+
+    def standard_normal(self, rng: np.random.Generator, rows: int) -> np.ndarray:
+        """This rank's part (rows, N) of ``rng.standard_normal((rows, npts_total))``:
+        the stream drawn in pieces (numpy's generators give the same numbers
+        however a stream is split), so no rank holds the whole array."""
+        wanted = (np.arange(rows)[:, None] * self.npts_total + self.nodes).ravel()  # ascending
+        out, start, chunk = np.empty(wanted.size), 0, 1 << 16
+        for lo in range(0, rows * self.npts_total, chunk):
+            draw = rng.standard_normal(min(chunk, rows * self.npts_total - lo))
+            stop = np.searchsorted(wanted, lo + draw.size)
+            out[start:stop] = draw[wanted[start:stop] - lo]
+            start = stop
+        return out.reshape(rows, self.N)
 
     def first_node(self, local: int | None) -> int | None:
         """The smallest whole-grid node index over all ranks of a local node index

@@ -153,3 +153,15 @@ def test_partitioned_unique_vectors_are_the_serial_ones(ranks, rng):
     for t, out in zip(topos, outs):
         assert np.array_equal(out.numpy()[1:], u[:, g.gid[t.nodes]])
     assert sum(float(p.numpy() @ p.numpy()) for p in parts) == pytest.approx(float(np.sum(u * u)), rel=1e-14)
+
+
+@pytest.mark.parametrize("ranks", [1, 2, 3, 7])
+def test_each_rank_draws_its_part_of_one_random_vector(ranks):
+    """``standard_normal`` draws the whole stream in pieces and keeps the rank's
+    nodes: the parts are the whole-grid vector's, bit for bit (the hyperviscosity
+    estimate's start vector is the same on any number of ranks)."""
+    g = cached_grid(5, 4)
+    whole = np.random.default_rng(0).standard_normal((3, g.npts))
+    for r in range(ranks):
+        t = Topology(g, "cpu", 1, RankOf(r, ranks))
+        assert np.array_equal(t.standard_normal(np.random.default_rng(0), 3), whole[:, t.nodes])

@@ -16,7 +16,7 @@ not a checkpoint, was written by another swe_sphere version, or is damaged.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import netCDF4
@@ -78,6 +78,29 @@ def write(path, scene: Scene, step: int, x: np.ndarray, stepper_state: dict, cou
                 else:
                     ds.setncattr(f"stepper_{key}", value)
     return path
+
+
+def read_on_root(path, comm) -> Checkpoint:
+    """``read`` on rank 0 of ``comm`` (None or one rank: ``read``): the other ranks
+    get the checkpoint without its whole-grid arrays (x and the stepper's arrays
+    None), which rank 0 hands out (``Topology.distribute``), so no other rank holds
+    the whole state. Raises what ``read`` raises, on every rank."""
+    if comm is None or comm.size == 1:
+        return read(path)
+    ck = error = None
+    if comm.rank == 0:
+        try:
+            ck = read(path)
+        except Exception as err:  # every rank must raise it, or the others wait for rank 0 forever
+            error = err
+    error = comm.bcast(error, root=0)
+    if error is not None:
+        raise error
+    light = None
+    if comm.rank == 0:
+        light = replace(ck, x=None, stepper_state={k: None if isinstance(v, np.ndarray) else v for k, v in ck.stepper_state.items()})
+    light = comm.bcast(light, root=0)
+    return ck if comm.rank == 0 else light
 
 
 def read(path) -> Checkpoint:

@@ -276,7 +276,7 @@ def _continued(args, device, comm):
     from .config import load_scene
     from .simulation import Simulation
 
-    ck = checkpoint.read(args.continue_from)
+    ck = checkpoint.read_on_root(args.continue_from, comm)  # the whole state on rank 0 only
     for flag, value, have in (("--ne", args.ne, ck.scene.ne), ("--np", args.np, ck.scene.np), ("--dt", args.dt, ck.scene.dt),
                               ("--stepper", args.stepper, ck.scene.stepper)):
         if value is not None and value != have:

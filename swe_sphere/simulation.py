@@ -32,6 +32,9 @@ from .steppers import StepFailure, make_stepper
 from .topology import Topology, rank_parts
 
 
+ON_ROOT = object()  # ``start`` on the ranks > 0 when rank 0 alone holds the whole-grid start state
+
+
 class BlowUp(RuntimeError):
     """The state became non-finite or the depth non-positive; the message gives step, time and place."""
 
@@ -149,10 +152,11 @@ class Simulation:
             if scene.digital_filter is not None:
                 self.dfi = digital_filter(scene.digital_filter, start, grid=local, terms=scene.terms,
                                           fcor=fcor, hs=hs, g=self.g, device=device, topology=topo)
-        elif np.shape(start) != (3, topo.npts_total):
-            raise ValueError(f"start state has shape {np.shape(start)}, the grid needs {(3, topo.npts_total)}")
         else:
-            start = topo.local(np.asarray(start))
+            shape = topo.bcast(np.shape(start))  # rank 0's: it hands the state out
+            if shape != (3, topo.npts_total):
+                raise ValueError(f"start state has shape {shape}, the grid needs {(3, topo.npts_total)}")
+            start = topo.distribute(None if start is ON_ROOT else np.asarray(start, dtype=np.float64))
         self.x = self.model.new_state(*(self.dfi.x if self.dfi is not None else start))
         self.last_good = wp.clone(self.x)
         self.scratch = self.model.new_state()  # a comparison wind, for its vorticity and divergence
@@ -167,19 +171,21 @@ class Simulation:
         """A simulation that continues a restart file (path or ``checkpoint.Checkpoint``),
         to ``days`` (from t = 0; default the checkpointed scene's). Raises
         ``checkpoint.CheckpointError`` or ``config.SceneError`` (one line)."""
-        ck = checkpoint if isinstance(checkpoint, ckpt.Checkpoint) else ckpt.read(checkpoint)
+        ck = checkpoint if isinstance(checkpoint, ckpt.Checkpoint) else ckpt.read_on_root(checkpoint, comm)
         scene = ck.scene if days is None else with_days(ck.scene, days)
         if scene.nsteps < ck.step:
             raise ckpt.CheckpointError(f"the run length {scene.days:g} days ends before the checkpoint (day {ck.step * scene.dt / DAY:g})")
-        sim = cls(scene, device, progress=progress, comm=comm, start=ck.x)  # no second digital filter
+        start = ON_ROOT if ck.x is None else ck.x  # ranks > 0 of ``read_on_root`` have no arrays
+        sim = cls(scene, device, progress=progress, comm=comm, start=start)  # no second digital filter
         sim.restore(ck)
         return sim
 
     def restore(self, ck: ckpt.Checkpoint) -> None:
         """Set the state, stepper history, counters and t = 0 invariants from a checkpoint."""
-        if ck.x.shape != (3, self.topology.npts_total):
-            raise ckpt.CheckpointError(f"checkpoint state has shape {ck.x.shape}, the grid needs {(3, self.topology.npts_total)}")
-        self.x.assign(self.topology.local(ck.x))
+        shape = self.topology.bcast(np.shape(ck.x))  # rank 0's (see ``checkpoint.read_on_root``)
+        if shape != (3, self.topology.npts_total):
+            raise ckpt.CheckpointError(f"checkpoint state has shape {shape}, the grid needs {(3, self.topology.npts_total)}")
+        self.x.assign(self.topology.distribute(ck.x))
         try:
             self.stepper.restore(ck.stepper_state)
         except ValueError as err:

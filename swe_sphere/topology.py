@@ -293,10 +293,6 @@ class Topology:
         return [*self._exchange(y2, self.owned), self._record(dss.scatter, self.N, [y2, self.owned.recv_buffer, self.gid, int(row), out])]
 
     # -- between the whole grid and this rank's part (numpy) ------------------------
-    def local(self, f: np.ndarray) -> np.ndarray:
-        """This rank's part (..., N) of a whole-grid element-local field (..., npts_total)."""
-        return f[..., self.nodes] if self.N != self.npts_total else f
-
     def _part_nodes(self, k: int) -> np.ndarray:
         """The whole-grid element-local indices of rank k's nodes, in its order."""
         npe = self.grid.np**2

@@ -121,6 +121,17 @@ def test_run_on_two_ranks_continues_on_three(tmp_path):
             assert np.array_equal(whole[name].values[-1], rest[name].values[-1]), name
 
 
+@pytest.mark.usefixtures("needs_mpi")
+def test_unreadable_restart_file_refused_by_every_rank_in_one_line(tmp_path):
+    """Rank 0 alone reads a restart file (the others get its parts from it); when it
+    cannot, every rank refuses: one line, exit 2, no output, no hang."""
+    (tmp_path / "junk.nc").write_text("junk")
+    proc = mpirun(2, ["run", "--continue", "junk.nc", "--output", "o.nc", "--no-progress"], tmp_path)
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert proc.stderr.count("junk.nc: not a readable netCDF file") == 1 and len(proc.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "o.nc").exists()
+
+
 def relative_difference(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     """max |Δ wind| / max |wind| and max |Δh| / max |h| of two (u, v, h) states."""
     wind = np.hypot(a[0] - b[0], a[1] - b[1]).max() / np.hypot(a[0], a[1]).max()

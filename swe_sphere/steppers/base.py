@@ -115,11 +115,13 @@ class Stepper:
         return None if whole is None else whole.copy()
 
     def _load(self, a: wp.array, state, key) -> None:
-        values = np.asarray(self._entry(state, key), dtype=np.float64)
-        shape = (a.shape[0], self.model.topology.npts_total)
-        if values.shape != shape:
-            raise ValueError(f"{self.name} stepper state {key!r} has shape {values.shape}, expected {shape}")
-        a.assign(self.model.topology.local(values))
+        """Set a (rows, N) array from a whole-grid entry of ``state`` (read on rank 0
+        when several ranks: None on the others; call on every rank)."""
+        topo, values = self.model.topology, self._entry(state, key)
+        shape, expected = topo.bcast(np.shape(values)), (a.shape[0], topo.npts_total)
+        if shape != expected:
+            raise ValueError(f"{self.name} stepper state {key!r} has shape {shape}, expected {expected}")
+        a.assign(topo.distribute(None if values is None else np.asarray(values, dtype=np.float64)))
 
     # -- stepping ----------------------------------------------------------------------
     def step(self, x: wp.array2d) -> StepStats:

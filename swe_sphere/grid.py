@@ -115,10 +115,12 @@ def _elements(nelem: int, elements) -> np.ndarray:
     return e
 
 
-class Numbering:
-    """The cube's unique nodes for ne, np from its topology, in exact integer
-    arithmetic (no search over coordinates), held for the elements' boundary
-    ("ring") nodes only (6·ne²·4(np−1) entries; interior nodes have one copy).
+def _lattice_groups(ne: int, npts: int, elements: np.ndarray, positions: np.ndarray):
+    """The coincident copies among nodes ``positions`` (p = j·np + i) of ``elements``
+    (ascending), from the cube's topology in exact integer arithmetic (no search
+    over coordinates): (group (E, P) of each node, members (groups, most copies)
+    global indices e·np² + p ascending and −1-padded, lead (E, P): the node is its
+    group's first (smallest) copy).
 
     Node (i, j) of element (face, jb, ia) sits at lattice point (k, l) =
     (ia·(np−1) + i, jb·(np−1) + j) of its face, 0 ≤ k, l ≤ M = ne·(np−1),
@@ -126,81 +128,104 @@ class Numbering:
     scaled by M (c, ea, eb the face's axis vectors). The lattice coordinate of
     an angle is odd about the face centre (the element edges and the GLL points
     are symmetric), so every copy of a node on a cube edge or corner, seen from
-    any face, lands on the same integer point, and only those do. Unique nodes
-    are numbered in the order of their first copies (smallest global index):
-    an element's count of nodes first seen there is topological, so a prefix
-    sum over elements gives any node's number without the others' nodes.
+    any face, lands on the same integer point, and only those do."""
+    M, P = ne * (npts - 1), positions.size
+    face, rest = np.divmod(elements, ne * ne)
+    jb, ia = np.divmod(rest, ne)
+    k = ia[:, None] * (npts - 1) + positions % npts
+    l = jb[:, None] * (npts - 1) + positions // npts
+    F = _FACES.astype(np.int64)[face][:, None]  # (E, 1, 3, 3)
+    Q = M * F[..., 0, :] + (2 * k - M)[..., None] * F[..., 1, :] + (2 * l - M)[..., None] * F[..., 2, :] + M  # in [0, 2M]
+    key = ((Q[..., 0] * (2 * M + 1) + Q[..., 1]) * (2 * M + 1) + Q[..., 2]).ravel()
+    order = np.argsort(key, kind="stable")  # by point, then ascending global index
+    sk = key[order]
+    starts = np.concatenate(([True], sk[1:] != sk[:-1]))
+    sorted_group = np.cumsum(starts) - 1
+    pos = np.arange(order.size) - np.flatnonzero(starts)[sorted_group]  # place among its point's copies
+    group, lead = np.empty(order.size, dtype=np.int64), np.empty(order.size, dtype=bool)
+    group[order], lead[order] = sorted_group, starts
+    members = np.full((int(sorted_group[-1]) + 1, int(pos.max()) + 1), -1, dtype=np.int64)
+    members[sorted_group, pos] = elements[order // P] * npts * npts + positions[order % P]
+    return group.reshape(-1, P), members, lead.reshape(-1, P)
+
+
+_EDGE_CORNERS = ((0, 1), (1, 3), (2, 3), (0, 2))  # edges j = 0, i = np−1, j = np−1, i = 0 by corner c = 2·[j>0] + [i>0]
+
+
+class Numbering:
+    """The cube's unique nodes for ne, np, numbered in the order of their first
+    copies (smallest global index e·np² + p), from the cube's topology.
+
+    An element's nodes first seen there are its (np−2)² interior nodes, the
+    inner nodes of each edge it shares with a higher-numbered element, and the
+    corners where it is the lowest-numbered element: so the count per element,
+    hence (prefix sum) the number of any node, comes from the element corners'
+    coincidences (``_lattice_groups`` at np = 2) alone, arrays of 6·ne²·4 entries.
+    The copies of the nodes of some elements come from the lattice points of
+    those elements and of their corner neighbours only.
     """
 
     def __init__(self, ne: int, npts: int):
         self.ne, self.np = ne, npts
-        npe, nelem, M = npts * npts, 6 * ne * ne, ne * (npts - 1)
+        nelem, last = 6 * ne * ne, npts - 1
         i, j = np.tile(np.arange(npts), npts), np.repeat(np.arange(npts), npts)  # node p = j·np + i
-        interior = (i > 0) & (i < npts - 1) & (j > 0) & (j < npts - 1)
+        interior = (i > 0) & (i < last) & (j > 0) & (j < last)
         self.ring = ring = np.flatnonzero(~interior)  # ascending p
-        R = ring.size
-        face, rest = np.divmod(np.arange(nelem), ne * ne)
-        jb, ia = np.divmod(rest, ne)
-        k = ia[:, None] * (npts - 1) + i[ring]
-        l = jb[:, None] * (npts - 1) + j[ring]
-        F = _FACES.astype(np.int64)[face][:, None]  # (nelem, 1, 3, 3)
-        Q = M * F[..., 0, :] + (2 * k - M)[..., None] * F[..., 1, :] + (2 * l - M)[..., None] * F[..., 2, :] + M  # in [0, 2M]
-        key = ((Q[..., 0] * (2 * M + 1) + Q[..., 1]) * (2 * M + 1) + Q[..., 2]).ravel()
-        order = np.argsort(key, kind="stable")  # by point, then ascending global index
-        sk = key[order]
-        starts = np.concatenate(([True], sk[1:] != sk[:-1]))
-        group = np.cumsum(starts) - 1
-        pos = np.arange(order.size) - np.flatnonzero(starts)[group]  # place among its point's copies
-        self.group = np.empty(order.size, dtype=np.int64)
-        self.group[order] = group
-        self.group = self.group.reshape(nelem, R)
-        self.members = np.full((int(group[-1]) + 1, int(pos.max()) + 1), -1, dtype=np.int64)
-        self.members[group, pos] = (order // R) * npe + ring[order % R]  # global copy indices
-        is_first = np.zeros(order.size, dtype=bool)
-        is_first[order] = starts
-        self.is_first = is_first = is_first.reshape(nelem, R)
-        count = int(interior.sum()) + is_first.sum(axis=1)
+        ri, rj = i[ring], j[ring]
+        self.ring_corner = np.where(((ri == 0) | (ri == last)) & ((rj == 0) | (rj == last)), 2 * (rj > 0) + (ri > 0), -1)
+        self.ring_edge = np.select([rj == 0, ri == last, rj == last, ri == 0], [0, 1, 2, 3])  # where not a corner
+        self.before = np.cumsum(interior) - interior  # interior nodes before each p
+        elements = np.arange(nelem)
+        self.vertex, vmembers, self.corner_first = _lattice_groups(ne, 2, elements, np.arange(4))
+        self.vertex_elements = np.where(vmembers >= 0, vmembers // 4, -1)
+        nbr = np.full((nelem, 4), -1)
+        for k, (a, b) in enumerate(_EDGE_CORNERS):  # the other element at both corners of edge k
+            A, B = self.vertex_elements[self.vertex[:, a]], self.vertex_elements[self.vertex[:, b]]
+            both = np.any(A[:, :, None] == B[:, None, :], axis=2) & (A >= 0) & (A != elements[:, None])
+            nbr[:, k] = np.where(both, A, -1).max(axis=1)
+        if np.any(nbr < 0):
+            raise RuntimeError(f"an element edge without a neighbour (ne={ne})")
+        self.edge_neighbours = nbr
+        count = int(interior.sum()) + (npts - 2) * np.sum(elements[:, None] < nbr, axis=1) + self.corner_first.sum(axis=1)
         self.offset = np.concatenate(([0], np.cumsum(count)[:-1]))
         if int(count.sum()) != 6 * ne * ne * (npts - 1) ** 2 + 2:
             raise RuntimeError(f"grid has {int(count.sum())} unique nodes, expected {6 * ne * ne * (npts - 1) ** 2 + 2}")
-        before = np.cumsum(interior) - interior  # interior nodes before each p
-        rank = before[ring] + np.cumsum(is_first, axis=1) - 1
-        gid = np.empty(self.members.shape[0], dtype=np.int64)
-        gid[self.group[is_first]] = (self.offset[:, None] + rank)[is_first]
-        self.ring_gid = gid[self.group]
+        self.width = 3 if ne == 1 else 4  # most copies of a node
+
+    def _ring_first(self, elements: np.ndarray) -> np.ndarray:
+        """(E, ring) bool: the ring node is first seen in its element."""
+        corner, edge = self.ring_corner, self.ring_edge
+        return np.where(corner >= 0, self.corner_first[elements][:, np.maximum(corner, 0)],
+                        elements[:, None] < self.edge_neighbours[elements][:, edge])
 
     def rows(self, elements: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(gid (N,), table (N, C)) int64 of the nodes of ``elements``: unique-node
-        ids and the global indices of every copy, ascending, −1-padded."""
+        """(gid (N,), table (N, C)) int64 of the nodes of ``elements`` (ascending):
+        unique-node ids and the global indices of every copy, ascending, −1-padded."""
         npe, ring = self.np * self.np, self.ring
+        near = np.unique(self.vertex_elements[self.vertex[elements]])  # the elements and their corner neighbours
+        near = near[near >= 0]
+        group, members, _ = _lattice_groups(self.ne, self.np, near, ring)
+        held = members[group[np.searchsorted(near, elements)]]  # (E, ring, copies): complete for these nodes
+        f, p = np.divmod(held[..., 0], npe)  # each ring node's first copy
+        uf, inverse = np.unique(f, return_inverse=True)
+        rank = np.cumsum(self._ring_first(uf), axis=1) - 1  # among first-seen ring nodes of the element
+        ring_index = np.zeros(npe, dtype=np.int64)
+        ring_index[ring] = np.arange(ring.size)
+        ring_gid = self.offset[f] + self.before[p] + rank[inverse.reshape(f.shape), ring_index[p]]
         mask = np.ones((elements.size, npe), dtype=bool)
-        mask[:, ring] = self.is_first[elements]
+        mask[:, ring] = self._ring_first(elements)
         gid = self.offset[elements][:, None] + np.cumsum(mask, axis=1) - 1
-        gid[:, ring] = self.ring_gid[elements]
-        table = np.full((elements.size, npe, self.members.shape[1]), -1, dtype=np.int64)
+        gid[:, ring] = ring_gid
+        table = np.full((elements.size, npe, self.width), -1, dtype=np.int64)
         table[:, :, 0] = elements[:, None] * npe + np.arange(npe)
-        table[:, ring] = self.members[self.group[elements]]
+        table[:, ring, : held.shape[2]] = held
         return gid.ravel(), table.reshape(elements.size * npe, -1)
 
 
 def element_neighbours(ne: int) -> np.ndarray:
     """(6·ne², 4) int64: the four edge neighbours of each element (the elements
     sharing two element corners with it), ascending."""
-    corners = Numbering(ne, 2).members // 4  # the elements at each element corner
-    nelem = 6 * ne * ne
-    pairs = [
-        np.minimum(corners[:, a], corners[:, b]) * nelem + np.maximum(corners[:, a], corners[:, b])
-        for a in range(corners.shape[1]) for b in range(a + 1, corners.shape[1])
-    ]
-    pairs = np.concatenate(pairs)
-    pairs = pairs[pairs >= 0]  # both corners present (−1 · nelem + e < 0 otherwise)
-    code, shared = np.unique(pairs, return_counts=True)
-    lo, hi = np.divmod(code[shared >= 2], nelem)
-    a, b = np.concatenate([lo, hi]), np.concatenate([hi, lo])
-    order = np.lexsort((b, a))
-    if a.size != 4 * nelem or np.any(np.bincount(a, minlength=nelem) != 4):
-        raise RuntimeError(f"the cube's elements do not have four edge neighbours each (ne={ne})")
-    return b[order].reshape(nelem, 4)
+    return np.sort(Numbering(ne, 2).edge_neighbours, axis=1)
 
 
 def _geometry(ne: int, rule, copies: np.ndarray):

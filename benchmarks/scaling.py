@@ -38,24 +38,24 @@ import numpy as np
 
 def partition_table(ne: int, np_: int, ranks: list[int]) -> None:
     from swe_sphere.grid import CubedSphere
-    from swe_sphere.partition import edge_cut, partition
-    from swe_sphere.topology import SerialComm, Topology
+    from swe_sphere.partition import edge_cut
+    from swe_sphere.topology import SerialComm, Topology, rank_parts
 
     class RankOf(SerialComm):  # build one rank's tables without MPI
         def __init__(self, rank, size):
             self.rank, self.size = rank, size
 
-    grid = CubedSphere(ne, np_)
-    print(f"\nne={ne} np={np_}: {grid.nelem} elements, {grid.npts} element-local nodes")
+    nelem = 6 * ne * ne
+    print(f"\nne={ne} np={np_}: {nelem} elements, {nelem * np_ * np_} element-local nodes")
     print(f"{'ranks':>6s} {'elem/rank':>10s} {'edge cut':>9s} {'nbrs max':>9s} {'nbrs mean':>9s} {'ghosts max':>10s} "
           f"{'ghosts mean':>11s} {'kB/row max':>10s} {'ghost/local':>11s}")
     for size in ranks:
-        parts = partition(ne, size)
+        parts = rank_parts(ne, size)
         sample = range(size) if size <= 64 else np.linspace(0, size - 1, 32).astype(int)  # tables are O(N) per rank
-        topos = [Topology(grid, "cpu", 1, RankOf(int(r), size)) for r in sample]
+        topos = [Topology(CubedSphere(ne, np_, elements=parts[r]), "cpu", 1, RankOf(int(r), size), parts=parts) for r in sample]
         nbrs = [len(t.neighbours) for t in topos]
         ghosts = [t.halo_copies for t in topos]
-        print(f"{size:6d} {grid.nelem / size:10.1f} {edge_cut(ne, parts):9d} {max(nbrs):9d} {statistics.mean(nbrs):9.1f} "
+        print(f"{size:6d} {nelem / size:10.1f} {edge_cut(ne, parts):9d} {max(nbrs):9d} {statistics.mean(nbrs):9.1f} "
               f"{max(ghosts):10d} {statistics.mean(ghosts):11.1f} {8 * max(ghosts) / 1e3:10.2f} "
               f"{statistics.mean(g / t.N for g, t in zip(ghosts, topos)):11.3f}")
 

@@ -134,9 +134,10 @@ def _lattice_groups(ne: int, npts: int, elements: np.ndarray, positions: np.ndar
     jb, ia = np.divmod(rest, ne)
     k = ia[:, None] * (npts - 1) + positions % npts
     l = jb[:, None] * (npts - 1) + positions // npts
-    F = _FACES.astype(np.int64)[face][:, None]  # (E, 1, 3, 3)
-    Q = M * F[..., 0, :] + (2 * k - M)[..., None] * F[..., 1, :] + (2 * l - M)[..., None] * F[..., 2, :] + M  # in [0, 2M]
-    key = ((Q[..., 0] * (2 * M + 1) + Q[..., 1]) * (2 * M + 1) + Q[..., 2]).ravel()
+    F, key = _FACES.astype(np.int64), np.zeros(k.shape, dtype=np.int64)
+    for d in range(3):  # the point's coordinates Q_d in [0, 2M], one at a time (memory)
+        key = key * (2 * M + 1) + (M * F[face, 0, d, None] + (2 * k - M) * F[face, 1, d, None] + (2 * l - M) * F[face, 2, d, None] + M)
+    key = key.ravel()
     order = np.argsort(key, kind="stable")  # by point, then ascending global index
     sk = key[order]
     starts = np.concatenate(([True], sk[1:] != sk[:-1]))

@@ -27,7 +27,7 @@ from .model import ShallowWater
 from .output import RunWriter, check_target
 from .parallel import default_threads
 from .reference import Reference, reference_path
-from .runtime import check_memory, run_bytes
+from .runtime import ResourceError, check_memory, run_bytes
 from .steppers import StepFailure, make_stepper
 from .topology import Topology, rank_parts
 
@@ -48,6 +48,26 @@ def restart_path(output: Path) -> Path:
     """The restart file beside a run's output: ``run.nc`` → ``run.restart.nc``."""
     output = Path(output)
     return output.with_name(output.stem + ".restart.nc")
+
+
+def _check_memory(scene: Scene, comm) -> None:
+    """Refuse (``runtime.ResourceError``, one line, on every rank) a run whose
+    estimated memory exceeds what is available: the whole run on one process;
+    over MPI ranks, the share of the ranks on each node (each holds its elements)."""
+    need, what = run_bytes(scene.ne, scene.np, scene.stepper), f"ne={scene.ne} np={scene.np} with {scene.stepper}"
+    if comm is None or comm.size == 1:
+        return check_memory(need, what)
+    from .mpi import node_local_size
+
+    local = node_local_size(comm)
+    try:
+        check_memory(need * local // comm.size, f"{what} over {comm.size} MPI ranks ({local} on this node)")
+        error = None
+    except ResourceError as err:
+        error = str(err)
+    errors = [e for e in comm.allgather(error) if e is not None]  # every rank refuses if one node must
+    if errors:
+        raise ResourceError(errors[0])
 
 
 @contextlib.contextmanager
@@ -123,7 +143,7 @@ class Simulation:
         self.setup_time = time.perf_counter() - t0
 
     def _build(self, scene, device, progress, comm, start):
-        check_memory(run_bytes(scene.ne, scene.np, scene.stepper), f"ne={scene.ne} np={scene.np} with {scene.stepper}")
+        _check_memory(scene, comm)
         self.scene, self.device = scene, device
         size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
         parts = rank_parts(scene.ne, size)

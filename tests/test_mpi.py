@@ -168,6 +168,17 @@ def test_solver_steppers_agree_with_one_rank(tmp_path):
 
 
 @pytest.mark.usefixtures("needs_mpi")
+def test_memory_guard_counts_the_ranks_on_the_node(tmp_path):
+    """Over ranks the guard weighs the share of the ranks on this node (each holds its
+    own elements): here both ranks share the node, so ne = 1000 is still refused, by
+    every rank alike (none waits for the others), before anything is built."""
+    proc = mpirun(2, ["run", "tc2_steady", "--ne", "1000", "--output", "o.nc", "--no-progress"], tmp_path)
+    assert proc.returncode not in (0, 124, 137), proc.stderr[-2000:]
+    assert "ne=1000 np=4 with ssprk3 over 2 MPI ranks (2 on this node) needs about" in proc.stderr, proc.stderr[-2000:]
+    assert not (tmp_path / "o.nc").exists()
+
+
+@pytest.mark.usefixtures("needs_mpi")
 def test_host_matrix_solver_refused_on_several_ranks_in_one_line(tmp_path):
     """The assembled-matrix Helmholtz solvers are the whole grid's: one line, exit 2, no output."""
     args = ["run", "tc2_steady", "--ne", "2", "--stepper", "semi_implicit", "-s", 'semi_implicit.helmholtz_solver="amg"']

@@ -24,7 +24,7 @@ import numpy as np
 
 from . import __version__
 from .config import Scene, scene_from_dict
-from .output import ExclusiveFile
+from .output import WRITING, ExclusiveFile
 
 FORMAT = 1  # bump when the layout changes
 
@@ -56,7 +56,7 @@ def write(path, scene: Scene, step: int, x: np.ndarray, stepper_state: dict, cou
     ``initial``: the diagnostics at t = 0. Raises ``output.OutputError`` when
     ``path`` exists and not ``overwrite`` (or is a link / being written)."""
     path = Path(path)
-    with ExclusiveFile(path, overwrite=overwrite) as tmp:
+    with WRITING, ExclusiveFile(path, overwrite=overwrite) as tmp:  # WRITING: see mpi.watch_failures
         with netCDF4.Dataset(tmp, "w", format="NETCDF4") as ds:
             ds.title = f"swe_sphere restart file of scene {scene.name}"
             ds.swe_sphere_checkpoint = FORMAT

@@ -296,9 +296,8 @@ def _continued(args, device, comm):
 def _cmd_run(args) -> int:
     from . import mpi
     from .config import load_scene
-    from .workers import cpus, limit_threads
-    from .output import check_target
-    from .simulation import BlowUp, Simulation, restart_path
+    from .output import check_target, close_open_runs
+    from .simulation import restart_path
 
     if args.continue_from is None:
         if args.scene is None:
@@ -307,12 +306,22 @@ def _cmd_run(args) -> int:
                            overrides=_overrides(args.set))
         output = args.output or Path(f"{scene.name}_ne{scene.ne}np{scene.np}_{scene.stepper}.nc")
     else:
+        scene = None  # the restart file's
         stem = args.continue_from.name.removesuffix(".nc").removesuffix(".restart")
         output = args.output or args.continue_from.with_name(f"{stem}_continued.nc")
     check_target(output, args.overwrite)
     check_target(restart_path(output), args.overwrite)  # written at --restart-every and on SIGINT/SIGTERM
     device = _warp_device(args.device)
     comm = mpi.world()  # under mpiexec: one run over all ranks
+    with mpi.watch_failures(comm, close_open_runs):  # a failure on one rank alone ends the job
+        return _run(args, scene, output, device, comm)
+
+
+def _run(args, scene, output, device, comm) -> int:
+    from . import mpi
+    from .simulation import BlowUp, Simulation, restart_path
+    from .workers import cpus, limit_threads
+
     if comm is not None:
         limit_threads(max(1, cpus() // mpi.node_local_size(comm)))
     if args.continue_from is None:
@@ -491,7 +500,13 @@ def main(argv=None) -> int:
 
         comm = mpi.world() if args.command == "run" else None  # one run over several MPI ranks
         if comm is None or comm.rank == 0 or code != EXIT_BAD_INPUT:  # bad input: every rank refuses it alike
-            print(f"swe-sphere: {'error: ' if code in (EXIT_BAD_INPUT, EXIT_INTERNAL) else ''}{message}", file=sys.stderr)
+            where = f"rank {comm.rank} of {comm.size}: " if comm is not None and comm.rank else ""
+            print(f"swe-sphere: {where}{'error: ' if code in (EXIT_BAD_INPUT, EXIT_INTERNAL) else ''}{message}", file=sys.stderr)
+        if comm is not None and comm.rank != 0 and code != EXIT_BAD_INPUT:
+            # perhaps this rank alone: the others cannot meet it again, so rank 0 closes
+            # its files and ends the job (mpi.watch_failures)
+            sys.stderr.flush()
+            mpi.report_failure(comm, code, f"{where}{message}")
         if comm is not None and comm.rank == 0 and code != EXIT_BAD_INPUT:
             # rank 0, the writer, may fail alone (its output): the others would wait for it
             # forever, so it ends the job, with its exit status, once its files are closed.

@@ -12,6 +12,7 @@ from __future__ import annotations
 import fcntl
 import json
 import os
+import threading
 from pathlib import Path
 
 import netCDF4
@@ -28,6 +29,11 @@ FIELDS = {
     "vorticity": dict(units="s-1", long_name="relative vorticity", standard_name="atmosphere_relative_vorticity"),
     "divergence": dict(units="s-1", long_name="divergence of the wind", standard_name="divergence_of_wind"),
 }
+# Held while a file is written: a failure reported from another MPI rank
+# (``mpi.watch_failures``) closes the run's files between writes, never inside one.
+WRITING = threading.RLock()
+_OPEN: set = set()  # the RunWriters not yet closed or aborted
+
 UGRID_NODE = {"mesh": "mesh_topology", "location": "node"}  # on every node field (see ugrid.py)
 
 SERIES_ATTRS = {
@@ -209,10 +215,12 @@ class RunWriter:
         self.tmp = self.file.tmp
         self.grid = grid
         try:
-            self._create(attrs, hs, series, compress)
+            with WRITING:
+                self._create(attrs, hs, series, compress)
         except BaseException:
             self.abort()
             raise
+        _OPEN.add(self)
 
     def _create(self, attrs, hs, series, compress):
         grid = self.grid
@@ -248,6 +256,10 @@ class RunWriter:
     def append(self, time_s: float, u, v, h, series: dict, vorticity=None, divergence=None) -> None:
         """Add one output time (s since start); fields element-local (N,); ``vorticity``
         and ``divergence`` (s⁻¹, DSS'd, element-local) are optional (NaN in the file without them)."""
+        with WRITING:
+            self._append(time_s, u, v, h, series, vorticity, divergence)
+
+    def _append(self, time_s, u, v, h, series, vorticity, divergence) -> None:
         ds, n, g = self.ds, self.n, self.grid
         ds["time"][n] = time_s / 86400.0
         ds["u"][n, :] = g.to_unique(u)
@@ -263,21 +275,37 @@ class RunWriter:
         self.n += 1
 
     def set_attrs(self, **attrs) -> None:
-        for k, v in attrs.items():
-            setattr(self.ds, k, json.dumps(v) if isinstance(v, (dict, list, tuple)) else v)
+        with WRITING:
+            for k, v in attrs.items():
+                setattr(self.ds, k, json.dumps(v) if isinstance(v, (dict, list, tuple)) else v)
 
     def close(self) -> None:
         """Finish the file and move it to its final name."""
-        self.ds.close()
-        self.file.commit()
+        with WRITING:
+            _OPEN.discard(self)
+            self.ds.close()
+            self.file.commit()
 
     def abort(self) -> None:
         """Drop the partial file."""
-        try:
-            if getattr(self, "ds", None) is not None and self.ds.isopen():
-                self.ds.close()
-        finally:
-            self.file.discard()
+        with WRITING:
+            _OPEN.discard(self)
+            try:
+                if getattr(self, "ds", None) is not None and self.ds.isopen():
+                    self.ds.close()
+            finally:
+                self.file.discard()
+
+
+def close_open_runs(failed: str) -> None:
+    """Close every open run file with the output times it holds and a global
+    attribute ``failed`` (the reason), once no file is being written, and keep
+    ``WRITING`` so that nothing is written after: the caller ends the process
+    (``mpi.watch_failures`` on rank 0 when another rank failed)."""
+    WRITING.acquire()
+    for writer in list(_OPEN):
+        writer.set_attrs(failed=failed)
+        writer.close()
 
 
 def atomic_path(path: Path, *, overwrite: bool = True) -> ExclusiveFile:

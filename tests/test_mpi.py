@@ -214,3 +214,59 @@ def test_failure_on_rank_0_alone_ends_the_job_with_its_status(tmp_path):
     assert proc.returncode not in (0, 124, 137), (proc.returncode, proc.stderr[-2000:])
     assert proc.stderr.count("swe-sphere: No space left on device") == 1, (proc.returncode, proc.stderr[-2000:])
     assert not (tmp_path / "o.nc").exists()
+
+
+FAIL_ON_RANK_1 = """
+import sys
+from mpi4py import MPI
+from swe_sphere import simulation
+from swe_sphere.cli import main
+
+WHERE = sys.argv[1]
+run, init = simulation.Simulation.run, simulation.Simulation.__init__
+
+def failing_run(self, *args, **kwargs):  # rank 1 alone fails at the start of step 11, rank 0 already inside it
+    step = self.stepper.step
+    def failing_step(x):
+        if self.step + 1 == 11:
+            raise MemoryError()
+        return step(x)
+    self.stepper.step = failing_step
+    return run(self, *args, **kwargs)
+
+def failing_init(self, *args, **kwargs):  # rank 1 alone fails in the setup, before any file is opened
+    raise MemoryError()
+
+if MPI.COMM_WORLD.rank == 1:
+    if WHERE == "loop":
+        simulation.Simulation.run = failing_run
+    else:
+        simulation.Simulation.__init__ = failing_init
+sys.exit(main(["run", "tc2_steady", "--ne", "2", "--days", "0.5", "-s", "output.every_days=0.1", "--no-progress",
+               "--output", "o.nc", "--restart-every", "0.2"]))
+"""
+
+
+@pytest.mark.usefixtures("needs_mpi")
+@pytest.mark.parametrize("where", ["loop", "setup"])
+def test_failure_on_rank_1_alone_ends_the_job_and_keeps_the_output(tmp_path, where):
+    """Rank 1 fails alone (out of memory) while rank 0 waits for it in a collective: rank 1
+    prints its line and reports to rank 0, which closes its output with every completed
+    output time (0, 0.1, 0.2 days of a 0.025-day step; the failure is in step 11) and ends
+    the job with rank 1's status (3) instead of hanging (the 300 s timeout). The restart
+    file of day 0.2 (step 8) is whole; a failure in the setup leaves no file at all."""
+    program = [sys.executable, "-c", FAIL_ON_RANK_1, where]
+    proc = mpirun(2, [], tmp_path, program)
+    assert proc.returncode == 3, (proc.returncode, proc.stderr[-2000:])
+    assert proc.stderr.count("swe-sphere: rank 1 of 2: out of memory\n") == 1, proc.stderr[-2000:]
+    assert proc.stderr.count("swe-sphere:") == 1, proc.stderr[-2000:]  # rank 0 says nothing of its own
+    if where == "setup":
+        assert sorted(p.name for p in tmp_path.iterdir()) == []
+        return
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["o.nc", "o.restart.nc"]
+    with xr.open_dataset(tmp_path / "o.nc") as ds:
+        assert np.allclose(ds.time.values, [0, 0.1, 0.2], rtol=0, atol=1e-12)
+        assert ds.attrs["failed"] == "rank 1 of 2: out of memory"
+        assert np.isfinite(ds.h.values).all() and ds.h.shape == (3, 218)
+    with xr.open_dataset(tmp_path / "o.restart.nc") as ck:
+        assert ck.attrs["step"] == 8

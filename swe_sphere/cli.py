@@ -502,9 +502,9 @@ def main(argv=None) -> int:
         if comm is None or comm.rank == 0 or code != EXIT_BAD_INPUT:  # bad input: every rank refuses it alike
             where = f"rank {comm.rank} of {comm.size}: " if comm is not None and comm.rank else ""
             print(f"swe-sphere: {where}{'error: ' if code in (EXIT_BAD_INPUT, EXIT_INTERNAL) else ''}{message}", file=sys.stderr)
-        if comm is not None and comm.rank != 0 and code != EXIT_BAD_INPUT:
-            # perhaps this rank alone: the others cannot meet it again, so rank 0 closes
-            # its files and ends the job (mpi.watch_failures)
+        if comm is not None and comm.rank != 0 and code != EXIT_BAD_INPUT and code < 128:
+            # perhaps this rank alone (a signal stops every rank at the same step): the others
+            # cannot meet it again, so rank 0 closes its files and ends the job (mpi.watch_failures)
             sys.stderr.flush()
             mpi.report_failure(comm, code, f"{where}{message}")
         if comm is not None and comm.rank == 0 and code != EXIT_BAD_INPUT:

@@ -143,7 +143,8 @@ class Sweep:
         (self.directory / "runs").mkdir(parents=True, exist_ok=True)
         self.base = next(iter(self.scenes.values()))
         order = list(self.scenes)
-        self.pairs = sorted(self.pairs or [(s, dt) for s in self.scenes for dt in self.dts], key=lambda p: (order.index(p[0]), p[1]))
+        # a set: two --runs multiples that round to one Δt are one run, not two racing on its file
+        self.pairs = sorted(set(self.pairs or [(s, dt) for s in self.scenes for dt in self.dts]), key=lambda p: (order.index(p[0]), p[1]))
 
     @property
     def tag(self) -> str:

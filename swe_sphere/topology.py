@@ -40,9 +40,6 @@ class SerialComm:
     def allreduce(self, value, op=None):
         return value
 
-    def allgather(self, value):
-        return [value]
-
     def bcast(self, value, root=0):
         return value
 

@@ -196,9 +196,9 @@ def test_a_sweep_whose_reference_run_blows_up_exits_3_with_its_place(tmp_path, c
 def test_sweep_of_chosen_runs_makes_only_those(tmp_path, capsys):
     """--runs STEPPER@COURANT,...: only the named (stepper, Δt) runs, the reference at a
     quarter of the smallest; sweep.nc leaves the others NaN; --runs with --steppers,
-    an unknown stepper or a bad multiple exit 2 with one line."""
+    an unknown stepper or a bad multiple exit 2 with one line; a pair named twice runs once."""
     out = tmp_path / "sweep"
-    args = ["sweep", "tc2_steady", "--ne", "2", "--days", "1", "--runs", "implicit@4,ssprk3@0.5", "--device", "cpu",
+    args = ["sweep", "tc2_steady", "--ne", "2", "--days", "1", "--runs", "implicit@4,ssprk3@0.5,implicit@4", "--device", "cpu",
             "--output", str(out)]
     assert main(args) == 0
     df = pd.read_csv(out / "sweep.csv")

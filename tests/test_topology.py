@@ -77,7 +77,7 @@ def test_partitioned_dss_with_exchanged_copies_is_the_serial_dss_bit_for_bit(ran
     topos = [Topology(g, "cpu", 1, RankOf(r, ranks)) for r in range(ranks)]
     assert np.array_equal(np.sort(np.concatenate([t.elements for t in topos])), np.arange(g.nelem))
     for t in topos:  # each rank built its own elements only: every per-node array is its size
-        assert t.grid.nelem == t.elements.size < g.nelem and t.N == t.grid.npts == t.elements.size * 16
+        assert t.elements.size < g.nelem
         for name in ("xyz", "D", "metdet", "spheremp", "rspheremp", "dx", "gid", "nodes"):
             assert getattr(t.grid, name).shape[-1] == t.N, name
         assert t.grid.dss_table.shape == (t.N, 4) and t.grid.halo.size < t.N

@@ -2,7 +2,9 @@
 
 For each (stepper, Δt) the scene is run on one grid; recorded are the wall
 time of the time loop (compilation and start-up measured apart, in a warm-up
-run per stepper), RHS evaluations, solver iterations, stability, the total
+run per stepper), RHS evaluations, solver iterations, the cost in RHS-evaluation
+equivalents (the Helmholtz iterations converted at their cost measured in the
+warm-up, ``helmholtz_cost``; "cheapest" means fewest), stability, the total
 error at the final time (against the exact solution where the case has one:
 TC1–TC4, Läuter; else the T213 reference) and the temporal error (against a same-grid run with a small Δt:
 RK4 at a quarter of the smallest Δt swept, at most a quarter of the
@@ -26,6 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import warp as wp
 
 from .config import Scene
 from .constants import DAY
@@ -114,6 +117,44 @@ def _filtered_errors(sim: Simulation, xf: np.ndarray | None, xf_ref: np.ndarray 
         "temporal_error_filtered": williamson_norms(sim.grid, xf[2] + hs, xf_ref[2] + hs)["l2"],
         "temporal_error_filtered_vorticity": sim.wind_error_decomposition(xf[0], xf[1], xf_ref[0], xf_ref[1])["l2_vorticity"],
     }
+
+
+def helmholtz_cost(sim: Simulation, a: float, rounds: int = 7) -> float:
+    """The time of one Helmholtz iteration of ``sim``'s stepper, in RHS evaluations:
+    the time of a cold-started solve of (I − aL) z = F(x) (``a`` in s; the
+    stepper's own solver and tolerance, so its per-solve overhead is shared out as
+    in its runs) over its iteration count, divided by the time of one RHS
+    evaluation, both on the simulation's last good state; the median over
+    ``rounds`` that each time both, so that a change of the machine's load hits
+    both alike. 0.0 for a stepper without a Helmholtz solve, NaN where the solve
+    cannot start (no mean depth yet)."""
+    gw = getattr(sim.stepper, "gw", None)
+    if gw is None:
+        return 0.0
+    if not gw.H > 0:
+        return math.nan
+    model, x = sim.model, sim.last_good
+    f, z = model.new_state(), model.new_state()
+
+    def timed(fn):
+        wp.synchronize_device(model.device)
+        t0 = time.perf_counter()
+        out = fn()
+        wp.synchronize_device(model.device)
+        return time.perf_counter() - t0, out
+
+    model.rhs(x, f)  # records the launches (the first call of a buffer pair)
+    warm, gw.warm = gw.warm, False  # cold starts: a warm one would converge at once on the same right-hand side
+    try:
+        gw.solve(f, a, z)  # builds the matrix (and hierarchy) for this a
+        ratios = []
+        for _ in range(rounds):
+            t_rhs, _ = timed(lambda: model.rhs(x, f))
+            t_solve, iterations = timed(lambda: gw.solve(f, a, z))
+            ratios.append(t_solve / max(iterations, 1) / t_rhs)
+    finally:
+        gw.warm = warm
+    return float(np.median(ratios))
 
 
 @dataclass
@@ -232,17 +273,22 @@ class Sweep:
             tmp.write_text(json.dumps(row))
         return row
 
-    def warm_up(self, stepper: str) -> float:
-        """Compile and load every kernel a stepper uses (a two-step run); returns its time."""
+    def warm_up(self, stepper: str) -> tuple[float, float]:
+        """Compile and load every kernel a stepper uses (a two-step run); returns its
+        time (s) and the cost of one of its Helmholtz iterations in RHS evaluations
+        (``helmholtz_cost``, at half the middle Δt it is swept at)."""
         t0 = time.perf_counter()
         dt = min(self.dts)
         span = 2 * dt / DAY
         scene = dataclasses.replace(self.scenes[stepper], dt=dt, days=span, output_every_days=span)
+        sim = Simulation(scene, self.device, progress=False, start=self.start)
         try:
-            Simulation(scene, self.device, progress=False, start=self.start).run(None)
+            sim.run(None)
         except BlowUp:  # unstable at this Δt (its own run will record it); every kernel has run once
             pass
-        return time.perf_counter() - t0
+        startup = time.perf_counter() - t0
+        dts = sorted(d for s, d in self.pairs if s == stepper)
+        return startup, helmholtz_cost(sim, 0.5 * dts[len(dts) // 2])
 
     def run(self, pool=None) -> tuple[list[dict], dict]:
         """All runs (resuming), on ``pool`` (a concurrent.futures executor; None:
@@ -250,14 +296,15 @@ class Sweep:
         the reference run's summary."""
         pool = pool or InProcess()
         ref = self.reference()
-        startups = {stepper: pool.submit(self.warm_up, stepper) for stepper in self.scenes}
-        for future in startups.values():  # every kernel compiled before a timed run starts
-            future.result()
+        futures = {stepper: pool.submit(self.warm_up, stepper) for stepper in dict.fromkeys(s for s, _ in self.pairs)}
+        # every kernel compiled before a timed run starts
+        startups = {stepper: future.result() for stepper, future in futures.items()}
         runs = []
         for stepper, dt in self.pairs:
             self.log(f"[{len(runs) + 1}/{len(self.pairs)}] {stepper} dt = {dt:.6g} s")
             runs.append((stepper, pool.submit(self.run_one, stepper, dt)))
-        rows = [{**future.result(), "startup_time": startups[stepper].result()} for stepper, future in runs]
+        rows = [{**future.result(), "startup_time": startups[stepper][0], "helmholtz_cost": startups[stepper][1]}
+                for stepper, future in runs]
         d = self.base.digital_filter  # in the sweep's netCDF attributes: which start the runs share
         return rows, {"spatial_error": ref["total_error"], "spatial_error_vorticity": ref["total_error_vorticity"],
                       "spatial_error_divergence": ref["total_error_divergence"], "reference_dt": ref["dt"],
@@ -266,7 +313,7 @@ class Sweep:
 
 COLUMNS = (
     "stepper", "dt", "dt_over_gravity_limit", "dt_over_advective_limit", "dt_over_leapfrog_limit", "stable", "wall_time", "startup_time",
-    "setup_time", "steps", "rhs_evals", "newton_iterations", "gmres_iterations", "precond_iterations",
+    "setup_time", "steps", "rhs_evals", "rhs_equivalents", "helmholtz_cost", "newton_iterations", "gmres_iterations", "precond_iterations",
     "helmholtz_iterations", "total_error", "total_error_vorticity", "total_error_divergence",
     "temporal_error", "temporal_error_wind", "temporal_error_vorticity", "temporal_error_divergence",
     "temporal_error_filtered", "temporal_error_filtered_vorticity", "mass_change", "total_energy_change", "potential_enstrophy_change", "reason",
@@ -274,10 +321,14 @@ COLUMNS = (
 
 
 def table(rows, limits) -> list[dict]:
-    """Rows with every column (NaN where not applicable) and Δt as multiples of the limits."""
+    """Rows with every column (NaN where not applicable), Δt as multiples of the
+    limits and the cost in RHS-evaluation equivalents: RHS evaluations (a JFNK
+    Jacobian–vector product is one) + Helmholtz iterations × ``helmholtz_cost``."""
     out = []
     for r in rows:
         row = {c: r.get(c, math.nan) for c in COLUMNS}
+        helmholtz = r.get("helmholtz_iterations", 0.0)
+        row["rhs_equivalents"] = r["rhs_evals"] + (helmholtz * r["helmholtz_cost"] if helmholtz else 0.0)
         row["dt_over_gravity_limit"] = r["dt"] / limits["dt_gravity"]
         row["dt_over_advective_limit"] = r["dt"] / limits["dt_advective"]
         row["dt_over_leapfrog_limit"] = r["dt"] / limits["dt_leapfrog"]
@@ -297,20 +348,22 @@ CRITERIA = {
 }
 THRESHOLDS = (0.1, 0.5)  # temporal error as a fraction of the spatial error
 VERDICT_COLUMNS = ("criterion", "threshold", "stepper", "dt", "dt_over_gravity_limit", "dt_over_advective_limit",
-                   "dt_over_leapfrog_limit", "wall_time", "rhs_evals", "temporal_error", "spatial_error")
+                   "dt_over_leapfrog_limit", "wall_time", "rhs_evals", "rhs_equivalents", "temporal_error", "spatial_error")
 
 
 def _cheapest(rows, stepper, column, limit):
-    """The stable run of ``stepper`` with the least wall time whose ``column`` ≤ limit (None if none)."""
+    """The stable run of ``stepper`` with the fewest RHS-evaluation equivalents (exact
+    counts, unlike the wall time on a shared machine) whose ``column`` ≤ limit (None if none)."""
     ok = [r for r in rows if r["stepper"] == stepper and r["stable"] and r.get(column, math.nan) <= limit]
-    return min(ok, key=lambda r: r["wall_time"], default=None)
+    return min(ok, key=lambda r: r["rhs_equivalents"], default=None)
 
 
 def verdicts(rows, info) -> list[dict]:
     """Per criterion (``CRITERIA``; the filtered one only where the sweep filtered),
-    threshold (``THRESHOLDS``) and stepper: the cheapest (least wall time) stable run
-    whose temporal error ≤ threshold × the spatial error of that criterion, with
-    its Δt multiples, wall time and RHS evaluations; dt NaN where no run qualifies."""
+    threshold (``THRESHOLDS``) and stepper: the cheapest (fewest RHS-evaluation
+    equivalents) stable run whose temporal error ≤ threshold × the spatial error of
+    that criterion, with its Δt multiples, wall time, RHS evaluations and
+    equivalents; dt NaN where no run qualifies."""
     steppers = list(dict.fromkeys(r["stepper"] for r in rows))
     out = []
     for criterion, (column, spatial_key) in CRITERIA.items():
@@ -338,13 +391,14 @@ def format_verdicts(verdict_rows) -> str:
             continue
         lines.append(
             f"{head} dt = {v['dt']:.4g} s = {v['dt_over_gravity_limit']:.2f} x gravity-wave, {v['dt_over_advective_limit']:.2f} x "
-            f"advective, {v['dt_over_leapfrog_limit']:.2f} x leapfrog limit; wall {v['wall_time']:.3g} s, {v['rhs_evals']:.0f} RHS-eq"
+            f"advective, {v['dt_over_leapfrog_limit']:.2f} x leapfrog limit; wall {v['wall_time']:.3g} s, "
+            f"{v['rhs_equivalents']:.0f} RHS-eq ({v['rhs_evals']:.0f} RHS)"
         )
     return "\n".join(lines)
 
 
 def cheapest_sufficient(rows, spatial_error) -> dict:
-    """Per stepper, the fastest stable run whose temporal error ≤ 10 % of the spatial error."""
+    """Per stepper, the cheapest (fewest RHS-eq) stable run whose temporal error ≤ 10 % of the spatial error."""
     best = {s: _cheapest(rows, s, "temporal_error", SUFFICIENT * spatial_error) for s in dict.fromkeys(r["stepper"] for r in rows)}
     return {s: r for s, r in best.items() if r is not None}
 
@@ -352,22 +406,23 @@ def cheapest_sufficient(rows, spatial_error) -> dict:
 def format_summary(rows, info) -> str:
     """The table and, per stepper, the cheapest sufficiently accurate run."""
     head = (
-        f"{'stepper':22s} {'dt [s]':>9s} {'dt/gw':>6s} {'dt/adv':>6s} {'stable':>6s} {'wall [s]':>9s} {'RHS':>8s} "
+        f"{'stepper':22s} {'dt [s]':>9s} {'dt/gw':>6s} {'dt/adv':>6s} {'stable':>6s} {'wall [s]':>9s} {'RHS':>8s} {'RHS-eq':>8s} "
         f"{'Newton':>7s} {'GMRES':>7s} {'Helmh.':>7s} {'total err':>10s} {'time err':>10s} {'energy chg':>10s}"
     )
     lines = [head]
     for r in rows:
         lines.append(
             f"{r['stepper']:22s} {r['dt']:9.2f} {r['dt_over_gravity_limit']:6.2f} {r['dt_over_advective_limit']:6.2f} "
-            f"{'yes' if r['stable'] else 'NO':>6s} {r['wall_time']:9.2f} {r['rhs_evals']:8.0f} {r['newton_iterations']:7.0f} "
+            f"{'yes' if r['stable'] else 'NO':>6s} {r['wall_time']:9.2f} {r['rhs_evals']:8.0f} {r['rhs_equivalents']:8.0f} "
+            f"{r['newton_iterations']:7.0f} "
             f"{r['gmres_iterations']:7.0f} {r['helmholtz_iterations']:7.0f} {r['total_error']:10.3e} {r['temporal_error']:10.3e} "
             f"{r['total_energy_change']:10.2e}"
         )
     spatial = info["spatial_error"]
     lines.append(f"spatial error (RK4 at dt = {info['reference_dt']:.4g} s): {spatial:.3e}; sufficient accuracy: temporal error <= {SUFFICIENT * spatial:.3e}")
     best = cheapest_sufficient(rows, spatial)
-    explicit = [best[s]["wall_time"] for s in best if STEPPERS[s].explicit]
-    ref_time = min(explicit) if explicit else math.nan
+    explicit = [best[s]["rhs_equivalents"] for s in best if STEPPERS[s].explicit]
+    ref_cost = min(explicit) if explicit else math.nan
     for stepper in dict.fromkeys(r["stepper"] for r in rows):
         if stepper not in best:
             lines.append(f"  {stepper:22s} no run reached sufficient accuracy")
@@ -375,7 +430,8 @@ def format_summary(rows, info) -> str:
         b = best[stepper]
         lines.append(
             f"  {stepper:22s} cheapest sufficient: dt = {b['dt']:.4g} s = {b['dt_over_gravity_limit']:.2f} x gravity-wave limit, "
-            f"{b['dt_over_advective_limit']:.2f} x advective limit; wall {b['wall_time']:.2f} s = {b['wall_time'] / ref_time:.2f} x best explicit"
+            f"{b['dt_over_advective_limit']:.2f} x advective limit; wall {b['wall_time']:.2f} s, {b['rhs_equivalents']:.0f} RHS-eq = "
+            f"{b['rhs_equivalents'] / ref_cost:.2f} x best explicit"
         )
     lines.append("verdicts: the cheapest run per criterion with temporal error <= 10 % / 50 % of that criterion's spatial error")
     lines.append(format_verdicts(verdicts(rows, info)))

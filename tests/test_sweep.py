@@ -71,15 +71,31 @@ def test_sweep_resumes_without_rerunning(swept, monkeypatch, capsys):
     assert row["stable"] is True and row["steps"] == 24
 
 
-def test_cheapest_sufficient_picks_fastest_accurate_run():
+def test_cheapest_sufficient_picks_the_accurate_run_with_fewest_rhs_equivalents():
     rows = [
-        {"stepper": "a", "stable": True, "temporal_error": 1e-6, "wall_time": 5.0},
-        {"stepper": "a", "stable": True, "temporal_error": 5e-6, "wall_time": 2.0},
-        {"stepper": "a", "stable": True, "temporal_error": 5e-5, "wall_time": 1.0},  # not accurate enough
-        {"stepper": "b", "stable": False, "temporal_error": float("nan"), "wall_time": 0.1},
+        {"stepper": "a", "stable": True, "temporal_error": 1e-6, "wall_time": 5.0, "rhs_equivalents": 500.0},
+        # less work, yet more seconds (a busier machine): the counts decide
+        {"stepper": "a", "stable": True, "temporal_error": 5e-6, "wall_time": 6.0, "rhs_equivalents": 200.0},
+        {"stepper": "a", "stable": True, "temporal_error": 5e-5, "wall_time": 1.0, "rhs_equivalents": 50.0},  # not accurate enough
+        {"stepper": "b", "stable": False, "temporal_error": float("nan"), "wall_time": 0.1, "rhs_equivalents": 1.0},
     ]
     best = sweep_mod.cheapest_sufficient(rows, spatial_error=1e-4)
-    assert best["a"]["wall_time"] == 2.0 and "b" not in best
+    assert best["a"]["rhs_equivalents"] == 200.0 and "b" not in best
+
+
+def test_rhs_equivalents_count_the_helmholtz_iterations_at_their_measured_cost(swept):
+    """An explicit stepper's cost is its RHS evaluations; the JFNK stepper's adds its
+    preconditioner's Helmholtz CG iterations at the cost of one measured in its
+    warm-up (ne2: a sparse product with ~800 unknowns against a whole RHS)."""
+    out, _ = swept
+    df = pd.read_csv(out / "sweep.csv")
+    explicit, implicit = df[df["stepper"] == "ssprk3"], df[df["stepper"] == "implicit"]
+    assert (explicit["helmholtz_cost"] == 0).all()
+    assert (explicit["rhs_equivalents"] == explicit["rhs_evals"]).all()
+    cost = implicit["helmholtz_cost"].to_numpy()
+    assert cost[0] == cost[1] and 0 < cost[0] < 10  # one measurement per stepper
+    assert (implicit["helmholtz_iterations"] > 0).all()
+    np.testing.assert_array_equal(implicit["rhs_equivalents"], implicit["rhs_evals"] + cost * implicit["helmholtz_iterations"])
 
 
 def test_sweep_bad_input_exits_2(tmp_path, capsys):
@@ -96,7 +112,7 @@ def test_sweep_with_two_workers_gives_the_serial_rows(swept, tmp_path):
     out, args = swept
     parallel = tmp_path / "parallel"
     assert main([*args[:-1], str(parallel), "--workers", "2"]) == 0
-    timings = ["wall_time", "startup_time", "setup_time"]
+    timings = ["wall_time", "startup_time", "setup_time", "helmholtz_cost", "rhs_equivalents"]
     serial_rows = pd.read_csv(out / "sweep.csv").drop(columns=timings)
     parallel_rows = pd.read_csv(parallel / "sweep.csv").drop(columns=timings)
     pd.testing.assert_frame_equal(parallel_rows, serial_rows, check_exact=True)
@@ -114,9 +130,9 @@ def test_verdicts_per_criterion_and_threshold():
     total and balanced-flow criteria at 50 % but not the gravity-wave one."""
     base = {"stable": True, "dt_over_gravity_limit": 1.0, "dt_over_advective_limit": 0.1, "dt_over_leapfrog_limit": 2.0, "rhs_evals": 10}
     rows = [
-        {**base, "stepper": "a", "dt": 100.0, "wall_time": 4.0, "temporal_error": 1e-6, "temporal_error_vorticity": 1e-5, "temporal_error_divergence": 1e-5},
-        {**base, "stepper": "a", "dt": 400.0, "wall_time": 1.0, "temporal_error": 3e-5, "temporal_error_vorticity": 3e-4, "temporal_error_divergence": 9e-4},
-        {**base, "stepper": "b", "dt": 100.0, "wall_time": 0.5, "stable": False},
+        {**base, "stepper": "a", "dt": 100.0, "wall_time": 4.0, "rhs_equivalents": 40.0, "temporal_error": 1e-6, "temporal_error_vorticity": 1e-5, "temporal_error_divergence": 1e-5},
+        {**base, "stepper": "a", "dt": 400.0, "wall_time": 1.0, "rhs_equivalents": 10.0, "temporal_error": 3e-5, "temporal_error_vorticity": 3e-4, "temporal_error_divergence": 9e-4},
+        {**base, "stepper": "b", "dt": 100.0, "wall_time": 0.5, "rhs_equivalents": 5.0, "stable": False},
     ]
     info = {"spatial_error": 1e-4, "spatial_error_vorticity": 1e-3, "spatial_error_divergence": 1e-3}
     v = {(r["criterion"], r["threshold"], r["stepper"]): r for r in sweep_mod.verdicts(rows, info)}
@@ -125,6 +141,7 @@ def test_verdicts_per_criterion_and_threshold():
     assert v[("balanced flow (vorticity)", 0.5, "a")]["dt"] == 400.0
     assert v[("gravity waves (divergence)", 0.5, "a")]["dt"] == 100.0
     assert v[("gravity waves (divergence)", 0.5, "a")]["wall_time"] == 4.0
+    assert v[("gravity waves (divergence)", 0.5, "a")]["rhs_equivalents"] == 40.0
     assert math.isnan(v[("total h+hs", 0.5, "b")]["dt"])
     text = sweep_mod.format_verdicts(sweep_mod.verdicts(rows, info))
     assert "b                      no run qualifies" in text
@@ -137,7 +154,7 @@ def test_tiny_sweep_verdicts(swept, capsys):
     assert set(v["criterion"]) == {"total h+hs", "balanced flow (vorticity)", "gravity waves (divergence)"}
     # ssprk3 is stable only at 3600 s, whose temporal errors are below 50 % of the spatial ones (test above)
     for _, r in v[(v["stepper"] == "ssprk3") & (v["threshold"] == 0.5)].iterrows():
-        assert r["dt"] == 3600.0 and r["wall_time"] == rows.loc[0, "wall_time"] and r["rhs_evals"] == 72
+        assert r["dt"] == 3600.0 and r["wall_time"] == rows.loc[0, "wall_time"] and r["rhs_evals"] == r["rhs_equivalents"] == 72
         assert r["dt_over_leapfrog_limit"] == pytest.approx(rows.loc[0, "dt_over_leapfrog_limit"])
     # leapfrog's limit is 0.58 (|v| + c) dt/dx = 1: a shorter dt than the gravity-wave limit
     assert (rows["dt_over_leapfrog_limit"] > rows["dt_over_gravity_limit"]).all()

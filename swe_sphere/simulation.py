@@ -173,10 +173,7 @@ class Simulation:
                 self.dfi = digital_filter(scene.digital_filter, start, grid=local, terms=scene.terms,
                                           fcor=fcor, hs=hs, g=self.g, device=device, topology=topo)
         else:
-            shape = topo.bcast(np.shape(start))  # rank 0's: it hands the state out
-            if shape != (3, topo.npts_total):
-                raise ValueError(f"start state has shape {shape}, the grid needs {(3, topo.npts_total)}")
-            start = topo.distribute(None if start is ON_ROOT else np.asarray(start, dtype=np.float64))
+            start = topo.distribute(None if start is ON_ROOT else start, 3, "start state")
         self.x = self.model.new_state(*(self.dfi.x if self.dfi is not None else start))
         self.last_good = wp.clone(self.x)
         self.scratch = self.model.new_state()  # a comparison wind, for its vorticity and divergence
@@ -202,10 +199,11 @@ class Simulation:
 
     def restore(self, ck: ckpt.Checkpoint) -> None:
         """Set the state, stepper history, counters and t = 0 invariants from a checkpoint."""
-        shape = self.topology.bcast(np.shape(ck.x))  # rank 0's (see ``checkpoint.read_on_root``)
-        if shape != (3, self.topology.npts_total):
-            raise ckpt.CheckpointError(f"checkpoint state has shape {shape}, the grid needs {(3, self.topology.npts_total)}")
-        self.x.assign(self.topology.distribute(ck.x))
+        try:
+            x = self.topology.distribute(ck.x, 3, "checkpoint state")  # ck.x on rank 0 only (``checkpoint.read_on_root``)
+        except ValueError as err:
+            raise ckpt.CheckpointError(str(err)) from None
+        self.x.assign(x)
         try:
             self.stepper.restore(ck.stepper_state)
         except ValueError as err:
@@ -250,7 +248,7 @@ class Simulation:
         r = None  # the reference interpolated to the whole grid, on rank 0, at a day it stores
         if self.reference_days is not None and np.min(np.abs(self.reference_days - t / DAY)) <= 1e-6:
             r = self.reference.at(t / DAY, self.grid.lat, self.grid.lon) if self.root else None
-            ur, vr = self.topology.distribute(np.stack([r["u"], r["v"]]) if self.root else None)
+            ur, vr = self.topology.distribute(np.stack([r["u"], r["v"]]) if self.root else None, 2, "reference wind")
             ref_split = self.wind_error_decomposition(state[0], state[1], ur, vr)
         d = None
         if self.root:

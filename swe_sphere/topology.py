@@ -166,8 +166,7 @@ class Topology:
     first (nunique,) int32 : one local copy of each owned unique node
     area (nunique,) numpy : assembled spheremp of the owned unique nodes (m²)
     total_area : Σ area over the sphere (m²; 4πa²)
-    neighbours : ranks sharing nodes with this one; halo_copies, halo_bytes_per_row:
-        copies received per DSS and their bytes per assembled row
+    neighbours : ranks sharing nodes with this one; halo_copies : copies received per DSS
 
     Raises ValueError on a CUDA device with more than one rank (CPU only so far).
     """
@@ -191,7 +190,6 @@ class Topology:
         def up(a, dtype=f64):
             return wp.array(np.ascontiguousarray(a), dtype=dtype, device=device)
 
-        self.spheremp_np = grid.spheremp
         self.spheremp = up(np.concatenate([grid.spheremp, grid.halo_spheremp[np.searchsorted(grid.halo, self.recv)]]))
         self.rspheremp = up(grid.rspheremp)
         self.table = up(self._table, wp.int32)
@@ -204,7 +202,6 @@ class Topology:
         self.neighbours, self.send_ranges, self.recv_ranges = c.neighbours, c.send_ranges, c.recv_ranges
         self.send_index, self.send_buffer, self.ghost = c.send_index, c.send_buffer, c.recv_buffer
         self.halo_copies = c.size
-        self.halo_bytes_per_row = 8 * self.halo_copies
 
     def _build_halos(self, parts, rank):
         """Local tables from the rank's own nodes' rows of the global DSS table and
@@ -312,18 +309,23 @@ class Topology:
             out[..., self._part_nodes(k)] = piece.reshape(a.shape[:-1] + (-1,))
         return out
 
-    def distribute(self, whole: np.ndarray | None) -> np.ndarray:
-        """This rank's part (..., N) of a whole-grid field (..., npts_total) given on
-        rank 0 (``Scatterv``; call on every rank; ``whole`` is read on rank 0 only).
-        On one process, ``whole`` itself."""
+    def distribute(self, whole, rows: int, what: str) -> np.ndarray:
+        """This rank's part (rows, N) of a whole-grid field ``whole`` (rows,
+        npts_total) given on rank 0 (``Scatterv``; call on every rank; ``whole``
+        is read on rank 0 only, the others may pass None). On one process,
+        ``whole`` itself as float64. Raises ValueError on every rank, one line
+        naming ``what``, when rank 0's ``whole`` has another shape:
+        "<what> has shape S, the grid needs (rows, npts_total)"."""
+        shape = self.bcast(np.shape(whole) if self.comm.rank == 0 else None)  # rank 0's: it hands the field out
+        if shape != (rows, self.npts_total):
+            raise ValueError(f"{what} has shape {shape}, the grid needs {(rows, self.npts_total)}")
         if not self.distributed:
-            return whole
-        lead = self.bcast(np.shape(whole)[:-1] if self.comm.rank == 0 else None)
-        counts = [int(np.prod(lead, dtype=np.int64)) * p.size * self.grid.np**2 for p in self.parts]
+            return np.asarray(whole, dtype=np.float64)
+        counts = [rows * p.size * self.grid.np**2 for p in self.parts]
         flat = None
         if self.comm.rank == 0:
-            flat = np.concatenate([np.asarray(whole, dtype=np.float64)[..., self._part_nodes(k)].ravel() for k in range(len(self.parts))])
-        out = np.empty(tuple(lead) + (self.N,))
+            flat = np.concatenate([np.asarray(whole, dtype=np.float64)[:, self._part_nodes(k)].ravel() for k in range(len(self.parts))])
+        out = np.empty((rows, self.N))
         self.comm.Scatterv([flat, counts] if flat is not None else None, out, root=0)
         return out
 
@@ -377,7 +379,7 @@ class Topology:
     def integrate(self, f: np.ndarray) -> float:
         """Area integral ∫ f dA (m² × units of f) of a continuous element-local field f (N,)
         (HOMME ``global_integral``)."""
-        return self.sum(float(np.sum(self.spheremp_np * f)))  # not np.dot: the same bits whatever BLAS's threads
+        return self.sum(float(np.sum(self.grid.spheremp * f)))  # not np.dot: the same bits whatever BLAS's threads
 
     def mean(self, f: np.ndarray) -> float:
         """Area mean of a continuous element-local field f (N,)."""

@@ -3,6 +3,8 @@ summed in the fixed global order of the grid's ``dss_table``."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 import warp as wp
@@ -165,3 +167,45 @@ def test_each_rank_draws_its_part_of_one_random_vector(ranks):
     for r in range(ranks):
         t = Topology(g, "cpu", 1, RankOf(r, ranks))
         assert np.array_equal(t.standard_normal(np.random.default_rng(0), 3), whole[:, t.nodes])
+
+
+class Rank0Sends(RankOf):
+    """Rank ``rank`` of ``size`` whose collectives from rank 0 (``bcast``, ``Scatterv``)
+    deliver what rank 0 sent: ``sent[name]`` lists rank 0's calls, shared by the
+    ranks, so rank 0 must call first."""
+
+    def __init__(self, rank, size, sent: dict):
+        super().__init__(rank, size)
+        self.sent, self.made = sent, {}
+
+    def _from_root(self, name, value):
+        if self.rank == 0:
+            self.sent.setdefault(name, []).append(value)
+        k = self.made[name] = self.made.get(name, -1) + 1  # this rank's k-th call of name
+        return self.sent[name][k]
+
+    def bcast(self, value, root=0):
+        return self._from_root("bcast", value)
+
+    def Scatterv(self, send, recv, root=0):
+        flat, counts = self._from_root("Scatterv", send)
+        start = sum(counts[: self.rank])
+        recv[...] = flat[start : start + counts[self.rank]].reshape(recv.shape)
+
+
+@pytest.mark.parametrize("ranks", [1, 2, 3, 5])
+def test_distribute_hands_each_rank_its_part_and_refuses_a_misshapen_field(ranks, rng):
+    """``distribute``: each rank gets its nodes' columns of rank 0's whole-grid field,
+    bit for bit, after one shape broadcast; a field of another shape on rank 0 is
+    one ValueError naming it, on every rank (those given None too)."""
+    g = cached_grid(3, 4)
+    whole = rng.standard_normal((3, g.npts))
+    sent = {}
+    topos = [Topology(g, "cpu", 1, Rank0Sends(r, ranks, sent)) for r in range(ranks)]
+    for r, t in enumerate(topos):
+        assert np.array_equal(t.distribute(whole if r == 0 else None, 3, "start state"), whole[:, t.nodes])
+    assert sent["bcast"] == [(3, g.npts)]  # one broadcast: the shape
+    message = f"start state has shape (2, {g.npts}), the grid needs (3, {g.npts})"
+    for r, t in enumerate(topos):
+        with pytest.raises(ValueError, match=rf"^{re.escape(message)}$"):
+            t.distribute(whole[:2] if r == 0 else None, 3, "start state")

@@ -117,11 +117,7 @@ class Stepper:
     def _load(self, a: wp.array, state, key) -> None:
         """Set a (rows, N) array from a whole-grid entry of ``state`` (read on rank 0
         when several ranks: None on the others; call on every rank)."""
-        topo, values = self.model.topology, self._entry(state, key)
-        shape, expected = topo.bcast(np.shape(values)), (a.shape[0], topo.npts_total)
-        if shape != expected:
-            raise ValueError(f"{self.name} stepper state {key!r} has shape {shape}, expected {expected}")
-        a.assign(topo.distribute(None if values is None else np.asarray(values, dtype=np.float64)))
+        a.assign(self.model.topology.distribute(self._entry(state, key), a.shape[0], f"{self.name} stepper state {key!r}"))
 
     # -- stepping ----------------------------------------------------------------------
     def step(self, x: wp.array2d) -> StepStats:

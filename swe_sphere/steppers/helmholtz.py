@@ -210,11 +210,8 @@ class GravityWave:
         self.H = float(entry(state, "mean_depth"))
         if self.warm:
             topo = self.model.topology
-            guess = entry(state, "helmholtz_guess")  # on rank 0 only when several ranks
-            shape = topo.bcast(np.shape(guess))
-            if shape != (3, topo.npts_total):
-                raise ValueError(f"stepper state 'helmholtz_guess' has shape {shape}, expected {(3, topo.npts_total)}")
-            self.y.assign(topo.distribute(None if guess is None else np.asarray(guess, dtype=np.float64))[2][topo.first.numpy()])
+            guess = topo.distribute(entry(state, "helmholtz_guess"), 3, "stepper state 'helmholtz_guess'")  # on rank 0 only when several ranks
+            self.y.assign(guess[2][topo.first.numpy()])
 
     # -- L and the Schur complement (element-local) ---------------------------------
     def set_depth(self, x) -> None:

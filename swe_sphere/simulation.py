@@ -39,6 +39,21 @@ class BlowUp(RuntimeError):
     """The state became non-finite or the depth non-positive; the message gives step, time and place."""
 
 
+@dataclass
+class WholeFields:
+    """One state's fields gathered on rank 0 (``Simulation.gather_fields``): u, v
+    (m s⁻¹), h (m), vorticity and, when asked for, divergence (s⁻¹, DSS'd), (npts,)
+    each on rank 0 and None on the other ranks (divergence None when not asked for).
+    Every rank holds one: whether a rank gathers is decided by whether it was
+    given one, never by its contents, so all ranks take the same collectives."""
+
+    u: np.ndarray | None
+    v: np.ndarray | None
+    h: np.ndarray | None
+    vorticity: np.ndarray | None
+    divergence: np.ndarray | None = None
+
+
 class Interrupted(RuntimeError):
     """SIGINT or SIGTERM stopped the run after a complete step; ``signum``, ``result``
     and ``checkpoint`` (the restart file written, or None) are attached."""
@@ -193,8 +208,8 @@ class Simulation:
         if scene.nsteps < ck.step:
             raise ckpt.CheckpointError(f"the run length {scene.days:g} days ends before the checkpoint (day {ck.step * scene.dt / DAY:g})")
         start = ON_ROOT if ck.x is None else ck.x  # ranks > 0 of ``read_on_root`` have no arrays
-        sim = cls(scene, device, progress=progress, comm=comm, start=start)  # no second digital filter
-        sim.restore(ck)
+        sim = cls(scene, device, progress=progress, comm=comm, start=start)  # the state handed out; no second digital filter
+        sim._restore_history(ck)
         return sim
 
     def restore(self, ck: ckpt.Checkpoint) -> None:
@@ -204,6 +219,10 @@ class Simulation:
         except ValueError as err:
             raise ckpt.CheckpointError(str(err)) from None
         self.x.assign(x)
+        self._restore_history(ck)
+
+    def _restore_history(self, ck: ckpt.Checkpoint) -> None:
+        """``restore`` but the state (already ``ck.x``)."""
         try:
             self.stepper.restore(ck.stepper_state)
         except ValueError as err:
@@ -227,19 +246,28 @@ class Simulation:
         a = self.topology.gather((self.x if x is None else x).numpy())
         return (None, None, None) if a is None else (a[0], a[1], a[2])
 
-    def vorticity(self, x=None) -> np.ndarray | None:
-        """Relative vorticity (npts,) of the whole grid, DSS'd (s⁻¹), on rank 0 (None elsewhere)."""
-        return self.topology.gather(self.model.vorticity(self.x if x is None else x))
-
     def divergence(self, x=None) -> np.ndarray | None:
         """Divergence of the wind (npts,) of the whole grid, DSS'd (s⁻¹), on rank 0 (None elsewhere)."""
         return self.topology.gather(self.model.wind_divergence(self.x if x is None else x))
 
-    def diagnose(self, t: float, x=None) -> dict:
+    def gather_fields(self, x=None, divergence: bool = False) -> WholeFields:
+        """u, v, h, the vorticity and (``divergence``) the divergence of state x
+        (default the current one), in one gather on rank 0 (call on every rank)."""
+        x = self.x if x is None else x
+        rows = [x.numpy(), self.model.vorticity(x)[None]]
+        if divergence:
+            rows.append(self.model.wind_divergence(x)[None])
+        a = self.topology.gather(np.concatenate(rows))
+        if a is None:
+            return WholeFields(None, None, None, None)
+        return WholeFields(a[0], a[1], a[2], a[3], a[4] if divergence else None)
+
+    def diagnose(self, t: float, x=None, whole: WholeFields | None = None) -> dict:
         """Invariants (and their relative change), errors against the exact solution
-        and the reference if any, on every rank (call on every rank)."""
-        u, v, h = self.fields(x)
-        zeta = self.vorticity(x)
+        and the reference if any, on every rank (call on every rank). ``whole``:
+        x's ``gather_fields`` when the caller has them (on every rank, or on none)."""
+        whole = self.gather_fields(x) if whole is None else whole
+        u, v, h, zeta = whole.u, whole.v, whole.h, whole.vorticity
         local, state = self.topology.grid, (self.x if x is None else x).numpy()
         split = ref_split = None  # the wind errors' rotational/divergent parts (collective)
         if self.case.exact_solution:
@@ -287,7 +315,8 @@ class Simulation:
         (N,) each; the whole grid on one rank), by the model's operators + DSS
         (call on every rank)."""
         self.scratch.assign(np.stack([u, v, np.zeros_like(u)]))
-        return self.vorticity(self.scratch), self.divergence(self.scratch)
+        a = self.topology.gather(np.stack([self.model.vorticity(self.scratch), self.model.wind_divergence(self.scratch)]))
+        return (None, None) if a is None else (a[0], a[1])
 
     def wind_error_decomposition(self, u, v, u_true, v_true) -> dict:
         """``l2_vorticity``, ``l2_divergence``: the wind error split into its
@@ -388,16 +417,16 @@ class Simulation:
         first_step, first_time, written, wall0 = self.step, math.nan, [None], c["wall_time"]
 
         def record(step, x=None):
-            d = self.diagnose(step * s.dt, x)
+            whole = self.gather_fields(x, divergence=output is not None)  # once per output time, on every rank
+            d = self.diagnose(step * s.dt, x, whole)
             d.update(steps=step, rhs_evals=c["rhs_evals"], wall_time=c["wall_time"])
             d.update({f"{k}_iterations": c["iterations"].get(k, 0) for k in stepper.solvers})
             history.append(d)
             if on_output is not None:
                 on_output(step, self.x if x is None else x)
-            if output is not None:  # on every rank: the fields are gathered (DSS'd, element-local, s-1)
-                zeta, delta, fields = self.vorticity(x), self.divergence(x), self.fields(x)
-                if writer is not None:
-                    writer.append(step * s.dt, *fields, {k: d[k] for k in series}, vorticity=zeta, divergence=delta)
+            if writer is not None:  # rank 0 (the fields DSS'd, element-local, s-1)
+                writer.append(step * s.dt, whole.u, whole.v, whole.h, {k: d[k] for k in series},
+                              vorticity=whole.vorticity, divergence=whole.divergence)
 
         def save_restart():
             written[0] = self.write_checkpoint(restart_file, overwrite=overwrite or written[0] is not None)

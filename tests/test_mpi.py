@@ -9,6 +9,7 @@ cannot start.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import os
 import shutil
@@ -81,6 +82,30 @@ def assert_same_bits(a: Path, b: Path) -> None:
             if name != "wall_time":
                 assert np.array_equal(x[name].values, y[name].values, equal_nan=x[name].dtype.kind == "f"), name
         assert y.attrs["mpi_ranks"] > x.attrs["mpi_ranks"] == 1
+
+
+def test_each_output_time_gathers_a_state_once(tmp_path, monkeypatch):
+    """An output time gathers the state's u, v, h, vorticity and divergence on rank 0
+    in one ``Topology.gather`` (a collective Gatherv over the ranks), which the
+    diagnostics and the file share, plus one (vorticity, divergence) gather per
+    wind-error split (TC2: the error against the exact wind, and the exact wind);
+    the run's start gathers the state once more for its Courant numbers. Counted on
+    one process, where each call stands for the collective."""
+    from conftest import make_sim
+    from swe_sphere.config import load_scene
+    from swe_sphere.constants import DAY
+
+    dt = 1800.0
+    scene = load_scene("tc2_steady", ne=2, np=4, dt=dt, days=4 * dt / DAY, stepper="ssprk3")
+    sim = make_sim(dataclasses.replace(scene, output_every_days=2 * dt / DAY))  # outputs at steps 0, 2, 4
+    shapes, real = [], sim.topology.gather
+    monkeypatch.setattr(sim.topology, "gather", lambda a: shapes.append(np.shape(a)) or real(a))
+    sim.run(tmp_path / "run.nc")
+    n = sim.topology.N
+    assert shapes == [(3, n)] + [(5, n), (2, n), (2, n)] * 3
+    shapes.clear()
+    sim.run(None)  # at the end already: one output time, no file (no divergence)
+    assert shapes == [(3, n), (4, n), (2, n), (2, n)]
 
 
 @pytest.mark.usefixtures("needs_mpi")

@@ -31,6 +31,7 @@ from swe_sphere.constants import DAY
 from swe_sphere.output import ExclusiveFile, OutputError
 from swe_sphere.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
+from swe_sphere.topology import Topology
 
 VARIANTS = [(name, {}) for name in STEPPERS] + [("implicit", {"method": "bdf2"})]
 DT = 1800.0
@@ -74,6 +75,19 @@ def test_continued_run_is_bitwise_on_cuda(tmp_path, name, options):
     cont = Simulation.from_checkpoint(r.checkpoint, "cuda", days=6 * DT / DAY, progress=False)
     cont.run(None)
     np.testing.assert_array_equal(cont.x.numpy(), whole.x.numpy())
+
+
+def test_continuing_hands_each_whole_grid_array_out_once(tmp_path, monkeypatch):
+    """``from_checkpoint`` distributes the state once (as the start state) and each
+    stepper array once: every ``Topology.distribute`` is a collective Scatterv over
+    the ranks, and the whole state was handed out twice."""
+    r = make_sim(tc2("leapfrog", steps=2)).run(None, restart_file=tmp_path / "r.nc", restart_every=2 * DT / DAY)
+    handed = []
+    real = Topology.distribute
+    monkeypatch.setattr(Topology, "distribute", lambda self, whole, rows, what: handed.append(what) or real(self, whole, rows, what))
+    cont = Simulation.from_checkpoint(r.checkpoint, "cpu", days=4 * DT / DAY, progress=False)
+    assert handed == ["start state", "leapfrog stepper state 'previous'"]
+    assert cont.step == 2 and np.array_equal(cont.x.numpy(), ckpt.read(r.checkpoint).x)
 
 
 def test_checkpoint_contents_and_refusals(tmp_path):

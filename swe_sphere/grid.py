@@ -270,7 +270,9 @@ def _metric(ne: int, rule, radius: float, copies: np.ndarray, rep: np.ndarray):
     D (n, 2, 2) is the Jacobian of X = a P/|P| w.r.t. the element reference
     coordinates (ξ, η) in that basis, before the area correction."""
     alpha, beta, ea, eb, rP, xhat = _geometry(ne, rule, copies)
-    xyz = _geometry(ne, rule, rep)[-1]
+    xyz = xhat.copy()
+    moved = rep != copies  # most copies are their node's first: only the others need their first's position
+    xyz[moved] = _geometry(ne, rule, rep[moved])[-1]  # the same bits as computed there (elementwise, per node)
     xyz[np.abs(xyz) < 1e-15] = 0.0
     xyz /= np.linalg.norm(xyz, axis=1)[:, None]
     lat = np.arcsin(np.clip(xyz[:, 2], -1, 1))

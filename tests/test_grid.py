@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from swe_sphere.grid import CubedSphere
+from swe_sphere.grid import CubedSphere, _geometry
 
 from conftest import cached_grid
 from numpy_ops import NumpyOps
@@ -57,6 +57,18 @@ def test_copies_share_coordinates(ne, np_):
     assert np.allclose(c * np.cos(g.lon), g.xyz[0], atol=1e-15)
     assert np.allclose(c * np.sin(g.lon), g.xyz[1], atol=1e-15)
     assert np.all((g.lon >= 0) & (g.lon < 2 * math.pi))
+
+
+@pytest.mark.parametrize("ne,np_", [(2, 4), (3, 8)])
+def test_positions_are_their_first_copies_computed_alone_bit_for_bit(ne, np_):
+    """Every node's position is the one computed from its first copy's own angles,
+    in one batch here: the metric reuses a first copy's position from the batch
+    of all copies rather than computing it twice, with the same bits."""
+    g = cached_grid(ne, np_)
+    xyz = _geometry(ne, g.rule, g.dss_table[:, 0].astype(np.int64))[-1]
+    xyz[np.abs(xyz) < 1e-15] = 0.0
+    xyz /= np.linalg.norm(xyz, axis=1)[:, None]
+    assert np.array_equal(g.xyz, xyz.T)
 
 
 @pytest.mark.parametrize("ne,np_", [(1, 3), (2, 4), (3, 7)])

@@ -166,7 +166,9 @@ class Topology:
     first (nunique,) int32 : one local copy of each owned unique node
     area (nunique,) numpy : assembled spheremp of the owned unique nodes (m²)
     total_area : Σ area over the sphere (m²; 4πa²)
-    neighbours : ranks sharing nodes with this one; halo_copies : copies received per DSS
+    copies, owned : the DSS's halo and the unique-node halo (``_Halo``: what goes
+        to and comes from each neighbour); neighbours : ranks sharing nodes with
+        this one; ghost : the DSS's receive buffer; halo_copies : copies received per DSS
 
     Raises ValueError on a CUDA device with more than one rank (CPU only so far).
     """
@@ -197,11 +199,8 @@ class Topology:
         self.area = grid.area
         self.nunique = grid.first.size
         self.total_area = self.sum(float(np.sum(self.area)))
-        # the DSS's pattern under the names the benchmarks and tests read
-        c = self.copies
-        self.neighbours, self.send_ranges, self.recv_ranges = c.neighbours, c.send_ranges, c.recv_ranges
-        self.send_index, self.send_buffer, self.ghost = c.send_index, c.send_buffer, c.recv_buffer
-        self.halo_copies = c.size
+        c = self.copies  # the DSS's pattern
+        self.neighbours, self.ghost, self.halo_copies = c.neighbours, c.recv_buffer, c.size
 
     def _build_halos(self, parts, rank):
         """Local tables from the rank's own nodes' rows of the global DSS table and

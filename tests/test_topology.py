@@ -89,16 +89,16 @@ def test_partitioned_dss_with_exchanged_copies_is_the_serial_dss_bit_for_bit(ran
         launches = t.dss(wp.array(x[:, t.nodes], dtype=wp.float64), True, out)
         assert [launch.kernel.key for launch in launches] == ["pack", "exchange", "dss"]
         launches[0].launch()
-        sent.append(t.send_buffer.numpy().copy())
+        sent.append(t.copies.send_buffer.numpy().copy())
         outs.append((out, launches[-1]))
-        for a, b in t.send_ranges:  # each neighbour gets its copies in the global order
-            copies = t.nodes[t.send_index.numpy()[a:b]]
+        for a, b in t.copies.send_ranges:  # each neighbour gets its copies in the global order
+            copies = t.nodes[t.copies.send_index.numpy()[a:b]]
             assert np.all(np.diff(copies) > 0)
             assert np.array_equal(sent[-1][a * 3 : b * 3], x[:, copies].T.ravel())
     for r, t in enumerate(topos):  # "exchange", then the DSS
         ghost = t.ghost.numpy()
-        for s, (a, b) in zip(t.neighbours, t.recv_ranges):
-            c, d = topos[s].send_ranges[list(topos[s].neighbours).index(r)]
+        for s, (a, b) in zip(t.neighbours, t.copies.recv_ranges):
+            c, d = topos[s].copies.send_ranges[list(topos[s].neighbours).index(r)]
             assert d - c == b - a
             ghost[a * 3 : b * 3] = sent[s][c * 3 : d * 3]
         out, launch = outs[r]

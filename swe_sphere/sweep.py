@@ -119,15 +119,16 @@ def _filtered_errors(sim: Simulation, xf: np.ndarray | None, xf_ref: np.ndarray 
     }
 
 
-def helmholtz_cost(sim: Simulation, a: float, rounds: int = 7) -> float:
+def helmholtz_cost(sim: Simulation, a: float, rounds: int = 5) -> float:
     """The time of one Helmholtz iteration of ``sim``'s stepper, in RHS evaluations:
-    the time of a cold-started solve of (I − aL) z = F(x) (``a`` in s; the
-    stepper's own solver and tolerance, so its per-solve overhead is shared out as
-    in its runs) over its iteration count, divided by the time of one RHS
-    evaluation, both on the simulation's last good state; the median over
-    ``rounds`` that each time both, so that a change of the machine's load hits
-    both alike. 0.0 for a stepper without a Helmholtz solve, NaN where the solve
-    cannot start (no mean depth yet)."""
+    a cold-started solve of (I − aL) z = F(x) (``a`` in s; the stepper's own solver
+    and tolerance, so its per-solve overhead is shared out as in its runs) against
+    as many RHS evaluations as it takes iterations, both on the simulation's last
+    good state; the median over ``rounds`` that each time both. Timing spans of
+    about equal length matter on a shared machine: a single RHS (milliseconds) often
+    runs within one time slice while a solve is preempted, which biased an early
+    version's ratio upwards 2–3× at load 4. 0.0 for a stepper without a Helmholtz
+    solve, NaN where the solve cannot start (no mean depth yet)."""
     gw = getattr(sim.stepper, "gw", None)
     if gw is None:
         return 0.0
@@ -143,15 +144,19 @@ def helmholtz_cost(sim: Simulation, a: float, rounds: int = 7) -> float:
         wp.synchronize_device(model.device)
         return time.perf_counter() - t0, out
 
+    def rhs_evaluations(n):
+        for _ in range(n):
+            model.rhs(x, f)
+
     model.rhs(x, f)  # records the launches (the first call of a buffer pair)
     warm, gw.warm = gw.warm, False  # cold starts: a warm one would converge at once on the same right-hand side
     try:
-        gw.solve(f, a, z)  # builds the matrix (and hierarchy) for this a
+        n = max(gw.solve(f, a, z), 1)  # also builds the matrix (and hierarchy) for this a
         ratios = []
         for _ in range(rounds):
-            t_rhs, _ = timed(lambda: model.rhs(x, f))
+            t_rhs, _ = timed(lambda: rhs_evaluations(n))
             t_solve, iterations = timed(lambda: gw.solve(f, a, z))
-            ratios.append(t_solve / max(iterations, 1) / t_rhs)
+            ratios.append(t_solve / max(iterations, 1) / (t_rhs / n))
     finally:
         gw.warm = warm
     return float(np.median(ratios))

@@ -148,16 +148,20 @@ class Simulation:
     With the scene's ``initialization`` (a digital filter, see
     ``initialization``) and no ``start``, the filter runs here (its cost is part
     of ``setup_time``) and ``dfi`` holds its ``FilterResult``, else None.
+    ``initial``: the t = 0 diagnostics that relative changes are taken against,
+    the same on every rank (a checkpoint's, when continuing: the start state is
+    then not diagnosed for nothing); None: the start state's (``diagnose(0)``).
     """
 
-    def __init__(self, scene: Scene, device: str, *, progress: bool = True, comm=None, start: np.ndarray | None = None):
+    def __init__(self, scene: Scene, device: str, *, progress: bool = True, comm=None, start: np.ndarray | None = None,
+                 initial: dict | None = None):
         t0 = time.perf_counter()
         self._compile = [0.0]
         with _compile_timer(self._compile):
-            self._build(scene, device, progress, comm, start)
+            self._build(scene, device, progress, comm, start, initial)
         self.setup_time = time.perf_counter() - t0
 
-    def _build(self, scene, device, progress, comm, start):
+    def _build(self, scene, device, progress, comm, start, initial):
         _check_memory(scene, comm)
         self.scene, self.device = scene, device
         size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
@@ -192,8 +196,9 @@ class Simulation:
         self.x = self.model.new_state(*(self.dfi.x if self.dfi is not None else start))
         self.last_good = wp.clone(self.x)
         self.scratch = self.model.new_state()  # a comparison wind, for its vorticity and divergence
-        self.initial = None
-        self.initial = self.diagnose(0.0)
+        self.initial = initial
+        if initial is None:
+            self.initial = self.diagnose(0.0)
         self.step = 0  # steps taken since t = 0
         self.counters = {"rhs_evals": 0, "wall_time": 0.0, "iterations": {k: 0 for k in self.stepper.solvers}}
 
@@ -208,7 +213,7 @@ class Simulation:
         if scene.nsteps < ck.step:
             raise ckpt.CheckpointError(f"the run length {scene.days:g} days ends before the checkpoint (day {ck.step * scene.dt / DAY:g})")
         start = ON_ROOT if ck.x is None else ck.x  # ranks > 0 of ``read_on_root`` have no arrays
-        sim = cls(scene, device, progress=progress, comm=comm, start=start)  # the state handed out; no second digital filter
+        sim = cls(scene, device, progress=progress, comm=comm, start=start, initial=ck.initial)  # the state handed out; no second digital filter
         sim._restore_history(ck)
         return sim
 

@@ -80,14 +80,18 @@ def test_continued_run_is_bitwise_on_cuda(tmp_path, name, options):
 def test_continuing_hands_each_whole_grid_array_out_once(tmp_path, monkeypatch):
     """``from_checkpoint`` distributes the state once (as the start state) and each
     stepper array once: every ``Topology.distribute`` is a collective Scatterv over
-    the ranks, and the whole state was handed out twice."""
+    the ranks, and the whole state was handed out twice. It does not diagnose the
+    start state either (gathers, the reference at day 0): the checkpoint has its t = 0 figures."""
     r = make_sim(tc2("leapfrog", steps=2)).run(None, restart_file=tmp_path / "r.nc", restart_every=2 * DT / DAY)
-    handed = []
-    real = Topology.distribute
+    handed, diagnosed = [], []
+    real, real_diagnose = Topology.distribute, Simulation.diagnose
     monkeypatch.setattr(Topology, "distribute", lambda self, whole, rows, what: handed.append(what) or real(self, whole, rows, what))
+    monkeypatch.setattr(Simulation, "diagnose", lambda self, t, *a: diagnosed.append(t) or real_diagnose(self, t, *a))
     cont = Simulation.from_checkpoint(r.checkpoint, "cpu", days=4 * DT / DAY, progress=False)
     assert handed == ["start state", "leapfrog stepper state 'previous'"]
-    assert cont.step == 2 and np.array_equal(cont.x.numpy(), ckpt.read(r.checkpoint).x)
+    assert diagnosed == []
+    ck = ckpt.read(r.checkpoint)
+    assert cont.step == 2 and np.array_equal(cont.x.numpy(), ck.x) and cont.initial == ck.initial
 
 
 def test_checkpoint_contents_and_refusals(tmp_path):

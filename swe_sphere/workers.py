@@ -35,6 +35,11 @@ def cpus() -> int:
 
 def limit_threads(threads: int) -> None:
     """Use ``threads`` CPU threads in this process (unless SWE_SPHERE_THREADS is set)."""
+    # threadpoolctl limits only the BLAS libraries already loaded: numpy's and scipy's
+    # own OpenBLAS load on import, and a spawned worker has imported neither yet (it
+    # then ran the Helmholtz CG's inner products on every core, spinning under load)
+    import numpy  # noqa: F401
+    import scipy.linalg  # noqa: F401
     from threadpoolctl import threadpool_limits
 
     os.environ.setdefault("SWE_SPHERE_THREADS", str(threads))

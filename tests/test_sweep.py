@@ -9,6 +9,7 @@ import pytest
 import xarray as xr
 
 from swe_sphere import sweep as sweep_mod
+from swe_sphere import workers as workers_mod
 from swe_sphere.cli import main
 from swe_sphere.simulation import Simulation
 
@@ -118,6 +119,25 @@ def test_sweep_with_two_workers_gives_the_serial_rows(swept, tmp_path):
     pd.testing.assert_frame_equal(parallel_rows, serial_rows, check_exact=True)
     assert (pd.read_csv(parallel / "sweep.csv")["wall_time"] > 0).all()
     assert sorted(p.name for p in (parallel / "runs").glob("*.json")) == sorted(p.name for p in (out / "runs").glob("*.json"))
+
+
+def _blas_threads():
+    from threadpoolctl import threadpool_info
+
+    import scipy.sparse.linalg  # noqa: F401  (what the Helmholtz CG loads)
+
+    return sorted({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}), len(threadpool_info())
+
+
+def test_a_sweep_worker_runs_blas_on_its_share_of_the_cores(monkeypatch):
+    """Each of N workers runs numpy's and scipy's BLAS (the Helmholtz CG's inner
+    products) on cpus // N threads, although a spawned worker loads neither
+    library before its first run (a limit set earlier reaches no library)."""
+    monkeypatch.delenv("SWE_SPHERE_THREADS", raising=False)
+    monkeypatch.setattr(workers_mod, "cpus", lambda: 2)
+    with workers_mod.executor(2) as pool:
+        threads, libraries = pool.submit(_blas_threads).result()
+    assert threads == [1] and libraries >= 2  # numpy's OpenBLAS and scipy's
 
 
 def test_sweep_refuses_zero_workers(tmp_path, capsys):

@@ -345,10 +345,11 @@ class Simulation:
                 f"{self.scene.stepper}'s stability limit of about {limit:g} (measured on TC2); it may blow up "
                 f"(dt <= {self.scene.dt * limit / speed:.4g} s keeps below)")
 
-    def courant(self) -> dict:
+    def courant(self, whole: WholeFields | None = None) -> dict:
         """Advective and gravity-wave Courant numbers of the scene's dt on the current
-        state (call on every rank)."""
-        u, v, h = self.fields()
+        state (call on every rank; ``whole``: its ``gather_fields`` when the caller
+        has them, on every rank or on none)."""
+        u, v, h = self.fields() if whole is None else (whole.u, whole.v, whole.h)
         c = courant_numbers(self.grid, u, v, h, self.scene.dt, self.g, "pressure_gradient" in self.scene.terms) if self.root else None
         return self.topology.bcast(c)
 
@@ -392,7 +393,9 @@ class Simulation:
             raise ValueError("a restart interval needs an output or restart file")
         if restart_file is not None and self.root:
             check_target(restart_file, overwrite)
-        courant = self.courant()
+        with _compile_timer(self._compile):  # a continuation's first use of the diagnostic kernels
+            start = self.gather_fields(divergence=output is not None)  # the first output time's, on every rank
+        courant = self.courant(start)
         solver_series = [f"{k}_iterations" for k in stepper.solvers]
         series = ["steps", "rhs_evals", *solver_series, "wall_time", *self.initial.keys()]
         writer = None
@@ -421,8 +424,9 @@ class Simulation:
         c, history = self.counters, []
         first_step, first_time, written, wall0 = self.step, math.nan, [None], c["wall_time"]
 
-        def record(step, x=None):
-            whole = self.gather_fields(x, divergence=output is not None)  # once per output time, on every rank
+        def record(step, x=None, whole=None):
+            if whole is None:  # once per output time, on every rank
+                whole = self.gather_fields(x, divergence=output is not None)
             d = self.diagnose(step * s.dt, x, whole)
             d.update(steps=step, rhs_evals=c["rhs_evals"], wall_time=c["wall_time"])
             d.update({f"{k}_iterations": c["iterations"].get(k, 0) for k in stepper.solvers})
@@ -448,7 +452,7 @@ class Simulation:
         blowup = interrupted = None
         try:
             with _compile_timer(self._compile):
-                record(self.step)
+                record(self.step, whole=start)
                 bar = tqdm(initial=self.step, total=s.nsteps, unit="step", disable=not self.progress, file=sys.stderr, dynamic_ncols=True)
                 with bar:
                     while self.step < s.nsteps:

@@ -89,7 +89,7 @@ def test_each_output_time_gathers_a_state_once(tmp_path, monkeypatch):
     in one ``Topology.gather`` (a collective Gatherv over the ranks), which the
     diagnostics and the file share, plus one (vorticity, divergence) gather per
     wind-error split (TC2: the error against the exact wind, and the exact wind);
-    the run's start gathers the state once more for its Courant numbers. Counted on
+    the run's Courant numbers come from its first output time's gather. Counted on
     one process, where each call stands for the collective."""
     from conftest import make_sim
     from swe_sphere.config import load_scene
@@ -102,10 +102,10 @@ def test_each_output_time_gathers_a_state_once(tmp_path, monkeypatch):
     monkeypatch.setattr(sim.topology, "gather", lambda a: shapes.append(np.shape(a)) or real(a))
     sim.run(tmp_path / "run.nc")
     n = sim.topology.N
-    assert shapes == [(3, n)] + [(5, n), (2, n), (2, n)] * 3
+    assert shapes == [(5, n), (2, n), (2, n)] * 3
     shapes.clear()
     sim.run(None)  # at the end already: one output time, no file (no divergence)
-    assert shapes == [(3, n), (4, n), (2, n), (2, n)]
+    assert shapes == [(4, n), (2, n), (2, n)]
 
 
 @pytest.mark.usefixtures("needs_mpi")

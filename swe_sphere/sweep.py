@@ -3,8 +3,8 @@
 For each (stepper, Δt) the scene is run on one grid; recorded are the wall
 time of the time loop (compilation and start-up measured apart, in a warm-up
 run per stepper), RHS evaluations, solver iterations, the cost in RHS-evaluation
-equivalents (the Helmholtz iterations converted at their cost measured in the
-warm-up, ``helmholtz_cost``; "cheapest" means fewest), stability, the total
+equivalents (the wall time over the time of one RHS evaluation measured in the
+run's process just after it; "cheapest" means fewest), stability, the total
 error at the final time (against the exact solution where the case has one:
 TC1–TC4, Läuter; else the T213 reference) and the temporal error (against a same-grid run with a small Δt:
 RK4 at a quarter of the smallest Δt swept, at most a quarter of the
@@ -119,47 +119,24 @@ def _filtered_errors(sim: Simulation, xf: np.ndarray | None, xf_ref: np.ndarray 
     }
 
 
-def helmholtz_cost(sim: Simulation, a: float, rounds: int = 5) -> float:
-    """The time of one Helmholtz iteration of ``sim``'s stepper, in RHS evaluations:
-    a cold-started solve of (I − aL) z = F(x) (``a`` in s; the stepper's own solver
-    and tolerance, so its per-solve overhead is shared out as in its runs) against
-    as many RHS evaluations as it takes iterations, both on the simulation's last
-    good state; the median over ``rounds`` that each time both. Timing spans of
-    about equal length matter on a shared machine: a single RHS (milliseconds) often
-    runs within one time slice while a solve is preempted, which biased an early
-    version's ratio upwards 2–3× at load 4. 0.0 for a stepper without a Helmholtz
-    solve, NaN where the solve cannot start (no mean depth yet)."""
-    gw = getattr(sim.stepper, "gw", None)
-    if gw is None:
-        return 0.0
-    if not gw.H > 0:
-        return math.nan
+def rhs_time(sim: Simulation, evaluations: int = 10, rounds: int = 5) -> float:
+    """The time (s) of one RHS evaluation of ``sim``'s model on its last good state,
+    the median over ``rounds`` of ``evaluations`` each: the unit of a run's cost in
+    RHS-evaluation equivalents (wall time / this, as ``benchmarks/implicit_cost.py``
+    counts them), measured in the run's own process just after it, so that it
+    shares the run's threads and, roughly, the machine's load."""
     model, x = sim.model, sim.last_good
-    f, z = model.new_state(), model.new_state()
-
-    def timed(fn):
+    f = model.new_state()
+    model.rhs(x, f)  # records the launches (the first call of a buffer pair)
+    times = []
+    for _ in range(rounds):
         wp.synchronize_device(model.device)
         t0 = time.perf_counter()
-        out = fn()
-        wp.synchronize_device(model.device)
-        return time.perf_counter() - t0, out
-
-    def rhs_evaluations(n):
-        for _ in range(n):
+        for _ in range(evaluations):
             model.rhs(x, f)
-
-    model.rhs(x, f)  # records the launches (the first call of a buffer pair)
-    warm, gw.warm = gw.warm, False  # cold starts: a warm one would converge at once on the same right-hand side
-    try:
-        n = max(gw.solve(f, a, z), 1)  # also builds the matrix (and hierarchy) for this a
-        ratios = []
-        for _ in range(rounds):
-            t_rhs, _ = timed(lambda: rhs_evaluations(n))
-            t_solve, iterations = timed(lambda: gw.solve(f, a, z))
-            ratios.append(t_solve / max(iterations, 1) / (t_rhs / n))
-    finally:
-        gw.warm = warm
-    return float(np.median(ratios))
+        wp.synchronize_device(model.device)
+        times.append((time.perf_counter() - t0) / evaluations)
+    return float(np.median(times))
 
 
 @dataclass
@@ -265,7 +242,8 @@ class Sweep:
         growth = max(h.get("total_energy_change", 0.0) for h in result.history)
         if stable and growth > 0.01:
             stable, reason = False, f"total energy grew by {growth:.2%}"
-        row.update(stable=stable, reason=reason, wall_time=at["wall_time"], steps=at["steps"], rhs_evals=at["rhs_evals"])
+        row.update(stable=stable, reason=reason, wall_time=at["wall_time"], steps=at["steps"], rhs_evals=at["rhs_evals"],
+                   rhs_time=rhs_time(sim))
         row.update({f"{k}_iterations": at[f"{k}_iterations"] for k in result.iterations})
         final = result.history[-1]
         for k in ("mass_change", "total_energy_change", "potential_enstrophy_change"):
@@ -280,8 +258,8 @@ class Sweep:
 
     def warm_up(self, stepper: str) -> tuple[float, float]:
         """Compile and load every kernel a stepper uses (a two-step run); returns its
-        time (s) and the cost of one of its Helmholtz iterations in RHS evaluations
-        (``helmholtz_cost``, at half the middle Δt it is swept at)."""
+        time (s) and ``rhs_time`` there (for the rows of runs made before each run
+        measured its own)."""
         t0 = time.perf_counter()
         dt = min(self.dts)
         span = 2 * dt / DAY
@@ -291,9 +269,7 @@ class Sweep:
             sim.run(None)
         except BlowUp:  # unstable at this Δt (its own run will record it); every kernel has run once
             pass
-        startup = time.perf_counter() - t0
-        dts = sorted(d for s, d in self.pairs if s == stepper)
-        return startup, helmholtz_cost(sim, 0.5 * dts[len(dts) // 2])
+        return time.perf_counter() - t0, rhs_time(sim)
 
     def run(self, pool=None) -> tuple[list[dict], dict]:
         """All runs (resuming), on ``pool`` (a concurrent.futures executor; None:
@@ -308,7 +284,7 @@ class Sweep:
         for stepper, dt in self.pairs:
             self.log(f"[{len(runs) + 1}/{len(self.pairs)}] {stepper} dt = {dt:.6g} s")
             runs.append((stepper, pool.submit(self.run_one, stepper, dt)))
-        rows = [{**future.result(), "startup_time": startups[stepper][0], "helmholtz_cost": startups[stepper][1]}
+        rows = [{"rhs_time": startups[stepper][1], **future.result(), "startup_time": startups[stepper][0]}
                 for stepper, future in runs]
         d = self.base.digital_filter  # in the sweep's netCDF attributes: which start the runs share
         return rows, {"spatial_error": ref["total_error"], "spatial_error_vorticity": ref["total_error_vorticity"],
@@ -318,7 +294,7 @@ class Sweep:
 
 COLUMNS = (
     "stepper", "dt", "dt_over_gravity_limit", "dt_over_advective_limit", "dt_over_leapfrog_limit", "stable", "wall_time", "startup_time",
-    "setup_time", "steps", "rhs_evals", "rhs_equivalents", "helmholtz_cost", "newton_iterations", "gmres_iterations", "precond_iterations",
+    "setup_time", "steps", "rhs_evals", "rhs_time", "rhs_equivalents", "newton_iterations", "gmres_iterations", "precond_iterations",
     "helmholtz_iterations", "total_error", "total_error_vorticity", "total_error_divergence",
     "temporal_error", "temporal_error_wind", "temporal_error_vorticity", "temporal_error_divergence",
     "temporal_error_filtered", "temporal_error_filtered_vorticity", "mass_change", "total_energy_change", "potential_enstrophy_change", "reason",
@@ -327,13 +303,13 @@ COLUMNS = (
 
 def table(rows, limits) -> list[dict]:
     """Rows with every column (NaN where not applicable), Δt as multiples of the
-    limits and the cost in RHS-evaluation equivalents: RHS evaluations (a JFNK
-    Jacobian–vector product is one) + Helmholtz iterations × ``helmholtz_cost``."""
+    limits and the cost in RHS-evaluation equivalents (wall time / ``rhs_time``:
+    everything a step does — RHS evaluations, ∇⁴, Helmholtz and Krylov work — in
+    units of the one operation every stepper shares)."""
     out = []
     for r in rows:
         row = {c: r.get(c, math.nan) for c in COLUMNS}
-        helmholtz = r.get("helmholtz_iterations", 0.0)
-        row["rhs_equivalents"] = r["rhs_evals"] + (helmholtz * r["helmholtz_cost"] if helmholtz else 0.0)
+        row["rhs_equivalents"] = r["wall_time"] / r["rhs_time"]
         row["dt_over_gravity_limit"] = r["dt"] / limits["dt_gravity"]
         row["dt_over_advective_limit"] = r["dt"] / limits["dt_advective"]
         row["dt_over_leapfrog_limit"] = r["dt"] / limits["dt_leapfrog"]
@@ -357,8 +333,9 @@ VERDICT_COLUMNS = ("criterion", "threshold", "stepper", "dt", "dt_over_gravity_l
 
 
 def _cheapest(rows, stepper, column, limit):
-    """The stable run of ``stepper`` with the fewest RHS-evaluation equivalents (exact
-    counts, unlike the wall time on a shared machine) whose ``column`` ≤ limit (None if none)."""
+    """The stable run of ``stepper`` with the fewest RHS-evaluation equivalents (its wall
+    time in units of an RHS evaluation timed beside it: less sensitive than seconds to
+    the load of a shared machine) whose ``column`` ≤ limit (None if none)."""
     ok = [r for r in rows if r["stepper"] == stepper and r["stable"] and r.get(column, math.nan) <= limit]
     return min(ok, key=lambda r: r["rhs_equivalents"], default=None)
 

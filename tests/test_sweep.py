@@ -84,41 +84,17 @@ def test_cheapest_sufficient_picks_the_accurate_run_with_fewest_rhs_equivalents(
     assert best["a"]["rhs_equivalents"] == 200.0 and "b" not in best
 
 
-def test_rhs_equivalents_count_the_helmholtz_iterations_at_their_measured_cost(swept):
-    """An explicit stepper's cost is its RHS evaluations; the JFNK stepper's adds its
-    preconditioner's Helmholtz CG iterations at the cost of one measured in its
-    warm-up (ne2: a sparse product with ~800 unknowns against a whole RHS)."""
+def test_rhs_equivalents_are_the_wall_time_in_rhs_evaluations(swept):
+    """A run's cost in RHS-evaluation equivalents is its wall time over one RHS
+    evaluation timed in its own process: at least its RHS count (ssprk3: 72, with
+    ∇⁴ and the stage sums on top; the JFNK run: each Jacobian–vector product is one,
+    plus the Helmholtz preconditioner)."""
     out, _ = swept
     df = pd.read_csv(out / "sweep.csv")
-    explicit, implicit = df[df["stepper"] == "ssprk3"], df[df["stepper"] == "implicit"]
-    assert (explicit["helmholtz_cost"] == 0).all()
-    assert (explicit["rhs_equivalents"] == explicit["rhs_evals"]).all()
-    cost = implicit["helmholtz_cost"].to_numpy()
-    assert cost[0] == cost[1] and 0 < cost[0] < 10  # one measurement per stepper
-    assert (implicit["helmholtz_iterations"] > 0).all()
-    np.testing.assert_array_equal(implicit["rhs_equivalents"], implicit["rhs_evals"] + cost * implicit["helmholtz_iterations"])
-
-
-def test_sweep_bad_input_exits_2(tmp_path, capsys):
-    assert main(["sweep", "tc2_steady", "--steppers", "euler", "--output", str(tmp_path / "o")]) == 2
-    assert main(["sweep", "tc2_steady", "--dt", "-5", "--output", str(tmp_path / "o")]) == 2
-    assert main(["sweep", "tc2_steady", "--ne", "2", "--dt", "7000", "--output", str(tmp_path / "o")]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 3 and "euler" in err[0] and "-5" in err[1] and "7000" in err[2]
-
-
-def test_sweep_with_two_workers_gives_the_serial_rows(swept, tmp_path):
-    """--workers 2 (a spawned process pool) writes the same rows as the serial sweep;
-    only the timings differ."""
-    out, args = swept
-    parallel = tmp_path / "parallel"
-    assert main([*args[:-1], str(parallel), "--workers", "2"]) == 0
-    timings = ["wall_time", "startup_time", "setup_time", "helmholtz_cost", "rhs_equivalents"]
-    serial_rows = pd.read_csv(out / "sweep.csv").drop(columns=timings)
-    parallel_rows = pd.read_csv(parallel / "sweep.csv").drop(columns=timings)
-    pd.testing.assert_frame_equal(parallel_rows, serial_rows, check_exact=True)
-    assert (pd.read_csv(parallel / "sweep.csv")["wall_time"] > 0).all()
-    assert sorted(p.name for p in (parallel / "runs").glob("*.json")) == sorted(p.name for p in (out / "runs").glob("*.json"))
+    assert (df["rhs_time"] > 0).all()
+    np.testing.assert_allclose(df["rhs_equivalents"], df["wall_time"] / df["rhs_time"], rtol=1e-12)
+    stable = df[df["stable"] == 1]
+    assert (stable["rhs_equivalents"] > 0.8 * stable["rhs_evals"]).all()
 
 
 def _blas_threads():
@@ -174,7 +150,8 @@ def test_tiny_sweep_verdicts(swept, capsys):
     assert set(v["criterion"]) == {"total h+hs", "balanced flow (vorticity)", "gravity waves (divergence)"}
     # ssprk3 is stable only at 3600 s, whose temporal errors are below 50 % of the spatial ones (test above)
     for _, r in v[(v["stepper"] == "ssprk3") & (v["threshold"] == 0.5)].iterrows():
-        assert r["dt"] == 3600.0 and r["wall_time"] == rows.loc[0, "wall_time"] and r["rhs_evals"] == r["rhs_equivalents"] == 72
+        assert r["dt"] == 3600.0 and r["wall_time"] == rows.loc[0, "wall_time"] and r["rhs_evals"] == 72
+        assert r["rhs_equivalents"] == rows.loc[0, "rhs_equivalents"]
         assert r["dt_over_leapfrog_limit"] == pytest.approx(rows.loc[0, "dt_over_leapfrog_limit"])
     # leapfrog's limit is 0.58 (|v| + c) dt/dx = 1: a shorter dt than the gravity-wave limit
     assert (rows["dt_over_leapfrog_limit"] > rows["dt_over_gravity_limit"]).all()

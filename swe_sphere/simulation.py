@@ -319,9 +319,13 @@ class Simulation:
         None elsewhere) of a continuous wind given on this rank's nodes (m s⁻¹,
         (N,) each; the whole grid on one rank), by the model's operators + DSS
         (call on every rank)."""
-        self.scratch.assign(np.stack([u, v, np.zeros_like(u)]))
-        a = self.topology.gather(np.stack([self.model.vorticity(self.scratch), self.model.wind_divergence(self.scratch)]))
+        a = self.topology.gather(self._rotation_divergence(u, v))
         return (None, None) if a is None else (a[0], a[1])
+
+    def _rotation_divergence(self, u, v) -> np.ndarray:
+        """(2, N): ``rotation_divergence`` on this rank's nodes, before the gather."""
+        self.scratch.assign(np.stack([u, v, np.zeros_like(u)]))
+        return np.stack([self.model.vorticity(self.scratch), self.model.wind_divergence(self.scratch)])
 
     def wind_error_decomposition(self, u, v, u_true, v_true) -> dict:
         """``l2_vorticity``, ``l2_divergence``: the wind error split into its
@@ -330,8 +334,8 @@ class Simulation:
         on both sides, so the derivative's own discretisation error cancels),
         normalized as in ``diagnostics.rotational_divergent_errors``. Winds on
         this rank's nodes (N,) (call on every rank); the figures on every rank."""
-        err, true = self.rotation_divergence(u - u_true, v - v_true), self.rotation_divergence(u_true, v_true)
-        return self.topology.bcast(rotational_divergent_errors(self.grid, *err, *true) if self.root else None)
+        a = self.topology.gather(np.concatenate([self._rotation_divergence(u - u_true, v - v_true), self._rotation_divergence(u_true, v_true)]))
+        return self.topology.bcast(rotational_divergent_errors(self.grid, *a) if self.root else None)  # (error, true) × (ζ, δ)
 
     def stability_warning(self) -> str | None:
         """A one-line warning when an explicit stepper's Δt exceeds its measured

@@ -87,8 +87,8 @@ def assert_same_bits(a: Path, b: Path) -> None:
 def test_each_output_time_gathers_a_state_once(tmp_path, monkeypatch):
     """An output time gathers the state's u, v, h, vorticity and divergence on rank 0
     in one ``Topology.gather`` (a collective Gatherv over the ranks), which the
-    diagnostics and the file share, plus one (vorticity, divergence) gather per
-    wind-error split (TC2: the error against the exact wind, and the exact wind);
+    diagnostics and the file share, plus one gather for the wind-error split (the
+    vorticity and divergence of the error against the exact wind and of the exact wind);
     the run's Courant numbers come from its first output time's gather. Counted on
     one process, where each call stands for the collective."""
     from conftest import make_sim
@@ -102,10 +102,10 @@ def test_each_output_time_gathers_a_state_once(tmp_path, monkeypatch):
     monkeypatch.setattr(sim.topology, "gather", lambda a: shapes.append(np.shape(a)) or real(a))
     sim.run(tmp_path / "run.nc")
     n = sim.topology.N
-    assert shapes == [(5, n), (2, n), (2, n)] * 3
+    assert shapes == [(5, n), (4, n)] * 3
     shapes.clear()
     sim.run(None)  # at the end already: one output time, no file (no divergence)
-    assert shapes == [(4, n), (2, n), (2, n)]
+    assert shapes == [(4, n), (4, n)]
 
 
 @pytest.mark.usefixtures("needs_mpi")

@@ -4,7 +4,7 @@ For each (stepper, Δt) the scene is run on one grid; recorded are the wall
 time of the time loop (compilation and start-up measured apart, in a warm-up
 run per stepper), RHS evaluations, solver iterations, the cost in RHS-evaluation
 equivalents (the wall time over the time of one RHS evaluation measured in the
-run's process just after it; "cheapest" means fewest), stability, the total
+run's process just after it), stability, the total
 error at the final time (against the exact solution where the case has one:
 TC1–TC4, Läuter; else the T213 reference) and the temporal error (against a same-grid run with a small Δt:
 RK4 at a quarter of the smallest Δt swept, at most a quarter of the
@@ -256,10 +256,8 @@ class Sweep:
             tmp.write_text(json.dumps(row))
         return row
 
-    def warm_up(self, stepper: str) -> tuple[float, float]:
-        """Compile and load every kernel a stepper uses (a two-step run); returns its
-        time (s) and ``rhs_time`` there (for the rows of runs made before each run
-        measured its own)."""
+    def warm_up(self, stepper: str) -> float:
+        """Compile and load every kernel a stepper uses (a two-step run); returns its time."""
         t0 = time.perf_counter()
         dt = min(self.dts)
         span = 2 * dt / DAY
@@ -269,7 +267,7 @@ class Sweep:
             sim.run(None)
         except BlowUp:  # unstable at this Δt (its own run will record it); every kernel has run once
             pass
-        return time.perf_counter() - t0, rhs_time(sim)
+        return time.perf_counter() - t0
 
     def run(self, pool=None) -> tuple[list[dict], dict]:
         """All runs (resuming), on ``pool`` (a concurrent.futures executor; None:
@@ -284,8 +282,7 @@ class Sweep:
         for stepper, dt in self.pairs:
             self.log(f"[{len(runs) + 1}/{len(self.pairs)}] {stepper} dt = {dt:.6g} s")
             runs.append((stepper, pool.submit(self.run_one, stepper, dt)))
-        rows = [{"rhs_time": startups[stepper][1], **future.result(), "startup_time": startups[stepper][0]}
-                for stepper, future in runs]
+        rows = [{**future.result(), "startup_time": startups[stepper]} for stepper, future in runs]
         d = self.base.digital_filter  # in the sweep's netCDF attributes: which start the runs share
         return rows, {"spatial_error": ref["total_error"], "spatial_error_vorticity": ref["total_error_vorticity"],
                       "spatial_error_divergence": ref["total_error_divergence"], "reference_dt": ref["dt"],
@@ -305,11 +302,12 @@ def table(rows, limits) -> list[dict]:
     """Rows with every column (NaN where not applicable), Δt as multiples of the
     limits and the cost in RHS-evaluation equivalents (wall time / ``rhs_time``:
     everything a step does — RHS evaluations, ∇⁴, Helmholtz and Krylov work — in
-    units of the one operation every stepper shares)."""
+    units of the one operation every stepper shares; NaN for a run made before
+    runs timed their RHS)."""
     out = []
     for r in rows:
         row = {c: r.get(c, math.nan) for c in COLUMNS}
-        row["rhs_equivalents"] = r["wall_time"] / r["rhs_time"]
+        row["rhs_equivalents"] = r["wall_time"] / row["rhs_time"]
         row["dt_over_gravity_limit"] = r["dt"] / limits["dt_gravity"]
         row["dt_over_advective_limit"] = r["dt"] / limits["dt_advective"]
         row["dt_over_leapfrog_limit"] = r["dt"] / limits["dt_leapfrog"]
@@ -333,19 +331,16 @@ VERDICT_COLUMNS = ("criterion", "threshold", "stepper", "dt", "dt_over_gravity_l
 
 
 def _cheapest(rows, stepper, column, limit):
-    """The stable run of ``stepper`` with the fewest RHS-evaluation equivalents (its wall
-    time in units of an RHS evaluation timed beside it: less sensitive than seconds to
-    the load of a shared machine) whose ``column`` ≤ limit (None if none)."""
+    """The stable run of ``stepper`` with the least wall time whose ``column`` ≤ limit (None if none)."""
     ok = [r for r in rows if r["stepper"] == stepper and r["stable"] and r.get(column, math.nan) <= limit]
-    return min(ok, key=lambda r: r["rhs_equivalents"], default=None)
+    return min(ok, key=lambda r: r["wall_time"], default=None)
 
 
 def verdicts(rows, info) -> list[dict]:
     """Per criterion (``CRITERIA``; the filtered one only where the sweep filtered),
-    threshold (``THRESHOLDS``) and stepper: the cheapest (fewest RHS-evaluation
-    equivalents) stable run whose temporal error ≤ threshold × the spatial error of
-    that criterion, with its Δt multiples, wall time, RHS evaluations and
-    equivalents; dt NaN where no run qualifies."""
+    threshold (``THRESHOLDS``) and stepper: the cheapest (least wall time) stable
+    run whose temporal error ≤ threshold × the spatial error of that criterion, with
+    its Δt multiples, wall time, RHS evaluations and RHS-eq; dt NaN where no run qualifies."""
     steppers = list(dict.fromkeys(r["stepper"] for r in rows))
     out = []
     for criterion, (column, spatial_key) in CRITERIA.items():
@@ -380,7 +375,7 @@ def format_verdicts(verdict_rows) -> str:
 
 
 def cheapest_sufficient(rows, spatial_error) -> dict:
-    """Per stepper, the cheapest (fewest RHS-eq) stable run whose temporal error ≤ 10 % of the spatial error."""
+    """Per stepper, the fastest stable run whose temporal error ≤ 10 % of the spatial error."""
     best = {s: _cheapest(rows, s, "temporal_error", SUFFICIENT * spatial_error) for s in dict.fromkeys(r["stepper"] for r in rows)}
     return {s: r for s, r in best.items() if r is not None}
 
@@ -403,8 +398,8 @@ def format_summary(rows, info) -> str:
     spatial = info["spatial_error"]
     lines.append(f"spatial error (RK4 at dt = {info['reference_dt']:.4g} s): {spatial:.3e}; sufficient accuracy: temporal error <= {SUFFICIENT * spatial:.3e}")
     best = cheapest_sufficient(rows, spatial)
-    explicit = [best[s]["rhs_equivalents"] for s in best if STEPPERS[s].explicit]
-    ref_cost = min(explicit) if explicit else math.nan
+    explicit = [best[s]["wall_time"] for s in best if STEPPERS[s].explicit]
+    ref_time = min(explicit) if explicit else math.nan
     for stepper in dict.fromkeys(r["stepper"] for r in rows):
         if stepper not in best:
             lines.append(f"  {stepper:22s} no run reached sufficient accuracy")
@@ -412,8 +407,8 @@ def format_summary(rows, info) -> str:
         b = best[stepper]
         lines.append(
             f"  {stepper:22s} cheapest sufficient: dt = {b['dt']:.4g} s = {b['dt_over_gravity_limit']:.2f} x gravity-wave limit, "
-            f"{b['dt_over_advective_limit']:.2f} x advective limit; wall {b['wall_time']:.2f} s, {b['rhs_equivalents']:.0f} RHS-eq = "
-            f"{b['rhs_equivalents'] / ref_cost:.2f} x best explicit"
+            f"{b['dt_over_advective_limit']:.2f} x advective limit; wall {b['wall_time']:.2f} s = {b['wall_time'] / ref_time:.2f} x best explicit, "
+            f"{b['rhs_equivalents']:.0f} RHS-eq"
         )
     lines.append("verdicts: the cheapest run per criterion with temporal error <= 10 % / 50 % of that criterion's spatial error")
     lines.append(format_verdicts(verdicts(rows, info)))

@@ -72,16 +72,15 @@ def test_sweep_resumes_without_rerunning(swept, monkeypatch, capsys):
     assert row["stable"] is True and row["steps"] == 24
 
 
-def test_cheapest_sufficient_picks_the_accurate_run_with_fewest_rhs_equivalents():
+def test_cheapest_sufficient_picks_fastest_accurate_run():
     rows = [
-        {"stepper": "a", "stable": True, "temporal_error": 1e-6, "wall_time": 5.0, "rhs_equivalents": 500.0},
-        # less work, yet more seconds (a busier machine): the counts decide
-        {"stepper": "a", "stable": True, "temporal_error": 5e-6, "wall_time": 6.0, "rhs_equivalents": 200.0},
-        {"stepper": "a", "stable": True, "temporal_error": 5e-5, "wall_time": 1.0, "rhs_equivalents": 50.0},  # not accurate enough
-        {"stepper": "b", "stable": False, "temporal_error": float("nan"), "wall_time": 0.1, "rhs_equivalents": 1.0},
+        {"stepper": "a", "stable": True, "temporal_error": 1e-6, "wall_time": 5.0},
+        {"stepper": "a", "stable": True, "temporal_error": 5e-6, "wall_time": 2.0},
+        {"stepper": "a", "stable": True, "temporal_error": 5e-5, "wall_time": 1.0},  # not accurate enough
+        {"stepper": "b", "stable": False, "temporal_error": float("nan"), "wall_time": 0.1},
     ]
     best = sweep_mod.cheapest_sufficient(rows, spatial_error=1e-4)
-    assert best["a"]["rhs_equivalents"] == 200.0 and "b" not in best
+    assert best["a"]["wall_time"] == 2.0 and "b" not in best
 
 
 def test_rhs_equivalents_are_the_wall_time_in_rhs_evaluations(swept):

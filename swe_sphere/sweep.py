@@ -119,24 +119,29 @@ def _filtered_errors(sim: Simulation, xf: np.ndarray | None, xf_ref: np.ndarray 
     }
 
 
-def rhs_time(sim: Simulation, evaluations: int = 10, rounds: int = 5) -> float:
+def rhs_time(sim: Simulation, span: float = 0.2, rounds: int = 5) -> float:
     """The time (s) of one RHS evaluation of ``sim``'s model on its last good state,
-    the median over ``rounds`` of ``evaluations`` each: the unit of a run's cost in
-    RHS-evaluation equivalents (wall time / this, as ``benchmarks/implicit_cost.py``
-    counts them), measured in the run's own process just after it, so that it
-    shares the run's threads and, roughly, the machine's load."""
+    the median over ``rounds`` of batches of about ``span`` seconds each: the unit of a
+    run's cost in RHS-evaluation equivalents (wall time / this, as
+    ``benchmarks/implicit_cost.py`` counts them), measured in the run's own process
+    just after it, so that it shares the run's threads and, roughly, the machine's
+    load. The batches last long enough to be preempted as the run was: on a loaded
+    machine a single millisecond-long call often runs within one time slice, and
+    its time understates the run's unit."""
     model, x = sim.model, sim.last_good
     f = model.new_state()
-    model.rhs(x, f)  # records the launches (the first call of a buffer pair)
-    times = []
-    for _ in range(rounds):
+
+    def batch(n):
         wp.synchronize_device(model.device)
         t0 = time.perf_counter()
-        for _ in range(evaluations):
+        for _ in range(n):
             model.rhs(x, f)
         wp.synchronize_device(model.device)
-        times.append((time.perf_counter() - t0) / evaluations)
-    return float(np.median(times))
+        return (time.perf_counter() - t0) / n
+
+    batch(1)  # records the launches (the first call of a buffer pair)
+    n = max(1, math.ceil(span / batch(1)))
+    return float(np.median([batch(n) for _ in range(rounds)]))
 
 
 @dataclass

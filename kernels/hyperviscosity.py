@@ -63,7 +63,7 @@ def laplacian_element(second: bool, dvv: tuple):
     ``second=True``: Y₁ = ``first_laplacian_scaled(src, x, G, ..., c)``, which
     it also stores in Y.
     Arguments: src (3 or 4, N), x (3, N), G (2, N), c, hs (N), east, north,
-    xyz (3, N), Dinv (4, N), spheremp (N), Y (4, N), L (4, N) output, offset
+    xyz (3, N), metric (3, N) (``laplacian_metric``), Y (4, N), L (4, N) output, offset
     (in elements). Dim nelem."""
     NP = len(dvv)
     NPP = NP * NP
@@ -100,8 +100,7 @@ def laplacian_element(second: bool, dvv: tuple):
         east: wp.array2d(dtype=f64),
         north: wp.array2d(dtype=f64),
         xyz: wp.array2d(dtype=f64),
-        Dinv: wp.array2d(dtype=f64),
-        spheremp: wp.array(dtype=f64),
+        metric: wp.array2d(dtype=f64),
         Y: wp.array2d(dtype=f64),
         L: wp.array2d(dtype=f64),
         offset: int,
@@ -111,7 +110,7 @@ def laplacian_element(second: bool, dvv: tuple):
         X1 = vec()
         X2 = vec()
         X3 = vec()
-        G11 = vec()  # spheremp · Dinv Dinvᵀ (symmetric): the weak Laplacian's metric, once for all rows
+        G11 = vec()  # the weak Laplacian's metric (``laplacian_metric``), once for all rows
         G12 = vec()
         G22 = vec()
         for k in range(NPP):
@@ -129,14 +128,9 @@ def laplacian_element(second: bool, dvv: tuple):
                 X1[k] = src[0, q] * east[1, q] + src[1, q] * north[1, q]
                 X2[k] = src[0, q] * east[2, q] + src[1, q] * north[2, q]
                 X3[k] = src[2, q] + hs[q]
-            d0 = Dinv[0, q]
-            d1 = Dinv[1, q]
-            d2 = Dinv[2, q]
-            d3 = Dinv[3, q]
-            w = spheremp[q]
-            G11[k] = w * (d0 * d0 + d1 * d1)
-            G12[k] = w * (d0 * d2 + d1 * d3)
-            G22[k] = w * (d2 * d2 + d3 * d3)
+            G11[k] = metric[0, q]
+            G12[k] = metric[1, q]
+            G22[k] = metric[2, q]
         lap(X0, G11, G12, G22, L, 0, base)
         lap(X1, G11, G12, G22, L, 1, base)
         lap(X2, G11, G12, G22, L, 2, base)
@@ -144,6 +138,24 @@ def laplacian_element(second: bool, dvv: tuple):
 
     kernel.__qualname__ = kernel.__name__ = "laplacian_element__second" if S else "laplacian_element__first"
     return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)
+
+
+def _laplacian_metric(Dinv: wp.array2d(dtype=f64), spheremp: wp.array(dtype=f64), metric: wp.array2d(dtype=f64), offset: int):
+    """metric[0:3] = spheremp · (Dinv Dinvᵀ)₁₁, ₁₂, ₂₂ (symmetric): the weak
+    Laplacian's quadrature-weighted contravariant metric. Dim N."""
+    q = wp.tid() + offset
+    d0 = Dinv[0, q]
+    d1 = Dinv[1, q]
+    d2 = Dinv[2, q]
+    d3 = Dinv[3, q]
+    w = spheremp[q]
+    metric[0, q] = w * (d0 * d0 + d1 * d1)
+    metric[1, q] = w * (d0 * d2 + d1 * d3)
+    metric[2, q] = w * (d2 * d2 + d3 * d3)
+
+
+# compiled as laplacian_element (CPU_FAST: the same contractions as when it computed these itself)
+laplacian_metric = wp.kernel(_laplacian_metric, enable_backward=False, module="unique", module_options=CPU_FAST)
 
 
 @wp.kernel

@@ -141,6 +141,9 @@ class ShallowWater:
             self.hv_G = wp.zeros((2, N), dtype=f64, device=device)  # ∇(∇·v), with ν_div ≠ ν
             self.hv_flux = None if self.per_element else wp.zeros((8, N), dtype=f64, device=device)
             self.hv_L = wp.zeros((4, N), dtype=f64, device=device)
+            if self.per_element:  # the weak Laplacian's metric, fixed: computed once, not by every ∇⁴ evaluation
+                self.hv_metric = wp.zeros((3, N), dtype=f64, device=device)
+                self._launch(hyperviscosity.laplacian_metric, N, [self.Dinv, self.spheremp, self.hv_metric]).launch()
         self._recorded: dict[tuple, tuple] = {}
         self._pointwise_launches: dict[tuple, object] = {}
         self._substeps: dict[float, int] = {}
@@ -257,7 +260,7 @@ class ShallowWater:
         if self.per_element:
             def laplacian(second):  # → DSS'd weak Laplacian in X (and Y₁ in Y)
                 kernel = hyperviscosity.laplacian_element(second, self.dvv_const)
-                args = [X if second else x, x, G, c, self.hs, self.east, self.north, self.xyz, self.Dinv, self.spheremp, Y, L]
+                args = [X if second else x, x, G, c, self.hs, self.east, self.north, self.xyz, self.hv_metric, Y, L]
                 return [self._launch_elements(kernel, args), *self._dss(L, 0, X)]
 
             return [*launches, *laplacian(False), *laplacian(True), finish()]

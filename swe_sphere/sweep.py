@@ -332,7 +332,8 @@ CRITERIA = {
 }
 THRESHOLDS = (0.1, 0.5)  # temporal error as a fraction of the spatial error
 VERDICT_COLUMNS = ("criterion", "threshold", "stepper", "dt", "dt_over_gravity_limit", "dt_over_advective_limit",
-                   "dt_over_leapfrog_limit", "wall_time", "rhs_evals", "rhs_equivalents", "temporal_error", "spatial_error")
+                   "dt_over_leapfrog_limit", "wall_time", "rhs_evals", "helmholtz_iterations", "rhs_equivalents", "temporal_error",
+                   "spatial_error")
 
 
 def _cheapest(rows, stepper, column, limit):
@@ -358,7 +359,7 @@ def verdicts(rows, info) -> list[dict]:
                 v = {"criterion": criterion, "threshold": threshold, "stepper": stepper, "spatial_error": spatial}
                 v.update({c: math.nan for c in VERDICT_COLUMNS if c not in v})
                 if best is not None:
-                    v.update({c: best[c] for c in VERDICT_COLUMNS[3:-2]}, temporal_error=best[column])
+                    v.update({c: best.get(c, math.nan) for c in VERDICT_COLUMNS[3:-2]}, temporal_error=best[column])
                 out.append(v)
     return out
 

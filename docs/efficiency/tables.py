@@ -3,7 +3,7 @@
 Reads each sweep directory's ``sweep.csv`` and ``verdicts.csv`` (written by
 ``swe-sphere sweep``) and prints, as Markdown, the main table (per case, grid
 and criterion: the cheapest run (least wall time) within 10 % of the spatial
-error, with its RHS-evaluation equivalents where it measured them, and the
+error, with its RHS evaluations and Helmholtz CG iterations, and the
 largest Δt at which Crank–Nicolson stays within 10 % and 50 %) and one table
 per sweep (the cheapest qualifying run of each stepper per criterion). With
 ``--figures DIR`` it also draws, per sweep, the temporal error against
@@ -25,12 +25,13 @@ SHORT = {"balanced flow (filtered vorticity)": "filtered vorticity", "total h+hs
 def cell(r):
     if pd.isna(r["dt"]):
         return "—"
-    return f"{r.dt_over_gravity_limit:.2g}× ({r.dt_over_leapfrog_limit:.2g}×) · {r.wall_time:.1f} s · {rhs_eq(r)}"
+    return f"{r.dt_over_gravity_limit:.2g}× ({r.dt_over_leapfrog_limit:.2g}×) · {r.wall_time:.1f} s · {work(r)}"
 
 
-def rhs_eq(r) -> str:
-    """RHS-eq, or the bare RHS count (marked) for a run made before runs timed their RHS."""
-    return f"{r.rhs_equivalents:.0f} RHS-eq" if pd.notna(r.rhs_equivalents) else f"({int(r.rhs_evals)} RHS)"
+def work(r) -> str:
+    """The exact counts: RHS evaluations, and Helmholtz CG iterations where the stepper solves one."""
+    its = f" + {r.helmholtz_iterations / 1000:.3g}k CG" if pd.notna(r.get("helmholtz_iterations")) and r.helmholtz_iterations > 0 else ""
+    return f"{int(r.rhs_evals)} RHS{its}"
 
 
 def per_stepper(d: Path, threshold: float) -> str:
@@ -79,7 +80,7 @@ def closest(s, criterion, spatial) -> str:
 
 
 def summary(dirs) -> str:
-    out = ["| case | ne | criterion | spatial error | cheapest at ≤ 10 % | Δt/Δt_g (Δt/Δt_lf) | wall s | RHS-eq (RHS) | CN: largest Δt/Δt_g at ≤ 10 % (≤ 50 %) |",
+    out = ["| case | ne | criterion | spatial error | cheapest at ≤ 10 % | Δt/Δt_g (Δt/Δt_lf) | wall s | work | CN: largest Δt/Δt_g at ≤ 10 % (≤ 50 %) |",
            "|---|---:|---|---:|---|---|---:|---:|---|"]
     for d in dirs:
         s = pd.read_csv(d / "sweep.csv")
@@ -90,7 +91,7 @@ def summary(dirs) -> str:
             if best is None:
                 out.append(f"| {case} | {ne} | {SHORT[c]} | {spatial:.3g} | — (nearest: {closest(s, c, spatial)}) | | | | {impc} |")
                 continue
-            out.append(f"| {case} | {ne} | {SHORT[c]} | {spatial:.3g} | {best.stepper} | {best.dt_over_gravity_limit:.2g}× ({best.dt_over_leapfrog_limit:.2g}×) | {best.wall_time:.1f} | {rhs_eq(best)} | {impc} |")
+            out.append(f"| {case} | {ne} | {SHORT[c]} | {spatial:.3g} | {best.stepper} | {best.dt_over_gravity_limit:.2g}× ({best.dt_over_leapfrog_limit:.2g}×) | {best.wall_time:.1f} | {work(best)} | {impc} |")
     return "\n".join(out)
 
 

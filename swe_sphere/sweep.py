@@ -267,9 +267,8 @@ class Sweep:
         dt = min(self.dts)
         span = 2 * dt / DAY
         scene = dataclasses.replace(self.scenes[stepper], dt=dt, days=span, output_every_days=span)
-        sim = Simulation(scene, self.device, progress=False, start=self.start)
         try:
-            sim.run(None)
+            Simulation(scene, self.device, progress=False, start=self.start).run(None)
         except BlowUp:  # unstable at this Δt (its own run will record it); every kernel has run once
             pass
         return time.perf_counter() - t0

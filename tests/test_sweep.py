@@ -96,6 +96,28 @@ def test_rhs_equivalents_are_the_wall_time_in_rhs_evaluations(swept):
     assert (stable["rhs_equivalents"] > 0.8 * stable["rhs_evals"]).all()
 
 
+def test_sweep_bad_input_exits_2(tmp_path, capsys):
+    assert main(["sweep", "tc2_steady", "--steppers", "euler", "--output", str(tmp_path / "o")]) == 2
+    assert main(["sweep", "tc2_steady", "--dt", "-5", "--output", str(tmp_path / "o")]) == 2
+    assert main(["sweep", "tc2_steady", "--ne", "2", "--dt", "7000", "--output", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 3 and "euler" in err[0] and "-5" in err[1] and "7000" in err[2]
+
+
+def test_sweep_with_two_workers_gives_the_serial_rows(swept, tmp_path):
+    """--workers 2 (a spawned process pool) writes the same rows as the serial sweep;
+    only the timings differ."""
+    out, args = swept
+    parallel = tmp_path / "parallel"
+    assert main([*args[:-1], str(parallel), "--workers", "2"]) == 0
+    timings = ["wall_time", "startup_time", "setup_time", "rhs_time", "rhs_equivalents"]
+    serial_rows = pd.read_csv(out / "sweep.csv").drop(columns=timings)
+    parallel_rows = pd.read_csv(parallel / "sweep.csv").drop(columns=timings)
+    pd.testing.assert_frame_equal(parallel_rows, serial_rows, check_exact=True)
+    assert (pd.read_csv(parallel / "sweep.csv")["wall_time"] > 0).all()
+    assert sorted(p.name for p in (parallel / "runs").glob("*.json")) == sorted(p.name for p in (out / "runs").glob("*.json"))
+
+
 def _blas_threads():
     from threadpoolctl import threadpool_info
 

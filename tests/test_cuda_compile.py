@@ -1,0 +1,156 @@
+"""Every Warp module the project launches compiles for CUDA (sm_80, sm_90), GPU or not.
+
+Warp's NVRTC turns a module into PTX without a CUDA driver, so a kernel that
+breaks only in CUDA code generation (the per-node layout, ``wp.static``
+branches, the solver kernels) fails here on every machine. The modules are
+found, not listed: every ``wp.Kernel`` defined at module level in
+``swe_sphere.kernels``'s submodules, plus every project kernel launched while
+each bundled scene's model (both layouts: per node, CUDA's default, and per
+element) takes two steps of its stepper on ne = 2 np = 4 on the CPU, every
+stepper with its CUDA solvers (``warp_cg``, ``krylov = "warp"``) on the scene
+with the most terms; the DSS kernels are also built with ghosts (MPI). Warp's
+own modules (``warp.optim.linear``) are left to Warp's tests.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+import re
+
+import numpy as np
+import pytest
+import warp as wp
+
+import swe_sphere.kernels as kernels_pkg
+from swe_sphere.config import list_scenes, load_scene
+from swe_sphere.grid import CubedSphere
+from swe_sphere.kernels import dss
+from swe_sphere.model import ShallowWater
+from swe_sphere.steppers import STEPPERS, make_stepper, option_types
+
+ARCHS = (80, 90)
+CUDA_OPTIONS = {"helmholtz_solver": "warp_cg", "krylov": "warp"}  # the steppers' CUDA defaults
+
+
+def _nvrtc_missing() -> str | None:
+    """Why Warp cannot compile CUDA here, or None when it can."""
+    wp.init()
+    context = wp._src.context if hasattr(wp, "_src") else wp.context  # Warp >= 1.10 moved it; no public query
+    if not context.runtime.core.wp_is_cuda_compatibility_enabled():
+        return "this Warp build has no CUDA compiler (NVRTC)"
+    return None
+
+
+def _module_kernels() -> list[wp.Kernel]:
+    """The ``wp.Kernel`` objects defined at module level in swe_sphere.kernels.*."""
+    found = []
+    for info in pkgutil.iter_modules(kernels_pkg.__path__):
+        mod = importlib.import_module(f"{kernels_pkg.__name__}.{info.name}")
+        found += [v for v in vars(mod).values() if isinstance(v, wp.Kernel) and v.func.__module__ == mod.__name__]
+    return found
+
+
+def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
+    """The project's kernels launched by every bundled scene's model and steppers
+    (see the module docstring), and the ghost variants of the DSS kernels among them."""
+    launched, dss_args = [], set()
+    real_launch, real_dss = wp.launch, dss.dss_rows
+
+    def launch(kernel, *args, **kwargs):
+        launched.append(kernel)
+        return real_launch(kernel, *args, **kwargs)
+
+    def dss_rows(rows, weighted, copies, ghosts=False):
+        dss_args.add((rows, weighted, copies))
+        return real_dss(rows, weighted, copies, ghosts)
+
+    monkeypatch.setattr(wp, "launch", launch)
+    monkeypatch.setattr(dss, "dss_rows", dss_rows)
+    scenes = [load_scene(p, ne=2, np=4) for p in list_scenes()]
+    richest = max((s for s in scenes if "pressure_gradient" in s.terms), key=lambda s: len(s.terms))
+    grid = CubedSphere(2, 4)
+    done = set()
+    for scene in scenes:
+        case = scene.make_case()
+        for per_element in (False, True):
+            steppers = STEPPERS if scene is richest else (scene.stepper,)
+            todo = [name for name in steppers if (scene.terms, name, per_element) not in done]
+            if not todo:
+                continue
+            model = ShallowWater(
+                grid, scene.terms, case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon), nu=scene.nu,
+                nu_div=scene.nu_div, nu_s=scene.nu_s, hypervis_subcycle=scene.hypervis_subcycle, g=case.planet.g,
+                device="cpu", per_element=per_element, forcing=case.forcing() if "forcing" in scene.terms else None,
+            )
+            for name in todo:
+                done.add((scene.terms, name, per_element))
+                known = option_types(STEPPERS[name].Options)
+                stepper = make_stepper(name, model, scene.dt, **{k: v for k, v in CUDA_OPTIONS.items() if k in known})
+                x = model.new_state(*np.stack(case.initial(grid.lat, grid.lon)))
+                stepper.step(x)  # two steps: a leapfrog's first is its one-step start
+                stepper.step(x)
+    ghosted = [real_dss(*args, True) for args in sorted(dss_args)]
+    return [k for k in launched if k.func.__module__.startswith("swe_sphere.")], ghosted
+
+
+@pytest.fixture(scope="session")
+def discovered():
+    """(module-level kernels, launched kernels, DSS kernels with ghosts)."""
+    why = _nvrtc_missing()
+    if why:
+        pytest.skip(why)
+    with pytest.MonkeyPatch.context() as mp:
+        return (_module_kernels(), *_launched_kernels(mp))
+
+
+@pytest.fixture(scope="session")
+def modules(discovered):
+    """{Warp module name: (module, its kernels' keys)} of every module to compile."""
+    found = {}
+    for k in (k for group in discovered for k in group):
+        found.setdefault(k.module.name, (k.module, set()))[1].add(k.key)
+    return found
+
+
+@pytest.fixture(scope="session")
+def ptx(modules, tmp_path_factory):
+    """{(module name, arch): PTX text}, each module compiled once per arch."""
+    out = {}
+    for arch in ARCHS:
+        for name, (module, _) in modules.items():
+            paths = wp.compile_aot_module(module, arch=arch, module_dir=tmp_path_factory.mktemp(f"sm{arch}"), use_ptx=True)
+            assert len(paths) == 1 and paths[0].name.endswith(f".sm{arch}.ptx"), (name, paths)
+            out[name, arch] = paths[0].read_text()
+    return out
+
+
+def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, modules):
+    """Both layouts of the tendency for each bundled scene's term set, both ∇⁴
+    passes in both layouts, the DSS with and without ghosts, the gravity-wave,
+    implicit, forcing and blas kernels, and kernels from every file of swe_sphere.kernels."""
+    module_level, launched, ghosted = discovered
+    names = list(modules)
+    scenes = [load_scene(p) for p in list_scenes()]
+    for terms in {tuple(t for t in s.terms if t not in ("hyperviscosity", "forcing")) for s in scenes}:
+        tendency = [n for n in names if re.fullmatch("tendency__" + "__".join(terms) + "_[0-9a-f]{8}", n)]
+        assert len(tendency) == 2, (terms, tendency)  # per node and per element
+    keys = {k.key for k in launched}
+    for key in ("laplacian_element__first", "laplacian_element__second", "laplace_wk_flux", "laplace_wk_div",
+                "helmholtz", "schur_height", "jacobian_vector", "residual", "translating_low", "axpbypcz", "dss"):
+        assert key in keys, key
+    plain_dss = {k.module.name for k in launched if k.key == "dss"}
+    assert len(ghosted) == len(plain_dss) >= 3 and not plain_dss & {k.module.name for k in ghosted}
+    files = {k.func.__module__ for k in module_level + launched}
+    for info in pkgutil.iter_modules(kernels_pkg.__path__):
+        assert f"{kernels_pkg.__name__}.{info.name}" in files, info.name
+
+
+@pytest.mark.parametrize("arch", ARCHS)
+def test_every_module_compiles_to_ptx(modules, ptx, arch):
+    """Each module's PTX targets the arch and has an entry for each of its kernels."""
+    for name, (module, keys) in modules.items():
+        text = ptx[name, arch]
+        assert f".target sm_{arch}" in text, name
+        entries = re.findall(r"\.entry\s+(\w+)_[0-9a-f]{8}_cuda_kernel_forward\(", text)
+        assert keys <= set(entries), (name, entries, keys)

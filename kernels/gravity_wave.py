@@ -51,9 +51,3 @@ def schur_wind(
         for p in range(start, start + block):
             z[r, p] = s * rhs[r, p] - ag * Gz[r, p]
 
-
-@wp.kernel
-def helmholtz(y: wp.array2d(dtype=f64), c: f64, DGy: wp.array2d(dtype=f64)):
-    """DGy[0] = y[2] − c·DGy[0]: (I − c DG) y, element-local (the matrix-free CG's operator). Dim N."""
-    p = wp.tid()
-    DGy[0, p] = y[2, p] - c * DGy[0, p]

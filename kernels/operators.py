@@ -157,6 +157,24 @@ def reference_gradient(dvv: tuple):
 
 
 @functools.cache
+def reference_divergence(dvv: tuple):
+    """A ``wp.func`` (f1, f2, i, j) → ∂ξ f1 + ∂η f2 at node (i, j) of an element's
+    values (vectors of np² in element order), ``dvv`` compiled in."""
+    NP = len(dvv)
+    DVV = dvv_constant(dvv)
+    vec = wp.types.vector(length=NP * NP, dtype=f64)
+
+    def reference_divergence(f1: vec, f2: vec, i: int, j: int):
+        s = f64(0.0)
+        for m in range(NP):
+            s += DVV[i, m] * f1[j * NP + m] + DVV[j, m] * f2[m * NP + i]
+        return s
+
+    reference_divergence.__qualname__ = reference_divergence.__name__ = f"reference_divergence_np{NP}"
+    return wp.func(reference_divergence)
+
+
+@functools.cache
 def gradient_element(dvv: tuple):
     """``gradient_sphere`` with one thread per element and ``dvv`` compiled in:
     out[0:2] = ∇ f[row]. Arguments: f, row, Dinv, out, offset (in elements). Dim nelem."""
@@ -187,7 +205,7 @@ def divergence_element(dvv: tuple):
     offset (in elements). Dim nelem."""
     NP = len(dvv)
     NPP = NP * NP
-    DVV = dvv_constant(dvv)
+    div = reference_divergence(dvv)
     vec = wp.types.vector(length=NPP, dtype=f64)
 
     def divergence_element(x: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), out: wp.array(dtype=f64), offset: int):
@@ -200,10 +218,7 @@ def divergence_element(dvv: tuple):
             f2[k] = metdet[q] * (Dinv[2, q] * x[0, q] + Dinv[3, q] * x[1, q])
         for j in range(NP):
             for i in range(NP):
-                s = f64(0.0)
-                for m in range(NP):
-                    s += DVV[i, m] * f1[j * NP + m] + DVV[j, m] * f2[m * NP + i]
                 p = base + j * NP + i
-                out[p] = s / metdet[p]
+                out[p] = div(f1, f2, i, j) / metdet[p]
 
     return wp.kernel(divergence_element, enable_backward=False, module="unique", module_options=CPU_FAST)

@@ -259,6 +259,13 @@ class Topology:
             return [exchange]
         return [self._record(dss.pack, halo.send_index_np.size, [x, rows, halo.send_index, halo.send_buffer]), exchange]
 
+    def exchange(self, x: wp.array2d, unique: bool = False) -> list:
+        """Launches that fill the DSS's ghost buffer ``ghost`` (or, ``unique``, the
+        unique-node halo ``owned.recv_buffer``) with the neighbours' entries of x's
+        rows, in ``dss.pack``'s layout; none without neighbours. For kernels that
+        gather over copies themselves (``kernels.helmholtz``)."""
+        return self._exchange(x, self.owned if unique else None)
+
     # -- assembly (recorded launch lists: run each item's ``launch()`` in order) --
     def dss(self, x: wp.array2d, weighted: bool, out: wp.array2d) -> list:
         """Launches for out = DSS(x), (rows, N) each: out[r, p] = rspheremp[p] ·

@@ -1,6 +1,6 @@
 """Run by ``test_mpi.py`` under ``mpiexec`` (and imported by it for the one-rank runs): TC5
 at ne 2 with each stepper that solves (semi-implicit, JFNK, IMEX; Helmholtz solver
-``mf_cg``, the one that runs over several ranks), one simulation over all ranks each,
+``pcg``, the one that runs over several ranks), one simulation over all ranks each,
 and a semi-implicit run continued from a restart file. Rank 0 saves the final
 whole-grid states: ``python mpi_steppers.py OUT.npz CHECKPOINT``.
 """
@@ -20,7 +20,7 @@ DAYS = 0.1
 
 
 def scene(stepper: str, days: float = DAYS):
-    return load_scene("tc5_mountain", ne=2, days=days, stepper=stepper, overrides={f"{stepper}.helmholtz_solver": "mf_cg"})
+    return load_scene("tc5_mountain", ne=2, days=days, stepper=stepper, overrides={f"{stepper}.helmholtz_solver": "pcg"})
 
 
 def final_states(comm=None) -> dict[str, np.ndarray]:

@@ -209,7 +209,7 @@ def test_host_matrix_solver_refused_on_several_ranks_in_one_line(tmp_path):
     args = ["run", "tc2_steady", "--ne", "2", "--stepper", "semi_implicit", "-s", 'semi_implicit.helmholtz_solver="amg"']
     proc = mpirun(2, [*args, "--days", "0.1", "--output", "o.nc"], tmp_path)
     assert proc.returncode == 2
-    assert "the Helmholtz solver 'amg' runs on one MPI rank only; use 'mf_cg' over several ranks" in proc.stderr
+    assert "the Helmholtz solver 'amg' runs on one MPI rank only; use 'pcg' over several ranks" in proc.stderr
     assert not (tmp_path / "o.nc").exists()
 
 

@@ -157,11 +157,11 @@ def test_helmholtz_matrix_equals_the_matrix_free_operator(rng):
     y = rng.standard_normal(grid.nunique)
     DG = ops.dss(ops.divergence(*ops.dss(ops.gradient(y[grid.gid]))))
     ref = -np.bincount(grid.gid, weights=grid.spheremp * DG)  # −M D G y on unique nodes
-    mf = GravityWave(sim.model, gw.H, "warp_cg", 1e-10, 10)
-    mf.c = 1e14  # (M + cK) y / c − M y / c: large c keeps the cancellation at round-off
+    mf = GravityWave(sim.model, gw.H, "pcg", 1e-10, 10)
+    c = 1e14  # (M + cK) y / c − M y / c: large c keeps the cancellation at round-off
     yw, out = wp.array(y, dtype=wp.float64, device=DEVICE), wp.zeros(grid.nunique, dtype=wp.float64, device=DEVICE)
-    mf._apply_matrix_free(yw, out)
-    matrix_free = (out.numpy() - grid.area * y) / mf.c
+    mf._apply(yw, out, c)
+    matrix_free = (out.numpy() - grid.area * y) / c
     ones = np.abs(K @ np.ones(grid.nunique)).max() / np.abs(K).max()
     print(f"\nnnz/row {K.nnz / grid.nunique:.1f}; |Ky - numpy| {rel(K @ y, ref):.1e}, |Ky - matrix-free| {rel(K @ y, matrix_free):.1e}, "
           f"|K 1| {ones:.1e}")
@@ -171,7 +171,7 @@ def test_helmholtz_matrix_equals_the_matrix_free_operator(rng):
     assert abs(K - K.T).max() == 0.0
 
 
-@pytest.mark.parametrize("solver", ["cg", "amg", "warp_cg"])
+@pytest.mark.parametrize("solver", ["cg", "amg", "pcg"])
 def test_schur_solve_inverts_i_minus_a_l(solver, rng):
     """z = (I − aL)⁻¹ (s·r) on random continuous r (ne = 2) at a = 1800 s and
     18000 s (gravity-wave Courant ~4 and ~40): z − aLz = s·r to 1e-10 with the
@@ -189,6 +189,50 @@ def test_schur_solve_inverts_i_minus_a_l(solver, rng):
         assert resid < 1e-10
         assert abs(mass) < 1e-13
         assert rel(zn, s * r) > 0.1  # a real correction, not the identity
+
+
+def _pcg_solve(monkeypatch, threads, ne, c, b):
+    """(M + cK) y = b by the compiled CG "pcg" on ``threads`` CPU threads (TC5 grid at ne): (y, iterations, solver)."""
+    monkeypatch.setenv("SWE_SPHERE_THREADS", str(threads))
+    scene = load_scene("tc5_mountain", ne=ne, np=4, days=1.0, stepper="semi_implicit", dt=1800.0)
+    sim = make_sim(scene)
+    gw = GravityWave(sim.model, 5000.0, "pcg", 1e-11, 2000)
+    gw.b.assign(b)
+    its = gw._pcg(c)
+    return gw.y.numpy().copy(), its, gw
+
+
+def test_pcg_equals_a_direct_sparse_solve(rng, monkeypatch):
+    """The compiled CG on (M + cK) y = b (ne = 4, c = 4e9 m² and 4e10 m², about 4x and 13x
+    the gravity-wave limit; tol 1e-11) against scipy's spsolve of the assembled matrix
+    with the same mean fix: relative difference below 1e-9 (measured 2e-12)."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    from swe_sphere.steppers.helmholtz import helmholtz_matrix
+
+    scene = load_scene("tc5_mountain", ne=4, np=4, days=1.0, stepper="semi_implicit", dt=1800.0)
+    sim = make_sim(scene)
+    area, K = sim.grid.area, helmholtz_matrix(sim.model)
+    b = rng.standard_normal(area.size) * area
+    for c in (4e9, 4e10):
+        y, its, _ = _pcg_solve(monkeypatch, 1, 4, c, b)
+        x = spla.spsolve((sp.diags(area) + c * K).tocsc(), b)
+        x += (b.sum() - area @ x) / area.sum()
+        print(f"\nc = {c:g}: {its} iterations, |y - spsolve| / |spsolve| {rel(y, x):.1e}", end="")
+        assert rel(y, x) < 1e-9
+        assert its > 5  # a real iteration, not a converged start
+
+
+def test_pcg_has_the_same_bits_on_one_and_two_threads(rng, monkeypatch):
+    """The compiled CG at ne = 16 (enough nodes that launches split): the same
+    iterations and the same bits on 1 and 2 CPU threads."""
+    b = rng.standard_normal(6 * 16 * 16 * 9 + 2)
+    y1, it1, _ = _pcg_solve(monkeypatch, 1, 16, 1e10, b)
+    y2, it2, gw2 = _pcg_solve(monkeypatch, 2, 16, 1e10, b)
+    assert gw2.model.threads == 2 and hasattr(gw2._update, "parts")  # the launches really split
+    assert it1 == it2 > 5
+    assert np.array_equal(y1, y2)
 
 
 @pytest.mark.parametrize("solver", ["vcycle", "chebyshev"])
@@ -215,7 +259,7 @@ def test_semi_implicit_helmholtz_solvers_agree():
     """4 SI steps of 1800 s on TC5 at ne = 2, tol 1e-12: the same state with every
     accurate Helmholtz solver (measured: 1e-13 relative)."""
     finals, counts = {}, {}
-    for solver in ("amg", "cg", "warp_cg"):
+    for solver in ("amg", "cg", "pcg"):
         scene = load_scene("tc5_mountain", ne=2, np=4, days=1.0, stepper="semi_implicit", dt=1800.0)
         sim = make_sim(dataclasses.replace(scene, stepper_options={"helmholtz_solver": solver, "tol": 1e-12}))
         assert sim.stepper.gw.solver == solver
@@ -223,7 +267,7 @@ def test_semi_implicit_helmholtz_solvers_agree():
         counts[solver] = [sim.stepper.step(sim.x).iterations["helmholtz"] for _ in range(4)]
         finals[solver] = sim.x.numpy().copy()
         print(f"\n{solver}: iterations {counts[solver]}, {time.perf_counter() - t0:.2f} s", end="")
-    for solver in ("cg", "warp_cg"):
+    for solver in ("cg", "pcg"):
         diffs = [rel(finals[solver][k], finals["amg"][k]) for k in range(3)]
         print(f"\n{solver} vs amg: row-wise relative differences {diffs}", end="")
         assert max(diffs) < 1e-9

@@ -30,15 +30,13 @@ round-off), and the solve is, by name (``SOLVERS``):
   μ = λmax(M⁻¹K): a fixed polynomial, hence a fixed linear approximate
   inverse for a preconditioner, with no inner products (CPU);
 * ``"vcycle"``: one AMG V-cycle, a fixed approximate inverse (CPU);
-* ``"warp_cg"``: matrix-free mass-preconditioned CG with the model's
-  operators on the device (``warp.optim.linear.cg``; the CUDA default, as
-  scipy and pyamg run on the host only);
-* ``"mf_cg"``: the same matrix-free mass-preconditioned CG on the host
-  (``krylov.cg``) with the inner products summed over MPI ranks: the solver
-  for runs on several ranks (their default), where the others cannot go —
-  the assembled matrix and the AMG hierarchy are the whole grid's, and
-  warp.optim's inner products are the process's own. The operator's bits do
-  not depend on the rank count (the DSS's do not), so a run on N ranks
+* ``"pcg"`` (the default): the compiled matrix-free CG of
+  ``kernels.helmholtz`` (Chronopoulos–Gear, one reduction an iteration,
+  mass preconditioner), vectors in Warp arrays, the operator in three
+  element launches split over the CPU threads; the same code on CPU, CUDA
+  and any number of MPI ranks (the inner products summed over ranks by
+  ``Topology.sums``). The operator's bits depend on neither threads nor
+  ranks (its DSS is a gather in the global order), so a run on N ranks
   differs from one on one rank only by the order of the inner products' sums.
 
 Measured (TC5 ne16, 2 busy cores): one pyamg V-cycle costs 15–28 sparse
@@ -59,39 +57,38 @@ import pyamg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 import warp as wp
-import warp.optim.linear as wpl
 
-from ..kernels import blas
 from ..kernels import gravity_wave as gk
+from ..kernels import helmholtz as hk
 from ..model import ShallowWater
+from ..parallel import record
 from .base import StepFailure
-from .krylov import cg
 
 f64 = wp.float64
-SOLVERS = ("cg", "amg", "chebyshev", "vcycle", "warp_cg", "mf_cg")
-_HOST_SOLVERS = ("cg", "amg", "chebyshev", "vcycle", "mf_cg")
-_DISTRIBUTED_SOLVERS = ("mf_cg",)
+SOLVERS = ("pcg", "cg", "amg", "chebyshev", "vcycle")
+_HOST_SOLVERS = ("cg", "amg", "chebyshev", "vcycle")
+_DISTRIBUTED_SOLVERS = ("pcg",)
 # Two symmetric Gauss–Seidel sweeps before and after each coarse correction: TC5
 # ne16, random right-hand side to 1e-10, CG iterations at 4x / 30x the gravity-wave
 # limit 13 / 59 against 18 / 84 with pyamg's default one sweep (Jacobi-CG: 84 / 472).
 _SMOOTHER = ("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2})
 
 
+def RENAMED_HINT(name: str) -> str:
+    """The pointer from a removed solver name to its replacement, for error messages."""
+    return "; 'mf_cg' and 'warp_cg' are now 'pcg'" if name in ("mf_cg", "warp_cg") else ""
+
+
 def default_solver(model: ShallowWater) -> str:
-    """The measured default: Jacobi-CG on the assembled matrix on the CPU (the
-    cheapest per step as an accurate solve and, loose, as a preconditioner;
-    ``benchmarks/implicit_cost.py``), the matrix-free Warp CG on CUDA; over
-    several MPI ranks the matrix-free host CG with distributed inner products."""
-    if model.topology.distributed:
-        return "mf_cg"
-    return "cg" if wp.get_device(model.device).is_cpu else "warp_cg"
+    """The default: the compiled matrix-free CG "pcg" on every device and rank count."""
+    return "pcg"
 
 
 def check_solve_options(o) -> None:
     """The checks of a stepper's accurate-solve options ``helmholtz_solver``, ``tol``,
     ``maxiter``, ``mean_depth`` (semi-implicit, IMEX): ValueError '<option> must ...'."""
-    if o.helmholtz_solver not in ("", "cg", "amg", "warp_cg", "mf_cg"):
-        raise ValueError(f"helmholtz_solver must be 'cg', 'amg', 'warp_cg' or 'mf_cg' (got {o.helmholtz_solver!r})")
+    if o.helmholtz_solver not in ("", "pcg", "cg", "amg"):
+        raise ValueError(f"helmholtz_solver must be 'pcg', 'cg' or 'amg' (got {o.helmholtz_solver!r}{RENAMED_HINT(o.helmholtz_solver)})")
     if not 0 < o.tol < 1:
         raise ValueError(f"tol must be in (0, 1) (got {o.tol})")
     if o.maxiter < 1:
@@ -156,13 +153,13 @@ class GravityWave:
     CPU/CUDA default for an accurate solve), ``tol`` (relative residual of the
     CG solvers) and ``maxiter``; ``warm``: start each CG from the last
     solution (for a sequence of similar solves, as the semi-implicit steps).
-    Over several MPI ranks only ``"mf_cg"`` runs (the default there).
+    Off the CPU or over several MPI ranks only ``"pcg"`` runs.
 
     ``apply(x, out)``: out = L x (states (3, N), element-local). ``solve(r, a,
     z, scale)``: z = (I − aL)⁻¹ (scale·r); returns the Helmholtz iterations
     (CG iterations; 1 for a V-cycle). Raises ``StepFailure`` when CG does not
     reach ``tol`` within ``maxiter``; ``ValueError`` for an unknown solver, a
-    host solver on CUDA, a solver other than "mf_cg" over several MPI ranks,
+    host solver on CUDA or over several MPI ranks,
     or a model without continuity and pressure gradient.
     """
 
@@ -174,9 +171,9 @@ class GravityWave:
         if solver not in SOLVERS:
             raise ValueError(f"unknown Helmholtz solver {solver!r} (known: {', '.join(SOLVERS)})")
         if solver in _HOST_SOLVERS and not wp.get_device(model.device).is_cpu:
-            raise ValueError(f"the Helmholtz solver {solver!r} runs on the CPU only; use 'warp_cg' on CUDA")
+            raise ValueError(f"the Helmholtz solver {solver!r} runs on the CPU only; use 'pcg' on CUDA")
         if model.topology.distributed and solver not in _DISTRIBUTED_SOLVERS:
-            raise ValueError(f"the Helmholtz solver {solver!r} runs on one MPI rank only; use 'mf_cg' over several ranks")
+            raise ValueError(f"the Helmholtz solver {solver!r} runs on one MPI rank only; use 'pcg' over several ranks")
         self.model, self.H, self.solver = model, float(mean_depth), solver
         self.tol, self.maxiter, self.warm = float(tol), int(maxiter), bool(warm)
         dev, N, nu = model.device, model.N, model.topology.nunique
@@ -184,7 +181,7 @@ class GravityWave:
         self.b, self.y = wp.zeros(nu, dtype=f64, device=dev), wp.zeros(nu, dtype=f64, device=dev)
         self.area = model.topology.area
         self.c = None
-        if solver in ("warp_cg", "mf_cg"):
+        if solver == "pcg":
             self._matrix_free(model)
         else:
             self.K = helmholtz_matrix(model)
@@ -240,8 +237,8 @@ class GravityWave:
 
     # -- the Helmholtz solve on unique nodes: (M + cK) y = b --------------------------
     def _helmholtz(self, c: float) -> int:
-        if self.solver == "warp_cg":
-            return self._device(c)
+        if self.solver == "pcg":
+            return self._pcg(c)
         b, y, topo = self.b.numpy(), self.y.numpy(), self.model.topology
         if not self.warm:
             y[:] = 0.0
@@ -275,8 +272,6 @@ class GravityWave:
         if self.solver == "chebyshev":
             y[:] = self._chebyshev(c, b)
             return self.maxiter
-        if self.solver == "mf_cg":
-            return self._mf_cg(c, b, y)
         A = self.matrix(c)
         if self.solver == "amg":
             M = self.hierarchy(c).vcycle
@@ -316,61 +311,91 @@ class GravityWave:
             rho = rho_new
         return y
 
-    # -- matrix-free CG: on the device ("warp_cg") or over MPI ranks ("mf_cg") -------------
+    # -- the compiled matrix-free CG ("pcg"): any device, threads and ranks --------------
     def _matrix_free(self, model):
-        dev, N, nu = model.device, model.N, model.topology.nunique
-        self.Y = wp.zeros((3, N), dtype=f64, device=dev)
-        self.GY = wp.zeros((2, N), dtype=f64, device=dev)
-        self.DGY = wp.zeros((1, N), dtype=f64, device=dev)
-        self.tmp = wp.zeros(nu, dtype=f64, device=dev)
-        if self.solver == "mf_cg":
-            self.p = wp.zeros(nu, dtype=f64, device=dev)
-            return
+        topo, dev, N, nu = model.topology, model.device, model.N, model.topology.nunique
+        z = lambda *shape: wp.zeros(shape, dtype=f64, device=dev)  # noqa: E731
+        self.wg, self.z = z(2, N), z(1, N)
+        self.r, self.u, self.w, self.p, self.s, self.ax = (z(nu) for _ in range(6))
         self.minv = wp.array(1.0 / self.area, dtype=f64, device=dev)
-        self.area_wp = wp.array(self.area, dtype=f64, device=dev)
-        self.ones = wp.ones(nu, dtype=f64, device=dev)
-        self.A = wpl.LinearOperator((nu, nu), f64, wp.get_device(dev), self._warp_matvec)
-        self.cg = wpl.cg(self.A, self.b, self.y, tol=self.tol, atol=0.0, maxiter=self.maxiter, M=self.minv, run=False,
-                         check_every=1, use_cuda_graph=False)
+        self.area_wp, self.ones = wp.array(self.area, dtype=f64, device=dev), wp.ones(nu, dtype=f64, device=dev)
+        self.partial = z(3, (nu + hk.CHUNK - 1) // hk.CHUNK)
+        self._ops: dict[tuple, list] = {}
+        self._div: dict[tuple, list] = {}  # each operator's divergence launch and the c it has
 
-    def _apply_matrix_free(self, y, out):
-        """out = (M + cK) y = M (I − c DG) y with the model's operators."""
-        m = self.model
-        m.scatter(y, self.Y, 2)
-        m.gradient(self.Y, 2, self.GY)
-        m.divergence(self.GY, self.DGY)
-        wp.launch(gk.helmholtz, m.N, [self.Y, f64(self.c), self.DGY], device=m.device)
-        m.assemble(self.DGY, 0, out)
+        def rec(kernel, dim, inputs, **kw):
+            return record(kernel, dim, inputs, device=dev, threads=model.threads, **kw)
 
-    def _mf_cg(self, c, b, y) -> int:
-        """(M + cK) y = b by ``krylov.cg`` with the matrix-free operator, M⁻¹ as preconditioner."""
-        self.c = c
-        p, Ap, inv_area = self.p.numpy(), self.tmp.numpy(), 1.0 / self.area
+        self._rec = rec
+        self._update = rec(hk.cg_update, nu, [f64(0.0), f64(0.0), self.p, self.s, self.y, self.r, self.u, self.w, self.minv])
+        self._start = rec(hk.residual, nu, [self.b, self.ax, self.minv, self.r, self.u])
+        self._shift = rec(hk.add_constant, nu, [self.y, f64(0.0)])
+        self._inner = {}
 
-        def matvec(v):
-            p[:] = v
-            self._apply_matrix_free(self.p, self.tmp)
-            return Ap
+    def _operator(self, y, out) -> list:
+        """Launches for out = (M + cK) y (unique-node vectors; c set by ``_set_c``), recorded once per pair."""
+        key = (y.ptr, out.ptr)
+        launches = self._ops.get(key)
+        if launches is None:
+            m, topo = self.model, self.model.topology
+            halo = topo.owned.recv_buffer
+            y2 = y.reshape((1, topo.nunique))
+            div = self._rec(hk.helmholtz_divergence(m.dvv_const, topo.table.shape[1], bool(len(topo.neighbours))), m.grid.nelem,
+                            [self.wg, topo.ghost, topo.N, topo.table, topo.rspheremp, y, halo, topo.gid, m.Dinv, m.metdet, f64(0.0), self.z],
+                            nodes_per_index=m.grid.np**2)
+            grad = self._rec(hk.helmholtz_gradient(m.dvv_const), m.grid.nelem, [y, halo, topo.gid, m.Dinv, topo.spheremp, self.wg],
+                             nodes_per_index=m.grid.np**2)
+            launches = self._ops[key] = [*topo.exchange(y2, unique=True), grad, *topo.exchange(self.wg), div, *topo.assemble(self.z, 0, out)]
+            self._div[key] = [div, None]
+        return launches
 
-        iterations, converged = cg(matvec, lambda r: inv_area * r, b, y, self.tol, self.maxiter, self.model.topology.sums)
-        if not converged:
-            raise StepFailure(f"Helmholtz mf_cg did not converge in {iterations} iterations")
-        return iterations
+    def _apply(self, y, out, c: float) -> None:
+        launches = self._operator(y, out)
+        div = self._div[(y.ptr, out.ptr)]
+        if div[1] != c:
+            div[0].set_param_by_name("c", f64(c))
+            div[1] = c
+        for launch in launches:
+            launch.launch()
 
-    def _warp_matvec(self, x, y, z, alpha, beta):
-        """warp.optim.linear interface: z = alpha·A x + beta·y."""
-        self._apply_matrix_free(x, self.tmp)
-        wp.launch(blas.axpby1d, x.shape[0], [f64(alpha), self.tmp, f64(beta), y, z], device=self.model.device)
+    def _dots(self, a0, b0, a1, b1, a2, b2) -> np.ndarray:
+        """(a0·b0, a1·b1, a2·b2) over all ranks: per-chunk partial sums, added on the
+        host in index order, then over ranks (``Topology.sums``): one host synchronisation."""
+        key = tuple(a.ptr for a in (a0, b0, a1, b1, a2, b2))
+        launch = self._inner.get(key)
+        if launch is None:
+            launch = self._inner[key] = self._rec(hk.inner3, self.partial.shape[1], [a0, b0, a1, b1, a2, b2, self.partial], nodes_per_index=hk.CHUNK)
+        launch.launch()
+        return self.model.topology.sums(self.partial.numpy().sum(axis=1))
 
-    def _device(self, c) -> int:
-        self.c = c
-        if not self.warm:
-            self.y.zero_()
-        iterations, residual, atol = self.cg()
-        if float(residual) > float(atol):
-            raise StepFailure(f"Helmholtz warp_cg did not converge in {int(iterations)} iterations "
-                              f"(residual {float(residual):.3e} > {float(atol):.3e})")
-        u, topo = wp.utils, self.model.topology
-        shift = (topo.sum(float(u.array_sum(self.b))) - topo.sum(float(u.array_inner(self.area_wp, self.y)))) / topo.total_area
-        wp.launch(blas.axpby1d, self.y.shape[0], [f64(1.0), self.y, f64(shift), self.ones, self.y], device=self.model.device)
-        return int(iterations)
+    def _pcg(self, c: float) -> int:
+        """(M + cK) y = b by Chronopoulos–Gear CG preconditioned by M⁻¹, from y, to the
+        relative residual ``tol``; the area integral of y then set to that of b."""
+        b, y, r, u, w = self.b, self.y, self.r, self.u, self.w
+        if self.warm:
+            self._apply(y, self.ax, c)
+        else:
+            y.zero_()
+            self.ax.zero_()
+        self._start.launch()  # r = b − A y, u = M⁻¹ r
+        self._apply(u, w, c)
+        bb, _, _ = self._dots(b, b, b, b, b, b)
+        gamma, delta, rr = self._dots(r, u, w, u, r, r)
+        bound = self.tol * self.tol * bb
+        alpha, beta, it = 0.0, 0.0, 0
+        while rr > bound:
+            if it == self.maxiter:
+                raise StepFailure(f"Helmholtz pcg did not converge in {it} iterations (residual {np.sqrt(rr / bb):.3e} > {self.tol:.3e})")
+            alpha = gamma / delta if it == 0 else gamma / (delta - beta * gamma / alpha)
+            self._update.set_param_by_name("alpha", f64(alpha))
+            self._update.set_param_by_name("beta", f64(beta))
+            self._update.launch()  # p, s, y, r, u
+            self._apply(u, w, c)
+            gamma_new, delta, rr = self._dots(r, u, w, u, r, r)
+            beta, gamma = gamma_new / gamma, gamma_new
+            it += 1
+        sum_b, ay, _ = self._dots(b, self.ones, self.area_wp, y, b, b)
+        topo = self.model.topology
+        self._shift.set_param_by_name("shift", f64((sum_b - ay) / topo.total_area))  # ∫z_h = ∫(right-hand side)
+        self._shift.launch()
+        return it

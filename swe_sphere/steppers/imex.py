@@ -94,8 +94,8 @@ class Imex(Stepper):
     2.528e-4 against 2.525e-4 with 1e-10 and 1e-8, with 2.5x fewer
     iterations; 1e-4 gives 3.0e-4), ``maxiter`` (500),
     ``mean_depth`` (H, m; 0 = the initial mean depth), ``helmholtz_solver``
-    ("cg" on the CPU, "warp_cg" on CUDA, "mf_cg" over several MPI ranks, or
-    "amg"; each stage's solve starts from the last one's solution). s + 1 RHS evaluations and s Helmholtz
+    ("pcg", the compiled matrix-free CG, on every device and rank count; on one CPU rank
+    also "cg" or "amg"; each stage's solve starts from the last one's solution). s + 1 RHS evaluations and s Helmholtz
     solves a step (s = 2, 3); reports the Helmholtz iterations. Raises
     ValueError without the continuity and pressure-gradient terms.
     """

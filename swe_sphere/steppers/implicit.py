@@ -52,7 +52,7 @@ import warp.optim.linear as wpl
 from ..kernels import blas
 from ..kernels import implicit as ik
 from .base import StepFailure, Stepper, StepStats
-from .helmholtz import SOLVERS, GravityWave, default_solver
+from .helmholtz import RENAMED_HINT, SOLVERS, GravityWave, default_solver
 from .krylov import FGMRES
 
 f64 = wp.float64
@@ -97,7 +97,7 @@ class ImplicitOptions:
         if self.preconditioner not in ("none", "helmholtz"):
             raise ValueError(f"preconditioner must be 'none' or 'helmholtz' (got {self.preconditioner!r})")
         if self.helmholtz_solver not in ("", *SOLVERS):
-            raise ValueError(f"helmholtz_solver must be one of {', '.join(SOLVERS)} (got {self.helmholtz_solver!r})")
+            raise ValueError(f"helmholtz_solver must be one of {', '.join(SOLVERS)} (got {self.helmholtz_solver!r}{RENAMED_HINT(self.helmholtz_solver)})")
         if self.mean_depth < 0:
             raise ValueError(f"mean_depth must be >= 0 (got {self.mean_depth})")
         if self.initial_guess not in ("extrapolate", "previous"):
@@ -115,8 +115,8 @@ class Implicit(Stepper):
     iterations), ``krylov`` ("fgmres" on the CPU, "warp" on CUDA; "gmres";
     only "fgmres" over several MPI ranks, whose inner products it sums over
     them), ``preconditioner`` ("helmholtz" | "none"), ``helmholtz_solver``
-    (the preconditioner's Helmholtz solve: "cg" on the CPU, "warp_cg" on
-    CUDA, "mf_cg" over several MPI ranks, or "amg", "chebyshev", "vcycle"), ``helmholtz_tol`` (1e-2, the relative
+    (the preconditioner's Helmholtz solve: "pcg", the compiled matrix-free CG on
+    every device and rank count; on one CPU rank also "cg", "amg", "chebyshev", "vcycle"), ``helmholtz_tol`` (1e-2, the relative
     tolerance of the CG solvers there; Jacobi-CG to 1e-2 cost less per step
     than one V-cycle, AMG-CG and Chebyshev 4/8/16 on TC5 ne16 at 4x and 10x
     the gravity-wave limit; 1e-1 was 13 % cheaper still, but Newton stagnated

@@ -1,8 +1,8 @@
-"""Krylov solvers over the topology's vectors: flexible GMRES (Saad 1993, SIAM
-J. Sci. Comput. 14, 461) for the JFNK stepper, preconditioned CG for the
-matrix-free Helmholtz solve.
+"""Flexible GMRES (Saad 1993, SIAM J. Sci. Comput. 14, 461) over the topology's
+vectors, for the JFNK stepper (the Helmholtz CG is compiled:
+``kernels.helmholtz``).
 
-Both run on numpy vectors holding this process's part (on the CPU, zero-copy
+It runs on numpy vectors holding this process's part (on the CPU, zero-copy
 views of Warp arrays) and take their inner products through ``reduce``, the
 sum over processes of an array of partial sums (``Topology.sums``; the
 identity on one process), so they run unchanged on any number of MPI ranks.
@@ -91,31 +91,3 @@ class FGMRES:
                 e[i], e[i + 1] = cs[i] * e[i] - sn[i] * e[i + 1], sn[i] * e[i] + cs[i] * e[i + 1]
             r = e @ V[: k + 1]
 
-
-def cg(matvec, precond, b, x, rtol: float, maxiter: int, reduce=_identity):
-    """Preconditioned conjugate gradients (Saad 2003, Alg. 9.1) for SPD A x = b,
-    from the initial guess in x (updated in place), to ‖b − A x‖ ≤ rtol ‖b‖
-    (as ``scipy.sparse.linalg.cg``). ``matvec(p)`` → A p and ``precond(r)`` →
-    M⁻¹ r (numpy, this process's part; the result may be overwritten by the
-    next call). Two reductions an iteration. Returns (iterations, converged)."""
-    r = b - matvec(x)
-    bnorm2, rr = (float(v) for v in reduce(np.array([b @ b, r @ r])))
-    target2 = rtol * rtol * bnorm2
-    if rr <= target2:
-        return 0, True
-    z = precond(r)
-    rz = float(reduce(r @ z))
-    p = z.copy()
-    for its in range(1, maxiter + 1):
-        Ap = matvec(p)
-        alpha = rz / float(reduce(p @ Ap))
-        x += alpha * p
-        r -= alpha * Ap
-        z = precond(r)
-        rr, rz_new = (float(v) for v in reduce(np.array([r @ r, r @ z])))
-        if rr <= target2:
-            return its, True
-        p *= rz_new / rz
-        p += z
-        rz = rz_new
-    return maxiter, False

@@ -54,8 +54,8 @@ class SemiImplicit(Leapfrog):
     0.05 % (5.973e-4 -> 5.970e-4) against 1e-10, with 2.4x fewer
     iterations; mass is exact either way), ``maxiter`` (500),
     ``mean_depth`` (H in m; 0 = the initial state's mean depth),
-    ``helmholtz_solver`` ("cg" on the CPU, "warp_cg" on CUDA, "mf_cg" over
-    several MPI ranks, or "amg"; see ``helmholtz.SOLVERS``; each solve starts
+    ``helmholtz_solver`` ("pcg", the compiled matrix-free CG, on every device
+    and rank count; on one CPU rank also "cg" or "amg"; see ``helmholtz.SOLVERS``; each solve starts
     from the last one's solution).
     TC5 ne16 at 4x / 10x the gravity-wave limit, tol 1e-10: "amg" 8 / 19 iterations a
     step, "cg" 59 / 144, but "cg" is the cheaper (2.65 / 2.04 against

@@ -1,0 +1,182 @@
+"""The Helmholtz operator M + cK on unique nodes, matrix-free, and the
+preconditioned CG that inverts it (``steppers.helmholtz.GravityWave``).
+
+K = −M D G with G = DSS∘grad and D = DSS∘div the model's strong operators;
+on unique nodes, with P the scatter to element-local copies, W = diag(spheremp)
+and S the weighted DSS, (M + cK) y = Pᵀ W (P y − c D̂ S Ĝ P y). Three launches
+(and the halo exchanges between them over MPI ranks):
+
+* ``helmholtz_gradient``: per element, y gathered from its unique nodes, the
+  element gradient Ĝ P y, stored mass-weighted (spheremp·∇y) for the DSS;
+* ``helmholtz_divergence``: per element, each node's DSS of that gradient
+  (a gather over the node's copies in the global order, as ``dss.dss_rows``:
+  the same bits on any number of ranks and threads), then the element
+  divergence and z = P y − c D̂ S Ĝ P y;
+* ``dss.assemble`` of z: Pᵀ W z.
+
+The CG is Chronopoulos & Gear's (1989, J. Comput. Appl. Math. 25, 153)
+one-reduction form: one fused vector update (``cg_update``), one operator
+product and one fused set of inner products (``inner3``) an iteration.
+Inner products are per-chunk partial sums over ``CHUNK`` unique nodes in index
+order, summed on the host in a fixed order: the bits do not depend on the CPU
+threads a launch is split over.
+"""
+
+import functools
+
+import warp as wp
+
+from .operators import CPU_FAST, reference_divergence, reference_gradient
+
+f64 = wp.float64
+wp.set_module_options({"enable_backward": False})
+
+CHUNK = wp.constant(256)  # unique nodes per partial inner product
+
+
+@functools.cache
+def helmholtz_gradient(dvv: tuple):
+    """Per element: wg[0:2, p] = spheremp[p]·∇y at its nodes (m² × units of y / m),
+    y a unique-node vector read through gid (gid[p] ≥ nunique: from ``halo``,
+    the owners' values, as ``dss.scatter``). Arguments: y, halo, gid, Dinv,
+    spheremp, wg, offset (elements). Dim nelem."""
+    NP = len(dvv)
+    NPP = NP * NP
+    grad = reference_gradient(dvv)
+    vec = wp.types.vector(length=NPP, dtype=f64)
+
+    def helmholtz_gradient(
+        y: wp.array(dtype=f64), halo: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32), Dinv: wp.array2d(dtype=f64),
+        spheremp: wp.array(dtype=f64), wg: wp.array2d(dtype=f64), offset: int,
+    ):
+        base = (wp.tid() + offset) * NPP
+        n = y.shape[0]
+        v = vec()
+        for k in range(NPP):
+            g = gid[base + k]
+            if g < n:
+                v[k] = y[g]
+            else:
+                v[k] = halo[g - n]
+        for j in range(NP):
+            for i in range(NP):
+                a, b = grad(v, i, j)
+                p = base + j * NP + i
+                w = spheremp[p]
+                wg[0, p] = w * (Dinv[0, p] * a + Dinv[2, p] * b)
+                wg[1, p] = w * (Dinv[1, p] * a + Dinv[3, p] * b)
+
+    return wp.kernel(helmholtz_gradient, enable_backward=False, module="unique", module_options=CPU_FAST)
+
+
+@functools.cache
+def helmholtz_divergence(dvv: tuple, copies: int, ghosts: bool):
+    """Per element: z[0, p] = y(p) − c·(D̂ S wg)(p), S the DSS (Σ over the copies of
+    p's node of wg, times rspheremp; a copy ≥ nlocal read from ``ghost``, two rows
+    an entry, ``dss.pack``'s layout, with ``ghosts``), y read as in
+    ``helmholtz_gradient``. Arguments: wg, ghost, nlocal, table, rspheremp, y,
+    halo, gid, Dinv, metdet, c (m²), z (1, N), offset (elements). Dim nelem."""
+    NP, C, G = len(dvv), int(copies), bool(ghosts)
+    NPP = NP * NP
+    div = reference_divergence(dvv)
+    vec = wp.types.vector(length=NPP, dtype=f64)
+
+    def helmholtz_divergence(
+        wg: wp.array2d(dtype=f64), ghost: wp.array(dtype=f64), nlocal: int, table: wp.array2d(dtype=wp.int32),
+        rspheremp: wp.array(dtype=f64), y: wp.array(dtype=f64), halo: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32),
+        Dinv: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), c: f64, z: wp.array2d(dtype=f64), offset: int,
+    ):
+        base = (wp.tid() + offset) * NPP
+        f1 = vec()  # metdet c¹, metdet c² of the DSS'd gradient
+        f2 = vec()
+        for k in range(NPP):
+            q = base + k
+            s0 = f64(0.0)
+            s1 = f64(0.0)
+            for m in range(C):
+                cp = table[q, m]
+                if cp >= 0:
+                    if wp.static(G):
+                        if cp >= nlocal:
+                            s0 += ghost[(cp - nlocal) * 2]
+                            s1 += ghost[(cp - nlocal) * 2 + 1]
+                        else:
+                            s0 += wg[0, cp]
+                            s1 += wg[1, cp]
+                    else:
+                        s0 += wg[0, cp]
+                        s1 += wg[1, cp]
+            rs = rspheremp[q]
+            gx = rs * s0
+            gy = rs * s1
+            f1[k] = metdet[q] * (Dinv[0, q] * gx + Dinv[1, q] * gy)
+            f2[k] = metdet[q] * (Dinv[2, q] * gx + Dinv[3, q] * gy)
+        n = y.shape[0]
+        for j in range(NP):
+            for i in range(NP):
+                s = div(f1, f2, i, j)
+                p = base + j * NP + i
+                g = gid[p]
+                yp = f64(0.0)
+                if g < n:
+                    yp = y[g]
+                else:
+                    yp = halo[g - n]
+                z[0, p] = yp - c * s / metdet[p]
+
+    return wp.kernel(helmholtz_divergence, enable_backward=False, module="unique", module_options=CPU_FAST)
+
+
+@wp.kernel
+def cg_update(
+    alpha: f64, beta: f64, p: wp.array(dtype=f64), s: wp.array(dtype=f64), x: wp.array(dtype=f64), r: wp.array(dtype=f64),
+    u: wp.array(dtype=f64), w: wp.array(dtype=f64), minv: wp.array(dtype=f64), offset: int,
+):
+    """One Chronopoulos–Gear step on unique nodes: p = u + βp, s = w + βs,
+    x += αp, r −= αs, u = minv·r (minv: the Jacobi preconditioner). Dim nunique."""
+    i = wp.tid() + offset
+    pi = u[i] + beta * p[i]
+    si = w[i] + beta * s[i]
+    p[i] = pi
+    s[i] = si
+    x[i] = x[i] + alpha * pi
+    ri = r[i] - alpha * si
+    r[i] = ri
+    u[i] = minv[i] * ri
+
+
+@wp.kernel
+def residual(b: wp.array(dtype=f64), ax: wp.array(dtype=f64), minv: wp.array(dtype=f64), r: wp.array(dtype=f64), u: wp.array(dtype=f64), offset: int):
+    """r = b − ax, u = minv·r (the CG's start). Dim nunique."""
+    i = wp.tid() + offset
+    ri = b[i] - ax[i]
+    r[i] = ri
+    u[i] = minv[i] * ri
+
+
+@wp.kernel
+def inner3(
+    a0: wp.array(dtype=f64), b0: wp.array(dtype=f64), a1: wp.array(dtype=f64), b1: wp.array(dtype=f64),
+    a2: wp.array(dtype=f64), b2: wp.array(dtype=f64), out: wp.array2d(dtype=f64), offset: int,
+):
+    """out[k, chunk] = Σ a_k·b_k over the chunk's ``CHUNK`` unique nodes, in index
+    order (three inner products in one pass). Dim ceil(nunique / CHUNK)."""
+    t = wp.tid() + offset
+    n = a0.shape[0]
+    s0 = f64(0.0)
+    s1 = f64(0.0)
+    s2 = f64(0.0)
+    for i in range(t * CHUNK, wp.min(n, (t + 1) * CHUNK)):
+        s0 += a0[i] * b0[i]
+        s1 += a1[i] * b1[i]
+        s2 += a2[i] * b2[i]
+    out[0, t] = s0
+    out[1, t] = s1
+    out[2, t] = s2
+
+
+@wp.kernel
+def add_constant(x: wp.array(dtype=f64), shift: f64, offset: int):
+    """x += shift. Dim nunique."""
+    i = wp.tid() + offset
+    x[i] = x[i] + shift

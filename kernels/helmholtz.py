@@ -66,6 +66,7 @@ def helmholtz_gradient(dvv: tuple):
                 wg[0, p] = w * (Dinv[0, p] * a + Dinv[2, p] * b)
                 wg[1, p] = w * (Dinv[1, p] * a + Dinv[3, p] * b)
 
+    helmholtz_gradient.__qualname__ = "helmholtz_gradient"  # the kernel's key
     return wp.kernel(helmholtz_gradient, enable_backward=False, module="unique", module_options=CPU_FAST)
 
 
@@ -124,6 +125,7 @@ def helmholtz_divergence(dvv: tuple, copies: int, ghosts: bool):
                     yp = halo[g - n]
                 z[0, p] = yp - c * s / metdet[p]
 
+    helmholtz_divergence.__qualname__ = "helmholtz_divergence"  # the kernel's key
     return wp.kernel(helmholtz_divergence, enable_backward=False, module="unique", module_options=CPU_FAST)
 
 

@@ -1,0 +1,302 @@
+"""The GPU performance model on paper (ISSUE 23): bytes per point of every
+kernel, launches per step of every stepper, and the predicted times on an
+H100 and an H200, from counts taken off the code on the CPU.
+
+What is counted (TC5, all terms + ∇⁴, np = 4, the CUDA layout: per-node
+kernels, ``per_element=False``, one thread, the steppers' CUDA solvers
+``warp_cg`` / ``krylov = "warp"``), by wrapping Warp's launch entry points
+while the model evaluates one RHS, one ∇⁴ and ``--steps`` steps of each
+stepper after ``--warmup`` steps, on ``--ne`` (default 8):
+
+* a launch's bytes: the capacity of each distinct array argument, once (the
+  compulsory HBM traffic when a kernel streams its arguments and the
+  re-reads within an element hit L1/L2; the per-node layout re-reads 2·np
+  nodes per point from cache). Kernels that touch some rows of an argument
+  are overcounted (schur_height), in-place updates undercounted (the write
+  of an aliased array); both are small beside the RHS and ∇⁴;
+* launches: recorded (``wp.Launch.launch``) and direct (``wp.launch``)
+  kernel launches, plus memsets and copies (``zero_``, ``fill_``,
+  ``assign``, ``wp.copy``); host syncs: ``.numpy()`` read-backs, each of
+  which ends a CUDA graph.
+
+Predictions: GPU time = bytes / (0.7 × HBM bandwidth) + launches × 1 µs
+(the GPU-side gap between consecutive kernels and memsets); launch floor = launches ×
+4 µs of host time. Without graphs a step takes the larger of the two (the
+host launches while the GPU runs); with one CUDA graph per sync-free segment
+it takes GPU time + (syncs + 1) × 4 µs. A step is launch-bound when its
+launch floor exceeds its GPU time. A step is launch-bound when its launch floor exceeds its bandwidth
+time. Bytes per point at ``--ne`` scale to other grids with the node count;
+iteration counts at a fixed Courant number barely change with ne
+(benchmarks/README.md: semi-implicit at 4× 25 / 24 CG iterations at ne16 / 30).
+
+    python benchmarks/gpu_model.py                  # ne 8 counts, tables for ne 30 120 240
+    python benchmarks/gpu_model.py --ne 16 --at 30 60 --implicit-dt-factor 10
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import contextlib
+import statistics
+import time
+
+import numpy as np
+import warp as wp
+
+from swe_sphere.config import load_scene
+from swe_sphere.grid import CubedSphere
+from swe_sphere.model import ShallowWater
+from swe_sphere.steppers import STEPPERS, make_stepper, option_types
+
+HBM = {"H100": 3.35e12, "H200": 4.8e12}  # B/s: HBM3 (SXM) and HBM3e
+EFFICIENCY = 0.7  # share of HBM bandwidth a streaming kernel reaches
+LAUNCH_S = 4e-6  # host cost of one Warp kernel launch
+KERNEL_GAP_S = 1e-6  # GPU-side gap between consecutive kernels
+CUDA_OPTIONS = {"helmholtz_solver": "warp_cg", "krylov": "warp"}
+IMPLICIT = ("semi_implicit", "implicit", "imex")
+
+# Floating-point operations per point (np = 4, FMA = 2), counted by hand from
+# kernels/: the ratio to the bytes shows every kernel far below an H100's
+# FP64 ridge (≈ 34e12 / 3.35e12 ≈ 10 flop/B), i.e. bandwidth-bound.
+FLOPS = {
+    "tendency": 180,  # 4 × (14 continuity + 16 Bernoulli + 10 vorticity) + 20 pointwise finish
+    "dss": 14,  # ≈ 2 · rows · copies (1.78 a node on average) + rows; 3 rows
+    "laplace_wk_flux": 120,  # 4 rows × (2 × 8 derivative + 6 gradient + 8 flux)
+    "laplace_wk_div": 68,  # 4 rows × (np × 4 + 1)
+    "to_cartesian": 10,
+    "scale_first": 40,
+    "apply": 24,
+    "axpby": 9,
+    "axpbypcz": 15,
+}
+
+
+class Tally:
+    """Launches, bytes, memsets/copies and host syncs seen while active."""
+
+    def __init__(self):
+        self.active = False
+        self.reset()
+
+    def reset(self):
+        self.launches = collections.Counter()
+        self.bytes = collections.Counter()
+        self.memops = 0
+        self.membytes = 0
+        self.syncs = 0
+
+    def kernel(self, kernel, args):
+        if self.active:
+            seen = {a.ptr: a.capacity for a in args if isinstance(a, wp.array)}
+            self.launches[kernel.key] += 1
+            self.bytes[kernel.key] += sum(seen.values())
+
+    def memop(self, nbytes):
+        if self.active:
+            self.memops += 1
+            self.membytes += nbytes
+
+    @contextlib.contextmanager
+    def counting(self):
+        self.reset()
+        self.active = True
+        try:
+            yield self
+        finally:
+            self.active = False
+
+    @property
+    def total_launches(self):
+        return sum(self.launches.values()) + self.memops
+
+    @property
+    def total_bytes(self):
+        return sum(self.bytes.values()) + self.membytes
+
+
+def instrument(tally: Tally) -> None:
+    """Wrap Warp's launch, memset, copy and read-back entry points (for this process)."""
+    launch_cls, real_record_launch, real_launch = wp.Launch, wp.Launch.launch, wp.launch
+
+    def record_launch(self, *a, **k):
+        tally.kernel(self.kernel, self.fwd_args or [])
+        return real_record_launch(self, *a, **k)
+
+    def launch(kernel, dim=None, inputs=(), outputs=(), *a, **k):
+        if not k.get("record_cmd"):
+            tally.kernel(kernel, [*inputs, *outputs])
+        return real_launch(kernel, dim, inputs, outputs, *a, **k)
+
+    launch_cls.launch = record_launch
+    wp.launch = launch
+    real_copy = wp.copy
+
+    def copy(dest, src, *a, **k):
+        tally.memop(2 * src.capacity)
+        return real_copy(dest, src, *a, **k)
+
+    wp.copy = copy
+    for name, factor in (("zero_", 1), ("fill_", 1), ("assign", 2)):
+        real = getattr(wp.array, name)
+
+        def method(self, *a, _real=real, _factor=factor, **k):
+            tally.memop(_factor * self.capacity)
+            return _real(self, *a, **k)
+
+        setattr(wp.array, name, method)
+    real_numpy = wp.array.numpy
+
+    def numpy(self):
+        if tally.active:
+            tally.syncs += 1
+        return real_numpy(self)
+
+    wp.array.numpy = numpy
+
+
+def build(ne, stepper=None, dt_factor=1.0):
+    """TC5 on ne, np 4, in the CUDA layout on the CPU: (model, scene, initial state)."""
+    scene = load_scene("tc5_mountain", ne=ne, np=4)
+    if stepper is not None:
+        scene = load_scene("tc5_mountain", ne=ne, np=4, stepper=stepper, dt=scene.dt * dt_factor)
+    grid = CubedSphere(ne, 4)
+    case = scene.make_case()
+    model = ShallowWater(
+        grid, scene.terms, case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon), nu=scene.nu, nu_div=scene.nu_div,
+        nu_s=scene.nu_s, hypervis_subcycle=scene.hypervis_subcycle, g=case.planet.g, device="cpu", threads=1, per_element=False,
+    )
+    return model, scene, np.stack(case.initial(grid.lat, grid.lon))
+
+
+def count(args, tally):
+    """{'rhs'|'hv'|stepper: (launches, bytes per point, syncs, kernels Counter, bytes Counter)} at args.ne."""
+    out = {}
+    model, _, x0 = build(args.ne)
+    x, y = model.new_state(*x0), model.new_state()
+    N = model.N
+    for name, fn in (("rhs", lambda: model.rhs(x, y)), ("hv", lambda: model.hyperviscosity_operator(x, y))):
+        fn()  # records
+        with tally.counting() as t:
+            fn()
+        out[name] = (t.total_launches, t.total_bytes / N, t.syncs, t.launches.copy(), t.bytes.copy())
+    for name, cls in STEPPERS.items():
+        model, scene, x0 = build(args.ne, name, args.implicit_dt_factor if name in IMPLICIT else 1.0)
+        known = option_types(cls.Options)
+        stepper = make_stepper(name, model, scene.dt, **{k: v for k, v in CUDA_OPTIONS.items() if k in known})
+        x = model.new_state(*x0)
+        for _ in range(args.warmup):
+            stepper.step(x)
+        with tally.counting() as t:
+            for _ in range(args.steps):
+                stepper.step(x)
+        s = args.steps
+        out[name] = (t.total_launches / s, t.total_bytes / N / s, t.syncs / s, t.launches.copy(), t.bytes.copy())
+    return out, N
+
+
+def cpu_check(ne, repeat):
+    """Each launch of one RHS and one ∇⁴ in the CUDA layout on one CPU thread at ne:
+    (kernel, CPU-clock µs median, B/pt counted, implied GB/s)."""
+    model, _, x0 = build(ne)
+    x, y = model.new_state(*x0), model.new_state()
+    model.rhs(x, y)
+    model.hyperviscosity_operator(x, y)
+    rows = []
+    for key in (k for k in model._recorded if k[0] in ("rhs", "hvop")):
+        for launch in model._recorded[key][0]:
+            seen = {a.ptr: a.capacity for a in launch.fwd_args if isinstance(a, wp.array)}
+            times = []
+            for _ in range(repeat):
+                t0 = time.process_time()
+                launch.launch()
+                times.append(time.process_time() - t0)
+            t = statistics.median(times)
+            rows.append((launch.kernel.key, t * 1e6, sum(seen.values()) / model.N, sum(seen.values()) / t / 1e9))
+    return rows
+
+
+def points(ne):
+    return 6 * ne * ne * 16
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--ne", type=int, default=8, help="grid the counts are taken on (np 4)")
+    p.add_argument("--at", type=int, nargs="+", default=[30, 120, 240], help="grids to predict (np 4)")
+    p.add_argument("--steps", type=int, default=3)
+    p.add_argument("--warmup", type=int, default=2)
+    p.add_argument("--check-ne", type=int, default=30, help="grid of the CPU check (each RHS and ∇⁴ launch timed alone); 0 to skip")
+    p.add_argument("--implicit-dt-factor", type=float, default=4.0, help="Δt of semi_implicit, implicit, imex × TC5's explicit Δt")
+    args = p.parse_args(argv)
+    wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level (as tests/conftest.py)
+    if hasattr(wp, "LOG_WARNING"):
+        wp.config.log_level = wp.LOG_WARNING
+    tally = Tally()
+    instrument(tally)
+    counts, N = count(args, tally)
+
+    print(f"## Per kernel (counted at ne={args.ne} np=4, N={N}; bytes of each distinct array argument per point per launch)\n")
+    print("| kernel | B/pt per launch | flop/pt | flop/B | launches in one RHS | in one ∇⁴ |")
+    print("|---|---:|---:|---:|---:|---:|")
+    keys = sorted(set(counts["rhs"][3]) | set(counts["hv"][3]))
+    for key in keys:
+        n = counts["rhs"][3][key] + counts["hv"][3][key]
+        bpp = (counts["rhs"][4][key] + counts["hv"][4][key]) / n / N
+        fl = FLOPS.get(key.split("__")[0])
+        print(f"| {key} | {bpp:.0f} | {fl if fl is not None else '–'} | {fl / bpp if fl else float('nan'):.2f} | "
+              f"{counts['rhs'][3][key]} | {counts['hv'][3][key]} |")
+    if args.check_ne:
+        print(f"\nCPU check: each launch alone at ne={args.check_ne} np=4, CUDA layout, one thread, CPU clock, median of 20\n")
+        print("| kernel | µs | B/pt | implied GB/s |")
+        print("|---|---:|---:|---:|")
+        for key, us, bpp, gbs in cpu_check(args.check_ne, 20):
+            print(f"| {key.split('__')[0]} | {us:.0f} | {bpp:.0f} | {gbs:.1f} |")
+    print(f"\nRHS: {counts['rhs'][1]:.0f} B/pt, {counts['rhs'][0]:.0f} launches; ∇⁴ (hyperviscosity_operator, with its memset): "
+          f"{counts['hv'][1]:.0f} B/pt, {counts['hv'][0]:.0f} launches; ∇⁴/RHS bytes {counts['hv'][1] / counts['rhs'][1]:.2f}\n")
+
+    print(f"## Per step (semi_implicit, implicit, imex at {args.implicit_dt_factor:g}× TC5's Δt; {args.steps} steps after {args.warmup})\n")
+    print("| stepper | launches/step | host syncs/step | B/pt/step | RHS-eq (bytes) |")
+    print("|---|---:|---:|---:|---:|")
+    names = ["rhs", "hv", *STEPPERS]
+    for name in names:
+        L, bpp, syncs, _, _ = counts[name]
+        print(f"| {name} | {L:.0f} | {syncs:.1f} | {bpp:.0f} | {bpp / counts['rhs'][1]:.1f} |")
+
+    def predict(name, ne, bw):
+        """(GPU time, launch floor, step without graphs, step with graphs) in s."""
+        L, bpp, syncs, _, _ = counts[name]
+        gpu = bpp * points(ne) / (EFFICIENCY * bw) + L * KERNEL_GAP_S
+        floor = L * LAUNCH_S
+        return gpu, floor, max(gpu, floor), gpu + (syncs + 1) * LAUNCH_S
+
+    print(f"\n## Predicted µs at {EFFICIENCY:.0%} of HBM: GPU time / launch floor ({LAUNCH_S * 1e6:g} µs a launch) / "
+          "with one CUDA graph per sync-free segment; **bold**: launch-bound without graphs\n")
+    for gpu_name, bw in HBM.items():
+        print(f"**{gpu_name} ({bw / 1e12:.2f} TB/s)**\n")
+        print("| what | " + " | ".join(f"ne{ne} ({points(ne) / 1e6:.2f} M pts)" for ne in args.at) + " |")
+        print("|---|" + "---:|" * len(args.at))
+        for name in names:
+            cells = []
+            for ne in args.at:
+                gpu, floor, _, graph = predict(name, ne, bw)
+                cell = f"{gpu * 1e6:.0f} / {floor * 1e6:.0f} / {graph * 1e6:.0f}"
+                cells.append(f"**{cell}**" if floor > gpu else cell)
+            print(f"| {name} | " + " | ".join(cells) + " |")
+        print()
+        print("Simulated days per wall day for TC5 (the scene's Δt at each ne; semi_implicit, implicit, imex at "
+              f"{args.implicit_dt_factor:g}× it), without / with graphs:\n")
+        dts = {ne: load_scene("tc5_mountain", ne=ne, np=4).dt for ne in args.at}
+        print("| stepper | " + " | ".join(f"ne{ne} (Δt {dts[ne]:.1f} s)" for ne in args.at) + " |")
+        print("|---|" + "---:|" * len(args.at))
+        for name in STEPPERS:
+            cells = []
+            for ne in args.at:
+                dt = dts[ne] * (args.implicit_dt_factor if name in IMPLICIT else 1.0)
+                _, _, plain, graph = predict(name, ne, bw)
+                cells.append(f"{dt / plain:,.0f} / {dt / graph:,.0f}")
+            print(f"| {name} | " + " | ".join(cells) + " |")
+        print()
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,191 @@
+"""The measurements of ISSUE 23's item 3, one subcommand each (driven by
+``gpu_session.sh``, which time-boxes them and keeps their output under $OUT):
+
+* ``agreement``: TC5 for ``--days`` on ``--ne``, every stepper (semi_implicit,
+  implicit, imex at ``--dt-factor`` × Δt), on ``--device`` and on the CPU:
+  max |h_dev − h_cpu| / max |h_cpu|, and of the tendency after one RHS.
+* ``throughput``: a device copy (``wp.copy``, read + write counted) as the
+  bandwidth reference, then one RHS (TC5, all terms + DSS, CUDA layout) per
+  ``--ne``: µs, M points/s, GB/s of compulsory bytes (``rhs_throughput``'s
+  count) and of bytes as launched (``gpu_model``'s), each as % of the copy.
+* ``graphs``: one step per stepper, replayed plain and as a CUDA graph
+  (``wp.ScopedCapture``): µs per step each way, or why it cannot be captured.
+* ``iterations``: the semi_implicit, imex and implicit steppers at
+  ``--dt-factor`` × TC5's Δt: solver iterations per step on ``--device``
+  (their device solvers) against the CPU (its defaults).
+
+Medians of ``--repeat`` timings after a warm-up, synchronised; wall clock.
+Runs on the CPU too (``--device cpu``, small ``--ne``) to check the script.
+
+    python benchmarks/gpu_session.py throughput --ne 30 60 120 240
+    python benchmarks/gpu_session.py agreement --ne 4 --days 0.2 --device cpu
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import warp as wp
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from gpu_model import IMPLICIT, Tally, instrument  # noqa: E402
+from rhs_throughput import build, rhs_compulsory_bytes  # noqa: E402
+
+from swe_sphere.config import load_scene  # noqa: E402
+from swe_sphere.simulation import Simulation  # noqa: E402
+from swe_sphere.steppers import STEPPERS, make_stepper  # noqa: E402
+
+
+def timed(fn, device, repeat):
+    """Median seconds of fn() (synchronised), after one untimed call."""
+    fn()
+    wp.synchronize_device(device)
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        wp.synchronize_device(device)
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def _header(title, columns, right):
+    """Print a table's title, its header and the alignment row (the last ``right`` columns right-aligned)."""
+    print(title)
+    print("| " + " | ".join(columns) + " |")
+    print("|" + "---|" * (len(columns) - right) + "---:|" * right)
+
+
+def _scene(name, ne, dt_factor, **kw):
+    """TC5 on ne, np 4 with stepper ``name``; semi_implicit, implicit, imex at dt_factor × the scene's Δt."""
+    scene = load_scene("tc5_mountain", ne=ne, np=4, stepper=name, **kw)
+    if name in IMPLICIT:
+        scene = load_scene("tc5_mountain", ne=ne, np=4, stepper=name, dt=scene.dt * dt_factor, **kw)
+    return scene
+
+
+def agreement(args):
+    _header(f"TC5 ne{args.ne[0]} np4, {args.days:g} days (semi_implicit, implicit, imex at {args.dt_factor:g}× Δt): "
+            f"max|h_{args.device} − h_cpu| / max|h_cpu|",
+            ["stepper", "after one RHS", "after the run", "steps", "wall s device", "wall s cpu"], 5)
+    for name in args.steppers or STEPPERS:
+        scene = _scene(name, args.ne[0], args.dt_factor, days=args.days)
+        scene = dataclasses.replace(scene, output_every_days=args.days)
+        h, rhs, wall, steps = {}, {}, {}, 0
+        for device in (args.device, "cpu"):
+            sim = Simulation(scene, device, progress=False)
+            out = sim.model.new_state()
+            sim.model.rhs(sim.x, out)
+            rhs[device] = out.numpy()
+            t0 = time.perf_counter()
+            result = sim.run()
+            wall[device], steps = time.perf_counter() - t0, result.steps
+            h[device] = sim.fields()[2]
+        d_rhs = np.max(np.abs(rhs[args.device] - rhs["cpu"])) / np.max(np.abs(rhs["cpu"]))
+        d_h = np.max(np.abs(h[args.device] - h["cpu"])) / np.max(np.abs(h["cpu"]))
+        print(f"| {name} | {d_rhs:.2e} | {d_h:.2e} | {steps} | {wall[args.device]:.1f} | {wall['cpu']:.1f} |", flush=True)
+
+
+def copy_bandwidth(device, nbytes=2**30, repeat=10):
+    """B/s of a device-to-device copy of nbytes (read + write counted)."""
+    a = wp.zeros(nbytes // 8, dtype=wp.float64, device=device)
+    b = wp.zeros_like(a)
+    return 2 * nbytes / timed(lambda: wp.copy(b, a), device, repeat)
+
+
+def throughput(args):
+    bw = copy_bandwidth(args.device, args.copy_mib * 2**20)
+    _header(f"device copy ({args.copy_mib} MiB, read + write): {bw / 1e9:.0f} GB/s",
+            ["ne", "points", "RHS µs", "M pts/s", "compulsory B/pt", "GB/s", "% of copy", "launched B/pt", "GB/s", "% of copy"], 10)
+    runs = []
+    for ne in args.ne:
+        _, _, (_, _, state), model = build(ne, 4, 1, args.device)
+        x, out = model.new_state(*state), model.new_state()
+        runs.append((ne, model, x, out, timed(lambda: model.rhs(x, out), args.device, args.repeat)))
+    tally = Tally()
+    instrument(tally)  # after the timings: its wrappers cost host time per launch
+    for ne, model, x, out, t in runs:
+        with tally.counting():
+            model.rhs(x, out)
+        pts = model.N
+        compulsory, launched = rhs_compulsory_bytes(model) / pts, tally.total_bytes / pts
+        print(f"| {ne} | {pts} | {t * 1e6:.1f} | {pts / t / 1e6:.0f} | {compulsory:.0f} | {compulsory * pts / t / 1e9:.0f} | "
+              f"{100 * compulsory * pts / t / bw:.0f} % | {launched:.0f} | {launched * pts / t / 1e9:.0f} | {100 * launched * pts / t / bw:.0f} % |",
+              flush=True)
+
+
+def _stepper(name, ne, device, dt_factor):
+    sim = Simulation(_scene(name, ne, dt_factor), device, progress=False)
+    return sim, sim.stepper
+
+
+def graphs(args):
+    ne = args.ne[0]
+    _header(f"TC5 ne{ne} np4: µs per step, plain replay and one CUDA graph per step ({args.device})",
+            ["stepper", "plain µs", "graph µs", "speed-up"], 3)
+    for name in args.steppers or STEPPERS:
+        sim, stepper = _stepper(name, ne, args.device, args.dt_factor)
+        x = sim.x
+        plain = timed(lambda: stepper.step(x), args.device, args.repeat)
+        if not wp.get_device(args.device).is_cuda:
+            print(f"| {name} | {plain * 1e6:.0f} | no CUDA graphs on {args.device} | |", flush=True)
+            continue
+        try:
+            with wp.ScopedCapture(device=args.device) as capture:
+                stepper.step(x)
+            graph = timed(lambda: wp.capture_launch(capture.graph), args.device, args.repeat)
+            print(f"| {name} | {plain * 1e6:.0f} | {graph * 1e6:.0f} | {plain / graph:.2f} |", flush=True)
+        except Exception as err:  # a host read-back or a CPU device: not capturable
+            print(f"| {name} | {plain * 1e6:.0f} | not capturable: {str(err).splitlines()[0][:80]} | |", flush=True)
+
+
+def iterations(args):
+    ne = args.ne[0]
+    _header(f"TC5 ne{ne} np4 at {args.dt_factor:g}× Δt: solver iterations per step ({args.steps} steps after 1), {args.device} vs cpu",
+            ["stepper", "device", "iterations per step", "RHS per step", "ms per step"], 2)
+    for name in args.steppers or IMPLICIT:
+        for device in dict.fromkeys((args.device, "cpu")):
+            sim, stepper = _stepper(name, ne, device, args.dt_factor)
+            stepper.step(sim.x)
+            total, rhs = {}, 0
+            wp.synchronize_device(device)
+            t0 = time.perf_counter()
+            for _ in range(args.steps):
+                stats = stepper.step(sim.x)
+                rhs += stats.rhs_evals
+                for k, v in stats.iterations.items():
+                    total[k] = total.get(k, 0) + v
+            wp.synchronize_device(device)
+            ms = (time.perf_counter() - t0) / args.steps * 1e3
+            its = ", ".join(f"{k} {v / args.steps:.1f}" for k, v in total.items())
+            print(f"| {name} | {device} | {its} | {rhs / args.steps:.1f} | {ms:.1f} |", flush=True)
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("part", choices=("agreement", "throughput", "graphs", "iterations"))
+    p.add_argument("--device", default="cuda")
+    p.add_argument("--ne", type=int, nargs="+", default=None, help="grid(s), np 4 (default per part: 16 / 30 60 120 240 / 30 / 30)")
+    p.add_argument("--days", type=float, default=5.0)
+    p.add_argument("--steppers", nargs="*", default=None)
+    p.add_argument("--dt-factor", type=float, default=4.0, help="Δt of semi_implicit, implicit, imex × TC5's")
+    p.add_argument("--steps", type=int, default=3)
+    p.add_argument("--repeat", type=int, default=20)
+    p.add_argument("--copy-mib", type=int, default=1024)
+    args = p.parse_args(argv)
+    args.ne = args.ne or {"agreement": [16], "throughput": [30, 60, 120, 240]}.get(args.part, [30])
+    wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level (as tests/conftest.py)
+    if hasattr(wp, "LOG_WARNING"):
+        wp.config.log_level = wp.LOG_WARNING
+    wp.init()
+    {"agreement": agreement, "throughput": throughput, "graphs": graphs, "iterations": iterations}[args.part](args)
+
+
+if __name__ == "__main__":
+    main()

@@ -3,8 +3,8 @@ kernel, launches per step of every stepper, and the predicted times on an
 H100 and an H200, from counts taken off the code on the CPU.
 
 What is counted (TC5, all terms + ∇⁴, np = 4, the CUDA layout: per-node
-kernels, ``per_element=False``, one thread, the steppers' CUDA solvers
-``warp_cg`` / ``krylov = "warp"``), by wrapping Warp's launch entry points
+kernels, ``per_element=False``, one thread, the steppers' CUDA solvers:
+the Helmholtz ``pcg`` and ``krylov = "warp"``), by wrapping Warp's launch entry points
 while the model evaluates one RHS, one ∇⁴ and ``--steps`` steps of each
 stepper after ``--warmup`` steps, on ``--ne`` (default 8):
 
@@ -53,7 +53,7 @@ HBM = {"H100": 3.35e12, "H200": 4.8e12}  # B/s: HBM3 (SXM) and HBM3e
 EFFICIENCY = 0.7  # share of HBM bandwidth a streaming kernel reaches
 LAUNCH_S = 4e-6  # host cost of one Warp kernel launch
 KERNEL_GAP_S = 1e-6  # GPU-side gap between consecutive kernels
-CUDA_OPTIONS = {"helmholtz_solver": "warp_cg", "krylov": "warp"}
+CUDA_OPTIONS = {"krylov": "warp"}  # the implicit stepper's CUDA default; the Helmholtz "pcg" is every device's
 IMPLICIT = ("semi_implicit", "implicit", "imex")
 
 # Floating-point operations per point (np = 4, FMA = 2), counted by hand from

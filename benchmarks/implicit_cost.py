@@ -1,26 +1,36 @@
-"""What the large-step steppers cost per simulated day, against ssprk3 (ISSUE 10).
+"""What an implicit-type step costs, broken down, against the best explicit stepper (ISSUE 21).
 
-TC5 (Williamson 1992 test case 5, all terms with hyperviscosity) at each
-``--ne`` (np = 4), Δt = ``--factors`` × the gravity-wave limit dt_g (the
-Courant-1 step min Δx / max sqrt(g h) of the initial state). One interleaved
-run: every configuration is built and warmed up (``--warmup`` steps from the
-initial state), then the timed steps go round-robin over the configurations,
-so load changes hit them alike; medians are quoted.
+Per configuration (case, stepper, Δt as a multiple of the gravity-wave limit
+Δt_g = min Δx / max sqrt(g h) of the initial state), one interleaved run:
+every configuration is built and warmed up (``--warmup`` steps), then the
+timed steps go round-robin over the configurations and the explicit
+references (ssprk3, rk4, leapfrog_trapezoidal at their largest stable steps,
+``EXPLICIT``), so load changes hit them alike. Each step's time is split by
+timers around the model's and the solver's calls (exclusive, nested calls
+subtracted):
 
-Per configuration: Newton iterations per step, GMRES iterations per Newton,
-preconditioner applications and Helmholtz iterations per step, RHS
-evaluations per step, RHS-eq per step (ms per step / ms of one RHS, the RHS
-timed in the same rounds), ms per step, and the cost per simulated day
-relative to ssprk3 at its largest stable step (found by ``stable_ssprk3_dt``:
-the largest of 1.0, 0.95, 0.9, ... × dt_g that runs ``--stable-days`` days).
+* RHS: ``model.rhs`` (including JFNK's Jacobian-vector products);
+* ∇⁴: ``model.hyperviscosity`` (split after the step);
+* Helmholtz op: the operator M + cK of the compiled CG (``GravityWave._apply``);
+* Helmholtz rest: the rest of ``GravityWave.solve`` (the CG's vector updates
+  and inner products, the preconditioner fused into them, the Schur pieces);
+* other: the rest of the step (stage combinations; JFNK's Newton and FGMRES).
 
-    python benchmarks/implicit_cost.py --ne 16 30 --factors 1 4 10 30
+Medians over the timed steps, in ms and in RHS-equivalents (one RHS timed in
+the same rounds); the last column is the cost per simulated day relative to
+the cheapest explicit reference of the same case. ``--clock cpu``
+(``time.process_time``) is for one thread on a shared machine; ``--clock wall``
+for the targets' idle machine with several threads (process time sums them).
+
+    SWE_SPHERE_THREADS=1 python benchmarks/implicit_cost.py --clock cpu
+    SWE_SPHERE_THREADS=2 python benchmarks/implicit_cost.py --clock wall
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import platform
 import statistics
 import time
@@ -32,115 +42,129 @@ from threadpoolctl import threadpool_limits
 wp.config.quiet = True
 
 from swe_sphere.config import load_scene  # noqa: E402
-from swe_sphere.constants import DAY  # noqa: E402
-from swe_sphere.simulation import BlowUp, Simulation  # noqa: E402
+from swe_sphere.simulation import Simulation  # noqa: E402
 
-# (label, stepper, options); a label's configuration runs at every factor
-CONFIGS = [
-    ("semi_implicit", "semi_implicit", {}),
-    ("implicit cg 1e-2", "implicit", {}),
-    ("implicit none", "implicit", {"preconditioner": "none"}),
-    ("implicit vcycle", "implicit", {"helmholtz_solver": "vcycle"}),
-    ("implicit amg 1e-2", "implicit", {"helmholtz_solver": "amg"}),
-    ("implicit cheb8", "implicit", {"helmholtz_solver": "chebyshev"}),
-    ("semi_implicit amg", "semi_implicit", {"helmholtz_solver": "amg"}),
-    ("imex ars343", "imex", {"scheme": "ars343"}),
-    ("imex ars232", "imex", {"scheme": "ars232"}),
-    # the matrix-free Helmholtz CG that runs over MPI ranks, on one
-    ("semi_implicit mf_cg", "semi_implicit", {"helmholtz_solver": "mf_cg"}),
-    ("implicit mf_cg 1e-2", "implicit", {"helmholtz_solver": "mf_cg"}),
-    ("imex ars343 mf_cg", "imex", {"scheme": "ars343", "helmholtz_solver": "mf_cg"}),
-]
+# case → (label, stepper, Δt/Δt_g, options)
+CONFIGS = {
+    "tc5_mountain": [("imex", "imex", 8.0, {}), ("CN", "implicit", 4.0, {}), ("CN", "implicit", 10.0, {}), ("semi_implicit", "semi_implicit", 2.0, {})],
+    "tc6_rossby_haurwitz": [("imex", "imex", 4.7, {}), ("CN", "implicit", 4.7, {})],
+}
+# case → explicit references (stepper, Δt in s): the largest stable steps measured at ne30 np4 on
+# an idle machine (ISSUE 21: TC5 ssprk3 216 s, the cheapest there; TC6 ssprk3 160 s, rk4 200 s,
+# leapfrog_trapezoidal 90 s). Other ne: --explicit.
+EXPLICIT = {
+    "tc5_mountain": [("ssprk3", 216.0)],
+    "tc6_rossby_haurwitz": [("ssprk3", 160.0), ("rk4", 200.0), ("leapfrog_trapezoidal", 90.0)],
+}
+PARTS = ("RHS", "∇⁴", "Helmholtz op", "Helmholtz rest", "other")
 
 
-def scene(ne, stepper, dt, options, days=1.0):
-    base = load_scene("tc5_mountain", ne=ne, np=4, days=days)
-    return dataclasses.replace(base, stepper=stepper, dt=dt, stepper_options=options, output_every_days=days)
+class Timers:
+    """Exclusive time per part: a wrapped call's time less that of the wrapped calls inside it."""
+
+    def __init__(self, clock):
+        self.clock, self.total, self.stack = clock, dict.fromkeys(PARTS, 0.0), []
+
+    def wrap(self, obj, name, part):
+        inner = getattr(obj, name)
+
+        def timed(*args, **kwargs):
+            self.stack.append(0.0)
+            t0 = self.clock()
+            try:
+                return inner(*args, **kwargs)
+            finally:
+                dt = self.clock() - t0
+                children = self.stack.pop()
+                self.total[part] += dt - children
+                if self.stack:
+                    self.stack[-1] += dt
+
+        timed.__wrapped__ = inner
+        setattr(obj, name, timed)
+
+    def reset(self):
+        self.total = dict.fromkeys(PARTS, 0.0)
 
 
-def gravity_limit(ne) -> float:
-    base = load_scene("tc5_mountain", ne=ne, np=4, days=1.0)
-    return base.dt / Simulation(base, "cpu", progress=False).courant()["courant_gravity"]
+def scene(case, ne, stepper, dt, options):
+    base = load_scene(case, ne=ne, np=4, days=1.0)
+    return dataclasses.replace(base, stepper=stepper, dt=dt, stepper_options=options, output_every_days=1.0)
 
 
-def stable_ssprk3_dt(ne, dt_g, days) -> float:
-    for f in (1.0, 0.95, 0.9, 0.85, 0.8, 0.7, 0.6):
-        n = int(np.ceil(days * DAY / (f * dt_g)))
-        try:
-            result = Simulation(scene(ne, "ssprk3", days * DAY / n, {}, days), "cpu", progress=False).run()
-        except BlowUp:
-            continue
-        if result.blowup is None:
-            return days * DAY / n
-    raise RuntimeError("ssprk3 unstable at 0.6 dt_g")
+def build(case, ne, stepper, dt, options, clock):
+    sim = Simulation(scene(case, ne, stepper, dt, options), "cpu", progress=False)
+    timers = Timers(clock)
+    timers.wrap(sim.model, "rhs", "RHS")
+    timers.wrap(sim.model, "hyperviscosity", "∇⁴")
+    gw = getattr(sim.stepper, "gw", None)
+    if gw is not None:
+        timers.wrap(gw, "solve", "Helmholtz rest")
+        if hasattr(gw, "_apply"):
+            timers.wrap(gw, "_apply", "Helmholtz op")
+    return sim, timers
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--ne", type=int, nargs="+", default=[16, 30])
-    ap.add_argument("--factors", type=float, nargs="+", default=[1, 4, 10, 30])
-    ap.add_argument("--steps", type=int, default=3, help="timed steps per configuration")
-    ap.add_argument("--warmup", type=int, default=2, help="untimed steps per configuration first")
-    ap.add_argument("--stable-days", type=float, default=2.0)
-    ap.add_argument("--only", nargs="*", default=None, help="labels to run (default all)")
+    ap.add_argument("--ne", type=int, default=30)
+    ap.add_argument("--cases", nargs="+", default=list(CONFIGS), choices=list(CONFIGS))
+    ap.add_argument("--steps", type=int, default=5, help="timed steps per configuration")
+    ap.add_argument("--warmup", type=int, default=3, help="untimed steps per configuration first")
+    ap.add_argument("--clock", choices=("cpu", "wall"), default="cpu")
+    ap.add_argument("--helmholtz-solver", default="", help="every configuration's helmholtz_solver (default: the steppers' own)")
+    ap.add_argument("--explicit", nargs="*", default=None, metavar="STEPPER@DT",
+                    help="the explicit references of every case, e.g. ssprk3@216 (default: EXPLICIT, measured at ne30)")
     args = ap.parse_args()
+    clock = time.process_time if args.clock == "cpu" else time.perf_counter
     threadpool_limits(1)  # as Simulation.run: BLAS threads would fight the model's
-    print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {platform.node()}, {platform.processor() or platform.machine()}")
-    configs = [c for c in CONFIGS if args.only is None or c[0] in args.only]
-    for ne in args.ne:
-        dt_g = gravity_limit(ne)
-        dt_ssp = stable_ssprk3_dt(ne, dt_g, args.stable_days)
-        runs = [("ssprk3", dt_ssp / dt_g, Simulation(scene(ne, "ssprk3", dt_ssp, {}), "cpu", progress=False))]
-        for label, stepper, options in configs:
-            for f in args.factors:
-                try:
-                    runs.append((label, f, Simulation(scene(ne, stepper, f * dt_g, options), "cpu", progress=False)))
-                except ValueError as err:
-                    print(f"# {label} at {f:g}x: {err}")
-        stats = {i: [] for i in range(len(runs))}
-        failed = {}
-        for i, (label, f, sim) in enumerate(runs):
-            try:
-                for _ in range(args.warmup):
-                    sim.stepper.step(sim.x)
-            except Exception as err:  # a failed configuration is reported, not fatal
-                failed[i] = str(err).split("\n")[0]
-        rhs_ms = []
-        sim0 = runs[0][2]
-        out = wp.zeros_like(sim0.x)
+    print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {platform.node()}, {platform.processor() or platform.machine()}, "
+          f"clock {args.clock}, SWE_SPHERE_THREADS={os.environ.get('SWE_SPHERE_THREADS', '(all CPUs)')}, load {os.getloadavg()[0]:.2f}")
+    for case in args.cases:
+        probe = Simulation(scene(case, args.ne, "ssprk3", 60.0, {}), "cpu", progress=False)
+        dt_g = 60.0 / probe.courant()["courant_gravity"]
+        runs = []
+        explicit = EXPLICIT[case] if args.explicit is None else [(e.split("@")[0], float(e.split("@")[1])) for e in args.explicit]
+        for name, dt in explicit:
+            runs.append((name, dt / dt_g, True, *build(case, args.ne, name, dt, {}, clock)))
+        for label, stepper, f, options in CONFIGS[case]:
+            if args.helmholtz_solver:
+                options = {**options, "helmholtz_solver": args.helmholtz_solver}
+            runs.append((label, f, False, *build(case, args.ne, stepper, f * dt_g, options, clock)))
+        for _, _, _, sim, timers in runs:
+            for _ in range(args.warmup):
+                sim.stepper.step(sim.x)
+        rhs_sim, out = runs[0][3], wp.zeros_like(runs[0][3].x)
+        rhs_ms, per_step = [], {i: [] for i in range(len(runs))}
         for _ in range(args.steps):
-            t0 = time.perf_counter()
+            t0 = clock()
             for _ in range(5):
-                sim0.model.rhs(sim0.x, out)
-            rhs_ms.append((time.perf_counter() - t0) / 5 * 1e3)
-            for i, (label, f, sim) in enumerate(runs):
-                if i in failed:
-                    continue
-                try:
-                    t0 = time.perf_counter()
-                    st = sim.stepper.step(sim.x)
-                    stats[i].append(((time.perf_counter() - t0) * 1e3, st))
-                except Exception as err:
-                    failed[i] = str(err).split("\n")[0]
+                rhs_sim.model.rhs.__wrapped__(rhs_sim.x, out)  # untimed by the parts
+            rhs_ms.append((clock() - t0) / 5 * 1e3)
+            for i, (_, _, _, sim, timers) in enumerate(runs):
+                timers.reset()
+                t0 = clock()
+                st = sim.stepper.step(sim.x)
+                total = (clock() - t0) * 1e3
+                parts = {k: v * 1e3 for k, v in timers.total.items()}
+                parts["other"] = total - sum(v for k, v in parts.items() if k != "other")
+                per_step[i].append((total, parts, st))
         rhs = statistics.median(rhs_ms)
-        print(f"\nne={ne} np=4: dt_g = {dt_g:.1f} s, ssprk3 at {dt_ssp:.1f} s = {dt_ssp / dt_g:.2f} dt_g, "
-              f"RHS {rhs:.3f} ms (median), {args.steps} timed steps after {args.warmup}")
-        print("| stepper | Δt/dt_g | Newton/step | GMRES/Newton | precond/step | Helmholtz its/step | RHS/step | RHS-eq/step | ms/step | cost/day vs ssprk3 |")
-        print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-        ref = None
-        for i, (label, f, sim) in enumerate(runs):
-            if i in failed:
-                print(f"| {label} | {f:g} | failed: {failed[i]} |||||||||")
-                continue
-            ms = statistics.median(s[0] for s in stats[i])
-            it = {k: statistics.mean(s[1].iterations.get(k, 0) for s in stats[i]) for k in ("newton", "gmres", "precond", "helmholtz")}
-            nrhs = statistics.mean(s[1].rhs_evals for s in stats[i])
-            per_day = ms / sim.scene.dt
-            ref = per_day if ref is None else ref
-            newton = it["newton"]
-            gpn = it["gmres"] / newton if newton else float("nan")
-            print(f"| {label} | {f:.2f} | {newton:.1f} | {gpn:.1f} | {it['precond']:.1f} | {it['helmholtz']:.1f} | {nrhs:.1f} | "
-                  f"{ms / rhs:.0f} | {ms:.1f} | {per_day / ref:.2f} |")
+        cost = {i: statistics.median(s[0] for s in per_step[i]) / runs[i][3].scene.dt for i in per_step}
+        best = min((i for i in cost if runs[i][2]), key=cost.get)
+        print(f"\n{case} ne{args.ne} np4: Δt_g = {dt_g:.1f} s, RHS {rhs:.2f} ms (median); {args.steps} timed steps after {args.warmup}; "
+              f"best explicit {runs[best][0]} @ {runs[best][3].scene.dt:.0f} s")
+        print("| stepper | Δt/Δt_g | Δt (s) | its/step | ms/step | " + " | ".join(f"{p} ms (RHS-eq)" for p in PARTS) + " | RHS-eq/step | cost/day vs best explicit |")
+        print("|---|---:|---:|---|---:|" + "---:|" * len(PARTS) + "---:|---:|")
+        for i, (label, f, _, sim, _) in enumerate(runs):
+            steps = per_step[i]
+            ms = statistics.median(s[0] for s in steps)
+            parts = {p: statistics.median(s[1][p] for s in steps) for p in PARTS}
+            its = {k: statistics.mean(s[2].iterations.get(k, 0) for s in steps) for k in ("newton", "gmres", "helmholtz")}
+            its_text = ", ".join(f"{k} {v:.1f}" for k, v in its.items() if v) or "-"
+            print(f"| {label} | {f:.2f} | {sim.scene.dt:.0f} | {its_text} | {ms:.1f} | "
+                  + " | ".join(f"{parts[p]:.1f} ({parts[p] / rhs:.1f})" for p in PARTS)
+                  + f" | {ms / rhs:.1f} | {cost[i] / cost[best]:.2f} |")
 
 
 if __name__ == "__main__":

@@ -12,7 +12,7 @@ and S the weighted DSS, (M + cK) y = Pᵀ W (P y − c D̂ S Ĝ P y). Three laun
   (a gather over the node's copies in the global order, as ``dss.dss_rows``:
   the same bits on any number of ranks and threads), then the element
   divergence and z = P y − c D̂ S Ĝ P y;
-* ``dss.assemble`` of z: Pᵀ W z.
+* ``helmholtz_assemble`` of W z: Pᵀ W z.
 
 The CG is Chronopoulos & Gear's (1989, J. Comput. Appl. Math. 25, 153)
 one-reduction form: one fused vector update (``cg_update``), one operator
@@ -32,6 +32,15 @@ f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
 
 CHUNK = wp.constant(256)  # unique nodes per partial inner product
+
+
+@wp.func
+def copy_at(x: wp.array2d(dtype=f64), r: int, ghost: wp.array(dtype=f64), c: int, nlocal: int):
+    """Row r of copy c: x[r, c] if local (c < nlocal), else another process's, from
+    ``ghost`` in ``dss.pack``'s layout (x.shape[0] rows an entry)."""
+    if c >= nlocal:
+        return ghost[(c - nlocal) * x.shape[0] + r]
+    return x[r, c]
 
 
 @functools.cache
@@ -71,13 +80,12 @@ def helmholtz_gradient(dvv: tuple):
 
 
 @functools.cache
-def helmholtz_divergence(dvv: tuple, copies: int, ghosts: bool):
-    """Per element: z[0, p] = y(p) − c·(D̂ S wg)(p), S the DSS (Σ over the copies of
-    p's node of wg, times rspheremp; a copy ≥ nlocal read from ``ghost``, two rows
-    an entry, ``dss.pack``'s layout, with ``ghosts``), y read as in
+def helmholtz_divergence(dvv: tuple, copies: int):
+    """Per element: z[0, p] = spheremp[p]·(y(p) − c·(D̂ S wg)(p)), S the DSS (Σ over the copies of
+    p's node of wg, times rspheremp; a copy ≥ nlocal read from ``ghost``, ``copy_at``), y read as in
     ``helmholtz_gradient``. Arguments: wg, ghost, nlocal, table, rspheremp, y,
-    halo, gid, Dinv, metdet, c (m²), z (1, N), offset (elements). Dim nelem."""
-    NP, C, G = len(dvv), int(copies), bool(ghosts)
+    halo, gid, Dinv, metdet, spheremp, c (m²), z (1, N), offset (elements). Dim nelem."""
+    NP, C = len(dvv), int(copies)
     NPP = NP * NP
     div = reference_divergence(dvv)
     vec = wp.types.vector(length=NPP, dtype=f64)
@@ -85,7 +93,8 @@ def helmholtz_divergence(dvv: tuple, copies: int, ghosts: bool):
     def helmholtz_divergence(
         wg: wp.array2d(dtype=f64), ghost: wp.array(dtype=f64), nlocal: int, table: wp.array2d(dtype=wp.int32),
         rspheremp: wp.array(dtype=f64), y: wp.array(dtype=f64), halo: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32),
-        Dinv: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), c: f64, z: wp.array2d(dtype=f64), offset: int,
+        Dinv: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), spheremp: wp.array(dtype=f64), c: f64, z: wp.array2d(dtype=f64),
+        offset: int,
     ):
         base = (wp.tid() + offset) * NPP
         f1 = vec()  # metdet c¹, metdet c² of the DSS'd gradient
@@ -97,16 +106,8 @@ def helmholtz_divergence(dvv: tuple, copies: int, ghosts: bool):
             for m in range(C):
                 cp = table[q, m]
                 if cp >= 0:
-                    if wp.static(G):
-                        if cp >= nlocal:
-                            s0 += ghost[(cp - nlocal) * 2]
-                            s1 += ghost[(cp - nlocal) * 2 + 1]
-                        else:
-                            s0 += wg[0, cp]
-                            s1 += wg[1, cp]
-                    else:
-                        s0 += wg[0, cp]
-                        s1 += wg[1, cp]
+                    s0 += copy_at(wg, 0, ghost, cp, nlocal)
+                    s1 += copy_at(wg, 1, ghost, cp, nlocal)
             rs = rspheremp[q]
             gx = rs * s0
             gy = rs * s1
@@ -123,10 +124,36 @@ def helmholtz_divergence(dvv: tuple, copies: int, ghosts: bool):
                     yp = y[g]
                 else:
                     yp = halo[g - n]
-                z[0, p] = yp - c * s / metdet[p]
+                z[0, p] = spheremp[p] * (yp - c * s / metdet[p])
 
     helmholtz_divergence.__qualname__ = "helmholtz_divergence"  # the kernel's key
     return wp.kernel(helmholtz_divergence, enable_backward=False, module="unique", module_options=CPU_FAST)
+
+
+@functools.cache
+def helmholtz_assemble(copies: int):
+    """out[g] = Σ over the copies c of unique node g (in the ``dss_table`` order of its
+    copy first[g]) of wz[0, c], the mass-weighted field (a copy ≥ nlocal read from
+    ``ghost``, ``copy_at``): ``dss.assemble`` with the weights applied by the
+    producer and the copies compiled in (a fixed-length loop; 1.6× faster on the CPU).
+    Arguments: wz (1, N), ghost, nlocal, table, first, out (nunique), offset. Dim nunique."""
+    C = int(copies)
+
+    def helmholtz_assemble(
+        wz: wp.array2d(dtype=f64), ghost: wp.array(dtype=f64), nlocal: int, table: wp.array2d(dtype=wp.int32),
+        first: wp.array(dtype=wp.int32), out: wp.array(dtype=f64), offset: int,
+    ):
+        g = wp.tid() + offset
+        p = first[g]
+        s = f64(0.0)
+        for k in range(C):
+            c = table[p, k]
+            if c >= 0:
+                s += copy_at(wz, 0, ghost, c, nlocal)
+        out[g] = s
+
+    helmholtz_assemble.__qualname__ = "helmholtz_assemble"  # the kernel's key
+    return wp.kernel(helmholtz_assemble, enable_backward=False, module="unique", module_options=CPU_FAST)
 
 
 @wp.kernel

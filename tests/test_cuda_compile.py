@@ -8,8 +8,8 @@ found, not listed: every ``wp.Kernel`` defined at module level in
 each bundled scene's model (both layouts: per node, CUDA's default, and per
 element) takes two steps of its stepper on ne = 2 np = 4 on the CPU, every
 stepper with its CUDA solvers (``pcg``, ``krylov = "warp"``) on the scene
-with the most terms; the DSS kernels and the Helmholtz divergence (which
-gathers over copies itself) are also built with ghosts (MPI). Warp's
+with the most terms; the DSS kernels are also built with ghosts (MPI; the Helmholtz kernels
+read ghosts at run time, one build for both). Warp's
 own modules (``warp.optim.linear``) are left to Warp's tests.
 """
 
@@ -27,7 +27,6 @@ import swe_sphere.kernels as kernels_pkg
 from swe_sphere.config import list_scenes, load_scene
 from swe_sphere.grid import CubedSphere
 from swe_sphere.kernels import dss
-from swe_sphere.kernels import helmholtz as hk
 from swe_sphere.model import ShallowWater
 from swe_sphere.steppers import STEPPERS, make_stepper, option_types
 
@@ -56,8 +55,8 @@ def _module_kernels() -> list[wp.Kernel]:
 def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
     """The project's kernels launched by every bundled scene's model and steppers
     (see the module docstring), and the ghost variants of the DSS kernels among them."""
-    launched, dss_args, div_args = [], set(), set()
-    real_launch, real_dss, real_div = wp.launch, dss.dss_rows, hk.helmholtz_divergence
+    launched, dss_args = [], set()
+    real_launch, real_dss = wp.launch, dss.dss_rows
 
     def launch(kernel, *args, **kwargs):
         launched.append(kernel)
@@ -67,12 +66,7 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
         dss_args.add((rows, weighted, copies))
         return real_dss(rows, weighted, copies, ghosts)
 
-    def helmholtz_divergence(dvv, copies, ghosts):
-        div_args.add((dvv, copies))
-        return real_div(dvv, copies, ghosts)
-
     monkeypatch.setattr(wp, "launch", launch)
-    monkeypatch.setattr(hk, "helmholtz_divergence", helmholtz_divergence)
     monkeypatch.setattr(dss, "dss_rows", dss_rows)
     scenes = [load_scene(p, ne=2, np=4) for p in list_scenes()]
     richest = max((s for s in scenes if "pressure_gradient" in s.terms), key=lambda s: len(s.terms))
@@ -98,7 +92,6 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
                 stepper.step(x)  # two steps: a leapfrog's first is its one-step start
                 stepper.step(x)
     ghosted = [real_dss(*args, True) for args in sorted(dss_args)]
-    launched += [real_div(*args, True) for args in div_args]
     return [k for k in launched if k.func.__module__.startswith("swe_sphere.")], ghosted
 
 
@@ -145,7 +138,7 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
         assert len(tendency) == 2, (terms, tendency)  # per node and per element
     keys = {k.key for k in launched}
     for key in ("laplacian_element__first", "laplacian_element__second", "laplace_wk_flux", "laplace_wk_div",
-                "helmholtz_gradient", "helmholtz_divergence", "cg_update", "inner3", "schur_height", "jacobian_vector", "residual", "translating_low", "axpbypcz", "dss"):
+                "helmholtz_gradient", "helmholtz_divergence", "helmholtz_assemble", "cg_update", "inner3", "schur_height", "jacobian_vector", "residual", "translating_low", "axpbypcz", "dss"):
         assert key in keys, key
     plain_dss = {k.module.name for k in launched if k.key == "dss"}
     assert len(ghosted) == len(plain_dss) >= 3 and not plain_dss & {k.module.name for k in ghosted}

@@ -340,12 +340,14 @@ class GravityWave:
             m, topo = self.model, self.model.topology
             halo = topo.owned.recv_buffer
             y2 = y.reshape((1, topo.nunique))
-            div = self._rec(hk.helmholtz_divergence(m.dvv_const, topo.table.shape[1], bool(len(topo.neighbours))), m.grid.nelem,
-                            [self.wg, topo.ghost, topo.N, topo.table, topo.rspheremp, y, halo, topo.gid, m.Dinv, m.metdet, f64(0.0), self.z],
+            div = self._rec(hk.helmholtz_divergence(m.dvv_const, topo.table.shape[1]), m.grid.nelem,
+                            [self.wg, topo.ghost, topo.N, topo.table, topo.rspheremp, y, halo, topo.gid, m.Dinv, m.metdet, topo.spheremp, f64(0.0), self.z],
                             nodes_per_index=m.grid.np**2)
             grad = self._rec(hk.helmholtz_gradient(m.dvv_const), m.grid.nelem, [y, halo, topo.gid, m.Dinv, topo.spheremp, self.wg],
                              nodes_per_index=m.grid.np**2)
-            launches = self._ops[key] = [*topo.exchange(y2, unique=True), grad, *topo.exchange(self.wg), div, *topo.assemble(self.z, 0, out)]
+            assemble = self._rec(hk.helmholtz_assemble(topo.table.shape[1]), topo.nunique,
+                                 [self.z, topo.ghost, topo.N, topo.table, topo.first, out])
+            launches = self._ops[key] = [*topo.exchange(y2, unique=True), grad, *topo.exchange(self.wg), div, *topo.exchange(self.z), assemble]
             self._div[key] = [div, None]
         return launches
 

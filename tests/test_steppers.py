@@ -7,6 +7,7 @@ the same grid (so only the time error is seen). Measured on Warp's CPU backend
 
     rk4                   256 -> 512 steps    rate 4.00 / 4.00
     ssprk3                256 -> 512 steps    rate 3.00 / 3.00
+    kgu35                 256 -> 512 steps    rate 3.00 / 3.00
     leapfrog_trapezoidal  512 -> 1024 steps   rate 1.99 / 2.00
     leapfrog, eps = 0     256 -> 512 steps    rate 2.00 / 2.01
     leapfrog, eps = 0.05  1024 -> 2048 steps  rate 1.02 / 1.01  (the Robert–Asselin
@@ -41,6 +42,7 @@ DOCUMENTED_RHS = {
     "leapfrog_trapezoidal": (2, 2),
     "ssprk3": (3, 3),
     "rk4": (4, 4),
+    "kgu35": (5, 5),
     "semi_implicit": (1, 1),  # one RHS (and one Helmholtz solve) per step, the start included
     "imex": (4, 4),  # ARS(3,4,3): four stages, three Helmholtz solves
 }
@@ -197,11 +199,12 @@ def tc6_errors(stepper, nsteps, eps=None):
     [
         ("rk4", None, 256, 3.7, 4.3),
         ("ssprk3", None, 256, 2.8, 3.2),
+        ("kgu35", None, 256, 2.8, 3.2),
         ("leapfrog_trapezoidal", None, 512, 1.8, 2.2),
         ("leapfrog", 0.0, 256, 1.8, 2.2),
         ("leapfrog", 0.05, 1024, 0.8, 1.25),
     ],
-    ids=["rk4", "ssprk3", "leapfrog_trapezoidal", "leapfrog_eps0", "leapfrog_eps0.05"],
+    ids=["rk4", "ssprk3", "kgu35", "leapfrog_trapezoidal", "leapfrog_eps0", "leapfrog_eps0.05"],
 )
 def test_temporal_order_tc6(stepper, eps, nsteps, lo, hi):
     coarse = tc6_errors(stepper, nsteps, eps)
@@ -303,4 +306,4 @@ def test_options_dataclass_defaults_checks_and_schema():
         STEPPERS["semi_implicit"].make_options(robert_asselin=0.5)
     with pytest.raises(ValueError, match="method must be"):
         STEPPERS["implicit"].make_options(method="bdf3")
-    assert {n for n, c in STEPPERS.items() if c.explicit} == {"leapfrog", "leapfrog_trapezoidal", "ssprk3", "rk4"}
+    assert {n for n, c in STEPPERS.items() if c.explicit} == {"leapfrog", "leapfrog_trapezoidal", "ssprk3", "rk4", "kgu35"}

@@ -1,6 +1,6 @@
 """Time steppers behind one interface (``base.Stepper``), by name.
 
-Explicit: ``leapfrog``, ``leapfrog_trapezoidal``, ``ssprk3``, ``rk4``;
+Explicit: ``leapfrog``, ``leapfrog_trapezoidal``, ``ssprk3``, ``rk4``, ``kgu35``;
 ``semi_implicit`` (leapfrog, gravity waves averaged over n ± 1); ``implicit``
 (JFNK θ-method / BDF2); ``imex`` (ARS IMEX Runge–Kutta). The last three share
 the linear gravity-wave operator ``helmholtz.GravityWave``.
@@ -10,13 +10,13 @@ from __future__ import annotations
 
 from ..model import ShallowWater
 from .base import StepFailure, Stepper, StepStats, option_types
-from .explicit import RK4, SSPRK3, Leapfrog, LeapfrogTrapezoidal
+from .explicit import Leapfrog, LeapfrogTrapezoidal, rk_steppers
 from .imex import Imex
 from .implicit import Implicit
 from .semi_implicit import SemiImplicit
 
 STEPPERS: dict[str, type[Stepper]] = {
-    cls.name: cls for cls in (Leapfrog, LeapfrogTrapezoidal, SSPRK3, RK4, SemiImplicit, Implicit, Imex)
+    cls.name: cls for cls in (Leapfrog, LeapfrogTrapezoidal, *rk_steppers(), SemiImplicit, Implicit, Imex)
 }
 
 

@@ -197,8 +197,8 @@ class ShallowWater:
         return self.topology.dss(x, weighted, out)
 
     # -- right-hand side ----------------------------------------------------
-    def _build_rhs(self, x, out):
-        terms = tuple(term for term in tendencies.TENDENCY_TERMS if term in self.terms)
+    def _build_rhs(self, x, out, named):
+        terms = tuple(term for term in tendencies.TENDENCY_TERMS if term in named)
         launches = []
         if terms:
             forcing = self.topo_forcing if self.topo_forcing is not None else self.vec_work  # read only with topography
@@ -209,12 +209,15 @@ class ShallowWater:
             else:
                 kernel = tendencies.tendency(terms)
                 launches.append(self._launch(kernel, self.N, [*args, self.dvv, self.grid.np, self.g, self.tend]))
-        if self.forcing is not None:
+        if self.forcing is not None and "forcing" in named:
             kernel, params = self.forcing
             launch = self._launch_pointwise(kernel, None, [self.xyz, self.east, self.north, params, f64(self.time), self.tend])
             self._forcing_launches.append(launch)
             launches.append(launch)
-        launches.extend(self._dss(self.tend, 1, out))
+        # only the rows the terms write: a continuity half leaves du, dv zero, a momentum half dh
+        lo = 0 if self.forcing is not None and "forcing" in named or set(terms) - {"continuity"} else 2
+        hi = 3 if "continuity" in terms or self.forcing is not None and "forcing" in named else 2
+        launches.extend(self._dss(self.tend[lo:hi], 1, out[lo:hi]) if (lo, hi) != (0, 3) else self._dss(self.tend, 1, out))
         return launches
 
     def set_time(self, t: float) -> None:
@@ -226,15 +229,24 @@ class ShallowWater:
         for launch in self._forcing_launches:
             launch.set_param_by_name("t", f64(t))
 
-    def rhs(self, x: wp.array2d, out: wp.array2d) -> None:
+    def rhs(self, x: wp.array2d, out: wp.array2d, terms: tuple | None = None) -> None:
         """out = F(x, t): the DSS'd tendency (3, N) of the non-dissipative terms
         (du/dt, dv/dt in m s⁻²; dh/dt in m s⁻¹) at the model time t
-        (``set_time``; only the forcing depends on it). ``out`` must not alias ``x``."""
-        self._replay(("rhs", x.ptr, out.ptr), (x, out), lambda: self._build_rhs(x, out))
+        (``set_time``; only the forcing depends on it). ``out`` must not alias ``x``.
+        ``terms``: a non-empty subset of the scene's tendency terms and "forcing"
+        to evaluate alone (None: all; a forward–backward stepper's continuity and
+        momentum halves), compiled for that subset; only the rows it writes are
+        assembled and written (a continuity half leaves out's du, dv rows as they
+        were, a momentum half its dh row). ValueError names a term the scene lacks."""
+        if terms is None:
+            terms = self.terms
+        elif not terms or not set(terms) <= set(self.terms) - {"hyperviscosity"}:
+            raise ValueError(f"rhs terms must be a non-empty subset of {self.terms} without hyperviscosity (got {terms})")
+        self._replay(("rhs", terms, x.ptr, out.ptr), (x, out), lambda: self._build_rhs(x, out, terms))
 
     def rhs_kernels(self, x: wp.array2d, out: wp.array2d) -> list[str]:
         """Names of the kernels ``rhs(x, out)`` launches (recorded on first use)."""
-        key = ("rhs", x.ptr, out.ptr)
+        key = ("rhs", self.terms, x.ptr, out.ptr)
         if key not in self._recorded:
             self.rhs(x, out)
         return [launch.kernel.key for launch in self._recorded[key][0]]

@@ -87,6 +87,8 @@ def test_every_stepper_evaluates_the_rhs_at_its_stage_times():
     expected = {
         "ssprk3": [[0, 1, 0.5], [1, 2, 1.5]],
         "rk4": [[0, 0.5, 0.5, 1], [1, 1.5, 1.5, 2]],
+        "kgu35": [[0, 0.2, 0.2, round(1 / 3, 12), round(2 / 3, 12)], [1, 1.2, 1.2, round(4 / 3, 12), round(5 / 3, 12)]],
+        "fbrk32": [[0, round(1 / 3, 12), 0.5], [1, round(4 / 3, 12), 1.5]],
         "leapfrog": [[0, 0.5], [1]],
         "leapfrog_trapezoidal": [[0, 0.5], [1, 2]],  # the predictor stands for x(n+1)
         "semi_implicit": [[0], [1]],

@@ -114,6 +114,7 @@ def test_each_output_time_gathers_a_state_once(tmp_path, monkeypatch):
     [
         ("tc2_steady", ["--stepper", "rk4", "--days", "0.25"]),
         ("tc2_steady", ["--stepper", "kgu35", "--days", "0.25"]),
+        ("tc5_mountain", ["--stepper", "fbrk32", "--days", "0.1"]),  # the continuity and momentum halves, topography
         ("tc5_mountain", ["--days", "0.1"]),  # leapfrog-trapezoidal with hyperviscosity and topography
         ("tc4_forced_low", ["--days", "0.25"]),  # ssprk3 with the time-dependent forcing
         ("tc5_mountain", ["--stepper", "rk4", "--dt", "3600", "--days", "1", "-s", "case.initialization=dfi",

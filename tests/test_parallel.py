@@ -56,7 +56,7 @@ def test_operators_bitwise_equal_to_one_thread(small_parts, threads, rng):
         m.rhs(x, out)
         assert m.rhs_kernels(x, out) == ["tendency__continuity__momentum_advection__coriolis__pressure_gradient__topography", "dss"]
         if n > 1:
-            assert all(isinstance(launch, parallel.SplitLaunch) for launch in m._recorded[("rhs", x.ptr, out.ptr)][0])
+            assert all(isinstance(launch, parallel.SplitLaunch) for launch in m._recorded[("rhs", m.terms, x.ptr, out.ptr)][0])
         m.hyperviscosity(x, 3600.0)
         grad, div = wp.zeros((2, m.N), dtype=wp.float64), wp.zeros((1, m.N), dtype=wp.float64)
         m.gradient(x, 2, grad)

@@ -116,7 +116,7 @@ def main(argv=None):
         for k, (w, c) in t.items():
             print(f"  {k:9s} {1e3 * w:9.3f} {1e3 * c:9.3f} {w / rhs_w:9.2f} {c / rhs_c:9.2f}")
         print(f"  B/RHS wall {t['B'][0] / rhs_w:.2f} cpu {t['B'][1] / rhs_c:.2f}; step/RHS wall {t['rk4 step'][0] / rhs_w:.2f} cpu {t['rk4 step'][1] / rhs_c:.2f}")
-        for name, key in (("RHS", ("rhs", x.ptr, f.ptr)), ("B", next(k for k in m._recorded if k[0] == "hvop"))):
+        for name, key in (("RHS", ("rhs", m.terms, x.ptr, f.ptr)), ("B", next(k for k in m._recorded if k[0] == "hvop"))):
             parts = launch_cpu(m._recorded[key][0], args.repeat)
             print(f"  {name} launches (cpu ms, each alone): " + " + ".join(f"{k} {1e3 * s:.3f}" for k, s in parts) + f" = {1e3 * sum(s for _, s in parts):.3f}")
     print(f"\nload average {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f}")

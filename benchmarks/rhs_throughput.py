@@ -121,7 +121,7 @@ def rhs_compulsory_bytes(model) -> int:
     out = wp.zeros_like(x)
     model.rhs(x, out)
     arrays = {}
-    for launch in model._recorded[("rhs", x.ptr, out.ptr)][0]:
+    for launch in model._recorded[("rhs", model.terms, x.ptr, out.ptr)][0]:
         launch = launch.whole if isinstance(launch, SplitLaunch) else launch
         for arg in launch.fwd_args or []:
             if isinstance(arg, wp.array) and arg.ptr not in (x.ptr, out.ptr, model.tend.ptr):
@@ -131,7 +131,7 @@ def rhs_compulsory_bytes(model) -> int:
 
 def dss_launch(model, x, out):
     """The recorded DSS launch of ``model.rhs(x, out)`` (its last launch)."""
-    return model._recorded[("rhs", x.ptr, out.ptr)][0][-1]
+    return model._recorded[("rhs", model.terms, x.ptr, out.ptr)][0][-1]
 
 
 class Timers:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import tempfile
 from pathlib import Path
 
-from .config import Scene, SceneError, load_scene
+from .config import Scene, SceneError, load_scene, resolve_path
 
 _LOAD_KEYWORDS = ("ne", "np", "dt", "days", "stepper")
 
@@ -40,6 +40,7 @@ def run(scene, *, device: str | None = None, output_file=None, overwrite: bool =
     from .runtime import pick_device
     from .simulation import Simulation
 
+    inputs = ()
     if isinstance(scene, Scene):
         if overrides:
             raise SceneError("overrides apply to a scene file; change a Scene with dataclasses.replace")
@@ -51,9 +52,11 @@ def run(scene, *, device: str | None = None, output_file=None, overwrite: bool =
                 flat.update({f"{key}.{k}": v for k, v in value.items()})
             else:
                 flat[key] = value
+        inputs = (resolve_path(str(scene)),)
         scene = load_scene(scene, **kw, overrides=flat)
     device = pick_device(device, verbose=verbose)
     sim = Simulation(scene, device, progress=progress)
+    sim.inputs = inputs
     with tempfile.TemporaryDirectory(prefix="swe_sphere_") as tmp:
         path = Path(output_file) if output_file is not None else Path(tmp) / f"{scene.name}.nc"
         sim.run(path, overwrite=overwrite, restart_every=restart_every,

@@ -184,50 +184,49 @@ def _cmd_sweep(args) -> int:
     for dt in dts or ():
         if abs(round(span * 86400 / dt) * dt - span * 86400) > 1e-6 * dt and time_filter is not None:
             raise ValueError(f"dt = {dt:g} s does not divide the filter's snapshot interval of {time_filter.every_hours:g} h")
-    try:
-        args.output.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise ValueError(f"cannot create output directory {args.output}: {err.strerror}") from None
     device = _warp_device(args.device)
+    from .output import folder_lock
     from .sweep import REFERENCE_MAX_GRAVITY_COURANT, Sweep, dt_for_day, explicit_limits, format_summary, start_state, table, write_outputs
     from .workers import executor
 
     with executor(args.workers) as pool:
         if pool is None:  # an MPI worker rank: its share is done
             return 0
-        start = start_state(base, args.output, device)  # a digital-filter start, made once for every run
-        limits = explicit_limits(base, device, start)
-        if dts is None:
-            dt_of = {f: dt_for_day(f * limits["dt_gravity"], span) for f in factors}
-            dts = sorted(set(dt_of.values()))
-            pairs = [(s, dt_of[f]) for s, f in pairs] if pairs else None
-            capped = [f for f in factors if f * limits["dt_gravity"] > span * 86400 * (1 + 1e-9)]
-            if capped and time_filter is not None:  # Δt must divide the filter's snapshot interval
-                print(f"note        --courant {','.join(f'{f:g}' for f in capped)}: dt capped at the filter's "
-                      f"{time_filter.every_hours:g} h snapshot interval ({span * 86400 / limits['dt_gravity']:.3g} x the "
-                      "gravity-wave limit); --filter-every sets it")
-        for dt in dts:
-            if abs(round(base.days * 86400 / dt) * dt - base.days * 86400) > 1e-6 * dt:
-                raise ValueError(f"dt = {dt:g} s does not divide the run length of {base.days:g} days")
-        print(
-            f"sweep {base.name} ne={base.ne} np={base.np}, {base.days:g} days; explicit limits: gravity-wave dt = "
-            f"{limits['dt_gravity']:.1f} s, advective dt = {limits['dt_advective']:.1f} s; dt = {', '.join(f'{d:.4g}' for d in dts)}"
-        )
-        if start is not None:
-            print(f"start       digital-filter initialization (cutoff {base.digital_filter.cutoff_hours:g} h, span "
-                  f"{base.digital_filter.span_hours:g} h), the same state for every run; the T213 reference starts "
-                  "impulsively, so the spatial error (and the verdicts' thresholds) include the gravity waves it keeps")
-        rows, info = Sweep(scenes, dts, args.output, device, time_filter=time_filter, start=start, pairs=pairs,
-                           reference_dt_max=REFERENCE_MAX_GRAVITY_COURANT * limits["dt_gravity"]).run(pool)
-        rows = table(rows, limits)
-        print(format_summary(rows, info))
-        for path in write_outputs(rows, info, limits, args.output):
-            print(f"wrote {path}")
+        with folder_lock(args.output, "sweep.lock"):  # a second sweep into this folder is refused now, not at its end
+            start = start_state(base, args.output, device)  # a digital-filter start, made once for every run
+            limits = explicit_limits(base, device, start)
+            if dts is None:
+                dt_of = {f: dt_for_day(f * limits["dt_gravity"], span) for f in factors}
+                dts = sorted(set(dt_of.values()))
+                pairs = [(s, dt_of[f]) for s, f in pairs] if pairs else None
+                capped = [f for f in factors if f * limits["dt_gravity"] > span * 86400 * (1 + 1e-9)]
+                if capped and time_filter is not None:  # Δt must divide the filter's snapshot interval
+                    print(f"note        --courant {','.join(f'{f:g}' for f in capped)}: dt capped at the filter's "
+                          f"{time_filter.every_hours:g} h snapshot interval ({span * 86400 / limits['dt_gravity']:.3g} x the "
+                          "gravity-wave limit); --filter-every sets it")
+            for dt in dts:
+                if abs(round(base.days * 86400 / dt) * dt - base.days * 86400) > 1e-6 * dt:
+                    raise ValueError(f"dt = {dt:g} s does not divide the run length of {base.days:g} days")
+            print(
+                f"sweep {base.name} ne={base.ne} np={base.np}, {base.days:g} days; explicit limits: gravity-wave dt = "
+                f"{limits['dt_gravity']:.1f} s, advective dt = {limits['dt_advective']:.1f} s; dt = {', '.join(f'{d:.4g}' for d in dts)}"
+            )
+            if start is not None:
+                print(f"start       digital-filter initialization (cutoff {base.digital_filter.cutoff_hours:g} h, span "
+                      f"{base.digital_filter.span_hours:g} h), the same state for every run; the T213 reference starts "
+                      "impulsively, so the spatial error (and the verdicts' thresholds) include the gravity waves it keeps")
+            rows, info = Sweep(scenes, dts, args.output, device, time_filter=time_filter, start=start, pairs=pairs,
+                               reference_dt_max=REFERENCE_MAX_GRAVITY_COURANT * limits["dt_gravity"]).run(pool)
+            rows = table(rows, limits)
+            print(format_summary(rows, info))
+            for path in write_outputs(rows, info, limits, args.output):
+                print(f"wrote {path}")
     return 0
 
 
 def _cmd_stability(args) -> int:
     from .config import SceneError
+    from .output import folder_lock
     from .stability import HARD_CASES, format_table, run_suite, write_table
     from .workers import executor
 
@@ -238,17 +237,16 @@ def _cmd_stability(args) -> int:
     steppers = _steppers(args.steppers)
     if args.ne < 1:
         raise SceneError(f"--ne must be an integer >= 1 (got {args.ne})")
-    if not args.output.is_dir():
-        raise ValueError(f"output directory does not exist: {args.output}")
     device = _warp_device(args.device)
     cases = [known[c] for c in args.cases] if args.cases else list(HARD_CASES)
     with executor(args.workers) as pool:
         if pool is None:  # an MPI worker rank: its share is done
             return 0
-        results = run_suite(cases, steppers, device, ne=args.ne, np=args.np, pool=pool)
-    print(format_table(results))
-    for path in write_table(results, args.output):
-        print(f"wrote {path}")
+        with folder_lock(args.output, "stability.lock"):  # a second suite into this folder is refused now, not at its end
+            results = run_suite(cases, steppers, device, ne=args.ne, np=args.np, pool=pool)
+            print(format_table(results))
+            for path in write_table(results, args.output):
+                print(f"wrote {path}")
     return 0
 
 
@@ -295,8 +293,8 @@ def _continued(args, device, comm):
 
 def _cmd_run(args) -> int:
     from . import mpi
-    from .config import load_scene
-    from .output import check_target, close_open_runs
+    from .config import load_scene, resolve_path
+    from .output import check_distinct, check_target, close_open_runs
     from .simulation import restart_path
 
     if args.continue_from is None:
@@ -309,6 +307,7 @@ def _cmd_run(args) -> int:
         scene = None  # the restart file's
         stem = args.continue_from.name.removesuffix(".nc").removesuffix(".restart")
         output = args.output or args.continue_from.with_name(f"{stem}_continued.nc")
+    check_distinct([output, restart_path(output)], [args.continue_from, args.scene and resolve_path(str(args.scene))])
     check_target(output, args.overwrite)
     check_target(restart_path(output), args.overwrite)  # written at --restart-every and on SIGINT/SIGTERM
     device = _warp_device(args.device)
@@ -423,13 +422,14 @@ def _cmd_plot(args) -> int:
 def _cmd_remap(args) -> int:
     import xarray as xr
 
-    from .output import check_target
+    from .output import check_distinct, check_target
     from .remap import latlon_grid, remap_file, run_grid
 
     output = args.output or Path(f"{args.run.stem}_latlon{args.resolution:g}.nc")
     lat, lon = latlon_grid(args.resolution)
     if not args.run.is_file():
         raise ValueError(f"file not found: {args.run}")
+    check_distinct([output], [args.run])
     check_target(output, args.overwrite)
     try:
         ds = xr.open_dataset(args.run, decode_times=False)

@@ -9,6 +9,7 @@ every good output time kept.
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import json
 import os
@@ -100,6 +101,82 @@ def check_target(path: Path, overwrite: bool = False) -> None:
         raise OutputError(f"output directory is not writable: {parent}")
 
 
+def _identity(path: Path):
+    """(device, inode) of the file ``path`` names after resolving links; None if there is none."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino
+
+
+def check_distinct(outputs, inputs) -> None:
+    """Raise ``OutputError`` (one line) if an output would replace an input.
+
+    Each output path and its ``.part`` and ``.lock`` siblings (``ExclusiveFile``
+    writes and removes them) are compared with every input by device and inode
+    after resolving links, so another spelling, a link or a hard link of the
+    input is caught as well as the same name. ``None`` entries are skipped."""
+    known = {}
+    for inp in inputs:
+        if inp is not None and (ident := _identity(Path(inp))) is not None:
+            known[ident] = inp
+    for out in outputs:
+        if out is None:
+            continue
+        out = Path(out)
+        for path in (out, out.with_name(out.name + ".part"), out.with_name(out.name + ".lock")):
+            inp = known.get(_identity(path))
+            if inp is not None:
+                raise OutputError(f"the output {path} is the input {inp}; writing it would replace the input (choose another output)")
+
+
+def acquire_lock(lock: Path, what) -> int:
+    """An exclusive ``flock`` on the file ``lock`` (created, never through a link):
+    its descriptor, or ``OutputError`` naming ``what`` when another process holds it.
+    The holder removes ``lock`` before closing the descriptor (``release_lock``)."""
+    while True:
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o644)
+        except OSError as err:
+            raise OutputError(f"cannot create {lock}: {err.strerror}") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)
+            raise OutputError(f"another run is writing {what} (it holds {lock})") from None
+        try:  # the previous holder may have removed the file between our open and lock
+            if os.stat(lock, follow_symlinks=False).st_ino == os.fstat(fd).st_ino:
+                return fd
+        except FileNotFoundError:
+            pass
+        os.close(fd)
+
+
+def release_lock(lock: Path, fd: int) -> None:
+    """Undo ``acquire_lock``: remove the file first, so a waiting process retries on a new one."""
+    lock.unlink(missing_ok=True)
+    os.close(fd)
+
+
+@contextlib.contextmanager
+def folder_lock(folder: Path, name: str):
+    """Create ``folder`` (with its parents) and hold ``folder/name`` locked while the
+    block runs, so a second command on the same folder is refused at its start
+    (``OutputError``) instead of computing everything and failing at the end."""
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise OutputError(f"cannot create output directory {folder}: {err.strerror}") from None
+    lock = folder / name
+    fd = acquire_lock(lock, folder)
+    try:
+        yield folder
+    finally:
+        release_lock(lock, fd)
+
+
 class ExclusiveFile:
     """Write ``path`` through ``path.part``, so two processes never write the
     same file and a file is never written through a link: the writer holds an
@@ -134,22 +211,7 @@ class ExclusiveFile:
             raise
 
     def _acquire(self) -> int:
-        while True:
-            try:
-                fd = os.open(self.lock, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o644)
-            except OSError as err:
-                raise OutputError(f"cannot create {self.lock}: {err.strerror}") from None
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError:
-                os.close(fd)
-                raise OutputError(f"another run is writing {self.path} (it holds {self.lock})") from None
-            try:  # the previous holder may have removed the file between our open and lock
-                if os.stat(self.lock, follow_symlinks=False).st_ino == os.fstat(fd).st_ino:
-                    return fd
-            except FileNotFoundError:
-                pass
-            os.close(fd)
+        return acquire_lock(self.lock, self.path)
 
     def _create(self) -> None:
         try:
@@ -161,8 +223,7 @@ class ExclusiveFile:
 
     def _release(self) -> None:
         if self.lock_fd is not None:
-            self.lock.unlink(missing_ok=True)
-            os.close(self.lock_fd)
+            release_lock(self.lock, self.lock_fd)
             self.lock_fd = None
 
     def commit(self) -> None:

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from .output import check_distinct
 from .remap import Remapper, cached_grid, run_grid
 
 # name → (long name, units on the colour bar, scale applied before drawing, colour map, symmetric about 0)
@@ -463,13 +464,12 @@ def plot_run(run_path, fields=("h_surface",), days=None, diff_path=None, outdir=
                     raise ValueError(f"day must be finite (got {day})")
                 if diff is not None:
                     diff.check(field, day)
+        maps = [(field, day, outdir / map_name(run_path, field, day, diff is not None, lat_range)) for field in fields for day in days]
+        series = outdir / f"{Path(run_path).stem}_series.png"
+        check_distinct([path for *_, path in maps] + [series], [run_path, diff_path])
         outdir.mkdir(parents=True, exist_ok=True)
-        written = []
-        for field in fields:
-            for day in days:
-                path = outdir / map_name(run_path, field, day, diff is not None, lat_range)
-                written.append(plot_map(ds, field, day, path, diff, lat_range)["path"])
-        written.append(plot_series(ds, outdir / f"{Path(run_path).stem}_series.png"))
+        written = [plot_map(ds, field, day, path, diff, lat_range)["path"] for field, day, path in maps]
+        written.append(plot_series(ds, series))
         return written
     finally:
         ds.close()

@@ -27,7 +27,7 @@ import xarray as xr
 from scipy.sparse import csr_matrix
 
 from .grid import _FACES, CubedSphere
-from .output import atomic_path
+from .output import atomic_path, check_distinct
 from .runtime import check_memory
 
 #: node fields (time, ncol) or (ncol,) that ``remap_dataset`` carries to the lat-lon grid
@@ -209,6 +209,7 @@ def remap_file(path, resolution: float, output, *, overwrite: bool = False) -> P
     exclusive ``output.part`` renamed when complete (``output.OutputError`` if
     ``output`` exists and not ``overwrite``). Returns the output path."""
     output = Path(output)
+    check_distinct([output], [path])
     with xr.open_dataset(path, decode_times=False) as ds:
         out = remap_dataset(ds, resolution)
         encoding = {k: {"_FillValue": None} for k in ("lat", "lon")}

@@ -24,7 +24,7 @@ from .diagnostics import courant_numbers, invariants, rotational_divergent_error
 from .grid import CubedSphere
 from .initialization import digital_filter
 from .model import ShallowWater
-from .output import RunWriter, check_target
+from .output import RunWriter, check_distinct, check_target
 from .parallel import default_threads
 from .reference import Reference, reference_path
 from .runtime import ResourceError, check_memory, run_bytes
@@ -148,10 +148,14 @@ class Simulation:
     With the scene's ``initialization`` (a digital filter, see
     ``initialization``) and no ``start``, the filter runs here (its cost is part
     of ``setup_time``) and ``dfi`` holds its ``FilterResult``, else None.
+    ``inputs``: the files the simulation was made from (its scene file, restart
+    file), which ``run`` refuses to write over.
     ``initial``: the t = 0 diagnostics that relative changes are taken against,
     the same on every rank (a checkpoint's, when continuing: the start state is
     then not diagnosed for nothing); None: the start state's (``diagnose(0)``).
     """
+
+    inputs: tuple = ()
 
     def __init__(self, scene: Scene, device: str, *, progress: bool = True, comm=None, start: np.ndarray | None = None,
                  initial: dict | None = None):
@@ -215,6 +219,8 @@ class Simulation:
         start = ON_ROOT if ck.x is None else ck.x  # ranks > 0 of ``read_on_root`` have no arrays
         sim = cls(scene, device, progress=progress, comm=comm, start=start, initial=ck.initial)  # the state handed out; no second digital filter
         sim._restore_history(ck)
+        if not isinstance(checkpoint, ckpt.Checkpoint):
+            sim.inputs = (Path(checkpoint),)
         return sim
 
     def restore(self, ck: ckpt.Checkpoint) -> None:
@@ -395,6 +401,8 @@ class Simulation:
         ck_steps = self.restart_steps(restart_every) if restart_every is not None else set()
         if restart_every is not None and restart_file is None:
             raise ValueError("a restart interval needs an output or restart file")
+        if self.root:
+            check_distinct([output, restart_file], self.inputs)
         if restart_file is not None and self.root:
             check_target(restart_file, overwrite)
         with _compile_timer(self._compile):  # a continuation's first use of the diagnostic kernels

@@ -28,6 +28,14 @@ _LAZY = {
     "ShallowWater": "model",
     "make_stepper": "steppers",
     "STEPPERS": "steppers",
+    # the errors the README lists
+    "SceneError": "config",
+    "OutputError": "output",
+    "CheckpointError": "checkpoint",
+    "BlowUp": "simulation",
+    "Interrupted": "simulation",
+    "StepFailure": "steppers",
+    "ResourceError": "runtime",
 }
 
 

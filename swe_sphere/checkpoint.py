@@ -9,12 +9,21 @@ A checkpoint is a netCDF4 file holding the element-local state ``x`` (3, N)
 package version. Restoring it into a fresh ``Simulation`` of the same scene is
 just another initial state: the continued run is bitwise the uninterrupted one.
 
+Every variable is written with netCDF's per-variable Fletcher-32 checksum, and
+the attribute ``content_sha256`` holds a SHA-256 of the state, the stepper's
+history and the step (``content_hash``), so a damaged file is refused instead of
+continued.
+
 ``read`` raises ``CheckpointError`` (a ValueError, one line) for a file that is
-not a checkpoint, was written by another swe_sphere version, or is damaged.
+not a checkpoint, was written by another swe_sphere version, or is damaged: a
+failed checksum or hash, a non-finite value, a depth h <= 0, or a wind beyond
+``MAX_FROUDE`` times the gravity-wave speed of the deepest node (no shallow-water
+flow the model runs comes near it), each naming the variable.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -26,7 +35,8 @@ from . import __version__
 from .config import Scene, scene_from_dict
 from .output import WRITING, ExclusiveFile
 
-FORMAT = 1  # bump when the layout changes
+FORMAT = 2  # bump when the layout changes (2: checksums and content hash)
+MAX_FROUDE = 2.0  # |v| / sqrt(g max h) beyond which a stored wind is not a state the model made
 
 
 class CheckpointError(ValueError):
@@ -44,6 +54,35 @@ class Checkpoint:
     counters: dict  # rhs_evals, wall_time, iterations (dict)
     initial: dict  # diagnostics at t = 0
     version: str
+
+
+def content_hash(step: int, x: np.ndarray, stepper_state: dict) -> str:
+    """SHA-256 (hex) of the step, the state ``x`` and the stepper's history
+    (arrays as float64 bytes, scalars by repr, in key order)."""
+    h = hashlib.sha256(str(int(step)).encode())
+    h.update(np.ascontiguousarray(x, dtype=np.float64).tobytes())
+    for key in sorted(stepper_state):
+        value = stepper_state[key]
+        h.update(key.encode())
+        h.update(np.ascontiguousarray(value, dtype=np.float64).tobytes() if isinstance(value, np.ndarray) else repr(value).encode())
+    return h.hexdigest()
+
+
+def _check_state(path, scene: Scene, x: np.ndarray, stepper_state: dict) -> None:
+    """Refuse (``CheckpointError`` naming the variable) non-finite values, h <= 0 and implausible winds."""
+    for name, value in (("x", x), *((f"stepper_{k}", v) for k, v in stepper_state.items() if isinstance(v, np.ndarray))):
+        bad = np.flatnonzero(~np.isfinite(value))
+        if bad.size:
+            raise CheckpointError(f"{path}: variable {name} holds {bad.size} non-finite values; not continued")
+    h = x[2]
+    if h.min() <= 0:
+        raise CheckpointError(f"{path}: variable x (row h) holds a depth h = {h.min():.4g} m <= 0; not continued")
+    g = scene.make_case().planet.g
+    bound = MAX_FROUDE * np.sqrt(g * h.max())
+    speed = np.hypot(x[0], x[1]).max()
+    if speed > bound:
+        raise CheckpointError(f"{path}: variable x (rows u, v) holds a wind of {speed:.4g} m/s, beyond {bound:.4g} m/s "
+                              f"({MAX_FROUDE:g} x the gravity-wave speed of the deepest node); not continued")
 
 
 def write(path, scene: Scene, step: int, x: np.ndarray, stepper_state: dict, counters: dict, initial: dict,
@@ -66,14 +105,15 @@ def write(path, scene: Scene, step: int, x: np.ndarray, stepper_state: dict, cou
             ds.time_days = step * scene.dt / 86400.0
             ds.counters = json.dumps(counters)
             ds.initial = json.dumps(initial)
+            ds.content_sha256 = content_hash(step, x, stepper_state)
             ds.createDimension("row", 3)
             ds.createDimension("node", x.shape[1])
-            var = ds.createVariable("x", "f8", ("row", "node"))
+            var = ds.createVariable("x", "f8", ("row", "node"), fletcher32=True)
             var.long_name = "element-local state: rows u (m s-1), v (m s-1), h (m)"
             var[:] = x
             for key, value in stepper_state.items():
                 if isinstance(value, np.ndarray):
-                    var = ds.createVariable(f"stepper_{key}", "f8", ("row", "node"))
+                    var = ds.createVariable(f"stepper_{key}", "f8", ("row", "node"), fletcher32=True)
                     var[:] = value
                 else:
                     ds.setncattr(f"stepper_{key}", value)
@@ -119,12 +159,22 @@ def read(path) -> Checkpoint:
         version = str(attrs.get("swe_sphere_version"))
         if version != __version__:
             raise CheckpointError(f"{path} was written by swe_sphere {version}; this is {__version__} (continue it with that version)")
+        arrays = {}
+        for name in ds.variables:
+            try:
+                arrays[name] = np.asarray(ds[name][:], dtype=np.float64)
+            except (RuntimeError, OSError) as err:  # a failed Fletcher-32 checksum reads as an HDF error
+                raise CheckpointError(f"{path}: variable {name} fails its checksum ({err}); the file is damaged") from None
         try:
             scene = scene_from_dict(json.loads(attrs["scene"]))
-            x = np.asarray(ds["x"][:], dtype=np.float64)
-            state = {k[len("stepper_"):]: np.asarray(ds[k][:], dtype=np.float64) for k in ds.variables if k.startswith("stepper_")}
+            x = arrays["x"]
+            state = {k[len("stepper_"):]: v for k, v in arrays.items() if k.startswith("stepper_")}
             state.update({k[len("stepper_"):]: v.item() if isinstance(v, np.generic) else v for k, v in attrs.items() if k.startswith("stepper_")})
             ck = Checkpoint(scene, int(attrs["step"]), x, state, json.loads(attrs["counters"]), json.loads(attrs["initial"]), version)
+            stored = attrs["content_sha256"]
         except (KeyError, ValueError, TypeError) as err:
             raise CheckpointError(f"{path}: damaged checkpoint ({type(err).__name__}: {err})") from None
+    if content_hash(ck.step, ck.x, ck.stepper_state) != stored:
+        raise CheckpointError(f"{path}: the state or stepper history does not match its content_sha256; the file is damaged")
+    _check_state(path, scene, ck.x, ck.stepper_state)
     return ck

@@ -141,6 +141,8 @@ def _steppers(text: str) -> list[str]:
     from .steppers import STEPPERS
 
     steppers = [s for s in text.split(",") if s]
+    if not steppers:
+        raise ValueError(f"--steppers names no stepper (got {text!r})")
     for s in steppers:
         if s not in STEPPERS:
             raise ValueError(f"unknown stepper {s!r} (known: {', '.join(STEPPERS)})")
@@ -164,7 +166,7 @@ def _cmd_sweep(args) -> int:
     if args.runs and args.steppers:
         raise ValueError("--runs names its own steppers: give --steppers or --runs, not both")
     pairs = _runs(args.runs) if args.runs else None  # (stepper, Courant factor)
-    steppers = list(dict.fromkeys(s for s, _ in pairs)) if pairs else _steppers(args.steppers or "leapfrog,ssprk3,semi_implicit,implicit")
+    steppers = list(dict.fromkeys(s for s, _ in pairs)) if pairs else _steppers("leapfrog,ssprk3,semi_implicit,implicit" if args.steppers is None else args.steppers)
     overrides = _overrides(args.set)
     scenes = {s: load_scene(args.scene, ne=args.ne, np=args.np, days=args.days, stepper=s, overrides=overrides) for s in steppers}
     dts = _numbers(args.dt, "dt") if args.dt else None
@@ -351,7 +353,8 @@ def _run(args, scene, output, device, comm) -> int:
     for note in (*scene.notes, *([warning] if warning else [])):
         if note.startswith("warning: "):
             print(f"swe-sphere: {note}", file=sys.stderr)  # seen even with stdout redirected
-        print(f"note        {note}")
+        else:
+            print(f"note        {note}")
     print(f"output      {output} (every {scene.output_every_days:g} days)")
     if args.restart_every is not None:
         print(f"restart     {restart_path(output)} (every {args.restart_every:g} days and at the end)")

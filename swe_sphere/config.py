@@ -178,6 +178,19 @@ def _first_gll_gap(npts: int) -> float:
     return float(x[1] - x[0])
 
 
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _is_integer(value) -> bool:
+    return _is_number(value) and math.isfinite(value) and int(value) == value
+
+
+def _got(value) -> str:
+    """A refused value for a message: its repr, and its type where that is not a number's."""
+    return repr(value) if _is_number(value) else f"{value!r}, a {type(value).__name__}"
+
+
 def _check_type(key, value, kind):
     if kind is float and isinstance(value, int) and not isinstance(value, bool):
         value = float(value)
@@ -292,10 +305,12 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
     ne0, np0 = grid.get("ne", 16), grid.get("np", 4)
     ne1 = ne0 if ne is None else ne
     np1 = np0 if np is None else np
-    if isinstance(ne1, bool) or int(ne1) != ne1 or ne1 < 1:
-        raise SceneError(f"ne must be an integer >= 1 (got {ne1})")
-    if isinstance(np1, bool) or int(np1) != np1 or not NP_MIN <= np1 <= NP_MAX:
-        raise SceneError(f"np must be an integer in {NP_MIN}..{NP_MAX} (got {np1})")
+    if "grid" not in s and (ne is None or np is None):
+        notes.append(f"the scene has no [grid]: ne = {ne1}, np = {np1} (the defaults)")
+    if not _is_integer(ne1) or ne1 < 1:
+        raise SceneError(f"ne must be an integer >= 1 (got {_got(ne1)})")
+    if not _is_integer(np1) or not NP_MIN <= np1 <= NP_MAX:
+        raise SceneError(f"np must be an integer in {NP_MIN}..{NP_MAX} (got {_got(np1)})")
     ratio = (ne0 * (np0 - 1)) / (ne1 * (np1 - 1))  # mean node spacing, new / scene's
     # smallest node spacing (sets the explicit limit), new / scene's
     min_ratio = (_first_gll_gap(np1) / ne1) / (_first_gll_gap(np0) / ne0)
@@ -308,8 +323,8 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
     if not every > 0:
         raise SceneError(f"output.every_days must be > 0 (got {every})")
     days1 = t.get("days", 1.0) if days is None else days
-    if not (isinstance(days1, (int, float)) and math.isfinite(days1) and days1 > 0):
-        raise SceneError(f"days must be > 0 (got {days1})")
+    if not (_is_number(days1) and math.isfinite(days1) and days1 > 0):
+        raise SceneError(f"days must be > 0 (got {_got(days1)})")
     if dt is None:
         dt1 = t.get("dt")
         if dt1 is None:
@@ -322,11 +337,12 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
             dt1 = interval / max(1, math.ceil(interval / scaled - 1e-9))
             notes.append(f"dt scaled with the smallest node spacing to {dt1:g} s")
             if scaled / dt1 > 2:
-                notes.append(f"warning: dt cut {scaled / dt1:.3g}x (from {scaled:g} s) to divide the output interval of {every:g} days")
+                what = f"the output interval of {every:g} days" if every <= days1 else f"the run length of {days1:g} days"
+                notes.append(f"warning: dt cut {scaled / dt1:.3g}x (from {scaled:g} s) to divide {what}")
     else:
         dt1 = dt
-    if not (math.isfinite(dt1) and dt1 > 0):
-        raise SceneError(f"dt must be > 0 (got {dt1})")
+    if not (_is_number(dt1) and math.isfinite(dt1) and dt1 > 0):
+        raise SceneError(f"dt must be > 0 (got {_got(dt1)})")
     _check_schedule(dt1, days1, every)
 
     options = dict(s.get(stepper1, {}))

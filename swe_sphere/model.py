@@ -146,7 +146,7 @@ class ShallowWater:
                 self._launch(hyperviscosity.laplacian_metric, N, [self.Dinv, self.spheremp, self.hv_metric]).launch()
         self._recorded: dict[tuple, tuple] = {}
         self._pointwise_launches: dict[tuple, object] = {}
-        self._substeps: dict[float, int] = {}
+        self._substeps: dict[float, tuple[int, bool]] = {}  # hypervis_plan
 
     # -- launch recording ---------------------------------------------------
     def _launch(self, kernel, dim, inputs, per_part=None):
@@ -344,6 +344,16 @@ class ShallowWater:
         n = self.nu_max * dt * self.biharmonic_radius() / 1.5
         return max(2, math.ceil((math.sqrt(1.0 + 8.0 * n) - 1.0) / 2.0 - 1e-12))
 
+    def hypervis_plan(self, dt: float) -> tuple[int, bool]:
+        """(∇⁴ evaluations, RKL1?) of one ``hyperviscosity`` call over dt: the
+        forward-Euler substeps, or the RKL1 stages where those are at most half
+        as many (see ``hyperviscosity``); cached per dt."""
+        plan = self._substeps.get(dt)
+        if plan is None:
+            n, s = self.hypervis_substeps(dt), self.hypervis_stages(dt)
+            plan = self._substeps[dt] = (s, True) if n >= 2 * s and n > self.hypervis_subcycle else (n, False)
+        return plan
+
     def hyperviscosity(self, x: wp.array2d, dt: float) -> None:
         """Apply ∇⁴ hyperviscosity over dt (s) in place, split from the dynamics:
         n = ``hypervis_substeps(dt)`` forward-Euler steps of x −= (dt/n) B x
@@ -363,12 +373,9 @@ class ShallowWater:
         Does nothing (launches nothing) without the term."""
         if "hyperviscosity" not in self.terms or self.nu_max == 0.0:
             return
-        ns = self._substeps.get(dt)
-        if ns is None:
-            ns = self._substeps[dt] = (self.hypervis_substeps(dt), self.hypervis_stages(dt))
-        n, s = ns
-        if n >= 2 * s and n > self.hypervis_subcycle:
-            self._rkl1(x, dt, s)
+        n, rkl = self.hypervis_plan(dt)
+        if rkl:
+            self._rkl1(x, dt, n)
             return
         coef = -dt / n
         for _ in range(n):

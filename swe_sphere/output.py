@@ -90,7 +90,7 @@ def check_target(path: Path, overwrite: bool = False) -> None:
         if not path.is_file():
             raise OutputError(f"output path is not a regular file: {path}")
         if not overwrite:
-            raise OutputError(f"output file exists: {path} (use --overwrite to replace it)")
+            raise OutputError(f"output file exists: {path} (--overwrite, or overwrite=True in Python, replaces it)")
         if not os.access(path, os.W_OK):
             raise OutputError(f"output file is read-only: {path}")
     if parent.exists() and not parent.is_dir():
@@ -203,7 +203,7 @@ class ExclusiveFile:
                 self._create()
             except FileExistsError:  # we hold the lock: whoever wrote it is gone
                 if not overwrite:
-                    raise OutputError(f"{self.tmp} was left by a run that was killed; use --overwrite to replace it") from None
+                    raise OutputError(f"{self.tmp} was left by a run that was killed (--overwrite, or overwrite=True in Python, replaces it)") from None
                 self.tmp.unlink()
                 self._create()
         except BaseException:

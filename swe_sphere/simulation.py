@@ -18,7 +18,7 @@ from tqdm import tqdm
 
 from . import __version__
 from . import checkpoint as ckpt
-from .config import Scene, with_days
+from .config import Scene, SceneError, with_days
 from .constants import DAY
 from .diagnostics import courant_numbers, invariants, rotational_divergent_errors, williamson_norms, williamson_vector_norms
 from .grid import CubedSphere
@@ -55,14 +55,46 @@ class WholeFields:
 
 
 class Interrupted(RuntimeError):
-    """SIGINT or SIGTERM stopped the run after a complete step; ``signum``, ``result``
-    and ``checkpoint`` (the restart file written, or None) are attached."""
+    """SIGINT or SIGTERM stopped the run after a complete step (a step still going
+    on ``ABANDON_AFTER`` s after the signal is abandoned, its state dropped);
+    ``signum``, ``result`` and ``checkpoint`` (the restart file written, or None)
+    are attached."""
+
+
+ABANDON_AFTER = 1.0  # s a step may go on after SIGINT/SIGTERM before it is abandoned
+
+
+class _StepAbandoned(BaseException):
+    """Raised from the signal handlers into a step that goes on ``ABANDON_AFTER``
+    s after a stop was asked (a BaseException, so no solver's ``except`` keeps it)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
 
 
 def restart_path(output: Path) -> Path:
     """The restart file beside a run's output: ``run.nc`` → ``run.restart.nc``."""
     output = Path(output)
     return output.with_name(output.stem + ".restart.nc")
+
+
+MAX_HYPERVIS_EVALUATIONS = 10_000  # ∇⁴ evaluations a step; beyond, ν is ~10⁷ times its explicit bound or more
+
+
+def _check_hyperviscosity(model: ShallowWater, scene: Scene) -> None:
+    """Refuse (``SceneError``, before the run) a ν whose ∇⁴ sub-stepping
+    (``ShallowWater.hypervis_plan``) would take more than
+    ``MAX_HYPERVIS_EVALUATIONS`` evaluations a step: such a step runs for hours
+    and is a mistyped coefficient, not a setting."""
+    if "hyperviscosity" not in scene.terms or model.nu_max == 0.0:
+        return
+    evals, _ = model.hypervis_plan(scene.dt)
+    if evals > MAX_HYPERVIS_EVALUATIONS:
+        bound = 1.5 / (scene.dt * model.biharmonic_radius())
+        raise SceneError(f"hyperviscosity nu = {model.nu_max:.3g} m^4/s is {model.nu_max / bound:.2g}x its explicit bound "
+                         f"({bound:.3g} m^4/s at dt = {scene.dt:g} s): {evals:.3g} ∇⁴ evaluations a step (at most "
+                         f"{MAX_HYPERVIS_EVALUATIONS}); lower hyperviscosity.nu")
 
 
 def _check_memory(scene: Scene, comm) -> None:
@@ -185,6 +217,7 @@ class Simulation:
             hypervis_subcycle=scene.hypervis_subcycle, g=self.g, device=device, topology=topo,
             forcing=case.forcing() if "forcing" in scene.terms else None,
         )
+        _check_hyperviscosity(self.model, scene)
         self.stepper = make_stepper(scene.stepper, self.model, scene.dt, **scene.stepper_options)
         ref_path = reference_path(case)
         self.reference = Reference(ref_path) if ref_path is not None and self.root else None  # read on rank 0
@@ -454,14 +487,31 @@ class Simulation:
 
         stop: list[int] = []
         handlers = {}
+        in_step = [None]  # perf_counter at the start of the step in progress; None between steps
+
+        def abandon(signum, frame):  # SIGALRM: a stop was asked ABANDON_AFTER s ago and the step goes on
+            if in_step[0] is not None and stop:
+                in_step[0] = None
+                raise _StepAbandoned(stop[0])
+
+        def on_signal(signum, frame):
+            stop.append(signum)
+            if in_step[0] is not None and self.topology.comm.size == 1:  # ranks must stop at the same step
+                if time.perf_counter() - in_step[0] > ABANDON_AFTER:
+                    abandon(signum, frame)
+                signal.setitimer(signal.ITIMER_REAL, ABANDON_AFTER)
+
         if catch_signals and threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
                 if signal.getsignal(sig) is not signal.SIG_IGN:  # respect a parent's "ignore" (nohup, `&`)
-                    handlers[sig] = signal.signal(sig, lambda signum, frame: stop.append(signum))
+                    handlers[sig] = signal.signal(sig, on_signal)
+            if handlers:
+                handlers[signal.SIGALRM] = signal.signal(signal.SIGALRM, abandon)
         # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
         # pay, and on a busy machine OpenBLAS's spinning threads made a norm cost 10 ms
         limits = threadpool_limits(limits=1, user_api="blas")
         blowup = interrupted = None
+        abandoned = False
         try:
             with _compile_timer(self._compile):
                 record(self.step, whole=start)
@@ -476,10 +526,17 @@ class Simulation:
                         t0 = time.perf_counter()
                         wp.copy(self.last_good, self.x)
                         try:
+                            in_step[0] = t0
                             stats = stepper.step(self.x)
                             failure = None
                         except StepFailure as err:
                             stats, failure = None, str(err)
+                        except _StepAbandoned as err:  # the state of the last complete step is kept
+                            wp.copy(self.x, self.last_good)
+                            interrupted, abandoned = err.signum, True
+                            break
+                        finally:
+                            in_step[0] = None
                         bad = model.first_bad_node(self.x) if failure is None else None
                         wp.synchronize_device(self.device)
                         dt_wall = time.perf_counter() - t0
@@ -510,7 +567,8 @@ class Simulation:
                     if interrupted is not None:
                         if self.step not in out_steps:
                             record(self.step)
-                        if restart_file is not None and self.step not in ck_steps:
+                        # after an abandoned step the stepper's history is half updated: no restart file
+                        if restart_file is not None and self.step not in ck_steps and not abandoned:
                             save_restart()
                         if writer is not None:
                             writer.set_attrs(interrupted=signal.Signals(interrupted).name, interrupted_at_step=self.step,
@@ -521,6 +579,8 @@ class Simulation:
             raise
         finally:
             limits.restore_original_limits()
+            if handlers:
+                signal.setitimer(signal.ITIMER_REAL, 0)
             for sig, handler in handlers.items():
                 signal.signal(sig, handler)
         if writer is not None:
@@ -550,7 +610,8 @@ class Simulation:
             name = signal.Signals(interrupted).name
             kept = [f"output so far in {output}"] if output is not None else []
             kept += [f"restart file {written[0]}"] if written[0] is not None else []
-            err = Interrupted("; ".join([f"interrupted by {name} at step {self.step} (model time {self.step * s.dt / DAY:.4f} days)", *kept]))
+            how = f"; step {self.step + 1} abandoned after {ABANDON_AFTER:g} s (no restart file from it)" if abandoned else ""
+            err = Interrupted("; ".join([f"interrupted by {name} at step {self.step} (model time {self.step * s.dt / DAY:.4f} days){how}", *kept]))
             err.signum, err.result, err.checkpoint = interrupted, result, written[0]
             raise err
         return result

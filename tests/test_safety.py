@@ -103,3 +103,94 @@ def test_stability_creates_its_output_folder(tmp_path):
     proc = cli(tmp_path, "stability", "tc5_mountain", "--steppers", "ssprk3", "--ne", "2", "--device", "cpu", "--output", "new/dir")
     assert proc.returncode == 0, proc.stderr
     assert sorted(p.name for p in (tmp_path / "new" / "dir").iterdir()) == ["stability.csv", "stability.nc"]
+
+
+def test_api_errors_are_importable_and_name_the_api():
+    import swe_sphere
+    from swe_sphere import config, output
+
+    assert swe_sphere.SceneError is config.SceneError and swe_sphere.OutputError is output.OutputError
+    for name in ("CheckpointError", "BlowUp", "Interrupted", "StepFailure", "ResourceError"):
+        assert issubclass(getattr(swe_sphere, name), Exception)
+    with pytest.raises(swe_sphere.SceneError, match=r"ne must be an integer >= 1 \(got '8', a str\)"):
+        swe_sphere.run("tc2_steady", ne="8", days=1, device="cpu")
+    with pytest.raises(swe_sphere.SceneError, match=r"dt must be > 0 \(got '60', a str\)"):
+        swe_sphere.run("tc2_steady", ne=2, dt="60", days=1, device="cpu")
+
+
+def test_sigterm_inside_a_long_step_ends_the_run_within_seconds(tmp_path):
+    """A step of ~10⁴ ∇⁴ substeps (tens of seconds at ne8) is abandoned 1 s after
+    SIGTERM: exit 143 within 5 s, one line, and a valid output with the t = 0
+    state and the interruption in its attributes."""
+    import signal
+    import time
+
+    import xarray as xr
+
+    env = {**os.environ, "SWE_SPHERE_THREADS": "1", "PYTHONUNBUFFERED": "1"}
+    proc = subprocess.Popen([SCRIPT, "run", "tc5_mountain", "--ne", "8", "--device", "cpu", "--no-progress", "--days", "1",
+                             "-s", "hyperviscosity.subcycle=9999", "--output", "long.nc"],
+                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        for line in proc.stdout:
+            if line.startswith("setup"):
+                break
+        time.sleep(1.0)  # inside the first step
+        t0 = time.monotonic()
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=30)
+        took = time.monotonic() - t0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert proc.returncode == 143, err
+    assert took < 5.0, took
+    assert len(lines) == 1 and "step 1 abandoned" in lines[0], err
+    with xr.open_dataset(tmp_path / "long.nc") as ds:
+        assert ds.attrs["interrupted"] == "SIGTERM" and ds.attrs["interrupted_at_step"] == 0
+        assert ds.sizes["time"] == 1 and float(ds.h.min()) > 0
+    assert not list(tmp_path.glob("*.part")) and not list(tmp_path.glob("*.lock"))
+
+
+def test_a_runaway_hyperviscosity_is_refused_before_the_run(tmp_path):
+    refused(cli(tmp_path, "run", "tc5_mountain", *TINY, "-s", "hyperviscosity.nu=1e30", "--output", "nu.nc"),
+            "explicit bound", "lower hyperviscosity.nu")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_scrambled_restart_file_is_refused(run_dir, tmp_path):
+    """400 bytes of the state's data scrambled: the Fletcher-32 checksum names the variable."""
+    import numpy as np
+    import netCDF4
+
+    with netCDF4.Dataset(run_dir / "a.restart.nc") as ds:
+        raw = np.asarray(ds["x"][:], dtype=np.float64).tobytes()
+    data = bytearray((run_dir / "a.restart.nc").read_bytes())
+    at = data.find(raw[:64])
+    assert at > 0
+    data[at + 1000:at + 1400] = np.random.default_rng(1).integers(0, 256, 400, dtype=np.uint8).tobytes()
+    bad = tmp_path / "s.restart.nc"
+    bad.write_bytes(bytes(data))
+    before = digest(bad)
+    refused(cli(tmp_path, "run", "--continue", bad, "--days", "2", "--output", "o.nc", "--no-progress"), "variable x", "checksum")
+    assert digest(bad) == before and not (tmp_path / "o.nc").exists()
+
+
+@pytest.mark.parametrize("row, value, words", [(2, -10.0, "depth h = -10"), (0, 5e4, "wind of 5e+04 m/s"), (1, float("nan"), "non-finite")])
+def test_a_restart_file_with_a_bad_state_is_refused(run_dir, tmp_path, row, value, words):
+    """A checkpoint whose hash matches (as the API would write it) but whose state
+    no run makes: a negative depth, a wind far beyond the gravity-wave speed, a NaN."""
+    import netCDF4
+
+    from swe_sphere.checkpoint import content_hash, read
+
+    bad = tmp_path / "bad.restart.nc"
+    shutil.copy(run_dir / "a.restart.nc", bad)
+    ck = read(bad)
+    ck.x[row, 5] = value
+    with netCDF4.Dataset(bad, "a") as ds:
+        ds["x"][:] = ck.x
+        ds.content_sha256 = content_hash(ck.step, ck.x, ck.stepper_state)
+    refused(cli(tmp_path, "run", "--continue", bad, "--days", "2", "--output", "o.nc", "--no-progress"), "variable x", words)
+    assert not (tmp_path / "o.nc").exists()

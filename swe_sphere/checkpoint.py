@@ -154,8 +154,11 @@ def read(path) -> Checkpoint:
         raise CheckpointError(f"{path}: not a readable netCDF file") from None
     with ds:
         attrs = ds.__dict__
-        if attrs.get("swe_sphere_checkpoint") != FORMAT:
-            raise CheckpointError(f"{path}: not a swe_sphere checkpoint (format {FORMAT})")
+        written = attrs.get("swe_sphere_checkpoint")
+        if written is None:
+            raise CheckpointError(f"{path}: not a swe_sphere checkpoint")
+        if written != FORMAT:
+            raise CheckpointError(f"{path} is in checkpoint format {written}; this swe_sphere reads format {FORMAT} only")
         version = str(attrs.get("swe_sphere_version"))
         if version != __version__:
             raise CheckpointError(f"{path} was written by swe_sphere {version}; this is {__version__} (continue it with that version)")

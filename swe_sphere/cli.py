@@ -320,6 +320,7 @@ def _cmd_run(args) -> int:
 
 def _run(args, scene, output, device, comm) -> int:
     from . import mpi
+    from .parallel import threads_note
     from .simulation import BlowUp, Simulation, restart_path
     from .workers import cpus, limit_threads
 
@@ -349,8 +350,8 @@ def _run(args, scene, output, device, comm) -> int:
         print(f"continue    from {args.continue_from} at step {sim.step} (day {sim.step * scene.dt / 86400:g})")
     grav = "" if math.isnan(c["courant_gravity"]) else f", gravity-wave {c['courant_gravity']:.3f}"
     print(f"Courant     advective {c['courant_advective']:.3f}{grav} (max over nodes at t = {sim.step * scene.dt / 86400:g} d)")
-    warning = sim.stability_warning()
-    for note in (*scene.notes, *([warning] if warning else [])):
+    extra = [n for n in (sim.stability_warning(), threads_note(device)) if n]
+    for note in (*scene.notes, *extra):
         if note.startswith("warning: "):
             print(f"swe-sphere: {note}", file=sys.stderr)  # seen even with stdout redirected
         else:

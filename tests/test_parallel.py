@@ -34,8 +34,10 @@ def test_split_points_cut_at_elements():
 
 
 def test_threads_env_and_validation(monkeypatch):
+    monkeypatch.setenv("SWE_SPHERE_THREADS", "1")
+    assert parallel.default_threads("cpu") == 1
     monkeypatch.setenv("SWE_SPHERE_THREADS", "3")
-    assert parallel.default_threads("cpu") == 3
+    assert parallel.default_threads("cpu") == min(3, parallel._usable_cpus())  # never more than the CPUs
     monkeypatch.setenv("SWE_SPHERE_THREADS", "0")
     with pytest.raises(ValueError):
         parallel.default_threads("cpu")

@@ -194,3 +194,16 @@ def test_a_restart_file_with_a_bad_state_is_refused(run_dir, tmp_path, row, valu
         ds.content_sha256 = content_hash(ck.step, ck.x, ck.stepper_state)
     refused(cli(tmp_path, "run", "--continue", bad, "--days", "2", "--output", "o.nc", "--no-progress"), "variable x", words)
     assert not (tmp_path / "o.nc").exists()
+
+
+def test_more_threads_than_cpus_are_clamped_with_a_note(tmp_path, monkeypatch):
+    import warp as wp
+
+    from swe_sphere.parallel import _usable_cpus, default_threads, threads_note
+
+    monkeypatch.setenv("SWE_SPHERE_THREADS", "1000")
+    wp.init()
+    assert default_threads("cpu") == _usable_cpus()
+    assert threads_note("cpu") == f"SWE_SPHERE_THREADS=1000 is more than the {_usable_cpus()} CPUs this process may run on: {_usable_cpus()} threads"
+    monkeypatch.setenv("SWE_SPHERE_THREADS", "1")
+    assert default_threads("cpu") == 1 and threads_note("cpu") is None

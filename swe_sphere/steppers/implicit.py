@@ -28,9 +28,8 @@ Preconditioner (``preconditioner = "helmholtz"``, the default; Lott, Woodward
 & Evans 2015): the linearised gravity-wave block P = I/Δt − β L
 (L_v = −g∇h, L_h = −H∇·v, ``helmholtz.GravityWave``), P⁻¹ = Δt (I − βΔt L)⁻¹
 through its Schur complement, the Helmholtz equation solved by
-``helmholtz_solver`` (Jacobi-CG on the assembled matrix to 1e-2 by
-default on the CPU: an inexact, varying inner solve, which flexible GMRES
-allows).
+``helmholtz_solver`` (the compiled mass-preconditioned CG "pcg" to 1e-2 by
+default: an inexact, varying inner solve, which flexible GMRES allows).
 
 Hyperviscosity is applied after the step, split from the implicit dynamics
 (forward Euler over Δt, subcycled as needed), as for the other steppers: inside

@@ -15,11 +15,11 @@ and S the weighted DSS, (M + cK) y = Pᵀ W (P y − c D̂ S Ĝ P y). Three laun
 * ``helmholtz_assemble`` of W z: Pᵀ W z.
 
 The CG is Chronopoulos & Gear's (1989, J. Comput. Appl. Math. 25, 153)
-one-reduction form: one fused vector update (``cg_update``), one operator
-product and one fused set of inner products (``inner3``) an iteration.
-Inner products are per-chunk partial sums over ``CHUNK`` unique nodes in index
-order, summed on the host in a fixed order: the bits do not depend on the CPU
-threads a launch is split over.
+one-reduction form: one fused vector update (``cg_update``) and one operator
+product an iteration, the three inner products it needs computed by the update
+(r·u, r·r) and the assembly (w·u) as they write. Inner products are per-chunk
+partial sums over ``CHUNK`` unique nodes in index order, summed on the host in
+a fixed order: the bits do not depend on the CPU threads a launch is split over.
 """
 
 import functools
@@ -135,22 +135,28 @@ def helmholtz_assemble(copies: int):
     """out[g] = Σ over the copies c of unique node g (in the ``dss_table`` order of its
     copy first[g]) of wz[0, c], the mass-weighted field (a copy ≥ nlocal read from
     ``ghost``, ``copy_at``): ``dss.assemble`` with the weights applied by the
-    producer and the copies compiled in (a fixed-length loop; 1.6× faster on the CPU).
-    Arguments: wz (1, N), ghost, nlocal, table, first, out (nunique), offset. Dim nunique."""
+    producer and the copies compiled in (a fixed-length loop; 1.6× faster on the CPU);
+    and partial[1, chunk] = Σ out·y over the chunk's nodes (the CG's w·u, y the
+    operator's input). Arguments: wz (1, N), ghost, nlocal, table, first, y, out
+    (nunique), partial (3, nchunks), offset (chunks). Dim ceil(nunique / CHUNK)."""
     C = int(copies)
 
     def helmholtz_assemble(
         wz: wp.array2d(dtype=f64), ghost: wp.array(dtype=f64), nlocal: int, table: wp.array2d(dtype=wp.int32),
-        first: wp.array(dtype=wp.int32), out: wp.array(dtype=f64), offset: int,
+        first: wp.array(dtype=wp.int32), y: wp.array(dtype=f64), out: wp.array(dtype=f64), partial: wp.array2d(dtype=f64), offset: int,
     ):
-        g = wp.tid() + offset
-        p = first[g]
-        s = f64(0.0)
-        for k in range(C):
-            c = table[p, k]
-            if c >= 0:
-                s += copy_at(wz, 0, ghost, c, nlocal)
-        out[g] = s
+        t = wp.tid() + offset
+        wy = f64(0.0)
+        for g in range(t * CHUNK, wp.min(out.shape[0], (t + 1) * CHUNK)):
+            p = first[g]
+            s = f64(0.0)
+            for k in range(C):
+                c = table[p, k]
+                if c >= 0:
+                    s += copy_at(wz, 0, ghost, c, nlocal)
+            out[g] = s
+            wy += s * y[g]
+        partial[1, t] = wy
 
     helmholtz_assemble.__qualname__ = "helmholtz_assemble"  # the kernel's key
     return wp.kernel(helmholtz_assemble, enable_backward=False, module="unique", module_options=CPU_FAST)
@@ -159,28 +165,28 @@ def helmholtz_assemble(copies: int):
 @wp.kernel
 def cg_update(
     alpha: f64, beta: f64, p: wp.array(dtype=f64), s: wp.array(dtype=f64), x: wp.array(dtype=f64), r: wp.array(dtype=f64),
-    u: wp.array(dtype=f64), w: wp.array(dtype=f64), minv: wp.array(dtype=f64), offset: int,
+    u: wp.array(dtype=f64), w: wp.array(dtype=f64), minv: wp.array(dtype=f64), partial: wp.array2d(dtype=f64), offset: int,
 ):
     """One Chronopoulos–Gear step on unique nodes: p = u + βp, s = w + βs,
-    x += αp, r −= αs, u = minv·r (minv: the Jacobi preconditioner). Dim nunique."""
-    i = wp.tid() + offset
-    pi = u[i] + beta * p[i]
-    si = w[i] + beta * s[i]
-    p[i] = pi
-    s[i] = si
-    x[i] = x[i] + alpha * pi
-    ri = r[i] - alpha * si
-    r[i] = ri
-    u[i] = minv[i] * ri
-
-
-@wp.kernel
-def residual(b: wp.array(dtype=f64), ax: wp.array(dtype=f64), minv: wp.array(dtype=f64), r: wp.array(dtype=f64), u: wp.array(dtype=f64), offset: int):
-    """r = b − ax, u = minv·r (the CG's start). Dim nunique."""
-    i = wp.tid() + offset
-    ri = b[i] - ax[i]
-    r[i] = ri
-    u[i] = minv[i] * ri
+    x += αp, r −= αs, u = minv·r (minv: the Jacobi preconditioner); partial[0]
+    and partial[2] per chunk: Σ r·u and Σ r·r. Dim ceil(nunique / CHUNK)."""
+    t = wp.tid() + offset
+    ru = f64(0.0)
+    rr = f64(0.0)
+    for i in range(t * CHUNK, wp.min(x.shape[0], (t + 1) * CHUNK)):
+        pi = u[i] + beta * p[i]
+        si = w[i] + beta * s[i]
+        p[i] = pi
+        s[i] = si
+        x[i] = x[i] + alpha * pi
+        ri = r[i] - alpha * si
+        r[i] = ri
+        ui = minv[i] * ri
+        u[i] = ui
+        ru += ri * ui
+        rr += ri * ri
+    partial[0, t] = ru
+    partial[2, t] = rr
 
 
 @wp.kernel

@@ -316,7 +316,7 @@ class GravityWave:
         topo, dev, N, nu = model.topology, model.device, model.N, model.topology.nunique
         z = lambda *shape: wp.zeros(shape, dtype=f64, device=dev)  # noqa: E731
         self.wg, self.z = z(2, N), z(1, N)
-        self.r, self.u, self.w, self.p, self.s, self.ax = (z(nu) for _ in range(6))
+        self.r, self.u, self.w, self.p, self.s = (z(nu) for _ in range(5))
         self.minv = wp.array(1.0 / self.area, dtype=f64, device=dev)
         self.area_wp, self.ones = wp.array(self.area, dtype=f64, device=dev), wp.ones(nu, dtype=f64, device=dev)
         self.partial = z(3, (nu + hk.CHUNK - 1) // hk.CHUNK)
@@ -327,8 +327,9 @@ class GravityWave:
             return record(kernel, dim, inputs, device=dev, threads=model.threads, **kw)
 
         self._rec = rec
-        self._update = rec(hk.cg_update, nu, [f64(0.0), f64(0.0), self.p, self.s, self.y, self.r, self.u, self.w, self.minv])
-        self._start = rec(hk.residual, nu, [self.b, self.ax, self.minv, self.r, self.u])
+        chunks = self.partial.shape[1]
+        self._update = rec(hk.cg_update, chunks, [f64(0.0), f64(0.0), self.p, self.s, self.y, self.r, self.u, self.w, self.minv, self.partial],
+                           nodes_per_index=hk.CHUNK)
         self._shift = rec(hk.add_constant, nu, [self.y, f64(0.0)])
         self._inner = {}
 
@@ -345,8 +346,8 @@ class GravityWave:
                             nodes_per_index=m.grid.np**2)
             grad = self._rec(hk.helmholtz_gradient(m.dvv_const), m.grid.nelem, [y, halo, topo.gid, m.Dinv, topo.spheremp, self.wg],
                              nodes_per_index=m.grid.np**2)
-            assemble = self._rec(hk.helmholtz_assemble(topo.table.shape[1]), topo.nunique,
-                                 [self.z, topo.ghost, topo.N, topo.table, topo.first, out])
+            assemble = self._rec(hk.helmholtz_assemble(topo.table.shape[1]), self.partial.shape[1],
+                                 [self.z, topo.ghost, topo.N, topo.table, topo.first, y, out, self.partial], nodes_per_index=hk.CHUNK)
             launches = self._ops[key] = [*topo.exchange(y2, unique=True), grad, *topo.exchange(self.wg), div, *topo.exchange(self.z), assemble]
             self._div[key] = [div, None]
         return launches
@@ -368,32 +369,42 @@ class GravityWave:
         if launch is None:
             launch = self._inner[key] = self._rec(hk.inner3, self.partial.shape[1], [a0, b0, a1, b1, a2, b2, self.partial], nodes_per_index=hk.CHUNK)
         launch.launch()
+        return self._partial_sums()
+
+    def _partial_sums(self) -> np.ndarray:
+        """The three inner products of ``partial`` over all ranks: its chunks added on the
+        host in index order, then over ranks (``Topology.sums``): the one host synchronisation."""
         return self.model.topology.sums(self.partial.numpy().sum(axis=1))
+
+    def _step(self, alpha: float, beta: float) -> None:
+        self._update.set_param_by_name("alpha", f64(alpha))
+        self._update.set_param_by_name("beta", f64(beta))
+        self._update.launch()
 
     def _pcg(self, c: float) -> int:
         """(M + cK) y = b by Chronopoulos–Gear CG preconditioned by M⁻¹, from y, to the
         relative residual ``tol``; the area integral of y then set to that of b."""
         b, y, r, u, w = self.b, self.y, self.r, self.u, self.w
         if self.warm:
-            self._apply(y, self.ax, c)
+            self._apply(y, w, c)
         else:
             y.zero_()
-            self.ax.zero_()
-        self._start.launch()  # r = b − A y, u = M⁻¹ r
-        self._apply(u, w, c)
+            w.zero_()
         bb, _, _ = self._dots(b, b, b, b, b, b)
-        gamma, delta, rr = self._dots(r, u, w, u, r, r)
+        wp.copy(r, b)
+        u.zero_()
+        self._step(1.0, 0.0)  # the start as an update from u = 0, w = A y: r = b − A y, u = M⁻¹ r, r·u, r·r
+        self._apply(u, w, c)  # and w·u
+        gamma, delta, rr = self._partial_sums()
         bound = self.tol * self.tol * bb
         alpha, beta, it = 0.0, 0.0, 0
         while rr > bound:
             if it == self.maxiter:
                 raise StepFailure(f"Helmholtz pcg did not converge in {it} iterations (residual {np.sqrt(rr / bb):.3e} > {self.tol:.3e})")
             alpha = gamma / delta if it == 0 else gamma / (delta - beta * gamma / alpha)
-            self._update.set_param_by_name("alpha", f64(alpha))
-            self._update.set_param_by_name("beta", f64(beta))
-            self._update.launch()  # p, s, y, r, u
-            self._apply(u, w, c)
-            gamma_new, delta, rr = self._dots(r, u, w, u, r, r)
+            self._step(alpha, beta)  # p, s, y, r, u; r·u, r·r
+            self._apply(u, w, c)  # and w·u
+            gamma_new, delta, rr = self._partial_sums()
             beta, gamma = gamma_new / gamma, gamma_new
             it += 1
         sum_b, ay, _ = self._dots(b, self.ones, self.area_wp, y, b, b)

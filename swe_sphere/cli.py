@@ -104,6 +104,8 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _cmd_list() -> int:
+    import re
+
     from .config import list_scenes, load_scene
     from .model import TERMS
     from .steppers import STEPPERS
@@ -115,7 +117,9 @@ def _cmd_list() -> int:
         print(f"  {'':32s} ne={s.ne} np={s.np} {s.stepper} dt={s.dt:g}s {s.days:g} days; terms: {', '.join(s.terms)}")
     print("steppers:")
     for name, cls in STEPPERS.items():
-        print(f"  {name:32s} {cls.__doc__.split(chr(10))[0]}")
+        summary = " ".join(cls.__doc__.split("\n\n")[0].split())  # the first paragraph, unwrapped
+        sentence = re.split(r"\.\s+(?=[A-Z])", summary)[0].rstrip(".")  # the first sentence, whole ("eq. 2" kept)
+        print(f"  {name:32s} {sentence}.")
     print("terms:")
     print("  " + ", ".join(TERMS))
     return 0

@@ -20,12 +20,14 @@ from __future__ import annotations
 import functools
 import json
 import math
+import time
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 from scipy.sparse import csr_matrix
 
+from . import __version__
 from .grid import _FACES, CubedSphere
 from .output import atomic_path, check_distinct
 from .runtime import check_memory
@@ -201,6 +203,9 @@ def remap_dataset(ds: xr.Dataset, resolution: float) -> xr.Dataset:
         f"GLL interpolation (each element's own polynomial) from ne={grid.ne} np={grid.np} "
         f"to a regular {resolution:g} degree lat-lon grid by swe_sphere.remap"
     )
+    stamp = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())  # CF: the newest history line first
+    line = f"{stamp}: swe_sphere.remap to {resolution:g} degrees (swe_sphere {__version__})"
+    out.attrs["history"] = f"{line}\n{ds.attrs['history']}" if ds.attrs.get("history") else line
     return out
 
 

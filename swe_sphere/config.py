@@ -366,10 +366,12 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
         nus = {key: nus.get(key, nus.get("nu", 0.0)) for key in ("nu", "nu_div", "nu_s")}
     if "hyperviscosity" in terms and max(nus.values()) == 0:
         raise SceneError("the hyperviscosity term needs hyperviscosity.nu, nu_div, nu_s or efold_hours > 0")
-    if ratio != 1.0 and any(k in hv for k in ("nu", "nu_div", "nu_s")) and max(nus.values()) > 0:
-        notes.append(f"nu scaled as dx^{HYPERVIS_EXPONENT}: nu, nu_div, nu_s = {nus['nu']:.3g}, {nus['nu_div']:.3g}, {nus['nu_s']:.3g} m^4/s")
     if "hyperviscosity" not in terms:
+        if any(k in hv for k in ("nu", "nu_div", "nu_s")):
+            notes.append("hyperviscosity coefficients given, but the scene's terms have no hyperviscosity: not used")
         nus = dict.fromkeys(nus, 0.0)
+    elif ratio != 1.0 and any(k in hv for k in ("nu", "nu_div", "nu_s")) and max(nus.values()) > 0:
+        notes.append(f"nu scaled as dx^{HYPERVIS_EXPONENT}: nu, nu_div, nu_s = {nus['nu']:.3g}, {nus['nu_div']:.3g}, {nus['nu_s']:.3g} m^4/s")
     subcycle = hv.get("subcycle", 1)
     if subcycle < 1:
         raise SceneError(f"hyperviscosity.subcycle must be >= 1 (got {subcycle})")

@@ -87,6 +87,9 @@ def _parser() -> argparse.ArgumentParser:
     sw.add_argument("-s", "--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                     help="override a scene value in every run, e.g. -s case.initialization=dfi (as for run)")
     sw.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
+    sw.add_argument("--cost", choices=("cpu", "wall"), default="cpu",
+                    help="the clock that ranks the runs: process CPU time (default; reproducible with SWE_SPHERE_THREADS=1 "
+                         "OPENBLAS_NUM_THREADS=1 on a loaded machine) or wall time")
     sw.add_argument("--output", type=Path, default=Path("sweep"), help="directory for results (default ./sweep); reruns resume")
     sw.add_argument("--filter-days", type=float, metavar="DAYS", help="also score the balanced flow: Lanczos low-pass in time with this cutoff period (runs go on past --days by the half window)")
     sw.add_argument("--filter-window", type=float, metavar="DAYS", help="the filter's half window around the last day (default 1.5 x --filter-days)")
@@ -223,7 +226,7 @@ def _cmd_sweep(args) -> int:
                       "impulsively, so the spatial error (and the verdicts' thresholds) include the gravity waves it keeps")
             rows, info = Sweep(scenes, dts, args.output, device, time_filter=time_filter, start=start, pairs=pairs,
                                reference_dt_max=REFERENCE_MAX_GRAVITY_COURANT * limits["dt_gravity"]).run(pool)
-            rows = table(rows, limits)
+            rows = table(rows, limits, args.cost)
             print(format_summary(rows, info))
             for path in write_outputs(rows, info, limits, args.output):
                 print(f"wrote {path}")

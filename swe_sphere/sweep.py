@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -119,8 +120,9 @@ def _filtered_errors(sim: Simulation, xf: np.ndarray | None, xf_ref: np.ndarray 
     }
 
 
-def rhs_time(sim: Simulation, span: float = 0.2, rounds: int = 5) -> float:
-    """The time (s) of one RHS evaluation of ``sim``'s model on its last good state,
+def rhs_time(sim: Simulation, span: float = 0.2, rounds: int = 5, clock=time.perf_counter) -> float:
+    """The time (s) on ``clock`` (wall: ``time.perf_counter``; CPU: ``time.process_time``)
+    of one RHS evaluation of ``sim``'s model on its last good state,
     the median over ``rounds`` of batches of about ``span`` seconds each: the unit of a
     run's cost in RHS-evaluation equivalents (wall time / this, as
     ``benchmarks/implicit_cost.py`` counts them), measured in the run's own process
@@ -133,14 +135,14 @@ def rhs_time(sim: Simulation, span: float = 0.2, rounds: int = 5) -> float:
 
     def batch(n):
         wp.synchronize_device(model.device)
-        t0 = time.perf_counter()
+        t0 = clock()
         for _ in range(n):
             model.rhs(x, f)
         wp.synchronize_device(model.device)
-        return (time.perf_counter() - t0) / n
+        return (clock() - t0) / n
 
     batch(1)  # records the launches (the first call of a buffer pair)
-    n = max(1, math.ceil(span / batch(1)))
+    n = max(1, math.ceil(span / max(batch(1), 1e-6)))  # the CPU clock may tick coarser than one call
     return float(np.median([batch(n) for _ in range(rounds)]))
 
 
@@ -186,7 +188,10 @@ class Sweep:
         """Run ``scene`` (beyond its last day by the filter's half window, when
         filtering). Returns (simulation, RunResult, counters at the target day
         (its history entry), state at the target, filtered state or None); a blow-up
-        gives its partial result and None states."""
+        gives its partial result and None states. The counters carry ``cpu_time``:
+        the process's CPU time (s) from the run's start to the target (the whole of
+        it on a blow-up), all its threads summed, and ``load_average``: the mean of
+        the 1-minute load average at its start and at the target."""
         f, target = self.time_filter, scene.days
         n_target = round(target * DAY / scene.dt)
         weights = {}
@@ -194,10 +199,15 @@ class Sweep:
             weights = {round(d * DAY / scene.dt): w for d, w in zip(f.days(target), f.weights)}
             scene = dataclasses.replace(scene, days=target + f.half_window_days, output_every_days=f.every_hours / 24)
         kept = {"x": None, "filtered": 0.0, "seen": 0}
+        cpu0, load0 = time.process_time(), os.getloadavg()[0]
+
+        def clocks():
+            return {"cpu_time": time.process_time() - cpu0, "load_average": (load0 + os.getloadavg()[0]) / 2}
 
         def on_output(step, x):
             if step == n_target:
                 kept["x"] = x.numpy().copy()
+                kept["clocks"] = clocks()
             if step in weights:
                 kept["filtered"] = kept["filtered"] + weights[step] * x.numpy()
                 kept["seen"] += 1
@@ -206,8 +216,8 @@ class Sweep:
         try:
             result = sim.run(None, on_output=on_output)
         except BlowUp as err:
-            return sim, err.result, err.result.history[-1], None, None
-        at_target = next(h for h in result.history if h["steps"] == n_target)
+            return sim, err.result, {**err.result.history[-1], **clocks()}, None, None
+        at_target = {**next(h for h in result.history if h["steps"] == n_target), **kept["clocks"]}
         filtered = kept["filtered"] if f is not None and kept["seen"] == len(weights) else None
         return sim, result, at_target, kept["x"], filtered
 
@@ -247,8 +257,9 @@ class Sweep:
         growth = max(h.get("total_energy_change", 0.0) for h in result.history)
         if stable and growth > 0.01:
             stable, reason = False, f"total energy grew by {growth:.2%}"
-        row.update(stable=stable, reason=reason, wall_time=at["wall_time"], steps=at["steps"], rhs_evals=at["rhs_evals"],
-                   rhs_time=rhs_time(sim))
+        row.update(stable=stable, reason=reason, wall_time=at["wall_time"], cpu_time=at["cpu_time"], load_average=at["load_average"],
+                   threads=sim.model.threads, steps=at["steps"], rhs_evals=at["rhs_evals"],
+                   rhs_time=rhs_time(sim), rhs_cpu_time=rhs_time(sim, clock=time.process_time))
         row.update({f"{k}_iterations": at[f"{k}_iterations"] for k in result.iterations})
         final = result.history[-1]
         for k in ("mass_change", "total_energy_change", "potential_enstrophy_change"):
@@ -294,24 +305,34 @@ class Sweep:
 
 
 COLUMNS = (
-    "stepper", "dt", "dt_over_gravity_limit", "dt_over_advective_limit", "dt_over_leapfrog_limit", "stable", "wall_time", "startup_time",
-    "setup_time", "steps", "rhs_evals", "rhs_time", "rhs_equivalents", "newton_iterations", "gmres_iterations", "precond_iterations",
+    "stepper", "dt", "dt_over_gravity_limit", "dt_over_advective_limit", "dt_over_leapfrog_limit", "stable", "wall_time", "cpu_time",
+    "load_average", "threads", "cost_time", "startup_time", "setup_time", "steps", "rhs_evals", "rhs_time", "rhs_cpu_time", "rhs_equivalents", "newton_iterations", "gmres_iterations", "precond_iterations",
     "helmholtz_iterations", "total_error", "total_error_vorticity", "total_error_divergence",
     "temporal_error", "temporal_error_wind", "temporal_error_vorticity", "temporal_error_divergence",
     "temporal_error_filtered", "temporal_error_filtered_vorticity", "mass_change", "total_energy_change", "potential_enstrophy_change", "reason",
 )
 
 
-def table(rows, limits) -> list[dict]:
+COSTS = {"cpu": ("cpu_time", "rhs_cpu_time"), "wall": ("wall_time", "rhs_time")}  # --cost: (run's time, its RHS's time)
+
+
+def table(rows, limits, cost: str = "cpu") -> list[dict]:
     """Rows with every column (NaN where not applicable), Δt as multiples of the
-    limits and the cost in RHS-evaluation equivalents (wall time / ``rhs_time``:
-    everything a step does — RHS evaluations, ∇⁴, Helmholtz and Krylov work — in
-    units of the one operation every stepper shares; NaN for a run made before
-    runs timed their RHS)."""
+    limits, ``cost_time``: the run's time on the clock ``cost`` ranks by ("cpu":
+    the process's CPU time, which a loaded machine barely changes with one compute
+    and one BLAS thread; "wall"), and the cost in RHS-evaluation equivalents on
+    that clock (``cost_time`` / one RHS timed on it: everything a step does — RHS
+    evaluations, ∇⁴, Helmholtz and Krylov work — in units of the one operation
+    every stepper shares; NaN for a run made before runs timed it).
+    Raises ValueError for an unknown ``cost``."""
+    if cost not in COSTS:
+        raise ValueError(f"unknown cost clock {cost!r} (known: {', '.join(COSTS)})")
+    run_time, unit_time = COSTS[cost]
     out = []
     for r in rows:
         row = {c: r.get(c, math.nan) for c in COLUMNS}
-        row["rhs_equivalents"] = r["wall_time"] / row["rhs_time"]
+        row["cost_time"] = row[run_time]
+        row["rhs_equivalents"] = row[run_time] / row[unit_time]
         row["dt_over_gravity_limit"] = r["dt"] / limits["dt_gravity"]
         row["dt_over_advective_limit"] = r["dt"] / limits["dt_advective"]
         row["dt_over_leapfrog_limit"] = r["dt"] / limits["dt_leapfrog"]
@@ -331,19 +352,20 @@ CRITERIA = {
 }
 THRESHOLDS = (0.1, 0.5)  # temporal error as a fraction of the spatial error
 VERDICT_COLUMNS = ("criterion", "threshold", "stepper", "dt", "dt_over_gravity_limit", "dt_over_advective_limit",
-                   "dt_over_leapfrog_limit", "wall_time", "rhs_evals", "helmholtz_iterations", "rhs_equivalents", "temporal_error",
+                   "dt_over_leapfrog_limit", "cost_time", "wall_time", "cpu_time", "rhs_evals", "helmholtz_iterations", "rhs_equivalents", "temporal_error",
                    "spatial_error")
 
 
 def _cheapest(rows, stepper, column, limit):
-    """The stable run of ``stepper`` with the least wall time whose ``column`` ≤ limit (None if none)."""
+    """The stable run of ``stepper`` with the least ``cost_time`` (``table``'s clock) whose
+    ``column`` ≤ limit (None if none); a run without a time on that clock ranks last."""
     ok = [r for r in rows if r["stepper"] == stepper and r["stable"] and r.get(column, math.nan) <= limit]
-    return min(ok, key=lambda r: r["wall_time"], default=None)
+    return min(ok, key=lambda r: r["cost_time"] if math.isfinite(r["cost_time"]) else math.inf, default=None)
 
 
 def verdicts(rows, info) -> list[dict]:
     """Per criterion (``CRITERIA``; the filtered one only where the sweep filtered),
-    threshold (``THRESHOLDS``) and stepper: the cheapest (least wall time) stable
+    threshold (``THRESHOLDS``) and stepper: the cheapest (least ``cost_time``) stable
     run whose temporal error ≤ threshold × the spatial error of that criterion, with
     its Δt multiples, wall time, RHS evaluations and RHS-eq; dt NaN where no run qualifies."""
     steppers = list(dict.fromkeys(r["stepper"] for r in rows))
@@ -373,14 +395,14 @@ def format_verdicts(verdict_rows) -> str:
             continue
         lines.append(
             f"{head} dt = {v['dt']:.4g} s = {v['dt_over_gravity_limit']:.2f} x gravity-wave, {v['dt_over_advective_limit']:.2f} x "
-            f"advective, {v['dt_over_leapfrog_limit']:.2f} x leapfrog limit; wall {v['wall_time']:.3g} s, "
+            f"advective, {v['dt_over_leapfrog_limit']:.2f} x leapfrog limit; CPU {v['cpu_time']:.3g} s, wall {v['wall_time']:.3g} s, "
             f"{v['rhs_equivalents']:.0f} RHS-eq ({v['rhs_evals']:.0f} RHS)"
         )
     return "\n".join(lines)
 
 
 def cheapest_sufficient(rows, spatial_error) -> dict:
-    """Per stepper, the fastest stable run whose temporal error ≤ 10 % of the spatial error."""
+    """Per stepper, the cheapest (``cost_time``) stable run whose temporal error ≤ 10 % of the spatial error."""
     best = {s: _cheapest(rows, s, "temporal_error", SUFFICIENT * spatial_error) for s in dict.fromkeys(r["stepper"] for r in rows)}
     return {s: r for s, r in best.items() if r is not None}
 
@@ -388,14 +410,14 @@ def cheapest_sufficient(rows, spatial_error) -> dict:
 def format_summary(rows, info) -> str:
     """The table and, per stepper, the cheapest sufficiently accurate run."""
     head = (
-        f"{'stepper':22s} {'dt [s]':>9s} {'dt/gw':>6s} {'dt/adv':>6s} {'stable':>6s} {'wall [s]':>9s} {'RHS':>8s} {'RHS-eq':>8s} "
+        f"{'stepper':22s} {'dt [s]':>9s} {'dt/gw':>6s} {'dt/adv':>6s} {'stable':>6s} {'CPU [s]':>9s} {'wall [s]':>9s} {'load':>5s} {'RHS':>8s} {'RHS-eq':>8s} "
         f"{'Newton':>7s} {'GMRES':>7s} {'Helmh.':>7s} {'total err':>10s} {'time err':>10s} {'energy chg':>10s}"
     )
     lines = [head]
     for r in rows:
         lines.append(
             f"{r['stepper']:22s} {r['dt']:9.2f} {r['dt_over_gravity_limit']:6.2f} {r['dt_over_advective_limit']:6.2f} "
-            f"{'yes' if r['stable'] else 'NO':>6s} {r['wall_time']:9.2f} {r['rhs_evals']:8.0f} {r['rhs_equivalents']:8.0f} "
+            f"{'yes' if r['stable'] else 'NO':>6s} {r['cpu_time']:9.2f} {r['wall_time']:9.2f} {r['load_average']:5.1f} {r['rhs_evals']:8.0f} {r['rhs_equivalents']:8.0f} "
             f"{r['newton_iterations']:7.0f} "
             f"{r['gmres_iterations']:7.0f} {r['helmholtz_iterations']:7.0f} {r['total_error']:10.3e} {r['temporal_error']:10.3e} "
             f"{r['total_energy_change']:10.2e}"
@@ -403,7 +425,7 @@ def format_summary(rows, info) -> str:
     spatial = info["spatial_error"]
     lines.append(f"spatial error (RK4 at dt = {info['reference_dt']:.4g} s): {spatial:.3e}; sufficient accuracy: temporal error <= {SUFFICIENT * spatial:.3e}")
     best = cheapest_sufficient(rows, spatial)
-    explicit = [best[s]["wall_time"] for s in best if STEPPERS[s].explicit]
+    explicit = [best[s]["cost_time"] for s in best if STEPPERS[s].explicit]
     ref_time = min(explicit) if explicit else math.nan
     for stepper in dict.fromkeys(r["stepper"] for r in rows):
         if stepper not in best:
@@ -412,7 +434,8 @@ def format_summary(rows, info) -> str:
         b = best[stepper]
         lines.append(
             f"  {stepper:22s} cheapest sufficient: dt = {b['dt']:.4g} s = {b['dt_over_gravity_limit']:.2f} x gravity-wave limit, "
-            f"{b['dt_over_advective_limit']:.2f} x advective limit; wall {b['wall_time']:.2f} s = {b['wall_time'] / ref_time:.2f} x best explicit, "
+            f"{b['dt_over_advective_limit']:.2f} x advective limit; CPU {b['cpu_time']:.2f} s, wall {b['wall_time']:.2f} s; "
+            f"{b['cost_time'] / ref_time:.2f} x best explicit, "
             f"{b['rhs_equivalents']:.0f} RHS-eq"
         )
     lines.append("verdicts: the cheapest run per criterion with temporal error <= 10 % / 50 % of that criterion's spatial error")
@@ -437,6 +460,7 @@ def write_outputs(rows, info, limits, directory) -> list[Path]:
     ds = df.set_index(["stepper", "dt"]).to_xarray()
     ds["dt"].attrs["units"] = "s"
     ds["wall_time"].attrs["units"] = "s"
+    ds["cpu_time"].attrs.update(units="s", long_name="process CPU time to the target day, all threads summed")
     ds.attrs.update({k: float(v) for k, v in {**info, **limits}.items()})
     with atomic_path(nc) as tmp:
         ds.to_netcdf(tmp)

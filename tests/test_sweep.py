@@ -74,26 +74,38 @@ def test_sweep_resumes_without_rerunning(swept, monkeypatch, capsys):
 
 def test_cheapest_sufficient_picks_fastest_accurate_run():
     rows = [
-        {"stepper": "a", "stable": True, "temporal_error": 1e-6, "wall_time": 5.0},
-        {"stepper": "a", "stable": True, "temporal_error": 5e-6, "wall_time": 2.0},
-        {"stepper": "a", "stable": True, "temporal_error": 5e-5, "wall_time": 1.0},  # not accurate enough
-        {"stepper": "b", "stable": False, "temporal_error": float("nan"), "wall_time": 0.1},
+        {"stepper": "a", "stable": True, "temporal_error": 1e-6, "cost_time": 5.0},
+        {"stepper": "a", "stable": True, "temporal_error": 5e-6, "cost_time": 2.0},
+        {"stepper": "a", "stable": True, "temporal_error": 2e-6, "cost_time": float("nan")},  # no time on the clock: last
+        {"stepper": "a", "stable": True, "temporal_error": 5e-5, "cost_time": 1.0},  # not accurate enough
+        {"stepper": "b", "stable": False, "temporal_error": float("nan"), "cost_time": 0.1},
     ]
     best = sweep_mod.cheapest_sufficient(rows, spatial_error=1e-4)
-    assert best["a"]["wall_time"] == 2.0 and "b" not in best
+    assert best["a"]["cost_time"] == 2.0 and "b" not in best
 
 
-def test_rhs_equivalents_are_the_wall_time_in_rhs_evaluations(swept):
-    """A run's cost in RHS-evaluation equivalents is its wall time over one RHS
-    evaluation timed in its own process: at least its RHS count (ssprk3: 72, with
+def test_rhs_equivalents_are_the_cpu_time_in_rhs_evaluations(swept):
+    """Each run records its process CPU time beside its wall time, and the load
+    average; by default (--cost cpu) it ranks by CPU time, and its cost in
+    RHS-evaluation equivalents is that CPU time over one RHS evaluation timed on
+    the same clock in its own process: at least its RHS count (ssprk3: 72, with
     ∇⁴ and the stage sums on top; the JFNK run: each Jacobian–vector product is one,
-    plus the Helmholtz preconditioner)."""
+    plus the Helmholtz preconditioner). --cost wall ranks by wall time."""
     out, _ = swept
     df = pd.read_csv(out / "sweep.csv")
-    assert (df["rhs_time"] > 0).all()
-    np.testing.assert_allclose(df["rhs_equivalents"], df["wall_time"] / df["rhs_time"], rtol=1e-12)
+    assert (df["cpu_time"] > 0).all() and (df["rhs_cpu_time"] > 0).all() and (df["rhs_time"] > 0).all()
+    assert (df["load_average"] >= 0).all() and (df["threads"] >= 1).all()
+    np.testing.assert_array_equal(df["cost_time"], df["cpu_time"])
+    np.testing.assert_allclose(df["rhs_equivalents"], df["cpu_time"] / df["rhs_cpu_time"], rtol=1e-12)
     stable = df[df["stable"] == 1]
     assert (stable["rhs_equivalents"] > 0.8 * stable["rhs_evals"]).all()
+    rows = df.to_dict("records")
+    limits = {"dt_gravity": 1.0, "dt_advective": 1.0, "dt_leapfrog": 1.0}
+    wall = sweep_mod.table(rows, limits, "wall")
+    assert [r["cost_time"] for r in wall] == list(df["wall_time"])
+    np.testing.assert_allclose([r["rhs_equivalents"] for r in wall], df["wall_time"] / df["rhs_time"], rtol=1e-12)
+    with pytest.raises(ValueError, match="unknown cost clock"):
+        sweep_mod.table(rows, limits, "tsc")
 
 
 def test_sweep_bad_input_exits_2(tmp_path, capsys):
@@ -110,7 +122,8 @@ def test_sweep_with_two_workers_gives_the_serial_rows(swept, tmp_path):
     out, args = swept
     parallel = tmp_path / "parallel"
     assert main([*args[:-1], str(parallel), "--workers", "2"]) == 0
-    timings = ["wall_time", "startup_time", "setup_time", "rhs_time", "rhs_equivalents"]
+    timings = ["wall_time", "cpu_time", "cost_time", "load_average", "startup_time", "setup_time", "rhs_time", "rhs_cpu_time",
+               "rhs_equivalents"]
     serial_rows = pd.read_csv(out / "sweep.csv").drop(columns=timings)
     parallel_rows = pd.read_csv(parallel / "sweep.csv").drop(columns=timings)
     pd.testing.assert_frame_equal(parallel_rows, serial_rows, check_exact=True)
@@ -147,9 +160,9 @@ def test_verdicts_per_criterion_and_threshold():
     total and balanced-flow criteria at 50 % but not the gravity-wave one."""
     base = {"stable": True, "dt_over_gravity_limit": 1.0, "dt_over_advective_limit": 0.1, "dt_over_leapfrog_limit": 2.0, "rhs_evals": 10}
     rows = [
-        {**base, "stepper": "a", "dt": 100.0, "wall_time": 4.0, "rhs_equivalents": 40.0, "temporal_error": 1e-6, "temporal_error_vorticity": 1e-5, "temporal_error_divergence": 1e-5},
-        {**base, "stepper": "a", "dt": 400.0, "wall_time": 1.0, "rhs_equivalents": 10.0, "temporal_error": 3e-5, "temporal_error_vorticity": 3e-4, "temporal_error_divergence": 9e-4},
-        {**base, "stepper": "b", "dt": 100.0, "wall_time": 0.5, "rhs_equivalents": 5.0, "stable": False},
+        {**base, "stepper": "a", "dt": 100.0, "cost_time": 4.0, "rhs_equivalents": 40.0, "temporal_error": 1e-6, "temporal_error_vorticity": 1e-5, "temporal_error_divergence": 1e-5},
+        {**base, "stepper": "a", "dt": 400.0, "cost_time": 1.0, "rhs_equivalents": 10.0, "temporal_error": 3e-5, "temporal_error_vorticity": 3e-4, "temporal_error_divergence": 9e-4},
+        {**base, "stepper": "b", "dt": 100.0, "cost_time": 0.5, "rhs_equivalents": 5.0, "stable": False},
     ]
     info = {"spatial_error": 1e-4, "spatial_error_vorticity": 1e-3, "spatial_error_divergence": 1e-3}
     v = {(r["criterion"], r["threshold"], r["stepper"]): r for r in sweep_mod.verdicts(rows, info)}
@@ -157,7 +170,7 @@ def test_verdicts_per_criterion_and_threshold():
     assert v[("total h+hs", 0.1, "a")]["dt"] == 100.0 and v[("total h+hs", 0.5, "a")]["dt"] == 400.0
     assert v[("balanced flow (vorticity)", 0.5, "a")]["dt"] == 400.0
     assert v[("gravity waves (divergence)", 0.5, "a")]["dt"] == 100.0
-    assert v[("gravity waves (divergence)", 0.5, "a")]["wall_time"] == 4.0
+    assert v[("gravity waves (divergence)", 0.5, "a")]["cost_time"] == 4.0
     assert v[("gravity waves (divergence)", 0.5, "a")]["rhs_equivalents"] == 40.0
     assert math.isnan(v[("total h+hs", 0.5, "b")]["dt"])
     text = sweep_mod.format_verdicts(sweep_mod.verdicts(rows, info))

@@ -188,10 +188,10 @@ class Sweep:
         """Run ``scene`` (beyond its last day by the filter's half window, when
         filtering). Returns (simulation, RunResult, counters at the target day
         (its history entry), state at the target, filtered state or None); a blow-up
-        gives its partial result and None states. The counters carry ``cpu_time``:
-        the process's CPU time (s) from the run's start to the target (the whole of
-        it on a blow-up), all its threads summed, and ``load_average``: the mean of
-        the 1-minute load average at its start and at the target."""
+        gives its partial result and None states. The counters carry ``cpu_time``
+        (``Simulation``'s: the process's CPU time in the time loop, its threads
+        summed) and ``load_average``: the mean of the 1-minute load average at the
+        run's start and at the target (at the end of a blow-up)."""
         f, target = self.time_filter, scene.days
         n_target = round(target * DAY / scene.dt)
         weights = {}
@@ -199,10 +199,10 @@ class Sweep:
             weights = {round(d * DAY / scene.dt): w for d, w in zip(f.days(target), f.weights)}
             scene = dataclasses.replace(scene, days=target + f.half_window_days, output_every_days=f.every_hours / 24)
         kept = {"x": None, "filtered": 0.0, "seen": 0}
-        cpu0, load0 = time.process_time(), os.getloadavg()[0]
+        load0 = os.getloadavg()[0]
 
         def clocks():
-            return {"cpu_time": time.process_time() - cpu0, "load_average": (load0 + os.getloadavg()[0]) / 2}
+            return {"load_average": (load0 + os.getloadavg()[0]) / 2}
 
         def on_output(step, x):
             if step == n_target:

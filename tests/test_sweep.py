@@ -118,12 +118,12 @@ def test_sweep_bad_input_exits_2(tmp_path, capsys):
 
 def test_sweep_with_two_workers_gives_the_serial_rows(swept, tmp_path):
     """--workers 2 (a spawned process pool) writes the same rows as the serial sweep;
-    only the timings differ."""
+    only the timings and the thread count (each worker gets cpus // 2) differ."""
     out, args = swept
     parallel = tmp_path / "parallel"
     assert main([*args[:-1], str(parallel), "--workers", "2"]) == 0
     timings = ["wall_time", "cpu_time", "cost_time", "load_average", "startup_time", "setup_time", "rhs_time", "rhs_cpu_time",
-               "rhs_equivalents"]
+               "rhs_equivalents", "threads"]
     serial_rows = pd.read_csv(out / "sweep.csv").drop(columns=timings)
     parallel_rows = pd.read_csv(parallel / "sweep.csv").drop(columns=timings)
     pd.testing.assert_frame_equal(parallel_rows, serial_rows, check_exact=True)

@@ -26,17 +26,12 @@ from concurrent.futures import ThreadPoolExecutor
 
 import warp as wp
 
+from .workers import cpus as _usable_cpus
+
 MIN_POINTS_PER_PART = 2048  # below this a split costs more in hand-offs than it gains
 
 _pools: dict[int, ThreadPoolExecutor] = {}
 _pools_lock = threading.Lock()
-
-
-def _usable_cpus() -> int:
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # not on Linux
-        return max(1, os.cpu_count() or 1)
 
 
 def _requested_threads() -> int | None:

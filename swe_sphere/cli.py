@@ -368,7 +368,8 @@ def _run(args, scene, output, device, comm) -> int:
     extra = [n for n in (sim.stability_warning(), threads_note(device), _slow_setting_warning(sim, device)) if n]
     for note in (*scene.notes, *extra):
         if note.startswith("warning: "):
-            print(f"swe-sphere: {note}", file=sys.stderr)  # seen even with stdout redirected
+            if sim.root:  # once, not once a rank
+                print(f"swe-sphere: {note}", file=sys.stderr)  # seen even with stdout redirected
         else:
             print(f"note        {note}")
     print(f"output      {output} (every {scene.output_every_days:g} days)")
@@ -380,8 +381,9 @@ def _run(args, scene, output, device, comm) -> int:
     try:
         result = sim.run(output, overwrite=args.overwrite, restart_every=args.restart_every, compress=args.compress,
                          history=" ".join(["swe-sphere", *(sys.argv[1:] if args.argv is None else args.argv)]))
-    except BlowUp as err:
-        print(f"swe-sphere: {err}; the last good state is in {output}", file=sys.stderr)
+    except BlowUp as err:  # on every rank alike (the bad node is found over all of them)
+        if sim.root:
+            print(f"swe-sphere: {err}; the last good state is in {output}", file=sys.stderr)
         return EXIT_BLOWUP
     _summary(result, sim)
     return 0

@@ -159,6 +159,18 @@ def test_unreadable_restart_file_refused_by_every_rank_in_one_line(tmp_path):
     assert not (tmp_path / "o.nc").exists()
 
 
+@pytest.mark.usefixtures("needs_mpi")
+def test_blow_up_on_two_ranks_is_one_line(tmp_path):
+    """Every rank finds the blow-up (the bad node is sought over all of them); rank 0
+    alone says so, as it alone gives the stability warning: two lines, not four."""
+    proc = mpirun(2, ["run", "tc2_steady", "--ne", "2", "--stepper", "ssprk3", "--dt", "14400", "--days", "10",
+                      "--no-progress", "--output", "o.nc"], tmp_path)
+    assert proc.returncode == 3, proc.stderr[-2000:]
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 2 and "warning: dt = 14400 s" in lines[0] and "blow-up at step 4" in lines[1], proc.stderr[-2000:]
+    assert (tmp_path / "o.nc").is_file()
+
+
 def relative_difference(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     """max |Δ wind| / max |wind| and max |Δh| / max |h| of two (u, v, h) states."""
     wind = np.hypot(a[0] - b[0], a[1] - b[1]).max() / np.hypot(a[0], a[1]).max()

@@ -29,7 +29,7 @@ WORKERS_HELP = (
     "runs at once in as many processes, the CPUs shared among them (default 1); under mpiexec -n N "
     "the N - 1 ranks after rank 0 run them, on any number of nodes"
 )
-PLOT_FIELDS = ("h", "h_surface", "u", "v", "speed", "vorticity")  # = plotting.MAP_FIELDS (not imported: matplotlib)
+PLOT_FIELDS = ("h", "h_surface", "u", "v", "speed", "vorticity", "divergence")  # = plotting.MAP_FIELDS (not imported: matplotlib)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -67,6 +67,7 @@ def _parser() -> argparse.ArgumentParser:
     pl.add_argument("--output", type=Path, default=Path("."), metavar="DIR", help="folder for the PNGs (default: .)")
     pl.add_argument("--lat-range", nargs=2, type=float, metavar=("SOUTH", "NORTH"), help="map only this latitude band (degrees)")
     pl.add_argument("--force", action="store_true", help="--diff against a run of another case or grid")
+    pl.add_argument("--overwrite", action="store_true", help="replace existing PNGs")
     rm = sub.add_parser("remap", help="a run file on a regular lat-lon grid (CF netCDF), by GLL interpolation", parents=[common])
     rm.add_argument("run", type=Path, help="run file (netCDF written by `swe-sphere run`)")
     rm.add_argument("--resolution", type=float, default=1.0, help="grid spacing in degrees; must divide 180 (default 1.0)")
@@ -435,7 +436,8 @@ def _summary(r, sim) -> None:
 def _cmd_plot(args) -> int:
     from .plotting import plot_run
 
-    for path in plot_run(args.run, args.field, args.day, args.diff, args.output, args.lat_range, force=args.force):
+    for path in plot_run(args.run, args.field, args.day, args.diff, args.output, args.lat_range, force=args.force,
+                         overwrite=args.overwrite):
         print(path)
     return 0
 

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from .output import check_distinct
+from .output import check_distinct, check_target
 from .remap import Remapper, cached_grid, run_grid
 
 # name → (long name, units on the colour bar, scale applied before drawing, colour map, symmetric about 0)
@@ -35,7 +35,9 @@ MAP_FIELDS = {
     "v": ("northward wind v", "m s$^{-1}$", 1.0, "RdBu_r", True),
     "speed": ("wind speed |v|", "m s$^{-1}$", 1.0, "magma_r", False),
     "vorticity": ("relative vorticity ζ", "10$^{-5}$ s$^{-1}$", 1e5, "RdBu_r", True),
+    "divergence": ("divergence δ", "10$^{-6}$ s$^{-1}$", 1e6, "RdBu_r", True),
 }
+DERIVED = ("vorticity", "divergence")  # stored by the model, NaN in files written before they were
 INVARIANTS = ("mass_change", "total_energy_change", "potential_enstrophy_change")
 FIGSIZE, DPI = (12.0, 6.0), 100  # map: 1200 × 600 pixels
 SERIES_FIGSIZE = (12.0, 5.0)  # 1200 × 500 pixels
@@ -80,7 +82,7 @@ def time_index(ds, day: float) -> int:
 
 def field_at_nodes(ds, field: str, day: float) -> np.ndarray:
     """``field`` (one of ``MAP_FIELDS``) of a run at ``day`` on its unique nodes (ncol,),
-    in the file's units (s⁻¹ for vorticity). ``ValueError`` if it cannot be had."""
+    in the file's units (s⁻¹ for vorticity and divergence). ``ValueError`` if it cannot be had."""
     if field not in MAP_FIELDS:
         raise ValueError(f"unknown field {field!r} (known: {', '.join(MAP_FIELDS)})")
     it = time_index(ds, day)
@@ -96,8 +98,8 @@ def field_at_nodes(ds, field: str, day: float) -> np.ndarray:
     if field == "speed":
         return np.hypot(get("u"), get("v"))
     values = get(field)
-    if field == "vorticity" and not np.all(np.isfinite(values)):
-        raise ValueError(f"{_name(ds)} has no vorticity at day {day:g}")
+    if field in DERIVED and not np.all(np.isfinite(values)):
+        raise ValueError(f"{_name(ds)} has no {field} at day {day:g}")
     return values
 
 
@@ -109,8 +111,8 @@ class _T213:
     label: str
 
     def check(self, field: str, day: float) -> None:
-        if field == "vorticity":
-            raise ValueError(f"{self.label} has no vorticity (T213 files hold h_surface, u, v)")
+        if field in DERIVED:
+            raise ValueError(f"{self.label} has no {field} (T213 files hold h_surface, u, v)")
         if np.min(np.abs(self.ref.days - day), initial=np.inf) > DAY_TOL:
             raise ValueError(f"day {day:g} not in {self.label} (stored: {', '.join(f'{d:g}' for d in self.ref.days)})")
 
@@ -434,13 +436,15 @@ def check_comparable(ds, diff, diff_path) -> None:
             raise ValueError(f"{diff.label} is not the T213 reference of case {case} (--force to compare anyway)")
 
 
-def plot_run(run_path, fields=("h_surface",), days=None, diff_path=None, outdir=".", lat_range=None, *, force=False) -> list[Path]:
+def plot_run(run_path, fields=("h_surface",), days=None, diff_path=None, outdir=".", lat_range=None, *, force=False,
+             overwrite=False) -> list[Path]:
     """``swe-sphere plot``: maps of ``fields`` at ``days`` (default: the last output
     time) and the time-series figure, PNGs in ``outdir`` (created if missing).
 
     Every input is checked before anything is written; raises ``FileNotFoundError`` or
     ``ValueError`` (one line) for a missing file, an unknown field or a missing day,
-    and (unless ``force``) a ``diff_path`` of another case or grid."""
+    and (unless ``force``) a ``diff_path`` of another case or grid; ``output.OutputError``
+    for a PNG that exists (unless ``overwrite``) or would replace an input."""
     outdir = Path(outdir)
     if lat_range is not None:
         check_lat_range(lat_range)
@@ -466,7 +470,11 @@ def plot_run(run_path, fields=("h_surface",), days=None, diff_path=None, outdir=
                     diff.check(field, day)
         maps = [(field, day, outdir / map_name(run_path, field, day, diff is not None, lat_range)) for field in fields for day in days]
         series = outdir / f"{Path(run_path).stem}_series.png"
-        check_distinct([path for *_, path in maps] + [series], [run_path, diff_path])
+        pngs = [path for *_, path in maps] + [series]
+        check_distinct(pngs, [run_path, diff_path])
+        if outdir.is_dir():  # a folder still to be made holds none
+            for path in pngs:
+                check_target(path, overwrite)
         outdir.mkdir(parents=True, exist_ok=True)
         written = [plot_map(ds, field, day, path, diff, lat_range)["path"] for field, day, path in maps]
         written.append(plot_series(ds, series))

@@ -71,10 +71,11 @@ def test_cli_fields_are_the_plotting_fields():
 
 def test_plot_cli_writes_maps_and_series(run_file, tmp_path, capsys):
     outdir = tmp_path / "figs"
-    code, out, err = cli_run(capsys, "plot", run_file, "--field", "h_surface", "vorticity", "speed", "--day", "0", "1", "--output", outdir)
+    fields = ("h_surface", "vorticity", "divergence", "speed")
+    code, out, err = cli_run(capsys, "plot", run_file, "--field", *fields, "--day", "0", "1", "--output", outdir)
     assert code == 0, err
     names = sorted(p.name for p in outdir.iterdir())
-    expected = sorted([f"tc5_{f}_day{d}.png" for f in ("h_surface", "vorticity", "speed") for d in (0, 1)] + ["tc5_series.png"])
+    expected = sorted([f"tc5_{f}_day{d}.png" for f in fields for d in (0, 1)] + ["tc5_series.png"])
     assert names == expected
     assert sorted(Path(line).name for line in out.split()) == expected
     for name in names:
@@ -105,6 +106,9 @@ def test_plot_map_values_and_colour_bar_units(run_file, tmp_path):
         assert abs(info["max"]) < 1e-3 and info["max"] > 0 > info["min"]  # s-1, both signs
         assert info["colorbar_label"] == "vorticity (10$^{-5}$ s$^{-1}$)"  # drawn scaled, labelled so
         assert "day 1" in info["title"] and "tc5_mountain ne2 np4" in info["title"]
+        info = plotting.plot_map(ds, "divergence", 1.0, tmp_path / "d.png")
+        assert abs(info["max"]) < 1e-4 and info["max"] > 0 > info["min"]
+        assert info["colorbar_label"] == "divergence (10$^{-6}$ s$^{-1}$)"
         labels = {f: plotting.plot_map(ds, f, 0.0, tmp_path / f"{f}.png")["colorbar_label"] for f in ("h", "u", "speed")}
     assert labels == {"h": "h (m)", "u": "u (m s$^{-1}$)", "speed": "speed (m s$^{-1}$)"}
 
@@ -189,7 +193,9 @@ def test_sweep_plot(tmp_path):
         (["RUN", "--diff", "missing_ref.nc"], "not found"),
         (["RUN", "--diff", "REF", "--day", "0.5"], "day 0.5 not in"),
         (["RUN", "--field", "vorticity", "--diff", "REF"], "no vorticity"),
-        (["RUN", "--field", "divergence"], "invalid choice"),
+        (["RUN", "--field", "pv"], "invalid choice"),
+        (["OLD", "--field", "divergence"], "no divergence"),
+        (["RUN", "--field", "divergence", "--diff", "REF"], "no divergence"),
         (["OLD", "--field", "vorticity"], "no vorticity"),
         (["REF"], "not a swe_sphere run"),
     ],

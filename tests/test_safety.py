@@ -207,3 +207,15 @@ def test_more_threads_than_cpus_are_clamped_with_a_note(tmp_path, monkeypatch):
     assert threads_note("cpu") == f"SWE_SPHERE_THREADS=1000 is more than the {_usable_cpus()} CPUs this process may run on: {_usable_cpus()} threads"
     monkeypatch.setenv("SWE_SPHERE_THREADS", "1")
     assert default_threads("cpu") == 1 and threads_note("cpu") is None
+
+
+def test_plot_refuses_existing_pngs_unless_overwrite(run_dir, tmp_path):
+    """A second plot into one folder replaced its PNGs silently: now one line, exit 2,
+    the PNGs' bytes unchanged; --overwrite replaces them (divergence maps included)."""
+    argv = ("plot", run_dir / "a.nc", "--field", "h", "divergence", "--output", tmp_path)
+    assert cli(tmp_path, *argv).returncode == 0
+    pngs = {p.name: digest(p) for p in tmp_path.glob("*.png")}
+    assert sorted(pngs) == ["a_divergence_day1.png", "a_h_day1.png", "a_series.png"]
+    refused(cli(tmp_path, *argv), "output file exists", "a_h_day1.png", "--overwrite")
+    assert {p.name: digest(p) for p in tmp_path.glob("*.png")} == pngs
+    assert cli(tmp_path, *argv, "--overwrite").returncode == 0

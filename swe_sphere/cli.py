@@ -319,7 +319,8 @@ def _cmd_run(args) -> int:
         output = args.output or args.continue_from.with_name(f"{stem}_continued.nc")
     check_distinct([output, restart_path(output)], [args.continue_from, args.scene and resolve_path(str(args.scene))])
     check_target(output, args.overwrite)
-    check_target(restart_path(output), args.overwrite)  # written at --restart-every and on SIGINT/SIGTERM
+    if args.restart_every is not None:  # else written only on SIGINT/SIGTERM, and then not over an existing one
+        check_target(restart_path(output), args.overwrite)
     device = _warp_device(args.device)
     comm = mpi.world()  # under mpiexec: one run over all ranks
     with mpi.watch_failures(comm, close_open_runs):  # a failure on one rank alone ends the job

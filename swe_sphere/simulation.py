@@ -423,14 +423,19 @@ class Simulation:
         ``catch_signals`` (main thread only): SIGINT/SIGTERM finish the current
         step, close the output (global attributes ``interrupted``,
         ``interrupted_at_day``) and write the restart file, then raise
-        ``Interrupted``. ``compress``: float32 + zlib fields. ``history``: the
+        ``Interrupted``; without ``restart_every`` an existing default restart
+        file is neither refused nor replaced (no restart file on a signal).
+        ``compress``: float32 + zlib fields. ``history``: the
         command line, for the file's ``history`` attribute. ``on_output(step, x)``: called
         at every output step with the (3, N) device state. Raises ``BlowUp`` after closing the output with every
         good output time and the last good state (the step before the failure).
         """
         s, model, stepper = self.scene, self.model, self.stepper
+        kept_restart = None  # an existing restart file this run would write only on a signal, and keeps
         if restart_file is None and output is not None:
             restart_file = restart_path(output)
+            if restart_every is None and not overwrite and self.topology.bcast(self.root and restart_file.exists()):
+                restart_file, kept_restart = None, restart_file
         ck_steps = self.restart_steps(restart_every) if restart_every is not None else set()
         if restart_every is not None and restart_file is None:
             raise ValueError("a restart interval needs an output or restart file")
@@ -612,6 +617,8 @@ class Simulation:
             name = signal.Signals(interrupted).name
             kept = [f"output so far in {output}"] if output is not None else []
             kept += [f"restart file {written[0]}"] if written[0] is not None else []
+            if kept_restart is not None:
+                kept.append(f"no restart file: {kept_restart} exists (--overwrite, or overwrite=True in Python, replaces it)")
             how = f"; step {self.step + 1} abandoned after {ABANDON_AFTER:g} s (no restart file from it)" if abandoned else ""
             err = Interrupted("; ".join([f"interrupted by {name} at step {self.step} (model time {self.step * s.dt / DAY:.4f} days){how}", *kept]))
             err.signum, err.result, err.checkpoint = interrupted, result, written[0]

@@ -219,3 +219,21 @@ def test_plot_refuses_existing_pngs_unless_overwrite(run_dir, tmp_path):
     refused(cli(tmp_path, *argv), "output file exists", "a_h_day1.png", "--overwrite")
     assert {p.name: digest(p) for p in tmp_path.glob("*.png")} == pngs
     assert cli(tmp_path, *argv, "--overwrite").returncode == 0
+
+
+def test_an_existing_restart_file_blocks_only_a_run_that_writes_one(run_dir, tmp_path):
+    """Without --restart-every a run writes its restart file only on a signal: an
+    existing one beside the output neither blocks it nor is replaced; with
+    --restart-every it is refused in one line. The API alike."""
+    import swe_sphere
+
+    for stem in ("o", "q"):
+        shutil.copy(run_dir / "a.restart.nc", tmp_path / f"{stem}.restart.nc")
+    before = digest(tmp_path / "o.restart.nc")
+    assert cli(tmp_path, "run", "tc2_steady", *TINY, "--days", "1", "--output", "o.nc").returncode == 0
+    (tmp_path / "o.nc").unlink()
+    refused(cli(tmp_path, "run", "tc2_steady", *TINY, "--days", "1", "--restart-every", "1", "--output", "o.nc"),
+            "output file exists", "o.restart.nc")
+    ds = swe_sphere.run("tc2_steady", ne=2, days=1, device="cpu", output_file=tmp_path / "q.nc")
+    assert ds.sizes["time"] == 2 and (tmp_path / "q.nc").is_file()
+    assert digest(tmp_path / "o.restart.nc") == before == digest(tmp_path / "q.restart.nc")

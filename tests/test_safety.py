@@ -237,3 +237,34 @@ def test_an_existing_restart_file_blocks_only_a_run_that_writes_one(run_dir, tmp
     ds = swe_sphere.run("tc2_steady", ne=2, days=1, device="cpu", output_file=tmp_path / "q.nc")
     assert ds.sizes["time"] == 2 and (tmp_path / "q.nc").is_file()
     assert digest(tmp_path / "o.restart.nc") == before == digest(tmp_path / "q.restart.nc")
+
+
+def test_a_cold_kernel_cache_is_announced_once_on_a_terminal(tmp_path):
+    """A cold Warp cache cost seconds of a tiny run without a word: on a terminal,
+    one line says kernels are being compiled and where they are cached; a warm
+    cache says nothing (and a piped stderr never gets the note)."""
+    import pty
+
+    def stderr_on_a_tty(output):
+        master, slave = pty.openpty()
+        env = {**os.environ, "SWE_SPHERE_THREADS": "1", "WARP_CACHE_PATH": str(tmp_path / "cache")}
+        proc = subprocess.run([SCRIPT, "run", "tc1_cosine_bell", *TINY, "--days", "1", "--output", output], cwd=tmp_path,
+                              stdout=subprocess.DEVNULL, stderr=slave, env=env, timeout=300)
+        os.close(slave)
+        chunks = []
+        while True:
+            try:
+                chunk = os.read(master, 4096)
+            except OSError:  # EIO: the terminal's other end is closed and drained
+                break
+            if not chunk:
+                break
+            chunks.append(chunk)
+        os.close(master)
+        assert proc.returncode == 0, chunks
+        return b"".join(chunks).decode().splitlines()
+
+    lines = stderr_on_a_tty("cold.nc")
+    assert len(lines) == 1 and lines[0].startswith("swe-sphere: compiling Warp kernels (first use; cached in "), lines
+    assert str(tmp_path / "cache") in lines[0]
+    assert stderr_on_a_tty("warm.nc") == []

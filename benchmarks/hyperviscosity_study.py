@@ -21,7 +21,7 @@ from pathlib import Path
 
 from swe_sphere.config import load_scene
 from swe_sphere.constants import DAY
-from swe_sphere.diagnostics import williamson_norms
+from swe_sphere.scoring import williamson_norms
 from swe_sphere.simulation import BlowUp, Simulation
 
 
@@ -65,8 +65,8 @@ def main():
                 days[day] = {"h": d["ref_l2_h_surface"], "wind": d["ref_l2_wind"]}
         vort = math.nan
         last = round(result.history[-1]["steps"] * scene.dt / DAY, 6)
-        if blowup is None and sim.reference is not None and last in days:
-            ref = sim.reference.at(last, sim.grid.lat, sim.grid.lon)
+        if blowup is None and sim.scorer.reference is not None and last in days:
+            ref = sim.scorer.reference.at(last, sim.grid.lat, sim.grid.lon)
             vort = williamson_norms(sim.grid, sim.model.vorticity(sim.x), ref["vorticity"])["l2"]
         row = {"key": list(key), "vorticity_l2_end": vort, "nu": nu, "nu_div": nu_div, "nu_s": nu_s, "errors": days, "blowup": blowup, "wall": result.wall_time}
         with args.out.open("a") as f:

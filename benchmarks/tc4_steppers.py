@@ -21,7 +21,7 @@ import time
 
 from swe_sphere.config import load_scene
 from swe_sphere.constants import DAY
-from swe_sphere.diagnostics import williamson_norms
+from swe_sphere.scoring import williamson_norms
 from swe_sphere.simulation import BlowUp, Simulation
 from swe_sphere.steppers import STEPPERS
 from swe_sphere.sweep import dt_for_day, explicit_limits

@@ -1,4 +1,4 @@
-"""Error norms, invariants and Courant numbers (numpy, on element-local fields).
+"""Invariants, Courant numbers and ∇⁴ probes (numpy, on element-local fields); error norms are in ``scoring``.
 
 All fields are element-local (N,) and continuous, so an area integral is
 ``Σ spheremp·f`` (HOMME ``global_integral``).
@@ -9,44 +9,6 @@ from __future__ import annotations
 import numpy as np
 
 from .grid import CubedSphere
-
-
-def williamson_norms(grid: CubedSphere, f, f_true) -> dict[str, float]:
-    """Normalized l1, l2, l∞ errors of a scalar (Williamson et al. 1992, eqs. 82–84):
-    l1 = I|f−fT| / I|fT|, l2 = sqrt(I(f−fT)²)/sqrt(I fT²), l∞ = max|f−fT| / max|fT|."""
-    e = f - f_true
-    I = grid.integrate
-    return {
-        "l1": I(np.abs(e)) / I(np.abs(f_true)),
-        "l2": float(np.sqrt(I(e * e) / I(f_true * f_true))),
-        "linf": float(np.max(np.abs(e)) / np.max(np.abs(f_true))),
-    }
-
-
-def williamson_vector_norms(grid: CubedSphere, u, v, u_true, v_true) -> dict[str, float]:
-    """Normalized l1, l2, l∞ errors of the wind (Williamson et al. 1992, eqs. 85–87),
-    with |·| the length of the vector difference."""
-    I = grid.integrate
-    de = np.hypot(u - u_true, v - v_true)
-    dt = np.hypot(u_true, v_true)
-    return {
-        "l1": I(de) / I(dt),
-        "l2": float(np.sqrt(I(de * de) / I(dt * dt))),
-        "linf": float(np.max(de) / np.max(dt)),
-    }
-
-
-def rotational_divergent_errors(grid: CubedSphere, zeta_err, delta_err, zeta_true, delta_true) -> dict[str, float]:
-    """Normalized l2 errors of relative vorticity (the balanced flow) and of
-    divergence (gravity waves): sqrt(I ζe²) / n and sqrt(I δe²) / n with
-    n = sqrt(I(ζT² + δT²)), the true wind's velocity-gradient scale. One
-    normaliser for both (the true divergence may vanish, as on TC2), so that
-    their squares add up to the error of the wind's gradient in the same units.
-    ``zeta_err``, ``delta_err`` (s⁻¹, (N,)): vorticity and divergence of the
-    wind error; ``zeta_true``, ``delta_true``: those of the true wind."""
-    I = grid.integrate
-    n = np.sqrt(I(zeta_true**2 + delta_true**2))
-    return {"l2_vorticity": float(np.sqrt(I(zeta_err**2)) / n), "l2_divergence": float(np.sqrt(I(delta_err**2)) / n)}
 
 
 def invariants(grid: CubedSphere, u, v, h, hs, zeta, fcor, g) -> dict[str, float]:

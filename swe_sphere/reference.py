@@ -19,6 +19,14 @@ _VARIABLES = ("lat", "lon", "time", "h_surface", "hs", "u", "v")
 _PAD = 6  # grid rows/columns added across each pole and each longitude edge
 _DAY_TOL = 1e-6
 
+
+def stored_index(days: np.ndarray, day: float) -> int | None:
+    """The index in ``days`` (a reference's stored days) of ``day`` (within 1e-6
+    day), or None when the reference does not store it."""
+    hits = np.flatnonzero(np.abs(np.asarray(days) - day) <= _DAY_TOL)
+    return int(hits[0]) if hits.size else None
+
+
 class Reference:
     """T213 reference solution read from one netCDF file.
 
@@ -100,17 +108,17 @@ class Reference:
         Raises ``ValueError`` if ``day`` is not stored (within 1e-6 day) or a
         latitude lies outside [−π/2, π/2].
         """
-        hits = np.flatnonzero(np.abs(self.days - day) <= _DAY_TOL)
-        if hits.size == 0:
+        itime = stored_index(self.days, day)
+        if itime is None:
             raise ValueError(f"day {day:g} not stored in {self.path.name} (stored: {', '.join(f'{d:g}' for d in self.days)})")
         lat, lon = np.broadcast_arrays(np.asarray(lat, dtype=np.float64), np.asarray(lon, dtype=np.float64))
         if np.any(np.abs(lat) > math.pi / 2 + 1e-12):
             raise ValueError("latitude outside [-pi/2, pi/2] radians")
         x, y = lat.ravel(), np.mod(lon.ravel(), 2 * math.pi)
-        out = {name: self._spline(int(hits[0]), name).ev(x, y).reshape(lat.shape) for name in ("h_surface", "hs", "u", "v")}
+        out = {name: self._spline(itime, name).ev(x, y).reshape(lat.shape) for name in ("h_surface", "hs", "u", "v")}
         out["h"] = out["h_surface"] - out["hs"]
         if "vorticity" in self._fields:
-            out["vorticity"] = self._spline(int(hits[0]), "vorticity").ev(x, y).reshape(lat.shape)
+            out["vorticity"] = self._spline(itime, "vorticity").ev(x, y).reshape(lat.shape)
         return out
 
 

@@ -20,14 +20,14 @@ from . import __version__
 from . import checkpoint as ckpt
 from .config import Scene, SceneError, with_days
 from .constants import DAY
-from .diagnostics import courant_numbers, invariants, rotational_divergent_errors, williamson_norms, williamson_vector_norms
+from .diagnostics import courant_numbers, invariants
 from .grid import CubedSphere
 from .initialization import digital_filter
 from .model import ShallowWater
 from .output import RunWriter, check_distinct, check_target
 from .parallel import default_threads
-from .reference import Reference, reference_path
 from .runtime import ResourceError, check_memory, run_bytes
+from .scoring import Scorer
 from .steppers import StepFailure, make_stepper
 from .topology import Topology, rank_parts
 
@@ -219,9 +219,7 @@ class Simulation:
         )
         _check_hyperviscosity(self.model, scene)
         self.stepper = make_stepper(scene.stepper, self.model, scene.dt, **scene.stepper_options)
-        ref_path = reference_path(case)
-        self.reference = Reference(ref_path) if ref_path is not None and self.root else None  # read on rank 0
-        self.reference_days = topo.bcast(self.reference.days if self.reference is not None else None)
+        self.scorer = Scorer(case, self.model, topo, self.grid, self.hs)
         self.dfi = None
         if start is None:
             start = np.stack(case.initial(local.lat, local.lon))
@@ -232,7 +230,6 @@ class Simulation:
             start = topo.distribute(None if start is ON_ROOT else start, 3, "start state")
         self.x = self.model.new_state(*(self.dfi.x if self.dfi is not None else start))
         self.last_good = wp.clone(self.x)
-        self.scratch = self.model.new_state()  # a comparison wind, for its vorticity and divergence
         self.initial = initial
         if initial is None:
             self.initial = self.diagnose(0.0)
@@ -307,21 +304,13 @@ class Simulation:
         return WholeFields(a[0], a[1], a[2], a[3], a[4] if divergence else None)
 
     def diagnose(self, t: float, x=None, whole: WholeFields | None = None) -> dict:
-        """Invariants (and their relative change), errors against the exact solution
-        and the reference if any, on every rank (call on every rank). ``whole``:
-        x's ``gather_fields`` when the caller has them (on every rank, or on none)."""
+        """Invariants (and their relative change), errors against the truth
+        (``scoring.Scorer.errors``) and Courant numbers, on every rank (call on
+        every rank). ``whole``: x's ``gather_fields`` when the caller has them (on
+        every rank, or on none)."""
         whole = self.gather_fields(x) if whole is None else whole
         u, v, h, zeta = whole.u, whole.v, whole.h, whole.vorticity
-        local, state = self.topology.grid, (self.x if x is None else x).numpy()
-        split = ref_split = None  # the wind errors' rotational/divergent parts (collective)
-        if self.case.exact_solution:
-            ue, ve, _ = self.case.exact(local.lat, local.lon, t)
-            split = self.wind_error_decomposition(state[0], state[1], ue, ve)
-        r = None  # the reference interpolated to the whole grid, on rank 0, at a day it stores
-        if self.reference_days is not None and np.min(np.abs(self.reference_days - t / DAY)) <= 1e-6:
-            r = self.reference.at(t / DAY, self.grid.lat, self.grid.lon) if self.root else None
-            ur, vr = self.topology.distribute(np.stack([r["u"], r["v"]]) if self.root else None, 2, "reference wind")
-            ref_split = self.wind_error_decomposition(state[0], state[1], ur, vr)
+        errors = self.scorer.errors(t, (self.x if x is None else x).numpy(), u, v, h)
         d = None
         if self.root:
             d = invariants(self.grid, u, v, h, self.hs, zeta, self.fcor, self.g)
@@ -330,51 +319,9 @@ class Simulation:
             start = self.initial or d  # diagnosing the initial state itself
             for k in list(d):
                 d[f"{k}_change"] = (d[k] - start[k]) / abs(start[k])
-            if self.case.exact_solution:
-                ue, ve, he = self.case.exact(self.grid.lat, self.grid.lon, t)
-                d.update({f"{k}_h": val for k, val in williamson_norms(self.grid, h, he).items()})
-                d.update({f"{k}_wind": val for k, val in williamson_vector_norms(self.grid, u, v, ue, ve).items()})
-                d.update(split)
-            if self.reference is not None:
-                d.update(self._reference_errors(u, v, h, r, ref_split))
+            d.update(errors)
             d.update(courant_numbers(self.grid, u, v, h, self.scene.dt, self.g, "pressure_gradient" in self.scene.terms))
         return self.topology.bcast(d)
-
-    def _reference_errors(self, u, v, h, r, split) -> dict:
-        """Normalized errors of the free surface h + hs and of the wind against the
-        T213 reference ``r`` on the whole grid, with the wind error's parts ``split``
-        (NaN at days the reference does not store: ``r`` None)."""
-        names = [f"ref_{k}_{f}" for f in ("h_surface", "wind") for k in ("l1", "l2", "linf")]
-        names += ["ref_l2_vorticity", "ref_l2_divergence"]
-        if r is None:
-            return dict.fromkeys(names, float("nan"))
-        out = {f"ref_{k}_h_surface": val for k, val in williamson_norms(self.grid, h + self.hs, r["h_surface"]).items()}
-        out.update({f"ref_{k}_wind": val for k, val in williamson_vector_norms(self.grid, u, v, r["u"], r["v"]).items()})
-        out.update({f"ref_{k}": val for k, val in split.items()})
-        return out
-
-    def rotation_divergence(self, u, v) -> tuple[np.ndarray, np.ndarray]:
-        """Relative vorticity and divergence (s⁻¹, (npts,) each, whole grid, on rank 0;
-        None elsewhere) of a continuous wind given on this rank's nodes (m s⁻¹,
-        (N,) each; the whole grid on one rank), by the model's operators + DSS
-        (call on every rank)."""
-        a = self.topology.gather(self._rotation_divergence(u, v))
-        return (None, None) if a is None else (a[0], a[1])
-
-    def _rotation_divergence(self, u, v) -> np.ndarray:
-        """(2, N): ``rotation_divergence`` on this rank's nodes, before the gather."""
-        self.scratch.assign(np.stack([u, v, np.zeros_like(u)]))
-        return np.stack([self.model.vorticity(self.scratch), self.model.wind_divergence(self.scratch)])
-
-    def wind_error_decomposition(self, u, v, u_true, v_true) -> dict:
-        """``l2_vorticity``, ``l2_divergence``: the wind error split into its
-        rotational (balanced-flow) and divergent (gravity-wave) parts, as the
-        vorticity and divergence of v − vT by the model's operators (one operator
-        on both sides, so the derivative's own discretisation error cancels),
-        normalized as in ``diagnostics.rotational_divergent_errors``. Winds on
-        this rank's nodes (N,) (call on every rank); the figures on every rank."""
-        a = self.topology.gather(np.concatenate([self._rotation_divergence(u - u_true, v - v_true), self._rotation_divergence(u_true, v_true)]))
-        return self.topology.bcast(rotational_divergent_errors(self.grid, *a) if self.root else None)  # (error, true) × (ζ, δ)
 
     def stability_warning(self) -> str | None:
         """A one-line warning when an explicit stepper's Δt exceeds its measured

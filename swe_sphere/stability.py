@@ -15,10 +15,9 @@ from dataclasses import dataclass, field
 
 from .config import Scene, load_scene
 from .constants import DAY
+from .scoring import ENERGY_GROWTH_LIMIT, instability
 from .simulation import BlowUp, Simulation
 from .workers import InProcess
-
-ENERGY_GROWTH_LIMIT = 0.01
 
 # The hard cases: (label, scene, days, grid override); None keeps the scene's value.
 HARD_CASES = (
@@ -52,11 +51,9 @@ def run_is_stable(scene: Scene, device: str) -> tuple[bool, str, float]:
     try:
         result = Simulation(scene, device, progress=False).run(None)
     except BlowUp as err:
-        return False, str(err), time.perf_counter() - t0
-    growth = max(h.get("total_energy_change", 0.0) for h in result.history)
-    if growth > ENERGY_GROWTH_LIMIT:
-        return False, f"total energy grew by {growth:.2%}", time.perf_counter() - t0
-    return True, "", time.perf_counter() - t0
+        result = err.result
+    reason = instability(result)
+    return not reason, reason, time.perf_counter() - t0
 
 
 def largest_stable_dt(scene: Scene, device: str, *, tolerance: float = 0.05, log=print) -> StabilityResult:

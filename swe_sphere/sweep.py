@@ -33,8 +33,9 @@ import warp as wp
 
 from .config import Scene
 from .constants import DAY
-from .diagnostics import max_signal_rate, williamson_norms, williamson_vector_norms
+from .diagnostics import max_signal_rate
 from .output import atomic_path
+from .scoring import instability, unscored
 from .simulation import BlowUp, Simulation
 from .steppers import STEPPERS
 from .workers import InProcess
@@ -86,38 +87,6 @@ def explicit_limits(scene: Scene, device: str, start: np.ndarray | None = None) 
     speed = max_signal_rate(sim.grid, *sim.fields(), sim.g)
     return {"dt_gravity": scene.dt / c["courant_gravity"], "dt_advective": scene.dt / c["courant_advective"],
             "dt_leapfrog": STEPPERS["leapfrog"].courant_limit / speed}
-
-
-def _errors(sim: Simulation, day: float, x: np.ndarray, x_ref: np.ndarray | None) -> dict:
-    """Total error at ``day`` (exact solution or T213) of h (+ hs) and of the wind's
-    vorticity and divergence, and the same three against x_ref (temporal error);
-    x, x_ref: (3, N) states at that day. Sets the simulation's state to x."""
-    sim.x.assign(x)
-    d = sim.diagnose(day * DAY, None)
-    pre = "" if "l2_h" in d else "ref_"
-    out = {
-        "total_error": d.get("l2_h", d.get("ref_l2_h_surface", math.nan)),
-        "total_error_vorticity": d.get(f"{pre}l2_vorticity", math.nan),
-        "total_error_divergence": d.get(f"{pre}l2_divergence", math.nan),
-    }
-    if x_ref is not None:
-        hs = sim.hs
-        out["temporal_error"] = williamson_norms(sim.grid, x[2] + hs, x_ref[2] + hs)["l2"]
-        out["temporal_error_wind"] = williamson_vector_norms(sim.grid, x[0], x[1], x_ref[0], x_ref[1])["l2"]
-        split = sim.wind_error_decomposition(x[0], x[1], x_ref[0], x_ref[1])
-        out.update(temporal_error_vorticity=split["l2_vorticity"], temporal_error_divergence=split["l2_divergence"])
-    return out
-
-
-def _filtered_errors(sim: Simulation, xf: np.ndarray | None, xf_ref: np.ndarray | None) -> dict:
-    """l2 of the time-filtered difference of h + hs and of its wind's vorticity (NaN without both)."""
-    if xf is None or xf_ref is None:
-        return {"temporal_error_filtered": math.nan, "temporal_error_filtered_vorticity": math.nan}
-    hs = sim.hs
-    return {
-        "temporal_error_filtered": williamson_norms(sim.grid, xf[2] + hs, xf_ref[2] + hs)["l2"],
-        "temporal_error_filtered_vorticity": sim.wind_error_decomposition(xf[0], xf[1], xf_ref[0], xf_ref[1])["l2_vorticity"],
-    }
 
 
 def rhs_time(sim: Simulation, span: float = 0.2, rounds: int = 5, clock=time.perf_counter) -> float:
@@ -237,7 +206,7 @@ class Sweep:
         sim, result, _, x, filtered = self.simulate(scene)
         if x is None:
             raise BlowUp(f"the reference run (rk4, dt = {dt:.6g} s) failed: {result.blowup}")
-        errors = _errors(sim, self.base.days, x, None)
+        errors = sim.scorer.total_errors(self.base.days * DAY, x)
         with atomic_path(path) as tmp:
             with open(tmp, "wb") as f:
                 np.savez(f, x=x, **errors, **({} if filtered is None else {"filtered": filtered}))
@@ -253,10 +222,8 @@ class Sweep:
         scene = dataclasses.replace(self.scenes[stepper], dt=dt)
         sim, result, at, x, filtered = self.simulate(scene)
         row = {"stepper": stepper, "dt": dt, "setup_time": sim.setup_time}
-        stable, reason = result.blowup is None, result.blowup or ""
-        growth = max(h.get("total_energy_change", 0.0) for h in result.history)
-        if stable and growth > 0.01:
-            stable, reason = False, f"total energy grew by {growth:.2%}"
+        reason = instability(result)
+        stable = not reason
         row.update(stable=stable, reason=reason, wall_time=at["wall_time"], cpu_time=at["cpu_time"], load_average=at["load_average"],
                    threads=sim.model.threads, steps=at["steps"], rhs_evals=at["rhs_evals"],
                    rhs_time=rhs_time(sim), rhs_cpu_time=rhs_time(sim, clock=time.process_time))
@@ -265,9 +232,10 @@ class Sweep:
         for k in ("mass_change", "total_energy_change", "potential_enstrophy_change"):
             row[k] = final.get(k, math.nan)
         if stable:
-            row.update(_errors(sim, self.base.days, x, ref["x"]))
+            row.update(sim.scorer.total_errors(self.base.days * DAY, x))
+            row.update(sim.scorer.temporal_errors(x, ref["x"]))
             if self.time_filter is not None:
-                row.update(_filtered_errors(sim, filtered, ref["filtered"]))
+                row.update(sim.scorer.filtered_errors(filtered, ref["filtered"]))
         with atomic_path(path) as tmp:
             tmp.write_text(json.dumps(row))
         return row
@@ -287,8 +255,12 @@ class Sweep:
     def run(self, pool=None) -> tuple[list[dict], dict]:
         """All runs (resuming), on ``pool`` (a concurrent.futures executor; None:
         here, one after another); returns the rows in (stepper, Δt) order and
-        the reference run's summary."""
+        the reference run's summary (``unscored``: why there is no total or
+        spatial error, when the truth cannot score the last day)."""
         pool = pool or InProcess()
+        why = unscored(self.base.make_case(), self.base.days)
+        if why is not None:
+            self.log(f"note: no total or spatial error at the end, so no verdicts: {why}")
         ref = self.reference()
         futures = {stepper: pool.submit(self.warm_up, stepper) for stepper in dict.fromkeys(s for s, _ in self.pairs)}
         # every kernel compiled before a timed run starts
@@ -301,7 +273,8 @@ class Sweep:
         d = self.base.digital_filter  # in the sweep's netCDF attributes: which start the runs share
         return rows, {"spatial_error": ref["total_error"], "spatial_error_vorticity": ref["total_error_vorticity"],
                       "spatial_error_divergence": ref["total_error_divergence"], "reference_dt": ref["dt"],
-                      **({} if d is None else {"dfi_cutoff_hours": d.cutoff_hours, "dfi_span_hours": d.span_hours})}
+                      **({} if d is None else {"dfi_cutoff_hours": d.cutoff_hours, "dfi_span_hours": d.span_hours}),
+                      **({} if why is None else {"unscored": why})}
 
 
 COLUMNS = (
@@ -408,7 +381,8 @@ def cheapest_sufficient(rows, spatial_error) -> dict:
 
 
 def format_summary(rows, info) -> str:
-    """The table and, per stepper, the cheapest sufficiently accurate run."""
+    """The table and, per stepper, the cheapest sufficiently accurate run and the
+    verdicts (none where ``info`` says the run length is ``unscored``)."""
     head = (
         f"{'stepper':22s} {'dt [s]':>9s} {'dt/gw':>6s} {'dt/adv':>6s} {'stable':>6s} {'CPU [s]':>9s} {'wall [s]':>9s} {'load':>5s} {'RHS':>8s} {'RHS-eq':>8s} "
         f"{'Newton':>7s} {'GMRES':>7s} {'Helmh.':>7s} {'total err':>10s} {'time err':>10s} {'energy chg':>10s}"
@@ -422,6 +396,9 @@ def format_summary(rows, info) -> str:
             f"{r['gmres_iterations']:7.0f} {r['helmholtz_iterations']:7.0f} {r['total_error']:10.3e} {r['temporal_error']:10.3e} "
             f"{r['total_energy_change']:10.2e}"
         )
+    if "unscored" in info:
+        lines.append(f"spatial error: none, so no run is judged sufficient and there are no verdicts ({info['unscored']})")
+        return "\n".join(lines)
     spatial = info["spatial_error"]
     lines.append(f"spatial error (RK4 at dt = {info['reference_dt']:.4g} s): {spatial:.3e}; sufficient accuracy: temporal error <= {SUFFICIENT * spatial:.3e}")
     best = cheapest_sufficient(rows, spatial)
@@ -461,7 +438,7 @@ def write_outputs(rows, info, limits, directory) -> list[Path]:
     ds["dt"].attrs["units"] = "s"
     ds["wall_time"].attrs["units"] = "s"
     ds["cpu_time"].attrs.update(units="s", long_name="process CPU time to the target day, all threads summed")
-    ds.attrs.update({k: float(v) for k, v in {**info, **limits}.items()})
+    ds.attrs.update({k: v if isinstance(v, str) else float(v) for k, v in {**info, **limits}.items()})  # str: ``unscored``
     with atomic_path(nc) as tmp:
         ds.to_netcdf(tmp)
     paths = [csv, nc, vcsv]

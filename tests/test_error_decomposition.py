@@ -18,7 +18,7 @@ import xarray as xr
 
 from swe_sphere.cli import main
 from swe_sphere.config import load_scene
-from swe_sphere.diagnostics import rotational_divergent_errors
+from swe_sphere.scoring import rotational_divergent_errors
 
 from conftest import make_sim, write_tc2_scene
 
@@ -51,12 +51,10 @@ def test_tc2_operators_give_the_exact_vorticity_and_zero_divergence():
     for ne in (4, 8):
         sim = tc2(ne)
         ue, ve, _ = sim.case.exact(sim.grid.lat, sim.grid.lon, 0.0)
-        zeta, delta = sim.rotation_divergence(ue, ve)
+        zeta, delta = sim.scorer.rotation_divergence(ue, ve)
         zt = exact_vorticity(sim)
-        d = sim.wind_error_decomposition(ue, ve, ue, ve)
+        d = sim.scorer.wind_error_decomposition(ue, ve, ue, ve)
         assert d == {"l2_vorticity": 0.0, "l2_divergence": 0.0}
-        from swe_sphere.diagnostics import rotational_divergent_errors
-
         errs.append(rotational_divergent_errors(sim.grid, zeta - zt, delta, zt, np.zeros_like(zt)))
     # measured: vorticity 1.23e-3 -> 1.51e-4, divergence 1.07e-3 -> 1.43e-4 (orders 3.0, 2.9)
     for k in ("l2_vorticity", "l2_divergence"):
@@ -72,7 +70,7 @@ def test_pure_perturbations_split_cleanly(kind):
     ue, ve, _ = sim.case.exact(sim.grid.lat, sim.grid.lon, 0.0)
     grad, rot, lap = harmonic_winds(sim)
     du, dv = grad if kind == "irrotational" else rot
-    d = sim.wind_error_decomposition(ue + du, ve + dv, ue, ve)
+    d = sim.scorer.wind_error_decomposition(ue + du, ve + dv, ue, ve)
     I = sim.grid.integrate
     expected = math.sqrt(I(lap**2) / I(exact_vorticity(sim) ** 2))  # ≈ 0.125
     hit, miss = ("l2_divergence", "l2_vorticity") if kind == "irrotational" else ("l2_vorticity", "l2_divergence")
@@ -96,7 +94,7 @@ def test_gravity_wave_run_keeps_zero_vorticity_error():
     sim.x.assign(x)
     sim.run(None)
     u, v, _ = sim.fields()
-    d = sim.wind_error_decomposition(u, v, *grad)
+    d = sim.scorer.wind_error_decomposition(u, v, *grad)
     assert d["l2_divergence"] > 0.5  # the wave has moved on
     assert d["l2_vorticity"] < 1e-12
 

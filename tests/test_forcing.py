@@ -28,7 +28,7 @@ import numpy as np
 import pytest
 
 from swe_sphere.config import SceneError, load_scene
-from swe_sphere.diagnostics import williamson_norms
+from swe_sphere.scoring import williamson_norms
 from swe_sphere.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
 from swe_sphere.steppers.imex import tableau

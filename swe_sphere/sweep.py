@@ -6,7 +6,8 @@ run per stepper), RHS evaluations, solver iterations, the cost in RHS-evaluation
 equivalents (the wall time over the time of one RHS evaluation measured in the
 run's process just after it), stability, the total
 error at the final time (against the exact solution where the case has one:
-TC1–TC4, Läuter; else the T213 reference) and the temporal error (against a same-grid run with a small Δt:
+TC1–TC4, Läuter; else the T213 reference; none, NaN, at a final day the
+reference does not store: ``scoring.unscored`` says why) and the temporal error (against a same-grid run with a small Δt:
 RK4 at a quarter of the smallest Δt swept, at most a quarter of the
 gravity-wave limit, made once and reused), and the
 drift of the invariants. Each run's result is written atomically as JSON

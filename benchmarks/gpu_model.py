@@ -4,7 +4,7 @@ H100 and an H200, from counts taken off the code on the CPU.
 
 What is counted (TC5, all terms + ∇⁴, np = 4, the CUDA layout: per-node
 kernels, ``per_element=False``, one thread, the steppers' CUDA solvers:
-the Helmholtz ``pcg`` and ``krylov = "warp"``), by wrapping Warp's launch entry points
+the Helmholtz ``pcg`` and flexible GMRES on Warp arrays), by wrapping Warp's launch entry points
 while the model evaluates one RHS, one ∇⁴ and ``--steps`` steps of each
 stepper after ``--warmup`` steps, on ``--ne`` (default 8):
 
@@ -47,13 +47,12 @@ import warp as wp
 from swe_sphere.config import load_scene
 from swe_sphere.grid import CubedSphere
 from swe_sphere.model import ShallowWater
-from swe_sphere.steppers import STEPPERS, make_stepper, option_types
+from swe_sphere.steppers import STEPPERS, make_stepper
 
 HBM = {"H100": 3.35e12, "H200": 4.8e12}  # B/s: HBM3 (SXM) and HBM3e
 EFFICIENCY = 0.7  # share of HBM bandwidth a streaming kernel reaches
 LAUNCH_S = 4e-6  # host cost of one Warp kernel launch
 KERNEL_GAP_S = 1e-6  # GPU-side gap between consecutive kernels
-CUDA_OPTIONS = {"krylov": "warp"}  # the implicit stepper's CUDA default; the Helmholtz "pcg" is every device's
 IMPLICIT = ("semi_implicit", "implicit", "imex")
 
 # Floating-point operations per point (np = 4, FMA = 2), counted by hand from
@@ -180,10 +179,9 @@ def count(args, tally):
         with tally.counting() as t:
             fn()
         out[name] = (t.total_launches, t.total_bytes / N, t.syncs, t.launches.copy(), t.bytes.copy())
-    for name, cls in STEPPERS.items():
+    for name in STEPPERS:
         model, scene, x0 = build(args.ne, name, args.implicit_dt_factor if name in IMPLICIT else 1.0)
-        known = option_types(cls.Options)
-        stepper = make_stepper(name, model, scene.dt, **{k: v for k, v in CUDA_OPTIONS.items() if k in known})
+        stepper = make_stepper(name, model, scene.dt)
         x = model.new_state(*x0)
         for _ in range(args.warmup):
             stepper.step(x)

@@ -34,13 +34,6 @@ def axpbypcz(
 
 
 @wp.kernel
-def axpby1d(a: f64, x: wp.array(dtype=f64), b: f64, y: wp.array(dtype=f64), out: wp.array(dtype=f64)):
-    """out = a·x + b·y on 1-D arrays (out may alias x or y)."""
-    i = wp.tid()
-    out[i] = a * x[i] + b * y[i]
-
-
-@wp.kernel
 def add_row(x: wp.array2d(dtype=f64), row: int, out: wp.array2d(dtype=f64), out_row: int):
     """out[out_row] += x[row]. Dim N."""
     p = wp.tid()

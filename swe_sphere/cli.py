@@ -327,14 +327,6 @@ def _cmd_run(args) -> int:
         return _run(args, scene, output, device, comm)
 
 
-def _slow_setting_warning(sim, device) -> str | None:
-    """A one-line warning for a solver choice measured >= 10x slower on ``device`` than its default."""
-    if device == "cpu" and getattr(sim.stepper, "krylov", None) == "warp":
-        # issue 24's trial: 2433 ms a step against fgmres's 2.24 ms (warp.optim's GMRES launches per vector op)
-        return "warning: implicit.krylov = 'warp' on the CPU was measured ~1000x slower a step than the default 'fgmres'"
-    return None
-
-
 def _run(args, scene, output, device, comm) -> int:
     from . import mpi
     from .parallel import threads_note
@@ -367,7 +359,7 @@ def _run(args, scene, output, device, comm) -> int:
         print(f"continue    from {args.continue_from} at step {sim.step} (day {sim.step * scene.dt / 86400:g})")
     grav = "" if math.isnan(c["courant_gravity"]) else f", gravity-wave {c['courant_gravity']:.3f}"
     print(f"Courant     advective {c['courant_advective']:.3f}{grav} (max over nodes at t = {sim.step * scene.dt / 86400:g} d)")
-    extra = [n for n in (sim.stability_warning(), threads_note(device), _slow_setting_warning(sim, device)) if n]
+    extra = [n for n in (sim.stability_warning(), threads_note(device)) if n]
     for note in (*scene.notes, *extra):
         if note.startswith("warning: "):
             if sim.root:  # once, not once a rank

@@ -7,7 +7,7 @@ found, not listed: every ``wp.Kernel`` defined at module level in
 ``swe_sphere.kernels``'s submodules, plus every project kernel launched while
 each bundled scene's model (both layouts: per node, CUDA's default, and per
 element) takes two steps of its stepper on ne = 2 np = 4 on the CPU, every
-stepper with its CUDA solvers (``pcg``, ``krylov = "warp"``) on the scene
+stepper (its solvers are the same on every device) on the scene
 with the most terms; the DSS kernels are also built with ghosts (MPI; the Helmholtz kernels
 read ghosts at run time, one build for both). Warp's
 own modules (``warp.optim.linear``) are left to Warp's tests.
@@ -28,10 +28,9 @@ from swe_sphere.config import list_scenes, load_scene
 from swe_sphere.grid import CubedSphere
 from swe_sphere.kernels import dss
 from swe_sphere.model import ShallowWater
-from swe_sphere.steppers import STEPPERS, make_stepper, option_types
+from swe_sphere.steppers import STEPPERS, make_stepper
 
 ARCHS = (80, 90)
-CUDA_OPTIONS = {"helmholtz_solver": "pcg", "krylov": "warp"}  # the steppers' CUDA defaults
 
 
 def _nvrtc_missing() -> str | None:
@@ -86,8 +85,7 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
             )
             for name in todo:
                 done.add((scene.terms, name, per_element))
-                known = option_types(STEPPERS[name].Options)
-                stepper = make_stepper(name, model, scene.dt, **{k: v for k, v in CUDA_OPTIONS.items() if k in known})
+                stepper = make_stepper(name, model, scene.dt)
                 x = model.new_state(*np.stack(case.initial(grid.lat, grid.lon)))
                 stepper.step(x)  # two steps: a leapfrog's first is its one-step start
                 stepper.step(x)

@@ -11,12 +11,10 @@ Each step solves R(x) = 0 on the DSS'd state, with F the model's DSS'd RHS:
 both written R(x) = (x − b)/Δt − β F(x) with b fixed during the step. (HOMME
 multiplies by the mass matrix M; F here is already M⁻¹-weighted by the DSS.)
 
-Newton: δ from J δ = −R by a right-preconditioned Krylov method —
-``krylov = "fgmres"`` (flexible GMRES, ``krylov.FGMRES``; the CPU default:
-the preconditioner may change between iterations, as an inexact inner solve
-does), ``"gmres"`` (scipy's GMRES on J P⁻¹, which needs a fixed
-P⁻¹) or ``"warp"`` (``warp.optim.linear.gmres`` on J P⁻¹, on the device) —
-with J v a forward difference of F, ε = sqrt(ε_mach)(1 + ‖x‖)/‖v‖; forcing
+Newton: δ from J δ = −R by right-preconditioned flexible GMRES
+(``krylov.FGMRES``, on Warp arrays: the same code on CPU threads, CUDA and MPI
+ranks; flexible because the preconditioner's inexact inner solve changes it
+from one iteration to the next), with J v a forward difference of F, ε = sqrt(ε_mach)(1 + ‖x‖)/‖v‖; forcing
 terms by Eisenstat & Walker (1996) choice 2 (γ = 0.9, α = 2, safeguarded,
 η ≤ 0.9, η ≥ ``gmres_tol``); a backtracking line search (Armijo, halving up
 to 8 times) when the residual does not fall. Converged when the RMS of R is
@@ -44,9 +42,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse.linalg as spla
 import warp as wp
-import warp.optim.linear as wpl
 
 from ..kernels import blas
 from ..kernels import implicit as ik
@@ -70,7 +66,6 @@ class ImplicitOptions:
     gmres_tol: float = 1e-11
     gmres_restart: int = 30
     gmres_maxiter: int = 300
-    krylov: str = ""
     preconditioner: str = "helmholtz"
     helmholtz_solver: str = ""
     helmholtz_tol: float = 1e-2
@@ -91,8 +86,6 @@ class ImplicitOptions:
         for name in ("gmres_tol", "helmholtz_tol"):
             if not 0 < getattr(self, name) < 1:
                 raise ValueError(f"{name} must be in (0, 1) (got {getattr(self, name)})")
-        if self.krylov not in ("", "fgmres", "gmres", "warp"):
-            raise ValueError(f"krylov must be 'fgmres', 'gmres' or 'warp' (got {self.krylov!r})")
         if self.preconditioner not in ("none", "helmholtz"):
             raise ValueError(f"preconditioner must be 'none' or 'helmholtz' (got {self.preconditioner!r})")
         if self.helmholtz_solver not in ("", *SOLVERS):
@@ -111,9 +104,7 @@ class Implicit(Stepper):
     against 1e-10, with 2.3 instead of 3.0 Newton iterations a step),
     ``rtol`` (0: off), ``maxiter`` (30), ``gmres_tol`` (1e-11, the floor of
     the forcing term), ``gmres_restart`` (30), ``gmres_maxiter`` (300 inner
-    iterations), ``krylov`` ("fgmres" on the CPU, "warp" on CUDA; "gmres";
-    only "fgmres" over several MPI ranks, whose inner products it sums over
-    them), ``preconditioner`` ("helmholtz" | "none"), ``helmholtz_solver``
+    iterations), ``preconditioner`` ("helmholtz" | "none"), ``helmholtz_solver``
     (the preconditioner's Helmholtz solve: "pcg", the compiled matrix-free CG on
     every device and rank count; on one CPU rank also "cg", "amg", "chebyshev", "vcycle"), ``helmholtz_tol`` (1e-2, the relative
     tolerance of the CG solvers there; Jacobi-CG to 1e-2 cost less per step
@@ -135,12 +126,6 @@ class Implicit(Stepper):
         super().__init__(model, dt, options)
         o = self.o = dataclasses.asdict(self.options)
         dev, N = model.device, self.N
-        cpu = wp.get_device(dev).is_cpu
-        self.krylov = o["krylov"] or ("fgmres" if cpu else "warp")
-        if self.krylov != "warp" and not cpu:
-            raise ValueError(f"krylov {self.krylov!r} runs on the CPU only; use 'warp' on CUDA")
-        if self.krylov != "fgmres" and model.topology.distributed:
-            raise ValueError(f"krylov {self.krylov!r} runs on one MPI rank only (its inner products are the process's own); use 'fgmres' over several ranks")
         self.gw = None
         if o["preconditioner"] == "helmholtz":
             solver = o["helmholtz_solver"] or default_solver(model)
@@ -152,20 +137,11 @@ class Implicit(Stepper):
         self.topology = topo = model.topology
         self.nu = topo.nunique
         n3 = 3 * self.nu
-        for name in ("w", "w_in", "minus_R", "zu", "Jv", "xu"):
+        for name in ("w", "minus_R", "xu"):
             setattr(self, name, wp.zeros(n3, dtype=f64, device=dev))
         self.residual_history: list[float] = []
         self._counts = dict.fromkeys(("gmres", "precond", "helmholtz"), 0)
-        if self.krylov == "fgmres":
-            self.fgmres = FGMRES(n3, o["gmres_restart"], topo.sums)
-        elif self.krylov == "gmres":
-            self.op = spla.LinearOperator((n3, n3), matvec=self._host_matvec, dtype=np.float64)
-        else:
-            self.op = wpl.LinearOperator((n3, n3), f64, wp.get_device(dev), self._device_matvec)
-            self.gmres = wpl.gmres(
-                self.op, self.minus_R, self.w, tol=o["gmres_tol"], atol=0.0, restart=o["gmres_restart"],
-                maxiter=o["gmres_maxiter"], run=False, check_every=o["gmres_restart"], use_cuda_graph=False,
-            )
+        self.fgmres = FGMRES(n3, o["gmres_restart"], topo)
 
     # -- vector helpers ----------------------------------------------------------
     def _norm(self, a) -> float:
@@ -213,66 +189,21 @@ class Implicit(Stepper):
         self._pointwise(ik.jacobian_vector, w, self.Fx, self.Fp, self.topology.first, self.nu, f64(1.0 / self.dt), f64(self.beta / eps), out, unique=True)
 
     def _unique_precondition(self, w, out):
-        """out = P⁻¹ w on unique-node vectors."""
+        """out = P⁻¹ w on unique-node vectors (out = w without a preconditioner)."""
+        if self.gw is None:
+            wp.copy(out, w)
+            return
         self._scatter(w, self.v)
         self._precondition(self.v, self.z)
         self._gather(1.0, self.z, out)
 
-    def _apply(self, w, out):
-        """out = J P⁻¹ w (unique-node vectors), for the non-flexible GMRES."""
-        self._counts["gmres"] += 1
-        if self.gw is None:
-            self._jv(w, out)
-            return
-        self._unique_precondition(w, self.zu)
-        self._jv(self.zu, out)
-
-    def _host_jv(self, w):
-        """FGMRES's operator: J w."""
-        self.w_in.numpy()[:] = w
-        self._jv(self.w_in, self.Jv)
-        return self.Jv.numpy().copy()
-
-    def _host_precondition(self, w):
-        if self.gw is None:
-            return w
-        self.w_in.numpy()[:] = w
-        self._unique_precondition(self.w_in, self.zu)
-        return self.zu.numpy().copy()
-
-    def _host_matvec(self, w):
-        self.w_in.numpy()[:] = w
-        self._apply(self.w_in, self.Jv)
-        return self.Jv.numpy()  # scipy copies it into its basis before the next product overwrites it
-
-    def _device_matvec(self, x, y, z, alpha, beta):
-        self._apply(x, self.Jv)
-        wp.launch(blas.axpby1d, x.shape[0], [f64(alpha), self.Jv, f64(beta), y, z], device=self.model.device)
-
     def _gmres(self, eta) -> None:
-        """Solve J δ = −R (on unique nodes) to relative tolerance eta, right-preconditioned;
-        δ into ``delta``."""
-        o = self.o
+        """Solve J δ = −R (on unique nodes) to relative tolerance eta by right-preconditioned
+        flexible GMRES; δ into ``delta``."""
         self._gather(-1.0, self.R, self.minus_R)
-        restarts = max(1, o["gmres_maxiter"] // o["gmres_restart"])
-        if self.krylov == "fgmres":
-            d, its, _ = self.fgmres.solve(self._host_jv, self._host_precondition, self.minus_R.numpy(), eta, o["gmres_maxiter"])
-            self._counts["gmres"] += its
-            self.w.numpy()[:] = d
-            self._scatter(self.w, self.delta)
-            return
-        if self.krylov == "gmres":
-            w, _ = spla.gmres(self.op, self.minus_R.numpy(), rtol=eta, atol=0.0, restart=o["gmres_restart"], maxiter=restarts)
-            self.w.numpy()[:] = w
-        else:
-            self.w.zero_()
-            self.gmres._tol = eta  # the functor reads its tolerance at each run; no setter exists
-            self.gmres()
-        if self.gw is None:
-            self._scatter(self.w, self.delta)
-        else:
-            self._scatter(self.w, self.v)
-            self._precondition(self.v, self.delta)
+        its, _ = self.fgmres.solve(self._jv, self._unique_precondition, self.minus_R, self.w, eta, self.o["gmres_maxiter"])
+        self._counts["gmres"] += its
+        self._scatter(self.w, self.delta)
 
     # -- Newton ------------------------------------------------------------------------
     def _eta(self, k, rnorm, rprev, eta_prev):

@@ -1,55 +1,89 @@
-"""Flexible GMRES (Saad 1993, SIAM J. Sci. Comput. 14, 461) over the topology's
-vectors, for the JFNK stepper (the Helmholtz CG is compiled:
-``kernels.helmholtz``).
+"""Flexible GMRES (Saad 1993, SIAM J. Sci. Comput. 14, 461) on Warp arrays, for
+the JFNK stepper (the Helmholtz CG is ``kernels.helmholtz``'s).
 
-It runs on numpy vectors holding this process's part (on the CPU, zero-copy
-views of Warp arrays) and take their inner products through ``reduce``, the
-sum over processes of an array of partial sums (``Topology.sums``; the
-identity on one process), so they run unchanged on any number of MPI ranks.
+The vectors are Warp arrays on the model's device, each this process's part of
+a unique-node vector; the basis is two 2-D arrays allocated once. The vector
+work is ``kernels.krylov``'s: classical Gram–Schmidt done twice (as accurate as
+modified Gram–Schmidt, Giraud et al. 2005, Numer. Math. 101, 87), each
+projection fused with the inner products of the next pass, which are summed over
+processes by ``Topology.sums``. So the code is the same on CPU threads, CUDA and
+MPI ranks, and an Arnoldi step synchronises with the host twice (its two sets of
+inner products) besides what the operator and the preconditioner need. The new
+vector's norm is ‖w₁‖² − ‖h₂‖² (w₁ after the first pass, h₂ the second pass's
+coefficients: Pythagoras, exact for an orthonormal basis), not a third pass.
 
 Right-preconditioned, so the residual it minimises is the true one, and the
 preconditioner may change from one iteration to the next (an inexact inner
-solve). Why not ``pyamg.krylov.fgmres``: it ends every restart cycle with an
-explicit residual b − A x, one more Jacobian-vector product (= one RHS
-evaluation) per Newton iteration, ~20 % of JFNK's RHS evaluations at 4–10×
-the gravity-wave limit, and allocates its 2·restart·n basis on each call. Here
-the basis is allocated once, the residual after a cycle comes from the
-least-squares problem, and the Arnoldi vectors are orthogonalised by classical
-Gram–Schmidt done twice (two matrix-vector products with the basis; as
-accurate as modified Gram–Schmidt, Giraud et al. 2005).
+solve). Why not ``pyamg.krylov.fgmres`` or ``warp.optim.linear.gmres``: the
+first works on host vectors and ends every restart cycle with an explicit
+residual b − A x (one more Jacobian-vector product, i.e. RHS evaluation, per
+Newton iteration, ~20 % of JFNK's RHS evaluations at 4–10× the gravity-wave
+limit); the second is not flexible (measured on an H100, TC5 ne30 at 4× Δt:
+64 GMRES iterations a step against FGMRES's 4, and a state 1e-5 away).
+Here the residual after a cycle comes from the least-squares problem.
 """
 
 from __future__ import annotations
 
 import numpy as np
+import warp as wp
 from scipy.linalg import solve_triangular
 
+from ..kernels import krylov as kk
+from ..kernels.helmholtz import CHUNK
+from ..parallel import record
 
-def _identity(values):
-    return values
+f64 = wp.float64
 
 
 class FGMRES:
-    """Solver for A x = b from x = 0 with ``restart``-long cycles and basis
-    storage for vectors of length ``n`` (this process's part), inner products
-    summed over processes by ``reduce``.
+    """Solver for A x = b from x = 0 with ``restart``-long cycles, for vectors of
+    length ``n`` (this process's part) on ``topology``'s device, inner products
+    summed over its processes.
 
-    ``solve(matvec, precond, b, rtol, maxiter)`` → (x, iterations, converged):
+    ``solve(matvec, precond, b, x, rtol, maxiter)`` → (iterations, converged):
+    ``matvec(v, out)`` and ``precond(v, out)`` write A v and P⁻¹ v into ``out``
+    (Warp arrays of length n); x (a Warp array, overwritten) gets the solution;
     stops when ‖b − A x‖ ≤ rtol ‖b‖ (the Arnoldi estimate) or after
     ``maxiter`` products with A.
     """
 
-    def __init__(self, n: int, restart: int, reduce=_identity):
-        self.restart, self.reduce = int(restart), reduce
-        self.V = np.empty((self.restart + 1, n))
-        self.Z = np.empty((self.restart, n))
+    def __init__(self, n: int, restart: int, topology):
+        m, n = int(restart), int(n)
+        self.restart, self.n, self.topology = m, n, topology
+        dev = topology.device
+        self.V = wp.zeros((m + 1, n), dtype=f64, device=dev)
+        self.Z = wp.zeros((m, n), dtype=f64, device=dev)
+        self.rows_V = [self.V[j] for j in range(m + 1)]  # row views: their addresses key the model's recorded launches
+        self.rows_Z = [self.Z[j] for j in range(m)]
+        self.w, self.r = wp.zeros(n, dtype=f64, device=dev), wp.zeros(n, dtype=f64, device=dev)
+        self.coef = wp.zeros(m + 1, dtype=f64, device=dev)
+        self.partial = wp.zeros((m + 2, (n + CHUNK - 1) // CHUNK), dtype=f64, device=dev)
 
-    def solve(self, matvec, precond, b, rtol: float, maxiter: int):
-        V, Z, m, reduce = self.V, self.Z, self.restart, self.reduce
-        x = np.zeros_like(b)
-        beta = float(np.sqrt(reduce(b @ b)))  # np.linalg.norm's bits on one process
+    def _record(self, kernel, dim, inputs, **kw):
+        return record(kernel, dim, inputs, device=self.topology.device, threads=self.topology.threads, **kw)
+
+    def _project_dots(self, k_sub: int, h: np.ndarray | None, k_dot: int) -> np.ndarray:
+        """w −= Σ_{i<k_sub} h_i V_i; returns (V_i·w for i < k_dot, w·w) over all processes."""
+        if k_sub:
+            self.coef.assign(np.concatenate([h, np.zeros(self.restart + 1 - k_sub)]))
+        self._record(kk.project_dots, self.partial.shape[1], [self.V, k_sub, self.coef, self.w, k_dot, self.partial], nodes_per_index=CHUNK).launch()
+        return self.topology.sums(self.partial.numpy()[: k_dot + 1].sum(axis=1))
+
+    def _lincomb(self, B, c: np.ndarray, a: float, x, out) -> None:
+        """out = a·x + Σ c_i B_i."""
+        k = len(c)
+        if k:
+            self.coef.assign(np.concatenate([c, np.zeros(self.restart + 1 - k)]))
+        self._record(kk.lincomb, self.n, [B, k, self.coef, f64(a), x, out]).launch()
+
+    def solve(self, matvec, precond, b, x, rtol: float, maxiter: int):
+        m, V, Z, w = self.restart, self.rows_V, self.rows_Z, self.w
+        x.zero_()
+        wp.copy(w, b)
+        beta = float(np.sqrt(self._project_dots(0, None, 0)[0]))
         if beta == 0.0:
-            return x, 0, True
+            return 0, True
         target = rtol * beta
         r, its = b, 0
         while True:
@@ -57,19 +91,18 @@ class FGMRES:
             cs, sn = np.zeros(m), np.zeros(m)
             g = np.zeros(m + 1)
             g[0] = beta
-            V[0] = r / beta
+            self._lincomb(self.V, np.zeros(0), 1.0 / beta, r, V[0])
             for j in range(m):
-                Z[j] = precond(V[j])
-                w = matvec(Z[j])
+                precond(V[j], Z[j])
+                matvec(Z[j], w)
                 its += 1
-                h = reduce(V[: j + 1] @ w)
-                w = w - h @ V[: j + 1]
-                h2 = reduce(V[: j + 1] @ w)  # the second pass of classical Gram–Schmidt
-                w -= h2 @ V[: j + 1]
+                h = self._project_dots(0, None, j + 1)[:-1]
+                *h2, ww = self._project_dots(j + 1, h, j + 1)  # the second pass of classical Gram–Schmidt
+                h2 = np.array(h2)
                 H[: j + 1, j] = h + h2
-                H[j + 1, j] = hn = float(np.sqrt(reduce(w @ w)))
+                H[j + 1, j] = hn = float(np.sqrt(max(ww - h2 @ h2, 0.0)))
                 if hn > 0.0:
-                    V[j + 1] = w / hn
+                    self._lincomb(self.V, -h2 / hn, 1.0 / hn, w, V[j + 1])
                 for i in range(j):  # earlier Givens rotations on the new column
                     H[i, j], H[i + 1, j] = cs[i] * H[i, j] + sn[i] * H[i + 1, j], -sn[i] * H[i, j] + cs[i] * H[i + 1, j]
                 d = np.hypot(H[j, j], H[j + 1, j])
@@ -80,14 +113,14 @@ class FGMRES:
                     break
             k = j + 1
             y = solve_triangular(H[:k, :k], g[:k])
-            x += y @ Z[:k]
+            self._lincomb(self.Z, y, 1.0, x, x)
             beta = abs(g[k])
             if beta <= target or its >= maxiter or hn == 0.0:
-                return x, its, beta <= target
+                return its, beta <= target
             # the residual b − A x = V_{k+1} Qᵀ (0, …, 0, g_k), without a product with A
             e = np.zeros(k + 1)
             e[k] = g[k]
             for i in reversed(range(k)):
                 e[i], e[i + 1] = cs[i] * e[i] - sn[i] * e[i + 1], sn[i] * e[i] + cs[i] * e[i + 1]
-            r = e @ V[: k + 1]
-
+            self._lincomb(self.V, e, 0.0, self.r, self.r)
+            r = self.r

@@ -21,9 +21,12 @@ the same rounds); the last column is the cost per simulated day relative to
 the cheapest explicit reference of the same case. ``--clock cpu``
 (``time.process_time``) is for one thread on a shared machine; ``--clock wall``
 for the targets' idle machine with several threads (process time sums them).
+``--device cuda`` times on the GPU by the wall clock, the device synchronised
+around every timed call (so the parts add up; the syncs cost a few µs each).
 
     SWE_SPHERE_THREADS=1 python benchmarks/implicit_cost.py --clock cpu
     SWE_SPHERE_THREADS=2 python benchmarks/implicit_cost.py --clock wall
+    python benchmarks/implicit_cost.py --device cuda
 """
 
 from __future__ import annotations
@@ -62,18 +65,20 @@ PARTS = ("RHS", "∇⁴", "Helmholtz op", "Helmholtz rest", "other")
 class Timers:
     """Exclusive time per part: a wrapped call's time less that of the wrapped calls inside it."""
 
-    def __init__(self, clock):
-        self.clock, self.total, self.stack = clock, dict.fromkeys(PARTS, 0.0), []
+    def __init__(self, clock, sync):
+        self.clock, self.sync, self.total, self.stack = clock, sync, dict.fromkeys(PARTS, 0.0), []
 
     def wrap(self, obj, name, part):
         inner = getattr(obj, name)
 
         def timed(*args, **kwargs):
             self.stack.append(0.0)
+            self.sync()
             t0 = self.clock()
             try:
                 return inner(*args, **kwargs)
             finally:
+                self.sync()
                 dt = self.clock() - t0
                 children = self.stack.pop()
                 self.total[part] += dt - children
@@ -92,9 +97,9 @@ def scene(case, ne, stepper, dt, options):
     return dataclasses.replace(base, stepper=stepper, dt=dt, stepper_options=options, output_every_days=1.0)
 
 
-def build(case, ne, stepper, dt, options, clock):
-    sim = Simulation(scene(case, ne, stepper, dt, options), "cpu", progress=False)
-    timers = Timers(clock)
+def build(case, ne, stepper, dt, options, clock, device):
+    sim = Simulation(scene(case, ne, stepper, dt, options), device, progress=False)
+    timers = Timers(clock, lambda: wp.synchronize_device(device))
     timers.wrap(sim.model, "rhs", "RHS")
     timers.wrap(sim.model, "hyperviscosity", "∇⁴")
     gw = getattr(sim.stepper, "gw", None)
@@ -112,39 +117,45 @@ def main():
     ap.add_argument("--steps", type=int, default=5, help="timed steps per configuration")
     ap.add_argument("--warmup", type=int, default=3, help="untimed steps per configuration first")
     ap.add_argument("--clock", choices=("cpu", "wall"), default="cpu")
+    ap.add_argument("--device", choices=("cpu", "cuda"), default="cpu", help="cuda: wall clock, synchronised")
     ap.add_argument("--helmholtz-solver", default="", help="every configuration's helmholtz_solver (default: the steppers' own)")
     ap.add_argument("--explicit", nargs="*", default=None, metavar="STEPPER@DT",
                     help="the explicit references of every case, e.g. ssprk3@216 (default: EXPLICIT, measured at ne30)")
     args = ap.parse_args()
-    clock = time.process_time if args.clock == "cpu" else time.perf_counter
+    clock = time.process_time if args.clock == "cpu" and args.device == "cpu" else time.perf_counter
+    sync = lambda: wp.synchronize_device(args.device)  # noqa: E731
     threadpool_limits(1)  # as Simulation.run: BLAS threads would fight the model's
     print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {platform.node()}, {platform.processor() or platform.machine()}, "
-          f"clock {args.clock}, SWE_SPHERE_THREADS={os.environ.get('SWE_SPHERE_THREADS', '(all CPUs)')}, load {os.getloadavg()[0]:.2f}")
+          f"device {args.device}, clock {'wall' if args.device == 'cuda' else args.clock}, SWE_SPHERE_THREADS={os.environ.get('SWE_SPHERE_THREADS', '(all CPUs)')}, load {os.getloadavg()[0]:.2f}")
     for case in args.cases:
-        probe = Simulation(scene(case, args.ne, "ssprk3", 60.0, {}), "cpu", progress=False)
+        probe = Simulation(scene(case, args.ne, "ssprk3", 60.0, {}), args.device, progress=False)
         dt_g = 60.0 / probe.courant()["courant_gravity"]
         runs = []
         explicit = EXPLICIT[case] if args.explicit is None else [(e.split("@")[0], float(e.split("@")[1])) for e in args.explicit]
         for name, dt in explicit:
-            runs.append((name, dt / dt_g, True, *build(case, args.ne, name, dt, {}, clock)))
+            runs.append((name, dt / dt_g, True, *build(case, args.ne, name, dt, {}, clock, args.device)))
         for label, stepper, f, options in CONFIGS[case]:
             if args.helmholtz_solver:
                 options = {**options, "helmholtz_solver": args.helmholtz_solver}
-            runs.append((label, f, False, *build(case, args.ne, stepper, f * dt_g, options, clock)))
+            runs.append((label, f, False, *build(case, args.ne, stepper, f * dt_g, options, clock, args.device)))
         for _, _, _, sim, timers in runs:
             for _ in range(args.warmup):
                 sim.stepper.step(sim.x)
         rhs_sim, out = runs[0][3], wp.zeros_like(runs[0][3].x)
         rhs_ms, per_step = [], {i: [] for i in range(len(runs))}
         for _ in range(args.steps):
+            sync()
             t0 = clock()
             for _ in range(5):
                 rhs_sim.model.rhs.__wrapped__(rhs_sim.x, out)  # untimed by the parts
+            sync()
             rhs_ms.append((clock() - t0) / 5 * 1e3)
             for i, (_, _, _, sim, timers) in enumerate(runs):
                 timers.reset()
+                sync()
                 t0 = clock()
                 st = sim.stepper.step(sim.x)
+                sync()
                 total = (clock() - t0) * 1e3
                 parts = {k: v * 1e3 for k, v in timers.total.items()}
                 parts["other"] = total - sum(v for k, v in parts.items() if k != "other")

@@ -18,16 +18,27 @@ Prints, in this order (all float64, TC5 terms, medians of ``--repeat`` timings):
    (solver, linear combinations, norms, host round trips). Explicit steppers at
    the scene's Δt, semi_implicit and implicit at ``--implicit-dt-factor``× it.
    The implicit (JFNK) row's RHS share is the figure to watch. BLAS is limited to
-   one thread here, as in ``Simulation.run``.
+   one thread here, as in ``Simulation.run``. RHS-eq = the step over one plain
+   ``model.rhs`` timed in the same rounds (alternately with the steps); "HV eq"
+   the hyperviscosity likewise. ``--steppers`` picks the rows.
+
+``--clock cpu`` times with ``time.process_time`` (the process's CPU seconds,
+all threads), which a loaded machine does not inflate; use it with one thread
+(``SWE_SPHERE_THREADS=1``) on a shared machine, where wall times mean little.
+The RHS table's flop/pt is counted by hand (``rhs_flops``), GFLOP/s uses the
+faster of the two Warp columns.
 
     python benchmarks/rhs_throughput.py                     # ne 8 16 30, np 4 8; steps at ne 16 30
     python benchmarks/rhs_throughput.py --ne 60 --np 4 --step-ne 60
     SWE_SPHERE_THREADS=1 python benchmarks/rhs_throughput.py   # pins "threads" to 1
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/rhs_throughput.py \
+        --clock cpu --ne 30 --np 4 --step-ne 30 --steppers rk4 ssprk3 kgu35 fbrk32 leapfrog leapfrog_trapezoidal
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
 import threading
@@ -48,16 +59,20 @@ from swe_sphere.steppers import STEPPERS, make_stepper  # noqa: E402
 from numpy_ops import NumpyOps  # noqa: E402
 
 
+CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
+clock = CLOCKS["wall"]  # set by --clock
+
+
 def median_time(fn, repeat, sync_device=None, warmup=True):
     if warmup:
         fn()  # compiles, records launches
     times = []
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0 = clock()
         fn()
         if sync_device is not None:
             wp.synchronize_device(sync_device)
-        times.append(time.perf_counter() - t0)
+        times.append(clock() - t0)
     return statistics.median(times)
 
 
@@ -68,11 +83,11 @@ def interleaved_times(fns, repeat, sync_device=None):
     times = [[] for _ in fns]
     for _ in range(repeat):
         for k, fn in enumerate(fns):
-            t0 = time.perf_counter()
+            t0 = clock()
             fn()
             if sync_device is not None:
                 wp.synchronize_device(sync_device)
-            times[k].append(time.perf_counter() - t0)
+            times[k].append(clock() - t0)
     return [statistics.median(t) for t in times]
 
 
@@ -129,6 +144,21 @@ def rhs_compulsory_bytes(model) -> int:
     return sum(arrays.values()) + x.capacity + out.capacity
 
 
+def rhs_flops(model) -> float:
+    """Floating-point operations per point of one TC5 RHS (all five terms; FMA
+    counted as 2), by hand from kernels/tendencies.py and kernels/dss.py: per
+    node 21 to form the fluxes, the Bernoulli function and the covariant wind,
+    12 per GLL index of the derivative sums (continuity 4, Bernoulli gradient 4,
+    vorticity 4) and 20 to finish, in the per-element layout; the per-node
+    layout recomputes the fluxes at every index, 40 an index. The DSS: per row
+    2 a copy (weighted) and 1 for the inverse mass, with the table's mean copy
+    count (1.78 at np 4, ne 30)."""
+    np_ = model.grid.np
+    tendency = (21 + 12 * np_ if model.per_element else 40 * np_) + 20
+    copies = float((model.topology.table.numpy() >= 0).sum()) / model.N
+    return tendency + 3 * (2 * copies + 1)
+
+
 def dss_launch(model, x, out):
     """The recorded DSS launch of ``model.rhs(x, out)`` (its last launch)."""
     return model._recorded[("rhs", model.terms, x.ptr, out.ptr)][0][-1]
@@ -145,10 +175,10 @@ class Timers:
 
     def _wrap(self, name, fn, device):
         def timed(*args):
-            t0 = time.perf_counter()
+            t0 = clock()
             fn(*args)
             wp.synchronize_device(device)
-            self.t[name] += time.perf_counter() - t0
+            self.t[name] += clock() - t0
             self.n[name] += 1
 
         return timed
@@ -159,10 +189,10 @@ class Timers:
 
 
 def rhs_table(args, threads, triad):
-    print(f"\nRHS throughput (all TC5 terms + DSS), medians of {args.repeat}; Warp 1 thread and {threads} threads timed alternately")
+    print(f"\nRHS throughput (all TC5 terms + DSS), medians of {args.repeat}, {args.clock} clock; Warp 1 thread and {threads} threads timed alternately")
     head = (
         f"{'ne':>4} {'np':>3} {'points':>9} | {'1-thr ms':>8} {'Mpts/s':>7} | {f'{threads}-thr ms':>8} {'Mpts/s':>7} | "
-        f"{'numpy ms':>9} {'Mpts/s':>7} | {'warp/numpy':>10} | {'B/pt':>5} {'GB/s':>6} {'% triad':>7}"
+        f"{'numpy ms':>9} {'Mpts/s':>7} | {'warp/numpy':>10} | {'B/pt':>5} {'GB/s':>6} {'% triad':>7} | {'flop/pt':>7} {'GFLOP/s':>7}"
     )
     print(head)
     print("-" * len(head))
@@ -180,9 +210,11 @@ def rhs_table(args, threads, triad):
             bpp = rhs_compulsory_bytes(m1) / pts
             best = min(t1, tt)
             gbs = bpp * pts / best / 1e9
+            flops = rhs_flops(m1)
             print(
                 f"{ne:>4} {np_:>3} {pts:>9} | {1e3 * t1:>8.3f} {pts / t1 / 1e6:>7.2f} | {1e3 * tt:>8.3f} {pts / tt / 1e6:>7.2f} | "
-                f"{1e3 * t_np:>9.3f} {pts / t_np / 1e6:>7.2f} | {t_np / best:>9.1f}x | {bpp:>5.0f} {gbs:>6.2f} {100 * gbs * 1e9 / triad:>6.1f}%"
+                f"{1e3 * t_np:>9.3f} {pts / t_np / 1e6:>7.2f} | {t_np / best:>9.1f}x | {bpp:>5.0f} {gbs:>6.2f} {100 * gbs * 1e9 / triad:>6.1f}% | "
+                f"{flops:>7.0f} {flops * pts / best / 1e9:>7.2f}"
             )
 
 
@@ -193,40 +225,45 @@ def step_table(args, threads):
 
 def _step_table(args, threads):
     print(
-        f"\nOne step per stepper, TC5, np=4, {threads} thread(s); ms per step (median of {args.step_repeat}) and its breakdown; "
-        f"semi_implicit/implicit at {args.implicit_dt_factor:g}x the scene dt"
+        f"\nOne step per stepper, TC5, np=4, {threads} thread(s), {args.clock} clock; ms per step (median of {args.step_repeat}, "
+        f"each after a plain RHS timed alone: RHS-eq = step / RHS) and its breakdown; semi_implicit/implicit at {args.implicit_dt_factor:g}x the scene dt"
     )
     head = (
-        f"{'ne':>4} {'stepper':<21} {'dt s':>6} | {'step ms':>9} {'ns/pt':>7} | {'RHS ms':>8} {'evals':>5} {'(DSS)':>7} | "
-        f"{'HV ms':>7} | {'other ms':>9} | {'RHS %':>5} | iterations"
+        f"{'ne':>4} {'stepper':<21} {'dt s':>6} | {'step ms':>9} {'ns/pt':>7} {'RHS-eq':>6} | {'RHS ms':>8} {'evals':>5} {'(DSS)':>7} | "
+        f"{'HV ms':>7} {'HV eq':>5} | {'other ms':>9} | {'RHS %':>5} | iterations"
     )
     print(head)
     print("-" * len(head))
     for ne in args.step_ne:
-        for name in STEPPERS:
+        for name in args.steppers or STEPPERS:
             implicit = not STEPPERS[name].explicit
             grid, scene, (_, _, state), model = build(ne, 4, threads, args.device, name, args.implicit_dt_factor if implicit else 1.0)
             x = model.new_state(*state)
             stepper = make_stepper(name, model, scene.dt, **scene.stepper_options)
             stepper.step(x)  # leapfrog family: the start step; compiles and records
-            k = wp.zeros_like(x)
-            model.rhs(x, k)
-            t_dss = median_time(dss_launch(model, x, k).launch, 20, args.device)
+            y, k = model.new_state(*state), wp.zeros_like(x)
+            model.rhs(y, k)
+            t_dss = median_time(dss_launch(model, y, k).launch, 20, args.device)
             timers = Timers(model, args.device)
-            steps, its = [], {}
+            steps, rhs = [], []
             for _ in range(args.step_repeat):
+                t0 = clock()
+                model.rhs(y, k)
+                wp.synchronize_device(args.device)
+                rhs.append(clock() - t0)
                 timers.reset()
-                t0 = time.perf_counter()
+                t0 = clock()
                 stats = stepper.step(x)
                 wp.synchronize_device(args.device)
-                steps.append((time.perf_counter() - t0, dict(timers.t), dict(timers.n), stats))
+                steps.append((clock() - t0, dict(timers.t), dict(timers.n), stats))
             steps.sort(key=lambda s: s[0])
             t, tt, nn, stats = steps[len(steps) // 2]
+            t_rhs = statistics.median(rhs)
             other = t - tt["rhs"] - tt["hv"]
             its = ", ".join(f"{k} {v}" for k, v in stats.iterations.items())
             print(
-                f"{ne:>4} {name:<21} {scene.dt:>6.0f} | {1e3 * t:>9.2f} {1e9 * t / grid.npts:>7.0f} | {1e3 * tt['rhs']:>8.2f} {nn['rhs']:>5} "
-                f"{1e3 * t_dss * nn['rhs']:>7.2f} | {1e3 * tt['hv']:>7.2f} | {1e3 * other:>9.2f} | {100 * tt['rhs'] / t:>4.0f}% | {its}"
+                f"{ne:>4} {name:<21} {scene.dt:>6.0f} | {1e3 * t:>9.2f} {1e9 * t / grid.npts:>7.0f} {t / t_rhs:>6.2f} | {1e3 * tt['rhs']:>8.2f} {nn['rhs']:>5} "
+                f"{1e3 * t_dss * nn['rhs']:>7.2f} | {1e3 * tt['hv']:>7.2f} {tt['hv'] / t_rhs:>5.2f} | {1e3 * other:>9.2f} | {100 * tt['rhs'] / t:>4.0f}% | {its}"
             )
 
 
@@ -240,18 +277,23 @@ def main(argv=None):
     p.add_argument("--repeat", type=int, default=20)
     p.add_argument("--step-repeat", type=int, default=5)
     p.add_argument("--implicit-dt-factor", type=float, default=4.0)
+    p.add_argument("--steppers", nargs="+", choices=sorted(STEPPERS), help="rows of the step table (default: every stepper)")
+    p.add_argument("--clock", choices=sorted(CLOCKS), default="wall", help="wall (time.perf_counter) or cpu (time.process_time)")
     args = p.parse_args(argv)
+    global clock
+    clock = CLOCKS[args.clock]
     wp.config.quiet = True  # Warp < 1.10
     wp.config.log_level = wp.LOG_ERROR
     wp.init()
     threads = args.threads or default_threads(args.device)
-    print(f"Warp {wp.__version__}, device {args.device}, threads {threads}")
+    print(f"Warp {wp.__version__}, device {args.device}, threads {threads}, {args.clock} clock, load average {os.getloadavg()[0]:.2f}")
     triad1 = triad_bandwidth(1)
     triad = triad_bandwidth(threads) if threads > 1 else triad1
     print(f"memory bandwidth (numpy triad a = b + s*c, median): 1 thread {triad1 / 1e9:.1f} GB/s, {threads} threads {triad / 1e9:.1f} GB/s")
     rhs_table(args, threads, max(triad, triad1))
     if args.step_ne:
         step_table(args, threads)
+    print(f"load average at the end {os.getloadavg()[0]:.2f}")
 
 
 if __name__ == "__main__":

@@ -49,6 +49,8 @@ from swe_sphere.grid import CubedSphere
 from swe_sphere.model import ShallowWater
 from swe_sphere.steppers import STEPPERS, make_stepper
 
+from rhs_throughput import array_bytes  # noqa: E402  (benchmarks/, the script's directory)
+
 HBM = {"H100": 3.35e12, "H200": 4.8e12}  # B/s: HBM3 (SXM) and HBM3e
 EFFICIENCY = 0.7  # share of HBM bandwidth a streaming kernel reaches
 LAUNCH_S = 4e-6  # host cost of one Warp kernel launch
@@ -61,6 +63,7 @@ IMPLICIT = ("semi_implicit", "implicit", "imex")
 FLOPS = {
     "tendency": 180,  # 4 × (14 continuity + 16 Bernoulli + 10 vorticity) + 20 pointwise finish
     "dss": 14,  # ≈ 2 · rows · copies (1.78 a node on average) + rows; 3 rows
+    "dss_update": 26,  # the DSS's 14 and its combinations, ≈ 2 · rows · 2 terms (explicit stages)
     "laplace_wk_flux": 120,  # 4 rows × (2 × 8 derivative + 6 gradient + 8 flux)
     "laplace_wk_div": 68,  # 4 rows × (np × 4 + 1)
     "to_cartesian": 10,
@@ -87,7 +90,7 @@ class Tally:
 
     def kernel(self, kernel, args):
         if self.active:
-            seen = {a.ptr: a.capacity for a in args if isinstance(a, wp.array)}
+            seen = array_bytes(args)
             self.launches[kernel.key] += 1
             self.bytes[kernel.key] += sum(seen.values())
 
@@ -203,7 +206,7 @@ def cpu_check(ne, repeat):
     rows = []
     for key in (k for k in model._recorded if k[0] in ("rhs", "hvop")):
         for launch in model._recorded[key][0]:
-            seen = {a.ptr: a.capacity for a in launch.fwd_args if isinstance(a, wp.array)}
+            seen = array_bytes(launch.fwd_args)
             times = []
             for _ in range(repeat):
                 t0 = time.process_time()

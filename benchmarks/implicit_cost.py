@@ -101,6 +101,7 @@ def build(case, ne, stepper, dt, options, clock, device):
     sim = Simulation(scene(case, ne, stepper, dt, options), device, progress=False)
     timers = Timers(clock, lambda: wp.synchronize_device(device))
     timers.wrap(sim.model, "rhs", "RHS")
+    timers.wrap(sim.model, "rhs_update", "RHS")  # the explicit steppers' stages, combinations included
     timers.wrap(sim.model, "hyperviscosity", "∇⁴")
     gw = getattr(sim.stepper, "gw", None)
     if gw is not None:

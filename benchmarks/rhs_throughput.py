@@ -127,6 +127,17 @@ def build(ne, np_, threads, device, stepper=None, dt_factor=1.0):
     return grid, scene, (fcor, hs, np.stack([u, v, h])), model
 
 
+def array_bytes(args) -> dict:
+    """{address: bytes} of each distinct array among a launch's arguments, those
+    inside a ``wp.struct`` argument (``kernels.dss.Copies``) included."""
+
+    def fields(arg):  # a Warp struct's field names (Warp 1.19), else None
+        return getattr(getattr(arg, "_cls", None), "vars", None)
+
+    arrays = [a for arg in args for a in ((getattr(arg, f) for f in fields(arg)) if fields(arg) else (arg,))]
+    return {a.ptr: a.capacity for a in arrays if isinstance(a, wp.array)}
+
+
 def rhs_compulsory_bytes(model) -> int:
     """Bytes an RHS evaluation must move at least: the state read and the tendency
     written once, and each array the recorded RHS launches read (metric terms,
@@ -138,9 +149,9 @@ def rhs_compulsory_bytes(model) -> int:
     arrays = {}
     for launch in model._recorded[("rhs", model.terms, x.ptr, out.ptr)][0]:
         launch = launch.whole if isinstance(launch, SplitLaunch) else launch
-        for arg in launch.fwd_args or []:
-            if isinstance(arg, wp.array) and arg.ptr not in (x.ptr, out.ptr, model.tend.ptr):
-                arrays[arg.ptr] = arg.capacity
+        arrays.update(array_bytes(launch.fwd_args or []))
+    for a in (x, out, model.tend):
+        arrays.pop(a.ptr, None)
     return sum(arrays.values()) + x.capacity + out.capacity
 
 
@@ -165,12 +176,13 @@ def dss_launch(model, x, out):
 
 
 class Timers:
-    """Wall time inside model.rhs and model.hyperviscosity (instance-level wrappers)."""
+    """Time inside model.rhs and model.rhs_update (the explicit stages, their
+    combinations included) and model.hyperviscosity (instance-level wrappers)."""
 
     def __init__(self, model, device):
         self.t = {"rhs": 0.0, "hv": 0.0}
         self.n = {"rhs": 0, "hv": 0}
-        for name, attr in (("rhs", "rhs"), ("hv", "hyperviscosity")):
+        for name, attr in (("rhs", "rhs"), ("rhs", "rhs_update"), ("hv", "hyperviscosity")):
             setattr(model, attr, self._wrap(name, getattr(model, attr), device))
 
     def _wrap(self, name, fn, device):

@@ -12,50 +12,52 @@ import functools
 import warp as wp
 
 f64 = wp.float64
+vec6 = wp.types.vector(length=6, dtype=f64)  # the coefficients of two combinations (``dss_update``)
 wp.set_module_options({"enable_backward": False})
 
 
+@wp.struct
+class Copies:
+    """Where the DSS finds a node's copies (``Topology.dss_copies``): ``table``
+    (N, copies) their indices in the summation order, −1-padded, c < nlocal
+    local, c ≥ nlocal another process's in ``ghost`` (``pack``'s layout);
+    spheremp (nlocal + ghosts,) the element mass of each copy and rspheremp
+    (N,) the inverse assembled mass (m², m⁻²)."""
+
+    table: wp.array2d(dtype=wp.int32)
+    nlocal: int
+    ghost: wp.array(dtype=f64)
+    spheremp: wp.array(dtype=f64)
+    rspheremp: wp.array(dtype=f64)
+
+
 @functools.cache
-def dss_rows(rows: int, weighted: bool, copies: int, ghosts: bool = False):
-    """The DSS kernel for ``rows`` rows and ``copies`` columns of the
-    ``dss_table`` (its own Warp module, kernel key ``dss``):
-    out[r, p] = rspheremp[p] · Σ_copies c of p's node (spheremp[c] if weighted
-    else 1) · x[r, c]. ``weighted`` for a strong-form field (mass-weighted
-    average: continuous result, area integral kept); unweighted for a weak form
-    already integrated against the test functions. ``out`` must not alias ``x``.
-    Every copy sums in the same order, so all copies get the same bits. The
-    copies come from one table row per node (no CSR indirection) and the row
-    sums stay in registers: 2.6× faster on the CPU than a CSR gather. Dim N.
+def gather(rows: int, weighted: bool, copies: int, ghosts: bool = False):
+    """A ``wp.func`` (x, d: ``Copies``, p) → the vector of ``rows`` values
+    rspheremp[p] · Σ_copies c of p's node (spheremp[c] if ``weighted`` else 1)
+    · x[r, c]: the DSS at node p, summed in the table's order, so every copy
+    gets the same bits. The copies come from one table row per node (no CSR
+    indirection) and the row sums stay in registers: 2.6× faster on the CPU
+    than a CSR gather. ``copies``: the table's columns.
 
     With ``ghosts``, a copy c ≥ ``nlocal`` is another process's, read from
-    ghost[(c − nlocal)·rows + r] (``pack``'s layout); spheremp has an entry
-    for every c. Without, ghost and nlocal are not read."""
+    ghost[(c − nlocal)·rows + r]. Without, ghost and nlocal are not read."""
     R, W, C, G = int(rows), bool(weighted), int(copies), bool(ghosts)
     acc = wp.types.vector(length=R, dtype=f64)
 
-    def dss(
-        x: wp.array2d(dtype=f64),
-        ghost: wp.array(dtype=f64),
-        nlocal: int,
-        spheremp: wp.array(dtype=f64),
-        rspheremp: wp.array(dtype=f64),
-        table: wp.array2d(dtype=wp.int32),
-        out: wp.array2d(dtype=f64),
-        offset: int,
-    ):
-        p = wp.tid() + offset
+    def gather_copies(x: wp.array2d(dtype=f64), d: Copies, p: int):
         s = acc()
         for k in range(C):
-            c = table[p, k]
+            c = d.table[p, k]
             if c >= 0:
                 w = f64(1.0)
                 if wp.static(W):
-                    w = spheremp[c]
+                    w = d.spheremp[c]
                 for r in range(R):
                     v = f64(0.0)
                     if wp.static(G):
-                        if c >= nlocal:
-                            v = ghost[(c - nlocal) * R + r]
+                        if c >= d.nlocal:
+                            v = d.ghost[(c - d.nlocal) * R + r]
                         else:
                             v = x[r, c]
                     else:
@@ -64,12 +66,114 @@ def dss_rows(rows: int, weighted: bool, copies: int, ghosts: bool = False):
                         s[r] += w * v
                     else:
                         s[r] += v
-        rs = rspheremp[p]
+        rs = d.rspheremp[p]
         for r in range(R):
-            out[r, p] = rs * s[r]
+            s[r] = rs * s[r]
+        return s
+
+    gather_copies.__qualname__ = gather_copies.__name__ = f"gather_{R}_{'w' if W else 'u'}_{C}{'_ghosts' if G else ''}"
+    return wp.func(gather_copies)
+
+
+@functools.cache
+def dss_rows(rows: int, weighted: bool, copies: int, ghosts: bool = False):
+    """The DSS kernel for ``rows`` rows and ``copies`` columns of the
+    ``dss_table`` (its own Warp module, kernel key ``dss``):
+    out[r, p] = rspheremp[p] · Σ_copies c of p's node (spheremp[c] if weighted
+    else 1) · x[r, c] (``gather``). ``weighted`` for a strong-form field
+    (mass-weighted average: continuous result, area integral kept); unweighted
+    for a weak form already integrated against the test functions. Arguments:
+    x, d (``Copies``), out, offset; ``out`` must not alias ``x``. Dim N.
+    ``ghosts``: copies held by other processes, as in ``gather``."""
+    sum_copies = gather(rows, weighted, copies, ghosts)
+
+    def dss(x: wp.array2d(dtype=f64), d: Copies, out: wp.array2d(dtype=f64), offset: int):
+        p = wp.tid() + offset
+        s = sum_copies(x, d, p)
+        for r in range(wp.static(rows)):
+            out[r, p] = s[r]
 
     dss.__qualname__ = "dss"  # the kernel's key, as the generic kernel's
     return wp.kernel(dss, enable_backward=False, module="unique")
+
+
+@functools.cache
+def combination(pattern: str):
+    """A ``wp.func`` (c, k, s0, s1, r, p) → Σ_i c[i]·term_i, summed left to
+    right as ``blas.axpby``/``axpbypcz`` do (the same bits), with the terms
+    named by ``pattern``: "a" the next of the arrays s0, s1 at [r, p], "k" the
+    value k. One to three terms, at most two "a" and one "k" (e.g. "ak",
+    "aak", "aka", "a", "k")."""
+    if not 1 <= len(pattern) <= 3 or set(pattern) - {"a", "k"} or pattern.count("k") > 1 or pattern.count("a") > 2:
+        raise ValueError(f"a combination is 1 to 3 terms of at most two arrays 'a' and one 'k' (got {pattern!r})")
+    P = pattern + "a" * (3 - len(pattern))  # padded: the padding's terms are not compiled
+    N = len(pattern)
+    K1, K2 = P[1] == "k", P[2] == "k"
+    A0, A1 = P[0] == "a", P[:2].count("a")  # term 0 an array; term 1 is s1 (A1 = 2) or s0
+
+    def combine(c: wp.vec3d, k: f64, s0: wp.array2d(dtype=f64), s1: wp.array2d(dtype=f64), r: int, p: int):
+        t = k
+        if wp.static(A0):
+            t = s0[r, p]
+        v = c[0] * t
+        if wp.static(N > 1):
+            t = k
+            if wp.static(not K1):
+                if wp.static(A1 == 2):
+                    t = s1[r, p]
+                else:
+                    t = s0[r, p]
+            v = v + c[1] * t
+        if wp.static(N > 2):
+            t = k
+            if wp.static(not K2):
+                t = s1[r, p]
+            v = v + c[2] * t
+        return v
+
+    combine.__qualname__ = combine.__name__ = f"combine_{pattern}"
+    return wp.func(combine)
+
+
+@functools.cache
+def dss_update(rows: int, copies: int, patterns: tuple, ghosts: bool = False):
+    """The weighted DSS k of ``rows`` rows (``gather``) not stored but used by
+    one or two linear combinations, node by node (a Runge–Kutta stage's
+    x + aΔt F written straight from the DSS of F's tendency):
+    out0[r, p] = ``combination(patterns[0])``(c[0:3], k[r], s00, s01) and then
+    out1[r, p] = ``combination(patterns[1])``(c[3:6], k[r], s10, s11), so out1's
+    terms see out0's new values where they alias it. Arguments: x, d (as
+    ``dss_rows``), c (6 coefficients),
+    s00, s01, out0, s10, s11, out1 (rows, N) (the unused ones any such array),
+    offset. Outputs and terms may alias each other, not x. Dim N."""
+    if not 1 <= len(patterns) <= 2:
+        raise ValueError(f"one or two combinations (got {len(patterns)})")
+    sum_copies = gather(rows, True, copies, ghosts)
+    first = combination(patterns[0])
+    second = combination(patterns[-1])
+    TWO = len(patterns) == 2
+
+    def dss_update(
+        x: wp.array2d(dtype=f64),
+        d: Copies,
+        c: vec6,
+        s00: wp.array2d(dtype=f64),
+        s01: wp.array2d(dtype=f64),
+        out0: wp.array2d(dtype=f64),
+        s10: wp.array2d(dtype=f64),
+        s11: wp.array2d(dtype=f64),
+        out1: wp.array2d(dtype=f64),
+        offset: int,
+    ):
+        p = wp.tid() + offset
+        k = sum_copies(x, d, p)
+        for r in range(wp.static(rows)):
+            out0[r, p] = first(wp.vec3d(c[0], c[1], c[2]), k[r], s00, s01, r, p)
+            if wp.static(TWO):
+                out1[r, p] = second(wp.vec3d(c[3], c[4], c[5]), k[r], s10, s11, r, p)
+
+    dss_update.__qualname__ = dss_update.__name__ = "dss_update__" + "__".join(patterns)
+    return wp.kernel(dss_update, enable_backward=False, module="unique")
 
 
 @wp.kernel

@@ -168,6 +168,18 @@ class ShallowWater:
             kernel, n if rows is None else (rows, n), [*inputs, block], device=self.device, threads=self.threads, nodes_per_index=block
         )
 
+    def lincomb(self, out, terms):
+        """The recorded launch of out = Σ c·x over one to three (c, x) terms of
+        (rows, N) arrays (row views such as ``x[2:3]`` included; out may alias
+        any x), ``blas.axpby``/``axpbypcz`` (one term: c·x + 0·x), split over
+        the CPU threads like the model's own launches."""
+        terms = tuple(terms)
+        if len(terms) == 1:
+            terms += ((0.0, terms[0][1]),)
+        args = [a for c, x in terms for a in (f64(c), x)]
+        kernel = blas.axpby if len(terms) == 2 else blas.axpbypcz
+        return self._launch_pointwise(kernel, out.shape[0], [*args, out])
+
     def pointwise(self, kernel, *inputs, unique=False) -> None:
         """Run a pointwise kernel (``kernels.blas`` convention: trailing ``block``,
         ``offset``) on ``inputs`` over (3, N), or over (3, nunique) if ``unique``
@@ -197,7 +209,10 @@ class ShallowWater:
         return self.topology.dss(x, weighted, out)
 
     # -- right-hand side ----------------------------------------------------
-    def _build_rhs(self, x, out, named):
+    def _build_tendency(self, x, named):
+        """Launches that write the element-local tendency of the terms ``named``
+        into ``self.tend``, and the rows (lo, hi) they write (a continuity half
+        writes dh alone, a momentum half du, dv)."""
         terms = tuple(term for term in tendencies.TENDENCY_TERMS if term in named)
         launches = []
         if terms:
@@ -209,16 +224,44 @@ class ShallowWater:
             else:
                 kernel = tendencies.tendency(terms)
                 launches.append(self._launch(kernel, self.N, [*args, self.dvv, self.grid.np, self.g, self.tend]))
-        if self.forcing is not None and "forcing" in named:
+        forced = self.forcing is not None and "forcing" in named
+        if forced:
             kernel, params = self.forcing
             launch = self._launch_pointwise(kernel, None, [self.xyz, self.east, self.north, params, f64(self.time), self.tend])
             self._forcing_launches.append(launch)
             launches.append(launch)
-        # only the rows the terms write: a continuity half leaves du, dv zero, a momentum half dh
-        lo = 0 if self.forcing is not None and "forcing" in named or set(terms) - {"continuity"} else 2
-        hi = 3 if "continuity" in terms or self.forcing is not None and "forcing" in named else 2
+        lo = 0 if forced or set(terms) - {"continuity"} else 2
+        hi = 3 if "continuity" in terms or forced else 2
+        return launches, lo, hi
+
+    def _build_rhs(self, x, out, named):
+        launches, lo, hi = self._build_tendency(x, named)
         launches.extend(self._dss(self.tend[lo:hi], 1, out[lo:hi]) if (lo, hi) != (0, 3) else self._dss(self.tend, 1, out))
         return launches
+
+    def _build_rhs_update(self, x, updates, named):
+        launches, lo, hi = self._build_tendency(x, named)
+        groups = []  # (rows, [(out, terms)]): one DSS for each run of at most two updates of the same rows
+        rest = []  # F is zero in the rows its terms do not write: there the arrays' combination alone
+        for rows, out, terms in updates:
+            if rows is None:
+                arrays = tuple((a, src) for a, src in terms if src is not None)
+                for r0, r1 in ((0, lo), (hi, 3)):
+                    if r0 < r1:
+                        if not arrays:
+                            raise ValueError(f"an update of F alone into rows {r0}:{r1}, which the terms {named} do not write")
+                        rest.append(self.lincomb(out[r0:r1], ((a, src[r0:r1]) for a, src in arrays)))
+            r0, r1 = (lo, hi) if rows is None else (rows.start, rows.stop)
+            if not lo <= r0 < r1 <= hi:
+                raise ValueError(f"an update of rows {r0}:{r1}, of which the terms {named} write only {lo}:{hi}")
+            sliced = (out[r0:r1], tuple((a, None if src is None else src[r0:r1]) for a, src in terms))
+            if groups and groups[-1][0] == (r0, r1) and len(groups[-1][1]) < 2:
+                groups[-1][1].append(sliced)
+            else:
+                groups.append(((r0, r1), [sliced]))
+        for (r0, r1), group in groups:
+            launches.extend(self.topology.dss_update(self.tend[r0:r1], group))
+        return launches + rest  # after the tendency, which may read their outputs
 
     def set_time(self, t: float) -> None:
         """Set the model time t (s) at which ``rhs`` evaluates a time-dependent
@@ -229,6 +272,15 @@ class ShallowWater:
         for launch in self._forcing_launches:
             launch.set_param_by_name("t", f64(t))
 
+    def _rhs_terms(self, terms):
+        """The RHS terms to evaluate: all the scene's for None, else ``terms``
+        (ValueError unless a non-empty subset of them without hyperviscosity)."""
+        if terms is None:
+            return self.terms
+        if not terms or not set(terms) <= set(self.terms) - {"hyperviscosity"}:
+            raise ValueError(f"rhs terms must be a non-empty subset of {self.terms} without hyperviscosity (got {terms})")
+        return terms
+
     def rhs(self, x: wp.array2d, out: wp.array2d, terms: tuple | None = None) -> None:
         """out = F(x, t): the DSS'd tendency (3, N) of the non-dissipative terms
         (du/dt, dv/dt in m s⁻²; dh/dt in m s⁻¹) at the model time t
@@ -238,11 +290,29 @@ class ShallowWater:
         momentum halves), compiled for that subset; only the rows it writes are
         assembled and written (a continuity half leaves out's du, dv rows as they
         were, a momentum half its dh row). ValueError names a term the scene lacks."""
-        if terms is None:
-            terms = self.terms
-        elif not terms or not set(terms) <= set(self.terms) - {"hyperviscosity"}:
-            raise ValueError(f"rhs terms must be a non-empty subset of {self.terms} without hyperviscosity (got {terms})")
+        terms = self._rhs_terms(terms)
         self._replay(("rhs", terms, x.ptr, out.ptr), (x, out), lambda: self._build_rhs(x, out, terms))
+
+    def rhs_update(self, x: wp.array2d, updates, terms: tuple | None = None) -> None:
+        """F = F(x, t) as ``rhs`` computes it, not stored but written, as its DSS
+        makes it, into linear combinations (an explicit stage's x + aΔt F with
+        no pass of its own): for each (rows, out, terms) of ``updates``, in
+        order, out[rows] = Σ a·src[rows] over terms (a, src), src a (3, N) array
+        or None standing for F; rows a slice of the rows the ``terms`` of the
+        RHS write, or None: all three, F zero in the rows the terms do not write
+        (as ``rhs`` leaves a zeroed out). One to three terms, at most two arrays and
+        F once; consecutive updates of the same rows share one DSS, two at a
+        time. Outputs may alias x (only the tendency reads it, before) and the
+        terms (a later update reads an earlier one's result). Summed left to right as ``blas.axpby``/``axpbypcz``: the
+        bits of ``rhs`` followed by those combinations. Recorded once per arrays
+        and coefficients; ValueError for rows F lacks."""
+        terms = self._rhs_terms(terms)
+        key = ("rhs_update", terms, x.ptr, tuple(
+            (None if rows is None else (rows.start, rows.stop), out.ptr, tuple((a, None if src is None else src.ptr) for a, src in t))
+            for rows, out, t in updates
+        ))
+        arrays = (x, *(a for _, out, t in updates for a in (out, *(src for _, src in t if src is not None))))
+        self._replay(key, arrays, lambda: self._build_rhs_update(x, updates, terms))
 
     def rhs_kernels(self, x: wp.array2d, out: wp.array2d) -> list[str]:
         """Names of the kernels ``rhs(x, out)`` launches (recorded on first use)."""

@@ -201,6 +201,8 @@ class Topology:
         self.total_area = self.sum(float(np.sum(self.area)))
         c = self.copies  # the DSS's pattern
         self.neighbours, self.ghost, self.halo_copies = c.neighbours, c.recv_buffer, c.size
+        self.dss_copies = d = dss.Copies()  # the DSS kernels' view of the above
+        d.table, d.nlocal, d.ghost, d.spheremp, d.rspheremp = self.table, self.N, self.ghost, self.spheremp, self.rspheremp
 
     def _build_halos(self, parts, rank):
         """Local tables from the rank's own nodes' rows of the global DSS table and
@@ -274,8 +276,25 @@ class Topology:
         Weighted for a strong-form field (continuous result, integral kept),
         unweighted for a weak form. ``out`` must not alias ``x``."""
         ghosts = bool(len(self.neighbours))
-        kernel = dss.dss_rows(x.shape[0], bool(weighted), self.table.shape[1], ghosts)
-        args = [x, self.ghost, self.N, self.spheremp, self.rspheremp, self.table, out]
+        kernel = dss.dss_rows(x.shape[0], bool(weighted), self.table.shape[1], ghosts=ghosts)
+        return [*self._exchange(x), self._record(kernel, self.N, [x, self.dss_copies, out])]
+
+    def dss_update(self, x: wp.array2d, updates) -> list:
+        """Launches for the weighted DSS k of x (rows, N), not stored but used by
+        one or two ``updates`` (out, terms) in order: out = Σ a·src over the
+        terms (a, src), src an array of x's shape or None for k
+        (``kernels.dss.dss_update``: summed left to right, the bits of
+        ``blas.axpby``/``axpbypcz`` on a stored k). Outputs may alias terms, not x."""
+        patterns, coefs, arrays = [], [], []
+        for out, terms in updates:
+            patterns.append("".join("k" if src is None else "a" for _, src in terms))
+            coefs += [a for a, _ in terms] + [0.0] * (3 - len(terms))
+            srcs = [src for _, src in terms if src is not None]
+            arrays += [*(srcs + [out] * (2 - len(srcs))), out]  # unused slots: any array of the shape
+        coefs += [0.0] * (6 - len(coefs))
+        arrays += arrays[-3:] * (2 - len(updates))
+        kernel = dss.dss_update(x.shape[0], self.table.shape[1], tuple(patterns), ghosts=bool(len(self.neighbours)))
+        args = [x, self.dss_copies, dss.vec6(*coefs), *arrays]
         return [*self._exchange(x), self._record(kernel, self.N, args)]
 
     def assemble(self, x: wp.array2d, row: int, out: wp.array) -> list:

@@ -54,19 +54,23 @@ def _module_kernels() -> list[wp.Kernel]:
 def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
     """The project's kernels launched by every bundled scene's model and steppers
     (see the module docstring), and the ghost variants of the DSS kernels among them."""
-    launched, dss_args = [], set()
-    real_launch, real_dss = wp.launch, dss.dss_rows
+    launched, dss_args = [], set()  # (factory, its arguments but ghosts)
+    real_launch = wp.launch
 
     def launch(kernel, *args, **kwargs):
         launched.append(kernel)
         return real_launch(kernel, *args, **kwargs)
 
-    def dss_rows(rows, weighted, copies, ghosts=False):
-        dss_args.add((rows, weighted, copies))
-        return real_dss(rows, weighted, copies, ghosts)
+    def noting(factory):
+        def built(*args, ghosts=False):
+            dss_args.add((factory, args))
+            return factory(*args, ghosts=ghosts)
+
+        return built
 
     monkeypatch.setattr(wp, "launch", launch)
-    monkeypatch.setattr(dss, "dss_rows", dss_rows)
+    for name in ("dss_rows", "dss_update"):
+        monkeypatch.setattr(dss, name, noting(getattr(dss, name)))
     scenes = [load_scene(p, ne=2, np=4) for p in list_scenes()]
     richest = max((s for s in scenes if "pressure_gradient" in s.terms), key=lambda s: len(s.terms))
     grid = CubedSphere(2, 4)
@@ -89,7 +93,7 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
                 x = model.new_state(*np.stack(case.initial(grid.lat, grid.lon)))
                 stepper.step(x)  # two steps: a leapfrog's first is its one-step start
                 stepper.step(x)
-    ghosted = [real_dss(*args, True) for args in sorted(dss_args)]
+    ghosted = [factory(*args, ghosts=True) for factory, args in dss_args]
     return [k for k in launched if k.func.__module__.startswith("swe_sphere.")], ghosted
 
 
@@ -126,7 +130,7 @@ def ptx(modules, tmp_path_factory):
 
 def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, modules):
     """Both layouts of the tendency for each bundled scene's term set, both ∇⁴
-    passes in both layouts, the DSS with and without ghosts, the gravity-wave,
+    passes in both layouts, the DSS (and its stage combinations) with and without ghosts, the gravity-wave,
     implicit, forcing and blas kernels, and kernels from every file of swe_sphere.kernels."""
     module_level, launched, ghosted = discovered
     names = list(modules)
@@ -138,7 +142,8 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
     for key in ("laplacian_element__first", "laplacian_element__second", "laplace_wk_flux", "laplace_wk_div",
                 "helmholtz_gradient", "helmholtz_divergence", "helmholtz_assemble", "cg_update", "inner3", "schur_height", "jacobian_vector", "residual", "translating_low", "axpbypcz", "dss"):
         assert key in keys, key
-    plain_dss = {k.module.name for k in launched if k.key == "dss"}
+    plain_dss = {k.module.name for k in launched if k.key == "dss" or k.key.startswith("dss_update__")}
+    assert any(k.key.startswith("dss_update__") for k in launched)  # the explicit stages' combinations
     assert len(ghosted) == len(plain_dss) >= 3 and not plain_dss & {k.module.name for k in ghosted}
     files = {k.func.__module__ for k in module_level + launched}
     for info in pkgutil.iter_modules(kernels_pkg.__path__):

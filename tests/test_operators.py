@@ -326,6 +326,42 @@ def test_rhs_matches_numpy(np_, per_element, rng):
                 assert not np.any(got[:2])
 
 
+@pytest.mark.parametrize("terms", [RHS_TERMS, ("continuity",)], ids=["all", "continuity"])
+def test_rhs_update_is_rhs_then_its_combinations(terms, rng):
+    """``rhs_update`` (the combinations written by the DSS, F never stored) gives
+    the bits of ``rhs`` followed by the ``blas`` combinations, for the steppers'
+    patterns: in order (a later update reads an earlier one's output, an output
+    the RHS's own input), rows of a subset, and rows F lacks (the continuity
+    half's du, dv: F zero there)."""
+    g = cached_grid(2, 4)
+    fcor, hs, st = tc5(g)
+    m = ShallowWater(g, terms, fcor, hs, device=DEV)
+    H = slice(2, 3)
+    cases = [
+        lambda x, a, b: ((None, a, ((1.0, x), (0.5, None))), (None, b, ((1.0, x), (0.25, None)))),  # rk4
+        lambda x, a, b: ((None, x, ((1 / 3, x), (2 / 3, a), (0.4, None))),),  # ssprk3: the input overwritten
+        lambda x, a, b: ((None, b, ((1.0, x),)), (None, x, ((1.0, a), (0.3, None)))),  # leapfrog-trapezoidal
+        lambda x, a, b: ((H, a, ((0.6, x), (0.2, None), (0.4, b))), (H, b, ((1.0, x), (0.7, None)))),  # fbrk32
+        lambda x, a, b: ((H, a, ((1.0, None),)), (None, b, ((1.0, a), (-0.5, b), (0.1, None)))),  # F alone; reads a
+    ]
+    for case in cases:
+        got, want = ([m.new_state(*st) for _ in range(3)] for _ in range(2))
+        noise = rng.standard_normal((2, *st.shape))
+        for arrays in (got, want):
+            arrays[1].assign(st + noise[0])
+            arrays[2].assign(st + noise[1])
+        x, a, b = got
+        m.rhs_update(x, case(x, a, b), terms)
+        x, a, b = want
+        k = wp.zeros_like(x)
+        m.rhs(x, k, terms)
+        for rows, out, t in case(x, a, b):
+            rows = rows or slice(0, 3)
+            m.lincomb(out[rows], ((c, (k if src is None else src)[rows]) for c, src in t)).launch()
+        for g_, w_ in zip(got, want):
+            assert np.array_equal(g_.numpy(), w_.numpy())
+
+
 def test_rhs_replay_uses_current_state(rng):
     """The second call only replays recorded launches; it must see new data in x."""
     g = cached_grid(2, 4)

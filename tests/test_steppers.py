@@ -52,18 +52,20 @@ DOCUMENTED_RHS = {
 
 
 def count_rhs_calls(sim):
-    """Wrap ``sim.model.rhs`` to count the RHS evaluations the stepper really makes:
-    a call on a subset of the terms (fbrk32's continuity and momentum halves) counts
-    as the share of the tendency terms it evaluates."""
+    """Wrap ``sim.model.rhs`` and ``rhs_update`` to count the RHS evaluations the
+    stepper really makes: a call on a subset of the terms (fbrk32's continuity and
+    momentum halves) counts as the share of the tendency terms it evaluates."""
     calls = []
-    real = sim.model.rhs
     tendency = [t for t in sim.model.terms if t in TENDENCY_TERMS]
 
-    def rhs(x, out, terms=None):
-        calls.append(1 if terms is None else len(set(terms) & set(tendency)) / len(tendency))
-        return real(x, out, terms)
+    def counted(real):
+        def rhs(x, out, terms=None):
+            calls.append(1 if terms is None else len(set(terms) & set(tendency)) / len(tendency))
+            return real(x, out, terms)
 
-    sim.model.rhs = rhs
+        return rhs
+
+    sim.model.rhs, sim.model.rhs_update = counted(sim.model.rhs), counted(sim.model.rhs_update)
     return calls
 
 

@@ -22,7 +22,6 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
-from ..kernels import blas
 from ..model import ShallowWater
 
 f64 = wp.float64
@@ -139,12 +138,8 @@ class Stepper:
         return wp.zeros((3, self.N), dtype=f64, device=self.model.device)
 
     def _lincomb(self, out, *terms):
-        """Record out = Σ c·x for two or three (c, x) pairs of (rows, N) arrays (rows
-        views such as ``x[2:3]`` included); returns the launch (split over the
-        model's CPU threads like the model's own launches)."""
-        args = [a for c, x in terms for a in (f64(c), x)]
-        kernel = blas.axpby if len(terms) == 2 else blas.axpbypcz
-        return self.model._launch_pointwise(kernel, out.shape[0], [*args, out])
+        """``model.lincomb``: the recorded launch of out = Σ c·x over (c, x) terms."""
+        return self.model.lincomb(out, terms)
 
     def _pointwise(self, kernel, *inputs, unique=False) -> None:
         """``model.pointwise``: run a pointwise kernel, recorded once per set of arrays."""

@@ -4,6 +4,10 @@ forward–backward FB-RK(3,2).
 
 Hyperviscosity is applied after each step, split from the dynamics, as in
 HOMME (``advance_hypervis``): forward Euler over the span the step covers.
+
+A stage's linear combinations (x + aΔt F and the like) are written by the DSS
+of its RHS (``ShallowWater.rhs_update``) rather than by passes of their own:
+F is never stored, and the bits are those of storing F and combining after.
 """
 
 from __future__ import annotations
@@ -19,10 +23,12 @@ class RKScheme:
     """An explicit Runge–Kutta scheme as the launches it records.
 
     ``stages``: per stage (c, arg, updates): the abscissa c, the buffer whose RHS
-    goes into ``k``, then the combinations written after it, each
-    (out, terms) with out = Σ a·src over two or three (a, src) terms; src
-    "k" takes a ``Fraction`` q of Δt (the RHS times qΔt). Buffers are "x" (the
-    state, overwritten by the last update) and the scheme's ``buffers``.
+    F is evaluated, then the combinations written from it, each (out, terms)
+    with out = Σ a·src over two or three (a, src) terms, in order (a later one
+    reads an earlier one's output); src "k" (F) takes a ``Fraction`` q of Δt
+    (F times qΔt), once a combination, and at most two are arrays
+    (``ShallowWater.rhs_update``). Buffers are "x" (the state, overwritten by the
+    last update) and the scheme's ``buffers``.
     ``courant_limit``: the measured one (``Stepper.courant_limit``)."""
 
     name: str
@@ -92,29 +98,26 @@ class ExplicitRK(Stepper):
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
-        self.k = self._buffer()
         self._buffers = {name: self._buffer() for name in self.scheme.buffers}
         self._x = None
 
     def _record(self, x):
-        arrays = {"x": x, "k": self.k, **self._buffers}
+        arrays = {"x": x, "k": None, **self._buffers}  # None: F itself (``rhs_update``)
         self._x = x
         self._stages = [
-            (c, arrays[arg], [
-                self._lincomb(arrays[out], *((_dt_times(a, self.dt) if src == "k" else a, arrays[src]) for a, src in terms))
+            (c, arrays[arg], tuple(
+                (None, arrays[out], tuple((_dt_times(a, self.dt) if src == "k" else a, arrays[src]) for a, src in terms))
                 for out, terms in updates
-            ])
+            ))
             for c, arg, updates in self.scheme.stages
         ]
 
     def advance(self, x):
         if self._x is not x:
             self._record(x)
-        for c, arg, launches in self._stages:
+        for c, arg, updates in self._stages:
             self._at(c)
-            self.model.rhs(arg, self.k)
-            for launch in launches:
-                launch.launch()
+            self.model.rhs_update(arg, updates)
         self.model.hyperviscosity(x, self.dt)
         return StepStats(len(self._stages))
 
@@ -151,41 +154,54 @@ class FBRK32(Stepper):
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
-        self.kh, self.km, self.s = self._buffer(), self._buffer(), self._buffer()
         self.continuity = tuple(t for t in model.terms if t in ("continuity", "forcing"))
         self.momentum = tuple(t for t in model.terms if t in ("momentum_advection", "coriolis", "pressure_gradient", "topography"))
+        if not self.continuity:
+            raise ValueError("fbrk32 advances the depth first: it needs the continuity term (or a forcing)")
+        # s: the momentum half's input (u⁽ⁱ⁻¹⁾, v⁽ⁱ⁻¹⁾, h̃); t: x⁽ⁱ⁾ of stages 1 and 2;
+        # kh: the continuity half's wind rows (a forcing's; zero without one)
+        self.s, self.t, self.kh = self._buffer(), self._buffer(), self._buffer()
         self._x = None
 
     def _record(self, x):
-        dt, kh, km, s = self.dt, self.kh, self.km, self.s
+        """Per stage: the continuity half's F_h writes h̃ into s and h⁽ⁱ⁾ into t
+        (x at the last stage) from its DSS (with a forcing it also stores its wind
+        rows in kh); the momentum half's F_u writes u⁽ⁱ⁾ into t (x) and into s, the
+        next stage's input; the wind without momentum terms is a combination of
+        its own. The same sums, in the same order, as storing F and combining."""
+        dt, s, t, kh = self.dt, self.s, self.t, self.kh
         self._x = x
         U, H = slice(0, 2), slice(2, 3)
-        b1, b2, b3 = self.BETA
-        c1, c2, c3 = self.C
-        weighted = (  # s = (u⁽ⁱ⁻¹⁾, v⁽ⁱ⁻¹⁾, h̃); before it, kh = F(x⁽ⁱ⁻¹⁾)'s continuity half
-            [self._lincomb(s[U], (1.0, x[U]), (0.0, x[U])), self._lincomb(s[H], (1.0, x[H]), (b1 * c1 * dt, kh[H]))],
-            [self._lincomb(s[H], (1.0, x[H]), (b2 * c2 * dt, kh[H]))],
-            [self._lincomb(s[H], (2 * b3, x[H]), (b3 * c3 * dt, kh[H]), (1 - 2 * b3, s[H]))],
-        )
+        forced = "forcing" in self.continuity
         self._stages = []
-        for i, c in enumerate(self.C):
-            out = x if i == len(self.C) - 1 else s
-            terms = [(1.0, x), (c * dt, kh)] + ([(c * dt, km)] if self.momentum else [])
-            self._stages.append((self.C[i - 1] if i else 0.0, x if i == 0 else s, weighted[i], self._lincomb(out, *terms)))
+        for i, (c, beta) in enumerate(zip(self.C, self.BETA)):
+            last = i == len(self.C) - 1
+            out = x if last else t  # x⁽ⁱ⁾
+            if last:  # h̃ = β h(n+1) + (1 − 2β) h⁽²⁾ + β h(n), h(n+1) = h(n) + cΔt F_h
+                tilde = ((2 * beta, x), (beta * c * dt, None), (1 - 2 * beta, t))
+            else:  # h̃ = β h⁽ⁱ⁾ + (1 − β) h(n)
+                tilde = ((1.0, x), (beta * c * dt, None))
+            depth = ((U, kh, ((1.0, None),)),) if forced else ()
+            depth += ((H, s, tilde), (H, out, ((1.0, x), (c * dt, None))))
+            wind = ((1.0, x), *(((c * dt, kh),) if forced else ()), (c * dt, None))  # u⁽ⁱ⁾ = u(n) + cΔt (F_u)
+            if self.momentum:
+                launches = [self._lincomb(s[U], (1.0, x[U]), (0.0, x[U]))] if i == 0 else []  # u⁽⁰⁾ = u(n)
+                momentum = ((U, out, wind),) + (() if last else ((U, s, wind),))
+            else:
+                launches, momentum = [self._lincomb(out[U], (1.0, x[U]), (c * dt, kh[U]))], None
+            self._stages.append((self.C[i - 1] if i else 0.0, x if i == 0 else t, depth, launches, momentum))
 
     def advance(self, x):
         if self._x is not x:
             self._record(x)
         m = self.model
-        for c, arg, weighted, update in self._stages:
+        for c, arg, depth, launches, momentum in self._stages:
             self._at(c)
-            if self.continuity:
-                m.rhs(arg, self.kh, self.continuity)
-            for launch in weighted:
+            m.rhs_update(arg, depth, self.continuity)
+            for launch in launches:
                 launch.launch()
-            if self.momentum:
-                m.rhs(self.s, self.km, self.momentum)
-            update.launch()
+            if momentum:
+                m.rhs_update(self.s, momentum, self.momentum)
         m.hyperviscosity(x, self.dt)
         return StepStats(3)
 
@@ -199,7 +215,7 @@ class _LeapfrogFamily(Stepper):
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
-        self.old, self.k, self.new = self._buffer(), self._buffer(), self._buffer()
+        self.old, self.new = self._buffer(), self._buffer()
         self._x = None
 
     def state(self):
@@ -217,9 +233,9 @@ class _LeapfrogFamily(Stepper):
         """Record the launches on x (once per state array)."""
         dt = self.dt
         self._x = x
-        self._start_mid = self._lincomb(self.new, (1.0, x), (dt / 2, self.k))
-        self._start_keep = self._lincomb(self.old, (1.0, x), (0.0, x))
-        self._start_end = self._lincomb(x, (1.0, x), (dt, self.k))
+        self._start_mid = ((None, self.new, ((1.0, x), (dt / 2, None))),)  # x(n + 1/2), from F(x(n))
+        self._start_end = ((None, self.old, ((1.0, x),)), (None, x, ((1.0, x), (dt, None))))  # keep x(n); x(n+1)
+        self._start_keep = self._lincomb(self.old, (1.0, x), (0.0, x))  # the semi-implicit start's
         self._copy_new = self._lincomb(x, (1.0, self.new), (0.0, self.new))
         self._record_scheme(x)
 
@@ -229,12 +245,9 @@ class _LeapfrogFamily(Stepper):
         if self.steps == 0:
             m = self.model
             self._at(0.0)
-            m.rhs(x, self.k)
-            self._start_mid.launch()
+            m.rhs_update(x, self._start_mid)
             self._at(0.5)
-            m.rhs(self.new, self.k)
-            self._start_keep.launch()
-            self._start_end.launch()
+            m.rhs_update(self.new, self._start_end)
             m.hyperviscosity(x, self.dt)
             return StepStats(2)
         return self._step(x)
@@ -262,14 +275,13 @@ class Leapfrog(_LeapfrogFamily):
 
     def _record_scheme(self, x):
         eps = self.options.robert_asselin
-        self._lf = self._lincomb(self.new, (1.0, self.old), (2 * self.dt, self.k))
+        self._lf = ((None, self.new, ((1.0, self.old), (2 * self.dt, None))),)
         self._ra = self._lincomb(self.old, (1 - 2 * eps, x), (eps, self.old), (eps, self.new))
 
     def _step(self, x):
         m = self.model
         self._at(0.0)
-        m.rhs(x, self.k)
-        self._lf.launch()
+        m.rhs_update(x, self._lf)
         m.hyperviscosity(self.new, 2 * self.dt)
         self._ra.launch()
         self._copy_new.launch()
@@ -287,22 +299,18 @@ class LeapfrogTrapezoidal(_LeapfrogFamily):
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
-        self.k2 = self._buffer()
+        self.half = self._buffer()  # x(n) + Δt/2 F(x(n)), the corrector's first half
 
     def _record_scheme(self, x):
         dt = self.dt
-        self._pred = self._lincomb(self.new, (1.0, self.old), (2 * dt, self.k))
-        self._keep = self._lincomb(self.old, (1.0, x), (0.0, x))
-        self._corr = self._lincomb(x, (1.0, x), (dt / 2, self.k), (dt / 2, self.k2))
+        self._pred = ((None, self.new, ((1.0, self.old), (2 * dt, None))), (None, self.half, ((1.0, x), (dt / 2, None))))
+        self._corr = ((None, self.old, ((1.0, x),)), (None, x, ((1.0, self.half), (dt / 2, None))))  # keep x(n); x(n+1)
 
     def _step(self, x):
         m = self.model
         self._at(0.0)
-        m.rhs(x, self.k)
-        self._pred.launch()
+        m.rhs_update(x, self._pred)
         self._at(1.0)  # the predictor x* stands for x(n+1)
-        m.rhs(self.new, self.k2)
-        self._keep.launch()
-        self._corr.launch()
+        m.rhs_update(self.new, self._corr)
         m.hyperviscosity(x, self.dt)
         return StepStats(2)

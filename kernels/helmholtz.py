@@ -18,8 +18,9 @@ The CG is Chronopoulos & Gear's (1989, J. Comput. Appl. Math. 25, 153)
 one-reduction form: one fused vector update (``cg_update``) and one operator
 product an iteration, the three inner products it needs computed by the update
 (r·u, r·r) and the assembly (w·u) as they write. Inner products are per-chunk
-partial sums over ``CHUNK`` unique nodes in index order, summed on the host in
-a fixed order: the bits do not depend on the CPU threads a launch is split over.
+partial sums over ``chunk`` unique nodes in index order (a launch argument,
+``parallel.reduction_chunk``), summed on the host in a fixed order: the bits do
+not depend on the CPU threads a launch is split over.
 """
 
 import functools
@@ -30,9 +31,6 @@ from .operators import CPU_FAST, reference_divergence, reference_gradient
 
 f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
-
-CHUNK = wp.constant(256)  # unique nodes per partial inner product
-
 
 @wp.func
 def copy_at(x: wp.array2d(dtype=f64), r: int, ghost: wp.array(dtype=f64), c: int, nlocal: int):
@@ -138,16 +136,17 @@ def helmholtz_assemble(copies: int):
     producer and the copies compiled in (a fixed-length loop; 1.6× faster on the CPU);
     and partial[1, chunk] = Σ out·y over the chunk's nodes (the CG's w·u, y the
     operator's input). Arguments: wz (1, N), ghost, nlocal, table, first, y, out
-    (nunique), partial (3, nchunks), offset (chunks). Dim ceil(nunique / CHUNK)."""
+    (nunique), partial (3, nchunks), chunk, offset (chunks). Dim ceil(nunique / chunk)."""
     C = int(copies)
 
     def helmholtz_assemble(
         wz: wp.array2d(dtype=f64), ghost: wp.array(dtype=f64), nlocal: int, table: wp.array2d(dtype=wp.int32),
-        first: wp.array(dtype=wp.int32), y: wp.array(dtype=f64), out: wp.array(dtype=f64), partial: wp.array2d(dtype=f64), offset: int,
+        first: wp.array(dtype=wp.int32), y: wp.array(dtype=f64), out: wp.array(dtype=f64), partial: wp.array2d(dtype=f64),
+        chunk: int, offset: int,
     ):
         t = wp.tid() + offset
         wy = f64(0.0)
-        for g in range(t * CHUNK, wp.min(out.shape[0], (t + 1) * CHUNK)):
+        for g in range(t * chunk, wp.min(out.shape[0], (t + 1) * chunk)):
             p = first[g]
             s = f64(0.0)
             for k in range(C):
@@ -165,15 +164,15 @@ def helmholtz_assemble(copies: int):
 @wp.kernel
 def cg_update(
     alpha: f64, beta: f64, p: wp.array(dtype=f64), s: wp.array(dtype=f64), x: wp.array(dtype=f64), r: wp.array(dtype=f64),
-    u: wp.array(dtype=f64), w: wp.array(dtype=f64), minv: wp.array(dtype=f64), partial: wp.array2d(dtype=f64), offset: int,
+    u: wp.array(dtype=f64), w: wp.array(dtype=f64), minv: wp.array(dtype=f64), partial: wp.array2d(dtype=f64), chunk: int, offset: int,
 ):
     """One Chronopoulos–Gear step on unique nodes: p = u + βp, s = w + βs,
     x += αp, r −= αs, u = minv·r (minv: the Jacobi preconditioner); partial[0]
-    and partial[2] per chunk: Σ r·u and Σ r·r. Dim ceil(nunique / CHUNK)."""
+    and partial[2] per chunk: Σ r·u and Σ r·r. Dim ceil(nunique / chunk)."""
     t = wp.tid() + offset
     ru = f64(0.0)
     rr = f64(0.0)
-    for i in range(t * CHUNK, wp.min(x.shape[0], (t + 1) * CHUNK)):
+    for i in range(t * chunk, wp.min(x.shape[0], (t + 1) * chunk)):
         pi = u[i] + beta * p[i]
         si = w[i] + beta * s[i]
         p[i] = pi
@@ -192,16 +191,16 @@ def cg_update(
 @wp.kernel
 def inner3(
     a0: wp.array(dtype=f64), b0: wp.array(dtype=f64), a1: wp.array(dtype=f64), b1: wp.array(dtype=f64),
-    a2: wp.array(dtype=f64), b2: wp.array(dtype=f64), out: wp.array2d(dtype=f64), offset: int,
+    a2: wp.array(dtype=f64), b2: wp.array(dtype=f64), out: wp.array2d(dtype=f64), chunk: int, offset: int,
 ):
-    """out[k, chunk] = Σ a_k·b_k over the chunk's ``CHUNK`` unique nodes, in index
-    order (three inner products in one pass). Dim ceil(nunique / CHUNK)."""
+    """out[k, t] = Σ a_k·b_k over chunk t's ``chunk`` unique nodes, in index
+    order (three inner products in one pass). Dim ceil(nunique / chunk)."""
     t = wp.tid() + offset
     n = a0.shape[0]
     s0 = f64(0.0)
     s1 = f64(0.0)
     s2 = f64(0.0)
-    for i in range(t * CHUNK, wp.min(n, (t + 1) * CHUNK)):
+    for i in range(t * chunk, wp.min(n, (t + 1) * chunk)):
         s0 += a0[i] * b0[i]
         s1 += a1[i] * b1[i]
         s2 += a2[i] * b2[i]

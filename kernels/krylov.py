@@ -10,14 +10,12 @@ Two kernels, each one pass over the vectors it reads:
 * ``lincomb``: out = a·x + Σ_{i<k} c_i B_i (a new basis vector, the update of
   the solution, the residual at a restart).
 
-Inner products are per-chunk partial sums over ``CHUNK`` entries in index order,
+Inner products are per-chunk partial sums over ``chunk`` entries in index order,
 added on the host in a fixed order (as the Helmholtz CG's, ``kernels.helmholtz``):
 the bits do not depend on the CPU threads a launch is split over.
 """
 
 import warp as wp
-
-from .helmholtz import CHUNK
 
 f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
@@ -26,13 +24,13 @@ wp.set_module_options({"enable_backward": False})
 @wp.kernel
 def project_dots(
     B: wp.array2d(dtype=f64), k_sub: int, h: wp.array(dtype=f64), w: wp.array(dtype=f64), k_dot: int,
-    partial: wp.array2d(dtype=f64), offset: int,
+    partial: wp.array2d(dtype=f64), chunk: int, offset: int,
 ):
     """w −= Σ_{i<k_sub} h[i]·B[i]; partial[i, t] = Σ B[i]·w over chunk t (i < k_dot),
-    partial[k_dot, t] = Σ w·w. Dim ceil(n / CHUNK)."""
+    partial[k_dot, t] = Σ w·w. Dim ceil(n / chunk)."""
     t = wp.tid() + offset
-    lo = t * CHUNK
-    hi = wp.min(w.shape[0], lo + CHUNK)
+    lo = t * chunk
+    hi = wp.min(w.shape[0], lo + chunk)
     for p in range(lo, hi):
         acc = w[p]
         for i in range(k_sub):

@@ -61,7 +61,7 @@ import warp as wp
 from ..kernels import gravity_wave as gk
 from ..kernels import helmholtz as hk
 from ..model import ShallowWater
-from ..parallel import record
+from ..parallel import record, reduction_chunk
 from .base import StepFailure
 
 f64 = wp.float64
@@ -319,7 +319,8 @@ class GravityWave:
         self.r, self.u, self.w, self.p, self.s = (z(nu) for _ in range(5))
         self.minv = wp.array(1.0 / self.area, dtype=f64, device=dev)
         self.area_wp, self.ones = wp.array(self.area, dtype=f64, device=dev), wp.ones(nu, dtype=f64, device=dev)
-        self.partial = z(3, (nu + hk.CHUNK - 1) // hk.CHUNK)
+        self.chunk = chunk = reduction_chunk(nu, dev)
+        self.partial = z(3, (nu + chunk - 1) // chunk)
         self._ops: dict[tuple, list] = {}
         self._div: dict[tuple, list] = {}  # each operator's divergence launch and the c it has
 
@@ -328,8 +329,8 @@ class GravityWave:
 
         self._rec = rec
         chunks = self.partial.shape[1]
-        self._update = rec(hk.cg_update, chunks, [f64(0.0), f64(0.0), self.p, self.s, self.y, self.r, self.u, self.w, self.minv, self.partial],
-                           nodes_per_index=hk.CHUNK)
+        self._update = rec(hk.cg_update, chunks, [f64(0.0), f64(0.0), self.p, self.s, self.y, self.r, self.u, self.w, self.minv, self.partial, chunk],
+                           nodes_per_index=chunk)
         self._shift = rec(hk.add_constant, nu, [self.y, f64(0.0)])
         self._inner = {}
 
@@ -347,7 +348,7 @@ class GravityWave:
             grad = self._rec(hk.helmholtz_gradient(m.dvv_const), m.grid.nelem, [y, halo, topo.gid, m.Dinv, topo.spheremp, self.wg],
                              nodes_per_index=m.grid.np**2)
             assemble = self._rec(hk.helmholtz_assemble(topo.table.shape[1]), self.partial.shape[1],
-                                 [self.z, topo.ghost, topo.N, topo.table, topo.first, y, out, self.partial], nodes_per_index=hk.CHUNK)
+                                 [self.z, topo.ghost, topo.N, topo.table, topo.first, y, out, self.partial, self.chunk], nodes_per_index=self.chunk)
             launches = self._ops[key] = [*topo.exchange(y2, unique=True), grad, *topo.exchange(self.wg), div, *topo.exchange(self.z), assemble]
             self._div[key] = [div, None]
         return launches
@@ -367,7 +368,7 @@ class GravityWave:
         key = tuple(a.ptr for a in (a0, b0, a1, b1, a2, b2))
         launch = self._inner.get(key)
         if launch is None:
-            launch = self._inner[key] = self._rec(hk.inner3, self.partial.shape[1], [a0, b0, a1, b1, a2, b2, self.partial], nodes_per_index=hk.CHUNK)
+            launch = self._inner[key] = self._rec(hk.inner3, self.partial.shape[1], [a0, b0, a1, b1, a2, b2, self.partial, self.chunk], nodes_per_index=self.chunk)
         launch.launch()
         return self._partial_sums()
 

@@ -30,8 +30,7 @@ import warp as wp
 from scipy.linalg import solve_triangular
 
 from ..kernels import krylov as kk
-from ..kernels.helmholtz import CHUNK
-from ..parallel import record
+from ..parallel import record, reduction_chunk
 
 f64 = wp.float64
 
@@ -58,7 +57,8 @@ class FGMRES:
         self.rows_Z = [self.Z[j] for j in range(m)]
         self.w, self.r = wp.zeros(n, dtype=f64, device=dev), wp.zeros(n, dtype=f64, device=dev)
         self.coef = wp.zeros(m + 1, dtype=f64, device=dev)
-        self.partial = wp.zeros((m + 2, (n + CHUNK - 1) // CHUNK), dtype=f64, device=dev)
+        self.chunk = chunk = reduction_chunk(n, dev)
+        self.partial = wp.zeros((m + 2, (n + chunk - 1) // chunk), dtype=f64, device=dev)
 
     def _record(self, kernel, dim, inputs, **kw):
         return record(kernel, dim, inputs, device=self.topology.device, threads=self.topology.threads, **kw)
@@ -67,8 +67,9 @@ class FGMRES:
         """w −= Σ_{i<k_sub} h_i V_i; returns (V_i·w for i < k_dot, w·w) over all processes."""
         if k_sub:
             self.coef.assign(np.concatenate([h, np.zeros(self.restart + 1 - k_sub)]))
-        self._record(kk.project_dots, self.partial.shape[1], [self.V, k_sub, self.coef, self.w, k_dot, self.partial], nodes_per_index=CHUNK).launch()
-        return self.topology.sums(self.partial.numpy()[: k_dot + 1].sum(axis=1))
+        self._record(kk.project_dots, self.partial.shape[1], [self.V, k_sub, self.coef, self.w, k_dot, self.partial, self.chunk],
+                     nodes_per_index=self.chunk).launch()
+        return self.topology.sums(self.partial[: k_dot + 1].numpy().sum(axis=1))  # the rows it wrote: less to copy from a GPU
 
     def _lincomb(self, B, c: np.ndarray, a: float, x, out) -> None:
         """out = a·x + Σ c_i B_i."""

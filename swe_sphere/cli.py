@@ -328,6 +328,8 @@ def _cmd_run(args) -> int:
 
 
 def _run(args, scene, output, device, comm) -> int:
+    from tqdm import tqdm
+
     from . import mpi
     from .parallel import threads_note
     from .simulation import BlowUp, Simulation, restart_path
@@ -374,7 +376,8 @@ def _run(args, scene, output, device, comm) -> int:
     print(f"setup       {sim.setup_time:.2f} s")
     try:
         result = sim.run(output, overwrite=args.overwrite, restart_every=args.restart_every, compress=args.compress,
-                         history=" ".join(["swe-sphere", *(sys.argv[1:] if args.argv is None else args.argv)]))
+                         history=" ".join(["swe-sphere", *(sys.argv[1:] if args.argv is None else args.argv)]),
+                         notify=lambda line: tqdm.write(f"swe-sphere: note: {line}", file=sys.stderr))  # above the bar
     except BlowUp as err:  # on every rank alike (the bad node is found over all of them)
         if sim.root:
             print(f"swe-sphere: {err}; the last good state is in {output}", file=sys.stderr)

@@ -62,6 +62,9 @@ class Interrupted(RuntimeError):
 
 
 ABANDON_AFTER = 1.0  # s a step may go on after SIGINT/SIGTERM before it is abandoned
+# A run's wall time is estimated from the steps after its first (which compiles kernels):
+# this many of them, or as many as take this many seconds, whichever comes first.
+ESTIMATE_STEPS, ESTIMATE_SECONDS = 3, 10.0
 
 
 class _StepAbandoned(BaseException):
@@ -361,7 +364,7 @@ class Simulation:
 
     def run(self, output: Path | None = None, *, overwrite: bool = False, restart_every: float | None = None,
             restart_file: Path | None = None, catch_signals: bool = True, compress: bool = False,
-            history: str | None = None, on_output=None) -> RunResult:
+            history: str | None = None, on_output=None, notify=None) -> RunResult:
         """Integrate the scene from the current step; write ``output`` (netCDF) if given.
 
         ``overwrite``: replace an existing output (and restart) file; else
@@ -374,7 +377,9 @@ class Simulation:
         file is neither refused nor replaced (no restart file on a signal).
         ``compress``: float32 + zlib fields. ``history``: the
         command line, for the file's ``history`` attribute. ``on_output(step, x)``: called
-        at every output step with the (3, N) device state. Raises ``BlowUp`` after closing the output with every
+        at every output step with the (3, N) device state. ``notify(line)``: called
+        (rank 0) with a one-line note when the wall time estimated from the first
+        steps exceeds a day. Raises ``BlowUp`` after closing the output with every
         good output time and the last good state (the step before the failure).
         """
         s, model, stepper = self.scene, self.model, self.stepper
@@ -421,6 +426,7 @@ class Simulation:
         c, history = self.counters, []
         c.setdefault("cpu_time", 0.0)  # a restart file written before runs kept their CPU time
         first_step, first_time, written, wall0 = self.step, math.nan, [None], c["wall_time"]
+        estimating, since = notify is not None and self.root, math.nan  # the wall clock at the end of the first step
 
         def record(step, x=None, whole=None):
             if whole is None:  # once per output time, on every rank
@@ -496,7 +502,14 @@ class Simulation:
                         c["wall_time"] += dt_wall
                         c["cpu_time"] += time.process_time() - cpu0  # the process's threads summed: one thread for a reproducible cost
                         if n == first_step + 1:
-                            first_time = dt_wall
+                            first_time, since = dt_wall, time.perf_counter()
+                        elif estimating:  # the loop's own time (output, progress bar) counted
+                            timed, spent = n - first_step - 1, time.perf_counter() - since
+                            if timed >= ESTIMATE_STEPS or spent >= ESTIMATE_SECONDS:
+                                estimating, left = False, spent / timed * (s.nsteps - n)
+                                if left > DAY:
+                                    notify(f"this run will take about {left / DAY:.3g} days of wall time to day {s.days:g} "
+                                           f"({spent / timed:.3g} s a step over steps {first_step + 2}-{n}; {s.nsteps - n} steps left)")
                         if stats is not None:
                             c["rhs_evals"] += stats.rhs_evals
                             for k, it in stats.iterations.items():

@@ -268,3 +268,29 @@ def test_a_cold_kernel_cache_is_announced_once_on_a_terminal(tmp_path):
     assert len(lines) == 1 and lines[0].startswith("swe-sphere: compiling Warp kernels (first use; cached in "), lines
     assert str(tmp_path / "cache") in lines[0]
     assert stderr_on_a_tty("warm.nc") == []
+
+
+def test_a_run_longer_than_a_day_says_so_at_its_start(tmp_path):
+    """864 million steps of ne8 (~1 ms each; a day's wall time at 0.1 ms): one note
+    on stderr, from the steps after the first, that the run will take days; then
+    SIGTERM ends it."""
+    import signal
+    import threading
+
+    env = {**os.environ, "SWE_SPHERE_THREADS": "1"}
+    proc = subprocess.Popen([SCRIPT, "run", "tc2_steady", "--ne", "8", "--device", "cpu", "--no-progress", "--days", "1000",
+                             "--dt", "0.1", "--output", "long.nc"],
+                            cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
+    guard = threading.Timer(120, proc.kill)  # no note: the test fails instead of waiting for the run
+    guard.start()
+    try:
+        note = proc.stderr.readline()
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        guard.cancel()
+        if proc.poll() is None:
+            proc.kill()
+    assert note.startswith("swe-sphere: note: this run will take about ") and "days of wall time to day 1000" in note, note
+    assert "s a step over steps 2-4; 863999996 steps left" in note, note
+    assert proc.returncode == 143 and err.count("\n") == 1 and "interrupted by SIGTERM" in err, err

@@ -4,7 +4,7 @@ Exit status: 0 success; 2 bad input (one line naming the field or value, no
 output file); 3 blow-up, solver failure or too little memory (message with
 step, model time and place; the output file keeps every good output time);
 130 / 143 interrupted by SIGINT / SIGTERM (output so far and a restart file
-kept); 1 an internal error. Every failure is one line on stderr; ``--debug``
+kept; also for a signal once the outputs are complete); 1 an internal error. Every failure is one line on stderr; ``--debug``
 (or SWE_SPHERE_DEBUG=1) shows the traceback instead.
 """
 
@@ -379,8 +379,12 @@ def _run(args, scene, output, device, comm) -> int:
                          history=" ".join(["swe-sphere", *(sys.argv[1:] if args.argv is None else args.argv)]),
                          notify=lambda line: tqdm.write(f"swe-sphere: note: {line}", file=sys.stderr))  # above the bar
     except BlowUp as err:  # on every rank alike (the bad node is found over all of them)
+        result, blowup = None, f"swe-sphere: {err}; the last good state is in {output}"
+    if args.console:
+        _hold_signals()  # the output is closed: a signal from now on is answered as the process ends
+    if result is None:
         if sim.root:
-            print(f"swe-sphere: {err}; the last good state is in {output}", file=sys.stderr)
+            print(blowup, file=sys.stderr)
         return EXIT_BLOWUP
     _summary(result, sim)
     return 0
@@ -501,40 +505,96 @@ def _on_sigterm(signum, frame):
     raise _Terminated()
 
 
+_LATE: list[int] = []  # SIGINT/SIGTERM received after the console script's outputs were closed
+
+
+def _hold_signals() -> None:
+    """From now on SIGINT/SIGTERM are noted, not raised: the outputs are closed (or a
+    failure is being reported), and ``_exit`` answers them."""
+    import signal
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        if signal.getsignal(sig) is not signal.SIG_IGN:
+            signal.signal(sig, lambda signum, frame: _LATE.append(signum))
+
+
+def _exit(code: int):
+    """End the console script with ``code``, or, after a successful command, with
+    128 + signum and one line for a signal that came once its outputs were complete.
+    Never returns. The interpreter's teardown is skipped (its atexit callbacks run):
+    it takes about a second (garbage collection, Warp's modules) with the default
+    signal dispositions back, so a Ctrl-C then ended the process silently with -2."""
+    import atexit
+    import signal
+
+    def flush(stream):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a closed pipe (`| head`): nothing more can be said
+            pass
+
+    _hold_signals()
+    atexit._run_exitfuncs()
+    flush(sys.stdout)  # may wait for a slow reader: a signal meanwhile is answered below
+    if _LATE and code == 0:
+        signum = min(_LATE)  # SIGINT before SIGTERM
+        print(f"swe-sphere: interrupted by {signal.Signals(signum).name} after the command had finished; its output is complete",
+              file=sys.stderr)
+        code = 128 + signum
+    flush(sys.stderr)
+    os._exit(code)
+
+
 def main(argv=None) -> int:
     import signal
+
+    from . import mpi
 
     args = _parser().parse_args(argv)
     args.argv = argv
     debug = args.debug or os.environ.get("SWE_SPHERE_DEBUG", "") not in ("", "0")
-    if argv is None and signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:  # the console script, not a caller's process
+    args.console = argv is None and signal.getsignal(signal.SIGTERM) is signal.SIG_DFL  # not a caller's process
+    if args.console:
         signal.signal(signal.SIGTERM, _on_sigterm)
     try:
-        return COMMANDS[args.command](args)
+        code = COMMANDS[args.command](args)
     except (Exception, KeyboardInterrupt) as err:
         if debug:
             raise
-        code, message = _classify(err)
-        from . import mpi
+        if args.console:
+            _hold_signals()  # a second Ctrl-C does not break the report
+        code = _report(err, args)
+    if args.console and mpi.launched_size() == 1:  # an MPI rank's teardown finalises MPI
+        _exit(code)
+    return code
 
-        comm = mpi.world() if args.command == "run" else None  # one run over several MPI ranks
-        if comm is None or comm.rank == 0 or code != EXIT_BAD_INPUT:  # bad input: every rank refuses it alike
-            where = f"rank {comm.rank} of {comm.size}: " if comm is not None and comm.rank else ""
-            print(f"swe-sphere: {where}{'error: ' if code in (EXIT_BAD_INPUT, EXIT_INTERNAL) else ''}{message}", file=sys.stderr)
-        if comm is not None and comm.rank != 0 and code != EXIT_BAD_INPUT and code < 128:
-            # perhaps this rank alone (a signal stops every rank at the same step): the others
-            # cannot meet it again, so rank 0 closes its files and ends the job (mpi.watch_failures)
-            sys.stderr.flush()
-            mpi.report_failure(comm, code, f"{where}{message}")
-        if comm is not None and comm.rank == 0 and code != EXIT_BAD_INPUT:
-            # rank 0, the writer, may fail alone (its output): the others would wait for it
-            # forever, so it ends the job, with its exit status, once its files are closed.
-            # The process manager forwards stderr on its own time: aborting at once lost
-            # the line now and then (exit 3, empty stderr), so give it a moment.
-            sys.stderr.flush()
-            time.sleep(0.5)
-            comm.Abort(code)
-        return code
+
+def _report(err: BaseException, args) -> int:
+    """Print the one line of a failure (rank 0 for what every rank meets alike) and
+    return its exit status; under MPI, end the job when one rank may have failed alone."""
+    from . import mpi
+    from .simulation import Interrupted
+
+    code, message = _classify(err)
+    comm = mpi.world() if args.command == "run" else None  # one run over several MPI ranks
+    alike = code == EXIT_BAD_INPUT or isinstance(err, Interrupted)  # every rank refuses it, or stops at one step, alike
+    if comm is None or comm.rank == 0 or not alike:
+        where = f"rank {comm.rank} of {comm.size}: " if comm is not None and comm.rank else ""
+        print(f"swe-sphere: {where}{'error: ' if code in (EXIT_BAD_INPUT, EXIT_INTERNAL) else ''}{message}", file=sys.stderr)
+    if comm is not None and comm.rank != 0 and not alike and code < 128:
+        # perhaps this rank alone (a signal stops every rank at the same step): the others
+        # cannot meet it again, so rank 0 closes its files and ends the job (mpi.watch_failures)
+        sys.stderr.flush()
+        mpi.report_failure(comm, code, f"{where}{message}")
+    if comm is not None and comm.rank == 0 and not alike:
+        # rank 0, the writer, may fail alone (its output): the others would wait for it
+        # forever, so it ends the job, with its exit status, once its files are closed.
+        # The process manager forwards stderr on its own time: aborting at once lost
+        # the line now and then (exit 3, empty stderr), so give it a moment.
+        sys.stderr.flush()
+        time.sleep(0.5)
+        comm.Abort(code)
+    return code
 
 
 if __name__ == "__main__":

@@ -56,7 +56,8 @@ class WholeFields:
 
 class Interrupted(RuntimeError):
     """SIGINT or SIGTERM stopped the run after a complete step (a step still going
-    on ``ABANDON_AFTER`` s after the signal is abandoned, its state dropped);
+    on ``ABANDON_AFTER`` s after the signal is abandoned, its state dropped), or
+    came after its last step, while its output was being closed (then whole);
     ``signum``, ``result`` and ``checkpoint`` (the restart file written, or None)
     are attached."""
 
@@ -540,6 +541,8 @@ class Simulation:
                         if writer is not None:
                             writer.set_attrs(interrupted=signal.Signals(interrupted).name, interrupted_at_step=self.step,
                                              interrupted_at_day=self.step * s.dt / DAY)
+            if writer is not None:
+                writer.close()  # under this run's handlers: a signal now waits, and is answered below
         except BaseException:
             if writer is not None:
                 writer.abort()
@@ -550,8 +553,8 @@ class Simulation:
                 signal.setitimer(signal.ITIMER_REAL, 0)
             for sig, handler in handlers.items():
                 signal.signal(sig, handler)
-        if writer is not None:
-            writer.close()
+        if interrupted is None and blowup is None:  # a signal after the last step's check: the output is whole
+            interrupted = int(self.topology.max(stop[0] if stop else 0)) or None
         result = RunResult(
             steps=self.step,
             rhs_evals=c["rhs_evals"],
@@ -574,13 +577,18 @@ class Simulation:
             err.result = result
             raise err
         if interrupted is not None:
-            name = signal.Signals(interrupted).name
-            kept = [f"output so far in {output}"] if output is not None else []
+            name, day = signal.Signals(interrupted).name, self.step * s.dt / DAY
+            if self.step == s.nsteps:  # the run had ended (an interruption inside it stops before its last step)
+                kept = [f"the output {output} is complete"] if output is not None else []
+                when = f"after the last step (model time {day:.4f} days)"
+            else:
+                kept = [f"output so far in {output}"] if output is not None else []
+                if kept_restart is not None:
+                    kept.append(f"no restart file: {kept_restart} exists (--overwrite, or overwrite=True in Python, replaces it)")
+                how = f"; step {self.step + 1} abandoned after {ABANDON_AFTER:g} s (no restart file from it)" if abandoned else ""
+                when = f"at step {self.step} (model time {day:.4f} days){how}"
             kept += [f"restart file {written[0]}"] if written[0] is not None else []
-            if kept_restart is not None:
-                kept.append(f"no restart file: {kept_restart} exists (--overwrite, or overwrite=True in Python, replaces it)")
-            how = f"; step {self.step + 1} abandoned after {ABANDON_AFTER:g} s (no restart file from it)" if abandoned else ""
-            err = Interrupted("; ".join([f"interrupted by {name} at step {self.step} (model time {self.step * s.dt / DAY:.4f} days){how}", *kept]))
+            err = Interrupted("; ".join([f"interrupted by {name} {when}", *kept]))
             err.signum, err.result, err.checkpoint = interrupted, result, written[0]
             raise err
         return result

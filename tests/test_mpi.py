@@ -160,6 +160,33 @@ def test_unreadable_restart_file_refused_by_every_rank_in_one_line(tmp_path):
 
 
 @pytest.mark.usefixtures("needs_mpi")
+def test_sigint_on_two_ranks_is_one_line(tmp_path):
+    """Ctrl-C reaches every rank, which stop at one step together: rank 0 alone
+    says so (it said so once a rank), and no MPI_Abort is needed (exit 130)."""
+    import signal
+    import time
+
+    proc = subprocess.Popen([_beside_python("mpiexec"), "-n", "2", _beside_python("swe-sphere"), "run", "tc5_mountain", "--ne", "4",
+                             "--days", "200", "--no-progress", "--output", "o.nc"],
+                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "SWE_SPHERE_THREADS": "1"})
+    try:
+        for line in proc.stdout:
+            if line.startswith("setup"):
+                break
+        time.sleep(1.0)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, err[-2000:]
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("swe-sphere: interrupted by SIGINT at step "), err[-2000:]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["o.nc", "o.restart.nc"]
+
+
+@pytest.mark.usefixtures("needs_mpi")
 def test_blow_up_on_two_ranks_is_one_line(tmp_path):
     """Every rank finds the blow-up (the bad node is sought over all of them); rank 0
     alone says so, as it alone gives the stability warning: two lines, not four."""

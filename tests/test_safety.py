@@ -294,3 +294,80 @@ def test_a_run_longer_than_a_day_says_so_at_its_start(tmp_path):
     assert note.startswith("swe-sphere: note: this run will take about ") and "days of wall time to day 1000" in note, note
     assert "s a step over steps 2-4; 863999996 steps left" in note, note
     assert proc.returncode == 143 and err.count("\n") == 1 and "interrupted by SIGTERM" in err, err
+
+
+def test_a_signal_after_the_output_is_complete_exits_130_in_one_line(tmp_path):
+    """SIGINT once the run's output was closed (here while the process waits to
+    write its summary into a full pipe) ended it with status -2 and no word, or
+    with a traceback: now one line, exit 130, the output whole."""
+    import signal
+    import time
+
+    import xarray as xr
+
+    read, write = os.pipe()
+    os.set_blocking(write, False)
+    try:
+        while True:  # fill the pipe: the run's stdout (block-buffered) waits at its first flush, at the end
+            os.write(write, b"." * 4096)
+    except BlockingIOError:
+        pass
+    os.set_blocking(write, True)
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"} | {"SWE_SPHERE_THREADS": "1"}
+    proc = subprocess.Popen([SCRIPT, "run", "tc2_steady", *TINY, "--days", "1", "--output", "o.nc"], cwd=tmp_path,
+                            stdout=write, stderr=subprocess.PIPE, text=True, env=env)
+    os.close(write)
+    try:
+        for _ in range(1200):
+            if (tmp_path / "o.nc").exists() or proc.poll() is not None:
+                break
+            time.sleep(0.1)
+        time.sleep(1.0)  # on to its summary
+        assert proc.poll() is None
+        proc.send_signal(signal.SIGINT)
+        with os.fdopen(read, "rb") as pipe:
+            out = pipe.read()
+        err = proc.communicate(timeout=60)[1]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, err
+    assert err.splitlines() == ["swe-sphere: interrupted by SIGINT after the command had finished; its output is complete"], err
+    assert b"  output      o.nc" in out
+    with xr.open_dataset(tmp_path / "o.nc") as ds:
+        assert ds.sizes["time"] == 2 and "interrupted" not in ds.attrs
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["o.nc"]
+
+
+LAST_OUTPUT_SIGNAL = """
+import os, signal, sys
+from swe_sphere import simulation
+from swe_sphere.cli import main
+
+run = simulation.Simulation.run
+
+def run_signalled_at_the_last_output(self, *args, **kwargs):  # SIGINT while the last output time is written
+    def on_output(step, x):
+        if step == self.scene.nsteps:
+            os.kill(os.getpid(), signal.SIGINT)
+    return run(self, *args, on_output=on_output, **kwargs)
+
+simulation.Simulation.run = run_signalled_at_the_last_output
+sys.argv = ["swe-sphere", "run", "tc2_steady", "--ne", "2", "--device", "cpu", "--no-progress", "--days", "1", "--output", "o.nc"]
+main()
+"""
+
+
+def test_a_signal_after_the_last_step_keeps_the_output_whole(tmp_path):
+    """SIGINT after the loop's last check (writing the last output time, closing the
+    file): the file is closed whole under the run's handlers, then exit 130 in one line."""
+    import xarray as xr
+
+    proc = subprocess.run([sys.executable, "-c", LAST_OUTPUT_SIGNAL], cwd=tmp_path, capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "SWE_SPHERE_THREADS": "1"})
+    assert proc.returncode == 130, proc.stderr
+    assert proc.stderr.splitlines() == ["swe-sphere: interrupted by SIGINT after the last step (model time 1.0000 days); "
+                                        "the output o.nc is complete"], proc.stderr
+    with xr.open_dataset(tmp_path / "o.nc") as ds:
+        assert ds.sizes["time"] == 2 and "interrupted" not in ds.attrs
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["o.nc"]

@@ -335,10 +335,12 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
             interval = min(every, days1) * DAY
             scaled = dt1 * min_ratio
             dt1 = interval / max(1, math.ceil(interval / scaled - 1e-9))
-            notes.append(f"dt scaled with the smallest node spacing to {dt1:g} s")
-            if scaled / dt1 > 2:
+            if scaled / dt1 > 2:  # one line for both: "scaled to" the cut dt read as if the grid had asked for it
                 what = f"the output interval of {every:g} days" if every <= days1 else f"the run length of {days1:g} days"
-                notes.append(f"warning: dt cut {scaled / dt1:.3g}x (from {scaled:g} s) to divide {what}")
+                notes.append(f"warning: dt cut {scaled / dt1:.3g}x (from {scaled:g} s, scaled with the smallest node spacing) "
+                             f"to {dt1:g} s to divide {what}")
+            else:
+                notes.append(f"dt scaled with the smallest node spacing to {dt1:g} s")
     else:
         dt1 = dt
     if not (_is_number(dt1) and math.isfinite(dt1) and dt1 > 0):

@@ -72,7 +72,8 @@ def test_dt_cut_more_than_twice_warns(tmp_path):
     path = scene_with(tmp_path, **{'days = 1.0': 'days = 0.01\n[output]\nevery_days = 1e-4'})
     scene = load_scene(path, ne=3)
     warn = [n for n in scene.notes if n.startswith("warning: dt cut")]
-    assert len(warn) == 1 and "0.0001 days" in warn[0], scene.notes
+    assert len(warn) == 1 and "0.0001 days" in warn[0] and "to 8.64 s" in warn[0], scene.notes
+    assert not any(n.startswith("dt scaled") for n in scene.notes), scene.notes  # the warning says it
     assert scene.dt == pytest.approx(8.64)
     assert not any("warning" in n for n in load_scene("tc2_steady", ne=3).notes)  # scaled, cut < 2x: no warning
 

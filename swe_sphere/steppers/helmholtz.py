@@ -97,45 +97,62 @@ def check_solve_options(o) -> None:
         raise ValueError(f"mean_depth must be >= 0 (got {o.mean_depth})")
 
 
-def helmholtz_matrix(model: ShallowWater) -> sp.csr_matrix:
-    """K = −M D G (nunique × nunique, dimensionless: M in m², D G in m⁻²) on unique nodes, symmetrised (its asymmetry is round-off, ~1e-15 relative).
+def element_gradient(model: ShallowWater) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """(Ĝ, P): the element gradient Ĝ (2N × N, 1/m: (u, v) components of each element's own
+    gradient, before the DSS) and the scatter P (N × nunique, ones: unique → element-local copies).
 
-    Built from the model's own element kernels: ``model.gradient`` and
-    ``model.divergence`` leave the element-local (pre-DSS) result in
-    ``model.vec_work`` / ``model.scalar``, so np² (gradient) and 2np²
-    (divergence) probes with a unit value at one local node of every element
-    give the element matrices Ĝ, D̂ exactly; with P the scatter (unique →
-    element-local), W = diag(spheremp) and the DSS S = P M⁻¹ Pᵀ W,
-    K = −Pᵀ W D̂ S Ĝ P. The whole grid on one process (the host solvers').
+    Ĝ comes from np² probes of ``model.gradient``, which leaves the element-local result in
+    ``model.vec_work``: a unit value at one local node of every element gives a column of every
+    element's matrix exactly. The whole grid on one process.
     """
     grid, N = model.grid, model.N
-    npp, nu = grid.np**2, grid.nunique
+    npp = grid.np**2
     base = np.arange(grid.nelem) * npp
     x = wp.zeros((3, N), dtype=f64, device=model.device)
-    G2, D1 = wp.zeros((2, N), dtype=f64, device=model.device), wp.zeros((1, N), dtype=f64, device=model.device)
+    G2 = wp.zeros((2, N), dtype=f64, device=model.device)
     nodes = np.arange(N)  # element-major: the rows of element e are e·np² … (e+1)·np² − 1
-    grow, gcol, gval, drow, dcol, dval = [], [], [], [], [], []
+    rows, cols, vals = [], [], []
     unit = np.zeros((3, N))
     for k in range(npp):
-        col = np.repeat(base + k, npp)  # the probed column of each row's element
-        unit[:] = 0.0
+        unit[2] = 0.0
         unit[2, base + k] = 1.0
         x.assign(unit)
         model.gradient(x, 2, G2)
         g = model.vec_work.numpy()
         for c in range(2):
-            grow.append(c * N + nodes), gcol.append(col), gval.append(g[c].copy())
+            rows.append(c * N + nodes), cols.append(np.repeat(base + k, npp)), vals.append(g[c].copy())
+    G_hat = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(2 * N, N))
+    G_hat.eliminate_zeros()
+    return G_hat, sp.csr_matrix((np.ones(N), (nodes, grid.gid)), shape=(N, grid.nunique))
+
+
+def helmholtz_matrix(model: ShallowWater) -> sp.csr_matrix:
+    """K = −M D G (nunique × nunique, dimensionless: M in m², D G in m⁻²) on unique nodes, symmetrised (its asymmetry is round-off, ~1e-15 relative).
+
+    Built from the model's own element kernels: Ĝ and P from ``element_gradient``, and the
+    element divergence D̂ from 2np² probes of ``model.divergence`` (its element-local result is
+    left in ``model.scalar``); with W = diag(spheremp) and the DSS S = P M⁻¹ Pᵀ W,
+    K = −Pᵀ W D̂ S Ĝ P. The whole grid on one process (the host solvers').
+    """
+    grid, N = model.grid, model.N
+    npp = grid.np**2
+    base = np.arange(grid.nelem) * npp
+    G_hat, P = element_gradient(model)
+    x = wp.zeros((3, N), dtype=f64, device=model.device)
+    D1 = wp.zeros((1, N), dtype=f64, device=model.device)
+    nodes = np.arange(N)
+    drow, dcol, dval = [], [], []
+    unit = np.zeros((3, N))
+    for k in range(npp):
+        col = np.repeat(base + k, npp)  # the probed column of each row's element
         for c in range(2):
             unit[:] = 0.0
             unit[c, base + k] = 1.0
             x.assign(unit)
             model.divergence(x, D1)
             drow.append(nodes), dcol.append(c * N + col), dval.append(model.scalar.numpy()[0].copy())
-    G_hat = sp.csr_matrix((np.concatenate(gval), (np.concatenate(grow), np.concatenate(gcol))), shape=(2 * N, N))
     D_hat = sp.csr_matrix((np.concatenate(dval), (np.concatenate(drow), np.concatenate(dcol))), shape=(N, 2 * N))
-    G_hat.eliminate_zeros()
     D_hat.eliminate_zeros()
-    P = sp.csr_matrix((np.ones(N), (nodes, grid.gid)), shape=(N, nu))
     PtW = (P.T @ sp.diags(grid.spheremp)).tocsr()
     inv_area = sp.diags(np.tile(1.0 / grid.area, 2))
     G = inv_area @ sp.block_diag((PtW, PtW)) @ G_hat @ P  # (2 nunique, nunique): DSS'd gradient on unique nodes

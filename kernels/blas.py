@@ -34,6 +34,18 @@ def axpbypcz(
 
 
 @wp.kernel
+def chunk_sums(src: wp.array2d(dtype=f64), chunk: int, dst: wp.array2d(dtype=f64)):
+    """dst[r, t] = Σ src[r, t·chunk : (t+1)·chunk] in index order: partial sums of
+    partial sums, so that fewer come back to the host. Dim (rows, ceil(n / chunk))."""
+    r, t = wp.tid()
+    lo = t * chunk
+    s = f64(0.0)
+    for i in range(lo, wp.min(src.shape[1], lo + chunk)):
+        s += src[r, i]
+    dst[r, t] = s
+
+
+@wp.kernel
 def add_row(x: wp.array2d(dtype=f64), row: int, out: wp.array2d(dtype=f64), out_row: int):
     """out[out_row] += x[row]. Dim N."""
     p = wp.tid()

@@ -25,8 +25,8 @@ import numpy as np
 import warp as wp
 
 from .grid import CubedSphere
-from .kernels import dss
-from .parallel import record
+from .kernels import blas, dss
+from .parallel import record, reduction_chunk
 
 f64 = wp.float64
 MAX_ROWS = 4  # most rows a DSS assembles at once (the hyperviscosity's Cartesian wind + h)
@@ -201,6 +201,7 @@ class Topology:
         self.total_area = self.sum(float(np.sum(self.area)))
         c = self.copies  # the DSS's pattern
         self.neighbours, self.ghost, self.halo_copies = c.neighbours, c.recv_buffer, c.size
+        self._second: dict[tuple, tuple] = {}  # partial_sums's launch and array per (partial, rows), on CUDA
         self.dss_copies = d = dss.Copies()  # the DSS kernels' view of the above
         d.table, d.nlocal, d.ghost, d.spheremp, d.rspheremp = self.table, self.N, self.ghost, self.spheremp, self.rspheremp
 
@@ -423,6 +424,24 @@ class Topology:
         for part in parts[1:]:
             total += part
         return total
+
+    def partial_sums(self, partial: wp.array2d, rows: int) -> np.ndarray:
+        """The totals of the first ``rows`` rows of a Warp array of per-chunk partial
+        sums (a chunked inner product's, ``parallel.reduction_chunk``) over all
+        processes: added in index order, then over ranks (``sums``); one host
+        synchronisation. On CUDA the chunks are first summed on the device, a
+        chunk of them at a time, so that only a few hundred values a row are copied."""
+        if not wp.get_device(self.device).is_cpu:
+            n = partial.shape[1]
+            chunk = reduction_chunk(self.device)
+            key = (partial.ptr, rows)
+            second = self._second.get(key)
+            if second is None:
+                out = wp.zeros((rows, (n + chunk - 1) // chunk), dtype=f64, device=self.device)
+                second = self._second[key] = (wp.launch(blas.chunk_sums, out.shape, [partial[:rows], chunk, out], device=self.device, record_cmd=True), out)
+            second[0].launch()
+            partial = second[1]
+        return self.sums(partial[:rows].numpy().sum(axis=1))
 
     def dot(self, a, b) -> float:
         """Σ a·b of two arrays of one shape (device or numpy) over all processes

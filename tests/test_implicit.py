@@ -48,7 +48,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-import types
 
 import numpy as np
 import pytest
@@ -60,6 +59,7 @@ from swe_sphere.config import load_scene
 from swe_sphere.constants import DAY
 from swe_sphere.simulation import BlowUp
 from swe_sphere.steppers import StepFailure
+from swe_sphere.topology import Topology
 
 from conftest import cached_grid, make_sim, run, tc6_inviscid, write_tc2_scene
 from numpy_ops import NumpyOps
@@ -383,7 +383,7 @@ def test_fgmres_solves_with_a_changing_preconditioner_and_restarts(rng):
     A = np.diag(np.linspace(1.0, 10.0, n)) + 0.3 * rng.standard_normal((n, n)) / math.sqrt(n)
     b_np = rng.standard_normal(n)
     d = 1.0 / np.diag(A)
-    one_process = types.SimpleNamespace(device="cpu", threads=1, sums=np.asarray)  # Topology's part FGMRES uses
+    one_process = Topology(cached_grid(2, 4))  # FGMRES takes its device, threads and reductions
 
     def solve(restart, scaling, rtol, maxiter):
         def matvec(v, out):  # CPU Warp arrays: numpy() is a view

@@ -336,7 +336,7 @@ class GravityWave:
         self.r, self.u, self.w, self.p, self.s = (z(nu) for _ in range(5))
         self.minv = wp.array(1.0 / self.area, dtype=f64, device=dev)
         self.area_wp, self.ones = wp.array(self.area, dtype=f64, device=dev), wp.ones(nu, dtype=f64, device=dev)
-        self.chunk = chunk = reduction_chunk(nu, dev)
+        self.chunk = chunk = reduction_chunk(dev)
         self.partial = z(3, (nu + chunk - 1) // chunk)
         self._ops: dict[tuple, list] = {}
         self._div: dict[tuple, list] = {}  # each operator's divergence launch and the c it has
@@ -392,7 +392,7 @@ class GravityWave:
     def _partial_sums(self) -> np.ndarray:
         """The three inner products of ``partial`` over all ranks: its chunks added on the
         host in index order, then over ranks (``Topology.sums``): the one host synchronisation."""
-        return self.model.topology.sums(self.partial.numpy().sum(axis=1))
+        return self.model.topology.partial_sums(self.partial, 3)
 
     def _step(self, alpha: float, beta: float) -> None:
         self._update.set_param_by_name("alpha", f64(alpha))

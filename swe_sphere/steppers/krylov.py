@@ -57,7 +57,7 @@ class FGMRES:
         self.rows_Z = [self.Z[j] for j in range(m)]
         self.w, self.r = wp.zeros(n, dtype=f64, device=dev), wp.zeros(n, dtype=f64, device=dev)
         self.coef = wp.zeros(m + 1, dtype=f64, device=dev)
-        self.chunk = chunk = reduction_chunk(n, dev)
+        self.chunk = chunk = reduction_chunk(dev)
         self.partial = wp.zeros((m + 2, (n + chunk - 1) // chunk), dtype=f64, device=dev)
 
     def _record(self, kernel, dim, inputs, **kw):
@@ -69,7 +69,7 @@ class FGMRES:
             self.coef.assign(np.concatenate([h, np.zeros(self.restart + 1 - k_sub)]))
         self._record(kk.project_dots, self.partial.shape[1], [self.V, k_sub, self.coef, self.w, k_dot, self.partial, self.chunk],
                      nodes_per_index=self.chunk).launch()
-        return self.topology.sums(self.partial[: k_dot + 1].numpy().sum(axis=1))  # the rows it wrote: less to copy from a GPU
+        return self.topology.partial_sums(self.partial, k_dot + 1)  # the rows it wrote: less to copy from a GPU
 
     def _lincomb(self, B, c: np.ndarray, a: float, x, out) -> None:
         """out = a·x + Σ c_i B_i."""

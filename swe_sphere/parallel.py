@@ -30,7 +30,7 @@ from .workers import cpus as _usable_cpus
 
 MIN_POINTS_PER_PART = 2048  # below this a split costs more in hand-offs than it gains
 CPU_CHUNK = 256  # entries per partial sum of an inner product on the CPU
-CUDA_CHUNK = 32  # entries per partial sum on CUDA: a thread each, enough threads to fill the GPU
+CUDA_CHUNKS = 4096  # partial sums an inner product aims at on CUDA, 8 to 32 entries each (measured on an H100)
 
 _pools: dict[int, ThreadPoolExecutor] = {}
 _pools_lock = threading.Lock()
@@ -163,15 +163,18 @@ def split_points(n: int, block: int, parts: int) -> list[int]:
     return [round(k * nblocks / parts) * block for k in range(parts + 1)]
 
 
-def reduction_chunk(device) -> int:
-    """Entries per partial sum of an inner product (the chunked,
+def reduction_chunk(n: int, device) -> int:
+    """Entries per partial sum of an inner product over n entries (the chunked,
     fixed-order reductions of ``kernels.helmholtz`` and ``kernels.krylov``): on
-    the CPU ``CPU_CHUNK`` (so the bits do not depend on the threads), on CUDA
-    ``CUDA_CHUNK``: a thread per chunk must fill the GPU (CPU_CHUNK on CUDA
-    left an H100 idle: a pcg iteration cost 40 RHS at ne30, 190 threads each
-    summing 256 nodes); ``Topology.partial_sums`` sums the partial sums again on
-    the device before they are copied back."""
-    return CPU_CHUNK if wp.get_device(device).is_cpu else CUDA_CHUNK
+    the CPU ``CPU_CHUNK`` (so the bits do not depend on the threads); on CUDA
+    about n / ``CUDA_CHUNKS``, within 8–32. A GPU thread sums a chunk in a
+    serial loop, latency-bound: on an H100 at ne30, chunks of 256 made a pcg
+    iteration cost 40 RHS, of 32 twice what chunks of 12 cost; at ne120 chunks of
+    190 cost 1.8× chunks of 32. ``Topology.partial_sums`` sums more than
+    ``CUDA_CHUNKS`` partial sums again on the device before the copy back."""
+    if wp.get_device(device).is_cpu:
+        return CPU_CHUNK
+    return min(32, max(8, -(-int(n) // CUDA_CHUNKS)))
 
 
 def record(kernel, dim, inputs, *, device, threads: int, block: int = 1, per_part=None, nodes_per_index: int = 1):

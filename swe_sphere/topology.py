@@ -26,7 +26,7 @@ import warp as wp
 
 from .grid import CubedSphere
 from .kernels import blas, dss
-from .parallel import record, reduction_chunk
+from .parallel import CUDA_CHUNKS, record
 
 f64 = wp.float64
 MAX_ROWS = 4  # most rows a DSS assembles at once (the hyperviscosity's Cartesian wind + h)
@@ -429,11 +429,12 @@ class Topology:
         """The totals of the first ``rows`` rows of a Warp array of per-chunk partial
         sums (a chunked inner product's, ``parallel.reduction_chunk``) over all
         processes: added in index order, then over ranks (``sums``); one host
-        synchronisation. On CUDA the chunks are first summed on the device, a
-        chunk of them at a time, so that only a few hundred values a row are copied."""
-        if not wp.get_device(self.device).is_cpu:
-            n = partial.shape[1]
-            chunk = reduction_chunk(self.device)
+        synchronisation. On CUDA more than ``CUDA_CHUNKS`` partial sums a row are
+        first summed on the device, a chunk of them at a time, so that at most
+        about a thousand values a row are copied."""
+        n = partial.shape[1]
+        if not wp.get_device(self.device).is_cpu and n > CUDA_CHUNKS:
+            chunk = -(-n // 1024)
             key = (partial.ptr, rows)
             second = self._second.get(key)
             if second is None:

@@ -336,7 +336,7 @@ class GravityWave:
         self.r, self.u, self.w, self.p, self.s = (z(nu) for _ in range(5))
         self.minv = wp.array(1.0 / self.area, dtype=f64, device=dev)
         self.area_wp, self.ones = wp.array(self.area, dtype=f64, device=dev), wp.ones(nu, dtype=f64, device=dev)
-        self.chunk = chunk = reduction_chunk(dev)
+        self.chunk = chunk = reduction_chunk(nu, dev)
         self.partial = z(3, (nu + chunk - 1) // chunk)
         self._ops: dict[tuple, list] = {}
         self._div: dict[tuple, list] = {}  # each operator's divergence launch and the c it has

@@ -57,7 +57,7 @@ class FGMRES:
         self.rows_Z = [self.Z[j] for j in range(m)]
         self.w, self.r = wp.zeros(n, dtype=f64, device=dev), wp.zeros(n, dtype=f64, device=dev)
         self.coef = wp.zeros(m + 1, dtype=f64, device=dev)
-        self.chunk = chunk = reduction_chunk(dev)
+        self.chunk = chunk = reduction_chunk(n, dev)
         self.partial = wp.zeros((m + 2, (n + chunk - 1) // chunk), dtype=f64, device=dev)
 
     def _record(self, kernel, dim, inputs, **kw):

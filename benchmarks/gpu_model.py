@@ -65,10 +65,9 @@ FLOPS = {
     "dss": 14,  # ≈ 2 · rows · copies (1.78 a node on average) + rows; 3 rows
     "dss_update": 26,  # the DSS's 14 and its combinations, ≈ 2 · rows · 2 terms (explicit stages)
     "laplace_wk_flux": 120,  # 4 rows × (2 × 8 derivative + 6 gradient + 8 flux)
-    "laplace_wk_div": 68,  # 4 rows × (np × 4 + 1)
+    "laplacian_node": 92,  # 4 rows × (np × 4 + 1) of the weak divergence + 24 scaling (Y₁; Y₂'s shift: 9)
     "to_cartesian": 10,
-    "scale_first": 40,
-    "apply": 24,
+    "dss_apply": 27,  # 4 rows × 1.78 copies + 4 (unweighted DSS) + 16 (back to east/north, added)
     "axpby": 9,
     "axpbypcz": 15,
 }

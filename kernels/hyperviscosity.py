@@ -12,67 +12,100 @@ Laplacian (linearly here: the divergent wind of degree l decays at
 the free surface h + hs (smooth over the TC5 cone, unlike h), with ν_s.
 
 The operator, Y₁ = c·(first Laplacian), Y₂ = Δ Y₁ + 2Y₁/a² (wind):
-    Y₁[0:3] = ν (P ΔX + 2v/a²) + (ν_div − ν) ∇(∇·v),   Y₁[3] = ν_s Δ(h + hs)
-with X the Cartesian wind, P the tangent projection and every Δ the DSS'd weak
-Laplacian. Rows of the work arrays: 0..2 Cartesian wind, 3 free surface.
+    Y₁[0:3] = ν (P ΔX + 2v/a²) + (ν_div − ν) ∇δ,   Y₁[3] = ν_s Δ(h + hs)
+with X the Cartesian wind, P the tangent projection, δ = DSS(∇·v) and every Δ
+the DSS'd weak Laplacian. Rows of the work arrays: 0..2 Cartesian wind, 3 free
+surface.
 
-Two layouts, as for the tendency: on CUDA the pointwise kernels below
-(dim N) around ``operators.laplace_wk_flux``/``laplace_wk_div``; on the CPU
-``laplacian_element`` (dim nelem), which does the pointwise step and the whole
-weak Laplacian of an element in one pass.
+In four passes, as HOMME (``vlaplace_sphere_wk_cartesian``) forms each
+Laplacian: everything pointwise in Y₁ and Y₂ is done on the element's weak form
+before its DSS, where the mass is a factor (2v/a² enters as 2·spheremp·v/a²,
+∇δ as spheremp·∇δ, whose unweighted DSS is the mass-weighted one of ∇δ; P and
+the coefficients commute with the DSS); the first DSS then gives Y₁ itself and
+the second DSS, ``dss_apply``, adds coef·Y₂ to the state as it sums. ∇δ is
+compiled in only when ν_div ≠ ν. Changes the last bits against applying them
+after each DSS.
+
+Two layouts, as for the tendency: on CUDA ``to_cartesian``,
+``operators.laplace_wk_flux`` and ``laplacian_node`` (dim N); on the CPU
+``laplacian_element`` (dim nelem), the whole weak Laplacian of an element in
+one pass. Both finish the node with the same ``scale_first`` / ``shift_second``.
 """
 
 import functools
 
 import warp as wp
 
-from .operators import CPU_FAST, dvv_constant, reference_gradient
+from .dss import Copies, gather
+from .operators import CPU_FAST, d_eta, d_xi, dvv_constant, element_node, reference_gradient, weak_divergence
 
 f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
 
 
+@wp.struct
+class Frame:
+    """A node's frame (``ShallowWater.frame``): Dinv (4, N), the unit vectors
+    east, north and the position xyz (3, N, Cartesian, unit sphere)."""
+
+    Dinv: wp.array2d(dtype=f64)
+    east: wp.array2d(dtype=f64)
+    north: wp.array2d(dtype=f64)
+    xyz: wp.array2d(dtype=f64)
+
+
 @wp.func
-def first_laplacian_scaled(
-    X: wp.array2d(dtype=f64),
-    x: wp.array2d(dtype=f64),
-    G: wp.array2d(dtype=f64),
-    east: wp.array2d(dtype=f64),
-    north: wp.array2d(dtype=f64),
-    xyz: wp.array2d(dtype=f64),
-    q: int,
-    c: wp.vec4d,
-):
-    """Y₁ at node q from the DSS'd first Laplacian X, the state x and the DSS'd
-    ∇(∇·v) G (east, north); c = (ν, ν_div − ν, ν_s, 2/a²)."""
-    d = X[0, q] * xyz[0, q] + X[1, q] * xyz[1, q] + X[2, q] * xyz[2, q]
+def scale_first(L: wp.vec4d, X: wp.vec4d, w: f64, r: wp.vec3d, c: wp.vec4d):
+    """The weak-form Y₁ at a node from the weak Laplacian L of X = (Cartesian
+    wind, h + hs), the mass w and the position r: ν(PL + (2/a²)·w·X) for the
+    wind, ν_s·L for the height, c = (ν, ν_div − ν, ν_s, 2/a²) (the ∇δ term
+    apart: ``divergent_part``)."""
+    d = L[0] * r[0] + L[1] * r[1] + L[2] * r[2]
     y = wp.vec4d()
-    for r in range(3):
-        v = x[0, q] * east[r, q] + x[1, q] * north[r, q]
-        gd = G[0, q] * east[r, q] + G[1, q] * north[r, q]
-        y[r] = c[0] * (X[r, q] - d * xyz[r, q] + c[3] * v) + c[1] * gd
-    y[3] = c[2] * X[3, q]
+    for k in range(3):
+        y[k] = c[0] * (L[k] - d * r[k] + c[3] * w * X[k])
+    y[3] = c[2] * L[3]
     return y
 
 
+@wp.func
+def shift_second(L: wp.vec4d, Y: wp.vec4d, w: f64, shift: f64):
+    """The weak-form Y₂ at a node: L + shift·w·Y for the wind, L for the
+    height (L the weak Laplacian of Y = Y₁, w the mass, shift = 2/a²)."""
+    return wp.vec4d(L[0] + shift * w * Y[0], L[1] + shift * w * Y[1], L[2] + shift * w * Y[2], L[3])
+
+
+@wp.func
+def divergent_part(a: f64, b: f64, q: int, f: Frame):
+    """The Cartesian ∇δ at node q from δ's reference derivatives (a, b) = (∂ξ δ, ∂η δ)."""
+    ge = f.Dinv[0, q] * a + f.Dinv[2, q] * b
+    gn = f.Dinv[1, q] * a + f.Dinv[3, q] * b
+    return wp.vec3d(ge * f.east[0, q] + gn * f.north[0, q], ge * f.east[1, q] + gn * f.north[1, q], ge * f.east[2, q] + gn * f.north[2, q])
+
+
+@wp.func
+def position(f: Frame, q: int):
+    """The unit position vector of node q."""
+    return wp.vec3d(f.xyz[0, q], f.xyz[1, q], f.xyz[2, q])
+
+
 @functools.cache
-def laplacian_element(second: bool, dvv: tuple):
-    """Element-local weak Laplacian (``operators.laplace_wk_*`` in one pass,
-    one thread per element, ``dvv`` compiled in) of four rows:
-    ``second=False``: X = (u·east + v·north, h + hs) of the state ``src``;
-    ``second=True``: Y₁ = ``first_laplacian_scaled(src, x, G, ..., c)``, which
-    it also stores in Y.
-    Arguments: src (3 or 4, N), x (3, N), G (2, N), c, hs (N), east, north,
-    xyz (3, N), metric (3, N) (``laplacian_metric``), Y (4, N), L (4, N) output, offset
-    (in elements). Dim nelem."""
+def laplacian_element(second: bool, divergent: bool, dvv: tuple):
+    """The weak form of Y₁ (``second=False``, from the state ``src`` = x (3, N)
+    and hs) or of Y₂ (``second=True``, from ``src`` = Y₁ (4, N)) of the elements
+    (the module docstring), one thread per element, ``dvv`` compiled in;
+    ``divergent``: with the (ν_div − ν)·spheremp·∇δ term, δ the DSS'd
+    divergence in ``delta`` (1, N) (first only). Arguments: src, hs (N), delta,
+    c (``scale_first``), f (``Frame``), metric (4, N) (``laplacian_metric``),
+    L (4, N) output, offset (in elements). Dim nelem."""
     NP = len(dvv)
     NPP = NP * NP
     vec = wp.types.vector(length=NPP, dtype=f64)
     DVV = dvv_constant(dvv)
     grad = reference_gradient(dvv)
-    S = bool(second)
+    S, DIV = bool(second), bool(divergent) and not second
 
-    def weak_laplacian(f: vec, G11: vec, G12: vec, G22: vec, L: wp.array2d(dtype=f64), r: int, base: int):
+    def weak_laplacian(f: vec, G11: vec, G12: vec, G22: vec):
         fx = vec()  # G ∇_ref f: the quadrature-weighted contravariant gradient
         fy = vec()
         for j in range(NP):
@@ -81,68 +114,111 @@ def laplacian_element(second: bool, dvv: tuple):
                 k = j * NP + i
                 fx[k] = G11[k] * a + G12[k] * b
                 fy[k] = G12[k] * a + G22[k] * b
+        out = vec()
         for n in range(NP):
             for m in range(NP):
                 s = f64(0.0)
                 for k in range(NP):
                     s += DVV[k, m] * fx[n * NP + k] + DVV[k, n] * fy[k * NP + m]
-                L[r, base + n * NP + m] = -s
+                out[n * NP + m] = -s
+        return out
 
     weak_laplacian.__qualname__ = weak_laplacian.__name__ = f"weak_laplacian_np{NP}"
     lap = wp.func(weak_laplacian)
 
     def kernel(
-        src: wp.array2d(dtype=f64),
-        x: wp.array2d(dtype=f64),
-        G: wp.array2d(dtype=f64),
-        c: wp.vec4d,
-        hs: wp.array(dtype=f64),
-        east: wp.array2d(dtype=f64),
-        north: wp.array2d(dtype=f64),
-        xyz: wp.array2d(dtype=f64),
-        metric: wp.array2d(dtype=f64),
-        Y: wp.array2d(dtype=f64),
-        L: wp.array2d(dtype=f64),
-        offset: int,
+        src: wp.array2d(dtype=f64), hs: wp.array(dtype=f64), delta: wp.array2d(dtype=f64), c: wp.vec4d, f: Frame,
+        metric: wp.array2d(dtype=f64), L: wp.array2d(dtype=f64), offset: int,
     ):
         base = (wp.tid() + offset) * NPP
-        X0 = vec()  # the four rows of X
+        X0 = vec()  # the four rows of X (first) or Y₁ (second)
         X1 = vec()
         X2 = vec()
         X3 = vec()
         G11 = vec()  # the weak Laplacian's metric (``laplacian_metric``), once for all rows
         G12 = vec()
         G22 = vec()
+        D = vec()  # δ
         for k in range(NPP):
             q = base + k
             if wp.static(S):
-                y = first_laplacian_scaled(src, x, G, east, north, xyz, q, c)
-                for r in range(4):
-                    Y[r, q] = y[r]
-                X0[k] = y[0]
-                X1[k] = y[1]
-                X2[k] = y[2]
-                X3[k] = y[3]
+                X0[k] = src[0, q]
+                X1[k] = src[1, q]
+                X2[k] = src[2, q]
+                X3[k] = src[3, q]
             else:
-                X0[k] = src[0, q] * east[0, q] + src[1, q] * north[0, q]
-                X1[k] = src[0, q] * east[1, q] + src[1, q] * north[1, q]
-                X2[k] = src[0, q] * east[2, q] + src[1, q] * north[2, q]
+                X0[k] = src[0, q] * f.east[0, q] + src[1, q] * f.north[0, q]
+                X1[k] = src[0, q] * f.east[1, q] + src[1, q] * f.north[1, q]
+                X2[k] = src[0, q] * f.east[2, q] + src[1, q] * f.north[2, q]
                 X3[k] = src[2, q] + hs[q]
+            if wp.static(DIV):
+                D[k] = delta[0, q]
             G11[k] = metric[0, q]
             G12[k] = metric[1, q]
             G22[k] = metric[2, q]
-        lap(X0, G11, G12, G22, L, 0, base)
-        lap(X1, G11, G12, G22, L, 1, base)
-        lap(X2, G11, G12, G22, L, 2, base)
-        lap(X3, G11, G12, G22, L, 3, base)
+        L0 = lap(X0, G11, G12, G22)
+        L1 = lap(X1, G11, G12, G22)
+        L2 = lap(X2, G11, G12, G22)
+        L3 = lap(X3, G11, G12, G22)
+        for j in range(NP):
+            for i in range(NP):
+                k = j * NP + i
+                q = base + k
+                Lk = wp.vec4d(L0[k], L1[k], L2[k], L3[k])
+                Xk = wp.vec4d(X0[k], X1[k], X2[k], X3[k])
+                if wp.static(S):
+                    y = shift_second(Lk, Xk, metric[3, q], c[3])
+                else:
+                    y = scale_first(Lk, Xk, metric[3, q], position(f, q), c)
+                    if wp.static(DIV):
+                        a, b = grad(D, i, j)
+                        g = divergent_part(a, b, q, f)
+                        for r in range(3):
+                            y[r] = y[r] + c[1] * metric[3, q] * g[r]
+                for r in range(4):
+                    L[r, q] = y[r]
 
-    kernel.__qualname__ = kernel.__name__ = "laplacian_element__second" if S else "laplacian_element__first"
+    kernel.__qualname__ = kernel.__name__ = "laplacian_element__" + ("second" if S else "first__divergent" if DIV else "first")
     return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)
+
+
+@functools.cache
+def laplacian_node(second: bool, divergent: bool):
+    """``laplacian_element`` with one thread per node, for CUDA: from the flux
+    (8, N) of ``operators.laplace_wk_flux`` of src = X (``to_cartesian``) or Y₁.
+    Arguments: flux, src (4, N), delta (1, N), c, f (``Frame``), spheremp (N),
+    dvv (np, np), np, L (4, N) output, offset. Dim N."""
+    S, DIV = bool(second), bool(divergent) and not second
+
+    def kernel(
+        flux: wp.array2d(dtype=f64), src: wp.array2d(dtype=f64), delta: wp.array2d(dtype=f64), c: wp.vec4d, f: Frame,
+        spheremp: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, L: wp.array2d(dtype=f64), offset: int,
+    ):
+        p = wp.tid() + offset
+        Lp = wp.vec4d()
+        for r in range(4):
+            Lp[r] = weak_divergence(flux, r, dvv, np, p)
+        Xp = wp.vec4d(src[0, p], src[1, p], src[2, p], src[3, p])
+        y = wp.vec4d()
+        if wp.static(S):
+            y = shift_second(Lp, Xp, spheremp[p], c[3])
+        else:
+            y = scale_first(Lp, Xp, spheremp[p], position(f, p), c)
+            if wp.static(DIV):
+                base, i, j = element_node(p, np)
+                g = divergent_part(d_xi(delta, 0, base, i, j, np, dvv), d_eta(delta, 0, base, i, j, np, dvv), p, f)
+                for r in range(3):
+                    y[r] = y[r] + c[1] * spheremp[p] * g[r]
+        for r in range(4):
+            L[r, p] = y[r]
+
+    kernel.__qualname__ = kernel.__name__ = "laplacian_node__" + ("second" if S else "first__divergent" if DIV else "first")
+    return wp.kernel(kernel, enable_backward=False, module="unique")
 
 
 def _laplacian_metric(Dinv: wp.array2d(dtype=f64), spheremp: wp.array(dtype=f64), metric: wp.array2d(dtype=f64), offset: int):
     """metric[0:3] = spheremp · (Dinv Dinvᵀ)₁₁, ₁₂, ₂₂ (symmetric): the weak
-    Laplacian's quadrature-weighted contravariant metric. Dim N."""
+    Laplacian's quadrature-weighted contravariant metric; metric[3] = spheremp. Dim N."""
     q = wp.tid() + offset
     d0 = Dinv[0, q]
     d1 = Dinv[1, q]
@@ -152,6 +228,7 @@ def _laplacian_metric(Dinv: wp.array2d(dtype=f64), spheremp: wp.array(dtype=f64)
     metric[0, q] = w * (d0 * d0 + d1 * d1)
     metric[1, q] = w * (d0 * d2 + d1 * d3)
     metric[2, q] = w * (d2 * d2 + d3 * d3)
+    metric[3, q] = w
 
 
 # compiled as laplacian_element (CPU_FAST: the same contractions as when it computed these itself)
@@ -167,48 +244,24 @@ def to_cartesian(x: wp.array2d(dtype=f64), hs: wp.array(dtype=f64), east: wp.arr
     X[3, p] = x[2, p] + hs[p]
 
 
-@wp.kernel
-def scale_first(
-    X: wp.array2d(dtype=f64),
-    x: wp.array2d(dtype=f64),
-    G: wp.array2d(dtype=f64),
-    c: wp.vec4d,
-    east: wp.array2d(dtype=f64),
-    north: wp.array2d(dtype=f64),
-    xyz: wp.array2d(dtype=f64),
-    Y: wp.array2d(dtype=f64),
-    offset: int,
-):
-    """Y[:, p] = Y₁ (``first_laplacian_scaled``)."""
-    p = wp.tid() + offset
-    y = first_laplacian_scaled(X, x, G, east, north, xyz, p, c)
-    for r in range(4):
-        Y[r, p] = y[r]
+@functools.cache
+def dss_apply(copies: int, ghosts: bool = False):
+    """The second DSS of the ∇⁴, applied as it sums: out += coef·Y₂ with
+    Y₂ = DSS(L) (``dss.gather``, unweighted, 4 rows: the weak-form Y₂ of
+    ``laplacian_element``/``laplacian_node``), its Cartesian wind taken back to
+    (east, north) components. Arguments: L (4, N), d (``dss.Copies``), coef,
+    f (``Frame``), out (3, N) (may be the state the Laplacians came from: only
+    L is read at other nodes), offset. Dim N."""
+    sum_copies = gather(4, False, copies, ghosts)
 
+    def dss_apply(L: wp.array2d(dtype=f64), d: Copies, coef: f64, f: Frame, out: wp.array2d(dtype=f64), offset: int):
+        p = wp.tid() + offset
+        y = sum_copies(L, d, p)
+        ye = y[0] * f.east[0, p] + y[1] * f.east[1, p] + y[2] * f.east[2, p]
+        yn = y[0] * f.north[0, p] + y[1] * f.north[1, p] + y[2] * f.north[2, p]
+        out[0, p] = out[0, p] + coef * ye
+        out[1, p] = out[1, p] + coef * yn
+        out[2, p] = out[2, p] + coef * y[3]
 
-@wp.kernel
-def apply(
-    X: wp.array2d(dtype=f64),
-    Y: wp.array2d(dtype=f64),
-    shift: f64,
-    coef: f64,
-    east: wp.array2d(dtype=f64),
-    north: wp.array2d(dtype=f64),
-    x: wp.array2d(dtype=f64),
-    block: int,
-    offset: int,
-):
-    """x += coef·Y₂ with Y₂ = X + shift·Y (wind rows; X the DSS'd Laplacian of
-    Y = Y₁) and its Cartesian wind taken back to (east, north) components.
-    Dim N/block, ``block`` consecutive nodes a thread (as ``blas.axpby``)."""
-    start = (wp.tid() + offset) * block
-    for p in range(start, start + block):
-        ye = f64(0.0)
-        yn = f64(0.0)
-        for c in range(3):
-            y = X[c, p] + shift * Y[c, p]
-            ye += y * east[c, p]
-            yn += y * north[c, p]
-        x[0, p] = x[0, p] + coef * ye
-        x[1, p] = x[1, p] + coef * yn
-        x[2, p] = x[2, p] + coef * X[3, p]
+    dss_apply.__qualname__ = "dss_apply"  # the kernel's key
+    return wp.kernel(dss_apply, enable_backward=False, module="unique")

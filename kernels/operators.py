@@ -116,18 +116,25 @@ def laplace_wk_flux(f: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), spher
         flux[2 * r + 1, p] = w * (d2 * gx + d3 * gy)
 
 
+@wp.func
+def weak_divergence(flux: wp.array2d(dtype=f64), r: int, dvv: wp.array2d(dtype=f64), np: int, p: int):
+    """The second half of the weak Laplacian of row r at node p = (m, n):
+    −Σ_i dvv[i, m] flux¹(i, n) − Σ_j dvv[j, n] flux²(m, j), i.e. −∫ ∇φ_mn·∇f
+    over the element (m² × units of f / m²), from ``laplace_wk_flux``'s flux."""
+    base, m, n = element_node(p, np)
+    s = f64(0.0)
+    for q in range(np):
+        s += dvv[q, m] * flux[2 * r, base + n * np + q] + dvv[q, n] * flux[2 * r + 1, base + q * np + m]
+    return -s
+
+
 @wp.kernel
 def laplace_wk_div(flux: wp.array2d(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, out: wp.array2d(dtype=f64), offset: int):
-    """Second half: out[r, (m, n)] = −Σ_i dvv[i, m] flux¹(i, n) − Σ_j dvv[j, n] flux²(m, j),
-    i.e. −∫ ∇φ_mn·∇f over the element (m² × units of f / m²). Launch with dim N
+    """Second half: out[r, p] = ``weak_divergence`` of row r. Launch with dim N
     (each thread does every row of its node)."""
     p = wp.tid() + offset
-    base, m, n = element_node(p, np)
     for r in range(out.shape[0]):
-        s = f64(0.0)
-        for q in range(np):
-            s += dvv[q, m] * flux[2 * r, base + n * np + q] + dvv[q, n] * flux[2 * r + 1, base + q * np + m]
-        out[r, p] = -s
+        out[r, p] = weak_divergence(flux, r, dvv, np, p)
 
 
 def dvv_constant(dvv: tuple):
@@ -195,6 +202,7 @@ def gradient_element(dvv: tuple):
                 out[0, p] = Dinv[0, p] * a + Dinv[2, p] * b
                 out[1, p] = Dinv[1, p] * a + Dinv[3, p] * b
 
+    gradient_element.__qualname__ = "gradient_element"  # the kernel's key
     return wp.kernel(gradient_element, enable_backward=False, module="unique", module_options=CPU_FAST)
 
 
@@ -221,4 +229,5 @@ def divergence_element(dvv: tuple):
                 p = base + j * NP + i
                 out[p] = div(f1, f2, i, j) / metdet[p]
 
+    divergence_element.__qualname__ = "divergence_element"  # the kernel's key
     return wp.kernel(divergence_element, enable_backward=False, module="unique", module_options=CPU_FAST)

@@ -136,14 +136,16 @@ class ShallowWater:
             forcing = -self.g * self.topo_forcing.numpy()
             self.topo_forcing.assign(forcing)
         if "hyperviscosity" in terms:
-            self.hv_X = wp.zeros((4, N), dtype=f64, device=device)
-            self.hv_Y = wp.zeros((4, N), dtype=f64, device=device)  # Y₁, kept for Y₂'s 2Y₁/a²
-            self.hv_G = wp.zeros((2, N), dtype=f64, device=device)  # ∇(∇·v), with ν_div ≠ ν
-            self.hv_flux = None if self.per_element else wp.zeros((8, N), dtype=f64, device=device)
-            self.hv_L = wp.zeros((4, N), dtype=f64, device=device)
+            self.frame = f = hyperviscosity.Frame()
+            f.Dinv, f.east, f.north, f.xyz = self.Dinv, self.east, self.north, self.xyz
+            self.hv_Y = wp.zeros((4, N), dtype=f64, device=device)  # Y₁ (``kernels.hyperviscosity``)
+            self.hv_L = wp.zeros((4, N), dtype=f64, device=device)  # the weak forms of Y₁ and Y₂
             if self.per_element:  # the weak Laplacian's metric, fixed: computed once, not by every ∇⁴ evaluation
-                self.hv_metric = wp.zeros((3, N), dtype=f64, device=device)
+                self.hv_metric = wp.zeros((4, N), dtype=f64, device=device)
                 self._launch(hyperviscosity.laplacian_metric, N, [self.Dinv, self.spheremp, self.hv_metric]).launch()
+            else:  # the Cartesian state and the weak Laplacian's flux of the per-node kernels
+                self.hv_X = wp.zeros((4, N), dtype=f64, device=device)
+                self.hv_flux = wp.zeros((8, N), dtype=f64, device=device)
         self._recorded: dict[tuple, tuple] = {}
         self._pointwise_launches: dict[tuple, object] = {}
         self._substeps: dict[float, tuple[int, bool]] = {}  # hypervis_plan
@@ -325,42 +327,44 @@ class ShallowWater:
     def _build_hv(self, x, coef, out=None, nus=None):
         """Launches of out += coef·B x, B = ν∇⁴ the hyperviscosity operator
         (``kernels.hyperviscosity``) with coefficients ``nus`` = (ν, ν_div, ν_s)
-        (None: the model's); out = x if None."""
+        (None: the model's); out = x if None. Four passes (and two per-node
+        ones before each weak Laplacian on CUDA), and the divergence δ and its
+        DSS first when ν_div ≠ ν."""
         N, np_ = self.N, self.grid.np
         out = x if out is None else out
         nu, nu_div, nu_s = (self.nu, self.nu_div, self.nu_s) if nus is None else nus
-        X, Y, G, flux, L = self.hv_X, self.hv_Y, self.hv_G, self.hv_flux, self.hv_L
+        Y, L = self.hv_Y, self.hv_L
         shift = 2.0 / self.grid.radius**2  # HOMME: "so we dont damp rigid rotation"
         c = wp.vec4d(nu, nu_div - nu, nu_s, shift)
-        launches = []
-        if nu_div != nu:  # G = DSS ∇ DSS(∇·v)
-            launches += [*self._build_div(x, self.scalar_dss), *self._build_grad(self.scalar_dss, 0, G)]
-
-        def finish():  # out += coef·(X + shift·Y)
-            return self._launch_pointwise(hyperviscosity.apply, None, [X, Y, f64(shift), f64(coef), self.east, self.north, out])
+        divergent = nu_div != nu
+        delta = self.scalar_dss  # δ = DSS(∇·v), read only when divergent
+        launches = self._build_div(x, delta) if divergent else []
 
         if self.per_element:
-            def laplacian(second):  # → DSS'd weak Laplacian in X (and Y₁ in Y)
-                kernel = hyperviscosity.laplacian_element(second, self.dvv_const)
-                args = [X if second else x, x, G, c, self.hs, self.east, self.north, self.xyz, self.hv_metric, Y, L]
-                return [self._launch_elements(kernel, args), *self._dss(L, 0, X)]
+            def laplacian(second):  # → the weak form of Y₁ or Y₂ in L
+                kernel = hyperviscosity.laplacian_element(second, divergent, self.dvv_const)
+                args = [Y if second else x, self.hs, delta, c, self.frame, self.hv_metric, L]
+                return [self._launch_elements(kernel, args)]
+        else:
+            def laplacian(second):
+                src = Y if second else self.hv_X
+                first = [] if second else [self._launch(hyperviscosity.to_cartesian, N, [x, self.hs, self.east, self.north, src])]
+                args = [self.hv_flux, src, delta, c, self.frame, self.spheremp, self.dvv, np_, L]
+                return [
+                    *first,
+                    self._launch(operators.laplace_wk_flux, N, [src, self.Dinv, self.spheremp, self.dvv, np_, self.hv_flux]),
+                    self._launch(hyperviscosity.laplacian_node(second, divergent), N, args),
+                ]
 
-            return [*launches, *laplacian(False), *laplacian(True), finish()]
-
-        def laplacian(src):  # src → DSS'd weak Laplacian in X
-            return [
-                self._launch(operators.laplace_wk_flux, N, [src, self.Dinv, self.spheremp, self.dvv, np_, flux]),
-                self._launch(operators.laplace_wk_div, N, [flux, self.dvv, np_, L]),
-                *self._dss(L, 0, X),
-            ]
+        def apply(rows, copies, ghosts):  # ``Topology.gathering``'s kernel factory
+            return hyperviscosity.dss_apply(copies, ghosts=ghosts)
 
         return [
             *launches,
-            self._launch(hyperviscosity.to_cartesian, N, [x, self.hs, self.east, self.north, X]),
-            *laplacian(X),
-            self._launch(hyperviscosity.scale_first, N, [X, x, G, c, self.east, self.north, self.xyz, Y]),
-            *laplacian(Y),
-            finish(),
+            *laplacian(False),
+            *self._dss(L, 0, Y),
+            *laplacian(True),
+            *self.topology.gathering(L, apply, [f64(coef), self.frame, out]),
         ]
 
     def hyperviscosity_operator(self, x: wp.array2d, out: wp.array2d) -> None:

@@ -276,9 +276,7 @@ class Topology:
         (``kernels.dss.dss_rows``), the neighbours' copies exchanged first.
         Weighted for a strong-form field (continuous result, integral kept),
         unweighted for a weak form. ``out`` must not alias ``x``."""
-        ghosts = bool(len(self.neighbours))
-        kernel = dss.dss_rows(x.shape[0], bool(weighted), self.table.shape[1], ghosts=ghosts)
-        return [*self._exchange(x), self._record(kernel, self.N, [x, self.dss_copies, out])]
+        return self.gathering(x, lambda rows, copies, ghosts: dss.dss_rows(rows, bool(weighted), copies, ghosts=ghosts), [out])
 
     def dss_update(self, x: wp.array2d, updates) -> list:
         """Launches for the weighted DSS k of x (rows, N), not stored but used by
@@ -294,9 +292,18 @@ class Topology:
             arrays += [*(srcs + [out] * (2 - len(srcs))), out]  # unused slots: any array of the shape
         coefs += [0.0] * (6 - len(coefs))
         arrays += arrays[-3:] * (2 - len(updates))
-        kernel = dss.dss_update(x.shape[0], self.table.shape[1], tuple(patterns), ghosts=bool(len(self.neighbours)))
-        args = [x, self.dss_copies, dss.vec6(*coefs), *arrays]
-        return [*self._exchange(x), self._record(kernel, self.N, args)]
+        return self.gathering(
+            x, lambda rows, copies, ghosts: dss.dss_update(rows, copies, tuple(patterns), ghosts=ghosts), [dss.vec6(*coefs), *arrays]
+        )
+
+    def gathering(self, x: wp.array2d, kernel, args) -> list:
+        """Launches for a kernel that sums the DSS of x (rows, N) itself
+        (``kernels.dss.gather``) and uses it node by node: ``kernel(rows,
+        copies, ghosts)`` builds it for x's rows, the table's columns and
+        whether there are neighbours; it takes (x, ``dss_copies``, *args,
+        offset), dim N. The neighbours' copies are exchanged first."""
+        kernel = kernel(x.shape[0], self.table.shape[1], bool(len(self.neighbours)))
+        return [*self._exchange(x), self._record(kernel, self.N, [x, self.dss_copies, *args])]
 
     def assemble(self, x: wp.array2d, row: int, out: wp.array) -> list:
         """Launches for the unique-node out (nunique,) = M x[row]: Σ over the copies

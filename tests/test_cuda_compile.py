@@ -8,7 +8,7 @@ found, not listed: every ``wp.Kernel`` defined at module level in
 each bundled scene's model (both layouts: per node, CUDA's default, and per
 element) takes two steps of its stepper on ne = 2 np = 4 on the CPU, every
 stepper (its solvers are the same on every device) on the scene
-with the most terms; the DSS kernels are also built with ghosts (MPI; the Helmholtz kernels
+with the most terms, and the ∇⁴ with ν_div ≠ ν; the DSS kernels are also built with ghosts (MPI; the Helmholtz kernels
 read ghosts at run time, one build for both). Warp's
 own modules (``warp.optim.linear``) are left to Warp's tests.
 """
@@ -26,7 +26,7 @@ import warp as wp
 import swe_sphere.kernels as kernels_pkg
 from swe_sphere.config import list_scenes, load_scene
 from swe_sphere.grid import CubedSphere
-from swe_sphere.kernels import dss
+from swe_sphere.kernels import dss, hyperviscosity
 from swe_sphere.model import ShallowWater
 from swe_sphere.steppers import STEPPERS, make_stepper
 
@@ -69,8 +69,8 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
         return built
 
     monkeypatch.setattr(wp, "launch", launch)
-    for name in ("dss_rows", "dss_update"):
-        monkeypatch.setattr(dss, name, noting(getattr(dss, name)))
+    for module, name in ((dss, "dss_rows"), (dss, "dss_update"), (hyperviscosity, "dss_apply")):
+        monkeypatch.setattr(module, name, noting(getattr(module, name)))
     scenes = [load_scene(p, ne=2, np=4) for p in list_scenes()]
     richest = max((s for s in scenes if "pressure_gradient" in s.terms), key=lambda s: len(s.terms))
     grid = CubedSphere(2, 4)
@@ -93,6 +93,10 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
                 x = model.new_state(*np.stack(case.initial(grid.lat, grid.lon)))
                 stepper.step(x)  # two steps: a leapfrog's first is its one-step start
                 stepper.step(x)
+    for per_element in (False, True):  # the ∇⁴'s ∇(∇·v) term, which no bundled scene has (ν_div ≠ ν)
+        z = np.zeros(grid.npts)
+        model = ShallowWater(grid, ["hyperviscosity"], z, z, nu=1e15, nu_div=3e15, device="cpu", per_element=per_element)
+        model.hyperviscosity(model.new_state(), 100.0)
     ghosted = [factory(*args, ghosts=True) for factory, args in dss_args]
     return [k for k in launched if k.func.__module__.startswith("swe_sphere.")], ghosted
 
@@ -130,7 +134,7 @@ def ptx(modules, tmp_path_factory):
 
 def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, modules):
     """Both layouts of the tendency for each bundled scene's term set, both ∇⁴
-    passes in both layouts, the DSS (and its stage combinations) with and without ghosts, the gravity-wave,
+    passes in both layouts, the DSS (and its stage combinations and the ∇⁴'s last pass) with and without ghosts, the gravity-wave,
     implicit, forcing and blas kernels, and kernels from every file of swe_sphere.kernels."""
     module_level, launched, ghosted = discovered
     names = list(modules)
@@ -139,10 +143,11 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
         tendency = [n for n in names if re.fullmatch("tendency__" + "__".join(terms) + "_[0-9a-f]{8}", n)]
         assert len(tendency) == 2, (terms, tendency)  # per node and per element
     keys = {k.key for k in launched}
-    for key in ("laplacian_element__first", "laplacian_element__second", "laplace_wk_flux", "laplace_wk_div",
+    for key in ("laplacian_element__first", "laplacian_element__second", "laplace_wk_flux", "laplacian_node__first", "laplacian_node__second", "dss_apply",
+                "laplacian_element__first__divergent", "laplacian_node__first__divergent",
                 "helmholtz_gradient", "helmholtz_divergence", "helmholtz_assemble", "cg_update", "inner3", "schur_height", "jacobian_vector", "residual", "translating_low", "axpbypcz", "dss"):
         assert key in keys, key
-    plain_dss = {k.module.name for k in launched if k.key == "dss" or k.key.startswith("dss_update__")}
+    plain_dss = {k.module.name for k in launched if k.key in ("dss", "dss_apply") or k.key.startswith("dss_update__")}
     assert any(k.key.startswith("dss_update__") for k in launched)  # the explicit stages' combinations
     assert len(ghosted) == len(plain_dss) >= 3 and not plain_dss & {k.module.name for k in ghosted}
     files = {k.func.__module__ for k in module_level + launched}

@@ -525,20 +525,26 @@ def test_hyperviscosity_launches_nothing_without_the_term(terms, nu, launch_log)
     assert np.array_equal(x.numpy(), st)
 
 
+@pytest.mark.parametrize("nu_div", [1e15, 3e15], ids=["nu_div=nu", "nu_div>nu"])
 @pytest.mark.parametrize("per_element", [True, False], ids=["per-element", "per-node"])
-def test_hyperviscosity_launch_list(per_element, launch_log):
+def test_hyperviscosity_launch_list(per_element, nu_div, launch_log):
+    """Four passes (the per-node layout: two more before the first weak
+    Laplacian, one before the second); the divergence and its DSS, and the
+    kernel that reads their gradient, only when ν_div ≠ ν."""
     g = cached_grid(2, 4)
     fcor, hs, st = tc5(g)
-    m = ShallowWater(g, ["hyperviscosity"], fcor, hs, nu=1e15, hypervis_subcycle=2, device=DEV, per_element=per_element)
+    m = ShallowWater(g, ["hyperviscosity"], fcor, hs, nu=1e15, nu_div=nu_div, hypervis_subcycle=2, device=DEV, per_element=per_element)
     x = m.new_state(*st)
     m.biharmonic_radius()  # its power iteration launches the same kernels
     launch_log.clear()
     m.hyperviscosity(x, 10.0)
+    first = "first__divergent" if nu_div != 1e15 else "first"
     if per_element:
-        expected = ["laplacian_element__first", "dss", "laplacian_element__second", "dss", "apply"]
+        expected = [f"laplacian_element__{first}", "dss", "laplacian_element__second", "dss_apply"]
     else:
-        lap = ["laplace_wk_flux", "laplace_wk_div", "dss"]
-        expected = ["to_cartesian", *lap, "scale_first", *lap, "apply"]
+        expected = ["to_cartesian", "laplace_wk_flux", f"laplacian_node__{first}", "dss", "laplace_wk_flux", "laplacian_node__second", "dss_apply"]
+    if nu_div != 1e15:
+        expected = ["divergence_element" if per_element else "divergence_sphere", "dss", *expected]
     assert launch_log == expected
 
 

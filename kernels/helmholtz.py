@@ -162,6 +162,24 @@ def helmholtz_assemble(copies: int):
 
 
 @wp.kernel
+def helmholtz_combine(
+    dgy: wp.array2d(dtype=f64), first: wp.array(dtype=wp.int32), y: wp.array(dtype=f64), area: wp.array(dtype=f64), c: f64,
+    out: wp.array(dtype=f64), partial: wp.array2d(dtype=f64), chunk: int, offset: int,
+):
+    """The per-node layout's last step of (M + cK) y: out[g] = area[g]·(y[g] − c·dgy[0, first[g]])
+    on unique nodes, dgy = D G y continuous (the DSS'd divergence of the DSS'd gradient:
+    its assembly Pᵀ W D̂ G P y is area·D G y); partial[1, t] = Σ out·y over chunk t (the CG's
+    w·u, as ``helmholtz_assemble``). Dim ceil(nunique / chunk)."""
+    t = wp.tid() + offset
+    wy = f64(0.0)
+    for g in range(t * chunk, wp.min(out.shape[0], (t + 1) * chunk)):
+        s = area[g] * (y[g] - c * dgy[0, first[g]])
+        out[g] = s
+        wy += s * y[g]
+    partial[1, t] = wy
+
+
+@wp.kernel
 def cg_update(
     alpha: f64, beta: f64, p: wp.array(dtype=f64), s: wp.array(dtype=f64), x: wp.array(dtype=f64), r: wp.array(dtype=f64),
     u: wp.array(dtype=f64), w: wp.array(dtype=f64), minv: wp.array(dtype=f64), partial: wp.array2d(dtype=f64), chunk: int, offset: int,

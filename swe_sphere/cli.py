@@ -122,6 +122,7 @@ def _cmd_list() -> int:
     print("steppers:")
     for name, cls in STEPPERS.items():
         summary = " ".join(cls.__doc__.split("\n\n")[0].split())  # the first paragraph, unwrapped
+        summary = summary.replace("``", "")  # reST literals read as plain text on a terminal
         sentence = re.split(r"\.\s+(?=[A-Z])", summary)[0].rstrip(".")  # the first sentence, whole ("eq. 2" kept)
         print(f"  {name:32s} {sentence}.")
     print("terms:")

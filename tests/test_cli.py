@@ -342,6 +342,9 @@ def test_list_names_every_scene_stepper_and_term(capsys):
         assert name in words, f"stepper {name} not listed"
     for name in TERM_NAMES:
         assert name in words, f"term {name} not listed"
+    steppers = out.split("steppers:\n")[1].split("terms:\n")[0].splitlines()
+    assert "``" not in out  # docstrings' reST literals printed plain
+    assert all(len(line) < 400 and line.endswith(".") for line in steppers), steppers  # a whole first sentence each
 
 
 # ---------------------------------------------------------------------------

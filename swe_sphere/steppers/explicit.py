@@ -131,10 +131,10 @@ def rk_steppers() -> tuple[type[Stepper], ...]:
 
 
 class FBRK32(Stepper):
-    """Forward–backward Runge–Kutta FB-RK(3,2) (Lilly, Engwirda, Capodaglio, Higdon
-    & Petersen 2023, MWR, doi:10.1175/MWR-D-23-0113.1, as in their swe-python
-    ``step_RK32``): Wicker–Skamarock stages c = 1/3, 1/2, 1 from x(n), each
-    advancing the depth first, h⁽ⁱ⁾ = h(n) + cᵢΔt F_h(x⁽ⁱ⁻¹⁾), then the wind,
+    """Forward–backward Runge–Kutta FB-RK(3,2), the depth advanced first in each of
+    three stages (Lilly, Engwirda, Capodaglio, Higdon & Petersen 2023, MWR,
+    doi:10.1175/MWR-D-23-0113.1). As in their swe-python ``step_RK32``:
+    Wicker–Skamarock stages c = 1/3, 1/2, 1 from x(n), each advancing the depth first, h⁽ⁱ⁾ = h(n) + cᵢΔt F_h(x⁽ⁱ⁻¹⁾), then the wind,
     u⁽ⁱ⁾ = u(n) + cᵢΔt F_u(u⁽ⁱ⁻¹⁾, h̃), with the depth in the momentum tendency
     (in the vector-invariant form it enters only through g∇h) weighted towards
     the new one: h̃ = β h⁽ⁱ⁾ + (1 − β) h(n) in stages 1 and 2, and

@@ -38,6 +38,12 @@ Laplacian's metric spheremp·Dinv Dinvᵀ, formed by both kernels every call
 before, is now ``model.hv_metric``: B ~7 % less CPU, bits unchanged); two
 DSS, as HOMME. An RK4 step = 4 RHS + B + 7 linear combinations (~0.3 ms each: 2 of
 the 10 RHS-eq).
+
+Since issue 22 (benchmarks/README.md, ne 30, load 2): B is four passes, the
+pointwise parts of each Laplacian done on its weak form before the DSS and the
+last DSS adding coef·Y₂ to the state (first 1.7–2.0 + DSS 0.5 + second 1.2–1.3 +
+``dss_apply`` 0.8 ms): 2.7 RHS; the RK4 step's combinations are written by its
+DSS: 7.0–7.6 RHS-eq.
 """
 
 from __future__ import annotations

@@ -45,8 +45,9 @@ wp.set_module_options({"enable_backward": False})
 
 @wp.struct
 class Frame:
-    """A node's frame (``ShallowWater.frame``): Dinv (4, N), the unit vectors
-    east, north and the position xyz (3, N, Cartesian, unit sphere)."""
+    """A node's frame: Dinv (4, N), the unit vectors east, north and the
+    position xyz (3, N, Cartesian, unit sphere); a kernel is given those it
+    reads (``ShallowWater._frame``), the others null."""
 
     Dinv: wp.array2d(dtype=f64)
     east: wp.array2d(dtype=f64)

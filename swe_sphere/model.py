@@ -136,8 +136,6 @@ class ShallowWater:
             forcing = -self.g * self.topo_forcing.numpy()
             self.topo_forcing.assign(forcing)
         if "hyperviscosity" in terms:
-            self.frame = f = hyperviscosity.Frame()
-            f.Dinv, f.east, f.north, f.xyz = self.Dinv, self.east, self.north, self.xyz
             self.hv_Y = wp.zeros((4, N), dtype=f64, device=device)  # Y₁ (``kernels.hyperviscosity``)
             self.hv_L = wp.zeros((4, N), dtype=f64, device=device)  # the weak forms of Y₁ and Y₂
             if self.per_element:  # the weak Laplacian's metric, fixed: computed once, not by every ∇⁴ evaluation
@@ -339,17 +337,20 @@ class ShallowWater:
         divergent = nu_div != nu
         delta = self.scalar_dss  # δ = DSS(∇·v), read only when divergent
         launches = self._build_div(x, delta) if divergent else []
+        # each pass is given the node frame's arrays it reads: the first the position (and the
+        # per-element one the wind's basis), ∇δ Dinv and the basis; the second none
+        frame = self._frame("xyz", *(("east", "north") if self.per_element or divergent else ()), *(("Dinv",) if divergent else ()))
 
         if self.per_element:
             def laplacian(second):  # → the weak form of Y₁ or Y₂ in L
                 kernel = hyperviscosity.laplacian_element(second, divergent, self.dvv_const)
-                args = [Y if second else x, self.hs, delta, c, self.frame, self.hv_metric, L]
+                args = [Y if second else x, self.hs, delta, c, self._frame() if second else frame, self.hv_metric, L]
                 return [self._launch_elements(kernel, args)]
         else:
             def laplacian(second):
                 src = Y if second else self.hv_X
                 first = [] if second else [self._launch(hyperviscosity.to_cartesian, N, [x, self.hs, self.east, self.north, src])]
-                args = [self.hv_flux, src, delta, c, self.frame, self.spheremp, self.dvv, np_, L]
+                args = [self.hv_flux, src, delta, c, self._frame() if second else frame, self.spheremp, self.dvv, np_, L]
                 return [
                     *first,
                     self._launch(operators.laplace_wk_flux, N, [src, self.Dinv, self.spheremp, self.dvv, np_, self.hv_flux]),
@@ -364,8 +365,17 @@ class ShallowWater:
             *laplacian(False),
             *self._dss(L, 0, Y),
             *laplacian(True),
-            *self.topology.gathering(L, apply, [f64(coef), self.frame, out]),
+            *self.topology.gathering(L, apply, [f64(coef), self._frame("east", "north"), out]),
         ]
+
+    def _frame(self, *names):
+        """A ``kernels.hyperviscosity.Frame`` holding the model's arrays of these
+        names, the others null: what a ∇⁴ pass reads and no more (a launch's
+        arguments are what ``benchmarks/gpu_model.py`` counts as its traffic)."""
+        frame = hyperviscosity.Frame()
+        for name in names:
+            setattr(frame, name, getattr(self, name))
+        return frame
 
     def hyperviscosity_operator(self, x: wp.array2d, out: wp.array2d) -> None:
         """out (3, N) = B x, the hyperviscosity operator ν∇⁴ with the model's

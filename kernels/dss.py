@@ -83,15 +83,18 @@ def dss_rows(rows: int, weighted: bool, copies: int, ghosts: bool = False):
     else 1) · x[r, c] (``gather``). ``weighted`` for a strong-form field
     (mass-weighted average: continuous result, area integral kept); unweighted
     for a weak form already integrated against the test functions. Arguments:
-    x, d (``Copies``), out, offset; ``out`` must not alias ``x``. Dim N.
+    x, d (``Copies``), out, block, offset; ``out`` must not alias ``x``.
+    Dim N/block: ``block`` consecutive nodes a thread (``Topology.gathering``),
+    ``offset`` in blocks.
     ``ghosts``: copies held by other processes, as in ``gather``."""
     sum_copies = gather(rows, weighted, copies, ghosts)
 
-    def dss(x: wp.array2d(dtype=f64), d: Copies, out: wp.array2d(dtype=f64), offset: int):
-        p = wp.tid() + offset
-        s = sum_copies(x, d, p)
-        for r in range(wp.static(rows)):
-            out[r, p] = s[r]
+    def dss(x: wp.array2d(dtype=f64), d: Copies, out: wp.array2d(dtype=f64), block: int, offset: int):
+        start = (wp.tid() + offset) * block
+        for p in range(start, start + block):
+            s = sum_copies(x, d, p)
+            for r in range(wp.static(rows)):
+                out[r, p] = s[r]
 
     dss.__qualname__ = "dss"  # the kernel's key, as the generic kernel's
     return wp.kernel(dss, enable_backward=False, module="unique")
@@ -145,7 +148,8 @@ def dss_update(rows: int, copies: int, patterns: tuple, ghosts: bool = False):
     terms see out0's new values where they alias it. Arguments: x, d (as
     ``dss_rows``), c (6 coefficients),
     s00, s01, out0, s10, s11, out1 (rows, N) (the unused ones any such array),
-    offset. Outputs and terms may alias each other, not x. Dim N."""
+    block, offset. Outputs and terms may alias each other, not x. Dim N/block
+    (as ``dss_rows``)."""
     if not 1 <= len(patterns) <= 2:
         raise ValueError(f"one or two combinations (got {len(patterns)})")
     sum_copies = gather(rows, True, copies, ghosts)
@@ -163,14 +167,16 @@ def dss_update(rows: int, copies: int, patterns: tuple, ghosts: bool = False):
         s10: wp.array2d(dtype=f64),
         s11: wp.array2d(dtype=f64),
         out1: wp.array2d(dtype=f64),
+        block: int,
         offset: int,
     ):
-        p = wp.tid() + offset
-        k = sum_copies(x, d, p)
-        for r in range(wp.static(rows)):
-            out0[r, p] = first(wp.vec3d(c[0], c[1], c[2]), k[r], s00, s01, r, p)
-            if wp.static(TWO):
-                out1[r, p] = second(wp.vec3d(c[3], c[4], c[5]), k[r], s10, s11, r, p)
+        start = (wp.tid() + offset) * block
+        for p in range(start, start + block):
+            k = sum_copies(x, d, p)
+            for r in range(wp.static(rows)):
+                out0[r, p] = first(wp.vec3d(c[0], c[1], c[2]), k[r], s00, s01, r, p)
+                if wp.static(TWO):
+                    out1[r, p] = second(wp.vec3d(c[3], c[4], c[5]), k[r], s10, s11, r, p)
 
     dss_update.__qualname__ = dss_update.__name__ = "dss_update__" + "__".join(patterns)
     return wp.kernel(dss_update, enable_backward=False, module="unique")

@@ -252,17 +252,18 @@ def dss_apply(copies: int, ghosts: bool = False):
     ``laplacian_element``/``laplacian_node``), its Cartesian wind taken back to
     (east, north) components. Arguments: L (4, N), d (``dss.Copies``), coef,
     f (``Frame``), out (3, N) (may be the state the Laplacians came from: only
-    L is read at other nodes), offset. Dim N."""
+    L is read at other nodes), block, offset. Dim N/block (as ``dss.dss_rows``)."""
     sum_copies = gather(4, False, copies, ghosts)
 
-    def dss_apply(L: wp.array2d(dtype=f64), d: Copies, coef: f64, f: Frame, out: wp.array2d(dtype=f64), offset: int):
-        p = wp.tid() + offset
-        y = sum_copies(L, d, p)
-        ye = y[0] * f.east[0, p] + y[1] * f.east[1, p] + y[2] * f.east[2, p]
-        yn = y[0] * f.north[0, p] + y[1] * f.north[1, p] + y[2] * f.north[2, p]
-        out[0, p] = out[0, p] + coef * ye
-        out[1, p] = out[1, p] + coef * yn
-        out[2, p] = out[2, p] + coef * y[3]
+    def dss_apply(L: wp.array2d(dtype=f64), d: Copies, coef: f64, f: Frame, out: wp.array2d(dtype=f64), block: int, offset: int):
+        start = (wp.tid() + offset) * block
+        for p in range(start, start + block):
+            y = sum_copies(L, d, p)
+            ye = y[0] * f.east[0, p] + y[1] * f.east[1, p] + y[2] * f.east[2, p]
+            yn = y[0] * f.north[0, p] + y[1] * f.north[1, p] + y[2] * f.north[2, p]
+            out[0, p] = out[0, p] + coef * ye
+            out[1, p] = out[1, p] + coef * yn
+            out[2, p] = out[2, p] + coef * y[3]
 
     dss_apply.__qualname__ = "dss_apply"  # the kernel's key
     return wp.kernel(dss_apply, enable_backward=False, module="unique")

@@ -301,9 +301,15 @@ class Topology:
         (``kernels.dss.gather``) and uses it node by node: ``kernel(rows,
         copies, ghosts)`` builds it for x's rows, the table's columns and
         whether there are neighbours; it takes (x, ``dss_copies``, *args,
-        offset), dim N. The neighbours' copies are exchanged first."""
+        block, offset), dim N/block: np² consecutive nodes a thread on the CPU,
+        where Warp's cost per thread is a fifth of a DSS's (0.52 → 0.42 ms at
+        ne30), one on CUDA. The neighbours' copies are exchanged first."""
         kernel = kernel(x.shape[0], self.table.shape[1], bool(len(self.neighbours)))
-        return [*self._exchange(x), self._record(kernel, self.N, [x, self.dss_copies, *args])]
+        block = self.grid.np**2 if wp.get_device(self.device).is_cpu else 1
+        launch = record(
+            kernel, self.N // block, [x, self.dss_copies, *args, block], device=self.device, threads=self.threads, nodes_per_index=block
+        )
+        return [*self._exchange(x), launch]
 
     def assemble(self, x: wp.array2d, row: int, out: wp.array) -> list:
         """Launches for the unique-node out (nunique,) = M x[row]: Σ over the copies

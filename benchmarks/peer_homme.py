@@ -1,0 +1,231 @@
+"""swe_sphere against HOMME's own shallow-water model ``sweqx``: whole process, one core each.
+
+TC5 (zonal flow over a mountain) at ne30 np4, leapfrog-trapezoidal, Δt 90 s, one
+day: HOMME runs the kit's 1-day timing namelist (``namelists/swtc5_ne30_1day_timing.nl``,
+one MPI rank: ``/usr/bin/mpirun --allow-run-as-root -np 1 sweqx < namelist``),
+swe_sphere the scene that matches it::
+
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \\
+    swe-sphere run tc5_mountain --ne 30 --stepper leapfrog_trapezoidal --dt 90 --days 1 --device cpu \\
+        -s hyperviscosity.nu=1.5e15 -s hyperviscosity.nu_div=1.5e15 -s hyperviscosity.nu_s=1.5e15
+
+The ν are the namelist's (``nu = nu_s = 1.5e15``, ``nu_div`` defaults to ``nu`` in
+HOMME); the scene's own 3-hour e-folding rule gives 1.44e14 at ne30, and all three
+are set because an explicit ``nu`` alone leaves ``nu_div`` and ``nu_s`` on that rule.
+Both keep one ∇⁴ application per step (HOMME ``hypervis_subcycle = 1``; swe_sphere
+finds forward Euler stable at this ν and Δt and does not subcycle).
+
+Each round runs both, in alternating order (so drift in the load hits both alike),
+and takes each process's CPU clock from ``os.wait4`` (user + system, its waited-for
+children included: for HOMME, ``mpirun`` and the rank it starts), which a busy
+machine inflates far less than the wall clock; both are whole processes, start-up
+and output included (swe_sphere: interpreter, imports, grid, the kernel cache
+loaded, outputs at days 0 and 1 and their scores against T213; HOMME: MPI start,
+grid, interpolated output at day 0). A short swe_sphere run first fills Warp's
+kernel cache (``WARP_CACHE_PATH``), so no round pays compilation.
+
+The table: per round the CPU seconds of each and their ratio, then the medians and
+the ratio of the medians, the wall seconds, and the 1-minute load average at the
+end of each round, then HOMME's own timers (GPTL, wall) of the last round. Unless
+``--no-l2``, one more HOMME run with output at day 1 (the namelist's
+``output_frequency`` set to 1, not timed) gives HOMME's normalized l2 of h + hs
+against the bundled T213 reference at days 0 and 1, beside swe_sphere's day 1
+from its own summary. HOMME's Earth is larger (``rearth`` 6.376e6 m, the
+reference's and swe_sphere's 6.37122e6 m), so its l2 is 5.6e-5 at day 0 already:
+the figures are not a comparison of accuracy.
+
+HOMME comes from the kit in ``../shared/peers/homme`` (beside the main checkout;
+``--kit``): ``--homme PATH`` names a built ``sweqx``, else the script uses
+``BUILD/build/src/sweqx/sweqx`` and builds it there with the kit's ``build.sh``
+when absent (Debian packages, root, 3–5 minutes on 2 cores; ``--build-dir``,
+default ``~/.cache/swe_sphere/homme``). Where it cannot, it prints one line with
+the reason and exits 0.
+
+    python benchmarks/peer_homme.py [--rounds 3] [--homme PATH] [--no-l2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import re
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+NAMELIST = "namelists/swtc5_ne30_1day_timing.nl"
+MPIRUN = "/usr/bin/mpirun"  # Debian's OpenMPI, which HOMME is built against (the mpich wheel's rejects --allow-run-as-root)
+NU = "1.5e15"  # the namelist's nu = nu_s; HOMME's nu_div defaults to nu
+SWE_ARGS = ["run", "tc5_mountain", "--ne", "30", "--stepper", "leapfrog_trapezoidal", "--dt", "90", "--device", "cpu",
+            "-s", f"hyperviscosity.nu={NU}", "-s", f"hyperviscosity.nu_div={NU}", "-s", f"hyperviscosity.nu_s={NU}",
+            "--no-progress", "--overwrite"]
+SWE_CHILD = "import sys; from swe_sphere.cli import main; sys.exit(main(sys.argv[1:]))"
+ONE_CORE = {"SWE_SPHERE_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+
+
+class Skip(Exception):
+    """HOMME cannot be had here: the message says why."""
+
+
+def default_kit() -> Path:
+    """``shared/peers/homme`` beside the main checkout (the folder holding the git
+    common directory, so a worktree finds the same kit), else beside this repository."""
+    common = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--path-format=absolute", "--git-common-dir"],
+                            capture_output=True, text=True)
+    main_checkout = Path(common.stdout.strip()).parent if common.returncode == 0 else REPO
+    return main_checkout.parent / "shared" / "peers" / "homme"
+
+
+def find_sweqx(args) -> Path:
+    """The ``sweqx`` to time: ``--homme``, or the build folder's, built there when absent."""
+    if not (args.kit / NAMELIST).is_file():
+        raise Skip(f"no HOMME kit with {NAMELIST} at {args.kit} (--kit)")
+    sweqx = args.homme or args.build_dir / "build" / "src" / "sweqx" / "sweqx"
+    if not args.homme and not sweqx.is_file():
+        print(f"building HOMME into {args.build_dir} with {args.kit / 'build.sh'} (3-5 min on 2 cores) ...", file=sys.stderr, flush=True)
+        # /usr/bin first: the kit's CMake cache names the bare wrappers (mpicc, mpif90), and an mpich wheel's
+        # mpicc earlier on PATH links MPICH's libmpi.so.12 into sweqx beside OpenMPI's, which then cannot start
+        env = dict(os.environ, PATH=f"/usr/bin:/bin:{os.environ.get('PATH', '')}")
+        p = subprocess.run(["bash", str(args.kit / "build.sh"), str(args.build_dir)], env=env, capture_output=True, text=True)
+        if p.returncode != 0 or not sweqx.is_file():
+            last = (p.stderr.strip() or p.stdout.strip() or "no output").splitlines()[-1]
+            raise Skip(f"HOMME build failed (exit {p.returncode}): {last}")
+    if not os.access(sweqx, os.X_OK):
+        raise Skip(f"{sweqx}: not an executable")
+    if not Path(MPIRUN).is_file():
+        raise Skip(f"{MPIRUN} (Debian's OpenMPI, which HOMME is built against) not found")
+    return sweqx
+
+
+def timed(cmd, cwd, env=None, stdin=None) -> tuple[float, float, str]:
+    """Run ``cmd`` to its end: (CPU s of the process and its waited-for children, wall s, stdout + stderr)."""
+    with tempfile.TemporaryFile("w+") as log:
+        t0 = time.perf_counter()
+        p = subprocess.Popen(cmd, cwd=cwd, env=env, stdin=stdin, stdout=log, stderr=subprocess.STDOUT)
+        _, status, ru = os.wait4(p.pid, 0)
+        wall = time.perf_counter() - t0
+        p.returncode = os.waitstatus_to_exitcode(status)  # reaped by wait4: tell Popen, so it does not wait again
+        log.seek(0)
+        text = log.read()
+    if p.returncode != 0:
+        raise RuntimeError(f"{cmd[0]} exited {p.returncode}:\n{text[-3000:]}")
+    return ru.ru_utime + ru.ru_stime, wall, text
+
+
+def run_swe(days: str, out: Path) -> tuple[float, float, str]:
+    env = dict(os.environ, **ONE_CORE)
+    return timed([sys.executable, "-c", SWE_CHILD, *SWE_ARGS, "--days", days, "--output", str(out)], REPO, env)
+
+
+def run_homme(sweqx: Path, namelist_text: str, rundir: Path) -> tuple[float, float, str]:
+    shutil.rmtree(rundir, ignore_errors=True)
+    (rundir / "movies").mkdir(parents=True)
+    (rundir / "input.nl").write_text(namelist_text)
+    env = dict(os.environ, **ONE_CORE)
+    with open(rundir / "input.nl") as nl:
+        return timed([MPIRUN, "--allow-run-as-root", "-np", "1", str(sweqx)], rundir, env, nl)
+
+
+def homme_timers(rundir: Path) -> dict[str, tuple[int, float]]:
+    """HOMME's own GPTL timers of a run (``HommeSWTime_stats``): name -> (calls, wall s)."""
+    text = (rundir / "HommeSWTime_stats").read_text()
+    return {m[1]: (int(float(m[2])), float(m[3])) for m in re.finditer(r'(?m)^"(\w+)"\s+\S+\s+\d+\s+\d+\s+(\S+)\s+(\S+)', text)}
+
+
+def homme_l2(movie: Path, day: float) -> float:
+    """Normalized l2 of h + hs at ``day`` in HOMME's interpolated output against T213.
+
+    ``geop`` is already h + hs in m (HOMME writes (p + phis + pmean)/g; the kit's
+    ``extract_day.py``); the grid is Gaussian (``interp_gridtype = 2``), so the
+    Gauss weights are the area weights of each latitude row."""
+    import netCDF4
+
+    from swe_sphere.reference import Reference, find_reference
+
+    with netCDF4.Dataset(movie) as f:
+        days = np.asarray(f["time"][:], dtype=np.float64)
+        it = int(np.argmin(np.abs(days - day)))
+        if abs(days[it] - day) > 1e-6:
+            raise RuntimeError(f"{movie}: no day {day:g} (times {days})")
+        lat = np.radians(np.asarray(f["lat"][:], dtype=np.float64))
+        lon = np.radians(np.asarray(f["lon"][:], dtype=np.float64))
+        h_surface = np.asarray(f["geop"][it, 0], dtype=np.float64)
+    mu, w = np.polynomial.legendre.leggauss(lat.size)  # nodes ascending, as HOMME's latitudes
+    if not np.allclose(np.arcsin(mu), lat, atol=1e-9):
+        raise RuntimeError(f"{movie}: latitudes are not an ascending Gaussian grid")
+    w = w[:, None]
+    ref = Reference(find_reference("tc5_mountain")).at(day, lat[:, None], lon[None, :])["h_surface"]
+    return math.sqrt(np.sum(w * (h_surface - ref) ** 2) / np.sum(w * ref**2))
+
+
+def swe_l2(text: str) -> float:
+    """swe_sphere's day-1 h + hs l2 against T213, from its summary line ``vs T213 h+hs l1 .. l2 ..``."""
+    m = re.search(r"vs T213 h\+hs l1 \S+\s+l2 (\S+)", text)
+    return float(m.group(1)) if m else math.nan
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rounds", type=int, default=3, help="timed rounds, each one run of both (default 3)")
+    ap.add_argument("--homme", type=Path, help="a built sweqx (default: BUILD_DIR/build/src/sweqx/sweqx, built when absent)")
+    ap.add_argument("--kit", type=Path, default=default_kit(), help="the HOMME kit (default: %(default)s)")
+    ap.add_argument("--build-dir", type=Path, default=Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "swe_sphere" / "homme",
+                    help="where the kit builds HOMME (default: %(default)s)")
+    ap.add_argument("--no-l2", dest="l2", action="store_false", help="skip the untimed HOMME run that scores its day 1 against T213")
+    args = ap.parse_args(argv)
+    if args.rounds < 1:
+        ap.error("--rounds must be at least 1")
+    try:
+        sweqx = find_sweqx(args)
+    except Skip as why:
+        print(f"peer_homme: skipped: {why}")
+        return 0
+    namelist = (args.kit / NAMELIST).read_text()
+
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        out = tmp / "swe.nc"
+        run_swe("0.0125", out)  # 12 steps: fills the kernel cache; not timed
+        for k in range(args.rounds):
+            order = ("swe", "homme") if k % 2 == 0 else ("homme", "swe")
+            got = {}
+            for who in order:
+                got[who] = run_swe("1", out) if who == "swe" else run_homme(sweqx, namelist, tmp / "homme")
+            rows.append((got["swe"], got["homme"], os.getloadavg()[0]))
+            timers = homme_timers(tmp / "homme")
+            print(f"round {k + 1}: swe_sphere {got['swe'][0]:.2f} s CPU, HOMME {got['homme'][0]:.2f} s CPU", file=sys.stderr, flush=True)
+        if args.l2:
+            day1 = re.sub(r"(?m)^(\s*output_frequency\s*=\s*)\d+", r"\g<1>1", namelist)
+            run_homme(sweqx, day1, tmp / "homme")
+            l2_homme = [homme_l2(tmp / "homme" / "movies" / "swtc51.nc", day) for day in (0.0, 1.0)]
+
+    print(f"TC5 ne30 np4 leapfrog-trapezoidal dt 90 s, 1 day, nu {NU}, one core each, whole process "
+          f"({args.rounds} rounds, alternating order)")
+    print(f"HOMME: {MPIRUN} -np 1 {sweqx} < {args.kit / NAMELIST}")
+    print(f"{'round':>5} {'swe CPU s':>10} {'HOMME CPU s':>12} {'ratio':>7} {'swe wall s':>11} {'HOMME wall s':>13} {'load 1 min':>11}")
+    for k, (s, h, load) in enumerate(rows):
+        print(f"{k + 1:>5} {s[0]:>10.2f} {h[0]:>12.2f} {s[0] / h[0]:>7.3f} {s[1]:>11.2f} {h[1]:>13.2f} {load:>11.2f}")
+    med = [statistics.median(r[i][j] for r in rows) for i in (0, 1) for j in (0, 1)]
+    print(f"{'median':>5} {med[0]:>10.2f} {med[2]:>12.2f} {med[0] / med[2]:>7.3f} {med[1]:>11.2f} {med[3]:>13.2f}")
+    print(f"ratio of the medians (swe_sphere / HOMME, CPU): {med[0] / med[2]:.3f}")
+    total, adv, rhs = (timers[name][1] for name in ("Total", "advance_nonstag", "compute_and_apply_rhs"))
+    print(f"HOMME's timers (wall, last round): Total {total:.2f} s, time steps (advance_nonstag, {timers['advance_nonstag'][0]} calls) "
+          f"{adv:.2f} s, of which RHS with its DSS and stage update (compute_and_apply_rhs, {timers['compute_and_apply_rhs'][0]} calls) "
+          f"{rhs:.2f} s = {rhs / adv:.0%}, the rest (advance_hypervis: the ∇⁴ and its two DSS) {adv - rhs:.2f} s")
+    if args.l2:
+        print(f"day-1 h+hs normalized l2 against T213: swe_sphere {swe_l2(rows[-1][0][2]):.3e}, HOMME {l2_homme[1]:.3e} "
+              f"(HOMME at day 0: {l2_homme[0]:.3e}, from its Earth radius of 6.376e6 m against T213's 6.37122e6 m)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -299,13 +299,14 @@ class ShallowWater:
         no pass of its own): for each (rows, out, terms) of ``updates``, in
         order, out[rows] = Σ a·src[rows] over terms (a, src), src a (3, N) array
         or None standing for F; rows a slice of the rows the ``terms`` of the
-        RHS write, or None: all three, F zero in the rows the terms do not write
-        (as ``rhs`` leaves a zeroed out). One to three terms, at most two arrays and
-        F once; consecutive updates of the same rows share one DSS, two at a
+        RHS write, or None: all three, F zero in the rows the terms do not
+        write (as ``rhs`` leaves a zeroed out). One to three terms, at most two
+        arrays and F once; consecutive updates of the same rows share one DSS, two at a
         time. Outputs may alias x (only the tendency reads it, before) and the
-        terms (a later update reads an earlier one's result). Summed left to right as ``blas.axpby``/``axpbypcz``: the
-        bits of ``rhs`` followed by those combinations. Recorded once per arrays
-        and coefficients; ValueError for rows F lacks."""
+        terms (a later update reads an earlier one's result). Summed left to
+        right as ``blas.axpby``/``axpbypcz``: the bits of ``rhs`` followed by
+        those combinations. Recorded once per arrays and coefficients;
+        ValueError for rows F lacks."""
         terms = self._rhs_terms(terms)
         key = ("rhs_update", terms, x.ptr, tuple(
             (None if rows is None else (rows.start, rows.stop), out.ptr, tuple((a, None if src is None else src.ptr) for a, src in t))
@@ -325,9 +326,10 @@ class ShallowWater:
     def _build_hv(self, x, coef, out=None, nus=None):
         """Launches of out += coef·B x, B = ν∇⁴ the hyperviscosity operator
         (``kernels.hyperviscosity``) with coefficients ``nus`` = (ν, ν_div, ν_s)
-        (None: the model's); out = x if None. Four passes (and two per-node
-        ones before each weak Laplacian on CUDA), and the divergence δ and its
-        DSS first when ν_div ≠ ν."""
+        (None: the model's); out = x if None. Four passes (the per-node
+        layout: ``to_cartesian`` and a flux pass before the first weak
+        Laplacian, a flux pass before the second), and the divergence δ and
+        its DSS first when ν_div ≠ ν."""
         N, np_ = self.N, self.grid.np
         out = x if out is None else out
         nu, nu_div, nu_s = (self.nu, self.nu_div, self.nu_s) if nus is None else nus

@@ -33,7 +33,10 @@ run() {  # run <part> <seconds> <command...>: output to $OUT/<part>.txt, time-bo
 part_setup() {
     { nvidia-smi; "$PY" -c "import warp as wp; wp.init(); print(wp.__version__, wp.get_cuda_devices())"; } >"$OUT/device.txt" 2>&1
     cat "$OUT/device.txt"
-    # the machine reaches no index: install the checkout alone, against what is there
+    # the machine reaches no index: install the checkout alone, against what is there. Its image had
+    # no Warp, netCDF4, cftime or pyamg (2026-11-22): bring them as files and put them on PYTHONPATH
+    # first (benchmarks/README.md, "On a GPU", says how they travelled)
+    "$PY" -c "import warp, netCDF4, pyamg" || { echo "== setup: warp, netCDF4 or pyamg missing on this machine" | tee -a "$OUT/session.log"; exit 2; }
     run setup 120 "$PY" -m pip install --no-deps --no-build-isolation -e .
 }
 

@@ -373,6 +373,10 @@ def sweep_plot(path, rows, x: str, *, xlabel: str = "", floor: float | None = No
             ax.plot([xv], [0.97], marker="x", color=colours.get(st, "k"), transform=top, clip_on=False)
         ax.plot([], [], "kx", label="unstable (at its x)")
         ax.legend(fontsize=8)
+    xs = {v for _, xv, _ in lines for v in xv if math.isfinite(v) and v > 0} | {xv for _, xv in unstable}
+    if len(xs) == 1:  # one Δt (or cost) only: a factor of 2 either side, not matplotlib's zero-width log axis
+        (x0,) = xs
+        ax.set_xlim(x0 / 2, x0 * 2)
     if not drawn:
         ax.text(0.5, 0.5, "no stable run", ha="center", va="center", transform=ax.transAxes)
     return _save(fig, path)

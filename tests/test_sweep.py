@@ -213,6 +213,7 @@ def test_sweep_of_the_forced_low_scores_against_its_exact_solution(tmp_path):
         assert math.log2(e[-2] / e[-1]) >= order - 0.3, (stepper, e)
 
 
+@pytest.mark.filterwarnings("error::RuntimeWarning")  # its figures have one Δt: no zero-width log axis
 def test_sweep_of_large_steps_has_a_stable_reference(tmp_path):
     """Every Δt far beyond the explicit limit: the reference RK4 run is capped at a
     quarter of the gravity-wave limit (a quarter of the smallest Δt would blow up),

@@ -56,27 +56,42 @@ class FGMRES:
         self.rows_V = [self.V[j] for j in range(m + 1)]  # row views: their addresses key the model's recorded launches
         self.rows_Z = [self.Z[j] for j in range(m)]
         self.w, self.r = wp.zeros(n, dtype=f64, device=dev), wp.zeros(n, dtype=f64, device=dev)
-        self.coef = wp.zeros(m + 1, dtype=f64, device=dev)
+        self.coef, self._coef = wp.zeros(m + 1, dtype=f64, device=dev), np.zeros(m + 1)
         self.chunk = chunk = reduction_chunk(n, dev)
         self.partial = wp.zeros((m + 2, (n + chunk - 1) // chunk), dtype=f64, device=dev)
+        self._launches: dict[tuple, object] = {}
 
-    def _record(self, kernel, dim, inputs, **kw):
-        return record(kernel, dim, inputs, device=self.topology.device, threads=self.topology.threads, **kw)
+    def _launch(self, kernel, dim, inputs, nodes_per_index=1, **params):
+        """Launch ``kernel`` on ``inputs``, recorded once per set of arrays (their
+        addresses), with the scalar ``params`` set by name for this call."""
+        key = (kernel.key, *(a.ptr for a in inputs if isinstance(a, wp.array)))
+        launch = self._launches.get(key)
+        if launch is None:
+            topo = self.topology
+            launch = self._launches[key] = record(kernel, dim, inputs, device=topo.device, threads=topo.threads,
+                                                  nodes_per_index=nodes_per_index)
+        for name, value in params.items():
+            launch.set_param_by_name(name, value)
+        launch.launch()
+
+    def _set_coef(self, c) -> None:
+        """The first len(c) coefficients on the device (the kernels read no more)."""
+        self._coef[: len(c)] = c
+        self.coef.assign(self._coef)
 
     def _project_dots(self, k_sub: int, h: np.ndarray | None, k_dot: int) -> np.ndarray:
         """w −= Σ_{i<k_sub} h_i V_i; returns (V_i·w for i < k_dot, w·w) over all processes."""
         if k_sub:
-            self.coef.assign(np.concatenate([h, np.zeros(self.restart + 1 - k_sub)]))
-        self._record(kk.project_dots, self.partial.shape[1], [self.V, k_sub, self.coef, self.w, k_dot, self.partial, self.chunk],
-                     nodes_per_index=self.chunk).launch()
+            self._set_coef(h)
+        self._launch(kk.project_dots, self.partial.shape[1], [self.V, 0, self.coef, self.w, 0, self.partial, self.chunk],
+                     nodes_per_index=self.chunk, k_sub=k_sub, k_dot=k_dot)
         return self.topology.partial_sums(self.partial, k_dot + 1)  # the rows it wrote: less to copy from a GPU
 
     def _lincomb(self, B, c: np.ndarray, a: float, x, out) -> None:
         """out = a·x + Σ c_i B_i."""
-        k = len(c)
-        if k:
-            self.coef.assign(np.concatenate([c, np.zeros(self.restart + 1 - k)]))
-        self._record(kk.lincomb, self.n, [B, k, self.coef, f64(a), x, out]).launch()
+        if len(c):
+            self._set_coef(c)
+        self._launch(kk.lincomb, self.n, [B, 0, self.coef, f64(0.0), x, out], k=len(c), a=f64(a))
 
     def solve(self, matvec, precond, b, x, rtol: float, maxiter: int):
         m, V, Z, w = self.restart, self.rows_V, self.rows_Z, self.w

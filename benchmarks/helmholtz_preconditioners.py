@@ -207,7 +207,7 @@ def main():
     mu = float(spla.eigsh(scale @ K @ scale, k=1, which="LA", tol=1e-3, return_eigenvectors=False)[0])
     out = wp.zeros_like(sim.x)
     rhs = cpu_seconds(lambda: model.rhs(sim.x, out), 20)
-    gw = GravityWave(model, H, "pcg", args.tol, 5000)
+    gw = GravityWave(model, H, args.tol, 5000)
     gw.b.assign(b)
     print(f"TC5 ne{args.ne} np4, {grid.nunique} unknowns, Δt_g {dt_g:.1f} s, H {H:.0f} m, a²μ {mu * grid.radius**2:.0f}, RHS {rhs * 1e3:.3f} ms, tol {args.tol:g}")
     print("| preconditioner | " + " | ".join(f"{f:g} Δt_g its (RHS-eq)" for f in args.factors) + " |")

@@ -119,7 +119,6 @@ def main():
     ap.add_argument("--warmup", type=int, default=3, help="untimed steps per configuration first")
     ap.add_argument("--clock", choices=("cpu", "wall"), default="cpu")
     ap.add_argument("--device", choices=("cpu", "cuda"), default="cpu", help="cuda: wall clock, synchronised")
-    ap.add_argument("--helmholtz-solver", default="", help="every configuration's helmholtz_solver (default: the steppers' own)")
     ap.add_argument("--explicit", nargs="*", default=None, metavar="STEPPER@DT",
                     help="the explicit references of every case, e.g. ssprk3@216 (default: EXPLICIT, measured at ne30)")
     args = ap.parse_args()
@@ -136,8 +135,6 @@ def main():
         for name, dt in explicit:
             runs.append((name, dt / dt_g, True, *build(case, args.ne, name, dt, {}, clock, args.device)))
         for label, stepper, f, options in CONFIGS[case]:
-            if args.helmholtz_solver:
-                options = {**options, "helmholtz_solver": args.helmholtz_solver}
             runs.append((label, f, False, *build(case, args.ne, stepper, f * dt_g, options, clock, args.device)))
         for _, _, _, sim, timers in runs:
             for _ in range(args.warmup):

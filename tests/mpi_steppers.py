@@ -1,6 +1,5 @@
 """Run by ``test_mpi.py`` under ``mpiexec`` (and imported by it for the one-rank runs): TC5
-at ne 2 with each stepper that solves (semi-implicit, JFNK, IMEX; Helmholtz solver
-``pcg``, the one that runs over several ranks), one simulation over all ranks each,
+at ne 2 with each stepper that solves (semi-implicit, JFNK, IMEX), one simulation over all ranks each,
 and a semi-implicit run continued from a restart file. Rank 0 saves the final
 whole-grid states: ``python mpi_steppers.py OUT.npz CHECKPOINT``.
 """
@@ -20,7 +19,7 @@ DAYS = 0.1
 
 
 def scene(stepper: str, days: float = DAYS):
-    return load_scene("tc5_mountain", ne=2, days=days, stepper=stepper, overrides={f"{stepper}.helmholtz_solver": "pcg"})
+    return load_scene("tc5_mountain", ne=2, days=days, stepper=stepper)
 
 
 def final_states(comm=None) -> dict[str, np.ndarray]:

@@ -343,13 +343,13 @@ def test_helmholtz_preconditioner_cuts_gmres_iterations():
 def test_fgmres_reaches_the_true_residual_with_an_inexact_inner_solve():
     """TC5 ne = 4, the first Newton system J δ = −R of a CN step of 21600 s
     (gravity-wave Courant 10.7), solved to η = 1e-6 with the preconditioner's
-    Helmholtz equation solved by AMG-CG to a loose 1e-1, so that the
+    Helmholtz equation solved by the compiled CG to a loose 1e-1, so that the
     preconditioner changes from one application to the next. Flexible GMRES
     keeps the directions it preconditioned: the true residual ‖J δ + R‖/‖R‖ is
     at η (GMRES on J P⁻¹ with δ = P⁻¹w at the end, right for a fixed P only,
     missed it by orders of magnitude: 6.8e-3)."""
     base = load_scene("tc5_mountain", ne=4, np=4, days=1.0, stepper="implicit", dt=21600.0)
-    options = {"helmholtz_solver": "amg", "helmholtz_tol": 1e-1, "gmres_maxiter": 60}
+    options = {"helmholtz_tol": 1e-1, "gmres_maxiter": 60}
     sim = make_sim(dataclasses.replace(base, stepper_options=options))
     st, x = sim.stepper, sim.x
     # the first Newton iteration of a θ = 0.5 step from x (as Implicit.step sets it up)

@@ -244,16 +244,6 @@ def test_memory_guard_counts_the_ranks_on_the_node(tmp_path):
     assert not (tmp_path / "o.nc").exists()
 
 
-@pytest.mark.usefixtures("needs_mpi")
-def test_host_matrix_solver_refused_on_several_ranks_in_one_line(tmp_path):
-    """The assembled-matrix Helmholtz solvers are the whole grid's: one line, exit 2, no output."""
-    args = ["run", "tc2_steady", "--ne", "2", "--stepper", "semi_implicit", "-s", 'semi_implicit.helmholtz_solver="amg"']
-    proc = mpirun(2, [*args, "--days", "0.1", "--output", "o.nc"], tmp_path)
-    assert proc.returncode == 2
-    assert "the Helmholtz solver 'amg' runs on one MPI rank only; use 'pcg' over several ranks" in proc.stderr
-    assert not (tmp_path / "o.nc").exists()
-
-
 FAIL_ON_RANK_0 = """
 import sys
 from mpi4py import MPI

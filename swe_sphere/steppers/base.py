@@ -69,6 +69,7 @@ class Stepper:
     # 0.926 / 0.883 / 1.005, ssprk3 1.195 / 1.108 / 1.242, rk4 1.853 / 1.726 / 1.919)
     courant_limit: float | None = None
     solvers: tuple[str, ...] = ()
+    removed_options: dict[str, str] = {}  # option → why it is gone, for the error message
 
     @classmethod
     def make_options(cls, **options):
@@ -76,6 +77,8 @@ class Stepper:
         Raises ValueError naming an unknown option or an invalid value."""
         known = option_types(cls.Options)
         for key in options:
+            if key in cls.removed_options:
+                raise ValueError(f"{key} was removed: {cls.removed_options[key]}")
             if key not in known:
                 raise ValueError(f"unknown option {key!r} for stepper {cls.name} (known: {', '.join(known) or 'none'})")
         return cls.Options(**options)

@@ -19,31 +19,29 @@ semi-definite (the SE divergence and gradient are adjoint under the GLL
 quadrature; Taylor & Fournier 2010), K·1 = 0, so M + cK is SPD.
 ``helmholtz_matrix`` assembles K once per grid as a scipy sparse matrix by
 probing the model's element kernels (it is the matrix-free operator, to
-round-off), and the solve is, by name (``SOLVERS``):
+round-off; the tests' check of the operators and of a solve). The solve is the
+compiled matrix-free CG of ``kernels.helmholtz`` (Chronopoulos–Gear, one
+reduction an iteration, mass preconditioner), vectors in Warp arrays, the
+operator in three element launches split over the CPU threads (per node on
+CUDA); the same code on CPU, CUDA and any number of MPI ranks (the inner
+products summed over ranks by ``Topology.partial_sums``). The operator's bits
+depend on neither threads nor ranks (its DSS is a gather in the global order),
+so a run on N ranks differs from one on one rank only by the order of the
+inner products' sums.
 
-* ``"cg"``: CG on the assembled matrix with the inverse mass as (Jacobi)
-  preconditioner, to the relative tolerance ``tol`` (scipy, CPU);
-* ``"amg"``: CG preconditioned by one pyamg smoothed-aggregation V-cycle
-  (Vaněk, Mandel & Brezina 1996), to ``tol`` (CPU);
-* ``"chebyshev"``: ``maxiter`` steps of mass-preconditioned Chebyshev
-  iteration (Saad 2003, Alg. 12.1) on the eigenvalue interval [1, 1 + cμ],
-  μ = λmax(M⁻¹K): a fixed polynomial, hence a fixed linear approximate
-  inverse for a preconditioner, with no inner products (CPU);
-* ``"vcycle"``: one AMG V-cycle, a fixed approximate inverse (CPU);
-* ``"pcg"`` (the default): the compiled matrix-free CG of
-  ``kernels.helmholtz`` (Chronopoulos–Gear, one reduction an iteration,
-  mass preconditioner), vectors in Warp arrays, the operator in three
-  element launches split over the CPU threads; the same code on CPU, CUDA
-  and any number of MPI ranks (the inner products summed over ranks by
-  ``Topology.sums``). The operator's bits depend on neither threads nor
-  ranks (its DSS is a gather in the global order), so a run on N ranks
-  differs from one on one rank only by the order of the inner products' sums.
-
-Measured (TC5 ne16, 2 busy cores): one pyamg V-cycle costs 15–28 sparse
-products with K (its Python overhead per level dominates at 14k unknowns),
-so AMG-CG needs fewer iterations than Jacobi-CG (13 / 30 / 59 against
-84 / ~200 / 472 to 1e-10 at 4 / 10 / 30× the gravity-wave limit) but more
-time (≈ 370 / 830 / 1400 against 84 / 200 / 472 products).
+Why no other solver (ISSUE 21, TC5 ne30, IMEX at 8 / CN at 4 / 10 / semi-implicit
+at 2 Δt_g, ms a step, ``benchmarks/implicit_cost.py``): scipy's CG on the
+assembled matrix (one thread, its sparse product 0.96 ms against this
+operator's 1.12 ms) took 95 / 181 / 314 / 28 against 112 / 206 / 366 / 31 on
+one thread (CPU clock), but 89 / 162 / 286 / 25 against 75 / 134 / 247 / 20
+on two (wall, idle); it ran on one CPU rank only, and a solver chosen by the
+thread count would change a run's bits with it. CG with a pyamg V-cycle
+185 / 226 / 514 / 53 on one thread; the preconditioners of
+``benchmarks/helmholtz_preconditioners.py`` (Chebyshev, element blocks,
+low-order-refined AMG, p-multigrid) none cheaper per solve. The same product
+as a Warp CSR kernel (K has 37 entries a row) took 3.1 ms, ``warp.sparse``'s
+``bsr_mv`` 4.3 ms (ne16: 0.88 / 1.24 against 0.33; ne60: 12.6 / 16.7
+against 4.7).
 
 The height's area integral is set to that of the right-hand side after the
 solve (the exact solution has it, since ∫D v = 0), so a loose solve still
@@ -53,9 +51,7 @@ keeps mass to round-off.
 from __future__ import annotations
 
 import numpy as np
-import pyamg
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 import warp as wp
 
 from ..kernels import gravity_wave as gk
@@ -65,30 +61,15 @@ from ..parallel import record, reduction_chunk
 from .base import StepFailure
 
 f64 = wp.float64
-SOLVERS = ("pcg", "cg", "amg", "chebyshev", "vcycle")
-_HOST_SOLVERS = ("cg", "amg", "chebyshev", "vcycle")
-_DISTRIBUTED_SOLVERS = ("pcg",)
-# Two symmetric Gauss–Seidel sweeps before and after each coarse correction: TC5
-# ne16, random right-hand side to 1e-10, CG iterations at 4x / 30x the gravity-wave
-# limit 13 / 59 against 18 / 84 with pyamg's default one sweep (Jacobi-CG: 84 / 472).
-_SMOOTHER = ("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2})
-
-
-def RENAMED_HINT(name: str) -> str:
-    """The pointer from a removed solver name to its replacement, for error messages."""
-    return "; 'mf_cg' and 'warp_cg' are now 'pcg'" if name in ("mf_cg", "warp_cg") else ""
-
-
-def default_solver(model: ShallowWater) -> str:
-    """The default: the compiled matrix-free CG "pcg" on every device and rank count."""
-    return "pcg"
+# the solver options the semi-implicit, IMEX and JFNK steppers no longer have, and why (``Stepper.removed_options``)
+REMOVED_SOLVER_OPTIONS = {
+    "helmholtz_solver": "the compiled CG is the only Helmholtz solver (the host solvers cg, amg, chebyshev, vcycle were slower at the default threads)",
+}
 
 
 def check_solve_options(o) -> None:
-    """The checks of a stepper's accurate-solve options ``helmholtz_solver``, ``tol``,
-    ``maxiter``, ``mean_depth`` (semi-implicit, IMEX): ValueError '<option> must ...'."""
-    if o.helmholtz_solver not in ("", "pcg", "cg", "amg"):
-        raise ValueError(f"helmholtz_solver must be 'pcg', 'cg' or 'amg' (got {o.helmholtz_solver!r}{RENAMED_HINT(o.helmholtz_solver)})")
+    """The checks of a stepper's accurate-solve options ``tol``, ``maxiter``,
+    ``mean_depth`` (semi-implicit, IMEX): ValueError '<option> must ...'."""
     if not 0 < o.tol < 1:
         raise ValueError(f"tol must be in (0, 1) (got {o.tol})")
     if o.maxiter < 1:
@@ -166,45 +147,27 @@ class GravityWave:
     """The linear gravity-wave operator L and solves of (I − aL) z = s·r.
 
     Parameters: the model; ``mean_depth`` H (m; 0 = the mean depth of the first
-    state passed to ``set_depth``); ``solver`` (one of ``SOLVERS``; None = the
-    CPU/CUDA default for an accurate solve), ``tol`` (relative residual of the
-    CG solvers) and ``maxiter``; ``warm``: start each CG from the last
-    solution (for a sequence of similar solves, as the semi-implicit steps).
-    Off the CPU or over several MPI ranks only ``"pcg"`` runs.
+    state passed to ``set_depth``); ``tol`` (relative residual of the CG) and
+    ``maxiter``; ``warm``: start each CG from the last solution (for a
+    sequence of similar solves, as the semi-implicit steps).
 
     ``apply(x, out)``: out = L x (states (3, N), element-local). ``solve(r, a,
-    z, scale)``: z = (I − aL)⁻¹ (scale·r); returns the Helmholtz iterations
-    (CG iterations; 1 for a V-cycle). Raises ``StepFailure`` when CG does not
-    reach ``tol`` within ``maxiter``; ``ValueError`` for an unknown solver, a
-    host solver on CUDA or over several MPI ranks,
-    or a model without continuity and pressure gradient.
+    z, scale)``: z = (I − aL)⁻¹ (scale·r); returns the CG iterations. Raises
+    ``StepFailure`` when CG does not reach ``tol`` within ``maxiter``;
+    ``ValueError`` for a model without continuity and pressure gradient.
     """
 
-    def __init__(self, model: ShallowWater, mean_depth=0.0, solver=None, tol=1e-10, maxiter=500, warm=False):
+    def __init__(self, model: ShallowWater, mean_depth=0.0, tol=1e-10, maxiter=500, warm=False):
         for term in ("continuity", "pressure_gradient"):
             if term not in model.terms:
                 raise ValueError(f"the gravity-wave operator needs the {term} term")
-        solver = solver or default_solver(model)
-        if solver not in SOLVERS:
-            raise ValueError(f"unknown Helmholtz solver {solver!r} (known: {', '.join(SOLVERS)})")
-        if solver in _HOST_SOLVERS and not wp.get_device(model.device).is_cpu:
-            raise ValueError(f"the Helmholtz solver {solver!r} runs on the CPU only; use 'pcg' on CUDA")
-        if model.topology.distributed and solver not in _DISTRIBUTED_SOLVERS:
-            raise ValueError(f"the Helmholtz solver {solver!r} runs on one MPI rank only; use 'pcg' over several ranks")
-        self.model, self.H, self.solver = model, float(mean_depth), solver
+        self.model, self.H = model, float(mean_depth)
         self.tol, self.maxiter, self.warm = float(tol), int(maxiter), bool(warm)
         dev, N, nu = model.device, model.N, model.topology.nunique
         self.Gh, self.Dv = wp.zeros((2, N), dtype=f64, device=dev), wp.zeros((1, N), dtype=f64, device=dev)
         self.b, self.y = wp.zeros(nu, dtype=f64, device=dev), wp.zeros(nu, dtype=f64, device=dev)
         self.area = model.topology.area
-        self.c = None
-        if solver == "pcg":
-            self._matrix_free(model)
-        else:
-            self.K = helmholtz_matrix(model)
-            self._amg: dict[float, object] = {}
-            self._A: dict[float, sp.csr_matrix] = {}
-            self._mu = None
+        self._matrix_free(model)
 
     # -- what carries over between solves (for bitwise restarts) ----------------------
     def state(self) -> dict:
@@ -246,89 +209,13 @@ class GravityWave:
         m.divergence(r, self.Dv)
         m.pointwise(gk.schur_height, r, self.Dv, f64(scale), f64(a * self.H), z)
         m.assemble(z, 2, self.b)
-        iterations = self._helmholtz(a * a * m.g * self.H)
+        iterations = self._pcg(a * a * m.g * self.H)
         m.scatter(self.y, z, 2)
         m.gradient(z, 2, self.Gh)
         m.pointwise(gk.schur_wind, r, self.Gh, f64(scale), f64(a * m.g), z)
         return iterations
 
-    # -- the Helmholtz solve on unique nodes: (M + cK) y = b --------------------------
-    def _helmholtz(self, c: float) -> int:
-        if self.solver == "pcg":
-            return self._pcg(c)
-        b, y, topo = self.b.numpy(), self.y.numpy(), self.model.topology
-        if not self.warm:
-            y[:] = 0.0
-        iterations = self._host(c, b, y)
-        y += (topo.sum(b.sum()) - topo.sum(self.area @ y)) / topo.total_area  # ∫z_h = ∫(right-hand side)
-        return iterations
-
-    def matrix(self, c: float) -> sp.csr_matrix:
-        """M + cK (cached for the last few c: a stepper uses one or two)."""
-        A = self._A.get(c)
-        if A is None:
-            if len(self._A) >= 4:
-                self._A.pop(next(iter(self._A)))
-            A = self._A[c] = (sp.diags(self.area) + c * self.K).tocsr()
-        return A
-
-    def hierarchy(self, c: float):
-        """The pyamg smoothed-aggregation hierarchy for M + cK (built once per c)."""
-        ml = self._amg.get(c)
-        if ml is None:
-            if len(self._amg) >= 4:
-                self._amg.pop(next(iter(self._amg)))
-            ml = self._amg[c] = pyamg.smoothed_aggregation_solver(self.matrix(c), symmetry="symmetric", presmoother=_SMOOTHER, postsmoother=_SMOOTHER)
-            ml.vcycle = ml.aspreconditioner(cycle="V")
-        return ml
-
-    def _host(self, c, b, y) -> int:
-        if self.solver == "vcycle":
-            y[:] = self.hierarchy(c).vcycle @ b
-            return 1
-        if self.solver == "chebyshev":
-            y[:] = self._chebyshev(c, b)
-            return self.maxiter
-        A = self.matrix(c)
-        if self.solver == "amg":
-            M = self.hierarchy(c).vcycle
-        else:
-            inv_area = 1.0 / self.area
-            M = spla.LinearOperator(A.shape, matvec=lambda v: inv_area * v, dtype=np.float64)
-        count = [0]
-        x, info = spla.cg(A, b, x0=y.copy(), rtol=self.tol, atol=0.0, maxiter=self.maxiter, M=M,
-                          callback=lambda _: count.__setitem__(0, count[0] + 1))
-        if info != 0:
-            raise StepFailure(f"Helmholtz {self.solver} did not converge in {count[0]} iterations (scipy cg info {info})")
-        y[:] = x
-        return count[0]
-
-    def _chebyshev(self, c, b):
-        """``maxiter`` Chebyshev steps from 0 for (M + cK) y = b, preconditioned by M,
-        on the interval [1, 1 + cμ] that holds the spectrum of I + cM⁻¹K."""
-        if self._mu is None:  # λmax(M⁻¹K) = λmax(M^-½ K M^-½), 5 % margin
-            s = 1.0 / np.sqrt(self.area)
-            S = sp.diags(s) @ self.K @ sp.diags(s)
-            self._mu = 1.05 * float(spla.eigsh(S, k=1, which="LA", tol=1e-3, return_eigenvectors=False)[0])
-        A, inv_area = self.matrix(c), 1.0 / self.area
-        lo, hi = 1.0, 1.0 + c * self._mu
-        theta, delta = 0.5 * (hi + lo), 0.5 * (hi - lo)
-        sigma = theta / delta
-        rho = 1.0 / sigma
-        r = b.copy()
-        d = inv_area * r / theta
-        y = np.zeros_like(b)
-        for k in range(self.maxiter):
-            y += d
-            if k == self.maxiter - 1:
-                break
-            r -= A @ d
-            rho_new = 1.0 / (2.0 * sigma - rho)
-            d = rho_new * rho * d + (2.0 * rho_new / delta) * (inv_area * r)
-            rho = rho_new
-        return y
-
-    # -- the compiled matrix-free CG ("pcg"): any device, threads and ranks --------------
+    # -- the Helmholtz solve on unique nodes, (M + cK) y = b: any device, threads and ranks --
     def _matrix_free(self, model):
         topo, dev, N, nu = model.topology, model.device, model.N, model.topology.nunique
         z = lambda *shape: wp.zeros(shape, dtype=f64, device=dev)  # noqa: E731
@@ -443,7 +330,7 @@ class GravityWave:
         alpha, beta, it = 0.0, 0.0, 0
         while rr > bound:
             if it == self.maxiter:
-                raise StepFailure(f"Helmholtz pcg did not converge in {it} iterations (residual {np.sqrt(rr / bb):.3e} > {self.tol:.3e})")
+                raise StepFailure(f"Helmholtz CG did not converge in {it} iterations (residual {np.sqrt(rr / bb):.3e} > {self.tol:.3e})")
             alpha = gamma / delta if it == 0 else gamma / (delta - beta * gamma / alpha)
             self._step(alpha, beta)  # p, s, y, r, u; r·u, r·r
             self._apply(u, w, c)  # and w·u

@@ -37,7 +37,7 @@ import warp as wp
 
 from ..kernels import blas
 from .base import Stepper, StepStats
-from .helmholtz import GravityWave, check_solve_options
+from .helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, check_solve_options
 
 f64 = wp.float64
 
@@ -77,7 +77,6 @@ class ImexOptions:
     tol: float = 1e-6
     maxiter: int = 500
     mean_depth: float = 0.0
-    helmholtz_solver: str = ""
 
     def __post_init__(self):
         if self.scheme not in SCHEMES:
@@ -93,9 +92,9 @@ class Imex(Stepper):
     gravity-wave limit ARS(3,4,3)'s day-1 error against a converged run is
     2.528e-4 against 2.525e-4 with 1e-10 and 1e-8, with 2.5x fewer
     iterations; 1e-4 gives 3.0e-4), ``maxiter`` (500),
-    ``mean_depth`` (H, m; 0 = the initial mean depth), ``helmholtz_solver``
-    ("pcg", the compiled matrix-free CG, on every device and rank count; on one CPU rank
-    also "cg" or "amg"; each stage's solve starts from the last one's solution). s + 1 RHS evaluations and s Helmholtz
+    ``mean_depth`` (H, m; 0 = the initial mean depth). The Helmholtz solve is
+    ``helmholtz.GravityWave``'s compiled CG; each stage's solve starts from the
+    last one's solution. s + 1 RHS evaluations and s Helmholtz
     solves a step (s = 2, 3); reports the Helmholtz iterations. Raises
     ValueError without the continuity and pressure-gradient terms.
     """
@@ -103,11 +102,12 @@ class Imex(Stepper):
     name = "imex"
     Options = ImexOptions
     solvers = ("helmholtz",)
+    removed_options = REMOVED_SOLVER_OPTIONS
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
         o = self.options
-        self.gw = GravityWave(model, o.mean_depth, o.helmholtz_solver or None, o.tol, o.maxiter, warm=True)
+        self.gw = GravityWave(model, o.mean_depth, o.tol, o.maxiter, warm=True)
         self.A_exp, self.A_imp, self.b, self.order = tableau(o.scheme)
         stages = self.A_exp.shape[0]
         self.gamma = float(self.A_imp[1, 1])

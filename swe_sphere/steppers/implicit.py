@@ -25,9 +25,9 @@ extrapolation 2x(n) − x(n−1) (``initial_guess``; x(n) on the first step).
 Preconditioner (``preconditioner = "helmholtz"``, the default; Lott, Woodward
 & Evans 2015): the linearised gravity-wave block P = I/Δt − β L
 (L_v = −g∇h, L_h = −H∇·v, ``helmholtz.GravityWave``), P⁻¹ = Δt (I − βΔt L)⁻¹
-through its Schur complement, the Helmholtz equation solved by
-``helmholtz_solver`` (the compiled mass-preconditioned CG "pcg" to 1e-2 by
-default: an inexact, varying inner solve, which flexible GMRES allows).
+through its Schur complement, the Helmholtz equation solved by the compiled
+mass-preconditioned CG to ``helmholtz_tol`` (1e-2: an inexact, varying inner
+solve, which flexible GMRES allows).
 
 Hyperviscosity is applied after the step, split from the implicit dynamics
 (forward Euler over Δt, subcycled as needed), as for the other steppers: inside
@@ -47,7 +47,7 @@ import warp as wp
 from ..kernels import blas
 from ..kernels import implicit as ik
 from .base import StepFailure, Stepper, StepStats
-from .helmholtz import RENAMED_HINT, SOLVERS, GravityWave, default_solver
+from .helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave
 from .krylov import FGMRES
 
 f64 = wp.float64
@@ -67,9 +67,7 @@ class ImplicitOptions:
     gmres_restart: int = 30
     gmres_maxiter: int = 300
     preconditioner: str = "helmholtz"
-    helmholtz_solver: str = ""
     helmholtz_tol: float = 1e-2
-    chebyshev_degree: int = 8
     mean_depth: float = 0.0
     initial_guess: str = "extrapolate"
 
@@ -80,7 +78,7 @@ class ImplicitOptions:
             raise ValueError(f"theta must be in [0.5, 1] (got {self.theta})")
         if self.atol < 0 or self.rtol < 0 or (self.atol == 0 and self.rtol == 0):
             raise ValueError(f"atol and rtol must be >= 0, one of them > 0 (got {self.atol}, {self.rtol})")
-        for name in ("maxiter", "gmres_restart", "gmres_maxiter", "chebyshev_degree"):
+        for name in ("maxiter", "gmres_restart", "gmres_maxiter"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1 (got {getattr(self, name)})")
         for name in ("gmres_tol", "helmholtz_tol"):
@@ -88,8 +86,6 @@ class ImplicitOptions:
                 raise ValueError(f"{name} must be in (0, 1) (got {getattr(self, name)})")
         if self.preconditioner not in ("none", "helmholtz"):
             raise ValueError(f"preconditioner must be 'none' or 'helmholtz' (got {self.preconditioner!r})")
-        if self.helmholtz_solver not in ("", *SOLVERS):
-            raise ValueError(f"helmholtz_solver must be one of {', '.join(SOLVERS)} (got {self.helmholtz_solver!r}{RENAMED_HINT(self.helmholtz_solver)})")
         if self.mean_depth < 0:
             raise ValueError(f"mean_depth must be >= 0 (got {self.mean_depth})")
         if self.initial_guess not in ("extrapolate", "previous"):
@@ -104,13 +100,11 @@ class Implicit(Stepper):
     against 1e-10, with 2.3 instead of 3.0 Newton iterations a step),
     ``rtol`` (0: off), ``maxiter`` (30), ``gmres_tol`` (1e-11, the floor of
     the forcing term), ``gmres_restart`` (30), ``gmres_maxiter`` (300 inner
-    iterations), ``preconditioner`` ("helmholtz" | "none"), ``helmholtz_solver``
-    (the preconditioner's Helmholtz solve: "pcg", the compiled matrix-free CG on
-    every device and rank count; on one CPU rank also "cg", "amg", "chebyshev", "vcycle"), ``helmholtz_tol`` (1e-2, the relative
-    tolerance of the CG solvers there; Jacobi-CG to 1e-2 cost less per step
-    than one V-cycle, AMG-CG and Chebyshev 4/8/16 on TC5 ne16 at 4x and 10x
-    the gravity-wave limit; 1e-1 was 13 % cheaper still, but Newton stagnated
-    with it on TC2 at 50x), ``chebyshev_degree`` (8), ``mean_depth`` (H, m;
+    iterations), ``preconditioner`` ("helmholtz" | "none"), ``helmholtz_tol``
+    (1e-2, the relative tolerance of the preconditioner's Helmholtz CG; it
+    cost less per step than one AMG V-cycle, AMG-CG and Chebyshev 4/8/16 on
+    TC5 ne16 at 4x and 10x the gravity-wave limit; 1e-1 was 13 % cheaper
+    still, but Newton stagnated with it on TC2 at 50x), ``mean_depth`` (H, m;
     0 = initial mean), ``initial_guess`` ("extrapolate": 2x(n) − x(n−1)
     after the first step, "previous": x(n)).
     Reports Newton and GMRES iterations, preconditioner applications
@@ -121,6 +115,8 @@ class Implicit(Stepper):
     name = "implicit"
     Options = ImplicitOptions
     solvers = ("newton", "gmres", "precond", "helmholtz")
+    removed_options = {**REMOVED_SOLVER_OPTIONS, "chebyshev_degree": REMOVED_SOLVER_OPTIONS["helmholtz_solver"],
+                       "krylov": "one flexible GMRES on Warp arrays runs on every device and rank count"}
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
@@ -128,9 +124,7 @@ class Implicit(Stepper):
         dev, N = model.device, self.N
         self.gw = None
         if o["preconditioner"] == "helmholtz":
-            solver = o["helmholtz_solver"] or default_solver(model)
-            maxiter = o["chebyshev_degree"] if solver == "chebyshev" else 1000
-            self.gw = GravityWave(model, o["mean_depth"], solver, o["helmholtz_tol"], maxiter)
+            self.gw = GravityWave(model, o["mean_depth"], o["helmholtz_tol"], 1000)
         for name in ("xn", "xprev", "b", "Fx", "R", "delta", "trial", "Ft", "Rt", "v", "xp", "Fp", "z"):
             setattr(self, name, wp.zeros((3, N), dtype=f64, device=dev))
         # Krylov vectors live on unique nodes (3·nunique: 0.56× the element-local length at np = 4)

@@ -26,7 +26,7 @@ import warp as wp
 from ..kernels import blas
 from .base import StepStats
 from .explicit import Leapfrog, LeapfrogOptions
-from .helmholtz import GravityWave, check_solve_options
+from .helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, check_solve_options
 
 f64 = wp.float64
 
@@ -38,7 +38,6 @@ class SemiImplicitOptions(LeapfrogOptions):
     tol: float = 1e-6
     maxiter: int = 500
     mean_depth: float = 0.0
-    helmholtz_solver: str = ""
 
     def __post_init__(self):
         super().__post_init__()
@@ -53,13 +52,9 @@ class SemiImplicit(Leapfrog):
     gravity-wave limit it changes the day-1 error against a converged run by
     0.05 % (5.973e-4 -> 5.970e-4) against 1e-10, with 2.4x fewer
     iterations; mass is exact either way), ``maxiter`` (500),
-    ``mean_depth`` (H in m; 0 = the initial state's mean depth),
-    ``helmholtz_solver`` ("pcg", the compiled matrix-free CG, on every device
-    and rank count; on one CPU rank also "cg" or "amg"; see ``helmholtz.SOLVERS``; each solve starts
-    from the last one's solution).
-    TC5 ne16 at 4x / 10x the gravity-wave limit, tol 1e-10: "amg" 8 / 19 iterations a
-    step, "cg" 59 / 144, but "cg" is the cheaper (2.65 / 2.04 against
-    3.15 / 3.23 times ssprk3's cost per day; ``benchmarks/implicit_cost.py``).
+    ``mean_depth`` (H in m; 0 = the initial state's mean depth). The
+    Helmholtz solve is ``helmholtz.GravityWave``'s compiled CG; each solve
+    starts from the last one's solution.
     Reports the Helmholtz iterations per step. Raises ValueError without the
     continuity and pressure-gradient terms.
     """
@@ -69,11 +64,12 @@ class SemiImplicit(Leapfrog):
     explicit = False
     courant_limit = None
     solvers = ("helmholtz",)
+    removed_options = REMOVED_SOLVER_OPTIONS
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
         o = self.options
-        self.gw = GravityWave(model, o.mean_depth, o.helmholtz_solver or None, o.tol, o.maxiter, warm=True)
+        self.gw = GravityWave(model, o.mean_depth, o.tol, o.maxiter, warm=True)
         self.F, self.W, self.LW = self._buffer(), self._buffer(), self._buffer()
 
     @property

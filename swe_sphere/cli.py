@@ -224,7 +224,7 @@ def _cmd_sweep(args) -> int:
             )
             if start is not None:
                 print(f"start       digital-filter initialization (cutoff {base.digital_filter.cutoff_hours:g} h, span "
-                      f"{base.digital_filter.span_hours:g} h), the same state for every run; the T213 reference starts "
+                      f"{base.digital_filter.span_hours:g} h), the same state for every run; the spectral reference starts "
                       "impulsively, so the spatial error (and the verdicts' thresholds) include the gravity waves it keeps")
             rows, info = Sweep(scenes, dts, args.output, device, time_filter=time_filter, start=start, pairs=pairs,
                                reference_dt_max=REFERENCE_MAX_GRAVITY_COURANT * limits["dt_gravity"]).run(pool)
@@ -420,15 +420,17 @@ def _summary(r, sim) -> None:
         print(f"  error wind  l2 vorticity {d['l2_vorticity']:.3e}  l2 divergence {d['l2_divergence']:.3e}")
     if "ref_l2_h_surface" in d:
         # the reference stores whole days only: quote the last output time past the start it has
+        name = sim.scene.reference_file.stem.rsplit("_", 1)[-1]  # the truncation, for the spectral files ("T213")
+        vs = f"vs {name}"
         scored = [h for h in r.history if h["steps"] > 0 and math.isfinite(h["ref_l2_h_surface"])]
         if not scored:
-            print("  vs T213     none: no output time after t = 0 is one the reference stores (whole days)")
+            print(f"  {vs:11s} none: no output time after t = 0 is one the reference stores (whole days)")
         else:
             d = scored[-1]
-            at = "" if d is r.history[-1] else f" (day {d['steps'] * sim.scene.dt / 86400:g}, its last output time T213 stores)"
-            print(f"  vs T213 h+hs l1 {d['ref_l1_h_surface']:.3e}  l2 {d['ref_l2_h_surface']:.3e}  linf {d['ref_linf_h_surface']:.3e}{at}")
-            print(f"  vs T213 wind l1 {d['ref_l1_wind']:.3e}  l2 {d['ref_l2_wind']:.3e}  linf {d['ref_linf_wind']:.3e}")
-            print(f"  vs T213 wind l2 vorticity {d['ref_l2_vorticity']:.3e}  l2 divergence {d['ref_l2_divergence']:.3e}")
+            at = "" if d is r.history[-1] else f" (day {d['steps'] * sim.scene.dt / 86400:g}, its last output time {name} stores)"
+            print(f"  {vs} h+hs l1 {d['ref_l1_h_surface']:.3e}  l2 {d['ref_l2_h_surface']:.3e}  linf {d['ref_linf_h_surface']:.3e}{at}")
+            print(f"  {vs} wind l1 {d['ref_l1_wind']:.3e}  l2 {d['ref_l2_wind']:.3e}  linf {d['ref_linf_wind']:.3e}")
+            print(f"  {vs} wind l2 vorticity {d['ref_l2_vorticity']:.3e}  l2 divergence {d['ref_l2_divergence']:.3e}")
     print(f"  output      {r.output}")
     if r.checkpoint is not None:
         print(f"  restart     {r.checkpoint}")

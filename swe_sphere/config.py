@@ -6,7 +6,9 @@ the run length, the output interval and the hyperviscosity. Layout::
     description = "..."
     terms = ["continuity", "momentum_advection", ...]
     [case]            name = "tc5_mountain" (+ case parameters, e.g. alpha),
-                      initialization = "none" | "dfi" (a digital-filter balanced start)
+                      initialization = "none" | "dfi" (a digital-filter balanced start),
+                      reference = "PATH" (the spectral reference to score against,
+                      instead of the case's bundled T213 one; ``reference.locate``)
     [dfi]             span_hours = 48.0, cutoff_hours = 24.0 (``initialization.DigitalFilter``)
     [grid]            ne = 30, np = 4
     [time]            stepper = "leapfrog_trapezoidal", dt = 90.0, days = 15.0
@@ -38,6 +40,7 @@ from .constants import DAY
 from .gll import NP_MAX, NP_MIN, gll
 from .initialization import METHODS, DigitalFilter
 from .model import TERMS
+from .reference import locate, reference_path, stored_days
 from .steppers import STEPPERS, option_types
 
 HYPERVIS_EXPONENT = 3.2  # ν ∝ Δx^3.2 (HOMME's resolution scaling; Dennis et al. 2012)
@@ -63,6 +66,8 @@ class Scene:
     dt in s, days in days, nu, nu_div, nu_s in m⁴ s⁻¹ (already scaled to this grid).
     ``initialization``: None (the case's initial state) or {"method": "dfi",
     "span_hours": ..., "cutoff_hours": ...} (``initialization.DigitalFilter``).
+    ``reference``: None (the case's bundled reference, if any) or the absolute
+    path of the reference file the run is scored against (``case.reference``).
     """
 
     name: str
@@ -83,6 +88,7 @@ class Scene:
     nu_s: float = 0.0
     notes: tuple = field(default=())
     initialization: dict | None = None
+    reference: str | None = None
 
     @property
     def nsteps(self) -> int:
@@ -97,6 +103,13 @@ class Scene:
         if self.initialization is None:
             return None
         return DigitalFilter(**{k: v for k, v in self.initialization.items() if k != "method"})
+
+    @property
+    def reference_file(self) -> Path | None:
+        """The reference file the run is scored against: the chosen one, else the
+        case's bundled one (``reference.reference_path``); None for a case scored
+        against its exact solution or without a reference."""
+        return Path(self.reference) if self.reference is not None else reference_path(self.make_case())
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -171,6 +184,23 @@ def with_days(scene: Scene, days: float) -> Scene:
         raise SceneError(f"days must be > 0 (got {days})")
     _check_schedule(scene.dt, days, scene.output_every_days)
     return dataclasses.replace(scene, days=float(days))
+
+
+def _reference(spec, case_name: str, case_obj) -> str:
+    """The absolute path of the reference file ``case.reference`` names (see
+    ``reference.locate``), its variables and layout checked without reading its
+    fields. Raises ``SceneError`` naming the key and the value."""
+    where = f"case.reference = {spec!r}"
+    if not isinstance(spec, str):
+        raise SceneError(f"case.reference must be a file path (got {_got(spec)})")
+    if case_obj.exact_solution:
+        raise SceneError(f"{where}: case {case_name} is scored against its exact solution, not a reference file")
+    try:
+        path = locate(spec)
+        stored_days(path)
+    except (OSError, ValueError) as err:
+        raise SceneError(f"{where}: {err}") from None
+    return str(path)
 
 
 def _first_gll_gap(npts: int) -> float:
@@ -274,10 +304,13 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
     method = case.pop("initialization", "none")
     if method not in METHODS:
         raise SceneError(f"case.initialization must be one of {', '.join(METHODS)} (got {method!r})")
+    reference = case.pop("reference", None)
     try:
         case_obj = make_case(case_name, case)
     except ValueError as err:
         raise SceneError(str(err)) from None
+    if reference is not None:
+        reference = _reference(reference, case_name, case_obj)
 
     terms = s.get("terms")
     if not terms:
@@ -400,4 +433,5 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
         nu_s=float(nus["nu_s"]),
         notes=tuple(notes),
         initialization=initialization,
+        reference=reference,
     )

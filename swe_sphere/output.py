@@ -60,11 +60,11 @@ for _f in ("h", "wind"):
 for _f, _what in (("h_surface", "free-surface height h + hs"), ("wind", "wind")):
     for _n, _long in (("l1", "normalized l1"), ("l2", "normalized l2"), ("linf", "normalized l-infinity")):
         SERIES_ATTRS[f"ref_{_n}_{_f}"] = dict(
-            units="1", long_name=f"{_long} error of the {_what} against the T213 reference (NaN where it stores no output)"
+            units="1", long_name=f"{_long} error of the {_what} against the spectral reference (global attribute reference; NaN where it stores no output)"
         )
 
 
-for _pre, _what in (("", "the exact solution"), ("ref_", "the T213 reference (NaN where it stores no output)")):
+for _pre, _what in (("", "the exact solution"), ("ref_", "the spectral reference (global attribute reference; NaN where it stores no output)")):
     for _f, _part in (("vorticity", "relative vorticity (balanced flow)"), ("divergence", "divergence (gravity waves)")):
         SERIES_ATTRS[f"{_pre}l2_{_f}"] = dict(
             units="1", long_name=f"l2 of the {_part} of the wind error against {_what}, over that of the true wind's vorticity and divergence"

@@ -1,7 +1,8 @@
 """Scores of a run: its fields against the truth, against a same-grid run, and its stability.
 
-The truth of a case is its exact solution (TC1, TC2, TC4, Läuter) or else its
-spectral reference (``reference``: T213, at the days the file stores). A
+The truth of a case is its exact solution (TC1, TC2, TC4, Läuter) or else a
+spectral reference (``reference``: the case's bundled T213 file, or the file
+the scene chose, ``Scene.reference_file``; at the days the file stores). A
 ``Scorer`` owns the truth of one run and turns fields into normalized errors
 (Williamson et al. 1992, eqs. 82–87), with the wind error split into its
 vorticity (balanced flow) and divergence (gravity waves) by the model's own
@@ -16,12 +17,13 @@ All fields are element-local (N,) and continuous, so an area integral is
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 
 from .constants import DAY
 from .grid import CubedSphere
-from .reference import Reference, reference_path, stored_index
+from .reference import Reference, stored_days, stored_index
 
 ENERGY_GROWTH_LIMIT = 0.01  # a run whose total energy grows by more than this fraction is unstable
 
@@ -74,17 +76,27 @@ def instability(result) -> str:
     return f"total energy grew by {growth:.2%}" if growth > ENERGY_GROWTH_LIMIT else ""
 
 
-def unscored(case, day: float) -> str | None:
+def truth(case, reference) -> str:
+    """What a run of ``case`` is scored against, for output attributes: "exact
+    solution", the file name of ``reference`` (a path: ``Scene.reference_file``),
+    or "none"."""
+    if case.exact_solution:
+        return "exact solution"
+    return "none" if reference is None else Path(reference).name
+
+
+def unscored(case, day: float, reference) -> str | None:
     """Why the truth cannot score a state of ``case`` (a ``cases.Case``) at ``day``,
-    in one line: a reference file that does not store that day (the bundled T213
-    files store a few whole days: TC5 0, 1, 2, 5, 10, 15), or a case with neither
-    an exact solution nor a reference. None when it can."""
+    in one line: the reference file ``reference`` (a path: ``Scene.reference_file``)
+    does not store that day (the bundled T213 files store a few whole days: TC5 0,
+    1, 2, 5, 10, 15), or the case has neither an exact solution nor a reference
+    (``reference`` None). None when it can."""
     if case.exact_solution:
         return None
-    path = reference_path(case)
-    if path is None:
+    if reference is None:
         return f"{type(case).__name__} has no exact solution and no reference file"
-    days = Reference(path).days
+    path = Path(reference)
+    days = stored_days(path)
     if stored_index(days, day) is not None:
         return None
     return f"{path.name} stores days {', '.join(f'{d:g}' for d in days)}, not day {day:g}"
@@ -99,17 +111,19 @@ class Scorer:
     vorticity and divergence operators split wind errors; ``topology``: its
     ``Topology``; ``grid``: the whole grid on rank 0 (None elsewhere,
     ``Topology.whole_grid``); ``hs``: the whole-grid surface height (m, (npts,),
-    rank 0). The reference file (``reference.reference_path``) is read on rank 0.
+    rank 0); ``reference``: the path of the reference file to score against
+    (``Scene.reference_file``), read on rank 0, or None (a case scored against
+    its exact solution, or one without a truth). Raises ``FileNotFoundError`` or
+    ``ValueError`` for a file that is not a reference (``reference.Reference``).
 
     Attributes: ``reference`` (``reference.Reference`` on rank 0, else None),
     ``reference_days`` (its stored days on every rank, None without one).
     """
 
-    def __init__(self, case, model, topology, grid, hs):
+    def __init__(self, case, model, topology, grid, hs, reference):
         self.case, self.model, self.topology, self.grid, self.hs = case, model, topology, grid, hs
         self.root = topology.comm.rank == 0
-        path = reference_path(case)
-        self.reference = Reference(path) if path is not None and self.root else None
+        self.reference = Reference(reference) if reference is not None and self.root else None
         self.reference_days = topology.bcast(self.reference.days if self.reference is not None else None)
         self._scratch = model.new_state()  # a wind to differentiate
 

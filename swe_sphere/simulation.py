@@ -27,7 +27,7 @@ from .model import ShallowWater
 from .output import RunWriter, check_distinct, check_target
 from .parallel import default_threads
 from .runtime import ResourceError, check_memory, run_bytes
-from .scoring import Scorer
+from .scoring import Scorer, truth
 from .steppers import StepFailure, make_stepper
 from .topology import Topology, rank_parts
 
@@ -223,7 +223,7 @@ class Simulation:
         )
         _check_hyperviscosity(self.model, scene)
         self.stepper = make_stepper(scene.stepper, self.model, scene.dt, **scene.stepper_options)
-        self.scorer = Scorer(case, self.model, topo, self.grid, self.hs)
+        self.scorer = Scorer(case, self.model, topo, self.grid, self.hs, scene.reference_file)
         self.dfi = None
         if start is None:
             start = np.stack(case.initial(local.lat, local.lon))
@@ -418,6 +418,7 @@ class Simulation:
                 "device": self.device,
                 "mpi_ranks": self.topology.comm.size,
                 "initialization": "none" if s.initialization is None else s.initialization["method"],
+                "reference": truth(self.case, s.reference_file),  # what the error series are against
                 **(self.dfi.attrs(s.digital_filter) if self.dfi is not None else {}),
                 **({"continued_from_day": self.step * s.dt / DAY} if self.step else {}),
                 **{k: v for k, v in courant.items() if math.isfinite(v)},

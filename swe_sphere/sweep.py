@@ -6,8 +6,9 @@ run per stepper), RHS evaluations, solver iterations, the cost in RHS-evaluation
 equivalents (the wall time over the time of one RHS evaluation measured in the
 run's process just after it), stability, the total
 error at the final time (against the exact solution where the case has one:
-TC1–TC4, Läuter; else the T213 reference; none, NaN, at a final day the
-reference does not store: ``scoring.unscored`` says why) and the temporal error (against a same-grid run with a small Δt:
+TC1–TC4, Läuter; else the spectral reference, the case's T213 file or the
+scene's ``case.reference``; none, NaN, at a final day the reference does not
+store: ``scoring.unscored`` says why) and the temporal error (against a same-grid run with a small Δt:
 RK4 at a quarter of the smallest Δt swept, at most a quarter of the
 gravity-wave limit, made once and reused), and the
 drift of the invariants. Each run's result is written atomically as JSON
@@ -17,6 +18,9 @@ executor (``swe_sphere.workers``), the warm-ups first.
 
 "Sufficient accuracy" (Evans, Taylor & Drake 2010): temporal error ≤ 10 % of
 the spatial error, the spatial error being the small-Δt run's total error.
+Beside each spatial error the summary quotes the reference's own error, its
+floor (``reference.floor``); a spatial error within ``FLOOR_MARGIN`` of it is
+flagged: the reference cannot tell it from its own, so its verdicts are provisional.
 """
 
 from __future__ import annotations
@@ -36,7 +40,8 @@ from .config import Scene
 from .constants import DAY
 from .diagnostics import max_signal_rate
 from .output import atomic_path
-from .scoring import instability, unscored
+from .reference import FLOORS, floor
+from .scoring import instability, truth, unscored
 from .simulation import BlowUp, Simulation
 from .steppers import STEPPERS
 from .workers import InProcess
@@ -46,6 +51,10 @@ SUFFICIENT = 0.1  # temporal error ≤ 10 % of the spatial error
 # when every swept Δt is large: RK4 is stable to ≈ 1.7 and its time error there is nil
 REFERENCE_MAX_GRAVITY_COURANT = 0.25
 SPATIAL = ("total_error", "total_error_vorticity", "total_error_divergence")  # the small-Δt run's, against the truth
+# the sweep info's spatial errors → the keys of the reference's own errors beside them
+FLOOR_OF = {"spatial_error": "reference_floor", "spatial_error_vorticity": "reference_floor_vorticity",
+            "spatial_error_divergence": "reference_floor_divergence"}
+FLOOR_MARGIN = 2.0  # a spatial error within this factor of the reference's own error is not the run's alone
 
 
 def dt_for_day(dt: float, run_days: float) -> float:
@@ -148,11 +157,14 @@ class Sweep:
 
     @property
     def tag(self) -> str:
-        """File-name suffix of a filtered sweep's runs (they run longer) and of a
-        digital-filter start's (they start elsewhere)."""
-        f, d = self.time_filter, self.base.digital_filter
+        """File-name suffix of a filtered sweep's runs (they run longer), of a
+        digital-filter start's (they start elsewhere) and of runs scored against a
+        reference file other than the case's own (``_ref<file stem>``: their total
+        errors differ; files are told apart by name)."""
+        f, d, ref = self.time_filter, self.base.digital_filter, self.base.reference_file
+        own = ref is None or ref.name == self.base.make_case().reference_file
         return ("" if f is None else f"_lp{f.period_days:g}d{f.half_window_days:g}d{f.every_hours:g}h") + (
-            "" if d is None else f"_dfi{d.cutoff_hours:g}h{d.span_hours:g}h")
+            "" if d is None else f"_dfi{d.cutoff_hours:g}h{d.span_hours:g}h") + ("" if own else f"_ref{ref.stem}")
 
     def simulate(self, scene):
         """Run ``scene`` (beyond its last day by the filter's half window, when
@@ -257,9 +269,14 @@ class Sweep:
         """All runs (resuming), on ``pool`` (a concurrent.futures executor; None:
         here, one after another); returns the rows in (stepper, Δt) order and
         the reference run's summary (``unscored``: why there is no total or
-        spatial error, when the truth cannot score the last day)."""
+        spatial error, when the truth cannot score the last day; ``reference``:
+        what the runs are scored against, ``scoring.truth``; with a reference file,
+        ``reference_floor``, ``_vorticity``, ``_divergence``: its own error at the
+        last day, NaN where unknown, and ``reference_floor_source`` where known,
+        e.g. "T213 vs T341, day 15")."""
         pool = pool or InProcess()
-        why = unscored(self.base.make_case(), self.base.days)
+        case, reference = self.base.make_case(), self.base.reference_file
+        why = unscored(case, self.base.days, reference)
         if why is not None:
             self.log(f"note: no total or spatial error at the end, so no verdicts: {why}")
         ref = self.reference()
@@ -272,8 +289,15 @@ class Sweep:
             runs.append((stepper, pool.submit(self.run_one, stepper, dt)))
         rows = [{**future.result(), "startup_time": startups[stepper]} for stepper, future in runs]
         d = self.base.digital_filter  # in the sweep's netCDF attributes: which start the runs share
+        floors = {}
+        if not case.exact_solution and reference is not None:
+            own = floor(reference, self.base.days)
+            floors = dict(zip(FLOOR_OF.values(), own or (math.nan,) * 3))
+            if own is not None:
+                floors["reference_floor_source"] = f"{FLOORS[reference.name][0]}, day {self.base.days:g}"
         return rows, {"spatial_error": ref["total_error"], "spatial_error_vorticity": ref["total_error_vorticity"],
                       "spatial_error_divergence": ref["total_error_divergence"], "reference_dt": ref["dt"],
+                      "reference": truth(case, reference), **floors,
                       **({} if d is None else {"dfi_cutoff_hours": d.cutoff_hours, "dfi_span_hours": d.span_hours}),
                       **({} if why is None else {"unscored": why})}
 
@@ -325,9 +349,9 @@ CRITERIA = {
     "gravity waves (divergence)": ("temporal_error_divergence", "spatial_error_divergence"),
 }
 THRESHOLDS = (0.1, 0.5)  # temporal error as a fraction of the spatial error
-VERDICT_COLUMNS = ("criterion", "threshold", "stepper", "dt", "dt_over_gravity_limit", "dt_over_advective_limit",
-                   "dt_over_leapfrog_limit", "cost_time", "wall_time", "cpu_time", "rhs_evals", "helmholtz_iterations", "rhs_equivalents", "temporal_error",
-                   "spatial_error")
+RUN_VERDICT_COLUMNS = ("dt", "dt_over_gravity_limit", "dt_over_advective_limit", "dt_over_leapfrog_limit", "cost_time", "wall_time",
+                       "cpu_time", "rhs_evals", "helmholtz_iterations", "rhs_equivalents")  # the qualifying run's
+VERDICT_COLUMNS = ("criterion", "threshold", "stepper", *RUN_VERDICT_COLUMNS, "temporal_error", "spatial_error", "reference_floor")
 
 
 def _cheapest(rows, stepper, column, limit):
@@ -337,11 +361,30 @@ def _cheapest(rows, stepper, column, limit):
     return min(ok, key=lambda r: r["cost_time"] if math.isfinite(r["cost_time"]) else math.inf, default=None)
 
 
+def floor_note(info, spatial_key: str) -> str:
+    """What to print beside the spatial error ``info[spatial_key]``: "" against an
+    exact solution; else the reference's own error ("reference floor 1.0e-05
+    (T213 vs T341, day 15)") or "floor unknown", and, for a spatial error within
+    ``FLOOR_MARGIN`` of the floor, that the verdicts on it are provisional."""
+    if FLOOR_OF[spatial_key] not in info:
+        return ""
+    known = info[FLOOR_OF[spatial_key]]
+    if not math.isfinite(known):
+        return "floor unknown"
+    note = f"reference floor {known:.1e} ({info['reference_floor_source']})"
+    if info[spatial_key] <= FLOOR_MARGIN * known:
+        note += (f"; within {FLOOR_MARGIN:g}x of the floor: the reference cannot tell the run's spatial error from its own, "
+                 "so these verdicts are provisional")
+    return note
+
+
 def verdicts(rows, info) -> list[dict]:
     """Per criterion (``CRITERIA``; the filtered one only where the sweep filtered),
     threshold (``THRESHOLDS``) and stepper: the cheapest (least ``cost_time``) stable
     run whose temporal error ≤ threshold × the spatial error of that criterion, with
-    its Δt multiples, wall time, RHS evaluations and RHS-eq; dt NaN where no run qualifies."""
+    its Δt multiples, wall time, RHS evaluations and RHS-eq; dt NaN where no run
+    qualifies. ``reference_floor``: the reference's own error beside the spatial
+    error (``Sweep.run``'s info; NaN where unknown or against an exact solution)."""
     steppers = list(dict.fromkeys(r["stepper"] for r in rows))
     out = []
     for criterion, (column, spatial_key) in CRITERIA.items():
@@ -351,19 +394,24 @@ def verdicts(rows, info) -> list[dict]:
         for threshold in THRESHOLDS:
             for stepper in steppers:
                 best = _cheapest(rows, stepper, column, threshold * spatial)
-                v = {"criterion": criterion, "threshold": threshold, "stepper": stepper, "spatial_error": spatial}
+                v = {"criterion": criterion, "threshold": threshold, "stepper": stepper, "spatial_error": spatial,
+                     "reference_floor": info.get(FLOOR_OF[spatial_key], math.nan)}
                 v.update({c: math.nan for c in VERDICT_COLUMNS if c not in v})
                 if best is not None:
-                    v.update({c: best.get(c, math.nan) for c in VERDICT_COLUMNS[3:-2]}, temporal_error=best[column])
+                    v.update({c: best.get(c, math.nan) for c in RUN_VERDICT_COLUMNS}, temporal_error=best[column])
                 out.append(v)
     return out
 
 
-def format_verdicts(verdict_rows) -> str:
-    """One line per criterion × threshold × stepper."""
-    lines = []
+def format_verdicts(verdict_rows, info) -> str:
+    """Per criterion a line with its spatial error and ``floor_note`` (``info``:
+    ``Sweep.run``'s), then one line per threshold × stepper."""
+    lines, criterion = [], None
     for v in verdict_rows:
-        head = f"  {v['criterion']:30s} <= {v['threshold']:3.0%} {v['stepper']:22s}"
+        if v["criterion"] != criterion:
+            criterion, note = v["criterion"], floor_note(info, CRITERIA[v["criterion"]][1])
+            lines.append(f"  {criterion}: spatial error {v['spatial_error']:.3e}" + (f", {note}" if note else ""))
+        head = f"    {v['criterion']:30s} <= {v['threshold']:3.0%} {v['stepper']:22s}"
         if not math.isfinite(v["dt"]):
             lines.append(f"{head} no run qualifies")
             continue
@@ -400,8 +448,9 @@ def format_summary(rows, info) -> str:
     if "unscored" in info:
         lines.append(f"spatial error: none, so no run is judged sufficient and there are no verdicts ({info['unscored']})")
         return "\n".join(lines)
-    spatial = info["spatial_error"]
-    lines.append(f"spatial error (RK4 at dt = {info['reference_dt']:.4g} s): {spatial:.3e}; sufficient accuracy: temporal error <= {SUFFICIENT * spatial:.3e}")
+    spatial, note = info["spatial_error"], floor_note(info, "spatial_error")
+    lines.append(f"spatial error (RK4 at dt = {info['reference_dt']:.4g} s, against {info['reference']}): {spatial:.3e}"
+                 + (f", {note}" if note else "") + f"; sufficient accuracy: temporal error <= {SUFFICIENT * spatial:.3e}")
     best = cheapest_sufficient(rows, spatial)
     explicit = [best[s]["cost_time"] for s in best if STEPPERS[s].explicit]
     ref_time = min(explicit) if explicit else math.nan
@@ -417,12 +466,15 @@ def format_summary(rows, info) -> str:
             f"{b['rhs_equivalents']:.0f} RHS-eq"
         )
     lines.append("verdicts: the cheapest run per criterion with temporal error <= 10 % / 50 % of that criterion's spatial error")
-    lines.append(format_verdicts(verdicts(rows, info)))
+    lines.append(format_verdicts(verdicts(rows, info), info))
     return "\n".join(lines)
 
 
 def write_outputs(rows, info, limits, directory) -> list[Path]:
-    """sweep.csv, sweep.nc (dims stepper × dt) and the two PNGs; returns the paths."""
+    """sweep.csv, sweep.nc (dims stepper × dt), verdicts.csv and the PNGs; returns
+    the paths. What the runs are scored against (``info["reference"]``) is a
+    column of sweep.csv and, with the rest of ``info`` and ``limits``, an
+    attribute of sweep.nc."""
     import pandas as pd
 
     from .plotting import sweep_plot
@@ -432,7 +484,7 @@ def write_outputs(rows, info, limits, directory) -> list[Path]:
     df["stable"] = df["stable"].astype(int)
     csv, nc, vcsv = directory / "sweep.csv", directory / "sweep.nc", directory / "verdicts.csv"
     with atomic_path(csv) as tmp:
-        df.to_csv(tmp, index=False)
+        df.assign(reference=info["reference"]).to_csv(tmp, index=False)
     with atomic_path(vcsv) as tmp:
         pd.DataFrame(verdicts(rows, info), columns=list(VERDICT_COLUMNS)).to_csv(tmp, index=False)
     ds = df.set_index(["stepper", "dt"]).to_xarray()

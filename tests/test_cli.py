@@ -574,6 +574,39 @@ def test_console_script_exit_status(tmp_path):
         assert "blowup" in ds.attrs and ds.sizes["time"] >= 2
 
 
+def _not_a_reference(folder: Path) -> Path:
+    """A netCDF file of a reference's grid without its vorticity and divergence."""
+    from swe_sphere.reference import find_reference
+
+    path = folder / "no_vorticity.nc"
+    with xr.open_dataset(find_reference("galewsky", perturbed=False), decode_times=False) as ds:
+        ds.drop_vars(["vorticity", "divergence"]).to_netcdf(path)
+    return path
+
+
+@pytest.mark.skipif(console_script() is None, reason="the swe-sphere console script is not installed")
+@pytest.mark.parametrize("command, scene, value, why", [
+    ("sweep", "tc5_mountain", "missing.nc", "reference file not found: missing.nc"),
+    ("run", "tc5_mountain", "junk.nc", "junk.nc: not a readable netCDF file"),
+    ("run", "tc5_mountain", "NOT_A_REFERENCE", "not a reference file: missing variable(s) 'vorticity', 'divergence'"),
+    ("run", "tc2_steady", "tc5_mountain_T213.nc", "case tc2_steady is scored against its exact solution, not a reference file"),
+], ids=["missing-sweep", "not-netcdf", "not-a-reference", "exact-solution"])
+def test_console_script_refuses_a_bad_case_reference(tmp_path, command, scene, value, why):
+    """-s case.reference=...: exit 2, one line naming the key, the value and why; nothing written."""
+    (tmp_path / "junk.nc").write_text("not netCDF")
+    if value == "NOT_A_REFERENCE":
+        value = str(_not_a_reference(tmp_path))
+    proc = subprocess.run(
+        [console_script(), command, scene, "--ne", "2", "--device", "cpu", "-s", f"case.reference={value}",
+         "--output", str(tmp_path / "out")],
+        cwd=tmp_path, capture_output=True, text=True, timeout=120,
+    )
+    lines = stderr_lines(proc.stderr)
+    assert proc.returncode == 2 and len(lines) == 1, proc.stderr
+    assert lines[0].startswith(f"swe-sphere: error: case.reference = {value!r}: ") and why in lines[0], lines[0]
+    assert not (tmp_path / "out").exists()
+
+
 def _no_cuda_driver() -> bool:
     import ctypes.util
 

@@ -8,7 +8,7 @@ import xarray as xr
 
 from swe_sphere.cases import make_case
 from swe_sphere.grid import CubedSphere
-from swe_sphere.reference import Reference, find_reference
+from swe_sphere.reference import Reference, find_reference, floor, locate
 
 
 @pytest.fixture(scope="module")
@@ -152,8 +152,30 @@ def test_errors(tc5, tmp_path):
         {"h_surface": (("time", "lat", "lon"), np.zeros((1, 2, 4)))},
         coords={"time": [0.0], "lat": [-45.0, 45.0], "lon": [0.0, 90.0, 180.0, 270.0]},
     ).to_netcdf(partial)
-    with pytest.raises(ValueError, match="missing variable 'hs'"):
+    with pytest.raises(ValueError, match=r"not a reference file: missing variable\(s\) 'hs', 'u', 'v', 'vorticity', 'divergence'"):
         Reference(partial)
+
+
+def test_locate_a_path_or_a_bundled_name(tmp_path, monkeypatch):
+    bundled = find_reference("tc5_mountain")
+    assert locate("tc5_mountain_T213.nc") == bundled
+    link = tmp_path / "mine.nc"
+    link.symlink_to(bundled)
+    monkeypatch.chdir(tmp_path)
+    assert locate("mine.nc") == link  # relative to the current folder, absolute, its own name kept
+    with pytest.raises(FileNotFoundError, match="sub/tc5_mountain_T213.nc"):
+        locate("sub/tc5_mountain_T213.nc")  # a bundled name only without a folder
+
+
+def test_floor_is_the_readmes_t213_vs_t341_table():
+    """TC5 T213's own error (/work/shared/reference/README.md) at its stored days
+    after t = 0, by file name; unknown elsewhere."""
+    assert floor("tc5_mountain_T213.nc", 15.0) == (1.0e-5, 7.8e-3, 3.1e-3)
+    assert floor(find_reference("tc5_mountain"), 1.0 + 1e-7) == (3.4e-6, 1.7e-3, 6.3e-3)  # a path: its name counts
+    assert floor("tc5_mountain_T213.nc", 5.0) == (5.9e-6, 5.7e-3, 4.2e-3)
+    for name, day in (("tc5_mountain_T213.nc", 3.0), ("tc5_mountain_T213.nc", 0.0), ("tc5_mountain_T341.nc", 15.0),
+                      ("tc6_rossby_haurwitz_T213.nc", 14.0), ("galewsky_T213.nc", 6.0)):
+        assert floor(name, day) is None, (name, day)
 
 
 def test_interpolation_error_far_below_model_error_at_ne16(grid, tc5):

@@ -11,6 +11,7 @@ import xarray as xr
 from swe_sphere import sweep as sweep_mod
 from swe_sphere import workers as workers_mod
 from swe_sphere.cli import main
+from swe_sphere.reference import find_reference, floor
 from swe_sphere.simulation import Simulation
 
 
@@ -173,8 +174,63 @@ def test_verdicts_per_criterion_and_threshold():
     assert v[("gravity waves (divergence)", 0.5, "a")]["cost_time"] == 4.0
     assert v[("gravity waves (divergence)", 0.5, "a")]["rhs_equivalents"] == 40.0
     assert math.isnan(v[("total h+hs", 0.5, "b")]["dt"])
-    text = sweep_mod.format_verdicts(sweep_mod.verdicts(rows, info))
+    text = sweep_mod.format_verdicts(sweep_mod.verdicts(rows, info), info)
     assert "b                      no run qualifies" in text
+    assert "  total h+hs: spatial error 1.000e-04\n" in text  # an exact solution: no floor
+
+
+def test_verdicts_quote_the_reference_floor_and_flag_a_spatial_error_within_2x_of_it():
+    """Beside each spatial error its reference's own error (``Sweep.run``'s info, from
+    ``reference.floor``); within 2x of it the line says the verdicts are provisional."""
+    row = {"stepper": "a", "dt": 100.0, "stable": True, "dt_over_gravity_limit": 1.0, "dt_over_advective_limit": 0.1,
+           "dt_over_leapfrog_limit": 2.0, "rhs_evals": 10, "cost_time": 1.0, "rhs_equivalents": 10.0, "cpu_time": 1.0,
+           "wall_time": 1.0, "temporal_error": 1e-7, "temporal_error_vorticity": 1e-5, "temporal_error_divergence": 1e-5}
+    info = {"spatial_error": 1.9e-5, "spatial_error_vorticity": 7.8e-2, "spatial_error_divergence": 6.2e-3,
+            "reference": "tc5_mountain_T213.nc", "reference_floor_source": "T213 vs T341, day 15",
+            **dict(zip(sweep_mod.FLOOR_OF.values(), floor("tc5_mountain_T213.nc", 15.0)))}
+    v = sweep_mod.verdicts([row], info)
+    assert {r["criterion"]: r["reference_floor"] for r in v} == {
+        "total h+hs": 1.0e-5, "balanced flow (vorticity)": 7.8e-3, "gravity waves (divergence)": 3.1e-3}
+    lines = sweep_mod.format_verdicts(v, info).splitlines()
+    flag = "within 2x of the floor: the reference cannot tell the run's spatial error from its own, so these verdicts are provisional"
+    assert lines[0] == f"  total h+hs: spatial error 1.900e-05, reference floor 1.0e-05 (T213 vs T341, day 15); {flag}"
+    vorticity = next(line for line in lines if line.startswith("  balanced flow (vorticity):"))
+    assert vorticity == "  balanced flow (vorticity): spatial error 7.800e-02, reference floor 7.8e-03 (T213 vs T341, day 15)"
+    divergence = next(line for line in lines if line.startswith("  gravity waves (divergence):"))
+    assert divergence.endswith(f"reference floor 3.1e-03 (T213 vs T341, day 15); {flag}")  # 6.2e-3 = 2.0 x 3.1e-3
+    unknown = {**info, **dict.fromkeys(sweep_mod.FLOOR_OF.values(), math.nan)}
+    assert sweep_mod.format_verdicts(v, unknown).splitlines()[0] == "  total h+hs: spatial error 1.900e-05, floor unknown"
+
+
+def test_a_sweep_against_another_reference_makes_its_own_runs(tmp_path, capsys, monkeypatch):
+    """A TC5 sweep against the bundled T213, then into the same folder against
+    another file (``case.reference``; here the same data under another name): the
+    second reads back none of the first's runs (its files carry ``_ref<stem>``),
+    and each records and prints what it was scored against and its floor."""
+    out = tmp_path / "sweep"
+    args = ["sweep", "tc5_mountain", "--ne", "2", "--days", "1", "--steppers", "ssprk3", "--dt", "1800",
+            "--device", "cpu", "--output", str(out)]
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert "against tc5_mountain_T213.nc): " in text and ", reference floor 3.4e-06 (T213 vs T341, day 1); " in text
+    first = pd.read_csv(out / "sweep.csv")
+    other = tmp_path / "tc5_copy.nc"
+    other.symlink_to(find_reference("tc5_mountain"))
+    runs = []
+    real_run = Simulation.run
+    monkeypatch.setattr(Simulation, "run", lambda self, output=None, **kw: runs.append(self.scene.reference) or real_run(self, output, **kw))
+    assert main([*args, "-s", f"case.reference={other}"]) == 0
+    text = capsys.readouterr().out
+    assert runs == [str(other)] * 3  # the small-Δt run, the warm-up and the run: none read back
+    assert sorted(p.name for p in (out / "runs").iterdir()) == [
+        "reference_rk4_450.npz", "reference_rk4_450_reftc5_copy.npz", "ssprk3_1800.json", "ssprk3_1800_reftc5_copy.json"]
+    assert "against tc5_copy.nc): " in text and "floor unknown" in text
+    second = pd.read_csv(out / "sweep.csv")
+    assert list(first["reference"]) == ["tc5_mountain_T213.nc"] and list(second["reference"]) == ["tc5_copy.nc"]
+    assert second["total_error"][0] == first["total_error"][0]  # the same data scores the same
+    with xr.open_dataset(out / "sweep.nc") as ds:
+        assert ds.attrs["reference"] == "tc5_copy.nc" and math.isnan(ds.attrs["reference_floor"])
+        assert "reference_floor_source" not in ds.attrs
 
 
 def test_tiny_sweep_verdicts(swept, capsys):

@@ -3,7 +3,8 @@
 Reads each sweep directory's ``sweep.csv`` and ``verdicts.csv`` (written by
 ``swe-sphere sweep``) and prints, as Markdown, the main table (per case, grid
 and criterion: the cheapest run (least wall time) within 10 % of the spatial
-error, with its RHS evaluations and Helmholtz CG iterations, and the
+error (the reference's own error, its floor, beside the spatial error where
+known), with its RHS evaluations and Helmholtz CG iterations, and the
 largest Δt at which Crank–Nicolson stays within 10 % and 50 %) and one table
 per sweep (the cheapest qualifying run of each stepper per criterion). With
 ``--figures DIR`` it also draws, per sweep, the temporal error against
@@ -34,14 +35,21 @@ def work(r) -> str:
     return f"{int(r.rhs_evals)} RHS{its}"
 
 
+def spatial_cell(w) -> str:
+    """A criterion's spatial error (its rows of verdicts.csv ``w``), with the
+    reference's own error beside it where known (``sweep.floor_note``)."""
+    r = w.iloc[0]
+    floor = r.get("reference_floor")  # NaN where unknown; absent from sweeps made before the floors
+    return f"{r.spatial_error:.3g}" + (f" (floor {floor:.2g})" if pd.notna(floor) else "")
+
+
 def per_stepper(d: Path, threshold: float) -> str:
     v = pd.read_csv(d / "verdicts.csv")
     v = v[v.threshold == threshold]
     crit = [c for c in CRITERIA if c in set(v.criterion)]
     steppers = list(dict.fromkeys(v.stepper))
     out = ["| stepper | " + " | ".join(SHORT[c] for c in crit) + " |", "|---|" + "---|" * len(crit)]
-    spatial = {c: v[v.criterion == c].spatial_error.iloc[0] for c in crit}
-    out.append("| *spatial error* | " + " | ".join(f"*{spatial[c]:.3g}*" for c in crit) + " |")
+    out.append("| *spatial error* | " + " | ".join(f"*{spatial_cell(v[v.criterion == c])}*" for c in crit) + " |")
     for s in steppers:
         row = [cell(v[(v.criterion == c) & (v.stepper == s)].iloc[0]) for c in crit]
         out.append(f"| {s} | " + " | ".join(row) + " |")
@@ -49,8 +57,8 @@ def per_stepper(d: Path, threshold: float) -> str:
 
 
 def cheapest(d: Path, threshold: float) -> list:
-    """Per criterion the sweep scored: (criterion, spatial error, the cheapest
-    qualifying run of any stepper, or None)."""
+    """Per criterion the sweep scored: (criterion, spatial error, its table cell
+    (``spatial_cell``), the cheapest qualifying run of any stepper, or None)."""
     v = pd.read_csv(d / "verdicts.csv")
     v = v[v.threshold == threshold]
     rows = []
@@ -59,7 +67,7 @@ def cheapest(d: Path, threshold: float) -> list:
         if w.empty:
             continue
         ok = w[w.dt.notna()]
-        rows.append((c, w.spatial_error.iloc[0], ok.loc[ok.wall_time.idxmin()] if len(ok) else None))
+        rows.append((c, w.spatial_error.iloc[0], spatial_cell(w), ok.loc[ok.wall_time.idxmin()] if len(ok) else None))
     return rows
 
 
@@ -85,13 +93,13 @@ def summary(dirs) -> str:
     for d in dirs:
         s = pd.read_csv(d / "sweep.csv")
         case, ne = d.name.rsplit("_ne", 1)
-        for c, spatial, best in cheapest(d, 0.1):
+        for c, spatial, shown, best in cheapest(d, 0.1):
             big = [largest(s, "implicit", c, t * spatial) for t in (0.1, 0.5)]
             impc = " ".join(("—" if b is None else f"{b:.2g}×") if i == 0 else f"({'—' if b is None else f'{b:.2g}×'})" for i, b in enumerate(big))
             if best is None:
-                out.append(f"| {case} | {ne} | {SHORT[c]} | {spatial:.3g} | — (nearest: {closest(s, c, spatial)}) | | | | {impc} |")
+                out.append(f"| {case} | {ne} | {SHORT[c]} | {shown} | — (nearest: {closest(s, c, spatial)}) | | | | {impc} |")
                 continue
-            out.append(f"| {case} | {ne} | {SHORT[c]} | {spatial:.3g} | {best.stepper} | {best.dt_over_gravity_limit:.2g}× ({best.dt_over_leapfrog_limit:.2g}×) | {best.wall_time:.1f} | {work(best)} | {impc} |")
+            out.append(f"| {case} | {ne} | {SHORT[c]} | {shown} | {best.stepper} | {best.dt_over_gravity_limit:.2g}× ({best.dt_over_leapfrog_limit:.2g}×) | {best.wall_time:.1f} | {work(best)} | {impc} |")
     return "\n".join(out)
 
 

@@ -2,7 +2,7 @@
 
 Reads each sweep directory's ``sweep.csv`` and ``verdicts.csv`` (written by
 ``swe-sphere sweep``) and prints, as Markdown, the main table (per case, grid
-and criterion: the cheapest run (least wall time) within 10 % of the spatial
+and criterion: the cheapest run (least cost) within 10 % of the spatial
 error (the reference's own error, its floor, beside the spatial error where
 known), with its RHS evaluations and Helmholtz CG iterations, and the
 largest Δt at which Crank–Nicolson stays within 10 % and 50 %) and one table
@@ -26,13 +26,15 @@ SHORT = {"balanced flow (filtered vorticity)": "filtered vorticity", "total h+hs
 def cell(r):
     if pd.isna(r["dt"]):
         return "—"
-    return f"{r.dt_over_gravity_limit:.2g}× ({r.dt_over_leapfrog_limit:.2g}×) · {r.wall_time:.1f} s · {work(r)}"
+    return f"{r.dt_over_gravity_limit:.2g}× ({r.dt_over_leapfrog_limit:.2g}×) · {r.cost_time:.1f} s · {work(r)}"
 
 
 def work(r) -> str:
-    """The exact counts: RHS evaluations, and Helmholtz CG iterations where the stepper solves one."""
+    """The exact counts (RHS evaluations, and Helmholtz CG iterations where the stepper
+    solves one) and the cost in RHS-equivalents (``cost_time`` over one RHS on that clock)."""
     its = f" + {r.helmholtz_iterations / 1000:.3g}k CG" if pd.notna(r.get("helmholtz_iterations")) and r.helmholtz_iterations > 0 else ""
-    return f"{int(r.rhs_evals)} RHS{its}"
+    eq = f" = {r.rhs_equivalents / 1000:.3g}k RHS-eq" if pd.notna(r.get("rhs_equivalents")) else ""
+    return f"{int(r.rhs_evals)} RHS{its}{eq}"
 
 
 def spatial_cell(w) -> str:
@@ -67,7 +69,7 @@ def cheapest(d: Path, threshold: float) -> list:
         if w.empty:
             continue
         ok = w[w.dt.notna()]
-        rows.append((c, w.spatial_error.iloc[0], spatial_cell(w), ok.loc[ok.wall_time.idxmin()] if len(ok) else None))
+        rows.append((c, w.spatial_error.iloc[0], spatial_cell(w), ok.loc[ok.cost_time.idxmin()] if len(ok) else None))
     return rows
 
 
@@ -88,7 +90,7 @@ def closest(s, criterion, spatial) -> str:
 
 
 def summary(dirs) -> str:
-    out = ["| case | ne | criterion | spatial error | cheapest at ≤ 10 % | Δt/Δt_g (Δt/Δt_lf) | wall s | work | CN: largest Δt/Δt_g at ≤ 10 % (≤ 50 %) |",
+    out = ["| case | ne | criterion | spatial error | cheapest at ≤ 10 % | Δt/Δt_g (Δt/Δt_lf) | CPU s | work | CN: largest Δt/Δt_g at ≤ 10 % (≤ 50 %) |",
            "|---|---:|---|---:|---|---|---:|---:|---|"]
     for d in dirs:
         s = pd.read_csv(d / "sweep.csv")
@@ -99,12 +101,12 @@ def summary(dirs) -> str:
             if best is None:
                 out.append(f"| {case} | {ne} | {SHORT[c]} | {shown} | — (nearest: {closest(s, c, spatial)}) | | | | {impc} |")
                 continue
-            out.append(f"| {case} | {ne} | {SHORT[c]} | {shown} | {best.stepper} | {best.dt_over_gravity_limit:.2g}× ({best.dt_over_leapfrog_limit:.2g}×) | {best.wall_time:.1f} | {work(best)} | {impc} |")
+            out.append(f"| {case} | {ne} | {SHORT[c]} | {shown} | {best.stepper} | {best.dt_over_gravity_limit:.2g}× ({best.dt_over_leapfrog_limit:.2g}×) | {best.cost_time:.1f} | {work(best)} | {impc} |")
     return "\n".join(out)
 
 
-COLORS = dict(zip(["leapfrog", "leapfrog_trapezoidal", "ssprk3", "rk4", "semi_implicit", "imex", "implicit"],
-                  ["C0", "C1", "C2", "C3", "C4", "C5", "C6"]))
+COLORS = dict(zip(["leapfrog", "leapfrog_trapezoidal", "ssprk3", "rk4", "kgu35", "fbrk32", "semi_implicit", "imex", "implicit"],
+                  ["C0", "C1", "C2", "C3", "C7", "C8", "C4", "C5", "C6"]))
 
 
 def figure(d: Path, out: Path):

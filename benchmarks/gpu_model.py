@@ -158,9 +158,9 @@ def instrument(tally: Tally) -> None:
 
 def build(ne, stepper=None, dt_factor=1.0):
     """TC5 on ne, np 4, in the CUDA layout on the CPU: (model, scene, initial state)."""
-    scene = load_scene("tc5_mountain", ne=ne, np=4)
+    scene = load_scene("tc5_mountain_homme", ne=ne, np=4)
     if stepper is not None:
-        scene = load_scene("tc5_mountain", ne=ne, np=4, stepper=stepper, dt=scene.dt * dt_factor)
+        scene = load_scene("tc5_mountain_homme", ne=ne, np=4, stepper=stepper, dt=scene.dt * dt_factor)
     grid = CubedSphere(ne, 4)
     case = scene.make_case()
     model = ShallowWater(
@@ -286,7 +286,7 @@ def main(argv=None):
         print()
         print("Simulated days per wall day for TC5 (the scene's Δt at each ne; semi_implicit, implicit, imex at "
               f"{args.implicit_dt_factor:g}× it), without / with graphs:\n")
-        dts = {ne: load_scene("tc5_mountain", ne=ne, np=4).dt for ne in args.at}
+        dts = {ne: load_scene("tc5_mountain_homme", ne=ne, np=4).dt for ne in args.at}
         print("| stepper | " + " | ".join(f"ne{ne} (Δt {dts[ne]:.1f} s)" for ne in args.at) + " |")
         print("|---|" + "---:|" * len(args.at))
         for name in STEPPERS:

@@ -1,6 +1,6 @@
 """Peak resident memory of a run against the bytes of its state and metric arrays.
 
-Runs ``swe-sphere run tc5_mountain --ne NE --days DAYS`` (np = 4, the scene's
+Runs ``swe-sphere run tc5_mountain_homme --ne NE --days DAYS`` (np = 4, the scene's
 stepper leapfrog_trapezoidal unless ``--stepper``) in a child process and reads
 its peak RSS (``resource.getrusage(RUSAGE_CHILDREN).ru_maxrss``), next to the
 peak RSS of a child that only imports swe_sphere and initialises Warp (the
@@ -46,7 +46,7 @@ def array_bytes(ne, stepper):
     from swe_sphere.model import ShallowWater
     from swe_sphere.steppers import make_stepper
 
-    scene = load_scene("tc5_mountain", ne=ne, np=4, stepper=stepper)
+    scene = load_scene("tc5_mountain_homme", ne=ne, np=4, stepper=stepper)
     grid = CubedSphere(ne, 4)
     case = scene.make_case()
     m = ShallowWater(grid, scene.terms, case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon), nu=scene.nu, device="cpu", threads=1)
@@ -70,13 +70,13 @@ def main(argv=None):
     wp.config.log_level = wp.LOG_ERROR
     with tempfile.TemporaryDirectory() as tmp:
         base = child_peak_rss([sys.executable, "-c", BASELINE])
-        run = [sys.executable, "-m", "swe_sphere.cli", "run", "tc5_mountain", "--ne", str(args.ne), "--days", str(args.days),
+        run = [sys.executable, "-m", "swe_sphere.cli", "run", "tc5_mountain_homme", "--ne", str(args.ne), "--days", str(args.days),
                "--stepper", args.stepper, "--device", "cpu", "--no-progress", "--output", os.path.join(tmp, "run.nc")]
         peak = child_peak_rss(run)
     grid, b = array_bytes(args.ne, args.stepper)
     mib = 2.0**20
     need = b["state"] + b["metric"]
-    print(f"tc5_mountain ne={args.ne} np=4 ({grid.npts} element-local points), {args.stepper}, {args.days:g} days, CPU")
+    print(f"tc5_mountain_homme ne={args.ne} np=4 ({grid.npts} element-local points), {args.stepper}, {args.days:g} days, CPU")
     print(f"  peak RSS of the run                 {peak / mib:8.1f} MiB")
     print(f"  peak RSS of import + wp.init()      {base / mib:8.1f} MiB")
     print(f"  run minus baseline                  {(peak - base) / mib:8.1f} MiB")

@@ -116,9 +116,9 @@ def triad_bandwidth(threads=1, n=20_000_000, repeat=5):
 
 def build(ne, np_, threads, device, stepper=None, dt_factor=1.0):
     """TC5 scene on (ne, np): grid, scene, case fields, model, initial state."""
-    scene = load_scene("tc5_mountain", ne=ne, np=np_)
+    scene = load_scene("tc5_mountain_homme", ne=ne, np=np_)
     if stepper is not None:
-        scene = load_scene("tc5_mountain", ne=ne, np=np_, stepper=stepper, dt=scene.dt * dt_factor)
+        scene = load_scene("tc5_mountain_homme", ne=ne, np=np_, stepper=stepper, dt=scene.dt * dt_factor)
     grid = CubedSphere(ne, np_)
     case = scene.make_case()
     fcor, hs = case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon)

@@ -96,7 +96,7 @@ def tc2_run(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def tc5_run(tmp_path_factory):
-    """tc5_mountain, ne=2 np=4, 1 day (leapfrog-trapezoidal, hyperviscosity, topography)."""
+    """tc5_mountain, ne=2 np=4, 1 day (its default RK4, hyperviscosity, topography)."""
     folder = tmp_path_factory.mktemp("tc5")
     out = folder / "tc5.nc"
     code = main(["run", str(TESTCASES / "tc5_mountain.toml"), *TINY, "--days", "1", "--output", str(out)])
@@ -187,7 +187,7 @@ def test_run_writes_a_complete_netcdf_file(which, tc2_run, tc5_run):
             assert ds.linf_h.values[-1] < 1e-2
             assert ds.l2_wind.values[-1] < 3e-2
         else:
-            assert scene["stepper"] == "leapfrog_trapezoidal"
+            assert scene["stepper"] == "rk4"  # the efficiency study's choice (docs/efficiency.md, 2026-11-23)
             assert "topography" in scene["terms"] and "hyperviscosity" in scene["terms"]
             assert scene["nu"] == pytest.approx(efold_nu(3.0, 2, 4, 6.37122e6), rel=1e-12)  # the scene's 3 h rule on this grid
             assert ds.hs.values.max() > 1000  # the mountain (2000 m at its centre)

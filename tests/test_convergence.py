@@ -120,7 +120,7 @@ def test_tc2_mass_conserved(name):
 
 
 def test_tc5_mass_conserved_over_a_day():
-    scene = load_scene("tc5_mountain", ne=6, days=1.0)
+    scene = load_scene("tc5_mountain_homme", ne=6, days=1.0)  # HOMME's stepper
     assert scene.stepper == "leapfrog_trapezoidal"
     assert "hyperviscosity" in scene.terms and "topography" in scene.terms and scene.nu > 0
     scene = dataclasses.replace(scene, output_every_days=0.125)  # 9 output times

@@ -33,7 +33,7 @@ Then the same with the weak Laplacian K_w in place of K (iterations of the mass,
 the exact LOR and AMG), and the spectrum at ``--spectrum-ne``: the smallest eigenvalues of a²M⁻¹K and
 a²M⁻¹K_LOR, and the range of the eigenvalues of (M + cK_LOR)⁻¹(M + cK), (M + cK_w)⁻¹(M + cK) and
 (M + cK_LOR)⁻¹(M + cK_w) with how many lie below 0.1.
-CPU clock (``time.process_time``); run with one thread:
+CPU clock (``time.process_time``); needs pyamg (``pip install -e '.[bench]'``); run with one thread:
 
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/helmholtz_preconditioners.py
 """

@@ -38,7 +38,6 @@ import platform
 import statistics
 import time
 
-import numpy as np
 import warp as wp
 from threadpoolctl import threadpool_limits
 

@@ -58,7 +58,6 @@ from swe_sphere.cli import main
 from swe_sphere.config import load_scene
 from swe_sphere.constants import DAY
 from swe_sphere.simulation import BlowUp
-from swe_sphere.steppers import StepFailure
 from swe_sphere.topology import Topology
 
 from conftest import cached_grid, make_sim, run, tc6_inviscid, write_tc2_scene

@@ -245,9 +245,9 @@ def _validate(raw: dict) -> dict:
             sub = {}
             for k, v in value.items():
                 if k not in spec:
-                    removed = STEPPERS[key].removed_options.get(k) if key in STEPPERS else None
+                    removed = STEPPERS[key].removed(k) if key in STEPPERS else None
                     if removed:
-                        raise SceneError(f"{key}.{k} was removed: {removed}")
+                        raise SceneError(f"{key}.{removed}")
                     raise SceneError(f"unknown key {key}.{k} in scene (known: {', '.join(spec)})")
                 sub[k] = _check_type(f"{key}.{k}", v, spec[k])
             out[key] = sub

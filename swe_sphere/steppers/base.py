@@ -72,13 +72,19 @@ class Stepper:
     removed_options: dict[str, str] = {}  # option → why it is gone, for the error message
 
     @classmethod
+    def removed(cls, key: str) -> str | None:
+        """'<key> was removed: <why>' for an option the stepper no longer has, else None."""
+        why = cls.removed_options.get(key)
+        return None if why is None else f"{key} was removed: {why}"
+
+    @classmethod
     def make_options(cls, **options):
         """The stepper's options from keyword values (defaults for the rest).
         Raises ValueError naming an unknown option or an invalid value."""
         known = option_types(cls.Options)
         for key in options:
             if key in cls.removed_options:
-                raise ValueError(f"{key} was removed: {cls.removed_options[key]}")
+                raise ValueError(cls.removed(key))
             if key not in known:
                 raise ValueError(f"unknown option {key!r} for stepper {cls.name} (known: {', '.join(known) or 'none'})")
         return cls.Options(**options)

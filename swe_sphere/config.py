@@ -40,7 +40,7 @@ from .constants import DAY
 from .gll import NP_MAX, NP_MIN, gll
 from .initialization import METHODS, DigitalFilter
 from .model import TERMS
-from .reference import locate, reference_path, stored_days
+from .reference import locate, reference_path, stored_case, stored_days
 from .steppers import STEPPERS, option_types
 
 HYPERVIS_EXPONENT = 3.2  # ν ∝ Δx^3.2 (HOMME's resolution scaling; Dennis et al. 2012)
@@ -198,8 +198,13 @@ def _reference(spec, case_name: str, case_obj) -> str:
     try:
         path = locate(spec)
         stored_days(path)
+        solves = stored_case(path)
+        bundled = reference_path(case_obj)
+        expected = None if bundled is None else stored_case(bundled)
     except (OSError, ValueError) as err:
         raise SceneError(f"{where}: {err}") from None
+    if solves is not None and expected is not None and solves != expected:
+        raise SceneError(f"{where}: the file is a {solves} reference (its title), not one of {expected}")
     return str(path)
 
 

@@ -65,6 +65,16 @@ def stored_days(path) -> np.ndarray:
         return np.asarray(ds["time"].values, dtype=np.float64)
 
 
+def stored_case(path) -> str | None:
+    """The case a reference file says it solves: the tail of its ``title`` attribute
+    after the last ": " (the bundled files' "T213 spectral-transform reference
+    solution: tc5_mountain" → "tc5_mountain"), or None when it has no title. Same
+    errors as ``stored_days``."""
+    with _open(path) as ds:
+        title = ds.attrs.get("title")
+    return title.rsplit(": ", 1)[-1].strip() if isinstance(title, str) and ": " in title else None
+
+
 class Reference:
     """Spectral reference solution read from one netCDF file.
 

@@ -328,15 +328,24 @@ class Simulation:
         return self.topology.bcast(d)
 
     def stability_warning(self) -> str | None:
-        """A one-line warning when an explicit stepper's Δt exceeds its measured
-        stability limit (``Stepper.courant_limit``) on the current state, else None."""
-        limit = type(self.stepper).courant_limit
+        """A one-line warning when Δt exceeds the stepper's measured stability limit on
+        the current state (``Stepper.courant_limit`` on (|v| + √(gh)) Δt/Δx for explicit
+        steppers, ``Stepper.advective_courant_limit`` on |v| Δt/Δx for IMEX), else None."""
+        kind = type(self.stepper)
         c = self.courant()
-        speed = c["courant_advective"] + (0.0 if math.isnan(c["courant_gravity"]) else c["courant_gravity"])
-        if limit is None or speed <= limit:
+        if kind.courant_limit is not None:
+            limit, what = kind.courant_limit, "a Courant number (|v| + sqrt(g h)) dt/dx"
+            speed = c["courant_advective"] + (0.0 if math.isnan(c["courant_gravity"]) else c["courant_gravity"])
+            source = "measured on TC2"
+        elif kind.advective_courant_limit is not None:
+            limit, what, speed = kind.advective_courant_limit, "an advective Courant number |v| dt/dx", c["courant_advective"]
+            source = "its explicit advection's, measured on TC5, TC6 and Galewsky"
+        else:
             return None
-        return (f"warning: dt = {self.scene.dt:g} s gives a Courant number (|v| + sqrt(g h)) dt/dx of {speed:.3g}, above "
-                f"{self.scene.stepper}'s stability limit of about {limit:g} (measured on TC2); it may blow up "
+        if speed <= limit:
+            return None
+        return (f"warning: dt = {self.scene.dt:g} s gives {what} of {speed:.3g}, above "
+                f"{self.scene.stepper}'s stability limit of about {limit:g} ({source}); it may blow up "
                 f"(dt <= {self.scene.dt * limit / speed:.4g} s keeps below)")
 
     def courant(self, whole: WholeFields | None = None) -> dict:

@@ -590,7 +590,9 @@ def _not_a_reference(folder: Path) -> Path:
     ("run", "tc5_mountain", "junk.nc", "junk.nc: not a readable netCDF file"),
     ("run", "tc5_mountain", "NOT_A_REFERENCE", "not a reference file: missing variable(s) 'vorticity', 'divergence'"),
     ("run", "tc2_steady", "tc5_mountain_T213.nc", "case tc2_steady is scored against its exact solution, not a reference file"),
-], ids=["missing-sweep", "not-netcdf", "not-a-reference", "exact-solution"])
+    ("sweep", "tc5_mountain", "tc6_rossby_haurwitz_T213.nc", "the file is a tc6_rossby_haurwitz reference (its title), not one of tc5_mountain"),
+    ("run", "galewsky", "galewsky_balanced_T213.nc", "the file is a galewsky_balanced reference (its title), not one of galewsky"),
+], ids=["missing-sweep", "not-netcdf", "not-a-reference", "exact-solution", "other-case", "other-galewsky"])
 def test_console_script_refuses_a_bad_case_reference(tmp_path, command, scene, value, why):
     """-s case.reference=...: exit 2, one line naming the key, the value and why; nothing written."""
     (tmp_path / "junk.nc").write_text("not netCDF")

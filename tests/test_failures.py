@@ -211,3 +211,16 @@ def test_explicit_dt_above_the_stability_limit_warns(tmp_path):
     assert run(fast.scene)[0].blowup is not None
     assert run(slow)[0].blowup is None
     assert make_sim(dataclasses.replace(slow, stepper="implicit", dt=7200.0)).stability_warning() is None
+
+
+def test_imex_dt_above_its_advective_limit_warns(tmp_path):
+    """IMEX treats advection explicitly: on TC2 ne = 2, dt = 12 h gives |v| dt/dx = 1.69
+    (> 1.0, Imex.advective_courant_limit) and warns with the dt that keeps below; 6 h
+    (0.85) does not, though its gravity-wave Courant number is 3.8."""
+    from conftest import make_sim
+
+    big = load_scene(write_tc2_scene(tmp_path / "a.toml", stepper="imex", dt=43200.0, days=2.0))
+    warning = make_sim(big).stability_warning()
+    assert warning is not None and "advective Courant number |v| dt/dx of 1.69" in warning
+    assert "imex's stability limit of about 1 " in warning and "dt <= 2.55e+04 s" in warning
+    assert make_sim(dataclasses.replace(big, dt=21600.0)).stability_warning() is None

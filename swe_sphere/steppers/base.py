@@ -57,7 +57,8 @@ class Stepper:
     "<option> must ..."), ``explicit`` (True: stable only below a Courant
     limit), ``solvers`` (names of the iteration counts in StepStats) and
     implement ``advance(x)``; those with history extend ``state``/``restore``;
-    explicit ones set ``courant_limit``.
+    explicit ones set ``courant_limit``, those with explicit advection only
+    ``advective_courant_limit``.
     """
 
     name = ""
@@ -68,6 +69,9 @@ class Stepper:
     # ne 8 np 4 and ne 3 np 6 (leapfrog 0.618 / 0.580 / 0.646, leapfrog_trapezoidal
     # 0.926 / 0.883 / 1.005, ssprk3 1.195 / 1.108 / 1.242, rk4 1.853 / 1.726 / 1.919)
     courant_limit: float | None = None
+    # steppers whose advection alone is explicit (IMEX): the largest |v| Δt / Δx at t = 0
+    # the study ran stably (a warning threshold, not a bisection)
+    advective_courant_limit: float | None = None
     solvers: tuple[str, ...] = ()
     removed_options: dict[str, str] = {}  # option → why it is gone, for the error message
 

@@ -101,6 +101,9 @@ def _parser() -> argparse.ArgumentParser:
     st.add_argument("--steppers", default="leapfrog,ssprk3,semi_implicit,implicit", help="comma-separated stepper names")
     st.add_argument("--ne", type=int, default=8, help="coarse grid for cases that do not fix one (default 8)")
     st.add_argument("--np", type=int, help="GLL points (default: the scene's)")
+    st.add_argument("--days", type=float, help="run length for cases that do not fix one (default: the scene's)")
+    st.add_argument("-s", "--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                    help="override a scene value in every case, e.g. -s hyperviscosity.efold_hours=6 (as for run)")
     st.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
     st.add_argument("--output", type=Path, default=Path("."), help="directory for stability.csv and stability.nc")
     st.add_argument("--workers", type=int, default=1, help=WORKERS_HELP)
@@ -254,7 +257,8 @@ def _cmd_stability(args) -> int:
         if pool is None:  # an MPI worker rank: its share is done
             return 0
         with folder_lock(args.output, "stability.lock"):  # a second suite into this folder is refused now, not at its end
-            results = run_suite(cases, steppers, device, ne=args.ne, np=args.np, pool=pool)
+            results = run_suite(cases, steppers, device, ne=args.ne, np=args.np, days=args.days,
+                                overrides=_overrides(args.set), pool=pool)
             print(format_table(results))
             for path in write_table(results, args.output):
                 print(f"wrote {path}")

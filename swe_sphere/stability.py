@@ -118,16 +118,20 @@ def largest_stable_dt(scene: Scene, device: str, *, tolerance: float = 0.05, log
     )
 
 
-def run_suite(cases, steppers, device, *, ne=None, np=None, log=print, pool=None) -> list[StabilityResult]:
+def run_suite(cases, steppers, device, *, ne=None, np=None, days=None, overrides=None, log=print,
+              pool=None) -> list[StabilityResult]:
     """Largest stable Δt for every (case, stepper). ``cases``: entries of ``HARD_CASES``;
-    ``ne``/``np`` override the grid of cases that do not fix it. The bisections
+    ``ne``/``np`` override the grid and ``days`` the run length of cases that do not
+    fix them; ``overrides`` ({"section.key": value}, as ``load_scene``) apply to
+    every case. Raises ``SceneError`` on a bad override. The bisections
     are independent: ``pool`` (a concurrent.futures executor, ``swe_sphere.workers``;
     None: here, one after another) runs them; results in (case, stepper) order."""
     pool = pool or InProcess()
     futures = []
-    for label, scene_name, days, case_ne in cases:
+    for label, scene_name, case_days, case_ne in cases:
         for stepper in steppers:
-            scene = load_scene(scene_name, ne=case_ne or ne, np=np, days=days, stepper=stepper)
+            scene = load_scene(scene_name, ne=case_ne or ne, np=np, days=case_days or days, stepper=stepper,
+                               overrides=overrides)
             scene = dataclasses.replace(scene, name=label)
             log(f"{label}: {stepper} on ne={scene.ne} np={scene.np}, {scene.days:g} days")
             futures.append(pool.submit(largest_stable_dt, scene, device, log=log))

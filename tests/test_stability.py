@@ -29,6 +29,18 @@ def test_bisection_brackets_a_known_limit(monkeypatch, tmp_path):
     assert xr.open_dataset(nc)["dt_stable"].sel(case="tc2_steady", stepper="rk4") == pytest.approx(DAY / 87)
 
 
+def test_suite_days_and_overrides_reach_every_scene(monkeypatch):
+    """``--days`` sets the run length of the cases that do not fix one (Galewsky: 6 → 12
+    days; the 100-day TC2 keeps 100) and ``-s`` overrides every case (∇⁴ e-folding
+    3 h → 6 h halves ν, the rule ν ∝ 1/τ)."""
+    seen = {}
+    monkeypatch.setattr(stability, "largest_stable_dt", lambda scene, device, log: seen.setdefault(scene.name, scene))
+    cases = [c for c in stability.HARD_CASES if c[0] in ("galewsky", "tc2_steady_alpha_pi4_100d")]
+    stability.run_suite(cases, ["rk4"], "cpu", ne=4, days=12.0, overrides={"hyperviscosity.efold_hours": 6.0}, log=lambda *_: None)
+    assert seen["galewsky"].days == 12.0 and seen["tc2_steady_alpha_pi4_100d"].days == 100.0
+    assert seen["galewsky"].nu == pytest.approx(load_scene("galewsky", ne=4).nu / 2, rel=1e-12)
+
+
 def load_courant(scene):
     from swe_sphere.simulation import Simulation
 

@@ -27,7 +27,7 @@ import functools
 
 import warp as wp
 
-from .operators import CPU_FAST, reference_divergence, reference_gradient
+from .operators import CPU_FAST, over, row_derivatives, times
 
 f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
@@ -41,88 +41,92 @@ def copy_at(x: wp.array2d(dtype=f64), r: int, ghost: wp.array(dtype=f64), c: int
     return x[r, c]
 
 
+@wp.func
+def unique_value(y: wp.array(dtype=f64), halo: wp.array(dtype=f64), g: int):
+    """Entry g of the unique-node vector y, or of ``halo`` (the owners' values) for g ≥ len(y)."""
+    n = y.shape[0]
+    if g < n:
+        return y[g]
+    return halo[g - n]
+
+
 @functools.cache
-def helmholtz_gradient(dvv: tuple):
-    """Per element: wg[0:2, p] = spheremp[p]·∇y at its nodes (m² × units of y / m),
+def helmholtz_gradient(np: int):
+    """Per element: wg[0:2] = spheremp·∇y at its nodes (m² × units of y / m),
     y a unique-node vector read through gid (gid[p] ≥ nunique: from ``halo``,
-    the owners' values, as ``dss.scatter``). Arguments: y, halo, gid, Dinv,
-    spheremp, wg, offset (elements). Dim nelem."""
-    NP = len(dvv)
-    NPP = NP * NP
-    grad = reference_gradient(dvv)
-    vec = wp.types.vector(length=NPP, dtype=f64)
+    the owners' values, as ``dss.scatter``). Arguments: y, halo, gid (N), and as
+    ``operators.row_vectors`` views Dinv (4, N/np), spheremp (N/np); dvv
+    (``operators.dvv_matrix``); wg (2, N/np) (a view); offset (elements). Dim nelem."""
+    vec, mat, along, across = row_derivatives(np)
+    NP = int(np)
 
     def helmholtz_gradient(
-        y: wp.array(dtype=f64), halo: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32), Dinv: wp.array2d(dtype=f64),
-        spheremp: wp.array(dtype=f64), wg: wp.array2d(dtype=f64), offset: int,
+        y: wp.array(dtype=f64), halo: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32), Dinv: wp.array2d(dtype=vec),
+        spheremp: wp.array(dtype=vec), dvv: mat, wg: wp.array2d(dtype=vec), offset: int,
     ):
-        base = (wp.tid() + offset) * NPP
-        n = y.shape[0]
-        v = vec()
-        for k in range(NPP):
-            g = gid[base + k]
-            if g < n:
-                v[k] = y[g]
-            else:
-                v[k] = halo[g - n]
+        base = (wp.tid() + offset) * NP
+        dvvT = wp.transpose(dvv)
+        F = mat()
         for j in range(NP):
             for i in range(NP):
-                a, b = grad(v, i, j)
-                p = base + j * NP + i
-                w = spheremp[p]
-                wg[0, p] = w * (Dinv[0, p] * a + Dinv[2, p] * b)
-                wg[1, p] = w * (Dinv[1, p] * a + Dinv[3, p] * b)
+                F[j, i] = unique_value(y, halo, gid[(base + j) * NP + i])
+        for j in range(NP):
+            a = along(F, j, dvvT)
+            b = across(F, j, dvv)
+            q = base + j
+            w = spheremp[q]
+            wg[0, q] = times(w, times(Dinv[0, q], a) + times(Dinv[2, q], b))
+            wg[1, q] = times(w, times(Dinv[1, q], a) + times(Dinv[3, q], b))
 
     helmholtz_gradient.__qualname__ = "helmholtz_gradient"  # the kernel's key
     return wp.kernel(helmholtz_gradient, enable_backward=False, module="unique", module_options=CPU_FAST)
 
 
 @functools.cache
-def helmholtz_divergence(dvv: tuple, copies: int):
-    """Per element: z[0, p] = spheremp[p]·(y(p) − c·(D̂ S wg)(p)), S the DSS (Σ over the copies of
-    p's node of wg, times rspheremp; a copy ≥ nlocal read from ``ghost``, ``copy_at``), y read as in
-    ``helmholtz_gradient``. Arguments: wg, ghost, nlocal, table, rspheremp, y,
-    halo, gid, Dinv, metdet, spheremp, c (m²), z (1, N), offset (elements). Dim nelem."""
-    NP, C = len(dvv), int(copies)
-    NPP = NP * NP
-    div = reference_divergence(dvv)
-    vec = wp.types.vector(length=NPP, dtype=f64)
+def helmholtz_divergence(np: int, copies: int):
+    """Per element: z[0] = spheremp·(y − c·(D̂ S wg)) at its nodes, S the DSS (Σ over the copies of
+    a node of wg, times rspheremp; a copy ≥ nlocal read from ``ghost``, ``copy_at``), y read as in
+    ``helmholtz_gradient``. Arguments: wg (2, N), ghost, nlocal, table, rspheremp (N), y,
+    halo, gid (N), and as ``operators.row_vectors`` views Dinv (4, N/np), metdet,
+    spheremp (N/np); dvv (``operators.dvv_matrix``); c (m²); z (1, N/np) (a view),
+    offset (elements). Dim nelem."""
+    NP, C = int(np), int(copies)
+    vec, mat, along, across = row_derivatives(NP)
 
     def helmholtz_divergence(
         wg: wp.array2d(dtype=f64), ghost: wp.array(dtype=f64), nlocal: int, table: wp.array2d(dtype=wp.int32),
         rspheremp: wp.array(dtype=f64), y: wp.array(dtype=f64), halo: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32),
-        Dinv: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), spheremp: wp.array(dtype=f64), c: f64, z: wp.array2d(dtype=f64),
-        offset: int,
+        Dinv: wp.array2d(dtype=vec), metdet: wp.array(dtype=vec), spheremp: wp.array(dtype=vec), dvv: mat, c: f64,
+        z: wp.array2d(dtype=vec), offset: int,
     ):
-        base = (wp.tid() + offset) * NPP
-        f1 = vec()  # metdet c¹, metdet c² of the DSS'd gradient
-        f2 = vec()
-        for k in range(NPP):
-            q = base + k
-            s0 = f64(0.0)
-            s1 = f64(0.0)
-            for m in range(C):
-                cp = table[q, m]
-                if cp >= 0:
-                    s0 += copy_at(wg, 0, ghost, cp, nlocal)
-                    s1 += copy_at(wg, 1, ghost, cp, nlocal)
-            rs = rspheremp[q]
-            gx = rs * s0
-            gy = rs * s1
-            f1[k] = metdet[q] * (Dinv[0, q] * gx + Dinv[1, q] * gy)
-            f2[k] = metdet[q] * (Dinv[2, q] * gx + Dinv[3, q] * gy)
-        n = y.shape[0]
+        base = (wp.tid() + offset) * NP
+        dvvT = wp.transpose(dvv)
+        gx = mat()  # the DSS'd gradient
+        gy = mat()
+        Y = mat()
         for j in range(NP):
             for i in range(NP):
-                s = div(f1, f2, i, j)
-                p = base + j * NP + i
-                g = gid[p]
-                yp = f64(0.0)
-                if g < n:
-                    yp = y[g]
-                else:
-                    yp = halo[g - n]
-                z[0, p] = spheremp[p] * (yp - c * s / metdet[p])
+                p = (base + j) * NP + i
+                s0 = f64(0.0)
+                s1 = f64(0.0)
+                for m in range(C):
+                    cp = table[p, m]
+                    if cp >= 0:
+                        s0 += copy_at(wg, 0, ghost, cp, nlocal)
+                        s1 += copy_at(wg, 1, ghost, cp, nlocal)
+                rs = rspheremp[p]
+                gx[j, i] = rs * s0
+                gy[j, i] = rs * s1
+                Y[j, i] = unique_value(y, halo, gid[p])
+        f1 = mat()  # metdet c¹, metdet c² of the DSS'd gradient
+        f2 = mat()
+        for j in range(NP):
+            q = base + j
+            f1[j] = times(metdet[q], times(Dinv[0, q], gx[j]) + times(Dinv[1, q], gy[j]))
+            f2[j] = times(metdet[q], times(Dinv[2, q], gx[j]) + times(Dinv[3, q], gy[j]))
+        for j in range(NP):
+            q = base + j
+            z[0, q] = times(spheremp[q], Y[j] - over(c * (along(f1, j, dvvT) + across(f2, j, dvv)), metdet[q]))
 
     helmholtz_divergence.__qualname__ = "helmholtz_divergence"  # the kernel's key
     return wp.kernel(helmholtz_divergence, enable_backward=False, module="unique", module_options=CPU_FAST)

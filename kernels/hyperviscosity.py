@@ -29,155 +29,167 @@ after each DSS.
 Two layouts, as for the tendency: on CUDA ``to_cartesian``,
 ``operators.laplace_wk_flux`` and ``laplacian_node`` (dim N); on the CPU
 ``laplacian_element`` (dim nelem), the whole weak Laplacian of an element in
-one pass. Both finish the node with the same ``scale_first`` / ``shift_second``.
+one pass, on whole GLL rows (packed SIMD). Both finish a node, or a row, with
+the same ``scale_first`` / ``shift_second`` / ``add_divergent``.
 """
 
 import functools
+from typing import Any
 
 import warp as wp
 
 from .dss import Copies, gather
-from .operators import CPU_FAST, d_eta, d_xi, dvv_constant, element_node, reference_gradient, weak_divergence
+from .operators import CPU_FAST, d_eta, d_xi, element_node, row_derivatives, times, weak_divergence
 
 f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
 
 
-@wp.struct
-class Frame:
-    """A node's frame: Dinv (4, N), the unit vectors east, north and the
-    position xyz (3, N, Cartesian, unit sphere); a kernel is given those it
-    reads (``ShallowWater._frame``), the others null."""
+@functools.cache
+def frame_type(dtype):
+    """A node's frame as a struct of arrays of ``dtype`` (float64 for the
+    per-node kernels, ``Frame``; ``operators.row_type(np)`` for the element
+    kernels' ``operators.row_vectors`` views): Dinv (4, ·), the unit vectors
+    east, north and the position xyz (3, ·, Cartesian, unit sphere); a kernel
+    is given those it reads (``ShallowWater._frame``), the others null."""
 
-    Dinv: wp.array2d(dtype=f64)
-    east: wp.array2d(dtype=f64)
-    north: wp.array2d(dtype=f64)
-    xyz: wp.array2d(dtype=f64)
+    class Frame:
+        Dinv: wp.array2d(dtype=dtype)
+        east: wp.array2d(dtype=dtype)
+        north: wp.array2d(dtype=dtype)
+        xyz: wp.array2d(dtype=dtype)
+
+    Frame.__qualname__ = Frame.__name__ = "Frame" if dtype is f64 else f"Frame_rows{dtype._length_}"
+    return wp.struct(Frame)
+
+
+Frame = frame_type(f64)
+
+
+# The pointwise parts below are generic: at a node q of the per-node kernels the
+# values are float64 and a field stack (L, X, Y) a wp.vec4d; at a GLL row q of
+# the element kernels the values are rows and a stack a (4, np) matrix of rows.
 
 
 @wp.func
-def scale_first(L: wp.vec4d, X: wp.vec4d, w: f64, r: wp.vec3d, c: wp.vec4d):
-    """The weak-form Y₁ at a node from the weak Laplacian L of X = (Cartesian
-    wind, h + hs), the mass w and the position r: ν(PL + (2/a²)·w·X) for the
+def scale_first(L: Any, X: Any, w: Any, f: Any, q: int, c: wp.vec4d):
+    """The weak-form Y₁ at node (row) q from the weak Laplacian L of X = (Cartesian
+    wind, h + hs), the mass w and the position f.xyz: ν(PL + (2/a²)·w·X) for the
     wind, ν_s·L for the height, c = (ν, ν_div − ν, ν_s, 2/a²) (the ∇δ term
-    apart: ``divergent_part``)."""
-    d = L[0] * r[0] + L[1] * r[1] + L[2] * r[2]
-    y = wp.vec4d()
+    apart: ``add_divergent``)."""
+    d = times(L[0], f.xyz[0, q]) + times(L[1], f.xyz[1, q]) + times(L[2], f.xyz[2, q])
+    y = type(L)()
     for k in range(3):
-        y[k] = c[0] * (L[k] - d * r[k] + c[3] * w * X[k])
+        y[k] = c[0] * (L[k] - times(d, f.xyz[k, q]) + times(c[3] * w, X[k]))
     y[3] = c[2] * L[3]
     return y
 
 
 @wp.func
-def shift_second(L: wp.vec4d, Y: wp.vec4d, w: f64, shift: f64):
-    """The weak-form Y₂ at a node: L + shift·w·Y for the wind, L for the
+def shift_second(L: Any, Y: Any, w: Any, shift: f64):
+    """The weak-form Y₂ at node (row) q: L + shift·w·Y for the wind, L for the
     height (L the weak Laplacian of Y = Y₁, w the mass, shift = 2/a²)."""
-    return wp.vec4d(L[0] + shift * w * Y[0], L[1] + shift * w * Y[1], L[2] + shift * w * Y[2], L[3])
+    y = type(L)()
+    for k in range(3):
+        y[k] = L[k] + times(shift * w, Y[k])
+    y[3] = L[3]
+    return y
 
 
 @wp.func
-def divergent_part(a: f64, b: f64, q: int, f: Frame):
-    """The Cartesian ∇δ at node q from δ's reference derivatives (a, b) = (∂ξ δ, ∂η δ)."""
-    ge = f.Dinv[0, q] * a + f.Dinv[2, q] * b
-    gn = f.Dinv[1, q] * a + f.Dinv[3, q] * b
-    return wp.vec3d(ge * f.east[0, q] + gn * f.north[0, q], ge * f.east[1, q] + gn * f.north[1, q], ge * f.east[2, q] + gn * f.north[2, q])
-
-
-@wp.func
-def position(f: Frame, q: int):
-    """The unit position vector of node q."""
-    return wp.vec3d(f.xyz[0, q], f.xyz[1, q], f.xyz[2, q])
+def add_divergent(y: Any, a: Any, b: Any, cw: Any, q: int, f: Any):
+    """y[0:3] += cw·∇δ, the Cartesian gradient at node (row) q of δ from its
+    reference derivatives (a, b) = (∂ξ δ, ∂η δ), cw = (ν_div − ν)·spheremp."""
+    ge = times(f.Dinv[0, q], a) + times(f.Dinv[2, q], b)
+    gn = times(f.Dinv[1, q], a) + times(f.Dinv[3, q], b)
+    for r in range(3):
+        y[r] = y[r] + times(cw, times(ge, f.east[r, q]) + times(gn, f.north[r, q]))
+    return y
 
 
 @functools.cache
-def laplacian_element(second: bool, divergent: bool, dvv: tuple):
-    """The weak form of Y₁ (``second=False``, from the state ``src`` = x (3, N)
-    and hs) or of Y₂ (``second=True``, from ``src`` = Y₁ (4, N)) of the elements
-    (the module docstring), one thread per element, ``dvv`` compiled in;
-    ``divergent``: with the (ν_div − ν)·spheremp·∇δ term, δ the DSS'd
-    divergence in ``delta`` (1, N) (first only). Arguments: src, hs (N), delta,
-    c (``scale_first``), f (``Frame``), metric (4, N) (``laplacian_metric``),
-    L (4, N) output, offset (in elements). Dim nelem."""
-    NP = len(dvv)
-    NPP = NP * NP
-    vec = wp.types.vector(length=NPP, dtype=f64)
-    DVV = dvv_constant(dvv)
-    grad = reference_gradient(dvv)
+def laplacian_element(second: bool, divergent: bool, np: int):
+    """The weak form of Y₁ (``second=False``, from the state ``src`` = x (3, ·)
+    and hs) or of Y₂ (``second=True``, from ``src`` = Y₁ (4, ·)) of the elements
+    (the module docstring), one thread per element, on GLL rows
+    (``operators.row_vectors`` views, N/np rows); ``divergent``: with the
+    (ν_div − ν)·spheremp·∇δ term, δ the DSS'd divergence in ``delta`` (1, ·)
+    (first only). Arguments: src, hs, delta, c (``scale_first``), f
+    (``frame_type`` of rows), metric (4, ·) (``laplacian_metric``), dvv
+    (``operators.dvv_matrix``), L (4, ·) output, offset (in elements). Dim nelem."""
+    NP = int(np)
+    vec, mat, along, across = row_derivatives(NP)
+    stack = wp.types.matrix(shape=(4, NP), dtype=f64)  # the four fields' values on one row
     S, DIV = bool(second), bool(divergent) and not second
+    RowFrame = frame_type(vec)
 
-    def weak_laplacian(f: vec, G11: vec, G12: vec, G22: vec):
-        fx = vec()  # G ∇_ref f: the quadrature-weighted contravariant gradient
-        fy = vec()
+    def weak_laplacian(F: mat, G11: mat, G12: mat, G22: mat, dvv: mat, dvvT: mat):
+        out = mat()  # −Σ ∂ᵀ(G ∇_ref f): G ∇_ref f is the quadrature-weighted contravariant gradient
+        fx = mat()
+        fy = mat()
         for j in range(NP):
-            for i in range(NP):
-                a, b = grad(f, i, j)
-                k = j * NP + i
-                fx[k] = G11[k] * a + G12[k] * b
-                fy[k] = G12[k] * a + G22[k] * b
-        out = vec()
-        for n in range(NP):
-            for m in range(NP):
-                s = f64(0.0)
-                for k in range(NP):
-                    s += DVV[k, m] * fx[n * NP + k] + DVV[k, n] * fy[k * NP + m]
-                out[n * NP + m] = -s
+            a = along(F, j, dvvT)
+            b = across(F, j, dvv)
+            fx[j] = times(G11[j], a) + times(G12[j], b)
+            fy[j] = times(G12[j], a) + times(G22[j], b)
+        for j in range(NP):
+            out[j] = -(along(fx, j, dvv) + across(fy, j, dvvT))
         return out
 
-    weak_laplacian.__qualname__ = weak_laplacian.__name__ = f"weak_laplacian_np{NP}"
+    weak_laplacian.__qualname__ = weak_laplacian.__name__ = f"weak_laplacian_rows_np{NP}"
     lap = wp.func(weak_laplacian)
 
+    def field(src: wp.array2d(dtype=vec), hs: wp.array(dtype=vec), f: RowFrame, r: int, q: int):
+        """Row q of field r of X (first: the Cartesian wind, h + hs) or of Y₁ (second)."""
+        if wp.static(S):
+            return src[r, q]
+        if r < 3:
+            return times(src[0, q], f.east[r, q]) + times(src[1, q], f.north[r, q])
+        return src[2, q] + hs[q]
+
+    field.__qualname__ = field.__name__ = f"laplacian_field_{'second' if S else 'first'}_np{NP}"
+    field = wp.func(field)
+
     def kernel(
-        src: wp.array2d(dtype=f64), hs: wp.array(dtype=f64), delta: wp.array2d(dtype=f64), c: wp.vec4d, f: Frame,
-        metric: wp.array2d(dtype=f64), L: wp.array2d(dtype=f64), offset: int,
+        src: wp.array2d(dtype=vec), hs: wp.array(dtype=vec), delta: wp.array2d(dtype=vec), c: wp.vec4d, f: RowFrame,
+        metric: wp.array2d(dtype=vec), dvv: mat, L: wp.array2d(dtype=vec), offset: int,
     ):
-        base = (wp.tid() + offset) * NPP
-        X0 = vec()  # the four rows of X (first) or Y₁ (second)
-        X1 = vec()
-        X2 = vec()
-        X3 = vec()
-        G11 = vec()  # the weak Laplacian's metric (``laplacian_metric``), once for all rows
-        G12 = vec()
-        G22 = vec()
-        D = vec()  # δ
-        for k in range(NPP):
-            q = base + k
-            if wp.static(S):
-                X0[k] = src[0, q]
-                X1[k] = src[1, q]
-                X2[k] = src[2, q]
-                X3[k] = src[3, q]
-            else:
-                X0[k] = src[0, q] * f.east[0, q] + src[1, q] * f.north[0, q]
-                X1[k] = src[0, q] * f.east[1, q] + src[1, q] * f.north[1, q]
-                X2[k] = src[0, q] * f.east[2, q] + src[1, q] * f.north[2, q]
-                X3[k] = src[2, q] + hs[q]
-            if wp.static(DIV):
-                D[k] = delta[0, q]
-            G11[k] = metric[0, q]
-            G12[k] = metric[1, q]
-            G22[k] = metric[2, q]
-        L0 = lap(X0, G11, G12, G22)
-        L1 = lap(X1, G11, G12, G22)
-        L2 = lap(X2, G11, G12, G22)
-        L3 = lap(X3, G11, G12, G22)
+        base = (wp.tid() + offset) * NP
+        dvvT = wp.transpose(dvv)
+        G11 = mat()  # the weak Laplacian's metric (``laplacian_metric``), once for all fields
+        G12 = mat()
+        G22 = mat()
         for j in range(NP):
-            for i in range(NP):
-                k = j * NP + i
-                q = base + k
-                Lk = wp.vec4d(L0[k], L1[k], L2[k], L3[k])
-                Xk = wp.vec4d(X0[k], X1[k], X2[k], X3[k])
-                if wp.static(S):
-                    y = shift_second(Lk, Xk, metric[3, q], c[3])
-                else:
-                    y = scale_first(Lk, Xk, metric[3, q], position(f, q), c)
-                    if wp.static(DIV):
-                        a, b = grad(D, i, j)
-                        g = divergent_part(a, b, q, f)
-                        for r in range(3):
-                            y[r] = y[r] + c[1] * metric[3, q] * g[r]
-                for r in range(4):
-                    L[r, q] = y[r]
+            q = base + j
+            G11[j] = metric[0, q]
+            G12[j] = metric[1, q]
+            G22[j] = metric[2, q]
+        # one field at a time, in a loop clang does not unroll: four weak Laplacians
+        # in one block left clang's SLP vectorizer half scalar (1.3x slower)
+        for r in range(L.shape[0]):
+            X = mat()
+            for j in range(NP):
+                X[j] = field(src, hs, f, r, base + j)
+            Lr = lap(X, G11, G12, G22, dvv, dvvT)
+            for j in range(NP):
+                L[r, base + j] = Lr[j]
+        D = mat()  # δ
+        if wp.static(DIV):
+            for j in range(NP):
+                D[j] = delta[0, base + j]
+        for j in range(NP):  # the pointwise part, on the rows just written (in L1)
+            q = base + j
+            Lj = wp.matrix_from_rows(L[0, q], L[1, q], L[2, q], L[3, q])
+            Xj = wp.matrix_from_rows(field(src, hs, f, 0, q), field(src, hs, f, 1, q), field(src, hs, f, 2, q), field(src, hs, f, 3, q))
+            y = stack()
+            if wp.static(S):
+                y = shift_second(Lj, Xj, metric[3, q], c[3])
+            else:
+                y = scale_first(Lj, Xj, metric[3, q], f, q, c)
+                if wp.static(DIV):
+                    y = add_divergent(y, along(D, j, dvvT), across(D, j, dvv), c[1] * metric[3, q], q, f)
+            for r in range(4):
+                L[r, q] = y[r]
 
     kernel.__qualname__ = kernel.__name__ = "laplacian_element__" + ("second" if S else "first__divergent" if DIV else "first")
     return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)
@@ -204,12 +216,10 @@ def laplacian_node(second: bool, divergent: bool):
         if wp.static(S):
             y = shift_second(Lp, Xp, spheremp[p], c[3])
         else:
-            y = scale_first(Lp, Xp, spheremp[p], position(f, p), c)
+            y = scale_first(Lp, Xp, spheremp[p], f, p, c)
             if wp.static(DIV):
                 base, i, j = element_node(p, np)
-                g = divergent_part(d_xi(delta, 0, base, i, j, np, dvv), d_eta(delta, 0, base, i, j, np, dvv), p, f)
-                for r in range(3):
-                    y[r] = y[r] + c[1] * spheremp[p] * g[r]
+                y = add_divergent(y, d_xi(delta, 0, base, i, j, np, dvv), d_eta(delta, 0, base, i, j, np, dvv), c[1] * spheremp[p], p, f)
         for r in range(4):
             L[r, p] = y[r]
 

@@ -8,6 +8,7 @@ Laplacian after the DSS. Reference derivatives use ``dvv[i, m] = l_m'(ξ_i)``.
 """
 
 import functools
+from typing import Any
 
 import warp as wp
 
@@ -137,97 +138,155 @@ def laplace_wk_div(flux: wp.array2d(dtype=f64), dvv: wp.array2d(dtype=f64), np: 
         out[r, p] = weak_divergence(flux, r, dvv, np, p)
 
 
-def dvv_constant(dvv: tuple):
-    """``dvv`` (np rows of np values) as a compile-time constant matrix."""
-    n = len(dvv)
-    return wp.constant(wp.types.matrix(shape=(n, n), dtype=f64)(*[float(a) for row in dvv for a in row]))
+# -- the CPU layout: an element as np rows of np nodes -------------------------
+# One thread per element. Each GLL row j of an element (nodes i = 0..np−1,
+# contiguous in memory) is read and written as one ``wp.types.vector(np)``
+# through ``row_vectors``' view of the model's (rows, N) arrays, and every
+# derivative, metric product and update works on whole rows: the C++ Warp
+# generates is then loops over a row's np lanes, which clang turns into packed
+# SIMD (vmulpd/vfmadd…pd), where a node at a time through runtime strides
+# stayed scalar. The metric work reads its rows the same way (``times``/``over``).
 
 
 @functools.cache
-def reference_gradient(dvv: tuple):
-    """A ``wp.func`` (v, i, j) → (∂ξ v, ∂η v) at node (i, j) of an element's
-    values v (a vector of np² in element order), ``dvv`` compiled in."""
-    NP = len(dvv)
-    DVV = dvv_constant(dvv)
-    vec = wp.types.vector(length=NP * NP, dtype=f64)
+def row_type(np: int):
+    """The type of one GLL row of an element: ``wp.types.vector(np, float64)``."""
+    return wp.types.vector(length=int(np), dtype=f64)
 
-    def reference_gradient(v: vec, i: int, j: int):
-        a = f64(0.0)
-        b = f64(0.0)
-        for m in range(NP):
-            a += DVV[i, m] * v[j * NP + m]
-            b += DVV[j, m] * v[m * NP + i]
-        return a, b
 
-    reference_gradient.__qualname__ = reference_gradient.__name__ = f"reference_gradient_np{NP}"
-    return wp.func(reference_gradient)
+def row_vectors(a: wp.array, np: int) -> wp.array:
+    """A zero-copy view of ``a`` ((rows, N) or (N,) float64, node p = e*np*np + j*np + i,
+    unit stride along the nodes) as (rows, N/np) or (N/np,) ``row_type(np)``: entry
+    e*np + j is GLL row j of element e. What the CPU element kernels take."""
+    np = int(np)
+    if a.dtype != f64 or a.strides[-1] != 8 or a.shape[-1] % np:
+        raise ValueError(f"row_vectors needs float64 with unit node stride and N divisible by np = {np} (got {a.dtype}, {a.shape}, {a.strides})")
+    view = wp.array(
+        ptr=a.ptr, dtype=row_type(np), shape=(*a.shape[:-1], a.shape[-1] // np), strides=(*a.strides[:-1], 8 * np),
+        capacity=a.capacity, device=a.device,
+    )
+    view._ref = a  # keeps the memory alive as long as the view
+    return view
+
+
+@wp.func
+def times(a: f64, b: f64):
+    """The pointwise product of two node values (the per-node kernels' form)."""
+    return a * b
+
+
+@wp.func
+def times(a: wp.types.vector(length=Any, dtype=f64), b: wp.types.vector(length=Any, dtype=f64)):
+    """The pointwise product of two rows of node values (the element kernels' form)."""
+    return wp.cw_mul(a, b)
+
+
+@wp.func
+def over(a: f64, b: f64):
+    """a / b at a node."""
+    return a / b
+
+
+@wp.func
+def over(a: wp.types.vector(length=Any, dtype=f64), b: wp.types.vector(length=Any, dtype=f64)):
+    """a / b on rows of node values, componentwise."""
+    return wp.cw_div(a, b)
 
 
 @functools.cache
-def reference_divergence(dvv: tuple):
-    """A ``wp.func`` (f1, f2, i, j) → ∂ξ f1 + ∂η f2 at node (i, j) of an element's
-    values (vectors of np² in element order), ``dvv`` compiled in."""
-    NP = len(dvv)
-    DVV = dvv_constant(dvv)
-    vec = wp.types.vector(length=NP * NP, dtype=f64)
+def row_derivatives(np: int):
+    """The reference derivatives on an element held as rows: F a matrix of np
+    ``row_type(np)`` rows, F[j, i] the value at node (i, j). Returns (row type,
+    matrix type, ``along``, ``across``), two ``wp.func`` of (F, j, M) → a row:
 
-    def reference_divergence(f1: vec, f2: vec, i: int, j: int):
-        s = f64(0.0)
+    * ``along``:  Σ_m M[m] F[j, m] = (F M)[j]  (M's rows scaled by row j's values),
+    * ``across``: Σ_m M[j, m] F[m] = (M F)[j]  (F's rows scaled by M's entries).
+
+    With dvv (``dvv_matrix``; dvv[i, m] = l_m'(ξ_i)): ∂ξ f = along(F, j, dvvᵀ),
+    ∂η f = across(F, j, dvv), and their transposes in the weak divergence
+    along(F, j, dvv), across(F, j, dvvᵀ). dvv is a kernel argument, not a
+    compile-time constant: with its entries compiled in, clang folded them lane
+    by lane (zeros, ±1, the GLL symmetries), the lanes of a row no longer did
+    the same work, and the weak Laplacian stayed half scalar (2–2.5× slower a
+    field, measured at np 4)."""
+    NP = int(np)
+    vec = row_type(NP)
+    mat = wp.types.matrix(shape=(NP, NP), dtype=f64)
+
+    def along(F: mat, j: int, M: mat):
+        s = vec()
         for m in range(NP):
-            s += DVV[i, m] * f1[j * NP + m] + DVV[j, m] * f2[m * NP + i]
+            s += M[m] * F[j, m]
         return s
 
-    reference_divergence.__qualname__ = reference_divergence.__name__ = f"reference_divergence_np{NP}"
-    return wp.func(reference_divergence)
+    def across(F: mat, j: int, M: mat):
+        s = vec()
+        for m in range(NP):
+            s += M[j, m] * F[m]
+        return s
+
+    funcs = []
+    for f in (along, across):
+        f.__qualname__ = f.__name__ = f"{f.__name__}_np{NP}"
+        funcs.append(wp.func(f))
+    return (vec, mat, *funcs)
+
+
+def dvv_matrix(dvv) -> object:
+    """The derivative matrix dvv (np × np, dvv[i, m] = l_m'(ξ_i)) as the value the
+    element kernels take (``row_derivatives``' matrix type)."""
+    rows = [[float(a) for a in row] for row in dvv]
+    return row_derivatives(len(rows))[1](*[a for row in rows for a in row])
 
 
 @functools.cache
-def gradient_element(dvv: tuple):
-    """``gradient_sphere`` with one thread per element and ``dvv`` compiled in:
-    out[0:2] = ∇ f[row]. Arguments: f, row, Dinv, out, offset (in elements). Dim nelem."""
-    NP = len(dvv)
-    NPP = NP * NP
-    grad = reference_gradient(dvv)
-    vec = wp.types.vector(length=NPP, dtype=f64)
+def gradient_element(np: int):
+    """``gradient_sphere`` with one thread per element: out[0:2] = ∇ f[row].
+    Arguments (``row_vectors`` views): f (rows, N/np), row, Dinv (4, N/np), dvv
+    (``dvv_matrix``), out (2, N/np), offset (in elements). Dim nelem."""
+    vec, mat, along, across = row_derivatives(np)
+    NP = int(np)
 
-    def gradient_element(f: wp.array2d(dtype=f64), row: int, Dinv: wp.array2d(dtype=f64), out: wp.array2d(dtype=f64), offset: int):
-        base = (wp.tid() + offset) * NPP
-        v = vec()
-        for k in range(NPP):
-            v[k] = f[row, base + k]
+    def gradient_element(f: wp.array2d(dtype=vec), row: int, Dinv: wp.array2d(dtype=vec), dvv: mat, out: wp.array2d(dtype=vec), offset: int):
+        base = (wp.tid() + offset) * NP
+        dvvT = wp.transpose(dvv)
+        F = mat()
         for j in range(NP):
-            for i in range(NP):
-                a, b = grad(v, i, j)
-                p = base + j * NP + i
-                out[0, p] = Dinv[0, p] * a + Dinv[2, p] * b
-                out[1, p] = Dinv[1, p] * a + Dinv[3, p] * b
+            F[j] = f[row, base + j]
+        for j in range(NP):
+            a = along(F, j, dvvT)
+            b = across(F, j, dvv)
+            q = base + j
+            out[0, q] = times(Dinv[0, q], a) + times(Dinv[2, q], b)
+            out[1, q] = times(Dinv[1, q], a) + times(Dinv[3, q], b)
 
     gradient_element.__qualname__ = "gradient_element"  # the kernel's key
     return wp.kernel(gradient_element, enable_backward=False, module="unique", module_options=CPU_FAST)
 
 
 @functools.cache
-def divergence_element(dvv: tuple):
-    """``divergence_sphere`` with one thread per element and ``dvv`` compiled in:
-    out = ∇·v of the wind in rows 0, 1 of x. Arguments: x, Dinv, metdet, out (N),
-    offset (in elements). Dim nelem."""
-    NP = len(dvv)
-    NPP = NP * NP
-    div = reference_divergence(dvv)
-    vec = wp.types.vector(length=NPP, dtype=f64)
+def divergence_element(np: int):
+    """``divergence_sphere`` with one thread per element: out = ∇·v of the wind
+    in rows 0, 1 of x. Arguments (``row_vectors`` views): x (rows, N/np), Dinv
+    (4, N/np), metdet (N/np), dvv (``dvv_matrix``), out (N/np), offset (in
+    elements). Dim nelem."""
+    vec, mat, along, across = row_derivatives(np)
+    NP = int(np)
 
-    def divergence_element(x: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), out: wp.array(dtype=f64), offset: int):
-        base = (wp.tid() + offset) * NPP
-        f1 = vec()  # metdet c¹, metdet c²
-        f2 = vec()
-        for k in range(NPP):
-            q = base + k
-            f1[k] = metdet[q] * (Dinv[0, q] * x[0, q] + Dinv[1, q] * x[1, q])
-            f2[k] = metdet[q] * (Dinv[2, q] * x[0, q] + Dinv[3, q] * x[1, q])
+    def divergence_element(
+        x: wp.array2d(dtype=vec), Dinv: wp.array2d(dtype=vec), metdet: wp.array(dtype=vec), dvv: mat, out: wp.array(dtype=vec), offset: int
+    ):
+        base = (wp.tid() + offset) * NP
+        dvvT = wp.transpose(dvv)
+        f1 = mat()  # metdet c¹, metdet c²
+        f2 = mat()
         for j in range(NP):
-            for i in range(NP):
-                p = base + j * NP + i
-                out[p] = div(f1, f2, i, j) / metdet[p]
+            q = base + j
+            f1[j] = times(metdet[q], times(Dinv[0, q], x[0, q]) + times(Dinv[1, q], x[1, q]))
+            f2[j] = times(metdet[q], times(Dinv[2, q], x[0, q]) + times(Dinv[3, q], x[1, q]))
+        for j in range(NP):
+            q = base + j
+            out[q] = over(along(f1, j, dvvT) + across(f2, j, dvv), metdet[q])
 
     divergence_element.__qualname__ = "divergence_element"  # the kernel's key
     return wp.kernel(divergence_element, enable_backward=False, module="unique", module_options=CPU_FAST)

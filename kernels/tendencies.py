@@ -14,16 +14,16 @@ the same arithmetic:
   each thread re-reads its element's row and column.
 * ``tendency_element(terms, dvv)``: one thread per element (dim nelem), for the
   CPU, where a launch is one serial loop: each node's fluxes are formed once
-  into local vectors and differentiated from there, with ``dvv`` compiled in
-  as constants and FMA contraction on (2.9× the per-node kernel on one core at
-  ne30 np4).
+  into local rows and differentiated from there, with FMA contraction on, on
+  whole GLL rows (``operators.row_vectors``) so that it runs as packed SIMD.
 """
 
 import functools
+from typing import Any
 
 import warp as wp
 
-from .operators import CPU_FAST, dvv_constant, element_node
+from .operators import CPU_FAST, element_node, over, row_derivatives, times
 
 f64 = wp.float64
 
@@ -40,33 +40,36 @@ def _flags(terms):
 
 @functools.cache
 def finish(terms: tuple):
-    """The pointwise end of the tendency at node p, shared by both layouts: from
-    the reference derivatives div = Σ∂(metdet h c), (bx, by) = ∂(Bernoulli), and
-    cx − cy = ∂ξ v₂ − ∂η v₁ (covariant wind), write tend[:, p]."""
+    """The pointwise end of the tendency, shared by both layouts: from the
+    reference derivatives div = Σ∂(metdet h c), (bx, by) = ∂(Bernoulli), and
+    cx − cy = ∂ξ v₂ − ∂η v₁ (covariant wind), write tend[:, p]. Generic: p is a
+    node and the values float64 (per-node kernel), or p is a row and the values
+    rows (``operators.row_vectors``, the element kernel)."""
     CONT, ADV, COR, PG, TOPO = _flags(terms)
     GRAD = ADV or PG
 
     def finish_terms(
-        p: int, div: f64, bx: f64, by: f64, cx: f64, cy: f64,
-        x: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64),
-        fcor: wp.array(dtype=f64), forcing: wp.array2d(dtype=f64), tend: wp.array2d(dtype=f64),
+        p: int, div: Any, bx: Any, by: Any, cx: Any, cy: Any,
+        x: wp.array2d(dtype=Any), Dinv: wp.array2d(dtype=Any), metdet: wp.array(dtype=Any),
+        fcor: wp.array(dtype=Any), forcing: wp.array2d(dtype=Any), tend: wp.array2d(dtype=Any),
     ):
-        du = f64(0.0)
-        dv = f64(0.0)
-        dh = f64(0.0)
+        zero = type(div)(f64(0.0))
+        du = zero
+        dv = zero
+        dh = zero
         if wp.static(CONT):
-            dh = -div / metdet[p]
+            dh = -over(div, metdet[p])
         if wp.static(GRAD):
-            du = -(Dinv[0, p] * bx + Dinv[2, p] * by)
-            dv = -(Dinv[1, p] * bx + Dinv[3, p] * by)
-        rot = f64(0.0)  # ζ + f, the absolute vorticity's named parts
+            du = -(times(Dinv[0, p], bx) + times(Dinv[2, p], by))
+            dv = -(times(Dinv[1, p], bx) + times(Dinv[3, p], by))
+        rot = zero  # ζ + f, the absolute vorticity's named parts
         if wp.static(ADV):
-            rot += (cx - cy) / metdet[p]
+            rot += over(cx - cy, metdet[p])
         if wp.static(COR):
             rot += fcor[p]
         if wp.static(ADV or COR):  # −(ζ + f) k×v
-            du += rot * x[1, p]
-            dv -= rot * x[0, p]
+            du += times(rot, x[1, p])
+            dv -= times(rot, x[0, p])
         if wp.static(TOPO):
             du += forcing[0, p]
             dv += forcing[1, p]
@@ -133,69 +136,66 @@ def tendency(terms: tuple):
 
 
 @functools.cache
-def tendency_element(terms: tuple, dvv: tuple):
-    """The tendency kernel for ``terms``, one thread per element, for the
-    derivative matrix ``dvv`` (np rows of np values, compiled in). Arguments:
-    x (3, N) state, D, Dinv (4, N), metdet, fcor (N), forcing (2, N)
-    topographic −g∇hs, g, tend (3, N) output, offset (in elements). Dim nelem."""
+def tendency_element(terms: tuple, np: int):
+    """The tendency kernel for ``terms``, one thread per element, on GLL rows
+    (``operators.row_vectors`` views). Arguments: x (3, N/np) state, D, Dinv
+    (4, N/np), metdet, fcor (N/np), forcing (2, N/np) topographic −g∇hs, g,
+    dvv (``operators.dvv_matrix``), tend (3, N/np) output, offset (in
+    elements). Dim nelem."""
     CONT, ADV, _, PG, _ = _flags(terms)
     GRAD = ADV or PG
-    NP = len(dvv)
-    NPP = NP * NP
-    vec = wp.types.vector(length=NPP, dtype=f64)
-    DVV = dvv_constant(dvv)
+    NP = int(np)
+    vec, mat, along, across = row_derivatives(NP)
 
     def kernel(
-        x: wp.array2d(dtype=f64),
-        D: wp.array2d(dtype=f64),
-        Dinv: wp.array2d(dtype=f64),
-        metdet: wp.array(dtype=f64),
-        fcor: wp.array(dtype=f64),
-        forcing: wp.array2d(dtype=f64),
+        x: wp.array2d(dtype=vec),
+        D: wp.array2d(dtype=vec),
+        Dinv: wp.array2d(dtype=vec),
+        metdet: wp.array(dtype=vec),
+        fcor: wp.array(dtype=vec),
+        forcing: wp.array2d(dtype=vec),
         g: f64,
-        tend: wp.array2d(dtype=f64),
+        dvv: mat,
+        tend: wp.array2d(dtype=vec),
         offset: int,
     ):
-        base = (wp.tid() + offset) * NPP
-        f1 = vec()  # metdet h c¹, metdet h c²: the mass flux (continuity)
-        f2 = vec()
-        E = vec()  # the Bernoulli function
-        v1 = vec()  # covariant wind (vorticity)
-        v2 = vec()
-        for k in range(NPP):
-            q = base + k
+        base = (wp.tid() + offset) * NP
+        dvvT = wp.transpose(dvv)
+        f1 = mat()  # metdet h c¹, metdet h c²: the mass flux (continuity)
+        f2 = mat()
+        E = mat()  # the Bernoulli function
+        v1 = mat()  # covariant wind (vorticity)
+        v2 = mat()
+        for j in range(NP):
+            q = base + j
             u = x[0, q]
             v = x[1, q]
             h = x[2, q]
             if wp.static(CONT):
-                Jh = metdet[q] * h
-                f1[k] = Jh * (Dinv[0, q] * u + Dinv[1, q] * v)
-                f2[k] = Jh * (Dinv[2, q] * u + Dinv[3, q] * v)
+                Jh = times(metdet[q], h)
+                f1[j] = times(Jh, times(Dinv[0, q], u) + times(Dinv[1, q], v))
+                f2[j] = times(Jh, times(Dinv[2, q], u) + times(Dinv[3, q], v))
             if wp.static(ADV):
-                E[k] = f64(0.5) * (u * u + v * v)
-                v1[k] = D[0, q] * u + D[2, q] * v
-                v2[k] = D[1, q] * u + D[3, q] * v
+                E[j] = f64(0.5) * (times(u, u) + times(v, v))
+                v1[j] = times(D[0, q], u) + times(D[2, q], v)
+                v2[j] = times(D[1, q], u) + times(D[3, q], v)
             if wp.static(PG):
-                E[k] = E[k] + g * h
+                E[j] = E[j] + g * h
         for j in range(NP):
-            for i in range(NP):
-                div = f64(0.0)
-                bx = f64(0.0)
-                by = f64(0.0)
-                cx = f64(0.0)
-                cy = f64(0.0)
-                for m in range(NP):
-                    a = DVV[i, m]  # along ξ through (i, j): node j*NP + m
-                    b = DVV[j, m]  # along η: node m*NP + i
-                    if wp.static(CONT):
-                        div += a * f1[j * NP + m] + b * f2[m * NP + i]
-                    if wp.static(GRAD):
-                        bx += a * E[j * NP + m]
-                        by += b * E[m * NP + i]
-                    if wp.static(ADV):
-                        cx += a * v2[j * NP + m]
-                        cy += b * v1[m * NP + i]
-                wp.static(finish(terms))(base + j * NP + i, div, bx, by, cx, cy, x, Dinv, metdet, fcor, forcing, tend)
+            div = vec()
+            bx = vec()
+            by = vec()
+            cx = vec()
+            cy = vec()
+            if wp.static(CONT):
+                div = along(f1, j, dvvT) + across(f2, j, dvv)
+            if wp.static(GRAD):
+                bx = along(E, j, dvvT)
+                by = across(E, j, dvv)
+            if wp.static(ADV):
+                cx = along(v2, j, dvvT)
+                cy = across(v1, j, dvv)
+            wp.static(finish(terms))(base + j, div, bx, by, cx, cy, x, Dinv, metdet, fcor, forcing, tend)
 
     kernel.__qualname__ = kernel.__name__ = "tendency__" + "__".join(terms)
     return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)

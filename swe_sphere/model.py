@@ -108,7 +108,7 @@ class ShallowWater:
             raise ValueError(f"threads must be >= 1 (got {threads})")
         self.nu, self.hypervis_subcycle, self.g = float(nu), int(hypervis_subcycle), float(g)
         self.per_element = wp.get_device(device).is_cpu if per_element is None else bool(per_element)
-        self.dvv_const = tuple(map(tuple, grid.rule.dvv.tolist()))  # compiled into the per-element kernels
+        self.dvv_rows = operators.dvv_matrix(grid.rule.dvv)  # the per-element kernels' dvv argument
         N = grid.npts
         self.N = N
 
@@ -219,8 +219,8 @@ class ShallowWater:
             forcing = self.topo_forcing if self.topo_forcing is not None else self.vec_work  # read only with topography
             args = [x, self.D, self.Dinv, self.metdet, self.fcor, forcing]
             if self.per_element:
-                kernel = tendencies.tendency_element(terms, self.dvv_const)
-                launches.append(self._launch_elements(kernel, [*args, self.g, self.tend]))
+                kernel = tendencies.tendency_element(terms, self.grid.np)
+                launches.append(self._launch_elements(kernel, [*map(self._rows, args), self.g, self.dvv_rows, self._rows(self.tend)]))
             else:
                 kernel = tendencies.tendency(terms)
                 launches.append(self._launch(kernel, self.N, [*args, self.dvv, self.grid.np, self.g, self.tend]))
@@ -341,12 +341,14 @@ class ShallowWater:
         launches = self._build_div(x, delta) if divergent else []
         # each pass is given the node frame's arrays it reads: the first the position (and the
         # per-element one the wind's basis), ∇δ Dinv and the basis; the second none
-        frame = self._frame("xyz", *(("east", "north") if self.per_element or divergent else ()), *(("Dinv",) if divergent else ()))
+        names = ("xyz", *(("east", "north") if self.per_element or divergent else ()), *(("Dinv",) if divergent else ()))
+        frame = self._frame(*names)
 
         if self.per_element:
             def laplacian(second):  # → the weak form of Y₁ or Y₂ in L
-                kernel = hyperviscosity.laplacian_element(second, divergent, self.dvv_const)
-                args = [Y if second else x, self.hs, delta, c, self._frame() if second else frame, self.hv_metric, L]
+                kernel = hyperviscosity.laplacian_element(second, divergent, np_)
+                rows = self._frame(rows=True) if second else self._frame(*names, rows=True)
+                args = [*map(self._rows, (Y if second else x, self.hs, delta)), c, rows, self._rows(self.hv_metric), self.dvv_rows, self._rows(L)]
                 return [self._launch_elements(kernel, args)]
         else:
             def laplacian(second):
@@ -370,14 +372,20 @@ class ShallowWater:
             *self.topology.gathering(L, apply, [f64(coef), self._frame("east", "north"), out]),
         ]
 
-    def _frame(self, *names):
+    def _frame(self, *names, rows=False):
         """A ``kernels.hyperviscosity.Frame`` holding the model's arrays of these
         names, the others null: what a ∇⁴ pass reads and no more (a launch's
-        arguments are what ``benchmarks/gpu_model.py`` counts as its traffic)."""
-        frame = hyperviscosity.Frame()
+        arguments are what ``benchmarks/gpu_model.py`` counts as its traffic);
+        with ``rows``, the element kernels' frame of their row views (``_rows``)."""
+        frame = hyperviscosity.frame_type(operators.row_type(self.grid.np) if rows else f64)()
         for name in names:
-            setattr(frame, name, getattr(self, name))
+            array = getattr(self, name)
+            setattr(frame, name, self._rows(array) if rows else array)
         return frame
+
+    def _rows(self, a: wp.array) -> wp.array:
+        """``a`` as the GLL rows the per-element kernels read and write (``kernels.operators.row_vectors``)."""
+        return operators.row_vectors(a, self.grid.np)
 
     def hyperviscosity_operator(self, x: wp.array2d, out: wp.array2d) -> None:
         """out (3, N) = B x, the hyperviscosity operator ν∇⁴ with the model's
@@ -494,7 +502,7 @@ class ShallowWater:
     # -- DSS'd operators for the (semi-)implicit solvers --------------------
     def _build_grad(self, x, row, out):
         return [
-            self._launch_elements(operators.gradient_element(self.dvv_const), [x, row, self.Dinv, self.vec_work])
+            self._launch_elements(operators.gradient_element(self.grid.np), [self._rows(x), row, self._rows(self.Dinv), self.dvv_rows, self._rows(self.vec_work)])
             if self.per_element
             else self._launch(operators.gradient_sphere, self.N, [x, row, self.Dinv, self.dvv, self.grid.np, self.vec_work]),
             *self._dss(self.vec_work, 1, out),
@@ -502,7 +510,9 @@ class ShallowWater:
 
     def _build_div(self, x, out):
         return [
-            self._launch_elements(operators.divergence_element(self.dvv_const), [x, self.Dinv, self.metdet, self.scalar_flat])
+            self._launch_elements(
+                operators.divergence_element(self.grid.np), [*map(self._rows, (x, self.Dinv, self.metdet)), self.dvv_rows, self._rows(self.scalar_flat)]
+            )
             if self.per_element
             else self._launch(operators.divergence_sphere, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.scalar_flat]),
             *self._dss(self.scalar, 1, out),

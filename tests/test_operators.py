@@ -9,6 +9,7 @@ symmetry of the weak Laplacian, mass conservation of the RHS, launch lists).
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -62,13 +63,15 @@ def wp_divergence(m, u, v):
 
 def wp_gradient_element(m, f):
     out = wp.zeros((2, m.N), dtype=wp.float64, device=DEV)
-    wp.launch(operators.gradient_element(m.dvv_const), m.grid.nelem, [w2(f), 0, m.Dinv, out, 0], device=DEV)
+    rows = functools.partial(operators.row_vectors, np=m.grid.np)  # the element kernels' GLL rows
+    wp.launch(operators.gradient_element(m.grid.np), m.grid.nelem, [rows(w2(f)), 0, rows(m.Dinv), m.dvv_rows, rows(out), 0], device=DEV)
     return out.numpy()
 
 
 def wp_divergence_element(m, u, v):
     out = wp.zeros(m.N, dtype=wp.float64, device=DEV)
-    wp.launch(operators.divergence_element(m.dvv_const), m.grid.nelem, [w2([u, v]), m.Dinv, m.metdet, out, 0], device=DEV)
+    rows = functools.partial(operators.row_vectors, np=m.grid.np)
+    wp.launch(operators.divergence_element(m.grid.np), m.grid.nelem, [*map(rows, (w2([u, v]), m.Dinv, m.metdet)), m.dvv_rows, rows(out), 0], device=DEV)
     return out.numpy()
 
 

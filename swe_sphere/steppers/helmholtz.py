@@ -56,6 +56,7 @@ import warp as wp
 
 from ..kernels import gravity_wave as gk
 from ..kernels import helmholtz as hk
+from ..kernels.operators import row_vectors
 from ..model import ShallowWater
 from ..parallel import record, reduction_chunk
 from .base import StepFailure
@@ -246,10 +247,16 @@ class GravityWave:
             m, topo = self.model, self.model.topology
             halo = topo.owned.recv_buffer
             y2 = y.reshape((1, topo.nunique))
-            div = self._rec(hk.helmholtz_divergence(m.dvv_const, topo.table.shape[1]), m.grid.nelem,
-                            [self.wg, topo.ghost, topo.N, topo.table, topo.rspheremp, y, halo, topo.gid, m.Dinv, m.metdet, topo.spheremp, f64(0.0), self.z],
+
+            def rows(a):  # the element kernels' GLL rows
+                return row_vectors(a, m.grid.np)
+
+            div = self._rec(hk.helmholtz_divergence(m.grid.np, topo.table.shape[1]), m.grid.nelem,
+                            [self.wg, topo.ghost, topo.N, topo.table, topo.rspheremp, y, halo, topo.gid, rows(m.Dinv), rows(m.metdet),
+                             rows(topo.spheremp), m.dvv_rows, f64(0.0), rows(self.z)],
                             nodes_per_index=m.grid.np**2)
-            grad = self._rec(hk.helmholtz_gradient(m.dvv_const), m.grid.nelem, [y, halo, topo.gid, m.Dinv, topo.spheremp, self.wg],
+            grad = self._rec(hk.helmholtz_gradient(m.grid.np), m.grid.nelem,
+                             [y, halo, topo.gid, rows(m.Dinv), rows(topo.spheremp), m.dvv_rows, rows(self.wg)],
                              nodes_per_index=m.grid.np**2)
             assemble = self._rec(hk.helmholtz_assemble(topo.table.shape[1]), self.partial.shape[1],
                                  [self.z, topo.ghost, topo.N, topo.table, topo.first, y, out, self.partial, self.chunk], nodes_per_index=self.chunk)

@@ -1,8 +1,9 @@
 """Spectral-element operators on the sphere (HOMME ``derivative_mod``).
 
 ``gradient_sphere``, ``divergence_sphere``, ``vorticity_sphere`` are the strong
-forms (one thread per node, for CUDA; ``gradient_element`` and
-``divergence_element`` are the same for the CPU, one thread per element); ``laplace_wk_flux`` + ``laplace_wk_div`` the weak Laplacian
+forms (one thread per node, for CUDA; ``gradient_element``,
+``divergence_element`` and ``vorticity_element`` are the same for the CPU, one
+thread per element, on GLL rows); ``laplace_wk_flux`` + ``laplace_wk_div`` the weak Laplacian
 ``∫ φ Δf = −∫ ∇φ·∇f`` (HOMME ``laplace_sphere_wk``), which gives the
 Laplacian after the DSS. Reference derivatives use ``dvv[i, m] = l_m'(ξ_i)``.
 """
@@ -193,6 +194,14 @@ def over(a: wp.types.vector(length=Any, dtype=f64), b: wp.types.vector(length=An
     return wp.cw_div(a, b)
 
 
+@wp.func
+def covariant(D: wp.array2d(dtype=Any), x: wp.array2d(dtype=Any), q: int):
+    """The covariant wind (v₁, v₂) = Dᵀ (u, v) at row q of the wind in rows 0, 1 of x."""
+    u = x[0, q]
+    v = x[1, q]
+    return times(D[0, q], u) + times(D[2, q], v), times(D[1, q], u) + times(D[3, q], v)
+
+
 @functools.cache
 def row_derivatives(np: int):
     """The reference derivatives on an element held as rows: F a matrix of np
@@ -290,3 +299,31 @@ def divergence_element(np: int):
 
     divergence_element.__qualname__ = "divergence_element"  # the kernel's key
     return wp.kernel(divergence_element, enable_backward=False, module="unique", module_options=CPU_FAST)
+
+
+@functools.cache
+def vorticity_element(np: int):
+    """``vorticity_sphere`` with one thread per element: out = k·∇×v (s⁻¹) of the
+    wind in rows 0, 1 of x. Arguments (``row_vectors`` views): x (rows, N/np),
+    D (4, N/np), metdet (N/np), dvv (``dvv_matrix``), out (N/np), offset (in
+    elements). Dim nelem."""
+    vec, mat, along, across = row_derivatives(np)
+    NP = int(np)
+
+    def vorticity_element(
+        x: wp.array2d(dtype=vec), D: wp.array2d(dtype=vec), metdet: wp.array(dtype=vec), dvv: mat, out: wp.array(dtype=vec), offset: int
+    ):
+        base = (wp.tid() + offset) * NP
+        dvvT = wp.transpose(dvv)
+        v1 = mat()  # the covariant wind
+        v2 = mat()
+        for j in range(NP):
+            a, b = covariant(D, x, base + j)
+            v1[j] = a
+            v2[j] = b
+        for j in range(NP):  # (∂ξ v₂ − ∂η v₁)/metdet
+            q = base + j
+            out[q] = over(along(v2, j, dvvT) - across(v1, j, dvv), metdet[q])
+
+    vorticity_element.__qualname__ = "vorticity_element"  # the kernel's key
+    return wp.kernel(vorticity_element, enable_backward=False, module="unique", module_options=CPU_FAST)

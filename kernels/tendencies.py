@@ -23,7 +23,7 @@ from typing import Any
 
 import warp as wp
 
-from .operators import CPU_FAST, element_node, over, row_derivatives, times
+from .operators import CPU_FAST, covariant, element_node, over, row_derivatives, times
 
 f64 = wp.float64
 
@@ -177,8 +177,9 @@ def tendency_element(terms: tuple, np: int):
                 f2[j] = times(Jh, times(Dinv[2, q], u) + times(Dinv[3, q], v))
             if wp.static(ADV):
                 E[j] = f64(0.5) * (times(u, u) + times(v, v))
-                v1[j] = times(D[0, q], u) + times(D[2, q], v)
-                v2[j] = times(D[1, q], u) + times(D[3, q], v)
+                c1, c2 = covariant(D, x, q)
+                v1[j] = c1
+                v2[j] = c2
             if wp.static(PG):
                 E[j] = E[j] + g * h
         for j in range(NP):

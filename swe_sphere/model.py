@@ -541,7 +541,11 @@ class ShallowWater:
             ("vort", _id(x)),
             (x,),
             lambda: [
-                self._launch(operators.vorticity_sphere, self.N, [x, self.D, self.metdet, self.dvv, self.grid.np, self.scalar_flat]),
+                self._launch_elements(
+                    operators.vorticity_element(self.grid.np), [*map(self._rows, (x, self.D, self.metdet)), self.dvv_rows, self._rows(self.scalar_flat)]
+                )
+                if self.per_element
+                else self._launch(operators.vorticity_sphere, self.N, [x, self.D, self.metdet, self.dvv, self.grid.np, self.scalar_flat]),
                 *self._dss(self.scalar, 1, self.scalar_dss),
             ],
         )

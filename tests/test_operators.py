@@ -75,6 +75,13 @@ def wp_divergence_element(m, u, v):
     return out.numpy()
 
 
+def wp_vorticity_element(m, u, v):
+    out = wp.zeros(m.N, dtype=wp.float64, device=DEV)
+    rows = functools.partial(operators.row_vectors, np=m.grid.np)
+    wp.launch(operators.vorticity_element(m.grid.np), m.grid.nelem, [*map(rows, (w2([u, v]), m.D, m.metdet)), m.dvv_rows, rows(out), 0], device=DEV)
+    return out.numpy()
+
+
 def wp_vorticity(m, u, v):
     out = wp.zeros(m.N, dtype=wp.float64, device=DEV)
     wp.launch(operators.vorticity_sphere, m.N, [w2([u, v]), m.D, m.metdet, m.dvv, m.grid.np, out, 0], device=DEV)
@@ -269,6 +276,7 @@ def test_operator_kernels_match_numpy(np_, rng):
         assert close(wp_gradient_element(m, f), ops.gradient(f))  # the CPU layout
         assert close(wp_divergence_element(m, u, v), ops.divergence(u, v))
         assert close(wp_vorticity(m, u, v), ops.vorticity(u, v))
+        assert close(wp_vorticity_element(m, u, v), ops.vorticity(u, v))
         F = np.stack([f, u, v])
         assert close(wp_laplace_wk(m, F), ops.laplace_wk(F))
         for weighted in (True, False):

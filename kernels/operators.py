@@ -273,57 +273,48 @@ def gradient_element(np: int):
     return wp.kernel(gradient_element, enable_backward=False, module="unique", module_options=CPU_FAST)
 
 
+
+
 @functools.cache
 def divergence_element(np: int):
-    """``divergence_sphere`` with one thread per element: out = ∇·v of the wind
-    in rows 0, 1 of x. Arguments (``row_vectors`` views): x (rows, N/np), Dinv
-    (4, N/np), metdet (N/np), dvv (``dvv_matrix``), out (N/np), offset (in
-    elements). Dim nelem."""
-    vec, mat, along, across = row_derivatives(np)
-    NP = int(np)
-
-    def divergence_element(
-        x: wp.array2d(dtype=vec), Dinv: wp.array2d(dtype=vec), metdet: wp.array(dtype=vec), dvv: mat, out: wp.array(dtype=vec), offset: int
-    ):
-        base = (wp.tid() + offset) * NP
-        dvvT = wp.transpose(dvv)
-        f1 = mat()  # metdet c¹, metdet c²
-        f2 = mat()
-        for j in range(NP):
-            q = base + j
-            f1[j] = times(metdet[q], times(Dinv[0, q], x[0, q]) + times(Dinv[1, q], x[1, q]))
-            f2[j] = times(metdet[q], times(Dinv[2, q], x[0, q]) + times(Dinv[3, q], x[1, q]))
-        for j in range(NP):
-            q = base + j
-            out[q] = over(along(f1, j, dvvT) + across(f2, j, dvv), metdet[q])
-
-    divergence_element.__qualname__ = "divergence_element"  # the kernel's key
-    return wp.kernel(divergence_element, enable_backward=False, module="unique", module_options=CPU_FAST)
+    """``divergence_sphere`` with one thread per element: out = ∇·v (s⁻¹) of the
+    wind in rows 0, 1 of x. Arguments (``row_vectors`` views): x (rows, N/np),
+    M = Dinv (4, N/np), metdet (N/np), dvv (``dvv_matrix``), out (N/np), offset
+    (in elements). Dim nelem."""
+    return _wind_element(np, curl=False)
 
 
 @functools.cache
 def vorticity_element(np: int):
     """``vorticity_sphere`` with one thread per element: out = k·∇×v (s⁻¹) of the
-    wind in rows 0, 1 of x. Arguments (``row_vectors`` views): x (rows, N/np),
-    D (4, N/np), metdet (N/np), dvv (``dvv_matrix``), out (N/np), offset (in
-    elements). Dim nelem."""
-    vec, mat, along, across = row_derivatives(np)
-    NP = int(np)
+    wind in rows 0, 1 of x. Arguments as ``divergence_element``'s, with M = D (4, N/np)."""
+    return _wind_element(np, curl=True)
 
-    def vorticity_element(
-        x: wp.array2d(dtype=vec), D: wp.array2d(dtype=vec), metdet: wp.array(dtype=vec), dvv: mat, out: wp.array(dtype=vec), offset: int
-    ):
+
+def _wind_element(np: int, curl: bool):
+    """The divergence (metdet c¹, metdet c² from the contravariant c = Dinv v;
+    (∂ξ(metdet c¹) + ∂η(metdet c²))/metdet) or the vorticity (the covariant
+    (v₁, v₂) = Dᵀ v; (∂ξ v₂ − ∂η v₁)/metdet) of an element's rows."""
+    vec, mat, along, across = row_derivatives(np)
+    NP, CURL = int(np), bool(curl)
+
+    def kernel(x: wp.array2d(dtype=vec), M: wp.array2d(dtype=vec), metdet: wp.array(dtype=vec), dvv: mat, out: wp.array(dtype=vec), offset: int):
         base = (wp.tid() + offset) * NP
         dvvT = wp.transpose(dvv)
-        v1 = mat()  # the covariant wind
-        v2 = mat()
+        fx = mat()  # differentiated along ξ (metdet c¹, or v₂) and along η (metdet c², or v₁)
+        fy = mat()
         for j in range(NP):
-            a, b = covariant(D, x, base + j)
-            v1[j] = a
-            v2[j] = b
-        for j in range(NP):  # (∂ξ v₂ − ∂η v₁)/metdet
             q = base + j
-            out[q] = over(along(v2, j, dvvT) - across(v1, j, dvv), metdet[q])
+            if wp.static(CURL):
+                v1, v2 = covariant(M, x, q)
+                fx[j] = v2
+                fy[j] = -v1
+            else:
+                fx[j] = times(metdet[q], times(M[0, q], x[0, q]) + times(M[1, q], x[1, q]))
+                fy[j] = times(metdet[q], times(M[2, q], x[0, q]) + times(M[3, q], x[1, q]))
+        for j in range(NP):
+            q = base + j
+            out[q] = over(along(fx, j, dvvT) + across(fy, j, dvv), metdet[q])
 
-    vorticity_element.__qualname__ = "vorticity_element"  # the kernel's key
-    return wp.kernel(vorticity_element, enable_backward=False, module="unique", module_options=CPU_FAST)
+    kernel.__qualname__ = kernel.__name__ = "vorticity_element" if CURL else "divergence_element"  # the kernel's key
+    return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)

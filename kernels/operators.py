@@ -301,7 +301,7 @@ def _wind_element(np: int, curl: bool):
     def kernel(x: wp.array2d(dtype=vec), M: wp.array2d(dtype=vec), metdet: wp.array(dtype=vec), dvv: mat, out: wp.array(dtype=vec), offset: int):
         base = (wp.tid() + offset) * NP
         dvvT = wp.transpose(dvv)
-        fx = mat()  # differentiated along ξ (metdet c¹, or v₂) and along η (metdet c², or v₁)
+        fx = mat()  # differentiated along ξ (metdet c¹, or v₂) and along η (metdet c², or −v₁)
         fy = mat()
         for j in range(NP):
             q = base + j

@@ -220,7 +220,7 @@ class ShallowWater:
             args = [x, self.D, self.Dinv, self.metdet, self.fcor, forcing]
             if self.per_element:
                 kernel = tendencies.tendency_element(terms, self.grid.np)
-                launches.append(self._launch_elements(kernel, [*map(self._rows, args), self.g, self.dvv_rows, self._rows(self.tend)]))
+                launches.append(self._launch_elements(kernel, [*map(self.as_rows, args), self.g, self.dvv_rows, self.as_rows(self.tend)]))
             else:
                 kernel = tendencies.tendency(terms)
                 launches.append(self._launch(kernel, self.N, [*args, self.dvv, self.grid.np, self.g, self.tend]))
@@ -342,19 +342,18 @@ class ShallowWater:
         # each pass is given the node frame's arrays it reads: the first the position (and the
         # per-element one the wind's basis), ∇δ Dinv and the basis; the second none
         names = ("xyz", *(("east", "north") if self.per_element or divergent else ()), *(("Dinv",) if divergent else ()))
-        frame = self._frame(*names)
 
         if self.per_element:
             def laplacian(second):  # → the weak form of Y₁ or Y₂ in L
                 kernel = hyperviscosity.laplacian_element(second, divergent, np_)
-                rows = self._frame(rows=True) if second else self._frame(*names, rows=True)
-                args = [*map(self._rows, (Y if second else x, self.hs, delta)), c, rows, self._rows(self.hv_metric), self.dvv_rows, self._rows(L)]
+                frame = self._frame(*() if second else names, rows=True)
+                args = [*map(self.as_rows, (Y if second else x, self.hs, delta)), c, frame, self.as_rows(self.hv_metric), self.dvv_rows, self.as_rows(L)]
                 return [self._launch_elements(kernel, args)]
         else:
             def laplacian(second):
                 src = Y if second else self.hv_X
                 first = [] if second else [self._launch(hyperviscosity.to_cartesian, N, [x, self.hs, self.east, self.north, src])]
-                args = [self.hv_flux, src, delta, c, self._frame() if second else frame, self.spheremp, self.dvv, np_, L]
+                args = [self.hv_flux, src, delta, c, self._frame(*() if second else names), self.spheremp, self.dvv, np_, L]
                 return [
                     *first,
                     self._launch(operators.laplace_wk_flux, N, [src, self.Dinv, self.spheremp, self.dvv, np_, self.hv_flux]),
@@ -376,14 +375,14 @@ class ShallowWater:
         """A ``kernels.hyperviscosity.Frame`` holding the model's arrays of these
         names, the others null: what a ∇⁴ pass reads and no more (a launch's
         arguments are what ``benchmarks/gpu_model.py`` counts as its traffic);
-        with ``rows``, the element kernels' frame of their row views (``_rows``)."""
+        with ``rows``, the element kernels' frame of their row views (``as_rows``)."""
         frame = hyperviscosity.frame_type(operators.row_type(self.grid.np) if rows else f64)()
         for name in names:
             array = getattr(self, name)
-            setattr(frame, name, self._rows(array) if rows else array)
+            setattr(frame, name, self.as_rows(array) if rows else array)
         return frame
 
-    def _rows(self, a: wp.array) -> wp.array:
+    def as_rows(self, a: wp.array) -> wp.array:
         """``a`` as the GLL rows the per-element kernels read and write (``kernels.operators.row_vectors``)."""
         return operators.row_vectors(a, self.grid.np)
 
@@ -502,7 +501,7 @@ class ShallowWater:
     # -- DSS'd operators for the (semi-)implicit solvers --------------------
     def _build_grad(self, x, row, out):
         return [
-            self._launch_elements(operators.gradient_element(self.grid.np), [self._rows(x), row, self._rows(self.Dinv), self.dvv_rows, self._rows(self.vec_work)])
+            self._launch_elements(operators.gradient_element(self.grid.np), [self.as_rows(x), row, self.as_rows(self.Dinv), self.dvv_rows, self.as_rows(self.vec_work)])
             if self.per_element
             else self._launch(operators.gradient_sphere, self.N, [x, row, self.Dinv, self.dvv, self.grid.np, self.vec_work]),
             *self._dss(self.vec_work, 1, out),
@@ -511,7 +510,7 @@ class ShallowWater:
     def _build_div(self, x, out):
         return [
             self._launch_elements(
-                operators.divergence_element(self.grid.np), [*map(self._rows, (x, self.Dinv, self.metdet)), self.dvv_rows, self._rows(self.scalar_flat)]
+                operators.divergence_element(self.grid.np), [*map(self.as_rows, (x, self.Dinv, self.metdet)), self.dvv_rows, self.as_rows(self.scalar_flat)]
             )
             if self.per_element
             else self._launch(operators.divergence_sphere, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.scalar_flat]),
@@ -542,7 +541,7 @@ class ShallowWater:
             (x,),
             lambda: [
                 self._launch_elements(
-                    operators.vorticity_element(self.grid.np), [*map(self._rows, (x, self.D, self.metdet)), self.dvv_rows, self._rows(self.scalar_flat)]
+                    operators.vorticity_element(self.grid.np), [*map(self.as_rows, (x, self.D, self.metdet)), self.dvv_rows, self.as_rows(self.scalar_flat)]
                 )
                 if self.per_element
                 else self._launch(operators.vorticity_sphere, self.N, [x, self.D, self.metdet, self.dvv, self.grid.np, self.scalar_flat]),

@@ -56,7 +56,6 @@ import warp as wp
 
 from ..kernels import gravity_wave as gk
 from ..kernels import helmholtz as hk
-from ..kernels.operators import row_vectors
 from ..model import ShallowWater
 from ..parallel import record, reduction_chunk
 from .base import StepFailure
@@ -248,17 +247,14 @@ class GravityWave:
             halo = topo.owned.recv_buffer
             y2 = y.reshape((1, topo.nunique))
 
-            def rows(a):  # the element kernels' GLL rows
-                return row_vectors(a, m.grid.np)
-
             spheremp = topo.spheremp[: topo.N]  # the local copies' masses (the ghosts' follow on a rank)
 
             div = self._rec(hk.helmholtz_divergence(m.grid.np, topo.table.shape[1]), m.grid.nelem,
-                            [self.wg, topo.ghost, topo.N, topo.table, topo.rspheremp, y, halo, topo.gid, rows(m.Dinv), rows(m.metdet),
-                             rows(spheremp), m.dvv_rows, f64(0.0), rows(self.z)],
+                            [self.wg, topo.ghost, topo.N, topo.table, topo.rspheremp, y, halo, topo.gid, m.as_rows(m.Dinv), m.as_rows(m.metdet),
+                             m.as_rows(spheremp), m.dvv_rows, f64(0.0), m.as_rows(self.z)],
                             nodes_per_index=m.grid.np**2)
             grad = self._rec(hk.helmholtz_gradient(m.grid.np), m.grid.nelem,
-                             [y, halo, topo.gid, rows(m.Dinv), rows(spheremp), m.dvv_rows, rows(self.wg)],
+                             [y, halo, topo.gid, m.as_rows(m.Dinv), m.as_rows(spheremp), m.dvv_rows, m.as_rows(self.wg)],
                              nodes_per_index=m.grid.np**2)
             assemble = self._rec(hk.helmholtz_assemble(topo.table.shape[1]), self.partial.shape[1],
                                  [self.z, topo.ghost, topo.N, topo.table, topo.first, y, out, self.partial, self.chunk], nodes_per_index=self.chunk)

@@ -195,21 +195,27 @@ def scene_dir() -> Path:
     return Path(str(files("swe_sphere.testcases")))
 
 
+SCENE_FOLDERS = ("", "tableaus")  # testcases/ and its folders of bundled scenes (tableaus/: Butcher tables)
+
+
 def list_scenes() -> list[Path]:
-    return sorted(scene_dir().glob("*.toml"))
+    return [p for folder in SCENE_FOLDERS for p in sorted((scene_dir() / folder).glob("*.toml"))]
 
 
 def resolve_path(spec: str) -> Path:
-    """A scene path, or the name of a bundled scene (with or without .toml).
+    """A scene path, or the name of a bundled scene (with or without .toml, and
+    with or without its folder: "ark2_gkc" or "tableaus/ark2_gkc").
     Raises ``SceneError``, suggesting the closest bundled names for a typo."""
     p = Path(spec)
     if p.exists():
         return p
-    bundled = scene_dir() / (p.name if p.suffix == ".toml" else p.name + ".toml")
-    if bundled.exists() and p.parent == Path("."):
-        return bundled
+    name = p.name if p.suffix == ".toml" else p.name + ".toml"
+    for folder in SCENE_FOLDERS:
+        bundled = scene_dir() / folder / name
+        if bundled.exists() and p.parent in (Path("."), Path(folder)):
+            return bundled
     close = difflib.get_close_matches(p.stem, [q.stem for q in list_scenes()], n=3)
-    hint = f" (did you mean {' or '.join(close)}?)" if close and p.parent == Path(".") else ""
+    hint = f" (did you mean {' or '.join(close)}?)" if close and p.parent in map(Path, SCENE_FOLDERS) else ""
     raise SceneError(f"scene file not found: {spec}{hint}")
 
 
@@ -318,6 +324,10 @@ def _got(value) -> str:
 
 
 def _check_type(key, value, kind):
+    if kind is tuple:  # a list-valued option (a Butcher table): a TOML array, its entries the stepper's options to check
+        if not isinstance(value, (list, tuple)):
+            raise SceneError(f"{key} must be an array (got {_got(value)})")
+        return value
     if kind is float and isinstance(value, int) and not isinstance(value, bool):
         value = float(value)
     if kind is int and isinstance(value, float) and value.is_integer():

@@ -105,6 +105,15 @@ class Stepper:
         self.steps = 0  # steps taken since the initial state
         self.t0 = 0.0  # s, the model time of that state (a branched run's start; ``Simulation`` sets it)
 
+    @classmethod
+    def label(cls, options: dict) -> str:
+        """The stepper as ``swe-sphere list`` and a run name it with these scene options."""
+        return cls.name
+
+    def attrs(self) -> dict:
+        """Global attributes of the run file beyond the scene's (strings, numbers)."""
+        return {}
+
     # -- what carries over between steps -------------------------------------------
     def state(self) -> dict:
         """Everything besides x that the next step depends on: numpy arrays

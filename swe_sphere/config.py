@@ -22,7 +22,8 @@ the run length, the output interval and the hyperviscosity. Layout::
                       rotational wind, divergent wind, h + hs (HOMME's names),
                       given explicitly; without efold_hours nu_div, nu_s default to nu)
     [leapfrog]        robert_asselin = 0.05   (a table per stepper, named after
-                      it, holds that stepper's options)
+                      it, holds that stepper's options; an option typed tuple
+                      is a TOML array, e.g. [tableau] A = [[0, 0], ["1/2", 0]])
     [planet]          radius = 6.37122e6 (m), omega = 7.292e-5 (s^-1),
                       gravity = 9.80616 (m s^-2) (Williamson's, the defaults;
                       ``constants.Planet``). A scene's dt and ν are for its

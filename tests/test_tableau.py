@@ -44,7 +44,8 @@ def ars343_pair() -> dict:
     return dict(name="ARS(3,4,3)", order=3, A_E=A_E.tolist(), b_E=b.tolist(), A_I=A_I.tolist(), b_I=b.tolist(), c=A_E.sum(1).tolist())
 
 
-def tc2(stepper, options, steps=4, dt=1800.0, scene="tc2_steady"):
+def short(stepper, options, steps=4, dt=1800.0, scene="tc2_steady"):
+    """``scene`` on ne = 2 np = 4 with ``stepper`` and its options for ``steps`` steps of ``dt``."""
     base = load_scene(scene, ne=2, np=4, dt=dt, days=steps * dt / DAY, stepper=stepper)
     return dataclasses.replace(base, stepper_options=options, output_every_days=steps * dt / DAY)
 
@@ -89,6 +90,28 @@ def test_built_in_tables_record_as_few_combinations_as_the_built_ins(name):
                [(c, [tuple((a, "s1" if src == "s2" else src) for a, src in terms) for _, terms in u]) for c, _, u in built_in.stages]
 
 
+def test_stage_form_of_random_tables_forms_every_stage():
+    """Random explicit tables (2..7 stages, dense and sparse rows): replaying the
+    recorded updates on coefficient vectors over (x(n), Δt K_1, ..., Δt K_s), each
+    stage's input is its Y_i and the state ends as x(n+1) (to round-off); at most two
+    arrays and F once per update (chains where a row needs more)."""
+    rng = np.random.default_rng(33)
+    for trial in range(60):
+        s = int(rng.integers(2, 8))
+        A = [[Fraction(int(rng.integers(-4, 5)), int(rng.integers(1, 6))) if j < i and rng.random() < 0.6 else Fraction(0)
+              for j in range(s)] for i in range(s)]
+        b = [Fraction(int(rng.integers(-4, 5)), int(rng.integers(1, 6))) for _ in range(s)]
+        buffers, stages = stage_form(A, b, [sum(row) for row in A])
+        held = {"x": np.eye(s + 1)[0]}
+        for j, (_, arg, updates) in enumerate(stages):
+            np.testing.assert_allclose(held[arg], [1, *map(float, A[j])], rtol=0, atol=1e-14, err_msg=f"{trial} {j}")
+            for out, terms in updates:
+                assert len(terms) <= 3 and sum(src == "k" for _, src in terms) <= 1 and sum(src != "k" for _, src in terms) <= 2
+                held[out] = sum(float(a) * (np.eye(s + 1)[j + 1] if src == "k" else held[src]) for a, src in terms)
+        np.testing.assert_allclose(held["x"], [1, *map(float, b)], rtol=0, atol=1e-14, err_msg=str(trial))
+        assert set(held) <= {"x", *buffers}
+
+
 # -- equal to the built-ins ---------------------------------------------------------
 
 
@@ -98,8 +121,8 @@ def test_built_in_schemes_written_as_tables_step_to_their_states(name):
     built-in's to round-off, relative to the largest wind and depth (measured:
     ssprk3 and kgu35 bitwise, their updates the built-ins', rk4 4.3e-15: its accumulator differs)."""
     options = {"name": name, **BUILT_IN[name]}
-    _, ref, _ = final_state(tc2(name, {}, scene="tc5_mountain"), 6)
-    sim, x, stats = final_state(tc2("tableau", options, scene="tc5_mountain"), 6)
+    _, ref, _ = final_state(short(name, {}, scene="tc5_mountain"), 6)
+    sim, x, stats = final_state(short("tableau", options, scene="tc5_mountain"), 6)
     assert isinstance(sim.stepper, TableauRK) and sim.stepper.explicit
     wind, depth = np.abs(ref[:2]).max(), np.abs(ref[2]).max()
     diff = np.abs(x - ref).max(axis=1) / np.array([wind, wind, depth])
@@ -113,8 +136,8 @@ def test_built_in_schemes_written_as_tables_step_to_their_states(name):
 def test_ars343_written_as_a_pair_steps_to_imex_bitwise():
     """ARS(3,4,3) as (A_E, b_E, A_I, b_I, c) with imex's entries: the same states and
     Helmholtz iterations as ``imex`` (TC5 ne = 2, 4 steps of 1 h, tol 1e-10)."""
-    _, ref, ref_stats = final_state(tc2("imex", {"scheme": "ars343", "tol": 1e-10}, dt=3600.0, scene="tc5_mountain"), 4)
-    sim, x, stats = final_state(tc2("tableau", {**ars343_pair(), "tol": 1e-10}, dt=3600.0, scene="tc5_mountain"), 4)
+    _, ref, ref_stats = final_state(short("imex", {"scheme": "ars343", "tol": 1e-10}, dt=3600.0, scene="tc5_mountain"), 4)
+    sim, x, stats = final_state(short("tableau", {**ars343_pair(), "tol": 1e-10}, dt=3600.0, scene="tc5_mountain"), 4)
     assert isinstance(sim.stepper, TableauARK) and not sim.stepper.explicit
     np.testing.assert_array_equal(x, ref)
     assert [(s.rhs_evals, s.iterations) for s in stats] == [(r.rhs_evals, r.iterations) for r in ref_stats]
@@ -192,7 +215,7 @@ def test_wrong_tables_are_refused_in_one_line(capsys, tmp_path, table, words):
 def test_state_restore_continues_bitwise(options):
     """3 steps, state() and x into a fresh simulation, 3 more: bitwise the 6 straight
     (the IMEX pair carries the mean depth and the warm Helmholtz guess)."""
-    scene = tc2("tableau", options, steps=6)
+    scene = short("tableau", options, steps=6)
     _, whole, _ = final_state(scene, 6)
     first, x, _ = final_state(scene, 3)
     second = make_sim(scene)
@@ -225,6 +248,6 @@ def test_without_a_table_it_is_rk4():
     rk4's updates up to round-off; registry-wide tests run it."""
     o = STEPPERS["tableau"].make_options()
     assert o.name == "rk4" and o.order == 4 and o == TableauOptions()
-    _, ref, _ = final_state(tc2("rk4", {}), 3)
-    _, x, _ = final_state(tc2("tableau", {}), 3)
+    _, ref, _ = final_state(short("rk4", {}), 3)
+    _, x, _ = final_state(short("tableau", {}), 3)
     np.testing.assert_allclose(x, ref, rtol=0, atol=1e-13 * np.abs(ref).max())

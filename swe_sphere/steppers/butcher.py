@@ -281,25 +281,6 @@ def _check_order(table: Table) -> None:
 
 
 # -- an explicit table as recorded stages ------------------------------------------------------
-def _rank(vectors) -> int:
-    rows, rank = [list(v) for v in vectors], 0
-    for col in range(len(rows[0]) if rows else 0):
-        pivot = next((r for r in range(rank, len(rows)) if rows[r][col]), None)
-        if pivot is None:
-            continue
-        rows[rank], rows[pivot] = rows[pivot], rows[rank]
-        for r in range(len(rows)):
-            if r != rank and rows[r][col]:
-                f = rows[r][col] / rows[rank][col]
-                rows[r] = [x - f * y for x, y in zip(rows[r], rows[rank])]
-        rank += 1
-    return rank
-
-
-def _in_span(v, vectors) -> bool:
-    return _rank([*vectors, v]) == _rank(vectors)
-
-
 def _solve(columns, target):
     """Coefficients x with Σ x_m columns[m] = target exactly (Fractions), or None."""
     n, m = len(target), len(columns)
@@ -325,6 +306,10 @@ def _solve(columns, target):
     return x
 
 
+def _in_span(v, vectors) -> bool:
+    return _solve(vectors, v) is not None
+
+
 def _express(target, k: int, sources: dict):
     """``target`` as Σ α·sources + q·e_k: links [(terms)], the first with at most two
     arrays and q (for the DSS of F_k), each later one adding one array to the first's
@@ -348,11 +333,13 @@ def stage_form(A, b, c) -> tuple[tuple, tuple]:
     Every buffer holds a combination of e_0 = x(n) and e_j = Δt K_j. After stage j
     the buffers must span the part in e_0..e_j of every combination still to be
     formed (the later Y_i and x(n+1)), and one must hold Y_{j+1} itself. Stage j
-    keeps the buffers that lie in that span (with x(n), kept to the end), writes Y_{j+1} and whatever else the
-    span lacks (each from the buffers before it and F_j, straight from F_j's DSS),
-    and the others become free: a table whose stages read few earlier stages
-    writes as few combinations as its Shu–Osher form (ssprk3's, kgu35's are the
-    built-in steppers' updates; RK4's one fewer than the built-in's accumulator).
+    keeps the buffers that lie in that span (and x(n), kept to the end), writes
+    Y_{j+1} and whatever else the span lacks (each from the buffers before it and
+    F_j, straight from F_j's DSS; with more than two arrays a chain of updates),
+    and the others become free for its outputs, in the order that needs the
+    fewest buffers: a table whose stages read few earlier stages writes as few
+    combinations as its Shu–Osher form (ssprk3's, kgu35's are the built-in
+    steppers' updates; RK4's one fewer than the built-in's accumulator form).
     The state x is overwritten last, with x(n+1)."""
     s, n = len(b), len(b) + 1
     Y = [[Fraction(1), *A[i]] for i in range(s)]
@@ -363,7 +350,7 @@ def stage_form(A, b, c) -> tuple[tuple, tuple]:
         k, last = j + 1, j == s - 1
         cut = [[*t[: k + 1], *[Fraction(0)] * (n - k - 1)] for t in (*Y[k:], Z)]  # what is to come, in e_0..e_k
         kept = [name for name, v in content.items() if name == "x" or _in_span(v, [*cut, content["x"]])]  # x is kept anyway
-        writes = []  # (target, links); the first the next stage's input
+        writes = []  # (target, links)
         if last:
             writes.append((Z, _express(Z, k, content)))
         else:

@@ -45,7 +45,7 @@ class NoOptions:
 
 
 def option_types(options_cls) -> dict[str, type]:
-    """Option name → type (float, int, str) of an options dataclass (the scene schema's table)."""
+    """Option name → type (float, int, str; tuple: a TOML array) of an options dataclass (the scene schema's table)."""
     hints = typing.get_type_hints(options_cls)
     return {f.name: hints[f.name] for f in dataclasses.fields(options_cls)}
 

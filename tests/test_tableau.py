@@ -1,7 +1,7 @@
 """Steppers from a Butcher tableau in the scene (``stepper = "tableau"``, ``steppers.butcher``).
 
 The built-in explicit steppers written as tables step to the built-ins' states
-(ssprk3 bitwise: the same launches), ARS(3,4,3) written as a pair to ``imex``'s
+(ssprk3 and kgu35 bitwise: their updates, rk4 to 4e-15), ARS(3,4,3) as a pair to ``imex``'s
 bitwise (the same code); the bundled example pairs converge at their orders;
 wrong tables are refused at load in one line (exit 2 from the CLI); the run
 file says which table ran.

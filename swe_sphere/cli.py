@@ -141,7 +141,8 @@ def _cmd_list() -> int:
     for path in list_scenes():
         s = load_scene(path)
         print(f"  {path.stem:32s} {s.description}")
-        print(f"  {'':32s} ne={s.ne} np={s.np} {s.stepper} dt={s.dt:g}s {s.days:g} days; terms: {', '.join(s.terms)}")
+        stepper = STEPPERS[s.stepper].label(s.stepper_options)
+        print(f"  {'':32s} ne={s.ne} np={s.np} {stepper} dt={s.dt:g}s {s.days:g} days; terms: {', '.join(s.terms)}")
     print("steppers:")
     for name, cls in STEPPERS.items():
         summary = " ".join(cls.__doc__.split("\n\n")[0].split())  # the first paragraph, unwrapped
@@ -405,7 +406,7 @@ def _run(args, scene, output, device, comm) -> int:
     print(f"grid        ne={scene.ne} np={scene.np}: {6 * scene.ne**2} elements, {sim.topology.grid.nunique} unique nodes, "
           f"min node spacing {dx / 1e3:.1f} km")
     print(f"terms       {', '.join(scene.terms)}" + (f" (nu = {scene.nu:.3g} m^4/s, subcycle {scene.hypervis_subcycle})" if scene.nu else ""))
-    print(f"stepper     {scene.stepper}, dt = {scene.dt:g} s, {scene.nsteps} steps to day {scene.days:g}, device {device}")
+    print(f"stepper     {sim.stepper.label(scene.stepper_options)}, dt = {scene.dt:g} s, {scene.nsteps} steps to day {scene.days:g}, device {device}")
     if comm is not None:
         sizes = [len(p) for p in sim.topology.parts]
         print(f"ranks       {comm.size} MPI ranks: {min(sizes)}-{max(sizes)} elements each along a space-filling curve, "

@@ -22,7 +22,8 @@ the run length, the output interval and the hyperviscosity. Layout::
                       rotational wind, divergent wind, h + hs (HOMME's names),
                       given explicitly; without efold_hours nu_div, nu_s default to nu)
     [leapfrog]        robert_asselin = 0.05   (a table per stepper, named after
-                      it, holds that stepper's options)
+                      it, holds that stepper's options; an option typed tuple
+                      is a TOML array, e.g. [tableau] A = [[0, 0], ["1/2", 0]])
     [planet]          radius = 6.37122e6 (m), omega = 7.292e-5 (s^-1),
                       gravity = 9.80616 (m s^-2) (Williamson's, the defaults;
                       ``constants.Planet``). A scene's dt and ν are for its
@@ -195,21 +196,27 @@ def scene_dir() -> Path:
     return Path(str(files("swe_sphere.testcases")))
 
 
+SCENE_FOLDERS = ("", "tableaus")  # testcases/ and its folders of bundled scenes (tableaus/: Butcher tables)
+
+
 def list_scenes() -> list[Path]:
-    return sorted(scene_dir().glob("*.toml"))
+    return [p for folder in SCENE_FOLDERS for p in sorted((scene_dir() / folder).glob("*.toml"))]
 
 
 def resolve_path(spec: str) -> Path:
-    """A scene path, or the name of a bundled scene (with or without .toml).
+    """A scene path, or the name of a bundled scene (with or without .toml, and
+    with or without its folder: "ark2_gkc" or "tableaus/ark2_gkc").
     Raises ``SceneError``, suggesting the closest bundled names for a typo."""
     p = Path(spec)
     if p.exists():
         return p
-    bundled = scene_dir() / (p.name if p.suffix == ".toml" else p.name + ".toml")
-    if bundled.exists() and p.parent == Path("."):
-        return bundled
+    name = p.name if p.suffix == ".toml" else p.name + ".toml"
+    for folder in SCENE_FOLDERS:
+        bundled = scene_dir() / folder / name
+        if bundled.exists() and p.parent in (Path("."), Path(folder)):
+            return bundled
     close = difflib.get_close_matches(p.stem, [q.stem for q in list_scenes()], n=3)
-    hint = f" (did you mean {' or '.join(close)}?)" if close and p.parent == Path(".") else ""
+    hint = f" (did you mean {' or '.join(close)}?)" if close and p.parent in map(Path, SCENE_FOLDERS) else ""
     raise SceneError(f"scene file not found: {spec}{hint}")
 
 
@@ -318,6 +325,10 @@ def _got(value) -> str:
 
 
 def _check_type(key, value, kind):
+    if kind is tuple:  # a list-valued option (a Butcher table): a TOML array, its entries the stepper's options to check
+        if not isinstance(value, (list, tuple)):
+            raise SceneError(f"{key} must be an array (got {_got(value)})")
+        return value
     if kind is float and isinstance(value, int) and not isinstance(value, bool):
         value = float(value)
     if kind is int and isinstance(value, float) and value.is_integer():

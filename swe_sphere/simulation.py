@@ -465,6 +465,7 @@ class Simulation:
                 "ne": s.ne,
                 "np": s.np,
                 "stepper": s.stepper,
+                **stepper.attrs(),  # e.g. which Butcher table ran
                 "dt": s.dt,
                 "device": self.device,
                 "mpi_ranks": self.topology.comm.size,

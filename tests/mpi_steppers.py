@@ -1,11 +1,12 @@
 """Run by ``test_mpi.py`` under ``mpiexec`` (and imported by it for the one-rank runs): TC5
-at ne 2 with each stepper that solves (semi-implicit, JFNK, IMEX), one simulation over all ranks each,
+at ne 2 with each stepper that solves (semi-implicit, JFNK, IMEX, an IMEX Butcher pair), one simulation over all ranks each,
 and a semi-implicit run continued from a restart file. Rank 0 saves the final
 whole-grid states: ``python mpi_steppers.py OUT.npz CHECKPOINT``.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 
 import numpy as np
@@ -14,12 +15,14 @@ from swe_sphere import mpi
 from swe_sphere.config import load_scene
 from swe_sphere.simulation import Simulation
 
-STEPPERS = ("semi_implicit", "implicit", "imex")
+STEPPERS = ("semi_implicit", "implicit", "imex", "tableau")
 DAYS = 0.1
 
 
 def scene(stepper: str, days: float = DAYS):
-    return load_scene("tc5_mountain", ne=2, days=days, stepper=stepper)
+    """TC5 at ne 2 (the tableau stepper with the bundled ARK3(2)4L[2]SA pair)."""
+    s = load_scene("tc5_mountain", ne=2, days=days, stepper=stepper)
+    return dataclasses.replace(s, stepper_options=load_scene("ark324l2sa").stepper_options) if stepper == "tableau" else s
 
 
 def final_states(comm=None) -> dict[str, np.ndarray]:

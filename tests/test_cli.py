@@ -323,7 +323,7 @@ def test_list_names_every_scene_stepper_and_term(capsys):
     out, err = capsys.readouterr()
     assert err == ""
     words = set(re.findall(r"[\w.+-]+", out))
-    scenes = sorted(p.stem for p in TESTCASES.glob("*.toml"))
+    scenes = sorted(p.stem for p in TESTCASES.rglob("*.toml"))  # tableaus/ too
     assert len(scenes) >= 10
     for name in scenes:
         assert name in words, f"scene {name} not listed"

@@ -93,6 +93,7 @@ def test_every_stepper_evaluates_the_rhs_at_its_stage_times():
         "leapfrog_trapezoidal": [[0, 0.5], [1, 2]],  # the predictor stands for x(n+1)
         "semi_implicit": [[0], [1]],
         "imex": [c343, [1 + c for c in c343]],
+        "tableau": [[0, 0.5, 0.5, 1], [1, 1.5, 1.5, 2]],  # its default table, RK4's
     }
     assert set(expected) | {"implicit"} == set(STEPPERS)
     for name, times in expected.items():

@@ -47,6 +47,7 @@ DOCUMENTED_RHS = {
     "fbrk32": (3, 3),  # three continuity and three momentum halves
     "semi_implicit": (1, 1),  # one RHS (and one Helmholtz solve) per step, the start included
     "imex": (4, 4),  # ARS(3,4,3): four stages, three Helmholtz solves
+    "tableau": (4, 4),  # its default table, RK4's
 }
 
 

@@ -3,24 +3,26 @@
 Explicit: ``leapfrog``, ``leapfrog_trapezoidal``, ``ssprk3``, ``rk4``, ``kgu35``, ``fbrk32``;
 ``semi_implicit`` (leapfrog, gravity waves averaged over n ± 1); ``implicit``
 (JFNK θ-method / BDF2); ``imex`` (ARS IMEX Runge–Kutta). The last three share
-the linear gravity-wave operator ``helmholtz.GravityWave``.
+the linear gravity-wave operator ``helmholtz.GravityWave``. ``tableau``: an
+explicit or IMEX table from the scene, through the RK and IMEX machinery (``butcher``).
 """
 
 from __future__ import annotations
 
 from ..model import ShallowWater
 from .base import StepFailure, Stepper, StepStats, option_types
+from .butcher import Tableau
 from .explicit import FBRK32, Leapfrog, LeapfrogTrapezoidal, rk_steppers
 from .imex import Imex
 from .implicit import Implicit
 from .semi_implicit import SemiImplicit
 
 STEPPERS: dict[str, type[Stepper]] = {
-    cls.name: cls for cls in (Leapfrog, LeapfrogTrapezoidal, *rk_steppers(), FBRK32, SemiImplicit, Implicit, Imex)
+    cls.name: cls for cls in (Leapfrog, LeapfrogTrapezoidal, *rk_steppers(), FBRK32, SemiImplicit, Implicit, Imex, Tableau)
 }
 
 
-def make_stepper(name: str, model: ShallowWater, dt: float, **options) -> Stepper:
+def make_stepper(name: str, model: ShallowWater, dt: float, /, **options) -> Stepper:
     """Build a registered stepper from its options as keywords (the scene's
     ``[<name>]`` table); ValueError names an unknown stepper, option or value."""
     if name not in STEPPERS:

@@ -45,7 +45,7 @@ class NoOptions:
 
 
 def option_types(options_cls) -> dict[str, type]:
-    """Option name → type (float, int, str) of an options dataclass (the scene schema's table)."""
+    """Option name → type (float, int, str; tuple: a TOML array) of an options dataclass (the scene schema's table)."""
     hints = typing.get_type_hints(options_cls)
     return {f.name: hints[f.name] for f in dataclasses.fields(options_cls)}
 
@@ -104,6 +104,15 @@ class Stepper:
         self.N = model.N
         self.steps = 0  # steps taken since the initial state
         self.t0 = 0.0  # s, the model time of that state (a branched run's start; ``Simulation`` sets it)
+
+    @classmethod
+    def label(cls, options: dict) -> str:
+        """The stepper as ``swe-sphere list`` and a run name it with these scene options."""
+        return cls.name
+
+    def attrs(self) -> dict:
+        """Global attributes of the run file beyond the scene's (strings, numbers)."""
+        return {}
 
     # -- what carries over between steps -------------------------------------------
     def state(self) -> dict:

@@ -29,13 +29,14 @@ class RKScheme:
     (F times qΔt), once a combination, and at most two are arrays
     (``ShallowWater.rhs_update``). Buffers are "x" (the state, overwritten by the
     last update) and the scheme's ``buffers``.
-    ``courant_limit``: the measured one (``Stepper.courant_limit``)."""
+    ``courant_limit``: the measured one (``Stepper.courant_limit``; None: not measured,
+    a user's table)."""
 
     name: str
     doc: str
     buffers: tuple[str, ...]
     stages: tuple
-    courant_limit: float
+    courant_limit: float | None
 
 
 def _dt_times(q: Fraction, dt: float) -> float:

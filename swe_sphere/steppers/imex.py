@@ -2,18 +2,22 @@
 25, 151; "ARS"): the linear gravity-wave terms L (``helmholtz.GravityWave``)
 implicit, the rest N = F − L explicit, as HOMME-NH and ClimaTimeSteppers split.
 
-With the explicit tableau (Â, b̂) and the implicit one (A, b) of s + 1 stages
-(stage 0 is x(n); ARS: A's first row and column are zero, A_ii = γ),
+With the explicit tableau (Â, b̂) and the implicit one (A, b) of s stages,
+A lower triangular (diagonally implicit, a_ii = 0 allowed: an explicit stage),
+Â strictly lower triangular, and common abscissae c,
 
-    Y_i = x(n) + Δt Σ_{j<i} (Â_ij N(Y_j) + A_ij L Y_j) + Δt γ L Y_i,
+    Y_i = x(n) + Δt Σ_{j<i} (Â_ij N(Y_j) + A_ij L Y_j) + Δt A_ii L Y_i,
     x(n+1) = x(n) + Δt Σ_j (b̂_j N(Y_j) + b_j L Y_j).
 
-Each stage is one solve of (I − γΔt L) Y_i = rhs_i through the Helmholtz
-equation, and L Y_i = (Y_i − rhs_i)/(γΔt) follows from it without another
-product. For ARS b̂ = b, so x(n+1) = x(n) + Δt Σ_j b_j F(Y_j) with F the model's
-RHS: s + 1 RHS evaluations, s solves and one product with L a step.
-Both schemes are stiffly accurate in A (b = last row), not in Â, so F is
-evaluated at the last stage.
+Each stage with A_ii ≠ 0 is one solve of (I − A_ii Δt L) Y_i = rhs_i through
+the Helmholtz equation, and L Y_i = (Y_i − rhs_i)/(A_ii Δt) follows from it
+without another product; an explicit stage takes L Y_i from a product, and
+only where the two tableaux weigh it differently (N = F − L). ARS's first
+stage is x(n) (A's first row and column zero, A_ii = γ after it) and b̂ = b,
+so x(n+1) = x(n) + Δt Σ_j b_j F(Y_j) with F the model's RHS: s RHS
+evaluations, s − 1 solves and one product with L a step. Both ARS schemes are
+stiffly accurate in A (b = last row), not in Â, so F is evaluated at the last
+stage. The same code steps a user's pair (``butcher``, ``stepper = "tableau"``).
 
 * ``ars232``: ARS(2,3,2), §2.5: γ = 1 − 1/√2, δ = −2√2/3; second order.
 * ``ars343``: ARS(3,4,3), §2.7: γ the root 0.4358665215… of
@@ -94,8 +98,8 @@ class Imex(Stepper):
     iterations; 1e-4 gives 3.0e-4), ``maxiter`` (500),
     ``mean_depth`` (H, m; 0 = the initial mean depth). The Helmholtz solve is
     ``helmholtz.GravityWave``'s compiled CG; each stage's solve starts from the
-    last one's solution. s + 1 RHS evaluations and s Helmholtz
-    solves a step (s = 2, 3); reports the Helmholtz iterations. Raises
+    last one's solution. 3 (ARS(2,3,2)) or 4 (ARS(3,4,3)) RHS evaluations and
+    one Helmholtz solve fewer a step; reports the Helmholtz iterations. Raises
     ValueError without the continuity and pressure-gradient terms.
     """
 
@@ -112,14 +116,24 @@ class Imex(Stepper):
         super().__init__(model, dt, options)
         o = self.options
         self.gw = GravityWave(model, o.mean_depth, o.tol, o.maxiter, warm=True)
-        self.A_exp, self.A_imp, self.b, self.order = tableau(o.scheme)
-        stages = self.A_exp.shape[0]
-        self.gamma = float(self.A_imp[1, 1])
-        self.c = self.A_exp.sum(axis=1)  # stage abscissae (the same for A: ARS rows sum alike)
+        A_E, b_E, A_I, b_I, self.c = (np.asarray(t, dtype=float) for t in self.tables())
+        stages = len(b_E)
+        self.A_E, self.A_I, self.b_E, self.b_I = A_E, A_I, b_E, b_I
+        # F(Y_j) is needed where the explicit part weighs it, L Y_j where the two parts weigh it
+        # differently (N_j = F_j − L_j enters with A_E, b_E; L Y_j with A_I, b_I)
+        self.needs_F = [bool(b_E[j] != 0 or np.any(A_E[j + 1 :, j] != 0)) for j in range(stages)]
+        self.needs_L = [bool(b_I[j] != b_E[j] or np.any(A_I[j + 1 :, j] != A_E[j + 1 :, j])) for j in range(stages)]
         self.xn = self._buffer()
         self.F = [self._buffer() for _ in range(stages)]  # F(Y_j)
-        self.L = [self._buffer() for _ in range(stages)]  # L Y_j
+        self.L = [self._buffer() for _ in range(stages)]  # L Y_j (first the stage's right-hand side)
         self.Y = self._buffer()
+
+    def tables(self):
+        """(A_E, b_E, A_I, b_I, c): the explicit and implicit stage matrices (s × s,
+        A_E strictly lower triangular, A_I lower triangular), their weights and the
+        abscissae; ARS: b_E = b_I, c = Â1."""
+        A_exp, A_imp, b, _ = tableau(self.options.scheme)
+        return A_exp, b, A_imp, b, A_exp.sum(axis=1)
 
     def state(self):
         # the mean depth (0 until fixed by the first step) and the warm Helmholtz guess
@@ -147,21 +161,30 @@ class Imex(Stepper):
     def advance(self, x):
         m, gw, dt = self.model, self.gw, self.dt
         gw.set_depth(x)
-        A_exp, A_imp, stages = self.A_exp, self.A_imp, self.A_exp.shape[0]
+        A_E, A_I, F, L = self.A_E, self.A_I, self.F, self.L
         wp.copy(self.xn, x)
-        self._at(0.0)
-        m.rhs(x, self.F[0])
-        gw.apply(x, self.L[0])
-        a = self.gamma * dt
-        iterations = 0
-        for i in range(1, stages):
-            terms = [(dt * A_exp[i, j], self.F[j]) for j in range(i)]
-            terms += [(dt * (A_imp[i, j] - A_exp[i, j]), self.L[j]) for j in range(i)]
-            self._combine(self.L[i], self.xn, terms)  # rhs_i, kept to form L Y_i
-            iterations += gw.solve(self.L[i], a, self.Y)
-            self._pointwise(blas.axpby, f64(1.0 / a), self.Y, f64(-1.0 / a), self.L[i], self.L[i])  # L Y_i
-            self._at(float(self.c[i]))
-            m.rhs(self.Y, self.F[i])
-        self._combine(x, self.xn, [(dt * self.b[j], self.F[j]) for j in range(stages)])
+        iterations = evals = 0
+        for i in range(len(F)):
+            terms = [(dt * A_E[i, j], F[j]) for j in range(i)]
+            terms += [(dt * (A_I[i, j] - A_E[i, j]), L[j]) for j in range(i)]
+            a = A_I[i, i] * dt
+            if i == 0 and a == 0.0:  # an explicit first stage: Y_0 = x(n)
+                Y = x
+            elif a == 0.0:  # an explicit later stage
+                Y = self.Y
+                self._combine(Y, self.xn, terms)
+            else:  # (I − aL) Y_i = rhs_i; L Y_i = (Y_i − rhs_i)/a without another product
+                Y = self.Y
+                self._combine(L[i], self.xn, terms)  # rhs_i, kept to form L Y_i
+                iterations += gw.solve(L[i], a, Y)
+                self._pointwise(blas.axpby, f64(1.0 / a), Y, f64(-1.0 / a), L[i], L[i])
+            if a == 0.0 and self.needs_L[i]:
+                gw.apply(Y, L[i])
+            if self.needs_F[i]:
+                self._at(float(self.c[i]))
+                m.rhs(Y, F[i])
+                evals += 1
+        b_E, b_I = self.b_E, self.b_I
+        self._combine(x, self.xn, [(dt * b_E[j], F[j]) for j in range(len(F))] + [(dt * (b_I[j] - b_E[j]), L[j]) for j in range(len(F))])
         m.hyperviscosity(x, dt)
-        return StepStats(stages, {"helmholtz": iterations})
+        return StepStats(evals, {"helmholtz": iterations})

@@ -1,0 +1,463 @@
+"""Steppers from a Butcher tableau in the scene: ``stepper = "tableau"``.
+
+The scene's ``[tableau]`` table gives an explicit Runge–Kutta table (A, b, c)
+or an IMEX additive Runge–Kutta pair (A_E, b_E, A_I, b_I, c), entries as
+numbers or exact fractions written as strings ("1/6",
+"1471266399579/7840856788654"), with the ``order`` it claims and a ``name``
+(and ``description``) that the run file and ``swe-sphere list`` show. Checked
+once, at load (``parse``): the shapes; A (A_E) strictly lower triangular; A_I
+lower triangular (diagonally implicit: a_ii = 0 allowed, an explicit stage);
+every row sum equal to c; and the order conditions up to the claimed order,
+Φ(t) = 1/γ(t) for every rooted tree t of at most that many vertices (Butcher
+2016, *Numerical Methods for ODEs*, §31; the 8 conditions of order 4 for an
+explicit table), for a pair over the trees whose inner vertices are coloured
+by the part whose matrix reaches them and whose root picks b_E or b_I
+(Kennedy & Carpenter 2003, Appl. Numer. Math. 44, 139, §3: with one c the
+leaves need no colour), which gives the coupling conditions. Each to
+``TOL`` (coefficients printed to ten digits pass). In exact rational
+arithmetic from the entries as written (a number as the binary value it is).
+
+An explicit table runs through ``explicit.ExplicitRK``'s recorded stages
+(``stage_form``): each stage's combinations are written by the DSS of its RHS
+(``ShallowWater.rhs_update``), so it costs per RHS what the built-in steppers
+cost (ssprk3 written as a table is the built-in's very launches). A pair runs
+through ``imex.Imex``'s stages, one Helmholtz solve per implicit stage.
+"""
+
+from __future__ import annotations
+
+import functools
+import itertools
+import json
+import math
+from dataclasses import dataclass
+from fractions import Fraction
+
+import numpy as np
+
+from .base import Stepper
+from .explicit import ExplicitRK, RKScheme
+from .helmholtz import check_solve_options
+from .imex import Imex
+
+TOL = 1e-9  # order conditions and row sums hold to this (rational entries exactly)
+MAX_ORDER = 6
+PARTS = ("A", "b", "c", "A_E", "b_E", "A_I", "b_I")
+
+# the default table: the classical fourth-order Runge–Kutta method (Kutta 1901)
+RK4 = dict(
+    name="rk4", description="classical fourth-order Runge-Kutta (Kutta 1901)", order=4,
+    A=((0, 0, 0, 0), ("1/2", 0, 0, 0), (0, "1/2", 0, 0), (0, 0, 1, 0)), b=("1/6", "1/3", "1/3", "1/6"), c=(0, "1/2", "1/2", 1),
+)
+
+
+def _frozen(value):
+    """A TOML array (lists, or tuples) as nested tuples."""
+    return tuple(_frozen(v) for v in value) if isinstance(value, (list, tuple)) else value
+
+
+@dataclass(frozen=True)
+class TableauOptions:
+    """Scene table ``[tableau]``: ``name`` and ``description`` of the table (strings,
+    shown by the run file and ``swe-sphere list``), the ``order`` it claims (1..6),
+    an explicit table ``A`` (s × s), ``b``, ``c`` (s) or an IMEX pair ``A_E``,
+    ``b_E``, ``A_I``, ``b_I`` and ``c``, entries numbers or fractions as strings
+    ("1/6"); for a pair also the Helmholtz solve's ``tol``, ``maxiter`` and
+    ``mean_depth`` (as ``[imex]``'s). No table at all: the classical RK4 table.
+    Raises ValueError naming the entry or the failing condition (``parse``)."""
+
+    name: str = ""
+    description: str = ""
+    order: int = 0
+    A: tuple = ()
+    b: tuple = ()
+    c: tuple = ()
+    A_E: tuple = ()
+    b_E: tuple = ()
+    A_I: tuple = ()
+    b_I: tuple = ()
+    tol: float = 1e-6
+    maxiter: int = 500
+    mean_depth: float = 0.0
+
+    def __post_init__(self):
+        for key in PARTS:  # a table read back from JSON (a restart file's scene) holds lists
+            object.__setattr__(self, key, _frozen(getattr(self, key)))
+        if not self.name and not self.order and not any(getattr(self, key) for key in PARTS):
+            for key, value in RK4.items():
+                object.__setattr__(self, key, value)
+        check_solve_options(self)
+        parse(self)
+
+
+@dataclass(frozen=True)
+class Table:
+    """A checked table in exact arithmetic: A_E, b_E (the explicit part; an explicit
+    table's A, b), A_I, b_I (None for an explicit table), c, order."""
+
+    A_E: tuple
+    b_E: tuple
+    A_I: tuple | None
+    b_I: tuple | None
+    c: tuple
+    order: int
+
+    @property
+    def imex(self) -> bool:
+        return self.A_I is not None
+
+    def floats(self):
+        """(A_E, b_E, A_I, b_I, c) as float arrays (an explicit table: A_I, b_I None)."""
+        arr = lambda t: None if t is None else np.array(t, dtype=float)  # noqa: E731
+        return tuple(arr(t) for t in (self.A_E, self.b_E, self.A_I, self.b_I, self.c))
+
+
+def _text(q: Fraction) -> str:
+    """An entry for a message: "1/6" for a small denominator, else ten digits."""
+    return str(q) if q.denominator <= 10**4 else f"{float(q):.10g}"
+
+
+def _entry(value, where: str) -> Fraction:
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        if math.isfinite(value):
+            return Fraction(value)
+    elif isinstance(value, str):
+        try:
+            return Fraction(value.strip())
+        except (ValueError, ZeroDivisionError):
+            pass
+    raise ValueError(f"{where} = {value!r} is not a number or a fraction such as \"1/6\"")
+
+
+def _vector(o, key: str, s: int | None) -> tuple:
+    value = getattr(o, key)
+    if not isinstance(value, tuple) or not value:
+        raise ValueError(f"{key} must be a non-empty array of numbers (got {value!r})")
+    if s is not None and len(value) != s:
+        raise ValueError(f"{key} has {len(value)} entries, not {s} (one per stage)")
+    return tuple(_entry(v, f"{key} entry {i + 1}") for i, v in enumerate(value))
+
+
+def _matrix(o, key: str) -> tuple:
+    rows = getattr(o, key)
+    if not isinstance(rows, tuple) or not rows:
+        raise ValueError(f"{key} must be a non-empty array of rows (got {rows!r})")
+    s = len(rows)
+    for i, row in enumerate(rows):
+        if not isinstance(row, tuple):
+            raise ValueError(f"{key} row {i + 1} must be an array of numbers (got {row!r})")
+        if len(row) != s:
+            raise ValueError(f"{key} row {i + 1} has {len(row)} entries, not {s}: {key} must be square (s x s, {s} rows)")
+    return tuple(tuple(_entry(v, f"{key} entry ({i + 1},{j + 1})") for j, v in enumerate(row)) for i, row in enumerate(rows))
+
+
+def parse(o) -> Table:
+    """The checked ``Table`` of ``TableauOptions`` ``o``; ValueError (one line, naming the
+    key, entry or condition) for a missing or extra part, a ragged or non-square
+    matrix, an entry that is not a number or fraction, an explicit part not strictly
+    lower triangular, an implicit part not lower triangular, a row sum other than c,
+    or a failing order condition."""
+    given = [key for key in PARTS if getattr(o, key)]
+    explicit, pair = {"A", "b"} & set(given), {"A_E", "b_E", "A_I", "b_I"} & set(given)
+    if explicit and pair:
+        raise ValueError(f"give A, b (an explicit table) or A_E, b_E, A_I, b_I (an IMEX pair), not both (got {', '.join(given)})")
+    needed = ("A_E", "b_E", "A_I", "b_I", "c") if pair else ("A", "b", "c")
+    for key in needed:
+        if key not in given:
+            kind = "an IMEX pair needs A_E, b_E, A_I, b_I and c" if pair else "an explicit table needs A, b and c (an IMEX pair A_E, b_E, A_I, b_I and c)"
+            raise ValueError(f"{key} is missing: {kind}")
+    if not o.name.strip():
+        raise ValueError("name is missing: name the table (the run file and `swe-sphere list` show it)")
+    if not 1 <= o.order <= MAX_ORDER:
+        raise ValueError(f"order must be the order the table claims, 1..{MAX_ORDER} (got {o.order}): its order conditions are checked")
+    A_E = _matrix(o, "A_E" if pair else "A")
+    s = len(A_E)
+    b_E = _vector(o, "b_E" if pair else "b", s)
+    c = _vector(o, "c", s)
+    A_I = _matrix(o, "A_I") if pair else None
+    b_I = _vector(o, "b_I", s) if pair else None
+    for key, A in (("A_E" if pair else "A", A_E), ("A_I", A_I)):
+        if A is None:
+            continue
+        implicit = key == "A_I"
+        for i, j in itertools.product(range(s), repeat=2):
+            if A[i][j] and (j > i or (j == i and not implicit)):
+                why = ("the implicit part must be diagonally implicit (lower triangular)" if implicit else
+                       "an explicit part is strictly lower triangular" + ("" if pair else " (an implicit part goes in A_I of an IMEX pair)"))
+                raise ValueError(f"{key} entry ({i + 1},{j + 1}) = {_text(A[i][j])} is {'above' if j > i else 'on'} the diagonal: {why}")
+        for i in range(s):
+            if abs(sum(A[i]) - c[i]) > TOL:
+                raise ValueError(f"{key} row {i + 1} sums to {_text(sum(A[i]))}, not c entry {i + 1} = {_text(c[i])}")
+    table = Table(A_E, b_E, A_I, b_I, c, o.order)
+    _check_order(table)
+    return table
+
+
+# -- order conditions ------------------------------------------------------------------
+LEAF = "c"
+
+
+@functools.cache
+def _subtrees(n: int, colours: tuple) -> tuple:
+    """The non-root rooted trees of n vertices: LEAF, or (colour, children) with the
+    children a sorted tuple (the colour: the matrix that reaches the vertex)."""
+    if n == 1:
+        return (LEAF,)
+    return tuple((colour, forest) for colour in colours for forest in _forests(n - 1, colours))
+
+
+@functools.cache
+def _forests(n: int, colours: tuple, smallest: int = 0) -> tuple:
+    """Multisets of non-root trees of n vertices in all, as tuples in the order of
+    ``_catalogue`` from position ``smallest`` on (each multiset once)."""
+    if n == 0:
+        return ((),)
+    out = []
+    for index, (size, tree) in enumerate(_catalogue(n, colours)):
+        if index >= smallest and size <= n:
+            out += [(tree, *rest) for rest in _forests(n - size, colours, index)]
+    return tuple(out)
+
+
+@functools.cache
+def _catalogue(n: int, colours: tuple) -> tuple:
+    return tuple((k, t) for k in range(1, n + 1) for t in _subtrees(k, colours))
+
+
+def _density(tree) -> int:
+    if tree == LEAF:
+        return 1
+    return (1 + sum(_size(t) for t in tree[1])) * math.prod(_density(t) for t in tree[1])
+
+
+def _size(tree) -> int:
+    return 1 if tree == LEAF else 1 + sum(_size(t) for t in tree[1])
+
+
+def _weights(forest, table: Table, c) -> list:
+    """∏ over the children of their stage vectors, elementwise (ones for none)."""
+    out = [Fraction(1)] * len(c)
+    for tree in forest:
+        if tree == LEAF:
+            v = c
+        else:
+            A = table.A_E if tree[0] == "E" else table.A_I
+            w = _weights(tree[1], table, c)
+            v = [sum(a * x for a, x in zip(row, w)) for row in A]
+        out = [x * y for x, y in zip(out, v)]
+    return out
+
+
+def _label(forest, sub: bool) -> str:
+    """The product of the children's vectors, written as in Butcher's tables: c², Ac, (c∘Ac)."""
+    factors = {}
+    for tree in forest:
+        text = "c" if tree == LEAF else "A" + (f"_{tree[0]} " if sub else "") + _label(tree[1], sub)
+        factors[text] = factors.get(text, 0) + 1
+    power = str.maketrans("0123456789", "⁰¹²³⁴⁵⁶⁷⁸⁹")
+    parts = [(t if t == "c" or k == 1 else f"({t})") + (str(k).translate(power) if k > 1 else "") for t, k in factors.items()]
+    return parts[0] if len(parts) == 1 else "(" + "∘".join(parts) + ")"
+
+
+def conditions(order: int, imex: bool):
+    """The order conditions up to ``order``, lowest order first: (order, root colour,
+    children, 1/γ) for each rooted tree (colours "E" and "I" for a pair)."""
+    colours = ("E", "I") if imex else ("E",)
+    for p in range(1, order + 1):
+        for root in colours:
+            for forest in _forests(p - 1, colours):
+                yield p, root, forest, Fraction(1, _density(("root", forest)))
+
+
+def _check_order(table: Table) -> None:
+    for p, root, forest, target in conditions(table.order, table.imex):
+        b = table.b_E if root == "E" else table.b_I
+        value = sum(x * y for x, y in zip(b, _weights(forest, table, table.c)))
+        if abs(value - target) > TOL:
+            sub = f"_{root}" if table.imex else ""
+            name = f"Σb{sub}" if not forest else f"b{sub}·{_label(forest, table.imex)}"
+            raise ValueError(f"order = {table.order} claimed, but the order-{p} condition {name} = {target} fails "
+                             f"(it is {_text(value)})")
+
+
+# -- an explicit table as recorded stages ------------------------------------------------------
+def _solve(columns, target):
+    """Coefficients x with Σ x_m columns[m] = target exactly (Fractions), or None."""
+    n, m = len(target), len(columns)
+    rows = [[columns[k][i] for k in range(m)] + [target[i]] for i in range(n)]
+    pivots, rank = [], 0
+    for col in range(m):
+        pivot = next((r for r in range(rank, n) if rows[r][col]), None)
+        if pivot is None:
+            continue
+        rows[rank], rows[pivot] = rows[pivot], rows[rank]
+        rows[rank] = [x / rows[rank][col] for x in rows[rank]]
+        for r in range(n):
+            if r != rank and rows[r][col]:
+                f = rows[r][col]
+                rows[r] = [x - f * y for x, y in zip(rows[r], rows[rank])]
+        pivots.append(col)
+        rank += 1
+    if any(rows[r][m] for r in range(rank, n)):
+        return None
+    x = [Fraction(0)] * m
+    for r, col in enumerate(pivots):
+        x[col] = rows[r][m]
+    return x
+
+
+def _in_span(v, vectors) -> bool:
+    return _solve(vectors, v) is not None
+
+
+def _express(target, k: int, sources: dict):
+    """``target`` as Σ α·sources + q·e_k: links [(terms)], the first with at most two
+    arrays and q (for the DSS of F_k), each later one adding one array to the first's
+    output; as few arrays as the sources allow, x first."""
+    names = list(sources)
+    unit = [Fraction(int(i == k)) for i in range(len(target))]
+    for size in (1, 2):
+        for pick in itertools.combinations(names, size):
+            x = _solve([sources[p] for p in pick] + [unit], target)
+            if x is not None:
+                return [[(a, p) for a, p in zip(x, pick) if a] + ([(x[-1], "k")] if x[-1] else [])]
+    x = _solve([sources[p] for p in names] + [unit], target)  # every target lies in the sources' span
+    arrays = [(a, p) for a, p in zip(x, names) if a]
+    return [arrays[:2] + ([(x[-1], "k")] if x[-1] else [])] + [[(Fraction(1), None), t] for t in arrays[2:]]
+
+
+def stage_form(A, b, c) -> tuple[tuple, tuple]:
+    """(buffers, stages) of ``explicit.RKScheme`` for the explicit table (A, b, c)
+    (Fractions): x(n+1) = x(n) + Δt Σ b_j K_j, K_i = F(Y_i), Y_i = x(n) + Δt Σ_j a_ij K_j.
+
+    Every buffer holds a combination of e_0 = x(n) and e_j = Δt K_j. After stage j
+    the buffers must span the part in e_0..e_j of every combination still to be
+    formed (the later Y_i and x(n+1)), and one must hold Y_{j+1} itself. Stage j
+    keeps the buffers that lie in that span (and x(n), kept to the end), writes
+    Y_{j+1} and whatever else the span lacks (each from the buffers before it and
+    F_j, straight from F_j's DSS; with more than two arrays a chain of updates),
+    and the others become free for its outputs, in the order that needs the
+    fewest buffers: a table whose stages read few earlier stages writes as few
+    combinations as its Shu–Osher form (ssprk3's, kgu35's are the built-in
+    steppers' updates; RK4's one fewer than the built-in's accumulator form).
+    The state x is overwritten last, with x(n+1)."""
+    s, n = len(b), len(b) + 1
+    Y = [[Fraction(1), *A[i]] for i in range(s)]
+    Z = [Fraction(1), *b]
+    content = {"x": [Fraction(int(i == 0)) for i in range(n)]}  # live buffers, in creation order
+    free, created, holder, stages = [], [], "x", []
+    for j in range(s):
+        k, last = j + 1, j == s - 1
+        cut = [[*t[: k + 1], *[Fraction(0)] * (n - k - 1)] for t in (*Y[k:], Z)]  # what is to come, in e_0..e_k
+        kept = [name for name, v in content.items() if name == "x" or _in_span(v, [*cut, content["x"]])]  # x is kept anyway
+        writes = []  # (target, links)
+        if last:
+            writes.append((Z, _express(Z, k, content)))
+        else:
+            held = [name for name in kept if content[name] == Y[k]]
+            if not held:
+                writes.append((Y[k], _express(Y[k], k, content)))
+            for target in cut[1:]:
+                if not _in_span(target, [content[name] for name in kept] + [w[0] for w in writes]):
+                    writes.append((target, _express(target, k, content)))
+        dying = [name for name in content if name not in kept] + free
+        best = None
+        for order in itertools.permutations(range(len(writes))) if len(writes) <= 5 else [range(len(writes))]:
+            outs, pool, new = {}, list(dying), 0
+            for pos, w in enumerate(order):
+                later = {src for w2 in order[pos + 1 :] for link in writes[w2][1] for _, src in link}
+                later |= {src for link in writes[w][1][1:] for _, src in link}
+                if last:
+                    outs[w] = "x"
+                    continue
+                out = next((name for name in pool if name not in later), None)
+                if out is None:
+                    new += 1
+                    out = f"new{new}"
+                else:
+                    pool.remove(out)
+                outs[w] = out
+            if best is None or new < best[0]:
+                best = (new, order, outs, pool)
+        _, order, outs, pool = best
+        for w in order:  # name the fresh buffers
+            if outs[w].startswith("new"):
+                outs[w] = f"s{len(created) + 1}"
+                created.append(outs[w])
+        updates = []
+        for w in order:
+            target, links = writes[w]
+            out = outs[w]
+            for link in links:
+                updates.append((out, tuple((a if src == "k" else float(a), out if src is None else src) for a, src in link)))
+        stages.append((float(c[j]), holder, tuple(updates)))
+        content = {**{name: content[name] for name in kept}, **{outs[w]: writes[w][0] for w in order}}
+        free = [name for name in pool if name not in content]
+        holder = None if last else next(name for name, v in content.items() if v == Y[k])
+    return tuple(created), tuple(stages)
+
+
+def rk_scheme(name: str, table: Table) -> RKScheme:
+    buffers, stages = stage_form(table.A_E, table.b_E, table.c)
+    return RKScheme(name, f"the explicit table {name}", buffers, stages, None)
+
+
+class Tableau(Stepper):
+    """A Runge–Kutta or IMEX Runge–Kutta stepper from a Butcher tableau in the scene (scene table ``[tableau]``).
+
+    An explicit table (A, b, c) steps as the built-in explicit Runge–Kutta
+    steppers do (``explicit.ExplicitRK``, ``stage_form``: s RHS evaluations a
+    step, the same cost per RHS); an IMEX pair (A_E, b_E, A_I, b_I, c) as
+    ``imex`` (``imex.Imex``: the gravity-wave terms through A_I, one Helmholtz
+    solve per stage with a_ii ≠ 0, reported as helmholtz iterations).
+    Hyperviscosity after the step, as for every stepper. Options and checks:
+    ``TableauOptions`` and ``parse``; the run file's attributes ``tableau``,
+    ``tableau_description``, ``tableau_order`` and ``tableau_table`` (JSON, the
+    entries as written) say which table ran. No measured stability limit: no
+    Courant warning.
+    """
+
+    name = "tableau"
+    Options = TableauOptions
+    explicit = False  # depends on the table: an instance of an explicit one is (``TableauRK``)
+    courant_limit = None
+    advective_courant_limit = None
+    removed_options: dict = {}
+
+    def __new__(cls, model=None, dt=None, options=None):
+        if cls is Tableau:  # the kind of table picks the stage machinery
+            table = parse(options if isinstance(options, TableauOptions) else TableauOptions())
+            cls = TableauARK if table.imex else TableauRK
+        return super().__new__(cls)
+
+    @classmethod
+    def label(cls, options: dict) -> str:
+        return f"{cls.name} {cls.make_options(**options).name}"
+
+    def attrs(self) -> dict:
+        o = self.options
+        table = {key: getattr(o, key) for key in PARTS if getattr(o, key)}
+        return {"tableau": o.name, "tableau_description": o.description, "tableau_order": o.order,
+                "tableau_table": json.dumps(table)}
+
+
+class TableauRK(Tableau, ExplicitRK):
+    """An explicit table, through ``ExplicitRK``'s recorded stages."""
+
+    explicit = True
+    solvers = ()
+
+    def __init__(self, model, dt, options=None):
+        o = options if isinstance(options, TableauOptions) else TableauOptions()
+        self.scheme = rk_scheme(o.name, parse(o))
+        super().__init__(model, dt, options)
+
+
+class TableauARK(Tableau, Imex):
+    """An IMEX pair, through ``Imex``'s stages."""
+
+    solvers = ("helmholtz",)
+
+    def tables(self):
+        A_E, b_E, A_I, b_I, c = parse(self.options).floats()
+        return A_E, b_E, A_I, b_I, c

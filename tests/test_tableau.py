@@ -1,0 +1,253 @@
+"""Steppers from a Butcher tableau in the scene (``stepper = "tableau"``, ``steppers.butcher``).
+
+The built-in explicit steppers written as tables step to the built-ins' states
+(ssprk3 and kgu35 bitwise: their updates, rk4 to 4e-15), ARS(3,4,3) as a pair to ``imex``'s
+bitwise (the same code); the bundled example pairs converge at their orders;
+wrong tables are refused at load in one line (exit 2 from the CLI); the run
+file says which table ran.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from fractions import Fraction
+
+import numpy as np
+import pytest
+import xarray as xr
+
+import conftest
+from conftest import TINY, cli_main, cli_one_line, make_sim, write_tc2_scene
+from swe_sphere.config import load_scene, scene_from_dict
+from swe_sphere.constants import DAY
+from swe_sphere.steppers import STEPPERS
+from swe_sphere.steppers.butcher import TableauARK, TableauOptions, TableauRK, conditions, stage_form
+from swe_sphere.steppers.explicit import RK_SCHEMES
+from swe_sphere.steppers.imex import tableau as ars
+
+# the built-in explicit schemes' Butcher tables: ssprk3 from its Shu–Osher form, kgu35 from
+# the stages of its docstring (u5 = (5 u1 − u0)/4 + 3Δt/4 f(u4) = u0 + Δt/4 f(u0) + 3Δt/4 f(u4))
+BUILT_IN = {
+    "ssprk3": dict(A=[[0, 0, 0], [1, 0, 0], ["1/4", "1/4", 0]], b=["1/6", "1/6", "2/3"], c=[0, 1, "1/2"], order=3),
+    "rk4": dict(A=[[0, 0, 0, 0], ["1/2", 0, 0, 0], [0, "1/2", 0, 0], [0, 0, 1, 0]], b=["1/6", "1/3", "1/3", "1/6"],
+                c=[0, "1/2", "1/2", 1], order=4),
+    "kgu35": dict(A=[[0] * 5, ["1/5", 0, 0, 0, 0], [0, "1/5", 0, 0, 0], [0, 0, "1/3", 0, 0], [0, 0, 0, "2/3", 0]],
+                  b=["1/4", 0, 0, 0, "3/4"], c=[0, "1/5", "1/5", "1/3", "2/3"], order=3),
+}
+
+
+def ars343_pair() -> dict:
+    """ARS(3,4,3) as a pair, its entries the floats ``imex`` steps with."""
+    A_E, A_I, b, _ = ars("ars343")
+    return dict(name="ARS(3,4,3)", order=3, A_E=A_E.tolist(), b_E=b.tolist(), A_I=A_I.tolist(), b_I=b.tolist(), c=A_E.sum(1).tolist())
+
+
+def short(stepper, options, steps=4, dt=1800.0, scene="tc2_steady"):
+    """``scene`` on ne = 2 np = 4 with ``stepper`` and its options for ``steps`` steps of ``dt``."""
+    base = load_scene(scene, ne=2, np=4, dt=dt, days=steps * dt / DAY, stepper=stepper)
+    return dataclasses.replace(base, stepper_options=options, output_every_days=steps * dt / DAY)
+
+
+def final_state(scene, steps):
+    sim = make_sim(scene)
+    stats = [sim.stepper.step(sim.x) for _ in range(steps)]
+    return sim, sim.x.numpy().copy(), stats
+
+
+def example(name) -> tuple:
+    """A bundled example scene's table as hashable (key, value) pairs (``conftest.tc6_final``)."""
+    o = TableauOptions(**load_scene(name).stepper_options)
+    return tuple((f.name, getattr(o, f.name)) for f in dataclasses.fields(o) if f.name not in ("tol", "maxiter", "mean_depth"))
+
+
+# -- the table's checks -----------------------------------------------------------
+
+
+def test_explicit_order_conditions_are_the_eight_of_order_four_and_imex_the_coupled_ones():
+    """Order 4: the 8 rooted trees (Butcher's table); a pair to order 3: 2 + 2 + 2·3
+    conditions (b_E and b_I on c², A_E c and A_I c: the coupling ones included)."""
+    found = [(p, t) for p, _, _, t in conditions(4, False)]
+    assert found == [(1, 1), (2, Fraction(1, 2)), (3, Fraction(1, 3)), (3, Fraction(1, 6)), (4, Fraction(1, 4)),
+                     (4, Fraction(1, 8)), (4, Fraction(1, 12)), (4, Fraction(1, 24))]
+    assert sum(1 for _ in conditions(3, True)) == 10
+    assert sum(1 for _ in conditions(5, False)) == 17  # 9 rooted trees of 5 vertices
+
+
+@pytest.mark.parametrize("name", list(BUILT_IN))
+def test_built_in_tables_record_as_few_combinations_as_the_built_ins(name):
+    """The table's stage form writes no more combinations a stage (each pair shares
+    one DSS) than the hand-written Shu–Osher form; ssprk3's are the built-in's."""
+    t = BUILT_IN[name]
+    F = lambda v: Fraction(str(v))  # noqa: E731
+    _, stages = stage_form([[F(a) for a in row] for row in t["A"]], [F(x) for x in t["b"]], [F(x) for x in t["c"]])
+    built_in = next(s for s in RK_SCHEMES if s.name == name)
+    assert [math.ceil(len(u) / 2) for _, _, u in stages] == [math.ceil(len(u) / 2) for _, _, u in built_in.stages]
+    assert sum(len(u) for _, _, u in stages) <= sum(len(u) for _, _, u in built_in.stages)
+    if name == "ssprk3":  # the same coefficients and abscissae (its s1, s2 are one buffer here)
+        assert [(c, [terms for _, terms in u]) for c, _, u in stages] == \
+               [(c, [tuple((a, "s1" if src == "s2" else src) for a, src in terms) for _, terms in u]) for c, _, u in built_in.stages]
+
+
+def test_stage_form_of_random_tables_forms_every_stage():
+    """Random explicit tables (2..7 stages, dense and sparse rows): replaying the
+    recorded updates on coefficient vectors over (x(n), Δt K_1, ..., Δt K_s), each
+    stage's input is its Y_i and the state ends as x(n+1) (to round-off); at most two
+    arrays and F once per update (chains where a row needs more)."""
+    rng = np.random.default_rng(33)
+    for trial in range(60):
+        s = int(rng.integers(2, 8))
+        A = [[Fraction(int(rng.integers(-4, 5)), int(rng.integers(1, 6))) if j < i and rng.random() < 0.6 else Fraction(0)
+              for j in range(s)] for i in range(s)]
+        b = [Fraction(int(rng.integers(-4, 5)), int(rng.integers(1, 6))) for _ in range(s)]
+        buffers, stages = stage_form(A, b, [sum(row) for row in A])
+        held = {"x": np.eye(s + 1)[0]}
+        for j, (_, arg, updates) in enumerate(stages):
+            np.testing.assert_allclose(held[arg], [1, *map(float, A[j])], rtol=0, atol=1e-14, err_msg=f"{trial} {j}")
+            for out, terms in updates:
+                assert len(terms) <= 3 and sum(src == "k" for _, src in terms) <= 1 and sum(src != "k" for _, src in terms) <= 2
+                held[out] = sum(float(a) * (np.eye(s + 1)[j + 1] if src == "k" else held[src]) for a, src in terms)
+        np.testing.assert_allclose(held["x"], [1, *map(float, b)], rtol=0, atol=1e-14, err_msg=str(trial))
+        assert set(held) <= {"x", *buffers}
+
+
+# -- equal to the built-ins ---------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", list(BUILT_IN))
+def test_built_in_schemes_written_as_tables_step_to_their_states(name):
+    """TC5 (topography, ∇⁴) on ne = 2, 6 steps of 30 min: the table's state equals the
+    built-in's to round-off, relative to the largest wind and depth (measured:
+    ssprk3 and kgu35 bitwise, their updates the built-ins', rk4 4.3e-15: its accumulator differs)."""
+    options = {"name": name, **BUILT_IN[name]}
+    _, ref, _ = final_state(short(name, {}, scene="tc5_mountain"), 6)
+    sim, x, stats = final_state(short("tableau", options, scene="tc5_mountain"), 6)
+    assert isinstance(sim.stepper, TableauRK) and sim.stepper.explicit
+    wind, depth = np.abs(ref[:2]).max(), np.abs(ref[2]).max()
+    diff = np.abs(x - ref).max(axis=1) / np.array([wind, wind, depth])
+    print(f"\n{name}: max |table - built-in| in u, v, h over the largest wind, wind, depth {diff}")
+    assert np.all(diff <= 1e-14)
+    if name != "rk4":
+        np.testing.assert_array_equal(x, ref)
+    assert [s.rhs_evals for s in stats] == [len(BUILT_IN[name]["b"])] * 6
+
+
+def test_ars343_written_as_a_pair_steps_to_imex_bitwise():
+    """ARS(3,4,3) as (A_E, b_E, A_I, b_I, c) with imex's entries: the same states and
+    Helmholtz iterations as ``imex`` (TC5 ne = 2, 4 steps of 1 h, tol 1e-10)."""
+    _, ref, ref_stats = final_state(short("imex", {"scheme": "ars343", "tol": 1e-10}, dt=3600.0, scene="tc5_mountain"), 4)
+    sim, x, stats = final_state(short("tableau", {**ars343_pair(), "tol": 1e-10}, dt=3600.0, scene="tc5_mountain"), 4)
+    assert isinstance(sim.stepper, TableauARK) and not sim.stepper.explicit
+    np.testing.assert_array_equal(x, ref)
+    assert [(s.rhs_evals, s.iterations) for s in stats] == [(r.rhs_evals, r.iterations) for r in ref_stats]
+
+
+# -- order of accuracy of the bundled examples ----------------------------------
+
+
+# HOMME's M1 pair (Guba et al. 2020, Geosci. Model Dev. 13, 6467, §4.1; ClimaTimeSteppers'
+# HOMMEM1): b_E ≠ b_I (each part's last row), five implicit stages with differing a_ii
+HOMMEM1 = (("name", "HOMME M1"), ("order", 2), ("c", (0, "1/5", "1/5", "1/3", "1/2", 1)),
+           ("A_E", ((0,) * 6, ("1/5", 0, 0, 0, 0, 0), (0, "1/5", 0, 0, 0, 0), (0, 0, "1/3", 0, 0, 0), (0, 0, 0, "1/2", 0, 0), (0, 0, 0, 0, 1, 0))),
+           ("b_E", (0, 0, 0, 0, 1, 0)),
+           ("A_I", ((0,) * 6, (0, "1/5", 0, 0, 0, 0), (0, 0, "1/5", 0, 0, 0), (0, 0, 0, "1/3", 0, 0), (0, 0, 0, 0, "1/2", 0),
+                    ("5/18", "5/18", 0, 0, 0, "8/18"))),
+           ("b_I", ("5/18", "5/18", 0, 0, 0, "8/18")))
+
+
+# a second-order pair (b_E·c = b_I·c = 1/2) whose last stage is explicit in both parts but
+# weighed differently (b_E ≠ b_I): its L Y comes from a product, not from a solve
+EXPLICIT_LAST = (("name", "explicit last stage"), ("order", 2), ("c", (0, "1/2", "1/2")),
+                 ("A_E", ((0, 0, 0), ("1/2", 0, 0), ("1/4", "1/4", 0))), ("b_E", (0, 0, 1)),
+                 ("A_I", ((0, 0, 0), ("1/4", "1/4", 0), ("1/4", "1/4", 0))), ("b_I", (0, "1/2", "1/2")))
+PAIRS = {"hommem1": HOMMEM1, "explicit_last": EXPLICIT_LAST}
+
+
+@pytest.mark.parametrize("scene, order", [("ark2_gkc", 2), ("ark324l2sa", 3), ("hommem1", 2), ("explicit_last", 2)])
+def test_example_tables_converge_at_their_order(scene, order):
+    """TC6 inviscid at ne = 4 for 0.25 day against rk4 with 2048 steps, 64 -> 128 steps
+    (the imex tests' case): rate ≈ 2 for ARK2 (GKC 2013), ≈ 3 for ARK3(2)4L[2]SA (the
+    bundled examples), ≈ 2 for HOMME's M1 (b_E ≠ b_I) and for a pair with an explicit
+    last stage."""
+    options = (*(PAIRS[scene] if scene in PAIRS else example(scene)), ("tol", 1e-13))
+    coarse, _, _ = conftest.tc6_error(0.25, 2048, "tableau", 64, options)
+    fine, rf, _ = conftest.tc6_error(0.25, 2048, "tableau", 128, options)
+    rate = math.log2(coarse / fine)
+    print(f"\n{scene}: error {coarse:.4e} -> {fine:.4e}, rate {rate:.3f}, mass change {rf.diagnostics['mass_change']:.1e}")
+    assert order - 0.3 <= rate <= order + 0.3
+    assert fine > 1e-8  # far above the reference's own error
+    assert abs(rf.diagnostics["mass_change"]) < 1e-14
+
+
+# -- refusals --------------------------------------------------------------------------
+
+GOOD = '[tableau]\nname = "t"\norder = 2\nA = [[0, 0], ["1/2", 0]]\nb = [0, 1]\nc = [0, "1/2"]\n'
+PAIR = ('[tableau]\nname = "p"\norder = 2\nc = [0, "1/2"]\nA_E = [[0, 0], ["1/2", 0]]\nb_E = [0, 1]\n'
+        'A_I = [[0, 0], [0, "1/2"]]\nb_I = [0, 1]\n')
+
+
+@pytest.mark.parametrize("table, words", [
+    (GOOD.replace('c = [0, "1/2"]', 'c = [0, "1/3"]'), ("tableau.A row 2 sums to 1/2, not c entry 2 = 1/3",)),
+    (GOOD.replace("order = 2", "order = 3"), ("tableau.order = 3 claimed", "order-3 condition b·c² = 1/3 fails", "1/4")),
+    (PAIR.replace("order = 2", "order = 3"), ("order-3 condition b_E·c² = 1/3 fails",)),
+    (PAIR.replace('A_I = [[0, 0], [0, "1/2"]]', 'A_I = [[0, "1/4"], ["1/4", "1/4"]]'),
+     ("tableau.A_I entry (1,2) = 1/4 is above the diagonal", "diagonally implicit")),
+    (GOOD.replace('A = [[0, 0], ["1/2", 0]]', 'A = [[0, 0], ["1/2"]]'), ("tableau.A row 2 has 1 entries, not 2",)),
+    (GOOD.replace("b = [0, 1]", "b = [0, 1, 0]"), ("tableau.b has 3 entries, not 2",)),
+    (GOOD.replace('"1/2", 0]]', '"1/two", 0]]'), ("tableau.A entry (2,1) = '1/two' is not a number or a fraction",)),
+    (GOOD.replace('A = [[0, 0], ["1/2", 0]]', 'A = [["1/2", 0], [0, "1/2"]]'), ("tableau.A entry (1,1) = 1/2 is on the diagonal",)),
+    (GOOD.replace("b = [0, 1]", "b = 1"), ("tableau.b must be an array",)),
+    (GOOD + 'A_I = [[0, 0], [0, 1]]\n', ("not both",)),
+    (PAIR.replace("b_I = [0, 1]\n", ""), ("tableau.b_I is missing",)),
+    (GOOD.replace('name = "t"\n', ""), ("tableau.name is missing",)),
+])
+def test_wrong_tables_are_refused_in_one_line(capsys, tmp_path, table, words):
+    scene = write_tc2_scene(tmp_path / "t.toml", stepper="tableau", tables=table)
+    cli_one_line(capsys, ["run", scene, *TINY, "--days", "0.125", "--output", tmp_path / "t.nc"], 2, *words)
+    assert not (tmp_path / "t.nc").exists()
+
+
+# -- restart, run file, list --------------------------------------------------------
+
+
+@pytest.mark.parametrize("options", [BUILT_IN["kgu35"] | {"name": "kgu35"}, dict(example("ark324l2sa"))], ids=["explicit", "imex"])
+def test_state_restore_continues_bitwise(options):
+    """3 steps, state() and x into a fresh simulation, 3 more: bitwise the 6 straight
+    (the IMEX pair carries the mean depth and the warm Helmholtz guess)."""
+    scene = short("tableau", options, steps=6)
+    _, whole, _ = final_state(scene, 6)
+    first, x, _ = final_state(scene, 3)
+    second = make_sim(scene)
+    second.x.assign(x)
+    second.stepper.restore(first.stepper.state())
+    for _ in range(3):
+        second.stepper.step(second.x)
+    np.testing.assert_array_equal(second.x.numpy(), whole)
+
+
+def test_run_file_and_list_say_which_table_ran(capsys, tmp_path):
+    out = tmp_path / "ark2.nc"
+    code, stdout, _ = cli_main(capsys, "run", "tableaus/ark2_gkc", *TINY, "--dt", "3600", "--days", "0.125", "--output", out)
+    assert code == 0
+    assert "stepper     tableau ARK2 (Giraldo, Kelly & Constantinescu 2013), dt = 3600 s" in stdout
+    with xr.open_dataset(out) as ds:
+        assert ds.attrs["stepper"] == "tableau" and ds.attrs["tableau"] == "ARK2 (Giraldo, Kelly & Constantinescu 2013)"
+        assert ds.attrs["tableau_order"] == 2
+        table = json.loads(ds.attrs["tableau_table"])
+        assert table["A_I"][1] == [0.29289321881345254, 0.29289321881345254, 0] and set(table) == {"A_E", "b_E", "A_I", "b_I", "c"}
+        assert scene_from_dict(json.loads(ds.attrs["scene"])).stepper_options["name"] == ds.attrs["tableau"]
+    code, stdout, _ = cli_main(capsys, "list")
+    assert code == 0
+    assert any(line.split()[:1] == ["tableau"] for line in stdout.splitlines())
+    assert "ark324l2sa" in stdout and "tableau ARK3(2)4L[2]SA (Kennedy & Carpenter 2003) dt=1800s" in stdout
+
+
+def test_without_a_table_it_is_rk4():
+    """No [tableau] table: the classical RK4 table (the documented default), bitwise
+    rk4's updates up to round-off; registry-wide tests run it."""
+    o = STEPPERS["tableau"].make_options()
+    assert o.name == "rk4" and o.order == 4 and o == TableauOptions()
+    _, ref, _ = final_state(short("rk4", {}), 3)
+    _, x, _ = final_state(short("tableau", {}), 3)
+    np.testing.assert_allclose(x, ref, rtol=0, atol=1e-13 * np.abs(ref).max())

@@ -1,5 +1,6 @@
 """Run by ``test_mpi.py`` under ``mpiexec`` (and imported by it for the one-rank runs): TC5
-at ne 2 with each stepper that solves (semi-implicit, JFNK, IMEX), one simulation over all ranks each,
+at ne 2 with each stepper that solves (semi-implicit, JFNK, IMEX; the last two also with
+their Helmholtz solves in float32, ``precision = "mixed"``), one simulation over all ranks each,
 and a semi-implicit run continued from a restart file. Rank 0 saves the final
 whole-grid states: ``python mpi_steppers.py OUT.npz CHECKPOINT``.
 """
@@ -14,19 +15,27 @@ from swe_sphere import mpi
 from swe_sphere.config import load_scene
 from swe_sphere.simulation import Simulation
 
-STEPPERS = ("semi_implicit", "implicit", "imex")
+# label → (stepper, its options)
+STEPPERS = {
+    "semi_implicit": ("semi_implicit", {}),
+    "implicit": ("implicit", {}),
+    "imex": ("imex", {}),
+    "implicit_mixed": ("implicit", {"precision": "mixed"}),
+    "imex_mixed": ("imex", {"precision": "mixed"}),
+}
 DAYS = 0.1
 
 
-def scene(stepper: str, days: float = DAYS):
-    return load_scene("tc5_mountain", ne=2, days=days, stepper=stepper)
+def scene(stepper: str, days: float = DAYS, options: dict | None = None):
+    overrides = {f"{stepper}.{k}": v for k, v in (options or {}).items()}
+    return load_scene("tc5_mountain", ne=2, days=days, stepper=stepper, overrides=overrides)
 
 
 def final_states(comm=None) -> dict[str, np.ndarray]:
-    """Stepper name → final (u, v, h) (3, npts) of a run over ``comm``'s ranks (None: this process)."""
+    """Label → final (u, v, h) (3, npts) of a run over ``comm``'s ranks (None: this process)."""
     out = {}
-    for name in STEPPERS:
-        sim = Simulation(scene(name), "cpu", progress=False, comm=comm)
+    for name, (stepper, options) in STEPPERS.items():
+        sim = Simulation(scene(stepper, options=options), "cpu", progress=False, comm=comm)
         sim.run(None)
         out[name] = np.stack(sim.fields())
     return out

@@ -200,7 +200,8 @@ def relative_difference(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
 @pytest.mark.usefixtures("needs_mpi")
 def test_solver_steppers_agree_with_one_rank(tmp_path):
     """Semi-implicit, JFNK and IMEX on 3 ranks (their Krylov inner products summed over
-    ranks) end within 1e-12 of one rank (measured: 1e-14, 2e-13, 1e-14), and so does a
+    ranks) end within 1e-12 of one rank (measured: 1e-14, 2e-13, 1e-14), JFNK and IMEX
+    with float32 Helmholtz solves too (``precision = "mixed"``), and so does a
     semi-implicit run (its warm Helmholtz guess in the restart file) written on one rank
     and continued on 3. The JFNK run on 2 ranks goes through the command line."""
     from mpi_steppers import DAYS, continued_state, final_states, scene

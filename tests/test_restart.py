@@ -32,7 +32,9 @@ from swe_sphere.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
 from swe_sphere.topology import Topology
 
-VARIANTS = [(name, {}) for name in STEPPERS] + [("implicit", {"method": "bdf2"})]
+VARIANTS = [(name, {}) for name in STEPPERS] + [("implicit", {"method": "bdf2"})] + [
+    (name, {"precision": "mixed"}) for name in ("semi_implicit", "imex", "implicit")  # float32 Helmholtz solves
+]
 DT = 1800.0
 
 

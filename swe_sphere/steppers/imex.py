@@ -77,6 +77,7 @@ class ImexOptions:
     tol: float = 1e-6
     maxiter: int = 500
     mean_depth: float = 0.0
+    precision: str = "double"
 
     def __post_init__(self):
         if self.scheme not in SCHEMES:
@@ -111,7 +112,7 @@ class Imex(Stepper):
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
         o = self.options
-        self.gw = GravityWave(model, o.mean_depth, o.tol, o.maxiter, warm=True)
+        self.gw = GravityWave(model, o.mean_depth, o.tol, o.maxiter, warm=True, precision=o.precision)
         self.A_exp, self.A_imp, self.b, self.order = tableau(o.scheme)
         stages = self.A_exp.shape[0]
         self.gamma = float(self.A_imp[1, 1])

@@ -38,6 +38,7 @@ class SemiImplicitOptions(LeapfrogOptions):
     tol: float = 1e-6
     maxiter: int = 500
     mean_depth: float = 0.0
+    precision: str = "double"
 
     def __post_init__(self):
         super().__post_init__()
@@ -69,7 +70,7 @@ class SemiImplicit(Leapfrog):
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
         o = self.options
-        self.gw = GravityWave(model, o.mean_depth, o.tol, o.maxiter, warm=True)
+        self.gw = GravityWave(model, o.mean_depth, o.tol, o.maxiter, warm=True, precision=o.precision)
         self.F, self.W, self.LW = self._buffer(), self._buffer(), self._buffer()
 
     @property

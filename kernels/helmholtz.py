@@ -21,6 +21,11 @@ product an iteration, the three inner products it needs computed by the update
 partial sums over ``chunk`` unique nodes in index order (a launch argument,
 ``parallel.reduction_chunk``), summed on the host in a fixed order: the bits do
 not depend on the CPU threads a launch is split over.
+
+Every kernel of the solve is made for a float type (the factories' ``dtype``:
+float64, or float32 for the float32 CG that float64 refinement corrects,
+``steppers.helmholtz``); inner products are summed in float64 either way, and
+the exchanges between ranks stay float64 (``dss.pack`` converts).
 """
 
 import functools

@@ -160,7 +160,12 @@ class GravityWave:
     Parameters: the model; ``mean_depth`` H (m; 0 = the mean depth of the first
     state passed to ``set_depth``); ``tol`` (relative residual of the CG) and
     ``maxiter``; ``warm``: start each CG from the last solution (for a
-    sequence of similar solves, as the semi-implicit steps).
+    sequence of similar solves, as the semi-implicit steps); ``precision``:
+    "double", or "mixed" (the CG in float32, ``HelmholtzCG``, refined in float64
+    to ``tol``, ``_refined``; float32 alone for a tol it reaches, as the JFNK
+    preconditioner's 1e-2). On the CPU the float32 product is no faster than the
+    float64 one (it is bound by its gathers, not its bytes:
+    ``benchmarks/helmholtz_roofline.py``), so "double" is every stepper's default.
 
     ``apply(x, out)``: out = L x (states (3, N), element-local). ``solve(r, a,
     z, scale)``: z = (I − aL)⁻¹ (scale·r); returns the CG iterations. Raises

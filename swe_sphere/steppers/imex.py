@@ -93,7 +93,8 @@ class Imex(Stepper):
     gravity-wave limit ARS(3,4,3)'s day-1 error against a converged run is
     2.528e-4 against 2.525e-4 with 1e-10 and 1e-8, with 2.5x fewer
     iterations; 1e-4 gives 3.0e-4), ``maxiter`` (500),
-    ``mean_depth`` (H, m; 0 = the initial mean depth). The Helmholtz solve is
+    ``mean_depth`` (H, m; 0 = the initial mean depth), ``precision``
+    ("double" | "mixed", as ``semi_implicit``'s). The Helmholtz solve is
     ``helmholtz.GravityWave``'s compiled CG; each stage's solve starts from the
     last one's solution. s + 1 RHS evaluations and s Helmholtz
     solves a step (s = 2, 3); reports the Helmholtz iterations. Raises

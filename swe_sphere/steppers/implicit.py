@@ -108,7 +108,9 @@ class Implicit(Stepper):
     TC5 ne16 at 4x and 10x the gravity-wave limit; 1e-1 was 13 % cheaper
     still, but Newton stagnated with it on TC2 at 50x), ``mean_depth`` (H, m;
     0 = initial mean), ``initial_guess`` ("extrapolate": 2x(n) − x(n−1)
-    after the first step, "previous": x(n)).
+    after the first step, "previous": x(n)), ``precision`` ("double" |
+    "mixed": the preconditioner's Helmholtz CG in float32, one solve to
+    ``helmholtz_tol``, no refinement).
     Reports Newton and GMRES iterations, preconditioner applications
     (``precond``) and their Helmholtz iterations per step; keeps the last
     step's residual history in ``residual_history``.

@@ -55,7 +55,9 @@ class SemiImplicit(Leapfrog):
     iterations; mass is exact either way), ``maxiter`` (500),
     ``mean_depth`` (H in m; 0 = the initial state's mean depth). The
     Helmholtz solve is ``helmholtz.GravityWave``'s compiled CG; each solve
-    starts from the last one's solution.
+    starts from the last one's solution. ``precision`` ("double" | "mixed":
+    float32 CG passes refined in float64 to the same ``tol``; "double" is the
+    default because the float32 product is no faster on the CPU, benchmarks/README.md).
     Reports the Helmholtz iterations per step. Raises ValueError without the
     continuity and pressure-gradient terms.
     """

@@ -219,7 +219,7 @@ def main():
         A = (sp.diags(area) + c * K).tocsr()
         its_pcg = gw._pcg(c)
         t_it = cpu_seconds(lambda: gw._pcg(c), 2) / its_pcg
-        t_op = cpu_seconds(lambda: gw._apply(gw.u, gw.w, c), 20)
+        t_op = cpu_seconds(lambda: gw._apply(gw.cg.u, gw.cg.w, c), 20)
         hi = 1.05 * (1 + c * mu)
 
         def row(name, precond, extra):

@@ -11,7 +11,8 @@ subtracted):
 
 * RHS: ``model.rhs`` (including JFNK's Jacobian-vector products);
 * ∇⁴: ``model.hyperviscosity`` (split after the step);
-* Helmholtz op: the operator M + cK of the compiled CG (``GravityWave._apply``);
+* Helmholtz op: the operator M + cK of the compiled CG (``HelmholtzCG.apply``, both
+  precisions);
 * Helmholtz rest: the rest of ``GravityWave.solve`` (the CG's vector updates
   and inner products, the preconditioner fused into them, the Schur pieces);
 * other: the rest of the step (stage combinations; JFNK's Newton and FGMRES).
@@ -25,6 +26,7 @@ for the targets' idle machine with several threads (process time sums them).
 around every timed call (so the parts add up; the syncs cost a few µs each).
 
     SWE_SPHERE_THREADS=1 python benchmarks/implicit_cost.py --clock cpu
+    SWE_SPHERE_THREADS=1 python benchmarks/implicit_cost.py --clock cpu --precision double mixed
     SWE_SPHERE_THREADS=2 python benchmarks/implicit_cost.py --clock wall
     python benchmarks/implicit_cost.py --device cuda
 """
@@ -105,8 +107,9 @@ def build(case, ne, stepper, dt, options, clock, device):
     gw = getattr(sim.stepper, "gw", None)
     if gw is not None:
         timers.wrap(gw, "solve", "Helmholtz rest")
-        if hasattr(gw, "_apply"):
-            timers.wrap(gw, "_apply", "Helmholtz op")
+        for cg in (gw.cg, gw.low):  # the float64 CG's operator, and the float32 one's ("mixed")
+            if cg is not None:
+                timers.wrap(cg, "apply", "Helmholtz op")
     return sim, timers
 
 
@@ -118,6 +121,8 @@ def main():
     ap.add_argument("--warmup", type=int, default=3, help="untimed steps per configuration first")
     ap.add_argument("--clock", choices=("cpu", "wall"), default="cpu")
     ap.add_argument("--device", choices=("cpu", "cuda"), default="cpu", help="cuda: wall clock, synchronised")
+    ap.add_argument("--precision", nargs="+", default=["double"], choices=("double", "mixed"),
+                    help="the Helmholtz solves' precision; several: each configuration in each, interleaved")
     ap.add_argument("--explicit", nargs="*", default=None, metavar="STEPPER@DT",
                     help="the explicit references of every case, e.g. ssprk3@216 (default: EXPLICIT, measured at ne30)")
     args = ap.parse_args()
@@ -134,7 +139,9 @@ def main():
         for name, dt in explicit:
             runs.append((name, dt / dt_g, True, *build(case, args.ne, name, dt, {}, clock, args.device)))
         for label, stepper, f, options in CONFIGS[case]:
-            runs.append((label, f, False, *build(case, args.ne, stepper, f * dt_g, options, clock, args.device)))
+            for precision in args.precision:
+                name = label if len(args.precision) == 1 else f"{label} {precision}"
+                runs.append((name, f, False, *build(case, args.ne, stepper, f * dt_g, {**options, "precision": precision}, clock, args.device)))
         for _, _, _, sim, timers in runs:
             for _ in range(args.warmup):
                 sim.stepper.step(sim.x)

@@ -8,6 +8,7 @@ global order, so the bits do not depend on which process holds which copy.
 """
 
 import functools
+from typing import Any
 
 import warp as wp
 
@@ -216,13 +217,18 @@ def assemble(
 
 
 @wp.kernel
-def pack(x: wp.array2d(dtype=f64), rows: int, index: wp.array(dtype=wp.int32), buf: wp.array(dtype=f64), offset: int):
+def pack(x: wp.array2d(dtype=Any), rows: int, index: wp.array(dtype=wp.int32), buf: wp.array(dtype=f64), offset: int):
     """buf[k·rows + r] = x[r, index[k]] for r < rows: the copies another process
-    needs, node by node (HOMME ``edgeVpack``). Dim len(index)."""
+    needs, node by node (HOMME ``edgeVpack``); x float64 or float32 (the float32
+    Helmholtz solve's), the buffer float64. Dim len(index)."""
     k = wp.tid() + offset
     p = index[k]
     for r in range(rows):
-        buf[k * rows + r] = x[r, p]
+        buf[k * rows + r] = f64(x[r, p])
+
+
+for _t in (f64, wp.float32):  # the model's fields and the float32 Helmholtz solve's vectors
+    wp.overload(pack, {"x": wp.array2d(dtype=_t)})
 
 
 @wp.kernel

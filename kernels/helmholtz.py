@@ -21,9 +21,15 @@ product an iteration, the three inner products it needs computed by the update
 partial sums over ``chunk`` unique nodes in index order (a launch argument,
 ``parallel.reduction_chunk``), summed on the host in a fixed order: the bits do
 not depend on the CPU threads a launch is split over.
+
+Every kernel of the solve is made for a float type (the factories' ``dtype``:
+float64, or float32 for the float32 CG that float64 refinement corrects,
+``steppers.helmholtz``); inner products are summed in float64 either way, and
+the exchanges between ranks stay float64 (``dss.pack`` converts).
 """
 
 import functools
+from typing import Any
 
 import warp as wp
 
@@ -32,36 +38,55 @@ from .operators import CPU_FAST, over, row_derivatives, times
 f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
 
-@wp.func
-def copy_at(x: wp.array2d(dtype=f64), r: int, ghost: wp.array(dtype=f64), c: int, nlocal: int):
-    """Row r of copy c: x[r, c] if local (c < nlocal), else another process's, from
-    ``ghost`` in ``dss.pack``'s layout (x.shape[0] rows an entry)."""
-    if c >= nlocal:
-        return ghost[(c - nlocal) * x.shape[0] + r]
-    return x[r, c]
+@functools.cache
+def gathers(dtype=f64):
+    """(``copy_at``, ``unique_value``) reading ``dtype`` vectors and the float64 exchange buffers:
+
+    * copy_at(x, r, ghost, c, nlocal): row r of copy c, x[r, c] if local (c < nlocal), else
+      another process's, from ``ghost`` in ``dss.pack``'s layout (x.shape[0] rows an entry);
+    * unique_value(y, halo, g): entry g of the unique-node vector y, or of ``halo`` (the
+      owners' values) for g ≥ len(y).
+
+    The exchanges stay float64 whatever the solve's type (``dss.pack`` converts)."""
+    suffix = "" if dtype is f64 else f"_{dtype.__name__}"
+
+    def copy_at(x: wp.array2d(dtype=dtype), r: int, ghost: wp.array(dtype=f64), c: int, nlocal: int):
+        if c >= nlocal:
+            return dtype(ghost[(c - nlocal) * x.shape[0] + r])
+        return x[r, c]
+
+    def unique_value(y: wp.array(dtype=dtype), halo: wp.array(dtype=f64), g: int):
+        n = y.shape[0]
+        if g < n:
+            return y[g]
+        return dtype(halo[g - n])
+
+    funcs = []
+    for f in (copy_at, unique_value):
+        f.__qualname__ = f.__name__ = f.__name__ + suffix
+        funcs.append(wp.func(f))
+    return tuple(funcs)
 
 
-@wp.func
-def unique_value(y: wp.array(dtype=f64), halo: wp.array(dtype=f64), g: int):
-    """Entry g of the unique-node vector y, or of ``halo`` (the owners' values) for g ≥ len(y)."""
-    n = y.shape[0]
-    if g < n:
-        return y[g]
-    return halo[g - n]
+def _name(kernel, name: str, dtype):
+    """Key a factory's kernel by its name and float type (Warp keys kernels by qualname)."""
+    kernel.__qualname__ = name + ("" if dtype is f64 else f"_{dtype.__name__}")
+    return kernel
 
 
 @functools.cache
-def helmholtz_gradient(np: int):
+def helmholtz_gradient(np: int, dtype=f64):
     """Per element: wg[0:2] = spheremp·∇y at its nodes (m² × units of y / m),
     y a unique-node vector read through gid (gid[p] ≥ nunique: from ``halo``,
     the owners' values, as ``dss.scatter``). Arguments: y, halo, gid (N), and as
     ``operators.row_vectors`` views Dinv (4, N/np), spheremp (N/np); dvv
     (``operators.dvv_matrix``); wg (2, N/np) (a view); offset (elements). Dim nelem."""
-    vec, mat, along, across = row_derivatives(np)
+    vec, mat, along, across = row_derivatives(np, dtype)
+    copy_at, unique_value = gathers(dtype)
     NP = int(np)
 
     def helmholtz_gradient(
-        y: wp.array(dtype=f64), halo: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32), Dinv: wp.array2d(dtype=vec),
+        y: wp.array(dtype=dtype), halo: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32), Dinv: wp.array2d(dtype=vec),
         spheremp: wp.array(dtype=vec), dvv: mat, wg: wp.array2d(dtype=vec), offset: int,
     ):
         base = (wp.tid() + offset) * NP
@@ -78,12 +103,11 @@ def helmholtz_gradient(np: int):
             wg[0, q] = times(w, times(Dinv[0, q], a) + times(Dinv[2, q], b))
             wg[1, q] = times(w, times(Dinv[1, q], a) + times(Dinv[3, q], b))
 
-    helmholtz_gradient.__qualname__ = "helmholtz_gradient"  # the kernel's key
-    return wp.kernel(helmholtz_gradient, enable_backward=False, module="unique", module_options=CPU_FAST)
+    return wp.kernel(_name(helmholtz_gradient, "helmholtz_gradient", dtype), enable_backward=False, module="unique", module_options=CPU_FAST)
 
 
 @functools.cache
-def helmholtz_divergence(np: int, copies: int):
+def helmholtz_divergence(np: int, copies: int, dtype=f64):
     """Per element: z[0] = spheremp·(y − c·(D̂ S wg)) at its nodes, S the DSS (Σ over the copies of
     a node of wg, times rspheremp; a copy ≥ nlocal read from ``ghost``, ``copy_at``), y read as in
     ``helmholtz_gradient``. Arguments: wg (2, N), ghost, nlocal, table, rspheremp (N), y,
@@ -91,12 +115,13 @@ def helmholtz_divergence(np: int, copies: int):
     spheremp (N/np); dvv (``operators.dvv_matrix``); c (m²); z (1, N/np) (a view),
     offset (elements). Dim nelem."""
     NP, C = int(np), int(copies)
-    vec, mat, along, across = row_derivatives(NP)
+    vec, mat, along, across = row_derivatives(NP, dtype)
+    copy_at, unique_value = gathers(dtype)
 
     def helmholtz_divergence(
-        wg: wp.array2d(dtype=f64), ghost: wp.array(dtype=f64), nlocal: int, table: wp.array2d(dtype=wp.int32),
-        rspheremp: wp.array(dtype=f64), y: wp.array(dtype=f64), halo: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32),
-        Dinv: wp.array2d(dtype=vec), metdet: wp.array(dtype=vec), spheremp: wp.array(dtype=vec), dvv: mat, c: f64,
+        wg: wp.array2d(dtype=dtype), ghost: wp.array(dtype=f64), nlocal: int, table: wp.array2d(dtype=wp.int32),
+        rspheremp: wp.array(dtype=dtype), y: wp.array(dtype=dtype), halo: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32),
+        Dinv: wp.array2d(dtype=vec), metdet: wp.array(dtype=vec), spheremp: wp.array(dtype=vec), dvv: mat, c: dtype,
         z: wp.array2d(dtype=vec), offset: int,
     ):
         base = (wp.tid() + offset) * NP
@@ -107,8 +132,8 @@ def helmholtz_divergence(np: int, copies: int):
         for j in range(NP):
             for i in range(NP):
                 p = (base + j) * NP + i
-                s0 = f64(0.0)
-                s1 = f64(0.0)
+                s0 = dtype(0.0)
+                s1 = dtype(0.0)
                 for m in range(C):
                     cp = table[p, m]
                     if cp >= 0:
@@ -128,12 +153,11 @@ def helmholtz_divergence(np: int, copies: int):
             q = base + j
             z[0, q] = times(spheremp[q], Y[j] - over(c * (along(f1, j, dvvT) + across(f2, j, dvv)), metdet[q]))
 
-    helmholtz_divergence.__qualname__ = "helmholtz_divergence"  # the kernel's key
-    return wp.kernel(helmholtz_divergence, enable_backward=False, module="unique", module_options=CPU_FAST)
+    return wp.kernel(_name(helmholtz_divergence, "helmholtz_divergence", dtype), enable_backward=False, module="unique", module_options=CPU_FAST)
 
 
 @functools.cache
-def helmholtz_assemble(copies: int):
+def helmholtz_assemble(copies: int, dtype=f64):
     """out[g] = Σ over the copies c of unique node g (in the ``dss_table`` order of its
     copy first[g]) of wz[0, c], the mass-weighted field (a copy ≥ nlocal read from
     ``ghost``, ``copy_at``): ``dss.assemble`` with the weights applied by the
@@ -142,27 +166,27 @@ def helmholtz_assemble(copies: int):
     operator's input). Arguments: wz (1, N), ghost, nlocal, table, first, y, out
     (nunique), partial (3, nchunks), chunk, offset (chunks). Dim ceil(nunique / chunk)."""
     C = int(copies)
+    copy_at, unique_value = gathers(dtype)
 
     def helmholtz_assemble(
-        wz: wp.array2d(dtype=f64), ghost: wp.array(dtype=f64), nlocal: int, table: wp.array2d(dtype=wp.int32),
-        first: wp.array(dtype=wp.int32), y: wp.array(dtype=f64), out: wp.array(dtype=f64), partial: wp.array2d(dtype=f64),
+        wz: wp.array2d(dtype=dtype), ghost: wp.array(dtype=f64), nlocal: int, table: wp.array2d(dtype=wp.int32),
+        first: wp.array(dtype=wp.int32), y: wp.array(dtype=dtype), out: wp.array(dtype=dtype), partial: wp.array2d(dtype=f64),
         chunk: int, offset: int,
     ):
         t = wp.tid() + offset
         wy = f64(0.0)
         for g in range(t * chunk, wp.min(out.shape[0], (t + 1) * chunk)):
             p = first[g]
-            s = f64(0.0)
+            s = dtype(0.0)
             for k in range(C):
                 c = table[p, k]
                 if c >= 0:
                     s += copy_at(wz, 0, ghost, c, nlocal)
             out[g] = s
-            wy += s * y[g]
+            wy += f64(s * y[g])
         partial[1, t] = wy
 
-    helmholtz_assemble.__qualname__ = "helmholtz_assemble"  # the kernel's key
-    return wp.kernel(helmholtz_assemble, enable_backward=False, module="unique", module_options=CPU_FAST)
+    return wp.kernel(_name(helmholtz_assemble, "helmholtz_assemble", dtype), enable_backward=False, module="unique", module_options=CPU_FAST)
 
 
 @wp.kernel
@@ -183,52 +207,62 @@ def helmholtz_combine(
     partial[1, t] = wy
 
 
-@wp.kernel
-def cg_update(
-    alpha: f64, beta: f64, p: wp.array(dtype=f64), s: wp.array(dtype=f64), x: wp.array(dtype=f64), r: wp.array(dtype=f64),
-    u: wp.array(dtype=f64), w: wp.array(dtype=f64), minv: wp.array(dtype=f64), partial: wp.array2d(dtype=f64), chunk: int, offset: int,
-):
-    """One Chronopoulos–Gear step on unique nodes: p = u + βp, s = w + βs,
-    x += αp, r −= αs, u = minv·r (minv: the Jacobi preconditioner); partial[0]
-    and partial[2] per chunk: Σ r·u and Σ r·r. Dim ceil(nunique / chunk)."""
-    t = wp.tid() + offset
-    ru = f64(0.0)
-    rr = f64(0.0)
-    for i in range(t * chunk, wp.min(x.shape[0], (t + 1) * chunk)):
-        pi = u[i] + beta * p[i]
-        si = w[i] + beta * s[i]
-        p[i] = pi
-        s[i] = si
-        x[i] = x[i] + alpha * pi
-        ri = r[i] - alpha * si
-        r[i] = ri
-        ui = minv[i] * ri
-        u[i] = ui
-        ru += ri * ui
-        rr += ri * ri
-    partial[0, t] = ru
-    partial[2, t] = rr
+@functools.cache
+def cg_update(dtype=f64):
+    """The kernel of one Chronopoulos–Gear step on unique ``dtype`` vectors: p = u + βp,
+    s = w + βs, x += αp, r −= αs, u = minv·r (minv: the Jacobi preconditioner);
+    partial[0] and partial[2] per chunk: Σ r·u and Σ r·r, summed in float64.
+    Dim ceil(nunique / chunk)."""
+
+    def cg_update(
+        alpha: dtype, beta: dtype, p: wp.array(dtype=dtype), s: wp.array(dtype=dtype), x: wp.array(dtype=dtype), r: wp.array(dtype=dtype),
+        u: wp.array(dtype=dtype), w: wp.array(dtype=dtype), minv: wp.array(dtype=dtype), partial: wp.array2d(dtype=f64), chunk: int, offset: int,
+    ):
+        t = wp.tid() + offset
+        ru = f64(0.0)
+        rr = f64(0.0)
+        for i in range(t * chunk, wp.min(x.shape[0], (t + 1) * chunk)):
+            pi = u[i] + beta * p[i]
+            si = w[i] + beta * s[i]
+            p[i] = pi
+            s[i] = si
+            x[i] = x[i] + alpha * pi
+            ri = r[i] - alpha * si
+            r[i] = ri
+            ui = minv[i] * ri
+            u[i] = ui
+            ru += f64(ri) * f64(ui)
+            rr += f64(ri) * f64(ri)
+        partial[0, t] = ru
+        partial[2, t] = rr
+
+    return wp.kernel(_name(cg_update, "cg_update", dtype), enable_backward=False, module="unique")
 
 
-@wp.kernel
-def inner3(
-    a0: wp.array(dtype=f64), b0: wp.array(dtype=f64), a1: wp.array(dtype=f64), b1: wp.array(dtype=f64),
-    a2: wp.array(dtype=f64), b2: wp.array(dtype=f64), out: wp.array2d(dtype=f64), chunk: int, offset: int,
-):
-    """out[k, t] = Σ a_k·b_k over chunk t's ``chunk`` unique nodes, in index
-    order (three inner products in one pass). Dim ceil(nunique / chunk)."""
-    t = wp.tid() + offset
-    n = a0.shape[0]
-    s0 = f64(0.0)
-    s1 = f64(0.0)
-    s2 = f64(0.0)
-    for i in range(t * chunk, wp.min(n, (t + 1) * chunk)):
-        s0 += a0[i] * b0[i]
-        s1 += a1[i] * b1[i]
-        s2 += a2[i] * b2[i]
-    out[0, t] = s0
-    out[1, t] = s1
-    out[2, t] = s2
+@functools.cache
+def inner3(dtype=f64):
+    """The kernel of out[k, t] = Σ a_k·b_k over chunk t's ``chunk`` unique nodes of
+    ``dtype`` vectors, in index order, summed in float64 (three inner products in one
+    pass). Dim ceil(nunique / chunk)."""
+
+    def inner3(
+        a0: wp.array(dtype=dtype), b0: wp.array(dtype=dtype), a1: wp.array(dtype=dtype), b1: wp.array(dtype=dtype),
+        a2: wp.array(dtype=dtype), b2: wp.array(dtype=dtype), out: wp.array2d(dtype=f64), chunk: int, offset: int,
+    ):
+        t = wp.tid() + offset
+        n = a0.shape[0]
+        s0 = f64(0.0)
+        s1 = f64(0.0)
+        s2 = f64(0.0)
+        for i in range(t * chunk, wp.min(n, (t + 1) * chunk)):
+            s0 += f64(a0[i]) * f64(b0[i])
+            s1 += f64(a1[i]) * f64(b1[i])
+            s2 += f64(a2[i]) * f64(b2[i])
+        out[0, t] = s0
+        out[1, t] = s1
+        out[2, t] = s2
+
+    return wp.kernel(_name(inner3, "inner3", dtype), enable_backward=False, module="unique")
 
 
 @wp.kernel
@@ -236,3 +270,24 @@ def add_constant(x: wp.array(dtype=f64), shift: f64, offset: int):
     """x += shift. Dim nunique."""
     i = wp.tid() + offset
     x[i] = x[i] + shift
+
+
+@wp.kernel
+def add_converted(x: wp.array(dtype=f64), e: wp.array(dtype=Any), offset: int):
+    """x += e, e of another float type (the refinement's correction). Dim nunique."""
+    i = wp.tid() + offset
+    x[i] = x[i] + f64(e[i])
+
+
+wp.overload(add_converted, {"e": wp.array(dtype=wp.float32)})
+
+
+@functools.cache
+def converted(dtype):
+    """The kernel of out = x (float64) as ``dtype`` (the refinement's residual). Dim len(x)."""
+
+    def converted(x: wp.array(dtype=f64), out: wp.array(dtype=dtype), offset: int):
+        i = wp.tid() + offset
+        out[i] = dtype(x[i])
+
+    return wp.kernel(_name(converted, "converted", dtype), enable_backward=False, module="unique")

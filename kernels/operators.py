@@ -150,20 +150,22 @@ def laplace_wk_div(flux: wp.array2d(dtype=f64), dvv: wp.array2d(dtype=f64), np: 
 
 
 @functools.cache
-def row_type(np: int):
-    """The type of one GLL row of an element: ``wp.types.vector(np, float64)``."""
-    return wp.types.vector(length=int(np), dtype=f64)
+def row_type(np: int, dtype=f64):
+    """The type of one GLL row of an element: ``wp.types.vector(np, dtype)`` (float64 but in
+    the float32 Helmholtz solve)."""
+    return wp.types.vector(length=int(np), dtype=dtype)
 
 
 def row_vectors(a: wp.array, np: int) -> wp.array:
-    """A zero-copy view of ``a`` ((rows, N) or (N,) float64, node p = e*np*np + j*np + i,
-    unit stride along the nodes) as (rows, N/np) or (N/np,) ``row_type(np)``: entry
+    """A zero-copy view of ``a`` ((rows, N) or (N,) float64 or float32, node p = e*np*np + j*np + i,
+    unit stride along the nodes) as (rows, N/np) or (N/np,) ``row_type(np, a.dtype)``: entry
     e*np + j is GLL row j of element e. What the CPU element kernels take."""
     np = int(np)
-    if a.dtype != f64 or a.strides[-1] != 8 or a.shape[-1] % np:
-        raise ValueError(f"row_vectors needs float64 with unit node stride and N divisible by np = {np} (got {a.dtype}, {a.shape}, {a.strides})")
+    size = wp.types.type_size_in_bytes(a.dtype)
+    if a.dtype not in (f64, wp.float32) or a.strides[-1] != size or a.shape[-1] % np:
+        raise ValueError(f"row_vectors needs float64 or float32 with unit node stride and N divisible by np = {np} (got {a.dtype}, {a.shape}, {a.strides})")
     view = wp.array(
-        ptr=a.ptr, dtype=row_type(np), shape=(*a.shape[:-1], a.shape[-1] // np), strides=(*a.strides[:-1], 8 * np),
+        ptr=a.ptr, dtype=row_type(np, a.dtype), shape=(*a.shape[:-1], a.shape[-1] // np), strides=(*a.strides[:-1], size * np),
         capacity=a.capacity, device=a.device,
     )
     view._ref = a  # keeps the memory alive as long as the view
@@ -177,8 +179,20 @@ def times(a: f64, b: f64):
 
 
 @wp.func
+def times(a: wp.float32, b: wp.float32):
+    """The pointwise product of two float32 node values."""
+    return a * b
+
+
+@wp.func
 def times(a: wp.types.vector(length=Any, dtype=f64), b: wp.types.vector(length=Any, dtype=f64)):
     """The pointwise product of two rows of node values (the element kernels' form)."""
+    return wp.cw_mul(a, b)
+
+
+@wp.func
+def times(a: wp.types.vector(length=Any, dtype=wp.float32), b: wp.types.vector(length=Any, dtype=wp.float32)):
+    """The pointwise product of two float32 rows (the float32 Helmholtz solve's)."""
     return wp.cw_mul(a, b)
 
 
@@ -195,6 +209,12 @@ def over(a: wp.types.vector(length=Any, dtype=f64), b: wp.types.vector(length=An
 
 
 @wp.func
+def over(a: wp.types.vector(length=Any, dtype=wp.float32), b: wp.types.vector(length=Any, dtype=wp.float32)):
+    """a / b on float32 rows, componentwise."""
+    return wp.cw_div(a, b)
+
+
+@wp.func
 def covariant(D: wp.array2d(dtype=Any), x: wp.array2d(dtype=Any), q: int):
     """The covariant wind (v₁, v₂) = Dᵀ (u, v) at row q of the wind in rows 0, 1 of x."""
     u = x[0, q]
@@ -203,9 +223,9 @@ def covariant(D: wp.array2d(dtype=Any), x: wp.array2d(dtype=Any), q: int):
 
 
 @functools.cache
-def row_derivatives(np: int):
+def row_derivatives(np: int, dtype=f64):
     """The reference derivatives on an element held as rows: F a matrix of np
-    ``row_type(np)`` rows, F[j, i] the value at node (i, j). Returns (row type,
+    ``row_type(np, dtype)`` rows, F[j, i] the value at node (i, j). Returns (row type,
     matrix type, ``along``, ``across``), two ``wp.func`` of (F, j, M) → a row:
 
     * ``along``:  Σ_m M[m] F[j, m] = (F M)[j]  (M's rows scaled by row j's values),
@@ -219,8 +239,8 @@ def row_derivatives(np: int):
     the same work, and the weak Laplacian stayed half scalar (2–2.5× slower a
     field, measured at np 4)."""
     NP = int(np)
-    vec = row_type(NP)
-    mat = wp.types.matrix(shape=(NP, NP), dtype=f64)
+    vec = row_type(NP, dtype)
+    mat = wp.types.matrix(shape=(NP, NP), dtype=dtype)
 
     def along(F: mat, j: int, M: mat):
         s = vec()
@@ -236,16 +256,16 @@ def row_derivatives(np: int):
 
     funcs = []
     for f in (along, across):
-        f.__qualname__ = f.__name__ = f"{f.__name__}_np{NP}"
+        f.__qualname__ = f.__name__ = f"{f.__name__}_np{NP}" + ("" if dtype is f64 else f"_{dtype.__name__}")
         funcs.append(wp.func(f))
     return (vec, mat, *funcs)
 
 
-def dvv_matrix(dvv) -> object:
+def dvv_matrix(dvv, dtype=f64) -> object:
     """The derivative matrix dvv (np × np, dvv[i, m] = l_m'(ξ_i)) as the value the
-    element kernels take (``row_derivatives``' matrix type)."""
+    element kernels take (``row_derivatives``' matrix type, of ``dtype``)."""
     rows = [[float(a) for a in row] for row in dvv]
-    return row_derivatives(len(rows))[1](*[a for row in rows for a in row])
+    return row_derivatives(len(rows), dtype)[1](*[a for row in rows for a in row])
 
 
 @functools.cache

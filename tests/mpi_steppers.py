@@ -1,7 +1,8 @@
 """Run by ``test_mpi.py`` under ``mpiexec`` (and imported by it for the one-rank runs): TC5
-at ne 2 with each stepper that solves (semi-implicit, JFNK, IMEX, an IMEX Butcher pair), one simulation over all ranks each,
-and a semi-implicit run continued from a restart file. Rank 0 saves the final
-whole-grid states: ``python mpi_steppers.py OUT.npz CHECKPOINT``.
+at ne 2 with each stepper that solves (semi-implicit, JFNK, IMEX, an IMEX Butcher pair; JFNK
+and IMEX also with their Helmholtz solves in float32, ``precision = "mixed"``), one simulation
+over all ranks each, and a semi-implicit run continued from a restart file. Rank 0 saves the
+final whole-grid states: ``python mpi_steppers.py OUT.npz CHECKPOINT``.
 """
 
 from __future__ import annotations
@@ -15,21 +16,31 @@ from swe_sphere import mpi
 from swe_sphere.config import load_scene
 from swe_sphere.simulation import Simulation
 
-STEPPERS = ("semi_implicit", "implicit", "imex", "tableau")
+# label → (stepper, its options; None: the bundled ARK3(2)4L[2]SA pair)
+STEPPERS = {
+    "semi_implicit": ("semi_implicit", {}),
+    "implicit": ("implicit", {}),
+    "imex": ("imex", {}),
+    "tableau": ("tableau", None),
+    "implicit_mixed": ("implicit", {"precision": "mixed"}),
+    "imex_mixed": ("imex", {"precision": "mixed"}),
+}
 DAYS = 0.1
 
 
-def scene(stepper: str, days: float = DAYS):
-    """TC5 at ne 2 (the tableau stepper with the bundled ARK3(2)4L[2]SA pair)."""
+def scene(stepper: str, days: float = DAYS, options: dict | None = None):
+    """TC5 at ne 2 with the stepper's ``options`` (the tableau stepper's default: the bundled pair)."""
     s = load_scene("tc5_mountain", ne=2, days=days, stepper=stepper)
-    return dataclasses.replace(s, stepper_options=load_scene("ark324l2sa").stepper_options) if stepper == "tableau" else s
+    if stepper == "tableau" and options is None:
+        options = load_scene("ark324l2sa").stepper_options
+    return dataclasses.replace(s, stepper_options=dict(options or {}))
 
 
 def final_states(comm=None) -> dict[str, np.ndarray]:
-    """Stepper name → final (u, v, h) (3, npts) of a run over ``comm``'s ranks (None: this process)."""
+    """Label → final (u, v, h) (3, npts) of a run over ``comm``'s ranks (None: this process)."""
     out = {}
-    for name in STEPPERS:
-        sim = Simulation(scene(name), "cpu", progress=False, comm=comm)
+    for name, (stepper, options) in STEPPERS.items():
+        sim = Simulation(scene(stepper, options=options), "cpu", progress=False, comm=comm)
         sim.run(None)
         out[name] = np.stack(sim.fields())
     return out

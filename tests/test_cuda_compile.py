@@ -93,6 +93,10 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
                 x = model.new_state(*np.stack(case.initial(grid.lat, grid.lon)))
                 stepper.step(x)  # two steps: a leapfrog's first is its one-step start
                 stepper.step(x)
+            if scene is richest:  # the float32 Helmholtz solves (refined and alone) of "mixed" precision
+                for name in ("imex", "implicit"):
+                    stepper = make_stepper(name, model, scene.dt, precision="mixed")
+                    stepper.step(model.new_state(*np.stack(case.initial(grid.lat, grid.lon))))
     for per_element in (False, True):  # the ∇⁴'s ∇(∇·v) term, which no bundled scene has (ν_div ≠ ν)
         z = np.zeros(grid.npts)
         model = ShallowWater(grid, ["hyperviscosity"], z, z, nu=1e15, nu_div=3e15, device="cpu", per_element=per_element)
@@ -145,7 +149,9 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
     keys = {k.key for k in launched}
     for key in ("laplacian_element__first", "laplacian_element__second", "laplace_wk_flux", "laplacian_node__first", "laplacian_node__second", "dss_apply",
                 "laplacian_element__first__divergent", "laplacian_node__first__divergent",
-                "helmholtz_gradient", "helmholtz_divergence", "helmholtz_assemble", "cg_update", "inner3", "schur_height", "jacobian_vector", "residual", "translating_low", "axpbypcz", "dss"):
+                "helmholtz_gradient", "helmholtz_divergence", "helmholtz_assemble", "cg_update", "inner3", "schur_height",
+                "helmholtz_gradient_float32", "helmholtz_divergence_float32", "helmholtz_assemble_float32", "cg_update_float32",
+                "inner3_float32", "converted_float32", "add_converted", "jacobian_vector", "residual", "translating_low", "axpbypcz", "dss"):
         assert key in keys, key
     plain_dss = {k.module.name for k in launched if k.key in ("dss", "dss_apply") or k.key.startswith("dss_update__")}
     assert any(k.key.startswith("dss_update__") for k in launched)  # the explicit stages' combinations

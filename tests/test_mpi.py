@@ -201,7 +201,8 @@ def relative_difference(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
 def test_solver_steppers_agree_with_one_rank(tmp_path):
     """Semi-implicit, JFNK, IMEX and an IMEX Butcher pair (``tableau``, ARK3(2)4L[2]SA) on 3
     ranks (their Krylov inner products summed over ranks) end within 1e-12 of one rank
-    (measured for the first three: 1e-14, 2e-13, 1e-14), and so does a
+    (measured for the first three: 1e-14, 2e-13, 1e-14), JFNK and IMEX with float32
+    Helmholtz solves too (``precision = "mixed"``), and so does a
     semi-implicit run (its warm Helmholtz guess in the restart file) written on one rank
     and continued on 3. The JFNK run on 2 ranks goes through the command line."""
     from mpi_steppers import DAYS, continued_state, final_states, scene

@@ -32,8 +32,11 @@ from swe_sphere.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
 from swe_sphere.topology import Topology
 
-# and a Butcher table's IMEX pair (its default is an explicit table), read back from the restart file's JSON
-VARIANTS = [(name, {}) for name in STEPPERS] + [("implicit", {"method": "bdf2"}), ("tableau", load_scene("ark324l2sa").stepper_options)]
+# and a Butcher table's IMEX pair (its default is an explicit table), read back from the restart file's JSON;
+# and the float32 Helmholtz solves
+VARIANTS = [(name, {}) for name in STEPPERS] + [("implicit", {"method": "bdf2"}), ("tableau", load_scene("ark324l2sa").stepper_options)] + [
+    (name, {"precision": "mixed"}) for name in ("semi_implicit", "imex", "implicit")
+]
 IDS = [n + "".join(f"-{v}" for v in o.values() if not isinstance(v, list)) for n, o in VARIANTS]
 DT = 1800.0
 

@@ -62,8 +62,8 @@ class TableauOptions:
     shown by the run file and ``swe-sphere list``), the ``order`` it claims (1..6),
     an explicit table ``A`` (s × s), ``b``, ``c`` (s) or an IMEX pair ``A_E``,
     ``b_E``, ``A_I``, ``b_I`` and ``c``, entries numbers or fractions as strings
-    ("1/6"); for a pair also the Helmholtz solve's ``tol``, ``maxiter`` and
-    ``mean_depth`` (as ``[imex]``'s). No table at all: the classical RK4 table.
+    ("1/6"); for a pair also the Helmholtz solve's ``tol``, ``maxiter``,
+    ``mean_depth`` and ``precision`` (as ``[imex]``'s). No table at all: the classical RK4 table.
     Raises ValueError naming the entry or the failing condition (``parse``)."""
 
     name: str = ""
@@ -79,6 +79,7 @@ class TableauOptions:
     tol: float = 1e-6
     maxiter: int = 500
     mean_depth: float = 0.0
+    precision: str = "double"
 
     def __post_init__(self):
         for key in PARTS:  # a table read back from JSON (a restart file's scene) holds lists

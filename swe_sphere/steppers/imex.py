@@ -81,6 +81,7 @@ class ImexOptions:
     tol: float = 1e-6
     maxiter: int = 500
     mean_depth: float = 0.0
+    precision: str = "double"
 
     def __post_init__(self):
         if self.scheme not in SCHEMES:
@@ -96,7 +97,8 @@ class Imex(Stepper):
     gravity-wave limit ARS(3,4,3)'s day-1 error against a converged run is
     2.528e-4 against 2.525e-4 with 1e-10 and 1e-8, with 2.5x fewer
     iterations; 1e-4 gives 3.0e-4), ``maxiter`` (500),
-    ``mean_depth`` (H, m; 0 = the initial mean depth). The Helmholtz solve is
+    ``mean_depth`` (H, m; 0 = the initial mean depth), ``precision``
+    ("double" | "mixed", as ``semi_implicit``'s). The Helmholtz solve is
     ``helmholtz.GravityWave``'s compiled CG; each stage's solve starts from the
     last one's solution. 3 (ARS(2,3,2)) or 4 (ARS(3,4,3)) RHS evaluations and
     one Helmholtz solve fewer a step; reports the Helmholtz iterations. Raises
@@ -115,7 +117,7 @@ class Imex(Stepper):
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
         o = self.options
-        self.gw = GravityWave(model, o.mean_depth, o.tol, o.maxiter, warm=True)
+        self.gw = GravityWave(model, o.mean_depth, o.tol, o.maxiter, warm=True, precision=o.precision)
         A_E, b_E, A_I, b_I, self.c = (np.asarray(t, dtype=float) for t in self.tables())
         stages = len(b_E)
         self.A_E, self.A_I, self.b_E, self.b_I = A_E, A_I, b_E, b_I

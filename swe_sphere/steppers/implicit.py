@@ -47,7 +47,7 @@ import warp as wp
 from ..kernels import blas
 from ..kernels import implicit as ik
 from .base import StepFailure, Stepper, StepStats
-from .helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave
+from .helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, check_precision
 from .krylov import FGMRES
 
 f64 = wp.float64
@@ -70,8 +70,10 @@ class ImplicitOptions:
     helmholtz_tol: float = 1e-2
     mean_depth: float = 0.0
     initial_guess: str = "extrapolate"
+    precision: str = "double"
 
     def __post_init__(self):
+        check_precision(self.precision)
         if self.method not in ("theta", "bdf2"):
             raise ValueError(f"method must be 'theta' or 'bdf2' (got {self.method!r})")
         if not 0.5 <= self.theta <= 1.0:
@@ -106,7 +108,9 @@ class Implicit(Stepper):
     TC5 ne16 at 4x and 10x the gravity-wave limit; 1e-1 was 13 % cheaper
     still, but Newton stagnated with it on TC2 at 50x), ``mean_depth`` (H, m;
     0 = initial mean), ``initial_guess`` ("extrapolate": 2x(n) − x(n−1)
-    after the first step, "previous": x(n)).
+    after the first step, "previous": x(n)), ``precision`` ("double" |
+    "mixed": the preconditioner's Helmholtz CG in float32, one solve to
+    ``helmholtz_tol``, no refinement).
     Reports Newton and GMRES iterations, preconditioner applications
     (``precond``) and their Helmholtz iterations per step; keeps the last
     step's residual history in ``residual_history``.
@@ -124,7 +128,7 @@ class Implicit(Stepper):
         dev, N = model.device, self.N
         self.gw = None
         if o["preconditioner"] == "helmholtz":
-            self.gw = GravityWave(model, o["mean_depth"], o["helmholtz_tol"], 1000)
+            self.gw = GravityWave(model, o["mean_depth"], o["helmholtz_tol"], 1000, precision=o["precision"])
         for name in ("xn", "xprev", "b", "Fx", "R", "delta", "trial", "Ft", "Rt", "v", "xp", "Fp", "z"):
             setattr(self, name, wp.zeros((3, N), dtype=f64, device=dev))
         # Krylov vectors live on unique nodes (3·nunique: 0.56× the element-local length at np = 4)

@@ -38,6 +38,7 @@ class SemiImplicitOptions(LeapfrogOptions):
     tol: float = 1e-6
     maxiter: int = 500
     mean_depth: float = 0.0
+    precision: str = "double"
 
     def __post_init__(self):
         super().__post_init__()
@@ -54,7 +55,9 @@ class SemiImplicit(Leapfrog):
     iterations; mass is exact either way), ``maxiter`` (500),
     ``mean_depth`` (H in m; 0 = the initial state's mean depth). The
     Helmholtz solve is ``helmholtz.GravityWave``'s compiled CG; each solve
-    starts from the last one's solution.
+    starts from the last one's solution. ``precision`` ("double" | "mixed":
+    float32 CG passes refined in float64 to the same ``tol``; "double" is the
+    default because the float32 product is no faster on the CPU, benchmarks/README.md).
     Reports the Helmholtz iterations per step. Raises ValueError without the
     continuity and pressure-gradient terms.
     """
@@ -69,7 +72,7 @@ class SemiImplicit(Leapfrog):
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
         o = self.options
-        self.gw = GravityWave(model, o.mean_depth, o.tol, o.maxiter, warm=True)
+        self.gw = GravityWave(model, o.mean_depth, o.tol, o.maxiter, warm=True, precision=o.precision)
         self.F, self.W, self.LW = self._buffer(), self._buffer(), self._buffer()
 
     @property

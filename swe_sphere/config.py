@@ -5,7 +5,9 @@ the run length, the output interval and the hyperviscosity. Layout::
 
     description = "..."
     terms = ["continuity", "momentum_advection", ...]
-    [case]            name = "tc5_mountain" (+ case parameters, e.g. alpha),
+    [case]            name = "tc5_mountain" (+ case parameters, e.g. alpha), or
+                      name = "file", path = "state.nc", time = 3.0 (a state of one's
+                      own from a file, at a time it holds: ``initial_state``),
                       initialization = "none" | "dfi" (a digital-filter balanced start),
                       reference = "T341" or "PATH" (the reference to score against
                       instead of the case's bundled T213 one: a bundled truncation

@@ -120,8 +120,9 @@ name = "q"
 every_days = 0.0625
 fields = ["vorticity", "u"]
 """)
-    code, _, err = cli_main(capsys, "run", scene, *TINY, "--output", tmp_path / "run.nc")
+    code, out, err = cli_main(capsys, "run", scene, *TINY, "--output", tmp_path / "run.nc")
     assert code == 0, err
+    assert f"stream      {tmp_path / 'run.hourly.nc'} (every 0.0416667 days: h)" in out
     with xr.open_dataset(tmp_path / "run.nc") as main, xr.open_dataset(tmp_path / "run.hourly.nc") as hourly, \
             xr.open_dataset(tmp_path / "run.q.nc") as q:
         assert list(main.time.values) == [0.0, 0.25]  # the scene's output.every_days = 1: the start and the end

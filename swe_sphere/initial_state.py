@@ -91,6 +91,12 @@ def from_function(fn, lat, lon) -> np.ndarray:
     return np.stack([u, v, h])
 
 
+def _unit_vectors(lat, lon) -> np.ndarray:
+    """(n, 3) unit vectors of the points (lat, lon) (radians, flattened)."""
+    lat, lon = np.ravel(lat), np.ravel(lon)
+    return np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=-1)
+
+
 class NodeState:
     """A state given at the unique nodes of a grid (lat, lon in radians, (n,))."""
 
@@ -98,11 +104,10 @@ class NodeState:
         from scipy.spatial import cKDTree
 
         self.where, self.fields = where, fields
-        self.tree = cKDTree(np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=-1))
+        self.tree = cKDTree(_unit_vectors(lat, lon))
 
     def __call__(self, name, lat, lon) -> np.ndarray:
-        xyz = np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=-1)
-        dist, index = self.tree.query(xyz.reshape(-1, 3))
+        dist, index = self.tree.query(_unit_vectors(lat, lon))
         if dist.size and dist.max() > 1e-9:  # the degrees written round-trip to ~1e-16
             raise SceneError(f"{self.where}: its {self.tree.n} nodes are not those of this run's grid "
                              "(a run or restart file of the same ne and np is needed)")
@@ -238,6 +243,8 @@ def load_state(path, day: float | None = None):
         if "swe_sphere_checkpoint" in ds.attrs:  # a restart file: its element-local state and its scene's hs
             from .checkpoint import read
 
+            if day is not None:
+                raise SceneError(f"{where}: case.time = {day:g}, but a restart file holds one state (drop case.time)")
             ck = read(path)
             grid = cached_grid(ck.scene.ne, ck.scene.np)
             lat, lon = grid.lat[grid.first], grid.lon[grid.first]

@@ -81,6 +81,7 @@ def test_node_file_is_tc2_bitwise(tmp_path, capsys):
     scene = scene_file(tmp_path, tmp_path / "tc2.nc")
     scene.write_text(scene.read_text().replace('[grid]', 'time = 0.0\n[grid]'))
     assert cli_main(capsys, "run", scene, "--output", tmp_path / "mine.nc", *args)[0] == 0
+    cli_one_line(capsys, ["run", scene, "-s", "case.time=0.1", *args], 2, "case.time = 0.1 is not one of the file's times (0, 0.125)")
     with xr.open_dataset(tmp_path / "tc2.nc") as a, xr.open_dataset(tmp_path / "mine.nc") as b:
         for name in ("h", "u", "v"):
             assert np.array_equal(a[name].isel(time=0).values, b[name].isel(time=0).values), name
@@ -92,8 +93,11 @@ def test_restart_file_starts_a_run(tmp_path):
     sim = tc2_sim()
     sim.advance(days=1800.0 / 86400.0)
     sim.write_checkpoint(tmp_path / "r.restart.nc")
-    mine = Simulation(load_scene(scene_file(tmp_path, tmp_path / "r.restart.nc")), "cpu", progress=False)
+    scene = scene_file(tmp_path, tmp_path / "r.restart.nc")
+    mine = Simulation(load_scene(scene), "cpu", progress=False)
     assert np.array_equal(mine.x.numpy(), sim.x.numpy())
+    with pytest.raises(SceneError, match="a restart file holds one state"):
+        load_scene(scene, overrides={"case.time": 0.0})
 
 
 @pytest.mark.parametrize("lat, lon", [

@@ -6,9 +6,18 @@ Python API (see the README's "Python" section)::
     ds = swe_sphere.run("tc5_mountain", ne=8, days=2, hyperviscosity={"nu": 5e14})
     ds.h.sel(time=2).mean()
 
-``run`` is the whole pipeline; beneath it, importable from here: ``load_scene``
+``run`` is the whole pipeline (``initial=f(lat, lon) -> (h, u, v)``: a start of
+one's own); beneath it, importable from here: ``load_scene``
 (a TOML scene → a validated ``Scene``), ``Simulation`` (grid, case, model and
-stepper of a scene; ``run``, ``from_checkpoint``), ``CubedSphere``,
+stepper of a scene; ``run``, ``from_checkpoint``, and step by step::
+
+    sim = swe_sphere.Simulation("tc2_steady", ne=8, days=2)
+    sim.add_callback(lambda s: print(s.time), every_days=0.5)
+    for t in sim.steps(every=1.0):
+        ds = sim.state()                # xarray on the nodes; state(remap=1.0) on a lat-lon grid
+    sim.advance(days=1.0)
+
+), ``CubedSphere``,
 ``ShallowWater`` (the RHS), ``make_stepper`` and ``STEPPERS`` (the registry),
 ``remap_dataset`` (a run on a regular lat-lon grid, for maps::
 

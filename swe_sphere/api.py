@@ -5,13 +5,10 @@ from __future__ import annotations
 import tempfile
 from pathlib import Path
 
-from .config import Scene, SceneError, load_scene, resolve_path
-
-_LOAD_KEYWORDS = ("ne", "np", "dt", "days", "stepper")
 
 
 def run(scene, *, device: str | None = None, output_file=None, overwrite: bool = False, restart_every: float | None = None,
-        progress: bool = False, verbose: bool = False, **overrides):
+        progress: bool = False, verbose: bool = False, initial=None, **overrides):
     """Run a scene and return its output as an ``xarray.Dataset`` (loaded in memory).
 
     ``scene``: a scene file, the name of a bundled scene ("tc5_mountain") or a
@@ -25,7 +22,12 @@ def run(scene, *, device: str | None = None, output_file=None, overwrite: bool =
     value). ``device``: "cpu" | "cuda"
     (default: CUDA when present). ``output_file``: also keep the netCDF file there
     (``OutputError`` if it exists, unless ``overwrite``); ``restart_every``
-    (days) writes its restart file (see ``Simulation.run``).
+    (days) writes its restart file (see ``Simulation.run``). ``initial``: a function
+    ``initial(lat, lon) -> (h, u, v)`` (radians in; m, m s⁻¹ out) giving the state
+    at t = 0 instead of the case's (which still gives fcor and hs, and the truth
+    the errors are against; ``initial_state.from_function``). Streams of
+    ``output={"streams": [...]}`` are written beside ``output_file`` (without
+    one, they are dropped with the temporary folder).
 
     Quiet unless ``verbose`` (no Warp banner or module-load lines; ``progress``
     shows a progress bar; with ``output={"log_every_steps": N}`` a line of
@@ -44,23 +46,9 @@ def run(scene, *, device: str | None = None, output_file=None, overwrite: bool =
     from .runtime import pick_device
     from .simulation import Simulation
 
-    inputs = ()
-    if isinstance(scene, Scene):
-        if overrides:
-            raise SceneError("overrides apply to a scene file; change a Scene with dataclasses.replace")
-    else:
-        kw = {k: overrides.pop(k) for k in _LOAD_KEYWORDS if k in overrides}
-        flat = {}
-        for key, value in overrides.items():
-            if isinstance(value, dict):
-                flat.update({f"{key}.{k}": v for k, v in value.items()})
-            else:
-                flat[key] = value
-        inputs = (resolve_path(str(scene)),)
-        scene = load_scene(scene, **kw, overrides=flat)
     device = pick_device(device, verbose=verbose)
-    sim = Simulation(scene, device, progress=progress)
-    sim.inputs = inputs
+    sim = Simulation(scene, device, progress=progress, initial=initial, **overrides)
+    scene = sim.scene
     with tempfile.TemporaryDirectory(prefix="swe_sphere_") as tmp:
         path = Path(output_file) if output_file is not None else Path(tmp) / f"{scene.name}.nc"
         sim.run(path, overwrite=overwrite, restart_every=restart_every, history=f"swe_sphere.run({scene.name!r})",

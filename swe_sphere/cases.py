@@ -401,6 +401,27 @@ class Galewsky(Case):
         return self.jet(lat), np.zeros_like(lat), h
 
 
+@dataclass(frozen=True)
+class FileState(Case):
+    """An initial state read from a netCDF file (``initial_state``): h, u, v and
+    optionally hs on the model's nodes or a lat-lon grid, at model day ``time``
+    of the file (default its last). Unforced, scored against nothing."""
+
+    path: str | None = None
+    time: float | None = None
+
+    def __post_init__(self):  # read and checked once (``config.SceneError``), when the scene is loaded
+        from .initial_state import read_state
+
+        object.__setattr__(self, "_state", read_state(self.path, self.time))
+
+    def hs(self, lat, lon):
+        return self._state("hs", lat, lon)
+
+    def initial(self, lat, lon):
+        return self._state.initial(lat, lon)
+
+
 # name → (class, allowed parameters with their types)
 CASES: dict[str, tuple[type[Case], dict[str, type]]] = {
     "tc1_cosine_bell": (CosineBell, {"alpha": float}),
@@ -411,6 +432,7 @@ CASES: dict[str, tuple[type[Case], dict[str, type]]] = {
     "tc5_mountain": (Mountain, {}),
     "tc6_rossby_haurwitz": (RossbyHaurwitz, {}),
     "galewsky": (Galewsky, {"perturbed": bool}),
+    "file": (FileState, {"path": str, "time": float}),
 }
 
 
@@ -427,4 +449,6 @@ def make_case(name: str, params: dict | None = None, planet: Planet = EARTH) -> 
             raise ValueError(f"case.{key} must be a number (got {value!r})")
         if allowed[key] is bool and not isinstance(value, bool):
             raise ValueError(f"case.{key} must be true or false (got {value!r})")
+        if allowed[key] is str and not isinstance(value, str):
+            raise ValueError(f"case.{key} must be a string (got {value!r})")
     return cls(**params, planet=planet)

@@ -38,6 +38,7 @@ import numpy as np
 
 from . import __version__
 from .config import Scene, SceneError, scene_from_dict, with_days
+from .constants import Planet
 from .output import WRITING, ExclusiveFile
 from .steppers import STEPPERS
 
@@ -116,7 +117,7 @@ def _check_state(path, scene: Scene, x: np.ndarray, stepper_state: dict) -> None
     h = x[2]
     if h.min() <= 0:
         raise CheckpointError(f"{path}: variable x (row h) holds a depth h = {h.min():.4g} m <= 0; not continued")
-    g = scene.make_case().planet.g
+    g = Planet.from_table(scene.planet).g  # not the case: a file case would read its file
     bound = MAX_FROUDE * np.sqrt(g * h.max())
     speed = np.hypot(x[0], x[1]).max()
     if speed > bound:

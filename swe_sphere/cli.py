@@ -386,7 +386,7 @@ def _run(args, scene, output, device, comm) -> int:
 
     from . import mpi
     from .parallel import threads_note
-    from .simulation import BlowUp, Simulation, restart_path
+    from .simulation import BlowUp, Simulation, restart_path, stream_path
     from .workers import cpus, limit_threads
 
     if comm is not None:
@@ -426,7 +426,10 @@ def _run(args, scene, output, device, comm) -> int:
                 print(f"swe-sphere: {note}", file=sys.stderr)  # seen even with stdout redirected
         else:
             print(f"note        {note}")
-    print(f"output      {output} (every {scene.output_every_days:g} days)")
+    only = f": {', '.join(scene.output_fields)}" if scene.output_fields else ""
+    print(f"output      {output} (every {scene.output_every_days:g} days{only})")
+    for st in scene.output_streams:
+        print(f"stream      {stream_path(output, st['name'])} (every {st['every_days']:g} days: {', '.join(st['fields'])})")
     if scene.log_every_steps:
         print(f"log         every {scene.log_every_steps} steps: relative change of mass, energy, enstrophy since t = 0; max Courant numbers")
     if args.restart_every is not None:

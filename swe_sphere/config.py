@@ -5,7 +5,9 @@ the run length, the output interval and the hyperviscosity. Layout::
 
     description = "..."
     terms = ["continuity", "momentum_advection", ...]
-    [case]            name = "tc5_mountain" (+ case parameters, e.g. alpha),
+    [case]            name = "tc5_mountain" (+ case parameters, e.g. alpha), or
+                      name = "file", path = "state.nc", time = 3.0 (a state of one's
+                      own from a file, at a time it holds: ``initial_state``),
                       initialization = "none" | "dfi" (a digital-filter balanced start),
                       reference = "T341" or "PATH" (the reference to score against
                       instead of the case's bundled T213 one: a bundled truncation
@@ -14,7 +16,11 @@ the run length, the output interval and the hyperviscosity. Layout::
     [grid]            ne = 30, np = 4
     [time]            stepper = "leapfrog_trapezoidal", dt = 90.0, days = 15.0
     [output]          every_days = 1.0, log_every_steps = 0 (a line of invariant
-                      changes and Courant numbers every so many steps; 0: none)
+                      changes and Courant numbers every so many steps; 0: none),
+                      fields = ["h", "u", "v"] (the run file's node fields; default
+                      all of ``OUTPUT_FIELDS``)
+    [[output.streams]] name = "6h", every_days = 0.25, fields = ["h"]: one more run
+                      file RUN.6h.nc per table, at its own interval (whole steps)
     [hyperviscosity]  efold_hours = 3.0, nu = ..., nu_div = ..., nu_s = ..., subcycle = 1
                       (efold_hours: e-folding time at the grid scale, which sets
                       nu, nu_div, nu_s on every grid (``efold_nu``); nu, nu_div,
@@ -44,6 +50,7 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field
 from fractions import Fraction
@@ -55,6 +62,7 @@ from .constants import DAY, EARTH, Planet
 from .gll import NP_MAX, NP_MIN, gll
 from .initialization import METHODS, DigitalFilter
 from .model import TERMS
+from .output import OUTPUT_FIELDS
 from .reference import cases_of, locate, reference_path, stored_days
 from .steppers import STEPPERS, option_types
 
@@ -109,6 +117,9 @@ class Scene:
     reference: str | None = None
     log_every_steps: int = 0  # a log line every so many steps (``Simulation.run``'s ``log``); 0: none
     planet: dict = field(default_factory=EARTH.as_table)  # [planet]: radius (m), omega (s⁻¹), gravity (m s⁻²)
+    output_fields: tuple = ()  # [output] fields: the node fields the run file holds; (): all (``OUTPUT_FIELDS``)
+    # [[output.streams]]: more run files, each {"name": suffix, "every_days": interval, "fields": (...)}
+    output_streams: tuple = ()
 
     @property
     def start_day(self) -> float:
@@ -156,7 +167,13 @@ class Scene:
         return reference_path(self.make_case()) if Planet.from_table(self.planet) == EARTH else None
 
     def as_dict(self) -> dict:
-        return dataclasses.asdict(self)
+        """The scene as plain values (JSON-able); the output choices only when made, so a
+        scene without them reads as before they existed (run files, restart files)."""
+        d = dataclasses.asdict(self)
+        for key in ("output_fields", "output_streams"):
+            if not d[key]:
+                del d[key]
+        return d
 
 
 def scene_from_dict(d: dict) -> Scene:
@@ -173,7 +190,9 @@ def scene_from_dict(d: dict) -> Scene:
                and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING}
     if unknown or missing:
         raise ValueError(f"scene keys differ from this version's: {', '.join(sorted(unknown | missing))}")
-    return Scene(**{**d, "terms": tuple(d["terms"]), "notes": tuple(d.get("notes", ()))})
+    streams = tuple({**st, "fields": tuple(st["fields"])} for st in d.get("output_streams", ()))
+    return Scene(**{**d, "terms": tuple(d["terms"]), "notes": tuple(d.get("notes", ())),
+                    "output_fields": tuple(d.get("output_fields", ())), "output_streams": streams})
 
 
 _SCHEMA = {
@@ -182,7 +201,7 @@ _SCHEMA = {
     "case": dict,
     "grid": {"ne": int, "np": int},
     "time": {"stepper": str, "dt": float, "days": float},
-    "output": {"every_days": float, "log_every_steps": int},
+    "output": {"every_days": float, "log_every_steps": int, "fields": list, "streams": list},
     "hyperviscosity": {"efold_hours": float, "nu": float, "nu_div": float, "nu_s": float, "subcycle": int},
     "dfi": {"span_hours": float, "cutoff_hours": float},
     "planet": {"radius": float, "omega": float, "gravity": float},
@@ -415,6 +434,10 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
     if method not in METHODS:
         raise SceneError(f"case.initialization must be one of {', '.join(METHODS)} (got {method!r})")
     reference = case.pop("reference", None)
+    if case_name == "file" and isinstance(case.get("path"), str):  # relative to the current folder, else to the scene's
+        given = Path(case["path"]).expanduser()
+        beside = path.parent / given
+        case["path"] = str((beside if not given.exists() and beside.exists() else given).absolute())
     try:
         planet = Planet.from_table(s.get("planet"))
         case_obj = make_case(case_name, case, planet)
@@ -512,6 +535,7 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
     if not (_is_number(dt1) and math.isfinite(dt1) and dt1 > 0):
         raise SceneError(f"dt must be > 0 (got {_got(dt1)})")
     _check_schedule(dt1, days1, every, dt_source)
+    output_fields, streams = _output_choices(s.get("output", {}), dt1, days1, dt_source)
 
     options = dict(s.get(stepper1, {}))
     try:
@@ -568,7 +592,76 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
         reference=reference,
         log_every_steps=int(log_every),
         planet=planet.as_table(),
+        output_fields=output_fields,
+        output_streams=streams,
     )
+
+
+_STREAM_KEYS = ("name", "every_days", "fields")
+
+
+def _fields(value, key: str) -> tuple:
+    """A list of run-file fields, checked (``SceneError``); () for all of them."""
+    if value is None:
+        return ()
+    if not isinstance(value, list) or not value or not all(isinstance(f, str) for f in value):
+        raise SceneError(f"{key} must be a non-empty list of field names from {', '.join(OUTPUT_FIELDS)} (got {value!r})")
+    for f in value:
+        if f not in OUTPUT_FIELDS:
+            raise SceneError(f"{key}: unknown field {f!r} (known: {', '.join(OUTPUT_FIELDS)}; hs, lat, lon, area are always written)")
+    return tuple(f for f in OUTPUT_FIELDS if f in value)  # the file's order
+
+
+def _output_choices(output: dict, dt: float, days: float, dt_source: str) -> tuple[tuple, tuple]:
+    """([output] fields, [[output.streams]]) checked: field names, stream names (a
+    file-name suffix, distinct, not "restart") and intervals of whole steps."""
+    fields = _fields(output.get("fields"), "output.fields")
+    streams, names = [], set()
+    for i, st in enumerate(output.get("streams", [])):
+        where = f"output.streams[{i}]"
+        if not isinstance(st, dict):
+            raise SceneError(f"{where} must be a table ([[output.streams]] with name, every_days, fields)")
+        unknown = set(st) - set(_STREAM_KEYS)
+        if unknown:
+            raise SceneError(f"unknown key {where}.{sorted(unknown)[0]} (known: {', '.join(_STREAM_KEYS)})")
+        name = st.get("name")
+        if not (isinstance(name, str) and re.fullmatch(r"[A-Za-z0-9_-]+", name)) or name == "restart" or name in names:
+            raise SceneError(f"{where}.name must be a distinct file-name suffix of letters, digits, _ or - other than "
+                             f"restart (got {name!r}): the stream's file is RUN.{name}.nc")
+        names.add(name)
+        every = _check_type(f"{where}.every_days", st.get("every_days"), float) if "every_days" in st else None
+        if every is None or not every > 0:
+            raise SceneError(f"{where}.every_days must be > 0 (got {every})")
+        if days > every and not _whole_steps(dt, every):
+            raise _not_whole_steps(f"the output interval {where}.every_days", every, dt, dt_source)
+        streams.append({"name": name, "every_days": every, "fields": _fields(st.get("fields", list(OUTPUT_FIELDS)), f"{where}.fields")})
+    return fields, tuple(streams)
+
+
+LOAD_KEYWORDS = ("ne", "np", "dt", "days", "stepper")  # ``load_scene``'s own keywords among the overrides
+
+
+def resolve_scene(scene, overrides: dict) -> tuple[Scene, tuple]:
+    """(Scene, its input files) of ``swe_sphere.run``'s and ``Simulation``'s
+    ``scene`` and ``overrides``: a ``Scene`` as it is (no overrides: change it with
+    ``dataclasses.replace``), else a scene file or bundled name loaded with the
+    overrides as on the command line (``ne``, ``np``, ``dt``, ``days``, ``stepper``
+    and tables such as ``hyperviscosity={"nu": 5e14}`` or values ``terms=[...]``).
+    The inputs are the scene file (outputs must not replace it). Raises ``SceneError``."""
+    if isinstance(scene, Scene):
+        if overrides:
+            raise SceneError("overrides apply to a scene file; change a Scene with dataclasses.replace")
+        return scene, ()
+    overrides = dict(overrides)
+    kw = {k: overrides.pop(k) for k in LOAD_KEYWORDS if k in overrides}
+    flat = {}
+    for key, value in overrides.items():
+        if isinstance(value, dict):
+            flat.update({f"{key}.{k}": v for k, v in value.items()})
+        else:
+            flat[key] = value
+    path = resolve_path(str(scene))
+    return load_scene(path, **kw, overrides=flat), (path,)
 
 
 def _planet_text(planet: Planet) -> str:

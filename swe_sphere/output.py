@@ -30,6 +30,8 @@ FIELDS = {
     "vorticity": dict(units="s-1", long_name="relative vorticity", standard_name="atmosphere_relative_vorticity"),
     "divergence": dict(units="s-1", long_name="divergence of the wind", standard_name="divergence_of_wind"),
 }
+OUTPUT_FIELDS = ("h", "u", "v", "vorticity", "divergence")  # the (time, ncol) fields of a run file, in its order
+FIELD_ATTRS = {"coordinates": "lat lon", "cell_measures": "area: area"}  # on each of them
 # Held while a file is written: a failure reported from another MPI rank
 # (``mpi.watch_failures``) closes the run's files between writes, never inside one.
 WRITING = threading.RLock()
@@ -279,11 +281,12 @@ class RunWriter:
     ``time`` is plain model time in days (``units = "days"``: xarray leaves it
     numeric, so ``ds.h.sel(time=3)`` works; ``Scene.day`` makes it exact). ``compress``: the (time, ncol)
     fields as float32 with zlib (about 3× smaller; not for bitwise comparisons).
+    ``fields``: the node fields it holds (of ``OUTPUT_FIELDS``; default all).
     """
 
     def __init__(self, path, grid: CubedSphere, hs: np.ndarray, attrs: dict, series, *, overwrite: bool = False,
-                 compress: bool = False):
-        self.path = Path(path)
+                 compress: bool = False, fields=OUTPUT_FIELDS):
+        self.path, self.fields = Path(path), tuple(fields)
         self.file = ExclusiveFile(self.path, overwrite=overwrite)
         self.tmp = self.file.tmp
         self.grid = grid
@@ -317,10 +320,10 @@ class RunWriter:
         hsv.setncatts({**FIELDS["hs"], "coordinates": "lat lon", **UGRID_NODE})
         hsv[:] = grid.to_unique(hs)
         write_mesh(ds, grid, "ncol")
-        for name in ("h", "u", "v", "vorticity", "divergence"):
+        for name in self.fields:
             fill = dict(fill_value=np.nan) if name in ("vorticity", "divergence") else {}  # NaN where a writer got none
             var = ds.createVariable(name, "f4" if compress else "f8", ("time", "ncol"), zlib=compress, **fill)
-            var.setncatts({**FIELDS[name], "coordinates": "lat lon", "cell_measures": "area: area", **UGRID_NODE})
+            var.setncatts({**FIELDS[name], **FIELD_ATTRS, **UGRID_NODE})
         for name in series:
             var = ds.createVariable(name, "f8", ("time",))
             var.setncatts(SERIES_ATTRS[name])
@@ -335,13 +338,9 @@ class RunWriter:
     def _append(self, day, u, v, h, series, vorticity, divergence) -> None:
         ds, n, g = self.ds, self.n, self.grid
         ds["time"][n] = day
-        ds["u"][n, :] = g.to_unique(u)
-        ds["v"][n, :] = g.to_unique(v)
-        ds["h"][n, :] = g.to_unique(h)
-        if vorticity is not None:
-            ds["vorticity"][n, :] = g.to_unique(vorticity)
-        if divergence is not None:
-            ds["divergence"][n, :] = g.to_unique(divergence)
+        for name, f in (("u", u), ("v", v), ("h", h), ("vorticity", vorticity), ("divergence", divergence)):
+            if f is not None and name in self.fields:
+                ds[name][n, :] = g.to_unique(f)
         for k, val in series.items():
             ds[k][n] = val
         ds.sync()
@@ -368,6 +367,26 @@ class RunWriter:
                     self.ds.close()
             finally:
                 self.file.discard()
+
+
+def node_dataset(grid: CubedSphere, hs: np.ndarray, day: float, fields: dict, attrs: dict):
+    """One output time as an ``xarray.Dataset`` laid out as a run file's (``RunWriter``):
+    the element-local ``fields`` (N,) (name → array, of ``OUTPUT_FIELDS``) and ``hs``
+    on the unique nodes ``ncol`` with their ``FIELDS`` attributes, ``lat``/``lon``
+    (degrees) coordinates, ``area`` (m²), a scalar ``time`` (days) and ``attrs``."""
+    import xarray as xr
+
+    node = {"coordinates": "lat lon"}
+    ds = xr.Dataset(
+        {name: ("ncol", grid.to_unique(f), {**FIELDS[name], **FIELD_ATTRS}) for name, f in fields.items()},
+        coords=dict(lat=("ncol", grid.to_unique(np.degrees(grid.lat)), dict(units="degrees_north", standard_name="latitude")),
+                    lon=("ncol", grid.to_unique(np.degrees(grid.lon)), dict(units="degrees_east", standard_name="longitude")),
+                    time=((), day, dict(units="days", long_name="model time since the initial state", standard_name="time"))),
+        attrs={k: attribute(v) for k, v in attrs.items()},
+    )
+    ds["hs"] = ("ncol", grid.to_unique(hs), {**FIELDS["hs"], **node})
+    ds["area"] = ("ncol", grid.area, dict(units="m2", long_name="area of the node's quadrature cell (assembled spheremp)", standard_name="cell_area"))
+    return ds
 
 
 def close_open_runs(failed: str) -> None:

@@ -18,15 +18,16 @@ from tqdm import tqdm
 
 from . import __version__
 from . import checkpoint as ckpt
-from .config import Scene, SceneError, with_days
+from .config import Scene, SceneError, resolve_scene, with_days
 from .constants import DAY
 from .diagnostics import courant_numbers, invariants
 from .grid import CubedSphere
+from .initial_state import from_function
 from .initialization import digital_filter
 from .model import ShallowWater
-from .output import RunWriter, check_distinct, check_target
+from .output import OUTPUT_FIELDS, RunWriter, check_distinct, check_target, node_dataset
 from .parallel import default_threads
-from .runtime import ResourceError, check_memory, run_bytes
+from .runtime import ResourceError, check_memory, pick_device, run_bytes
 from .scoring import Scorer, truth
 from .steppers import StepFailure, make_stepper
 from .topology import Topology, rank_parts
@@ -52,6 +53,20 @@ class WholeFields:
     h: np.ndarray | None
     vorticity: np.ndarray | None
     divergence: np.ndarray | None = None
+
+
+@dataclass
+class Callback:
+    """``fn(sim)`` called after every ``steps``-th step (``Simulation.add_callback``)."""
+
+    fn: object
+    steps: int
+
+
+def stream_path(output: Path, name: str) -> Path:
+    """The run file of output stream ``name`` beside a run's output: ``run.nc`` → ``run.NAME.nc``."""
+    output = Path(output)
+    return output.with_name(f"{output.stem}.{name}{output.suffix or '.nc'}")
 
 
 class Interrupted(RuntimeError):
@@ -189,22 +204,41 @@ class Simulation:
     of ``setup_time``) and ``dfi`` holds its ``FilterResult``, else None.
     ``inputs``: the files the simulation was made from (its scene file, restart
     file), which ``run`` refuses to write over.
-    ``initial``: the t = 0 diagnostics that relative changes are taken against,
+    ``initial``: a function ``initial(lat, lon) -> (h, u, v)`` (radians in; m,
+    m s⁻¹ out) giving the state at t = 0 instead of the case's, which still
+    gives fcor, hs and the truth errors are taken against
+    (``initial_state.from_function``; ``SceneError`` for a wrong shape, a
+    non-finite value or h <= 0); the scene's digital filter, if any, then runs on it.
+    ``initial_diagnostics``: the t = 0 diagnostics that relative changes are taken against,
     the same on every rank (a checkpoint's, when continuing: the start state is
     then not diagnosed for nothing); None: the start state's (``diagnose(0)``).
+
+    A scene may also be given as ``swe_sphere.run`` takes it, ``Simulation("tc2_steady",
+    ne=4, days=2)``: a scene file or bundled name with overrides
+    (``config.resolve_scene``), device None: CUDA when present
+    (``runtime.pick_device``). Python drives it step by step with ``advance``,
+    ``steps``, ``state`` and ``add_callback``; ``run`` integrates to the scene's end.
     """
 
     inputs: tuple = ()
 
-    def __init__(self, scene: Scene, device: str, *, progress: bool = True, comm=None, start: np.ndarray | None = None,
-                 initial: dict | None = None):
+    def __init__(self, scene, device: str | None = None, *, progress: bool = True, comm=None, start: np.ndarray | None = None,
+                 initial=None, initial_diagnostics: dict | None = None, **overrides):
+        scene, inputs = resolve_scene(scene, overrides)
+        if device is None:
+            device = pick_device()
+        if initial is not None and (start is not None or not callable(initial)):
+            raise ValueError("initial must be a function (lat, lon) -> (h, u, v), and not given with start")
         t0 = time.perf_counter()
         self._compile = [0.0]
+        self.callbacks: list[Callback] = []
         with _compile_timer(self._compile):
-            self._build(scene, device, progress, comm, start, initial)
+            self._build(scene, device, progress, comm, start, initial, initial_diagnostics)
         self.setup_time = time.perf_counter() - t0
+        if inputs:
+            self.inputs = inputs
 
-    def _build(self, scene, device, progress, comm, start, initial):
+    def _build(self, scene, device, progress, comm, start, initial, initial_diagnostics):
         _check_memory(scene, comm)
         self.scene, self.device = scene, device
         size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
@@ -230,7 +264,7 @@ class Simulation:
         self.scorer = Scorer(case, self.model, topo, self.grid, self.hs, scene.reference_file)
         self.dfi = None
         if start is None:
-            start = np.stack(case.initial(local.lat, local.lon))
+            start = np.stack(case.initial(local.lat, local.lon)) if initial is None else from_function(initial, local.lat, local.lon)
             if scene.digital_filter is not None:
                 self.dfi = digital_filter(scene.digital_filter, start, grid=local, terms=scene.terms,
                                           fcor=fcor, hs=hs, g=self.g, device=device, topology=topo)
@@ -238,8 +272,8 @@ class Simulation:
             start = topo.distribute(None if start is ON_ROOT else start, 3, "start state")
         self.x = self.model.new_state(*(self.dfi.x if self.dfi is not None else start))
         self.last_good = wp.clone(self.x)
-        self.initial = initial
-        if initial is None:
+        self.initial = initial_diagnostics
+        if initial_diagnostics is None:
             self.initial = self.diagnose(scene.start_day * DAY)
         self.step = 0  # steps taken since t = 0 (a branched run: since its branch day, ``Scene.start_day``)
         self.counters = {"rhs_evals": 0, "wall_time": 0.0, "cpu_time": 0.0, "iterations": {k: 0 for k in self.stepper.solvers}}
@@ -264,7 +298,7 @@ class Simulation:
             scene = ck.scene if days is None else with_days(ck.scene, days)
             if scene.nsteps < ck.step:
                 raise ckpt.CheckpointError(f"the run length {scene.days:g} days ends before the checkpoint (day {ck.scene.day(ck.step):g})")
-            sim = cls(scene, device, progress=progress, comm=comm, start=start, initial=ck.initial)  # the state handed out; no second digital filter
+            sim = cls(scene, device, progress=progress, comm=comm, start=start, initial_diagnostics=ck.initial)  # the state handed out; no second digital filter
             sim._restore_history(ck)
         if not isinstance(checkpoint, ckpt.Checkpoint):
             sim.inputs = (Path(checkpoint),)
@@ -396,25 +430,101 @@ class Simulation:
         return self.topology.bcast(c)
 
     # -- the loop -----------------------------------------------------------
-    def output_steps(self) -> set[int]:
-        """Steps with an output: every output interval from step 0 (t = 0, or a branch's day), and the last."""
+    def output_steps(self, every_days: float | None = None) -> set[int]:
+        """Steps with an output: every output interval (default the scene's
+        ``output.every_days``) from step 0 (t = 0, or a branch's day), and the last."""
         s = self.scene
-        every = s.output_every_days * DAY / s.dt
-        n_out = math.floor(s.run_days / s.output_every_days + 1e-9)
+        every_days = s.output_every_days if every_days is None else every_days
+        every = every_days * DAY / s.dt
+        n_out = math.floor(s.run_days / every_days + 1e-9)
         return {min(s.nsteps, round(k * every)) for k in range(n_out + 1)} | {s.nsteps}
+
+    def output_streams(self, output: Path | None) -> list[tuple[Path, tuple, set]]:
+        """(path, fields, output steps) of each run file of ``output``: itself with the
+        scene's ``output.fields``, then each ``[[output.streams]]`` (``stream_path``);
+        [] without an output."""
+        if output is None:
+            return []
+        s, output = self.scene, Path(output)
+        return [(output, s.output_fields or OUTPUT_FIELDS, self.output_steps()),
+                *((stream_path(output, st["name"]), st["fields"], self.output_steps(st["every_days"])) for st in s.output_streams)]
+
+    def steps_of(self, days: float, what: str) -> int:
+        """The whole number of steps in ``days``; ValueError naming ``what`` unless dt divides it."""
+        s = self.scene
+        per = round(days * DAY / s.dt) if isinstance(days, (int, float)) and math.isfinite(days) else 0
+        if per < 1 or abs(per * s.dt - days * DAY) > 1e-6 * s.dt:
+            raise ValueError(f"{what} must be a positive multiple of dt = {s.dt:g} s = {s.dt / DAY:.6g} days (got {days!r} days)")
+        return per
 
     def restart_steps(self, every_days: float) -> set[int]:
         """Steps at which a run with ``--restart-every every_days`` writes its restart
         file (and the last step). Raises ValueError unless dt divides the interval."""
-        s = self.scene
-        per = round(every_days * DAY / s.dt)
-        if not (math.isfinite(every_days) and every_days > 0) or per < 1 or abs(per * s.dt - every_days * DAY) > 1e-6 * s.dt:
-            raise ValueError(f"restart interval must be a positive multiple of dt = {s.dt:g} s (got {every_days:g} days)")
+        s, per = self.scene, self.steps_of(every_days, "restart interval")
         return set(range(per, s.nsteps + 1, per)) | {s.nsteps}
+
+    # -- driven from Python (Oceananigans' Simulation: step, inspect, call back) ---------
+    def add_callback(self, fn, *, every_days: float | None = None, every_steps: int | None = None) -> None:
+        """Call ``fn(sim)`` after every step n that is a multiple of ``every_steps``
+        (or of the steps in ``every_days``, whole steps) counted from step 0, in
+        ``run``, ``advance`` and ``steps`` (Oceananigans' ``add_callback!`` with an
+        ``IterationInterval``); not at step 0, whose state the caller has. ``fn`` may
+        read ``sim.step``, ``sim.time``, ``sim.state()``; what it raises ends the run
+        (its output files dropped). Under MPI add it on every rank. ValueError for
+        an interval that is not whole steps, or not exactly one of the two."""
+        if (every_days is None) == (every_steps is None):
+            raise ValueError("add_callback needs exactly one of every_days, every_steps")
+        if every_steps is not None and not (isinstance(every_steps, int) and every_steps >= 1):
+            raise ValueError(f"every_steps must be an integer >= 1 (got {every_steps!r})")
+        steps = every_steps if every_days is None else self.steps_of(every_days, "every_days")
+        self.callbacks.append(Callback(fn, steps))
+
+    @property
+    def time(self) -> float:
+        """The model time of the current step, days since t = 0."""
+        return self.scene.day(self.step)
+
+    def advance(self, days: float) -> RunResult:
+        """Step ``days`` (a whole number of steps) further, with ``run``'s loop (same
+        bits as one run; blow-up, signals and callbacks as there; no output file).
+        Past the scene's end the run is lengthened (``config.with_days``). Returns
+        the ``RunResult`` of these steps; raises ValueError for a ``days`` that is
+        not whole steps, and what ``run`` raises."""
+        target = self.step + self.steps_of(days, "days")
+        if target > self.scene.nsteps:
+            self.scene = with_days(self.scene, self.scene.start_day + target * self.scene.dt / DAY, "the scene's")
+        return self.run(None, until_step=target)
+
+    def steps(self, every: float):
+        """Iterate the run to the scene's end, yielding the model time (days) at each
+        multiple of ``every`` days from t = 0 (``for t in sim.steps(every=0.5):``
+        ``ds = sim.state()``); stops at the last multiple at or before the end.
+        ValueError unless ``every`` is a whole number of steps."""
+        per = self.steps_of(every, "every")
+        while (target := (self.step // per + 1) * per) <= self.scene.nsteps:
+            self.run(None, until_step=target)
+            yield self.time
+
+    def state(self, remap: float | None = None):
+        """The current state as an ``xarray.Dataset`` (rank 0; None on the others; call
+        on every rank): on the nodes as a run file holds one output time (h, u, v,
+        vorticity, divergence on ``ncol`` with hs, area, lat, lon; ``time`` in days;
+        ``output.node_dataset``), or with ``remap`` (degrees) on a regular lat-lon grid
+        (``remap.remap_dataset``, with h_surface = h + hs)."""
+        whole = self.gather_fields(divergence=True)
+        if not self.root:
+            return None
+        ds = node_dataset(self.grid, self.hs, self.time, {k: getattr(whole, k) for k in OUTPUT_FIELDS},
+                          {"scene": self.scene.as_dict(), "ne": self.scene.ne, "np": self.scene.np, "step": self.step})
+        if remap is None:
+            return ds
+        from .remap import remap_dataset
+
+        return remap_dataset(ds, remap)
 
     def run(self, output: Path | None = None, *, overwrite: bool = False, restart_every: float | None = None,
             restart_file: Path | None = None, catch_signals: bool = True, compress: bool = False,
-            history: str | None = None, on_output=None, notify=None, log=None) -> RunResult:
+            history: str | None = None, on_output=None, notify=None, log=None, until_step: int | None = None) -> RunResult:
         """Integrate the scene from the current step; write ``output`` (netCDF) if given.
 
         ``overwrite``: replace an existing output (and restart) file; else
@@ -431,7 +541,10 @@ class Simulation:
         (rank 0) with a one-line note when the wall time estimated from the first
         steps exceeds a day. ``log(line)``: called (rank 0) with ``log_line`` every
         ``scene.log_every_steps`` steps since t = 0 (given on every rank alike, or on
-        none: the fields are gathered then). Raises ``BlowUp`` after closing the output with every
+        none: the fields are gathered then). ``until_step``: stop after this step
+        (default the scene's last; ``advance``). The scene's ``[[output.streams]]``
+        are written beside ``output`` (``stream_path``), each at its own interval,
+        and the callbacks (``add_callback``) are called. Raises ``BlowUp`` after closing the output with every
         good output time and the last good state (the step before the failure).
         """
         s, model, stepper = self.scene, self.model, self.stepper
@@ -443,16 +556,18 @@ class Simulation:
         ck_steps = self.restart_steps(restart_every) if restart_every is not None else set()
         if restart_every is not None and restart_file is None:
             raise ValueError("a restart interval needs an output or restart file")
+        streams = self.output_streams(output)  # (path, fields, steps) of every run file, the main one first
         if self.root:
-            check_distinct([output, restart_file], self.inputs)
+            check_distinct([output, restart_file, *(path for path, _, _ in streams)], self.inputs)
         if restart_file is not None and self.root:
             check_target(restart_file, overwrite)
+        divergence = any("divergence" in fields for _, fields, _ in streams)
         with _compile_timer(self._compile):  # a continuation's first use of the diagnostic kernels
-            start = self.gather_fields(divergence=output is not None)  # the first output time's, on every rank
+            start = self.gather_fields(divergence=divergence)  # the first output time's, on every rank
         courant = self.courant(start)
         solver_series = [f"{k}_iterations" for k in stepper.solvers]
         series = ["steps", "rhs_evals", *solver_series, "wall_time", *self.initial.keys()]
-        writer = None
+        writers = [None] * len(streams)  # rank 0's RunWriters, one a stream
         if output is not None and self.root:
             stamp = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
             attrs = {
@@ -477,25 +592,41 @@ class Simulation:
                 **ckpt.branch_attrs(s),
                 **{k: v for k, v in courant.items() if math.isfinite(v)},
             }
-            writer = RunWriter(output, self.grid, self.hs, attrs, series, overwrite=overwrite, compress=compress)
-        out_steps = self.output_steps()
+            try:
+                for i, (path, fields, _) in enumerate(streams):
+                    writers[i] = RunWriter(path, self.grid, self.hs, attrs, series, overwrite=overwrite, compress=compress, fields=fields)
+            except BaseException:
+                for w in writers:
+                    if w is not None:
+                        w.abort()
+                raise
+        out_steps = set().union(*(steps for _, _, steps in streams)) if streams else self.output_steps()
+        last = [None] * len(streams)  # the step each run file wrote last (on every rank)
+        stop_step = s.nsteps if until_step is None else until_step
         c, history = self.counters, []
         c.setdefault("cpu_time", 0.0)  # a restart file written before runs kept their CPU time
         first_step, first_time, written, wall0 = self.step, math.nan, [None], c["wall_time"]
         estimating, since = notify is not None and self.root, math.nan  # the wall clock at the end of the first step
 
-        def record(step, x=None, whole=None):
+        def record(step, x=None, whole=None, final=False):
+            """Diagnose ``step`` and write it to the run files whose schedule holds it (``final``: to every one)."""
             if whole is None:  # once per output time, on every rank
-                whole = self.gather_fields(x, divergence=output is not None)
+                whole = self.gather_fields(x, divergence=divergence)
             d = self.diagnose(s.start_day * DAY + step * s.dt, x, whole)
             d.update(steps=step, rhs_evals=c["rhs_evals"], wall_time=c["wall_time"], cpu_time=c["cpu_time"])
             d.update({f"{k}_iterations": c["iterations"].get(k, 0) for k in stepper.solvers})
             history.append(d)
             if on_output is not None:
                 on_output(step, self.x if x is None else x)
-            if writer is not None:  # rank 0 (the fields DSS'd, element-local, s-1)
-                writer.append(s.day(step), whole.u, whole.v, whole.h, {k: d[k] for k in series},
-                              vorticity=whole.vorticity, divergence=whole.divergence)
+            for i, (_, _, steps) in enumerate(streams):
+                if (final or step in steps) and last[i] != step:
+                    last[i] = step
+                    if writers[i] is not None:  # rank 0 (the fields DSS'd, element-local, s-1)
+                        writers[i].append(s.day(step), whole.u, whole.v, whole.h, {k: d[k] for k in series},
+                                          vorticity=whole.vorticity, divergence=whole.divergence)
+
+        def unwritten(step) -> bool:  # a step some run file (or, without one, the history) lacks
+            return step not in out_steps or any(at != step for at in last)
 
         def save_restart():
             written[0] = self.write_checkpoint(restart_file, overwrite=overwrite or written[0] is not None)
@@ -529,12 +660,12 @@ class Simulation:
         abandoned = False
         try:
             with _compile_timer(self._compile):
-                record(self.step, whole=start)
+                record(self.step, whole=start, final=True)
                 # disable=None: a bar only on a terminal, not redrawn into a log (or mpiexec's pipe)
                 bar = tqdm(initial=self.step, total=s.nsteps, unit="step", disable=None if self.progress else True, file=sys.stderr,
                            dynamic_ncols=True)
                 with bar:
-                    while self.step < s.nsteps:
+                    while self.step < stop_step:
                         signum = int(self.topology.max(stop[0] if stop else 0))  # every rank stops at the same step
                         if signum:
                             interrupted = signum
@@ -576,16 +707,20 @@ class Simulation:
                             blowup = self._blowup_message(n, bad) if failure is None else (
                                 f"step {n} failed (model time {s.day(n):.4f} days): {failure}"
                             )
-                            if n - 1 not in out_steps:
-                                record(n - 1, self.last_good)
-                            if writer is not None:
-                                writer.set_attrs(blowup=blowup)
+                            if unwritten(n - 1):
+                                record(n - 1, self.last_good, final=True)
+                            for w in writers:
+                                if w is not None:
+                                    w.set_attrs(blowup=blowup)
                             break
                         self.step = n
                         if n in out_steps:
                             record(n)
                         if n in ck_steps:
                             save_restart()
+                        for callback in self.callbacks:
+                            if n % callback.steps == 0:
+                                callback.fn(self)
                         if log is not None and s.log_every_steps and n % s.log_every_steps == 0:
                             line = self.log_line(history[-1] if n in out_steps else None)
                             if line is not None:
@@ -594,19 +729,22 @@ class Simulation:
                         if n % 50 == 0 or n == s.nsteps:
                             bar.set_postfix(day=f"{s.day(n):.2f}", sim_days_per_s=f"{n * s.dt / DAY / max(c['wall_time'], 1e-9):.3g}")
                     if interrupted is not None:
-                        if self.step not in out_steps:
-                            record(self.step)
+                        if unwritten(self.step):
+                            record(self.step, final=True)
                         # after an abandoned step the stepper's history is half updated: no restart file
                         if restart_file is not None and self.step not in ck_steps and not abandoned:
                             save_restart()
-                        if writer is not None:
-                            writer.set_attrs(interrupted=signal.Signals(interrupted).name, interrupted_at_step=self.step,
-                                             interrupted_at_day=s.day(self.step))
-            if writer is not None:
-                writer.close()  # under this run's handlers: a signal now waits, and is answered below
+                        for w in writers:
+                            if w is not None:
+                                w.set_attrs(interrupted=signal.Signals(interrupted).name, interrupted_at_step=self.step,
+                                            interrupted_at_day=s.day(self.step))
+            for w in writers:
+                if w is not None:
+                    w.close()  # under this run's handlers: a signal now waits, and is answered below
         except BaseException:
-            if writer is not None:
-                writer.abort()
+            for w in writers:
+                if w is not None:
+                    w.abort()
             raise
         finally:
             limits.restore_original_limits()

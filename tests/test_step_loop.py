@@ -1,0 +1,149 @@
+"""The Python step loop (issue 35, item 4): ``Simulation(scene, **overrides)``,
+``advance``, ``steps``, ``state``, callbacks, and the run files' ``[output] fields``
+and ``[[output.streams]]``."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import xarray as xr
+
+import swe_sphere
+from swe_sphere.config import SceneError
+from swe_sphere.output import OUTPUT_FIELDS
+from swe_sphere.simulation import Simulation
+
+from conftest import TINY, cli_main, write_tc2_scene
+
+DT = 1800.0  # s: 48 steps a day
+KW = dict(ne=2, dt=DT, days=0.25, output={"every_days": 0.125})  # 12 steps, outputs at steps 0, 6, 12
+
+
+def sim(**kw):
+    return Simulation("tc2_steady_alpha_pi4", "cpu", progress=False, **{**KW, **kw})
+
+
+@pytest.fixture(scope="module")
+def whole_run():
+    return swe_sphere.run("tc2_steady_alpha_pi4", device="cpu", **KW)
+
+
+def test_advance_is_run_bitwise(whole_run):
+    """``advance(days=0.25)``, or 0.125 twice, ends in the state of ``swe_sphere.run``
+    for 0.25 days, bit for bit; ``state()`` is the run file's last output (every
+    field, the coordinates, hs and area)."""
+    once, twice = sim(), sim()
+    once.advance(days=0.25)
+    twice.advance(days=0.125)
+    twice.advance(days=0.125)
+    assert np.array_equal(once.x.numpy(), twice.x.numpy())
+    st, last = once.state(), whole_run.isel(time=-1)
+    assert st.time.item() == last.time.item() == 0.25
+    for name in (*OUTPUT_FIELDS, "hs", "area", "lat", "lon"):
+        assert np.array_equal(st[name].values, last[name].values), name
+        assert st[name].attrs.get("units") == last[name].attrs.get("units"), name
+
+
+def test_advance_past_the_end_lengthens_the_run():
+    s = sim()
+    s.advance(days=0.375)
+    assert (s.step, s.time, s.scene.days) == (18, 0.375, 0.375)
+    with pytest.raises(ValueError, match="multiple of dt"):
+        s.advance(days=0.01)
+
+
+def test_steps_yield_the_multiples():
+    """``steps(every=1/16)``: 1/16-day multiples to the end (day 0.25); an interval
+    that is not whole steps is refused."""
+    s = sim()
+    assert list(s.steps(every=0.0625)) == [0.0625, 0.125, 0.1875, 0.25]
+    assert s.step == 12
+    with pytest.raises(ValueError, match="every must be a positive multiple of dt"):
+        next(sim().steps(every=0.03))
+
+
+def test_callbacks_at_their_steps():
+    """Callbacks run after steps that are multiples of their interval, from step 0, in
+    ``steps`` and ``run`` alike, and see the state of that step."""
+    s = sim()
+    seen, days = [], []
+    s.add_callback(lambda sim: seen.append(sim.step), every_steps=5)
+    s.add_callback(lambda sim: days.append((sim.time, float(sim.state().h.mean()))), every_days=0.125)
+    for _ in s.steps(every=0.0625):
+        pass
+    assert seen == [5, 10]
+    assert [d for d, _ in days] == [0.125, 0.25]
+    ref = sim()
+    ref.advance(days=0.125)
+    assert days[0][1] == float(ref.state().h.mean())
+    r = sim()
+    r.add_callback(lambda sim: seen.append(-sim.step), every_steps=4)
+    r.run()
+    assert seen[2:] == [-4, -8, -12]
+    with pytest.raises(ValueError, match="exactly one"):
+        r.add_callback(print)
+
+
+def test_state_on_a_latlon_grid():
+    st = sim().state(remap=10.0)
+    assert st.h_surface.dims == ("lat", "lon") and st.h_surface.shape == (19, 36)
+    assert st.h.attrs["units"] == "m"
+
+
+def test_output_fields(tmp_path, whole_run):
+    """``[output] fields`` limits the run file's node fields; those kept are the
+    default file's, bit for bit; the default file's scene attribute has no output
+    choices (files as before). An unknown field is refused."""
+    ds = swe_sphere.run("tc2_steady_alpha_pi4", device="cpu", **{**KW, "output": {**KW["output"], "fields": ["u", "h"]}})
+    assert {"h", "u"} <= set(ds.data_vars) and not {"v", "vorticity", "divergence"} & set(ds.data_vars)
+    for name in ("h", "u", "l2_h", "hs"):
+        assert np.array_equal(ds[name].values, whole_run[name].values)
+    assert "output_fields" not in json.loads(whole_run.attrs["scene"])
+    assert json.loads(ds.attrs["scene"])["output_fields"] == ["h", "u"]
+    with pytest.raises(SceneError, match="unknown field 'pv'"):
+        sim(output={"fields": ["pv"]})
+
+
+def test_two_streams(tmp_path, capsys):
+    """Two ``[[output.streams]]`` write RUN.NAME.nc each at its own interval, with its
+    fields, beside the main file (unchanged); through the CLI."""
+    scene = write_tc2_scene(tmp_path / "s.toml", dt=DT, days=0.25, tables="""
+[[output.streams]]
+name = "hourly"
+every_days = 0.041666666666666664
+fields = ["h"]
+
+[[output.streams]]
+name = "q"
+every_days = 0.0625
+fields = ["vorticity", "u"]
+""")
+    code, out, err = cli_main(capsys, "run", scene, *TINY, "--output", tmp_path / "run.nc")
+    assert code == 0, err
+    assert f"stream      {tmp_path / 'run.hourly.nc'} (every 0.0416667 days: h)" in out
+    with xr.open_dataset(tmp_path / "run.nc") as main, xr.open_dataset(tmp_path / "run.hourly.nc") as hourly, \
+            xr.open_dataset(tmp_path / "run.q.nc") as q:
+        assert list(main.time.values) == [0.0, 0.25]  # the scene's output.every_days = 1: the start and the end
+        assert set(OUTPUT_FIELDS) <= set(main.data_vars)
+        assert np.allclose(hourly.time.values, np.arange(7) / 24, rtol=0, atol=1e-12)
+        assert list(q.time.values) == [0.0, 0.0625, 0.125, 0.1875, 0.25]
+        assert "h" in hourly and not {"u", "v", "vorticity"} & set(hourly.data_vars)
+        assert {"u", "vorticity"} <= set(q.data_vars) and "h" not in q
+        assert np.array_equal(q.u.isel(time=-1).values, main.u.isel(time=-1).values)
+        assert np.array_equal(hourly.h.isel(time=-1).values, main.h.isel(time=-1).values)
+        assert np.array_equal(q.mass.values[[0, -1]], main.mass.values)
+
+
+@pytest.mark.parametrize("stream, words", [
+    ({"name": "restart", "every_days": 0.125}, ["output.streams[0].name"]),
+    ({"name": "a", "every_days": 0.01}, ["output.streams[0].every_days", "whole number of steps"]),
+    ({"name": "a", "every_days": 0.125, "fields": ["hs"]}, ["output.streams[0].fields", "unknown field 'hs'"]),
+    ({"name": "a", "every": 0.125}, ["unknown key output.streams[0].every"]),
+])
+def test_bad_streams_refused(stream, words):
+    with pytest.raises(SceneError) as err:
+        sim(output={"streams": [stream]})
+    for word in words:
+        assert word in str(err.value)

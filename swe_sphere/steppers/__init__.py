@@ -3,20 +3,22 @@
 Explicit: ``leapfrog``, ``leapfrog_trapezoidal``, ``ssprk3``, ``rk4``, ``kgu35``, ``fbrk32``;
 ``semi_implicit`` (leapfrog, gravity waves averaged over n ± 1); ``implicit``
 (JFNK θ-method / BDF2); ``imex`` (ARS IMEX Runge–Kutta). The last three share
-the linear gravity-wave operator ``helmholtz.GravityWave``.
+the linear gravity-wave operator ``helmholtz.GravityWave``. Exponential:
+``epi2``, ``epi3`` (φ-functions of the Jacobian by KIOPS).
 """
 
 from __future__ import annotations
 
 from ..model import ShallowWater
 from .base import StepFailure, Stepper, StepStats, option_types
+from .exponential import Epi2, Epi3
 from .explicit import FBRK32, Leapfrog, LeapfrogTrapezoidal, rk_steppers
 from .imex import Imex
 from .implicit import Implicit
 from .semi_implicit import SemiImplicit
 
 STEPPERS: dict[str, type[Stepper]] = {
-    cls.name: cls for cls in (Leapfrog, LeapfrogTrapezoidal, *rk_steppers(), FBRK32, SemiImplicit, Implicit, Imex)
+    cls.name: cls for cls in (Leapfrog, LeapfrogTrapezoidal, *rk_steppers(), FBRK32, SemiImplicit, Implicit, Imex, Epi2, Epi3)
 }
 
 

@@ -80,7 +80,7 @@ class Kiops:
     vectors u_1 … u_q, q ≤ p (the others zero); ``out`` receives w (may not alias
     an input); ``tol`` bounds the estimated error of w (Euclidean norm over all
     processes, the units of u); ``m`` the first substep's Krylov size, kept within
-    [m_min, m_max]. Raises ``StepFailure`` on a non-finite error estimate or after
+    [min(m_min, m_max), m_max]. Raises ``StepFailure`` on a non-finite error estimate or after
     ``MAX_SUBSTEPS`` substeps.
     """
 
@@ -149,6 +149,7 @@ class Kiops:
         tau_end = float(tau)
         gamma, gamma_mmax = (0.2, 0.1) if tau_end > 1 else (0.9, 0.6)
         delta = 1.4
+        m_min = min(int(m_min), m_max)
         m = max(m_min, min(int(m), m_max))
         tau_now, tau = 0.0, tau_end
         j, krylov, substeps, rejected, ireject, error = 0, 0, 0, 0, 0, 0.0

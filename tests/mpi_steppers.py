@@ -1,5 +1,5 @@
 """Run by ``test_mpi.py`` under ``mpiexec`` (and imported by it for the one-rank runs): TC5
-at ne 2 with each stepper that solves (semi-implicit, JFNK, IMEX), one simulation over all ranks each,
+at ne 2 with each stepper that solves (semi-implicit, JFNK, IMEX, exponential), one simulation over all ranks each,
 and a semi-implicit run continued from a restart file. Rank 0 saves the final
 whole-grid states: ``python mpi_steppers.py OUT.npz CHECKPOINT``.
 """
@@ -14,7 +14,7 @@ from swe_sphere import mpi
 from swe_sphere.config import load_scene
 from swe_sphere.simulation import Simulation
 
-STEPPERS = ("semi_implicit", "implicit", "imex")
+STEPPERS = ("semi_implicit", "implicit", "imex", "epi2", "epi3")
 DAYS = 0.1
 
 

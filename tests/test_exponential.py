@@ -88,11 +88,11 @@ def test_kiops_matches_dense_phi_functions(p, tau, m_max, rng):
 
 
 def test_kiops_on_the_model_jacobian(rng):
-    """TC5 at ne = 2, the epi2 stepper's own J·v (forward differences) with A = ΔtJ,
-    Δt = 14400 s (about 6 Δt_g): φ₀ against ``expm_multiply`` and φ₁ + φ₂ against the dense augmented
-    exponential of J assembled by central differences (exact to round-off: F is
-    quadratic in the state). Within the forward difference's error (1e-8 of J·v) plus
-    tol, relative to the result."""
+    """TC5 at ne = 2, A = ΔtJ, Δt = 14400 s (about 6 Δt_g), J assembled by central
+    differences (exact to round-off: F is quadratic in the state): φ₀ against
+    ``expm_multiply``, φ₁ + φ₂ against the dense augmented exponential. With the dense
+    J·v within tol; with the epi2 stepper's own J·v (forward differences) within
+    1e-5 relative (measured 6.4e-7 and 2.3e-7: ~1e-8 of each J·v, through ΔtJ)."""
     scene = load_scene("tc5_mountain", ne=2, np=4, days=1.0, stepper="epi2", dt=14400.0)
     sim = make_sim(scene)
     st, m, grid = sim.stepper, sim.model, sim.grid
@@ -120,18 +120,19 @@ def test_kiops_on_the_model_jacobian(rng):
     F0 = F(np.zeros(n))
     u = [F0 * 1e3, F0 * 1e3, rng.standard_normal(n) * np.abs(F0).max() * 1e3]  # ~ m, m/s: a step's size
     tol = 1e-7 * np.linalg.norm(u[1])
-    for k, ref in ((0, expm_multiply(A, u[0])), (2, dense_phi(A, 1.0, u))):
-        kiops = Kiops(n, k, 64, m.topology)
-        ws = [wp.array(v, dtype=wp.float64) for v in u[: k + 1]]
-        out = wp.zeros(n, dtype=wp.float64)
-        stats = kiops.apply(matvec, ws[0] if k == 0 else None, ws[1:], out, 1.0, tol, 10, 10)
-        w = out.numpy()
-        if k == 2:
-            ref = ref - expm_multiply(A, u[0])  # u0 = None: without the φ₀ term
-        err = np.linalg.norm(w - ref) / np.linalg.norm(ref)
-        print(f"\nphi_0..phi_{k}: relative error {err:.2e}, {stats}")
-        assert err < 1e-6
-        assert stats.krylov > 10  # ΔtJ is not small: a real Krylov space
+    for k, ref in ((0, expm_multiply(A, u[0])), (2, dense_phi(A, 1.0, u) - expm_multiply(A, u[0]))):
+        for name, product in (("exact", lambda v, out: out.assign(A @ v.numpy())), ("forward-difference", matvec)):
+            kiops = Kiops(n, k, 64, m.topology)
+            ws = [wp.array(v, dtype=wp.float64) for v in u[: k + 1]]
+            out = wp.zeros(n, dtype=wp.float64)
+            stats = kiops.apply(product, ws[0] if k == 0 else None, ws[1:], out, 1.0, tol, 10, 10)  # φ₁, φ₂ without φ₀
+            err = np.linalg.norm(out.numpy() - ref)
+            print(f"\nphi_0..phi_{k}, {name} J·v: error {err / tol:.2f} tol, {err / np.linalg.norm(ref):.1e} relative, {stats}")
+            assert stats.krylov > 10  # ΔtJ is not small: a real Krylov space
+            if name == "exact":
+                assert err <= 1.4 * tol  # KIOPS accepts an estimate up to 1.4 tol
+            else:  # the forward differences' 1e-8 of each J·v, through ‖ΔtJ‖ ~ 10
+                assert err <= 1e-5 * np.linalg.norm(ref)
 
 
 # -- temporal order --------------------------------------------------------------------

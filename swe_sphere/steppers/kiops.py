@@ -8,7 +8,7 @@ It evaluates
 
 the solution at t = τ of w' = A w + Σ_{k≥1} t^(k−1)/(k−1)! u_k, w(0) = u_0. The
 vectors u_1 … u_p enter through one exponential of an augmented matrix
-(Al-Mohy & Higham 2011, SIAM J. Sci. Comput. 33, 488, Thm 2.1; KIOPS eq. 9):
+(Al-Mohy & Higham 2011, SIAM J. Sci. Comput. 33, 488, Thm 2.1; used so by KIOPS):
 w is the first n entries of exp(τÃ) [u_0; e_p] with
 
     Ã = [[A, W], [0, J]],   W = [u_p, …, u_1] (n × p),   J the p × p shift (ones above the diagonal),
@@ -19,16 +19,17 @@ caller's ``matvec``, a Jacobian–vector product) plus the p augmented entries,
 which stay on the host (every process holds the same copy). As KIOPS:
 
 * incomplete orthogonalisation: each new vector against the last ``iop`` (2)
-  only (classical Gram–Schmidt, a second pass only when the first removes more
-  than 1 − 1/√2 of the vector's norm, the Daniel–Gragg–Kaufman–Stewart criterion;
-  the inner products summed over processes by ``Topology.partial_sums``:
-  ``krylov.KrylovBasis``; on the CPU a pass over the vectors costs up to half an
-  RHS at ne16, and the second pass ran in 30–50 % of the Arnoldi steps of TC5, TC6
-  and Galewsky at ne8, 2–10 Δt_g), so the work and the
-  storage read per step do not grow with m; the Arnoldi relation
-  ÃV_m = V_m H_m + h_{m+1,m} v_{m+1} e_mᵀ holds without full orthogonality;
+  only, so the work and the storage read per step do not grow with m; the
+  Arnoldi relation ÃV_m = V_m H_m + h_{m+1,m} v_{m+1} e_mᵀ holds without full
+  orthogonality. Classical Gram–Schmidt, its inner products summed over
+  processes by ``Topology.partial_sums`` (``krylov.KrylovBasis``), with a
+  second pass only when the first removes more than 1 − 1/√2 of the vector's
+  norm (Daniel, Gragg, Kaufman & Stewart 1976, Math. Comp. 30, 772): it ran in
+  30–50 % of the Arnoldi steps of TC5, TC6 and Galewsky at ne8, 2–10 Δt_g, and
+  on the CPU a pass over the vectors costs up to half an RHS at ne16;
 * the error estimate β h_{m+1,m} |[exp(τH̃)]_{m,m+1}| (H̃: H_m with a unit
-  (1, m+1) entry, so that its exponential holds φ_1(τH_m) e_1 too; Saad 1992),
+  (1, m+1) entry, so that its exponential holds φ_1(τH_m) e_1 too; Saad 1992,
+  SIAM J. Numer. Anal. 29, 209),
   compared with τ_end · tol / τ;
 * substeps: exp((τ_now + τ)Ã) = exp(τÃ) exp(τ_nowÃ), so a substep restarts from
   [w(τ_now); exp(τ_now J) e_p], exp(τJ) e_p = (τ^(p−1)/(p−1)!, …, τ, 1);
@@ -120,7 +121,7 @@ class Kiops:
         *h, ww = b.project_dots(B, V[j], 0, None, k)
         h = np.array(h) + A @ a
         ww += a @ a
-        if ww - h @ h >= 0.5 * ww:  # one pass: w loses less than 1/√2 of its norm (Daniel et al. 1976)
+        if ww - h @ h >= 0.5 * ww:  # one pass: w kept more than 1/√2 of its norm
             h2, h = h, np.zeros(k)
         else:  # the second pass of classical Gram–Schmidt
             d = b.project_dots(B, V[j], k, h, k)
@@ -192,7 +193,7 @@ class Kiops:
                     raise StepFailure(f"KIOPS error estimate is not finite (Krylov size {j}, τ {tau:.3e})")
                 oldomega, omega = omega, tau_end * err / (tau * tol)
                 # the error's order in τ and its decay rate in m, from the last rejected try when it
-                # changed only τ or only m (Niesen & Wright 2012, §4); else the a priori j/4 and 2,
+                # changed only τ or only m (Niesen & Wright 2012); else the a priori j/4 and 2,
                 # or once more the last measured value
                 if ireject >= 1 and m == oldm and tau != oldtau and omega > 0 and oldomega > 0:
                     order, order_measured = max(1.0, math.log(omega / oldomega) / math.log(tau / oldtau)), True

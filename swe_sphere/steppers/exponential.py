@@ -67,8 +67,10 @@ class ExponentialOptions:
     def __post_init__(self):
         if not 0 < self.tol < 1:
             raise ValueError(f"tol must be in (0, 1) (got {self.tol})")
-        if not 1 <= self.m_min <= self.m_max:
-            raise ValueError(f"m_min must be in [1, m_max = {self.m_max}] (got {self.m_min})")
+        if self.m_min < 3:  # the augmented start vector and φ₂'s take 3 (on m = 1 KIOPS's substeps shrink to nothing)
+            raise ValueError(f"m_min must be >= 3 (got {self.m_min})")
+        if self.m_max < self.m_min:
+            raise ValueError(f"m_max must be >= m_min = {self.m_min} (got {self.m_max})")
         if not self.m_max <= 256:
             raise ValueError(f"m_max must be <= 256 (got {self.m_max})")
         if self.iop < 1:

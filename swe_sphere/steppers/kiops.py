@@ -85,8 +85,8 @@ class Kiops:
     vectors u_1 … u_q, q ≤ p (the others zero); ``out`` receives w (may not alias
     an input); ``tol`` bounds the estimated error of w (Euclidean norm over all
     processes, the units of u); ``m`` the first substep's Krylov size, kept within
-    [min(m_min, m_max), m_max]. Raises ``StepFailure`` on a non-finite error estimate or after
-    ``MAX_SUBSTEPS`` substeps.
+    [min(m_min, m_max), m_max]. Raises ``StepFailure`` on a non-finite error estimate, after
+    ``MAX_SUBSTEPS`` substeps or when a substep shrinks below 1e-12 τ.
     """
 
     def __init__(self, n: int, p: int, m_max: int, topology, iop: int = 2):
@@ -166,8 +166,9 @@ class Kiops:
         oldm, oldtau, omega = -1, math.nan, math.nan
         order, kest, order_measured, kest_measured = 1.0, 2.0, False, False
         while tau_now < tau_end:
-            if substeps + rejected >= MAX_SUBSTEPS:
-                raise StepFailure(f"KIOPS did not reach tol {tol:.1e} in {MAX_SUBSTEPS} substeps (at τ {tau_now:.3e} of {tau_end:.3e})")
+            if substeps + rejected >= MAX_SUBSTEPS or tau < 1e-12 * tau_end:
+                raise StepFailure(f"KIOPS did not reach tol {tol:.1e} in {substeps + rejected} substeps (at τ {tau_now:.3e} of {tau_end:.3e}, "
+                                  f"substep {tau:.1e}, Krylov size {m})")
             if j == 0:
                 H[:] = 0.0
                 beta = self._start(out, tau_now, mu)

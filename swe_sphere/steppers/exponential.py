@@ -25,16 +25,20 @@ error of the step relative to ‖ΔtF(x(n))‖ (Euclidean norm of the unique-nod
 vectors, as FGMRES's); the forward differences' own error, ~1e-8 of each J·v
 (a φ-product 2e-7–6e-7 from the exact one at 6 Δt_g on TC5 ne2, where KIOPS with
 the exact J·v is within tol), bounds what a smaller tol buys. Cost a step: one F, one F a Krylov vector (the first,
-of the zero vector, is free), and for epi3 one more for J (x(n−1) − x(n)).
-F(x(n−1)) is kept from the last step. A time-dependent forcing enters through
-F at t(n) alone (J holds no ∂F/∂t): first order in the forcing's time dependence.
+of the zero vector, is free), for epi3 one more for J (x(n−1) − x(n)), with a
+forcing two more.
+F(x(n−1)) is kept from the last step. A time-dependent forcing: the step is that
+of the autonomous system in (x, t), whose Jacobian has the column ∂F/∂t, which
+adds Δt² φ₂(ΔtJ) ∂F/∂t to both steps and Δt ∂F/∂t to epi3's R (exactly, as
+φ_k of a block-triangular matrix); ∂F/∂t by a centred difference in time (two
+more RHS evaluations a step). Without it TC4 ran at order 1.0 with both.
 
 Mass: F's and every J·v's depth integrate to zero, so every Krylov vector's
 does, and so does the step's increment, but only to the round-off of a forward
 difference (eps_mach/ε ~ 1e-8 of a J·v's own size: −1.7e-12 of the mass after 4
 steps at 20 Δt_g on TC5 ne8); the increment's depth is set to integrate to zero
 exactly (one inner product), as the exact one does, and the step keeps the mass
-to round-off.
+to round-off (not with a forcing, which may add mass).
 
 Hyperviscosity is applied after the step, split from the dynamics, as for the
 other steppers.
@@ -83,7 +87,6 @@ class _Exponential(Stepper):
 
     Options = ExponentialOptions
     solvers = ("krylov", "substeps", "rejected")
-    p = 1
     multistep = False
 
     def __init__(self, model, dt, options=None):
@@ -92,13 +95,17 @@ class _Exponential(Stepper):
         dev, N = model.device, self.N
         self.topology = topo = model.topology
         n3 = 3 * topo.nunique
+        self.forced = model.forcing is not None
+        self.p = 2 if self.multistep or self.forced else 1  # φ₂ carries R(x(n−1)) and Δt ∂F/∂t
         self.jacobian = FiniteDifferenceJacobian(model, self._F)
         self.kiops = Kiops(n3, self.p, o.m_max, topo, o.iop)
         self.m = o.m_min  # the Krylov size the next step starts with (KIOPS's last)
         self.Fx, self.work = wp.zeros((3, N), dtype=f64, device=dev), wp.zeros((3, N), dtype=f64, device=dev)
-        # unique-node rows: F(x(n)), F(x(n−1)), J (x(n−1) − x(n)), x(n−1) − x(n), x(n)
-        self.T = wp.zeros((5, n3), dtype=f64, device=dev)
-        self.rows_T = [self.T[k] for k in range(5)]
+        # unique-node rows: F(x(n)), F(x(n−1)), J (x(n−1) − x(n)), x(n−1) − x(n), x(n), Δt ∂F/∂t
+        self.T = wp.zeros((6, n3), dtype=f64, device=dev)
+        self.rows_T = [self.T[k] for k in range(6)]
+        if self.forced:  # F at t(n) ± Δt/64
+            self.Fa, self.Fb = wp.zeros((3, N), dtype=f64, device=dev), wp.zeros((3, N), dtype=f64, device=dev)
         self.u = wp.zeros((self.p, n3), dtype=f64, device=dev)  # the scaled φ_k vectors
         self.rows_u = [self.u[k] for k in range(self.p)]
         self.w = wp.zeros(n3, dtype=f64, device=dev)
@@ -134,6 +141,20 @@ class _Exponential(Stepper):
             self._load(self.Fprev, state, "previous_rhs")
 
     # -- the step ----------------------------------------------------------------------
+    def _forcing_rate(self, x, out) -> None:
+        """Unique-node out = Δt ∂F/∂t at t(n): (F(x, t(n) + δ) − F(x, t(n) − δ)) Δt / 2δ,
+        δ = Δt/64 (error δ²/6 ∂³F/∂t³, below the third order's; two RHS evaluations: the
+        model's RHS of the forcing alone adds it to a stale tendency); the model time
+        is left at t(n)."""
+        q = 1.0 / 64.0
+        self._at(q)
+        self._F(x, self.Fa)
+        self._at(-q)
+        self._F(x, self.Fb)
+        self._at(0.0)
+        self._pointwise(blas.axpby, f64(0.5 / q), self.Fa, f64(-0.5 / q), self.Fb, self.work)
+        self.jacobian.gather(1.0, self.work, out)
+
     def advance(self, x):
         o, jac, T, lin = self.options, self.jacobian, self.rows_T, self.kiops.basis.lincomb
         self.rhs_evals = 0
@@ -145,23 +166,27 @@ class _Exponential(Stepper):
         stats = None
         if fnorm > 0.0:  # else x is a steady state of the dynamics
             lin(self.T, self._none, 1.0 / fnorm, T[0], self.rows_u[0])
+            c = np.zeros(6)  # the φ₂ vector from the rows of T
             if self._uses_previous():  # ⅔ R(x(n−1)) / ‖F‖
                 self._pointwise(blas.axpby, f64(1.0), self.xprev, f64(-1.0), x, self.work)
                 jac.gather(1.0, self.work, T[3])
                 jac.gather(1.0, self.Fprev, T[1])
                 jac.apply(x, self.Fx, xnorm, T[3], T[2])
-                c = 2.0 / 3.0 / fnorm
-                lin(self.T, np.array([-c, c, -c]), 0.0, T[0], self.rows_u[1])
-            elif self.p > 1:
-                self.rows_u[1].zero_()
+                c[:3] = np.array([-1.0, 1.0, -1.0]) * (2.0 / 3.0 / fnorm)
+            if self.forced:  # Δt ∂F/∂t / ‖F‖ in φ₁'s part, and in R's for epi3
+                self._forcing_rate(x, T[5])
+                c[5] = (5.0 / 3.0 if self._uses_previous() else 1.0) / fnorm
+            if self.p > 1:
+                lin(self.T, c, 0.0, T[0], self.rows_u[1])
 
             def matvec(v, out):  # out = Δt J v
                 jac.apply(x, self.Fx, xnorm, v, out, 0.0, self.dt)
 
             stats = self.kiops.apply(matvec, None, self.rows_u, self.w, 1.0, o.tol, self.m, o.m_min)
             self.m = stats.m
-            mass = self.kiops.basis.project_dots(self.M, self.w, 0, None, 1)[0]
-            lin(self.M[1:], np.array([-mass / self.topology.total_area]), 1.0, self.w, self.w)
+            if not self.forced:  # (a forcing may add mass)
+                mass = self.kiops.basis.project_dots(self.M, self.w, 0, None, 1)[0]
+                lin(self.M[1:], np.array([-mass / self.topology.total_area]), 1.0, self.w, self.w)
         if self.multistep:
             wp.copy(self.xprev, x)
             wp.copy(self.Fprev, self.Fx)
@@ -183,7 +208,7 @@ class Epi2(_Exponential):
     last one starts the next step), ``iop`` (2: vectors each new Krylov vector is
     orthogonalised against). Reports per step the Krylov vectors, KIOPS substeps and
     rejected substeps; RHS evaluations a step: the Krylov vectors (the first, of a zero
-    vector, costs none; F(x(n)) one).
+    vector, costs none; F(x(n)) one), two more with a forcing (∂F/∂t).
     """
 
     name = "epi2"
@@ -197,5 +222,4 @@ class Epi3(_Exponential):
     """
 
     name = "epi3"
-    p = 2
     multistep = True

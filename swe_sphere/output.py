@@ -54,6 +54,9 @@ SERIES_ATTRS = {
     "precond_iterations": dict(units="1", long_name="cumulative applications of the JFNK preconditioner"),
     "newton_iterations": dict(units="1", long_name="cumulative Newton iterations"),
     "gmres_iterations": dict(units="1", long_name="cumulative GMRES iterations"),
+    "krylov_iterations": dict(units="1", long_name="cumulative Krylov vectors of the exponential steppers' KIOPS"),
+    "substeps_iterations": dict(units="1", long_name="cumulative accepted KIOPS substeps"),
+    "rejected_iterations": dict(units="1", long_name="cumulative rejected KIOPS substeps"),
     "steps": dict(units="1", long_name="time steps taken"),
 }
 for _f in ("h", "wind"):

@@ -5,7 +5,7 @@ Memory figures are from ``benchmarks/memory.py`` (tc5_mountain ne = 60 np = 4,
 leapfrog_trapezoidal): a run's resident memory above the import baseline is
 about 1 020 bytes per element-local node (state, metric, model and stepper work
 arrays, the host grid and its construction temporaries, output buffers). The
-semi-implicit and implicit steppers add their own buffers (below).
+semi-implicit, implicit and exponential steppers add their own buffers (below).
 """
 
 from __future__ import annotations
@@ -17,6 +17,9 @@ RUN_BYTES_PER_NODE = 1100  # measured 1 020 (benchmarks/README.md, "Memory"), ro
 STEPPER_BYTES_PER_NODE = {
     "semi_implicit": 400,  # ~10 more (k, N) rows and the Helmholtz CG's unique-node vectors
     "implicit": 1200,  # 13 (3, N) buffers, 6 unique-node vectors and a GMRES basis of 30
+    # a KIOPS basis of 65 unique-node vectors (m_max = 64; 1.7 N entries each at np = 4) and 6 (3, N) buffers
+    "epi2": 1200,
+    "epi3": 1200,
 }
 
 

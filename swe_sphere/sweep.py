@@ -503,7 +503,7 @@ def outcome(row: dict) -> str:
 COLUMNS = (
     "stepper", "dt", "dt_over_gravity_limit", "dt_over_advective_limit", "dt_over_leapfrog_limit", "stable", "wall_time", "cpu_time",
     "load_average", "threads", "cost_time", "startup_time", "setup_time", "steps", "rhs_evals", "rhs_time", "rhs_cpu_time", "rhs_equivalents", "newton_iterations", "gmres_iterations", "precond_iterations",
-    "helmholtz_iterations", "total_error", "total_error_vorticity", "total_error_divergence",
+    "helmholtz_iterations", "krylov_iterations", "substeps_iterations", "rejected_iterations", "total_error", "total_error_vorticity", "total_error_divergence",
     "temporal_error", "temporal_error_wind", "temporal_error_vorticity", "temporal_error_divergence",
     "temporal_error_filtered", "temporal_error_filtered_vorticity", "mass_change", "total_energy_change", "potential_enstrophy_change", "reason",
 )

@@ -68,30 +68,30 @@ def run(scene):
 
 
 @functools.lru_cache(maxsize=None)
-def tc6_inviscid(days: float):
-    """TC6 at ne = 4 np = 4 for ``days``, without hyperviscosity, one output at the end
-    (the temporal-order tests' case)."""
-    scene = load_scene("tc6_rossby_haurwitz", ne=4, np=4, days=days)
+def tc6_inviscid(days: float, case: str = "tc6_rossby_haurwitz"):
+    """TC6 (or ``case``) at ne = 4 np = 4 for ``days``, without hyperviscosity, one output
+    at the end (the temporal-order tests' case)."""
+    scene = load_scene(case, ne=4, np=4, days=days)
     terms = tuple(t for t in scene.terms if t != "hyperviscosity")
     return dataclasses.replace(scene, terms=terms, nu=0.0, output_every_days=days)
 
 
 @functools.lru_cache(maxsize=None)
-def tc6_final(days: float, stepper: str, nsteps: int, options: tuple = ()):
-    """``tc6_inviscid(days)`` in ``nsteps`` steps of ``stepper`` with ``options``
+def tc6_final(days: float, stepper: str, nsteps: int, options: tuple = (), case: str = "tc6_rossby_haurwitz"):
+    """``tc6_inviscid(days, case)`` in ``nsteps`` steps of ``stepper`` with ``options``
     ((key, value) pairs), once a session: (final state (3, N) u, v, h, RunResult, wall s)."""
-    scene = dataclasses.replace(tc6_inviscid(days), stepper=stepper, dt=days * DAY / nsteps, stepper_options=dict(options))
+    scene = dataclasses.replace(tc6_inviscid(days, case), stepper=stepper, dt=days * DAY / nsteps, stepper_options=dict(options))
     assert scene.nsteps == nsteps and abs(scene.nsteps * scene.dt - days * DAY) < 1e-6
     result, sim, wall = run(scene)
     assert result.blowup is None, result.blowup
     return sim.x.numpy().copy(), result, wall
 
 
-def tc6_error(days: float, ref_steps: int, stepper: str, nsteps: int, options: tuple = ()):
+def tc6_error(days: float, ref_steps: int, stepper: str, nsteps: int, options: tuple = (), case: str = "tc6_rossby_haurwitz"):
     """Normalised l2 distance of the whole state (u, v, h) after ``days`` to rk4 in
-    ``ref_steps`` steps, with the run's RunResult and wall seconds."""
-    ref = tc6_final(days, "rk4", ref_steps)[0]
-    x, result, wall = tc6_final(days, stepper, nsteps, options)
+    ``ref_steps`` steps (of TC6 or ``case``), with the run's RunResult and wall seconds."""
+    ref = tc6_final(days, "rk4", ref_steps, (), case)[0]
+    x, result, wall = tc6_final(days, stepper, nsteps, options, case)
     w = cached_grid(4, 4).spheremp
     return math.sqrt(w @ ((x - ref) ** 2).sum(0) / (w @ (ref**2).sum(0))), result, wall
 

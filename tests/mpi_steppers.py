@@ -1,8 +1,8 @@
 """Run by ``test_mpi.py`` under ``mpiexec`` (and imported by it for the one-rank runs): TC5
-at ne 2 with each stepper that solves (semi-implicit, JFNK, IMEX, an IMEX Butcher pair; JFNK
-and IMEX also with their Helmholtz solves in float32, ``precision = "mixed"``), one simulation
-over all ranks each, and a semi-implicit run continued from a restart file. Rank 0 saves the
-final whole-grid states: ``python mpi_steppers.py OUT.npz CHECKPOINT``.
+at ne 2 with each stepper that solves (semi-implicit, JFNK, IMEX, an IMEX Butcher pair,
+exponential; JFNK and IMEX also with their Helmholtz solves in float32, ``precision = "mixed"``),
+one simulation over all ranks each, and a semi-implicit run continued from a restart file.
+Rank 0 saves the final whole-grid states: ``python mpi_steppers.py OUT.npz CHECKPOINT``.
 """
 
 from __future__ import annotations
@@ -24,6 +24,8 @@ STEPPERS = {
     "tableau": ("tableau", None),
     "implicit_mixed": ("implicit", {"precision": "mixed"}),
     "imex_mixed": ("imex", {"precision": "mixed"}),
+    "epi2": ("epi2", {}),
+    "epi3": ("epi3", {}),
 }
 DAYS = 0.1
 

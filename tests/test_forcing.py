@@ -94,6 +94,9 @@ def test_every_stepper_evaluates_the_rhs_at_its_stage_times():
         "semi_implicit": [[0], [1]],
         "imex": [c343, [1 + c for c in c343]],
         "tableau": [[0, 0.5, 0.5, 1], [1, 1.5, 1.5, 2]],  # its default table, RK4's
+        # F(x(n)) and every J·v at t(n); ∂F/∂t from F at t(n) ± Δt/64
+        "epi2": [[0, 0.015625, -0.015625, 0], [1, 1.015625, 0.984375, 1]],
+        "epi3": [[0, 0.015625, -0.015625, 0], [1, 1.015625, 0.984375, 1]],
     }
     assert set(expected) | {"implicit"} == set(STEPPERS)
     for name, times in expected.items():
@@ -136,6 +139,8 @@ SHORT = (450.0, 225.0, 112.5)  # where the scheme's start or filter still shows 
         ("leapfrog_trapezoidal", {}, (900.0, 450.0, 225.0), 2, 0.3),  # 1.56, 1.83
         ("leapfrog", {"robert_asselin": 0.0}, SHORT, 2, 0.2),  # 2.04, 2.01 (with the default ε = 0.05: 1.77, 1.46)
         ("implicit", {}, (900.0, 450.0, 225.0), 2, 0.2),  # Crank–Nicolson: 1.87, 1.98
+        ("epi2", {"tol": 1e-10}, (900.0, 450.0, 225.0), 2, 0.2),  # 1.98, 1.99 (∂F/∂t in the step; without it 1.0)
+        ("epi3", {"tol": 1e-10}, (900.0, 450.0, 225.0), 3, 0.3),  # 2.92, 2.97
         pytest.param("implicit", {"method": "bdf2"}, SHORT, 2, 0.2, marks=pytest.mark.slow),  # 1.66, 1.93 (backward-Euler start)
         pytest.param("imex", {"tol": 1e-12}, (900.0, 450.0, 225.0), 3, 0.3, marks=pytest.mark.slow),  # ars343: 2.71, 2.94
         pytest.param("imex", {"scheme": "ars232", "tol": 1e-12}, (900.0, 450.0, 225.0), 2, 0.2, marks=pytest.mark.slow),  # 1.93, 1.99

@@ -204,7 +204,11 @@ def test_solver_steppers_agree_with_one_rank(tmp_path):
     (measured for the first three: 1e-14, 2e-13, 1e-14), JFNK and IMEX with float32
     Helmholtz solves too (``precision = "mixed"``), and so does a
     semi-implicit run (its warm Helmholtz guess in the restart file) written on one rank
-    and continued on 3. The JFNK run on 2 ranks goes through the command line."""
+    and continued on 3. The JFNK run on 2 ranks goes through the command line.
+    epi2 and epi3 within 1e-9 (measured: wind 3.9e-11 and 2.9e-11, depth 7.6e-13 and 6.5e-13):
+    after a step on 3 ranks the state is 3e-16 from one rank's, but a forward-difference
+    J·v turns the round-off of F at a state a bit away into 1e-8 of J·v (ε ~ 1e-8), and
+    nothing (as Newton does for JFNK) converges it away."""
     from mpi_steppers import DAYS, continued_state, final_states, scene
 
     one = final_states()
@@ -218,7 +222,9 @@ def test_solver_steppers_agree_with_one_rank(tmp_path):
         assert three["ranks"] == 3
         for name, state in one.items():
             wind, h = relative_difference(state, three[name])
-            assert 0.0 <= wind <= 1e-12 and 0.0 <= h <= 1e-12, (name, wind, h)
+            bound = 1e-9 if name.startswith("epi") else 1e-12
+            print(f"\n{name}: 3 ranks against 1: wind {wind:.2e}, depth {h:.2e}")
+            assert 0.0 <= wind <= bound and 0.0 <= h <= bound, (name, wind, h)
     args = ["run", "tc5_mountain", "--ne", "2", "--stepper", "implicit", "--days", str(DAYS), "--no-progress"]
     proc = mpirun(2, [*args, "--output", "two.nc"], tmp_path)
     assert proc.returncode == 0, proc.stderr[-2000:]

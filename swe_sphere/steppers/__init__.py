@@ -5,6 +5,7 @@ Explicit: ``leapfrog``, ``leapfrog_trapezoidal``, ``ssprk3``, ``rk4``, ``kgu35``
 (JFNK θ-method / BDF2); ``imex`` (ARS IMEX Runge–Kutta). The last three share
 the linear gravity-wave operator ``helmholtz.GravityWave``. ``tableau``: an
 explicit or IMEX table from the scene, through the RK and IMEX machinery (``butcher``).
+Exponential: ``epi2``, ``epi3`` (φ-functions of the Jacobian by KIOPS).
 """
 
 from __future__ import annotations
@@ -12,13 +13,14 @@ from __future__ import annotations
 from ..model import ShallowWater
 from .base import StepFailure, Stepper, StepStats, option_types
 from .butcher import Tableau
+from .exponential import Epi2, Epi3
 from .explicit import FBRK32, Leapfrog, LeapfrogTrapezoidal, rk_steppers
 from .imex import Imex
 from .implicit import Implicit
 from .semi_implicit import SemiImplicit
 
 STEPPERS: dict[str, type[Stepper]] = {
-    cls.name: cls for cls in (Leapfrog, LeapfrogTrapezoidal, *rk_steppers(), FBRK32, SemiImplicit, Implicit, Imex, Tableau)
+    cls.name: cls for cls in (Leapfrog, LeapfrogTrapezoidal, *rk_steppers(), FBRK32, SemiImplicit, Implicit, Imex, Tableau, Epi2, Epi3)
 }
 
 

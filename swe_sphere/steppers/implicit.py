@@ -14,7 +14,8 @@ multiplies by the mass matrix M; F here is already M⁻¹-weighted by the DSS.)
 Newton: δ from J δ = −R by right-preconditioned flexible GMRES
 (``krylov.FGMRES``, on Warp arrays: the same code on CPU threads, CUDA and MPI
 ranks; flexible because the preconditioner's inexact inner solve changes it
-from one iteration to the next), with J v a forward difference of F, ε = sqrt(ε_mach)(1 + ‖x‖)/‖v‖; forcing
+from one iteration to the next), with J v a forward difference of F, ε = sqrt(ε_mach)(1 + ‖x‖)/‖v‖
+(``jacobian.FiniteDifferenceJacobian``); forcing
 terms by Eisenstat & Walker (1996) choice 2 (γ = 0.9, α = 2, safeguarded,
 η ≤ 0.9, η ≥ ``gmres_tol``); a backtracking line search (Armijo, halving up
 to 8 times) when the residual does not fall. Converged when the RMS of R is
@@ -41,17 +42,16 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
-import numpy as np
 import warp as wp
 
 from ..kernels import blas
 from ..kernels import implicit as ik
 from .base import StepFailure, Stepper, StepStats
 from .helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, check_precision
+from .jacobian import FiniteDifferenceJacobian
 from .krylov import FGMRES
 
 f64 = wp.float64
-_SQRT_EPS = math.sqrt(np.finfo(float).eps)
 
 
 @dataclass(frozen=True)
@@ -129,9 +129,9 @@ class Implicit(Stepper):
         self.gw = None
         if o["preconditioner"] == "helmholtz":
             self.gw = GravityWave(model, o["mean_depth"], o["helmholtz_tol"], 1000, precision=o["precision"])
-        for name in ("xn", "xprev", "b", "Fx", "R", "delta", "trial", "Ft", "Rt", "v", "xp", "Fp", "z"):
+        for name in ("xn", "xprev", "b", "Fx", "R", "delta", "trial", "Ft", "Rt", "v", "z"):
             setattr(self, name, wp.zeros((3, N), dtype=f64, device=dev))
-        # Krylov vectors live on unique nodes (3·nunique: 0.56× the element-local length at np = 4)
+        self.jacobian = FiniteDifferenceJacobian(model, self._F)  # Krylov vectors live on unique nodes
         self.topology = topo = model.topology
         self.nu = topo.nunique
         n3 = 3 * self.nu
@@ -167,24 +167,14 @@ class Implicit(Stepper):
         self._counts["precond"] += 1
 
     def _scatter(self, u, out):
-        """Element-local out (3, N) from the unique-node vector u."""
-        self.model.scatter(u, out, 0, rows=3)
+        self.jacobian.scatter(u, out)
 
     def _gather(self, a, v, out):
-        """Unique-node out = a·v from a continuous (3, N) v."""
-        self._pointwise(ik.gather, f64(a), v, self.topology.first, self.nu, out, unique=True)
+        self.jacobian.gather(a, v, out)
 
     def _jv(self, w, out):
-        """out = J w (unique-node vectors) by a forward difference of F about the current iterate x."""
-        wnorm = self._norm(w)
-        if wnorm == 0.0:
-            out.zero_()
-            return
-        eps = _SQRT_EPS * (1.0 + self.xnorm) / wnorm
-        self._scatter(w, self.xp)
-        self._axpby(1.0, self.x, eps, self.xp, self.xp)  # x + ε w
-        self._F(self.xp, self.Fp)
-        self._pointwise(ik.jacobian_vector, w, self.Fx, self.Fp, self.topology.first, self.nu, f64(1.0 / self.dt), f64(self.beta / eps), out, unique=True)
+        """out = J w = w/Δt − β F'(x) w (unique-node vectors), about the current iterate x."""
+        self.jacobian.apply(self.x, self.Fx, self.xnorm, w, out, 1.0 / self.dt, -self.beta)
 
     def _unique_precondition(self, w, out):
         """out = P⁻¹ w on unique-node vectors (out = w without a preconditioner)."""

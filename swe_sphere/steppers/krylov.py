@@ -1,5 +1,7 @@
 """Flexible GMRES (Saad 1993, SIAM J. Sci. Comput. 14, 461) on Warp arrays, for
-the JFNK stepper (the Helmholtz CG is ``kernels.helmholtz``'s).
+the JFNK stepper (the Helmholtz CG is ``kernels.helmholtz``'s), and the Krylov
+basis it is built on (``KrylovBasis``), which the exponential steppers' KIOPS
+(``kiops.Kiops``) shares.
 
 The vectors are Warp arrays on the model's device, each this process's part of
 a unique-node vector; the basis is two 2-D arrays allocated once. The vector
@@ -35,30 +37,23 @@ from ..parallel import record, reduction_chunk
 f64 = wp.float64
 
 
-class FGMRES:
-    """Solver for A x = b from x = 0 with ``restart``-long cycles, for vectors of
-    length ``n`` (this process's part) on ``topology``'s device, inner products
-    summed over its processes.
+class KrylovBasis:
+    """A Krylov basis of ``rows`` vectors of length ``n`` (this process's part of a
+    unique-node vector) on ``topology``'s device, the rows of ``V``, with the fused
+    vector work of ``kernels.krylov`` on any 2-D array of such vectors (a row range
+    of ``V``, FGMRES's preconditioned vectors), its inner products summed over the
+    topology's processes. Shared by ``FGMRES`` and ``kiops.Kiops``."""
 
-    ``solve(matvec, precond, b, x, rtol, maxiter)`` → (iterations, converged):
-    ``matvec(v, out)`` and ``precond(v, out)`` write A v and P⁻¹ v into ``out``
-    (Warp arrays of length n); x (a Warp array, overwritten) gets the solution;
-    stops when ‖b − A x‖ ≤ rtol ‖b‖ (the Arnoldi estimate) or after
-    ``maxiter`` products with A.
-    """
-
-    def __init__(self, n: int, restart: int, topology):
-        m, n = int(restart), int(n)
-        self.restart, self.n, self.topology = m, n, topology
+    def __init__(self, n: int, rows: int, topology):
+        n, rows = int(n), int(rows)
+        self.n, self.topology = n, topology
         dev = topology.device
-        self.V = wp.zeros((m + 1, n), dtype=f64, device=dev)
-        self.Z = wp.zeros((m, n), dtype=f64, device=dev)
-        self.rows_V = [self.V[j] for j in range(m + 1)]  # row views: their addresses key the model's recorded launches
-        self.rows_Z = [self.Z[j] for j in range(m)]
-        self.w, self.r = wp.zeros(n, dtype=f64, device=dev), wp.zeros(n, dtype=f64, device=dev)
-        self.coef, self._coef = wp.zeros(m + 1, dtype=f64, device=dev), np.zeros(m + 1)
+        self.V = wp.zeros((rows, n), dtype=f64, device=dev)
+        self.rows_V = [self.V[j] for j in range(rows)]  # row views: their addresses key the recorded launches
+        self.w = wp.zeros(n, dtype=f64, device=dev)
+        self.coef, self._coef = wp.zeros(rows, dtype=f64, device=dev), np.zeros(rows)
         self.chunk = chunk = reduction_chunk(n, dev)
-        self.partial = wp.zeros((m + 2, (n + chunk - 1) // chunk), dtype=f64, device=dev)
+        self.partial = wp.zeros((rows + 1, (n + chunk - 1) // chunk), dtype=f64, device=dev)
         self._launches: dict[tuple, object] = {}
 
     def _launch(self, kernel, dim, inputs, nodes_per_index=1, **params):
@@ -79,19 +74,44 @@ class FGMRES:
         self._coef[: len(c)] = c
         self.coef.assign(self._coef)
 
-    def _project_dots(self, k_sub: int, h: np.ndarray | None, k_dot: int) -> np.ndarray:
-        """w −= Σ_{i<k_sub} h_i V_i; returns (V_i·w for i < k_dot, w·w) over all processes."""
+    def project_dots(self, B, w, k_sub: int, h: np.ndarray | None, k_dot: int) -> np.ndarray:
+        """w −= Σ_{i<k_sub} h_i B_i; returns (B_i·w for i < k_dot, w·w) over all processes
+        (B a 2-D array of vectors, w a vector)."""
         if k_sub:
             self._set_coef(h)
-        self._launch(kk.project_dots, self.partial.shape[1], [self.V, 0, self.coef, self.w, 0, self.partial, self.chunk],
+        self._launch(kk.project_dots, self.partial.shape[1], [B, 0, self.coef, w, 0, self.partial, self.chunk],
                      nodes_per_index=self.chunk, k_sub=k_sub, k_dot=k_dot)
         return self.topology.partial_sums(self.partial, k_dot + 1)  # the rows it wrote: less to copy from a GPU
 
-    def _lincomb(self, B, c: np.ndarray, a: float, x, out) -> None:
-        """out = a·x + Σ c_i B_i."""
+    def lincomb(self, B, c: np.ndarray, a: float, x, out) -> None:
+        """out = a·x + Σ c_i B_i (out may alias x)."""
         if len(c):
             self._set_coef(c)
         self._launch(kk.lincomb, self.n, [B, 0, self.coef, f64(0.0), x, out], k=len(c), a=f64(a))
+
+
+class FGMRES(KrylovBasis):
+    """Solver for A x = b from x = 0 with ``restart``-long cycles, for vectors of
+    length ``n`` (this process's part) on ``topology``'s device, inner products
+    summed over its processes.
+
+    ``solve(matvec, precond, b, x, rtol, maxiter)`` → (iterations, converged):
+    ``matvec(v, out)`` and ``precond(v, out)`` write A v and P⁻¹ v into ``out``
+    (Warp arrays of length n); x (a Warp array, overwritten) gets the solution;
+    stops when ‖b − A x‖ ≤ rtol ‖b‖ (the Arnoldi estimate) or after
+    ``maxiter`` products with A.
+    """
+
+    def __init__(self, n: int, restart: int, topology):
+        m = self.restart = int(restart)
+        super().__init__(n, m + 1, topology)
+        self.Z = wp.zeros((m, self.n), dtype=f64, device=topology.device)
+        self.rows_Z = [self.Z[j] for j in range(m)]
+        self.r = wp.zeros(self.n, dtype=f64, device=topology.device)
+
+    def _project_dots(self, k_sub: int, h: np.ndarray | None, k_dot: int) -> np.ndarray:
+        """w −= Σ_{i<k_sub} h_i V_i; returns (V_i·w for i < k_dot, w·w) over all processes."""
+        return self.project_dots(self.V, self.w, k_sub, h, k_dot)
 
     def solve(self, matvec, precond, b, x, rtol: float, maxiter: int):
         m, V, Z, w = self.restart, self.rows_V, self.rows_Z, self.w
@@ -107,7 +127,7 @@ class FGMRES:
             cs, sn = np.zeros(m), np.zeros(m)
             g = np.zeros(m + 1)
             g[0] = beta
-            self._lincomb(self.V, np.zeros(0), 1.0 / beta, r, V[0])
+            self.lincomb(self.V, np.zeros(0), 1.0 / beta, r, V[0])
             for j in range(m):
                 precond(V[j], Z[j])
                 matvec(Z[j], w)
@@ -118,7 +138,7 @@ class FGMRES:
                 H[: j + 1, j] = h + h2
                 H[j + 1, j] = hn = float(np.sqrt(max(ww - h2 @ h2, 0.0)))
                 if hn > 0.0:
-                    self._lincomb(self.V, -h2 / hn, 1.0 / hn, w, V[j + 1])
+                    self.lincomb(self.V, -h2 / hn, 1.0 / hn, w, V[j + 1])
                 for i in range(j):  # earlier Givens rotations on the new column
                     H[i, j], H[i + 1, j] = cs[i] * H[i, j] + sn[i] * H[i + 1, j], -sn[i] * H[i, j] + cs[i] * H[i + 1, j]
                 d = np.hypot(H[j, j], H[j + 1, j])
@@ -129,7 +149,7 @@ class FGMRES:
                     break
             k = j + 1
             y = solve_triangular(H[:k, :k], g[:k])
-            self._lincomb(self.Z, y, 1.0, x, x)
+            self.lincomb(self.Z, y, 1.0, x, x)
             beta = abs(g[k])
             if beta <= target or its >= maxiter or hn == 0.0:
                 return its, beta <= target
@@ -138,5 +158,5 @@ class FGMRES:
             e[k] = g[k]
             for i in reversed(range(k)):
                 e[i], e[i + 1] = cs[i] * e[i] - sn[i] * e[i + 1], sn[i] * e[i] + cs[i] * e[i + 1]
-            self._lincomb(self.V, e, 0.0, self.r, self.r)
+            self.lincomb(self.V, e, 0.0, self.r, self.r)
             r = self.r

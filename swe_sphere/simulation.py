@@ -684,6 +684,8 @@ class Simulation:
             if log is not None and s.log_every_steps:
                 ends.append((b // s.log_every_steps + 1) * s.log_every_steps)
             ends += [(b // cb.steps + 1) * cb.steps for cb in self.callbacks]
+            if b < first_step + 1 + ESTIMATE_STEPS:  # the wall-time estimate's steps (on every rank alike)
+                ends.append(first_step + 1 + ESTIMATE_STEPS)
             return min(ends)
 
         def block(b: int, e: int):
@@ -714,10 +716,12 @@ class Simulation:
                 model.watch(self.x)
                 add(stats)
                 m += 1
+                self.step = m  # the steps x holds (not yet checked)
             if model.watched_bad() and trouble is None:  # the block's one host read (and synchronisation)
                 trouble = "bad"
             account(m, t0, cpu0)
             if trouble is not None:
+                self.step = b
                 wp.copy(self.x, self.last_good)
                 stepper.restore(saved[0])
                 c["rhs_evals"], c["iterations"] = saved[1], saved[2]

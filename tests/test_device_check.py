@@ -5,6 +5,9 @@ block reads nothing back from the device."""
 
 from __future__ import annotations
 
+import os
+import signal
+
 import numpy as np
 import pytest
 import warp as wp
@@ -12,7 +15,8 @@ import xarray as xr
 from conftest import make_sim, write_tc2_scene
 
 from swe_sphere.config import load_scene
-from swe_sphere.simulation import BlowUp
+from swe_sphere.simulation import BlowUp, Interrupted
+from swe_sphere.steppers import StepFailure
 
 TIMES = ("wall_time", "cpu_time")  # measured, not computed: differ between any two runs
 
@@ -116,3 +120,63 @@ def test_a_step_inside_a_block_reads_nothing_back(tmp_path, monkeypatch):
     for n, count in enumerate(after[:-1], start=1):
         assert (count > 0) == (n in block_ends), (n, count)
     assert all(inside == 0 for _, inside in steps)
+
+
+def _failing_in(sim, step):
+    """Make ``step`` (counted from t = 0) of ``sim``'s run raise ``StepFailure``, each time it is taken."""
+    real = sim.stepper.step
+
+    def failing(x):
+        if sim.step + 1 == step:
+            raise StepFailure("Newton did not converge (forced)")
+        return real(x)
+
+    sim.stepper.step = failing
+
+
+def test_a_failure_inside_a_block_is_reported_as_with_a_check_every_step(tmp_path):
+    """A ``StepFailure`` in step 11, inside the block 9-12 of a check every 4 steps:
+    the block is re-run from step 8, checked step by step, to the failure: the same
+    message, counters and run file (ending at the last good step 10) as with a
+    check every step."""
+    scene = load_scene(write_tc2_scene(tmp_path / "s.toml", stepper="leapfrog", dt=1800.0, days=1.0))
+    runs = []
+    for every in (1, 4):
+        sim = make_sim(scene)
+        sim.check_every = every
+        _failing_in(sim, 11)
+        with pytest.raises(BlowUp, match=r"^step 11 failed \(model time 0\.2292 days\): Newton did not converge") as err:
+            sim.run(tmp_path / f"{every}.nc")
+        with xr.open_dataset(tmp_path / f"{every}.nc") as ds:
+            runs.append((err.value.result.rhs_evals, sim.step, sim.x.numpy(), ds.drop_vars(list(TIMES), errors="ignore").drop_attrs().load()))
+    assert runs[0][:2] == runs[1][:2] == (11, 10)  # leapfrog: 2 RHS evaluations in its first step, then 1
+    np.testing.assert_array_equal(runs[0][2], runs[1][2])
+    xr.testing.assert_identical(runs[0][3], runs[1][3])
+    assert list(runs[1][3].steps.values) == [0, 10]
+
+
+def test_a_step_abandoned_inside_a_block_leaves_the_blocks_first_state(tmp_path):
+    """SIGINT in step 11 (inside the block 9-12 of a check every 4 steps), which then
+    never ends: abandoned after ``ABANDON_AFTER`` s, steps 9 and 10 unchecked go
+    with it; the run stops at step 8 with the state and leapfrog's x(n-1) of a run
+    of 8 steps (its next steps give the same bits)."""
+    scene = load_scene(write_tc2_scene(tmp_path / "s.toml", stepper="leapfrog", dt=1800.0, days=1.0))
+    sim = make_sim(scene)
+    sim.check_every = 4
+    real = sim.stepper.step
+
+    def endless(x):
+        if sim.step + 1 != 11:
+            return real(x)
+        os.kill(os.getpid(), signal.SIGINT)
+        while True:  # real steps, as a step that never converges
+            real(x)
+
+    sim.stepper.step = endless
+    with pytest.raises(Interrupted, match=r"at step 8 .*; step 11 abandoned after 1 s with steps 9-10 before it \(not yet checked\)"):
+        sim.run()
+    sim.stepper.step = real
+    sim.run(until_step=12)
+    ref = make_sim(scene)
+    ref.run(until_step=12)
+    np.testing.assert_array_equal(sim.x.numpy(), ref.x.numpy())

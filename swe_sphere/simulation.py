@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import bisect
 import contextlib
 import math
 import signal
@@ -78,6 +79,12 @@ class Interrupted(RuntimeError):
 
 
 ABANDON_AFTER = 1.0  # s a step may go on after SIGINT/SIGTERM before it is abandoned
+# Steps between host reads of the bad-state check on a GPU (``Simulation.check_every``).
+# A read waits for the device to drain its queue: ~10-50 µs, as long as a whole launch-bound
+# ne30 step, so reading every step serialises the loop; 64 steps make it ~1 % of the time
+# and bound the re-run that finds a blow-up's step to 64 steps (ClimaAtmos checks for NaN
+# every 1024 steps, without the step). On a CPU a read costs nothing: every step is checked.
+CHECK_EVERY_STEPS = 64
 # A run's wall time is estimated from the steps after its first (which compiles kernels):
 # this many of them, or as many as take this many seconds, whichever comes first.
 ESTIMATE_STEPS, ESTIMATE_SECONDS = 3, 10.0
@@ -213,6 +220,15 @@ class Simulation:
     the same on every rank (a checkpoint's, when continuing: the start state is
     then not diagnosed for nothing); None: the start state's (``diagnose(0)``).
 
+    ``check_every`` (steps; 1 on a CPU, ``CHECK_EVERY_STEPS`` on a GPU): ``run``
+    checks the state for a non-finite value or h <= 0 after every step on the
+    device (``ShallowWater.watch``) and reads the check back every so many steps
+    and at every output, restart, log and callback step, so that a GPU step
+    needs no host round trip. A block of steps whose check fails is re-run from
+    its start (state, stepper history and counters kept there), one checked
+    step at a time: the blow-up is reported at the step, time and place, and
+    the output holds, as with a check every step (the same bits either way).
+
     A scene may also be given as ``swe_sphere.run`` takes it, ``Simulation("tc2_steady",
     ne=4, days=2)``: a scene file or bundled name with overrides
     (``config.resolve_scene``), device None: CUDA when present
@@ -271,7 +287,8 @@ class Simulation:
         else:
             start = topo.distribute(None if start is ON_ROOT else start, 3, "start state")
         self.x = self.model.new_state(*(self.dfi.x if self.dfi is not None else start))
-        self.last_good = wp.clone(self.x)
+        self.last_good = wp.clone(self.x)  # the state at the start of the block of steps in progress
+        self.check_every = 1 if wp.get_device(device).is_cpu else CHECK_EVERY_STEPS
         self.initial = initial_diagnostics
         if initial_diagnostics is None:
             self.initial = self.diagnose(scene.start_day * DAY)
@@ -653,6 +670,103 @@ class Simulation:
                     handlers[sig] = signal.signal(sig, on_signal)
             if handlers:
                 handlers[signal.SIGALRM] = signal.signal(signal.SIGALRM, abandon)
+        # Blocks of steps between reads of the device (``check_every``): a block ends at
+        # every output, restart, log and callback step, at the run's end and first step.
+        every, marks = max(1, int(self.check_every)), sorted(out_steps | ck_steps)
+
+        def block_end(b: int) -> int:
+            """The last step of the block that starts after step b."""
+            if every == 1 or b == first_step:  # the first step alone: its time is first_step_time
+                return b + 1
+            ends = [stop_step, (b // every + 1) * every]
+            i = bisect.bisect_right(marks, b)
+            ends += marks[i : i + 1]
+            if log is not None and s.log_every_steps:
+                ends.append((b // s.log_every_steps + 1) * s.log_every_steps)
+            ends += [(b // cb.steps + 1) * cb.steps for cb in self.callbacks]
+            if b < first_step + 1 + ESTIMATE_STEPS:  # the wall-time estimate's steps (on every rank alike)
+                ends.append(first_step + 1 + ESTIMATE_STEPS)
+            return min(ends)
+
+        def block(b: int, e: int):
+            """Steps b+1..e, each state flagged on the device (``ShallowWater.watch``),
+            read once at the end; stops early for a signal. Returns (m, trouble): m the
+            last step taken, trouble None when every state to m was good, else "bad",
+            "failure" (a ``StepFailure`` in step m + 1) or "abandoned" (step m + 1);
+            on trouble the state, stepper history and counters are those of step b again."""
+            nonlocal interrupted
+            saved = stepper.state(), c["rhs_evals"], dict(c["iterations"])
+            wp.copy(self.last_good, self.x)
+            t0, cpu0 = time.perf_counter(), time.process_time()
+            m, trouble = b, None
+            while m < e:
+                if m > b and self.topology.max(stop[0] if stop else 0):  # the loop stops at m, once checked
+                    break
+                try:
+                    in_step[0] = time.perf_counter()
+                    stats = stepper.step(self.x)
+                except StepFailure:
+                    trouble = "failure"
+                    break
+                except _StepAbandoned as err:
+                    trouble, interrupted = "abandoned", err.signum
+                    break
+                finally:
+                    in_step[0] = None
+                model.watch(self.x)
+                add(stats)
+                m += 1
+                self.step = m  # the steps x holds (not yet checked)
+            if model.watched_bad() and trouble is None:  # the block's one host read (and synchronisation)
+                trouble = "bad"
+            account(m, t0, cpu0)
+            if trouble is not None:
+                self.step = b
+                wp.copy(self.x, self.last_good)
+                stepper.restore(saved[0])
+                c["rhs_evals"], c["iterations"] = saved[1], saved[2]
+            return m, trouble
+
+        def account(n: int, t0: float, cpu0: float) -> None:
+            """Book the time since t0, cpu0 (the device synchronised after step n)."""
+            nonlocal first_time, since, estimating
+            dt_wall = time.perf_counter() - t0
+            c["wall_time"] += dt_wall
+            c["cpu_time"] += time.process_time() - cpu0  # the process's threads summed: one thread for a reproducible cost
+            if n == first_step + 1:
+                first_time, since = dt_wall, time.perf_counter()
+            elif estimating:  # the loop's own time (output, progress bar) counted
+                timed, spent = n - first_step - 1, time.perf_counter() - since
+                if timed >= ESTIMATE_STEPS or spent >= ESTIMATE_SECONDS:
+                    estimating, left = False, spent / timed * (s.nsteps - n)
+                    if left > DAY:
+                        notify(f"this run will take about {left / DAY:.3g} days of wall time to day {s.days:g} "
+                               f"({spent / timed:.3g} s a step over steps {first_step + 2}-{n}; {s.nsteps - n} steps left)")
+
+        def add(stats) -> None:
+            if stats is not None:
+                c["rhs_evals"] += stats.rhs_evals
+                for k, it in stats.iterations.items():
+                    c["iterations"][k] = c["iterations"].get(k, 0) + it
+
+        def finish(n: int, done: int) -> None:
+            """Step n (the last of ``done`` steps) is good: output, restart, callbacks, log, progress."""
+            self.step = n
+            if n in out_steps:
+                record(n)
+            if n in ck_steps:
+                save_restart()
+            for callback in self.callbacks:
+                if n % callback.steps == 0:
+                    callback.fn(self)
+            if log is not None and s.log_every_steps and n % s.log_every_steps == 0:
+                line = self.log_line(history[-1] if n in out_steps else None)
+                if line is not None:
+                    log(line)
+            bar.update(done)
+            if n % 50 < done or n == s.nsteps:  # a multiple of 50 in the steps done
+                bar.set_postfix(day=f"{s.day(n):.2f}", sim_days_per_s=f"{n * s.dt / DAY / max(c['wall_time'], 1e-9):.3g}")
+
         # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
         # pay, and on a busy machine OpenBLAS's spinning threads made a norm cost 10 ms
         limits = threadpool_limits(limits=1, user_api="blas")
@@ -665,12 +779,28 @@ class Simulation:
                 bar = tqdm(initial=self.step, total=s.nsteps, unit="step", disable=None if self.progress else True, file=sys.stderr,
                            dynamic_ncols=True)
                 with bar:
+                    rerun_to = self.step  # steps up to here are re-run one at a time: their block found trouble
                     while self.step < stop_step:
-                        signum = int(self.topology.max(stop[0] if stop else 0))  # every rank stops at the same step
-                        if signum:
-                            interrupted = signum
-                            break
-                        n = self.step + 1
+                        if self.step >= rerun_to:  # a re-run goes on to the trouble it looks for
+                            signum = int(self.topology.max(stop[0] if stop else 0))  # every rank stops at the same step
+                            if signum:
+                                interrupted = signum
+                                break
+                        b = self.step
+                        e = block_end(b) if b >= rerun_to else b + 1
+                        if e > b + 1:
+                            m, trouble = block(b, e)
+                            if trouble is None:
+                                if m > b:
+                                    finish(m, m - b)
+                                continue
+                            if trouble == "abandoned":
+                                abandoned = (b, m)
+                                break
+                            rerun_to = m if trouble == "bad" else m + 1  # a failure: in step m + 1
+                            continue
+                        # one step, checked: the state before it kept, the check read at once
+                        n = b + 1
                         t0, cpu0 = time.perf_counter(), time.process_time()
                         wp.copy(self.last_good, self.x)
                         try:
@@ -681,28 +811,14 @@ class Simulation:
                             stats, failure = None, str(err)
                         except _StepAbandoned as err:  # the state of the last complete step is kept
                             wp.copy(self.x, self.last_good)
-                            interrupted, abandoned = err.signum, True
+                            interrupted, abandoned = err.signum, (b, b)
                             break
                         finally:
                             in_step[0] = None
                         bad = model.first_bad_node(self.x) if failure is None else None
                         wp.synchronize_device(self.device)
-                        dt_wall = time.perf_counter() - t0
-                        c["wall_time"] += dt_wall
-                        c["cpu_time"] += time.process_time() - cpu0  # the process's threads summed: one thread for a reproducible cost
-                        if n == first_step + 1:
-                            first_time, since = dt_wall, time.perf_counter()
-                        elif estimating:  # the loop's own time (output, progress bar) counted
-                            timed, spent = n - first_step - 1, time.perf_counter() - since
-                            if timed >= ESTIMATE_STEPS or spent >= ESTIMATE_SECONDS:
-                                estimating, left = False, spent / timed * (s.nsteps - n)
-                                if left > DAY:
-                                    notify(f"this run will take about {left / DAY:.3g} days of wall time to day {s.days:g} "
-                                           f"({spent / timed:.3g} s a step over steps {first_step + 2}-{n}; {s.nsteps - n} steps left)")
-                        if stats is not None:
-                            c["rhs_evals"] += stats.rhs_evals
-                            for k, it in stats.iterations.items():
-                                c["iterations"][k] = c["iterations"].get(k, 0) + it
+                        account(n, t0, cpu0)
+                        add(stats)
                         if bad is not None or failure is not None:
                             blowup = self._blowup_message(n, bad) if failure is None else (
                                 f"step {n} failed (model time {s.day(n):.4f} days): {failure}"
@@ -713,21 +829,7 @@ class Simulation:
                                 if w is not None:
                                     w.set_attrs(blowup=blowup)
                             break
-                        self.step = n
-                        if n in out_steps:
-                            record(n)
-                        if n in ck_steps:
-                            save_restart()
-                        for callback in self.callbacks:
-                            if n % callback.steps == 0:
-                                callback.fn(self)
-                        if log is not None and s.log_every_steps and n % s.log_every_steps == 0:
-                            line = self.log_line(history[-1] if n in out_steps else None)
-                            if line is not None:
-                                log(line)
-                        bar.update(1)
-                        if n % 50 == 0 or n == s.nsteps:
-                            bar.set_postfix(day=f"{s.day(n):.2f}", sim_days_per_s=f"{n * s.dt / DAY / max(c['wall_time'], 1e-9):.3g}")
+                        finish(n, 1)
                     if interrupted is not None:
                         if unwritten(self.step):
                             record(self.step, final=True)
@@ -784,7 +886,11 @@ class Simulation:
                 kept = [f"output so far in {output}"] if output is not None else []
                 if kept_restart is not None:
                     kept.append(f"no restart file: {kept_restart} exists (--overwrite, or overwrite=True in Python, replaces it)")
-                how = f"; step {self.step + 1} abandoned after {ABANDON_AFTER:g} s (no restart file from it)" if abandoned else ""
+                how = ""
+                if abandoned:
+                    b, m = abandoned  # steps b+1..m were taken in a block not yet checked: dropped with m + 1
+                    before = f" with steps {b + 1}-{m} before it (not yet checked)" if m > b else ""
+                    how = f"; step {m + 1} abandoned after {ABANDON_AFTER:g} s{before} (no restart file from it)"
                 when = f"at step {self.step} (model time {day:.4f} days){how}"
             kept += [f"restart file {written[0]}"] if written[0] is not None else []
             err = Interrupted("; ".join([f"interrupted by {name} {when}", *kept]))

@@ -67,7 +67,7 @@ else:
     run = simulation.Simulation.run
 
     def held_run(self, *args, **kwargs):
-        step, check, calls = self.stepper.step, self.model.first_bad_node, [0]
+        step, check, watch, calls = self.stepper.step, self.model.first_bad_node, self.model.watch, [0]
         if WHERE == "inside-step":
             def endless_step(x):
                 MARKER.write_text(str(os.getpid()))
@@ -76,15 +76,18 @@ else:
 
             self.stepper.step = endless_step
         else:
-            def held_check(x):
-                calls[0] += 1
-                if calls[0] == 1:
-                    _note_signals()  # the run's handlers are in place: a signal from now on is noted
-                if calls[0] == int(WHERE.removeprefix("step:")):
-                    _arrive_and_wait()
-                return check(x)
+            def held(check):  # every step is checked once, at once or on the device (``Simulation.check_every``)
+                def held_check(x):
+                    calls[0] += 1
+                    if calls[0] == 1:
+                        _note_signals()  # the run's handlers are in place: a signal from now on is noted
+                    if calls[0] == int(WHERE.removeprefix("step:")):
+                        _arrive_and_wait()
+                    return check(x)
 
-            self.model.first_bad_node = held_check
+                return held_check
+
+            self.model.first_bad_node, self.model.watch = held(check), held(watch)
         return run(self, *args, **kwargs)
 
     simulation.Simulation.run = held_run

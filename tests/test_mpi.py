@@ -191,6 +191,40 @@ def test_blow_up_on_two_ranks_is_one_line(tmp_path):
     assert (tmp_path / "o.nc").is_file()
 
 
+CHECKED_EVERY = """
+import sys
+from swe_sphere import simulation
+from swe_sphere.cli import main
+
+EVERY = int(sys.argv[1])
+run = simulation.Simulation.run
+
+def run_checked_every(self, *args, **kwargs):  # a GPU's blocks of steps between reads of the check, on the CPU
+    self.check_every = EVERY
+    return run(self, *args, **kwargs)
+
+simulation.Simulation.run = run_checked_every
+sys.exit(main(["run", *sys.argv[2:]]))
+"""
+
+
+@pytest.mark.usefixtures("needs_mpi")
+def test_blow_up_inside_a_block_on_two_ranks(tmp_path):
+    """Leapfrog at dt = 3600 s on TC2 ne = 2 blows up at step 17. On two ranks with the
+    check read every 5 steps (``Simulation.check_every``), the block 16-20 is re-run
+    from step 15, leapfrog's x(n-1) restored on every rank: the same lines and the
+    same run file (outputs 0 and the last good step 16) as one rank checking every step."""
+    args = ["tc2_steady", "--ne", "2", "--stepper", "leapfrog", "--dt", "3600", "--days", "2", "--no-progress"]
+    one = mpirun(1, ["1", *args, "--output", "r.nc"], tmp_path, [sys.executable, "-c", CHECKED_EVERY])
+    (tmp_path / "r.nc").rename(tmp_path / "r1.nc")
+    two = mpirun(2, ["5", *args, "--output", "r.nc"], tmp_path, [sys.executable, "-c", CHECKED_EVERY])
+    assert one.returncode == two.returncode == 3, two.stderr[-2000:]
+    assert one.stderr == two.stderr and "swe-sphere: blow-up at step 17 (model time 0.7083 days)" in one.stderr, two.stderr[-2000:]
+    assert_same_bits(tmp_path / "r1.nc", tmp_path / "r.nc")
+    with xr.open_dataset(tmp_path / "r.nc") as ds:
+        assert list(ds.steps.values) == [0, 16]
+
+
 def relative_difference(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     """max |Δ wind| / max |wind| and max |Δh| / max |h| of two (u, v, h) states."""
     wind = np.hypot(a[0] - b[0], a[1] - b[1]).max() / np.hypot(a[0], a[1]).max()

@@ -95,7 +95,10 @@ def test_steps_bitwise_equal_to_one_thread(small_parts, name):
 def test_steps_same_with_per_node_kernels(small_parts, name):
     """CUDA's per-node layout (run here on the CPU) steps to the CPU layout's
     state up to round-off (FMA contraction, summation order): 3 steps of 600 s.
-    Measured: ≤ 2.4e-13 of each row's change (semi_implicit)."""
+    Measured: ≤ 2.4e-13 of each row's change (semi_implicit); the exponential
+    steppers 1.2e-9 (epi2, epi3): their forward-difference J·v turns the layouts'
+    round-off in F into ~1e-8 of J·v, which no outer iteration converges away (as
+    over MPI ranks, ``test_mpi``), so they are held to 1e-8."""
     final = {}
     for per_element in (True, False):
         m, st = tc5_model(small_parts, 2, per_element)
@@ -107,7 +110,8 @@ def test_steps_same_with_per_node_kernels(small_parts, name):
     change = np.abs(final[True] - st).max(axis=1)
     diff = np.abs(final[True] - final[False]).max(axis=1)
     print(f"\n{name}: |per-node - per-element| / change per row {diff / change}")
-    assert np.all(diff <= 1e-11 * change), (diff, change)
+    bound = 1e-8 if name in ("epi2", "epi3") else 1e-11
+    assert np.all(diff <= bound * change), (diff, change)
 
 
 def test_split_launches_work_in_a_forked_child(small_parts):

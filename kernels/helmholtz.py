@@ -82,7 +82,7 @@ def helmholtz_gradient(np: int, dtype=f64):
     ``operators.row_vectors`` views Dinv (4, N/np), spheremp (N/np); dvv
     (``operators.dvv_matrix``); wg (2, N/np) (a view); offset (elements). Dim nelem."""
     vec, mat, along, across = row_derivatives(np, dtype)
-    copy_at, unique_value = gathers(dtype)
+    _, unique_value = gathers(dtype)
     NP = int(np)
 
     def helmholtz_gradient(
@@ -166,7 +166,7 @@ def helmholtz_assemble(copies: int, dtype=f64):
     operator's input). Arguments: wz (1, N), ghost, nlocal, table, first, y, out
     (nunique), partial (3, nchunks), chunk, offset (chunks). Dim ceil(nunique / chunk)."""
     C = int(copies)
-    copy_at, unique_value = gathers(dtype)
+    copy_at, _ = gathers(dtype)
 
     def helmholtz_assemble(
         wz: wp.array2d(dtype=dtype), ghost: wp.array(dtype=f64), nlocal: int, table: wp.array2d(dtype=wp.int32),

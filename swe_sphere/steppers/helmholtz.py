@@ -412,16 +412,20 @@ class HelmholtzCG:
         self._update.launch()
 
     def residual(self, c: float) -> float:
-        """r = b − Ay, u = M⁻¹r, w = A u (the start of a solve from y); returns r·r (all ranks)."""
+        """r = b − Ay (and u = M⁻¹r); returns r·r over all ranks: one product (refinement's)."""
         self.apply(self.y, self.w, c)
-        return self._start(c)[2]
+        self._residual_update()
+        return self._partial_sums()[2]
 
-    def _start(self, c: float) -> np.ndarray:
-        """From w = Ay: r = b − w, u = M⁻¹ r (as an update from u = 0), then w = A u;
-        returns (r·u, w·u, r·r)."""
+    def _residual_update(self) -> None:
+        """From w = Ay: r = b − w, u = M⁻¹ r, partial sums r·u and r·r (an update from u = 0)."""
         wp.copy(self.r, self.b)
         self.u.zero_()
-        self._step(1.0, 0.0)  # r = b − A y, u = M⁻¹ r, r·u, r·r
+        self._step(1.0, 0.0)
+
+    def _start(self, c: float) -> np.ndarray:
+        """From w = Ay: r = b − w, u = M⁻¹ r, then w = A u; returns (r·u, w·u, r·r)."""
+        self._residual_update()
         self.apply(self.u, self.w, c)  # and w·u
         return self._partial_sums()
 

@@ -6,7 +6,10 @@ against ``imex``: TC5 np 4 (topography, ∇⁴), each stepper's step timed over
 ``--steps`` steps, the steppers interleaved round by round; per stepper the
 median over rounds of the time a step and a RHS evaluation, and the ratio
 table / built-in. CPU clock of this process (``time.process_time``); run it
-single-threaded for figures that repeat on a shared machine:
+single-threaded for figures that repeat on a shared machine. Then, per step, the
+launches and the bytes they move (``gpu_model.Tally``: each distinct array argument
+once): a table with the built-in's updates moves the same bytes in the same launches,
+so a ratio away from 1 is the clock's noise, not the table.
 
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/tableau_cost.py --ne 16
 """
@@ -26,6 +29,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from swe_sphere.config import load_scene  # noqa: E402
 from swe_sphere.simulation import Simulation  # noqa: E402
 from test_tableau import BUILT_IN, ars343_pair  # noqa: E402
+
+from gpu_model import Tally, instrument  # noqa: E402  (benchmarks/, the script's directory)
 
 PAIRS = [(name, {}, {"name": name, **BUILT_IN[name]}) for name in BUILT_IN] + [("imex", {"scheme": "ars343"}, ars343_pair())]
 
@@ -55,14 +60,21 @@ def main() -> None:
             evals[label] = n / args.steps
     print(f"TC5 ne{args.ne} np4, {args.steps} steps x {args.rounds} rounds, CPU clock, threads "
           f"{os.environ.get('SWE_SPHERE_THREADS', 'default')}, load average {os.getloadavg()[0]:.2f}")
-    print(f"{'stepper':22s} {'ms/step':>9s} {'RHS/step':>9s} {'ms/RHS':>8s} {'table/built-in':>15s}")
+    tally = Tally()
+    instrument(tally)  # after the timing: the wrappers cost host time
+    counts = {}
+    for label, sim in sims.items():
+        with tally.counting() as t:
+            sim.stepper.step(sim.x)
+        counts[label] = (t.total_launches, t.total_bytes / 1e6)
+    print(f"{'stepper':22s} {'ms/step':>9s} {'RHS/step':>9s} {'ms/RHS':>8s} {'table/built-in':>15s} {'launches':>9s} {'MB/step':>8s}")
     for name, _, _ in PAIRS:
         ref = statistics.median(times[name]) / evals[name]
         for label in (name, f"tableau({name})"):
             step = statistics.median(times[label])
             per = step / evals[label]
             ratio = f"{per / ref:.3f}" if label != name else ""
-            print(f"{label:22s} {1e3 * step:9.2f} {evals[label]:9.1f} {1e3 * per:8.2f} {ratio:>15s}")
+            print(f"{label:22s} {1e3 * step:9.2f} {evals[label]:9.1f} {1e3 * per:8.2f} {ratio:>15s} {counts[label][0]:9d} {counts[label][1]:8.1f}")
 
 
 if __name__ == "__main__":

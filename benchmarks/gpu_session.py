@@ -34,12 +34,13 @@ import numpy as np
 import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from gpu_model import IMPLICIT, Tally, instrument  # noqa: E402
+from gpu_model import IMPLICIT  # noqa: E402
 from rhs_throughput import build, rhs_compulsory_bytes  # noqa: E402
 
 from swe_sphere.config import load_scene  # noqa: E402
 from swe_sphere.simulation import Simulation  # noqa: E402
 from swe_sphere.steppers import STEPPERS, make_stepper  # noqa: E402
+from swe_sphere.tally import Tally, instrumented  # noqa: E402
 
 
 def timed(fn, device, repeat):
@@ -109,9 +110,8 @@ def throughput(args):
         x, out = model.new_state(*state), model.new_state()
         runs.append((ne, model, x, out, timed(lambda: model.rhs(x, out), args.device, args.repeat)))
     tally = Tally()
-    instrument(tally)  # after the timings: its wrappers cost host time per launch
     for ne, model, x, out, t in runs:
-        with tally.counting():
+        with instrumented(tally), tally.counting():  # after the timings: its wrappers cost host time per launch
             model.rhs(x, out)
         pts = model.N
         compulsory, launched = rhs_compulsory_bytes(model) / pts, tally.total_bytes / pts

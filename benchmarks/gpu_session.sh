@@ -99,7 +99,10 @@ part_study() {  # ISSUE 32 target: the ne30 TC5 study (15 days) in <= 10 minutes
     sweep tc5_ne30 540 tc5_mountain 30 15 2 "$R30,$I30"
 }
 
-part_study_fine() {  # ISSUE 32 item 5: every contender at ne60 and ne120; repeat the part until every sweep ends
+# ISSUE 32 item 5: every contender at ne60 and ne120; repeat the part until every sweep ends. A run
+# is kept only when it ends: one longer than a call's box (likely CN @ 2 Δt_g at ne120, 15 days at
+# 40-90 ms a step) never completes here and needs a longer device slot
+part_study_fine() {
     local t0=$SECONDS left
     for spec in "tc5_ne60 tc5_mountain 60 15 2 $R30,$I30" "tc6_ne60 tc6_rossby_haurwitz 60 14 2 $R_TC6,$I30" \
                 "galewsky_ne60 galewsky 60 6 1 $R_GAL,$I30" "tc5_ne120 tc5_mountain 120 15 2 $R30,$I30" \

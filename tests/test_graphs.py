@@ -68,7 +68,8 @@ def stepped(scene, device, graphs, check_every):
 @pytest.mark.parametrize("device", DEVICES)
 @pytest.mark.parametrize("name", EXPLICIT)
 def test_graphed_steps_are_the_bits_of_plain_ones(one_thread, graph_launches, name, device):
-    """12 steps of TC5: graphed, in blocks of 5 checked steps (the flag's launch in the
+    """12 steps of TC5 (its ∇⁴ two forward-Euler substeps a step on ne 2, leapfrog's three
+    over 2Δt): graphed, in blocks of 5 checked steps (the flag's launch in the
     graph) and checked one by one, against plain launches: the same state, RHS
     count and stepper step count; all but each key's first two steps (plain, then
     captured) and leapfrog's start ran as graphs."""
@@ -81,6 +82,20 @@ def test_graphed_steps_are_the_bits_of_plain_ones(one_thread, graph_launches, na
         np.testing.assert_array_equal(graphed[0], plain[0])
         assert graphed[1:] == plain[1:] == (graphed[1], STEPS)
         assert graph_launches[0] >= STEPS - 3, graph_launches[0]
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_graphed_rkl1_hyperviscosity_is_the_bits_of_plain_steps(one_thread, graph_launches, device):
+    """ssprk3 with 10× TC5's ν: the ∇⁴ as an RKL1 super-step (``ShallowWater._rkl1``:
+    copies, and one recorded combination launched with each stage's coefficients)
+    inside the graph, the same bits as launched one by one."""
+    scene = tc5("ssprk3", device)
+    scene = dataclasses.replace(scene, nu=10 * scene.nu, nu_div=10 * scene.nu_div, nu_s=10 * scene.nu_s)
+    assert Simulation(scene, device, progress=False).model.hypervis_plan(scene.dt)[1]  # RKL1
+    plain = stepped(scene, device, False, 5)
+    graphed = stepped(scene, device, True, 5)
+    np.testing.assert_array_equal(graphed[0], plain[0])
+    assert graph_launches[0] >= STEPS - 3
 
 
 @pytest.mark.parametrize("device", DEVICES)

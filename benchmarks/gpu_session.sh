@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
-# ISSUE 23 item 3: the GPU measurements, for a session that is lent a device.
+# ISSUE 23 item 3 and ISSUE 32 items 2, 4, 5: the GPU measurements, for a session that is lent a device.
 # Run from the repository root on the GPU machine; each part writes <part>.txt
 # (and tests.xml) under $OUT (default ./gpu_out) and is time-boxed, so that
 # the parts fit the device tool's 10 min per command and 30 min per session:
 #
 #   benchmarks/gpu_session.sh setup tests          # ≈ 9 min: install, full suite on CUDA
 #   benchmarks/gpu_session.sh agreement            # ≈ 6 min: TC5 ne16 5 days, every stepper, CUDA vs CPU
-#   benchmarks/gpu_session.sh throughput graphs tc5 iterations   # ≈ 8 min
+#   benchmarks/gpu_session.sh throughput graphs tc5 iterations   # ≈ 9 min
 #   benchmarks/gpu_session.sh reads                 # ≈ 1 min: host reads a step, every stepper (ISSUE 32)
 #   benchmarks/gpu_session.sh study                 # ≤ 9 min: the ne30 TC5 study's runs on the GPU (ISSUE 32)
 #   benchmarks/gpu_session.sh study_fine            # ≤ 9 min a call: TC5, TC6, Galewsky at ne60 and ne120

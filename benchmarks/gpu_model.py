@@ -4,7 +4,7 @@ H100 and an H200, from counts taken off the code on the CPU.
 
 What is counted (TC5, all terms + ∇⁴, np = 4, the CUDA layout: per-node
 kernels, ``per_element=False``, one thread, the steppers' CUDA solvers:
-the Helmholtz ``pcg`` and flexible GMRES on Warp arrays), by wrapping Warp's launch entry points
+the Helmholtz ``pcg`` and flexible GMRES on Warp arrays), by wrapping Warp's launch entry points (``swe_sphere.tally``)
 while the model evaluates one RHS, one ∇⁴ and ``--steps`` steps of each
 stepper after ``--warmup`` steps, on ``--ne`` (default 8):
 
@@ -36,8 +36,6 @@ iteration counts at a fixed Courant number barely change with ne
 from __future__ import annotations
 
 import argparse
-import collections
-import contextlib
 import statistics
 import time
 
@@ -48,8 +46,8 @@ from swe_sphere.config import load_scene
 from swe_sphere.grid import CubedSphere
 from swe_sphere.model import ShallowWater
 from swe_sphere.steppers import STEPPERS, make_stepper
+from swe_sphere.tally import Tally, array_bytes, instrumented
 
-from rhs_throughput import array_bytes  # noqa: E402  (benchmarks/, the script's directory)
 
 HBM = {"H100": 3.35e12, "H200": 4.8e12}  # B/s: HBM3 (SXM) and HBM3e
 EFFICIENCY = 0.7  # share of HBM bandwidth a streaming kernel reaches
@@ -71,89 +69,6 @@ FLOPS = {
     "axpby": 9,
     "axpbypcz": 15,
 }
-
-
-class Tally:
-    """Launches, bytes, memsets/copies and host syncs seen while active."""
-
-    def __init__(self):
-        self.active = False
-        self.reset()
-
-    def reset(self):
-        self.launches = collections.Counter()
-        self.bytes = collections.Counter()
-        self.memops = 0
-        self.membytes = 0
-        self.syncs = 0
-
-    def kernel(self, kernel, args):
-        if self.active:
-            seen = array_bytes(args)
-            self.launches[kernel.key] += 1
-            self.bytes[kernel.key] += sum(seen.values())
-
-    def memop(self, nbytes):
-        if self.active:
-            self.memops += 1
-            self.membytes += nbytes
-
-    @contextlib.contextmanager
-    def counting(self):
-        self.reset()
-        self.active = True
-        try:
-            yield self
-        finally:
-            self.active = False
-
-    @property
-    def total_launches(self):
-        return sum(self.launches.values()) + self.memops
-
-    @property
-    def total_bytes(self):
-        return sum(self.bytes.values()) + self.membytes
-
-
-def instrument(tally: Tally) -> None:
-    """Wrap Warp's launch, memset, copy and read-back entry points (for this process)."""
-    launch_cls, real_record_launch, real_launch = wp.Launch, wp.Launch.launch, wp.launch
-
-    def record_launch(self, *a, **k):
-        tally.kernel(self.kernel, self.fwd_args or [])
-        return real_record_launch(self, *a, **k)
-
-    def launch(kernel, dim=None, inputs=(), outputs=(), *a, **k):
-        if not k.get("record_cmd"):
-            tally.kernel(kernel, [*inputs, *outputs])
-        return real_launch(kernel, dim, inputs, outputs, *a, **k)
-
-    launch_cls.launch = record_launch
-    wp.launch = launch
-    real_copy = wp.copy
-
-    def copy(dest, src, *a, **k):
-        tally.memop(2 * src.capacity)
-        return real_copy(dest, src, *a, **k)
-
-    wp.copy = copy
-    for name, factor in (("zero_", 1), ("fill_", 1), ("assign", 2)):
-        real = getattr(wp.array, name)
-
-        def method(self, *a, _real=real, _factor=factor, **k):
-            tally.memop(_factor * self.capacity)
-            return _real(self, *a, **k)
-
-        setattr(wp.array, name, method)
-    real_numpy = wp.array.numpy
-
-    def numpy(self):
-        if tally.active:
-            tally.syncs += 1
-        return real_numpy(self)
-
-    wp.array.numpy = numpy
 
 
 def build(ne, stepper=None, dt_factor=1.0):
@@ -233,8 +148,8 @@ def main(argv=None):
     if hasattr(wp, "LOG_WARNING"):
         wp.config.log_level = wp.LOG_WARNING
     tally = Tally()
-    instrument(tally)
-    counts, N = count(args, tally)
+    with instrumented(tally):
+        counts, N = count(args, tally)
 
     print(f"## Per kernel (counted at ne={args.ne} np=4, N={N}; bytes of each distinct array argument per point per launch)\n")
     print("| kernel | B/pt per launch | flop/pt | flop/B | launches in one RHS | in one ∇⁴ |")

@@ -1,4 +1,4 @@
-"""The measurements of ISSUE 23's item 3, one subcommand each (driven by
+"""The measurements of ISSUE 23's item 3 and ISSUE 32's targets, one subcommand each (driven by
 ``gpu_session.sh``, which time-boxes them and keeps their output under $OUT):
 
 * ``agreement``: TC5 for ``--days`` on ``--ne``, every stepper (semi_implicit,
@@ -8,8 +8,15 @@
   bandwidth reference, then one RHS (TC5, all terms + DSS, CUDA layout) per
   ``--ne``: µs, M points/s, GB/s of compulsory bytes (``rhs_throughput``'s
   count) and of bytes as launched (``gpu_model``'s), each as % of the copy.
-* ``graphs``: one step per stepper, replayed plain and as a CUDA graph
-  (``wp.ScopedCapture``): µs per step each way, or why it cannot be captured.
+* ``graphs``: µs a step of ``Simulation.run`` (TC5 from ``tc5_mountain_homme``,
+  Δt 90 s at ne30, every explicit stepper), its steps launched one by one
+  (``sim.graphs = False``) and replayed as CUDA graphs (the default on a GPU),
+  the bad-state check read every ``check_every`` steps either way: the time
+  loop's wall time over ``--graph-steps`` steps after 100, median of ``--runs``.
+* ``reads``: host reads (``.numpy()`` read-backs, ``swe_sphere.tally``) and
+  launches a step of every stepper (semi_implicit, implicit, imex at
+  ``--dt-factor`` × Δt; ``--steps`` steps after 2) on ``--device``, and
+  whether ``Simulation`` replays its steps as graphs.
 * ``iterations``: the semi_implicit, imex and implicit steppers at
   ``--dt-factor`` × TC5's Δt: solver iterations per step on ``--device``
   (their device solvers) against the CPU (its defaults).
@@ -19,6 +26,7 @@ Runs on the CPU too (``--device cpu``, small ``--ne``) to check the script.
 
     python benchmarks/gpu_session.py throughput --ne 30 60 120 240
     python benchmarks/gpu_session.py agreement --ne 4 --days 0.2 --device cpu
+    python benchmarks/gpu_session.py graphs --ne 30
 """
 
 from __future__ import annotations
@@ -34,12 +42,14 @@ import numpy as np
 import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from gpu_model import IMPLICIT, Tally, instrument  # noqa: E402
+from gpu_model import IMPLICIT  # noqa: E402
 from rhs_throughput import build, rhs_compulsory_bytes  # noqa: E402
 
 from swe_sphere.config import load_scene  # noqa: E402
+from swe_sphere.constants import DAY  # noqa: E402
 from swe_sphere.simulation import Simulation  # noqa: E402
 from swe_sphere.steppers import STEPPERS, make_stepper  # noqa: E402
+from swe_sphere.tally import Tally, instrumented  # noqa: E402
 
 
 def timed(fn, device, repeat):
@@ -109,9 +119,8 @@ def throughput(args):
         x, out = model.new_state(*state), model.new_state()
         runs.append((ne, model, x, out, timed(lambda: model.rhs(x, out), args.device, args.repeat)))
     tally = Tally()
-    instrument(tally)  # after the timings: its wrappers cost host time per launch
     for ne, model, x, out, t in runs:
-        with tally.counting():
+        with instrumented(tally), tally.counting():  # after the timings: its wrappers cost host time per launch
             model.rhs(x, out)
         pts = model.N
         compulsory, launched = rhs_compulsory_bytes(model) / pts, tally.total_bytes / pts
@@ -127,22 +136,40 @@ def _stepper(name, ne, device, dt_factor):
 
 def graphs(args):
     ne = args.ne[0]
-    _header(f"TC5 ne{ne} np4: µs per step, plain replay and one CUDA graph per step ({args.device})",
-            ["stepper", "plain µs", "graph µs", "speed-up"], 3)
+    names = args.steppers or [n for n, cls in STEPPERS.items() if cls.capturable]
+    _header(f"TC5 ne{ne} np4 (tc5_mountain_homme's Δt): µs a step of Simulation.run, {args.graph_steps} steps after 100, "
+            f"median of {args.runs}, plain launches and graphs ({args.device})",
+            ["stepper", "Δt s", "plain µs", "graphs µs", "speed-up"], 4)
+    for name in names:
+        us = {}
+        for graphed in (False, True):
+            scene = load_scene("tc5_mountain_homme", ne=ne, np=4, stepper=name)
+            days = (100 + args.runs * args.graph_steps) * scene.dt / DAY
+            sim = Simulation(dataclasses.replace(scene, days=days, output_every_days=days), args.device, progress=False)
+            sim.graphs = graphed
+            sim.run(None, until_step=100)  # compiles, records and captures
+            times = []
+            for k in range(args.runs):
+                result = sim.run(None, until_step=100 + (k + 1) * args.graph_steps)
+                times.append(result.loop_time / args.graph_steps)
+            us[graphed] = statistics.median(times) * 1e6
+        print(f"| {name} | {scene.dt:g} | {us[False]:.0f} | {us[True]:.0f} | {us[False] / us[True]:.2f} |", flush=True)
+
+
+def reads(args):
+    ne = args.ne[0]
+    _header(f"TC5 ne{ne} np4 (semi_implicit, implicit, imex at {args.dt_factor:g}× Δt; {args.steps} steps after 2, {args.device}): "
+            "host reads and launches a step", ["stepper", "graphs", "host reads a step", "launches a step"], 3)
+    tally = Tally()
     for name in args.steppers or STEPPERS:
         sim, stepper = _stepper(name, ne, args.device, args.dt_factor)
-        x = sim.x
-        plain = timed(lambda: stepper.step(x), args.device, args.repeat)
-        if not wp.get_device(args.device).is_cuda:
-            print(f"| {name} | {plain * 1e6:.0f} | no CUDA graphs on {args.device} | |", flush=True)
-            continue
-        try:
-            with wp.ScopedCapture(device=args.device) as capture:
-                stepper.step(x)
-            graph = timed(lambda: wp.capture_launch(capture.graph), args.device, args.repeat)
-            print(f"| {name} | {plain * 1e6:.0f} | {graph * 1e6:.0f} | {plain / graph:.2f} |", flush=True)
-        except Exception as err:  # a host read-back or a CPU device: not capturable
-            print(f"| {name} | {plain * 1e6:.0f} | not capturable: {str(err).splitlines()[0][:80]} | |", flush=True)
+        for _ in range(2):
+            stepper.step(sim.x)
+        with instrumented(tally), tally.counting():
+            for _ in range(args.steps):
+                stepper.step(sim.x)
+        graphed = "yes" if stepper.graph_key() is not None else "no"
+        print(f"| {name} | {graphed} | {tally.syncs / args.steps:.1f} | {tally.total_launches / args.steps:.1f} |", flush=True)
 
 
 def iterations(args):
@@ -169,7 +196,7 @@ def iterations(args):
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("part", choices=("agreement", "throughput", "graphs", "iterations"))
+    p.add_argument("part", choices=("agreement", "throughput", "graphs", "reads", "iterations"))
     p.add_argument("--device", default="cuda")
     p.add_argument("--ne", type=int, nargs="+", default=None, help="grid(s), np 4 (default per part: 16 / 30 60 120 240 / 30 / 30)")
     p.add_argument("--days", type=float, default=5.0)
@@ -177,6 +204,8 @@ def main(argv=None):
     p.add_argument("--dt-factor", type=float, default=4.0, help="Δt of semi_implicit, implicit, imex × TC5's")
     p.add_argument("--steps", type=int, default=3)
     p.add_argument("--repeat", type=int, default=20)
+    p.add_argument("--graph-steps", type=int, default=2000, help="graphs: steps a timed run")
+    p.add_argument("--runs", type=int, default=5, help="graphs: timed runs a stepper and mode")
     p.add_argument("--copy-mib", type=int, default=1024)
     args = p.parse_args(argv)
     args.ne = args.ne or {"agreement": [16], "throughput": [30, 60, 120, 240]}.get(args.part, [30])
@@ -184,7 +213,7 @@ def main(argv=None):
     if hasattr(wp, "LOG_WARNING"):
         wp.config.log_level = wp.LOG_WARNING
     wp.init()
-    {"agreement": agreement, "throughput": throughput, "graphs": graphs, "iterations": iterations}[args.part](args)
+    {"agreement": agreement, "throughput": throughput, "graphs": graphs, "reads": reads, "iterations": iterations}[args.part](args)
 
 
 if __name__ == "__main__":

@@ -1,15 +1,23 @@
 #!/usr/bin/env bash
-# ISSUE 23 item 3: the GPU measurements, for a session that is lent a device.
+# ISSUE 23 item 3 and ISSUE 32 items 2, 4, 5: the GPU measurements, for a session that is lent a device.
 # Run from the repository root on the GPU machine; each part writes <part>.txt
 # (and tests.xml) under $OUT (default ./gpu_out) and is time-boxed, so that
 # the parts fit the device tool's 10 min per command and 30 min per session:
 #
 #   benchmarks/gpu_session.sh setup tests          # ≈ 9 min: install, full suite on CUDA
 #   benchmarks/gpu_session.sh agreement            # ≈ 6 min: TC5 ne16 5 days, every stepper, CUDA vs CPU
-#   benchmarks/gpu_session.sh throughput graphs tc5 iterations   # ≈ 8 min
+#   benchmarks/gpu_session.sh throughput graphs tc5 iterations   # ≈ 9 min
+#   benchmarks/gpu_session.sh reads                 # ≈ 1 min: host reads a step, every stepper (ISSUE 32)
+#   benchmarks/gpu_session.sh study                 # ≤ 9 min: the ne30 TC5 study's runs on the GPU (ISSUE 32)
+#   benchmarks/gpu_session.sh study_fine            # ≤ 9 min a call: TC5, TC6, Galewsky at ne60 and ne120
 #
-# With no part named it runs them all in that order (≈ 23 min). DEVICE=cpu
-# NE_SMALL=1 runs the Python parts on the CPU on tiny grids (checks the script).
+# With no part named it runs setup to iterations in that order (≈ 23 min); reads,
+# study and study_fine are named. The studies are `swe-sphere sweep --device cuda
+# --cost wall` into $STUDY (default ./gpu_study, git-ignored): a sweep stopped by its
+# time box keeps its finished runs, and the same part run again (in the same
+# machine's checkout, or with gpu_study carried to a fresh one) makes only the rest;
+# each call copies the study folders to $OUT. DEVICE=cpu NE_SMALL=1 runs the Python
+# parts and the studies on the CPU on tiny grids (checks the script).
 set -u
 cd "$(dirname "$0")/.."
 OUT=${OUT:-$PWD/gpu_out}
@@ -18,6 +26,8 @@ PY=${PYTHON:-python}
 DEVICE=${DEVICE:-cuda}
 export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
 small=${NE_SMALL:-0}
+STUDY=${STUDY:-$PWD/gpu_study}
+[ "$DEVICE" = cpu ] && export SWE_SPHERE_THREADS=1  # graphs on a CPU need one thread a launch
 
 run() {  # run <part> <seconds> <command...>: output to $OUT/<part>.txt, time-boxed
     local part=$1 limit=$2
@@ -59,9 +69,50 @@ part_throughput() {
     run throughput 180 "$PY" benchmarks/gpu_session.py throughput --device "$DEVICE" "$@"
 }
 
-part_graphs() {
-    if [ "$small" = 1 ]; then set -- --ne 2 --repeat 2; else set -- --ne 30; fi
-    run graphs 120 "$PY" benchmarks/gpu_session.py graphs --device "$DEVICE" "$@"
+part_graphs() {  # ISSUE 32 target: an explicit TC5 ne30 step <= 0.12 ms
+    if [ "$small" = 1 ]; then set -- --ne 2 --graph-steps 20 --runs 2; else set -- --ne 30; fi
+    run graphs 240 "$PY" benchmarks/gpu_session.py graphs --device "$DEVICE" "$@"
+}
+
+part_reads() {  # ISSUE 32 target: 0 host reads in an explicit, IMEX or semi-implicit step
+    if [ "$small" = 1 ]; then set -- --ne 2 --steps 1; else set -- --ne 30; fi
+    run reads 120 "$PY" benchmarks/gpu_session.py reads --device "$DEVICE" "$@"
+}
+
+# the study's contenders (docs/efficiency.md, "The verdict"): each explicit stepper at its
+# largest stable multiple of the gravity-wave limit Δt_g and half of it, and the implicit-type ones
+R30=leapfrog_trapezoidal@0.64,leapfrog_trapezoidal@0.32,ssprk3@0.8,ssprk3@0.4,rk4@1.24,rk4@0.62,rk4@0.8,kgu35@1.6,kgu35@0.8,fbrk32@1.24,fbrk32@0.62
+I30=semi_implicit@1,semi_implicit@2,imex@1,imex@2,imex@5,imex@10,imex@20,implicit@2,implicit@5,implicit@10,implicit@20
+# TC6 and Galewsky: 0.9x the ne16 stability table's multiples (as at ne30) and their halves
+R_TC6=leapfrog_trapezoidal@0.549,leapfrog_trapezoidal@0.275,ssprk3@0.702,ssprk3@0.351,rk4@1.09,rk4@0.545,kgu35@1.48,kgu35@0.738,fbrk32@1.04,fbrk32@0.522
+R_GAL=leapfrog_trapezoidal@0.63,leapfrog_trapezoidal@0.315,ssprk3@0.81,ssprk3@0.405,rk4@1.25,rk4@0.626,kgu35@1.67,kgu35@0.837,fbrk32@1.25,fbrk32@0.626
+
+sweep() {  # sweep <name> <seconds> <case> <ne> <days> <filter days> <runs>: one study, time-boxed, resumable
+    local name=$1 limit=$2 case=$3 ne=$4 days=$5 filter=$6 runs=$7
+    if [ "$small" = 1 ]; then ne=2 days=1 filter=0.5; fi  # day 1: a day the T341 files hold
+    run "$name" "$limit" "$PY" -m swe_sphere.cli sweep "$case" --ne "$ne" --np 4 --days "$days" --filter-days "$filter" \
+        --runs "$runs" --device "$DEVICE" --cost wall -s case.reference=T341 --output "$STUDY/$name"
+    mkdir -p "$OUT/study" && cp -r "$STUDY/$name" "$OUT/study/"
+}
+
+part_study() {  # ISSUE 32 target: the ne30 TC5 study (15 days) in <= 10 minutes on one GPU
+    sweep tc5_ne30 540 tc5_mountain 30 15 2 "$R30,$I30"
+}
+
+# ISSUE 32 item 5: every contender at ne60 and ne120; repeat the part until every sweep ends. A run
+# is kept only when it ends: one longer than a call's box (likely CN @ 2 Δt_g at ne120, 15 days at
+# 40-90 ms a step) never completes here and needs a longer device slot
+part_study_fine() {
+    local t0=$SECONDS left
+    for spec in "tc5_ne60 tc5_mountain 60 15 2 $R30,$I30" "tc6_ne60 tc6_rossby_haurwitz 60 14 2 $R_TC6,$I30" \
+                "galewsky_ne60 galewsky 60 6 1 $R_GAL,$I30" "tc5_ne120 tc5_mountain 120 15 2 $R30,$I30" \
+                "tc6_ne120 tc6_rossby_haurwitz 120 14 2 $R_TC6,$I30" "galewsky_ne120 galewsky 120 6 1 $R_GAL,$I30"; do
+        set -- $spec
+        [ -f "$STUDY/$1/summary.done" ] && continue
+        left=$((540 - (SECONDS - t0)))
+        [ "$left" -lt 30 ] && break
+        sweep "$1" "$left" "$2" "$3" "$4" "$5" "$6" && grep -q "^wrote" "$OUT/$1.txt" && touch "$STUDY/$1/summary.done"
+    done
 }
 
 part_tc5() {
@@ -80,7 +131,7 @@ parts=("$@")
 [ ${#parts[@]} -eq 0 ] && parts=(setup tests agreement throughput graphs tc5 iterations)
 for part in "${parts[@]}"; do
     case $part in
-        setup|tests|agreement|throughput|graphs|tc5|iterations) "part_$part" ;;
-        *) echo "unknown part '$part' (setup tests agreement throughput graphs tc5 iterations)" >&2; exit 2 ;;
+        setup|tests|agreement|throughput|graphs|tc5|iterations|reads|study|study_fine) "part_$part" ;;
+        *) echo "unknown part '$part' (setup tests agreement throughput graphs tc5 iterations reads study study_fine)" >&2; exit 2 ;;
     esac
 done

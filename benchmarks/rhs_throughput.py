@@ -56,6 +56,7 @@ from swe_sphere.grid import CubedSphere  # noqa: E402
 from swe_sphere.model import ShallowWater, default_device  # noqa: E402
 from swe_sphere.parallel import SplitLaunch, default_threads  # noqa: E402
 from swe_sphere.steppers import STEPPERS, make_stepper  # noqa: E402
+from swe_sphere.tally import array_bytes  # noqa: E402
 from numpy_ops import NumpyOps  # noqa: E402
 
 
@@ -125,17 +126,6 @@ def build(ne, np_, threads, device, stepper=None, dt_factor=1.0):
     model = ShallowWater(grid, scene.terms, fcor, hs, nu=scene.nu, hypervis_subcycle=scene.hypervis_subcycle, g=case.planet.g, device=device, threads=threads)
     u, v, h = case.initial(grid.lat, grid.lon)
     return grid, scene, (fcor, hs, np.stack([u, v, h])), model
-
-
-def array_bytes(args) -> dict:
-    """{address: bytes} of each distinct array among a launch's arguments, those
-    inside a ``wp.struct`` argument (``kernels.dss.Copies``) included."""
-
-    def fields(arg):  # a Warp struct's field names (Warp 1.19), else None
-        return getattr(getattr(arg, "_cls", None), "vars", None)
-
-    arrays = [a for arg in args for a in ((getattr(arg, f) for f in fields(arg)) if fields(arg) else (arg,))]
-    return {a.ptr: a.capacity for a in arrays if isinstance(a, wp.array)}
 
 
 def rhs_compulsory_bytes(model) -> int:

@@ -220,6 +220,14 @@ class Simulation:
     the same on every rank (a checkpoint's, when continuing: the start state is
     then not diagnosed for nothing); None: the start state's (``diagnose(0)``).
 
+    ``graphs`` (True on a GPU, False on a CPU): ``run`` replays each step of a
+    ``capturable`` stepper (the explicit ones) as a graph captured of an earlier
+    step with the same ``Stepper.graph_key`` (on CUDA a CUDA graph, one host call
+    a step instead of one a launch; the same bits as launched one by one); a
+    model with a time-dependent forcing runs plain. On a CPU it takes one thread
+    a launch (SWE_SPHERE_THREADS=1; Warp replays a CPU graph in one thread) and
+    one process; otherwise the steps run plain.
+
     ``check_every`` (steps; 1 on a CPU, ``CHECK_EVERY_STEPS`` on a GPU): ``run``
     checks the state for a non-finite value or h <= 0 after every step on the
     device (``ShallowWater.watch``) and reads the check back every so many steps
@@ -289,6 +297,8 @@ class Simulation:
         self.x = self.model.new_state(*(self.dfi.x if self.dfi is not None else start))
         self.last_good = wp.clone(self.x)  # the state at the start of the block of steps in progress
         self.check_every = 1 if wp.get_device(device).is_cpu else CHECK_EVERY_STEPS
+        self.graphs = wp.get_device(device).is_cuda
+        self._graphs = {}  # (stepper, graph_key, watched, x's address) → (graph, StepStats), or None: seen once
         self.initial = initial_diagnostics
         if initial_diagnostics is None:
             self.initial = self.diagnose(scene.start_day * DAY)
@@ -704,7 +714,7 @@ class Simulation:
                     break
                 try:
                     in_step[0] = time.perf_counter()
-                    stats = stepper.step(self.x)
+                    stats = self._take_step(watch=True)
                 except StepFailure:
                     trouble = "failure"
                     break
@@ -713,7 +723,6 @@ class Simulation:
                     break
                 finally:
                     in_step[0] = None
-                model.watch(self.x)
                 add(stats)
                 m += 1
                 self.step = m  # the steps x holds (not yet checked)
@@ -805,7 +814,7 @@ class Simulation:
                         wp.copy(self.last_good, self.x)
                         try:
                             in_step[0] = t0
-                            stats = stepper.step(self.x)
+                            stats = self._take_step(watch=False)
                             failure = None
                         except StepFailure as err:
                             stats, failure = None, str(err)
@@ -897,6 +906,41 @@ class Simulation:
             err.signum, err.result, err.checkpoint = interrupted, result, written[0]
             raise err
         return result
+
+    def _take_step(self, watch: bool):
+        """One step of the stepper on x and, with ``watch``, the bad-state flag's launch
+        (``ShallowWater.watch``); its ``StepStats``. With ``graphs``, a step whose
+        ``graph_key`` was seen before runs as a graph: the key's first step runs plain
+        (recording its launches, loading their modules and allocating what they
+        need, none of which a capture may do), its second is captured and launched,
+        the later ones launched. The key holds the stepper and x, so another stepper
+        (a branch), a dt (a new stepper) or state array captures anew; a restore
+        assigns arrays in place, which a graph (their addresses) follows."""
+        stepper, model = self.stepper, self.model
+        key = None
+        if self.graphs and model.threads == 1 and not self.topology.distributed:
+            key = stepper.graph_key()
+        if key is not None:
+            key = (stepper, key, watch, self.x.ptr)
+            entry = self._graphs.get(key)
+            if entry is not None:
+                wp.capture_launch(entry[0])
+                return stepper.replayed(entry[1])
+            if key in self._graphs:
+                # modules are loaded by the key's first step: loading all of them (Warp's
+                # default before CUDA 12.3) would compile every kernel the package defines
+                with wp.ScopedCapture(device=self.device, force_module_load=False) as capture:
+                    stats = stepper.step(self.x)
+                    if watch:
+                        model.watch(self.x)
+                self._graphs[key] = (capture.graph, stats)
+                wp.capture_launch(capture.graph)
+                return stats
+            self._graphs[key] = None
+        stats = stepper.step(self.x)
+        if watch:
+            model.watch(self.x)
+        return stats
 
     def _blowup_message(self, step: int, p: int) -> str:
         """Where node p (whole-grid index) went bad, on every rank (call on every rank)."""

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import warp as wp
+import xarray as xr
 
 wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level instead
 if hasattr(wp, "LOG_WARNING"):
@@ -28,9 +29,15 @@ from swe_sphere.simulation import BlowUp, Simulation  # noqa: E402
 
 TINY = ("--ne", "2", "--np", "4", "--device", "cpu", "--no-progress")
 
+NEEDS_CUDA = (pytest.mark.gpu, pytest.mark.skipif(not wp.is_cuda_available(), reason="needs a CUDA device"))
+ON_CUDA = pytest.param("cuda", marks=NEEDS_CUDA)  # a device parameter skipped cleanly without CUDA
+
+
 def requires_cuda(func):
     """Mark a test as a GPU test that is skipped cleanly without CUDA."""
-    return pytest.mark.gpu(pytest.mark.skipif(not wp.is_cuda_available(), reason="needs a CUDA device")(func))
+    for mark in reversed(NEEDS_CUDA):
+        func = mark(func)
+    return func
 
 
 @functools.lru_cache(maxsize=None)
@@ -54,6 +61,44 @@ def small_grid():
 def make_sim(scene):
     """A CPU Simulation of ``scene`` without a progress bar."""
     return Simulation(scene, "cpu", progress=False)
+
+
+RUN_TIMES = ("wall_time", "cpu_time")  # a run file's measured series: differ between any two runs
+
+
+def watched_run(scene, path, *, device="cpu", check_every=1, graphs=False, **kwargs):
+    """Run ``scene`` on ``device`` to ``path`` (``Simulation.run``'s ``kwargs``) with
+    a callback every 10 steps and a log, checked every ``check_every`` steps, steps
+    as graphs or not: (result, BlowUp message or None, run file without its timings,
+    final state, what the callbacks and log saw). ``assert_same_runs`` compares two."""
+    sim = Simulation(scene, device, progress=False)
+    sim.check_every, sim.graphs = check_every, graphs
+    seen = []
+    sim.add_callback(lambda s: seen.append((s.step, s.x.numpy().copy())), every_steps=10)
+    try:
+        result, message = sim.run(path, log=seen.append, **kwargs), None
+    except BlowUp as err:
+        result, message = err.result, str(err)
+    with xr.open_dataset(path) as ds:
+        ds = ds.drop_vars([v for v in RUN_TIMES if v in ds]).load()
+    del ds.attrs["history"]  # its time stamp
+    return result, message, ds, sim.x.numpy(), seen
+
+
+def assert_same_runs(a, b):
+    """Two ``watched_run``s agree to the bit (timings aside)."""
+    (ra, ma, da, xa, sa), (rb, mb, db, xb, sb) = a, b
+    assert ma == mb
+    assert (ra.steps, ra.rhs_evals, ra.iterations) == (rb.steps, rb.rhs_evals, rb.iterations)
+    xr.testing.assert_identical(da, db)
+    np.testing.assert_array_equal(xa, xb)
+    assert len(sa) == len(sb)
+    for u, v in zip(sa, sb):
+        if isinstance(u, str):
+            assert u == v
+        else:
+            assert u[0] == v[0]
+            np.testing.assert_array_equal(u[1], v[1])
 
 
 def run(scene):

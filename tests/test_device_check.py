@@ -12,46 +12,11 @@ import numpy as np
 import pytest
 import warp as wp
 import xarray as xr
-from conftest import make_sim, write_tc2_scene
+from conftest import RUN_TIMES, assert_same_runs, make_sim, watched_run, write_tc2_scene
 
 from swe_sphere.config import load_scene
 from swe_sphere.simulation import BlowUp, Interrupted
 from swe_sphere.steppers import StepFailure
-
-TIMES = ("wall_time", "cpu_time")  # measured, not computed: differ between any two runs
-
-
-def _run(scene, every, path, **kwargs):
-    """(result or None, BlowUp message or None, run file, final state, what the callbacks and log saw)."""
-    sim = make_sim(scene)
-    sim.check_every = every
-    seen = []
-    sim.add_callback(lambda s: seen.append((s.step, s.x.numpy().copy())), every_steps=10)
-    try:
-        result, message = sim.run(path, log=seen.append, **kwargs), None
-    except BlowUp as err:
-        result, message = err.result, str(err)
-    with xr.open_dataset(path) as ds:
-        ds = ds.drop_vars([v for v in TIMES if v in ds]).load()
-    del ds.attrs["history"]  # its time stamp
-    return result, message, ds, sim.x.numpy(), seen
-
-
-def _same(a, b):
-    """Two runs' results agree to the bit (timings aside)."""
-    (ra, ma, da, xa, sa), (rb, mb, db, xb, sb) = a, b
-    assert ma == mb
-    assert (ra.steps, ra.rhs_evals, ra.iterations) == (rb.steps, rb.rhs_evals, rb.iterations)
-    xr.testing.assert_identical(da, db)
-    np.testing.assert_array_equal(xa, xb)
-    assert len(sa) == len(sb)
-    for u, v in zip(sa, sb):
-        if isinstance(u, str):
-            assert u == v
-        else:
-            assert u[0] == v[0]
-            np.testing.assert_array_equal(u[1], v[1])
-
 
 def test_blow_up_inside_a_block_is_reported_as_with_a_check_every_step(tmp_path):
     """Leapfrog at dt = 3600 s on TC2 ne = 2 blows up at step 17, inside the block
@@ -61,12 +26,12 @@ def test_blow_up_inside_a_block_is_reported_as_with_a_check_every_step(tmp_path)
     at step 16, the blowup attribute) and the state left are those of a check
     every step."""
     scene = load_scene(write_tc2_scene(tmp_path / "s.toml", stepper="leapfrog", dt=3600.0, days=2.0, tables="[output]\nlog_every_steps = 6"))
-    one = _run(scene, 1, tmp_path / "one.nc")
-    five = _run(scene, 5, tmp_path / "five.nc")
+    one = watched_run(scene, tmp_path / "one.nc", check_every=1)
+    five = watched_run(scene, tmp_path / "five.nc", check_every=5)
     assert one[1].startswith("blow-up at step 17 (model time 0.7083 days): depth h = ")
     assert 17 % 5 and 17 % 6 and 17 % 10  # inside a block, not at a check
     assert list(one[2].steps.values) == [0, 16]
-    _same(one, five)
+    assert_same_runs(one, five)
 
 
 @pytest.mark.parametrize("stepper", ["leapfrog", "ssprk3"])
@@ -75,9 +40,9 @@ def test_blocks_give_the_same_bits_as_a_check_every_step(tmp_path, stepper):
     file, callbacks' states and log lines as checked every step."""
     scene = load_scene(write_tc2_scene(tmp_path / "s.toml", stepper=stepper, dt=1800.0, days=2.0,
                                        tables="[output]\nevery_days = 0.75\nlog_every_steps = 9"))
-    runs = [_run(scene, every, tmp_path / f"{every}.nc", restart_every=0.5) for every in (1, 7)]
+    runs = [watched_run(scene, tmp_path / f"{every}.nc", check_every=every, restart_every=0.5) for every in (1, 7)]
     assert runs[0][0].steps == 96 and runs[0][1] is None
-    _same(*runs)
+    assert_same_runs(*runs)
     with xr.open_dataset(tmp_path / "1.restart.nc") as a, xr.open_dataset(tmp_path / "7.restart.nc") as b:
         xr.testing.assert_identical(a.drop_attrs(), b.drop_attrs())  # the state and x(n-1); attributes hold timings
         assert a.attrs["step"] == b.attrs["step"] == 96
@@ -148,7 +113,7 @@ def test_a_failure_inside_a_block_is_reported_as_with_a_check_every_step(tmp_pat
         with pytest.raises(BlowUp, match=r"^step 11 failed \(model time 0\.2292 days\): Newton did not converge") as err:
             sim.run(tmp_path / f"{every}.nc")
         with xr.open_dataset(tmp_path / f"{every}.nc") as ds:
-            runs.append((err.value.result.rhs_evals, sim.step, sim.x.numpy(), ds.drop_vars(list(TIMES), errors="ignore").drop_attrs().load()))
+            runs.append((err.value.result.rhs_evals, sim.step, sim.x.numpy(), ds.drop_vars(list(RUN_TIMES), errors="ignore").drop_attrs().load()))
     assert runs[0][:2] == runs[1][:2] == (11, 10)  # leapfrog: 2 RHS evaluations in its first step, then 1
     np.testing.assert_array_equal(runs[0][2], runs[1][2])
     xr.testing.assert_identical(runs[0][3], runs[1][3])

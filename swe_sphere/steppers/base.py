@@ -58,7 +58,8 @@ class Stepper:
     limit), ``solvers`` (names of the iteration counts in StepStats) and
     implement ``advance(x)``; those with history extend ``state``/``restore``;
     explicit ones set ``courant_limit``, those with explicit advection only
-    ``advective_courant_limit``.
+    ``advective_courant_limit``; those whose step can run as a captured graph
+    set ``capturable`` (``graph_key``).
     """
 
     name = ""
@@ -73,6 +74,11 @@ class Stepper:
     # the study ran stably (a warning threshold, not a bisection)
     advective_courant_limit: float | None = None
     solvers: tuple[str, ...] = ()
+    # True: once recorded, a step launches the same kernels with the same arguments every
+    # step and reads nothing back (explicit steppers), so ``Simulation`` may replay it as a
+    # captured graph (``graph_key``). The solvers' host-side convergence tests keep the
+    # others out until their loops run on the device (ISSUE 32 item 3).
+    capturable = False
     removed_options: dict[str, str] = {}  # option → why it is gone, for the error message
 
     @classmethod
@@ -150,6 +156,21 @@ class Stepper:
 
     def advance(self, x: wp.array2d) -> StepStats:
         raise NotImplementedError
+
+    def graph_key(self):
+        """What the next step's launches depend on besides the stepper, dt and x: steps with
+        equal keys launch the same kernels with the same arguments, so a graph captured of
+        one (``wp.ScopedCapture``) replays the others bit for bit. None: the next step
+        cannot be captured, because the stepper is not ``capturable`` or the model has a
+        time-dependent forcing (its time, ``_at``, is a launch argument a graph would freeze;
+        kept on the host, as a device scalar would need a launch per stage to set)."""
+        return "step" if self.capturable and self.model.forcing is None else None
+
+    def replayed(self, stats: StepStats) -> StepStats:
+        """Count a step that ran as the graph of an earlier step with the same ``graph_key``
+        (whose ``stats`` it returns)."""
+        self.steps += 1
+        return stats
 
     def _at(self, c: float) -> None:
         """Set the model time to t(n) + c·Δt, t(n) = t0 + steps·Δt, for the next RHS

@@ -94,7 +94,7 @@ class ExplicitRK(Stepper):
     """An explicit Runge–Kutta step recorded from its ``scheme`` (an ``RKScheme``);
     one subclass per scheme is made from the table (``rk_steppers``)."""
 
-    explicit = True
+    explicit = capturable = True
     scheme: RKScheme
 
     def __init__(self, model, dt, options=None):
@@ -148,7 +148,7 @@ class FBRK32(Stepper):
     as 3 RHS evaluations per step."""
 
     name = "fbrk32"
-    explicit = True
+    explicit = capturable = True
     courant_limit = 1.58  # bisection on TC2 (5 days) at ne 8 np 4 only: 1.43 × ssprk3's there
     BETA = (0.531, 0.531, 0.313)
     C = (1.0 / 3.0, 0.5, 1.0)
@@ -212,12 +212,15 @@ class _LeapfrogFamily(Stepper):
     the first step (``steps == 0``) is the explicit midpoint rule (second order,
     2 RHS evaluations)."""
 
-    explicit = True
+    explicit = capturable = True
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
         self.old, self.new = self._buffer(), self._buffer()
         self._x = None
+
+    def graph_key(self):
+        return None if self.steps == 0 else super().graph_key()  # the start: once, not worth a graph
 
     def state(self):
         s = super().state()

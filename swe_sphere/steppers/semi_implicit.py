@@ -64,7 +64,7 @@ class SemiImplicit(Leapfrog):
 
     name = "semi_implicit"
     Options = SemiImplicitOptions
-    explicit = False
+    explicit = capturable = False  # the Helmholtz CG reads its inner products back (ISSUE 32 item 3)
     courant_limit = None
     solvers = ("helmholtz",)
     removed_options = REMOVED_SOLVER_OPTIONS

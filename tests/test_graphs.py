@@ -1,0 +1,167 @@
+"""Explicit steps replayed as captured graphs (``Simulation.graphs``, ISSUE 32 item 2)
+and the host reads inside a step (``swe_sphere.tally``).
+
+Warp captures and replays graphs on a CPU too (its launches recorded and replayed
+in C++, one thread), so the graph path runs here as on a GPU: with one thread a
+launch a graphed run gives the same bits as launching step by step, reports a
+blow-up inside a block as a check every step does, and continues from a restart
+file bitwise. The same tests run on CUDA (CUDA graphs against the ungraphed CUDA
+run; skipped without a CUDA device). A step that reads the device back cannot
+be captured: every explicit stepper reads nothing inside a step.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import warp as wp
+
+from conftest import ON_CUDA, assert_same_runs, watched_run, write_tc2_scene
+from swe_sphere.config import load_scene
+from swe_sphere.constants import DAY
+from swe_sphere.simulation import Simulation
+from swe_sphere.steppers import STEPPERS
+from swe_sphere.tally import Tally, instrumented
+
+# the capturable steppers, and "tableau", whose default table is explicit (a ``TableauRK``)
+EXPLICIT = [name for name, cls in STEPPERS.items() if cls.capturable] + ["tableau"]
+DEVICES = ["cpu", ON_CUDA]
+NE = {"cpu": 2, "cuda": 4}
+STEPS = 12
+SOLVER_DT = 4.0  # the implicit-type steppers' Δt in the read count, × TC5's
+
+
+@pytest.fixture
+def one_thread(monkeypatch):
+    """CPU launches on one thread (a CPU graph replays in one; split launches run plain)."""
+    monkeypatch.setenv("SWE_SPHERE_THREADS", "1")
+
+
+@pytest.fixture
+def graph_launches(monkeypatch):
+    """[n]: the number of ``wp.capture_launch`` calls since the test began."""
+    count, real = [0], wp.capture_launch
+
+    def launch(*a, **k):
+        count[0] += 1
+        return real(*a, **k)
+
+    monkeypatch.setattr(wp, "capture_launch", launch)
+    return count
+
+
+def tc5(name, device, steps=STEPS, **kw):
+    """TC5 (every term, ∇⁴ included) on ne 2 (CPU) or 4 (CUDA) np 4 for ``steps`` steps."""
+    scene = load_scene("tc5_mountain", ne=NE[device], np=4, stepper=name, **kw)
+    return dataclasses.replace(scene, days=steps * scene.dt / DAY, output_every_days=steps * scene.dt / DAY)
+
+
+def stepped(scene, device, graphs, check_every):
+    sim = Simulation(scene, device, progress=False)
+    sim.graphs, sim.check_every = graphs, check_every
+    result = sim.run(None)
+    return sim.x.numpy(), result.rhs_evals, sim.stepper.steps
+
+
+@pytest.mark.parametrize("device", DEVICES)
+@pytest.mark.parametrize("name", EXPLICIT)
+def test_graphed_steps_are_the_bits_of_plain_ones(one_thread, graph_launches, name, device):
+    """12 steps of TC5 (its ∇⁴ two forward-Euler substeps a step on ne 2, leapfrog's three
+    over 2Δt): graphed, in blocks of 5 checked steps (the flag's launch in the
+    graph) and checked one by one, against plain launches: the same state, RHS
+    count and stepper step count; all but each key's first two steps (plain, then
+    captured) and leapfrog's start ran as graphs."""
+    scene = tc5(name, device)
+    plain = stepped(scene, device, False, 5)
+    assert graph_launches[0] == 0
+    for every in (5, 1):
+        graph_launches[0] = 0
+        graphed = stepped(scene, device, True, every)
+        np.testing.assert_array_equal(graphed[0], plain[0])
+        assert graphed[1:] == plain[1:] == (graphed[1], STEPS)
+        assert graph_launches[0] >= STEPS - 3, graph_launches[0]
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_graphed_rkl1_hyperviscosity_is_the_bits_of_plain_steps(one_thread, graph_launches, device):
+    """ssprk3 with 10× TC5's ν: the ∇⁴ as an RKL1 super-step (``ShallowWater._rkl1``:
+    copies, and one recorded combination launched with each stage's coefficients)
+    inside the graph, the same bits as launched one by one."""
+    scene = tc5("ssprk3", device)
+    scene = dataclasses.replace(scene, nu=10 * scene.nu, nu_div=10 * scene.nu_div, nu_s=10 * scene.nu_s)
+    assert Simulation(scene, device, progress=False).model.hypervis_plan(scene.dt)[1]  # RKL1
+    plain = stepped(scene, device, False, 5)
+    graphed = stepped(scene, device, True, 5)
+    np.testing.assert_array_equal(graphed[0], plain[0])
+    assert graph_launches[0] >= STEPS - 3
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_blow_up_inside_a_graphed_block_is_reported_as_with_a_check_every_step(tmp_path, one_thread, graph_launches, device):
+    """Leapfrog at dt = 3600 s on TC2 ne = 2 blows up at step 17, inside the block
+    16-20 of a check every 5 steps replayed as graphs: the block is re-run from
+    step 15 (its state and x(n-1) assigned in place, which the graphs follow), and
+    the message (step, time, place), counters, run file and state are those of
+    plain steps checked every step."""
+    scene = load_scene(write_tc2_scene(tmp_path / "s.toml", stepper="leapfrog", dt=3600.0, days=2.0, tables="[output]\nlog_every_steps = 6"))
+    one = watched_run(scene, tmp_path / "one.nc", device=device)
+    graphed = watched_run(scene, tmp_path / "graphed.nc", device=device, check_every=5, graphs=True)
+    assert one[1].startswith("blow-up at step 17 (model time 0.7083 days): depth h = ")
+    assert graph_launches[0] > 10
+    assert_same_runs(one, graphed)
+
+
+@pytest.mark.parametrize("device", DEVICES)
+@pytest.mark.parametrize("name", ["leapfrog", "ssprk3"])
+def test_a_graphed_run_continues_from_its_restart_file_bitwise(tmp_path, one_thread, graph_launches, name, device):
+    """12 graphed steps straight against 6 graphed steps, a restart file and a fresh
+    graphed Simulation from it for 6 more (leapfrog: its x(n-1) restored, its
+    start not re-run): the same final state as 12 plain steps."""
+    plain = stepped(tc5(name, device), device, False, 5)[0]
+    whole = stepped(tc5(name, device), device, True, 5)[0]
+    half = Simulation(tc5(name, device, STEPS // 2), device, progress=False)
+    half.graphs = True
+    r = half.run(tmp_path / "half.nc", restart_every=half.scene.days)
+    cont = Simulation.from_checkpoint(r.checkpoint, device, days=tc5(name, device).days, progress=False)
+    assert cont.graphs == (device == "cuda")  # the device's default; a CPU one asks
+    cont.graphs = True
+    launches = graph_launches[0]
+    cont.run(None)
+    assert graph_launches[0] > launches
+    np.testing.assert_array_equal(whole, plain)
+    np.testing.assert_array_equal(cont.x.numpy(), plain)
+
+
+def test_a_time_dependent_forcing_is_not_captured():
+    """TC4's forcing reads the model time as a launch argument, which a graph would
+    freeze: its explicit steps run plain (no graph key), TC5's are captured."""
+    for case, key in (("tc4_forced_low", None), ("tc5_mountain", "step")):
+        sim = Simulation(load_scene(case, ne=2, np=4, stepper="ssprk3"), "cpu", progress=False)
+        assert sim.stepper.graph_key() == key, case
+
+
+def test_explicit_steps_read_nothing_back():
+    """Host reads (``.numpy()`` read-backs, each a device synchronisation that ends a
+    CUDA graph) inside one TC5 ne 2 step of every registered stepper, after two:
+    none in an explicit step, and every explicit stepper has a graph key (the
+    implicit-type ones, at 4× Δt, read their solvers' inner products back: counts
+    printed with -s; semi_implicit 21, imex 32, implicit 177 on 2026-11-23)."""
+    tally, counts = Tally(), {}
+    for name, cls in STEPPERS.items():
+        scene = load_scene("tc5_mountain", ne=2, np=4, stepper=name)
+        if not cls.explicit and name != "tableau":
+            scene = dataclasses.replace(scene, dt=scene.dt * SOLVER_DT)
+        sim = Simulation(scene, "cpu", progress=False)
+        for _ in range(2):
+            sim.stepper.step(sim.x)
+        with instrumented(tally), tally.counting():
+            sim.stepper.step(sim.x)
+        counts[name] = tally.syncs
+        if sim.stepper.explicit:
+            assert tally.syncs == 0 and sim.stepper.graph_key() is not None, (name, tally.syncs)
+        else:
+            assert sim.stepper.graph_key() is None, name
+    print("host reads in one step:", counts)
+    assert counts["semi_implicit"] > 0  # the count sees the solvers' reads

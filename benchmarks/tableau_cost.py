@@ -7,7 +7,7 @@ against ``imex``: TC5 np 4 (topography, ∇⁴), each stepper's step timed over
 median over rounds of the time a step and a RHS evaluation, and the ratio
 table / built-in. CPU clock of this process (``time.process_time``); run it
 single-threaded for figures that repeat on a shared machine. Then, per step, the
-launches and the bytes they move (``gpu_model.Tally``: each distinct array argument
+launches and the bytes they move (``swe_sphere.tally.Tally``: each distinct array argument
 once): a table with the built-in's updates moves the same bytes in the same launches,
 so a ratio away from 1 is the clock's noise, not the table.
 
@@ -30,7 +30,7 @@ from swe_sphere.config import load_scene  # noqa: E402
 from swe_sphere.simulation import Simulation  # noqa: E402
 from test_tableau import BUILT_IN, ars343_pair  # noqa: E402
 
-from gpu_model import Tally, instrument  # noqa: E402  (benchmarks/, the script's directory)
+from swe_sphere.tally import Tally, instrumented  # noqa: E402
 
 PAIRS = [(name, {}, {"name": name, **BUILT_IN[name]}) for name in BUILT_IN] + [("imex", {"scheme": "ars343"}, ars343_pair())]
 
@@ -60,13 +60,12 @@ def main() -> None:
             evals[label] = n / args.steps
     print(f"TC5 ne{args.ne} np4, {args.steps} steps x {args.rounds} rounds, CPU clock, threads "
           f"{os.environ.get('SWE_SPHERE_THREADS', 'default')}, load average {os.getloadavg()[0]:.2f}")
-    tally = Tally()
-    instrument(tally)  # after the timing: the wrappers cost host time
-    counts = {}
-    for label, sim in sims.items():
-        with tally.counting() as t:
-            sim.stepper.step(sim.x)
-        counts[label] = (t.total_launches, t.total_bytes / 1e6)
+    tally, counts = Tally(), {}
+    with instrumented(tally):  # after the timing: the wrappers cost host time
+        for label, sim in sims.items():
+            with tally.counting() as t:
+                sim.stepper.step(sim.x)
+            counts[label] = (t.total_launches, t.total_bytes / 1e6)
     print(f"{'stepper':22s} {'ms/step':>9s} {'RHS/step':>9s} {'ms/RHS':>8s} {'table/built-in':>15s} {'launches':>9s} {'MB/step':>8s}")
     for name, _, _ in PAIRS:
         ref = statistics.median(times[name]) / evals[name]

@@ -18,7 +18,7 @@ subtracted):
 * Krylov vectors: the Krylov basis's Gram–Schmidt and combinations
   (``KrylovBasis.project_dots``/``lincomb``: FGMRES's, KIOPS's);
 * J·v passes: the finite-difference J·v's pointwise passes around its RHS
-  (``FiniteDifferenceJacobian``: scatter, x + εw, the difference, gathers);
+  (``FiniteDifferenceJacobian``: x + εw, the difference, its norms, gathers and scatters);
 * other: the rest of the step (stage combinations; Newton, KIOPS's host work, norms).
 
 ``--krylov host kernels`` builds each configuration with a Krylov basis in both
@@ -113,18 +113,31 @@ def scene(case, ne, stepper, dt, options):
     return dataclasses.replace(base, stepper=stepper, dt=dt, stepper_options=options, output_every_days=1.0)
 
 
+def use_krylov(stepper, backend=None):
+    """Give a JFNK (FGMRES) or exponential (KIOPS) stepper's Krylov vector work the
+    ``backend`` (a key of KRYLOV; None: the device's own, as built); returns
+    (basis, jacobian), or None for a stepper without a Krylov basis."""
+    kiops = getattr(stepper, "kiops", None)
+    basis = kiops.basis if kiops is not None else getattr(stepper, "fgmres", None)
+    if basis is None:
+        return None
+    if backend is not None:
+        vectors, passes = KRYLOV[backend]
+        basis.vectors, stepper.jacobian.passes = vectors(basis), passes(stepper.model)
+    return basis, stepper.jacobian
+
+
 def build(case, ne, stepper, dt, options, clock, device, backend=None):
     """A Simulation with its parts timed; ``backend`` (a key of KRYLOV): the Krylov vector work's."""
     sim = Simulation(scene(case, ne, stepper, dt, options), device, progress=False)
     timers = Timers(clock, lambda: wp.synchronize_device(device))
-    basis = krylov_basis(sim.stepper)
-    if basis is not None:
-        vectors, passes = KRYLOV[backend] if backend else (type(basis.vectors), type(sim.stepper.jacobian.passes))
-        basis.vectors, sim.stepper.jacobian.passes = vectors(basis), passes(sim.model)
+    krylov_work = use_krylov(sim.stepper, backend)
+    if krylov_work is not None:
+        basis, jac = krylov_work
         for name in ("project_dots", "lincomb"):
             timers.wrap(basis.vectors, name, "Krylov vectors")
-        for name in ("gather", "scatter", "perturb", "difference"):
-            timers.wrap(sim.stepper.jacobian.passes, name, "J·v passes")
+        for name in ("gather", "scatter", "perturb", "difference", "norm"):
+            timers.wrap(jac.passes, name, "J·v passes")
     timers.wrap(sim.model, "rhs", "RHS")
     timers.wrap(sim.model, "rhs_update", "RHS")  # the explicit steppers' stages, combinations included
     timers.wrap(sim.model, "hyperviscosity", "∇⁴")
@@ -135,12 +148,6 @@ def build(case, ne, stepper, dt, options, clock, device, backend=None):
             if cg is not None:
                 timers.wrap(cg, "apply", "Helmholtz op")
     return sim, timers
-
-
-def krylov_basis(stepper):
-    """The Krylov basis of a JFNK (FGMRES) or exponential (KIOPS) stepper, else None."""
-    kiops = getattr(stepper, "kiops", None)
-    return kiops.basis if kiops is not None else getattr(stepper, "fgmres", None)
 
 
 def main():

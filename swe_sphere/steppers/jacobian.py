@@ -32,7 +32,12 @@ _SQRT_EPS = math.sqrt(np.finfo(float).eps)
 
 class KernelPasses:
     """The J·v's pointwise passes in Warp kernels (``kernels.implicit``, ``kernels.blas``;
-    the backend on CUDA), recorded once per set of arrays by ``model.pointwise``."""
+    the backend on CUDA), recorded once per set of arrays by ``model.pointwise``:
+    ``gather(a, v, out)``: unique-node out = a·v at each node's first copy;
+    ``scatter(u, out)``: element-local out from the unique-node u;
+    ``perturb(x, eps, w, xp)``: element-local xp = x + eps·w (w unique-node);
+    ``difference(w, Fx, Fp, shift, c, out)``: unique-node out = shift·w + c·(Fp − Fx)
+    (Fp may be overwritten); ``norm(v)``: ‖v‖ over all processes."""
 
     def __init__(self, model):
         self.model, self.topology = model, model.topology
@@ -40,23 +45,27 @@ class KernelPasses:
     def gather(self, a: float, v, out) -> None:
         self.model.pointwise(ik.gather, f64(a), v, self.topology.first, self.topology.nunique, out, unique=True)
 
-    def perturb(self, x, eps: float, xp) -> None:
-        self.model.pointwise(blas.axpby, f64(1.0), x, f64(eps), xp, xp)
-
     def scatter(self, u, out) -> None:
         self.model.scatter(u, out, 0, rows=3)
+
+    def perturb(self, x, eps: float, w, xp) -> None:
+        self.scatter(w, xp)
+        self.model.pointwise(blas.axpby, f64(1.0), x, f64(eps), xp, xp)
 
     def difference(self, w, Fx, Fp, shift: float, c: float, out) -> None:
         topo = self.topology
         self.model.pointwise(ik.jacobian_vector, w, Fx, Fp, topo.first, topo.nunique, f64(shift), f64(-c), out, unique=True)
 
+    def norm(self, v) -> float:
+        return self.topology.norm(v)
+
 
 class HostPasses:
-    """The J·v's pointwise passes in numpy on zero-copy views of the Warp arrays (the
-    backend on a CPU device: Warp's CPU kernels took 5–13 ns an entry for them, more than
-    the RHS of the J·v altogether at ne16; numpy's take and arithmetic 0.3–1.3 ns). The
-    same arithmetic as ``KernelPasses``, entry by entry, so the same bits whatever the
-    model's threads; numpy runs them on one."""
+    """``KernelPasses``'s passes in numpy on zero-copy views of the Warp arrays (the
+    backend on a CPU device: Warp's CPU kernels took 5–13 ns an entry for them, at ne16
+    more than the RHS of the J·v altogether; numpy's take and arithmetic 0.3–1.3 ns). The
+    same arithmetic entry by entry, so the same bits (``tests/test_implicit.py``), and the
+    same whatever the model's threads: numpy runs them on one."""
 
     def __init__(self, model):
         self.topology = topo = model.topology
@@ -68,14 +77,15 @@ class HostPasses:
         # owned elsewhere (gid ≥ nunique) in the halo ``Topology.exchange`` fills (node-major, ``dss.pack``)
         gid = topo.gid.numpy()[None, :].astype(np.intp)
         self.gid3 = np.where(gid < nu, rows * nu + gid, 3 * nu + (gid - nu) * 3 + rows).ravel()
-        self.halo = topo.owned.recv_buffer.numpy()[: 3 * nh] if nh else None
-        self.ext = np.zeros(3 * (nu + nh)) if nh else None
+        self.halo = topo.owned.recv_buffer.numpy()[: 3 * nh]
+        self.ext = np.zeros(3 * (nu + nh))  # a·[u, halo]
         self.tmp = np.zeros(3 * nu)
         self._np = NumpyViews()
         self._exchanges: dict[int, tuple] = {}
 
-    def scatter(self, u, out) -> None:
-        topo, src = self.topology, self._np(u)
+    def _scaled_scatter(self, u, a: float, out) -> None:
+        """Element-local out = a·u (a·u on unique nodes first: fewer entries than out)."""
+        topo, src, n = self.topology, self._np(u), 3 * self.topology.nunique
         # the exchange with the neighbours (none on one process; a rank that receives nothing may still
         # send), recorded once per vector, which is held so that its address stays its own
         entry = self._exchanges.get(u.ptr)
@@ -83,20 +93,21 @@ class HostPasses:
             entry = self._exchanges[u.ptr] = (topo.exchange(u.reshape((3, topo.nunique)), unique=True), u)
         for launch in entry[0]:
             launch.launch()
-        if self.halo is not None:
-            self.ext[: src.size] = src
-            self.ext[src.size :] = self.halo
-            src = self.ext
-        np.take(src, self.gid3, out=self._np(out).ravel(), mode="clip")
+        np.multiply(src, a, out=self.ext[:n])
+        np.multiply(self.halo, a, out=self.ext[n:])
+        np.take(self.ext, self.gid3, out=self._np(out).ravel(), mode="clip")  # clip: no bounds pass (the indices are valid)
 
     def gather(self, a: float, v, out) -> None:
         o = self._np(out)
-        np.take(self._np(v).ravel(), self.first3, out=o, mode="clip")  # clip: no bounds pass (the indices are valid)
+        np.take(self._np(v).ravel(), self.first3, out=o, mode="clip")
         np.multiply(o, a, out=o)
 
-    def perturb(self, x, eps: float, xp) -> None:
+    def scatter(self, u, out) -> None:
+        self._scaled_scatter(u, 1.0, out)
+
+    def perturb(self, x, eps: float, w, xp) -> None:
+        self._scaled_scatter(w, eps, xp)
         p = self._np(xp)
-        np.multiply(p, eps, out=p)
         np.add(self._np(x), p, out=p)
 
     def difference(self, w, Fx, Fp, shift: float, c: float, out) -> None:
@@ -108,6 +119,10 @@ class HostPasses:
         np.multiply(o, c, out=o)
         if shift:
             np.add(o, self.tmp, out=o)
+
+    def norm(self, v) -> float:
+        a = self._np(v).ravel()
+        return float(np.sqrt(self.topology.sum(float(a.dot(a)))))  # Topology.norm's bits, without a new view per call
 
 
 class FiniteDifferenceJacobian:
@@ -133,7 +148,7 @@ class FiniteDifferenceJacobian:
 
     def norm(self, a) -> float:
         """Euclidean norm of an array (3, N) or (3·nunique,) over all processes."""
-        return self.topology.norm(a)
+        return self.passes.norm(a)
 
     def gather(self, a: float, v, out) -> None:
         """Unique-node out = a·v from a continuous (3, N) v."""
@@ -149,7 +164,6 @@ class FiniteDifferenceJacobian:
             out.zero_()
             return
         eps = _SQRT_EPS * (1.0 + xnorm) / wnorm
-        self.scatter(w, self.xp)
-        self.passes.perturb(x, eps, self.xp)  # x + ε w
+        self.passes.perturb(x, eps, w, self.xp)  # x + ε w
         self.F(self.xp, self.Fp)
         self.passes.difference(w, Fx, self.Fp, shift, scale / eps, out)  # shift·w + scale (F(x + εw) − F(x)) / ε

@@ -134,7 +134,8 @@ class HostVectors:
         k = len(c)
         if k:
             np.dot(np.asarray(c, dtype=np.float64), self._np(B)[:k], out=self.tmp)
-        np.multiply(x, a, out=out)  # a·x first: out may alias x
+        if a != 1.0 or out is not x:  # a·x first: out may alias x (an update in place skips the pass)
+            np.multiply(x, a, out=out)
         if k:
             np.add(out, self.tmp, out=out)
 

@@ -4,7 +4,7 @@ H100 and an H200, from counts taken off the code on the CPU.
 
 What is counted (TC5, all terms + ∇⁴, np = 4, the CUDA layout: per-node
 kernels, ``per_element=False``, one thread, the steppers' CUDA solvers:
-the Helmholtz ``pcg`` and flexible GMRES on Warp arrays), by wrapping Warp's launch entry points (``swe_sphere.tally``)
+the Helmholtz ``pcg`` and the Krylov vector work of FGMRES and KIOPS in Warp kernels), by wrapping Warp's launch entry points (``swe_sphere.tally``)
 while the model evaluates one RHS, one ∇⁴ and ``--steps`` steps of each
 stepper after ``--warmup`` steps, on ``--ne`` (default 8):
 
@@ -48,6 +48,7 @@ from swe_sphere.model import ShallowWater
 from swe_sphere.steppers import STEPPERS, make_stepper
 from swe_sphere.tally import Tally, array_bytes, instrumented
 
+from implicit_cost import use_krylov  # noqa: E402  (benchmarks/, the script's directory)
 
 HBM = {"H100": 3.35e12, "H200": 4.8e12}  # B/s: HBM3 (SXM) and HBM3e
 EFFICIENCY = 0.7  # share of HBM bandwidth a streaming kernel reaches
@@ -99,6 +100,7 @@ def count(args, tally):
     for name in STEPPERS:
         model, scene, x0 = build(args.ne, name, args.implicit_dt_factor if name in IMPLICIT else 1.0)
         stepper = make_stepper(name, model, scene.dt)
+        use_krylov(stepper, "kernels")  # the Krylov vector work as on CUDA (on a CPU device it runs in numpy)
         x = model.new_state(*x0)
         for _ in range(args.warmup):
             stepper.step(x)

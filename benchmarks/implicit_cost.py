@@ -1,4 +1,4 @@
-"""What an implicit-type step costs, broken down, against the best explicit stepper (ISSUE 21).
+"""What an implicit-type or exponential step costs, broken down, against the best explicit stepper (ISSUES 21, 33).
 
 Per configuration (case, stepper, Δt as a multiple of the gravity-wave limit
 Δt_g = min Δx / max sqrt(g h) of the initial state), one interleaved run:
@@ -15,7 +15,17 @@ subtracted):
   precisions);
 * Helmholtz rest: the rest of ``GravityWave.solve`` (the CG's vector updates
   and inner products, the preconditioner fused into them, the Schur pieces);
-* other: the rest of the step (stage combinations; JFNK's Newton and FGMRES).
+* Krylov vectors: the Krylov basis's Gram–Schmidt and combinations
+  (``KrylovBasis.project_dots``/``lincomb``: FGMRES's, KIOPS's);
+* J·v passes: the finite-difference J·v's pointwise passes around its RHS
+  (``FiniteDifferenceJacobian``: x + εw, the difference, its norms, gathers and scatters);
+* other: the rest of the step (stage combinations; Newton, KIOPS's host work, norms).
+
+``--krylov host kernels`` builds each configuration with a Krylov basis in both
+backends of that vector work (``KrylovBasis``'s ``HostVectors``/``KernelVectors``,
+the J·v's ``HostPasses``/``KernelPasses``: numpy on the CPU against Warp's
+kernels, the CUDA path), interleaved; the exponential rows also give the Krylov
+vectors a step and the step's RHS-eq per Krylov vector.
 
 Medians over the timed steps, in ms and in RHS-equivalents (one RHS timed in
 the same rounds); the last column is the cost per simulated day relative to
@@ -27,6 +37,8 @@ around every timed call (so the parts add up; the syncs cost a few µs each).
 
     SWE_SPHERE_THREADS=1 python benchmarks/implicit_cost.py --clock cpu
     SWE_SPHERE_THREADS=1 python benchmarks/implicit_cost.py --clock cpu --precision double mixed
+    SWE_SPHERE_THREADS=1 python benchmarks/implicit_cost.py --ne 16 --cases tc5_mountain --steppers epi2 epi3 CN \
+        --krylov host kernels --explicit kgu35@900 rk4@350
     SWE_SPHERE_THREADS=2 python benchmarks/implicit_cost.py --clock wall
     python benchmarks/implicit_cost.py --device cuda
 """
@@ -47,10 +59,12 @@ wp.config.quiet = True
 
 from swe_sphere.config import load_scene  # noqa: E402
 from swe_sphere.simulation import Simulation  # noqa: E402
+from swe_sphere.steppers import jacobian, krylov  # noqa: E402
 
 # case → (label, stepper, Δt/Δt_g, options)
 CONFIGS = {
-    "tc5_mountain": [("imex", "imex", 8.0, {}), ("CN", "implicit", 4.0, {}), ("CN", "implicit", 10.0, {}), ("semi_implicit", "semi_implicit", 2.0, {})],
+    "tc5_mountain": [("imex", "imex", 8.0, {}), ("CN", "implicit", 4.0, {}), ("CN", "implicit", 10.0, {}), ("semi_implicit", "semi_implicit", 2.0, {}),
+                     ("epi2", "epi2", 5.0, {}), ("epi3", "epi3", 5.0, {})],
     "tc6_rossby_haurwitz": [("imex", "imex", 4.7, {}), ("CN", "implicit", 4.7, {})],
 }
 # case → explicit references (stepper, Δt in s): the largest stable steps measured at ne30 np4 on
@@ -60,7 +74,8 @@ EXPLICIT = {
     "tc5_mountain": [("ssprk3", 216.0)],
     "tc6_rossby_haurwitz": [("ssprk3", 160.0), ("rk4", 200.0), ("leapfrog_trapezoidal", 90.0)],
 }
-PARTS = ("RHS", "∇⁴", "Helmholtz op", "Helmholtz rest", "other")
+PARTS = ("RHS", "∇⁴", "Helmholtz op", "Helmholtz rest", "Krylov vectors", "J·v passes", "other")
+KRYLOV = {"host": (krylov.HostVectors, jacobian.HostPasses), "kernels": (krylov.KernelVectors, jacobian.KernelPasses)}
 
 
 class Timers:
@@ -98,9 +113,31 @@ def scene(case, ne, stepper, dt, options):
     return dataclasses.replace(base, stepper=stepper, dt=dt, stepper_options=options, output_every_days=1.0)
 
 
-def build(case, ne, stepper, dt, options, clock, device):
+def use_krylov(stepper, backend=None):
+    """Give a JFNK (FGMRES) or exponential (KIOPS) stepper's Krylov vector work the
+    ``backend`` (a key of KRYLOV; None: the device's own, as built); returns
+    (basis, jacobian), or None for a stepper without a Krylov basis."""
+    kiops = getattr(stepper, "kiops", None)
+    basis = kiops.basis if kiops is not None else getattr(stepper, "fgmres", None)
+    if basis is None:
+        return None
+    if backend is not None:
+        vectors, passes = KRYLOV[backend]
+        basis.vectors, stepper.jacobian.passes = vectors(basis), passes(stepper.model)
+    return basis, stepper.jacobian
+
+
+def build(case, ne, stepper, dt, options, clock, device, backend=None):
+    """A Simulation with its parts timed; ``backend`` (a key of KRYLOV): the Krylov vector work's."""
     sim = Simulation(scene(case, ne, stepper, dt, options), device, progress=False)
     timers = Timers(clock, lambda: wp.synchronize_device(device))
+    krylov_work = use_krylov(sim.stepper, backend)
+    if krylov_work is not None:
+        basis, jac = krylov_work
+        for name in ("project_dots", "lincomb"):
+            timers.wrap(basis.vectors, name, "Krylov vectors")
+        for name in ("gather", "scatter", "perturb", "difference", "norm"):
+            timers.wrap(jac.passes, name, "J·v passes")
     timers.wrap(sim.model, "rhs", "RHS")
     timers.wrap(sim.model, "rhs_update", "RHS")  # the explicit steppers' stages, combinations included
     timers.wrap(sim.model, "hyperviscosity", "∇⁴")
@@ -123,6 +160,9 @@ def main():
     ap.add_argument("--device", choices=("cpu", "cuda"), default="cpu", help="cuda: wall clock, synchronised")
     ap.add_argument("--precision", nargs="+", default=["double"], choices=("double", "mixed"),
                     help="the Helmholtz solves' precision; several: each configuration in each, interleaved")
+    ap.add_argument("--steppers", nargs="+", default=None, metavar="LABEL", help="only these configurations (labels: imex, CN, semi_implicit, epi2, epi3)")
+    ap.add_argument("--krylov", nargs="+", default=[None], choices=list(KRYLOV),
+                    help="the Krylov vector work's backend (default: the device's); several: each Krylov configuration in each, interleaved")
     ap.add_argument("--explicit", nargs="*", default=None, metavar="STEPPER@DT",
                     help="the explicit references of every case, e.g. ssprk3@216 (default: EXPLICIT, measured at ne30)")
     args = ap.parse_args()
@@ -139,9 +179,14 @@ def main():
         for name, dt in explicit:
             runs.append((name, dt / dt_g, True, *build(case, args.ne, name, dt, {}, clock, args.device)))
         for label, stepper, f, options in CONFIGS[case]:
-            for precision in args.precision:
-                name = label if len(args.precision) == 1 else f"{label} {precision}"
-                runs.append((name, f, False, *build(case, args.ne, stepper, f * dt_g, {**options, "precision": precision}, clock, args.device)))
+            if args.steppers and label not in args.steppers:
+                continue
+            krylov_stepper = stepper in ("implicit", "epi2", "epi3")
+            for precision in args.precision if stepper not in ("epi2", "epi3") else [None]:
+                for backend in args.krylov if krylov_stepper else [None]:
+                    name = " ".join([label, *([precision] if precision and len(args.precision) > 1 else []), *([backend] if backend and len(args.krylov) > 1 else [])])
+                    opts = {**options, **({"precision": precision} if precision else {})}
+                    runs.append((name, f, False, *build(case, args.ne, stepper, f * dt_g, opts, clock, args.device, backend)))
         for _, _, _, sim, timers in runs:
             for _ in range(args.warmup):
                 sim.stepper.step(sim.x)
@@ -169,17 +214,19 @@ def main():
         best = min((i for i in cost if runs[i][2]), key=cost.get)
         print(f"\n{case} ne{args.ne} np4: Δt_g = {dt_g:.1f} s, RHS {rhs:.2f} ms (median); {args.steps} timed steps after {args.warmup}; "
               f"best explicit {runs[best][0]} @ {runs[best][3].scene.dt:.0f} s")
-        print("| stepper | Δt/Δt_g | Δt (s) | its/step | ms/step | " + " | ".join(f"{p} ms (RHS-eq)" for p in PARTS) + " | RHS-eq/step | cost/day vs best explicit |")
-        print("|---|---:|---:|---|---:|" + "---:|" * len(PARTS) + "---:|---:|")
+        print("| stepper | Δt/Δt_g | Δt (s) | its/step | ms/step | " + " | ".join(f"{p} ms (RHS-eq)" for p in PARTS)
+              + " | RHS-eq/step | RHS-eq per Krylov vector | cost/day vs best explicit |")
+        print("|---|---:|---:|---|---:|" + "---:|" * len(PARTS) + "---:|---:|---:|")
         for i, (label, f, _, sim, _) in enumerate(runs):
             steps = per_step[i]
             ms = statistics.median(s[0] for s in steps)
             parts = {p: statistics.median(s[1][p] for s in steps) for p in PARTS}
-            its = {k: statistics.mean(s[2].iterations.get(k, 0) for s in steps) for k in ("newton", "gmres", "helmholtz")}
+            its = {k: statistics.mean(s[2].iterations.get(k, 0) for s in steps) for k in ("newton", "gmres", "helmholtz", "krylov")}
+            per_vector = f"{ms / rhs / its['krylov']:.2f}" if its["krylov"] else "-"
             its_text = ", ".join(f"{k} {v:.1f}" for k, v in its.items() if v) or "-"
             print(f"| {label} | {f:.2f} | {sim.scene.dt:.0f} | {its_text} | {ms:.1f} | "
                   + " | ".join(f"{parts[p]:.1f} ({parts[p] / rhs:.1f})" for p in PARTS)
-                  + f" | {ms / rhs:.1f} | {cost[i] / cost[best]:.2f} |")
+                  + f" | {ms / rhs:.1f} | {per_vector} | {cost[i] / cost[best]:.2f} |")
 
 
 if __name__ == "__main__":

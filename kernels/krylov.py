@@ -1,6 +1,7 @@
-"""The vector work of flexible GMRES (``steppers.krylov.FGMRES``) on a basis
-stored as the rows of a 2-D array (k, n), n this process's part of a
-unique-node vector.
+"""The vector work of a Krylov basis (``steppers.krylov.KrylovBasis``: FGMRES's,
+KIOPS's) stored as the rows of a 2-D array (k, n), n this process's part of a
+unique-node vector: the CUDA backend (``KernelVectors``; on a CPU the same work
+runs in numpy, ``HostVectors``, Warp's CPU kernels being 7–15× slower at it).
 
 Two kernels, each one pass over the vectors it reads:
 

@@ -231,6 +231,35 @@ def test_jacobian_vector_product_matches_exact_directional_derivative(name, rng)
     assert not np.any(out.numpy())
 
 
+def test_jacobian_passes_host_and_kernels_agree(rng):
+    """``jacobian.FiniteDifferenceJacobian``'s two backends of its pointwise passes
+    (``HostPasses``, numpy, the CPU's; ``KernelPasses``, Warp kernels, CUDA's) on TC5 at
+    ne = 2: the gather, the scatter and shift·w + scale·J w give the same numbers to
+    round-off (measured: the same bits; they do the same operations entry by entry)."""
+    from swe_sphere.steppers.jacobian import FiniteDifferenceJacobian, HostPasses, KernelPasses
+
+    sim = make_sim(load_scene("tc5_mountain", ne=2, np=4, days=1.0, stepper="implicit", dt=3600.0))
+    m, first = sim.model, sim.grid.first
+    Fx = wp.zeros_like(sim.x)
+    m.rhs(sim.x, Fx)
+    x_np = sim.x.numpy()
+    w = wp.array(rng.standard_normal(3 * first.size) * 10.0, dtype=wp.float64, device=DEVICE)
+    xnorm = np.linalg.norm(x_np[:, first])
+    got = {}
+    for passes in (HostPasses, KernelPasses):
+        jac = FiniteDifferenceJacobian(m, m.rhs, passes)
+        u, e, jv = wp.zeros_like(w), wp.zeros_like(sim.x), wp.zeros_like(w)
+        jac.gather(-2.0, sim.x, u)
+        jac.scatter(w, e)
+        jac.apply(sim.x, Fx, xnorm, w, jv, 0.25, -0.5)
+        got[passes] = [a.numpy().copy() for a in (u, e, jv)]
+    for name, a, b in zip(("gather", "scatter", "J·v"), got[HostPasses], got[KernelPasses]):
+        print(f"\n{name}: bitwise {np.array_equal(a, b)}, max |host - kernels| / max |kernels| {np.abs(a - b).max() / np.abs(b).max():.1e}", end="")
+        np.testing.assert_allclose(a, b, rtol=1e-14, atol=1e-14 * np.abs(b).max())
+    np.testing.assert_array_equal(got[HostPasses][0], -2.0 * x_np[:, first].ravel())  # the unique-node layout
+    np.testing.assert_array_equal(got[HostPasses][1], w.numpy().reshape(3, -1)[:, sim.grid.gid])  # one process: index = gid
+
+
 # -- Newton converges quadratically near the solution ---------------------------------
 
 
@@ -393,6 +422,37 @@ def test_fgmres_solves_with_a_changing_preconditioner_and_restarts(rng):
           f"fixed: FGMRES {its_fixed}, scipy GMRES {count[0]} iterations")
     assert ok and resid < 2e-10
     assert abs(its_fixed - count[0]) <= 1
+
+
+@pytest.mark.parametrize("backend", ["HostVectors", "KernelVectors"])
+def test_krylov_basis_vector_work_matches_numpy(backend, rng):
+    """``krylov.KrylovBasis``'s two backends of its vector work (numpy/BLAS on the
+    CPU, ``kernels.krylov`` on CUDA, both runnable on the CPU) against a numpy
+    reference on random vectors (n = 1000, not a multiple of the kernels' chunk): the
+    projection with its inner products (k_sub, k_dot in 0–3, B a row range of the
+    basis) and the combinations (out aliasing x; a = 0), to round-off (1e-13 relative:
+    the sums differ only in order and fused multiply–adds)."""
+    from swe_sphere.steppers import krylov
+
+    n, rows = 1000, 6
+    basis = krylov.KrylovBasis(n, rows, Topology(cached_grid(2, 4)), vectors=getattr(krylov, backend))
+    V = rng.standard_normal((rows, n))
+    basis.V.assign(V)
+    close = lambda got, ref: np.testing.assert_allclose(got, ref, rtol=1e-13, atol=1e-13 * np.abs(ref).max())  # noqa: E731
+    for k_sub, k_dot in [(0, 0), (0, 3), (2, 2), (3, 1)]:
+        w = rng.standard_normal(n)
+        basis.w.assign(w)
+        h = rng.standard_normal(k_sub)
+        B = basis.V[2:]  # a row range, as KIOPS's incomplete orthogonalisation takes
+        d = basis.project_dots(B, basis.w, k_sub, h if k_sub else None, k_dot)
+        ref = w - h @ V[2 : 2 + k_sub]
+        close(basis.w.numpy(), ref)
+        close(d, np.append(V[2 : 2 + k_dot] @ ref, ref @ ref))
+    for k, a in [(0, 0.7), (3, -1.3), (5, 0.0)]:
+        c = rng.standard_normal(k)
+        x = basis.V.numpy()[5].copy()
+        basis.lincomb(basis.V, c, a, basis.rows_V[5], basis.rows_V[5])  # out aliasing x
+        close(basis.V.numpy()[5], a * x + c @ V[:k])
 
 
 # -- failures and bad input through the command line ---------------------------------

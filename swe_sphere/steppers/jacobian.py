@@ -24,9 +24,105 @@ import warp as wp
 
 from ..kernels import blas
 from ..kernels import implicit as ik
+from .krylov import NumpyViews
 
 f64 = wp.float64
 _SQRT_EPS = math.sqrt(np.finfo(float).eps)
+
+
+class KernelPasses:
+    """The J·v's pointwise passes in Warp kernels (``kernels.implicit``, ``kernels.blas``;
+    the backend on CUDA), recorded once per set of arrays by ``model.pointwise``:
+    ``gather(a, v, out)``: unique-node out = a·v at each node's first copy;
+    ``scatter(u, out)``: element-local out from the unique-node u;
+    ``perturb(x, eps, w, xp)``: element-local xp = x + eps·w (w unique-node);
+    ``difference(w, Fx, Fp, shift, c, out)``: unique-node out = shift·w + c·(Fp − Fx)
+    (Fp may be overwritten); ``norm(v)``: ‖v‖ over all processes."""
+
+    def __init__(self, model):
+        self.model, self.topology = model, model.topology
+
+    def gather(self, a: float, v, out) -> None:
+        self.model.pointwise(ik.gather, f64(a), v, self.topology.first, self.topology.nunique, out, unique=True)
+
+    def scatter(self, u, out) -> None:
+        self.model.scatter(u, out, 0, rows=3)
+
+    def perturb(self, x, eps: float, w, xp) -> None:
+        self.scatter(w, xp)
+        self.model.pointwise(blas.axpby, f64(1.0), x, f64(eps), xp, xp)
+
+    def difference(self, w, Fx, Fp, shift: float, c: float, out) -> None:
+        topo = self.topology
+        self.model.pointwise(ik.jacobian_vector, w, Fx, Fp, topo.first, topo.nunique, f64(shift), f64(-c), out, unique=True)
+
+    def norm(self, v) -> float:
+        return self.topology.norm(v)
+
+
+class HostPasses:
+    """``KernelPasses``'s passes in numpy on zero-copy views of the Warp arrays (the
+    backend on a CPU device: Warp's CPU kernels took 5–13 ns an entry for them, at ne16
+    more than the RHS of the J·v altogether; numpy's take and arithmetic 0.3–1.3 ns). The
+    same arithmetic entry by entry, so the same bits (``tests/test_implicit.py``), and the
+    same whatever the model's threads: numpy runs them on one."""
+
+    def __init__(self, model):
+        self.topology = topo = model.topology
+        nu, N, nh = topo.nunique, model.N, topo.owned.size
+        rows = np.arange(3)[:, None]
+        # the flat (3, N) index of each unique-node vector entry: row r of node g at r·nunique + g
+        self.first3 = (rows * N + topo.first.numpy()[None, :]).ravel().astype(np.intp)
+        # each element-local entry's in [u, halo]: u's row r of owned node g at r·nunique + g, a node
+        # owned elsewhere (gid ≥ nunique) in the halo ``Topology.exchange`` fills (node-major, ``dss.pack``)
+        gid = topo.gid.numpy()[None, :].astype(np.intp)
+        self.gid3 = np.where(gid < nu, rows * nu + gid, 3 * nu + (gid - nu) * 3 + rows).ravel()
+        self.halo = topo.owned.recv_buffer.numpy()[: 3 * nh]
+        self.ext = np.zeros(3 * (nu + nh))  # a·[u, halo]
+        self.tmp = np.zeros(3 * nu)
+        self._np = NumpyViews()
+        self._exchanges: dict[int, tuple] = {}
+
+    def _scaled_scatter(self, u, a: float, out) -> None:
+        """Element-local out = a·u (a·u on unique nodes first: fewer entries than out)."""
+        topo, src, n = self.topology, self._np(u), 3 * self.topology.nunique
+        # the exchange with the neighbours (none on one process; a rank that receives nothing may still
+        # send), recorded once per vector, which is held so that its address stays its own
+        entry = self._exchanges.get(u.ptr)
+        if entry is None:
+            entry = self._exchanges[u.ptr] = (topo.exchange(u.reshape((3, topo.nunique)), unique=True), u)
+        for launch in entry[0]:
+            launch.launch()
+        np.multiply(src, a, out=self.ext[:n])
+        np.multiply(self.halo, a, out=self.ext[n:])
+        np.take(self.ext, self.gid3, out=self._np(out).ravel(), mode="clip")  # clip: no bounds pass (the indices are valid)
+
+    def gather(self, a: float, v, out) -> None:
+        o = self._np(out)
+        np.take(self._np(v).ravel(), self.first3, out=o, mode="clip")
+        np.multiply(o, a, out=o)
+
+    def scatter(self, u, out) -> None:
+        self._scaled_scatter(u, 1.0, out)
+
+    def perturb(self, x, eps: float, w, xp) -> None:
+        self._scaled_scatter(w, eps, xp)
+        p = self._np(xp)
+        np.add(self._np(x), p, out=p)
+
+    def difference(self, w, Fx, Fp, shift: float, c: float, out) -> None:
+        o, d = self._np(out), self._np(Fp)
+        if shift:
+            np.multiply(self._np(w), shift, out=self.tmp)  # first: out may alias w
+        np.subtract(d, self._np(Fx), out=d)  # on every copy (one subtraction pass over (3, N) costs less than a second gather)
+        np.take(d.ravel(), self.first3, out=o, mode="clip")
+        np.multiply(o, c, out=o)
+        if shift:
+            np.add(o, self.tmp, out=o)
+
+    def norm(self, v) -> float:
+        a = self._np(v).ravel()
+        return float(np.sqrt(self.topology.sum(float(a.dot(a)))))  # Topology.norm's bits, without a new view per call
 
 
 class FiniteDifferenceJacobian:
@@ -34,26 +130,33 @@ class FiniteDifferenceJacobian:
     evaluation (it counts them). ``apply(x, Fx, xnorm, w, out, shift, scale)``:
     out = shift·w + scale·J w for unique-node vectors w, out (3·nunique,), with
     F(x) in Fx (3, N) and xnorm = ‖x‖ on unique nodes; one F evaluation (none
-    for w = 0, out = 0). x and Fx are left alone."""
+    for w = 0, out = 0). x and Fx are left alone.
 
-    def __init__(self, model, F):
+    ``passes``: the backend of the pointwise passes (gather, scatter, x + εw, the difference),
+    chosen once here: ``HostPasses`` (numpy) on a CPU device, ``KernelPasses``
+    elsewhere; either may be given."""
+
+    def __init__(self, model, F, passes=None):
         self.model, self.F = model, F
         self.topology = model.topology
         self.nu = self.topology.nunique
         self.xp = wp.zeros((3, model.N), dtype=f64, device=model.device)  # x + εw
         self.Fp = wp.zeros((3, model.N), dtype=f64, device=model.device)  # F(x + εw)
+        if passes is None:
+            passes = HostPasses if wp.get_device(model.device).is_cpu else KernelPasses
+        self.passes = passes(model)
 
     def norm(self, a) -> float:
         """Euclidean norm of an array (3, N) or (3·nunique,) over all processes."""
-        return self.topology.norm(a)
+        return self.passes.norm(a)
 
     def gather(self, a: float, v, out) -> None:
         """Unique-node out = a·v from a continuous (3, N) v."""
-        self.model.pointwise(ik.gather, f64(a), v, self.topology.first, self.nu, out, unique=True)
+        self.passes.gather(a, v, out)
 
     def scatter(self, u, out) -> None:
         """Element-local out (3, N) from the unique-node vector u."""
-        self.model.scatter(u, out, 0, rows=3)
+        self.passes.scatter(u, out)
 
     def apply(self, x, Fx, xnorm: float, w, out, shift: float = 0.0, scale: float = 1.0) -> None:
         wnorm = self.norm(w)
@@ -61,7 +164,6 @@ class FiniteDifferenceJacobian:
             out.zero_()
             return
         eps = _SQRT_EPS * (1.0 + xnorm) / wnorm
-        self.scatter(w, self.xp)
-        self.model.pointwise(blas.axpby, f64(1.0), x, f64(eps), self.xp, self.xp)  # x + ε w
+        self.passes.perturb(x, eps, w, self.xp)  # x + ε w
         self.F(self.xp, self.Fp)
-        self.model.pointwise(ik.jacobian_vector, w, Fx, self.Fp, self.topology.first, self.nu, f64(shift), f64(-scale / eps), out, unique=True)
+        self.passes.difference(w, Fx, self.Fp, shift, scale / eps, out)  # shift·w + scale (F(x + εw) − F(x)) / ε

@@ -26,7 +26,8 @@ which stay on the host (every process holds the same copy). As KIOPS:
   second pass only when the first removes more than 1 − 1/√2 of the vector's
   norm (Daniel, Gragg, Kaufman & Stewart 1976, Math. Comp. 30, 772): it ran in
   30–50 % of the Arnoldi steps of TC5, TC6 and Galewsky at ne8, 2–10 Δt_g, and
-  on the CPU a pass over the vectors costs up to half an RHS at ne16;
+  a pass costs up to half an RHS at ne16 in Warp's CPU kernels (0.1–0.2 in numpy, the
+  CPU's backend now: ``krylov.HostVectors``);
 * the error estimate β h_{m+1,m} |[exp(τH̃)]_{m,m+1}| (H̃: H_m with a unit
   (1, m+1) entry, so that its exponential holds φ_1(τH_m) e_1 too; Saad 1992,
   SIAM J. Numer. Anal. 29, 209),
@@ -93,6 +94,8 @@ class Kiops:
         self.n, self.p, self.m_max, self.iop = int(n), max(int(p), 1), int(m_max), int(iop)
         self.topology = topology
         self.basis = KrylovBasis(self.n, self.m_max + 1, topology)
+        # rows lo … of V, one view each made once (a Warp view costs ~25 µs; the same view keys the same recorded launch)
+        self.tails_V = [self.basis.V[lo:] for lo in range(self.m_max + 1)]
         self.U = wp.zeros((self.p, self.n), dtype=f64, device=topology.device)  # row q: ν u_(p−q)
         self.rows_U = [self.U[q] for q in range(self.p)]
         self.aug = np.zeros((self.m_max + 1, self.p))  # the basis vectors' augmented entries
@@ -117,7 +120,7 @@ class Kiops:
         b.lincomb(self.U, aug[j - 1], 1.0, V[j], V[j])  # + W · (augmented entries)
         a = np.append(aug[j - 1, 1:], 0.0)  # J · (augmented entries)
         lo = max(0, j - self.iop)
-        k, B, A = j - lo, b.V[lo:], aug[lo:j]  # B: rows lo … of V (the same view, so the same recorded launch, for every j)
+        k, B, A = j - lo, self.tails_V[lo], aug[lo:j]
         *h, ww = b.project_dots(B, V[j], 0, None, k)
         h = np.array(h) + A @ a
         ww += a @ a

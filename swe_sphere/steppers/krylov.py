@@ -5,10 +5,12 @@ basis it is built on (``KrylovBasis``), which the exponential steppers' KIOPS
 
 The vectors are Warp arrays on the model's device, each this process's part of
 a unique-node vector; the basis is two 2-D arrays allocated once. The vector
-work is ``kernels.krylov``'s: classical Gram–Schmidt done twice (as accurate as
-modified Gram–Schmidt, Giraud et al. 2005, Numer. Math. 101, 87), each
-projection fused with the inner products of the next pass, which are summed over
-processes by ``Topology.sums``. So the code is the same on CPU threads, CUDA and
+work: classical Gram–Schmidt done twice (as accurate as modified Gram–Schmidt,
+Giraud et al. 2005, Numer. Math. 101, 87), each projection fused with the inner
+products of the next pass, which are summed over processes by
+``Topology.sums``; on CUDA in ``kernels.krylov``'s kernels, on a CPU in
+numpy/BLAS on views of the same arrays (``HostVectors``: Warp's CPU kernels are
+7–15× slower at such passes). So the solver is the same on CPU threads, CUDA and
 MPI ranks, and an Arnoldi step synchronises with the host twice (its two sets of
 inner products) besides what the operator and the preconditioner need. The new
 vector's norm is ‖w₁‖² − ‖h₂‖² (w₁ after the first pass, h₂ the second pass's
@@ -37,23 +39,34 @@ from ..parallel import record, reduction_chunk
 f64 = wp.float64
 
 
-class KrylovBasis:
-    """A Krylov basis of ``rows`` vectors of length ``n`` (this process's part of a
-    unique-node vector) on ``topology``'s device, the rows of ``V``, with the fused
-    vector work of ``kernels.krylov`` on any 2-D array of such vectors (a row range
-    of ``V``, FGMRES's preconditioned vectors), its inner products summed over the
-    topology's processes. Shared by ``FGMRES`` and ``kiops.Kiops``."""
+class NumpyViews:
+    """numpy views of CPU Warp arrays: ``views(a)``, zero-copy, cached per address, shape
+    and strides (making one costs as much as a numpy pass over an ne16 vector; a cached
+    view keeps its array alive, so the address stays its own)."""
 
-    def __init__(self, n: int, rows: int, topology):
-        n, rows = int(n), int(rows)
-        self.n, self.topology = n, topology
-        dev = topology.device
-        self.V = wp.zeros((rows, n), dtype=f64, device=dev)
-        self.rows_V = [self.V[j] for j in range(rows)]  # row views: their addresses key the recorded launches
-        self.w = wp.zeros(n, dtype=f64, device=dev)
-        self.coef, self._coef = wp.zeros(rows, dtype=f64, device=dev), np.zeros(rows)
-        self.chunk = chunk = reduction_chunk(n, dev)
-        self.partial = wp.zeros((rows + 1, (n + chunk - 1) // chunk), dtype=f64, device=dev)
+    def __init__(self):
+        self._views: dict[tuple, np.ndarray] = {}
+
+    def __call__(self, a) -> np.ndarray:
+        key = (a.ptr, a.shape, a.strides)
+        view = self._views.get(key)
+        if view is None:
+            view = self._views[key] = a.numpy()
+        return view
+
+
+class KernelVectors:
+    """A ``KrylovBasis``'s vector work in ``kernels.krylov``'s Warp kernels (the
+    backend on CUDA): each operation one launch, recorded once per set of arrays;
+    inner products as per-chunk partial sums (``parallel.reduction_chunk``) added
+    by ``Topology.partial_sums``."""
+
+    def __init__(self, basis: "KrylovBasis"):
+        n, rows, topo = basis.n, basis.V.shape[0], basis.topology
+        self.n, self.topology = n, topo
+        self.coef, self._coef = wp.zeros(rows, dtype=f64, device=topo.device), np.zeros(rows)
+        self.chunk = chunk = reduction_chunk(n, topo.device)
+        self.partial = wp.zeros((rows + 1, (n + chunk - 1) // chunk), dtype=f64, device=topo.device)
         self._launches: dict[tuple, object] = {}
 
     def _launch(self, kernel, dim, inputs, nodes_per_index=1, **params):
@@ -74,20 +87,90 @@ class KrylovBasis:
         self._coef[: len(c)] = c
         self.coef.assign(self._coef)
 
-    def project_dots(self, B, w, k_sub: int, h: np.ndarray | None, k_dot: int) -> np.ndarray:
-        """w −= Σ_{i<k_sub} h_i B_i; returns (B_i·w for i < k_dot, w·w) over all processes
-        (B a 2-D array of vectors, w a vector)."""
+    def project_dots(self, B, w, k_sub, h, k_dot):
         if k_sub:
             self._set_coef(h)
         self._launch(kk.project_dots, self.partial.shape[1], [B, 0, self.coef, w, 0, self.partial, self.chunk],
                      nodes_per_index=self.chunk, k_sub=k_sub, k_dot=k_dot)
         return self.topology.partial_sums(self.partial, k_dot + 1)  # the rows it wrote: less to copy from a GPU
 
-    def lincomb(self, B, c: np.ndarray, a: float, x, out) -> None:
-        """out = a·x + Σ c_i B_i (out may alias x)."""
+    def lincomb(self, B, c, a, x, out):
         if len(c):
             self._set_coef(c)
         self._launch(kk.lincomb, self.n, [B, 0, self.coef, f64(0.0), x, out], k=len(c), a=f64(a))
+
+
+class HostVectors:
+    """A ``KrylovBasis``'s vector work in numpy and BLAS on zero-copy views of the
+    Warp arrays (the backend on a CPU device). Warp's CPU kernels run a pass over
+    a vector at ~5 ns an entry, where BLAS runs one at ~0.2–0.7 ns: with the kernels,
+    the Gram–Schmidt and combination passes cost more than the J·v of a Krylov
+    vector at ne16 (``benchmarks/implicit_cost.py --krylov``). The passes are
+    single-threaded: the vectors are short (in cache at ne30) and a BLAS thread
+    pool spinning beside the model's threads made a norm cost 10 ms (``Simulation``
+    runs with one BLAS thread, as ``Topology.dot``'s inner products assume). An
+    inner product is BLAS's dot over this process's entries, then summed over
+    processes in rank order by ``Topology.sums``: the bits do not depend on the
+    model's threads (SWE_SPHERE_THREADS), which never touch these passes."""
+
+    def __init__(self, basis: "KrylovBasis"):
+        self.topology = basis.topology
+        self.tmp = np.zeros(basis.n)
+        self._np = NumpyViews()
+
+    def project_dots(self, B, w, k_sub, h, k_dot):
+        B, w = self._np(B), self._np(w)
+        if k_sub:
+            np.dot(np.asarray(h, dtype=np.float64), B[:k_sub], out=self.tmp)  # BLAS gemv: one pass over B's rows
+            np.subtract(w, self.tmp, out=w)
+        d = np.empty(k_dot + 1)
+        if k_dot:
+            np.dot(B[:k_dot], w, out=d[:k_dot])
+        d[k_dot] = w @ w
+        return self.topology.sums(d)
+
+    def lincomb(self, B, c, a, x, out):
+        x, out = self._np(x), self._np(out)
+        k = len(c)
+        if k:
+            np.dot(np.asarray(c, dtype=np.float64), self._np(B)[:k], out=self.tmp)
+        if a != 1.0 or out is not x:  # a·x first: out may alias x (an update in place skips the pass)
+            np.multiply(x, a, out=out)
+        if k:
+            np.add(out, self.tmp, out=out)
+
+
+class KrylovBasis:
+    """A Krylov basis of ``rows`` vectors of length ``n`` (this process's part of a
+    unique-node vector) on ``topology``'s device, the rows of ``V``, with the vector
+    work Gram–Schmidt and the combinations need on any 2-D array of such vectors (a
+    row range of ``V``, FGMRES's preconditioned vectors), its inner products summed
+    over the topology's processes. Shared by ``FGMRES`` and ``kiops.Kiops``.
+
+    ``vectors``: the backend of that work, chosen once here: ``HostVectors``
+    (numpy/BLAS on views of the arrays) on a CPU device, ``KernelVectors``
+    (``kernels.krylov``) elsewhere; either may be given (the tests check the two
+    agree to round-off)."""
+
+    def __init__(self, n: int, rows: int, topology, vectors=None):
+        n, rows = int(n), int(rows)
+        self.n, self.topology = n, topology
+        dev = topology.device
+        self.V = wp.zeros((rows, n), dtype=f64, device=dev)
+        self.rows_V = [self.V[j] for j in range(rows)]  # row views: their addresses key the recorded launches
+        self.w = wp.zeros(n, dtype=f64, device=dev)
+        if vectors is None:
+            vectors = HostVectors if wp.get_device(dev).is_cpu else KernelVectors
+        self.vectors = vectors(self)
+
+    def project_dots(self, B, w, k_sub: int, h: np.ndarray | None, k_dot: int) -> np.ndarray:
+        """w −= Σ_{i<k_sub} h_i B_i; returns (B_i·w for i < k_dot, w·w) over all processes
+        (B a 2-D array of vectors, w a vector)."""
+        return self.vectors.project_dots(B, w, k_sub, h, k_dot)
+
+    def lincomb(self, B, c: np.ndarray, a: float, x, out) -> None:
+        """out = a·x + Σ c_i B_i (out may alias x; not B's rows i < len(c))."""
+        self.vectors.lincomb(B, c, a, x, out)
 
 
 class FGMRES(KrylovBasis):

@@ -40,6 +40,7 @@ from swe_sphere.cli import main
 from swe_sphere.config import load_scene
 from swe_sphere.constants import DAY
 from swe_sphere.model import ShallowWater
+from swe_sphere.steppers import StepFailure
 from swe_sphere.steppers.helmholtz import GravityWave, helmholtz_matrix
 
 from numpy_ops import NumpyOps
@@ -184,7 +185,8 @@ def test_schur_solve_inverts_i_minus_a_l(rng):
     r = ops.dss(rng.standard_normal((3, m.N)) * np.array([[10.0], [10.0], [100.0]]))
     z = wp.zeros((3, m.N), dtype=wp.float64, device=DEVICE)
     for a, s in ((1800.0, 1.0), (18000.0, 3.0)):
-        its = gw.solve(wp.array(r, dtype=wp.float64, device=DEVICE), a, z, scale=s)
+        gw.solve(wp.array(r, dtype=wp.float64, device=DEVICE), a, z, scale=s)
+        its = gw.iterations()
         zn = z.numpy()
         resid = rel(zn - a * _numpy_L(ops, zn, m.g, gw.H), s * r)
         mass = (w @ zn[2] - s * (w @ r[2])) / (w @ np.abs(s * r[2]))
@@ -201,7 +203,8 @@ def _pcg_solve(monkeypatch, threads, ne, c, b, tol=1e-11, precision="double"):
     sim = make_sim(scene)
     gw = GravityWave(sim.model, 5000.0, tol, 2000, precision=precision)
     gw.b.assign(b)
-    its = gw._pcg(c)
+    gw._pcg(c)
+    its = gw.iterations()
     return gw.y.numpy().copy(), its, gw
 
 
@@ -246,6 +249,78 @@ def test_pcg_has_the_same_bits_on_one_and_two_threads(rng, monkeypatch, precisio
     assert gw2.model.threads == 2 and hasattr(gw2.cg._update, "parts")  # the launches really split
     assert it1 == it2 > 5
     assert np.array_equal(y1, y2)
+
+
+@pytest.fixture
+def tally(monkeypatch):
+    """``benchmarks/gpu_model.py``'s launch and read-back tally, wrapped around Warp for this test only."""
+    from pathlib import Path
+
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from gpu_model import Tally, instrument
+
+    for owner, names in ((wp.Launch, ["launch"]), (wp, ["launch", "copy"]), (wp.array, ["zero_", "fill_", "assign", "numpy"])):
+        for name in names:  # restored when the test ends
+            monkeypatch.setattr(owner, name, getattr(owner, name))
+    t = Tally()
+    instrument(t)
+    return t
+
+
+@pytest.mark.parametrize("precision, tol", [("double", 1e-10), ("mixed", 1e-10), ("mixed", 1e-2)])
+def test_a_helmholtz_solve_reads_nothing_back(rng, tally, precision, tol):
+    """A Helmholtz solve (ne = 4, one rank) reads nothing back to the host: the CG's
+    recurrences, its convergence test, the refinement's and the area shift run on the
+    device (the CPU's host loop tests the flag in place, without a copy: the reads a CUDA
+    graph would need are the ones counted). ``iterations`` is the one read, and a
+    second call finds the counters zeroed. (Before: b·b, the start's sums, the area
+    shift and one read an iteration.)"""
+    sim, _, ops = _gw(ne=4)
+    m = sim.model
+    gw = GravityWave(m, 0.0, tol, 1000, precision=precision)
+    gw.set_depth(sim.x)
+    r = wp.array(ops.dss(rng.standard_normal((3, m.N)) * np.array([[10.0], [10.0], [100.0]])), dtype=wp.float64, device=DEVICE)
+    z = wp.zeros((3, m.N), dtype=wp.float64, device=DEVICE)
+    gw.solve(r, 1800.0, z)  # records
+    gw.iterations()
+    with tally.counting():
+        gw.solve(r, 3600.0, z)
+        gw.solve(r, 1800.0, z)
+    assert tally.syncs == 0 and tally.total_launches > 50
+    with tally.counting():
+        its = gw.iterations()
+    assert tally.syncs == 1 and its > 4
+    assert gw.iterations() == 0
+
+
+@pytest.mark.parametrize("precision, tol", [("double", 1e-10), ("mixed", 1e-10), ("mixed", 1e-2)])
+def test_an_unconverged_solve_fails_at_the_read(rng, precision, tol):
+    """Past ``maxiter`` a solve (ne = 2) counts a failure on the device; ``iterations``
+    raises ``StepFailure`` naming the iterations and the residual, and the counters start
+    again from zero."""
+    sim, _, ops = _gw()
+    m = sim.model
+    gw = GravityWave(m, 0.0, tol, 2, precision=precision)
+    gw.set_depth(sim.x)
+    r = wp.array(ops.dss(rng.standard_normal((3, m.N)) * np.array([[10.0], [10.0], [100.0]])), dtype=wp.float64, device=DEVICE)
+    gw.solve(r, 18000.0, wp.zeros((3, m.N), dtype=wp.float64, device=DEVICE))
+    with pytest.raises(StepFailure, match=r"^Helmholtz CG did not converge in 2 iterations \(residual [0-9.e+-]+ > "):
+        gw.iterations()
+    assert gw.stats.numpy().tolist() == [0.0, 0.0, 0.0]
+
+
+@pytest.mark.parametrize("stepper", ["semi_implicit", "imex"])
+def test_a_solver_step_reads_the_host_once(tally, stepper):
+    """A semi-implicit and an IMEX ARS(3,4,3) step (TC5, ne = 4, 8x the scene step; one
+    rank) read the device once: the step's Helmholtz iteration count and failure flag
+    (``GravityWave.iterations``); its 1 or 3 solves none. (Before: 3 + 1 a CG iteration
+    a solve, 36 and 57 a step here.)"""
+    scene = load_scene("tc5_mountain", ne=4, np=4, days=1.0, stepper=stepper)
+    sim = make_sim(dataclasses.replace(scene, dt=8 * scene.dt))
+    sim.stepper.step(sim.x)  # records, and fixes the mean depth (a read)
+    with tally.counting():
+        stats = sim.stepper.step(sim.x)
+    assert tally.syncs == 1 and stats.iterations["helmholtz"] > 5
 
 
 # -- bad options ---------------------------------------------------------------------------

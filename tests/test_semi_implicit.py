@@ -28,6 +28,7 @@ Measured on Warp's CPU backend (2 busy cores):
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 
@@ -35,11 +36,12 @@ import numpy as np
 import pytest
 import warp as wp
 
-from conftest import make_sim, run, write_tc2_scene
+from conftest import make_sim, requires_cuda, run, write_tc2_scene
 from swe_sphere.cli import main
 from swe_sphere.config import load_scene
 from swe_sphere.constants import DAY
 from swe_sphere.model import ShallowWater
+from swe_sphere.simulation import Simulation
 from swe_sphere.steppers import StepFailure
 from swe_sphere.steppers.helmholtz import GravityWave, helmholtz_matrix
 
@@ -309,18 +311,54 @@ def test_an_unconverged_solve_fails_at_the_read(rng, precision, tol):
     assert gw.stats.numpy().tolist() == [0.0, 0.0, 0.0]
 
 
-@pytest.mark.parametrize("stepper", ["semi_implicit", "imex"])
-def test_a_solver_step_reads_the_host_once(tally, stepper):
-    """A semi-implicit and an IMEX ARS(3,4,3) step (TC5, ne = 4, 8x the scene step; one
-    rank) read the device once: the step's Helmholtz iteration count and failure flag
-    (``GravityWave.iterations``); its 1 or 3 solves none. (Before: 3 + 1 a CG iteration
-    a solve, 36 and 57 a step here.)"""
+def _steps(monkeypatch, stepper, device="cpu", threads=1, precision="double", tally=None):
+    """Three steps of ``stepper`` (TC5, ne = 4, 8x the scene step, one rank): (final state,
+    Helmholtz iterations a step, host reads in the third step (``tally``), the solves'
+    graphs after the second and the third step)."""
+    monkeypatch.setenv("SWE_SPHERE_THREADS", str(threads))
     scene = load_scene("tc5_mountain", ne=4, np=4, days=1.0, stepper=stepper)
-    sim = make_sim(dataclasses.replace(scene, dt=8 * scene.dt))
-    sim.stepper.step(sim.x)  # records, and fixes the mean depth (a read)
-    with tally.counting():
-        stats = sim.stepper.step(sim.x)
-    assert tally.syncs == 1 and stats.iterations["helmholtz"] > 5
+    scene = dataclasses.replace(scene, dt=8 * scene.dt, stepper_options={"precision": precision})
+    sim = Simulation(scene, device, progress=False)
+    gw = sim.stepper.gw
+    its = [sim.stepper.step(sim.x).iterations["helmholtz"] for _ in range(2)]  # records and captures, fixes H (a read)
+    graphs = len(gw._graphs)
+    with tally.counting() if tally else contextlib.nullcontext():
+        its.append(sim.stepper.step(sim.x).iterations["helmholtz"])
+    return sim.x.numpy(), its, tally.syncs if tally else None, (graphs, len(gw._graphs))
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("stepper", ["semi_implicit", "imex"])
+def test_a_solver_step_reads_the_host_once(monkeypatch, tally, stepper, threads):
+    """A semi-implicit and an IMEX ARS(3,4,3) step on the CPU read the device once: the
+    step's Helmholtz iteration count and failure flag (``GravityWave.iterations``); its 1
+    or 3 solves none, as replayed CPU graphs (one thread) or host loops (two). (Before:
+    3 + 1 a CG iteration a solve, 36 and 57 a step here.)"""
+    _, its, reads, graphs = _steps(monkeypatch, stepper, threads=threads, tally=tally)
+    assert reads == 1 and min(its) > 5
+    assert graphs[0] == graphs[1] == ({"semi_implicit": 2, "imex": 3}[stepper] if threads == 1 else 0)  # leapfrog's start: dt/2
+
+
+@pytest.mark.parametrize("precision", ["double", "mixed"])
+@pytest.mark.parametrize("stepper", ["semi_implicit", "imex"])
+def test_graphed_solves_have_the_bits_of_host_loops(monkeypatch, stepper, precision):
+    """The solves as Warp CPU graphs (one thread: ``wp.capture_while`` loops, nested for
+    the refinement) and as host loops (two threads, the same kernels): the same
+    iterations and the same bits after three steps."""
+    x1, its1, _, graphs1 = _steps(monkeypatch, stepper, threads=1, precision=precision)
+    x2, its2, _, graphs2 = _steps(monkeypatch, stepper, threads=2, precision=precision)
+    assert graphs1[1] > 0 and graphs2[1] == 0
+    assert its1 == its2 and min(its1) > 5
+    assert np.array_equal(x1, x2)
+
+
+@requires_cuda
+@pytest.mark.parametrize("stepper", ["semi_implicit", "imex"])
+def test_a_solver_step_on_cuda_replays_graphs_and_reads_once(monkeypatch, tally, stepper):
+    """On CUDA (one rank) the step's solves are CUDA graphs captured in the first steps
+    (the CG's loop a conditional node) and replayed: the step reads the device once."""
+    _, its, reads, graphs = _steps(monkeypatch, stepper, "cuda", tally=tally)
+    assert reads == 1 and min(its) > 5 and graphs[0] == graphs[1] >= 1
 
 
 # -- bad options ---------------------------------------------------------------------------

@@ -174,8 +174,8 @@ class GravityWave:
 
     ``apply(x, out)``: out = L x (states (3, N), element-local). ``solve(r, a,
     z, scale)``: z = (I − aL)⁻¹ (scale·r), enqueued on the device with nothing read
-    back (on CUDA with one rank one CUDA graph per (r, z, a, scale, H), captured on
-    its first call; inline while a caller captures). ``iterations()``: the CG
+    back (with one rank a graph per (r, z, a, scale, H), captured on its first call:
+    a CUDA graph, or Warp's CPU graph on one CPU thread; inline while a caller captures). ``iterations()``: the CG
     iterations of the solves since its last call — one host read — raising
     ``StepFailure`` when one of them did not reach ``tol`` within ``maxiter`` (the
     steppers call it once a step, JFNK once a GMRES solve). ``ValueError`` for a
@@ -204,9 +204,11 @@ class GravityWave:
             self._check_first, self._check_next = (
                 wp.launch(hk.refine_check, 1, [cg.sums, first, cg.cs, cg.ic, low.cs, low.ic, f64(SINGLE_FLOOR**2), self.stats], device=dev, record_cmd=True)
                 for first in (1, 0))
-        # on CUDA with one rank a solve is one CUDA graph (its loops conditional nodes), per (r, z, a, scale, H)
+        # with one rank a solve is one graph per (r, z, a, scale, H), its loops conditional nodes: a CUDA
+        # graph, or on one CPU thread Warp's CPU graph (the same bits; 13 % off an IMEX step at ne30:
+        # no Python per launch). Not over several CPU threads (``SplitLaunch`` is a Python pool).
         self._graphs: dict[tuple, object] = {}
-        self._graphed = not wp.get_device(dev).is_cpu and not model.topology.distributed
+        self._graphed = not model.topology.distributed and (not wp.get_device(dev).is_cpu or model.threads == 1)
 
     # -- what carries over between solves (for bitwise restarts) ----------------------
     def state(self) -> dict:
@@ -258,9 +260,9 @@ class GravityWave:
         m.pointwise(gk.schur_wind, r, self.Gh, f64(scale), f64(a * m.g), z)
 
     def _run(self, key: tuple, fn, *args) -> None:
-        """fn(*args), on CUDA with one rank as a CUDA graph captured on the first call per
-        ``key`` (the launch parameters it bakes in) and replayed after; run inline while a
-        caller captures, and on the CPU (its loops host loops)."""
+        """fn(*args) as a graph captured on the first call per ``key`` (the launch
+        parameters it bakes in) and replayed after, where ``_graphed``; inline while a
+        caller captures and otherwise (the loops host loops testing the device flag)."""
         dev = wp.get_device(self.model.device)
         if not self._graphed or dev.is_capturing:
             fn(*args)

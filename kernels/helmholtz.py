@@ -22,10 +22,12 @@ partial sums over ``chunk`` unique nodes in index order (a launch argument,
 ``parallel.reduction_chunk``), added on the device in index order
 (``Topology.device_sums``): the bits do not depend on the CPU threads a launch
 is split over. The scalar recurrences and the convergence test are one-thread
-kernels (``cg_begin``, ``cg_coefficients``, and ``refine_check`` for float64
-refinement of a float32 solve) writing the solve's scalars to small device
-arrays that the update reads and ``wp.capture_while`` tests: no host read in a
-solve (one rank).
+kernels (``cg_check`` after an update, ``cg_alpha`` after a product, and
+``refine_check`` for float64 refinement of a float32 solve) writing the solve's
+scalars to small device arrays that the update reads and ``wp.capture_while``
+tests: no host read in a solve (one rank). The test comes between the update
+and the product, so a solve of k iterations costs k products (k + 1 from a warm
+start: its residual).
 
 Every kernel of the solve is made for a float type (the factories' ``dtype``:
 float64, or float32 for the float32 CG that float64 refinement corrects,
@@ -216,10 +218,10 @@ def helmholtz_combine(
 def cg_update(dtype=f64):
     """The kernel of one Chronopoulos–Gear step on unique ``dtype`` vectors: p = u + βp,
     s = w + βs, x += αp, r −= αs, u = minv·r (minv: the Jacobi preconditioner), α and
-    β from the solve's scalars ``cs`` (``cg_coefficients``; float64) or, with ``start``,
-    α = 1 and β = 0 (from u = 0 and w = A x: r = b − Ax, u = M⁻¹r, the start and the
-    refinement's residual); partial[0] and partial[2] per chunk: Σ r·u and Σ r·r,
-    summed in float64. Dim ceil(nunique / chunk)."""
+    β from the solve's scalars ``cs`` (``cg_check``, ``cg_alpha``; float64) or, with
+    ``start``, α = 1 and β = 0 (from r = b, u = 0 and w = A x: r = b − Ax, u = M⁻¹r, the
+    start and the refinement's residual; then also partial[1] = Σ b·b); partial[0] and
+    partial[2] per chunk: Σ r·u and Σ r·r, summed in float64. Dim ceil(nunique / chunk)."""
 
     def cg_update(
         cs: wp.array(dtype=f64), start: int, p: wp.array(dtype=dtype), s: wp.array(dtype=dtype), x: wp.array(dtype=dtype), r: wp.array(dtype=dtype),
@@ -233,20 +235,25 @@ def cg_update(dtype=f64):
             beta = dtype(cs[BETA])
         ru = f64(0.0)
         rr = f64(0.0)
+        bb = f64(0.0)
         for i in range(t * chunk, wp.min(x.shape[0], (t + 1) * chunk)):
             pi = u[i] + beta * p[i]
             si = w[i] + beta * s[i]
             p[i] = pi
             s[i] = si
             x[i] = x[i] + alpha * pi
-            ri = r[i] - alpha * si
+            bi = r[i]
+            ri = bi - alpha * si
             r[i] = ri
             ui = minv[i] * ri
             u[i] = ui
             ru += f64(ri) * f64(ui)
             rr += f64(ri) * f64(ri)
+            bb += f64(bi) * f64(bi)
         partial[0, t] = ru
         partial[2, t] = rr
+        if start != 0:
+            partial[1, t] = bb
 
     return wp.kernel(_name(cg_update, "cg_update", dtype), enable_backward=False, module="unique")
 
@@ -259,18 +266,16 @@ GO, IT, MAXIT = (wp.constant(k) for k in range(3))  # GO first: ``wp.capture_whi
 ITERATIONS, FAILURES, RESIDUAL = (wp.constant(k) for k in range(3))
 
 
-@wp.kernel
-def cg_begin(sums: wp.array(dtype=f64), tol2: f64, maxiter: int, cs: wp.array(dtype=f64), ic: wp.array(dtype=wp.int32)):
-    """A solve's start from sums[0] = b·b: the convergence bound r·r ≤ tol²·b·b and
-    no iterations yet. tol2 (tol²) and maxiter > 0 are stored; ≤ 0: those already in
-    cs[TOL2] and ic[MAXIT] are used (set by ``refine_check`` for a refinement's
-    float32 pass). Dim 1."""
+@wp.func
+def _begin(sums: wp.array(dtype=f64), tol2: f64, maxiter: int, cs: wp.array(dtype=f64), ic: wp.array(dtype=wp.int32)):
+    """A solve's start from sums[1] = b·b (the start's update): the bound r·r ≤ tol²·b·b, no
+    iterations yet; tol2 and maxiter > 0 stored, ≤ 0: those ``refine_check`` left."""
     if tol2 > f64(0.0):
         cs[TOL2] = tol2
     if maxiter > 0:
         ic[MAXIT] = maxiter
-    cs[BB] = sums[0]
-    cs[BOUND] = cs[TOL2] * sums[0]
+    cs[BB] = sums[1]
+    cs[BOUND] = cs[TOL2] * sums[1]
     ic[IT] = 0
 
 
@@ -283,59 +288,66 @@ def _fail(stats: wp.array(dtype=f64), rr: f64, bb: f64):
 
 
 @wp.kernel
-def cg_coefficients(
-    sums: wp.array(dtype=f64), first: int, cs: wp.array(dtype=f64), ic: wp.array(dtype=wp.int32), stats: wp.array(dtype=f64),
+def cg_check(
+    sums: wp.array(dtype=f64), first: int, tol2: f64, maxiter: int, cs: wp.array(dtype=f64), ic: wp.array(dtype=wp.int32),
+    stats: wp.array(dtype=f64),
 ):
-    """The scalar recurrences of Chronopoulos & Gear's CG (1989, J. Comput. Appl. Math.
-    25, 153, Alg. 3) after a product, from sums = (r·u, w·u, r·r) over all ranks:
-    β = γ/γ_old (0 after the start, ``first``), γ = r·u, δ = w·u, and, unless
-    converged (r·r ≤ cs[BOUND]), α = γ/δ (the first iteration) or γ/(δ − βγ/α_old)
-    for the next ``cg_update``. ic[GO] = 1 to iterate again; an iteration counted in
-    ic[IT] and stats[ITERATIONS]; past ic[MAXIT] unconverged: ic[GO] = 0 and
-    stats[FAILURES] += 1 (stats[RESIDUAL] = ‖r‖/‖b‖ of the first failure). Dim 1."""
+    """Chronopoulos & Gear's CG (1989, J. Comput. Appl. Math. 25, 153) after an update, from
+    sums = (r·u, ·, r·r) over all ranks: the convergence test and β. ``first`` (after the
+    start's update r = b − Ay, with sums[1] = b·b): the bound (``_begin``), β = 0;
+    else an iteration counted (ic[IT], stats[ITERATIONS]) and β = γ/γ_old. γ = r·u.
+    ic[GO] = 1 while r·r > cs[BOUND] within ic[MAXIT] iterations; past it a failure
+    (stats[FAILURES]; stats[RESIDUAL] = ‖r‖/‖b‖ of the first). Dim 1."""
     g = sums[0]
-    delta = sums[1]
     rr = sums[2]
-    it = ic[IT]
     beta = f64(0.0)
-    if first == 0:
-        it += 1
-        ic[IT] = it
+    if first != 0:
+        _begin(sums, tol2, maxiter, cs, ic)
+    else:
+        ic[IT] = ic[IT] + 1
         stats[ITERATIONS] = stats[ITERATIONS] + f64(1.0)
         beta = g / cs[GAMMA]
     go = 0
     if rr > cs[BOUND]:
-        if it >= ic[MAXIT]:
+        if ic[IT] >= ic[MAXIT]:
             _fail(stats, rr, cs[BB])
         else:
-            if it == 0:
-                cs[ALPHA] = g / delta
-            else:
-                cs[ALPHA] = g / (delta - beta * g / cs[ALPHA])
             go = 1
     cs[GAMMA] = g
-    cs[DELTA] = delta
     cs[RR] = rr
     cs[BETA] = beta
     ic[GO] = go
 
 
 @wp.kernel
+def cg_alpha(sums: wp.array(dtype=f64), cs: wp.array(dtype=f64), ic: wp.array(dtype=wp.int32)):
+    """α of the next update after the product w = Au, sums[1] = δ = w·u: γ/δ in the first
+    iteration, else γ/(δ − βγ/α_old) (Chronopoulos & Gear's recurrence). Dim 1."""
+    g = cs[GAMMA]
+    delta = sums[1]
+    cs[DELTA] = delta
+    if ic[IT] == 0:
+        cs[ALPHA] = g / delta
+    else:
+        cs[ALPHA] = g / (delta - cs[BETA] * g / cs[ALPHA])
+
+
+@wp.kernel
 def refine_check(
-    sums: wp.array(dtype=f64), first: int, cs: wp.array(dtype=f64), ic: wp.array(dtype=wp.int32), low_cs: wp.array(dtype=f64),
-    low_ic: wp.array(dtype=wp.int32), floor2: f64, stats: wp.array(dtype=f64),
+    sums: wp.array(dtype=f64), first: int, tol2: f64, maxiter: int, cs: wp.array(dtype=f64), ic: wp.array(dtype=wp.int32),
+    low_cs: wp.array(dtype=f64), low_ic: wp.array(dtype=wp.int32), floor2: f64, stats: wp.array(dtype=f64),
 ):
-    """Iterative refinement's test after the float64 residual r = b − Ay (sums[2] =
-    r·r): done when r·r ≤ cs[BOUND]; past ic[MAXIT] float32 iterations (the passes'
-    ic[IT], added after each pass: not ``first``) a failure as ``cg_coefficients``;
-    else ic[GO] = 1 and the next float32 pass's tolerance and budget: relative
-    tol² = max(tol²·b·b / r·r, floor2) to its own right-hand side r, and the
-    iterations left. Dim 1."""
+    """Iterative refinement's test after the float64 residual r = b − Ay (sums[2] = r·r;
+    ``first``: the bound from sums[1] = b·b, ``_begin``; else the last float32 pass's
+    iterations low_ic[IT] added to ic[IT]): done when r·r ≤ cs[BOUND]; past ic[MAXIT] a
+    failure as ``cg_check``; else ic[GO] = 1 and the next float32 pass's relative
+    tol² = max(tol²·b·b / r·r, floor2) to its own right-hand side r, and the iterations left. Dim 1."""
     rr = sums[2]
+    if first != 0:
+        _begin(sums, tol2, maxiter, cs, ic)
+    else:
+        ic[IT] = ic[IT] + low_ic[IT]
     it = ic[IT]
-    if first == 0:
-        it += low_ic[IT]
-        ic[IT] = it
     go = 0
     if rr > cs[BOUND]:
         if it >= ic[MAXIT]:

@@ -202,7 +202,8 @@ class GravityWave:
             self._widen = rec(hk.add_converted, nu, [self.y, self.low.y])
             cg, low = self.cg, self.low
             self._check_first, self._check_next = (
-                wp.launch(hk.refine_check, 1, [cg.sums, first, cg.cs, cg.ic, low.cs, low.ic, f64(SINGLE_FLOOR**2), self.stats], device=dev, record_cmd=True)
+                wp.launch(hk.refine_check, 1, [cg.sums, first, f64(self.tol**2), self.maxiter, cg.cs, cg.ic, low.cs, low.ic, f64(SINGLE_FLOOR**2), self.stats],
+                          device=dev, record_cmd=True)
                 for first in (1, 0))
         # with one rank a solve is one graph per (r, z, a, scale, H), its loops conditional nodes: a CUDA
         # graph, or on one CPU thread Warp's CPU graph (the same bits; 13 % off an IMEX step at ne30:
@@ -315,8 +316,7 @@ class GravityWave:
             y.zero_()
             self._widen.launch()
             return
-        cg.begin(self.tol, self.maxiter)
-        cg.residual(c)  # cg.r = b − Ay
+        cg.residual(c)  # cg.r = b − Ay, and b·b
         self._check_first.launch()
         wp.capture_while(cg.ic, self._refinement, c=c)
 
@@ -349,8 +349,10 @@ class HelmholtzCG:
 
     The whole solve runs on the device: the inner products' partial sums are added
     there (``Topology.device_sums``), the recurrences' scalars α, β, γ, δ, ‖r‖² and
-    the convergence test are computed by one-thread kernels (``cg_begin``,
-    ``cg_coefficients``) into device arrays the vector update reads, and the loop is
+    the convergence test are computed by one-thread kernels (``cg_check`` after an
+    update, ``cg_alpha`` after a product) into device arrays the vector update reads,
+    and the test between the two spares the converged iteration's product (k
+    iterations cost k products, k + 1 from a warm start). The loop is
     ``wp.capture_while`` on a device flag: a host loop on the CPU (it reads the flag
     in place, no copy), a conditional node inside a CUDA graph (``GravityWave``
     captures the solve) — the same kernels, so the same bits on CPU threads and to
@@ -362,7 +364,7 @@ class HelmholtzCG:
     relative residual tol from y (``warm``) or from zero; adds its iterations to
     ``stats`` and, past ``maxiter``, a failure (nothing is read back: the caller reads
     ``stats``, ``GravityWave.iterations``). ``residual(c)``: r = b − Ay and r·r into
-    ``sums[2]`` (refinement's)."""
+    ``sums[2]``, b·b into ``sums[1]`` (refinement's)."""
 
     def __init__(self, model: ShallowWater, dtype=f64, b=None, y=None, stats=None):
         topo, dev, N, nu = model.topology, model.device, model.N, model.topology.nunique
@@ -395,9 +397,9 @@ class HelmholtzCG:
         update = [self.p, self.s, self.y, self.r, self.u, self.w, self.minv, self.partial, chunk]
         self._update = rec(hk.cg_update(dtype), nchunks, [self.cs, 0, *update], nodes_per_index=chunk)
         self._restart = rec(hk.cg_update(dtype), nchunks, [self.cs, 1, *update], nodes_per_index=chunk)
-        self._begin = wp.launch(hk.cg_begin, 1, [self.sums, f64(0.0), 0, self.cs, self.ic], device=dev, record_cmd=True)
-        self._first, self._next = (wp.launch(hk.cg_coefficients, 1, [self.sums, first, self.cs, self.ic, self.stats], device=dev, record_cmd=True)
-                                   for first in (1, 0))
+        self._first, self._check = (wp.launch(hk.cg_check, 1, [self.sums, first, f64(0.0), 0, self.cs, self.ic, self.stats], device=dev, record_cmd=True)
+                                    for first in (1, 0))
+        self._alpha = wp.launch(hk.cg_alpha, 1, [self.sums, self.cs, self.ic], device=dev, record_cmd=True)
 
     def _rec(self, kernel, dim, inputs, **kw):
         return record(kernel, dim, inputs, device=self.model.device, threads=self.model.threads, **kw)
@@ -478,44 +480,38 @@ class HelmholtzCG:
         self.model.topology.allreduce(self.sums)
 
     def residual(self, c: float) -> None:
-        """r = b − Ay, u = M⁻¹r; sums[2] = r·r over all ranks: one product (refinement's)."""
+        """r = b − Ay, u = M⁻¹r; sums = (r·u, b·b, r·r) over all ranks: one product (refinement's)."""
         self.apply(self.y, self.w, c)
         self._residual_update()
         self.totals()
 
     def _residual_update(self) -> None:
-        """From w = Ay: r = b − w, u = M⁻¹ r, partial sums r·u and r·r (an update from u = 0)."""
+        """From w = Ay: r = b − w, u = M⁻¹ r, partial sums r·u, b·b and r·r (an update from r = b, u = 0)."""
         wp.copy(self.r, self.b)
         self.u.zero_()
         self._restart.launch()
 
-    def begin(self, tol: float, maxiter: int) -> None:
-        """The bound tol²·b·b and no iterations yet, on the device (tol ≤ 0, maxiter ≤ 0:
-        those ``refine_check`` set)."""
-        b = self.b
-        self.dots(b, b, b, b, b, b)
-        self._begin.set_param_by_name("tol2", f64(tol * tol if tol > 0 else 0.0))
-        self._begin.set_param_by_name("maxiter", int(maxiter))
-        self._begin.launch()
-
     def solve(self, c: float, tol: float, maxiter: int, warm: bool) -> None:
-        """y = (M + cK)⁻¹ b to the relative residual ``tol``, from y (``warm``) or from zero;
-        tol ≤ 0 and maxiter ≤ 0: those ``refine_check`` left on the device."""
+        """y = (M + cK)⁻¹ b to the relative residual ``tol``, from y (``warm``: one product
+        more) or from zero; tol ≤ 0 and maxiter ≤ 0: those ``refine_check`` left on the device.
+        k iterations cost k products: the test comes between an update and the next product."""
         if warm:
             self.apply(self.y, self.w, c)
         else:
             self.y.zero_()
             self.w.zero_()
-        self.begin(tol, maxiter)
-        self._residual_update()  # r = b − Ay, u = M⁻¹r; r·u, r·r
-        self.apply(self.u, self.w, c)  # w = Au, and w·u
+        self._residual_update()  # r = b − Ay, u = M⁻¹r; r·u, b·b, r·r
         self.totals()
-        self._first.launch()  # γ, δ, ‖r‖², α; go?
+        self._first.set_param_by_name("tol2", f64(tol * tol if tol > 0 else 0.0))
+        self._first.set_param_by_name("maxiter", int(maxiter))
+        self._first.launch()  # the bound; go?
         wp.capture_while(self.ic, self._iteration, c=c)
 
     def _iteration(self, c: float) -> None:
-        """One CG iteration: the update with the device's α, β; the product; the recurrences."""
-        self._update.launch()  # p, s, y, r, u; r·u, r·r
-        self.apply(self.u, self.w, c)  # and w·u
+        """One CG iteration: the product, α, the update with the device's α and β, the test."""
+        self.apply(self.u, self.w, c)  # w = Au, and w·u
         self.totals()
-        self._next.launch()
+        self._alpha.launch()
+        self._update.launch()  # p, s, y, r, u; r·u, r·r
+        self.totals()
+        self._check.launch()  # β; go?

@@ -351,8 +351,9 @@ class HelmholtzCG:
     there (``Topology.device_sums``), the recurrences' scalars α, β, γ, δ, ‖r‖² and
     the convergence test are computed by one-thread kernels (``cg_check`` after an
     update, ``cg_alpha`` after a product) into device arrays the vector update reads,
-    and the test between the two spares the converged iteration's product (k
-    iterations cost k products, k + 1 from a warm start). The loop is
+    and on one rank the test between the two spares the converged iteration's product
+    (k iterations cost k products, k + 1 from a warm start; over ranks k + 1 and one
+    reduction an iteration, as Chronopoulos–Gear's order). The loop is
     ``wp.capture_while`` on a device flag: a host loop on the CPU (it reads the flag
     in place, no copy), a conditional node inside a CUDA graph (``GravityWave``
     captures the solve) — the same kernels, so the same bits on CPU threads and to
@@ -400,6 +401,9 @@ class HelmholtzCG:
         self._first, self._check = (wp.launch(hk.cg_check, 1, [self.sums, first, f64(0.0), 0, self.cs, self.ic, self.stats], device=dev, record_cmd=True)
                                     for first in (1, 0))
         self._alpha = wp.launch(hk.cg_alpha, 1, [self.sums, self.cs, self.ic], device=dev, record_cmd=True)
+        # over ranks an iteration keeps Chronopoulos–Gear's one reduction (an allreduce costs more there
+        # than the converged iteration's product, a 1/P share); on one rank the sums stay on the device
+        self._one_reduction = topo.distributed
 
     def _rec(self, kernel, dim, inputs, **kw):
         return record(kernel, dim, inputs, device=self.model.device, threads=self.model.threads, **kw)
@@ -494,7 +498,8 @@ class HelmholtzCG:
     def solve(self, c: float, tol: float, maxiter: int, warm: bool) -> None:
         """y = (M + cK)⁻¹ b to the relative residual ``tol``, from y (``warm``: one product
         more) or from zero; tol ≤ 0 and maxiter ≤ 0: those ``refine_check`` left on the device.
-        k iterations cost k products: the test comes between an update and the next product."""
+        k iterations cost k products on one rank (the test between an update and the next
+        product), k + 1 over ranks (one reduction an iteration)."""
         if warm:
             self.apply(self.y, self.w, c)
         else:
@@ -505,13 +510,25 @@ class HelmholtzCG:
         self._first.set_param_by_name("tol2", f64(tol * tol if tol > 0 else 0.0))
         self._first.set_param_by_name("maxiter", int(maxiter))
         self._first.launch()  # the bound; go?
+        if self._one_reduction:  # the first product and α ahead of the loop
+            self._product(c)
         wp.capture_while(self.ic, self._iteration, c=c)
 
-    def _iteration(self, c: float) -> None:
-        """One CG iteration: the product, α, the update with the device's α and β, the test."""
-        self.apply(self.u, self.w, c)  # w = Au, and w·u
+    def _product(self, c: float) -> None:
+        """w = Au, δ = w·u over all ranks, α."""
+        self.apply(self.u, self.w, c)
         self.totals()
         self._alpha.launch()
+
+    def _iteration(self, c: float) -> None:
+        """One CG iteration: the product, α, the update with the device's α and β, the test
+        (over ranks: the update, the product, then the test and α on one reduction)."""
+        if not self._one_reduction:
+            self._product(c)
         self._update.launch()  # p, s, y, r, u; r·u, r·r
+        if self._one_reduction:
+            self.apply(self.u, self.w, c)  # and w·u, summed with them
         self.totals()
         self._check.launch()  # β; go?
+        if self._one_reduction:
+            self._alpha.launch()

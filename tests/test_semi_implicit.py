@@ -269,14 +269,15 @@ def tally(monkeypatch):
     return t
 
 
+@pytest.mark.parametrize("threads", [1, 2])
 @pytest.mark.parametrize("precision, tol", [("double", 1e-10), ("mixed", 1e-10), ("mixed", 1e-2)])
-def test_a_helmholtz_solve_reads_nothing_back(rng, tally, precision, tol):
+def test_a_helmholtz_solve_reads_nothing_back(rng, monkeypatch, tally, precision, tol, threads):
     """A Helmholtz solve (ne = 4, one rank) reads nothing back to the host: the CG's
     recurrences, its convergence test, the refinement's and the area shift run on the
-    device (the CPU's host loop tests the flag in place, without a copy: the reads a CUDA
-    graph would need are the ones counted). ``iterations`` is the one read, and a
-    second call finds the counters zeroed. (Before: b·b, the start's sums, the area
-    shift and one read an iteration.)"""
+    device, in a CPU graph (one thread) or host loops that test the flag in place without
+    a copy (two). ``iterations`` is the one read, and a second call finds the counters
+    zeroed. (Before: b·b, the start's sums, the area shift and one read an iteration.)"""
+    monkeypatch.setenv("SWE_SPHERE_THREADS", str(threads))
     sim, _, ops = _gw(ne=4)
     m = sim.model
     gw = GravityWave(m, 0.0, tol, 1000, precision=precision)
@@ -288,10 +289,10 @@ def test_a_helmholtz_solve_reads_nothing_back(rng, tally, precision, tol):
     with tally.counting():
         gw.solve(r, 3600.0, z)
         gw.solve(r, 1800.0, z)
-    assert tally.syncs == 0 and tally.total_launches > 50
+    assert tally.syncs == 0
     with tally.counting():
         its = gw.iterations()
-    assert tally.syncs == 1 and its > 4
+    assert tally.syncs == 1 and its > 8  # both solves ran
     assert gw.iterations() == 0
 
 

@@ -26,13 +26,13 @@ operator in three element launches split over the CPU threads (per node on
 CUDA); the same code on CPU, CUDA and any number of MPI ranks. The solve runs
 on the device with no host read: its scalar recurrences, convergence test and
 loop (``wp.capture_while``), the refinement of "mixed" precision and the area
-shift; on CUDA with one rank a solve is one CUDA graph. Its iterations and a
-failure are counted on the device and read once, by ``GravityWave.iterations``
-(a step's one host read); over several ranks each inner product's per-rank sums
-are added on the host (``Topology.allreduce``). The operator's bits depend on
-neither threads nor ranks (its DSS is a gather in the global order), so a run
-on N ranks differs from one on one rank only by the order of the inner
-products' sums.
+shift; with one rank a solve is one graph (a CUDA graph; Warp's CPU graph on one
+CPU thread). Its iterations and a failure are counted on the device and read
+once, by ``GravityWave.iterations`` (a step's one host read); over several ranks
+each inner product's per-rank sums are added on the host (``Topology.allreduce``).
+The operator's bits depend on neither threads nor ranks (its DSS is a gather in
+the global order), so a run on N ranks differs from one on one rank only by the
+order of the inner products' sums.
 
 Why no other solver (ISSUE 21, TC5 ne30, IMEX at 8 / CN at 4 / 10 / semi-implicit
 at 2 Δt_g, ms a step, ``benchmarks/implicit_cost.py``): scipy's CG on the
@@ -175,8 +175,9 @@ class GravityWave:
     ``apply(x, out)``: out = L x (states (3, N), element-local). ``solve(r, a,
     z, scale)``: z = (I − aL)⁻¹ (scale·r), enqueued on the device with nothing read
     back (with one rank a graph per (r, z, a, scale, H), captured on its first call:
-    a CUDA graph, or Warp's CPU graph on one CPU thread; inline while a caller captures). ``iterations()``: the CG
-    iterations of the solves since its last call — one host read — raising
+    a CUDA graph, or Warp's CPU graph on one CPU thread; inline while a caller
+    captures). ``iterations()``: the CG iterations of the solves since its last call
+    — one host read — raising
     ``StepFailure`` when one of them did not reach ``tol`` within ``maxiter`` (the
     steppers call it once a step, JFNK once a GMRES solve). ``ValueError`` for a
     model without continuity and pressure gradient.

@@ -208,9 +208,11 @@ class GravityWave:
                 for first in (1, 0))
         # with one rank a solve is one graph per (r, z, a, scale, H), its loops conditional nodes: a CUDA
         # graph, or on one CPU thread Warp's CPU graph (the same bits; 13 % off an IMEX step at ne30:
-        # no Python per launch). Not over several CPU threads (``SplitLaunch`` is a Python pool).
+        # no Python per launch). Not over several CPU threads (``SplitLaunch`` is a Python pool), nor
+        # with a CUDA driver below 12.4 (no conditional nodes: host loops, a read an iteration).
         self._graphs: dict[tuple, object] = {}
-        self._graphed = not model.topology.distributed and (not wp.get_device(dev).is_cpu or model.threads == 1)
+        cpu = wp.get_device(dev).is_cpu
+        self._graphed = not model.topology.distributed and (model.threads == 1 if cpu else wp.is_conditional_graph_supported())
 
     # -- what carries over between solves (for bitwise restarts) ----------------------
     def state(self) -> dict:

@@ -217,7 +217,8 @@ def main():
     for f in args.factors:
         c = (f * dt_g) ** 2 * model.g * H
         A = (sp.diags(area) + c * K).tocsr()
-        its_pcg = gw._pcg(c)
+        gw._pcg(c)
+        its_pcg = gw.iterations()
         t_it = cpu_seconds(lambda: gw._pcg(c), 2) / its_pcg
         t_op = cpu_seconds(lambda: gw._apply(gw.cg.u, gw.cg.w, c), 20)
         hi = 1.05 * (1 + c * mu)

@@ -15,6 +15,8 @@ subtracted):
   precisions);
 * Helmholtz rest: the rest of ``GravityWave.solve`` (the CG's vector updates
   and inner products, the preconditioner fused into them, the Schur pieces);
+  where a solve is a replayed graph (one CPU thread, CUDA; ``GravityWave``) the
+  whole solve, its operator included (Helmholtz op then 0);
 * Krylov vectors: the Krylov basis's Gram–Schmidt and combinations
   (``KrylovBasis.project_dots``/``lincomb``: FGMRES's, KIOPS's);
 * J·v passes: the finite-difference J·v's pointwise passes around its RHS
@@ -144,7 +146,7 @@ def build(case, ne, stepper, dt, options, clock, device, backend=None):
     gw = getattr(sim.stepper, "gw", None)
     if gw is not None:
         timers.wrap(gw, "solve", "Helmholtz rest")
-        for cg in (gw.cg, gw.low):  # the float64 CG's operator, and the float32 one's ("mixed")
+        for cg in (gw.cg, gw.low) if not gw._graphed else ():  # the float64 CG's operator, and the float32 one's ("mixed")
             if cg is not None:
                 timers.wrap(cg, "apply", "Helmholtz op")
     return sim, timers

@@ -19,8 +19,15 @@ one-reduction form: one fused vector update (``cg_update``) and one operator
 product an iteration, the three inner products it needs computed by the update
 (r·u, r·r) and the assembly (w·u) as they write. Inner products are per-chunk
 partial sums over ``chunk`` unique nodes in index order (a launch argument,
-``parallel.reduction_chunk``), summed on the host in a fixed order: the bits do
-not depend on the CPU threads a launch is split over.
+``parallel.reduction_chunk``), added on the device in index order
+(``Topology.device_sums``): the bits do not depend on the CPU threads a launch
+is split over. The scalar recurrences and the convergence test are one-thread
+kernels (``cg_check`` after an update, ``cg_alpha`` after a product, and
+``refine_check`` for float64 refinement of a float32 solve) writing the solve's
+scalars to small device arrays that the update reads and ``wp.capture_while``
+tests: no host read in a solve (one rank). The test comes between the update
+and the product, so a solve of k iterations costs k products (k + 1 from a warm
+start: its residual).
 
 Every kernel of the solve is made for a float type (the factories' ``dtype``:
 float64, or float32 for the float32 CG that float64 refinement corrects,
@@ -210,33 +217,147 @@ def helmholtz_combine(
 @functools.cache
 def cg_update(dtype=f64):
     """The kernel of one Chronopoulos–Gear step on unique ``dtype`` vectors: p = u + βp,
-    s = w + βs, x += αp, r −= αs, u = minv·r (minv: the Jacobi preconditioner);
-    partial[0] and partial[2] per chunk: Σ r·u and Σ r·r, summed in float64.
-    Dim ceil(nunique / chunk)."""
+    s = w + βs, x += αp, r −= αs, u = minv·r (minv: the Jacobi preconditioner), α and
+    β from the solve's scalars ``cs`` (``cg_check``, ``cg_alpha``; float64) or, with
+    ``start``, α = 1 and β = 0 (from r = b, u = 0 and w = A x: r = b − Ax, u = M⁻¹r, the
+    start and the refinement's residual; then also partial[1] = Σ b·b); partial[0] and
+    partial[2] per chunk: Σ r·u and Σ r·r, summed in float64. Dim ceil(nunique / chunk)."""
 
     def cg_update(
-        alpha: dtype, beta: dtype, p: wp.array(dtype=dtype), s: wp.array(dtype=dtype), x: wp.array(dtype=dtype), r: wp.array(dtype=dtype),
+        cs: wp.array(dtype=f64), start: int, p: wp.array(dtype=dtype), s: wp.array(dtype=dtype), x: wp.array(dtype=dtype), r: wp.array(dtype=dtype),
         u: wp.array(dtype=dtype), w: wp.array(dtype=dtype), minv: wp.array(dtype=dtype), partial: wp.array2d(dtype=f64), chunk: int, offset: int,
     ):
         t = wp.tid() + offset
+        alpha = dtype(1.0)
+        beta = dtype(0.0)
+        if start == 0:
+            alpha = dtype(cs[ALPHA])
+            beta = dtype(cs[BETA])
         ru = f64(0.0)
         rr = f64(0.0)
+        bb = f64(0.0)
         for i in range(t * chunk, wp.min(x.shape[0], (t + 1) * chunk)):
             pi = u[i] + beta * p[i]
             si = w[i] + beta * s[i]
             p[i] = pi
             s[i] = si
             x[i] = x[i] + alpha * pi
-            ri = r[i] - alpha * si
+            bi = r[i]
+            ri = bi - alpha * si
             r[i] = ri
             ui = minv[i] * ri
             u[i] = ui
             ru += f64(ri) * f64(ui)
             rr += f64(ri) * f64(ri)
+            bb += f64(bi) * f64(bi)
         partial[0, t] = ru
         partial[2, t] = rr
+        if start != 0:
+            partial[1, t] = bb
 
     return wp.kernel(_name(cg_update, "cg_update", dtype), enable_backward=False, module="unique")
+
+
+# The scalars of a solve on the device (``cs``, float64; ``ic``, int32) and the
+# counters it shares with the solves of one GravityWave until the host reads
+# them (``stats``, float64): indices.
+GAMMA, DELTA, RR, ALPHA, BETA, BB, BOUND, TOL2 = (wp.constant(k) for k in range(8))
+GO, IT, MAXIT = (wp.constant(k) for k in range(3))  # GO first: ``wp.capture_while`` tests ic[0]
+ITERATIONS, FAILURES, RESIDUAL = (wp.constant(k) for k in range(3))
+
+
+@wp.func
+def _begin(sums: wp.array(dtype=f64), tol2: f64, maxiter: int, cs: wp.array(dtype=f64), ic: wp.array(dtype=wp.int32)):
+    """A solve's start from sums[1] = b·b (the start's update): the bound r·r ≤ tol²·b·b, no
+    iterations yet; tol2 and maxiter > 0 stored, ≤ 0: those ``refine_check`` left."""
+    if tol2 > f64(0.0):
+        cs[TOL2] = tol2
+    if maxiter > 0:
+        ic[MAXIT] = maxiter
+    cs[BB] = sums[1]
+    cs[BOUND] = cs[TOL2] * sums[1]
+    ic[IT] = 0
+
+
+@wp.func
+def _fail(stats: wp.array(dtype=f64), rr: f64, bb: f64):
+    """Count a failed solve; the first one's relative residual ‖r‖/‖b‖ kept for the message."""
+    if stats[FAILURES] == f64(0.0):
+        stats[RESIDUAL] = wp.sqrt(rr / bb)
+    stats[FAILURES] = stats[FAILURES] + f64(1.0)
+
+
+@wp.kernel
+def cg_check(
+    sums: wp.array(dtype=f64), first: int, tol2: f64, maxiter: int, cs: wp.array(dtype=f64), ic: wp.array(dtype=wp.int32),
+    stats: wp.array(dtype=f64),
+):
+    """Chronopoulos & Gear's CG (1989, J. Comput. Appl. Math. 25, 153) after an update, from
+    sums = (r·u, ·, r·r) over all ranks: the convergence test and β. ``first`` (after the
+    start's update r = b − Ay, with sums[1] = b·b): the bound (``_begin``), β = 0;
+    else an iteration counted (ic[IT], stats[ITERATIONS]) and β = γ/γ_old. γ = r·u.
+    ic[GO] = 1 while r·r > cs[BOUND] within ic[MAXIT] iterations; past it a failure
+    (stats[FAILURES]; stats[RESIDUAL] = ‖r‖/‖b‖ of the first). Dim 1."""
+    g = sums[0]
+    rr = sums[2]
+    beta = f64(0.0)
+    if first != 0:
+        _begin(sums, tol2, maxiter, cs, ic)
+    else:
+        ic[IT] = ic[IT] + 1
+        stats[ITERATIONS] = stats[ITERATIONS] + f64(1.0)
+        beta = g / cs[GAMMA]
+    go = 0
+    if rr > cs[BOUND]:
+        if ic[IT] >= ic[MAXIT]:
+            _fail(stats, rr, cs[BB])
+        else:
+            go = 1
+    cs[GAMMA] = g
+    cs[RR] = rr
+    cs[BETA] = beta
+    ic[GO] = go
+
+
+@wp.kernel
+def cg_alpha(sums: wp.array(dtype=f64), cs: wp.array(dtype=f64), ic: wp.array(dtype=wp.int32)):
+    """α of the next update after the product w = Au, sums[1] = δ = w·u: γ/δ in the first
+    iteration, else γ/(δ − βγ/α_old) (Chronopoulos & Gear's recurrence). Dim 1."""
+    g = cs[GAMMA]
+    delta = sums[1]
+    cs[DELTA] = delta
+    if ic[IT] == 0:
+        cs[ALPHA] = g / delta
+    else:
+        cs[ALPHA] = g / (delta - cs[BETA] * g / cs[ALPHA])
+
+
+@wp.kernel
+def refine_check(
+    sums: wp.array(dtype=f64), first: int, tol2: f64, maxiter: int, cs: wp.array(dtype=f64), ic: wp.array(dtype=wp.int32),
+    low_cs: wp.array(dtype=f64), low_ic: wp.array(dtype=wp.int32), floor2: f64, stats: wp.array(dtype=f64),
+):
+    """Iterative refinement's test after the float64 residual r = b − Ay (sums[2] = r·r;
+    ``first``: the bound from sums[1] = b·b, ``_begin``; else the last float32 pass's
+    iterations low_ic[IT] added to ic[IT]): done when r·r ≤ cs[BOUND]; past ic[MAXIT] a
+    failure as ``cg_check``; else ic[GO] = 1 and the next float32 pass's relative
+    tol² = max(tol²·b·b / r·r, floor2) to its own right-hand side r, and the iterations left. Dim 1."""
+    rr = sums[2]
+    if first != 0:
+        _begin(sums, tol2, maxiter, cs, ic)
+    else:
+        ic[IT] = ic[IT] + low_ic[IT]
+    it = ic[IT]
+    go = 0
+    if rr > cs[BOUND]:
+        if it >= ic[MAXIT]:
+            _fail(stats, rr, cs[BB])
+        else:
+            low_cs[TOL2] = wp.max(cs[TOL2] * cs[BB] / rr, floor2)
+            low_ic[MAXIT] = ic[MAXIT] - it
+            go = 1
+    cs[RR] = rr
+    ic[GO] = go
 
 
 @functools.cache
@@ -266,10 +387,12 @@ def inner3(dtype=f64):
 
 
 @wp.kernel
-def add_constant(x: wp.array(dtype=f64), shift: f64, offset: int):
-    """x += shift. Dim nunique."""
+def add_mean_difference(x: wp.array(dtype=f64), sums: wp.array(dtype=f64), total_area: f64, offset: int):
+    """x += (sums[0] − sums[1]) / total_area: the area integral of x (sums[1], m² × units of
+    x) set to sums[0] (the right-hand side's: Σ b over unique nodes, b mass-weighted).
+    Dim nunique."""
     i = wp.tid() + offset
-    x[i] = x[i] + shift
+    x[i] = x[i] + (sums[0] - sums[1]) / total_area
 
 
 @wp.kernel

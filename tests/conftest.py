@@ -254,3 +254,13 @@ def write_tc2_scene(path, *, stepper="ssprk3", ne=2, dt=3600.0, days=1.0, tables
     """Write a TC2 scene file (``tables``: extra TOML, e.g. a stepper's options); returns its path."""
     path.write_text(TC2_SCENE.format(ne=ne, stepper=stepper, dt=dt, days=days, tables=tables))
     return path
+
+
+@pytest.fixture
+def tally():
+    """``swe_sphere.tally``'s count of launches and host reads, wrapped around Warp for this test only."""
+    from swe_sphere.tally import Tally, instrumented
+
+    t = Tally()
+    with instrumented(t):
+        yield t

@@ -151,7 +151,8 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
                 "laplacian_element__first__divergent", "laplacian_node__first__divergent",
                 "helmholtz_gradient", "helmholtz_divergence", "helmholtz_assemble", "cg_update", "inner3", "schur_height",
                 "helmholtz_gradient_float32", "helmholtz_divergence_float32", "helmholtz_assemble_float32", "cg_update_float32",
-                "inner3_float32", "converted_float32", "add_converted", "jacobian_vector", "residual", "translating_low", "axpbypcz", "dss"):
+                "converted_float32", "add_converted", "cg_check", "cg_alpha", "refine_check", "add_mean_difference",
+                "row_totals", "jacobian_vector", "residual", "translating_low", "axpbypcz", "dss"):
         assert key in keys, key
     plain_dss = {k.module.name for k in launched if k.key in ("dss", "dss_apply") or k.key.startswith("dss_update__")}
     assert any(k.key.startswith("dss_update__") for k in launched)  # the explicit stages' combinations

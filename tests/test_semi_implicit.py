@@ -28,6 +28,7 @@ Measured on Warp's CPU backend (2 busy cores):
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 
@@ -35,11 +36,13 @@ import numpy as np
 import pytest
 import warp as wp
 
-from conftest import make_sim, run, write_tc2_scene
+from conftest import make_sim, requires_cuda, run, write_tc2_scene
 from swe_sphere.cli import main
 from swe_sphere.config import load_scene
 from swe_sphere.constants import DAY
 from swe_sphere.model import ShallowWater
+from swe_sphere.simulation import Simulation
+from swe_sphere.steppers import StepFailure
 from swe_sphere.steppers.helmholtz import GravityWave, helmholtz_matrix
 
 from numpy_ops import NumpyOps
@@ -184,7 +187,8 @@ def test_schur_solve_inverts_i_minus_a_l(rng):
     r = ops.dss(rng.standard_normal((3, m.N)) * np.array([[10.0], [10.0], [100.0]]))
     z = wp.zeros((3, m.N), dtype=wp.float64, device=DEVICE)
     for a, s in ((1800.0, 1.0), (18000.0, 3.0)):
-        its = gw.solve(wp.array(r, dtype=wp.float64, device=DEVICE), a, z, scale=s)
+        gw.solve(wp.array(r, dtype=wp.float64, device=DEVICE), a, z, scale=s)
+        its = gw.iterations()
         zn = z.numpy()
         resid = rel(zn - a * _numpy_L(ops, zn, m.g, gw.H), s * r)
         mass = (w @ zn[2] - s * (w @ r[2])) / (w @ np.abs(s * r[2]))
@@ -201,7 +205,8 @@ def _pcg_solve(monkeypatch, threads, ne, c, b, tol=1e-11, precision="double"):
     sim = make_sim(scene)
     gw = GravityWave(sim.model, 5000.0, tol, 2000, precision=precision)
     gw.b.assign(b)
-    its = gw._pcg(c)
+    gw._pcg(c)
+    its = gw.iterations()
     return gw.y.numpy().copy(), its, gw
 
 
@@ -246,6 +251,123 @@ def test_pcg_has_the_same_bits_on_one_and_two_threads(rng, monkeypatch, precisio
     assert gw2.model.threads == 2 and hasattr(gw2.cg._update, "parts")  # the launches really split
     assert it1 == it2 > 5
     assert np.array_equal(y1, y2)
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("precision, tol", [("double", 1e-10), ("mixed", 1e-10), ("mixed", 1e-2)])
+def test_a_helmholtz_solve_reads_nothing_back(rng, monkeypatch, tally, precision, tol, threads):
+    """A Helmholtz solve (ne = 4, one rank) reads nothing back to the host: the CG's
+    recurrences, its convergence test, the refinement's and the area shift run on the
+    device, in a CPU graph (one thread) or host loops that test the flag in place without
+    a copy (two). ``iterations`` is the one read, and a second call finds the counters
+    zeroed. (Before: b·b, the start's sums, the area shift and one read an iteration.)"""
+    monkeypatch.setenv("SWE_SPHERE_THREADS", str(threads))
+    sim, _, ops = _gw(ne=4)
+    m = sim.model
+    gw = GravityWave(m, 0.0, tol, 1000, precision=precision)
+    gw.set_depth(sim.x)
+    r = wp.array(ops.dss(rng.standard_normal((3, m.N)) * np.array([[10.0], [10.0], [100.0]])), dtype=wp.float64, device=DEVICE)
+    z = wp.zeros((3, m.N), dtype=wp.float64, device=DEVICE)
+    gw.solve(r, 1800.0, z)  # records
+    gw.iterations()
+    with tally.counting():
+        gw.solve(r, 3600.0, z)
+        gw.solve(r, 1800.0, z)
+    assert tally.syncs == 0
+    with tally.counting():
+        its = gw.iterations()
+    assert tally.syncs == 1 and its > 8  # both solves ran
+    assert gw.iterations() == 0
+
+
+@pytest.mark.parametrize("precision, tol", [("double", 1e-10), ("mixed", 1e-10), ("mixed", 1e-2)])
+def test_an_unconverged_solve_fails_at_the_read(rng, precision, tol):
+    """Past ``maxiter`` a solve (ne = 2) counts a failure on the device; ``iterations``
+    raises ``StepFailure`` naming the iterations and the residual, and the counters start
+    again from zero."""
+    sim, _, ops = _gw()
+    m = sim.model
+    gw = GravityWave(m, 0.0, tol, 2, precision=precision)
+    gw.set_depth(sim.x)
+    r = wp.array(ops.dss(rng.standard_normal((3, m.N)) * np.array([[10.0], [10.0], [100.0]])), dtype=wp.float64, device=DEVICE)
+    gw.solve(r, 18000.0, wp.zeros((3, m.N), dtype=wp.float64, device=DEVICE))
+    with pytest.raises(StepFailure, match=r"^Helmholtz CG did not converge in 2 iterations \(residual [0-9.e+-]+ > "):
+        gw.iterations()
+    assert gw.stats.numpy().tolist() == [0.0, 0.0, 0.0]
+
+
+def _steps(monkeypatch, stepper, device="cpu", threads=1, precision="double", tally=None):
+    """Three steps of ``stepper`` (TC5, ne = 4, 8x the scene step, one rank): (final state,
+    Helmholtz iterations a step, host reads in the third step (``tally``), the solves'
+    graphs after the second and the third step)."""
+    monkeypatch.setenv("SWE_SPHERE_THREADS", str(threads))
+    scene = load_scene("tc5_mountain", ne=4, np=4, days=1.0, stepper=stepper)
+    scene = dataclasses.replace(scene, dt=8 * scene.dt, stepper_options={"precision": precision})
+    sim = Simulation(scene, device, progress=False)
+    gw = sim.stepper.gw
+    its = [sim.stepper.step(sim.x).iterations["helmholtz"] for _ in range(2)]  # records and captures, fixes H (a read)
+    graphs = len(gw._graphs)
+    with tally.counting() if tally else contextlib.nullcontext():
+        its.append(sim.stepper.step(sim.x).iterations["helmholtz"])
+    return sim.x.numpy(), its, tally.syncs if tally else None, (graphs, len(gw._graphs))
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("stepper", ["semi_implicit", "imex"])
+def test_a_solver_step_reads_the_host_once(monkeypatch, tally, stepper, threads):
+    """A semi-implicit and an IMEX ARS(3,4,3) step on the CPU read the device once: the
+    step's Helmholtz iteration count and failure flag (``GravityWave.iterations``); its 1
+    or 3 solves none, as replayed CPU graphs (one thread) or host loops (two). (Before:
+    3 + 1 a CG iteration a solve, 36 and 57 a step here.)"""
+    _, its, reads, graphs = _steps(monkeypatch, stepper, threads=threads, tally=tally)
+    assert reads == 1 and min(its) > 5
+    assert graphs[0] == graphs[1] == ({"semi_implicit": 2, "imex": 3}[stepper] if threads == 1 else 0)  # leapfrog's start: dt/2
+
+
+@pytest.mark.parametrize("precision", ["double", "mixed"])
+@pytest.mark.parametrize("stepper", ["semi_implicit", "imex", "implicit"])
+def test_graphed_solves_have_the_bits_of_host_loops(monkeypatch, stepper, precision):
+    """The solves as Warp CPU graphs (one thread: ``wp.capture_while`` loops, nested for
+    the refinement) and as host loops (two threads, the same kernels): the same
+    iterations and the same bits after three steps (JFNK: its preconditioner's solves)."""
+    x1, its1, _, graphs1 = _steps(monkeypatch, stepper, threads=1, precision=precision)
+    x2, its2, _, graphs2 = _steps(monkeypatch, stepper, threads=2, precision=precision)
+    assert graphs1[1] > 0 and graphs2[1] == 0
+    assert its1 == its2 and min(its1) > 5
+    assert np.array_equal(x1, x2)
+
+
+@pytest.mark.parametrize("warm", [False, True])
+def test_pcg_products_and_the_ranks_order(rng, tally, warm):
+    """A solve of k iterations (ne = 4, from zero or warm) costs k products (k + 1 warm) with
+    the test between the update and the product (one rank), and one more in Chronopoulos–
+    Gear's order (update, product, one reduction: how it runs over ranks), with the same
+    iterations and bits. (Before: k + 1 and k + 2.)"""
+    scene = load_scene("tc5_mountain", ne=4, np=4, days=1.0, stepper="semi_implicit", dt=1800.0)
+    sim = make_sim(scene)
+    b = rng.standard_normal(sim.grid.nunique) * sim.grid.area
+    out = {}
+    for ranks_order in (False, True):
+        gw = GravityWave(sim.model, 5000.0, 1e-10, 1000, warm=warm)
+        gw.cg._one_reduction = ranks_order
+        gw.b.assign(b)
+        gw.y.assign(0.5 * b / sim.grid.area)  # a warm start's guess (ignored from zero)
+        with tally.counting():
+            gw._pcg(4e10)
+        products = tally.launches["helmholtz_assemble"]
+        out[ranks_order] = (gw.y.numpy(), gw.iterations(), products)
+    (y1, k, p1), (y2, k2, p2) = out[False], out[True]
+    assert k == k2 > 5 and np.array_equal(y1, y2)
+    assert (p1, p2) == (k + warm, k + 1 + warm)
+
+
+@requires_cuda
+@pytest.mark.parametrize("stepper", ["semi_implicit", "imex"])
+def test_a_solver_step_on_cuda_replays_graphs_and_reads_once(monkeypatch, tally, stepper):
+    """On CUDA (one rank) the step's solves are CUDA graphs captured in the first steps
+    (the CG's loop a conditional node) and replayed: the step reads the device once."""
+    _, its, reads, graphs = _steps(monkeypatch, stepper, "cuda", tally=tally)
+    assert reads == 1 and min(its) > 5 and graphs[0] == graphs[1] >= 1
 
 
 # -- bad options ---------------------------------------------------------------------------

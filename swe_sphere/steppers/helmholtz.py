@@ -23,11 +23,16 @@ round-off; the tests' check of the operators and of a solve). The solve is the
 compiled matrix-free CG of ``kernels.helmholtz`` (Chronopoulos–Gear, one
 reduction an iteration, mass preconditioner), vectors in Warp arrays, the
 operator in three element launches split over the CPU threads (per node on
-CUDA); the same code on CPU, CUDA and any number of MPI ranks (the inner
-products summed over ranks by ``Topology.partial_sums``). The operator's bits
-depend on neither threads nor ranks (its DSS is a gather in the global order),
-so a run on N ranks differs from one on one rank only by the order of the
-inner products' sums.
+CUDA); the same code on CPU, CUDA and any number of MPI ranks. The solve runs
+on the device with no host read: its scalar recurrences, convergence test and
+loop (``wp.capture_while``), the refinement of "mixed" precision and the area
+shift; with one rank a solve is one graph (a CUDA graph; Warp's CPU graph on one
+CPU thread). Its iterations and a failure are counted on the device and read
+once, by ``GravityWave.iterations`` (a step's one host read); over several ranks
+each inner product's per-rank sums are added on the host (``Topology.allreduce``).
+The operator's bits depend on neither threads nor ranks (its DSS is a gather in
+the global order), so a run on N ranks differs from one on one rank only by the
+order of the inner products' sums.
 
 Why no other solver (ISSUE 21, TC5 ne30, IMEX at 8 / CN at 4 / 10 / semi-implicit
 at 2 Δt_g, ms a step, ``benchmarks/implicit_cost.py``): scipy's CG on the
@@ -168,9 +173,14 @@ class GravityWave:
     ``benchmarks/helmholtz_roofline.py``), so "double" is every stepper's default.
 
     ``apply(x, out)``: out = L x (states (3, N), element-local). ``solve(r, a,
-    z, scale)``: z = (I − aL)⁻¹ (scale·r); returns the CG iterations. Raises
-    ``StepFailure`` when CG does not reach ``tol`` within ``maxiter``;
-    ``ValueError`` for a model without continuity and pressure gradient.
+    z, scale)``: z = (I − aL)⁻¹ (scale·r), enqueued on the device with nothing read
+    back (with one rank a graph per (r, z, a, scale, H), captured on its first call:
+    a CUDA graph, or Warp's CPU graph on one CPU thread; inline while a caller
+    captures). ``iterations()``: the CG iterations of the solves since its last call
+    — one host read — raising
+    ``StepFailure`` when one of them did not reach ``tol`` within ``maxiter`` (the
+    steppers call it once a step, JFNK once a GMRES solve). ``ValueError`` for a
+    model without continuity and pressure gradient.
     """
 
     def __init__(self, model: ShallowWater, mean_depth=0.0, tol=1e-10, maxiter=500, warm=False, precision="double"):
@@ -182,14 +192,27 @@ class GravityWave:
         dev, N, nu = model.device, model.N, model.topology.nunique
         self.Gh, self.Dv = wp.zeros((2, N), dtype=f64, device=dev), wp.zeros((1, N), dtype=f64, device=dev)
         self.b, self.y = wp.zeros(nu, dtype=f64, device=dev), wp.zeros(nu, dtype=f64, device=dev)
-        self.cg = HelmholtzCG(model, f64, self.b, self.y)
-        self.low = None if precision == "double" else HelmholtzCG(model, wp.float32)
-        self._shift = self.cg._rec(hk.add_constant, nu, [self.y, f64(0.0)])
-        if self.low is not None:  # the refinement's conversions between the two solves
-            rec = self.cg._rec
+        self.stats = wp.zeros(3, dtype=f64, device=dev)  # iterations, failures, the first failure's residual (hk.ITERATIONS …)
+        self.cg = HelmholtzCG(model, f64, self.b, self.y, self.stats)
+        self.low = None if precision == "double" else HelmholtzCG(model, wp.float32, stats=self.stats)
+        rec = self.cg._rec
+        self._shift = rec(hk.add_mean_difference, nu, [self.y, self.cg.sums, f64(model.topology.total_area)])
+        if self.low is not None:  # the refinement's conversions between the two solves and its test
             self._narrow = rec(hk.converted(wp.float32), nu, [self.b, self.low.b])
             self._narrow_r = rec(hk.converted(wp.float32), nu, [self.cg.r, self.low.b])
             self._widen = rec(hk.add_converted, nu, [self.y, self.low.y])
+            cg, low = self.cg, self.low
+            self._check_first, self._check_next = (
+                wp.launch(hk.refine_check, 1, [cg.sums, first, f64(self.tol**2), self.maxiter, cg.cs, cg.ic, low.cs, low.ic, f64(SINGLE_FLOOR**2), self.stats],
+                          device=dev, record_cmd=True)
+                for first in (1, 0))
+        # with one rank a solve is one graph per (r, z, a, scale, H), its loops conditional nodes: a CUDA
+        # graph, or on one CPU thread Warp's CPU graph (the same bits; 13 % off an IMEX step at ne30:
+        # no Python per launch). Not over several CPU threads (``SplitLaunch`` is a Python pool), nor
+        # with a CUDA driver below 12.4 (no conditional nodes: host loops, a read an iteration).
+        self._graphs: dict[tuple, object] = {}
+        cpu = wp.get_device(dev).is_cpu
+        self._graphed = not model.topology.distributed and (model.threads == 1 if cpu else wp.is_conditional_graph_supported())
 
     # -- what carries over between solves (for bitwise restarts) ----------------------
     def state(self) -> dict:
@@ -225,64 +248,89 @@ class GravityWave:
         m.divergence(x, self.Dv)
         m.pointwise(gk.apply, self.Gh, self.Dv, f64(m.g), f64(self.H), out)
 
-    def solve(self, r, a: float, z, scale: float = 1.0) -> int:
-        """z = (I − aL)⁻¹ (scale·r) through the Helmholtz equation; z may alias r."""
+    def solve(self, r, a: float, z, scale: float = 1.0) -> None:
+        """z = (I − aL)⁻¹ (scale·r) through the Helmholtz equation; z may alias r. Nothing is
+        read back: the iterations and a failure are counted on the device (``iterations``)."""
+        self._run(("solve", r.ptr, z.ptr, a, scale, self.H), self._solve, r, a, z, scale)
+
+    def _solve(self, r, a: float, z, scale: float) -> None:
         m = self.model
         m.divergence(r, self.Dv)
         m.pointwise(gk.schur_height, r, self.Dv, f64(scale), f64(a * self.H), z)
         m.assemble(z, 2, self.b)
-        iterations = self._pcg(a * a * m.g * self.H)
+        self._pcg(a * a * m.g * self.H)
         m.scatter(self.y, z, 2)
         m.gradient(z, 2, self.Gh)
         m.pointwise(gk.schur_wind, r, self.Gh, f64(scale), f64(a * m.g), z)
-        return iterations
+
+    def _run(self, key: tuple, fn, *args) -> None:
+        """fn(*args) as a graph captured on the first call per ``key`` (the launch
+        parameters it bakes in) and replayed after, where ``_graphed``; inline while a
+        caller captures and otherwise (the loops host loops testing the device flag)."""
+        dev = wp.get_device(self.model.device)
+        if not self._graphed or dev.is_capturing:
+            fn(*args)
+            return
+        graph = self._graphs.get(key)
+        if graph is None:
+            with wp.ScopedCapture(device=dev) as capture:
+                fn(*args)
+            graph = self._graphs[key] = capture.graph
+        wp.capture_launch(graph)
+
+    def iterations(self) -> int:
+        """The CG iterations of the solves since the last call (float32 ones counted alike),
+        then zeroed: the one host read (and synchronisation) of the solves. Raises
+        ``StepFailure`` if one of them did not reach ``tol`` within ``maxiter``."""
+        its, failures, residual = self.stats.numpy()
+        self.stats.zero_()
+        if failures:
+            raise StepFailure(f"Helmholtz CG did not converge in {self.maxiter} iterations (residual {residual:.3e} > {self.tol:.3e}; {int(failures)} of the solves since the last check)")
+        return int(its)
 
     # -- the Helmholtz solve on unique nodes, (M + cK) y = b: any device, threads and ranks --
     def _apply(self, y, out, c: float) -> None:
         """out = (M + cK) y in float64 (``HelmholtzCG.apply``)."""
         self.cg.apply(y, out, c)
 
-    def _pcg(self, c: float) -> int:
+    def _pcg(self, c: float) -> None:
         """(M + cK) y = b to the relative residual ``tol`` in float64 (``precision``
         "double"), or in float32 with float64 refinement ("mixed"); then the area
-        integral of y set to that of b. Returns the CG iterations (float32 ones counted alike)."""
+        integral of y set to that of b (on the device). Iterations into ``stats``."""
         if self.low is None:
-            it = self.cg.solve(c, self.tol, self.maxiter, self.warm)
+            self.cg.solve(c, self.tol, self.maxiter, self.warm)
         else:
-            it = self._refined(c)
-        sum_b, ay, _ = self.cg.dots(self.b, self.cg.ones, self.cg.area, self.y, self.b, self.b)
-        topo = self.model.topology
-        self._shift.set_param_by_name("shift", f64((sum_b - ay) / topo.total_area))  # ∫z_h = ∫(right-hand side)
+            self._refined(c)
+        self.cg.dots(self.b, self.cg.ones, self.cg.area, self.y, self.b, self.b)  # ∫z_h = ∫(right-hand side)
         self._shift.launch()
-        return it
 
-    def _refined(self, c: float) -> int:
+    def _refined(self, c: float) -> None:
         """Iterative refinement (Wilkinson; Carson & Higham 2018, SIAM J. Sci. Comput. 40,
         A817): r = b − Ay in float64, A e = r by the float32 CG from zero, y += e, until
-        ‖r‖ ≤ tol‖b‖. A tolerance float32 reaches alone (≥ ``SINGLE_TOL``, the JFNK
-        preconditioner's 1e-2) takes one float32 solve and no float64 product."""
+        ‖r‖ ≤ tol‖b‖ (``refine_check`` on the device; the loop ``wp.capture_while``). A
+        tolerance float32 reaches alone (≥ ``SINGLE_TOL``, the JFNK preconditioner's 1e-2)
+        takes one float32 solve and no float64 product."""
         cg, low, y = self.cg, self.low, self.y
         if not self.warm:
             y.zero_()
         if self.tol >= SINGLE_TOL:  # one solve, from zero: y = e
             self._narrow.launch()  # low.b = b
-            it = low.solve(c, self.tol, self.maxiter, False)
+            low.solve(c, self.tol, self.maxiter, False)
             y.zero_()
             self._widen.launch()
-            return it
-        bb = cg.dots(self.b, self.b, self.b, self.b, self.b, self.b)[0]
-        it = 0
-        while True:
-            rr = cg.residual(c)  # cg.r = b − Ay
-            if rr <= self.tol * self.tol * bb:
-                return it
-            if it >= self.maxiter:
-                raise StepFailure(f"Helmholtz CG did not converge in {it} iterations (residual {np.sqrt(rr / bb):.3e} > {self.tol:.3e})")
-            self._narrow_r.launch()  # low.b = r
-            # to tol‖b‖/‖r‖ in one pass if float32 gets there, else a pass to SINGLE_FLOOR
-            inner = max(self.tol * np.sqrt(bb / rr), SINGLE_FLOOR)
-            it += low.solve(c, inner, self.maxiter - it, False)
-            self._widen.launch()  # y += e
+            return
+        cg.residual(c)  # cg.r = b − Ay, and b·b
+        self._check_first.launch()
+        wp.capture_while(cg.ic, self._refinement, c=c)
+
+    def _refinement(self, c: float) -> None:
+        """One pass: e from A e = r in float32 to max(tol‖b‖, SINGLE_FLOOR‖r‖) within the
+        iterations left (both set by ``refine_check``), y += e, the new residual and its test."""
+        self._narrow_r.launch()  # low.b = r
+        self.low.solve(c, 0.0, 0, False)
+        self._widen.launch()  # y += e
+        self.cg.residual(c)
+        self._check_next.launch()
 
 
 # the float32 CG's reach: a tolerance at or above SINGLE_TOL is solved in float32 alone;
@@ -298,13 +346,31 @@ class HelmholtzCG:
     (float64, or float32 for the inner solves of ``GravityWave``'s "mixed"
     precision); inner products summed in float64 in a fixed order on any device,
     threads and ranks. ``b``, ``y``: the right-hand side and solution vectors
-    (float64 ones may be given, shared with the caller).
+    (float64 ones may be given, shared with the caller); ``stats``: the float64
+    device counters (``kernels.helmholtz.ITERATIONS``, ``FAILURES``, ``RESIDUAL``)
+    the solve adds to, shared with the caller's other solves (its own if None).
+
+    The whole solve runs on the device: the inner products' partial sums are added
+    there (``Topology.device_sums``), the recurrences' scalars α, β, γ, δ, ‖r‖² and
+    the convergence test are computed by one-thread kernels (``cg_check`` after an
+    update, ``cg_alpha`` after a product) into device arrays the vector update reads,
+    and on one rank the test between the two spares the converged iteration's product
+    (k iterations cost k products, k + 1 from a warm start; over ranks k + 1 and one
+    reduction an iteration, as Chronopoulos–Gear's order). The loop is
+    ``wp.capture_while`` on a device flag: a host loop on the CPU (it reads the flag
+    in place, no copy), a conditional node inside a CUDA graph (``GravityWave``
+    captures the solve) — the same kernels, so the same bits on CPU threads and to
+    round-off on CUDA. Over several MPI ranks the per-rank sums go through the host
+    between the two (``Topology.allreduce``: one read an iteration); on one rank no
+    value comes back to the host during a solve.
 
     ``apply(y, out, c)``: out = (M + cK) y. ``solve(c, tol, maxiter, warm)``: y to the
-    relative residual tol from y (``warm``) or from zero; returns the iterations,
-    raises ``StepFailure`` past ``maxiter``. ``residual(c)``: r = b − Ay; returns r·r."""
+    relative residual tol from y (``warm``) or from zero; adds its iterations to
+    ``stats`` and, past ``maxiter``, a failure (nothing is read back: the caller reads
+    ``stats``, ``GravityWave.iterations``). ``residual(c)``: r = b − Ay and r·r into
+    ``sums[2]``, b·b into ``sums[1]`` (refinement's)."""
 
-    def __init__(self, model: ShallowWater, dtype=f64, b=None, y=None):
+    def __init__(self, model: ShallowWater, dtype=f64, b=None, y=None, stats=None):
         topo, dev, N, nu = model.topology, model.device, model.N, model.topology.nunique
         self.model, self.dtype = model, dtype
         z = lambda *shape: wp.zeros(shape, dtype=dtype, device=dev)  # noqa: E731
@@ -322,12 +388,25 @@ class HelmholtzCG:
         self.area, self.ones = wp.array(topo.area, dtype=dtype, device=dev), wp.ones(nu, dtype=dtype, device=dev)
         self.chunk = chunk = reduction_chunk(nu, dev)
         self.partial = wp.zeros((3, (nu + chunk - 1) // chunk), dtype=f64, device=dev)
+        # the device scalars: the inner products' totals, the recurrences' (hk.GAMMA …), the flag and counts (hk.GO …)
+        self.sums = wp.zeros(3, dtype=f64, device=dev)
+        self.cs = wp.zeros(8, dtype=f64, device=dev)
+        self.ic = wp.zeros(3, dtype=wp.int32, device=dev)
+        self.stats = wp.zeros(3, dtype=f64, device=dev) if stats is None else stats
+        self._totals = topo.device_sums(self.partial, 3, self.sums)
         self._ops: dict[tuple, list] = {}
         self._div: dict[tuple, list] = {}  # each operator's divergence launch and the c it has
         self._inner = {}
-        self._update = self._rec(hk.cg_update(dtype), self.partial.shape[1],
-                                 [dtype(0.0), dtype(0.0), self.p, self.s, self.y, self.r, self.u, self.w, self.minv, self.partial, chunk],
-                                 nodes_per_index=chunk)
+        rec, nchunks = self._rec, self.partial.shape[1]
+        update = [self.p, self.s, self.y, self.r, self.u, self.w, self.minv, self.partial, chunk]
+        self._update = rec(hk.cg_update(dtype), nchunks, [self.cs, 0, *update], nodes_per_index=chunk)
+        self._restart = rec(hk.cg_update(dtype), nchunks, [self.cs, 1, *update], nodes_per_index=chunk)
+        self._first, self._check = (wp.launch(hk.cg_check, 1, [self.sums, first, f64(0.0), 0, self.cs, self.ic, self.stats], device=dev, record_cmd=True)
+                                    for first in (1, 0))
+        self._alpha = wp.launch(hk.cg_alpha, 1, [self.sums, self.cs, self.ic], device=dev, record_cmd=True)
+        # over ranks an iteration keeps Chronopoulos–Gear's one reduction (an allreduce costs more there
+        # than the converged iteration's product, a 1/P share); on one rank the sums stay on the device
+        self._one_reduction = topo.distributed
 
     def _rec(self, kernel, dim, inputs, **kw):
         return record(kernel, dim, inputs, device=self.model.device, threads=self.model.threads, **kw)
@@ -390,64 +469,69 @@ class HelmholtzCG:
         for launch in launches:
             launch.launch()
 
-    def dots(self, a0, b0, a1, b1, a2, b2) -> np.ndarray:
-        """(a0·b0, a1·b1, a2·b2) over all ranks: per-chunk partial sums, added on the
-        host in index order, then over ranks (``Topology.sums``): one host synchronisation."""
+    def dots(self, a0, b0, a1, b1, a2, b2) -> None:
+        """sums = (a0·b0, a1·b1, a2·b2) over all ranks, on the device (``totals``)."""
         key = tuple(a.ptr for a in (a0, b0, a1, b1, a2, b2))
         launch = self._inner.get(key)
         if launch is None:
             launch = self._inner[key] = self._rec(hk.inner3(self.dtype), self.partial.shape[1], [a0, b0, a1, b1, a2, b2, self.partial, self.chunk],
                                                   nodes_per_index=self.chunk)
         launch.launch()
-        return self._partial_sums()
+        self.totals()
 
-    def _partial_sums(self) -> np.ndarray:
-        """The three inner products of ``partial`` over all ranks: its chunks added on the
-        host in index order, then over ranks (``Topology.sums``): the one host synchronisation."""
-        return self.model.topology.partial_sums(self.partial, 3)
+    def totals(self) -> None:
+        """sums = the totals of ``partial``'s three rows over all ranks: added on the device in
+        index order, then over ranks (``Topology.allreduce``; a host read only on several ranks)."""
+        for launch in self._totals:
+            launch.launch()
+        self.model.topology.allreduce(self.sums)
 
-    def _step(self, alpha: float, beta: float) -> None:
-        self._update.set_param_by_name("alpha", self.dtype(alpha))
-        self._update.set_param_by_name("beta", self.dtype(beta))
-        self._update.launch()
-
-    def residual(self, c: float) -> float:
-        """r = b − Ay (and u = M⁻¹r); returns r·r over all ranks: one product (refinement's)."""
+    def residual(self, c: float) -> None:
+        """r = b − Ay, u = M⁻¹r; sums = (r·u, b·b, r·r) over all ranks: one product (refinement's)."""
         self.apply(self.y, self.w, c)
         self._residual_update()
-        return self._partial_sums()[2]
+        self.totals()
 
     def _residual_update(self) -> None:
-        """From w = Ay: r = b − w, u = M⁻¹ r, partial sums r·u and r·r (an update from u = 0)."""
+        """From w = Ay: r = b − w, u = M⁻¹ r, partial sums r·u, b·b and r·r (an update from r = b, u = 0)."""
         wp.copy(self.r, self.b)
         self.u.zero_()
-        self._step(1.0, 0.0)
+        self._restart.launch()
 
-    def _start(self, c: float) -> np.ndarray:
-        """From w = Ay: r = b − w, u = M⁻¹ r, then w = A u; returns (r·u, w·u, r·r)."""
-        self._residual_update()
-        self.apply(self.u, self.w, c)  # and w·u
-        return self._partial_sums()
-
-    def solve(self, c: float, tol: float, maxiter: int, warm: bool) -> int:
-        """y = (M + cK)⁻¹ b to the relative residual ``tol``, from y (``warm``) or from zero."""
-        b, y = self.b, self.y
+    def solve(self, c: float, tol: float, maxiter: int, warm: bool) -> None:
+        """y = (M + cK)⁻¹ b to the relative residual ``tol``, from y (``warm``: one product
+        more) or from zero; tol ≤ 0 and maxiter ≤ 0: those ``refine_check`` left on the device.
+        k iterations cost k products on one rank (the test between an update and the next
+        product), k + 1 over ranks (one reduction an iteration)."""
         if warm:
-            self.apply(y, self.w, c)
+            self.apply(self.y, self.w, c)
         else:
-            y.zero_()
+            self.y.zero_()
             self.w.zero_()
-        bb = self.dots(b, b, b, b, b, b)[0]
-        gamma, delta, rr = self._start(c)
-        bound = tol * tol * bb
-        alpha, beta, it = 0.0, 0.0, 0
-        while rr > bound:
-            if it == maxiter:
-                raise StepFailure(f"Helmholtz CG did not converge in {it} iterations (residual {np.sqrt(rr / bb):.3e} > {tol:.3e})")
-            alpha = gamma / delta if it == 0 else gamma / (delta - beta * gamma / alpha)
-            self._step(alpha, beta)  # p, s, y, r, u; r·u, r·r
-            self.apply(self.u, self.w, c)  # and w·u
-            gamma_new, delta, rr = self._partial_sums()
-            beta, gamma = gamma_new / gamma, gamma_new
-            it += 1
-        return it
+        self._residual_update()  # r = b − Ay, u = M⁻¹r; r·u, b·b, r·r
+        self.totals()
+        self._first.set_param_by_name("tol2", f64(tol * tol if tol > 0 else 0.0))
+        self._first.set_param_by_name("maxiter", int(maxiter))
+        self._first.launch()  # the bound; go?
+        if self._one_reduction:  # the first product and α ahead of the loop
+            self._product(c)
+        wp.capture_while(self.ic, self._iteration, c=c)
+
+    def _product(self, c: float) -> None:
+        """w = Au, δ = w·u over all ranks, α."""
+        self.apply(self.u, self.w, c)
+        self.totals()
+        self._alpha.launch()
+
+    def _iteration(self, c: float) -> None:
+        """One CG iteration: the product, α, the update with the device's α and β, the test
+        (over ranks: the update, the product, then the test and α on one reduction)."""
+        if not self._one_reduction:
+            self._product(c)
+        self._update.launch()  # p, s, y, r, u; r·u, r·r
+        if self._one_reduction:
+            self.apply(self.u, self.w, c)  # and w·u, summed with them
+        self.totals()
+        self._check.launch()  # β; go?
+        if self._one_reduction:
+            self._alpha.launch()

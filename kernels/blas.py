@@ -46,6 +46,18 @@ def chunk_sums(src: wp.array2d(dtype=f64), chunk: int, dst: wp.array2d(dtype=f64
 
 
 @wp.kernel
+def row_totals(src: wp.array2d(dtype=f64), out: wp.array(dtype=f64)):
+    """out[r] = Σ src[r, :] in index order, one thread: the totals of a chunked inner
+    product's partial sums on the device, in the order the host would add them.
+    Dim 1."""
+    for r in range(src.shape[0]):
+        s = f64(0.0)
+        for i in range(src.shape[1]):
+            s += src[r, i]
+        out[r] = s
+
+
+@wp.kernel
 def add_row(x: wp.array2d(dtype=f64), row: int, out: wp.array2d(dtype=f64), out_row: int):
     """out[out_row] += x[row]. Dim N."""
     p = wp.tid()

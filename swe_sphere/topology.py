@@ -29,6 +29,7 @@ from .kernels import blas, dss
 from .parallel import CUDA_CHUNKS, record
 
 f64 = wp.float64
+DEVICE_TOTALS = 64  # partial sums a row that one GPU thread adds directly (``Topology.device_sums``)
 MAX_ROWS = 4  # most rows a DSS assembles at once (the hyperviscosity's Cartesian wind + h)
 
 
@@ -456,6 +457,30 @@ class Topology:
             second[0].launch()
             partial = second[1]
         return self.sums(partial[:rows].numpy().sum(axis=1))
+
+    def device_sums(self, partial: wp.array2d, rows: int, out: wp.array) -> list:
+        """Recorded launches that put the totals of the first ``rows`` rows of per-chunk
+        partial sums into the float64 device array ``out`` (rows,), added in index order
+        on the device (``blas.row_totals``, one thread): no host read. On CUDA more than
+        ``DEVICE_TOTALS`` partial sums a row are first added in chunks of about √n
+        (``blas.chunk_sums``), so that the one thread adds ≈ 2√n values. The totals are
+        this process's: ``allreduce`` adds them over ranks."""
+        n, src, launches = partial.shape[1], partial[:rows], []
+        if not wp.get_device(self.device).is_cpu and n > DEVICE_TOTALS:
+            chunk = int(np.ceil(np.sqrt(n)))
+            mid = wp.zeros((rows, (n + chunk - 1) // chunk), dtype=f64, device=self.device)
+            launches.append(wp.launch(blas.chunk_sums, mid.shape, [src, chunk, mid], device=self.device, record_cmd=True))
+            src = mid
+        launches.append(wp.launch(blas.row_totals, 1, [src, out], device=self.device, record_cmd=True))
+        return launches
+
+    def allreduce(self, out: wp.array) -> None:
+        """The float64 device array ``out`` of this process's totals (``device_sums``)
+        summed over all ranks in place (``sums``: rank order, the same bits on every
+        rank): one host read and write with several ranks; nothing with one, where the
+        totals stay on the device."""
+        if self.distributed:
+            out.assign(self.sums(out.numpy()))
 
     def dot(self, a, b) -> float:
         """Σ a·b of two arrays of one shape (device or numpy) over all processes

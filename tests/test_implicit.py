@@ -386,13 +386,14 @@ def test_fgmres_reaches_the_true_residual_with_an_inexact_inner_solve():
     assert true < 2e-6
 
 
-def test_fgmres_solves_with_a_changing_preconditioner_and_restarts(rng):
+@pytest.mark.parametrize("backend", ["HostVectors", "KernelVectors"])
+def test_fgmres_solves_with_a_changing_preconditioner_and_restarts(backend, rng):
     """``krylov.FGMRES`` on a random nonsymmetric, diagonally dominant system
-    (n = 200): with a preconditioner that changes at every application (a
-    random-scaled Jacobi) and restarts every 5 iterations, the true residual
-    reaches the tolerance; without restarts the iterations match scipy's GMRES
-    (same Krylov space with a fixed preconditioner)."""
-    from swe_sphere.steppers.krylov import FGMRES
+    (n = 200), with either backend of its vector work: with a preconditioner that
+    changes at every application (a random-scaled Jacobi) and restarts every 5
+    iterations, the true residual reaches the tolerance; without restarts the
+    iterations match scipy's GMRES (same Krylov space with a fixed preconditioner)."""
+    from swe_sphere.steppers import krylov
     import scipy.sparse.linalg as spla
 
     n = 200
@@ -401,15 +402,15 @@ def test_fgmres_solves_with_a_changing_preconditioner_and_restarts(rng):
     d = 1.0 / np.diag(A)
     one_process = Topology(cached_grid(2, 4))  # FGMRES takes its device, threads and reductions
 
-    def solve(restart, scaling, rtol, maxiter):
+    def solve(restart, scaling, rtol, maxiter, rhs=b_np):
         def matvec(v, out):  # CPU Warp arrays: numpy() is a view
             out.numpy()[:] = A @ v.numpy()
 
         def precond(v, out):
             out.numpy()[:] = d * v.numpy() * scaling()
 
-        b, x = wp.array(b_np, dtype=wp.float64), wp.zeros(n, dtype=wp.float64)
-        its, ok = FGMRES(n, restart, one_process).solve(matvec, precond, b, x, rtol, maxiter)
+        b, x = wp.array(rhs, dtype=wp.float64), wp.full(n, 1.0, dtype=wp.float64)
+        its, ok = krylov.FGMRES(n, restart, one_process, getattr(krylov, backend)).solve(matvec, precond, b, x, rtol, maxiter)
         return x.numpy(), its, ok
 
     x, its, ok = solve(5, lambda: rng.uniform(0.5, 1.5, n), 1e-10, 500)
@@ -422,6 +423,10 @@ def test_fgmres_solves_with_a_changing_preconditioner_and_restarts(rng):
           f"fixed: FGMRES {its_fixed}, scipy GMRES {count[0]} iterations")
     assert ok and resid < 2e-10
     assert abs(its_fixed - count[0]) <= 1
+    # b = 0: x = 0 at once; maxiter = 7 across a restart: 7 products, not converged
+    x0, its0, ok0 = solve(5, lambda: 1.0, 1e-10, 500, rhs=np.zeros(n))
+    assert (its0, ok0) == (0, True) and not np.any(x0)
+    assert solve(5, lambda: 1.0, 1e-10, 7)[1:] == (7, False)
 
 
 @pytest.mark.parametrize("backend", ["HostVectors", "KernelVectors"])

@@ -45,13 +45,13 @@ def jacobian_vector(
 
 
 @wp.kernel
-def fd_epsilon(ww: wp.array(dtype=f64), sqrt_eps: f64, xnorm: f64, scale: f64, eps: wp.array(dtype=f64)):
-    """The forward difference's step from ww[0] = ‖w‖²: eps[0] = ε = sqrt(ε_mach)(1 + ‖x‖)/‖w‖,
-    eps[1] = scale/ε; both 0 for w = 0 (then J w = 0). Dim 1."""
+def fd_epsilon(ww: wp.array(dtype=f64), xx: wp.array(dtype=f64), sqrt_eps: f64, scale: f64, eps: wp.array(dtype=f64)):
+    """The forward difference's step from ww[0] = ‖w‖² and xx[0] = ‖x‖²: eps[0] = ε =
+    sqrt(ε_mach)(1 + ‖x‖)/‖w‖, eps[1] = scale/ε; both 0 for w = 0 (then J w = 0). Dim 1."""
     eps[0] = f64(0.0)
     eps[1] = f64(0.0)
     if ww[0] > f64(0.0):
-        e = sqrt_eps * (f64(1.0) + xnorm) / wp.sqrt(ww[0])
+        e = sqrt_eps * (f64(1.0) + wp.sqrt(xx[0])) / wp.sqrt(ww[0])
         eps[0] = e
         eps[1] = scale / e
 

@@ -226,7 +226,7 @@ class Implicit(Stepper):
                 raise StepFailure("Newton residual is not finite")
             eta = self._eta(newton, rnorm, rprev, eta)
             self._gather(1.0, x, self.xu)
-            self.xnorm = self._norm(self.xu)
+            self.xnorm = self.jacobian.point_norm(self.xu)  # on the device with KernelPasses
             self._gmres(eta)
             lam = 1.0
             for _ in range(9):

@@ -214,8 +214,10 @@ def test_jacobian_vector_product_matches_exact_directional_derivative(name, rng)
     vu = unique(v)
     vw = wp.array(vu, dtype=wp.float64, device=DEVICE)
     out = wp.zeros_like(vw)
+    evals, F = [0], st.jacobian.F
+    st.jacobian.F = lambda *a: (evals.__setitem__(0, evals[0] + 1), F(*a))
     st._jv(vw, out)
-    assert st.rhs_evals == 1  # one F evaluation per product
+    assert evals[0] == 1  # one F evaluation per product
     Jv = out.numpy().copy()  # numpy() is a view of the Warp array on the CPU
     JF = (vu / st.dt - Jv) / st.beta  # the F'(x) v inside it
     err_F = rel(JF, unique(exact))
@@ -471,6 +473,41 @@ def test_krylov_backends_agree_on_cn_steps_and_fgmres_reads_once_a_cycle():
     assert its_kern == its_host
     assert rel(kern, host) < 1e-12
     assert reads == cycles > sum(i["newton"] for i in its_kern)  # restarts happened
+
+
+def test_fgmres_cycles_replayed_as_graphs_give_the_bits_of_host_loops(monkeypatch):
+    """CN without a preconditioner (HOMME's default) on TC5 ne = 2 at 2 Δt_g, three steps
+    with CUDA's Krylov backends on one CPU thread: each restart cycle's Arnoldi steps
+    captured once per (iterate, F(x), Δt, β) as Warp's CPU graph (conditional steps
+    on the device flag) and replayed give the bits, iterations and RHS count of the
+    steps run as host loops; a replayed cycle runs no Python (its J·v not called)."""
+    from swe_sphere.steppers import jacobian, krylov
+
+    monkeypatch.setenv("SWE_SPHERE_THREADS", "1")
+    scene = load_scene("tc5_mountain", ne=2, np=4, stepper="implicit")
+    scene = dataclasses.replace(scene, dt=2.0 * scene.dt, stepper_options={"preconditioner": "none", "gmres_restart": 4})
+    runs = {}
+    for graphs in (False, True):
+        sim = make_sim(scene)
+        st = sim.stepper
+        st.fgmres.vectors, st.jacobian.passes = krylov.KernelVectors(st.fgmres), jacobian.KernelPasses(st.model)
+        if not graphs:
+            monkeypatch.setattr(st, "_cycle_key", lambda: None)
+        jv, calls = st._jv, [0]
+
+        def counted(w, out):
+            calls[0] += 1
+            jv(w, out)
+
+        st._jv = counted
+        stats = [st.step(sim.x) for _ in range(3)]
+        runs[graphs] = sim.x.numpy(), [(s.rhs_evals, s.iterations) for s in stats], calls[0], len(st.fgmres._graphs)
+    (plain, plain_stats, plain_calls, _), (graphed, graphed_stats, graphed_calls, captured) = runs[False], runs[True]
+    its = sum(s[1]["gmres"] for s in plain_stats)
+    print(f"\n{plain_stats}; {captured} graphs; J·v called {graphed_calls} times graphed, {plain_calls} plain", end="")
+    np.testing.assert_array_equal(graphed, plain)
+    assert graphed_stats == plain_stats and plain_calls == its
+    assert 0 < captured and graphed_calls == 4 * captured < its  # the J·v's Python ran while capturing only
 
 
 @pytest.mark.parametrize("backend", ["HostVectors", "KernelVectors"])

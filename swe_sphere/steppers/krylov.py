@@ -209,11 +209,17 @@ class FGMRES(KrylovBasis):
     length ``n`` (this process's part) on ``topology``'s device, inner products
     summed over its processes.
 
-    ``solve(matvec, precond, b, x, rtol, maxiter)`` → (iterations, converged):
-    ``matvec(v, out)`` and ``precond(v, out)`` write A v and P⁻¹ v into ``out``
-    (Warp arrays of length n); x (a Warp array, overwritten) gets the solution;
-    stops when ‖b − A x‖ ≤ rtol ‖b‖ (the Arnoldi estimate) or after
-    ``maxiter`` products with A.
+    ``solve(matvec, precond, b, x, rtol, maxiter, graph_key=None)`` → (iterations,
+    converged): ``matvec(v, out)`` and ``precond(v, out)`` write A v and P⁻¹ v into
+    ``out`` (Warp arrays of length n); x (a Warp array, overwritten) gets the
+    solution; stops when ‖b − A x‖ ≤ rtol ‖b‖ (the Arnoldi estimate) or after
+    ``maxiter`` products with A. With a ``graph_key``, a cycle's Arnoldi steps are
+    captured once per key as a graph (a CUDA graph with conditional nodes; Warp's
+    CPU graph on a CPU) and replayed: the caller vouches that matvec and precond
+    read nothing back, that their launches with the parameters they bake in are the
+    same for every solve under that key, that the backends are Warp kernels and the
+    launches on one thread of one rank; their Python side effects happen only while
+    capturing (count products by the iterations returned).
 
     One algorithm on every backend and device: the vector passes are the basis's
     backend's, the small dense work (the Hessenberg column, Givens rotations, the
@@ -245,6 +251,7 @@ class FGMRES(KrylovBasis):
         self._cycle = rec(kk.fgmres_cycle, [self.info, self.g, self.coef, self.go])
         self._column = rec(kk.arnoldi_column, [0, self.h1, self.h2, self.H, self.cs, self.sn, self.g, self.cv, self.info, self.go])
         self._end = rec(kk.fgmres_end, [self.H, self.cs, self.sn, self.g, self.info, self.y, self.e])
+        self._graphs: dict = {}
 
     def _arnoldi(self, j: int, matvec, precond) -> None:
         """Arnoldi step j: Z_j = P⁻¹ V_j, w = A Z_j, classical Gram–Schmidt twice (as
@@ -259,7 +266,21 @@ class FGMRES(KrylovBasis):
         self._column.launch()
         vec.combine(self.V, self.cv, j + 1, self.w, self.rows_V[j + 1])
 
-    def solve(self, matvec, precond, b, x, rtol: float, maxiter: int):
+    def _steps(self, matvec, precond) -> None:
+        """A cycle's Arnoldi steps, each run while the device flag ``go`` is set."""
+        for j in range(self.restart):
+            wp.capture_if(self.go, self._arnoldi, j=j, matvec=matvec, precond=precond)
+
+    def _replay_steps(self, key, matvec, precond) -> None:
+        """``_steps`` as the graph captured under ``key`` on its first use."""
+        graph = self._graphs.get(key)
+        if graph is None:
+            with wp.ScopedCapture(device=self.topology.device) as capture:
+                self._steps(matvec, precond)
+            graph = self._graphs[key] = capture.graph
+        wp.capture_launch(graph)
+
+    def solve(self, matvec, precond, b, x, rtol: float, maxiter: int, graph_key=None):
         vec = self.vectors
         x.zero_()
         vec.dots(self.V, b, 0, self.coef, 0, self.h1)  # b·b
@@ -270,8 +291,10 @@ class FGMRES(KrylovBasis):
         while True:
             self._cycle.launch()  # g = β e₁, V₀ = r/β, go
             vec.combine(self.V, self.coef, 0, r, self.rows_V[0])
-            for j in range(self.restart):
-                wp.capture_if(self.go, self._arnoldi, j=j, matvec=matvec, precond=precond)
+            if graph_key is None:
+                self._steps(matvec, precond)
+            else:
+                self._replay_steps(graph_key, matvec, precond)
             self._end.launch()  # y, and the residual's combination e
             residual, target, its, k, breakdown = vec.get(self.info, 5)  # the cycle's one read
             its, k = int(its), int(k)

@@ -16,7 +16,8 @@
 * ``reads``: host reads (``.numpy()`` read-backs, ``swe_sphere.tally``) and
   launches a step of every stepper (semi_implicit, implicit, imex at
   ``--dt-factor`` × Δt; ``--steps`` steps after 2) on ``--device``, and
-  whether ``Simulation`` replays its steps as graphs.
+  whether ``Simulation`` replays its steps as graphs; ``--krylov kernels`` gives the
+  Krylov steppers CUDA's backends of their vector work on a CPU (``host``: numpy's).
 * ``iterations``: the semi_implicit, imex and implicit steppers at
   ``--dt-factor`` × TC5's Δt: solver iterations per step on ``--device``
   (their device solvers) against the CPU (its defaults).
@@ -43,6 +44,7 @@ import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from gpu_model import IMPLICIT  # noqa: E402
+from implicit_cost import use_krylov  # noqa: E402
 from rhs_throughput import build, rhs_compulsory_bytes  # noqa: E402
 
 from swe_sphere.config import load_scene  # noqa: E402
@@ -158,11 +160,13 @@ def graphs(args):
 
 def reads(args):
     ne = args.ne[0]
-    _header(f"TC5 ne{ne} np4 (semi_implicit, implicit, imex at {args.dt_factor:g}× Δt; {args.steps} steps after 2, {args.device}): "
+    krylov = f", Krylov work: {args.krylov}" if args.krylov else ""
+    _header(f"TC5 ne{ne} np4 (semi_implicit, implicit, imex at {args.dt_factor:g}× Δt; {args.steps} steps after 2, {args.device}{krylov}): "
             "host reads and launches a step", ["stepper", "graphs", "host reads a step", "launches a step"], 3)
     tally = Tally()
     for name in args.steppers or STEPPERS:
         sim, stepper = _stepper(name, ne, args.device, args.dt_factor)
+        use_krylov(stepper, args.krylov)
         for _ in range(2):
             stepper.step(sim.x)
         with instrumented(tally), tally.counting():
@@ -207,6 +211,7 @@ def main(argv=None):
     p.add_argument("--graph-steps", type=int, default=2000, help="graphs: steps a timed run")
     p.add_argument("--runs", type=int, default=5, help="graphs: timed runs a stepper and mode")
     p.add_argument("--copy-mib", type=int, default=1024)
+    p.add_argument("--krylov", choices=("host", "kernels"), default=None, help="reads: the Krylov vector work's backend (default: the device's)")
     args = p.parse_args(argv)
     args.ne = args.ne or {"agreement": [16], "throughput": [30, 60, 120, 240]}.get(args.part, [30])
     wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level (as tests/conftest.py)

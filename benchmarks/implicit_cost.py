@@ -18,9 +18,10 @@ subtracted):
   where a solve is a replayed graph (one CPU thread, CUDA; ``GravityWave``) the
   whole solve, its operator included (Helmholtz op then 0);
 * Krylov vectors: the Krylov basis's Gram–Schmidt and combinations
-  (``KrylovBasis.project_dots``/``lincomb``: FGMRES's, KIOPS's);
+  (the backend's ``dots``/``combine``: FGMRES's, KIOPS's; FGMRES's one-thread kernels
+  of its small dense work fall in "other");
 * J·v passes: the finite-difference J·v's pointwise passes around its RHS
-  (``FiniteDifferenceJacobian``: x + εw, the difference, its norms, gathers and scatters);
+  (``FiniteDifferenceJacobian``: x + εw, the difference, ε and its norms, gathers and scatters);
 * other: the rest of the step (stage combinations; Newton, KIOPS's host work, norms).
 
 ``--krylov host kernels`` builds each configuration with a Krylov basis in both
@@ -136,9 +137,9 @@ def build(case, ne, stepper, dt, options, clock, device, backend=None):
     krylov_work = use_krylov(sim.stepper, backend)
     if krylov_work is not None:
         basis, jac = krylov_work
-        for name in ("project_dots", "lincomb"):
+        for name in ("dots", "combine"):
             timers.wrap(basis.vectors, name, "Krylov vectors")
-        for name in ("gather", "scatter", "perturb", "difference", "norm"):
+        for name in ("gather", "scatter", "point_norm", "epsilon", "perturb", "difference", "norm"):
             timers.wrap(jac.passes, name, "J·v passes")
     timers.wrap(sim.model, "rhs", "RHS")
     timers.wrap(sim.model, "rhs_update", "RHS")  # the explicit steppers' stages, combinations included

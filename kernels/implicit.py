@@ -34,10 +34,32 @@ def gather(a: f64, v: wp.array2d(dtype=f64), first: wp.array(dtype=wp.int32), nu
 @wp.kernel
 def jacobian_vector(
     w: wp.array(dtype=f64), F: wp.array2d(dtype=f64), Fp: wp.array2d(dtype=f64), first: wp.array(dtype=wp.int32), nu: int,
-    inv_dt: f64, beta_over_eps: f64, out: wp.array(dtype=f64), offset: int,
+    shift: f64, eps: wp.array(dtype=f64), out: wp.array(dtype=f64), offset: int,
 ):
-    """J w ≈ w/Δt − β (F(x + εw) − F(x))/ε on unique nodes. Dim (3, nunique)."""
+    """out = shift·w + c (F(x + εw) − F(x)) on unique nodes, c = eps[1] (scale/ε, from
+    ``fd_epsilon``). Dim (3, nunique)."""
     r, g = wp.tid()
     g = g + offset
     q = first[g]
-    out[r * nu + g] = w[r * nu + g] * inv_dt - beta_over_eps * (Fp[r, q] - F[r, q])
+    out[r * nu + g] = w[r * nu + g] * shift + eps[1] * (Fp[r, q] - F[r, q])
+
+
+@wp.kernel
+def fd_epsilon(ww: wp.array(dtype=f64), xx: wp.array(dtype=f64), sqrt_eps: f64, scale: f64, eps: wp.array(dtype=f64)):
+    """The forward difference's step from ww[0] = ‖w‖² and xx[0] = ‖x‖²: eps[0] = ε =
+    sqrt(ε_mach)(1 + ‖x‖)/‖w‖, eps[1] = scale/ε; both 0 for w = 0 (then J w = 0). Dim 1."""
+    eps[0] = f64(0.0)
+    eps[1] = f64(0.0)
+    if ww[0] > f64(0.0):
+        e = sqrt_eps * (f64(1.0) + wp.sqrt(xx[0])) / wp.sqrt(ww[0])
+        eps[0] = e
+        eps[1] = scale / e
+
+
+@wp.kernel
+def add_scaled(x: wp.array2d(dtype=f64), eps: wp.array(dtype=f64), out: wp.array2d(dtype=f64), block: int, offset: int):
+    """out = x + eps[0]·out (x + εw from the scattered w). Dim (3, N/block), as ``blas.axpby``."""
+    r, k = wp.tid()
+    start = (k + offset) * block
+    for p in range(start, start + block):
+        out[r, p] = x[r, p] + eps[0] * out[r, p]

@@ -114,7 +114,7 @@ def test_kiops_on_the_model_jacobian(rng):
     st._at(0.0)
     m.rhs(sim.x, st.Fx)
     xu = wp.array(x0[:, grid.first].ravel(), dtype=wp.float64)
-    xnorm = st.jacobian.norm(xu)
+    xnorm = st.jacobian.point_norm(xu)
 
     def matvec(v, out):
         st.jacobian.apply(sim.x, st.Fx, xnorm, v, out, 0.0, scene.dt)

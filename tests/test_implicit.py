@@ -57,6 +57,7 @@ from swe_sphere.cli import main
 from swe_sphere.config import load_scene
 from swe_sphere.constants import DAY
 from swe_sphere.simulation import BlowUp
+from swe_sphere.tally import Tally, instrumented
 from swe_sphere.topology import Topology
 
 import conftest
@@ -213,8 +214,10 @@ def test_jacobian_vector_product_matches_exact_directional_derivative(name, rng)
     vu = unique(v)
     vw = wp.array(vu, dtype=wp.float64, device=DEVICE)
     out = wp.zeros_like(vw)
+    evals, F = [0], st.jacobian.F
+    st.jacobian.F = lambda *a: (evals.__setitem__(0, evals[0] + 1), F(*a))
     st._jv(vw, out)
-    assert st.rhs_evals == 1  # one F evaluation per product
+    assert evals[0] == 1  # one F evaluation per product
     Jv = out.numpy().copy()  # numpy() is a view of the Warp array on the CPU
     JF = (vu / st.dt - Jv) / st.beta  # the F'(x) v inside it
     err_F = rel(JF, unique(exact))
@@ -235,7 +238,8 @@ def test_jacobian_passes_host_and_kernels_agree(rng):
     """``jacobian.FiniteDifferenceJacobian``'s two backends of its pointwise passes
     (``HostPasses``, numpy, the CPU's; ``KernelPasses``, Warp kernels, CUDA's) on TC5 at
     ne = 2: the gather, the scatter and shift·w + scale·J w give the same numbers to
-    round-off (measured: the same bits; they do the same operations entry by entry)."""
+    round-off (measured: the gather and scatter the same bits, J·v 2.5e-17 apart: ε's
+    norms are summed in another order, KernelPasses' on the device); J·0 = 0."""
     from swe_sphere.steppers.jacobian import FiniteDifferenceJacobian, HostPasses, KernelPasses
 
     sim = make_sim(load_scene("tc5_mountain", ne=2, np=4, days=1.0, stepper="implicit", dt=3600.0))
@@ -244,15 +248,18 @@ def test_jacobian_passes_host_and_kernels_agree(rng):
     m.rhs(sim.x, Fx)
     x_np = sim.x.numpy()
     w = wp.array(rng.standard_normal(3 * first.size) * 10.0, dtype=wp.float64, device=DEVICE)
-    xnorm = np.linalg.norm(x_np[:, first])
     got = {}
     for passes in (HostPasses, KernelPasses):
         jac = FiniteDifferenceJacobian(m, m.rhs, passes)
-        u, e, jv = wp.zeros_like(w), wp.zeros_like(sim.x), wp.zeros_like(w)
+        u, xu, e, jv = wp.zeros_like(w), wp.zeros_like(w), wp.zeros_like(sim.x), wp.zeros_like(w)
         jac.gather(-2.0, sim.x, u)
+        jac.gather(1.0, sim.x, xu)
         jac.scatter(w, e)
+        xnorm = jac.point_norm(xu)  # KernelPasses: a device array
         jac.apply(sim.x, Fx, xnorm, w, jv, 0.25, -0.5)
         got[passes] = [a.numpy().copy() for a in (u, e, jv)]
+        jac.apply(sim.x, Fx, xnorm, wp.zeros_like(w), jv, 0.25, -0.5)
+        assert not np.any(jv.numpy())  # w = 0: J w = 0 (KernelPasses: ε = 0 on the device)
     for name, a, b in zip(("gather", "scatter", "J·v"), got[HostPasses], got[KernelPasses]):
         print(f"\n{name}: bitwise {np.array_equal(a, b)}, max |host - kernels| / max |kernels| {np.abs(a - b).max() / np.abs(b).max():.1e}", end="")
         np.testing.assert_allclose(a, b, rtol=1e-14, atol=1e-14 * np.abs(b).max())
@@ -375,7 +382,7 @@ def test_fgmres_reaches_the_true_residual_with_an_inexact_inner_solve():
     st._axpby(1.0, x, 0.5 * st.dt, st.Fx, st.b)
     st._residual(x, st.Fx, st.R)
     st._gather(1.0, x, st.xu)
-    st.xnorm = st._norm(st.xu)
+    st.xnorm = st.jacobian.point_norm(st.xu)
     st._gmres(1e-6)
     delta, jv = wp.zeros_like(st.w), wp.zeros_like(st.w)
     st._gather(1.0, st.delta, delta)
@@ -386,13 +393,14 @@ def test_fgmres_reaches_the_true_residual_with_an_inexact_inner_solve():
     assert true < 2e-6
 
 
-def test_fgmres_solves_with_a_changing_preconditioner_and_restarts(rng):
+@pytest.mark.parametrize("backend", ["HostVectors", "KernelVectors"])
+def test_fgmres_solves_with_a_changing_preconditioner_and_restarts(backend, rng):
     """``krylov.FGMRES`` on a random nonsymmetric, diagonally dominant system
-    (n = 200): with a preconditioner that changes at every application (a
-    random-scaled Jacobi) and restarts every 5 iterations, the true residual
-    reaches the tolerance; without restarts the iterations match scipy's GMRES
-    (same Krylov space with a fixed preconditioner)."""
-    from swe_sphere.steppers.krylov import FGMRES
+    (n = 200), with either backend of its vector work: with a preconditioner that
+    changes at every application (a random-scaled Jacobi) and restarts every 5
+    iterations, the true residual reaches the tolerance; without restarts the
+    iterations match scipy's GMRES (same Krylov space with a fixed preconditioner)."""
+    from swe_sphere.steppers import krylov
     import scipy.sparse.linalg as spla
 
     n = 200
@@ -401,15 +409,15 @@ def test_fgmres_solves_with_a_changing_preconditioner_and_restarts(rng):
     d = 1.0 / np.diag(A)
     one_process = Topology(cached_grid(2, 4))  # FGMRES takes its device, threads and reductions
 
-    def solve(restart, scaling, rtol, maxiter):
+    def solve(restart, scaling, rtol, maxiter, rhs=b_np):
         def matvec(v, out):  # CPU Warp arrays: numpy() is a view
             out.numpy()[:] = A @ v.numpy()
 
         def precond(v, out):
             out.numpy()[:] = d * v.numpy() * scaling()
 
-        b, x = wp.array(b_np, dtype=wp.float64), wp.zeros(n, dtype=wp.float64)
-        its, ok = FGMRES(n, restart, one_process).solve(matvec, precond, b, x, rtol, maxiter)
+        b, x = wp.array(rhs, dtype=wp.float64), wp.full(n, 1.0, dtype=wp.float64)
+        its, ok = krylov.FGMRES(n, restart, one_process, getattr(krylov, backend)).solve(matvec, precond, b, x, rtol, maxiter)
         return x.numpy(), its, ok
 
     x, its, ok = solve(5, lambda: rng.uniform(0.5, 1.5, n), 1e-10, 500)
@@ -422,6 +430,84 @@ def test_fgmres_solves_with_a_changing_preconditioner_and_restarts(rng):
           f"fixed: FGMRES {its_fixed}, scipy GMRES {count[0]} iterations")
     assert ok and resid < 2e-10
     assert abs(its_fixed - count[0]) <= 1
+    # b = 0: x = 0 at once; maxiter = 7 across a restart: 7 products, not converged
+    x0, its0, ok0 = solve(5, lambda: 1.0, 1e-10, 500, rhs=np.zeros(n))
+    assert (its0, ok0) == (0, True) and not np.any(x0)
+    assert solve(5, lambda: 1.0, 1e-10, 7)[1:] == (7, False)
+
+
+def test_krylov_backends_agree_on_cn_steps_and_fgmres_reads_once_a_cycle():
+    """TC5 ne = 2 np = 4, three CN steps at 4 Δt_g with ``gmres_restart`` = 3 (so that
+    solves restart): the Krylov work in Warp kernels (``KernelVectors``, ``KernelPasses``:
+    CUDA's backends) against numpy (the CPU's) gives the same Newton and GMRES
+    iterations and states 1e-12 apart; and with the kernels, inside the GMRES solves
+    (their preconditioner's Helmholtz solves left out), one host read a restart cycle
+    (the tally's ``.numpy()`` read-backs: the J·v's ε, the Gram–Schmidt sums and the
+    least squares stay on the device; before, 4 reads an Arnoldi step)."""
+    from swe_sphere.steppers import jacobian, krylov
+
+    scene = load_scene("tc5_mountain", ne=2, np=4, stepper="implicit")
+    scene = dataclasses.replace(scene, dt=4.0 * scene.dt, stepper_options={"gmres_restart": 3})
+    runs = {}
+    for backend in ("host", "kernels"):
+        sim = make_sim(scene)
+        st, tally, own = sim.stepper, Tally(), [0]
+        if backend == "kernels":
+            st.fgmres.vectors, st.jacobian.passes = krylov.KernelVectors(st.fgmres), jacobian.KernelPasses(st.model)
+
+        def counted(fn, sign):  # the reads inside fn added to own (sign 1) or taken from it (−1)
+            def call(*a, **k):
+                before = tally.syncs
+                out = fn(*a, **k)
+                own[0] += sign * (tally.syncs - before)
+                return out
+
+            return call
+
+        st.fgmres.solve, st.gw.solve = counted(st.fgmres.solve, 1), counted(st.gw.solve, -1)
+        with instrumented(tally), tally.counting():
+            its = [st.step(sim.x).iterations for _ in range(3)]
+        runs[backend] = sim.x.numpy(), its, own[0], tally.launches["fgmres_end"]
+    (host, its_host, _, _), (kern, its_kern, reads, cycles) = runs["host"], runs["kernels"]
+    print(f"\n{its_kern}; kernels against numpy {rel(kern, host):.1e}; {reads} reads in {cycles} GMRES cycles", end="")
+    assert its_kern == its_host
+    assert rel(kern, host) < 1e-12
+    assert reads == cycles > sum(i["newton"] for i in its_kern)  # restarts happened
+
+
+def test_fgmres_cycles_replayed_as_graphs_give_the_bits_of_host_loops(monkeypatch):
+    """CN without a preconditioner (HOMME's default) on TC5 ne = 2 at 2 Δt_g, three steps
+    with CUDA's Krylov backends on one CPU thread: each restart cycle's Arnoldi steps
+    captured once per (iterate, F(x), Δt, β) as Warp's CPU graph (conditional steps
+    on the device flag) and replayed give the bits, iterations and RHS count of the
+    steps run as host loops; a replayed cycle runs no Python (its J·v not called)."""
+    from swe_sphere.steppers import jacobian, krylov
+
+    monkeypatch.setenv("SWE_SPHERE_THREADS", "1")
+    scene = load_scene("tc5_mountain", ne=2, np=4, stepper="implicit")
+    scene = dataclasses.replace(scene, dt=2.0 * scene.dt, stepper_options={"preconditioner": "none", "gmres_restart": 4})
+    runs = {}
+    for graphs in (False, True):
+        sim = make_sim(scene)
+        st = sim.stepper
+        st.fgmres.vectors, st.jacobian.passes = krylov.KernelVectors(st.fgmres), jacobian.KernelPasses(st.model)
+        if not graphs:
+            monkeypatch.setattr(st, "_cycle_key", lambda: None)
+        jv, calls = st._jv, [0]
+
+        def counted(w, out):
+            calls[0] += 1
+            jv(w, out)
+
+        st._jv = counted
+        stats = [st.step(sim.x) for _ in range(3)]
+        runs[graphs] = sim.x.numpy(), [(s.rhs_evals, s.iterations) for s in stats], calls[0], len(st.fgmres._graphs)
+    (plain, plain_stats, plain_calls, _), (graphed, graphed_stats, graphed_calls, captured) = runs[False], runs[True]
+    its = sum(s[1]["gmres"] for s in plain_stats)
+    print(f"\n{plain_stats}; {captured} graphs; J·v called {graphed_calls} times graphed, {plain_calls} plain", end="")
+    np.testing.assert_array_equal(graphed, plain)
+    assert graphed_stats == plain_stats and plain_calls == its
+    assert 0 < captured and graphed_calls == 4 * captured < its  # the J·v's Python ran while capturing only
 
 
 @pytest.mark.parametrize("backend", ["HostVectors", "KernelVectors"])

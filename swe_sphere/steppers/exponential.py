@@ -162,7 +162,7 @@ class _Exponential(Stepper):
         self._F(x, self.Fx)
         jac.gather(1.0, self.Fx, T[0])
         jac.gather(1.0, x, T[4])
-        fnorm, xnorm = jac.norm(T[0]), jac.norm(T[4])
+        fnorm, xnorm = jac.norm(T[0]), jac.point_norm(T[4])
         stats = None
         if fnorm > 0.0:  # else x is a steady state of the dynamics
             lin(self.T, self._none, 1.0 / fnorm, T[0], self.rows_u[0])

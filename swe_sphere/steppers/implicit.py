@@ -48,8 +48,8 @@ from ..kernels import blas
 from ..kernels import implicit as ik
 from .base import StepFailure, Stepper, StepStats
 from .helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, check_precision
-from .jacobian import FiniteDifferenceJacobian
-from .krylov import FGMRES
+from .jacobian import FiniteDifferenceJacobian, KernelPasses
+from .krylov import FGMRES, KernelVectors
 
 f64 = wp.float64
 
@@ -131,7 +131,9 @@ class Implicit(Stepper):
             self.gw = GravityWave(model, o["mean_depth"], o["helmholtz_tol"], 1000, precision=o["precision"])
         for name in ("xn", "xprev", "b", "Fx", "R", "delta", "trial", "Ft", "Rt", "v", "z"):
             setattr(self, name, wp.zeros((3, N), dtype=f64, device=dev))
-        self.jacobian = FiniteDifferenceJacobian(model, self._F)  # Krylov vectors live on unique nodes
+        # Krylov vectors live on unique nodes; the J·v's RHS evaluations are counted by the GMRES
+        # iterations (one each), as a captured cycle runs no Python
+        self.jacobian = FiniteDifferenceJacobian(model, model.rhs)
         self.topology = topo = model.topology
         self.nu = topo.nunique
         n3 = 3 * self.nu
@@ -185,11 +187,27 @@ class Implicit(Stepper):
         self._precondition(self.v, self.z)
         self._gather(1.0, self.z, out)
 
+    def _cycle_key(self):
+        """The key under which FGMRES captures a restart cycle as one graph (``FGMRES.solve``),
+        or None where it cannot: a cycle is captured with the Warp-kernel backends
+        (``KernelVectors``, ``KernelPasses``: CUDA's) on one rank, on CUDA with conditional
+        graph nodes (driver ≥ 12.4) or one CPU thread, without a time-dependent forcing (its time a launch argument) and without the
+        Helmholtz preconditioner (its CG reads its inner products back). Its launches
+        depend on the backends, the iterate and F(x) arrays (Fx alternates), Δt and β."""
+        m, topo = self.model, self.topology
+        if (self.gw is not None or m.forcing is not None or topo.distributed
+                or not isinstance(self.fgmres.vectors, KernelVectors) or not isinstance(self.jacobian.passes, KernelPasses)
+                or (m.threads > 1 if wp.get_device(m.device).is_cpu else not wp.is_conditional_graph_supported())):
+            return None
+        return (id(self.fgmres.vectors), id(self.jacobian.passes), self.x.ptr, self.Fx.ptr, self.dt, self.beta)
+
     def _gmres(self, eta) -> None:
         """Solve J δ = −R (on unique nodes) to relative tolerance eta by right-preconditioned
-        flexible GMRES; δ into ``delta``."""
+        flexible GMRES; δ into ``delta``. Each iteration one J·v (one RHS)."""
         self._gather(-1.0, self.R, self.minus_R)
-        its, _ = self.fgmres.solve(self._jv, self._unique_precondition, self.minus_R, self.w, eta, self.o["gmres_maxiter"])
+        its, _ = self.fgmres.solve(self._jv, self._unique_precondition, self.minus_R, self.w, eta, self.o["gmres_maxiter"],
+                                   graph_key=self._cycle_key())
+        self.rhs_evals += its
         self._counts["gmres"] += its
         if self.gw is not None:
             self._counts["helmholtz"] += self.gw.iterations()  # and a failed preconditioner solve raised
@@ -228,7 +246,7 @@ class Implicit(Stepper):
                 raise StepFailure("Newton residual is not finite")
             eta = self._eta(newton, rnorm, rprev, eta)
             self._gather(1.0, x, self.xu)
-            self.xnorm = self._norm(self.xu)
+            self.xnorm = self.jacobian.point_norm(self.xu)  # on the device with KernelPasses
             self._gmres(eta)
             lam = 1.0
             for _ in range(9):

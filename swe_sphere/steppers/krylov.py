@@ -11,8 +11,9 @@ products of the next pass, which are summed over processes by
 ``Topology.sums``; on CUDA in ``kernels.krylov``'s kernels, on a CPU in
 numpy/BLAS on views of the same arrays (``HostVectors``: Warp's CPU kernels are
 7–15× slower at such passes). So the solver is the same on CPU threads, CUDA and
-MPI ranks, and an Arnoldi step synchronises with the host twice (its two sets of
-inner products) besides what the operator and the preconditioner need. The new
+MPI ranks. FGMRES keeps its Arnoldi coefficients on the device (``kernels.krylov``'s
+one-thread kernels) and reads one set of scalars back a restart cycle; KIOPS reads
+its inner products back (``project_dots``). The new
 vector's norm is ‖w₁‖² − ‖h₂‖² (w₁ after the first pass, h₂ the second pass's
 coefficients: Pythagoras, exact for an orthonormal basis), not a third pass.
 
@@ -31,7 +32,6 @@ from __future__ import annotations
 
 import numpy as np
 import warp as wp
-from scipy.linalg import solve_triangular
 
 from ..kernels import krylov as kk
 from ..parallel import record, reduction_chunk
@@ -59,15 +59,17 @@ class KernelVectors:
     """A ``KrylovBasis``'s vector work in ``kernels.krylov``'s Warp kernels (the
     backend on CUDA): each operation one launch, recorded once per set of arrays;
     inner products as per-chunk partial sums (``parallel.reduction_chunk``) added
-    by ``Topology.partial_sums``."""
+    on the device in index order (``Topology.device_sums``), over ranks through the
+    host (``Topology.allreduce``; nothing comes back on one rank)."""
 
     def __init__(self, basis: "KrylovBasis"):
         n, rows, topo = basis.n, basis.V.shape[0], basis.topology
         self.n, self.topology = n, topo
-        self.coef, self._coef = wp.zeros(rows, dtype=f64, device=topo.device), np.zeros(rows)
         self.chunk = chunk = reduction_chunk(n, topo.device)
         self.partial = wp.zeros((rows + 1, (n + chunk - 1) // chunk), dtype=f64, device=topo.device)
         self._launches: dict[tuple, object] = {}
+        self._totals: dict[tuple, tuple] = {}
+        self._host: dict[int, np.ndarray] = {}
 
     def _launch(self, kernel, dim, inputs, nodes_per_index=1, **params):
         """Launch ``kernel`` on ``inputs``, recorded once per set of arrays (their
@@ -82,22 +84,31 @@ class KernelVectors:
             launch.set_param_by_name(name, value)
         launch.launch()
 
-    def _set_coef(self, c) -> None:
-        """The first len(c) coefficients on the device (the kernels read no more)."""
-        self._coef[: len(c)] = c
-        self.coef.assign(self._coef)
-
-    def project_dots(self, B, w, k_sub, h, k_dot):
-        if k_sub:
-            self._set_coef(h)
-        self._launch(kk.project_dots, self.partial.shape[1], [B, 0, self.coef, w, 0, self.partial, self.chunk],
+    def dots(self, B, w, k_sub, h, k_dot, out):
+        self._launch(kk.project_dots, self.partial.shape[1], [B, 0, h, w, 0, self.partial, self.chunk],
                      nodes_per_index=self.chunk, k_sub=k_sub, k_dot=k_dot)
-        return self.topology.partial_sums(self.partial, k_dot + 1)  # the rows it wrote: less to copy from a GPU
+        rows = k_dot + 1  # the rows it wrote
+        key = (out.ptr, rows)
+        totals = self._totals.get(key)
+        if totals is None:
+            head = out[:rows]
+            totals = self._totals[key] = (self.topology.device_sums(self.partial, rows, head), head)
+        for launch in totals[0]:
+            launch.launch()
+        self.topology.allreduce(totals[1])
 
-    def lincomb(self, B, c, a, x, out):
-        if len(c):
-            self._set_coef(c)
-        self._launch(kk.lincomb, self.n, [B, 0, self.coef, f64(0.0), x, out], k=len(c), a=f64(a))
+    def combine(self, B, c, k, x, out):
+        self._launch(kk.lincomb, self.n, [B, 0, c, x, out], k=k)
+
+    def put(self, a, values) -> None:
+        host = self._host.get(a.ptr)
+        if host is None:
+            host = self._host[a.ptr] = np.zeros(a.shape[0])
+        host[: len(values)] = values
+        a.assign(host)  # a copy to the device, not a read
+
+    def get(self, a, k: int) -> np.ndarray:
+        return a.numpy()[:k]
 
 
 class HostVectors:
@@ -111,33 +122,40 @@ class HostVectors:
     runs with one BLAS thread, as ``Topology.dot``'s inner products assume). An
     inner product is BLAS's dot over this process's entries, then summed over
     processes in rank order by ``Topology.sums``: the bits do not depend on the
-    model's threads (SWE_SPHERE_THREADS), which never touch these passes."""
+    model's threads (SWE_SPHERE_THREADS), which never touch these passes. The
+    coefficient arrays are read and written in place (CPU memory: no copy)."""
 
     def __init__(self, basis: "KrylovBasis"):
         self.topology = basis.topology
         self.tmp = np.zeros(basis.n)
         self._np = NumpyViews()
 
-    def project_dots(self, B, w, k_sub, h, k_dot):
+    def dots(self, B, w, k_sub, h, k_dot, out):
         B, w = self._np(B), self._np(w)
         if k_sub:
-            np.dot(np.asarray(h, dtype=np.float64), B[:k_sub], out=self.tmp)  # BLAS gemv: one pass over B's rows
+            np.dot(self._np(h)[:k_sub], B[:k_sub], out=self.tmp)  # BLAS gemv: one pass over B's rows
             np.subtract(w, self.tmp, out=w)
         d = np.empty(k_dot + 1)
         if k_dot:
             np.dot(B[:k_dot], w, out=d[:k_dot])
         d[k_dot] = w @ w
-        return self.topology.sums(d)
+        self._np(out)[: k_dot + 1] = self.topology.sums(d)
 
-    def lincomb(self, B, c, a, x, out):
-        x, out = self._np(x), self._np(out)
-        k = len(c)
+    def combine(self, B, c, k, x, out):
+        x, out, c = self._np(x), self._np(out), self._np(c)
+        a = c[k]
         if k:
-            np.dot(np.asarray(c, dtype=np.float64), self._np(B)[:k], out=self.tmp)
+            np.dot(c[:k], self._np(B)[:k], out=self.tmp)
         if a != 1.0 or out is not x:  # a·x first: out may alias x (an update in place skips the pass)
             np.multiply(x, a, out=out)
         if k:
             np.add(out, self.tmp, out=out)
+
+    def put(self, a, values) -> None:
+        self._np(a)[: len(values)] = values
+
+    def get(self, a, k: int) -> np.ndarray:
+        return self._np(a)[:k].copy()
 
 
 class KrylovBasis:
@@ -150,7 +168,13 @@ class KrylovBasis:
     ``vectors``: the backend of that work, chosen once here: ``HostVectors``
     (numpy/BLAS on views of the arrays) on a CPU device, ``KernelVectors``
     (``kernels.krylov``) elsewhere; either may be given (the tests check the two
-    agree to round-off)."""
+    agree to round-off). A backend's operations take their coefficients from and
+    put their inner products into device arrays (float64, (rows + 1,) at most):
+    ``dots(B, w, k_sub, h, k_dot, out)``: w −= Σ_{i<k_sub} h[i] B_i, out[:k_dot + 1] =
+    (B_i·w for i < k_dot, w·w) over all processes; ``combine(B, c, k, x, out)``: out =
+    c[k]·x + Σ_{i<k} c[i] B_i; ``put(a, values)``, ``get(a, k)``: host values into a
+    device array and its first k back (a host read on a GPU). ``project_dots`` and
+    ``lincomb`` are the same with host coefficients (KIOPS's)."""
 
     def __init__(self, n: int, rows: int, topology, vectors=None):
         n, rows = int(n), int(rows)
@@ -159,18 +183,25 @@ class KrylovBasis:
         self.V = wp.zeros((rows, n), dtype=f64, device=dev)
         self.rows_V = [self.V[j] for j in range(rows)]  # row views: their addresses key the recorded launches
         self.w = wp.zeros(n, dtype=f64, device=dev)
+        self.coef = wp.zeros(rows + 1, dtype=f64, device=dev)  # host coefficients, on the device
+        self.sums = wp.zeros(rows + 1, dtype=f64, device=dev)  # inner products
         if vectors is None:
             vectors = HostVectors if wp.get_device(dev).is_cpu else KernelVectors
         self.vectors = vectors(self)
 
     def project_dots(self, B, w, k_sub: int, h: np.ndarray | None, k_dot: int) -> np.ndarray:
         """w −= Σ_{i<k_sub} h_i B_i; returns (B_i·w for i < k_dot, w·w) over all processes
-        (B a 2-D array of vectors, w a vector)."""
-        return self.vectors.project_dots(B, w, k_sub, h, k_dot)
+        (B a 2-D array of vectors, w a vector; one host read on a GPU)."""
+        if k_sub:
+            self.vectors.put(self.coef, h[:k_sub])
+        self.vectors.dots(B, w, k_sub, self.coef, k_dot, self.sums)
+        return self.vectors.get(self.sums, k_dot + 1)
 
     def lincomb(self, B, c: np.ndarray, a: float, x, out) -> None:
         """out = a·x + Σ c_i B_i (out may alias x; not B's rows i < len(c))."""
-        self.vectors.lincomb(B, c, a, x, out)
+        k = len(c)
+        self.vectors.put(self.coef, np.append(c, a))
+        self.vectors.combine(B, self.coef, k, x, out)
 
 
 class FGMRES(KrylovBasis):
@@ -178,68 +209,98 @@ class FGMRES(KrylovBasis):
     length ``n`` (this process's part) on ``topology``'s device, inner products
     summed over its processes.
 
-    ``solve(matvec, precond, b, x, rtol, maxiter)`` → (iterations, converged):
-    ``matvec(v, out)`` and ``precond(v, out)`` write A v and P⁻¹ v into ``out``
-    (Warp arrays of length n); x (a Warp array, overwritten) gets the solution;
-    stops when ‖b − A x‖ ≤ rtol ‖b‖ (the Arnoldi estimate) or after
-    ``maxiter`` products with A.
+    ``solve(matvec, precond, b, x, rtol, maxiter, graph_key=None)`` → (iterations,
+    converged): ``matvec(v, out)`` and ``precond(v, out)`` write A v and P⁻¹ v into
+    ``out`` (Warp arrays of length n); x (a Warp array, overwritten) gets the
+    solution; stops when ‖b − A x‖ ≤ rtol ‖b‖ (the Arnoldi estimate) or after
+    ``maxiter`` products with A. With a ``graph_key``, a cycle's Arnoldi steps are
+    captured once per key as a graph (a CUDA graph with conditional nodes; Warp's
+    CPU graph on a CPU) and replayed: the caller vouches that matvec and precond
+    read nothing back, that their launches with the parameters they bake in are the
+    same for every solve under that key, that the backends are Warp kernels and the
+    launches on one thread of one rank; their Python side effects happen only while
+    capturing (count products by the iterations returned).
+
+    One algorithm on every backend and device: the vector passes are the basis's
+    backend's, the small dense work (the Hessenberg column, Givens rotations, the
+    residual estimate, the triangular solve) ``kernels.krylov``'s one-thread
+    kernels on device arrays, so no coefficient comes back to the host inside a
+    cycle. A cycle's Arnoldi steps run under ``wp.capture_if`` on a device flag
+    that the last step clears (converged, products spent, breakdown): on a CPU the
+    host tests the flag in place (no copy), on CUDA a step is skipped by a 4-byte
+    flag copy or, inside a captured graph, by a conditional node. Then one read a
+    cycle (``info``: the residual estimate, products, steps) decides the update's
+    length and whether to restart. Over several ranks the inner products go
+    through the host (``Topology.allreduce``), twice a step.
     """
 
-    def __init__(self, n: int, restart: int, topology):
+    def __init__(self, n: int, restart: int, topology, vectors=None):
         m = self.restart = int(restart)
-        super().__init__(n, m + 1, topology)
-        self.Z = wp.zeros((m, self.n), dtype=f64, device=topology.device)
+        super().__init__(n, m + 1, topology, vectors)
+        dev = topology.device
+        self.Z = wp.zeros((m, self.n), dtype=f64, device=dev)
         self.rows_Z = [self.Z[j] for j in range(m)]
-        self.r = wp.zeros(self.n, dtype=f64, device=topology.device)
+        self.r = wp.zeros(self.n, dtype=f64, device=dev)
+        zeros = lambda *shape: wp.zeros(shape, dtype=f64, device=dev)  # noqa: E731
+        self.H, self.cs, self.sn, self.g = zeros(m + 1, m), zeros(m), zeros(m), zeros(m + 1)
+        self.h1, self.h2, self.cv, self.y, self.e = (zeros(m + 2) for _ in range(5))  # passes' sums, V_{j+1}'s, y, r's
+        self.info = zeros(kk.INFO_SIZE)
+        self.go = wp.zeros(1, dtype=wp.int32, device=dev)
+        rec = lambda kernel, inputs: wp.launch(kernel, 1, inputs, device=dev, record_cmd=True)  # noqa: E731
+        self._start = rec(kk.fgmres_start, [self.h1, f64(0.0), 0, self.info])
+        self._cycle = rec(kk.fgmres_cycle, [self.info, self.g, self.coef, self.go])
+        self._column = rec(kk.arnoldi_column, [0, self.h1, self.h2, self.H, self.cs, self.sn, self.g, self.cv, self.info, self.go])
+        self._end = rec(kk.fgmres_end, [self.H, self.cs, self.sn, self.g, self.info, self.y, self.e])
+        self._graphs: dict = {}
 
-    def _project_dots(self, k_sub: int, h: np.ndarray | None, k_dot: int) -> np.ndarray:
-        """w −= Σ_{i<k_sub} h_i V_i; returns (V_i·w for i < k_dot, w·w) over all processes."""
-        return self.project_dots(self.V, self.w, k_sub, h, k_dot)
+    def _arnoldi(self, j: int, matvec, precond) -> None:
+        """Arnoldi step j: Z_j = P⁻¹ V_j, w = A Z_j, classical Gram–Schmidt twice (as
+        accurate as modified Gram–Schmidt, Giraud et al. 2005, Numer. Math. 101, 87),
+        H's column, its rotation and the test on the device, V_{j+1}."""
+        vec = self.vectors
+        precond(self.rows_V[j], self.rows_Z[j])
+        matvec(self.rows_Z[j], self.w)
+        vec.dots(self.V, self.w, 0, self.coef, j + 1, self.h1)
+        vec.dots(self.V, self.w, j + 1, self.h1, j + 1, self.h2)  # the second pass, with the first's coefficients
+        self._column.set_param_by_name("j", j)
+        self._column.launch()
+        vec.combine(self.V, self.cv, j + 1, self.w, self.rows_V[j + 1])
 
-    def solve(self, matvec, precond, b, x, rtol: float, maxiter: int):
-        m, V, Z, w = self.restart, self.rows_V, self.rows_Z, self.w
+    def _steps(self, matvec, precond) -> None:
+        """A cycle's Arnoldi steps, each run while the device flag ``go`` is set."""
+        for j in range(self.restart):
+            wp.capture_if(self.go, self._arnoldi, j=j, matvec=matvec, precond=precond)
+
+    def _replay_steps(self, key, matvec, precond) -> None:
+        """``_steps`` as the graph captured under ``key`` on its first use."""
+        graph = self._graphs.get(key)
+        if graph is None:
+            with wp.ScopedCapture(device=self.topology.device) as capture:
+                self._steps(matvec, precond)
+            graph = self._graphs[key] = capture.graph
+        wp.capture_launch(graph)
+
+    def solve(self, matvec, precond, b, x, rtol: float, maxiter: int, graph_key=None):
+        vec = self.vectors
         x.zero_()
-        wp.copy(w, b)
-        beta = float(np.sqrt(self._project_dots(0, None, 0)[0]))
-        if beta == 0.0:
-            return 0, True
-        target = rtol * beta
-        r, its = b, 0
+        vec.dots(self.V, b, 0, self.coef, 0, self.h1)  # b·b
+        self._start.set_param_by_name("rtol", f64(rtol))
+        self._start.set_param_by_name("maxiter", int(maxiter))
+        self._start.launch()
+        r = b
         while True:
-            H = np.zeros((m + 1, m))
-            cs, sn = np.zeros(m), np.zeros(m)
-            g = np.zeros(m + 1)
-            g[0] = beta
-            self.lincomb(self.V, np.zeros(0), 1.0 / beta, r, V[0])
-            for j in range(m):
-                precond(V[j], Z[j])
-                matvec(Z[j], w)
-                its += 1
-                h = self._project_dots(0, None, j + 1)[:-1]
-                *h2, ww = self._project_dots(j + 1, h, j + 1)  # the second pass of classical Gram–Schmidt
-                h2 = np.array(h2)
-                H[: j + 1, j] = h + h2
-                H[j + 1, j] = hn = float(np.sqrt(max(ww - h2 @ h2, 0.0)))
-                if hn > 0.0:
-                    self.lincomb(self.V, -h2 / hn, 1.0 / hn, w, V[j + 1])
-                for i in range(j):  # earlier Givens rotations on the new column
-                    H[i, j], H[i + 1, j] = cs[i] * H[i, j] + sn[i] * H[i + 1, j], -sn[i] * H[i, j] + cs[i] * H[i + 1, j]
-                d = np.hypot(H[j, j], H[j + 1, j])
-                cs[j], sn[j] = H[j, j] / d, H[j + 1, j] / d
-                H[j, j], H[j + 1, j] = d, 0.0
-                g[j], g[j + 1] = cs[j] * g[j], -sn[j] * g[j]
-                if abs(g[j + 1]) <= target or its >= maxiter or hn == 0.0:
-                    break
-            k = j + 1
-            y = solve_triangular(H[:k, :k], g[:k])
-            self.lincomb(self.Z, y, 1.0, x, x)
-            beta = abs(g[k])
-            if beta <= target or its >= maxiter or hn == 0.0:
-                return its, beta <= target
-            # the residual b − A x = V_{k+1} Qᵀ (0, …, 0, g_k), without a product with A
-            e = np.zeros(k + 1)
-            e[k] = g[k]
-            for i in reversed(range(k)):
-                e[i], e[i + 1] = cs[i] * e[i] - sn[i] * e[i + 1], sn[i] * e[i] + cs[i] * e[i + 1]
-            self.lincomb(self.V, e, 0.0, self.r, self.r)
+            self._cycle.launch()  # g = β e₁, V₀ = r/β, go
+            vec.combine(self.V, self.coef, 0, r, self.rows_V[0])
+            if graph_key is None:
+                self._steps(matvec, precond)
+            else:
+                self._replay_steps(graph_key, matvec, precond)
+            self._end.launch()  # y, and the residual's combination e
+            residual, target, its, k, breakdown = vec.get(self.info, 5)  # the cycle's one read
+            its, k = int(its), int(k)
+            if k:
+                vec.combine(self.Z, self.y, k, x, x)
+            if residual <= target or its >= maxiter or breakdown or k == 0:
+                return its, bool(residual <= target)
+            vec.combine(self.V, self.e, k + 1, self.r, self.r)  # b − A x = V_{k+1} Qᵀ (0, …, 0, g_k)
             r = self.r

@@ -11,6 +11,7 @@ per sweep (the cheapest qualifying run of each stepper per criterion). With
 Δt/Δt_g for each criterion (``DIR/<sweep>_temporal_error.png``).
 
     python docs/efficiency/tables.py study/tc5_ne8 study/tc5_ne16 --figures docs/efficiency
+    python docs/efficiency/tables.py study/tc5_epi_ne30 --family epi2,epi3   # the family against the rest
 """
 import argparse
 from pathlib import Path
@@ -105,8 +106,29 @@ def summary(dirs) -> str:
     return "\n".join(out)
 
 
-COLORS = dict(zip(["leapfrog", "leapfrog_trapezoidal", "ssprk3", "rk4", "kgu35", "fbrk32", "semi_implicit", "imex", "implicit"],
-                  ["C0", "C1", "C2", "C3", "C7", "C8", "C4", "C5", "C6"]))
+COLORS = dict(zip(["leapfrog", "leapfrog_trapezoidal", "ssprk3", "rk4", "kgu35", "fbrk32", "semi_implicit", "imex", "implicit", "epi2", "epi3"],
+                  ["C0", "C1", "C2", "C3", "C7", "C8", "C4", "C5", "C6", "C9", "k"]))
+
+
+def versus(dirs, family) -> str:
+    """Per sweep and criterion: the cheapest qualifying (≤ 10 %) run of the steppers in
+    ``family`` against the cheapest of the others, and the ratio of their costs."""
+    out = ["| sweep | criterion | spatial error | cheapest other | cheapest of " + ", ".join(family) + " | ratio |",
+           "|---|---|---:|---|---|---:|"]
+    for d in dirs:
+        v = pd.read_csv(d / "verdicts.csv")
+        v = v[(v.threshold == 0.1) & v.dt.notna()]
+        for c in CRITERIA:
+            w = v[v.criterion == c]
+            if w.empty:
+                continue
+            mine, rest = w[w.stepper.isin(family)], w[~w.stepper.isin(family)]
+            a = None if rest.empty else rest.loc[rest.cost_time.idxmin()]
+            b = None if mine.empty else mine.loc[mine.cost_time.idxmin()]
+            show = lambda r: "—" if r is None else f"{r.stepper} @ {r.dt_over_gravity_limit:.3g}, {r.cost_time:.1f} s"  # noqa: E731
+            ratio = "" if a is None or b is None else f"{b.cost_time / a.cost_time:.2f}×"
+            out.append(f"| {d.name} | {SHORT[c]} | {w.spatial_error.iloc[0]:.3g} | {show(a)} | {show(b)} | {ratio} |")
+    return "\n".join(out)
 
 
 def figure(d: Path, out: Path):
@@ -146,8 +168,11 @@ def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("sweeps", nargs="+", type=Path, help="sweep directories (named <case>_ne<ne>)")
     p.add_argument("--figures", type=Path, metavar="DIR", help="also draw the temporal-error figures into DIR")
+    p.add_argument("--family", help="comma-separated steppers (e.g. epi2,epi3): also their cheapest qualifying run against the others'")
     args = p.parse_args()
     print(summary(args.sweeps))
+    if args.family:
+        print("\n" + versus(args.sweeps, args.family.split(",")))
     for d in args.sweeps:
         print(f"\n### {d.name}\n")
         print(per_stepper(d, 0.1))

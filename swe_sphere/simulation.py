@@ -30,7 +30,7 @@ from .output import OUTPUT_FIELDS, RunWriter, check_distinct, check_target, node
 from .parallel import default_threads
 from .runtime import ResourceError, check_memory, pick_device, run_bytes
 from .scoring import Scorer, truth
-from .steppers import StepFailure, make_stepper
+from .steppers import StepFailure, StepStats, make_stepper
 from .topology import Topology, rank_parts
 
 
@@ -699,10 +699,12 @@ class Simulation:
             return min(ends)
 
         def block(b: int, e: int):
-            """Steps b+1..e, each state flagged on the device (``ShallowWater.watch``),
-            read once at the end; stops early for a signal. Returns (m, trouble): m the
-            last step taken, trouble None when every state to m was good, else "bad",
-            "failure" (a ``StepFailure`` in step m + 1) or "abandoned" (step m + 1);
+            """Steps b+1..e, each state flagged on the device (``ShallowWater.watch``) and
+            the solvers' iterations counted there (``Stepper.deferred``), both read once at
+            the end; stops early for a signal. Returns (m, trouble): m the last step taken,
+            trouble None when every state to m was good, else "bad", "unconverged" (a
+            solve in steps b+1..m failed, ``Stepper.counts``), "failure" (a
+            ``StepFailure`` in step m + 1) or "abandoned" (step m + 1);
             on trouble the state, stepper history and counters are those of step b again."""
             nonlocal interrupted
             saved = stepper.state(), c["rhs_evals"], dict(c["iterations"])
@@ -726,9 +728,15 @@ class Simulation:
                 add(stats)
                 m += 1
                 self.step = m  # the steps x holds (not yet checked)
-            if model.watched_bad() and trouble is None:  # the block's one host read (and synchronisation)
+            if model.watched_bad() and trouble is None:  # the block's host read (and synchronisation)
                 trouble = "bad"
+            try:  # the solvers' device counters of the block's steps (zeroed, also after trouble)
+                counts = stepper.counts()
+            except StepFailure:  # a solve in steps b+1..m failed: which one, the re-run tells
+                trouble = trouble or "unconverged"
             account(m, t0, cpu0)
+            if trouble is None:
+                add(StepStats(0, counts))
             if trouble is not None:
                 self.step = b
                 wp.copy(self.x, self.last_good)
@@ -779,6 +787,7 @@ class Simulation:
         # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
         # pay, and on a busy machine OpenBLAS's spinning threads made a norm cost 10 ms
         limits = threadpool_limits(limits=1, user_api="blas")
+        stepper.deferred = True  # its solvers' device counters read with the bad-state check (``_take_step``, ``block``)
         blowup = interrupted = None
         abandoned = False
         try:
@@ -806,7 +815,7 @@ class Simulation:
                             if trouble == "abandoned":
                                 abandoned = (b, m)
                                 break
-                            rerun_to = m if trouble == "bad" else m + 1  # a failure: in step m + 1
+                            rerun_to = m + 1 if trouble == "failure" else m  # a failure: in step m + 1
                             continue
                         # one step, checked: the state before it kept, the check read at once
                         n = b + 1
@@ -858,6 +867,7 @@ class Simulation:
                     w.abort()
             raise
         finally:
+            stepper.deferred = False
             limits.restore_original_limits()
             if handlers:
                 signal.setitimer(signal.ITIMER_REAL, 0)
@@ -909,13 +919,20 @@ class Simulation:
 
     def _take_step(self, watch: bool):
         """One step of the stepper on x and, with ``watch``, the bad-state flag's launch
-        (``ShallowWater.watch``); its ``StepStats``. With ``graphs``, a step whose
+        (``ShallowWater.watch``; the solvers' device counters left for the block's
+        read), else with its solvers' counters read (``Stepper.counts``: raises
+        ``StepFailure``); its ``StepStats``. With ``graphs``, a step whose
         ``graph_key`` was seen before runs as a graph: the key's first step runs plain
         (recording its launches, loading their modules and allocating what they
         need, none of which a capture may do), its second is captured and launched,
         the later ones launched. The key holds the stepper and x, so another stepper
         (a branch), a dt (a new stepper) or state array captures anew; a restore
         assigns arrays in place, which a graph (their addresses) follows."""
+        stats = self._graphed_step(watch)
+        return stats if watch else StepStats(stats.rhs_evals, {**stats.iterations, **self.stepper.counts()})
+
+    def _graphed_step(self, watch: bool):
+        """``_take_step`` but the read of the solvers' counters."""
         stepper, model = self.stepper, self.model
         key = None
         if self.graphs and model.threads == 1 and not self.topology.distributed:

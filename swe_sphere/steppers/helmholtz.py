@@ -206,13 +206,14 @@ class GravityWave:
                 wp.launch(hk.refine_check, 1, [cg.sums, first, f64(self.tol**2), self.maxiter, cg.cs, cg.ic, low.cs, low.ic, f64(SINGLE_FLOOR**2), self.stats],
                           device=dev, record_cmd=True)
                 for first in (1, 0))
-        # with one rank a solve is one graph per (r, z, a, scale, H), its loops conditional nodes: a CUDA
+        # with one rank a solve is one graph per (r, z, a, scale, H), its loops conditional nodes
+        # (``graphable``; so may a caller's graph hold it: a stepper's whole step): a CUDA
         # graph, or on one CPU thread Warp's CPU graph (the same bits; 13 % off an IMEX step at ne30:
         # no Python per launch). Not over several CPU threads (``SplitLaunch`` is a Python pool), nor
         # with a CUDA driver below 12.4 (no conditional nodes: host loops, a read an iteration).
         self._graphs: dict[tuple, object] = {}
         cpu = wp.get_device(dev).is_cpu
-        self._graphed = not model.topology.distributed and (model.threads == 1 if cpu else wp.is_conditional_graph_supported())
+        self.graphable = not model.topology.distributed and (model.threads == 1 if cpu else wp.is_conditional_graph_supported())
 
     # -- what carries over between solves (for bitwise restarts) ----------------------
     def state(self) -> dict:
@@ -265,10 +266,10 @@ class GravityWave:
 
     def _run(self, key: tuple, fn, *args) -> None:
         """fn(*args) as a graph captured on the first call per ``key`` (the launch
-        parameters it bakes in) and replayed after, where ``_graphed``; inline while a
+        parameters it bakes in) and replayed after, where ``graphable``; inline while a
         caller captures and otherwise (the loops host loops testing the device flag)."""
         dev = wp.get_device(self.model.device)
-        if not self._graphed or dev.is_capturing:
+        if not self.graphable or dev.is_capturing:
             fn(*args)
             return
         graph = self._graphs.get(key)

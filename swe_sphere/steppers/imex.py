@@ -107,6 +107,7 @@ class Imex(Stepper):
 
     name = "imex"
     Options = ImexOptions
+    capturable = True  # its CG runs on the device (``GravityWave``), read once a block (``deferred``)
     solvers = ("helmholtz",)
     removed_options = REMOVED_SOLVER_OPTIONS
     # ARS(3,4,3) in the 2026-11-23 study (docs/efficiency.md), |v| Δt/Δx at t = 0: stable at
@@ -136,6 +137,14 @@ class Imex(Stepper):
         abscissae; ARS: b_E = b_I, c = Â1."""
         A_exp, A_imp, b, _ = tableau(self.options.scheme)
         return A_exp, b, A_imp, b, A_exp.sum(axis=1)
+
+    def counts(self):
+        return {"helmholtz": self.gw.iterations()}
+
+    def graph_key(self):
+        # the first step fixes H by a host read (``set_depth``): it runs plain; a CUDA graph
+        # needs conditional nodes for the CG's loops (``GravityWave.graphable``)
+        return super().graph_key() if self.gw.H and self.gw.graphable else None
 
     def state(self):
         # the mean depth (0 until fixed by the first step) and the warm Helmholtz guess
@@ -189,4 +198,4 @@ class Imex(Stepper):
         b_E, b_I = self.b_E, self.b_I
         self._combine(x, self.xn, [(dt * b_E[j], F[j]) for j in range(len(F))] + [(dt * (b_I[j] - b_E[j]), L[j]) for j in range(len(F))])
         m.hyperviscosity(x, dt)
-        return StepStats(evals, {"helmholtz": gw.iterations()})  # the step's one host read
+        return StepStats(evals, self._device_counts())

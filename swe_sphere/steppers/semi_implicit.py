@@ -64,7 +64,8 @@ class SemiImplicit(Leapfrog):
 
     name = "semi_implicit"
     Options = SemiImplicitOptions
-    explicit = capturable = False  # the Helmholtz CG reads its inner products back (ISSUE 32 item 3)
+    explicit = False
+    capturable = True  # its CG runs on the device (``GravityWave``), read once a block (``deferred``)
     courant_limit = None
     solvers = ("helmholtz",)
     removed_options = REMOVED_SOLVER_OPTIONS
@@ -92,6 +93,14 @@ class SemiImplicit(Leapfrog):
         self._pointwise(blas.axpbypcz, f64(1.0), old, f64(2.0 * dt), self.F, f64(dt), self.LW, new)
         gw.solve(new, dt, new)
 
+    def counts(self):
+        return {"helmholtz": self.gw.iterations()}
+
+    def graph_key(self):
+        # the start (a half step, leapfrog's; H fixed by a host read) runs plain; a CUDA graph
+        # needs conditional nodes for the CG's loops (``GravityWave.graphable``)
+        return super().graph_key() if self.gw.graphable else None
+
     def state(self):
         # H = 0 until fixed by the first step; each Helmholtz solve starts from the last one's solution
         return {**super().state(), **self.gw.state()}
@@ -109,9 +118,9 @@ class SemiImplicit(Leapfrog):
             self._si(self.old, x, self.new, self.dt / 2)
             self._copy_new.launch()
             m.hyperviscosity(x, self.dt)
-            return StepStats(1, {"helmholtz": self.gw.iterations()})
+            return StepStats(1, self._device_counts())
         self._si(self.old, x, self.new, self.dt)
         m.hyperviscosity(self.new, 2 * self.dt)
         self._ra.launch()
         self._copy_new.launch()
-        return StepStats(1, {"helmholtz": self.gw.iterations()})  # the step's one host read
+        return StepStats(1, self._device_counts())

@@ -221,9 +221,11 @@ class Simulation:
     then not diagnosed for nothing); None: the start state's (``diagnose(0)``).
 
     ``graphs`` (True on a GPU, False on a CPU): ``run`` replays each step of a
-    ``capturable`` stepper (the explicit ones) as a graph captured of an earlier
-    step with the same ``Stepper.graph_key`` (on CUDA a CUDA graph, one host call
-    a step instead of one a launch; the same bits as launched one by one); a
+    ``capturable`` stepper (the explicit ones; semi-implicit and IMEX after their
+    first step, their Helmholtz CG's loops conditional nodes inside, on CUDA where
+    Warp has them) as a graph captured of an earlier step with the same
+    ``Stepper.graph_key`` (on CUDA a CUDA graph, one host call a step instead
+    of one a launch; the same bits as launched one by one); a
     model with a time-dependent forcing runs plain. On a CPU it takes one thread
     a launch (SWE_SPHERE_THREADS=1; Warp replays a CPU graph in one thread) and
     one process; otherwise the steps run plain.
@@ -232,10 +234,14 @@ class Simulation:
     checks the state for a non-finite value or h <= 0 after every step on the
     device (``ShallowWater.watch``) and reads the check back every so many steps
     and at every output, restart, log and callback step, so that a GPU step
-    needs no host round trip. A block of steps whose check fails is re-run from
-    its start (state, stepper history and counters kept there), one checked
-    step at a time: the blow-up is reported at the step, time and place, and
-    the output holds, as with a check every step (the same bits either way).
+    needs no host round trip; the solvers' iteration counters of the semi-implicit
+    and IMEX steps are read there too (``Stepper.deferred``, ``Stepper.counts``),
+    and a solve that missed its tolerance fails the block like a bad state. A
+    block of steps whose check fails is re-run from its start (state, stepper
+    history and counters kept there), one checked
+    step at a time: the blow-up is reported at the step, time and place (a
+    failed solve at the step and time), and the output holds, as with a check
+    every step (the same bits either way).
 
     A scene may also be given as ``swe_sphere.run`` takes it, ``Simulation("tc2_steady",
     ne=4, days=2)``: a scene file or bundled name with overrides

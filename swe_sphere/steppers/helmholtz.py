@@ -28,7 +28,8 @@ on the device with no host read: its scalar recurrences, convergence test and
 loop (``wp.capture_while``), the refinement of "mixed" precision and the area
 shift; with one rank a solve is one graph (a CUDA graph; Warp's CPU graph on one
 CPU thread). Its iterations and a failure are counted on the device and read
-once, by ``GravityWave.iterations`` (a step's one host read); over several ranks
+once, by ``GravityWave.iterations`` (a step's one host read, or, under
+``Simulation.run``, a block's: ``Stepper.deferred``); over several ranks
 each inner product's per-rank sums are added on the host (``Topology.allreduce``).
 The operator's bits depend on neither threads nor ranks (its DSS is a gather in
 the global order), so a run on N ranks differs from one on one rank only by the

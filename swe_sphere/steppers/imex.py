@@ -101,8 +101,10 @@ class Imex(Stepper):
     ("double" | "mixed", as ``semi_implicit``'s). The Helmholtz solve is
     ``helmholtz.GravityWave``'s compiled CG; each stage's solve starts from the
     last one's solution. 3 (ARS(2,3,2)) or 4 (ARS(3,4,3)) RHS evaluations and
-    one Helmholtz solve fewer a step; reports the Helmholtz iterations. Raises
-    ValueError without the continuity and pressure-gradient terms.
+    one Helmholtz solve fewer a step; reports the Helmholtz iterations (under
+    ``Simulation.run`` counted on the device and read once a block, the step a
+    graph after the first). Raises ValueError without the continuity and
+    pressure-gradient terms.
     """
 
     name = "imex"

@@ -58,8 +58,9 @@ class SemiImplicit(Leapfrog):
     starts from the last one's solution. ``precision`` ("double" | "mixed":
     float32 CG passes refined in float64 to the same ``tol``; "double" is the
     default because the float32 product is no faster on the CPU, benchmarks/README.md).
-    Reports the Helmholtz iterations per step. Raises ValueError without the
-    continuity and pressure-gradient terms.
+    Reports the Helmholtz iterations per step (under ``Simulation.run`` counted on
+    the device and read once a block, the step a graph after the first). Raises
+    ValueError without the continuity and pressure-gradient terms.
     """
 
     name = "semi_implicit"

@@ -238,10 +238,9 @@ class Simulation:
     and IMEX steps are read there too (``Stepper.deferred``, ``Stepper.counts``),
     and a solve that missed its tolerance fails the block like a bad state. A
     block of steps whose check fails is re-run from its start (state, stepper
-    history and counters kept there), one checked
-    step at a time: the blow-up is reported at the step, time and place (a
-    failed solve at the step and time), and the output holds, as with a check
-    every step (the same bits either way).
+    history and counters kept there), one checked step at a time: the blow-up is
+    reported at the step, time and place (a failed solve at the step and time),
+    and the output holds, as with a check every step (the same bits either way).
 
     A scene may also be given as ``swe_sphere.run`` takes it, ``Simulation("tc2_steady",
     ne=4, days=2)``: a scene file or bundled name with overrides
@@ -743,7 +742,7 @@ class Simulation:
             account(m, t0, cpu0)
             if trouble is None:
                 add(StepStats(0, counts))
-            if trouble is not None:
+            else:
                 self.step = b
                 wp.copy(self.x, self.last_good)
                 stepper.restore(saved[0])

@@ -335,6 +335,33 @@ class GravityWave:
         self._check_next.launch()
 
 
+class HelmholtzSteps:
+    """What the semi-implicit and IMEX steppers (their ``GravityWave`` ``gw``, built with
+    ``warm``) share, put before their ``Stepper`` base: the mean depth and the CG's warm
+    guess in ``state``/``restore``; the CG's device counters as ``counts`` (read with the
+    step when not ``deferred``, ``Stepper._device_counts``); and a graph key once the step
+    reads nothing: H fixed (the first step's host read, ``set_depth``), the counters
+    ``deferred``, and the CG's loops able to be graph nodes (``GravityWave.graphable``:
+    one rank; on CUDA conditional nodes)."""
+
+    capturable = True
+    solvers = ("helmholtz",)
+
+    def counts(self):
+        return {"helmholtz": self.gw.iterations()}
+
+    def graph_key(self):
+        gw = self.gw
+        return super().graph_key() if gw.H and gw.graphable and self.deferred else None
+
+    def state(self):
+        return {**super().state(), **self.gw.state()}
+
+    def restore(self, state):
+        super().restore(state)
+        self.gw.restore(state, self._entry)
+
+
 # the float32 CG's reach: a tolerance at or above SINGLE_TOL is solved in float32 alone;
 # below it, refinement passes each reduce the float64 residual by SINGLE_FLOOR at most
 # (float32's unit round-off 6e-8 times the growth of CG's recurrences)

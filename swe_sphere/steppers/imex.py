@@ -41,7 +41,7 @@ import warp as wp
 
 from ..kernels import blas
 from .base import Stepper, StepStats
-from .helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, check_solve_options
+from .helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, HelmholtzSteps, check_solve_options
 
 f64 = wp.float64
 
@@ -89,7 +89,7 @@ class ImexOptions:
         check_solve_options(self)
 
 
-class Imex(Stepper):
+class Imex(HelmholtzSteps, Stepper):
     """IMEX Runge–Kutta ARS(2,3,2) / ARS(3,4,3): gravity waves implicit, the rest explicit.
 
     Options (scene table ``[imex]``): ``scheme`` ("ars343" | "ars232"), ``tol``
@@ -109,8 +109,6 @@ class Imex(Stepper):
 
     name = "imex"
     Options = ImexOptions
-    capturable = True  # its CG runs on the device (``GravityWave``), read once a block (``deferred``)
-    solvers = ("helmholtz",)
     removed_options = REMOVED_SOLVER_OPTIONS
     # ARS(3,4,3) in the 2026-11-23 study (docs/efficiency.md), |v| Δt/Δx at t = 0: stable at
     # 0.88 (TC5 ne16), 1.47 (TC6 ne16), 1.20 (Galewsky ne30); blew up at 1.10 (TC5 ne30,
@@ -139,22 +137,6 @@ class Imex(Stepper):
         abscissae; ARS: b_E = b_I, c = Â1."""
         A_exp, A_imp, b, _ = tableau(self.options.scheme)
         return A_exp, b, A_imp, b, A_exp.sum(axis=1)
-
-    def counts(self):
-        return {"helmholtz": self.gw.iterations()}
-
-    def graph_key(self):
-        # the first step fixes H by a host read (``set_depth``): it runs plain; a CUDA graph
-        # needs conditional nodes for the CG's loops (``GravityWave.graphable``)
-        return super().graph_key() if self.gw.H and self.gw.graphable else None
-
-    def state(self):
-        # the mean depth (0 until fixed by the first step) and the warm Helmholtz guess
-        return {**super().state(), **self.gw.state()}
-
-    def restore(self, state):
-        super().restore(state)
-        self.gw.restore(state, self._entry)
 
     def _combine(self, out, base, terms):
         """out = base + Σ c·x over the nonzero (c, x) of ``terms``, two at a time."""

@@ -26,7 +26,7 @@ import warp as wp
 from ..kernels import blas
 from .base import StepStats
 from .explicit import Leapfrog, LeapfrogOptions
-from .helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, check_solve_options
+from .helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, HelmholtzSteps, check_solve_options
 
 f64 = wp.float64
 
@@ -45,7 +45,7 @@ class SemiImplicitOptions(LeapfrogOptions):
         check_solve_options(self)
 
 
-class SemiImplicit(Leapfrog):
+class SemiImplicit(HelmholtzSteps, Leapfrog):
     """Semi-implicit leapfrog: 1 RHS evaluation and one Helmholtz solve per step.
 
     Options (scene table ``[semi_implicit]``): ``robert_asselin`` (0.05),
@@ -66,9 +66,7 @@ class SemiImplicit(Leapfrog):
     name = "semi_implicit"
     Options = SemiImplicitOptions
     explicit = False
-    capturable = True  # its CG runs on the device (``GravityWave``), read once a block (``deferred``)
     courant_limit = None
-    solvers = ("helmholtz",)
     removed_options = REMOVED_SOLVER_OPTIONS
 
     def __init__(self, model, dt, options=None):
@@ -93,22 +91,6 @@ class SemiImplicit(Leapfrog):
         gw.apply(self.W, self.LW)
         self._pointwise(blas.axpbypcz, f64(1.0), old, f64(2.0 * dt), self.F, f64(dt), self.LW, new)
         gw.solve(new, dt, new)
-
-    def counts(self):
-        return {"helmholtz": self.gw.iterations()}
-
-    def graph_key(self):
-        # the start (a half step, leapfrog's; H fixed by a host read) runs plain; a CUDA graph
-        # needs conditional nodes for the CG's loops (``GravityWave.graphable``)
-        return super().graph_key() if self.gw.graphable else None
-
-    def state(self):
-        # H = 0 until fixed by the first step; each Helmholtz solve starts from the last one's solution
-        return {**super().state(), **self.gw.state()}
-
-    def restore(self, state):
-        super().restore(state)
-        self.gw.restore(state, self._entry)
 
     def advance(self, x):
         m = self.model

@@ -147,7 +147,7 @@ def build(case, ne, stepper, dt, options, clock, device, backend=None):
     gw = getattr(sim.stepper, "gw", None)
     if gw is not None:
         timers.wrap(gw, "solve", "Helmholtz rest")
-        for cg in (gw.cg, gw.low) if not gw._graphed else ():  # the float64 CG's operator, and the float32 one's ("mixed")
+        for cg in (gw.cg, gw.low) if not gw.graphable else ():  # the float64 CG's operator, and the float32 one's ("mixed")
             if cg is not None:
                 timers.wrap(cg, "apply", "Helmholtz op")
     return sim, timers

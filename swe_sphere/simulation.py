@@ -30,7 +30,7 @@ from .output import OUTPUT_FIELDS, RunWriter, check_distinct, check_target, node
 from .parallel import default_threads
 from .runtime import ResourceError, check_memory, pick_device, run_bytes
 from .scoring import Scorer, truth
-from .steppers import StepFailure, make_stepper
+from .steppers import StepFailure, StepStats, make_stepper
 from .topology import Topology, rank_parts
 
 
@@ -221,9 +221,11 @@ class Simulation:
     then not diagnosed for nothing); None: the start state's (``diagnose(0)``).
 
     ``graphs`` (True on a GPU, False on a CPU): ``run`` replays each step of a
-    ``capturable`` stepper (the explicit ones) as a graph captured of an earlier
-    step with the same ``Stepper.graph_key`` (on CUDA a CUDA graph, one host call
-    a step instead of one a launch; the same bits as launched one by one); a
+    ``capturable`` stepper (the explicit ones; semi-implicit and IMEX after their
+    first step, their Helmholtz CG's loops conditional nodes inside, on CUDA where
+    Warp has them) as a graph captured of an earlier step with the same
+    ``Stepper.graph_key`` (on CUDA a CUDA graph, one host call a step instead
+    of one a launch; the same bits as launched one by one); a
     model with a time-dependent forcing runs plain. On a CPU it takes one thread
     a launch (SWE_SPHERE_THREADS=1; Warp replays a CPU graph in one thread) and
     one process; otherwise the steps run plain.
@@ -232,10 +234,13 @@ class Simulation:
     checks the state for a non-finite value or h <= 0 after every step on the
     device (``ShallowWater.watch``) and reads the check back every so many steps
     and at every output, restart, log and callback step, so that a GPU step
-    needs no host round trip. A block of steps whose check fails is re-run from
-    its start (state, stepper history and counters kept there), one checked
-    step at a time: the blow-up is reported at the step, time and place, and
-    the output holds, as with a check every step (the same bits either way).
+    needs no host round trip; the solvers' iteration counters of the semi-implicit
+    and IMEX steps are read there too (``Stepper.deferred``, ``Stepper.counts``),
+    and a solve that missed its tolerance fails the block like a bad state. A
+    block of steps whose check fails is re-run from its start (state, stepper
+    history and counters kept there), one checked step at a time: the blow-up is
+    reported at the step, time and place (a failed solve at the step and time),
+    and the output holds, as with a check every step (the same bits either way).
 
     A scene may also be given as ``swe_sphere.run`` takes it, ``Simulation("tc2_steady",
     ne=4, days=2)``: a scene file or bundled name with overrides
@@ -699,10 +704,12 @@ class Simulation:
             return min(ends)
 
         def block(b: int, e: int):
-            """Steps b+1..e, each state flagged on the device (``ShallowWater.watch``),
-            read once at the end; stops early for a signal. Returns (m, trouble): m the
-            last step taken, trouble None when every state to m was good, else "bad",
-            "failure" (a ``StepFailure`` in step m + 1) or "abandoned" (step m + 1);
+            """Steps b+1..e, each state flagged on the device (``ShallowWater.watch``) and
+            the solvers' iterations counted there (``Stepper.deferred``), both read once at
+            the end; stops early for a signal. Returns (m, trouble): m the last step taken,
+            trouble None when every state to m was good, else "bad", "unconverged" (a
+            solve in steps b+1..m failed, ``Stepper.counts``), "failure" (a
+            ``StepFailure`` in step m + 1) or "abandoned" (step m + 1);
             on trouble the state, stepper history and counters are those of step b again."""
             nonlocal interrupted
             saved = stepper.state(), c["rhs_evals"], dict(c["iterations"])
@@ -726,10 +733,16 @@ class Simulation:
                 add(stats)
                 m += 1
                 self.step = m  # the steps x holds (not yet checked)
-            if model.watched_bad() and trouble is None:  # the block's one host read (and synchronisation)
+            if model.watched_bad() and trouble is None:  # the block's host read (and synchronisation)
                 trouble = "bad"
+            try:  # the solvers' device counters of the block's steps (zeroed, also after trouble)
+                counts = stepper.counts()
+            except StepFailure:  # a solve in steps b+1..m failed: which one, the re-run tells
+                trouble = trouble or "unconverged"
             account(m, t0, cpu0)
-            if trouble is not None:
+            if trouble is None:
+                add(StepStats(0, counts))
+            else:
                 self.step = b
                 wp.copy(self.x, self.last_good)
                 stepper.restore(saved[0])
@@ -779,6 +792,7 @@ class Simulation:
         # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
         # pay, and on a busy machine OpenBLAS's spinning threads made a norm cost 10 ms
         limits = threadpool_limits(limits=1, user_api="blas")
+        stepper.deferred = True  # its solvers' device counters read with the bad-state check (``_take_step``, ``block``)
         blowup = interrupted = None
         abandoned = False
         try:
@@ -806,7 +820,7 @@ class Simulation:
                             if trouble == "abandoned":
                                 abandoned = (b, m)
                                 break
-                            rerun_to = m if trouble == "bad" else m + 1  # a failure: in step m + 1
+                            rerun_to = m + 1 if trouble == "failure" else m  # a failure: in step m + 1
                             continue
                         # one step, checked: the state before it kept, the check read at once
                         n = b + 1
@@ -858,6 +872,7 @@ class Simulation:
                     w.abort()
             raise
         finally:
+            stepper.deferred = False
             limits.restore_original_limits()
             if handlers:
                 signal.setitimer(signal.ITIMER_REAL, 0)
@@ -909,13 +924,20 @@ class Simulation:
 
     def _take_step(self, watch: bool):
         """One step of the stepper on x and, with ``watch``, the bad-state flag's launch
-        (``ShallowWater.watch``); its ``StepStats``. With ``graphs``, a step whose
+        (``ShallowWater.watch``; the solvers' device counters left for the block's
+        read), else with its solvers' counters read (``Stepper.counts``: raises
+        ``StepFailure``); its ``StepStats``. With ``graphs``, a step whose
         ``graph_key`` was seen before runs as a graph: the key's first step runs plain
         (recording its launches, loading their modules and allocating what they
         need, none of which a capture may do), its second is captured and launched,
         the later ones launched. The key holds the stepper and x, so another stepper
         (a branch), a dt (a new stepper) or state array captures anew; a restore
         assigns arrays in place, which a graph (their addresses) follows."""
+        stats = self._graphed_step(watch)
+        return stats if watch else StepStats(stats.rhs_evals, {**stats.iterations, **self.stepper.counts()})
+
+    def _graphed_step(self, watch: bool):
+        """``_take_step`` but the read of the solvers' counters."""
         stepper, model = self.stepper, self.model
         key = None
         if self.graphs and model.threads == 1 and not self.topology.distributed:

@@ -66,13 +66,16 @@ def make_sim(scene):
 RUN_TIMES = ("wall_time", "cpu_time")  # a run file's measured series: differ between any two runs
 
 
-def watched_run(scene, path, *, device="cpu", check_every=1, graphs=False, **kwargs):
+def watched_run(scene, path, *, device="cpu", check_every=1, graphs=False, setup=None, **kwargs):
     """Run ``scene`` on ``device`` to ``path`` (``Simulation.run``'s ``kwargs``) with
     a callback every 10 steps and a log, checked every ``check_every`` steps, steps
-    as graphs or not: (result, BlowUp message or None, run file without its timings,
-    final state, what the callbacks and log saw). ``assert_same_runs`` compares two."""
+    as graphs or not, ``setup(sim)`` called before: (result, BlowUp message or None,
+    run file without its timings, final state, what the callbacks and log saw).
+    ``assert_same_runs`` compares two."""
     sim = Simulation(scene, device, progress=False)
     sim.check_every, sim.graphs = check_every, graphs
+    if setup is not None:
+        setup(sim)
     seen = []
     sim.add_callback(lambda s: seen.append((s.step, s.x.numpy().copy())), every_steps=10)
     try:

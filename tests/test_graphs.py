@@ -1,13 +1,15 @@
-"""Explicit steps replayed as captured graphs (``Simulation.graphs``, ISSUE 32 item 2)
+"""Steps replayed as captured graphs (``Simulation.graphs``, ISSUE 32 items 2 and 3)
 and the host reads inside a step (``swe_sphere.tally``).
 
 Warp captures and replays graphs on a CPU too (its launches recorded and replayed
 in C++, one thread), so the graph path runs here as on a GPU: with one thread a
 launch a graphed run gives the same bits as launching step by step, reports a
-blow-up inside a block as a check every step does, and continues from a restart
-file bitwise. The same tests run on CUDA (CUDA graphs against the ungraphed CUDA
-run; skipped without a CUDA device). A step that reads the device back cannot
-be captured: every explicit stepper reads nothing inside a step.
+blow-up or an unconverged solve inside a block as a check every step does, and
+continues from a restart file bitwise. The same tests run on CUDA (CUDA graphs
+against the ungraphed CUDA run; skipped without a CUDA device). A step that reads
+the device back cannot be captured: the explicit steppers read nothing inside a
+step, the semi-implicit and IMEX ones nothing while ``Simulation`` runs them (their
+CG's counters read once a block, ``Stepper.deferred``).
 """
 
 from __future__ import annotations
@@ -25,12 +27,13 @@ from swe_sphere.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
 from swe_sphere.tally import Tally, instrumented
 
-# the capturable steppers, and "tableau", whose default table is explicit (a ``TableauRK``)
-EXPLICIT = [name for name, cls in STEPPERS.items() if cls.capturable] + ["tableau"]
+# the capturable steppers (explicit, semi-implicit, IMEX), and "tableau", whose default table is explicit (a ``TableauRK``)
+CAPTURABLE = [name for name, cls in STEPPERS.items() if cls.capturable] + ["tableau"]
 DEVICES = ["cpu", ON_CUDA]
 NE = {"cpu": 2, "cuda": 4}
 STEPS = 12
 SOLVER_DT = 4.0  # the implicit-type steppers' Δt in the read count, × TC5's
+SOLVERS = ["semi_implicit", "imex"]  # the capturable steppers with a Helmholtz CG
 
 
 @pytest.fixture
@@ -58,30 +61,126 @@ def tc5(name, device, steps=STEPS, **kw):
     return dataclasses.replace(scene, days=steps * scene.dt / DAY, output_every_days=steps * scene.dt / DAY)
 
 
+def skip_without_conditional_nodes(name, device):
+    """A solver stepper's step is a CUDA graph only where its CG's loop can be a conditional node."""
+    if device == "cuda" and STEPPERS[name].solvers and not wp.is_conditional_graph_supported():
+        pytest.skip("a CG's loop in a CUDA graph needs conditional nodes (CUDA driver and toolkit 12.4+)")
+
+
+def long_steps(name, device, steps, **options):
+    """``tc5`` at 2× (semi-implicit) or 4× (IMEX) TC5's Δt, the stepper's ``options``."""
+    scene = tc5(name, device, steps)
+    scene = dataclasses.replace(scene, dt=scene.dt * {"semi_implicit": 2, "imex": SOLVER_DT}[name], stepper_options=options)
+    return dataclasses.replace(scene, days=steps * scene.dt / DAY, output_every_days=steps * scene.dt / DAY)
+
+
 def stepped(scene, device, graphs, check_every):
     sim = Simulation(scene, device, progress=False)
     sim.graphs, sim.check_every = graphs, check_every
     result = sim.run(None)
-    return sim.x.numpy(), result.rhs_evals, sim.stepper.steps
+    return sim.x.numpy(), result.rhs_evals, sim.stepper.steps, result.iterations
 
 
 @pytest.mark.parametrize("device", DEVICES)
-@pytest.mark.parametrize("name", EXPLICIT)
+@pytest.mark.parametrize("name", CAPTURABLE)
 def test_graphed_steps_are_the_bits_of_plain_ones(one_thread, graph_launches, name, device):
     """12 steps of TC5 (its ∇⁴ two forward-Euler substeps a step on ne 2, leapfrog's three
     over 2Δt): graphed, in blocks of 5 checked steps (the flag's launch in the
     graph) and checked one by one, against plain launches: the same state, RHS
-    count and stepper step count; all but each key's first two steps (plain, then
-    captured) and leapfrog's start ran as graphs."""
+    count, stepper step count and solver iterations (semi-implicit, IMEX: the CG's
+    loops inside the step's graph, its counters read once a block); all but each
+    key's first two steps (plain, then captured) and the start (leapfrog's, the
+    semi-implicit half step, IMEX's first step fixing H) ran as graphs."""
+    skip_without_conditional_nodes(name, device)
     scene = tc5(name, device)
     plain = stepped(scene, device, False, 5)
-    assert graph_launches[0] == 0
+    assert graph_launches[0] == 0 or plain[3]  # but a plain step's solves: graphs of their own (``GravityWave``)
     for every in (5, 1):
         graph_launches[0] = 0
         graphed = stepped(scene, device, True, every)
         np.testing.assert_array_equal(graphed[0], plain[0])
-        assert graphed[1:] == plain[1:] == (graphed[1], STEPS)
+        assert graphed[1:] == plain[1:] == (graphed[1], STEPS, graphed[3])
+        assert all(its > STEPS for its in graphed[3].values()), graphed[3]
         assert graph_launches[0] >= STEPS - 3, graph_launches[0]
+
+
+@pytest.mark.parametrize("device", DEVICES)
+@pytest.mark.parametrize("precision", ["double", "mixed"])
+@pytest.mark.parametrize("name", SOLVERS)
+def test_graphed_solver_steps_at_long_steps_are_the_bits_of_plain_ones(one_thread, graph_launches, name, precision, device):
+    """16 semi-implicit (2× TC5's Δt) and IMEX ARS(3,4,3) (4×) steps, double and mixed
+    precision (the refinement's loop around the float32 CG's: nested ``capture_while``
+    inside the step's graph), graphed in blocks of 5: the state and Helmholtz
+    iterations of plain steps checked one by one, bit for bit."""
+    skip_without_conditional_nodes(name, device)
+    scene = long_steps(name, device, 16, precision=precision)
+    plain = stepped(scene, device, False, 1)
+    graph_launches[0] = 0
+    graphed = stepped(scene, device, True, 5)
+    np.testing.assert_array_equal(graphed[0], plain[0])
+    assert graphed[1:] == plain[1:] and plain[3]["helmholtz"] > 16 * 3
+    assert graph_launches[0] >= 16 - 3
+
+
+@pytest.mark.parametrize("name", SOLVERS)
+def test_a_graphed_solver_step_reads_nothing_back_and_a_block_once(one_thread, tally, name):
+    """Host reads in a graphed run of 16 long steps checked every 5: none in any step of
+    a block (graph or plain: the CG's counters stay on the device), and at the end of
+    each block (2-4: the wall-time estimate's, 6-10, 11-15) the bad-state flag and the
+    solvers' counters, one read each (``Stepper.counts``). The steps checked alone (1,
+    5 and 16, left between blocks) read their counters inside the step
+    (``Simulation._take_step``), the first also its mean depth (``set_depth``).
+    (Before: one read a step, the step's counters, and no graph.)"""
+    sim = Simulation(long_steps(name, "cpu", 16), "cpu", progress=False)
+    sim.graphs, sim.check_every = True, 5
+    inside, reads = [], {"flag": [], "counts": []}
+    take, counts, watched_bad = sim._take_step, sim.stepper.counts, sim.model.watched_bad
+
+    def counted(what, fn):
+        def call(*a):
+            reads[what].append(sim.step)
+            before = tally.syncs
+            out = fn(*a)
+            assert tally.syncs == before + 1, what
+            return out
+        return call
+
+    def step(watch):
+        before = tally.syncs
+        stats = take(watch)
+        inside.append((watch, tally.syncs - before))
+        return stats
+
+    sim._take_step, sim.stepper.counts, sim.model.watched_bad = step, counted("counts", counts), counted("flag", watched_bad)
+    with tally.counting():
+        result = sim.run(None)
+    assert result.steps == 16 and result.iterations["helmholtz"] > 16 * 3
+    assert inside == [(False, 2), *[(True, 0)] * 3, (False, 1), *[(True, 0)] * 10, (False, 1)], inside
+    assert reads == {"flag": [4, 10, 15], "counts": [0, 4, 4, 10, 15, 15]}
+
+
+@pytest.mark.parametrize("device", DEVICES)
+@pytest.mark.parametrize("name, maxiter", [("semi_implicit", 5), ("imex", 4)])
+def test_an_unconverged_solve_inside_a_graphed_block_is_reported_as_with_a_check_every_step(tmp_path, one_thread, graph_launches,
+                                                                                           name, maxiter, device):
+    """A Helmholtz solve past ``maxiter`` in step 6, inside the block 6-10 of a check every
+    5 steps (a callback at step 5 spoils the CG's warm-start guess): found at the block's
+    read of the counters, the block is re-run from step 5 one checked step at a time, and
+    the message (step, model time), counters, run file and state are those of plain
+    steps checked every step, graphed or not."""
+    skip_without_conditional_nodes(name, device)
+    scene = dataclasses.replace(tc5(name, "cpu"), stepper_options={"maxiter": maxiter})  # ne 2 on CUDA too: the iterations of the CPU to round-off
+
+    def spoil(sim):
+        gw = sim.stepper.gw
+        gw.y.assign(np.random.default_rng(1).standard_normal(gw.y.shape[0]) * 1e3)
+
+    runs = [watched_run(scene, tmp_path / f"{every}{graphs}.nc", device=device, check_every=every, graphs=graphs, setup=lambda sim: sim.add_callback(spoil, every_steps=5))
+            for every, graphs in ((1, False), (5, False), (5, True))]
+    assert runs[0][1].startswith("step 6 failed (model time 0.2143 days): Helmholtz CG did not converge in ")
+    assert graph_launches[0] > 0
+    assert_same_runs(runs[0], runs[1])
+    assert_same_runs(runs[0], runs[2])
 
 
 @pytest.mark.parametrize("device", DEVICES)
@@ -114,11 +213,13 @@ def test_blow_up_inside_a_graphed_block_is_reported_as_with_a_check_every_step(t
 
 
 @pytest.mark.parametrize("device", DEVICES)
-@pytest.mark.parametrize("name", ["leapfrog", "ssprk3"])
+@pytest.mark.parametrize("name", ["leapfrog", "ssprk3", *SOLVERS])
 def test_a_graphed_run_continues_from_its_restart_file_bitwise(tmp_path, one_thread, graph_launches, name, device):
     """12 graphed steps straight against 6 graphed steps, a restart file and a fresh
     graphed Simulation from it for 6 more (leapfrog: its x(n-1) restored, its
-    start not re-run): the same final state as 12 plain steps."""
+    start not re-run; the semi-implicit and IMEX mean depth and CG guess restored):
+    the same final state as 12 plain steps."""
+    skip_without_conditional_nodes(name, device)
     plain = stepped(tc5(name, device), device, False, 5)[0]
     whole = stepped(tc5(name, device), device, True, 5)[0]
     half = Simulation(tc5(name, device, STEPS // 2), device, progress=False)
@@ -142,26 +243,30 @@ def test_a_time_dependent_forcing_is_not_captured():
         assert sim.stepper.graph_key() == key, case
 
 
-def test_explicit_steps_read_nothing_back():
+def test_capturable_steps_read_nothing_back(one_thread):
     """Host reads (``.numpy()`` read-backs, each a device synchronisation that ends a
-    CUDA graph) inside one TC5 ne 2 step of every registered stepper, after two:
-    none in an explicit step, and every explicit stepper has a graph key (the
-    implicit-type ones, at 4× Δt, read their solvers' inner products back: counts
-    printed with -s; semi_implicit 21, imex 32, implicit 177 on 2026-11-23)."""
+    CUDA graph) inside one TC5 ne 2 step of every registered stepper, after two, as
+    ``Simulation.run`` takes them (``Stepper.deferred``): none in a capturable step
+    (explicit; semi-implicit and IMEX at 4× Δt, their CG's counters left on the
+    device), and each of those has a graph key; the others (JFNK, exponential) read
+    their solvers' results back (counts printed with -s; implicit 177 on 2026-11-23;
+    before this, semi_implicit 21 and imex 32, then 1)."""
     tally, counts = Tally(), {}
     for name, cls in STEPPERS.items():
         scene = load_scene("tc5_mountain", ne=2, np=4, stepper=name)
         if not cls.explicit and name != "tableau":
             scene = dataclasses.replace(scene, dt=scene.dt * SOLVER_DT)
         sim = Simulation(scene, "cpu", progress=False)
+        sim.stepper.deferred = True
         for _ in range(2):
             sim.stepper.step(sim.x)
         with instrumented(tally), tally.counting():
             sim.stepper.step(sim.x)
         counts[name] = tally.syncs
-        if sim.stepper.explicit:
+        if sim.stepper.capturable:
             assert tally.syncs == 0 and sim.stepper.graph_key() is not None, (name, tally.syncs)
         else:
             assert sim.stepper.graph_key() is None, name
     print("host reads in one step:", counts)
-    assert counts["semi_implicit"] > 0  # the count sees the solvers' reads
+    assert counts["implicit"] > 0  # the count sees the solvers' reads
+    assert {"semi_implicit", "imex", "ssprk3"} <= {name for name, cls in STEPPERS.items() if cls.capturable}

@@ -75,10 +75,13 @@ class Stepper:
     advective_courant_limit: float | None = None
     solvers: tuple[str, ...] = ()
     # True: once recorded, a step launches the same kernels with the same arguments every
-    # step and reads nothing back (explicit steppers), so ``Simulation`` may replay it as a
-    # captured graph (``graph_key``). The solvers' host-side convergence tests keep the
-    # others out until their loops run on the device (ISSUE 32 item 3).
+    # step and reads nothing back (the explicit steppers; the semi-implicit and IMEX ones
+    # with ``deferred``), so ``Simulation`` may replay it as a captured graph (``graph_key``).
+    # JFNK's Newton test stays on the host (ISSUE 32 item 3).
     capturable = False
+    # True (``Simulation.run`` sets it): a step leaves its solvers' device counters
+    # unread (``StepStats.iterations`` empty for them), read by ``counts`` once a block
+    deferred = False
     removed_options: dict[str, str] = {}  # option → why it is gone, for the error message
 
     @classmethod
@@ -156,6 +159,18 @@ class Stepper:
 
     def advance(self, x: wp.array2d) -> StepStats:
         raise NotImplementedError
+
+    def counts(self) -> dict:
+        """Solver iterations (by name, as ``StepStats.iterations``) counted on the device
+        by the steps since the last call, then zeroed: one host read. Raises
+        ``StepFailure`` when a solve among them failed (the step unknown: re-run them one
+        by one to name it). {} for steppers that count on the host (in ``StepStats``)."""
+        return {}
+
+    def _device_counts(self) -> dict:
+        """A step's device-counted iterations for its ``StepStats``: read now (``counts``,
+        the step's one host read), or {} when ``deferred``."""
+        return {} if self.deferred else self.counts()
 
     def graph_key(self):
         """What the next step's launches depend on besides the stepper, dt and x: steps with

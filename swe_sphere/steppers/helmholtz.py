@@ -28,7 +28,8 @@ on the device with no host read: its scalar recurrences, convergence test and
 loop (``wp.capture_while``), the refinement of "mixed" precision and the area
 shift; with one rank a solve is one graph (a CUDA graph; Warp's CPU graph on one
 CPU thread). Its iterations and a failure are counted on the device and read
-once, by ``GravityWave.iterations`` (a step's one host read); over several ranks
+once, by ``GravityWave.iterations`` (a step's one host read, or, under
+``Simulation.run``, a block's: ``Stepper.deferred``); over several ranks
 each inner product's per-rank sums are added on the host (``Topology.allreduce``).
 The operator's bits depend on neither threads nor ranks (its DSS is a gather in
 the global order), so a run on N ranks differs from one on one rank only by the
@@ -206,13 +207,14 @@ class GravityWave:
                 wp.launch(hk.refine_check, 1, [cg.sums, first, f64(self.tol**2), self.maxiter, cg.cs, cg.ic, low.cs, low.ic, f64(SINGLE_FLOOR**2), self.stats],
                           device=dev, record_cmd=True)
                 for first in (1, 0))
-        # with one rank a solve is one graph per (r, z, a, scale, H), its loops conditional nodes: a CUDA
+        # with one rank a solve is one graph per (r, z, a, scale, H), its loops conditional nodes
+        # (``graphable``; so may a caller's graph hold it: a stepper's whole step): a CUDA
         # graph, or on one CPU thread Warp's CPU graph (the same bits; 13 % off an IMEX step at ne30:
         # no Python per launch). Not over several CPU threads (``SplitLaunch`` is a Python pool), nor
         # with a CUDA driver below 12.4 (no conditional nodes: host loops, a read an iteration).
         self._graphs: dict[tuple, object] = {}
         cpu = wp.get_device(dev).is_cpu
-        self._graphed = not model.topology.distributed and (model.threads == 1 if cpu else wp.is_conditional_graph_supported())
+        self.graphable = not model.topology.distributed and (model.threads == 1 if cpu else wp.is_conditional_graph_supported())
 
     # -- what carries over between solves (for bitwise restarts) ----------------------
     def state(self) -> dict:
@@ -265,10 +267,10 @@ class GravityWave:
 
     def _run(self, key: tuple, fn, *args) -> None:
         """fn(*args) as a graph captured on the first call per ``key`` (the launch
-        parameters it bakes in) and replayed after, where ``_graphed``; inline while a
+        parameters it bakes in) and replayed after, where ``graphable``; inline while a
         caller captures and otherwise (the loops host loops testing the device flag)."""
         dev = wp.get_device(self.model.device)
-        if not self._graphed or dev.is_capturing:
+        if not self.graphable or dev.is_capturing:
             fn(*args)
             return
         graph = self._graphs.get(key)
@@ -331,6 +333,33 @@ class GravityWave:
         self._widen.launch()  # y += e
         self.cg.residual(c)
         self._check_next.launch()
+
+
+class HelmholtzSteps:
+    """What the semi-implicit and IMEX steppers (their ``GravityWave`` ``gw``, built with
+    ``warm``) share, put before their ``Stepper`` base: the mean depth and the CG's warm
+    guess in ``state``/``restore``; the CG's device counters as ``counts`` (read with the
+    step when not ``deferred``, ``Stepper._device_counts``); and a graph key once the step
+    reads nothing: H fixed (the first step's host read, ``set_depth``), the counters
+    ``deferred``, and the CG's loops able to be graph nodes (``GravityWave.graphable``:
+    one rank; on CUDA conditional nodes)."""
+
+    capturable = True
+    solvers = ("helmholtz",)
+
+    def counts(self):
+        return {"helmholtz": self.gw.iterations()}
+
+    def graph_key(self):
+        gw = self.gw
+        return super().graph_key() if gw.H and gw.graphable and self.deferred else None
+
+    def state(self):
+        return {**super().state(), **self.gw.state()}
+
+    def restore(self, state):
+        super().restore(state)
+        self.gw.restore(state, self._entry)
 
 
 # the float32 CG's reach: a tolerance at or above SINGLE_TOL is solved in float32 alone;

@@ -41,7 +41,7 @@ import warp as wp
 
 from ..kernels import blas
 from .base import Stepper, StepStats
-from .helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, check_solve_options
+from .helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, HelmholtzSteps, check_solve_options
 
 f64 = wp.float64
 
@@ -89,7 +89,7 @@ class ImexOptions:
         check_solve_options(self)
 
 
-class Imex(Stepper):
+class Imex(HelmholtzSteps, Stepper):
     """IMEX Runge–Kutta ARS(2,3,2) / ARS(3,4,3): gravity waves implicit, the rest explicit.
 
     Options (scene table ``[imex]``): ``scheme`` ("ars343" | "ars232"), ``tol``
@@ -101,13 +101,14 @@ class Imex(Stepper):
     ("double" | "mixed", as ``semi_implicit``'s). The Helmholtz solve is
     ``helmholtz.GravityWave``'s compiled CG; each stage's solve starts from the
     last one's solution. 3 (ARS(2,3,2)) or 4 (ARS(3,4,3)) RHS evaluations and
-    one Helmholtz solve fewer a step; reports the Helmholtz iterations. Raises
-    ValueError without the continuity and pressure-gradient terms.
+    one Helmholtz solve fewer a step; reports the Helmholtz iterations (under
+    ``Simulation.run`` counted on the device and read once a block, the step a
+    graph after the first). Raises ValueError without the continuity and
+    pressure-gradient terms.
     """
 
     name = "imex"
     Options = ImexOptions
-    solvers = ("helmholtz",)
     removed_options = REMOVED_SOLVER_OPTIONS
     # ARS(3,4,3) in the 2026-11-23 study (docs/efficiency.md), |v| Δt/Δx at t = 0: stable at
     # 0.88 (TC5 ne16), 1.47 (TC6 ne16), 1.20 (Galewsky ne30); blew up at 1.10 (TC5 ne30,
@@ -136,14 +137,6 @@ class Imex(Stepper):
         abscissae; ARS: b_E = b_I, c = Â1."""
         A_exp, A_imp, b, _ = tableau(self.options.scheme)
         return A_exp, b, A_imp, b, A_exp.sum(axis=1)
-
-    def state(self):
-        # the mean depth (0 until fixed by the first step) and the warm Helmholtz guess
-        return {**super().state(), **self.gw.state()}
-
-    def restore(self, state):
-        super().restore(state)
-        self.gw.restore(state, self._entry)
 
     def _combine(self, out, base, terms):
         """out = base + Σ c·x over the nonzero (c, x) of ``terms``, two at a time."""
@@ -189,4 +182,4 @@ class Imex(Stepper):
         b_E, b_I = self.b_E, self.b_I
         self._combine(x, self.xn, [(dt * b_E[j], F[j]) for j in range(len(F))] + [(dt * (b_I[j] - b_E[j]), L[j]) for j in range(len(F))])
         m.hyperviscosity(x, dt)
-        return StepStats(evals, {"helmholtz": gw.iterations()})  # the step's one host read
+        return StepStats(evals, self._device_counts())

@@ -26,7 +26,7 @@ import warp as wp
 from ..kernels import blas
 from .base import StepStats
 from .explicit import Leapfrog, LeapfrogOptions
-from .helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, check_solve_options
+from .helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, HelmholtzSteps, check_solve_options
 
 f64 = wp.float64
 
@@ -45,7 +45,7 @@ class SemiImplicitOptions(LeapfrogOptions):
         check_solve_options(self)
 
 
-class SemiImplicit(Leapfrog):
+class SemiImplicit(HelmholtzSteps, Leapfrog):
     """Semi-implicit leapfrog: 1 RHS evaluation and one Helmholtz solve per step.
 
     Options (scene table ``[semi_implicit]``): ``robert_asselin`` (0.05),
@@ -58,15 +58,15 @@ class SemiImplicit(Leapfrog):
     starts from the last one's solution. ``precision`` ("double" | "mixed":
     float32 CG passes refined in float64 to the same ``tol``; "double" is the
     default because the float32 product is no faster on the CPU, benchmarks/README.md).
-    Reports the Helmholtz iterations per step. Raises ValueError without the
-    continuity and pressure-gradient terms.
+    Reports the Helmholtz iterations per step (under ``Simulation.run`` counted on
+    the device and read once a block, the step a graph after the first). Raises
+    ValueError without the continuity and pressure-gradient terms.
     """
 
     name = "semi_implicit"
     Options = SemiImplicitOptions
-    explicit = capturable = False  # the Helmholtz CG reads its inner products back (ISSUE 32 item 3)
+    explicit = False
     courant_limit = None
-    solvers = ("helmholtz",)
     removed_options = REMOVED_SOLVER_OPTIONS
 
     def __init__(self, model, dt, options=None):
@@ -92,14 +92,6 @@ class SemiImplicit(Leapfrog):
         self._pointwise(blas.axpbypcz, f64(1.0), old, f64(2.0 * dt), self.F, f64(dt), self.LW, new)
         gw.solve(new, dt, new)
 
-    def state(self):
-        # H = 0 until fixed by the first step; each Helmholtz solve starts from the last one's solution
-        return {**super().state(), **self.gw.state()}
-
-    def restore(self, state):
-        super().restore(state)
-        self.gw.restore(state, self._entry)
-
     def advance(self, x):
         m = self.model
         if self._x is not x:
@@ -109,9 +101,9 @@ class SemiImplicit(Leapfrog):
             self._si(self.old, x, self.new, self.dt / 2)
             self._copy_new.launch()
             m.hyperviscosity(x, self.dt)
-            return StepStats(1, {"helmholtz": self.gw.iterations()})
+            return StepStats(1, self._device_counts())
         self._si(self.old, x, self.new, self.dt)
         m.hyperviscosity(self.new, 2 * self.dt)
         self._ra.launch()
         self._copy_new.launch()
-        return StepStats(1, {"helmholtz": self.gw.iterations()})  # the step's one host read
+        return StepStats(1, self._device_counts())

@@ -249,8 +249,8 @@ def test_capturable_steps_read_nothing_back(one_thread):
     ``Simulation.run`` takes them (``Stepper.deferred``): none in a capturable step
     (explicit; semi-implicit and IMEX at 4× Δt, their CG's counters left on the
     device), and each of those has a graph key; the others (JFNK, exponential) read
-    their solvers' results back (counts printed with -s; implicit 177 on 2026-11-23;
-    before this, semi_implicit 21 and imex 32, then 1)."""
+    their solvers' results back (counts printed with -s; implicit 177 before the device
+    FGMRES, 14 after with the CUDA backends; semi_implicit 21 and imex 32 before the device CG)."""
     tally, counts = Tally(), {}
     for name, cls in STEPPERS.items():
         scene = load_scene("tc5_mountain", ne=2, np=4, stepper=name)

@@ -170,8 +170,8 @@ def reduction_chunk(n: int, device) -> int:
     about n / ``CUDA_CHUNKS``, within 8–32. A GPU thread sums a chunk in a
     serial loop, latency-bound: on an H100 at ne30, chunks of 256 made a pcg
     iteration cost 40 RHS, of 32 twice what chunks of 12 cost; at ne120 chunks of
-    190 cost 1.8× chunks of 32. ``Topology.partial_sums`` sums more than
-    ``CUDA_CHUNKS`` partial sums again on the device before the copy back."""
+    190 cost 1.8× chunks of 32. ``Topology.device_sums`` adds the partial sums
+    on the device."""
     if wp.get_device(device).is_cpu:
         return CPU_CHUNK
     return min(32, max(8, -(-int(n) // CUDA_CHUNKS)))

@@ -26,7 +26,7 @@ import warp as wp
 
 from .grid import CubedSphere
 from .kernels import blas, dss
-from .parallel import CUDA_CHUNKS, record
+from .parallel import record
 
 f64 = wp.float64
 DEVICE_TOTALS = 64  # partial sums a row that one GPU thread adds directly (``Topology.device_sums``)
@@ -202,7 +202,6 @@ class Topology:
         self.total_area = self.sum(float(np.sum(self.area)))
         c = self.copies  # the DSS's pattern
         self.neighbours, self.ghost, self.halo_copies = c.neighbours, c.recv_buffer, c.size
-        self._second: dict[tuple, tuple] = {}  # partial_sums's launch and array per (partial, rows), on CUDA
         self.dss_copies = d = dss.Copies()  # the DSS kernels' view of the above
         d.table, d.nlocal, d.ghost, d.spheremp, d.rspheremp = self.table, self.N, self.ghost, self.spheremp, self.rspheremp
 
@@ -438,25 +437,6 @@ class Topology:
         for part in parts[1:]:
             total += part
         return total
-
-    def partial_sums(self, partial: wp.array2d, rows: int) -> np.ndarray:
-        """The totals of the first ``rows`` rows of a Warp array of per-chunk partial
-        sums (a chunked inner product's, ``parallel.reduction_chunk``) over all
-        processes: added in index order, then over ranks (``sums``); one host
-        synchronisation. On CUDA more than ``CUDA_CHUNKS`` partial sums a row are
-        first summed on the device, a chunk of them at a time, so that at most
-        about a thousand values a row are copied."""
-        n = partial.shape[1]
-        if not wp.get_device(self.device).is_cpu and n > CUDA_CHUNKS:
-            chunk = -(-n // 1024)
-            key = (partial.ptr, rows)
-            second = self._second.get(key)
-            if second is None:
-                out = wp.zeros((rows, (n + chunk - 1) // chunk), dtype=f64, device=self.device)
-                second = self._second[key] = (wp.launch(blas.chunk_sums, out.shape, [partial[:rows], chunk, out], device=self.device, record_cmd=True), out)
-            second[0].launch()
-            partial = second[1]
-        return self.sums(partial[:rows].numpy().sum(axis=1))
 
     def device_sums(self, partial: wp.array2d, rows: int, out: wp.array) -> list:
         """Recorded launches that put the totals of the first ``rows`` rows of per-chunk

@@ -22,7 +22,7 @@ which stay on the host (every process holds the same copy). As KIOPS:
   only, so the work and the storage read per step do not grow with m; the
   Arnoldi relation ÃV_m = V_m H_m + h_{m+1,m} v_{m+1} e_mᵀ holds without full
   orthogonality. Classical Gram–Schmidt, its inner products summed over
-  processes by ``Topology.partial_sums`` (``krylov.KrylovBasis``), with a
+  processes by ``Topology.sums`` (``krylov.KrylovBasis``), with a
   second pass only when the first removes more than 1 − 1/√2 of the vector's
   norm (Daniel, Gragg, Kaufman & Stewart 1976, Math. Comp. 30, 772): it ran in
   30–50 % of the Arnoldi steps of TC5, TC6 and Galewsky at ne8, 2–10 Δt_g, and

@@ -14,6 +14,11 @@ and S the weighted DSS, (M + cK) y = Pᵀ W (P y − c D̂ S Ĝ P y). Three laun
   divergence and z = P y − c D̂ S Ĝ P y;
 * ``helmholtz_assemble`` of W z: Pᵀ W z.
 
+Around a solve of the semi-implicit Schur complement (``GravityWave``), in the same
+layout: ``helmholtz_rhs`` (with ``helmholtz_assemble``) builds its right-hand side,
+and ``helmholtz_gradient`` with ``helmholtz_back_substitution`` the state from its
+solution.
+
 The CG is Chronopoulos & Gear's (1989, J. Comput. Appl. Math. 25, 153)
 one-reduction form: one fused vector update (``cg_update``) and one operator
 product an iteration, the three inner products it needs computed by the update
@@ -75,6 +80,43 @@ def gathers(dtype=f64):
     return tuple(funcs)
 
 
+@functools.cache
+def gathered(np: int, copies: int, dtype=f64):
+    """A ``wp.func`` (wg, ghost, nlocal, table, rspheremp, y, halo, gid, base) → (gx, gy, Y),
+    ``np``×``np`` matrices over the element whose GLL row j is entry base + j: the DSS of rows
+    0, 1 of the mass-weighted wg (rspheremp[p] · Σ over the copies in ``table`` row p, the
+    global order, −1-padded, ``copies`` columns; a copy ≥ nlocal read from ``ghost``,
+    ``copy_at``: every copy of a node gets the same bits, as ``dss.gather``) and the
+    unique-node y through gid (``unique_value``)."""
+    NP, C = int(np), int(copies)
+    _, mat, _, _ = row_derivatives(NP, dtype)
+    copy_at, unique_value = gathers(dtype)
+
+    def gathered(wg: wp.array2d(dtype=dtype), ghost: wp.array(dtype=f64), nlocal: int, table: wp.array2d(dtype=wp.int32),
+                 rspheremp: wp.array(dtype=dtype), y: wp.array(dtype=dtype), halo: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32), base: int):
+        gx = mat()
+        gy = mat()
+        Y = mat()
+        for j in range(NP):
+            for i in range(NP):
+                p = (base + j) * NP + i
+                s0 = dtype(0.0)
+                s1 = dtype(0.0)
+                for m in range(C):
+                    cp = table[p, m]
+                    if cp >= 0:
+                        s0 += copy_at(wg, 0, ghost, cp, nlocal)
+                        s1 += copy_at(wg, 1, ghost, cp, nlocal)
+                rs = rspheremp[p]
+                gx[j, i] = rs * s0
+                gy[j, i] = rs * s1
+                Y[j, i] = unique_value(y, halo, gid[p])
+        return gx, gy, Y
+
+    gathered.__qualname__ = gathered.__name__ = f"gathered_{NP}_{C}" + ("" if dtype is f64 else f"_{dtype.__name__}")
+    return wp.func(gathered)
+
+
 def _name(kernel, name: str, dtype):
     """Key a factory's kernel by its name and float type (Warp keys kernels by qualname)."""
     kernel.__qualname__ = name + ("" if dtype is f64 else f"_{dtype.__name__}")
@@ -121,9 +163,9 @@ def helmholtz_divergence(np: int, copies: int, dtype=f64):
     halo, gid (N), and as ``operators.row_vectors`` views Dinv (4, N/np), metdet,
     spheremp (N/np); dvv (``operators.dvv_matrix``); c (m²); z (1, N/np) (a view),
     offset (elements). Dim nelem."""
-    NP, C = int(np), int(copies)
+    NP = int(np)
     vec, mat, along, across = row_derivatives(NP, dtype)
-    copy_at, unique_value = gathers(dtype)
+    gather = gathered(NP, copies, dtype)
 
     def helmholtz_divergence(
         wg: wp.array2d(dtype=dtype), ghost: wp.array(dtype=f64), nlocal: int, table: wp.array2d(dtype=wp.int32),
@@ -133,23 +175,7 @@ def helmholtz_divergence(np: int, copies: int, dtype=f64):
     ):
         base = (wp.tid() + offset) * NP
         dvvT = wp.transpose(dvv)
-        gx = mat()  # the DSS'd gradient
-        gy = mat()
-        Y = mat()
-        for j in range(NP):
-            for i in range(NP):
-                p = (base + j) * NP + i
-                s0 = dtype(0.0)
-                s1 = dtype(0.0)
-                for m in range(C):
-                    cp = table[p, m]
-                    if cp >= 0:
-                        s0 += copy_at(wg, 0, ghost, cp, nlocal)
-                        s1 += copy_at(wg, 1, ghost, cp, nlocal)
-                rs = rspheremp[p]
-                gx[j, i] = rs * s0
-                gy[j, i] = rs * s1
-                Y[j, i] = unique_value(y, halo, gid[p])
+        gx, gy, Y = gather(wg, ghost, nlocal, table, rspheremp, y, halo, gid, base)  # the DSS'd gradient, y
         f1 = mat()  # metdet c¹, metdet c² of the DSS'd gradient
         f2 = mat()
         for j in range(NP):
@@ -194,6 +220,67 @@ def helmholtz_assemble(copies: int, dtype=f64):
         partial[1, t] = wy
 
     return wp.kernel(_name(helmholtz_assemble, "helmholtz_assemble", dtype), enable_backward=False, module="unique", module_options=CPU_FAST)
+
+
+@functools.cache
+def helmholtz_rhs(np: int):
+    """Per element: wz[0] = spheremp·s·(r_h − aH·D̂ r_v), the mass-weighted Helmholtz right-hand
+    side before its assembly (``helmholtz_assemble``: b = Pᵀ wz), D̂ the element divergence (s⁻¹ ×
+    units of r_v) of the wind in rows 0, 1 of r. The DSS of D̂ r_v that ``schur_height``'s form
+    has is left out: the assembly of spheremp·DSS(d) is that of spheremp·d in exact arithmetic
+    (rspheremp = 1/Σ spheremp over a node's copies), so one pass less. Arguments
+    (``operators.row_vectors`` views): r (3, N/np), Dinv (4, N/np), metdet, spheremp (N/np);
+    dvv (``operators.dvv_matrix``); s; aH (s·m); wz (1, N/np); offset (elements). Dim nelem."""
+    vec, mat, along, across = row_derivatives(np)
+    NP = int(np)
+
+    def helmholtz_rhs(
+        r: wp.array2d(dtype=vec), Dinv: wp.array2d(dtype=vec), metdet: wp.array(dtype=vec), spheremp: wp.array(dtype=vec), dvv: mat,
+        s: f64, aH: f64, wz: wp.array2d(dtype=vec), offset: int,
+    ):
+        base = (wp.tid() + offset) * NP
+        dvvT = wp.transpose(dvv)
+        f1 = mat()  # metdet c¹, metdet c² of r's wind
+        f2 = mat()
+        for j in range(NP):
+            q = base + j
+            f1[j] = times(metdet[q], times(Dinv[0, q], r[0, q]) + times(Dinv[1, q], r[1, q]))
+            f2[j] = times(metdet[q], times(Dinv[2, q], r[0, q]) + times(Dinv[3, q], r[1, q]))
+        for j in range(NP):
+            q = base + j
+            wz[0, q] = times(spheremp[q], s * (r[2, q] - over(aH * (along(f1, j, dvvT) + across(f2, j, dvv)), metdet[q])))
+
+    return wp.kernel(_name(helmholtz_rhs, "helmholtz_rhs", f64), enable_backward=False, module="unique", module_options=CPU_FAST)
+
+
+@functools.cache
+def helmholtz_back_substitution(np: int, copies: int):
+    """Per element, the solve's state from the Helmholtz solution y: z_h = P y (y read through
+    gid, as ``helmholtz_gradient``) and z_v = s·r_v − ag·S wg, S wg the DSS of the mass-weighted
+    gradient of y that ``helmholtz_gradient`` wrote (gathered over the node's copies in the
+    global order, a copy ≥ nlocal from ``ghost``): ``scatter``, ``gradient`` and ``schur_wind``
+    in one pass. Arguments: wg (2, N), ghost, nlocal, table, rspheremp (N), y, halo, gid (N),
+    r (3, N/np) (a ``operators.row_vectors`` view), s, ag (s·m s⁻²·s), z (3, N/np) (a view; may
+    be r's), offset (elements). Dim nelem."""
+    vec, mat, _, _ = row_derivatives(np)
+    NP = int(np)
+    gather = gathered(NP, copies, f64)
+
+    def helmholtz_back_substitution(
+        wg: wp.array2d(dtype=f64), ghost: wp.array(dtype=f64), nlocal: int, table: wp.array2d(dtype=wp.int32),
+        rspheremp: wp.array(dtype=f64), y: wp.array(dtype=f64), halo: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32),
+        r: wp.array2d(dtype=vec), s: f64, ag: f64, z: wp.array2d(dtype=vec), offset: int,
+    ):
+        base = (wp.tid() + offset) * NP
+        gx, gy, Y = gather(wg, ghost, nlocal, table, rspheremp, y, halo, gid, base)  # the DSS'd gradient, y
+        for j in range(NP):
+            q = base + j
+            z[0, q] = s * r[0, q] - ag * gx[j]
+            z[1, q] = s * r[1, q] - ag * gy[j]
+            z[2, q] = Y[j]
+
+    return wp.kernel(_name(helmholtz_back_substitution, "helmholtz_back_substitution", f64), enable_backward=False, module="unique",
+                     module_options=CPU_FAST)
 
 
 @wp.kernel

@@ -94,8 +94,10 @@ def test_steps_bitwise_equal_to_one_thread(small_parts, name):
 @pytest.mark.parametrize("name", STEPPERS)
 def test_steps_same_with_per_node_kernels(small_parts, name):
     """CUDA's per-node layout (run here on the CPU) steps to the CPU layout's
-    state up to round-off (FMA contraction, summation order): 3 steps of 600 s.
-    Measured: ≤ 2.4e-13 of each row's change (semi_implicit); the exponential
+    state up to round-off (FMA contraction, summation order): 3 steps of 600 s. For the
+    semi-implicit and IMEX solves this also holds the CPU layout's fused right-hand side
+    and back-substitution (``GravityWave._schur``: no DSS before the assembly) to the
+    per-node form's seven passes. Measured: ≤ 2.4e-13 of each row's change (semi_implicit); the exponential
     steppers 1.2e-9 (epi2, epi3): their forward-difference J·v turns the layouts'
     round-off in F into ~1e-8 of J·v, which no outer iteration converges away (as
     over MPI ranks, ``test_mpi``), so they are held to 1e-8."""

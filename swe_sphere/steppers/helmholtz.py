@@ -213,6 +213,7 @@ class GravityWave:
         # no Python per launch). Not over several CPU threads (``SplitLaunch`` is a Python pool), nor
         # with a CUDA driver below 12.4 (no conditional nodes: host loops, a read an iteration).
         self._graphs: dict[tuple, object] = {}
+        self._schur_launches: dict[tuple, tuple] = {}
         cpu = wp.get_device(dev).is_cpu
         self.graphable = not model.topology.distributed and (model.threads == 1 if cpu else wp.is_conditional_graph_supported())
 
@@ -257,6 +258,17 @@ class GravityWave:
 
     def _solve(self, r, a: float, z, scale: float) -> None:
         m = self.model
+        if m.per_element:  # the CPU's layout: two fused passes each side of the CG (_schur)
+            rhs, back = self._schur(r, z)
+            for launch, values in ((rhs[0], {"s": scale, "aH": a * self.H}), (back[-1], {"s": scale, "ag": a * m.g})):
+                for name, value in values.items():
+                    launch.set_param_by_name(name, f64(value))
+            for launch in rhs:
+                launch.launch()
+            self._pcg(a * a * m.g * self.H)
+            for launch in back:
+                launch.launch()
+            return
         m.divergence(r, self.Dv)
         m.pointwise(gk.schur_height, r, self.Dv, f64(scale), f64(a * self.H), z)
         m.assemble(z, 2, self.b)
@@ -264,6 +276,31 @@ class GravityWave:
         m.scatter(self.y, z, 2)
         m.gradient(z, 2, self.Gh)
         m.pointwise(gk.schur_wind, r, self.Gh, f64(scale), f64(a * m.g), z)
+
+    def _schur(self, r, z) -> tuple[list, list]:
+        """The per-element layout's launches around the CG, recorded once per (r, z): the right-hand
+        side b = Pᵀ W s (r_h − aH D̂ r_v) (``helmholtz_rhs``, ``helmholtz_assemble``), and the
+        back-substitution z = (s·r_v − ag G y, P y) (``helmholtz_gradient``,
+        ``helmholtz_back_substitution``) — four passes where the per-node form takes seven — in the
+        float64 CG's work arrays; ``_solve`` sets s, aH and ag."""
+        key = (r.ptr, z.ptr)
+        launches = self._schur_launches.get(key)
+        if launches is None:
+            m, topo, cg = self.model, self.model.topology, self.cg
+            rows, np_, halo = cg._rows, m.grid.np, topo.owned.recv_buffer
+            elements = dict(nodes_per_index=np_**2)
+            rhs = [cg._rec(hk.helmholtz_rhs(np_), m.grid.nelem,
+                           [rows(r), rows(cg.Dinv), rows(cg.metdet), rows(cg.spheremp), cg.dvv, f64(0.0), f64(0.0), rows(cg.z)], **elements),
+                   *topo.exchange(cg.z),
+                   cg._rec(hk.helmholtz_assemble(topo.table.shape[1]), cg.partial.shape[1],
+                           [cg.z, topo.ghost, topo.N, topo.table, topo.first, self.y, self.b, cg.partial, cg.chunk], nodes_per_index=cg.chunk)]
+            back = [*topo.exchange(self.y.reshape((1, topo.nunique)), unique=True),
+                    cg._rec(hk.helmholtz_gradient(np_), m.grid.nelem, [self.y, halo, topo.gid, rows(cg.Dinv), rows(cg.spheremp), cg.dvv, rows(cg.wg)], **elements),
+                    *topo.exchange(cg.wg),
+                    cg._rec(hk.helmholtz_back_substitution(np_, topo.table.shape[1]), m.grid.nelem,
+                            [cg.wg, topo.ghost, topo.N, topo.table, cg.rspheremp, self.y, halo, topo.gid, rows(r), f64(0.0), f64(0.0), rows(z)], **elements)]
+            launches = self._schur_launches[key] = (rhs, back)
+        return launches
 
     def _run(self, key: tuple, fn, *args) -> None:
         """fn(*args) as a graph captured on the first call per ``key`` (the launch

@@ -10,6 +10,13 @@ a node (an FMA is 2), both from the kernels' code; the median time; the bytes'
 rate; and the same bytes at this machine's stream-triad rate measured alongside
 (numpy, a working set inside the L3 cache and one far outside it).
 
+Then a whole solve of the semi-implicit Schur complement (``GravityWave.solve``, as the
+steppers call it: its right-hand side, the CG from zero, the mean's correction and the
+back-substitution; a replayed graph on one thread) at five tolerances, and a
+least-squares line through (CG iterations k, ms): its slope is an iteration's cost and
+its intercept the solve's fixed cost, also given in iterations (ISSUE 31's "a solve of
+k iterations costs ≤ k + 1 products").
+
 What it says: a launch at the triad's rate is bound by bandwidth; one far below
 it, whose float32 form (half the bytes) is no faster, by the instructions around
 its gathers (``gid``, the DSS table) and its branches; one whose time stays as
@@ -17,6 +24,7 @@ the grid shrinks, by launch overhead.
 
     SWE_SPHERE_THREADS=1 python benchmarks/helmholtz_roofline.py --clock cpu
     SWE_SPHERE_THREADS=2 python benchmarks/helmholtz_roofline.py --clock wall --threads 2
+    SWE_SPHERE_THREADS=1 python benchmarks/helmholtz_roofline.py --clock cpu --ne 30 --solve-only
 """
 
 from __future__ import annotations
@@ -73,6 +81,34 @@ def launches(cg: HelmholtzCG, c: float) -> dict:
     return {"gradient": ops[0], "divergence": ops[1], "assemble": ops[2], "cg_update": cg._update}
 
 
+def solve_cost(sim: Simulation, clock, repeat: int) -> tuple[list, float, float]:
+    """[(k, ms)] of whole cold solves (IMEX ARS(3,4,3)'s at 8 Δt_g) at five tolerances (median of ``repeat`` rounds of 5),
+    and the line ms = fixed + k·per_iteration through them: (rows, per_iteration, fixed)."""
+    gw = sim.stepper.gw
+    sim.stepper.step(sim.x)  # H fixed, the step's graphs made
+    gw.iterations()
+    gw.warm = False
+    r, z = wp.clone(sim.x), wp.zeros_like(sim.x)
+    a = 0.4358665 * 8.0 * sim.scene.dt / sim.courant()["courant_gravity"]  # ARS(3,4,3)'s γΔt at 8 Δt_g
+    rows = []
+    for i, tol in enumerate((1e-1, 1e-3, 1e-5, 1e-7, 1e-9)):
+        gw.tol, scale = tol, 1.0 + 1e-3 * i  # a graph of its own per tolerance (its key holds the scale)
+        gw.solve(r, a, z, scale)
+        k = gw.iterations()
+        times = []
+        for _ in range(repeat):
+            t0 = clock()
+            for _ in range(5):
+                gw.solve(r, a, z, scale)
+            wp.synchronize_device(sim.model.device)
+            times.append((clock() - t0) / 5)
+        gw.iterations()
+        rows.append((k, statistics.median(times) * 1e3))
+    k, ms = np.array(rows).T
+    per_iteration, fixed = np.polyfit(k, ms, 1)
+    return rows, per_iteration, fixed
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--ne", type=int, nargs="+", default=[16, 30, 60])
@@ -80,6 +116,7 @@ def main() -> None:
     ap.add_argument("--inner", type=int, default=20)
     ap.add_argument("--clock", choices=("cpu", "wall"), default="cpu")
     ap.add_argument("--threads", type=int, default=int(os.environ.get("SWE_SPHERE_THREADS", "1")))
+    ap.add_argument("--solve-only", action="store_true", help="only the whole solve's cost (no launch table)")
     args = ap.parse_args()
     os.environ["SWE_SPHERE_THREADS"] = str(args.threads)
     clock = time.process_time if args.clock == "cpu" else time.perf_counter
@@ -89,6 +126,11 @@ def main() -> None:
     for ne in args.ne:
         sim = Simulation(load_scene("tc5_mountain", ne=ne, stepper="imex"), "cpu", progress=False)
         m, topo = sim.model, sim.model.topology
+        rows, per_iteration, fixed = solve_cost(sim, clock, args.repeat // 2 + 1)
+        print(f"\nne {ne}: whole solves (CG iterations, ms): {', '.join(f'({k}, {ms:.2f})' for k, ms in rows)}; "
+              f"an iteration {per_iteration:.3f} ms, fixed {fixed:.3f} ms = {fixed / per_iteration:.2f} iterations")
+        if args.solve_only:
+            continue
         cgs = {name: (sim.stepper.gw.cg if t is wp.float64 else HelmholtzCG(m, t)) for name, t in TYPES.items()}
         rng = np.random.default_rng(0)
         runs = {}

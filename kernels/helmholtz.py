@@ -117,6 +117,32 @@ def gathered(np: int, copies: int, dtype=f64):
     return wp.func(gathered)
 
 
+@functools.cache
+def scaled_divergence(np: int, dtype=f64):
+    """A ``wp.func`` (u, v, Dinv, metdet, base, dvv, k) → k·∇·(u, v) = k·(∂ξ(metdet c¹) +
+    ∂η(metdet c²))/metdet, c = Dinv (u, v) contravariant (``operators.divergence_element``'s
+    form), the ``np``×``np`` matrix over the element whose GLL row j is entry base + j; k (the
+    caller's factor) is applied before the division, as the Helmholtz kernels always have."""
+    NP = int(np)
+    vec, mat, along, across = row_derivatives(NP, dtype)
+
+    def scaled_divergence(u: mat, v: mat, Dinv: wp.array2d(dtype=vec), metdet: wp.array(dtype=vec), base: int, dvv: mat, k: dtype):
+        dvvT = wp.transpose(dvv)
+        f1 = mat()  # metdet c¹, metdet c²
+        f2 = mat()
+        for j in range(NP):
+            q = base + j
+            f1[j] = times(metdet[q], times(Dinv[0, q], u[j]) + times(Dinv[1, q], v[j]))
+            f2[j] = times(metdet[q], times(Dinv[2, q], u[j]) + times(Dinv[3, q], v[j]))
+        d = mat()
+        for j in range(NP):
+            d[j] = over(k * (along(f1, j, dvvT) + across(f2, j, dvv)), metdet[base + j])
+        return d
+
+    scaled_divergence.__qualname__ = scaled_divergence.__name__ = f"scaled_divergence_{NP}" + ("" if dtype is f64 else f"_{dtype.__name__}")
+    return wp.func(scaled_divergence)
+
+
 def _name(kernel, name: str, dtype):
     """Key a factory's kernel by its name and float type (Warp keys kernels by qualname)."""
     kernel.__qualname__ = name + ("" if dtype is f64 else f"_{dtype.__name__}")
@@ -164,8 +190,8 @@ def helmholtz_divergence(np: int, copies: int, dtype=f64):
     spheremp (N/np); dvv (``operators.dvv_matrix``); c (m²); z (1, N/np) (a view),
     offset (elements). Dim nelem."""
     NP = int(np)
-    vec, mat, along, across = row_derivatives(NP, dtype)
-    gather = gathered(NP, copies, dtype)
+    vec, mat, _, _ = row_derivatives(NP, dtype)
+    gather, divergence = gathered(NP, copies, dtype), scaled_divergence(NP, dtype)
 
     def helmholtz_divergence(
         wg: wp.array2d(dtype=dtype), ghost: wp.array(dtype=f64), nlocal: int, table: wp.array2d(dtype=wp.int32),
@@ -174,17 +200,11 @@ def helmholtz_divergence(np: int, copies: int, dtype=f64):
         z: wp.array2d(dtype=vec), offset: int,
     ):
         base = (wp.tid() + offset) * NP
-        dvvT = wp.transpose(dvv)
         gx, gy, Y = gather(wg, ghost, nlocal, table, rspheremp, y, halo, gid, base)  # the DSS'd gradient, y
-        f1 = mat()  # metdet c¹, metdet c² of the DSS'd gradient
-        f2 = mat()
+        d = divergence(gx, gy, Dinv, metdet, base, dvv, c)
         for j in range(NP):
             q = base + j
-            f1[j] = times(metdet[q], times(Dinv[0, q], gx[j]) + times(Dinv[1, q], gy[j]))
-            f2[j] = times(metdet[q], times(Dinv[2, q], gx[j]) + times(Dinv[3, q], gy[j]))
-        for j in range(NP):
-            q = base + j
-            z[0, q] = times(spheremp[q], Y[j] - over(c * (along(f1, j, dvvT) + across(f2, j, dvv)), metdet[q]))
+            z[0, q] = times(spheremp[q], Y[j] - d[j])
 
     return wp.kernel(_name(helmholtz_divergence, "helmholtz_divergence", dtype), enable_backward=False, module="unique", module_options=CPU_FAST)
 
@@ -231,24 +251,24 @@ def helmholtz_rhs(np: int):
     (rspheremp = 1/Σ spheremp over a node's copies), so one pass less. Arguments
     (``operators.row_vectors`` views): r (3, N/np), Dinv (4, N/np), metdet, spheremp (N/np);
     dvv (``operators.dvv_matrix``); s; aH (s·m); wz (1, N/np); offset (elements). Dim nelem."""
-    vec, mat, along, across = row_derivatives(np)
+    vec, mat, _, _ = row_derivatives(np)
     NP = int(np)
+    divergence = scaled_divergence(NP, f64)
 
     def helmholtz_rhs(
         r: wp.array2d(dtype=vec), Dinv: wp.array2d(dtype=vec), metdet: wp.array(dtype=vec), spheremp: wp.array(dtype=vec), dvv: mat,
         s: f64, aH: f64, wz: wp.array2d(dtype=vec), offset: int,
     ):
         base = (wp.tid() + offset) * NP
-        dvvT = wp.transpose(dvv)
-        f1 = mat()  # metdet c¹, metdet c² of r's wind
-        f2 = mat()
+        u = mat()  # r's wind
+        v = mat()
+        for j in range(NP):
+            u[j] = r[0, base + j]
+            v[j] = r[1, base + j]
+        d = divergence(u, v, Dinv, metdet, base, dvv, aH)
         for j in range(NP):
             q = base + j
-            f1[j] = times(metdet[q], times(Dinv[0, q], r[0, q]) + times(Dinv[1, q], r[1, q]))
-            f2[j] = times(metdet[q], times(Dinv[2, q], r[0, q]) + times(Dinv[3, q], r[1, q]))
-        for j in range(NP):
-            q = base + j
-            wz[0, q] = times(spheremp[q], s * (r[2, q] - over(aH * (along(f1, j, dvvT) + across(f2, j, dvv)), metdet[q])))
+            wz[0, q] = times(spheremp[q], s * (r[2, q] - d[j]))
 
     return wp.kernel(_name(helmholtz_rhs, "helmholtz_rhs", f64), enable_backward=False, module="unique", module_options=CPU_FAST)
 

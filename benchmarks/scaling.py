@@ -11,7 +11,9 @@ scene's Δt, one CPU thread per rank):
    counts alternated ``--repeat`` times, medians): ms per RK4 step, of which in
    the exchange (messages + waiting for the slower rank, ``topology._Exchange``),
    DSS exchanges per step, the speed-up over one rank, and one 3-row pack +
-   exchange timed alone with the ranks in step (the message cost proper). Rank counts above the
+   exchange timed alone with the ranks in step (the message cost proper), and the peak
+   resident memory of rank 0 (which also holds the whole grid's output fields and the
+   reference) and of the largest other rank (each builds only its elements). Rank counts above the
    machine's cores run oversubscribed: their times say nothing about scaling,
    only that the run works (the note says so beside them).
 
@@ -27,6 +29,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -104,8 +107,10 @@ def worker(ne: int, steps: int) -> None:
             launch.launch()
         bare.append(time.perf_counter() - t0)
     bare_us = 1e6 * statistics.median(bare) if launches else 0.0
+    rss = comm.gather(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)  # peak RSS, MiB (Linux: KiB)
     if comm.rank == 0:
-        print(json.dumps({"ms_step": 1e3 * wall, "ms_exchange": 1e3 * exch, "exchanges": exchanges, "us_bare": bare_us}))
+        print(json.dumps({"ms_step": 1e3 * wall, "ms_exchange": 1e3 * exch, "exchanges": exchanges, "us_bare": bare_us,
+                          "rss_rank0": rss[0], "rss_others": max(rss[1:], default=0.0)}))
 
 
 def time_table(ne_list, ranks, steps, repeat) -> None:
@@ -122,14 +127,16 @@ def time_table(ne_list, ranks, steps, repeat) -> None:
                     raise SystemExit(f"mpiexec -n {r} failed: {proc.stderr[-2000:]}")
                 runs[r].append(json.loads(proc.stdout.strip().splitlines()[-1]))
         print(f"\nne={ne} np=4, RK4 TC5, {steps} steps, medians of {repeat} (load average {os.getloadavg()[0]:.1f}, {cores} cores)")
-        print(f"{'ranks':>6s} {'ms/step':>9s} {'exchange ms':>11s} {'share':>6s} {'DSS/step':>8s} {'speed-up':>8s} {'bare exch us':>12s}")
+        print(f"{'ranks':>6s} {'ms/step':>9s} {'exchange ms':>11s} {'share':>6s} {'DSS/step':>8s} {'speed-up':>8s} {'bare exch us':>12s} {'MiB rank 0':>10s} {'others':>7s}")
         base = statistics.median(x["ms_step"] for x in runs[ranks[0]]) * ranks[0]
         for r in ranks:
             step = statistics.median(x["ms_step"] for x in runs[r])
             exch = statistics.median(x["ms_exchange"] for x in runs[r])
             note = "  (oversubscribed: correctness only)" if r > cores else ""
             bare = statistics.median(x["us_bare"] for x in runs[r])
-            print(f"{r:6d} {step:9.2f} {exch:11.2f} {exch / step:6.1%} {runs[r][0]['exchanges']:8.0f} {base / step:8.2f} {bare:12.1f}{note}")
+            rss0, rss = (max(x[k] for x in runs[r]) for k in ("rss_rank0", "rss_others"))
+            print(f"{r:6d} {step:9.2f} {exch:11.2f} {exch / step:6.1%} {runs[r][0]['exchanges']:8.0f} {base / step:8.2f} {bare:12.1f}"
+                  f" {rss0:10.0f} {rss:7.0f}{note}")
 
 
 def main() -> None:

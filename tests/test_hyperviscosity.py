@@ -64,11 +64,11 @@ def test_efold_hours_sets_every_coefficient_on_every_grid(tmp_path):
     (16, {2: 1e-4, 4: 1e-4, 8: 1e-4, 16: 1e-4, 32: 3e-3}),
 ])
 def test_the_readmes_hyperviscosity_spectrum(grid_factory, ne, bounds):
-    """The README's figures (benchmarks/hyperviscosity_spectrum.py, ν = ν_div = ν_s =
-    1.5e15): a degree-l harmonic of h, rotational and divergent wind decays on the
-    np4 grid at HOMME's continuous rate within 1e-4 for l ≤ 32 at ne30 (measured
-    ≤ 4e-5), 0.2 % at l = 64 and 1.6 % at l = 100; at ne16 within 1e-4 for l ≤ 16
-    (measured ≤ 3.2e-5) but 2.4e-3 for the winds at l = 32 (h 3.7e-5)."""
+    """The figures of docs/methods.md (ν = ν_div = ν_s = 1.5e15): a degree-l harmonic
+    of h, rotational and divergent wind decays on the np4 grid at HOMME's continuous
+    rate within 1e-4 for l ≤ 32 at ne30 (measured ≤ 4e-5), 0.2 % at l = 64 and 1.6 %
+    at l = 100; at ne16 within 1e-4 for l ≤ 16 (measured ≤ 3.2e-5) but 2.4e-3 for the
+    winds at l = 32 (h 3.7e-5)."""
     import numpy as np
 
     from swe_sphere.diagnostics import HARMONIC_KINDS, harmonic_state, hyperviscosity_rate

@@ -22,6 +22,7 @@ from . import checkpoint as ckpt
 from .config import Scene, SceneError, resolve_scene, with_days
 from .constants import DAY
 from .diagnostics import courant_numbers, invariants
+from .graphs import GraphedSteps, default_mode, graphs_mode
 from .grid import CubedSphere
 from .initial_state import from_function
 from .initialization import digital_filter
@@ -220,15 +221,21 @@ class Simulation:
     the same on every rank (a checkpoint's, when continuing: the start state is
     then not diagnosed for nothing); None: the start state's (``diagnose(0)``).
 
-    ``graphs`` (True on a GPU, False on a CPU): ``run`` replays each step of a
-    ``capturable`` stepper (the explicit ones; semi-implicit and IMEX after their
-    first step, their Helmholtz CG's loops conditional nodes inside, on CUDA where
-    Warp has them) as a graph captured of an earlier step with the same
-    ``Stepper.graph_key`` (on CUDA a CUDA graph, one host call a step instead
-    of one a launch; the same bits as launched one by one); a
-    model with a time-dependent forcing runs plain. On a CPU it takes one thread
-    a launch (SWE_SPHERE_THREADS=1; Warp replays a CPU graph in one thread) and
-    one process; otherwise the steps run plain.
+    ``graphs`` ("auto", "on" or "off", or True for "on", False for "off"; default
+    the environment's ``SWE_SPHERE_GRAPHS``, else "auto"; ``graphs.graphs_mode``,
+    ValueError for another value; also an attribute to set): with "on", and "auto" on
+    CUDA, ``run`` replays each step of a ``capturable`` stepper (the explicit ones;
+    semi-implicit and IMEX after their first step, their Helmholtz CG's loops
+    conditional nodes inside, on CUDA where Warp has them) as a graph captured of an
+    earlier step with the same ``Stepper.graph_key`` (on CUDA a CUDA graph, one host
+    call a step instead of one a launch; the same bits as launched one by one), its
+    first replay checked against the step launched plainly
+    (``graphs.GraphedSteps``); a model with a time-dependent forcing runs plain. On
+    a CPU it takes one thread a launch (SWE_SPHERE_THREADS=1; Warp replays a CPU
+    graph in one thread) and one process; otherwise the steps run plain. "off":
+    plain launches throughout (the solvers' own graphs too). A capture, replay or
+    check that fails prints one line on stderr naming the feature, and the run goes
+    on with plain launches from the plain step's state.
 
     ``check_every`` (steps; 1 on a CPU, ``CHECK_EVERY_STEPS`` on a GPU): ``run``
     checks the state for a non-finite value or h <= 0 after every step on the
@@ -252,7 +259,8 @@ class Simulation:
     inputs: tuple = ()
 
     def __init__(self, scene, device: str | None = None, *, progress: bool = True, comm=None, start: np.ndarray | None = None,
-                 initial=None, initial_diagnostics: dict | None = None, **overrides):
+                 initial=None, initial_diagnostics: dict | None = None, graphs: str | bool | None = None, **overrides):
+        graphs = graphs_mode(default_mode() if graphs is None else graphs)
         scene, inputs = resolve_scene(scene, overrides)
         if device is None:
             device = pick_device()
@@ -263,6 +271,7 @@ class Simulation:
         self.callbacks: list[Callback] = []
         with _compile_timer(self._compile):
             self._build(scene, device, progress, comm, start, initial, initial_diagnostics)
+        self.graphs = graphs
         self.setup_time = time.perf_counter() - t0
         if inputs:
             self.inputs = inputs
@@ -302,13 +311,23 @@ class Simulation:
         self.x = self.model.new_state(*(self.dfi.x if self.dfi is not None else start))
         self.last_good = wp.clone(self.x)  # the state at the start of the block of steps in progress
         self.check_every = 1 if wp.get_device(device).is_cpu else CHECK_EVERY_STEPS
-        self.graphs = wp.get_device(device).is_cuda
-        self._graphs = {}  # (stepper, graph_key, watched, x's address) → (graph, StepStats), or None: seen once
+        if not self.root:  # a fallback's warning once, from rank 0
+            self.model.graph_guard.warn = lambda line: None
+        self._graphed = GraphedSteps(device, self.model.graph_guard)
         self.initial = initial_diagnostics
         if initial_diagnostics is None:
             self.initial = self.diagnose(scene.start_day * DAY)
         self.step = 0  # steps taken since t = 0 (a branched run: since its branch day, ``Scene.start_day``)
         self.counters = {"rhs_evals": 0, "wall_time": 0.0, "cpu_time": 0.0, "iterations": {k: 0 for k in self.stepper.solvers}}
+
+    @property
+    def graphs(self) -> str:
+        """The graph mode: "auto", "on" or "off" (set also as True, False; see the class)."""
+        return self._graphed.mode
+
+    @graphs.setter
+    def graphs(self, value) -> None:
+        self._graphed.mode = value
 
     # -- restart --------------------------------------------------------------
     @classmethod
@@ -926,43 +945,10 @@ class Simulation:
         """One step of the stepper on x and, with ``watch``, the bad-state flag's launch
         (``ShallowWater.watch``; the solvers' device counters left for the block's
         read), else with its solvers' counters read (``Stepper.counts``: raises
-        ``StepFailure``); its ``StepStats``. With ``graphs``, a step whose
-        ``graph_key`` was seen before runs as a graph: the key's first step runs plain
-        (recording its launches, loading their modules and allocating what they
-        need, none of which a capture may do), its second is captured and launched,
-        the later ones launched. The key holds the stepper and x, so another stepper
-        (a branch), a dt (a new stepper) or state array captures anew; a restore
-        assigns arrays in place, which a graph (their addresses) follows."""
-        stats = self._graphed_step(watch)
+        ``StepFailure``); its ``StepStats``. With ``graphs``, steps replay as
+        graphs (``graphs.GraphedSteps``)."""
+        stats = self._graphed.step(self.stepper, self.model, self.x, watch)
         return stats if watch else StepStats(stats.rhs_evals, {**stats.iterations, **self.stepper.counts()})
-
-    def _graphed_step(self, watch: bool):
-        """``_take_step`` but the read of the solvers' counters."""
-        stepper, model = self.stepper, self.model
-        key = None
-        if self.graphs and model.threads == 1 and not self.topology.distributed:
-            key = stepper.graph_key()
-        if key is not None:
-            key = (stepper, key, watch, self.x.ptr)
-            entry = self._graphs.get(key)
-            if entry is not None:
-                wp.capture_launch(entry[0])
-                return stepper.replayed(entry[1])
-            if key in self._graphs:
-                # modules are loaded by the key's first step: loading all of them (Warp's
-                # default before CUDA 12.3) would compile every kernel the package defines
-                with wp.ScopedCapture(device=self.device, force_module_load=False) as capture:
-                    stats = stepper.step(self.x)
-                    if watch:
-                        model.watch(self.x)
-                self._graphs[key] = (capture.graph, stats)
-                wp.capture_launch(capture.graph)
-                return stats
-            self._graphs[key] = None
-        stats = stepper.step(self.x)
-        if watch:
-            model.watch(self.x)
-        return stats
 
     def _blowup_message(self, step: int, p: int) -> str:
         """Where node p (whole-grid index) went bad, on every rank (call on every rank)."""

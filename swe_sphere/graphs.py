@@ -78,15 +78,16 @@ class GraphGuard:
             self.warn(f"swe-sphere: {what}; running without graphs")
 
 
-def feature(err: BaseException) -> str:
-    """What an exception raised in a capture or replay came from (``FEATURES``, by the
-    innermost matching frame of its traceback), and its first line."""
+def failed(err: BaseException) -> str:
+    """" failed in <feature>: <first line>" of an exception raised in a capture or
+    replay (the feature by the innermost frame of its traceback that ``FEATURES``
+    names), or " failed: <first line>"."""
     name, tb = "", err.__traceback__
     while tb is not None:
         name = FEATURES.get(tb.tb_frame.f_code.co_name, name)
         tb = tb.tb_next
     text = (str(err).strip().splitlines() or [type(err).__name__])[0]
-    return f"{name}: {text}" if name else text
+    return f" failed in {name}: {text}" if name else f" failed: {text}"
 
 
 def _kind(device) -> str:
@@ -114,7 +115,7 @@ def captured(graphs: dict, key, fn, device, guard: GraphGuard | None, what: str)
         if guard is None:
             raise
         graphs.clear()
-        guard.fail(f"{_kind(dev)} of {what} failed in {feature(err)}")
+        guard.fail(f"{_kind(dev)} of {what}{failed(err)}")
         fn()
 
 
@@ -221,7 +222,7 @@ class GraphedSteps:
                 graphed = self._plain(stepper, model, x, watch)
             wp.capture_launch(capture.graph)
         except Exception as err:
-            self._fall_back(plain, stepper, x, arrays, f"{what} failed in {feature(err)}")
+            self._fall_back(plain, stepper, x, arrays, what + failed(err))
             return stats
         if graphed != stats or not _same(plain, self._snapshot(stepper, x, arrays)):
             self._fall_back(plain, stepper, x, arrays, f"{what} differs from plain launches")
@@ -246,10 +247,13 @@ class GraphedSteps:
             wp.copy(a, saved)
 
 
-def _bits(a) -> np.ndarray:
-    """The bytes of an array (NaNs and signed zeros compared as bits)."""
-    a = np.ascontiguousarray(a.numpy() if isinstance(a, wp.array) else np.asarray(a))
-    return a.view(np.uint8).ravel()
+def _equal(u, v) -> bool:
+    """Arrays: the same shape, dtype and bytes (NaNs and signed zeros as bits); scalars:
+    the same ``repr`` (a float's round-trips exactly)."""
+    if not isinstance(u, (np.ndarray, wp.array)):
+        return repr(u) == repr(v)
+    u, v = (np.ascontiguousarray(a.numpy() if isinstance(a, wp.array) else a) for a in (u, v))
+    return u.shape == v.shape and u.dtype == v.dtype and u.tobytes() == v.tobytes()
 
 
 def _same(a: _Snapshot, b: _Snapshot) -> bool:
@@ -257,4 +261,4 @@ def _same(a: _Snapshot, b: _Snapshot) -> bool:
     if a.state.keys() != b.state.keys():
         return False
     pairs = [(a.x, b.x), *zip(a.arrays, b.arrays), *((a.state[k], b.state[k]) for k in a.state)]
-    return all(np.array_equal(_bits(u), _bits(v)) for u, v in pairs)
+    return all(_equal(u, v) for u, v in pairs)

@@ -124,18 +124,20 @@ def _check_hyperviscosity(model: ShallowWater, scene: Scene) -> None:
                          f"{MAX_HYPERVIS_EVALUATIONS}); lower hyperviscosity.nu")
 
 
-def _check_memory(scene: Scene, comm) -> None:
+def _check_memory(scene: Scene, comm, device: str = "cpu") -> None:
     """Refuse (``runtime.ResourceError``, one line, on every rank) a run whose
-    estimated memory exceeds what is available: the whole run on one process;
-    over MPI ranks, the share of the ranks on each node (each holds its elements)."""
+    estimated memory exceeds what is available on its device (a GPU's free memory,
+    else the host's): the whole run on one process; over MPI ranks, the share of
+    the ranks on each node (each holds its elements)."""
     need, what = run_bytes(scene.ne, scene.np, scene.stepper), f"ne={scene.ne} np={scene.np} with {scene.stepper}"
+    dev = wp.get_device(device)
     if comm is None or comm.size == 1:
-        return check_memory(need, what)
+        return check_memory(need, what, dev)
     from .mpi import node_local_size
 
     local = node_local_size(comm)
     try:
-        check_memory(need * local // comm.size, f"{what} over {comm.size} MPI ranks ({local} on this node)")
+        check_memory(need * local // comm.size, f"{what} over {comm.size} MPI ranks ({local} on this node)", dev)
         error = None
     except ResourceError as err:
         error = str(err)
@@ -277,7 +279,7 @@ class Simulation:
             self.inputs = inputs
 
     def _build(self, scene, device, progress, comm, start, initial, initial_diagnostics):
-        _check_memory(scene, comm)
+        _check_memory(scene, comm, device)
         self.scene, self.device = scene, device
         size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
         parts = rank_parts(scene.ne, size)
@@ -332,24 +334,26 @@ class Simulation:
     # -- restart --------------------------------------------------------------
     @classmethod
     def from_checkpoint(cls, checkpoint, device: str, *, days: float | None = None, stepper: str | None = None,
-                        dt: float | None = None, progress: bool = True, comm=None) -> Simulation:
+                        dt: float | None = None, progress: bool = True, comm=None, graphs: str | bool | None = None) -> Simulation:
         """A simulation that continues a restart file (path or ``checkpoint.Checkpoint``),
         to model day ``days`` (from t = 0; default the checkpointed scene's),
         bitwise as if never stopped. With another ``stepper`` or ``dt`` (s) than
         the checkpoint's it is a branch (``checkpoint.branch``): a new run from the
         checkpoint's state, its stepper's history dropped (multistep steppers start
         as at t = 0), its counters from zero and its invariants' changes against
-        that state, steps counted from the checkpoint's day. Raises
+        that state, steps counted from the checkpoint's day. ``graphs`` as for the
+        constructor. Raises
         ``checkpoint.CheckpointError`` or ``config.SceneError`` (one line)."""
         ck = checkpoint if isinstance(checkpoint, ckpt.Checkpoint) else ckpt.read_on_root(checkpoint, comm)
         start = ON_ROOT if ck.x is None else ck.x  # ranks > 0 of ``read_on_root`` have no arrays
         if (stepper is not None and stepper != ck.scene.stepper) or (dt is not None and dt != ck.scene.dt):
-            sim = cls(ckpt.branch(ck, stepper=stepper, dt=dt, days=days), device, progress=progress, comm=comm, start=start)
+            sim = cls(ckpt.branch(ck, stepper=stepper, dt=dt, days=days), device, progress=progress, comm=comm, start=start, graphs=graphs)
         else:
             scene = ck.scene if days is None else with_days(ck.scene, days)
             if scene.nsteps < ck.step:
                 raise ckpt.CheckpointError(f"the run length {scene.days:g} days ends before the checkpoint (day {ck.scene.day(ck.step):g})")
-            sim = cls(scene, device, progress=progress, comm=comm, start=start, initial_diagnostics=ck.initial)  # the state handed out; no second digital filter
+            sim = cls(scene, device, progress=progress, comm=comm, start=start, initial_diagnostics=ck.initial,  # the state handed out; no second digital filter
+                      graphs=graphs)
             sim._restore_history(ck)
         if not isinstance(checkpoint, ckpt.Checkpoint):
             sim.inputs = (Path(checkpoint),)

@@ -143,7 +143,8 @@ class GraphedSteps:
     runs plain (loading modules and allocating what its launches need, none of
     which a capture may do); its second runs plain (the solvers' own graphs off),
     is captured, replayed from the state before it and compared bit for bit
-    (``_checked``); the later ones replay. The key holds the stepper and x's
+    (``_checked``); the later ones replay (one that raises: plain, as in
+    ``captured``). The key holds the stepper and x's
     address, so a branch, a new dt or another state array captures anew; a
     restore assigns arrays in place, which a graph follows. Whole steps are
     graphs with ``mode`` "on", or "auto" on CUDA, on one CPU thread a launch and
@@ -187,7 +188,12 @@ class GraphedSteps:
         key = (stepper, key, watch, x.ptr)
         entry = self._graphs.get(key)
         if entry is not None:
-            wp.capture_launch(entry.graph)
+            try:
+                wp.capture_launch(entry.graph)
+            except Exception as err:  # refused before it ran (as in ``captured``): the step runs plain
+                self._graphs.clear()
+                self.guard.fail(f"{_kind(self.device)} of the {stepper.name} step{failed(err)}")
+                return self._plain(stepper, model, x, watch)
             return stepper.replayed(entry.stats)
         if key not in self._graphs:
             self._graphs[key] = None

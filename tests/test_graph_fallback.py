@@ -73,6 +73,16 @@ def capturing_a_step():
     return capturing() and any(f.function == "_checked" for f in inspect.stack())
 
 
+def later():
+    """True from the second call on (the first: the check's replay, which passes)."""
+    calls = [0]
+
+    def when():
+        calls[0] += 1
+        return calls[0] > 1
+    return when
+
+
 def conditional_nodes(when):
     return lambda mp: mp.setattr(wp, "capture_while", raising(wp.capture_while, "error", when))
 
@@ -88,6 +98,8 @@ INJECTIONS = {
                 "graph of the ssprk3 step failed: injected capture failure"),
     "replay": ("leapfrog", 1, lambda mp: mp.setattr(wp, "capture_launch", raising(wp.capture_launch, "replay failure")),
                "graph of the leapfrog step failed: injected replay failure"),
+    "a later replay": ("ssprk3", 1, lambda mp: mp.setattr(wp, "capture_launch", raising(wp.capture_launch, "replay failure", later())),
+                       "graph of the ssprk3 step failed: injected replay failure"),
     "conditional nodes": ("imex", 4, conditional_nodes(capturing),
                           "graph of the Helmholtz solve failed in conditional nodes (wp.capture_while): injected error"),
     "conditional nodes in a step": ("imex", 4, conditional_nodes(capturing_a_step),
@@ -102,8 +114,9 @@ INJECTIONS = {
 @pytest.mark.parametrize("device", DEVICES)
 @pytest.mark.parametrize("kind", INJECTIONS)
 def test_a_failure_in_the_capture_path_falls_back_to_plain_launches(monkeypatch, capsys, kind, device):
-    """A capture, a replay, a conditional node (the CG's ``wp.capture_while``) or a
-    device total (the CG's inner products) that raises: one line naming it, then the
+    """A capture, a replay (the check's or a later one), a conditional node (the CG's
+    ``wp.capture_while``) or a device total (the CG's inner products), in a solve's
+    graph or a step's, that raises: one line naming it, then the
     run goes on with plain launches from a good state, to the bits, RHS evaluations,
     stepper steps and CG iterations of a plain run."""
     stepper, factor, inject, words = INJECTIONS[kind]

@@ -4,7 +4,7 @@
 # (and tests.xml) under $OUT (default ./gpu_out) and is time-boxed, so that
 # the parts fit the device tool's 10 min per command and 30 min per session:
 #
-#   benchmarks/gpu_session.sh setup tests          # ≈ 9 min: install, full suite on CUDA
+#   benchmarks/gpu_session.sh setup tests          # ≈ 9 min: install, the graph fallbacks, full suite on CUDA
 #   benchmarks/gpu_session.sh agreement            # ≈ 6 min: TC5 ne16 5 days, every stepper, CUDA vs CPU
 #   benchmarks/gpu_session.sh throughput graphs tc5 iterations   # ≈ 9 min
 #   benchmarks/gpu_session.sh reads                 # ≈ 1 min: host reads a step, every stepper (ISSUE 32)
@@ -51,9 +51,11 @@ part_setup() {
 }
 
 part_tests() {
+    # first the graph fallbacks' CUDA twins (issue 44): the paths a GPU user's first run takes
+    run tests_graph_fallback 60 "$PY" -m pytest -q -rs -p no:cacheprovider tests/test_graph_fallback.py
     # the whole default suite on the CUDA device; a CUDA test that skips is a failure here
     run tests 540 "$PY" -m pytest -q -rs -p no:cacheprovider --junitxml="$OUT/tests.xml"
-    if grep -q "SKIPPED.*needs a CUDA device" "$OUT/tests.txt"; then
+    if grep -q "SKIPPED.*needs a CUDA device" "$OUT/tests_graph_fallback.txt" "$OUT/tests.txt"; then
         echo "== tests: CUDA tests skipped on the GPU machine" | tee -a "$OUT/session.log"
     fi
 }

@@ -8,7 +8,7 @@ from pathlib import Path
 
 
 def run(scene, *, device: str | None = None, output_file=None, overwrite: bool = False, restart_every: float | None = None,
-        progress: bool = False, verbose: bool = False, initial=None, **overrides):
+        progress: bool = False, verbose: bool = False, initial=None, graphs: str | bool | None = None, **overrides):
     """Run a scene and return its output as an ``xarray.Dataset`` (loaded in memory).
 
     ``scene``: a scene file, the name of a bundled scene ("tc5_mountain") or a
@@ -27,7 +27,8 @@ def run(scene, *, device: str | None = None, output_file=None, overwrite: bool =
     at t = 0 instead of the case's (which still gives fcor and hs, and the truth
     the errors are against; ``initial_state.from_function``). Streams of
     ``output={"streams": [...]}`` are written beside ``output_file`` (without
-    one, they are dropped with the temporary folder).
+    one, they are dropped with the temporary folder). ``graphs``: "auto", "on" or
+    "off" (``Simulation``'s; default ``SWE_SPHERE_GRAPHS``, else "auto").
 
     Quiet unless ``verbose`` (no Warp banner or module-load lines; ``progress``
     shows a progress bar; with ``output={"log_every_steps": N}`` a line of
@@ -47,7 +48,7 @@ def run(scene, *, device: str | None = None, output_file=None, overwrite: bool =
     from .simulation import Simulation
 
     device = pick_device(device, verbose=verbose)
-    sim = Simulation(scene, device, progress=progress, initial=initial, **overrides)
+    sim = Simulation(scene, device, progress=progress, initial=initial, graphs=graphs, **overrides)
     scene = sim.scene
     with tempfile.TemporaryDirectory(prefix="swe_sphere_") as tmp:
         path = Path(output_file) if output_file is not None else Path(tmp) / f"{scene.name}.nc"

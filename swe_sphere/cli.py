@@ -71,6 +71,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="continue a restart file (bitwise as if never stopped); --days sets the new end day; with another "
                         "--stepper or --dt, a new run from its state (multistep steppers start afresh)")
     r.add_argument("--compress", action="store_true", help="store fields as float32 with zlib (smaller, not bitwise)")
+    r.add_argument("--graphs", help="steps as captured graphs: auto (on CUDA; the default, or env SWE_SPHERE_GRAPHS), on "
+                                    "(also on a CPU), off (plain launches); a graph that fails or differs from plain launches "
+                                    "falls back to them with one line")
     sub.add_parser("list", help="list bundled scenes, steppers and terms", parents=[common])
     pl = sub.add_parser("plot", help="PNG lat-lon maps of a run file's fields and its invariants/errors against time", parents=[common])
     pl.add_argument("run", type=Path, help="run file (netCDF written by `swe-sphere run`)")
@@ -351,12 +354,13 @@ def _continued(args, device, comm):
             differ = ", ".join(k for k in mine if mine[k] != theirs.get(k))
             raise checkpoint.CheckpointError(f"{args.continue_from} is a run of another scene than {args.scene} (differs in: {differ})")
     return Simulation.from_checkpoint(ck, device, days=args.days, stepper=args.stepper, dt=args.dt, progress=not args.no_progress,
-                                      comm=comm)
+                                      comm=comm, graphs=args.graphs)
 
 
 def _cmd_run(args) -> int:
     from . import mpi
     from .config import load_scene, resolve_path
+    from .graphs import default_mode, graphs_mode
     from .output import check_distinct, check_target, close_open_runs
     from .simulation import restart_path
 
@@ -375,6 +379,7 @@ def _cmd_run(args) -> int:
     check_target(output, args.overwrite)
     if args.restart_every is not None:  # else written only on SIGINT/SIGTERM, and then not over an existing one
         check_target(restart_path(output), args.overwrite)
+    args.graphs = graphs_mode(args.graphs, "--graphs") if args.graphs is not None else default_mode()  # the flag wins
     device = _warp_device(args.device)
     comm = mpi.world()  # under mpiexec: one run over all ranks
     with mpi.watch_failures(comm, close_open_runs):  # a failure on one rank alone ends the job
@@ -392,7 +397,7 @@ def _run(args, scene, output, device, comm) -> int:
     if comm is not None:
         limit_threads(max(1, cpus() // mpi.node_local_size(comm)))
     if args.continue_from is None:
-        sim = Simulation(scene, device, progress=not args.no_progress, comm=comm)
+        sim = Simulation(scene, device, progress=not args.no_progress, comm=comm, graphs=args.graphs)
     else:
         sim = _continued(args, device, comm)
     if not sim.root:  # rank 0 reports; the others' errors still reach stderr

@@ -385,8 +385,19 @@ def _validate(raw: dict) -> dict:
 MAX_STEPS = 10**9  # a run longer than this is a typo in dt, not a plan
 
 
+# keys of [case] that say how a run starts, not which flow: they outlive a case switch
+SCENE_CASE_KEYS = ("initialization",)
+
+
 def _apply_overrides(raw: dict, overrides: dict) -> None:
-    """Set ``"section.key": value`` (or ``"key": value``) in the raw TOML dict."""
+    """Set ``"section.key": value`` (or ``"key": value``) in the raw TOML dict.
+    A ``case.name`` other than the file's switches the case: the file's [case]
+    parameters (and reference, a truth of the old flow) are the old case's and are
+    dropped, all but ``SCENE_CASE_KEYS``; the ``case.*`` overrides then apply (one
+    the new case does not know is refused by ``cases.make_case``)."""
+    case = raw.get("case")
+    if isinstance(case, dict) and "case.name" in overrides and overrides["case.name"] != case.get("name"):
+        raw["case"] = {k: v for k, v in case.items() if k in SCENE_CASE_KEYS}
     for key, value in overrides.items():
         section, _, name = key.rpartition(".")
         if not name:

@@ -18,6 +18,7 @@ import numpy as np
 import warp as wp
 
 from .constants import EARTH
+from .graphs import GraphGuard
 from .grid import CubedSphere
 from .kernels import blas, hyperviscosity, operators, tendencies
 from .parallel import default_threads, record
@@ -94,6 +95,7 @@ class ShallowWater:
         if "forcing" in terms and not set(terms) & set(tendencies.TENDENCY_TERMS):
             raise ValueError("the forcing term adds to the tendency: name at least one tendency term")
         self.forcing = forcing if "forcing" in terms else None
+        self.graph_guard = GraphGuard()  # whether its solvers may capture graphs (``graphs``; off for good on a failure)
         self.time = 0.0  # s, the model time of the next RHS evaluation (``set_time``)
         self._forcing_launches = []  # every recorded forcing launch, whose t set_time sets
         nu_div = nu if nu_div is None else nu_div

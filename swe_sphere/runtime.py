@@ -111,8 +111,16 @@ def run_bytes(ne: int, np_: int, stepper: str) -> int:
     return nodes * (RUN_BYTES_PER_NODE + STEPPER_BYTES_PER_NODE.get(stepper, 0))
 
 
-def check_memory(need: int, what: str) -> None:
-    """Raise ``ResourceError`` (one line) when ``need`` bytes exceed the available memory."""
+def check_memory(need: int, what: str, device=None) -> None:
+    """Raise ``ResourceError`` (one line) when ``need`` bytes exceed the available memory:
+    a CUDA ``device``'s (a Warp device: its ``free_memory``, where the run's arrays
+    live), else the host's (``available_memory``)."""
+    if device is not None and device.is_cuda:
+        have = device.free_memory
+        if need > have:
+            raise ResourceError(f"{what} needs about {_gib(need)} of GPU memory; {_gib(have)} free of "
+                                f"{_gib(device.total_memory)} on {device}")
+        return
     have = available_memory()
     if need > have:
         raise ResourceError(f"{what} needs about {_gib(need)} of memory; {_gib(have)} is available")

@@ -22,6 +22,7 @@ from . import checkpoint as ckpt
 from .config import Scene, SceneError, resolve_scene, with_days
 from .constants import DAY
 from .diagnostics import courant_numbers, invariants
+from .graphs import GraphedSteps, default_mode, graphs_mode
 from .grid import CubedSphere
 from .initial_state import from_function
 from .initialization import digital_filter
@@ -123,18 +124,20 @@ def _check_hyperviscosity(model: ShallowWater, scene: Scene) -> None:
                          f"{MAX_HYPERVIS_EVALUATIONS}); lower hyperviscosity.nu")
 
 
-def _check_memory(scene: Scene, comm) -> None:
+def _check_memory(scene: Scene, comm, device: str = "cpu") -> None:
     """Refuse (``runtime.ResourceError``, one line, on every rank) a run whose
-    estimated memory exceeds what is available: the whole run on one process;
-    over MPI ranks, the share of the ranks on each node (each holds its elements)."""
+    estimated memory exceeds what is available on its device (a GPU's free memory,
+    else the host's): the whole run on one process; over MPI ranks, the share of
+    the ranks on each node (each holds its elements)."""
     need, what = run_bytes(scene.ne, scene.np, scene.stepper), f"ne={scene.ne} np={scene.np} with {scene.stepper}"
+    dev = wp.get_device(device)
     if comm is None or comm.size == 1:
-        return check_memory(need, what)
+        return check_memory(need, what, dev)
     from .mpi import node_local_size
 
     local = node_local_size(comm)
     try:
-        check_memory(need * local // comm.size, f"{what} over {comm.size} MPI ranks ({local} on this node)")
+        check_memory(need * local // comm.size, f"{what} over {comm.size} MPI ranks ({local} on this node)", dev)
         error = None
     except ResourceError as err:
         error = str(err)
@@ -220,15 +223,21 @@ class Simulation:
     the same on every rank (a checkpoint's, when continuing: the start state is
     then not diagnosed for nothing); None: the start state's (``diagnose(0)``).
 
-    ``graphs`` (True on a GPU, False on a CPU): ``run`` replays each step of a
-    ``capturable`` stepper (the explicit ones; semi-implicit and IMEX after their
-    first step, their Helmholtz CG's loops conditional nodes inside, on CUDA where
-    Warp has them) as a graph captured of an earlier step with the same
-    ``Stepper.graph_key`` (on CUDA a CUDA graph, one host call a step instead
-    of one a launch; the same bits as launched one by one); a
-    model with a time-dependent forcing runs plain. On a CPU it takes one thread
-    a launch (SWE_SPHERE_THREADS=1; Warp replays a CPU graph in one thread) and
-    one process; otherwise the steps run plain.
+    ``graphs`` ("auto", "on" or "off", or True for "on", False for "off"; default
+    the environment's ``SWE_SPHERE_GRAPHS``, else "auto"; ``graphs.graphs_mode``,
+    ValueError for another value; also an attribute to set): with "on", and "auto" on
+    CUDA, ``run`` replays each step of a ``capturable`` stepper (the explicit ones;
+    semi-implicit and IMEX after their first step, their Helmholtz CG's loops
+    conditional nodes inside, on CUDA where Warp has them) as a graph captured of an
+    earlier step with the same ``Stepper.graph_key`` (on CUDA a CUDA graph, one host
+    call a step instead of one a launch; the same bits as launched one by one), its
+    first replay checked against the step launched plainly
+    (``graphs.GraphedSteps``); a model with a time-dependent forcing runs plain. On
+    a CPU it takes one thread a launch (SWE_SPHERE_THREADS=1; Warp replays a CPU
+    graph in one thread) and one process; otherwise the steps run plain. "off":
+    plain launches throughout (the solvers' own graphs too). A capture, replay or
+    check that fails prints one line on stderr naming the feature, and the run goes
+    on with plain launches from the plain step's state.
 
     ``check_every`` (steps; 1 on a CPU, ``CHECK_EVERY_STEPS`` on a GPU): ``run``
     checks the state for a non-finite value or h <= 0 after every step on the
@@ -252,7 +261,8 @@ class Simulation:
     inputs: tuple = ()
 
     def __init__(self, scene, device: str | None = None, *, progress: bool = True, comm=None, start: np.ndarray | None = None,
-                 initial=None, initial_diagnostics: dict | None = None, **overrides):
+                 initial=None, initial_diagnostics: dict | None = None, graphs: str | bool | None = None, **overrides):
+        graphs = graphs_mode(default_mode() if graphs is None else graphs)
         scene, inputs = resolve_scene(scene, overrides)
         if device is None:
             device = pick_device()
@@ -263,12 +273,13 @@ class Simulation:
         self.callbacks: list[Callback] = []
         with _compile_timer(self._compile):
             self._build(scene, device, progress, comm, start, initial, initial_diagnostics)
+        self.graphs = graphs
         self.setup_time = time.perf_counter() - t0
         if inputs:
             self.inputs = inputs
 
     def _build(self, scene, device, progress, comm, start, initial, initial_diagnostics):
-        _check_memory(scene, comm)
+        _check_memory(scene, comm, device)
         self.scene, self.device = scene, device
         size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
         parts = rank_parts(scene.ne, size)
@@ -302,35 +313,47 @@ class Simulation:
         self.x = self.model.new_state(*(self.dfi.x if self.dfi is not None else start))
         self.last_good = wp.clone(self.x)  # the state at the start of the block of steps in progress
         self.check_every = 1 if wp.get_device(device).is_cpu else CHECK_EVERY_STEPS
-        self.graphs = wp.get_device(device).is_cuda
-        self._graphs = {}  # (stepper, graph_key, watched, x's address) → (graph, StepStats), or None: seen once
+        if not self.root:  # a fallback's warning once, from rank 0
+            self.model.graph_guard.warn = lambda line: None
+        self._graphed = GraphedSteps(device, self.model.graph_guard)
         self.initial = initial_diagnostics
         if initial_diagnostics is None:
             self.initial = self.diagnose(scene.start_day * DAY)
         self.step = 0  # steps taken since t = 0 (a branched run: since its branch day, ``Scene.start_day``)
         self.counters = {"rhs_evals": 0, "wall_time": 0.0, "cpu_time": 0.0, "iterations": {k: 0 for k in self.stepper.solvers}}
 
+    @property
+    def graphs(self) -> str:
+        """The graph mode: "auto", "on" or "off" (set also as True, False; see the class)."""
+        return self._graphed.mode
+
+    @graphs.setter
+    def graphs(self, value) -> None:
+        self._graphed.mode = value
+
     # -- restart --------------------------------------------------------------
     @classmethod
     def from_checkpoint(cls, checkpoint, device: str, *, days: float | None = None, stepper: str | None = None,
-                        dt: float | None = None, progress: bool = True, comm=None) -> Simulation:
+                        dt: float | None = None, progress: bool = True, comm=None, graphs: str | bool | None = None) -> Simulation:
         """A simulation that continues a restart file (path or ``checkpoint.Checkpoint``),
         to model day ``days`` (from t = 0; default the checkpointed scene's),
         bitwise as if never stopped. With another ``stepper`` or ``dt`` (s) than
         the checkpoint's it is a branch (``checkpoint.branch``): a new run from the
         checkpoint's state, its stepper's history dropped (multistep steppers start
         as at t = 0), its counters from zero and its invariants' changes against
-        that state, steps counted from the checkpoint's day. Raises
+        that state, steps counted from the checkpoint's day. ``graphs`` as for the
+        constructor. Raises
         ``checkpoint.CheckpointError`` or ``config.SceneError`` (one line)."""
         ck = checkpoint if isinstance(checkpoint, ckpt.Checkpoint) else ckpt.read_on_root(checkpoint, comm)
         start = ON_ROOT if ck.x is None else ck.x  # ranks > 0 of ``read_on_root`` have no arrays
         if (stepper is not None and stepper != ck.scene.stepper) or (dt is not None and dt != ck.scene.dt):
-            sim = cls(ckpt.branch(ck, stepper=stepper, dt=dt, days=days), device, progress=progress, comm=comm, start=start)
+            sim = cls(ckpt.branch(ck, stepper=stepper, dt=dt, days=days), device, progress=progress, comm=comm, start=start, graphs=graphs)
         else:
             scene = ck.scene if days is None else with_days(ck.scene, days)
             if scene.nsteps < ck.step:
                 raise ckpt.CheckpointError(f"the run length {scene.days:g} days ends before the checkpoint (day {ck.scene.day(ck.step):g})")
-            sim = cls(scene, device, progress=progress, comm=comm, start=start, initial_diagnostics=ck.initial)  # the state handed out; no second digital filter
+            sim = cls(scene, device, progress=progress, comm=comm, start=start, initial_diagnostics=ck.initial,  # the state handed out; no second digital filter
+                      graphs=graphs)
             sim._restore_history(ck)
         if not isinstance(checkpoint, ckpt.Checkpoint):
             sim.inputs = (Path(checkpoint),)
@@ -926,43 +949,10 @@ class Simulation:
         """One step of the stepper on x and, with ``watch``, the bad-state flag's launch
         (``ShallowWater.watch``; the solvers' device counters left for the block's
         read), else with its solvers' counters read (``Stepper.counts``: raises
-        ``StepFailure``); its ``StepStats``. With ``graphs``, a step whose
-        ``graph_key`` was seen before runs as a graph: the key's first step runs plain
-        (recording its launches, loading their modules and allocating what they
-        need, none of which a capture may do), its second is captured and launched,
-        the later ones launched. The key holds the stepper and x, so another stepper
-        (a branch), a dt (a new stepper) or state array captures anew; a restore
-        assigns arrays in place, which a graph (their addresses) follows."""
-        stats = self._graphed_step(watch)
+        ``StepFailure``); its ``StepStats``. With ``graphs``, steps replay as
+        graphs (``graphs.GraphedSteps``)."""
+        stats = self._graphed.step(self.stepper, self.model, self.x, watch)
         return stats if watch else StepStats(stats.rhs_evals, {**stats.iterations, **self.stepper.counts()})
-
-    def _graphed_step(self, watch: bool):
-        """``_take_step`` but the read of the solvers' counters."""
-        stepper, model = self.stepper, self.model
-        key = None
-        if self.graphs and model.threads == 1 and not self.topology.distributed:
-            key = stepper.graph_key()
-        if key is not None:
-            key = (stepper, key, watch, self.x.ptr)
-            entry = self._graphs.get(key)
-            if entry is not None:
-                wp.capture_launch(entry[0])
-                return stepper.replayed(entry[1])
-            if key in self._graphs:
-                # modules are loaded by the key's first step: loading all of them (Warp's
-                # default before CUDA 12.3) would compile every kernel the package defines
-                with wp.ScopedCapture(device=self.device, force_module_load=False) as capture:
-                    stats = stepper.step(self.x)
-                    if watch:
-                        model.watch(self.x)
-                self._graphs[key] = (capture.graph, stats)
-                wp.capture_launch(capture.graph)
-                return stats
-            self._graphs[key] = None
-        stats = stepper.step(self.x)
-        if watch:
-            model.watch(self.x)
-        return stats
 
     def _blowup_message(self, step: int, p: int) -> str:
         """Where node p (whole-grid index) went bad, on every rank (call on every rank)."""

@@ -15,8 +15,8 @@ import pytest
 import xarray as xr
 
 import swe_sphere
-from swe_sphere.cases import make_case
-from swe_sphere.config import SceneError, load_scene
+from swe_sphere.cases import CASES, make_case
+from swe_sphere.config import SceneError, list_scenes, load_scene
 from swe_sphere.simulation import Simulation
 
 from conftest import cached_grid, cli_main, cli_one_line
@@ -147,6 +147,48 @@ def test_bad_function_refused(fn, words):
 
 
 LL = (np.linspace(-90.0, 90.0, 19), np.arange(36) * 10.0)
+
+
+def fitting_terms(scene, case: str) -> dict:
+    """The ``terms`` override that ``case`` needs on ``scene`` (its terms but a forcing,
+    with the case's required terms added), or {} when the scene's terms fit."""
+    need = CASES[case][0].required_terms
+    terms = [t for t in scene.terms if t != "forcing"] + sorted(need - set(scene.terms))
+    return {} if terms == list(scene.terms) else {"terms": terms}
+
+
+@pytest.mark.parametrize("name", [p.stem for p in list_scenes()])
+def test_case_switch_on_every_bundled_scene(tmp_path, capsys, name):
+    """``-s case.name=X`` on each bundled scene drops the scene file's parameters of its
+    own case (e.g. tc2_steady's alpha, which ``file`` does not know): to ``file`` the
+    case holds just the path given, to ``galewsky`` just ``-s case.perturbed``; a
+    ``-s case.alpha`` that galewsky does not know is refused in one line, exit 2.
+    (Terms the new case needs, or its lack of a forcing, are still the scene's to
+    fit: ``fitting_terms``.)"""
+    base = load_scene(name)
+    path = latlon_file(tmp_path / "ll.nc", *LL)
+    over = {"case.name": "file", "case.path": str(path), **fitting_terms(base, "file")}
+    scene = load_scene(name, ne=2, overrides=over)
+    assert (scene.case, scene.case_params) == ("file", {"path": str(path)})
+    assert (scene.ne, scene.np, scene.stepper) == (2, base.np, base.stepper)  # the rest is the scene's
+    over = {"case.name": "galewsky", "case.perturbed": False, **fitting_terms(base, "galewsky")}
+    assert load_scene(name, ne=2, overrides=over).case_params == {"perturbed": False}
+    cli_one_line(capsys, ["run", name, "-s", "case.name=galewsky", "-s", "case.alpha=0.3", "--device", "cpu",
+                          "--output", tmp_path / "out.nc"], 2, "unknown parameter case.alpha for galewsky")
+    assert not (tmp_path / "out.nc").exists()
+
+
+def test_tc2_switched_to_a_file_runs(tmp_path, capsys):
+    """The command of issue 44 (tc2_steady switched to a file of TC2's state, α = π/4,
+    which the scene's alpha = 0 would have been refused by) runs, from that state."""
+    tc2 = tc2_sim()
+    tc2.state().to_netcdf(tmp_path / "run.nc")
+    code, _, err = cli_main(capsys, "run", "tc2_steady", "-s", "case.name=file", "-s", f"case.path={tmp_path / 'run.nc'}",
+                            "--ne", 2, "--dt", 1800, "--days", 0.125, "--device", "cpu", "--no-progress", "--output", tmp_path / "out.nc")
+    assert code == 0, err
+    with xr.open_dataset(tmp_path / "out.nc") as ds:
+        assert ds.attrs["case"] == "file"
+        assert np.array_equal(ds.h.isel(time=0).values, tc2.state().h.values)
 BAD = {
     "missing": (dict(v=None), ["no variable v"]),
     "nan": (dict(h=lambda h: h.where(h.lat < 60)), ["h has", "non-finite"]),

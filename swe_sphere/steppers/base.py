@@ -167,6 +167,11 @@ class Stepper:
         by one to name it). {} for steppers that count on the host (in ``StepStats``)."""
         return {}
 
+    def device_arrays(self) -> list:
+        """The device arrays a step adds to besides x and ``state()``: its solvers' counters
+        (``counts``), which a step run twice (``graphs.GraphedSteps``' check) restores."""
+        return []
+
     def _device_counts(self) -> dict:
         """A step's device-counted iterations for its ``StepStats``: read now (``counts``,
         the step's one host read), or {} when ``deferred``."""

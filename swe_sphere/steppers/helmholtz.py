@@ -60,6 +60,7 @@ import numpy as np
 import scipy.sparse as sp
 import warp as wp
 
+from ..graphs import captured
 from ..kernels import gravity_wave as gk
 from ..kernels import helmholtz as hk
 from ..kernels import operators
@@ -304,18 +305,14 @@ class GravityWave:
 
     def _run(self, key: tuple, fn, *args) -> None:
         """fn(*args) as a graph captured on the first call per ``key`` (the launch
-        parameters it bakes in) and replayed after, where ``graphable``; inline while a
-        caller captures and otherwise (the loops host loops testing the device flag)."""
-        dev = wp.get_device(self.model.device)
-        if not self.graphable or dev.is_capturing:
+        parameters it bakes in) and replayed after, where ``graphable`` and the model's
+        ``graph_guard`` allows (``graphs.captured``: a failure falls back with one line);
+        inline while a caller captures and otherwise (the loops host loops testing the
+        device flag)."""
+        if not self.graphable:
             fn(*args)
             return
-        graph = self._graphs.get(key)
-        if graph is None:
-            with wp.ScopedCapture(device=dev) as capture:
-                fn(*args)
-            graph = self._graphs[key] = capture.graph
-        wp.capture_launch(graph)
+        captured(self._graphs, key, lambda: fn(*args), self.model.device, self.model.graph_guard, "the Helmholtz solve")
 
     def iterations(self) -> int:
         """The CG iterations of the solves since the last call (float32 ones counted alike),
@@ -386,6 +383,9 @@ class HelmholtzSteps:
 
     def counts(self):
         return {"helmholtz": self.gw.iterations()}
+
+    def device_arrays(self):
+        return [self.gw.stats]
 
     def graph_key(self):
         gw = self.gw

@@ -195,7 +195,7 @@ class Implicit(Stepper):
         Helmholtz preconditioner (its CG reads its inner products back). Its launches
         depend on the backends, the iterate and F(x) arrays (Fx alternates), Δt and β."""
         m, topo = self.model, self.topology
-        if (self.gw is not None or m.forcing is not None or topo.distributed
+        if (self.gw is not None or m.forcing is not None or topo.distributed or not m.graph_guard.enabled
                 or not isinstance(self.fgmres.vectors, KernelVectors) or not isinstance(self.jacobian.passes, KernelPasses)
                 or (m.threads > 1 if wp.get_device(m.device).is_cpu else not wp.is_conditional_graph_supported())):
             return None
@@ -206,7 +206,7 @@ class Implicit(Stepper):
         flexible GMRES; δ into ``delta``. Each iteration one J·v (one RHS)."""
         self._gather(-1.0, self.R, self.minus_R)
         its, _ = self.fgmres.solve(self._jv, self._unique_precondition, self.minus_R, self.w, eta, self.o["gmres_maxiter"],
-                                   graph_key=self._cycle_key())
+                                   graph_key=self._cycle_key(), guard=self.model.graph_guard)
         self.rhs_evals += its
         self._counts["gmres"] += its
         if self.gw is not None:

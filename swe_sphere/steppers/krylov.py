@@ -33,6 +33,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from ..graphs import captured
 from ..kernels import krylov as kk
 from ..parallel import record, reduction_chunk
 
@@ -209,7 +210,7 @@ class FGMRES(KrylovBasis):
     length ``n`` (this process's part) on ``topology``'s device, inner products
     summed over its processes.
 
-    ``solve(matvec, precond, b, x, rtol, maxiter, graph_key=None)`` → (iterations,
+    ``solve(matvec, precond, b, x, rtol, maxiter, graph_key=None, guard=None)`` → (iterations,
     converged): ``matvec(v, out)`` and ``precond(v, out)`` write A v and P⁻¹ v into
     ``out`` (Warp arrays of length n); x (a Warp array, overwritten) gets the
     solution; stops when ‖b − A x‖ ≤ rtol ‖b‖ (the Arnoldi estimate) or after
@@ -219,7 +220,9 @@ class FGMRES(KrylovBasis):
     read nothing back, that their launches with the parameters they bake in are the
     same for every solve under that key, that the backends are Warp kernels and the
     launches on one thread of one rank; their Python side effects happen only while
-    capturing (count products by the iterations returned).
+    capturing (count products by the iterations returned). ``guard`` (a
+    ``graphs.GraphGuard``): a capture or replay that raises turns it off with one
+    line and the cycle runs inline (without, it raises).
 
     One algorithm on every backend and device: the vector passes are the basis's
     backend's, the small dense work (the Hessenberg column, Givens rotations, the
@@ -271,16 +274,12 @@ class FGMRES(KrylovBasis):
         for j in range(self.restart):
             wp.capture_if(self.go, self._arnoldi, j=j, matvec=matvec, precond=precond)
 
-    def _replay_steps(self, key, matvec, precond) -> None:
-        """``_steps`` as the graph captured under ``key`` on its first use."""
-        graph = self._graphs.get(key)
-        if graph is None:
-            with wp.ScopedCapture(device=self.topology.device) as capture:
-                self._steps(matvec, precond)
-            graph = self._graphs[key] = capture.graph
-        wp.capture_launch(graph)
+    def _replay_steps(self, key, matvec, precond, guard) -> None:
+        """``_steps`` as the graph captured under ``key`` on its first use (``graphs.captured``:
+        a failure turns ``guard`` off with one line and runs them inline)."""
+        captured(self._graphs, key, lambda: self._steps(matvec, precond), self.topology.device, guard, "an FGMRES cycle")
 
-    def solve(self, matvec, precond, b, x, rtol: float, maxiter: int, graph_key=None):
+    def solve(self, matvec, precond, b, x, rtol: float, maxiter: int, graph_key=None, guard=None):
         vec = self.vectors
         x.zero_()
         vec.dots(self.V, b, 0, self.coef, 0, self.h1)  # b·b
@@ -294,7 +293,7 @@ class FGMRES(KrylovBasis):
             if graph_key is None:
                 self._steps(matvec, precond)
             else:
-                self._replay_steps(graph_key, matvec, precond)
+                self._replay_steps(graph_key, matvec, precond, guard)
             self._end.launch()  # y, and the residual's combination e
             residual, target, its, k, breakdown = vec.get(self.info, 5)  # the cycle's one read
             its, k = int(its), int(k)

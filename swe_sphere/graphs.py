@@ -1,0 +1,270 @@
+"""Captured graphs that cannot fail a run: checked on first use, plain launches on any trouble.
+
+A step, or a Helmholtz solve or FGMRES cycle inside one, may run as a graph
+captured once (``wp.ScopedCapture``) and replayed (``wp.capture_launch``): on
+CUDA a CUDA graph, one host call instead of one a launch, its loops conditional
+nodes (``wp.capture_while``); on a CPU Warp's graph, replayed in one thread.
+These paths are the default on CUDA, where no test may have run them, so:
+
+- ``GraphedSteps`` checks the first replay of each step's graph against the same
+  step launched plainly (the state, stepper state and device counters compared
+  bit for bit) and keeps the plain result;
+- an exception in a capture or replay (of a step, a solve's conditional nodes,
+  its device totals), or a check that differs, turns the run's ``GraphGuard``
+  off: one warning line naming the feature, then plain launches for the rest of
+  the run, continued from the state of the plain step (no step lost, the bits of
+  a plain run).
+
+A capture executes nothing (CUDA records, Warp's CPU capture records its
+operations), so a capture that raises leaves the device arrays as they were.
+
+The mode (``graphs_mode``): "off" plain launches throughout; "on" graphs on any
+device; "auto" (the default; environment ``SWE_SPHERE_GRAPHS``) whole steps as
+graphs on CUDA only, the solvers' own graphs where they can (as "on").
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+MODES = ("off", "on", "auto")
+ENV = "SWE_SPHERE_GRAPHS"
+# traceback frames that name the feature that failed in a capture or replay (the innermost wins)
+FEATURES = {
+    "capture_while": "conditional nodes (wp.capture_while)",
+    "capture_if": "conditional nodes (wp.capture_if)",
+    "totals": "device totals",
+    "device_sums": "device totals",
+}
+
+
+def graphs_mode(value, what: str = "graphs") -> str:
+    """"off", "on" or "auto" from ``value`` (one of them, or a bool: True "on",
+    False "off"). Raises ValueError naming ``what`` and the value."""
+    if isinstance(value, bool):
+        return "on" if value else "off"
+    if value not in MODES:
+        raise ValueError(f"{what} must be one of {', '.join(MODES)} (got {value!r})")
+    return value
+
+
+def default_mode() -> str:
+    """The mode of ``SWE_SPHERE_GRAPHS``, else "auto"; ValueError naming a bad value."""
+    return graphs_mode(os.environ.get(ENV, "auto"), ENV)
+
+
+def _stderr(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
+
+
+class GraphGuard:
+    """Whether a model's launches may be captured as graphs: ``enabled`` until
+    ``fail`` turns it off for good with one warning line (``warn(line)``, default
+    stderr); the model's solvers and ``GraphedSteps`` consult it."""
+
+    def __init__(self, warn=_stderr):
+        self.enabled, self.warn, self.failure = True, warn, None
+
+    def fail(self, what: str) -> None:
+        """Turn graphs off; warn once "swe-sphere: <what>; running without graphs"."""
+        self.enabled = False
+        if self.failure is None:
+            self.failure = what
+            self.warn(f"swe-sphere: {what}; running without graphs")
+
+
+def failed(err: BaseException) -> str:
+    """" failed in <feature>: <first line>" of an exception raised in a capture or
+    replay (the feature by the innermost frame of its traceback that ``FEATURES``
+    names), or " failed: <first line>"."""
+    name, tb = "", err.__traceback__
+    while tb is not None:
+        name = FEATURES.get(tb.tb_frame.f_code.co_name, name)
+        tb = tb.tb_next
+    text = (str(err).strip().splitlines() or [type(err).__name__])[0]
+    return f" failed in {name}: {text}" if name else f" failed: {text}"
+
+
+def _kind(device) -> str:
+    return "CUDA graph" if wp.get_device(device).is_cuda else "CPU graph"
+
+
+def captured(graphs: dict, key, fn, device, guard: GraphGuard | None, what: str) -> None:
+    """fn() as the graph captured under ``key`` in ``graphs`` on its first call and
+    replayed after; inline (plain launches) while a caller captures (its graph holds
+    fn's launches) or ``guard`` is off. A capture or replay that raises turns the
+    guard off (one line naming ``what`` and the feature) and fn() runs inline: the
+    capture executed nothing, and a replay that raises is refused before it runs."""
+    dev = wp.get_device(device)
+    if dev.is_capturing or (guard is not None and not guard.enabled):
+        fn()
+        return
+    try:
+        graph = graphs.get(key)
+        if graph is None:
+            with wp.ScopedCapture(device=dev) as capture:
+                fn()
+            graph = graphs[key] = capture.graph
+        wp.capture_launch(graph)
+    except Exception as err:
+        if guard is None:
+            raise
+        graphs.clear()
+        guard.fail(f"{_kind(dev)} of {what}{failed(err)}")
+        fn()
+
+
+@dataclass
+class _Snapshot:
+    """What a step changes: x, the stepper's ``state()`` and its device arrays."""
+
+    x: wp.array
+    state: dict
+    arrays: list
+
+
+@dataclass
+class _Entry:
+    graph: object
+    stats: object  # the captured step's StepStats, returned by each replay
+
+
+class GraphedSteps:
+    """Steps of a ``capturable`` stepper replayed as graphs (``Simulation`` holds one).
+
+    ``step(stepper, model, x, watch)`` advances x by one step of ``stepper`` (and,
+    with ``watch``, ``model.watch(x)``) and returns its ``StepStats``. A step whose
+    ``Stepper.graph_key`` was seen before runs as a graph: the key's first step
+    runs plain (loading modules and allocating what its launches need, none of
+    which a capture may do); its second runs plain (the solvers' own graphs off),
+    is captured, replayed from the state before it and compared bit for bit
+    (``_checked``); the later ones replay (one that raises: plain, as in
+    ``captured``). The key holds the stepper and x's
+    address, so a branch, a new dt or another state array captures anew; a
+    restore assigns arrays in place, which a graph follows. Whole steps are
+    graphs with ``mode`` "on", or "auto" on CUDA, on one CPU thread a launch and
+    one process; ``guard`` (the model's) off: plain launches.
+    """
+
+    def __init__(self, device, guard: GraphGuard, mode: str = "auto"):
+        self.device, self.guard = device, guard
+        self._graphs: dict = {}  # (stepper, graph_key, watch, x's address) → _Entry, or None: seen once
+        self.mode = mode
+
+    @property
+    def mode(self) -> str:
+        return self._mode
+
+    @mode.setter
+    def mode(self, value) -> None:
+        self._mode = graphs_mode(value)
+        if self._mode == "off":
+            self.guard.enabled = False
+        elif self.guard.failure is None:
+            self.guard.enabled = True
+
+    @property
+    def active(self) -> bool:
+        """Whether whole steps may run as graphs."""
+        on = self._mode == "on" or (self._mode == "auto" and wp.get_device(self.device).is_cuda)
+        return on and self.guard.enabled
+
+    @property
+    def kept(self) -> int:
+        """The step graphs checked and kept (replayed by the steps of their key)."""
+        return sum(entry is not None for entry in self._graphs.values())
+
+    def step(self, stepper, model, x, watch: bool):
+        key = None
+        if self.active and model.threads == 1 and not model.topology.distributed:
+            key = stepper.graph_key()
+        if key is None:
+            return self._plain(stepper, model, x, watch)
+        key = (stepper, key, watch, x.ptr)
+        entry = self._graphs.get(key)
+        if entry is not None:
+            try:
+                wp.capture_launch(entry.graph)
+            except Exception as err:  # refused before it ran (as in ``captured``): the step runs plain
+                self._graphs.clear()
+                self.guard.fail(f"{_kind(self.device)} of the {stepper.name} step{failed(err)}")
+                return self._plain(stepper, model, x, watch)
+            return stepper.replayed(entry.stats)
+        if key not in self._graphs:
+            self._graphs[key] = None
+            return self._plain(stepper, model, x, watch)
+        return self._checked(key, stepper, model, x, watch)
+
+    @staticmethod
+    def _plain(stepper, model, x, watch: bool):
+        stats = stepper.step(x)
+        if watch:
+            model.watch(x)
+        return stats
+
+    def _checked(self, key, stepper, model, x, watch: bool):
+        """The key's second step: plain (the solvers' graphs off, as a run without graphs),
+        then from the state before it captured and replayed, the two compared bit for bit.
+        Equal: the graph is kept for the key's later steps. Else, or when the capture or
+        replay raises: the plain step's result stands and the guard fails (one line)."""
+        arrays = [*stepper.device_arrays(), *([model.watched] if watch else [])]
+        before = self._snapshot(stepper, x, arrays)
+        self.guard.enabled = False
+        try:
+            stats = self._plain(stepper, model, x, watch)
+        finally:
+            self.guard.enabled = True
+        plain = self._snapshot(stepper, x, arrays)
+        self._restore(before, stepper, x, arrays)
+        what = f"{_kind(self.device)} of the {stepper.name} step"
+        try:  # modules are loaded by the key's first step: loading all of them (Warp's default
+            # before CUDA 12.3) would compile every kernel the package defines
+            with wp.ScopedCapture(device=self.device, force_module_load=False) as capture:
+                graphed = self._plain(stepper, model, x, watch)
+            wp.capture_launch(capture.graph)
+        except Exception as err:
+            self._fall_back(plain, stepper, x, arrays, what + failed(err))
+            return stats
+        if graphed != stats or not _same(plain, self._snapshot(stepper, x, arrays)):
+            self._fall_back(plain, stepper, x, arrays, f"{what} differs from plain launches")
+            return stats
+        self._graphs[key] = _Entry(capture.graph, graphed)
+        return graphed
+
+    def _fall_back(self, plain: _Snapshot, stepper, x, arrays, what: str) -> None:
+        self._restore(plain, stepper, x, arrays)
+        self._graphs.clear()
+        self.guard.fail(what)
+
+    @staticmethod
+    def _snapshot(stepper, x, arrays) -> _Snapshot:
+        return _Snapshot(wp.clone(x), stepper.state(), [wp.clone(a) for a in arrays])
+
+    @staticmethod
+    def _restore(snap: _Snapshot, stepper, x, arrays) -> None:
+        wp.copy(x, snap.x)
+        stepper.restore(snap.state)
+        for a, saved in zip(arrays, snap.arrays):
+            wp.copy(a, saved)
+
+
+def _equal(u, v) -> bool:
+    """Arrays: the same shape, dtype and bytes (NaNs and signed zeros as bits); scalars:
+    the same ``repr`` (a float's round-trips exactly)."""
+    if not isinstance(u, (np.ndarray, wp.array)):
+        return repr(u) == repr(v)
+    u, v = (np.ascontiguousarray(a.numpy() if isinstance(a, wp.array) else a) for a in (u, v))
+    return u.shape == v.shape and u.dtype == v.dtype and u.tobytes() == v.tobytes()
+
+
+def _same(a: _Snapshot, b: _Snapshot) -> bool:
+    """Whether two snapshots hold the same bits."""
+    if a.state.keys() != b.state.keys():
+        return False
+    pairs = [(a.x, b.x), *zip(a.arrays, b.arrays), *((a.state[k], b.state[k]) for k in a.state)]
+    return all(_equal(u, v) for u, v in pairs)

@@ -24,7 +24,46 @@ import conftest
 from conftest import run
 from swe_sphere.config import load_scene
 from swe_sphere.constants import DAY
-from swe_sphere.steppers.imex import SCHEMES, tableau
+from swe_sphere.steppers.runge_kutta import TABLES
+from swe_sphere.steppers.tables import IMEX as SCHEMES
+
+
+def _ars232():
+    """ARS(2,3,2) (Ascher, Ruuth & Spiteri 1997, §2.5) from its closed forms: γ = 1 − 1/√2, δ = −2√2/3."""
+    g, d = 1.0 - 1.0 / math.sqrt(2.0), -2.0 * math.sqrt(2.0) / 3.0
+    A_exp = np.array([[0, 0, 0], [g, 0, 0], [d, 1 - d, 0]])
+    A_imp = np.array([[0, 0, 0], [0, g, 0], [0, 1 - g, g]])
+    return A_exp, A_imp, A_imp[-1].copy(), 2
+
+
+def _ars343():
+    """ARS(3,4,3) (§2.7) from its closed forms: γ the root of 6γ³ − 18γ² + 9γ − 1 = 0 near 0.436,
+    Â₄₂ = Â₄₃, Â₃₁, Â₃₂ from the third-order conditions (ClimaTimeSteppers' forms)."""
+    g = 0.4358665215084590
+    b1, b2 = -1.5 * g * g + 4 * g - 0.25, 1.5 * g * g - 5 * g + 1.25
+    a42 = a43 = 0.5529291480359398
+    a31 = (1 - 4.5 * g + 1.5 * g * g) * a42 + (2.75 - 10.5 * g + 3.75 * g * g) * a43 - 3.5 + 13 * g - 4.5 * g * g
+    a32 = (-1 + 4.5 * g - 1.5 * g * g) * a42 + (-2.75 + 10.5 * g - 3.75 * g * g) * a43 + 4 - 12.5 * g + 4.5 * g * g
+    A_exp = np.array([[0, 0, 0, 0], [g, 0, 0, 0], [a31, a32, 0, 0], [1 - 2 * a42, a42, a43, 0]])
+    A_imp = np.array([[0, 0, 0, 0], [0, g, 0, 0], [0, (1 - g) / 2, g, 0], [0, b1, b2, g]])
+    return A_exp, A_imp, A_imp[-1].copy(), 3
+
+
+def tableau(scheme):
+    """(Â, A, b, order) of an ARS scheme from the paper's closed forms: explicit and implicit
+    stage matrices (s × s) and the weights shared by both (b̂ = b)."""
+    return {"ars232": _ars232, "ars343": _ars343}[scheme]()
+
+
+@pytest.mark.parametrize("scheme", list(SCHEMES))
+def test_ars_tables_are_the_floats_of_their_closed_forms(scheme):
+    """``imex``'s tables (``steppers.tables``, entries printed to 17 digits) are bit for bit
+    the float64 values of the paper's closed forms, c the explicit rows' sums, b = b_E = b_I."""
+    A_exp, A_imp, b, order = tableau(scheme)
+    A_E, b_E, A_I, b_I, c = TABLES[scheme].floats()
+    for got, want in ((A_E, A_exp), (A_I, A_imp), (b_E, b), (b_I, b), (c, A_exp.sum(axis=1))):
+        np.testing.assert_array_equal(got, want)
+    assert TABLES[scheme].order == order
 
 ORDER_DAYS = 0.25
 

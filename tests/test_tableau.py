@@ -1,8 +1,10 @@
 """Steppers from a Butcher tableau in the scene (``stepper = "tableau"``, ``steppers.butcher``).
 
-The built-in explicit steppers written as tables step to the built-ins' states
-(ssprk3 and kgu35 bitwise: their updates, rk4 to 4e-15), ARS(3,4,3) as a pair to ``imex``'s
-bitwise (the same code); the bundled example pairs converge at their orders;
+The named explicit steppers (``ssprk3``, ``rk4``, ``kgu35``: tables of the one
+engine, ``steppers.runge_kutta``) step bitwise as a numpy implementation of their
+published forms that stores F and combines after, and as their tables written in
+the scene; ARS(3,4,3) from its closed forms as a pair steps to ``imex``'s bitwise;
+the bundled example pairs converge at their orders;
 wrong tables are refused at load in one line (exit 2 from the CLI); the run
 file says which table ran.
 """
@@ -16,6 +18,7 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
+import warp as wp
 import xarray as xr
 
 import conftest
@@ -23,9 +26,10 @@ from conftest import TINY, cli_main, cli_one_line, make_sim, write_tc2_scene
 from swe_sphere.config import load_scene, scene_from_dict
 from swe_sphere.constants import DAY
 from swe_sphere.steppers import STEPPERS
-from swe_sphere.steppers.butcher import TableauARK, TableauOptions, TableauRK, conditions, stage_form
-from swe_sphere.steppers.explicit import RK_SCHEMES
-from swe_sphere.steppers.imex import tableau as ars
+from swe_sphere.steppers.butcher import TableauOptions, conditions, stage_form
+from swe_sphere.steppers.runge_kutta import TableauARK, TableauRK
+from swe_sphere.steppers.tables import EXPLICIT
+from test_imex import tableau as ars
 
 # the built-in explicit schemes' Butcher tables: ssprk3 from its Shu–Osher form, kgu35 from
 # the stages of its docstring (u5 = (5 u1 − u0)/4 + 3Δt/4 f(u4) = u0 + Δt/4 f(u0) + 3Δt/4 f(u4))
@@ -38,8 +42,33 @@ BUILT_IN = {
 }
 
 
+# the Shu–Osher forms the hand-written steppers recorded before they became tables: per
+# stage (c, the RHS's argument, updates (out, ((a, src), ...))), src "k" F times aΔt
+Q = Fraction  # a fraction of Δt
+SHU_OSHER = {
+    "ssprk3": (
+        (0.0, "x", (("s1", ((1.0, "x"), (Q(1), "k"))),)),
+        (1.0, "s1", (("s2", ((0.75, "x"), (0.25, "s1"), (Q(1, 4), "k"))),)),
+        (0.5, "s2", (("x", ((1.0 / 3.0, "x"), (2.0 / 3.0, "s2"), (Q(2, 3), "k"))),)),
+    ),
+    "rk4": (
+        (0.0, "x", (("s", ((1.0, "x"), (Q(1, 2), "k"))), ("acc", ((1.0, "x"), (Q(1, 6), "k"))))),
+        (0.5, "s", (("acc", ((1.0, "acc"), (Q(1, 3), "k"))), ("s", ((1.0, "x"), (Q(1, 2), "k"))))),
+        (0.5, "s", (("acc", ((1.0, "acc"), (Q(1, 3), "k"))), ("s", ((1.0, "x"), (Q(1), "k"))))),
+        (1.0, "s", (("x", ((1.0, "acc"), (Q(1, 6), "k"))),)),
+    ),
+    "kgu35": (
+        (0.0, "x", (("s1", ((1.0, "x"), (Q(1, 5), "k"))),)),
+        (0.2, "s1", (("s", ((1.0, "x"), (Q(1, 5), "k"))),)),
+        (0.2, "s", (("s", ((1.0, "x"), (Q(1, 3), "k"))),)),
+        (1.0 / 3.0, "s", (("s", ((1.0, "x"), (Q(2, 3), "k"))),)),
+        (2.0 / 3.0, "s", (("x", ((1.25, "s1"), (-0.25, "x"), (Q(3, 4), "k"))),)),
+    ),
+}
+
+
 def ars343_pair() -> dict:
-    """ARS(3,4,3) as a pair, its entries the floats ``imex`` steps with."""
+    """ARS(3,4,3) as a pair, its entries the floats of the paper's closed forms (``test_imex.tableau``)."""
     A_E, A_I, b, _ = ars("ars343")
     return dict(name="ARS(3,4,3)", order=3, A_E=A_E.tolist(), b_E=b.tolist(), A_I=A_I.tolist(), b_I=b.tolist(), c=A_E.sum(1).tolist())
 
@@ -82,12 +111,12 @@ def test_built_in_tables_record_as_few_combinations_as_the_built_ins(name):
     t = BUILT_IN[name]
     F = lambda v: Fraction(str(v))  # noqa: E731
     _, stages = stage_form([[F(a) for a in row] for row in t["A"]], [F(x) for x in t["b"]], [F(x) for x in t["c"]])
-    built_in = next(s for s in RK_SCHEMES if s.name == name)
-    assert [math.ceil(len(u) / 2) for _, _, u in stages] == [math.ceil(len(u) / 2) for _, _, u in built_in.stages]
-    assert sum(len(u) for _, _, u in stages) <= sum(len(u) for _, _, u in built_in.stages)
+    built_in = SHU_OSHER[name]
+    assert [math.ceil(len(u) / 2) for _, _, u in stages] == [math.ceil(len(u) / 2) for _, _, u in built_in]
+    assert sum(len(u) for _, _, u in stages) <= sum(len(u) for _, _, u in built_in)
     if name == "ssprk3":  # the same coefficients and abscissae (its s1, s2 are one buffer here)
         assert [(c, [terms for _, terms in u]) for c, _, u in stages] == \
-               [(c, [tuple((a, "s1" if src == "s2" else src) for a, src in terms) for _, terms in u]) for c, _, u in built_in.stages]
+               [(c, [tuple((a, "s1" if src == "s2" else src) for a, src in terms) for _, terms in u]) for c, _, u in built_in]
 
 
 def test_stage_form_of_random_tables_forms_every_stage():
@@ -112,30 +141,80 @@ def test_stage_form_of_random_tables_forms_every_stage():
         assert set(held) <= {"x", *buffers}
 
 
-# -- equal to the built-ins ---------------------------------------------------------
+# -- the named steppers' bits ------------------------------------------------------
+
+# RK4 as the engine writes it (``stage_form``): two registers, s1 = x + Δt/2 K1,
+# s2 = x + Δt/2 K2, then s1 = (s1 + 2 s2)/3 + Δt/3 K3 = x + Δt (K1 + 2K2 + 2K3)/6 and
+# s2 = x + Δt K3, x(n+1) = s1 + Δt/6 K4: one combination fewer than the accumulator form
+RK4_TWO_REGISTERS = (
+    (0.0, "x", (("s1", ((1.0, "x"), (Q(1, 2), "k"))),)),
+    (0.5, "s1", (("s2", ((1.0, "x"), (Q(1, 2), "k"))),)),
+    (0.5, "s2", (("s1", ((1.0 / 3.0, "s1"), (2.0 / 3.0, "s2"), (Q(1, 3), "k"))), ("s2", ((1.0, "x"), (Q(1), "k"))))),
+    (1.0, "s2", (("x", ((1.0, "s1"), (Q(1, 6), "k"))),)),
+)
+
+
+def numpy_steps(scene, form, steps) -> np.ndarray:
+    """``steps`` steps of the explicit method written as ``form`` (stages as
+    ``SHU_OSHER``'s) in numpy: F = ``model.rhs`` stored, then each combination summed
+    left to right in float64, qΔt as Δt/d for q = 1/d; the model's hyperviscosity after."""
+    sim = make_sim(scene)
+    m, dt = sim.model, scene.dt
+    arg, out = wp.zeros_like(sim.x), wp.zeros_like(sim.x)
+    held = {"x": sim.x.numpy().copy()}
+    for _ in range(steps):
+        for _, src, updates in form:
+            arg.assign(held[src])
+            m.rhs(arg, out)
+            k = out.numpy().copy()
+            for name, terms in updates:
+                total = None
+                for a, what in terms:
+                    term = (dt / a.denominator if a.numerator == 1 else float(a) * dt) * k if what == "k" else a * held[what]
+                    total = term if total is None else total + term
+                held[name] = total
+        arg.assign(held["x"])
+        m.hyperviscosity(arg, dt)
+        held["x"] = arg.numpy().copy()
+    return held["x"]
 
 
 @pytest.mark.parametrize("name", list(BUILT_IN))
-def test_built_in_schemes_written_as_tables_step_to_their_states(name):
-    """TC5 (topography, ∇⁴) on ne = 2, 6 steps of 30 min: the table's state equals the
-    built-in's to round-off, relative to the largest wind and depth (measured:
-    ssprk3 and kgu35 bitwise, their updates the built-ins', rk4 4.3e-15: its accumulator differs)."""
+def test_named_explicit_steppers_have_the_bits_of_their_published_forms(name):
+    """TC5 (topography, ∇⁴) on ne = 2, 6 steps of 30 min: ``ssprk3`` and ``kgu35``
+    bitwise as their Shu–Osher forms (``SHU_OSHER``: Shu & Osher 1988 eq. 2.18;
+    HOMME's tstep_type 5) and ``rk4`` as its two-register form, each computed in
+    numpy from stored F. RK4's accumulator form (its hand-written stepper before it
+    was a table) sums in another order: the two differ by round-off, measured
+    4.0e-15 relative to the largest wind and depth, bounded by 2ε a stage a step."""
+    scene = short(name, {}, scene="tc5_mountain")
+    _, x, stats = final_state(scene, 6)
+    np.testing.assert_array_equal(x, numpy_steps(scene, RK4_TWO_REGISTERS if name == "rk4" else SHU_OSHER[name], 6))
+    assert [s.rhs_evals for s in stats] == [len(BUILT_IN[name]["b"])] * 6
+    if name == "rk4":
+        ref = numpy_steps(scene, SHU_OSHER["rk4"], 6)
+        wind, depth = np.abs(ref[:2]).max(), np.abs(ref[2]).max()
+        diff = np.abs(x - ref).max(axis=1) / np.array([wind, wind, depth])
+        print(f"\nrk4: max |two registers - accumulator| in u, v, h over the largest wind, wind, depth {diff}")
+        assert np.all(diff <= 2 * 6 * 4 * np.finfo(float).eps)
+
+
+@pytest.mark.parametrize("name", list(BUILT_IN))
+def test_named_explicit_steppers_are_their_tables(name):
+    """The registry's ssprk3, rk4, kgu35 step bitwise as their Butcher tables written in the
+    scene (``stepper = "tableau"``, the tables transcribed above), at the same RHS count."""
     options = {"name": name, **BUILT_IN[name]}
     _, ref, _ = final_state(short(name, {}, scene="tc5_mountain"), 6)
     sim, x, stats = final_state(short("tableau", options, scene="tc5_mountain"), 6)
     assert isinstance(sim.stepper, TableauRK) and sim.stepper.explicit
-    wind, depth = np.abs(ref[:2]).max(), np.abs(ref[2]).max()
-    diff = np.abs(x - ref).max(axis=1) / np.array([wind, wind, depth])
-    print(f"\n{name}: max |table - built-in| in u, v, h over the largest wind, wind, depth {diff}")
-    assert np.all(diff <= 1e-14)
-    if name != "rk4":
-        np.testing.assert_array_equal(x, ref)
+    np.testing.assert_array_equal(x, ref)
     assert [s.rhs_evals for s in stats] == [len(BUILT_IN[name]["b"])] * 6
+    assert EXPLICIT[name]["order"] == BUILT_IN[name]["order"]
 
 
 def test_ars343_written_as_a_pair_steps_to_imex_bitwise():
-    """ARS(3,4,3) as (A_E, b_E, A_I, b_I, c) with imex's entries: the same states and
-    Helmholtz iterations as ``imex`` (TC5 ne = 2, 4 steps of 1 h, tol 1e-10)."""
+    """ARS(3,4,3) as (A_E, b_E, A_I, b_I, c) from the paper's closed forms: the same states
+    and Helmholtz iterations as ``imex`` (TC5 ne = 2, 4 steps of 1 h, tol 1e-10)."""
     _, ref, ref_stats = final_state(short("imex", {"scheme": "ars343", "tol": 1e-10}, dt=3600.0, scene="tc5_mountain"), 4)
     sim, x, stats = final_state(short("tableau", {**ars343_pair(), "tol": 1e-10}, dt=3600.0, scene="tc5_mountain"), 4)
     assert isinstance(sim.stepper, TableauARK) and not sim.stepper.explicit

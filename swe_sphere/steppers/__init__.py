@@ -1,10 +1,13 @@
 """Time steppers behind one interface (``base.Stepper``), by name.
 
-Explicit: ``leapfrog``, ``leapfrog_trapezoidal``, ``ssprk3``, ``rk4``, ``kgu35``, ``fbrk32``;
+Runge–Kutta methods by their tables, one engine (``runge_kutta``; the tables in
+``tables``, their checks in ``butcher``): explicit ``ssprk3``, ``rk4``,
+``kgu35``; ``imex`` (ARS IMEX pairs, the linear gravity waves implicit);
+``tableau`` (an explicit table or IMEX pair from the scene). Their own classes:
+explicit ``leapfrog``, ``leapfrog_trapezoidal``, ``fbrk32`` (``explicit``);
 ``semi_implicit`` (leapfrog, gravity waves averaged over n ± 1); ``implicit``
-(JFNK θ-method / BDF2); ``imex`` (ARS IMEX Runge–Kutta). The last three share
-the linear gravity-wave operator ``helmholtz.GravityWave``. ``tableau``: an
-explicit or IMEX table from the scene, through the RK and IMEX machinery (``butcher``).
+(JFNK θ-method / BDF2). ``imex``, ``semi_implicit`` and ``implicit`` share the
+linear gravity-wave operator ``helmholtz.GravityWave``.
 Exponential: ``epi2``, ``epi3`` (φ-functions of the Jacobian by KIOPS).
 """
 
@@ -12,15 +15,14 @@ from __future__ import annotations
 
 from ..model import ShallowWater
 from .base import StepFailure, Stepper, StepStats, option_types
-from .butcher import Tableau
 from .exponential import Epi2, Epi3
-from .explicit import FBRK32, Leapfrog, LeapfrogTrapezoidal, rk_steppers
-from .imex import Imex
+from .explicit import FBRK32, Leapfrog, LeapfrogTrapezoidal
 from .implicit import Implicit
+from .runge_kutta import Imex, Tableau, explicit_steppers
 from .semi_implicit import SemiImplicit
 
 STEPPERS: dict[str, type[Stepper]] = {
-    cls.name: cls for cls in (Leapfrog, LeapfrogTrapezoidal, *rk_steppers(), FBRK32, SemiImplicit, Implicit, Imex, Tableau, Epi2, Epi3)
+    cls.name: cls for cls in (Leapfrog, LeapfrogTrapezoidal, *explicit_steppers(), FBRK32, SemiImplicit, Implicit, Imex, Tableau, Epi2, Epi3)
 }
 
 

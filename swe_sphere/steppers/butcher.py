@@ -1,6 +1,6 @@
-"""Steppers from a Butcher tableau in the scene: ``stepper = "tableau"``.
+"""Butcher tables: their options, checks, order conditions and stage form.
 
-The scene's ``[tableau]`` table gives an explicit Runge–Kutta table (A, b, c)
+A table (a scene's ``[tableau]``, or a built-in one of ``tables``) gives an explicit Runge–Kutta table (A, b, c)
 or an IMEX additive Runge–Kutta pair (A_E, b_E, A_I, b_I, c), entries as
 numbers or exact fractions written as strings ("1/6",
 "1471266399579/7840856788654"), with the ``order`` it claims and a ``name``
@@ -17,38 +17,28 @@ leaves need no colour), which gives the coupling conditions. Each to
 ``TOL`` (coefficients printed to ten digits pass). In exact rational
 arithmetic from the entries as written (a number as the binary value it is).
 
-An explicit table runs through ``explicit.ExplicitRK``'s recorded stages
-(``stage_form``): each stage's combinations are written by the DSS of its RHS
-(``ShallowWater.rhs_update``), so it costs per RHS what the built-in steppers
-cost (ssprk3 written as a table is the built-in's very launches). A pair runs
-through ``imex.Imex``'s stages, one Helmholtz solve per implicit stage.
+The engine (``runge_kutta``) steps an explicit table through its
+``stage_form`` (each stage's combinations written by the DSS of its RHS) and
+a pair through the IMEX stages, one Helmholtz solve per implicit stage.
 """
 
 from __future__ import annotations
 
 import functools
 import itertools
-import json
 import math
 from dataclasses import dataclass
 from fractions import Fraction
 
 import numpy as np
 
-from .base import Stepper
-from .explicit import ExplicitRK, RKScheme
 from .helmholtz import check_solve_options
-from .imex import Imex
+from .tables import EXPLICIT
 
 TOL = 1e-9  # order conditions and row sums hold to this (rational entries exactly)
 MAX_ORDER = 6
 PARTS = ("A", "b", "c", "A_E", "b_E", "A_I", "b_I")
 
-# the default table: the classical fourth-order Runge–Kutta method (Kutta 1901)
-RK4 = dict(
-    name="rk4", description="classical fourth-order Runge-Kutta (Kutta 1901)", order=4,
-    A=((0, 0, 0, 0), ("1/2", 0, 0, 0), (0, "1/2", 0, 0), (0, 0, 1, 0)), b=("1/6", "1/3", "1/3", "1/6"), c=(0, "1/2", "1/2", 1),
-)
 
 
 def _frozen(value):
@@ -85,7 +75,7 @@ class TableauOptions:
         for key in PARTS:  # a table read back from JSON (a restart file's scene) holds lists
             object.__setattr__(self, key, _frozen(getattr(self, key)))
         if not self.name and not self.order and not any(getattr(self, key) for key in PARTS):
-            for key, value in RK4.items():
+            for key, value in EXPLICIT["rk4"].items():  # the default: the classical RK4 table
                 object.__setattr__(self, key, value)
         check_solve_options(self)
         parse(self)
@@ -328,8 +318,13 @@ def _express(target, k: int, sources: dict):
 
 
 def stage_form(A, b, c) -> tuple[tuple, tuple]:
-    """(buffers, stages) of ``explicit.RKScheme`` for the explicit table (A, b, c)
-    (Fractions): x(n+1) = x(n) + Δt Σ b_j K_j, K_i = F(Y_i), Y_i = x(n) + Δt Σ_j a_ij K_j.
+    """(buffers, stages) for the explicit table (A, b, c) (Fractions): the buffers'
+    names, and per stage (c, the buffer whose RHS F is evaluated, updates), each
+    update (out, terms) with out = Σ a·src over two or three (a, src) terms, in
+    order (a later one reads an earlier one's output); src "k" (F) takes a
+    ``Fraction`` q of Δt (F times qΔt), once a combination, and at most two are
+    arrays (``ShallowWater.rhs_update``); "x" is the state, overwritten by the last
+    update. x(n+1) = x(n) + Δt Σ b_j K_j, K_i = F(Y_i), Y_i = x(n) + Δt Σ_j a_ij K_j.
 
     Every buffer holds a combination of e_0 = x(n) and e_j = Δt K_j. After stage j
     the buffers must span the part in e_0..e_j of every combination still to be
@@ -339,9 +334,8 @@ def stage_form(A, b, c) -> tuple[tuple, tuple]:
     F_j, straight from F_j's DSS; with more than two arrays a chain of updates),
     and the others become free for its outputs, in the order that needs the
     fewest buffers: a table whose stages read few earlier stages writes as few
-    combinations as its Shu–Osher form (ssprk3's, kgu35's are the built-in
-    steppers' updates; RK4's one fewer than the built-in's accumulator form).
-    The state x is overwritten last, with x(n+1)."""
+    combinations as its Shu–Osher form (ssprk3's, kgu35's; RK4 one fewer than
+    its accumulator form). The state x is overwritten last, with x(n+1)."""
     s, n = len(b), len(b) + 1
     Y = [[Fraction(1), *A[i]] for i in range(s)]
     Z = [Fraction(1), *b]
@@ -396,69 +390,3 @@ def stage_form(A, b, c) -> tuple[tuple, tuple]:
         free = [name for name in pool if name not in content]
         holder = None if last else next(name for name, v in content.items() if v == Y[k])
     return tuple(created), tuple(stages)
-
-
-def rk_scheme(name: str, table: Table) -> RKScheme:
-    buffers, stages = stage_form(table.A_E, table.b_E, table.c)
-    return RKScheme(name, f"the explicit table {name}", buffers, stages, None)
-
-
-class Tableau(Stepper):
-    """A Runge–Kutta or IMEX Runge–Kutta stepper from a Butcher tableau in the scene (scene table ``[tableau]``).
-
-    An explicit table (A, b, c) steps as the built-in explicit Runge–Kutta
-    steppers do (``explicit.ExplicitRK``, ``stage_form``: s RHS evaluations a
-    step, the same cost per RHS); an IMEX pair (A_E, b_E, A_I, b_I, c) as
-    ``imex`` (``imex.Imex``: the gravity-wave terms through A_I, one Helmholtz
-    solve per stage with a_ii ≠ 0, reported as helmholtz iterations).
-    Hyperviscosity after the step, as for every stepper. Options and checks:
-    ``TableauOptions`` and ``parse``; the run file's attributes ``tableau``,
-    ``tableau_description``, ``tableau_order`` and ``tableau_table`` (JSON, the
-    entries as written) say which table ran. No measured stability limit: no
-    Courant warning.
-    """
-
-    name = "tableau"
-    Options = TableauOptions
-    explicit = False  # depends on the table: an instance of an explicit one is (``TableauRK``)
-    courant_limit = None
-    advective_courant_limit = None
-    removed_options: dict = {}
-
-    def __new__(cls, model=None, dt=None, options=None):
-        if cls is Tableau:  # the kind of table picks the stage machinery
-            table = parse(options if isinstance(options, TableauOptions) else TableauOptions())
-            cls = TableauARK if table.imex else TableauRK
-        return super().__new__(cls)
-
-    @classmethod
-    def label(cls, options: dict) -> str:
-        return f"{cls.name} {cls.make_options(**options).name}"
-
-    def attrs(self) -> dict:
-        o = self.options
-        table = {key: getattr(o, key) for key in PARTS if getattr(o, key)}
-        return {"tableau": o.name, "tableau_description": o.description, "tableau_order": o.order,
-                "tableau_table": json.dumps(table)}
-
-
-class TableauRK(Tableau, ExplicitRK):
-    """An explicit table, through ``ExplicitRK``'s recorded stages."""
-
-    explicit = True
-    solvers = ()
-
-    def __init__(self, model, dt, options=None):
-        o = options if isinstance(options, TableauOptions) else TableauOptions()
-        self.scheme = rk_scheme(o.name, parse(o))
-        super().__init__(model, dt, options)
-
-
-class TableauARK(Tableau, Imex):
-    """An IMEX pair, through ``Imex``'s stages."""
-
-    solvers = ("helmholtz",)
-
-    def tables(self):
-        A_E, b_E, A_I, b_I, c = parse(self.options).floats()
-        return A_E, b_E, A_I, b_I, c

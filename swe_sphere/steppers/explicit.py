@@ -1,6 +1,6 @@
-"""Explicit steppers: leapfrog (Robert–Asselin), leapfrog-trapezoidal, and the
-Runge–Kutta family from one table (SSP-RK3, RK4, HOMME's KGU35), and the
-forward–backward FB-RK(3,2).
+"""Explicit steppers that are not a table of the Runge–Kutta engine
+(``runge_kutta``): leapfrog (Robert–Asselin), leapfrog-trapezoidal (three
+levels: x(n−1) carried between steps) and the forward–backward FB-RK(3,2).
 
 Hyperviscosity is applied after each step, split from the dynamics, as in
 HOMME (``advance_hypervis``): forward Euler over the span the step covers.
@@ -13,122 +13,8 @@ F is never stored, and the bits are those of storing F and combining after.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from fractions import Fraction
 
 from .base import Stepper, StepStats
-
-
-@dataclass(frozen=True)
-class RKScheme:
-    """An explicit Runge–Kutta scheme as the launches it records.
-
-    ``stages``: per stage (c, arg, updates): the abscissa c, the buffer whose RHS
-    F is evaluated, then the combinations written from it, each (out, terms)
-    with out = Σ a·src over two or three (a, src) terms, in order (a later one
-    reads an earlier one's output); src "k" (F) takes a ``Fraction`` q of Δt
-    (F times qΔt), once a combination, and at most two are arrays
-    (``ShallowWater.rhs_update``). Buffers are "x" (the state, overwritten by the
-    last update) and the scheme's ``buffers``.
-    ``courant_limit``: the measured one (``Stepper.courant_limit``; None: not measured,
-    a user's table)."""
-
-    name: str
-    doc: str
-    buffers: tuple[str, ...]
-    stages: tuple
-    courant_limit: float | None
-
-
-def _dt_times(q: Fraction, dt: float) -> float:
-    """qΔt, rounded as Δt/d for q = 1/d (an exact reciprocal is not representable)."""
-    return dt / q.denominator if q.numerator == 1 else float(q) * dt
-
-
-F = Fraction
-RK_SCHEMES = (
-    RKScheme(
-        "ssprk3",
-        """Three-stage, third-order strong-stability-preserving Runge–Kutta in
-        Shu–Osher form (Shu & Osher 1988, eq. 2.18). 3 RHS evaluations per step.""",
-        ("s1", "s2"),
-        (
-            (0.0, "x", (("s1", ((1.0, "x"), (F(1), "k"))),)),
-            (1.0, "s1", (("s2", ((0.75, "x"), (0.25, "s1"), (F(1, 4), "k"))),)),
-            (0.5, "s2", (("x", ((1.0 / 3.0, "x"), (2.0 / 3.0, "s2"), (F(2, 3), "k"))),)),
-        ),
-        1.11,
-    ),
-    RKScheme(
-        "rk4",
-        "Classical fourth-order Runge–Kutta. 4 RHS evaluations per step.",
-        ("s", "acc"),
-        (
-            (0.0, "x", (("s", ((1.0, "x"), (F(1, 2), "k"))), ("acc", ((1.0, "x"), (F(1, 6), "k"))))),
-            (0.5, "s", (("acc", ((1.0, "acc"), (F(1, 3), "k"))), ("s", ((1.0, "x"), (F(1, 2), "k"))))),
-            (0.5, "s", (("acc", ((1.0, "acc"), (F(1, 3), "k"))), ("s", ((1.0, "x"), (F(1), "k"))))),
-            (1.0, "s", (("x", ((1.0, "acc"), (F(1, 6), "k"))),)),
-        ),
-        1.73,
-    ),
-    RKScheme(
-        "kgu35",
-        """HOMME's ``tstep_type = 5`` (E3SM ``prim_advance_mod``; Kinnmark & Gray 1984
-        in Ullrich's five-stage third-order form): u1 = u0 + Δt/5 f(u0),
-        u2 = u0 + Δt/5 f(u1), u3 = u0 + Δt/3 f(u2), u4 = u0 + 2Δt/3 f(u3),
-        u5 = (5u1 − u0)/4 + 3Δt/4 f(u4). Third order (measured 3 on TC6),
-        imaginary-axis limit √15 ≈ 3.87 against RK4's 2.83. 5 RHS evaluations per step.""",
-        ("s1", "s"),
-        (
-            (0.0, "x", (("s1", ((1.0, "x"), (F(1, 5), "k"))),)),
-            (0.2, "s1", (("s", ((1.0, "x"), (F(1, 5), "k"))),)),
-            (0.2, "s", (("s", ((1.0, "x"), (F(1, 3), "k"))),)),
-            (1.0 / 3.0, "s", (("s", ((1.0, "x"), (F(2, 3), "k"))),)),
-            (2.0 / 3.0, "s", (("x", ((1.25, "s1"), (-0.25, "x"), (F(3, 4), "k"))),)),
-        ),
-        2.32,  # bisection on TC2 (5 days) at ne 8 np 4 only: 1.34 × rk4's there
-    ),
-)
-
-
-class ExplicitRK(Stepper):
-    """An explicit Runge–Kutta step recorded from its ``scheme`` (an ``RKScheme``);
-    one subclass per scheme is made from the table (``rk_steppers``)."""
-
-    explicit = capturable = True
-    scheme: RKScheme
-
-    def __init__(self, model, dt, options=None):
-        super().__init__(model, dt, options)
-        self._buffers = {name: self._buffer() for name in self.scheme.buffers}
-        self._x = None
-
-    def _record(self, x):
-        arrays = {"x": x, "k": None, **self._buffers}  # None: F itself (``rhs_update``)
-        self._x = x
-        self._stages = [
-            (c, arrays[arg], tuple(
-                (None, arrays[out], tuple((_dt_times(a, self.dt) if src == "k" else a, arrays[src]) for a, src in terms))
-                for out, terms in updates
-            ))
-            for c, arg, updates in self.scheme.stages
-        ]
-
-    def advance(self, x):
-        if self._x is not x:
-            self._record(x)
-        for c, arg, updates in self._stages:
-            self._at(c)
-            self.model.rhs_update(arg, updates)
-        self.model.hyperviscosity(x, self.dt)
-        return StepStats(len(self._stages))
-
-
-def rk_steppers() -> tuple[type[Stepper], ...]:
-    """A registered stepper class per scheme of ``RK_SCHEMES``."""
-    return tuple(
-        type(s.name.upper(), (ExplicitRK,), {"name": s.name, "scheme": s, "courant_limit": s.courant_limit, "__doc__": s.doc})
-        for s in RK_SCHEMES
-    )
 
 
 class FBRK32(Stepper):
@@ -145,7 +31,19 @@ class FBRK32(Stepper):
     Each stage evaluates the continuity half (continuity, and the forcing) and
     the momentum half (the other tendency terms) of the RHS, each kernel compiled
     for its terms: together one RHS's arithmetic, plus a second DSS; reported
-    as 3 RHS evaluations per step."""
+    as 3 RHS evaluations per step.
+
+    Why it is not a table of the Runge–Kutta engine (``runge_kutta``): a Butcher
+    table evaluates the whole F at whole states Y_i = x(n) + Δt Σ a_ij F(Y_j). Here
+    F is split into its continuity half F_h (depth rows) and momentum half F_u
+    (wind rows), each its own compiled kernel, and F_u's argument (u⁽ⁱ⁻¹⁾, h̃)
+    takes its depth from a combination that already holds this stage's F_h and
+    its wind from the last stage's: as a table it is an additive (partitioned)
+    explicit method of six half-evaluations, two tables A_h, A_u acting on
+    different rows. The engine's additive path splits F = N + L with L the
+    linear gravity-wave operator, applied by products and Helmholtz solves, not
+    into two nonlinear halves evaluated by rows; hosting this needs that
+    row-wise fast/slow split, the one split-explicit and multirate methods need."""
 
     name = "fbrk32"
     explicit = capturable = True

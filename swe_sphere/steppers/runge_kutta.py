@@ -1,0 +1,289 @@
+"""One engine for Runge–Kutta methods given by their tables (``butcher.Table``):
+the built-in ``ssprk3``, ``rk4``, ``kgu35`` and ``imex`` (its tables in ``tables``)
+and a user's ``tableau`` (its table in the scene) are the same code.
+
+Explicit tables (``ExplicitRK``): x(n+1) = x(n) + Δt Σ b_j K_j, K_i = F(Y_i),
+Y_i = x(n) + Δt Σ_j a_ij K_j, written as ``butcher.stage_form``'s
+combinations, each written by the DSS of its stage's RHS
+(``ShallowWater.rhs_update``) rather than by a pass of its own: F is never
+stored, and the bits are those of storing F and combining after (ssprk3's and
+kgu35's combinations are their Shu–Osher forms; RK4's take one buffer and one
+combination fewer than its accumulator form).
+
+IMEX additive pairs (``ImexRK``; Ascher, Ruuth & Spiteri 1997, Appl. Numer.
+Math. 25, 151; Kennedy & Carpenter 2003): the linear gravity-wave terms L
+(``helmholtz.GravityWave``) implicit, the rest N = F − L explicit, as HOMME-NH
+and ClimaTimeSteppers split. With the explicit table (A_E, b_E), the implicit
+one (A_I, b_I) of s stages, A_I lower triangular (diagonally implicit,
+a_ii = 0 allowed: an explicit stage), A_E strictly lower triangular, and
+common abscissae c,
+
+    Y_i = x(n) + Δt Σ_{j<i} (A_E,ij N(Y_j) + A_I,ij L Y_j) + Δt A_I,ii L Y_i,
+    x(n+1) = x(n) + Δt Σ_j (b_E,j N(Y_j) + b_I,j L Y_j).
+
+Each stage with a_ii ≠ 0 is one solve of (I − a_ii Δt L) Y_i = rhs_i through
+the Helmholtz equation, and L Y_i = (Y_i − rhs_i)/(a_ii Δt) follows from it
+without another product; an explicit stage takes L Y_i from a product, and
+only where the two tables weigh it differently (N = F − L). ARS's pairs
+(b_E = b_I, the first stage x(n)) cost s RHS evaluations, s − 1 solves and
+one product with L a step. Mass: every stage keeps ∫h (F_h and L_h integrate
+to zero; the solve fixes ∫z_h), so x(n+1) has the mass of x(n) to round-off.
+
+Hyperviscosity is applied after each step, split from the dynamics, as in
+HOMME (``advance_hypervis``): forward Euler over the span the step covers.
+
+A stepper of this engine is a subclass that says which table it steps
+(``table()``); a method of another shape (a multirate MIS or MRI-GARK outer
+table driving a fast inner integrator) is another engine class beside these
+two, reading its own table the same way. FB-RK(3,2) (``explicit.FBRK32``) is not a
+table of this engine: see its docstring.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from fractions import Fraction
+
+import warp as wp
+
+from ..kernels import blas
+from .base import Stepper, StepStats
+from .butcher import PARTS, Table, TableauOptions, parse, stage_form
+from .helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, HelmholtzSteps, check_solve_options
+from .tables import COURANT_LIMITS, EXPLICIT, IMEX
+
+f64 = wp.float64
+
+# the built-in tables, checked once
+TABLES = {key: parse(TableauOptions(**t)) for key, t in {**EXPLICIT, **IMEX}.items()}
+
+
+def _dt_times(q: Fraction, dt: float) -> float:
+    """qΔt, rounded as Δt/d for q = 1/d (an exact reciprocal is not representable)."""
+    return dt / q.denominator if q.numerator == 1 else float(q) * dt
+
+
+class ExplicitRK(Stepper):
+    """An explicit Runge–Kutta step of the table ``table()`` (a ``butcher.Table``),
+    recorded once from its ``stage_form``: s RHS evaluations a step."""
+
+    explicit = capturable = True
+    TABLE: Table  # a built-in's (``explicit_steppers``)
+
+    def table(self) -> Table:
+        """The checked table this stepper steps."""
+        return self.TABLE
+
+    def __init__(self, model, dt, options=None):
+        super().__init__(model, dt, options)
+        table = self.table()
+        buffers, self._form = stage_form(table.A_E, table.b_E, table.c)
+        self._buffers = {name: self._buffer() for name in buffers}
+        self._x = None
+
+    def _record(self, x):
+        """The stages on x: (c, the RHS's argument, its updates), Δt folded into F's coefficients."""
+        arrays = {"x": x, "k": None, **self._buffers}  # None: F itself (``rhs_update``)
+        self._x = x
+        self._stages = [
+            (c, arrays[arg], tuple(
+                (None, arrays[out], tuple((_dt_times(a, self.dt) if src == "k" else a, arrays[src]) for a, src in terms))
+                for out, terms in updates
+            ))
+            for c, arg, updates in self._form
+        ]
+
+    def advance(self, x):
+        if self._x is not x:
+            self._record(x)
+        for c, arg, updates in self._stages:
+            self._at(c)
+            self.model.rhs_update(arg, updates)
+        self.model.hyperviscosity(x, self.dt)
+        return StepStats(len(self._stages))
+
+
+def explicit_steppers() -> tuple[type[Stepper], ...]:
+    """A registered stepper class per built-in explicit table (``tables.EXPLICIT``)."""
+    return tuple(
+        type(key.upper(), (ExplicitRK,), {"name": key, "TABLE": TABLES[key], "courant_limit": COURANT_LIMITS[key],
+                                          "__doc__": t["description"]})
+        for key, t in EXPLICIT.items()
+    )
+
+
+class ImexRK(HelmholtzSteps, Stepper):
+    """An IMEX additive Runge–Kutta step of the pair ``table()`` (a ``butcher.Table``):
+    gravity waves through A_I (one Helmholtz solve a stage with a_ii ≠ 0), the rest
+    through A_E. Options: the Helmholtz solve's ``tol``, ``maxiter``,
+    ``mean_depth``, ``precision``; each stage's solve starts from the last one's
+    solution. Raises ValueError without the continuity and pressure-gradient terms."""
+
+    def table(self) -> Table:
+        """The checked pair this stepper steps."""
+        raise NotImplementedError
+
+    def __init__(self, model, dt, options=None):
+        super().__init__(model, dt, options)
+        o = self.options
+        self.gw = GravityWave(model, o.mean_depth, o.tol, o.maxiter, warm=True, precision=o.precision)
+        A_E, b_E, A_I, b_I, self.c = self.table().floats()
+        stages = len(b_E)
+        self.A_E, self.A_I, self.b_E, self.b_I = A_E, A_I, b_E, b_I
+        # F(Y_j) is needed where the explicit part weighs it, L Y_j where the two parts weigh it
+        # differently (N_j = F_j − L_j enters with A_E, b_E; L Y_j with A_I, b_I)
+        self.needs_F = [bool(b_E[j] != 0 or (A_E[j + 1 :, j] != 0).any()) for j in range(stages)]
+        self.needs_L = [bool(b_I[j] != b_E[j] or (A_I[j + 1 :, j] != A_E[j + 1 :, j]).any()) for j in range(stages)]
+        self.xn = self._buffer()
+        self.F = [self._buffer() for _ in range(stages)]  # F(Y_j)
+        self.L = [self._buffer() for _ in range(stages)]  # L Y_j (first the stage's right-hand side)
+        self.Y = self._buffer()
+
+    def _combine(self, out, base, terms):
+        """out = base + Σ c·x over the nonzero (c, x) of ``terms``, two at a time."""
+        terms = [(c, x) for c, x in terms if c != 0.0]
+        src = base
+        for k in range(0, len(terms), 2):
+            pair = terms[k : k + 2]
+            if len(pair) == 2:
+                (c1, x1), (c2, x2) = pair
+                self._pointwise(blas.axpbypcz, f64(1.0), src, f64(c1), x1, f64(c2), x2, out)
+            else:
+                self._pointwise(blas.axpby, f64(1.0), src, f64(pair[0][0]), pair[0][1], out)
+            src = out
+        if src is base:
+            wp.copy(out, base)
+
+    def advance(self, x):
+        m, gw, dt = self.model, self.gw, self.dt
+        gw.set_depth(x)
+        A_E, A_I, F, L = self.A_E, self.A_I, self.F, self.L
+        wp.copy(self.xn, x)
+        evals = 0
+        for i in range(len(F)):
+            terms = [(dt * A_E[i, j], F[j]) for j in range(i)]
+            terms += [(dt * (A_I[i, j] - A_E[i, j]), L[j]) for j in range(i)]
+            a = A_I[i, i] * dt
+            if i == 0 and a == 0.0:  # an explicit first stage: Y_0 = x(n)
+                Y = x
+            elif a == 0.0:  # an explicit later stage
+                Y = self.Y
+                self._combine(Y, self.xn, terms)
+            else:  # (I − aL) Y_i = rhs_i; L Y_i = (Y_i − rhs_i)/a without another product
+                Y = self.Y
+                self._combine(L[i], self.xn, terms)  # rhs_i, kept to form L Y_i
+                gw.solve(L[i], a, Y)
+                self._pointwise(blas.axpby, f64(1.0 / a), Y, f64(-1.0 / a), L[i], L[i])
+            if a == 0.0 and self.needs_L[i]:
+                gw.apply(Y, L[i])
+            if self.needs_F[i]:
+                self._at(float(self.c[i]))
+                m.rhs(Y, F[i])
+                evals += 1
+        b_E, b_I = self.b_E, self.b_I
+        self._combine(x, self.xn, [(dt * b_E[j], F[j]) for j in range(len(F))] + [(dt * (b_I[j] - b_E[j]), L[j]) for j in range(len(F))])
+        m.hyperviscosity(x, dt)
+        return StepStats(evals, self._device_counts())
+
+
+@dataclass(frozen=True)
+class ImexOptions:
+    """Scene table ``[imex]`` (see ``Imex``)."""
+
+    scheme: str = "ars343"
+    tol: float = 1e-6
+    maxiter: int = 500
+    mean_depth: float = 0.0
+    precision: str = "double"
+
+    def __post_init__(self):
+        if self.scheme not in IMEX:
+            raise ValueError(f"scheme must be one of {', '.join(IMEX)} (got {self.scheme!r})")
+        check_solve_options(self)
+
+
+class Imex(ImexRK):
+    """IMEX Runge–Kutta ARS(2,3,2) / ARS(3,4,3): gravity waves implicit, the rest explicit.
+
+    Options (scene table ``[imex]``): ``scheme`` ("ars343" | "ars232", the pairs of
+    ``tables.IMEX``), ``tol`` (the Helmholtz CG's relative residual, 1e-6: on TC5
+    ne16 at 10x the gravity-wave limit ARS(3,4,3)'s day-1 error against a
+    converged run is 2.528e-4 against 2.525e-4 with 1e-10 and 1e-8, with 2.5x
+    fewer iterations; 1e-4 gives 3.0e-4), ``maxiter`` (500), ``mean_depth``
+    (H, m; 0 = the initial mean depth), ``precision`` ("double" | "mixed", as
+    ``semi_implicit``'s). The Helmholtz solve is ``helmholtz.GravityWave``'s
+    compiled CG; each stage's solve starts from the last one's solution. 3
+    (ARS(2,3,2)) or 4 (ARS(3,4,3)) RHS evaluations and one Helmholtz solve fewer
+    a step; reports the Helmholtz iterations (under ``Simulation.run`` counted on
+    the device and read once a block, the step a graph after the first). Both ARS
+    pairs are stiffly accurate in A_I (b = its last row), not in A_E, so F is
+    evaluated at the last stage. Raises ValueError without the continuity and
+    pressure-gradient terms.
+    """
+
+    name = "imex"
+    Options = ImexOptions
+    removed_options = REMOVED_SOLVER_OPTIONS
+    # ARS(3,4,3) in the 2026-11-23 study (docs/efficiency.md), |v| Δt/Δx at t = 0: stable at
+    # 0.88 (TC5 ne16), 1.47 (TC6 ne16), 1.20 (Galewsky ne30); blew up at 1.10 (TC5 ne30,
+    # day 2.9, where the flow round the mountain speeds up), 2.21 and above elsewhere
+    advective_courant_limit = 1.0
+
+    def table(self):
+        return TABLES[self.options.scheme]
+
+
+class Tableau(Stepper):
+    """A Runge–Kutta or IMEX Runge–Kutta stepper from a Butcher tableau in the scene (scene table ``[tableau]``).
+
+    An explicit table (A, b, c) steps as the built-in explicit Runge–Kutta
+    steppers do (``ExplicitRK``: s RHS evaluations a step, the same cost per
+    RHS); an IMEX pair (A_E, b_E, A_I, b_I, c) as ``imex`` (``ImexRK``: the
+    gravity-wave terms through A_I, one Helmholtz solve per stage with
+    a_ii ≠ 0, reported as helmholtz iterations). Hyperviscosity after the step,
+    as for every stepper. Options and checks: ``butcher.TableauOptions`` and
+    ``butcher.parse``; the run file's attributes ``tableau``,
+    ``tableau_description``, ``tableau_order`` and ``tableau_table`` (JSON, the
+    entries as written) say which table ran. No measured stability limit: no
+    Courant warning.
+    """
+
+    name = "tableau"
+    Options = TableauOptions
+    explicit = False  # depends on the table: an instance of an explicit one is (``TableauRK``)
+    courant_limit = None
+    advective_courant_limit = None
+    removed_options: dict = {}
+
+    def __new__(cls, model=None, dt=None, options=None):
+        if cls is Tableau:  # the kind of table picks the engine
+            table = parse(options if isinstance(options, TableauOptions) else TableauOptions())
+            cls = TableauARK if table.imex else TableauRK
+        return super().__new__(cls)
+
+    @classmethod
+    def label(cls, options: dict) -> str:
+        return f"{cls.name} {cls.make_options(**options).name}"
+
+    def table(self) -> Table:
+        return parse(self.options)
+
+    def attrs(self) -> dict:
+        o = self.options
+        table = {key: getattr(o, key) for key in PARTS if getattr(o, key)}
+        return {"tableau": o.name, "tableau_description": o.description, "tableau_order": o.order,
+                "tableau_table": json.dumps(table)}
+
+
+class TableauRK(Tableau, ExplicitRK):
+    """An explicit table, through ``ExplicitRK``."""
+
+    explicit = True
+    solvers = ()
+
+
+class TableauARK(Tableau, ImexRK):
+    """An IMEX pair, through ``ImexRK``."""
+
+    solvers = ("helmholtz",)

@@ -39,7 +39,7 @@ from swe_sphere.config import load_scene  # noqa: E402
 from swe_sphere.constants import DAY  # noqa: E402
 from swe_sphere.diagnostics import courant_numbers  # noqa: E402
 from swe_sphere.grid import CubedSphere  # noqa: E402
-from swe_sphere.model import default_device  # noqa: E402
+from swe_sphere.runtime import default_device  # noqa: E402
 from swe_sphere.simulation import Simulation  # noqa: E402
 
 SCENES = {"0": "tc2_steady", "pi4": "tc2_steady_alpha_pi4"}

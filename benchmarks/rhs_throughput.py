@@ -53,7 +53,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # numpy_
 
 from swe_sphere.config import load_scene  # noqa: E402
 from swe_sphere.grid import CubedSphere  # noqa: E402
-from swe_sphere.model import ShallowWater, default_device  # noqa: E402
+from swe_sphere.model import ShallowWater  # noqa: E402
+from swe_sphere.runtime import default_device  # noqa: E402
 from swe_sphere.parallel import SplitLaunch, default_threads  # noqa: E402
 from swe_sphere.steppers import STEPPERS, make_stepper  # noqa: E402
 from swe_sphere.tally import array_bytes  # noqa: E402

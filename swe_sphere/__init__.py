@@ -46,7 +46,7 @@ _LAZY = {
     "OutputError": "output",
     "CheckpointError": "checkpoint",
     "BlowUp": "simulation",
-    "Interrupted": "simulation",
+    "Interrupted": "runtime",
     "StepFailure": "steppers",
     "ResourceError": "runtime",
 }
@@ -60,20 +60,14 @@ def run(scene, **kwargs):
 
 
 def __getattr__(name):  # the heavy modules (Warp) load on first use, quietly
-    if name == "__version__":  # on first use too: importlib.metadata took half of a command's start before its signal handling
-        from importlib.metadata import PackageNotFoundError, version
+    from .runtime import init_warp, package_version
 
-        try:
-            value = version("swe-sphere")
-        except PackageNotFoundError:  # running from a source tree without installation
-            value = "0.0.0+unknown"
-        globals()[name] = value
+    if name == "__version__":  # on first use too (``runtime.package_version``)
+        globals()[name] = value = package_version()
         return value
     if name not in _LAZY:
         raise AttributeError(f"module 'swe_sphere' has no attribute {name!r}")
     import importlib
-
-    from .runtime import init_warp
 
     init_warp()
     value = globals()[name] = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)

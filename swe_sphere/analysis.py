@@ -14,15 +14,28 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
 from .constants import EARTH
 from .output import FIELDS
-from .plotting import MAP_FIELDS, days_of, field_at_nodes, time_index
 from .remap import Remapper, latlon_grid, open_netcdf, remap_bytes, run_grid
 from .runtime import check_memory
+
+# name → (long name, units on the colour bar, scale applied before drawing, colour map, symmetric about 0)
+MAP_FIELDS = {
+    "h": ("fluid depth h", "m", 1.0, "viridis", False),
+    "h_surface": ("free-surface height h + hs", "m", 1.0, "viridis", False),
+    "u": ("eastward wind u", "m s$^{-1}$", 1.0, "RdBu_r", True),
+    "v": ("northward wind v", "m s$^{-1}$", 1.0, "RdBu_r", True),
+    "speed": ("wind speed |v|", "m s$^{-1}$", 1.0, "magma_r", False),
+    "vorticity": ("relative vorticity ζ", "10$^{-5}$ s$^{-1}$", 1e5, "RdBu_r", True),
+    "divergence": ("divergence δ", "10$^{-6}$ s$^{-1}$", 1e6, "RdBu_r", True),
+}
+DERIVED = ("vorticity", "divergence")  # stored by the model, NaN in files written before they were
+DAY_TOL = 1e-6  # days: an output time asked for matches a stored one this close
 
 SPECTRUM_PARTS = {
     "E_rot": "kinetic energy per unit mass of the rotational wind in degree l",
@@ -31,13 +44,55 @@ SPECTRUM_PARTS = {
 }
 
 
+def run_name(ds) -> str:
+    """The file name of a run (``plotting.open_run``), for messages."""
+    return Path(ds.attrs.get("_path", "run")).name
+
+
+def days_of(ds) -> np.ndarray:
+    return np.asarray(ds["time"].values, dtype=np.float64) if "time" in ds.variables else np.zeros(0)
+
+
+def time_index(ds, day: float) -> int:
+    """Index of the output time at ``day`` (within 1e-6 day); ``ValueError`` if not stored."""
+    days = days_of(ds)
+    hits = np.flatnonzero(np.abs(days - day) <= DAY_TOL)
+    if hits.size == 0:
+        stored = ", ".join(f"{d:g}" for d in days)
+        raise ValueError(f"day {day:g} not in {run_name(ds)} (stored: {stored})")
+    return int(hits[0])
+
+
+def field_at_nodes(ds, field: str, day: float) -> np.ndarray:
+    """``field`` (one of ``MAP_FIELDS``) of a run at ``day`` on its unique nodes (ncol,),
+    in the file's units (s⁻¹ for vorticity and divergence). ``ValueError`` if it cannot be had."""
+    if field not in MAP_FIELDS:
+        raise ValueError(f"unknown field {field!r} (known: {', '.join(MAP_FIELDS)})")
+    it = time_index(ds, day)
+
+    def get(name):
+        if name not in ds.variables:
+            raise ValueError(f"{run_name(ds)} has no {name!r}")
+        var = ds[name]
+        return np.asarray(var.isel(time=it).values if "time" in var.dims else var.values, dtype=np.float64)
+
+    if field == "h_surface":
+        return get("h") + get("hs")
+    if field == "speed":
+        return np.hypot(get("u"), get("v"))
+    values = get(field)
+    if field in DERIVED and not np.all(np.isfinite(values)):
+        raise ValueError(f"{run_name(ds)} has no {field} at day {day:g}")
+    return values
+
+
 def _loaded(run) -> xr.Dataset:
     """A run as a Dataset: ``run`` itself, or the file at that path read into memory and closed."""
     if isinstance(run, xr.Dataset):
         return run
     with open_netcdf(run) as opened:
         ds = opened.load()
-    ds.attrs.setdefault("_path", str(run))  # for messages (``plotting._name``)
+    ds.attrs.setdefault("_path", str(run))  # for messages (``run_name``)
     return ds
 
 
@@ -77,7 +132,7 @@ def zonal_mean(run, field: str = "h", days=None, resolution: float | None = None
 
     ``run``: a run as an ``xarray.Dataset`` (``swe_sphere.run``'s result, a run
     file opened with xarray) or a run file's path. ``field``: one of
-    ``plotting.MAP_FIELDS`` (h, h_surface, u, v, speed, vorticity, divergence).
+    ``MAP_FIELDS`` (h, h_surface, u, v, speed, vorticity, divergence).
     ``days``: model days, each an output time (default: all). ``resolution``
     (degrees, dividing 180; default ``default_resolution``): the field is each
     element's GLL polynomial evaluated on ``remap.latlon_grid(resolution)``

@@ -5,6 +5,9 @@ from __future__ import annotations
 import tempfile
 from pathlib import Path
 
+from .runtime import pick_device
+from .simulation import Simulation
+
 
 
 def run(scene, *, device: str | None = None, output_file=None, overwrite: bool = False, restart_every: float | None = None,
@@ -33,7 +36,7 @@ def run(scene, *, device: str | None = None, output_file=None, overwrite: bool =
     Quiet unless ``verbose`` (no Warp banner or module-load lines; ``progress``
     shows a progress bar; with ``output={"log_every_steps": N}`` a line of
     invariant changes and Courant numbers every N steps, ``Simulation.log_line``). Raises ``simulation.BlowUp`` (the result is on the
-    exception, the file keeps every good output), ``simulation.Interrupted``
+    exception, the file keeps every good output), ``runtime.Interrupted``
     (SIGINT/SIGTERM in the main thread), ``steppers.StepFailure``,
     ``runtime.ResourceError`` (not enough memory for the grid).
 
@@ -43,9 +46,6 @@ def run(scene, *, device: str | None = None, output_file=None, overwrite: bool =
     """
     import xarray as xr
     from tqdm import tqdm
-
-    from .runtime import pick_device
-    from .simulation import Simulation
 
     device = pick_device(device, verbose=verbose)
     sim = Simulation(scene, device, progress=progress, initial=initial, graphs=graphs, **overrides)

@@ -401,27 +401,6 @@ class Galewsky(Case):
         return self.jet(lat), np.zeros_like(lat), h
 
 
-@dataclass(frozen=True)
-class FileState(Case):
-    """An initial state read from a netCDF file (``initial_state``): h, u, v and
-    optionally hs on the model's nodes or a lat-lon grid, at model day ``time``
-    of the file (default its last). Unforced, scored against nothing."""
-
-    path: str | None = None
-    time: float | None = None
-
-    def __post_init__(self):  # read and checked once (``config.SceneError``), when the scene is loaded
-        from .initial_state import read_state
-
-        object.__setattr__(self, "_state", read_state(self.path, self.time))
-
-    def hs(self, lat, lon):
-        return self._state("hs", lat, lon)
-
-    def initial(self, lat, lon):
-        return self._state.initial(lat, lon)
-
-
 # name → (class, allowed parameters with their types)
 CASES: dict[str, tuple[type[Case], dict[str, type]]] = {
     "tc1_cosine_bell": (CosineBell, {"alpha": float}),
@@ -432,15 +411,16 @@ CASES: dict[str, tuple[type[Case], dict[str, type]]] = {
     "tc5_mountain": (Mountain, {}),
     "tc6_rossby_haurwitz": (RossbyHaurwitz, {}),
     "galewsky": (Galewsky, {"perturbed": bool}),
-    "file": (FileState, {"path": str, "time": float}),
 }
 
 
-def make_case(name: str, params: dict | None = None, planet: Planet = EARTH) -> Case:
-    """Build a case by name with keyword parameters on ``planet``; ValueError names an unknown case or parameter."""
-    if name not in CASES:
-        raise ValueError(f"unknown case {name!r} (known: {', '.join(CASES)})")
-    cls, allowed = CASES[name]
+def make_case(name: str, params: dict | None = None, planet: Planet = EARTH, cases: dict = CASES) -> Case:
+    """Build a case by name from ``cases`` (name → (class, allowed parameters); the
+    analytic ``CASES``, or ``initial_state.SCENE_CASES``, which adds a file's state)
+    with keyword parameters on ``planet``; ValueError names an unknown case or parameter."""
+    if name not in cases:
+        raise ValueError(f"unknown case {name!r} (known: {', '.join(cases)})")
+    cls, allowed = cases[name]
     params = dict(params or {})
     for key, value in params.items():
         if key not in allowed:

@@ -29,7 +29,7 @@ WORKERS_HELP = (
     "runs at once in as many processes, the CPUs shared among them (default 1); under mpiexec -n N "
     "the N - 1 ranks after rank 0 run them, on any number of nodes"
 )
-PLOT_FIELDS = ("h", "h_surface", "u", "v", "speed", "vorticity", "divergence")  # = plotting.MAP_FIELDS (not imported: matplotlib)
+PLOT_FIELDS = ("h", "h_surface", "u", "v", "speed", "vorticity", "divergence")  # = analysis.MAP_FIELDS (not imported: xarray)
 
 
 STABILITY_CASES = ("tc5_mountain", "tc6_rossby_haurwitz", "galewsky", "tc2_steady_alpha_pi4_100d",
@@ -44,14 +44,14 @@ def _path(text: str) -> Path:
 
 
 def _parser() -> argparse.ArgumentParser:
-    from . import __version__
+    from .runtime import package_version
 
     Path = _path  # every path option below (type=Path) refuses an empty path
     p = _Parser(prog="swe-sphere", description="Spectral-element shallow-water model on the cubed sphere.")
     p.add_argument("--debug", action="store_true", help="show the traceback of a failure")
     common = _Parser(add_help=False)  # --debug after the command too, without resetting one given before it
     common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show the traceback of a failure")
-    p.add_argument("--version", action="version", version=f"swe-sphere {__version__}")
+    p.add_argument("--version", action="version", version=f"swe-sphere {package_version()}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
     r = sub.add_parser("run", help="run a scene (a TOML file under testcases/, or its name)", parents=[common])
     r.add_argument("scene", nargs="?", help="scene file, e.g. testcases/tc5_mountain.toml, or a bundled scene name")
@@ -553,7 +553,7 @@ def _classify(err: BaseException) -> tuple[int, str]:
     """(exit status, one-line message) of a failure."""
     import signal
 
-    if isinstance(err, _loaded("simulation.Interrupted")):
+    if isinstance(err, _loaded("runtime.Interrupted")):
         return 128 + err.signum, str(err)
     if isinstance(err, KeyboardInterrupt):  # outside the time loop (its handler stops after a step)
         signum = getattr(err, "signum", signal.SIGINT)
@@ -663,7 +663,7 @@ def _report(err: BaseException, args) -> int:
     comm = (mpi.world() if args is not None and args.command == "run" and not isinstance(err, mpi.MPIUnavailable)
             else None)  # one run over several MPI ranks
     # every rank refuses it, stops at one step, or finds too little memory, alike
-    alike = code == EXIT_BAD_INPUT or isinstance(err, _loaded("simulation.Interrupted")) or getattr(err, "on_every_rank", False)
+    alike = code == EXIT_BAD_INPUT or isinstance(err, _loaded("runtime.Interrupted")) or getattr(err, "on_every_rank", False)
     if comm is None or comm.rank == 0 or not alike:
         where = f"rank {comm.rank} of {comm.size}: " if comm is not None and comm.rank else ""
         print(f"swe-sphere: {where}{'error: ' if code in (EXIT_BAD_INPUT, EXIT_INTERNAL) else ''}{message}", file=sys.stderr)

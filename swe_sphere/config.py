@@ -60,6 +60,7 @@ from pathlib import Path
 from .cases import make_case
 from .constants import DAY, EARTH, Planet
 from .gll import NP_MAX, NP_MIN, gll
+from .initial_state import SCENE_CASES, SceneError
 from .initialization import METHODS, DigitalFilter
 from .model import TERMS
 from .output import OUTPUT_FIELDS
@@ -76,10 +77,6 @@ def efold_nu(hours: float, ne: int, np: int, radius: float) -> float:
     l = 213: ν₄ = 7.34e13 m⁴ s⁻¹)."""
     L = 2 * ne * (np - 1)
     return radius**4 / (hours * 3600.0 * (L * (L + 1)) ** 2)
-
-
-class SceneError(ValueError):
-    """Invalid scene or override; the message names the field or value."""
 
 
 @dataclass(frozen=True)
@@ -147,7 +144,7 @@ class Scene:
         return float(start + (Fraction(repr(self.days)) - start) * int(step) / self.nsteps)
 
     def make_case(self):
-        return make_case(self.case, self.case_params, Planet.from_table(self.planet))
+        return make_case(self.case, self.case_params, Planet.from_table(self.planet), SCENE_CASES)
 
     @property
     def digital_filter(self) -> DigitalFilter | None:
@@ -451,7 +448,7 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
         case["path"] = str((beside if not given.exists() and beside.exists() else given).absolute())
     try:
         planet = Planet.from_table(s.get("planet"))
-        case_obj = make_case(case_name, case, planet)
+        case_obj = make_case(case_name, case, planet, SCENE_CASES)
     except ValueError as err:
         raise SceneError(str(err)) from None
     scale = planet.a / file_radius if _is_number(file_radius) and file_radius > 0 else 1.0  # the planet's node spacing, new / scene's

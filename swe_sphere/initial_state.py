@@ -1,13 +1,13 @@
 """An initial state of one's own: from a netCDF file or a Python function.
 
-A file (``[case] name = "file"``, ``path = "state.nc"``; ``cases.FileState``)
+A file (``[case] name = "file"``, ``path = "state.nc"``; ``FileState``)
 holds the fluid depth ``h`` (m, > 0: the model's h, not the free surface
 h + hs), the winds ``u`` (eastward), ``v`` (northward) (m s⁻¹) and optionally the
 surface height ``hs`` (m; zero without it), either
 
 - on the model's own nodes: a run file (``(time, ncol)`` with ``lat``/``lon`` on
   ``ncol``, as ``output.RunWriter`` writes) or a restart file of the same ne and
-  np (``checkpoint``; its surface height is its scene's), the values taken as
+  np (``restart_file``; its surface height is its scene's), the values taken as
   they are; or
 - on a regular or Gaussian lat-lon grid: 1-D ``lat``/``latitude`` (degrees,
   either order) and ``lon``/``longitude`` (an even number of uniformly spaced
@@ -26,7 +26,7 @@ A function (``initial=fn`` of ``swe_sphere.run`` and ``simulation.Simulation``):
 ``fn(lat, lon) -> (h, u, v)``, latitude and longitude in radians (arrays of the
 nodes), h in m, u and v in m s⁻¹, arrays of lat's shape (or scalars).
 
-Every problem raises ``config.SceneError`` (one line naming the file and
+Every problem raises ``SceneError`` (one line naming the file and
 variable): a missing variable, units other than m / m s⁻¹ where a ``units``
 attribute says so, a wrong shape, a non-finite value, h <= 0, nodes that are not
 the run's grid.
@@ -36,11 +36,15 @@ from __future__ import annotations
 
 import functools
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from .config import SceneError
+from .cases import CASES, Case, make_case
+from .constants import Planet
+from .remap import cached_grid, open_netcdf
+from .restart_file import read as read_restart
 
 DEPTH_UNITS = {"m", "meter", "meters", "metre", "metres"}
 WIND_UNITS = {"m s-1", "m/s", "m s^-1", "m s**-1", "m.s-1", "ms-1", "meter/second", "meters/second", "metre/second",
@@ -51,6 +55,10 @@ FIELD_UNITS = {"h": DEPTH_UNITS, "hs": DEPTH_UNITS, "u": WIND_UNITS, "v": WIND_U
 WHAT = {"h": "the fluid depth, m", "hs": "the surface height, m", "u": "the eastward wind, m s-1",
         "v": "the northward wind, m s-1"}
 PAD = 16  # spline rows/columns continued across a pole or the date line: the end conditions' effect is ~0.27^PAD
+
+
+class SceneError(ValueError):
+    """Invalid scene or override; the message names the field or value."""
 
 
 def east_north(lat, lon) -> tuple[np.ndarray, np.ndarray]:
@@ -232,8 +240,6 @@ def load_state(path, day: float | None = None):
     """The state of the file ``path`` (module docstring) at model day ``day`` (None: the
     last time): a ``NodeState`` or ``LatLonState`` whose ``initial(lat, lon)`` gives
     (u, v, h) and ``(name, lat, lon)`` any field ("hs": zero when absent). Raises ``SceneError``."""
-    from .remap import cached_grid, open_netcdf
-
     where = f"case.path = {str(path)!r}"
     try:
         ds = open_netcdf(path)
@@ -241,15 +247,15 @@ def load_state(path, day: float | None = None):
         raise SceneError(f"{where}: {err}") from None
     with ds:
         if "swe_sphere_checkpoint" in ds.attrs:  # a restart file: its element-local state and its scene's hs
-            from .checkpoint import read
-
             if day is not None:
                 raise SceneError(f"{where}: case.time = {day:g}, but a restart file holds one state (drop case.time)")
-            ck = read(path)
-            grid = cached_grid(ck.scene.ne, ck.scene.np)
+            stored = read_restart(path)
+            scene = stored["scene"]  # as ``Scene.as_dict()`` wrote it
+            grid = cached_grid(scene["ne"], scene["np"])
             lat, lon = grid.lat[grid.first], grid.lon[grid.first]
-            u, v, h = grid.to_unique(ck.x)
-            return NodeState(where, lat, lon, dict(u=u, v=v, h=h, hs=ck.scene.make_case().hs(lat, lon)))
+            u, v, h = grid.to_unique(stored["x"])
+            case = make_case(scene["case"], scene["case_params"], Planet.from_table(scene["planet"]), SCENE_CASES)
+            return NodeState(where, lat, lon, dict(u=u, v=v, h=h, hs=case.hs(lat, lon)))
         t = _time_index(ds, day, where)
         if "h" in ds.variables and "ncol" in ds["h"].dims:
             fields = {name: _values(ds, name, ("ncol",), where, t) for name in ("h", "u", "v", "hs")}
@@ -279,3 +285,26 @@ def _axis_ncol(ds, name, where) -> np.ndarray:
     if name not in ds.variables or ds[name].dims != ("ncol",):
         raise SceneError(f"{where}: no {name} on ncol (the nodes' coordinates, degrees)")
     return np.radians(np.asarray(ds[name].values, dtype=np.float64))
+
+
+@dataclass(frozen=True)
+class FileState(Case):
+    """An initial state read from a netCDF file (module docstring): h, u, v and
+    optionally hs on the model's nodes or a lat-lon grid, at model day ``time``
+    of the file (default its last). Unforced, scored against nothing."""
+
+    path: str | None = None
+    time: float | None = None
+
+    def __post_init__(self):  # read and checked once (``SceneError``), when the scene is loaded
+        object.__setattr__(self, "_state", read_state(self.path, self.time))
+
+    def hs(self, lat, lon):
+        return self._state("hs", lat, lon)
+
+    def initial(self, lat, lon):
+        return self._state.initial(lat, lon)
+
+
+# every case a scene may name: the analytic ones and a file's state
+SCENE_CASES = {**CASES, "file": (FileState, {"path": str, "time": float})}

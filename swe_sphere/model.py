@@ -42,11 +42,6 @@ def _id(a: wp.array) -> tuple:
     return (a.ptr, a.shape, a.strides)
 
 
-def default_device() -> str:
-    """'cuda' when Warp sees a CUDA device, else 'cpu'."""
-    return "cuda" if wp.is_cuda_available() else "cpu"
-
-
 class ShallowWater:
     """Vector-invariant shallow-water equations on a cubed-sphere SE grid.
 

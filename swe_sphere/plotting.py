@@ -11,7 +11,8 @@ Functions other modules reuse: :func:`plot_map`, :func:`plot_series` (both retur
 their ``matplotlib.figure.Figure``, the PNG written only when given a path),
 :func:`line_plot` (generic x-y lines), :func:`sweep_plot` (error against wall time or Δt
 per stepper, for ``swe_sphere.sweep``),
-:func:`field_at_nodes`, :func:`open_run`, :func:`open_reference`. For a lat-lon
+:func:`open_run`, :func:`open_reference` (a run's fields at its nodes:
+``analysis.field_at_nodes``). For a lat-lon
 field to plot or analyse yourself, ``swe_sphere.remap_dataset``.
 """
 
@@ -27,25 +28,18 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from .analysis import DAY_TOL, DERIVED, MAP_FIELDS, days_of, field_at_nodes, kinetic_energy_spectrum, run_name, zonal_mean
+from .cases import make_case
 from .constants import EARTH, PLANET_KEYS, Planet
-from .output import check_distinct, check_target
+from .initial_state import SCENE_CASES
+from .output import atomic_path, check_distinct, check_target
+from .reference import Reference, cases_of, locate
 from .remap import Remapper, cached_grid, open_netcdf, run_grid
 
 # name → (long name, units on the colour bar, scale applied before drawing, colour map, symmetric about 0)
-MAP_FIELDS = {
-    "h": ("fluid depth h", "m", 1.0, "viridis", False),
-    "h_surface": ("free-surface height h + hs", "m", 1.0, "viridis", False),
-    "u": ("eastward wind u", "m s$^{-1}$", 1.0, "RdBu_r", True),
-    "v": ("northward wind v", "m s$^{-1}$", 1.0, "RdBu_r", True),
-    "speed": ("wind speed |v|", "m s$^{-1}$", 1.0, "magma_r", False),
-    "vorticity": ("relative vorticity ζ", "10$^{-5}$ s$^{-1}$", 1e5, "RdBu_r", True),
-    "divergence": ("divergence δ", "10$^{-6}$ s$^{-1}$", 1e6, "RdBu_r", True),
-}
-DERIVED = ("vorticity", "divergence")  # stored by the model, NaN in files written before they were
 INVARIANTS = ("mass_change", "total_energy_change", "potential_enstrophy_change")
 FIGSIZE, DPI = (12.0, 6.0), 100  # map: 1200 × 600 pixels
 SERIES_FIGSIZE = (12.0, 5.0)  # 1200 × 500 pixels
-DAY_TOL = 1e-6
 
 
 # -- reading -----------------------------------------------------------------
@@ -59,47 +53,6 @@ def open_run(path) -> xr.Dataset:
         raise ValueError(f"{path}: not a swe_sphere run file (no ncol dimension)")
     ds.attrs.setdefault("_path", str(path))
     return ds
-
-
-def _name(ds) -> str:
-    return Path(ds.attrs.get("_path", "run")).name
-
-
-def days_of(ds) -> np.ndarray:
-    return np.asarray(ds["time"].values, dtype=np.float64) if "time" in ds.variables else np.zeros(0)
-
-
-def time_index(ds, day: float) -> int:
-    """Index of the output time at ``day`` (within 1e-6 day); ``ValueError`` if not stored."""
-    days = days_of(ds)
-    hits = np.flatnonzero(np.abs(days - day) <= DAY_TOL)
-    if hits.size == 0:
-        stored = ", ".join(f"{d:g}" for d in days)
-        raise ValueError(f"day {day:g} not in {_name(ds)} (stored: {stored})")
-    return int(hits[0])
-
-
-def field_at_nodes(ds, field: str, day: float) -> np.ndarray:
-    """``field`` (one of ``MAP_FIELDS``) of a run at ``day`` on its unique nodes (ncol,),
-    in the file's units (s⁻¹ for vorticity and divergence). ``ValueError`` if it cannot be had."""
-    if field not in MAP_FIELDS:
-        raise ValueError(f"unknown field {field!r} (known: {', '.join(MAP_FIELDS)})")
-    it = time_index(ds, day)
-
-    def get(name):
-        if name not in ds.variables:
-            raise ValueError(f"{_name(ds)} has no {name!r}")
-        var = ds[name]
-        return np.asarray(var.isel(time=it).values if "time" in var.dims else var.values, dtype=np.float64)
-
-    if field == "h_surface":
-        return get("h") + get("hs")
-    if field == "speed":
-        return np.hypot(get("u"), get("v"))
-    values = get(field)
-    if field in DERIVED and not np.all(np.isfinite(values)):
-        raise ValueError(f"{_name(ds)} has no {field} at day {day:g}")
-    return values
 
 
 @dataclass
@@ -139,8 +92,6 @@ def open_reference(path, case=None):
     reference file, given as a path, a bundled reference's file name or, with the
     run's case object, its truncation ("T341"), as ``case.reference`` takes them
     (``reference.locate``). Raises ``FileNotFoundError``/``ValueError``."""
-    from .reference import Reference, locate
-
     path = locate(str(path), case)
     try:
         with xr.open_dataset(path, decode_times=False) as probe:
@@ -314,7 +265,7 @@ def _scene_label(ds) -> str:
         s = json.loads(ds.attrs["scene"])
         return f"{s['name']} ne{s['ne']} np{s['np']}"
     except (KeyError, ValueError, TypeError):
-        return _name(ds)
+        return run_name(ds)
 
 
 def _lines(ax, lines, *, logx=False, logy=False, markers=True, xlabel="", ylabel="", title=""):
@@ -436,11 +387,9 @@ def _run_case(ds):
     """The case object of a run file on its planet (attributes ``planet_radius``,
     ``planet_omega``, ``planet_gravity``; Williamson's Earth in a file from before
     them), or None for a scene this version does not know."""
-    from .cases import make_case
-
     case, params, _, _ = _run_identity(ds)
     try:
-        return make_case(case, params, Planet.from_table({k: ds.attrs[f"planet_{k}"] for k in PLANET_KEYS if f"planet_{k}" in ds.attrs}))
+        return make_case(case, params, Planet.from_table({k: ds.attrs[f"planet_{k}"] for k in PLANET_KEYS if f"planet_{k}" in ds.attrs}), SCENE_CASES)
     except ValueError:
         return None
 
@@ -450,8 +399,6 @@ def check_comparable(ds, diff) -> None:
     parameters) or grid, or against a reference that is not of the run's case
     (its title names another, or the case has no reference: ``reference.cases_of``)
     or planet (the references are of Williamson's Earth)."""
-    from .reference import cases_of
-
     case, params, ne, np_ = _run_identity(ds)
     if isinstance(diff, _Run):
         other = _run_identity(diff.ds)
@@ -487,7 +434,7 @@ def _days_to_plot(ds, days) -> list[float]:
     run_grid(ds)
     stored = days_of(ds)
     if stored.size == 0:
-        raise ValueError(f"{_name(ds)} holds no output time")
+        raise ValueError(f"{run_name(ds)} holds no output time")
     return [float(stored[-1])] if not days else [float(d) for d in days]
 
 
@@ -603,9 +550,6 @@ def plot_analyses(run_path, days=None, outdir=".", *, spectrum=False, zonal_fiel
     ``ValueError`` (one line) for a missing file, a day not stored, a field the
     file lacks (vorticity and divergence for the spectrum); ``output.OutputError``
     for an output that exists (unless ``overwrite``) or would replace the run."""
-    from .analysis import kinetic_energy_spectrum, zonal_mean
-    from .output import atomic_path
-
     outdir = _check_outdir(outdir, lat_range)
     with open_run(run_path) as ds:
         days = _days_to_plot(ds, days)

@@ -22,6 +22,7 @@ import ducc0
 import numpy as np
 import xarray as xr
 
+from .cases import CASES, make_case
 from .constants import EARTH
 
 _GRIDDED = ("lat", "lon", "time", "h_surface", "hs", "u", "v", "vorticity", "divergence")
@@ -177,8 +178,6 @@ class SpectralReference(Reference):
     """
 
     def __init__(self, path):
-        from .cases import CASES, make_case
-
         self.path = Path(path)
         with _open(self.path) as ds:
             self.days = np.asarray(ds["time"].values, dtype=np.float64)
@@ -331,8 +330,6 @@ def find_reference(case_name: str, perturbed: bool = True, truncation: str = "T2
     cases, and if the file is not installed. The folder is
     ``importlib.resources.files('swe_sphere.testcases') / 'reference'``.
     """
-    from .cases import make_case
-
     return reference_path(make_case(case_name, {"perturbed": bool(perturbed)} if case_name == "galewsky" else {}), truncation)
 
 

@@ -27,10 +27,9 @@ import numpy as np
 import xarray as xr
 from scipy.sparse import csr_matrix
 
-from . import __version__
 from .grid import _FACES, CubedSphere
 from .output import atomic_path, check_distinct
-from .runtime import check_memory
+from .runtime import check_memory, package_version
 
 #: node fields (time, ncol) or (ncol,) that ``remap_dataset`` carries to the lat-lon grid
 NODE_FIELDS = ("h", "hs", "u", "v", "vorticity", "divergence")
@@ -239,7 +238,7 @@ def remap_dataset(ds, resolution: float = 1.0) -> xr.Dataset:
         f"to a regular {resolution:g} degree lat-lon grid by swe_sphere.remap"
     )
     stamp = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())  # CF: the newest history line first
-    line = f"{stamp}: swe_sphere.remap to {resolution:g} degrees (swe_sphere {__version__})"
+    line = f"{stamp}: swe_sphere.remap to {resolution:g} degrees (swe_sphere {package_version()})"
     out.attrs["history"] = f"{line}\n{ds.attrs['history']}" if ds.attrs.get("history") else line
     return out
 

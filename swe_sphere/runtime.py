@@ -10,6 +10,7 @@ semi-implicit, implicit and exponential steppers add their own buffers (below).
 
 from __future__ import annotations
 
+import functools
 import os
 import sys
 
@@ -25,6 +26,27 @@ STEPPER_BYTES_PER_NODE = {
 
 class ResourceError(RuntimeError):
     """The machine cannot do what was asked (too little memory); the message says how much is needed."""
+
+
+class Interrupted(RuntimeError):
+    """SIGINT or SIGTERM stopped the run after a complete step (a step still going
+    on ``simulation.ABANDON_AFTER`` s after the signal is abandoned, its state dropped), or
+    came after its last step, while its output was being closed (then whole);
+    ``signum``, ``result`` and ``checkpoint`` (the restart file written, or None)
+    are attached."""
+
+
+@functools.cache
+def package_version() -> str:
+    """The installed swe_sphere's version ("0.0.0+unknown" in a source tree without
+    installation), looked up on first use: importlib.metadata took half of a
+    command's start before its signal handling."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("swe-sphere")
+    except PackageNotFoundError:
+        return "0.0.0+unknown"
 
 
 def init_warp(verbose: bool = False):
@@ -78,12 +100,15 @@ def _note_first_compilation(wp) -> None:
     Module._run_codegen = run_codegen
 
 
+def default_device() -> str:
+    """'cuda' when Warp sees a CUDA device, else 'cpu'."""
+    return "cuda" if init_warp().is_cuda_available() else "cpu"
+
+
 def pick_device(requested: str | None = None, *, verbose: bool = False) -> str:
     """The Warp device to run on: ``requested`` ("cpu" | "cuda"), else CUDA when
     present. Raises ValueError when CUDA is asked for and absent."""
     wp = init_warp(verbose)
-    from .model import default_device
-
     device = requested or default_device()
     if device == "cuda" and not wp.is_cuda_available():
         raise ValueError("device cuda is not available on this machine (use --device cpu)")

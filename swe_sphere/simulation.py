@@ -17,8 +17,8 @@ import warp as wp
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
-from . import __version__
 from . import checkpoint as ckpt
+from . import restart_file
 from .config import Scene, SceneError, resolve_scene, with_days
 from .constants import DAY
 from .diagnostics import courant_numbers, invariants
@@ -27,9 +27,11 @@ from .grid import CubedSphere
 from .initial_state import from_function
 from .initialization import digital_filter
 from .model import ShallowWater
+from .mpi import node_local_size
 from .output import OUTPUT_FIELDS, RunWriter, check_distinct, check_target, node_dataset
 from .parallel import default_threads
-from .runtime import ResourceError, check_memory, pick_device, run_bytes
+from .remap import remap_dataset
+from .runtime import Interrupted, ResourceError, check_memory, package_version, pick_device, run_bytes
 from .scoring import Scorer, truth
 from .steppers import StepFailure, StepStats, make_stepper
 from .topology import Topology, rank_parts
@@ -69,14 +71,6 @@ def stream_path(output: Path, name: str) -> Path:
     """The run file of output stream ``name`` beside a run's output: ``run.nc`` → ``run.NAME.nc``."""
     output = Path(output)
     return output.with_name(f"{output.stem}.{name}{output.suffix or '.nc'}")
-
-
-class Interrupted(RuntimeError):
-    """SIGINT or SIGTERM stopped the run after a complete step (a step still going
-    on ``ABANDON_AFTER`` s after the signal is abandoned, its state dropped), or
-    came after its last step, while its output was being closed (then whole);
-    ``signum``, ``result`` and ``checkpoint`` (the restart file written, or None)
-    are attached."""
 
 
 ABANDON_AFTER = 1.0  # s a step may go on after SIGINT/SIGTERM before it is abandoned
@@ -133,8 +127,6 @@ def _check_memory(scene: Scene, comm, device: str = "cpu") -> None:
     dev = wp.get_device(device)
     if comm is None or comm.size == 1:
         return check_memory(need, what, dev)
-    from .mpi import node_local_size
-
     local = node_local_size(comm)
     try:
         check_memory(need * local // comm.size, f"{what} over {comm.size} MPI ranks ({local} on this node)", dev)
@@ -382,7 +374,7 @@ class Simulation:
         x, state = self.topology.gather(self.x.numpy()), self.stepper.state()
         if not self.root:
             return Path(path)
-        return ckpt.write(path, self.scene, self.step, x, state, self.counters, self.initial, overwrite=overwrite)
+        return restart_file.write(path, self.scene, self.step, x, state, self.counters, self.initial, overwrite=overwrite)
 
     # -- diagnostics --------------------------------------------------------
     # Fields are gathered on rank 0, which diagnoses the whole grid (the same
@@ -573,8 +565,6 @@ class Simulation:
                           {"scene": self.scene.as_dict(), "ne": self.scene.ne, "np": self.scene.np, "step": self.step})
         if remap is None:
             return ds
-        from .remap import remap_dataset
-
         return remap_dataset(ds, remap)
 
     def run(self, output: Path | None = None, *, overwrite: bool = False, restart_every: float | None = None,
@@ -627,9 +617,9 @@ class Simulation:
             stamp = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
             attrs = {
                 "title": f"swe_sphere run of scene {s.name}",
-                "history": f"{stamp}: {history or f'swe_sphere.Simulation.run of scene {s.name}'} (swe_sphere {__version__})",
-                "source": f"swe_sphere {__version__}",
-                "swe_sphere_version": __version__,
+                "history": f"{stamp}: {history or f'swe_sphere.Simulation.run of scene {s.name}'} (swe_sphere {package_version()})",
+                "source": f"swe_sphere {package_version()}",
+                "swe_sphere_version": package_version(),
                 "scene": s.as_dict(),
                 "case": s.case,
                 "ne": s.ne,

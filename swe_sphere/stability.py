@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 from .config import Scene, load_scene
 from .constants import DAY
+from .output import atomic_path
 from .scoring import ENERGY_GROWTH_LIMIT, instability
 from .simulation import BlowUp, Simulation
 from .workers import InProcess
@@ -141,8 +142,6 @@ def run_suite(cases, steppers, device, *, ne=None, np=None, days=None, overrides
 def write_table(results, directory) -> tuple:
     """Write stability.csv and stability.nc under ``directory``; return their paths."""
     import pandas as pd
-
-    from .output import atomic_path
 
     rows = [{k: v for k, v in dataclasses.asdict(r).items() if k != "trials"} for r in results]
     for row, r in zip(rows, results):

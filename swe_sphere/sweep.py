@@ -47,15 +47,16 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
-from . import __version__
 from .checkpoint import branch_attrs
 from .config import Scene
 from .constants import DAY
 from .diagnostics import max_signal_rate
 from .output import atomic_path
+from .plotting import sweep_plot
 from .reference import FLOORS, floor
 from .scoring import instability, truth, unscored
-from .simulation import BlowUp, Interrupted, Simulation
+from .runtime import Interrupted, package_version
+from .simulation import BlowUp, Simulation
 from .steppers import STEPPERS
 from .workers import InProcess
 
@@ -88,7 +89,7 @@ def code_version() -> dict:
         for path in sorted(Path(importlib.util.find_spec(package).origin).parent.glob("*.py")):
             digest.update(f"{package}/{path.name}\0".encode())
             digest.update(path.read_bytes())
-    return {"version": __version__, "source_sha256": digest.hexdigest()[:16]}
+    return {"version": package_version(), "source_sha256": digest.hexdigest()[:16]}
 
 
 def _canonical(value) -> str:
@@ -679,8 +680,6 @@ def write_outputs(rows, info, limits, directory) -> list[Path]:
     columns and, with the rest of ``info`` and ``limits``, in sweep.nc's
     attributes (integers as integers)."""
     import pandas as pd
-
-    from .plotting import sweep_plot
 
     directory = Path(directory)
     df = pd.DataFrame(rows, columns=list(COLUMNS))

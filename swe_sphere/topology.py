@@ -27,6 +27,7 @@ import warp as wp
 from .grid import CubedSphere
 from .kernels import blas, dss
 from .parallel import record
+from .partition import partition
 
 f64 = wp.float64
 DEVICE_TOTALS = 64  # partial sums a row that one GPU thread adds directly (``Topology.device_sums``)
@@ -78,8 +79,6 @@ def rank_parts(ne: int, size: int) -> list[np.ndarray]:
     else the chunks of ``partition.partition``."""
     if size == 1:  # skip the curve: one part in natural order is the whole grid
         return [np.arange(6 * ne * ne)]
-    from .partition import partition
-
     return [np.sort(p) for p in partition(ne, size)]
 
 

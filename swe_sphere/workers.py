@@ -31,6 +31,7 @@ import signal
 from concurrent.futures import Future, ProcessPoolExecutor
 
 from . import mpi
+from .runtime import Interrupted, init_warp
 
 
 def cpus() -> int:
@@ -68,8 +69,6 @@ def _task(fn, /, *args, **kwargs):
     """``fn(*args, **kwargs)`` in a pool worker, ended by SIGTERM (``_on_sigterm``;
     in a time loop, ``Simulation.run``'s own handler, after the step), as is
     every task after it."""
-    from .simulation import Interrupted
-
     if _STOPPING[0]:
         raise KeyboardInterrupt
     _BUSY[0] = True
@@ -88,8 +87,6 @@ def start_worker(threads: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _on_sigterm)
     limit_threads(threads)
-    from .runtime import init_warp
-
     init_warp()
 
 

@@ -15,7 +15,8 @@ import xarray as xr
 from conftest import RUN_TIMES, assert_same_runs, make_sim, watched_run, write_tc2_scene
 
 from swe_sphere.config import load_scene
-from swe_sphere.simulation import BlowUp, Interrupted
+from swe_sphere.runtime import Interrupted
+from swe_sphere.simulation import BlowUp
 from swe_sphere.steppers import StepFailure
 
 def test_blow_up_inside_a_block_is_reported_as_with_a_check_every_step(tmp_path):

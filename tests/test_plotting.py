@@ -13,7 +13,7 @@ import pytest
 import xarray as xr
 
 from conftest import cli_main, cli_one_line
-from swe_sphere import cli, plotting
+from swe_sphere import analysis, cli, plotting
 from swe_sphere.cli import main
 from swe_sphere.grid import CubedSphere
 from swe_sphere.output import RunWriter
@@ -55,7 +55,7 @@ def old_file(tmp_path_factory):
 
 
 def test_cli_fields_are_the_plotting_fields():
-    assert cli.PLOT_FIELDS == tuple(plotting.MAP_FIELDS)
+    assert cli.PLOT_FIELDS == tuple(analysis.MAP_FIELDS)
 
 
 def test_plot_cli_writes_maps_and_series(run_file, tmp_path, capsys):

@@ -168,7 +168,8 @@ def test_a_restart_file_with_a_bad_state_is_refused(run_dir, tmp_path, row, valu
     no run makes: a negative depth, a wind far beyond the gravity-wave speed, a NaN."""
     import netCDF4
 
-    from swe_sphere.checkpoint import content_hash, read
+    from swe_sphere.checkpoint import read
+    from swe_sphere.restart_file import content_hash
 
     bad = tmp_path / "bad.restart.nc"
     shutil.copy(run_dir / "a.restart.nc", bad)

@@ -15,8 +15,9 @@ import pytest
 import xarray as xr
 
 import swe_sphere
-from swe_sphere.cases import CASES, make_case
+from swe_sphere.cases import make_case
 from swe_sphere.config import SceneError, list_scenes, load_scene
+from swe_sphere.initial_state import SCENE_CASES
 from swe_sphere.simulation import Simulation
 
 from conftest import cached_grid, cli_main, cli_one_line
@@ -152,7 +153,7 @@ LL = (np.linspace(-90.0, 90.0, 19), np.arange(36) * 10.0)
 def fitting_terms(scene, case: str) -> dict:
     """The ``terms`` override that ``case`` needs on ``scene`` (its terms but a forcing,
     with the case's required terms added), or {} when the scene's terms fit."""
-    need = CASES[case][0].required_terms
+    need = SCENE_CASES[case][0].required_terms
     terms = [t for t in scene.terms if t != "forcing"] + sorted(need - set(scene.terms))
     return {} if terms == list(scene.terms) else {"terms": terms}
 

@@ -402,12 +402,10 @@ def test_sweep_files_record_what_the_sweep_was_made_with(swept):
 
 
 def test_sweep_figures_are_titled_with_case_grid_and_days(swept, monkeypatch, tmp_path):
-    from swe_sphere import plotting
-
     out, _ = swept
     titles = []
-    real = plotting.sweep_plot
-    monkeypatch.setattr(plotting, "sweep_plot", lambda *a, **k: titles.append(k["title"]) or real(*a, **k))
+    real = sweep_mod.sweep_plot
+    monkeypatch.setattr(sweep_mod, "sweep_plot", lambda *a, **k: titles.append(k["title"]) or real(*a, **k))
     rows = sweep_mod.table(pd.read_csv(out / "sweep.csv").to_dict("records"), {"dt_gravity": 1.0, "dt_advective": 1.0, "dt_leapfrog": 1.0})
     with xr.open_dataset(out / "sweep.nc") as ds:
         info = dict(ds.attrs)

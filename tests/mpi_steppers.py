@@ -12,6 +12,7 @@ import sys
 
 import numpy as np
 
+import roundoff
 from swe_sphere import mpi
 from swe_sphere.config import load_scene
 from swe_sphere.simulation import Simulation
@@ -38,13 +39,19 @@ def scene(stepper: str, days: float = DAYS, options: dict | None = None):
     return dataclasses.replace(s, stepper_options=dict(options or {}))
 
 
-def final_states(comm=None) -> dict[str, np.ndarray]:
-    """Label → final (u, v, h) (3, npts) of a run over ``comm``'s ranks (None: this process)."""
+def final_states(comm=None, nudge=None, counts=None) -> dict[str, np.ndarray]:
+    """Label → final (u, v, h) (3, npts) of a run over ``comm``'s ranks (None: this process),
+    from the start moved by ``nudge(x, grid)`` (None: not moved); ``counts``: a dict to
+    fill with each run's RHS evaluations and solver iterations (``roundoff.operations``)."""
     out = {}
     for name, (stepper, options) in STEPPERS.items():
         sim = Simulation(scene(stepper, options=options), "cpu", progress=False, comm=comm)
-        sim.run(None)
+        if nudge is not None:
+            sim.x.assign(nudge(sim.x.numpy(), sim.grid))
+        result = sim.run(None)
         out[name] = np.stack(sim.fields())
+        if counts is not None:
+            counts[name] = roundoff.operations(result)
     return out
 
 

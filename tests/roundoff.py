@@ -11,8 +11,9 @@ epsilon), with the count argued where the bound is used. Worst-case counts add
 round-off (Krylov iterations, forward-difference J·v), ε is replaced by the run's
 own round-off floor, measured in the test: how far the same run ends from a start
 one rounding away (``nudged``). A real defect (a term that does not conserve, a
-wrong coefficient, a missing halo) is orders of magnitude above either. ``within`` asserts and records each comparison; ``pytest -m roundoff``
-prints the records (measured, bound) at the end.
+wrong coefficient, a missing halo) is orders of magnitude above either.
+``within`` asserts and records each comparison; ``pytest -m roundoff`` prints the
+records (measured, bound) at the end.
 """
 
 from __future__ import annotations
@@ -38,28 +39,6 @@ def mass_change_bound(updates: int, npts: int) -> float:
     ≤ ε of the mass), ``updates`` of them added; and the two integrals, numpy's
     pairwise sums of ``npts`` positive terms, ≤ ⌈log2 npts⌉ ε each."""
     return bound(updates + 2 * math.ceil(math.log2(npts)))
-
-
-
-def nudged(x: np.ndarray, grid, rng) -> np.ndarray:
-    """An element-local state (3, N) with each unique node's values moved by ±ε relative
-    (a rounding of every node; still continuous): the start of a run's round-off floor."""
-    return x * (1 + EPS * rng.choice((-1.0, 1.0), (3, grid.nunique))[:, grid.gid])
-
-
-def state_difference(a: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
-    """max |Δ wind| / max |wind| and max |Δh| / max |h| of two (u, v, h) states (``ref``'s maxima)."""
-    wind = np.hypot(a[0] - ref[0], a[1] - ref[1]).max() / np.hypot(ref[0], ref[1]).max()
-    return float(wind), float(np.abs(a[2] - ref[2]).max() / np.abs(ref[2]).max())
-
-
-def within(measured: float, limit: float, what: str = "") -> None:
-    """Assert ``measured`` ≤ ``limit`` (NaN fails) and record both for ``-m roundoff``'s summary."""
-    test = os.environ.get("PYTEST_CURRENT_TEST", "?").split(" (")[0]
-    RECORDS.append((test, what, float(measured), float(limit)))
-    assert measured <= limit, f"{what}: {measured:.3e} > round-off bound {limit:.3e} ({measured / limit:.2f}x)"
-
-
 
 
 def operations(d) -> int:
@@ -89,3 +68,22 @@ def run_file_history(ds) -> list[dict]:
     names = ["mass_change", "rhs_evals", "steps", *(k for k in ds.keys() if str(k).endswith("_iterations"))]
     return [dict(zip(names, (float(v) if k == "mass_change" else int(v) for k, v in zip(names, row))))
             for row in zip(*(ds[k] for k in names))]
+
+
+def nudged(x: np.ndarray, grid, rng) -> np.ndarray:
+    """An element-local state (3, N) with each unique node's values moved by ±ε relative
+    (a rounding of every node; still continuous): the start of a run's round-off floor."""
+    return x * (1 + EPS * rng.choice((-1.0, 1.0), (3, grid.nunique))[:, grid.gid])
+
+
+def state_difference(a: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
+    """max |Δ wind| / max |wind| and max |Δh| / max |h| of two (u, v, h) states (``ref``'s maxima)."""
+    wind = np.hypot(a[0] - ref[0], a[1] - ref[1]).max() / np.hypot(ref[0], ref[1]).max()
+    return float(wind), float(np.abs(a[2] - ref[2]).max() / np.abs(ref[2]).max())
+
+
+def within(measured: float, limit: float, what: str = "") -> None:
+    """Assert ``measured`` ≤ ``limit`` (NaN fails) and record both for ``-m roundoff``'s summary."""
+    test = os.environ.get("PYTEST_CURRENT_TEST", "?").split(" (")[0]
+    RECORDS.append((test, what, float(measured), float(limit)))
+    assert measured <= limit, f"{what}: {measured:.3e} > round-off bound {limit:.3e} ({measured / limit:.2f}x)"

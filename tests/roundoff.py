@@ -64,9 +64,9 @@ def mass_kept(history: list[dict], npts: int, updates=operations) -> None:
 
 def run_file_history(ds) -> list[dict]:
     """A run file's (or a sweep table's) outputs as ``mass_kept``'s history: mass_change,
-    rhs_evals, steps and the solvers' iterations."""
+    rhs_evals, steps and the solvers' iterations (a sweep's NaN where a stepper has no such solver: 0)."""
     names = ["mass_change", "rhs_evals", "steps", *(k for k in ds.keys() if str(k).endswith("_iterations"))]
-    return [dict(zip(names, (float(v) if k == "mass_change" else int(v) for k, v in zip(names, row))))
+    return [dict(zip(names, (float(v) if k == "mass_change" else int(np.nan_to_num(v)) for k, v in zip(names, row))))
             for row in zip(*(ds[k] for k in names))]
 
 

@@ -41,6 +41,16 @@ def mass_change_bound(updates: int, npts: int) -> float:
     return bound(updates + 2 * math.ceil(math.log2(npts)))
 
 
+def operator_roundings(np_: int, passes: int = 1) -> int:
+    """Roundings a node may differ by between a kernel and the numpy reference of the
+    same operator (the same sums in another order, FMA contraction), relative to the
+    largest value. Per pass (a derivative with its metric, a DSS, an update): a
+    derivative Σ_m dvv[i,m] f_m rounds ≤ 2np times Σ_m |dvv[i,m] f_m| ≤ (np²/2) max |f|:
+    np³ ε of max |f| (the 2×2 metric products and the DSS's ≤ 4 copies add far less
+    than this worst case leaves; measured ≤ np² at np = 4 and 7)."""
+    return np_**3 * passes
+
+
 def operations(d) -> int:
     """RHS evaluations and solver iterations (Newton, GMRES, CG, Krylov, ...) of a
     ``RunResult`` or of one of its outputs (``rhs_evals``, ``<solver>_iterations``):

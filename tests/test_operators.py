@@ -247,7 +247,7 @@ def test_dss_makes_continuous_and_keeps_integral(ne, np_, rng):
     assert np.abs(x - x[:, rep]).max() > 0.1
     before, after = (x * g.spheremp).sum(axis=1), (out * g.spheremp).sum(axis=1)  # numpy's pairwise sums
     scale = (np.abs(x) * g.spheremp).sum(axis=1)
-    roundoff.within((np.abs(after - before) / scale).max(), roundoff.bound(operator_roundings(np_) + 2 * math.ceil(math.log2(g.npts))),
+    roundoff.within((np.abs(after - before) / scale).max(), roundoff.bound(roundoff.operator_roundings(np_) + 2 * math.ceil(math.log2(g.npts))),
                     "|∫ DSS x − ∫ x| / ∫|x|")
     # DSS of a continuous field is the identity (weighted), and the unweighted
     # DSS of spheremp·f gives back f
@@ -262,20 +262,10 @@ def random_continuous(g, ops, rng, rows):
     return ops.dss(rng.standard_normal((rows, g.npts)))
 
 
-def operator_roundings(np_: int, passes: int = 1) -> int:
-    """Roundings a node may differ by between a kernel and the numpy reference of the
-    same operator (the same sums in another order, FMA contraction), relative to the
-    largest term. Per pass (a derivative with its metric, a DSS, an update): a
-    derivative Σ_m dvv[i,m] f_m rounds ≤ 2np times Σ_m |dvv[i,m]| |f| ≤ np/2 · max |f|
-    (np² ε of the derivative's scale), times ≤ 4 for the 2×2 metric factors and the
-    DSS's ≤ 4 copies: 4 np² a pass."""
-    return 4 * np_**2 * passes
-
-
 def close(a, b, np_, passes=1, scale=None):
-    """max |a − b| within ``operator_roundings(np_, passes)`` ε of ``scale`` (default: max |b|); recorded."""
+    """max |a − b| within ``roundoff.operator_roundings(np_, passes)`` ε of ``scale`` (default: max |b|); recorded."""
     scale = np.abs(b).max() if scale is None else scale
-    roundoff.within(np.abs(a - b).max() / scale, roundoff.bound(operator_roundings(np_, passes)), "max |kernel − numpy| / scale")
+    roundoff.within(np.abs(a - b).max() / scale, roundoff.bound(roundoff.operator_roundings(np_, passes)), "max |kernel − numpy| / scale")
     return True
 
 
@@ -478,8 +468,9 @@ def test_laplacian_of_spherical_harmonic(l):
 def test_laplacian_of_constant_is_zero(ne, np_):
     g, m = cached_grid(ne, np_), bare_model(ne, np_)
     L = wp_laplacian(m, np.full(g.npts, 3.0))
-    # the derivative matrix's rows sum to zero up to ε Σ|dvv| ≤ ε np²: twice, over Δx², in 3 passes
-    limit = roundoff.bound(operator_roundings(np_, 3) * np_**2, 3.0 / g.dx.min() ** 2)
+    # the first derivative of a constant is its round-off, ``operator_roundings`` of 3/Δx; the
+    # second multiplies that by Σ|dvv| ≤ np²/2 over Δx, the DSS adds a pass
+    limit = roundoff.bound(roundoff.operator_roundings(np_, 3) * np_**2, 3.0 / g.dx.min() ** 2)
     roundoff.within(np.abs(L).max(), limit, "max |L 3|")
 
 
@@ -492,7 +483,7 @@ def test_laplacian_symmetric_negative_semidefinite(ne, np_, rng):
     L = wp_laplacian(m, F)
     w = g.spheremp
     inner = lambda a, b: float(np.sum(w * a * b))  # noqa: E731  (numpy's pairwise sum)
-    limit = roundoff.bound(operator_roundings(np_, 3) + 2 * math.ceil(math.log2(g.npts)))
+    limit = roundoff.bound(roundoff.operator_roundings(np_, 3) + 2 * math.ceil(math.log2(g.npts)))
     for i in range(3):
         f, gg = F[2 * i], F[2 * i + 1]
         Lf, Lg = L[2 * i], L[2 * i + 1]
@@ -607,7 +598,7 @@ def test_rhs_conserves_mass(perturb, rng):
     # a node's ∂h/∂t is a difference of fluxes h v over Δx rounded as in ``operator_roundings``
     # (a divergence and its DSS): a balanced flow's ∂h/∂t is far smaller than those terms
     flux = np.sum(g.spheremp * np.abs(st[2]) * np.hypot(st[0], st[1]) / g.dx)
-    limit = roundoff.bound(operator_roundings(4, 2) + math.ceil(math.log2(g.npts)), flux)
+    limit = roundoff.bound(roundoff.operator_roundings(4, 2) + math.ceil(math.log2(g.npts)), flux)
     roundoff.within(abs(total), limit, "|∫ ∂h/∂t|")
 
 

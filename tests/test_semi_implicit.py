@@ -178,9 +178,9 @@ def test_helmholtz_matrix_equals_the_matrix_free_operator(rng):
     ones = np.abs(K @ np.ones(grid.nunique)).max() / np.abs(K).max()
     print(f"\nnnz/row {K.nnz / grid.nunique:.1f}; |Ky - numpy| {rel(K @ y, ref):.1e}, |K 1| {ones:.1e}, |Ky - matrix-free| "
           + ", ".join(f"{k} {rel(K @ y, v):.1e}" for k, v in matrix_free.items()))
-    # K y: a gradient and a divergence, each with its DSS, 4 np² roundings a pass (as
-    # test_operators.operator_roundings) in another order (assembled entries, kernels, numpy)
-    limit = roundoff.bound(4 * 4 * 4**2)
+    # K y: a gradient and a divergence, each with its DSS, in another order (assembled
+    # entries, kernels, numpy): four passes of roundoff.operator_roundings
+    limit = roundoff.bound(roundoff.operator_roundings(grid.np, 4))
     roundoff.within(rel(K @ y, ref), limit, "|K y − numpy| / |K y|")
     for layout, v in matrix_free.items():
         roundoff.within(rel(K @ y, v), limit, f"|K y − matrix-free ({layout})| / |K y|")

@@ -9,6 +9,7 @@ Laplacian after the DSS. Reference derivatives use ``dvv[i, m] = l_m'(ξ_i)``.
 """
 
 import functools
+import os
 from typing import Any
 
 import warp as wp
@@ -16,9 +17,16 @@ import warp as wp
 f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
 
-# Module options of the CPU per-element kernels: Warp's CPU flags plus FMA
-# contraction (results change at round-off only; +15 % on the tendency).
-CPU_FAST = {"cpu_compiler_flags": (wp.config.cpu_compiler_flags or "-march=native") + " -ffp-contract=fast"}
+# SWE_SPHERE_CPU_GENERIC=1: every CPU kernel for Warp's generic target instead of
+# -march=native (no FMA, narrower vectors: other round-off, the same results to
+# it; the round-off tests' second target). Warp keys its kernel cache on the flags.
+if os.environ.get("SWE_SPHERE_CPU_GENERIC", "") not in ("", "0"):
+    wp.config.cpu_compiler_flags = ""
+# Module options of the CPU per-element kernels: Warp's CPU flags (None: its
+# -march=native default) plus FMA contraction (results change at round-off only;
+# +15 % on the tendency).
+_CPU_FLAGS = "-march=native" if wp.config.cpu_compiler_flags is None else wp.config.cpu_compiler_flags
+CPU_FAST = {"cpu_compiler_flags": _CPU_FLAGS + " -ffp-contract=fast"}
 
 
 @wp.func

@@ -18,6 +18,8 @@ import pytest
 import warp as wp
 import xarray as xr
 
+import roundoff
+
 wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level instead
 if hasattr(wp, "LOG_WARNING"):
     wp.config.log_level = wp.LOG_WARNING
@@ -227,6 +229,16 @@ def paused(tmp_path_factory):
         if proc.poll() is None:
             proc.kill()
             proc.communicate()
+
+
+def pytest_terminal_summary(terminalreporter, config):
+    """Under ``-m roundoff``: each round-off comparison's measured value and bound (tests/roundoff.py)."""
+    if "roundoff" not in (config.option.markexpr or "") or not roundoff.RECORDS:
+        return
+    target = "generic" if os.environ.get("SWE_SPHERE_CPU_GENERIC", "") not in ("", "0") else "default"
+    terminalreporter.section(f"round-off: measured / bound (Warp CPU target: {target}, {wp.config.cpu_compiler_flags!r})")
+    for test, what, measured, limit in roundoff.RECORDS:
+        terminalreporter.write_line(f"{measured:9.2e} / {limit:9.2e} = {measured / limit:5.3f}  {test} {what}")
 
 
 @pytest.fixture

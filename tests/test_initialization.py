@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
+import roundoff
 from conftest import cli_one_line, make_sim
 from swe_sphere import simulation
 from swe_sphere.cli import main
@@ -49,6 +50,14 @@ def test_time_reversal_is_an_exact_symmetry_of_the_discrete_rhs(rng):
     np.testing.assert_array_equal(out[1], -P * out[0])
 
 
+def filter_mass_bound(r, npts: int) -> float:
+    """Round-off of a filtered state's relative mass: an update of the depth per RK4 RHS
+    evaluation of either run (each state's mass error at most that, Σ|w| ≈ 1) and one
+    rounding per state added to the weighted sum."""
+    return roundoff.mass_change_bound(r.rhs_evals + 2 * r.steps, npts)
+
+
+@pytest.mark.roundoff
 def test_steady_state_is_kept_to_its_discretisation_error():
     """TC2 (steady) with a 12 h cutoff over ±12 h: the weights sum to 1 and mass is
     kept to round-off; h and the wind change by the discrete state's own imbalance
@@ -56,13 +65,13 @@ def test_steady_state_is_kept_to_its_discretisation_error():
     at ne4, 2.9e-5 at ne8 (order 3.2), max |Δv| / max |v| 1.0e-3, 9.0e-5."""
     f = DigitalFilter(span_hours=24.0, cutoff_hours=12.0)
     dt, n = f.steps(1e-3)
-    assert f.weights(dt, n).sum() == pytest.approx(1.0, abs=1e-15)
+    assert f.weights(dt, n).sum() == pytest.approx(1.0, abs=roundoff.bound(2 * n + 1))  # 2n + 1 weights of |w| ≤ 1 summed
     change = {}
     for ne in (4, 8):
         sim = make_sim(load_scene("tc2_steady", ne=ne, days=1))
         x0 = sim.x.numpy().copy()
         r = _filter(sim, f)
-        assert abs(r.mass_change) < 1e-15
+        roundoff.within(abs(r.mass_change), filter_mass_bound(r, sim.grid.npts), f"|mass change| ne {ne}")
         change[ne] = (np.abs(r.x[2] - x0[2]).max() / x0[2].max(), np.abs(r.x[:2] - x0[:2]).max() / np.abs(x0[:2]).max())
     assert change[8][0] < 4e-5 and change[8][1] < 1.2e-4  # measured 2.9e-5, 9.0e-5
     assert change[4][0] / change[8][0] > 6 and change[4][1] / change[8][1] > 6  # measured 9.0, 11.3
@@ -80,8 +89,10 @@ def test_tc5_gravity_waves_are_removed():
                            overrides={"case.initialization": init, "dfi.cutoff_hours": 24.0, "dfi.span_hours": 48.0})
         sim = make_sim(scene)
         if init == "dfi":
-            assert sim.dfi.dhdt_rms[0] / sim.dfi.dhdt_rms[1] > 9.5 and abs(sim.dfi.mass_change) < 1e-14
-            assert sim.initial["mass"] == pytest.approx(before.initial["mass"], rel=1e-14)
+            assert sim.dfi.dhdt_rms[0] / sim.dfi.dhdt_rms[1] > 9.5
+            roundoff.within(abs(sim.dfi.mass_change), filter_mass_bound(sim.dfi, sim.grid.npts), "|mass change|")
+            roundoff.within(abs(sim.initial["mass"] / before.initial["mass"] - 1), filter_mass_bound(sim.dfi, sim.grid.npts),
+                            "|initial mass / unfiltered − 1|")
         sim.run(None)
         tend = sim.model.new_state()
         sim.model.rhs(sim.x, tend)

@@ -4,17 +4,16 @@ On Oceananigans' pattern, the loop (``Simulation.run``) is short and takes its
 steps by one path; what happens around the steps is each a small part: the step
 itself (``step_runner``), the bad-state guard (``guard``), the run files and
 restart files (``writers``), callbacks (``callbacks``), signals (``interrupts``),
-and the counts and result (``summary``)."""
+and the counts and result (``summary``); the state's diagnostics are
+``state_diagnostics``."""
 
 from __future__ import annotations
 
 import bisect
 import contextlib
-import math
 import signal
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +25,6 @@ from . import checkpoint as ckpt
 from .callbacks import Callbacks
 from .config import Scene, SceneError, resolve_scene, with_days
 from .constants import DAY
-from .diagnostics import courant_numbers, invariants
 from .grid import CubedSphere
 from .guard import CHECK_EVERY_STEPS, BlowUp, Guard
 from .initial_state import from_function
@@ -38,34 +36,18 @@ from .parallel import default_threads
 from .runtime import ResourceError, check_memory, pick_device, run_bytes
 from .schedules import next_multiple, restart_steps, steps_of
 from .scoring import Scorer
+from .state_diagnostics import StateDiagnostics
 from .step_runner import StepRunner
 from .steppers import StepFailure, make_stepper
 from .summary import Ledger, RunResult, interruption
 from .topology import Topology, rank_parts
-from .writers import Checkpointer, RunFiles, restart_path, run_attrs, stream_path
+from .writers import Checkpointer, RunFiles, run_attrs
 
 # The names users catch and read from here (``swe_sphere.BlowUp``, ``swe_sphere.Interrupted``).
-__all__ = ["ON_ROOT", "BlowUp", "Interrupted", "RunResult", "Simulation", "WholeFields", "restart_path", "stream_path"]
+__all__ = ["ON_ROOT", "BlowUp", "Interrupted", "RunResult", "Simulation"]
 
 
 ON_ROOT = object()  # ``start`` on the ranks > 0 when rank 0 alone holds the whole-grid start state
-
-
-@dataclass
-class WholeFields:
-    """One state's fields gathered on rank 0 (``Simulation.gather_fields``): u, v
-    (m s⁻¹), h (m), vorticity and, when asked for, divergence (s⁻¹, DSS'd), (npts,)
-    each on rank 0 and None on the other ranks (divergence None when not asked for).
-    Every rank holds one: whether a rank gathers is decided by whether it was
-    given one, never by its contents, so all ranks take the same collectives."""
-
-    u: np.ndarray | None
-    v: np.ndarray | None
-    h: np.ndarray | None
-    vorticity: np.ndarray | None
-    divergence: np.ndarray | None = None
-
-
 
 MAX_HYPERVIS_EVALUATIONS = 10_000  # ∇⁴ evaluations a step; beyond, ν is ~10⁷ times its explicit bound or more
 
@@ -134,7 +116,7 @@ def _compile_timer(acc: list):
         Module.load = real
 
 
-class Simulation:
+class Simulation(StateDiagnostics):
     """Build the grid, case, model and stepper of a scene; ``run`` integrates it.
 
     ``device``: "cpu" or "cuda" (Warp device names). ``progress``: show a tqdm bar
@@ -160,7 +142,6 @@ class Simulation:
     ``initial_diagnostics``: the t = 0 diagnostics that relative changes are taken against,
     the same on every rank (a checkpoint's, when continuing: the start state is
     then not diagnosed for nothing); None: the start state's (``diagnose(0)``).
-
 
     ``graphs`` (True on a GPU, False on a CPU): ``run`` replays each step as a
     captured graph where it can (``step_runner.StepRunner``).
@@ -304,106 +285,7 @@ class Simulation:
             return Path(path)
         return ckpt.write(path, self.scene, self.step, x, state, self.counters, self.initial, overwrite=overwrite)
 
-    # -- diagnostics --------------------------------------------------------
-    # Fields are gathered on rank 0, which diagnoses the whole grid (the same
-    # arithmetic on any number of ranks) and broadcasts the figures.
-    def fields(self, x=None):
-        """u, v, h (npts,) of the whole grid, gathered on rank 0 (call on every rank;
-        (None, None, None) on the others)."""
-        a = self.topology.gather((self.x if x is None else x).numpy())
-        return (None, None, None) if a is None else (a[0], a[1], a[2])
-
-    def divergence(self, x=None) -> np.ndarray | None:
-        """Divergence of the wind (npts,) of the whole grid, DSS'd (s⁻¹), on rank 0 (None elsewhere)."""
-        return self.topology.gather(self.model.wind_divergence(self.x if x is None else x))
-
-    def gather_fields(self, x=None, divergence: bool = False) -> WholeFields:
-        """u, v, h, the vorticity and (``divergence``) the divergence of state x
-        (default the current one), in one gather on rank 0 (call on every rank)."""
-        x = self.x if x is None else x
-        rows = [x.numpy(), self.model.vorticity(x)[None]]
-        if divergence:
-            rows.append(self.model.wind_divergence(x)[None])
-        a = self.topology.gather(np.concatenate(rows))
-        if a is None:
-            return WholeFields(None, None, None, None)
-        return WholeFields(a[0], a[1], a[2], a[3], a[4] if divergence else None)
-
-    def diagnose(self, t: float, x=None, whole: WholeFields | None = None) -> dict:
-        """Invariants (and their relative change), errors against the truth
-        (``scoring.Scorer.errors``) and Courant numbers, on every rank (call on
-        every rank). ``whole``: x's ``gather_fields`` when the caller has them (on
-        every rank, or on none)."""
-        whole = self.gather_fields(x) if whole is None else whole
-        u, v, h, zeta = whole.u, whole.v, whole.h, whole.vorticity
-        errors = self.scorer.errors(t, (self.x if x is None else x).numpy(), u, v, h)
-        d = None
-        if self.root:
-            d = self._invariants(whole)
-            d.update(errors)
-            d.update(courant_numbers(self.grid, u, v, h, self.scene.dt, self.g, "pressure_gradient" in self.scene.terms))
-        return self.topology.bcast(d)
-
-    def _invariants(self, whole: WholeFields) -> dict:
-        """The invariants of ``whole`` and their change relative to ``initial`` (rank 0)."""
-        d = invariants(self.grid, whole.u, whole.v, whole.h, self.hs, whole.vorticity, self.fcor, self.g)
-        if not self.case.h_is_depth:  # h is a tracer (TC1): only its mass is an invariant
-            d = {"mass": d["mass"]}
-        start = self.initial or d  # diagnosing the initial state itself
-        for k in list(d):
-            d[f"{k}_change"] = (d[k] - start[k]) / abs(start[k])
-        return d
-
-    def log_line(self, d: dict | None = None) -> str | None:
-        """One line on the current step, as HOMME prints every ``statefreq`` steps:
-        step, model day, relative changes of mass, total energy and potential
-        enstrophy since t = 0 and the largest advective and gravity-wave Courant
-        numbers over the nodes. ``d``: the step's ``diagnose`` when the caller has
-        it; else the fields are gathered here (the one device synchronisation).
-        Call on every rank; None on the ranks > 0."""
-        if d is None:
-            whole = self.gather_fields()
-            if self.root:
-                d = self._invariants(whole)
-                d.update(courant_numbers(self.grid, whole.u, whole.v, whole.h, self.scene.dt, self.g,
-                                         "pressure_gradient" in self.scene.terms))
-        if not self.root:
-            return None
-        names = {"mass_change": "mass", "total_energy_change": "energy", "potential_enstrophy_change": "enstrophy"}
-        changes = "".join(f"  {name} {d[k]:+.3e}" for k, name in names.items() if k in d)
-        grav = "" if math.isnan(d["courant_gravity"]) else f" gravity-wave {d['courant_gravity']:.3f}"
-        return (f"step {self.step} day {self.scene.day(self.step):.4f}{changes}  Courant advective "
-                f"{d['courant_advective']:.3f}{grav}")
-
-    def stability_warning(self) -> str | None:
-        """A one-line warning when Δt exceeds the stepper's measured stability limit on
-        the current state (``Stepper.courant_limit`` on (|v| + √(gh)) Δt/Δx for explicit
-        steppers, ``Stepper.advective_courant_limit`` on |v| Δt/Δx for IMEX), else None."""
-        kind = type(self.stepper)
-        c = self.courant()
-        if kind.courant_limit is not None:
-            limit, what = kind.courant_limit, "a Courant number (|v| + sqrt(g h)) dt/dx"
-            speed = c["courant_advective"] + (0.0 if math.isnan(c["courant_gravity"]) else c["courant_gravity"])
-            source = "measured on TC2"
-        elif kind.advective_courant_limit is not None:
-            limit, what, speed = kind.advective_courant_limit, "an advective Courant number |v| dt/dx", c["courant_advective"]
-            source = "its explicit advection's, measured on TC5, TC6 and Galewsky"
-        else:
-            return None
-        if speed <= limit:
-            return None
-        return (f"warning: dt = {self.scene.dt:g} s gives {what} of {speed:.3g}, above "
-                f"{self.scene.stepper}'s stability limit of about {limit:g} ({source}); it may blow up "
-                f"(dt <= {self.scene.dt * limit / speed:.4g} s keeps below)")
-
-    def courant(self, whole: WholeFields | None = None) -> dict:
-        """Advective and gravity-wave Courant numbers of the scene's dt on the current
-        state (call on every rank; ``whole``: its ``gather_fields`` when the caller
-        has them, on every rank or on none)."""
-        u, v, h = self.fields() if whole is None else (whole.u, whole.v, whole.h)
-        c = courant_numbers(self.grid, u, v, h, self.scene.dt, self.g, "pressure_gradient" in self.scene.terms) if self.root else None
-        return self.topology.bcast(c)
-
+    # -- the loop ---------------------------------------------------------
     def restart_steps(self, every_days: float) -> set[int]:
         """Steps at which a run with ``--restart-every every_days`` writes its restart
         file (and the last step). Raises ValueError unless dt divides the interval."""
@@ -504,8 +386,10 @@ class Simulation:
         courant = self.courant(start)
         if output is not None and self.root:
             files.open(run_attrs(self, history, courant), overwrite=overwrite, compress=compress)
-        stop_step, first_step, log_every = s.nsteps if until_step is None else until_step, self.step, s.log_every_steps if log is not None else 0
-        ledger, guard, marks = Ledger(self.counters, s, first_step, notify if self.root else None), Guard(self, first_step), sorted(files.steps | ckp.steps)
+        stop_step = s.nsteps if until_step is None else until_step
+        log_every = s.log_every_steps if log is not None else 0
+        ledger, guard = Ledger(self.counters, s, self.step, notify if self.root else None), Guard(self, self.step)
+        marks = sorted(files.steps | ckp.steps)
 
         def block_end(b: int) -> int:  # a block ends at the next output, restart, log and callback step, at the run's end
             i = bisect.bisect_right(marks, b)
@@ -520,8 +404,10 @@ class Simulation:
             if n in ckp.steps:
                 ckp.save()
             self.callbacks(self, n)
-            if log_every and n % log_every == 0 and (line := self.log_line(files.history[-1] if n in files.steps else None)):
-                log(line)
+            if log_every and n % log_every == 0:
+                line = self.log_line(files.history[-1] if n in files.steps else None)
+                if line is not None:
+                    log(line)
             bar.update(done)
             if n % 50 < done or n == s.nsteps:  # a multiple of 50 in the steps done
                 bar.set_postfix(day=f"{s.day(n):.2f}", sim_days_per_s=f"{n * s.dt / DAY / max(self.counters['wall_time'], 1e-9):.3g}")
@@ -589,8 +475,8 @@ class Simulation:
 
     def _steps(self, b: int, e: int, guard: Guard, signals: StopSignals, ledger: Ledger):
         """Steps b+1..e, the loop's one step path: a single step (e = b + 1) checked at
-        once, a block's each flagged on the device and read at its end (``guard.Guard``);
-        a block stops early for a signal. Returns (m, trouble, detail): m the last step
+        once, a block's steps each flagged on the device and the flag read at its end
+        (``guard.Guard``); a block stops early for a signal. Returns (m, trouble, detail): m the last step
         taken; trouble None when every state to m was good, else "bad", "unconverged",
         "failure" (a ``StepFailure`` in step m + 1) or "abandoned" (step m + 1), and then
         ``step`` is b again (``Guard.end``); detail a single step's bad node or failure

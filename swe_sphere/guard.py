@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import bisect
 import math
 
 import numpy as np
@@ -38,18 +39,24 @@ class Guard:
     step (the same bits either way). A single step is checked at once
     (``ShallowWater.first_bad_node``), its solvers' counters read inside it."""
 
-    def __init__(self, sim, first_step: int):
-        self.sim, self.first_step = sim, first_step
+    def __init__(self, sim, stop_step: int, marks: list[int], log_every: int, ledger):
+        """``marks``: the run's output and restart steps, sorted; ``log_every``: its
+        log's interval (0: none); ``ledger``: its ``summary.Ledger``."""
+        self.sim, self.first_step, self.stop_step, self.marks = sim, sim.step, stop_step, marks
+        self.log_every, self.ledger = log_every, ledger
         self.every = max(1, int(sim.check_every))
         self._saved = None  # a block's stepper history and counters at its start
 
-    def block_end(self, b: int, ends: list[int]) -> int:
+    def block_end(self, b: int) -> int:
         """The last step of the block that starts after step b: the next multiple of
-        ``check_every`` or the first of ``ends`` (the run's next output, restart,
-        log and callback steps, its end), whichever comes first."""
+        ``check_every``, or the run's next output, restart, log or callback step, the
+        last step of its wall-time estimate or its end, whichever comes first."""
         if self.every == 1 or b == self.first_step:  # the first step alone: its time is first_step_time
             return b + 1
-        return min(next_multiple(b, self.every), *ends)
+        i = bisect.bisect_right(self.marks, b)
+        ends = [self.stop_step, next_multiple(b, self.every), *self.marks[i : i + 1], *self.sim.callbacks.next_steps(b),
+                *self.ledger.next_steps(b)]
+        return min(ends + ([next_multiple(b, self.log_every)] if self.log_every else []))
 
     def begin(self, b: int, block: bool) -> None:
         """Keep the state of step b in ``last_good`` and, for a block, the stepper's

@@ -9,7 +9,6 @@ and the counts and result (``summary``); the state's diagnostics are
 
 from __future__ import annotations
 
-import bisect
 import contextlib
 import signal
 import sys
@@ -34,7 +33,7 @@ from .model import ShallowWater
 from .output import OUTPUT_FIELDS, check_distinct, check_target, node_dataset
 from .parallel import default_threads
 from .runtime import ResourceError, check_memory, pick_device, run_bytes
-from .schedules import next_multiple, restart_steps, steps_of
+from .schedules import restart_steps, steps_of
 from .scoring import Scorer
 from .state_diagnostics import StateDiagnostics
 from .step_runner import StepRunner
@@ -388,13 +387,8 @@ class Simulation(StateDiagnostics):
             files.open(run_attrs(self, history, courant), overwrite=overwrite, compress=compress)
         stop_step = s.nsteps if until_step is None else until_step
         log_every = s.log_every_steps if log is not None else 0
-        ledger, guard = Ledger(self.counters, s, self.step, notify if self.root else None), Guard(self, self.step)
-        marks = sorted(files.steps | ckp.steps)
-
-        def block_end(b: int) -> int:  # a block ends at the next output, restart, log and callback step, at the run's end
-            i = bisect.bisect_right(marks, b)
-            ends = [stop_step, *marks[i : i + 1], *self.callbacks.next_steps(b), *ledger.next_steps(b)]
-            return guard.block_end(b, ends + ([next_multiple(b, log_every)] if log_every else []))
+        ledger = Ledger(self.counters, s, self.step, notify if self.root else None)
+        guard = Guard(self, stop_step, sorted(files.steps | ckp.steps), log_every, ledger)
 
         def finish(n: int, done: int) -> None:
             """Step n (the last of ``done`` steps) is good: output, restart, callbacks, log, progress."""
@@ -412,8 +406,7 @@ class Simulation(StateDiagnostics):
             if n % 50 < done or n == s.nsteps:  # a multiple of 50 in the steps done
                 bar.set_postfix(day=f"{s.day(n):.2f}", sim_days_per_s=f"{n * s.dt / DAY / max(self.counters['wall_time'], 1e-9):.3g}")
 
-        blowup = interrupted = None
-        abandoned = False
+        blowup = interrupted = abandoned = None
         # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
         # pay, and on a busy machine OpenBLAS's spinning threads made a norm cost 10 ms
         with StopSignals(self.topology, catch_signals) as signals, threadpool_limits(limits=1, user_api="blas"):
@@ -430,11 +423,10 @@ class Simulation(StateDiagnostics):
                                 interrupted = signum
                                 break
                             b = self.step
-                            e = block_end(b) if b >= rerun_to else b + 1  # a re-run goes on to the trouble it looks for
+                            e = guard.block_end(b) if b >= rerun_to else b + 1  # a re-run goes on to the trouble it looks for
                             m, trouble, detail = self._steps(b, e, guard, signals, ledger)
-                            if trouble is None:
-                                if m > b:
-                                    finish(m, m - b)
+                            if trouble is None:  # m > b: a step without trouble was taken
+                                finish(m, m - b)
                             elif trouble == "abandoned":
                                 interrupted, abandoned = detail, (b, m)
                                 break
@@ -462,7 +454,7 @@ class Simulation(StateDiagnostics):
                 stepper.deferred = False
         if interrupted is None and blowup is None:  # a signal after the last step's check: the output is whole
             interrupted = signals.asked() or None
-        result = ledger.result(self, files.history, courant, output, blowup, ckp.written)
+        result = ledger.result(self.step, files.history, courant, output, blowup, ckp.written, self.setup_time, self._compile[0])
         if blowup is not None:
             err = BlowUp(blowup)
             err.result = result

@@ -78,12 +78,13 @@ class Ledger:
         end = self.first_step + 1 + ESTIMATE_STEPS
         return [end] if step < end else []
 
-    def result(self, sim, history: list, courant: dict, output, blowup, checkpoint) -> RunResult:
-        """The ``RunResult`` of ``sim``'s run, at its current step."""
+    def result(self, step: int, history: list, courant: dict, output, blowup, checkpoint, setup_time: float,
+               compile_time: float) -> RunResult:
+        """The ``RunResult`` of the run at ``step`` (the rest as ``RunResult`` names them)."""
         c = self.c
-        return RunResult(steps=sim.step, rhs_evals=c["rhs_evals"], wall_time=c["wall_time"], setup_time=sim.setup_time,
+        return RunResult(steps=step, rhs_evals=c["rhs_evals"], wall_time=c["wall_time"], setup_time=setup_time,
                          diagnostics=history[-1], courant=courant, output=output, blowup=blowup, history=history,
-                         iterations=dict(c["iterations"]), compile_time=sim._compile[0], first_step_time=self.first_time,
+                         iterations=dict(c["iterations"]), compile_time=compile_time, first_step_time=self.first_time,
                          first_step=self.first_step, loop_time=c["wall_time"] - self.wall0, checkpoint=checkpoint)
 
 

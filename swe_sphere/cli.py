@@ -362,7 +362,7 @@ def _cmd_run(args) -> int:
     from .config import load_scene, resolve_path
     from .graphs import default_mode, graphs_mode
     from .output import check_distinct, check_target, close_open_runs
-    from .simulation import restart_path
+    from .writers import restart_path
 
     if args.continue_from is None:
         if args.scene is None:
@@ -391,8 +391,9 @@ def _run(args, scene, output, device, comm) -> int:
 
     from . import mpi
     from .parallel import threads_note
-    from .simulation import BlowUp, Simulation, restart_path, stream_path
+    from .simulation import BlowUp, Simulation
     from .workers import cpus, limit_threads
+    from .writers import restart_path, stream_path
 
     if comm is not None:
         limit_threads(max(1, cpus() // mpi.node_local_size(comm)))

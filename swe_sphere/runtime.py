@@ -30,7 +30,7 @@ class ResourceError(RuntimeError):
 
 class Interrupted(RuntimeError):
     """SIGINT or SIGTERM stopped the run after a complete step (a step still going
-    on ``simulation.ABANDON_AFTER`` s after the signal is abandoned, its state dropped), or
+    on ``interrupts.ABANDON_AFTER`` s after the signal is abandoned, its state dropped), or
     came after its last step, while its output was being closed (then whole);
     ``signum``, ``result`` and ``checkpoint`` (the restart file written, or None)
     are attached."""

@@ -234,16 +234,20 @@ def relative_difference(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
 @pytest.mark.usefixtures("needs_mpi")
 def test_solver_steppers_agree_with_one_rank(tmp_path):
     """Semi-implicit, JFNK, IMEX and an IMEX Butcher pair (``tableau``, ARK3(2)4L[2]SA) on 3
-    ranks (their Krylov inner products summed over ranks) end within 1e-12 of one rank
-    (measured for the first three: 1e-14, 2e-13, 1e-14), JFNK and IMEX with float32
-    Helmholtz solves too (``precision = "mixed"``), and so does a
-    semi-implicit run (its warm Helmholtz guess in the restart file) written on one rank
+    ranks (their Krylov inner products summed over ranks) end within 1e-12 of one rank for
+    JFNK (Newton converges the ranks' round-off away; measured 2e-13), and within what the
+    Helmholtz solves' tolerance allows for the others: each solve stops anywhere within
+    ‖r‖ ≤ tol‖b‖, so two runs that differ by round-off may differ by tol a solve, steps × tol
+    a run (measured: 1e-14 to 3e-12, 1.7e-10 with float32 passes; the projected starts,
+    ``guess_history``, carry the ranks' round-off from solve to solve), JFNK and IMEX with
+    float32 Helmholtz solves too (``precision = "mixed"``), and so does a
+    semi-implicit run (its Helmholtz history in the restart file) written on one rank
     and continued on 3. The JFNK run on 2 ranks goes through the command line.
     epi2 and epi3 within 1e-9 (measured: wind 3.9e-11 and 2.9e-11, depth 7.6e-13 and 6.5e-13):
     after a step on 3 ranks the state is 3e-16 from one rank's, but a forward-difference
     J·v turns the round-off of F at a state a bit away into 1e-8 of J·v (ε ~ 1e-8), and
     nothing (as Newton does for JFNK) converges it away."""
-    from mpi_steppers import DAYS, continued_state, final_states, scene
+    from mpi_steppers import DAYS, STEPPERS, continued_state, final_states, scene
 
     one = final_states()
     half = Simulation(scene("semi_implicit", DAYS), "cpu", progress=False)
@@ -256,7 +260,9 @@ def test_solver_steppers_agree_with_one_rank(tmp_path):
         assert three["ranks"] == 3
         for name, state in one.items():
             wind, h = relative_difference(state, three[name])
-            bound = 1e-9 if name.startswith("epi") else 1e-12
+            stepper, options = STEPPERS.get(name, ("semi_implicit", {}))  # "continued": the semi-implicit run
+            s = scene(stepper, options=options)
+            bound = 1e-9 if name.startswith("epi") else 1e-12 if stepper == "implicit" else s.nsteps * s.stepper_options.get("tol", 1e-6)
             print(f"\n{name}: 3 ranks against 1: wind {wind:.2e}, depth {h:.2e}")
             assert 0.0 <= wind <= bound and 0.0 <= h <= bound, (name, wind, h)
     args = ["run", "tc5_mountain", "--ne", "2", "--stepper", "implicit", "--days", str(DAYS), "--no-progress"]

@@ -24,7 +24,8 @@ import conftest
 from conftest import run
 from swe_sphere.config import load_scene
 from swe_sphere.constants import DAY
-from swe_sphere.steppers.runge_kutta import TABLES
+from swe_sphere.simulation import Simulation
+from swe_sphere.steppers.runge_kutta import TABLES, ImexRK
 from swe_sphere.steppers.tables import IMEX as SCHEMES
 
 
@@ -128,3 +129,63 @@ def test_imex_conserves_mass_and_is_stable_at_the_advective_limit(scheme):
     assert scene.dt >= 11.5 * dt_g
     assert i < 2 * e
     assert max(abs(h["mass_change"]) for h in result.history) < 1e-13
+
+
+def _imex_sim(scheme, ne=2):
+    base = load_scene("tc5_mountain", ne=ne, np=4)
+    return Simulation(dataclasses.replace(base, stepper="imex", stepper_options={"scheme": scheme}, dt=base.dt * 4), "cpu", progress=False)
+
+
+@pytest.mark.parametrize("scheme", list(SCHEMES))
+def test_fused_stage_combinations_have_the_bits_of_plain_passes(monkeypatch, scheme):
+    """Each stage's combination (and x(n+1)) has its pass holding the last F written by that
+    RHS's DSS (``ImexRK._rhs``, ``rhs_update``): TC5 ne 2 at 4x Δt, 4 steps, bitwise those of
+    storing every F and combining after (``_rhs`` replaced by a plain ``rhs``)."""
+    runs = []
+    for fused in (True, False):
+        if not fused:
+            def plain(self, i, Y, combos, outs, x):
+                self.model.rhs(Y, self.F[i])
+                return False
+
+            monkeypatch.setattr(ImexRK, "_rhs", plain)
+        sim = _imex_sim(scheme)
+        for _ in range(4):
+            sim.stepper.step(sim.x)
+        runs.append(sim.x.numpy())
+    assert np.array_equal(*runs)
+
+
+# a step's own launches (and memsets/copies) at ne 2, the solves and the ∇⁴ apart: ARS(3,4,3) 26
+# and ARS(2,3,2) 19 with plain combination passes, the stage combinations' F-holding passes fused
+# into the RHS's DSS (``ImexRK._rhs``) since
+OWN_LAUNCHES = {"ars343": 21, "ars232": 15}
+
+
+@pytest.mark.parametrize("scheme", list(SCHEMES))
+def test_an_imex_step_launches_what_its_fused_passes_need(tally, scheme):
+    """The launches of one TC5 ne 2 IMEX step outside its Helmholtz solves and ∇⁴ (not counted
+    while they run): one product for L x(n) (gradient, divergence, two DSS, ``apply``), s RHS
+    (tendency and DSS: s DSS passes, the combinations' F-holding passes inside them), the
+    combinations' other passes, the L recoveries, and the counters' reset; pinned, so a plain pass coming back fails."""
+    sim = _imex_sim(scheme)
+    gw, model = sim.stepper.gw, sim.model
+
+    def uncounted(fn):
+        def run(*args, **kw):
+            was, tally.active = tally.active, False
+            try:
+                return fn(*args, **kw)
+            finally:
+                tally.active = was
+        return run
+
+    gw.solve, model.hyperviscosity = uncounted(gw.solve), uncounted(model.hyperviscosity)
+    for _ in range(2):
+        sim.stepper.step(sim.x)
+    with tally.counting():
+        sim.stepper.step(sim.x)
+    stages = len(SCHEMES[scheme]["b_E"])
+    dss = sum(n for key, n in tally.launches.items() if key.startswith("dss"))
+    assert dss == stages + 2 and tally.memops == 1, dict(tally.launches)  # the product's two DSS; no copy of x(n)
+    assert tally.total_launches == OWN_LAUNCHES[scheme], dict(tally.launches)

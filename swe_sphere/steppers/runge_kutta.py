@@ -23,16 +23,19 @@ common abscissae c,
 
 Each stage with a_ii ≠ 0 is one solve of (I − a_ii Δt L) Y_i = rhs_i through
 the Helmholtz equation, and L Y_i = (Y_i − rhs_i)/(a_ii Δt) follows from it
-without another product; an explicit stage takes L Y_i from a product, and
-only where the two tables weigh it differently (N = F − L). Each combination
+without another product, written by the solve's back-substitution
+(``GravityWave.solve``'s ``implicit``) in rhs_i's own array; an explicit stage
+takes L Y_i from a product, and only where the two tables weigh it differently
+(N = F − L). Each combination
 (rhs_i, and x(n+1)) is summed from x itself (x(n) until the last writes it) in
 passes of two terms, as ``blas.axpbypcz``; the pass holding the F that the
 stage before has just evaluated is written by that RHS's DSS
 (``ShallowWater.rhs_update``, as the explicit tables' stages), and that F is
 stored only where a later combination needs it: the same passes in the same
 order, so the bits of storing F and combining after, with fewer passes (TC5
-ne 2, a step's own launches outside the solves and the ∇⁴: ARS(3,4,3) 26 → 21,
-ARS(2,3,2) 19 → 15, ``tests/test_imex.py``). ARS's pairs
+ne 2, a step's own launches outside the solves and the ∇⁴, with the L Y_i in
+the back-substitution: ARS(3,4,3) 26 → 18, ARS(2,3,2) 19 → 13,
+``tests/test_imex.py``). ARS's pairs
 (b_E = b_I, the first stage x(n)) cost s RHS evaluations, s − 1 solves and
 one product with L a step. Mass: every stage keeps ∫h (F_h and L_h integrate
 to zero; the solve fixes ∫z_h), so x(n+1) has the mass of x(n) to round-off.
@@ -183,10 +186,9 @@ class ImexRK(HelmholtzSteps, Stepper):
                 Y = r
                 if self.needs_L[i]:
                     gw.apply(Y, L[i])
-            else:  # (I − aL) Y_i = rhs_i; L Y_i = (Y_i − rhs_i)/a without another product
+            else:  # (I − aL) Y_i = rhs_i, and L Y_i = (Y_i − rhs_i)/a in its back-substitution
                 Y = self.Y
-                gw.solve(r, a, Y)
-                self._pointwise(blas.axpby, f64(1.0 / a), Y, f64(-1.0 / a), r, L[i])
+                gw.solve(r, a, Y, implicit=L[i])
             if self.needs_F[i]:
                 self._at(float(self.c[i]))
                 done[i + 1] = self._rhs(i, Y, combos, outs, x)

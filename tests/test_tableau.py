@@ -278,6 +278,25 @@ def test_example_tables_converge_at_their_order(scene, order):
     assert abs(rf.diagnostics["mass_change"]) < 1e-14
 
 
+
+@pytest.mark.parametrize("pair", [*PAIRS, "ark2_gkc", "ark324l2sa"])
+def test_a_pairs_fused_combinations_have_the_bits_of_plain_passes(monkeypatch, pair):
+    """A pair's combinations with their F-holding passes in the RHS's DSS (``ImexRK._rhs``:
+    b_E ≠ b_I, L terms after the F ones, an explicit last stage writing the Y its RHS reads, five
+    solves) bitwise those of storing every F and combining after (``_rhs`` a plain ``rhs``):
+    TC5 ne = 2, 4 steps of 1 h."""
+    scene = short("tableau", dict(PAIRS[pair] if pair in PAIRS else example(pair)), dt=3600.0, scene="tc5_mountain")
+    runs = []
+    for fused in (True, False):
+        if not fused:
+            def plain(self, i, Y, combos, outs, x):
+                self.model.rhs(Y, self.F[i])
+                return False
+
+            monkeypatch.setattr(TableauARK, "_rhs", plain)
+        runs.append(final_state(scene, 4)[1])
+    np.testing.assert_array_equal(*runs)
+
 # -- refusals --------------------------------------------------------------------------
 
 GOOD = '[tableau]\nname = "t"\norder = 2\nA = [[0, 0], ["1/2", 0]]\nb = [0, 1]\nc = [0, "1/2"]\n'

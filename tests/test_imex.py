@@ -28,7 +28,7 @@ from swe_sphere.constants import DAY
 from swe_sphere.model import ShallowWater
 from swe_sphere.simulation import Simulation
 from swe_sphere.steppers.helmholtz import GravityWave
-from swe_sphere.steppers.runge_kutta import TABLES, ImexRK
+from swe_sphere.steppers.runge_kutta import TABLES
 from swe_sphere.steppers.tables import IMEX as SCHEMES
 
 
@@ -137,26 +137,6 @@ def test_imex_conserves_mass_and_is_stable_at_the_advective_limit(scheme):
 def _imex_sim(scheme, ne=2):
     base = load_scene("tc5_mountain", ne=ne, np=4)
     return Simulation(dataclasses.replace(base, stepper="imex", stepper_options={"scheme": scheme}, dt=base.dt * 4), "cpu", progress=False)
-
-
-@pytest.mark.parametrize("scheme", list(SCHEMES))
-def test_fused_stage_combinations_have_the_bits_of_plain_passes(monkeypatch, scheme):
-    """Each stage's combination (and x(n+1)) has its pass holding the last F written by that
-    RHS's DSS (``ImexRK._rhs``, ``rhs_update``): TC5 ne 2 at 4x Δt, 4 steps, bitwise those of
-    storing every F and combining after (``_rhs`` replaced by a plain ``rhs``)."""
-    runs = []
-    for fused in (True, False):
-        if not fused:
-            def plain(self, i, Y, combos, outs, x):
-                self.model.rhs(Y, self.F[i])
-                return False
-
-            monkeypatch.setattr(ImexRK, "_rhs", plain)
-        sim = _imex_sim(scheme)
-        for _ in range(4):
-            sim.stepper.step(sim.x)
-        runs.append(sim.x.numpy())
-    assert np.array_equal(*runs)
 
 
 # a step's own launches (and memsets/copies) at ne 2, the solves and the ∇⁴ apart: ARS(3,4,3) 26

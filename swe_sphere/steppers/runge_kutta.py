@@ -146,8 +146,7 @@ class ImexRK(HelmholtzSteps, Stepper):
         # differently (N_j = F_j − L_j enters with A_E, b_E; L Y_j with A_I, b_I)
         self.needs_F = [bool(b_E[j] != 0 or (A_E[j + 1 :, j] != 0).any()) for j in range(stages)]
         self.needs_L = [bool(b_I[j] != b_E[j] or (A_I[j + 1 :, j] != A_E[j + 1 :, j]).any()) for j in range(stages)]
-        self.xn = self._buffer()
-        self.F = [self._buffer() for _ in range(stages)]  # F(Y_j)
+        self.F = [self._buffer() for _ in range(stages)]  # F(Y_j), where a combination not written by its DSS needs it
         self.L = [self._buffer() for _ in range(stages)]  # L Y_j (first the stage's right-hand side)
         self.Y = self._buffer()
 
@@ -175,7 +174,7 @@ class ImexRK(HelmholtzSteps, Stepper):
                   for k in range(s)]
         combos.append(self._passes([(dt * b_E[j], F[j]) for j in range(s)] + [(dt * (b_I[j] - b_E[j]), L[j]) for j in range(s)]))
         outs = [L[k] if A_I[k, k] != 0.0 else self.Y for k in range(s)] + [x]
-        done = [False] * (s + 1)  # a combination written with the last stage's RHS (``_rhs``)
+        done = [False] * (s + 1)  # a combination written with the RHS of the stage before (``_rhs``)
         evals = 0
         for i in range(s):
             a = A_I[i, i] * dt

@@ -17,7 +17,7 @@ and S the weighted DSS, (M + cK) y = Pᵀ W (P y − c D̂ S Ĝ P y). Three laun
 Around a solve of the semi-implicit Schur complement (``GravityWave``), in the same
 layout: ``helmholtz_rhs`` (with ``helmholtz_assemble``) builds its right-hand side,
 and ``helmholtz_gradient`` with ``helmholtz_back_substitution`` the state from its
-solution.
+solution (and, for an IMEX stage, its implicit tendency L z).
 
 The CG is Chronopoulos & Gear's (1989, J. Comput. Appl. Math. 25, 153)
 one-reduction form: one fused vector update (``cg_update``) and one operator
@@ -274,33 +274,47 @@ def helmholtz_rhs(np: int):
 
 
 @functools.cache
-def helmholtz_back_substitution(np: int, copies: int):
+def helmholtz_back_substitution(np: int, copies: int, implicit: bool = False):
     """Per element, the solve's state from the Helmholtz solution y: z_h = P y (y read through
     gid, as ``helmholtz_gradient``) and z_v = s·r_v − ag·S wg, S wg the DSS of the mass-weighted
     gradient of y that ``helmholtz_gradient`` wrote (gathered over the node's copies in the
     global order, a copy ≥ nlocal from ``ghost``): ``scatter``, ``gradient`` and ``schur_wind``
-    in one pass. Arguments: wg (2, N), ghost, nlocal, table, rspheremp (N), y, halo, gid (N),
+    in one pass. With ``implicit``, also lz = L z = (z − s·r)/a as ia·z + mis·r (ia = 1/a,
+    mis = −s/a), the IMEX stage's implicit tendency with no pass of its own; that variant is
+    compiled without FMA contraction (``blas``'s options, not ``CPU_FAST``), so lz has
+    ``blas.axpby``'s bits (and z, at s = 1, those of the plain variant: tests/test_imex.py). Arguments: wg (2, N), ghost, nlocal, table, rspheremp (N), y, halo, gid (N),
     r (3, N/np) (a ``operators.row_vectors`` view), s, ag (s·m s⁻²·s), z (3, N/np) (a view; may
-    be r's), offset (elements). Dim nelem."""
+    be r's), ia (s⁻¹), mis (s⁻¹), lz (3, N/np) (a view; may be r's, not z's), offset (elements).
+    Dim nelem."""
     vec, mat, _, _ = row_derivatives(np)
     NP = int(np)
     gather = gathered(NP, copies, f64)
+    IMPLICIT = bool(implicit)
 
     def helmholtz_back_substitution(
         wg: wp.array2d(dtype=f64), ghost: wp.array(dtype=f64), nlocal: int, table: wp.array2d(dtype=wp.int32),
         rspheremp: wp.array(dtype=f64), y: wp.array(dtype=f64), halo: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32),
-        r: wp.array2d(dtype=vec), s: f64, ag: f64, z: wp.array2d(dtype=vec), offset: int,
+        r: wp.array2d(dtype=vec), s: f64, ag: f64, z: wp.array2d(dtype=vec), ia: f64, mis: f64, lz: wp.array2d(dtype=vec), offset: int,
     ):
         base = (wp.tid() + offset) * NP
         gx, gy, Y = gather(wg, ghost, nlocal, table, rspheremp, y, halo, gid, base)  # the DSS'd gradient, y
         for j in range(NP):
             q = base + j
-            z[0, q] = s * r[0, q] - ag * gx[j]
-            z[1, q] = s * r[1, q] - ag * gy[j]
+            r0 = r[0, q]
+            r1 = r[1, q]
+            r2 = r[2, q]
+            z0 = s * r0 - ag * gx[j]
+            z1 = s * r1 - ag * gy[j]
+            z[0, q] = z0
+            z[1, q] = z1
             z[2, q] = Y[j]
+            if wp.static(IMPLICIT):
+                lz[0, q] = ia * z0 + mis * r0
+                lz[1, q] = ia * z1 + mis * r1
+                lz[2, q] = ia * Y[j] + mis * r2
 
-    return wp.kernel(_name(helmholtz_back_substitution, "helmholtz_back_substitution", f64), enable_backward=False, module="unique",
-                     module_options=CPU_FAST)
+    name = "helmholtz_back_substitution" + ("_implicit" if IMPLICIT else "")
+    return wp.kernel(_name(helmholtz_back_substitution, name, f64), enable_backward=False, module="unique", module_options={} if IMPLICIT else CPU_FAST)
 
 
 @wp.kernel

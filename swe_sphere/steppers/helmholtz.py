@@ -288,24 +288,29 @@ class GravityWave:
         m.divergence(x, self.Dv)
         m.pointwise(gk.apply, self.Gh, self.Dv, f64(m.g), f64(self.H), out)
 
-    def solve(self, r, a: float, z, scale: float = 1.0) -> None:
-        """z = (I − aL)⁻¹ (scale·r) through the Helmholtz equation; z may alias r. Nothing is
-        read back: the iterations and a failure are counted on the device (``iterations``).
-        With ``history``, the CG starts from the projection onto the past solutions of the
-        solves with the same a (``GuessHistory``)."""
+    def solve(self, r, a: float, z, scale: float = 1.0, implicit=None) -> None:
+        """z = (I − aL)⁻¹ (scale·r) through the Helmholtz equation; z may alias r. ``implicit``
+        (a (3, N) array, may alias r, not z): also L z = (z − scale·r)/a, written by the
+        back-substitution's pass (an IMEX stage's implicit tendency; the bits of
+        ``blas.axpby(1/a, z, −scale/a, r)``). Nothing is read back: the iterations and a
+        failure are counted on the device (``iterations``). With ``history``, the CG starts
+        from the projection onto the past solutions of the solves with the same a
+        (``GuessHistory``)."""
         a = float(a)
         self._history = None
         if self.history and not (self.low is not None and self.tol >= SINGLE_TOL):  # not the one float32 solve from zero
             self._history = self._histories.get(a)
             if self._history is None:
                 self._history = self._histories[a] = GuessHistory(self)
-        self._run(("solve", r.ptr, z.ptr, a, scale, self.H), self._solve, r, a, z, scale)
+        lz = None if implicit is None else implicit.ptr
+        self._run(("solve", r.ptr, z.ptr, lz, a, scale, self.H), self._solve, r, a, z, scale, implicit)
 
-    def _solve(self, r, a: float, z, scale: float) -> None:
+    def _solve(self, r, a: float, z, scale: float, implicit=None) -> None:
         m = self.model
         if m.per_element:  # the CPU's layout: two fused passes each side of the CG (_schur)
-            rhs, back = self._schur(r, z)
-            for launch, values in ((rhs[0], {"s": scale, "aH": a * self.H}), (back[-1], {"s": scale, "ag": a * m.g})):
+            rhs, back = self._schur(r, z, implicit)
+            for launch, values in ((rhs[0], {"s": scale, "aH": a * self.H}),
+                                   (back[-1], {"s": scale, "ag": a * m.g, "ia": 1.0 / a, "mis": -scale / a})):
                 for name, value in values.items():
                     launch.set_param_by_name(name, f64(value))
             for launch in rhs:
@@ -320,15 +325,18 @@ class GravityWave:
         self._pcg(a * a * m.g * self.H)
         m.scatter(self.y, z, 2)
         m.gradient(z, 2, self.Gh)
-        m.pointwise(gk.schur_wind, r, self.Gh, f64(scale), f64(a * m.g), z)
+        if implicit is None:
+            m.pointwise(gk.schur_wind, r, self.Gh, f64(scale), f64(a * m.g), z)
+        else:
+            m.pointwise(gk.schur_wind_implicit, r, self.Gh, f64(scale), f64(a * m.g), z, f64(1.0 / a), f64(-scale / a), implicit)
 
-    def _schur(self, r, z) -> tuple[list, list]:
+    def _schur(self, r, z, implicit=None) -> tuple[list, list]:
         """The per-element layout's launches around the CG, recorded once per (r, z): the right-hand
         side b = Pᵀ W s (r_h − aH D̂ r_v) (``helmholtz_rhs``, ``helmholtz_assemble``), and the
         back-substitution z = (s·r_v − ag G y, P y) (``helmholtz_gradient``,
-        ``helmholtz_back_substitution``) — four passes where the per-node form takes seven — in the
-        float64 CG's work arrays; ``_solve`` sets s, aH and ag."""
-        key = (r.ptr, z.ptr)
+        ``helmholtz_back_substitution``, with ``implicit`` also L z) — four passes where the per-node
+        form takes seven — in the float64 CG's work arrays; ``_solve`` sets s, aH, ag, ia and mis."""
+        key = (r.ptr, z.ptr, None if implicit is None else implicit.ptr)
         launches = self._schur_launches.get(key)
         if launches is None:
             m, topo, cg = self.model, self.model.topology, self.cg
@@ -342,8 +350,9 @@ class GravityWave:
             back = [*topo.exchange(self.y.reshape((1, topo.nunique)), unique=True),
                     cg._rec(hk.helmholtz_gradient(np_), m.grid.nelem, [self.y, halo, topo.gid, rows(cg.Dinv), rows(cg.spheremp), cg.dvv, rows(cg.wg)], **elements),
                     *topo.exchange(cg.wg),
-                    cg._rec(hk.helmholtz_back_substitution(np_, topo.table.shape[1]), m.grid.nelem,
-                            [cg.wg, topo.ghost, topo.N, topo.table, cg.rspheremp, self.y, halo, topo.gid, rows(r), f64(0.0), f64(0.0), rows(z)], **elements)]
+                    cg._rec(hk.helmholtz_back_substitution(np_, topo.table.shape[1], implicit is not None), m.grid.nelem,
+                            [cg.wg, topo.ghost, topo.N, topo.table, cg.rspheremp, self.y, halo, topo.gid, rows(r), f64(0.0), f64(0.0), rows(z),
+                             f64(0.0), f64(0.0), rows(z if implicit is None else implicit)], **elements)]
             launches = self._schur_launches[key] = (rhs, back)
         return launches
 

@@ -1,17 +1,20 @@
-"""Cost per RHS of a Butcher-table stepper against the built-in stepper of the same table.
+"""What a step of the Runge–Kutta engine's steppers asks of the device: launches and bytes.
 
-ssprk3, rk4 and kgu35 written as tables (``stepper = "tableau"``, the tables of
-tests/test_tableau.py) against the built-ins, and ARS(3,4,3) written as a pair
-against ``imex``: TC5 np 4 (topography, ∇⁴), each stepper's step timed over
-``--steps`` steps, the steppers interleaved round by round; per stepper the
-median over rounds of the time a step and a RHS evaluation, and the ratio
-table / built-in. CPU clock of this process (``time.process_time``); run it
-single-threaded for figures that repeat on a shared machine. Then, per step, the
-launches and the bytes they move (``swe_sphere.tally.Tally``: each distinct array argument
-once): a table with the built-in's updates moves the same bytes in the same launches,
-so a ratio away from 1 is the clock's noise, not the table.
+The named steppers (ssprk3, rk4, kgu35, imex with ARS(2,3,2) and ARS(3,4,3)) are
+tables on one engine (``steppers.runge_kutta``), as is a table written in the scene
+(``stepper = "tableau"``): here the named ones, ARS(3,4,3) written as a pair, and
+the bundled example pairs (testcases/tableaus), on TC5 np 4 (topography, ∇⁴),
+the IMEX ones at 4× the explicit step. Per stepper, one step after two
+(``swe_sphere.tally.Tally``: each distinct array argument's bytes once a launch,
+memsets and copies included): RHS evaluations, Helmholtz iterations, the launches
+and MB of the whole step (the solves' own graphs off, so their CG's launches
+count), and of the step's own work outside the Helmholtz solves and the ∇⁴ (not
+counted while they run: the RHS, the stage combinations, the products with L).
+With ``--rounds`` > 0 also ms a step, the steppers interleaved round by round
+(median over rounds, CPU clock of this process: run it single-threaded for figures
+that repeat on a shared machine).
 
-    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/tableau_cost.py --ne 16
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/tableau_cost.py --ne 8
 """
 
 from __future__ import annotations
@@ -28,52 +31,64 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from swe_sphere.config import load_scene  # noqa: E402
 from swe_sphere.simulation import Simulation  # noqa: E402
-from test_tableau import BUILT_IN, ars343_pair  # noqa: E402
-
 from swe_sphere.tally import Tally, instrumented  # noqa: E402
+from test_tableau import ars343_pair, example  # noqa: E402
 
-PAIRS = [(name, {}, {"name": name, **BUILT_IN[name]}) for name in BUILT_IN] + [("imex", {"scheme": "ars343"}, ars343_pair())]
+STEPPERS = [
+    ("ssprk3", "ssprk3", {}), ("rk4", "rk4", {}), ("kgu35", "kgu35", {}),
+    ("imex ARS(2,3,2)", "imex", {"scheme": "ars232"}), ("imex ARS(3,4,3)", "imex", {"scheme": "ars343"}),
+    ("tableau ARS(3,4,3)", "tableau", ars343_pair()),
+    *((f"tableau {name}", "tableau", dict(example(name))) for name in ("ark2_gkc", "ark324l2sa")),
+]
+
+
+def counts(sim: Simulation, own: bool) -> tuple:
+    """(launches, MB, RHS evaluations, Helmholtz iterations) of one step; ``own``: the solves and ∇⁴ apart."""
+    tally = Tally()
+    gw = getattr(sim.stepper, "gw", None)
+    if own:
+        if gw is not None:
+            gw.solve = tally.paused(gw.solve)
+        sim.model.hyperviscosity = tally.paused(sim.model.hyperviscosity)
+    with instrumented(tally), tally.counting():
+        stats = sim.stepper.step(sim.x)
+    for obj, name in ((gw, "solve"), (sim.model, "hyperviscosity")):
+        if obj is not None:
+            vars(obj).pop(name, None)  # the class's method again
+    return tally.total_launches, tally.total_bytes / 1e6, stats.rhs_evals, stats.iterations.get("helmholtz", 0)
 
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--ne", type=int, default=16)
+    p.add_argument("--ne", type=int, default=8)
     p.add_argument("--steps", type=int, default=20, help="steps per stepper and round")
-    p.add_argument("--rounds", type=int, default=5)
+    p.add_argument("--rounds", type=int, default=0, help="timing rounds (0: counts only)")
     args = p.parse_args()
     base = load_scene("tc5_mountain", ne=args.ne, np=4)
     sims = {}
-    for name, builtin, table in PAIRS:
-        dt = base.dt * (4 if name == "imex" else 1)  # IMEX at 4x the explicit step
-        for label, stepper, options in ((name, name, builtin), (f"tableau({name})", "tableau", table)):
-            scene = dataclasses.replace(base, stepper=stepper, stepper_options=options, dt=dt)
-            sim = Simulation(scene, "cpu", progress=False)
-            sim.stepper.step(sim.x)  # record and compile outside the clock
-            sims[label] = sim
+    for label, stepper, options in STEPPERS:
+        dt = base.dt * (1 if stepper in ("ssprk3", "rk4", "kgu35") else 4)
+        sim = Simulation(dataclasses.replace(base, stepper=stepper, stepper_options=options, dt=dt), "cpu", progress=False)
+        if hasattr(sim.stepper, "gw"):
+            sim.stepper.gw.graphable = False  # the solves' launches seen one by one
+        for _ in range(2):  # record and compile outside the clock and the counts
+            sim.stepper.step(sim.x)
+        sims[label] = sim
     times = {label: [] for label in sims}
-    evals = {}
     for _ in range(args.rounds):
         for label, sim in sims.items():
             t0 = time.process_time()
-            n = sum(sim.stepper.step(sim.x).rhs_evals for _ in range(args.steps))
-            times[label].append((time.process_time() - t0) / args.steps)
-            evals[label] = n / args.steps
-    print(f"TC5 ne{args.ne} np4, {args.steps} steps x {args.rounds} rounds, CPU clock, threads "
-          f"{os.environ.get('SWE_SPHERE_THREADS', 'default')}, load average {os.getloadavg()[0]:.2f}")
-    tally, counts = Tally(), {}
-    with instrumented(tally):  # after the timing: the wrappers cost host time
-        for label, sim in sims.items():
-            with tally.counting() as t:
+            for _ in range(args.steps):
                 sim.stepper.step(sim.x)
-            counts[label] = (t.total_launches, t.total_bytes / 1e6)
-    print(f"{'stepper':22s} {'ms/step':>9s} {'RHS/step':>9s} {'ms/RHS':>8s} {'table/built-in':>15s} {'launches':>9s} {'MB/step':>8s}")
-    for name, _, _ in PAIRS:
-        ref = statistics.median(times[name]) / evals[name]
-        for label in (name, f"tableau({name})"):
-            step = statistics.median(times[label])
-            per = step / evals[label]
-            ratio = f"{per / ref:.3f}" if label != name else ""
-            print(f"{label:22s} {1e3 * step:9.2f} {evals[label]:9.1f} {1e3 * per:8.2f} {ratio:>15s} {counts[label][0]:9d} {counts[label][1]:8.1f}")
+            times[label].append((time.process_time() - t0) / args.steps)
+    print(f"TC5 ne{args.ne} np4, threads {os.environ.get('SWE_SPHERE_THREADS', 'default')}, load average {os.getloadavg()[0]:.2f}")
+    print(f"{'stepper':24s} {'RHS':>4s} {'CG its':>7s} {'launches':>9s} {'MB':>8s} {'own launches':>13s} {'own MB':>8s}"
+          + (f" {'ms/step':>8s}" if args.rounds else ""))
+    for label, sim in sims.items():
+        launches, mb, evals, its = counts(sim, own=False)
+        own_launches, own_mb, _, _ = counts(sim, own=True)
+        ms = f" {1e3 * statistics.median(times[label]):8.2f}" if args.rounds else ""
+        print(f"{label:24s} {evals:4d} {its:7d} {launches:9d} {mb:8.2f} {own_launches:13d} {own_mb:8.2f}{ms}")
 
 
 if __name__ == "__main__":

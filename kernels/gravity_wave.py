@@ -3,7 +3,9 @@
 G = DSS∘grad and D = DSS∘div the model's strong operators, and the two
 element-wise halves of the Schur-complement solve of (I − aL) z = s·r:
 
-    (I − a²gH DG) z_h = s (r_h − aH D r_v),    z_v = s r_v − a g G z_h.
+    (I − a²gH DG) z_h = s (r_h − aH D r_v),    z_v = s r_v − a g G z_h,
+
+the latter also writing L z = (z − s r)/a for an IMEX stage (``schur_wind_implicit``).
 
 Dim (3, N/block) with trailing ``block`` and ``offset``, as ``blas.axpby``.
 """
@@ -51,3 +53,22 @@ def schur_wind(
         for p in range(start, start + block):
             z[r, p] = s * rhs[r, p] - ag * Gz[r, p]
 
+
+
+@wp.kernel
+def schur_wind_implicit(
+    rhs: wp.array2d(dtype=f64), Gz: wp.array2d(dtype=f64), s: f64, ag: f64, z: wp.array2d(dtype=f64), ia: f64, mis: f64,
+    lz: wp.array2d(dtype=f64), block: int, offset: int,
+):
+    """``schur_wind`` (z_v = s r_v − a g G z_h; z_h already in row 2), and lz = L z = (z − s r)/a
+    as ia·z + mis·r (ia = 1/a, mis = −s/a: ``blas.axpby``'s bits) in all rows: an IMEX stage's
+    implicit tendency with no pass of its own. lz may alias rhs, not z."""
+    r, k = wp.tid()
+    start = (k + offset) * block
+    for p in range(start, start + block):
+        rp = rhs[r, p]
+        zp = z[2, p]
+        if r < 2:
+            zp = s * rp - ag * Gz[r, p]
+            z[r, p] = zp
+        lz[r, p] = ia * zp + mis * rp

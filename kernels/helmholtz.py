@@ -17,7 +17,7 @@ and S the weighted DSS, (M + cK) y = Pᵀ W (P y − c D̂ S Ĝ P y). Three laun
 Around a solve of the semi-implicit Schur complement (``GravityWave``), in the same
 layout: ``helmholtz_rhs`` (with ``helmholtz_assemble``) builds its right-hand side,
 and ``helmholtz_gradient`` with ``helmholtz_back_substitution`` the state from its
-solution.
+solution (and, for an IMEX stage, its implicit tendency L z).
 
 The CG is Chronopoulos & Gear's (1989, J. Comput. Appl. Math. 25, 153)
 one-reduction form: one fused vector update (``cg_update``) and one operator
@@ -274,33 +274,47 @@ def helmholtz_rhs(np: int):
 
 
 @functools.cache
-def helmholtz_back_substitution(np: int, copies: int):
+def helmholtz_back_substitution(np: int, copies: int, implicit: bool = False):
     """Per element, the solve's state from the Helmholtz solution y: z_h = P y (y read through
     gid, as ``helmholtz_gradient``) and z_v = s·r_v − ag·S wg, S wg the DSS of the mass-weighted
     gradient of y that ``helmholtz_gradient`` wrote (gathered over the node's copies in the
     global order, a copy ≥ nlocal from ``ghost``): ``scatter``, ``gradient`` and ``schur_wind``
-    in one pass. Arguments: wg (2, N), ghost, nlocal, table, rspheremp (N), y, halo, gid (N),
+    in one pass. With ``implicit``, also lz = L z = (z − s·r)/a as ia·z + mis·r (ia = 1/a,
+    mis = −s/a), the IMEX stage's implicit tendency with no pass of its own; that variant is
+    compiled without FMA contraction (``blas``'s options, not ``CPU_FAST``), so lz has
+    ``blas.axpby``'s bits (and z, at s = 1, those of the plain variant: tests/test_imex.py). Arguments: wg (2, N), ghost, nlocal, table, rspheremp (N), y, halo, gid (N),
     r (3, N/np) (a ``operators.row_vectors`` view), s, ag (s·m s⁻²·s), z (3, N/np) (a view; may
-    be r's), offset (elements). Dim nelem."""
+    be r's), ia (s⁻¹), mis (s⁻¹), lz (3, N/np) (a view; may be r's, not z's), offset (elements).
+    Dim nelem."""
     vec, mat, _, _ = row_derivatives(np)
     NP = int(np)
     gather = gathered(NP, copies, f64)
+    IMPLICIT = bool(implicit)
 
     def helmholtz_back_substitution(
         wg: wp.array2d(dtype=f64), ghost: wp.array(dtype=f64), nlocal: int, table: wp.array2d(dtype=wp.int32),
         rspheremp: wp.array(dtype=f64), y: wp.array(dtype=f64), halo: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32),
-        r: wp.array2d(dtype=vec), s: f64, ag: f64, z: wp.array2d(dtype=vec), offset: int,
+        r: wp.array2d(dtype=vec), s: f64, ag: f64, z: wp.array2d(dtype=vec), ia: f64, mis: f64, lz: wp.array2d(dtype=vec), offset: int,
     ):
         base = (wp.tid() + offset) * NP
         gx, gy, Y = gather(wg, ghost, nlocal, table, rspheremp, y, halo, gid, base)  # the DSS'd gradient, y
         for j in range(NP):
             q = base + j
-            z[0, q] = s * r[0, q] - ag * gx[j]
-            z[1, q] = s * r[1, q] - ag * gy[j]
+            r0 = r[0, q]
+            r1 = r[1, q]
+            r2 = r[2, q]
+            z0 = s * r0 - ag * gx[j]
+            z1 = s * r1 - ag * gy[j]
+            z[0, q] = z0
+            z[1, q] = z1
             z[2, q] = Y[j]
+            if wp.static(IMPLICIT):
+                lz[0, q] = ia * z0 + mis * r0
+                lz[1, q] = ia * z1 + mis * r1
+                lz[2, q] = ia * Y[j] + mis * r2
 
-    return wp.kernel(_name(helmholtz_back_substitution, "helmholtz_back_substitution", f64), enable_backward=False, module="unique",
-                     module_options=CPU_FAST)
+    name = "helmholtz_back_substitution" + ("_implicit" if IMPLICIT else "")
+    return wp.kernel(_name(helmholtz_back_substitution, name, f64), enable_backward=False, module="unique", module_options={} if IMPLICIT else CPU_FAST)
 
 
 @wp.kernel
@@ -521,3 +535,159 @@ def converted(dtype):
         out[i] = dtype(x[i])
 
     return wp.kernel(_name(converted, "converted", dtype), enable_backward=False, module="unique")
+
+# The projection of a solve's start onto past solutions (Fischer 1998, Comput. Methods Appl.
+# Mech. Engrg. 163, 193; ``steppers.helmholtz.GuessHistory``): X (k, nunique) an A-orthonormal
+# basis (Xᵢ·A Xⱼ = δᵢⱼ) and AX its products, the first count[COUNT] rows in use. The device
+# integers (``hic``) and the store's coefficients (``hcs``): indices.
+COUNT, MODE, SLOT = (wp.constant(k) for k in range(3))
+KEEP, RESTART, APPEND, RESTART2 = (wp.constant(k) for k in range(4))  # MODE: the basis kept, restarted from the solution (and its start), or the increment appended
+
+
+@wp.kernel
+def history_dots(X: wp.array2d(dtype=f64), b: wp.array(dtype=f64), hic: wp.array(dtype=wp.int32), partial: wp.array2d(dtype=f64),
+                 chunk: int, offset: int):
+    """partial[j, t] = Σ Xⱼ·b over chunk t's ``chunk`` unique nodes for j < hic[COUNT], 0 for
+    the other rows < k (the projection's coefficients αⱼ = Xⱼ·b, A-orthonormal X). Dim
+    ceil(nunique / chunk)."""
+    t = wp.tid() + offset
+    n = hic[COUNT]
+    for j in range(X.shape[0]):
+        s = f64(0.0)
+        if j < n:
+            for i in range(t * chunk, wp.min(b.shape[0], (t + 1) * chunk)):
+                s += X[j, i] * b[i]
+        partial[j, t] = s
+
+
+@wp.kernel
+def history_guess(X: wp.array2d(dtype=f64), AX: wp.array2d(dtype=f64), alpha: wp.array(dtype=f64), hic: wp.array(dtype=wp.int32),
+                  y: wp.array(dtype=f64), w: wp.array(dtype=f64), y0: wp.array(dtype=f64), w0: wp.array(dtype=f64), offset: int):
+    """The projected start y = Σ αⱼ Xⱼ and its product w = A y = Σ αⱼ AXⱼ over j < hic[COUNT]
+    (0 with no basis), kept in y0, w0 for the store after the solve. Dim nunique."""
+    i = wp.tid() + offset
+    s = f64(0.0)
+    a = f64(0.0)
+    for j in range(hic[COUNT]):
+        s += alpha[j] * X[j, i]
+        a += alpha[j] * AX[j, i]
+    y[i] = s
+    w[i] = a
+    y0[i] = s
+    w0[i] = a
+
+
+@wp.kernel
+def history_increment_dots(X: wp.array2d(dtype=f64), y: wp.array(dtype=f64), y0: wp.array(dtype=f64), b: wp.array(dtype=f64),
+                           r: wp.array(dtype=f64), w0: wp.array(dtype=f64), hic: wp.array(dtype=wp.int32), partial: wp.array2d(dtype=f64),
+                           chunk: int, offset: int):
+    """After a solve from the projected start y0 (A y0 = w0) to y with residual r (A y = b − r):
+    per chunk t, with the increment d = y − y0 and A d = b − r − w0, partial[j, t] = Σ Xⱼ·A d
+    for j < hic[COUNT] (0 for the other j < k), partial[k, t] = Σ d·A d, partial[k + 1, t]
+    = Σ y·A y, partial[k + 2, t] = Σ y0·A y0 and partial[k + 3, t] = Σ y0·A d (k = X.shape[0]).
+    Dim ceil(nunique / chunk)."""
+    t = wp.tid() + offset
+    k = X.shape[0]
+    n = hic[COUNT]
+    lo = t * chunk
+    hi = wp.min(b.shape[0], (t + 1) * chunk)
+    for j in range(k):
+        s = f64(0.0)
+        if j < n:
+            for i in range(lo, hi):
+                s += X[j, i] * (b[i] - r[i] - w0[i])
+        partial[j, t] = s
+    dd = f64(0.0)
+    yy = f64(0.0)
+    ss = f64(0.0)
+    sd = f64(0.0)
+    for i in range(lo, hi):
+        ay = b[i] - r[i]
+        ad = ay - w0[i]
+        dd += (y[i] - y0[i]) * ad
+        yy += y[i] * ay
+        ss += y0[i] * w0[i]
+        sd += y0[i] * ad
+    partial[k, t] = dd
+    partial[k + 1, t] = yy
+    partial[k + 2, t] = ss
+    partial[k + 3, t] = sd
+
+
+@wp.kernel
+def history_coefficients(sums: wp.array(dtype=f64), k: int, hic: wp.array(dtype=wp.int32), hcs: wp.array(dtype=f64)):
+    """How the last solution joins the basis of n = hic[COUNT] vectors, from
+    ``history_increment_dots``' totals. With none, the solution y A-normalised (MODE RESTART,
+    hcs[0] = 1/‖y‖_A). With n < k, the increment d A-orthogonalised against the basis
+    (classical Gram–Schmidt, βⱼ = Xⱼ·A d into hcs[1 + j]) and A-normalised (hcs[0] = 1/‖d'‖_A,
+    ‖d'‖²_A = d·A d − Σβⱼ²) into row n (MODE APPEND, SLOT n). Full, the basis restarts from
+    two vectors spanning y and its start y0 (MODE RESTART2: y0/‖y0‖_A, hcs[0] = 1/‖y0‖_A, and d
+    A-orthogonalised against it, β = y0·A d/‖y0‖_A into hcs[1], hcs[2] = 1/‖d'‖_A), with k = 1
+    from y alone (RESTART, Fischer's restart). An increment of A-norm ≤ 1e-10 of the
+    solution's (the solution in the basis's span) or a zero solution keeps the basis as it is
+    (MODE KEEP). Dim 1."""
+    n = hic[COUNT]
+    yy = sums[k + 1]
+    small = f64(1e-20) * yy
+    mode = KEEP
+    if n == 0:
+        if yy > f64(0.0):
+            mode = RESTART
+    elif n < k:
+        dd = sums[k]
+        for j in range(n):
+            hcs[1 + j] = sums[j]
+            dd -= sums[j] * sums[j]
+        if dd > small:
+            mode = APPEND
+            hcs[0] = f64(1.0) / wp.sqrt(dd)
+            hic[SLOT] = n
+            hic[COUNT] = n + 1
+    elif sums[k] > small:  # full, and the solution not in its span
+        mode = RESTART
+        ss = sums[k + 2]
+        if k >= 2 and ss > small:
+            beta = sums[k + 3] / wp.sqrt(ss)
+            dd = sums[k] - beta * beta
+            if dd > small:
+                mode = RESTART2
+                hcs[0] = f64(1.0) / wp.sqrt(ss)
+                hcs[1] = beta
+                hcs[2] = f64(1.0) / wp.sqrt(dd)
+                hic[COUNT] = 2
+    if mode == RESTART:
+        hcs[0] = f64(1.0) / wp.sqrt(yy)
+        hic[COUNT] = 1
+    hic[MODE] = mode
+
+
+@wp.kernel
+def history_store(X: wp.array2d(dtype=f64), AX: wp.array2d(dtype=f64), y: wp.array(dtype=f64), y0: wp.array(dtype=f64),
+                  b: wp.array(dtype=f64), r: wp.array(dtype=f64), w0: wp.array(dtype=f64), hic: wp.array(dtype=wp.int32),
+                  hcs: wp.array(dtype=f64), offset: int):
+    """The basis vectors ``history_coefficients`` chose: row 0 = y/‖y‖_A (RESTART), rows 0, 1 =
+    y0/‖y0‖_A, (d − β·row 0)/‖d'‖_A (RESTART2), or row hic[SLOT] = (d − Σ βⱼ Xⱼ)/‖d'‖_A over
+    the rows before it (APPEND), d = y − y0; AX's rows alike from A y = b − r, A y0 = w0,
+    A d = b − r − w0. Dim nunique."""
+    i = wp.tid() + offset
+    mode = hic[MODE]
+    s = hcs[0]
+    if mode == RESTART:
+        X[0, i] = s * y[i]
+        AX[0, i] = s * (b[i] - r[i])
+    elif mode == RESTART2:
+        x0 = s * y0[i]
+        ax0 = s * w0[i]
+        X[0, i] = x0
+        AX[0, i] = ax0
+        X[1, i] = hcs[2] * (y[i] - y0[i] - hcs[1] * x0)
+        AX[1, i] = hcs[2] * (b[i] - r[i] - w0[i] - hcs[1] * ax0)
+    elif mode == APPEND:
+        slot = hic[SLOT]
+        d = y[i] - y0[i]
+        ad = b[i] - r[i] - w0[i]
+        for j in range(slot):
+            d -= hcs[1 + j] * X[j, i]
+            ad -= hcs[1 + j] * AX[j, i]
+        X[slot, i] = s * d
+        AX[slot, i] = s * ad

@@ -71,6 +71,18 @@ class Tally:
         finally:
             self.active = False
 
+    def paused(self, fn):
+        """fn, not counted while it runs (a step's own launches with its solves apart)."""
+
+        def run(*args, **kw):
+            was, self.active = self.active, False
+            try:
+                return fn(*args, **kw)
+            finally:
+                self.active = was
+
+        return run
+
     @property
     def total_launches(self):
         return sum(self.launches.values()) + self.memops

@@ -164,8 +164,10 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
     for key in ("laplacian_element__first", "laplacian_element__second", "laplace_wk_flux", "laplacian_node__first", "laplacian_node__second", "dss_apply",
                 "laplacian_element__first__divergent", "laplacian_node__first__divergent",
                 "helmholtz_gradient", "helmholtz_divergence", "helmholtz_assemble", "helmholtz_rhs", "helmholtz_back_substitution", "cg_update", "inner3", "schur_height",
+                "helmholtz_back_substitution_implicit", "schur_wind_implicit",  # the IMEX stages' L Y in the back-substitution
                 "helmholtz_gradient_float32", "helmholtz_divergence_float32", "helmholtz_assemble_float32", "cg_update_float32",
                 "converted_float32", "add_converted", "cg_check", "cg_alpha", "refine_check", "add_mean_difference",
+                "history_dots", "history_guess", "history_increment_dots", "history_coefficients", "history_store",
                 "jacobian_vector", "fd_epsilon", "add_scaled", "project_dots", "lincomb", "fgmres_start", "fgmres_cycle",
                 "arnoldi_column", "fgmres_end", "row_totals", "residual", "translating_low", "axpbypcz", "dss"):
         assert key in keys, key

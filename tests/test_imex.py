@@ -19,12 +19,16 @@ import math
 
 import numpy as np
 import pytest
+import warp as wp
 
 import conftest
 import roundoff
 from conftest import cached_grid, run
 from swe_sphere.config import load_scene
 from swe_sphere.constants import DAY
+from swe_sphere.model import ShallowWater
+from swe_sphere.simulation import Simulation
+from swe_sphere.steppers.helmholtz import GravityWave
 from swe_sphere.steppers.runge_kutta import TABLES
 from swe_sphere.steppers.tables import IMEX as SCHEMES
 
@@ -132,3 +136,68 @@ def test_imex_conserves_mass_and_is_stable_at_the_advective_limit(scheme):
     assert scene.dt >= 11.5 * dt_g
     assert i < 2 * e
     roundoff.mass_kept(result.history, cached_grid(8, 4).npts)
+
+
+def _imex_sim(scheme, ne=2):
+    base = load_scene("tc5_mountain", ne=ne, np=4)
+    return Simulation(dataclasses.replace(base, stepper="imex", stepper_options={"scheme": scheme}, dt=base.dt * 4), "cpu", progress=False)
+
+
+# a step's own launches (and memsets/copies) at ne 2, the solves and the ∇⁴ apart: ARS(3,4,3) 26
+# and ARS(2,3,2) 19 with plain passes; 21 and 15 with the combinations' F-holding passes in the
+# RHS's DSS (``ImexRK._rhs``); 18 and 13 with L Y_i written by the solve's back-substitution
+OWN_LAUNCHES = {"ars343": 18, "ars232": 13}
+
+
+@pytest.mark.parametrize("scheme", list(SCHEMES))
+def test_an_imex_step_launches_what_its_fused_passes_need(tally, scheme):
+    """The launches of one TC5 ne 2 IMEX step outside its Helmholtz solves and ∇⁴ (not counted
+    while they run): one product for L x(n) (gradient, divergence, two DSS, ``apply``), s RHS
+    (tendency and DSS: s DSS passes, the combinations' F-holding passes inside them), the
+    combinations' other passes (L Y_i inside the solves), and the counters' reset; pinned, so a
+    plain pass coming back fails."""
+    sim = _imex_sim(scheme)
+    gw, model = sim.stepper.gw, sim.model
+    gw.solve, model.hyperviscosity = tally.paused(gw.solve), tally.paused(model.hyperviscosity)
+    for _ in range(2):
+        sim.stepper.step(sim.x)
+    with tally.counting():
+        sim.stepper.step(sim.x)
+    stages = len(SCHEMES[scheme]["b_E"])
+    dss = sum(n for key, n in tally.launches.items() if key.startswith("dss"))
+    assert dss == stages + 2 and tally.memops == 1, dict(tally.launches)  # the product's two DSS; no copy of x(n)
+    assert tally.total_launches == OWN_LAUNCHES[scheme], dict(tally.launches)
+
+
+@pytest.mark.roundoff
+@pytest.mark.parametrize("device", ["cpu", conftest.ON_CUDA])
+@pytest.mark.parametrize("per_element", [True, False])
+def test_a_solve_writes_the_stage_tendency_with_the_bits_of_its_own_pass(device, per_element):
+    """``GravityWave.solve(r, a, z, s, implicit=lz)`` (an IMEX stage's L Y = (Y − rhs)/a written
+    by the back-substitution: ``helmholtz_back_substitution``'s implicit variant per element,
+    compiled without FMA contraction as ``blas`` is, or ``schur_wind_implicit`` per node) on TC5
+    ne 2's state at a = 1800 s, lz in r's own array (as ``ImexRK`` writes it): lz bitwise
+    ``blas.axpby(1/a, z, −s/a, r)``, and at s = 1 (the IMEX stages') z bitwise the plain solve's.
+    At s = 3 the per-element z may differ from the plain solve's in its last bit (s·r_v − ag·S wg
+    with and without contraction; at s = 1 the plain kernel's contraction leaves z's bits, as
+    checked here): ≤ 4ε relative to each row's largest value."""
+    sim = Simulation(load_scene("tc5_mountain", ne=2, np=4), device, progress=False)
+    m = sim.model
+    if not per_element:
+        m = ShallowWater(sim.grid, m.terms, m.fcor.numpy(), m.hs.numpy(), device=device, per_element=False)
+    gw = GravityWave(m, 0.0, 1e-12, 200)
+    gw.set_depth(sim.x)
+    a = 1800.0
+    for s in (1.0, 3.0):
+        z, lz = wp.zeros_like(sim.x), wp.clone(sim.x)
+        gw.solve(lz, a, z, s, implicit=lz)
+        plain, axpby = wp.zeros_like(sim.x), wp.zeros_like(sim.x)
+        gw.solve(sim.x, a, plain, s)
+        m.lincomb(axpby, ((1.0 / a, z), (-s / a, sim.x))).launch()
+        assert gw.iterations() > 0
+        assert np.array_equal(lz.numpy(), axpby.numpy()), s
+        if s == 1.0:
+            assert np.array_equal(z.numpy(), plain.numpy())
+        diff = np.abs(z.numpy() - plain.numpy()).max(axis=1)
+        roundoff.within(max(diff / np.abs(plain.numpy()).max(axis=1)), roundoff.bound(4), f"|z − plain z| at s = {s:g}")
+        assert np.abs(lz.numpy()).max() > 0.0

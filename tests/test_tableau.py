@@ -28,7 +28,7 @@ from swe_sphere.config import load_scene, scene_from_dict
 from swe_sphere.constants import DAY
 from swe_sphere.steppers import STEPPERS
 from swe_sphere.steppers.butcher import TableauOptions, conditions, stage_form
-from swe_sphere.steppers.runge_kutta import TableauARK, TableauRK
+from swe_sphere.steppers.runge_kutta import ImexRK, TableauARK, TableauRK
 from swe_sphere.steppers.tables import EXPLICIT
 from test_imex import tableau as ars
 
@@ -282,6 +282,27 @@ def test_example_tables_converge_at_their_order(scene, order):
     assert fine > 1e-8  # far above the reference's own error
     roundoff.within(abs(rf.diagnostics["mass_change"]), roundoff.mass_change_bound(roundoff.operations(rf), cached_grid(4, 4).npts), "|mass change|")
 
+
+
+@pytest.mark.parametrize("pair", ["ars232", "ars343", *PAIRS, "ark2_gkc", "ark324l2sa"])
+def test_fused_combinations_have_the_bits_of_plain_passes(monkeypatch, pair):
+    """IMEX combinations with their F-holding passes in the RHS's DSS (``ImexRK._rhs``: the
+    ``imex`` schemes; pairs with b_E ≠ b_I, L terms after the F ones, an explicit last stage
+    writing the Y its RHS reads, five solves) bitwise those of storing every F and combining
+    after (``_rhs`` a plain ``rhs``): TC5 ne = 2, 4 steps of 1 h."""
+    if pair.startswith("ars"):
+        scene = short("imex", {"scheme": pair}, dt=3600.0, scene="tc5_mountain")
+    else:
+        scene = short("tableau", dict(PAIRS[pair] if pair in PAIRS else example(pair)), dt=3600.0, scene="tc5_mountain")
+    runs = [final_state(scene, 4)[1]]
+
+    def plain(self, i, Y, combos, outs, x):
+        self.model.rhs(Y, self.F[i])
+        return False
+
+    monkeypatch.setattr(ImexRK, "_rhs", plain)
+    runs.append(final_state(scene, 4)[1])
+    np.testing.assert_array_equal(*runs)
 
 # -- refusals --------------------------------------------------------------------------
 

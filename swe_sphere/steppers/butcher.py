@@ -53,7 +53,7 @@ class TableauOptions:
     an explicit table ``A`` (s × s), ``b``, ``c`` (s) or an IMEX pair ``A_E``,
     ``b_E``, ``A_I``, ``b_I`` and ``c``, entries numbers or fractions as strings
     ("1/6"); for a pair also the Helmholtz solve's ``tol``, ``maxiter``,
-    ``mean_depth`` and ``precision`` (as ``[imex]``'s). No table at all: the classical RK4 table.
+    ``mean_depth``, ``precision`` and ``guess_history`` (as ``[imex]``'s). No table at all: the classical RK4 table.
     Raises ValueError naming the entry or the failing condition (``parse``)."""
 
     name: str = ""
@@ -70,6 +70,7 @@ class TableauOptions:
     maxiter: int = 500
     mean_depth: float = 0.0
     precision: str = "double"
+    guess_history: int = 8
 
     def __post_init__(self):
         for key in PARTS:  # a table read back from JSON (a restart file's scene) holds lists

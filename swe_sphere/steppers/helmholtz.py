@@ -76,6 +76,7 @@ REMOVED_SOLVER_OPTIONS = {
 
 
 PRECISIONS = ("double", "mixed")
+MAX_GUESS_HISTORY = 32  # past solutions a solve's start is projected on (``GuessHistory``); k vectors cost 2k of memory and k dots
 
 
 def check_precision(precision: str) -> None:
@@ -86,7 +87,7 @@ def check_precision(precision: str) -> None:
 
 def check_solve_options(o) -> None:
     """The checks of a stepper's accurate-solve options ``tol``, ``maxiter``,
-    ``mean_depth``, ``precision`` (semi-implicit, IMEX): ValueError '<option> must ...'."""
+    ``mean_depth``, ``precision``, ``guess_history`` (semi-implicit, IMEX): ValueError '<option> must ...'."""
     check_precision(o.precision)
     if not 0 < o.tol < 1:
         raise ValueError(f"tol must be in (0, 1) (got {o.tol})")
@@ -94,6 +95,8 @@ def check_solve_options(o) -> None:
         raise ValueError(f"maxiter must be >= 1 (got {o.maxiter})")
     if o.mean_depth < 0:
         raise ValueError(f"mean_depth must be >= 0 (got {o.mean_depth})")
+    if not 0 <= o.guess_history <= MAX_GUESS_HISTORY:
+        raise ValueError(f"guess_history must be in 0..{MAX_GUESS_HISTORY} (got {o.guess_history})")
 
 
 def element_gradient(model: ShallowWater) -> tuple[sp.csr_matrix, sp.csr_matrix]:
@@ -165,9 +168,11 @@ class GravityWave:
     """The linear gravity-wave operator L and solves of (I − aL) z = s·r.
 
     Parameters: the model; ``mean_depth`` H (m; 0 = the mean depth of the first
-    state passed to ``set_depth``); ``tol`` (relative residual of the CG) and
+    state passed to ``set_depth``); ``tol`` (relative residual of the CG, ‖r‖ ≤ tol‖b‖) and
     ``maxiter``; ``warm``: start each CG from the last solution (for a
-    sequence of similar solves, as the semi-implicit steps); ``precision``:
+    sequence of similar solves, as the semi-implicit steps); ``history`` k > 0: start it
+    from the projection onto past solutions instead (``GuessHistory``, one per a), with no
+    product for its residual; ``precision``:
     "double", or "mixed" (the CG in float32, ``HelmholtzCG``, refined in float64
     to ``tol``, ``_refined``; float32 alone for a tol it reaches, as the JFNK
     preconditioner's 1e-2). On the CPU the float32 product is no faster than the
@@ -185,7 +190,7 @@ class GravityWave:
     model without continuity and pressure gradient.
     """
 
-    def __init__(self, model: ShallowWater, mean_depth=0.0, tol=1e-10, maxiter=500, warm=False, precision="double"):
+    def __init__(self, model: ShallowWater, mean_depth=0.0, tol=1e-10, maxiter=500, warm=False, precision="double", history=0):
         for term in ("continuity", "pressure_gradient"):
             if term not in model.terms:
                 raise ValueError(f"the gravity-wave operator needs the {term} term")
@@ -217,13 +222,31 @@ class GravityWave:
         self._schur_launches: dict[tuple, tuple] = {}
         cpu = wp.get_device(dev).is_cpu
         self.graphable = not model.topology.distributed and (model.threads == 1 if cpu else wp.is_conditional_graph_supported())
+        # with ``history`` k > 0, the start of each solve: a GuessHistory per a (the basis is A's),
+        # shared by a step's stages of one a (IMEX ARS's all): their span holds the last stage's
+        # solution, today's warm start (TC5 ne8 ARS(3,4,3) @ 8 dt_g, CG iterations a solve:
+        # 18.2 warm, per stage 19.5-19.7 with k = 2..8, shared 17.9 / 17.3 / 16.3 with k = 2 / 4 / 8)
+        self.history = int(history)
+        self._histories: dict[float, GuessHistory] = {}
+        self._history = None
+        if self.history:
+            self._y0, self._w0 = wp.zeros(nu, dtype=f64, device=dev), wp.zeros(nu, dtype=f64, device=dev)
+            self._hpartial = wp.zeros((self.history + 4, self.cg.partial.shape[1]), dtype=f64, device=dev)
+            self._alpha, self._hsums = wp.zeros(self.history, dtype=f64, device=dev), wp.zeros(self.history + 4, dtype=f64, device=dev)
 
     # -- what carries over between solves (for bitwise restarts) ----------------------
     def state(self) -> dict:
-        """The mean depth (0 until fixed) and, with ``warm``, the last solution: a
+        """The mean depth (0 until fixed) and, with ``history``, each sequence's basis
+        (``helmholtz_histories`` of them: its a, its vectors in use and X, AX packed three
+        a (3, N) array, element-local as a state), else with ``warm`` the last solution: a
         height, stored element-local in row 2 of a (3, N) array like a state."""
         s = {"mean_depth": self.H}
-        if self.warm:  # whole-grid, gathered from every rank on rank 0 (call on all)
+        if self.history:
+            s["helmholtz_histories"] = len(self._histories)
+            for n, (a, h) in enumerate(self._histories.items()):
+                s |= {f"helmholtz_history{n}_a": a, f"helmholtz_history{n}_count": h.count()}
+                s |= {f"helmholtz_history{n}_{m}": whole for m, whole in enumerate(h.whole())}
+        elif self.warm:  # whole-grid, gathered from every rank on rank 0 (call on all)
             topo = self.model.topology
             guess = wp.zeros((3, self.model.N), dtype=f64, device=self.model.device)
             for launch in topo.scatter(self.y, guess, 2):
@@ -234,7 +257,20 @@ class GravityWave:
     def restore(self, state: dict, entry) -> None:
         """Set what ``state()`` returned; ``entry(state, key)`` raises ValueError for a missing key."""
         self.H = float(entry(state, "mean_depth"))
-        if self.warm:
+        if self.history:
+            # in place: the solves' graphs (``_run``) hold the bases' arrays; a sequence the
+            # state does not name starts empty, as a new one would
+            named = set()
+            for n in range(int(entry(state, "helmholtz_histories"))):
+                a = float(entry(state, f"helmholtz_history{n}_a"))
+                h = self._histories.get(a) or self._histories.setdefault(a, GuessHistory(self))
+                h.set(int(entry(state, f"helmholtz_history{n}_count")),
+                      [entry(state, f"helmholtz_history{n}_{m}") for m in range(h.arrays)], f"stepper state 'helmholtz_history{n}'")
+                named.add(a)
+            for a, h in self._histories.items():
+                if a not in named:
+                    h.hic.zero_()
+        elif self.warm:
             topo = self.model.topology
             guess = topo.distribute(entry(state, "helmholtz_guess"), 3, "stepper state 'helmholtz_guess'")  # on rank 0 only when several ranks
             self.y.assign(guess[2][topo.first.numpy()])
@@ -252,16 +288,29 @@ class GravityWave:
         m.divergence(x, self.Dv)
         m.pointwise(gk.apply, self.Gh, self.Dv, f64(m.g), f64(self.H), out)
 
-    def solve(self, r, a: float, z, scale: float = 1.0) -> None:
-        """z = (I − aL)⁻¹ (scale·r) through the Helmholtz equation; z may alias r. Nothing is
-        read back: the iterations and a failure are counted on the device (``iterations``)."""
-        self._run(("solve", r.ptr, z.ptr, a, scale, self.H), self._solve, r, a, z, scale)
+    def solve(self, r, a: float, z, scale: float = 1.0, implicit=None) -> None:
+        """z = (I − aL)⁻¹ (scale·r) through the Helmholtz equation; z may alias r. ``implicit``
+        (a (3, N) array, may alias r, not z): also L z = (z − scale·r)/a, written by the
+        back-substitution's pass (an IMEX stage's implicit tendency; the bits of
+        ``blas.axpby(1/a, z, −scale/a, r)``). Nothing is read back: the iterations and a
+        failure are counted on the device (``iterations``). With ``history``, the CG starts
+        from the projection onto the past solutions of the solves with the same a
+        (``GuessHistory``)."""
+        a = float(a)
+        self._history = None
+        if self.history and not (self.low is not None and self.tol >= SINGLE_TOL):  # not the one float32 solve from zero
+            self._history = self._histories.get(a)
+            if self._history is None:
+                self._history = self._histories[a] = GuessHistory(self)
+        lz = None if implicit is None else implicit.ptr
+        self._run(("solve", r.ptr, z.ptr, lz, a, scale, self.H), self._solve, r, a, z, scale, implicit)
 
-    def _solve(self, r, a: float, z, scale: float) -> None:
+    def _solve(self, r, a: float, z, scale: float, implicit=None) -> None:
         m = self.model
         if m.per_element:  # the CPU's layout: two fused passes each side of the CG (_schur)
-            rhs, back = self._schur(r, z)
-            for launch, values in ((rhs[0], {"s": scale, "aH": a * self.H}), (back[-1], {"s": scale, "ag": a * m.g})):
+            rhs, back = self._schur(r, z, implicit)
+            for launch, values in ((rhs[0], {"s": scale, "aH": a * self.H}),
+                                   (back[-1], {"s": scale, "ag": a * m.g, "ia": 1.0 / a, "mis": -scale / a})):
                 for name, value in values.items():
                     launch.set_param_by_name(name, f64(value))
             for launch in rhs:
@@ -276,15 +325,18 @@ class GravityWave:
         self._pcg(a * a * m.g * self.H)
         m.scatter(self.y, z, 2)
         m.gradient(z, 2, self.Gh)
-        m.pointwise(gk.schur_wind, r, self.Gh, f64(scale), f64(a * m.g), z)
+        if implicit is None:
+            m.pointwise(gk.schur_wind, r, self.Gh, f64(scale), f64(a * m.g), z)
+        else:
+            m.pointwise(gk.schur_wind_implicit, r, self.Gh, f64(scale), f64(a * m.g), z, f64(1.0 / a), f64(-scale / a), implicit)
 
-    def _schur(self, r, z) -> tuple[list, list]:
+    def _schur(self, r, z, implicit=None) -> tuple[list, list]:
         """The per-element layout's launches around the CG, recorded once per (r, z): the right-hand
         side b = Pᵀ W s (r_h − aH D̂ r_v) (``helmholtz_rhs``, ``helmholtz_assemble``), and the
         back-substitution z = (s·r_v − ag G y, P y) (``helmholtz_gradient``,
-        ``helmholtz_back_substitution``) — four passes where the per-node form takes seven — in the
-        float64 CG's work arrays; ``_solve`` sets s, aH and ag."""
-        key = (r.ptr, z.ptr)
+        ``helmholtz_back_substitution``, with ``implicit`` also L z) — four passes where the per-node
+        form takes seven — in the float64 CG's work arrays; ``_solve`` sets s, aH, ag, ia and mis."""
+        key = (r.ptr, z.ptr, None if implicit is None else implicit.ptr)
         launches = self._schur_launches.get(key)
         if launches is None:
             m, topo, cg = self.model, self.model.topology, self.cg
@@ -298,8 +350,9 @@ class GravityWave:
             back = [*topo.exchange(self.y.reshape((1, topo.nunique)), unique=True),
                     cg._rec(hk.helmholtz_gradient(np_), m.grid.nelem, [self.y, halo, topo.gid, rows(cg.Dinv), rows(cg.spheremp), cg.dvv, rows(cg.wg)], **elements),
                     *topo.exchange(cg.wg),
-                    cg._rec(hk.helmholtz_back_substitution(np_, topo.table.shape[1]), m.grid.nelem,
-                            [cg.wg, topo.ghost, topo.N, topo.table, cg.rspheremp, self.y, halo, topo.gid, rows(r), f64(0.0), f64(0.0), rows(z)], **elements)]
+                    cg._rec(hk.helmholtz_back_substitution(np_, topo.table.shape[1], implicit is not None), m.grid.nelem,
+                            [cg.wg, topo.ghost, topo.N, topo.table, cg.rspheremp, self.y, halo, topo.gid, rows(r), f64(0.0), f64(0.0), rows(z),
+                             f64(0.0), f64(0.0), rows(z if implicit is None else implicit)], **elements)]
             launches = self._schur_launches[key] = (rhs, back)
         return launches
 
@@ -333,10 +386,15 @@ class GravityWave:
         """(M + cK) y = b to the relative residual ``tol`` in float64 (``precision``
         "double"), or in float32 with float64 refinement ("mixed"); then the area
         integral of y set to that of b (on the device). Iterations into ``stats``."""
+        h = self._history
+        if h is not None:
+            h.guess()
         if self.low is None:
-            self.cg.solve(c, self.tol, self.maxiter, self.warm)
+            self.cg.solve(c, self.tol, self.maxiter, self.warm, guessed=h is not None)
         else:
             self._refined(c)
+        if h is not None:
+            h.store()
         self.cg.dots(self.b, self.cg.ones, self.cg.area, self.y, self.b, self.b)  # ∫z_h = ∫(right-hand side)
         self._shift.launch()
 
@@ -367,6 +425,83 @@ class GravityWave:
         self._widen.launch()  # y += e
         self.cg.residual(c)
         self._check_next.launch()
+
+
+class GuessHistory:
+    """The start of a sequence of solves (M + cK) y = b with one c (``GravityWave``'s with
+    ``history`` k): projection onto the past solutions (Fischer 1998, Comput. Methods Appl.
+    Mech. Engrg. 163, 193, "method 2"; PETSc's ``KSPFischerGuess``). X (k, nunique) is an
+    A-orthonormal basis of up to k vectors, AX their products; the start is y0 = Σ (Xⱼ·b) Xⱼ,
+    the A-norm's best in their span, with A y0 = Σ (Xⱼ·b) AXⱼ and so no product (one fewer
+    than a warm start). After the solve the increment y − y0 (A-orthogonal to X in exact
+    arithmetic), A-orthonormalised against X, is appended, its product from the CG's residual
+    (A y = b − r); with k vectors the basis restarts from the solution and its start
+    (``kernels.helmholtz.history_coefficients``; Fischer's from the solution alone). The inner
+    products are summed on the device in index order and over ranks by ``Topology``
+    (``HelmholtzCG.totals``' way): the same bits on any threads, to round-off on any ranks.
+
+    ``guess()``: y, w (and the copies y0, w0) of ``GravityWave``'s CG set to the start;
+    ``store()``: the solution into the basis (launches, nothing read back). ``count()``:
+    the vectors in use (a host read); ``whole()``/``set(count, arrays, what)``: X and AX
+    as ``arrays`` whole-grid (3, npts_total) arrays, three vectors each (rows past 2k zero),
+    for ``GravityWave.state``/``restore`` (ValueError naming ``what`` for a misshapen one)."""
+
+    def __init__(self, gw: GravityWave):
+        cg, topo, dev, k = gw.cg, gw.model.topology, gw.model.device, gw.history
+        self.topology, self.k = topo, k
+        self.X = wp.zeros((k, topo.nunique), dtype=f64, device=dev)
+        self.AX = wp.zeros((k, topo.nunique), dtype=f64, device=dev)
+        self.hic = wp.zeros(3, dtype=wp.int32, device=dev)  # kernels.helmholtz COUNT, MODE, SLOT
+        self.hcs = wp.zeros(max(k + 1, 3), dtype=f64, device=dev)  # 1/‖·‖_A, the βⱼ
+        self.arrays = (2 * k + 2) // 3
+        rec, nchunks, chunk, nu = cg._rec, cg.partial.shape[1], cg.chunk, topo.nunique
+        partial, alpha, sums, y, y0, w0 = gw._hpartial, gw._alpha, gw._hsums, gw.y, gw._y0, gw._w0
+        self._guess = [rec(hk.history_dots, nchunks, [self.X, gw.b, self.hic, partial, chunk], nodes_per_index=chunk),
+                       *topo.device_sums(partial, k, alpha), alpha,
+                       rec(hk.history_guess, nu, [self.X, self.AX, alpha, self.hic, y, cg.w, y0, w0])]
+        self._store = [rec(hk.history_increment_dots, nchunks, [self.X, y, y0, gw.b, cg.r, w0, self.hic, partial, chunk], nodes_per_index=chunk),
+                       *topo.device_sums(partial, k + 4, sums), sums,
+                       wp.launch(hk.history_coefficients, 1, [sums, k, self.hic, self.hcs], device=dev, record_cmd=True),
+                       rec(hk.history_store, nu, [self.X, self.AX, y, y0, gw.b, cg.r, w0, self.hic, self.hcs])]
+
+    def _play(self, launches) -> None:
+        for launch in launches:
+            if isinstance(launch, wp.array):  # the totals summed over ranks between the launches
+                self.topology.allreduce(launch)
+            else:
+                launch.launch()
+
+    def guess(self) -> None:
+        self._play(self._guess)
+
+    def store(self) -> None:
+        self._play(self._store)
+
+    def count(self) -> int:
+        return int(self.hic.numpy()[hk.COUNT])
+
+    def _rows(self):
+        return [self.X[j] for j in range(self.k)] + [self.AX[j] for j in range(self.k)]
+
+    def whole(self) -> list:
+        """X's and AX's rows scattered to element-local (3, N) arrays, gathered on rank 0 (call on all ranks)."""
+        topo, rows, out = self.topology, self._rows(), []
+        for m in range(self.arrays):
+            a = wp.zeros((3, topo.N), dtype=f64, device=self.X.device)
+            for row, v in enumerate(rows[3 * m : 3 * m + 3]):
+                for launch in topo.scatter(v, a, row):
+                    launch.launch()
+            out.append(topo.gather(a.numpy()))
+        return out
+
+    def set(self, count: int, arrays: list, what: str) -> None:
+        topo, rows = self.topology, self._rows()
+        first = topo.first.numpy()
+        for m, whole in enumerate(arrays):
+            part = topo.distribute(whole, 3, what)
+            for row, v in enumerate(rows[3 * m : 3 * m + 3]):
+                v.assign(part[row][first])
+        self.hic.assign(np.array([count, 0, 0], dtype=np.int32))
 
 
 class HelmholtzSteps:
@@ -564,12 +699,15 @@ class HelmholtzCG:
         self.u.zero_()
         self._restart.launch()
 
-    def solve(self, c: float, tol: float, maxiter: int, warm: bool) -> None:
+    def solve(self, c: float, tol: float, maxiter: int, warm: bool, guessed: bool = False) -> None:
         """y = (M + cK)⁻¹ b to the relative residual ``tol``, from y (``warm``: one product
-        more) or from zero; tol ≤ 0 and maxiter ≤ 0: those ``refine_check`` left on the device.
-        k iterations cost k products on one rank (the test between an update and the next
-        product), k + 1 over ranks (one reduction an iteration)."""
-        if warm:
+        more), from y with w = A y already set (``guessed``: a projected start,
+        ``GuessHistory``) or from zero; tol ≤ 0 and maxiter ≤ 0: those ``refine_check``
+        left on the device. k iterations cost k products on one rank (the test between an
+        update and the next product), k + 1 over ranks (one reduction an iteration)."""
+        if guessed:
+            pass
+        elif warm:
             self.apply(self.y, self.w, c)
         else:
             self.y.zero_()

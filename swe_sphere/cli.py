@@ -474,7 +474,7 @@ def _summary(r, sim) -> None:
         print(f"  initial     digital-filter start: {sim.dfi.rhs_evals} RHS evals, {sim.dfi.wall_time:.2f} s (in setup); rms dh/dt "
               f"{sim.dfi.dhdt_rms[0]:.3e} -> {sim.dfi.dhdt_rms[1]:.3e} m/s")
     elif sim.scene.initialization is not None:
-        print(f"  initial     digital-filter start of the run continued (not redone)")
+        print("  initial     digital-filter start of the run continued (not redone)")
     for k, total in r.iterations.items():
         print(f"  {k:11s} {total} iterations, {total / max(r.steps, 1):.1f} per step")
     for k in ("mass", "total_energy", "potential_enstrophy"):

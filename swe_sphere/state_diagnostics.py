@@ -60,7 +60,7 @@ class StateDiagnostics:
         every rank). ``whole``: x's ``gather_fields`` when the caller has them (on
         every rank, or on none)."""
         whole = self.gather_fields(x) if whole is None else whole
-        u, v, h, zeta = whole.u, whole.v, whole.h, whole.vorticity
+        u, v, h = whole.u, whole.v, whole.h
         errors = self.scorer.errors(t, (self.x if x is None else x).numpy(), u, v, h)
         d = None
         if self.root:

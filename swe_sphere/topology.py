@@ -211,7 +211,7 @@ class Topology:
         sends and receives (``copies``), and the owned unique-node values it sends
         and receives (``owned``), both in global order."""
         grid = self.grid
-        table, gid, N = grid.dss_table.astype(np.int64), grid.gid.astype(np.int64), grid.npts
+        table, gid = grid.dss_table.astype(np.int64), grid.gid.astype(np.int64)
         elem_rank = np.empty(sum(map(len, parts)), dtype=np.int64)
         for k, p in enumerate(parts):
             elem_rank[p] = k

@@ -49,7 +49,7 @@ class KernelPasses:
 
     def __init__(self, model):
         self.model, self.topology = model, model.topology
-        topo, dev, n = self.topology, model.device, 3 * model.topology.nunique
+        dev, n = model.device, 3 * model.topology.nunique
         self._chunk = chunk = reduction_chunk(n, dev)
         self._partial = wp.zeros((1, (n + chunk - 1) // chunk), dtype=f64, device=dev)
         self.xx, self.ww, self.eps = (wp.zeros(k, dtype=f64, device=dev) for k in (1, 1, 2))  # ‖x‖², ‖w‖², (ε, scale/ε)

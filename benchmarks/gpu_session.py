@@ -50,7 +50,7 @@ from rhs_throughput import build, rhs_compulsory_bytes  # noqa: E402
 from swe_sphere.config import load_scene  # noqa: E402
 from swe_sphere.constants import DAY  # noqa: E402
 from swe_sphere.simulation import Simulation  # noqa: E402
-from swe_sphere.steppers import STEPPERS, make_stepper  # noqa: E402
+from swe_sphere.steppers import STEPPERS  # noqa: E402
 from swe_sphere.tally import Tally, instrumented  # noqa: E402
 
 

@@ -1,19 +1,11 @@
 """What a step of the Runge–Kutta engine's steppers asks of the device: launches and bytes.
 
-The named steppers (ssprk3, rk4, kgu35, imex with ARS(2,3,2) and ARS(3,4,3)) are
-tables on one engine (``steppers.runge_kutta``), as is a table written in the scene
-(``stepper = "tableau"``): here the named ones, ARS(3,4,3) written as a pair, and
-the bundled example pairs (testcases/tableaus), on TC5 np 4 (topography, ∇⁴),
-the IMEX ones at 4× the explicit step. Per stepper, one step after two
-(``swe_sphere.tally.Tally``: each distinct array argument's bytes once a launch,
-memsets and copies included): RHS evaluations, Helmholtz iterations, the launches
-and MB of the whole step (the solves' own graphs off, so their CG's launches
-count), and of the step's own work outside the Helmholtz solves and the ∇⁴ (not
-counted while they run: the RHS, the stage combinations, the products with L).
-With ``--rounds`` > 0 also ms a step, the steppers interleaved round by round
-(median over rounds, CPU clock of this process: run it single-threaded for figures
-that repeat on a shared machine).
-
+The named tables (ssprk3, rk4, kgu35, imex ARS(2,3,2) / ARS(3,4,3)), ARS(3,4,3) written as a
+``tableau`` pair and the bundled example pairs, TC5 np 4, IMEX at 4× the explicit step. Per
+stepper, one step after two (``swe_sphere.tally``: each distinct array's bytes once a launch,
+memsets and copies included): RHS evaluations, CG iterations, launches and MB of the whole
+step (the solves' own graphs off) and of its own work outside the solves and the ∇⁴.
+``--rounds`` > 0: also ms a step, interleaved, median, CPU clock (run it single-threaded).
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/tableau_cost.py --ne 8
 """
 

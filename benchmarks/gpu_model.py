@@ -92,7 +92,7 @@ def count(args, tally):
     model, _, x0 = build(args.ne)
     x, y = model.new_state(*x0), model.new_state()
     N = model.N
-    for name, fn in (("rhs", lambda: model.rhs(x, y)), ("hv", lambda: model.hyperviscosity_operator(x, y))):
+    for name, fn in (("rhs", lambda: model.rhs(x, y)), ("hv", lambda: model.hv.operator(x, y))):
         fn()  # records
         with tally.counting() as t:
             fn()
@@ -118,7 +118,7 @@ def cpu_check(ne, repeat):
     model, _, x0 = build(ne)
     x, y = model.new_state(*x0), model.new_state()
     model.rhs(x, y)
-    model.hyperviscosity_operator(x, y)
+    model.hv.operator(x, y)
     rows = []
     for key in (k for k in model._recorded if k[0] in ("rhs", "hvop")):
         for launch in model._recorded[key][0]:
@@ -169,7 +169,7 @@ def main(argv=None):
         print("|---|---:|---:|---:|")
         for key, us, bpp, gbs in cpu_check(args.check_ne, 20):
             print(f"| {key.split('__')[0]} | {us:.0f} | {bpp:.0f} | {gbs:.1f} |")
-    print(f"\nRHS: {counts['rhs'][1]:.0f} B/pt, {counts['rhs'][0]:.0f} launches; ∇⁴ (hyperviscosity_operator, with its memset): "
+    print(f"\nRHS: {counts['rhs'][1]:.0f} B/pt, {counts['rhs'][0]:.0f} launches; ∇⁴ (hv.operator, with its memset): "
           f"{counts['hv'][1]:.0f} B/pt, {counts['hv'][0]:.0f} launches; ∇⁴/RHS bytes {counts['hv'][1] / counts['rhs'][1]:.2f}\n")
 
     print(f"## Per step (semi_implicit, implicit, imex at {args.implicit_dt_factor:g}× TC5's Δt; {args.steps} steps after {args.warmup})\n")

@@ -90,7 +90,7 @@ def hyperviscosity_rate(model, state) -> float:
 
     x = model.new_state(*state)
     out = wp.zeros_like(x)
-    model.hyperviscosity_operator(x, out)
+    model.hv.operator(x, out)
     z, b = x.numpy(), out.numpy()
     I = model.grid.integrate
     return I(np.sum(z * b, axis=0)) / I(np.sum(z * z, axis=0))

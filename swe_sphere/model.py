@@ -1,4 +1,4 @@
-"""The shallow-water model: right-hand side, hyperviscosity and diagnostics operators.
+"""The shallow-water model: right-hand side and diagnostics operators, and its ∇⁴ (``hypervis``).
 
 ``ShallowWater`` uploads the grid once, allocates its work arrays once and
 records every kernel launch the first time it is used on a given pair of
@@ -12,7 +12,6 @@ scene names ``forcing``. Mirrors HOMME's ``compute_and_apply_rhs`` + ``advance_h
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import warp as wp
@@ -20,8 +19,9 @@ import warp as wp
 from .constants import EARTH
 from .graphs import GraphGuard
 from .grid import CubedSphere
-from .kernels import blas, hyperviscosity, operators, tendencies
-from .parallel import default_threads, record
+from .hypervis import Hyperviscosity
+from .kernels import blas, operators, tendencies
+from .parallel import array_key, default_threads, record
 from .topology import Topology
 
 TERMS = (
@@ -35,11 +35,6 @@ TERMS = (
 )
 
 f64 = wp.float64
-
-
-def _id(a: wp.array) -> tuple:
-    """What a recorded launch fixes of an array: its address, shape and strides."""
-    return (a.ptr, a.shape, a.strides)
 
 
 class ShallowWater:
@@ -133,18 +128,9 @@ class ShallowWater:
             wp.launch(operators.gradient_sphere, N, [hs2, 0, self.Dinv, self.dvv, grid.np, self.topo_forcing, 0], device=device)
             forcing = -self.g * self.topo_forcing.numpy()
             self.topo_forcing.assign(forcing)
-        if "hyperviscosity" in terms:
-            self.hv_Y = wp.zeros((4, N), dtype=f64, device=device)  # Y₁ (``kernels.hyperviscosity``)
-            self.hv_L = wp.zeros((4, N), dtype=f64, device=device)  # the weak forms of Y₁ and Y₂
-            if self.per_element:  # the weak Laplacian's metric, fixed: computed once, not by every ∇⁴ evaluation
-                self.hv_metric = wp.zeros((4, N), dtype=f64, device=device)
-                self._launch(hyperviscosity.laplacian_metric, N, [self.Dinv, self.spheremp, self.hv_metric]).launch()
-            else:  # the Cartesian state and the weak Laplacian's flux of the per-node kernels
-                self.hv_X = wp.zeros((4, N), dtype=f64, device=device)
-                self.hv_flux = wp.zeros((8, N), dtype=f64, device=device)
         self._recorded: dict[tuple, tuple] = {}
         self._pointwise_launches: dict[tuple, object] = {}
-        self._substeps: dict[float, tuple[int, bool]] = {}  # hypervis_plan
+        self.hv = Hyperviscosity(self) if "hyperviscosity" in terms else None  # the ∇⁴: its plan, work arrays, launches
 
     # -- launch recording ---------------------------------------------------
     def _launch(self, kernel, dim, inputs, per_part=None):
@@ -320,181 +306,17 @@ class ShallowWater:
             self.rhs(x, out)
         return [launch.kernel.key for launch in self._recorded[key][0]]
 
-    # -- hyperviscosity -----------------------------------------------------
-    def _build_hv(self, x, coef, out=None, nus=None):
-        """Launches of out += coef·B x, B = ν∇⁴ the hyperviscosity operator
-        (``kernels.hyperviscosity``) with coefficients ``nus`` = (ν, ν_div, ν_s)
-        (None: the model's); out = x if None. Four passes (the per-node
-        layout: ``to_cartesian`` and a flux pass before the first weak
-        Laplacian, a flux pass before the second), and the divergence δ and
-        its DSS first when ν_div ≠ ν."""
-        N, np_ = self.N, self.grid.np
-        out = x if out is None else out
-        nu, nu_div, nu_s = (self.nu, self.nu_div, self.nu_s) if nus is None else nus
-        Y, L = self.hv_Y, self.hv_L
-        shift = 2.0 / self.grid.radius**2  # HOMME: "so we dont damp rigid rotation"
-        c = wp.vec4d(nu, nu_div - nu, nu_s, shift)
-        divergent = nu_div != nu
-        delta = self.scalar_dss  # δ = DSS(∇·v), read only when divergent
-        launches = self._build_div(x, delta) if divergent else []
-        # each pass is given the node frame's arrays it reads: the first the position (and the
-        # per-element one the wind's basis), ∇δ Dinv and the basis; the second none
-        names = ("xyz", *(("east", "north") if self.per_element or divergent else ()), *(("Dinv",) if divergent else ()))
-
-        if self.per_element:
-            def laplacian(second):  # → the weak form of Y₁ or Y₂ in L
-                kernel = hyperviscosity.laplacian_element(second, divergent, np_)
-                frame = self._frame(*() if second else names, rows=True)
-                args = [*map(self.as_rows, (Y if second else x, self.hs, delta)), c, frame, self.as_rows(self.hv_metric), self.dvv_rows, self.as_rows(L)]
-                return [self._launch_elements(kernel, args)]
-        else:
-            def laplacian(second):
-                src = Y if second else self.hv_X
-                first = [] if second else [self._launch(hyperviscosity.to_cartesian, N, [x, self.hs, self.east, self.north, src])]
-                args = [self.hv_flux, src, delta, c, self._frame(*() if second else names), self.spheremp, self.dvv, np_, L]
-                return [
-                    *first,
-                    self._launch(operators.laplace_wk_flux, N, [src, self.Dinv, self.spheremp, self.dvv, np_, self.hv_flux]),
-                    self._launch(hyperviscosity.laplacian_node(second, divergent), N, args),
-                ]
-
-        def apply(rows, copies, ghosts):  # ``Topology.gathering``'s kernel factory
-            return hyperviscosity.dss_apply(copies, ghosts=ghosts)
-
-        return [
-            *launches,
-            *laplacian(False),
-            *self._dss(L, 0, Y),
-            *laplacian(True),
-            *self.topology.gathering(L, apply, [f64(coef), self._frame("east", "north"), out]),
-        ]
-
-    def _frame(self, *names, rows=False):
-        """A ``kernels.hyperviscosity.Frame`` holding the model's arrays of these
-        names, the others null: what a ∇⁴ pass reads and no more (a launch's
-        arguments are what ``benchmarks/gpu_model.py`` counts as its traffic);
-        with ``rows``, the element kernels' frame of their row views (``as_rows``)."""
-        frame = hyperviscosity.frame_type(operators.row_type(self.grid.np) if rows else f64)()
-        for name in names:
-            array = getattr(self, name)
-            setattr(frame, name, self.as_rows(array) if rows else array)
-        return frame
+    # -- hyperviscosity (``hypervis.Hyperviscosity``) ----------------------
+    def hyperviscosity(self, x: wp.array2d, dt: float) -> None:
+        """Apply ∇⁴ hyperviscosity over dt (s) in place, split from the dynamics
+        (``hv.apply``: forward-Euler substeps or an RKL1 super-step, HOMME's
+        ``advance_hypervis``); nothing without the term."""
+        if self.hv is not None:
+            self.hv.apply(x, dt)
 
     def as_rows(self, a: wp.array) -> wp.array:
         """``a`` as the GLL rows the per-element kernels read and write (``kernels.operators.row_vectors``)."""
         return operators.row_vectors(a, self.grid.np)
-
-    def hyperviscosity_operator(self, x: wp.array2d, out: wp.array2d) -> None:
-        """out (3, N) = B x, the hyperviscosity operator ν∇⁴ with the model's
-        ν, ν_div, ν_s applied to the state x (rows u, v in m s⁻² and h + hs in
-        m s⁻¹; ``kernels.hyperviscosity``): dx/dt = −B x is the dissipation.
-        ``out`` must not alias ``x``."""
-        out.zero_()
-        self._replay(("hvop", _id(x), _id(out)), (x, out), lambda: self._build_hv(x, 1.0, out))
-
-    def biharmonic_radius(self, iterations: int = 20) -> float:
-        """Largest eigenvalue λ (m⁻⁴) of the discrete ∇⁴ operator with unit
-        coefficients (ν = ν_div = ν_s = 1 m⁴ s⁻¹, wind and height together), by
-        power iteration from a fixed random continuous state. Forward Euler on
-        dx/dt = −ν∇⁴x is stable for max(ν, ν_div, ν_s) Δt λ ≤ 2."""
-        if getattr(self, "_biharmonic_radius", None) is None:
-            rng = np.random.default_rng(0)
-            z = self.topology.standard_normal(rng, 3)  # the same vector on any ranks
-            z = wp.array(z, dtype=f64, device=self.device)
-            w, zc = wp.zeros_like(z), wp.zeros_like(z)
-            for launch in self._dss(z, 1, zc):
-                launch.launch()
-            lam = 0.0
-            hs, self.hs = self.hs, wp.zeros_like(self.hs)  # the operator without the hs offset
-            launches = self._build_hv(zc, 1.0, w, nus=(1.0, 1.0, 1.0))
-            self.hs = hs
-            for _ in range(iterations):
-                zc.assign(zc.numpy() / self.topology.norm(zc))
-                w.zero_()
-                for launch in launches:
-                    launch.launch()
-                lam = self.topology.norm(w)  # ‖∇⁴ z‖
-                wp.copy(zc, w)
-            self._biharmonic_radius = lam
-        return self._biharmonic_radius
-
-    @property
-    def nu_max(self) -> float:
-        """The largest of ν, ν_div, ν_s (m⁴ s⁻¹): what limits explicit steps."""
-        return max(self.nu, self.nu_div, self.nu_s)
-
-    def hypervis_substeps(self, dt: float) -> int:
-        """Forward-Euler substeps for ``hyperviscosity`` over dt: at least the
-        scene's ``hypervis_subcycle``, and enough that ν (Δt/n) λ ≤ 1.5."""
-        return max(self.hypervis_subcycle, math.ceil(self.nu_max * dt * self.biharmonic_radius() / 1.5))
-
-    def hypervis_stages(self, dt: float) -> int:
-        """RKL1 stages s for ``hyperviscosity`` over dt: the fewest (≥ 2) whose
-        stability interval, (s² + s)/2 forward-Euler limits (Meyer, Balsara &
-        Aslam 2014, §3), covers ν dt λ / 1.5 (the same 1.5/2 margin as the substeps)."""
-        n = self.nu_max * dt * self.biharmonic_radius() / 1.5
-        return max(2, math.ceil((math.sqrt(1.0 + 8.0 * n) - 1.0) / 2.0 - 1e-12))
-
-    def hypervis_plan(self, dt: float) -> tuple[int, bool]:
-        """(∇⁴ evaluations, RKL1?) of one ``hyperviscosity`` call over dt: the
-        forward-Euler substeps, or the RKL1 stages where those are at most half
-        as many (see ``hyperviscosity``); cached per dt."""
-        plan = self._substeps.get(dt)
-        if plan is None:
-            n, s = self.hypervis_substeps(dt), self.hypervis_stages(dt)
-            plan = self._substeps[dt] = (s, True) if n >= 2 * s and n > self.hypervis_subcycle else (n, False)
-        return plan
-
-    def hyperviscosity(self, x: wp.array2d, dt: float) -> None:
-        """Apply ∇⁴ hyperviscosity over dt (s) in place, split from the dynamics:
-        n = ``hypervis_substeps(dt)`` forward-Euler steps of x −= (dt/n) B x
-        (B: ``hyperviscosity_operator``, ν ∇⁴ with ν, ν_div, ν_s)
-        (HOMME ``advance_hypervis`` with ``hypervis_subcycle``), or, when that
-        takes at least twice the ∇⁴ evaluations of an s-stage RKL1
-        super-time-step (``hypervis_stages``; n ≥ 2s, n set by stability rather
-        than by the scene's subcycle: long steps only, so explicit steppers at
-        their steps keep forward Euler), the RKL1 step, whose cost grows as
-        √(ν dt λ) instead of linearly (TC5 ne16, dt_g the gravity-wave limit:
-        n / s = 6 / 3, 15 / 5, 45 / 9 at 4, 10, 30 dt_g).
-        Why RKL1 and not the second-order RKL2: RKL2's amplification of the
-        stiff modes is ≈ 1/2 a step (a_s + b_s P_s, a_s, b_s → 1/2) where the
-        exact factor is ~0; with it IMEX ARS(2,3,2) at 12 dt_g on TC5 ne8 blew
-        up on day 4, as with forward Euler it does not. RKL1's P_s damps the
-        interior of its interval to ≲ 0.3; the split is first order anyway.
-        Does nothing (launches nothing) without the term."""
-        if "hyperviscosity" not in self.terms or self.nu_max == 0.0:
-            return
-        n, rkl = self.hypervis_plan(dt)
-        if rkl:
-            self._rkl1(x, dt, n)
-            return
-        coef = -dt / n
-        for _ in range(n):
-            self._replay(("hv", x.ptr, coef), (x,), lambda: self._build_hv(x, coef))
-
-    def _rkl1(self, x, dt, s):
-        """One s-stage RKL1 step (Meyer, Balsara & Aslam 2014, eqs. 10–11) of
-        dx/dt = M(x) = −B x over dt: Y_0 = x, Y_1 = E(Y_0),
-        Y_j = μ_j E(Y_{j−1}) + ν_j Y_{j−2}, μ_j = (2j − 1)/j, ν_j = −(j − 1)/j,
-        with E one forward-Euler step of w₁Δt, w₁ = 2/(s² + s) (so only the
-        recorded ∇⁴ step is used); first order, stable for ν dt λ ≤ s² + s."""
-        if getattr(self, "_rkl_buffers", None) is None:
-            self._rkl_buffers = [wp.zeros_like(x) for _ in range(3)]
-        ym2, ym1, e = self._rkl_buffers
-        coef = -dt * 2.0 / (s * s + s)
-
-        def euler(src):  # e = E(src)
-            wp.copy(e, src)
-            self._replay(("hv", e.ptr, coef), (e,), lambda: self._build_hv(e, coef))
-
-        wp.copy(ym2, x)
-        euler(x)
-        wp.copy(ym1, e)  # Y_1
-        for j in range(2, s + 1):
-            euler(ym1)
-            out = x if j == s else ym2  # Y_{j−2} is not needed after this stage
-            self.pointwise(blas.axpby, f64((2.0 * j - 1.0) / j), e, f64(-(j - 1.0) / j), ym2, out)
-            ym2, ym1 = ym1, out
 
     # -- DSS'd operators for the (semi-)implicit solvers --------------------
     def _build_grad(self, x, row, out):
@@ -517,25 +339,25 @@ class ShallowWater:
 
     def gradient(self, x: wp.array2d, row: int, out: wp.array2d) -> None:
         """out (2, N) = G f = DSS(∇ x[row]) (units of x per m)."""
-        self._replay(("grad", _id(x), row, _id(out)), (x, out), lambda: self._build_grad(x, row, out))
+        self._replay(("grad", array_key(x), row, array_key(out)), (x, out), lambda: self._build_grad(x, row, out))
 
     def divergence(self, x: wp.array2d, out: wp.array2d) -> None:
         """out (1, N) = D v = DSS(∇·v) of the wind in rows 0, 1 of x (s⁻¹ × units)."""
-        self._replay(("div", _id(x), _id(out)), (x, out), lambda: self._build_div(x, out))
+        self._replay(("div", array_key(x), array_key(out)), (x, out), lambda: self._build_div(x, out))
 
     def assemble(self, x: wp.array2d, row: int, out: wp.array) -> None:
         """Unique-node out (nunique,) = M x[row]: assembled mass times a continuous field."""
-        self._replay(("assemble", _id(x), row, _id(out)), (x, out), lambda: self.topology.assemble(x, row, out))
+        self._replay(("assemble", array_key(x), row, array_key(out)), (x, out), lambda: self.topology.assemble(x, row, out))
 
     def scatter(self, y: wp.array, out: wp.array2d, row: int, rows: int = 1) -> None:
         """Element-local out[row : row + rows] from a unique-node vector y of ``rows`` rows."""
-        self._replay(("scatter", _id(y), _id(out), row, rows), (y, out), lambda: self.topology.scatter(y, out, row, rows))
+        self._replay(("scatter", array_key(y), array_key(out), row, rows), (y, out), lambda: self.topology.scatter(y, out, row, rows))
 
     # -- diagnostics helpers ------------------------------------------------
     def vorticity(self, x: wp.array2d) -> np.ndarray:
         """Relative vorticity ζ (s⁻¹), (N,) numpy, with the model's operator and a DSS."""
         self._replay(
-            ("vort", _id(x)),
+            ("vort", array_key(x)),
             (x,),
             lambda: [
                 self._launch_elements(

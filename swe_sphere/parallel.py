@@ -177,6 +177,12 @@ def reduction_chunk(n: int, device) -> int:
     return min(32, max(8, -(-int(n) // CUDA_CHUNKS)))
 
 
+def array_key(a: wp.array) -> tuple:
+    """What a recorded launch fixes of an array: its address, shape and strides (part of
+    the key under which a model's launches are recorded and replayed)."""
+    return (a.ptr, a.shape, a.strides)
+
+
 def record(kernel, dim, inputs, *, device, threads: int, block: int = 1, per_part=None, nodes_per_index: int = 1):
     """Record ``kernel`` over ``dim`` (N, or (rows, N) with the node index last;
     or the element count, with ``nodes_per_index`` = np²); ``inputs`` without

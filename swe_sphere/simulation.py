@@ -56,15 +56,16 @@ MAX_HYPERVIS_EVALUATIONS = 10_000  # ∇⁴ evaluations a step; beyond, ν is ~1
 
 def _check_hyperviscosity(model: ShallowWater, scene: Scene) -> None:
     """Refuse (``SceneError``, before the run) a ν whose ∇⁴ sub-stepping
-    (``ShallowWater.hypervis_plan``) would take more than
+    (``hypervis.Hyperviscosity.plan``) would take more than
     ``MAX_HYPERVIS_EVALUATIONS`` evaluations a step: such a step runs for hours
     and is a mistyped coefficient, not a setting."""
-    if "hyperviscosity" not in scene.terms or model.nu_max == 0.0:
+    if model.hv is None or model.hv.nu_max == 0.0:
         return
-    evals, _ = model.hypervis_plan(scene.dt)
+    hv = model.hv
+    evals, _ = hv.plan(scene.dt)
     if evals > MAX_HYPERVIS_EVALUATIONS:
-        bound = 1.5 / (scene.dt * model.biharmonic_radius())
-        raise SceneError(f"hyperviscosity nu = {model.nu_max:.3g} m^4/s is {model.nu_max / bound:.2g}x its explicit bound "
+        bound = 1.5 / (scene.dt * hv.biharmonic_radius())
+        raise SceneError(f"hyperviscosity nu = {hv.nu_max:.3g} m^4/s is {hv.nu_max / bound:.2g}x its explicit bound "
                          f"({bound:.3g} m^4/s at dt = {scene.dt:g} s): {evals:.3g} ∇⁴ evaluations a step (at most "
                          f"{MAX_HYPERVIS_EVALUATIONS}); lower hyperviscosity.nu")
 

@@ -190,12 +190,12 @@ def test_an_unconverged_solve_inside_a_graphed_block_is_reported_as_with_a_check
 
 @pytest.mark.parametrize("device", DEVICES)
 def test_graphed_rkl1_hyperviscosity_is_the_bits_of_plain_steps(one_thread, graph_launches, device):
-    """ssprk3 with 10× TC5's ν: the ∇⁴ as an RKL1 super-step (``ShallowWater._rkl1``:
+    """ssprk3 with 10× TC5's ν: the ∇⁴ as an RKL1 super-step (``Hyperviscosity._rkl1``:
     copies, and one recorded combination launched with each stage's coefficients)
     inside the graph, the same bits as launched one by one."""
     scene = tc5("ssprk3", device)
     scene = dataclasses.replace(scene, nu=10 * scene.nu, nu_div=10 * scene.nu_div, nu_s=10 * scene.nu_s)
-    assert Simulation(scene, device, progress=False).model.hypervis_plan(scene.dt)[1]  # RKL1
+    assert Simulation(scene, device, progress=False).model.hv.plan(scene.dt)[1]  # RKL1
     plain = stepped(scene, device, False, 5)
     graphed = stepped(scene, device, True, 5)
     np.testing.assert_array_equal(graphed[0], plain[0])

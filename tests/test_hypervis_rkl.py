@@ -1,4 +1,4 @@
-"""Hyperviscosity over long steps: RKL1 super-time-stepping (``ShallowWater.hyperviscosity``).
+"""Hyperviscosity over long steps: RKL1 super-time-stepping (``hypervis.Hyperviscosity.apply``).
 
 Measured (TC5, hyperviscosity alone over T = 45 forward-Euler limits, ne = 4):
 RKL1 with s = 6 stages and k = 16 … 128 steps against k = 1024: error ratios
@@ -24,7 +24,7 @@ from swe_sphere.config import load_scene
 def _tc5(ne=4):
     sim = make_sim(load_scene("tc5_mountain", ne=ne, np=4, days=1.0))
     m = sim.model
-    dt_fe = 1.5 / (m.nu_max * m.biharmonic_radius())  # the forward-Euler limit used for substeps
+    dt_fe = 1.5 / (m.hv.nu_max * m.hv.biharmonic_radius())  # the forward-Euler limit used for substeps
     return sim, m, dt_fe
 
 
@@ -37,7 +37,7 @@ def test_rkl1_is_first_order():
     def run(k, s=6):
         x.assign(x0)
         for _ in range(k):
-            m._rkl1(x, T / k, s)
+            m.hv._rkl1(x, T / k, s)
         return x.numpy().copy()
 
     ref = run(1024)
@@ -55,8 +55,8 @@ def test_long_steps_use_rkl1_stably_and_conservatively(rng):
     own step the forward-Euler path (and so every explicit result) is unchanged."""
     sim, m, dt_fe = _tc5()
     T = 45 * dt_fe
-    assert m.hypervis_substeps(T) in (45, 46) and m.hypervis_stages(T) == 9  # ceil(45 · (1 ± round-off))
-    n, s = m.hypervis_substeps(sim.scene.dt), m.hypervis_stages(sim.scene.dt)
+    assert m.hv.substeps(T) in (45, 46) and m.hv.stages(T) == 9  # ceil(45 · (1 ± round-off))
+    n, s = m.hv.substeps(sim.scene.dt), m.hv.stages(sim.scene.dt)
     assert n < 2 * s  # forward Euler at the scene's step
 
     x0 = sim.x.numpy().copy()
@@ -64,9 +64,9 @@ def test_long_steps_use_rkl1_stably_and_conservatively(rng):
     m.hyperviscosity(x, T)
     rkl = x.numpy().copy()
     x.assign(x0)
-    coef = -T / 720  # _build_hv applies coef·B x, B including ν
+    coef = -T / 720  # hv.build applies coef·B x, B including ν
     for _ in range(720):
-        m._replay(("hv", x.ptr, coef), (x,), lambda: m._build_hv(x, coef))
+        m._replay(("hv", x.ptr, coef), (x,), lambda: m.hv.build(x, coef))
     fine = x.numpy()
     distance = np.linalg.norm(rkl - fine) / np.linalg.norm(fine - x0)
     print(f"\nRKL1 (9 stages) against 720 forward-Euler substeps: {distance:.2e} of the change")
@@ -87,4 +87,4 @@ def test_long_steps_use_rkl1_stably_and_conservatively(rng):
     assert all(b < a for a, b in zip(norms, norms[1:]))
     assert norms[-1] < 0.5 * norms[0]  # measured 0.28 (the low modes of the noise decay slowly, as they should)
     # each RKL1 stage y_j = μ_j y_{j−1} + ν_j y_{j−2} + μ̃_j τ L y_{j−1} (|μ_j| + |ν_j| < 3) rounds a node by ≤ 3 ε |h|
-    roundoff.within(abs(mass), roundoff.mass_change_bound(10 * m.hypervis_stages(T) * 3, sim.grid.npts), "|mass change|")
+    roundoff.within(abs(mass), roundoff.mass_change_bound(10 * m.hv.stages(T) * 3, sim.grid.npts), "|mass change|")

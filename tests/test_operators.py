@@ -416,10 +416,10 @@ def test_hyperviscosity_matches_numpy(np_, subcycle, ratios, per_element, rng):
     dt = 0.5
     m = ShallowWater(g, ["hyperviscosity"], fcor, hs, nu=1.0, hypervis_subcycle=subcycle, device=DEV, per_element=per_element)
     # ν at the forward-Euler limit the model allows per substep: the largest change it makes
-    scale = 1.4 * subcycle / (dt * m.biharmonic_radius() * max(ratios))
+    scale = 1.4 * subcycle / (dt * m.hv.biharmonic_radius() * max(ratios))
     nus = tuple(scale * r for r in ratios)
     m.nu, m.nu_div, m.nu_s = nus
-    n = m.hypervis_substeps(dt)
+    n = m.hv.substeps(dt)
     assert n == subcycle
     x = m.new_state(*state)
     m.hyperviscosity(x, dt)
@@ -563,7 +563,7 @@ def test_hyperviscosity_launch_list(per_element, nu_div, launch_log):
     fcor, hs, st = tc5(g)
     m = ShallowWater(g, ["hyperviscosity"], fcor, hs, nu=1e15, nu_div=nu_div, hypervis_subcycle=2, device=DEV, per_element=per_element)
     x = m.new_state(*st)
-    m.biharmonic_radius()  # its power iteration launches the same kernels
+    m.hv.biharmonic_radius()  # its power iteration launches the same kernels
     launch_log.clear()
     m.hyperviscosity(x, 10.0)
     first = "first__divergent" if nu_div != 1e15 else "first"

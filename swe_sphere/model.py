@@ -497,23 +497,25 @@ class ShallowWater:
             ym2, ym1 = ym1, out
 
     # -- DSS'd operators for the (semi-)implicit solvers --------------------
-    def _build_grad(self, x, row, out):
-        return [
-            self._launch_elements(operators.gradient_element(self.grid.np), [self.as_rows(x), row, self.as_rows(self.Dinv), self.dvv_rows, self.as_rows(self.vec_work)])
-            if self.per_element
-            else self._launch(operators.gradient_sphere, self.N, [x, row, self.Dinv, self.dvv, self.grid.np, self.vec_work]),
-            *self._dss(self.vec_work, 1, out),
-        ]
+    def _element_grad(self, x, row):
+        """The launch of the element-local ∇ x[row] into ``vec_work``."""
+        if self.per_element:
+            return self._launch_elements(operators.gradient_element(self.grid.np), [self.as_rows(x), row, self.as_rows(self.Dinv), self.dvv_rows, self.as_rows(self.vec_work)])
+        return self._launch(operators.gradient_sphere, self.N, [x, row, self.Dinv, self.dvv, self.grid.np, self.vec_work])
 
-    def _build_div(self, x, out):
-        return [
-            self._launch_elements(
+    def _element_div(self, x):
+        """The launch of the element-local ∇·v of x's rows 0, 1 into ``scalar``."""
+        if self.per_element:
+            return self._launch_elements(
                 operators.divergence_element(self.grid.np), [*map(self.as_rows, (x, self.Dinv, self.metdet)), self.dvv_rows, self.as_rows(self.scalar_flat)]
             )
-            if self.per_element
-            else self._launch(operators.divergence_sphere, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.scalar_flat]),
-            *self._dss(self.scalar, 1, out),
-        ]
+        return self._launch(operators.divergence_sphere, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.scalar_flat])
+
+    def _build_grad(self, x, row, out):
+        return [self._element_grad(x, row), *self._dss(self.vec_work, 1, out)]
+
+    def _build_div(self, x, out):
+        return [self._element_div(x), *self._dss(self.scalar, 1, out)]
 
     def gradient(self, x: wp.array2d, row: int, out: wp.array2d) -> None:
         """out (2, N) = G f = DSS(∇ x[row]) (units of x per m)."""
@@ -522,6 +524,23 @@ class ShallowWater:
     def divergence(self, x: wp.array2d, out: wp.array2d) -> None:
         """out (1, N) = D v = DSS(∇·v) of the wind in rows 0, 1 of x (s⁻¹ × units)."""
         self._replay(("div", _id(x), _id(out)), (x, out), lambda: self._build_div(x, out))
+
+    def gradient_update(self, x: wp.array2d, row: int, updates) -> None:
+        """G x[row] = DSS(∇ x[row]) as ``gradient`` computes it, not stored but written,
+        as its DSS makes it, into one or two (out, terms) combinations of (2, N) arrays
+        (row views such as ``z[0:2]``): out = Σ a·src over terms (a, src), src None
+        standing for G x[row] (``Topology.dss_update``: one to three terms, at most two
+        arrays). Outputs may alias x and the terms. Recorded once per arrays and coefficients."""
+        key = ("grad_update", _id(x), row, tuple((_id(out), tuple((a, None if src is None else _id(src)) for a, src in t)) for out, t in updates))
+        arrays = (x, *(a for out, t in updates for a in (out, *(src for _, src in t if src is not None))))
+        self._replay(key, arrays, lambda: [self._element_grad(x, row), *self.topology.dss_update(self.vec_work, updates)])
+
+    def divergence_update(self, x: wp.array2d, updates) -> None:
+        """D v = DSS(∇·v) of x's rows 0, 1 as ``divergence`` computes it, written into
+        one or two (out, terms) combinations of (1, N) arrays as ``gradient_update``'s."""
+        key = ("div_update", _id(x), tuple((_id(out), tuple((a, None if src is None else _id(src)) for a, src in t)) for out, t in updates))
+        arrays = (x, *(a for out, t in updates for a in (out, *(src for _, src in t if src is not None))))
+        self._replay(key, arrays, lambda: [self._element_div(x), *self.topology.dss_update(self.scalar, updates)])
 
     def assemble(self, x: wp.array2d, row: int, out: wp.array) -> None:
         """Unique-node out (nunique,) = M x[row]: assembled mass times a continuous field."""

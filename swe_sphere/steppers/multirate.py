@@ -10,9 +10,10 @@ model's own RHS without its pressure-gradient term evaluated at (u, v, h′): on
 tendency pass and one DSS, compiled for those terms (``ShallowWater.rhs`` with
 ``terms``), not F − L by two evaluations. A fast evaluation is an element gradient and
 an element divergence, each DSS'd straight into the combination that uses it
-(``ShallowWater.gradient_update``, ``divergence_update``): two element passes and the
-DSS of three rows, against the RHS's one tendency pass (the whole flux form) and
-the DSS of three rows. Mass: both parts' depth rows are DSS'd divergences, whose
+(``ShallowWater.gradient_update``, ``divergence_update``): two element passes and two
+DSS passes (of two rows and of one), against the RHS's one tendency pass (the whole flux
+form) and one DSS of three rows; counted by ``tally.Tally``, 4 launches moving 1.14× the
+RHS's bytes (2 launches), with far less arithmetic than the tendency's. Mass: both parts' depth rows are DSS'd divergences, whose
 area integral is zero, so every stage keeps ∫h to round-off.
 
 The steppers (both apply ∇⁴ once a step after it, as every stepper here):
@@ -36,10 +37,12 @@ The steppers (both apply ∇⁴ once a step after it, as every stepper here):
   ``explicit.FBRK32`` on the fast system), or ``ssprk3``/``rk4``, the engine's own tables
   stepped through its ``butcher.stage_form``.
 
-Without a fast part (L = 0) each method is an explicit Runge–Kutta method of the slow
-part (``slow_table``): WS-RK3's is its own three-stage table, a multirate table's follows
-from its coefficients and is checked against the order it claims by ``butcher.parse``,
-the order conditions of the one engine.
+Without a fast part (L = 0) a multirate table is an explicit Runge–Kutta table of the
+slow part (``parse_mri``: Y_{r+2} − x(n) = Σ_j (α + γ)_rj (Y_{j+1} − x(n)) + Δt Σ_j
+(β + β¹/2)_rj N(Y_{j+1})), checked against the order the table claims by ``butcher.parse``,
+the one engine's order conditions (necessary, not sufficient: the coupling has conditions
+of its own, which the built-in tables meet at their stated orders; measured in
+tests/test_multirate.py).
 """
 
 from __future__ import annotations
@@ -144,9 +147,7 @@ class GravitySplit:
 class _Multirate(Stepper):
     """What both steppers share: the split, H in ``state()``, the step in h′, cached combinations."""
 
-    # the gravity waves in substeps of their own: the slow step is limited by advection alone
     capturable = True
-    advective_courant_limit = 1.0
     removed_options: dict = {}
 
     def __init__(self, model, dt, options=None):
@@ -221,9 +222,10 @@ class SplitExplicit(_Multirate):
     (MPAS-Atmosphere's arrangement; see the module docstring).
 
     Options (scene table ``[split_explicit]``): ``substeps`` n, the fast substeps of the
-    last stage (the stages take ⌈n/3⌉, ⌈n/2⌉, n; default 12, from the stability probe
-    on TC5 ne8 at slow steps of 4–8 Δt_g: stable with substeps of up to 0.7 Δt_g; raise
-    it in proportion for longer slow steps), ``mean_depth`` H (m; 0: the area-mean
+    last stage (the stages take ⌈n/3⌉, ⌈n/2⌉, n; default 12: on TC5 ne8 over 6 days at
+    slow steps of 3.9, 4.7, 5.7, 6.6, 7.8 Δt_g the fewest stable were 4, 6, 6, 6, 8, substeps
+    of about 1 Δt_g; 12 keeps them at ≤ 0.65 Δt_g up to 8 Δt_g, and ran 12 days at 6.6 Δt_g;
+    raise it in proportion for longer slow steps), ``mean_depth`` H (m; 0: the area-mean
     depth of the initial state, rounded to 6 digits). 3 slow evaluations a step
     (reported as RHS evaluations) and ⌈n/3⌉ + ⌈n/2⌉ + n fast ones. Slow order 2 (Wicker &
     Skamarock 2002: third order for linear problems). Raises ValueError without the
@@ -231,6 +233,9 @@ class SplitExplicit(_Multirate):
 
     name = "split_explicit"
     Options = SplitExplicitOptions
+    # the gravity waves in substeps of their own: the slow step is limited by advection. TC5 ne8,
+    # 12 days, 12 substeps: stable at |v|Δt/Δx = 0.54 (6.6 Δt_g), blew up on day 9.8 at 0.64 (7.8 Δt_g)
+    advective_courant_limit = 0.55
     C = (Fraction(1, 3), Fraction(1, 2), Fraction(1))
 
     def __init__(self, model, dt, options=None):
@@ -242,12 +247,6 @@ class SplitExplicit(_Multirate):
     @classmethod
     def label(cls, options: dict) -> str:
         return f"{cls.name} n={cls.make_options(**options).substeps}"
-
-    @classmethod
-    def slow_table(cls) -> TableauOptions:
-        """The method without a fast part: the Wicker–Skamarock RK3 table (second order)."""
-        return TableauOptions(name="Wicker-Skamarock RK3", order=2, A=((0, 0, 0), ("1/3", 0, 0), (0, "1/2", 0)),
-                              b=(0, 0, 1), c=(0, "1/3", "1/2"))
 
     def fast_evaluations(self) -> int:
         """Fast evaluations (L z) a step."""
@@ -275,12 +274,12 @@ class MriOptions:
     """Scene table ``[mri]`` (see ``Mri``): ``method`` (a built-in table of
     ``tables.MULTIRATE``), or a table of one's own: ``name``, ``description``, the
     ``order`` it claims, ``alpha``, ``beta``, ``gamma`` and ``beta1`` (s × s, entries
-    numbers or fractions as strings; gamma and beta1 may be left out: zero); ``inner``,
+    numbers or fractions as strings; alpha, gamma and beta1 may be left out: zero); ``inner``,
     ``substeps``, ``mean_depth``. Raises ValueError naming the option or entry (``parse_mri``)."""
 
     method: str = "mis3c"
     inner: str = "ssprk3"
-    substeps: int = 12
+    substeps: int = 8
     mean_depth: float = 0.0
     name: str = ""
     description: str = ""
@@ -329,13 +328,14 @@ class MriTable:
 
 def _square(t: dict, key: str, s: int | None) -> list:
     rows = _frozen(t.get(key, ()))
-    if key in ("gamma", "beta1") and not rows:
+    if s is not None and not rows:  # alpha, gamma, beta1 left out: zero
         return [[Fraction(0)] * s for _ in range(s)]
     if not isinstance(rows, tuple) or not rows or not all(isinstance(r, tuple) for r in rows):
         raise ValueError(f"{key} must be a non-empty array of rows (got {rows!r})")
-    s = len(rows) if s is None else s
-    if len(rows) != s or any(len(r) != s for r in rows):
-        raise ValueError(f"{key} must be {s} x {s}, as beta (got {len(rows)} rows of {', '.join(str(len(r)) for r in rows)})")
+    if len(rows) != (s or len(rows)) or any(len(r) != len(rows) for r in rows):
+        shape = f"{len(rows)} rows of {', '.join(str(len(r)) for r in rows)} entries"
+        raise ValueError(f"{key} must be square (got {shape})" if s is None else f"{key} must be {s} x {s}, as beta (got {shape})")
+    s = len(rows)
     out = [[_entry(v, f"{key} entry ({i + 1},{j + 1})") for j, v in enumerate(r)] for i, r in enumerate(rows)]
     for i in range(s):
         for j in range(i + 1, s):
@@ -381,12 +381,18 @@ class Mri(_Multirate):
     "mri_gark_erk33a": ``tables.MULTIRATE``; default "mis3c") or a table of one's own
     (``MriOptions``); ``inner`` ("fbrk32" | "ssprk3" | "rk4", the fast integrator;
     default "ssprk3"); ``substeps`` n (fast steps a slow step, ⌈d_r n⌉ a solve; default
-    12); ``mean_depth`` H (m; 0: the area-mean initial depth, rounded to 6 digits).
+    8: on TC5 ne8 over 6 days MIS3C with ssprk3 needed 3 at 3.9–5.7 Δt_g and 6 at 6.6 and
+    7.8 Δt_g, inner steps of up to 1.3–1.9 Δt_g; with 8 MIS3C and MIS4a ran 12 days up to
+    9.5 Δt_g); ``mean_depth`` H (m; 0: the area-mean initial depth, rounded to 6 digits).
     s slow evaluations a step (reported as RHS evaluations). The run file's attributes
     ``mri`` and ``mri_order`` name the table."""
 
     name = "mri"
     Options = MriOptions
+    # TC5 ne8, 12 days, 8 substeps: MIS3C and MIS4a stable at |v|Δt/Δx = 0.78 (9.5 Δt_g), blew up at
+    # 0.88; MIS2 with fbrk32 at 0.64, not 0.78. MRI-GARK-ERK33a blows up from 3.9 Δt_g (0.32) with
+    # any substeps (stable at 3 Δt_g): its limit is the coupling's, not advection's.
+    advective_courant_limit = 0.75
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)

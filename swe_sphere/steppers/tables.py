@@ -86,7 +86,7 @@ MULTIRATE = {
         gamma=((0, 0, 0), (0, 0.652465126004, 0), (0, -0.0732769849457, 0.144902430420)),
     ),
     "mis3c": dict(
-        name="MIS3C", order=3, description="Knoth & Wensch 2014: 3 slow stages, third order",
+        name="MIS3C", order=2, description="Knoth & Wensch 2014: 3 slow stages, second order (its slow table third)",
         alpha=((0, 0, 0), (0, 0.589557277145, 0), (0, 0.544036601551, 0.565511042564)),
         beta=((0.397525189225, 0, 0), (-0.227036463644, 0.624528794618, 0), (-0.00295238076840, -0.270971764284, 0.671323159437)),
         gamma=((0, 0, 0), (0, 0.142798786398, 0), (0, -0.0428918957402, 0.0202720980282)),

@@ -20,7 +20,7 @@ import warp as wp
 from .constants import EARTH
 from .graphs import GraphGuard
 from .grid import CubedSphere
-from .kernels import blas, hyperviscosity, operators, tendencies
+from .kernels import blas, gravity_wave, hyperviscosity, operators, tendencies
 from .parallel import default_threads, record
 from .topology import Topology
 
@@ -541,6 +541,26 @@ class ShallowWater:
         key = ("div_update", _id(x), tuple((_id(out), tuple((a, None if src is None else _id(src)) for a, src in t)) for out, t in updates))
         arrays = (x, *(a for out, t in updates for a in (out, *(src for _, src in t if src is not None))))
         self._replay(key, arrays, lambda: [self._element_div(x), *self.topology.dss_update(self.scalar, updates)])
+
+    def linear_update(self, x: wp.array2d, H: float, updates) -> None:
+        """L x = (−g G h, −H D v), the linear gravity-wave operator about the depth H (m) of
+        x = (u, v, h) (``helmholtz.GravityWave``'s), in one element pass
+        (``kernels.gravity_wave.linear``) and one DSS of its three rows, not stored but
+        written into one or two (out, terms) combinations of (3, N) arrays as
+        ``gradient_update``'s (src None standing for L x). Recorded once per arrays, H and
+        coefficients."""
+        key = ("linear_update", _id(x), H, tuple((_id(out), tuple((a, None if src is None else _id(src)) for a, src in t)) for out, t in updates))
+        arrays = (x, *(a for out, t in updates for a in (out, *(src for _, src in t if src is not None))))
+
+        def build():
+            if self.per_element:
+                element = self._launch_elements(gravity_wave.linear_element(self.grid.np), [
+                    *map(self.as_rows, (x, self.Dinv, self.metdet)), self.g, f64(H), self.dvv_rows, self.as_rows(self.tend)])
+            else:
+                element = self._launch(gravity_wave.linear, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.g, f64(H), self.tend])
+            return [element, *self.topology.dss_update(self.tend, updates)]
+
+        self._replay(key, arrays, build)
 
     def assemble(self, x: wp.array2d, row: int, out: wp.array) -> None:
         """Unique-node out (nunique,) = M x[row]: assembled mass times a continuous field."""

@@ -8,12 +8,15 @@ mountain's −g∇hs, −∇·(h′v) with h′ = h − H, and the forcing. The 
 depth as h′ through a step (h − H is exact for H/2 ≤ h ≤ 2H, Sterbenz), so N is the
 model's own RHS without its pressure-gradient term evaluated at (u, v, h′): one
 tendency pass and one DSS, compiled for those terms (``ShallowWater.rhs`` with
-``terms``), not F − L by two evaluations. A fast evaluation is an element gradient and
-an element divergence, each DSS'd straight into the combination that uses it
-(``ShallowWater.gradient_update``, ``divergence_update``): two element passes and two
-DSS passes (of two rows and of one), against the RHS's one tendency pass (the whole flux
-form) and one DSS of three rows; counted by ``tally.Tally``, 4 launches moving 1.14× the
-RHS's bytes (2 launches), with far less arithmetic than the tendency's. Mass: both parts' depth rows are DSS'd divergences, whose
+``terms``), not F − L by two evaluations. A fast evaluation L z + ρ is one element pass
+of the gradient of h′ and the divergence of v (``kernels.gravity_wave.linear_element``)
+and one DSS of its three rows into the combination that uses it
+(``ShallowWater.linear_update``): 2 launches moving 0.86× the bytes of the RHS's 2
+(``tally.Tally``), with far less arithmetic than the flux-form tendency. A
+forward–backward substep needs the new wind before its divergence: an element gradient
+and an element divergence, each DSS'd straight into its half of the update
+(``ShallowWater.gradient_update``, ``divergence_update``): 4 launches, 1.25× the RHS's
+bytes with the update of the state. Mass: both parts' depth rows are DSS'd divergences, whose
 area integral is zero, so every stage keeps ∫h to round-off.
 
 The steppers (both apply ∇⁴ once a step after it, as every stepper here):
@@ -138,10 +141,11 @@ class GravitySplit:
         if depth is not None:
             m.divergence_update(x, [depth])
 
-    def fast(self, x, out) -> None:
-        """out (3, N) = L x = (−g G h′, −H D v)."""
-        g, H = self.model.g, self.H
-        self.fast_update(x, (out[0:2], ((-g, None),)), (out[2:3], ((-H, None),)))
+    def fast(self, x, out, forcing=None) -> None:
+        """out (3, N) = L x = (−g G h′, −H D v) (+ forcing, a (3, N) array), both halves in
+        one element pass and one DSS (``ShallowWater.linear_update``)."""
+        terms = ((1.0, None),) if forcing is None else ((1.0, None), (1.0, forcing))
+        self.model.linear_update(x, self.H, [(out, terms)])
 
 
 class _Multirate(Stepper):
@@ -218,8 +222,10 @@ class SplitExplicitOptions:
 
 
 class SplitExplicit(_Multirate):
-    """Split-explicit Wicker–Skamarock RK3 with forward–backward gravity-wave substeps
-    (MPAS-Atmosphere's arrangement; see the module docstring).
+    """Split-explicit Wicker–Skamarock RK3: the gravity waves in forward–backward substeps (MPAS).
+
+    3 slow evaluations a step, each stage's substeps from x(n) with the last stage's slow
+    tendency held fixed (the module docstring).
 
     Options (scene table ``[split_explicit]``): ``substeps`` n, the fast substeps of the
     last stage (the stages take ⌈n/3⌉, ⌈n/2⌉, n; default 12: on TC5 ne8 over 6 days at
@@ -374,8 +380,10 @@ def parse_mri(o: MriOptions) -> MriTable:
 
 
 class Mri(_Multirate):
-    """Multirate infinitesimal step (MIS) and explicit MRI-GARK methods from a table
-    (see the module docstring).
+    """Multirate MIS / MRI-GARK tables (or [mri]'s): the gravity waves by an inner method in substeps.
+
+    Multirate infinitesimal step (MIS) and explicit MRI-GARK methods from a table (the
+    module docstring).
 
     Options (scene table ``[mri]``): ``method`` ("mis2", "mis3c", "mis4a",
     "mri_gark_erk33a": ``tables.MULTIRATE``; default "mis3c") or a table of one's own
@@ -475,12 +483,10 @@ class Mri(_Multirate):
     def _rk_step(self, z, tau, k, n, timed) -> None:
         """One step of the inner explicit table through the engine's stage form: K = L Y + ρ
         stored, each update a combination of at most three arrays."""
-        g, H = self.model.g, self.split.H
         arrays = {"x": z, **self._rk}
         for c, arg, updates in self._form:
             rho = self._forcing((k + c) / n, timed)
-            Y = arrays[arg]
-            self.split.fast_update(Y, (self.K[0:2], ((-g, None), (1.0, rho[0:2]))), (self.K[2:3], ((-H, None), (1.0, rho[2:3]))))
+            self.split.fast(arrays[arg], self.K, rho)
             for out, terms in updates:
                 dst = arrays[out]
                 self._comb(dst, *((float(a) * tau, self.K) if src == "k" else (a, dst if src is None else arrays[src]) for a, src in terms))

@@ -83,7 +83,8 @@ def test_fast_evaluation_cost_in_launches_and_bytes():
     0.75x without ρ), with far less arithmetic than the flux-form tendency. A forward–backward substep
     (split_explicit's; each half of fbrk32's stages) needs the new wind before its
     divergence: 4 launches (element gradient, DSS-update of 2 rows, element divergence,
-    DSS-update of 1 row) moving 1.25x the RHS's bytes, the update of the state included."""
+    DSS-update of 1 row into the depth and the next substep's forward-weighted depth) moving
+    1.29x the RHS's bytes, the update of the state included."""
     sim, split, xp, F, fast, slow = parts("tc5_mountain")
     m = split.model
     fb = sim_of("tc5_mountain", ne=4, stepper="split_explicit").stepper
@@ -103,7 +104,7 @@ def test_fast_evaluation_cost_in_launches_and_bytes():
     print("\n" + "\n".join(f"{k}: {n} launches, {b:.3f} of the RHS's bytes {l}" for k, (n, b, l) in counts.items()))
     assert counts["rhs"][:2] == counts["slow"][:2] == (2, 1.0)
     assert counts["fast"][:2] == (2, pytest.approx(0.857, abs=0.01)) and counts["fast"][2][0] == "linear_element"
-    assert counts["forward-backward substep"][:2] == (4, pytest.approx(1.25, abs=0.01))
+    assert counts["forward-backward substep"][:2] == (4, pytest.approx(1.29, abs=0.01))
     assert not any(k.startswith("tendency") for name in ("fast", "forward-backward substep") for k in counts[name][2])
 
 
@@ -156,7 +157,7 @@ def test_slow_order(stepper, options, expected):
 
 
 @pytest.mark.parametrize("stepper, options, ns, order", [
-    ("split_explicit", {}, (12, 24, 48), 1),  # forward–backward: symplectic Euler, first order in τ
+    ("split_explicit", {"divergence_damping": 0.0}, (12, 24, 48), 1),  # forward–backward: symplectic Euler, first order in τ
     ("mri", {"inner": "fbrk32"}, (12, 24, 48), 2),
     ("mri", {"inner": "ssprk3"}, (12, 24, 48), 3),
     ("mri", {"inner": "rk4"}, (12, 24, 48), 4),
@@ -167,7 +168,9 @@ def test_many_substeps_converge_to_the_fast_part_solved_exactly(stepper, options
     method's order: log2 of successive differences within ±0.3 of it (measured 1.08, 2.00,
     3.00, 4.01), and the error against the converged RK4 run does not grow with n (for
     WS-RK3 the limit is RK3 with the gravity waves exact: 8.6e-4, 7.5e-4, 7.3e-4 for
-    12, 24, 48, against the unsplit RK3's time error of the same order)."""
+    12, 24, 48, against the unsplit RK3's time error of the same order). split_explicit
+    without its divergence damping, whose forward weighting adds an O(τ) term of its own
+    that is not yet asymptotic at these n (rate 0.78)."""
     runs = [final_depth(stepper, tuple(sorted({**options, "substeps": n}.items())), 1800.0) for n in ns]
     d = [np.abs(runs[i] - runs[i + 1]).max() / np.abs(runs[i + 1]).max() for i in range(2)]
     rate = math.log2(d[0] / d[1])
@@ -228,6 +231,7 @@ BAD = [
     ("split_explicit", "split_explicit.substeps=0", "split_explicit.substeps must be an integer >= 1 (got 0)"),
     ("split_explicit", "split_explicit.substeps=-3", "split_explicit.substeps must be an integer >= 1 (got -3)"),
     ("split_explicit", "split_explicit.substeps=2.5", "split_explicit.substeps must be int (got 2.5)"),
+    ("split_explicit", "split_explicit.divergence_damping=1", "split_explicit.divergence_damping must be in [0, 1) (got 1"),
     ("mri", "mri.substeps=0", "mri.substeps must be an integer >= 1 (got 0)"),
     ("mri", "mri.inner=euler", "mri.inner must be one of fbrk32, ssprk3, rk4 (got 'euler')"),
     ("mri", "mri.method=mis5", "mri.method must be one of mis2, mis3c, mis4a, mri_gark_erk33a (got 'mis5')"),

@@ -15,7 +15,7 @@ and one DSS of its three rows into the combination that uses it
 (``tally.Tally``), with far less arithmetic than the flux-form tendency. A
 forward–backward substep needs the new wind before its divergence: an element gradient
 and an element divergence, each DSS'd straight into its half of the update
-(``ShallowWater.gradient_update``, ``divergence_update``): 4 launches, 1.25× the RHS's
+(``ShallowWater.gradient_update``, ``divergence_update``): 4 launches, 1.29× the RHS's
 bytes with the update of the state. Mass: both parts' depth rows are DSS'd divergences, whose
 area integral is zero, so every stage keeps ∫h to round-off.
 
@@ -26,7 +26,9 @@ The steppers (both apply ∇⁴ once a step after it, as every stepper here):
   held fixed over forward–backward substeps of the fast part (Klemp, Skamarock & Dudhia
   2007, MWR 135, 2897, §2; MPAS-Atmosphere's ``atm_srk3``): n/3, n/2 and n substeps
   (rounded up; each stage's substep its span over its count), the wind first,
-  v ← v + τ(N_v − g G h), then the depth with the new wind, h ← h + τ(N_h − H D v).
+  v ← v + τ(N_v − g G h̃), then the depth with the new wind, h ← h + τ(N_h − H D v),
+  h̃ = h + β(h − h_old) forward-weighted as MPAS damps the divergence (β = 0.1: without
+  it TC2 rotated by π/4 at ne 4 blew up on day 88.6 of the stability suite's 100).
 * ``mri``: multirate infinitesimal methods from a table (``tables.MULTIRATE``, or the
   scene's ``[mri]``): the r-th of s inner solves starts from
   z(0) = x(n) + Σ_j α_rj (Y_{j+1} − x(n)) and integrates dz/dσ = L z + ρ_r(σ/T_r) over
@@ -190,14 +192,6 @@ class _Multirate(Stepper):
         for k in range(3, len(terms), 2):
             self._comb(out, (1.0, out), *terms[k : k + 2])
 
-    def _fb_substep(self, prev, out, tau, forcing) -> None:
-        """One forward–backward step of dz/dσ = L z + ρ from prev into out (may be prev):
-        v ← v + τ(ρ_v − g G h′), then h′ ← h′ + τ(ρ_h − H D v) with the new wind."""
-        g, H = self.model.g, self.split.H
-        self.split.fast_update(
-            prev, (out[0:2], ((1.0, prev[0:2]), (tau, forcing[0:2]), (-g * tau, None))), None)
-        self.split.fast_update(out, None, (out[2:3], ((1.0, prev[2:3]), (tau, forcing[2:3]), (-H * tau, None))))
-
     def advance(self, x):
         split = self.split
         if split.H == 0.0:
@@ -214,10 +208,13 @@ class SplitExplicitOptions:
     """Scene table ``[split_explicit]`` (see ``SplitExplicit``)."""
 
     substeps: int = 12
+    divergence_damping: float = 0.1
     mean_depth: float = 0.0
 
     def __post_init__(self):
         check_substeps(self.substeps)
+        if not 0 <= self.divergence_damping < 1:
+            raise ValueError(f"divergence_damping must be in [0, 1) (got {self.divergence_damping})")
         check_mean_depth(self.mean_depth)
 
 
@@ -229,10 +226,13 @@ class SplitExplicit(_Multirate):
 
     Options (scene table ``[split_explicit]``): ``substeps`` n, the fast substeps of the
     last stage (the stages take ⌈n/3⌉, ⌈n/2⌉, n; default 12: on TC5 ne8 over 6 days at
-    slow steps of 3.9, 4.7, 5.7, 6.6, 7.8 Δt_g the fewest stable were 4, 6, 6, 6, 8, substeps
-    of about 1 Δt_g; 12 keeps them at ≤ 0.65 Δt_g up to 8 Δt_g, and ran 12 days at 6.6 Δt_g;
-    raise it in proportion for longer slow steps), ``mean_depth`` H (m; 0: the area-mean
-    depth of the initial state, rounded to 6 digits). 3 slow evaluations a step
+    slow steps of 3.9, 4.7, 5.7, 6.6, 7.8 Δt_g the fewest stable of 3, 4, 6, 8, 12, 16, 24
+    were 4, 6, 6, 8, 8, substeps of 0.8–1 Δt_g; 12 keeps them at ≤ 0.65 Δt_g up to 8 Δt_g,
+    and ran 12 days at 7.1 Δt_g; raise it in proportion for longer slow steps), ``divergence_damping`` β (the
+    forward weighting of the depth in the substeps' pressure gradient, h̃ = h′ + β(h′ −
+    h′_old), which damps the fast divergent modes as divergence damping does: Klemp,
+    Skamarock & Ha 2018, MWR 146, 1911, §3; MPAS's smdiv = 0.1; default 0.1), ``mean_depth``
+    H (m; 0: the area-mean depth of the initial state, rounded to 6 digits). 3 slow evaluations a step
     (reported as RHS evaluations) and ⌈n/3⌉ + ⌈n/2⌉ + n fast ones. Slow order 2 (Wicker &
     Skamarock 2002: third order for linear problems). Raises ValueError without the
     continuity and pressure-gradient terms."""
@@ -240,8 +240,9 @@ class SplitExplicit(_Multirate):
     name = "split_explicit"
     Options = SplitExplicitOptions
     # the gravity waves in substeps of their own: the slow step is limited by advection. TC5 ne8,
-    # 12 days, 12 substeps: stable at |v|Δt/Δx = 0.54 (6.6 Δt_g), blew up on day 9.8 at 0.64 (7.8 Δt_g)
-    advective_courant_limit = 0.55
+    # 12 days, 12 substeps: stable at |v|Δt/Δx = 0.58 (7.1 Δt_g), blew up on day 7.8 at 0.78 (9.5 Δt_g;
+    # with 24 substeps too). Without divergence damping it blew up on day 9.8 at 0.64 (7.8 Δt_g).
+    advective_courant_limit = 0.6
     C = (Fraction(1, 3), Fraction(1, 2), Fraction(1))
 
     def __init__(self, model, dt, options=None):
@@ -249,6 +250,7 @@ class SplitExplicit(_Multirate):
         n = self.options.substeps
         self.n_fast = tuple(math.ceil(c * n) for c in self.C)
         self.xn, self.z, self.S = self._buffer(), self._buffer(), self._buffer()
+        self.w = self._buffer()  # row 2: the next substep's forward-weighted depth h̃
 
     @classmethod
     def label(cls, options: dict) -> str:
@@ -267,11 +269,23 @@ class SplitExplicit(_Multirate):
             out = x if i == len(self.C) - 1 else self.z
             tau = float(c) * self.dt / n
             prev = self.xn
-            for _ in range(n):
-                self._fb_substep(prev, out, tau, self.S)
+            for k in range(n):
+                self._fb_substep(prev, out, tau, self.S, damped=k > 0)
                 prev = out
             src = self.z
         return len(self.C)
+
+    def _fb_substep(self, prev, out, tau, forcing, damped=True) -> None:
+        """One forward–backward step of dz/dσ = L z + ρ (ρ = ``forcing``) from prev into out
+        (may be prev): v ← v + τ(ρ_v − g G h̃), then h′ ← h′ + τ(ρ_h − H D v) with the new
+        wind. h̃ = h′ + β(h′ − h′_old), h′_old the last substep's depth, is written by the
+        last substep's depth update as h′_old + (1 + β)τ(ρ_h − H D v) beside h′ (its DSS
+        serves both); ``damped`` False (a stage's first substep, which has no last one): h̃ = h′."""
+        g, H, w, beta = self.model.g, self.split.H, self.w, self.options.divergence_damping
+        self.model.gradient_update(w if damped and beta else prev, 2,
+                                   [(out[0:2], ((1.0, prev[0:2]), (tau, forcing[0:2]), (-g * tau, None)))])
+        weighted = [(w[2:3], ((1.0, prev[2:3]), ((1.0 + beta) * tau, forcing[2:3]), (-H * (1.0 + beta) * tau, None)))] if beta else []
+        self.model.divergence_update(out, [*weighted, (out[2:3], ((1.0, prev[2:3]), (tau, forcing[2:3]), (-H * tau, None)))])
 
 
 # -- multirate infinitesimal tables ----------------------------------------------------

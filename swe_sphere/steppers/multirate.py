@@ -76,6 +76,7 @@ def check_substeps(substeps) -> None:
 
 
 def check_mean_depth(mean_depth) -> None:
+    """ValueError 'mean_depth must be ...' unless ≥ 0 (0: the initial mean)."""
     if not mean_depth >= 0:
         raise ValueError(f"mean_depth must be >= 0 (got {mean_depth})")
 
@@ -93,8 +94,9 @@ class GravitySplit:
 
     States are (3, N) element-local with the depth as h′ = h − H (``to_perturbation``,
     ``from_perturbation``). ``slow(x, out)``: out = N(x) = F(u, v, h) − L x, the model's
-    RHS without its pressure gradient at h′ (one tendency pass and its DSS);
-    ``fast_update``: L x, DSS'd straight into combinations. ValueError for a model
+    RHS without its pressure gradient at h′ (one tendency pass and its DSS); ``fast(x,
+    out)``: out = L x (a forward–backward substep takes its halves apart, through
+    ``ShallowWater.gradient_update`` and ``divergence_update``). ValueError for a model
     without the continuity and pressure-gradient terms."""
 
     def __init__(self, model, mean_depth: float = 0.0):
@@ -132,17 +134,6 @@ class GravitySplit:
         """out (3, N) = N(x), x with the depth as h′ (its rows that no slow term writes stay zero)."""
         self.model.rhs(x, out, self.slow_terms)
 
-    def fast_update(self, x, wind, depth) -> None:
-        """L x DSS'd into ``wind`` = (out (2, N), terms) and then ``depth`` = (out (1, N),
-        terms): out = Σ a·src over terms, src None standing for −g G h′ (wind) and for
-        D v (depth: give it −H, or the multiple of H the combination takes); None
-        leaves that half out. The depth half reads x's wind after the wind half wrote it."""
-        m = self.model
-        if wind is not None:
-            m.gradient_update(x, 2, [wind])
-        if depth is not None:
-            m.divergence_update(x, [depth])
-
     def fast(self, x, out, forcing=None) -> None:
         """out (3, N) = L x = (−g G h′, −H D v) (+ forcing, a (3, N) array), both halves in
         one element pass and one DSS (``ShallowWater.linear_update``)."""
@@ -172,9 +163,6 @@ class _Multirate(Stepper):
 
     def graph_key(self):
         return None if self.split.H == 0.0 else super().graph_key()  # the first step reads the mean depth
-
-    def attrs(self):
-        return {"mean_depth": self.split.H}
 
     def _comb(self, out, *terms) -> None:
         """out = Σ c·x over one to three (c, x) terms, recorded once per arrays and coefficients."""
@@ -447,7 +435,7 @@ class Mri(_Multirate):
 
     def attrs(self):
         t = self.options.table()
-        return {**super().attrs(), "mri": t["name"], "mri_order": int(t["order"]), "mri_inner": self.options.inner}
+        return {"mri": t["name"], "mri_order": int(t["order"]), "mri_inner": self.options.inner}
 
     def fast_evaluations(self) -> int:
         """Fast evaluations (L z) a step."""
@@ -516,12 +504,12 @@ class Mri(_Multirate):
             prev = z if i == 0 else t
             ct = c * tau
             if last:  # h(n+1) into s, then h̃ = β h(n+1) + (1 − 2β) h⁽²⁾ + β h(n) into t, h(n+1) into z
-                self.split.fast_update(prev, None, (s[2:3], ((1.0, z[2:3]), (ct, rho[2:3]), (-H * ct, None))))
+                self.model.divergence_update(prev, [(s[2:3], ((1.0, z[2:3]), (ct, rho[2:3]), (-H * ct, None)))])
                 self._comb(t[2:3], (beta, s[2:3]), (1.0 - 2.0 * beta, t[2:3]), (beta, z[2:3]))
                 self._comb(z[2:3], (1.0, s[2:3]))
-                self.split.fast_update(t, (z[0:2], ((1.0, z[0:2]), (ct, rho[0:2]), (-g * ct, None))), None)
+                self.model.gradient_update(t, 2, [(z[0:2], ((1.0, z[0:2]), (ct, rho[0:2]), (-g * ct, None)))])
             else:  # h̃ = β h⁽ⁱ⁾ + (1 − β) h(n) into s, h⁽ⁱ⁾ into t
                 self.model.divergence_update(prev, [(s[2:3], ((1.0, z[2:3]), (beta * ct, rho[2:3]), (-H * beta * ct, None))),
                                                     (t[2:3], ((1.0, z[2:3]), (ct, rho[2:3]), (-H * ct, None)))])
-                self.split.fast_update(s, (t[0:2], ((1.0, z[0:2]), (ct, rho[0:2]), (-g * ct, None))), None)
+                self.model.gradient_update(s, 2, [(t[0:2], ((1.0, z[0:2]), (ct, rho[0:2]), (-g * ct, None)))])
             c_prev = c

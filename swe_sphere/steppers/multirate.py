@@ -285,7 +285,7 @@ class MriOptions:
     numbers or fractions as strings; alpha, gamma and beta1 may be left out: zero); ``inner``,
     ``substeps``, ``mean_depth``. Raises ValueError naming the option or entry (``parse_mri``)."""
 
-    method: str = "mis3c"
+    method: str = "mis4a"
     inner: str = "ssprk3"
     substeps: int = 8
     mean_depth: float = 0.0
@@ -388,7 +388,8 @@ class Mri(_Multirate):
     module docstring).
 
     Options (scene table ``[mri]``): ``method`` ("mis2", "mis3c", "mis4a",
-    "mri_gark_erk33a": ``tables.MULTIRATE``; default "mis3c") or a table of one's own
+    "mri_gark_erk33a": ``tables.MULTIRATE``; default "mis4a", third order, which ran TC6
+    ne8 28 days at |v|Δt/Δx = 1.54 (4.9 Δt_g) where MIS3C blew up at 0.93) or a table of one's own
     (``MriOptions``); ``inner`` ("fbrk32" | "ssprk3" | "rk4", the fast integrator;
     default "ssprk3"); ``substeps`` n (fast steps a slow step, ⌈d_r n⌉ a solve; default
     8: on TC5 ne8 over 6 days MIS3C with ssprk3 needed 3 at 3.9–5.7 Δt_g and 6 at 6.6 and
@@ -400,8 +401,9 @@ class Mri(_Multirate):
     name = "mri"
     Options = MriOptions
     # TC5 ne8, 12 days, 8 substeps: MIS3C and MIS4a stable at |v|Δt/Δx = 0.78 (9.5 Δt_g), blew up at
-    # 0.88; MIS2 with fbrk32 at 0.64, not 0.78. MRI-GARK-ERK33a blows up from 3.9 Δt_g (0.32) with
-    # any substeps (stable at 3 Δt_g): its limit is the coupling's, not advection's.
+    # 0.88; MIS2 with fbrk32 at 0.64, not 0.78 (TC6 ne8, 28 days: MIS4a stable at 1.54, MIS3C at
+    # 0.78, not 0.93). MRI-GARK-ERK33a blows up on TC5 from 3.9 Δt_g (0.32) with any substeps
+    # (stable at 3 Δt_g): its limit is the coupling's, not advection's.
     advective_courant_limit = 0.75
 
     def __init__(self, model, dt, options=None):

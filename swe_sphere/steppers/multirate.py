@@ -298,7 +298,7 @@ class MriOptions:
     beta1: tuple = ()
 
     def __post_init__(self):
-        for key in ("alpha", "beta", "gamma", "beta1"):  # read back from JSON (a restart file's scene): lists
+        for key in MRI_PARTS:  # read back from JSON (a restart file's scene): lists
             object.__setattr__(self, key, _frozen(getattr(self, key)))
         if self.method not in MULTIRATE:
             raise ValueError(f"method must be one of {', '.join(MULTIRATE)} (got {self.method!r})")

@@ -20,7 +20,7 @@ from .constants import EARTH
 from .graphs import GraphGuard
 from .grid import CubedSphere
 from .hypervis import Hyperviscosity
-from .kernels import blas, operators, tendencies
+from .kernels import blas, gravity_wave, operators, tendencies
 from .parallel import array_key, default_threads, record
 from .topology import Topology
 
@@ -319,23 +319,25 @@ class ShallowWater:
         return operators.row_vectors(a, self.grid.np)
 
     # -- DSS'd operators for the (semi-)implicit solvers --------------------
-    def _build_grad(self, x, row, out):
-        return [
-            self._launch_elements(operators.gradient_element(self.grid.np), [self.as_rows(x), row, self.as_rows(self.Dinv), self.dvv_rows, self.as_rows(self.vec_work)])
-            if self.per_element
-            else self._launch(operators.gradient_sphere, self.N, [x, row, self.Dinv, self.dvv, self.grid.np, self.vec_work]),
-            *self._dss(self.vec_work, 1, out),
-        ]
+    def _element_grad(self, x, row):
+        """The launch of the element-local ∇ x[row] into ``vec_work``."""
+        if self.per_element:
+            return self._launch_elements(operators.gradient_element(self.grid.np), [self.as_rows(x), row, self.as_rows(self.Dinv), self.dvv_rows, self.as_rows(self.vec_work)])
+        return self._launch(operators.gradient_sphere, self.N, [x, row, self.Dinv, self.dvv, self.grid.np, self.vec_work])
 
-    def _build_div(self, x, out):
-        return [
-            self._launch_elements(
+    def _element_div(self, x):
+        """The launch of the element-local ∇·v of x's rows 0, 1 into ``scalar``."""
+        if self.per_element:
+            return self._launch_elements(
                 operators.divergence_element(self.grid.np), [*map(self.as_rows, (x, self.Dinv, self.metdet)), self.dvv_rows, self.as_rows(self.scalar_flat)]
             )
-            if self.per_element
-            else self._launch(operators.divergence_sphere, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.scalar_flat]),
-            *self._dss(self.scalar, 1, out),
-        ]
+        return self._launch(operators.divergence_sphere, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.scalar_flat])
+
+    def _build_grad(self, x, row, out):
+        return [self._element_grad(x, row), *self._dss(self.vec_work, 1, out)]
+
+    def _build_div(self, x, out):
+        return [self._element_div(x), *self._dss(self.scalar, 1, out)]
 
     def gradient(self, x: wp.array2d, row: int, out: wp.array2d) -> None:
         """out (2, N) = G f = DSS(∇ x[row]) (units of x per m)."""
@@ -344,6 +346,43 @@ class ShallowWater:
     def divergence(self, x: wp.array2d, out: wp.array2d) -> None:
         """out (1, N) = D v = DSS(∇·v) of the wind in rows 0, 1 of x (s⁻¹ × units)."""
         self._replay(("div", array_key(x), array_key(out)), (x, out), lambda: self._build_div(x, out))
+
+    def gradient_update(self, x: wp.array2d, row: int, updates) -> None:
+        """G x[row] = DSS(∇ x[row]) as ``gradient`` computes it, not stored but written,
+        as its DSS makes it, into one or two (out, terms) combinations of (2, N) arrays
+        (row views such as ``z[0:2]``): out = Σ a·src over terms (a, src), src None
+        standing for G x[row] (``Topology.dss_update``: one to three terms, at most two
+        arrays). Outputs may alias x and the terms. Recorded once per arrays and coefficients."""
+        key = ("grad_update", array_key(x), row, tuple((array_key(out), tuple((a, None if src is None else array_key(src)) for a, src in t)) for out, t in updates))
+        arrays = (x, *(a for out, t in updates for a in (out, *(src for _, src in t if src is not None))))
+        self._replay(key, arrays, lambda: [self._element_grad(x, row), *self.topology.dss_update(self.vec_work, updates)])
+
+    def divergence_update(self, x: wp.array2d, updates) -> None:
+        """D v = DSS(∇·v) of x's rows 0, 1 as ``divergence`` computes it, written into
+        one or two (out, terms) combinations of (1, N) arrays as ``gradient_update``'s."""
+        key = ("div_update", array_key(x), tuple((array_key(out), tuple((a, None if src is None else array_key(src)) for a, src in t)) for out, t in updates))
+        arrays = (x, *(a for out, t in updates for a in (out, *(src for _, src in t if src is not None))))
+        self._replay(key, arrays, lambda: [self._element_div(x), *self.topology.dss_update(self.scalar, updates)])
+
+    def linear_update(self, x: wp.array2d, H: float, updates) -> None:
+        """L x = (−g G h, −H D v), the linear gravity-wave operator about the depth H (m) of
+        x = (u, v, h) (``helmholtz.GravityWave``'s), in one element pass
+        (``kernels.gravity_wave.linear``) and one DSS of its three rows, not stored but
+        written into one or two (out, terms) combinations of (3, N) arrays as
+        ``gradient_update``'s (src None standing for L x). Recorded once per arrays, H and
+        coefficients."""
+        key = ("linear_update", array_key(x), H, tuple((array_key(out), tuple((a, None if src is None else array_key(src)) for a, src in t)) for out, t in updates))
+        arrays = (x, *(a for out, t in updates for a in (out, *(src for _, src in t if src is not None))))
+
+        def build():
+            if self.per_element:
+                element = self._launch_elements(gravity_wave.linear_element(self.grid.np), [
+                    *map(self.as_rows, (x, self.Dinv, self.metdet)), self.g, f64(H), self.dvv_rows, self.as_rows(self.tend)])
+            else:
+                element = self._launch(gravity_wave.linear, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.g, f64(H), self.tend])
+            return [element, *self.topology.dss_update(self.tend, updates)]
+
+        self._replay(key, arrays, build)
 
     def assemble(self, x: wp.array2d, row: int, out: wp.array) -> None:
         """Unique-node out (nunique,) = M x[row]: assembled mass times a continuous field."""

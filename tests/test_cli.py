@@ -31,7 +31,7 @@ from swe_sphere.output import RunWriter
 REPO = Path(__file__).resolve().parents[1]
 TESTCASES = REPO / "testcases"
 EARTH_RADIUS = 6.37122e6
-STEPPER_NAMES = ("leapfrog", "leapfrog_trapezoidal", "ssprk3", "rk4", "kgu35", "fbrk32")
+STEPPER_NAMES = ("leapfrog", "leapfrog_trapezoidal", "ssprk3", "rk4", "kgu35", "fbrk32", "split_explicit", "mri")
 TERM_NAMES = ("continuity", "momentum_advection", "coriolis", "pressure_gradient", "topography", "hyperviscosity")
 # tc2_steady at ne=2 with dt = 2 h (gravity-wave Courant number ~1.25) goes
 # negative in depth after ~1.4 days: well after the first daily output.

@@ -121,6 +121,8 @@ def test_each_output_time_gathers_a_state_once(tmp_path, monkeypatch):
         ("tc2_steady", ["--stepper", "kgu35", "--days", "0.25"]),
         ("tc5_mountain", ["--stepper", "fbrk32", "--days", "0.1"]),  # the continuity and momentum halves, topography
         ("tc5_mountain", ["--stepper", "leapfrog_trapezoidal", "--days", "0.1"]),  # with hyperviscosity and topography
+        ("tc5_mountain", ["--stepper", "split_explicit", "--days", "0.1"]),  # the fast/slow split, its mean depth
+        ("tc5_mountain", ["--stepper", "mri", "-s", "mri.method=mri_gark_erk33a", "--days", "0.1"]),  # L z in one pass, ρ linear in time
         ("tc4_forced_low", ["--days", "0.25"]),  # ssprk3 with the time-dependent forcing
         ("tc5_mountain", ["--stepper", "rk4", "--dt", "3600", "--days", "1", "-s", "case.initialization=dfi",
                           "-s", "dfi.cutoff_hours=6", "-s", "dfi.span_hours=12"]),  # a digital-filter start; T213 errors at day 1

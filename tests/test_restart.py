@@ -36,7 +36,7 @@ from swe_sphere.topology import Topology
 # and the float32 Helmholtz solves
 VARIANTS = [(name, {}) for name in STEPPERS] + [("implicit", {"method": "bdf2"}), ("tableau", load_scene("ark324l2sa").stepper_options)] + [
     (name, {"precision": "mixed"}) for name in ("semi_implicit", "imex", "implicit")
-]
+] + [("mri", {"method": "mri_gark_erk33a", "inner": "fbrk32"}), ("mri", {"method": "mis4a", "inner": "rk4"})]
 IDS = [n + "".join(f"-{v}" for v in o.values() if not isinstance(v, list)) for n, o in VARIANTS]
 DT = 1800.0
 

@@ -9,6 +9,9 @@ explicit ``leapfrog``, ``leapfrog_trapezoidal``, ``fbrk32`` (``explicit``);
 (JFNK θ-method / BDF2). ``imex``, ``semi_implicit`` and ``implicit`` share the
 linear gravity-wave operator ``helmholtz.GravityWave``.
 Exponential: ``epi2``, ``epi3`` (φ-functions of the Jacobian by KIOPS).
+Multirate (``multirate``: the gravity waves in explicit substeps of their own, no
+global solve): ``split_explicit`` (Wicker–Skamarock RK3, forward–backward
+substeps), ``mri`` (MIS and MRI-GARK tables).
 """
 
 from __future__ import annotations
@@ -18,11 +21,12 @@ from .base import StepFailure, Stepper, StepStats, option_types
 from .exponential import Epi2, Epi3
 from .explicit import FBRK32, Leapfrog, LeapfrogTrapezoidal
 from .implicit import Implicit
+from .multirate import Mri, SplitExplicit
 from .runge_kutta import Imex, Tableau, explicit_steppers
 from .semi_implicit import SemiImplicit
 
 STEPPERS: dict[str, type[Stepper]] = {
-    cls.name: cls for cls in (Leapfrog, LeapfrogTrapezoidal, *explicit_steppers(), FBRK32, SemiImplicit, Implicit, Imex, Tableau, Epi2, Epi3)
+    cls.name: cls for cls in (Leapfrog, LeapfrogTrapezoidal, *explicit_steppers(), FBRK32, SplitExplicit, Mri, SemiImplicit, Implicit, Imex, Tableau, Epi2, Epi3)
 }
 
 

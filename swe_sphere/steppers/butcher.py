@@ -41,9 +41,9 @@ PARTS = ("A", "b", "c", "A_E", "b_E", "A_I", "b_I")
 
 
 
-def _frozen(value):
+def frozen_table(value):
     """A TOML array (lists, or tuples) as nested tuples."""
-    return tuple(_frozen(v) for v in value) if isinstance(value, (list, tuple)) else value
+    return tuple(frozen_table(v) for v in value) if isinstance(value, (list, tuple)) else value
 
 
 @dataclass(frozen=True)
@@ -74,7 +74,7 @@ class TableauOptions:
 
     def __post_init__(self):
         for key in PARTS:  # a table read back from JSON (a restart file's scene) holds lists
-            object.__setattr__(self, key, _frozen(getattr(self, key)))
+            object.__setattr__(self, key, frozen_table(getattr(self, key)))
         if not self.name and not self.order and not any(getattr(self, key) for key in PARTS):
             for key, value in EXPLICIT["rk4"].items():  # the default: the classical RK4 table
                 object.__setattr__(self, key, value)
@@ -109,7 +109,9 @@ def _text(q: Fraction) -> str:
     return str(q) if q.denominator <= 10**4 else f"{float(q):.10g}"
 
 
-def _entry(value, where: str) -> Fraction:
+def table_entry(value, where: str) -> Fraction:
+    """A table entry (a finite number, or a fraction as a string: "1/6") as a Fraction;
+    ValueError naming ``where`` otherwise."""
     if isinstance(value, (int, float)) and not isinstance(value, bool):
         if math.isfinite(value):
             return Fraction(value)
@@ -127,7 +129,7 @@ def _vector(o, key: str, s: int | None) -> tuple:
         raise ValueError(f"{key} must be a non-empty array of numbers (got {value!r})")
     if s is not None and len(value) != s:
         raise ValueError(f"{key} has {len(value)} entries, not {s} (one per stage)")
-    return tuple(_entry(v, f"{key} entry {i + 1}") for i, v in enumerate(value))
+    return tuple(table_entry(v, f"{key} entry {i + 1}") for i, v in enumerate(value))
 
 
 def _matrix(o, key: str) -> tuple:
@@ -140,7 +142,7 @@ def _matrix(o, key: str) -> tuple:
             raise ValueError(f"{key} row {i + 1} must be an array of numbers (got {row!r})")
         if len(row) != s:
             raise ValueError(f"{key} row {i + 1} has {len(row)} entries, not {s}: {key} must be square (s x s, {s} rows)")
-    return tuple(tuple(_entry(v, f"{key} entry ({i + 1},{j + 1})") for j, v in enumerate(row)) for i, row in enumerate(rows))
+    return tuple(tuple(table_entry(v, f"{key} entry ({i + 1},{j + 1})") for j, v in enumerate(row)) for i, row in enumerate(rows))
 
 
 def parse(o) -> Table:

@@ -68,3 +68,43 @@ IMEX = {
         b_E=(0, _B1, _B2, _G3), b_I=(0, _B1, _B2, _G3), c=(0, _G3, 0.7179332607542293, 1.0),
     ),
 }
+
+# Multirate tables (``multirate.Mri``), as a scene's ``[mri]`` table: s inner solves, the r-th
+# (0-based) producing stage Y_{r+2} from Y_1 = x(n) … Y_{r+1}; alpha, beta, gamma (and beta1)
+# s × s, lower triangular with the diagonal, column j standing for Y_{j+1}. MIS (Wensch, Knoth
+# & Galant 2009, BIT 49, 449, eq. 2.3; Knoth & Wensch 2014, Comput. Math. Appl. 67, 1124):
+# their α_ij, γ_ij (i = 2..s+1, j = 2..i−1) and β_ij (j = 1..i−1), the rows of their Y_1 dropped,
+# α and γ's first column (Y_1 − x(n) = 0) zero. MIS2 and MIS3C as printed (12 digits); MIS4a
+# with the authors' corrected β₅₁ (as ClimaTimeSteppers.jl). MRI-GARK (Sandu 2019, SIAM J.
+# Numer. Anal. 57, 2300, Definition 2.2 and §8.1.1, "MRI-GARK-ERK33a", δ = −1/2): beta = Γ⁰,
+# beta1 = Γ¹, each solve starting from the last stage (alpha the identity), gamma zero.
+MULTIRATE = {
+    "mis2": dict(
+        name="MIS2", order=2, description="Wensch, Knoth & Galant 2009: 3 slow stages, second order",
+        alpha=((0, 0, 0), (0, 0.536946566710, 0), (0, 0.480892968551, 0.500561163566)),
+        beta=((0.126848494553, 0, 0), (-0.784838278826, 1.37442675268, 0), (-0.0456727081749, -0.00875082271190, 0.524775788629)),
+        gamma=((0, 0, 0), (0, 0.652465126004, 0), (0, -0.0732769849457, 0.144902430420)),
+    ),
+    "mis3c": dict(
+        name="MIS3C", order=2, description="Knoth & Wensch 2014: 3 slow stages, second order (its slow table third)",
+        alpha=((0, 0, 0), (0, 0.589557277145, 0), (0, 0.544036601551, 0.565511042564)),
+        beta=((0.397525189225, 0, 0), (-0.227036463644, 0.624528794618, 0), (-0.00295238076840, -0.270971764284, 0.671323159437)),
+        gamma=((0, 0, 0), (0, 0.142798786398, 0), (0, -0.0428918957402, 0.0202720980282)),
+    ),
+    "mis4a": dict(
+        name="MIS4a", order=3, description="Knoth & Wensch 2014: 4 slow stages, third order, a larger stability region",
+        alpha=((0, 0, 0, 0), (0, 0.52349249922385610, 0, 0), (0, 1.1683374366893629, -0.75762080241712637, 0),
+               (0, -0.036477233846797109, 0.56936148730740477, 0.47746263002599681)),
+        beta=((0.38758444641450318, 0, 0, 0), (-0.025318448354142823, 0.38668943087310403, 0, 0),
+              (0.20899983523553325, -0.45856648476371231, 0.43423187573425748, 0),
+              (-0.10048822195663100, -0.46186171956333327, 0.83045062122462809, 0.27014914900250392)),
+        gamma=((0, 0, 0, 0), (0, 0.13145089796226542, 0, 0), (0, -0.36855857648747881, 0.33159232636600550, 0),
+               (0, -0.065767130537473045, 0.040591093109036858, 0.064902111640806712)),
+    ),
+    "mri_gark_erk33a": dict(
+        name="MRI-GARK-ERK33a", order=3, description="Sandu 2019: 3 slow stages, third order, coupling linear in time",
+        alpha=((1, 0, 0), (0, 1, 0), (0, 0, 1)),
+        beta=(("1/3", 0, 0), ("-1/3", "2/3", 0), (0, "-2/3", 1)),
+        beta1=((0, 0, 0), (0, 0, 0), ("1/2", 0, "-1/2")),
+    ),
+}

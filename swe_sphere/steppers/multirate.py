@@ -1,0 +1,517 @@
+"""Gravity waves on their own clock: the fast/slow split of the RHS and the steppers
+that take many cheap fast substeps a slow step without a global solve.
+
+The split (``GravitySplit``). About a reference depth H, the fast part is the linear
+gravity-wave operator of ``helmholtz.GravityWave``, L x = (−g G h, −H D v) (G = DSS∘grad,
+D = DSS∘div); the slow part N = F − L is the rest: −(ζ + f) k×v − ∇(½|v|²), the
+mountain's −g∇hs, −∇·(h′v) with h′ = h − H, and the forcing. The steppers carry the
+depth as h′ through a step (h − H is exact for H/2 ≤ h ≤ 2H, Sterbenz), so N is the
+model's own RHS without its pressure-gradient term evaluated at (u, v, h′): one
+tendency pass and one DSS, compiled for those terms (``ShallowWater.rhs`` with
+``terms``), not F − L by two evaluations. A fast evaluation L z + ρ is one element pass
+of the gradient of h′ and the divergence of v (``kernels.gravity_wave.linear_element``)
+and one DSS of its three rows into the combination that uses it
+(``ShallowWater.linear_update``): 2 launches moving 0.86× the bytes of the RHS's 2
+(``tally.Tally``), with far less arithmetic than the flux-form tendency. A
+forward–backward substep needs the new wind before its divergence: an element gradient
+and an element divergence, each DSS'd straight into its half of the update
+(``ShallowWater.gradient_update``, ``divergence_update``): 4 launches, 1.29× the RHS's
+bytes with the update of the state. Mass: both parts' depth rows are DSS'd divergences, whose
+area integral is zero, so every stage keeps ∫h to round-off.
+
+The steppers (both apply ∇⁴ once a step after it, as every stepper here):
+
+* ``split_explicit``: Wicker & Skamarock (2002, MWR 130, 2088) RK3 for the slow part,
+  the stages of Δt/3, Δt/2, Δt each from x(n) with the slow tendency of the last stage
+  held fixed over forward–backward substeps of the fast part (Klemp, Skamarock & Dudhia
+  2007, MWR 135, 2897, §2; MPAS-Atmosphere's ``atm_srk3``): n/3, n/2 and n substeps
+  (rounded up; each stage's substep its span over its count), the wind first,
+  v ← v + τ(N_v − g G h̃), then the depth with the new wind, h ← h + τ(N_h − H D v),
+  h̃ = h + β(h − h_old) forward-weighted as MPAS damps the divergence (β = 0.1: without
+  it TC2 rotated by π/4 at ne 4 blew up on day 88.6 of the stability suite's 100).
+* ``mri``: multirate infinitesimal methods from a table (``tables.MULTIRATE``, or the
+  scene's ``[mri]``): the r-th of s inner solves starts from
+  z(0) = x(n) + Σ_j α_rj (Y_{j+1} − x(n)) and integrates dz/dσ = L z + ρ_r(σ/T_r) over
+  σ ∈ [0, T_r], T_r = d_r Δt, d_r = Σ_j β_rj, with the slow forcing
+  ρ_r(θ) = (1/d_r) Σ_j ((β_rj + θ β¹_rj) N(Y_{j+1}) + γ_rj (Y_{j+1} − x(n))/Δt),
+  giving Y_{r+2}; x(n+1) = Y_{s+1}. With α, β, γ the MIS coefficients (Wensch, Knoth &
+  Galant 2009, eq. 2.3; Knoth & Wensch 2014) this is MIS; with α = I, γ = 0,
+  β = Γ⁰, β¹ = Γ¹ it is explicit MRI-GARK (Sandu 2019, Definition 2.2, σ there
+  scaled by Δc_r). The inner ODE is integrated by ``inner`` with ``substeps`` fast steps a
+  slow step (each solve ⌈d_r n⌉ of them): ``fbrk32`` (the forward–backward FB-RK(3,2) of
+  ``explicit.FBRK32`` on the fast system), or ``ssprk3``/``rk4``, the engine's own tables
+  stepped through its ``butcher.stage_form``.
+
+Without a fast part (L = 0) a multirate table is an explicit Runge–Kutta table of the
+slow part (``parse_mri``: Y_{r+2} − x(n) = Σ_j (α + γ)_rj (Y_{j+1} − x(n)) + Δt Σ_j
+(β + β¹/2)_rj N(Y_{j+1})), checked against the order the table claims by ``butcher.parse``,
+the one engine's order conditions (necessary, not sufficient: the coupling has conditions
+of its own, which the built-in tables meet at their stated orders; measured in
+tests/test_multirate.py).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from fractions import Fraction
+
+import numpy as np
+import warp as wp
+
+from .base import Stepper, StepStats
+from .butcher import TableauOptions, frozen_table, parse, stage_form, table_entry
+from .tables import EXPLICIT, MULTIRATE
+
+f64 = wp.float64
+
+INNER = ("fbrk32", "ssprk3", "rk4")
+FBRK32_STAGES = ((1 / 3, 0.531), (0.5, 0.531), (1.0, 0.313))  # c, β of ``explicit.FBRK32``
+
+
+def check_substeps(substeps) -> None:
+    """ValueError 'substeps must be ...' unless an integer ≥ 1."""
+    if isinstance(substeps, bool) or not isinstance(substeps, int) or substeps < 1:
+        raise ValueError(f"substeps must be an integer >= 1 (got {substeps!r})")
+
+
+def check_mean_depth(mean_depth) -> None:
+    """ValueError 'mean_depth must be ...' unless ≥ 0 (0: the initial mean)."""
+    if not mean_depth >= 0:
+        raise ValueError(f"mean_depth must be >= 0 (got {mean_depth})")
+
+
+def reference_depth(mean: float) -> float:
+    """H from the area-mean depth, rounded to 6 significant digits: any depth near the mean
+    serves the split, and a rounded one is the same on any number of ranks (whose sums
+    of the mean differ in their last bits)."""
+    return float(f"{mean:.6g}")
+
+
+class GravitySplit:
+    """The fast/slow split of the model's RHS about a reference depth H (m; 0: the
+    rounded area-mean depth of the first state given to ``set_depth``).
+
+    States are (3, N) element-local with the depth as h′ = h − H (``to_perturbation``,
+    ``from_perturbation``). ``slow(x, out)``: out = N(x) = F(u, v, h) − L x, the model's
+    RHS without its pressure gradient at h′ (one tendency pass and its DSS); ``fast(x,
+    out)``: out = L x (a forward–backward substep takes its halves apart, through
+    ``ShallowWater.gradient_update`` and ``divergence_update``). ValueError for a model
+    without the continuity and pressure-gradient terms."""
+
+    def __init__(self, model, mean_depth: float = 0.0):
+        for term in ("continuity", "pressure_gradient"):
+            if term not in model.terms:
+                raise ValueError(f"the fast/slow split needs the {term} term")
+        self.model, self.H = model, float(mean_depth)
+        self.slow_terms = tuple(t for t in model.terms if t not in ("pressure_gradient", "hyperviscosity"))
+        self.depth = wp.zeros((1, model.N), dtype=f64, device=model.device)  # H at every node
+        self._shifts: dict[tuple, tuple] = {}
+        if self.H:
+            self.depth.fill_(self.H)
+
+    def set_depth(self, x) -> None:
+        """Fix H from x (a state with the full depth) unless given or fixed before."""
+        if self.H == 0.0:
+            self.H = reference_depth(self.model.topology.mean(x.numpy()[2]))
+        self.depth.fill_(self.H)
+
+    def to_perturbation(self, x) -> None:
+        """h ← h − H in place."""
+        self._shift(x, -1.0)
+
+    def from_perturbation(self, x) -> None:
+        """h ← h′ + H in place."""
+        self._shift(x, 1.0)
+
+    def _shift(self, x, sign) -> None:
+        key = (x.ptr, sign)
+        if key not in self._shifts:  # recorded once per state array (the view held with it)
+            self._shifts[key] = (self.model.lincomb(x[2:3], ((1.0, x[2:3]), (sign, self.depth))), x)
+        self._shifts[key][0].launch()
+
+    def slow(self, x, out) -> None:
+        """out (3, N) = N(x), x with the depth as h′ (its rows that no slow term writes stay zero)."""
+        self.model.rhs(x, out, self.slow_terms)
+
+    def fast(self, x, out, forcing=None) -> None:
+        """out (3, N) = L x = (−g G h′, −H D v) (+ forcing, a (3, N) array), both halves in
+        one element pass and one DSS (``ShallowWater.linear_update``)."""
+        terms = ((1.0, None),) if forcing is None else ((1.0, None), (1.0, forcing))
+        self.model.linear_update(x, self.H, [(out, terms)])
+
+
+class _Multirate(Stepper):
+    """What both steppers share: the split, H in ``state()``, the step in h′, cached combinations."""
+
+    capturable = True
+    removed_options: dict = {}
+
+    def __init__(self, model, dt, options=None):
+        super().__init__(model, dt, options)
+        self.split = GravitySplit(model, self.options.mean_depth)
+        self._combs: dict[tuple, object] = {}
+
+    def state(self):
+        return {**super().state(), "mean_depth": self.split.H}
+
+    def restore(self, state):
+        super().restore(state)
+        self.split.H = float(self._entry(state, "mean_depth"))
+        if self.split.H:
+            self.split.depth.fill_(self.split.H)
+
+    def graph_key(self):
+        return None if self.split.H == 0.0 else super().graph_key()  # the first step reads the mean depth
+
+    def _comb(self, out, *terms) -> None:
+        """out = Σ c·x over one to three (c, x) terms, recorded once per arrays and coefficients."""
+        key = (out.ptr, out.shape, tuple((c, x.ptr, x.shape) for c, x in terms))
+        launch = self._combs.get(key)
+        if launch is None:
+            launch = self._combs[key] = (self.model.lincomb(out, terms), out, terms)  # holds the views
+        launch[0].launch()
+
+    def _combine(self, out, terms) -> None:
+        """out = Σ c·x over the nonzero (c, x) of ``terms`` (at least one; none of them out):
+        three in the first pass, two more in each next."""
+        terms = [(c, x) for c, x in terms if c != 0.0]
+        self._comb(out, *terms[:3])
+        for k in range(3, len(terms), 2):
+            self._comb(out, (1.0, out), *terms[k : k + 2])
+
+    def advance(self, x):
+        split = self.split
+        if split.H == 0.0:
+            split.set_depth(x)
+        split.to_perturbation(x)
+        evals = self._advance(x)
+        split.from_perturbation(x)
+        self.model.hyperviscosity(x, self.dt)
+        return StepStats(evals)
+
+
+@dataclass(frozen=True)
+class SplitExplicitOptions:
+    """Scene table ``[split_explicit]`` (see ``SplitExplicit``)."""
+
+    substeps: int = 12
+    divergence_damping: float = 0.1
+    mean_depth: float = 0.0
+
+    def __post_init__(self):
+        check_substeps(self.substeps)
+        if not 0 <= self.divergence_damping < 1:
+            raise ValueError(f"divergence_damping must be in [0, 1) (got {self.divergence_damping})")
+        check_mean_depth(self.mean_depth)
+
+
+class SplitExplicit(_Multirate):
+    """Split-explicit Wicker–Skamarock RK3: the gravity waves in forward–backward substeps (MPAS).
+
+    3 slow evaluations a step, each stage's substeps from x(n) with the last stage's slow
+    tendency held fixed (the module docstring).
+
+    Options (scene table ``[split_explicit]``): ``substeps`` n, the fast substeps of the
+    last stage (the stages take ⌈n/3⌉, ⌈n/2⌉, n; default 12: on TC5 ne8 over 6 days at
+    slow steps of 3.9, 4.7, 5.7, 6.6, 7.8 Δt_g the fewest stable of 3, 4, 6, 8, 12, 16, 24
+    were 4, 6, 6, 8, 8, substeps of 0.8–1 Δt_g; 12 keeps them at ≤ 0.65 Δt_g up to 8 Δt_g,
+    and ran 12 days at 7.1 Δt_g; raise it in proportion for longer slow steps), ``divergence_damping`` β (the
+    forward weighting of the depth in the substeps' pressure gradient, h̃ = h′ + β(h′ −
+    h′_old), which damps the fast divergent modes as divergence damping does: Klemp,
+    Skamarock & Ha 2018, MWR 146, 1911, §3; MPAS's smdiv = 0.1; default 0.1), ``mean_depth``
+    H (m; 0: the area-mean depth of the initial state, rounded to 6 digits). 3 slow evaluations a step
+    (reported as RHS evaluations) and ⌈n/3⌉ + ⌈n/2⌉ + n fast ones. Slow order 2 (Wicker &
+    Skamarock 2002: third order for linear problems). Raises ValueError without the
+    continuity and pressure-gradient terms."""
+
+    name = "split_explicit"
+    Options = SplitExplicitOptions
+    # the gravity waves in substeps of their own: the slow step is limited by advection. TC5 ne8,
+    # 12 days, 12 substeps: stable at |v|Δt/Δx = 0.58 (7.1 Δt_g), blew up on day 7.8 at 0.78 (9.5 Δt_g;
+    # with 24 substeps too). Without divergence damping it blew up on day 9.8 at 0.64 (7.8 Δt_g).
+    advective_courant_limit = 0.6
+    C = (Fraction(1, 3), Fraction(1, 2), Fraction(1))
+
+    def __init__(self, model, dt, options=None):
+        super().__init__(model, dt, options)
+        n = self.options.substeps
+        self.n_fast = tuple(math.ceil(c * n) for c in self.C)
+        self.xn, self.z, self.S = self._buffer(), self._buffer(), self._buffer()
+        self.w = self._buffer()  # row 2: the next substep's forward-weighted depth h̃
+
+    @classmethod
+    def label(cls, options: dict) -> str:
+        return f"{cls.name} n={cls.make_options(**options).substeps}"
+
+    def fast_evaluations(self) -> int:
+        """Fast evaluations (L z) a step."""
+        return sum(self.n_fast)
+
+    def _advance(self, x):
+        wp.copy(self.xn, x)
+        src = self.xn
+        for i, (c, n) in enumerate(zip(self.C, self.n_fast)):
+            self._at(float(self.C[i - 1]) if i else 0.0)
+            self.split.slow(src, self.S)
+            out = x if i == len(self.C) - 1 else self.z
+            tau = float(c) * self.dt / n
+            prev = self.xn
+            for k in range(n):
+                self._fb_substep(prev, out, tau, self.S, damped=k > 0)
+                prev = out
+            src = self.z
+        return len(self.C)
+
+    def _fb_substep(self, prev, out, tau, forcing, damped=True) -> None:
+        """One forward–backward step of dz/dσ = L z + ρ (ρ = ``forcing``) from prev into out
+        (may be prev): v ← v + τ(ρ_v − g G h̃), then h′ ← h′ + τ(ρ_h − H D v) with the new
+        wind. h̃ = h′ + β(h′ − h′_old), h′_old the last substep's depth, is written by the
+        last substep's depth update as h′_old + (1 + β)τ(ρ_h − H D v) beside h′ (its DSS
+        serves both); ``damped`` False (a stage's first substep, which has no last one): h̃ = h′."""
+        g, H, w, beta = self.model.g, self.split.H, self.w, self.options.divergence_damping
+        self.model.gradient_update(w if damped and beta else prev, 2,
+                                   [(out[0:2], ((1.0, prev[0:2]), (tau, forcing[0:2]), (-g * tau, None)))])
+        weighted = [(w[2:3], ((1.0, prev[2:3]), ((1.0 + beta) * tau, forcing[2:3]), (-H * (1.0 + beta) * tau, None)))] if beta else []
+        self.model.divergence_update(out, [*weighted, (out[2:3], ((1.0, prev[2:3]), (tau, forcing[2:3]), (-H * tau, None)))])
+
+
+# -- multirate infinitesimal tables ----------------------------------------------------
+@dataclass(frozen=True)
+class MriOptions:
+    """Scene table ``[mri]`` (see ``Mri``): ``method`` (a built-in table of
+    ``tables.MULTIRATE``), or a table of one's own: ``name``, ``description``, the
+    ``order`` it claims, ``alpha``, ``beta``, ``gamma`` and ``beta1`` (s × s, entries
+    numbers or fractions as strings; alpha, gamma and beta1 may be left out: zero); ``inner``,
+    ``substeps``, ``mean_depth``. Raises ValueError naming the option or entry (``parse_mri``)."""
+
+    method: str = "mis4a"
+    inner: str = "ssprk3"
+    substeps: int = 8
+    mean_depth: float = 0.0
+    name: str = ""
+    description: str = ""
+    order: int = 0
+    alpha: tuple = ()
+    beta: tuple = ()
+    gamma: tuple = ()
+    beta1: tuple = ()
+
+    def __post_init__(self):
+        for key in MRI_PARTS:  # read back from JSON (a restart file's scene): lists
+            object.__setattr__(self, key, frozen_table(getattr(self, key)))
+        if self.method not in MULTIRATE:
+            raise ValueError(f"method must be one of {', '.join(MULTIRATE)} (got {self.method!r})")
+        if self.inner not in INNER:
+            raise ValueError(f"inner must be one of {', '.join(INNER)} (got {self.inner!r})")
+        check_substeps(self.substeps)
+        check_mean_depth(self.mean_depth)
+        parse_mri(self)
+
+    def table(self) -> dict:
+        """The table's entries: the scene's own if it gives one, else ``method``'s."""
+        own = {key: getattr(self, key) for key in MRI_PARTS if getattr(self, key)}
+        if not own and not self.name and not self.order:
+            return dict(MULTIRATE[self.method])
+        return {"name": self.name, "description": self.description, "order": self.order, **own}
+
+
+MRI_PARTS = ("alpha", "beta", "gamma", "beta1")
+
+
+@dataclass(frozen=True)
+class MriTable:
+    """A checked multirate table: alpha, beta, gamma, beta1 (s × s float arrays), d (s,)
+    the solves' spans in Δt, c (s,) the stages' times in Δt (those of the slow table),
+    and the slow part's Butcher table (``TableauOptions``)."""
+
+    alpha: np.ndarray
+    beta: np.ndarray
+    gamma: np.ndarray
+    beta1: np.ndarray
+    d: np.ndarray
+    c: tuple
+    slow: TableauOptions
+
+
+def _square(t: dict, key: str, s: int | None) -> list:
+    rows = frozen_table(t.get(key, ()))
+    if s is not None and not rows:  # alpha, gamma, beta1 left out: zero
+        return [[Fraction(0)] * s for _ in range(s)]
+    if not isinstance(rows, tuple) or not rows or not all(isinstance(r, tuple) for r in rows):
+        raise ValueError(f"{key} must be a non-empty array of rows (got {rows!r})")
+    if len(rows) != (s or len(rows)) or any(len(r) != len(rows) for r in rows):
+        shape = f"{len(rows)} rows of {', '.join(str(len(r)) for r in rows)} entries"
+        raise ValueError(f"{key} must be square (got {shape})" if s is None else f"{key} must be {s} x {s}, as beta (got {shape})")
+    s = len(rows)
+    out = [[table_entry(v, f"{key} entry ({i + 1},{j + 1})") for j, v in enumerate(r)] for i, r in enumerate(rows)]
+    for i in range(s):
+        for j in range(i + 1, s):
+            if out[i][j]:
+                raise ValueError(f"{key} entry ({i + 1},{j + 1}) is above the diagonal: solve r uses stages 1..r only")
+    return out
+
+
+def parse_mri(o: MriOptions) -> MriTable:
+    """The checked table of ``o``; ValueError (one line) for a missing name or order, a
+    matrix that is not s × s lower triangular, an entry that is not a number, a solve of
+    span d_r = Σ_j β_rj ≤ 0, or a slow part (the method with L = 0, an explicit
+    Runge–Kutta table) that fails its claimed order's conditions (``butcher.parse``)."""
+    t = o.table()
+    if not str(t.get("name", "")).strip():
+        raise ValueError("name is missing: name the table (the run file shows it)")
+    beta = _square(t, "beta", None)
+    s = len(beta)
+    alpha, gamma, beta1 = (_square(t, key, s) for key in ("alpha", "gamma", "beta1"))
+    d = [sum(row) for row in beta]
+    for r, span in enumerate(d):
+        if span <= 0:
+            raise ValueError(f"beta row {r + 1} sums to {float(span):.6g}: each inner solve's span d = the row sum must be > 0")
+    # the slow part: Y_{r+2} − x(n) = Σ_j (α + γ)_rj (Y_{j+1} − x(n)) + Δt Σ_j (β + β¹/2)_rj F_{j+1}
+    A = [[Fraction(0)] * s]
+    for r in range(s):
+        row = [beta[r][j] + beta1[r][j] / 2 for j in range(s)]
+        for j in range(r + 1):
+            row = [a + (alpha[r][j] + gamma[r][j]) * y for a, y in zip(row, A[j])]
+        A.append(row)
+    c = [sum(row) for row in A[:s]]
+    slow = TableauOptions(name=str(t["name"]), description=str(t.get("description", "")), order=int(t.get("order", 0)),
+                          A=tuple(tuple(str(a) for a in row) for row in A[:s]), b=tuple(str(a) for a in A[s]), c=tuple(str(a) for a in c))
+    arr = lambda m: np.array([[float(v) for v in row] for row in m])  # noqa: E731
+    return MriTable(arr(alpha), arr(beta), arr(gamma), arr(beta1), np.array([float(v) for v in d]), tuple(float(v) for v in c), slow)
+
+
+class Mri(_Multirate):
+    """Multirate MIS / MRI-GARK tables (or [mri]'s): the gravity waves by an inner method in substeps.
+
+    Multirate infinitesimal step (MIS) and explicit MRI-GARK methods from a table (the
+    module docstring).
+
+    Options (scene table ``[mri]``): ``method`` ("mis2", "mis3c", "mis4a",
+    "mri_gark_erk33a": ``tables.MULTIRATE``; default "mis4a", third order, which ran TC6
+    ne8 28 days at |v|Δt/Δx = 1.54 (4.9 Δt_g) where MIS3C blew up at 0.93) or a table of one's own
+    (``MriOptions``); ``inner`` ("fbrk32" | "ssprk3" | "rk4", the fast integrator;
+    default "ssprk3"); ``substeps`` n (fast steps a slow step, ⌈d_r n⌉ a solve; default
+    8: on TC5 ne8 over 6 days MIS3C with ssprk3 needed 3 at 3.9–5.7 Δt_g and 6 at 6.6 and
+    7.8 Δt_g, inner steps of up to 1.3–1.9 Δt_g; with 8 MIS3C and MIS4a ran 12 days up to
+    9.5 Δt_g); ``mean_depth`` H (m; 0: the area-mean initial depth, rounded to 6 digits).
+    s slow evaluations a step (reported as RHS evaluations). The run file's attributes
+    ``mri`` and ``mri_order`` name the table."""
+
+    name = "mri"
+    Options = MriOptions
+    # TC5 ne8, 12 days, 8 substeps: MIS3C and MIS4a stable at |v|Δt/Δx = 0.78 (9.5 Δt_g), blew up at
+    # 0.88; MIS2 with fbrk32 at 0.64, not 0.78 (TC6 ne8, 28 days: MIS4a stable at 1.54, MIS3C at
+    # 0.78, not 0.93). MRI-GARK-ERK33a blows up on TC5 from 3.9 Δt_g (0.32) with any substeps
+    # (stable at 3 Δt_g): its limit is the coupling's, not advection's.
+    advective_courant_limit = 0.75
+
+    def __init__(self, model, dt, options=None):
+        super().__init__(model, dt, options)
+        o = self.options
+        self.tab = parse_mri(o)
+        s = len(self.tab.d)
+        self.n_fast = tuple(max(1, math.ceil(d * o.substeps - 1e-9)) for d in self.tab.d)
+        self.xn, self.z, self.rho0, self.rho1, self.rho = (self._buffer() for _ in range(5))
+        self.S = [self._buffer() for _ in range(s)]
+        # Y_{j+1} − x(n), kept where a later solve that does not simply restart reads it
+        used = ((self.tab.alpha != 0) | (self.tab.gamma != 0)) & ~np.array([[self._restarts(r)] for r in range(s)])
+        self.D = {j: self._buffer() for j in range(1, s) if used[j:, j].any()}
+        if o.inner == "fbrk32":
+            self.t, self.s = self._buffer(), self._buffer()
+        else:
+            table = parse(TableauOptions(**EXPLICIT[o.inner]))
+            names, self._form = stage_form(table.A_E, table.b_E, table.c)
+            self._rk = {name: self._buffer() for name in names}
+            self.K = self._buffer()
+
+    def _restarts(self, r: int) -> bool:
+        """Whether solve r starts from Y_{r+1} with nothing else of the earlier stages (MRI-GARK)."""
+        a, g = self.tab.alpha[r], self.tab.gamma[r]
+        return a[r] == 1.0 and not np.delete(a, r).any() and not g.any()
+
+    @classmethod
+    def label(cls, options: dict) -> str:
+        o = cls.make_options(**options)
+        return f"{cls.name} {o.table()['name']} {o.inner} n={o.substeps}"
+
+    def attrs(self):
+        t = self.options.table()
+        return {"mri": t["name"], "mri_order": int(t["order"]), "mri_inner": self.options.inner}
+
+    def fast_evaluations(self) -> int:
+        """Fast evaluations (L z) a step."""
+        per = 3 if self.options.inner == "fbrk32" else len(self._form)
+        return per * sum(self.n_fast)
+
+    def _advance(self, x):
+        tab, dt, xn, z = self.tab, self.dt, self.xn, self.z
+        s = len(tab.d)
+        wp.copy(xn, x)
+        for r in range(s):
+            stage = xn if r == 0 else z  # Y_{r+1}
+            self._at(tab.c[r])
+            self.split.slow(stage, self.S[r])
+            if r in self.D:
+                self._comb(self.D[r], (1.0, z), (-1.0, xn))
+            out = x if r == s - 1 else z
+            if r == 0 or not self._restarts(r):  # z(0) = x(n) + Σ_j α_rj (Y_{j+1} − x(n))
+                self._combine(out, [(1.0, xn), *((tab.alpha[r, j], self.D.get(j)) for j in range(1, r + 1))])
+            elif out is not z:
+                wp.copy(out, z)
+            d = tab.d[r]
+            self._combine(self.rho0, [*((tab.beta[r, j] / d, self.S[j]) for j in range(r + 1)),
+                                      *((tab.gamma[r, j] / (d * dt), self.D.get(j)) for j in range(1, r + 1))])
+            timed = bool(tab.beta1[r].any())
+            if timed:
+                self._combine(self.rho1, [(tab.beta1[r, j] / d, self.S[j]) for j in range(r + 1)])
+            self._inner(out, d * dt, self.n_fast[r], timed)
+        return s
+
+    def _forcing(self, theta: float, timed: bool):
+        """ρ(θ) = ρ⁰ + θ ρ¹ (ρ⁰ itself when constant)."""
+        if not timed:
+            return self.rho0
+        self._comb(self.rho, (1.0, self.rho0), (theta, self.rho1))
+        return self.rho
+
+    def _inner(self, z, span, n, timed) -> None:
+        """Integrate dz/dσ = L z + ρ(σ/span) over [0, span] in n steps of ``inner``, in place."""
+        tau = span / n
+        for k in range(n):
+            if self.options.inner == "fbrk32":
+                self._fbrk32(z, tau, k, n, timed)
+            else:
+                self._rk_step(z, tau, k, n, timed)
+
+    def _rk_step(self, z, tau, k, n, timed) -> None:
+        """One step of the inner explicit table through the engine's stage form: K = L Y + ρ
+        stored, each update a combination of at most three arrays."""
+        arrays = {"x": z, **self._rk}
+        for c, arg, updates in self._form:
+            rho = self._forcing((k + c) / n, timed)
+            self.split.fast(arrays[arg], self.K, rho)
+            for out, terms in updates:
+                dst = arrays[out]
+                self._comb(dst, *((float(a) * tau, self.K) if src == "k" else (a, dst if src is None else arrays[src]) for a, src in terms))
+
+    def _fbrk32(self, z, tau, k, n, timed) -> None:
+        """One FB-RK(3,2) step (``explicit.FBRK32``: the depth first, the wind with h̃) of the
+        fast system from z in place: t holds stage i's state, s's depth row h̃ or h(n+1)."""
+        g, H, t, s = self.model.g, self.split.H, self.t, self.s
+        c_prev = 0.0
+        for i, (c, beta) in enumerate(FBRK32_STAGES):
+            rho = self._forcing((k + c_prev) / n, timed)
+            last = i == len(FBRK32_STAGES) - 1
+            prev = z if i == 0 else t
+            ct = c * tau
+            if last:  # h(n+1) into s, then h̃ = β h(n+1) + (1 − 2β) h⁽²⁾ + β h(n) into t, h(n+1) into z
+                self.model.divergence_update(prev, [(s[2:3], ((1.0, z[2:3]), (ct, rho[2:3]), (-H * ct, None)))])
+                self._comb(t[2:3], (beta, s[2:3]), (1.0 - 2.0 * beta, t[2:3]), (beta, z[2:3]))
+                self._comb(z[2:3], (1.0, s[2:3]))
+                self.model.gradient_update(t, 2, [(z[0:2], ((1.0, z[0:2]), (ct, rho[0:2]), (-g * ct, None)))])
+            else:  # h̃ = β h⁽ⁱ⁾ + (1 − β) h(n) into s, h⁽ⁱ⁾ into t
+                self.model.divergence_update(prev, [(s[2:3], ((1.0, z[2:3]), (beta * ct, rho[2:3]), (-H * beta * ct, None))),
+                                                    (t[2:3], ((1.0, z[2:3]), (ct, rho[2:3]), (-H * ct, None)))])
+                self.model.gradient_update(s, 2, [(t[0:2], ((1.0, z[0:2]), (ct, rho[0:2]), (-g * ct, None)))])
+            c_prev = c

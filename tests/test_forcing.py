@@ -31,6 +31,7 @@ from swe_sphere.config import SceneError, load_scene
 from swe_sphere.scoring import williamson_norms
 from swe_sphere.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
+from swe_sphere.steppers.multirate import MriOptions, parse_mri
 from swe_sphere.steppers.tables import IMEX
 
 SCENE = "tc4_forced_low"
@@ -84,6 +85,7 @@ def stage_times(stepper: str, steps: int = 2, **options) -> list[list[float]]:
 
 def test_every_stepper_evaluates_the_rhs_at_its_stage_times():
     c343 = [round(float(c), 12) for c in IMEX["ars343"]["c"]]
+    cmis = [round(c, 12) for c in parse_mri(MriOptions()).c]
     expected = {
         "ssprk3": [[0, 1, 0.5], [1, 2, 1.5]],
         "rk4": [[0, 0.5, 0.5, 1], [1, 1.5, 1.5, 2]],
@@ -93,6 +95,8 @@ def test_every_stepper_evaluates_the_rhs_at_its_stage_times():
         "leapfrog_trapezoidal": [[0, 0.5], [1, 2]],  # the predictor stands for x(n+1)
         "semi_implicit": [[0], [1]],
         "imex": [c343, [1 + c for c in c343]],
+        "split_explicit": [[0, round(1 / 3, 12), 0.5], [1, round(4 / 3, 12), 1.5]],  # Wicker–Skamarock's Δt/3, Δt/2, Δt
+        "mri": [cmis, [round(1 + c, 12) for c in cmis]],  # MIS4a's slow stages at its slow table's c
         "tableau": [[0, 0.5, 0.5, 1], [1, 1.5, 1.5, 2]],  # its default table, RK4's
         # F(x(n)) and every J·v at t(n); ∂F/∂t from F at t(n) ± Δt/64
         "epi2": [[0, 0.015625, -0.015625, 0], [1, 1.015625, 0.984375, 1]],

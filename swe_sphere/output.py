@@ -57,6 +57,7 @@ SERIES_ATTRS = {
     "krylov_iterations": dict(units="1", long_name="cumulative Krylov vectors of the exponential steppers' KIOPS"),
     "substeps_iterations": dict(units="1", long_name="cumulative accepted KIOPS substeps"),
     "rejected_iterations": dict(units="1", long_name="cumulative rejected KIOPS substeps"),
+    "fast_iterations": dict(units="1", long_name="cumulative fast (gravity-wave) evaluations of the multirate steppers' substeps"),
     "steps": dict(units="1", long_name="time steps taken"),
 }
 for _f in ("h", "wind"):

@@ -104,7 +104,11 @@ def test_checkpoint_contents_and_refusals(tmp_path):
     with netCDF4.Dataset(r.checkpoint) as ds:
         assert ds.swe_sphere_version == __version__
         assert ds.step == 2 and ds.stepper_steps == 2
-        assert ds["stepper_previous"].shape == ds["x"].shape == (3, sim.model.N)
+        assert ds["stepper_previous"].shape == (3, sim.model.N)
+        assert ds.Conventions == "CF-1.8" and ds.title and ds.history
+        for name, units in (("u", "m s-1"), ("v", "m s-1"), ("h", "m")):  # the state as named fields
+            assert ds[name].shape == (sim.model.N,) and ds[name].units == units and ds[name].long_name, name
+        assert all(ds[name].long_name for name in ds.variables)
         assert json.loads(ds.scene)["stepper"] == "leapfrog"
     # another version
     bad = tmp_path / "old.restart.nc"

@@ -41,7 +41,7 @@ def run(scene, *, device: str | None = None, output_file=None, overwrite: bool =
     ``runtime.ResourceError`` (not enough memory for the grid).
 
     The dataset holds h, u, v, vorticity on (time, ncol) with time in model
-    days (``ds.h.sel(time=3)``), lat/lon/area on ncol, the diagnostics time
+    days (the file's CF time read undecoded: ``ds.h.sel(time=3)``), lat/lon/area on ncol, the diagnostics time
     series (mass_change, l2_h, ...) and the resolved scene in ``ds.attrs["scene"]``.
     """
     import xarray as xr
@@ -54,7 +54,7 @@ def run(scene, *, device: str | None = None, output_file=None, overwrite: bool =
         path = Path(output_file) if output_file is not None else Path(tmp) / f"{scene.name}.nc"
         sim.run(path, overwrite=overwrite, restart_every=restart_every, history=f"swe_sphere.run({scene.name!r})",
                 log=tqdm.write if verbose else None)  # output={"log_every_steps": N}: a line every N steps
-        with xr.open_dataset(path) as ds:
+        with xr.open_dataset(path, decode_times=False) as ds:  # time in model days (output.TIME_ATTRS)
             return ds.load()
 
 

@@ -23,11 +23,11 @@ from .grid import CubedSphere
 from .ugrid import write_mesh
 
 FIELDS = {
-    "h": dict(units="m", long_name="fluid depth", standard_name="lwe_thickness_of_water"),
+    "h": dict(units="m", long_name="fluid depth"),  # CF has no standard name for a shallow-water depth
     "hs": dict(units="m", long_name="surface height", standard_name="surface_altitude"),
     "u": dict(units="m s-1", long_name="eastward wind", standard_name="eastward_wind"),
     "v": dict(units="m s-1", long_name="northward wind", standard_name="northward_wind"),
-    "vorticity": dict(units="s-1", long_name="relative vorticity", standard_name="atmosphere_relative_vorticity"),
+    "vorticity": dict(units="s-1", long_name="relative vorticity", standard_name="atmosphere_upward_relative_vorticity"),
     "divergence": dict(units="s-1", long_name="divergence of the wind", standard_name="divergence_of_wind"),
 }
 OUTPUT_FIELDS = ("h", "u", "v", "vorticity", "divergence")  # the (time, ncol) fields of a run file, in its order
@@ -38,6 +38,13 @@ WRITING = threading.RLock()
 _OPEN: set = set()  # the RunWriters not yet closed or aborted
 
 UGRID_NODE = {"mesh": "mesh_topology", "location": "node"}  # on every node field (see ugrid.py)
+CONVENTIONS = "CF-1.8 UGRID-1.0"
+# CF time: model days since the initial state, put at an arbitrary epoch (the model has no
+# calendar date); CDO and the CF checker need the reference date and the calendar. xarray
+# decodes it to datetimes unless opened with ``decode_times=False`` (as ``swe_sphere.run`` and
+# ``remap.open_netcdf`` do), which keeps ``time`` in days: ``.sel(time=3)`` is model day 3.
+TIME_ATTRS = dict(units="days since 2000-01-01 00:00:00", calendar="proleptic_gregorian",
+                  long_name="model time (day 0: the initial state)", standard_name="time", axis="T")
 
 SERIES_ATTRS = {
     "mass": dict(units="m3", long_name="mass (area integral of h)"),
@@ -282,8 +289,8 @@ class RunWriter:
 
     ``attrs``: global attributes (strings or numbers; see ``attribute``).
     ``series``: names of the diagnostics time series (see ``SERIES_ATTRS``).
-    ``time`` is plain model time in days (``units = "days"``: xarray leaves it
-    numeric, so ``ds.h.sel(time=3)`` works; ``Scene.day`` makes it exact). ``compress``: the (time, ncol)
+    ``time`` is model time in days as CF time (``TIME_ATTRS``; read with
+    ``decode_times=False``, ``ds.h.sel(time=3)`` is day 3; ``Scene.day`` makes it exact). ``compress``: the (time, ncol)
     fields as float32 with zlib (about 3× smaller; not for bitwise comparisons).
     ``fields``: the node fields it holds (of ``OUTPUT_FIELDS``; default all).
     """
@@ -305,13 +312,13 @@ class RunWriter:
     def _create(self, attrs, hs, series, compress):
         grid = self.grid
         ds = self.ds = netCDF4.Dataset(self.tmp, "w", format="NETCDF4")
-        ds.Conventions = "CF-1.8"
+        ds.Conventions = CONVENTIONS
         for k, v in attrs.items():
             setattr(ds, k, attribute(v))
         ds.createDimension("time", None)
         ds.createDimension("ncol", grid.nunique)
         t = ds.createVariable("time", "f8", ("time",))
-        t.units, t.long_name, t.standard_name, t.axis = "days", "model time since the initial state", "time", "T"
+        t.setncatts(TIME_ATTRS)
         for name, deg, std in (("lat", np.degrees(grid.lat), "latitude"), ("lon", np.degrees(grid.lon), "longitude")):
             var = ds.createVariable(name, "f8", ("ncol",))
             var.units = "degrees_north" if name == "lat" else "degrees_east"
@@ -323,7 +330,7 @@ class RunWriter:
         hsv = ds.createVariable("hs", "f8", ("ncol",))
         hsv.setncatts({**FIELDS["hs"], "coordinates": "lat lon", **UGRID_NODE})
         hsv[:] = grid.to_unique(hs)
-        write_mesh(ds, grid, "ncol")
+        write_mesh(ds, grid)
         for name in self.fields:
             fill = dict(fill_value=np.nan) if name in ("vorticity", "divergence") else {}  # NaN where a writer got none
             var = ds.createVariable(name, "f4" if compress else "f8", ("time", "ncol"), zlib=compress, **fill)
@@ -377,7 +384,7 @@ def node_dataset(grid: CubedSphere, hs: np.ndarray, day: float, fields: dict, at
     """One output time as an ``xarray.Dataset`` laid out as a run file's (``RunWriter``):
     the element-local ``fields`` (N,) (name → array, of ``OUTPUT_FIELDS``) and ``hs``
     on the unique nodes ``ncol`` with their ``FIELDS`` attributes, ``lat``/``lon``
-    (degrees) coordinates, ``area`` (m²), a scalar ``time`` (days) and ``attrs``."""
+    (degrees) coordinates, ``area`` (m²), a scalar ``time`` (days, ``TIME_ATTRS``) and ``attrs``."""
     import xarray as xr
 
     node = {"coordinates": "lat lon"}
@@ -385,7 +392,7 @@ def node_dataset(grid: CubedSphere, hs: np.ndarray, day: float, fields: dict, at
         {name: ("ncol", grid.to_unique(f), {**FIELDS[name], **FIELD_ATTRS}) for name, f in fields.items()},
         coords=dict(lat=("ncol", grid.to_unique(np.degrees(grid.lat)), dict(units="degrees_north", standard_name="latitude")),
                     lon=("ncol", grid.to_unique(np.degrees(grid.lon)), dict(units="degrees_east", standard_name="longitude")),
-                    time=((), day, dict(units="days", long_name="model time since the initial state", standard_name="time"))),
+                    time=((), day, TIME_ATTRS)),
         attrs={k: attribute(v) for k, v in attrs.items()},
     )
     ds["hs"] = ("ncol", grid.to_unique(hs), {**FIELDS["hs"], **node})

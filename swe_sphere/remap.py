@@ -250,7 +250,7 @@ def remap_file(path, resolution: float, output, *, overwrite: bool = False) -> P
     output = Path(output)
     check_distinct([output], [path])
     out = remap_dataset(path, resolution)
-    encoding = {k: {"_FillValue": None} for k in ("lat", "lon")}
+    encoding = {k: {"_FillValue": None} for k in out.coords}  # CF: coordinates hold no missing values
     encoding.update({k: {"_FillValue": np.nan} for k in out.data_vars if out[k].dtype.kind == "f"})
     with atomic_path(output, overwrite=overwrite) as tmp:
         out.to_netcdf(tmp, format="NETCDF4", encoding=encoding, unlimited_dims=("time",) if "time" in out.dims else None)

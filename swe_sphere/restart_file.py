@@ -1,9 +1,11 @@
 """The restart file's layout: written, read back and checked (``checkpoint`` makes
 a run of what it holds).
 
-A restart file is a netCDF4 file holding the element-local state ``x`` (3, N)
-(u, v in m/s, h in m), the stepper's ``state()`` (arrays as variables
-``stepper_<key>``, scalars as attributes ``stepper_<key>``), the run's counters
+A restart file is a netCDF4 file (CF-1.8 attributes) holding the element-local
+state ``x`` (3, N) as the variables ``u``, ``v`` (m s⁻¹) and ``h`` (m) on
+``node`` (every element's copy of its GLL nodes), the stepper's ``state()``
+(arrays (3, N) as variables ``stepper_<key>`` on (``row``, ``node``), scalars as
+attributes ``stepper_<key>``), the run's counters
 (step, RHS evaluations, solver iterations, wall time), the invariants at t = 0
 (so relative changes keep their origin), the resolved scene (JSON) and the
 package version.
@@ -24,16 +26,18 @@ from __future__ import annotations
 
 import hashlib
 import json
+import time
 from pathlib import Path
 
 import netCDF4
 import numpy as np
 
 from .constants import Planet
-from .output import WRITING, ExclusiveFile
+from .output import FIELDS, WRITING, ExclusiveFile
 from .runtime import package_version
 
-FORMAT = 2  # bump when the layout changes (2: checksums and content hash)
+FORMAT = 3  # bump when the layout changes (2: checksums and content hash; 3: the state as named fields)
+STATE = ("u", "v", "h")  # the rows of x, each a variable with output.FIELDS' attributes
 MAX_FROUDE = 2.0  # |v| / sqrt(g max h) beyond which a stored wind is not a state the model made
 
 
@@ -56,18 +60,18 @@ def content_hash(step: int, x: np.ndarray, stepper_state: dict) -> str:
 def _check_state(path, planet: dict | None, x: np.ndarray, stepper_state: dict) -> None:
     """Refuse (``CheckpointError`` naming the variable) non-finite values, h <= 0 and
     implausible winds; ``planet``: the scene's [planet] table (its gravity)."""
-    for name, value in (("x", x), *((f"stepper_{k}", v) for k, v in stepper_state.items() if isinstance(v, np.ndarray))):
+    for name, value in (*zip(STATE, x), *((f"stepper_{k}", v) for k, v in stepper_state.items() if isinstance(v, np.ndarray))):
         bad = np.flatnonzero(~np.isfinite(value))
         if bad.size:
             raise CheckpointError(f"{path}: variable {name} holds {bad.size} non-finite values; not continued")
     h = x[2]
     if h.min() <= 0:
-        raise CheckpointError(f"{path}: variable x (row h) holds a depth h = {h.min():.4g} m <= 0; not continued")
+        raise CheckpointError(f"{path}: variable h holds a depth h = {h.min():.4g} m <= 0; not continued")
     g = Planet.from_table(planet).g  # not the case: a file case would read its file
     bound = MAX_FROUDE * np.sqrt(g * h.max())
     speed = np.hypot(x[0], x[1]).max()
     if speed > bound:
-        raise CheckpointError(f"{path}: variable x (rows u, v) holds a wind of {speed:.4g} m/s, beyond {bound:.4g} m/s "
+        raise CheckpointError(f"{path}: variables u, v hold a wind of {speed:.4g} m/s, beyond {bound:.4g} m/s "
                               f"({MAX_FROUDE:g} x the gravity-wave speed of the deepest node); not continued")
 
 
@@ -84,7 +88,9 @@ def write(path, scene, step: int, x: np.ndarray, stepper_state: dict, counters: 
     path = Path(path)
     with WRITING, ExclusiveFile(path, overwrite=overwrite) as tmp:  # WRITING: see mpi.watch_failures
         with netCDF4.Dataset(tmp, "w", format="NETCDF4") as ds:
+            ds.Conventions = "CF-1.8"
             ds.title = f"swe_sphere restart file of scene {scene.name}"
+            ds.history = f"{time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime())}: swe_sphere restart at step {int(step)}"
             ds.swe_sphere_checkpoint = FORMAT
             ds.swe_sphere_version = package_version()
             ds.scene = json.dumps(scene.as_dict())
@@ -95,12 +101,14 @@ def write(path, scene, step: int, x: np.ndarray, stepper_state: dict, counters: 
             ds.content_sha256 = content_hash(step, x, stepper_state)
             ds.createDimension("row", 3)
             ds.createDimension("node", x.shape[1])
-            var = ds.createVariable("x", "f8", ("row", "node"), fletcher32=True)
-            var.long_name = "element-local state: rows u (m s-1), v (m s-1), h (m)"
-            var[:] = x
+            for name, row in zip(STATE, x):
+                var = ds.createVariable(name, "f8", ("node",), fletcher32=True)
+                var.setncatts({**FIELDS[name], "long_name": f"{FIELDS[name]['long_name']} at each element's GLL nodes"})
+                var[:] = row
             for key, value in stepper_state.items():
                 if isinstance(value, np.ndarray):
                     var = ds.createVariable(f"stepper_{key}", "f8", ("row", "node"), fletcher32=True)
+                    var.long_name = f"the stepper's history {key!r} (Stepper.state(); rows u, v, h)"
                     var[:] = value
                 else:
                     ds.setncattr(f"stepper_{key}", value)
@@ -139,7 +147,8 @@ def read(path) -> dict:
         try:
             state = {k[len("stepper_"):]: v for k, v in arrays.items() if k.startswith("stepper_")}
             state.update({k[len("stepper_"):]: v.item() if isinstance(v, np.generic) else v for k, v in attrs.items() if k.startswith("stepper_")})
-            stored = dict(scene=json.loads(attrs["scene"]), step=int(attrs["step"]), x=arrays["x"], stepper_state=state,
+            x = np.stack([arrays[name] for name in STATE])
+            stored = dict(scene=json.loads(attrs["scene"]), step=int(attrs["step"]), x=x, stepper_state=state,
                           counters=json.loads(attrs["counters"]), initial=json.loads(attrs["initial"]), version=version,
                           path=path.resolve(), sha256=sha256)
             digest = attrs["content_sha256"]

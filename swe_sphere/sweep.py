@@ -501,13 +501,46 @@ def outcome(row: dict) -> str:
     return ", ".join(errors) + f"; CPU {row['cpu_time']:.3g} s"
 
 
-COLUMNS = (
-    "stepper", "dt", "dt_over_gravity_limit", "dt_over_advective_limit", "dt_over_leapfrog_limit", "stable", "wall_time", "cpu_time",
-    "load_average", "threads", "cost_time", "startup_time", "setup_time", "steps", "rhs_evals", "rhs_time", "rhs_cpu_time", "rhs_equivalents", "newton_iterations", "gmres_iterations", "precond_iterations",
-    "helmholtz_iterations", "krylov_iterations", "substeps_iterations", "rejected_iterations", "total_error", "total_error_vorticity", "total_error_divergence",
-    "temporal_error", "temporal_error_wind", "temporal_error_vorticity", "temporal_error_divergence",
-    "temporal_error_filtered", "temporal_error_filtered_vorticity", "mass_change", "total_energy_change", "potential_enstrophy_change", "reason",
-)
+# sweep.csv's columns, in order, and sweep.nc's variables: (units, long_name) each (units None: a string)
+_ERR = "normalized l2 error (Williamson et al. 1992) at the last day"
+COLUMN_ATTRS = {
+    "stepper": (None, "time stepper"),
+    "dt": ("s", "time step"),
+    "dt_over_gravity_limit": ("1", "time step over the gravity-wave limit (Courant number 1)"),
+    "dt_over_advective_limit": ("1", "time step over the advective limit"),
+    "dt_over_leapfrog_limit": ("1", "time step over leapfrog's limit 0.58 (|v| + c) dt / dx = 1"),
+    "stable": ("1", "1 if the run reached its last day without blowing up, else 0"),
+    "wall_time": ("s", "wall time of the time loop to the target day"),
+    "cpu_time": ("s", "process CPU time to the target day, all threads summed"),
+    "load_average": ("1", "mean 1-minute load average at the run's start and target day"),
+    "threads": ("1", "compute threads"),
+    "cost_time": ("s", "the run's time on the clock the sweep ranks by (--cost)"),
+    "startup_time": ("s", "time of the stepper's warm-up run (compilation)"),
+    "setup_time": ("s", "time to build the simulation"),
+    "steps": ("1", "time steps taken"),
+    "rhs_evals": ("1", "right-hand-side evaluations"),
+    "rhs_time": ("s", "wall time of one right-hand-side evaluation"),
+    "rhs_cpu_time": ("s", "CPU time of one right-hand-side evaluation"),
+    "rhs_equivalents": ("1", "cost_time over the time of one right-hand-side evaluation on the same clock"),
+    **{f"{k}_iterations": ("1", f"cumulative {what}") for k, what in (
+        ("newton", "Newton iterations"), ("gmres", "GMRES iterations"), ("precond", "applications of the JFNK preconditioner"),
+        ("helmholtz", "Helmholtz-solve iterations"), ("krylov", "Krylov vectors of KIOPS"), ("substeps", "accepted KIOPS substeps"),
+        ("rejected", "rejected KIOPS substeps"), ("fast", "fast (gravity-wave) evaluations of the multirate substeps"))},
+    "total_error": ("1", f"{_ERR} of h + hs against the truth"),
+    "total_error_vorticity": ("1", f"{_ERR} of vorticity against the truth"),
+    "total_error_divergence": ("1", f"{_ERR} of divergence against the truth"),
+    "temporal_error": ("1", f"{_ERR} of h + hs against the small-dt run"),
+    "temporal_error_wind": ("1", f"{_ERR} of the wind against the small-dt run"),
+    "temporal_error_vorticity": ("1", f"{_ERR} of vorticity against the small-dt run"),
+    "temporal_error_divergence": ("1", f"{_ERR} of divergence against the small-dt run"),
+    "temporal_error_filtered": ("1", f"{_ERR} of time-filtered h + hs against the small-dt run"),
+    "temporal_error_filtered_vorticity": ("1", f"{_ERR} of time-filtered vorticity against the small-dt run"),
+    "mass_change": ("1", "relative change of mass at the last day"),
+    "total_energy_change": ("1", "relative change of total energy at the last day"),
+    "potential_enstrophy_change": ("1", "relative change of potential enstrophy at the last day"),
+    "reason": (None, "why the run is unstable (empty if stable)"),
+}
+COLUMNS = tuple(COLUMN_ATTRS)
 
 
 COSTS = {"cpu": ("cpu_time", "rhs_cpu_time"), "wall": ("wall_time", "rhs_time")}  # --cost: (run's time, its RHS's time)
@@ -673,8 +706,27 @@ RECORD = ("scene", "case", "ne", "np", "days", "overrides", "stepper_options", "
           "swe_sphere_version", "source_sha256")  # ``Sweep.record``'s keys: sweep.csv's last columns
 
 
+def sweep_dataset(df, attrs: dict):
+    """sweep.nc as an ``xarray.Dataset``: one ``run`` dimension (sweep.csv's rows), each
+    of ``COLUMNS`` a variable on it with its units and long_name (``COLUMN_ATTRS``;
+    ``stepper`` and ``reason`` strings, written as CF character arrays), ``attrs``
+    (integers as integers) with CF's Conventions, title and history."""
+    import xarray as xr
+
+    ds = xr.Dataset({c: ("run", df[c].fillna("").astype(str).to_numpy() if units is None else df[c].to_numpy())
+                     for c, (units, _) in COLUMN_ATTRS.items()},
+                    coords=dict(run=("run", np.arange(len(df)), dict(long_name="run of the sweep (row of sweep.csv)", units="1"))))
+    for c, (units, long_name) in COLUMN_ATTRS.items():
+        ds[c].attrs.update(long_name=long_name, **({} if units is None else dict(units=units)))
+    ds.attrs.update({k: v if isinstance(v, (str, int)) else float(v) for k, v in attrs.items()})
+    stamp = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+    ds.attrs.update(Conventions="CF-1.8", title=f"swe_sphere sweep: {attrs['case']} ne{attrs['ne']} np{attrs['np']}, {attrs['days']:g} days",
+                    history=f"{stamp}: swe_sphere sweep (swe_sphere {package_version()})")
+    return ds
+
+
 def write_outputs(rows, info, limits, directory) -> list[Path]:
-    """sweep.csv, sweep.nc (dims stepper × dt), verdicts.csv and the PNGs (titled
+    """sweep.csv, sweep.nc (``sweep_dataset``: one ``run`` dimension), verdicts.csv and the PNGs (titled
     with the case, grid and days); returns the paths. What the sweep was made
     with (``info``'s ``RECORD`` keys: ``Sweep.record``) is in sweep.csv's last
     columns and, with the rest of ``info`` and ``limits``, in sweep.nc's
@@ -689,13 +741,8 @@ def write_outputs(rows, info, limits, directory) -> list[Path]:
         df.assign(**{k: info[k] for k in RECORD}).to_csv(tmp, index=False)
     with atomic_path(vcsv) as tmp:
         pd.DataFrame(verdicts(rows, info), columns=list(VERDICT_COLUMNS)).to_csv(tmp, index=False)
-    ds = df.set_index(["stepper", "dt"]).to_xarray()
-    ds["dt"].attrs["units"] = "s"
-    ds["wall_time"].attrs["units"] = "s"
-    ds["cpu_time"].attrs.update(units="s", long_name="process CPU time to the target day, all threads summed")
-    ds.attrs.update({k: v if isinstance(v, (str, int)) else float(v) for k, v in {**info, **limits}.items()})
     with atomic_path(nc) as tmp:
-        ds.to_netcdf(tmp)
+        sweep_dataset(df, {**info, **limits}).to_netcdf(tmp, encoding={k: {"dtype": "S1"} for k in ("stepper", "reason")})
     paths = [csv, nc, vcsv]
     floor, title = info["spatial_error"], f"{info['case']} ne{info['ne']} np{info['np']}, {info['days']:g} days"
     for x, y, name, label in (

@@ -41,9 +41,10 @@ def orientation(xyz_unique: np.ndarray, quads: np.ndarray) -> np.ndarray:
     return np.minimum(t1, t2)
 
 
-def write_mesh(ds, grid: CubedSphere, node_dim: str = "ncol") -> None:
+def write_mesh(ds, grid: CubedSphere) -> None:
     """Add the UGRID mesh variables to an open ``netCDF4.Dataset`` ``ds`` whose node
-    coordinates are ``lon``/``lat`` on ``node_dim``."""
+    coordinates are ``lon``/``lat`` on the unique nodes (their dimension UGRID takes
+    from the coordinates)."""
     quads = subcell_quads(grid)
     ds.createDimension(FACE_DIM, quads.shape[0])
     ds.createDimension(MAX_DIM, 4)
@@ -54,10 +55,8 @@ def write_mesh(ds, grid: CubedSphere, node_dim: str = "ncol") -> None:
             long_name="sub-cell mesh of quadrilaterals between the GLL nodes",
             topology_dimension=np.int32(2),
             node_coordinates="lon lat",
-            node_dimension=node_dim,
             face_node_connectivity=CONNECTIVITY,
             face_dimension=FACE_DIM,
-            units="1",
         )
     )
     mesh.assignValue(0)
@@ -67,7 +66,6 @@ def write_mesh(ds, grid: CubedSphere, node_dim: str = "ncol") -> None:
             cf_role="face_node_connectivity",
             long_name="corner nodes (ncol indices) of each sub-cell, counter-clockwise from outside",
             start_index=np.int32(0),
-            units="1",
         )
     )
     conn[:] = quads

@@ -67,7 +67,7 @@ def test_a_branch_with_an_unchanged_stepper_and_dt_is_the_continuation(spun_up, 
     _, restart = spun_up("leapfrog", 1800.0)
     assert cli_main_ok("run", "--continue", restart, "--days", "2", *RUN, "--output", "cont.nc")
     assert cli_main_ok("run", "--continue", restart, "--days", "2", "--stepper", "leapfrog", "--dt", "1800", *RUN, "--output", "same.nc")
-    with xr.open_dataset("cont.nc") as a, xr.open_dataset("same.nc") as b:
+    with xr.open_dataset("cont.nc", decode_times=False) as a, xr.open_dataset("same.nc", decode_times=False) as b:
         assert list(b.time.values) == [1.0, 1.25, 1.5, 1.75, 2.0] and b.attrs["continued_from_day"] == 1.0
         assert "branched_from" not in b.attrs and json.loads(b.attrs["scene"])["branch"] is None
         for v in ("h", "u", "v", "total_energy_change", "rhs_evals", "steps"):
@@ -90,7 +90,7 @@ def test_a_branch_to_another_stepper_and_dt_is_a_fresh_run_from_the_state(spun_u
     assert "ssprk3, dt = 211.765 s, 408 steps to day 2" in out
     fresh = fresh_from(restart, "ssprk3", DT_408, 1.0)
     branched = tmp_path / f"spin_branch_ssprk3_dt{DT_408:g}.nc"
-    with xr.open_dataset(branched) as b, xr.open_dataset("spin.nc") as spin:
+    with xr.open_dataset(branched, decode_times=False) as b, xr.open_dataset("spin.nc", decode_times=False) as spin:
         assert list(b.time.values) == [1.0, 1.25, 1.5, 1.75, 2.0]
         assert b.attrs["branched_from"] == str(restart.resolve()) and b.attrs["branched_from_step"] == 24
         assert b.attrs["branched_from_day"] == 1.0 and b.attrs["branched_from_stepper"] == "rk4"
@@ -123,7 +123,7 @@ def test_a_leapfrog_branch_starts_as_at_t0(spun_up, tmp_path, spin, stepper, dt)
     _, restart = spun_up(spin, 1800.0 if spin == "leapfrog" else 3600.0)
     assert cli_main_ok("run", "--continue", restart, "--stepper", stepper, "--dt", dt, "--days", "1.5", *RUN, "--output", "b.nc")
     fresh = fresh_from(restart, stepper, dt, 0.5)
-    with xr.open_dataset("b.nc") as b:
+    with xr.open_dataset("b.nc", decode_times=False) as b:
         np.testing.assert_array_equal(b.h.sel(time=1.5).values, fresh.grid.to_unique(fresh.x.numpy()[2]))
         np.testing.assert_array_equal(b.u.sel(time=1.5).values, fresh.grid.to_unique(fresh.x.numpy()[0]))
         assert b.steps.values[-1] == round(0.5 * DAY / dt)
@@ -144,7 +144,7 @@ def test_a_branched_run_continues_bitwise_and_keeps_its_record(spun_up, tmp_path
     assert cli_main_ok(*branch, "--days", "2", "--output", "whole.nc")
     assert cli_main_ok(*branch, "--days", "1.5", "--output", "cut.nc", "--restart-every", "0.25")
     assert cli_main_ok("run", "--continue", "cut.restart.nc", "--days", "2", *RUN, "--output", "rest.nc")
-    with xr.open_dataset("whole.nc") as a, xr.open_dataset("rest.nc") as b:
+    with xr.open_dataset("whole.nc", decode_times=False) as a, xr.open_dataset("rest.nc", decode_times=False) as b:
         assert list(b.time.values) == [1.5, 1.75, 2.0] and b.attrs["continued_from_day"] == 1.5
         assert b.attrs["branched_from"] == str(restart.resolve()) and b.attrs["branched_from_day"] == 1.0
         for v in ("h", "u", "v", "total_energy_change", "steps", "rhs_evals"):

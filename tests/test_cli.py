@@ -16,6 +16,7 @@ import shutil
 import subprocess
 from pathlib import Path
 
+import netCDF4
 import numpy as np
 import pytest
 import warp as wp
@@ -102,7 +103,7 @@ def test_summary_quotes_the_last_output_time_the_reference_stores(tmp_path, caps
         assert lines == ["  vs T213     none: no output time after t = 0 is one the reference stores (whole days)"]
     else:
         assert len(lines) == 3 and lines[0].endswith(quoted)
-        with xr.open_dataset(tmp_path / "r.nc") as ds:  # the quoted l2 is the run file's day-1 value
+        with xr.open_dataset(tmp_path / "r.nc", decode_times=False) as ds:  # the quoted l2 is the run file's day-1 value
             assert f"l2 {float(ds.ref_l2_h_surface.sel(time=1.0)):.3e}" in lines[0]
 
 
@@ -113,7 +114,7 @@ def test_run_writes_a_complete_netcdf_file(which, tc2_run, tc5_run_file):
     assert code == 0
     assert out.is_file()
     assert not out.with_name(out.name + ".part").exists()
-    with xr.open_dataset(out) as ds:
+    with xr.open_dataset(out, decode_times=False) as ds:
         ncol = 6 * ne**2 * (np_ - 1) ** 2 + 2
         assert ds.sizes["ncol"] == ncol == 218
         assert ds.sizes["time"] == days + 1
@@ -125,8 +126,8 @@ def test_run_writes_a_complete_netcdf_file(which, tc2_run, tc5_run_file):
             assert ds[name].dims == ("ncol",), name
         assert (ds.h.values > 0).all()
 
-        # units on every variable (time's are in its CF encoding)
-        for name in list(ds.data_vars) + ["lat", "lon"]:
+        # units on every variable but the UGRID mesh's (time's are in its CF encoding)
+        for name in [v for v in ds.data_vars if v not in ("mesh_topology", "face_node_connectivity")] + ["lat", "lon"]:
             assert ds[name].attrs.get("units"), f"{name} has no units"
         assert ds.h.attrs["units"] == "m" and ds.hs.attrs["units"] == "m"
         assert ds.u.attrs["units"] == ds.v.attrs["units"] == "m s-1"
@@ -182,14 +183,27 @@ def test_run_writes_a_complete_netcdf_file(which, tc2_run, tc5_run_file):
             assert "l2_h" not in ds  # no exact solution for TC5
 
 
-def test_time_is_plain_model_days(tc2_run):
-    """time in days (units "days", no calendar): xarray leaves it numeric, so
-    ``.sel(time=1)`` and ``.plot()`` work without cftime or nc-time-axis."""
+def test_time_is_cf_time_in_model_days(tc2_run):
+    """time is CF time (days since an epoch, explicit calendar, no _FillValue), so CDO and
+    the CF checker read dates; undecoded it is model days (``.sel(time=1)``, what
+    ``swe_sphere.run`` returns), decoded it is datetimes — never the timedelta64 that
+    xarray ≤ 2025.1 made of units "days" (its ``decode_timedelta=True`` asked for here)."""
     _, out = tc2_run
-    with xr.open_dataset(out) as ds:
-        assert ds.time.attrs["units"] == "days" and "calendar" not in ds.time.attrs
+    with netCDF4.Dataset(out) as nc:
+        t = nc["time"]
+        assert t.units == "days since 2000-01-01 00:00:00" and t.calendar == "proleptic_gregorian"
+        assert t.standard_name == "time" and t.axis == "T"
+        assert "_FillValue" not in t.ncattrs()
+        assert nc.Conventions == "CF-1.8 UGRID-1.0"
+        assert "standard_name" not in nc["h"].ncattrs() and nc["h"].long_name == "fluid depth"  # CF has no name for it
+        assert nc["vorticity"].standard_name == "atmosphere_upward_relative_vorticity"
+    with xr.open_dataset(out, decode_timedelta=True) as ds:
+        assert ds.time.dtype.kind == "M"
+        assert list(ds.time.values) == [np.datetime64("2000-01-01"), np.datetime64("2000-01-02")]
+        assert ds.h.sel(time="2000-01-02").shape == (ds.sizes["ncol"],)
+    with xr.open_dataset(out, decode_times=False) as ds:
         assert ds.time.dtype == np.float64
-        np.testing.assert_allclose(ds.time.values, [0.0, 1.0], atol=1e-12)
+        np.testing.assert_array_equal(ds.time.values, [0.0, 1.0])
         assert ds.h.sel(time=1).shape == (ds.sizes["ncol"],)
         assert ds.mass_change.sel(time=1) == ds.mass_change.values[-1]
         assert "swe-sphere run tc2_steady" in ds.attrs["history"]
@@ -245,7 +259,7 @@ def test_every_stepper_runs_tc2(stepper, capsys, tmp_path):
     code, stdout, err = run_cli(capsys, "tc2_steady", *TINY, "--days", "1", "--stepper", stepper, "--output", out)
     assert code == 0, err
     assert stepper in stdout
-    with xr.open_dataset(out) as ds:
+    with xr.open_dataset(out, decode_times=False) as ds:
         assert ds.attrs["stepper"] == stepper
         assert json.loads(ds.attrs["scene"])["stepper"] == stepper
         assert ds.l2_h.values[-1] < 3e-3  # measured 1.36e-3 .. 1.51e-3 for the four steppers
@@ -258,7 +272,7 @@ def test_ncol_and_area_on_other_grids(ne, np_, capsys, tmp_path):
     code, _, err = run_cli(capsys, "tc2_steady", "--ne", ne, "--np", np_, "--days", "1", "--device", "cpu",
                            "--no-progress", "--output", out)
     assert code == 0, err
-    with xr.open_dataset(out) as ds:
+    with xr.open_dataset(out, decode_times=False) as ds:
         assert ds.sizes["ncol"] == 6 * ne**2 * (np_ - 1) ** 2 + 2
         assert abs(ds.area.values.sum() / (4 * math.pi * EARTH_RADIUS**2) - 1) < 1e-12
         scene = json.loads(ds.attrs["scene"])
@@ -298,7 +312,7 @@ def test_scene_given_as_a_path_outside_testcases(capsys, tmp_path):
     out = tmp_path / "s.nc"
     code, _, err = run_cli(capsys, scene, *TINY, "--days", "1", "--output", out)
     assert code == 0, err
-    with xr.open_dataset(out) as ds:
+    with xr.open_dataset(out, decode_times=False) as ds:
         assert json.loads(ds.attrs["scene"])["name"] == "my_scene"
 
 
@@ -484,7 +498,7 @@ def test_tiny_run_on_cuda_matches_cpu(capsys, tmp_path):
         code, _, err = run_cli(capsys, "tc2_steady", "--ne", "2", "--np", "4", "--days", "1", "--device", device,
                                "--no-progress", "--output", out)
         assert code == 0, err
-        with xr.open_dataset(out) as ds:
+        with xr.open_dataset(out, decode_times=False) as ds:
             assert ds.attrs["device"] == device
             results[device] = ds.load()
     cuda, cpu = results["cuda"], results["cpu"]
@@ -553,7 +567,7 @@ def test_console_script_exit_status(tmp_path):
     assert BLOWUP_RE.search(proc.stderr), proc.stderr
     assert "summary" not in proc.stdout and "scene" in proc.stdout
     assert nc_files(tmp_path) == [out]
-    with xr.open_dataset(out) as ds:
+    with xr.open_dataset(out, decode_times=False) as ds:
         assert "blowup" in ds.attrs and ds.sizes["time"] >= 2
 
 

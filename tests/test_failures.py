@@ -139,7 +139,7 @@ def test_set_overrides_are_validated_like_the_file(tmp_path, capsys):
     one_line(capsys, ["run", "tc5_mountain", "-s", "time.dt=abc", "--device", "cpu"], 2, "time.dt must be float")
     one_line(capsys, ["run", "tc5_mountain", "-s", "nonsense", "--device", "cpu"], 2, "SECTION.KEY=VALUE")
     assert main(["run", "tc2_steady", *TINY, "--days", "0.25", "-s", "output.every_days=0.125", "--output", "o.nc"]) == 0
-    with xr.open_dataset(tmp_path / "o.nc") as ds:
+    with xr.open_dataset(tmp_path / "o.nc", decode_times=False) as ds:
         np.testing.assert_allclose(ds.time.values, [0, 0.125, 0.25])
 
 
@@ -180,7 +180,7 @@ def test_api_overrides_and_errors():
 def test_compress_stores_float32(tmp_path):
     assert main(["run", "tc2_steady", *TINY, "--days", "0.25", "--output", "c.nc", "--compress"]) == 0
     assert main(["run", "tc2_steady", *TINY, "--days", "0.25", "--output", "f.nc"]) == 0
-    with xr.open_dataset(tmp_path / "c.nc") as c, xr.open_dataset(tmp_path / "f.nc") as f:
+    with xr.open_dataset(tmp_path / "c.nc", decode_times=False) as c, xr.open_dataset(tmp_path / "f.nc", decode_times=False) as f:
         assert c.h.encoding["dtype"] == np.float32 and c.h.encoding["zlib"]
         assert f.h.encoding["dtype"] == np.float64
         np.testing.assert_allclose(c.h.values, f.h.values, rtol=1e-7)

@@ -121,7 +121,7 @@ def test_run_file_records_the_start_and_a_restart_does_not_redo_it(tmp_path, cap
     assert main(["run", "--continue", str(tmp_path / "cut.restart.nc"), "--days", "2", "--no-progress", "--device", "cpu"]) == 0
     assert "continued (not redone)" in capsys.readouterr().out
     assert len(calls) == 2
-    with xr.open_dataset(tmp_path / "full.nc") as a, xr.open_dataset(tmp_path / "cut_continued.nc") as b:
+    with xr.open_dataset(tmp_path / "full.nc", decode_times=False) as a, xr.open_dataset(tmp_path / "cut_continued.nc", decode_times=False) as b:
         assert a.attrs["initialization"] == b.attrs["initialization"] == "dfi"
         assert a.attrs["dfi_cutoff_hours"] == 6.0 and a.attrs["dfi_steps"] > 0 and "dfi_steps" not in b.attrs
         assert a.attrs["dfi_dhdt_rms_after"] < a.attrs["dfi_dhdt_rms_before"]
@@ -182,7 +182,7 @@ def test_cli_sweep_takes_the_start_as_an_override(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "start       digital-filter initialization (cutoff 6 h, span 12 h)" in text and "gravity waves it keeps" in text
     assert (out / "runs" / "start_dfi6h12h.npz").is_file()
-    with xr.open_dataset(out / "sweep.nc") as ds:
+    with xr.open_dataset(out / "sweep.nc", decode_times=False) as ds:
         assert ds.attrs["dfi_cutoff_hours"] == 6.0 and ds.attrs["dfi_span_hours"] == 12.0
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 
+import netCDF4
 import numpy as np
 import pytest
 import xarray as xr
@@ -15,7 +16,7 @@ from scipy.spatial import cKDTree
 import roundoff
 from swe_sphere.cli import main
 from swe_sphere.grid import _FACES
-from swe_sphere.remap import Remapper, lagrange_basis, latlon_grid, locate
+from swe_sphere.remap import Remapper, lagrange_basis, latlon_grid, locate, remap_dataset
 
 
 def cartesian(lat, lon):
@@ -149,7 +150,7 @@ def test_remap_cli_matches_the_model_at_coinciding_points(run_file, tmp_path, ca
     assert main(["remap", str(run_file), "--resolution", "1.0", "--output", str(out)]) == 0
     assert str(out) in capsys.readouterr().out
     assert out.is_file() and not out.with_name(out.name + ".part").exists()
-    with xr.open_dataset(out) as r, xr.open_dataset(run_file) as m:
+    with xr.open_dataset(out, decode_times=False) as r, xr.open_dataset(run_file, decode_times=False) as m:
         assert r.sizes["lat"] == 181 and r.sizes["lon"] == 360 and r.sizes["time"] == 2
         assert r.lat.dims == ("lat",) and r.lon.dims == ("lon",)
         assert r.lat.attrs["units"] == "degrees_north" and r.lon.attrs["units"] == "degrees_east"
@@ -184,8 +185,31 @@ def test_remap_cli_matches_the_model_at_coinciding_points(run_file, tmp_path, ca
 def test_remap_default_output_name(run_file, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert main(["remap", str(run_file), "--resolution", "30"]) == 0
-    with xr.open_dataset(tmp_path / "tc5_latlon30.nc") as r:
+    with xr.open_dataset(tmp_path / "tc5_latlon30.nc", decode_times=False) as r:
         assert (r.sizes["lat"], r.sizes["lon"]) == (7, 12)
+
+
+def test_latlon_file_is_cf_and_selects_by_model_day(run_file, tmp_path):
+    """The lat-lon file's coordinates hold no _FillValue and time stays CF time; the
+    README's ``remap_dataset(run) → .sel(time=day)`` works on the undecoded run and on
+    the written file, and a decoded read (xarray ≤ 2025.1 decoded timedeltas too) gives dates."""
+    out = tmp_path / "ll.nc"
+    assert main(["remap", str(run_file), "--resolution", "30", "--output", str(out)]) == 0
+    with netCDF4.Dataset(out) as nc:
+        for name in ("time", "lat", "lon"):
+            assert "_FillValue" not in nc[name].ncattrs(), name
+        assert nc["time"].units == "days since 2000-01-01 00:00:00" and nc["time"].calendar == "proleptic_gregorian"
+        assert "_FillValue" in nc["h"].ncattrs()  # the fields keep theirs
+    with xr.open_dataset(run_file, decode_times=False) as run:
+        day = float(run.time.values[-1])
+        assert day > 0
+        ll = remap_dataset(run, 30.0)
+        assert ll.h_surface.sel(time=day).dims == ("lat", "lon")
+    with xr.open_dataset(out, decode_times=False) as ds:
+        np.testing.assert_array_equal(ds.h_surface.sel(time=day).values, ll.h_surface.sel(time=day).values)
+    with xr.open_dataset(out, decode_timedelta=True) as ds:
+        assert ds.time.dtype.kind == "M"
+        assert ds.time.values[-1] == np.datetime64("2000-01-01") + np.timedelta64(round(day * 86400), "s")
 
 
 @pytest.mark.parametrize(

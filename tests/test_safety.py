@@ -150,7 +150,7 @@ def test_a_scrambled_restart_file_is_refused(run_dir, tmp_path):
     import netCDF4
 
     with netCDF4.Dataset(run_dir / "a.restart.nc") as ds:
-        raw = np.asarray(ds["x"][:], dtype=np.float64).tobytes()
+        raw = np.asarray(ds["u"][:], dtype=np.float64).tobytes()
     data = bytearray((run_dir / "a.restart.nc").read_bytes())
     at = data.find(raw[:64])
     assert at > 0
@@ -158,11 +158,12 @@ def test_a_scrambled_restart_file_is_refused(run_dir, tmp_path):
     bad = tmp_path / "s.restart.nc"
     bad.write_bytes(bytes(data))
     before = digest(bad)
-    refused(cli(tmp_path, "run", "--continue", bad, "--days", "2", "--output", "o.nc", "--no-progress"), "variable x", "checksum")
+    refused(cli(tmp_path, "run", "--continue", bad, "--days", "2", "--output", "o.nc", "--no-progress"), "variable u", "checksum")
     assert digest(bad) == before and not (tmp_path / "o.nc").exists()
 
 
-@pytest.mark.parametrize("row, value, words", [(2, -10.0, "depth h = -10"), (0, 5e4, "wind of 5e+04 m/s"), (1, float("nan"), "non-finite")])
+@pytest.mark.parametrize("row, value, words", [(2, -10.0, "variable h holds a depth h = -10"), (0, 5e4, "variables u, v hold a wind of 5e+04 m/s"),
+                                                (1, float("nan"), "variable v holds 1 non-finite")])
 def test_a_restart_file_with_a_bad_state_is_refused(run_dir, tmp_path, row, value, words):
     """A checkpoint whose hash matches (as the API would write it) but whose state
     no run makes: a negative depth, a wind far beyond the gravity-wave speed, a NaN."""
@@ -176,9 +177,9 @@ def test_a_restart_file_with_a_bad_state_is_refused(run_dir, tmp_path, row, valu
     ck = read(bad)
     ck.x[row, 5] = value
     with netCDF4.Dataset(bad, "a") as ds:
-        ds["x"][:] = ck.x
+        ds["uvh"[row]][:] = ck.x[row]
         ds.content_sha256 = content_hash(ck.step, ck.x, ck.stepper_state)
-    refused(cli(tmp_path, "run", "--continue", bad, "--days", "2", "--output", "o.nc", "--no-progress"), "variable x", words)
+    refused(cli(tmp_path, "run", "--continue", bad, "--days", "2", "--output", "o.nc", "--no-progress"), words)
     assert not (tmp_path / "o.nc").exists()
 
 

@@ -8,6 +8,7 @@ import sys
 import time
 from pathlib import Path
 
+import netCDF4
 import numpy as np
 import pandas as pd
 import pytest
@@ -56,9 +57,11 @@ def test_sweep_rows_and_files(swept):
         assert df.loc[3, f"temporal_error_{part}"] > df.loc[2, f"temporal_error_{part}"]
     roundoff.mass_kept(roundoff.run_file_history(stable), cached_grid(2, 4).npts)
     np.testing.assert_allclose(df["dt_over_gravity_limit"] / df["dt"], df["dt_over_gravity_limit"][0] / 3600.0)
-    ds = xr.open_dataset(out / "sweep.nc")
-    assert dict(ds.sizes) == {"stepper": 2, "dt": 2}
-    assert float(ds["wall_time"].sel(stepper="implicit", dt=14400.0)) > 0
+    with xr.open_dataset(out / "sweep.nc") as ds:  # one run dimension: sweep.csv's rows
+        assert ds.sizes["run"] == len(df) == 4 and list(ds["stepper"].values) == list(df["stepper"])
+        np.testing.assert_array_equal(ds["dt"].values, df["dt"])
+        at = ds.where((ds.stepper == "implicit") & (ds.dt == 14400.0), drop=True)
+        assert at.sizes["run"] == 1 and float(at["wall_time"][0]) == df["wall_time"][3] > 0
     for png in ("error_vs_wall_time.png", "error_vs_dt.png", "temporal_error_vs_dt.png"):
         assert (out / png).stat().st_size > 10_000
 
@@ -315,7 +318,7 @@ def test_a_sweep_whose_reference_run_blows_up_exits_3_with_its_place(tmp_path, c
 
 def test_sweep_of_chosen_runs_makes_only_those(tmp_path, capsys):
     """--runs STEPPER@COURANT,...: only the named (stepper, Δt) runs, the reference at a
-    quarter of the smallest; sweep.nc leaves the others NaN; --runs with --steppers,
+    quarter of the smallest; sweep.nc holds those runs alone; --runs with --steppers,
     an unknown stepper or a bad multiple exit 2 with one line; a pair named twice runs once."""
     out = tmp_path / "sweep"
     args = ["sweep", "tc2_steady", "--ne", "2", "--days", "1", "--runs", "implicit@4,ssprk3@0.5,implicit@4", "--device", "cpu",
@@ -329,9 +332,9 @@ def test_sweep_of_chosen_runs_makes_only_those(tmp_path, capsys):
     assert len(list((out / "runs").glob("*.json"))) == 2
     ref = next((out / "runs").glob("reference_*.npz")).name
     assert float(ref.split("_")[-1][:-4]) == pytest.approx(df["dt"].min() / 4, rel=1e-5)  # the name has 6 digits
-    with xr.open_dataset(out / "sweep.nc") as ds:
-        assert dict(ds.sizes) == {"stepper": 2, "dt": 2}
-        assert np.isnan(float(ds["wall_time"].sel(stepper="ssprk3", dt=df["dt"].max())))
+    with xr.open_dataset(out / "sweep.nc") as ds:  # no stepper × dt grid of NaN
+        assert ds.sizes["run"] == 2 and list(ds["stepper"].values) == ["implicit", "ssprk3"]
+        assert np.isfinite(ds["wall_time"].values).all()
     capsys.readouterr()
     for bad, word in ((["--runs", "rk4@1", "--steppers", "rk4"], "not both"), (["--runs", "euler@1"], "euler"),
                       (["--runs", "rk4@-1"], "-1"), (["--runs", "rk4"], "STEPPER@COURANT")):
@@ -401,6 +404,29 @@ def test_sweep_files_record_what_the_sweep_was_made_with(swept):
     assert list(df.columns[-len(sweep_mod.RECORD):]) == list(sweep_mod.RECORD)
     for k, v in expected.items():
         assert (df[k] == v).all(), k
+
+
+def test_sweep_nc_describes_itself(swept):
+    """sweep.nc: CF Conventions, title, history; long_name on every variable and units on
+    every number; the strings (stepper, reason) CF character arrays, no string
+    coordinate, no _FillValue on the run coordinate."""
+    out, _ = swept
+    with netCDF4.Dataset(out / "sweep.nc") as nc:
+        assert nc.Conventions == "CF-1.8" and nc.title == "swe_sphere sweep: tc2_steady ne2 np4, 1 days"
+        assert "swe_sphere sweep" in nc.history
+        assert set(nc.variables) == {"run", *sweep_mod.COLUMNS}
+        for name, var in nc.variables.items():
+            assert var.long_name, name
+            if name in ("stepper", "reason"):
+                assert var.dtype == np.dtype("S1") and var.dimensions[0] == "run" and len(var.dimensions) == 2, name
+            else:
+                assert var.units, name
+        assert "_FillValue" not in nc["run"].ncattrs()
+        assert nc["dt"].units == "s" and nc["total_error"].units == "1"
+    with xr.open_dataset(out / "sweep.nc") as ds:
+        assert list(ds.stepper.values) == ["ssprk3", "ssprk3", "implicit", "implicit"]
+        reasons = list(pd.read_csv(out / "sweep.csv")["reason"].fillna(""))
+        assert list(ds.reason.values) == reasons and reasons[1].startswith("blow-up")
 
 
 def test_sweep_figures_are_titled_with_case_grid_and_days(swept, monkeypatch, tmp_path):

@@ -232,7 +232,7 @@ def test_a_sweep_against_another_reference_makes_its_own_runs(tmp_path, capsys, 
     runs = []
     real_run = Simulation.run
     monkeypatch.setattr(Simulation, "run", lambda self, output=None, **kw: runs.append(self.scene.reference) or real_run(self, output, **kw))
-    assert main([*args, "-s", f"case.reference={other}"]) == 0
+    assert main([*args, "-s", f"case.reference={other}", "--overwrite"]) == 0
     text = capsys.readouterr().out
     assert runs == [str(other)] * 3  # the small-Δt run, the warm-up and the run: none read back
     assert sorted(p.name for p in (out / "runs").iterdir()) == [
@@ -360,7 +360,7 @@ def test_a_sweep_of_other_days_or_overrides_into_the_same_folder_makes_its_runs_
     two_days = _rows(out)
     capsys.readouterr()
     one_day = [*TC5, "--days", "1", "--courant", "0.5"]
-    assert main([*one_day, "--output", str(out)]) == 0
+    assert main([*one_day, "--output", str(out), "--overwrite"]) == 0
     text = capsys.readouterr().out
     assert "runs: 0 reused, 1 made" in text
     assert "made again: reference_rk4_" in text and "had other settings: scene.days 2.0 (now 1.0)" in text
@@ -372,14 +372,14 @@ def test_a_sweep_of_other_days_or_overrides_into_the_same_folder_makes_its_runs_
     assert _rows(out)["total_error"][0] != two_days["total_error"][0]
     assert _rows(out)["rhs_evals"][0] * 2 == two_days["rhs_evals"][0]
 
-    assert main([*one_day, "-s", "hyperviscosity.efold_hours=24", "--output", str(out)]) == 0
+    assert main([*one_day, "-s", "hyperviscosity.efold_hours=24", "--output", str(out), "--overwrite"]) == 0
     text = capsys.readouterr().out
     assert "runs: 0 reused, 1 made" in text and "other settings: scene.nu " in text
     damped = _rows(out)
     assert damped["total_error"][0] != _rows(fresh)["total_error"][0]
     with xr.open_dataset(out / "sweep.nc") as ds:
         assert ds.attrs["overrides"] == "hyperviscosity.efold_hours=24"
-    assert main([*one_day, "-s", "hyperviscosity.efold_hours=24", "--output", str(out)]) == 0
+    assert main([*one_day, "-s", "hyperviscosity.efold_hours=24", "--output", str(out), "--overwrite"]) == 0
     assert "runs: 1 reused, 0 made" in capsys.readouterr().out
     pd.testing.assert_frame_equal(_rows(out), damped, check_exact=True)
 
@@ -402,12 +402,10 @@ def test_sweep_files_record_what_the_sweep_was_made_with(swept):
 
 
 def test_sweep_figures_are_titled_with_case_grid_and_days(swept, monkeypatch, tmp_path):
-    from swe_sphere import plotting
-
     out, _ = swept
     titles = []
-    real = plotting.sweep_plot
-    monkeypatch.setattr(plotting, "sweep_plot", lambda *a, **k: titles.append(k["title"]) or real(*a, **k))
+    real = sweep_mod.sweep_plot  # the name write_outputs calls
+    monkeypatch.setattr(sweep_mod, "sweep_plot", lambda *a, **k: titles.append(k["title"]) or real(*a, **k))
     rows = sweep_mod.table(pd.read_csv(out / "sweep.csv").to_dict("records"), {"dt_gravity": 1.0, "dt_advective": 1.0, "dt_leapfrog": 1.0})
     with xr.open_dataset(out / "sweep.nc") as ds:
         info = dict(ds.attrs)

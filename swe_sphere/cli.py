@@ -350,6 +350,9 @@ def _continued(args, device, comm):
             raise checkpoint.CheckpointError(f"{args.continue_from} is a run with {flag.lstrip('-')} = {have}; it cannot continue with {flag} {value}")
     if args.set:
         raise checkpoint.CheckpointError("-s cannot change a checkpointed scene")
+    if args.days is None and ck.step >= ck.scene.nsteps:  # else 0 steps, and a file that blocks the real continuation
+        raise checkpoint.CheckpointError(f"{args.continue_from} is already at its run's end day {ck.scene.days:g}: "
+                                         "give --days for the new end day")
     if args.scene is not None:
         given = load_scene(args.scene, ne=args.ne, np=args.np)
         mine = {k: v for k, v in ck.scene.as_dict().items() if k not in ("days", "notes", "branch")}

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import cli_one_line
+from conftest import TINY, cli_main, cli_one_line
 from test_initial_state import LL, latlon_file, scene_file
 from swe_sphere import stability, sweep
 
@@ -63,3 +63,16 @@ def test_an_initial_state_not_covering_the_globe_is_refused(tmp_path, capsys, la
     scene = scene_file(tmp_path, latlon_file(tmp_path / "part.nc", lat, lon))
     cli_one_line(capsys, ["run", scene, "--device", "cpu", "--no-progress", "--output", "out.nc"], 2, "case.path", *words)
     assert not (tmp_path / "out.nc").exists()
+
+
+def test_continue_at_the_end_day_without_days_is_refused(tmp_path, capsys):
+    """``--continue R.restart.nc`` of a finished run, no --days: it ran 0 steps, exit 0, and
+    wrote R_continued.nc, which then blocked the real continuation. Now exit 2, nothing written."""
+    run = ["run", "tc2_steady", *TINY, "--dt", "1800", "--days", "0.25", "-s", "output.every_days=0.25"]
+    assert cli_main(capsys, *run, "--restart-every", "0.25", "--output", "r.nc")[0] == 0
+    before = sorted(p.name for p in tmp_path.iterdir())
+    cli_one_line(capsys, ["run", "--continue", "r.restart.nc", "--device", "cpu", "--no-progress"], 2,
+                 "r.restart.nc is already at its run's end day 0.25", "--days")
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+    assert cli_main(capsys, "run", "--continue", "r.restart.nc", "--days", "0.5", "--device", "cpu", "--no-progress")[0] == 0
+    assert (tmp_path / "r_continued.nc").is_file()

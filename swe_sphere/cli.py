@@ -350,9 +350,6 @@ def _continued(args, device, comm):
             raise checkpoint.CheckpointError(f"{args.continue_from} is a run with {flag.lstrip('-')} = {have}; it cannot continue with {flag} {value}")
     if args.set:
         raise checkpoint.CheckpointError("-s cannot change a checkpointed scene")
-    if args.days is None and ck.step >= ck.scene.nsteps:  # else 0 steps, and a file that blocks the real continuation
-        raise checkpoint.CheckpointError(f"{args.continue_from} is already at its run's end day {ck.scene.days:g}: "
-                                         "give --days for the new end day")
     if args.scene is not None:
         given = load_scene(args.scene, ne=args.ne, np=args.np)
         mine = {k: v for k, v in ck.scene.as_dict().items() if k not in ("days", "notes", "branch")}
@@ -360,6 +357,10 @@ def _continued(args, device, comm):
         if mine != theirs:
             differ = ", ".join(k for k in mine if mine[k] != theirs.get(k))
             raise checkpoint.CheckpointError(f"{args.continue_from} is a run of another scene than {args.scene} (differs in: {differ})")
+    continued = args.stepper is None and args.dt is None  # not a branch (which refuses a length of 0 days itself)
+    if continued and args.days is None and ck.step >= ck.scene.nsteps:  # else 0 steps, and a file that blocks the real one
+        raise checkpoint.CheckpointError(f"{args.continue_from} is already at its run's end day {ck.scene.days:g}: "
+                                         "give --days for the new end day")
     return Simulation.from_checkpoint(ck, device, days=args.days, stepper=args.stepper, dt=args.dt, progress=not args.no_progress,
                                       comm=comm, graphs=args.graphs)
 

@@ -4,6 +4,7 @@ line naming the field or file, nothing written, no earlier result replaced."""
 from __future__ import annotations
 
 import numpy as np
+import xarray as xr
 import pytest
 
 from conftest import TINY, cli_main, cli_one_line
@@ -76,3 +77,29 @@ def test_continue_at_the_end_day_without_days_is_refused(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == before
     assert cli_main(capsys, "run", "--continue", "r.restart.nc", "--days", "0.5", "--device", "cpu", "--no-progress")[0] == 0
     assert (tmp_path / "r_continued.nc").is_file()
+
+
+def test_a_switched_case_is_named_in_header_title_and_file_name(tmp_path, capsys):
+    """``-s case.name=file`` on tc2_steady: the header, the run file's title and its
+    default name say the case that ran, not the scene file's own."""
+    state = latlon_file(tmp_path / "state.nc", *LL)
+    code, out, err = cli_main(capsys, "run", "tc2_steady", *TINY, "--dt", "1800", "--days", "0.125", "-s", "case.name=file",
+                              "-s", f"case.path={state}", "-s", "output.every_days=0.125")
+    assert code == 0, err
+    assert "scene       file_in_tc2_steady: case file with scene tc2_steady's grid, terms and stepping" in out
+    with xr.open_dataset(tmp_path / "file_in_tc2_steady_ne2np4_ssprk3.nc") as ds:
+        assert ds.attrs["title"] == "swe_sphere run of scene file_in_tc2_steady" and ds.attrs["case"] == "file"
+
+
+def test_a_branch_at_another_dt_drops_the_dt_scaled_note(tmp_path, capsys):
+    """The scene's dt was scaled to ne2 (a note says so); a branch with --dt runs at the
+    dt given, so its header no longer says dt was scaled; a plain continuation still does."""
+    run = ["run", "tc2_steady", *TINY, "--days", "0.25", "-s", "output.every_days=0.25"]
+    code, out, _ = cli_main(capsys, *run, "--restart-every", "0.25", "--output", "r.nc")
+    assert code == 0 and "note        dt scaled with the smallest node spacing" in out
+    code, out, err = cli_main(capsys, "run", "--continue", "r.restart.nc", "--dt", "1800", "--days", "0.5", "--device", "cpu",
+                              "--no-progress")
+    assert code == 0, err
+    assert "dt = 1800 s" in out and "dt scaled" not in out
+    code, out, _ = cli_main(capsys, "run", "--continue", "r.restart.nc", "--days", "0.5", "--device", "cpu", "--no-progress")
+    assert code == 0 and "dt scaled" in out

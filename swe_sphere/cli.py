@@ -267,6 +267,12 @@ def _cmd_sweep(args) -> int:
                     print(f"note        --courant {','.join(f'{f:g}' for f in capped)}: dt capped at the filter's "
                           f"{time_filter.every_hours:g} h snapshot interval ({span * 86400 / limits['dt_gravity']:.3g} x the "
                           "gravity-wave limit); --filter-every sets it")
+                said = capped if time_filter is not None else []
+                rounded = [f"{f:g} runs at {dt_of[f] / limits['dt_gravity']:.3g}" for f in factors
+                           if f not in said and dt_of[f] < f * limits["dt_gravity"] * (1 - 1e-3)]
+                if rounded:  # the multiple that ran, not the one asked for
+                    print(f"note        {'--runs' if pairs else '--courant'} {', '.join(rounded)} x the gravity-wave limit "
+                          f"(each dt the largest at or below its multiple that divides {min(span, 1.0):g} days)")
             for dt in dts:
                 if abs(round(length * 86400 / dt) * dt - length * 86400) > 1e-6 * dt:
                     raise ValueError(f"dt = {dt:g} s does not divide the run length of {length:g} days")

@@ -103,3 +103,17 @@ def test_a_branch_at_another_dt_drops_the_dt_scaled_note(tmp_path, capsys):
     assert "dt = 1800 s" in out and "dt scaled" not in out
     code, out, _ = cli_main(capsys, "run", "--continue", "r.restart.nc", "--days", "0.5", "--device", "cpu", "--no-progress")
     assert code == 0 and "dt scaled" in out
+
+
+def test_sweep_says_the_multiple_that_ran(tmp_path, capsys):
+    """``--runs rk4@0.77`` runs at the largest dt that divides the run: the note gives that
+    multiple of the gravity-wave limit (sweep.csv's), not the 0.77 asked for."""
+    import pandas as pd
+
+    code, out, err = cli_main(capsys, "sweep", "tc2_steady", "--ne", "2", "--days", "0.25", "--runs", "rk4@0.77",
+                              "--device", "cpu", "--output", "o")
+    assert code == 0, err
+    ran = pd.read_csv(tmp_path / "o" / "sweep.csv")["dt_over_gravity_limit"][0]
+    assert abs(ran - 0.77) > 1e-3
+    note = next(line for line in out.splitlines() if line.startswith("note        --runs"))
+    assert note.startswith(f"note        --runs 0.77 runs at {ran:.3g} x the gravity-wave limit (each dt the largest"), note

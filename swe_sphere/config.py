@@ -554,6 +554,10 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
         STEPPERS[stepper1].make_options(**options)
     except ValueError as err:
         raise SceneError(f"{stepper1}.{err}") from None
+    # a scene file may hold tables for other steppers (--stepper picks one); an -s for one is a slip
+    other = sorted(k for k in overrides or {} if k.partition(".")[0] in STEPPERS and k.partition(".")[0] != stepper1)
+    if other:
+        notes.append(f"warning: -s {', '.join(other)}: not an option of {stepper1}, the stepper that runs; not used")
 
     hv = s.get("hyperviscosity", {})
     for key in ("efold_hours", "nu", "nu_div", "nu_s"):

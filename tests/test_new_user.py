@@ -117,3 +117,11 @@ def test_sweep_says_the_multiple_that_ran(tmp_path, capsys):
     assert abs(ran - 0.77) > 1e-3
     note = next(line for line in out.splitlines() if line.startswith("note        --runs"))
     assert note.startswith(f"note        --runs 0.77 runs at {ran:.3g} x the gravity-wave limit (each dt the largest"), note
+
+
+def test_an_option_of_another_stepper_warns(tmp_path, capsys):
+    """``-s implicit.method=bdf2`` with ssprk3 running was ignored silently: now one warning line."""
+    code, _, err = cli_main(capsys, "run", "tc2_steady", *TINY, "--dt", "1800", "--days", "0.125", "-s", "output.every_days=0.125",
+                            "-s", "implicit.method=bdf2")
+    assert code == 0
+    assert err.strip() == ("swe-sphere: warning: -s implicit.method: not an option of ssprk3, the stepper that runs; not used")

@@ -307,6 +307,16 @@ def line_plot(path, lines, *, xlabel="", ylabel="", title="", logx=False, logy=F
     return _save(fig, path)
 
 
+def error_label(y: str) -> str:
+    """The axis label of a sweep's error column (``scoring.Scorer.total_errors``' l2 norms):
+    "total_error" → "total error: normalized l2 of h + hs", "temporal_error_vorticity" →
+    "temporal error: normalized l2 of vorticity"; another column as it is named."""
+    kind, sep, field = y.partition("_error")
+    if not sep:
+        return y.replace("_", " ")
+    return f"{kind} error: normalized l2 of {field.lstrip('_').replace('_', ' ') or 'h + hs'}"
+
+
 def sweep_plot(path, rows, x: str, *, xlabel: str = "", floor: float | None = None, y: str = "temporal_error", figsize=(8.0, 5.0),
                title: str = "") -> Path:
     """Sweep figure (``swe_sphere.sweep``): ``y`` against ``x`` per stepper, log-log, for the
@@ -322,7 +332,8 @@ def sweep_plot(path, rows, x: str, *, xlabel: str = "", floor: float | None = No
         lines.append((st, [p[0] for p in pts], [p[1] for p in pts]))
     fig = _figure(figsize)
     ax = fig.add_subplot()
-    drawn = _lines(ax, lines, logx=True, logy=True, xlabel=xlabel or x, ylabel=y.replace("_", " "), title=f"{title + ': ' if title else ''}{y.replace('_', ' ')} against {xlabel or x}")
+    drawn = _lines(ax, lines, logx=True, logy=True, xlabel=xlabel or x, ylabel=error_label(y),
+                   title=f"{title + ': ' if title else ''}{y.replace('_', ' ')} against {xlabel or x}")
     if floor is not None and math.isfinite(floor) and floor > 0:
         ax.axhline(floor, color="0.4", linestyle="--", linewidth=1, label="spatial error")
         if y.startswith("temporal"):
@@ -360,7 +371,9 @@ def plot_series(ds, path=None):
         f"{pre}{n}_{f}" for pre in ("", "ref_") for f in ("h", "h_surface", "wind") for n in ("l1", "l2", "linf")
     ]
     norms = [(k, days, ds[k].values) for k in norm_names if k in ds.variables]
-    if not _lines(right, norms, logy=True, xlabel="day", ylabel="normalized error", title="error norms (ref_: against T213)"):
+    against = ds.attrs.get("reference", "")  # the run file's truth: "exact solution", a reference file's name or "none"
+    title = "error norms against the exact solution" if against == "exact solution" else f"error norms (ref_: against {against})"
+    if not _lines(right, norms, logy=True, xlabel="day", ylabel="normalized error", title=title):
         right.text(0.5, 0.5, "no exact or reference solution for this case", ha="center", va="center", transform=right.transAxes)
     fig.suptitle(_scene_label(ds), fontsize=12)
     if path is not None:

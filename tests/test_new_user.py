@@ -125,3 +125,27 @@ def test_an_option_of_another_stepper_warns(tmp_path, capsys):
                             "-s", "implicit.method=bdf2")
     assert code == 0
     assert err.strip() == ("swe-sphere: warning: -s implicit.method: not an option of ssprk3, the stepper that runs; not used")
+
+
+def test_tc2_plots_say_they_are_against_the_exact_solution(tmp_path, capsys):
+    """TC2's series panel said "against T213"; ``plot --diff T213`` said "reference file not found"."""
+    from swe_sphere.plotting import open_run, plot_series
+
+    assert cli_main(capsys, "run", "tc2_steady", *TINY, "--dt", "1800", "--days", "0.125", "-s", "output.every_days=0.125",
+                    "--output", "tc2.nc")[0] == 0
+    ds = open_run(tmp_path / "tc2.nc")
+    try:
+        assert plot_series(ds).axes[1].get_title() == "error norms against the exact solution"
+    finally:
+        ds.close()
+    cli_one_line(capsys, ["plot", "tc2.nc", "--diff", "T213"], 2,
+                 "no T213 reference for this case: it is scored against its exact solution")
+    assert not list(tmp_path.glob("*.png"))
+
+
+def test_sweep_error_axes_name_the_norm_and_field():
+    from swe_sphere.plotting import error_label
+
+    assert error_label("total_error") == "total error: normalized l2 of h + hs"
+    assert error_label("temporal_error_vorticity") == "temporal error: normalized l2 of vorticity"
+    assert error_label("wall_time") == "wall time"

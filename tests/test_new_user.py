@@ -149,3 +149,20 @@ def test_sweep_error_axes_name_the_norm_and_field():
     assert error_label("total_error") == "total error: normalized l2 of h + hs"
     assert error_label("temporal_error_vorticity") == "temporal error: normalized l2 of vorticity"
     assert error_label("wall_time") == "wall time"
+
+
+def test_the_zonal_mean_of_the_wind_at_the_poles_is_its_limit(tmp_path, capsys):
+    """TC2 with its jet over the poles (α = π/4), whose zonal mean of u is u0 cos(lat) cos(α)
+    (Williamson 1992 eq. 90 averaged over longitude): the pole rows were ±27.6 m/s off it at
+    ne2 (east turns with longitude there), 4.6x the worst other row; now they are the limit, 0
+    (v's too), exact."""
+    from swe_sphere.analysis import zonal_mean
+
+    assert cli_main(capsys, "run", "tc2_steady_alpha_pi4", *TINY, "--dt", "1800", "--days", "0.125", "-s",
+                    "output.every_days=0.125", "--output", "a.nc")[0] == 0
+    for field in ("u", "v"):
+        assert zonal_mean(tmp_path / "a.nc", field).isel(time=-1).values[[0, -1]].tolist() == [0.0, 0.0], field
+    u = zonal_mean(tmp_path / "a.nc", "u").isel(time=-1)
+    u0 = 2 * np.pi * 6.37122e6 / (12 * 86400)
+    error = np.abs(u.values - u0 * np.cos(np.radians(u.lat.values)) * np.cos(np.pi / 4))
+    assert error[[0, -1]].max() < 1e-9 < error[1:-1].max()

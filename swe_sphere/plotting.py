@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 import xarray as xr
+from matplotlib.ticker import MaxNLocator
 
 from .analysis import DAY_TOL, DERIVED, MAP_FIELDS, days_of, field_at_nodes, kinetic_energy_spectrum, run_name, zonal_mean
 from .cases import make_case
@@ -206,9 +207,11 @@ def plot_map(ds, field: str, day: float, path=None, diff=None, lat_range=None) -
     run − reference with a symmetric colour map, and the title carries the normalized
     l2 of the difference over the run's nodes (area-weighted). ``lat_range`` (south, north)
     in degrees draws only that band (e.g. (0, 90) for Galewsky et al. 2004, Fig. 4).
-    Height fields get contour lines (14 levels), vorticity contours every 2e-5 s⁻¹.
+    Height fields get contour lines (about 14 levels at a round interval), vorticity
+    contours every 2e-5 s⁻¹; the colour bar's label states the interval.
 
-    Returns ``{"figure", "path", "min", "max", "colorbar_label", "title"}``: the
+    Returns ``{"figure", "path", "min", "max", "colorbar_label", "title", "contour_interval"}``
+    (the interval in the colour bar's units, None without contours): the
     ``matplotlib.figure.Figure`` (Agg canvas: ``figure.savefig`` works, no pyplot
     needed), the PNG written (None without ``path``), min/max of the drawn values
     in file units; plus ``"l2"`` with diff. Raises ``ValueError`` (one line) for an
@@ -246,12 +249,16 @@ def plot_map(ds, field: str, day: float, path=None, diff=None, lat_range=None) -
     fig = _figure(FIGSIZE)
     ax = fig.add_subplot()
     info["colorbar_label"], info["title"] = label, title
-    contours = None
-    if diff is None and field in ("h", "h_surface"):
-        contours = 14
+    contours = interval = None
+    if diff is None and field in ("h", "h_surface"):  # about 14 levels at a round interval
+        contours = MaxNLocator(nbins=14).tick_values(np.nanmin(shown), np.nanmax(shown))
+        interval = float(contours[1] - contours[0])
     elif diff is None and field == "vorticity":
         top = np.ceil(np.nanmax(np.abs(shown * scale)) / 2) * 2
-        contours = [c for c in np.arange(-top, top + 1, 2.0) if c != 0]  # 2e-5 s-1, as Galewsky et al.
+        contours, interval = [c for c in np.arange(-top, top + 1, 2.0) if c != 0], 2.0  # 2e-5 s-1, as Galewsky et al.
+    if interval is not None:  # the interval is stated, so a reader can count the lines
+        label = info["colorbar_label"] = f"{label}; contours every {interval:g} {units}"
+    info["contour_interval"] = interval
     draw_map(fig, ax, lon_e, lat_e, shown * scale, cmap=draw_cmap, symmetric=draw_symmetric, label=label, contours=contours)
     ax.set_title(title, fontsize=11)
     info["figure"] = fig

@@ -261,6 +261,7 @@ def _cmd_sweep(args) -> int:
             if dts is None:
                 dt_of = {f: dt_for_day(f * limits["dt_gravity"], span) for f in factors}
                 dts = sorted(set(dt_of.values()))
+                asked = {f: "/".join(f"{s}@{f:g}" for s, g in pairs if g == f) if pairs else f"{f:g}" for f in factors}
                 pairs = [(s, dt_of[f]) for s, f in pairs] if pairs else None
                 capped = [f for f in factors if f * limits["dt_gravity"] > span * 86400 * (1 + 1e-9)]
                 if capped and time_filter is not None:  # Δt must divide the filter's snapshot interval
@@ -268,7 +269,7 @@ def _cmd_sweep(args) -> int:
                           f"{time_filter.every_hours:g} h snapshot interval ({span * 86400 / limits['dt_gravity']:.3g} x the "
                           "gravity-wave limit); --filter-every sets it")
                 said = capped if time_filter is not None else []
-                rounded = [f"{f:g} runs at {dt_of[f] / limits['dt_gravity']:.3g}" for f in factors
+                rounded = [f"{asked[f]} runs at {dt_of[f] / limits['dt_gravity']:.3g}" for f in factors
                            if f not in said and dt_of[f] < f * limits["dt_gravity"] * (1 - 1e-3)]
                 if rounded:  # the multiple that ran, not the one asked for
                     print(f"note        {'--runs' if pairs else '--courant'} {', '.join(rounded)} x the gravity-wave limit "

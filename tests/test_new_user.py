@@ -116,7 +116,7 @@ def test_sweep_says_the_multiple_that_ran(tmp_path, capsys):
     ran = pd.read_csv(tmp_path / "o" / "sweep.csv")["dt_over_gravity_limit"][0]
     assert abs(ran - 0.77) > 1e-3
     note = next(line for line in out.splitlines() if line.startswith("note        --runs"))
-    assert note.startswith(f"note        --runs 0.77 runs at {ran:.3g} x the gravity-wave limit (each dt the largest"), note
+    assert note.startswith(f"note        --runs rk4@0.77 runs at {ran:.3g} x the gravity-wave limit (each dt the largest"), note
 
 
 def test_an_option_of_another_stepper_warns(tmp_path, capsys):

@@ -40,6 +40,7 @@ class Checkpoint:
     version: str
     path: Path | None = None  # the file read (absolute)
     sha256: str | None = None  # SHA-256 (hex) of the file's bytes
+    restart_every: float | None = None  # days: the interval the run wrote restart files at (None: at a signal only)
 
 
 def branch(ck: Checkpoint, *, stepper: str | None = None, dt: float | None = None, days: float | None = None) -> Scene:

@@ -345,8 +345,10 @@ def _overrides(pairs) -> dict:
 
 
 def _continued(args, device, comm):
-    """The Simulation of ``run --continue``: a continuation, or with another --stepper
-    or --dt a branch (``Simulation.from_checkpoint``); refuses a changed scene or grid."""
+    """The Simulation of ``run --continue``: a continuation (keeping the restart file's
+    ``--restart-every`` unless given: ``args.restart_every`` set), or with another
+    --stepper or --dt a branch (``Simulation.from_checkpoint``); refuses a changed
+    scene or grid, and a continuation at its end day without --days."""
     from . import checkpoint
     from .config import load_scene
     from .simulation import Simulation
@@ -368,6 +370,8 @@ def _continued(args, device, comm):
     if continued and args.days is None and ck.step >= ck.scene.nsteps:  # else 0 steps, and a file that blocks the real one
         raise checkpoint.CheckpointError(f"{args.continue_from} is already at its run's end day {ck.scene.days:g}: "
                                          "give --days for the new end day")
+    if continued and args.restart_every is None:  # a run that wrote restart files goes on writing them, as if never stopped
+        args.restart_every = ck.restart_every
     return Simulation.from_checkpoint(ck, device, days=args.days, stepper=args.stepper, dt=args.dt, progress=not args.no_progress,
                                       comm=comm, graphs=args.graphs)
 

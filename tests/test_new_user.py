@@ -166,3 +166,18 @@ def test_the_zonal_mean_of_the_wind_at_the_poles_is_its_limit(tmp_path, capsys):
     u0 = 2 * np.pi * 6.37122e6 / (12 * 86400)
     error = np.abs(u.values - u0 * np.cos(np.radians(u.lat.values)) * np.cos(np.pi / 4))
     assert error[[0, -1]].max() < 1e-9 < error[1:-1].max()
+
+
+def test_a_continued_run_keeps_writing_restart_files(tmp_path, capsys):
+    """A run with --restart-every 0.125, continued without it: the continuation writes
+    its restart file at its interval (the header says so), which continues again."""
+    from swe_sphere import checkpoint
+
+    run = ["run", "tc2_steady", *TINY, "--dt", "1800", "--days", "0.125", "-s", "output.every_days=0.125"]
+    assert cli_main(capsys, *run, "--restart-every", "0.125", "--output", "r.nc")[0] == 0
+    assert checkpoint.read(tmp_path / "r.restart.nc").restart_every == 0.125
+    code, out, err = cli_main(capsys, "run", "--continue", "r.restart.nc", "--days", "0.25", "--device", "cpu", "--no-progress")
+    assert code == 0, err
+    assert "every 0.125 days and at the end" in out
+    again = checkpoint.read(tmp_path / "r_continued.restart.nc")
+    assert (again.step, again.restart_every) == (12, 0.125)

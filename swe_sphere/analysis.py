@@ -140,7 +140,8 @@ def zonal_mean(run, field: str = "h", days=None, resolution: float | None = None
     spectrally accurate for a smooth periodic field).
 
     Returns an ``xarray.DataArray`` (time, lat), time in model days, lat in
-    degrees_north (−90..90, both poles), in the field's units (m, m s⁻¹, s⁻¹),
+    degrees_north (−90..90, both poles; u's and v's means there are their limit, 0:
+    a wind component's mean over a shrinking circle), in the field's units (m, m s⁻¹, s⁻¹),
     named ``<field>_zonal_mean``. Raises ``FileNotFoundError`` for a missing
     file, ``ValueError`` (one line) for an unknown field, a day not stored, a
     field the file lacks or a resolution that does not divide 180°,
@@ -149,8 +150,11 @@ def zonal_mean(run, field: str = "h", days=None, resolution: float | None = None
     lat, _, days, values = _on_latlon(ds, [field], days, resolution)
     long_name = MAP_FIELDS[field][0]
     units = FIELDS[{"h_surface": "h", "speed": "u"}.get(field, field)]["units"]  # the file's (MAP_FIELDS': the colour bar's)
+    mean = values[0].mean(axis=-1)
+    if field in ("u", "v"):  # at a pole east and north turn with longitude: a wind component's mean over a
+        mean[:, np.abs(lat) == 90.0] = 0.0  # shrinking circle of latitude tends to 0, its limit there
     return xr.DataArray(
-        values[0].mean(axis=-1), dims=("time", "lat"), name=f"{field}_zonal_mean",
+        mean, dims=("time", "lat"), name=f"{field}_zonal_mean",
         coords=dict(time=("time", days, dict(units="days", long_name="model time")),
                     lat=("lat", lat, dict(units="degrees_north", standard_name="latitude"))),
         attrs=dict(units=units, long_name=f"zonal mean of the {long_name}"),

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from . import restart_file
-from .config import Scene, SceneError, scene_from_dict, with_days
+from .config import DT_NOTES, Scene, SceneError, scene_from_dict, with_days
 from .restart_file import CheckpointError
 from .steppers import STEPPERS
 
@@ -40,6 +40,7 @@ class Checkpoint:
     version: str
     path: Path | None = None  # the file read (absolute)
     sha256: str | None = None  # SHA-256 (hex) of the file's bytes
+    restart_every: float | None = None  # days: the interval the run wrote restart files at (None: at a signal only)
 
 
 def branch(ck: Checkpoint, *, stepper: str | None = None, dt: float | None = None, days: float | None = None) -> Scene:
@@ -60,8 +61,10 @@ def branch(ck: Checkpoint, *, stepper: str | None = None, dt: float | None = Non
         raise SceneError(f"dt must be > 0 (got {dt:g})")
     record = {"restart": None if ck.path is None else str(ck.path), "sha256": ck.sha256, "step": ck.step, "day": s.day(ck.step),
               "stepper": s.stepper, "dt": s.dt}
+    # the notes on how the scene's dt was chosen are stale once dt is given
+    notes = s.notes if dt is None else tuple(n for n in s.notes if not n.startswith(DT_NOTES))
     scene = replace(s, stepper=stepper, stepper_options=s.stepper_options if stepper == s.stepper else {},
-                    dt=s.dt if dt is None else float(dt), branch=record)
+                    dt=s.dt if dt is None else float(dt), branch=record, notes=notes)
     return with_days(scene, s.days if days is None else days, "the restart file's" if dt is None else "the dt given")
 
 

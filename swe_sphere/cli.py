@@ -115,6 +115,7 @@ def _parser() -> argparse.ArgumentParser:
                          "OPENBLAS_NUM_THREADS=1 on a loaded machine) or wall time")
     sw.add_argument("--output", type=Path, default=Path("sweep"),
                     help="directory for results (default ./sweep); a rerun reuses the runs made there with the same settings")
+    sw.add_argument("--overwrite", action="store_true", help="replace the results (sweep.csv, sweep.nc, verdicts.csv, PNGs) of an earlier sweep in --output")
     sw.add_argument("--filter-days", type=float, metavar="DAYS", help="also score the balanced flow: Lanczos low-pass in time with this cutoff period (runs go on past --days by the half window)")
     sw.add_argument("--filter-window", type=float, metavar="DAYS", help="the filter's half window around the last day (default 1.5 x --filter-days)")
     sw.add_argument("--filter-every", type=float, default=3.0, metavar="HOURS", help="the filter's snapshot interval (default 3 h)")
@@ -129,6 +130,7 @@ def _parser() -> argparse.ArgumentParser:
                     help="override a scene value in every case, e.g. -s hyperviscosity.efold_hours=6 (as for run)")
     st.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
     st.add_argument("--output", type=Path, default=Path("."), help="directory for stability.csv and stability.nc")
+    st.add_argument("--overwrite", action="store_true", help="replace an earlier stability.csv and stability.nc in --output")
     st.add_argument("--workers", type=int, default=1, help=WORKERS_HELP)
     return p
 
@@ -209,7 +211,7 @@ def _cmd_sweep(args) -> int:
 
     if args.runs and args.steppers:
         raise ValueError("--runs names its own steppers: give --steppers or --runs, not both")
-    pairs = _runs(args.runs) if args.runs else None  # (stepper, Courant factor)
+    pairs = _runs(args.runs) if args.runs is not None else None  # (stepper, Courant factor)
     steppers = list(dict.fromkeys(s for s, _ in pairs)) if pairs else _steppers("leapfrog,ssprk3,semi_implicit,implicit" if args.steppers is None else args.steppers)
     overrides = _overrides(args.set)
     ck = None
@@ -225,10 +227,10 @@ def _cmd_sweep(args) -> int:
         raise ValueError("sweep needs a SCENE (or --from RESTART.nc)")
     else:
         scenes = {s: load_scene(args.scene, ne=args.ne, np=args.np, days=args.days, stepper=s, overrides=overrides) for s in steppers}
-    dts = _numbers(args.dt, "dt") if args.dt else None
+    dts = _numbers(args.dt, "dt") if args.dt is not None else None
     factors = sorted({f for _, f in pairs}) if pairs else None
     if dts is None and factors is None:
-        factors = _numbers(args.courant or "0.5,1,2,5,10,30,60,100", "courant")
+        factors = _numbers("0.5,1,2,5,10,30,60,100" if args.courant is None else args.courant, "courant")
     base = next(iter(scenes.values()))
     length = base.run_days  # from t = 0, or from the day of --from's restart file
     time_filter, span = None, length  # Δt must divide span (days)
@@ -244,26 +246,34 @@ def _cmd_sweep(args) -> int:
         if abs(round(span * 86400 / dt) * dt - span * 86400) > 1e-6 * dt and time_filter is not None:
             raise ValueError(f"dt = {dt:g} s does not divide the filter's snapshot interval of {time_filter.every_hours:g} h")
     device = _warp_device(args.device)
-    from .output import folder_lock
-    from .sweep import REFERENCE_MAX_GRAVITY_COURANT, Sweep, dt_for_day, explicit_limits, format_summary, start_state, table, write_outputs
+    from .output import check_results, folder_lock
+    from .sweep import OUTPUTS, REFERENCE_MAX_GRAVITY_COURANT, Sweep, dt_for_day, explicit_limits, format_summary, start_state, table, write_outputs
     from .workers import executor
 
     with executor(args.workers) as pool:
         if pool is None:  # an MPI worker rank: its share is done
             return 0
         with folder_lock(args.output, "sweep.lock"):  # a second sweep into this folder is refused now, not at its end
+            check_results(args.output, OUTPUTS, args.overwrite)  # an earlier sweep's results: refused now, not at the end
             # the restart file's state, or a digital-filter start made once for every run
             start = ck.x if ck is not None else start_state(base, args.output, device)
             limits = explicit_limits(base, device, start)
             if dts is None:
                 dt_of = {f: dt_for_day(f * limits["dt_gravity"], span) for f in factors}
                 dts = sorted(set(dt_of.values()))
+                asked = {f: "/".join(f"{s}@{f:g}" for s, g in pairs if g == f) if pairs else f"{f:g}" for f in factors}
                 pairs = [(s, dt_of[f]) for s, f in pairs] if pairs else None
                 capped = [f for f in factors if f * limits["dt_gravity"] > span * 86400 * (1 + 1e-9)]
                 if capped and time_filter is not None:  # Δt must divide the filter's snapshot interval
                     print(f"note        --courant {','.join(f'{f:g}' for f in capped)}: dt capped at the filter's "
                           f"{time_filter.every_hours:g} h snapshot interval ({span * 86400 / limits['dt_gravity']:.3g} x the "
                           "gravity-wave limit); --filter-every sets it")
+                said = capped if time_filter is not None else []
+                rounded = [f"{asked[f]} runs at {dt_of[f] / limits['dt_gravity']:.3g}" for f in factors
+                           if f not in said and dt_of[f] < f * limits["dt_gravity"] * (1 - 1e-3)]
+                if rounded:  # the multiple that ran, not the one asked for
+                    print(f"note        {'--runs' if pairs else '--courant'} {', '.join(rounded)} x the gravity-wave limit "
+                          f"(each dt the largest at or below its multiple that divides {min(span, 1.0):g} days)")
             for dt in dts:
                 if abs(round(length * 86400 / dt) * dt - length * 86400) > 1e-6 * dt:
                     raise ValueError(f"dt = {dt:g} s does not divide the run length of {length:g} days")
@@ -283,15 +293,15 @@ def _cmd_sweep(args) -> int:
                                reference_dt_max=REFERENCE_MAX_GRAVITY_COURANT * limits["dt_gravity"]).run(pool)
             rows = table(rows, limits, args.cost)
             print(format_summary(rows, info))
-            for path in write_outputs(rows, info, limits, args.output):
+            for path in write_outputs(rows, info, limits, args.output, overwrite=args.overwrite):
                 print(f"wrote {path}")
     return 0
 
 
 def _cmd_stability(args) -> int:
     from .config import SceneError
-    from .output import folder_lock
-    from .stability import HARD_CASES, format_table, run_suite, write_table
+    from .output import check_results, folder_lock
+    from .stability import HARD_CASES, OUTPUTS, format_table, run_suite, write_table
     from .workers import executor
 
     known = {c[0]: c for c in HARD_CASES}
@@ -307,10 +317,11 @@ def _cmd_stability(args) -> int:
         if pool is None:  # an MPI worker rank: its share is done
             return 0
         with folder_lock(args.output, "stability.lock"):  # a second suite into this folder is refused now, not at its end
+            check_results(args.output, OUTPUTS, args.overwrite)  # an earlier suite's results: refused now, not at the end
             results = run_suite(cases, steppers, device, ne=args.ne, np=args.np, days=args.days,
                                 overrides=_overrides(args.set), pool=pool)
             print(format_table(results))
-            for path in write_table(results, args.output):
+            for path in write_table(results, args.output, overwrite=args.overwrite):
                 print(f"wrote {path}")
     return 0
 
@@ -334,8 +345,10 @@ def _overrides(pairs) -> dict:
 
 
 def _continued(args, device, comm):
-    """The Simulation of ``run --continue``: a continuation, or with another --stepper
-    or --dt a branch (``Simulation.from_checkpoint``); refuses a changed scene or grid."""
+    """The Simulation of ``run --continue``: a continuation (keeping the restart file's
+    ``--restart-every`` unless given: ``args.restart_every`` set), or with another
+    --stepper or --dt a branch (``Simulation.from_checkpoint``); refuses a changed
+    scene or grid, and a continuation at its end day without --days."""
     from . import checkpoint
     from .config import load_scene
     from .simulation import Simulation
@@ -353,6 +366,12 @@ def _continued(args, device, comm):
         if mine != theirs:
             differ = ", ".join(k for k in mine if mine[k] != theirs.get(k))
             raise checkpoint.CheckpointError(f"{args.continue_from} is a run of another scene than {args.scene} (differs in: {differ})")
+    continued = args.stepper is None and args.dt is None  # not a branch (which refuses a length of 0 days itself)
+    if continued and args.days is None and ck.step >= ck.scene.nsteps:  # else 0 steps, and a file that blocks the real one
+        raise checkpoint.CheckpointError(f"{args.continue_from} is already at its run's end day {ck.scene.days:g}: "
+                                         "give --days for the new end day")
+    if continued and args.restart_every is None:  # a run that wrote restart files goes on writing them, as if never stopped
+        args.restart_every = ck.restart_every
     return Simulation.from_checkpoint(ck, device, days=args.days, stepper=args.stepper, dt=args.dt, progress=not args.no_progress,
                                       comm=comm, graphs=args.graphs)
 
@@ -375,7 +394,8 @@ def _cmd_run(args) -> int:
         stem = args.continue_from.name.removesuffix(".nc").removesuffix(".restart")
         changes = "".join(f"_{v}" for v in (args.stepper, args.dt and f"dt{args.dt:g}") if v)  # a branch's (or a no-op's)
         output = args.output or args.continue_from.with_name(f"{stem}_{'branch' + changes if changes else 'continued'}.nc")
-    check_distinct([output, restart_path(output)], [args.continue_from, args.scene and resolve_path(str(args.scene))])
+    initial = scene.case_params.get("path") if scene is not None else None  # a file case's initial state: an input too
+    check_distinct([output, restart_path(output)], [args.continue_from, args.scene and resolve_path(str(args.scene)), initial])
     check_target(output, args.overwrite)
     if args.restart_every is not None:  # else written only on SIGINT/SIGTERM, and then not over an existing one
         check_target(restart_path(output), args.overwrite)

@@ -382,6 +382,9 @@ def _validate(raw: dict) -> dict:
 MAX_STEPS = 10**9  # a run longer than this is a typo in dt, not a plan
 
 
+# the starts of load_scene's notes on how it scaled (and cut) dt: stale once a dt is given (a branch's)
+DT_NOTES = ("dt scaled", "warning: dt cut")
+
 # keys of [case] that say how a run starts, not which flow: they outlive a case switch
 SCENE_CASE_KEYS = ("initialization",)
 
@@ -430,6 +433,7 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
     # the radius the scene's own dt and ν are for: its file's planet (before the overrides), unless dt is overridden too
     table = raw.get("planet", {})
     file_radius = table.get("radius", EARTH.a) if isinstance(table, dict) and "time.dt" not in (overrides or {}) else None
+    file_case = raw.get("case", {}).get("name") if isinstance(raw.get("case"), dict) else None
     _apply_overrides(raw, overrides or {})
     s = _validate(raw)
     notes = []
@@ -550,6 +554,10 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
         STEPPERS[stepper1].make_options(**options)
     except ValueError as err:
         raise SceneError(f"{stepper1}.{err}") from None
+    # a scene file may hold tables for other steppers (--stepper picks one); an -s for one is a slip
+    other = sorted(k for k in overrides or {} if k.partition(".")[0] in STEPPERS and k.partition(".")[0] != stepper1)
+    if other:
+        notes.append(f"warning: -s {', '.join(other)}: not an option of {stepper1}, the stepper that runs; not used")
 
     hv = s.get("hyperviscosity", {})
     for key in ("efold_hours", "nu", "nu_div", "nu_s"):
@@ -578,9 +586,11 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
     if subcycle < 1:
         raise SceneError(f"hyperviscosity.subcycle must be >= 1 (got {subcycle})")
 
+    # a switched case (-s case.name=...) is named in the header, the run file's title and its default name
+    switched = case_name != file_case
     return Scene(
-        name=path.stem,
-        description=s.get("description", ""),
+        name=f"{case_name}_in_{path.stem}" if switched else path.stem,
+        description=f"case {case_name} with scene {path.stem}'s grid, terms and stepping" if switched else s.get("description", ""),
         case=case_name,
         case_params=case,
         terms=tuple(terms),

@@ -275,9 +275,16 @@ def load_state(path, day: float | None = None):
     spacing = 2 * math.pi / lon.size
     if (lat.size < 4 or np.any(np.diff(lat) <= 0) or lat[0] < -math.pi / 2 - 1e-9 or lat[-1] > math.pi / 2 + 1e-9):
         raise SceneError(f"{where}: lat must hold 4 or more distinct latitudes in [-90, 90] degrees")
+    # values that would all fit in radians' range, read as degrees: say so (else the grid looks merely too small)
+    radians = " (radians? lat and lon are read in degrees)" if np.degrees(max(abs(lat[0]), abs(lat[-1]))) <= math.pi / 2 + 1e-9 else ""
+    # the poles within one row spacing of the first and last rows (a regular grid's half-offset rows, a Gaussian
+    # grid's ≈ 0.77 spacing): a regional grid would be extrapolated over the rest of the globe
+    if max(lat[0] + math.pi / 2, math.pi / 2 - lat[-1]) > (lat[-1] - lat[0]) / (lat.size - 1) * (1 + 1e-9):
+        raise SceneError(f"{where}: lat covers {np.degrees(lat[0]):g} to {np.degrees(lat[-1]):g} degrees, not the globe "
+                         f"(its first and last rows must lie within one row spacing of the poles){radians}")
     if lon.size % 2 or np.max(np.abs(np.diff(lon) - spacing)) > 1e-6 * spacing:
         raise SceneError(f"{where}: lon must hold an even number of uniformly spaced longitudes around the circle "
-                         f"(got {lon.size}{'' if lon.size % 2 else ' not uniformly spaced over 360 degrees'})")
+                         f"(got {lon.size}{'' if lon.size % 2 else ' not uniformly spaced over 360 degrees'}){radians}")
     return LatLonState(np.clip(lat, -math.pi / 2, math.pi / 2), lon, fields)
 
 

@@ -411,6 +411,16 @@ def close_open_runs(failed: str) -> None:
         writer.close()
 
 
+def check_results(directory: Path, names, overwrite: bool = False) -> None:
+    """``check_target`` for each of a command's result files ``names`` under
+    ``directory`` (a folder still to be made holds none), so a study is refused
+    before it runs rather than replacing an earlier one's results at its end."""
+    directory = Path(directory)
+    if directory.is_dir():
+        for name in names:
+            check_target(directory / name, overwrite)
+
+
 def atomic_path(path: Path, *, overwrite: bool = True) -> ExclusiveFile:
     """``with atomic_path(p) as tmp:`` write tmp; it is moved onto ``p`` if the block succeeds."""
     return ExclusiveFile(path, overwrite=overwrite)

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 import xarray as xr
+from matplotlib.ticker import MaxNLocator
 
 from .analysis import DAY_TOL, DERIVED, MAP_FIELDS, days_of, field_at_nodes, kinetic_energy_spectrum, run_name, zonal_mean
 from .cases import make_case
@@ -206,9 +207,11 @@ def plot_map(ds, field: str, day: float, path=None, diff=None, lat_range=None) -
     run − reference with a symmetric colour map, and the title carries the normalized
     l2 of the difference over the run's nodes (area-weighted). ``lat_range`` (south, north)
     in degrees draws only that band (e.g. (0, 90) for Galewsky et al. 2004, Fig. 4).
-    Height fields get contour lines (14 levels), vorticity contours every 2e-5 s⁻¹.
+    Height fields get contour lines (about 14 levels at a round interval), vorticity
+    contours every 2e-5 s⁻¹; the colour bar's label states the interval.
 
-    Returns ``{"figure", "path", "min", "max", "colorbar_label", "title"}``: the
+    Returns ``{"figure", "path", "min", "max", "colorbar_label", "title", "contour_interval"}``
+    (the interval in the colour bar's units, None without contours): the
     ``matplotlib.figure.Figure`` (Agg canvas: ``figure.savefig`` works, no pyplot
     needed), the PNG written (None without ``path``), min/max of the drawn values
     in file units; plus ``"l2"`` with diff. Raises ``ValueError`` (one line) for an
@@ -246,12 +249,16 @@ def plot_map(ds, field: str, day: float, path=None, diff=None, lat_range=None) -
     fig = _figure(FIGSIZE)
     ax = fig.add_subplot()
     info["colorbar_label"], info["title"] = label, title
-    contours = None
-    if diff is None and field in ("h", "h_surface"):
-        contours = 14
+    contours = interval = None
+    if diff is None and field in ("h", "h_surface"):  # about 14 levels at a round interval
+        contours = MaxNLocator(nbins=14).tick_values(np.nanmin(shown), np.nanmax(shown))
+        interval = float(contours[1] - contours[0])
     elif diff is None and field == "vorticity":
         top = np.ceil(np.nanmax(np.abs(shown * scale)) / 2) * 2
-        contours = [c for c in np.arange(-top, top + 1, 2.0) if c != 0]  # 2e-5 s-1, as Galewsky et al.
+        contours, interval = [c for c in np.arange(-top, top + 1, 2.0) if c != 0], 2.0  # 2e-5 s-1, as Galewsky et al.
+    if interval is not None:  # the interval is stated, so a reader can count the lines
+        label = info["colorbar_label"] = f"{label}; contours every {interval:g} {units}"
+    info["contour_interval"] = interval
     draw_map(fig, ax, lon_e, lat_e, shown * scale, cmap=draw_cmap, symmetric=draw_symmetric, label=label, contours=contours)
     ax.set_title(title, fontsize=11)
     info["figure"] = fig
@@ -307,6 +314,16 @@ def line_plot(path, lines, *, xlabel="", ylabel="", title="", logx=False, logy=F
     return _save(fig, path)
 
 
+def error_label(y: str) -> str:
+    """The axis label of a sweep's error column (``scoring.Scorer.total_errors``' l2 norms):
+    "total_error" → "total error: normalized l2 of h + hs", "temporal_error_vorticity" →
+    "temporal error: normalized l2 of vorticity"; another column as it is named."""
+    kind, sep, field = y.partition("_error")
+    if not sep:
+        return y.replace("_", " ")
+    return f"{kind} error: normalized l2 of {field.lstrip('_').replace('_', ' ') or 'h + hs'}"
+
+
 def sweep_plot(path, rows, x: str, *, xlabel: str = "", floor: float | None = None, y: str = "temporal_error", figsize=(8.0, 5.0),
                title: str = "") -> Path:
     """Sweep figure (``swe_sphere.sweep``): ``y`` against ``x`` per stepper, log-log, for the
@@ -322,7 +339,8 @@ def sweep_plot(path, rows, x: str, *, xlabel: str = "", floor: float | None = No
         lines.append((st, [p[0] for p in pts], [p[1] for p in pts]))
     fig = _figure(figsize)
     ax = fig.add_subplot()
-    drawn = _lines(ax, lines, logx=True, logy=True, xlabel=xlabel or x, ylabel=y.replace("_", " "), title=f"{title + ': ' if title else ''}{y.replace('_', ' ')} against {xlabel or x}")
+    drawn = _lines(ax, lines, logx=True, logy=True, xlabel=xlabel or x, ylabel=error_label(y),
+                   title=f"{title + ': ' if title else ''}{y.replace('_', ' ')} against {xlabel or x}")
     if floor is not None and math.isfinite(floor) and floor > 0:
         ax.axhline(floor, color="0.4", linestyle="--", linewidth=1, label="spatial error")
         if y.startswith("temporal"):
@@ -360,7 +378,9 @@ def plot_series(ds, path=None):
         f"{pre}{n}_{f}" for pre in ("", "ref_") for f in ("h", "h_surface", "wind") for n in ("l1", "l2", "linf")
     ]
     norms = [(k, days, ds[k].values) for k in norm_names if k in ds.variables]
-    if not _lines(right, norms, logy=True, xlabel="day", ylabel="normalized error", title="error norms (ref_: against T213)"):
+    against = ds.attrs.get("reference", "")  # the run file's truth: "exact solution", a reference file's name or "none"
+    title = "error norms against the exact solution" if against == "exact solution" else f"error norms (ref_: against {against})"
+    if not _lines(right, norms, logy=True, xlabel="day", ylabel="normalized error", title=title):
         right.text(0.5, 0.5, "no exact or reference solution for this case", ha="center", va="center", transform=right.transAxes)
     fig.suptitle(_scene_label(ds), fontsize=12)
     if path is not None:

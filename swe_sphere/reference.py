@@ -304,11 +304,15 @@ def locate(spec: str, case=None) -> Path:
     to the current directory), as the file name of a bundled one (e.g.
     "tc5_mountain_T341.nc") or, given the run's case object, as a truncation
     ("T213", "T341": ``reference_path``). Raises ``FileNotFoundError`` if none
-    exists (for a truncation: naming the ones bundled for the case)."""
+    exists (for a truncation: naming the ones bundled for the case, or saying the
+    case has an exact solution instead)."""
     path = Path(spec)
     if path.is_file():
         return path.absolute()
-    if case is not None and _TRUNCATION.fullmatch(spec) and case.reference_file is not None:
+    if case is not None and _TRUNCATION.fullmatch(spec) and case.reference_file is None:
+        why = "it is scored against its exact solution" if case.exact_solution else "none is bundled"
+        raise FileNotFoundError(f"no {spec} reference for this case: {why} (a run file or a reference file's path can be compared)")
+    if case is not None and _TRUNCATION.fullmatch(spec):
         bundled = reference_path(case, spec)
         if bundled is None:
             have = truncations(case)

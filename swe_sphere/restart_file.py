@@ -76,14 +76,15 @@ def _check_state(path, planet: dict | None, x: np.ndarray, stepper_state: dict) 
 
 
 def write(path, scene, step: int, x: np.ndarray, stepper_state: dict, counters: dict, initial: dict,
-          *, overwrite: bool = True) -> Path:
+          *, overwrite: bool = True, restart_every: float | None = None) -> Path:
     """Write a restart file to ``path`` atomically (via ``output.ExclusiveFile``).
 
     ``scene``: the run's ``config.Scene``; ``x``: (3, N) element-local state (u, v
     in m s⁻¹, h in m) at ``step`` (model time step·dt); ``stepper_state``:
     ``Stepper.state()`` (arrays (3, N), scalars); ``counters``: {"rhs_evals",
     "wall_time" (s), "iterations": {solver: n}}; ``initial``: the diagnostics at
-    t = 0. Raises ``output.OutputError`` when ``path`` exists and not
+    t = 0; ``restart_every``: the run's restart interval (days; None: none), which a
+    continuation keeps. Raises ``output.OutputError`` when ``path`` exists and not
     ``overwrite`` (or is a link / being written)."""
     path = Path(path)
     with WRITING, ExclusiveFile(path, overwrite=overwrite) as tmp:  # WRITING: see mpi.watch_failures
@@ -99,6 +100,8 @@ def write(path, scene, step: int, x: np.ndarray, stepper_state: dict, counters: 
             ds.counters = json.dumps(counters)
             ds.initial = json.dumps(initial)
             ds.content_sha256 = content_hash(step, x, stepper_state)
+            if restart_every is not None:
+                ds.restart_every_days = float(restart_every)
             ds.createDimension("row", 3)
             ds.createDimension("node", x.shape[1])
             for name, row in zip(STATE, x):
@@ -150,7 +153,8 @@ def read(path) -> dict:
             x = np.stack([arrays[name] for name in STATE])
             stored = dict(scene=json.loads(attrs["scene"]), step=int(attrs["step"]), x=x, stepper_state=state,
                           counters=json.loads(attrs["counters"]), initial=json.loads(attrs["initial"]), version=version,
-                          path=path.resolve(), sha256=sha256)
+                          path=path.resolve(), sha256=sha256, 
+                          restart_every=float(attrs["restart_every_days"]) if "restart_every_days" in attrs else None)
             digest = attrs["content_sha256"]
             planet = stored["scene"].get("planet")
         except (KeyError, ValueError, TypeError, AttributeError) as err:

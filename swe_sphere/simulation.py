@@ -300,13 +300,15 @@ class Simulation(StateDiagnostics):
             raise ckpt.CheckpointError(f"checkpoint does not fit the stepper: {err}") from None
         self.step, self.counters, self.initial = ck.step, ck.counters, ck.initial
 
-    def write_checkpoint(self, path, *, overwrite: bool = True) -> Path:
+    def write_checkpoint(self, path, *, overwrite: bool = True, restart_every: float | None = None) -> Path:
         """Write a restart file of the current step (see ``checkpoint``): whole-grid
-        fields, gathered from every rank (call on all), written by rank 0."""
+        fields, gathered from every rank (call on all), written by rank 0;
+        ``restart_every`` (days) recorded for a continuation to keep."""
         x, state = self.topology.gather(self.x.numpy()), self.stepper.state()
         if not self.root:
             return Path(path)
-        return restart_file.write(path, self.scene, self.step, x, state, self.counters, self.initial, overwrite=overwrite)
+        return restart_file.write(path, self.scene, self.step, x, state, self.counters, self.initial, overwrite=overwrite,
+                                  restart_every=restart_every)
 
     # -- the loop ---------------------------------------------------------
     def restart_steps(self, every_days: float) -> set[int]:

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 from .config import Scene, load_scene
 from .constants import DAY
-from .output import atomic_path
+from .output import atomic_path, check_results
 from .scoring import ENERGY_GROWTH_LIMIT, instability
 from .simulation import BlowUp, Simulation
 from .workers import InProcess
@@ -139,20 +139,26 @@ def run_suite(cases, steppers, device, *, ne=None, np=None, days=None, overrides
     return [f.result() for f in futures]
 
 
-def write_table(results, directory) -> tuple:
-    """Write stability.csv and stability.nc under ``directory``; return their paths."""
+OUTPUTS = ("stability.csv", "stability.nc")  # what write_table writes
+
+
+def write_table(results, directory, *, overwrite: bool = False) -> tuple:
+    """Write ``OUTPUTS`` (stability.csv, stability.nc) under ``directory``; return their
+    paths. Raises ``output.OutputError`` before writing either if one exists (unless
+    ``overwrite``)."""
     import pandas as pd
 
     rows = [{k: v for k, v in dataclasses.asdict(r).items() if k != "trials"} for r in results]
     for row, r in zip(rows, results):
         row["trials"] = len(r.trials)
     df = pd.DataFrame(rows)
-    csv, nc = directory / "stability.csv", directory / "stability.nc"
-    with atomic_path(csv) as tmp:
+    check_results(directory, OUTPUTS, overwrite)
+    csv, nc = (directory / name for name in OUTPUTS)
+    with atomic_path(csv, overwrite=overwrite) as tmp:
         df.to_csv(tmp, index=False)
     ds = df.set_index(["case", "stepper"]).to_xarray()
     ds.attrs["criterion"] = f"finite fields, depth > 0, total energy <= {1 + ENERGY_GROWTH_LIMIT} x initial"
-    with atomic_path(nc) as tmp:
+    with atomic_path(nc, overwrite=overwrite) as tmp:
         ds.to_netcdf(tmp)
     return csv, nc
 

@@ -51,7 +51,7 @@ from .checkpoint import branch_attrs
 from .config import Scene
 from .constants import DAY
 from .diagnostics import max_signal_rate
-from .output import atomic_path
+from .output import atomic_path, check_results
 from .plotting import sweep_plot
 from .reference import FLOORS, floor
 from .scoring import instability, truth, unscored
@@ -725,33 +725,38 @@ def sweep_dataset(df, attrs: dict):
     return ds
 
 
-def write_outputs(rows, info, limits, directory) -> list[Path]:
+PLOTS = (  # (x, y, file name, x label, spatial-error key): the frontier per criterion
+    ("wall_time", "total_error", "error_vs_wall_time.png", "wall time [s]", "spatial_error"),
+    ("dt", "total_error", "error_vs_dt.png", "dt [s]", "spatial_error"),
+    ("dt", "temporal_error", "temporal_error_vs_dt.png", "dt [s]", "spatial_error"),
+    ("wall_time", "total_error_vorticity", "error_vs_wall_time_vorticity.png", "wall time [s]", "spatial_error_vorticity"),
+    ("wall_time", "total_error_divergence", "error_vs_wall_time_divergence.png", "wall time [s]", "spatial_error_divergence"),
+)
+OUTPUTS = ("sweep.csv", "sweep.nc", "verdicts.csv") + tuple(name for _, _, name, _, _ in PLOTS)  # what write_outputs writes
+
+
+def write_outputs(rows, info, limits, directory, *, overwrite: bool = False) -> list[Path]:
     """sweep.csv, sweep.nc (``sweep_dataset``: one ``run`` dimension), verdicts.csv and the PNGs (titled
-    with the case, grid and days); returns the paths. What the sweep was made
-    with (``info``'s ``RECORD`` keys: ``Sweep.record``) is in sweep.csv's last
-    columns and, with the rest of ``info`` and ``limits``, in sweep.nc's
-    attributes (integers as integers)."""
+    with the case, grid and days): ``OUTPUTS`` under ``directory``; returns the paths.
+    What the sweep was made with (``info``'s ``RECORD`` keys: ``Sweep.record``) is in
+    sweep.csv's last columns and, with the rest of ``info`` and ``limits``, in sweep.nc's
+    attributes (integers as integers). Raises ``output.OutputError`` before writing
+    anything if one of them exists (unless ``overwrite``)."""
     import pandas as pd
 
     directory = Path(directory)
+    check_results(directory, OUTPUTS, overwrite)
     df = pd.DataFrame(rows, columns=list(COLUMNS))
     df["stable"] = df["stable"].astype(int)
-    csv, nc, vcsv = directory / "sweep.csv", directory / "sweep.nc", directory / "verdicts.csv"
-    with atomic_path(csv) as tmp:
+    csv, nc, vcsv = (directory / name for name in OUTPUTS[:3])
+    with atomic_path(csv, overwrite=overwrite) as tmp:
         df.assign(**{k: info[k] for k in RECORD}).to_csv(tmp, index=False)
-    with atomic_path(vcsv) as tmp:
+    with atomic_path(vcsv, overwrite=overwrite) as tmp:
         pd.DataFrame(verdicts(rows, info), columns=list(VERDICT_COLUMNS)).to_csv(tmp, index=False)
-    with atomic_path(nc) as tmp:
+    with atomic_path(nc, overwrite=overwrite) as tmp:
         sweep_dataset(df, {**info, **limits}).to_netcdf(tmp, encoding={k: {"dtype": "S1"} for k in ("stepper", "reason")})
     paths = [csv, nc, vcsv]
-    floor, title = info["spatial_error"], f"{info['case']} ne{info['ne']} np{info['np']}, {info['days']:g} days"
-    for x, y, name, label in (
-        ("wall_time", "total_error", "error_vs_wall_time.png", "wall time [s]"),
-        ("dt", "total_error", "error_vs_dt.png", "dt [s]"),
-        ("dt", "temporal_error", "temporal_error_vs_dt.png", "dt [s]"),
-    ):
-        paths.append(sweep_plot(directory / name, rows, x, y=y, xlabel=label, floor=floor, title=title))
-    for part in ("vorticity", "divergence"):  # the frontier per criterion
-        paths.append(sweep_plot(directory / f"error_vs_wall_time_{part}.png", rows, "wall_time", y=f"total_error_{part}",
-                                xlabel="wall time [s]", floor=info[f"spatial_error_{part}"], title=title))
+    title = f"{info['case']} ne{info['ne']} np{info['np']}, {info['days']:g} days"
+    for x, y, name, label, spatial in PLOTS:
+        paths.append(sweep_plot(directory / name, rows, x, y=y, xlabel=label, floor=info[spatial], title=title))
     return paths

@@ -136,6 +136,7 @@ class Checkpointer:
 
     def __init__(self, sim, output: Path | None, every_days: float | None, path: Path | None, overwrite: bool):
         self.sim, self.overwrite, self.kept, self.written = sim, overwrite, None, None
+        self.every_days = every_days
         if path is None and output is not None:
             path = restart_path(output)
             if every_days is None and not overwrite and sim.topology.bcast(sim.root and path.exists()):
@@ -147,4 +148,5 @@ class Checkpointer:
 
     def save(self) -> None:
         """Write the restart file of the current step (call on every rank)."""
-        self.written = self.sim.write_checkpoint(self.path, overwrite=self.overwrite or self.written is not None)
+        self.written = self.sim.write_checkpoint(self.path, overwrite=self.overwrite or self.written is not None,
+                                                 restart_every=self.every_days)

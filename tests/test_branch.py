@@ -197,11 +197,11 @@ def test_sweep_from_a_restart_file_branches_every_run_there(spun_up, tmp_path, c
         assert row["total_error"] != fresh.scorer.total_errors(1.5 * DAY, from_t0.x.numpy())["total_error"]
     with np.load(next((tmp_path / "sw" / "runs").glob("reference_*.npz"))) as ref:
         assert json.loads(str(ref["key"]))["scene"]["branch"]["sha256"] == sha
-    code, out, _ = cli_main(capsys, *sweep)
+    code, out, _ = cli_main(capsys, *sweep, "--overwrite")
     assert code == 0 and "runs: 2 reused, 0 made" in out
     # the restart file rewritten (a spin-up at another dt): the runs are made again
     assert cli_main_ok("run", "spin.toml", *RUN, "--dt", "1800", "--restart-every", "1", "--output", "spin.nc", "--overwrite")
-    code, out, _ = cli_main(capsys, *sweep)
+    code, out, _ = cli_main(capsys, *sweep, "--overwrite")
     assert code == 0 and "runs: 0 reused, 2 made" in out and "scene.branch.sha256" in out
 
 

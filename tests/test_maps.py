@@ -79,6 +79,6 @@ def test_plot_functions_return_their_figures(run_dir, tmp_path):
         written = plotting.plot_map(ds, "u", 0.0, tmp_path / "u.png")
         assert isinstance(written["figure"], Figure) and written["path"] == tmp_path / "u.png"
         series = plotting.plot_series(ds)
-        assert isinstance(series, Figure) and [a.get_title() for a in series.axes[:2]] == ["invariants", "error norms (ref_: against T213)"]
+        assert isinstance(series, Figure) and [a.get_title() for a in series.axes[:2]] == ["invariants", "error norms (ref_: against tc5_mountain_T213.nc)"]
         assert isinstance(plotting.plot_series(ds, tmp_path / "s.png"), Figure)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.png", "u.png"]

@@ -93,13 +93,17 @@ def test_plot_map_values_and_colour_bar_units(run_file, tmp_path):
         assert nodes.max() - 0.05 * span < info["max"] < nodes.max() + 0.02 * span
         info = plotting.plot_map(ds, "vorticity", 1.0, tmp_path / "z.png")
         assert abs(info["max"]) < 1e-3 and info["max"] > 0 > info["min"]  # s-1, both signs
-        assert info["colorbar_label"] == "vorticity (10$^{-5}$ s$^{-1}$)"  # drawn scaled, labelled so
+        # drawn scaled, labelled so, with the contour interval stated (2e-5 s-1)
+        assert info["colorbar_label"] == "vorticity (10$^{-5}$ s$^{-1}$); contours every 2 10$^{-5}$ s$^{-1}$"
         assert "day 1" in info["title"] and "tc5_mountain ne2 np4" in info["title"]
         info = plotting.plot_map(ds, "divergence", 1.0, tmp_path / "d.png")
         assert abs(info["max"]) < 1e-4 and info["max"] > 0 > info["min"]
         assert info["colorbar_label"] == "divergence (10$^{-6}$ s$^{-1}$)"
-        labels = {f: plotting.plot_map(ds, f, 0.0, tmp_path / f"{f}.png")["colorbar_label"] for f in ("h", "u", "speed")}
-    assert labels == {"h": "h (m)", "u": "u (m s$^{-1}$)", "speed": "speed (m s$^{-1}$)"}
+        infos = {f: plotting.plot_map(ds, f, 0.0, tmp_path / f"{f}.png") for f in ("h", "u", "speed")}
+    interval = infos["h"]["contour_interval"]  # about 14 round levels over the drawn range
+    assert 10 <= (infos["h"]["max"] - infos["h"]["min"]) / interval <= 15 and interval in (100.0, 200.0, 250.0, 500.0)
+    labels = {f: info["colorbar_label"] for f, info in infos.items()}
+    assert labels == {"h": f"h (m); contours every {interval:g} m", "u": "u (m s$^{-1}$)", "speed": "speed (m s$^{-1}$)"}
 
 
 def test_diff_to_t213_carries_the_runs_own_normalized_l2(run_file, tmp_path, capsys):

@@ -257,8 +257,8 @@ def test_locate_a_path_a_bundled_name_or_a_truncation(tmp_path, monkeypatch):
         locate("T341", make_case("galewsky", {"perturbed": False}))
     with pytest.raises(FileNotFoundError, match="reference file not found: T341"):
         locate("T341")  # a truncation names a file only for a case
-    with pytest.raises(FileNotFoundError, match="reference file not found: T213"):
-        locate("T213", make_case("tc2_steady"))  # a case without references
+    with pytest.raises(FileNotFoundError, match="^no T213 reference for this case: it is scored against its exact solution"):
+        locate("T213", make_case("tc2_steady"))  # a case without references: says why
     link = tmp_path / "mine.nc"
     link.symlink_to(bundled)
     monkeypatch.chdir(tmp_path)

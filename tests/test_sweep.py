@@ -76,7 +76,7 @@ def test_an_unchanged_sweep_reuses_every_run_and_says_so(swept, monkeypatch, cap
     runs = []
     real_run = Simulation.run
     monkeypatch.setattr(Simulation, "run", lambda self, output=None, **kw: runs.append(self.scene.dt) or real_run(self, output, **kw))
-    assert main(args) == 0
+    assert main([*args, "--overwrite"]) == 0  # its results replace the first's: the same numbers
     assert runs == []
     assert {p.name: p.read_bytes() for p in (out / "runs").iterdir()} == before
     text = capsys.readouterr().out
@@ -237,7 +237,7 @@ def test_a_sweep_against_another_reference_makes_its_own_runs(tmp_path, capsys, 
     runs = []
     real_run = Simulation.run
     monkeypatch.setattr(Simulation, "run", lambda self, output=None, **kw: runs.append(self.scene.reference) or real_run(self, output, **kw))
-    assert main([*args, "-s", f"case.reference={other}"]) == 0
+    assert main([*args, "-s", f"case.reference={other}", "--overwrite"]) == 0
     text = capsys.readouterr().out
     assert runs == [str(other)] * 3  # the small-Δt run, the warm-up and the run: none read back
     assert sorted(p.name for p in (out / "runs").iterdir()) == [
@@ -365,7 +365,7 @@ def test_a_sweep_of_other_days_or_overrides_into_the_same_folder_makes_its_runs_
     two_days = _rows(out)
     capsys.readouterr()
     one_day = [*TC5, "--days", "1", "--courant", "0.5"]
-    assert main([*one_day, "--output", str(out)]) == 0
+    assert main([*one_day, "--output", str(out), "--overwrite"]) == 0
     text = capsys.readouterr().out
     assert "runs: 0 reused, 1 made" in text
     assert "made again: reference_rk4_" in text and "had other settings: scene.days 2.0 (now 1.0)" in text
@@ -377,14 +377,14 @@ def test_a_sweep_of_other_days_or_overrides_into_the_same_folder_makes_its_runs_
     assert _rows(out)["total_error"][0] != two_days["total_error"][0]
     assert _rows(out)["rhs_evals"][0] * 2 == two_days["rhs_evals"][0]
 
-    assert main([*one_day, "-s", "hyperviscosity.efold_hours=24", "--output", str(out)]) == 0
+    assert main([*one_day, "-s", "hyperviscosity.efold_hours=24", "--output", str(out), "--overwrite"]) == 0
     text = capsys.readouterr().out
     assert "runs: 0 reused, 1 made" in text and "other settings: scene.nu " in text
     damped = _rows(out)
     assert damped["total_error"][0] != _rows(fresh)["total_error"][0]
     with xr.open_dataset(out / "sweep.nc") as ds:
         assert ds.attrs["overrides"] == "hyperviscosity.efold_hours=24"
-    assert main([*one_day, "-s", "hyperviscosity.efold_hours=24", "--output", str(out)]) == 0
+    assert main([*one_day, "-s", "hyperviscosity.efold_hours=24", "--output", str(out), "--overwrite"]) == 0
     assert "runs: 1 reused, 0 made" in capsys.readouterr().out
     pd.testing.assert_frame_equal(_rows(out), damped, check_exact=True)
 
@@ -544,13 +544,14 @@ def test_a_sweep_with_two_workers_says_one_line_a_run(tmp_path):
     lines = (tmp_path / "log").read_text().splitlines()
     assert done.returncode == 0, lines
     head = lines[:lines.index(next(line for line in lines if line.startswith("stepper ")))]
-    assert len(head) == 12 and head[0].startswith("sweep tc2_steady ne=2 np=4, 1 days;") and head[1].startswith("reference run: rk4")
-    assert sorted(int(line.split("/")[0][1:]) for line in head[2:11]) == list(range(1, 10))
-    assert all(line.startswith(f"[{k}/9] ") for k, line in enumerate(head[2:11], 1))
-    assert head[11] == "runs: 0 reused, 9 made (in sw/runs)"
+    assert len(head) == 13 and head[0].startswith("note        --courant 0.5 runs at ")  # the multiples that ran
+    assert head[1].startswith("sweep tc2_steady ne=2 np=4, 1 days;") and head[2].startswith("reference run: rk4")
+    assert sorted(int(line.split("/")[0][1:]) for line in head[3:12]) == list(range(1, 10))
+    assert all(line.startswith(f"[{k}/9] ") for k, line in enumerate(head[3:12], 1))
+    assert head[12] == "runs: 0 reused, 9 made (in sw/runs)"
     assert not [line for line in lines if "Warp" in line or "Module" in line or "CUDA" in line]
     summary = ("stepper ", "rk4 ", "ssprk3 ", "imex ", "spatial error", "  ", "verdicts: ", "wrote sw/")
-    assert [line for line in lines[12:] if not line.startswith(summary)] == []  # the table, verdicts and files
+    assert [line for line in lines[13:] if not line.startswith(summary)] == []  # the table, verdicts and files
 
 
 def _wait_for(started, path, most=60.0):

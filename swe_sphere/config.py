@@ -52,6 +52,7 @@ import difflib
 import math
 import re
 import tomllib
+import types
 from dataclasses import dataclass, field
 from fractions import Fraction
 from importlib.resources import files
@@ -341,6 +342,8 @@ def _got(value) -> str:
 
 
 def _check_type(key, value, kind):
+    if isinstance(kind, types.UnionType):  # e.g. a count or "auto": the options' own check names the choices
+        return value
     if kind is tuple:  # a list-valued option (a Butcher table): a TOML array, its entries the stepper's options to check
         if not isinstance(value, (list, tuple)):
             raise SceneError(f"{key} must be an array (got {_got(value)})")

@@ -15,6 +15,7 @@ import warp as wp
 
 from conftest import cli_main, one_line
 from swe_sphere.config import load_scene
+from swe_sphere.diagnostics import courant_numbers
 from swe_sphere.simulation import Simulation
 from swe_sphere.stability import run_is_stable
 from swe_sphere.steppers.multirate import GravitySplit, MriOptions, parse_mri
@@ -208,6 +209,26 @@ def test_mass_kept_to_round_off(stepper, options):
     assert change <= bound
 
 
+@pytest.mark.parametrize("stepper, courant", [("split_explicit", 0.6), ("mri", 1.0)])
+@pytest.mark.parametrize("multiple", [2, 7.8])
+def test_auto_substeps_are_the_fewest_within_the_fast_courant_number(stepper, courant, multiple):
+    """substeps "auto" (the default): n is the fewest fast steps a slow step whose gravity-wave
+    Courant number about the mean depth H, sqrt(g H) Δt/(n Δx) by the run's own Courant
+    diagnostic on a still state of depth H, is ≤ fast_courant (split_explicit 0.6, mri 1.0).
+    TC5 ne 4, one step at 2 and 7.8 Δt_g."""
+    base = load_scene("tc5_mountain", ne=4, np=4, days=1.0, stepper=stepper)
+    dt = 86400.0 / math.ceil(86400.0 / (multiple * explicit_limits(base, "cpu")["dt_gravity"]))
+    sim = Simulation(dataclasses.replace(base, dt=dt), "cpu", progress=False)
+    sim.run(None, until_step=1)
+    n, H, grid = sim.stepper.substeps(), sim.stepper.split.H, sim.model.grid
+    still = (np.zeros(grid.dx.size), np.zeros(grid.dx.size), np.full(grid.dx.size, H))
+    fast = courant_numbers(grid, *still, dt / n, sim.model.g)["courant_gravity"]
+    coarser = courant_numbers(grid, *still, dt / (n - 1), sim.model.g)["courant_gravity"] if n > 1 else math.inf
+    print(f"\n{stepper} at {multiple} Δt_g: n = {n}, fast Courant {fast:.3f} (n - 1: {coarser:.3f})")
+    assert fast <= courant < coarser
+    assert n > 1 and sum(sim.stepper.n_fast) == sim.stepper.fast_evaluations() // (1 if stepper == "split_explicit" else 3)
+
+
 @pytest.mark.parametrize("stepper", ["split_explicit", "mri"])
 @pytest.mark.parametrize("case, multiple", [("tc5_mountain", 6), ("tc6_rossby_haurwitz", 4), ("galewsky", 6)])
 def test_stable_over_twice_the_scene_at_the_defaults(stepper, case, multiple):
@@ -243,15 +264,17 @@ def test_the_slow_tables_order_is_checked():
 
 
 BAD = [
-    ("split_explicit", "split_explicit.substeps=0", "split_explicit.substeps must be an integer >= 1 (got 0)"),
-    ("split_explicit", "split_explicit.substeps=-3", "split_explicit.substeps must be an integer >= 1 (got -3)"),
-    ("split_explicit", "split_explicit.substeps=2.5", "split_explicit.substeps must be int (got 2.5)"),
+    ("split_explicit", "split_explicit.substeps=0", "split_explicit.substeps must be an integer >= 1 or \"auto\" (got 0)"),
+    ("split_explicit", "split_explicit.substeps=-3", "split_explicit.substeps must be an integer >= 1 or \"auto\" (got -3)"),
+    ("split_explicit", "split_explicit.substeps=2.5", "split_explicit.substeps must be an integer >= 1 or \"auto\" (got 2.5)"),
     ("split_explicit", "split_explicit.divergence_damping=1", "split_explicit.divergence_damping must be in [0, 1) (got 1"),
-    ("mri", "mri.substeps=0", "mri.substeps must be an integer >= 1 (got 0)"),
+    ("mri", "mri.substeps=0", "mri.substeps must be an integer >= 1 or \"auto\" (got 0)"),
     ("mri", "mri.inner=euler", "mri.inner must be one of fbrk32, ssprk3, rk4 (got 'euler')"),
     ("mri", "mri.method=mis5", "mri.method must be one of mis2, mis3c, mis4a, mri_gark_erk33a (got 'mis5')"),
     ("mri", "mri.name=mine", "mri.beta must be a non-empty array of rows"),
     ("mri", "mri.mean_depth=-1", "mri.mean_depth must be >= 0 (got -1"),
+    ("mri", "mri.substeps=many", "mri.substeps must be an integer >= 1 or \"auto\" (got 'many')"),
+    ("split_explicit", "split_explicit.fast_courant=0", "split_explicit.fast_courant must be > 0 (got 0"),
 ]
 
 

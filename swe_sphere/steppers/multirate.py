@@ -69,10 +69,20 @@ INNER = ("fbrk32", "ssprk3", "rk4")
 FBRK32_STAGES = ((1 / 3, 0.531), (0.5, 0.531), (1.0, 0.313))  # c, β of ``explicit.FBRK32``
 
 
-def check_substeps(substeps) -> None:
-    """ValueError 'substeps must be ...' unless an integer ≥ 1."""
-    if isinstance(substeps, bool) or not isinstance(substeps, int) or substeps < 1:
-        raise ValueError(f"substeps must be an integer >= 1 (got {substeps!r})")
+def check_substeps(substeps, fast_courant) -> None:
+    """ValueError 'substeps must be ...' unless an integer ≥ 1 or "auto", 'fast_courant
+    must be ...' unless > 0."""
+    if substeps != "auto" and (isinstance(substeps, bool) or not isinstance(substeps, int) or substeps < 1):
+        raise ValueError(f"substeps must be an integer >= 1 or \"auto\" (got {substeps!r})")
+    if isinstance(fast_courant, bool) or not isinstance(fast_courant, (int, float)) or not fast_courant > 0:
+        raise ValueError(f"fast_courant must be > 0 (got {fast_courant!r})")
+
+
+def substeps_label(options) -> str:
+    """'n=12', or 'n=auto (fast Courant 0.6)'."""
+    if options.substeps == "auto":
+        return f"n=auto (fast Courant {options.fast_courant:g})"
+    return f"n={options.substeps}"
 
 
 def check_mean_depth(mean_depth) -> None:
@@ -154,6 +164,18 @@ class _Multirate(Stepper):
         super().__init__(model, dt, options)
         self.split = GravitySplit(model, self.options.mean_depth)
         self._combs: dict[tuple, object] = {}
+        self.n_fast = None  # the fast steps of each stage (or solve), from H at the first step
+
+    def substeps(self) -> int:
+        """n, the fast steps a slow step: the ``substeps`` option, or with "auto" the fewest
+        whose gravity-wave Courant number sqrt(g H) Δt / (n Δx) about the split's depth H
+        is at most ``fast_courant`` (Δx the smallest distance between GLL nodes on the
+        sphere, the same on every rank)."""
+        o = self.options
+        if o.substeps != "auto":
+            return o.substeps
+        dx = -self.model.topology.max(-float(self.model.grid.dx.min()))
+        return max(1, math.ceil(math.sqrt(self.model.g * self.split.H) * self.dt / (o.fast_courant * dx) - 1e-9))
 
     def state(self):
         return {**super().state(), "mean_depth": self.split.H}
@@ -163,6 +185,7 @@ class _Multirate(Stepper):
         self.split.H = float(self._entry(state, "mean_depth"))
         if self.split.H:
             self.split.depth.fill_(self.split.H)
+        self.n_fast = None
 
     def graph_key(self):
         return None if self.split.H == 0.0 else super().graph_key()  # the first step reads the mean depth
@@ -187,6 +210,8 @@ class _Multirate(Stepper):
         split = self.split
         if split.H == 0.0:
             split.set_depth(x)
+        if self.n_fast is None:
+            self.n_fast = self._fast_steps(self.substeps())
         split.to_perturbation(x)
         evals = self._advance(x)
         split.from_perturbation(x)
@@ -198,12 +223,13 @@ class _Multirate(Stepper):
 class SplitExplicitOptions:
     """Scene table ``[split_explicit]`` (see ``SplitExplicit``)."""
 
-    substeps: int = 12
+    substeps: int | str = "auto"
+    fast_courant: float = 0.6
     divergence_damping: float = 0.1
     mean_depth: float = 0.0
 
     def __post_init__(self):
-        check_substeps(self.substeps)
+        check_substeps(self.substeps, self.fast_courant)
         if not 0 <= self.divergence_damping < 1:
             raise ValueError(f"divergence_damping must be in [0, 1) (got {self.divergence_damping})")
         check_mean_depth(self.mean_depth)
@@ -216,10 +242,12 @@ class SplitExplicit(_Multirate):
     tendency held fixed (the module docstring).
 
     Options (scene table ``[split_explicit]``): ``substeps`` n, the fast substeps of the
-    last stage (the stages take ⌈n/3⌉, ⌈n/2⌉, n; default 12: on TC5 ne8 over 6 days at
-    slow steps of 3.9, 4.7, 5.7, 6.6, 7.8 Δt_g the fewest stable of 3, 4, 6, 8, 12, 16, 24
-    were 4, 6, 6, 8, 8, substeps of 0.8–1 Δt_g; 12 keeps them at ≤ 0.65 Δt_g up to 8 Δt_g,
-    and ran 12 days at 7.1 Δt_g; raise it in proportion for longer slow steps), ``divergence_damping`` β (the
+    last stage (the stages take ⌈n/3⌉, ⌈n/2⌉, n), or "auto" (the default): the fewest
+    whose Courant number about the mean depth is ≤ ``fast_courant`` (default 0.6;
+    ``_Multirate.substeps``). On TC5 ne8 over 6 days at slow steps of 3.9, 4.7, 5.7, 6.6,
+    7.8 Δt_g the fewest stable of 3, 4, 6, 8, 12, 16, 24 were 4, 6, 6, 8, 8, substeps of
+    0.8–1 Δt_g; 0.6 keeps them at ≤ 0.65 Δt_g (TC5 ne8 at 7.8 Δt_g: n = 13, at 2 Δt_g: 4).
+    ``divergence_damping`` β (the
     forward weighting of the depth in the substeps' pressure gradient, h̃ = h′ + β(h′ −
     h′_old), which damps the fast divergent modes as divergence damping does: Klemp,
     Skamarock & Ha 2018, MWR 146, 1911, §3; MPAS's smdiv = 0.1; default 0.1), ``mean_depth``
@@ -238,14 +266,15 @@ class SplitExplicit(_Multirate):
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
-        n = self.options.substeps
-        self.n_fast = tuple(math.ceil(c * n) for c in self.C)
         self.xn, self.z, self.S = self._buffer(), self._buffer(), self._buffer()
         self.w = self._buffer()  # row 2: the next substep's forward-weighted depth h̃
 
     @classmethod
     def label(cls, options: dict) -> str:
-        return f"{cls.name} n={cls.make_options(**options).substeps}"
+        return f"{cls.name} {substeps_label(cls.make_options(**options))}"
+
+    def _fast_steps(self, n: int) -> tuple:
+        return tuple(math.ceil(c * n) for c in self.C)
 
     def fast_evaluations(self) -> int:
         """Fast evaluations (L z) a step."""
@@ -286,11 +315,12 @@ class MriOptions:
     ``tables.MULTIRATE``), or a table of one's own: ``name``, ``description``, the
     ``order`` it claims, ``alpha``, ``beta``, ``gamma`` and ``beta1`` (s × s, entries
     numbers or fractions as strings; alpha, gamma and beta1 may be left out: zero); ``inner``,
-    ``substeps``, ``mean_depth``. Raises ValueError naming the option or entry (``parse_mri``)."""
+    ``substeps``, ``fast_courant``, ``mean_depth``. Raises ValueError naming the option or entry (``parse_mri``)."""
 
     method: str = "mis4a"
     inner: str = "ssprk3"
-    substeps: int = 8
+    substeps: int | str = "auto"
+    fast_courant: float = 1.0
     mean_depth: float = 0.0
     name: str = ""
     description: str = ""
@@ -307,7 +337,7 @@ class MriOptions:
             raise ValueError(f"method must be one of {', '.join(MULTIRATE)} (got {self.method!r})")
         if self.inner not in INNER:
             raise ValueError(f"inner must be one of {', '.join(INNER)} (got {self.inner!r})")
-        check_substeps(self.substeps)
+        check_substeps(self.substeps, self.fast_courant)
         check_mean_depth(self.mean_depth)
         parse_mri(self)
 
@@ -394,10 +424,12 @@ class Mri(_Multirate):
     "mri_gark_erk33a": ``tables.MULTIRATE``; default "mis4a", third order, which ran TC6
     ne8 28 days at |v|Δt/Δx = 1.54 (4.9 Δt_g) where MIS3C blew up at 0.93) or a table of one's own
     (``MriOptions``); ``inner`` ("fbrk32" | "ssprk3" | "rk4", the fast integrator;
-    default "ssprk3"); ``substeps`` n (fast steps a slow step, ⌈d_r n⌉ a solve; default
-    8: on TC5 ne8 over 6 days MIS3C with ssprk3 needed 3 at 3.9–5.7 Δt_g and 6 at 6.6 and
-    7.8 Δt_g, inner steps of up to 1.3–1.9 Δt_g; with 8 MIS3C and MIS4a ran 12 days up to
-    9.5 Δt_g); ``mean_depth`` H (m; 0: the area-mean initial depth, rounded to 6 digits).
+    default "ssprk3"); ``substeps`` n (fast steps a slow step, ⌈d_r n⌉ a solve) or "auto"
+    (the default): the fewest whose Courant number about the mean depth is ≤
+    ``fast_courant`` (default 1.0; ``_Multirate.substeps``). On TC5 ne8 over 6 days MIS3C with
+    ssprk3 needed 3 at 3.9–5.7 Δt_g and 6 at 6.6 and 7.8 Δt_g, inner steps of up to
+    1.3–1.9 Δt_g; with 8 (steps of ≤ 1.2 Δt_g) MIS3C and MIS4a ran 12 days up to 9.5
+    Δt_g); ``mean_depth`` H (m; 0: the area-mean initial depth, rounded to 6 digits).
     s slow evaluations a step (reported as RHS evaluations). The run file's attributes
     ``mri`` and ``mri_order`` name the table."""
 
@@ -414,7 +446,6 @@ class Mri(_Multirate):
         o = self.options
         self.tab = parse_mri(o)
         s = len(self.tab.d)
-        self.n_fast = tuple(max(1, math.ceil(d * o.substeps - 1e-9)) for d in self.tab.d)
         self.xn, self.z, self.rho0, self.rho1, self.rho = (self._buffer() for _ in range(5))
         self.S = [self._buffer() for _ in range(s)]
         # Y_{j+1} − x(n), kept where a later solve that does not simply restart reads it
@@ -436,7 +467,10 @@ class Mri(_Multirate):
     @classmethod
     def label(cls, options: dict) -> str:
         o = cls.make_options(**options)
-        return f"{cls.name} {o.table()['name']} {o.inner} n={o.substeps}"
+        return f"{cls.name} {o.table()['name']} {o.inner} {substeps_label(o)}"
+
+    def _fast_steps(self, n: int) -> tuple:
+        return tuple(max(1, math.ceil(d * n - 1e-9)) for d in self.tab.d)
 
     def attrs(self):
         t = self.options.table()

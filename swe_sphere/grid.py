@@ -235,16 +235,29 @@ def _geometry(ne: int, rule, copies: np.ndarray):
     npts = rule.np
     e, p = np.divmod(copies, npts * npts)
     j, i = np.divmod(p, npts)
+    alpha, beta, face, P = _equiangular(ne, e, rule.points[i], rule.points[j])
+    rP = np.linalg.norm(P, axis=1)
+    return alpha, beta, _FACES[face, 1], _FACES[face, 2], rP, P / rP[:, None]
+
+
+def _equiangular(ne: int, e: np.ndarray, xi: np.ndarray, eta: np.ndarray):
+    """The equiangular angles α, β, the face and P = c + tan α ea + tan β eb of the points
+    with reference coordinates (ξ, η) ∈ [−1, 1]² in elements ``e`` (global indices)."""
     face, rest = np.divmod(e, ne * ne)
     jb, ia = np.divmod(rest, ne)
     edges = np.linspace(-math.pi / 4, math.pi / 4, ne + 1)
     dalpha = math.pi / 2 / ne
-    alpha = edges[ia] + (rule.points[i] + 1) * dalpha / 2
-    beta = edges[jb] + (rule.points[j] + 1) * dalpha / 2
+    alpha = edges[ia] + (xi + 1) * dalpha / 2
+    beta = edges[jb] + (eta + 1) * dalpha / 2
     c, ea, eb = _FACES[face, 0], _FACES[face, 1], _FACES[face, 2]
-    P = c + np.tan(alpha)[:, None] * ea + np.tan(beta)[:, None] * eb
-    rP = np.linalg.norm(P, axis=1)
-    return alpha, beta, ea, eb, rP, P / rP[:, None]
+    return alpha, beta, face, c + np.tan(alpha)[:, None] * ea + np.tan(beta)[:, None] * eb
+
+
+def reference_to_sphere(ne: int, e: np.ndarray, xi: np.ndarray, eta: np.ndarray) -> np.ndarray:
+    """Unit position vectors (n, 3) of the points (ξ, η) ∈ [−1, 1]² (n,) of the reference
+    square of elements ``e`` (n,) of the ne grid, through the equiangular gnomonic map."""
+    P = _equiangular(ne, np.asarray(e), np.asarray(xi), np.asarray(eta))[-1]
+    return P / np.linalg.norm(P, axis=1)[:, None]
 
 
 def _quadrature_area(ne: int, rule, radius: float) -> float:

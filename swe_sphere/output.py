@@ -19,6 +19,8 @@ from pathlib import Path
 import netCDF4
 import numpy as np
 
+from .dual import MESH as DUAL_MESH
+from .dual import write_dual_mesh
 from .grid import CubedSphere
 from .ugrid import write_mesh
 
@@ -37,7 +39,9 @@ FIELD_ATTRS = {"coordinates": "lat lon", "cell_measures": "area: area"}  # on ea
 WRITING = threading.RLock()
 _OPEN: set = set()  # the RunWriters not yet closed or aborted
 
-UGRID_NODE = {"mesh": "mesh_topology", "location": "node"}  # on every node field (see ugrid.py)
+# Every node field lives on the faces of the dual mesh (one control volume a node, dual.py):
+# tools that average, integrate and remap need cells; the sub-cell mesh (ugrid.py) shares its nodes.
+UGRID_FACE = {"mesh": DUAL_MESH, "location": "face"}
 CONVENTIONS = "CF-1.8 UGRID-1.0"
 # CF time: model days since the initial state, put at an arbitrary epoch (the model has no
 # calendar date); CDO and the CF checker need the reference date and the calendar. xarray
@@ -328,13 +332,14 @@ class RunWriter:
         area.units, area.long_name, area.standard_name = "m2", "area of the node's quadrature cell (assembled spheremp)", "cell_area"
         area[:] = grid.area
         hsv = ds.createVariable("hs", "f8", ("ncol",))
-        hsv.setncatts({**FIELDS["hs"], "coordinates": "lat lon", **UGRID_NODE})
+        hsv.setncatts({**FIELDS["hs"], "coordinates": "lat lon", **UGRID_FACE})
         hsv[:] = grid.to_unique(hs)
+        write_dual_mesh(ds, grid)  # first: uxarray opens the first mesh_topology, the one the fields are on
         write_mesh(ds, grid)
         for name in self.fields:
             fill = dict(fill_value=np.nan) if name in ("vorticity", "divergence") else {}  # NaN where a writer got none
             var = ds.createVariable(name, "f4" if compress else "f8", ("time", "ncol"), zlib=compress, **fill)
-            var.setncatts({**FIELDS[name], **FIELD_ATTRS, **UGRID_NODE})
+            var.setncatts({**FIELDS[name], **FIELD_ATTRS, **UGRID_FACE})
         for name in series:
             var = ds.createVariable(name, "f8", ("time",))
             var.setncatts(SERIES_ATTRS[name])

@@ -710,12 +710,17 @@ def sweep_dataset(df, attrs: dict):
     """sweep.nc as an ``xarray.Dataset``: one ``run`` dimension (sweep.csv's rows), each
     of ``COLUMNS`` a variable on it with its units and long_name (``COLUMN_ATTRS``;
     ``stepper`` and ``reason`` strings, written as CF character arrays), ``attrs``
-    (integers as integers) with CF's Conventions, title and history."""
+    (integers as 32-bit integers) with CF's Conventions, title and history."""
     import xarray as xr
 
-    ds = xr.Dataset({c: ("run", df[c].fillna("").astype(str).to_numpy() if units is None else df[c].to_numpy())
-                     for c, (units, _) in COLUMN_ATTRS.items()},
-                    coords=dict(run=("run", np.arange(len(df)), dict(long_name="run of the sweep (row of sweep.csv)", units="1"))))
+    def column(c, units):
+        if units is None:
+            return df[c].fillna("").astype(str).to_numpy()
+        values = df[c].to_numpy()
+        return values.astype(np.int32) if values.dtype.kind == "i" else values  # CF-1.8 has no 64-bit integers
+
+    ds = xr.Dataset({c: ("run", column(c, units)) for c, (units, _) in COLUMN_ATTRS.items()},
+                    coords=dict(run=("run", np.arange(len(df), dtype=np.int32), dict(long_name="run of the sweep (row of sweep.csv)", units="1"))))
     for c, (units, long_name) in COLUMN_ATTRS.items():
         ds[c].attrs.update(long_name=long_name, **({} if units is None else dict(units=units)))
     ds.attrs.update({k: v if isinstance(v, (str, int)) else float(v) for k, v in attrs.items()})

@@ -6,8 +6,8 @@ unique nodes (the ``ncol`` of the run file), every node a corner of at least one
 quad. Corners are ordered counter-clockwise as seen from outside the sphere
 (the face axes of ``grid._FACES`` satisfy c × ea = eb, so increasing ξ then η
 turns counter-clockwise). Written into every run file by ``output.RunWriter``
-as a UGRID-1.0 ``mesh_topology`` (Jacobsen et al., UGRID conventions), which
-uxarray and other unstructured-grid tools read.
+as a UGRID-1.0 ``mesh_topology`` (Jacobsen et al., UGRID conventions), beside the
+dual mesh of control volumes (``dual``) that the fields live on.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import numpy as np
 from .grid import CubedSphere
 
 MESH = "mesh_topology"
-CONNECTIVITY = "face_node_connectivity"
+CONNECTIVITY = "subcell_face_nodes"  # not uxarray's own name for the variable it reads (it renames to it)
 FACE_DIM, MAX_DIM = "nface", "nmax_face"
 
 
@@ -41,6 +41,23 @@ def orientation(xyz_unique: np.ndarray, quads: np.ndarray) -> np.ndarray:
     return np.minimum(t1, t2)
 
 
+def write_topology(ds, name: str, connectivity: str, faces: np.ndarray, dims: tuple, *, long_name: str,
+                   corners: str, node_coordinates: str, **attrs) -> None:
+    """Add a 2-D UGRID ``mesh_topology`` variable ``name`` and its face_node_connectivity
+    ``connectivity`` (int32 ``faces`` (nface, nmax) on ``dims``, 0-based, −1 padding as
+    its _FillValue; ``corners`` its long_name) to an open ``netCDF4.Dataset`` ``ds``;
+    ``attrs``: more attributes of the mesh (face_coordinates, ...)."""
+    mesh = ds.createVariable(name, "i4", ())
+    mesh.setncatts(dict(cf_role="mesh_topology", long_name=long_name, topology_dimension=np.int32(2),
+                        node_coordinates=node_coordinates, face_node_connectivity=connectivity,
+                        face_dimension=dims[0], **attrs))
+    mesh.assignValue(0)
+    padded = bool((faces < 0).any())
+    conn = ds.createVariable(connectivity, "i4", dims, fill_value=np.int32(-1) if padded else False, zlib=True)  # 25× smaller
+    conn.setncatts(dict(cf_role="face_node_connectivity", long_name=corners, start_index=np.int32(0)))
+    conn[:] = faces
+
+
 def write_mesh(ds, grid: CubedSphere) -> None:
     """Add the UGRID mesh variables to an open ``netCDF4.Dataset`` ``ds`` whose node
     coordinates are ``lon``/``lat`` on the unique nodes (their dimension UGRID takes
@@ -48,24 +65,6 @@ def write_mesh(ds, grid: CubedSphere) -> None:
     quads = subcell_quads(grid)
     ds.createDimension(FACE_DIM, quads.shape[0])
     ds.createDimension(MAX_DIM, 4)
-    mesh = ds.createVariable(MESH, "i4", ())
-    mesh.setncatts(
-        dict(
-            cf_role="mesh_topology",
-            long_name="sub-cell mesh of quadrilaterals between the GLL nodes",
-            topology_dimension=np.int32(2),
-            node_coordinates="lon lat",
-            face_node_connectivity=CONNECTIVITY,
-            face_dimension=FACE_DIM,
-        )
-    )
-    mesh.assignValue(0)
-    conn = ds.createVariable(CONNECTIVITY, "i4", (FACE_DIM, MAX_DIM), fill_value=False)
-    conn.setncatts(
-        dict(
-            cf_role="face_node_connectivity",
-            long_name="corner nodes (ncol indices) of each sub-cell, counter-clockwise from outside",
-            start_index=np.int32(0),
-        )
-    )
-    conn[:] = quads
+    write_topology(ds, MESH, CONNECTIVITY, quads, (FACE_DIM, MAX_DIM),
+                   long_name="sub-cell mesh of quadrilaterals between the GLL nodes", node_coordinates="lon lat",
+                   corners="corner nodes (ncol indices) of each sub-cell, counter-clockwise from outside")

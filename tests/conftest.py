@@ -42,6 +42,16 @@ def requires_cuda(func):
     return func
 
 
+@pytest.fixture(autouse=True, scope="session")
+def sigint_raises():
+    """Some tests send SIGINT to their own process. A runner started in the background
+    (bash ``cmd &``) inherits SIGINT ignored, and the run would then never see it (an
+    endless step waits forever): Python's own handler for the session."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before)
+
+
 @functools.lru_cache(maxsize=None)
 def cached_grid(ne: int, np_: int) -> CubedSphere:
     """One CubedSphere per (ne, np) for the whole session (treat as read-only)."""

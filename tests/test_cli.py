@@ -126,8 +126,9 @@ def test_run_writes_a_complete_netcdf_file(which, tc2_run, tc5_run_file):
             assert ds[name].dims == ("ncol",), name
         assert (ds.h.values > 0).all()
 
-        # units on every variable but the UGRID mesh's (time's are in its CF encoding)
-        for name in [v for v in ds.data_vars if v not in ("mesh_topology", "face_node_connectivity")] + ["lat", "lon"]:
+        # units on every variable but the UGRID meshes' and the cell bounds (time's are in its CF encoding)
+        meshes = {v for v in ds.variables if "cf_role" in ds[v].attrs} | {"lat_bnds", "lon_bnds"}
+        for name in [v for v in ds.data_vars if v not in meshes] + ["lat", "lon"]:
             assert ds[name].attrs.get("units"), f"{name} has no units"
         assert ds.h.attrs["units"] == "m" and ds.hs.attrs["units"] == "m"
         assert ds.u.attrs["units"] == ds.v.attrs["units"] == "m s-1"

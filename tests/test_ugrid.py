@@ -1,6 +1,6 @@
 """The UGRID description in every run file: the sub-cell mesh of quads between GLL
-nodes (``swe_sphere.ugrid``), its topology and the attributes that tools read;
-uxarray opens it when it is installed (skipped otherwise: it is not a dependency)."""
+nodes (``swe_sphere.ugrid``), its topology and the attributes that tools read (the fields
+live on the control volumes of the dual mesh: test_dual.py)."""
 
 from __future__ import annotations
 
@@ -74,45 +74,24 @@ def test_run_file_carries_the_mesh_topology(run_file, grid_factory):
         assert mesh.cf_role == "mesh_topology"
         assert int(mesh.topology_dimension) == 2
         assert mesh.node_coordinates == "lon lat"
-        assert mesh.face_node_connectivity == "face_node_connectivity"
+        assert mesh.face_node_connectivity == "subcell_face_nodes"
         assert "node_dimension" not in mesh.ncattrs() and "units" not in mesh.ncattrs()  # not UGRID-1.0 attributes
         assert nc.Conventions == "CF-1.8 UGRID-1.0"
-        conn = nc["face_node_connectivity"]
+        conn = nc["subcell_face_nodes"]
         assert conn.cf_role == "face_node_connectivity"
         assert int(conn.start_index) == 0
         assert conn.dimensions == ("nface", "nmax_face")
         assert nc.dimensions["nface"].size == 6 * 2**2 * 3**2 == 216
         assert nc.dimensions["nmax_face"].size == 4
         assert np.array_equal(conn[:], subcell_quads(grid))
-        for name in ("h", "u", "v", "hs", "vorticity"):
-            assert nc[name].mesh == "mesh_topology" and nc[name].location == "node", name
+        for name in ("h", "u", "v", "hs", "vorticity"):  # the fields live on the control volumes (test_dual.py)
+            assert nc[name].mesh == "mesh_dual" and nc[name].location == "face", name
     with xr.open_dataset(run_file, decode_times=False) as ds:  # xarray still opens it; the mesh adds no data on ncol
-        assert ds["face_node_connectivity"].dims == ("nface", "nmax_face")
+        assert ds["subcell_face_nodes"].dims == ("nface", "nmax_face")
         assert ds["h"].dims == ("time", "ncol")
-        conn = ds["face_node_connectivity"].values
+        conn = ds["subcell_face_nodes"].values
         assert conn.min() == 0 and conn.max() == ds.sizes["ncol"] - 1
         # corners in the file's own lat/lon are counter-clockwise too
         lat, lon = np.radians(ds.lat.values), np.radians(ds.lon.values)
         xyz = np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=1)
         assert (orientation(xyz, conn) > 0).all()
-
-
-def test_uxarray_opens_and_plots_the_run(run_file):
-    ux = pytest.importorskip("uxarray")
-    uxds = ux.open_dataset(run_file, run_file)
-    grid = uxds.uxgrid
-    assert grid.n_node == 218 and grid.n_face == 216
-    assert grid.validate()
-    # uxarray's spherical face areas of the sub-cells add up to the sphere (measured 1 + 1.0e-6)
-    assert abs(float(grid.face_areas.values.sum()) / (4 * math.pi) - 1) < 1e-4
-    h = uxds["h"].isel(time=-1)
-    assert h.sizes["n_node"] == 218
-    assert np.allclose(h.values, xr.open_dataset(run_file, decode_times=False)["h"].isel(time=-1).values)
-    face_mean = h.topological_mean(destination="face")
-    assert face_mean.shape == (216,) and np.isfinite(face_mean.values).all()
-    try:  # drawing needs cartopy, an optional dependency of uxarray itself
-        pc = face_mean.to_polycollection()
-    except ImportError as exc:  # uxarray's OptionalDependencyNotFoundError is one; any other error fails
-        pytest.skip(f"uxarray cannot draw without its optional dependency: {exc}")
-    # uxarray leaves out the few polygons it splits at the antimeridian (202 of 216 drawn here)
-    assert 180 <= len(pc.get_paths()) <= 216

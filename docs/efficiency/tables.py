@@ -106,8 +106,9 @@ def summary(dirs) -> str:
     return "\n".join(out)
 
 
-COLORS = dict(zip(["leapfrog", "leapfrog_trapezoidal", "ssprk3", "rk4", "kgu35", "fbrk32", "semi_implicit", "imex", "implicit", "epi2", "epi3"],
-                  ["C0", "C1", "C2", "C3", "C7", "C8", "C4", "C5", "C6", "C9", "k"]))
+COLORS = dict(zip(["leapfrog", "leapfrog_trapezoidal", "ssprk3", "rk4", "kgu35", "fbrk32", "semi_implicit", "imex", "implicit", "epi2", "epi3",
+                   "split_explicit", "mri"],
+                  ["C0", "C1", "C2", "C3", "C7", "C8", "C4", "C5", "C6", "C9", "k", "m", "navy"]))
 
 
 def versus(dirs, family) -> str:

@@ -1,0 +1,239 @@
+"""The GLL dual mesh (``swe_sphere.dual``): one control volume a unique node, its area the
+node's assembled spheremp; written into every run file as the UGRID mesh the fields live
+on and as CF cell bounds. Then the tools that read them: uxarray, the CF checkers and CDO,
+each test skipping only where its tool is absent."""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import subprocess
+from collections import Counter
+from importlib import resources
+
+import netCDF4
+import numpy as np
+import pytest
+import xarray as xr
+
+from swe_sphere.cli import main
+from swe_sphere.dual import RTOL, cells, control_points, convex, dual_mesh, spherical_areas, star_shaped
+from swe_sphere.gll import gll
+
+GRIDS = [(1, 2), (2, 4), (3, 2), (2, 8), (4, 3), (1, 6), (1, 3), (2, 2)]
+NOT_CONVEX = {(1, 3): 3, (2, 2): 3}  # at most so many cells star-shaped but not convex, on the two coarsest grids
+
+
+@pytest.mark.parametrize("np_", range(2, 9))
+def test_control_points_interleave_the_gll_points(np_):
+    """HOMME's check: t_k = −1 + Σ_{m<k} w_m lies between GLL points k−1 and k, so each
+    sub-cell holds one dual vertex; the intervals' lengths are the weights."""
+    rule = gll(np_)
+    t = control_points(rule)
+    assert t[0] == -1 and t[-1] == 1 and t.size == np_ + 1
+    assert (rule.points[:-1] < t[1:-1]).all() and (t[1:-1] < rule.points[1:]).all()
+    assert np.allclose(np.diff(t), rule.weights, rtol=0, atol=4e-16)
+
+
+@pytest.mark.parametrize("ne,np_", GRIDS)
+def test_every_node_is_one_cell_of_a_closed_mesh(grid_factory, ne, np_):
+    grid = grid_factory(ne, np_)
+    corners = cells(grid)
+    nsub = 6 * ne**2 * (np_ - 1) ** 2
+    assert corners.shape == (grid.nunique, 4) and corners.dtype == np.int32
+    triangles = corners[:, 3] < 0
+    assert triangles.sum() == 8  # the cube corners, 3 elements round them; every other cell 4 vertices
+    assert (corners[:, :3] >= 0).all() and corners.max() == nsub - 1
+    # each dual vertex (a sub-cell) is a corner of its sub-cell's 4 nodes' cells
+    assert Counter(corners[corners >= 0].tolist()) == Counter({q: 4 for q in range(nsub)})
+    # each directed edge once: neighbouring cells oriented alike; V − E + F = 2 (a sphere)
+    directed = Counter()
+    for row in corners.tolist():
+        row = [v for v in row if v >= 0]
+        directed.update((row[k], row[(k + 1) % len(row)]) for k in range(len(row)))
+    assert max(directed.values()) == 1 and all((b, a) in directed for a, b in directed)
+    assert nsub - len(directed) // 2 + grid.nunique == 2
+
+
+@pytest.mark.parametrize("ne,np_", GRIDS + [(8, 4)])
+def test_cells_are_convex_counter_clockwise_with_the_spheremp_areas(grid_factory, ne, np_):
+    grid = grid_factory(ne, np_)
+    verts, corners, error = dual_mesh(grid)
+    target = grid.area / grid.radius**2
+    assert error <= RTOL
+    node = np.stack([grid.to_unique(x) for x in grid.xyz], axis=1)
+    # counter-clockwise and simple: every fan triangle from the node turns left, seen from outside
+    assert star_shaped(node, verts, corners).all()
+    assert (~convex(verts, corners)).sum() <= NOT_CONVEX.get((ne, np_), 0)  # convex: every turn left
+    area = spherical_areas(node, verts, corners)
+    assert np.max(np.abs(area / target - 1)) == error
+    # the same areas fanned from each cell's first vertex instead of its node
+    again = spherical_areas(verts[corners[:, 0]], verts, corners)
+    assert np.max(np.abs(again / target - 1)) <= RTOL + 1e-13
+    assert area.sum() == pytest.approx(4 * math.pi, rel=1e-13)
+
+
+@pytest.fixture(scope="module")
+def tc5_ne4(tmp_path_factory):
+    """``swe-sphere run tc5_mountain`` at ne = 4 np = 4, 1 day (outputs at days 0 and 1)."""
+    out = tmp_path_factory.mktemp("dual") / "tc5.nc"
+    assert main(["run", "tc5_mountain", "--ne", "4", "--np", "4", "--days", "1", "--device", "cpu",
+                 "--no-progress", "--output", str(out)]) == 0
+    return out
+
+
+def file_mean(path, name="h"):
+    """The run file's own spheremp-weighted mean of ``name`` at each output time."""
+    with xr.open_dataset(path, decode_times=False) as ds:
+        return (ds[name] * ds.area).sum("ncol").values / float(ds.area.sum())
+
+
+def test_run_file_carries_the_dual_mesh_and_cell_bounds(tc5_ne4, grid_factory):
+    grid = grid_factory(4, 4)
+    verts, corners, _ = dual_mesh(grid)
+    with netCDF4.Dataset(tc5_ne4) as nc:
+        mesh = nc["mesh_dual"]
+        assert (mesh.cf_role, int(mesh.topology_dimension)) == ("mesh_topology", 2)
+        assert (mesh.node_coordinates, mesh.face_coordinates, mesh.face_dimension) == ("dual_lon dual_lat", "lon lat", "ncol")
+        conn = nc[mesh.face_node_connectivity]
+        assert conn.dimensions == ("ncol", "nv") and int(conn.start_index) == 0 and conn._FillValue == -1
+        assert np.array_equal(conn[:].filled(-1), corners)
+        assert nc.dimensions["ndual_node"].size == 6 * 4**2 * 3**2
+        for name in ("h", "u", "v", "hs", "vorticity", "divergence"):
+            assert (nc[name].mesh, nc[name].location) == ("mesh_dual", "face"), name
+        assert (nc["lon"].bounds, nc["lat"].bounds) == ("lon_bnds", "lat_bnds")
+        assert nc["lon_bnds"].dimensions == ("ncol", "nv") and not nc["lon_bnds"].ncattrs()
+        lat, lon = np.radians(nc["dual_lat"][:]), np.radians(nc["dual_lon"][:])
+        xyz = np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=1)
+        assert np.allclose(xyz, verts, rtol=0, atol=1e-14)  # through degrees
+        # the file's own corners (degrees) give its own areas: spheremp/a², to the tolerance
+        node_lat, node_lon = np.radians(nc["lat"][:]), np.radians(nc["lon"][:])
+        node = np.stack([np.cos(node_lat) * np.cos(node_lon), np.cos(node_lat) * np.sin(node_lon), np.sin(node_lat)], axis=1)
+        area = spherical_areas(node, xyz, conn[:].filled(-1))
+        assert np.max(np.abs(area * grid.radius**2 / nc["area"][:] - 1)) <= RTOL
+        # the bounds are those corners, the triangles' last repeated, longitudes within 180° of the node's
+        padded = np.where(corners < 0, corners[:, 2:3], corners)
+        assert np.array_equal(nc["lat_bnds"][:], nc["dual_lat"][:][padded])
+        dlon = nc["lon_bnds"][:] - nc["lon"][:][:, None]
+        assert np.abs(dlon).max() <= 180 and np.allclose(np.mod(dlon + nc["lon"][:][:, None] - nc["dual_lon"][:][padded] + 1, 360), 1)
+
+
+def test_uxarray_averages_integrates_and_takes_zonal_means_of_the_run(tc5_ne4):
+    ux = pytest.importorskip("uxarray")
+    uxds = ux.open_dataset(tc5_ne4, tc5_ne4)
+    grid = uxds.uxgrid
+    with xr.open_dataset(tc5_ne4, decode_times=False) as ds:
+        area = ds.area.values / 6.37122e6**2
+        ncol = ds.sizes["ncol"]
+    assert (grid.n_face, grid.n_node) == (ncol, 6 * 4**2 * 3**2) and grid.validate()
+    # uxarray's own spherical face areas are spheremp/a² (Gaussian quadrature of order 10: measured 4e-14)
+    areas = np.asarray(grid.compute_face_areas(quadrature_rule="gaussian", order=10))
+    assert np.max(np.abs(areas / area - 1)) < 1e-12
+    h = uxds["h"]
+    assert h.sizes["n_face"] == ncol
+    # its area-weighted mean is the file's spheremp-weighted mean (default face areas: 6e-8 off)
+    mine = file_mean(tc5_ne4)
+    assert np.allclose([float(h.isel(time=t).weighted_mean()) for t in range(2)], mine, rtol=1e-10, atol=0)
+    # its integral: Σ area·h with its default quadrature's areas (measured 2e-8 relative)
+    assert float(h.isel(time=-1).integrate().values) == pytest.approx(mine[-1] * 4 * math.pi, rel=1e-6)
+    zonal = h.isel(time=-1).zonal_mean(lat=(-90, 90, 10))
+    assert zonal.shape == (19,) and np.isfinite(zonal.values).all()
+    assert h.isel(time=-1).min() <= zonal.min() and zonal.max() <= h.isel(time=-1).max()
+    # one conservative band over the whole sphere is the global mean
+    band = h.isel(time=-1).zonal_mean(lat=(-90, 90, 180), conservative=True)
+    assert float(band.values[0]) == pytest.approx(mine[-1], rel=1e-6)
+
+
+def test_uxarray_draws_the_cells(tc5_ne4):
+    ux = pytest.importorskip("uxarray")
+    h = ux.open_dataset(tc5_ne4, tc5_ne4)["h"].isel(time=-1)
+    ncol = h.sizes["n_face"]
+    try:  # drawing needs cartopy, an optional dependency of uxarray itself
+        pc = h.to_polycollection()
+    except ImportError as exc:  # uxarray's OptionalDependencyNotFoundError is one; any other error fails
+        pytest.skip(f"uxarray cannot draw without its optional dependency: {exc}")
+    assert 0.9 * ncol <= len(pc.get_paths()) <= ncol  # it leaves out the few cells it splits at the antimeridian
+
+
+def cdo(*args) -> str:
+    return subprocess.run(["cdo", "-s", *map(str, args)], check=True, capture_output=True, text=True).stdout
+
+
+@pytest.mark.skipif(shutil.which("cdo") is None, reason="CDO is not installed (apt-get install cdo)")
+def test_cdo_fldmean_and_remapcon_of_the_native_file(tc5_ne4, tmp_path):
+    # CDO reads the cells from lon_bnds/lat_bnds: its cell areas are spheremp in its own Earth radius
+    cdo("gridarea", tc5_ne4, tmp_path / "area.nc")
+    with xr.open_dataset(tmp_path / "area.nc") as a, xr.open_dataset(tc5_ne4, decode_times=False) as ds:
+        ratio = a.cell_area.values / ds.area.values
+    assert np.ptp(ratio) < 1e-12 * ratio.mean()
+    mine = file_mean(tc5_ne4)
+    means = np.array(cdo("outputf,%.17g", "-fldmean", "-selname,h", tc5_ne4).split(), dtype=float)
+    assert np.allclose(means, mine, rtol=1e-13, atol=0)
+    # conservative remapping to a 5° grid keeps the mean (measured 2.8e-5 relative: CDO's own remap weights)
+    cdo("remapcon,r72x36", "-selname,h", tc5_ne4, tmp_path / "ll.nc")
+    remapped = np.array(cdo("outputf,%.17g", "-fldmean", tmp_path / "ll.nc").split(), dtype=float)
+    assert np.allclose(remapped, mine, rtol=1e-4, atol=0)
+
+
+@pytest.fixture(scope="module")
+def cf_files(tc5_ne4, tmp_path_factory):
+    """The run file, its lat-lon file and a sweep's sweep.nc."""
+    out = tmp_path_factory.mktemp("cf")
+    latlon = out / "tc5_latlon.nc"
+    assert main(["remap", str(tc5_ne4), "--resolution", "10", "--output", str(latlon)]) == 0
+    assert main(["sweep", "tc2_steady", "--ne", "2", "--days", "0.25", "--steppers", "ssprk3", "--dt", "3600",
+                 "--device", "cpu", "--output", str(out / "sweep")]) == 0
+    return {"run": tc5_ne4, "latlon": latlon, "sweep": out / "sweep" / "sweep.nc"}
+
+
+# UGRID's cf_role values, which CF adopted with UGRID in CF-1.11; both checkers know only CF-1.8's
+# (timeseries_id, profile_id, trajectory_id) and flag them. Nothing else may be an error.
+UGRID_ROLES = ("mesh_topology", "face_node_connectivity")
+
+
+def standard_name_table():
+    """The CF standard-name table that compliance-checker ships (CI has no network)."""
+    pytest.importorskip("compliance_checker")
+    return resources.files("compliance_checker") / "data" / "cf-standard-name-table.xml"
+
+
+@pytest.mark.parametrize("which", ["run", "latlon", "sweep"])
+def test_ncas_cf_checker_finds_no_errors(cf_files, which, tmp_path):
+    try:
+        from cfchecker.cfchecks import CFChecker
+    except (ImportError, OSError) as exc:  # cfunits needs the udunits2 C library
+        pytest.skip(f"the NCAS CF checker (cfchecker) is not usable here: {exc}")
+    table = standard_name_table()
+    path = cf_files[which]
+    # the files use no area_type or region: empty tables stand in for the ones it would download
+    tables = {}
+    for key, root in (("cfAreaTypesXML", "area_type_table"), ("cfRegionNamesXML", "standard_region_list")):
+        tables[key] = tmp_path / f"{root}.xml"
+        tables[key].write_text(f"<{root}><version_number>0</version_number><date>none</date></{root}>")
+    checker = CFChecker(cfStandardNamesXML=str(table), **{k: str(v) for k, v in tables.items()}, silent=True)
+    result = checker.checker(str(path))
+    with netCDF4.Dataset(path) as nc:
+        roles = {name: getattr(var, "cf_role", None) for name, var in nc.variables.items()}
+    errors = [(None, m) for m in result["global"]["FATAL"] + result["global"]["ERROR"]]
+    for name, found in result["variables"].items():
+        for m in found["FATAL"] + found["ERROR"]:
+            if not (roles[name] in UGRID_ROLES and m == "(9.5): Invalid value for cf_role attribute"):
+                errors.append((name, m))
+    assert errors == []
+    assert sum(r in UGRID_ROLES for r in roles.values()) == (4 if which == "run" else 0)
+
+
+@pytest.mark.filterwarnings("ignore::DeprecationWarning")  # loading every suite loads its deprecated ioos_sos
+@pytest.mark.parametrize("which", ["run", "latlon", "sweep"])
+def test_ioos_compliance_checker_cf18_finds_no_errors(cf_files, which, tmp_path):
+    pytest.importorskip("compliance_checker")
+    from compliance_checker.runner import CheckSuite, ComplianceChecker
+
+    CheckSuite.load_all_available_checkers()
+    report = tmp_path / "report.json"
+    ComplianceChecker.run_checker(str(cf_files[which]), ["cf:1.8"], 0, "normal", output_filename=str(report), output_format="json")
+    failed = [msg for check in json.loads(report.read_text())["cf:1.8"]["high_priorities"]
+              if check["value"][0] < check["value"][1] for msg in check["msgs"]]
+    assert [m for m in failed if not any(m == f"{r} is not a valid cf_role value. It must be one of timeseries_id, "
+                                                 "profile_id, trajectory_id" for r in UGRID_ROLES)] == []

@@ -122,13 +122,11 @@ def _compile_timer(acc: list):
 class Simulation(StateDiagnostics):
     """Build the grid, case, model and stepper of a scene; ``run`` integrates it.
 
-    ``device``: "cpu" or "cuda" (Warp device names). ``progress``: show a tqdm bar
-    (on rank 0, when its stderr is a terminal).
-    ``from_checkpoint`` continues a restart file instead of starting at t = 0.
-    ``comm``: an mpi4py communicator to run one simulation over its ranks
-    (``topology.Topology``: each rank steps its part of the elements; fields
-    are gathered for diagnostics, and rank 0 writes the files); None: this
-    process alone. Explicit steppers give the same bits on any number of ranks.
+    ``device``: "cpu" or "cuda" (Warp device names). ``progress``: a tqdm bar (rank 0,
+    stderr a terminal). ``from_checkpoint`` continues a restart file instead of t = 0.
+    ``comm``: an mpi4py communicator to run one simulation over its ranks (each steps
+    its part of the elements, ``topology.Topology``; rank 0 writes the files); None:
+    this process alone. Explicit steppers give the same bits on any number of ranks.
     ``start``: a whole-grid state (3, npts) (u, v in m s⁻¹, h in m) to start from
     instead of the case's initial state and the scene's initialization (a
     restart's, or a digital-filter start made once for many runs, as a sweep's).

@@ -33,7 +33,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .grid import CubedSphere, reference_to_sphere
+from .grid import CubedSphere, lat_lon, reference_to_sphere
 from .ugrid import subcell_quads, write_topology
 
 MESH = "mesh_dual"
@@ -210,12 +210,6 @@ def unit_dual_mesh(ne: int, np_: int):
     return dual_mesh(CubedSphere(ne, np_, radius=1.0))
 
 
-def lonlat(xyz: np.ndarray):
-    """Longitudes in [0, 360) and latitudes (degrees) of unit vectors (..., 3)."""
-    lon = np.mod(np.degrees(np.arctan2(xyz[..., 1], xyz[..., 0])), 360.0)
-    return lon, np.degrees(np.arcsin(np.clip(xyz[..., 2], -1, 1)))
-
-
 def write_dual_mesh(ds, grid: CubedSphere) -> None:
     """Add the control volumes of ``grid`` to an open ``netCDF4.Dataset`` ``ds`` whose
     ``lon``/``lat`` (degrees) are on the unique nodes ``ncol``: as the UGRID mesh
@@ -231,13 +225,13 @@ def write_dual_mesh(ds, grid: CubedSphere) -> None:
                    long_name="control volumes of the GLL nodes: one face a node, its area the node's spheremp",
                    corners="corners (ndual_node indices) of each node's control volume, counter-clockwise from outside",
                    node_coordinates="dual_lon dual_lat", face_coordinates="lon lat")
-    vlon, vlat = lonlat(verts)
+    vlat, vlon = np.degrees(lat_lon(verts))
     for name, values, std, units in (("dual_lon", vlon, "longitude", "degrees_east"),
                                      ("dual_lat", vlat, "latitude", "degrees_north")):
         var = ds.createVariable(name, "f8", (NODE_DIM,), zlib=True, shuffle=True)
         var.setncatts(dict(standard_name=std, units=units, long_name=f"{std} of the control volumes' corners"))
         var[:] = values
-    blon, blat = lonlat(verts[_padded(corners)])
+    blat, blon = np.degrees(lat_lon(verts[_padded(corners)]))
     lon = ds["lon"][:][:, None]
     blon = lon + np.mod(blon - lon + 180.0, 360.0) - 180.0  # within 180° of the node's: no jump at 0°/360°
     for name, values in (("lon", blon), ("lat", blat)):

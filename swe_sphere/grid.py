@@ -276,6 +276,11 @@ def _quadrature_area(ne: int, rule, radius: float) -> float:
 _CHUNK = 1 << 14  # nodes per piece of the metric's computation
 
 
+def lat_lon(xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Latitude in [−π/2, π/2] and longitude in [0, 2π) (radians) of unit vectors xyz (..., 3)."""
+    return np.arcsin(np.clip(xyz[..., 2], -1, 1)), np.mod(np.arctan2(xyz[..., 1], xyz[..., 0]), 2 * math.pi)
+
+
 def _metric(ne: int, rule, radius: float, copies: np.ndarray, rep: np.ndarray):
     """(xyz, lat, lon, east, north, D) of element-local nodes ``copies`` (global
     indices) whose unique nodes' first copies are ``rep``: the position and
@@ -288,8 +293,7 @@ def _metric(ne: int, rule, radius: float, copies: np.ndarray, rep: np.ndarray):
     xyz[moved] = _geometry(ne, rule, rep[moved])[-1]  # the same bits as computed there (elementwise, per node)
     xyz[np.abs(xyz) < 1e-15] = 0.0
     xyz /= np.linalg.norm(xyz, axis=1)[:, None]
-    lat = np.arcsin(np.clip(xyz[:, 2], -1, 1))
-    lon = np.mod(np.arctan2(xyz[:, 1], xyz[:, 0]), 2 * math.pi)
+    lat, lon = lat_lon(xyz)
     east = np.stack([-np.sin(lon), np.cos(lon), np.zeros_like(lon)], axis=1)
     north = np.stack([-np.sin(lat) * np.cos(lon), -np.sin(lat) * np.sin(lon), np.cos(lat)], axis=1)
     dalpha = math.pi / 2 / ne

@@ -215,10 +215,20 @@ def test_auto_substeps_are_the_fewest_within_the_fast_courant_number(stepper, co
     """substeps "auto" (the default): n is the fewest fast steps a slow step whose gravity-wave
     Courant number about the mean depth H, sqrt(g H) Δt/(n Δx) by the run's own Courant
     diagnostic on a still state of depth H, is ≤ fast_courant (split_explicit 0.6, mri 1.0).
-    TC5 ne 4, one step at 2 and 7.8 Δt_g."""
+    TC5 ne 4, one step at 2 and 7.8 Δt_g; the step takes that many: its forward–backward
+    substeps (⌈n/3⌉ + ⌈n/2⌉ + n) or inner ssprk3 stages (3 Σ_r ⌈d_r n⌉), counted."""
     base = load_scene("tc5_mountain", ne=4, np=4, days=1.0, stepper=stepper)
     dt = 86400.0 / math.ceil(86400.0 / (multiple * explicit_limits(base, "cpu")["dt_gravity"]))
     sim = Simulation(dataclasses.replace(base, dt=dt), "cpu", progress=False)
+    counted = [0]
+    owner, name = (sim.stepper, "_fb_substep") if stepper == "split_explicit" else (sim.stepper.split, "fast")
+    real = getattr(owner, name)
+
+    def counting(*args, **kwargs):
+        counted[0] += 1
+        return real(*args, **kwargs)
+
+    setattr(owner, name, counting)
     sim.run(None, until_step=1)
     n, H, grid = sim.stepper.substeps(), sim.stepper.split.H, sim.model.grid
     still = (np.zeros(grid.dx.size), np.zeros(grid.dx.size), np.full(grid.dx.size, H))
@@ -226,7 +236,9 @@ def test_auto_substeps_are_the_fewest_within_the_fast_courant_number(stepper, co
     coarser = courant_numbers(grid, *still, dt / (n - 1), sim.model.g)["courant_gravity"] if n > 1 else math.inf
     print(f"\n{stepper} at {multiple} Δt_g: n = {n}, fast Courant {fast:.3f} (n - 1: {coarser:.3f})")
     assert fast <= courant < coarser
-    assert n > 1 and sum(sim.stepper.n_fast) == sim.stepper.fast_evaluations() // (1 if stepper == "split_explicit" else 3)
+    stages = (1 / 3, 1 / 2, 1) if stepper == "split_explicit" else sim.stepper.tab.d
+    taken = (1 if stepper == "split_explicit" else 3) * sum(max(1, math.ceil(d * n - 1e-9)) for d in stages)
+    assert n > 1 and counted[0] == taken == sim.stepper.fast_evaluations()
 
 
 @pytest.mark.parametrize("stepper", ["split_explicit", "mri"])

@@ -12,12 +12,9 @@ tendency pass and one DSS, compiled for those terms (``ShallowWater.rhs`` with
 of the gradient of h′ and the divergence of v (``kernels.gravity_wave.linear_element``)
 and one DSS of its three rows into the combination that uses it
 (``ShallowWater.linear_update``): 2 launches moving 0.86× the bytes of the RHS's 2
-(``tally.Tally``), with far less arithmetic than the flux-form tendency. A
-forward–backward substep needs the new wind before its divergence: an element gradient
-and an element divergence, each DSS'd straight into its half of the update
-(``ShallowWater.gradient_update``, ``divergence_update``): 4 launches, 1.29× the RHS's
-bytes with the update of the state. Mass: both parts' depth rows are DSS'd divergences, whose
-area integral is zero, so every stage keeps ∫h to round-off.
+(``tally.Tally``), with far less arithmetic than the flux-form tendency. Mass: both parts'
+depth rows are DSS'd divergences, whose area integral is zero, so every stage keeps ∫h to
+round-off.
 
 The steppers (both apply ∇⁴ once a step after it, as every stepper here):
 
@@ -26,9 +23,17 @@ The steppers (both apply ∇⁴ once a step after it, as every stepper here):
   held fixed over forward–backward substeps of the fast part (Klemp, Skamarock & Dudhia
   2007, MWR 135, 2897, §2; MPAS-Atmosphere's ``atm_srk3``): n/3, n/2 and n substeps
   (rounded up; each stage's substep its span over its count), the wind first,
-  v ← v + τ(N_v − g G h̃), then the depth with the new wind, h ← h + τ(N_h − H D v),
+  v ← v + τ(N_v − g G h̃), then the depth with the new wind, h ← h − τ D(h_s v),
   h̃ = h + β(h − h_old) forward-weighted as MPAS damps the divergence (β = 0.1: without
-  it TC2 rotated by π/4 at ne 4 blew up on day 88.6 of the stability suite's 100).
+  it TC2 rotated by π/4 at ne 4 blew up on day 88.6 of the stability suite's 100). Its
+  fast part is linear about the depth h_s of the stage whose slow tendency it carries,
+  not about H, as MPAS linearises its acoustic substeps about the stage's state: the
+  whole mass flux is the substeps' (``tendency`` compiled for the continuity alone, on
+  the new wind and h_s), the slow part the momentum's terms without the pressure
+  gradient. About H instead, the slow −∇·(h′v) (h′ = −1.6 km on TC5's mountain) held
+  fixed over a step blew TC5 ne30 up on day 2.25 at 3.6 Δt_g; about h_s it runs 15 days
+  at 7.3 Δt_g. A substep: element gradient and its DSS-update into the wind, continuity
+  tendency and its DSS-update into the depth (4 launches).
 * ``mri``: multirate infinitesimal methods from a table (``tables.MULTIRATE``, or the
   scene's ``[mri]``): the r-th of s inner solves starts from
   z(0) = x(n) + Σ_j α_rj (Y_{j+1} − x(n)) and integrates dz/dσ = L z + ρ_r(σ/T_r) over
@@ -239,7 +244,8 @@ class SplitExplicit(_Multirate):
     """Split-explicit Wicker–Skamarock RK3: the gravity waves in forward–backward substeps (MPAS).
 
     3 slow evaluations a step, each stage's substeps from x(n) with the last stage's slow
-    tendency held fixed (the module docstring).
+    tendency held fixed, the mass flux in the substeps about that stage's depth (the
+    module docstring).
 
     Options (scene table ``[split_explicit]``): ``substeps`` n, the fast substeps of the
     last stage (the stages take ⌈n/3⌉, ⌈n/2⌉, n), or "auto" (the default): the fewest
@@ -251,7 +257,8 @@ class SplitExplicit(_Multirate):
     forward weighting of the depth in the substeps' pressure gradient, h̃ = h′ + β(h′ −
     h′_old), which damps the fast divergent modes as divergence damping does: Klemp,
     Skamarock & Ha 2018, MWR 146, 1911, §3; MPAS's smdiv = 0.1; default 0.1), ``mean_depth``
-    H (m; 0: the area-mean depth of the initial state, rounded to 6 digits). 3 slow evaluations a step
+    H (m; 0: the area-mean depth of the initial state, rounded to 6 digits: the step carries
+    the depth as h′ = h − H, and "auto" takes the Courant number about it). 3 slow evaluations a step
     (reported as RHS evaluations) and ⌈n/3⌉ + ⌈n/2⌉ + n fast ones. Slow order 2 (Wicker &
     Skamarock 2002: third order for linear problems). Raises ValueError without the
     continuity and pressure-gradient terms."""
@@ -268,6 +275,9 @@ class SplitExplicit(_Multirate):
         super().__init__(model, dt, options)
         self.xn, self.z, self.S = self._buffer(), self._buffer(), self._buffer()
         self.w = self._buffer()  # row 2: the next substep's forward-weighted depth h̃
+        self.W = self._buffer()  # rows 0, 1: the substeps' wind; row 2: the stage's full depth h
+        # the continuity is the substeps' (about the stage's depth): its slow part is zero
+        self.slow_terms = tuple(t for t in self.split.slow_terms if t != "continuity")
 
     @classmethod
     def label(cls, options: dict) -> str:
@@ -285,27 +295,30 @@ class SplitExplicit(_Multirate):
         src = self.xn
         for i, (c, n) in enumerate(zip(self.C, self.n_fast)):
             self._at(float(self.C[i - 1]) if i else 0.0)
-            self.split.slow(src, self.S)
+            if self.slow_terms:
+                self.model.rhs(src, self.S, self.slow_terms)
+            self._comb(self.W[2:3], (1.0, src[2:3]), (1.0, self.split.depth))
             out = x if i == len(self.C) - 1 else self.z
             tau = float(c) * self.dt / n
-            prev = self.xn
             for k in range(n):
-                self._fb_substep(prev, out, tau, self.S, damped=k > 0)
-                prev = out
+                self._fb_substep(out if k else self.xn, out, tau, self.S, first=k == 0)
+            self._comb(out[0:2], (1.0, self.W[0:2]))
             src = self.z
         return len(self.C)
 
-    def _fb_substep(self, prev, out, tau, forcing, damped=True) -> None:
-        """One forward–backward step of dz/dσ = L z + ρ (ρ = ``forcing``) from prev into out
-        (may be prev): v ← v + τ(ρ_v − g G h̃), then h′ ← h′ + τ(ρ_h − H D v) with the new
-        wind. h̃ = h′ + β(h′ − h′_old), h′_old the last substep's depth, is written by the
-        last substep's depth update as h′_old + (1 + β)τ(ρ_h − H D v) beside h′ (its DSS
-        serves both); ``damped`` False (a stage's first substep, which has no last one): h̃ = h′."""
-        g, H, w, beta = self.model.g, self.split.H, self.w, self.options.divergence_damping
-        self.model.gradient_update(w if damped and beta else prev, 2,
-                                   [(out[0:2], ((1.0, prev[0:2]), (tau, forcing[0:2]), (-g * tau, None)))])
-        weighted = [(w[2:3], ((1.0, prev[2:3]), ((1.0 + beta) * tau, forcing[2:3]), (-H * (1.0 + beta) * tau, None)))] if beta else []
-        self.model.divergence_update(out, [*weighted, (out[2:3], ((1.0, prev[2:3]), (tau, forcing[2:3]), (-H * tau, None)))])
+    def _fb_substep(self, prev, out, tau, forcing, first=False) -> None:
+        """One forward–backward step of the fast system from prev's depth h′ (and wind, when
+        ``first``; else the last substep's, in W) into W's wind and out's depth (may be prev):
+        v ← v + τ(ρ_v − g G h̃), then h′ ← h′ + τ(ρ_h − D(h_s v)) with the new wind, h_s the
+        stage's full depth (W's row 2), ρ = ``forcing``. h̃ = h′ + β(h′ − h′_old), h′_old the
+        last substep's depth, is written by the last substep's depth update as
+        h′_old + (1 + β)τ(ρ_h − D(h_s v)) beside h′ (its DSS serves both); ``first`` (a
+        stage's first substep, which has no last one): h̃ = h′."""
+        g, W, w, beta = self.model.g, self.W, self.w, self.options.divergence_damping
+        self.model.gradient_update(w if not first and beta else prev, 2,
+                                   [(W[0:2], ((1.0, (prev if first else W)[0:2]), (tau, forcing[0:2]), (-g * tau, None)))])
+        weighted = [(slice(2, 3), w, ((1.0, prev), ((1.0 + beta) * tau, forcing), ((1.0 + beta) * tau, None)))] if beta else []
+        self.model.rhs_update(W, [*weighted, (slice(2, 3), out, ((1.0, prev), (tau, forcing), (tau, None)))], ("continuity",))
 
 
 # -- multirate infinitesimal tables ----------------------------------------------------

@@ -411,6 +411,7 @@ def _run(args, scene, output, device, comm) -> int:
 
     from . import mpi
     from .parallel import threads_note
+    from .schedules import restart_steps
     from .simulation import BlowUp, Simulation
     from .workers import cpus, limit_threads
     from .writers import restart_path, stream_path
@@ -425,7 +426,7 @@ def _run(args, scene, output, device, comm) -> int:
         sys.stdout = open(os.devnull, "w")
     scene = sim.scene
     if args.restart_every is not None:
-        sim.restart_steps(args.restart_every)  # checks the interval before the run
+        restart_steps(scene, args.restart_every)  # checks the interval before the run
     c = sim.courant()
     dx = -sim.topology.max(-float(sim.topology.grid.dx.min()))
     print(f"scene       {scene.name}: {scene.description}")

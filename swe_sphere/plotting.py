@@ -37,7 +37,6 @@ from .output import atomic_path, check_distinct, check_target
 from .reference import Reference, cases_of, locate
 from .remap import Remapper, cached_grid, open_netcdf, run_grid
 
-# name → (long name, units on the colour bar, scale applied before drawing, colour map, symmetric about 0)
 INVARIANTS = ("mass_change", "total_energy_change", "potential_enstrophy_change")
 FIGSIZE, DPI = (12.0, 6.0), 100  # map: 1200 × 600 pixels
 SERIES_FIGSIZE = (12.0, 5.0)  # 1200 × 500 pixels

@@ -93,11 +93,8 @@ def open_reference(path, case=None):
     run's case object, its truncation ("T341"), as ``case.reference`` takes them
     (``reference.locate``). Raises ``FileNotFoundError``/``ValueError``."""
     path = locate(str(path), case)
-    try:
-        with xr.open_dataset(path, decode_times=False) as probe:
-            is_run = "ncol" in probe.dims
-    except Exception as exc:
-        raise ValueError(f"{path}: not a readable netCDF file ({type(exc).__name__})") from None
+    with open_netcdf(path) as probe:
+        is_run = "ncol" in probe.dims
     if is_run:
         ds = open_run(path)
         run_grid(ds)  # validates ne/np against lat/lon

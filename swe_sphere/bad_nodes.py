@@ -1,9 +1,5 @@
-"""The bad-node check of a ``ShallowWater`` model's states: a non-finite value or a dry node.
-
-``BadNodes`` finds the first bad node at once (one host read) or flags bad
-states on the device over a block of steps and reads the flag once; both launch
-``kernels.blas.first_bad_node`` through the model's recorded launches.
-"""
+"""The bad-node check of a ``ShallowWater`` model's states (a non-finite value or a dry node),
+at once (one host read) or flagged on the device over a block of steps and read once."""
 
 from __future__ import annotations
 
@@ -14,7 +10,8 @@ from .kernels import blas
 
 class BadNodes:
     """The bad-node check of ``model``'s states (3, N): a node is bad where u, v or h
-    is not finite or (when the scene has a pressure gradient, so h is a depth) h ≤ 0.
+    is not finite or (when the scene has a pressure gradient, so h is a depth) h ≤ 0
+    (``kernels.blas.first_bad_node``, launched through the model's recorded launches).
     Holds two int32 arrays of a slot per CPU thread: ``bad`` (``first``'s) and
     ``watched`` (``watch``'s)."""
 

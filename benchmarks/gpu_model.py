@@ -24,8 +24,7 @@ Predictions: GPU time = bytes / (0.7 × HBM bandwidth) + launches × 1 µs
 4 µs of host time. Without graphs a step takes the larger of the two (the
 host launches while the GPU runs); with one CUDA graph per sync-free segment
 it takes GPU time + (syncs + 1) × 4 µs. A step is launch-bound when its
-launch floor exceeds its GPU time. A step is launch-bound when its launch floor exceeds its bandwidth
-time. Bytes per point at ``--ne`` scale to other grids with the node count;
+launch floor exceeds its GPU time. Bytes per point at ``--ne`` scale to other grids with the node count;
 iteration counts at a fixed Courant number barely change with ne
 (benchmarks/README.md: semi-implicit at 4× 25 / 24 CG iterations at ne16 / 30).
 
@@ -39,22 +38,21 @@ import argparse
 import statistics
 import time
 
-import numpy as np
 import warp as wp
 
 from swe_sphere.config import load_scene
-from swe_sphere.grid import CubedSphere
-from swe_sphere.model import ShallowWater
 from swe_sphere.steppers import STEPPERS, make_stepper
 from swe_sphere.tally import Tally, array_bytes, instrumented
 
 from implicit_cost import use_krylov  # noqa: E402  (benchmarks/, the script's directory)
+from rhs_throughput import build as tc5  # noqa: E402
 
 HBM = {"H100": 3.35e12, "H200": 4.8e12}  # B/s: HBM3 (SXM) and HBM3e
 EFFICIENCY = 0.7  # share of HBM bandwidth a streaming kernel reaches
 LAUNCH_S = 4e-6  # host cost of one Warp kernel launch
 KERNEL_GAP_S = 1e-6  # GPU-side gap between consecutive kernels
 IMPLICIT = ("semi_implicit", "implicit", "imex")
+CUDA_ON_CPU = {"np_": 4, "threads": 1, "device": "cpu", "per_element": False}  # TC5 (``tc5``) on np 4 in the CUDA layout, on the CPU
 
 # Floating-point operations per point (np = 4, FMA = 2), counted by hand from
 # kernels/: the ratio to the bytes shows every kernel far below an H100's
@@ -72,24 +70,10 @@ FLOPS = {
 }
 
 
-def build(ne, stepper=None, dt_factor=1.0):
-    """TC5 on ne, np 4, in the CUDA layout on the CPU: (model, scene, initial state)."""
-    scene = load_scene("tc5_mountain_homme", ne=ne, np=4)
-    if stepper is not None:
-        scene = load_scene("tc5_mountain_homme", ne=ne, np=4, stepper=stepper, dt=scene.dt * dt_factor)
-    grid = CubedSphere(ne, 4)
-    case = scene.make_case()
-    model = ShallowWater(
-        grid, scene.terms, case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon), nu=scene.nu, nu_div=scene.nu_div,
-        nu_s=scene.nu_s, hypervis_subcycle=scene.hypervis_subcycle, g=case.planet.g, device="cpu", threads=1, per_element=False,
-    )
-    return model, scene, np.stack(case.initial(grid.lat, grid.lon))
-
-
 def count(args, tally):
     """{'rhs'|'hv'|stepper: (launches, bytes per point, syncs, kernels Counter, bytes Counter)} at args.ne."""
     out = {}
-    model, _, x0 = build(args.ne)
+    _, _, (_, _, x0), model = tc5(args.ne, **CUDA_ON_CPU)
     x, y = model.new_state(*x0), model.new_state()
     N = model.N
     for name, fn in (("rhs", lambda: model.rhs(x, y)), ("hv", lambda: model.hv.operator(x, y))):
@@ -98,7 +82,7 @@ def count(args, tally):
             fn()
         out[name] = (t.total_launches, t.total_bytes / N, t.syncs, t.launches.copy(), t.bytes.copy())
     for name in STEPPERS:
-        model, scene, x0 = build(args.ne, name, args.implicit_dt_factor if name in IMPLICIT else 1.0)
+        _, scene, (_, _, x0), model = tc5(args.ne, stepper=name, dt_factor=args.implicit_dt_factor if name in IMPLICIT else 1.0, **CUDA_ON_CPU)
         stepper = make_stepper(name, model, scene.dt)
         use_krylov(stepper, "kernels")  # the Krylov vector work as on CUDA (on a CPU device it runs in numpy)
         x = model.new_state(*x0)
@@ -115,7 +99,7 @@ def count(args, tally):
 def cpu_check(ne, repeat):
     """Each launch of one RHS and one ∇⁴ in the CUDA layout on one CPU thread at ne:
     (kernel, CPU-clock µs median, B/pt counted, implied GB/s)."""
-    model, _, x0 = build(ne)
+    _, _, (_, _, x0), model = tc5(ne, **CUDA_ON_CPU)
     x, y = model.new_state(*x0), model.new_state()
     model.rhs(x, y)
     model.hv.operator(x, y)

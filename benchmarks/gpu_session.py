@@ -45,26 +45,13 @@ import warp as wp
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from gpu_model import IMPLICIT  # noqa: E402
 from implicit_cost import use_krylov  # noqa: E402
-from rhs_throughput import build, rhs_compulsory_bytes  # noqa: E402
+from rhs_throughput import build, median_time, rhs_compulsory_bytes  # noqa: E402  (its clock: time.perf_counter)
 
 from swe_sphere.config import load_scene  # noqa: E402
 from swe_sphere.constants import DAY  # noqa: E402
 from swe_sphere.simulation import Simulation  # noqa: E402
 from swe_sphere.steppers import STEPPERS  # noqa: E402
 from swe_sphere.tally import Tally, instrumented  # noqa: E402
-
-
-def timed(fn, device, repeat):
-    """Median seconds of fn() (synchronised), after one untimed call."""
-    fn()
-    wp.synchronize_device(device)
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        wp.synchronize_device(device)
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
 
 
 def _header(title, columns, right):
@@ -110,7 +97,7 @@ def copy_bandwidth(device, nbytes=2**30, repeat=10):
     """B/s of a device-to-device copy of nbytes (read + write counted)."""
     a = wp.zeros(nbytes // 8, dtype=wp.float64, device=device)
     b = wp.zeros_like(a)
-    return 2 * nbytes / timed(lambda: wp.copy(b, a), device, repeat)
+    return 2 * nbytes / median_time(lambda: wp.copy(b, a), repeat, device)
 
 
 def throughput(args):
@@ -121,7 +108,7 @@ def throughput(args):
     for ne in args.ne:
         _, _, (_, _, state), model = build(ne, 4, 1, args.device)
         x, out = model.new_state(*state), model.new_state()
-        runs.append((ne, model, x, out, timed(lambda: model.rhs(x, out), args.device, args.repeat)))
+        runs.append((ne, model, x, out, median_time(lambda: model.rhs(x, out), args.repeat, args.device)))
     tally = Tally()
     for ne, model, x, out, t in runs:
         with instrumented(tally), tally.counting():  # after the timings: its wrappers cost host time per launch

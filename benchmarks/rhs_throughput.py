@@ -54,7 +54,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # numpy_
 from swe_sphere.config import load_scene  # noqa: E402
 from swe_sphere.grid import CubedSphere  # noqa: E402
 from swe_sphere.model import ShallowWater  # noqa: E402
-from swe_sphere.runtime import default_device  # noqa: E402
+from swe_sphere.runtime import default_device, init_warp  # noqa: E402
 from swe_sphere.parallel import SplitLaunch, default_threads  # noqa: E402
 from swe_sphere.steppers import STEPPERS, make_stepper  # noqa: E402
 from swe_sphere.tally import array_bytes  # noqa: E402
@@ -65,23 +65,13 @@ CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
 clock = CLOCKS["wall"]  # set by --clock
 
 
-def median_time(fn, repeat, sync_device=None, warmup=True):
-    if warmup:
-        fn()  # compiles, records launches
-    times = []
-    for _ in range(repeat):
-        t0 = clock()
-        fn()
-        if sync_device is not None:
-            wp.synchronize_device(sync_device)
-        times.append(clock() - t0)
-    return statistics.median(times)
-
-
 def interleaved_times(fns, repeat, sync_device=None):
-    """Median time of each of ``fns``, timed alternately (one call of each per round)."""
+    """Median time of each of ``fns``, timed alternately (one call of each per round)
+    after one untimed call of each (compiles, records launches)."""
     for fn in fns:
         fn()
+    if sync_device is not None:
+        wp.synchronize_device(sync_device)
     times = [[] for _ in fns]
     for _ in range(repeat):
         for k, fn in enumerate(fns):
@@ -91,6 +81,11 @@ def interleaved_times(fns, repeat, sync_device=None):
                 wp.synchronize_device(sync_device)
             times[k].append(clock() - t0)
     return [statistics.median(t) for t in times]
+
+
+def median_time(fn, repeat, sync_device=None):
+    """Median time of fn() (synchronised on ``sync_device``), after one untimed call."""
+    return interleaved_times([fn], repeat, sync_device)[0]
 
 
 def triad_bandwidth(threads=1, n=20_000_000, repeat=5):
@@ -116,15 +111,16 @@ def triad_bandwidth(threads=1, n=20_000_000, repeat=5):
     return 5 * 8 * n / median_time(triad, repeat)
 
 
-def build(ne, np_, threads, device, stepper=None, dt_factor=1.0):
-    """TC5 scene on (ne, np): grid, scene, case fields, model, initial state."""
+def build(ne, np_, threads, device, stepper=None, dt_factor=1.0, per_element=None):
+    """TC5 scene on (ne, np): grid, scene, case fields and initial state, model (``per_element``: its layout)."""
     scene = load_scene("tc5_mountain_homme", ne=ne, np=np_)
     if stepper is not None:
         scene = load_scene("tc5_mountain_homme", ne=ne, np=np_, stepper=stepper, dt=scene.dt * dt_factor)
     grid = CubedSphere(ne, np_)
     case = scene.make_case()
     fcor, hs = case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon)
-    model = ShallowWater(grid, scene.terms, fcor, hs, nu=scene.nu, hypervis_subcycle=scene.hypervis_subcycle, g=case.planet.g, device=device, threads=threads)
+    model = ShallowWater(grid, scene.terms, fcor, hs, nu=scene.nu, nu_div=scene.nu_div, nu_s=scene.nu_s, hypervis_subcycle=scene.hypervis_subcycle,
+                         g=case.planet.g, device=device, threads=threads, per_element=per_element)
     u, v, h = case.initial(grid.lat, grid.lon)
     return grid, scene, (fcor, hs, np.stack([u, v, h])), model
 
@@ -221,12 +217,8 @@ def rhs_table(args, threads, triad):
             )
 
 
+@threadpool_limits.wrap(limits=1, user_api="blas")  # as Simulation.run: single-threaded BLAS for the Krylov solvers
 def step_table(args, threads):
-    with threadpool_limits(limits=1, user_api="blas"):  # as Simulation.run: single-threaded BLAS for the Krylov solvers
-        _step_table(args, threads)
-
-
-def _step_table(args, threads):
     print(
         f"\nOne step per stepper, TC5, np=4, {threads} thread(s), {args.clock} clock; ms per step (median of {args.step_repeat}, "
         f"each after a plain RHS timed alone: RHS-eq = step / RHS) and its breakdown; semi_implicit/implicit at {args.implicit_dt_factor:g}x the scene dt"
@@ -285,9 +277,7 @@ def main(argv=None):
     args = p.parse_args(argv)
     global clock
     clock = CLOCKS[args.clock]
-    wp.config.quiet = True  # Warp < 1.10
-    wp.config.log_level = wp.LOG_ERROR
-    wp.init()
+    init_warp()  # quietly
     threads = args.threads or default_threads(args.device)
     print(f"Warp {wp.__version__}, device {args.device}, threads {threads}, {args.clock} clock, load average {os.getloadavg()[0]:.2f}")
     triad1 = triad_bandwidth(1)

@@ -58,13 +58,6 @@ def row_totals(src: wp.array2d(dtype=f64), out: wp.array(dtype=f64)):
 
 
 @wp.kernel
-def add_row(x: wp.array2d(dtype=f64), row: int, out: wp.array2d(dtype=f64), out_row: int):
-    """out[out_row] += x[row]. Dim N."""
-    p = wp.tid()
-    out[out_row, p] = out[out_row, p] + x[row, p]
-
-
-@wp.kernel
 def first_bad_node(x: wp.array2d(dtype=f64), check_depth: int, first: wp.array(dtype=wp.int32), offset: int):
     """first[0] = min index p where u, v or h is not finite, or (if check_depth) h ≤ 0;
     unchanged if there is none. Dim N."""

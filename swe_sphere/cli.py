@@ -411,6 +411,7 @@ def _run(args, scene, output, device, comm) -> int:
 
     from . import mpi
     from .parallel import threads_note
+    from .schedules import restart_steps
     from .simulation import BlowUp, Simulation
     from .workers import cpus, limit_threads
     from .writers import restart_path, stream_path
@@ -425,7 +426,7 @@ def _run(args, scene, output, device, comm) -> int:
         sys.stdout = open(os.devnull, "w")
     scene = sim.scene
     if args.restart_every is not None:
-        sim.restart_steps(args.restart_every)  # checks the interval before the run
+        restart_steps(scene, args.restart_every)  # checks the interval before the run
     c = sim.courant()
     dx = -sim.topology.max(-float(sim.topology.grid.dx.min()))
     print(f"scene       {scene.name}: {scene.description}")
@@ -544,10 +545,8 @@ def _cmd_plot(args) -> int:
 
 
 def _cmd_remap(args) -> int:
-    import xarray as xr
-
     from .output import check_distinct, check_target
-    from .remap import latlon_grid, remap_file, run_grid
+    from .remap import latlon_grid, open_netcdf, remap_file, run_grid
 
     output = args.output or Path(f"{args.run.stem}_latlon{args.resolution:g}.nc")
     lat, lon = latlon_grid(args.resolution)
@@ -555,11 +554,7 @@ def _cmd_remap(args) -> int:
         raise ValueError(f"file not found: {args.run}")
     check_distinct([output], [args.run])
     check_target(output, args.overwrite)
-    try:
-        ds = xr.open_dataset(args.run, decode_times=False)
-    except Exception as exc:
-        raise ValueError(f"{args.run}: not a readable netCDF file ({type(exc).__name__})") from None
-    with ds:
+    with open_netcdf(args.run) as ds:
         grid = run_grid(ds)
     remap_file(args.run, args.resolution, output, overwrite=args.overwrite)
     print(f"{output}: ne={grid.ne} np={grid.np} -> {lat.size} x {lon.size} lat-lon points ({args.resolution:g} degrees)")

@@ -138,7 +138,7 @@ class GraphedSteps:
     """Steps of a ``capturable`` stepper replayed as graphs (``Simulation`` holds one).
 
     ``step(stepper, model, x, watch)`` advances x by one step of ``stepper`` (and,
-    with ``watch``, ``model.watch(x)``) and returns its ``StepStats``. A step whose
+    with ``watch``, ``model.bad_nodes.watch(x)``) and returns its ``StepStats``. A step whose
     ``Stepper.graph_key`` was seen before runs as a graph: the key's first step
     runs plain (loading modules and allocating what its launches need, none of
     which a capture may do); its second runs plain (the solvers' own graphs off),
@@ -204,7 +204,7 @@ class GraphedSteps:
     def _plain(stepper, model, x, watch: bool):
         stats = stepper.step(x)
         if watch:
-            model.watch(x)
+            model.bad_nodes.watch(x)
         return stats
 
     def _checked(self, key, stepper, model, x, watch: bool):
@@ -212,7 +212,7 @@ class GraphedSteps:
         then from the state before it captured and replayed, the two compared bit for bit.
         Equal: the graph is kept for the key's later steps. Else, or when the capture or
         replay raises: the plain step's result stands and the guard fails (one line)."""
-        arrays = [*stepper.device_arrays(), *([model.watched] if watch else [])]
+        arrays = [*stepper.device_arrays(), *([model.bad_nodes.watched] if watch else [])]
         before = self._snapshot(stepper, x, arrays)
         self.guard.enabled = False
         try:

@@ -37,7 +37,7 @@ class Guard:
     checked step at a time: the blow-up is reported at the step, time and place (a
     failed solve at the step and time), and the output holds, as with a check every
     step (the same bits either way). A single step is checked at once
-    (``ShallowWater.first_bad_node``), its solvers' counters read inside it."""
+    (``BadNodes.first``), its solvers' counters read inside it."""
 
     def __init__(self, sim, stop_step: int, marks: list[int], log_every: int, ledger):
         """``marks``: the run's output and restart steps, sorted; ``log_every``: its
@@ -78,7 +78,7 @@ class Guard:
         step's bad state is kept for its report."""
         sim, node = self.sim, None
         if self._saved is not None:
-            if sim.model.watched_bad() and trouble is None:
+            if sim.model.bad_nodes.watched_bad() and trouble is None:
                 trouble = "bad"
             try:  # the solvers' device counters of the block's steps (zeroed, also after trouble)
                 counts = sim.stepper.counts()
@@ -87,7 +87,7 @@ class Guard:
             if trouble is None:
                 ledger.add(StepStats(0, counts))
         else:
-            node = sim.model.first_bad_node(sim.x) if trouble is None else None
+            node = sim.model.bad_nodes.first(sim.x) if trouble is None else None
             wp.synchronize_device(sim.device)
             trouble = "bad" if node is not None else trouble
         if trouble is not None:

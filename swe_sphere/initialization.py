@@ -125,7 +125,7 @@ def digital_filter(f: DigitalFilter, x0: np.ndarray, *, grid, terms, fcor, hs, g
         for k in range(1, n):  # w[0] = w[2n] = 0: the states at ± n Δt are not needed
             stepper.step(x)
             acc += w[n + sign * k] * (x.numpy() if sign > 0 else reverse * x.numpy())
-        if model.first_bad_node(x) is not None:
+        if model.bad_nodes.first(x) is not None:
             raise ValueError(f"the digital filter's {'forward' if sign > 0 else 'backward'} integration over {f.span_hours / 2:g} h "
                              f"(RK4, dt = {dt:.4g} s) went non-finite or dry; try a shorter dfi.span_hours")
 

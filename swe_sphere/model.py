@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from .bad_nodes import BadNodes
 from .constants import EARTH
 from .graphs import GraphGuard
 from .grid import CubedSphere
@@ -119,8 +120,6 @@ class ShallowWater:
         self.scalar_dss = wp.zeros((1, N), dtype=f64, device=device)
         self.scalar_flat = self.scalar.flatten()
         self.vec_work = wp.zeros((2, N), dtype=f64, device=device)
-        self.bad = wp.zeros(max(1, self.threads), dtype=wp.int32, device=device)  # a slot per thread
-        self.watched = wp.full(max(1, self.threads), N, dtype=wp.int32, device=device)  # ``watch``'s, as ``bad``
         self.topo_forcing = None
         if "topography" in terms:
             self.topo_forcing = wp.zeros((2, N), dtype=f64, device=device)
@@ -131,6 +130,7 @@ class ShallowWater:
         self._recorded: dict[tuple, tuple] = {}
         self._pointwise_launches: dict[tuple, object] = {}
         self.hv = Hyperviscosity(self) if "hyperviscosity" in terms else None  # the ∇⁴: its plan, work arrays, launches
+        self.bad_nodes = BadNodes(self)  # the check of a state for non-finite or dry nodes
 
     # -- launch recording ---------------------------------------------------
     def _launch(self, kernel, dim, inputs, per_part=None):
@@ -414,38 +414,6 @@ class ShallowWater:
         operator the model steps with (``divergence``), DSS'd."""
         self.divergence(x, self.scalar_dss)
         return self.scalar_dss.numpy()[0].copy()
-
-    def first_bad_node(self, x: wp.array2d) -> int | None:
-        """Whole-grid element-local index of the first node, over all ranks, with a
-        non-finite value or (when the scene has a pressure gradient, so h is a
-        depth) h ≤ 0; None if all are good. Reads the device (a host synchronisation)."""
-        self.bad.fill_(self.N)
-        self._guard(x, self.bad, "guard")
-        first = int(self.bad.numpy().min())
-        return self.topology.first_node(None if first == self.N else first)
-
-    def watch(self, x: wp.array2d) -> None:
-        """Flag on the device whether x has a bad node (as ``first_bad_node``), without
-        reading it back: the flag (the smallest bad index seen) holds every state
-        watched since the last ``watched_bad``, so a block of steps needs one read."""
-        self._guard(x, self.watched, "watch")
-
-    def watched_bad(self) -> bool:
-        """Whether any state given to ``watch`` since the last call had a bad node on
-        any rank (the same answer on every rank; call on all); resets the flag.
-        One host read."""
-        bad = int(self.watched.numpy().min()) < self.N
-        self.watched.fill_(self.N)
-        return self.topology.max(float(bad)) > 0.0
-
-    def _guard(self, x, first, name):
-        """Launch ``blas.first_bad_node`` on x into the per-thread slots of ``first``
-        (an atomic minimum: the same index whatever order the threads run in)."""
-        check_depth = 1 if "pressure_gradient" in self.terms else 0
-        slots = [first[k : k + 1] for k in range(first.shape[0])]  # one per thread: CPU atomics are plain
-        self._replay(
-            (name, x.ptr), (x,), lambda: [self._launch(blas.first_bad_node, self.N, [x, check_depth, first], {"first": slots})]
-        )
 
     def new_state(self, u=None, v=None, h=None) -> wp.array2d:
         """A (3, N) device state from element-local numpy rows (zeros where None)."""

@@ -37,7 +37,6 @@ from .output import atomic_path, check_distinct, check_target
 from .reference import Reference, cases_of, locate
 from .remap import Remapper, cached_grid, open_netcdf, run_grid
 
-# name → (long name, units on the colour bar, scale applied before drawing, colour map, symmetric about 0)
 INVARIANTS = ("mass_change", "total_energy_change", "potential_enstrophy_change")
 FIGSIZE, DPI = (12.0, 6.0), 100  # map: 1200 × 600 pixels
 SERIES_FIGSIZE = (12.0, 5.0)  # 1200 × 500 pixels
@@ -94,11 +93,8 @@ def open_reference(path, case=None):
     run's case object, its truncation ("T341"), as ``case.reference`` takes them
     (``reference.locate``). Raises ``FileNotFoundError``/``ValueError``."""
     path = locate(str(path), case)
-    try:
-        with xr.open_dataset(path, decode_times=False) as probe:
-            is_run = "ncol" in probe.dims
-    except Exception as exc:
-        raise ValueError(f"{path}: not a readable netCDF file ({type(exc).__name__})") from None
+    with open_netcdf(path) as probe:
+        is_run = "ncol" in probe.dims
     if is_run:
         ds = open_run(path)
         run_grid(ds)  # validates ne/np against lat/lon

@@ -37,7 +37,7 @@ from .output import OUTPUT_FIELDS, check_distinct, check_target, node_dataset
 from .parallel import default_threads
 from .remap import remap_dataset
 from .runtime import Interrupted, ResourceError, check_memory, pick_device, run_bytes
-from .schedules import restart_steps, steps_of
+from .schedules import steps_of
 from .scoring import Scorer
 from .state_diagnostics import StateDiagnostics
 from .steppers import StepFailure, StepStats, make_stepper
@@ -307,12 +307,6 @@ class Simulation(StateDiagnostics):
             return Path(path)
         return restart_file.write(path, self.scene, self.step, x, state, self.counters, self.initial, overwrite=overwrite,
                                   restart_every=restart_every)
-
-    # -- the loop ---------------------------------------------------------
-    def restart_steps(self, every_days: float) -> set[int]:
-        """Steps at which a run with ``--restart-every every_days`` writes its restart
-        file (and the last step). Raises ValueError unless dt divides the interval."""
-        return restart_steps(self.scene, every_days)
 
     # -- driven from Python (Oceananigans' Simulation: step, inspect, call back) ---------
     def add_callback(self, fn, *, every_days: float | None = None, every_steps: int | None = None) -> None:

@@ -67,7 +67,7 @@ else:
     run = simulation.Simulation.run
 
     def held_run(self, *args, **kwargs):
-        step, check, watch, calls = self.stepper.step, self.model.first_bad_node, self.model.watch, [0]
+        step, check, watch, calls = self.stepper.step, self.model.bad_nodes.first, self.model.bad_nodes.watch, [0]
         if WHERE == "inside-step":
             def endless_step(x):
                 MARKER.write_text(str(os.getpid()))
@@ -87,7 +87,7 @@ else:
 
                 return held_check
 
-            self.model.first_bad_node, self.model.watch = held(check), held(watch)
+            self.model.bad_nodes.first, self.model.bad_nodes.watch = held(check), held(watch)
         return run(self, *args, **kwargs)
 
     simulation.Simulation.run = held_run

@@ -136,7 +136,7 @@ def test_a_graphed_solver_step_reads_nothing_back_and_a_block_once(one_thread, t
     sim = Simulation(long_steps(name, "cpu", 16), "cpu", progress=False)
     sim.graphs, sim.check_every = True, 5
     inside, reads = [], {"flag": [], "counts": []}
-    take, counts, watched_bad = sim._take_step, sim.stepper.counts, sim.model.watched_bad
+    take, counts, watched_bad = sim._take_step, sim.stepper.counts, sim.model.bad_nodes.watched_bad
 
     def counted(what, fn):
         def call(*a):
@@ -153,7 +153,7 @@ def test_a_graphed_solver_step_reads_nothing_back_and_a_block_once(one_thread, t
         inside.append((watch, tally.syncs - before))
         return stats
 
-    sim._take_step, sim.stepper.counts, sim.model.watched_bad = step, counted("counts", counts), counted("flag", watched_bad)
+    sim._take_step, sim.stepper.counts, sim.model.bad_nodes.watched_bad = step, counted("counts", counts), counted("flag", watched_bad)
     with tally.counting():
         result = sim.run(None)
     assert result.steps == 16 and result.iterations["helmholtz"] > 16 * 3

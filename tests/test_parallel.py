@@ -71,7 +71,7 @@ def test_operators_bitwise_equal_to_one_thread(small_parts, threads, rng):
         bad = x.numpy().copy()  # numpy() is a view of a CPU array
         bad[1, [700, 800]] = np.nan  # the first bad node lies in the last part
         res[n] = [out.numpy(), x.numpy(), grad.numpy(), div.numpy(), unique.numpy(), back.numpy(), m.vorticity(x)]
-        res[n].append(m.first_bad_node(wp.array(bad, dtype=wp.float64)))
+        res[n].append(m.bad_nodes.first(wp.array(bad, dtype=wp.float64)))
     assert res[1][-1] == res[threads][-1] == 700
     names = ["rhs", "hyperviscosity", "gradient", "divergence", "assemble", "scatter", "vorticity"]
     for name, a, b in zip(names, res[1], res[threads]):

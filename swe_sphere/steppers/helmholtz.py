@@ -35,19 +35,12 @@ The operator's bits depend on neither threads nor ranks (its DSS is a gather in
 the global order), so a run on N ranks differs from one on one rank only by the
 order of the inner products' sums.
 
-Why no other solver (ISSUE 21, TC5 ne30, IMEX at 8 / CN at 4 / 10 / semi-implicit
-at 2 Δt_g, ms a step, ``benchmarks/implicit_cost.py``): scipy's CG on the
-assembled matrix (one thread, its sparse product 0.96 ms against this
-operator's 1.12 ms) took 95 / 181 / 314 / 28 against 112 / 206 / 366 / 31 on
-one thread (CPU clock), but 89 / 162 / 286 / 25 against 75 / 134 / 247 / 20
-on two (wall, idle); it ran on one CPU rank only, and a solver chosen by the
-thread count would change a run's bits with it. CG with a pyamg V-cycle
-185 / 226 / 514 / 53 on one thread; the preconditioners of
-``benchmarks/helmholtz_preconditioners.py`` (Chebyshev, element blocks,
-low-order-refined AMG, p-multigrid) none cheaper per solve. The same product
-as a Warp CSR kernel (K has 37 entries a row) took 3.1 ms, ``warp.sparse``'s
-``bsr_mv`` 4.3 ms (ne16: 0.88 / 1.24 against 0.33; ne60: 12.6 / 16.7
-against 4.7).
+Why no other solver (TC5 ne30, ``benchmarks/implicit_cost.py``): scipy's CG on the
+assembled K was 15 % cheaper a step on one thread but dearer on two, runs on one rank
+only, and a solver chosen by the thread count would change a run's bits with it; CG
+with a pyamg V-cycle, the preconditioners of ``benchmarks/helmholtz_preconditioners.py``
+and K as a Warp CSR or ``warp.sparse`` matrix (2.8–3.8× the matrix-free product's time)
+were dearer.
 
 The height's area integral is set to that of the right-hand side after the
 solve (the exact solution has it, since ∫D v = 0), so a loose solve still

@@ -26,13 +26,21 @@ test; 1e-6 is the semi-implicit and IMEX default). Preconditioners:
 Cost of one solve in RHS-equivalents (one ``model.rhs`` timed on the same
 clock): iterations × (a ``pcg`` iteration, timed on the same system, + the
 preconditioner). For the host preconditioners (pyamg) their time as measured;
-for the ones that would be kernels, a lower bound: cheb d adds d − 1 ``pcg``
+for the ones that would be kernels, a lower bound: cheb d adds d − 2 ``pcg``
 operator products (no vector updates), blocks the batched 16×16 products
-alone (numpy ``matmul``), p-MG 7 operator products and the coarse V-cycle.
+alone (numpy ``matmul``), p-MG 6 operator products and the coarse V-cycle.
 Then the same with the weak Laplacian K_w in place of K (iterations of the mass,
 the exact LOR and AMG), and the spectrum at ``--spectrum-ne``: the smallest eigenvalues of a²M⁻¹K and
 a²M⁻¹K_LOR, and the range of the eigenvalues of (M + cK_LOR)⁻¹(M + cK), (M + cK_w)⁻¹(M + cK) and
 (M + cK_LOR)⁻¹(M + cK_w) with how many lie below 0.1.
+
+``--record PATH``: the production solves, TC5 ne30 np4 IMEX (ARS(3,4,3), ``guess_history`` 8)
+at 2160 s after ``--spin-up`` days, the next ``--count`` solves' c, b, start x0 (the projected
+guess) and the model CG's iterations (npz; the solves run outside graphs to be seen).
+``--solves PATH``: the mass, blocks and p-MG preconditioners on them, CG from x0 to ‖r‖ ≤ tol‖b‖,
+all as scipy sparse products (the same footing): median iterations and products a solve, CPU
+time a solve (medians of ``--rounds`` interleaved rounds over every ``--stride``-th solve), and
+the set-up (once a run) per solve of a day's solves.
 CPU clock (``time.process_time``); needs pyamg (``pip install -e '.[bench]'``); run with one thread:
 
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/helmholtz_preconditioners.py
@@ -55,6 +63,7 @@ from threadpoolctl import threadpool_limits
 wp.config.quiet = True
 
 from swe_sphere.config import load_scene  # noqa: E402
+from swe_sphere.constants import DAY  # noqa: E402
 from swe_sphere.gll import gll  # noqa: E402
 from swe_sphere.simulation import Simulation  # noqa: E402
 from swe_sphere.steppers.helmholtz import GravityWave, element_gradient, helmholtz_matrix  # noqa: E402
@@ -118,22 +127,23 @@ def corner_prolongation(grid) -> sp.csr_matrix:
     return P
 
 
-def cg_iterations(A, b, precond, tol, maxiter=5000) -> int:
-    """Iterations of CG with ``precond`` from 0 until ‖r‖ ≤ tol ‖b‖ (−1: not within maxiter)."""
+def cg_iterations(A, b, precond, tol, maxiter=5000, x0=None) -> int:
+    """Iterations of CG with ``precond`` from x0 (None: 0) until ‖r‖ ≤ tol ‖b‖ (−1: not within maxiter)."""
     count = [0]
-    _, info = spla.cg(A, b, rtol=tol, atol=0.0, maxiter=maxiter, M=spla.LinearOperator(A.shape, matvec=precond),
+    _, info = spla.cg(A, b, x0=x0, rtol=tol, atol=0.0, maxiter=maxiter, M=spla.LinearOperator(A.shape, matvec=precond),
                       callback=lambda _: count.__setitem__(0, count[0] + 1))
     return count[0] if info == 0 else -1
 
 
 def chebyshev(A, minv, lo, hi, steps):
-    """y ↦ ``steps`` Chebyshev steps for A y = r on [lo, hi] ∋ spec(M⁻¹A), from y (Saad 2003, Alg. 12.1)."""
+    """y ↦ ``steps`` Chebyshev steps for A y = r on [lo, hi] ∋ spec(M⁻¹A), from y (None: 0, no product)
+    (Saad 2003, Alg. 12.1)."""
     theta, delta = (hi + lo) / 2, (hi - lo) / 2
     sigma = theta / delta
 
     def apply(r, y):
         rho = 1 / sigma
-        res = r - A @ y
+        res, y = (r, 0.0) if y is None else (r - A @ y, y)
         d = minv * res / theta
         for k in range(steps):
             y = y + d
@@ -154,8 +164,29 @@ def block_jacobi(grid, A):
     w = 1 / np.sqrt(np.bincount(grid.gid, minlength=grid.nunique).astype(float))
     A = A.tocsr()
     inv = np.linalg.inv(np.stack([A[e][:, e].toarray() for e in ids]))
-    dense = lambda r: inv @ (w * r)[ids][..., None]  # noqa: E731
+    dense = lambda r: np.einsum("eij,ej->ei", inv, (w * r)[ids])  # noqa: E731
     return (lambda r: w * np.bincount(ids.ravel(), weights=dense(r).ravel(), minlength=grid.nunique)), dense
+
+
+def two_level(grid, A, minv, hi):
+    """r ↦ the p-MG two-grid cycle (``SMOOTHING`` Chebyshev steps on [hi/8, hi], the Galerkin correction on
+    the element corners by one SA V-cycle, the same steps again), and r ↦ its coarse part alone."""
+    Pc = corner_prolongation(grid)
+    coarse = pyamg.smoothed_aggregation_solver((Pc.T @ A @ Pc).tocsr(), symmetry="symmetric", presmoother=SGS,
+                                               postsmoother=SGS).aspreconditioner(cycle="V")
+    smooth = chebyshev(A, minv, hi / 8, hi, SMOOTHING)
+
+    def cycle(r):
+        y = smooth(r, None)
+        return smooth(r, y + Pc @ coarse.matvec(Pc.T @ (r - A @ y)))
+
+    return cycle, lambda r: coarse.matvec(Pc.T @ r)
+
+
+def lambda_max(K, minv) -> float:
+    """λmax(M⁻¹K) = λmax(M^-½ K M^-½) by Lanczos."""
+    scale = sp.diags(np.sqrt(minv))
+    return float(spla.eigsh(scale @ K @ scale, k=1, which="LA", tol=1e-3, return_eigenvectors=False)[0])
 
 
 def cpu_seconds(f, repeat) -> float:
@@ -181,6 +212,74 @@ def spectrum(ne, factors):
             print(f"ne{ne} f {f:g}: eig {name} in [{ev.min():.2e}, {ev.max():.2f}], {np.sum(ev < 0.1)} of {ev.size} below 0.1")
 
 
+def record(path, spin_up, count):
+    sim = Simulation(load_scene("tc5_mountain", ne=30, np=4, days=1.0, stepper="imex", dt=2160.0), "cpu", progress=False)
+    sim.graphs, gw = "off", sim.stepper.gw
+    gw.graphable = False
+    sim.advance(spin_up)
+    seen, solve, first = {"c": [], "b": [], "x0": [], "its": []}, gw.cg.solve, sim.step
+
+    def watched(c, *args, **kw):  # y holds the start: the projected guess
+        its = gw.stats.numpy()[0]
+        seen["c"].append(c), seen["b"].append(gw.b.numpy().copy()), seen["x0"].append(gw.y.numpy().copy())  # CPU numpy() is a view
+        solve(c, *args, **kw)
+        seen["its"].append(gw.stats.numpy()[0] - its)
+
+    gw.cg.solve = watched
+    while len(seen["b"]) < count:
+        sim.advance(sim.scene.dt / DAY)
+    np.savez(path, **{k: np.array(v) for k, v in seen.items()}, per_day=len(seen["b"]) / (sim.step - first) * DAY / sim.scene.dt)
+    print(f"{len(seen['b'])} solves of {sim.step - first} steps from day {spin_up:g} into {path}; model CG iterations: median {np.median(seen['its']):g}")
+
+
+def production(path, tol, rounds, stride):
+    d = dict(np.load(path))
+    sim, c = build(30)[0], float(d["c"][0])
+    assert np.all(d["c"] == c), "one c a run"  # the IMEX ARS(3,4,3) stages share a_ii
+    grid, minv = sim.grid, 1 / sim.grid.area
+    A = (sp.diags(grid.area) + c * helmholtz_matrix(sim.model)).tocsr()
+    gw = GravityWave(sim.model, 1.0, tol, 5000)  # the model's CG from zero on the first b: its time an iteration
+    gw.b.assign(d["b"][0])
+    gw._pcg(c)
+    its0 = gw.iterations()
+    t_it = cpu_seconds(lambda: gw._pcg(c), 3) / its0
+    t_op = cpu_seconds(lambda: gw._apply(gw.cg.u, gw.cg.w, c), 20)
+
+    def pmg():
+        cycle, coarse = two_level(grid, A, minv, 1.05 * lambda_max(A, minv))
+        return cycle, lambda: 2 * SMOOTHING * t_op + cpu_seconds(lambda: coarse(d["b"][0]), 10)
+
+    def blocks():
+        apply, dense = block_jacobi(grid, A)
+        return apply, lambda: cpu_seconds(lambda: dense(d["b"][0]), 10)
+
+    setups = {"mass (production)": lambda: (lambda r: minv * r, lambda: 0.0), "blocks (HOMME blkjac)": blocks,
+              f"p-MG np2 (cheb {SMOOTHING}+{SMOOTHING}, SA coarse)": pmg}
+    products = dict(zip(setups, (1, 1, 1 + 2 * SMOOTHING)))
+    precond, setup, extra = {}, {}, {}
+    for name, make in setups.items():
+        t0 = time.process_time()
+        precond[name], extra[name] = make()
+        setup[name] = time.process_time() - t0
+        extra[name] = extra[name]()  # the preconditioner's time as kernels (a lower bound; the module's docstring)
+    its = {n: [cg_iterations(A, b, p, tol, x0=x0) for b, x0 in zip(d["b"], d["x0"])] for n, p in precond.items()}
+    seconds = {n: [] for n in precond}
+    for _ in range(rounds):
+        for n, p in precond.items():
+            t0 = time.process_time()
+            for b, x0 in zip(d["b"][::stride], d["x0"][::stride]):
+                cg_iterations(A, b, p, tol, x0=x0)
+            seconds[n].append((time.process_time() - t0) / len(d["b"][::stride]))
+    print(f"{len(d['b'])} recorded solves, c = {c:.4g} m² (a²gH), {float(d['per_day']):.0f} solves a day; model CG iterations: median {np.median(d['its']):g}, "
+          f"{np.mean(d['its']):.1f} mean; tol {tol:g}; {rounds} rounds over every {stride}th solve; "
+          f"the model's CG {t_it * 1e3:.2f} ms an iteration, its product {t_op * 1e3:.2f} ms")
+    print("| preconditioner | its a solve (median, mean) | products a solve | scipy CPU ms a solve | set-up s (ms a solve over a day) | scipy total ms | kernels ms (bound) |")
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    for n in precond:
+        t, s, k = 1e3 * np.median(seconds[n]), 1e3 * setup[n] / float(d["per_day"]), 1e3 * np.mean(its[n]) * (t_it + extra[n])
+        print(f"| {n} | {np.median(its[n]):g}, {np.mean(its[n]):.1f} | {products[n] * np.mean(its[n]):.1f} | {t:.1f} | {setup[n]:.2f} ({s:.1f}) | {t + s:.1f} | {k + s:.1f} |")
+
+
 def build(ne):
     sim = Simulation(load_scene("tc5_mountain", ne=ne, np=4, days=1.0, stepper="semi_implicit", dt=60.0), "cpu", progress=False)
     sim.stepper.gw.set_depth(sim.x)
@@ -193,18 +292,27 @@ def main():
     ap.add_argument("--factors", type=float, nargs="+", default=[2, 4, 10, 30], help="c = (f Δt_g)² g H")
     ap.add_argument("--tol", type=float, default=1e-6)
     ap.add_argument("--spectrum-ne", type=int, default=4, help="grid of the dense eigenvalue check (0: skip)")
+    ap.add_argument("--record", help="write the production solves to this npz")
+    ap.add_argument("--spin-up", type=float, default=0.5, help="days before --record's solves")
+    ap.add_argument("--count", type=int, default=100, help="--record's solves")
+    ap.add_argument("--solves", help="run the preconditioners on the solves of this npz")
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--stride", type=int, default=4)
     args = ap.parse_args()
     threadpool_limits(1)
     print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, CPU clock, SWE_SPHERE_THREADS={os.environ.get('SWE_SPHERE_THREADS', '(all)')}, "
           f"load {os.getloadavg()[0]:.2f}")
+    if args.record or args.solves:
+        (record(args.record, args.spin_up, args.count) if args.record else production(args.solves, args.tol, args.rounds, args.stride))
+        print(f"# load {os.getloadavg()[0]:.2f}")
+        return
     sim, dt_g = build(args.ne)
     grid, model, H = sim.grid, sim.model, sim.stepper.gw.H
-    K, KL, Pc, Kw = helmholtz_matrix(model), lor_stiffness(grid), corner_prolongation(grid), weak_stiffness(model)
+    K, KL, Kw = helmholtz_matrix(model), lor_stiffness(grid), weak_stiffness(model)
     area, minv = grid.area, 1 / grid.area
     rng = np.random.default_rng(0)
     b = rng.standard_normal(grid.nunique) * area
-    scale = sp.diags(np.sqrt(minv))  # μ = λmax(M⁻¹K) = λmax(M^-½ K M^-½), Lanczos
-    mu = float(spla.eigsh(scale @ K @ scale, k=1, which="LA", tol=1e-3, return_eigenvectors=False)[0])
+    mu = lambda_max(K, minv)
     out = wp.zeros_like(sim.x)
     rhs = cpu_seconds(lambda: model.rhs(sim.x, out), 20)
     gw = GravityWave(model, H, args.tol, 5000)
@@ -230,7 +338,7 @@ def main():
         rows.setdefault("mass (`pcg`)", []).append(f"{its_pcg} ({its_pcg * t_it / rhs:.0f})")
         for d in (2, 3, 4):
             cheb = chebyshev(A, minv, 1.0, hi, d)
-            row(f"cheb {d}", lambda r, cheb=cheb: cheb(r, np.zeros_like(r)), (d - 1) * t_op)
+            row(f"cheb {d}", lambda r, cheb=cheb: cheb(r, None), (d - 2) * t_op)
         blocks, dense = block_jacobi(grid, A)
         row("blocks", blocks, cpu_seconds(lambda: dense(b), 10))
         AL = (sp.diags(area) + c * KL).tocsr()
@@ -238,15 +346,8 @@ def main():
         row("LOR (SA V-cycle)", lor.matvec, cpu_seconds(lambda: lor.matvec(b), 5))
         lor_exact = spla.factorized(AL.tocsc())
         row("LOR exact", lor_exact, 0.0)
-        coarse = pyamg.smoothed_aggregation_solver((Pc.T @ A @ Pc).tocsr(), symmetry="symmetric", presmoother=SGS,
-                                                   postsmoother=SGS).aspreconditioner(cycle="V")
-        smooth = chebyshev(A, minv, hi / 8, hi, SMOOTHING)
-
-        def two_grid(r):
-            y = smooth(r, np.zeros_like(r))
-            return smooth(r, y + Pc @ coarse.matvec(Pc.T @ (r - A @ y)))
-
-        row(f"p-MG np2 (cheb {SMOOTHING}+{SMOOTHING}, SA coarse)", two_grid, (2 * SMOOTHING + 1) * t_op + cpu_seconds(lambda: coarse.matvec(Pc.T @ b), 5))
+        cycle, coarse = two_level(grid, A, minv, hi)
+        row(f"p-MG np2 (cheb {SMOOTHING}+{SMOOTHING}, SA coarse)", cycle, 2 * SMOOTHING * t_op + cpu_seconds(lambda: coarse(b), 5))
         amg = pyamg.smoothed_aggregation_solver(A, symmetry="symmetric", presmoother=SGS, postsmoother=SGS).aspreconditioner(cycle="V")
         row("AMG(A) (SA V-cycle)", amg.matvec, cpu_seconds(lambda: amg.matvec(b), 5))
         Aw = (sp.diags(area) + c * Kw).tocsr()

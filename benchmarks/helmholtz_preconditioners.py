@@ -1,49 +1,28 @@
-"""Preconditioners for the Helmholtz operator M + cK: CG iterations and the cost of one solve (ISSUE 21 item 3).
-
-TC5 at ``--ne`` (np 4), the operator of the steppers' Helmholtz solve
-(``helmholtz_matrix``, K = −M D G with the model's DSS'd strong gradient and
-divergence), c = (f Δt_g)² g H at the ``--factors`` f (Δt_g the gravity-wave
-limit of the initial state, H its mean depth), a random right-hand side
-(area-weighted normal deviates), CG from 0 to ‖r‖ ≤ ``--tol`` ‖b‖ (``pcg``'s
-test; 1e-6 is the semi-implicit and IMEX default). Preconditioners:
-
-* mass: M⁻¹ (what ``pcg`` uses);
-* cheb d: d − 1 Chebyshev steps on M⁻¹(M + cK) over [1, 1.05 (1 + cμ)],
-  μ = λmax(M⁻¹K) by Lanczos (Saad 2003, Alg. 12.1): a fixed polynomial;
-* blocks: each element's 16×16 block of the assembled matrix inverted,
-  applied additively with weights 1/√(copies of the node) on both sides
-  (HOMME ``solver_mod`` ``block_jacobi``, symmetrised);
-* LOR: one pyamg smoothed-aggregation V-cycle on M + cK_LOR, K_LOR the
-  bilinear finite-element stiffness on the quads between neighbouring GLL
-  nodes (low-order refined; Pazner 2020, SIAM J. Sci. Comput. 42, A3055);
-  "LOR exact" the same matrix factorised (the bound on what any LOR solve gives);
-* p-MG: a two-grid cycle, 3 Chebyshev steps on [λmax/8, λmax] before and after
-  a Galerkin correction on np = 2 (bilinear on the element corners), the coarse
-  system by one pyamg smoothed-aggregation V-cycle;
-* AMG(A): one pyamg smoothed-aggregation V-cycle on M + cK itself (1 symmetric
-  Gauss–Seidel sweep).
-
-Cost of one solve in RHS-equivalents (one ``model.rhs`` timed on the same
-clock): iterations × (a ``pcg`` iteration, timed on the same system, + the
-preconditioner). For the host preconditioners (pyamg) their time as measured;
-for the ones that would be kernels, a lower bound: cheb d adds d − 2 ``pcg``
-operator products (no vector updates), blocks the batched 16×16 products
-alone (numpy ``matmul``), p-MG 6 operator products and the coarse V-cycle.
-Then the same with the weak Laplacian K_w in place of K (iterations of the mass,
-the exact LOR and AMG), and the spectrum at ``--spectrum-ne``: the smallest eigenvalues of a²M⁻¹K and
-a²M⁻¹K_LOR, and the range of the eigenvalues of (M + cK_LOR)⁻¹(M + cK), (M + cK_w)⁻¹(M + cK) and
-(M + cK_LOR)⁻¹(M + cK_w) with how many lie below 0.1.
+"""Preconditioners for the Helmholtz operator M + cK on the production solves (ISSUE 43 item 4).
 
 ``--record PATH``: the production solves, TC5 ne30 np4 IMEX (ARS(3,4,3), ``guess_history`` 8)
 at 2160 s after ``--spin-up`` days, the next ``--count`` solves' c, b, start x0 (the projected
 guess) and the model CG's iterations (npz; the solves run outside graphs to be seen).
-``--solves PATH``: the mass, blocks and p-MG preconditioners on them, CG from x0 to ‖r‖ ≤ tol‖b‖,
-all as scipy sparse products (the same footing): median iterations and products a solve, CPU
-time a solve (medians of ``--rounds`` interleaved rounds over every ``--stride``-th solve), and
-the set-up (once a run) per solve of a day's solves.
+``--solves PATH``: preconditioners on them, CG from x0 to ‖r‖ ≤ ``--tol``‖b‖ (``pcg``'s test),
+all as scipy sparse products on the assembled M + cK (``helmholtz_matrix``; the same footing):
+
+* mass: M⁻¹ (what ``pcg`` uses);
+* blocks: each element's 16×16 block of the assembled matrix inverted, applied additively with
+  weights 1/√(copies of the node) on both sides (HOMME ``solver_mod`` ``block_jacobi``, symmetrised);
+* p-MG: a two-grid cycle, 3 Chebyshev steps on [λmax/8, λmax] (Saad 2003, Alg. 12.1) before and
+  after a Galerkin correction on np = 2 (bilinear on the element corners), the coarse system by
+  one pyamg smoothed-aggregation V-cycle.
+
+Median iterations and products a solve, CPU time a solve (medians of ``--rounds`` interleaved
+rounds over every ``--stride``-th solve), the set-up (once a run) per solve of a day's solves,
+and a lower bound as kernels: iterations × (the model's CG iteration + blocks' batched 16×16
+products, or p-MG's 6 model products and its coarse V-cycle). The random-right-hand-side study
+before it (Chebyshev, low-order-refined and AMG preconditioners, the weak Laplacian, the
+spectra) is in git history (``git log -- benchmarks/helmholtz_preconditioners.py``).
 CPU clock (``time.process_time``); needs pyamg (``pip install -e '.[bench]'``); run with one thread:
 
-    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/helmholtz_preconditioners.py
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/helmholtz_preconditioners.py --record /tmp/solves.npz
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/helmholtz_preconditioners.py --solves /tmp/solves.npz
 """
 
 from __future__ import annotations
@@ -54,7 +33,6 @@ import time
 
 import numpy as np
 import pyamg
-import scipy.linalg as sl
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 import warp as wp
@@ -66,47 +44,10 @@ from swe_sphere.config import load_scene  # noqa: E402
 from swe_sphere.constants import DAY  # noqa: E402
 from swe_sphere.gll import gll  # noqa: E402
 from swe_sphere.simulation import Simulation  # noqa: E402
-from swe_sphere.steppers.helmholtz import GravityWave, element_gradient, helmholtz_matrix  # noqa: E402
+from swe_sphere.steppers.helmholtz import GravityWave, helmholtz_matrix  # noqa: E402
 
 SGS = ("gauss_seidel", {"sweep": "symmetric"})
 SMOOTHING = 3  # Chebyshev steps before and after the p-MG coarse correction
-GAUSS = 1.0 / np.sqrt(3.0)
-
-
-def lor_stiffness(grid) -> sp.csr_matrix:
-    """K_LOR (nunique × nunique, dimensionless): the stiffness ∫∇φ_i·∇φ_j dA of the bilinear
-    elements on the (np − 1)² quads between neighbouring GLL nodes of every element, each quad
-    the bilinear surface through its four corners (a·xyz), 2×2 Gauss points."""
-    n = grid.np
-    X = (grid.radius * grid.xyz.T).reshape(grid.nelem, n, n, 3)  # [element, j, i]
-    gid = grid.gid.reshape(grid.nelem, n, n)
-    corners = ((0, 0), (0, 1), (1, 0), (1, 1))  # (dj, di)
-    C = np.stack([X[:, dj:n - 1 + dj, di:n - 1 + di] for dj, di in corners], axis=3)
-    ids = np.stack([gid[:, dj:n - 1 + dj, di:n - 1 + di] for dj, di in corners], axis=3)
-    si = np.array([2.0 * di - 1 for _, di in corners])  # the corner's side along i (s) and j (t)
-    tj = np.array([2.0 * dj - 1 for dj, _ in corners])
-    Ke = np.zeros(C.shape[:3] + (4, 4))
-    for s in (-GAUSS, GAUSS):
-        for t in (-GAUSS, GAUSS):
-            dN = np.stack([si * (1 + tj * t) / 4, tj * (1 + si * s) / 4])  # (2, 4): ∂N_k/∂s, ∂N_k/∂t
-            J = np.einsum("ak,ejikd->ejida", dN, C)  # (…, 3, 2)
-            G = np.einsum("...da,...db->...ab", J, J)
-            det = G[..., 0, 0] * G[..., 1, 1] - G[..., 0, 1] * G[..., 1, 0]
-            Ke += np.sqrt(det)[..., None, None] * np.einsum("ak,...ab,bl->...kl", dN, np.linalg.inv(G), dN)
-    rows = np.broadcast_to(ids[..., :, None], Ke.shape).ravel()
-    cols = np.broadcast_to(ids[..., None, :], Ke.shape).ravel()
-    K = sp.csr_matrix((Ke.ravel(), (rows, cols)), shape=(grid.nunique, grid.nunique))
-    return ((K + K.T) * 0.5).tocsr()
-
-
-def weak_stiffness(model) -> sp.csr_matrix:
-    """K_w = (ĜP)ᵀ W (ĜP) (nunique × nunique, dimensionless): the GLL weak Laplacian, each element's
-    own gradient squared under the GLL quadrature (W = diag(spheremp) for both components), no DSS
-    of the gradient in between (HOMME ``laplace_sphere_wk``'s matrix)."""
-    G_hat, P = element_gradient(model)
-    GP = G_hat @ P
-    K = GP.T @ sp.diags(np.tile(model.grid.spheremp, 2)) @ GP
-    return ((K + K.T) * 0.5).tocsr()
 
 
 def corner_prolongation(grid) -> sp.csr_matrix:
@@ -197,21 +138,6 @@ def cpu_seconds(f, repeat) -> float:
     return (time.process_time() - t0) / repeat
 
 
-def spectrum(ne, factors):
-    sim, dt_g = build(ne)
-    gw = sim.stepper.gw
-    grid, M = sim.grid, np.diag(sim.grid.area)
-    K, KL, Kw = helmholtz_matrix(sim.model).toarray(), lor_stiffness(grid).toarray(), weak_stiffness(sim.model).toarray()
-    a2 = grid.radius**2
-    print(f"\nne{ne}: the smallest eigenvalues of a²M⁻¹K {np.round(sl.eigh(K, M, eigvals_only=True)[:8] * a2, 3)}")
-    print(f"ne{ne}: the smallest eigenvalues of a²M⁻¹K_LOR {np.round(sl.eigh(KL, M, eigvals_only=True)[:8] * a2, 3)} (exact l(l+1): 0 2 2 2 6 ...)")
-    for f in factors:
-        c = (f * dt_g) ** 2 * sim.model.g * gw.H
-        for name, A, B in (("(M + cK_LOR)⁻¹(M + cK)", K, KL), ("(M + cK_w)⁻¹(M + cK)", K, Kw), ("(M + cK_LOR)⁻¹(M + cK_w)", Kw, KL)):
-            ev = sl.eigh(M + c * A, M + c * B, eigvals_only=True)
-            print(f"ne{ne} f {f:g}: eig {name} in [{ev.min():.2e}, {ev.max():.2f}], {np.sum(ev < 0.1)} of {ev.size} below 0.1")
-
-
 def record(path, spin_up, count):
     sim = Simulation(load_scene("tc5_mountain", ne=30, np=4, days=1.0, stepper="imex", dt=2160.0), "cpu", progress=False)
     sim.graphs, gw = "off", sim.stepper.gw
@@ -288,80 +214,23 @@ def build(ne):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--ne", type=int, default=16)
-    ap.add_argument("--factors", type=float, nargs="+", default=[2, 4, 10, 30], help="c = (f Δt_g)² g H")
-    ap.add_argument("--tol", type=float, default=1e-6)
-    ap.add_argument("--spectrum-ne", type=int, default=4, help="grid of the dense eigenvalue check (0: skip)")
-    ap.add_argument("--record", help="write the production solves to this npz")
+    mode = ap.add_mutually_exclusive_group(required=True)
+    mode.add_argument("--record", help="write the production solves to this npz")
+    mode.add_argument("--solves", help="run the preconditioners on the solves of this npz")
     ap.add_argument("--spin-up", type=float, default=0.5, help="days before --record's solves")
     ap.add_argument("--count", type=int, default=100, help="--record's solves")
-    ap.add_argument("--solves", help="run the preconditioners on the solves of this npz")
+    ap.add_argument("--tol", type=float, default=1e-6)
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--stride", type=int, default=4)
     args = ap.parse_args()
     threadpool_limits(1)
     print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, CPU clock, SWE_SPHERE_THREADS={os.environ.get('SWE_SPHERE_THREADS', '(all)')}, "
           f"load {os.getloadavg()[0]:.2f}")
-    if args.record or args.solves:
-        (record(args.record, args.spin_up, args.count) if args.record else production(args.solves, args.tol, args.rounds, args.stride))
-        print(f"# load {os.getloadavg()[0]:.2f}")
-        return
-    sim, dt_g = build(args.ne)
-    grid, model, H = sim.grid, sim.model, sim.stepper.gw.H
-    K, KL, Kw = helmholtz_matrix(model), lor_stiffness(grid), weak_stiffness(model)
-    area, minv = grid.area, 1 / grid.area
-    rng = np.random.default_rng(0)
-    b = rng.standard_normal(grid.nunique) * area
-    mu = lambda_max(K, minv)
-    out = wp.zeros_like(sim.x)
-    rhs = cpu_seconds(lambda: model.rhs(sim.x, out), 20)
-    gw = GravityWave(model, H, args.tol, 5000)
-    gw.b.assign(b)
-    print(f"TC5 ne{args.ne} np4, {grid.nunique} unknowns, Δt_g {dt_g:.1f} s, H {H:.0f} m, a²μ {mu * grid.radius**2:.0f}, RHS {rhs * 1e3:.3f} ms, tol {args.tol:g}")
-    print("| preconditioner | " + " | ".join(f"{f:g} Δt_g its (RHS-eq)" for f in args.factors) + " |")
-    print("|---|" + "---:|" * len(args.factors))
-    rows: dict[str, list[str]] = {}
-    weak: dict[str, list[str]] = {}
-    for f in args.factors:
-        c = (f * dt_g) ** 2 * model.g * H
-        A = (sp.diags(area) + c * K).tocsr()
-        gw._pcg(c)
-        its_pcg = gw.iterations()
-        t_it = cpu_seconds(lambda: gw._pcg(c), 2) / its_pcg
-        t_op = cpu_seconds(lambda: gw._apply(gw.cg.u, gw.cg.w, c), 20)
-        hi = 1.05 * (1 + c * mu)
-
-        def row(name, precond, extra):
-            its = cg_iterations(A, b, precond, args.tol)
-            rows.setdefault(name, []).append(f"{its} ({its * (t_it + extra) / rhs:.0f})")
-
-        rows.setdefault("mass (`pcg`)", []).append(f"{its_pcg} ({its_pcg * t_it / rhs:.0f})")
-        for d in (2, 3, 4):
-            cheb = chebyshev(A, minv, 1.0, hi, d)
-            row(f"cheb {d}", lambda r, cheb=cheb: cheb(r, None), (d - 2) * t_op)
-        blocks, dense = block_jacobi(grid, A)
-        row("blocks", blocks, cpu_seconds(lambda: dense(b), 10))
-        AL = (sp.diags(area) + c * KL).tocsr()
-        lor = pyamg.smoothed_aggregation_solver(AL, symmetry="symmetric", presmoother=SGS, postsmoother=SGS).aspreconditioner(cycle="V")
-        row("LOR (SA V-cycle)", lor.matvec, cpu_seconds(lambda: lor.matvec(b), 5))
-        lor_exact = spla.factorized(AL.tocsc())
-        row("LOR exact", lor_exact, 0.0)
-        cycle, coarse = two_level(grid, A, minv, hi)
-        row(f"p-MG np2 (cheb {SMOOTHING}+{SMOOTHING}, SA coarse)", cycle, 2 * SMOOTHING * t_op + cpu_seconds(lambda: coarse(b), 5))
-        amg = pyamg.smoothed_aggregation_solver(A, symmetry="symmetric", presmoother=SGS, postsmoother=SGS).aspreconditioner(cycle="V")
-        row("AMG(A) (SA V-cycle)", amg.matvec, cpu_seconds(lambda: amg.matvec(b), 5))
-        Aw = (sp.diags(area) + c * Kw).tocsr()
-        amg_w = pyamg.smoothed_aggregation_solver(Aw, symmetry="symmetric", presmoother=SGS, postsmoother=SGS).aspreconditioner(cycle="V")
-        for name, precond in (("mass", lambda r: minv * r), ("LOR exact", lor_exact), ("AMG(A) (SA V-cycle)", amg_w.matvec)):
-            weak.setdefault(name, []).append(str(cg_iterations(Aw, b, precond, args.tol)))
-    for name, cells in rows.items():
-        print(f"| {name} | " + " | ".join(cells) + " |")
-    print("\nWith the weak Laplacian K_w in place of K (A = M + cK_w), iterations:")
-    for name, cells in weak.items():
-        print(f"| {name} | " + " | ".join(cells) + " |")
+    if args.record:
+        record(args.record, args.spin_up, args.count)
+    else:
+        production(args.solves, args.tol, args.rounds, args.stride)
     print(f"# load {os.getloadavg()[0]:.2f}")
-    if args.spectrum_ne:
-        spectrum(args.spectrum_ne, args.factors)
 
 
 if __name__ == "__main__":

@@ -82,12 +82,13 @@ def dt_for_day(dt: float, run_days: float) -> float:
 def code_version() -> dict:
     """This installation's ``version`` and ``source_sha256``: the SHA-256 (16 hex
     digits) of the ``swe_sphere`` and ``swe_sphere.kernels`` packages' Python
-    source. A sweep reuses a run only when both are those it was made with: which
-    edits change no number, only a person can tell."""
+    source, subpackages (``steppers``) included. A sweep reuses a run only when both
+    are those it was made with: which edits change no number, only a person can tell."""
     digest = hashlib.sha256()
     for package in ("swe_sphere", "swe_sphere.kernels"):
-        for path in sorted(Path(importlib.util.find_spec(package).origin).parent.glob("*.py")):
-            digest.update(f"{package}/{path.name}\0".encode())
+        root = Path(importlib.util.find_spec(package).origin).parent
+        for path in sorted(root.rglob("*.py")):  # subpackages too: the steppers
+            digest.update(f"{package}/{path.relative_to(root).as_posix()}\0".encode())
             digest.update(path.read_bytes())
     return {"version": package_version(), "source_sha256": digest.hexdigest()[:16]}
 

@@ -91,6 +91,15 @@ def test_an_unchanged_sweep_reuses_every_run_and_says_so(swept, monkeypatch, cap
     assert stored["key"]["code"] == sweep_mod.code_version()
 
 
+def test_the_code_version_covers_the_steppers_subpackage(monkeypatch):
+    """A stepper's source is in ``code_version``'s hash, so a sweep does not reuse runs made
+    before an edit of it (swe_sphere/steppers/*.py, a subpackage)."""
+    before = sweep_mod.code_version.__wrapped__()["source_sha256"]
+    real = Path.read_bytes
+    monkeypatch.setattr(Path, "read_bytes", lambda p: real(p) + (b"#" if p.name == "multirate.py" else b""))
+    assert sweep_mod.code_version.__wrapped__()["source_sha256"] != before
+
+
 def test_cheapest_sufficient_picks_fastest_accurate_run():
     rows = [
         {"stepper": "a", "stable": True, "temporal_error": 1e-6, "cost_time": 5.0},

@@ -100,23 +100,36 @@ class StateDiagnostics:
         return (f"step {self.step} day {self.scene.day(self.step):.4f}{changes}  Courant advective "
                 f"{d['courant_advective']:.3f}{grav}")
 
-    def stability_warning(self) -> str | None:
-        """A one-line warning when Δt exceeds the stepper's measured stability limit on
-        the current state (``Stepper.courant_limit`` on (|v| + √(gh)) Δt/Δx for explicit
-        steppers, ``Stepper.advective_courant_limit`` on |v| Δt/Δx for IMEX), else None."""
+    def _stability_limit(self) -> tuple[float, str, float, str] | None:
+        """(limit, what it limits, the scene dt's value of it on the current state,
+        where the limit was measured) of the stepper's measured stability limit
+        (``Stepper.courant_limit`` on (|v| + √(gh)) Δt/Δx for explicit steppers,
+        ``Stepper.advective_courant_limit`` on |v| Δt/Δx for IMEX and multirate), or
+        None for a stepper without one."""
         kind = type(self.stepper)
         c = self.courant()
         if kind.courant_limit is not None:
-            limit, what = kind.courant_limit, "a Courant number (|v| + sqrt(g h)) dt/dx"
             speed = c["courant_advective"] + (0.0 if math.isnan(c["courant_gravity"]) else c["courant_gravity"])
-            source = "measured on TC2"
-        elif kind.advective_courant_limit is not None:
-            limit, what, speed = kind.advective_courant_limit, "an advective Courant number |v| dt/dx", c["courant_advective"]
-            source = "its explicit advection's, measured on TC5, TC6 and Galewsky"
-        else:
+            return kind.courant_limit, "a Courant number (|v| + sqrt(g h)) dt/dx", speed, "measured on TC2"
+        if kind.advective_courant_limit is not None:
+            return (kind.advective_courant_limit, "an advective Courant number |v| dt/dx", c["courant_advective"],
+                    "its explicit advection's, measured on TC5, TC6 and Galewsky")
+        return None
+
+    def largest_dt_within_limit(self) -> float | None:
+        """The Δt (s) at which the current state's Courant number reaches the stepper's
+        measured stability limit (``stability_warning``'s), or None for a stepper
+        without one."""
+        limit = self._stability_limit()
+        return None if limit is None else self.scene.dt * limit[0] / limit[2]
+
+    def stability_warning(self) -> str | None:
+        """A one-line warning when Δt exceeds the stepper's measured stability limit on
+        the current state (``largest_dt_within_limit``), else None."""
+        limit = self._stability_limit()
+        if limit is None or limit[2] <= limit[0]:
             return None
-        if speed <= limit:
-            return None
+        limit, what, speed, source = limit
         return (f"warning: dt = {self.scene.dt:g} s gives {what} of {speed:.3g}, above "
                 f"{self.scene.stepper}'s stability limit of about {limit:g} ({source}); it may blow up "
                 f"(dt <= {self.scene.dt * limit / speed:.4g} s keeps below)")

@@ -211,4 +211,5 @@ def test_imex_dt_above_its_advective_limit_warns(tmp_path):
     warning = make_sim(big).stability_warning()
     assert warning is not None and "advective Courant number |v| dt/dx of 1.69" in warning
     assert "imex's stability limit of about 1 " in warning and "dt <= 2.55e+04 s" in warning
+    assert make_sim(big).largest_dt_within_limit() == pytest.approx(43200.0 / 1.69, rel=3e-3)  # the dt it offers
     assert make_sim(dataclasses.replace(big, dt=21600.0)).stability_warning() is None

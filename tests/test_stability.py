@@ -10,6 +10,7 @@ import xarray as xr
 from swe_sphere import stability
 from swe_sphere.config import load_scene
 from swe_sphere.constants import DAY
+from swe_sphere.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
 from swe_sphere.sweep import explicit_limits
 
@@ -42,8 +43,6 @@ def test_suite_days_and_overrides_reach_every_scene(monkeypatch):
 
 
 def load_courant(scene):
-    from swe_sphere.simulation import Simulation
-
     return Simulation(scene, "cpu", progress=False).courant()["courant_gravity"]
 
 
@@ -53,15 +52,33 @@ def test_unstable_run_is_detected():
     assert not ok and "blow-up" in reason
 
 
+# the (case, stepper) pairs known to blow up in the test below (docs/methods.md, "The ∇⁴ rule"):
+# strict, so that one which comes to run to the end fails the test until it is taken off
+KNOWN_UNSTABLE = {
+    ("tc6_inviscid_ne30", "epi2"): "no ∇⁴: blows up on day 12.6 at 675 s (ne4); the other steppers run 14 days",
+    ("tc6_inviscid_ne30", "epi3"): "no ∇⁴: blows up on day 12.8 at 675 s (ne4); the other steppers run 14 days",
+    ("tc2_steady_alpha_pi4_100d", "split_explicit"): "a slow instability: blows up on day 34 at 1200 s (ne4)",
+}
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("label", [c[0] for c in stability.HARD_CASES])
-def test_every_stepper_stable_at_default_dt(label):
-    """Every stepper finishes each hard case at its scene's default Δt (small grid)."""
+@pytest.mark.parametrize("label,name", [
+    pytest.param(label, name, marks=[pytest.mark.xfail(strict=True, raises=AssertionError, reason=KNOWN_UNSTABLE[label, name])]
+                 if (label, name) in KNOWN_UNSTABLE else [])
+    for label, *_ in stability.HARD_CASES for name in STEPPERS])
+def test_every_stepper_stable_within_its_limit(label, name):
+    """Every stepper finishes each hard case (small grid) at the scene's default Δt or,
+    where that is above the stepper's measured Courant limit on the initial state
+    (``largest_dt_within_limit``, the Δt the run's warning offers), at the largest
+    whole-day fraction within it: the scene's Δt is its own stepper's, which
+    leapfrog (limit 0.58) cannot take."""
     _, scene_name, days, _ = next(c for c in stability.HARD_CASES if c[0] == label)
-    for name in STEPPERS:
-        scene = load_scene(scene_name, ne=4, days=days, stepper=name)
-        ok, reason, _ = stability.run_is_stable(scene, "cpu")
-        assert ok, f"{label} {name} dt={scene.dt}: {reason}"
+    scene = load_scene(scene_name, ne=4, days=days, stepper=name)
+    dt_max = Simulation(scene, "cpu", progress=False).largest_dt_within_limit()
+    if dt_max is not None and dt_max < scene.dt:
+        scene = dataclasses.replace(scene, dt=DAY / math.ceil(DAY / dt_max))
+    ok, reason, _ = stability.run_is_stable(scene, "cpu")
+    assert ok, f"{label} {name} dt={scene.dt}: {reason}"
 
 
 @pytest.mark.slow

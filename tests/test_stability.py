@@ -57,7 +57,6 @@ def test_unstable_run_is_detected():
 KNOWN_UNSTABLE = {
     ("tc6_inviscid_ne30", "epi2"): "no ∇⁴: blows up on day 12.6 at 675 s (ne4); the other steppers run 14 days",
     ("tc6_inviscid_ne30", "epi3"): "no ∇⁴: blows up on day 12.8 at 675 s (ne4); the other steppers run 14 days",
-    ("tc2_steady_alpha_pi4_100d", "split_explicit"): "a slow instability: blows up on day 34 at 1200 s (ne4)",
 }
 
 

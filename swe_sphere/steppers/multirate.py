@@ -24,10 +24,10 @@ The steppers (both apply ∇⁴ once a step after it, as every stepper here):
   2007, MWR 135, 2897, §2; MPAS-Atmosphere's ``atm_srk3``): n/3, n/2 and n substeps
   (rounded up; each stage's substep its span over its count), the wind first,
   v ← v + τ(N_v − g G h̃), then the depth with the new wind, h ← h − τ D(h_s v),
-  optionally with h̃ = h + β(h − h_old) forward-weighted as MPAS damps the divergence
-  (β = 0 by default: on TC5 ne30 at 3.6 Δt_g, β = 0.1 doubled to tripled every temporal
-  error of the sweep's criteria and β = 0 was as stable, here and on TC5, TC6 and
-  Galewsky at ne8 and TC2 rotated by π/4 over 100 days). Its
+  with h̃ = h + β(h − h_old) forward-weighted as MPAS damps the divergence (β = 0.1 by
+  default, MPAS's smdiv: without it TC2 rotated by π/4 blows up within 100 days, a weak
+  instability of the split like those Baldauf 2010, MWR 138, 4475, found in RK3 time
+  splitting). Its
   fast part is linear about the depth h_s of the stage whose slow tendency it carries,
   not about H, as MPAS linearises its acoustic substeps about the stage's state: the
   whole mass flux is the substeps' (``tendency`` compiled for the continuity alone, on
@@ -163,6 +163,7 @@ class _Multirate(Stepper):
 
     capturable = True
     removed_options: dict = {}
+    fewest_auto_substeps = 1  # "auto"'s least n
     # the fast evaluations (L z a substep; ~0.9 of an RHS's bytes) reported beside the slow
     # RHS evaluations, as a solver's iterations are: run summaries and sweep tables show both
     solvers = ("fast",)
@@ -175,14 +176,15 @@ class _Multirate(Stepper):
 
     def substeps(self) -> int:
         """n, the fast steps a slow step: the ``substeps`` option, or with "auto" the fewest
-        whose gravity-wave Courant number sqrt(g H) Δt / (n Δx) about the split's depth H
-        is at most ``fast_courant`` (Δx the smallest distance between GLL nodes on the
-        sphere, the same on every rank)."""
+        (at least ``fewest_auto_substeps``) whose gravity-wave Courant number sqrt(g H) Δt /
+        (n Δx) about the split's depth H is at most ``fast_courant`` (Δx the smallest
+        distance between GLL nodes on the sphere, the same on every rank)."""
         o = self.options
         if o.substeps != "auto":
             return o.substeps
         dx = -self.model.topology.max(-float(self.model.grid.dx.min()))
-        return max(1, math.ceil(math.sqrt(self.model.g * self.split.H) * self.dt / (o.fast_courant * dx) - 1e-9))
+        n = math.ceil(math.sqrt(self.model.g * self.split.H) * self.dt / (o.fast_courant * dx) - 1e-9)
+        return max(self.fewest_auto_substeps, n)
 
     def state(self):
         return {**super().state(), "mean_depth": self.split.H}
@@ -232,7 +234,7 @@ class SplitExplicitOptions:
 
     substeps: int | str = "auto"
     fast_courant: float = 0.6
-    divergence_damping: float = 0.0
+    divergence_damping: float = 0.1
     mean_depth: float = 0.0
 
     def __post_init__(self):
@@ -250,17 +252,22 @@ class SplitExplicit(_Multirate):
     module docstring).
 
     Options (scene table ``[split_explicit]``): ``substeps`` n, the fast substeps of the
-    last stage (the stages take ⌈n/3⌉, ⌈n/2⌉, n), or "auto" (the default): the fewest
-    whose Courant number about the mean depth is ≤ ``fast_courant`` (default 0.6;
-    ``_Multirate.substeps``). On TC5 ne8 over 6 days at slow steps of 3.9, 4.7, 5.7, 6.6,
+    last stage (the stages take ⌈n/3⌉, ⌈n/2⌉, n), or "auto" (the default): the fewest,
+    and at least 2, whose Courant number about the mean depth is ≤ ``fast_courant``
+    (default 0.6; ``_Multirate.substeps``). On TC5 ne8 over 6 days at slow steps of 3.9, 4.7, 5.7, 6.6,
     7.8 Δt_g the fewest stable of 3, 4, 6, 8, 12, 16, 24 were 4, 6, 6, 8, 8, substeps of
     0.8–1 Δt_g; 0.6 keeps them at ≤ 0.65 Δt_g (TC5 ne8 at 7.8 Δt_g: n = 13, at 2 Δt_g: 4).
     ``divergence_damping`` β (the
     forward weighting of the depth in the substeps' pressure gradient, h̃ = h′ + β(h′ −
     h′_old), which damps the fast divergent modes as divergence damping does: Klemp,
-    Skamarock & Ha 2018, MWR 146, 1911, §3; MPAS's smdiv = 0.1; default 0: TC5 ne30 over
-    15 days at 3.64 Δt_g, h + hs temporal error 1.18e-4 with β = 0, 3.93e-4 with 0.1, 5.94e-4
-    with 0.3; the largest stable step 6.67 Δt_g with 0 and 0.1), ``mean_depth``
+    Skamarock & Ha 2018, MWR 146, 1911, §3; MPAS's smdiv = 0.1; default 0.1). A stage's
+    first substep has no last one, so with one substep a stage nothing is damped: hence
+    "auto"'s 2. TC2 rotated by π/4 over 100 days at ne8 with β = 0 blew up at Δt = 450 and
+    600 s (n = 1, days 34 and 14), 1800 s (n = 2) and 2400 s (n = 4, day 57), though it ran
+    at 2400 s with n = 3 and 6; with β = 0.1 and n ≥ 2 every one of them ran to the end (and
+    4800 s, above the advective limit). The price: TC5 ne30 over 15 days at 3.64 Δt_g, h +
+    hs temporal error 3.93e-4 against 1.18e-4 with β = 0 (the filtered vorticity's 8.21e-4
+    against 7.26e-4), stable to the same 6.67 Δt_g. ``mean_depth``
     H (m; 0: the area-mean depth of the initial state, rounded to 6 digits: the step carries
     the depth as h′ = h − H, and "auto" takes the Courant number about it). 3 slow evaluations a step
     (reported as RHS evaluations) and ⌈n/3⌉ + ⌈n/2⌉ + n fast ones. Slow order 2 (Wicker &
@@ -274,6 +281,7 @@ class SplitExplicit(_Multirate):
     # with 24 substeps too). Without divergence damping it blew up on day 9.8 at 0.64 (7.8 Δt_g).
     advective_courant_limit = 0.6
     C = (Fraction(1, 3), Fraction(1, 2), Fraction(1))
+    fewest_auto_substeps = 2  # the divergence damping needs a second substep (the docstring)
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)

@@ -4,7 +4,7 @@ H100 and an H200, from counts taken off the code on the CPU.
 
 What is counted (TC5, all terms + ∇⁴, np = 4, the CUDA layout: per-node
 kernels, ``per_element=False``, one thread, the steppers' CUDA solvers:
-the Helmholtz ``pcg`` and the Krylov vector work of FGMRES and KIOPS in Warp kernels), by wrapping Warp's launch entry points (``swe_sphere.tally``)
+the Helmholtz ``pcg`` and the Krylov vector work of FGMRES and KIOPS in Warp kernels), by wrapping Warp's launch entry points (``swe_sphere.core.tally``)
 while the model evaluates one RHS, one ∇⁴ and ``--steps`` steps of each
 stepper after ``--warmup`` steps, on ``--ne`` (default 8):
 
@@ -40,9 +40,9 @@ import time
 
 import warp as wp
 
-from swe_sphere.config import load_scene
+from swe_sphere.config.scene import load_scene
 from swe_sphere.steppers import STEPPERS, make_stepper
-from swe_sphere.tally import Tally, array_bytes, instrumented
+from swe_sphere.core.tally import Tally, array_bytes, instrumented
 
 from implicit_cost import use_krylov  # noqa: E402  (benchmarks/, the script's directory)
 from rhs_throughput import build as tc5  # noqa: E402

@@ -13,7 +13,7 @@
   (``sim.graphs = False``) and replayed as CUDA graphs (the default on a GPU),
   the bad-state check read every ``check_every`` steps either way: the time
   loop's wall time over ``--graph-steps`` steps after 100, median of ``--runs``.
-* ``reads``: host reads (``.numpy()`` read-backs, ``swe_sphere.tally``) and
+* ``reads``: host reads (``.numpy()`` read-backs, ``swe_sphere.core.tally``) and
   launches a step of every stepper (semi_implicit, implicit, imex at
   ``--dt-factor`` × Δt; ``--steps`` steps after 2) on ``--device``, and
   whether ``Simulation`` replays its steps as graphs; ``--krylov kernels`` gives the
@@ -47,11 +47,11 @@ from gpu_model import IMPLICIT  # noqa: E402
 from implicit_cost import use_krylov  # noqa: E402
 from rhs_throughput import build, median_time, rhs_compulsory_bytes  # noqa: E402  (its clock: time.perf_counter)
 
-from swe_sphere.config import load_scene  # noqa: E402
-from swe_sphere.constants import DAY  # noqa: E402
-from swe_sphere.simulation import Simulation  # noqa: E402
+from swe_sphere.config.scene import load_scene  # noqa: E402
+from swe_sphere.core.constants import DAY  # noqa: E402
+from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 from swe_sphere.steppers import STEPPERS  # noqa: E402
-from swe_sphere.tally import Tally, instrumented  # noqa: E402
+from swe_sphere.core.tally import Tally, instrumented  # noqa: E402
 
 
 def _header(title, columns, right):

@@ -40,11 +40,11 @@ from threadpoolctl import threadpool_limits
 
 wp.config.quiet = True
 
-from swe_sphere.config import load_scene  # noqa: E402
-from swe_sphere.constants import DAY  # noqa: E402
-from swe_sphere.gll import gll  # noqa: E402
-from swe_sphere.simulation import Simulation  # noqa: E402
-from swe_sphere.steppers.helmholtz import GravityWave, helmholtz_matrix  # noqa: E402
+from swe_sphere.config.scene import load_scene  # noqa: E402
+from swe_sphere.core.constants import DAY  # noqa: E402
+from swe_sphere.grid.gll import gll  # noqa: E402
+from swe_sphere.simulation.simulation import Simulation  # noqa: E402
+from swe_sphere.solvers.helmholtz import GravityWave, helmholtz_matrix  # noqa: E402
 
 SGS = ("gauss_seidel", {"sweep": "symmetric"})
 SMOOTHING = 3  # Chebyshev steps before and after the p-MG coarse correction

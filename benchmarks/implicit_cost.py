@@ -64,9 +64,9 @@ from threadpoolctl import threadpool_limits
 
 wp.config.quiet = True
 
-from swe_sphere.config import load_scene  # noqa: E402
-from swe_sphere.simulation import Simulation  # noqa: E402
-from swe_sphere.steppers import jacobian, krylov  # noqa: E402
+from swe_sphere.config.scene import load_scene  # noqa: E402
+from swe_sphere.simulation.simulation import Simulation  # noqa: E402
+from swe_sphere.solvers import jacobian, krylov  # noqa: E402
 
 # case → (label, stepper, Δt/Δt_g, options)
 CONFIGS = {

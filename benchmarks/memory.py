@@ -24,7 +24,7 @@ import tempfile
 import numpy as np
 import warp as wp
 
-BASELINE = "import warp as wp; wp.config.quiet = True; wp.config.log_level = wp.LOG_ERROR; wp.init(); import swe_sphere.simulation"
+BASELINE = "import warp as wp; wp.config.quiet = True; wp.config.log_level = wp.LOG_ERROR; wp.init(); import swe_sphere.simulation.simulation"
 
 
 def child_peak_rss(cmd) -> float:
@@ -41,9 +41,9 @@ def child_peak_rss(cmd) -> float:
 
 def array_bytes(ne, stepper):
     """Bytes of the run's arrays, by group, from a model built like the run's."""
-    from swe_sphere.config import load_scene
-    from swe_sphere.grid import CubedSphere
-    from swe_sphere.model import ShallowWater
+    from swe_sphere.config.scene import load_scene
+    from swe_sphere.grid.cubed_sphere import CubedSphere
+    from swe_sphere.model.shallow_water import ShallowWater
     from swe_sphere.steppers import make_stepper
 
     scene = load_scene("tc5_mountain_homme", ne=ne, np=4, stepper=stepper)

@@ -148,7 +148,7 @@ def homme_l2(movie: Path, day: float) -> float:
     Gauss weights are the area weights of each latitude row."""
     import netCDF4
 
-    from swe_sphere.reference import Reference, find_reference
+    from swe_sphere.cases.reference import Reference, find_reference
 
     with netCDF4.Dataset(movie) as f:
         days = np.asarray(f["time"][:], dtype=np.float64)

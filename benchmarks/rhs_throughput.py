@@ -51,13 +51,13 @@ from threadpoolctl import threadpool_limits
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # numpy_ops; not the repo root, which would shadow the installed package
 
-from swe_sphere.config import load_scene  # noqa: E402
-from swe_sphere.grid import CubedSphere  # noqa: E402
-from swe_sphere.model import ShallowWater  # noqa: E402
-from swe_sphere.runtime import default_device, init_warp  # noqa: E402
-from swe_sphere.parallel import SplitLaunch, default_threads  # noqa: E402
+from swe_sphere.config.scene import load_scene  # noqa: E402
+from swe_sphere.grid.cubed_sphere import CubedSphere  # noqa: E402
+from swe_sphere.model.shallow_water import ShallowWater  # noqa: E402
+from swe_sphere.core.runtime import default_device, init_warp  # noqa: E402
+from swe_sphere.core.parallel import SplitLaunch, default_threads  # noqa: E402
 from swe_sphere.steppers import STEPPERS, make_stepper  # noqa: E402
-from swe_sphere.tally import array_bytes  # noqa: E402
+from swe_sphere.core.tally import array_bytes  # noqa: E402
 from numpy_ops import NumpyOps  # noqa: E402
 
 

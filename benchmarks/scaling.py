@@ -40,9 +40,9 @@ import numpy as np
 
 
 def partition_table(ne: int, np_: int, ranks: list[int]) -> None:
-    from swe_sphere.grid import CubedSphere
-    from swe_sphere.partition import edge_cut
-    from swe_sphere.topology import SerialComm, Topology, rank_parts
+    from swe_sphere.grid.cubed_sphere import CubedSphere
+    from swe_sphere.grid.partition import edge_cut
+    from swe_sphere.grid.topology import SerialComm, Topology, rank_parts
 
     class RankOf(SerialComm):  # build one rank's tables without MPI
         def __init__(self, rank, size):
@@ -70,9 +70,9 @@ def worker(ne: int, steps: int) -> None:
     wp.config.quiet = True
     from mpi4py import MPI
 
-    from swe_sphere import topology
-    from swe_sphere.config import load_scene
-    from swe_sphere.simulation import Simulation
+    from swe_sphere.grid import topology
+    from swe_sphere.config.scene import load_scene
+    from swe_sphere.simulation.simulation import Simulation
 
     spent = [0.0, 0]
     real = topology._Exchange.launch

@@ -8,7 +8,7 @@ multirate ``split_explicit`` and ``mri`` at 6 and 8 Δt_g (substeps "auto"): RHS
 CG iterations, fast evaluations, launches and MB of the whole step (the solves' own graphs
 off, so that their CG launches count), of its own work outside the solves and the ∇⁴, and GB
 a simulated day. One step after two (recorded and compiled outside the count), by
-``swe_sphere.tally`` (each distinct array's bytes once a launch, memsets and copies
+``swe_sphere.core.tally`` (each distinct array's bytes once a launch, memsets and copies
 included). ``--rounds`` > 0: also ms an evaluation and a step, round-robin over all of them
 so that load changes hit them alike, median, CPU clock (run it single-threaded).
 
@@ -31,12 +31,12 @@ import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from swe_sphere.config import load_scene  # noqa: E402
-from swe_sphere.runtime import init_warp  # noqa: E402
-from swe_sphere.simulation import Simulation  # noqa: E402
+from swe_sphere.config.scene import load_scene  # noqa: E402
+from swe_sphere.core.runtime import init_warp  # noqa: E402
+from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 from swe_sphere.steppers.multirate import GravitySplit  # noqa: E402
-from swe_sphere.sweep import explicit_limits  # noqa: E402
-from swe_sphere.tally import Tally, instrumented  # noqa: E402
+from swe_sphere.studies.sweep import explicit_limits  # noqa: E402
+from swe_sphere.core.tally import Tally, instrumented  # noqa: E402
 from test_tableau import ars343_pair, example  # noqa: E402
 
 DAY = 86400.0

@@ -3,7 +3,7 @@
 Every element-local copy of a unique node gathers the sum over all copies, so
 the kernel needs no atomics and gives the same bits on CPU and CUDA. Copies
 held by other processes arrive in a ghost buffer (``pack`` on the sender,
-``swe_sphere.topology`` exchanges), and the sum runs over all copies in one
+``swe_sphere.grid.topology`` exchanges), and the sum runs over all copies in one
 global order, so the bits do not depend on which process holds which copy.
 """
 

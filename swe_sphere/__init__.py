@@ -24,31 +24,29 @@ stepper of a scene; ``run``, ``from_checkpoint``, and step by step::
     ll = swe_sphere.remap_dataset(ds)   # or a run file's path; 1-degree grid
     ll.h_surface.sel(time=2).plot()     # a lat-lon map (matplotlib)
 
-``swe_sphere.plotting.plot_map`` draws the ``swe-sphere plot`` maps and
+``swe_sphere.studies.plotting.plot_map`` draws the ``swe-sphere plot`` maps and
 returns their figures), ``kinetic_energy_spectrum`` and ``zonal_mean`` (a run's
-kinetic-energy spectrum by degree and zonal means, ``swe_sphere.analysis``).
-Importing them initialises Warp quietly (``swe_sphere.runtime.init_warp``).
+kinetic-energy spectrum by degree and zonal means, ``swe_sphere.studies.analysis``).
+Importing them initialises Warp quietly (``swe_sphere.core.runtime.init_warp``).
 """
 
 _LAZY = {
-    "load_scene": "config",
-    "Scene": "config",
-    "Simulation": "simulation",
-    "CubedSphere": "grid",
-    "ShallowWater": "model",
+    "load_scene": "config.scene",
+    "Scene": "config.scene",
+    "Simulation": "simulation.simulation",
+    "CubedSphere": "grid.cubed_sphere",
+    "ShallowWater": "model.shallow_water",
     "make_stepper": "steppers",
     "STEPPERS": "steppers",
-    "remap_dataset": "remap",  # a run on a lat-lon grid: maps from Python
-    "kinetic_energy_spectrum": "analysis",  # E_rot, E_div by spherical-harmonic degree
-    "zonal_mean": "analysis",
-    # the errors the README lists
-    "SceneError": "config",
-    "OutputError": "output",
-    "CheckpointError": "checkpoint",
-    "BlowUp": "simulation",
-    "Interrupted": "runtime",
-    "StepFailure": "steppers",
-    "ResourceError": "runtime",
+    "remap_dataset": "io.remap",  # a run on a lat-lon grid: maps from Python
+    "kinetic_energy_spectrum": "studies.analysis",  # E_rot, E_div by spherical-harmonic degree
+    "zonal_mean": "studies.analysis",
+    # the errors (core.errors): every one is a SweSphereError
+    **dict.fromkeys(
+        ["SweSphereError", "SceneError", "OutputError", "CheckpointError", "BlowUp", "Interrupted", "StepFailure",
+         "ResourceError", "MPIUnavailable"],
+        "core.errors",
+    ),
 }
 
 
@@ -60,7 +58,7 @@ def run(scene, **kwargs):
 
 
 def __getattr__(name):  # the heavy modules (Warp) load on first use, quietly
-    from .runtime import init_warp, package_version
+    from .core.runtime import init_warp, package_version
 
     if name == "__version__":  # on first use too (``runtime.package_version``)
         globals()[name] = value = package_version()

@@ -5,8 +5,8 @@ from __future__ import annotations
 import tempfile
 from pathlib import Path
 
-from .runtime import pick_device
-from .simulation import Simulation
+from .core.runtime import pick_device
+from .simulation.simulation import Simulation
 
 
 

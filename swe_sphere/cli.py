@@ -17,6 +17,8 @@ import sys
 import time
 from pathlib import Path
 
+from .core.errors import BlowUp, CheckpointError, Interrupted, ResourceError, SceneError, StepFailure
+
 EXIT_INTERNAL, EXIT_BAD_INPUT, EXIT_BLOWUP = 1, 2, 3
 
 
@@ -44,7 +46,7 @@ def _path(text: str) -> Path:
 
 
 def _parser() -> argparse.ArgumentParser:
-    from .runtime import package_version
+    from .core.runtime import package_version
 
     Path = _path  # every path option below (type=Path) refuses an empty path
     p = _Parser(prog="swe-sphere", description="Spectral-element shallow-water model on the cubed sphere.")
@@ -138,8 +140,8 @@ def _parser() -> argparse.ArgumentParser:
 def _cmd_list() -> int:
     import re
 
-    from .config import list_scenes, load_scene
-    from .model import TERMS
+    from .config.scene import list_scenes, load_scene
+    from .model.shallow_water import TERMS
     from .steppers import STEPPERS
 
     print("scenes:")
@@ -160,7 +162,7 @@ def _cmd_list() -> int:
 
 
 def _warp_device(requested):
-    from .runtime import pick_device
+    from .core.runtime import pick_device
 
     return pick_device(requested)
 
@@ -207,7 +209,7 @@ def _runs(text: str) -> list[tuple[str, float]]:
 
 
 def _cmd_sweep(args) -> int:
-    from .config import load_scene
+    from .config.scene import load_scene
 
     if args.runs and args.steppers:
         raise ValueError("--runs names its own steppers: give --steppers or --runs, not both")
@@ -216,7 +218,7 @@ def _cmd_sweep(args) -> int:
     overrides = _overrides(args.set)
     ck = None
     if args.branch_from is not None:  # every run a branch from the restart file's state (``checkpoint.branch``)
-        from . import checkpoint
+        from .simulation import checkpoint
 
         for flag, given in (("SCENE", args.scene), ("--ne", args.ne), ("--np", args.np), ("-s", args.set)):
             if given:
@@ -235,7 +237,7 @@ def _cmd_sweep(args) -> int:
     length = base.run_days  # from t = 0, or from the day of --from's restart file
     time_filter, span = None, length  # Δt must divide span (days)
     if args.filter_days is not None:
-        from .timefilter import TimeFilter
+        from .steppers.timefilter import TimeFilter
 
         time_filter = TimeFilter(args.filter_days, args.filter_every, args.filter_window)
         time_filter.days(length)  # the window must start within the run
@@ -246,9 +248,9 @@ def _cmd_sweep(args) -> int:
         if abs(round(span * 86400 / dt) * dt - span * 86400) > 1e-6 * dt and time_filter is not None:
             raise ValueError(f"dt = {dt:g} s does not divide the filter's snapshot interval of {time_filter.every_hours:g} h")
     device = _warp_device(args.device)
-    from .output import check_results, folder_lock
-    from .sweep import OUTPUTS, REFERENCE_MAX_GRAVITY_COURANT, Sweep, dt_for_day, explicit_limits, format_summary, start_state, table, write_outputs
-    from .workers import executor
+    from .io.run_file import check_results, folder_lock
+    from .studies.sweep import OUTPUTS, REFERENCE_MAX_GRAVITY_COURANT, Sweep, dt_for_day, explicit_limits, format_summary, start_state, table, write_outputs
+    from .core.workers import executor
 
     with executor(args.workers) as pool:
         if pool is None:  # an MPI worker rank: its share is done
@@ -299,10 +301,9 @@ def _cmd_sweep(args) -> int:
 
 
 def _cmd_stability(args) -> int:
-    from .config import SceneError
-    from .output import check_results, folder_lock
-    from .stability import HARD_CASES, OUTPUTS, format_table, run_suite, write_table
-    from .workers import executor
+    from .io.run_file import check_results, folder_lock
+    from .studies.stability import HARD_CASES, OUTPUTS, format_table, run_suite, write_table
+    from .core.workers import executor
 
     known = {c[0]: c for c in HARD_CASES}
     for label in args.cases:
@@ -349,26 +350,26 @@ def _continued(args, device, comm):
     ``--restart-every`` unless given: ``args.restart_every`` set), or with another
     --stepper or --dt a branch (``Simulation.from_checkpoint``); refuses a changed
     scene or grid, and a continuation at its end day without --days."""
-    from . import checkpoint
-    from .config import load_scene
-    from .simulation import Simulation
+    from .simulation import checkpoint
+    from .config.scene import load_scene
+    from .simulation.simulation import Simulation
 
     ck = checkpoint.read_on_root(args.continue_from, comm)  # the whole state on rank 0 only
     for flag, value, have in (("--ne", args.ne, ck.scene.ne), ("--np", args.np, ck.scene.np)):
         if value is not None and value != have:
-            raise checkpoint.CheckpointError(f"{args.continue_from} is a run with {flag.lstrip('-')} = {have}; it cannot continue with {flag} {value}")
+            raise CheckpointError(f"{args.continue_from} is a run with {flag.lstrip('-')} = {have}; it cannot continue with {flag} {value}")
     if args.set:
-        raise checkpoint.CheckpointError("-s cannot change a checkpointed scene")
+        raise CheckpointError("-s cannot change a checkpointed scene")
     if args.scene is not None:
         given = load_scene(args.scene, ne=args.ne, np=args.np)
         mine = {k: v for k, v in ck.scene.as_dict().items() if k not in ("days", "notes", "branch")}
         theirs = {k: v for k, v in given.as_dict().items() if k not in ("days", "notes", "branch")}
         if mine != theirs:
             differ = ", ".join(k for k in mine if mine[k] != theirs.get(k))
-            raise checkpoint.CheckpointError(f"{args.continue_from} is a run of another scene than {args.scene} (differs in: {differ})")
+            raise CheckpointError(f"{args.continue_from} is a run of another scene than {args.scene} (differs in: {differ})")
     continued = args.stepper is None and args.dt is None  # not a branch (which refuses a length of 0 days itself)
     if continued and args.days is None and ck.step >= ck.scene.nsteps:  # else 0 steps, and a file that blocks the real one
-        raise checkpoint.CheckpointError(f"{args.continue_from} is already at its run's end day {ck.scene.days:g}: "
+        raise CheckpointError(f"{args.continue_from} is already at its run's end day {ck.scene.days:g}: "
                                          "give --days for the new end day")
     if continued and args.restart_every is None:  # a run that wrote restart files goes on writing them, as if never stopped
         args.restart_every = ck.restart_every
@@ -377,11 +378,11 @@ def _continued(args, device, comm):
 
 
 def _cmd_run(args) -> int:
-    from . import mpi
-    from .config import load_scene, resolve_path
-    from .graphs import default_mode, graphs_mode
-    from .output import check_distinct, check_target, close_open_runs
-    from .writers import restart_path
+    from .core import mpi
+    from .config.scene import load_scene, resolve_path
+    from .core.graphs import default_mode, graphs_mode
+    from .io.run_file import check_distinct, check_target, close_open_runs
+    from .simulation.writers import restart_path
 
     if args.continue_from is None:
         if args.scene is None:
@@ -409,12 +410,12 @@ def _cmd_run(args) -> int:
 def _run(args, scene, output, device, comm) -> int:
     from tqdm import tqdm
 
-    from . import mpi
-    from .parallel import threads_note
-    from .schedules import restart_steps
-    from .simulation import BlowUp, Simulation
-    from .workers import cpus, limit_threads
-    from .writers import restart_path, stream_path
+    from .core import mpi
+    from .core.parallel import threads_note
+    from .simulation.schedules import restart_steps
+    from .simulation.simulation import Simulation
+    from .core.workers import cpus, limit_threads
+    from .simulation.writers import restart_path, stream_path
 
     if comm is not None:
         limit_threads(max(1, cpus() // mpi.node_local_size(comm)))
@@ -527,7 +528,7 @@ def _summary(r, sim) -> None:
 
 
 def _cmd_plot(args) -> int:
-    from .plotting import plot_analyses, plot_run
+    from .studies.plotting import plot_analyses, plot_run
 
     fields = args.field or ["h_surface"]
     if args.spectrum or args.zonal_mean:
@@ -545,8 +546,8 @@ def _cmd_plot(args) -> int:
 
 
 def _cmd_remap(args) -> int:
-    from .output import check_distinct, check_target
-    from .remap import latlon_grid, open_netcdf, remap_file, run_grid
+    from .io.run_file import check_distinct, check_target
+    from .io.remap import latlon_grid, open_netcdf, remap_file, run_grid
 
     output = args.output or Path(f"{args.run.stem}_latlon{args.resolution:g}.nc")
     lat, lon = latlon_grid(args.resolution)
@@ -569,12 +570,12 @@ def _classify(err: BaseException) -> tuple[int, str]:
     """(exit status, one-line message) of a failure."""
     import signal
 
-    if isinstance(err, _loaded("runtime.Interrupted")):
+    if isinstance(err, Interrupted):
         return 128 + err.signum, str(err)
     if isinstance(err, KeyboardInterrupt):  # outside the time loop (its handler stops after a step)
         signum = getattr(err, "signum", signal.SIGINT)
         return 128 + signum, f"interrupted by {signal.Signals(signum).name} outside the time loop; no output was written"
-    if isinstance(err, _loaded("simulation.BlowUp", "steppers.StepFailure", "runtime.ResourceError")):  # BlowUp: a sweep's reference run
+    if isinstance(err, (BlowUp, StepFailure, ResourceError)):  # BlowUp: a sweep's reference run
         return EXIT_BLOWUP, str(err)
     if isinstance(err, MemoryError):
         return EXIT_BLOWUP, "out of memory" + (f" ({err})" if str(err) else "")
@@ -585,14 +586,6 @@ def _classify(err: BaseException) -> tuple[int, str]:
     if isinstance(err, ValueError):
         return EXIT_BAD_INPUT, str(err)
     return EXIT_INTERNAL, f"internal error: {type(err).__name__}: {err} (run with --debug for the traceback)"
-
-
-def _loaded(*names: str) -> tuple[type, ...]:
-    """The classes ``"module.Class"`` of swe_sphere's modules already imported: an
-    error cannot come from a module never imported, and importing one while
-    reporting a signal during start-up met a half-imported Warp (a traceback)."""
-    modules = (sys.modules.get(f"{__package__}.{name.partition('.')[0]}") for name in names)
-    return tuple(c for m, name in zip(modules, names) if isinstance(c := getattr(m, name.partition(".")[2], None), type))
 
 
 class _Terminated(KeyboardInterrupt):
@@ -663,7 +656,7 @@ def main(argv=None) -> int:
         if console:
             _hold_signals()  # a second Ctrl-C does not break the report
         code = _report(err, args)
-    from . import mpi
+    from .core import mpi
 
     if console and mpi.launched_size() == 1:  # an MPI rank's teardown finalises MPI
         _exit(code)
@@ -673,13 +666,13 @@ def main(argv=None) -> int:
 def _report(err: BaseException, args) -> int:
     """Print the one line of a failure (rank 0 for what every rank meets alike) and
     return its exit status; under MPI, end the job when one rank may have failed alone."""
-    from . import mpi
+    from .core import mpi
 
     code, message = _classify(err)
     comm = (mpi.world() if args is not None and args.command == "run" and not isinstance(err, mpi.MPIUnavailable)
             else None)  # one run over several MPI ranks
     # every rank refuses it, stops at one step, or finds too little memory, alike
-    alike = code == EXIT_BAD_INPUT or isinstance(err, _loaded("runtime.Interrupted")) or getattr(err, "on_every_rank", False)
+    alike = code == EXIT_BAD_INPUT or isinstance(err, Interrupted) or getattr(err, "on_every_rank", False)
     if comm is None or comm.rank == 0 or not alike:
         where = f"rank {comm.rank} of {comm.size}: " if comm is not None and comm.rank else ""
         print(f"swe-sphere: {where}{'error: ' if code in (EXIT_BAD_INPUT, EXIT_INTERNAL) else ''}{message}", file=sys.stderr)

@@ -24,10 +24,11 @@ wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level instead
 if hasattr(wp, "LOG_WARNING"):
     wp.config.log_level = wp.LOG_WARNING
 
-from swe_sphere.config import load_scene  # noqa: E402
-from swe_sphere.constants import DAY  # noqa: E402
-from swe_sphere.grid import CubedSphere  # noqa: E402
-from swe_sphere.simulation import BlowUp, Simulation  # noqa: E402
+from swe_sphere.config.scene import load_scene  # noqa: E402
+from swe_sphere.core.constants import DAY  # noqa: E402
+from swe_sphere.grid.cubed_sphere import CubedSphere  # noqa: E402
+from swe_sphere.simulation.simulation import Simulation
+from swe_sphere.core.errors import BlowUp
 
 TINY = ("--ne", "2", "--np", "4", "--device", "cpu", "--no-progress")
 
@@ -283,8 +284,8 @@ def write_tc2_scene(path, *, stepper="ssprk3", ne=2, dt=3600.0, days=1.0, tables
 
 @pytest.fixture
 def tally():
-    """``swe_sphere.tally``'s count of launches and host reads, wrapped around Warp for this test only."""
-    from swe_sphere.tally import Tally, instrumented
+    """``swe_sphere.core.tally``'s count of launches and host reads, wrapped around Warp for this test only."""
+    from swe_sphere.core.tally import Tally, instrumented
 
     t = Tally()
     with instrumented(t):

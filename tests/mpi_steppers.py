@@ -13,9 +13,9 @@ import sys
 import numpy as np
 
 import roundoff
-from swe_sphere import mpi
-from swe_sphere.config import load_scene
-from swe_sphere.simulation import Simulation
+from swe_sphere.core import mpi
+from swe_sphere.config.scene import load_scene
+from swe_sphere.simulation.simulation import Simulation
 
 # label → (stepper, its options; None: the bundled ARK3(2)4L[2]SA pair)
 STEPPERS = {

@@ -62,7 +62,7 @@ if WHERE == "start-up":
 
     sys.meta_path.insert(0, _HoldInWarp())
 else:
-    from swe_sphere import simulation
+    from swe_sphere.simulation import simulation
 
     run = simulation.Simulation.run
 

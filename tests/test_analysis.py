@@ -1,4 +1,4 @@
-"""``swe_sphere.analysis`` and ``swe-sphere plot --spectrum / --zonal-mean``: the
+"""``swe_sphere.studies.analysis`` and ``swe-sphere plot --spectrum / --zonal-mean``: the
 kinetic-energy spectrum of known fields (single harmonics, TC2's solid-body
 rotation at l = 1 alone) and Parseval's sum on a developed flow; TC2's zonal-mean
 depth against Williamson et al.'s h(φ); the CLI files and its refusals; and the
@@ -15,12 +15,12 @@ import pytest
 
 from conftest import TINY, cli_main, cli_one_line
 from test_plotting import old_file, png_size  # noqa: F401 (old_file: a run file without vorticity, a fixture)
-from swe_sphere import plotting
-from swe_sphere.analysis import kinetic_energy_spectrum, zonal_mean
-from swe_sphere.constants import EARTH, DAY
-from swe_sphere.diagnostics import harmonic_state
-from swe_sphere.grid import CubedSphere
-from swe_sphere.output import RunWriter
+from swe_sphere.studies import plotting
+from swe_sphere.studies.analysis import kinetic_energy_spectrum, zonal_mean
+from swe_sphere.core.constants import EARTH, DAY
+from swe_sphere.model.diagnostics import harmonic_state
+from swe_sphere.grid.cubed_sphere import CubedSphere
+from swe_sphere.io.run_file import RunWriter
 
 A, OMEGA, G = EARTH.a, EARTH.omega, EARTH.g
 U0 = 2 * math.pi * A / (12 * DAY)  # TC2's solid-body speed at the equator

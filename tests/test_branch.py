@@ -21,11 +21,11 @@ import pytest
 import xarray as xr
 
 from conftest import cli_main, cli_one_line, make_sim, write_tc2_scene
-from swe_sphere import checkpoint as ckpt
-from swe_sphere.config import load_scene
-from swe_sphere.constants import DAY
-from swe_sphere.model import ShallowWater
-from swe_sphere.simulation import Simulation
+from swe_sphere.simulation import checkpoint as ckpt
+from swe_sphere.config.scene import load_scene
+from swe_sphere.core.constants import DAY
+from swe_sphere.model.shallow_water import ShallowWater
+from swe_sphere.simulation.simulation import Simulation
 
 EVERY = "[output]\nevery_days = 0.25\n"
 RUN = ("--device", "cpu", "--no-progress")

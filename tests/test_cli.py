@@ -26,8 +26,8 @@ import roundoff
 from conftest import TINY, cached_grid, cli_main, console_script, one_line
 from swe_sphere import __version__
 from swe_sphere.cli import main
-from swe_sphere.config import efold_nu
-from swe_sphere.output import RunWriter
+from swe_sphere.config.scene import efold_nu
+from swe_sphere.io.run_file import RunWriter
 
 REPO = Path(__file__).resolve().parents[1]
 TESTCASES = REPO / "testcases"
@@ -574,7 +574,7 @@ def test_console_script_exit_status(tmp_path):
 
 def _not_a_reference(folder: Path) -> Path:
     """A netCDF file of a reference's coefficients without its vorticity."""
-    from swe_sphere.reference import find_reference
+    from swe_sphere.cases.reference import find_reference
 
     path = folder / "no_vorticity.nc"
     with xr.open_dataset(find_reference("galewsky", perturbed=False), decode_times=False) as ds:

@@ -28,8 +28,8 @@ import pytest
 
 import roundoff
 from conftest import cached_grid
-from swe_sphere.config import load_scene
-from swe_sphere.simulation import Simulation
+from swe_sphere.config.scene import load_scene
+from swe_sphere.simulation.simulation import Simulation
 
 DEVICE = "cpu"
 

@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from conftest import requires_cuda
-from swe_sphere.config import load_scene
-from swe_sphere.constants import DAY
-from swe_sphere.simulation import Simulation
+from swe_sphere.config.scene import load_scene
+from swe_sphere.core.constants import DAY
+from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
 
 STEPS = 6

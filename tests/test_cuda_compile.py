@@ -25,13 +25,13 @@ import pytest
 import warp as wp
 
 import swe_sphere.kernels as kernels_pkg
-from swe_sphere.config import list_scenes, load_scene
-from swe_sphere.grid import CubedSphere
+from swe_sphere.config.scene import list_scenes, load_scene
+from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.kernels import dss, hyperviscosity
-from swe_sphere.model import ShallowWater
+from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.steppers import STEPPERS, make_stepper
-from swe_sphere.steppers.jacobian import KernelPasses
-from swe_sphere.steppers.krylov import KernelVectors
+from swe_sphere.solvers.jacobian import KernelPasses
+from swe_sphere.solvers.krylov import KernelVectors
 
 # sm90 (H100, H200: the GPUs the project runs on) by default; sm80 (A100) under -m slow,
 # as each arch's compile of every module takes a minute on a 2-core CI machine

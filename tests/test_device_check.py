@@ -14,10 +14,10 @@ import warp as wp
 import xarray as xr
 from conftest import RUN_TIMES, assert_same_runs, make_sim, watched_run, write_tc2_scene
 
-from swe_sphere.config import load_scene
-from swe_sphere.runtime import Interrupted
-from swe_sphere.simulation import BlowUp
-from swe_sphere.steppers import StepFailure
+from swe_sphere.config.scene import load_scene
+from swe_sphere.core.errors import Interrupted
+from swe_sphere.core.errors import BlowUp
+from swe_sphere.core.errors import StepFailure
 
 def test_blow_up_inside_a_block_is_reported_as_with_a_check_every_step(tmp_path):
     """Leapfrog at dt = 3600 s on TC2 ne = 2 blows up at step 17, inside the block

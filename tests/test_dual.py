@@ -1,4 +1,4 @@
-"""The GLL dual mesh (``swe_sphere.dual``): one control volume a unique node, its area the
+"""The GLL dual mesh (``swe_sphere.io.dual``): one control volume a unique node, its area the
 node's assembled spheremp; written into every run file as the UGRID mesh the fields live
 on and as CF cell bounds. Then the tools that read them: uxarray, the CF checkers and CDO,
 each test skipping only where its tool is absent."""
@@ -18,8 +18,8 @@ import pytest
 import xarray as xr
 
 from swe_sphere.cli import main
-from swe_sphere.dual import RTOL, cells, control_points, convex, dual_mesh, spherical_areas, star_shaped
-from swe_sphere.gll import gll
+from swe_sphere.io.dual import RTOL, cells, control_points, convex, dual_mesh, spherical_areas, star_shaped
+from swe_sphere.grid.gll import gll
 
 GRIDS = [(1, 2), (2, 4), (3, 2), (2, 8), (4, 3), (1, 6), (1, 3), (2, 2)]
 NOT_CONVEX = {(1, 3): 3, (2, 2): 3}  # at most so many cells star-shaped but not convex, on the two coarsest grids

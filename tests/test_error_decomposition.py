@@ -17,8 +17,8 @@ import pytest
 import xarray as xr
 
 from swe_sphere.cli import main
-from swe_sphere.config import load_scene
-from swe_sphere.scoring import rotational_divergent_errors
+from swe_sphere.config.scene import load_scene
+from swe_sphere.cases.scoring import rotational_divergent_errors
 
 import roundoff
 from conftest import make_sim, write_tc2_scene

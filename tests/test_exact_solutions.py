@@ -20,9 +20,9 @@ import math
 
 import pytest
 
-from swe_sphere.config import load_scene
-from swe_sphere.constants import DAY
-from swe_sphere.simulation import Simulation
+from swe_sphere.config.scene import load_scene
+from swe_sphere.core.constants import DAY
+from swe_sphere.simulation.simulation import Simulation
 
 
 @functools.lru_cache(maxsize=None)

@@ -31,10 +31,10 @@ from scipy.sparse.linalg import expm_multiply
 
 import roundoff
 from conftest import cached_grid, cli_main, cli_one_line, make_sim, run, tc6_error, write_tc2_scene
-from swe_sphere.config import load_scene
-from swe_sphere.constants import DAY
-from swe_sphere.steppers.kiops import Kiops
-from swe_sphere.topology import Topology
+from swe_sphere.config.scene import load_scene
+from swe_sphere.core.constants import DAY
+from swe_sphere.solvers.kiops import Kiops
+from swe_sphere.grid.topology import Topology
 
 
 def dense_phi(A: np.ndarray, tau: float, u: list[np.ndarray]) -> np.ndarray:

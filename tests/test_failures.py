@@ -16,8 +16,10 @@ import xarray as xr
 from conftest import TC2_SCENE, TINY, cli_one_line, write_tc2_scene
 from swe_sphere import __version__
 from swe_sphere.cli import main
-from swe_sphere.config import SceneError, load_scene
-from swe_sphere.runtime import ResourceError, check_memory, run_bytes
+from swe_sphere.config.scene import load_scene
+from swe_sphere.core.errors import SceneError
+from swe_sphere.core.runtime import check_memory, run_bytes
+from swe_sphere.core.errors import ResourceError
 
 
 @pytest.fixture(autouse=True)
@@ -117,7 +119,7 @@ def test_plot_diff_refuses_another_case_unless_forced(tmp_path, capsys):
     capsys.readouterr()
     one_line(capsys, ["plot", "tc2.nc", "--diff", "tc6.nc", "--output", "png"], 2, "case tc6_rossby_haurwitz", "--force")
     one_line(capsys, ["plot", "tc2.nc", "--diff", "tc2ne3.nc", "--output", "png"], 2, "ne=3 np=4", "--force")
-    from swe_sphere.reference import find_reference
+    from swe_sphere.cases.reference import find_reference
 
     one_line(capsys, ["plot", "tc2.nc", "--diff", str(find_reference("tc5_mountain")), "--output", "png"], 2,
              "tc5_mountain_T213.nc is not a reference of case tc2_steady")

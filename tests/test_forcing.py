@@ -27,9 +27,10 @@ import math
 import numpy as np
 import pytest
 
-from swe_sphere.config import SceneError, load_scene
-from swe_sphere.scoring import williamson_norms
-from swe_sphere.simulation import Simulation
+from swe_sphere.config.scene import load_scene
+from swe_sphere.core.errors import SceneError
+from swe_sphere.cases.scoring import williamson_norms
+from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
 from swe_sphere.steppers.multirate import MriOptions, parse_mri
 from swe_sphere.steppers.tables import IMEX

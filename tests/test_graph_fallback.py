@@ -20,11 +20,12 @@ import pytest
 import warp as wp
 
 from conftest import ON_CUDA, cli_main, cli_one_line, one_line
-from swe_sphere import runtime, simulation
-from swe_sphere.config import load_scene
-from swe_sphere.constants import DAY
-from swe_sphere.simulation import Simulation
-from swe_sphere.steppers.helmholtz import HelmholtzCG
+from swe_sphere.core import runtime
+from swe_sphere.simulation import simulation
+from swe_sphere.config.scene import load_scene
+from swe_sphere.core.constants import DAY
+from swe_sphere.simulation.simulation import Simulation
+from swe_sphere.solvers.helmholtz import HelmholtzCG
 
 DEVICES = ["cpu", ON_CUDA]
 STEPS = 8

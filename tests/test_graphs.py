@@ -1,5 +1,5 @@
 """Steps replayed as captured graphs (``Simulation.graphs``, ISSUE 32 items 2 and 3)
-and the host reads inside a step (``swe_sphere.tally``).
+and the host reads inside a step (``swe_sphere.core.tally``).
 
 Warp captures and replays graphs on a CPU too (its launches recorded and replayed
 in C++, one thread), so the graph path runs here as on a GPU: with one thread a
@@ -21,11 +21,11 @@ import pytest
 import warp as wp
 
 from conftest import ON_CUDA, assert_same_runs, watched_run, write_tc2_scene
-from swe_sphere.config import load_scene
-from swe_sphere.constants import DAY
-from swe_sphere.simulation import Simulation
+from swe_sphere.config.scene import load_scene
+from swe_sphere.core.constants import DAY
+from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
-from swe_sphere.tally import Tally, instrumented
+from swe_sphere.core.tally import Tally, instrumented
 
 # the capturable steppers (explicit, semi-implicit, IMEX), and "tableau", whose default table is explicit (a ``TableauRK``)
 CAPTURABLE = [name for name, cls in STEPPERS.items() if cls.capturable] + ["tableau"]

@@ -1,4 +1,4 @@
-"""Tests of the cubed-sphere grid (swe_sphere.grid.CubedSphere)."""
+"""Tests of the cubed-sphere grid (swe_sphere.grid.cubed_sphere.CubedSphere)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from swe_sphere.grid import CubedSphere, _geometry
+from swe_sphere.grid.cubed_sphere import CubedSphere, _geometry
 
 from conftest import cached_grid
 from numpy_ops import NumpyOps

@@ -18,7 +18,7 @@ import warp as wp
 
 import roundoff
 from conftest import make_sim
-from swe_sphere.config import load_scene
+from swe_sphere.config.scene import load_scene
 
 
 def _tc5(ne=4):

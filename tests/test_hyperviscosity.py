@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from swe_sphere.config import HYPERVIS_EXPONENT, SceneError, efold_nu, load_scene
-from swe_sphere.diagnostics import ideal_hyperviscosity_rate
+from swe_sphere.config.scene import HYPERVIS_EXPONENT, efold_nu, load_scene
+from swe_sphere.core.errors import SceneError
+from swe_sphere.model.diagnostics import ideal_hyperviscosity_rate
 
 SCENE = """
 terms = ["continuity", "momentum_advection", "coriolis", "pressure_gradient", "hyperviscosity"]
@@ -71,8 +72,8 @@ def test_the_readmes_hyperviscosity_spectrum(grid_factory, ne, bounds):
     winds at l = 32 (h 3.7e-5)."""
     import numpy as np
 
-    from swe_sphere.diagnostics import HARMONIC_KINDS, harmonic_state, hyperviscosity_rate
-    from swe_sphere.model import ShallowWater
+    from swe_sphere.model.diagnostics import HARMONIC_KINDS, harmonic_state, hyperviscosity_rate
+    from swe_sphere.model.shallow_water import ShallowWater
 
     grid = grid_factory(ne, 4)
     z = np.zeros(grid.npts)

@@ -24,11 +24,11 @@ import warp as wp
 import conftest
 import roundoff
 from conftest import cached_grid, run
-from swe_sphere.config import load_scene
-from swe_sphere.constants import DAY
-from swe_sphere.model import ShallowWater
-from swe_sphere.simulation import Simulation
-from swe_sphere.steppers.helmholtz import GravityWave
+from swe_sphere.config.scene import load_scene
+from swe_sphere.core.constants import DAY
+from swe_sphere.model.shallow_water import ShallowWater
+from swe_sphere.simulation.simulation import Simulation
+from swe_sphere.solvers.helmholtz import GravityWave
 from swe_sphere.steppers.runge_kutta import TABLES
 from swe_sphere.steppers.tables import IMEX as SCHEMES
 

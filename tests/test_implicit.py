@@ -54,11 +54,11 @@ import warp as wp
 import xarray as xr
 
 from swe_sphere.cli import main
-from swe_sphere.config import load_scene
-from swe_sphere.constants import DAY
-from swe_sphere.simulation import BlowUp
-from swe_sphere.tally import Tally, instrumented
-from swe_sphere.topology import Topology
+from swe_sphere.config.scene import load_scene
+from swe_sphere.core.constants import DAY
+from swe_sphere.core.errors import BlowUp
+from swe_sphere.core.tally import Tally, instrumented
+from swe_sphere.grid.topology import Topology
 
 import conftest
 import roundoff
@@ -241,7 +241,7 @@ def test_jacobian_passes_host_and_kernels_agree(rng):
     ne = 2: the gather, the scatter and shift·w + scale·J w give the same numbers to
     round-off (measured: the gather and scatter the same bits, J·v 2.5e-17 apart: ε's
     norms are summed in another order, KernelPasses' on the device); J·0 = 0."""
-    from swe_sphere.steppers.jacobian import FiniteDifferenceJacobian, HostPasses, KernelPasses
+    from swe_sphere.solvers.jacobian import FiniteDifferenceJacobian, HostPasses, KernelPasses
 
     sim = make_sim(load_scene("tc5_mountain", ne=2, np=4, days=1.0, stepper="implicit", dt=3600.0))
     m, first = sim.model, sim.grid.first
@@ -404,7 +404,7 @@ def test_fgmres_solves_with_a_changing_preconditioner_and_restarts(backend, rng)
     changes at every application (a random-scaled Jacobi) and restarts every 5
     iterations, the true residual reaches the tolerance; without restarts the
     iterations match scipy's GMRES (same Krylov space with a fixed preconditioner)."""
-    from swe_sphere.steppers import krylov
+    from swe_sphere.solvers import krylov
     import scipy.sparse.linalg as spla
 
     n = 200
@@ -451,7 +451,7 @@ def test_krylov_backends_agree_on_cn_steps_and_fgmres_reads_once_a_cycle():
     (their preconditioner's Helmholtz solves left out), one host read a restart cycle
     (the tally's ``.numpy()`` read-backs: the J·v's ε, the Gram–Schmidt sums and the
     least squares stay on the device; before, 4 reads an Arnoldi step)."""
-    from swe_sphere.steppers import jacobian, krylov
+    from swe_sphere.solvers import jacobian, krylov
 
     scene = load_scene("tc5_mountain", ne=2, np=4, stepper="implicit")
     scene = dataclasses.replace(scene, dt=4.0 * scene.dt, stepper_options={"gmres_restart": 3})
@@ -491,7 +491,7 @@ def test_fgmres_cycles_replayed_as_graphs_give_the_bits_of_host_loops(monkeypatc
     captured once per (iterate, F(x), Δt, β) as Warp's CPU graph (conditional steps
     on the device flag) and replayed give the bits, iterations and RHS count of the
     steps run as host loops; a replayed cycle runs no Python (its J·v not called)."""
-    from swe_sphere.steppers import jacobian, krylov
+    from swe_sphere.solvers import jacobian, krylov
 
     monkeypatch.setenv("SWE_SPHERE_THREADS", "1")
     scene = load_scene("tc5_mountain", ne=2, np=4, stepper="implicit")
@@ -528,7 +528,7 @@ def test_krylov_basis_vector_work_matches_numpy(backend, rng):
     projection with its inner products (k_sub, k_dot in 0–3, B a row range of the
     basis) and the combinations (out aliasing x; a = 0), to round-off (1e-13 relative:
     the sums differ only in order and fused multiply–adds)."""
-    from swe_sphere.steppers import krylov
+    from swe_sphere.solvers import krylov
 
     n, rows = 1000, 6
     basis = krylov.KrylovBasis(n, rows, Topology(cached_grid(2, 4)), vectors=getattr(krylov, backend))

@@ -15,10 +15,11 @@ import pytest
 import xarray as xr
 
 import swe_sphere
-from swe_sphere.cases import make_case
-from swe_sphere.config import SceneError, list_scenes, load_scene
-from swe_sphere.initial_state import SCENE_CASES
-from swe_sphere.simulation import Simulation
+from swe_sphere.cases.library import make_case
+from swe_sphere.config.scene import list_scenes, load_scene
+from swe_sphere.core.errors import SceneError
+from swe_sphere.io.initial_state import SCENE_CASES
+from swe_sphere.simulation.simulation import Simulation
 
 from conftest import cached_grid, cli_main, cli_one_line
 

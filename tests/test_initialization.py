@@ -18,13 +18,13 @@ import xarray as xr
 
 import roundoff
 from conftest import cli_one_line, make_sim
-from swe_sphere import simulation
+from swe_sphere.simulation import simulation
 from swe_sphere.cli import main
-from swe_sphere.config import load_scene
-from swe_sphere.initialization import DigitalFilter, digital_filter
-from swe_sphere.model import ShallowWater
-from swe_sphere.simulation import Simulation
-from swe_sphere.sweep import Sweep, start_state
+from swe_sphere.config.scene import load_scene
+from swe_sphere.steppers.initialization import DigitalFilter, digital_filter
+from swe_sphere.model.shallow_water import ShallowWater
+from swe_sphere.simulation.simulation import Simulation
+from swe_sphere.studies.sweep import Sweep, start_state
 
 
 def _filter(sim, f):
@@ -192,7 +192,7 @@ def test_the_default_digital_filters_response(rate):
     the 24 h cutoff over a 48 h span passes waves of 8, 12, 16, 24, 33, 48 h and
     3 days at −5e-4, −4.7e-3, 0.048, 0.50, 0.79, 0.94 and 0.987, never above 1
     for slower motions; Lynch & Huang's 6 h span and cutoff pass 4 h waves at 0.24."""
-    from swe_sphere.timefilter import lanczos_weights, response
+    from swe_sphere.steppers.timefilter import lanczos_weights, response
 
     def passes(f, hours):
         dt, n = f.steps(rate)

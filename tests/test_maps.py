@@ -11,7 +11,7 @@ import pytest
 from matplotlib.figure import Figure
 
 import swe_sphere
-from swe_sphere import plotting
+from swe_sphere.studies import plotting
 from swe_sphere.cli import main
 
 # The README's Python map example, run as written (the run file made by the fixture).

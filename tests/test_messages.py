@@ -15,7 +15,7 @@ import pytest
 
 from swe_sphere import cli
 from swe_sphere.cli import main
-from swe_sphere.config import load_scene
+from swe_sphere.config.scene import load_scene
 
 TINY = ("--ne", "2", "--np", "4", "--device", "cpu", "--no-progress")
 ROOT = Path(__file__).resolve().parent.parent
@@ -76,7 +76,7 @@ def test_a_mistyped_scene_name_gets_a_suggestion(capsys, tmp_path):
 
 
 def test_stability_help_lists_its_case_labels(capsys):
-    from swe_sphere.stability import HARD_CASES
+    from swe_sphere.studies.stability import HARD_CASES
 
     assert cli.STABILITY_CASES == tuple(label for label, *_ in HARD_CASES)
     with pytest.raises(SystemExit):

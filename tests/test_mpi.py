@@ -24,7 +24,7 @@ import pytest
 import xarray as xr
 
 from swe_sphere.cli import main
-from swe_sphere.simulation import Simulation
+from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS as STEPPER_REGISTRY
 
 import roundoff
@@ -97,8 +97,8 @@ def test_each_output_time_gathers_a_state_once(tmp_path, monkeypatch):
     the run's Courant numbers come from its first output time's gather. Counted on
     one process, where each call stands for the collective."""
     from conftest import make_sim
-    from swe_sphere.config import load_scene
-    from swe_sphere.constants import DAY
+    from swe_sphere.config.scene import load_scene
+    from swe_sphere.core.constants import DAY
 
     dt = 1800.0
     scene = load_scene("tc2_steady", ne=2, np=4, dt=dt, days=4 * dt / DAY, stepper="ssprk3")

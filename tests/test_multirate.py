@@ -14,14 +14,14 @@ import pytest
 import warp as wp
 
 from conftest import cli_main, one_line
-from swe_sphere.config import load_scene
-from swe_sphere.diagnostics import courant_numbers
-from swe_sphere.simulation import Simulation
-from swe_sphere.stability import run_is_stable
+from swe_sphere.config.scene import load_scene
+from swe_sphere.model.diagnostics import courant_numbers
+from swe_sphere.simulation.simulation import Simulation
+from swe_sphere.studies.stability import run_is_stable
 from swe_sphere.steppers.multirate import GravitySplit, MriOptions, parse_mri
 from swe_sphere.steppers.tables import MULTIRATE
-from swe_sphere.sweep import explicit_limits
-from swe_sphere.tally import Tally, instrumented
+from swe_sphere.studies.sweep import explicit_limits
+from swe_sphere.core.tally import Tally, instrumented
 
 EPS = np.finfo(float).eps
 

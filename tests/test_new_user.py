@@ -9,7 +9,7 @@ import pytest
 
 from conftest import TINY, cli_main, cli_one_line
 from test_initial_state import LL, latlon_file, scene_file
-from swe_sphere import stability, sweep
+from swe_sphere.studies import stability, sweep
 
 
 @pytest.fixture(autouse=True)
@@ -129,7 +129,7 @@ def test_an_option_of_another_stepper_warns(tmp_path, capsys):
 
 def test_tc2_plots_say_they_are_against_the_exact_solution(tmp_path, capsys):
     """TC2's series panel said "against T213"; ``plot --diff T213`` said "reference file not found"."""
-    from swe_sphere.plotting import open_run, plot_series
+    from swe_sphere.studies.plotting import open_run, plot_series
 
     assert cli_main(capsys, "run", "tc2_steady", *TINY, "--dt", "1800", "--days", "0.125", "-s", "output.every_days=0.125",
                     "--output", "tc2.nc")[0] == 0
@@ -144,7 +144,7 @@ def test_tc2_plots_say_they_are_against_the_exact_solution(tmp_path, capsys):
 
 
 def test_sweep_error_axes_name_the_norm_and_field():
-    from swe_sphere.plotting import error_label
+    from swe_sphere.studies.plotting import error_label
 
     assert error_label("total_error") == "total error: normalized l2 of h + hs"
     assert error_label("temporal_error_vorticity") == "temporal error: normalized l2 of vorticity"
@@ -156,7 +156,7 @@ def test_the_zonal_mean_of_the_wind_at_the_poles_is_its_limit(tmp_path, capsys):
     (Williamson 1992 eq. 90 averaged over longitude): the pole rows were ±27.6 m/s off it at
     ne2 (east turns with longitude there), 4.6x the worst other row; now they are the limit, 0
     (v's too), exact."""
-    from swe_sphere.analysis import zonal_mean
+    from swe_sphere.studies.analysis import zonal_mean
 
     assert cli_main(capsys, "run", "tc2_steady_alpha_pi4", *TINY, "--dt", "1800", "--days", "0.125", "-s",
                     "output.every_days=0.125", "--output", "a.nc")[0] == 0
@@ -171,7 +171,7 @@ def test_the_zonal_mean_of_the_wind_at_the_poles_is_its_limit(tmp_path, capsys):
 def test_a_continued_run_keeps_writing_restart_files(tmp_path, capsys):
     """A run with --restart-every 0.125, continued without it: the continuation writes
     its restart file at its interval (the header says so), which continues again."""
-    from swe_sphere import checkpoint
+    from swe_sphere.simulation import checkpoint
 
     run = ["run", "tc2_steady", *TINY, "--dt", "1800", "--days", "0.125", "-s", "output.every_days=0.125"]
     assert cli_main(capsys, *run, "--restart-every", "0.125", "--output", "r.nc")[0] == 0

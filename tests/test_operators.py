@@ -16,12 +16,12 @@ import numpy as np
 import pytest
 import warp as wp
 
-from swe_sphere.cases import make_case
-from swe_sphere.diagnostics import HARMONIC_KINDS, harmonic_state, hyperviscosity_rate, ideal_hyperviscosity_rate
-from swe_sphere.gll import gll
+from swe_sphere.cases.library import make_case
+from swe_sphere.model.diagnostics import HARMONIC_KINDS, harmonic_state, hyperviscosity_rate, ideal_hyperviscosity_rate
+from swe_sphere.grid.gll import gll
 from swe_sphere.kernels import dss as dss_k
 from swe_sphere.kernels import operators
-from swe_sphere.model import TERMS, ShallowWater
+from swe_sphere.model.shallow_water import TERMS, ShallowWater
 
 import roundoff
 from conftest import cached_grid, requires_cuda

@@ -8,7 +8,7 @@ import pytest
 import xarray as xr
 
 from swe_sphere.cli import main
-from swe_sphere.constants import DAY
+from swe_sphere.core.constants import DAY
 
 STEPS_PER_DAY = 84  # dt = 86400/84 s: step * dt / 86400 misses 0.25, 0.5, 0.75, 1, ... by an ulp
 DT = DAY / STEPS_PER_DAY

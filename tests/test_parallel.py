@@ -1,4 +1,4 @@
-"""Multi-threaded CPU launches (``swe_sphere.parallel``): the same bits as one thread."""
+"""Multi-threaded CPU launches (``swe_sphere.core.parallel``): the same bits as one thread."""
 
 from __future__ import annotations
 
@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import warp as wp
 
-from swe_sphere import parallel
-from swe_sphere.cases import make_case
-from swe_sphere.model import TERMS, ShallowWater
+from swe_sphere.core import parallel
+from swe_sphere.cases.library import make_case
+from swe_sphere.model.shallow_water import TERMS, ShallowWater
 from swe_sphere.steppers import STEPPERS, make_stepper
 
 import roundoff

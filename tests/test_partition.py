@@ -1,11 +1,11 @@
-"""Space-filling-curve partition of the cube's elements (``swe_sphere.partition``)."""
+"""Space-filling-curve partition of the cube's elements (``swe_sphere.grid.partition``)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from swe_sphere import partition as P
+from swe_sphere.grid import partition as P
 
 from conftest import cached_grid
 

@@ -15,9 +15,10 @@ import xarray as xr
 
 import swe_sphere
 from conftest import TINY, cli_main, cli_one_line
-from swe_sphere.config import SceneError, load_scene
-from swe_sphere.constants import EARTH
-from swe_sphere.simulation import Simulation
+from swe_sphere.config.scene import load_scene
+from swe_sphere.core.errors import SceneError
+from swe_sphere.core.constants import EARTH
+from swe_sphere.simulation.simulation import Simulation
 
 ERRORS = ("l1_h", "l2_h", "linf_h", "l1_wind", "l2_wind", "linf_wind", "l2_vorticity", "l2_divergence")
 
@@ -135,8 +136,8 @@ def test_every_case_on_a_small_planet_is_the_earths_x_times_faster(name):
     case starts from the Earth's winds, depth and surface height at the same
     latitude and longitude, with X times the Coriolis parameter; an exact
     solution at time t/X is the Earth's at t."""
-    from swe_sphere.cases import make_case
-    from swe_sphere.constants import DAY, Planet
+    from swe_sphere.cases.library import make_case
+    from swe_sphere.core.constants import DAY, Planet
 
     X = 10.0
     rng = np.random.default_rng(1)

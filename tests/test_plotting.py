@@ -1,4 +1,4 @@
-"""``swe-sphere plot`` and ``swe_sphere.plotting``: PNG maps (right pixel size, not
+"""``swe-sphere plot`` and ``swe_sphere.studies.plotting``: PNG maps (right pixel size, not
 blank, units on the colour bar), differences to a T213 reference or another run with
 the normalized l2 the run itself reports, the time-series figure, the generic line
 plot, and bad input (exit 2, one line, nothing written)."""
@@ -13,11 +13,12 @@ import pytest
 import xarray as xr
 
 from conftest import cli_main, cli_one_line
-from swe_sphere import analysis, cli, plotting
+from swe_sphere.studies import analysis, plotting
+from swe_sphere import cli
 from swe_sphere.cli import main
-from swe_sphere.grid import CubedSphere
-from swe_sphere.output import RunWriter
-from swe_sphere.reference import find_reference
+from swe_sphere.grid.cubed_sphere import CubedSphere
+from swe_sphere.io.run_file import RunWriter
+from swe_sphere.cases.reference import find_reference
 
 TC5_REF = find_reference("tc5_mountain")
 

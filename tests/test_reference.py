@@ -1,4 +1,4 @@
-"""Reference files and their evaluation at model nodes (swe_sphere.reference)."""
+"""Reference files and their evaluation at model nodes (swe_sphere.cases.reference)."""
 
 import math
 
@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from swe_sphere.cases import make_case
-from swe_sphere.config import SceneError, load_scene
-from swe_sphere.grid import CubedSphere
-from swe_sphere.reference import (GriddedReference, Reference, SpectralReference, find_reference, floor, locate,
-                                  truncations)
+from swe_sphere.cases.library import make_case
+from swe_sphere.config.scene import load_scene
+from swe_sphere.core.errors import SceneError
+from swe_sphere.grid.cubed_sphere import CubedSphere
+from swe_sphere.cases.reference import GriddedReference, Reference, SpectralReference, find_reference, floor, locate, truncations
 
 DAY = 86400.0
 
@@ -284,8 +284,8 @@ def test_case_reference_takes_a_truncation():
 def test_plot_diff_takes_the_names_case_reference_takes(tmp_path):
     """``plot --diff T341`` (and a bundled file name) resolve as ``case.reference``
     does; another case's reference is refused unless forced."""
-    from swe_sphere.plotting import plot_run
-    from swe_sphere.simulation import Simulation
+    from swe_sphere.studies.plotting import plot_run
+    from swe_sphere.simulation.simulation import Simulation
 
     run = tmp_path / "tc5.nc"
     Simulation(load_scene("tc5_mountain", ne=2, days=1.0), "cpu", progress=False).run(run)
@@ -317,7 +317,7 @@ def test_evaluation_error_far_below_model_error_at_ne16(grid, tc5):
     <= 2e-3 of the model's error against the reference after one day of TC5
     (measured 3.9e-8 against 3.0e-5, 1.3e-3: the float32 rounding of the mean
     depth's coefficient c_00, a uniform 2e-4 m, sets it)."""
-    from swe_sphere.simulation import Simulation
+    from swe_sphere.simulation.simulation import Simulation
 
     case = make_case("tc5_mountain")
     u, v, h = case.initial(grid.lat, grid.lon)

@@ -1,4 +1,4 @@
-"""GLL interpolation to arbitrary points (``swe_sphere.remap``) and ``swe-sphere remap``:
+"""GLL interpolation to arbitrary points (``swe_sphere.io.remap``) and ``swe-sphere remap``:
 exact on polynomials of degree < np in each element's reference coordinates,
 spectrally accurate on smooth fields, equal to the model at GLL nodes that a
 lat-lon point hits, and a CF file that xarray opens."""
@@ -15,8 +15,8 @@ from scipy.spatial import cKDTree
 
 import roundoff
 from swe_sphere.cli import main
-from swe_sphere.grid import _FACES
-from swe_sphere.remap import Remapper, lagrange_basis, latlon_grid, locate, remap_dataset
+from swe_sphere.grid.cubed_sphere import _FACES
+from swe_sphere.io.remap import Remapper, lagrange_basis, latlon_grid, locate, remap_dataset
 
 
 def cartesian(lat, lon):
@@ -223,7 +223,7 @@ def test_latlon_file_is_cf_and_selects_by_model_day(run_file, tmp_path):
     ],
 )
 def test_remap_bad_input_exits_2_and_writes_nothing(run_file, tmp_path, monkeypatch, capsys, args, message):
-    from swe_sphere.reference import find_reference
+    from swe_sphere.cases.reference import find_reference
 
     monkeypatch.chdir(tmp_path)
     args = [str(run_file) if a == "RUN" else str(find_reference("tc5_mountain")) if a == "REF" else a for a in args]

@@ -23,14 +23,15 @@ import xarray as xr
 
 from conftest import make_sim, requires_cuda, write_tc2_scene
 from swe_sphere import __version__
-from swe_sphere import checkpoint as ckpt
+from swe_sphere.simulation import checkpoint as ckpt
 from swe_sphere.cli import main
-from swe_sphere.config import load_scene
-from swe_sphere.constants import DAY
-from swe_sphere.output import ExclusiveFile, OutputError
-from swe_sphere.simulation import Simulation
+from swe_sphere.config.scene import load_scene
+from swe_sphere.core.constants import DAY
+from swe_sphere.io.run_file import ExclusiveFile
+from swe_sphere.core.errors import OutputError
+from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
-from swe_sphere.topology import Topology
+from swe_sphere.grid.topology import Topology
 
 # and a Butcher table's IMEX pair (its default is an explicit table), read back from the restart file's JSON;
 # and the float32 Helmholtz solves
@@ -281,7 +282,7 @@ def test_concurrent_writers(tmp_path, capsys):
     scene = write_tc2_scene(tmp_path / "s.toml", stepper="ssprk3", ne=2, dt=DT, days=0.25)
     out = tmp_path / "a.nc"
     first = make_sim(load_scene(scene))
-    from swe_sphere.output import RunWriter
+    from swe_sphere.io.run_file import RunWriter
 
     writer = RunWriter(out, first.grid, first.hs, {"title": "first"}, ["mass"])
     for extra in ([], ["--overwrite"]):

@@ -62,7 +62,7 @@ def test_an_output_never_replaces_an_input(run_dir, argv):
 
 def test_the_api_refuses_its_scene_file_as_output(tmp_path):
     import swe_sphere
-    from swe_sphere.output import OutputError
+    from swe_sphere.core.errors import OutputError
 
     scene = tmp_path / "s.toml"
     shutil.copy(Path(swe_sphere.__file__).parent.parent / "testcases" / "tc2_steady.toml", scene)
@@ -96,7 +96,8 @@ def test_stability_creates_its_output_folder(tmp_path):
 
 def test_api_errors_are_importable_and_name_the_api():
     import swe_sphere
-    from swe_sphere import config, output
+    from swe_sphere.config import scene as config
+    from swe_sphere.io import run_file as output
 
     assert swe_sphere.SceneError is config.SceneError and swe_sphere.OutputError is output.OutputError
     for name in ("CheckpointError", "BlowUp", "Interrupted", "StepFailure", "ResourceError"):
@@ -169,8 +170,8 @@ def test_a_restart_file_with_a_bad_state_is_refused(run_dir, tmp_path, row, valu
     no run makes: a negative depth, a wind far beyond the gravity-wave speed, a NaN."""
     import netCDF4
 
-    from swe_sphere.checkpoint import read
-    from swe_sphere.restart_file import content_hash
+    from swe_sphere.simulation.checkpoint import read
+    from swe_sphere.io.restart_file import content_hash
 
     bad = tmp_path / "bad.restart.nc"
     shutil.copy(run_dir / "a.restart.nc", bad)
@@ -186,7 +187,7 @@ def test_a_restart_file_with_a_bad_state_is_refused(run_dir, tmp_path, row, valu
 def test_more_threads_than_cpus_are_clamped_with_a_note(tmp_path, monkeypatch):
     import warp as wp
 
-    from swe_sphere.parallel import _usable_cpus, default_threads, threads_note
+    from swe_sphere.core.parallel import _usable_cpus, default_threads, threads_note
 
     monkeypatch.setenv("SWE_SPHERE_THREADS", "1000")
     wp.init()

@@ -1,4 +1,4 @@
-"""Scores (swe_sphere.scoring): the norms against an independent numpy implementation
+"""Scores (swe_sphere.cases.scoring): the norms against an independent numpy implementation
 of Williamson et al. (1992) eqs. 82–87 on TC2 and TC5 run fields, the days the
 truth cannot score (a sweep there has no total error, and says why), and the
 stability criterion that the sweep and the stability suite share."""
@@ -13,13 +13,13 @@ import pandas as pd
 import pytest
 import xarray as xr
 
-from swe_sphere.cases import Mountain, make_case
+from swe_sphere.cases.library import Mountain, make_case
 from swe_sphere.cli import main
-from swe_sphere.config import load_scene
-from swe_sphere.constants import DAY
-from swe_sphere.reference import find_reference, floor
-from swe_sphere.scoring import Scorer, instability, unscored, williamson_norms
-from swe_sphere.simulation import RunResult
+from swe_sphere.config.scene import load_scene
+from swe_sphere.core.constants import DAY
+from swe_sphere.cases.reference import find_reference, floor
+from swe_sphere.cases.scoring import Scorer, instability, unscored, williamson_norms
+from swe_sphere.simulation.simulation import RunResult
 
 from conftest import make_sim
 

@@ -39,12 +39,12 @@ import warp as wp
 import roundoff
 from conftest import make_sim, requires_cuda, run, write_tc2_scene
 from swe_sphere.cli import main
-from swe_sphere.config import load_scene
-from swe_sphere.constants import DAY
-from swe_sphere.model import ShallowWater
-from swe_sphere.simulation import Simulation
-from swe_sphere.steppers import StepFailure
-from swe_sphere.steppers.helmholtz import GravityWave, GuessHistory, helmholtz_matrix
+from swe_sphere.config.scene import load_scene
+from swe_sphere.core.constants import DAY
+from swe_sphere.model.shallow_water import ShallowWater
+from swe_sphere.simulation.simulation import Simulation
+from swe_sphere.core.errors import StepFailure
+from swe_sphere.solvers.helmholtz import GravityWave, GuessHistory, helmholtz_matrix
 
 from numpy_ops import NumpyOps
 

@@ -7,12 +7,12 @@ import pandas as pd
 import pytest
 import xarray as xr
 
-from swe_sphere import stability
-from swe_sphere.config import load_scene
-from swe_sphere.constants import DAY
-from swe_sphere.simulation import Simulation
+from swe_sphere.studies import stability
+from swe_sphere.config.scene import load_scene
+from swe_sphere.core.constants import DAY
+from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
-from swe_sphere.sweep import explicit_limits
+from swe_sphere.studies.sweep import explicit_limits
 
 
 def test_bisection_brackets_a_known_limit(monkeypatch, tmp_path):

@@ -11,9 +11,9 @@ import pytest
 import xarray as xr
 
 import swe_sphere
-from swe_sphere.config import SceneError
-from swe_sphere.output import OUTPUT_FIELDS
-from swe_sphere.simulation import Simulation
+from swe_sphere.core.errors import SceneError
+from swe_sphere.io.run_file import OUTPUT_FIELDS
+from swe_sphere.simulation.simulation import Simulation
 
 from conftest import TINY, cli_main, write_tc2_scene
 

@@ -30,8 +30,8 @@ import pytest
 
 import roundoff
 from conftest import cached_grid, make_sim, tc6_final, write_tc2_scene
-from swe_sphere.config import load_scene
-from swe_sphere.constants import DAY
+from swe_sphere.config.scene import load_scene
+from swe_sphere.core.constants import DAY
 from swe_sphere.kernels.tendencies import TENDENCY_TERMS
 from swe_sphere.steppers import STEPPERS
 
@@ -287,7 +287,7 @@ def test_restore_rejects_a_misshapen_state():
 def test_options_dataclass_defaults_checks_and_schema():
     """Each stepper's options: one frozen dataclass whose fields are the scene
     table's keys; unknown keys and bad values raise ValueError naming them."""
-    from swe_sphere.config import _SCHEMA
+    from swe_sphere.config.scene import _SCHEMA
     from swe_sphere.steppers import option_types
 
     for name, cls in STEPPERS.items():

@@ -16,11 +16,11 @@ import xarray as xr
 
 import roundoff
 from conftest import cached_grid
-from swe_sphere import sweep as sweep_mod
-from swe_sphere import workers as workers_mod
+from swe_sphere.studies import sweep as sweep_mod
+from swe_sphere.core import workers as workers_mod
 from swe_sphere.cli import main
-from swe_sphere.reference import find_reference, floor
-from swe_sphere.simulation import Simulation
+from swe_sphere.cases.reference import find_reference, floor
+from swe_sphere.simulation.simulation import Simulation
 
 
 @pytest.fixture(scope="module")
@@ -286,7 +286,7 @@ def test_sweep_of_the_forced_low_scores_against_its_exact_solution(tmp_path):
                  "--dt", "900,450,225", "--device", "cpu", "--output", str(out)]) == 0
     df = pd.read_csv(out / "sweep.csv")
     assert df["stable"].all()
-    from swe_sphere.config import load_scene
+    from swe_sphere.config.scene import load_scene
 
     direct = Simulation(load_scene("tc4_forced_low", ne=4, days=0.25, dt=450.0, stepper="rk4"), "cpu", progress=False).run()
     row = df[(df["stepper"] == "rk4") & (df["dt"] == 450.0)].iloc[0]

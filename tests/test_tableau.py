@@ -24,8 +24,8 @@ import xarray as xr
 import conftest
 import roundoff
 from conftest import TINY, cached_grid, cli_main, cli_one_line, make_sim, write_tc2_scene
-from swe_sphere.config import load_scene, scene_from_dict
-from swe_sphere.constants import DAY
+from swe_sphere.config.scene import load_scene, scene_from_dict
+from swe_sphere.core.constants import DAY
 from swe_sphere.steppers import STEPPERS
 from swe_sphere.steppers.butcher import TableauOptions, conditions, stage_form
 from swe_sphere.steppers.runge_kutta import ImexRK, TableauARK, TableauRK

@@ -9,7 +9,7 @@ import pytest
 
 from conftest import cli_one_line
 from swe_sphere.cli import main
-from swe_sphere.timefilter import TimeFilter, lanczos_weights, response
+from swe_sphere.steppers.timefilter import TimeFilter, lanczos_weights, response
 
 
 def test_weights_sum_to_one_symmetric_half_power_at_cutoff():

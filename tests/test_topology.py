@@ -1,4 +1,4 @@
-"""The assembly seam (``swe_sphere.topology``): DSS, unique-node vectors and reductions
+"""The assembly seam (``swe_sphere.grid.topology``): DSS, unique-node vectors and reductions
 summed in the fixed global order of the grid's ``dss_table``."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from swe_sphere.topology import SerialComm, Topology
+from swe_sphere.grid.topology import SerialComm, Topology
 
 import roundoff
 from conftest import cached_grid

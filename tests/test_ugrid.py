@@ -1,5 +1,5 @@
 """The UGRID description in every run file: the sub-cell mesh of quads between GLL
-nodes (``swe_sphere.ugrid``), its topology and the attributes that tools read (the fields
+nodes (``swe_sphere.io.ugrid``), its topology and the attributes that tools read (the fields
 live on the control volumes of the dual mesh: test_dual.py)."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from swe_sphere.ugrid import orientation, subcell_quads
+from swe_sphere.io.ugrid import orientation, subcell_quads
 
 GRIDS = [(1, 2), (2, 4), (3, 2), (2, 8), (4, 3)]
 

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from swe_sphere.sweep import CRITERIA as SWEEP_CRITERIA
+from swe_sphere.studies.sweep import CRITERIA as SWEEP_CRITERIA
 
 CRITERIA = list(SWEEP_CRITERIA)  # the verdicts' criteria, in their order
 SHORT = {"balanced flow (filtered vorticity)": "filtered vorticity", "total h+hs": "total h+hs", "balanced flow (vorticity)": "vorticity", "balanced flow (filtered h+hs)": "filtered h+hs", "gravity waves (divergence)": "divergence"}

@@ -16,8 +16,9 @@ substeps), ``mri`` (MIS and MRI-GARK tables).
 
 from __future__ import annotations
 
-from ..model import ShallowWater
-from .base import StepFailure, Stepper, StepStats, option_types
+from ..model.shallow_water import ShallowWater
+from .base import Stepper, StepStats, option_types
+from ..core.errors import StepFailure
 from .exponential import Epi2, Epi3
 from .explicit import FBRK32, Leapfrog, LeapfrogTrapezoidal
 from .implicit import Implicit

@@ -10,7 +10,7 @@ Everything a stepper carries from one step to the next besides x (the step
 count, leapfrog's x(n−1), BDF2's x(n−1), a mean depth fixed at the first step)
 is explicit: ``state()`` returns it as numpy arrays and scalars and
 ``restore(state)`` sets it, so a stepper restored into a fresh process continues
-bitwise as if it had never stopped (restart files, ``swe_sphere.checkpoint``).
+bitwise as if it had never stopped (restart files, ``swe_sphere.simulation.checkpoint``).
 """
 
 from __future__ import annotations
@@ -22,7 +22,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
-from ..model import ShallowWater
+from ..model.shallow_water import ShallowWater
+from ..core.errors import StepFailure
 
 f64 = wp.float64
 
@@ -33,10 +34,6 @@ class StepStats:
 
     rhs_evals: int
     iterations: dict = field(default_factory=dict)
-
-
-class StepFailure(RuntimeError):
-    """A step could not be completed (a solver did not converge); the message says why."""
 
 
 @dataclass(frozen=True)

@@ -32,7 +32,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from .helmholtz import check_solve_options
+from ..solvers.helmholtz import check_solve_options
 from .tables import EXPLICIT
 
 TOL = 1e-9  # order conditions and row sums hold to this (rational entries exactly)

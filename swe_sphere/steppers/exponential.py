@@ -53,8 +53,8 @@ import warp as wp
 
 from ..kernels import blas
 from .base import Stepper, StepStats
-from .jacobian import FiniteDifferenceJacobian
-from .kiops import Kiops
+from ..solvers.jacobian import FiniteDifferenceJacobian
+from ..solvers.kiops import Kiops
 
 f64 = wp.float64
 

@@ -46,10 +46,11 @@ import warp as wp
 
 from ..kernels import blas
 from ..kernels import implicit as ik
-from .base import StepFailure, Stepper, StepStats
-from .helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, check_precision
-from .jacobian import FiniteDifferenceJacobian, KernelPasses
-from .krylov import FGMRES, KernelVectors
+from .base import Stepper, StepStats
+from ..core.errors import StepFailure
+from ..solvers.helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, check_precision
+from ..solvers.jacobian import FiniteDifferenceJacobian, KernelPasses
+from ..solvers.krylov import FGMRES, KernelVectors
 
 f64 = wp.float64
 

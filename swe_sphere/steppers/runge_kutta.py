@@ -61,7 +61,7 @@ import warp as wp
 from ..kernels import blas
 from .base import Stepper, StepStats
 from .butcher import PARTS, Table, TableauOptions, parse, stage_form
-from .helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, HelmholtzSteps, check_solve_options
+from ..solvers.helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, HelmholtzSteps, check_solve_options
 from .tables import COURANT_LIMITS, EXPLICIT, IMEX
 
 f64 = wp.float64

@@ -26,7 +26,7 @@ import warp as wp
 from ..kernels import blas
 from .base import StepStats
 from .explicit import Leapfrog, LeapfrogOptions
-from .helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, HelmholtzSteps, check_solve_options
+from ..solvers.helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, HelmholtzSteps, check_solve_options
 
 f64 = wp.float64
 

@@ -1,0 +1,243 @@
+"""Scores of a run: its fields against the truth, against a same-grid run, and its stability.
+
+The truth of a case is its exact solution (TC1, TC2, TC4, Läuter) or else a
+spectral reference (``reference``: the case's bundled T213 file, or the file
+the scene chose, ``Scene.reference_file``; at the days the file stores). A
+``Scorer`` owns the truth of one run and turns fields into normalized errors
+(Williamson et al. 1992, eqs. 82–87), with the wind error split into its
+vorticity (balanced flow) and divergence (gravity waves) by the model's own
+operators. ``Simulation`` scores every output time with it; ``sweep`` scores
+the states it keeps (total, temporal and time-filtered errors) and, with
+``stability``, judges stability by ``instability``.
+
+All fields are element-local (N,) and continuous, so an area integral is
+``Σ spheremp·f`` (``CubedSphere.integrate``, HOMME ``global_integral``).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..core.constants import DAY
+from ..grid.cubed_sphere import CubedSphere
+from .reference import Reference, stored_days, stored_index
+
+ENERGY_GROWTH_LIMIT = 0.01  # a run whose total energy grows by more than this fraction is unstable
+
+
+def williamson_norms(grid: CubedSphere, f, f_true) -> dict[str, float]:
+    """Normalized l1, l2, l∞ errors of a scalar (Williamson et al. 1992, eqs. 82–84):
+    l1 = I|f−fT| / I|fT|, l2 = sqrt(I(f−fT)²)/sqrt(I fT²), l∞ = max|f−fT| / max|fT|."""
+    e = f - f_true
+    I = grid.integrate
+    return {
+        "l1": I(np.abs(e)) / I(np.abs(f_true)),
+        "l2": float(np.sqrt(I(e * e) / I(f_true * f_true))),
+        "linf": float(np.max(np.abs(e)) / np.max(np.abs(f_true))),
+    }
+
+
+def williamson_vector_norms(grid: CubedSphere, u, v, u_true, v_true) -> dict[str, float]:
+    """Normalized l1, l2, l∞ errors of the wind (Williamson et al. 1992, eqs. 85–87),
+    with |·| the length of the vector difference."""
+    I = grid.integrate
+    de = np.hypot(u - u_true, v - v_true)
+    dt = np.hypot(u_true, v_true)
+    return {
+        "l1": I(de) / I(dt),
+        "l2": float(np.sqrt(I(de * de) / I(dt * dt))),
+        "linf": float(np.max(de) / np.max(dt)),
+    }
+
+
+def rotational_divergent_errors(grid: CubedSphere, zeta_err, delta_err, zeta_true, delta_true) -> dict[str, float]:
+    """Normalized l2 errors of relative vorticity (the balanced flow) and of
+    divergence (gravity waves): sqrt(I ζe²) / n and sqrt(I δe²) / n with
+    n = sqrt(I(ζT² + δT²)), the true wind's velocity-gradient scale. One
+    normaliser for both (the true divergence may vanish, as on TC2), so that
+    their squares add up to the error of the wind's gradient in the same units.
+    ``zeta_err``, ``delta_err`` (s⁻¹, (N,)): vorticity and divergence of the
+    wind error; ``zeta_true``, ``delta_true``: those of the true wind."""
+    I = grid.integrate
+    n = np.sqrt(I(zeta_true**2 + delta_true**2))
+    return {"l2_vorticity": float(np.sqrt(I(zeta_err**2)) / n), "l2_divergence": float(np.sqrt(I(delta_err**2)) / n)}
+
+
+def instability(result) -> str:
+    """Why a run (``simulation.RunResult``, a blow-up's partial one included) counts
+    as unstable: its blow-up message, or its total energy grown by more than
+    ``ENERGY_GROWTH_LIMIT`` at an output time; "" for a stable run."""
+    if result.blowup is not None:
+        return result.blowup
+    growth = max(h.get("total_energy_change", 0.0) for h in result.history)
+    return f"total energy grew by {growth:.2%}" if growth > ENERGY_GROWTH_LIMIT else ""
+
+
+def truth(case, reference) -> str:
+    """What a run of ``case`` is scored against, for output attributes: "exact
+    solution", the file name of ``reference`` (a path: ``Scene.reference_file``),
+    or "none"."""
+    if case.exact_solution:
+        return "exact solution"
+    return "none" if reference is None else Path(reference).name
+
+
+def unscored(case, day: float, reference) -> str | None:
+    """Why the truth cannot score a state of ``case`` (a ``cases.Case``) at ``day``,
+    in one line: the reference file ``reference`` (a path: ``Scene.reference_file``)
+    does not store that day (the bundled T213 files store a few whole days: TC5 0,
+    1, 2, 5, 10, 15), or the case has neither an exact solution nor a reference
+    (``reference`` None). None when it can."""
+    if case.exact_solution:
+        return None
+    if reference is None:
+        return f"{type(case).__name__} has no exact solution and no reference file"
+    path = Path(reference)
+    days = stored_days(path)
+    if stored_index(days, day) is not None:
+        return None
+    return f"{path.name} stores days {', '.join(f'{d:g}' for d in days)}, not day {day:g}"
+
+
+class Scorer:
+    """The truth of one run and its scores. Build and call on every rank (the
+    wind-error split and the reference's hand-out are collective); the figures
+    come back on every rank.
+
+    ``case``: the run's ``cases.Case``; ``model``: its ``ShallowWater``, whose
+    vorticity and divergence operators split wind errors; ``topology``: its
+    ``Topology``; ``grid``: the whole grid on rank 0 (None elsewhere,
+    ``Topology.whole_grid``); ``hs``: the whole-grid surface height (m, (npts,),
+    rank 0); ``reference``: the path of the reference file to score against
+    (``Scene.reference_file``), read on rank 0, or None (a case scored against
+    its exact solution, or one without a truth). Raises ``FileNotFoundError`` or
+    ``ValueError`` for a file that is not a reference (``reference.Reference``).
+
+    Attributes: ``reference`` (``reference.Reference`` on rank 0, else None),
+    ``reference_days`` (its stored days on every rank, None without one).
+    """
+
+    def __init__(self, case, model, topology, grid, hs, reference):
+        self.case, self.model, self.topology, self.grid, self.hs = case, model, topology, grid, hs
+        self.root = topology.comm.rank == 0
+        self.reference = Reference(reference) if reference is not None and self.root else None
+        self.reference_days = topology.bcast(self.reference.days if self.reference is not None else None)
+        self._scratch = model.new_state()  # a wind to differentiate
+
+    # -- vorticity and divergence ---------------------------------------------------
+    def rotation_divergence(self, u, v) -> tuple[np.ndarray, np.ndarray]:
+        """Relative vorticity and divergence (s⁻¹, (npts,) each, whole grid, on rank 0;
+        None elsewhere) of a continuous wind given on this rank's nodes (m s⁻¹,
+        (N,) each; the whole grid on one rank), by the model's operators + DSS."""
+        a = self.topology.gather(self._rotation_divergence(u, v))
+        return (None, None) if a is None else (a[0], a[1])
+
+    def _rotation_divergence(self, u, v) -> np.ndarray:
+        """(2, N): ``rotation_divergence`` on this rank's nodes, before the gather."""
+        self._scratch.assign(np.stack([u, v, np.zeros_like(u)]))
+        return np.stack([self.model.vorticity(self._scratch), self.model.wind_divergence(self._scratch)])
+
+    def wind_error_decomposition(self, u, v, u_true, v_true) -> dict:
+        """``l2_vorticity``, ``l2_divergence``: the wind error split into its
+        rotational (balanced-flow) and divergent (gravity-wave) parts, as the
+        vorticity and divergence of v − vT by the model's operators (one operator
+        on both sides, so the derivative's own discretisation error cancels),
+        normalized as in ``rotational_divergent_errors``. Winds on this rank's
+        nodes (N,)."""
+        a = self.topology.gather(np.concatenate([self._rotation_divergence(u - u_true, v - v_true), self._rotation_divergence(u_true, v_true)]))
+        return self.topology.bcast(rotational_divergent_errors(self.grid, *a) if self.root else None)  # (error, true) × (ζ, δ)
+
+    # -- against the truth ----------------------------------------------------------
+    def errors(self, t: float, x: np.ndarray, u, v, h) -> dict:
+        """Errors of a state at time ``t`` (s) against the truth: with an exact
+        solution ``l1_h``, ``l2_h``, ``linf_h``, ``l1_wind``, ``l2_wind``,
+        ``linf_wind``, ``l2_vorticity``, ``l2_divergence``; with a reference the
+        same of h + hs and the wind as ``ref_l1_h_surface`` … ``ref_linf_wind``,
+        ``ref_l2_vorticity``, ``ref_l2_divergence``, NaN at a day it does not
+        store (``unscored`` says why; every output time has every series); {}
+        for a case with neither. ``x``: the state on this rank's nodes (3, N) (u, v in m s⁻¹, h in
+        m); ``u``, ``v``, ``h``: the same on the whole grid (npts,) on rank 0
+        (None elsewhere)."""
+        local = self.topology.grid
+        split = ref_split = None
+        if self.case.exact_solution:
+            ue, ve, _ = self.case.exact(local.lat, local.lon, t)
+            split = self.wind_error_decomposition(x[0], x[1], ue, ve)
+        r = None  # the reference interpolated to the whole grid, on rank 0, at a day it stores
+        if self.reference_days is not None and stored_index(self.reference_days, t / DAY) is not None:
+            r = self.reference.at(t / DAY, self.grid.lat, self.grid.lon) if self.root else None
+            ur, vr = self.topology.distribute(np.stack([r["u"], r["v"]]) if self.root else None, 2, "reference wind")
+            ref_split = self.wind_error_decomposition(x[0], x[1], ur, vr)
+        d = None
+        if self.root:
+            d = {}
+            if self.case.exact_solution:
+                ue, ve, he = self.case.exact(self.grid.lat, self.grid.lon, t)
+                d.update({f"{k}_h": val for k, val in williamson_norms(self.grid, h, he).items()})
+                d.update({f"{k}_wind": val for k, val in williamson_vector_norms(self.grid, u, v, ue, ve).items()})
+                d.update(split)
+            if self.reference is not None:
+                d.update(self._reference_errors(u, v, h, r, ref_split))
+        return self.topology.bcast(d)
+
+    def _reference_errors(self, u, v, h, r, split) -> dict:
+        """Normalized errors of the free surface h + hs and of the wind against the
+        reference ``r`` on the whole grid, with the wind error's parts ``split``
+        (NaN at days the reference does not store: ``r`` None)."""
+        names = [f"ref_{k}_{f}" for f in ("h_surface", "wind") for k in ("l1", "l2", "linf")]
+        names += ["ref_l2_vorticity", "ref_l2_divergence"]
+        if r is None:
+            return dict.fromkeys(names, float("nan"))
+        out = {f"ref_{k}_h_surface": val for k, val in williamson_norms(self.grid, h + self.hs, r["h_surface"]).items()}
+        out.update({f"ref_{k}_wind": val for k, val in williamson_vector_norms(self.grid, u, v, r["u"], r["v"]).items()})
+        out.update({f"ref_{k}": val for k, val in split.items()})
+        return out
+
+    def total_errors(self, t: float, x: np.ndarray) -> dict:
+        """A sweep's total errors of state ``x`` (this rank's (3, N)) at time ``t`` (s):
+        l2 of h (exact solution) or of h + hs (reference) as ``total_error``, and
+        of the wind's vorticity and divergence (``total_error_vorticity``,
+        ``total_error_divergence``); NaN where ``unscored``."""
+        whole = self.topology.gather(x)
+        d = self.errors(t, x, *((None,) * 3 if whole is None else whole[:3]))
+        pre = "" if "l2_h" in d else "ref_"
+        return {
+            "total_error": d.get("l2_h", d.get("ref_l2_h_surface", math.nan)),
+            "total_error_vorticity": d.get(f"{pre}l2_vorticity", math.nan),
+            "total_error_divergence": d.get(f"{pre}l2_divergence", math.nan),
+        }
+
+    # -- against a same-grid run ------------------------------------------------------
+    def _against(self, x: np.ndarray, x_ref: np.ndarray) -> tuple[float, float, dict]:
+        """(l2 of h + hs, l2 of the wind, the wind error's split) of state ``x``
+        against ``x_ref`` (this rank's (3, N) each), on every rank."""
+        a, b = self.topology.gather(x), self.topology.gather(x_ref)
+        split = self.wind_error_decomposition(x[0], x[1], x_ref[0], x_ref[1])
+        norms = None
+        if self.root:
+            hs = self.hs
+            norms = (williamson_norms(self.grid, a[2] + hs, b[2] + hs)["l2"],
+                     williamson_vector_norms(self.grid, a[0], a[1], b[0], b[1])["l2"])
+        return (*self.topology.bcast(norms), split)
+
+    def temporal_errors(self, x: np.ndarray, x_ref: np.ndarray) -> dict:
+        """Temporal errors of a run's state ``x`` against the same-grid small-Δt
+        run's ``x_ref`` at the same time (this rank's (3, N) each): l2 of h + hs
+        (``temporal_error``), of the wind (``temporal_error_wind``) and of its
+        vorticity and divergence (``temporal_error_vorticity``, ``temporal_error_divergence``)."""
+        h, wind, split = self._against(x, x_ref)
+        return {"temporal_error": h, "temporal_error_wind": wind,
+                "temporal_error_vorticity": split["l2_vorticity"], "temporal_error_divergence": split["l2_divergence"]}
+
+    def filtered_errors(self, xf: np.ndarray | None, xf_ref: np.ndarray | None) -> dict:
+        """l2 of the difference of two time-filtered states (``timefilter.TimeFilter``:
+        a run's and the small-Δt run's, this rank's (3, N) each) in h + hs
+        (``temporal_error_filtered``) and in its wind's vorticity
+        (``temporal_error_filtered_vorticity``); NaN without both."""
+        if xf is None or xf_ref is None:
+            return {"temporal_error_filtered": math.nan, "temporal_error_filtered_vorticity": math.nan}
+        h, _, split = self._against(xf, xf_ref)
+        return {"temporal_error_filtered": h, "temporal_error_filtered_vorticity": split["l2_vorticity"]}

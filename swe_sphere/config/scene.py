@@ -1,0 +1,691 @@
+"""Scenes: a TOML file per test case, validated once into a frozen ``Scene``.
+
+A scene names its case, the terms it simulates, the grid, stepper and step,
+the run length, the output interval and the hyperviscosity. Layout::
+
+    description = "..."
+    terms = ["continuity", "momentum_advection", ...]
+    [case]            name = "tc5_mountain" (+ case parameters, e.g. alpha), or
+                      name = "file", path = "state.nc", time = 3.0 (a state of one's
+                      own from a file, at a time it holds: ``initial_state``),
+                      initialization = "none" | "dfi" (a digital-filter balanced start),
+                      reference = "T341" or "PATH" (the reference to score against
+                      instead of the case's bundled T213 one: a bundled truncation
+                      or a file; ``reference.locate``)
+    [dfi]             span_hours = 48.0, cutoff_hours = 24.0 (``initialization.DigitalFilter``)
+    [grid]            ne = 30, np = 4
+    [time]            stepper = "leapfrog_trapezoidal", dt = 90.0, days = 15.0
+    [output]          every_days = 1.0, log_every_steps = 0 (a line of invariant
+                      changes and Courant numbers every so many steps; 0: none),
+                      fields = ["h", "u", "v"] (the run file's node fields; default
+                      all of ``OUTPUT_FIELDS``)
+    [[output.streams]] name = "6h", every_days = 0.25, fields = ["h"]: one more run
+                      file RUN.6h.nc per table, at its own interval (whole steps)
+    [hyperviscosity]  efold_hours = 3.0, nu = ..., nu_div = ..., nu_s = ..., subcycle = 1
+                      (efold_hours: e-folding time at the grid scale, which sets
+                      nu, nu_div, nu_s on every grid (``efold_nu``); nu, nu_div,
+                      nu_s (m^4/s at the scene's grid, scaled as dx^3.2): the
+                      rotational wind, divergent wind, h + hs (HOMME's names),
+                      given explicitly; without efold_hours nu_div, nu_s default to nu)
+    [leapfrog]        robert_asselin = 0.05   (a table per stepper, named after
+                      it, holds that stepper's options; an option typed tuple
+                      is a TOML array, e.g. [tableau] A = [[0, 0], ["1/2", 0]])
+    [planet]          radius = 6.37122e6 (m), omega = 7.292e-5 (s^-1),
+                      gravity = 9.80616 (m s^-2) (Williamson's, the defaults;
+                      ``constants.Planet``). A scene's dt and ν are for its
+                      file's radius: with another radius set by an override
+                      (``-s planet.radius=...``) and no dt given (``--dt``,
+                      ``-s time.dt``), dt scales with the radius (the node
+                      spacing) as for a grid, and ν as a⁴ (the same damping time
+                      at the grid scale). A run on another planet than
+                      Williamson's Earth is not scored against the bundled
+                      spectral references (the Earth's).
+
+Every problem raises ``SceneError`` (a ValueError) with a one-line message
+naming the offending key or value.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import math
+import re
+import tomllib
+import types
+from dataclasses import dataclass, field
+from fractions import Fraction
+from importlib.resources import files
+from pathlib import Path
+
+from ..cases.library import make_case
+from ..core.constants import DAY, EARTH, Planet
+from ..grid.gll import NP_MAX, NP_MIN, gll
+from ..io.initial_state import SCENE_CASES
+from ..core.errors import SceneError
+from ..steppers.initialization import METHODS, DigitalFilter
+from ..model.shallow_water import TERMS
+from ..io.run_file import OUTPUT_FIELDS
+from ..cases.reference import cases_of, locate, reference_path, stored_days
+from ..steppers import STEPPERS, option_types
+
+HYPERVIS_EXPONENT = 3.2  # ν ∝ Δx^3.2 (HOMME's resolution scaling; Dennis et al. 2012)
+
+
+def efold_nu(hours: float, ne: int, np: int, radius: float) -> float:
+    """ν (m⁴ s⁻¹) that e-folds a degree-L harmonic in ``hours``, L = 2 ne (np − 1)
+    the Nyquist degree of the 4 ne (np − 1) nodes around a great circle:
+    ν = a⁴ / (τ (L(L+1))²). The T213 references use the same rule (3 h at
+    l = 213: ν₄ = 7.34e13 m⁴ s⁻¹)."""
+    L = 2 * ne * (np - 1)
+    return radius**4 / (hours * 3600.0 * (L * (L + 1)) ** 2)
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated, resolved scene (all values final, overrides applied).
+
+    dt in s, days in days, nu, nu_div, nu_s in m⁴ s⁻¹ (already scaled to this grid).
+    ``initialization``: None (the case's initial state) or {"method": "dfi",
+    "span_hours": ..., "cutoff_hours": ...} (``initialization.DigitalFilter``).
+    ``reference``: None (the case's bundled reference, if any) or the absolute
+    path of the reference file the run is scored against (``case.reference``).
+    """
+
+    name: str
+    description: str
+    case: str
+    case_params: dict
+    terms: tuple
+    ne: int
+    np: int
+    stepper: str
+    stepper_options: dict
+    dt: float
+    days: float
+    output_every_days: float
+    nu: float
+    hypervis_subcycle: int
+    nu_div: float = 0.0
+    nu_s: float = 0.0
+    notes: tuple = field(default=())
+    # a run branched from a restart file (``checkpoint.branch``): {"restart": its path, "sha256": the
+    # file's, "step", "day", "stepper", "dt": where and from what}; its steps count from that day
+    branch: dict | None = None
+    initialization: dict | None = None
+    reference: str | None = None
+    log_every_steps: int = 0  # a log line every so many steps (``Simulation.run``'s ``log``); 0: none
+    planet: dict = field(default_factory=EARTH.as_table)  # [planet]: radius (m), omega (s⁻¹), gravity (m s⁻²)
+    output_fields: tuple = ()  # [output] fields: the node fields the run file holds; (): all (``OUTPUT_FIELDS``)
+    # [[output.streams]]: more run files, each {"name": suffix, "every_days": interval, "fields": (...)}
+    output_streams: tuple = ()
+
+    @property
+    def start_day(self) -> float:
+        """The model day of step 0: 0, or for a branched run the day it branched at."""
+        return 0.0 if self.branch is None else self.branch["day"]
+
+    @property
+    def run_days(self) -> float:
+        """The run's length in days: from ``start_day`` to ``days``."""
+        return self.days - self.start_day
+
+    @property
+    def nsteps(self) -> int:
+        return round(self.run_days * DAY / self.dt)
+
+    def day(self, step: int) -> float:
+        """The model time of ``step`` in days: start_day + step × (run length / nsteps),
+        in exact rational arithmetic from the days as written (their shortest
+        decimals), rounded once. So the output times are the multiples of the output
+        interval as typed (3.0, where step × dt / 86400 gives 3.0000000000000004 for
+        dt = 86400/408 s) and ``ds.h.sel(time=3)`` finds them; a run continued to
+        another length of whole steps (``with_days``) gives the same times, and a
+        branch at day 10 with another dt gives 10 + the multiples."""
+        start = Fraction(repr(self.start_day))
+        return float(start + (Fraction(repr(self.days)) - start) * int(step) / self.nsteps)
+
+    def make_case(self):
+        return make_case(self.case, self.case_params, Planet.from_table(self.planet), SCENE_CASES)
+
+    @property
+    def digital_filter(self) -> DigitalFilter | None:
+        """The start's digital filter, or None for the case's own initial state."""
+        if self.initialization is None:
+            return None
+        return DigitalFilter(**{k: v for k, v in self.initialization.items() if k != "method"})
+
+    @property
+    def reference_file(self) -> Path | None:
+        """The reference file the run is scored against: the chosen one, else the
+        case's bundled one (``reference.reference_path``) on Williamson's Earth; None
+        for a case scored against its exact solution or without a reference, and
+        on another planet (the bundled references are the Earth's)."""
+        if self.reference is not None:
+            return Path(self.reference)
+        return reference_path(self.make_case()) if Planet.from_table(self.planet) == EARTH else None
+
+    def as_dict(self) -> dict:
+        """The scene as plain values (JSON-able); the output choices only when made, so a
+        scene without them reads as before they existed (run files, restart files)."""
+        d = dataclasses.asdict(self)
+        for key in ("output_fields", "output_streams"):
+            if not d[key]:
+                del d[key]
+        return d
+
+
+def scene_from_dict(d: dict) -> Scene:
+    """A Scene from ``Scene.as_dict()`` (e.g. read back from JSON).
+
+    A key this version added with a default (e.g. ``initialization``) may be
+    missing: its default is the behaviour of the version that wrote ``d``, so a
+    restart file from before the key existed still continues bitwise. ValueError
+    for an unknown key or a missing key without a default.
+    """
+    fields = dataclasses.fields(Scene)
+    unknown = set(d) - {f.name for f in fields}
+    missing = {f.name for f in fields if f.name not in d
+               and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING}
+    if unknown or missing:
+        raise ValueError(f"scene keys differ from this version's: {', '.join(sorted(unknown | missing))}")
+    streams = tuple({**st, "fields": tuple(st["fields"])} for st in d.get("output_streams", ()))
+    return Scene(**{**d, "terms": tuple(d["terms"]), "notes": tuple(d.get("notes", ())),
+                    "output_fields": tuple(d.get("output_fields", ())), "output_streams": streams})
+
+
+_SCHEMA = {
+    "description": str,
+    "terms": list,
+    "case": dict,
+    "grid": {"ne": int, "np": int},
+    "time": {"stepper": str, "dt": float, "days": float},
+    "output": {"every_days": float, "log_every_steps": int, "fields": list, "streams": list},
+    "hyperviscosity": {"efold_hours": float, "nu": float, "nu_div": float, "nu_s": float, "subcycle": int},
+    "dfi": {"span_hours": float, "cutoff_hours": float},
+    "planet": {"radius": float, "omega": float, "gravity": float},
+    # one table per stepper, named after it, with the stepper's own options
+    **{name: option_types(cls.Options) for name, cls in STEPPERS.items() if option_types(cls.Options)},
+}
+
+
+def scene_dir() -> Path:
+    """Folder of the bundled scenes (testcases/)."""
+    return Path(str(files("swe_sphere.testcases")))
+
+
+SCENE_FOLDERS = ("", "tableaus")  # testcases/ and its folders of bundled scenes (tableaus/: Butcher tables)
+
+
+def list_scenes() -> list[Path]:
+    return [p for folder in SCENE_FOLDERS for p in sorted((scene_dir() / folder).glob("*.toml"))]
+
+
+def resolve_path(spec: str) -> Path:
+    """A scene path, or the name of a bundled scene (with or without .toml, and
+    with or without its folder: "ark2_gkc" or "tableaus/ark2_gkc").
+    Raises ``SceneError``, suggesting the closest bundled names for a typo."""
+    p = Path(spec)
+    if p.exists():
+        return p
+    name = p.name if p.suffix == ".toml" else p.name + ".toml"
+    for folder in SCENE_FOLDERS:
+        bundled = scene_dir() / folder / name
+        if bundled.exists() and p.parent in (Path("."), Path(folder)):
+            return bundled
+    close = difflib.get_close_matches(p.stem, [q.stem for q in list_scenes()], n=3)
+    hint = f" (did you mean {' or '.join(close)}?)" if close and p.parent in map(Path, SCENE_FOLDERS) else ""
+    raise SceneError(f"scene file not found: {spec}{hint}")
+
+
+def _whole_step_days(dt: float) -> Fraction | None:
+    """The shortest decimal number of days that is a whole number of steps of
+    ``dt`` (s), when a day is a rational number of them with a denominator up to
+    1000 (dt = 86400/408 s: 0.125 days, 51 steps); None otherwise."""
+    per_day = Fraction(DAY / dt).limit_denominator(1000)
+    if abs(per_day - DAY / dt) > 1e-9 * DAY / dt:
+        return None
+    twos_fives = math.gcd(per_day.numerator, 10**30)  # the 2s and 5s of the numerator: a decimal unit absorbs them
+    return Fraction(per_day.denominator, twos_fives)
+
+
+def _whole_steps(dt: float, days: float) -> bool:
+    n = round(days * DAY / dt)
+    return n >= 1 and abs(n * dt - days * DAY) <= 1e-6 * dt
+
+
+def _not_whole_steps(what: str, days: float, dt: float, dt_source: str) -> SceneError:
+    """The one-line refusal of an interval (output or run length, days) that is not a
+    whole number of steps, with where dt comes from and the nearest intervals that are."""
+    unit = _whole_step_days(dt)
+    if unit is not None:
+        below = math.floor(Fraction(repr(days)) / unit) * unit
+        near = " or ".join(f"{float(x):.10g}" for x in (below, below + unit) if x > 0)
+        fits = f"whole-step intervals are the multiples of {float(unit):.10g} days (nearest: {near})"
+    else:
+        n = days * DAY / dt
+        near = " or ".join(f"{k * dt / DAY:.6g}" for k in sorted({max(1, math.floor(n)), math.ceil(n)}))
+        fits = f"the nearest whole-step intervals are {near} days"
+    return SceneError(f"{what} of {days:g} days is not a whole number of steps of dt = {dt:g} s ({dt_source}): "
+                      f"a run writes and ends at whole steps; {fits}, or set a dt that divides it")
+
+
+def _check_schedule(dt: float, days: float, every: float, dt_source: str = "the scene's time.dt") -> None:
+    """dt must divide the run length and (if shorter than the run) the output interval;
+    ``dt_source`` says where dt comes from, for the message."""
+    nsteps = round(days * DAY / dt)
+    if nsteps > MAX_STEPS:
+        raise SceneError(f"dt = {dt:g} s gives {nsteps:.3g} steps to day {days:g} (more than {MAX_STEPS:.0e})")
+    if not _whole_steps(dt, days):
+        raise _not_whole_steps("the run length", days, dt, dt_source)
+    if days > every and not _whole_steps(dt, every):
+        raise _not_whole_steps("the output interval (output.every_days)", every, dt, dt_source)
+
+
+def _common_interval(every: float, days: float) -> float:
+    """The longest interval (days) that divides the run length and, when the run is
+    longer, the output interval: their greatest common divisor as decimals written."""
+    if days <= every:
+        return days
+    a, b = Fraction(repr(every)), Fraction(repr(days))
+    return float(Fraction(math.gcd(a.numerator * b.denominator, b.numerator * a.denominator), a.denominator * b.denominator))
+
+
+def with_days(scene: Scene, days: float, dt_source: str = "the restart file's") -> Scene:
+    """The scene run to ``days`` (model day, from t = 0) instead; dt must divide the
+    run from ``start_day`` and its output interval (``dt_source`` says where dt comes
+    from, for the message). Raises ``SceneError``."""
+    start = scene.start_day
+    if not (isinstance(days, (int, float)) and math.isfinite(days) and days > start):
+        raise SceneError(f"days must be > {start:g} (got {days})" + (
+            f": the run branches at day {start:g} and days is the model day it ends at" if start else ""))
+    scene = dataclasses.replace(scene, days=float(days))
+    _check_schedule(scene.dt, scene.run_days, scene.output_every_days, dt_source)
+    return scene
+
+
+def _reference(spec, case_name: str, case_obj) -> str:
+    """The absolute path of the reference file ``case.reference`` names (a path, a
+    bundled file name or a truncation, "T341": see ``reference.locate``), its
+    variables and layout checked without reading its fields. Raises ``SceneError`` naming the key and the value."""
+    where = f"case.reference = {spec!r}"
+    if not isinstance(spec, str):
+        raise SceneError(f"case.reference must be a file path or a truncation such as \"T341\" (got {_got(spec)})")
+    if case_obj.exact_solution:
+        raise SceneError(f"{where}: case {case_name} is scored against its exact solution, not a reference file")
+    try:
+        path = locate(spec, case_obj)
+        stored_days(path)
+        solves, expected = cases_of(path, case_obj)
+    except (OSError, ValueError) as err:
+        raise SceneError(f"{where}: {err}") from None
+    if solves is not None and expected is not None and solves != expected:
+        raise SceneError(f"{where}: the file is a {solves} reference (its title), not one of {expected}")
+    return str(path)
+
+
+def _first_gll_gap(npts: int) -> float:
+    x = gll(npts).points
+    return float(x[1] - x[0])
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _is_integer(value) -> bool:
+    return _is_number(value) and math.isfinite(value) and int(value) == value
+
+
+def _got(value) -> str:
+    """A refused value for a message: its repr, and its type where that is not a number's."""
+    return repr(value) if _is_number(value) else f"{value!r}, a {type(value).__name__}"
+
+
+def _check_type(key, value, kind):
+    if isinstance(kind, types.UnionType):  # e.g. a count or "auto": the options' own check names the choices
+        return value
+    if kind is tuple:  # a list-valued option (a Butcher table): a TOML array, its entries the stepper's options to check
+        if not isinstance(value, (list, tuple)):
+            raise SceneError(f"{key} must be an array (got {_got(value)})")
+        return value
+    if kind is float and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if kind is int and isinstance(value, float) and value.is_integer():
+        value = int(value)
+    if not isinstance(value, kind) or (kind is not bool and isinstance(value, bool)):
+        raise SceneError(f"{key} must be {kind.__name__} (got {value!r})")
+    if kind is float and not math.isfinite(value):
+        raise SceneError(f"{key} must be finite (got {value!r})")
+    return value
+
+
+def _validate(raw: dict) -> dict:
+    out = {}
+    for key, value in raw.items():
+        if key not in _SCHEMA:
+            raise SceneError(f"unknown key {key!r} in scene (known: {', '.join(_SCHEMA)})")
+        spec = _SCHEMA[key]
+        if isinstance(spec, dict):
+            if not isinstance(value, dict):
+                raise SceneError(f"[{key}] must be a table")
+            sub = {}
+            for k, v in value.items():
+                if k not in spec:
+                    removed = STEPPERS[key].removed(k) if key in STEPPERS else None
+                    if removed:
+                        raise SceneError(f"{key}.{removed}")
+                    raise SceneError(f"unknown key {key}.{k} in scene (known: {', '.join(spec)})")
+                sub[k] = _check_type(f"{key}.{k}", v, spec[k])
+            out[key] = sub
+        else:
+            out[key] = _check_type(key, value, spec)
+    return out
+
+
+MAX_STEPS = 10**9  # a run longer than this is a typo in dt, not a plan
+
+
+# the starts of load_scene's notes on how it scaled (and cut) dt: stale once a dt is given (a branch's)
+DT_NOTES = ("dt scaled", "warning: dt cut")
+
+# keys of [case] that say how a run starts, not which flow: they outlive a case switch
+SCENE_CASE_KEYS = ("initialization",)
+
+
+def _apply_overrides(raw: dict, overrides: dict) -> None:
+    """Set ``"section.key": value`` (or ``"key": value``) in the raw TOML dict.
+    A ``case.name`` other than the file's switches the case: the file's [case]
+    parameters (and reference, a truth of the old flow) are the old case's and are
+    dropped, all but ``SCENE_CASE_KEYS``; the ``case.*`` overrides then apply (one
+    the new case does not know is refused by ``cases.make_case``)."""
+    case = raw.get("case")
+    if isinstance(case, dict) and "case.name" in overrides and overrides["case.name"] != case.get("name"):
+        raw["case"] = {k: v for k, v in case.items() if k in SCENE_CASE_KEYS}
+    for key, value in overrides.items():
+        section, _, name = key.rpartition(".")
+        if not name:
+            raise SceneError(f"override {key!r} must be SECTION.KEY or KEY")
+        if section:
+            table = raw.setdefault(section, {})
+            if not isinstance(table, dict):
+                raise SceneError(f"override {key}: {section} is not a table")
+            table[name] = value
+        else:
+            raw[name] = value
+
+
+def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, overrides: dict | None = None) -> Scene:
+    """Read, validate and resolve a scene file, applying command-line overrides.
+
+    ``overrides``: {"section.key": value} set in the file's values before they
+    are validated (``-s hyperviscosity.nu=5e14``), so they are checked like the file.
+    When the grid is overridden and dt is not, dt scales with the smallest
+    node spacing (first GLL interval / ne) and is shortened to divide the
+    output interval (or the run, if shorter; a note warns when that cuts dt by
+    more than 2×); ν scales as the mean spacing 1/(ne·(np−1)) to the power 3.2.
+    Duplicate terms, and terms that omit what the case needs
+    (``Case.required_terms``), are refused. Raises ``SceneError``.
+    """
+    path = resolve_path(str(path))
+    try:
+        raw = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as err:
+        raise SceneError(f"malformed TOML in {path}: {err}") from None
+    except OSError as err:
+        raise SceneError(f"cannot read scene {path}: {err.strerror}") from None
+    # the radius the scene's own dt and ν are for: its file's planet (before the overrides), unless dt is overridden too
+    table = raw.get("planet", {})
+    file_radius = table.get("radius", EARTH.a) if isinstance(table, dict) and "time.dt" not in (overrides or {}) else None
+    file_case = raw.get("case", {}).get("name") if isinstance(raw.get("case"), dict) else None
+    _apply_overrides(raw, overrides or {})
+    s = _validate(raw)
+    notes = []
+
+    case = dict(s.get("case", {}))
+    if "name" not in case:
+        raise SceneError("case.name is missing")
+    case_name = case.pop("name")
+    method = case.pop("initialization", "none")
+    if method not in METHODS:
+        raise SceneError(f"case.initialization must be one of {', '.join(METHODS)} (got {method!r})")
+    reference = case.pop("reference", None)
+    if case_name == "file" and isinstance(case.get("path"), str):  # relative to the current folder, else to the scene's
+        given = Path(case["path"]).expanduser()
+        beside = path.parent / given
+        case["path"] = str((beside if not given.exists() and beside.exists() else given).absolute())
+    try:
+        planet = Planet.from_table(s.get("planet"))
+        case_obj = make_case(case_name, case, planet, SCENE_CASES)
+    except ValueError as err:
+        raise SceneError(str(err)) from None
+    scale = planet.a / file_radius if _is_number(file_radius) and file_radius > 0 else 1.0  # the planet's node spacing, new / scene's
+    if reference is not None:
+        if planet != EARTH:
+            raise SceneError(f"case.reference = {reference!r}: the spectral references are of Williamson's Earth, "
+                             f"not of this scene's planet ({_planet_text(planet)}); drop case.reference or [planet]")
+        reference = _reference(reference, case_name, case_obj)
+    elif planet != EARTH and case_obj.reference_file is not None:
+        notes.append(f"not scored against the {case_obj.reference_file} reference: it is of Williamson's Earth, "
+                     f"not of this planet ({_planet_text(planet)})")
+
+    terms = s.get("terms")
+    if not terms:
+        raise SceneError("terms is missing or empty")
+    for i, t in enumerate(terms):
+        if t not in TERMS:
+            raise SceneError(f"unknown term {t!r} (known: {', '.join(TERMS)})")
+        if t in terms[:i]:
+            raise SceneError(f"term {t!r} is listed twice in terms")
+    missing = [t for t in TERMS if t in case_obj.required_terms and t not in terms]
+    if missing:
+        raise SceneError(f"case {case_name} needs the term(s) {', '.join(missing)} (terms = {terms})")
+    if "forcing" in terms and case_obj.forcing() is None:
+        raise SceneError(f"case {case_name} has no forcing: drop the term 'forcing'")
+
+    initialization = None
+    if method == "dfi":
+        if case_obj.exact_solution:
+            raise SceneError(f"case.initialization = \"dfi\" would spoil case {case_name}'s exact solution (its errors are "
+                             "measured against it); use it on cases without one (tc5_mountain, tc6_rossby_haurwitz, galewsky)")
+        try:
+            dfi = DigitalFilter(**s.get("dfi", {}))
+        except ValueError as err:
+            raise SceneError(str(err)) from None
+        initialization = {"method": "dfi", **dataclasses.asdict(dfi)}
+
+    grid = s.get("grid", {})
+    ne0, np0 = grid.get("ne", 16), grid.get("np", 4)
+    ne1 = ne0 if ne is None else ne
+    np1 = np0 if np is None else np
+    if "grid" not in s and (ne is None or np is None):
+        notes.append(f"the scene has no [grid]: ne = {ne1}, np = {np1} (the defaults)")
+    if not _is_integer(ne1) or ne1 < 1:
+        raise SceneError(f"ne must be an integer >= 1 (got {_got(ne1)})")
+    if not _is_integer(np1) or not NP_MIN <= np1 <= NP_MAX:
+        raise SceneError(f"np must be an integer in {NP_MIN}..{NP_MAX} (got {_got(np1)})")
+    ratio = (ne0 * (np0 - 1)) / (ne1 * (np1 - 1))  # mean node spacing, new / scene's
+    # smallest node spacing (sets the explicit limit), new / scene's
+    min_ratio = (_first_gll_gap(np1) / ne1) / (_first_gll_gap(np0) / ne0) * scale
+
+    t = s.get("time", {})
+    stepper1 = stepper or t.get("stepper", "ssprk3")
+    if stepper1 not in STEPPERS:
+        raise SceneError(f"unknown stepper {stepper1!r} (known: {', '.join(STEPPERS)})")
+    every = s.get("output", {}).get("every_days", 1.0)
+    if not every > 0:
+        raise SceneError(f"output.every_days must be > 0 (got {every})")
+    log_every = s.get("output", {}).get("log_every_steps", 0)
+    if log_every < 0:
+        raise SceneError(f"output.log_every_steps must be >= 0 (got {log_every}; 0: no log lines)")
+    days1 = t.get("days", 1.0) if days is None else days
+    if not (_is_number(days1) and math.isfinite(days1) and days1 > 0):
+        raise SceneError(f"days must be > 0 (got {_got(days1)})")
+    if dt is None:
+        dt1 = t.get("dt")
+        if dt1 is None:
+            raise SceneError("time.dt is missing")
+        if not dt1 > 0:
+            raise SceneError(f"time.dt must be > 0 (got {dt1})")
+        dt_source = f"time.dt of scene {path.stem}"
+        if min_ratio != 1.0:
+            common = _common_interval(every, days1)
+            interval = common * DAY
+            scaled = dt1 * min_ratio
+            dt1 = interval / max(1, math.ceil(interval / scaled - 1e-9))
+            radius = f" radius={planet.a:g} m" if scale != 1.0 else ""
+            dt_source = f"time.dt of scene {path.stem} scaled to ne={ne1} np={np1}{radius}"
+            if scaled / dt1 > 2:  # one line for both: "scaled to" the cut dt read as if the grid had asked for it
+                if days1 <= every:
+                    what = f"the run length of {days1:g} days"
+                elif common == every:
+                    what = f"the output interval of {every:g} days"
+                else:
+                    what = f"both the output interval of {every:g} and the run length of {days1:g} days"
+                notes.append(f"warning: dt cut {scaled / dt1:.3g}x (from {scaled:g} s, scaled with the smallest node spacing) "
+                             f"to {dt1:g} s to divide {what}")
+            else:
+                notes.append(f"dt scaled with the smallest node spacing to {dt1:g} s")
+    else:
+        dt1, dt_source = dt, "the dt given"
+    if not (_is_number(dt1) and math.isfinite(dt1) and dt1 > 0):
+        raise SceneError(f"dt must be > 0 (got {_got(dt1)})")
+    _check_schedule(dt1, days1, every, dt_source)
+    output_fields, streams = _output_choices(s.get("output", {}), dt1, days1, dt_source)
+
+    options = dict(s.get(stepper1, {}))
+    try:
+        STEPPERS[stepper1].make_options(**options)
+    except ValueError as err:
+        raise SceneError(f"{stepper1}.{err}") from None
+    # a scene file may hold tables for other steppers (--stepper picks one); an -s for one is a slip
+    other = sorted(k for k in overrides or {} if k.partition(".")[0] in STEPPERS and k.partition(".")[0] != stepper1)
+    if other:
+        notes.append(f"warning: -s {', '.join(other)}: not an option of {stepper1}, the stepper that runs; not used")
+
+    hv = s.get("hyperviscosity", {})
+    for key in ("efold_hours", "nu", "nu_div", "nu_s"):
+        if hv.get(key, 0.0) < 0 or (key == "efold_hours" and key in hv and hv[key] == 0):
+            raise SceneError(f"hyperviscosity.{key} must be {'> 0' if key == 'efold_hours' else '>= 0'} (got {hv[key]})")
+    # explicit coefficients (m^4/s at the scene's grid and planet) scale as dx^3.2 and, keeping their damping
+    # time at the grid scale, as a^4 on another planet; efold_hours gives the rest on the run's grid
+    planet_factor = scale**4
+    nus = {key: hv[key] * ratio**HYPERVIS_EXPONENT * planet_factor for key in ("nu", "nu_div", "nu_s") if key in hv}
+    if "efold_hours" in hv:
+        rule = efold_nu(hv["efold_hours"], ne1, np1, planet.a)
+        nus = {key: nus.get(key, rule) for key in ("nu", "nu_div", "nu_s")}
+        if ratio != 1.0:
+            notes.append(f"nu = {rule:.3g} m^4/s: {hv['efold_hours']:g} h e-folding at degree {2 * ne1 * (np1 - 1)}")
+    else:
+        nus = {key: nus.get(key, nus.get("nu", 0.0)) for key in ("nu", "nu_div", "nu_s")}
+    if "hyperviscosity" in terms and max(nus.values()) == 0:
+        raise SceneError("the hyperviscosity term needs hyperviscosity.nu, nu_div, nu_s or efold_hours > 0")
+    if "hyperviscosity" not in terms:
+        if any(k in hv for k in ("nu", "nu_div", "nu_s")):
+            notes.append("hyperviscosity coefficients given, but the scene's terms have no hyperviscosity: not used")
+        nus = dict.fromkeys(nus, 0.0)
+    elif (ratio != 1.0 or planet_factor != 1.0) and any(k in hv for k in ("nu", "nu_div", "nu_s")) and max(nus.values()) > 0:
+        notes.append(f"nu scaled as dx^{HYPERVIS_EXPONENT} and radius^4: nu, nu_div, nu_s = {nus['nu']:.3g}, {nus['nu_div']:.3g}, {nus['nu_s']:.3g} m^4/s")
+    subcycle = hv.get("subcycle", 1)
+    if subcycle < 1:
+        raise SceneError(f"hyperviscosity.subcycle must be >= 1 (got {subcycle})")
+
+    # a switched case (-s case.name=...) is named in the header, the run file's title and its default name
+    switched = case_name != file_case
+    return Scene(
+        name=f"{case_name}_in_{path.stem}" if switched else path.stem,
+        description=f"case {case_name} with scene {path.stem}'s grid, terms and stepping" if switched else s.get("description", ""),
+        case=case_name,
+        case_params=case,
+        terms=tuple(terms),
+        ne=int(ne1),
+        np=int(np1),
+        stepper=stepper1,
+        stepper_options=options,
+        dt=float(dt1),
+        days=float(days1),
+        output_every_days=float(every),
+        nu=float(nus["nu"]),
+        hypervis_subcycle=int(subcycle),
+        nu_div=float(nus["nu_div"]),
+        nu_s=float(nus["nu_s"]),
+        notes=tuple(notes),
+        initialization=initialization,
+        reference=reference,
+        log_every_steps=int(log_every),
+        planet=planet.as_table(),
+        output_fields=output_fields,
+        output_streams=streams,
+    )
+
+
+_STREAM_KEYS = ("name", "every_days", "fields")
+
+
+def _fields(value, key: str) -> tuple:
+    """A list of run-file fields, checked (``SceneError``); () for all of them."""
+    if value is None:
+        return ()
+    if not isinstance(value, list) or not value or not all(isinstance(f, str) for f in value):
+        raise SceneError(f"{key} must be a non-empty list of field names from {', '.join(OUTPUT_FIELDS)} (got {value!r})")
+    for f in value:
+        if f not in OUTPUT_FIELDS:
+            raise SceneError(f"{key}: unknown field {f!r} (known: {', '.join(OUTPUT_FIELDS)}; hs, lat, lon, area are always written)")
+    return tuple(f for f in OUTPUT_FIELDS if f in value)  # the file's order
+
+
+def _output_choices(output: dict, dt: float, days: float, dt_source: str) -> tuple[tuple, tuple]:
+    """([output] fields, [[output.streams]]) checked: field names, stream names (a
+    file-name suffix, distinct, not "restart") and intervals of whole steps."""
+    fields = _fields(output.get("fields"), "output.fields")
+    streams, names = [], set()
+    for i, st in enumerate(output.get("streams", [])):
+        where = f"output.streams[{i}]"
+        if not isinstance(st, dict):
+            raise SceneError(f"{where} must be a table ([[output.streams]] with name, every_days, fields)")
+        unknown = set(st) - set(_STREAM_KEYS)
+        if unknown:
+            raise SceneError(f"unknown key {where}.{sorted(unknown)[0]} (known: {', '.join(_STREAM_KEYS)})")
+        name = st.get("name")
+        if not (isinstance(name, str) and re.fullmatch(r"[A-Za-z0-9_-]+", name)) or name == "restart" or name in names:
+            raise SceneError(f"{where}.name must be a distinct file-name suffix of letters, digits, _ or - other than "
+                             f"restart (got {name!r}): the stream's file is RUN.{name}.nc")
+        names.add(name)
+        every = _check_type(f"{where}.every_days", st.get("every_days"), float) if "every_days" in st else None
+        if every is None or not every > 0:
+            raise SceneError(f"{where}.every_days must be > 0 (got {every})")
+        if days > every and not _whole_steps(dt, every):
+            raise _not_whole_steps(f"the output interval {where}.every_days", every, dt, dt_source)
+        streams.append({"name": name, "every_days": every, "fields": _fields(st.get("fields", list(OUTPUT_FIELDS)), f"{where}.fields")})
+    return fields, tuple(streams)
+
+
+LOAD_KEYWORDS = ("ne", "np", "dt", "days", "stepper")  # ``load_scene``'s own keywords among the overrides
+
+
+def resolve_scene(scene, overrides: dict) -> tuple[Scene, tuple]:
+    """(Scene, its input files) of ``swe_sphere.run``'s and ``Simulation``'s
+    ``scene`` and ``overrides``: a ``Scene`` as it is (no overrides: change it with
+    ``dataclasses.replace``), else a scene file or bundled name loaded with the
+    overrides as on the command line (``ne``, ``np``, ``dt``, ``days``, ``stepper``
+    and tables such as ``hyperviscosity={"nu": 5e14}`` or values ``terms=[...]``).
+    The inputs are the scene file (outputs must not replace it). Raises ``SceneError``."""
+    if isinstance(scene, Scene):
+        if overrides:
+            raise SceneError("overrides apply to a scene file; change a Scene with dataclasses.replace")
+        return scene, ()
+    overrides = dict(overrides)
+    kw = {k: overrides.pop(k) for k in LOAD_KEYWORDS if k in overrides}
+    flat = {}
+    for key, value in overrides.items():
+        if isinstance(value, dict):
+            flat.update({f"{key}.{k}": v for k, v in value.items()})
+        else:
+            flat[key] = value
+    path = resolve_path(str(scene))
+    return load_scene(path, **kw, overrides=flat), (path,)
+
+
+def _planet_text(planet: Planet) -> str:
+    """A planet for a message: "radius 637122 m, omega 0.0007292 1/s, gravity 9.80616 m/s^2"."""
+    return f"radius {planet.a:g} m, omega {planet.omega:g} 1/s, gravity {planet.g:g} m/s^2"

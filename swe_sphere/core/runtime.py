@@ -1,0 +1,144 @@
+"""The machine a run meets: Warp initialised quietly, the device chosen, memory
+estimated before anything large is allocated.
+
+Memory figures are from ``benchmarks/memory.py`` (tc5_mountain ne = 60 np = 4,
+leapfrog_trapezoidal): a run's resident memory above the import baseline is
+about 1 020 bytes per element-local node (state, metric, model and stepper work
+arrays, the host grid and its construction temporaries, output buffers). The
+semi-implicit, implicit and exponential steppers add their own buffers (below).
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import sys
+from .errors import ResourceError
+
+RUN_BYTES_PER_NODE = 1100  # measured 1 020 (benchmarks/README.md, "Memory"), rounded up
+STEPPER_BYTES_PER_NODE = {
+    "semi_implicit": 400,  # ~10 more (k, N) rows and the Helmholtz CG's unique-node vectors
+    "implicit": 1200,  # 13 (3, N) buffers, 6 unique-node vectors and a GMRES basis of 30
+    # a KIOPS basis of 65 unique-node vectors (m_max = 64; 1.7 N entries each at np = 4) and 6 (3, N) buffers
+    "epi2": 1200,
+    "epi3": 1200,
+}
+
+
+@functools.cache
+def package_version() -> str:
+    """The installed swe_sphere's version ("0.0.0+unknown" in a source tree without
+    installation), looked up on first use: importlib.metadata took half of a
+    command's start before its signal handling."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("swe-sphere")
+    except PackageNotFoundError:
+        return "0.0.0+unknown"
+
+
+def init_warp(verbose: bool = False):
+    """Import and initialise Warp. Unless ``verbose``, without its banner, its
+    per-module load lines and the CUDA-driver warning its native code prints to
+    stderr on machines without a GPU (below Python's reach: fd 2 is closed
+    around ``wp.init``). Returns the ``warp`` module."""
+    import warp as wp
+
+    if verbose:  # Warp's own load lines say "(compiled)"
+        wp.init()
+        return wp
+    wp.config.quiet = True  # Warp < 1.10
+    if hasattr(wp, "LOG_ERROR"):
+        wp.config.log_level = wp.LOG_ERROR
+    sys.stderr.flush()
+    saved, null = os.dup(2), os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, 2)
+        wp.init()
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(null)
+    if sys.stderr.isatty():
+        _note_first_compilation(wp)
+    return wp
+
+
+def _note_first_compilation(wp) -> None:
+    """Say once per process, on stderr, that Warp is compiling kernels: on a cold
+    kernel cache that costs most of a small run (6.6 s of an 8.2 s ne4 run), which
+    would otherwise pass without a word. Only on a terminal: a log gets the compile
+    time in the run's summary, and a piped stderr keeps failures to one line.
+    Hooks Warp's private code generation, which runs only on a cache miss; without
+    it, no note."""
+    try:
+        from warp._src.context import Module
+    except ImportError:
+        return
+    real = getattr(Module, "_run_codegen", None)
+    if real is None or getattr(real, "notes", False):  # Warp changed, or hooked already
+        return
+
+    def run_codegen(self, *args, **kwargs):
+        Module._run_codegen = real  # once
+        print(f"swe-sphere: compiling Warp kernels (first use; cached in {wp.config.kernel_cache_dir}) ...", file=sys.stderr, flush=True)
+        return real(self, *args, **kwargs)
+
+    run_codegen.notes = True
+    Module._run_codegen = run_codegen
+
+
+def default_device() -> str:
+    """'cuda' when Warp sees a CUDA device, else 'cpu'."""
+    return "cuda" if init_warp().is_cuda_available() else "cpu"
+
+
+def pick_device(requested: str | None = None, *, verbose: bool = False) -> str:
+    """The Warp device to run on: ``requested`` ("cpu" | "cuda"), else CUDA when
+    present. Raises ValueError when CUDA is asked for and absent."""
+    wp = init_warp(verbose)
+    device = requested or default_device()
+    if device == "cuda" and not wp.is_cuda_available():
+        raise ValueError("device cuda is not available on this machine (use --device cpu)")
+    return device
+
+
+def available_memory() -> int:
+    """Bytes the process may still allocate: MemAvailable (Linux), else physical memory."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_AVPHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return 1 << 62  # unknown: do not refuse
+
+
+def run_bytes(ne: int, np_: int, stepper: str) -> int:
+    """Estimated bytes of a run on the grid ne × np with ``stepper``."""
+    nodes = 6 * ne * ne * np_ * np_
+    return nodes * (RUN_BYTES_PER_NODE + STEPPER_BYTES_PER_NODE.get(stepper, 0))
+
+
+def check_memory(need: int, what: str, device=None) -> None:
+    """Raise ``ResourceError`` (one line) when ``need`` bytes exceed the available memory:
+    a CUDA ``device``'s (a Warp device: its ``free_memory``, where the run's arrays
+    live), else the host's (``available_memory``)."""
+    if device is not None and device.is_cuda:
+        have = device.free_memory
+        if need > have:
+            raise ResourceError(f"{what} needs about {_gib(need)} of GPU memory; {_gib(have)} free of "
+                                f"{_gib(device.total_memory)} on {device}")
+        return
+    have = available_memory()
+    if need > have:
+        raise ResourceError(f"{what} needs about {_gib(need)} of memory; {_gib(have)} is available")
+
+
+def _gib(n: int) -> str:
+    return f"{n / 2**30:.3g} GiB"

@@ -1,0 +1,11 @@
+"""The grid layer: GLL points, the cubed sphere's nodes and metric terms, its numbering, the
+rank partition, and the topology (DSS, assembly and reductions on one rank or over MPI).
+
+``cubed_sphere.CubedSphere`` (``D``, ``Dinv``, ``metdet``, ``spheremp``, lat/lon per node, as
+HOMME's ``element_t``), ``gll.gll``, ``partition.partition`` (a space-filling curve),
+``topology.Topology`` (the one seam for DSS and global sums).
+
+May import: ``core``, ``kernels``.
+"""
+
+__all__ = ['cubed_sphere', 'gll', 'partition', 'topology']

@@ -1,0 +1,383 @@
+"""Equiangular gnomonic cubed-sphere spectral-element grid (numpy, built once).
+
+Mirrors HOMME's ``element_t`` metric terms (``cube_mod``, ``coordinate_systems_mod``):
+per GLL node ``D``, ``Dinv``, ``metdet``, ``spheremp``, ``rspheremp``, ``lat``,
+``lon``; plus the global numbering of unique nodes used by the DSS.
+
+Storage is element-local and flat: node ``(e, i, j)`` (element e, GLL index i
+along the element's first reference coordinate ξ, j along η) lives at
+``p = e*np*np + j*np + i``; ``N = nelem*np*np``. Element ``e = face*ne*ne +
+jb*ne + ia``. Sources: Sadourny (1972) and Ronchi et al. (1996) for the
+equiangular map; Taylor, Tribbia & Iskandarani (1997) and Dennis et al. (2012)
+for the spectral-element metric terms.
+"""
+
+from __future__ import annotations
+
+import math
+import numpy as np
+
+from ..core.constants import EARTH
+from .gll import gll
+
+# Face k: centre c, in-face axes (ea, eb) with c × ea = eb, so every face is
+# seen counter-clockwise from outside and metdet > 0 in the (east, north) basis.
+_FACES = np.array(
+    [
+        [[1, 0, 0], [0, 1, 0], [0, 0, 1]],
+        [[0, 1, 0], [-1, 0, 0], [0, 0, 1]],
+        [[-1, 0, 0], [0, -1, 0], [0, 0, 1]],
+        [[0, -1, 0], [1, 0, 0], [0, 0, 1]],
+        [[0, 0, 1], [0, 1, 0], [-1, 0, 0]],
+        [[0, 0, -1], [0, 1, 0], [1, 0, 0]],
+    ],
+    dtype=float,
+)
+
+
+class CubedSphere:
+    """Cubed-sphere SE grid with ``ne``×``ne`` elements per face and ``np`` GLL points,
+    or the part of it made of ``elements`` (an MPI rank's: only those are built and stored).
+
+    Arrays (float64 unless said; N = nelem·np² element-local nodes held, those of
+    ``elements`` in order; "global" indices are those of the whole grid):
+      nodes (N,) int64   global element-local index of each node held
+      xyz (3, N)       unit position vectors
+      lat, lon (N,)    radians; lon in [0, 2π); lon = 0 at the poles
+      east, north (3, N)  unit tangent basis of the (u, v) wind components; one
+                       basis per unique node, so all copies of a node agree
+      D, Dinv (4, N)   2×2 maps reference contravariant ↔ (east, north)
+                       components, row-major [D11, D12, D21, D22]; units m
+                       (D includes the radius a) and 1/m
+      metdet (N,)      det D (m²), with one global factor so that GLL quadrature
+                       of it gives 4πa² (HOMME's area correction, map0)
+      spheremp (N,)    GLL weight × metdet (m²): the element mass matrix
+      rspheremp (N,)   1 / (DSS-summed spheremp): inverse assembled mass
+      dx (N,)          distance to the nearest neighbouring GLL node (m), for CFL
+      gid (N,) int32   global unique-node id; there are 6·ne²·(np−1)² + 2 ids,
+                       numbered in the order of their first copies
+      dss_table (N, C) int32  the global indices of all copies of node p's unique
+                       node, ascending (the DSS's summation order), padded with −1
+                       (C = most copies of a node: 4, 3 at ne = 1)
+      first (n,) int32  local index of the first copy of each unique node whose
+                       first copy is held, ascending gid (all nunique of them when whole)
+      area (n,)        assembled spheremp of those unique nodes (m²); sums to 4πa² when whole
+      halo (H,) int64, halo_spheremp (H,)  the other elements' copies of the nodes
+                       held (global indices, ascending) and their spheremp (m²)
+
+    A part's arrays are the whole grid's at its nodes, bit for bit: every value is
+    computed per node, the numbering from the cube's topology, and the area
+    correction from the analytic Jacobian (the same for any part).
+    Raises ``ValueError`` for ne < 1, np outside 2..8, or elements not ascending
+    distinct indices of the grid.
+    """
+
+    def __init__(self, ne: int, np: int, radius: float = EARTH.a, elements=None):
+        if isinstance(ne, bool) or int(ne) != ne or ne < 1:
+            raise ValueError(f"ne must be an integer >= 1 (got {ne})")
+        self.ne, self.np, self.radius = int(ne), int(np), float(radius)
+        self.rule = gll(self.np)  # validates np
+        self.elements = _elements(6 * self.ne * self.ne, elements)
+        for name, value in _build(self.ne, self.rule, self.radius, self.elements).items():
+            setattr(self, name, value)
+
+    @property
+    def nelem(self) -> int:
+        """Elements held (6·ne² for the whole grid)."""
+        return self.elements.size
+
+    @property
+    def npts(self) -> int:
+        """Element-local nodes held N = nelem·np²."""
+        return self.nelem * self.np * self.np
+
+    @property
+    def nunique(self) -> int:
+        """Unique nodes of the whole grid."""
+        return 6 * self.ne * self.ne * (self.np - 1) ** 2 + 2
+
+    def integrate(self, f: np.ndarray) -> float:
+        """Area integral ∫ f dA (m² × units of f) of a continuous element-local field f (N,)."""
+        return float(np.sum(self.spheremp * f))  # not np.dot: the same bits whatever BLAS's threads
+
+    def to_unique(self, f: np.ndarray) -> np.ndarray:
+        """Element-local (..., N) → the unique nodes of ``first`` (..., n)."""
+        return f[..., self.first]
+
+
+def _elements(nelem: int, elements) -> np.ndarray:
+    """The element indices a grid holds: all, or ``elements`` checked ascending and distinct."""
+    if elements is None:
+        return np.arange(nelem)
+    e = np.asarray(elements, dtype=np.int64)
+    if e.ndim != 1 or (e.size and (e[0] < 0 or e[-1] >= nelem or np.any(np.diff(e) <= 0))):
+        raise ValueError(f"elements must be ascending distinct indices in 0..{nelem - 1}")
+    return e
+
+
+def _lattice_groups(ne: int, npts: int, elements: np.ndarray, positions: np.ndarray):
+    """The coincident copies among nodes ``positions`` (p = j·np + i) of ``elements``
+    (ascending), from the cube's topology in exact integer arithmetic (no search
+    over coordinates): (group (E, P) of each node, members (groups, most copies)
+    global indices e·np² + p ascending and −1-padded, lead (E, P): the node is its
+    group's first (smallest) copy).
+
+    Node (i, j) of element (face, jb, ia) sits at lattice point (k, l) =
+    (ia·(np−1) + i, jb·(np−1) + j) of its face, 0 ≤ k, l ≤ M = ne·(np−1),
+    and at the integer point M·c + (2k − M)·ea + (2l − M)·eb on the cube
+    scaled by M (c, ea, eb the face's axis vectors). The lattice coordinate of
+    an angle is odd about the face centre (the element edges and the GLL points
+    are symmetric), so every copy of a node on a cube edge or corner, seen from
+    any face, lands on the same integer point, and only those do."""
+    M, P = ne * (npts - 1), positions.size
+    face, rest = np.divmod(elements, ne * ne)
+    jb, ia = np.divmod(rest, ne)
+    k = ia[:, None] * (npts - 1) + positions % npts
+    l = jb[:, None] * (npts - 1) + positions // npts
+    F, key = _FACES.astype(np.int64), np.zeros(k.shape, dtype=np.int64)
+    for d in range(3):  # the point's coordinates Q_d in [0, 2M], one at a time (memory)
+        key = key * (2 * M + 1) + (M * F[face, 0, d, None] + (2 * k - M) * F[face, 1, d, None] + (2 * l - M) * F[face, 2, d, None] + M)
+    key = key.ravel()
+    order = np.argsort(key, kind="stable")  # by point, then ascending global index
+    sk = key[order]
+    starts = np.concatenate(([True], sk[1:] != sk[:-1]))
+    sorted_group = np.cumsum(starts) - 1
+    pos = np.arange(order.size) - np.flatnonzero(starts)[sorted_group]  # place among its point's copies
+    group, lead = np.empty(order.size, dtype=np.int64), np.empty(order.size, dtype=bool)
+    group[order], lead[order] = sorted_group, starts
+    members = np.full((int(sorted_group[-1]) + 1, int(pos.max()) + 1), -1, dtype=np.int64)
+    members[sorted_group, pos] = elements[order // P] * npts * npts + positions[order % P]
+    return group.reshape(-1, P), members, lead.reshape(-1, P)
+
+
+_EDGE_CORNERS = ((0, 1), (1, 3), (2, 3), (0, 2))  # edges j = 0, i = np−1, j = np−1, i = 0 by corner c = 2·[j>0] + [i>0]
+
+
+class Numbering:
+    """The cube's unique nodes for ne, np, numbered in the order of their first
+    copies (smallest global index e·np² + p), from the cube's topology.
+
+    An element's nodes first seen there are its (np−2)² interior nodes, the
+    inner nodes of each edge it shares with a higher-numbered element, and the
+    corners where it is the lowest-numbered element: so the count per element,
+    hence (prefix sum) the number of any node, comes from the element corners'
+    coincidences (``_lattice_groups`` at np = 2) alone, arrays of 6·ne²·4 entries.
+    The copies of the nodes of some elements come from the lattice points of
+    those elements and of their corner neighbours only.
+    """
+
+    def __init__(self, ne: int, npts: int):
+        self.ne, self.np = ne, npts
+        nelem, last = 6 * ne * ne, npts - 1
+        i, j = np.tile(np.arange(npts), npts), np.repeat(np.arange(npts), npts)  # node p = j·np + i
+        interior = (i > 0) & (i < last) & (j > 0) & (j < last)
+        self.ring = ring = np.flatnonzero(~interior)  # ascending p
+        ri, rj = i[ring], j[ring]
+        self.ring_corner = np.where(((ri == 0) | (ri == last)) & ((rj == 0) | (rj == last)), 2 * (rj > 0) + (ri > 0), -1)
+        self.ring_edge = np.select([rj == 0, ri == last, rj == last, ri == 0], [0, 1, 2, 3])  # where not a corner
+        self.before = np.cumsum(interior) - interior  # interior nodes before each p
+        elements = np.arange(nelem)
+        self.vertex, vmembers, self.corner_first = _lattice_groups(ne, 2, elements, np.arange(4))
+        self.vertex_elements = np.where(vmembers >= 0, vmembers // 4, -1)
+        nbr = np.full((nelem, 4), -1)
+        for k, (a, b) in enumerate(_EDGE_CORNERS):  # the other element at both corners of edge k
+            A, B = self.vertex_elements[self.vertex[:, a]], self.vertex_elements[self.vertex[:, b]]
+            both = np.any(A[:, :, None] == B[:, None, :], axis=2) & (A >= 0) & (A != elements[:, None])
+            nbr[:, k] = np.where(both, A, -1).max(axis=1)
+        if np.any(nbr < 0):
+            raise RuntimeError(f"an element edge without a neighbour (ne={ne})")
+        self.edge_neighbours = nbr
+        count = int(interior.sum()) + (npts - 2) * np.sum(elements[:, None] < nbr, axis=1) + self.corner_first.sum(axis=1)
+        self.offset = np.concatenate(([0], np.cumsum(count)[:-1]))
+        if int(count.sum()) != 6 * ne * ne * (npts - 1) ** 2 + 2:
+            raise RuntimeError(f"grid has {int(count.sum())} unique nodes, expected {6 * ne * ne * (npts - 1) ** 2 + 2}")
+        self.width = 3 if ne == 1 else 4  # most copies of a node
+
+    def _ring_first(self, elements: np.ndarray) -> np.ndarray:
+        """(E, ring) bool: the ring node is first seen in its element."""
+        corner, edge = self.ring_corner, self.ring_edge
+        return np.where(corner >= 0, self.corner_first[elements][:, np.maximum(corner, 0)],
+                        elements[:, None] < self.edge_neighbours[elements][:, edge])
+
+    def rows(self, elements: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(gid (N,), table (N, C)) int64 of the nodes of ``elements`` (ascending):
+        unique-node ids and the global indices of every copy, ascending, −1-padded."""
+        npe, ring = self.np * self.np, self.ring
+        near = np.unique(self.vertex_elements[self.vertex[elements]])  # the elements and their corner neighbours
+        near = near[near >= 0]
+        group, members, _ = _lattice_groups(self.ne, self.np, near, ring)
+        held = members[group[np.searchsorted(near, elements)]]  # (E, ring, copies): complete for these nodes
+        f, p = np.divmod(held[..., 0], npe)  # each ring node's first copy
+        uf, inverse = np.unique(f, return_inverse=True)
+        rank = np.cumsum(self._ring_first(uf), axis=1) - 1  # among first-seen ring nodes of the element
+        ring_index = np.zeros(npe, dtype=np.int64)
+        ring_index[ring] = np.arange(ring.size)
+        ring_gid = self.offset[f] + self.before[p] + rank[inverse.reshape(f.shape), ring_index[p]]
+        mask = np.ones((elements.size, npe), dtype=bool)
+        mask[:, ring] = self._ring_first(elements)
+        gid = self.offset[elements][:, None] + np.cumsum(mask, axis=1) - 1
+        gid[:, ring] = ring_gid
+        table = np.full((elements.size, npe, self.width), -1, dtype=np.int64)
+        table[:, :, 0] = elements[:, None] * npe + np.arange(npe)
+        table[:, ring, : held.shape[2]] = held
+        return gid.ravel(), table.reshape(elements.size * npe, -1)
+
+
+def element_neighbours(ne: int) -> np.ndarray:
+    """(6·ne², 4) int64: the four edge neighbours of each element (the elements
+    sharing two element corners with it), ascending."""
+    return np.sort(Numbering(ne, 2).edge_neighbours, axis=1)
+
+
+def _geometry(ne: int, rule, copies: np.ndarray):
+    """Per element-local node (global indices ``copies``): the equiangular angles
+    α, β, the face's axes ea, eb, |P| and the unit position P/|P| of P = c + tan α ea + tan β eb."""
+    npts = rule.np
+    e, p = np.divmod(copies, npts * npts)
+    j, i = np.divmod(p, npts)
+    alpha, beta, face, P = _equiangular(ne, e, rule.points[i], rule.points[j])
+    rP = np.linalg.norm(P, axis=1)
+    return alpha, beta, _FACES[face, 1], _FACES[face, 2], rP, P / rP[:, None]
+
+
+def _equiangular(ne: int, e: np.ndarray, xi: np.ndarray, eta: np.ndarray):
+    """The equiangular angles α, β, the face and P = c + tan α ea + tan β eb of the points
+    with reference coordinates (ξ, η) ∈ [−1, 1]² in elements ``e`` (global indices)."""
+    face, rest = np.divmod(e, ne * ne)
+    jb, ia = np.divmod(rest, ne)
+    edges = np.linspace(-math.pi / 4, math.pi / 4, ne + 1)
+    dalpha = math.pi / 2 / ne
+    alpha = edges[ia] + (xi + 1) * dalpha / 2
+    beta = edges[jb] + (eta + 1) * dalpha / 2
+    c, ea, eb = _FACES[face, 0], _FACES[face, 1], _FACES[face, 2]
+    return alpha, beta, face, c + np.tan(alpha)[:, None] * ea + np.tan(beta)[:, None] * eb
+
+
+def reference_to_sphere(ne: int, e: np.ndarray, xi: np.ndarray, eta: np.ndarray) -> np.ndarray:
+    """Unit position vectors (n, 3) of the points (ξ, η) ∈ [−1, 1]² (n,) of the reference
+    square of elements ``e`` (n,) of the ne grid, through the equiangular gnomonic map."""
+    P = _equiangular(ne, np.asarray(e), np.asarray(xi), np.asarray(eta))[-1]
+    return P / np.linalg.norm(P, axis=1)[:, None]
+
+
+def _quadrature_area(ne: int, rule, radius: float) -> float:
+    """GLL quadrature of the sphere's area (m²) with the analytic Jacobian of the
+    equiangular map, a²(Δα/2)²(1 + tan²α)(1 + tan²β)/(1 + tan²α + tan²β)^(3/2),
+    the same on the six faces: what Σ metdet·w gives up to round-off, computed
+    alike by every process whatever elements it holds."""
+    dalpha = math.pi / 2 / ne
+    edges = np.linspace(-math.pi / 4, math.pi / 4, ne + 1)
+    t2 = np.tan((edges[:-1, None] + (rule.points[None, :] + 1) * dalpha / 2).ravel()) ** 2
+    w = np.tile(rule.weights, ne)
+    J = (1 + t2[:, None]) * (1 + t2[None, :]) / (1 + t2[:, None] + t2[None, :]) ** 1.5
+    return 6 * radius**2 * (dalpha / 2) ** 2 * float(np.sum(J * w[:, None] * w[None, :]))
+
+
+_CHUNK = 1 << 14  # nodes per piece of the metric's computation
+
+
+def lat_lon(xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Latitude in [−π/2, π/2] and longitude in [0, 2π) (radians) of unit vectors xyz (..., 3)."""
+    return np.arcsin(np.clip(xyz[..., 2], -1, 1)), np.mod(np.arctan2(xyz[..., 1], xyz[..., 0]), 2 * math.pi)
+
+
+def _metric(ne: int, rule, radius: float, copies: np.ndarray, rep: np.ndarray):
+    """(xyz, lat, lon, east, north, D) of element-local nodes ``copies`` (global
+    indices) whose unique nodes' first copies are ``rep``: the position and
+    (east, north) basis are the first copy's, so every copy's agree bit for bit;
+    D (n, 2, 2) is the Jacobian of X = a P/|P| w.r.t. the element reference
+    coordinates (ξ, η) in that basis, before the area correction."""
+    alpha, beta, ea, eb, rP, xhat = _geometry(ne, rule, copies)
+    xyz = xhat.copy()
+    moved = rep != copies  # most copies are their node's first: only the others need their first's position
+    xyz[moved] = _geometry(ne, rule, rep[moved])[-1]  # the same bits as computed there (elementwise, per node)
+    xyz[np.abs(xyz) < 1e-15] = 0.0
+    xyz /= np.linalg.norm(xyz, axis=1)[:, None]
+    lat, lon = lat_lon(xyz)
+    east = np.stack([-np.sin(lon), np.cos(lon), np.zeros_like(lon)], axis=1)
+    north = np.stack([-np.sin(lat) * np.cos(lon), -np.sin(lat) * np.sin(lon), np.cos(lat)], axis=1)
+    dalpha = math.pi / 2 / ne
+    proj = np.eye(3)[None] - xhat[:, :, None] * xhat[:, None, :]
+    scale = radius * dalpha / 2 / rP
+    dX_dxi = scale[:, None] * np.einsum("nij,nj->ni", proj, ea / np.cos(alpha)[:, None] ** 2)
+    dX_deta = scale[:, None] * np.einsum("nij,nj->ni", proj, eb / np.cos(beta)[:, None] ** 2)
+    D = np.empty((copies.size, 2, 2))
+    D[:, 0, 0] = np.einsum("ni,ni->n", east, dX_dxi)
+    D[:, 0, 1] = np.einsum("ni,ni->n", east, dX_deta)
+    D[:, 1, 0] = np.einsum("ni,ni->n", north, dX_dxi)
+    D[:, 1, 1] = np.einsum("ni,ni->n", north, dX_deta)
+    return xyz, lat, lon, east, north, D
+
+
+def _build(ne: int, rule, radius: float, elements: np.ndarray) -> dict:
+    npts = rule.np
+    npe = npts * npts
+    nodes = (elements[:, None] * npe + np.arange(npe)).ravel()
+    gid, table = Numbering(ne, npts).rows(elements)
+    # The nodes held and the other elements' copies of them (for the assembled
+    # mass); every copy gets the coordinates of its first copy, so lat/lon/basis
+    # agree bit for bit.
+    valid = table >= 0
+    ext = np.sort(table[valid])
+    ext = ext[np.concatenate(([True], ext[1:] != ext[:-1]))]  # distinct, ascending (np.unique's hashing is 10x slower here)
+    rep = np.empty(ext.size, dtype=np.int64)
+    rep[np.searchsorted(ext, table[valid])] = np.broadcast_to(table[:, :1], table.shape)[valid]
+    n = ext.size
+    xyz, east, north, lat, lon = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty(n)
+    D = np.empty((n, 2, 2))
+    for a in range(0, n, _CHUNK):  # per node: in pieces, to bound the temporaries
+        part = slice(a, a + _CHUNK)
+        xyz[part], lat[part], lon[part], east[part], north[part], D[part] = _metric(ne, rule, radius, ext[part], rep[part])
+    metdet = np.linalg.det(D)
+    if np.any(metdet <= 0):
+        raise RuntimeError("non-positive metric determinant")
+
+    # Area correction (HOMME geometry_mod::set_area_correction_map0): one global
+    # factor on the metric so that the GLL-quadrature area of the sphere is 4πa².
+    # A single factor keeps element-edge fluxes consistent, hence mass
+    # conservation to round-off; a per-element factor would not.
+    w2 = np.outer(rule.weights, rule.weights).ravel()  # index j*np + i
+    s = math.sqrt(4 * math.pi * radius**2 / _quadrature_area(ne, rule, radius))
+    D *= s
+    metdet = metdet * s**2
+    spheremp = metdet * w2[ext % npe]
+
+    here = np.searchsorted(ext, nodes)
+    mass = np.zeros(nodes.size)  # Σ over the copies in table order, one add at a time
+    for column in table.T:
+        ok = column >= 0
+        mass[ok] += spheremp[np.searchsorted(ext, column[ok])]
+    first = np.flatnonzero(table[:, 0] == nodes)  # first copies held: ascending gid
+    halo = np.setdiff1d(ext, nodes, assume_unique=True)
+
+    # Nearest-neighbour spacing along both element directions.
+    X = radius * xyz[here].reshape(elements.size, npts, npts, 3)
+    dist_i = np.linalg.norm(np.diff(X, axis=2), axis=3)  # (nelem, j, np-1)
+    dist_j = np.linalg.norm(np.diff(X, axis=1), axis=3)  # (nelem, np-1, i)
+    dx = np.full((elements.size, npts, npts), np.inf)
+    dx[:, :, :-1] = np.minimum(dx[:, :, :-1], dist_i)
+    dx[:, :, 1:] = np.minimum(dx[:, :, 1:], dist_i)
+    dx[:, :-1, :] = np.minimum(dx[:, :-1, :], dist_j)
+    dx[:, 1:, :] = np.minimum(dx[:, 1:, :], dist_j)
+
+    D = D[here]
+    return dict(
+        nodes=nodes,
+        xyz=np.ascontiguousarray(xyz[here].T),
+        lat=lat[here],
+        lon=lon[here],
+        east=np.ascontiguousarray(east[here].T),
+        north=np.ascontiguousarray(north[here].T),
+        D=np.ascontiguousarray(D.reshape(-1, 4).T),
+        Dinv=np.ascontiguousarray(np.linalg.inv(D).reshape(-1, 4).T),
+        metdet=metdet[here],
+        spheremp=spheremp[here],
+        rspheremp=1.0 / mass,
+        dx=dx.ravel(),
+        gid=gid.astype(np.int32),
+        dss_table=table.astype(np.int32),
+        first=first.astype(np.int32),
+        area=mass[first],
+        halo=halo,
+        halo_spheremp=spheremp[np.searchsorted(ext, halo)],
+    )

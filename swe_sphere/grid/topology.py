@@ -1,0 +1,478 @@
+"""Assembly over the elements a process holds: DSS, unique-node vectors and global reductions.
+
+The model, the steppers and the Krylov solvers reach the grid's connectivity
+only through a ``Topology``: the direct stiffness summation (HOMME
+``bndry_exchangeV`` with ``rspheremp`` scaling), ``assemble``/``scatter``
+between element-local fields and vectors on unique nodes (what Krylov solvers
+iterate on), and area integrals, norms and maxima.
+
+Over MPI (``comm`` with several ranks) each rank holds a contiguous piece of
+the elements' space-filling curve (``swe_sphere.grid.partition``). A DSS is then
+HOMME's ``edgeVpack`` → ``bndry_exchangeV`` → ``edgeVunpack``: the copies of
+shared nodes that neighbouring ranks need are packed (``kernels.dss.pack``),
+exchanged by persistent nonblocking point-to-point messages into a ghost
+buffer, and the DSS kernel sums local and ghost copies in the grid's one
+global order (``CubedSphere.dss_table``). Every copy is summed individually
+(not a neighbour's partial sum), so the result has the same bits on any
+number of ranks and explicit runs do too. A topology over the whole sphere
+has no neighbours: no pack, no exchange, and its reductions are over its own
+nodes, so the same model code runs on one process and on many.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from .cubed_sphere import CubedSphere
+from ..kernels import blas, dss
+from ..core.parallel import record
+from .partition import partition
+
+f64 = wp.float64
+DEVICE_TOTALS = 64  # partial sums a row that one GPU thread adds directly (``Topology.device_sums``)
+MAX_ROWS = 4  # most rows a DSS assembles at once (the hyperviscosity's Cartesian wind + h)
+
+
+class SerialComm:
+    """What a topology needs of an MPI communicator, for one process (no MPI needed)."""
+
+    rank, size = 0, 1
+
+    def allreduce(self, value, op=None):
+        return value
+
+    def bcast(self, value, root=0):
+        return value
+
+
+def _ops(comm):
+    """(SUM, MAX, MIN) reduction operations of ``comm``."""
+    if isinstance(comm, SerialComm):
+        return None, None, None
+    from mpi4py import MPI
+
+    return MPI.SUM, MPI.MAX, MPI.MIN
+
+
+class GatheredGrid:
+    """The whole grid as rank 0 diagnoses and writes it, gathered from the ranks'
+    parts rather than built (no metric, no DSS tables): ne, np, radius, rule,
+    nelem, npts, nunique; lat, lon, spheremp, dx (npts,) and gid (npts,) int32;
+    first (nunique,) int32 and area (nunique,); ``integrate`` and ``to_unique``
+    as ``CubedSphere``'s, whose values these are, bit for bit."""
+
+    nunique = CubedSphere.nunique
+    integrate = CubedSphere.integrate
+    to_unique = CubedSphere.to_unique
+
+    def __init__(self, part, fields: np.ndarray, first: np.ndarray, area: np.ndarray):
+        self.ne, self.np, self.radius, self.rule = part.ne, part.np, part.radius, part.rule
+        self.nelem, self.npts = 6 * part.ne**2, fields.shape[1]
+        self.lat, self.lon, self.spheremp, self.dx = fields[:4]
+        self.gid = fields[4].astype(np.int32)
+        self.first, self.area = first.astype(np.int32), area
+
+
+def rank_parts(ne: int, size: int) -> list[np.ndarray]:
+    """The elements of each of ``size`` ranks, ascending: all of them on one rank,
+    else the chunks of ``partition.partition``."""
+    if size == 1:  # skip the curve: one part in natural order is the whole grid
+        return [np.arange(6 * ne * ne)]
+    return [np.sort(p) for p in partition(ne, size)]
+
+
+def _lookup(keys: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """The position in ``keys`` (distinct, not empty) of each of ``values``, −1 where absent."""
+    order = np.argsort(keys)
+    at = np.minimum(np.searchsorted(keys[order], values), keys.size - 1)
+    return np.where(keys[order][at] == values, order[at], -1)
+
+
+class _Exchange:
+    """One exchange of packed values with the neighbouring ranks (HOMME
+    ``bndry_exchangeV``): nonblocking receives into ``recv`` and sends from
+    ``send`` (``rows`` values per entry), all completed before ``launch()``
+    returns (run like a recorded launch)."""
+
+    def __init__(self, comm, halo: "_Halo", rows: int, tag: int):
+        send, recv = halo.send_buffer.numpy(), halo.recv_buffer.numpy()  # CPU: zero-copy views
+        self.comm, self.tag = comm, tag
+        self.recvs = [(recv[a * rows : b * rows], int(s)) for s, (a, b) in zip(halo.neighbours, halo.recv_ranges)]
+        self.sends = [(send[a * rows : b * rows], int(s)) for s, (a, b) in zip(halo.neighbours, halo.send_ranges)]
+        self.kernel = type("exchange", (), {"key": "exchange"})  # named like a launch in launch lists
+
+    def launch(self) -> None:
+        from mpi4py import MPI
+
+        requests = [self.comm.Irecv(buf, source=s, tag=self.tag) for buf, s in self.recvs]
+        requests += [self.comm.Isend(buf, dest=s, tag=self.tag) for buf, s in self.sends]
+        MPI.Request.Waitall(requests)
+
+
+class _Halo:
+    """What one rank sends to and receives from each neighbour in one pattern
+    (the DSS's element copies, or unique-node values from their owners):
+    ``send_index`` (positions packed for the neighbours, in order),
+    ``send_ranges``/``recv_ranges`` (each neighbour's slice, in entries) and the
+    device buffers of up to ``MAX_ROWS`` rows per entry."""
+
+    def __init__(self, neighbours, send: list, recv: list, device: str):
+        self.neighbours = np.asarray(neighbours, dtype=np.int64)
+        ends = np.cumsum([0, *map(len, send)]), np.cumsum([0, *map(len, recv)])
+        self.send_ranges = list(zip(ends[0][:-1], ends[0][1:]))
+        self.recv_ranges = list(zip(ends[1][:-1], ends[1][1:]))
+        self.send_index_np = np.concatenate(send).astype(np.int32) if send else np.zeros(0, dtype=np.int32)
+        self.size = int(ends[1][-1])  # entries received
+        self.send_index = wp.array(self.send_index_np, dtype=wp.int32, device=device)
+        self.send_buffer = wp.zeros(max(1, self.send_index_np.size) * MAX_ROWS, dtype=f64, device=device)
+        self.recv_buffer = wp.zeros(max(1, self.size) * MAX_ROWS, dtype=f64, device=device)
+        self.exchanges: dict[int, _Exchange] = {}
+
+
+class Topology:
+    """The assembly of ``grid``'s elements on ``device``, for rank ``comm.rank`` of ``comm.size``.
+
+    Parameters
+    ----------
+    grid : CubedSphere: the whole sphere, or this rank's part of it
+        (``CubedSphere(..., elements=rank_parts(ne, size)[rank])``); given the
+        whole sphere with several ranks, the rank builds its own part.
+    device : Warp device name.
+    threads : CPU threads a launch is split over (``swe_sphere.core.parallel``).
+    comm : an mpi4py communicator, or None (``SerialComm()``: all elements here).
+        With several ranks, rank k holds chunk k of ``partition.partition``.
+    parts : ``rank_parts(grid.ne, comm.size)`` when the caller has it already.
+
+    Unique-node vectors (what the Krylov solvers iterate on) are distributed:
+    a unique node belongs to the rank of its first copy in the grid's order,
+    each rank's vectors hold its own nodes (``nunique``), ``dot``/``norm`` sum
+    over ranks, and ``scatter`` receives the values of the nodes its elements
+    touch from their owners (a second halo, owner → touching ranks).
+
+    Attributes (device arrays unless said)
+    --------------------------------------
+    elements (nelem_local,) numpy : the global element indices held, ascending
+    nodes (N,) numpy : their element-local nodes' global indices
+    N : element-local nodes held (int); nunique : unique nodes owned (int)
+    npts_total : element-local nodes of the whole grid (int)
+    distributed : whether the elements are spread over several ranks (bool)
+    spheremp (N + ghosts,) rspheremp (N,) : element mass (local copies, then
+        the DSS ghosts) and inverse assembled mass (m², m⁻²)
+    table (N, C) int32 : the copies of each node's unique node in the global
+        summation order, −1-padded; c < N local, c ≥ N the ghost c − N
+    gid (N,) int32 : each node's index in the unique-node vectors: < nunique
+        owned here, else nunique + its place in the unique-node halo
+    first (nunique,) int32 : one local copy of each owned unique node
+    area (nunique,) numpy : assembled spheremp of the owned unique nodes (m²)
+    total_area : Σ area over the sphere (m²; 4πa²)
+    copies, owned : the DSS's halo and the unique-node halo (``_Halo``: what goes
+        to and comes from each neighbour); neighbours : ranks sharing nodes with
+        this one; ghost : the DSS's receive buffer; halo_copies : copies received per DSS
+
+    Raises ValueError on a CUDA device with more than one rank (CPU only so far).
+    """
+
+    def __init__(self, grid, device: str = "cpu", threads: int = 1, comm=None, parts=None):
+        self.device, self.threads = device, int(threads)
+        self.comm = comm if comm is not None else SerialComm()
+        self._sum, self._max, self._min = _ops(self.comm)
+        rank, size = self.comm.rank, self.comm.size
+        self.distributed = size > 1
+        if size > 1 and not wp.get_device(device).is_cpu:
+            raise ValueError("runs over several MPI ranks are CPU-only so far (use --device cpu)")
+        self.parts = parts = rank_parts(grid.ne, size) if parts is None else parts
+        if not np.array_equal(grid.elements, parts[rank]):
+            grid = CubedSphere(grid.ne, grid.np, grid.radius, elements=parts[rank])
+        self.grid = grid
+        self.elements, self.nodes = grid.elements, grid.nodes
+        self.N, self.npts_total = grid.npts, 6 * grid.ne**2 * grid.np**2
+        self._build_halos(parts, rank)
+
+        def up(a, dtype=f64):
+            return wp.array(np.ascontiguousarray(a), dtype=dtype, device=device)
+
+        self.spheremp = up(np.concatenate([grid.spheremp, grid.halo_spheremp[np.searchsorted(grid.halo, self.recv)]]))
+        self.rspheremp = up(grid.rspheremp)
+        self.table = up(self._table, wp.int32)
+        self.gid, self.first = up(self._gid, wp.int32), up(grid.first, wp.int32)
+        self.area = grid.area
+        self.nunique = grid.first.size
+        self.total_area = self.sum(float(np.sum(self.area)))
+        c = self.copies  # the DSS's pattern
+        self.neighbours, self.ghost, self.halo_copies = c.neighbours, c.recv_buffer, c.size
+        self.dss_copies = d = dss.Copies()  # the DSS kernels' view of the above
+        d.table, d.nlocal, d.ghost, d.spheremp, d.rspheremp = self.table, self.N, self.ghost, self.spheremp, self.rspheremp
+
+    def _build_halos(self, parts, rank):
+        """Local tables from the rank's own nodes' rows of the global DSS table and
+        the element → rank map (no arrays over the whole grid's nodes): the DSS
+        table in local/ghost indices; for each neighbour, the element copies it
+        sends and receives (``copies``), and the owned unique-node values it sends
+        and receives (``owned``), both in global order."""
+        grid = self.grid
+        table, gid = grid.dss_table.astype(np.int64), grid.gid.astype(np.int64)
+        elem_rank = np.empty(sum(map(len, parts)), dtype=np.int64)
+        for k, p in enumerate(parts):
+            elem_rank[p] = k
+        valid = table >= 0
+        copy_rank = np.where(valid, elem_rank[np.where(valid, table, 0) // grid.np**2], -1)
+        owner = copy_rank[:, 0]  # a unique node belongs to the rank of its first copy
+        owned_gid = gid[grid.first]  # ascending
+        recv, send, unique_nbrs, unique_send, unique_recv = [], [], [], [], []
+        neighbours = np.unique(copy_rank[valid & (copy_rank != rank)])
+        for s in neighbours:
+            theirs = copy_rank == s
+            touched = np.any(theirs, axis=1)  # the nodes held here that s holds copies of
+            recv.append(np.unique(table[theirs]))  # ascending: the global order
+            send.append(np.flatnonzero(touched))
+            out = np.unique(gid[touched & (owner == rank)])
+            into = np.unique(gid[owner == s])
+            if out.size or into.size:
+                unique_nbrs.append(s), unique_send.append(np.searchsorted(owned_gid, out)), unique_recv.append(into)
+        self.copies = _Halo(neighbours, send, recv, self.device)
+        self.owned = _Halo(unique_nbrs, unique_send, unique_recv, self.device)
+        self.recv = np.concatenate(recv) if recv else np.zeros(0, dtype=np.int64)
+        self._table = np.where(valid, _lookup(np.concatenate([grid.nodes, self.recv]), np.where(valid, table, -1)), -1)
+        if np.any(valid & (self._table < 0)):
+            raise RuntimeError("a copy of a shared node is neither local nor received")
+        self._gid = _lookup(np.concatenate([owned_gid, *unique_recv]), gid)
+        if np.any(self._gid < 0):
+            raise RuntimeError("a node's unique value is neither owned nor received")
+
+    def _record(self, kernel, dim, inputs):
+        return record(kernel, dim, inputs, device=self.device, threads=self.threads, block=self.grid.np**2)
+
+    def _exchange(self, x: wp.array2d, halo: _Halo | None = None) -> list:
+        """Launches that fill ``halo``'s receive buffer (default the DSS ghosts)
+        with the neighbours' entries of x's rows (pack, then exchange); none
+        without neighbours."""
+        halo = self.copies if halo is None else halo
+        if not len(halo.neighbours):
+            return []
+        rows = x.shape[0]
+        if rows > MAX_ROWS:
+            raise ValueError(f"an exchange of more than {MAX_ROWS} rows (got {rows})")
+        exchange = halo.exchanges.get(rows)
+        if exchange is None:
+            tag = rows if halo is self.copies else MAX_ROWS + rows
+            exchange = halo.exchanges[rows] = _Exchange(self.comm, halo, rows, tag)
+        if not halo.send_index_np.size:  # only receives from its neighbours
+            return [exchange]
+        return [self._record(dss.pack, halo.send_index_np.size, [x, rows, halo.send_index, halo.send_buffer]), exchange]
+
+    def exchange(self, x: wp.array2d, unique: bool = False) -> list:
+        """Launches that fill the DSS's ghost buffer ``ghost`` (or, ``unique``, the
+        unique-node halo ``owned.recv_buffer``) with the neighbours' entries of x's
+        rows, in ``dss.pack``'s layout; none without neighbours. For kernels that
+        gather over copies themselves (``kernels.helmholtz``)."""
+        return self._exchange(x, self.owned if unique else None)
+
+    # -- assembly (recorded launch lists: run each item's ``launch()`` in order) --
+    def dss(self, x: wp.array2d, weighted: bool, out: wp.array2d) -> list:
+        """Launches for out = DSS(x), (rows, N) each: out[r, p] = rspheremp[p] ·
+        Σ over the copies c of p's node of (spheremp[c] if ``weighted`` else 1)·x[r, c]
+        (``kernels.dss.dss_rows``), the neighbours' copies exchanged first.
+        Weighted for a strong-form field (continuous result, integral kept),
+        unweighted for a weak form. ``out`` must not alias ``x``."""
+        return self.gathering(x, lambda rows, copies, ghosts: dss.dss_rows(rows, bool(weighted), copies, ghosts=ghosts), [out])
+
+    def dss_update(self, x: wp.array2d, updates) -> list:
+        """Launches for the weighted DSS k of x (rows, N), not stored but used by
+        one or two ``updates`` (out, terms) in order: out = Σ a·src over the
+        terms (a, src), src an array of x's shape or None for k
+        (``kernels.dss.dss_update``: summed left to right, the bits of
+        ``blas.axpby``/``axpbypcz`` on a stored k). Outputs may alias terms, not x."""
+        patterns, coefs, arrays = [], [], []
+        for out, terms in updates:
+            patterns.append("".join("k" if src is None else "a" for _, src in terms))
+            coefs += [a for a, _ in terms] + [0.0] * (3 - len(terms))
+            srcs = [src for _, src in terms if src is not None]
+            arrays += [*(srcs + [out] * (2 - len(srcs))), out]  # unused slots: any array of the shape
+        coefs += [0.0] * (6 - len(coefs))
+        arrays += arrays[-3:] * (2 - len(updates))
+        return self.gathering(
+            x, lambda rows, copies, ghosts: dss.dss_update(rows, copies, tuple(patterns), ghosts=ghosts), [dss.vec6(*coefs), *arrays]
+        )
+
+    def gathering(self, x: wp.array2d, kernel, args) -> list:
+        """Launches for a kernel that sums the DSS of x (rows, N) itself
+        (``kernels.dss.gather``) and uses it node by node: ``kernel(rows,
+        copies, ghosts)`` builds it for x's rows, the table's columns and
+        whether there are neighbours; it takes (x, ``dss_copies``, *args,
+        block, offset), dim N/block: np² consecutive nodes a thread on the CPU,
+        where Warp's cost per thread is a fifth of a DSS's (0.52 → 0.42 ms at
+        ne30), one on CUDA. The neighbours' copies are exchanged first."""
+        kernel = kernel(x.shape[0], self.table.shape[1], bool(len(self.neighbours)))
+        block = self.grid.np**2 if wp.get_device(self.device).is_cpu else 1
+        launch = record(
+            kernel, self.N // block, [x, self.dss_copies, *args, block], device=self.device, threads=self.threads, nodes_per_index=block
+        )
+        return [*self._exchange(x), launch]
+
+    def assemble(self, x: wp.array2d, row: int, out: wp.array) -> list:
+        """Launches for the unique-node out (nunique,) = M x[row]: Σ over the copies
+        (the neighbours' exchanged first, all of x's rows) of spheremp·x[row]
+        (assembled mass times a continuous field, m² × units of x)."""
+        args = [x, self.ghost, self.N, int(row), self.spheremp, self.table, self.first, out]
+        return [*self._exchange(x), self._record(dss.assemble, self.nunique, args)]
+
+    def scatter(self, y: wp.array, out: wp.array2d, row: int, rows: int = 1) -> list:
+        """Launches for the element-local out[row : row + rows] (rows, N) from the
+        unique-node vector y (rows·nunique, row r at r·nunique …): every copy of a
+        node gets its value, those owned elsewhere received from their owners."""
+        y2 = y.reshape((rows, self.nunique))
+        return [*self._exchange(y2, self.owned), self._record(dss.scatter, self.N, [y2, self.owned.recv_buffer, self.gid, int(row), out])]
+
+    # -- between the whole grid and this rank's part (numpy) ------------------------
+    def _part_nodes(self, k: int) -> np.ndarray:
+        """The whole-grid element-local indices of rank k's nodes, in its order."""
+        npe = self.grid.np**2
+        return (self.parts[k][:, None] * npe + np.arange(npe)).ravel()
+
+    def gather(self, a: np.ndarray) -> np.ndarray | None:
+        """The whole-grid field (..., npts_total) from every rank's part (..., N), on
+        rank 0 (``Gatherv``; call on every rank); None on the other ranks. On one
+        process, ``a`` itself."""
+        if not self.distributed:
+            return a
+        a = np.ascontiguousarray(a, dtype=np.float64)
+        counts = [a.size // self.N * p.size * self.grid.np**2 for p in self.parts]
+        flat = np.empty(sum(counts)) if self.comm.rank == 0 else None
+        self.comm.Gatherv(a, [flat, counts] if flat is not None else None, root=0)
+        if flat is None:
+            return None
+        out = np.empty(a.shape[:-1] + (self.npts_total,))
+        for k, piece in enumerate(np.split(flat, np.cumsum(counts)[:-1])):
+            out[..., self._part_nodes(k)] = piece.reshape(a.shape[:-1] + (-1,))
+        return out
+
+    def distribute(self, whole, rows: int, what: str) -> np.ndarray:
+        """This rank's part (rows, N) of a whole-grid field ``whole`` (rows,
+        npts_total) given on rank 0 (``Scatterv``; call on every rank; ``whole``
+        is read on rank 0 only, the others may pass None). On one process,
+        ``whole`` itself as float64. Raises ValueError on every rank, one line
+        naming ``what``, when rank 0's ``whole`` has another shape:
+        "<what> has shape S, the grid needs (rows, npts_total)"."""
+        shape = self.bcast(np.shape(whole) if self.comm.rank == 0 else None)  # rank 0's: it hands the field out
+        if shape != (rows, self.npts_total):
+            raise ValueError(f"{what} has shape {shape}, the grid needs {(rows, self.npts_total)}")
+        if not self.distributed:
+            return np.asarray(whole, dtype=np.float64)
+        counts = [rows * p.size * self.grid.np**2 for p in self.parts]
+        flat = None
+        if self.comm.rank == 0:
+            flat = np.concatenate([np.asarray(whole, dtype=np.float64)[:, self._part_nodes(k)].ravel() for k in range(len(self.parts))])
+        out = np.empty((rows, self.N))
+        self.comm.Scatterv([flat, counts] if flat is not None else None, out, root=0)
+        return out
+
+    def whole_grid(self):
+        """The whole grid on rank 0 (None elsewhere; call on every rank): the grid
+        itself on one process, else a ``GatheredGrid`` of the ranks' parts."""
+        if not self.distributed:
+            return self.grid
+        g = self.grid
+        fields = self.gather(np.stack([g.lat, g.lon, g.spheremp, g.dx, g.gid]))
+        owned = self.comm.gather((g.nodes[g.first], g.area), root=0)  # each unique node from its first copy's rank
+        if fields is None:
+            return None
+        first, area = (np.concatenate(a) for a in zip(*owned))
+        order = np.argsort(first)  # the first copies' order is the unique nodes' (gid) order
+        return GatheredGrid(g, fields, first[order], area[order])
+
+    def bcast(self, value):
+        """Rank 0's ``value`` (any picklable object) on every rank."""
+        return self.comm.bcast(value, root=0)
+
+    def standard_normal(self, rng: np.random.Generator, rows: int) -> np.ndarray:
+        """This rank's part (rows, N) of ``rng.standard_normal((rows, npts_total))``:
+        the stream drawn in pieces (numpy's generators give the same numbers
+        however a stream is split), so no rank holds the whole array."""
+        wanted = (np.arange(rows)[:, None] * self.npts_total + self.nodes).ravel()  # ascending
+        out, start, chunk = np.empty(wanted.size), 0, 1 << 16
+        for lo in range(0, rows * self.npts_total, chunk):
+            draw = rng.standard_normal(min(chunk, rows * self.npts_total - lo))
+            stop = np.searchsorted(wanted, lo + draw.size)
+            out[start:stop] = draw[wanted[start:stop] - lo]
+            start = stop
+        return out.reshape(rows, self.N)
+
+    def first_node(self, local: int | None) -> int | None:
+        """The smallest whole-grid node index over all ranks of a local node index
+        (None: none here); None if no rank has one."""
+        g = int(self.nodes[local]) if local is not None else self.npts_total
+        g = int(self.comm.allreduce(g, self._min))
+        return None if g == self.npts_total else g
+
+    # -- global reductions (numpy in, Python float out) ------------------------------
+    def sum(self, value: float) -> float:
+        """Σ of a per-process value over all processes (as ``sums``)."""
+        return float(self.sums(np.float64(value)))
+
+    def max(self, value: float) -> float:
+        """Maximum of a per-process value over all processes."""
+        return float(self.comm.allreduce(value, self._max))
+
+    def integrate(self, f: np.ndarray) -> float:
+        """Area integral ∫ f dA (m² × units of f) of a continuous element-local field f (N,)
+        (HOMME ``global_integral``)."""
+        return self.sum(float(np.sum(self.grid.spheremp * f)))  # not np.dot: the same bits whatever BLAS's threads
+
+    def mean(self, f: np.ndarray) -> float:
+        """Area mean of a continuous element-local field f (N,)."""
+        return self.integrate(f) / self.total_area
+
+    def sums(self, values: np.ndarray) -> np.ndarray:
+        """Elementwise Σ of a per-process numpy array over all processes: gathered
+        and added in rank order, so every rank gets the same bits whatever MPI's
+        reduction algorithm (a Krylov solver's ranks must take the same branches)."""
+        values = np.array(values, dtype=np.float64)  # C-contiguous, 0-d stays 0-d
+        if self._sum is None:  # one process
+            return values
+        parts = np.empty((self.comm.size, *values.shape))
+        self.comm.Allgather(values, parts)
+        total = parts[0].copy()
+        for part in parts[1:]:
+            total += part
+        return total
+
+    def device_sums(self, partial: wp.array2d, rows: int, out: wp.array) -> list:
+        """Recorded launches that put the totals of the first ``rows`` rows of per-chunk
+        partial sums into the float64 device array ``out`` (rows,), added in index order
+        on the device (``blas.row_totals``, one thread): no host read. On CUDA more than
+        ``DEVICE_TOTALS`` partial sums a row are first added in chunks of about √n
+        (``blas.chunk_sums``), so that the one thread adds ≈ 2√n values. The totals are
+        this process's: ``allreduce`` adds them over ranks."""
+        n, src, launches = partial.shape[1], partial[:rows], []
+        if not wp.get_device(self.device).is_cpu and n > DEVICE_TOTALS:
+            chunk = int(np.ceil(np.sqrt(n)))
+            mid = wp.zeros((rows, (n + chunk - 1) // chunk), dtype=f64, device=self.device)
+            launches.append(wp.launch(blas.chunk_sums, mid.shape, [src, chunk, mid], device=self.device, record_cmd=True))
+            src = mid
+        launches.append(wp.launch(blas.row_totals, 1, [src, out], device=self.device, record_cmd=True))
+        return launches
+
+    def allreduce(self, out: wp.array) -> None:
+        """The float64 device array ``out`` of this process's totals (``device_sums``)
+        summed over all ranks in place (``sums``: rank order, the same bits on every
+        rank): one host read and write with several ranks; nothing with one, where the
+        totals stay on the device."""
+        if self.distributed:
+            out.assign(self.sums(out.numpy()))
+
+    def dot(self, a, b) -> float:
+        """Σ a·b of two arrays of one shape (device or numpy) over all processes
+        (element-local arrays count every copy; unique-node vectors each owned
+        node once): the inner product a Krylov solver over the topology's vectors needs."""
+        if isinstance(a, np.ndarray):
+            local = float(a.ravel().dot(b.ravel()))
+        elif wp.get_device(self.device).is_cpu:
+            local = float(a.numpy().ravel().dot(b.numpy().ravel()))  # as np.linalg.norm
+        else:
+            local = float(wp.utils.array_inner(a.flatten(), b.flatten()))
+        return self.sum(local)
+
+    def norm(self, a) -> float:
+        """Euclidean norm of a device array over all processes (as ``dot``)."""
+        return float(np.sqrt(self.dot(a, a)))

@@ -1,0 +1,257 @@
+"""Spectral-element fields → arbitrary points and regular lat-lon grids.
+
+A value at a target point is the owning element's own GLL interpolant evaluated
+there: the target's Cartesian position is mapped back through the equiangular
+gnomonic projection of ``grid._FACES`` (face by the largest c·P, then
+tan α = P·ea / P·c, tan β = P·eb / P·c) to an element (ia, jb) and reference
+coordinates (ξ, η) ∈ [-1, 1]², and the field is Σ_ij ℓ_i(ξ) ℓ_j(η) f_ij with
+ℓ the Lagrange basis on the GLL points. No smoothing: a polynomial of degree
+< np in (ξ, η) is reproduced exactly, and at a target that coincides with a
+GLL node the node's value comes back to round-off. Points on element or cube
+edges may take any adjacent element (fields are continuous there).
+
+``u`` and ``v`` are remapped component by component, as the model stores them
+(east/north at each node; at the two pole nodes the model's basis is that of
+longitude 0).
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+from scipy.sparse import csr_matrix
+
+from ..grid.cubed_sphere import _FACES, CubedSphere
+from .run_file import atomic_path, check_distinct
+from ..core.runtime import check_memory, package_version
+
+#: node fields (time, ncol) or (ncol,) that ``remap_dataset`` carries to the lat-lon grid
+NODE_FIELDS = ("h", "hs", "u", "v", "vorticity", "divergence")
+
+
+def lagrange_basis(nodes: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """ℓ_k(x) for the Lagrange basis on ``nodes`` (n,): (M, n) for x (M,).
+
+    Product form, exact 1/0 at the nodes themselves (n ≤ 8, so no loss of accuracy)."""
+    x = np.asarray(x, dtype=np.float64)
+    n = len(nodes)
+    out = np.ones(x.shape + (n,))
+    for k in range(n):
+        for m in range(n):
+            if m != k:
+                out[..., k] *= (x - nodes[m]) / (nodes[k] - nodes[m])
+    return out
+
+
+def locate(ne: int, lat, lon):
+    """Element and reference coordinates of points (``lat``, ``lon`` radians, 1-D).
+
+    Returns ``elem`` (M,) int64 (``face*ne*ne + jb*ne + ia`` as in grid.py), ``xi``,
+    ``eta`` (M,) float64 in [-1, 1] (up to round-off at element edges)."""
+    lat = np.asarray(lat, dtype=np.float64).ravel()
+    lon = np.asarray(lon, dtype=np.float64).ravel()
+    P = np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=1)
+    cdot = P @ _FACES[:, 0].T  # (M, 6): c_k · P
+    face = np.argmax(cdot, axis=1)
+    cp = cdot[np.arange(P.shape[0]), face]
+    ta = np.einsum("ij,ij->i", P, _FACES[face, 1]) / cp
+    tb = np.einsum("ij,ij->i", P, _FACES[face, 2]) / cp
+    dalpha = math.pi / 2 / ne
+    sa = (np.arctan(ta) + math.pi / 4) / dalpha
+    sb = (np.arctan(tb) + math.pi / 4) / dalpha
+    ia = np.clip(np.floor(sa), 0, ne - 1).astype(np.int64)
+    jb = np.clip(np.floor(sb), 0, ne - 1).astype(np.int64)
+    xi = 2.0 * (sa - ia) - 1.0
+    eta = 2.0 * (sb - jb) - 1.0
+    return face * ne * ne + jb * ne + ia, xi, eta
+
+
+class Remapper:
+    """Evaluation of fields of ``grid`` at fixed target points (``lat``, ``lon`` radians,
+    broadcastable arrays of any shape). Built once, applied to any number of fields.
+
+    ``remapper(f)``: f (..., nunique) on unique nodes (a run file's ``ncol``) →
+    (..., *shape). ``remapper.local(f)``: f (N,) element-local (need not be
+    continuous: each target takes its own element's polynomial).
+    """
+
+    def __init__(self, grid: CubedSphere, lat, lon):
+        lat, lon = np.broadcast_arrays(np.asarray(lat, dtype=np.float64), np.asarray(lon, dtype=np.float64))
+        self.shape = lat.shape
+        self.grid = grid
+        n = grid.np
+        elem, xi, eta = locate(grid.ne, lat, lon)
+        li = lagrange_basis(grid.rule.points, xi)  # (M, n) along ξ (index i)
+        lj = lagrange_basis(grid.rule.points, eta)  # (M, n) along η (index j)
+        m = elem.size
+        self.weights = (lj[:, :, None] * li[:, None, :]).reshape(m, n * n)  # [j*n + i]
+        self.nodes = elem[:, None] * n * n + np.arange(n * n)[None, :]  # element-local p
+        rows = np.repeat(np.arange(m), n * n)
+        self.matrix = csr_matrix(
+            (self.weights.ravel(), (rows, grid.gid[self.nodes].ravel())), shape=(m, grid.nunique)
+        )
+
+    def __call__(self, f) -> np.ndarray:
+        f = np.asarray(f, dtype=np.float64)
+        lead = f.shape[:-1]
+        cols = f.reshape(-1, f.shape[-1]).T  # (nunique, k)
+        out = np.asarray(self.matrix @ cols).T  # (k, M)
+        return out.reshape(lead + self.shape)
+
+    def local(self, f) -> np.ndarray:
+        f = np.asarray(f, dtype=np.float64)
+        return np.einsum("mk,mk->m", self.weights, f[self.nodes]).reshape(self.shape)
+
+
+@functools.lru_cache(maxsize=4)
+def cached_grid(ne: int, np_: int) -> CubedSphere:
+    return CubedSphere(ne, np_)
+
+
+def open_netcdf(path) -> xr.Dataset:
+    """A netCDF file opened lazily with xarray, times as numbers (``decode_times=False``).
+    Raises ``FileNotFoundError`` or ``ValueError`` (one line) for a missing or unreadable file."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"file not found: {path}")
+    try:
+        return xr.open_dataset(path, decode_times=False)
+    except Exception as exc:  # netCDF4 / xarray raise several types
+        raise ValueError(f"{path}: not a readable netCDF file ({type(exc).__name__})") from None
+
+
+def run_grid(ds: xr.Dataset) -> CubedSphere:
+    """The grid of a run file (from its ``scene`` attribute, else ``ne``/``np``),
+    checked against the file's ``lat``/``lon``. Raises ``ValueError`` if the file is
+    not a swe_sphere run or its nodes do not match."""
+    if "ncol" not in ds.dims or "lat" not in ds.variables or "lon" not in ds.variables:
+        raise ValueError("not a swe_sphere run file (no ncol/lat/lon)")
+    try:
+        scene = json.loads(ds.attrs["scene"])
+        ne, np_ = int(scene["ne"]), int(scene["np"])
+    except (KeyError, ValueError, TypeError):
+        try:
+            ne, np_ = int(ds.attrs["ne"]), int(ds.attrs["np"])
+        except (KeyError, ValueError, TypeError):
+            raise ValueError("run file has no scene (ne, np) attribute") from None
+    grid = cached_grid(ne, np_)
+    if ds.sizes["ncol"] != grid.nunique:
+        raise ValueError(f"run file has {ds.sizes['ncol']} columns, ne={ne} np={np_} has {grid.nunique}")
+    lat = np.radians(np.asarray(ds["lat"].values, dtype=np.float64))
+    lon = np.radians(np.asarray(ds["lon"].values, dtype=np.float64))
+    a = np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)])
+    if np.max(np.abs(a - grid.xyz[:, grid.first])) > 1e-9:
+        raise ValueError("run file's lat/lon do not match the ne/np grid it names")
+    return grid
+
+
+def latlon_grid(resolution: float) -> tuple[np.ndarray, np.ndarray]:
+    """Regular node grid (degrees): lat −90, −90+r, …, 90 (both poles) and lon 0, r, …, 360−r.
+
+    Raises ``ValueError`` unless 0 < r ≤ 90 and 180/r is an integer (to 1e-9)."""
+    r = float(resolution)
+    if not (math.isfinite(r) and 0 < r <= 90):
+        raise ValueError(f"resolution must be in (0, 90] degrees (got {resolution})")
+    nlat = 180.0 / r
+    if abs(nlat - round(nlat)) > 1e-9 * nlat:
+        raise ValueError(f"resolution must divide 180 degrees (got {resolution})")
+    nlat = int(round(nlat))
+    lat = np.linspace(-90.0, 90.0, nlat + 1)
+    lon = np.arange(2 * nlat) * (360.0 / (2 * nlat))
+    return lat, lon
+
+
+def remap_bytes(points: int, np_: int, ntime: int) -> int:
+    """Estimated peak bytes of ``remap_dataset`` onto ``points`` lat-lon points: the
+    locator's temporaries (~40 floats), the interpolation weights and sparse matrix
+    (~6 np² words) and the remapped fields h, hs, u, v, vorticity, divergence, h_surface
+    (ntime each, twice: computed and written)."""
+    return 8 * points * (40 + 6 * np_ * np_ + 14 * ntime)
+
+
+def remap_dataset(ds, resolution: float = 1.0) -> xr.Dataset:
+    """A run on a regular lat-lon grid, for maps and lat-lon tools (xarray, CDO).
+
+    ``ds``: a run as an ``xarray.Dataset`` (``swe_sphere.run``'s result, or a run
+    file opened with ``xr.open_dataset``) or the path of a run file (read into
+    memory and closed). ``resolution``: the grid spacing in degrees; it must
+    divide 180: the grid is ``latlon_grid(resolution)``, lat −90..90 with both
+    poles (``180/resolution + 1`` rows), lon 0..360 − resolution (``360/resolution``
+    columns), degrees_north / degrees_east.
+
+    Returns an ``xarray.Dataset`` with the node fields h, hs (m), u, v (m s⁻¹),
+    vorticity, divergence (s⁻¹) on (time, lat, lon) ((lat, lon) for hs), their
+    units and names, ``h_surface`` = h + hs (m), the run's diagnostics time series
+    on ``time`` (model days, exact multiples of the output interval, so
+    ``.sel(time=3)`` works) and the run's global attributes with a ``remap``
+    note. Each value is the owning element's GLL polynomial evaluated at the
+    point (``Remapper``): no smoothing, the model's own interpolant. E.g.
+    ``swe_sphere.remap_dataset("run.nc").h_surface.sel(time=3).plot()`` draws a
+    lat-lon map.
+
+    Raises ``FileNotFoundError`` for a missing file, ``ValueError`` (one line) for
+    a file or dataset that is not a swe_sphere run or a resolution that does not
+    divide 180 degrees, ``runtime.ResourceError`` when the grid would not fit in
+    memory."""
+    if not isinstance(ds, xr.Dataset):
+        with open_netcdf(ds) as opened:
+            return remap_dataset(opened.load(), resolution)  # loaded: the result outlives the file
+    grid = run_grid(ds)
+    lat, lon = latlon_grid(resolution)
+    check_memory(remap_bytes(lat.size * lon.size, grid.np, ds.sizes.get("time", 1)), f"remapping to {resolution:g} degrees ({lat.size} x {lon.size} points)")
+    rm = Remapper(grid, np.radians(lat)[:, None], np.radians(lon)[None, :])
+    out = xr.Dataset(
+        coords=dict(
+            lat=("lat", lat, dict(units="degrees_north", standard_name="latitude", long_name="latitude", axis="Y")),
+            lon=("lon", lon, dict(units="degrees_east", standard_name="longitude", long_name="longitude", axis="X")),
+        )
+    )
+    if "time" in ds.variables:
+        out = out.assign_coords(time=ds["time"].variable.copy())
+    keep = ("units", "long_name", "standard_name")
+    for name in NODE_FIELDS:
+        if name not in ds.variables:
+            continue
+        var = ds[name]
+        dims = tuple(d if d != "ncol" else None for d in var.dims)
+        if dims[-1] is not None:
+            continue
+        values = rm(np.asarray(var.values, dtype=np.float64))
+        attrs = {k: v for k, v in var.attrs.items() if k in keep}
+        out[name] = (var.dims[:-1] + ("lat", "lon"), values, attrs)
+    if "h" in out and "hs" in out:
+        out["h_surface"] = out["h"] + out["hs"]
+        out["h_surface"].attrs = dict(units="m", long_name="free-surface height h + hs", standard_name="height_above_mean_sea_level")
+    for name, var in ds.data_vars.items():
+        if var.dims == ("time",):
+            out[name] = var.copy()
+    out.attrs = dict(ds.attrs)
+    out.attrs["Conventions"] = "CF-1.8"
+    out.attrs["remap"] = (
+        f"GLL interpolation (each element's own polynomial) from ne={grid.ne} np={grid.np} "
+        f"to a regular {resolution:g} degree lat-lon grid by swe_sphere.io.remap"
+    )
+    stamp = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())  # CF: the newest history line first
+    line = f"{stamp}: swe_sphere.io.remap to {resolution:g} degrees (swe_sphere {package_version()})"
+    out.attrs["history"] = f"{line}\n{ds.attrs['history']}" if ds.attrs.get("history") else line
+    return out
+
+
+def remap_file(path, resolution: float, output, *, overwrite: bool = False) -> Path:
+    """Write ``remap_dataset`` of the run ``path`` to ``output`` (netCDF4), via an
+    exclusive ``output.part`` renamed when complete (``output.OutputError`` if
+    ``output`` exists and not ``overwrite``). Returns the output path."""
+    output = Path(output)
+    check_distinct([output], [path])
+    out = remap_dataset(path, resolution)
+    encoding = {k: {"_FillValue": None} for k in out.coords}  # CF: coordinates hold no missing values
+    encoding.update({k: {"_FillValue": np.nan} for k in out.data_vars if out[k].dtype.kind == "f"})
+    with atomic_path(output, overwrite=overwrite) as tmp:
+        out.to_netcdf(tmp, format="NETCDF4", encoding=encoding, unlimited_dims=("time",) if "time" in out.dims else None)
+    return output

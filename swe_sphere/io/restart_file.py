@@ -1,0 +1,162 @@
+"""The restart file's layout: written, read back and checked (``checkpoint`` makes
+a run of what it holds).
+
+A restart file is a netCDF4 file (CF-1.8 attributes) holding the element-local
+state ``x`` (3, N) as the variables ``u``, ``v`` (m s⁻¹) and ``h`` (m) on
+``node`` (every element's copy of its GLL nodes), the stepper's ``state()``
+(arrays (3, N) as variables ``stepper_<key>`` on (``row``, ``node``), scalars as
+attributes ``stepper_<key>``), the run's counters
+(step, RHS evaluations, solver iterations, wall time), the invariants at t = 0
+(so relative changes keep their origin), the resolved scene (JSON) and the
+package version.
+
+Every variable is written with netCDF's per-variable Fletcher-32 checksum, and
+the attribute ``content_sha256`` holds a SHA-256 of the state, the stepper's
+history and the step (``content_hash``), so a damaged file is refused instead of
+continued.
+
+``read`` raises ``CheckpointError`` (a ValueError, one line) for a file that is
+not a restart file, was written by another swe_sphere version, or is damaged: a
+failed checksum or hash, a non-finite value, a depth h <= 0, or a wind beyond
+``MAX_FROUDE`` times the gravity-wave speed of the deepest node (no shallow-water
+flow the model runs comes near it), each naming the variable.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from pathlib import Path
+
+import netCDF4
+import numpy as np
+
+from ..core.constants import Planet
+from .run_file import FIELDS, WRITING, ExclusiveFile
+from ..core.runtime import package_version
+from ..core.errors import CheckpointError
+
+FORMAT = 3  # bump when the layout changes (2: checksums and content hash; 3: the state as named fields)
+STATE = ("u", "v", "h")  # the rows of x, each a variable with output.FIELDS' attributes
+MAX_FROUDE = 2.0  # |v| / sqrt(g max h) beyond which a stored wind is not a state the model made
+
+
+def content_hash(step: int, x: np.ndarray, stepper_state: dict) -> str:
+    """SHA-256 (hex) of the step, the state ``x`` and the stepper's history
+    (arrays as float64 bytes, scalars by repr, in key order)."""
+    h = hashlib.sha256(str(int(step)).encode())
+    h.update(np.ascontiguousarray(x, dtype=np.float64).tobytes())
+    for key in sorted(stepper_state):
+        value = stepper_state[key]
+        h.update(key.encode())
+        h.update(np.ascontiguousarray(value, dtype=np.float64).tobytes() if isinstance(value, np.ndarray) else repr(value).encode())
+    return h.hexdigest()
+
+
+def _check_state(path, planet: dict | None, x: np.ndarray, stepper_state: dict) -> None:
+    """Refuse (``CheckpointError`` naming the variable) non-finite values, h <= 0 and
+    implausible winds; ``planet``: the scene's [planet] table (its gravity)."""
+    for name, value in (*zip(STATE, x), *((f"stepper_{k}", v) for k, v in stepper_state.items() if isinstance(v, np.ndarray))):
+        bad = np.flatnonzero(~np.isfinite(value))
+        if bad.size:
+            raise CheckpointError(f"{path}: variable {name} holds {bad.size} non-finite values; not continued")
+    h = x[2]
+    if h.min() <= 0:
+        raise CheckpointError(f"{path}: variable h holds a depth h = {h.min():.4g} m <= 0; not continued")
+    g = Planet.from_table(planet).g  # not the case: a file case would read its file
+    bound = MAX_FROUDE * np.sqrt(g * h.max())
+    speed = np.hypot(x[0], x[1]).max()
+    if speed > bound:
+        raise CheckpointError(f"{path}: variables u, v hold a wind of {speed:.4g} m/s, beyond {bound:.4g} m/s "
+                              f"({MAX_FROUDE:g} x the gravity-wave speed of the deepest node); not continued")
+
+
+def write(path, scene, step: int, x: np.ndarray, stepper_state: dict, counters: dict, initial: dict,
+          *, overwrite: bool = True, restart_every: float | None = None) -> Path:
+    """Write a restart file to ``path`` atomically (via ``output.ExclusiveFile``).
+
+    ``scene``: the run's ``config.Scene``; ``x``: (3, N) element-local state (u, v
+    in m s⁻¹, h in m) at ``step`` (model time step·dt); ``stepper_state``:
+    ``Stepper.state()`` (arrays (3, N), scalars); ``counters``: {"rhs_evals",
+    "wall_time" (s), "iterations": {solver: n}}; ``initial``: the diagnostics at
+    t = 0; ``restart_every``: the run's restart interval (days; None: none), which a
+    continuation keeps. Raises ``output.OutputError`` when ``path`` exists and not
+    ``overwrite`` (or is a link / being written)."""
+    path = Path(path)
+    with WRITING, ExclusiveFile(path, overwrite=overwrite) as tmp:  # WRITING: see mpi.watch_failures
+        with netCDF4.Dataset(tmp, "w", format="NETCDF4") as ds:
+            ds.Conventions = "CF-1.8"
+            ds.title = f"swe_sphere restart file of scene {scene.name}"
+            ds.history = f"{time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime())}: swe_sphere restart at step {int(step)}"
+            ds.swe_sphere_checkpoint = FORMAT
+            ds.swe_sphere_version = package_version()
+            ds.scene = json.dumps(scene.as_dict())
+            ds.step = int(step)
+            ds.time_days = scene.day(step)
+            ds.counters = json.dumps(counters)
+            ds.initial = json.dumps(initial)
+            ds.content_sha256 = content_hash(step, x, stepper_state)
+            if restart_every is not None:
+                ds.restart_every_days = float(restart_every)
+            ds.createDimension("row", 3)
+            ds.createDimension("node", x.shape[1])
+            for name, row in zip(STATE, x):
+                var = ds.createVariable(name, "f8", ("node",), fletcher32=True)
+                var.setncatts({**FIELDS[name], "long_name": f"{FIELDS[name]['long_name']} at each element's GLL nodes"})
+                var[:] = row
+            for key, value in stepper_state.items():
+                if isinstance(value, np.ndarray):
+                    var = ds.createVariable(f"stepper_{key}", "f8", ("row", "node"), fletcher32=True)
+                    var.long_name = f"the stepper's history {key!r} (Stepper.state(); rows u, v, h)"
+                    var[:] = value
+                else:
+                    ds.setncattr(f"stepper_{key}", value)
+    return path
+
+
+def read(path) -> dict:
+    """Read and check a restart file: {"scene": the scene as stored (``Scene.as_dict()``),
+    "step", "x" (3, N), "stepper_state", "counters", "initial", "version", "path"
+    (absolute), "sha256" (of the file's bytes)}. Raises ``CheckpointError`` (one line)."""
+    path = Path(path)
+    if not path.is_file():
+        raise CheckpointError(f"checkpoint not found: {path}")
+    with open(path, "rb") as f:
+        sha256 = hashlib.file_digest(f, "sha256").hexdigest()
+    try:
+        ds = netCDF4.Dataset(path, "r")
+    except OSError:
+        raise CheckpointError(f"{path}: not a readable netCDF file") from None
+    with ds:
+        attrs = ds.__dict__
+        written = attrs.get("swe_sphere_checkpoint")
+        if written is None:
+            raise CheckpointError(f"{path}: not a swe_sphere checkpoint")
+        if written != FORMAT:
+            raise CheckpointError(f"{path} is in checkpoint format {written}; this swe_sphere reads format {FORMAT} only")
+        version = str(attrs.get("swe_sphere_version"))
+        if version != package_version():
+            raise CheckpointError(f"{path} was written by swe_sphere {version}; this is {package_version()} (continue it with that version)")
+        arrays = {}
+        for name in ds.variables:
+            try:
+                arrays[name] = np.asarray(ds[name][:], dtype=np.float64)
+            except (RuntimeError, OSError) as err:  # a failed Fletcher-32 checksum reads as an HDF error
+                raise CheckpointError(f"{path}: variable {name} fails its checksum ({err}); the file is damaged") from None
+        try:
+            state = {k[len("stepper_"):]: v for k, v in arrays.items() if k.startswith("stepper_")}
+            state.update({k[len("stepper_"):]: v.item() if isinstance(v, np.generic) else v for k, v in attrs.items() if k.startswith("stepper_")})
+            x = np.stack([arrays[name] for name in STATE])
+            stored = dict(scene=json.loads(attrs["scene"]), step=int(attrs["step"]), x=x, stepper_state=state,
+                          counters=json.loads(attrs["counters"]), initial=json.loads(attrs["initial"]), version=version,
+                          path=path.resolve(), sha256=sha256, 
+                          restart_every=float(attrs["restart_every_days"]) if "restart_every_days" in attrs else None)
+            digest = attrs["content_sha256"]
+            planet = stored["scene"].get("planet")
+        except (KeyError, ValueError, TypeError, AttributeError) as err:
+            raise CheckpointError(f"{path}: damaged checkpoint ({type(err).__name__}: {err})") from None
+    if content_hash(stored["step"], stored["x"], state) != digest:
+        raise CheckpointError(f"{path}: the state or stepper history does not match its content_sha256; the file is damaged")
+    _check_state(path, planet, stored["x"], state)
+    return stored

@@ -1,0 +1,53 @@
+"""The bad-node check of a ``ShallowWater`` model's states (a non-finite value or a dry node),
+at once (one host read) or flagged on the device over a block of steps and read once."""
+
+from __future__ import annotations
+
+import warp as wp
+
+from ..kernels import blas
+
+
+class BadNodes:
+    """The bad-node check of ``model``'s states (3, N): a node is bad where u, v or h
+    is not finite or (when the scene has a pressure gradient, so h is a depth) h ≤ 0
+    (``kernels.blas.first_bad_node``, launched through the model's recorded launches).
+    Holds two int32 arrays of a slot per CPU thread: ``bad`` (``first``'s) and
+    ``watched`` (``watch``'s)."""
+
+    def __init__(self, model):
+        self.model = m = model
+        self.bad = wp.zeros(max(1, m.threads), dtype=wp.int32, device=m.device)
+        self.watched = wp.full(max(1, m.threads), m.N, dtype=wp.int32, device=m.device)
+
+    def first(self, x: wp.array2d) -> int | None:
+        """Whole-grid element-local index of the first bad node of x over all ranks;
+        None if all are good. Reads the device (a host synchronisation)."""
+        N = self.model.N
+        self.bad.fill_(N)
+        self._launch(x, self.bad, "guard")
+        first = int(self.bad.numpy().min())
+        return self.model.topology.first_node(None if first == N else first)
+
+    def watch(self, x: wp.array2d) -> None:
+        """Flag on the device whether x has a bad node, without reading it back: the
+        flag (the smallest bad index seen) holds every state watched since the last
+        ``watched_bad``, so a block of steps needs one read."""
+        self._launch(x, self.watched, "watch")
+
+    def watched_bad(self) -> bool:
+        """Whether any state given to ``watch`` since the last call had a bad node on
+        any rank (the same answer on every rank; call on all); resets the flag.
+        One host read."""
+        N = self.model.N
+        bad = int(self.watched.numpy().min()) < N
+        self.watched.fill_(N)
+        return self.model.topology.max(float(bad)) > 0.0
+
+    def _launch(self, x, first, name):
+        """Launch ``blas.first_bad_node`` on x into the per-thread slots of ``first``
+        (an atomic minimum: the same index whatever order the threads run in)."""
+        m = self.model
+        check_depth = 1 if "pressure_gradient" in m.terms else 0
+        slots = [first[k : k + 1] for k in range(first.shape[0])]  # one per thread: CPU atomics are plain
+        m._replay((name, x.ptr), (x,), lambda: [m._launch(blas.first_bad_node, m.N, [x, check_depth, first], {"first": slots})])

@@ -1,0 +1,220 @@
+"""The ∇⁴ hyperviscosity of a ``ShallowWater`` model, applied split from the dynamics.
+
+``Hyperviscosity`` holds what the ∇⁴ needs beyond the model's arrays (its work
+arrays, the operator's spectral radius, each Δt's plan of forward-Euler substeps
+or an RKL1 super-step) and records its launches through the model's. Mirrors
+HOMME's ``biharmonic_wk`` and ``advance_hypervis`` (``viscosity_mod``,
+``prim_advance_mod``); the kernels are ``kernels.hyperviscosity``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import warp as wp
+
+from ..kernels import blas, hyperviscosity, operators
+from ..core.parallel import array_key
+
+f64 = wp.float64
+
+
+class Hyperviscosity:
+    """The ∇⁴ of ``model`` (a ``ShallowWater`` whose terms name "hyperviscosity";
+    its ν, ν_div, ν_s and ``hypervis_subcycle``): ``operator`` B x, ``apply`` over a
+    step, and the step's plan (``substeps``, ``stages``, ``plan``) from the
+    operator's spectral radius (``biharmonic_radius``). Allocates its work arrays
+    (4 and, on the per-node layout, 12 rows of N) once."""
+
+    def __init__(self, model):
+        self.model = m = model
+        N, device = m.N, m.device
+        self.hv_Y = wp.zeros((4, N), dtype=f64, device=device)  # Y₁ (``kernels.hyperviscosity``)
+        self.hv_L = wp.zeros((4, N), dtype=f64, device=device)  # the weak forms of Y₁ and Y₂
+        if m.per_element:  # the weak Laplacian's metric, fixed: computed once, not by every ∇⁴ evaluation
+            self.hv_metric = wp.zeros((4, N), dtype=f64, device=device)
+            m._launch(hyperviscosity.laplacian_metric, N, [m.Dinv, m.spheremp, self.hv_metric]).launch()
+        else:  # the Cartesian state and the weak Laplacian's flux of the per-node kernels
+            self.hv_X = wp.zeros((4, N), dtype=f64, device=device)
+            self.hv_flux = wp.zeros((8, N), dtype=f64, device=device)
+        self._substeps: dict[float, tuple[int, bool]] = {}  # plan
+        self._biharmonic_radius = None
+        self._rkl_buffers = None
+
+    def build(self, x, coef, out=None, nus=None):
+        """Launches of out += coef·B x, B = ν∇⁴ the hyperviscosity operator
+        (``kernels.hyperviscosity``) with coefficients ``nus`` = (ν, ν_div, ν_s)
+        (None: the model's); out = x if None. Four passes (the per-node
+        layout: ``to_cartesian`` and a flux pass before the first weak
+        Laplacian, a flux pass before the second), and the divergence δ and
+        its DSS first when ν_div ≠ ν."""
+        m = self.model
+        N, np_ = m.N, m.grid.np
+        out = x if out is None else out
+        nu, nu_div, nu_s = (m.nu, m.nu_div, m.nu_s) if nus is None else nus
+        Y, L = self.hv_Y, self.hv_L
+        shift = 2.0 / m.grid.radius**2  # HOMME: "so we dont damp rigid rotation"
+        c = wp.vec4d(nu, nu_div - nu, nu_s, shift)
+        divergent = nu_div != nu
+        delta = m.scalar_dss  # δ = DSS(∇·v), read only when divergent
+        launches = m._build_div(x, delta) if divergent else []
+        # each pass is given the node frame's arrays it reads: the first the position (and the
+        # per-element one the wind's basis), ∇δ Dinv and the basis; the second none
+        names = ("xyz", *(("east", "north") if m.per_element or divergent else ()), *(("Dinv",) if divergent else ()))
+
+        if m.per_element:
+            def laplacian(second):  # → the weak form of Y₁ or Y₂ in L
+                kernel = hyperviscosity.laplacian_element(second, divergent, np_)
+                frame = self._frame(*() if second else names, rows=True)
+                args = [*map(m.as_rows, (Y if second else x, m.hs, delta)), c, frame, m.as_rows(self.hv_metric), m.dvv_rows, m.as_rows(L)]
+                return [m._launch_elements(kernel, args)]
+        else:
+            def laplacian(second):
+                src = Y if second else self.hv_X
+                first = [] if second else [m._launch(hyperviscosity.to_cartesian, N, [x, m.hs, m.east, m.north, src])]
+                args = [self.hv_flux, src, delta, c, self._frame(*() if second else names), m.spheremp, m.dvv, np_, L]
+                return [
+                    *first,
+                    m._launch(operators.laplace_wk_flux, N, [src, m.Dinv, m.spheremp, m.dvv, np_, self.hv_flux]),
+                    m._launch(hyperviscosity.laplacian_node(second, divergent), N, args),
+                ]
+
+        def apply(rows, copies, ghosts):  # ``Topology.gathering``'s kernel factory
+            return hyperviscosity.dss_apply(copies, ghosts=ghosts)
+
+        return [
+            *launches,
+            *laplacian(False),
+            *m._dss(L, 0, Y),
+            *laplacian(True),
+            *m.topology.gathering(L, apply, [f64(coef), self._frame("east", "north"), out]),
+        ]
+
+    def _frame(self, *names, rows=False):
+        """A ``kernels.hyperviscosity.Frame`` holding the model's arrays of these
+        names, the others null: what a ∇⁴ pass reads and no more (a launch's
+        arguments are what ``benchmarks/gpu_model.py`` counts as its traffic);
+        with ``rows``, the element kernels' frame of their row views (``as_rows``)."""
+        m = self.model
+        frame = hyperviscosity.frame_type(operators.row_type(m.grid.np) if rows else f64)()
+        for name in names:
+            array = getattr(m, name)
+            setattr(frame, name, m.as_rows(array) if rows else array)
+        return frame
+
+    def operator(self, x: wp.array2d, out: wp.array2d) -> None:
+        """out (3, N) = B x, the hyperviscosity operator ν∇⁴ with the model's
+        ν, ν_div, ν_s applied to the state x (rows u, v in m s⁻² and h + hs in
+        m s⁻¹; ``kernels.hyperviscosity``): dx/dt = −B x is the dissipation.
+        ``out`` must not alias ``x``."""
+        m = self.model
+        out.zero_()
+        m._replay(("hvop", array_key(x), array_key(out)), (x, out), lambda: self.build(x, 1.0, out))
+
+    def biharmonic_radius(self, iterations: int = 20) -> float:
+        """Largest eigenvalue λ (m⁻⁴) of the discrete ∇⁴ operator with unit
+        coefficients (ν = ν_div = ν_s = 1 m⁴ s⁻¹, wind and height together), by
+        power iteration from a fixed random continuous state. Forward Euler on
+        dx/dt = −ν∇⁴x is stable for max(ν, ν_div, ν_s) Δt λ ≤ 2."""
+        m = self.model
+        if self._biharmonic_radius is None:
+            rng = np.random.default_rng(0)
+            z = m.topology.standard_normal(rng, 3)  # the same vector on any ranks
+            z = wp.array(z, dtype=f64, device=m.device)
+            w, zc = wp.zeros_like(z), wp.zeros_like(z)
+            for launch in m._dss(z, 1, zc):
+                launch.launch()
+            lam = 0.0
+            hs, m.hs = m.hs, wp.zeros_like(m.hs)  # the operator without the hs offset
+            launches = self.build(zc, 1.0, w, nus=(1.0, 1.0, 1.0))
+            m.hs = hs
+            for _ in range(iterations):
+                zc.assign(zc.numpy() / m.topology.norm(zc))
+                w.zero_()
+                for launch in launches:
+                    launch.launch()
+                lam = m.topology.norm(w)  # ‖∇⁴ z‖
+                wp.copy(zc, w)
+            self._biharmonic_radius = lam
+        return self._biharmonic_radius
+
+    @property
+    def nu_max(self) -> float:
+        """The largest of ν, ν_div, ν_s (m⁴ s⁻¹): what limits explicit steps."""
+        return max(self.model.nu, self.model.nu_div, self.model.nu_s)
+
+    def substeps(self, dt: float) -> int:
+        """Forward-Euler substeps for ``apply`` over dt: at least the
+        scene's ``hypervis_subcycle``, and enough that ν (Δt/n) λ ≤ 1.5."""
+        return max(self.model.hypervis_subcycle, math.ceil(self.nu_max * dt * self.biharmonic_radius() / 1.5))
+
+    def stages(self, dt: float) -> int:
+        """RKL1 stages s for ``apply`` over dt: the fewest (≥ 2) whose
+        stability interval, (s² + s)/2 forward-Euler limits (Meyer, Balsara &
+        Aslam 2014, §3), covers ν dt λ / 1.5 (the same 1.5/2 margin as the substeps)."""
+        n = self.nu_max * dt * self.biharmonic_radius() / 1.5
+        return max(2, math.ceil((math.sqrt(1.0 + 8.0 * n) - 1.0) / 2.0 - 1e-12))
+
+    def plan(self, dt: float) -> tuple[int, bool]:
+        """(∇⁴ evaluations, RKL1?) of one ``apply`` over dt: the forward-Euler
+        substeps, or the RKL1 stages where those are at most half as many (see
+        ``apply``); cached per dt."""
+        plan = self._substeps.get(dt)
+        if plan is None:
+            n, s = self.substeps(dt), self.stages(dt)
+            plan = self._substeps[dt] = (s, True) if n >= 2 * s and n > self.model.hypervis_subcycle else (n, False)
+        return plan
+
+    def apply(self, x: wp.array2d, dt: float) -> None:
+        """Apply ∇⁴ hyperviscosity over dt (s) in place, split from the dynamics:
+        n = ``substeps(dt)`` forward-Euler steps of x −= (dt/n) B x
+        (B: ``operator``, ν ∇⁴ with ν, ν_div, ν_s)
+        (HOMME ``advance_hypervis`` with ``hypervis_subcycle``), or, when that
+        takes at least twice the ∇⁴ evaluations of an s-stage RKL1
+        super-time-step (``stages``; n ≥ 2s, n set by stability rather
+        than by the scene's subcycle: long steps only, so explicit steppers at
+        their steps keep forward Euler), the RKL1 step, whose cost grows as
+        √(ν dt λ) instead of linearly (TC5 ne16, dt_g the gravity-wave limit:
+        n / s = 6 / 3, 15 / 5, 45 / 9 at 4, 10, 30 dt_g).
+        Why RKL1 and not the second-order RKL2: RKL2's amplification of the
+        stiff modes is ≈ 1/2 a step (a_s + b_s P_s, a_s, b_s → 1/2) where the
+        exact factor is ~0; with it IMEX ARS(2,3,2) at 12 dt_g on TC5 ne8 blew
+        up on day 4, as with forward Euler it does not. RKL1's P_s damps the
+        interior of its interval to ≲ 0.3; the split is first order anyway.
+        Does nothing (launches nothing) with ν = ν_div = ν_s = 0."""
+        m = self.model
+        if self.nu_max == 0.0:
+            return
+        n, rkl = self.plan(dt)
+        if rkl:
+            self._rkl1(x, dt, n)
+            return
+        coef = -dt / n
+        for _ in range(n):
+            m._replay(("hv", x.ptr, coef), (x,), lambda: self.build(x, coef))
+
+    def _rkl1(self, x, dt, s):
+        """One s-stage RKL1 step (Meyer, Balsara & Aslam 2014, eqs. 10–11) of
+        dx/dt = M(x) = −B x over dt: Y_0 = x, Y_1 = E(Y_0),
+        Y_j = μ_j E(Y_{j−1}) + ν_j Y_{j−2}, μ_j = (2j − 1)/j, ν_j = −(j − 1)/j,
+        with E one forward-Euler step of w₁Δt, w₁ = 2/(s² + s) (so only the
+        recorded ∇⁴ step is used); first order, stable for ν dt λ ≤ s² + s."""
+        m = self.model
+        if self._rkl_buffers is None:
+            self._rkl_buffers = [wp.zeros_like(x) for _ in range(3)]
+        ym2, ym1, e = self._rkl_buffers
+        coef = -dt * 2.0 / (s * s + s)
+
+        def euler(src):  # e = E(src)
+            wp.copy(e, src)
+            m._replay(("hv", e.ptr, coef), (e,), lambda: self.build(e, coef))
+
+        wp.copy(ym2, x)
+        euler(x)
+        wp.copy(ym1, e)  # Y_1
+        for j in range(2, s + 1):
+            euler(ym1)
+            out = x if j == s else ym2  # Y_{j−2} is not needed after this stage
+            m.pointwise(blas.axpby, f64((2.0 * j - 1.0) / j), e, f64(-(j - 1.0) / j), ym2, out)
+            ym2, ym1 = ym1, out

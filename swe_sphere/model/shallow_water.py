@@ -1,0 +1,424 @@
+"""The shallow-water model: right-hand side and diagnostics operators, and its ∇⁴ (``hypervis``).
+
+``ShallowWater`` uploads the grid once, allocates its work arrays once and
+records every kernel launch the first time it is used on a given pair of
+arrays; afterwards ``rhs`` and ``hyperviscosity`` only replay recorded
+launches (no allocation in the time loop). The tendency kernel is compiled
+for the scene's terms alone (``kernels.tendencies.tendency``); the
+hyperviscosity kernels run only when it is a term, the forcing kernel (an
+analytic function of position and model time, ``set_time``) only when the
+scene names ``forcing``. Mirrors HOMME's ``compute_and_apply_rhs`` + ``advance_hypervis``.
+"""
+
+from __future__ import annotations
+
+
+import numpy as np
+import warp as wp
+
+from .bad_nodes import BadNodes
+from ..core.constants import EARTH
+from ..core.graphs import GraphGuard
+from ..grid.cubed_sphere import CubedSphere
+from .hyperviscosity import Hyperviscosity
+from ..kernels import blas, gravity_wave, operators, tendencies
+from ..core.parallel import array_key, default_threads, record
+from ..grid.topology import Topology
+
+TERMS = (
+    "continuity",
+    "momentum_advection",
+    "coriolis",
+    "pressure_gradient",
+    "topography",
+    "hyperviscosity",
+    "forcing",
+)
+
+f64 = wp.float64
+
+
+class ShallowWater:
+    """Vector-invariant shallow-water equations on a cubed-sphere SE grid.
+
+    Parameters
+    ----------
+    grid : CubedSphere
+    terms : iterable of names from ``TERMS``; a term not named is neither compiled nor run.
+    fcor, hs : (N,) Coriolis parameter (s⁻¹) and surface height (m), element-local.
+    nu, nu_div, nu_s : hyperviscosity coefficients (m⁴ s⁻¹) of the rotational
+        wind, the divergent wind and the free surface h + hs (HOMME's names;
+        None: ``nu``), used if "hyperviscosity" is a term
+        (``kernels.hyperviscosity``).
+    hypervis_subcycle : forward-Euler substeps per ``hyperviscosity`` call.
+    forcing : (kernel, params) of the "forcing" term, supplied by the case
+        (``cases.ForcedLow.forcing``): a pointwise kernel (xyz, east, north,
+        params, t, tend, block, offset) that adds the forcing at model time t
+        to the element-local tendency before its DSS (``kernels.forcing``).
+    device : "cpu" or "cuda".
+    threads : CPU threads per launch (None: ``SWE_SPHERE_THREADS``, else the
+        usable CPUs; ignored on CUDA). Each element-local launch runs as that
+        many disjoint node ranges at once (``swe_sphere.core.parallel``); the
+        results are the same bits for any thread count.
+    per_element : the kernels' layout: one thread per element (None: on a CPU
+        device, where a launch is a serial loop and the element's data stays
+        in cache) or one thread per node (on CUDA). Same results to round-off.
+    topology : the ``Topology`` that assembles the grid's elements (DSS,
+        unique-node vectors, global reductions); None: one over the whole grid.
+
+    The state is a ``wp.array2d`` (3, N) of rows u, v (m s⁻¹, east/north) and h
+    (fluid depth, m), element-local and continuous (equal on all copies).
+
+    Raises ``ValueError`` for an unknown term, a negative ν, or the forcing
+    term without a forcing or without any tendency term to add to.
+    """
+
+    def __init__(
+        self, grid: CubedSphere, terms, fcor, hs, *, nu=0.0, nu_div=None, nu_s=None, hypervis_subcycle=1, g=EARTH.g, device="cpu", threads=None, per_element=None, topology=None,
+        forcing=None,
+    ):
+        terms = tuple(terms)
+        for t in terms:
+            if t not in TERMS:
+                raise ValueError(f"unknown term {t!r} (known: {', '.join(TERMS)})")
+        if "forcing" in terms and forcing is None:
+            raise ValueError("the forcing term needs a forcing (kernel, params); the case supplies it")
+        if "forcing" in terms and not set(terms) & set(tendencies.TENDENCY_TERMS):
+            raise ValueError("the forcing term adds to the tendency: name at least one tendency term")
+        self.forcing = forcing if "forcing" in terms else None
+        self.graph_guard = GraphGuard()  # whether its solvers may capture graphs (``graphs``; off for good on a failure)
+        self.time = 0.0  # s, the model time of the next RHS evaluation (``set_time``)
+        self._forcing_launches = []  # every recorded forcing launch, whose t set_time sets
+        nu_div = nu if nu_div is None else nu_div
+        nu_s = nu if nu_s is None else nu_s
+        for name, value in (("nu", nu), ("nu_div", nu_div), ("nu_s", nu_s)):
+            if value < 0:
+                raise ValueError(f"hyperviscosity {name} must be >= 0 (got {value})")
+        self.nu_div, self.nu_s = float(nu_div), float(nu_s)
+        self.grid, self.terms, self.device = grid, terms, device
+        self.threads = default_threads(device) if threads is None else int(threads)
+        if self.threads < 1:
+            raise ValueError(f"threads must be >= 1 (got {threads})")
+        self.nu, self.hypervis_subcycle, self.g = float(nu), int(hypervis_subcycle), float(g)
+        self.per_element = wp.get_device(device).is_cpu if per_element is None else bool(per_element)
+        self.dvv_rows = operators.dvv_matrix(grid.rule.dvv)  # the per-element kernels' dvv argument
+        N = grid.npts
+        self.N = N
+
+        def up(a, dtype=f64):
+            return wp.array(np.ascontiguousarray(a), dtype=dtype, device=device)
+
+        self.D, self.Dinv = up(grid.D), up(grid.Dinv)
+        self.topology = topo = Topology(grid, device, self.threads) if topology is None else topology
+        self.metdet, self.spheremp = up(grid.metdet), topo.spheremp
+        self.dvv = up(grid.rule.dvv)
+        self.xyz, self.east, self.north = up(grid.xyz), up(grid.east), up(grid.north)
+        self.fcor, self.hs = up(fcor), up(hs)
+
+        self.tend = wp.zeros((3, N), dtype=f64, device=device)
+        self.scalar = wp.zeros((1, N), dtype=f64, device=device)
+        self.scalar_dss = wp.zeros((1, N), dtype=f64, device=device)
+        self.scalar_flat = self.scalar.flatten()
+        self.vec_work = wp.zeros((2, N), dtype=f64, device=device)
+        self.topo_forcing = None
+        if "topography" in terms:
+            self.topo_forcing = wp.zeros((2, N), dtype=f64, device=device)
+            hs2 = wp.array(np.asarray(hs, dtype=float)[None, :], dtype=f64, device=device)
+            wp.launch(operators.gradient_sphere, N, [hs2, 0, self.Dinv, self.dvv, grid.np, self.topo_forcing, 0], device=device)
+            forcing = -self.g * self.topo_forcing.numpy()
+            self.topo_forcing.assign(forcing)
+        self._recorded: dict[tuple, tuple] = {}
+        self._pointwise_launches: dict[tuple, object] = {}
+        self.hv = Hyperviscosity(self) if "hyperviscosity" in terms else None  # the ∇⁴: its plan, work arrays, launches
+        self.bad_nodes = BadNodes(self)  # the check of a state for non-finite or dry nodes
+
+    # -- launch recording ---------------------------------------------------
+    def _launch(self, kernel, dim, inputs, per_part=None):
+        """Record a launch of a kernel with a trailing ``offset`` argument (not in
+        ``inputs``) over dim N or (rows, N): split over ``threads`` node ranges on CPU."""
+        return record(kernel, dim, inputs, device=self.device, threads=self.threads, block=self.grid.np**2, per_part=per_part)
+
+    def _launch_elements(self, kernel, inputs):
+        """Record a per-element kernel (dim nelem, trailing element ``offset``)."""
+        return record(kernel, self.grid.nelem, inputs, device=self.device, threads=self.threads, nodes_per_index=self.grid.np**2)
+
+    def _launch_pointwise(self, kernel, rows, inputs):
+        """Record a pointwise kernel with trailing ``block`` and ``offset`` arguments
+        (``kernels.blas``) over (rows, N), or N if ``rows`` is None: np² nodes a
+        thread with the per-element layout, one on CUDA."""
+        block = self.grid.np**2 if self.per_element else 1
+        n = self.N // block
+        return record(
+            kernel, n if rows is None else (rows, n), [*inputs, block], device=self.device, threads=self.threads, nodes_per_index=block
+        )
+
+    def lincomb(self, out, terms):
+        """The recorded launch of out = Σ c·x over one to three (c, x) terms of
+        (rows, N) arrays (row views such as ``x[2:3]`` included; out may alias
+        any x), ``blas.axpby``/``axpbypcz`` (one term: c·x + 0·x), split over
+        the CPU threads like the model's own launches."""
+        terms = tuple(terms)
+        if len(terms) == 1:
+            terms += ((0.0, terms[0][1]),)
+        args = [a for c, x in terms for a in (f64(c), x)]
+        kernel = blas.axpby if len(terms) == 2 else blas.axpbypcz
+        return self._launch_pointwise(kernel, out.shape[0], [*args, out])
+
+    def pointwise(self, kernel, *inputs, unique=False) -> None:
+        """Run a pointwise kernel (``kernels.blas`` convention: trailing ``block``,
+        ``offset``) on ``inputs`` over (3, N), or over (3, nunique) if ``unique``
+        (trailing ``offset`` only): recorded on the first call with these arrays,
+        later calls only set its scalar arguments."""
+        key = (kernel.key, *(a.ptr if isinstance(a, wp.array) else None for a in inputs))
+        launch = self._pointwise_launches.get(key)
+        if launch is None:
+            build = self._launch(kernel, (3, self.topology.nunique), list(inputs)) if unique else self._launch_pointwise(kernel, 3, list(inputs))
+            launch = self._pointwise_launches[key] = build
+        else:
+            for arg, value in zip(kernel.adj.args, inputs):
+                if not isinstance(value, wp.array):
+                    launch.set_param_by_name(arg.label, value)
+        launch.launch()
+
+    def _replay(self, key, arrays, build):
+        """Replay the launches recorded under ``key``, recording them first if new.
+        The cache holds ``arrays`` so that their addresses (part of the key) stay theirs."""
+        entry = self._recorded.get(key)
+        if entry is None:
+            entry = self._recorded[key] = (build(), arrays)
+        for launch in entry[0]:
+            launch.launch()
+
+    def _dss(self, x, weighted, out):
+        return self.topology.dss(x, weighted, out)
+
+    # -- right-hand side ----------------------------------------------------
+    def _build_tendency(self, x, named):
+        """Launches that write the element-local tendency of the terms ``named``
+        into ``self.tend``, and the rows (lo, hi) they write (a continuity half
+        writes dh alone, a momentum half du, dv)."""
+        terms = tuple(term for term in tendencies.TENDENCY_TERMS if term in named)
+        launches = []
+        if terms:
+            forcing = self.topo_forcing if self.topo_forcing is not None else self.vec_work  # read only with topography
+            args = [x, self.D, self.Dinv, self.metdet, self.fcor, forcing]
+            if self.per_element:
+                kernel = tendencies.tendency_element(terms, self.grid.np)
+                launches.append(self._launch_elements(kernel, [*map(self.as_rows, args), self.g, self.dvv_rows, self.as_rows(self.tend)]))
+            else:
+                kernel = tendencies.tendency(terms)
+                launches.append(self._launch(kernel, self.N, [*args, self.dvv, self.grid.np, self.g, self.tend]))
+        forced = self.forcing is not None and "forcing" in named
+        if forced:
+            kernel, params = self.forcing
+            launch = self._launch_pointwise(kernel, None, [self.xyz, self.east, self.north, params, f64(self.time), self.tend])
+            self._forcing_launches.append(launch)
+            launches.append(launch)
+        lo = 0 if forced or set(terms) - {"continuity"} else 2
+        hi = 3 if "continuity" in terms or forced else 2
+        return launches, lo, hi
+
+    def _build_rhs(self, x, out, named):
+        launches, lo, hi = self._build_tendency(x, named)
+        launches.extend(self._dss(self.tend[lo:hi], 1, out[lo:hi]) if (lo, hi) != (0, 3) else self._dss(self.tend, 1, out))
+        return launches
+
+    def _build_rhs_update(self, x, updates, named):
+        launches, lo, hi = self._build_tendency(x, named)
+        groups = []  # (rows, [(out, terms)]): one DSS for each run of at most two updates of the same rows
+        rest = []  # F is zero in the rows its terms do not write: there the arrays' combination alone
+        for rows, out, terms in updates:
+            if rows is None:
+                arrays = tuple((a, src) for a, src in terms if src is not None)
+                for r0, r1 in ((0, lo), (hi, 3)):
+                    if r0 < r1:
+                        if not arrays:
+                            raise ValueError(f"an update of F alone into rows {r0}:{r1}, which the terms {named} do not write")
+                        rest.append(self.lincomb(out[r0:r1], ((a, src[r0:r1]) for a, src in arrays)))
+            r0, r1 = (lo, hi) if rows is None else (rows.start, rows.stop)
+            if not lo <= r0 < r1 <= hi:
+                raise ValueError(f"an update of rows {r0}:{r1}, of which the terms {named} write only {lo}:{hi}")
+            sliced = (out[r0:r1], tuple((a, None if src is None else src[r0:r1]) for a, src in terms))
+            if groups and groups[-1][0] == (r0, r1) and len(groups[-1][1]) < 2:
+                groups[-1][1].append(sliced)
+            else:
+                groups.append(((r0, r1), [sliced]))
+        for (r0, r1), group in groups:
+            launches.extend(self.topology.dss_update(self.tend[r0:r1], group))
+        return launches + rest  # after the tendency, which may read their outputs
+
+    def set_time(self, t: float) -> None:
+        """Set the model time t (s) at which ``rhs`` evaluates a time-dependent
+        term (the forcing): a kernel argument of the recorded launches, so
+        nothing is recompiled or re-recorded. Steppers call it before each RHS
+        evaluation with the stage time; without a forcing it only stores t."""
+        self.time = float(t)
+        for launch in self._forcing_launches:
+            launch.set_param_by_name("t", f64(t))
+
+    def _rhs_terms(self, terms):
+        """The RHS terms to evaluate: all the scene's for None, else ``terms``
+        (ValueError unless a non-empty subset of them without hyperviscosity)."""
+        if terms is None:
+            return self.terms
+        if not terms or not set(terms) <= set(self.terms) - {"hyperviscosity"}:
+            raise ValueError(f"rhs terms must be a non-empty subset of {self.terms} without hyperviscosity (got {terms})")
+        return terms
+
+    def rhs(self, x: wp.array2d, out: wp.array2d, terms: tuple | None = None) -> None:
+        """out = F(x, t): the DSS'd tendency (3, N) of the non-dissipative terms
+        (du/dt, dv/dt in m s⁻²; dh/dt in m s⁻¹) at the model time t
+        (``set_time``; only the forcing depends on it). ``out`` must not alias ``x``.
+        ``terms``: a non-empty subset of the scene's tendency terms and "forcing"
+        to evaluate alone (None: all; a forward–backward stepper's continuity and
+        momentum halves), compiled for that subset; only the rows it writes are
+        assembled and written (a continuity half leaves out's du, dv rows as they
+        were, a momentum half its dh row). ValueError names a term the scene lacks."""
+        terms = self._rhs_terms(terms)
+        self._replay(("rhs", terms, x.ptr, out.ptr), (x, out), lambda: self._build_rhs(x, out, terms))
+
+    def rhs_update(self, x: wp.array2d, updates, terms: tuple | None = None) -> None:
+        """F = F(x, t) as ``rhs`` computes it, not stored but written, as its DSS
+        makes it, into linear combinations (an explicit stage's x + aΔt F with
+        no pass of its own): for each (rows, out, terms) of ``updates``, in
+        order, out[rows] = Σ a·src[rows] over terms (a, src), src a (3, N) array
+        or None standing for F; rows a slice of the rows the ``terms`` of the
+        RHS write, or None: all three, F zero in the rows the terms do not
+        write (as ``rhs`` leaves a zeroed out). One to three terms, at most two
+        arrays and F once; consecutive updates of the same rows share one DSS, two at a
+        time. Outputs may alias x (only the tendency reads it, before) and the
+        terms (a later update reads an earlier one's result). Summed left to
+        right as ``blas.axpby``/``axpbypcz``: the bits of ``rhs`` followed by
+        those combinations. Recorded once per arrays and coefficients;
+        ValueError for rows F lacks."""
+        terms = self._rhs_terms(terms)
+        key = ("rhs_update", terms, x.ptr, tuple(
+            (None if rows is None else (rows.start, rows.stop), out.ptr, tuple((a, None if src is None else src.ptr) for a, src in t))
+            for rows, out, t in updates
+        ))
+        arrays = (x, *(a for _, out, t in updates for a in (out, *(src for _, src in t if src is not None))))
+        self._replay(key, arrays, lambda: self._build_rhs_update(x, updates, terms))
+
+    def rhs_kernels(self, x: wp.array2d, out: wp.array2d) -> list[str]:
+        """Names of the kernels ``rhs(x, out)`` launches (recorded on first use)."""
+        key = ("rhs", self.terms, x.ptr, out.ptr)
+        if key not in self._recorded:
+            self.rhs(x, out)
+        return [launch.kernel.key for launch in self._recorded[key][0]]
+
+    # -- hyperviscosity (``hypervis.Hyperviscosity``) ----------------------
+    def hyperviscosity(self, x: wp.array2d, dt: float) -> None:
+        """Apply ∇⁴ hyperviscosity over dt (s) in place, split from the dynamics
+        (``hv.apply``: forward-Euler substeps or an RKL1 super-step, HOMME's
+        ``advance_hypervis``); nothing without the term."""
+        if self.hv is not None:
+            self.hv.apply(x, dt)
+
+    def as_rows(self, a: wp.array) -> wp.array:
+        """``a`` as the GLL rows the per-element kernels read and write (``kernels.operators.row_vectors``)."""
+        return operators.row_vectors(a, self.grid.np)
+
+    # -- DSS'd operators for the (semi-)implicit solvers --------------------
+    def _element_grad(self, x, row):
+        """The launch of the element-local ∇ x[row] into ``vec_work``."""
+        if self.per_element:
+            return self._launch_elements(operators.gradient_element(self.grid.np), [self.as_rows(x), row, self.as_rows(self.Dinv), self.dvv_rows, self.as_rows(self.vec_work)])
+        return self._launch(operators.gradient_sphere, self.N, [x, row, self.Dinv, self.dvv, self.grid.np, self.vec_work])
+
+    def _element_div(self, x):
+        """The launch of the element-local ∇·v of x's rows 0, 1 into ``scalar``."""
+        if self.per_element:
+            return self._launch_elements(
+                operators.divergence_element(self.grid.np), [*map(self.as_rows, (x, self.Dinv, self.metdet)), self.dvv_rows, self.as_rows(self.scalar_flat)]
+            )
+        return self._launch(operators.divergence_sphere, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.scalar_flat])
+
+    def _build_grad(self, x, row, out):
+        return [self._element_grad(x, row), *self._dss(self.vec_work, 1, out)]
+
+    def _build_div(self, x, out):
+        return [self._element_div(x), *self._dss(self.scalar, 1, out)]
+
+    def gradient(self, x: wp.array2d, row: int, out: wp.array2d) -> None:
+        """out (2, N) = G f = DSS(∇ x[row]) (units of x per m)."""
+        self._replay(("grad", array_key(x), row, array_key(out)), (x, out), lambda: self._build_grad(x, row, out))
+
+    def divergence(self, x: wp.array2d, out: wp.array2d) -> None:
+        """out (1, N) = D v = DSS(∇·v) of the wind in rows 0, 1 of x (s⁻¹ × units)."""
+        self._replay(("div", array_key(x), array_key(out)), (x, out), lambda: self._build_div(x, out))
+
+    def gradient_update(self, x: wp.array2d, row: int, updates) -> None:
+        """G x[row] = DSS(∇ x[row]) as ``gradient`` computes it, not stored but written,
+        as its DSS makes it, into one or two (out, terms) combinations of (2, N) arrays
+        (row views such as ``z[0:2]``): out = Σ a·src over terms (a, src), src None
+        standing for G x[row] (``Topology.dss_update``: one to three terms, at most two
+        arrays). Outputs may alias x and the terms. Recorded once per arrays and coefficients."""
+        key = ("grad_update", array_key(x), row, tuple((array_key(out), tuple((a, None if src is None else array_key(src)) for a, src in t)) for out, t in updates))
+        arrays = (x, *(a for out, t in updates for a in (out, *(src for _, src in t if src is not None))))
+        self._replay(key, arrays, lambda: [self._element_grad(x, row), *self.topology.dss_update(self.vec_work, updates)])
+
+    def divergence_update(self, x: wp.array2d, updates) -> None:
+        """D v = DSS(∇·v) of x's rows 0, 1 as ``divergence`` computes it, written into
+        one or two (out, terms) combinations of (1, N) arrays as ``gradient_update``'s."""
+        key = ("div_update", array_key(x), tuple((array_key(out), tuple((a, None if src is None else array_key(src)) for a, src in t)) for out, t in updates))
+        arrays = (x, *(a for out, t in updates for a in (out, *(src for _, src in t if src is not None))))
+        self._replay(key, arrays, lambda: [self._element_div(x), *self.topology.dss_update(self.scalar, updates)])
+
+    def linear_update(self, x: wp.array2d, H: float, updates) -> None:
+        """L x = (−g G h, −H D v), the linear gravity-wave operator about the depth H (m) of
+        x = (u, v, h) (``helmholtz.GravityWave``'s), in one element pass
+        (``kernels.gravity_wave.linear``) and one DSS of its three rows, not stored but
+        written into one or two (out, terms) combinations of (3, N) arrays as
+        ``gradient_update``'s (src None standing for L x). Recorded once per arrays, H and
+        coefficients."""
+        key = ("linear_update", array_key(x), H, tuple((array_key(out), tuple((a, None if src is None else array_key(src)) for a, src in t)) for out, t in updates))
+        arrays = (x, *(a for out, t in updates for a in (out, *(src for _, src in t if src is not None))))
+
+        def build():
+            if self.per_element:
+                element = self._launch_elements(gravity_wave.linear_element(self.grid.np), [
+                    *map(self.as_rows, (x, self.Dinv, self.metdet)), self.g, f64(H), self.dvv_rows, self.as_rows(self.tend)])
+            else:
+                element = self._launch(gravity_wave.linear, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.g, f64(H), self.tend])
+            return [element, *self.topology.dss_update(self.tend, updates)]
+
+        self._replay(key, arrays, build)
+
+    def assemble(self, x: wp.array2d, row: int, out: wp.array) -> None:
+        """Unique-node out (nunique,) = M x[row]: assembled mass times a continuous field."""
+        self._replay(("assemble", array_key(x), row, array_key(out)), (x, out), lambda: self.topology.assemble(x, row, out))
+
+    def scatter(self, y: wp.array, out: wp.array2d, row: int, rows: int = 1) -> None:
+        """Element-local out[row : row + rows] from a unique-node vector y of ``rows`` rows."""
+        self._replay(("scatter", array_key(y), array_key(out), row, rows), (y, out), lambda: self.topology.scatter(y, out, row, rows))
+
+    # -- diagnostics helpers ------------------------------------------------
+    def vorticity(self, x: wp.array2d) -> np.ndarray:
+        """Relative vorticity ζ (s⁻¹), (N,) numpy, with the model's operator and a DSS."""
+        self._replay(
+            ("vort", array_key(x)),
+            (x,),
+            lambda: [
+                self._launch_elements(
+                    operators.vorticity_element(self.grid.np), [*map(self.as_rows, (x, self.D, self.metdet)), self.dvv_rows, self.as_rows(self.scalar_flat)]
+                )
+                if self.per_element
+                else self._launch(operators.vorticity_sphere, self.N, [x, self.D, self.metdet, self.dvv, self.grid.np, self.scalar_flat]),
+                *self._dss(self.scalar, 1, self.scalar_dss),
+            ],
+        )
+        return self.scalar_dss.numpy()[0].copy()
+
+    def wind_divergence(self, x: wp.array2d) -> np.ndarray:
+        """Divergence δ = ∇·v (s⁻¹) of the wind in rows 0, 1 of x, (N,) numpy: the
+        operator the model steps with (``divergence``), DSS'd."""
+        self.divergence(x, self.scalar_dss)
+        return self.scalar_dss.numpy()[0].copy()
+
+    def new_state(self, u=None, v=None, h=None) -> wp.array2d:
+        """A (3, N) device state from element-local numpy rows (zeros where None)."""
+        a = np.zeros((3, self.N))
+        for r, f in enumerate((u, v, h)):
+            if f is not None:
+                a[r] = f
+        return wp.array(a, dtype=f64, device=self.device)

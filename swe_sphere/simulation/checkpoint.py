@@ -1,0 +1,110 @@
+"""Checkpoints: everything a run needs to continue bitwise (HOMME's restart,
+Oceananigans' ``Checkpointer``), read from a restart file (``restart_file``: its
+layout, checks and writer) with its scene.
+
+Restoring a checkpoint into a fresh ``Simulation`` of the same scene is just
+another initial state: the continued run is bitwise the uninterrupted one.
+
+A checkpoint also starts other runs: ``branch`` makes the scene of a run from
+its state with another stepper or Δt (``Simulation.from_checkpoint``, ``swe-sphere
+run --continue R --stepper S --dt DT``, ``swe-sphere sweep --from R``).
+
+``read`` raises ``CheckpointError`` (a ValueError, one line) for a file that
+``restart_file.read`` refuses or whose scene this version cannot read.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..io import restart_file
+from ..config.scene import DT_NOTES, Scene, scene_from_dict, with_days
+from ..core.errors import SceneError
+from ..core.errors import CheckpointError
+from ..steppers import STEPPERS
+
+
+@dataclass
+class Checkpoint:
+    """A read checkpoint: the scene, the step reached and what continues from it."""
+
+    scene: Scene
+    step: int
+    x: np.ndarray  # (3, N) element-local u, v, h
+    stepper_state: dict
+    counters: dict  # rhs_evals, wall_time, iterations (dict)
+    initial: dict  # diagnostics at t = 0
+    version: str
+    path: Path | None = None  # the file read (absolute)
+    sha256: str | None = None  # SHA-256 (hex) of the file's bytes
+    restart_every: float | None = None  # days: the interval the run wrote restart files at (None: at a signal only)
+
+
+def branch(ck: Checkpoint, *, stepper: str | None = None, dt: float | None = None, days: float | None = None) -> Scene:
+    """The scene of a new run from checkpoint ``ck``'s state with ``stepper`` and
+    ``dt`` (s; None: the checkpoint's), to model day ``days`` (from t = 0; None:
+    the checkpoint scene's): a fresh stepper (multistep ones start as at t = 0),
+    step 0 at the checkpoint's day (``Scene.start_day``), output every output
+    interval from there, and ``Scene.branch`` recording the source (its path and
+    SHA-256, step, day, stepper and dt). The stepper's options are the
+    checkpoint's for its own stepper, else the defaults. Raises ``SceneError``
+    (one line) for an unknown stepper, a dt <= 0, or a run from the branch day to
+    ``days`` or an output interval that is not whole steps of dt."""
+    s = ck.scene
+    stepper = s.stepper if stepper is None else stepper
+    if stepper not in STEPPERS:
+        raise SceneError(f"unknown stepper {stepper!r} (known: {', '.join(STEPPERS)})")
+    if dt is not None and not (math.isfinite(dt) and dt > 0):
+        raise SceneError(f"dt must be > 0 (got {dt:g})")
+    record = {"restart": None if ck.path is None else str(ck.path), "sha256": ck.sha256, "step": ck.step, "day": s.day(ck.step),
+              "stepper": s.stepper, "dt": s.dt}
+    # the notes on how the scene's dt was chosen are stale once dt is given
+    notes = s.notes if dt is None else tuple(n for n in s.notes if not n.startswith(DT_NOTES))
+    scene = replace(s, stepper=stepper, stepper_options=s.stepper_options if stepper == s.stepper else {},
+                    dt=s.dt if dt is None else float(dt), branch=record, notes=notes)
+    return with_days(scene, s.days if days is None else days, "the restart file's" if dt is None else "the dt given")
+
+
+def branch_attrs(scene: Scene) -> dict:
+    """The global attributes of a branched run's files (``Scene.branch``): ``branched_from``
+    (the restart file's path), ``branched_from_sha256``, ``_step``, ``_day``, ``_stepper``,
+    ``_dt`` (those known); {} for a scene that did not branch."""
+    b = scene.branch or {}
+    return {"branched_from" + ("" if k == "restart" else f"_{k}"): v for k, v in b.items() if v is not None}
+
+
+def read_on_root(path, comm) -> Checkpoint:
+    """``read`` on rank 0 of ``comm`` (None or one rank: ``read``): the other ranks
+    get the checkpoint without its whole-grid arrays (x and the stepper's arrays
+    None), which rank 0 hands out (``Topology.distribute``), so no other rank holds
+    the whole state. Raises what ``read`` raises, on every rank."""
+    if comm is None or comm.size == 1:
+        return read(path)
+    ck = error = None
+    if comm.rank == 0:
+        try:
+            ck = read(path)
+        except Exception as err:  # every rank must raise it, or the others wait for rank 0 forever
+            error = err
+    error = comm.bcast(error, root=0)
+    if error is not None:
+        raise error
+    light = None
+    if comm.rank == 0:
+        light = replace(ck, x=None, stepper_state={k: None if isinstance(v, np.ndarray) else v for k, v in ck.stepper_state.items()})
+    light = comm.bcast(light, root=0)
+    return ck if comm.rank == 0 else light
+
+
+def read(path) -> Checkpoint:
+    """Read a checkpoint (``restart_file.read``) and its scene. Raises ``CheckpointError`` (one line)."""
+    stored = restart_file.read(path)
+    try:
+        scene = scene_from_dict(stored.pop("scene"))
+    except (KeyError, ValueError, TypeError) as err:
+        raise CheckpointError(f"{Path(path)}: damaged checkpoint ({type(err).__name__}: {err})") from None
+    return Checkpoint(scene, **stored)

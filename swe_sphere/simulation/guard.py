@@ -1,0 +1,114 @@
+"""The bad-state guard: blocks of steps checked once on the device, a failed block re-run step by step."""
+
+from __future__ import annotations
+
+import bisect
+import math
+
+import numpy as np
+import warp as wp
+
+from .schedules import next_multiple
+from ..steppers import StepStats
+from ..core.errors import StepFailure
+
+# Steps between host reads of the bad-state check on a GPU (``Simulation.check_every``).
+# A read waits for the device to drain its queue: ~10-50 µs, as long as a whole launch-bound
+# ne30 step, so reading every step serialises the loop; 64 steps make it ~1 % of the time
+# and bound the re-run that finds a blow-up's step to 64 steps (ClimaAtmos checks for NaN
+# every 1024 steps, without the step). On a CPU a read costs nothing: every step is checked.
+CHECK_EVERY_STEPS = 64
+
+
+class Guard:
+    """The bad-state check of one run of ``sim`` (``Simulation.check_every``).
+
+    The state is checked for a non-finite value or h <= 0 after every step on the
+    device (``ShallowWater.watch``) and the check read back once a block of steps
+    (``block_end``: every ``check_every`` steps and at every output, restart, log
+    and callback step), so that a GPU step needs no host round trip; the solvers'
+    iteration counters of the semi-implicit and IMEX steps are read there too
+    (``Stepper.deferred``, ``Stepper.counts``), and a solve that missed its
+    tolerance fails the block like a bad state. A block whose check fails is
+    re-run from its start (state, stepper history and counters kept there), one
+    checked step at a time: the blow-up is reported at the step, time and place (a
+    failed solve at the step and time), and the output holds, as with a check every
+    step (the same bits either way). A single step is checked at once
+    (``BadNodes.first``), its solvers' counters read inside it."""
+
+    def __init__(self, sim, stop_step: int, marks: list[int], log_every: int, ledger):
+        """``marks``: the run's output and restart steps, sorted; ``log_every``: its
+        log's interval (0: none); ``ledger``: its ``summary.Ledger``."""
+        self.sim, self.first_step, self.stop_step, self.marks = sim, sim.step, stop_step, marks
+        self.log_every, self.ledger = log_every, ledger
+        self.every = max(1, int(sim.check_every))
+        self._saved = None  # a block's stepper history and counters at its start
+
+    def block_end(self, b: int) -> int:
+        """The last step of the block that starts after step b: the next multiple of
+        ``check_every``, or the run's next output, restart, log or callback step, the
+        last step of its wall-time estimate or its end, whichever comes first."""
+        if self.every == 1 or b == self.first_step:  # the first step alone: its time is first_step_time
+            return b + 1
+        i = bisect.bisect_right(self.marks, b)
+        ends = [self.stop_step, next_multiple(b, self.every), *self.marks[i : i + 1], *self.sim.callbacks.next_steps(b),
+                *self.ledger.next_steps(b)]
+        return min(ends + ([next_multiple(b, self.log_every)] if self.log_every else []))
+
+    def begin(self, b: int, block: bool) -> None:
+        """Keep the state of step b in ``last_good`` and, for a block, the stepper's
+        history and counters there."""
+        sim = self.sim
+        c = sim.counters
+        self._saved = (sim.stepper.state(), c["rhs_evals"], dict(c["iterations"])) if block else None
+        wp.copy(sim.last_good, sim.x)
+
+    def end(self, b: int, trouble: str | None, ledger) -> tuple[str | None, int | None]:
+        """Read the check of the steps since ``begin(b)`` (the host's one read and
+        synchronisation) and the solvers' counters of a block (into ``ledger``).
+        ``trouble``: what the step path met, None, "failure" (a ``StepFailure``) or
+        "abandoned". Returns (trouble, node): trouble None when every state was good,
+        else that or "bad" (or, in a block, "unconverged": a solve missed its
+        tolerance); node the whole-grid index of a single step's bad node. After
+        trouble ``sim.step`` is b again; after a block's trouble or an abandoned step,
+        so are the state, and for a block the stepper history and counters; a single
+        step's bad state is kept for its report."""
+        sim, node = self.sim, None
+        if self._saved is not None:
+            if sim.model.bad_nodes.watched_bad() and trouble is None:
+                trouble = "bad"
+            try:  # the solvers' device counters of the block's steps (zeroed, also after trouble)
+                counts = sim.stepper.counts()
+            except StepFailure:  # a solve in the block failed: which one, the re-run tells
+                trouble = trouble or "unconverged"
+            if trouble is None:
+                ledger.add(StepStats(0, counts))
+        else:
+            node = sim.model.bad_nodes.first(sim.x) if trouble is None else None
+            wp.synchronize_device(sim.device)
+            trouble = "bad" if node is not None else trouble
+        if trouble is not None:
+            sim.step = b
+            if self._saved is not None or trouble == "abandoned":
+                wp.copy(sim.x, sim.last_good)
+            if self._saved is not None:
+                sim.stepper.restore(self._saved[0])
+                sim.counters["rhs_evals"], sim.counters["iterations"] = self._saved[1], self._saved[2]
+        return trouble, node
+
+    def message(self, step: int, trouble: str, detail) -> str:
+        """What went wrong in the single step ``step``: where ``detail`` (its bad node,
+        a whole-grid index) went bad, or for a "failure" the solver's message
+        ``detail``, on every rank (call on every rank)."""
+        sim = self.sim
+        if trouble == "failure":
+            return f"step {step} failed (model time {sim.scene.day(step):.4f} days): {detail}"
+        u, v, h = sim.fields()
+        if not sim.root:
+            return sim.topology.bcast(None)
+        lat, lon = np.degrees(sim.grid.lat[detail]), np.degrees(sim.grid.lon[detail])
+        what = "non-finite value" if not all(math.isfinite(f[detail]) for f in (u, v, h)) else f"depth h = {h[detail]:.4g} m <= 0"
+        return sim.topology.bcast(
+            f"blow-up at step {step} (model time {sim.scene.day(step):.4f} days): {what} "
+            f"at lat {lat:.2f}, lon {lon:.2f} degrees"
+        )

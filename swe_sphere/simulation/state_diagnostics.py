@@ -1,0 +1,143 @@
+"""What a simulation tells about its state: its fields gathered on rank 0, their
+invariants, errors and Courant numbers, a log line and a stability warning."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..model.diagnostics import courant_numbers, invariants
+
+
+@dataclass
+class WholeFields:
+    """One state's fields gathered on rank 0 (``Simulation.gather_fields``): u, v
+    (m s⁻¹), h (m), vorticity and, when asked for, divergence (s⁻¹, DSS'd), (npts,)
+    each on rank 0 and None on the other ranks (divergence None when not asked for).
+    Every rank holds one: whether a rank gathers is decided by whether it was
+    given one, never by its contents, so all ranks take the same collectives."""
+
+    u: np.ndarray | None
+    v: np.ndarray | None
+    h: np.ndarray | None
+    vorticity: np.ndarray | None
+    divergence: np.ndarray | None = None
+
+
+class StateDiagnostics:
+    """The diagnostics of a ``Simulation``'s state (its base class: they read its
+    ``x``, ``model``, ``topology``, ``grid``, ``scorer``, ``scene``, ``initial``).
+    Fields are gathered on rank 0, which diagnoses the whole grid (the same
+    arithmetic on any number of ranks) and broadcasts the figures."""
+
+    def fields(self, x=None):
+        """u, v, h (npts,) of the whole grid, gathered on rank 0 (call on every rank;
+        (None, None, None) on the others)."""
+        a = self.topology.gather((self.x if x is None else x).numpy())
+        return (None, None, None) if a is None else (a[0], a[1], a[2])
+
+    def divergence(self, x=None) -> np.ndarray | None:
+        """Divergence of the wind (npts,) of the whole grid, DSS'd (s⁻¹), on rank 0 (None elsewhere)."""
+        return self.topology.gather(self.model.wind_divergence(self.x if x is None else x))
+
+    def gather_fields(self, x=None, divergence: bool = False) -> WholeFields:
+        """u, v, h, the vorticity and (``divergence``) the divergence of state x
+        (default the current one), in one gather on rank 0 (call on every rank)."""
+        x = self.x if x is None else x
+        rows = [x.numpy(), self.model.vorticity(x)[None]]
+        if divergence:
+            rows.append(self.model.wind_divergence(x)[None])
+        a = self.topology.gather(np.concatenate(rows))
+        if a is None:
+            return WholeFields(None, None, None, None)
+        return WholeFields(a[0], a[1], a[2], a[3], a[4] if divergence else None)
+
+    def diagnose(self, t: float, x=None, whole: WholeFields | None = None) -> dict:
+        """Invariants (and their relative change), errors against the truth
+        (``scoring.Scorer.errors``) and Courant numbers, on every rank (call on
+        every rank). ``whole``: x's ``gather_fields`` when the caller has them (on
+        every rank, or on none)."""
+        whole = self.gather_fields(x) if whole is None else whole
+        u, v, h = whole.u, whole.v, whole.h
+        errors = self.scorer.errors(t, (self.x if x is None else x).numpy(), u, v, h)
+        d = None
+        if self.root:
+            d = self._invariants(whole)
+            d.update(errors)
+            d.update(courant_numbers(self.grid, u, v, h, self.scene.dt, self.g, "pressure_gradient" in self.scene.terms))
+        return self.topology.bcast(d)
+
+    def _invariants(self, whole: WholeFields) -> dict:
+        """The invariants of ``whole`` and their change relative to ``initial`` (rank 0)."""
+        d = invariants(self.grid, whole.u, whole.v, whole.h, self.hs, whole.vorticity, self.fcor, self.g)
+        if not self.case.h_is_depth:  # h is a tracer (TC1): only its mass is an invariant
+            d = {"mass": d["mass"]}
+        start = self.initial or d  # diagnosing the initial state itself
+        for k in list(d):
+            d[f"{k}_change"] = (d[k] - start[k]) / abs(start[k])
+        return d
+
+    def log_line(self, d: dict | None = None) -> str | None:
+        """One line on the current step, as HOMME prints every ``statefreq`` steps:
+        step, model day, relative changes of mass, total energy and potential
+        enstrophy since t = 0 and the largest advective and gravity-wave Courant
+        numbers over the nodes. ``d``: the step's ``diagnose`` when the caller has
+        it; else the fields are gathered here (the one device synchronisation).
+        Call on every rank; None on the ranks > 0."""
+        if d is None:
+            whole = self.gather_fields()
+            if self.root:
+                d = self._invariants(whole)
+                d.update(courant_numbers(self.grid, whole.u, whole.v, whole.h, self.scene.dt, self.g,
+                                         "pressure_gradient" in self.scene.terms))
+        if not self.root:
+            return None
+        names = {"mass_change": "mass", "total_energy_change": "energy", "potential_enstrophy_change": "enstrophy"}
+        changes = "".join(f"  {name} {d[k]:+.3e}" for k, name in names.items() if k in d)
+        grav = "" if math.isnan(d["courant_gravity"]) else f" gravity-wave {d['courant_gravity']:.3f}"
+        return (f"step {self.step} day {self.scene.day(self.step):.4f}{changes}  Courant advective "
+                f"{d['courant_advective']:.3f}{grav}")
+
+    def _stability_limit(self) -> tuple[float, str, float, str] | None:
+        """(limit, what it limits, the scene dt's value of it on the current state,
+        where the limit was measured) of the stepper's measured stability limit
+        (``Stepper.courant_limit`` on (|v| + √(gh)) Δt/Δx for explicit steppers,
+        ``Stepper.advective_courant_limit`` on |v| Δt/Δx for IMEX and multirate), or
+        None for a stepper without one."""
+        kind = type(self.stepper)
+        c = self.courant()
+        if kind.courant_limit is not None:
+            speed = c["courant_advective"] + (0.0 if math.isnan(c["courant_gravity"]) else c["courant_gravity"])
+            return kind.courant_limit, "a Courant number (|v| + sqrt(g h)) dt/dx", speed, "measured on TC2"
+        if kind.advective_courant_limit is not None:
+            return (kind.advective_courant_limit, "an advective Courant number |v| dt/dx", c["courant_advective"],
+                    "its explicit advection's, measured on TC5, TC6 and Galewsky")
+        return None
+
+    def largest_dt_within_limit(self) -> float | None:
+        """The Δt (s) at which the current state's Courant number reaches the stepper's
+        measured stability limit (``stability_warning``'s), or None for a stepper
+        without one."""
+        limit = self._stability_limit()
+        return None if limit is None else self.scene.dt * limit[0] / limit[2]
+
+    def stability_warning(self) -> str | None:
+        """A one-line warning when Δt exceeds the stepper's measured stability limit on
+        the current state (``largest_dt_within_limit``), else None."""
+        limit = self._stability_limit()
+        if limit is None or limit[2] <= limit[0]:
+            return None
+        limit, what, speed, source = limit
+        return (f"warning: dt = {self.scene.dt:g} s gives {what} of {speed:.3g}, above "
+                f"{self.scene.stepper}'s stability limit of about {limit:g} ({source}); it may blow up "
+                f"(dt <= {self.scene.dt * limit / speed:.4g} s keeps below)")
+
+    def courant(self, whole: WholeFields | None = None) -> dict:
+        """Advective and gravity-wave Courant numbers of the scene's dt on the current
+        state (call on every rank; ``whole``: its ``gather_fields`` when the caller
+        has them, on every rank or on none)."""
+        u, v, h = self.fields() if whole is None else (whole.u, whole.v, whole.h)
+        c = courant_numbers(self.grid, u, v, h, self.scene.dt, self.g, "pressure_gradient" in self.scene.terms) if self.root else None
+        return self.topology.bcast(c)

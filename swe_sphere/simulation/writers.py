@@ -1,0 +1,152 @@
+"""A run's output writers: its run file and streams, and its restart files (the checkpointer)."""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+from . import checkpoint as ckpt
+from ..core.constants import DAY
+from ..io.run_file import OUTPUT_FIELDS, RunWriter
+from ..core.runtime import package_version
+from .schedules import output_steps, restart_steps
+from ..cases.scoring import truth
+
+
+def stream_path(output: Path, name: str) -> Path:
+    """The run file of output stream ``name`` beside a run's output: ``run.nc`` → ``run.NAME.nc``."""
+    output = Path(output)
+    return output.with_name(f"{output.stem}.{name}{output.suffix or '.nc'}")
+
+
+def restart_path(output: Path) -> Path:
+    """The restart file beside a run's output: ``run.nc`` → ``run.restart.nc``."""
+    output = Path(output)
+    return output.with_name(output.stem + ".restart.nc")
+
+
+def run_attrs(sim, history: str | None, courant: dict) -> dict:
+    """The global attributes of ``sim``'s run files: what ran, where, from which
+    start and command line (``history``), and its Courant numbers at the start."""
+    s = sim.scene
+    stamp = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+    return {
+        "title": f"swe_sphere run of scene {s.name}",
+        "history": f"{stamp}: {history or f'swe_sphere.Simulation.run of scene {s.name}'} (swe_sphere {package_version()})",
+        "source": f"swe_sphere {package_version()}",
+        "swe_sphere_version": package_version(),
+        "scene": s.as_dict(),
+        "case": s.case,
+        "ne": s.ne,
+        "np": s.np,
+        "stepper": s.stepper,
+        **sim.stepper.attrs(),  # e.g. which Butcher table ran
+        "dt": s.dt,
+        "device": sim.device,
+        "mpi_ranks": sim.topology.comm.size,
+        "initialization": "none" if s.initialization is None else s.initialization["method"],
+        "reference": truth(sim.case, s.reference_file),  # what the error series are against
+        **{f"planet_{k}": v for k, v in s.planet.items()},  # planet_radius (m), planet_omega (1/s), planet_gravity (m/s^2)
+        **(sim.dfi.attrs(s.digital_filter) if sim.dfi is not None else {}),
+        **({"continued_from_day": s.day(sim.step)} if sim.step else {}),
+        **ckpt.branch_attrs(s),
+        **{k: v for k, v in courant.items() if math.isfinite(v)},
+    }
+
+
+class RunFiles:
+    """The run files of ``sim``'s run to ``output``: itself with the scene's
+    ``output.fields``, then each ``[[output.streams]]`` (``stream_path``), each at
+    its own output steps (``schedules.output_steps``); without ``output`` none, the
+    diagnostics still taken at the scene's output steps. ``record`` diagnoses an
+    output step on every rank (into ``history``; ``on_output(step, x)`` is called
+    with the (3, N) device state) and rank 0 appends it to the files."""
+
+    def __init__(self, sim, output: Path | None, on_output=None):
+        s = sim.scene
+        self.sim, self.on_output, self.history = sim, on_output, []
+        self.streams = [] if output is None else [
+            (Path(output), s.output_fields or OUTPUT_FIELDS, output_steps(s)),
+            *((stream_path(output, st["name"]), st["fields"], output_steps(s, st["every_days"])) for st in s.output_streams)]
+        self.paths = [path for path, _, _ in self.streams]
+        self.steps = set().union(*(steps for _, _, steps in self.streams)) if self.streams else output_steps(s)
+        self.divergence = any("divergence" in fields for _, fields, _ in self.streams)
+        self.series = ["steps", "rhs_evals", *(f"{k}_iterations" for k in sim.stepper.solvers), "wall_time", *sim.initial.keys()]
+        self.writers = [None] * len(self.streams)  # rank 0's RunWriters, one a stream
+        self.last = [None] * len(self.streams)  # the step each run file wrote last (on every rank)
+
+    def open(self, attrs: dict, *, overwrite: bool, compress: bool) -> None:
+        """Create the files (rank 0) with the global attributes ``attrs``; on failure none is left."""
+        try:
+            for i, (path, fields, _) in enumerate(self.streams):
+                self.writers[i] = RunWriter(path, self.sim.grid, self.sim.hs, attrs, self.series, overwrite=overwrite,
+                                            compress=compress, fields=fields)
+        except BaseException:
+            self.abort()
+            raise
+
+    def record(self, step: int, x=None, whole=None, final: bool = False) -> None:
+        """Diagnose ``step`` (state x, default the current one; ``whole`` its gathered
+        fields when the caller has them) and write it to the run files whose schedule
+        holds it (``final``: to every one). Call on every rank."""
+        sim, s, c = self.sim, self.sim.scene, self.sim.counters
+        if whole is None:  # once per output time, on every rank
+            whole = sim.gather_fields(x, divergence=self.divergence)
+        d = sim.diagnose(s.start_day * DAY + step * s.dt, x, whole)
+        d.update(steps=step, rhs_evals=c["rhs_evals"], wall_time=c["wall_time"], cpu_time=c["cpu_time"])
+        d.update({f"{k}_iterations": c["iterations"].get(k, 0) for k in sim.stepper.solvers})
+        self.history.append(d)
+        if self.on_output is not None:
+            self.on_output(step, sim.x if x is None else x)
+        for i, (_, _, steps) in enumerate(self.streams):
+            if (final or step in steps) and self.last[i] != step:
+                self.last[i] = step
+                if self.writers[i] is not None:  # rank 0 (the fields DSS'd, element-local, s-1)
+                    self.writers[i].append(s.day(step), whole.u, whole.v, whole.h, {k: d[k] for k in self.series},
+                                           vorticity=whole.vorticity, divergence=whole.divergence)
+
+    def unwritten(self, step: int) -> bool:
+        """Whether some run file (or, without one, the history) lacks ``step``."""
+        return step not in self.steps or any(at != step for at in self.last)
+
+    def set_attrs(self, **attrs) -> None:
+        for w in self.writers:
+            if w is not None:
+                w.set_attrs(**attrs)
+
+    def close(self) -> None:
+        for w in self.writers:
+            if w is not None:
+                w.close()
+
+    def abort(self) -> None:
+        """Drop the files (a failed run)."""
+        for w in self.writers:
+            if w is not None:
+                w.abort()
+
+
+class Checkpointer:
+    """The restart files of ``sim``'s run: ``path`` (default ``restart_path(output)``)
+    every ``every_days`` (whole steps) and at the end, and on a signal. Without
+    ``every_days`` and ``overwrite``, an existing default restart file is neither
+    refused nor replaced (``kept``: no restart file on a signal). Raises ValueError
+    for an interval that is not whole steps, or one with neither output nor path."""
+
+    def __init__(self, sim, output: Path | None, every_days: float | None, path: Path | None, overwrite: bool):
+        self.sim, self.overwrite, self.kept, self.written = sim, overwrite, None, None
+        self.every_days = every_days
+        if path is None and output is not None:
+            path = restart_path(output)
+            if every_days is None and not overwrite and sim.topology.bcast(sim.root and path.exists()):
+                path, self.kept = None, path
+        self.path = path
+        self.steps = restart_steps(sim.scene, every_days) if every_days is not None else set()
+        if every_days is not None and path is None:
+            raise ValueError("a restart interval needs an output or restart file")
+
+    def save(self) -> None:
+        """Write the restart file of the current step (call on every rank)."""
+        self.written = self.sim.write_checkpoint(self.path, overwrite=self.overwrite or self.written is not None,
+                                                 restart_every=self.every_days)

@@ -1,0 +1,589 @@
+"""Pictures of a run: lat-lon maps of its fields, its invariants and errors against time.
+
+Maps are drawn from the spectral-element solution itself: each element's GLL
+polynomial evaluated (``remap.Remapper``) at the centres of a regular lat-lon
+grid finer than the GLL spacing, shown cell by cell (``imshow``) on a plain global
+longitude-latitude (equirectangular) projection — no gaps, no seams at the
+cube edges, the date line or the poles. matplotlib draws through its Agg canvas
+directly (no pyplot, no global backend change), so this works headless.
+
+Functions other modules reuse: :func:`plot_map`, :func:`plot_series` (both return
+their ``matplotlib.figure.Figure``, the PNG written only when given a path),
+:func:`line_plot` (generic x-y lines), :func:`sweep_plot` (error against wall time or Δt
+per stepper, for ``swe_sphere.studies.sweep``),
+:func:`open_run`, :func:`open_reference` (a run's fields at its nodes:
+``analysis.field_at_nodes``). For a lat-lon
+field to plot or analyse yourself, ``swe_sphere.remap_dataset``.
+"""
+
+from __future__ import annotations
+
+import functools
+import io
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+from matplotlib.ticker import MaxNLocator
+
+from .analysis import DAY_TOL, DERIVED, MAP_FIELDS, days_of, field_at_nodes, kinetic_energy_spectrum, run_name, zonal_mean
+from ..cases.library import make_case
+from ..core.constants import EARTH, PLANET_KEYS, Planet
+from ..io.initial_state import SCENE_CASES
+from ..io.run_file import atomic_path, check_distinct, check_target
+from ..cases.reference import Reference, cases_of, locate
+from ..io.remap import Remapper, cached_grid, open_netcdf, run_grid
+
+INVARIANTS = ("mass_change", "total_energy_change", "potential_enstrophy_change")
+FIGSIZE, DPI = (12.0, 6.0), 100  # map: 1200 × 600 pixels
+SERIES_FIGSIZE = (12.0, 5.0)  # 1200 × 500 pixels
+
+
+# -- reading -----------------------------------------------------------------
+def open_run(path) -> xr.Dataset:
+    """A swe_sphere run file, times as model days (``decode_times=False``).
+    Raises ``FileNotFoundError`` / ``ValueError`` (one line) for a missing or unreadable file."""
+    path = Path(path)
+    ds = open_netcdf(path)
+    if "ncol" not in ds.dims:
+        ds.close()
+        raise ValueError(f"{path}: not a swe_sphere run file (no ncol dimension)")
+    ds.attrs.setdefault("_path", str(path))
+    return ds
+
+
+@dataclass
+class _T213:
+    """A T213 reference file (``reference.Reference``) as a comparison source."""
+
+    ref: object
+    label: str
+
+    def check(self, field: str, day: float) -> None:
+        if field in DERIVED:
+            raise ValueError(f"{self.label} has no {field} (T213 files hold h_surface, u, v)")
+        if np.min(np.abs(self.ref.days - day), initial=np.inf) > DAY_TOL:
+            raise ValueError(f"day {day:g} not in {self.label} (stored: {', '.join(f'{d:g}' for d in self.ref.days)})")
+
+    def values(self, field: str, day: float, lat, lon) -> np.ndarray:
+        r = self.ref.at(day, lat, lon)
+        return np.hypot(r["u"], r["v"]) if field == "speed" else r[field]
+
+
+@dataclass
+class _Run:
+    """Another run file as a comparison source, interpolated by its own GLL polynomials."""
+
+    ds: xr.Dataset
+    label: str
+
+    def check(self, field: str, day: float) -> None:
+        field_at_nodes(self.ds, field, day)
+
+    def values(self, field: str, day: float, lat, lon) -> np.ndarray:
+        return Remapper(run_grid(self.ds), lat, lon)(field_at_nodes(self.ds, field, day))
+
+
+def open_reference(path, case=None):
+    """A comparison source for ``--diff``: another run file (has ``ncol``) or a
+    reference file, given as a path, a bundled reference's file name or, with the
+    run's case object, its truncation ("T341"), as ``case.reference`` takes them
+    (``reference.locate``). Raises ``FileNotFoundError``/``ValueError``."""
+    path = locate(str(path), case)
+    with open_netcdf(path) as probe:
+        is_run = "ncol" in probe.dims
+    if is_run:
+        ds = open_run(path)
+        run_grid(ds)  # validates ne/np against lat/lon
+        return _Run(ds, path.name)
+    return _T213(Reference(path), path.name)
+
+
+# -- drawing -------------------------------------------------------------------
+def _figure(figsize):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize, dpi=DPI, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _png(fig) -> bytes:
+    """The PNG of ``fig`` (the bytes ``_save`` writes; Agg draws the same figure to the same bytes)."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=DPI)
+    return buf.getvalue()
+
+
+def _save(fig, path) -> Path:
+    path = Path(path)
+    tmp = path.with_name(path.name + ".part.png")
+    try:
+        fig.savefig(tmp, dpi=DPI)  # no bbox_inches: the pixel size is figsize × DPI
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    tmp.replace(path)
+    return path
+
+
+def plot_resolution(grid) -> float:
+    """Spacing (degrees) of the cell-centre grid maps are drawn on: 0.5°, or 0.25° when the
+    mean GLL spacing 90/(ne (np−1)) is below 1°."""
+    return 0.5 if 90.0 / (grid.ne * (grid.np - 1)) >= 1.0 else 0.25
+
+
+@functools.lru_cache(maxsize=2)
+def _plot_remapper(ne: int, np_: int, res: float) -> Remapper:
+    """Remapper of an ne/np grid to the cell centres of the ``res``-degree plotting grid."""
+    lat_c, lon_c = _centres(*plot_edges(res))
+    return Remapper(cached_grid(ne, np_), lat_c, lon_c)
+
+
+def plot_edges(res: float) -> tuple[np.ndarray, np.ndarray]:
+    """Cell edges (degrees) of the global plotting grid: lat −90..90, lon 0..360."""
+    return np.linspace(-90.0, 90.0, round(180 / res) + 1), np.linspace(0.0, 360.0, round(360 / res) + 1)
+
+
+def _centres(lat_e, lon_e):
+    """Cell centres (radians) as broadcastable (nlat, 1), (1, nlon)."""
+    return np.radians(0.5 * (lat_e[1:] + lat_e[:-1]))[:, None], np.radians(0.5 * (lon_e[1:] + lon_e[:-1]))[None, :]
+
+
+def check_lat_range(lat_range) -> tuple[float, float]:
+    """(south, north) degrees with −90 ≤ south < north ≤ 90, else ``ValueError``."""
+    south, north = (float(x) for x in lat_range)
+    if not (-90 <= south < north <= 90):
+        raise ValueError(f"latitude range must satisfy -90 <= south < north <= 90 (got {south:g} {north:g})")
+    return south, north
+
+
+def normalized_l2(area, f, ref) -> float:
+    """sqrt(Σ area (f − ref)²) / sqrt(Σ area ref²) (Williamson et al. 1992, eq. 83)."""
+    return float(np.sqrt(np.sum(area * (f - ref) ** 2) / np.sum(area * ref**2)))
+
+
+def draw_map(fig, ax, lon_edges, lat_edges, values, *, cmap, symmetric, label, contours=None):
+    """``values`` (nlat, nlon), cells of a regular grid with the given edges (degrees), on a
+    lon-lat axes with a colour bar labelled ``label``; ``contours``: levels (an int or a
+    sequence) of black contour lines drawn over it (negative ones dashed), or None.
+    Equal degrees in x and y when the edges span the globe's latitudes, else stretched."""
+    vmin, vmax = float(np.nanmin(values)), float(np.nanmax(values))
+    if symmetric:
+        vmax = max(abs(vmin), abs(vmax)) or 1.0
+        vmin = -vmax
+    # a regular grid: imshow draws the same cells as pcolormesh, an order of magnitude faster
+    extent = (lon_edges[0], lon_edges[-1], lat_edges[0], lat_edges[-1])
+    mesh = ax.imshow(values, cmap=cmap, vmin=vmin, vmax=vmax, origin="lower", extent=extent, interpolation="nearest")
+    if contours is not None and vmax > vmin:
+        lon_c = 0.5 * (lon_edges[1:] + lon_edges[:-1])
+        lat_c = 0.5 * (lat_edges[1:] + lat_edges[:-1])
+        ax.contour(lon_c, lat_c, values, levels=contours, colors="k", linewidths=0.5)
+    ax.set_xlim(lon_edges[0], lon_edges[-1])
+    ax.set_ylim(lat_edges[0], lat_edges[-1])
+    span = lat_edges[-1] - lat_edges[0]
+    ax.set_aspect("equal" if span > 179 else "auto")
+    ax.set_xticks(np.arange(0, 361, 60))
+    step = 30 if span > 120 else 15 if span > 45 else 5
+    ax.set_yticks(np.arange(-90, 91, step)[(np.arange(-90, 91, step) >= lat_edges[0]) & (np.arange(-90, 91, step) <= lat_edges[-1])])
+    ax.set_xlabel("longitude (°E)")
+    ax.set_ylabel("latitude (°N)")
+    cbar = fig.colorbar(mesh, ax=ax, shrink=0.85, pad=0.02)
+    cbar.set_label(label)
+    return mesh
+
+
+def plot_map(ds, field: str, day: float, path=None, diff=None, lat_range=None) -> dict:
+    """Draw ``field`` of the run ``ds`` (from :func:`open_run`) at ``day`` (model days, an
+    output time), and write it to the PNG ``path`` (1200 × 600 pixels) unless None. ``diff``: a source from :func:`open_reference`; then the map is
+    run − reference with a symmetric colour map, and the title carries the normalized
+    l2 of the difference over the run's nodes (area-weighted). ``lat_range`` (south, north)
+    in degrees draws only that band (e.g. (0, 90) for Galewsky et al. 2004, Fig. 4).
+    Height fields get contour lines (about 14 levels at a round interval), vorticity
+    contours every 2e-5 s⁻¹; the colour bar's label states the interval.
+
+    Returns ``{"figure", "path", "min", "max", "colorbar_label", "title", "contour_interval"}``
+    (the interval in the colour bar's units, None without contours): the
+    ``matplotlib.figure.Figure`` (Agg canvas: ``figure.savefig`` works, no pyplot
+    needed), the PNG written (None without ``path``), min/max of the drawn values
+    in file units; plus ``"l2"`` with diff. Raises ``ValueError`` (one line) for an
+    unknown field, a day the run does not store, or a run file it cannot read."""
+    grid = run_grid(ds)
+    long_name, units, scale, cmap, symmetric = MAP_FIELDS[field]
+    nodes = field_at_nodes(ds, field, day)
+    if diff is not None:
+        diff.check(field, day)
+    res = plot_resolution(grid)
+    lat_e, lon_e = plot_edges(res)
+    lat_c, lon_c = _centres(lat_e, lon_e)
+    values = _plot_remapper(grid.ne, grid.np, res)(nodes)
+    if lat_range is not None:
+        south, north = check_lat_range(lat_range)
+        rows = np.flatnonzero((lat_e[1:] > south) & (lat_e[:-1] < north))
+        lat_e = np.clip(lat_e[rows[0] : rows[-1] + 2], south, north)
+        lat_c, values = lat_c[rows], values[rows]
+    scene = _scene_label(ds)
+    info = {"path": None if path is None else Path(path)}
+    if diff is None:
+        title = f"{long_name}, {scene}, day {day:g}"
+        shown = values
+        draw_symmetric, draw_cmap, label = symmetric, cmap, f"{field} ({units})"
+    else:
+        ref_grid = diff.values(field, day, lat_c, lon_c)
+        lat_n, lon_n = np.radians(ds["lat"].values), np.radians(ds["lon"].values)
+        ref_nodes = diff.values(field, day, lat_n, lon_n)
+        l2 = normalized_l2(np.asarray(ds["area"].values), nodes, ref_nodes)
+        info["l2"] = l2
+        shown = values - ref_grid
+        title = f"{long_name}: {scene} − {diff.label}, day {day:g}; normalized l2 = {l2:.3e}"
+        draw_symmetric, draw_cmap, label = True, "RdBu_r", f"Δ {field} ({units})"
+    info["min"], info["max"] = float(np.nanmin(shown)), float(np.nanmax(shown))
+    fig = _figure(FIGSIZE)
+    ax = fig.add_subplot()
+    info["colorbar_label"], info["title"] = label, title
+    contours = interval = None
+    if diff is None and field in ("h", "h_surface"):  # about 14 levels at a round interval
+        contours = MaxNLocator(nbins=14).tick_values(np.nanmin(shown), np.nanmax(shown))
+        interval = float(contours[1] - contours[0])
+    elif diff is None and field == "vorticity":
+        top = np.ceil(np.nanmax(np.abs(shown * scale)) / 2) * 2
+        contours, interval = [c for c in np.arange(-top, top + 1, 2.0) if c != 0], 2.0  # 2e-5 s-1, as Galewsky et al.
+    if interval is not None:  # the interval is stated, so a reader can count the lines
+        label = info["colorbar_label"] = f"{label}; contours every {interval:g} {units}"
+    info["contour_interval"] = interval
+    draw_map(fig, ax, lon_e, lat_e, shown * scale, cmap=draw_cmap, symmetric=draw_symmetric, label=label, contours=contours)
+    ax.set_title(title, fontsize=11)
+    info["figure"] = fig
+    if path is not None:
+        _save(fig, path)
+    return info
+
+
+def _scene_label(ds) -> str:
+    try:
+        s = json.loads(ds.attrs["scene"])
+        return f"{s['name']} ne{s['ne']} np{s['np']}"
+    except (KeyError, ValueError, TypeError):
+        return run_name(ds)
+
+
+def _lines(ax, lines, *, logx=False, logy=False, markers=True, xlabel="", ylabel="", title=""):
+    drawn = 0
+    for label, x, y in lines:
+        x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+        ok = np.isfinite(x) & np.isfinite(y) & ((y > 0) if logy else True) & ((x > 0) if logx else True)
+        if not ok.any():
+            continue
+        ax.plot(x[ok], y[ok], marker="o" if markers else None, markersize=3, linewidth=1.2, label=label)
+        drawn += 1
+    if logx and drawn:
+        from matplotlib.ticker import FuncFormatter
+
+        ax.set_xscale("log")
+        # minor labels at 2 and 5 × 10^k only: readable within a decade, no crowding
+        ax.xaxis.set_minor_formatter(FuncFormatter(lambda v, _: f"{v:g}" if f"{v:.0e}"[0] in "25" else ""))
+    if logy and drawn:
+        ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    if title:
+        ax.set_title(title, fontsize=11)
+    ax.grid(True, which="major", alpha=0.3)
+    if drawn:
+        ax.legend(fontsize=8)
+    return drawn
+
+
+def line_plot(path, lines, *, xlabel="", ylabel="", title="", logx=False, logy=False, markers=True, figsize=(8.0, 5.0)) -> Path:
+    """Generic x-y line figure to the PNG ``path`` (figsize × 100 dpi pixels).
+
+    ``lines``: iterable of ``(label, x, y)``; non-finite points (and non-positive ones
+    on a log axis) are left out. For sweeps: error against wall time, Δt, ..."""
+    fig = _figure(figsize)
+    ax = fig.add_subplot()
+    if not _lines(ax, lines, logx=logx, logy=logy, markers=markers, xlabel=xlabel, ylabel=ylabel, title=title):
+        ax.text(0.5, 0.5, "no data", ha="center", va="center", transform=ax.transAxes)
+    return _save(fig, path)
+
+
+def error_label(y: str) -> str:
+    """The axis label of a sweep's error column (``scoring.Scorer.total_errors``' l2 norms):
+    "total_error" → "total error: normalized l2 of h + hs", "temporal_error_vorticity" →
+    "temporal error: normalized l2 of vorticity"; another column as it is named."""
+    kind, sep, field = y.partition("_error")
+    if not sep:
+        return y.replace("_", " ")
+    return f"{kind} error: normalized l2 of {field.lstrip('_').replace('_', ' ') or 'h + hs'}"
+
+
+def sweep_plot(path, rows, x: str, *, xlabel: str = "", floor: float | None = None, y: str = "temporal_error", figsize=(8.0, 5.0),
+               title: str = "") -> Path:
+    """Sweep figure (``swe_sphere.studies.sweep``): ``y`` against ``x`` per stepper, log-log, for the
+    stable runs of ``rows`` (dicts with ``stepper``, ``stable``, ``x``, ``y``); unstable runs
+    are crosses along the top edge at their x. ``floor``: the spatial error, drawn as a
+    dashed line, with the sufficient-accuracy level 0.1 × floor dotted for a temporal error.
+    ``title``: what was swept (e.g. "tc5_mountain ne8 np4, 5 days"), before the axes' names."""
+    steppers = list(dict.fromkeys(r["stepper"] for r in rows))
+    lines = []
+    for st in steppers:
+        # joined in order of Δt, so a line reads as the stepper's cost-accuracy path
+        pts = [(float(r[x]), float(r[y])) for r in sorted(rows, key=lambda r: r.get("dt", 0.0)) if r["stepper"] == st and r.get("stable", True)]
+        lines.append((st, [p[0] for p in pts], [p[1] for p in pts]))
+    fig = _figure(figsize)
+    ax = fig.add_subplot()
+    drawn = _lines(ax, lines, logx=True, logy=True, xlabel=xlabel or x, ylabel=error_label(y),
+                   title=f"{title + ': ' if title else ''}{y.replace('_', ' ')} against {xlabel or x}")
+    if floor is not None and math.isfinite(floor) and floor > 0:
+        ax.axhline(floor, color="0.4", linestyle="--", linewidth=1, label="spatial error")
+        if y.startswith("temporal"):
+            ax.axhline(0.1 * floor, color="0.4", linestyle=":", linewidth=1, label="sufficient accuracy (10 %)")
+        ax.set_yscale("log")
+        ax.legend(fontsize=8)
+    unstable = [(r["stepper"], float(r[x])) for r in rows if not r.get("stable", True) and float(r[x]) > 0]
+    if unstable:  # crosses along the top edge, coloured as their stepper's line
+        colours = {line.get_label(): line.get_color() for line in ax.get_lines()}
+        top = ax.get_xaxis_transform()
+        for st, xv in unstable:
+            ax.plot([xv], [0.97], marker="x", color=colours.get(st, "k"), transform=top, clip_on=False)
+        ax.plot([], [], "kx", label="unstable (at its x)")
+        ax.legend(fontsize=8)
+    xs = {v for _, xv, _ in lines for v in xv if math.isfinite(v) and v > 0} | {xv for _, xv in unstable}
+    if len(xs) == 1:  # one Δt (or cost) only: a factor of 2 either side, not matplotlib's zero-width log axis
+        (x0,) = xs
+        ax.set_xlim(x0 / 2, x0 * 2)
+    if not drawn:
+        ax.text(0.5, 0.5, "no stable run", ha="center", va="center", transform=ax.transAxes)
+    return _save(fig, path)
+
+
+def plot_series(ds, path=None):
+    """Invariants' |relative change| and the error norms in the file against model day,
+    two panels; written to the PNG ``path`` (1200 × 500 pixels) unless None.
+    Returns the ``matplotlib.figure.Figure`` (Agg canvas, no pyplot)."""
+    days = days_of(ds)
+    fig = _figure(SERIES_FIGSIZE)
+    left, right = fig.subplots(1, 2)
+    inv = [(k.replace("_change", ""), days, np.abs(ds[k].values)) for k in INVARIANTS if k in ds.variables]
+    if not _lines(left, inv, logy=True, xlabel="day", ylabel="|relative change since t = 0|", title="invariants"):
+        left.text(0.5, 0.5, "no invariants in this file (or all exactly conserved)", ha="center", va="center", transform=left.transAxes)
+    norm_names = [
+        f"{pre}{n}_{f}" for pre in ("", "ref_") for f in ("h", "h_surface", "wind") for n in ("l1", "l2", "linf")
+    ]
+    norms = [(k, days, ds[k].values) for k in norm_names if k in ds.variables]
+    against = ds.attrs.get("reference", "")  # the run file's truth: "exact solution", a reference file's name or "none"
+    title = "error norms against the exact solution" if against == "exact solution" else f"error norms (ref_: against {against})"
+    if not _lines(right, norms, logy=True, xlabel="day", ylabel="normalized error", title=title):
+        right.text(0.5, 0.5, "no exact or reference solution for this case", ha="center", va="center", transform=right.transAxes)
+    fig.suptitle(_scene_label(ds), fontsize=12)
+    if path is not None:
+        _save(fig, path)
+    return fig
+
+
+# -- the command ---------------------------------------------------------------
+def map_name(run_path, field: str, day: float, diff: bool, lat_range=None) -> str:
+    band = f"_lat{lat_range[0]:g}to{lat_range[1]:g}" if lat_range is not None else ""
+    return f"{Path(run_path).stem}_{field}_day{day:g}{band}{'_diff' if diff else ''}.png"
+
+
+def _run_identity(ds) -> tuple[str, dict, int, int]:
+    """(case, case parameters, ne, np) of a run file (its ``scene`` attribute)."""
+    try:
+        scene = json.loads(ds.attrs["scene"])
+        return scene["case"], scene.get("case_params", {}), int(scene["ne"]), int(scene["np"])
+    except (KeyError, ValueError, TypeError):
+        return ds.attrs.get("case", "?"), {}, int(ds.attrs.get("ne", 0)), int(ds.attrs.get("np", 0))
+
+
+def _run_case(ds):
+    """The case object of a run file on its planet (attributes ``planet_radius``,
+    ``planet_omega``, ``planet_gravity``; Williamson's Earth in a file from before
+    them), or None for a scene this version does not know."""
+    case, params, _, _ = _run_identity(ds)
+    try:
+        return make_case(case, params, Planet.from_table({k: ds.attrs[f"planet_{k}"] for k in PLANET_KEYS if f"planet_{k}" in ds.attrs}), SCENE_CASES)
+    except ValueError:
+        return None
+
+
+def check_comparable(ds, diff) -> None:
+    """Refuse (ValueError) a ``--diff`` against a run of another case (or case
+    parameters) or grid, or against a reference that is not of the run's case
+    (its title names another, or the case has no reference: ``reference.cases_of``)
+    or planet (the references are of Williamson's Earth)."""
+    case, params, ne, np_ = _run_identity(ds)
+    if isinstance(diff, _Run):
+        other = _run_identity(diff.ds)
+        if (case, params) != other[:2]:
+            def label(c, p):
+                return c + "".join(f" {k}={v}" for k, v in p.items())
+
+            raise ValueError(f"{diff.label} is a run of case {label(*other[:2])}, not {label(case, params)} (--force to compare anyway)")
+        if (ne, np_) != other[2:]:
+            raise ValueError(f"{diff.label} is a run on ne={other[2]} np={other[3]}, not ne={ne} np={np_} (--force to compare anyway)")
+    elif (case_obj := _run_case(ds)) is not None:  # None: a scene this version does not know, nothing to check against
+        if case_obj.planet != EARTH:
+            raise ValueError(f"{diff.label} is a reference of Williamson's Earth, not of the run's planet "
+                             f"(radius {case_obj.planet.a:g} m) (--force to compare anyway)")
+        solves, own = cases_of(diff.ref.path, case_obj)
+        if own is None or solves not in (None, own):
+            raise ValueError(f"{diff.label} is not a reference of case {case} (--force to compare anyway)")
+
+
+def _check_outdir(outdir, lat_range) -> Path:
+    """The output folder of ``plot``, refused (ValueError) if it is a file; ``lat_range`` checked."""
+    outdir = Path(outdir)
+    if lat_range is not None:
+        check_lat_range(lat_range)
+    if outdir.exists() and not outdir.is_dir():
+        raise ValueError(f"output path is not a directory: {outdir}")
+    return outdir
+
+
+def _days_to_plot(ds, days) -> list[float]:
+    """``days`` as floats, or the run's last output time when none are given; the run's
+    grid checked. ValueError for a run that is not one or holds no output time."""
+    run_grid(ds)
+    stored = days_of(ds)
+    if stored.size == 0:
+        raise ValueError(f"{run_name(ds)} holds no output time")
+    return [float(stored[-1])] if not days else [float(d) for d in days]
+
+
+def plot_run(run_path, fields=("h_surface",), days=None, diff_path=None, outdir=".", lat_range=None, *, force=False,
+             overwrite=False) -> list[Path]:
+    """``swe-sphere plot``: maps of ``fields`` at ``days`` (default: the last output
+    time) and the time-series figure, PNGs in ``outdir`` (created if missing).
+
+    Every input is checked before anything is written; raises ``FileNotFoundError`` or
+    ``ValueError`` (one line) for a missing file, an unknown field or a missing day,
+    and (unless ``force``) a ``diff_path`` of another case or grid; ``output.OutputError``
+    for a map PNG that exists (unless ``overwrite``) or would replace an input. The
+    series figure depends on the run file alone: an existing one with the same
+    picture is left as it is (so ``plot --diff`` or other fields after a plain
+    ``plot`` go ahead); one with another picture is refused like a map."""
+    outdir = _check_outdir(outdir, lat_range)
+    ds = open_run(run_path)
+    diff = None
+    try:
+        days = _days_to_plot(ds, days)
+        diff = open_reference(diff_path, _run_case(ds)) if diff_path is not None else None
+        if diff is not None and not force:
+            check_comparable(ds, diff)
+        for field in fields:
+            for day in days:
+                field_at_nodes(ds, field, day)
+                if not math.isfinite(day):
+                    raise ValueError(f"day must be finite (got {day})")
+                if diff is not None:
+                    diff.check(field, day)
+        maps = [(field, day, outdir / map_name(run_path, field, day, diff is not None, lat_range)) for field in fields for day in days]
+        series = outdir / f"{Path(run_path).stem}_series.png"
+        series_fig = plot_series(ds)
+        same = series.is_file() and not series.is_symlink() and series.read_bytes() == _png(series_fig)
+        pngs = [path for *_, path in maps] + [series]
+        check_distinct(pngs, [run_path, diff_path])
+        if outdir.is_dir():  # a folder still to be made holds none
+            for path in pngs[:-1] if same else pngs:
+                check_target(path, overwrite)
+        outdir.mkdir(parents=True, exist_ok=True)
+        written = [plot_map(ds, field, day, path, diff, lat_range)["path"] for field, day, path in maps]
+        if not same:
+            _save(series_fig, series)
+        return written + [series]
+    finally:
+        ds.close()
+        if isinstance(diff, _Run):
+            diff.ds.close()
+
+
+# -- zonal means and kinetic-energy spectra (``swe_sphere.studies.analysis``) -----------
+def plot_spectrum(spectrum: xr.Dataset, path=None, title: str = ""):
+    """E_rot, E_div and E against degree l, log-log, one colour per output time
+    (E solid, E_rot dashed, E_div dotted; down to 1e-14 of the largest) of ``analysis.kinetic_energy_spectrum``'s
+    Dataset; written to the PNG ``path`` (800 × 500 pixels) unless None.
+    Returns the ``matplotlib.figure.Figure`` (Agg canvas, no pyplot)."""
+    fig = _figure((8.0, 5.0))
+    ax = fig.add_subplot()
+    l, top = spectrum["l"].values, float(spectrum["E"].max())
+    for it, day in enumerate(spectrum["time"].values):
+        colour = f"C{it % 10}"
+        for name, style in (("E", "-"), ("E_rot", "--"), ("E_div", ":")):
+            y = spectrum[name].isel(time=it).values
+            ok = y > 0
+            ax.loglog(l[ok], y[ok], linestyle=style, color=colour, linewidth=1.2, label=f"{name}, day {day:g}")
+    if top > 0:  # 14 decades: below, the energy of a field at round-off (1e-30 of a symmetric flow's other parity)
+        ax.set_ylim(bottom=max(ax.get_ylim()[0], 1e-14 * top))
+    ax.set_xlabel("spherical-harmonic degree l")
+    ax.set_ylabel("kinetic energy per unit mass (m$^2$ s$^{-2}$)")
+    ax.set_title(f"{title + ': ' if title else ''}kinetic-energy spectrum", fontsize=11)
+    ax.grid(True, which="major", alpha=0.3)
+    ax.legend(fontsize=8)
+    if path is not None:
+        _save(fig, path)
+    return fig
+
+
+def plot_zonal_mean(mean: xr.DataArray, path=None, lat_range=None, title: str = ""):
+    """``analysis.zonal_mean``'s (time, lat) profile against latitude, one line per
+    output time, over ``lat_range`` (south, north degrees; default the globe);
+    written to the PNG ``path`` (800 × 500 pixels) unless None. Returns the
+    ``matplotlib.figure.Figure``."""
+    fig = _figure((8.0, 5.0))
+    ax = fig.add_subplot()
+    field = str(mean.name).removesuffix("_zonal_mean")
+    long_name, units, scale = MAP_FIELDS[field][:3]
+    lines = [(f"day {day:g}", mean["lat"].values, mean.isel(time=it).values * scale) for it, day in enumerate(mean["time"].values)]
+    _lines(ax, lines, markers=False, xlabel="latitude (°N)", ylabel=f"{field} ({units})",
+           title=f"{title + ': ' if title else ''}zonal mean of the {long_name}")
+    ax.set_xlim(*(check_lat_range(lat_range) if lat_range is not None else (-90, 90)))
+    if path is not None:
+        _save(fig, path)
+    return fig
+
+
+def analysis_names(run_path, days, fields=(), spectrum=False, lat_range=None) -> list[Path]:
+    """File names (no folder) of ``plot_analyses``: ``<run>_spectrum_day<D>[_<D>...].png``
+    and ``.csv`` when ``spectrum``, ``<run>_<field>_zonal_mean_day<D>[_<D>...][_lat<S>to<N>].png``."""
+    stem, when = Path(run_path).stem, "day" + "_".join(f"{d:g}" for d in days)
+    band = f"_lat{lat_range[0]:g}to{lat_range[1]:g}" if lat_range is not None else ""
+    names = [Path(f"{stem}_spectrum_{when}{ext}") for ext in (".png", ".csv")] if spectrum else []
+    return names + [Path(f"{stem}_{field}_zonal_mean_{when}{band}.png") for field in fields]
+
+
+def plot_analyses(run_path, days=None, outdir=".", *, spectrum=False, zonal_fields=(), lat_range=None, overwrite=False) -> list[Path]:
+    """``swe-sphere plot --spectrum`` and ``--zonal-mean``: the kinetic-energy
+    spectrum (``analysis.kinetic_energy_spectrum``: a PNG, ``plot_spectrum``, and
+    its numbers as CSV, columns day, l, E_rot, E_div, E in m² s⁻²) and the zonal
+    means of ``zonal_fields`` (``plot_zonal_mean``, one PNG per field), at
+    ``days`` (default: the last output time), in ``outdir`` (created if missing).
+
+    Every input is checked before anything is written: ``FileNotFoundError`` or
+    ``ValueError`` (one line) for a missing file, a day not stored, a field the
+    file lacks (vorticity and divergence for the spectrum); ``output.OutputError``
+    for an output that exists (unless ``overwrite``) or would replace the run."""
+    outdir = _check_outdir(outdir, lat_range)
+    with open_run(run_path) as ds:
+        days = _days_to_plot(ds, days)
+        for day in days:
+            for field in [*zonal_fields, *(("vorticity", "divergence") if spectrum else ())]:
+                field_at_nodes(ds, field, day)
+        paths = [outdir / name for name in analysis_names(run_path, days, zonal_fields, spectrum, lat_range)]
+        check_distinct(paths, [run_path])
+        for path in paths if outdir.is_dir() else ():  # a folder still to be made holds none
+            check_target(path, overwrite)
+        outdir.mkdir(parents=True, exist_ok=True)
+        label = _scene_label(ds)
+        if spectrum:
+            spec = kinetic_energy_spectrum(ds, days)
+            plot_spectrum(spec, paths[0], label)
+            table = spec[["E_rot", "E_div", "E"]].to_dataframe().reset_index().rename(columns={"time": "day"})
+            with atomic_path(paths[1], overwrite=overwrite) as tmp:
+                table.to_csv(tmp, index=False, float_format="%.10e")
+        for field, path in zip(zonal_fields, paths[2 if spectrum else 0 :]):
+            plot_zonal_mean(zonal_mean(ds, field, days), path, lat_range, label)
+    return paths

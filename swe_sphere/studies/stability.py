@@ -1,0 +1,174 @@
+"""Stability suite: the largest stable Δt of each stepper on the hard cases.
+
+A run is stable when it finishes with finite fields, depth > 0 and the total
+energy never more than 1 % above its initial value. The largest stable Δt is
+found by bisection on the number of steps per day (Δt = 86400 s / n, so every
+candidate divides the day and the output interval), on a coarse grid.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass, field
+
+from ..config.scene import Scene, load_scene
+from ..core.constants import DAY
+from ..io.run_file import atomic_path, check_results
+from ..cases.scoring import ENERGY_GROWTH_LIMIT, instability
+from ..simulation.simulation import Simulation
+from ..core.errors import BlowUp
+from ..core.workers import InProcess
+
+# The hard cases: (label, scene, days, grid override); None keeps the scene's value.
+HARD_CASES = (
+    ("tc5_mountain", "tc5_mountain", None, None),
+    ("tc6_rossby_haurwitz", "tc6_rossby_haurwitz", None, None),
+    ("galewsky", "galewsky", None, None),
+    ("tc2_steady_alpha_pi4_100d", "tc2_steady_alpha_pi4", 100.0, None),
+    ("tc6_inviscid_ne30", "tc6_rossby_haurwitz_inviscid", None, 30),  # HOMME's known failure
+)
+
+
+@dataclass
+class StabilityResult:
+    """Largest stable Δt (s) found for one (case, stepper), with every trial run."""
+
+    case: str
+    stepper: str
+    ne: int
+    np: int
+    days: float
+    dt_stable: float  # largest Δt found stable (nan if none)
+    dt_unstable: float  # smallest Δt found unstable (nan if none up to one day)
+    courant_gravity: float  # gravity-wave Courant number of dt_stable at t = 0
+    courant_advective: float
+    trials: list = field(default_factory=list)  # (dt, stable, reason, wall s)
+
+
+def run_is_stable(scene: Scene, device: str) -> tuple[bool, str, float]:
+    """Run a scene; return (stable, reason, wall time)."""
+    t0 = time.perf_counter()
+    try:
+        result = Simulation(scene, device, progress=False).run(None)
+    except BlowUp as err:
+        result = err.result
+    reason = instability(result)
+    return not reason, reason, time.perf_counter() - t0
+
+
+def largest_stable_dt(scene: Scene, device: str, *, tolerance: float = 0.05, log=print) -> StabilityResult:
+    """Bracket and bisect the largest stable Δt of ``scene`` (its stepper, grid and length).
+
+    Starts from the scene's Δt, doubles or halves it to bracket the limit (down
+    to 1/16 of the scene's Δt: below that the case counts as unstable at every
+    Δt, dt_stable NaN), then bisects on steps per day until the bracket is
+    within ``tolerance`` (relative).
+    """
+    trials = []
+
+    def stable(n: int) -> bool:
+        s = dataclasses.replace(scene, dt=DAY / n)
+        ok, reason, wall = run_is_stable(s, device)
+        trials.append((s.dt, ok, reason, wall))
+        log(f"  {scene.name} {scene.stepper} dt = {s.dt:9.2f} s: {'stable' if ok else 'unstable'} ({wall:.1f} s) {reason}")
+        return ok
+
+    n = max(1, round(DAY / scene.dt))
+    lo = hi = None  # lo: largest n found unstable (largest unstable dt); hi: smallest stable n
+    if stable(n):
+        hi = n
+        while hi > 1:
+            m = max(1, hi // 2)
+            if stable(m):
+                hi = m
+            else:
+                lo = m
+                break
+    else:
+        lo = n
+        while hi is None:
+            m = lo * 2
+            if m > 16 * n:  # unstable down to 1/16 of the scene's dt: report no stable dt
+                break
+            if stable(m):
+                hi = m
+            else:
+                lo = m
+    while lo is not None and hi is not None and hi - lo > 1 and (hi - lo) / hi > tolerance:
+        mid = (lo + hi) // 2
+        if stable(mid):
+            hi = mid
+        else:
+            lo = mid
+    dt_stable = DAY / hi if hi is not None else math.nan
+    courant = {"courant_gravity": math.nan, "courant_advective": math.nan}
+    if hi is not None:
+        courant = Simulation(dataclasses.replace(scene, dt=dt_stable), device, progress=False).courant()
+    return StabilityResult(
+        case=scene.name,
+        stepper=scene.stepper,
+        ne=scene.ne,
+        np=scene.np,
+        days=scene.days,
+        dt_stable=dt_stable,
+        dt_unstable=DAY / lo if lo is not None else math.nan,
+        courant_gravity=courant["courant_gravity"],
+        courant_advective=courant["courant_advective"],
+        trials=trials,
+    )
+
+
+def run_suite(cases, steppers, device, *, ne=None, np=None, days=None, overrides=None, log=print,
+              pool=None) -> list[StabilityResult]:
+    """Largest stable Δt for every (case, stepper). ``cases``: entries of ``HARD_CASES``;
+    ``ne``/``np`` override the grid and ``days`` the run length of cases that do not
+    fix them; ``overrides`` ({"section.key": value}, as ``load_scene``) apply to
+    every case. Raises ``SceneError`` on a bad override. The bisections
+    are independent: ``pool`` (a concurrent.futures executor, ``swe_sphere.core.workers``;
+    None: here, one after another) runs them; results in (case, stepper) order."""
+    pool = pool or InProcess()
+    futures = []
+    for label, scene_name, case_days, case_ne in cases:
+        for stepper in steppers:
+            scene = load_scene(scene_name, ne=case_ne or ne, np=np, days=case_days or days, stepper=stepper,
+                               overrides=overrides)
+            scene = dataclasses.replace(scene, name=label)
+            log(f"{label}: {stepper} on ne={scene.ne} np={scene.np}, {scene.days:g} days")
+            futures.append(pool.submit(largest_stable_dt, scene, device, log=log))
+    return [f.result() for f in futures]
+
+
+OUTPUTS = ("stability.csv", "stability.nc")  # what write_table writes
+
+
+def write_table(results, directory, *, overwrite: bool = False) -> tuple:
+    """Write ``OUTPUTS`` (stability.csv, stability.nc) under ``directory``; return their
+    paths. Raises ``output.OutputError`` before writing either if one exists (unless
+    ``overwrite``)."""
+    import pandas as pd
+
+    rows = [{k: v for k, v in dataclasses.asdict(r).items() if k != "trials"} for r in results]
+    for row, r in zip(rows, results):
+        row["trials"] = len(r.trials)
+    df = pd.DataFrame(rows)
+    check_results(directory, OUTPUTS, overwrite)
+    csv, nc = (directory / name for name in OUTPUTS)
+    with atomic_path(csv, overwrite=overwrite) as tmp:
+        df.to_csv(tmp, index=False)
+    ds = df.set_index(["case", "stepper"]).to_xarray()
+    ds.attrs["criterion"] = f"finite fields, depth > 0, total energy <= {1 + ENERGY_GROWTH_LIMIT} x initial"
+    with atomic_path(nc, overwrite=overwrite) as tmp:
+        ds.to_netcdf(tmp)
+    return csv, nc
+
+
+def format_table(results) -> str:
+    lines = [f"{'case':28s} {'stepper':22s} {'ne':>3s} {'np':>3s} {'days':>5s} {'dt stable':>10s} {'dt unstable':>11s} {'C_grav':>7s} {'C_adv':>6s}"]
+    for r in results:
+        lines.append(
+            f"{r.case:28s} {r.stepper:22s} {r.ne:3d} {r.np:3d} {r.days:5g} {r.dt_stable:10.1f} {r.dt_unstable:11.1f} "
+            f"{r.courant_gravity:7.2f} {r.courant_advective:6.2f}"
+        )
+    return "\n".join(lines)

@@ -39,20 +39,24 @@ import statistics
 import time
 
 import warp as wp
-
-from swe_sphere.config.scene import load_scene
-from swe_sphere.steppers import STEPPERS, make_stepper
-from swe_sphere.core.tally import Tally, array_bytes, instrumented
-
 from implicit_cost import use_krylov  # noqa: E402  (benchmarks/, the script's directory)
 from rhs_throughput import build as tc5  # noqa: E402
+
+from swe_sphere.config.scene import load_scene
+from swe_sphere.core.tally import Tally, array_bytes, instrumented
+from swe_sphere.steppers import STEPPERS, make_stepper
 
 HBM = {"H100": 3.35e12, "H200": 4.8e12}  # B/s: HBM3 (SXM) and HBM3e
 EFFICIENCY = 0.7  # share of HBM bandwidth a streaming kernel reaches
 LAUNCH_S = 4e-6  # host cost of one Warp kernel launch
 KERNEL_GAP_S = 1e-6  # GPU-side gap between consecutive kernels
 IMPLICIT = ("semi_implicit", "implicit", "imex")
-CUDA_ON_CPU = {"np_": 4, "threads": 1, "device": "cpu", "per_element": False}  # TC5 (``tc5``) on np 4 in the CUDA layout, on the CPU
+CUDA_ON_CPU = {
+    "np_": 4,
+    "threads": 1,
+    "device": "cpu",
+    "per_element": False,
+}  # TC5 (``tc5``) on np 4 in the CUDA layout, on the CPU
 
 # Floating-point operations per point (np = 4, FMA = 2), counted by hand from
 # kernels/: the ratio to the bytes shows every kernel far below an H100's
@@ -82,7 +86,9 @@ def count(args, tally):
             fn()
         out[name] = (t.total_launches, t.total_bytes / N, t.syncs, t.launches.copy(), t.bytes.copy())
     for name in STEPPERS:
-        _, scene, (_, _, x0), model = tc5(args.ne, stepper=name, dt_factor=args.implicit_dt_factor if name in IMPLICIT else 1.0, **CUDA_ON_CPU)
+        _, scene, (_, _, x0), model = tc5(
+            args.ne, stepper=name, dt_factor=args.implicit_dt_factor if name in IMPLICIT else 1.0, **CUDA_ON_CPU
+        )
         stepper = make_stepper(name, model, scene.dt)
         use_krylov(stepper, "kernels")  # the Krylov vector work as on CUDA (on a CPU device it runs in numpy)
         x = model.new_state(*x0)
@@ -127,8 +133,12 @@ def main(argv=None):
     p.add_argument("--at", type=int, nargs="+", default=[30, 120, 240], help="grids to predict (np 4)")
     p.add_argument("--steps", type=int, default=3)
     p.add_argument("--warmup", type=int, default=2)
-    p.add_argument("--check-ne", type=int, default=30, help="grid of the CPU check (each RHS and ∇⁴ launch timed alone); 0 to skip")
-    p.add_argument("--implicit-dt-factor", type=float, default=4.0, help="Δt of semi_implicit, implicit, imex × TC5's explicit Δt")
+    p.add_argument(
+        "--check-ne", type=int, default=30, help="grid of the CPU check (each RHS and ∇⁴ launch timed alone); 0 to skip"
+    )
+    p.add_argument(
+        "--implicit-dt-factor", type=float, default=4.0, help="Δt of semi_implicit, implicit, imex × TC5's explicit Δt"
+    )
     args = p.parse_args(argv)
     wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level (as tests/conftest.py)
     if hasattr(wp, "LOG_WARNING"):
@@ -137,7 +147,9 @@ def main(argv=None):
     with instrumented(tally):
         counts, N = count(args, tally)
 
-    print(f"## Per kernel (counted at ne={args.ne} np=4, N={N}; bytes of each distinct array argument per point per launch)\n")
+    print(
+        f"## Per kernel (counted at ne={args.ne} np=4, N={N}; bytes of each distinct array argument per point per launch)\n"
+    )
     print("| kernel | B/pt per launch | flop/pt | flop/B | launches in one RHS | in one ∇⁴ |")
     print("|---|---:|---:|---:|---:|---:|")
     keys = sorted(set(counts["rhs"][3]) | set(counts["hv"][3]))
@@ -145,18 +157,26 @@ def main(argv=None):
         n = counts["rhs"][3][key] + counts["hv"][3][key]
         bpp = (counts["rhs"][4][key] + counts["hv"][4][key]) / n / N
         fl = FLOPS.get(key.split("__")[0])
-        print(f"| {key} | {bpp:.0f} | {fl if fl is not None else '–'} | {fl / bpp if fl else float('nan'):.2f} | "
-              f"{counts['rhs'][3][key]} | {counts['hv'][3][key]} |")
+        print(
+            f"| {key} | {bpp:.0f} | {fl if fl is not None else '–'} | {fl / bpp if fl else float('nan'):.2f} | "
+            f"{counts['rhs'][3][key]} | {counts['hv'][3][key]} |"
+        )
     if args.check_ne:
-        print(f"\nCPU check: each launch alone at ne={args.check_ne} np=4, CUDA layout, one thread, CPU clock, median of 20\n")
+        print(
+            f"\nCPU check: each launch alone at ne={args.check_ne} np=4, CUDA layout, one thread, CPU clock, median of 20\n"
+        )
         print("| kernel | µs | B/pt | implied GB/s |")
         print("|---|---:|---:|---:|")
         for key, us, bpp, gbs in cpu_check(args.check_ne, 20):
             print(f"| {key.split('__')[0]} | {us:.0f} | {bpp:.0f} | {gbs:.1f} |")
-    print(f"\nRHS: {counts['rhs'][1]:.0f} B/pt, {counts['rhs'][0]:.0f} launches; ∇⁴ (hv.operator, with its memset): "
-          f"{counts['hv'][1]:.0f} B/pt, {counts['hv'][0]:.0f} launches; ∇⁴/RHS bytes {counts['hv'][1] / counts['rhs'][1]:.2f}\n")
+    print(
+        f"\nRHS: {counts['rhs'][1]:.0f} B/pt, {counts['rhs'][0]:.0f} launches; ∇⁴ (hv.operator, with its memset): "
+        f"{counts['hv'][1]:.0f} B/pt, {counts['hv'][0]:.0f} launches; ∇⁴/RHS bytes {counts['hv'][1] / counts['rhs'][1]:.2f}\n"
+    )
 
-    print(f"## Per step (semi_implicit, implicit, imex at {args.implicit_dt_factor:g}× TC5's Δt; {args.steps} steps after {args.warmup})\n")
+    print(
+        f"## Per step (semi_implicit, implicit, imex at {args.implicit_dt_factor:g}× TC5's Δt; {args.steps} steps after {args.warmup})\n"
+    )
     print("| stepper | launches/step | host syncs/step | B/pt/step | RHS-eq (bytes) |")
     print("|---|---:|---:|---:|---:|")
     names = ["rhs", "hv", *STEPPERS]
@@ -171,8 +191,10 @@ def main(argv=None):
         floor = L * LAUNCH_S
         return gpu, floor, max(gpu, floor), gpu + (syncs + 1) * LAUNCH_S
 
-    print(f"\n## Predicted µs at {EFFICIENCY:.0%} of HBM: GPU time / launch floor ({LAUNCH_S * 1e6:g} µs a launch) / "
-          "with one CUDA graph per sync-free segment; **bold**: launch-bound without graphs\n")
+    print(
+        f"\n## Predicted µs at {EFFICIENCY:.0%} of HBM: GPU time / launch floor ({LAUNCH_S * 1e6:g} µs a launch) / "
+        "with one CUDA graph per sync-free segment; **bold**: launch-bound without graphs\n"
+    )
     for gpu_name, bw in HBM.items():
         print(f"**{gpu_name} ({bw / 1e12:.2f} TB/s)**\n")
         print("| what | " + " | ".join(f"ne{ne} ({points(ne) / 1e6:.2f} M pts)" for ne in args.at) + " |")
@@ -185,8 +207,10 @@ def main(argv=None):
                 cells.append(f"**{cell}**" if floor > gpu else cell)
             print(f"| {name} | " + " | ".join(cells) + " |")
         print()
-        print("Simulated days per wall day for TC5 (the scene's Δt at each ne; semi_implicit, implicit, imex at "
-              f"{args.implicit_dt_factor:g}× it), without / with graphs:\n")
+        print(
+            "Simulated days per wall day for TC5 (the scene's Δt at each ne; semi_implicit, implicit, imex at "
+            f"{args.implicit_dt_factor:g}× it), without / with graphs:\n"
+        )
         dts = {ne: load_scene("tc5_mountain_homme", ne=ne, np=4).dt for ne in args.at}
         print("| stepper | " + " | ".join(f"ne{ne} (Δt {dts[ne]:.1f} s)" for ne in args.at) + " |")
         print("|---|" + "---:|" * len(args.at))
@@ -198,6 +222,7 @@ def main(argv=None):
                 cells.append(f"{dt / plain:,.0f} / {dt / graph:,.0f}")
             print(f"| {name} | " + " | ".join(cells) + " |")
         print()
+
 
 if __name__ == "__main__":
     main()

@@ -49,9 +49,9 @@ from rhs_throughput import build, median_time, rhs_compulsory_bytes  # noqa: E40
 
 from swe_sphere.config.scene import load_scene  # noqa: E402
 from swe_sphere.core.constants import DAY  # noqa: E402
+from swe_sphere.core.tally import Tally, instrumented  # noqa: E402
 from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 from swe_sphere.steppers import STEPPERS  # noqa: E402
-from swe_sphere.core.tally import Tally, instrumented  # noqa: E402
 
 
 def _header(title, columns, right):
@@ -72,9 +72,12 @@ def _scene(name, ne, dt_factor, **kw):
 
 
 def agreement(args):
-    _header(f"TC5 ne{args.ne[0]} np4, {args.days:g} days (semi_implicit, implicit, imex at {args.dt_factor:g}× Δt): "
-            f"max|h_{args.device} − h_cpu| / max|h_cpu|",
-            ["stepper", "after one RHS", "after the run", "steps", "wall s device", "wall s cpu"], 5)
+    _header(
+        f"TC5 ne{args.ne[0]} np4, {args.days:g} days (semi_implicit, implicit, imex at {args.dt_factor:g}× Δt): "
+        f"max|h_{args.device} − h_cpu| / max|h_cpu|",
+        ["stepper", "after one RHS", "after the run", "steps", "wall s device", "wall s cpu"],
+        5,
+    )
     for name in args.steppers or STEPPERS:
         scene = _scene(name, args.ne[0], args.dt_factor, days=args.days)
         scene = dataclasses.replace(scene, output_every_days=args.days)
@@ -90,7 +93,9 @@ def agreement(args):
             h[device] = sim.fields()[2]
         d_rhs = np.max(np.abs(rhs[args.device] - rhs["cpu"])) / np.max(np.abs(rhs["cpu"]))
         d_h = np.max(np.abs(h[args.device] - h["cpu"])) / np.max(np.abs(h["cpu"]))
-        print(f"| {name} | {d_rhs:.2e} | {d_h:.2e} | {steps} | {wall[args.device]:.1f} | {wall['cpu']:.1f} |", flush=True)
+        print(
+            f"| {name} | {d_rhs:.2e} | {d_h:.2e} | {steps} | {wall[args.device]:.1f} | {wall['cpu']:.1f} |", flush=True
+        )
 
 
 def copy_bandwidth(device, nbytes=2**30, repeat=10):
@@ -102,8 +107,22 @@ def copy_bandwidth(device, nbytes=2**30, repeat=10):
 
 def throughput(args):
     bw = copy_bandwidth(args.device, args.copy_mib * 2**20)
-    _header(f"device copy ({args.copy_mib} MiB, read + write): {bw / 1e9:.0f} GB/s",
-            ["ne", "points", "RHS µs", "M pts/s", "compulsory B/pt", "GB/s", "% of copy", "launched B/pt", "GB/s", "% of copy"], 10)
+    _header(
+        f"device copy ({args.copy_mib} MiB, read + write): {bw / 1e9:.0f} GB/s",
+        [
+            "ne",
+            "points",
+            "RHS µs",
+            "M pts/s",
+            "compulsory B/pt",
+            "GB/s",
+            "% of copy",
+            "launched B/pt",
+            "GB/s",
+            "% of copy",
+        ],
+        10,
+    )
     runs = []
     for ne in args.ne:
         _, _, (_, _, state), model = build(ne, 4, 1, args.device)
@@ -115,9 +134,11 @@ def throughput(args):
             model.rhs(x, out)
         pts = model.N
         compulsory, launched = rhs_compulsory_bytes(model) / pts, tally.total_bytes / pts
-        print(f"| {ne} | {pts} | {t * 1e6:.1f} | {pts / t / 1e6:.0f} | {compulsory:.0f} | {compulsory * pts / t / 1e9:.0f} | "
-              f"{100 * compulsory * pts / t / bw:.0f} % | {launched:.0f} | {launched * pts / t / 1e9:.0f} | {100 * launched * pts / t / bw:.0f} % |",
-              flush=True)
+        print(
+            f"| {ne} | {pts} | {t * 1e6:.1f} | {pts / t / 1e6:.0f} | {compulsory:.0f} | {compulsory * pts / t / 1e9:.0f} | "
+            f"{100 * compulsory * pts / t / bw:.0f} % | {launched:.0f} | {launched * pts / t / 1e9:.0f} | {100 * launched * pts / t / bw:.0f} % |",
+            flush=True,
+        )
 
 
 def _stepper(name, ne, device, dt_factor):
@@ -128,9 +149,12 @@ def _stepper(name, ne, device, dt_factor):
 def graphs(args):
     ne = args.ne[0]
     names = args.steppers or [n for n, cls in STEPPERS.items() if cls.capturable]
-    _header(f"TC5 ne{ne} np4 (tc5_mountain_homme's Δt): µs a step of Simulation.run, {args.graph_steps} steps after 100, "
-            f"median of {args.runs}, plain launches and graphs ({args.device})",
-            ["stepper", "Δt s", "plain µs", "graphs µs", "speed-up"], 4)
+    _header(
+        f"TC5 ne{ne} np4 (tc5_mountain_homme's Δt): µs a step of Simulation.run, {args.graph_steps} steps after 100, "
+        f"median of {args.runs}, plain launches and graphs ({args.device})",
+        ["stepper", "Δt s", "plain µs", "graphs µs", "speed-up"],
+        4,
+    )
     for name in names:
         us = {}
         for graphed in (False, True):
@@ -150,8 +174,12 @@ def graphs(args):
 def reads(args):
     ne = args.ne[0]
     krylov = f", Krylov work: {args.krylov}" if args.krylov else ""
-    _header(f"TC5 ne{ne} np4 (semi_implicit, implicit, imex at {args.dt_factor:g}× Δt; {args.steps} steps after 2, {args.device}{krylov}): "
-            "host reads and launches a step", ["stepper", "graphs", "host reads a step", "launches a step"], 3)
+    _header(
+        f"TC5 ne{ne} np4 (semi_implicit, implicit, imex at {args.dt_factor:g}× Δt; {args.steps} steps after 2, {args.device}{krylov}): "
+        "host reads and launches a step",
+        ["stepper", "graphs", "host reads a step", "launches a step"],
+        3,
+    )
     tally = Tally()
     for name in args.steppers or STEPPERS:
         sim, stepper = _stepper(name, ne, args.device, args.dt_factor)
@@ -163,13 +191,19 @@ def reads(args):
             for _ in range(args.steps):
                 stepper.step(sim.x)
         graphed = "yes" if stepper.graph_key() is not None else "no"
-        print(f"| {name} | {graphed} | {tally.syncs / args.steps:.1f} | {tally.total_launches / args.steps:.1f} |", flush=True)
+        print(
+            f"| {name} | {graphed} | {tally.syncs / args.steps:.1f} | {tally.total_launches / args.steps:.1f} |",
+            flush=True,
+        )
 
 
 def iterations(args):
     ne = args.ne[0]
-    _header(f"TC5 ne{ne} np4 at {args.dt_factor:g}× Δt: solver iterations per step ({args.steps} steps after 1), {args.device} vs cpu",
-            ["stepper", "device", "iterations per step", "RHS per step", "ms per step"], 2)
+    _header(
+        f"TC5 ne{ne} np4 at {args.dt_factor:g}× Δt: solver iterations per step ({args.steps} steps after 1), {args.device} vs cpu",
+        ["stepper", "device", "iterations per step", "RHS per step", "ms per step"],
+        2,
+    )
     for name in args.steppers or IMPLICIT:
         for device in dict.fromkeys((args.device, "cpu")):
             sim, stepper = _stepper(name, ne, device, args.dt_factor)
@@ -192,7 +226,9 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("part", choices=("agreement", "throughput", "graphs", "reads", "iterations"))
     p.add_argument("--device", default="cuda")
-    p.add_argument("--ne", type=int, nargs="+", default=None, help="grid(s), np 4 (default per part: 16 / 30 60 120 240 / 30 / 30)")
+    p.add_argument(
+        "--ne", type=int, nargs="+", default=None, help="grid(s), np 4 (default per part: 16 / 30 60 120 240 / 30 / 30)"
+    )
     p.add_argument("--days", type=float, default=5.0)
     p.add_argument("--steppers", nargs="*", default=None)
     p.add_argument("--dt-factor", type=float, default=4.0, help="Δt of semi_implicit, implicit, imex × TC5's")
@@ -201,14 +237,21 @@ def main(argv=None):
     p.add_argument("--graph-steps", type=int, default=2000, help="graphs: steps a timed run")
     p.add_argument("--runs", type=int, default=5, help="graphs: timed runs a stepper and mode")
     p.add_argument("--copy-mib", type=int, default=1024)
-    p.add_argument("--krylov", choices=("host", "kernels"), default=None, help="reads: the Krylov vector work's backend (default: the device's)")
+    p.add_argument(
+        "--krylov",
+        choices=("host", "kernels"),
+        default=None,
+        help="reads: the Krylov vector work's backend (default: the device's)",
+    )
     args = p.parse_args(argv)
     args.ne = args.ne or {"agreement": [16], "throughput": [30, 60, 120, 240]}.get(args.part, [30])
     wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level (as tests/conftest.py)
     if hasattr(wp, "LOG_WARNING"):
         wp.config.log_level = wp.LOG_WARNING
     wp.init()
-    {"agreement": agreement, "throughput": throughput, "graphs": graphs, "reads": reads, "iterations": iterations}[args.part](args)
+    {"agreement": agreement, "throughput": throughput, "graphs": graphs, "reads": reads, "iterations": iterations}[
+        args.part
+    ](args)
 
 
 if __name__ == "__main__":

@@ -62,8 +62,10 @@ def corner_prolongation(grid) -> sp.csr_matrix:
     j, i = np.divmod(p, n)
     s, t = x[i], x[j]
     weights = np.stack([(1 - s) * (1 - t), (1 + s) * (1 - t), (1 - s) * (1 + t), (1 + s) * (1 + t)], axis=1) / 4
-    P = sp.csr_matrix((weights.ravel(), (np.repeat(np.arange(grid.nunique), 4), coarse[e].ravel())),
-                      shape=(grid.nunique, coarse.max() + 1))
+    P = sp.csr_matrix(
+        (weights.ravel(), (np.repeat(np.arange(grid.nunique), 4), coarse[e].ravel())),
+        shape=(grid.nunique, coarse.max() + 1),
+    )
     P.eliminate_zeros()
     return P
 
@@ -71,8 +73,16 @@ def corner_prolongation(grid) -> sp.csr_matrix:
 def cg_iterations(A, b, precond, tol, maxiter=5000, x0=None) -> int:
     """Iterations of CG with ``precond`` from x0 (None: 0) until ‖r‖ ≤ tol ‖b‖ (−1: not within maxiter)."""
     count = [0]
-    _, info = spla.cg(A, b, x0=x0, rtol=tol, atol=0.0, maxiter=maxiter, M=spla.LinearOperator(A.shape, matvec=precond),
-                      callback=lambda _: count.__setitem__(0, count[0] + 1))
+    _, info = spla.cg(
+        A,
+        b,
+        x0=x0,
+        rtol=tol,
+        atol=0.0,
+        maxiter=maxiter,
+        M=spla.LinearOperator(A.shape, matvec=precond),
+        callback=lambda _: count.__setitem__(0, count[0] + 1),
+    )
     return count[0] if info == 0 else -1
 
 
@@ -113,8 +123,9 @@ def two_level(grid, A, minv, hi):
     """r ↦ the p-MG two-grid cycle (``SMOOTHING`` Chebyshev steps on [hi/8, hi], the Galerkin correction on
     the element corners by one SA V-cycle, the same steps again), and r ↦ its coarse part alone."""
     Pc = corner_prolongation(grid)
-    coarse = pyamg.smoothed_aggregation_solver((Pc.T @ A @ Pc).tocsr(), symmetry="symmetric", presmoother=SGS,
-                                               postsmoother=SGS).aspreconditioner(cycle="V")
+    coarse = pyamg.smoothed_aggregation_solver(
+        (Pc.T @ A @ Pc).tocsr(), symmetry="symmetric", presmoother=SGS, postsmoother=SGS
+    ).aspreconditioner(cycle="V")
     smooth = chebyshev(A, minv, hi / 8, hi, SMOOTHING)
 
     def cycle(r):
@@ -139,7 +150,9 @@ def cpu_seconds(f, repeat) -> float:
 
 
 def record(path, spin_up, count):
-    sim = Simulation(load_scene("tc5_mountain", ne=30, np=4, days=1.0, stepper="imex", dt=2160.0), "cpu", progress=False)
+    sim = Simulation(
+        load_scene("tc5_mountain", ne=30, np=4, days=1.0, stepper="imex", dt=2160.0), "cpu", progress=False
+    )
     sim.graphs, gw = "off", sim.stepper.gw
     gw.graphable = False
     sim.advance(spin_up)
@@ -147,15 +160,25 @@ def record(path, spin_up, count):
 
     def watched(c, *args, **kw):  # y holds the start: the projected guess
         its = gw.stats.numpy()[0]
-        seen["c"].append(c), seen["b"].append(gw.b.numpy().copy()), seen["x0"].append(gw.y.numpy().copy())  # CPU numpy() is a view
+        (
+            seen["c"].append(c),
+            seen["b"].append(gw.b.numpy().copy()),
+            seen["x0"].append(gw.y.numpy().copy()),
+        )  # CPU numpy() is a view
         solve(c, *args, **kw)
         seen["its"].append(gw.stats.numpy()[0] - its)
 
     gw.cg.solve = watched
     while len(seen["b"]) < count:
         sim.advance(sim.scene.dt / DAY)
-    np.savez(path, **{k: np.array(v) for k, v in seen.items()}, per_day=len(seen["b"]) / (sim.step - first) * DAY / sim.scene.dt)
-    print(f"{len(seen['b'])} solves of {sim.step - first} steps from day {spin_up:g} into {path}; model CG iterations: median {np.median(seen['its']):g}")
+    np.savez(
+        path,
+        **{k: np.array(v) for k, v in seen.items()},
+        per_day=len(seen["b"]) / (sim.step - first) * DAY / sim.scene.dt,
+    )
+    print(
+        f"{len(seen['b'])} solves of {sim.step - first} steps from day {spin_up:g} into {path}; model CG iterations: median {np.median(seen['its']):g}"
+    )
 
 
 def production(path, tol, rounds, stride):
@@ -179,8 +202,11 @@ def production(path, tol, rounds, stride):
         apply, dense = block_jacobi(grid, A)
         return apply, lambda: cpu_seconds(lambda: dense(d["b"][0]), 10)
 
-    setups = {"mass (production)": lambda: (lambda r: minv * r, lambda: 0.0), "blocks (HOMME blkjac)": blocks,
-              f"p-MG np2 (cheb {SMOOTHING}+{SMOOTHING}, SA coarse)": pmg}
+    setups = {
+        "mass (production)": lambda: (lambda r: minv * r, lambda: 0.0),
+        "blocks (HOMME blkjac)": blocks,
+        f"p-MG np2 (cheb {SMOOTHING}+{SMOOTHING}, SA coarse)": pmg,
+    }
     products = dict(zip(setups, (1, 1, 1 + 2 * SMOOTHING)))
     precond, setup, extra = {}, {}, {}
     for name, make in setups.items():
@@ -196,18 +222,30 @@ def production(path, tol, rounds, stride):
             for b, x0 in zip(d["b"][::stride], d["x0"][::stride]):
                 cg_iterations(A, b, p, tol, x0=x0)
             seconds[n].append((time.process_time() - t0) / len(d["b"][::stride]))
-    print(f"{len(d['b'])} recorded solves, c = {c:.4g} m² (a²gH), {float(d['per_day']):.0f} solves a day; model CG iterations: median {np.median(d['its']):g}, "
-          f"{np.mean(d['its']):.1f} mean; tol {tol:g}; {rounds} rounds over every {stride}th solve; "
-          f"the model's CG {t_it * 1e3:.2f} ms an iteration, its product {t_op * 1e3:.2f} ms")
-    print("| preconditioner | its a solve (median, mean) | products a solve | scipy CPU ms a solve | set-up s (ms a solve over a day) | scipy total ms | kernels ms (bound) |")
+    print(
+        f"{len(d['b'])} recorded solves, c = {c:.4g} m² (a²gH), {float(d['per_day']):.0f} solves a day; model CG iterations: median {np.median(d['its']):g}, "
+        f"{np.mean(d['its']):.1f} mean; tol {tol:g}; {rounds} rounds over every {stride}th solve; "
+        f"the model's CG {t_it * 1e3:.2f} ms an iteration, its product {t_op * 1e3:.2f} ms"
+    )
+    print(
+        "| preconditioner | its a solve (median, mean) | products a solve | scipy CPU ms a solve | set-up s (ms a solve over a day) | scipy total ms | kernels ms (bound) |"
+    )
     print("|---|---:|---:|---:|---:|---:|---:|")
     for n in precond:
-        t, s, k = 1e3 * np.median(seconds[n]), 1e3 * setup[n] / float(d["per_day"]), 1e3 * np.mean(its[n]) * (t_it + extra[n])
-        print(f"| {n} | {np.median(its[n]):g}, {np.mean(its[n]):.1f} | {products[n] * np.mean(its[n]):.1f} | {t:.1f} | {setup[n]:.2f} ({s:.1f}) | {t + s:.1f} | {k + s:.1f} |")
+        t, s, k = (
+            1e3 * np.median(seconds[n]),
+            1e3 * setup[n] / float(d["per_day"]),
+            1e3 * np.mean(its[n]) * (t_it + extra[n]),
+        )
+        print(
+            f"| {n} | {np.median(its[n]):g}, {np.mean(its[n]):.1f} | {products[n] * np.mean(its[n]):.1f} | {t:.1f} | {setup[n]:.2f} ({s:.1f}) | {t + s:.1f} | {k + s:.1f} |"
+        )
 
 
 def build(ne):
-    sim = Simulation(load_scene("tc5_mountain", ne=ne, np=4, days=1.0, stepper="semi_implicit", dt=60.0), "cpu", progress=False)
+    sim = Simulation(
+        load_scene("tc5_mountain", ne=ne, np=4, days=1.0, stepper="semi_implicit", dt=60.0), "cpu", progress=False
+    )
     sim.stepper.gw.set_depth(sim.x)
     return sim, 60.0 / sim.courant()["courant_gravity"]
 
@@ -224,8 +262,10 @@ def main():
     ap.add_argument("--stride", type=int, default=4)
     args = ap.parse_args()
     threadpool_limits(1)
-    print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, CPU clock, SWE_SPHERE_THREADS={os.environ.get('SWE_SPHERE_THREADS', '(all)')}, "
-          f"load {os.getloadavg()[0]:.2f}")
+    print(
+        f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, CPU clock, SWE_SPHERE_THREADS={os.environ.get('SWE_SPHERE_THREADS', '(all)')}, "
+        f"load {os.getloadavg()[0]:.2f}"
+    )
     if args.record:
         record(args.record, args.spin_up, args.count)
     else:

@@ -54,7 +54,10 @@ def traffic(np_: int, copies: int, N: int, nu: int, size: int) -> dict:
         # y through gid; Dinv (4), spheremp; wg (2) written
         "gradient": (nu * size + N * i4 + N * (4 + 1 + 2) * size, N * (4 * np_ + 8)),
         # wg (2) over the DSS table; rspheremp, y through gid, Dinv (4), metdet, spheremp; z written
-        "divergence": (N * copies * i4 + N * i4 + nu * size + N * (2 + 1 + 4 + 1 + 1 + 1) * size, N * (4 * np_ + 2 * copies + 15)),
+        "divergence": (
+            N * copies * i4 + N * i4 + nu * size + N * (2 + 1 + 4 + 1 + 1 + 1) * size,
+            N * (4 * np_ + 2 * copies + 15),
+        ),
         # wz through first and its table rows; y read, out written
         "assemble": (nu * (1 + copies) * i4 + N * size + 2 * nu * size, nu * (copies + 2)),
         # p, s, x, r, u, w, minv read; p, s, x, r, u written
@@ -127,8 +130,10 @@ def main() -> None:
         sim = Simulation(load_scene("tc5_mountain", ne=ne, stepper="imex"), "cpu", progress=False)
         m, topo = sim.model, sim.model.topology
         rows, per_iteration, fixed = solve_cost(sim, clock, args.repeat // 2 + 1)
-        print(f"\nne {ne}: whole solves (CG iterations, ms): {', '.join(f'({k}, {ms:.2f})' for k, ms in rows)}; "
-              f"an iteration {per_iteration:.3f} ms, fixed {fixed:.3f} ms = {fixed / per_iteration:.2f} iterations")
+        print(
+            f"\nne {ne}: whole solves (CG iterations, ms): {', '.join(f'({k}, {ms:.2f})' for k, ms in rows)}; "
+            f"an iteration {per_iteration:.3f} ms, fixed {fixed:.3f} ms = {fixed / per_iteration:.2f} iterations"
+        )
         if args.solve_only:
             continue
         cgs = {name: (sim.stepper.gw.cg if t is wp.float64 else HelmholtzCG(m, t)) for name, t in TYPES.items()}
@@ -150,16 +155,22 @@ def main() -> None:
             for _ in range(args.inner):
                 tiny.launch()
             times[("", "one-node launch")].append((clock() - t0) / args.inner)
-        print(f"\nne {ne} np 4: N = {m.N} element-local nodes, {topo.nunique} unique, DSS table {topo.table.shape[1]} copies a node")
-        print(f"{'launch':<12} {'type':<4} {'ms':>7} {'MB':>6} {'GB/s':>6} {'B/node':>7} {'flop/node':>9} {'at L3 triad ms':>15} {'f32/f64':>8}")
+        print(
+            f"\nne {ne} np 4: N = {m.N} element-local nodes, {topo.nunique} unique, DSS table {topo.table.shape[1]} copies a node"
+        )
+        print(
+            f"{'launch':<12} {'type':<4} {'ms':>7} {'MB':>6} {'GB/s':>6} {'B/node':>7} {'flop/node':>9} {'at L3 triad ms':>15} {'f32/f64':>8}"
+        )
         for k in runs["f64"]:
             for name, t in TYPES.items():
                 size = 8 if t is wp.float64 else 4
                 nbytes, flops = traffic(4, topo.table.shape[1], m.N, topo.nunique, size)[k]
                 ms = statistics.median(times[(name, k)]) * 1e3
                 ratio = ms / (statistics.median(times[("f64", k)]) * 1e3)
-                print(f"{k:<12} {name:<4} {ms:7.3f} {nbytes / 1e6:6.2f} {nbytes / ms / 1e6:6.1f} {nbytes / m.N:7.1f} {flops / m.N:9.1f} "
-                      f"{nbytes / l3 / 1e6:15.3f} {ratio:8.2f}")
+                print(
+                    f"{k:<12} {name:<4} {ms:7.3f} {nbytes / 1e6:6.2f} {nbytes / ms / 1e6:6.1f} {nbytes / m.N:7.1f} {flops / m.N:9.1f} "
+                    f"{nbytes / l3 / 1e6:15.3f} {ratio:8.2f}"
+                )
         print(f"one-node launch   {statistics.median(times[('', 'one-node launch')]) * 1e3:7.4f} ms")
 
 

@@ -70,8 +70,14 @@ from swe_sphere.solvers import jacobian, krylov  # noqa: E402
 
 # case → (label, stepper, Δt/Δt_g, options)
 CONFIGS = {
-    "tc5_mountain": [("imex", "imex", 8.0, {}), ("CN", "implicit", 4.0, {}), ("CN", "implicit", 10.0, {}), ("semi_implicit", "semi_implicit", 2.0, {}),
-                     ("epi2", "epi2", 5.0, {}), ("epi3", "epi3", 5.0, {})],
+    "tc5_mountain": [
+        ("imex", "imex", 8.0, {}),
+        ("CN", "implicit", 4.0, {}),
+        ("CN", "implicit", 10.0, {}),
+        ("semi_implicit", "semi_implicit", 2.0, {}),
+        ("epi2", "epi2", 5.0, {}),
+        ("epi3", "epi3", 5.0, {}),
+    ],
     "tc6_rossby_haurwitz": [("imex", "imex", 4.7, {}), ("CN", "implicit", 4.7, {})],
 }
 # case → explicit references (stepper, Δt in s): the largest stable steps measured at ne30 np4 on
@@ -151,7 +157,9 @@ def build(case, ne, stepper, dt, options, clock, device, backend=None):
     gw = getattr(sim.stepper, "gw", None)
     if gw is not None:
         timers.wrap(gw, "solve", "Helmholtz rest")
-        for cg in (gw.cg, gw.low) if not gw.graphable else ():  # the float64 CG's operator, and the float32 one's ("mixed")
+        for cg in (
+            (gw.cg, gw.low) if not gw.graphable else ()
+        ):  # the float64 CG's operator, and the float32 one's ("mixed")
             if cg is not None:
                 timers.wrap(cg, "apply", "Helmholtz op")
     return sim, timers
@@ -166,24 +174,51 @@ def main():
     ap.add_argument("--warmup", type=int, default=3, help="untimed steps per configuration after the spin-up")
     ap.add_argument("--clock", choices=("cpu", "wall"), default="cpu")
     ap.add_argument("--device", choices=("cpu", "cuda"), default="cpu", help="cuda: wall clock, synchronised")
-    ap.add_argument("--precision", nargs="+", default=["double"], choices=("double", "mixed"),
-                    help="the Helmholtz solves' precision; several: each configuration in each, interleaved")
-    ap.add_argument("--steppers", nargs="+", default=None, metavar="LABEL", help="only these configurations (labels: imex, CN, semi_implicit, epi2, epi3)")
-    ap.add_argument("--krylov", nargs="+", default=[None], choices=list(KRYLOV),
-                    help="the Krylov vector work's backend (default: the device's); several: each Krylov configuration in each, interleaved")
-    ap.add_argument("--explicit", nargs="*", default=None, metavar="STEPPER@DT",
-                    help="the explicit references of every case, e.g. ssprk3@216 (default: EXPLICIT, measured at ne30)")
+    ap.add_argument(
+        "--precision",
+        nargs="+",
+        default=["double"],
+        choices=("double", "mixed"),
+        help="the Helmholtz solves' precision; several: each configuration in each, interleaved",
+    )
+    ap.add_argument(
+        "--steppers",
+        nargs="+",
+        default=None,
+        metavar="LABEL",
+        help="only these configurations (labels: imex, CN, semi_implicit, epi2, epi3)",
+    )
+    ap.add_argument(
+        "--krylov",
+        nargs="+",
+        default=[None],
+        choices=list(KRYLOV),
+        help="the Krylov vector work's backend (default: the device's); several: each Krylov configuration in each, interleaved",
+    )
+    ap.add_argument(
+        "--explicit",
+        nargs="*",
+        default=None,
+        metavar="STEPPER@DT",
+        help="the explicit references of every case, e.g. ssprk3@216 (default: EXPLICIT, measured at ne30)",
+    )
     args = ap.parse_args()
     clock = time.process_time if args.clock == "cpu" and args.device == "cpu" else time.perf_counter
     sync = lambda: wp.synchronize_device(args.device)  # noqa: E731
     threadpool_limits(1)  # as Simulation.run: BLAS threads would fight the model's
-    print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {platform.node()}, {platform.processor() or platform.machine()}, "
-          f"device {args.device}, clock {'wall' if args.device == 'cuda' else args.clock}, SWE_SPHERE_THREADS={os.environ.get('SWE_SPHERE_THREADS', '(all CPUs)')}, load {os.getloadavg()[0]:.2f}")
+    print(
+        f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {platform.node()}, {platform.processor() or platform.machine()}, "
+        f"device {args.device}, clock {'wall' if args.device == 'cuda' else args.clock}, SWE_SPHERE_THREADS={os.environ.get('SWE_SPHERE_THREADS', '(all CPUs)')}, load {os.getloadavg()[0]:.2f}"
+    )
     for case in args.cases:
         probe = Simulation(scene(case, args.ne, "ssprk3", 60.0, {}), args.device, progress=False)
         dt_g = 60.0 / probe.courant()["courant_gravity"]
         runs = []
-        explicit = EXPLICIT[case] if args.explicit is None else [(e.split("@")[0], float(e.split("@")[1])) for e in args.explicit]
+        explicit = (
+            EXPLICIT[case]
+            if args.explicit is None
+            else [(e.split("@")[0], float(e.split("@")[1])) for e in args.explicit]
+        )
         for name, dt in explicit:
             runs.append((name, dt / dt_g, True, *build(case, args.ne, name, dt, {}, clock, args.device)))
         for label, stepper, f, options in CONFIGS[case]:
@@ -192,10 +227,18 @@ def main():
             krylov_stepper = stepper in ("implicit", "epi2", "epi3")
             for precision in args.precision if stepper not in ("epi2", "epi3") else [None]:
                 for backend in args.krylov if krylov_stepper else [None]:
-                    name = " ".join([label, *([precision] if precision and len(args.precision) > 1 else []), *([backend] if backend and len(args.krylov) > 1 else [])])
+                    name = " ".join(
+                        [
+                            label,
+                            *([precision] if precision and len(args.precision) > 1 else []),
+                            *([backend] if backend and len(args.krylov) > 1 else []),
+                        ]
+                    )
                     opts = {**options, **({"precision": precision} if precision else {})}
-                    runs.append((name, f, False, *build(case, args.ne, stepper, f * dt_g, opts, clock, args.device, backend)))
-        for _, _, _, sim, timers in runs:
+                    runs.append(
+                        (name, f, False, *build(case, args.ne, stepper, f * dt_g, opts, clock, args.device, backend))
+                    )
+        for _, _, _, sim, _timers in runs:
             for _ in range(math.ceil(args.spinup * 3600.0 / sim.scene.dt - 1e-9) + args.warmup):
                 sim.stepper.step(sim.x)
         rhs_sim, out = runs[0][3], wp.zeros_like(runs[0][3].x)
@@ -220,21 +263,31 @@ def main():
         rhs = statistics.median(rhs_ms)
         cost = {i: statistics.median(s[0] for s in per_step[i]) / runs[i][3].scene.dt for i in per_step}
         best = min((i for i in cost if runs[i][2]), key=cost.get)
-        print(f"\n{case} ne{args.ne} np4: Δt_g = {dt_g:.1f} s, RHS {rhs:.2f} ms (median); {args.steps} timed steps after {args.spinup:g} h and {args.warmup} more; "
-              f"best explicit {runs[best][0]} @ {runs[best][3].scene.dt:.0f} s")
-        print("| stepper | Δt/Δt_g | Δt (s) | its/step | ms/step | " + " | ".join(f"{p} ms (RHS-eq)" for p in PARTS)
-              + " | RHS-eq/step | RHS-eq per Krylov vector | cost/day vs best explicit |")
+        print(
+            f"\n{case} ne{args.ne} np4: Δt_g = {dt_g:.1f} s, RHS {rhs:.2f} ms (median); {args.steps} timed steps after {args.spinup:g} h and {args.warmup} more; "
+            f"best explicit {runs[best][0]} @ {runs[best][3].scene.dt:.0f} s"
+        )
+        print(
+            "| stepper | Δt/Δt_g | Δt (s) | its/step | ms/step | "
+            + " | ".join(f"{p} ms (RHS-eq)" for p in PARTS)
+            + " | RHS-eq/step | RHS-eq per Krylov vector | cost/day vs best explicit |"
+        )
         print("|---|---:|---:|---|---:|" + "---:|" * len(PARTS) + "---:|---:|---:|")
         for i, (label, f, _, sim, _) in enumerate(runs):
             steps = per_step[i]
             ms = statistics.median(s[0] for s in steps)
             parts = {p: statistics.median(s[1][p] for s in steps) for p in PARTS}
-            its = {k: statistics.mean(s[2].iterations.get(k, 0) for s in steps) for k in ("newton", "gmres", "helmholtz", "krylov")}
+            its = {
+                k: statistics.mean(s[2].iterations.get(k, 0) for s in steps)
+                for k in ("newton", "gmres", "helmholtz", "krylov")
+            }
             per_vector = f"{ms / rhs / its['krylov']:.2f}" if its["krylov"] else "-"
             its_text = ", ".join(f"{k} {v:.1f}" for k, v in its.items() if v) or "-"
-            print(f"| {label} | {f:.2f} | {sim.scene.dt:.0f} | {its_text} | {ms:.1f} | "
-                  + " | ".join(f"{parts[p]:.1f} ({parts[p] / rhs:.1f})" for p in PARTS)
-                  + f" | {ms / rhs:.1f} | {per_vector} | {cost[i] / cost[best]:.2f} |")
+            print(
+                f"| {label} | {f:.2f} | {sim.scene.dt:.0f} | {its_text} | {ms:.1f} | "
+                + " | ".join(f"{parts[p]:.1f} ({parts[p] / rhs:.1f})" for p in PARTS)
+                + f" | {ms / rhs:.1f} | {per_vector} | {cost[i] / cost[best]:.2f} |"
+            )
 
 
 if __name__ == "__main__":

@@ -49,15 +49,43 @@ def array_bytes(ne, stepper):
     scene = load_scene("tc5_mountain_homme", ne=ne, np=4, stepper=stepper)
     grid = CubedSphere(ne, 4)
     case = scene.make_case()
-    m = ShallowWater(grid, scene.terms, case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon), nu=scene.nu, device="cpu", threads=1)
+    m = ShallowWater(
+        grid,
+        scene.terms,
+        case.fcor(grid.lat, grid.lon),
+        case.hs(grid.lat, grid.lon),
+        nu=scene.nu,
+        device="cpu",
+        threads=1,
+    )
     st = make_stepper(scene.stepper, m, scene.dt, **scene.stepper_options)
-    metric = ("D", "Dinv", "metdet", "spheremp", "rspheremp", "dvv", "gid", "offsets", "copies", "xyz", "east", "north", "fcor", "hs", "topo_forcing")
+    metric = (
+        "D",
+        "Dinv",
+        "metdet",
+        "spheremp",
+        "rspheremp",
+        "dvv",
+        "gid",
+        "offsets",
+        "copies",
+        "xyz",
+        "east",
+        "north",
+        "fcor",
+        "hs",
+        "topo_forcing",
+    )
     metric_bytes = sum(getattr(m, k).capacity for k in metric if getattr(m, k, None) is not None)
-    work_bytes = sum(v.capacity for k, v in vars(m).items() if isinstance(v, wp.array) and k not in metric and v.shape[-1] == m.N)
+    work_bytes = sum(
+        v.capacity for k, v in vars(m).items() if isinstance(v, wp.array) and k not in metric and v.shape[-1] == m.N
+    )
     stepper_bytes = sum(v.capacity for v in vars(st).values() if isinstance(v, wp.array))
     host_bytes = sum(v.nbytes for v in vars(grid).values() if isinstance(v, np.ndarray))
     state_bytes = 3 * m.N * 8
-    return grid, dict(state=state_bytes, metric=metric_bytes, model_work=work_bytes, stepper=stepper_bytes, grid_host=host_bytes)
+    return grid, dict(
+        state=state_bytes, metric=metric_bytes, model_work=work_bytes, stepper=stepper_bytes, grid_host=host_bytes
+    )
 
 
 def main(argv=None):
@@ -70,13 +98,31 @@ def main(argv=None):
     wp.config.log_level = wp.LOG_ERROR
     with tempfile.TemporaryDirectory() as tmp:
         base = child_peak_rss([sys.executable, "-c", BASELINE])
-        run = [sys.executable, "-m", "swe_sphere.cli", "run", "tc5_mountain_homme", "--ne", str(args.ne), "--days", str(args.days),
-               "--stepper", args.stepper, "--device", "cpu", "--no-progress", "--output", os.path.join(tmp, "run.nc")]
+        run = [
+            sys.executable,
+            "-m",
+            "swe_sphere.cli",
+            "run",
+            "tc5_mountain_homme",
+            "--ne",
+            str(args.ne),
+            "--days",
+            str(args.days),
+            "--stepper",
+            args.stepper,
+            "--device",
+            "cpu",
+            "--no-progress",
+            "--output",
+            os.path.join(tmp, "run.nc"),
+        ]
         peak = child_peak_rss(run)
     grid, b = array_bytes(args.ne, args.stepper)
     mib = 2.0**20
     need = b["state"] + b["metric"]
-    print(f"tc5_mountain_homme ne={args.ne} np=4 ({grid.npts} element-local points), {args.stepper}, {args.days:g} days, CPU")
+    print(
+        f"tc5_mountain_homme ne={args.ne} np=4 ({grid.npts} element-local points), {args.stepper}, {args.days:g} days, CPU"
+    )
     print(f"  peak RSS of the run                 {peak / mib:8.1f} MiB")
     print(f"  peak RSS of import + wp.init()      {base / mib:8.1f} MiB")
     print(f"  run minus baseline                  {(peak - base) / mib:8.1f} MiB")

@@ -62,11 +62,30 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 NAMELIST = "namelists/swtc5_ne30_1day_timing.nl"
-MPIRUN = "/usr/bin/mpirun"  # Debian's OpenMPI, which HOMME is built against (the mpich wheel's rejects --allow-run-as-root)
+MPIRUN = (
+    "/usr/bin/mpirun"  # Debian's OpenMPI, which HOMME is built against (the mpich wheel's rejects --allow-run-as-root)
+)
 NU = "1.5e15"  # the namelist's nu = nu_s; HOMME's nu_div defaults to nu
-SWE_ARGS = ["run", "tc5_mountain", "--ne", "30", "--stepper", "leapfrog_trapezoidal", "--dt", "90", "--device", "cpu",
-            "-s", f"hyperviscosity.nu={NU}", "-s", f"hyperviscosity.nu_div={NU}", "-s", f"hyperviscosity.nu_s={NU}",
-            "--no-progress", "--overwrite"]
+SWE_ARGS = [
+    "run",
+    "tc5_mountain",
+    "--ne",
+    "30",
+    "--stepper",
+    "leapfrog_trapezoidal",
+    "--dt",
+    "90",
+    "--device",
+    "cpu",
+    "-s",
+    f"hyperviscosity.nu={NU}",
+    "-s",
+    f"hyperviscosity.nu_div={NU}",
+    "-s",
+    f"hyperviscosity.nu_s={NU}",
+    "--no-progress",
+    "--overwrite",
+]
 SWE_CHILD = "import sys; from swe_sphere.cli import main; sys.exit(main(sys.argv[1:]))"
 ONE_CORE = {"SWE_SPHERE_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
 
@@ -78,8 +97,11 @@ class Skip(Exception):
 def default_kit() -> Path:
     """``shared/peers/homme`` beside the main checkout (the folder holding the git
     common directory, so a worktree finds the same kit), else beside this repository."""
-    common = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--path-format=absolute", "--git-common-dir"],
-                            capture_output=True, text=True)
+    common = subprocess.run(
+        ["git", "-C", str(REPO), "rev-parse", "--path-format=absolute", "--git-common-dir"],
+        capture_output=True,
+        text=True,
+    )
     main_checkout = Path(common.stdout.strip()).parent if common.returncode == 0 else REPO
     return main_checkout.parent / "shared" / "peers" / "homme"
 
@@ -90,11 +112,17 @@ def find_sweqx(args) -> Path:
         raise Skip(f"no HOMME kit with {NAMELIST} at {args.kit} (--kit)")
     sweqx = args.homme or args.build_dir / "build" / "src" / "sweqx" / "sweqx"
     if not args.homme and not sweqx.is_file():
-        print(f"building HOMME into {args.build_dir} with {args.kit / 'build.sh'} (3-5 min on 2 cores) ...", file=sys.stderr, flush=True)
+        print(
+            f"building HOMME into {args.build_dir} with {args.kit / 'build.sh'} (3-5 min on 2 cores) ...",
+            file=sys.stderr,
+            flush=True,
+        )
         # /usr/bin first: the kit's CMake cache names the bare wrappers (mpicc, mpif90), and an mpich wheel's
         # mpicc earlier on PATH links MPICH's libmpi.so.12 into sweqx beside OpenMPI's, which then cannot start
         env = dict(os.environ, PATH=f"/usr/bin:/bin:{os.environ.get('PATH', '')}")
-        p = subprocess.run(["bash", str(args.kit / "build.sh"), str(args.build_dir)], env=env, capture_output=True, text=True)
+        p = subprocess.run(
+            ["bash", str(args.kit / "build.sh"), str(args.build_dir)], env=env, capture_output=True, text=True
+        )
         if p.returncode != 0 or not sweqx.is_file():
             last = (p.stderr.strip() or p.stdout.strip() or "no output").splitlines()[-1]
             raise Skip(f"HOMME build failed (exit {p.returncode}): {last}")
@@ -137,7 +165,10 @@ def run_homme(sweqx: Path, namelist_text: str, rundir: Path) -> tuple[float, flo
 def homme_timers(rundir: Path) -> dict[str, tuple[int, float]]:
     """HOMME's own GPTL timers of a run (``HommeSWTime_stats``): name -> (calls, wall s)."""
     text = (rundir / "HommeSWTime_stats").read_text()
-    return {m[1]: (int(float(m[2])), float(m[3])) for m in re.finditer(r'(?m)^"(\w+)"\s+\S+\s+\d+\s+\d+\s+(\S+)\s+(\S+)', text)}
+    return {
+        m[1]: (int(float(m[2])), float(m[3]))
+        for m in re.finditer(r'(?m)^"(\w+)"\s+\S+\s+\d+\s+\d+\s+(\S+)\s+(\S+)', text)
+    }
 
 
 def homme_l2(movie: Path, day: float) -> float:
@@ -175,11 +206,19 @@ def swe_l2(text: str) -> float:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=3, help="timed rounds, each one run of both (default 3)")
-    ap.add_argument("--homme", type=Path, help="a built sweqx (default: BUILD_DIR/build/src/sweqx/sweqx, built when absent)")
+    ap.add_argument(
+        "--homme", type=Path, help="a built sweqx (default: BUILD_DIR/build/src/sweqx/sweqx, built when absent)"
+    )
     ap.add_argument("--kit", type=Path, default=default_kit(), help="the HOMME kit (default: %(default)s)")
-    ap.add_argument("--build-dir", type=Path, default=Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "swe_sphere" / "homme",
-                    help="where the kit builds HOMME (default: %(default)s)")
-    ap.add_argument("--no-l2", dest="l2", action="store_false", help="skip the untimed HOMME run that scores its day 1 against T213")
+    ap.add_argument(
+        "--build-dir",
+        type=Path,
+        default=Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "swe_sphere" / "homme",
+        help="where the kit builds HOMME (default: %(default)s)",
+    )
+    ap.add_argument(
+        "--no-l2", dest="l2", action="store_false", help="skip the untimed HOMME run that scores its day 1 against T213"
+    )
     args = ap.parse_args(argv)
     if args.rounds < 1:
         ap.error("--rounds must be at least 1")
@@ -202,28 +241,40 @@ def main(argv=None) -> int:
                 got[who] = run_swe("1", out) if who == "swe" else run_homme(sweqx, namelist, tmp / "homme")
             rows.append((got["swe"], got["homme"], os.getloadavg()[0]))
             timers = homme_timers(tmp / "homme")
-            print(f"round {k + 1}: swe_sphere {got['swe'][0]:.2f} s CPU, HOMME {got['homme'][0]:.2f} s CPU", file=sys.stderr, flush=True)
+            print(
+                f"round {k + 1}: swe_sphere {got['swe'][0]:.2f} s CPU, HOMME {got['homme'][0]:.2f} s CPU",
+                file=sys.stderr,
+                flush=True,
+            )
         if args.l2:
             day1 = re.sub(r"(?m)^(\s*output_frequency\s*=\s*)\d+", r"\g<1>1", namelist)
             run_homme(sweqx, day1, tmp / "homme")
             l2_homme = [homme_l2(tmp / "homme" / "movies" / "swtc51.nc", day) for day in (0.0, 1.0)]
 
-    print(f"TC5 ne30 np4 leapfrog-trapezoidal dt 90 s, 1 day, nu {NU}, one core each, whole process "
-          f"({args.rounds} rounds, alternating order)")
+    print(
+        f"TC5 ne30 np4 leapfrog-trapezoidal dt 90 s, 1 day, nu {NU}, one core each, whole process "
+        f"({args.rounds} rounds, alternating order)"
+    )
     print(f"HOMME: {MPIRUN} -np 1 {sweqx} < {args.kit / NAMELIST}")
-    print(f"{'round':>5} {'swe CPU s':>10} {'HOMME CPU s':>12} {'ratio':>7} {'swe wall s':>11} {'HOMME wall s':>13} {'load 1 min':>11}")
+    print(
+        f"{'round':>5} {'swe CPU s':>10} {'HOMME CPU s':>12} {'ratio':>7} {'swe wall s':>11} {'HOMME wall s':>13} {'load 1 min':>11}"
+    )
     for k, (s, h, load) in enumerate(rows):
         print(f"{k + 1:>5} {s[0]:>10.2f} {h[0]:>12.2f} {s[0] / h[0]:>7.3f} {s[1]:>11.2f} {h[1]:>13.2f} {load:>11.2f}")
     med = [statistics.median(r[i][j] for r in rows) for i in (0, 1) for j in (0, 1)]
     print(f"{'median':>5} {med[0]:>10.2f} {med[2]:>12.2f} {med[0] / med[2]:>7.3f} {med[1]:>11.2f} {med[3]:>13.2f}")
     print(f"ratio of the medians (swe_sphere / HOMME, CPU): {med[0] / med[2]:.3f}")
     total, adv, rhs = (timers[name][1] for name in ("Total", "advance_nonstag", "compute_and_apply_rhs"))
-    print(f"HOMME's timers (wall, last round): Total {total:.2f} s, time steps (advance_nonstag, {timers['advance_nonstag'][0]} calls) "
-          f"{adv:.2f} s, of which RHS with its DSS and stage update (compute_and_apply_rhs, {timers['compute_and_apply_rhs'][0]} calls) "
-          f"{rhs:.2f} s = {rhs / adv:.0%}, the rest (advance_hypervis: the ∇⁴ and its two DSS) {adv - rhs:.2f} s")
+    print(
+        f"HOMME's timers (wall, last round): Total {total:.2f} s, time steps (advance_nonstag, {timers['advance_nonstag'][0]} calls) "
+        f"{adv:.2f} s, of which RHS with its DSS and stage update (compute_and_apply_rhs, {timers['compute_and_apply_rhs'][0]} calls) "
+        f"{rhs:.2f} s = {rhs / adv:.0%}, the rest (advance_hypervis: the ∇⁴ and its two DSS) {adv - rhs:.2f} s"
+    )
     if args.l2:
-        print(f"day-1 h+hs normalized l2 against T213: swe_sphere {swe_l2(rows[-1][0][2]):.3e}, HOMME {l2_homme[1]:.3e} "
-              f"(HOMME at day 0: {l2_homme[0]:.3e}, from its Earth radius of 6.376e6 m against T213's 6.37122e6 m)")
+        print(
+            f"day-1 h+hs normalized l2 against T213: swe_sphere {swe_l2(rows[-1][0][2]):.3e}, HOMME {l2_homme[1]:.3e} "
+            f"(HOMME at day 0: {l2_homme[0]:.3e}, from its Earth radius of 6.376e6 m against T213's 6.37122e6 m)"
+        )
     return 0
 
 

@@ -49,17 +49,19 @@ import numpy as np
 import warp as wp
 from threadpoolctl import threadpool_limits
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # numpy_ops; not the repo root, which would shadow the installed package
+sys.path.insert(
+    0, str(Path(__file__).resolve().parents[1] / "tests")
+)  # numpy_ops; not the repo root, which would shadow the installed package
 
 from swe_sphere.config.scene import load_scene  # noqa: E402
+from swe_sphere.core.parallel import SplitLaunch, default_threads  # noqa: E402
+from swe_sphere.core.runtime import default_device, init_warp  # noqa: E402
+from swe_sphere.core.tally import array_bytes  # noqa: E402
 from swe_sphere.grid.cubed_sphere import CubedSphere  # noqa: E402
 from swe_sphere.model.shallow_water import ShallowWater  # noqa: E402
-from swe_sphere.core.runtime import default_device, init_warp  # noqa: E402
-from swe_sphere.core.parallel import SplitLaunch, default_threads  # noqa: E402
 from swe_sphere.steppers import STEPPERS, make_stepper  # noqa: E402
-from swe_sphere.core.tally import array_bytes  # noqa: E402
-from numpy_ops import NumpyOps  # noqa: E402
 
+from numpy_ops import NumpyOps  # noqa: E402
 
 CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
 clock = CLOCKS["wall"]  # set by --clock
@@ -119,8 +121,20 @@ def build(ne, np_, threads, device, stepper=None, dt_factor=1.0, per_element=Non
     grid = CubedSphere(ne, np_)
     case = scene.make_case()
     fcor, hs = case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon)
-    model = ShallowWater(grid, scene.terms, fcor, hs, nu=scene.nu, nu_div=scene.nu_div, nu_s=scene.nu_s, hypervis_subcycle=scene.hypervis_subcycle,
-                         g=case.planet.g, device=device, threads=threads, per_element=per_element)
+    model = ShallowWater(
+        grid,
+        scene.terms,
+        fcor,
+        hs,
+        nu=scene.nu,
+        nu_div=scene.nu_div,
+        nu_s=scene.nu_s,
+        hypervis_subcycle=scene.hypervis_subcycle,
+        g=case.planet.g,
+        device=device,
+        threads=threads,
+        per_element=per_element,
+    )
     u, v, h = case.initial(grid.lat, grid.lon)
     return grid, scene, (fcor, hs, np.stack([u, v, h])), model
 
@@ -188,7 +202,9 @@ class Timers:
 
 
 def rhs_table(args, threads, triad):
-    print(f"\nRHS throughput (all TC5 terms + DSS), medians of {args.repeat}, {args.clock} clock; Warp 1 thread and {threads} threads timed alternately")
+    print(
+        f"\nRHS throughput (all TC5 terms + DSS), medians of {args.repeat}, {args.clock} clock; Warp 1 thread and {threads} threads timed alternately"
+    )
     head = (
         f"{'ne':>4} {'np':>3} {'points':>9} | {'1-thr ms':>8} {'Mpts/s':>7} | {f'{threads}-thr ms':>8} {'Mpts/s':>7} | "
         f"{'numpy ms':>9} {'Mpts/s':>7} | {'warp/numpy':>10} | {'B/pt':>5} {'GB/s':>6} {'% triad':>7} | {'flop/pt':>7} {'GFLOP/s':>7}"
@@ -201,7 +217,9 @@ def rhs_table(args, threads, triad):
             mt = build(ne, np_, threads, args.device)[3] if threads > 1 else m1
             xs = [m.new_state(*state) for m in (m1, mt)]
             outs = [wp.zeros_like(x) for x in xs]
-            t1, tt = interleaved_times([lambda: m1.rhs(xs[0], outs[0]), lambda: mt.rhs(xs[1], outs[1])], args.repeat, args.device)
+            t1, tt = interleaved_times(
+                [lambda: m1.rhs(xs[0], outs[0]), lambda: mt.rhs(xs[1], outs[1])], args.repeat, args.device
+            )
             ops = NumpyOps(grid)
             rhs_terms = [t for t in scene.terms if t != "hyperviscosity"]
             t_np = median_time(lambda: ops.sw_rhs(state, rhs_terms, fcor, hs, m1.g), max(3, args.repeat // 3))
@@ -232,7 +250,9 @@ def step_table(args, threads):
     for ne in args.step_ne:
         for name in args.steppers or STEPPERS:
             implicit = not STEPPERS[name].explicit
-            grid, scene, (_, _, state), model = build(ne, 4, threads, args.device, name, args.implicit_dt_factor if implicit else 1.0)
+            grid, scene, (_, _, state), model = build(
+                ne, 4, threads, args.device, name, args.implicit_dt_factor if implicit else 1.0
+            )
             x = model.new_state(*state)
             stepper = make_stepper(name, model, scene.dt, **scene.stepper_options)
             stepper.step(x)  # leapfrog family: the start step; compiles and records
@@ -266,23 +286,38 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--ne", type=int, nargs="+", default=[8, 16, 30])
     p.add_argument("--np", type=int, nargs="+", default=[4, 8])
-    p.add_argument("--step-ne", type=int, nargs="*", default=[16, 30], help="grids (np=4) of the step table; none to skip it")
+    p.add_argument(
+        "--step-ne", type=int, nargs="*", default=[16, 30], help="grids (np=4) of the step table; none to skip it"
+    )
     p.add_argument("--device", default=default_device())
-    p.add_argument("--threads", type=int, default=None, help="CPU threads of the multi-threaded column (default: the model's default)")
+    p.add_argument(
+        "--threads",
+        type=int,
+        default=None,
+        help="CPU threads of the multi-threaded column (default: the model's default)",
+    )
     p.add_argument("--repeat", type=int, default=20)
     p.add_argument("--step-repeat", type=int, default=5)
     p.add_argument("--implicit-dt-factor", type=float, default=4.0)
-    p.add_argument("--steppers", nargs="+", choices=sorted(STEPPERS), help="rows of the step table (default: every stepper)")
-    p.add_argument("--clock", choices=sorted(CLOCKS), default="wall", help="wall (time.perf_counter) or cpu (time.process_time)")
+    p.add_argument(
+        "--steppers", nargs="+", choices=sorted(STEPPERS), help="rows of the step table (default: every stepper)"
+    )
+    p.add_argument(
+        "--clock", choices=sorted(CLOCKS), default="wall", help="wall (time.perf_counter) or cpu (time.process_time)"
+    )
     args = p.parse_args(argv)
     global clock
     clock = CLOCKS[args.clock]
     init_warp()  # quietly
     threads = args.threads or default_threads(args.device)
-    print(f"Warp {wp.__version__}, device {args.device}, threads {threads}, {args.clock} clock, load average {os.getloadavg()[0]:.2f}")
+    print(
+        f"Warp {wp.__version__}, device {args.device}, threads {threads}, {args.clock} clock, load average {os.getloadavg()[0]:.2f}"
+    )
     triad1 = triad_bandwidth(1)
     triad = triad_bandwidth(threads) if threads > 1 else triad1
-    print(f"memory bandwidth (numpy triad a = b + s*c, median): 1 thread {triad1 / 1e9:.1f} GB/s, {threads} threads {triad / 1e9:.1f} GB/s")
+    print(
+        f"memory bandwidth (numpy triad a = b + s*c, median): 1 thread {triad1 / 1e9:.1f} GB/s, {threads} threads {triad / 1e9:.1f} GB/s"
+    )
     rhs_table(args, threads, max(triad, triad1))
     if args.step_ne:
         step_table(args, threads)

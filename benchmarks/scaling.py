@@ -50,17 +50,24 @@ def partition_table(ne: int, np_: int, ranks: list[int]) -> None:
 
     nelem = 6 * ne * ne
     print(f"\nne={ne} np={np_}: {nelem} elements, {nelem * np_ * np_} element-local nodes")
-    print(f"{'ranks':>6s} {'elem/rank':>10s} {'edge cut':>9s} {'nbrs max':>9s} {'nbrs mean':>9s} {'ghosts max':>10s} "
-          f"{'ghosts mean':>11s} {'kB/row max':>10s} {'ghost/local':>11s}")
+    print(
+        f"{'ranks':>6s} {'elem/rank':>10s} {'edge cut':>9s} {'nbrs max':>9s} {'nbrs mean':>9s} {'ghosts max':>10s} "
+        f"{'ghosts mean':>11s} {'kB/row max':>10s} {'ghost/local':>11s}"
+    )
     for size in ranks:
         parts = rank_parts(ne, size)
         sample = range(size) if size <= 64 else np.linspace(0, size - 1, 32).astype(int)  # tables are O(N) per rank
-        topos = [Topology(CubedSphere(ne, np_, elements=parts[r]), "cpu", 1, RankOf(int(r), size), parts=parts) for r in sample]
+        topos = [
+            Topology(CubedSphere(ne, np_, elements=parts[r]), "cpu", 1, RankOf(int(r), size), parts=parts)
+            for r in sample
+        ]
         nbrs = [len(t.neighbours) for t in topos]
         ghosts = [t.halo_copies for t in topos]
-        print(f"{size:6d} {nelem / size:10.1f} {edge_cut(ne, parts):9d} {max(nbrs):9d} {statistics.mean(nbrs):9.1f} "
-              f"{max(ghosts):10d} {statistics.mean(ghosts):11.1f} {8 * max(ghosts) / 1e3:10.2f} "
-              f"{statistics.mean(g / t.N for g, t in zip(ghosts, topos)):11.3f}")
+        print(
+            f"{size:6d} {nelem / size:10.1f} {edge_cut(ne, parts):9d} {max(nbrs):9d} {statistics.mean(nbrs):9.1f} "
+            f"{max(ghosts):10d} {statistics.mean(ghosts):11.1f} {8 * max(ghosts) / 1e3:10.2f} "
+            f"{statistics.mean(g / t.N for g, t in zip(ghosts, topos)):11.3f}"
+        )
 
 
 def worker(ne: int, steps: int) -> None:
@@ -70,8 +77,8 @@ def worker(ne: int, steps: int) -> None:
     wp.config.quiet = True
     from mpi4py import MPI
 
-    from swe_sphere.grid import topology
     from swe_sphere.config.scene import load_scene
+    from swe_sphere.grid import topology
     from swe_sphere.simulation.simulation import Simulation
 
     spent = [0.0, 0]
@@ -109,8 +116,18 @@ def worker(ne: int, steps: int) -> None:
     bare_us = 1e6 * statistics.median(bare) if launches else 0.0
     rss = comm.gather(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)  # peak RSS, MiB (Linux: KiB)
     if comm.rank == 0:
-        print(json.dumps({"ms_step": 1e3 * wall, "ms_exchange": 1e3 * exch, "exchanges": exchanges, "us_bare": bare_us,
-                          "rss_rank0": rss[0], "rss_others": max(rss[1:], default=0.0)}))
+        print(
+            json.dumps(
+                {
+                    "ms_step": 1e3 * wall,
+                    "ms_exchange": 1e3 * exch,
+                    "exchanges": exchanges,
+                    "us_bare": bare_us,
+                    "rss_rank0": rss[0],
+                    "rss_others": max(rss[1:], default=0.0),
+                }
+            )
+        )
 
 
 def time_table(ne_list, ranks, steps, repeat) -> None:
@@ -126,8 +143,12 @@ def time_table(ne_list, ranks, steps, repeat) -> None:
                 if proc.returncode != 0:
                     raise SystemExit(f"mpiexec -n {r} failed: {proc.stderr[-2000:]}")
                 runs[r].append(json.loads(proc.stdout.strip().splitlines()[-1]))
-        print(f"\nne={ne} np=4, RK4 TC5, {steps} steps, medians of {repeat} (load average {os.getloadavg()[0]:.1f}, {cores} cores)")
-        print(f"{'ranks':>6s} {'ms/step':>9s} {'exchange ms':>11s} {'share':>6s} {'DSS/step':>8s} {'speed-up':>8s} {'bare exch us':>12s} {'MiB rank 0':>10s} {'others':>7s}")
+        print(
+            f"\nne={ne} np=4, RK4 TC5, {steps} steps, medians of {repeat} (load average {os.getloadavg()[0]:.1f}, {cores} cores)"
+        )
+        print(
+            f"{'ranks':>6s} {'ms/step':>9s} {'exchange ms':>11s} {'share':>6s} {'DSS/step':>8s} {'speed-up':>8s} {'bare exch us':>12s} {'MiB rank 0':>10s} {'others':>7s}"
+        )
         base = statistics.median(x["ms_step"] for x in runs[ranks[0]]) * ranks[0]
         for r in ranks:
             step = statistics.median(x["ms_step"] for x in runs[r])
@@ -135,8 +156,10 @@ def time_table(ne_list, ranks, steps, repeat) -> None:
             note = "  (oversubscribed: correctness only)" if r > cores else ""
             bare = statistics.median(x["us_bare"] for x in runs[r])
             rss0, rss = (max(x[k] for x in runs[r]) for k in ("rss_rank0", "rss_others"))
-            print(f"{r:6d} {step:9.2f} {exch:11.2f} {exch / step:6.1%} {runs[r][0]['exchanges']:8.0f} {base / step:8.2f} {bare:12.1f}"
-                  f" {rss0:10.0f} {rss:7.0f}{note}")
+            print(
+                f"{r:6d} {step:9.2f} {exch:11.2f} {exch / step:6.1%} {runs[r][0]['exchanges']:8.0f} {base / step:8.2f} {bare:12.1f}"
+                f" {rss0:10.0f} {rss:7.0f}{note}"
+            )
 
 
 def main() -> None:

@@ -31,19 +31,24 @@ import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
+from test_tableau import ars343_pair, example  # noqa: E402
+
 from swe_sphere.config.scene import load_scene  # noqa: E402
 from swe_sphere.core.runtime import init_warp  # noqa: E402
+from swe_sphere.core.tally import Tally, instrumented  # noqa: E402
 from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 from swe_sphere.steppers.multirate import GravitySplit  # noqa: E402
 from swe_sphere.studies.sweep import explicit_limits  # noqa: E402
-from swe_sphere.core.tally import Tally, instrumented  # noqa: E402
-from test_tableau import ars343_pair, example  # noqa: E402
 
 DAY = 86400.0
 # (label, stepper, options, Δt: a multiple of the scene's Δt, or with "g" of the gravity-wave limit)
 RUNS = [
-    ("ssprk3", "ssprk3", {}, 1), ("rk4", "rk4", {}, 1), ("kgu35", "kgu35", {}, 1), ("kgu35 @ 1.5 dt_g", "kgu35", {}, "1.5g"),
-    ("imex ARS(2,3,2)", "imex", {"scheme": "ars232"}, 4), ("imex ARS(3,4,3)", "imex", {"scheme": "ars343"}, 4),
+    ("ssprk3", "ssprk3", {}, 1),
+    ("rk4", "rk4", {}, 1),
+    ("kgu35", "kgu35", {}, 1),
+    ("kgu35 @ 1.5 dt_g", "kgu35", {}, "1.5g"),
+    ("imex ARS(2,3,2)", "imex", {"scheme": "ars232"}, 4),
+    ("imex ARS(3,4,3)", "imex", {"scheme": "ars343"}, 4),
     ("tableau ARS(3,4,3)", "tableau", ars343_pair(), 4),
     *((f"tableau {name}", "tableau", dict(example(name)), 4) for name in ("ark2_gkc", "ark324l2sa")),
     *((f"{stepper} @ {m} dt_g", stepper, {}, f"{m}g") for stepper in ("split_explicit", "mri") for m in (6, 8)),
@@ -79,12 +84,17 @@ def main() -> None:
         split = GravitySplit(sim.model)
         split.set_depth(sim.x)
         out, rho = wp.zeros_like(sim.x), wp.zeros_like(sim.x)
-        calls = {"RHS": lambda: sim.model.rhs(sim.x, out), "slow evaluation": lambda: split.slow(sim.x, out),
-                 "fast evaluation": lambda: split.fast(sim.x, out, rho)}
+        calls = {
+            "RHS": lambda: sim.model.rhs(sim.x, out),
+            "slow evaluation": lambda: split.slow(sim.x, out),
+            "fast evaluation": lambda: split.fast(sim.x, out, rho),
+        }
         sims = {}
         for label, stepper, options, rule in RUNS:
             dt = DAY / math.ceil(DAY / (float(rule[:-1]) * dt_g)) if isinstance(rule, str) else base.dt * rule
-            s = sims[label] = Simulation(dataclasses.replace(base, stepper=stepper, stepper_options=options, dt=dt), "cpu", progress=False)
+            s = sims[label] = Simulation(
+                dataclasses.replace(base, stepper=stepper, stepper_options=options, dt=dt), "cpu", progress=False
+            )
             if hasattr(s.stepper, "gw"):
                 s.stepper.gw.graphable = False  # the solves' launches seen one by one
             calls[label] = lambda s=s: s.stepper.step(s.x)
@@ -98,24 +108,33 @@ def main() -> None:
                     call()
                 times[label].append((time.process_time() - t0) / args.steps)
         ms = {label: 1e3 * statistics.median(t) if t else math.nan for label, t in times.items()}
-        print(f"TC5 ne{args.ne} np4, dt_g = {dt_g:.1f} s, threads {os.environ.get('SWE_SPHERE_THREADS', 'default')}, "
-              f"load average {os.getloadavg()[0]:.2f}")
+        print(
+            f"TC5 ne{args.ne} np4, dt_g = {dt_g:.1f} s, threads {os.environ.get('SWE_SPHERE_THREADS', 'default')}, "
+            f"load average {os.getloadavg()[0]:.2f}"
+        )
         rhs = None
         for label in ("RHS", "slow evaluation", "fast evaluation"):
             launches, mb, _ = count(tally, calls[label])
             rhs = rhs or (mb, ms[label])
-            print(f"{label:16s} {launches:4d} launches {mb:8.2f} MB ({mb / rhs[0]:.2f} RHS)"
-                  + (f" {ms[label]:8.3f} ms ({ms[label] / rhs[1]:.2f} RHS)" if args.rounds else ""))
-        print(f"{'stepper':26s} {'dt/dt_g':>7s} {'RHS':>4s} {'CG its':>6s} {'fast':>5s} {'launches':>8s} {'MB':>8s} "
-              f"{'own launches':>12s} {'own MB':>7s} {'GB/day':>7s}" + (f" {'ms/step':>8s} {'s/day':>6s}" if args.rounds else ""))
+            print(
+                f"{label:16s} {launches:4d} launches {mb:8.2f} MB ({mb / rhs[0]:.2f} RHS)"
+                + (f" {ms[label]:8.3f} ms ({ms[label] / rhs[1]:.2f} RHS)" if args.rounds else "")
+            )
+        print(
+            f"{'stepper':26s} {'dt/dt_g':>7s} {'RHS':>4s} {'CG its':>6s} {'fast':>5s} {'launches':>8s} {'MB':>8s} "
+            f"{'own launches':>12s} {'own MB':>7s} {'GB/day':>7s}"
+            + (f" {'ms/step':>8s} {'s/day':>6s}" if args.rounds else "")
+        )
         for label, s in sims.items():
             launches, mb, stats = count(tally, calls[label])
             own_launches, own_mb, _ = count(tally, calls[label], s)
             steps = DAY / s.scene.dt
             it = stats.iterations
-            print(f"{label:26s} {s.scene.dt / dt_g:7.2f} {stats.rhs_evals:4d} {it.get('helmholtz', ''):>6} {it.get('fast', ''):>5} "
-                  f"{launches:8d} {mb:8.2f} {own_launches:12d} {own_mb:7.2f} {mb * steps / 1e3:7.2f}"
-                  + (f" {ms[label]:8.2f} {ms[label] * steps / 1e3:6.2f}" if args.rounds else ""))
+            print(
+                f"{label:26s} {s.scene.dt / dt_g:7.2f} {stats.rhs_evals:4d} {it.get('helmholtz', ''):>6} {it.get('fast', ''):>5} "
+                f"{launches:8d} {mb:8.2f} {own_launches:12d} {own_mb:7.2f} {mb * steps / 1e3:7.2f}"
+                + (f" {ms[label]:8.2f} {ms[label] * steps / 1e3:6.2f}" if args.rounds else "")
+            )
 
 
 if __name__ == "__main__":

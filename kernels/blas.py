@@ -13,7 +13,15 @@ wp.set_module_options({"enable_backward": False})
 
 
 @wp.kernel
-def axpby(a: f64, x: wp.array2d(dtype=f64), b: f64, y: wp.array2d(dtype=f64), out: wp.array2d(dtype=f64), block: int, offset: int):
+def axpby(
+    a: f64,
+    x: wp.array2d(dtype=f64),
+    b: f64,
+    y: wp.array2d(dtype=f64),
+    out: wp.array2d(dtype=f64),
+    block: int,
+    offset: int,
+):
     """out = a·x + b·y (out may alias x or y). Dim (rows, N/block)."""
     r, k = wp.tid()
     start = (k + offset) * block
@@ -23,8 +31,15 @@ def axpby(a: f64, x: wp.array2d(dtype=f64), b: f64, y: wp.array2d(dtype=f64), ou
 
 @wp.kernel
 def axpbypcz(
-    a: f64, x: wp.array2d(dtype=f64), b: f64, y: wp.array2d(dtype=f64), c: f64, z: wp.array2d(dtype=f64), out: wp.array2d(dtype=f64),
-    block: int, offset: int,
+    a: f64,
+    x: wp.array2d(dtype=f64),
+    b: f64,
+    y: wp.array2d(dtype=f64),
+    c: f64,
+    z: wp.array2d(dtype=f64),
+    out: wp.array2d(dtype=f64),
+    block: int,
+    offset: int,
 ):
     """out = a·x + b·y + c·z (out may alias any input). Dim (rows, N/block)."""
     r, k = wp.tid()

@@ -232,7 +232,14 @@ for _t in (f64, wp.float32):  # the model's fields and the float32 Helmholtz sol
 
 
 @wp.kernel
-def scatter(y: wp.array2d(dtype=f64), halo: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32), row: int, out: wp.array2d(dtype=f64), offset: int):
+def scatter(
+    y: wp.array2d(dtype=f64),
+    halo: wp.array(dtype=f64),
+    gid: wp.array(dtype=wp.int32),
+    row: int,
+    out: wp.array2d(dtype=f64),
+    offset: int,
+):
     """Element-local out[row + r, p] = y[r, gid[p]] for r < rows = y.shape[0],
     from a unique-node vector of ``rows`` rows (rows, nunique). A node owned by
     another process (gid[p] ≥ nunique) is read from halo[(gid[p] − nunique)·rows + r]

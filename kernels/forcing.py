@@ -89,7 +89,12 @@ def translating_low(
         f = f64(2.0) * omega * z
         phibar_z = -z * U * (f64(2.0) * omega * a + U)
         grad_phi = ((phibar_z + f64(2.0) * omega * psi) * (zhat - z * r) + f * psi_c * (pc - C * r)) / a
-        jtv = (psi_cc / a) * wp.dot(v, rp) * pc + (psi_c / a) * wp.cross(pc, v) - Uz * wp.dot(v, rz) * zhat - U * wp.cross(zhat, v)
+        jtv = (
+            (psi_cc / a) * wp.dot(v, rp) * pc
+            + (psi_c / a) * wp.cross(pc, v)
+            - Uz * wp.dot(v, rz) * zhat
+            - U * wp.cross(zhat, v)
+        )
         grad_k = (jtv - wp.dot(r, jtv) * r) / a
         fv = vt + (zeta + f) * wp.cross(r, v) + grad_k + grad_phi
         e = wp.vec3d(east[0, p], east[1, p], east[2, p])

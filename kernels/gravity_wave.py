@@ -24,8 +24,15 @@ wp.set_module_options({"enable_backward": False})
 
 @wp.kernel
 def linear(
-    x: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64), np: int,
-    g: f64, H: f64, out: wp.array2d(dtype=f64), offset: int,
+    x: wp.array2d(dtype=f64),
+    Dinv: wp.array2d(dtype=f64),
+    metdet: wp.array(dtype=f64),
+    dvv: wp.array2d(dtype=f64),
+    np: int,
+    g: f64,
+    H: f64,
+    out: wp.array2d(dtype=f64),
+    offset: int,
 ):
     """out[:, p] = (−g ∇h, −H ∇·v) element-local at node p of x = (u, v, h) (one thread a
     node, for CUDA): ``operators.gradient_sphere`` of row 2 and ``divergence_sphere`` of
@@ -53,8 +60,16 @@ def linear_element(np: int):
     vec, mat, along, across = row_derivatives(np)
     NP = int(np)
 
-    def linear_element(x: wp.array2d(dtype=vec), Dinv: wp.array2d(dtype=vec), metdet: wp.array(dtype=vec), g: f64, H: f64, dvv: mat,
-                       out: wp.array2d(dtype=vec), offset: int):
+    def linear_element(
+        x: wp.array2d(dtype=vec),
+        Dinv: wp.array2d(dtype=vec),
+        metdet: wp.array(dtype=vec),
+        g: f64,
+        H: f64,
+        dvv: mat,
+        out: wp.array2d(dtype=vec),
+        offset: int,
+    ):
         base = (wp.tid() + offset) * NP
         dvvT = wp.transpose(dvv)
         h = mat()  # the depth, and metdet c¹, metdet c² (the contravariant wind c = Dinv v)
@@ -79,7 +94,13 @@ def linear_element(np: int):
 
 @wp.kernel
 def apply(
-    Gh: wp.array2d(dtype=f64), Dv: wp.array2d(dtype=f64), g: f64, H: f64, out: wp.array2d(dtype=f64), block: int, offset: int,
+    Gh: wp.array2d(dtype=f64),
+    Dv: wp.array2d(dtype=f64),
+    g: f64,
+    H: f64,
+    out: wp.array2d(dtype=f64),
+    block: int,
+    offset: int,
 ):
     """out = L x from G h (rows 0, 1) and D v (row 0): (−g G h, −H D v)."""
     r, k = wp.tid()
@@ -93,7 +114,13 @@ def apply(
 
 @wp.kernel
 def schur_height(
-    rhs: wp.array2d(dtype=f64), Dr: wp.array2d(dtype=f64), s: f64, aH: f64, z: wp.array2d(dtype=f64), block: int, offset: int,
+    rhs: wp.array2d(dtype=f64),
+    Dr: wp.array2d(dtype=f64),
+    s: f64,
+    aH: f64,
+    z: wp.array2d(dtype=f64),
+    block: int,
+    offset: int,
 ):
     """z_h = s (r_h − aH D r_v): the Helmholtz right-hand side (row 2 only)."""
     r, k = wp.tid()
@@ -105,7 +132,13 @@ def schur_height(
 
 @wp.kernel
 def schur_wind(
-    rhs: wp.array2d(dtype=f64), Gz: wp.array2d(dtype=f64), s: f64, ag: f64, z: wp.array2d(dtype=f64), block: int, offset: int,
+    rhs: wp.array2d(dtype=f64),
+    Gz: wp.array2d(dtype=f64),
+    s: f64,
+    ag: f64,
+    z: wp.array2d(dtype=f64),
+    block: int,
+    offset: int,
 ):
     """z_v = s r_v − a g G z_h (rows 0, 1 only)."""
     r, k = wp.tid()
@@ -115,11 +148,18 @@ def schur_wind(
             z[r, p] = s * rhs[r, p] - ag * Gz[r, p]
 
 
-
 @wp.kernel
 def schur_wind_implicit(
-    rhs: wp.array2d(dtype=f64), Gz: wp.array2d(dtype=f64), s: f64, ag: f64, z: wp.array2d(dtype=f64), ia: f64, mis: f64,
-    lz: wp.array2d(dtype=f64), block: int, offset: int,
+    rhs: wp.array2d(dtype=f64),
+    Gz: wp.array2d(dtype=f64),
+    s: f64,
+    ag: f64,
+    z: wp.array2d(dtype=f64),
+    ia: f64,
+    mis: f64,
+    lz: wp.array2d(dtype=f64),
+    block: int,
+    offset: int,
 ):
     """``schur_wind`` (z_v = s r_v − a g G z_h; z_h already in row 2), and lz = L z = (z − s r)/a
     as ia·z + mis·r (ia = 1/a, mis = −s/a: ``blas.axpby``'s bits) in all rows: an IMEX stage's

@@ -50,6 +50,7 @@ from .operators import CPU_FAST, over, row_derivatives, times
 f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
 
+
 @functools.cache
 def gathers(dtype=f64):
     """(``copy_at``, ``unique_value``) reading ``dtype`` vectors and the float64 exchange buffers:
@@ -92,8 +93,17 @@ def gathered(np: int, copies: int, dtype=f64):
     _, mat, _, _ = row_derivatives(NP, dtype)
     copy_at, unique_value = gathers(dtype)
 
-    def gathered(wg: wp.array2d(dtype=dtype), ghost: wp.array(dtype=f64), nlocal: int, table: wp.array2d(dtype=wp.int32),
-                 rspheremp: wp.array(dtype=dtype), y: wp.array(dtype=dtype), halo: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32), base: int):
+    def gathered(
+        wg: wp.array2d(dtype=dtype),
+        ghost: wp.array(dtype=f64),
+        nlocal: int,
+        table: wp.array2d(dtype=wp.int32),
+        rspheremp: wp.array(dtype=dtype),
+        y: wp.array(dtype=dtype),
+        halo: wp.array(dtype=f64),
+        gid: wp.array(dtype=wp.int32),
+        base: int,
+    ):
         gx = mat()
         gy = mat()
         Y = mat()
@@ -126,7 +136,9 @@ def scaled_divergence(np: int, dtype=f64):
     NP = int(np)
     vec, mat, along, across = row_derivatives(NP, dtype)
 
-    def scaled_divergence(u: mat, v: mat, Dinv: wp.array2d(dtype=vec), metdet: wp.array(dtype=vec), base: int, dvv: mat, k: dtype):
+    def scaled_divergence(
+        u: mat, v: mat, Dinv: wp.array2d(dtype=vec), metdet: wp.array(dtype=vec), base: int, dvv: mat, k: dtype
+    ):
         dvvT = wp.transpose(dvv)
         f1 = mat()  # metdet c¹, metdet c²
         f2 = mat()
@@ -139,7 +151,9 @@ def scaled_divergence(np: int, dtype=f64):
             d[j] = over(k * (along(f1, j, dvvT) + across(f2, j, dvv)), metdet[base + j])
         return d
 
-    scaled_divergence.__qualname__ = scaled_divergence.__name__ = f"scaled_divergence_{NP}" + ("" if dtype is f64 else f"_{dtype.__name__}")
+    scaled_divergence.__qualname__ = scaled_divergence.__name__ = f"scaled_divergence_{NP}" + (
+        "" if dtype is f64 else f"_{dtype.__name__}"
+    )
     return wp.func(scaled_divergence)
 
 
@@ -161,8 +175,14 @@ def helmholtz_gradient(np: int, dtype=f64):
     NP = int(np)
 
     def helmholtz_gradient(
-        y: wp.array(dtype=dtype), halo: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32), Dinv: wp.array2d(dtype=vec),
-        spheremp: wp.array(dtype=vec), dvv: mat, wg: wp.array2d(dtype=vec), offset: int,
+        y: wp.array(dtype=dtype),
+        halo: wp.array(dtype=f64),
+        gid: wp.array(dtype=wp.int32),
+        Dinv: wp.array2d(dtype=vec),
+        spheremp: wp.array(dtype=vec),
+        dvv: mat,
+        wg: wp.array2d(dtype=vec),
+        offset: int,
     ):
         base = (wp.tid() + offset) * NP
         dvvT = wp.transpose(dvv)
@@ -178,7 +198,12 @@ def helmholtz_gradient(np: int, dtype=f64):
             wg[0, q] = times(w, times(Dinv[0, q], a) + times(Dinv[2, q], b))
             wg[1, q] = times(w, times(Dinv[1, q], a) + times(Dinv[3, q], b))
 
-    return wp.kernel(_name(helmholtz_gradient, "helmholtz_gradient", dtype), enable_backward=False, module="unique", module_options=CPU_FAST)
+    return wp.kernel(
+        _name(helmholtz_gradient, "helmholtz_gradient", dtype),
+        enable_backward=False,
+        module="unique",
+        module_options=CPU_FAST,
+    )
 
 
 @functools.cache
@@ -194,10 +219,21 @@ def helmholtz_divergence(np: int, copies: int, dtype=f64):
     gather, divergence = gathered(NP, copies, dtype), scaled_divergence(NP, dtype)
 
     def helmholtz_divergence(
-        wg: wp.array2d(dtype=dtype), ghost: wp.array(dtype=f64), nlocal: int, table: wp.array2d(dtype=wp.int32),
-        rspheremp: wp.array(dtype=dtype), y: wp.array(dtype=dtype), halo: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32),
-        Dinv: wp.array2d(dtype=vec), metdet: wp.array(dtype=vec), spheremp: wp.array(dtype=vec), dvv: mat, c: dtype,
-        z: wp.array2d(dtype=vec), offset: int,
+        wg: wp.array2d(dtype=dtype),
+        ghost: wp.array(dtype=f64),
+        nlocal: int,
+        table: wp.array2d(dtype=wp.int32),
+        rspheremp: wp.array(dtype=dtype),
+        y: wp.array(dtype=dtype),
+        halo: wp.array(dtype=f64),
+        gid: wp.array(dtype=wp.int32),
+        Dinv: wp.array2d(dtype=vec),
+        metdet: wp.array(dtype=vec),
+        spheremp: wp.array(dtype=vec),
+        dvv: mat,
+        c: dtype,
+        z: wp.array2d(dtype=vec),
+        offset: int,
     ):
         base = (wp.tid() + offset) * NP
         gx, gy, Y = gather(wg, ghost, nlocal, table, rspheremp, y, halo, gid, base)  # the DSS'd gradient, y
@@ -206,7 +242,12 @@ def helmholtz_divergence(np: int, copies: int, dtype=f64):
             q = base + j
             z[0, q] = times(spheremp[q], Y[j] - d[j])
 
-    return wp.kernel(_name(helmholtz_divergence, "helmholtz_divergence", dtype), enable_backward=False, module="unique", module_options=CPU_FAST)
+    return wp.kernel(
+        _name(helmholtz_divergence, "helmholtz_divergence", dtype),
+        enable_backward=False,
+        module="unique",
+        module_options=CPU_FAST,
+    )
 
 
 @functools.cache
@@ -222,9 +263,16 @@ def helmholtz_assemble(copies: int, dtype=f64):
     copy_at, _ = gathers(dtype)
 
     def helmholtz_assemble(
-        wz: wp.array2d(dtype=dtype), ghost: wp.array(dtype=f64), nlocal: int, table: wp.array2d(dtype=wp.int32),
-        first: wp.array(dtype=wp.int32), y: wp.array(dtype=dtype), out: wp.array(dtype=dtype), partial: wp.array2d(dtype=f64),
-        chunk: int, offset: int,
+        wz: wp.array2d(dtype=dtype),
+        ghost: wp.array(dtype=f64),
+        nlocal: int,
+        table: wp.array2d(dtype=wp.int32),
+        first: wp.array(dtype=wp.int32),
+        y: wp.array(dtype=dtype),
+        out: wp.array(dtype=dtype),
+        partial: wp.array2d(dtype=f64),
+        chunk: int,
+        offset: int,
     ):
         t = wp.tid() + offset
         wy = f64(0.0)
@@ -239,7 +287,12 @@ def helmholtz_assemble(copies: int, dtype=f64):
             wy += f64(s * y[g])
         partial[1, t] = wy
 
-    return wp.kernel(_name(helmholtz_assemble, "helmholtz_assemble", dtype), enable_backward=False, module="unique", module_options=CPU_FAST)
+    return wp.kernel(
+        _name(helmholtz_assemble, "helmholtz_assemble", dtype),
+        enable_backward=False,
+        module="unique",
+        module_options=CPU_FAST,
+    )
 
 
 @functools.cache
@@ -256,8 +309,15 @@ def helmholtz_rhs(np: int):
     divergence = scaled_divergence(NP, f64)
 
     def helmholtz_rhs(
-        r: wp.array2d(dtype=vec), Dinv: wp.array2d(dtype=vec), metdet: wp.array(dtype=vec), spheremp: wp.array(dtype=vec), dvv: mat,
-        s: f64, aH: f64, wz: wp.array2d(dtype=vec), offset: int,
+        r: wp.array2d(dtype=vec),
+        Dinv: wp.array2d(dtype=vec),
+        metdet: wp.array(dtype=vec),
+        spheremp: wp.array(dtype=vec),
+        dvv: mat,
+        s: f64,
+        aH: f64,
+        wz: wp.array2d(dtype=vec),
+        offset: int,
     ):
         base = (wp.tid() + offset) * NP
         u = mat()  # r's wind
@@ -270,7 +330,9 @@ def helmholtz_rhs(np: int):
             q = base + j
             wz[0, q] = times(spheremp[q], s * (r[2, q] - d[j]))
 
-    return wp.kernel(_name(helmholtz_rhs, "helmholtz_rhs", f64), enable_backward=False, module="unique", module_options=CPU_FAST)
+    return wp.kernel(
+        _name(helmholtz_rhs, "helmholtz_rhs", f64), enable_backward=False, module="unique", module_options=CPU_FAST
+    )
 
 
 @functools.cache
@@ -292,9 +354,22 @@ def helmholtz_back_substitution(np: int, copies: int, implicit: bool = False):
     IMPLICIT = bool(implicit)
 
     def helmholtz_back_substitution(
-        wg: wp.array2d(dtype=f64), ghost: wp.array(dtype=f64), nlocal: int, table: wp.array2d(dtype=wp.int32),
-        rspheremp: wp.array(dtype=f64), y: wp.array(dtype=f64), halo: wp.array(dtype=f64), gid: wp.array(dtype=wp.int32),
-        r: wp.array2d(dtype=vec), s: f64, ag: f64, z: wp.array2d(dtype=vec), ia: f64, mis: f64, lz: wp.array2d(dtype=vec), offset: int,
+        wg: wp.array2d(dtype=f64),
+        ghost: wp.array(dtype=f64),
+        nlocal: int,
+        table: wp.array2d(dtype=wp.int32),
+        rspheremp: wp.array(dtype=f64),
+        y: wp.array(dtype=f64),
+        halo: wp.array(dtype=f64),
+        gid: wp.array(dtype=wp.int32),
+        r: wp.array2d(dtype=vec),
+        s: f64,
+        ag: f64,
+        z: wp.array2d(dtype=vec),
+        ia: f64,
+        mis: f64,
+        lz: wp.array2d(dtype=vec),
+        offset: int,
     ):
         base = (wp.tid() + offset) * NP
         gx, gy, Y = gather(wg, ghost, nlocal, table, rspheremp, y, halo, gid, base)  # the DSS'd gradient, y
@@ -314,13 +389,25 @@ def helmholtz_back_substitution(np: int, copies: int, implicit: bool = False):
                 lz[2, q] = ia * Y[j] + mis * r2
 
     name = "helmholtz_back_substitution" + ("_implicit" if IMPLICIT else "")
-    return wp.kernel(_name(helmholtz_back_substitution, name, f64), enable_backward=False, module="unique", module_options={} if IMPLICIT else CPU_FAST)
+    return wp.kernel(
+        _name(helmholtz_back_substitution, name, f64),
+        enable_backward=False,
+        module="unique",
+        module_options={} if IMPLICIT else CPU_FAST,
+    )
 
 
 @wp.kernel
 def helmholtz_combine(
-    dgy: wp.array2d(dtype=f64), first: wp.array(dtype=wp.int32), y: wp.array(dtype=f64), area: wp.array(dtype=f64), c: f64,
-    out: wp.array(dtype=f64), partial: wp.array2d(dtype=f64), chunk: int, offset: int,
+    dgy: wp.array2d(dtype=f64),
+    first: wp.array(dtype=wp.int32),
+    y: wp.array(dtype=f64),
+    area: wp.array(dtype=f64),
+    c: f64,
+    out: wp.array(dtype=f64),
+    partial: wp.array2d(dtype=f64),
+    chunk: int,
+    offset: int,
 ):
     """The per-node layout's last step of (M + cK) y: out[g] = area[g]·(y[g] − c·dgy[0, first[g]])
     on unique nodes, dgy = D G y continuous (the DSS'd divergence of the DSS'd gradient:
@@ -345,8 +432,18 @@ def cg_update(dtype=f64):
     partial[2] per chunk: Σ r·u and Σ r·r, summed in float64. Dim ceil(nunique / chunk)."""
 
     def cg_update(
-        cs: wp.array(dtype=f64), start: int, p: wp.array(dtype=dtype), s: wp.array(dtype=dtype), x: wp.array(dtype=dtype), r: wp.array(dtype=dtype),
-        u: wp.array(dtype=dtype), w: wp.array(dtype=dtype), minv: wp.array(dtype=dtype), partial: wp.array2d(dtype=f64), chunk: int, offset: int,
+        cs: wp.array(dtype=f64),
+        start: int,
+        p: wp.array(dtype=dtype),
+        s: wp.array(dtype=dtype),
+        x: wp.array(dtype=dtype),
+        r: wp.array(dtype=dtype),
+        u: wp.array(dtype=dtype),
+        w: wp.array(dtype=dtype),
+        minv: wp.array(dtype=dtype),
+        partial: wp.array2d(dtype=f64),
+        chunk: int,
+        offset: int,
     ):
         t = wp.tid() + offset
         alpha = dtype(1.0)
@@ -410,7 +507,12 @@ def _fail(stats: wp.array(dtype=f64), rr: f64, bb: f64):
 
 @wp.kernel
 def cg_check(
-    sums: wp.array(dtype=f64), first: int, tol2: f64, maxiter: int, cs: wp.array(dtype=f64), ic: wp.array(dtype=wp.int32),
+    sums: wp.array(dtype=f64),
+    first: int,
+    tol2: f64,
+    maxiter: int,
+    cs: wp.array(dtype=f64),
+    ic: wp.array(dtype=wp.int32),
     stats: wp.array(dtype=f64),
 ):
     """Chronopoulos & Gear's CG (1989, J. Comput. Appl. Math. 25, 153) after an update, from
@@ -455,8 +557,16 @@ def cg_alpha(sums: wp.array(dtype=f64), cs: wp.array(dtype=f64), ic: wp.array(dt
 
 @wp.kernel
 def refine_check(
-    sums: wp.array(dtype=f64), first: int, tol2: f64, maxiter: int, cs: wp.array(dtype=f64), ic: wp.array(dtype=wp.int32),
-    low_cs: wp.array(dtype=f64), low_ic: wp.array(dtype=wp.int32), floor2: f64, stats: wp.array(dtype=f64),
+    sums: wp.array(dtype=f64),
+    first: int,
+    tol2: f64,
+    maxiter: int,
+    cs: wp.array(dtype=f64),
+    ic: wp.array(dtype=wp.int32),
+    low_cs: wp.array(dtype=f64),
+    low_ic: wp.array(dtype=wp.int32),
+    floor2: f64,
+    stats: wp.array(dtype=f64),
 ):
     """Iterative refinement's test after the float64 residual r = b − Ay (sums[2] = r·r;
     ``first``: the bound from sums[1] = b·b, ``_begin``; else the last float32 pass's
@@ -488,8 +598,15 @@ def inner3(dtype=f64):
     pass). Dim ceil(nunique / chunk)."""
 
     def inner3(
-        a0: wp.array(dtype=dtype), b0: wp.array(dtype=dtype), a1: wp.array(dtype=dtype), b1: wp.array(dtype=dtype),
-        a2: wp.array(dtype=dtype), b2: wp.array(dtype=dtype), out: wp.array2d(dtype=f64), chunk: int, offset: int,
+        a0: wp.array(dtype=dtype),
+        b0: wp.array(dtype=dtype),
+        a1: wp.array(dtype=dtype),
+        b1: wp.array(dtype=dtype),
+        a2: wp.array(dtype=dtype),
+        b2: wp.array(dtype=dtype),
+        out: wp.array2d(dtype=f64),
+        chunk: int,
+        offset: int,
     ):
         t = wp.tid() + offset
         n = a0.shape[0]
@@ -536,17 +653,26 @@ def converted(dtype):
 
     return wp.kernel(_name(converted, "converted", dtype), enable_backward=False, module="unique")
 
+
 # The projection of a solve's start onto past solutions (Fischer 1998, Comput. Methods Appl.
 # Mech. Engrg. 163, 193; ``steppers.helmholtz.GuessHistory``): X (k, nunique) an A-orthonormal
 # basis (Xᵢ·A Xⱼ = δᵢⱼ) and AX its products, the first count[COUNT] rows in use. The device
 # integers (``hic``) and the store's coefficients (``hcs``): indices.
 COUNT, MODE, SLOT = (wp.constant(k) for k in range(3))
-KEEP, RESTART, APPEND, RESTART2 = (wp.constant(k) for k in range(4))  # MODE: the basis kept, restarted from the solution (and its start), or the increment appended
+KEEP, RESTART, APPEND, RESTART2 = (
+    wp.constant(k) for k in range(4)
+)  # MODE: the basis kept, restarted from the solution (and its start), or the increment appended
 
 
 @wp.kernel
-def history_dots(X: wp.array2d(dtype=f64), b: wp.array(dtype=f64), hic: wp.array(dtype=wp.int32), partial: wp.array2d(dtype=f64),
-                 chunk: int, offset: int):
+def history_dots(
+    X: wp.array2d(dtype=f64),
+    b: wp.array(dtype=f64),
+    hic: wp.array(dtype=wp.int32),
+    partial: wp.array2d(dtype=f64),
+    chunk: int,
+    offset: int,
+):
     """partial[j, t] = Σ Xⱼ·b over chunk t's ``chunk`` unique nodes for j < hic[COUNT], 0 for
     the other rows < k (the projection's coefficients αⱼ = Xⱼ·b, A-orthonormal X). Dim
     ceil(nunique / chunk)."""
@@ -561,8 +687,17 @@ def history_dots(X: wp.array2d(dtype=f64), b: wp.array(dtype=f64), hic: wp.array
 
 
 @wp.kernel
-def history_guess(X: wp.array2d(dtype=f64), AX: wp.array2d(dtype=f64), alpha: wp.array(dtype=f64), hic: wp.array(dtype=wp.int32),
-                  y: wp.array(dtype=f64), w: wp.array(dtype=f64), y0: wp.array(dtype=f64), w0: wp.array(dtype=f64), offset: int):
+def history_guess(
+    X: wp.array2d(dtype=f64),
+    AX: wp.array2d(dtype=f64),
+    alpha: wp.array(dtype=f64),
+    hic: wp.array(dtype=wp.int32),
+    y: wp.array(dtype=f64),
+    w: wp.array(dtype=f64),
+    y0: wp.array(dtype=f64),
+    w0: wp.array(dtype=f64),
+    offset: int,
+):
     """The projected start y = Σ αⱼ Xⱼ and its product w = A y = Σ αⱼ AXⱼ over j < hic[COUNT]
     (0 with no basis), kept in y0, w0 for the store after the solve. Dim nunique."""
     i = wp.tid() + offset
@@ -578,9 +713,18 @@ def history_guess(X: wp.array2d(dtype=f64), AX: wp.array2d(dtype=f64), alpha: wp
 
 
 @wp.kernel
-def history_increment_dots(X: wp.array2d(dtype=f64), y: wp.array(dtype=f64), y0: wp.array(dtype=f64), b: wp.array(dtype=f64),
-                           r: wp.array(dtype=f64), w0: wp.array(dtype=f64), hic: wp.array(dtype=wp.int32), partial: wp.array2d(dtype=f64),
-                           chunk: int, offset: int):
+def history_increment_dots(
+    X: wp.array2d(dtype=f64),
+    y: wp.array(dtype=f64),
+    y0: wp.array(dtype=f64),
+    b: wp.array(dtype=f64),
+    r: wp.array(dtype=f64),
+    w0: wp.array(dtype=f64),
+    hic: wp.array(dtype=wp.int32),
+    partial: wp.array2d(dtype=f64),
+    chunk: int,
+    offset: int,
+):
     """After a solve from the projected start y0 (A y0 = w0) to y with residual r (A y = b − r):
     per chunk t, with the increment d = y − y0 and A d = b − r − w0, partial[j, t] = Σ Xⱼ·A d
     for j < hic[COUNT] (0 for the other j < k), partial[k, t] = Σ d·A d, partial[k + 1, t]
@@ -662,9 +806,18 @@ def history_coefficients(sums: wp.array(dtype=f64), k: int, hic: wp.array(dtype=
 
 
 @wp.kernel
-def history_store(X: wp.array2d(dtype=f64), AX: wp.array2d(dtype=f64), y: wp.array(dtype=f64), y0: wp.array(dtype=f64),
-                  b: wp.array(dtype=f64), r: wp.array(dtype=f64), w0: wp.array(dtype=f64), hic: wp.array(dtype=wp.int32),
-                  hcs: wp.array(dtype=f64), offset: int):
+def history_store(
+    X: wp.array2d(dtype=f64),
+    AX: wp.array2d(dtype=f64),
+    y: wp.array(dtype=f64),
+    y0: wp.array(dtype=f64),
+    b: wp.array(dtype=f64),
+    r: wp.array(dtype=f64),
+    w0: wp.array(dtype=f64),
+    hic: wp.array(dtype=wp.int32),
+    hcs: wp.array(dtype=f64),
+    offset: int,
+):
     """The basis vectors ``history_coefficients`` chose: row 0 = y/‖y‖_A (RESTART), rows 0, 1 =
     y0/‖y0‖_A, (d − β·row 0)/‖d'‖_A (RESTART2), or row hic[SLOT] = (d − Σ βⱼ Xⱼ)/‖d'‖_A over
     the rows before it (APPEND), d = y − y0; AX's rows alike from A y = b − r, A y0 = w0,

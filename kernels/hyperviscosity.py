@@ -151,8 +151,15 @@ def laplacian_element(second: bool, divergent: bool, np: int):
     field = wp.func(field)
 
     def kernel(
-        src: wp.array2d(dtype=vec), hs: wp.array(dtype=vec), delta: wp.array2d(dtype=vec), c: wp.vec4d, f: RowFrame,
-        metric: wp.array2d(dtype=vec), dvv: mat, L: wp.array2d(dtype=vec), offset: int,
+        src: wp.array2d(dtype=vec),
+        hs: wp.array(dtype=vec),
+        delta: wp.array2d(dtype=vec),
+        c: wp.vec4d,
+        f: RowFrame,
+        metric: wp.array2d(dtype=vec),
+        dvv: mat,
+        L: wp.array2d(dtype=vec),
+        offset: int,
     ):
         base = (wp.tid() + offset) * NP
         dvvT = wp.transpose(dvv)
@@ -180,7 +187,9 @@ def laplacian_element(second: bool, divergent: bool, np: int):
         for j in range(NP):  # the pointwise part, on the rows just written (in L1)
             q = base + j
             Lj = wp.matrix_from_rows(L[0, q], L[1, q], L[2, q], L[3, q])
-            Xj = wp.matrix_from_rows(field(src, hs, f, 0, q), field(src, hs, f, 1, q), field(src, hs, f, 2, q), field(src, hs, f, 3, q))
+            Xj = wp.matrix_from_rows(
+                field(src, hs, f, 0, q), field(src, hs, f, 1, q), field(src, hs, f, 2, q), field(src, hs, f, 3, q)
+            )
             y = stack()
             if wp.static(S):
                 y = shift_second(Lj, Xj, metric[3, q], c[3])
@@ -191,7 +200,9 @@ def laplacian_element(second: bool, divergent: bool, np: int):
             for r in range(4):
                 L[r, q] = y[r]
 
-    kernel.__qualname__ = kernel.__name__ = "laplacian_element__" + ("second" if S else "first__divergent" if DIV else "first")
+    kernel.__qualname__ = kernel.__name__ = "laplacian_element__" + (
+        "second" if S else "first__divergent" if DIV else "first"
+    )
     return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)
 
 
@@ -204,8 +215,16 @@ def laplacian_node(second: bool, divergent: bool):
     S, DIV = bool(second), bool(divergent) and not second
 
     def kernel(
-        flux: wp.array2d(dtype=f64), src: wp.array2d(dtype=f64), delta: wp.array2d(dtype=f64), c: wp.vec4d, f: Frame,
-        spheremp: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, L: wp.array2d(dtype=f64), offset: int,
+        flux: wp.array2d(dtype=f64),
+        src: wp.array2d(dtype=f64),
+        delta: wp.array2d(dtype=f64),
+        c: wp.vec4d,
+        f: Frame,
+        spheremp: wp.array(dtype=f64),
+        dvv: wp.array2d(dtype=f64),
+        np: int,
+        L: wp.array2d(dtype=f64),
+        offset: int,
     ):
         p = wp.tid() + offset
         Lp = wp.vec4d()
@@ -219,15 +238,26 @@ def laplacian_node(second: bool, divergent: bool):
             y = scale_first(Lp, Xp, spheremp[p], f, p, c)
             if wp.static(DIV):
                 base, i, j = element_node(p, np)
-                y = add_divergent(y, d_xi(delta, 0, base, i, j, np, dvv), d_eta(delta, 0, base, i, j, np, dvv), c[1] * spheremp[p], p, f)
+                y = add_divergent(
+                    y,
+                    d_xi(delta, 0, base, i, j, np, dvv),
+                    d_eta(delta, 0, base, i, j, np, dvv),
+                    c[1] * spheremp[p],
+                    p,
+                    f,
+                )
         for r in range(4):
             L[r, p] = y[r]
 
-    kernel.__qualname__ = kernel.__name__ = "laplacian_node__" + ("second" if S else "first__divergent" if DIV else "first")
+    kernel.__qualname__ = kernel.__name__ = "laplacian_node__" + (
+        "second" if S else "first__divergent" if DIV else "first"
+    )
     return wp.kernel(kernel, enable_backward=False, module="unique")
 
 
-def _laplacian_metric(Dinv: wp.array2d(dtype=f64), spheremp: wp.array(dtype=f64), metric: wp.array2d(dtype=f64), offset: int):
+def _laplacian_metric(
+    Dinv: wp.array2d(dtype=f64), spheremp: wp.array(dtype=f64), metric: wp.array2d(dtype=f64), offset: int
+):
     """metric[0:3] = spheremp · (Dinv Dinvᵀ)₁₁, ₁₂, ₂₂ (symmetric): the weak
     Laplacian's quadrature-weighted contravariant metric; metric[3] = spheremp. Dim N."""
     q = wp.tid() + offset
@@ -247,7 +277,14 @@ laplacian_metric = wp.kernel(_laplacian_metric, enable_backward=False, module="u
 
 
 @wp.kernel
-def to_cartesian(x: wp.array2d(dtype=f64), hs: wp.array(dtype=f64), east: wp.array2d(dtype=f64), north: wp.array2d(dtype=f64), X: wp.array2d(dtype=f64), offset: int):
+def to_cartesian(
+    x: wp.array2d(dtype=f64),
+    hs: wp.array(dtype=f64),
+    east: wp.array2d(dtype=f64),
+    north: wp.array2d(dtype=f64),
+    X: wp.array2d(dtype=f64),
+    offset: int,
+):
     """X[0:3] = u·east + v·north; X[3] = h + hs."""
     p = wp.tid() + offset
     for c in range(3):
@@ -265,7 +302,9 @@ def dss_apply(copies: int, ghosts: bool = False):
     L is read at other nodes), block, offset. Dim N/block (as ``dss.dss_rows``)."""
     sum_copies = gather(4, False, copies, ghosts)
 
-    def dss_apply(L: wp.array2d(dtype=f64), d: Copies, coef: f64, f: Frame, out: wp.array2d(dtype=f64), block: int, offset: int):
+    def dss_apply(
+        L: wp.array2d(dtype=f64), d: Copies, coef: f64, f: Frame, out: wp.array2d(dtype=f64), block: int, offset: int
+    ):
         start = (wp.tid() + offset) * block
         for p in range(start, start + block):
             y = sum_copies(L, d, p)

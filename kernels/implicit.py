@@ -13,8 +13,14 @@ wp.set_module_options({"enable_backward": False})
 
 @wp.kernel
 def residual(
-    x: wp.array2d(dtype=f64), b: wp.array2d(dtype=f64), F: wp.array2d(dtype=f64), inv_dt: f64, beta: f64, R: wp.array2d(dtype=f64),
-    block: int, offset: int,
+    x: wp.array2d(dtype=f64),
+    b: wp.array2d(dtype=f64),
+    F: wp.array2d(dtype=f64),
+    inv_dt: f64,
+    beta: f64,
+    R: wp.array2d(dtype=f64),
+    block: int,
+    offset: int,
 ):
     """R = (x − b)/Δt − β F(x). Dim (3, N/block), as ``blas.axpby``."""
     r, k = wp.tid()
@@ -24,7 +30,9 @@ def residual(
 
 
 @wp.kernel
-def gather(a: f64, v: wp.array2d(dtype=f64), first: wp.array(dtype=wp.int32), nu: int, out: wp.array(dtype=f64), offset: int):
+def gather(
+    a: f64, v: wp.array2d(dtype=f64), first: wp.array(dtype=wp.int32), nu: int, out: wp.array(dtype=f64), offset: int
+):
     """out = a·v at one copy of each unique node (v continuous). Dim (3, nunique)."""
     r, g = wp.tid()
     g = g + offset
@@ -33,8 +41,15 @@ def gather(a: f64, v: wp.array2d(dtype=f64), first: wp.array(dtype=wp.int32), nu
 
 @wp.kernel
 def jacobian_vector(
-    w: wp.array(dtype=f64), F: wp.array2d(dtype=f64), Fp: wp.array2d(dtype=f64), first: wp.array(dtype=wp.int32), nu: int,
-    shift: f64, eps: wp.array(dtype=f64), out: wp.array(dtype=f64), offset: int,
+    w: wp.array(dtype=f64),
+    F: wp.array2d(dtype=f64),
+    Fp: wp.array2d(dtype=f64),
+    first: wp.array(dtype=wp.int32),
+    nu: int,
+    shift: f64,
+    eps: wp.array(dtype=f64),
+    out: wp.array(dtype=f64),
+    offset: int,
 ):
     """out = shift·w + c (F(x + εw) − F(x)) on unique nodes, c = eps[1] (scale/ε, from
     ``fd_epsilon``). Dim (3, nunique)."""

@@ -34,8 +34,14 @@ wp.set_module_options({"enable_backward": False})
 
 @wp.kernel
 def project_dots(
-    B: wp.array2d(dtype=f64), k_sub: int, h: wp.array(dtype=f64), w: wp.array(dtype=f64), k_dot: int,
-    partial: wp.array2d(dtype=f64), chunk: int, offset: int,
+    B: wp.array2d(dtype=f64),
+    k_sub: int,
+    h: wp.array(dtype=f64),
+    w: wp.array(dtype=f64),
+    k_dot: int,
+    partial: wp.array2d(dtype=f64),
+    chunk: int,
+    offset: int,
 ):
     """w −= Σ_{i<k_sub} h[i]·B[i]; partial[i, t] = Σ B[i]·w over chunk t (i < k_dot),
     partial[k_dot, t] = Σ w·w. Dim ceil(n / chunk)."""
@@ -59,7 +65,14 @@ def project_dots(
 
 
 @wp.kernel
-def lincomb(B: wp.array2d(dtype=f64), k: int, c: wp.array(dtype=f64), x: wp.array(dtype=f64), out: wp.array(dtype=f64), offset: int):
+def lincomb(
+    B: wp.array2d(dtype=f64),
+    k: int,
+    c: wp.array(dtype=f64),
+    x: wp.array(dtype=f64),
+    out: wp.array(dtype=f64),
+    offset: int,
+):
     """out = c[k]·x + Σ_{i<k} c[i]·B[i] (out may alias x). Dim n."""
     p = wp.tid() + offset
     acc = c[k] * x[p]
@@ -92,7 +105,9 @@ def fgmres_start(bb: wp.array(dtype=f64), rtol: f64, maxiter: int, info: wp.arra
 
 
 @wp.kernel
-def fgmres_cycle(info: wp.array(dtype=f64), g: wp.array(dtype=f64), coef: wp.array(dtype=f64), go: wp.array(dtype=wp.int32)):
+def fgmres_cycle(
+    info: wp.array(dtype=f64), g: wp.array(dtype=f64), coef: wp.array(dtype=f64), go: wp.array(dtype=wp.int32)
+):
     """A restart cycle's start from the residual r, β = |g| = ‖r‖: g = β e₁, coef[0] = 1/β
     (V₀ = r/β by ``lincomb`` with k = 0), and go = 1 unless ‖r‖ is already within
     the target (or zero) or the products are spent. Dim 1."""
@@ -110,8 +125,15 @@ def fgmres_cycle(info: wp.array(dtype=f64), g: wp.array(dtype=f64), coef: wp.arr
 
 @wp.kernel
 def arnoldi_column(
-    j: int, h1: wp.array(dtype=f64), h2: wp.array(dtype=f64), H: wp.array2d(dtype=f64), cs: wp.array(dtype=f64),
-    sn: wp.array(dtype=f64), g: wp.array(dtype=f64), coef: wp.array(dtype=f64), info: wp.array(dtype=f64),
+    j: int,
+    h1: wp.array(dtype=f64),
+    h2: wp.array(dtype=f64),
+    H: wp.array2d(dtype=f64),
+    cs: wp.array(dtype=f64),
+    sn: wp.array(dtype=f64),
+    g: wp.array(dtype=f64),
+    coef: wp.array(dtype=f64),
+    info: wp.array(dtype=f64),
     go: wp.array(dtype=wp.int32),
 ):
     """Arnoldi step j's column of H from classical Gram–Schmidt's two passes (h1[i], h2[i]
@@ -157,8 +179,13 @@ def arnoldi_column(
 
 @wp.kernel
 def fgmres_end(
-    H: wp.array2d(dtype=f64), cs: wp.array(dtype=f64), sn: wp.array(dtype=f64), g: wp.array(dtype=f64),
-    info: wp.array(dtype=f64), y: wp.array(dtype=f64), e: wp.array(dtype=f64),
+    H: wp.array2d(dtype=f64),
+    cs: wp.array(dtype=f64),
+    sn: wp.array(dtype=f64),
+    g: wp.array(dtype=f64),
+    info: wp.array(dtype=f64),
+    y: wp.array(dtype=f64),
+    e: wp.array(dtype=f64),
 ):
     """A cycle's end after k = info[INFO_STEPS] steps: y (k) from the rotated triangular
     H[:k, :k] y = g[:k] (back substitution), y[k] = 1 (x += Σ y_i Z_i by ``lincomb``);

@@ -58,7 +58,14 @@ def d_eta(f: wp.array2d(dtype=f64), row: int, base: int, i: int, j: int, np: int
 
 
 @wp.func
-def vorticity_at(x: wp.array2d(dtype=f64), p: int, np: int, D: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64)):
+def vorticity_at(
+    x: wp.array2d(dtype=f64),
+    p: int,
+    np: int,
+    D: wp.array2d(dtype=f64),
+    metdet: wp.array(dtype=f64),
+    dvv: wp.array2d(dtype=f64),
+):
     """Relative vorticity (s⁻¹) at node p of the wind in rows 0, 1 of x:
     ζ = (∂ξ v₂ − ∂η v₁)/metdet with covariant components v_c = Dᵀ v."""
     base, i, j = element_node(p, np)
@@ -73,7 +80,15 @@ def vorticity_at(x: wp.array2d(dtype=f64), p: int, np: int, D: wp.array2d(dtype=
 
 
 @wp.kernel
-def gradient_sphere(f: wp.array2d(dtype=f64), row: int, Dinv: wp.array2d(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, out: wp.array2d(dtype=f64), offset: int):
+def gradient_sphere(
+    f: wp.array2d(dtype=f64),
+    row: int,
+    Dinv: wp.array2d(dtype=f64),
+    dvv: wp.array2d(dtype=f64),
+    np: int,
+    out: wp.array2d(dtype=f64),
+    offset: int,
+):
     """out[0:2, p] = ∇f (east, north; units of f per m) = Dinvᵀ (∂ξ f, ∂η f)."""
     p = wp.tid() + offset
     base, i, j = element_node(p, np)
@@ -84,7 +99,15 @@ def gradient_sphere(f: wp.array2d(dtype=f64), row: int, Dinv: wp.array2d(dtype=f
 
 
 @wp.kernel
-def divergence_sphere(x: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, out: wp.array(dtype=f64), offset: int):
+def divergence_sphere(
+    x: wp.array2d(dtype=f64),
+    Dinv: wp.array2d(dtype=f64),
+    metdet: wp.array(dtype=f64),
+    dvv: wp.array2d(dtype=f64),
+    np: int,
+    out: wp.array(dtype=f64),
+    offset: int,
+):
     """out[p] = ∇·v (s⁻¹) of the wind in rows 0, 1 of x:
     (∂ξ(metdet c¹) + ∂η(metdet c²))/metdet with contravariant c = Dinv v."""
     p = wp.tid() + offset
@@ -99,14 +122,30 @@ def divergence_sphere(x: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), met
 
 
 @wp.kernel
-def vorticity_sphere(x: wp.array2d(dtype=f64), D: wp.array2d(dtype=f64), metdet: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, out: wp.array(dtype=f64), offset: int):
+def vorticity_sphere(
+    x: wp.array2d(dtype=f64),
+    D: wp.array2d(dtype=f64),
+    metdet: wp.array(dtype=f64),
+    dvv: wp.array2d(dtype=f64),
+    np: int,
+    out: wp.array(dtype=f64),
+    offset: int,
+):
     """out[p] = k·∇×v (s⁻¹) of the wind in rows 0, 1 of x."""
     p = wp.tid() + offset
     out[p] = vorticity_at(x, p, np, D, metdet, dvv)
 
 
 @wp.kernel
-def laplace_wk_flux(f: wp.array2d(dtype=f64), Dinv: wp.array2d(dtype=f64), spheremp: wp.array(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, flux: wp.array2d(dtype=f64), offset: int):
+def laplace_wk_flux(
+    f: wp.array2d(dtype=f64),
+    Dinv: wp.array2d(dtype=f64),
+    spheremp: wp.array(dtype=f64),
+    dvv: wp.array2d(dtype=f64),
+    np: int,
+    flux: wp.array2d(dtype=f64),
+    offset: int,
+):
     """First half of the weak Laplacian, for every row r of f:
     flux[2r:2r+2, p] = spheremp · Dinv Dinvᵀ (∂ξ f, ∂η f), the quadrature-weighted
     contravariant gradient. Launch with dim N (each thread does every row of its node)."""
@@ -139,7 +178,9 @@ def weak_divergence(flux: wp.array2d(dtype=f64), r: int, dvv: wp.array2d(dtype=f
 
 
 @wp.kernel
-def laplace_wk_div(flux: wp.array2d(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, out: wp.array2d(dtype=f64), offset: int):
+def laplace_wk_div(
+    flux: wp.array2d(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, out: wp.array2d(dtype=f64), offset: int
+):
     """Second half: out[r, p] = ``weak_divergence`` of row r. Launch with dim N
     (each thread does every row of its node)."""
     p = wp.tid() + offset
@@ -171,10 +212,16 @@ def row_vectors(a: wp.array, np: int) -> wp.array:
     np = int(np)
     size = wp.types.type_size_in_bytes(a.dtype)
     if a.dtype not in (f64, wp.float32) or a.strides[-1] != size or a.shape[-1] % np:
-        raise ValueError(f"row_vectors needs float64 or float32 with unit node stride and N divisible by np = {np} (got {a.dtype}, {a.shape}, {a.strides})")
+        raise ValueError(
+            f"row_vectors needs float64 or float32 with unit node stride and N divisible by np = {np} (got {a.dtype}, {a.shape}, {a.strides})"
+        )
     view = wp.array(
-        ptr=a.ptr, dtype=row_type(np, a.dtype), shape=(*a.shape[:-1], a.shape[-1] // np), strides=(*a.strides[:-1], size * np),
-        capacity=a.capacity, device=a.device,
+        ptr=a.ptr,
+        dtype=row_type(np, a.dtype),
+        shape=(*a.shape[:-1], a.shape[-1] // np),
+        strides=(*a.strides[:-1], size * np),
+        capacity=a.capacity,
+        device=a.device,
     )
     view._ref = a  # keeps the memory alive as long as the view
     return view
@@ -284,7 +331,14 @@ def gradient_element(np: int):
     vec, mat, along, across = row_derivatives(np)
     NP = int(np)
 
-    def gradient_element(f: wp.array2d(dtype=vec), row: int, Dinv: wp.array2d(dtype=vec), dvv: mat, out: wp.array2d(dtype=vec), offset: int):
+    def gradient_element(
+        f: wp.array2d(dtype=vec),
+        row: int,
+        Dinv: wp.array2d(dtype=vec),
+        dvv: mat,
+        out: wp.array2d(dtype=vec),
+        offset: int,
+    ):
         base = (wp.tid() + offset) * NP
         dvvT = wp.transpose(dvv)
         F = mat()
@@ -299,8 +353,6 @@ def gradient_element(np: int):
 
     gradient_element.__qualname__ = "gradient_element"  # the kernel's key
     return wp.kernel(gradient_element, enable_backward=False, module="unique", module_options=CPU_FAST)
-
-
 
 
 @functools.cache
@@ -326,7 +378,14 @@ def _wind_element(np: int, curl: bool):
     vec, mat, along, across = row_derivatives(np)
     NP, CURL = int(np), bool(curl)
 
-    def kernel(x: wp.array2d(dtype=vec), M: wp.array2d(dtype=vec), metdet: wp.array(dtype=vec), dvv: mat, out: wp.array(dtype=vec), offset: int):
+    def kernel(
+        x: wp.array2d(dtype=vec),
+        M: wp.array2d(dtype=vec),
+        metdet: wp.array(dtype=vec),
+        dvv: mat,
+        out: wp.array(dtype=vec),
+        offset: int,
+    ):
         base = (wp.tid() + offset) * NP
         dvvT = wp.transpose(dvv)
         fx = mat()  # differentiated along ξ (metdet c¹, or v₂) and along η (metdet c², or −v₁)

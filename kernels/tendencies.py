@@ -49,9 +49,18 @@ def finish(terms: tuple):
     GRAD = ADV or PG
 
     def finish_terms(
-        p: int, div: Any, bx: Any, by: Any, cx: Any, cy: Any,
-        x: wp.array2d(dtype=Any), Dinv: wp.array2d(dtype=Any), metdet: wp.array(dtype=Any),
-        fcor: wp.array(dtype=Any), forcing: wp.array2d(dtype=Any), tend: wp.array2d(dtype=Any),
+        p: int,
+        div: Any,
+        bx: Any,
+        by: Any,
+        cx: Any,
+        cy: Any,
+        x: wp.array2d(dtype=Any),
+        Dinv: wp.array2d(dtype=Any),
+        metdet: wp.array(dtype=Any),
+        fcor: wp.array(dtype=Any),
+        forcing: wp.array2d(dtype=Any),
+        tend: wp.array2d(dtype=Any),
     ):
         zero = type(div)(f64(0.0))
         du = zero

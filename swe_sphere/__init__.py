@@ -43,8 +43,17 @@ _LAZY = {
     "zonal_mean": "studies.analysis",
     # the errors (core.errors): every one is a SweSphereError
     **dict.fromkeys(
-        ["SweSphereError", "SceneError", "OutputError", "CheckpointError", "BlowUp", "Interrupted", "StepFailure",
-         "ResourceError", "MPIUnavailable"],
+        [
+            "SweSphereError",
+            "SceneError",
+            "OutputError",
+            "CheckpointError",
+            "BlowUp",
+            "Interrupted",
+            "StepFailure",
+            "ResourceError",
+            "MPIUnavailable",
+        ],
         "core.errors",
     ),
 }

@@ -9,9 +9,19 @@ from .core.runtime import pick_device
 from .simulation.simulation import Simulation
 
 
-
-def run(scene, *, device: str | None = None, output_file=None, overwrite: bool = False, restart_every: float | None = None,
-        progress: bool = False, verbose: bool = False, initial=None, graphs: str | bool | None = None, **overrides):
+def run(
+    scene,
+    *,
+    device: str | None = None,
+    output_file=None,
+    overwrite: bool = False,
+    restart_every: float | None = None,
+    progress: bool = False,
+    verbose: bool = False,
+    initial=None,
+    graphs: str | bool | None = None,
+    **overrides,
+):
     """Run a scene and return its output as an ``xarray.Dataset`` (loaded in memory).
 
     ``scene``: a scene file, the name of a bundled scene ("tc5_mountain") or a
@@ -52,8 +62,13 @@ def run(scene, *, device: str | None = None, output_file=None, overwrite: bool =
     scene = sim.scene
     with tempfile.TemporaryDirectory(prefix="swe_sphere_") as tmp:
         path = Path(output_file) if output_file is not None else Path(tmp) / f"{scene.name}.nc"
-        sim.run(path, overwrite=overwrite, restart_every=restart_every, history=f"swe_sphere.run({scene.name!r})",
-                log=tqdm.write if verbose else None)  # output={"log_every_steps": N}: a line every N steps
+        sim.run(
+            path,
+            overwrite=overwrite,
+            restart_every=restart_every,
+            history=f"swe_sphere.run({scene.name!r})",
+            log=tqdm.write if verbose else None,
+        )  # output={"log_every_steps": N}: a line every N steps
         with xr.open_dataset(path, decode_times=False) as ds:  # time in model days (output.TIME_ATTRS)
             return ds.load()
 

@@ -31,11 +31,24 @@ WORKERS_HELP = (
     "runs at once in as many processes, the CPUs shared among them (default 1); under mpiexec -n N "
     "the N - 1 ranks after rank 0 run them, on any number of nodes"
 )
-PLOT_FIELDS = ("h", "h_surface", "u", "v", "speed", "vorticity", "divergence")  # = analysis.MAP_FIELDS (not imported: xarray)
+PLOT_FIELDS = (
+    "h",
+    "h_surface",
+    "u",
+    "v",
+    "speed",
+    "vorticity",
+    "divergence",
+)  # = analysis.MAP_FIELDS (not imported: xarray)
 
 
-STABILITY_CASES = ("tc5_mountain", "tc6_rossby_haurwitz", "galewsky", "tc2_steady_alpha_pi4_100d",
-                   "tc6_inviscid_ne30")  # = the labels of stability.HARD_CASES (not imported: Warp)
+STABILITY_CASES = (
+    "tc5_mountain",
+    "tc6_rossby_haurwitz",
+    "galewsky",
+    "tc2_steady_alpha_pi4_100d",
+    "tc6_inviscid_ne30",
+)  # = the labels of stability.HARD_CASES (not imported: Warp)
 
 
 def _path(text: str) -> Path:
@@ -52,7 +65,9 @@ def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog="swe-sphere", description="Spectral-element shallow-water model on the cubed sphere.")
     p.add_argument("--debug", action="store_true", help="show the traceback of a failure")
     common = _Parser(add_help=False)  # --debug after the command too, without resetting one given before it
-    common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show the traceback of a failure")
+    common.add_argument(
+        "--debug", action="store_true", default=argparse.SUPPRESS, help="show the traceback of a failure"
+    )
     p.add_argument("--version", action="version", version=f"swe-sphere {package_version()}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
     r = sub.add_parser("run", help="run a scene (a TOML file under testcases/, or its name)", parents=[common])
@@ -65,74 +80,173 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
     r.add_argument("--output", type=Path, help="netCDF output file (default: <scene>_ne<ne>np<np>_<stepper>.nc)")
     r.add_argument("--no-progress", action="store_true", help="no progress bar (there is one only on a terminal)")
-    r.add_argument("-s", "--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
-                   help="override a scene value, e.g. -s hyperviscosity.nu=5e14 (TOML value; validated like the file)")
+    r.add_argument(
+        "-s",
+        "--set",
+        action="append",
+        default=[],
+        metavar="SECTION.KEY=VALUE",
+        help="override a scene value, e.g. -s hyperviscosity.nu=5e14 (TOML value; validated like the file)",
+    )
     r.add_argument("--overwrite", action="store_true", help="replace an existing output (and restart) file")
-    r.add_argument("--restart-every", type=float, metavar="DAYS", help="write a restart file <output stem>.restart.nc every DAYS model days and at the end")
-    r.add_argument("--continue", dest="continue_from", type=Path, metavar="CHECKPOINT",
-                   help="continue a restart file (bitwise as if never stopped); --days sets the new end day; with another "
-                        "--stepper or --dt, a new run from its state (multistep steppers start afresh)")
+    r.add_argument(
+        "--restart-every",
+        type=float,
+        metavar="DAYS",
+        help="write a restart file <output stem>.restart.nc every DAYS model days and at the end",
+    )
+    r.add_argument(
+        "--continue",
+        dest="continue_from",
+        type=Path,
+        metavar="CHECKPOINT",
+        help="continue a restart file (bitwise as if never stopped); --days sets the new end day; with another "
+        "--stepper or --dt, a new run from its state (multistep steppers start afresh)",
+    )
     r.add_argument("--compress", action="store_true", help="store fields as float32 with zlib (smaller, not bitwise)")
-    r.add_argument("--graphs", help="steps as captured graphs: auto (on CUDA; the default, or env SWE_SPHERE_GRAPHS), on "
-                                    "(also on a CPU), off (plain launches); a graph that fails or differs from plain launches "
-                                    "falls back to them with one line")
+    r.add_argument(
+        "--graphs",
+        help="steps as captured graphs: auto (on CUDA; the default, or env SWE_SPHERE_GRAPHS), on "
+        "(also on a CPU), off (plain launches); a graph that fails or differs from plain launches "
+        "falls back to them with one line",
+    )
     sub.add_parser("list", help="list bundled scenes, steppers and terms", parents=[common])
-    pl = sub.add_parser("plot", help="PNG lat-lon maps of a run file's fields and its invariants/errors against time", parents=[common])
+    pl = sub.add_parser(
+        "plot", help="PNG lat-lon maps of a run file's fields and its invariants/errors against time", parents=[common]
+    )
     pl.add_argument("run", type=Path, help="run file (netCDF written by `swe-sphere run`)")
-    pl.add_argument("--field", nargs="+", choices=PLOT_FIELDS, help="field(s) to map or zonally average (default h_surface = h + hs)")
+    pl.add_argument(
+        "--field",
+        nargs="+",
+        choices=PLOT_FIELDS,
+        help="field(s) to map or zonally average (default h_surface = h + hs)",
+    )
     pl.add_argument("--day", nargs="+", type=float, help="model day(s) to map, each an output time (default: the last)")
-    pl.add_argument("--diff", type=Path, metavar="REFERENCE", help="map the difference to another run file or a reference: a file or a bundled truncation (T213, T341)")
+    pl.add_argument(
+        "--diff",
+        type=Path,
+        metavar="REFERENCE",
+        help="map the difference to another run file or a reference: a file or a bundled truncation (T213, T341)",
+    )
     pl.add_argument("--output", type=Path, default=Path("."), metavar="DIR", help="folder for the PNGs (default: .)")
-    pl.add_argument("--lat-range", nargs=2, type=float, metavar=("SOUTH", "NORTH"), help="map only this latitude band (degrees)")
+    pl.add_argument(
+        "--lat-range", nargs=2, type=float, metavar=("SOUTH", "NORTH"), help="map only this latitude band (degrees)"
+    )
     pl.add_argument("--force", action="store_true", help="--diff against a run of another case or grid")
     pl.add_argument("--overwrite", action="store_true", help="replace existing PNGs")
-    pl.add_argument("--spectrum", action="store_true",
-                    help="instead of maps: the kinetic-energy spectrum by spherical-harmonic degree (rotational, divergent, total; PNG and CSV)")
-    pl.add_argument("--zonal-mean", action="store_true", help="instead of maps: the zonal mean of each --field against latitude (PNG)")
-    rm = sub.add_parser("remap", help="a run file on a regular lat-lon grid (CF netCDF), by GLL interpolation", parents=[common])
+    pl.add_argument(
+        "--spectrum",
+        action="store_true",
+        help="instead of maps: the kinetic-energy spectrum by spherical-harmonic degree (rotational, divergent, total; PNG and CSV)",
+    )
+    pl.add_argument(
+        "--zonal-mean",
+        action="store_true",
+        help="instead of maps: the zonal mean of each --field against latitude (PNG)",
+    )
+    rm = sub.add_parser(
+        "remap", help="a run file on a regular lat-lon grid (CF netCDF), by GLL interpolation", parents=[common]
+    )
     rm.add_argument("run", type=Path, help="run file (netCDF written by `swe-sphere run`)")
-    rm.add_argument("--resolution", type=float, default=1.0, help="grid spacing in degrees; must divide 180 (default 1.0)")
+    rm.add_argument(
+        "--resolution", type=float, default=1.0, help="grid spacing in degrees; must divide 180 (default 1.0)"
+    )
     rm.add_argument("--output", type=Path, help="netCDF output file (default: <run>_latlon<resolution>.nc)")
     rm.add_argument("--overwrite", action="store_true", help="replace an existing output file")
-    sw = sub.add_parser("sweep", help="error against dt against wall time for several steppers (resumable)", parents=[common])
+    sw = sub.add_parser(
+        "sweep", help="error against dt against wall time for several steppers (resumable)", parents=[common]
+    )
     sw.add_argument("scene", nargs="?", help="scene file or bundled scene name (none with --from)")
-    sw.add_argument("--from", dest="branch_from", type=Path, metavar="RESTART.nc",
-                    help="start every run (and the small-dt reference run) from this restart file's state and day, with "
-                         "its scene and grid; --days sets the end day")
+    sw.add_argument(
+        "--from",
+        dest="branch_from",
+        type=Path,
+        metavar="RESTART.nc",
+        help="start every run (and the small-dt reference run) from this restart file's state and day, with "
+        "its scene and grid; --days sets the end day",
+    )
     sw.add_argument("--steppers", help="comma-separated stepper names (default leapfrog,ssprk3,semi_implicit,implicit)")
     group = sw.add_mutually_exclusive_group()
     group.add_argument("--dt", help="comma-separated time steps in seconds")
-    group.add_argument("--courant", help="comma-separated multiples of the explicit gravity-wave limit (default 0.5,1,2,5,10,30,60,100)")
-    group.add_argument("--runs", metavar="STEPPER@COURANT,...",
-                       help="only these (stepper, multiple of the gravity-wave limit) runs, e.g. rk4@1,imex@5,implicit@20, "
-                            "instead of every --steppers x --courant")
+    group.add_argument(
+        "--courant",
+        help="comma-separated multiples of the explicit gravity-wave limit (default 0.5,1,2,5,10,30,60,100)",
+    )
+    group.add_argument(
+        "--runs",
+        metavar="STEPPER@COURANT,...",
+        help="only these (stepper, multiple of the gravity-wave limit) runs, e.g. rk4@1,imex@5,implicit@20, "
+        "instead of every --steppers x --courant",
+    )
     sw.add_argument("--ne", type=int, help="elements along a cube edge")
     sw.add_argument("--np", type=int, help="GLL points per element direction (2..8)")
     sw.add_argument("--days", type=float, help="run length in days")
-    sw.add_argument("-s", "--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
-                    help="override a scene value in every run, e.g. -s case.initialization=dfi (as for run)")
+    sw.add_argument(
+        "-s",
+        "--set",
+        action="append",
+        default=[],
+        metavar="SECTION.KEY=VALUE",
+        help="override a scene value in every run, e.g. -s case.initialization=dfi (as for run)",
+    )
     sw.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
-    sw.add_argument("--cost", choices=("cpu", "wall"), default="cpu",
-                    help="the clock that ranks the runs: process CPU time (default; reproducible with SWE_SPHERE_THREADS=1 "
-                         "OPENBLAS_NUM_THREADS=1 on a loaded machine) or wall time")
-    sw.add_argument("--output", type=Path, default=Path("sweep"),
-                    help="directory for results (default ./sweep); a rerun reuses the runs made there with the same settings")
-    sw.add_argument("--overwrite", action="store_true", help="replace the results (sweep.csv, sweep.nc, verdicts.csv, PNGs) of an earlier sweep in --output")
-    sw.add_argument("--filter-days", type=float, metavar="DAYS", help="also score the balanced flow: Lanczos low-pass in time with this cutoff period (runs go on past --days by the half window)")
-    sw.add_argument("--filter-window", type=float, metavar="DAYS", help="the filter's half window around the last day (default 1.5 x --filter-days)")
-    sw.add_argument("--filter-every", type=float, default=3.0, metavar="HOURS", help="the filter's snapshot interval (default 3 h)")
+    sw.add_argument(
+        "--cost",
+        choices=("cpu", "wall"),
+        default="cpu",
+        help="the clock that ranks the runs: process CPU time (default; reproducible with SWE_SPHERE_THREADS=1 "
+        "OPENBLAS_NUM_THREADS=1 on a loaded machine) or wall time",
+    )
+    sw.add_argument(
+        "--output",
+        type=Path,
+        default=Path("sweep"),
+        help="directory for results (default ./sweep); a rerun reuses the runs made there with the same settings",
+    )
+    sw.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the results (sweep.csv, sweep.nc, verdicts.csv, PNGs) of an earlier sweep in --output",
+    )
+    sw.add_argument(
+        "--filter-days",
+        type=float,
+        metavar="DAYS",
+        help="also score the balanced flow: Lanczos low-pass in time with this cutoff period (runs go on past --days by the half window)",
+    )
+    sw.add_argument(
+        "--filter-window",
+        type=float,
+        metavar="DAYS",
+        help="the filter's half window around the last day (default 1.5 x --filter-days)",
+    )
+    sw.add_argument(
+        "--filter-every", type=float, default=3.0, metavar="HOURS", help="the filter's snapshot interval (default 3 h)"
+    )
     sw.add_argument("--workers", type=int, default=1, help=WORKERS_HELP)
-    st = sub.add_parser("stability", help="largest stable dt of each stepper on the hard cases, by bisection", parents=[common])
+    st = sub.add_parser(
+        "stability", help="largest stable dt of each stepper on the hard cases, by bisection", parents=[common]
+    )
     st.add_argument("cases", nargs="*", help=f"case labels, any of {', '.join(STABILITY_CASES)} (default: all)")
-    st.add_argument("--steppers", default="leapfrog,ssprk3,semi_implicit,implicit", help="comma-separated stepper names")
+    st.add_argument(
+        "--steppers", default="leapfrog,ssprk3,semi_implicit,implicit", help="comma-separated stepper names"
+    )
     st.add_argument("--ne", type=int, default=8, help="coarse grid for cases that do not fix one (default 8)")
     st.add_argument("--np", type=int, help="GLL points (default: the scene's)")
     st.add_argument("--days", type=float, help="run length for cases that do not fix one (default: the scene's)")
-    st.add_argument("-s", "--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
-                    help="override a scene value in every case, e.g. -s hyperviscosity.efold_hours=6 (as for run)")
+    st.add_argument(
+        "-s",
+        "--set",
+        action="append",
+        default=[],
+        metavar="SECTION.KEY=VALUE",
+        help="override a scene value in every case, e.g. -s hyperviscosity.efold_hours=6 (as for run)",
+    )
     st.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
     st.add_argument("--output", type=Path, default=Path("."), help="directory for stability.csv and stability.nc")
-    st.add_argument("--overwrite", action="store_true", help="replace an earlier stability.csv and stability.nc in --output")
+    st.add_argument(
+        "--overwrite", action="store_true", help="replace an earlier stability.csv and stability.nc in --output"
+    )
     st.add_argument("--workers", type=int, default=1, help=WORKERS_HELP)
     return p
 
@@ -202,8 +316,10 @@ def _runs(text: str) -> list[tuple[str, float]]:
         except ValueError:
             multiple = math.nan
         if not (math.isfinite(multiple) and multiple > 0):  # the multiple of the gravity-wave limit
-            raise ValueError(f"--runs {item.strip()}: {factor.strip()!r} is not a number > 0 (a multiple of the gravity-wave "
-                             f"limit, e.g. {stepper}@0.5)")
+            raise ValueError(
+                f"--runs {item.strip()}: {factor.strip()!r} is not a number > 0 (a multiple of the gravity-wave "
+                f"limit, e.g. {stepper}@0.5)"
+            )
         pairs.append((stepper, multiple))
     return pairs
 
@@ -214,7 +330,11 @@ def _cmd_sweep(args) -> int:
     if args.runs and args.steppers:
         raise ValueError("--runs names its own steppers: give --steppers or --runs, not both")
     pairs = _runs(args.runs) if args.runs is not None else None  # (stepper, Courant factor)
-    steppers = list(dict.fromkeys(s for s, _ in pairs)) if pairs else _steppers("leapfrog,ssprk3,semi_implicit,implicit" if args.steppers is None else args.steppers)
+    steppers = (
+        list(dict.fromkeys(s for s, _ in pairs))
+        if pairs
+        else _steppers("leapfrog,ssprk3,semi_implicit,implicit" if args.steppers is None else args.steppers)
+    )
     overrides = _overrides(args.set)
     ck = None
     if args.branch_from is not None:  # every run a branch from the restart file's state (``checkpoint.branch``)
@@ -222,13 +342,18 @@ def _cmd_sweep(args) -> int:
 
         for flag, given in (("SCENE", args.scene), ("--ne", args.ne), ("--np", args.np), ("-s", args.set)):
             if given:
-                raise ValueError(f"--from takes the scene and grid from the restart file: give --from or {flag}, not both")
+                raise ValueError(
+                    f"--from takes the scene and grid from the restart file: give --from or {flag}, not both"
+                )
         ck = checkpoint.read(args.branch_from)
         scenes = {s: checkpoint.branch(ck, stepper=s, days=args.days) for s in steppers}
     elif args.scene is None:
         raise ValueError("sweep needs a SCENE (or --from RESTART.nc)")
     else:
-        scenes = {s: load_scene(args.scene, ne=args.ne, np=args.np, days=args.days, stepper=s, overrides=overrides) for s in steppers}
+        scenes = {
+            s: load_scene(args.scene, ne=args.ne, np=args.np, days=args.days, stepper=s, overrides=overrides)
+            for s in steppers
+        }
     dts = _numbers(args.dt, "dt") if args.dt is not None else None
     factors = sorted({f for _, f in pairs}) if pairs else None
     if dts is None and factors is None:
@@ -243,20 +368,36 @@ def _cmd_sweep(args) -> int:
         time_filter.days(length)  # the window must start within the run
         span = time_filter.every_hours / 24
         if abs(length / span - round(length / span)) > 1e-9:
-            raise ValueError(f"the run length of {length:g} days is not a multiple of the filter's {time_filter.every_hours:g} h snapshots")
+            raise ValueError(
+                f"the run length of {length:g} days is not a multiple of the filter's {time_filter.every_hours:g} h snapshots"
+            )
     for dt in dts or ():
         if abs(round(span * 86400 / dt) * dt - span * 86400) > 1e-6 * dt and time_filter is not None:
-            raise ValueError(f"dt = {dt:g} s does not divide the filter's snapshot interval of {time_filter.every_hours:g} h")
+            raise ValueError(
+                f"dt = {dt:g} s does not divide the filter's snapshot interval of {time_filter.every_hours:g} h"
+            )
     device = _warp_device(args.device)
-    from .io.run_file import check_results, folder_lock
-    from .studies.sweep import OUTPUTS, REFERENCE_MAX_GRAVITY_COURANT, Sweep, dt_for_day, explicit_limits, format_summary, start_state, table, write_outputs
     from .core.workers import executor
+    from .io.run_file import check_results, folder_lock
+    from .studies.sweep import (
+        OUTPUTS,
+        REFERENCE_MAX_GRAVITY_COURANT,
+        Sweep,
+        dt_for_day,
+        explicit_limits,
+        format_summary,
+        start_state,
+        table,
+        write_outputs,
+    )
 
     with executor(args.workers) as pool:
         if pool is None:  # an MPI worker rank: its share is done
             return 0
         with folder_lock(args.output, "sweep.lock"):  # a second sweep into this folder is refused now, not at its end
-            check_results(args.output, OUTPUTS, args.overwrite)  # an earlier sweep's results: refused now, not at the end
+            check_results(
+                args.output, OUTPUTS, args.overwrite
+            )  # an earlier sweep's results: refused now, not at the end
             # the restart file's state, or a digital-filter start made once for every run
             start = ck.x if ck is not None else start_state(base, args.output, device)
             limits = explicit_limits(base, device, start)
@@ -267,15 +408,22 @@ def _cmd_sweep(args) -> int:
                 pairs = [(s, dt_of[f]) for s, f in pairs] if pairs else None
                 capped = [f for f in factors if f * limits["dt_gravity"] > span * 86400 * (1 + 1e-9)]
                 if capped and time_filter is not None:  # Δt must divide the filter's snapshot interval
-                    print(f"note        --courant {','.join(f'{f:g}' for f in capped)}: dt capped at the filter's "
-                          f"{time_filter.every_hours:g} h snapshot interval ({span * 86400 / limits['dt_gravity']:.3g} x the "
-                          "gravity-wave limit); --filter-every sets it")
+                    print(
+                        f"note        --courant {','.join(f'{f:g}' for f in capped)}: dt capped at the filter's "
+                        f"{time_filter.every_hours:g} h snapshot interval ({span * 86400 / limits['dt_gravity']:.3g} x the "
+                        "gravity-wave limit); --filter-every sets it"
+                    )
                 said = capped if time_filter is not None else []
-                rounded = [f"{asked[f]} runs at {dt_of[f] / limits['dt_gravity']:.3g}" for f in factors
-                           if f not in said and dt_of[f] < f * limits["dt_gravity"] * (1 - 1e-3)]
+                rounded = [
+                    f"{asked[f]} runs at {dt_of[f] / limits['dt_gravity']:.3g}"
+                    for f in factors
+                    if f not in said and dt_of[f] < f * limits["dt_gravity"] * (1 - 1e-3)
+                ]
                 if rounded:  # the multiple that ran, not the one asked for
-                    print(f"note        {'--runs' if pairs else '--courant'} {', '.join(rounded)} x the gravity-wave limit "
-                          f"(each dt the largest at or below its multiple that divides {min(span, 1.0):g} days)")
+                    print(
+                        f"note        {'--runs' if pairs else '--courant'} {', '.join(rounded)} x the gravity-wave limit "
+                        f"(each dt the largest at or below its multiple that divides {min(span, 1.0):g} days)"
+                    )
             for dt in dts:
                 if abs(round(length * 86400 / dt) * dt - length * 86400) > 1e-6 * dt:
                     raise ValueError(f"dt = {dt:g} s does not divide the run length of {length:g} days")
@@ -285,14 +433,27 @@ def _cmd_sweep(args) -> int:
             )
             if ck is not None:
                 b = base.branch
-                print(f"start       the state of {args.branch_from} at day {b['day']:g} (step {b['step']} of {b['stepper']}, "
-                      f"dt = {b['dt']:g} s), for every run and the reference run; each stepper starts there afresh")
+                print(
+                    f"start       the state of {args.branch_from} at day {b['day']:g} (step {b['step']} of {b['stepper']}, "
+                    f"dt = {b['dt']:g} s), for every run and the reference run; each stepper starts there afresh"
+                )
             elif start is not None:
-                print(f"start       digital-filter initialization (cutoff {base.digital_filter.cutoff_hours:g} h, span "
-                      f"{base.digital_filter.span_hours:g} h), the same state for every run; the spectral reference starts "
-                      "impulsively, so the spatial error (and the verdicts' thresholds) include the gravity waves it keeps")
-            rows, info = Sweep(scenes, dts, args.output, device, time_filter=time_filter, start=start, pairs=pairs, overrides=overrides,
-                               reference_dt_max=REFERENCE_MAX_GRAVITY_COURANT * limits["dt_gravity"]).run(pool)
+                print(
+                    f"start       digital-filter initialization (cutoff {base.digital_filter.cutoff_hours:g} h, span "
+                    f"{base.digital_filter.span_hours:g} h), the same state for every run; the spectral reference starts "
+                    "impulsively, so the spatial error (and the verdicts' thresholds) include the gravity waves it keeps"
+                )
+            rows, info = Sweep(
+                scenes,
+                dts,
+                args.output,
+                device,
+                time_filter=time_filter,
+                start=start,
+                pairs=pairs,
+                overrides=overrides,
+                reference_dt_max=REFERENCE_MAX_GRAVITY_COURANT * limits["dt_gravity"],
+            ).run(pool)
             rows = table(rows, limits, args.cost)
             print(format_summary(rows, info))
             for path in write_outputs(rows, info, limits, args.output, overwrite=args.overwrite):
@@ -301,9 +462,9 @@ def _cmd_sweep(args) -> int:
 
 
 def _cmd_stability(args) -> int:
+    from .core.workers import executor
     from .io.run_file import check_results, folder_lock
     from .studies.stability import HARD_CASES, OUTPUTS, format_table, run_suite, write_table
-    from .core.workers import executor
 
     known = {c[0]: c for c in HARD_CASES}
     for label in args.cases:
@@ -317,10 +478,22 @@ def _cmd_stability(args) -> int:
     with executor(args.workers) as pool:
         if pool is None:  # an MPI worker rank: its share is done
             return 0
-        with folder_lock(args.output, "stability.lock"):  # a second suite into this folder is refused now, not at its end
-            check_results(args.output, OUTPUTS, args.overwrite)  # an earlier suite's results: refused now, not at the end
-            results = run_suite(cases, steppers, device, ne=args.ne, np=args.np, days=args.days,
-                                overrides=_overrides(args.set), pool=pool)
+        with folder_lock(
+            args.output, "stability.lock"
+        ):  # a second suite into this folder is refused now, not at its end
+            check_results(
+                args.output, OUTPUTS, args.overwrite
+            )  # an earlier suite's results: refused now, not at the end
+            results = run_suite(
+                cases,
+                steppers,
+                device,
+                ne=args.ne,
+                np=args.np,
+                days=args.days,
+                overrides=_overrides(args.set),
+                pool=pool,
+            )
             print(format_table(results))
             for path in write_table(results, args.output, overwrite=args.overwrite):
                 print(f"wrote {path}")
@@ -350,14 +523,16 @@ def _continued(args, device, comm):
     ``--restart-every`` unless given: ``args.restart_every`` set), or with another
     --stepper or --dt a branch (``Simulation.from_checkpoint``); refuses a changed
     scene or grid, and a continuation at its end day without --days."""
-    from .simulation import checkpoint
     from .config.scene import load_scene
+    from .simulation import checkpoint
     from .simulation.simulation import Simulation
 
     ck = checkpoint.read_on_root(args.continue_from, comm)  # the whole state on rank 0 only
     for flag, value, have in (("--ne", args.ne, ck.scene.ne), ("--np", args.np, ck.scene.np)):
         if value is not None and value != have:
-            raise CheckpointError(f"{args.continue_from} is a run with {flag.lstrip('-')} = {have}; it cannot continue with {flag} {value}")
+            raise CheckpointError(
+                f"{args.continue_from} is a run with {flag.lstrip('-')} = {have}; it cannot continue with {flag} {value}"
+            )
     if args.set:
         raise CheckpointError("-s cannot change a checkpointed scene")
     if args.scene is not None:
@@ -366,20 +541,35 @@ def _continued(args, device, comm):
         theirs = {k: v for k, v in given.as_dict().items() if k not in ("days", "notes", "branch")}
         if mine != theirs:
             differ = ", ".join(k for k in mine if mine[k] != theirs.get(k))
-            raise CheckpointError(f"{args.continue_from} is a run of another scene than {args.scene} (differs in: {differ})")
+            raise CheckpointError(
+                f"{args.continue_from} is a run of another scene than {args.scene} (differs in: {differ})"
+            )
     continued = args.stepper is None and args.dt is None  # not a branch (which refuses a length of 0 days itself)
-    if continued and args.days is None and ck.step >= ck.scene.nsteps:  # else 0 steps, and a file that blocks the real one
-        raise CheckpointError(f"{args.continue_from} is already at its run's end day {ck.scene.days:g}: "
-                                         "give --days for the new end day")
-    if continued and args.restart_every is None:  # a run that wrote restart files goes on writing them, as if never stopped
+    if (
+        continued and args.days is None and ck.step >= ck.scene.nsteps
+    ):  # else 0 steps, and a file that blocks the real one
+        raise CheckpointError(
+            f"{args.continue_from} is already at its run's end day {ck.scene.days:g}: give --days for the new end day"
+        )
+    if (
+        continued and args.restart_every is None
+    ):  # a run that wrote restart files goes on writing them, as if never stopped
         args.restart_every = ck.restart_every
-    return Simulation.from_checkpoint(ck, device, days=args.days, stepper=args.stepper, dt=args.dt, progress=not args.no_progress,
-                                      comm=comm, graphs=args.graphs)
+    return Simulation.from_checkpoint(
+        ck,
+        device,
+        days=args.days,
+        stepper=args.stepper,
+        dt=args.dt,
+        progress=not args.no_progress,
+        comm=comm,
+        graphs=args.graphs,
+    )
 
 
 def _cmd_run(args) -> int:
-    from .core import mpi
     from .config.scene import load_scene, resolve_path
+    from .core import mpi
     from .core.graphs import default_mode, graphs_mode
     from .io.run_file import check_distinct, check_target, close_open_runs
     from .simulation.writers import restart_path
@@ -387,16 +577,29 @@ def _cmd_run(args) -> int:
     if args.continue_from is None:
         if args.scene is None:
             raise ValueError("run needs a SCENE (or --continue CHECKPOINT)")
-        scene = load_scene(args.scene, ne=args.ne, np=args.np, dt=args.dt, days=args.days, stepper=args.stepper,
-                           overrides=_overrides(args.set))
+        scene = load_scene(
+            args.scene,
+            ne=args.ne,
+            np=args.np,
+            dt=args.dt,
+            days=args.days,
+            stepper=args.stepper,
+            overrides=_overrides(args.set),
+        )
         output = args.output or Path(f"{scene.name}_ne{scene.ne}np{scene.np}_{scene.stepper}.nc")
     else:
         scene = None  # the restart file's
         stem = args.continue_from.name.removesuffix(".nc").removesuffix(".restart")
-        changes = "".join(f"_{v}" for v in (args.stepper, args.dt and f"dt{args.dt:g}") if v)  # a branch's (or a no-op's)
-        output = args.output or args.continue_from.with_name(f"{stem}_{'branch' + changes if changes else 'continued'}.nc")
+        changes = "".join(
+            f"_{v}" for v in (args.stepper, args.dt and f"dt{args.dt:g}") if v
+        )  # a branch's (or a no-op's)
+        output = args.output or args.continue_from.with_name(
+            f"{stem}_{'branch' + changes if changes else 'continued'}.nc"
+        )
     initial = scene.case_params.get("path") if scene is not None else None  # a file case's initial state: an input too
-    check_distinct([output, restart_path(output)], [args.continue_from, args.scene and resolve_path(str(args.scene)), initial])
+    check_distinct(
+        [output, restart_path(output)], [args.continue_from, args.scene and resolve_path(str(args.scene)), initial]
+    )
     check_target(output, args.overwrite)
     if args.restart_every is not None:  # else written only on SIGINT/SIGTERM, and then not over an existing one
         check_target(restart_path(output), args.overwrite)
@@ -412,9 +615,9 @@ def _run(args, scene, output, device, comm) -> int:
 
     from .core import mpi
     from .core.parallel import threads_note
+    from .core.workers import cpus, limit_threads
     from .simulation.schedules import restart_steps
     from .simulation.simulation import Simulation
-    from .core.workers import cpus, limit_threads
     from .simulation.writers import restart_path, stream_path
 
     if comm is not None:
@@ -431,20 +634,31 @@ def _run(args, scene, output, device, comm) -> int:
     c = sim.courant()
     dx = -sim.topology.max(-float(sim.topology.grid.dx.min()))
     print(f"scene       {scene.name}: {scene.description}")
-    print(f"grid        ne={scene.ne} np={scene.np}: {6 * scene.ne**2} elements, {sim.topology.grid.nunique} unique nodes, "
-          f"min node spacing {dx / 1e3:.1f} km")
-    print(f"terms       {', '.join(scene.terms)}" + (f" (nu = {scene.nu:.3g} m^4/s, subcycle {scene.hypervis_subcycle})" if scene.nu else ""))
-    print(f"stepper     {sim.stepper.label(scene.stepper_options)}, dt = {scene.dt:g} s, {scene.nsteps} steps to day {scene.days:g}, device {device}")
+    print(
+        f"grid        ne={scene.ne} np={scene.np}: {6 * scene.ne**2} elements, {sim.topology.grid.nunique} unique nodes, "
+        f"min node spacing {dx / 1e3:.1f} km"
+    )
+    print(
+        f"terms       {', '.join(scene.terms)}"
+        + (f" (nu = {scene.nu:.3g} m^4/s, subcycle {scene.hypervis_subcycle})" if scene.nu else "")
+    )
+    print(
+        f"stepper     {sim.stepper.label(scene.stepper_options)}, dt = {scene.dt:g} s, {scene.nsteps} steps to day {scene.days:g}, device {device}"
+    )
     if comm is not None:
         sizes = [len(p) for p in sim.topology.parts]
-        print(f"ranks       {comm.size} MPI ranks: {min(sizes)}-{max(sizes)} elements each along a space-filling curve, "
-              f"{sim.model.threads} CPU threads each")
+        print(
+            f"ranks       {comm.size} MPI ranks: {min(sizes)}-{max(sizes)} elements each along a space-filling curve, "
+            f"{sim.model.threads} CPU threads each"
+        )
     if sim.step:
         print(f"continue    from {args.continue_from} at step {sim.step} (day {scene.day(sim.step):g})")
     elif args.continue_from is not None and scene.branch is not None:
         b = scene.branch
-        print(f"branch      from {args.continue_from} at its step {b['step']} (day {b['day']:g}; {b['stepper']}, dt = {b['dt']:g} s): "
-              f"{scene.stepper} starts there afresh")
+        print(
+            f"branch      from {args.continue_from} at its step {b['step']} (day {b['day']:g}; {b['stepper']}, dt = {b['dt']:g} s): "
+            f"{scene.stepper} starts there afresh"
+        )
     grav = "" if math.isnan(c["courant_gravity"]) else f", gravity-wave {c['courant_gravity']:.3f}"
     print(f"Courant     advective {c['courant_advective']:.3f}{grav} (max over nodes at t = {scene.day(sim.step):g} d)")
     extra = [n for n in (sim.stability_warning(), threads_note(device)) if n]
@@ -457,19 +671,28 @@ def _run(args, scene, output, device, comm) -> int:
     only = f": {', '.join(scene.output_fields)}" if scene.output_fields else ""
     print(f"output      {output} (every {scene.output_every_days:g} days{only})")
     for st in scene.output_streams:
-        print(f"stream      {stream_path(output, st['name'])} (every {st['every_days']:g} days: {', '.join(st['fields'])})")
+        print(
+            f"stream      {stream_path(output, st['name'])} (every {st['every_days']:g} days: {', '.join(st['fields'])})"
+        )
     if scene.log_every_steps:
-        print(f"log         every {scene.log_every_steps} steps: relative change of mass, energy, enstrophy since t = 0; max Courant numbers")
+        print(
+            f"log         every {scene.log_every_steps} steps: relative change of mass, energy, enstrophy since t = 0; max Courant numbers"
+        )
     if args.restart_every is not None:
         print(f"restart     {restart_path(output)} (every {args.restart_every:g} days and at the end)")
     if sim.dfi is not None:
         print(f"initial     {sim.dfi.describe(scene.digital_filter)}")
     print(f"setup       {sim.setup_time:.2f} s")
     try:
-        result = sim.run(output, overwrite=args.overwrite, restart_every=args.restart_every, compress=args.compress,
-                         history=" ".join(["swe-sphere", *(sys.argv[1:] if args.argv is None else args.argv)]),
-                         notify=lambda line: tqdm.write(f"swe-sphere: note: {line}", file=sys.stderr),  # above the bar
-                         log=lambda line: tqdm.write(f"log         {line}", file=sys.stdout))
+        result = sim.run(
+            output,
+            overwrite=args.overwrite,
+            restart_every=args.restart_every,
+            compress=args.compress,
+            history=" ".join(["swe-sphere", *(sys.argv[1:] if args.argv is None else args.argv)]),
+            notify=lambda line: tqdm.write(f"swe-sphere: note: {line}", file=sys.stderr),  # above the bar
+            log=lambda line: tqdm.write(f"log         {line}", file=sys.stdout),
+        )
     except BlowUp as err:  # on every rank alike (the bad node is found over all of them)
         result, blowup = None, f"swe-sphere: {err}; the last good state is in {output}"
     if args.console:
@@ -486,15 +709,25 @@ def _summary(r, sim) -> None:
     d = r.diagnostics
     steps, loop = r.steps - r.first_step, r.loop_time
     print("summary")
-    print(f"  wall time   {loop:.2f} s for {steps} steps, setup {r.setup_time:.2f} s" + (
-        f" (cumulative since t = 0: {r.wall_time:.2f} s)" if r.first_step else ""))
+    print(
+        f"  wall time   {loop:.2f} s for {steps} steps, setup {r.setup_time:.2f} s"
+        + (f" (cumulative since t = 0: {r.wall_time:.2f} s)" if r.first_step else "")
+    )
     if steps:
-        rest = f", then {1e3 * (loop - r.first_step_time) / (steps - 1):.2f} ms/step over {steps - 1} steps" if steps > 1 else ""
-        print(f"  time        compile {r.compile_time:.2f} s (setup and loop), first step {r.first_step_time:.3f} s{rest}")
+        rest = (
+            f", then {1e3 * (loop - r.first_step_time) / (steps - 1):.2f} ms/step over {steps - 1} steps"
+            if steps > 1
+            else ""
+        )
+        print(
+            f"  time        compile {r.compile_time:.2f} s (setup and loop), first step {r.first_step_time:.3f} s{rest}"
+        )
     print(f"  RHS evals   {r.rhs_evals}")
     if sim.dfi is not None:
-        print(f"  initial     digital-filter start: {sim.dfi.rhs_evals} RHS evals, {sim.dfi.wall_time:.2f} s (in setup); rms dh/dt "
-              f"{sim.dfi.dhdt_rms[0]:.3e} -> {sim.dfi.dhdt_rms[1]:.3e} m/s")
+        print(
+            f"  initial     digital-filter start: {sim.dfi.rhs_evals} RHS evals, {sim.dfi.wall_time:.2f} s (in setup); rms dh/dt "
+            f"{sim.dfi.dhdt_rms[0]:.3e} -> {sim.dfi.dhdt_rms[1]:.3e} m/s"
+        )
     elif sim.scene.initialization is not None:
         print("  initial     digital-filter start of the run continued (not redone)")
     for k, total in r.iterations.items():
@@ -518,8 +751,14 @@ def _summary(r, sim) -> None:
             print(f"  {vs:11s} none: no output time after t = 0 is one the reference stores (whole days)")
         else:
             d = scored[-1]
-            at = "" if d is r.history[-1] else f" (day {sim.scene.day(d['steps']):g}, its last output time {name} stores)"
-            print(f"  {vs} h+hs l1 {d['ref_l1_h_surface']:.3e}  l2 {d['ref_l2_h_surface']:.3e}  linf {d['ref_linf_h_surface']:.3e}{at}")
+            at = (
+                ""
+                if d is r.history[-1]
+                else f" (day {sim.scene.day(d['steps']):g}, its last output time {name} stores)"
+            )
+            print(
+                f"  {vs} h+hs l1 {d['ref_l1_h_surface']:.3e}  l2 {d['ref_l2_h_surface']:.3e}  linf {d['ref_linf_h_surface']:.3e}{at}"
+            )
             print(f"  {vs} wind l1 {d['ref_l1_wind']:.3e}  l2 {d['ref_l2_wind']:.3e}  linf {d['ref_linf_wind']:.3e}")
             print(f"  {vs} wind l2 vorticity {d['ref_l2_vorticity']:.3e}  l2 divergence {d['ref_l2_divergence']:.3e}")
     print(f"  output      {r.output}")
@@ -535,19 +774,37 @@ def _cmd_plot(args) -> int:
         if args.diff is not None or args.force:
             raise ValueError("--diff and --force compare maps: not with --spectrum or --zonal-mean")
         if not args.zonal_mean and (args.field or args.lat_range):
-            raise ValueError(f"--{'field' if args.field else 'lat-range'} applies to maps and --zonal-mean, not --spectrum")
-        paths = plot_analyses(args.run, args.day, args.output, spectrum=args.spectrum, zonal_fields=fields if args.zonal_mean else (),
-                              lat_range=args.lat_range, overwrite=args.overwrite)
+            raise ValueError(
+                f"--{'field' if args.field else 'lat-range'} applies to maps and --zonal-mean, not --spectrum"
+            )
+        paths = plot_analyses(
+            args.run,
+            args.day,
+            args.output,
+            spectrum=args.spectrum,
+            zonal_fields=fields if args.zonal_mean else (),
+            lat_range=args.lat_range,
+            overwrite=args.overwrite,
+        )
     else:
-        paths = plot_run(args.run, fields, args.day, args.diff, args.output, args.lat_range, force=args.force, overwrite=args.overwrite)
+        paths = plot_run(
+            args.run,
+            fields,
+            args.day,
+            args.diff,
+            args.output,
+            args.lat_range,
+            force=args.force,
+            overwrite=args.overwrite,
+        )
     for path in paths:
         print(path)
     return 0
 
 
 def _cmd_remap(args) -> int:
-    from .io.run_file import check_distinct, check_target
     from .io.remap import latlon_grid, open_netcdf, remap_file, run_grid
+    from .io.run_file import check_distinct, check_target
 
     output = args.output or Path(f"{args.run.stem}_latlon{args.resolution:g}.nc")
     lat, lon = latlon_grid(args.resolution)
@@ -558,12 +815,20 @@ def _cmd_remap(args) -> int:
     with open_netcdf(args.run) as ds:
         grid = run_grid(ds)
     remap_file(args.run, args.resolution, output, overwrite=args.overwrite)
-    print(f"{output}: ne={grid.ne} np={grid.np} -> {lat.size} x {lon.size} lat-lon points ({args.resolution:g} degrees)")
+    print(
+        f"{output}: ne={grid.ne} np={grid.np} -> {lat.size} x {lon.size} lat-lon points ({args.resolution:g} degrees)"
+    )
     return 0
 
 
-COMMANDS = {"list": lambda args: _cmd_list(), "stability": _cmd_stability, "sweep": _cmd_sweep, "plot": _cmd_plot,
-            "remap": _cmd_remap, "run": _cmd_run}
+COMMANDS = {
+    "list": lambda args: _cmd_list(),
+    "stability": _cmd_stability,
+    "sweep": _cmd_sweep,
+    "plot": _cmd_plot,
+    "remap": _cmd_remap,
+    "run": _cmd_run,
+}
 
 
 def _classify(err: BaseException) -> tuple[int, str]:
@@ -574,7 +839,10 @@ def _classify(err: BaseException) -> tuple[int, str]:
         return 128 + err.signum, str(err)
     if isinstance(err, KeyboardInterrupt):  # outside the time loop (its handler stops after a step)
         signum = getattr(err, "signum", signal.SIGINT)
-        return 128 + signum, f"interrupted by {signal.Signals(signum).name} outside the time loop; no output was written"
+        return (
+            128 + signum,
+            f"interrupted by {signal.Signals(signum).name} outside the time loop; no output was written",
+        )
     if isinstance(err, (BlowUp, StepFailure, ResourceError)):  # BlowUp: a sweep's reference run
         return EXIT_BLOWUP, str(err)
     if isinstance(err, MemoryError):
@@ -631,8 +899,10 @@ def _exit(code: int):
     flush(sys.stdout)  # may wait for a slow reader: a signal meanwhile is answered below
     if _LATE and code == 0:
         signum = min(_LATE)  # SIGINT before SIGTERM
-        print(f"swe-sphere: interrupted by {signal.Signals(signum).name} after the command had finished; its output is complete",
-              file=sys.stderr)
+        print(
+            f"swe-sphere: interrupted by {signal.Signals(signum).name} after the command had finished; its output is complete",
+            file=sys.stderr,
+        )
         code = 128 + signum
     flush(sys.stderr)
     os._exit(code)
@@ -669,13 +939,17 @@ def _report(err: BaseException, args) -> int:
     from .core import mpi
 
     code, message = _classify(err)
-    comm = (mpi.world() if args is not None and args.command == "run" and not isinstance(err, mpi.MPIUnavailable)
-            else None)  # one run over several MPI ranks
+    comm = (
+        mpi.world() if args is not None and args.command == "run" and not isinstance(err, mpi.MPIUnavailable) else None
+    )  # one run over several MPI ranks
     # every rank refuses it, stops at one step, or finds too little memory, alike
     alike = code == EXIT_BAD_INPUT or isinstance(err, Interrupted) or getattr(err, "on_every_rank", False)
     if comm is None or comm.rank == 0 or not alike:
         where = f"rank {comm.rank} of {comm.size}: " if comm is not None and comm.rank else ""
-        print(f"swe-sphere: {where}{'error: ' if code in (EXIT_BAD_INPUT, EXIT_INTERNAL) else ''}{message}", file=sys.stderr)
+        print(
+            f"swe-sphere: {where}{'error: ' if code in (EXIT_BAD_INPUT, EXIT_INTERNAL) else ''}{message}",
+            file=sys.stderr,
+        )
     if comm is not None and comm.rank != 0 and not alike and code < 128:
         # perhaps this rank alone (a signal stops every rank at the same step): the others
         # cannot meet it again, so rank 0 closes its files and ends the job (mpi.watch_failures)

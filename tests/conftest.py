@@ -26,9 +26,9 @@ if hasattr(wp, "LOG_WARNING"):
 
 from swe_sphere.config.scene import load_scene  # noqa: E402
 from swe_sphere.core.constants import DAY  # noqa: E402
+from swe_sphere.core.errors import BlowUp  # noqa: E402
 from swe_sphere.grid.cubed_sphere import CubedSphere  # noqa: E402
-from swe_sphere.simulation.simulation import Simulation
-from swe_sphere.core.errors import BlowUp
+from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 
 TINY = ("--ne", "2", "--np", "4", "--device", "cpu", "--no-progress")
 
@@ -53,7 +53,7 @@ def sigint_raises():
     signal.signal(signal.SIGINT, before)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def cached_grid(ne: int, np_: int) -> CubedSphere:
     """One CubedSphere per (ne, np) for the whole session (treat as read-only)."""
     return CubedSphere(ne, np_)
@@ -128,7 +128,7 @@ def run(scene):
     return result, sim, time.perf_counter() - t0
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def tc6_inviscid(days: float, case: str = "tc6_rossby_haurwitz"):
     """TC6 (or ``case``) at ne = 4 np = 4 for ``days``, without hyperviscosity, one output
     at the end (the temporal-order tests' case)."""
@@ -137,18 +137,22 @@ def tc6_inviscid(days: float, case: str = "tc6_rossby_haurwitz"):
     return dataclasses.replace(scene, terms=terms, nu=0.0, output_every_days=days)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def tc6_final(days: float, stepper: str, nsteps: int, options: tuple = (), case: str = "tc6_rossby_haurwitz"):
     """``tc6_inviscid(days, case)`` in ``nsteps`` steps of ``stepper`` with ``options``
     ((key, value) pairs), once a session: (final state (3, N) u, v, h, RunResult, wall s)."""
-    scene = dataclasses.replace(tc6_inviscid(days, case), stepper=stepper, dt=days * DAY / nsteps, stepper_options=dict(options))
+    scene = dataclasses.replace(
+        tc6_inviscid(days, case), stepper=stepper, dt=days * DAY / nsteps, stepper_options=dict(options)
+    )
     assert scene.nsteps == nsteps and abs(scene.nsteps * scene.dt - days * DAY) < 1e-6
     result, sim, wall = run(scene)
     assert result.blowup is None, result.blowup
     return sim.x.numpy().copy(), result, wall
 
 
-def tc6_error(days: float, ref_steps: int, stepper: str, nsteps: int, options: tuple = (), case: str = "tc6_rossby_haurwitz"):
+def tc6_error(
+    days: float, ref_steps: int, stepper: str, nsteps: int, options: tuple = (), case: str = "tc6_rossby_haurwitz"
+):
     """Normalised l2 distance of the whole state (u, v, h) after ``days`` to rk4 in
     ``ref_steps`` steps (of TC6 or ``case``), with the run's RunResult and wall seconds."""
     ref = tc6_final(days, "rk4", ref_steps, (), case)[0]
@@ -221,7 +225,10 @@ def paused(tmp_path_factory):
         marker = tmp_path_factory.mktemp("paused") / "marker"
         proc = subprocess.Popen(
             [*map(str, launcher), sys.executable, str(PAUSED_RUN), where, str(marker), *map(str, args)],
-            cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            cwd=cwd,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
             env={**os.environ, "SWE_SPHERE_THREADS": "1", **(env or {})},
             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # even if our runner ignores SIGINT
         )
@@ -247,7 +254,9 @@ def pytest_terminal_summary(terminalreporter, config):
     if "roundoff" not in (config.option.markexpr or "") or not roundoff.RECORDS:
         return
     target = "generic" if os.environ.get("SWE_SPHERE_CPU_GENERIC", "") not in ("", "0") else "default"
-    terminalreporter.section(f"round-off: measured / bound (Warp CPU target: {target}, {wp.config.cpu_compiler_flags!r})")
+    terminalreporter.section(
+        f"round-off: measured / bound (Warp CPU target: {target}, {wp.config.cpu_compiler_flags!r})"
+    )
     for test, what, measured, limit in roundoff.RECORDS:
         terminalreporter.write_line(f"{measured:9.2e} / {limit:9.2e} = {measured / limit:5.3f}  {test} {what}")
 

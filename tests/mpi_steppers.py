@@ -12,10 +12,11 @@ import sys
 
 import numpy as np
 
-import roundoff
-from swe_sphere.core import mpi
 from swe_sphere.config.scene import load_scene
+from swe_sphere.core import mpi
 from swe_sphere.simulation.simulation import Simulation
+
+import roundoff
 
 # label → (stepper, its options; None: the bundled ARK3(2)4L[2]SA pair)
 STEPPERS = {

@@ -153,7 +153,9 @@ class NumpyOps:
         rhat = g.xyz
         L[:3] -= np.sum(L[:3] * rhat, axis=0) * rhat
         grad_div = self.dss(self.gradient(self.dss(self.divergence(u, v))))
-        Y = np.concatenate([nu * (L[:3] + shift * wind) + (nu_div - nu) * (grad_div[0] * g.east + grad_div[1] * g.north), nu_s * L[3:]])
+        Y = np.concatenate(
+            [nu * (L[:3] + shift * wind) + (nu_div - nu) * (grad_div[0] * g.east + grad_div[1] * g.north), nu_s * L[3:]]
+        )
         out = self.laplacian(Y)
         out[:3] += shift * Y[:3]
         return out

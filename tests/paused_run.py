@@ -35,6 +35,7 @@ def _note_signals():
     for sig in SIGNALS:
         handler = signal.getsignal(sig)
         if callable(handler) and getattr(handler, "__name__", "") != "noted":
+
             def noted(signum, frame, handler=handler):
                 _got.append(signum)
                 handler(signum, frame)  # may raise (KeyboardInterrupt at start-up)
@@ -52,6 +53,7 @@ def _arrive_and_wait():
 
 
 if WHERE == "start-up":
+
     class _HoldInWarp:  # deep inside Warp's import: `warp` half initialised, ten of its modules loaded
         def find_spec(self, name, path=None, target=None):
             if name.startswith("warp.") and sum(m.startswith("warp.") for m in sys.modules) >= 10:
@@ -69,6 +71,7 @@ else:
     def held_run(self, *args, **kwargs):
         step, check, watch, calls = self.stepper.step, self.model.bad_nodes.first, self.model.bad_nodes.watch, [0]
         if WHERE == "inside-step":
+
             def endless_step(x):
                 MARKER.write_text(str(os.getpid()))
                 while True:
@@ -76,6 +79,7 @@ else:
 
             self.stepper.step = endless_step
         else:
+
             def held(check):  # every step is checked once, at once or on the device (``Simulation.check_every``)
                 def held_check(x):
                     calls[0] += 1

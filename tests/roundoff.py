@@ -65,19 +65,24 @@ def mass_kept(history: list[dict], npts: int, updates=operations) -> None:
     |mass change| ≤ ``mass_change_bound(updates(output), npts)``, ``updates`` the
     depth's updates up to that output (default: ``operations``). Records the output
     nearest its bound."""
+
     def limit(d):
         return mass_change_bound(updates(d), npts)
 
     worst = max(history, key=lambda d: (abs(d["mass_change"]) / limit(d), d["steps"]))  # ties (all zero): the last
-    within(abs(worst["mass_change"]), limit(worst), f"|mass change| at step {worst['steps']} ({updates(worst)} updates)")
+    within(
+        abs(worst["mass_change"]), limit(worst), f"|mass change| at step {worst['steps']} ({updates(worst)} updates)"
+    )
 
 
 def run_file_history(ds) -> list[dict]:
     """A run file's (or a sweep table's) outputs as ``mass_kept``'s history: mass_change,
     rhs_evals, steps and the solvers' iterations (a sweep's NaN where a stepper has no such solver: 0)."""
     names = ["mass_change", "rhs_evals", "steps", *(k for k in ds.keys() if str(k).endswith("_iterations"))]
-    return [dict(zip(names, (float(v) if k == "mass_change" else int(np.nan_to_num(v)) for k, v in zip(names, row))))
-            for row in zip(*(ds[k] for k in names))]
+    return [
+        dict(zip(names, (float(v) if k == "mass_change" else int(np.nan_to_num(v)) for k, v in zip(names, row))))
+        for row in zip(*(ds[k] for k in names))
+    ]
 
 
 def nudged(x: np.ndarray, grid, rng) -> np.ndarray:

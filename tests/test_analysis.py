@@ -13,14 +13,15 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from conftest import TINY, cli_main, cli_one_line
-from test_plotting import old_file, png_size  # noqa: F401 (old_file: a run file without vorticity, a fixture)
-from swe_sphere.studies import plotting
-from swe_sphere.studies.analysis import kinetic_energy_spectrum, zonal_mean
-from swe_sphere.core.constants import EARTH, DAY
-from swe_sphere.model.diagnostics import harmonic_state
+from swe_sphere.core.constants import DAY, EARTH
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.io.run_file import RunWriter
+from swe_sphere.model.diagnostics import harmonic_state
+from swe_sphere.studies import plotting
+from swe_sphere.studies.analysis import kinetic_energy_spectrum, zonal_mean
+
+from conftest import TINY, cli_main, cli_one_line
+from test_plotting import old_file, png_size  # noqa: F401 (old_file: a run file without vorticity, a fixture)
 
 A, OMEGA, G = EARTH.a, EARTH.omega, EARTH.g
 U0 = 2 * math.pi * A / (12 * DAY)  # TC2's solid-body speed at the equator
@@ -48,8 +49,14 @@ def harmonics(tmp_path_factory):
     y3 = harmonic_state(grid, 3, "height")[2]
     y5 = harmonic_state(grid, 5, "height", seed=1)[2]
     # v = r̂ × ∇₁Y = k × ∇(aY): ζ = ∇²(aY) = −l(l+1) Y / a; likewise δ of ∇₁Y
-    path = write_run(tmp_path_factory.mktemp("harm") / "harm.nc", grid, ur + 0.5 * ud, vr + 0.5 * vd,
-                     -12 * y3 / A, -0.5 * 30 * y5 / A)
+    path = write_run(
+        tmp_path_factory.mktemp("harm") / "harm.nc",
+        grid,
+        ur + 0.5 * ud,
+        vr + 0.5 * vd,
+        -12 * y3 / A,
+        -0.5 * 30 * y5 / A,
+    )
     area = grid.integrate(np.ones(grid.npts))
     return path, grid, grid.integrate(0.5 * (ur**2 + vr**2)) / area, grid.integrate(0.125 * (ud**2 + vd**2)) / area
 
@@ -88,8 +95,26 @@ def tc2_file(tmp_path_factory):
     from swe_sphere.cli import main
 
     out = tmp_path_factory.mktemp("tc2") / "tc2.nc"
-    assert main(["run", "tc2_steady", "--ne", "4", "--np", "4", "--days", "1", "--device", "cpu", "--no-progress",
-                 "--output", str(out)]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "tc2_steady",
+                "--ne",
+                "4",
+                "--np",
+                "4",
+                "--days",
+                "1",
+                "--device",
+                "cpu",
+                "--no-progress",
+                "--output",
+                str(out),
+            ]
+        )
+        == 0
+    )
     return out
 
 
@@ -134,10 +159,28 @@ def test_tc2_zonal_mean_depth_is_williamsons(tc2_file):
 
 
 def test_plot_spectrum_and_zonal_mean_files(tc2_file, tmp_path, capsys):
-    code, out, err = cli_main(capsys, "plot", tc2_file, "--spectrum", "--zonal-mean", "--field", "h", "u", "--day", "0", "1",
-                              "--output", tmp_path / "figs")
+    code, out, err = cli_main(
+        capsys,
+        "plot",
+        tc2_file,
+        "--spectrum",
+        "--zonal-mean",
+        "--field",
+        "h",
+        "u",
+        "--day",
+        "0",
+        "1",
+        "--output",
+        tmp_path / "figs",
+    )
     assert code == 0, err
-    names = ["tc2_spectrum_day0_1.png", "tc2_spectrum_day0_1.csv", "tc2_h_zonal_mean_day0_1.png", "tc2_u_zonal_mean_day0_1.png"]
+    names = [
+        "tc2_spectrum_day0_1.png",
+        "tc2_spectrum_day0_1.csv",
+        "tc2_h_zonal_mean_day0_1.png",
+        "tc2_u_zonal_mean_day0_1.png",
+    ]
     assert out.split() == [str(tmp_path / "figs" / n) for n in names]
     assert sorted(p.name for p in (tmp_path / "figs").iterdir()) == sorted(names)
     assert png_size(tmp_path / "figs" / names[0]) == (800, 500) and png_size(tmp_path / "figs" / names[2]) == (800, 500)
@@ -173,7 +216,15 @@ def test_plot_functions_return_figures(tc2_file):
         (["missing.nc", "--spectrum"], "not found"),
     ],
 )
-def test_bad_input_exits_2_one_line_nothing_written(tc2_file, old_file, tmp_path, monkeypatch, capsys, args, message):
+def test_bad_input_exits_2_one_line_nothing_written(
+    tc2_file,
+    old_file,  # noqa: F811 (the fixture)
+    tmp_path,
+    monkeypatch,
+    capsys,
+    args,
+    message,
+):
     monkeypatch.chdir(tmp_path)
     args = [{"RUN": str(tc2_file), "OLD": str(old_file)}.get(a, a) for a in args]
     cli_one_line(capsys, ["plot", *args, "--output", tmp_path / "figs"], 2, message)
@@ -203,14 +254,20 @@ def _tiny_dataset():
     grid = CubedSphere(2, 3)
     return xr.Dataset(
         {"h": (("time", "ncol"), grid.to_unique(np.ones(grid.npts))[None])},
-        coords={"time": [0.0], "lat": ("ncol", np.degrees(grid.lat[grid.first])), "lon": ("ncol", np.degrees(grid.lon[grid.first]))},
+        coords={
+            "time": [0.0],
+            "lat": ("ncol", np.degrees(grid.lat[grid.first])),
+            "lon": ("ncol", np.degrees(grid.lon[grid.first])),
+        },
         attrs={"ne": 2, "np": 3},
     )
 
 
 # -- the run's periodic log lines -------------------------------------------------
-LOG = re.compile(r"^log +step (\d+) day ([0-9.]+)  mass ([-+0-9.e]+)  energy ([-+0-9.e]+)  enstrophy ([-+0-9.e]+)  "
-                 r"Courant advective ([0-9.]+) gravity-wave ([0-9.]+)$")
+LOG = re.compile(
+    r"^log +step (\d+) day ([0-9.]+)  mass ([-+0-9.e]+)  energy ([-+0-9.e]+)  enstrophy ([-+0-9.e]+)  "
+    r"Courant advective ([0-9.]+) gravity-wave ([0-9.]+)$"
+)
 
 
 def test_log_lines_every_n_steps(tmp_path, capsys):
@@ -219,8 +276,20 @@ def test_log_lines_every_n_steps(tmp_path, capsys):
     import xarray as xr
 
     out = tmp_path / "run.nc"
-    code, stdout, err = cli_main(capsys, "run", "tc2_steady", *TINY, "--days", "1", "-s", "output.every_days=0.5",
-                                 "-s", "output.log_every_steps=9", "--output", out)
+    code, stdout, err = cli_main(
+        capsys,
+        "run",
+        "tc2_steady",
+        *TINY,
+        "--days",
+        "1",
+        "-s",
+        "output.every_days=0.5",
+        "-s",
+        "output.log_every_steps=9",
+        "--output",
+        out,
+    )
     assert code == 0, err
     lines = [m.groups() for m in map(LOG.match, stdout.splitlines()) if m]
     assert [int(g[0]) for g in lines] == [9, 18, 27, 36]
@@ -240,8 +309,16 @@ def test_log_lines_every_n_steps(tmp_path, capsys):
 
 
 def test_log_every_steps_must_not_be_negative(capsys, tmp_path):
-    cli_one_line(capsys, ["run", "tc2_steady", *TINY, "-s", "output.log_every_steps=-1", "--output", tmp_path / "x.nc"], 2,
-                 "output.log_every_steps must be >= 0")
-    cli_one_line(capsys, ["run", "tc2_steady", *TINY, "-s", "output.log_every_steps=1.5", "--output", tmp_path / "x.nc"], 2,
-                 "output.log_every_steps must be int")
+    cli_one_line(
+        capsys,
+        ["run", "tc2_steady", *TINY, "-s", "output.log_every_steps=-1", "--output", tmp_path / "x.nc"],
+        2,
+        "output.log_every_steps must be >= 0",
+    )
+    cli_one_line(
+        capsys,
+        ["run", "tc2_steady", *TINY, "-s", "output.log_every_steps=1.5", "--output", tmp_path / "x.nc"],
+        2,
+        "output.log_every_steps must be int",
+    )
     assert list(tmp_path.iterdir()) == []

@@ -20,12 +20,13 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from conftest import cli_main, cli_one_line, make_sim, write_tc2_scene
-from swe_sphere.simulation import checkpoint as ckpt
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
 from swe_sphere.model.shallow_water import ShallowWater
+from swe_sphere.simulation import checkpoint as ckpt
 from swe_sphere.simulation.simulation import Simulation
+
+from conftest import cli_main, cli_one_line, make_sim, write_tc2_scene
 
 EVERY = "[output]\nevery_days = 0.25\n"
 RUN = ("--device", "cpu", "--no-progress")
@@ -66,7 +67,20 @@ def test_a_branch_with_an_unchanged_stepper_and_dt_is_the_continuation(spun_up, 
     history and counters kept, no branch record)."""
     _, restart = spun_up("leapfrog", 1800.0)
     assert cli_main_ok("run", "--continue", restart, "--days", "2", *RUN, "--output", "cont.nc")
-    assert cli_main_ok("run", "--continue", restart, "--days", "2", "--stepper", "leapfrog", "--dt", "1800", *RUN, "--output", "same.nc")
+    assert cli_main_ok(
+        "run",
+        "--continue",
+        restart,
+        "--days",
+        "2",
+        "--stepper",
+        "leapfrog",
+        "--dt",
+        "1800",
+        *RUN,
+        "--output",
+        "same.nc",
+    )
     with xr.open_dataset("cont.nc", decode_times=False) as a, xr.open_dataset("same.nc", decode_times=False) as b:
         assert list(b.time.values) == [1.0, 1.25, 1.5, 1.75, 2.0] and b.attrs["continued_from_day"] == 1.0
         assert "branched_from" not in b.attrs and json.loads(b.attrs["scene"])["branch"] is None
@@ -84,7 +98,9 @@ def test_a_branch_to_another_stepper_and_dt_is_a_fresh_run_from_the_state(spun_u
     records where it branched from; counters start at zero, the invariants' changes
     at the branch state; the stepper's clock starts at day 1."""
     _, restart = spun_up("rk4")
-    code, out, err = cli_main(capsys, "run", "--continue", restart, "--stepper", "ssprk3", "--dt", repr(DT_408), "--days", "2", *RUN)
+    code, out, err = cli_main(
+        capsys, "run", "--continue", restart, "--stepper", "ssprk3", "--dt", repr(DT_408), "--days", "2", *RUN
+    )
     assert code == 0, err
     assert f"branch      from {restart} at its step 24 (day 1; rk4, dt = 3600 s): ssprk3 starts there afresh" in out
     assert "ssprk3, dt = 211.765 s, 408 steps to day 2" in out
@@ -100,7 +116,9 @@ def test_a_branch_to_another_stepper_and_dt_is_a_fresh_run_from_the_state(spun_u
         np.testing.assert_array_equal(b.h.sel(time=1).values, spin.h.sel(time=1).values)  # the branch state
         grid = fresh.grid
         for row, name in enumerate("uvh"):
-            np.testing.assert_array_equal(b[name].sel(time=2).values, grid.to_unique(fresh.x.numpy()[row]), err_msg=name)
+            np.testing.assert_array_equal(
+                b[name].sel(time=2).values, grid.to_unique(fresh.x.numpy()[row]), err_msg=name
+            )
         assert list(b.steps.values) == [0, 102, 204, 306, 408] and b.rhs_evals.values[0] == 0
         assert b.total_energy_change.values[0] == 0.0 and b.total_energy_change.values[-1] != 0.0
     times = []
@@ -110,18 +128,25 @@ def test_a_branch_to_another_stepper_and_dt_is_a_fresh_run_from_the_state(spun_u
     assert sim.step == 0 and sim.scene.start_day == 1.0 and sim.scene.nsteps == 408
     sim.run(None)
     np.testing.assert_array_equal(sim.x.numpy(), fresh.x.numpy())
-    assert times[0] == DAY and times[-1] == pytest.approx(2 * DAY - DT_408 / 2, abs=1e-6)  # SSPRK3: the last stage at t + dt/2
+    assert times[0] == DAY and times[-1] == pytest.approx(
+        2 * DAY - DT_408 / 2, abs=1e-6
+    )  # SSPRK3: the last stage at t + dt/2
 
 
-@pytest.mark.parametrize("spin, stepper, dt", [("leapfrog", "leapfrog", 900.0), ("rk4", "leapfrog_trapezoidal", 1800.0)],
-                         ids=["leapfrog-new-dt", "rk4-to-leapfrog_trapezoidal"])
+@pytest.mark.parametrize(
+    "spin, stepper, dt",
+    [("leapfrog", "leapfrog", 900.0), ("rk4", "leapfrog_trapezoidal", 1800.0)],
+    ids=["leapfrog-new-dt", "rk4-to-leapfrog_trapezoidal"],
+)
 def test_a_leapfrog_branch_starts_as_at_t0(spun_up, tmp_path, spin, stepper, dt):
     """A leapfrog-family branch drops the restart file's history (a leapfrog
     spin-up's previous state belongs to another dt) and takes its one-step start:
     the bits of a fresh run from the state; and it differs from what the history
     would give (the same leapfrog at the same dt continued)."""
     _, restart = spun_up(spin, 1800.0 if spin == "leapfrog" else 3600.0)
-    assert cli_main_ok("run", "--continue", restart, "--stepper", stepper, "--dt", dt, "--days", "1.5", *RUN, "--output", "b.nc")
+    assert cli_main_ok(
+        "run", "--continue", restart, "--stepper", stepper, "--dt", dt, "--days", "1.5", *RUN, "--output", "b.nc"
+    )
     fresh = fresh_from(restart, stepper, dt, 0.5)
     with xr.open_dataset("b.nc", decode_times=False) as b:
         np.testing.assert_array_equal(b.h.sel(time=1.5).values, fresh.grid.to_unique(fresh.x.numpy()[2]))
@@ -157,15 +182,35 @@ def test_bad_branches_are_one_line_exit_2_and_write_nothing(spun_up, tmp_path, c
     before = sorted(p.name for p in tmp_path.iterdir())
     cont = ("run", "--continue", restart, *RUN, "--output", "x.nc")
     cli_one_line(capsys, [*cont, "--stepper", "ssprk3"], 2, "days must be > 1 (got 1.0): the run branches at day 1")
-    cli_one_line(capsys, [*cont, "--dt", "1728", "--days", "2"], 2,
-                 "output interval (output.every_days) of 0.25 days is not a whole number of steps of dt = 1728 s (the dt given)")
-    cli_one_line(capsys, [*cont, "--dt", "7000", "--days", "2"], 2, "run length of 1 days is not a whole number of steps of dt = 7000 s")
+    cli_one_line(
+        capsys,
+        [*cont, "--dt", "1728", "--days", "2"],
+        2,
+        "output interval (output.every_days) of 0.25 days is not a whole number of steps of dt = 1728 s (the dt given)",
+    )
+    cli_one_line(
+        capsys,
+        [*cont, "--dt", "7000", "--days", "2"],
+        2,
+        "run length of 1 days is not a whole number of steps of dt = 7000 s",
+    )
     cli_one_line(capsys, [*cont, "--dt", "-5", "--days", "2"], 2, "dt must be > 0 (got -5)")
     cli_one_line(capsys, [*cont, "--stepper", "euler", "--days", "2"], 2, "unknown stepper 'euler'")
-    cli_one_line(capsys, [*cont, "--stepper", "ssprk3", "--ne", "3", "--days", "2"], 2, "is a run with ne = 2; it cannot continue with --ne 3")
-    cli_one_line(capsys, [*cont, "--stepper", "ssprk3", "-s", "hyperviscosity.nu=1e15", "--days", "2"], 2, "-s cannot change")
-    cli_one_line(capsys, ["run", "--continue", "spin.nc", "--stepper", "ssprk3", "--days", "2", *RUN, "--output", "x.nc"], 2,
-                 "spin.nc: not a swe_sphere checkpoint")
+    cli_one_line(
+        capsys,
+        [*cont, "--stepper", "ssprk3", "--ne", "3", "--days", "2"],
+        2,
+        "is a run with ne = 2; it cannot continue with --ne 3",
+    )
+    cli_one_line(
+        capsys, [*cont, "--stepper", "ssprk3", "-s", "hyperviscosity.nu=1e15", "--days", "2"], 2, "-s cannot change"
+    )
+    cli_one_line(
+        capsys,
+        ["run", "--continue", "spin.nc", "--stepper", "ssprk3", "--days", "2", *RUN, "--output", "x.nc"],
+        2,
+        "spin.nc: not a swe_sphere checkpoint",
+    )
     assert sorted(p.name for p in tmp_path.iterdir()) == before
 
 
@@ -178,11 +223,25 @@ def test_sweep_from_a_restart_file_branches_every_run_there(spun_up, tmp_path, c
     the case's initial state); each run's key names the file and its SHA-256, so a
     rerun reuses them, and a restart file rewritten in place makes them again."""
     _, restart = spun_up("rk4")
-    sweep = ("sweep", "--from", restart, "--days", "1.5", "--runs", "rk4@0.5,ssprk3@1", "--device", "cpu", "--output", "sw")
+    sweep = (
+        "sweep",
+        "--from",
+        restart,
+        "--days",
+        "1.5",
+        "--runs",
+        "rk4@0.5,ssprk3@1",
+        "--device",
+        "cpu",
+        "--output",
+        "sw",
+    )
     code, out, err = cli_main(capsys, *sweep)
     assert code == 0, err
     assert f"start       the state of {restart} at day 1 (step 24 of rk4, dt = 3600 s)" in out
-    rows = {r["stepper"]: r for r in (json.loads(p.read_text())["row"] for p in (tmp_path / "sw" / "runs").glob("*.json"))}
+    rows = {
+        r["stepper"]: r for r in (json.loads(p.read_text())["row"] for p in (tmp_path / "sw" / "runs").glob("*.json"))
+    }
     keys = [json.loads(p.read_text())["key"] for p in (tmp_path / "sw" / "runs").glob("*.json")]
     sha = hashlib.sha256(restart.read_bytes()).hexdigest()
     for key in keys:
@@ -191,8 +250,11 @@ def test_sweep_from_a_restart_file_branches_every_run_there(spun_up, tmp_path, c
         fresh = fresh_from(restart, stepper, row["dt"], 0.5)
         errors = fresh.scorer.total_errors(1.5 * DAY, fresh.x.numpy())
         assert row["total_error"] == errors["total_error"], stepper
-        from_t0 = make_sim(dataclasses.replace(load_scene(tmp_path / "spin.toml", stepper=stepper, dt=row["dt"]), days=0.5,
-                                               output_every_days=0.5))
+        from_t0 = make_sim(
+            dataclasses.replace(
+                load_scene(tmp_path / "spin.toml", stepper=stepper, dt=row["dt"]), days=0.5, output_every_days=0.5
+            )
+        )
         from_t0.run(None)
         assert row["total_error"] != fresh.scorer.total_errors(1.5 * DAY, from_t0.x.numpy())["total_error"]
     with np.load(next((tmp_path / "sw" / "runs").glob("reference_*.npz"))) as ref:
@@ -200,7 +262,9 @@ def test_sweep_from_a_restart_file_branches_every_run_there(spun_up, tmp_path, c
     code, out, _ = cli_main(capsys, *sweep, "--overwrite")
     assert code == 0 and "runs: 2 reused, 0 made" in out
     # the restart file rewritten (a spin-up at another dt): the runs are made again
-    assert cli_main_ok("run", "spin.toml", *RUN, "--dt", "1800", "--restart-every", "1", "--output", "spin.nc", "--overwrite")
+    assert cli_main_ok(
+        "run", "spin.toml", *RUN, "--dt", "1800", "--restart-every", "1", "--output", "spin.nc", "--overwrite"
+    )
     code, out, _ = cli_main(capsys, *sweep, "--overwrite")
     assert code == 0 and "runs: 0 reused, 2 made" in out and "scene.branch.sha256" in out
 

@@ -22,12 +22,13 @@ import pytest
 import warp as wp
 import xarray as xr
 
-import roundoff
-from conftest import TINY, cached_grid, cli_main, console_script, one_line
 from swe_sphere import __version__
 from swe_sphere.cli import main
 from swe_sphere.config.scene import efold_nu
 from swe_sphere.io.run_file import RunWriter
+
+import roundoff
+from conftest import TINY, cached_grid, cli_main, console_script, one_line
 
 REPO = Path(__file__).resolve().parents[1]
 TESTCASES = REPO / "testcases"
@@ -90,20 +91,23 @@ def tc2_run(tmp_path_factory):
     return code, out
 
 
-
-
 @pytest.mark.parametrize("days, quoted", [(1.25, "(day 1, its last output time T213 stores)"), (0.25, None)])
 def test_summary_quotes_the_last_output_time_the_reference_stores(tmp_path, capsys, days, quoted):
     """T213 stores whole days: a 1.25-day run quotes its day-1 errors (labelled),
     a 0.25-day run says there is none (not "nan"); t = 0 is never quoted."""
-    assert main(["run", "tc5_mountain", *TINY, "--dt", "1800", "--days", str(days), "--output", str(tmp_path / "r.nc")]) == 0
+    assert (
+        main(["run", "tc5_mountain", *TINY, "--dt", "1800", "--days", str(days), "--output", str(tmp_path / "r.nc")])
+        == 0
+    )
     lines = [line for line in capsys.readouterr().out.splitlines() if "vs T213" in line]
     assert not any("nan" in line for line in lines)
     if quoted is None:
         assert lines == ["  vs T213     none: no output time after t = 0 is one the reference stores (whole days)"]
     else:
         assert len(lines) == 3 and lines[0].endswith(quoted)
-        with xr.open_dataset(tmp_path / "r.nc", decode_times=False) as ds:  # the quoted l2 is the run file's day-1 value
+        with xr.open_dataset(
+            tmp_path / "r.nc", decode_times=False
+        ) as ds:  # the quoted l2 is the run file's day-1 value
             assert f"l2 {float(ds.ref_l2_h_surface.sel(time=1.0)):.3e}" in lines[0]
 
 
@@ -145,12 +149,23 @@ def test_run_writes_a_complete_netcdf_file(which, tc2_run, tc5_run_file):
         assert abs(area.sum() / (4 * math.pi * EARTH_RADIUS**2) - 1) < 1e-12
 
         # diagnostics time series
-        for name in ("mass", "total_energy", "potential_enstrophy", "mass_change", "total_energy_change",
-                     "potential_enstrophy_change", "rhs_evals", "wall_time", "steps"):
+        for name in (
+            "mass",
+            "total_energy",
+            "potential_enstrophy",
+            "mass_change",
+            "total_energy_change",
+            "potential_enstrophy_change",
+            "rhs_evals",
+            "wall_time",
+            "steps",
+        ):
             assert ds[name].dims == ("time",), name
             assert np.isfinite(ds[name].values).all(), name
         assert ds.mass_change.values[0] == 0
-        roundoff.mass_kept(roundoff.run_file_history(ds), cached_grid(2, 4).npts, lambda d: 2 * roundoff.operations(d))  # and leapfrog's time filter
+        roundoff.mass_kept(
+            roundoff.run_file_history(ds), cached_grid(2, 4).npts, lambda d: 2 * roundoff.operations(d)
+        )  # and leapfrog's time filter
         assert (np.diff(ds.rhs_evals.values) > 0).all()
         assert (np.diff(ds.wall_time.values) >= 0).all() and ds.wall_time.values[0] == 0
         assert ds.rhs_evals.values[0] == 0 and ds.steps.values[0] == 0
@@ -179,7 +194,9 @@ def test_run_writes_a_complete_netcdf_file(which, tc2_run, tc5_run_file):
         else:
             assert scene["stepper"] == "rk4"  # the efficiency study's choice (docs/efficiency.md, 2026-11-23)
             assert "topography" in scene["terms"] and "hyperviscosity" in scene["terms"]
-            assert scene["nu"] == pytest.approx(efold_nu(3.0, 2, 4, 6.37122e6), rel=1e-12)  # the scene's 3 h rule on this grid
+            assert scene["nu"] == pytest.approx(
+                efold_nu(3.0, 2, 4, 6.37122e6), rel=1e-12
+            )  # the scene's 3 h rule on this grid
             assert ds.hs.values.max() > 1000  # the mountain (2000 m at its centre)
             assert "l2_h" not in ds  # no exact solution for TC5
 
@@ -245,7 +262,9 @@ def test_an_internal_failure_is_one_line_and_leaves_no_file(monkeypatch, capsys,
     monkeypatch.setattr(RunWriter, "append", failing_append)
     code = main(["run", "tc2_steady", *TINY, "--days", "2", "--output", str(out)])
     err = capsys.readouterr().err
-    assert code == 1 and stderr_lines(err) == ["swe-sphere: error: internal error: Broken: disk on fire (run with --debug for the traceback)"]
+    assert code == 1 and stderr_lines(err) == [
+        "swe-sphere: error: internal error: Broken: disk on fire (run with --debug for the traceback)"
+    ]
     assert nc_files(tmp_path) == []
     with pytest.raises(Broken):
         main(["run", "tc2_steady", *TINY, "--days", "2", "--output", str(out), "--debug"])
@@ -264,14 +283,29 @@ def test_every_stepper_runs_tc2(stepper, capsys, tmp_path):
         assert ds.attrs["stepper"] == stepper
         assert json.loads(ds.attrs["scene"])["stepper"] == stepper
         assert ds.l2_h.values[-1] < 3e-3  # measured 1.36e-3 .. 1.51e-3 for the four steppers
-        roundoff.mass_kept(roundoff.run_file_history(ds), cached_grid(2, 4).npts, lambda d: 2 * roundoff.operations(d))  # and leapfrog's time filter
+        roundoff.mass_kept(
+            roundoff.run_file_history(ds), cached_grid(2, 4).npts, lambda d: 2 * roundoff.operations(d)
+        )  # and leapfrog's time filter
 
 
 @pytest.mark.parametrize("ne,np_", [(1, 3), (3, 2), (1, 8)])
 def test_ncol_and_area_on_other_grids(ne, np_, capsys, tmp_path):
     out = tmp_path / "g.nc"
-    code, _, err = run_cli(capsys, "tc2_steady", "--ne", ne, "--np", np_, "--days", "1", "--device", "cpu",
-                           "--no-progress", "--output", out)
+    code, _, err = run_cli(
+        capsys,
+        "tc2_steady",
+        "--ne",
+        ne,
+        "--np",
+        np_,
+        "--days",
+        "1",
+        "--device",
+        "cpu",
+        "--no-progress",
+        "--output",
+        out,
+    )
     assert code == 0, err
     with xr.open_dataset(out, decode_times=False) as ds:
         assert ds.sizes["ncol"] == 6 * ne**2 * (np_ - 1) ** 2 + 2
@@ -282,8 +316,9 @@ def test_ncol_and_area_on_other_grids(ne, np_, capsys, tmp_path):
 
 def test_overrides_reach_the_scene_and_output_is_daily(capsys, tmp_path):
     out = tmp_path / "o.nc"
-    code, _, err = run_cli(capsys, "tc2_steady", *TINY, "--dt", "3600", "--days", "3", "--stepper", "rk4",
-                           "--output", out)
+    code, _, err = run_cli(
+        capsys, "tc2_steady", *TINY, "--dt", "3600", "--days", "3", "--stepper", "rk4", "--output", out
+    )
     assert code == 0, err
     with xr.open_dataset(out, decode_times=False) as ds:
         np.testing.assert_allclose(ds.time.values, [0, 1, 2, 3])
@@ -402,26 +437,33 @@ def test_unknown_scene_file(capsys, tmp_path):
     [
         pytest.param(lambda t: t.replace("[grid]", "[grid"), ("TOML",), id="malformed-toml"),
         pytest.param(lambda t: t + "\nfoo = [1, \n", ("TOML",), id="unterminated-array"),
-        pytest.param(lambda t: t.replace('name = "tc2_steady"', 'name = "tc99_nothing"'), ("case", "tc99_nothing"),
-                     id="unknown-case"),
-        pytest.param(lambda t: t.replace('"coriolis"', '"coriolis", "friction"'), ("term", "friction"),
-                     id="unknown-term"),
-        pytest.param(lambda t: t.replace('stepper = "ssprk3"', 'stepper = "euler"'), ("stepper", "euler"),
-                     id="unknown-stepper"),
+        pytest.param(
+            lambda t: t.replace('name = "tc2_steady"', 'name = "tc99_nothing"'),
+            ("case", "tc99_nothing"),
+            id="unknown-case",
+        ),
+        pytest.param(
+            lambda t: t.replace('"coriolis"', '"coriolis", "friction"'), ("term", "friction"), id="unknown-term"
+        ),
+        pytest.param(
+            lambda t: t.replace('stepper = "ssprk3"', 'stepper = "euler"'), ("stepper", "euler"), id="unknown-stepper"
+        ),
         pytest.param(lambda t: "colour = 3\n" + t, ("colour",), id="unknown-top-level-key"),
         pytest.param(lambda t: t.replace("[grid]\n", "[grid]\nnx = 3\n"), ("grid.nx",), id="unknown-grid-key"),
         pytest.param(lambda t: t.replace("[time]\n", "[time]\nsteps = 3\n"), ("time.steps",), id="unknown-time-key"),
         pytest.param(lambda t: t + "\n[physics]\ng = 9.8\n", ("physics",), id="unknown-table"),
-        pytest.param(lambda t: t.replace("alpha = 0.0", "alpha = 0.0\nbeta = 1.0"), ("case.beta",),
-                     id="unknown-case-parameter"),
+        pytest.param(
+            lambda t: t.replace("alpha = 0.0", "alpha = 0.0\nbeta = 1.0"), ("case.beta",), id="unknown-case-parameter"
+        ),
         pytest.param(lambda t: t.replace("dt = 300.0", "dt = 0.0"), ("dt",), id="scene-dt-zero"),
         pytest.param(lambda t: t.replace("dt = 300.0", "dt = -300.0"), ("dt",), id="scene-dt-negative"),
         pytest.param(lambda t: t.replace("days = 5.0", "days = 0.0"), ("days",), id="scene-days-zero"),
         pytest.param(lambda t: t.replace("ne = 16", "ne = 0"), ("ne",), id="scene-ne-zero"),
         pytest.param(lambda t: t.replace("np = 4", "np = 9"), ("np",), id="scene-np-9"),
         pytest.param(lambda t: t.replace("ne = 16", 'ne = "two"'), ("grid.ne", "two"), id="scene-ne-string"),
-        pytest.param(lambda t: t.replace("every_days = 1.0", "every_days = 0.0"), ("every_days",),
-                     id="scene-output-every-zero"),
+        pytest.param(
+            lambda t: t.replace("every_days = 1.0", "every_days = 0.0"), ("every_days",), id="scene-output-every-zero"
+        ),
     ],
 )
 def test_bad_scene_files(edit, needles, capsys, tmp_path):
@@ -485,8 +527,21 @@ def test_output_into_a_folder_reported_read_only(monkeypatch, capsys, tmp_path):
 @pytest.mark.skipif(cuda_available(), reason="CUDA is available here")
 def test_device_cuda_without_cuda(capsys, tmp_path):
     out = tmp_path / "out.nc"
-    code, stdout, err = run_cli(capsys, "tc2_steady", "--ne", "2", "--np", "4", "--days", "1", "--device", "cuda",
-                                "--no-progress", "--output", out)
+    code, stdout, err = run_cli(
+        capsys,
+        "tc2_steady",
+        "--ne",
+        "2",
+        "--np",
+        "4",
+        "--days",
+        "1",
+        "--device",
+        "cuda",
+        "--no-progress",
+        "--output",
+        out,
+    )
     assert_bad_input(code, stdout, err, tmp_path, "cuda")
 
 
@@ -496,8 +551,21 @@ def test_tiny_run_on_cuda_matches_cpu(capsys, tmp_path):
     results = {}
     for device in ("cuda", "cpu"):
         out = tmp_path / f"{device}.nc"
-        code, _, err = run_cli(capsys, "tc2_steady", "--ne", "2", "--np", "4", "--days", "1", "--device", device,
-                               "--no-progress", "--output", out)
+        code, _, err = run_cli(
+            capsys,
+            "tc2_steady",
+            "--ne",
+            "2",
+            "--np",
+            "4",
+            "--days",
+            "1",
+            "--device",
+            device,
+            "--no-progress",
+            "--output",
+            out,
+        )
         assert code == 0, err
         with xr.open_dataset(out, decode_times=False) as ds:
             assert ds.attrs["device"] == device
@@ -562,7 +630,10 @@ def test_console_script_exit_status(tmp_path):
     out = tmp_path / "blow.nc"
     proc = subprocess.run(
         [console_script(), "run", *BLOWUP, "--output", str(out)],
-        cwd=tmp_path, capture_output=True, text=True, timeout=120,
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert proc.returncode == 3, proc.stderr
     assert BLOWUP_RE.search(proc.stderr), proc.stderr
@@ -582,23 +653,61 @@ def _not_a_reference(folder: Path) -> Path:
     return path
 
 
-@pytest.mark.parametrize("command, scene, value, why", [
-    ("sweep", "tc5_mountain", "missing.nc", "reference file not found: missing.nc"),
-    ("run", "tc5_mountain", "junk.nc", "junk.nc: not a readable netCDF file"),
-    ("run", "tc5_mountain", "NOT_A_REFERENCE", "not a reference file: missing variable(s) 'vort_spec_re', 'vort_spec_im'"),
-    ("run", "tc2_steady", "tc5_mountain_T213.nc", "case tc2_steady is scored against its exact solution, not a reference file"),
-    ("sweep", "tc5_mountain", "tc6_rossby_haurwitz_T213.nc", "the file is a tc6_rossby_haurwitz reference (its title), not one of tc5_mountain"),
-    ("run", "galewsky", "galewsky_balanced_T213.nc", "the file is a galewsky_balanced reference (its title), not one of galewsky"),
-], ids=["missing-sweep", "not-netcdf", "not-a-reference", "exact-solution", "other-case", "other-galewsky"])
+@pytest.mark.parametrize(
+    "command, scene, value, why",
+    [
+        ("sweep", "tc5_mountain", "missing.nc", "reference file not found: missing.nc"),
+        ("run", "tc5_mountain", "junk.nc", "junk.nc: not a readable netCDF file"),
+        (
+            "run",
+            "tc5_mountain",
+            "NOT_A_REFERENCE",
+            "not a reference file: missing variable(s) 'vort_spec_re', 'vort_spec_im'",
+        ),
+        (
+            "run",
+            "tc2_steady",
+            "tc5_mountain_T213.nc",
+            "case tc2_steady is scored against its exact solution, not a reference file",
+        ),
+        (
+            "sweep",
+            "tc5_mountain",
+            "tc6_rossby_haurwitz_T213.nc",
+            "the file is a tc6_rossby_haurwitz reference (its title), not one of tc5_mountain",
+        ),
+        (
+            "run",
+            "galewsky",
+            "galewsky_balanced_T213.nc",
+            "the file is a galewsky_balanced reference (its title), not one of galewsky",
+        ),
+    ],
+    ids=["missing-sweep", "not-netcdf", "not-a-reference", "exact-solution", "other-case", "other-galewsky"],
+)
 def test_console_script_refuses_a_bad_case_reference(tmp_path, command, scene, value, why):
     """-s case.reference=...: exit 2, one line naming the key, the value and why; nothing written."""
     (tmp_path / "junk.nc").write_text("not netCDF")
     if value == "NOT_A_REFERENCE":
         value = str(_not_a_reference(tmp_path))
     proc = subprocess.run(
-        [console_script(), command, scene, "--ne", "2", "--device", "cpu", "-s", f"case.reference={value}",
-         "--output", str(tmp_path / "out")],
-        cwd=tmp_path, capture_output=True, text=True, timeout=120,
+        [
+            console_script(),
+            command,
+            scene,
+            "--ne",
+            "2",
+            "--device",
+            "cpu",
+            "-s",
+            f"case.reference={value}",
+            "--output",
+            str(tmp_path / "out"),
+        ],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     lines = stderr_lines(proc.stderr)
     assert proc.returncode == 2 and len(lines) == 1, proc.stderr
@@ -615,9 +724,23 @@ def _no_cuda_driver() -> bool:
 @pytest.mark.skipif(not _no_cuda_driver(), reason="needs a machine without a CUDA driver")
 def test_console_script_device_cuda_without_driver_is_one_line(tmp_path):
     proc = subprocess.run(
-        [console_script(), "run", "tc2_steady", "--ne", "2", "--days", "1", "--device", "cuda",
-         "--output", str(tmp_path / "o.nc")],
-        cwd=tmp_path, capture_output=True, text=True, timeout=120,
+        [
+            console_script(),
+            "run",
+            "tc2_steady",
+            "--ne",
+            "2",
+            "--days",
+            "1",
+            "--device",
+            "cuda",
+            "--output",
+            str(tmp_path / "o.nc"),
+        ],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert proc.returncode == 2
     assert nc_files(tmp_path) == []

@@ -26,10 +26,11 @@ import math
 import numpy as np
 import pytest
 
-import roundoff
-from conftest import cached_grid
 from swe_sphere.config.scene import load_scene
 from swe_sphere.simulation.simulation import Simulation
+
+import roundoff
+from conftest import cached_grid
 
 DEVICE = "cpu"
 
@@ -41,7 +42,7 @@ def run_scene(scene):
     return result, sim.x.numpy().copy(), sim
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def tc2_run(name: str, ne: int, dt_factor: float = 1.0):
     """TC2 for one day with rk4, np = 4 and the scene's dt scaled to the grid
     (times ``dt_factor``); cached for the module so tests can share runs."""
@@ -72,7 +73,9 @@ def test_tc2_l2_converges_at_least_third_order(name):
         assert result.blowup is None
         errors.append(result.diagnostics["l2_h"])
     pair, slope = rates(nes, errors)
-    print(f"\n{name}: ne {nes} l2(h) {['%.4e' % e for e in errors]} rates {['%.3f' % r for r in pair]} slope {slope:.3f}")
+    print(
+        f"\n{name}: ne {nes} l2(h) {[f'{e:.4e}' for e in errors]} rates {[f'{r:.3f}' for r in pair]} slope {slope:.3f}"
+    )
     msg = f"{name}: l2(h) = {errors} at ne = {nes}; pairwise rates {pair}, slope {slope}"
     assert all(r >= 3.0 for r in pair), msg
     assert slope >= 3.0, msg
@@ -94,8 +97,10 @@ def test_tc2_time_error_negligible_at_ne16(name):
     spatial = math.sqrt(w @ (x[2] - he) ** 2)
     temporal = math.sqrt(w @ (x[2] - x2[2]) ** 2)
     e1, e2 = result.diagnostics["l2_h"], result2.diagnostics["l2_h"]
-    print(f"\n{name} ne=16 rk4: l2(h) {e1:.5e} (dt {scene.dt:g} s) vs {e2:.5e} (dt {scene2.dt:g} s); "
-          f"|x(dt) - x(dt/2)| / |x(dt) - exact| = {temporal / spatial:.2e}")
+    print(
+        f"\n{name} ne=16 rk4: l2(h) {e1:.5e} (dt {scene.dt:g} s) vs {e2:.5e} (dt {scene2.dt:g} s); "
+        f"|x(dt) - x(dt/2)| / |x(dt) - exact| = {temporal / spatial:.2e}"
+    )
     assert abs(e1 - e2) / e2 < 0.01
     assert temporal / spatial < 0.05
 
@@ -106,7 +111,9 @@ def test_tc2_l2_converges_to_ne32(name):
     nes = (8, 16, 32)
     errors = [tc2_run(name, ne)[1].diagnostics["l2_h"] for ne in nes]
     pair, slope = rates(nes, errors)
-    print(f"\n{name}: ne {nes} l2(h) {['%.4e' % e for e in errors]} rates {['%.3f' % r for r in pair]} slope {slope:.3f}")
+    print(
+        f"\n{name}: ne {nes} l2(h) {[f'{e:.4e}' for e in errors]} rates {[f'{r:.3f}' for r in pair]} slope {slope:.3f}"
+    )
     assert all(r >= 3.0 for r in pair), (errors, pair)
     assert slope >= 3.0
 
@@ -131,8 +138,10 @@ def test_tc5_mass_conserved_over_a_day():
     assert result.blowup is None
     assert len(result.history) == 9
     changes = [d["mass_change"] for d in result.history]
-    print(f"\ntc5 ne=6 dt={scene.dt:g}: mass change {['%.1e' % c for c in changes]}")
-    roundoff.mass_kept(result.history, cached_grid(6, 4).npts, lambda d: 2 * roundoff.operations(d))  # and the time filter
+    print(f"\ntc5 ne=6 dt={scene.dt:g}: mass change {[f'{c:.1e}' for c in changes]}")
+    roundoff.mass_kept(
+        result.history, cached_grid(6, 4).npts, lambda d: 2 * roundoff.operations(d)
+    )  # and the time filter
     # the hyperviscosity does dissipate energy, but only a little in a day
     assert -1e-3 < result.diagnostics["total_energy_change"] < 0
 
@@ -140,7 +149,7 @@ def test_tc5_mass_conserved_over_a_day():
 # -- TC1: the cosine bell around the globe ------------------------------------
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def tc1_run(ne: int):
     scene = load_scene("tc1_cosine_bell", ne=ne, np=4)
     assert scene.days == 12.0
@@ -157,8 +166,10 @@ def _check_tc1(nes):
     mass = [max(abs(d["mass_change"]) for d in r.history) for r in results]
     for ne, r in zip(nes, results):
         roundoff.mass_kept(r.history, cached_grid(ne, 4).npts)
-    print(f"\ntc1 12 days ne {nes}: l2(h) {['%.4e' % e for e in l2]} linf(h) {['%.4e' % e for e in linf]} "
-          f"max |mass change| {['%.1e' % m for m in mass]} wall {['%.2f' % r.wall_time for r in results]} s")
+    print(
+        f"\ntc1 12 days ne {nes}: l2(h) {[f'{e:.4e}' for e in l2]} linf(h) {[f'{e:.4e}' for e in linf]} "
+        f"max |mass change| {[f'{m:.1e}' for m in mass]} wall {[f'{r.wall_time:.2f}' for r in results]} s"
+    )
     for r in results:
         assert r.blowup is None
         assert len(r.history) == 13  # days 0..12

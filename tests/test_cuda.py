@@ -14,16 +14,23 @@ import dataclasses
 import numpy as np
 import pytest
 
-from conftest import requires_cuda
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
 
+from conftest import requires_cuda
+
 STEPS = 6
 # relative max-norm difference of the final state, per stepper family
 TOLERANCE = {"explicit": 1e-12, "solver": 1e-8}
-SOLVER = {"semi_implicit", "implicit", "imex", "epi2", "epi3"}  # epi: forward-difference J·v (1e-8 of it) reads the last bits
+SOLVER = {
+    "semi_implicit",
+    "implicit",
+    "imex",
+    "epi2",
+    "epi3",
+}  # epi: forward-difference J·v (1e-8 of it) reads the last bits
 
 
 def tc5_state(name: str, device: str, options: dict | None = None) -> np.ndarray:
@@ -31,8 +38,9 @@ def tc5_state(name: str, device: str, options: dict | None = None) -> np.ndarray
     implicit-type steppers at 4× the scene's Δt."""
     scene = load_scene("tc5_mountain", ne=2, np=4, stepper=name)
     dt = scene.dt * (4.0 if name in SOLVER else 1.0)
-    scene = dataclasses.replace(scene, dt=dt, days=STEPS * dt / DAY, output_every_days=STEPS * dt / DAY,
-                                stepper_options=dict(options or {}))
+    scene = dataclasses.replace(
+        scene, dt=dt, days=STEPS * dt / DAY, output_every_days=STEPS * dt / DAY, stepper_options=dict(options or {})
+    )
     sim = Simulation(scene, device, progress=False)
     sim.run(None)
     return sim.x.numpy()

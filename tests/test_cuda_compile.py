@@ -29,9 +29,9 @@ from swe_sphere.config.scene import list_scenes, load_scene
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.kernels import dss, hyperviscosity
 from swe_sphere.model.shallow_water import ShallowWater
-from swe_sphere.steppers import STEPPERS, make_stepper
 from swe_sphere.solvers.jacobian import KernelPasses
 from swe_sphere.solvers.krylov import KernelVectors
+from swe_sphere.steppers import STEPPERS, make_stepper
 
 # sm90 (H100, H200: the GPUs the project runs on) by default; sm80 (A100) under -m slow,
 # as each arch's compile of every module takes a minute on a 2-core CI machine
@@ -88,9 +88,18 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
             if not todo:
                 continue
             model = ShallowWater(
-                grid, scene.terms, case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon), nu=scene.nu,
-                nu_div=scene.nu_div, nu_s=scene.nu_s, hypervis_subcycle=scene.hypervis_subcycle, g=case.planet.g,
-                device="cpu", per_element=per_element, forcing=case.forcing() if "forcing" in scene.terms else None,
+                grid,
+                scene.terms,
+                case.fcor(grid.lat, grid.lon),
+                case.hs(grid.lat, grid.lon),
+                nu=scene.nu,
+                nu_div=scene.nu_div,
+                nu_s=scene.nu_s,
+                hypervis_subcycle=scene.hypervis_subcycle,
+                g=case.planet.g,
+                device="cpu",
+                per_element=per_element,
+                forcing=case.forcing() if "forcing" in scene.terms else None,
             )
             for name in todo:
                 done.add((scene.terms, name, per_element))
@@ -109,7 +118,9 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
                     stepper.step(model.new_state(*np.stack(case.initial(grid.lat, grid.lon))))
     for per_element in (False, True):  # the ∇⁴'s ∇(∇·v) term, which no bundled scene has (ν_div ≠ ν)
         z = np.zeros(grid.npts)
-        model = ShallowWater(grid, ["hyperviscosity"], z, z, nu=1e15, nu_div=3e15, device="cpu", per_element=per_element)
+        model = ShallowWater(
+            grid, ["hyperviscosity"], z, z, nu=1e15, nu_div=3e15, device="cpu", per_element=per_element
+        )
         model.hyperviscosity(model.new_state(), 100.0)
     ghosted = [factory(*args, ghosts=True) for factory, args in dss_args]
     return [k for k in launched if k.func.__module__.startswith("swe_sphere.")], ghosted
@@ -142,7 +153,9 @@ def ptx(modules, tmp_path_factory):
     def compiled(arch):
         out = {}
         for name, (module, _) in modules.items():
-            paths = wp.compile_aot_module(module, arch=arch, module_dir=tmp_path_factory.mktemp(f"sm{arch}"), use_ptx=True)
+            paths = wp.compile_aot_module(
+                module, arch=arch, module_dir=tmp_path_factory.mktemp(f"sm{arch}"), use_ptx=True
+            )
             assert len(paths) == 1 and paths[0].name.endswith(f".sm{arch}.ptx"), (name, paths)
             out[name] = paths[0].read_text()
         return out
@@ -161,15 +174,55 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
         tendency = [n for n in names if re.fullmatch("tendency__" + "__".join(terms) + "_[0-9a-f]{8}", n)]
         assert len(tendency) == 2, (terms, tendency)  # per node and per element
     keys = {k.key for k in launched}
-    for key in ("laplacian_element__first", "laplacian_element__second", "laplace_wk_flux", "laplacian_node__first", "laplacian_node__second", "dss_apply",
-                "laplacian_element__first__divergent", "laplacian_node__first__divergent",
-                "helmholtz_gradient", "helmholtz_divergence", "helmholtz_assemble", "helmholtz_rhs", "helmholtz_back_substitution", "cg_update", "inner3", "schur_height",
-                "helmholtz_back_substitution_implicit", "schur_wind_implicit",  # the IMEX stages' L Y in the back-substitution
-                "helmholtz_gradient_float32", "helmholtz_divergence_float32", "helmholtz_assemble_float32", "cg_update_float32",
-                "converted_float32", "add_converted", "cg_check", "cg_alpha", "refine_check", "add_mean_difference",
-                "history_dots", "history_guess", "history_increment_dots", "history_coefficients", "history_store",
-                "jacobian_vector", "fd_epsilon", "add_scaled", "project_dots", "lincomb", "fgmres_start", "fgmres_cycle",
-                "arnoldi_column", "fgmres_end", "row_totals", "residual", "translating_low", "axpbypcz", "dss"):
+    for key in (
+        "laplacian_element__first",
+        "laplacian_element__second",
+        "laplace_wk_flux",
+        "laplacian_node__first",
+        "laplacian_node__second",
+        "dss_apply",
+        "laplacian_element__first__divergent",
+        "laplacian_node__first__divergent",
+        "helmholtz_gradient",
+        "helmholtz_divergence",
+        "helmholtz_assemble",
+        "helmholtz_rhs",
+        "helmholtz_back_substitution",
+        "cg_update",
+        "inner3",
+        "schur_height",
+        "helmholtz_back_substitution_implicit",
+        "schur_wind_implicit",  # the IMEX stages' L Y in the back-substitution
+        "helmholtz_gradient_float32",
+        "helmholtz_divergence_float32",
+        "helmholtz_assemble_float32",
+        "cg_update_float32",
+        "converted_float32",
+        "add_converted",
+        "cg_check",
+        "cg_alpha",
+        "refine_check",
+        "add_mean_difference",
+        "history_dots",
+        "history_guess",
+        "history_increment_dots",
+        "history_coefficients",
+        "history_store",
+        "jacobian_vector",
+        "fd_epsilon",
+        "add_scaled",
+        "project_dots",
+        "lincomb",
+        "fgmres_start",
+        "fgmres_cycle",
+        "arnoldi_column",
+        "fgmres_end",
+        "row_totals",
+        "residual",
+        "translating_low",
+        "axpbypcz",
+        "dss",
+    ):
         assert key in keys, key
     plain_dss = {k.module.name for k in launched if k.key in ("dss", "dss_apply") or k.key.startswith("dss_update__")}
     assert any(k.key.startswith("dss_update__") for k in launched)  # the explicit stages' combinations
@@ -182,7 +235,7 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
 @pytest.mark.parametrize("arch", ARCHS)
 def test_every_module_compiles_to_ptx(modules, ptx, arch):
     """Each module's PTX targets the arch and has an entry for each of its kernels."""
-    for name, (module, keys) in modules.items():
+    for name, (_module, keys) in modules.items():
         text = ptx(arch)[name]
         assert f".target sm_{arch}" in text, name
         entries = re.findall(r"\.entry\s+(\w+)_[0-9a-f]{8}_cuda_kernel_forward\(", text)

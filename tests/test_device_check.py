@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 import warp as wp
 import xarray as xr
-from conftest import RUN_TIMES, assert_same_runs, make_sim, watched_run, write_tc2_scene
 
 from swe_sphere.config.scene import load_scene
-from swe_sphere.core.errors import Interrupted
-from swe_sphere.core.errors import BlowUp
-from swe_sphere.core.errors import StepFailure
+from swe_sphere.core.errors import BlowUp, Interrupted, StepFailure
+
+from conftest import RUN_TIMES, assert_same_runs, make_sim, watched_run, write_tc2_scene
+
 
 def test_blow_up_inside_a_block_is_reported_as_with_a_check_every_step(tmp_path):
     """Leapfrog at dt = 3600 s on TC2 ne = 2 blows up at step 17, inside the block
@@ -26,7 +26,11 @@ def test_blow_up_inside_a_block_is_reported_as_with_a_check_every_step(tmp_path)
     place), counters, the run file (every good output time, the last good state
     at step 16, the blowup attribute) and the state left are those of a check
     every step."""
-    scene = load_scene(write_tc2_scene(tmp_path / "s.toml", stepper="leapfrog", dt=3600.0, days=2.0, tables="[output]\nlog_every_steps = 6"))
+    scene = load_scene(
+        write_tc2_scene(
+            tmp_path / "s.toml", stepper="leapfrog", dt=3600.0, days=2.0, tables="[output]\nlog_every_steps = 6"
+        )
+    )
     one = watched_run(scene, tmp_path / "one.nc", check_every=1)
     five = watched_run(scene, tmp_path / "five.nc", check_every=5)
     assert one[1].startswith("blow-up at step 17 (model time 0.7083 days): depth h = ")
@@ -39,8 +43,15 @@ def test_blow_up_inside_a_block_is_reported_as_with_a_check_every_step(tmp_path)
 def test_blocks_give_the_same_bits_as_a_check_every_step(tmp_path, stepper):
     """A good run checked every 7 steps: the same final state, run file, restart
     file, callbacks' states and log lines as checked every step."""
-    scene = load_scene(write_tc2_scene(tmp_path / "s.toml", stepper=stepper, dt=1800.0, days=2.0,
-                                       tables="[output]\nevery_days = 0.75\nlog_every_steps = 9"))
+    scene = load_scene(
+        write_tc2_scene(
+            tmp_path / "s.toml",
+            stepper=stepper,
+            dt=1800.0,
+            days=2.0,
+            tables="[output]\nevery_days = 0.75\nlog_every_steps = 9",
+        )
+    )
     runs = [watched_run(scene, tmp_path / f"{every}.nc", check_every=every, restart_every=0.5) for every in (1, 7)]
     assert runs[0][0].steps == 96 and runs[0][1] is None
     assert_same_runs(*runs)
@@ -111,10 +122,19 @@ def test_a_failure_inside_a_block_is_reported_as_with_a_check_every_step(tmp_pat
         sim = make_sim(scene)
         sim.check_every = every
         _failing_in(sim, 11)
-        with pytest.raises(BlowUp, match=r"^step 11 failed \(model time 0\.2292 days\): Newton did not converge") as err:
+        with pytest.raises(
+            BlowUp, match=r"^step 11 failed \(model time 0\.2292 days\): Newton did not converge"
+        ) as err:
             sim.run(tmp_path / f"{every}.nc")
         with xr.open_dataset(tmp_path / f"{every}.nc") as ds:
-            runs.append((err.value.result.rhs_evals, sim.step, sim.x.numpy(), ds.drop_vars(list(RUN_TIMES), errors="ignore").drop_attrs().load()))
+            runs.append(
+                (
+                    err.value.result.rhs_evals,
+                    sim.step,
+                    sim.x.numpy(),
+                    ds.drop_vars(list(RUN_TIMES), errors="ignore").drop_attrs().load(),
+                )
+            )
     assert runs[0][:2] == runs[1][:2] == (11, 10)  # leapfrog: 2 RHS evaluations in its first step, then 1
     np.testing.assert_array_equal(runs[0][2], runs[1][2])
     xr.testing.assert_identical(runs[0][3], runs[1][3])
@@ -139,7 +159,9 @@ def test_a_step_abandoned_inside_a_block_leaves_the_blocks_first_state(tmp_path)
             real(x)
 
     sim.stepper.step = endless
-    with pytest.raises(Interrupted, match=r"at step 8 .*; step 11 abandoned after 1 s with steps 9-10 before it \(not yet checked\)"):
+    with pytest.raises(
+        Interrupted, match=r"at step 8 .*; step 11 abandoned after 1 s with steps 9-10 before it \(not yet checked\)"
+    ):
         sim.run()
     sim.stepper.step = real
     sim.run(until_step=12)

@@ -56,7 +56,9 @@ def programs(path: Path) -> list[list[str]]:
             out.append([sys.executable, "-c", "\n".join([*imports, text])])
             imports += [line for line in text.splitlines() if re.match(r"(import|from) \S", line)]
             continue
-        lines = [command for line in text.replace("\\\n", " ").splitlines() if (command := shell_line(line)) is not None]
+        lines = [
+            command for line in text.replace("\\\n", " ").splitlines() if (command := shell_line(line)) is not None
+        ]
         if lines:
             out.append(["bash", "-c", "\n".join(["set -e", *lines])])
     return out
@@ -64,19 +66,31 @@ def programs(path: Path) -> list[list[str]]:
 
 def run_examples(path: Path, folder: Path) -> None:
     (folder / "testcases").symlink_to(ROOT / "testcases")
-    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}", "MPLBACKEND": "Agg",
-           "SWE_SPHERE_THREADS": "1"}
+    env = {
+        **os.environ,
+        "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}",
+        "MPLBACKEND": "Agg",
+        "SWE_SPHERE_THREADS": "1",
+    }
     for argv in programs(path):
         proc = subprocess.run(argv, cwd=folder, env=env, capture_output=True, text=True, timeout=1800)
         assert proc.returncode == 0, f"{path.name}: example failed:\n{argv[-1]}\n{proc.stderr[-3000:]}"
 
 
 def test_shell_lines_are_shortened_only_in_their_grid():
-    assert shell_line("swe-sphere run tc5_mountain --ne 16 --days 5  # note") == f"swe-sphere run tc5_mountain --ne {NE} --days 5"
+    assert (
+        shell_line("swe-sphere run tc5_mountain --ne 16 --days 5  # note")
+        == f"swe-sphere run tc5_mountain --ne {NE} --days 5"
+    )
     assert shell_line("swe-sphere run tc5_mountain -s a.b=1") == f"swe-sphere run tc5_mountain -s a.b=1 --ne {NE}"
-    assert shell_line("swe-sphere run --continue r.restart.nc --days 20") == "swe-sphere run --continue r.restart.nc --days 20"
+    assert (
+        shell_line("swe-sphere run --continue r.restart.nc --days 20")
+        == "swe-sphere run --continue r.restart.nc --days 20"
+    )
     assert shell_line("swe-sphere plot tc5.nc --day 5") == "swe-sphere plot tc5.nc --day 5"
-    assert shell_line("swe-sphere plot tc2_steady_ne8np4_ssprk3.nc") == f"swe-sphere plot tc2_steady_ne{NE}np4_ssprk3.nc"
+    assert (
+        shell_line("swe-sphere plot tc2_steady_ne8np4_ssprk3.nc") == f"swe-sphere plot tc2_steady_ne{NE}np4_ssprk3.nc"
+    )
     assert shell_line("pip install -e . && swe-sphere list") == "swe-sphere list"
     assert shell_line("mpiexec -n 4 swe-sphere run tc5_mountain") is None
 
@@ -90,6 +104,8 @@ PAGES_LEFT_OUT = ("efficiency.md",)
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("page", sorted(p.name for p in (ROOT / "docs").glob("*.md") if p.name not in PAGES_LEFT_OUT and blocks(p)))
+@pytest.mark.parametrize(
+    "page", sorted(p.name for p in (ROOT / "docs").glob("*.md") if p.name not in PAGES_LEFT_OUT and blocks(p))
+)
 def test_docs_examples_run_as_written(tmp_path, page):
     run_examples(ROOT / "docs" / page, tmp_path)

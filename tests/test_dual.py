@@ -18,8 +18,8 @@ import pytest
 import xarray as xr
 
 from swe_sphere.cli import main
-from swe_sphere.io.dual import RTOL, cells, control_points, convex, dual_mesh, spherical_areas, star_shaped
 from swe_sphere.grid.gll import gll
+from swe_sphere.io.dual import RTOL, cells, control_points, convex, dual_mesh, spherical_areas, star_shaped
 
 GRIDS = [(1, 2), (2, 4), (3, 2), (2, 8), (4, 3), (1, 6), (1, 3), (2, 2)]
 NOT_CONVEX = {(1, 3): 3, (2, 2): 3}  # at most so many cells star-shaped but not convex, on the two coarsest grids
@@ -78,8 +78,26 @@ def test_cells_are_convex_counter_clockwise_with_the_spheremp_areas(grid_factory
 def tc5_ne4(tmp_path_factory):
     """``swe-sphere run tc5_mountain`` at ne = 4 np = 4, 1 day (outputs at days 0 and 1)."""
     out = tmp_path_factory.mktemp("dual") / "tc5.nc"
-    assert main(["run", "tc5_mountain", "--ne", "4", "--np", "4", "--days", "1", "--device", "cpu",
-                 "--no-progress", "--output", str(out)]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "tc5_mountain",
+                "--ne",
+                "4",
+                "--np",
+                "4",
+                "--days",
+                "1",
+                "--device",
+                "cpu",
+                "--no-progress",
+                "--output",
+                str(out),
+            ]
+        )
+        == 0
+    )
     return out
 
 
@@ -95,7 +113,11 @@ def test_run_file_carries_the_dual_mesh_and_cell_bounds(tc5_ne4, grid_factory):
     with netCDF4.Dataset(tc5_ne4) as nc:
         mesh = nc["mesh_dual"]
         assert (mesh.cf_role, int(mesh.topology_dimension)) == ("mesh_topology", 2)
-        assert (mesh.node_coordinates, mesh.face_coordinates, mesh.face_dimension) == ("dual_lon dual_lat", "lon lat", "ncol")
+        assert (mesh.node_coordinates, mesh.face_coordinates, mesh.face_dimension) == (
+            "dual_lon dual_lat",
+            "lon lat",
+            "ncol",
+        )
         conn = nc[mesh.face_node_connectivity]
         assert conn.dimensions == ("ncol", "nv") and int(conn.start_index) == 0 and conn._FillValue == -1
         assert np.array_equal(conn[:].filled(-1), corners)
@@ -109,14 +131,18 @@ def test_run_file_carries_the_dual_mesh_and_cell_bounds(tc5_ne4, grid_factory):
         assert np.allclose(xyz, verts, rtol=0, atol=1e-14)  # through degrees
         # the file's own corners (degrees) give its own areas: spheremp/a², to the tolerance
         node_lat, node_lon = np.radians(nc["lat"][:]), np.radians(nc["lon"][:])
-        node = np.stack([np.cos(node_lat) * np.cos(node_lon), np.cos(node_lat) * np.sin(node_lon), np.sin(node_lat)], axis=1)
+        node = np.stack(
+            [np.cos(node_lat) * np.cos(node_lon), np.cos(node_lat) * np.sin(node_lon), np.sin(node_lat)], axis=1
+        )
         area = spherical_areas(node, xyz, conn[:].filled(-1))
         assert np.max(np.abs(area * grid.radius**2 / nc["area"][:] - 1)) <= RTOL
         # the bounds are those corners, the triangles' last repeated, longitudes within 180° of the node's
         padded = np.where(corners < 0, corners[:, 2:3], corners)
         assert np.array_equal(nc["lat_bnds"][:], nc["dual_lat"][:][padded])
         dlon = nc["lon_bnds"][:] - nc["lon"][:][:, None]
-        assert np.abs(dlon).max() <= 180 and np.allclose(np.mod(dlon + nc["lon"][:][:, None] - nc["dual_lon"][:][padded] + 1, 360), 1)
+        assert np.abs(dlon).max() <= 180 and np.allclose(
+            np.mod(dlon + nc["lon"][:][:, None] - nc["dual_lon"][:][padded] + 1, 360), 1
+        )
 
 
 def test_uxarray_averages_integrates_and_takes_zonal_means_of_the_run(tc5_ne4):
@@ -182,8 +208,27 @@ def cf_files(tc5_ne4, tmp_path_factory):
     out = tmp_path_factory.mktemp("cf")
     latlon = out / "tc5_latlon.nc"
     assert main(["remap", str(tc5_ne4), "--resolution", "10", "--output", str(latlon)]) == 0
-    assert main(["sweep", "tc2_steady", "--ne", "2", "--days", "0.25", "--steppers", "ssprk3", "--dt", "3600",
-                 "--device", "cpu", "--output", str(out / "sweep")]) == 0
+    assert (
+        main(
+            [
+                "sweep",
+                "tc2_steady",
+                "--ne",
+                "2",
+                "--days",
+                "0.25",
+                "--steppers",
+                "ssprk3",
+                "--dt",
+                "3600",
+                "--device",
+                "cpu",
+                "--output",
+                str(out / "sweep"),
+            ]
+        )
+        == 0
+    )
     return {"run": tc5_ne4, "latlon": latlon, "sweep": out / "sweep" / "sweep.nc"}
 
 
@@ -232,8 +277,20 @@ def test_ioos_compliance_checker_cf18_finds_no_errors(cf_files, which, tmp_path)
 
     CheckSuite.load_all_available_checkers()
     report = tmp_path / "report.json"
-    ComplianceChecker.run_checker(str(cf_files[which]), ["cf:1.8"], 0, "normal", output_filename=str(report), output_format="json")
-    failed = [msg for check in json.loads(report.read_text())["cf:1.8"]["high_priorities"]
-              if check["value"][0] < check["value"][1] for msg in check["msgs"]]
-    assert [m for m in failed if not any(m == f"{r} is not a valid cf_role value. It must be one of timeseries_id, "
-                                                 "profile_id, trajectory_id" for r in UGRID_ROLES)] == []
+    ComplianceChecker.run_checker(
+        str(cf_files[which]), ["cf:1.8"], 0, "normal", output_filename=str(report), output_format="json"
+    )
+    failed = [
+        msg
+        for check in json.loads(report.read_text())["cf:1.8"]["high_priorities"]
+        if check["value"][0] < check["value"][1]
+        for msg in check["msgs"]
+    ]
+    assert [
+        m
+        for m in failed
+        if not any(
+            m == f"{r} is not a valid cf_role value. It must be one of timeseries_id, profile_id, trajectory_id"
+            for r in UGRID_ROLES
+        )
+    ] == []

@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from swe_sphere.cases.scoring import rotational_divergent_errors
 from swe_sphere.cli import main
 from swe_sphere.config.scene import load_scene
-from swe_sphere.cases.scoring import rotational_divergent_errors
 
 import roundoff
 from conftest import make_sim, write_tc2_scene
@@ -89,7 +89,9 @@ def test_gravity_wave_run_keeps_zero_vorticity_error():
     round-off: each RHS evaluation's gradient, its DSS and the update, three passes of
     ``roundoff.operator_roundings``."""
     base = load_scene("tc2_steady", ne=4, np=4, days=0.25)
-    scene = dataclasses.replace(base, terms=("continuity", "pressure_gradient"), stepper="rk4", dt=900.0, output_every_days=0.25)
+    scene = dataclasses.replace(
+        base, terms=("continuity", "pressure_gradient"), stepper="rk4", dt=900.0, output_every_days=0.25
+    )
     sim = make_sim(scene)
     grad, _, _ = harmonic_winds(sim)
     x = sim.x.numpy()
@@ -100,7 +102,9 @@ def test_gravity_wave_run_keeps_zero_vorticity_error():
     u, v, _ = sim.fields()
     d = sim.scorer.wind_error_decomposition(u, v, *grad)
     assert d["l2_divergence"] > 0.5  # the wave has moved on
-    roundoff.within(d["l2_vorticity"], roundoff.bound(roundoff.operator_roundings(scene.np, 3) * result.rhs_evals), "l2_vorticity")
+    roundoff.within(
+        d["l2_vorticity"], roundoff.bound(roundoff.operator_roundings(scene.np, 3) * result.rhs_evals), "l2_vorticity"
+    )
 
 
 def test_run_file_and_summary_carry_the_decomposition(tmp_path, capsys):

@@ -25,7 +25,7 @@ from swe_sphere.core.constants import DAY
 from swe_sphere.simulation.simulation import Simulation
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def run_day(name: str, ne: int, np_: int, days: float = 1.0):
     """A scene for ``days`` with rk4 at its Δt scaled to the grid; its history."""
     scene = load_scene(name, ne=ne, np=np_, days=days, stepper="rk4")

@@ -29,12 +29,13 @@ import scipy.linalg as sl
 import warp as wp
 from scipy.sparse.linalg import expm_multiply
 
-import roundoff
-from conftest import cached_grid, cli_main, cli_one_line, make_sim, run, tc6_error, write_tc2_scene
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
-from swe_sphere.solvers.kiops import Kiops
 from swe_sphere.grid.topology import Topology
+from swe_sphere.solvers.kiops import Kiops
+
+import roundoff
+from conftest import cached_grid, cli_main, cli_one_line, make_sim, run, tc6_error, write_tc2_scene
 
 
 def dense_phi(A: np.ndarray, tau: float, u: list[np.ndarray]) -> np.ndarray:
@@ -130,7 +131,9 @@ def test_kiops_on_the_model_jacobian(rng):
             out = wp.zeros(n, dtype=wp.float64)
             stats = kiops.apply(product, ws[0] if k == 0 else None, ws[1:], out, 1.0, tol, 10, 10)  # φ₁, φ₂ without φ₀
             err = np.linalg.norm(out.numpy() - ref)
-            print(f"\nphi_0..phi_{k}, {name} J·v: error {err / tol:.2f} tol, {err / np.linalg.norm(ref):.1e} relative, {stats}")
+            print(
+                f"\nphi_0..phi_{k}, {name} J·v: error {err / tol:.2f} tol, {err / np.linalg.norm(ref):.1e} relative, {stats}"
+            )
             assert stats.krylov > 10  # ΔtJ is not small: a real Krylov space
             if name == "exact":
                 assert err <= 1.4 * tol  # KIOPS accepts an estimate up to 1.4 tol
@@ -151,7 +154,9 @@ def test_temporal_order(stepper, lo, hi, case, nsteps):
     coarse, rc, _ = tc6_error(ORDER_DAYS, ORDER_REF_STEPS, stepper, nsteps, options, case)
     fine, rf, _ = tc6_error(ORDER_DAYS, ORDER_REF_STEPS, stepper, 2 * nsteps, options, case)
     rate = math.log2(coarse / fine)
-    print(f"\n{case} {stepper}: {nsteps} -> {2 * nsteps} steps: {coarse:.3e} -> {fine:.3e}, rate {rate:.3f}; {rc.iterations} / {rf.iterations}")
+    print(
+        f"\n{case} {stepper}: {nsteps} -> {2 * nsteps} steps: {coarse:.3e} -> {fine:.3e}, rate {rate:.3f}; {rc.iterations} / {rf.iterations}"
+    )
     assert lo <= rate <= hi
     assert fine > 1e-11  # well above the rk4 reference's own error
 
@@ -232,5 +237,12 @@ def test_a_state_with_no_tendency_costs_one_rhs():
 def test_kiops_that_cannot_converge_fails_the_step(tmp_path, capsys):
     """A Krylov space of 3 at 6 h steps: KIOPS's substeps shrink until it gives up
     (``MAX_SUBSTEPS``): a step failure, exit 3, one line naming KIOPS."""
-    path = write_tc2_scene(tmp_path / "small.toml", stepper="epi2", dt=21600.0, days=0.25, tables="[epi2]\nm_min = 3\nm_max = 3\n")
-    cli_one_line(capsys, ["run", path, "--device", "cpu", "--output", tmp_path / "small.nc", "--no-progress"], 3, "KIOPS did not reach tol")
+    path = write_tc2_scene(
+        tmp_path / "small.toml", stepper="epi2", dt=21600.0, days=0.25, tables="[epi2]\nm_min = 3\nm_max = 3\n"
+    )
+    cli_one_line(
+        capsys,
+        ["run", path, "--device", "cpu", "--output", tmp_path / "small.nc", "--no-progress"],
+        3,
+        "KIOPS did not reach tol",
+    )

@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from conftest import TC2_SCENE, TINY, cli_one_line, write_tc2_scene
 from swe_sphere import __version__
 from swe_sphere.cli import main
 from swe_sphere.config.scene import load_scene
-from swe_sphere.core.errors import SceneError
+from swe_sphere.core.errors import ResourceError, SceneError
 from swe_sphere.core.runtime import check_memory, run_bytes
-from swe_sphere.core.errors import ResourceError
+
+from conftest import TC2_SCENE, TINY, cli_one_line, write_tc2_scene
 
 
 @pytest.fixture(autouse=True)
@@ -47,19 +47,26 @@ def scene_with(tmp_path, name="s.toml", **replace):
 
 @pytest.mark.parametrize("value", ["0", "-2", "abc"])
 def test_bad_thread_count_is_one_line(capsys, monkeypatch, value):
-    one_line(capsys, ["run", "tc2_steady", *TINY, "--days", "0.25"], 2, "SWE_SPHERE_THREADS", repr(value),
-             env={"SWE_SPHERE_THREADS": value}, monkeypatch=monkeypatch)
+    one_line(
+        capsys,
+        ["run", "tc2_steady", *TINY, "--days", "0.25"],
+        2,
+        "SWE_SPHERE_THREADS",
+        repr(value),
+        env={"SWE_SPHERE_THREADS": value},
+        monkeypatch=monkeypatch,
+    )
 
 
 def test_tiny_output_interval_with_a_grid_override(tmp_path, capsys):
     """every_days = 1e-12 with --ne: was ZeroDivisionError; now dt is cut to the
     interval with a warning note, and the step count is refused (bad input)."""
-    path = scene_with(tmp_path, **{'days = 1.0': 'days = 1.0\n[output]\nevery_days = 1e-12'})
+    path = scene_with(tmp_path, **{"days = 1.0": "days = 1.0\n[output]\nevery_days = 1e-12"})
     one_line(capsys, ["run", str(path), "--ne", "3", "--device", "cpu"], 2, "steps to day 1", "1e+09")
 
 
 def test_dt_cut_more_than_twice_warns(tmp_path):
-    path = scene_with(tmp_path, **{'days = 1.0': 'days = 0.01\n[output]\nevery_days = 1e-4'})
+    path = scene_with(tmp_path, **{"days = 1.0": "days = 0.01\n[output]\nevery_days = 1e-4"})
     scene = load_scene(path, ne=3)
     warn = [n for n in scene.notes if n.startswith("warning: dt cut")]
     assert len(warn) == 1 and "0.0001 days" in warn[0] and "to 8.64 s" in warn[0], scene.notes
@@ -83,7 +90,9 @@ def test_sweep_bad_input(capsys):
 def test_memory_guard_refuses_before_allocating(capsys):
     """--ne 100000 (960 G nodes, about a petabyte, more than any host has): refused by
     the estimate (exit 3, one line), not by a MemoryError after allocating."""
-    line = one_line(capsys, ["run", "tc2_steady", "--ne", "100000", "--device", "cpu"], 3, "ne=100000 np=4", "GiB of memory")
+    line = one_line(
+        capsys, ["run", "tc2_steady", "--ne", "100000", "--device", "cpu"], 3, "ne=100000 np=4", "GiB of memory"
+    )
     assert "available" in line
     assert run_bytes(100000, 4, "ssprk3") > 1e15
     with pytest.raises(ResourceError, match="needs about"):
@@ -104,25 +113,57 @@ def test_remap_resolution_guard(tmp_path, capsys):
 def test_duplicate_and_missing_terms(tmp_path, capsys):
     dup = scene_with(tmp_path, "dup.toml", **{'"coriolis"': '"coriolis", "coriolis"'})
     one_line(capsys, ["run", str(dup), "--device", "cpu"], 2, "term 'coriolis' is listed twice")
-    cor = scene_with(tmp_path, "cor.toml", **{'"continuity", "momentum_advection", "coriolis", "pressure_gradient"': '"coriolis"'})
-    one_line(capsys, ["run", str(cor), "--device", "cpu"], 2, "case tc2_steady needs the term(s) continuity, momentum_advection, pressure_gradient")
+    cor = scene_with(
+        tmp_path, "cor.toml", **{'"continuity", "momentum_advection", "coriolis", "pressure_gradient"': '"coriolis"'}
+    )
+    one_line(
+        capsys,
+        ["run", str(cor), "--device", "cpu"],
+        2,
+        "case tc2_steady needs the term(s) continuity, momentum_advection, pressure_gradient",
+    )
     # TC1 declares continuity alone valid; TC5 needs its topography
     assert load_scene("tc1_cosine_bell").terms == ("continuity",)
     with pytest.raises(SceneError, match="needs the term\\(s\\) topography"):
-        load_scene("tc5_mountain", overrides={"terms": ["continuity", "momentum_advection", "coriolis", "pressure_gradient"]})
+        load_scene(
+            "tc5_mountain", overrides={"terms": ["continuity", "momentum_advection", "coriolis", "pressure_gradient"]}
+        )
 
 
 def test_plot_diff_refuses_another_case_unless_forced(tmp_path, capsys):
     assert main(["run", "tc2_steady", *TINY, "--days", "1", "--output", "tc2.nc"]) == 0
     assert main(["run", "tc6_rossby_haurwitz", *TINY, "--days", "1", "--output", "tc6.nc"]) == 0
-    assert main(["run", "tc2_steady", "--ne", "3", "--device", "cpu", "--no-progress", "--days", "1", "--output", "tc2ne3.nc"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "tc2_steady",
+                "--ne",
+                "3",
+                "--device",
+                "cpu",
+                "--no-progress",
+                "--days",
+                "1",
+                "--output",
+                "tc2ne3.nc",
+            ]
+        )
+        == 0
+    )
     capsys.readouterr()
-    one_line(capsys, ["plot", "tc2.nc", "--diff", "tc6.nc", "--output", "png"], 2, "case tc6_rossby_haurwitz", "--force")
+    one_line(
+        capsys, ["plot", "tc2.nc", "--diff", "tc6.nc", "--output", "png"], 2, "case tc6_rossby_haurwitz", "--force"
+    )
     one_line(capsys, ["plot", "tc2.nc", "--diff", "tc2ne3.nc", "--output", "png"], 2, "ne=3 np=4", "--force")
     from swe_sphere.cases.reference import find_reference
 
-    one_line(capsys, ["plot", "tc2.nc", "--diff", str(find_reference("tc5_mountain")), "--output", "png"], 2,
-             "tc5_mountain_T213.nc is not a reference of case tc2_steady")
+    one_line(
+        capsys,
+        ["plot", "tc2.nc", "--diff", str(find_reference("tc5_mountain")), "--output", "png"],
+        2,
+        "tc5_mountain_T213.nc is not a reference of case tc2_steady",
+    )
     assert not (tmp_path / "png").exists()
     assert main(["plot", "tc2.nc", "--diff", "tc6.nc", "--output", "png", "--force"]) == 0
     assert len(list((tmp_path / "png").glob("*.png"))) == 2
@@ -134,13 +175,24 @@ def test_plot_diff_refuses_another_case_unless_forced(tmp_path, capsys):
 def test_set_overrides_are_validated_like_the_file(tmp_path, capsys):
     scene = load_scene("tc5_mountain", overrides={"hyperviscosity.nu": 5e14, "output.every_days": 0.25})
     assert scene.output_every_days == 0.25 and scene.nu == 5e14
-    one_line(capsys, ["run", "tc5_mountain", "-s", "hyperviscosity.nu=-1", "--device", "cpu"], 2, "hyperviscosity.nu must be >= 0")
-    one_line(capsys, ["run", "tc5_mountain", "-s", "implicit.preconditioner=amg", "--stepper", "implicit", "--device", "cpu"], 2,
-             "implicit.preconditioner must be")
+    one_line(
+        capsys,
+        ["run", "tc5_mountain", "-s", "hyperviscosity.nu=-1", "--device", "cpu"],
+        2,
+        "hyperviscosity.nu must be >= 0",
+    )
+    one_line(
+        capsys,
+        ["run", "tc5_mountain", "-s", "implicit.preconditioner=amg", "--stepper", "implicit", "--device", "cpu"],
+        2,
+        "implicit.preconditioner must be",
+    )
     one_line(capsys, ["run", "tc5_mountain", "-s", "bogus.key=1", "--device", "cpu"], 2, "unknown key 'bogus'")
     one_line(capsys, ["run", "tc5_mountain", "-s", "time.dt=abc", "--device", "cpu"], 2, "time.dt must be float")
     one_line(capsys, ["run", "tc5_mountain", "-s", "nonsense", "--device", "cpu"], 2, "SECTION.KEY=VALUE")
-    assert main(["run", "tc2_steady", *TINY, "--days", "0.25", "-s", "output.every_days=0.125", "--output", "o.nc"]) == 0
+    assert (
+        main(["run", "tc2_steady", *TINY, "--days", "0.25", "-s", "output.every_days=0.125", "--output", "o.nc"]) == 0
+    )
     with xr.open_dataset(tmp_path / "o.nc", decode_times=False) as ds:
         np.testing.assert_allclose(ds.time.values, [0, 0.125, 0.25])
 
@@ -163,7 +215,10 @@ def test_python_api_is_quiet_and_returns_a_dataset(tmp_path):
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr == ""
-    assert proc.stdout.splitlines() == ["[np.float64(0.0), np.float64(0.25), np.float64(0.5)] (218,) ssprk3", "Simulation tc2_steady"]
+    assert proc.stdout.splitlines() == [
+        "[np.float64(0.0), np.float64(0.25), np.float64(0.5)] (218,) ssprk3",
+        "Simulation tc2_steady",
+    ]
     assert (tmp_path / "api.nc").is_file()
 
 
@@ -182,7 +237,10 @@ def test_api_overrides_and_errors():
 def test_compress_stores_float32(tmp_path):
     assert main(["run", "tc2_steady", *TINY, "--days", "0.25", "--output", "c.nc", "--compress"]) == 0
     assert main(["run", "tc2_steady", *TINY, "--days", "0.25", "--output", "f.nc"]) == 0
-    with xr.open_dataset(tmp_path / "c.nc", decode_times=False) as c, xr.open_dataset(tmp_path / "f.nc", decode_times=False) as f:
+    with (
+        xr.open_dataset(tmp_path / "c.nc", decode_times=False) as c,
+        xr.open_dataset(tmp_path / "f.nc", decode_times=False) as f,
+    ):
         assert c.h.encoding["dtype"] == np.float32 and c.h.encoding["zlib"]
         assert f.h.encoding["dtype"] == np.float64
         np.testing.assert_allclose(c.h.values, f.h.values, rtol=1e-7)

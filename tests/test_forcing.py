@@ -27,9 +27,9 @@ import math
 import numpy as np
 import pytest
 
+from swe_sphere.cases.scoring import williamson_norms
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.errors import SceneError
-from swe_sphere.cases.scoring import williamson_norms
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
 from swe_sphere.steppers.multirate import MriOptions, parse_mri
@@ -146,9 +146,15 @@ SHORT = (450.0, 225.0, 112.5)  # where the scheme's start or filter still shows 
         ("implicit", {}, (900.0, 450.0, 225.0), 2, 0.2),  # Crank–Nicolson: 1.87, 1.98
         ("epi2", {"tol": 1e-10}, (900.0, 450.0, 225.0), 2, 0.2),  # 1.98, 1.99 (∂F/∂t in the step; without it 1.0)
         ("epi3", {"tol": 1e-10}, (900.0, 450.0, 225.0), 3, 0.3),  # 2.92, 2.97
-        pytest.param("implicit", {"method": "bdf2"}, SHORT, 2, 0.2, marks=pytest.mark.slow),  # 1.66, 1.93 (backward-Euler start)
-        pytest.param("imex", {"tol": 1e-12}, (900.0, 450.0, 225.0), 3, 0.3, marks=pytest.mark.slow),  # ars343: 2.71, 2.94
-        pytest.param("imex", {"scheme": "ars232", "tol": 1e-12}, (900.0, 450.0, 225.0), 2, 0.2, marks=pytest.mark.slow),  # 1.93, 1.99
+        pytest.param(
+            "implicit", {"method": "bdf2"}, SHORT, 2, 0.2, marks=pytest.mark.slow
+        ),  # 1.66, 1.93 (backward-Euler start)
+        pytest.param(
+            "imex", {"tol": 1e-12}, (900.0, 450.0, 225.0), 3, 0.3, marks=pytest.mark.slow
+        ),  # ars343: 2.71, 2.94
+        pytest.param(
+            "imex", {"scheme": "ars232", "tol": 1e-12}, (900.0, 450.0, 225.0), 2, 0.2, marks=pytest.mark.slow
+        ),  # 1.93, 1.99
         # ε = 0 and a tight Helmholtz solve: 1.88, 1.98 (the defaults, ε = 0.05 and tol 1e-6, at 900-225 s: 1.18, 1.71)
         pytest.param("semi_implicit", {"robert_asselin": 0.0, "tol": 1e-12}, SHORT, 2, 0.2, marks=pytest.mark.slow),
     ],
@@ -175,7 +181,10 @@ def test_the_forcing_is_compiled_and_launched_only_where_a_scene_names_it():
     unforced.set_time(123.0)
     assert unforced.time == 123.0
     with pytest.raises(SceneError, match="has no forcing"):
-        load_scene("tc2_steady", overrides={"terms": ["continuity", "momentum_advection", "coriolis", "pressure_gradient", "forcing"]})
+        load_scene(
+            "tc2_steady",
+            overrides={"terms": ["continuity", "momentum_advection", "coriolis", "pressure_gradient", "forcing"]},
+        )
     with pytest.raises(SceneError, match="needs the term"):
         load_scene(SCENE, overrides={"terms": ["continuity", "momentum_advection", "coriolis", "pressure_gradient"]})
 
@@ -228,7 +237,9 @@ def test_tc4_converges_at_order_np_minus_1():
         assert math.log2(errors[0][k] / errors[1][k]) >= 3.0, errors
 
 
-@pytest.mark.parametrize("stepper,options", [("rk4", {}), ("leapfrog_trapezoidal", {}), ("implicit", {"method": "bdf2"})])
+@pytest.mark.parametrize(
+    "stepper,options", [("rk4", {}), ("leapfrog_trapezoidal", {}), ("implicit", {"method": "bdf2"})]
+)
 def test_a_continued_forced_run_is_bitwise_the_uninterrupted_one(tmp_path, stepper, options):
     """The model time of a continued run is its step count × Δt (``Stepper.steps``
     is in the restart file), so 3 + 3 steps through a restart file give the bits of 6."""

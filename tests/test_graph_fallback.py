@@ -19,13 +19,14 @@ import numpy as np
 import pytest
 import warp as wp
 
-from conftest import ON_CUDA, cli_main, cli_one_line, one_line
-from swe_sphere.core import runtime
-from swe_sphere.simulation import simulation
 from swe_sphere.config.scene import load_scene
+from swe_sphere.core import runtime
 from swe_sphere.core.constants import DAY
+from swe_sphere.simulation import simulation
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.solvers.helmholtz import HelmholtzCG
+
+from conftest import ON_CUDA, cli_main, cli_one_line, one_line
 
 DEVICES = ["cpu", ON_CUDA]
 STEPS = 8
@@ -56,10 +57,12 @@ def run(scene, device, graphs, check_every=3):
 def raising(real, what, when=lambda: True):
     """``real`` that raises RuntimeError("injected <what>") when ``when()``, from a frame
     named as ``real`` (as a failure inside it would be, which ``graphs.feature`` reads)."""
+
     def call(*a, **k):
         if when():
             raise RuntimeError(f"injected {what}")
         return real(*a, **k)
+
     call.__code__ = call.__code__.replace(co_name=real.__name__)
     return call
 
@@ -81,6 +84,7 @@ def later():
     def when():
         calls[0] += 1
         return calls[0] > 1
+
     return when
 
 
@@ -95,20 +99,48 @@ def device_totals(when):
 # kind → (stepper, Δt factor, the injection (monkeypatch), the line's words). The CG's loops
 # and totals fail in its own solve's graph (captured in the first step), or only inside a step's.
 INJECTIONS = {
-    "capture": ("ssprk3", 1, lambda mp: mp.setattr(wp, "capture_begin", raising(wp.capture_begin, "capture failure")),
-                "graph of the ssprk3 step failed: injected capture failure"),
-    "replay": ("leapfrog", 1, lambda mp: mp.setattr(wp, "capture_launch", raising(wp.capture_launch, "replay failure")),
-               "graph of the leapfrog step failed: injected replay failure"),
-    "a later replay": ("ssprk3", 1, lambda mp: mp.setattr(wp, "capture_launch", raising(wp.capture_launch, "replay failure", later())),
-                       "graph of the ssprk3 step failed: injected replay failure"),
-    "conditional nodes": ("imex", 4, conditional_nodes(capturing),
-                          "graph of the Helmholtz solve failed in conditional nodes (wp.capture_while): injected error"),
-    "conditional nodes in a step": ("imex", 4, conditional_nodes(capturing_a_step),
-                                    "graph of the imex step failed in conditional nodes (wp.capture_while): injected error"),
-    "device totals": ("semi_implicit", 2, device_totals(capturing),
-                      "graph of the Helmholtz solve failed in device totals: injected error"),
-    "device totals in a step": ("semi_implicit", 2, device_totals(capturing_a_step),
-                                "graph of the semi_implicit step failed in device totals: injected error"),
+    "capture": (
+        "ssprk3",
+        1,
+        lambda mp: mp.setattr(wp, "capture_begin", raising(wp.capture_begin, "capture failure")),
+        "graph of the ssprk3 step failed: injected capture failure",
+    ),
+    "replay": (
+        "leapfrog",
+        1,
+        lambda mp: mp.setattr(wp, "capture_launch", raising(wp.capture_launch, "replay failure")),
+        "graph of the leapfrog step failed: injected replay failure",
+    ),
+    "a later replay": (
+        "ssprk3",
+        1,
+        lambda mp: mp.setattr(wp, "capture_launch", raising(wp.capture_launch, "replay failure", later())),
+        "graph of the ssprk3 step failed: injected replay failure",
+    ),
+    "conditional nodes": (
+        "imex",
+        4,
+        conditional_nodes(capturing),
+        "graph of the Helmholtz solve failed in conditional nodes (wp.capture_while): injected error",
+    ),
+    "conditional nodes in a step": (
+        "imex",
+        4,
+        conditional_nodes(capturing_a_step),
+        "graph of the imex step failed in conditional nodes (wp.capture_while): injected error",
+    ),
+    "device totals": (
+        "semi_implicit",
+        2,
+        device_totals(capturing),
+        "graph of the Helmholtz solve failed in device totals: injected error",
+    ),
+    "device totals in a step": (
+        "semi_implicit",
+        2,
+        device_totals(capturing_a_step),
+        "graph of the semi_implicit step failed in device totals: injected error",
+    ),
 }
 
 
@@ -157,8 +189,13 @@ def test_a_graph_that_differs_from_plain_launches_falls_back(monkeypatch, capsys
     monkeypatch.setattr(wp, "capture_launch", spoiled)
     capsys.readouterr()
     result = sim.run(None)
-    one_line(0, capsys.readouterr().err, 0, f"swe-sphere: {'CPU' if device == 'cpu' else 'CUDA'} graph of the {stepper} step "
-             "differs from plain launches; running without graphs")
+    one_line(
+        0,
+        capsys.readouterr().err,
+        0,
+        f"swe-sphere: {'CPU' if device == 'cpu' else 'CUDA'} graph of the {stepper} step "
+        "differs from plain launches; running without graphs",
+    )
     np.testing.assert_array_equal(sim.x.numpy(), plain[0])
     assert (result.rhs_evals, sim.stepper.steps, result.iterations) == plain[1:4]
     assert launches[0] == 1  # the check's replay alone
@@ -183,7 +220,21 @@ def test_the_graph_mode_from_cli_environment_and_python(tmp_path, monkeypatch, c
     value is refused in one line naming it, exit 2, nothing written; the flag wins
     over the environment. In Python ``graphs=`` and ``sim.graphs`` (bools as on/off)."""
     out = tmp_path / "out.nc"
-    args = ["run", "tc2_steady", "--ne", 2, "--dt", 3600, "--days", 0.125, "--device", "cpu", "--no-progress", "--output", out]
+    args = [
+        "run",
+        "tc2_steady",
+        "--ne",
+        2,
+        "--dt",
+        3600,
+        "--days",
+        0.125,
+        "--device",
+        "cpu",
+        "--no-progress",
+        "--output",
+        out,
+    ]
     cli_one_line(capsys, [*args, "--graphs", "sometimes"], 2, "--graphs must be one of off, on, auto (got 'sometimes')")
     monkeypatch.setenv("SWE_SPHERE_GRAPHS", "yes")
     cli_one_line(capsys, args, 2, "SWE_SPHERE_GRAPHS must be one of off, on, auto (got 'yes')")

@@ -20,12 +20,13 @@ import numpy as np
 import pytest
 import warp as wp
 
-from conftest import ON_CUDA, assert_same_runs, watched_run, write_tc2_scene
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
+from swe_sphere.core.tally import Tally, instrumented
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
-from swe_sphere.core.tally import Tally, instrumented
+
+from conftest import ON_CUDA, assert_same_runs, watched_run, write_tc2_scene
 
 # the capturable steppers (explicit, semi-implicit, IMEX), and "tableau", whose default table is explicit (a ``TableauRK``)
 CAPTURABLE = [name for name, cls in STEPPERS.items() if cls.capturable] + ["tableau"]
@@ -70,7 +71,9 @@ def skip_without_conditional_nodes(name, device):
 def long_steps(name, device, steps, **options):
     """``tc5`` at 2× (semi-implicit) or 4× (IMEX) TC5's Δt, the stepper's ``options``."""
     scene = tc5(name, device, steps)
-    scene = dataclasses.replace(scene, dt=scene.dt * {"semi_implicit": 2, "imex": SOLVER_DT}[name], stepper_options=options)
+    scene = dataclasses.replace(
+        scene, dt=scene.dt * {"semi_implicit": 2, "imex": SOLVER_DT}[name], stepper_options=options
+    )
     return dataclasses.replace(scene, days=steps * scene.dt / DAY, output_every_days=steps * scene.dt / DAY)
 
 
@@ -107,7 +110,9 @@ def test_graphed_steps_are_the_bits_of_plain_ones(one_thread, graph_launches, na
 @pytest.mark.parametrize("device", DEVICES)
 @pytest.mark.parametrize("precision", ["double", "mixed"])
 @pytest.mark.parametrize("name", SOLVERS)
-def test_graphed_solver_steps_at_long_steps_are_the_bits_of_plain_ones(one_thread, graph_launches, name, precision, device):
+def test_graphed_solver_steps_at_long_steps_are_the_bits_of_plain_ones(
+    one_thread, graph_launches, name, precision, device
+):
     """16 semi-implicit (2× TC5's Δt) and IMEX ARS(3,4,3) (4×) steps, double and mixed
     precision (the refinement's loop around the float32 CG's: nested ``capture_while``
     inside the step's graph), graphed in blocks of 5: the state and Helmholtz
@@ -145,6 +150,7 @@ def test_a_graphed_solver_step_reads_nothing_back_and_a_block_once(one_thread, t
             out = fn(*a)
             assert tally.syncs == before + 1, what
             return out
+
         return call
 
     def step(watch):
@@ -153,7 +159,11 @@ def test_a_graphed_solver_step_reads_nothing_back_and_a_block_once(one_thread, t
         inside.append((watch, tally.syncs - before))
         return stats
 
-    sim._take_step, sim.stepper.counts, sim.model.bad_nodes.watched_bad = step, counted("counts", counts), counted("flag", watched_bad)
+    sim._take_step, sim.stepper.counts, sim.model.bad_nodes.watched_bad = (
+        step,
+        counted("counts", counts),
+        counted("flag", watched_bad),
+    )
     with tally.counting():
         result = sim.run(None)
     assert result.steps == 16 and result.iterations["helmholtz"] > 16 * 3
@@ -165,8 +175,9 @@ def test_a_graphed_solver_step_reads_nothing_back_and_a_block_once(one_thread, t
 
 @pytest.mark.parametrize("device", DEVICES)
 @pytest.mark.parametrize("name, maxiter", [("semi_implicit", 5), ("imex", 4)])
-def test_an_unconverged_solve_inside_a_graphed_block_is_reported_as_with_a_check_every_step(tmp_path, one_thread, graph_launches,
-                                                                                           name, maxiter, device):
+def test_an_unconverged_solve_inside_a_graphed_block_is_reported_as_with_a_check_every_step(
+    tmp_path, one_thread, graph_launches, name, maxiter, device
+):
     """A Helmholtz solve past ``maxiter`` in step 6, inside the block 6-10 of a check every
     5 steps (a callback at step 5 spoils the CG's warm-start guess, ``guess_history`` 0):
     found at the block's read of the counters, the block is re-run from step 5 one checked
@@ -174,14 +185,25 @@ def test_an_unconverged_solve_inside_a_graphed_block_is_reported_as_with_a_check
     the message (step, model time), counters, run file and state are those of plain
     steps checked every step, graphed or not."""
     skip_without_conditional_nodes(name, device)
-    scene = dataclasses.replace(tc5(name, "cpu"), stepper_options={"maxiter": maxiter, "guess_history": 0, "tol": 1e-6})  # ne 2 on CUDA too: the iterations of the CPU to round-off; maxiter suits tol 1e-6
+    scene = dataclasses.replace(
+        tc5(name, "cpu"), stepper_options={"maxiter": maxiter, "guess_history": 0, "tol": 1e-6}
+    )  # ne 2 on CUDA too: the iterations of the CPU to round-off; maxiter suits tol 1e-6
 
     def spoil(sim):
         gw = sim.stepper.gw
         gw.y.assign(np.random.default_rng(1).standard_normal(gw.y.shape[0]) * 1e3)
 
-    runs = [watched_run(scene, tmp_path / f"{every}{graphs}.nc", device=device, check_every=every, graphs=graphs, setup=lambda sim: sim.add_callback(spoil, every_steps=5))
-            for every, graphs in ((1, False), (5, False), (5, True))]
+    runs = [
+        watched_run(
+            scene,
+            tmp_path / f"{every}{graphs}.nc",
+            device=device,
+            check_every=every,
+            graphs=graphs,
+            setup=lambda sim: sim.add_callback(spoil, every_steps=5),
+        )
+        for every, graphs in ((1, False), (5, False), (5, True))
+    ]
     assert runs[0][1].startswith("step 6 failed (model time 0.2143 days): Helmholtz CG did not converge in ")
     assert graph_launches[0] > 0
     assert_same_runs(runs[0], runs[1])
@@ -203,13 +225,19 @@ def test_graphed_rkl1_hyperviscosity_is_the_bits_of_plain_steps(one_thread, grap
 
 
 @pytest.mark.parametrize("device", DEVICES)
-def test_blow_up_inside_a_graphed_block_is_reported_as_with_a_check_every_step(tmp_path, one_thread, graph_launches, device):
+def test_blow_up_inside_a_graphed_block_is_reported_as_with_a_check_every_step(
+    tmp_path, one_thread, graph_launches, device
+):
     """Leapfrog at dt = 3600 s on TC2 ne = 2 blows up at step 17, inside the block
     16-20 of a check every 5 steps replayed as graphs: the block is re-run from
     step 15 (its state and x(n-1) assigned in place, which the graphs follow), and
     the message (step, time, place), counters, run file and state are those of
     plain steps checked every step."""
-    scene = load_scene(write_tc2_scene(tmp_path / "s.toml", stepper="leapfrog", dt=3600.0, days=2.0, tables="[output]\nlog_every_steps = 6"))
+    scene = load_scene(
+        write_tc2_scene(
+            tmp_path / "s.toml", stepper="leapfrog", dt=3600.0, days=2.0, tables="[output]\nlog_every_steps = 6"
+        )
+    )
     one = watched_run(scene, tmp_path / "one.nc", device=device)
     graphed = watched_run(scene, tmp_path / "graphed.nc", device=device, check_every=5, graphs=True)
     assert one[1].startswith("blow-up at step 17 (model time 0.7083 days): depth h = ")
@@ -219,7 +247,9 @@ def test_blow_up_inside_a_graphed_block_is_reported_as_with_a_check_every_step(t
 
 @pytest.mark.parametrize("device", DEVICES)
 @pytest.mark.parametrize("name", ["leapfrog", "ssprk3", *SOLVERS])
-def test_a_graphed_run_continues_from_its_restart_file_bitwise(tmp_path, monkeypatch, one_thread, graph_launches, name, device):
+def test_a_graphed_run_continues_from_its_restart_file_bitwise(
+    tmp_path, monkeypatch, one_thread, graph_launches, name, device
+):
     """12 graphed steps straight against 6 graphed steps, a restart file and a fresh
     graphed Simulation from it for 6 more (leapfrog: its x(n-1) restored, its
     start not re-run; the semi-implicit and IMEX mean depth and CG guess restored):

@@ -16,9 +16,10 @@ import numpy as np
 import pytest
 import warp as wp
 
+from swe_sphere.config.scene import load_scene
+
 import roundoff
 from conftest import make_sim
-from swe_sphere.config.scene import load_scene
 
 
 def _tc5(ne=4):

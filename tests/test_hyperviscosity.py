@@ -37,7 +37,9 @@ def test_nu_div_and_nu_s_default_to_nu_and_scale_with_the_grid(tmp_path):
     assert (s.nu, s.nu_div, s.nu_s) == pytest.approx((1e15 * scale, 1e15 * scale, 2e14 * scale), rel=1e-12)
 
 
-@pytest.mark.parametrize("table,needle", [("nu = 1e15\nnu_s = -1.0\n", "hyperviscosity.nu_s"), ("nu = 0.0\n", "hyperviscosity.nu")])
+@pytest.mark.parametrize(
+    "table,needle", [("nu = 1e15\nnu_s = -1.0\n", "hyperviscosity.nu_s"), ("nu = 0.0\n", "hyperviscosity.nu")]
+)
 def test_bad_coefficients_name_the_key(tmp_path, table, needle):
     with pytest.raises(SceneError, match=needle):
         load_scene(scene_file(tmp_path, table))
@@ -55,15 +57,20 @@ def test_efold_hours_sets_every_coefficient_on_every_grid(tmp_path):
         assert ideal_hyperviscosity_rate(L, "height", 0.0, 0.0, s.nu_s, a) == pytest.approx(1 / (3 * 3600), rel=1e-12)
     assert efold_nu(3.0, 30, 4, a) == pytest.approx(1.437e14, rel=1e-3)
     s = load_scene(scene_file(tmp_path, "efold_hours = 3.0\nnu = 0.0\nnu_s = 1e15\n"), ne=15)
-    assert (s.nu, s.nu_div, s.nu_s) == pytest.approx((0.0, efold_nu(3.0, 15, 4, a), 1e15 * 2**HYPERVIS_EXPONENT), rel=1e-12)
+    assert (s.nu, s.nu_div, s.nu_s) == pytest.approx(
+        (0.0, efold_nu(3.0, 15, 4, a), 1e15 * 2**HYPERVIS_EXPONENT), rel=1e-12
+    )
     with pytest.raises(SceneError, match="hyperviscosity.efold_hours"):
         load_scene(scene_file(tmp_path, "efold_hours = 0.0\n"))
 
 
-@pytest.mark.parametrize("ne, bounds", [
-    (30, {2: 1e-4, 4: 1e-4, 8: 1e-4, 16: 1e-4, 32: 1e-4, 64: 2.5e-3, 100: 1.7e-2}),
-    (16, {2: 1e-4, 4: 1e-4, 8: 1e-4, 16: 1e-4, 32: 3e-3}),
-])
+@pytest.mark.parametrize(
+    "ne, bounds",
+    [
+        (30, {2: 1e-4, 4: 1e-4, 8: 1e-4, 16: 1e-4, 32: 1e-4, 64: 2.5e-3, 100: 1.7e-2}),
+        (16, {2: 1e-4, 4: 1e-4, 8: 1e-4, 16: 1e-4, 32: 3e-3}),
+    ],
+)
 def test_the_readmes_hyperviscosity_spectrum(grid_factory, ne, bounds):
     """The figures of docs/methods.md (ν = ν_div = ν_s = 1.5e15): a degree-l harmonic
     of h, rotational and divergent wind decays on the np4 grid at HOMME's continuous
@@ -80,6 +87,8 @@ def test_the_readmes_hyperviscosity_spectrum(grid_factory, ne, bounds):
     model = ShallowWater(grid, ["hyperviscosity"], z, z, nu=1.5e15, nu_div=1.5e15, nu_s=1.5e15, device="cpu")
     for l, bound in bounds.items():
         for kind in HARMONIC_KINDS:
-            ratio = hyperviscosity_rate(model, harmonic_state(grid, l, kind)) / ideal_hyperviscosity_rate(l, kind, 1.5e15, 1.5e15, 1.5e15, grid.radius)
+            ratio = hyperviscosity_rate(model, harmonic_state(grid, l, kind)) / ideal_hyperviscosity_rate(
+                l, kind, 1.5e15, 1.5e15, 1.5e15, grid.radius
+            )
             print(f"ne{ne} l = {l} {kind}: rate / HOMME's - 1 = {ratio - 1:.2e}")
             assert abs(ratio - 1) <= bound, (l, kind, ratio - 1)

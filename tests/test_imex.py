@@ -21,9 +21,6 @@ import numpy as np
 import pytest
 import warp as wp
 
-import conftest
-import roundoff
-from conftest import cached_grid, run
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
 from swe_sphere.model.shallow_water import ShallowWater
@@ -31,6 +28,10 @@ from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.solvers.helmholtz import GravityWave
 from swe_sphere.steppers.runge_kutta import TABLES
 from swe_sphere.steppers.tables import IMEX as SCHEMES
+
+import conftest
+import roundoff
+from conftest import cached_grid, run
 
 
 def _ars232():
@@ -70,6 +71,7 @@ def test_ars_tables_are_the_floats_of_their_closed_forms(scheme):
         np.testing.assert_array_equal(got, want)
     assert TABLES[scheme].order == order
 
+
 ORDER_DAYS = 0.25
 
 
@@ -105,11 +107,17 @@ def test_imex_temporal_order_tc6(scheme, lo, hi):
     coarse, rc = tc6_error(scheme, 64)
     fine, rf = tc6_error(scheme, 128)
     rate = math.log2(coarse / fine)
-    print(f"\n{scheme}: error {coarse:.4e} -> {fine:.4e}, rate {rate:.3f}; {rc.iterations} / {rf.iterations}; "
-          f"mass change {rf.diagnostics['mass_change']:.1e}")
+    print(
+        f"\n{scheme}: error {coarse:.4e} -> {fine:.4e}, rate {rate:.3f}; {rc.iterations} / {rf.iterations}; "
+        f"mass change {rf.diagnostics['mass_change']:.1e}"
+    )
     assert lo <= rate <= hi
     assert fine > 1e-8  # far above the rk4 reference's own error (3.5e-12)
-    roundoff.within(abs(rf.diagnostics["mass_change"]), roundoff.mass_change_bound(roundoff.operations(rf), cached_grid(4, 4).npts), "|mass change|")
+    roundoff.within(
+        abs(rf.diagnostics["mass_change"]),
+        roundoff.mass_change_bound(roundoff.operations(rf), cached_grid(4, 4).npts),
+        "|mass change|",
+    )
 
 
 @pytest.mark.roundoff
@@ -120,18 +128,24 @@ def test_imex_conserves_mass_and_is_stable_at_the_advective_limit(scheme):
     at ne = 16 12 dt_g is the advective limit): stable, l2(h+hs) against T213
     within 2x of ssprk3's at its scene step (measured 9.5e-4 and 9.4e-4 against
     6.5e-4), mass to round-off (1.3e-15)."""
-    hv = {f"hyperviscosity.{k}": 1.5e15 for k in ("nu", "nu_div", "nu_s")}  # HOMME's nu at ne30 (scaled dx^3.2): the stability measured here is with it
+    hv = {
+        f"hyperviscosity.{k}": 1.5e15 for k in ("nu", "nu_div", "nu_s")
+    }  # HOMME's nu at ne30 (scaled dx^3.2): the stability measured here is with it
     base = load_scene("tc5_mountain", ne=8, np=4, days=5.0, overrides=hv)
     explicit, sim, _ = run(dataclasses.replace(base, output_every_days=5.0))
     c = sim.courant()
     dt_g = base.dt / c["courant_gravity"]
     n = math.ceil(5 * DAY / (12 * dt_g))
-    scene = dataclasses.replace(base, stepper="imex", dt=5 * DAY / n, stepper_options={"scheme": scheme}, output_every_days=5.0)
+    scene = dataclasses.replace(
+        base, stepper="imex", dt=5 * DAY / n, stepper_options={"scheme": scheme}, output_every_days=5.0
+    )
     result, _, wall = run(scene)
     e, i = explicit.diagnostics["ref_l2_h_surface"], result.diagnostics.get("ref_l2_h_surface")
-    print(f"\n{scheme}: dt {scene.dt:.0f} s = {scene.dt / dt_g:.2f} dt_g (advective limit {base.dt / c['courant_advective'] / dt_g:.2f} dt_g): "
-          f"{result.blowup or f'l2(h+hs) {i:.3e}'} (ssprk3 {e:.3e}), mass change {result.diagnostics['mass_change']:.1e}, "
-          f"{result.iterations}, {wall:.1f} s")
+    print(
+        f"\n{scheme}: dt {scene.dt:.0f} s = {scene.dt / dt_g:.2f} dt_g (advective limit {base.dt / c['courant_advective'] / dt_g:.2f} dt_g): "
+        f"{result.blowup or f'l2(h+hs) {i:.3e}'} (ssprk3 {e:.3e}), mass change {result.diagnostics['mass_change']:.1e}, "
+        f"{result.iterations}, {wall:.1f} s"
+    )
     assert result.blowup is None
     assert scene.dt >= 11.5 * dt_g
     assert i < 2 * e
@@ -140,7 +154,11 @@ def test_imex_conserves_mass_and_is_stable_at_the_advective_limit(scheme):
 
 def _imex_sim(scheme, ne=2):
     base = load_scene("tc5_mountain", ne=ne, np=4)
-    return Simulation(dataclasses.replace(base, stepper="imex", stepper_options={"scheme": scheme}, dt=base.dt * 4), "cpu", progress=False)
+    return Simulation(
+        dataclasses.replace(base, stepper="imex", stepper_options={"scheme": scheme}, dt=base.dt * 4),
+        "cpu",
+        progress=False,
+    )
 
 
 # a step's own launches (and memsets/copies) at ne 2, the solves and the ∇⁴ apart: ARS(3,4,3) 26

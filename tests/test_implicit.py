@@ -115,15 +115,21 @@ def test_crank_nicolson_keeps_tc2_steady_at_50x_the_explicit_limit(name):
     implicit, sim, t_imp = run(scene)
     assert implicit.blowup is None
     e, i = explicit.diagnostics["l2_h"], implicit.diagnostics["l2_h"]
-    print(f"\n{name}: dt_limit {limit:.1f} s; ssprk3 dt {base.dt:g} s l2(h) {e:.4e} ({t_exp:.2f} s); "
-          f"ssprk3 at dt_limit: {at_limit.blowup or at_limit.diagnostics['l2_h']}; implicit CN dt {scene.dt:g} s "
-          f"= {scene.dt / limit:.1f} dt_limit, {nsteps} steps: l2(h) {i:.4e}, ratio {i / e:.3f}, "
-          f"l2(wind) {implicit.diagnostics['l2_wind']:.4e} (explicit {explicit.diagnostics['l2_wind']:.4e}), "
-          f"mass change {implicit.diagnostics['mass_change']:.1e}, {implicit.iterations}, "
-          f"{implicit.rhs_evals} RHS, {t_imp:.2f} s")
+    print(
+        f"\n{name}: dt_limit {limit:.1f} s; ssprk3 dt {base.dt:g} s l2(h) {e:.4e} ({t_exp:.2f} s); "
+        f"ssprk3 at dt_limit: {at_limit.blowup or at_limit.diagnostics['l2_h']}; implicit CN dt {scene.dt:g} s "
+        f"= {scene.dt / limit:.1f} dt_limit, {nsteps} steps: l2(h) {i:.4e}, ratio {i / e:.3f}, "
+        f"l2(wind) {implicit.diagnostics['l2_wind']:.4e} (explicit {explicit.diagnostics['l2_wind']:.4e}), "
+        f"mass change {implicit.diagnostics['mass_change']:.1e}, {implicit.iterations}, "
+        f"{implicit.rhs_evals} RHS, {t_imp:.2f} s"
+    )
     assert 0.5 * e <= i <= 2.0 * e
     assert implicit.diagnostics["l2_wind"] <= 2.0 * explicit.diagnostics["l2_wind"]
-    roundoff.within(abs(implicit.diagnostics["mass_change"]), roundoff.mass_change_bound(roundoff.operations(implicit), sim.grid.npts), "|mass change|")
+    roundoff.within(
+        abs(implicit.diagnostics["mass_change"]),
+        roundoff.mass_change_bound(roundoff.operations(implicit), sim.grid.npts),
+        "|mass change|",
+    )
     assert implicit.iterations["newton"] >= nsteps
 
 
@@ -154,8 +160,10 @@ def test_temporal_order_tc6(options, nsteps, lo, hi):
     fine, rf, wf = tc6_error(2 * nsteps, options)
     rate = math.log2(coarse / fine)
     dt = ORDER_DAYS * DAY / nsteps
-    print(f"\n{dict(options)}: dt {dt:g} -> {dt / 2:g} s: error {coarse:.4e} -> {fine:.4e}, rate {rate:.3f}; "
-          f"{rc.iterations} / {rf.iterations}; {wc:.2f} s / {wf:.2f} s")
+    print(
+        f"\n{dict(options)}: dt {dt:g} -> {dt / 2:g} s: error {coarse:.4e} -> {fine:.4e}, rate {rate:.3f}; "
+        f"{rc.iterations} / {rf.iterations}; {wc:.2f} s / {wf:.2f} s"
+    )
     assert lo <= rate <= hi
     # the reference (rk4 at dt = 10.5 s: 3.5e-12 from its half-step run) is far below
     assert fine > 1e-8
@@ -223,8 +231,10 @@ def test_jacobian_vector_product_matches_exact_directional_derivative(name, rng)
     JF = (vu / st.dt - Jv) / st.beta  # the F'(x) v inside it
     err_F = rel(JF, unique(exact))
     err_J = rel(Jv, vu / st.dt - st.beta * unique(exact))
-    print(f"\n{name}: |F'v - central| / |central| = {err_F:.3e}; whole J v: {err_J:.3e}; "
-          f"central s = 1e-3 vs 1: {rel(small, exact):.1e}; x unchanged: {np.array_equal(sim.x.numpy(), x0)}")
+    print(
+        f"\n{name}: |F'v - central| / |central| = {err_F:.3e}; whole J v: {err_J:.3e}; "
+        f"central s = 1e-3 vs 1: {rel(small, exact):.1e}; x unchanged: {np.array_equal(sim.x.numpy(), x0)}"
+    )
     assert err_F < 1e-6
     assert err_J < 1e-6
     np.testing.assert_array_equal(sim.x.numpy(), x0)  # J v leaves the iterate alone
@@ -262,10 +272,15 @@ def test_jacobian_passes_host_and_kernels_agree(rng):
         jac.apply(sim.x, Fx, xnorm, wp.zeros_like(w), jv, 0.25, -0.5)
         assert not np.any(jv.numpy())  # w = 0: J w = 0 (KernelPasses: ε = 0 on the device)
     for name, a, b in zip(("gather", "scatter", "J·v"), got[HostPasses], got[KernelPasses]):
-        print(f"\n{name}: bitwise {np.array_equal(a, b)}, max |host - kernels| / max |kernels| {np.abs(a - b).max() / np.abs(b).max():.1e}", end="")
+        print(
+            f"\n{name}: bitwise {np.array_equal(a, b)}, max |host - kernels| / max |kernels| {np.abs(a - b).max() / np.abs(b).max():.1e}",
+            end="",
+        )
         np.testing.assert_allclose(a, b, rtol=1e-14, atol=1e-14 * np.abs(b).max())
     np.testing.assert_array_equal(got[HostPasses][0], -2.0 * x_np[:, first].ravel())  # the unique-node layout
-    np.testing.assert_array_equal(got[HostPasses][1], w.numpy().reshape(3, -1)[:, sim.grid.gid])  # one process: index = gid
+    np.testing.assert_array_equal(
+        got[HostPasses][1], w.numpy().reshape(3, -1)[:, sim.grid.gid]
+    )  # one process: index = gid
 
 
 # -- Newton converges quadratically near the solution ---------------------------------
@@ -308,8 +323,12 @@ def test_newton_converges_quadratically(name):
 
     hist, stats, noise = _one_step_history(name, exact_inner=True)
     ratios = [hist[k + 1] / hist[k] ** 2 for k in range(len(hist) - 1) if hist[k + 1] > 1e3 * noise]
-    print(f"{name} exact inner solve: {stats.iterations}; residual RMS " + " ".join(f"{r:.3e}" for r in hist)
-          + f"; round-off ~{noise:.1e}; r_(k+1)/r_k^2 " + " ".join(f"{c:.2f}" for c in ratios))
+    print(
+        f"{name} exact inner solve: {stats.iterations}; residual RMS "
+        + " ".join(f"{r:.3e}" for r in hist)
+        + f"; round-off ~{noise:.1e}; r_(k+1)/r_k^2 "
+        + " ".join(f"{c:.2f}" for c in ratios)
+    )
     assert hist[-1] <= 1e-13
     assert len(ratios) >= 2
     assert all(c <= 10.0 for c in ratios)
@@ -354,17 +373,26 @@ def test_helmholtz_preconditioner_cuts_gmres_iterations():
         result, sim, wall = run(dataclasses.replace(base, stepper_options={"preconditioner": pc, "atol": 1e-10}))
         assert result.blowup is None
         out[pc] = (result, sim.x.numpy().copy(), wall)
-        print(f"\n{pc}: {result.iterations}, {result.rhs_evals} RHS, mass change "
-              f"{result.diagnostics['mass_change']:.1e}, {wall:.2f} s", end="")
+        print(
+            f"\n{pc}: {result.iterations}, {result.rhs_evals} RHS, mass change "
+            f"{result.diagnostics['mass_change']:.1e}, {wall:.2f} s",
+            end="",
+        )
     none, helm = out["none"][0], out["helmholtz"][0]
     diff = rel(out["helmholtz"][1], out["none"][1])
-    print(f"\nGMRES {none.iterations['gmres']} -> {helm.iterations['gmres']} "
-          f"({none.iterations['gmres'] / helm.iterations['gmres']:.1f}x); final states differ by {diff:.1e}")
+    print(
+        f"\nGMRES {none.iterations['gmres']} -> {helm.iterations['gmres']} "
+        f"({none.iterations['gmres'] / helm.iterations['gmres']:.1f}x); final states differ by {diff:.1e}"
+    )
     assert none.iterations["precond"] == 0 and helm.iterations["precond"] >= helm.iterations["gmres"]
     assert helm.iterations["helmholtz"] >= helm.iterations["precond"]  # a CG solve each
     assert helm.iterations["gmres"] * 2 <= none.iterations["gmres"]
     assert diff < 1e-8  # both solve the same equations to the Newton tolerance
-    roundoff.within(abs(helm.diagnostics["mass_change"]), roundoff.mass_change_bound(roundoff.operations(helm), cached_grid(4, 4).npts), "|mass change|")
+    roundoff.within(
+        abs(helm.diagnostics["mass_change"]),
+        roundoff.mass_change_bound(roundoff.operations(helm), cached_grid(4, 4).npts),
+        "|mass change|",
+    )
 
 
 def test_fgmres_reaches_the_true_residual_with_an_inexact_inner_solve():
@@ -404,8 +432,9 @@ def test_fgmres_solves_with_a_changing_preconditioner_and_restarts(backend, rng)
     changes at every application (a random-scaled Jacobi) and restarts every 5
     iterations, the true residual reaches the tolerance; without restarts the
     iterations match scipy's GMRES (same Krylov space with a fixed preconditioner)."""
-    from swe_sphere.solvers import krylov
     import scipy.sparse.linalg as spla
+
+    from swe_sphere.solvers import krylov
 
     n = 200
     A = np.diag(np.linspace(1.0, 10.0, n)) + 0.3 * rng.standard_normal((n, n)) / math.sqrt(n)
@@ -421,17 +450,30 @@ def test_fgmres_solves_with_a_changing_preconditioner_and_restarts(backend, rng)
             out.numpy()[:] = d * v.numpy() * scaling()
 
         b, x = wp.array(rhs, dtype=wp.float64), wp.full(n, 1.0, dtype=wp.float64)
-        its, ok = krylov.FGMRES(n, restart, one_process, getattr(krylov, backend)).solve(matvec, precond, b, x, rtol, maxiter)
+        its, ok = krylov.FGMRES(n, restart, one_process, getattr(krylov, backend)).solve(
+            matvec, precond, b, x, rtol, maxiter
+        )
         return x.numpy(), its, ok
 
     x, its, ok = solve(5, lambda: rng.uniform(0.5, 1.5, n), 1e-10, 500)
     resid = np.linalg.norm(b_np - A @ x) / np.linalg.norm(b_np)
     count = [0]
-    spla.gmres(A, b_np, rtol=1e-8, atol=0.0, restart=n, maxiter=1, M=np.diag(d), callback=lambda _: count.__setitem__(0, count[0] + 1),
-               callback_type="pr_norm")
+    spla.gmres(
+        A,
+        b_np,
+        rtol=1e-8,
+        atol=0.0,
+        restart=n,
+        maxiter=1,
+        M=np.diag(d),
+        callback=lambda _: count.__setitem__(0, count[0] + 1),
+        callback_type="pr_norm",
+    )
     _, its_fixed, _ = solve(n, lambda: 1.0, 1e-8, n)
-    print(f"\nchanging preconditioner, restart 5: {its} iterations, true residual {resid:.1e}; "
-          f"fixed: FGMRES {its_fixed}, scipy GMRES {count[0]} iterations")
+    print(
+        f"\nchanging preconditioner, restart 5: {its} iterations, true residual {resid:.1e}; "
+        f"fixed: FGMRES {its_fixed}, scipy GMRES {count[0]} iterations"
+    )
     assert ok and resid < 2e-10
     assert abs(its_fixed - count[0]) <= 1
     # b = 0: x = 0 at once; maxiter = 7 across a restart: 7 products, not converged
@@ -479,7 +521,10 @@ def test_krylov_backends_agree_on_cn_steps_and_fgmres_reads_once_a_cycle():
         runs[backend] = sim.x.numpy(), its, own[0], tally.launches["fgmres_end"]
     (host, its_host, _, _), (kern, its_kern, reads, cycles) = runs["host"], runs["kernels"]
     floor, ops = max(roundoff.state_difference(runs["nudged"][0], host)), sum(sum(i.values()) for i in its_host)
-    print(f"\n{its_kern}; kernels against numpy {rel(kern, host):.1e} (floor {floor:.1e}); {reads} reads in {cycles} GMRES cycles", end="")
+    print(
+        f"\n{its_kern}; kernels against numpy {rel(kern, host):.1e} (floor {floor:.1e}); {reads} reads in {cycles} GMRES cycles",
+        end="",
+    )
     assert its_kern == its_host
     roundoff.within(max(roundoff.state_difference(kern, host)), 3 * ops * floor, "|kernels − numpy| (wind, depth)")
     assert reads == cycles > sum(i["newton"] for i in its_kern)  # restarts happened
@@ -495,7 +540,9 @@ def test_fgmres_cycles_replayed_as_graphs_give_the_bits_of_host_loops(monkeypatc
 
     monkeypatch.setenv("SWE_SPHERE_THREADS", "1")
     scene = load_scene("tc5_mountain", ne=2, np=4, stepper="implicit")
-    scene = dataclasses.replace(scene, dt=2.0 * scene.dt, stepper_options={"preconditioner": "none", "gmres_restart": 4})
+    scene = dataclasses.replace(
+        scene, dt=2.0 * scene.dt, stepper_options={"preconditioner": "none", "gmres_restart": 4}
+    )
     runs = {}
     for graphs in (False, True):
         sim = make_sim(scene)
@@ -553,6 +600,7 @@ def test_krylov_basis_vector_work_matches_numpy(backend, rng):
 
 # -- failures and bad input through the command line ---------------------------------
 
+
 def scene_file(tmp_path, table: str, name="scene.toml") -> str:
     return str(write_tc2_scene(tmp_path / name, tables=table))
 
@@ -573,8 +621,23 @@ def test_newton_failure_exits_3_and_keeps_the_initial_state(tmp_path, capsys, mo
     monkeypatch.chdir(tmp_path)
     path = scene_file(tmp_path, "[implicit]\nmaxiter = 1\natol = 1e-14\n")
     output = tmp_path / "fail.nc"
-    code, out, err = run_cli(capsys, path, "--ne", "2", "--days", "1", "--stepper", "implicit", "--dt", "21600",
-                             "--device", "cpu", "--output", output, "--no-progress")
+    code, out, err = run_cli(
+        capsys,
+        path,
+        "--ne",
+        "2",
+        "--days",
+        "1",
+        "--stepper",
+        "implicit",
+        "--dt",
+        "21600",
+        "--device",
+        "cpu",
+        "--output",
+        output,
+        "--no-progress",
+    )
     print(f"\nexit {code}; stderr: {err.strip()}")
     assert code == 3
     assert "Newton" in err and "step 1" in err
@@ -646,7 +709,9 @@ def test_bad_implicit_option_exits_2(table, needle, tmp_path, capsys, monkeypatc
     monkeypatch.chdir(tmp_path)
     path = scene_file(tmp_path, "[implicit]\n" + table + "\n")
     output = tmp_path / "bad.nc"
-    code, out, err = run_cli(capsys, path, "--stepper", "implicit", "--device", "cpu", "--output", output, "--no-progress")
+    code, out, err = run_cli(
+        capsys, path, "--stepper", "implicit", "--device", "cpu", "--output", output, "--no-progress"
+    )
     lines = [line for line in err.splitlines() if line.strip()]
     print(f"\n{table!r}: exit {code}: {err.strip()}")
     assert code == 2

@@ -55,9 +55,14 @@ def latlon_file(path, lat, lon, **change):
     """TC2 (α = π/4) on the lat-lon grid lat, lon (degrees), fields changed by ``change``."""
     la, lo = np.meshgrid(np.radians(lat), np.radians(lon), indexing="ij")
     u, v, h = TC2.initial(la, lo)
-    ds = xr.Dataset({"h": (("lat", "lon"), h, {"units": "m"}), "u": (("lat", "lon"), u, {"units": "m s-1"}),
-                     "v": (("lat", "lon"), v, {"units": "m/s"})},
-                    coords={"lat": ("lat", lat, {"units": "degrees_north"}), "lon": ("lon", lon, {"units": "degrees_east"})})
+    ds = xr.Dataset(
+        {
+            "h": (("lat", "lon"), h, {"units": "m"}),
+            "u": (("lat", "lon"), u, {"units": "m s-1"}),
+            "v": (("lat", "lon"), v, {"units": "m/s"}),
+        },
+        coords={"lat": ("lat", lat, {"units": "degrees_north"}), "lon": ("lon", lon, {"units": "degrees_east"})},
+    )
     for name, value in change.items():
         if value is None:
             ds = ds.drop_vars(name)
@@ -79,12 +84,36 @@ def test_node_file_is_tc2_bitwise(tmp_path, capsys):
 
     # a run file of the CLI (two output times; case.time picks the first) through the CLI
     args = ("--device", "cpu", "--no-progress")
-    assert cli_main(capsys, "run", "tc2_steady_alpha_pi4", "--ne", 2, "--dt", 1800, "--days", 0.125, "--output", tmp_path / "tc2.nc", *args)[0] == 0
+    assert (
+        cli_main(
+            capsys,
+            "run",
+            "tc2_steady_alpha_pi4",
+            "--ne",
+            2,
+            "--dt",
+            1800,
+            "--days",
+            0.125,
+            "--output",
+            tmp_path / "tc2.nc",
+            *args,
+        )[0]
+        == 0
+    )
     scene = scene_file(tmp_path, tmp_path / "tc2.nc")
-    scene.write_text(scene.read_text().replace('[grid]', 'time = 0.0\n[grid]'))
+    scene.write_text(scene.read_text().replace("[grid]", "time = 0.0\n[grid]"))
     assert cli_main(capsys, "run", scene, "--output", tmp_path / "mine.nc", *args)[0] == 0
-    cli_one_line(capsys, ["run", scene, "-s", "case.time=0.1", *args], 2, "case.time = 0.1 is not one of the file's times (0, 0.125)")
-    with xr.open_dataset(tmp_path / "tc2.nc", decode_times=False) as a, xr.open_dataset(tmp_path / "mine.nc", decode_times=False) as b:
+    cli_one_line(
+        capsys,
+        ["run", scene, "-s", "case.time=0.1", *args],
+        2,
+        "case.time = 0.1 is not one of the file's times (0, 0.125)",
+    )
+    with (
+        xr.open_dataset(tmp_path / "tc2.nc", decode_times=False) as a,
+        xr.open_dataset(tmp_path / "mine.nc", decode_times=False) as b,
+    ):
         for name in ("h", "u", "v"):
             assert np.array_equal(a[name].isel(time=0).values, b[name].isel(time=0).values), name
         assert b.attrs["case"] == "file"
@@ -102,16 +131,24 @@ def test_restart_file_starts_a_run(tmp_path):
         load_scene(scene, overrides={"case.time": 0.0})
 
 
-@pytest.mark.parametrize("lat, lon", [
-    (np.linspace(-90.0, 90.0, 181), np.arange(360.0)),  # 1 degree, both poles
-    (np.linspace(89.5, -89.5, 180), np.arange(360.0) - 180.0),  # no poles (as a Gaussian grid), north first, from -180
-])
+@pytest.mark.parametrize(
+    "lat, lon",
+    [
+        (np.linspace(-90.0, 90.0, 181), np.arange(360.0)),  # 1 degree, both poles
+        (
+            np.linspace(89.5, -89.5, 180),
+            np.arange(360.0) - 180.0,
+        ),  # no poles (as a Gaussian grid), north first, from -180
+    ],
+)
 def test_latlon_file_interpolates_tc2(tmp_path, lat, lon):
     """A 1-degree lat-lon file of TC2 (α = π/4, the jet over the poles) gives TC2's
     state at the ne = 4 nodes within 1e-8 of each field's largest value (measured:
     1.5e-9 for h, 4e-10 for the winds; the bicubic spline's error ~ Δ⁴), continuous:
     every copy of a node holds the same value."""
-    mine = Simulation(load_scene(scene_file(tmp_path, latlon_file(tmp_path / "ll.nc", lat, lon), ne=4)), "cpu", progress=False)
+    mine = Simulation(
+        load_scene(scene_file(tmp_path, latlon_file(tmp_path / "ll.nc", lat, lon), ne=4)), "cpu", progress=False
+    )
     x, truth = mine.x.numpy(), tc2_sim(ne=4).x.numpy()
     for row, name in enumerate("uvh"):
         err = np.max(np.abs(x[row] - truth[row])) / np.max(np.abs(truth[row]))
@@ -125,22 +162,28 @@ def test_latlon_file_interpolates_tc2(tmp_path, lat, lon):
 
 def test_function_is_tc2_bitwise():
     """``initial=fn(lat, lon) -> (h, u, v)`` with TC2's formula starts from TC2's state, bit for bit."""
+
     def tc2(lat, lon):
         u, v, h = TC2.initial(lat, lon)
         return h, u, v
 
-    mine = Simulation(load_scene("tc2_steady_alpha_pi4", ne=2, dt=1800.0, days=0.125), "cpu", progress=False, initial=tc2)
+    mine = Simulation(
+        load_scene("tc2_steady_alpha_pi4", ne=2, dt=1800.0, days=0.125), "cpu", progress=False, initial=tc2
+    )
     assert np.array_equal(mine.x.numpy(), tc2_sim().x.numpy())
     ds = swe_sphere.run("tc2_steady_alpha_pi4", device="cpu", ne=2, dt=1800.0, days=0.125, initial=tc2)
     assert ds.l2_h.values[0] == 0.0  # against TC2's exact solution: the start is it
 
 
-@pytest.mark.parametrize("fn, words", [
-    (lambda lat, lon: (lat, lat, lat), ["h <= 0"]),
-    (lambda lat, lon: (np.full(3, 1e3), lat, lat), ["h has shape (3,)"]),
-    (lambda lat, lon: (1e3 + 0 * lat, lat * np.nan, lat), ["u has", "non-finite"]),
-    (lambda lat, lon: (1e3, 0.0), ["must return (h, u, v)"]),
-])
+@pytest.mark.parametrize(
+    "fn, words",
+    [
+        (lambda lat, lon: (lat, lat, lat), ["h <= 0"]),
+        (lambda lat, lon: (np.full(3, 1e3), lat, lat), ["h has shape (3,)"]),
+        (lambda lat, lon: (1e3 + 0 * lat, lat * np.nan, lat), ["u has", "non-finite"]),
+        (lambda lat, lon: (1e3, 0.0), ["must return (h, u, v)"]),
+    ],
+)
 def test_bad_function_refused(fn, words):
     with pytest.raises(SceneError) as err:
         Simulation(load_scene("tc2_steady", ne=2), "cpu", progress=False, initial=fn)
@@ -175,8 +218,23 @@ def test_case_switch_on_every_bundled_scene(tmp_path, capsys, name):
     assert (scene.ne, scene.np, scene.stepper) == (2, base.np, base.stepper)  # the rest is the scene's
     over = {"case.name": "galewsky", "case.perturbed": False, **fitting_terms(base, "galewsky")}
     assert load_scene(name, ne=2, overrides=over).case_params == {"perturbed": False}
-    cli_one_line(capsys, ["run", name, "-s", "case.name=galewsky", "-s", "case.alpha=0.3", "--device", "cpu",
-                          "--output", tmp_path / "out.nc"], 2, "unknown parameter case.alpha for galewsky")
+    cli_one_line(
+        capsys,
+        [
+            "run",
+            name,
+            "-s",
+            "case.name=galewsky",
+            "-s",
+            "case.alpha=0.3",
+            "--device",
+            "cpu",
+            "--output",
+            tmp_path / "out.nc",
+        ],
+        2,
+        "unknown parameter case.alpha for galewsky",
+    )
     assert not (tmp_path / "out.nc").exists()
 
 
@@ -185,12 +243,32 @@ def test_tc2_switched_to_a_file_runs(tmp_path, capsys):
     which the scene's alpha = 0 would have been refused by) runs, from that state."""
     tc2 = tc2_sim()
     tc2.state().to_netcdf(tmp_path / "run.nc")
-    code, _, err = cli_main(capsys, "run", "tc2_steady", "-s", "case.name=file", "-s", f"case.path={tmp_path / 'run.nc'}",
-                            "--ne", 2, "--dt", 1800, "--days", 0.125, "--device", "cpu", "--no-progress", "--output", tmp_path / "out.nc")
+    code, _, err = cli_main(
+        capsys,
+        "run",
+        "tc2_steady",
+        "-s",
+        "case.name=file",
+        "-s",
+        f"case.path={tmp_path / 'run.nc'}",
+        "--ne",
+        2,
+        "--dt",
+        1800,
+        "--days",
+        0.125,
+        "--device",
+        "cpu",
+        "--no-progress",
+        "--output",
+        tmp_path / "out.nc",
+    )
     assert code == 0, err
     with xr.open_dataset(tmp_path / "out.nc", decode_times=False) as ds:
         assert ds.attrs["case"] == "file"
         assert np.array_equal(ds.h.isel(time=0).values, tc2.state().h.values)
+
+
 BAD = {
     "missing": (dict(v=None), ["no variable v"]),
     "nan": (dict(h=lambda h: h.where(h.lat < 60)), ["h has", "non-finite"]),
@@ -207,8 +285,13 @@ def test_bad_file_refused(tmp_path, capsys, kind):
     output; ``SceneError`` from ``swe_sphere.run``."""
     change, words = BAD[kind]
     scene = scene_file(tmp_path, latlon_file(tmp_path / "bad.nc", *LL, **change))
-    cli_one_line(capsys, ["run", scene, "--device", "cpu", "--no-progress", "--output", tmp_path / "out.nc"], 2,
-                 "case.path", *words)
+    cli_one_line(
+        capsys,
+        ["run", scene, "--device", "cpu", "--no-progress", "--output", tmp_path / "out.nc"],
+        2,
+        "case.path",
+        *words,
+    )
     assert not (tmp_path / "out.nc").exists()
     with pytest.raises(SceneError) as err:
         swe_sphere.run(scene, device="cpu")

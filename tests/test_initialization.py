@@ -16,21 +16,31 @@ import numpy as np
 import pytest
 import xarray as xr
 
-import roundoff
-from conftest import cli_one_line, make_sim
-from swe_sphere.simulation import simulation
 from swe_sphere.cli import main
 from swe_sphere.config.scene import load_scene
-from swe_sphere.steppers.initialization import DigitalFilter, digital_filter
 from swe_sphere.model.shallow_water import ShallowWater
+from swe_sphere.simulation import simulation
 from swe_sphere.simulation.simulation import Simulation
+from swe_sphere.steppers.initialization import DigitalFilter, digital_filter
 from swe_sphere.studies.sweep import Sweep, start_state
+
+import roundoff
+from conftest import cli_one_line, make_sim
 
 
 def _filter(sim, f):
     """``digital_filter`` of a simulation's initial state (one rank)."""
-    return digital_filter(f, sim.x.numpy().copy(), grid=sim.grid, terms=sim.scene.terms, fcor=sim.fcor, hs=sim.hs, g=sim.g,
-                          device=sim.device, topology=sim.topology)
+    return digital_filter(
+        f,
+        sim.x.numpy().copy(),
+        grid=sim.grid,
+        terms=sim.scene.terms,
+        fcor=sim.fcor,
+        hs=sim.hs,
+        g=sim.g,
+        device=sim.device,
+        topology=sim.topology,
+    )
 
 
 def test_time_reversal_is_an_exact_symmetry_of_the_discrete_rhs(rng):
@@ -65,7 +75,9 @@ def test_steady_state_is_kept_to_its_discretisation_error():
     at ne4, 2.9e-5 at ne8 (order 3.2), max |Δv| / max |v| 1.0e-3, 9.0e-5."""
     f = DigitalFilter(span_hours=24.0, cutoff_hours=12.0)
     dt, n = f.steps(1e-3)
-    assert f.weights(dt, n).sum() == pytest.approx(1.0, abs=roundoff.bound(2 * n + 1))  # 2n + 1 weights of |w| ≤ 1 summed
+    assert f.weights(dt, n).sum() == pytest.approx(
+        1.0, abs=roundoff.bound(2 * n + 1)
+    )  # 2n + 1 weights of |w| ≤ 1 summed
     change = {}
     for ne in (4, 8):
         sim = make_sim(load_scene("tc2_steady", ne=ne, days=1))
@@ -83,20 +95,32 @@ def test_tc5_gravity_waves_are_removed():
     (1.22x: the rest is the balanced flow's, over the mountain) and rms ∂h/∂t from
     1.54e-3 to 1.42e-4 m/s (10.8x). Mass is kept to round-off (measured 0.0)."""
     days = 1.0
-    day1 = {}
+    day1, before = {}, None
     for init in ("none", "dfi"):
-        scene = load_scene("tc5_mountain", ne=8, days=days, dt=900.0, stepper="rk4",
-                           overrides={"case.initialization": init, "dfi.cutoff_hours": 24.0, "dfi.span_hours": 48.0})
+        scene = load_scene(
+            "tc5_mountain",
+            ne=8,
+            days=days,
+            dt=900.0,
+            stepper="rk4",
+            overrides={"case.initialization": init, "dfi.cutoff_hours": 24.0, "dfi.span_hours": 48.0},
+        )
         sim = make_sim(scene)
         if init == "dfi":
             assert sim.dfi.dhdt_rms[0] / sim.dfi.dhdt_rms[1] > 9.5
             roundoff.within(abs(sim.dfi.mass_change), filter_mass_bound(sim.dfi, sim.grid.npts), "|mass change|")
-            roundoff.within(abs(sim.initial["mass"] / before.initial["mass"] - 1), filter_mass_bound(sim.dfi, sim.grid.npts),
-                            "|initial mass / unfiltered − 1|")
+            roundoff.within(
+                abs(sim.initial["mass"] / before.initial["mass"] - 1),
+                filter_mass_bound(sim.dfi, sim.grid.npts),
+                "|initial mass / unfiltered − 1|",
+            )
         sim.run(None)
         tend = sim.model.new_state()
         sim.model.rhs(sim.x, tend)
-        day1[init] = (math.sqrt(sim.topology.mean(sim.divergence() ** 2)), math.sqrt(sim.topology.mean(tend.numpy()[2] ** 2)))
+        day1[init] = (
+            math.sqrt(sim.topology.mean(sim.divergence() ** 2)),
+            math.sqrt(sim.topology.mean(tend.numpy()[2] ** 2)),
+        )
         before = sim
     div, dhdt = (day1["none"][k] / day1["dfi"][k] for k in (0, 1))
     assert 1.18 < div < 1.26, div  # measured 1.216
@@ -110,18 +134,44 @@ def test_run_file_records_the_start_and_a_restart_does_not_redo_it(tmp_path, cap
     calls = []
     real = simulation.digital_filter
     monkeypatch.setattr(simulation, "digital_filter", lambda *a, **k: calls.append(1) or real(*a, **k))
-    args = ["run", "tc5_mountain", "--ne", "2", "--dt", "3600", "--stepper", "rk4", "--device", "cpu", "--no-progress",
-            "-s", "case.initialization=\"dfi\"", "-s", "dfi.cutoff_hours=6", "-s", "dfi.span_hours=12"]
+    args = [
+        "run",
+        "tc5_mountain",
+        "--ne",
+        "2",
+        "--dt",
+        "3600",
+        "--stepper",
+        "rk4",
+        "--device",
+        "cpu",
+        "--no-progress",
+        "-s",
+        'case.initialization="dfi"',
+        "-s",
+        "dfi.cutoff_hours=6",
+        "-s",
+        "dfi.span_hours=12",
+    ]
     assert main([*args, "--days", "2", "--output", str(tmp_path / "full.nc")]) == 0
     out = capsys.readouterr().out
-    assert "initial     digital filter (Lynch & Huang 1992): cutoff 6 h, span +-6 h" in out and "digital-filter start:" in out
+    assert (
+        "initial     digital filter (Lynch & Huang 1992): cutoff 6 h, span +-6 h" in out
+        and "digital-filter start:" in out
+    )
     assert main([*args, "--days", "1", "--output", str(tmp_path / "cut.nc"), "--restart-every", "1"]) == 0
     assert len(calls) == 2
     capsys.readouterr()
-    assert main(["run", "--continue", str(tmp_path / "cut.restart.nc"), "--days", "2", "--no-progress", "--device", "cpu"]) == 0
+    assert (
+        main(["run", "--continue", str(tmp_path / "cut.restart.nc"), "--days", "2", "--no-progress", "--device", "cpu"])
+        == 0
+    )
     assert "continued (not redone)" in capsys.readouterr().out
     assert len(calls) == 2
-    with xr.open_dataset(tmp_path / "full.nc", decode_times=False) as a, xr.open_dataset(tmp_path / "cut_continued.nc", decode_times=False) as b:
+    with (
+        xr.open_dataset(tmp_path / "full.nc", decode_times=False) as a,
+        xr.open_dataset(tmp_path / "cut_continued.nc", decode_times=False) as b,
+    ):
         assert a.attrs["initialization"] == b.attrs["initialization"] == "dfi"
         assert a.attrs["dfi_cutoff_hours"] == 6.0 and a.attrs["dfi_steps"] > 0 and "dfi_steps" not in b.attrs
         assert a.attrs["dfi_dhdt_rms_after"] < a.attrs["dfi_dhdt_rms_before"]
@@ -158,11 +208,19 @@ def test_sweep_filters_once_and_every_run_starts_there(tmp_path, monkeypatch):
 @pytest.mark.parametrize(
     "scene, sets, message",
     [
-        ("tc5_mountain", ["case.initialization=\"balanced\""], "case.initialization must be one of none, dfi (got 'balanced')"),
-        ("tc2_steady", ["case.initialization=\"dfi\""], "would spoil case tc2_steady's exact solution"),
-        ("tc5_mountain", ["case.initialization=\"dfi\"", "dfi.cutoff_hours=0"], "dfi.cutoff_hours must be > 0 (got 0.0)"),
-        ("tc5_mountain", ["case.initialization=\"dfi\"", "dfi.span_hours=-6"], "dfi.span_hours must be > 0"),
-        ("tc5_mountain", ["case.initialization=\"dfi\"", "dfi.span_hours=30"], "dfi.span_hours = 30 is too short for a cutoff of 24 h"),
+        (
+            "tc5_mountain",
+            ['case.initialization="balanced"'],
+            "case.initialization must be one of none, dfi (got 'balanced')",
+        ),
+        ("tc2_steady", ['case.initialization="dfi"'], "would spoil case tc2_steady's exact solution"),
+        ("tc5_mountain", ['case.initialization="dfi"', "dfi.cutoff_hours=0"], "dfi.cutoff_hours must be > 0 (got 0.0)"),
+        ("tc5_mountain", ['case.initialization="dfi"', "dfi.span_hours=-6"], "dfi.span_hours must be > 0"),
+        (
+            "tc5_mountain",
+            ['case.initialization="dfi"', "dfi.span_hours=30"],
+            "dfi.span_hours = 30 is too short for a cutoff of 24 h",
+        ),
         ("tc5_mountain", ["dfi.window=3"], "unknown key dfi.window"),
     ],
 )
@@ -176,11 +234,33 @@ def test_bad_options_exit_2_with_one_line(tmp_path, capsys, scene, sets, message
 def test_cli_sweep_takes_the_start_as_an_override(tmp_path, capsys):
     """``sweep -s case.initialization=dfi``: the start is said, shared and recorded in sweep.nc."""
     out = tmp_path / "sweep"
-    args = ["sweep", "tc5_mountain", "--ne", "2", "--days", "0.25", "--steppers", "rk4", "--dt", "1800", "--device", "cpu",
-            "--output", str(out), "-s", "case.initialization=dfi", "-s", "dfi.cutoff_hours=6", "-s", "dfi.span_hours=12"]
+    args = [
+        "sweep",
+        "tc5_mountain",
+        "--ne",
+        "2",
+        "--days",
+        "0.25",
+        "--steppers",
+        "rk4",
+        "--dt",
+        "1800",
+        "--device",
+        "cpu",
+        "--output",
+        str(out),
+        "-s",
+        "case.initialization=dfi",
+        "-s",
+        "dfi.cutoff_hours=6",
+        "-s",
+        "dfi.span_hours=12",
+    ]
     assert main(args) == 0
     text = capsys.readouterr().out
-    assert "start       digital-filter initialization (cutoff 6 h, span 12 h)" in text and "gravity waves it keeps" in text
+    assert (
+        "start       digital-filter initialization (cutoff 6 h, span 12 h)" in text and "gravity waves it keeps" in text
+    )
     assert (out / "runs" / "start_dfi6h12h.npz").is_file()
     with xr.open_dataset(out / "sweep.nc", decode_times=False) as ds:
         assert ds.attrs["dfi_cutoff_hours"] == 6.0 and ds.attrs["dfi_span_hours"] == 12.0
@@ -199,9 +279,18 @@ def test_the_default_digital_filters_response(rate):
         return float(response(f.weights(dt, n), dt / (hours * 3600.0)))
 
     f = DigitalFilter()
-    for hours, value, digits in ((8, -5e-4, 1), (12, -4.7e-3, 2), (16, 0.048, 2), (24, 0.50, 2), (33, 0.79, 2), (48, 0.94, 2),
-                                 (72, 0.987, 3)):
-        assert passes(f, hours) == pytest.approx(value, abs=0.5 * 10 ** (math.floor(math.log10(abs(value))) - digits + 1)), hours
+    for hours, value, digits in (
+        (8, -5e-4, 1),
+        (12, -4.7e-3, 2),
+        (16, 0.048, 2),
+        (24, 0.50, 2),
+        (33, 0.79, 2),
+        (48, 0.94, 2),
+        (72, 0.987, 3),
+    ):
+        assert passes(f, hours) == pytest.approx(
+            value, abs=0.5 * 10 ** (math.floor(math.log10(abs(value))) - digits + 1)
+        ), hours
     assert max(passes(f, hours) for hours in np.geomspace(24, 24 * 30, 200)) <= 1.0
     dt = 300.0  # Lynch & Huang's window (refused here: shorter than twice the cutoff) of 36 steps each way
     assert float(response(lanczos_weights(dt / (6 * 3600.0), 36), dt / (4 * 3600.0))) == pytest.approx(0.24, abs=0.005)

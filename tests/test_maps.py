@@ -11,8 +11,8 @@ import pytest
 from matplotlib.figure import Figure
 
 import swe_sphere
-from swe_sphere.studies import plotting
 from swe_sphere.cli import main
+from swe_sphere.studies import plotting
 
 # The README's Python map example, run as written (the run file made by the fixture).
 EXAMPLE = """
@@ -27,8 +27,26 @@ plt.savefig("tc5_day1.png")
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory):
     d = tmp_path_factory.mktemp("maps")
-    assert main(["run", "tc5_mountain", "--ne", "2", "--np", "4", "--days", "1", "--device", "cpu", "--no-progress",
-                 "--output", str(d / "tc5.nc")]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "tc5_mountain",
+                "--ne",
+                "2",
+                "--np",
+                "4",
+                "--days",
+                "1",
+                "--device",
+                "cpu",
+                "--no-progress",
+                "--output",
+                str(d / "tc5.nc"),
+            ]
+        )
+        == 0
+    )
     return d
 
 
@@ -41,7 +59,9 @@ def test_remap_dataset_of_a_run_file_is_a_lat_lon_dataset(run_dir):
     # the flow is a few hundred metres around h0 + hs = 5960 m at most (TC5's mean depth)
     surface = ll.h_surface.sel(time=1).values
     assert 4500 < surface.min() < surface.max() < 6100
-    np.testing.assert_array_equal(ll.mass_change.values, swe_sphere.remap_dataset(run_dir / "tc5.nc", 90).mass_change.values)
+    np.testing.assert_array_equal(
+        ll.mass_change.values, swe_sphere.remap_dataset(run_dir / "tc5.nc", 90).mass_change.values
+    )
 
 
 def test_remap_dataset_refuses_what_is_not_a_run(run_dir, tmp_path):
@@ -79,6 +99,9 @@ def test_plot_functions_return_their_figures(run_dir, tmp_path):
         written = plotting.plot_map(ds, "u", 0.0, tmp_path / "u.png")
         assert isinstance(written["figure"], Figure) and written["path"] == tmp_path / "u.png"
         series = plotting.plot_series(ds)
-        assert isinstance(series, Figure) and [a.get_title() for a in series.axes[:2]] == ["invariants", "error norms (ref_: against tc5_mountain_T213.nc)"]
+        assert isinstance(series, Figure) and [a.get_title() for a in series.axes[:2]] == [
+            "invariants",
+            "error norms (ref_: against tc5_mountain_T213.nc)",
+        ]
         assert isinstance(plotting.plot_series(ds, tmp_path / "s.png"), Figure)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.png", "u.png"]

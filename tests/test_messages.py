@@ -43,14 +43,37 @@ def digest(path) -> str:
 def test_an_output_interval_of_no_whole_steps_names_dt_its_source_and_what_works(capsys, tmp_path):
     """tc5_mountain's dt is 86400/408 s: 0.3 days is 122.4 steps. The message said
     "dt = 211.765 s does not divide the output interval", blaming a dt never set."""
-    one_line(capsys, ["run", "tc5_mountain", "--days", "1", "-s", "output.every_days=0.3", "--output", tmp_path / "o.nc"],
-             "output interval (output.every_days) of 0.3 days is not a whole number of steps",
-             "dt = 211.765 s (time.dt of scene tc5_mountain)", "multiples of 0.125 days (nearest: 0.25 or 0.375)")
-    one_line(capsys, ["run", "tc2_steady", *TINY, "--dt", "1000", "--days", "5", "-s", "output.every_days=0.3",
-                      "--output", tmp_path / "o.nc"],
-             "dt = 1000 s (the dt given)", "multiples of 0.3125 days (nearest: 0.3125)")
-    one_line(capsys, ["run", "tc5_mountain", "--days", "1.3", "--output", tmp_path / "o.nc"],
-             "run length of 1.3 days is not a whole number of steps", "(nearest: 1.25 or 1.375)")
+    one_line(
+        capsys,
+        ["run", "tc5_mountain", "--days", "1", "-s", "output.every_days=0.3", "--output", tmp_path / "o.nc"],
+        "output interval (output.every_days) of 0.3 days is not a whole number of steps",
+        "dt = 211.765 s (time.dt of scene tc5_mountain)",
+        "multiples of 0.125 days (nearest: 0.25 or 0.375)",
+    )
+    one_line(
+        capsys,
+        [
+            "run",
+            "tc2_steady",
+            *TINY,
+            "--dt",
+            "1000",
+            "--days",
+            "5",
+            "-s",
+            "output.every_days=0.3",
+            "--output",
+            tmp_path / "o.nc",
+        ],
+        "dt = 1000 s (the dt given)",
+        "multiples of 0.3125 days (nearest: 0.3125)",
+    )
+    one_line(
+        capsys,
+        ["run", "tc5_mountain", "--days", "1.3", "--output", tmp_path / "o.nc"],
+        "run length of 1.3 days is not a whole number of steps",
+        "(nearest: 1.25 or 1.375)",
+    )
     assert list(tmp_path.iterdir()) == []
 
 
@@ -61,8 +84,9 @@ def test_a_scaled_dt_divides_both_the_output_interval_and_the_run_length():
     assert scene.dt == 432.0  # 794 s scaled from ne30, cut to 0.01 days / 2
     assert (0.3 * 86400 / scene.dt, scene.nsteps) == (60.0, 214)
     wide = load_scene("tc5_mountain", ne=8, days=1.001, overrides={"output.every_days": 0.3})  # gcd 0.001 days
-    assert wide.dt == 86.4 and any("to divide both the output interval of 0.3 and the run length of 1.001 days" in n
-                                   for n in wide.notes)
+    assert wide.dt == 86.4 and any(
+        "to divide both the output interval of 0.3 and the run length of 1.001 days" in n for n in wide.notes
+    )
 
 
 @pytest.mark.parametrize("command", ["run tc2_steady", "plot x.nc", "remap x.nc", "sweep tc2_steady", "stability"])
@@ -71,8 +95,11 @@ def test_an_empty_output_path_is_named(capsys, command):
 
 
 def test_a_mistyped_scene_name_gets_a_suggestion(capsys, tmp_path):
-    one_line(capsys, ["run", "tc5_mountian", *TINY, "--output", tmp_path / "o.nc"],
-             "scene file not found: tc5_mountian (did you mean tc5_mountain")
+    one_line(
+        capsys,
+        ["run", "tc5_mountian", *TINY, "--output", tmp_path / "o.nc"],
+        "scene file not found: tc5_mountian (did you mean tc5_mountain",
+    )
 
 
 def test_stability_help_lists_its_case_labels(capsys):
@@ -105,12 +132,18 @@ def test_plot_diff_after_plot_keeps_the_same_series_figure(runs, tmp_path, capsy
     series = digest(out / "run_series.png")
     assert main(["plot", str(runs / "a" / "run.nc"), "--diff", str(tmp_path / "other.nc"), "--output", str(out)]) == 0
     assert main(["plot", str(runs / "a" / "run.nc"), "--field", "u", "--output", str(out)]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["run_h_surface_day1.png", "run_h_surface_day1_diff.png", "run_series.png",
-                                                     "run_u_day1.png"]
+    assert sorted(p.name for p in out.iterdir()) == [
+        "run_h_surface_day1.png",
+        "run_h_surface_day1_diff.png",
+        "run_series.png",
+        "run_u_day1.png",
+    ]
     assert digest(out / "run_series.png") == series
     capsys.readouterr()
     # another run's series figure of the same name is still refused, and kept
-    one_line(capsys, ["plot", runs / "b" / "run.nc", "--field", "v", "--output", out], "output file exists", "run_series.png")
+    one_line(
+        capsys, ["plot", runs / "b" / "run.nc", "--field", "v", "--output", out], "output file exists", "run_series.png"
+    )
     assert digest(out / "run_series.png") == series and not (out / "run_v_day0.5.png").exists()
 
 
@@ -128,9 +161,29 @@ def test_mpi_without_mpi4py_names_the_extra(tmp_path):
     fake = tmp_path / "site" / "mpi4py"
     fake.mkdir(parents=True)
     (fake / "__init__.py").write_text("raise ImportError('No module named mpi4py')\n")
-    env = {**os.environ, "PMI_SIZE": "2", "PYTHONPATH": os.pathsep.join([str(tmp_path / "site"), os.environ.get("PYTHONPATH", "")])}
-    p = subprocess.run([sys.executable, "-m", "swe_sphere.cli", "run", "tc2_steady", *TINY, "--days", "1", "--output",
-                        str(tmp_path / "o.nc")], env=env, capture_output=True, text=True, timeout=300)
+    env = {
+        **os.environ,
+        "PMI_SIZE": "2",
+        "PYTHONPATH": os.pathsep.join([str(tmp_path / "site"), os.environ.get("PYTHONPATH", "")]),
+    }
+    p = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "swe_sphere.cli",
+            "run",
+            "tc2_steady",
+            *TINY,
+            "--days",
+            "1",
+            "--output",
+            str(tmp_path / "o.nc"),
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     lines = [line for line in p.stderr.splitlines() if line.strip()]
     assert p.returncode == 2 and len(lines) == 1, p.stderr
     assert "mpi4py cannot be imported" in lines[0] and "pip install 'swe-sphere[mpi]'" in lines[0]

@@ -41,8 +41,12 @@ def mpi_failure() -> str | None:
     """Why ``mpiexec -n 2`` did not run an allreduce here (None: it did)."""
     code = "from mpi4py import MPI; c = MPI.COMM_WORLD; s = c.allreduce(c.rank + 1); c.rank or print(s)"  # one writer: no interleaving
     try:
-        proc = subprocess.run([_beside_python("mpiexec"), "-n", "2", sys.executable, "-c", code], capture_output=True, text=True,
-                              timeout=300)
+        proc = subprocess.run(
+            [_beside_python("mpiexec"), "-n", "2", sys.executable, "-c", code],
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
     except (OSError, subprocess.TimeoutExpired) as err:
         return f"mpiexec -n 2 did not run: {err}"
     if proc.returncode != 0 or proc.stdout.split() != ["3"]:
@@ -56,7 +60,9 @@ def needs_mpi():
     and MPI does not run."""
     if _beside_python("mpiexec") is None or importlib.util.find_spec("mpi4py") is None:
         pytest.skip("mpiexec or mpi4py is not installed (pip install -e .[test] installs mpich and mpi4py)")
-    assert _beside_python("swe-sphere") is not None, "the swe-sphere console script is not installed (pip install -e .[test])"
+    assert _beside_python("swe-sphere") is not None, (
+        "the swe-sphere console script is not installed (pip install -e .[test])"
+    )
     failure = mpi_failure()
     assert failure is None, failure
 
@@ -66,7 +72,11 @@ def mpirun(ranks: int, args: list[str], cwd: Path, program: list[str] | None = N
     env = {**os.environ, "SWE_SPHERE_THREADS": "1"}
     return subprocess.run(
         [_beside_python("mpiexec"), "-n", str(ranks), *(program or [_beside_python("swe-sphere")]), *args],
-        cwd=cwd, capture_output=True, text=True, timeout=300, env=env,
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=env,
     )
 
 
@@ -96,9 +106,10 @@ def test_each_output_time_gathers_a_state_once(tmp_path, monkeypatch):
     vorticity and divergence of the error against the exact wind and of the exact wind);
     the run's Courant numbers come from its first output time's gather. Counted on
     one process, where each call stands for the collective."""
-    from conftest import make_sim
     from swe_sphere.config.scene import load_scene
     from swe_sphere.core.constants import DAY
+
+    from conftest import make_sim
 
     dt = 1800.0
     scene = load_scene("tc2_steady", ne=2, np=4, dt=dt, days=4 * dt / DAY, stepper="ssprk3")
@@ -122,10 +133,28 @@ def test_each_output_time_gathers_a_state_once(tmp_path, monkeypatch):
         ("tc5_mountain", ["--stepper", "fbrk32", "--days", "0.1"]),  # the continuity and momentum halves, topography
         ("tc5_mountain", ["--stepper", "leapfrog_trapezoidal", "--days", "0.1"]),  # with hyperviscosity and topography
         ("tc5_mountain", ["--stepper", "split_explicit", "--days", "0.1"]),  # the fast/slow split, its mean depth
-        ("tc5_mountain", ["--stepper", "mri", "-s", "mri.method=mri_gark_erk33a", "--days", "0.1"]),  # L z in one pass, ρ linear in time
+        (
+            "tc5_mountain",
+            ["--stepper", "mri", "-s", "mri.method=mri_gark_erk33a", "--days", "0.1"],
+        ),  # L z in one pass, ρ linear in time
         ("tc4_forced_low", ["--days", "0.25"]),  # ssprk3 with the time-dependent forcing
-        ("tc5_mountain", ["--stepper", "rk4", "--dt", "3600", "--days", "1", "-s", "case.initialization=dfi",
-                          "-s", "dfi.cutoff_hours=6", "-s", "dfi.span_hours=12"]),  # a digital-filter start; T213 errors at day 1
+        (
+            "tc5_mountain",
+            [
+                "--stepper",
+                "rk4",
+                "--dt",
+                "3600",
+                "--days",
+                "1",
+                "-s",
+                "case.initialization=dfi",
+                "-s",
+                "dfi.cutoff_hours=6",
+                "-s",
+                "dfi.span_hours=12",
+            ],
+        ),  # a digital-filter start; T213 errors at day 1
     ],
 )
 def test_explicit_run_same_bits_on_1_2_3_ranks(tmp_path, scene, extra):
@@ -150,7 +179,10 @@ def test_run_on_two_ranks_continues_on_three(tmp_path):
     assert (tmp_path / "half.restart.nc").is_file()
     proc = mpirun(3, ["run", "--continue", "half.restart.nc", "--days", "0.5", "--output", "rest.nc"], tmp_path)
     assert proc.returncode == 0, proc.stderr[-2000:]
-    with xr.open_dataset(tmp_path / "whole.nc", decode_times=False) as whole, xr.open_dataset(tmp_path / "rest.nc", decode_times=False) as rest:
+    with (
+        xr.open_dataset(tmp_path / "whole.nc", decode_times=False) as whole,
+        xr.open_dataset(tmp_path / "rest.nc", decode_times=False) as rest,
+    ):
         for name in ("u", "v", "h"):
             assert np.array_equal(whole[name].values[-1], rest[name].values[-1]), name
 
@@ -173,8 +205,20 @@ def test_sigint_on_two_ranks_is_one_line(tmp_path, paused):
     and no MPI_Abort is needed (exit 130)."""
     import signal
 
-    proc = paused("step:3", tmp_path, "run", "tc5_mountain", "--ne", "4", "--days", "200", "--no-progress", "--output", "o.nc",
-                  launcher=[_beside_python("mpiexec"), "-n", "2"])
+    proc = paused(
+        "step:3",
+        tmp_path,
+        "run",
+        "tc5_mountain",
+        "--ne",
+        "4",
+        "--days",
+        "200",
+        "--no-progress",
+        "--output",
+        "o.nc",
+        launcher=[_beside_python("mpiexec"), "-n", "2"],
+    )
     proc.send_signal(signal.SIGINT)
     err = proc.communicate(timeout=120)[1]
     assert proc.returncode == 130, err[-2000:]
@@ -187,11 +231,30 @@ def test_sigint_on_two_ranks_is_one_line(tmp_path, paused):
 def test_blow_up_on_two_ranks_is_one_line(tmp_path):
     """Every rank finds the blow-up (the bad node is sought over all of them); rank 0
     alone says so, as it alone gives the stability warning: two lines, not four."""
-    proc = mpirun(2, ["run", "tc2_steady", "--ne", "2", "--stepper", "ssprk3", "--dt", "14400", "--days", "10",
-                      "--no-progress", "--output", "o.nc"], tmp_path)
+    proc = mpirun(
+        2,
+        [
+            "run",
+            "tc2_steady",
+            "--ne",
+            "2",
+            "--stepper",
+            "ssprk3",
+            "--dt",
+            "14400",
+            "--days",
+            "10",
+            "--no-progress",
+            "--output",
+            "o.nc",
+        ],
+        tmp_path,
+    )
     assert proc.returncode == 3, proc.stderr[-2000:]
     lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 2 and "warning: dt = 14400 s" in lines[0] and "blow-up at step 4" in lines[1], proc.stderr[-2000:]
+    assert len(lines) == 2 and "warning: dt = 14400 s" in lines[0] and "blow-up at step 4" in lines[1], proc.stderr[
+        -2000:
+    ]
     assert (tmp_path / "o.nc").is_file()
 
 
@@ -223,7 +286,9 @@ def test_blow_up_inside_a_block_on_two_ranks(tmp_path):
     (tmp_path / "r.nc").rename(tmp_path / "r1.nc")
     two = mpirun(2, ["5", *args, "--output", "r.nc"], tmp_path, [sys.executable, "-c", CHECKED_EVERY])
     assert one.returncode == two.returncode == 3, two.stderr[-2000:]
-    assert one.stderr == two.stderr and "swe-sphere: blow-up at step 17 (model time 0.7083 days)" in one.stderr, two.stderr[-2000:]
+    assert one.stderr == two.stderr and "swe-sphere: blow-up at step 17 (model time 0.7083 days)" in one.stderr, (
+        two.stderr[-2000:]
+    )
     assert_same_bits(tmp_path / "r1.nc", tmp_path / "r.nc")
     with xr.open_dataset(tmp_path / "r.nc", decode_times=False) as ds:
         assert list(ds.steps.values) == [0, 16]
@@ -258,9 +323,14 @@ def test_solver_steppers_agree_with_one_rank(tmp_path, rng):
     runs = {}
     one = final_states(runs=runs)
     ops = {name: n for name, (n, _) in runs.items()}
-    floors = {name: max(roundoff.state_difference(x, one[name]))
-              for name, x in final_states(nudge=lambda x, grid: roundoff.nudged(x, grid, rng)).items()}
-    ops["continued"], floors["continued"] = ops["semi_implicit"], floors["semi_implicit"]  # the same run, one DAYS later
+    floors = {
+        name: max(roundoff.state_difference(x, one[name]))
+        for name, x in final_states(nudge=lambda x, grid: roundoff.nudged(x, grid, rng)).items()
+    }
+    ops["continued"], floors["continued"] = (
+        ops["semi_implicit"],
+        floors["semi_implicit"],
+    )  # the same run, one DAYS later
     half = Simulation(scene("semi_implicit", DAYS), "cpu", progress=False)
     result = half.run(tmp_path / "half.nc", restart_every=DAYS)
     one["continued"] = continued_state(result.checkpoint)
@@ -271,7 +341,9 @@ def test_solver_steppers_agree_with_one_rank(tmp_path, rng):
         assert three["ranks"] == 3
         for name, state in one.items():
             wind, h = roundoff.state_difference(three[name], state)
-            print(f"\n{name}: 3 ranks against 1: wind {wind:.2e}, depth {h:.2e} (floor {floors[name]:.2e}, {ops[name]} RHS and iterations)")
+            print(
+                f"\n{name}: 3 ranks against 1: wind {wind:.2e}, depth {h:.2e} (floor {floors[name]:.2e}, {ops[name]} RHS and iterations)"
+            )
             limit = 3 * ops[name] * floors[name]
             if name == "imex_mixed":
                 stepper, options = STEPPERS[name]
@@ -294,7 +366,9 @@ def test_memory_guard_counts_the_ranks_on_the_node(tmp_path):
     refused, by every rank alike (none waits for the others), before anything is
     built: one line, exit 3."""
     proc = mpirun(2, ["run", "tc2_steady", "--ne", "100000", "--output", "o.nc", "--no-progress"], tmp_path)
-    one_line(proc.returncode, proc.stderr, 3, "ne=100000 np=4 with ssprk3 over 2 MPI ranks (2 on this node) needs about")
+    one_line(
+        proc.returncode, proc.stderr, 3, "ne=100000 np=4 with ssprk3 over 2 MPI ranks (2 on this node) needs about"
+    )
     assert not (tmp_path / "o.nc").exists()
 
 
@@ -384,7 +458,22 @@ def test_a_branch_on_two_ranks_has_the_bits_of_one(tmp_path):
     """``run --continue R --stepper rk4`` (a branch, TC4's time-dependent forcing read
     at the branch's clock) on 2 ranks gives the 1-rank branch's bits."""
     args = ["--ne", "2", "--no-progress"]
-    assert main(["run", "tc4_forced_low", *args, "--days", "0.25", "--restart-every", "0.25", "--output", str(tmp_path / "spin.nc")]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "tc4_forced_low",
+                *args,
+                "--days",
+                "0.25",
+                "--restart-every",
+                "0.25",
+                "--output",
+                str(tmp_path / "spin.nc"),
+            ]
+        )
+        == 0
+    )
     branch = ["run", "--continue", str(tmp_path / "spin.restart.nc"), "--stepper", "rk4", "--days", "0.5", *args]
     assert main([*branch, "--output", str(tmp_path / "b1.nc")]) == 0
     proc = mpirun(2, [*branch, "--output", "b2.nc"], tmp_path)

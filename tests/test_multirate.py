@@ -13,15 +13,16 @@ import numpy as np
 import pytest
 import warp as wp
 
-from conftest import cli_main, one_line
 from swe_sphere.config.scene import load_scene
+from swe_sphere.core.tally import Tally, instrumented
 from swe_sphere.model.diagnostics import courant_numbers
 from swe_sphere.simulation.simulation import Simulation
-from swe_sphere.studies.stability import run_is_stable
 from swe_sphere.steppers.multirate import GravitySplit, MriOptions, parse_mri
 from swe_sphere.steppers.tables import MULTIRATE
+from swe_sphere.studies.stability import run_is_stable
 from swe_sphere.studies.sweep import explicit_limits
-from swe_sphere.core.tally import Tally, instrumented
+
+from conftest import cli_main, one_line
 
 EPS = np.finfo(float).eps
 
@@ -95,8 +96,12 @@ def test_fast_evaluation_cost_in_launches_and_bytes():
     z = wp.clone(xp)
     tally = Tally()
     counts = {}
-    calls = (("rhs", lambda: m.rhs(xp, F)), ("slow", lambda: split.slow(xp, slow)), ("fast", lambda: split.fast(xp, fast, slow)),
-             ("forward-backward substep", lambda: fb._fb_substep(z, z, 10.0, slow)))
+    calls = (
+        ("rhs", lambda: m.rhs(xp, F)),
+        ("slow", lambda: split.slow(xp, slow)),
+        ("fast", lambda: split.fast(xp, fast, slow)),
+        ("forward-backward substep", lambda: fb._fb_substep(z, z, 10.0, slow)),
+    )
     with instrumented(tally):
         for name, call in calls:
             call()  # recorded outside the count
@@ -130,22 +135,26 @@ def error(stepper, options, dt):
     return np.abs(final_depth(stepper, tuple(sorted(options.items())), dt) - ref).max() / np.abs(ref).max()
 
 
-@pytest.mark.parametrize("stepper, options, expected", [
-    # Wicker & Skamarock 2002 (MWR 130, 2088): second order in the split sense (third for linear
-    # problems); ClimaTimeSteppers.jl's convergence table lists WSRK3 as 2. The forward–backward
-    # substeps are first order in their step τ, so n doubles as Δt halves (τ ∝ Δt²). Measured 1.86
-    # (1.81 without divergence damping).
-    ("split_explicit", {"substeps": 12}, 2),
-    # MIS2 (Wensch, Knoth & Galant 2009), second order; measured 2.07
-    ("mri", {"method": "mis2", "inner": "rk4"}, 2),
-    # MIS3C (Knoth & Wensch 2014): second order for the coupled problem although its slow table is
-    # third order (ClimaTimeSteppers.jl lists 2); measured 2.13
-    ("mri", {"method": "mis3c", "inner": "rk4"}, 2),
-    # MIS4a (Knoth & Wensch 2014), third order; measured 2.97
-    ("mri", {"method": "mis4a", "inner": "rk4"}, 3),
-    # MRI-GARK-ERK33a (Sandu 2019, §8.1.1), third order; measured 2.99
-    ("mri", {"method": "mri_gark_erk33a", "inner": "rk4"}, 3),
-], ids=["split_explicit", "mis2", "mis3c", "mis4a", "mri_gark_erk33a"])
+@pytest.mark.parametrize(
+    "stepper, options, expected",
+    [
+        # Wicker & Skamarock 2002 (MWR 130, 2088): second order in the split sense (third for linear
+        # problems); ClimaTimeSteppers.jl's convergence table lists WSRK3 as 2. The forward–backward
+        # substeps are first order in their step τ, so n doubles as Δt halves (τ ∝ Δt²). Measured 1.86
+        # (1.81 without divergence damping).
+        ("split_explicit", {"substeps": 12}, 2),
+        # MIS2 (Wensch, Knoth & Galant 2009), second order; measured 2.07
+        ("mri", {"method": "mis2", "inner": "rk4"}, 2),
+        # MIS3C (Knoth & Wensch 2014): second order for the coupled problem although its slow table is
+        # third order (ClimaTimeSteppers.jl lists 2); measured 2.13
+        ("mri", {"method": "mis3c", "inner": "rk4"}, 2),
+        # MIS4a (Knoth & Wensch 2014), third order; measured 2.97
+        ("mri", {"method": "mis4a", "inner": "rk4"}, 3),
+        # MRI-GARK-ERK33a (Sandu 2019, §8.1.1), third order; measured 2.99
+        ("mri", {"method": "mri_gark_erk33a", "inner": "rk4"}, 3),
+    ],
+    ids=["split_explicit", "mis2", "mis3c", "mis4a", "mri_gark_erk33a"],
+)
 def test_slow_order(stepper, options, expected):
     """TC6 (no ∇⁴) ne 4, day 1, Δt = 900 s and 450 s (0.9 and 0.45 of Δt_g): the rate
     log2(e(900)/e(450)) within ±0.3 of the method's order. The inner RK4 with 12 substeps
@@ -160,12 +169,21 @@ def test_slow_order(stepper, options, expected):
     assert abs(rate - expected) <= 0.3
 
 
-@pytest.mark.parametrize("stepper, options, ns, order", [
-    ("split_explicit", {"divergence_damping": 0.0}, (12, 24, 48), 1),  # forward–backward: symplectic Euler, first order in τ
-    ("mri", {"method": "mis3c", "inner": "fbrk32"}, (12, 24, 48), 2),
-    ("mri", {"method": "mis3c", "inner": "ssprk3"}, (12, 24, 48), 3),
-    ("mri", {"method": "mis3c", "inner": "rk4"}, (12, 24, 48), 4),
-], ids=["split_explicit", "fbrk32", "ssprk3", "rk4"])
+@pytest.mark.parametrize(
+    "stepper, options, ns, order",
+    [
+        (
+            "split_explicit",
+            {"divergence_damping": 0.0},
+            (12, 24, 48),
+            1,
+        ),  # forward–backward: symplectic Euler, first order in τ
+        ("mri", {"method": "mis3c", "inner": "fbrk32"}, (12, 24, 48), 2),
+        ("mri", {"method": "mis3c", "inner": "ssprk3"}, (12, 24, 48), 3),
+        ("mri", {"method": "mis3c", "inner": "rk4"}, (12, 24, 48), 4),
+    ],
+    ids=["split_explicit", "fbrk32", "ssprk3", "rk4"],
+)
 def test_many_substeps_converge_to_the_fast_part_solved_exactly(stepper, options, ns, order):
     """At a fixed slow step (TC6 ne 4, Δt = 1800 s, 1.8 Δt_g, 1 day) the runs with n, 2n, 4n
     substeps approach a limit, the method with its fast part integrated exactly, at the inner
@@ -184,12 +202,16 @@ def test_many_substeps_converge_to_the_fast_part_solved_exactly(stepper, options
     assert errors[2] <= errors[1] * (1 + 1e-3) and errors[1] <= errors[0] * (1 + 1e-3)
 
 
-@pytest.mark.parametrize("stepper, options", [
-    ("split_explicit", {}),
-    ("mri", {}),
-    ("mri", {"method": "mri_gark_erk33a", "inner": "fbrk32"}),
-    ("mri", {"method": "mis4a", "inner": "rk4", "substeps": 4}),
-], ids=["split_explicit", "mri", "mri_gark-fbrk32", "mis4a-rk4"])
+@pytest.mark.parametrize(
+    "stepper, options",
+    [
+        ("split_explicit", {}),
+        ("mri", {}),
+        ("mri", {"method": "mri_gark_erk33a", "inner": "fbrk32"}),
+        ("mri", {"method": "mis4a", "inner": "rk4", "substeps": 4}),
+    ],
+    ids=["split_explicit", "mri", "mri_gark-fbrk32", "mis4a-rk4"],
+)
 def test_mass_kept_to_round_off(stepper, options):
     """TC5 ne 4 (mountain, ∇⁴), 2 days at 4 Δt_g. Every pass that writes the depth rounds each
     node's h by at most ε|h|, so the mass ∫h (h > 0) by at most ε·mass; the DSS'd divergences
@@ -207,7 +229,9 @@ def test_mass_kept_to_round_off(stepper, options):
     passes = st.fast_evaluations() + 4 + 2 + sim.model.hv.plan(sim.scene.dt)[0]
     bound = result.steps * passes * EPS
     change = max(abs(h["mass_change"]) for h in result.history)
-    print(f"\n{stepper} {options}: {result.steps} steps ({steps_per_day} a day), mass change {change:.1e}, bound {bound:.1e}")
+    print(
+        f"\n{stepper} {options}: {result.steps} steps ({steps_per_day} a day), mass change {change:.1e}, bound {bound:.1e}"
+    )
     assert change <= bound
 
 
@@ -297,11 +321,27 @@ def test_the_slow_tables_order_is_checked():
 
 
 BAD = [
-    ("split_explicit", "split_explicit.substeps=0", "split_explicit.substeps must be an integer >= 1 or \"auto\" (got 0)"),
-    ("split_explicit", "split_explicit.substeps=-3", "split_explicit.substeps must be an integer >= 1 or \"auto\" (got -3)"),
-    ("split_explicit", "split_explicit.substeps=2.5", "split_explicit.substeps must be an integer >= 1 or \"auto\" (got 2.5)"),
-    ("split_explicit", "split_explicit.divergence_damping=1", "split_explicit.divergence_damping must be in [0, 1) (got 1"),
-    ("mri", "mri.substeps=0", "mri.substeps must be an integer >= 1 or \"auto\" (got 0)"),
+    (
+        "split_explicit",
+        "split_explicit.substeps=0",
+        'split_explicit.substeps must be an integer >= 1 or "auto" (got 0)',
+    ),
+    (
+        "split_explicit",
+        "split_explicit.substeps=-3",
+        'split_explicit.substeps must be an integer >= 1 or "auto" (got -3)',
+    ),
+    (
+        "split_explicit",
+        "split_explicit.substeps=2.5",
+        'split_explicit.substeps must be an integer >= 1 or "auto" (got 2.5)',
+    ),
+    (
+        "split_explicit",
+        "split_explicit.divergence_damping=1",
+        "split_explicit.divergence_damping must be in [0, 1) (got 1",
+    ),
+    ("mri", "mri.substeps=0", 'mri.substeps must be an integer >= 1 or "auto" (got 0)'),
     ("mri", "mri.inner=euler", "mri.inner must be one of fbrk32, ssprk3, rk4 (got 'euler')"),
     ("mri", "mri.method=mis5", "mri.method must be one of mis2, mis3c, mis4a, mri_gark_erk33a (got 'mis5')"),
     ("mri", "mri.name=mine", "mri.beta must be a non-empty array of rows"),
@@ -314,24 +354,44 @@ BAD = [
 @pytest.mark.parametrize("stepper, setting, words", BAD, ids=[b[1] for b in BAD])
 def test_bad_option_is_one_line(tmp_path, capsys, stepper, setting, words):
     out = tmp_path / "o.nc"
-    code, _, err = cli_main(capsys, "run", "tc5_mountain", "--ne", "2", "--stepper", stepper, "-s", setting, "--output", out)
+    code, _, err = cli_main(
+        capsys, "run", "tc5_mountain", "--ne", "2", "--stepper", stepper, "-s", setting, "--output", out
+    )
     one_line(code, err, 2, words)
     assert not out.exists()
 
 
-@pytest.mark.parametrize("table, words", [
-    ("mri = 3", "[mri] must be a table"),
-    ('[mri]\nname = "x"\norder = 2\nbeta = [[1, 0], [0.5]]', "mri.beta must be square (got 2 rows of 2, 1 entries)"),
-    ('[mri]\nname = "x"\norder = 1\nbeta = [["half"]]', "mri.beta entry (1,1) = 'half' is not a number or a fraction"),
-    ('[mri]\nname = "x"\norder = 1\nbeta = [[0.5, 0], [1, -0.5]]', "mri.order = 1 claimed, but the order-1 condition Σb = 1 fails"),
-    ('[mri]\nname = "x"\norder = 1\nbeta = [[0.5, 0], [0, -0.5]]', "mri.beta row 2 sums to -0.5: each inner solve's span"),
-    ('[mri]\nname = "x"\norder = 1\nbeta = [[1, 1], [0, 1]]', "mri.beta entry (1,2) is above the diagonal"),
-    ('[mri]\nname = "x"\norder = 2\nbeta = [[1]]', "mri.order = 2 claimed, but the order-2 condition"),
-], ids=["not-a-table", "ragged", "not-a-number", "first-order-fails", "negative-span", "above-diagonal", "order"])
+@pytest.mark.parametrize(
+    "table, words",
+    [
+        ("mri = 3", "[mri] must be a table"),
+        (
+            '[mri]\nname = "x"\norder = 2\nbeta = [[1, 0], [0.5]]',
+            "mri.beta must be square (got 2 rows of 2, 1 entries)",
+        ),
+        (
+            '[mri]\nname = "x"\norder = 1\nbeta = [["half"]]',
+            "mri.beta entry (1,1) = 'half' is not a number or a fraction",
+        ),
+        (
+            '[mri]\nname = "x"\norder = 1\nbeta = [[0.5, 0], [1, -0.5]]',
+            "mri.order = 1 claimed, but the order-1 condition Σb = 1 fails",
+        ),
+        (
+            '[mri]\nname = "x"\norder = 1\nbeta = [[0.5, 0], [0, -0.5]]',
+            "mri.beta row 2 sums to -0.5: each inner solve's span",
+        ),
+        ('[mri]\nname = "x"\norder = 1\nbeta = [[1, 1], [0, 1]]', "mri.beta entry (1,2) is above the diagonal"),
+        ('[mri]\nname = "x"\norder = 2\nbeta = [[1]]', "mri.order = 2 claimed, but the order-2 condition"),
+    ],
+    ids=["not-a-table", "ragged", "not-a-number", "first-order-fails", "negative-span", "above-diagonal", "order"],
+)
 def test_malformed_table_is_one_line(tmp_path, capsys, table, words):
     scene = tmp_path / "mine.toml"
-    scene.write_text(f'terms = ["continuity", "momentum_advection", "coriolis", "pressure_gradient", "topography"]\n{table}\n'
-                     '[case]\nname = "tc5_mountain"\n[grid]\nne = 2\nnp = 4\n[time]\nstepper = "mri"\ndt = 1800.0\ndays = 0.125\n')
+    scene.write_text(
+        f'terms = ["continuity", "momentum_advection", "coriolis", "pressure_gradient", "topography"]\n{table}\n'
+        '[case]\nname = "tc5_mountain"\n[grid]\nne = 2\nnp = 4\n[time]\nstepper = "mri"\ndt = 1800.0\ndays = 0.125\n'
+    )
     out = tmp_path / "o.nc"
     code, _, err = cli_main(capsys, "run", scene, "--output", out)
     one_line(code, err, 2, words)

@@ -17,10 +17,10 @@ import pytest
 import warp as wp
 
 from swe_sphere.cases.library import make_case
-from swe_sphere.model.diagnostics import HARMONIC_KINDS, harmonic_state, hyperviscosity_rate, ideal_hyperviscosity_rate
 from swe_sphere.grid.gll import gll
 from swe_sphere.kernels import dss as dss_k
 from swe_sphere.kernels import operators
+from swe_sphere.model.diagnostics import HARMONIC_KINDS, harmonic_state, hyperviscosity_rate, ideal_hyperviscosity_rate
 from swe_sphere.model.shallow_water import TERMS, ShallowWater
 
 import roundoff
@@ -65,21 +65,36 @@ def wp_divergence(m, u, v):
 def wp_gradient_element(m, f):
     out = wp.zeros((2, m.N), dtype=wp.float64, device=DEV)
     rows = functools.partial(operators.row_vectors, np=m.grid.np)  # the element kernels' GLL rows
-    wp.launch(operators.gradient_element(m.grid.np), m.grid.nelem, [rows(w2(f)), 0, rows(m.Dinv), m.dvv_rows, rows(out), 0], device=DEV)
+    wp.launch(
+        operators.gradient_element(m.grid.np),
+        m.grid.nelem,
+        [rows(w2(f)), 0, rows(m.Dinv), m.dvv_rows, rows(out), 0],
+        device=DEV,
+    )
     return out.numpy()
 
 
 def wp_divergence_element(m, u, v):
     out = wp.zeros(m.N, dtype=wp.float64, device=DEV)
     rows = functools.partial(operators.row_vectors, np=m.grid.np)
-    wp.launch(operators.divergence_element(m.grid.np), m.grid.nelem, [*map(rows, (w2([u, v]), m.Dinv, m.metdet)), m.dvv_rows, rows(out), 0], device=DEV)
+    wp.launch(
+        operators.divergence_element(m.grid.np),
+        m.grid.nelem,
+        [*map(rows, (w2([u, v]), m.Dinv, m.metdet)), m.dvv_rows, rows(out), 0],
+        device=DEV,
+    )
     return out.numpy()
 
 
 def wp_vorticity_element(m, u, v):
     out = wp.zeros(m.N, dtype=wp.float64, device=DEV)
     rows = functools.partial(operators.row_vectors, np=m.grid.np)
-    wp.launch(operators.vorticity_element(m.grid.np), m.grid.nelem, [*map(rows, (w2([u, v]), m.D, m.metdet)), m.dvv_rows, rows(out), 0], device=DEV)
+    wp.launch(
+        operators.vorticity_element(m.grid.np),
+        m.grid.nelem,
+        [*map(rows, (w2([u, v]), m.D, m.metdet)), m.dvv_rows, rows(out), 0],
+        device=DEV,
+    )
     return out.numpy()
 
 
@@ -137,7 +152,10 @@ def smooth_fields(g):
     return dict(f=f, grad=gf, u=u, v=v, div=a * lap_f, vort=a * lap_G, lap=lap_f)
 
 
-def solid_body(g, omega=7.292e-5 * np.array([0.3, -0.5, 0.8])):
+SOLID_BODY_OMEGA = 7.292e-5 * np.array([0.3, -0.5, 0.8])
+
+
+def solid_body(g, omega=SOLID_BODY_OMEGA):
     """v = ω × (a r̂): divergence-free, vorticity 2 ω·r̂."""
     V = g.radius * np.cross(omega[:, None], g.xyz, axis=0)
     u, v = tangent_components(g, V)
@@ -247,8 +265,11 @@ def test_dss_makes_continuous_and_keeps_integral(ne, np_, rng):
     assert np.abs(x - x[:, rep]).max() > 0.1
     before, after = (x * g.spheremp).sum(axis=1), (out * g.spheremp).sum(axis=1)  # numpy's pairwise sums
     scale = (np.abs(x) * g.spheremp).sum(axis=1)
-    roundoff.within((np.abs(after - before) / scale).max(), roundoff.bound(roundoff.operator_roundings(np_) + 2 * math.ceil(math.log2(g.npts))),
-                    "|∫ DSS x − ∫ x| / ∫|x|")
+    roundoff.within(
+        (np.abs(after - before) / scale).max(),
+        roundoff.bound(roundoff.operator_roundings(np_) + 2 * math.ceil(math.log2(g.npts))),
+        "|∫ DSS x − ∫ x| / ∫|x|",
+    )
     # DSS of a continuous field is the identity (weighted), and the unweighted
     # DSS of spheremp·f gives back f
     out2 = wp_dss(m, out, weighted=True)
@@ -265,7 +286,11 @@ def random_continuous(g, ops, rng, rows):
 def close(a, b, np_, passes=1, scale=None):
     """max |a − b| within ``roundoff.operator_roundings(np_, passes)`` ε of ``scale`` (default: max |b|); recorded."""
     scale = np.abs(b).max() if scale is None else scale
-    roundoff.within(np.abs(a - b).max() / scale, roundoff.bound(roundoff.operator_roundings(np_, passes)), "max |kernel − numpy| / scale")
+    roundoff.within(
+        np.abs(a - b).max() / scale,
+        roundoff.bound(roundoff.operator_roundings(np_, passes)),
+        "max |kernel − numpy| / scale",
+    )
     return True
 
 
@@ -403,7 +428,9 @@ def test_rhs_replay_uses_current_state(rng):
 
 @pytest.mark.roundoff
 @pytest.mark.parametrize("per_element", [True, False], ids=["per-element", "per-node"])
-@pytest.mark.parametrize("np_,subcycle,ratios", [(4, 1, (1.0, 1.0, 1.0)), (7, 2, (1.0, 3.0, 0.5)), (4, 1, (0.0, 1.0, 2.0))])
+@pytest.mark.parametrize(
+    "np_,subcycle,ratios", [(4, 1, (1.0, 1.0, 1.0)), (7, 2, (1.0, 3.0, 0.5)), (4, 1, (0.0, 1.0, 2.0))]
+)
 def test_hyperviscosity_matches_numpy(np_, subcycle, ratios, per_element, rng):
     """x ← x − (dt/n) B x, n times, on a state with grid-scale noise, for
     (ν, ν_div, ν_s) in the given ratios (the split, and ν = 0 with ν_div > 0);
@@ -414,7 +441,9 @@ def test_hyperviscosity_matches_numpy(np_, subcycle, ratios, per_element, rng):
     fcor, hs, st = tc5(g)
     state = st + ops.dss(rng.standard_normal((3, g.npts)) * np.array([[10.0], [10.0], [100.0]]))
     dt = 0.5
-    m = ShallowWater(g, ["hyperviscosity"], fcor, hs, nu=1.0, hypervis_subcycle=subcycle, device=DEV, per_element=per_element)
+    m = ShallowWater(
+        g, ["hyperviscosity"], fcor, hs, nu=1.0, hypervis_subcycle=subcycle, device=DEV, per_element=per_element
+    )
     # ν at the forward-Euler limit the model allows per substep: the largest change it makes
     scale = 1.4 * subcycle / (dt * m.hv.biharmonic_radius() * max(ratios))
     nus = tuple(scale * r for r in ratios)
@@ -561,7 +590,17 @@ def test_hyperviscosity_launch_list(per_element, nu_div, launch_log):
     kernel that reads their gradient, only when ν_div ≠ ν."""
     g = cached_grid(2, 4)
     fcor, hs, st = tc5(g)
-    m = ShallowWater(g, ["hyperviscosity"], fcor, hs, nu=1e15, nu_div=nu_div, hypervis_subcycle=2, device=DEV, per_element=per_element)
+    m = ShallowWater(
+        g,
+        ["hyperviscosity"],
+        fcor,
+        hs,
+        nu=1e15,
+        nu_div=nu_div,
+        hypervis_subcycle=2,
+        device=DEV,
+        per_element=per_element,
+    )
     x = m.new_state(*st)
     m.hv.biharmonic_radius()  # its power iteration launches the same kernels
     launch_log.clear()
@@ -570,7 +609,15 @@ def test_hyperviscosity_launch_list(per_element, nu_div, launch_log):
     if per_element:
         expected = [f"laplacian_element__{first}", "dss", "laplacian_element__second", "dss_apply"]
     else:
-        expected = ["to_cartesian", "laplace_wk_flux", f"laplacian_node__{first}", "dss", "laplace_wk_flux", "laplacian_node__second", "dss_apply"]
+        expected = [
+            "to_cartesian",
+            "laplace_wk_flux",
+            f"laplacian_node__{first}",
+            "dss",
+            "laplace_wk_flux",
+            "laplacian_node__second",
+            "dss_apply",
+        ]
     if nu_div != 1e15:
         expected = ["divergence_element" if per_element else "divergence_sphere", "dss", *expected]
     assert launch_log == expected
@@ -652,7 +699,9 @@ def test_hyperviscosity_damps_harmonics_at_homme_rates(per_element):
     g = cached_grid(8, 4)
     z = np.zeros(g.npts)
     nus = (1.5e15, 4.5e15, 0.75e15)
-    m = ShallowWater(g, ["hyperviscosity"], z, z, nu=nus[0], nu_div=nus[1], nu_s=nus[2], device=DEV, per_element=per_element)
+    m = ShallowWater(
+        g, ["hyperviscosity"], z, z, nu=nus[0], nu_div=nus[1], nu_s=nus[2], device=DEV, per_element=per_element
+    )
     for kind in HARMONIC_KINDS:
         for l in (2, 4, 8, 12):
             rate = hyperviscosity_rate(m, harmonic_state(g, l, kind))

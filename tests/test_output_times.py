@@ -32,7 +32,20 @@ def runs(tmp_path_factory):
     d = tmp_path_factory.mktemp("times")
     common = ("--dt", repr(DT), "-s", f"output.every_days={EVERY}")
     _run("--days", 1, *common, "--restart-every", 1, "--output", d / "first.nc")
-    main(["run", "--continue", str(d / "first.restart.nc"), "--days", "2", "--device", "cpu", "--no-progress", "--output", str(d / "cont.nc")])
+    main(
+        [
+            "run",
+            "--continue",
+            str(d / "first.restart.nc"),
+            "--days",
+            "2",
+            "--device",
+            "cpu",
+            "--no-progress",
+            "--output",
+            str(d / "cont.nc"),
+        ]
+    )
     _run("--days", 2, *common, "--output", d / "whole.nc")
     return d
 
@@ -46,7 +59,10 @@ def test_every_output_day_is_selectable(runs):
 
 
 def test_a_continued_run_keeps_exact_times_and_bits(runs):
-    with xr.open_dataset(runs / "cont.nc", decode_times=False) as cont, xr.open_dataset(runs / "whole.nc", decode_times=False) as whole:
+    with (
+        xr.open_dataset(runs / "cont.nc", decode_times=False) as cont,
+        xr.open_dataset(runs / "whole.nc", decode_times=False) as whole,
+    ):
         assert cont.time.values.tolist() == [1.0, 1.25, 1.5, 1.75, 2.0]
         assert cont.attrs["continued_from_day"] == 1.0
         assert whole.time.values.tolist() == [k * EVERY for k in range(9)]

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import warp as wp
 
-from swe_sphere.core import parallel
 from swe_sphere.cases.library import make_case
+from swe_sphere.core import parallel
 from swe_sphere.model.shallow_water import TERMS, ShallowWater
 from swe_sphere.steppers import STEPPERS, make_stepper
 
@@ -24,7 +24,16 @@ def small_parts(monkeypatch):
 
 def tc5_model(g, threads, per_element=None):
     c = make_case("tc5_mountain")
-    m = ShallowWater(g, [t for t in TERMS if t != "forcing"], c.fcor(g.lat, g.lon), c.hs(g.lat, g.lon), nu=1e15, device="cpu", threads=threads, per_element=per_element)
+    m = ShallowWater(
+        g,
+        [t for t in TERMS if t != "forcing"],
+        c.fcor(g.lat, g.lon),
+        c.hs(g.lat, g.lon),
+        nu=1e15,
+        device="cpu",
+        threads=threads,
+        per_element=per_element,
+    )
     return m, np.array(c.initial(g.lat, g.lon))
 
 
@@ -57,9 +66,14 @@ def test_operators_bitwise_equal_to_one_thread(small_parts, threads, rng):
         x = m.new_state(*st)
         out = wp.zeros_like(x)
         m.rhs(x, out)
-        assert m.rhs_kernels(x, out) == ["tendency__continuity__momentum_advection__coriolis__pressure_gradient__topography", "dss"]
+        assert m.rhs_kernels(x, out) == [
+            "tendency__continuity__momentum_advection__coriolis__pressure_gradient__topography",
+            "dss",
+        ]
         if n > 1:
-            assert all(isinstance(launch, parallel.SplitLaunch) for launch in m._recorded[("rhs", m.terms, x.ptr, out.ptr)][0])
+            assert all(
+                isinstance(launch, parallel.SplitLaunch) for launch in m._recorded[("rhs", m.terms, x.ptr, out.ptr)][0]
+            )
         m.hyperviscosity(x, 3600.0)
         grad, div = wp.zeros((2, m.N), dtype=wp.float64), wp.zeros((1, m.N), dtype=wp.float64)
         m.gradient(x, 2, grad)

@@ -14,11 +14,12 @@ import pytest
 import xarray as xr
 
 import swe_sphere
-from conftest import TINY, cli_main, cli_one_line
 from swe_sphere.config.scene import load_scene
-from swe_sphere.core.errors import SceneError
 from swe_sphere.core.constants import EARTH
+from swe_sphere.core.errors import SceneError
 from swe_sphere.simulation.simulation import Simulation
+
+from conftest import TINY, cli_main, cli_one_line
 
 ERRORS = ("l1_h", "l2_h", "linf_h", "l1_wind", "l2_wind", "linf_wind", "l2_vorticity", "l2_divergence")
 
@@ -38,7 +39,11 @@ def test_small_planet_tc2_reproduces_the_earth_run_x_times_faster():
     earth = tc2(days=1.0, output={"every_days": 0.5})
     small = tc2(days=1.0 / X, output={"every_days": 0.5 / X}, planet={"radius": EARTH.a / X, "omega": EARTH.omega * X})
     assert earth.attrs["dt"] == 800.0 and small.attrs["dt"] == 80.0
-    assert (small.attrs["planet_radius"], small.attrs["planet_omega"], small.attrs["planet_gravity"]) == (EARTH.a / X, EARTH.omega * X, EARTH.g)
+    assert (small.attrs["planet_radius"], small.attrs["planet_omega"], small.attrs["planet_gravity"]) == (
+        EARTH.a / X,
+        EARTH.omega * X,
+        EARTH.g,
+    )
     assert earth.attrs["planet_radius"] == EARTH.a
     assert abs(small.area.values.sum() / (4 * math.pi * (EARTH.a / X) ** 2) - 1) < 1e-12
     np.testing.assert_array_equal(small.time.values * X, earth.time.values)
@@ -49,8 +54,12 @@ def test_small_planet_tc2_reproduces_the_earth_run_x_times_faster():
         assert earth[key].values[-1] > 1e-6  # a real error, not a zero compared with a zero
         np.testing.assert_allclose(small[key].values, earth[key].values, rtol=1e-10, atol=0)
     # Coriolis and the vorticity scale with 1/time: X times the Earth's
-    np.testing.assert_allclose(small.vorticity.values, X * earth.vorticity.values, rtol=0,
-                               atol=1e-10 * X * np.abs(earth.vorticity.values).max())
+    np.testing.assert_allclose(
+        small.vorticity.values,
+        X * earth.vorticity.values,
+        rtol=0,
+        atol=1e-10 * X * np.abs(earth.vorticity.values).max(),
+    )
 
 
 def test_gravity_enters_the_balance_and_the_invariants():
@@ -81,9 +90,14 @@ def test_cli_small_planet_run_and_continuation_keep_the_planet(tmp_path, capsys)
     assert "dt scaled with the smallest node spacing to 240 s" in out  # the note of the scaled dt
     code, _, err = cli_main(capsys, *args, "--days", "0.05", "--output", tmp_path / "cut.nc", "--restart-every", "0.05")
     assert code == 0, err
-    code, _, err = cli_main(capsys, "run", "--continue", tmp_path / "cut.restart.nc", "--days", "0.1", "--device", "cpu", "--no-progress")
+    code, _, err = cli_main(
+        capsys, "run", "--continue", tmp_path / "cut.restart.nc", "--days", "0.1", "--device", "cpu", "--no-progress"
+    )
     assert code == 0, err
-    with xr.open_dataset(tmp_path / "whole.nc", decode_times=False) as a, xr.open_dataset(tmp_path / "cut_continued.nc", decode_times=False) as b:
+    with (
+        xr.open_dataset(tmp_path / "whole.nc", decode_times=False) as a,
+        xr.open_dataset(tmp_path / "cut_continued.nc", decode_times=False) as b,
+    ):
         for ds in (a, b):
             assert (ds.attrs["planet_radius"], ds.attrs["planet_omega"], ds.attrs["dt"]) == (637122.0, 7.292e-4, 240.0)
             assert abs(ds.area.values.sum() / (4 * math.pi * 637122.0**2) - 1) < 1e-12
@@ -94,13 +108,16 @@ def test_cli_small_planet_run_and_continuation_keep_the_planet(tmp_path, capsys)
     assert sim.grid.radius == 637122.0 and sim.case.planet.omega == 7.292e-4
 
 
-@pytest.mark.parametrize("setting, words", [
-    ("planet.radius=-6.4e6", ("planet.radius", "positive", "-6400000.0")),
-    ("planet.gravity=0", ("planet.gravity", "positive")),
-    ("planet.omega=inf", ("planet.omega", "finite")),
-    ("planet.omega='fast'", ("planet.omega", "fast")),
-    ("planet.mass=6e24", ("planet.mass", "radius, omega, gravity")),
-])
+@pytest.mark.parametrize(
+    "setting, words",
+    [
+        ("planet.radius=-6.4e6", ("planet.radius", "positive", "-6400000.0")),
+        ("planet.gravity=0", ("planet.gravity", "positive")),
+        ("planet.omega=inf", ("planet.omega", "finite")),
+        ("planet.omega='fast'", ("planet.omega", "fast")),
+        ("planet.mass=6e24", ("planet.mass", "radius, omega, gravity")),
+    ],
+)
 def test_bad_planet_is_one_line_exit_2(tmp_path, capsys, setting, words):
     """A planet value that is not a positive finite number, or an unknown key, is
     refused naming it, before anything is written."""
@@ -117,8 +134,12 @@ def test_reference_scoring_is_for_the_earth_only():
     small = load_scene("tc5_mountain", overrides={"planet.radius": EARTH.a / 10, "planet.omega": EARTH.omega * 10})
     assert earth.reference_file.name == "tc5_mountain_T213.nc" and small.reference_file is None
     assert any("not scored against the tc5_mountain_T213.nc reference" in note for note in small.notes)
-    assert math.isclose(small.nu, earth.nu / 1e4, rel_tol=1e-12) and math.isclose(small.dt, earth.dt / 10, rel_tol=1e-12)
-    with pytest.raises(SceneError, match=r"^case.reference = 'T341': the spectral references are of Williamson's Earth"):
+    assert math.isclose(small.nu, earth.nu / 1e4, rel_tol=1e-12) and math.isclose(
+        small.dt, earth.dt / 10, rel_tol=1e-12
+    )
+    with pytest.raises(
+        SceneError, match=r"^case.reference = 'T341': the spectral references are of Williamson's Earth"
+    ):
         load_scene("tc5_mountain", overrides={"planet.gravity": 3.71, "case.reference": "T341"})
 
 
@@ -129,8 +150,19 @@ def test_a_dt_given_is_not_scaled():
     assert load_scene("tc2_steady", dt=20.0, overrides={"planet.radius": EARTH.a / 10}).dt == 20.0
 
 
-@pytest.mark.parametrize("name", ["tc1_cosine_bell", "tc2_steady", "tc3_compact_zonal", "tc4_forced_low", "lauter_unsteady",
-                                  "tc5_mountain", "tc6_rossby_haurwitz", "galewsky"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "tc1_cosine_bell",
+        "tc2_steady",
+        "tc3_compact_zonal",
+        "tc4_forced_low",
+        "lauter_unsteady",
+        "tc5_mountain",
+        "tc6_rossby_haurwitz",
+        "galewsky",
+    ],
+)
 def test_every_case_on_a_small_planet_is_the_earths_x_times_faster(name):
     """The DCMIP convention of ``cases``: on radius a/X with rotation Ω·X every
     case starts from the Earth's winds, depth and surface height at the same
@@ -143,8 +175,11 @@ def test_every_case_on_a_small_planet_is_the_earths_x_times_faster(name):
     rng = np.random.default_rng(1)
     lat, lon = np.arcsin(rng.uniform(-1, 1, 500)), rng.uniform(0, 2 * np.pi, 500)
     earth, small = make_case(name), make_case(name, planet=Planet(a=EARTH.a / X, omega=EARTH.omega * X))
-    pairs = [(earth.initial(lat, lon), small.initial(lat, lon)), ([earth.hs(lat, lon)], [small.hs(lat, lon)]),
-             ([X * earth.fcor(lat, lon)], [small.fcor(lat, lon)])]
+    pairs = [
+        (earth.initial(lat, lon), small.initial(lat, lon)),
+        ([earth.hs(lat, lon)], [small.hs(lat, lon)]),
+        ([X * earth.fcor(lat, lon)], [small.fcor(lat, lon)]),
+    ]
     if earth.exact_solution:
         pairs.append((earth.exact(lat, lon, 1.3 * DAY), small.exact(lat, lon, 1.3 * DAY / X)))
     for want, got in pairs:
@@ -160,8 +195,15 @@ def test_small_planet_with_hyperviscosity_and_topography(name, efold_hours):
     and winds to 1e-12 of their maxima (measured: 2.5e-14)."""
     X = 10.0
     earth = swe_sphere.run(name, ne=4, days=1.0, device="cpu")
-    small = swe_sphere.run(name, ne=4, days=1.0 / X, output={"every_days": 1.0 / X}, device="cpu",
-                           planet={"radius": EARTH.a / X, "omega": EARTH.omega * X}, hyperviscosity={"efold_hours": efold_hours / X})
+    small = swe_sphere.run(
+        name,
+        ne=4,
+        days=1.0 / X,
+        output={"every_days": 1.0 / X},
+        device="cpu",
+        planet={"radius": EARTH.a / X, "omega": EARTH.omega * X},
+        hyperviscosity={"efold_hours": efold_hours / X},
+    )
     assert math.isclose(small.attrs["dt"], earth.attrs["dt"] / X, rel_tol=1e-12)
     assert small.attrs["reference"] == "none" and earth.attrs["reference"].endswith("_T213.nc")
     for v in ("h", "u", "v"):
@@ -172,11 +214,30 @@ def test_plot_diff_against_a_reference_refuses_another_planet(tmp_path, capsys):
     """``plot --diff T213`` of a tc5_mountain run on a small planet is refused with
     one line, exit 2 (the reference is the Earth's), and no figure is written."""
     run = tmp_path / "small.nc"
-    code, _, err = cli_main(capsys, "run", "tc5_mountain", *TINY, "--days", "0.1", "-s", "output.every_days=0.1",
-                            "-s", "planet.radius=637122", "-s", "planet.omega=7.292e-4", "--output", run)
+    code, _, err = cli_main(
+        capsys,
+        "run",
+        "tc5_mountain",
+        *TINY,
+        "--days",
+        "0.1",
+        "-s",
+        "output.every_days=0.1",
+        "-s",
+        "planet.radius=637122",
+        "-s",
+        "planet.omega=7.292e-4",
+        "--output",
+        run,
+    )
     assert code == 0, err
     with xr.open_dataset(run, decode_times=False) as ds:
         assert ds.attrs["reference"] == "none"
-    cli_one_line(capsys, ["plot", run, "--diff", "T213", "--output", tmp_path / "figs"], 2,
-                 "tc5_mountain_T213.nc is a reference of Williamson's Earth", "radius 637122 m")
+    cli_one_line(
+        capsys,
+        ["plot", run, "--diff", "T213", "--output", tmp_path / "figs"],
+        2,
+        "tc5_mountain_T213.nc is a reference of Williamson's Earth",
+        "radius 637122 m",
+    )
     assert not (tmp_path / "figs").exists()

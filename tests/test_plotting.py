@@ -12,13 +12,14 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from conftest import cli_main, cli_one_line
-from swe_sphere.studies import analysis, plotting
 from swe_sphere import cli
+from swe_sphere.cases.reference import find_reference
 from swe_sphere.cli import main
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.io.run_file import RunWriter
-from swe_sphere.cases.reference import find_reference
+from swe_sphere.studies import analysis, plotting
+
+from conftest import cli_main, cli_one_line
 
 TC5_REF = find_reference("tc5_mountain")
 
@@ -104,7 +105,11 @@ def test_plot_map_values_and_colour_bar_units(run_file, tmp_path):
     interval = infos["h"]["contour_interval"]  # about 14 round levels over the drawn range
     assert 10 <= (infos["h"]["max"] - infos["h"]["min"]) / interval <= 15 and interval in (100.0, 200.0, 250.0, 500.0)
     labels = {f: info["colorbar_label"] for f, info in infos.items()}
-    assert labels == {"h": f"h (m); contours every {interval:g} m", "u": "u (m s$^{-1}$)", "speed": "speed (m s$^{-1}$)"}
+    assert labels == {
+        "h": f"h (m); contours every {interval:g} m",
+        "u": "u (m s$^{-1}$)",
+        "speed": "speed (m s$^{-1}$)",
+    }
 
 
 def test_diff_to_t213_carries_the_runs_own_normalized_l2(run_file, tmp_path, capsys):
@@ -129,12 +134,16 @@ def test_diff_to_itself_is_zero(run_file, tmp_path):
         for field in ("h", "vorticity", "u"):
             info = plotting.plot_map(ds, field, 1.0, tmp_path / f"{field}.png", diff=ref)
             # the run interpolated to its own nodes: zero up to round-off
-            assert info["l2"] < 1e-14 and max(abs(info["min"]), abs(info["max"])) < 1e-12 * (1e-5 if field == "vorticity" else 1e4)
+            assert info["l2"] < 1e-14 and max(abs(info["min"]), abs(info["max"])) < 1e-12 * (
+                1e-5 if field == "vorticity" else 1e4
+            )
         ref.ds.close()
 
 
 def test_lat_range_draws_a_band(run_file, tmp_path, capsys):
-    code, out, err = cli_main(capsys, "plot", run_file, "--field", "vorticity", "--lat-range", "0", "90", "--output", tmp_path)
+    code, out, err = cli_main(
+        capsys, "plot", run_file, "--field", "vorticity", "--lat-range", "0", "90", "--output", tmp_path
+    )
     assert code == 0, err
     path = tmp_path / "tc5_vorticity_day1_lat0to90.png"
     assert png_size(path) == (1200, 600) and distinct_colours(path) > 100
@@ -161,7 +170,11 @@ def test_line_plot(tmp_path):
     path = plotting.line_plot(
         tmp_path / "lines.png",
         [("a", x, 1 / x), ("b", x, 1 / x**2), ("empty", x, np.full(4, np.nan))],
-        xlabel="wall time (s)", ylabel="l2 error", logx=True, logy=True, title="sweep",
+        xlabel="wall time (s)",
+        ylabel="l2 error",
+        logx=True,
+        logy=True,
+        title="sweep",
     )
     assert path.is_file() and png_size(path) == (800, 500)
     assert png_size(plotting.line_plot(tmp_path / "big.png", [("a", x, x)], figsize=(6, 3))) == (600, 300)

@@ -7,10 +7,18 @@ import pytest
 import xarray as xr
 
 from swe_sphere.cases.library import make_case
+from swe_sphere.cases.reference import (
+    GriddedReference,
+    Reference,
+    SpectralReference,
+    find_reference,
+    floor,
+    locate,
+    truncations,
+)
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.errors import SceneError
 from swe_sphere.grid.cubed_sphere import CubedSphere
-from swe_sphere.cases.reference import GriddedReference, Reference, SpectralReference, find_reference, floor, locate, truncations
 
 DAY = 86400.0
 
@@ -64,8 +72,14 @@ def test_the_divergent_wind_from_the_divergence(grid, tmp_path):
     synthesis, which TC2's and TC6's non-divergent winds never reach)."""
     swapped = tmp_path / "tc2_divergent.nc"
     with xr.open_dataset(tc2_file(), decode_times=False) as ds:
-        ds.rename({"vort_spec_re": "div_spec_re", "vort_spec_im": "div_spec_im",
-                   "div_spec_re": "vort_spec_re", "div_spec_im": "vort_spec_im"}).to_netcdf(swapped)
+        ds.rename(
+            {
+                "vort_spec_re": "div_spec_re",
+                "vort_spec_im": "div_spec_im",
+                "div_spec_re": "vort_spec_re",
+                "div_spec_im": "vort_spec_im",
+            }
+        ).to_netcdf(swapped)
     u, v, _ = make_case("tc2_steady", {"alpha": math.pi / 4}).exact(grid.lat, grid.lon, 5 * DAY)
     r = Reference(swapped).at(5.0, grid.lat, grid.lon)
     assert l2_wind(grid, r["u"], r["v"], v, -u) <= 6e-7
@@ -145,8 +159,11 @@ def test_a_gridded_file_is_interpolated(tmp_path):
     fields["divergence"] = (("time", "lat", "lon"), np.zeros((1, 96, 192)))
     fields["hs"] = (("lat", "lon"), r["hs"])
     path = tmp_path / "tc6_gridded.nc"
-    xr.Dataset(fields, coords={"time": [0.0], "lat": np.degrees(lat), "lon": np.degrees(lon)},
-               attrs={"title": "T213 on a small grid: tc6_rossby_haurwitz"}).to_netcdf(path)
+    xr.Dataset(
+        fields,
+        coords={"time": [0.0], "lat": np.degrees(lat), "lon": np.degrees(lon)},
+        attrs={"title": "T213 on a small grid: tc6_rossby_haurwitz"},
+    ).to_netcdf(path)
     gridded = Reference(path)
     assert isinstance(gridded, GriddedReference)
     j, i = np.array([0, 1, 40, 94, 95]), np.array([0, 7, 100, 191])
@@ -215,7 +232,9 @@ def test_bundled_files_are_float32_coefficients_within_the_size_budget():
     assert sum(f.stat().st_size for f in files) < 16e6
     for f in files:
         with xr.open_dataset(f, decode_times=False) as ds:
-            assert all(ds[f"{k}_spec_{p}"].dtype == np.float32 for k in ("hfree", "vort", "div") for p in ("re", "im")), f.name
+            assert all(
+                ds[f"{k}_spec_{p}"].dtype == np.float32 for k in ("hfree", "vort", "div") for p in ("re", "im")
+            ), f.name
 
 
 def test_errors(tc5, tmp_path):
@@ -236,7 +255,9 @@ def test_errors(tc5, tmp_path):
         {"h_surface": (("time", "lat", "lon"), np.zeros((1, 2, 4)))},
         coords={"time": [0.0], "lat": [-45.0, 45.0], "lon": [0.0, 90.0, 180.0, 270.0]},
     ).to_netcdf(partial)
-    with pytest.raises(ValueError, match=r"not a reference file: missing variable\(s\) 'hs', 'u', 'v', 'vorticity', 'divergence'"):
+    with pytest.raises(
+        ValueError, match=r"not a reference file: missing variable\(s\) 'hs', 'u', 'v', 'vorticity', 'divergence'"
+    ):
         Reference(partial)
     with xr.open_dataset(tc5.path, decode_times=False) as ds:
         ds.drop_vars(["div_spec_re", "div_spec_im"]).to_netcdf(tmp_path / "no_div.nc")
@@ -257,7 +278,9 @@ def test_locate_a_path_a_bundled_name_or_a_truncation(tmp_path, monkeypatch):
         locate("T341", make_case("galewsky", {"perturbed": False}))
     with pytest.raises(FileNotFoundError, match="reference file not found: T341"):
         locate("T341")  # a truncation names a file only for a case
-    with pytest.raises(FileNotFoundError, match="^no T213 reference for this case: it is scored against its exact solution"):
+    with pytest.raises(
+        FileNotFoundError, match="^no T213 reference for this case: it is scored against its exact solution"
+    ):
         locate("T213", make_case("tc2_steady"))  # a case without references: says why
     link = tmp_path / "mine.nc"
     link.symlink_to(bundled)
@@ -275,7 +298,9 @@ def test_case_reference_takes_a_truncation():
     scene = load_scene("tc5_mountain", ne=2, overrides={"case.reference": "T341"})
     assert scene.reference_file == find_reference("tc5_mountain", truncation="T341")
     assert load_scene("tc5_mountain", ne=2).reference_file == find_reference("tc5_mountain")
-    with pytest.raises(SceneError, match=r"^case.reference = 'T341': no bundled T341 reference for this case \(bundled: T213\)$"):
+    with pytest.raises(
+        SceneError, match=r"^case.reference = 'T341': no bundled T341 reference for this case \(bundled: T213\)$"
+    ):
         load_scene("galewsky_balanced", ne=2, overrides={"case.reference": "T341"})
     with pytest.raises(SceneError, match="the file is a tc5_mountain reference \\(its title\\), not one of galewsky$"):
         load_scene("galewsky", ne=2, overrides={"case.reference": "tc5_mountain_T341.nc"})
@@ -284,8 +309,8 @@ def test_case_reference_takes_a_truncation():
 def test_plot_diff_takes_the_names_case_reference_takes(tmp_path):
     """``plot --diff T341`` (and a bundled file name) resolve as ``case.reference``
     does; another case's reference is refused unless forced."""
-    from swe_sphere.studies.plotting import plot_run
     from swe_sphere.simulation.simulation import Simulation
+    from swe_sphere.studies.plotting import plot_run
 
     run = tmp_path / "tc5.nc"
     Simulation(load_scene("tc5_mountain", ne=2, days=1.0), "cpu", progress=False).run(run)
@@ -305,8 +330,13 @@ def test_floor_is_the_readmes_t213_vs_t341_table():
     assert floor("tc5_mountain_T213.nc", 15.0) == (1.0e-5, 7.8e-3, 3.1e-3)
     assert floor(find_reference("tc5_mountain"), 1.0 + 1e-7) == (3.4e-6, 1.7e-3, 6.3e-3)  # a path: its name counts
     assert floor("tc5_mountain_T213.nc", 5.0) == (5.9e-6, 5.7e-3, 4.2e-3)
-    for name, day in (("tc5_mountain_T213.nc", 3.0), ("tc5_mountain_T213.nc", 0.0), ("tc5_mountain_T341.nc", 15.0),
-                      ("tc6_rossby_haurwitz_T213.nc", 14.0), ("galewsky_T213.nc", 6.0)):
+    for name, day in (
+        ("tc5_mountain_T213.nc", 3.0),
+        ("tc5_mountain_T213.nc", 0.0),
+        ("tc5_mountain_T341.nc", 15.0),
+        ("tc6_rossby_haurwitz_T213.nc", 14.0),
+        ("galewsky_T213.nc", 6.0),
+    ):
         assert floor(name, day) is None, (name, day)
 
 

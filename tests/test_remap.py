@@ -13,10 +13,11 @@ import pytest
 import xarray as xr
 from scipy.spatial import cKDTree
 
-import roundoff
 from swe_sphere.cli import main
 from swe_sphere.grid.cubed_sphere import _FACES
 from swe_sphere.io.remap import Remapper, lagrange_basis, latlon_grid, locate, remap_dataset
+
+import roundoff
 
 
 def cartesian(lat, lon):
@@ -177,7 +178,11 @@ def test_remap_cli_matches_the_model_at_coinciding_points(run_file, tmp_path, ca
             scale = np.abs(b).max()
             # the np² Lagrange basis values (1 and 0 up to their round-off) times the element's values,
             # summed: a pass of roundoff.operator_roundings (the run file is ne = 2, np = 4)
-            roundoff.within(np.abs(a - b).max(), roundoff.bound(roundoff.operator_roundings(4), scale), f"max |remapped − {name}| at nodes")
+            roundoff.within(
+                np.abs(a - b).max(),
+                roundoff.bound(roundoff.operator_roundings(4), scale),
+                f"max |remapped − {name}| at nodes",
+            )
         a = r.hs.values.reshape(-1)[hit]
         assert np.abs(a - m.hs.values[idx[hit]]).max() <= 1e-12 * m.hs.values.max()
 

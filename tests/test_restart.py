@@ -21,23 +21,27 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from conftest import make_sim, requires_cuda, write_tc2_scene
 from swe_sphere import __version__
-from swe_sphere.simulation import checkpoint as ckpt
 from swe_sphere.cli import main
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
-from swe_sphere.io.run_file import ExclusiveFile
 from swe_sphere.core.errors import OutputError
+from swe_sphere.grid.topology import Topology
+from swe_sphere.io.run_file import ExclusiveFile
+from swe_sphere.simulation import checkpoint as ckpt
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
-from swe_sphere.grid.topology import Topology
+
+from conftest import make_sim, requires_cuda, write_tc2_scene
 
 # and a Butcher table's IMEX pair (its default is an explicit table), read back from the restart file's JSON;
 # and the float32 Helmholtz solves
-VARIANTS = [(name, {}) for name in STEPPERS] + [("implicit", {"method": "bdf2"}), ("tableau", load_scene("ark324l2sa").stepper_options)] + [
-    (name, {"precision": "mixed"}) for name in ("semi_implicit", "imex", "implicit")
-] + [("mri", {"method": "mri_gark_erk33a", "inner": "fbrk32"}), ("mri", {"method": "mis4a", "inner": "rk4"})]
+VARIANTS = (
+    [(name, {}) for name in STEPPERS]
+    + [("implicit", {"method": "bdf2"}), ("tableau", load_scene("ark324l2sa").stepper_options)]
+    + [(name, {"precision": "mixed"}) for name in ("semi_implicit", "imex", "implicit")]
+    + [("mri", {"method": "mri_gark_erk33a", "inner": "fbrk32"}), ("mri", {"method": "mis4a", "inner": "rk4"})]
+)
 IDS = [n + "".join(f"-{v}" for v in o.values() if not isinstance(v, list)) for n, o in VARIANTS]
 DT = 1800.0
 
@@ -63,11 +67,16 @@ def test_continued_run_is_bitwise_the_uninterrupted_one(tmp_path, name, options)
     assert cont.step == 3 and cont.scene == whole.scene
     cont.run(tmp_path / "cont.nc")
     np.testing.assert_array_equal(cont.x.numpy(), whole.x.numpy())
-    with xr.open_dataset(tmp_path / "whole.nc", decode_times=False) as a, xr.open_dataset(tmp_path / "cont.nc", decode_times=False) as b:
+    with (
+        xr.open_dataset(tmp_path / "whole.nc", decode_times=False) as a,
+        xr.open_dataset(tmp_path / "cont.nc", decode_times=False) as b,
+    ):
         assert list(b.time.values) == [3 * DT / DAY, 6 * DT / DAY]
         assert b.attrs["continued_from_day"] == 3 * DT / DAY
         for v in ("h", "u", "v", "vorticity", "mass_change", "total_energy_change", "l2_h", "rhs_evals", "steps"):
-            np.testing.assert_array_equal(b[v].sel(time=6 * DT / DAY).values, a[v].sel(time=6 * DT / DAY).values, err_msg=v)
+            np.testing.assert_array_equal(
+                b[v].sel(time=6 * DT / DAY).values, a[v].sel(time=6 * DT / DAY).values, err_msg=v
+            )
 
 
 @requires_cuda
@@ -90,7 +99,9 @@ def test_continuing_hands_each_whole_grid_array_out_once(tmp_path, monkeypatch):
     r = make_sim(tc2("leapfrog", steps=2)).run(None, restart_file=tmp_path / "r.nc", restart_every=2 * DT / DAY)
     handed, diagnosed = [], []
     real, real_diagnose = Topology.distribute, Simulation.diagnose
-    monkeypatch.setattr(Topology, "distribute", lambda self, whole, rows, what: handed.append(what) or real(self, whole, rows, what))
+    monkeypatch.setattr(
+        Topology, "distribute", lambda self, whole, rows, what: handed.append(what) or real(self, whole, rows, what)
+    )
     monkeypatch.setattr(Simulation, "diagnose", lambda self, t, *a: diagnosed.append(t) or real_diagnose(self, t, *a))
     cont = Simulation.from_checkpoint(r.checkpoint, "cpu", days=4 * DT / DAY, progress=False)
     assert handed == ["start state", "leapfrog stepper state 'previous'"]
@@ -126,7 +137,9 @@ def test_checkpoint_contents_and_refusals(tmp_path):
         ckpt.read(tmp_path / "junk.nc")
     # a state of another grid does not fit
     other = make_sim(dataclasses.replace(tc2("leapfrog"), ne=3))
-    with pytest.raises(ckpt.CheckpointError, match=r"^checkpoint state has shape \(3, 384\), the grid needs \(3, 864\)$"):
+    with pytest.raises(
+        ckpt.CheckpointError, match=r"^checkpoint state has shape \(3, 384\), the grid needs \(3, 864\)$"
+    ):
         other.restore(ckpt.read(r.checkpoint))
 
 
@@ -143,7 +156,10 @@ def test_cli_restart_every_and_continue(tmp_path, capsys):
     assert main(["run", "--continue", str(ck), "--days", "2", "--no-progress", "--device", "cpu"]) == 0
     out = capsys.readouterr().out
     assert "from " + str(ck) in out and "compile" in out and "ms/step" in out
-    with xr.open_dataset(tmp_path / "full.nc", decode_times=False) as a, xr.open_dataset(tmp_path / "cut_continued.nc", decode_times=False) as b:
+    with (
+        xr.open_dataset(tmp_path / "full.nc", decode_times=False) as a,
+        xr.open_dataset(tmp_path / "cut_continued.nc", decode_times=False) as b,
+    ):
         np.testing.assert_array_equal(a.h.sel(time=2).values, b.h.sel(time=2).values)
         np.testing.assert_array_equal(a.u.sel(time=2).values, b.u.sel(time=2).values)
     for extra, word in ((["--ne", "3"], "ne = 2"), (["--np", "3"], "np = 4"), (["tc2_steady"], "another scene")):
@@ -289,9 +305,28 @@ def test_concurrent_writers(tmp_path, capsys):
         code = main(["run", str(scene), "--device", "cpu", "--no-progress", "--output", str(out), *extra])
         err = capsys.readouterr().err
         assert code == 2 and "another run is writing" in err and len(err.strip().splitlines()) == 1
-    proc = subprocess.run([sys.executable, "-m", "swe_sphere.cli", "run", str(scene), "--device", "cpu", "--output", str(out),
-                           "--overwrite"], capture_output=True, text=True, cwd=tmp_path, timeout=300)
-    assert proc.returncode == 2 and proc.stderr.strip() == f"swe-sphere: error: another run is writing {out} (it holds {out}.lock)"
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "swe_sphere.cli",
+            "run",
+            str(scene),
+            "--device",
+            "cpu",
+            "--output",
+            str(out),
+            "--overwrite",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=300,
+    )
+    assert (
+        proc.returncode == 2
+        and proc.stderr.strip() == f"swe-sphere: error: another run is writing {out} (it holds {out}.lock)"
+    )
     writer.append(0.0, *first.fields(), {"mass": 1.0})
     writer.close()
     with xr.open_dataset(out, decode_times=False) as ds:

@@ -43,13 +43,16 @@ def run_dir(tmp_path_factory):
     return d
 
 
-@pytest.mark.parametrize("argv", [
-    ("run", "--continue", "a.restart.nc", "--days", "2", "--output", "a.restart.nc", "--overwrite"),
-    ("run", "--continue", "a.restart.nc", "--days", "2", "--output", "a.nc", "--overwrite"),  # its restart sibling
-    ("remap", "a.nc", "--output", "a.nc", "--overwrite"),
-    ("remap", "link.nc", "--output", "a.nc", "--overwrite"),
-    ("remap", "a.nc", "--output", "hard.nc", "--overwrite"),
-])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ("run", "--continue", "a.restart.nc", "--days", "2", "--output", "a.restart.nc", "--overwrite"),
+        ("run", "--continue", "a.restart.nc", "--days", "2", "--output", "a.nc", "--overwrite"),  # its restart sibling
+        ("remap", "a.nc", "--output", "a.nc", "--overwrite"),
+        ("remap", "link.nc", "--output", "a.nc", "--overwrite"),
+        ("remap", "a.nc", "--output", "hard.nc", "--overwrite"),
+    ],
+)
 def test_an_output_never_replaces_an_input(run_dir, argv):
     for name, make in (("link.nc", os.symlink), ("hard.nc", os.link)):
         if not (run_dir / name).exists():
@@ -76,8 +79,22 @@ def test_a_second_sweep_into_one_folder_is_refused_at_its_start(tmp_path, paused
     """The first sweep holds the folder's lock from its start (here held after its
     first run's first step); the second exits 2 before computing anything, and the
     first, let go, finishes."""
-    argv = ("sweep", "tc2_steady", "--ne", "2", "--days", "1", "--steppers", "ssprk3", "--dt", "1800,3600",
-            "--device", "cpu", "--output", "deep/sw")
+    argv = (
+        "sweep",
+        "tc2_steady",
+        "--ne",
+        "2",
+        "--days",
+        "1",
+        "--steppers",
+        "ssprk3",
+        "--dt",
+        "1800,3600",
+        "--device",
+        "cpu",
+        "--output",
+        "deep/sw",
+    )
     first = paused("step:1", tmp_path, *argv)
     lock = tmp_path / "deep" / "sw" / "sweep.lock"
     assert lock.exists()
@@ -89,7 +106,19 @@ def test_a_second_sweep_into_one_folder_is_refused_at_its_start(tmp_path, paused
 
 
 def test_stability_creates_its_output_folder(tmp_path):
-    proc = cli(tmp_path, "stability", "tc5_mountain", "--steppers", "ssprk3", "--ne", "2", "--device", "cpu", "--output", "new/dir")
+    proc = cli(
+        tmp_path,
+        "stability",
+        "tc5_mountain",
+        "--steppers",
+        "ssprk3",
+        "--ne",
+        "2",
+        "--device",
+        "cpu",
+        "--output",
+        "new/dir",
+    )
     assert proc.returncode == 0, proc.stderr
     assert sorted(p.name for p in (tmp_path / "new" / "dir").iterdir()) == ["stability.csv", "stability.nc"]
 
@@ -140,38 +169,51 @@ def test_a_signal_during_start_up_is_one_line(tmp_path, paused, sig, code):
 
 
 def test_a_runaway_hyperviscosity_is_refused_before_the_run(tmp_path):
-    refused(cli(tmp_path, "run", "tc5_mountain", *TINY, "-s", "hyperviscosity.nu=1e30", "--output", "nu.nc"),
-            "explicit bound", "lower hyperviscosity.nu")
+    refused(
+        cli(tmp_path, "run", "tc5_mountain", *TINY, "-s", "hyperviscosity.nu=1e30", "--output", "nu.nc"),
+        "explicit bound",
+        "lower hyperviscosity.nu",
+    )
     assert list(tmp_path.iterdir()) == []
 
 
 def test_a_scrambled_restart_file_is_refused(run_dir, tmp_path):
     """400 bytes of the state's data scrambled: the Fletcher-32 checksum names the variable."""
-    import numpy as np
     import netCDF4
+    import numpy as np
 
     with netCDF4.Dataset(run_dir / "a.restart.nc") as ds:
         raw = np.asarray(ds["u"][:], dtype=np.float64).tobytes()
     data = bytearray((run_dir / "a.restart.nc").read_bytes())
     at = data.find(raw[:64])
     assert at > 0
-    data[at + 1000:at + 1400] = np.random.default_rng(1).integers(0, 256, 400, dtype=np.uint8).tobytes()
+    data[at + 1000 : at + 1400] = np.random.default_rng(1).integers(0, 256, 400, dtype=np.uint8).tobytes()
     bad = tmp_path / "s.restart.nc"
     bad.write_bytes(bytes(data))
     before = digest(bad)
-    refused(cli(tmp_path, "run", "--continue", bad, "--days", "2", "--output", "o.nc", "--no-progress"), "variable u", "checksum")
+    refused(
+        cli(tmp_path, "run", "--continue", bad, "--days", "2", "--output", "o.nc", "--no-progress"),
+        "variable u",
+        "checksum",
+    )
     assert digest(bad) == before and not (tmp_path / "o.nc").exists()
 
 
-@pytest.mark.parametrize("row, value, words", [(2, -10.0, "variable h holds a depth h = -10"), (0, 5e4, "variables u, v hold a wind of 5e+04 m/s"),
-                                                (1, float("nan"), "variable v holds 1 non-finite")])
+@pytest.mark.parametrize(
+    "row, value, words",
+    [
+        (2, -10.0, "variable h holds a depth h = -10"),
+        (0, 5e4, "variables u, v hold a wind of 5e+04 m/s"),
+        (1, float("nan"), "variable v holds 1 non-finite"),
+    ],
+)
 def test_a_restart_file_with_a_bad_state_is_refused(run_dir, tmp_path, row, value, words):
     """A checkpoint whose hash matches (as the API would write it) but whose state
     no run makes: a negative depth, a wind far beyond the gravity-wave speed, a NaN."""
     import netCDF4
 
-    from swe_sphere.simulation.checkpoint import read
     from swe_sphere.io.restart_file import content_hash
+    from swe_sphere.simulation.checkpoint import read
 
     bad = tmp_path / "bad.restart.nc"
     shutil.copy(run_dir / "a.restart.nc", bad)
@@ -192,7 +234,10 @@ def test_more_threads_than_cpus_are_clamped_with_a_note(tmp_path, monkeypatch):
     monkeypatch.setenv("SWE_SPHERE_THREADS", "1000")
     wp.init()
     assert default_threads("cpu") == _usable_cpus()
-    assert threads_note("cpu") == f"SWE_SPHERE_THREADS=1000 is more than the {_usable_cpus()} CPUs this process may run on: {_usable_cpus()} threads"
+    assert (
+        threads_note("cpu")
+        == f"SWE_SPHERE_THREADS=1000 is more than the {_usable_cpus()} CPUs this process may run on: {_usable_cpus()} threads"
+    )
     monkeypatch.setenv("SWE_SPHERE_THREADS", "1")
     assert default_threads("cpu") == 1 and threads_note("cpu") is None
 
@@ -220,8 +265,11 @@ def test_an_existing_restart_file_blocks_only_a_run_that_writes_one(run_dir, tmp
     before = digest(tmp_path / "o.restart.nc")
     assert cli(tmp_path, "run", "tc2_steady", *TINY, "--days", "1", "--output", "o.nc").returncode == 0
     (tmp_path / "o.nc").unlink()
-    refused(cli(tmp_path, "run", "tc2_steady", *TINY, "--days", "1", "--restart-every", "1", "--output", "o.nc"),
-            "output file exists", "o.restart.nc")
+    refused(
+        cli(tmp_path, "run", "tc2_steady", *TINY, "--days", "1", "--restart-every", "1", "--output", "o.nc"),
+        "output file exists",
+        "o.restart.nc",
+    )
     ds = swe_sphere.run("tc2_steady", ne=2, days=1, device="cpu", output_file=tmp_path / "q.nc")
     assert ds.sizes["time"] == 2 and (tmp_path / "q.nc").is_file()
     assert digest(tmp_path / "o.restart.nc") == before == digest(tmp_path / "q.restart.nc")
@@ -236,8 +284,14 @@ def test_a_cold_kernel_cache_is_announced_once_on_a_terminal(tmp_path):
     def stderr_on_a_tty(output):
         master, slave = pty.openpty()
         env = {**os.environ, "SWE_SPHERE_THREADS": "1", "WARP_CACHE_PATH": str(tmp_path / "cache")}
-        proc = subprocess.run([SCRIPT, "run", "tc1_cosine_bell", *TINY, "--days", "1", "--output", output], cwd=tmp_path,
-                              stdout=subprocess.DEVNULL, stderr=slave, env=env, timeout=300)
+        proc = subprocess.run(
+            [SCRIPT, "run", "tc1_cosine_bell", *TINY, "--days", "1", "--output", output],
+            cwd=tmp_path,
+            stdout=subprocess.DEVNULL,
+            stderr=slave,
+            env=env,
+            timeout=300,
+        )
         os.close(slave)
         chunks = []
         while True:
@@ -266,9 +320,29 @@ def test_a_run_longer_than_a_day_says_so_at_its_start(tmp_path):
     import threading
 
     env = {**os.environ, "SWE_SPHERE_THREADS": "1"}
-    proc = subprocess.Popen([SCRIPT, "run", "tc2_steady", "--ne", "16", "--device", "cpu", "--no-progress", "--days", "1000",
-                             "--dt", "0.1", "--output", "long.nc"],
-                            cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
+    proc = subprocess.Popen(
+        [
+            SCRIPT,
+            "run",
+            "tc2_steady",
+            "--ne",
+            "16",
+            "--device",
+            "cpu",
+            "--no-progress",
+            "--days",
+            "1000",
+            "--dt",
+            "0.1",
+            "--output",
+            "long.nc",
+        ],
+        cwd=tmp_path,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
     guard = threading.Timer(120, proc.kill)  # no note: the test fails instead of waiting for the run
     guard.start()
     try:
@@ -279,7 +353,9 @@ def test_a_run_longer_than_a_day_says_so_at_its_start(tmp_path):
         guard.cancel()
         if proc.poll() is None:
             proc.kill()
-    assert note.startswith("swe-sphere: note: this run will take about ") and "days of wall time to day 1000" in note, note
+    assert note.startswith("swe-sphere: note: this run will take about ") and "days of wall time to day 1000" in note, (
+        note
+    )
     assert "s a step over steps 2-4; 863999996 steps left" in note, note
     assert proc.returncode == 143 and err.count("\n") == 1 and "interrupted by SIGTERM" in err, err
 
@@ -302,13 +378,21 @@ def test_a_signal_after_the_output_is_complete_exits_130_in_one_line(tmp_path):
         pass
     os.set_blocking(write, True)
     env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"} | {"SWE_SPHERE_THREADS": "1"}
-    proc = subprocess.Popen([SCRIPT, "run", "tc2_steady", *TINY, "--days", "1", "--output", "o.nc"], cwd=tmp_path,
-                            stdout=write, stderr=subprocess.PIPE, text=True, env=env)
+    proc = subprocess.Popen(
+        [SCRIPT, "run", "tc2_steady", *TINY, "--days", "1", "--output", "o.nc"],
+        cwd=tmp_path,
+        stdout=write,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
     os.close(write)
     try:
         wchan = Path(f"/proc/{proc.pid}/wchan")  # the kernel function the main thread sleeps in (Linux)
         deadline = time.monotonic() + 300
-        while not ((tmp_path / "o.nc").exists() and "pipe" in wchan.read_text()):  # its output closed, its summary waiting
+        while not (
+            (tmp_path / "o.nc").exists() and "pipe" in wchan.read_text()
+        ):  # its output closed, its summary waiting
             assert proc.poll() is None, proc.communicate()
             assert time.monotonic() < deadline, f"never seen waiting on the full pipe ({wchan}: {wchan.read_text()!r})"
             time.sleep(0.1)
@@ -320,7 +404,9 @@ def test_a_signal_after_the_output_is_complete_exits_130_in_one_line(tmp_path):
         if proc.poll() is None:
             proc.kill()
     assert proc.returncode == 130, err
-    assert err.splitlines() == ["swe-sphere: interrupted by SIGINT after the command had finished; its output is complete"], err
+    assert err.splitlines() == [
+        "swe-sphere: interrupted by SIGINT after the command had finished; its output is complete"
+    ], err
     assert b"  output      o.nc" in out
     with xr.open_dataset(tmp_path / "o.nc") as ds:
         assert ds.sizes["time"] == 2 and "interrupted" not in ds.attrs
@@ -351,11 +437,18 @@ def test_a_signal_after_the_last_step_keeps_the_output_whole(tmp_path):
     file): the file is closed whole under the run's handlers, then exit 130 in one line."""
     import xarray as xr
 
-    proc = subprocess.run([sys.executable, "-c", LAST_OUTPUT_SIGNAL], cwd=tmp_path, capture_output=True, text=True, timeout=120,
-                          env={**os.environ, "SWE_SPHERE_THREADS": "1"})
+    proc = subprocess.run(
+        [sys.executable, "-c", LAST_OUTPUT_SIGNAL],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={**os.environ, "SWE_SPHERE_THREADS": "1"},
+    )
     assert proc.returncode == 130, proc.stderr
-    assert proc.stderr.splitlines() == ["swe-sphere: interrupted by SIGINT after the last step (model time 1.0000 days); "
-                                        "the output o.nc is complete"], proc.stderr
+    assert proc.stderr.splitlines() == [
+        "swe-sphere: interrupted by SIGINT after the last step (model time 1.0000 days); the output o.nc is complete"
+    ], proc.stderr
     with xr.open_dataset(tmp_path / "o.nc") as ds:
         assert ds.sizes["time"] == 2 and "interrupted" not in ds.attrs
     assert sorted(p.name for p in tmp_path.iterdir()) == ["o.nc"]

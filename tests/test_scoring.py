@@ -14,11 +14,11 @@ import pytest
 import xarray as xr
 
 from swe_sphere.cases.library import Mountain, make_case
+from swe_sphere.cases.reference import find_reference, floor
+from swe_sphere.cases.scoring import Scorer, instability, unscored, williamson_norms
 from swe_sphere.cli import main
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
-from swe_sphere.cases.reference import find_reference, floor
-from swe_sphere.cases.scoring import Scorer, instability, unscored, williamson_norms
 from swe_sphere.simulation.simulation import RunResult
 
 from conftest import make_sim
@@ -34,20 +34,27 @@ def numpy_norms(grid, error, true):
     """Williamson et al. (1992) eqs. 82–84 (a scalar) or 85–87 (``error`` and
     ``true`` the pointwise lengths of the wind's error and of the true wind)."""
     e, t = np.abs(error), np.abs(true)
-    return {"l1": integral(grid, e) / integral(grid, t), "l2": math.sqrt(integral(grid, e * e) / integral(grid, t * t)),
-            "linf": e.max() / t.max()}
+    return {
+        "l1": integral(grid, e) / integral(grid, t),
+        "l2": math.sqrt(integral(grid, e * e) / integral(grid, t * t)),
+        "linf": e.max() / t.max(),
+    }
 
 
 def numpy_split(sim, u, v, ut, vt):
     """l2 of the vorticity and divergence of the wind error (u − ut, v − vt), by
     the model's operators, over sqrt(I(ζT² + δT²)) of the true wind."""
+
     def rot_div(a, b):
         x = sim.model.new_state(a, b, np.zeros_like(a))
         return sim.model.vorticity(x), sim.model.wind_divergence(x)
 
     (ze, de), (zt, dt) = rot_div(u - ut, v - vt), rot_div(ut, vt)
     n = math.sqrt(integral(sim.grid, zt**2 + dt**2))
-    return {"l2_vorticity": math.sqrt(integral(sim.grid, ze**2)) / n, "l2_divergence": math.sqrt(integral(sim.grid, de**2)) / n}
+    return {
+        "l2_vorticity": math.sqrt(integral(sim.grid, ze**2)) / n,
+        "l2_divergence": math.sqrt(integral(sim.grid, de**2)) / n,
+    }
 
 
 def run_to(name, ne, days):
@@ -64,13 +71,18 @@ def test_tc2_errors_are_williamsons_norms():
     u, v, h = sim.fields()
     ue, ve, he = sim.case.exact(sim.grid.lat, sim.grid.lon, DAY)
     expected = {f"{k}_h": val for k, val in numpy_norms(sim.grid, h - he, he).items()}
-    expected.update({f"{k}_wind": val for k, val in numpy_norms(sim.grid, np.hypot(u - ue, v - ve), np.hypot(ue, ve)).items()})
+    expected.update(
+        {f"{k}_wind": val for k, val in numpy_norms(sim.grid, np.hypot(u - ue, v - ve), np.hypot(ue, ve)).items()}
+    )
     expected.update(numpy_split(sim, u, v, ue, ve))
     assert expected["l2_h"] > 1e-5  # a real error, not round-off
     for k, val in expected.items():
         assert d[k] == pytest.approx(val, rel=1e-12, abs=0), k
     assert sim.scorer.total_errors(DAY, sim.x.numpy()) == {
-        "total_error": d["l2_h"], "total_error_vorticity": d["l2_vorticity"], "total_error_divergence": d["l2_divergence"]}
+        "total_error": d["l2_h"],
+        "total_error_vorticity": d["l2_vorticity"],
+        "total_error_divergence": d["l2_divergence"],
+    }
 
 
 def test_tc5_errors_against_t213_are_williamsons_norms():
@@ -80,16 +92,25 @@ def test_tc5_errors_against_t213_are_williamsons_norms():
     sim, d = run_to("tc5_mountain", 4, 1.0)
     u, v, h = sim.fields()
     r = sim.scorer.reference.at(1.0, sim.grid.lat, sim.grid.lon)
-    expected = {f"ref_{k}_h_surface": val for k, val in numpy_norms(sim.grid, h + sim.hs - r["h_surface"], r["h_surface"]).items()}
-    expected.update({f"ref_{k}_wind": val for k, val in
-                     numpy_norms(sim.grid, np.hypot(u - r["u"], v - r["v"]), np.hypot(r["u"], r["v"])).items()})
+    expected = {
+        f"ref_{k}_h_surface": val
+        for k, val in numpy_norms(sim.grid, h + sim.hs - r["h_surface"], r["h_surface"]).items()
+    }
+    expected.update(
+        {
+            f"ref_{k}_wind": val
+            for k, val in numpy_norms(sim.grid, np.hypot(u - r["u"], v - r["v"]), np.hypot(r["u"], r["v"])).items()
+        }
+    )
     expected.update({f"ref_{k}": val for k, val in numpy_split(sim, u, v, r["u"], r["v"]).items()})
     assert expected["ref_l2_h_surface"] > 1e-5
     for k, val in expected.items():
         assert d[k] == pytest.approx(val, rel=1e-12, abs=0), k
     assert sim.scorer.total_errors(DAY, sim.x.numpy()) == {
-        "total_error": d["ref_l2_h_surface"], "total_error_vorticity": d["ref_l2_vorticity"],
-        "total_error_divergence": d["ref_l2_divergence"]}
+        "total_error": d["ref_l2_h_surface"],
+        "total_error_vorticity": d["ref_l2_vorticity"],
+        "total_error_divergence": d["ref_l2_divergence"],
+    }
 
 
 def test_temporal_and_filtered_errors_are_williamsons_norms():
@@ -102,14 +123,21 @@ def test_temporal_and_filtered_errors_are_williamsons_norms():
     hs = sim.hs
     got = sim.scorer.temporal_errors(x, x0)
     split = numpy_split(sim, x[0], x[1], x0[0], x0[1])
-    expected = {"temporal_error": numpy_norms(sim.grid, x[2] - x0[2], x0[2] + hs)["l2"],
-                "temporal_error_wind": numpy_norms(sim.grid, np.hypot(x[0] - x0[0], x[1] - x0[1]), np.hypot(x0[0], x0[1]))["l2"],
-                "temporal_error_vorticity": split["l2_vorticity"], "temporal_error_divergence": split["l2_divergence"]}
+    expected = {
+        "temporal_error": numpy_norms(sim.grid, x[2] - x0[2], x0[2] + hs)["l2"],
+        "temporal_error_wind": numpy_norms(sim.grid, np.hypot(x[0] - x0[0], x[1] - x0[1]), np.hypot(x0[0], x0[1]))[
+            "l2"
+        ],
+        "temporal_error_vorticity": split["l2_vorticity"],
+        "temporal_error_divergence": split["l2_divergence"],
+    }
     assert list(got) == list(expected)
     for k, val in expected.items():
         assert got[k] == pytest.approx(val, rel=1e-12, abs=0), k
-    assert sim.scorer.filtered_errors(x, x0) == {"temporal_error_filtered": got["temporal_error"],
-                                                 "temporal_error_filtered_vorticity": got["temporal_error_vorticity"]}
+    assert sim.scorer.filtered_errors(x, x0) == {
+        "temporal_error_filtered": got["temporal_error"],
+        "temporal_error_filtered_vorticity": got["temporal_error_vorticity"],
+    }
     assert all(math.isnan(e) for e in sim.scorer.filtered_errors(x, None).values())
 
 
@@ -154,12 +182,20 @@ def test_tc5_against_t341_differs_from_t213_by_at_most_their_distance(tmp_path):
     # T213 - T341 at the nodes, normalized as the errors are
     g = sim.grid
     r213, r341 = t213.reference.at(1.0, g.lat, g.lon), sim.scorer.reference.at(1.0, g.lat, g.lon)
-    apart = {"h_surface": williamson_norms(g, r213["h_surface"], r341["h_surface"])["l2"],
-             **sim.scorer.wind_error_decomposition(r213["u"], r213["v"], r341["u"], r341["v"])}
+    apart = {
+        "h_surface": williamson_norms(g, r213["h_surface"], r341["h_surface"])["l2"],
+        **sim.scorer.wind_error_decomposition(r213["u"], r213["v"], r341["u"], r341["v"]),
+    }
     assert apart["h_surface"] == pytest.approx(floor("tc5_mountain_T213.nc", 1.0)[0], rel=0.5)
-    for key, part in (("ref_l2_h_surface", "h_surface"), ("ref_l2_vorticity", "l2_vorticity"), ("ref_l2_divergence", "l2_divergence")):
+    for key, part in (
+        ("ref_l2_h_surface", "h_surface"),
+        ("ref_l2_vorticity", "l2_vorticity"),
+        ("ref_l2_divergence", "l2_divergence"),
+    ):
         differ = abs(d213[key] - d341[key])
-        print(f"{key}: T213 {d213[key]:.4e}, T341 {d341[key]:.4e}, difference {differ:.2e}, T213 - T341 {apart[part]:.2e}")
+        print(
+            f"{key}: T213 {d213[key]:.4e}, T341 {d341[key]:.4e}, difference {differ:.2e}, T213 - T341 {apart[part]:.2e}"
+        )
         assert 1e-3 * apart[part] < differ <= apart[part], key
 
 
@@ -168,8 +204,22 @@ def test_a_sweep_to_a_day_the_reference_lacks_has_no_total_error_and_says_why(tm
     spatial errors are absent (NaN), the temporal ones are there; the reason is
     printed before the runs, in the summary instead of verdicts, and in sweep.nc."""
     why = "tc5_mountain_T213.nc stores days 0, 1, 2, 5, 10, 15, not day 0.5"
-    args = ["sweep", "tc5_mountain", "--ne", "2", "--days", "0.5", "--steppers", "ssprk3", "--dt", "1800",
-            "--device", "cpu", "--output", str(tmp_path)]
+    args = [
+        "sweep",
+        "tc5_mountain",
+        "--ne",
+        "2",
+        "--days",
+        "0.5",
+        "--steppers",
+        "ssprk3",
+        "--dt",
+        "1800",
+        "--device",
+        "cpu",
+        "--output",
+        str(tmp_path),
+    ]
     assert main(args) == 0
     text = capsys.readouterr().out
     assert f"note: no total or spatial error at the end, so no verdicts: {why}" in text
@@ -184,8 +234,17 @@ def test_a_sweep_to_a_day_the_reference_lacks_has_no_total_error_and_says_why(tm
 
 def _result(blowup=None, growths=(0.0,)):
     history = [{"total_energy_change": g} for g in growths]
-    return RunResult(steps=1, rhs_evals=1, wall_time=0.0, setup_time=0.0, diagnostics=history[-1], courant={}, output=None,
-                     blowup=blowup, history=history)
+    return RunResult(
+        steps=1,
+        rhs_evals=1,
+        wall_time=0.0,
+        setup_time=0.0,
+        diagnostics=history[-1],
+        courant={},
+        output=None,
+        blowup=blowup,
+        history=history,
+    )
 
 
 def test_instability_is_a_blow_up_or_energy_growth_past_one_percent():

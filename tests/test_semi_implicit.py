@@ -36,16 +36,16 @@ import numpy as np
 import pytest
 import warp as wp
 
-import roundoff
-from conftest import make_sim, requires_cuda, run, write_tc2_scene
 from swe_sphere.cli import main
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
+from swe_sphere.core.errors import StepFailure
 from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.simulation.simulation import Simulation
-from swe_sphere.core.errors import StepFailure
 from swe_sphere.solvers.helmholtz import GravityWave, GuessHistory, helmholtz_matrix
 
+import roundoff
+from conftest import make_sim, requires_cuda, run, write_tc2_scene
 from numpy_ops import NumpyOps
 
 DEVICE = "cpu"
@@ -58,8 +58,9 @@ def at_multiple(base, stepper, factor, limit, **options):
     """``base`` with ``stepper`` at the longest step <= factor·limit dividing the run;
     one output at the end, so the step need not divide a day."""
     n = math.ceil(base.days * DAY / (factor * limit))
-    return dataclasses.replace(base, stepper=stepper, dt=base.days * DAY / n, stepper_options=options,
-                               output_every_days=base.days)
+    return dataclasses.replace(
+        base, stepper=stepper, dt=base.days * DAY / n, stepper_options=options, output_every_days=base.days
+    )
 
 
 def rel(a, b):
@@ -87,17 +88,22 @@ def test_semi_implicit_keeps_tc2_steady_at_its_largest_stable_step(name):
     s = si.diagnostics["l2_h"]
     explicit_there, _, _ = run(at_multiple(base, "ssprk3", SI_FACTOR, limit))
     too_long, _, _ = run(at_multiple(base, "semi_implicit", UNSTABLE_FACTOR, limit))
-    print(f"\n{name}: dt_limit {limit:.1f} s; ssprk3 dt {base.dt:g} s: l2(h) {e:.4e} ({t_exp:.2f} s); "
-          f"SI dt {scene.dt:.1f} s = {scene.dt / limit:.3f} dt_limit, {scene.nsteps} steps: l2(h) {s:.4e}, "
-          f"ratio {s / e:.3f}, l2(wind) {si.diagnostics['l2_wind']:.4e} (explicit {explicit.diagnostics['l2_wind']:.4e}), "
-          f"mass change {si.diagnostics['mass_change']:.1e}, {si.iterations}, {t_si:.2f} s; "
-          f"ssprk3 at that step: {explicit_there.blowup or explicit_there.diagnostics['l2_h']}; "
-          f"SI at {UNSTABLE_FACTOR} dt_limit: {too_long.blowup or too_long.diagnostics['l2_h']}")
+    print(
+        f"\n{name}: dt_limit {limit:.1f} s; ssprk3 dt {base.dt:g} s: l2(h) {e:.4e} ({t_exp:.2f} s); "
+        f"SI dt {scene.dt:.1f} s = {scene.dt / limit:.3f} dt_limit, {scene.nsteps} steps: l2(h) {s:.4e}, "
+        f"ratio {s / e:.3f}, l2(wind) {si.diagnostics['l2_wind']:.4e} (explicit {explicit.diagnostics['l2_wind']:.4e}), "
+        f"mass change {si.diagnostics['mass_change']:.1e}, {si.iterations}, {t_si:.2f} s; "
+        f"ssprk3 at that step: {explicit_there.blowup or explicit_there.diagnostics['l2_h']}; "
+        f"SI at {UNSTABLE_FACTOR} dt_limit: {too_long.blowup or too_long.diagnostics['l2_h']}"
+    )
     assert scene.dt >= 1.75 * limit
     assert 0.5 * e <= s <= 2.0 * e
     assert si.diagnostics["l2_wind"] <= 2.0 * explicit.diagnostics["l2_wind"]
-    roundoff.within(abs(si.diagnostics["mass_change"]), roundoff.mass_change_bound(2 * roundoff.operations(si), sim.grid.npts),
-                    "|mass change|")
+    roundoff.within(
+        abs(si.diagnostics["mass_change"]),
+        roundoff.mass_change_bound(2 * roundoff.operations(si), sim.grid.npts),
+        "|mass change|",
+    )
     assert explicit_there.blowup is not None
     assert too_long.blowup is not None or too_long.diagnostics["l2_h"] > 10 * e
 
@@ -111,8 +117,10 @@ def test_mean_depth_option_reaches_the_stepper():
     e = run(dataclasses.replace(base, output_every_days=STEADY_DAYS))[0].diagnostics["l2_h"]
     default, sim_d, _ = run(at_multiple(base, "semi_implicit", 2.0, limit))
     deep, sim_h, _ = run(at_multiple(base, "semi_implicit", 2.0, limit, mean_depth=3000.0))
-    print(f"\nH = {sim_d.stepper.H:.1f} m: {default.blowup or default.diagnostics['l2_h']}; "
-          f"H = {sim_h.stepper.H:.1f} m: {deep.blowup or deep.diagnostics['l2_h']}; ssprk3 {e:.4e}")
+    print(
+        f"\nH = {sim_d.stepper.H:.1f} m: {default.blowup or default.diagnostics['l2_h']}; "
+        f"H = {sim_h.stepper.H:.1f} m: {deep.blowup or deep.diagnostics['l2_h']}; ssprk3 {e:.4e}"
+    )
     h0 = make_sim(base).fields()[2]  # the initial depth
     w = sim_d.grid.spheremp
     assert sim_h.stepper.H == 3000.0
@@ -134,8 +142,10 @@ def test_semi_implicit_conserves_mass_to_round_off(dt):
     result, sim, wall = run(scene)
     assert result.blowup is None
     changes = [h["mass_change"] for h in result.history]
-    print(f"\ndt {scene.dt:g} s ({scene.nsteps} steps, gravity-wave Courant {result.courant['courant_gravity']:.2f}): "
-          f"mass change {changes}, {result.iterations}, {wall:.2f} s")
+    print(
+        f"\ndt {scene.dt:g} s ({scene.nsteps} steps, gravity-wave Courant {result.courant['courant_gravity']:.2f}): "
+        f"mass change {changes}, {result.iterations}, {wall:.2f} s"
+    )
     roundoff.mass_kept(result.history, sim.grid.npts, lambda d: 2 * roundoff.operations(d))
 
 
@@ -170,14 +180,18 @@ def test_helmholtz_matrix_equals_the_matrix_free_operator(rng):
     c = 1e14  # (M + cK) y / c − M y / c: large c keeps the cancellation at round-off
     yw = wp.array(y, dtype=wp.float64, device=DEVICE)
     matrix_free = {}
-    per_node = ShallowWater(grid, sim.model.terms, sim.model.fcor.numpy(), sim.model.hs.numpy(), device=DEVICE, per_element=False)
+    per_node = ShallowWater(
+        grid, sim.model.terms, sim.model.fcor.numpy(), sim.model.hs.numpy(), device=DEVICE, per_element=False
+    )
     for layout, model in (("per element", sim.model), ("per node", per_node)):  # the CPU's and CUDA's operator
         out = wp.zeros(grid.nunique, dtype=wp.float64, device=DEVICE)
         GravityWave(model, gw.H, 1e-10, 10)._apply(yw, out, c)
         matrix_free[layout] = (out.numpy() - grid.area * y) / c
     ones = np.abs(K @ np.ones(grid.nunique)).max() / np.abs(K).max()
-    print(f"\nnnz/row {K.nnz / grid.nunique:.1f}; |Ky - numpy| {rel(K @ y, ref):.1e}, |K 1| {ones:.1e}, |Ky - matrix-free| "
-          + ", ".join(f"{k} {rel(K @ y, v):.1e}" for k, v in matrix_free.items()))
+    print(
+        f"\nnnz/row {K.nnz / grid.nunique:.1f}; |Ky - numpy| {rel(K @ y, ref):.1e}, |K 1| {ones:.1e}, |Ky - matrix-free| "
+        + ", ".join(f"{k} {rel(K @ y, v):.1e}" for k, v in matrix_free.items())
+    )
     # K y: a gradient and a divergence, each with its DSS, in another order (assembled
     # entries, kernels, numpy): four passes of roundoff.operator_roundings
     limit = roundoff.bound(roundoff.operator_roundings(grid.np, 4))
@@ -204,7 +218,10 @@ def test_schur_solve_inverts_i_minus_a_l(rng):
         zn = z.numpy()
         resid = rel(zn - a * _numpy_L(ops, zn, m.g, gw.H), s * r)
         mass = (np.sum(w * zn[2]) - s * np.sum(w * r[2])) / np.sum(w * np.abs(s * r[2]))
-        print(f"\na = {a:g}: {its} iterations, relative residual {resid:.1e}, mass {mass:.1e}, |z - r| / |r| {rel(zn, s * r):.2f}", end="")
+        print(
+            f"\na = {a:g}: {its} iterations, relative residual {resid:.1e}, mass {mass:.1e}, |z - r| / |r| {rel(zn, s * r):.2f}",
+            end="",
+        )
         assert resid < 1e-10
         roundoff.within(abs(mass), roundoff.mass_change_bound(3 * its, m.N), f"|mass| a = {a:g}")
         assert rel(zn, s * r) > 0.1  # a real correction, not the identity
@@ -279,7 +296,9 @@ def test_a_history_start_gives_the_answers_in_fewer_iterations(rng, precision):
         ys, its = [], []
         for b in bs:
             gw.b.assign(b)
-            gw._history = gw._histories.setdefault(c, GuessHistory(gw)) if k else None  # ``solve``'s pick, for a bare product's c
+            gw._history = (
+                gw._histories.setdefault(c, GuessHistory(gw)) if k else None
+            )  # ``solve``'s pick, for a bare product's c
             gw._pcg(c)
             ys.append(gw.y.numpy().copy()), its.append(gw.iterations())
         answers[k], counts[k] = ys, its
@@ -323,7 +342,9 @@ def test_a_helmholtz_solve_reads_nothing_back(rng, monkeypatch, tally, precision
     m = sim.model
     gw = GravityWave(m, 0.0, tol, 1000, precision=precision)
     gw.set_depth(sim.x)
-    r = wp.array(ops.dss(rng.standard_normal((3, m.N)) * np.array([[10.0], [10.0], [100.0]])), dtype=wp.float64, device=DEVICE)
+    r = wp.array(
+        ops.dss(rng.standard_normal((3, m.N)) * np.array([[10.0], [10.0], [100.0]])), dtype=wp.float64, device=DEVICE
+    )
     z = wp.zeros((3, m.N), dtype=wp.float64, device=DEVICE)
     gw.solve(r, 1800.0, z)  # records
     gw.iterations()
@@ -346,7 +367,9 @@ def test_an_unconverged_solve_fails_at_the_read(rng, precision, tol):
     m = sim.model
     gw = GravityWave(m, 0.0, tol, 2, precision=precision)
     gw.set_depth(sim.x)
-    r = wp.array(ops.dss(rng.standard_normal((3, m.N)) * np.array([[10.0], [10.0], [100.0]])), dtype=wp.float64, device=DEVICE)
+    r = wp.array(
+        ops.dss(rng.standard_normal((3, m.N)) * np.array([[10.0], [10.0], [100.0]])), dtype=wp.float64, device=DEVICE
+    )
     gw.solve(r, 18000.0, wp.zeros((3, m.N), dtype=wp.float64, device=DEVICE))
     with pytest.raises(StepFailure, match=r"^Helmholtz CG did not converge in 2 iterations \(residual [0-9.e+-]+ > "):
         gw.iterations()
@@ -378,7 +401,9 @@ def test_a_solver_step_reads_the_host_once(monkeypatch, tally, stepper, threads)
     3 + 1 a CG iteration a solve, 36 and 57 a step here.)"""
     _, its, reads, graphs = _steps(monkeypatch, stepper, threads=threads, tally=tally)
     assert reads == 1 and min(its) > 5
-    assert graphs[0] == graphs[1] == ({"semi_implicit": 2, "imex": 3}[stepper] if threads == 1 else 0)  # leapfrog's start: dt/2
+    assert (
+        graphs[0] == graphs[1] == ({"semi_implicit": 2, "imex": 3}[stepper] if threads == 1 else 0)
+    )  # leapfrog's start: dt/2
 
 
 @pytest.mark.parametrize("precision", ["double", "mixed"])
@@ -431,8 +456,14 @@ def test_a_whole_solve_is_its_products_and_four_passes(rng, tally, warm):
     sim, _, ops = _gw(ne=4)
     gw = GravityWave(sim.model, 0.0, 1e-10, 1000, warm=warm)
     gw.set_depth(sim.x)
-    r1, r2 = (wp.array(ops.dss(rng.standard_normal((3, sim.model.N)) * np.array([[10.0], [10.0], [100.0]])), dtype=wp.float64, device=DEVICE)
-              for _ in range(2))
+    r1, r2 = (
+        wp.array(
+            ops.dss(rng.standard_normal((3, sim.model.N)) * np.array([[10.0], [10.0], [100.0]])),
+            dtype=wp.float64,
+            device=DEVICE,
+        )
+        for _ in range(2)
+    )
     z = wp.zeros((3, sim.model.N), dtype=wp.float64, device=DEVICE)
     gw._solve(r1, 1800.0, z, 1.0)  # records; with ``warm``, the guess of the next solve
     gw.iterations()
@@ -442,11 +473,25 @@ def test_a_whole_solve_is_its_products_and_four_passes(rng, tally, warm):
     products = k + warm
     launched = dict(tally.launches)
     assert k > 5
-    assert {key: launched.pop(key, 0) for key in ("helmholtz_rhs", "helmholtz_back_substitution", "helmholtz_gradient", "helmholtz_divergence",
-                                                   "helmholtz_assemble")} == {
-        "helmholtz_rhs": 1, "helmholtz_back_substitution": 1, "helmholtz_gradient": products + 1, "helmholtz_divergence": products,
-        "helmholtz_assemble": products + 1}
-    assert set(launched) <= {"cg_update", "cg_check", "cg_alpha", "inner3", "add_mean_difference", "row_totals"}, launched
+    assert {
+        key: launched.pop(key, 0)
+        for key in (
+            "helmholtz_rhs",
+            "helmholtz_back_substitution",
+            "helmholtz_gradient",
+            "helmholtz_divergence",
+            "helmholtz_assemble",
+        )
+    } == {
+        "helmholtz_rhs": 1,
+        "helmholtz_back_substitution": 1,
+        "helmholtz_gradient": products + 1,
+        "helmholtz_divergence": products,
+        "helmholtz_assemble": products + 1,
+    }
+    assert set(launched) <= {"cg_update", "cg_check", "cg_alpha", "inner3", "add_mean_difference", "row_totals"}, (
+        launched
+    )
 
 
 @requires_cuda
@@ -459,6 +504,7 @@ def test_a_solver_step_on_cuda_replays_graphs_and_reads_once(monkeypatch, tally,
 
 
 # -- bad options ---------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize(
     "option, needle",

@@ -7,11 +7,11 @@ import pandas as pd
 import pytest
 import xarray as xr
 
-from swe_sphere.studies import stability
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
+from swe_sphere.studies import stability
 from swe_sphere.studies.sweep import explicit_limits
 
 
@@ -37,7 +37,9 @@ def test_suite_days_and_overrides_reach_every_scene(monkeypatch):
     seen = {}
     monkeypatch.setattr(stability, "largest_stable_dt", lambda scene, device, log: seen.setdefault(scene.name, scene))
     cases = [c for c in stability.HARD_CASES if c[0] in ("galewsky", "tc2_steady_alpha_pi4_100d")]
-    stability.run_suite(cases, ["rk4"], "cpu", ne=4, days=12.0, overrides={"hyperviscosity.efold_hours": 6.0}, log=lambda *_: None)
+    stability.run_suite(
+        cases, ["rk4"], "cpu", ne=4, days=12.0, overrides={"hyperviscosity.efold_hours": 6.0}, log=lambda *_: None
+    )
     assert seen["galewsky"].days == 12.0 and seen["tc2_steady_alpha_pi4_100d"].days == 100.0
     assert seen["galewsky"].nu == pytest.approx(load_scene("galewsky", ne=4).nu / 2, rel=1e-12)
 
@@ -61,10 +63,20 @@ KNOWN_UNSTABLE = {
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("label,name", [
-    pytest.param(label, name, marks=[pytest.mark.xfail(strict=True, raises=AssertionError, reason=KNOWN_UNSTABLE[label, name])]
-                 if (label, name) in KNOWN_UNSTABLE else [])
-    for label, *_ in stability.HARD_CASES for name in STEPPERS])
+@pytest.mark.parametrize(
+    "label,name",
+    [
+        pytest.param(
+            label,
+            name,
+            marks=[pytest.mark.xfail(strict=True, raises=AssertionError, reason=KNOWN_UNSTABLE[label, name])]
+            if (label, name) in KNOWN_UNSTABLE
+            else [],
+        )
+        for label, *_ in stability.HARD_CASES
+        for name in STEPPERS
+    ],
+)
 def test_every_stepper_stable_within_its_limit(label, name):
     """Every stepper finishes each hard case (small grid) at the scene's default Δt or,
     where that is above the stepper's measured Courant limit on the initial state

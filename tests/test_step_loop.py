@@ -96,7 +96,9 @@ def test_output_fields(tmp_path, whole_run):
     """``[output] fields`` limits the run file's node fields; those kept are the
     default file's, bit for bit; the default file's scene attribute has no output
     choices (files as before). An unknown field is refused."""
-    ds = swe_sphere.run("tc2_steady_alpha_pi4", device="cpu", **{**KW, "output": {**KW["output"], "fields": ["u", "h"]}})
+    ds = swe_sphere.run(
+        "tc2_steady_alpha_pi4", device="cpu", **{**KW, "output": {**KW["output"], "fields": ["u", "h"]}}
+    )
     assert {"h", "u"} <= set(ds.data_vars) and not {"v", "vorticity", "divergence"} & set(ds.data_vars)
     for name in ("h", "u", "l2_h", "hs"):
         assert np.array_equal(ds[name].values, whole_run[name].values)
@@ -109,7 +111,11 @@ def test_output_fields(tmp_path, whole_run):
 def test_two_streams(tmp_path, capsys):
     """Two ``[[output.streams]]`` write RUN.NAME.nc each at its own interval, with its
     fields, beside the main file (unchanged); through the CLI."""
-    scene = write_tc2_scene(tmp_path / "s.toml", dt=DT, days=0.25, tables="""
+    scene = write_tc2_scene(
+        tmp_path / "s.toml",
+        dt=DT,
+        days=0.25,
+        tables="""
 [[output.streams]]
 name = "hourly"
 every_days = 0.041666666666666664
@@ -119,12 +125,16 @@ fields = ["h"]
 name = "q"
 every_days = 0.0625
 fields = ["vorticity", "u"]
-""")
+""",
+    )
     code, out, err = cli_main(capsys, "run", scene, *TINY, "--output", tmp_path / "run.nc")
     assert code == 0, err
     assert f"stream      {tmp_path / 'run.hourly.nc'} (every 0.0416667 days: h)" in out
-    with xr.open_dataset(tmp_path / "run.nc", decode_times=False) as main, xr.open_dataset(tmp_path / "run.hourly.nc", decode_times=False) as hourly, \
-            xr.open_dataset(tmp_path / "run.q.nc", decode_times=False) as q:
+    with (
+        xr.open_dataset(tmp_path / "run.nc", decode_times=False) as main,
+        xr.open_dataset(tmp_path / "run.hourly.nc", decode_times=False) as hourly,
+        xr.open_dataset(tmp_path / "run.q.nc", decode_times=False) as q,
+    ):
         assert list(main.time.values) == [0.0, 0.25]  # the scene's output.every_days = 1: the start and the end
         assert set(OUTPUT_FIELDS) <= set(main.data_vars)
         assert np.allclose(hourly.time.values, np.arange(7) / 24, rtol=0, atol=1e-12)
@@ -136,12 +146,15 @@ fields = ["vorticity", "u"]
         assert np.array_equal(q.mass.values[[0, -1]], main.mass.values)
 
 
-@pytest.mark.parametrize("stream, words", [
-    ({"name": "restart", "every_days": 0.125}, ["output.streams[0].name"]),
-    ({"name": "a", "every_days": 0.01}, ["output.streams[0].every_days", "whole number of steps"]),
-    ({"name": "a", "every_days": 0.125, "fields": ["hs"]}, ["output.streams[0].fields", "unknown field 'hs'"]),
-    ({"name": "a", "every": 0.125}, ["unknown key output.streams[0].every"]),
-])
+@pytest.mark.parametrize(
+    "stream, words",
+    [
+        ({"name": "restart", "every_days": 0.125}, ["output.streams[0].name"]),
+        ({"name": "a", "every_days": 0.01}, ["output.streams[0].every_days", "whole number of steps"]),
+        ({"name": "a", "every_days": 0.125, "fields": ["hs"]}, ["output.streams[0].fields", "unknown field 'hs'"]),
+        ({"name": "a", "every": 0.125}, ["unknown key output.streams[0].every"]),
+    ],
+)
 def test_bad_streams_refused(stream, words):
     with pytest.raises(SceneError) as err:
         sim(output={"streams": [stream]})

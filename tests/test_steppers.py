@@ -28,13 +28,13 @@ import math
 import numpy as np
 import pytest
 
-import roundoff
-from conftest import cached_grid, make_sim, tc6_final, write_tc2_scene
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
 from swe_sphere.kernels.tendencies import TENDENCY_TERMS
 from swe_sphere.steppers import STEPPERS
 
+import roundoff
+from conftest import cached_grid, make_sim, tc6_final, write_tc2_scene
 
 # RHS evaluations: (first step, every later step), as the steppers document them.
 # A registered stepper missing here (e.g. an iterative implicit one, whose count
@@ -84,15 +84,19 @@ def test_stepper_runs_tc2_stably(name):
     calls = count_rhs_calls(sim)
     result = sim.run()
     d = result.diagnostics
-    print(f"\n{name}: dt {scene.dt:g} s, {result.steps} steps, {result.rhs_evals} RHS, l2(h) {d['l2_h']:.4e}, "
-          f"linf(h) {d['linf_h']:.4e}, l2(wind) {d['l2_wind']:.4e}, mass change {d['mass_change']:.1e}")
+    print(
+        f"\n{name}: dt {scene.dt:g} s, {result.steps} steps, {result.rhs_evals} RHS, l2(h) {d['l2_h']:.4e}, "
+        f"linf(h) {d['linf_h']:.4e}, l2(wind) {d['l2_wind']:.4e}, mass change {d['mass_change']:.1e}"
+    )
     assert result.blowup is None
     assert result.steps == scene.nsteps == 72
     assert len(result.history) == 2
     assert d["l2_h"] < 5e-4
     assert d["linf_h"] < 2e-3
     assert d["l2_wind"] < 5e-3
-    roundoff.mass_kept(result.history, sim.grid.npts, lambda d: 2 * roundoff.operations(d))  # and leapfrog's time filter
+    roundoff.mass_kept(
+        result.history, sim.grid.npts, lambda d: 2 * roundoff.operations(d)
+    )  # and leapfrog's time filter
     assert abs(d["total_energy_change"]) < 1e-6
     if name in DOCUMENTED_RHS:
         first, later = DOCUMENTED_RHS[name]
@@ -140,7 +144,9 @@ def test_step_stats_report_rhs_evals(name):
 
 def _leapfrog_scene(tmp_path, eps):
     table = "" if eps is None else f"\n[leapfrog]\nrobert_asselin = {eps!r}\n"
-    return load_scene(write_tc2_scene(tmp_path / f"lf_{eps}.toml", stepper="leapfrog", ne=4, dt=1200.0, days=0.5, tables=table))
+    return load_scene(
+        write_tc2_scene(tmp_path / f"lf_{eps}.toml", stepper="leapfrog", ne=4, dt=1200.0, days=0.5, tables=table)
+    )
 
 
 def test_leapfrog_robert_asselin_from_scene(tmp_path):
@@ -210,9 +216,11 @@ def test_temporal_order_tc6(stepper, eps, nsteps, lo, hi):
     fine = tc6_errors(stepper, 2 * nsteps, eps)
     rate = [math.log2(c / f) for c, f in zip(coarse, fine)]
     dt = ORDER_DAYS * DAY / nsteps
-    print(f"\n{stepper} eps={eps} dt {dt:g} -> {dt / 2:g} s: err(h) {coarse[0]:.3e} -> {fine[0]:.3e}, "
-          f"err(wind) {coarse[1]:.3e} -> {fine[1]:.3e}, ratio {coarse[0] / fine[0]:.2f} / {coarse[1] / fine[1]:.2f}, "
-          f"rate {rate[0]:.3f} / {rate[1]:.3f}")
+    print(
+        f"\n{stepper} eps={eps} dt {dt:g} -> {dt / 2:g} s: err(h) {coarse[0]:.3e} -> {fine[0]:.3e}, "
+        f"err(wind) {coarse[1]:.3e} -> {fine[1]:.3e}, ratio {coarse[0] / fine[0]:.2f} / {coarse[1] / fine[1]:.2f}, "
+        f"rate {rate[0]:.3f} / {rate[1]:.3f}"
+    )
     for r in rate:
         assert lo <= r <= hi, (stepper, eps, coarse, fine, rate)
     # the reference's own error (rk4 at dt/16 or less) must not pollute the finer run
@@ -305,4 +313,11 @@ def test_options_dataclass_defaults_checks_and_schema():
         STEPPERS["semi_implicit"].make_options(robert_asselin=0.5)
     with pytest.raises(ValueError, match="method must be"):
         STEPPERS["implicit"].make_options(method="bdf3")
-    assert {n for n, c in STEPPERS.items() if c.explicit} == {"leapfrog", "leapfrog_trapezoidal", "ssprk3", "rk4", "kgu35", "fbrk32"}
+    assert {n for n, c in STEPPERS.items() if c.explicit} == {
+        "leapfrog",
+        "leapfrog_trapezoidal",
+        "ssprk3",
+        "rk4",
+        "kgu35",
+        "fbrk32",
+    }

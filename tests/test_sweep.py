@@ -14,20 +14,35 @@ import pandas as pd
 import pytest
 import xarray as xr
 
+from swe_sphere.cases.reference import find_reference, floor
+from swe_sphere.cli import main
+from swe_sphere.core import workers as workers_mod
+from swe_sphere.simulation.simulation import Simulation
+from swe_sphere.studies import sweep as sweep_mod
+
 import roundoff
 from conftest import cached_grid
-from swe_sphere.studies import sweep as sweep_mod
-from swe_sphere.core import workers as workers_mod
-from swe_sphere.cli import main
-from swe_sphere.cases.reference import find_reference, floor
-from swe_sphere.simulation.simulation import Simulation
 
 
 @pytest.fixture(scope="module")
 def swept(tmp_path_factory):
     out = tmp_path_factory.mktemp("sweep")
-    args = ["sweep", "tc2_steady", "--ne", "2", "--days", "1", "--steppers", "ssprk3,implicit", "--dt", "3600,14400",
-            "--device", "cpu", "--output", str(out)]
+    args = [
+        "sweep",
+        "tc2_steady",
+        "--ne",
+        "2",
+        "--days",
+        "1",
+        "--steppers",
+        "ssprk3,implicit",
+        "--dt",
+        "3600,14400",
+        "--device",
+        "cpu",
+        "--output",
+        str(out),
+    ]
     assert main(args) == 0
     return out, args
 
@@ -72,10 +87,15 @@ def test_an_unchanged_sweep_reuses_every_run_and_says_so(swept, monkeypatch, cap
     warm-up, the files stay as they are and each run's line says it was reused."""
     out, args = swept
     before = {p.name: p.read_bytes() for p in (out / "runs").iterdir()}
-    assert len([n for n in before if n.endswith(".json")]) == 4 and len([n for n in before if n.startswith("reference_")]) == 1
+    assert (
+        len([n for n in before if n.endswith(".json")]) == 4
+        and len([n for n in before if n.startswith("reference_")]) == 1
+    )
     runs = []
     real_run = Simulation.run
-    monkeypatch.setattr(Simulation, "run", lambda self, output=None, **kw: runs.append(self.scene.dt) or real_run(self, output, **kw))
+    monkeypatch.setattr(
+        Simulation, "run", lambda self, output=None, **kw: runs.append(self.scene.dt) or real_run(self, output, **kw)
+    )
     assert main([*args, "--overwrite"]) == 0  # its results replace the first's: the same numbers
     assert runs == []
     assert {p.name: p.read_bytes() for p in (out / "runs").iterdir()} == before
@@ -86,7 +106,11 @@ def test_an_unchanged_sweep_reuses_every_run_and_says_so(swept, monkeypatch, cap
     assert f"runs: 4 reused, 0 made (in {out / 'runs'})" in text
     stored = json.loads((out / "runs" / "ssprk3_3600.json").read_text())
     assert stored["row"]["stable"] is True and stored["row"]["steps"] == 24
-    assert stored["key"]["scene"]["days"] == 1.0 and stored["key"]["scene"]["dt"] == 3600.0 and stored["key"]["scene"]["ne"] == 2
+    assert (
+        stored["key"]["scene"]["days"] == 1.0
+        and stored["key"]["scene"]["dt"] == 3600.0
+        and stored["key"]["scene"]["ne"] == 2
+    )
     assert stored["key"]["reference_dt"] == 900.0 and stored["key"]["device"] == "cpu"
     assert stored["key"]["code"] == sweep_mod.code_version()
 
@@ -104,7 +128,12 @@ def test_cheapest_sufficient_picks_fastest_accurate_run():
     rows = [
         {"stepper": "a", "stable": True, "temporal_error": 1e-6, "cost_time": 5.0},
         {"stepper": "a", "stable": True, "temporal_error": 5e-6, "cost_time": 2.0},
-        {"stepper": "a", "stable": True, "temporal_error": 2e-6, "cost_time": float("nan")},  # no time on the clock: last
+        {
+            "stepper": "a",
+            "stable": True,
+            "temporal_error": 2e-6,
+            "cost_time": float("nan"),
+        },  # no time on the clock: last
         {"stepper": "a", "stable": True, "temporal_error": 5e-5, "cost_time": 1.0},  # not accurate enough
         {"stepper": "b", "stable": False, "temporal_error": float("nan"), "cost_time": 0.1},
     ]
@@ -150,19 +179,30 @@ def test_sweep_with_two_workers_gives_the_serial_rows(swept, tmp_path):
     out, args = swept
     parallel = tmp_path / "parallel"
     assert main([*args[:-1], str(parallel), "--workers", "2"]) == 0
-    timings = ["wall_time", "cpu_time", "cost_time", "load_average", "startup_time", "setup_time", "rhs_time", "rhs_cpu_time",
-               "rhs_equivalents", "threads"]
+    timings = [
+        "wall_time",
+        "cpu_time",
+        "cost_time",
+        "load_average",
+        "startup_time",
+        "setup_time",
+        "rhs_time",
+        "rhs_cpu_time",
+        "rhs_equivalents",
+        "threads",
+    ]
     serial_rows = pd.read_csv(out / "sweep.csv").drop(columns=timings)
     parallel_rows = pd.read_csv(parallel / "sweep.csv").drop(columns=timings)
     pd.testing.assert_frame_equal(parallel_rows, serial_rows, check_exact=True)
     assert (pd.read_csv(parallel / "sweep.csv")["wall_time"] > 0).all()
-    assert sorted(p.name for p in (parallel / "runs").glob("*.json")) == sorted(p.name for p in (out / "runs").glob("*.json"))
+    assert sorted(p.name for p in (parallel / "runs").glob("*.json")) == sorted(
+        p.name for p in (out / "runs").glob("*.json")
+    )
 
 
 def _blas_threads():
-    from threadpoolctl import threadpool_info
-
     import scipy.sparse.linalg  # noqa: F401  (what the Helmholtz CG loads)
+    from threadpoolctl import threadpool_info
 
     return sorted({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}), len(threadpool_info())
 
@@ -179,17 +219,44 @@ def test_a_sweep_worker_runs_blas_on_its_share_of_the_cores(monkeypatch):
 
 
 def test_sweep_refuses_zero_workers(tmp_path, capsys):
-    assert main(["sweep", "tc2_steady", "--ne", "2", "--dt", "3600", "--workers", "0", "--output", str(tmp_path / "o")]) == 2
+    assert (
+        main(["sweep", "tc2_steady", "--ne", "2", "--dt", "3600", "--workers", "0", "--output", str(tmp_path / "o")])
+        == 2
+    )
     assert "--workers must be >= 1 (got 0)" in capsys.readouterr().err
 
 
 def test_verdicts_per_criterion_and_threshold():
     """Each criterion picks its own cheapest qualifying run: the long step passes the
     total and balanced-flow criteria at 50 % but not the gravity-wave one."""
-    base = {"stable": True, "dt_over_gravity_limit": 1.0, "dt_over_advective_limit": 0.1, "dt_over_leapfrog_limit": 2.0, "rhs_evals": 10}
+    base = {
+        "stable": True,
+        "dt_over_gravity_limit": 1.0,
+        "dt_over_advective_limit": 0.1,
+        "dt_over_leapfrog_limit": 2.0,
+        "rhs_evals": 10,
+    }
     rows = [
-        {**base, "stepper": "a", "dt": 100.0, "cost_time": 4.0, "rhs_equivalents": 40.0, "temporal_error": 1e-6, "temporal_error_vorticity": 1e-5, "temporal_error_divergence": 1e-5},
-        {**base, "stepper": "a", "dt": 400.0, "cost_time": 1.0, "rhs_equivalents": 10.0, "temporal_error": 3e-5, "temporal_error_vorticity": 3e-4, "temporal_error_divergence": 9e-4},
+        {
+            **base,
+            "stepper": "a",
+            "dt": 100.0,
+            "cost_time": 4.0,
+            "rhs_equivalents": 40.0,
+            "temporal_error": 1e-6,
+            "temporal_error_vorticity": 1e-5,
+            "temporal_error_divergence": 1e-5,
+        },
+        {
+            **base,
+            "stepper": "a",
+            "dt": 400.0,
+            "cost_time": 1.0,
+            "rhs_equivalents": 10.0,
+            "temporal_error": 3e-5,
+            "temporal_error_vorticity": 3e-4,
+            "temporal_error_divergence": 9e-4,
+        },
         {**base, "stepper": "b", "dt": 100.0, "cost_time": 0.5, "rhs_equivalents": 5.0, "stable": False},
     ]
     info = {"spatial_error": 1e-4, "spatial_error_vorticity": 1e-3, "spatial_error_divergence": 1e-3}
@@ -209,24 +276,50 @@ def test_verdicts_per_criterion_and_threshold():
 def test_verdicts_quote_the_reference_floor_and_flag_a_spatial_error_within_2x_of_it():
     """Beside each spatial error its reference's own error (``Sweep.run``'s info, from
     ``reference.floor``); within 2x of it the line says the verdicts are provisional."""
-    row = {"stepper": "a", "dt": 100.0, "stable": True, "dt_over_gravity_limit": 1.0, "dt_over_advective_limit": 0.1,
-           "dt_over_leapfrog_limit": 2.0, "rhs_evals": 10, "cost_time": 1.0, "rhs_equivalents": 10.0, "cpu_time": 1.0,
-           "wall_time": 1.0, "temporal_error": 1e-7, "temporal_error_vorticity": 1e-5, "temporal_error_divergence": 1e-5}
-    info = {"spatial_error": 1.9e-5, "spatial_error_vorticity": 7.8e-2, "spatial_error_divergence": 6.2e-3,
-            "reference": "tc5_mountain_T213.nc", "reference_floor_source": "T213 vs T341, day 15",
-            **dict(zip(sweep_mod.FLOOR_OF.values(), floor("tc5_mountain_T213.nc", 15.0)))}
+    row = {
+        "stepper": "a",
+        "dt": 100.0,
+        "stable": True,
+        "dt_over_gravity_limit": 1.0,
+        "dt_over_advective_limit": 0.1,
+        "dt_over_leapfrog_limit": 2.0,
+        "rhs_evals": 10,
+        "cost_time": 1.0,
+        "rhs_equivalents": 10.0,
+        "cpu_time": 1.0,
+        "wall_time": 1.0,
+        "temporal_error": 1e-7,
+        "temporal_error_vorticity": 1e-5,
+        "temporal_error_divergence": 1e-5,
+    }
+    info = {
+        "spatial_error": 1.9e-5,
+        "spatial_error_vorticity": 7.8e-2,
+        "spatial_error_divergence": 6.2e-3,
+        "reference": "tc5_mountain_T213.nc",
+        "reference_floor_source": "T213 vs T341, day 15",
+        **dict(zip(sweep_mod.FLOOR_OF.values(), floor("tc5_mountain_T213.nc", 15.0))),
+    }
     v = sweep_mod.verdicts([row], info)
     assert {r["criterion"]: r["reference_floor"] for r in v} == {
-        "total h+hs": 1.0e-5, "balanced flow (vorticity)": 7.8e-3, "gravity waves (divergence)": 3.1e-3}
+        "total h+hs": 1.0e-5,
+        "balanced flow (vorticity)": 7.8e-3,
+        "gravity waves (divergence)": 3.1e-3,
+    }
     lines = sweep_mod.format_verdicts(v, info).splitlines()
     flag = "within 2x of the floor: the reference cannot tell the run's spatial error from its own, so these verdicts are provisional"
     assert lines[0] == f"  total h+hs: spatial error 1.900e-05, reference floor 1.0e-05 (T213 vs T341, day 15); {flag}"
     vorticity = next(line for line in lines if line.startswith("  balanced flow (vorticity):"))
-    assert vorticity == "  balanced flow (vorticity): spatial error 7.800e-02, reference floor 7.8e-03 (T213 vs T341, day 15)"
+    assert (
+        vorticity
+        == "  balanced flow (vorticity): spatial error 7.800e-02, reference floor 7.8e-03 (T213 vs T341, day 15)"
+    )
     divergence = next(line for line in lines if line.startswith("  gravity waves (divergence):"))
     assert divergence.endswith(f"reference floor 3.1e-03 (T213 vs T341, day 15); {flag}")  # 6.2e-3 = 2.0 x 3.1e-3
     unknown = {**info, **dict.fromkeys(sweep_mod.FLOOR_OF.values(), math.nan)}
-    assert sweep_mod.format_verdicts(v, unknown).splitlines()[0] == "  total h+hs: spatial error 1.900e-05, floor unknown"
+    assert (
+        sweep_mod.format_verdicts(v, unknown).splitlines()[0] == "  total h+hs: spatial error 1.900e-05, floor unknown"
+    )
 
 
 def test_a_sweep_against_another_reference_makes_its_own_runs(tmp_path, capsys, monkeypatch):
@@ -235,8 +328,22 @@ def test_a_sweep_against_another_reference_makes_its_own_runs(tmp_path, capsys, 
     second reads back none of the first's runs (its files carry ``_ref<stem>``),
     and each records and prints what it was scored against and its floor."""
     out = tmp_path / "sweep"
-    args = ["sweep", "tc5_mountain", "--ne", "2", "--days", "1", "--steppers", "ssprk3", "--dt", "1800",
-            "--device", "cpu", "--output", str(out)]
+    args = [
+        "sweep",
+        "tc5_mountain",
+        "--ne",
+        "2",
+        "--days",
+        "1",
+        "--steppers",
+        "ssprk3",
+        "--dt",
+        "1800",
+        "--device",
+        "cpu",
+        "--output",
+        str(out),
+    ]
     assert main(args) == 0
     text = capsys.readouterr().out
     assert "against tc5_mountain_T213.nc): " in text and ", reference floor 3.4e-06 (T213 vs T341, day 1); " in text
@@ -245,12 +352,20 @@ def test_a_sweep_against_another_reference_makes_its_own_runs(tmp_path, capsys, 
     other.symlink_to(find_reference("tc5_mountain"))
     runs = []
     real_run = Simulation.run
-    monkeypatch.setattr(Simulation, "run", lambda self, output=None, **kw: runs.append(self.scene.reference) or real_run(self, output, **kw))
+    monkeypatch.setattr(
+        Simulation,
+        "run",
+        lambda self, output=None, **kw: runs.append(self.scene.reference) or real_run(self, output, **kw),
+    )
     assert main([*args, "-s", f"case.reference={other}", "--overwrite"]) == 0
     text = capsys.readouterr().out
     assert runs == [str(other)] * 3  # the small-Δt run, the warm-up and the run: none read back
     assert sorted(p.name for p in (out / "runs").iterdir()) == [
-        "reference_rk4_450.npz", "reference_rk4_450_reftc5_copy.npz", "ssprk3_1800.json", "ssprk3_1800_reftc5_copy.json"]
+        "reference_rk4_450.npz",
+        "reference_rk4_450_reftc5_copy.npz",
+        "ssprk3_1800.json",
+        "ssprk3_1800_reftc5_copy.json",
+    ]
     assert "against tc5_copy.nc): " in text and "floor unknown" in text
     second = pd.read_csv(out / "sweep.csv")
     assert list(first["reference"]) == ["tc5_mountain_T213.nc"] and list(second["reference"]) == ["tc5_copy.nc"]
@@ -282,13 +397,34 @@ def test_sweep_of_the_forced_low_scores_against_its_exact_solution(tmp_path):
     reference falls at each stepper's order (measured: rk4 3.96, 4.01;
     ssprk3 2.76, 2.95 at 900, 450, 225 s on ne4)."""
     out = tmp_path / "tc4"
-    assert main(["sweep", "tc4_forced_low", "--ne", "4", "--days", "0.25", "--steppers", "rk4,ssprk3",
-                 "--dt", "900,450,225", "--device", "cpu", "--output", str(out)]) == 0
+    assert (
+        main(
+            [
+                "sweep",
+                "tc4_forced_low",
+                "--ne",
+                "4",
+                "--days",
+                "0.25",
+                "--steppers",
+                "rk4,ssprk3",
+                "--dt",
+                "900,450,225",
+                "--device",
+                "cpu",
+                "--output",
+                str(out),
+            ]
+        )
+        == 0
+    )
     df = pd.read_csv(out / "sweep.csv")
     assert df["stable"].all()
     from swe_sphere.config.scene import load_scene
 
-    direct = Simulation(load_scene("tc4_forced_low", ne=4, days=0.25, dt=450.0, stepper="rk4"), "cpu", progress=False).run()
+    direct = Simulation(
+        load_scene("tc4_forced_low", ne=4, days=0.25, dt=450.0, stepper="rk4"), "cpu", progress=False
+    ).run()
     row = df[(df["stepper"] == "rk4") & (df["dt"] == 450.0)].iloc[0]
     assert row["total_error"] == pytest.approx(direct.history[-1]["l2_h"], rel=1e-9)
     for stepper, order in (("rk4", 4), ("ssprk3", 3)):
@@ -302,8 +438,27 @@ def test_sweep_of_large_steps_has_a_stable_reference(tmp_path):
     quarter of the gravity-wave limit (a quarter of the smallest Δt would blow up),
     and an explicit stepper's blow-up in its warm-up is recorded, not fatal."""
     out = tmp_path / "large"
-    assert main(["sweep", "tc2_steady", "--ne", "2", "--days", "1", "--steppers", "implicit,rk4", "--courant", "12",
-                 "--device", "cpu", "--output", str(out)]) == 0
+    assert (
+        main(
+            [
+                "sweep",
+                "tc2_steady",
+                "--ne",
+                "2",
+                "--days",
+                "1",
+                "--steppers",
+                "implicit,rk4",
+                "--courant",
+                "12",
+                "--device",
+                "cpu",
+                "--output",
+                str(out),
+            ]
+        )
+        == 0
+    )
     df = pd.read_csv(out / "sweep.csv")
     assert list(df["stepper"]) == ["implicit", "rk4"] and not bool(df["stable"].iloc[1])
     dt_g = df["dt"].iloc[0] / df["dt_over_gravity_limit"].iloc[0]
@@ -317,8 +472,24 @@ def test_a_sweep_whose_reference_run_blows_up_exits_3_with_its_place(tmp_path, c
     """The reference run (RK4 at a quarter of the gravity-wave limit) is made to blow
     up by a ∇⁴ coefficient far past its explicit limit: exit 3, one line naming the
     reference run, the step, model time and place (not an "internal error")."""
-    args = ["sweep", "tc5_mountain", "--ne", "2", "--days", "1", "--steppers", "rk4", "--courant", "1", "--device", "cpu",
-            "-s", "hyperviscosity.nu=1e22", "--output", str(tmp_path / "sweep")]
+    args = [
+        "sweep",
+        "tc5_mountain",
+        "--ne",
+        "2",
+        "--days",
+        "1",
+        "--steppers",
+        "rk4",
+        "--courant",
+        "1",
+        "--device",
+        "cpu",
+        "-s",
+        "hyperviscosity.nu=1e22",
+        "--output",
+        str(tmp_path / "sweep"),
+    ]
     assert main(args) == 3
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and err.startswith("swe-sphere: the reference run (rk4, dt = ")
@@ -330,8 +501,20 @@ def test_sweep_of_chosen_runs_makes_only_those(tmp_path, capsys):
     quarter of the smallest; sweep.nc holds those runs alone; --runs with --steppers,
     an unknown stepper or a bad multiple exit 2 with one line; a pair named twice runs once."""
     out = tmp_path / "sweep"
-    args = ["sweep", "tc2_steady", "--ne", "2", "--days", "1", "--runs", "implicit@4,ssprk3@0.5,implicit@4", "--device", "cpu",
-            "--output", str(out)]
+    args = [
+        "sweep",
+        "tc2_steady",
+        "--ne",
+        "2",
+        "--days",
+        "1",
+        "--runs",
+        "implicit@4,ssprk3@0.5,implicit@4",
+        "--device",
+        "cpu",
+        "--output",
+        str(out),
+    ]
     assert main(args) == 0
     df = pd.read_csv(out / "sweep.csv")
     assert list(df["stepper"]) == ["implicit", "ssprk3"]  # in --runs order of first appearance, then by Δt
@@ -345,8 +528,12 @@ def test_sweep_of_chosen_runs_makes_only_those(tmp_path, capsys):
         assert ds.sizes["run"] == 2 and list(ds["stepper"].values) == ["implicit", "ssprk3"]
         assert np.isfinite(ds["wall_time"].values).all()
     capsys.readouterr()
-    for bad, word in ((["--runs", "rk4@1", "--steppers", "rk4"], "not both"), (["--runs", "euler@1"], "euler"),
-                      (["--runs", "rk4@-1"], "-1"), (["--runs", "rk4"], "STEPPER@COURANT")):
+    for bad, word in (
+        (["--runs", "rk4@1", "--steppers", "rk4"], "not both"),
+        (["--runs", "euler@1"], "euler"),
+        (["--runs", "rk4@-1"], "-1"),
+        (["--runs", "rk4"], "STEPPER@COURANT"),
+    ):
         assert main(["sweep", "tc2_steady", "--ne", "2", *bad, "--output", str(tmp_path / "bad")]) == 2
         err = capsys.readouterr().err.strip()
         assert word in err and "\n" not in err, err
@@ -355,8 +542,18 @@ def test_sweep_of_chosen_runs_makes_only_those(tmp_path, capsys):
 
 def _rows(out):
     """sweep.csv without the columns a machine's load changes."""
-    timings = ["wall_time", "cpu_time", "cost_time", "load_average", "startup_time", "setup_time", "rhs_time", "rhs_cpu_time",
-               "rhs_equivalents", "threads"]
+    timings = [
+        "wall_time",
+        "cpu_time",
+        "cost_time",
+        "load_average",
+        "startup_time",
+        "setup_time",
+        "rhs_time",
+        "rhs_cpu_time",
+        "rhs_equivalents",
+        "threads",
+    ]
     return pd.read_csv(out / "sweep.csv").drop(columns=timings)
 
 
@@ -403,14 +600,27 @@ def test_sweep_files_record_what_the_sweep_was_made_with(swept):
     overrides, stepper options, reference, device and code version (integers as integers)."""
     out, _ = swept
     code = sweep_mod.code_version()
-    expected = {"scene": "tc2_steady", "case": "tc2_steady", "ne": 2, "np": 4, "days": 1.0, "overrides": "",
-                "reference": "exact solution", "time_filter": "", "device": "cpu", "swe_sphere_version": code["version"],
-                "source_sha256": code["source_sha256"]}
+    expected = {
+        "scene": "tc2_steady",
+        "case": "tc2_steady",
+        "ne": 2,
+        "np": 4,
+        "days": 1.0,
+        "overrides": "",
+        "reference": "exact solution",
+        "time_filter": "",
+        "device": "cpu",
+        "swe_sphere_version": code["version"],
+        "source_sha256": code["source_sha256"],
+    }
     with xr.open_dataset(out / "sweep.nc") as ds:
         assert {k: ds.attrs[k] for k in expected} == expected
-        assert isinstance(ds.attrs["ne"], (int, np.integer)) and json.loads(ds.attrs["stepper_options"]).keys() == {"ssprk3", "implicit"}
+        assert isinstance(ds.attrs["ne"], (int, np.integer)) and json.loads(ds.attrs["stepper_options"]).keys() == {
+            "ssprk3",
+            "implicit",
+        }
     df = pd.read_csv(out / "sweep.csv", keep_default_na=False)
-    assert list(df.columns[-len(sweep_mod.RECORD):]) == list(sweep_mod.RECORD)
+    assert list(df.columns[-len(sweep_mod.RECORD) :]) == list(sweep_mod.RECORD)
     for k, v in expected.items():
         assert (df[k] == v).all(), k
 
@@ -443,7 +653,9 @@ def test_sweep_figures_are_titled_with_case_grid_and_days(swept, monkeypatch, tm
     titles = []
     real = sweep_mod.sweep_plot
     monkeypatch.setattr(sweep_mod, "sweep_plot", lambda *a, **k: titles.append(k["title"]) or real(*a, **k))
-    rows = sweep_mod.table(pd.read_csv(out / "sweep.csv").to_dict("records"), {"dt_gravity": 1.0, "dt_advective": 1.0, "dt_leapfrog": 1.0})
+    rows = sweep_mod.table(
+        pd.read_csv(out / "sweep.csv").to_dict("records"), {"dt_gravity": 1.0, "dt_advective": 1.0, "dt_leapfrog": 1.0}
+    )
     with xr.open_dataset(out / "sweep.nc") as ds:
         info = dict(ds.attrs)
     sweep_mod.write_outputs(rows, info, {}, tmp_path)
@@ -471,14 +683,30 @@ def test_an_interrupted_sweep_says_what_it_kept_and_a_rerun_reuses_it(tmp_path, 
     1 of 2 runs are kept (not "no output was written"); the rerun reuses them. SIGINT
     in the small-Δt run: the line says it is not kept and will be made again."""
     out = tmp_path / "sweep"
-    args = ["sweep", "tc2_steady", "--ne", "2", "--days", "1", "--steppers", "ssprk3", "--dt", "1800,3600", "--device", "cpu",
-            "--output", str(out)]
+    args = [
+        "sweep",
+        "tc2_steady",
+        "--ne",
+        "2",
+        "--days",
+        "1",
+        "--steppers",
+        "ssprk3",
+        "--dt",
+        "1800,3600",
+        "--device",
+        "cpu",
+        "--output",
+        str(out),
+    ]
     with monkeypatch.context() as m:
         _signal_at_the_start_of(3600.0, m)
         assert main(args) == 130
     err = capsys.readouterr().err
-    assert err == (f"swe-sphere: interrupted by SIGINT: the reference run and 1 of 2 runs are kept in {out / 'runs'}; a rerun of "
-                   "the same command reuses them and makes the other 1\n")
+    assert err == (
+        f"swe-sphere: interrupted by SIGINT: the reference run and 1 of 2 runs are kept in {out / 'runs'}; a rerun of "
+        "the same command reuses them and makes the other 1\n"
+    )
     assert sorted(p.name for p in (out / "runs").iterdir()) == ["reference_rk4_450.npz", "ssprk3_1800.json"]
     assert main(args) == 0
     text = capsys.readouterr().out
@@ -490,15 +718,19 @@ def test_an_interrupted_sweep_says_what_it_kept_and_a_rerun_reuses_it(tmp_path, 
         _signal_at_the_start_of(450.0, m)
         assert main([*args[:-1], str(other)]) == 130
     err = capsys.readouterr().err
-    assert err == ("swe-sphere: interrupted by SIGINT in the sweep's reference run (rk4, dt = 450 s) at model day 0, which is not "
-                   f"kept (a rerun of the same command makes it again); the runs already in {other / 'runs'} are kept\n")
+    assert err == (
+        "swe-sphere: interrupted by SIGINT in the sweep's reference run (rk4, dt = 450 s) at model day 0, which is not "
+        f"kept (a rerun of the same command makes it again); the runs already in {other / 'runs'} are kept\n"
+    )
     assert list((other / "runs").iterdir()) == []
 
 
 def test_runs_names_the_value_that_is_not_a_number(tmp_path, capsys):
     assert main(["sweep", "tc2_steady", "--runs", "rk4@1,rk4@abc", "--output", str(tmp_path / "o")]) == 2
-    assert capsys.readouterr().err == ("swe-sphere: error: --runs rk4@abc: 'abc' is not a number > 0 (a multiple of the "
-                                       "gravity-wave limit, e.g. rk4@0.5)\n")
+    assert capsys.readouterr().err == (
+        "swe-sphere: error: --runs rk4@abc: 'abc' is not a number > 0 (a multiple of the "
+        "gravity-wave limit, e.g. rk4@0.5)\n"
+    )
     assert not (tmp_path / "o").exists()
 
 
@@ -506,7 +738,8 @@ def _cli(args, cwd, popen=False, **kw):
     """The console script's process (``python -m swe_sphere.cli``), one CPU thread:
     finished (``subprocess.run``), or started (``popen``)."""
     return (subprocess.Popen if popen else subprocess.run)(
-        [sys.executable, "-m", "swe_sphere.cli", *args], cwd=cwd, env={**os.environ, "SWE_SPHERE_THREADS": "1"}, **kw)
+        [sys.executable, "-m", "swe_sphere.cli", *args], cwd=cwd, env={**os.environ, "SWE_SPHERE_THREADS": "1"}, **kw
+    )
 
 
 def test_the_progress_bar_is_drawn_on_a_terminal_only(tmp_path):
@@ -524,7 +757,9 @@ def test_the_progress_bar_is_drawn_on_a_terminal_only(tmp_path):
     assert done.returncode == 0 and "a.nc" in text, text
     assert "\r" not in text and "step/s" not in text and "144/144" not in text
     main_fd, terminal = pty.openpty()
-    fcntl.ioctl(terminal, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))  # 100 columns (a new pty has 0: no bar)
+    fcntl.ioctl(
+        terminal, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0)
+    )  # 100 columns (a new pty has 0: no bar)
     seen = b""
     try:
         child = _cli([*args, "--output", "b.nc"], tmp_path, stdout=subprocess.DEVNULL, stderr=terminal, popen=True)
@@ -546,13 +781,29 @@ def test_a_sweep_with_two_workers_says_one_line_a_run(tmp_path):
     """``sweep --workers 2`` of 9 runs into a log: before its table, the sweep's line,
     the small-Δt run's, one line per finished run and the count, nothing from the
     workers (Warp's banner, "CUDA driver not found", module loads: 108 lines before)."""
-    args = ["sweep", "tc2_steady", "--ne", "2", "--days", "1", "--steppers", "rk4,ssprk3,imex", "--courant", "0.5,1,2",
-            "--device", "cpu", "--workers", "2", "--output", "sw"]
+    args = [
+        "sweep",
+        "tc2_steady",
+        "--ne",
+        "2",
+        "--days",
+        "1",
+        "--steppers",
+        "rk4,ssprk3,imex",
+        "--courant",
+        "0.5,1,2",
+        "--device",
+        "cpu",
+        "--workers",
+        "2",
+        "--output",
+        "sw",
+    ]
     with open(tmp_path / "log", "w") as log:
         done = _cli(args, tmp_path, stdout=log, stderr=log)
     lines = (tmp_path / "log").read_text().splitlines()
     assert done.returncode == 0, lines
-    head = lines[:lines.index(next(line for line in lines if line.startswith("stepper ")))]
+    head = lines[: lines.index(next(line for line in lines if line.startswith("stepper ")))]
     assert len(head) == 13 and head[0].startswith("note        --courant 0.5 runs at ")  # the multiples that ran
     assert head[1].startswith("sweep tc2_steady ne=2 np=4, 1 days;") and head[2].startswith("reference run: rk4")
     assert sorted(int(line.split("/")[0][1:]) for line in head[3:12]) == list(range(1, 10))
@@ -601,7 +852,9 @@ def test_a_stored_key_says_what_changed():
     key = {"scene": {"days": 1.0, "ne": 2, "stepper_options": {}}, "device": "cpu"}
     assert sweep_mod.stale(key, json.loads(json.dumps(key))) is None
     assert sweep_mod.stale({**key, "scene": {**key["scene"], "days": 2.0, "ne": 4}}, key) == (
-        "other settings: scene.days 2.0 (now 1.0), scene.ne 4 (now 2)")
+        "other settings: scene.days 2.0 (now 1.0), scene.ne 4 (now 2)"
+    )
     assert sweep_mod.stale({**key, "device": "cuda", "code": {"version": "0.0.1"}}, key) == (
-        'other settings: code {"version": "0.0.1"} (now null), device "cuda" (now "cpu")')
+        'other settings: code {"version": "0.0.1"} (now null), device "cuda" (now "cpu")'
+    )
     assert sweep_mod.stale(None, key) == "made by an earlier swe_sphere that did not record its settings"

@@ -20,26 +20,35 @@ import numpy as np
 import pytest
 import warp as wp
 import xarray as xr
+from test_imex import tableau as ars
 
-import conftest
-import roundoff
-from conftest import TINY, cached_grid, cli_main, cli_one_line, make_sim, write_tc2_scene
 from swe_sphere.config.scene import load_scene, scene_from_dict
 from swe_sphere.core.constants import DAY
 from swe_sphere.steppers import STEPPERS
 from swe_sphere.steppers.butcher import TableauOptions, conditions, stage_form
 from swe_sphere.steppers.runge_kutta import ImexRK, TableauARK, TableauRK
 from swe_sphere.steppers.tables import EXPLICIT
-from test_imex import tableau as ars
+
+import conftest
+import roundoff
+from conftest import TINY, cached_grid, cli_main, cli_one_line, make_sim, write_tc2_scene
 
 # the built-in explicit schemes' Butcher tables: ssprk3 from its Shu–Osher form, kgu35 from
 # the stages of its docstring (u5 = (5 u1 − u0)/4 + 3Δt/4 f(u4) = u0 + Δt/4 f(u0) + 3Δt/4 f(u4))
 BUILT_IN = {
     "ssprk3": dict(A=[[0, 0, 0], [1, 0, 0], ["1/4", "1/4", 0]], b=["1/6", "1/6", "2/3"], c=[0, 1, "1/2"], order=3),
-    "rk4": dict(A=[[0, 0, 0, 0], ["1/2", 0, 0, 0], [0, "1/2", 0, 0], [0, 0, 1, 0]], b=["1/6", "1/3", "1/3", "1/6"],
-                c=[0, "1/2", "1/2", 1], order=4),
-    "kgu35": dict(A=[[0] * 5, ["1/5", 0, 0, 0, 0], [0, "1/5", 0, 0, 0], [0, 0, "1/3", 0, 0], [0, 0, 0, "2/3", 0]],
-                  b=["1/4", 0, 0, 0, "3/4"], c=[0, "1/5", "1/5", "1/3", "2/3"], order=3),
+    "rk4": dict(
+        A=[[0, 0, 0, 0], ["1/2", 0, 0, 0], [0, "1/2", 0, 0], [0, 0, 1, 0]],
+        b=["1/6", "1/3", "1/3", "1/6"],
+        c=[0, "1/2", "1/2", 1],
+        order=4,
+    ),
+    "kgu35": dict(
+        A=[[0] * 5, ["1/5", 0, 0, 0, 0], [0, "1/5", 0, 0, 0], [0, 0, "1/3", 0, 0], [0, 0, 0, "2/3", 0]],
+        b=["1/4", 0, 0, 0, "3/4"],
+        c=[0, "1/5", "1/5", "1/3", "2/3"],
+        order=3,
+    ),
 }
 
 
@@ -71,7 +80,15 @@ SHU_OSHER = {
 def ars343_pair() -> dict:
     """ARS(3,4,3) as a pair, its entries the floats of the paper's closed forms (``test_imex.tableau``)."""
     A_E, A_I, b, _ = ars("ars343")
-    return dict(name="ARS(3,4,3)", order=3, A_E=A_E.tolist(), b_E=b.tolist(), A_I=A_I.tolist(), b_I=b.tolist(), c=A_E.sum(1).tolist())
+    return dict(
+        name="ARS(3,4,3)",
+        order=3,
+        A_E=A_E.tolist(),
+        b_E=b.tolist(),
+        A_I=A_I.tolist(),
+        b_I=b.tolist(),
+        c=A_E.sum(1).tolist(),
+    )
 
 
 def short(stepper, options, steps=4, dt=1800.0, scene="tc2_steady"):
@@ -89,7 +106,9 @@ def final_state(scene, steps):
 def example(name) -> tuple:
     """A bundled example scene's table as hashable (key, value) pairs (``conftest.tc6_final``)."""
     o = TableauOptions(**load_scene(name).stepper_options)
-    return tuple((f.name, getattr(o, f.name)) for f in dataclasses.fields(o) if f.name not in ("tol", "maxiter", "mean_depth"))
+    return tuple(
+        (f.name, getattr(o, f.name)) for f in dataclasses.fields(o) if f.name not in ("tol", "maxiter", "mean_depth")
+    )
 
 
 # -- the table's checks -----------------------------------------------------------
@@ -99,8 +118,16 @@ def test_explicit_order_conditions_are_the_eight_of_order_four_and_imex_the_coup
     """Order 4: the 8 rooted trees (Butcher's table); a pair to order 3: 2 + 2 + 2·3
     conditions (b_E and b_I on c², A_E c and A_I c: the coupling ones included)."""
     found = [(p, t) for p, _, _, t in conditions(4, False)]
-    assert found == [(1, 1), (2, Fraction(1, 2)), (3, Fraction(1, 3)), (3, Fraction(1, 6)), (4, Fraction(1, 4)),
-                     (4, Fraction(1, 8)), (4, Fraction(1, 12)), (4, Fraction(1, 24))]
+    assert found == [
+        (1, 1),
+        (2, Fraction(1, 2)),
+        (3, Fraction(1, 3)),
+        (3, Fraction(1, 6)),
+        (4, Fraction(1, 4)),
+        (4, Fraction(1, 8)),
+        (4, Fraction(1, 12)),
+        (4, Fraction(1, 24)),
+    ]
     assert sum(1 for _ in conditions(3, True)) == 10
     assert sum(1 for _ in conditions(5, False)) == 17  # 9 rooted trees of 5 vertices
 
@@ -116,8 +143,10 @@ def test_built_in_tables_record_as_few_combinations_as_the_built_ins(name):
     assert [math.ceil(len(u) / 2) for _, _, u in stages] == [math.ceil(len(u) / 2) for _, _, u in built_in]
     assert sum(len(u) for _, _, u in stages) <= sum(len(u) for _, _, u in built_in)
     if name == "ssprk3":  # the same coefficients and abscissae (its s1, s2 are one buffer here)
-        assert [(c, [terms for _, terms in u]) for c, _, u in stages] == \
-               [(c, [tuple((a, "s1" if src == "s2" else src) for a, src in terms) for _, terms in u]) for c, _, u in built_in]
+        assert [(c, [terms for _, terms in u]) for c, _, u in stages] == [
+            (c, [tuple((a, "s1" if src == "s2" else src) for a, src in terms) for _, terms in u])
+            for c, _, u in built_in
+        ]
 
 
 def test_stage_form_of_random_tables_forms_every_stage():
@@ -128,15 +157,26 @@ def test_stage_form_of_random_tables_forms_every_stage():
     rng = np.random.default_rng(33)
     for trial in range(60):
         s = int(rng.integers(2, 8))
-        A = [[Fraction(int(rng.integers(-4, 5)), int(rng.integers(1, 6))) if j < i and rng.random() < 0.6 else Fraction(0)
-              for j in range(s)] for i in range(s)]
+        A = [
+            [
+                Fraction(int(rng.integers(-4, 5)), int(rng.integers(1, 6)))
+                if j < i and rng.random() < 0.6
+                else Fraction(0)
+                for j in range(s)
+            ]
+            for i in range(s)
+        ]
         b = [Fraction(int(rng.integers(-4, 5)), int(rng.integers(1, 6))) for _ in range(s)]
         buffers, stages = stage_form(A, b, [sum(row) for row in A])
         held = {"x": np.eye(s + 1)[0]}
         for j, (_, arg, updates) in enumerate(stages):
             np.testing.assert_allclose(held[arg], [1, *map(float, A[j])], rtol=0, atol=1e-14, err_msg=f"{trial} {j}")
             for out, terms in updates:
-                assert len(terms) <= 3 and sum(src == "k" for _, src in terms) <= 1 and sum(src != "k" for _, src in terms) <= 2
+                assert (
+                    len(terms) <= 3
+                    and sum(src == "k" for _, src in terms) <= 1
+                    and sum(src != "k" for _, src in terms) <= 2
+                )
                 held[out] = sum(float(a) * (np.eye(s + 1)[j + 1] if src == "k" else held[src]) for a, src in terms)
         np.testing.assert_allclose(held["x"], [1, *map(float, b)], rtol=0, atol=1e-14, err_msg=str(trial))
         assert set(held) <= {"x", *buffers}
@@ -171,7 +211,11 @@ def numpy_steps(scene, form, steps) -> np.ndarray:
             for name, terms in updates:
                 total = None
                 for a, what in terms:
-                    term = (dt / a.denominator if a.numerator == 1 else float(a) * dt) * k if what == "k" else a * held[what]
+                    term = (
+                        (dt / a.denominator if a.numerator == 1 else float(a) * dt) * k
+                        if what == "k"
+                        else a * held[what]
+                    )
                     total = term if total is None else total + term
                 held[name] = total
         arg.assign(held["x"])
@@ -218,7 +262,9 @@ def test_named_explicit_steppers_are_their_tables(name):
 def test_ars343_written_as_a_pair_steps_to_imex_bitwise():
     """ARS(3,4,3) as (A_E, b_E, A_I, b_I, c) from the paper's closed forms: the same states
     and Helmholtz iterations as ``imex`` (TC5 ne = 2, 4 steps of 1 h, tol 1e-10)."""
-    _, ref, ref_stats = final_state(short("imex", {"scheme": "ars343", "tol": 1e-10}, dt=3600.0, scene="tc5_mountain"), 4)
+    _, ref, ref_stats = final_state(
+        short("imex", {"scheme": "ars343", "tol": 1e-10}, dt=3600.0, scene="tc5_mountain"), 4
+    )
     sim, x, stats = final_state(short("tableau", {**ars343_pair(), "tol": 1e-10}, dt=3600.0, scene="tc5_mountain"), 4)
     assert isinstance(sim.stepper, TableauARK) and not sim.stepper.explicit
     np.testing.assert_array_equal(x, ref)
@@ -230,19 +276,48 @@ def test_ars343_written_as_a_pair_steps_to_imex_bitwise():
 
 # HOMME's M1 pair (Guba et al. 2020, Geosci. Model Dev. 13, 6467, §4.1; ClimaTimeSteppers'
 # HOMMEM1): b_E ≠ b_I (each part's last row), five implicit stages with differing a_ii
-HOMMEM1 = (("name", "HOMME M1"), ("order", 2), ("c", (0, "1/5", "1/5", "1/3", "1/2", 1)),
-           ("A_E", ((0,) * 6, ("1/5", 0, 0, 0, 0, 0), (0, "1/5", 0, 0, 0, 0), (0, 0, "1/3", 0, 0, 0), (0, 0, 0, "1/2", 0, 0), (0, 0, 0, 0, 1, 0))),
-           ("b_E", (0, 0, 0, 0, 1, 0)),
-           ("A_I", ((0,) * 6, (0, "1/5", 0, 0, 0, 0), (0, 0, "1/5", 0, 0, 0), (0, 0, 0, "1/3", 0, 0), (0, 0, 0, 0, "1/2", 0),
-                    ("5/18", "5/18", 0, 0, 0, "8/18"))),
-           ("b_I", ("5/18", "5/18", 0, 0, 0, "8/18")))
+HOMMEM1 = (
+    ("name", "HOMME M1"),
+    ("order", 2),
+    ("c", (0, "1/5", "1/5", "1/3", "1/2", 1)),
+    (
+        "A_E",
+        (
+            (0,) * 6,
+            ("1/5", 0, 0, 0, 0, 0),
+            (0, "1/5", 0, 0, 0, 0),
+            (0, 0, "1/3", 0, 0, 0),
+            (0, 0, 0, "1/2", 0, 0),
+            (0, 0, 0, 0, 1, 0),
+        ),
+    ),
+    ("b_E", (0, 0, 0, 0, 1, 0)),
+    (
+        "A_I",
+        (
+            (0,) * 6,
+            (0, "1/5", 0, 0, 0, 0),
+            (0, 0, "1/5", 0, 0, 0),
+            (0, 0, 0, "1/3", 0, 0),
+            (0, 0, 0, 0, "1/2", 0),
+            ("5/18", "5/18", 0, 0, 0, "8/18"),
+        ),
+    ),
+    ("b_I", ("5/18", "5/18", 0, 0, 0, "8/18")),
+)
 
 
 # a second-order pair (b_E·c = b_I·c = 1/2) whose last stage is explicit in both parts but
 # weighed differently (b_E ≠ b_I): its L Y comes from a product, not from a solve
-EXPLICIT_LAST = (("name", "explicit last stage"), ("order", 2), ("c", (0, "1/2", "1/2")),
-                 ("A_E", ((0, 0, 0), ("1/2", 0, 0), ("1/4", "1/4", 0))), ("b_E", (0, 0, 1)),
-                 ("A_I", ((0, 0, 0), ("1/4", "1/4", 0), ("1/4", "1/4", 0))), ("b_I", (0, "1/2", "1/2")))
+EXPLICIT_LAST = (
+    ("name", "explicit last stage"),
+    ("order", 2),
+    ("c", (0, "1/2", "1/2")),
+    ("A_E", ((0, 0, 0), ("1/2", 0, 0), ("1/4", "1/4", 0))),
+    ("b_E", (0, 0, 1)),
+    ("A_I", ((0, 0, 0), ("1/4", "1/4", 0), ("1/4", "1/4", 0))),
+    ("b_I", (0, "1/2", "1/2")),
+)
 PAIRS = {"hommem1": HOMMEM1, "explicit_last": EXPLICIT_LAST}
 
 
@@ -277,11 +352,16 @@ def test_example_tables_converge_at_their_order(scene, order):
     coarse, _, _ = conftest.tc6_error(0.25, 2048, "tableau", 64, options)
     fine, rf, _ = conftest.tc6_error(0.25, 2048, "tableau", 128, options)
     rate = math.log2(coarse / fine)
-    print(f"\n{scene}: error {coarse:.4e} -> {fine:.4e}, rate {rate:.3f}, mass change {rf.diagnostics['mass_change']:.1e}")
+    print(
+        f"\n{scene}: error {coarse:.4e} -> {fine:.4e}, rate {rate:.3f}, mass change {rf.diagnostics['mass_change']:.1e}"
+    )
     assert order - 0.3 <= rate <= order + 0.3
     assert fine > 1e-8  # far above the reference's own error
-    roundoff.within(abs(rf.diagnostics["mass_change"]), roundoff.mass_change_bound(roundoff.operations(rf), cached_grid(4, 4).npts), "|mass change|")
-
+    roundoff.within(
+        abs(rf.diagnostics["mass_change"]),
+        roundoff.mass_change_bound(roundoff.operations(rf), cached_grid(4, 4).npts),
+        "|mass change|",
+    )
 
 
 @pytest.mark.parametrize("pair", ["ars232", "ars343", *PAIRS, "ark2_gkc", "ark324l2sa"])
@@ -304,28 +384,45 @@ def test_fused_combinations_have_the_bits_of_plain_passes(monkeypatch, pair):
     runs.append(final_state(scene, 4)[1])
     np.testing.assert_array_equal(*runs)
 
+
 # -- refusals --------------------------------------------------------------------------
 
 GOOD = '[tableau]\nname = "t"\norder = 2\nA = [[0, 0], ["1/2", 0]]\nb = [0, 1]\nc = [0, "1/2"]\n'
-PAIR = ('[tableau]\nname = "p"\norder = 2\nc = [0, "1/2"]\nA_E = [[0, 0], ["1/2", 0]]\nb_E = [0, 1]\n'
-        'A_I = [[0, 0], [0, "1/2"]]\nb_I = [0, 1]\n')
+PAIR = (
+    '[tableau]\nname = "p"\norder = 2\nc = [0, "1/2"]\nA_E = [[0, 0], ["1/2", 0]]\nb_E = [0, 1]\n'
+    'A_I = [[0, 0], [0, "1/2"]]\nb_I = [0, 1]\n'
+)
 
 
-@pytest.mark.parametrize("table, words", [
-    (GOOD.replace('c = [0, "1/2"]', 'c = [0, "1/3"]'), ("tableau.A row 2 sums to 1/2, not c entry 2 = 1/3",)),
-    (GOOD.replace("order = 2", "order = 3"), ("tableau.order = 3 claimed", "order-3 condition b·c² = 1/3 fails", "1/4")),
-    (PAIR.replace("order = 2", "order = 3"), ("order-3 condition b_E·c² = 1/3 fails",)),
-    (PAIR.replace('A_I = [[0, 0], [0, "1/2"]]', 'A_I = [[0, "1/4"], ["1/4", "1/4"]]'),
-     ("tableau.A_I entry (1,2) = 1/4 is above the diagonal", "diagonally implicit")),
-    (GOOD.replace('A = [[0, 0], ["1/2", 0]]', 'A = [[0, 0], ["1/2"]]'), ("tableau.A row 2 has 1 entries, not 2",)),
-    (GOOD.replace("b = [0, 1]", "b = [0, 1, 0]"), ("tableau.b has 3 entries, not 2",)),
-    (GOOD.replace('"1/2", 0]]', '"1/two", 0]]'), ("tableau.A entry (2,1) = '1/two' is not a number or a fraction",)),
-    (GOOD.replace('A = [[0, 0], ["1/2", 0]]', 'A = [["1/2", 0], [0, "1/2"]]'), ("tableau.A entry (1,1) = 1/2 is on the diagonal",)),
-    (GOOD.replace("b = [0, 1]", "b = 1"), ("tableau.b must be an array",)),
-    (GOOD + 'A_I = [[0, 0], [0, 1]]\n', ("not both",)),
-    (PAIR.replace("b_I = [0, 1]\n", ""), ("tableau.b_I is missing",)),
-    (GOOD.replace('name = "t"\n', ""), ("tableau.name is missing",)),
-])
+@pytest.mark.parametrize(
+    "table, words",
+    [
+        (GOOD.replace('c = [0, "1/2"]', 'c = [0, "1/3"]'), ("tableau.A row 2 sums to 1/2, not c entry 2 = 1/3",)),
+        (
+            GOOD.replace("order = 2", "order = 3"),
+            ("tableau.order = 3 claimed", "order-3 condition b·c² = 1/3 fails", "1/4"),
+        ),
+        (PAIR.replace("order = 2", "order = 3"), ("order-3 condition b_E·c² = 1/3 fails",)),
+        (
+            PAIR.replace('A_I = [[0, 0], [0, "1/2"]]', 'A_I = [[0, "1/4"], ["1/4", "1/4"]]'),
+            ("tableau.A_I entry (1,2) = 1/4 is above the diagonal", "diagonally implicit"),
+        ),
+        (GOOD.replace('A = [[0, 0], ["1/2", 0]]', 'A = [[0, 0], ["1/2"]]'), ("tableau.A row 2 has 1 entries, not 2",)),
+        (GOOD.replace("b = [0, 1]", "b = [0, 1, 0]"), ("tableau.b has 3 entries, not 2",)),
+        (
+            GOOD.replace('"1/2", 0]]', '"1/two", 0]]'),
+            ("tableau.A entry (2,1) = '1/two' is not a number or a fraction",),
+        ),
+        (
+            GOOD.replace('A = [[0, 0], ["1/2", 0]]', 'A = [["1/2", 0], [0, "1/2"]]'),
+            ("tableau.A entry (1,1) = 1/2 is on the diagonal",),
+        ),
+        (GOOD.replace("b = [0, 1]", "b = 1"), ("tableau.b must be an array",)),
+        (GOOD + "A_I = [[0, 0], [0, 1]]\n", ("not both",)),
+        (PAIR.replace("b_I = [0, 1]\n", ""), ("tableau.b_I is missing",)),
+        (GOOD.replace('name = "t"\n', ""), ("tableau.name is missing",)),
+    ],
+)
 def test_wrong_tables_are_refused_in_one_line(capsys, tmp_path, table, words):
     scene = write_tc2_scene(tmp_path / "t.toml", stepper="tableau", tables=table)
     cli_one_line(capsys, ["run", scene, *TINY, "--days", "0.125", "--output", tmp_path / "t.nc"], 2, *words)
@@ -335,7 +432,9 @@ def test_wrong_tables_are_refused_in_one_line(capsys, tmp_path, table, words):
 # -- restart, run file, list --------------------------------------------------------
 
 
-@pytest.mark.parametrize("options", [BUILT_IN["kgu35"] | {"name": "kgu35"}, dict(example("ark324l2sa"))], ids=["explicit", "imex"])
+@pytest.mark.parametrize(
+    "options", [BUILT_IN["kgu35"] | {"name": "kgu35"}, dict(example("ark324l2sa"))], ids=["explicit", "imex"]
+)
 def test_state_restore_continues_bitwise(options):
     """3 steps, state() and x into a fresh simulation, 3 more: bitwise the 6 straight
     (the IMEX pair carries the mean depth and the warm Helmholtz guess)."""
@@ -352,14 +451,22 @@ def test_state_restore_continues_bitwise(options):
 
 def test_run_file_and_list_say_which_table_ran(capsys, tmp_path):
     out = tmp_path / "ark2.nc"
-    code, stdout, _ = cli_main(capsys, "run", "tableaus/ark2_gkc", *TINY, "--dt", "3600", "--days", "0.125", "--output", out)
+    code, stdout, _ = cli_main(
+        capsys, "run", "tableaus/ark2_gkc", *TINY, "--dt", "3600", "--days", "0.125", "--output", out
+    )
     assert code == 0
     assert "stepper     tableau ARK2 (Giraldo, Kelly & Constantinescu 2013), dt = 3600 s" in stdout
     with xr.open_dataset(out) as ds:
         assert ds.attrs["stepper"] == "tableau" and ds.attrs["tableau"] == "ARK2 (Giraldo, Kelly & Constantinescu 2013)"
         assert ds.attrs["tableau_order"] == 2
         table = json.loads(ds.attrs["tableau_table"])
-        assert table["A_I"][1] == [0.29289321881345254, 0.29289321881345254, 0] and set(table) == {"A_E", "b_E", "A_I", "b_I", "c"}
+        assert table["A_I"][1] == [0.29289321881345254, 0.29289321881345254, 0] and set(table) == {
+            "A_E",
+            "b_E",
+            "A_I",
+            "b_I",
+            "c",
+        }
         assert scene_from_dict(json.loads(ds.attrs["scene"])).stepper_options["name"] == ds.attrs["tableau"]
     code, stdout, _ = cli_main(capsys, "list")
     assert code == 0

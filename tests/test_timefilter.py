@@ -7,9 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from conftest import cli_one_line
 from swe_sphere.cli import main
 from swe_sphere.steppers.timefilter import TimeFilter, lanczos_weights, response
+
+from conftest import cli_one_line
 
 
 def test_weights_sum_to_one_symmetric_half_power_at_cutoff():
@@ -43,7 +44,10 @@ def test_slow_sine_survives_fast_sine_removed():
         (["--filter-days", "2", "--filter-window", "3"], "starts before the run"),  # the run is 1 day
         (["--filter-days", "0.2"], "needs snapshots more often"),
         (["--filter-days", "2", "--filter-window", "0.3"], "not a multiple of its 3 h snapshots"),
-        (["--filter-days", "1", "--filter-window", "0.5", "--dt", "7200"], "does not divide the filter's snapshot interval"),
+        (
+            ["--filter-days", "1", "--filter-window", "0.5", "--dt", "7200"],
+            "does not divide the filter's snapshot interval",
+        ),
     ],
 )
 def test_bad_filter_options_exit_2_with_one_line(tmp_path, capsys, options, message):
@@ -60,8 +64,26 @@ def test_filtered_sweep_scores_the_balanced_flow(tmp_path):
     import pandas as pd
 
     out = tmp_path / "sweep"
-    args = ["sweep", "tc2_steady", "--ne", "2", "--days", "1", "--steppers", "ssprk3", "--dt", "1800,3600", "--device", "cpu",
-            "--output", str(out), "--filter-days", "1", "--filter-window", "0.5"]
+    args = [
+        "sweep",
+        "tc2_steady",
+        "--ne",
+        "2",
+        "--days",
+        "1",
+        "--steppers",
+        "ssprk3",
+        "--dt",
+        "1800,3600",
+        "--device",
+        "cpu",
+        "--output",
+        str(out),
+        "--filter-days",
+        "1",
+        "--filter-window",
+        "0.5",
+    ]
     assert main(args) == 0
     df = pd.read_csv(out / "sweep.csv")
     assert list(df["steps"]) == [48, 24]
@@ -75,7 +97,9 @@ def test_filtered_sweep_scores_the_balanced_flow(tmp_path):
     for _, r in v[v["criterion"] == "balanced flow (filtered vorticity)"].iterrows():
         limit = r["threshold"] * r["spatial_error"]
         if np.isfinite(r["dt"]):  # the cheapest qualifying run, scored by its filtered vorticity
-            assert r["temporal_error"] == df.loc[df["dt"] == r["dt"], "temporal_error_filtered_vorticity"].iloc[0] <= limit
+            assert (
+                r["temporal_error"] == df.loc[df["dt"] == r["dt"], "temporal_error_filtered_vorticity"].iloc[0] <= limit
+            )
         else:
             assert (df["temporal_error_filtered_vorticity"] > limit).all()
     assert sorted((out / "runs").glob("*.json"))[0].name.endswith("_lp1d0.5d3h.json")
@@ -87,8 +111,26 @@ def test_filtered_sweep_says_when_it_caps_the_courant_factor(tmp_path, capsys):
     import pandas as pd
 
     out = tmp_path / "sweep"
-    args = ["sweep", "tc2_steady", "--ne", "2", "--days", "1", "--steppers", "imex", "--courant", "1,5", "--device", "cpu",
-            "--output", str(out), "--filter-days", "1", "--filter-window", "0.5"]
+    args = [
+        "sweep",
+        "tc2_steady",
+        "--ne",
+        "2",
+        "--days",
+        "1",
+        "--steppers",
+        "imex",
+        "--courant",
+        "1,5",
+        "--device",
+        "cpu",
+        "--output",
+        str(out),
+        "--filter-days",
+        "1",
+        "--filter-window",
+        "0.5",
+    ]
     assert main(args) == 0
     notes = [line for line in capsys.readouterr().out.splitlines() if "capped" in line]
     assert len(notes) == 1 and notes[0].startswith("note        --courant 5: dt capped at the filter's 3 h"), notes

@@ -13,6 +13,7 @@ per sweep (the cheapest qualifying run of each stepper per criterion). With
     python docs/efficiency/tables.py study/tc5_ne8 study/tc5_ne16 --figures docs/efficiency
     python docs/efficiency/tables.py study/tc5_epi_ne30 --family epi2,epi3   # the family against the rest
 """
+
 import argparse
 from pathlib import Path
 
@@ -21,7 +22,13 @@ import pandas as pd
 from swe_sphere.studies.sweep import CRITERIA as SWEEP_CRITERIA
 
 CRITERIA = list(SWEEP_CRITERIA)  # the verdicts' criteria, in their order
-SHORT = {"balanced flow (filtered vorticity)": "filtered vorticity", "total h+hs": "total h+hs", "balanced flow (vorticity)": "vorticity", "balanced flow (filtered h+hs)": "filtered h+hs", "gravity waves (divergence)": "divergence"}
+SHORT = {
+    "balanced flow (filtered vorticity)": "filtered vorticity",
+    "total h+hs": "total h+hs",
+    "balanced flow (vorticity)": "vorticity",
+    "balanced flow (filtered h+hs)": "filtered h+hs",
+    "gravity waves (divergence)": "divergence",
+}
 
 
 def cell(r):
@@ -33,7 +40,11 @@ def cell(r):
 def work(r) -> str:
     """The exact counts (RHS evaluations, and Helmholtz CG iterations where the stepper
     solves one) and the cost in RHS-equivalents (``cost_time`` over one RHS on that clock)."""
-    its = f" + {r.helmholtz_iterations / 1000:.3g}k CG" if pd.notna(r.get("helmholtz_iterations")) and r.helmholtz_iterations > 0 else ""
+    its = (
+        f" + {r.helmholtz_iterations / 1000:.3g}k CG"
+        if pd.notna(r.get("helmholtz_iterations")) and r.helmholtz_iterations > 0
+        else ""
+    )
     eq = f" = {r.rhs_equivalents / 1000:.3g}k RHS-eq" if pd.notna(r.get("rhs_equivalents")) else ""
     return f"{int(r.rhs_evals)} RHS{its}{eq}"
 
@@ -91,31 +102,59 @@ def closest(s, criterion, spatial) -> str:
 
 
 def summary(dirs) -> str:
-    out = ["| case | ne | criterion | spatial error | cheapest at ≤ 10 % | Δt/Δt_g (Δt/Δt_lf) | CPU s | work | CN: largest Δt/Δt_g at ≤ 10 % (≤ 50 %) |",
-           "|---|---:|---|---:|---|---|---:|---:|---|"]
+    out = [
+        "| case | ne | criterion | spatial error | cheapest at ≤ 10 % | Δt/Δt_g (Δt/Δt_lf) | CPU s | work | CN: largest Δt/Δt_g at ≤ 10 % (≤ 50 %) |",
+        "|---|---:|---|---:|---|---|---:|---:|---|",
+    ]
     for d in dirs:
         s = pd.read_csv(d / "sweep.csv")
         case, ne = d.name.rsplit("_ne", 1)
         for c, spatial, shown, best in cheapest(d, 0.1):
             big = [largest(s, "implicit", c, t * spatial) for t in (0.1, 0.5)]
-            impc = " ".join(("—" if b is None else f"{b:.2g}×") if i == 0 else f"({'—' if b is None else f'{b:.2g}×'})" for i, b in enumerate(big))
+            impc = " ".join(
+                ("—" if b is None else f"{b:.2g}×") if i == 0 else f"({'—' if b is None else f'{b:.2g}×'})"
+                for i, b in enumerate(big)
+            )
             if best is None:
-                out.append(f"| {case} | {ne} | {SHORT[c]} | {shown} | — (nearest: {closest(s, c, spatial)}) | | | | {impc} |")
+                out.append(
+                    f"| {case} | {ne} | {SHORT[c]} | {shown} | — (nearest: {closest(s, c, spatial)}) | | | | {impc} |"
+                )
                 continue
-            out.append(f"| {case} | {ne} | {SHORT[c]} | {shown} | {best.stepper} | {best.dt_over_gravity_limit:.2g}× ({best.dt_over_leapfrog_limit:.2g}×) | {best.cost_time:.1f} | {work(best)} | {impc} |")
+            out.append(
+                f"| {case} | {ne} | {SHORT[c]} | {shown} | {best.stepper} | {best.dt_over_gravity_limit:.2g}× ({best.dt_over_leapfrog_limit:.2g}×) | {best.cost_time:.1f} | {work(best)} | {impc} |"
+            )
     return "\n".join(out)
 
 
-COLORS = dict(zip(["leapfrog", "leapfrog_trapezoidal", "ssprk3", "rk4", "kgu35", "fbrk32", "semi_implicit", "imex", "implicit", "epi2", "epi3",
-                   "split_explicit", "mri"],
-                  ["C0", "C1", "C2", "C3", "C7", "C8", "C4", "C5", "C6", "C9", "k", "m", "navy"]))
+COLORS = dict(
+    zip(
+        [
+            "leapfrog",
+            "leapfrog_trapezoidal",
+            "ssprk3",
+            "rk4",
+            "kgu35",
+            "fbrk32",
+            "semi_implicit",
+            "imex",
+            "implicit",
+            "epi2",
+            "epi3",
+            "split_explicit",
+            "mri",
+        ],
+        ["C0", "C1", "C2", "C3", "C7", "C8", "C4", "C5", "C6", "C9", "k", "m", "navy"],
+    )
+)
 
 
 def versus(dirs, family) -> str:
     """Per sweep and criterion: the cheapest qualifying (≤ 10 %) run of the steppers in
     ``family`` against the cheapest of the others, and the ratio of their costs."""
-    out = ["| sweep | criterion | spatial error | cheapest other | cheapest of " + ", ".join(family) + " | ratio |",
-           "|---|---|---:|---|---|---:|"]
+    out = [
+        "| sweep | criterion | spatial error | cheapest other | cheapest of " + ", ".join(family) + " | ratio |",
+        "|---|---|---:|---|---|---:|",
+    ]
     for d in dirs:
         v = pd.read_csv(d / "verdicts.csv")
         v = v[(v.threshold == 0.1) & v.dt.notna()]
@@ -135,16 +174,24 @@ def versus(dirs, family) -> str:
 def figure(d: Path, out: Path):
     """Temporal error against Δt/Δt_g per stepper, one panel per criterion, the 10 % line dashed."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     s = pd.read_csv(d / "sweep.csv")
     s = s[s.stable.astype(bool)]
     v = pd.read_csv(d / "verdicts.csv")
-    panels = [("temporal_error", "total h+hs", "total h+hs"),
-              ("temporal_error_filtered", "balanced flow (filtered h+hs)", "filtered h+hs (balanced flow)"),
-              ("temporal_error_vorticity", "balanced flow (vorticity)", "vorticity (balanced flow)"),
-              ("temporal_error_filtered_vorticity", "balanced flow (filtered vorticity)", "filtered vorticity (balanced flow)"),
-              ("temporal_error_divergence", "gravity waves (divergence)", "divergence (gravity waves)")]
+    panels = [
+        ("temporal_error", "total h+hs", "total h+hs"),
+        ("temporal_error_filtered", "balanced flow (filtered h+hs)", "filtered h+hs (balanced flow)"),
+        ("temporal_error_vorticity", "balanced flow (vorticity)", "vorticity (balanced flow)"),
+        (
+            "temporal_error_filtered_vorticity",
+            "balanced flow (filtered vorticity)",
+            "filtered vorticity (balanced flow)",
+        ),
+        ("temporal_error_divergence", "gravity waves (divergence)", "divergence (gravity waves)"),
+    ]
     panels = [p for p in panels if p[0] in s and s[p[0]].notna().any()]
     fig, axes = plt.subplots(1, len(panels), figsize=(3.2 * len(panels), 3.2), sharex=True)
     for ax, (col, crit, title) in zip(axes, panels):
@@ -169,7 +216,10 @@ def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("sweeps", nargs="+", type=Path, help="sweep directories (named <case>_ne<ne>)")
     p.add_argument("--figures", type=Path, metavar="DIR", help="also draw the temporal-error figures into DIR")
-    p.add_argument("--family", help="comma-separated steppers (e.g. epi2,epi3): also their cheapest qualifying run against the others'")
+    p.add_argument(
+        "--family",
+        help="comma-separated steppers (e.g. epi2,epi3): also their cheapest qualifying run against the others'",
+    )
     args = p.parse_args()
     print(summary(args.sweeps))
     if args.family:

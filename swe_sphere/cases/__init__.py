@@ -7,4 +7,4 @@ T213/T341 references and their floors), ``scoring`` (Williamson 1992 normalized 
 May import: ``core``, ``grid``, ``model``, ``kernels``.
 """
 
-__all__ = ['library', 'reference', 'scoring']
+__all__ = ["library", "reference", "scoring"]

@@ -291,7 +291,9 @@ class ForcedLow(Case):
         p = self.planet
         r = _xyz(lat, lon)
         lonc = self.lon0 + self.u0 / p.a * t
-        centre = np.array([math.cos(self.lat0) * math.cos(lonc), math.cos(self.lat0) * math.sin(lonc), math.sin(self.lat0)])
+        centre = np.array(
+            [math.cos(self.lat0) * math.cos(lonc), math.cos(self.lat0) * math.sin(lonc), math.sin(self.lat0)]
+        )
         C = np.tensordot(centre, r, axes=1)
         arg = self.sigma * (1 - C) / np.maximum(1 + C, 1e-2)
         psi = np.where((C > -0.99) & (arg < 700.0), self.psi0 * np.exp(-np.minimum(arg, 700.0)), 0.0)  # as the kernel

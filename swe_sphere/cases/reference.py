@@ -22,8 +22,8 @@ import ducc0
 import numpy as np
 import xarray as xr
 
-from .library import CASES, make_case
 from ..core.constants import EARTH
+from .library import CASES, make_case
 
 _GRIDDED = ("lat", "lon", "time", "h_surface", "hs", "u", "v", "vorticity", "divergence")
 _SPECTRAL = ("time", "sh_l", "sh_m", *(f"{f}_spec_{p}" for f in ("hfree", "vort", "div") for p in ("re", "im")))
@@ -71,7 +71,11 @@ def _open(path) -> xr.Dataset:
                 raise ValueError(f"{path}: sh_l, sh_m must be the triangular m-major order (m = 0..L, l = m..L)")
         else:
             lat, lon = ds["lat"].values, ds["lon"].values
-            if not (np.all(np.diff(lat) > 0) and np.allclose(lon, 360.0 / lon.size * np.arange(lon.size)) and lon.size % 2 == 0):
+            if not (
+                np.all(np.diff(lat) > 0)
+                and np.allclose(lon, 360.0 / lon.size * np.arange(lon.size))
+                and lon.size % 2 == 0
+            ):
                 raise ValueError(f"{path}: lat must ascend and lon be 0, 360/n, ... with n even")
     except BaseException:
         ds.close()
@@ -146,12 +150,17 @@ class Reference:
         """
         itime = stored_index(self.days, day)
         if itime is None:
-            raise ValueError(f"day {day:g} not stored in {self.path.name} (stored: {', '.join(f'{d:g}' for d in self.days)})")
+            raise ValueError(
+                f"day {day:g} not stored in {self.path.name} (stored: {', '.join(f'{d:g}' for d in self.days)})"
+            )
         lat, lon = np.broadcast_arrays(np.asarray(lat, dtype=np.float64), np.asarray(lon, dtype=np.float64))
         if np.any(np.abs(lat) > math.pi / 2 + 1e-12):
             raise ValueError("latitude outside [-pi/2, pi/2] radians")
         # _fields: the subclass's evaluation at 1-D points, longitudes in [0, 2π)
-        out = {k: f.reshape(lat.shape) for k, f in self._fields(itime, lat.ravel(), np.mod(lon.ravel(), 2 * math.pi)).items()}
+        out = {
+            k: f.reshape(lat.shape)
+            for k, f in self._fields(itime, lat.ravel(), np.mod(lon.ravel(), 2 * math.pi)).items()
+        }
         out["h"] = out["h_surface"] - out["hs"]
         return out
 
@@ -188,7 +197,9 @@ class SpectralReference(Reference):
             phase = np.where(m % 2 == 1, -1.0, 1.0)
 
             def coefficients(name):
-                return (ds[f"{name}_re"].values.astype(np.float64) + 1j * ds[f"{name}_im"].values.astype(np.float64)) * phase
+                return (
+                    ds[f"{name}_re"].values.astype(np.float64) + 1j * ds[f"{name}_im"].values.astype(np.float64)
+                ) * phase
 
             self._h, self._zeta, self._delta = (coefficients(f"{f}_spec") for f in ("hfree", "vort", "div"))
             case = _title_case(ds)
@@ -200,22 +211,32 @@ class SpectralReference(Reference):
             else:
                 self._hs = lambda lat, lon: np.zeros_like(lat)
         ll = l * (l + 1)
-        self._inverse_laplacian = -self._a**2 / np.where(ll > 0, ll, 1) * (ll > 0)  # ∇⁻² on the sphere of radius a
+        self._inverse_laplacian = -(self._a**2) / np.where(ll > 0, ll, 1) * (ll > 0)  # ∇⁻² on the sphere of radius a
 
     def _synthesis(self, alm, lat, lon, gradient=False) -> np.ndarray:
         """Σ alm Y_lm at the points (1-D, radians), or with ``gradient`` its
         (∂/∂θ, ∂/∂λ / sin θ) (2, n) on the unit sphere."""
         loc = np.stack([np.clip(math.pi / 2 - lat, 0.0, math.pi), lon], axis=1)
-        out = ducc0.sht.synthesis_general(alm=alm[None], lmax=self.lmax, loc=loc, epsilon=_EPSILON,
-                                          spin=1 if gradient else 0, mode="DERIV1" if gradient else "STANDARD")
+        out = ducc0.sht.synthesis_general(
+            alm=alm[None],
+            lmax=self.lmax,
+            loc=loc,
+            epsilon=_EPSILON,
+            spin=1 if gradient else 0,
+            mode="DERIV1" if gradient else "STANDARD",
+        )
         return out if gradient else out[0]
 
     def _fields(self, itime, lat, lon):
         dpsi = self._synthesis(self._inverse_laplacian * self._zeta[itime], lat, lon, gradient=True)
         dchi = self._synthesis(self._inverse_laplacian * self._delta[itime], lat, lon, gradient=True)
-        return {"h_surface": self._synthesis(self._h[itime], lat, lon), "hs": self._hs(lat, lon),
-                "u": (dpsi[0] + dchi[1]) / self._a, "v": (dpsi[1] - dchi[0]) / self._a,
-                "vorticity": self._synthesis(self._zeta[itime], lat, lon)}
+        return {
+            "h_surface": self._synthesis(self._h[itime], lat, lon),
+            "hs": self._hs(lat, lon),
+            "u": (dpsi[0] + dchi[1]) / self._a,
+            "v": (dpsi[1] - dchi[0]) / self._a,
+            "vorticity": self._synthesis(self._zeta[itime], lat, lon),
+        }
 
 
 class GriddedReference(Reference):
@@ -311,7 +332,9 @@ def locate(spec: str, case=None) -> Path:
         return path.absolute()
     if case is not None and _TRUNCATION.fullmatch(spec) and case.reference_file is None:
         why = "it is scored against its exact solution" if case.exact_solution else "none is bundled"
-        raise FileNotFoundError(f"no {spec} reference for this case: {why} (a run file or a reference file's path can be compared)")
+        raise FileNotFoundError(
+            f"no {spec} reference for this case: {why} (a run file or a reference file's path can be compared)"
+        )
     if case is not None and _TRUNCATION.fullmatch(spec):
         bundled = reference_path(case, spec)
         if bundled is None:
@@ -334,7 +357,9 @@ def find_reference(case_name: str, perturbed: bool = True, truncation: str = "T2
     cases, and if the file is not installed. The folder is
     ``importlib.resources.files('swe_sphere.testcases') / 'reference'``.
     """
-    return reference_path(make_case(case_name, {"perturbed": bool(perturbed)} if case_name == "galewsky" else {}), truncation)
+    return reference_path(
+        make_case(case_name, {"perturbed": bool(perturbed)} if case_name == "galewsky" else {}), truncation
+    )
 
 
 # A reference's own error: the normalized l2 distance of each file to a finer run
@@ -346,13 +371,16 @@ def find_reference(case_name: str, perturbed: bool = True, truncation: str = "T2
 # T341, compared spectrally). T341's own error is unmeasured; the README's TC6 and
 # Galewsky tables are not entered here (sweeps of those cases quote no floor).
 FLOORS = {
-    "tc5_mountain_T213.nc": ("T213 vs T341", {
-        1.0: (3.4e-6, 1.7e-3, 6.3e-3),
-        2.0: (4.3e-6, 2.0e-3, 5.5e-3),
-        5.0: (5.9e-6, 5.7e-3, 4.2e-3),
-        10.0: (7.8e-6, 6.0e-3, 3.6e-3),
-        15.0: (1.0e-5, 7.8e-3, 3.1e-3),
-    }),
+    "tc5_mountain_T213.nc": (
+        "T213 vs T341",
+        {
+            1.0: (3.4e-6, 1.7e-3, 6.3e-3),
+            2.0: (4.3e-6, 2.0e-3, 5.5e-3),
+            5.0: (5.9e-6, 5.7e-3, 4.2e-3),
+            10.0: (7.8e-6, 6.0e-3, 3.6e-3),
+            15.0: (1.0e-5, 7.8e-3, 3.1e-3),
+        },
+    ),
 }
 
 

@@ -147,8 +147,14 @@ class Scorer:
         on both sides, so the derivative's own discretisation error cancels),
         normalized as in ``rotational_divergent_errors``. Winds on this rank's
         nodes (N,)."""
-        a = self.topology.gather(np.concatenate([self._rotation_divergence(u - u_true, v - v_true), self._rotation_divergence(u_true, v_true)]))
-        return self.topology.bcast(rotational_divergent_errors(self.grid, *a) if self.root else None)  # (error, true) × (ζ, δ)
+        a = self.topology.gather(
+            np.concatenate(
+                [self._rotation_divergence(u - u_true, v - v_true), self._rotation_divergence(u_true, v_true)]
+            )
+        )
+        return self.topology.bcast(
+            rotational_divergent_errors(self.grid, *a) if self.root else None
+        )  # (error, true) × (ζ, δ)
 
     # -- against the truth ----------------------------------------------------------
     def errors(self, t: float, x: np.ndarray, u, v, h) -> dict:
@@ -192,7 +198,9 @@ class Scorer:
         if r is None:
             return dict.fromkeys(names, float("nan"))
         out = {f"ref_{k}_h_surface": val for k, val in williamson_norms(self.grid, h + self.hs, r["h_surface"]).items()}
-        out.update({f"ref_{k}_wind": val for k, val in williamson_vector_norms(self.grid, u, v, r["u"], r["v"]).items()})
+        out.update(
+            {f"ref_{k}_wind": val for k, val in williamson_vector_norms(self.grid, u, v, r["u"], r["v"]).items()}
+        )
         out.update({f"ref_{k}": val for k, val in split.items()})
         return out
 
@@ -219,8 +227,10 @@ class Scorer:
         norms = None
         if self.root:
             hs = self.hs
-            norms = (williamson_norms(self.grid, a[2] + hs, b[2] + hs)["l2"],
-                     williamson_vector_norms(self.grid, a[0], a[1], b[0], b[1])["l2"])
+            norms = (
+                williamson_norms(self.grid, a[2] + hs, b[2] + hs)["l2"],
+                williamson_vector_norms(self.grid, a[0], a[1], b[0], b[1])["l2"],
+            )
         return (*self.topology.bcast(norms), split)
 
     def temporal_errors(self, x: np.ndarray, x_ref: np.ndarray) -> dict:
@@ -229,8 +239,12 @@ class Scorer:
         (``temporal_error``), of the wind (``temporal_error_wind``) and of its
         vorticity and divergence (``temporal_error_vorticity``, ``temporal_error_divergence``)."""
         h, wind, split = self._against(x, x_ref)
-        return {"temporal_error": h, "temporal_error_wind": wind,
-                "temporal_error_vorticity": split["l2_vorticity"], "temporal_error_divergence": split["l2_divergence"]}
+        return {
+            "temporal_error": h,
+            "temporal_error_wind": wind,
+            "temporal_error_vorticity": split["l2_vorticity"],
+            "temporal_error_divergence": split["l2_divergence"],
+        }
 
     def filtered_errors(self, xf: np.ndarray | None, xf_ref: np.ndarray | None) -> dict:
         """l2 of the difference of two time-filtered states (``timefilter.TimeFilter``:

@@ -5,4 +5,4 @@
 May import: every layer below (``core`` to ``io``).
 """
 
-__all__ = ['scene']
+__all__ = ["scene"]

@@ -59,15 +59,15 @@ from importlib.resources import files
 from pathlib import Path
 
 from ..cases.library import make_case
+from ..cases.reference import cases_of, locate, reference_path, stored_days
 from ..core.constants import DAY, EARTH, Planet
+from ..core.errors import SceneError
 from ..grid.gll import NP_MAX, NP_MIN, gll
 from ..io.initial_state import SCENE_CASES
-from ..core.errors import SceneError
-from ..steppers.initialization import METHODS, DigitalFilter
-from ..model.shallow_water import TERMS
 from ..io.run_file import OUTPUT_FIELDS
-from ..cases.reference import cases_of, locate, reference_path, stored_days
+from ..model.shallow_water import TERMS
 from ..steppers import STEPPERS, option_types
+from ..steppers.initialization import METHODS, DigitalFilter
 
 HYPERVIS_EXPONENT = 3.2  # ν ∝ Δx^3.2 (HOMME's resolution scaling; Dennis et al. 2012)
 
@@ -185,13 +185,23 @@ def scene_from_dict(d: dict) -> Scene:
     """
     fields = dataclasses.fields(Scene)
     unknown = set(d) - {f.name for f in fields}
-    missing = {f.name for f in fields if f.name not in d
-               and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING}
+    missing = {
+        f.name
+        for f in fields
+        if f.name not in d and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
+    }
     if unknown or missing:
         raise ValueError(f"scene keys differ from this version's: {', '.join(sorted(unknown | missing))}")
     streams = tuple({**st, "fields": tuple(st["fields"])} for st in d.get("output_streams", ()))
-    return Scene(**{**d, "terms": tuple(d["terms"]), "notes": tuple(d.get("notes", ())),
-                    "output_fields": tuple(d.get("output_fields", ())), "output_streams": streams})
+    return Scene(
+        **{
+            **d,
+            "terms": tuple(d["terms"]),
+            "notes": tuple(d.get("notes", ())),
+            "output_fields": tuple(d.get("output_fields", ())),
+            "output_streams": streams,
+        }
+    )
 
 
 _SCHEMA = {
@@ -266,8 +276,10 @@ def _not_whole_steps(what: str, days: float, dt: float, dt_source: str) -> Scene
         n = days * DAY / dt
         near = " or ".join(f"{k * dt / DAY:.6g}" for k in sorted({max(1, math.floor(n)), math.ceil(n)}))
         fits = f"the nearest whole-step intervals are {near} days"
-    return SceneError(f"{what} of {days:g} days is not a whole number of steps of dt = {dt:g} s ({dt_source}): "
-                      f"a run writes and ends at whole steps; {fits}, or set a dt that divides it")
+    return SceneError(
+        f"{what} of {days:g} days is not a whole number of steps of dt = {dt:g} s ({dt_source}): "
+        f"a run writes and ends at whole steps; {fits}, or set a dt that divides it"
+    )
 
 
 def _check_schedule(dt: float, days: float, every: float, dt_source: str = "the scene's time.dt") -> None:
@@ -288,7 +300,9 @@ def _common_interval(every: float, days: float) -> float:
     if days <= every:
         return days
     a, b = Fraction(repr(every)), Fraction(repr(days))
-    return float(Fraction(math.gcd(a.numerator * b.denominator, b.numerator * a.denominator), a.denominator * b.denominator))
+    return float(
+        Fraction(math.gcd(a.numerator * b.denominator, b.numerator * a.denominator), a.denominator * b.denominator)
+    )
 
 
 def with_days(scene: Scene, days: float, dt_source: str = "the restart file's") -> Scene:
@@ -297,8 +311,10 @@ def with_days(scene: Scene, days: float, dt_source: str = "the restart file's") 
     from, for the message). Raises ``SceneError``."""
     start = scene.start_day
     if not (isinstance(days, (int, float)) and math.isfinite(days) and days > start):
-        raise SceneError(f"days must be > {start:g} (got {days})" + (
-            f": the run branches at day {start:g} and days is the model day it ends at" if start else ""))
+        raise SceneError(
+            f"days must be > {start:g} (got {days})"
+            + (f": the run branches at day {start:g} and days is the model day it ends at" if start else "")
+        )
     scene = dataclasses.replace(scene, days=float(days))
     _check_schedule(scene.dt, scene.run_days, scene.output_every_days, dt_source)
     return scene
@@ -310,7 +326,7 @@ def _reference(spec, case_name: str, case_obj) -> str:
     variables and layout checked without reading its fields. Raises ``SceneError`` naming the key and the value."""
     where = f"case.reference = {spec!r}"
     if not isinstance(spec, str):
-        raise SceneError(f"case.reference must be a file path or a truncation such as \"T341\" (got {_got(spec)})")
+        raise SceneError(f'case.reference must be a file path or a truncation such as "T341" (got {_got(spec)})')
     if case_obj.exact_solution:
         raise SceneError(f"{where}: case {case_name} is scored against its exact solution, not a reference file")
     try:
@@ -345,7 +361,9 @@ def _got(value) -> str:
 def _check_type(key, value, kind):
     if isinstance(kind, types.UnionType):  # e.g. a count or "auto": the options' own check names the choices
         return value
-    if kind is tuple:  # a list-valued option (a Butcher table): a TOML array, its entries the stepper's options to check
+    if (
+        kind is tuple
+    ):  # a list-valued option (a Butcher table): a TOML array, its entries the stepper's options to check
         if not isinstance(value, (list, tuple)):
             raise SceneError(f"{key} must be an array (got {_got(value)})")
         return value
@@ -436,7 +454,9 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
         raise SceneError(f"cannot read scene {path}: {err.strerror}") from None
     # the radius the scene's own dt and ν are for: its file's planet (before the overrides), unless dt is overridden too
     table = raw.get("planet", {})
-    file_radius = table.get("radius", EARTH.a) if isinstance(table, dict) and "time.dt" not in (overrides or {}) else None
+    file_radius = (
+        table.get("radius", EARTH.a) if isinstance(table, dict) and "time.dt" not in (overrides or {}) else None
+    )
     file_case = raw.get("case", {}).get("name") if isinstance(raw.get("case"), dict) else None
     _apply_overrides(raw, overrides or {})
     s = _validate(raw)
@@ -459,15 +479,21 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
         case_obj = make_case(case_name, case, planet, SCENE_CASES)
     except ValueError as err:
         raise SceneError(str(err)) from None
-    scale = planet.a / file_radius if _is_number(file_radius) and file_radius > 0 else 1.0  # the planet's node spacing, new / scene's
+    scale = (
+        planet.a / file_radius if _is_number(file_radius) and file_radius > 0 else 1.0
+    )  # the planet's node spacing, new / scene's
     if reference is not None:
         if planet != EARTH:
-            raise SceneError(f"case.reference = {reference!r}: the spectral references are of Williamson's Earth, "
-                             f"not of this scene's planet ({_planet_text(planet)}); drop case.reference or [planet]")
+            raise SceneError(
+                f"case.reference = {reference!r}: the spectral references are of Williamson's Earth, "
+                f"not of this scene's planet ({_planet_text(planet)}); drop case.reference or [planet]"
+            )
         reference = _reference(reference, case_name, case_obj)
     elif planet != EARTH and case_obj.reference_file is not None:
-        notes.append(f"not scored against the {case_obj.reference_file} reference: it is of Williamson's Earth, "
-                     f"not of this planet ({_planet_text(planet)})")
+        notes.append(
+            f"not scored against the {case_obj.reference_file} reference: it is of Williamson's Earth, "
+            f"not of this planet ({_planet_text(planet)})"
+        )
 
     terms = s.get("terms")
     if not terms:
@@ -486,8 +512,10 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
     initialization = None
     if method == "dfi":
         if case_obj.exact_solution:
-            raise SceneError(f"case.initialization = \"dfi\" would spoil case {case_name}'s exact solution (its errors are "
-                             "measured against it); use it on cases without one (tc5_mountain, tc6_rossby_haurwitz, galewsky)")
+            raise SceneError(
+                f'case.initialization = "dfi" would spoil case {case_name}\'s exact solution (its errors are '
+                "measured against it); use it on cases without one (tc5_mountain, tc6_rossby_haurwitz, galewsky)"
+            )
         try:
             dfi = DigitalFilter(**s.get("dfi", {}))
         except ValueError as err:
@@ -542,8 +570,10 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
                     what = f"the output interval of {every:g} days"
                 else:
                     what = f"both the output interval of {every:g} and the run length of {days1:g} days"
-                notes.append(f"warning: dt cut {scaled / dt1:.3g}x (from {scaled:g} s, scaled with the smallest node spacing) "
-                             f"to {dt1:g} s to divide {what}")
+                notes.append(
+                    f"warning: dt cut {scaled / dt1:.3g}x (from {scaled:g} s, scaled with the smallest node spacing) "
+                    f"to {dt1:g} s to divide {what}"
+                )
             else:
                 notes.append(f"dt scaled with the smallest node spacing to {dt1:g} s")
     else:
@@ -566,7 +596,9 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
     hv = s.get("hyperviscosity", {})
     for key in ("efold_hours", "nu", "nu_div", "nu_s"):
         if hv.get(key, 0.0) < 0 or (key == "efold_hours" and key in hv and hv[key] == 0):
-            raise SceneError(f"hyperviscosity.{key} must be {'> 0' if key == 'efold_hours' else '>= 0'} (got {hv[key]})")
+            raise SceneError(
+                f"hyperviscosity.{key} must be {'> 0' if key == 'efold_hours' else '>= 0'} (got {hv[key]})"
+            )
     # explicit coefficients (m^4/s at the scene's grid and planet) scale as dx^3.2 and, keeping their damping
     # time at the grid scale, as a^4 on another planet; efold_hours gives the rest on the run's grid
     planet_factor = scale**4
@@ -584,8 +616,14 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
         if any(k in hv for k in ("nu", "nu_div", "nu_s")):
             notes.append("hyperviscosity coefficients given, but the scene's terms have no hyperviscosity: not used")
         nus = dict.fromkeys(nus, 0.0)
-    elif (ratio != 1.0 or planet_factor != 1.0) and any(k in hv for k in ("nu", "nu_div", "nu_s")) and max(nus.values()) > 0:
-        notes.append(f"nu scaled as dx^{HYPERVIS_EXPONENT} and radius^4: nu, nu_div, nu_s = {nus['nu']:.3g}, {nus['nu_div']:.3g}, {nus['nu_s']:.3g} m^4/s")
+    elif (
+        (ratio != 1.0 or planet_factor != 1.0)
+        and any(k in hv for k in ("nu", "nu_div", "nu_s"))
+        and max(nus.values()) > 0
+    ):
+        notes.append(
+            f"nu scaled as dx^{HYPERVIS_EXPONENT} and radius^4: nu, nu_div, nu_s = {nus['nu']:.3g}, {nus['nu_div']:.3g}, {nus['nu_s']:.3g} m^4/s"
+        )
     subcycle = hv.get("subcycle", 1)
     if subcycle < 1:
         raise SceneError(f"hyperviscosity.subcycle must be >= 1 (got {subcycle})")
@@ -594,7 +632,9 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
     switched = case_name != file_case
     return Scene(
         name=f"{case_name}_in_{path.stem}" if switched else path.stem,
-        description=f"case {case_name} with scene {path.stem}'s grid, terms and stepping" if switched else s.get("description", ""),
+        description=f"case {case_name} with scene {path.stem}'s grid, terms and stepping"
+        if switched
+        else s.get("description", ""),
         case=case_name,
         case_params=case,
         terms=tuple(terms),
@@ -627,10 +667,14 @@ def _fields(value, key: str) -> tuple:
     if value is None:
         return ()
     if not isinstance(value, list) or not value or not all(isinstance(f, str) for f in value):
-        raise SceneError(f"{key} must be a non-empty list of field names from {', '.join(OUTPUT_FIELDS)} (got {value!r})")
+        raise SceneError(
+            f"{key} must be a non-empty list of field names from {', '.join(OUTPUT_FIELDS)} (got {value!r})"
+        )
     for f in value:
         if f not in OUTPUT_FIELDS:
-            raise SceneError(f"{key}: unknown field {f!r} (known: {', '.join(OUTPUT_FIELDS)}; hs, lat, lon, area are always written)")
+            raise SceneError(
+                f"{key}: unknown field {f!r} (known: {', '.join(OUTPUT_FIELDS)}; hs, lat, lon, area are always written)"
+            )
     return tuple(f for f in OUTPUT_FIELDS if f in value)  # the file's order
 
 
@@ -648,15 +692,23 @@ def _output_choices(output: dict, dt: float, days: float, dt_source: str) -> tup
             raise SceneError(f"unknown key {where}.{sorted(unknown)[0]} (known: {', '.join(_STREAM_KEYS)})")
         name = st.get("name")
         if not (isinstance(name, str) and re.fullmatch(r"[A-Za-z0-9_-]+", name)) or name == "restart" or name in names:
-            raise SceneError(f"{where}.name must be a distinct file-name suffix of letters, digits, _ or - other than "
-                             f"restart (got {name!r}): the stream's file is RUN.{name}.nc")
+            raise SceneError(
+                f"{where}.name must be a distinct file-name suffix of letters, digits, _ or - other than "
+                f"restart (got {name!r}): the stream's file is RUN.{name}.nc"
+            )
         names.add(name)
         every = _check_type(f"{where}.every_days", st.get("every_days"), float) if "every_days" in st else None
         if every is None or not every > 0:
             raise SceneError(f"{where}.every_days must be > 0 (got {every})")
         if days > every and not _whole_steps(dt, every):
             raise _not_whole_steps(f"the output interval {where}.every_days", every, dt, dt_source)
-        streams.append({"name": name, "every_days": every, "fields": _fields(st.get("fields", list(OUTPUT_FIELDS)), f"{where}.fields")})
+        streams.append(
+            {
+                "name": name,
+                "every_days": every,
+                "fields": _fields(st.get("fields", list(OUTPUT_FIELDS)), f"{where}.fields"),
+            }
+        )
     return fields, tuple(streams)
 
 

@@ -8,4 +8,4 @@ launch tallies and stop signals.
 May import: nothing of swe_sphere outside ``core`` (``swe_sphere.kernels`` neither).
 """
 
-__all__ = ['constants', 'errors', 'graphs', 'interrupts', 'mpi', 'parallel', 'runtime', 'tally', 'workers']
+__all__ = ["constants", "errors", "graphs", "interrupts", "mpi", "parallel", "runtime", "tally", "workers"]

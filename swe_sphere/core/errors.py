@@ -53,4 +53,14 @@ class Interrupted(SweSphereError, RuntimeError):
     are attached."""
 
 
-__all__ = ["SweSphereError", "SceneError", "OutputError", "CheckpointError", "ResourceError", "MPIUnavailable", "StepFailure", "BlowUp", "Interrupted"]
+__all__ = [
+    "SweSphereError",
+    "SceneError",
+    "OutputError",
+    "CheckpointError",
+    "ResourceError",
+    "MPIUnavailable",
+    "StepFailure",
+    "BlowUp",
+    "Interrupted",
+]

@@ -44,7 +44,7 @@ FEATURES = {
 
 
 def graphs_mode(value, what: str = "graphs") -> str:
-    """"off", "on" or "auto" from ``value`` (one of them, or a bool: True "on",
+    """ "off", "on" or "auto" from ``value`` (one of them, or a bool: True "on",
     False "off"). Raises ValueError naming ``what`` and the value."""
     if isinstance(value, bool):
         return "on" if value else "off"
@@ -79,7 +79,7 @@ class GraphGuard:
 
 
 def failed(err: BaseException) -> str:
-    """" failed in <feature>: <first line>" of an exception raised in a capture or
+    """ " failed in <feature>: <first line>" of an exception raised in a capture or
     replay (the feature by the innermost frame of its traceback that ``FEATURES``
     names), or " failed: <first line>"."""
     name, tb = "", err.__traceback__

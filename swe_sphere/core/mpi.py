@@ -12,6 +12,7 @@ import os
 import sys
 import threading
 import time
+
 from .errors import MPIUnavailable
 
 _SIZE_VARIABLES = ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE", "PMIX_SIZE", "SLURM_NTASKS")
@@ -34,8 +35,10 @@ def world():
     try:
         from mpi4py import MPI
     except ImportError as err:
-        raise MPIUnavailable(f"started by mpiexec as one of {launched_size()} ranks, but mpi4py cannot be imported ({err}): "
-                             "pip install 'swe-sphere[mpi]' (mpich and mpi4py)") from None
+        raise MPIUnavailable(
+            f"started by mpiexec as one of {launched_size()} ranks, but mpi4py cannot be imported ({err}): "
+            "pip install 'swe-sphere[mpi]' (mpich and mpi4py)"
+        ) from None
     return MPI.COMM_WORLD
 
 

@@ -18,8 +18,8 @@ process may run on; 1 on CUDA devices (nothing is split there).
 
 from __future__ import annotations
 
-import ctypes
 import copy
+import ctypes
 import os
 import threading
 from concurrent.futures import ThreadPoolExecutor

@@ -13,6 +13,7 @@ from __future__ import annotations
 import functools
 import os
 import sys
+
 from .errors import ResourceError
 
 RUN_BYTES_PER_NODE = 1100  # measured 1 020 (benchmarks/README.md, "Memory"), rounded up
@@ -82,7 +83,11 @@ def _note_first_compilation(wp) -> None:
 
     def run_codegen(self, *args, **kwargs):
         Module._run_codegen = real  # once
-        print(f"swe-sphere: compiling Warp kernels (first use; cached in {wp.config.kernel_cache_dir}) ...", file=sys.stderr, flush=True)
+        print(
+            f"swe-sphere: compiling Warp kernels (first use; cached in {wp.config.kernel_cache_dir}) ...",
+            file=sys.stderr,
+            flush=True,
+        )
         return real(self, *args, **kwargs)
 
     run_codegen.notes = True
@@ -132,8 +137,10 @@ def check_memory(need: int, what: str, device=None) -> None:
     if device is not None and device.is_cuda:
         have = device.free_memory
         if need > have:
-            raise ResourceError(f"{what} needs about {_gib(need)} of GPU memory; {_gib(have)} free of "
-                                f"{_gib(device.total_memory)} on {device}")
+            raise ResourceError(
+                f"{what} needs about {_gib(need)} of GPU memory; {_gib(have)} free of "
+                f"{_gib(device.total_memory)} on {device}"
+            )
         return
     have = available_memory()
     if need > have:

@@ -97,8 +97,12 @@ def instrumented(tally: Tally):
     """Wrap Warp's launch, memset, copy and read-back entry points so that ``tally``
     sees them, for this process, until the context ends (then Warp's own again).
     The wrappers cost host time per launch: time nothing inside."""
-    real = {"launch": wp.Launch.launch, "wp.launch": wp.launch, "wp.copy": wp.copy,
-            **{name: getattr(wp.array, name) for name in ("zero_", "fill_", "assign", "numpy")}}
+    real = {
+        "launch": wp.Launch.launch,
+        "wp.launch": wp.launch,
+        "wp.copy": wp.copy,
+        **{name: getattr(wp.array, name) for name in ("zero_", "fill_", "assign", "numpy")},
+    }
 
     def record_launch(self, *a, **k):
         tally.kernel(self.kernel, self.fwd_args or [])

@@ -31,8 +31,8 @@ import signal
 from concurrent.futures import Future, ProcessPoolExecutor
 
 from . import mpi
-from .runtime import init_warp
 from .errors import Interrupted
+from .runtime import init_warp
 
 
 def cpus() -> int:
@@ -116,7 +116,9 @@ def executor(workers: int = 1):
         return
     threads = max(1, cpus() // workers)
     before = set(multiprocessing.active_children())
-    with _Pool(workers, mp_context=multiprocessing.get_context("spawn"), initializer=start_worker, initargs=(threads,)) as pool:
+    with _Pool(
+        workers, mp_context=multiprocessing.get_context("spawn"), initializer=start_worker, initargs=(threads,)
+    ) as pool:
         try:
             yield pool
         except BaseException:  # end the runs under way and those queued, not wait for them

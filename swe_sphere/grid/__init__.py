@@ -8,4 +8,4 @@ HOMME's ``element_t``), ``gll.gll``, ``partition.partition`` (a space-filling cu
 May import: ``core``, ``kernels``.
 """
 
-__all__ = ['cubed_sphere', 'gll', 'partition', 'topology']
+__all__ = ["cubed_sphere", "gll", "partition", "topology"]

@@ -15,6 +15,7 @@ for the spectral-element metric terms.
 from __future__ import annotations
 
 import math
+
 import numpy as np
 
 from ..core.constants import EARTH
@@ -136,7 +137,9 @@ def _lattice_groups(ne: int, npts: int, elements: np.ndarray, positions: np.ndar
     l = jb[:, None] * (npts - 1) + positions // npts
     F, key = _FACES.astype(np.int64), np.zeros(k.shape, dtype=np.int64)
     for d in range(3):  # the point's coordinates Q_d in [0, 2M], one at a time (memory)
-        key = key * (2 * M + 1) + (M * F[face, 0, d, None] + (2 * k - M) * F[face, 1, d, None] + (2 * l - M) * F[face, 2, d, None] + M)
+        key = key * (2 * M + 1) + (
+            M * F[face, 0, d, None] + (2 * k - M) * F[face, 1, d, None] + (2 * l - M) * F[face, 2, d, None] + M
+        )
     key = key.ravel()
     order = np.argsort(key, kind="stable")  # by point, then ascending global index
     sk = key[order]
@@ -173,7 +176,9 @@ class Numbering:
         interior = (i > 0) & (i < last) & (j > 0) & (j < last)
         self.ring = ring = np.flatnonzero(~interior)  # ascending p
         ri, rj = i[ring], j[ring]
-        self.ring_corner = np.where(((ri == 0) | (ri == last)) & ((rj == 0) | (rj == last)), 2 * (rj > 0) + (ri > 0), -1)
+        self.ring_corner = np.where(
+            ((ri == 0) | (ri == last)) & ((rj == 0) | (rj == last)), 2 * (rj > 0) + (ri > 0), -1
+        )
         self.ring_edge = np.select([rj == 0, ri == last, rj == last, ri == 0], [0, 1, 2, 3])  # where not a corner
         self.before = np.cumsum(interior) - interior  # interior nodes before each p
         elements = np.arange(nelem)
@@ -187,17 +192,24 @@ class Numbering:
         if np.any(nbr < 0):
             raise RuntimeError(f"an element edge without a neighbour (ne={ne})")
         self.edge_neighbours = nbr
-        count = int(interior.sum()) + (npts - 2) * np.sum(elements[:, None] < nbr, axis=1) + self.corner_first.sum(axis=1)
+        count = (
+            int(interior.sum()) + (npts - 2) * np.sum(elements[:, None] < nbr, axis=1) + self.corner_first.sum(axis=1)
+        )
         self.offset = np.concatenate(([0], np.cumsum(count)[:-1]))
         if int(count.sum()) != 6 * ne * ne * (npts - 1) ** 2 + 2:
-            raise RuntimeError(f"grid has {int(count.sum())} unique nodes, expected {6 * ne * ne * (npts - 1) ** 2 + 2}")
+            raise RuntimeError(
+                f"grid has {int(count.sum())} unique nodes, expected {6 * ne * ne * (npts - 1) ** 2 + 2}"
+            )
         self.width = 3 if ne == 1 else 4  # most copies of a node
 
     def _ring_first(self, elements: np.ndarray) -> np.ndarray:
         """(E, ring) bool: the ring node is first seen in its element."""
         corner, edge = self.ring_corner, self.ring_edge
-        return np.where(corner >= 0, self.corner_first[elements][:, np.maximum(corner, 0)],
-                        elements[:, None] < self.edge_neighbours[elements][:, edge])
+        return np.where(
+            corner >= 0,
+            self.corner_first[elements][:, np.maximum(corner, 0)],
+            elements[:, None] < self.edge_neighbours[elements][:, edge],
+        )
 
     def rows(self, elements: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(gid (N,), table (N, C)) int64 of the nodes of ``elements`` (ascending):
@@ -319,7 +331,9 @@ def _build(ne: int, rule, radius: float, elements: np.ndarray) -> dict:
     # agree bit for bit.
     valid = table >= 0
     ext = np.sort(table[valid])
-    ext = ext[np.concatenate(([True], ext[1:] != ext[:-1]))]  # distinct, ascending (np.unique's hashing is 10x slower here)
+    ext = ext[
+        np.concatenate(([True], ext[1:] != ext[:-1]))
+    ]  # distinct, ascending (np.unique's hashing is 10x slower here)
     rep = np.empty(ext.size, dtype=np.int64)
     rep[np.searchsorted(ext, table[valid])] = np.broadcast_to(table[:, :1], table.shape)[valid]
     n = ext.size
@@ -327,7 +341,9 @@ def _build(ne: int, rule, radius: float, elements: np.ndarray) -> dict:
     D = np.empty((n, 2, 2))
     for a in range(0, n, _CHUNK):  # per node: in pieces, to bound the temporaries
         part = slice(a, a + _CHUNK)
-        xyz[part], lat[part], lon[part], east[part], north[part], D[part] = _metric(ne, rule, radius, ext[part], rep[part])
+        xyz[part], lat[part], lon[part], east[part], north[part], D[part] = _metric(
+            ne, rule, radius, ext[part], rep[part]
+        )
     metdet = np.linalg.det(D)
     if np.any(metdet <= 0):
         raise RuntimeError("non-positive metric determinant")

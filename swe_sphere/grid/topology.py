@@ -24,9 +24,9 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from .cubed_sphere import CubedSphere
-from ..kernels import blas, dss
 from ..core.parallel import record
+from ..kernels import blas, dss
+from .cubed_sphere import CubedSphere
 from .partition import partition
 
 f64 = wp.float64
@@ -95,7 +95,7 @@ class _Exchange:
     ``send`` (``rows`` values per entry), all completed before ``launch()``
     returns (run like a recorded launch)."""
 
-    def __init__(self, comm, halo: "_Halo", rows: int, tag: int):
+    def __init__(self, comm, halo: _Halo, rows: int, tag: int):
         send, recv = halo.send_buffer.numpy(), halo.recv_buffer.numpy()  # CPU: zero-copy views
         self.comm, self.tag = comm, tag
         self.recvs = [(recv[a * rows : b * rows], int(s)) for s, (a, b) in zip(halo.neighbours, halo.recv_ranges)]
@@ -202,7 +202,13 @@ class Topology:
         c = self.copies  # the DSS's pattern
         self.neighbours, self.ghost, self.halo_copies = c.neighbours, c.recv_buffer, c.size
         self.dss_copies = d = dss.Copies()  # the DSS kernels' view of the above
-        d.table, d.nlocal, d.ghost, d.spheremp, d.rspheremp = self.table, self.N, self.ghost, self.spheremp, self.rspheremp
+        d.table, d.nlocal, d.ghost, d.spheremp, d.rspheremp = (
+            self.table,
+            self.N,
+            self.ghost,
+            self.spheremp,
+            self.rspheremp,
+        )
 
     def _build_halos(self, parts, rank):
         """Local tables from the rank's own nodes' rows of the global DSS table and
@@ -275,7 +281,9 @@ class Topology:
         (``kernels.dss.dss_rows``), the neighbours' copies exchanged first.
         Weighted for a strong-form field (continuous result, integral kept),
         unweighted for a weak form. ``out`` must not alias ``x``."""
-        return self.gathering(x, lambda rows, copies, ghosts: dss.dss_rows(rows, bool(weighted), copies, ghosts=ghosts), [out])
+        return self.gathering(
+            x, lambda rows, copies, ghosts: dss.dss_rows(rows, bool(weighted), copies, ghosts=ghosts), [out]
+        )
 
     def dss_update(self, x: wp.array2d, updates) -> list:
         """Launches for the weighted DSS k of x (rows, N), not stored but used by
@@ -292,7 +300,9 @@ class Topology:
         coefs += [0.0] * (6 - len(coefs))
         arrays += arrays[-3:] * (2 - len(updates))
         return self.gathering(
-            x, lambda rows, copies, ghosts: dss.dss_update(rows, copies, tuple(patterns), ghosts=ghosts), [dss.vec6(*coefs), *arrays]
+            x,
+            lambda rows, copies, ghosts: dss.dss_update(rows, copies, tuple(patterns), ghosts=ghosts),
+            [dss.vec6(*coefs), *arrays],
         )
 
     def gathering(self, x: wp.array2d, kernel, args) -> list:
@@ -306,7 +316,12 @@ class Topology:
         kernel = kernel(x.shape[0], self.table.shape[1], bool(len(self.neighbours)))
         block = self.grid.np**2 if wp.get_device(self.device).is_cpu else 1
         launch = record(
-            kernel, self.N // block, [x, self.dss_copies, *args, block], device=self.device, threads=self.threads, nodes_per_index=block
+            kernel,
+            self.N // block,
+            [x, self.dss_copies, *args, block],
+            device=self.device,
+            threads=self.threads,
+            nodes_per_index=block,
         )
         return [*self._exchange(x), launch]
 
@@ -322,7 +337,10 @@ class Topology:
         unique-node vector y (rows·nunique, row r at r·nunique …): every copy of a
         node gets its value, those owned elsewhere received from their owners."""
         y2 = y.reshape((rows, self.nunique))
-        return [*self._exchange(y2, self.owned), self._record(dss.scatter, self.N, [y2, self.owned.recv_buffer, self.gid, int(row), out])]
+        return [
+            *self._exchange(y2, self.owned),
+            self._record(dss.scatter, self.N, [y2, self.owned.recv_buffer, self.gid, int(row), out]),
+        ]
 
     # -- between the whole grid and this rank's part (numpy) ------------------------
     def _part_nodes(self, k: int) -> np.ndarray:
@@ -362,7 +380,9 @@ class Topology:
         counts = [rows * p.size * self.grid.np**2 for p in self.parts]
         flat = None
         if self.comm.rank == 0:
-            flat = np.concatenate([np.asarray(whole, dtype=np.float64)[:, self._part_nodes(k)].ravel() for k in range(len(self.parts))])
+            flat = np.concatenate(
+                [np.asarray(whole, dtype=np.float64)[:, self._part_nodes(k)].ravel() for k in range(len(self.parts))]
+            )
         out = np.empty((rows, self.N))
         self.comm.Scatterv([flat, counts] if flat is not None else None, out, root=0)
         return out
@@ -448,7 +468,9 @@ class Topology:
         if not wp.get_device(self.device).is_cpu and n > DEVICE_TOTALS:
             chunk = int(np.ceil(np.sqrt(n)))
             mid = wp.zeros((rows, (n + chunk - 1) // chunk), dtype=f64, device=self.device)
-            launches.append(wp.launch(blas.chunk_sums, mid.shape, [src, chunk, mid], device=self.device, record_cmd=True))
+            launches.append(
+                wp.launch(blas.chunk_sums, mid.shape, [src, chunk, mid], device=self.device, record_cmd=True)
+            )
             src = mid
         launches.append(wp.launch(blas.row_totals, 1, [src, out], device=self.device, record_cmd=True))
         return launches

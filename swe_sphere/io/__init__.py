@@ -7,4 +7,4 @@ volumes), ``remap`` (to a lat-lon grid), ``restart_file`` (the restart file's la
 May import: ``core``, ``grid``, ``model``, ``cases``, ``solvers``, ``steppers``, ``kernels``.
 """
 
-__all__ = ['dual', 'initial_state', 'remap', 'restart_file', 'run_file', 'ugrid']
+__all__ = ["dual", "initial_state", "remap", "restart_file", "run_file", "ugrid"]

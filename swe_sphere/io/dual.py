@@ -58,7 +58,9 @@ def _start_vertices(grid: CubedSphere) -> np.ndarray:
     sub-cell, in the order of ``ugrid.subcell_quads``."""
     n = grid.np
     t = control_points(grid.rule)[1:-1]  # one per sub-cell interval, np − 1 of them
-    e, j, i = (x.ravel() for x in np.meshgrid(np.arange(6 * grid.ne**2), np.arange(n - 1), np.arange(n - 1), indexing="ij"))
+    e, j, i = (
+        x.ravel() for x in np.meshgrid(np.arange(6 * grid.ne**2), np.arange(n - 1), np.arange(n - 1), indexing="ij")
+    )
     return reference_to_sphere(grid.ne, e, t[i], t[j])
 
 
@@ -221,13 +223,22 @@ def write_dual_mesh(ds, grid: CubedSphere) -> None:
     verts, corners, _ = unit_dual_mesh(grid.ne, grid.np)
     ds.createDimension(NODE_DIM, verts.shape[0])
     ds.createDimension(CORNER_DIM, MAX_CORNERS)
-    write_topology(ds, MESH, CONNECTIVITY, corners, ("ncol", CORNER_DIM),
-                   long_name="control volumes of the GLL nodes: one face a node, its area the node's spheremp",
-                   corners="corners (ndual_node indices) of each node's control volume, counter-clockwise from outside",
-                   node_coordinates="dual_lon dual_lat", face_coordinates="lon lat")
+    write_topology(
+        ds,
+        MESH,
+        CONNECTIVITY,
+        corners,
+        ("ncol", CORNER_DIM),
+        long_name="control volumes of the GLL nodes: one face a node, its area the node's spheremp",
+        corners="corners (ndual_node indices) of each node's control volume, counter-clockwise from outside",
+        node_coordinates="dual_lon dual_lat",
+        face_coordinates="lon lat",
+    )
     vlat, vlon = np.degrees(lat_lon(verts))
-    for name, values, std, units in (("dual_lon", vlon, "longitude", "degrees_east"),
-                                     ("dual_lat", vlat, "latitude", "degrees_north")):
+    for name, values, std, units in (
+        ("dual_lon", vlon, "longitude", "degrees_east"),
+        ("dual_lat", vlat, "latitude", "degrees_north"),
+    ):
         var = ds.createVariable(name, "f8", (NODE_DIM,), zlib=True, shuffle=True)
         var.setncatts(dict(standard_name=std, units=units, long_name=f"{std} of the control volumes' corners"))
         var[:] = values

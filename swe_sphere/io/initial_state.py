@@ -43,18 +43,34 @@ import numpy as np
 
 from ..cases.library import CASES, Case, make_case
 from ..core.constants import Planet
+from ..core.errors import SceneError
 from .remap import cached_grid, open_netcdf
 from .restart_file import read as read_restart
-from ..core.errors import SceneError
 
 DEPTH_UNITS = {"m", "meter", "meters", "metre", "metres"}
-WIND_UNITS = {"m s-1", "m/s", "m s^-1", "m s**-1", "m.s-1", "ms-1", "meter/second", "meters/second", "metre/second",
-              "metres/second", "meters second-1", "metres second-1"}
+WIND_UNITS = {
+    "m s-1",
+    "m/s",
+    "m s^-1",
+    "m s**-1",
+    "m.s-1",
+    "ms-1",
+    "meter/second",
+    "meters/second",
+    "metre/second",
+    "metres/second",
+    "meters second-1",
+    "metres second-1",
+}
 LAT_UNITS = {"degrees_north", "degree_north", "degrees_n", "degree_n", "degrees", "degree"}
 LON_UNITS = {"degrees_east", "degree_east", "degrees_e", "degree_e", "degrees", "degree"}
 FIELD_UNITS = {"h": DEPTH_UNITS, "hs": DEPTH_UNITS, "u": WIND_UNITS, "v": WIND_UNITS}
-WHAT = {"h": "the fluid depth, m", "hs": "the surface height, m", "u": "the eastward wind, m s-1",
-        "v": "the northward wind, m s-1"}
+WHAT = {
+    "h": "the fluid depth, m",
+    "hs": "the surface height, m",
+    "u": "the eastward wind, m s-1",
+    "v": "the northward wind, m s-1",
+}
 PAD = 16  # spline rows/columns continued across a pole or the date line: the end conditions' effect is ~0.27^PAD
 
 
@@ -72,8 +88,10 @@ def check_state(h, u, v, hs, where: str) -> None:
         if f is not None and not np.all(np.isfinite(f)):
             raise SceneError(f"{where}: {name} has {np.count_nonzero(~np.isfinite(f))} non-finite values (NaN or inf)")
     if np.any(h <= 0):
-        raise SceneError(f"{where}: h <= 0 at {np.count_nonzero(h <= 0)} points (min {np.min(h):.4g} m); "
-                         "h is the fluid depth (> 0), not the free surface h + hs")
+        raise SceneError(
+            f"{where}: h <= 0 at {np.count_nonzero(h <= 0)} points (min {np.min(h):.4g} m); "
+            "h is the fluid depth (> 0), not the free surface h + hs"
+        )
 
 
 def from_function(fn, lat, lon) -> np.ndarray:
@@ -83,8 +101,10 @@ def from_function(fn, lat, lon) -> np.ndarray:
     where = f"initial={getattr(fn, '__name__', type(fn).__name__)}"
     out = fn(lat, lon)
     if not isinstance(out, (tuple, list)) or len(out) != 3:
-        raise SceneError(f"{where} must return (h, u, v) (got {type(out).__name__}"
-                         f"{f' of {len(out)}' if isinstance(out, (tuple, list)) else ''})")
+        raise SceneError(
+            f"{where} must return (h, u, v) (got {type(out).__name__}"
+            f"{f' of {len(out)}' if isinstance(out, (tuple, list)) else ''})"
+        )
     fields = []
     for name, f in zip("huv", out):
         try:
@@ -114,8 +134,10 @@ class NodeState:
     def __call__(self, name, lat, lon) -> np.ndarray:
         dist, index = self.tree.query(_unit_vectors(lat, lon))
         if dist.size and dist.max() > 1e-9:  # the degrees written round-trip to ~1e-16
-            raise SceneError(f"{self.where}: its {self.tree.n} nodes are not those of this run's grid "
-                             "(a run or restart file of the same ne and np is needed)")
+            raise SceneError(
+                f"{self.where}: its {self.tree.n} nodes are not those of this run's grid "
+                "(a run or restart file of the same ne and np is needed)"
+            )
         f = self.fields.get(name)
         return np.zeros(np.shape(lat)) if f is None else f[index].reshape(np.shape(lat))
 
@@ -178,12 +200,17 @@ def _values(ds, name: str, dims: tuple, where: str, t_index) -> np.ndarray | Non
     var = ds[name]
     units = var.attrs.get("units")
     if units is not None and not _units_ok(units, FIELD_UNITS[name]):
-        raise SceneError(f"{where}: {name} has units {units!r}; {name} is {WHAT[name].split(', ')[0]} in "
-                         f"{'m' if FIELD_UNITS[name] is DEPTH_UNITS else 'm s-1'}")
+        raise SceneError(
+            f"{where}: {name} has units {units!r}; {name} is {WHAT[name].split(', ')[0]} in "
+            f"{'m' if FIELD_UNITS[name] is DEPTH_UNITS else 'm s-1'}"
+        )
     if "time" in var.dims and name != "hs":
         var = var.isel(time=t_index)
     if var.dims != dims:
-        raise SceneError(f"{where}: {name} has dimensions {var.dims}; expected {dims}" + (" (and time)" if t_index is not None else ""))
+        raise SceneError(
+            f"{where}: {name} has dimensions {var.dims}; expected {dims}"
+            + (" (and time)" if t_index is not None else "")
+        )
     return np.asarray(var.values, dtype=np.float64)
 
 
@@ -262,26 +289,36 @@ def load_state(path, day: float | None = None):
         lat_name, lat = _axis(ds, ("lat", "latitude"), LAT_UNITS, where)
         lon_name, lon = _axis(ds, ("lon", "longitude"), LON_UNITS, where)
         if lat is None or lon is None:
-            raise SceneError(f"{where}: neither the model's nodes (ncol, lat, lon) nor a lat-lon grid "
-                             "(1-D coordinates lat and lon, degrees)")
+            raise SceneError(
+                f"{where}: neither the model's nodes (ncol, lat, lon) nor a lat-lon grid "
+                "(1-D coordinates lat and lon, degrees)"
+            )
         fields = {name: _values(ds, name, (lat_name, lon_name), where, t) for name in ("h", "u", "v", "hs")}
     check_state(*(fields[k] for k in ("h", "u", "v", "hs")), where)
     if np.any(np.diff(lat) < 0):
         lat = lat[::-1]
         fields = {k: None if f is None else f[::-1] for k, f in fields.items()}
     spacing = 2 * math.pi / lon.size
-    if (lat.size < 4 or np.any(np.diff(lat) <= 0) or lat[0] < -math.pi / 2 - 1e-9 or lat[-1] > math.pi / 2 + 1e-9):
+    if lat.size < 4 or np.any(np.diff(lat) <= 0) or lat[0] < -math.pi / 2 - 1e-9 or lat[-1] > math.pi / 2 + 1e-9:
         raise SceneError(f"{where}: lat must hold 4 or more distinct latitudes in [-90, 90] degrees")
     # values that would all fit in radians' range, read as degrees: say so (else the grid looks merely too small)
-    radians = " (radians? lat and lon are read in degrees)" if np.degrees(max(abs(lat[0]), abs(lat[-1]))) <= math.pi / 2 + 1e-9 else ""
+    radians = (
+        " (radians? lat and lon are read in degrees)"
+        if np.degrees(max(abs(lat[0]), abs(lat[-1]))) <= math.pi / 2 + 1e-9
+        else ""
+    )
     # the poles within one row spacing of the first and last rows (a regular grid's half-offset rows, a Gaussian
     # grid's ≈ 0.77 spacing): a regional grid would be extrapolated over the rest of the globe
     if max(lat[0] + math.pi / 2, math.pi / 2 - lat[-1]) > (lat[-1] - lat[0]) / (lat.size - 1) * (1 + 1e-9):
-        raise SceneError(f"{where}: lat covers {np.degrees(lat[0]):g} to {np.degrees(lat[-1]):g} degrees, not the globe "
-                         f"(its first and last rows must lie within one row spacing of the poles){radians}")
+        raise SceneError(
+            f"{where}: lat covers {np.degrees(lat[0]):g} to {np.degrees(lat[-1]):g} degrees, not the globe "
+            f"(its first and last rows must lie within one row spacing of the poles){radians}"
+        )
     if lon.size % 2 or np.max(np.abs(np.diff(lon) - spacing)) > 1e-6 * spacing:
-        raise SceneError(f"{where}: lon must hold an even number of uniformly spaced longitudes around the circle "
-                         f"(got {lon.size}{'' if lon.size % 2 else ' not uniformly spaced over 360 degrees'}){radians}")
+        raise SceneError(
+            f"{where}: lon must hold an even number of uniformly spaced longitudes around the circle "
+            f"(got {lon.size}{'' if lon.size % 2 else ' not uniformly spaced over 360 degrees'}){radians}"
+        )
     return LatLonState(np.clip(lat, -math.pi / 2, math.pi / 2), lon, fields)
 
 

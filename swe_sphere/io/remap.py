@@ -27,9 +27,9 @@ import numpy as np
 import xarray as xr
 from scipy.sparse import csr_matrix
 
+from ..core.runtime import check_memory, package_version
 from ..grid.cubed_sphere import _FACES, CubedSphere
 from .run_file import atomic_path, check_distinct
-from ..core.runtime import check_memory, package_version
 
 #: node fields (time, ncol) or (ncol,) that ``remap_dataset`` carries to the lat-lon grid
 NODE_FIELDS = ("h", "hs", "u", "v", "vorticity", "divergence")
@@ -93,9 +93,7 @@ class Remapper:
         self.weights = (lj[:, :, None] * li[:, None, :]).reshape(m, n * n)  # [j*n + i]
         self.nodes = elem[:, None] * n * n + np.arange(n * n)[None, :]  # element-local p
         rows = np.repeat(np.arange(m), n * n)
-        self.matrix = csr_matrix(
-            (self.weights.ravel(), (rows, grid.gid[self.nodes].ravel())), shape=(m, grid.nunique)
-        )
+        self.matrix = csr_matrix((self.weights.ravel(), (rows, grid.gid[self.nodes].ravel())), shape=(m, grid.nunique))
 
     def __call__(self, f) -> np.ndarray:
         f = np.asarray(f, dtype=np.float64)
@@ -204,7 +202,10 @@ def remap_dataset(ds, resolution: float = 1.0) -> xr.Dataset:
             return remap_dataset(opened.load(), resolution)  # loaded: the result outlives the file
     grid = run_grid(ds)
     lat, lon = latlon_grid(resolution)
-    check_memory(remap_bytes(lat.size * lon.size, grid.np, ds.sizes.get("time", 1)), f"remapping to {resolution:g} degrees ({lat.size} x {lon.size} points)")
+    check_memory(
+        remap_bytes(lat.size * lon.size, grid.np, ds.sizes.get("time", 1)),
+        f"remapping to {resolution:g} degrees ({lat.size} x {lon.size} points)",
+    )
     rm = Remapper(grid, np.radians(lat)[:, None], np.radians(lon)[None, :])
     out = xr.Dataset(
         coords=dict(
@@ -227,7 +228,9 @@ def remap_dataset(ds, resolution: float = 1.0) -> xr.Dataset:
         out[name] = (var.dims[:-1] + ("lat", "lon"), values, attrs)
     if "h" in out and "hs" in out:
         out["h_surface"] = out["h"] + out["hs"]
-        out["h_surface"].attrs = dict(units="m", long_name="free-surface height h + hs", standard_name="height_above_mean_sea_level")
+        out["h_surface"].attrs = dict(
+            units="m", long_name="free-surface height h + hs", standard_name="height_above_mean_sea_level"
+        )
     for name, var in ds.data_vars.items():
         if var.dims == ("time",):
             out[name] = var.copy()
@@ -253,5 +256,7 @@ def remap_file(path, resolution: float, output, *, overwrite: bool = False) -> P
     encoding = {k: {"_FillValue": None} for k in out.coords}  # CF: coordinates hold no missing values
     encoding.update({k: {"_FillValue": np.nan} for k in out.data_vars if out[k].dtype.kind == "f"})
     with atomic_path(output, overwrite=overwrite) as tmp:
-        out.to_netcdf(tmp, format="NETCDF4", encoding=encoding, unlimited_dims=("time",) if "time" in out.dims else None)
+        out.to_netcdf(
+            tmp, format="NETCDF4", encoding=encoding, unlimited_dims=("time",) if "time" in out.dims else None
+        )
     return output

@@ -33,9 +33,9 @@ import netCDF4
 import numpy as np
 
 from ..core.constants import Planet
-from .run_file import FIELDS, WRITING, ExclusiveFile
-from ..core.runtime import package_version
 from ..core.errors import CheckpointError
+from ..core.runtime import package_version
+from .run_file import FIELDS, WRITING, ExclusiveFile
 
 FORMAT = 3  # bump when the layout changes (2: checksums and content hash; 3: the state as named fields)
 STATE = ("u", "v", "h")  # the rows of x, each a variable with output.FIELDS' attributes
@@ -50,14 +50,21 @@ def content_hash(step: int, x: np.ndarray, stepper_state: dict) -> str:
     for key in sorted(stepper_state):
         value = stepper_state[key]
         h.update(key.encode())
-        h.update(np.ascontiguousarray(value, dtype=np.float64).tobytes() if isinstance(value, np.ndarray) else repr(value).encode())
+        h.update(
+            np.ascontiguousarray(value, dtype=np.float64).tobytes()
+            if isinstance(value, np.ndarray)
+            else repr(value).encode()
+        )
     return h.hexdigest()
 
 
 def _check_state(path, planet: dict | None, x: np.ndarray, stepper_state: dict) -> None:
     """Refuse (``CheckpointError`` naming the variable) non-finite values, h <= 0 and
     implausible winds; ``planet``: the scene's [planet] table (its gravity)."""
-    for name, value in (*zip(STATE, x), *((f"stepper_{k}", v) for k, v in stepper_state.items() if isinstance(v, np.ndarray))):
+    for name, value in (
+        *zip(STATE, x),
+        *((f"stepper_{k}", v) for k, v in stepper_state.items() if isinstance(v, np.ndarray)),
+    ):
         bad = np.flatnonzero(~np.isfinite(value))
         if bad.size:
             raise CheckpointError(f"{path}: variable {name} holds {bad.size} non-finite values; not continued")
@@ -68,12 +75,24 @@ def _check_state(path, planet: dict | None, x: np.ndarray, stepper_state: dict) 
     bound = MAX_FROUDE * np.sqrt(g * h.max())
     speed = np.hypot(x[0], x[1]).max()
     if speed > bound:
-        raise CheckpointError(f"{path}: variables u, v hold a wind of {speed:.4g} m/s, beyond {bound:.4g} m/s "
-                              f"({MAX_FROUDE:g} x the gravity-wave speed of the deepest node); not continued")
+        raise CheckpointError(
+            f"{path}: variables u, v hold a wind of {speed:.4g} m/s, beyond {bound:.4g} m/s "
+            f"({MAX_FROUDE:g} x the gravity-wave speed of the deepest node); not continued"
+        )
 
 
-def write(path, scene, step: int, x: np.ndarray, stepper_state: dict, counters: dict, initial: dict,
-          *, overwrite: bool = True, restart_every: float | None = None) -> Path:
+def write(
+    path,
+    scene,
+    step: int,
+    x: np.ndarray,
+    stepper_state: dict,
+    counters: dict,
+    initial: dict,
+    *,
+    overwrite: bool = True,
+    restart_every: float | None = None,
+) -> Path:
     """Write a restart file to ``path`` atomically (via ``output.ExclusiveFile``).
 
     ``scene``: the run's ``config.Scene``; ``x``: (3, N) element-local state (u, v
@@ -134,29 +153,51 @@ def read(path) -> dict:
         if written is None:
             raise CheckpointError(f"{path}: not a swe_sphere checkpoint")
         if written != FORMAT:
-            raise CheckpointError(f"{path} is in checkpoint format {written}; this swe_sphere reads format {FORMAT} only")
+            raise CheckpointError(
+                f"{path} is in checkpoint format {written}; this swe_sphere reads format {FORMAT} only"
+            )
         version = str(attrs.get("swe_sphere_version"))
         if version != package_version():
-            raise CheckpointError(f"{path} was written by swe_sphere {version}; this is {package_version()} (continue it with that version)")
+            raise CheckpointError(
+                f"{path} was written by swe_sphere {version}; this is {package_version()} (continue it with that version)"
+            )
         arrays = {}
         for name in ds.variables:
             try:
                 arrays[name] = np.asarray(ds[name][:], dtype=np.float64)
             except (RuntimeError, OSError) as err:  # a failed Fletcher-32 checksum reads as an HDF error
-                raise CheckpointError(f"{path}: variable {name} fails its checksum ({err}); the file is damaged") from None
+                raise CheckpointError(
+                    f"{path}: variable {name} fails its checksum ({err}); the file is damaged"
+                ) from None
         try:
-            state = {k[len("stepper_"):]: v for k, v in arrays.items() if k.startswith("stepper_")}
-            state.update({k[len("stepper_"):]: v.item() if isinstance(v, np.generic) else v for k, v in attrs.items() if k.startswith("stepper_")})
+            state = {k[len("stepper_") :]: v for k, v in arrays.items() if k.startswith("stepper_")}
+            state.update(
+                {
+                    k[len("stepper_") :]: v.item() if isinstance(v, np.generic) else v
+                    for k, v in attrs.items()
+                    if k.startswith("stepper_")
+                }
+            )
             x = np.stack([arrays[name] for name in STATE])
-            stored = dict(scene=json.loads(attrs["scene"]), step=int(attrs["step"]), x=x, stepper_state=state,
-                          counters=json.loads(attrs["counters"]), initial=json.loads(attrs["initial"]), version=version,
-                          path=path.resolve(), sha256=sha256, 
-                          restart_every=float(attrs["restart_every_days"]) if "restart_every_days" in attrs else None)
+            stored = dict(
+                scene=json.loads(attrs["scene"]),
+                step=int(attrs["step"]),
+                x=x,
+                stepper_state=state,
+                counters=json.loads(attrs["counters"]),
+                initial=json.loads(attrs["initial"]),
+                version=version,
+                path=path.resolve(),
+                sha256=sha256,
+                restart_every=float(attrs["restart_every_days"]) if "restart_every_days" in attrs else None,
+            )
             digest = attrs["content_sha256"]
             planet = stored["scene"].get("planet")
         except (KeyError, ValueError, TypeError, AttributeError) as err:
             raise CheckpointError(f"{path}: damaged checkpoint ({type(err).__name__}: {err})") from None
     if content_hash(stored["step"], stored["x"], state) != digest:
-        raise CheckpointError(f"{path}: the state or stepper history does not match its content_sha256; the file is damaged")
+        raise CheckpointError(
+            f"{path}: the state or stepper history does not match its content_sha256; the file is damaged"
+        )
     _check_state(path, planet, stored["x"], state)
     return stored

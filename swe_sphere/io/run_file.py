@@ -19,18 +19,20 @@ from pathlib import Path
 import netCDF4
 import numpy as np
 
+from ..core.errors import OutputError
+from ..grid.cubed_sphere import CubedSphere
 from .dual import MESH as DUAL_MESH
 from .dual import write_dual_mesh
-from ..grid.cubed_sphere import CubedSphere
 from .ugrid import write_mesh
-from ..core.errors import OutputError
 
 FIELDS = {
     "h": dict(units="m", long_name="fluid depth"),  # CF has no standard name for a shallow-water depth
     "hs": dict(units="m", long_name="surface height", standard_name="surface_altitude"),
     "u": dict(units="m s-1", long_name="eastward wind", standard_name="eastward_wind"),
     "v": dict(units="m s-1", long_name="northward wind", standard_name="northward_wind"),
-    "vorticity": dict(units="s-1", long_name="relative vorticity", standard_name="atmosphere_upward_relative_vorticity"),
+    "vorticity": dict(
+        units="s-1", long_name="relative vorticity", standard_name="atmosphere_upward_relative_vorticity"
+    ),
     "divergence": dict(units="s-1", long_name="divergence of the wind", standard_name="divergence_of_wind"),
 }
 OUTPUT_FIELDS = ("h", "u", "v", "vorticity", "divergence")  # the (time, ncol) fields of a run file, in its order
@@ -48,8 +50,13 @@ CONVENTIONS = "CF-1.8 UGRID-1.0"
 # calendar date); CDO and the CF checker need the reference date and the calendar. xarray
 # decodes it to datetimes unless opened with ``decode_times=False`` (as ``swe_sphere.run`` and
 # ``remap.open_netcdf`` do), which keeps ``time`` in days: ``.sel(time=3)`` is model day 3.
-TIME_ATTRS = dict(units="days since 2000-01-01 00:00:00", calendar="proleptic_gregorian",
-                  long_name="model time (day 0: the initial state)", standard_name="time", axis="T")
+TIME_ATTRS = dict(
+    units="days since 2000-01-01 00:00:00",
+    calendar="proleptic_gregorian",
+    long_name="model time (day 0: the initial state)",
+    standard_name="time",
+    axis="T",
+)
 
 SERIES_ATTRS = {
     "mass": dict(units="m3", long_name="mass (area integral of h)"),
@@ -61,31 +68,47 @@ SERIES_ATTRS = {
     "rhs_evals": dict(units="1", long_name="cumulative right-hand-side evaluations"),
     "wall_time": dict(units="s", long_name="cumulative wall time of the time loop"),
     "courant_advective": dict(units="1", long_name="maximum advective Courant number |v| dt / dx over the nodes"),
-    "courant_gravity": dict(units="1", long_name="maximum gravity-wave Courant number sqrt(g h) dt / dx over the nodes"),
-    "helmholtz_iterations": dict(units="1", long_name="cumulative Helmholtz-solve iterations (CG iterations or AMG V-cycles)"),
+    "courant_gravity": dict(
+        units="1", long_name="maximum gravity-wave Courant number sqrt(g h) dt / dx over the nodes"
+    ),
+    "helmholtz_iterations": dict(
+        units="1", long_name="cumulative Helmholtz-solve iterations (CG iterations or AMG V-cycles)"
+    ),
     "precond_iterations": dict(units="1", long_name="cumulative applications of the JFNK preconditioner"),
     "newton_iterations": dict(units="1", long_name="cumulative Newton iterations"),
     "gmres_iterations": dict(units="1", long_name="cumulative GMRES iterations"),
     "krylov_iterations": dict(units="1", long_name="cumulative Krylov vectors of the exponential steppers' KIOPS"),
     "substeps_iterations": dict(units="1", long_name="cumulative accepted KIOPS substeps"),
     "rejected_iterations": dict(units="1", long_name="cumulative rejected KIOPS substeps"),
-    "fast_iterations": dict(units="1", long_name="cumulative fast (gravity-wave) evaluations of the multirate steppers' substeps"),
+    "fast_iterations": dict(
+        units="1", long_name="cumulative fast (gravity-wave) evaluations of the multirate steppers' substeps"
+    ),
     "steps": dict(units="1", long_name="time steps taken"),
 }
 for _f in ("h", "wind"):
     for _n, _long in (("l1", "normalized l1"), ("l2", "normalized l2"), ("linf", "normalized l-infinity")):
-        SERIES_ATTRS[f"{_n}_{_f}"] = dict(units="1", long_name=f"{_long} error of {_f} against the exact solution (Williamson et al. 1992)")
+        SERIES_ATTRS[f"{_n}_{_f}"] = dict(
+            units="1", long_name=f"{_long} error of {_f} against the exact solution (Williamson et al. 1992)"
+        )
 for _f, _what in (("h_surface", "free-surface height h + hs"), ("wind", "wind")):
     for _n, _long in (("l1", "normalized l1"), ("l2", "normalized l2"), ("linf", "normalized l-infinity")):
         SERIES_ATTRS[f"ref_{_n}_{_f}"] = dict(
-            units="1", long_name=f"{_long} error of the {_what} against the spectral reference (global attribute reference; NaN where it stores no output)"
+            units="1",
+            long_name=f"{_long} error of the {_what} against the spectral reference (global attribute reference; NaN where it stores no output)",
         )
 
 
-for _pre, _what in (("", "the exact solution"), ("ref_", "the spectral reference (global attribute reference; NaN where it stores no output)")):
-    for _f, _part in (("vorticity", "relative vorticity (balanced flow)"), ("divergence", "divergence (gravity waves)")):
+for _pre, _what in (
+    ("", "the exact solution"),
+    ("ref_", "the spectral reference (global attribute reference; NaN where it stores no output)"),
+):
+    for _f, _part in (
+        ("vorticity", "relative vorticity (balanced flow)"),
+        ("divergence", "divergence (gravity waves)"),
+    ):
         SERIES_ATTRS[f"{_pre}l2_{_f}"] = dict(
-            units="1", long_name=f"l2 of the {_part} of the wind error against {_what}, over that of the true wind's vorticity and divergence"
+            units="1",
+            long_name=f"l2 of the {_part} of the wind error against {_what}, over that of the true wind's vorticity and divergence",
         )
 
 
@@ -154,7 +177,9 @@ def check_distinct(outputs, inputs) -> None:
         for path in (out, out.with_name(out.name + ".part"), out.with_name(out.name + ".lock")):
             inp = known.get(_identity(path))
             if inp is not None:
-                raise OutputError(f"the output {path} is the input {inp}; writing it would replace the input (choose another output)")
+                raise OutputError(
+                    f"the output {path} is the input {inp}; writing it would replace the input (choose another output)"
+                )
 
 
 def acquire_lock(lock: Path, what) -> int:
@@ -229,7 +254,9 @@ class ExclusiveFile:
                 self._create()
             except FileExistsError:  # we hold the lock: whoever wrote it is gone
                 if not overwrite:
-                    raise OutputError(f"{self.tmp} was left by a run that was killed (--overwrite, or overwrite=True in Python, replaces it)") from None
+                    raise OutputError(
+                        f"{self.tmp} was left by a run that was killed (--overwrite, or overwrite=True in Python, replaces it)"
+                    ) from None
                 self.tmp.unlink()
                 self._create()
         except BaseException:
@@ -261,7 +288,9 @@ class ExclusiveFile:
             try:
                 os.link(self.tmp, self.path)  # fails if the target appeared meanwhile
             except FileExistsError:
-                raise OutputError(f"{self.path} appeared while it was written; the result is kept in {self.tmp}") from None
+                raise OutputError(
+                    f"{self.path} appeared while it was written; the result is kept in {self.tmp}"
+                ) from None
             except OSError:  # a file system without hard links: check, then rename
                 check_target(self.path, False)
                 os.rename(self.tmp, self.path)
@@ -296,8 +325,18 @@ class RunWriter:
     ``fields``: the node fields it holds (of ``OUTPUT_FIELDS``; default all).
     """
 
-    def __init__(self, path, grid: CubedSphere, hs: np.ndarray, attrs: dict, series, *, overwrite: bool = False,
-                 compress: bool = False, fields=OUTPUT_FIELDS):
+    def __init__(
+        self,
+        path,
+        grid: CubedSphere,
+        hs: np.ndarray,
+        attrs: dict,
+        series,
+        *,
+        overwrite: bool = False,
+        compress: bool = False,
+        fields=OUTPUT_FIELDS,
+    ):
         self.path, self.fields = Path(path), tuple(fields)
         self.file = ExclusiveFile(self.path, overwrite=overwrite)
         self.tmp = self.file.tmp
@@ -326,7 +365,11 @@ class RunWriter:
             var.standard_name = std
             var[:] = grid.to_unique(deg)
         area = ds.createVariable("area", "f8", ("ncol",))
-        area.units, area.long_name, area.standard_name = "m2", "area of the node's quadrature cell (assembled spheremp)", "cell_area"
+        area.units, area.long_name, area.standard_name = (
+            "m2",
+            "area of the node's quadrature cell (assembled spheremp)",
+            "cell_area",
+        )
         area[:] = grid.area
         hsv = ds.createVariable("hs", "f8", ("ncol",))
         hsv.setncatts({**FIELDS["hs"], "coordinates": "lat lon", **UGRID_FACE})
@@ -392,13 +435,21 @@ def node_dataset(grid: CubedSphere, hs: np.ndarray, day: float, fields: dict, at
     node = {"coordinates": "lat lon"}
     ds = xr.Dataset(
         {name: ("ncol", grid.to_unique(f), {**FIELDS[name], **FIELD_ATTRS}) for name, f in fields.items()},
-        coords=dict(lat=("ncol", grid.to_unique(np.degrees(grid.lat)), dict(units="degrees_north", standard_name="latitude")),
-                    lon=("ncol", grid.to_unique(np.degrees(grid.lon)), dict(units="degrees_east", standard_name="longitude")),
-                    time=((), day, TIME_ATTRS)),
+        coords=dict(
+            lat=("ncol", grid.to_unique(np.degrees(grid.lat)), dict(units="degrees_north", standard_name="latitude")),
+            lon=("ncol", grid.to_unique(np.degrees(grid.lon)), dict(units="degrees_east", standard_name="longitude")),
+            time=((), day, TIME_ATTRS),
+        ),
         attrs={k: attribute(v) for k, v in attrs.items()},
     )
     ds["hs"] = ("ncol", grid.to_unique(hs), {**FIELDS["hs"], **node})
-    ds["area"] = ("ncol", grid.area, dict(units="m2", long_name="area of the node's quadrature cell (assembled spheremp)", standard_name="cell_area"))
+    ds["area"] = (
+        "ncol",
+        grid.area,
+        dict(
+            units="m2", long_name="area of the node's quadrature cell (assembled spheremp)", standard_name="cell_area"
+        ),
+    )
     return ds
 
 

@@ -41,19 +41,39 @@ def orientation(xyz_unique: np.ndarray, quads: np.ndarray) -> np.ndarray:
     return np.minimum(t1, t2)
 
 
-def write_topology(ds, name: str, connectivity: str, faces: np.ndarray, dims: tuple, *, long_name: str,
-                   corners: str, node_coordinates: str, **attrs) -> None:
+def write_topology(
+    ds,
+    name: str,
+    connectivity: str,
+    faces: np.ndarray,
+    dims: tuple,
+    *,
+    long_name: str,
+    corners: str,
+    node_coordinates: str,
+    **attrs,
+) -> None:
     """Add a 2-D UGRID ``mesh_topology`` variable ``name`` and its face_node_connectivity
     ``connectivity`` (int32 ``faces`` (nface, nmax) on ``dims``, 0-based, −1 padding as
     its _FillValue; ``corners`` its long_name) to an open ``netCDF4.Dataset`` ``ds``;
     ``attrs``: more attributes of the mesh (face_coordinates, ...)."""
     mesh = ds.createVariable(name, "i4", ())
-    mesh.setncatts(dict(cf_role="mesh_topology", long_name=long_name, topology_dimension=np.int32(2),
-                        node_coordinates=node_coordinates, face_node_connectivity=connectivity,
-                        face_dimension=dims[0], **attrs))
+    mesh.setncatts(
+        dict(
+            cf_role="mesh_topology",
+            long_name=long_name,
+            topology_dimension=np.int32(2),
+            node_coordinates=node_coordinates,
+            face_node_connectivity=connectivity,
+            face_dimension=dims[0],
+            **attrs,
+        )
+    )
     mesh.assignValue(0)
     padded = bool((faces < 0).any())
-    conn = ds.createVariable(connectivity, "i4", dims, fill_value=np.int32(-1) if padded else False, zlib=True)  # 25× smaller
+    conn = ds.createVariable(
+        connectivity, "i4", dims, fill_value=np.int32(-1) if padded else False, zlib=True
+    )  # 25× smaller
     conn.setncatts(dict(cf_role="face_node_connectivity", long_name=corners, start_index=np.int32(0)))
     conn[:] = faces
 
@@ -65,6 +85,13 @@ def write_mesh(ds, grid: CubedSphere) -> None:
     quads = subcell_quads(grid)
     ds.createDimension(FACE_DIM, quads.shape[0])
     ds.createDimension(MAX_DIM, 4)
-    write_topology(ds, MESH, CONNECTIVITY, quads, (FACE_DIM, MAX_DIM),
-                   long_name="sub-cell mesh of quadrilaterals between the GLL nodes", node_coordinates="lon lat",
-                   corners="corner nodes (ncol indices) of each sub-cell, counter-clockwise from outside")
+    write_topology(
+        ds,
+        MESH,
+        CONNECTIVITY,
+        quads,
+        (FACE_DIM, MAX_DIM),
+        long_name="sub-cell mesh of quadrilaterals between the GLL nodes",
+        node_coordinates="lon lat",
+        corners="corner nodes (ncol indices) of each sub-cell, counter-clockwise from outside",
+    )

@@ -7,4 +7,4 @@ check), ``diagnostics`` (invariants, Courant numbers, signal rates).
 May import: ``core``, ``grid``, ``kernels``.
 """
 
-__all__ = ['bad_nodes', 'diagnostics', 'hyperviscosity', 'shallow_water']
+__all__ = ["bad_nodes", "diagnostics", "hyperviscosity", "shallow_water"]

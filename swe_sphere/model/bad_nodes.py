@@ -50,4 +50,8 @@ class BadNodes:
         m = self.model
         check_depth = 1 if "pressure_gradient" in m.terms else 0
         slots = [first[k : k + 1] for k in range(first.shape[0])]  # one per thread: CPU atomics are plain
-        m._replay((name, x.ptr), (x,), lambda: [m._launch(blas.first_bad_node, m.N, [x, check_depth, first], {"first": slots})])
+        m._replay(
+            (name, x.ptr),
+            (x,),
+            lambda: [m._launch(blas.first_bad_node, m.N, [x, check_depth, first], {"first": slots})],
+        )

@@ -76,7 +76,9 @@ def ideal_hyperviscosity_rate(l: int, kind: str, nu: float, nu_div: float, nu_s:
     height ν_s (l(l+1))²/a⁴, rotational ν (l(l+1) − 2)²/a⁴, divergent
     (l(l+1) − 2)(ν_div l(l+1) − 2ν)/a⁴."""
     k = l * (l + 1)
-    return {"height": nu_s * k * k, "rotational": nu * (k - 2) ** 2, "divergent": (k - 2) * (nu_div * k - 2 * nu)}[kind] / radius**4
+    return {"height": nu_s * k * k, "rotational": nu * (k - 2) ** 2, "divergent": (k - 2) * (nu_div * k - 2 * nu)}[
+        kind
+    ] / radius**4
 
 
 def hyperviscosity_rate(model, state) -> float:

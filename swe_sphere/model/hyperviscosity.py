@@ -14,8 +14,8 @@ import math
 import numpy as np
 import warp as wp
 
-from ..kernels import blas, hyperviscosity, operators
 from ..core.parallel import array_key
+from ..kernels import blas, hyperviscosity, operators
 
 f64 = wp.float64
 
@@ -64,12 +64,21 @@ class Hyperviscosity:
         names = ("xyz", *(("east", "north") if m.per_element or divergent else ()), *(("Dinv",) if divergent else ()))
 
         if m.per_element:
+
             def laplacian(second):  # → the weak form of Y₁ or Y₂ in L
                 kernel = hyperviscosity.laplacian_element(second, divergent, np_)
                 frame = self._frame(*() if second else names, rows=True)
-                args = [*map(m.as_rows, (Y if second else x, m.hs, delta)), c, frame, m.as_rows(self.hv_metric), m.dvv_rows, m.as_rows(L)]
+                args = [
+                    *map(m.as_rows, (Y if second else x, m.hs, delta)),
+                    c,
+                    frame,
+                    m.as_rows(self.hv_metric),
+                    m.dvv_rows,
+                    m.as_rows(L),
+                ]
                 return [m._launch_elements(kernel, args)]
         else:
+
             def laplacian(second):
                 src = Y if second else self.hv_X
                 first = [] if second else [m._launch(hyperviscosity.to_cartesian, N, [x, m.hs, m.east, m.north, src])]

@@ -12,18 +12,17 @@ scene names ``forcing``. Mirrors HOMME's ``compute_and_apply_rhs`` + ``advance_h
 
 from __future__ import annotations
 
-
 import numpy as np
 import warp as wp
 
-from .bad_nodes import BadNodes
 from ..core.constants import EARTH
 from ..core.graphs import GraphGuard
-from ..grid.cubed_sphere import CubedSphere
-from .hyperviscosity import Hyperviscosity
-from ..kernels import blas, gravity_wave, operators, tendencies
 from ..core.parallel import array_key, default_threads, record
+from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology
+from ..kernels import blas, gravity_wave, operators, tendencies
+from .bad_nodes import BadNodes
+from .hyperviscosity import Hyperviscosity
 
 TERMS = (
     "continuity",
@@ -74,7 +73,21 @@ class ShallowWater:
     """
 
     def __init__(
-        self, grid: CubedSphere, terms, fcor, hs, *, nu=0.0, nu_div=None, nu_s=None, hypervis_subcycle=1, g=EARTH.g, device="cpu", threads=None, per_element=None, topology=None,
+        self,
+        grid: CubedSphere,
+        terms,
+        fcor,
+        hs,
+        *,
+        nu=0.0,
+        nu_div=None,
+        nu_s=None,
+        hypervis_subcycle=1,
+        g=EARTH.g,
+        device="cpu",
+        threads=None,
+        per_element=None,
+        topology=None,
         forcing=None,
     ):
         terms = tuple(terms)
@@ -86,7 +99,9 @@ class ShallowWater:
         if "forcing" in terms and not set(terms) & set(tendencies.TENDENCY_TERMS):
             raise ValueError("the forcing term adds to the tendency: name at least one tendency term")
         self.forcing = forcing if "forcing" in terms else None
-        self.graph_guard = GraphGuard()  # whether its solvers may capture graphs (``graphs``; off for good on a failure)
+        self.graph_guard = (
+            GraphGuard()
+        )  # whether its solvers may capture graphs (``graphs``; off for good on a failure)
         self.time = 0.0  # s, the model time of the next RHS evaluation (``set_time``)
         self._forcing_launches = []  # every recorded forcing launch, whose t set_time sets
         nu_div = nu if nu_div is None else nu_div
@@ -124,7 +139,12 @@ class ShallowWater:
         if "topography" in terms:
             self.topo_forcing = wp.zeros((2, N), dtype=f64, device=device)
             hs2 = wp.array(np.asarray(hs, dtype=float)[None, :], dtype=f64, device=device)
-            wp.launch(operators.gradient_sphere, N, [hs2, 0, self.Dinv, self.dvv, grid.np, self.topo_forcing, 0], device=device)
+            wp.launch(
+                operators.gradient_sphere,
+                N,
+                [hs2, 0, self.Dinv, self.dvv, grid.np, self.topo_forcing, 0],
+                device=device,
+            )
             forcing = -self.g * self.topo_forcing.numpy()
             self.topo_forcing.assign(forcing)
         self._recorded: dict[tuple, tuple] = {}
@@ -136,11 +156,15 @@ class ShallowWater:
     def _launch(self, kernel, dim, inputs, per_part=None):
         """Record a launch of a kernel with a trailing ``offset`` argument (not in
         ``inputs``) over dim N or (rows, N): split over ``threads`` node ranges on CPU."""
-        return record(kernel, dim, inputs, device=self.device, threads=self.threads, block=self.grid.np**2, per_part=per_part)
+        return record(
+            kernel, dim, inputs, device=self.device, threads=self.threads, block=self.grid.np**2, per_part=per_part
+        )
 
     def _launch_elements(self, kernel, inputs):
         """Record a per-element kernel (dim nelem, trailing element ``offset``)."""
-        return record(kernel, self.grid.nelem, inputs, device=self.device, threads=self.threads, nodes_per_index=self.grid.np**2)
+        return record(
+            kernel, self.grid.nelem, inputs, device=self.device, threads=self.threads, nodes_per_index=self.grid.np**2
+        )
 
     def _launch_pointwise(self, kernel, rows, inputs):
         """Record a pointwise kernel with trailing ``block`` and ``offset`` arguments
@@ -149,7 +173,12 @@ class ShallowWater:
         block = self.grid.np**2 if self.per_element else 1
         n = self.N // block
         return record(
-            kernel, n if rows is None else (rows, n), [*inputs, block], device=self.device, threads=self.threads, nodes_per_index=block
+            kernel,
+            n if rows is None else (rows, n),
+            [*inputs, block],
+            device=self.device,
+            threads=self.threads,
+            nodes_per_index=block,
         )
 
     def lincomb(self, out, terms):
@@ -172,7 +201,11 @@ class ShallowWater:
         key = (kernel.key, *(a.ptr if isinstance(a, wp.array) else None for a in inputs))
         launch = self._pointwise_launches.get(key)
         if launch is None:
-            build = self._launch(kernel, (3, self.topology.nunique), list(inputs)) if unique else self._launch_pointwise(kernel, 3, list(inputs))
+            build = (
+                self._launch(kernel, (3, self.topology.nunique), list(inputs))
+                if unique
+                else self._launch_pointwise(kernel, 3, list(inputs))
+            )
             launch = self._pointwise_launches[key] = build
         else:
             for arg, value in zip(kernel.adj.args, inputs):
@@ -204,14 +237,20 @@ class ShallowWater:
             args = [x, self.D, self.Dinv, self.metdet, self.fcor, forcing]
             if self.per_element:
                 kernel = tendencies.tendency_element(terms, self.grid.np)
-                launches.append(self._launch_elements(kernel, [*map(self.as_rows, args), self.g, self.dvv_rows, self.as_rows(self.tend)]))
+                launches.append(
+                    self._launch_elements(
+                        kernel, [*map(self.as_rows, args), self.g, self.dvv_rows, self.as_rows(self.tend)]
+                    )
+                )
             else:
                 kernel = tendencies.tendency(terms)
                 launches.append(self._launch(kernel, self.N, [*args, self.dvv, self.grid.np, self.g, self.tend]))
         forced = self.forcing is not None and "forcing" in named
         if forced:
             kernel, params = self.forcing
-            launch = self._launch_pointwise(kernel, None, [self.xyz, self.east, self.north, params, f64(self.time), self.tend])
+            launch = self._launch_pointwise(
+                kernel, None, [self.xyz, self.east, self.north, params, f64(self.time), self.tend]
+            )
             self._forcing_launches.append(launch)
             launches.append(launch)
         lo = 0 if forced or set(terms) - {"continuity"} else 2
@@ -220,7 +259,9 @@ class ShallowWater:
 
     def _build_rhs(self, x, out, named):
         launches, lo, hi = self._build_tendency(x, named)
-        launches.extend(self._dss(self.tend[lo:hi], 1, out[lo:hi]) if (lo, hi) != (0, 3) else self._dss(self.tend, 1, out))
+        launches.extend(
+            self._dss(self.tend[lo:hi], 1, out[lo:hi]) if (lo, hi) != (0, 3) else self._dss(self.tend, 1, out)
+        )
         return launches
 
     def _build_rhs_update(self, x, updates, named):
@@ -233,7 +274,9 @@ class ShallowWater:
                 for r0, r1 in ((0, lo), (hi, 3)):
                     if r0 < r1:
                         if not arrays:
-                            raise ValueError(f"an update of F alone into rows {r0}:{r1}, which the terms {named} do not write")
+                            raise ValueError(
+                                f"an update of F alone into rows {r0}:{r1}, which the terms {named} do not write"
+                            )
                         rest.append(self.lincomb(out[r0:r1], ((a, src[r0:r1]) for a, src in arrays)))
             r0, r1 = (lo, hi) if rows is None else (rows.start, rows.stop)
             if not lo <= r0 < r1 <= hi:
@@ -262,7 +305,9 @@ class ShallowWater:
         if terms is None:
             return self.terms
         if not terms or not set(terms) <= set(self.terms) - {"hyperviscosity"}:
-            raise ValueError(f"rhs terms must be a non-empty subset of {self.terms} without hyperviscosity (got {terms})")
+            raise ValueError(
+                f"rhs terms must be a non-empty subset of {self.terms} without hyperviscosity (got {terms})"
+            )
         return terms
 
     def rhs(self, x: wp.array2d, out: wp.array2d, terms: tuple | None = None) -> None:
@@ -292,10 +337,19 @@ class ShallowWater:
         those combinations. Recorded once per arrays and coefficients;
         ValueError for rows F lacks."""
         terms = self._rhs_terms(terms)
-        key = ("rhs_update", terms, x.ptr, tuple(
-            (None if rows is None else (rows.start, rows.stop), out.ptr, tuple((a, None if src is None else src.ptr) for a, src in t))
-            for rows, out, t in updates
-        ))
+        key = (
+            "rhs_update",
+            terms,
+            x.ptr,
+            tuple(
+                (
+                    None if rows is None else (rows.start, rows.stop),
+                    out.ptr,
+                    tuple((a, None if src is None else src.ptr) for a, src in t),
+                )
+                for rows, out, t in updates
+            ),
+        )
         arrays = (x, *(a for _, out, t in updates for a in (out, *(src for _, src in t if src is not None))))
         self._replay(key, arrays, lambda: self._build_rhs_update(x, updates, terms))
 
@@ -322,16 +376,24 @@ class ShallowWater:
     def _element_grad(self, x, row):
         """The launch of the element-local ∇ x[row] into ``vec_work``."""
         if self.per_element:
-            return self._launch_elements(operators.gradient_element(self.grid.np), [self.as_rows(x), row, self.as_rows(self.Dinv), self.dvv_rows, self.as_rows(self.vec_work)])
-        return self._launch(operators.gradient_sphere, self.N, [x, row, self.Dinv, self.dvv, self.grid.np, self.vec_work])
+            return self._launch_elements(
+                operators.gradient_element(self.grid.np),
+                [self.as_rows(x), row, self.as_rows(self.Dinv), self.dvv_rows, self.as_rows(self.vec_work)],
+            )
+        return self._launch(
+            operators.gradient_sphere, self.N, [x, row, self.Dinv, self.dvv, self.grid.np, self.vec_work]
+        )
 
     def _element_div(self, x):
         """The launch of the element-local ∇·v of x's rows 0, 1 into ``scalar``."""
         if self.per_element:
             return self._launch_elements(
-                operators.divergence_element(self.grid.np), [*map(self.as_rows, (x, self.Dinv, self.metdet)), self.dvv_rows, self.as_rows(self.scalar_flat)]
+                operators.divergence_element(self.grid.np),
+                [*map(self.as_rows, (x, self.Dinv, self.metdet)), self.dvv_rows, self.as_rows(self.scalar_flat)],
             )
-        return self._launch(operators.divergence_sphere, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.scalar_flat])
+        return self._launch(
+            operators.divergence_sphere, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.scalar_flat]
+        )
 
     def _build_grad(self, x, row, out):
         return [self._element_grad(x, row), *self._dss(self.vec_work, 1, out)]
@@ -353,14 +415,31 @@ class ShallowWater:
         (row views such as ``z[0:2]``): out = Σ a·src over terms (a, src), src None
         standing for G x[row] (``Topology.dss_update``: one to three terms, at most two
         arrays). Outputs may alias x and the terms. Recorded once per arrays and coefficients."""
-        key = ("grad_update", array_key(x), row, tuple((array_key(out), tuple((a, None if src is None else array_key(src)) for a, src in t)) for out, t in updates))
+        key = (
+            "grad_update",
+            array_key(x),
+            row,
+            tuple(
+                (array_key(out), tuple((a, None if src is None else array_key(src)) for a, src in t))
+                for out, t in updates
+            ),
+        )
         arrays = (x, *(a for out, t in updates for a in (out, *(src for _, src in t if src is not None))))
-        self._replay(key, arrays, lambda: [self._element_grad(x, row), *self.topology.dss_update(self.vec_work, updates)])
+        self._replay(
+            key, arrays, lambda: [self._element_grad(x, row), *self.topology.dss_update(self.vec_work, updates)]
+        )
 
     def divergence_update(self, x: wp.array2d, updates) -> None:
         """D v = DSS(∇·v) of x's rows 0, 1 as ``divergence`` computes it, written into
         one or two (out, terms) combinations of (1, N) arrays as ``gradient_update``'s."""
-        key = ("div_update", array_key(x), tuple((array_key(out), tuple((a, None if src is None else array_key(src)) for a, src in t)) for out, t in updates))
+        key = (
+            "div_update",
+            array_key(x),
+            tuple(
+                (array_key(out), tuple((a, None if src is None else array_key(src)) for a, src in t))
+                for out, t in updates
+            ),
+        )
         arrays = (x, *(a for out, t in updates for a in (out, *(src for _, src in t if src is not None))))
         self._replay(key, arrays, lambda: [self._element_div(x), *self.topology.dss_update(self.scalar, updates)])
 
@@ -371,26 +450,52 @@ class ShallowWater:
         written into one or two (out, terms) combinations of (3, N) arrays as
         ``gradient_update``'s (src None standing for L x). Recorded once per arrays, H and
         coefficients."""
-        key = ("linear_update", array_key(x), H, tuple((array_key(out), tuple((a, None if src is None else array_key(src)) for a, src in t)) for out, t in updates))
+        key = (
+            "linear_update",
+            array_key(x),
+            H,
+            tuple(
+                (array_key(out), tuple((a, None if src is None else array_key(src)) for a, src in t))
+                for out, t in updates
+            ),
+        )
         arrays = (x, *(a for out, t in updates for a in (out, *(src for _, src in t if src is not None))))
 
         def build():
             if self.per_element:
-                element = self._launch_elements(gravity_wave.linear_element(self.grid.np), [
-                    *map(self.as_rows, (x, self.Dinv, self.metdet)), self.g, f64(H), self.dvv_rows, self.as_rows(self.tend)])
+                element = self._launch_elements(
+                    gravity_wave.linear_element(self.grid.np),
+                    [
+                        *map(self.as_rows, (x, self.Dinv, self.metdet)),
+                        self.g,
+                        f64(H),
+                        self.dvv_rows,
+                        self.as_rows(self.tend),
+                    ],
+                )
             else:
-                element = self._launch(gravity_wave.linear, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.g, f64(H), self.tend])
+                element = self._launch(
+                    gravity_wave.linear,
+                    self.N,
+                    [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.g, f64(H), self.tend],
+                )
             return [element, *self.topology.dss_update(self.tend, updates)]
 
         self._replay(key, arrays, build)
 
     def assemble(self, x: wp.array2d, row: int, out: wp.array) -> None:
         """Unique-node out (nunique,) = M x[row]: assembled mass times a continuous field."""
-        self._replay(("assemble", array_key(x), row, array_key(out)), (x, out), lambda: self.topology.assemble(x, row, out))
+        self._replay(
+            ("assemble", array_key(x), row, array_key(out)), (x, out), lambda: self.topology.assemble(x, row, out)
+        )
 
     def scatter(self, y: wp.array, out: wp.array2d, row: int, rows: int = 1) -> None:
         """Element-local out[row : row + rows] from a unique-node vector y of ``rows`` rows."""
-        self._replay(("scatter", array_key(y), array_key(out), row, rows), (y, out), lambda: self.topology.scatter(y, out, row, rows))
+        self._replay(
+            ("scatter", array_key(y), array_key(out), row, rows),
+            (y, out),
+            lambda: self.topology.scatter(y, out, row, rows),
+        )
 
     # -- diagnostics helpers ------------------------------------------------
     def vorticity(self, x: wp.array2d) -> np.ndarray:
@@ -400,10 +505,15 @@ class ShallowWater:
             (x,),
             lambda: [
                 self._launch_elements(
-                    operators.vorticity_element(self.grid.np), [*map(self.as_rows, (x, self.D, self.metdet)), self.dvv_rows, self.as_rows(self.scalar_flat)]
+                    operators.vorticity_element(self.grid.np),
+                    [*map(self.as_rows, (x, self.D, self.metdet)), self.dvv_rows, self.as_rows(self.scalar_flat)],
                 )
                 if self.per_element
-                else self._launch(operators.vorticity_sphere, self.N, [x, self.D, self.metdet, self.dvv, self.grid.np, self.scalar_flat]),
+                else self._launch(
+                    operators.vorticity_sphere,
+                    self.N,
+                    [x, self.D, self.metdet, self.dvv, self.grid.np, self.scalar_flat],
+                ),
                 *self._dss(self.scalar, 1, self.scalar_dss),
             ],
         )

@@ -8,4 +8,4 @@ bad-state check), ``summary`` (counts and the result), ``state_diagnostics``, ``
 May import: every layer below (``core`` to ``config``).
 """
 
-__all__ = ['callbacks', 'checkpoint', 'guard', 'schedules', 'simulation', 'state_diagnostics', 'summary', 'writers']
+__all__ = ["callbacks", "checkpoint", "guard", "schedules", "simulation", "state_diagnostics", "summary", "writers"]

@@ -21,10 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import restart_file
 from ..config.scene import DT_NOTES, Scene, scene_from_dict, with_days
-from ..core.errors import SceneError
-from ..core.errors import CheckpointError
+from ..core.errors import CheckpointError, SceneError
+from ..io import restart_file
 from ..steppers import STEPPERS
 
 
@@ -60,12 +59,24 @@ def branch(ck: Checkpoint, *, stepper: str | None = None, dt: float | None = Non
         raise SceneError(f"unknown stepper {stepper!r} (known: {', '.join(STEPPERS)})")
     if dt is not None and not (math.isfinite(dt) and dt > 0):
         raise SceneError(f"dt must be > 0 (got {dt:g})")
-    record = {"restart": None if ck.path is None else str(ck.path), "sha256": ck.sha256, "step": ck.step, "day": s.day(ck.step),
-              "stepper": s.stepper, "dt": s.dt}
+    record = {
+        "restart": None if ck.path is None else str(ck.path),
+        "sha256": ck.sha256,
+        "step": ck.step,
+        "day": s.day(ck.step),
+        "stepper": s.stepper,
+        "dt": s.dt,
+    }
     # the notes on how the scene's dt was chosen are stale once dt is given
     notes = s.notes if dt is None else tuple(n for n in s.notes if not n.startswith(DT_NOTES))
-    scene = replace(s, stepper=stepper, stepper_options=s.stepper_options if stepper == s.stepper else {},
-                    dt=s.dt if dt is None else float(dt), branch=record, notes=notes)
+    scene = replace(
+        s,
+        stepper=stepper,
+        stepper_options=s.stepper_options if stepper == s.stepper else {},
+        dt=s.dt if dt is None else float(dt),
+        branch=record,
+        notes=notes,
+    )
     return with_days(scene, s.days if days is None else days, "the restart file's" if dt is None else "the dt given")
 
 
@@ -95,7 +106,9 @@ def read_on_root(path, comm) -> Checkpoint:
         raise error
     light = None
     if comm.rank == 0:
-        light = replace(ck, x=None, stepper_state={k: None if isinstance(v, np.ndarray) else v for k, v in ck.stepper_state.items()})
+        light = replace(
+            ck, x=None, stepper_state={k: None if isinstance(v, np.ndarray) else v for k, v in ck.stepper_state.items()}
+        )
     light = comm.bcast(light, root=0)
     return ck if comm.rank == 0 else light
 

@@ -8,9 +8,9 @@ import math
 import numpy as np
 import warp as wp
 
-from .schedules import next_multiple
-from ..steppers import StepStats
 from ..core.errors import StepFailure
+from ..steppers import StepStats
+from .schedules import next_multiple
 
 # Steps between host reads of the bad-state check on a GPU (``Simulation.check_every``).
 # A read waits for the device to drain its queue: ~10-50 µs, as long as a whole launch-bound
@@ -51,8 +51,13 @@ class Guard:
         if self.every == 1 or b == self.first_step:  # the first step alone: its time is first_step_time
             return b + 1
         i = bisect.bisect_right(self.marks, b)
-        ends = [self.stop_step, next_multiple(b, self.every), *self.marks[i : i + 1], *self.sim.callbacks.next_steps(b),
-                *self.ledger.next_steps(b)]
+        ends = [
+            self.stop_step,
+            next_multiple(b, self.every),
+            *self.marks[i : i + 1],
+            *self.sim.callbacks.next_steps(b),
+            *self.ledger.next_steps(b),
+        ]
         return min(ends + ([next_multiple(b, self.log_every)] if self.log_every else []))
 
     def begin(self, b: int, block: bool) -> None:
@@ -107,7 +112,11 @@ class Guard:
         if not sim.root:
             return sim.topology.bcast(None)
         lat, lon = np.degrees(sim.grid.lat[detail]), np.degrees(sim.grid.lon[detail])
-        what = "non-finite value" if not all(math.isfinite(f[detail]) for f in (u, v, h)) else f"depth h = {h[detail]:.4g} m <= 0"
+        what = (
+            "non-finite value"
+            if not all(math.isfinite(f[detail]) for f in (u, v, h))
+            else f"depth h = {h[detail]:.4g} m <= 0"
+        )
         return sim.topology.bcast(
             f"blow-up at step {step} (model time {sim.scene.day(step):.4f} days): {what} "
             f"at lat {lat:.2f}, lon {lon:.2f} degrees"

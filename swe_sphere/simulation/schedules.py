@@ -12,7 +12,9 @@ def steps_of(scene: Scene, days: float, what: str) -> int:
     """The whole number of steps in ``days``; ValueError naming ``what`` unless dt divides it."""
     per = round(days * DAY / scene.dt) if isinstance(days, (int, float)) and math.isfinite(days) else 0
     if per < 1 or abs(per * scene.dt - days * DAY) > 1e-6 * scene.dt:
-        raise ValueError(f"{what} must be a positive multiple of dt = {scene.dt:g} s = {scene.dt / DAY:.6g} days (got {days!r} days)")
+        raise ValueError(
+            f"{what} must be a positive multiple of dt = {scene.dt:g} s = {scene.dt / DAY:.6g} days (got {days!r} days)"
+        )
     return per
 
 

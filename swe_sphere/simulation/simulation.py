@@ -20,33 +20,30 @@ import warp as wp
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
-from . import checkpoint as ckpt
-from ..io import restart_file
-from .callbacks import Callbacks
-from ..config.scene import Scene, resolve_scene, with_days
-from ..core.errors import SceneError
-from ..core.constants import DAY
-from ..core.graphs import GraphedSteps, default_mode, graphs_mode
-from ..grid.cubed_sphere import CubedSphere
-from .guard import CHECK_EVERY_STEPS, Guard
-from ..core.errors import BlowUp
-from ..io.initial_state import from_function
-from ..steppers.initialization import digital_filter
-from ..core.interrupts import StepAbandoned, StopSignals
-from ..model.shallow_water import ShallowWater
-from ..core.mpi import node_local_size
-from ..io.run_file import OUTPUT_FIELDS, check_distinct, check_target, node_dataset
-from ..core.parallel import default_threads
-from ..io.remap import remap_dataset
-from ..core.runtime import check_memory, pick_device, run_bytes
-from ..core.errors import Interrupted, ResourceError
-from .schedules import steps_of
 from ..cases.scoring import Scorer
-from .state_diagnostics import StateDiagnostics
-from ..steppers import StepStats, make_stepper
-from ..core.errors import StepFailure
-from .summary import Ledger, RunResult, interruption
+from ..config.scene import Scene, resolve_scene, with_days
+from ..core.constants import DAY
+from ..core.errors import BlowUp, Interrupted, ResourceError, SceneError, StepFailure
+from ..core.graphs import GraphedSteps, default_mode, graphs_mode
+from ..core.interrupts import StepAbandoned, StopSignals
+from ..core.mpi import node_local_size
+from ..core.parallel import default_threads
+from ..core.runtime import check_memory, pick_device, run_bytes
+from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology, rank_parts
+from ..io import restart_file
+from ..io.initial_state import from_function
+from ..io.remap import remap_dataset
+from ..io.run_file import OUTPUT_FIELDS, check_distinct, check_target, node_dataset
+from ..model.shallow_water import ShallowWater
+from ..steppers import StepStats, make_stepper
+from ..steppers.initialization import digital_filter
+from . import checkpoint as ckpt
+from .callbacks import Callbacks
+from .guard import CHECK_EVERY_STEPS, Guard
+from .schedules import steps_of
+from .state_diagnostics import StateDiagnostics
+from .summary import Ledger, RunResult, interruption
 from .writers import Checkpointer, RunFiles, run_attrs
 
 # The names users catch and read from here (``swe_sphere.BlowUp``, ``swe_sphere.Interrupted``).
@@ -69,9 +66,11 @@ def _check_hyperviscosity(model: ShallowWater, scene: Scene) -> None:
     evals, _ = hv.plan(scene.dt)
     if evals > MAX_HYPERVIS_EVALUATIONS:
         bound = 1.5 / (scene.dt * hv.biharmonic_radius())
-        raise SceneError(f"hyperviscosity nu = {hv.nu_max:.3g} m^4/s is {hv.nu_max / bound:.2g}x its explicit bound "
-                         f"({bound:.3g} m^4/s at dt = {scene.dt:g} s): {evals:.3g} ∇⁴ evaluations a step (at most "
-                         f"{MAX_HYPERVIS_EVALUATIONS}); lower hyperviscosity.nu")
+        raise SceneError(
+            f"hyperviscosity nu = {hv.nu_max:.3g} m^4/s is {hv.nu_max / bound:.2g}x its explicit bound "
+            f"({bound:.3g} m^4/s at dt = {scene.dt:g} s): {evals:.3g} ∇⁴ evaluations a step (at most "
+            f"{MAX_HYPERVIS_EVALUATIONS}); lower hyperviscosity.nu"
+        )
 
 
 def _check_memory(scene: Scene, comm, device: str = "cpu") -> None:
@@ -176,8 +175,19 @@ class Simulation(StateDiagnostics):
 
     inputs: tuple = ()
 
-    def __init__(self, scene, device: str | None = None, *, progress: bool = True, comm=None, start: np.ndarray | None = None,
-                 initial=None, initial_diagnostics: dict | None = None, graphs: str | bool | None = None, **overrides):
+    def __init__(
+        self,
+        scene,
+        device: str | None = None,
+        *,
+        progress: bool = True,
+        comm=None,
+        start: np.ndarray | None = None,
+        initial=None,
+        initial_diagnostics: dict | None = None,
+        graphs: str | bool | None = None,
+        **overrides,
+    ):
         graphs = graphs_mode(default_mode() if graphs is None else graphs)
         scene, inputs = resolve_scene(scene, overrides)
         if device is None:
@@ -210,8 +220,17 @@ class Simulation(StateDiagnostics):
         self.fcor, self.hs = topo.gather(fcor), topo.gather(hs)
         self.g = case.planet.g
         self.model = ShallowWater(
-            local, scene.terms, fcor, hs, nu=scene.nu, nu_div=scene.nu_div, nu_s=scene.nu_s,
-            hypervis_subcycle=scene.hypervis_subcycle, g=self.g, device=device, topology=topo,
+            local,
+            scene.terms,
+            fcor,
+            hs,
+            nu=scene.nu,
+            nu_div=scene.nu_div,
+            nu_s=scene.nu_s,
+            hypervis_subcycle=scene.hypervis_subcycle,
+            g=self.g,
+            device=device,
+            topology=topo,
             forcing=case.forcing() if "forcing" in scene.terms else None,
         )
         _check_hyperviscosity(self.model, scene)
@@ -220,10 +239,23 @@ class Simulation(StateDiagnostics):
         self.scorer = Scorer(case, self.model, topo, self.grid, self.hs, scene.reference_file)
         self.dfi = None
         if start is None:
-            start = np.stack(case.initial(local.lat, local.lon)) if initial is None else from_function(initial, local.lat, local.lon)
+            start = (
+                np.stack(case.initial(local.lat, local.lon))
+                if initial is None
+                else from_function(initial, local.lat, local.lon)
+            )
             if scene.digital_filter is not None:
-                self.dfi = digital_filter(scene.digital_filter, start, grid=local, terms=scene.terms,
-                                          fcor=fcor, hs=hs, g=self.g, device=device, topology=topo)
+                self.dfi = digital_filter(
+                    scene.digital_filter,
+                    start,
+                    grid=local,
+                    terms=scene.terms,
+                    fcor=fcor,
+                    hs=hs,
+                    g=self.g,
+                    device=device,
+                    topology=topo,
+                )
         else:
             start = topo.distribute(None if start is ON_ROOT else start, 3, "start state")
         self.x = self.model.new_state(*(self.dfi.x if self.dfi is not None else start))
@@ -236,7 +268,12 @@ class Simulation(StateDiagnostics):
         if initial_diagnostics is None:
             self.initial = self.diagnose(scene.start_day * DAY)
         self.step = 0  # steps taken since t = 0 (a branched run: since its branch day, ``Scene.start_day``)
-        self.counters = {"rhs_evals": 0, "wall_time": 0.0, "cpu_time": 0.0, "iterations": {k: 0 for k in self.stepper.solvers}}
+        self.counters = {
+            "rhs_evals": 0,
+            "wall_time": 0.0,
+            "cpu_time": 0.0,
+            "iterations": {k: 0 for k in self.stepper.solvers},
+        }
 
     # -- the step --------------------------------------------------------------
     @property
@@ -259,8 +296,18 @@ class Simulation(StateDiagnostics):
 
     # -- restart --------------------------------------------------------------
     @classmethod
-    def from_checkpoint(cls, checkpoint, device: str, *, days: float | None = None, stepper: str | None = None,
-                        dt: float | None = None, progress: bool = True, comm=None, graphs: str | bool | None = None) -> Simulation:
+    def from_checkpoint(
+        cls,
+        checkpoint,
+        device: str,
+        *,
+        days: float | None = None,
+        stepper: str | None = None,
+        dt: float | None = None,
+        progress: bool = True,
+        comm=None,
+        graphs: str | bool | None = None,
+    ) -> Simulation:
         """A simulation that continues a restart file (path or ``checkpoint.Checkpoint``),
         to model day ``days`` (from t = 0; default the checkpointed scene's),
         bitwise as if never stopped. With another ``stepper`` or ``dt`` (s) than
@@ -273,13 +320,29 @@ class Simulation(StateDiagnostics):
         ck = checkpoint if isinstance(checkpoint, ckpt.Checkpoint) else ckpt.read_on_root(checkpoint, comm)
         start = ON_ROOT if ck.x is None else ck.x  # ranks > 0 of ``read_on_root`` have no arrays
         if (stepper is not None and stepper != ck.scene.stepper) or (dt is not None and dt != ck.scene.dt):
-            sim = cls(ckpt.branch(ck, stepper=stepper, dt=dt, days=days), device, progress=progress, comm=comm, start=start, graphs=graphs)
+            sim = cls(
+                ckpt.branch(ck, stepper=stepper, dt=dt, days=days),
+                device,
+                progress=progress,
+                comm=comm,
+                start=start,
+                graphs=graphs,
+            )
         else:
             scene = ck.scene if days is None else with_days(ck.scene, days)
             if scene.nsteps < ck.step:
-                raise ckpt.CheckpointError(f"the run length {scene.days:g} days ends before the checkpoint (day {ck.scene.day(ck.step):g})")
-            sim = cls(scene, device, progress=progress, comm=comm, start=start, initial_diagnostics=ck.initial,  # the state handed out; no second digital filter
-                      graphs=graphs)
+                raise ckpt.CheckpointError(
+                    f"the run length {scene.days:g} days ends before the checkpoint (day {ck.scene.day(ck.step):g})"
+                )
+            sim = cls(
+                scene,
+                device,
+                progress=progress,
+                comm=comm,
+                start=start,
+                initial_diagnostics=ck.initial,  # the state handed out; no second digital filter
+                graphs=graphs,
+            )
             sim._restore_history(ck)
         if not isinstance(checkpoint, ckpt.Checkpoint):
             sim.inputs = (Path(checkpoint),)
@@ -288,7 +351,9 @@ class Simulation(StateDiagnostics):
     def restore(self, ck: ckpt.Checkpoint) -> None:
         """Set the state, stepper history, counters and t = 0 invariants from a checkpoint."""
         try:
-            x = self.topology.distribute(ck.x, 3, "checkpoint state")  # ck.x on rank 0 only (``checkpoint.read_on_root``)
+            x = self.topology.distribute(
+                ck.x, 3, "checkpoint state"
+            )  # ck.x on rank 0 only (``checkpoint.read_on_root``)
         except ValueError as err:
             raise ckpt.CheckpointError(str(err)) from None
         self.x.assign(x)
@@ -309,8 +374,17 @@ class Simulation(StateDiagnostics):
         x, state = self.topology.gather(self.x.numpy()), self.stepper.state()
         if not self.root:
             return Path(path)
-        return restart_file.write(path, self.scene, self.step, x, state, self.counters, self.initial, overwrite=overwrite,
-                                  restart_every=restart_every)
+        return restart_file.write(
+            path,
+            self.scene,
+            self.step,
+            x,
+            state,
+            self.counters,
+            self.initial,
+            overwrite=overwrite,
+            restart_every=restart_every,
+        )
 
     # -- driven from Python (Oceananigans' Simulation: step, inspect, call back) ---------
     def add_callback(self, fn, *, every_days: float | None = None, every_steps: int | None = None) -> None:
@@ -363,14 +437,32 @@ class Simulation(StateDiagnostics):
         whole = self.gather_fields(divergence=True)
         if not self.root:
             return None
-        ds = node_dataset(self.grid, self.hs, self.time, {k: getattr(whole, k) for k in OUTPUT_FIELDS},
-                          {"scene": self.scene.as_dict(), "ne": self.scene.ne, "np": self.scene.np, "step": self.step})
+        ds = node_dataset(
+            self.grid,
+            self.hs,
+            self.time,
+            {k: getattr(whole, k) for k in OUTPUT_FIELDS},
+            {"scene": self.scene.as_dict(), "ne": self.scene.ne, "np": self.scene.np, "step": self.step},
+        )
         if remap is None:
             return ds
         return remap_dataset(ds, remap)
-    def run(self, output: Path | None = None, *, overwrite: bool = False, restart_every: float | None = None,
-            restart_file: Path | None = None, catch_signals: bool = True, compress: bool = False,
-            history: str | None = None, on_output=None, notify=None, log=None, until_step: int | None = None) -> RunResult:
+
+    def run(
+        self,
+        output: Path | None = None,
+        *,
+        overwrite: bool = False,
+        restart_every: float | None = None,
+        restart_file: Path | None = None,
+        catch_signals: bool = True,
+        compress: bool = False,
+        history: str | None = None,
+        on_output=None,
+        notify=None,
+        log=None,
+        until_step: int | None = None,
+    ) -> RunResult:
         """Integrate the scene from the current step; write ``output`` (netCDF) if given.
 
         ``overwrite``: replace an existing output (and restart) file; else
@@ -424,7 +516,10 @@ class Simulation(StateDiagnostics):
                     log(line)
             bar.update(done)
             if n % 50 < done or n == s.nsteps:  # a multiple of 50 in the steps done
-                bar.set_postfix(day=f"{s.day(n):.2f}", sim_days_per_s=f"{n * s.dt / DAY / max(self.counters['wall_time'], 1e-9):.3g}")
+                bar.set_postfix(
+                    day=f"{s.day(n):.2f}",
+                    sim_days_per_s=f"{n * s.dt / DAY / max(self.counters['wall_time'], 1e-9):.3g}",
+                )
 
         blowup = interrupted = abandoned = None
         # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
@@ -435,15 +530,25 @@ class Simulation(StateDiagnostics):
                 with _compile_timer(self._compile):
                     files.record(self.step, whole=start, final=True)
                     # disable=None: a bar only on a terminal, not redrawn into a log (or mpiexec's pipe)
-                    with tqdm(initial=self.step, total=s.nsteps, unit="step", disable=None if self.progress else True, file=sys.stderr,
-                              dynamic_ncols=True) as bar:
+                    with tqdm(
+                        initial=self.step,
+                        total=s.nsteps,
+                        unit="step",
+                        disable=None if self.progress else True,
+                        file=sys.stderr,
+                        dynamic_ncols=True,
+                    ) as bar:
                         rerun_to = self.step  # steps up to here are re-run one at a time: their block found trouble
                         while self.step < stop_step:
-                            if self.step >= rerun_to and (signum := signals.asked()):  # every rank stops at the same step
+                            if self.step >= rerun_to and (
+                                signum := signals.asked()
+                            ):  # every rank stops at the same step
                                 interrupted = signum
                                 break
                             b = self.step
-                            e = guard.block_end(b) if b >= rerun_to else b + 1  # a re-run goes on to the trouble it looks for
+                            e = (
+                                guard.block_end(b) if b >= rerun_to else b + 1
+                            )  # a re-run goes on to the trouble it looks for
                             m, trouble, detail = self._steps(b, e, guard, signals, ledger)
                             if trouble is None:  # m > b: a step without trouble was taken
                                 finish(m, m - b)
@@ -464,8 +569,11 @@ class Simulation(StateDiagnostics):
                         # after an abandoned step the stepper's history is half updated: no restart file
                         if ckp.path is not None and self.step not in ckp.steps and not abandoned:
                             ckp.save()
-                        files.set_attrs(interrupted=signal.Signals(interrupted).name, interrupted_at_step=self.step,
-                                        interrupted_at_day=s.day(self.step))
+                        files.set_attrs(
+                            interrupted=signal.Signals(interrupted).name,
+                            interrupted_at_step=self.step,
+                            interrupted_at_day=s.day(self.step),
+                        )
                 files.close()  # under this run's handlers: a signal now waits, and is answered below
             except BaseException:
                 files.abort()
@@ -474,13 +582,17 @@ class Simulation(StateDiagnostics):
                 stepper.deferred = False
         if interrupted is None and blowup is None:  # a signal after the last step's check: the output is whole
             interrupted = signals.asked() or None
-        result = ledger.result(self.step, files.history, courant, output, blowup, ckp.written, self.setup_time, self._compile[0])
+        result = ledger.result(
+            self.step, files.history, courant, output, blowup, ckp.written, self.setup_time, self._compile[0]
+        )
         if blowup is not None:
             err = BlowUp(blowup)
             err.result = result
             raise err
         if interrupted is not None:
-            err = Interrupted(interruption(signal.Signals(interrupted).name, self.step, s, output, ckp.kept, ckp.written, abandoned))
+            err = Interrupted(
+                interruption(signal.Signals(interrupted).name, self.step, s, output, ckp.kept, ckp.written, abandoned)
+            )
             err.signum, err.result, err.checkpoint = interrupted, result, ckp.written
             raise err
         return result

@@ -66,7 +66,9 @@ class StateDiagnostics:
         if self.root:
             d = self._invariants(whole)
             d.update(errors)
-            d.update(courant_numbers(self.grid, u, v, h, self.scene.dt, self.g, "pressure_gradient" in self.scene.terms))
+            d.update(
+                courant_numbers(self.grid, u, v, h, self.scene.dt, self.g, "pressure_gradient" in self.scene.terms)
+            )
         return self.topology.bcast(d)
 
     def _invariants(self, whole: WholeFields) -> dict:
@@ -90,15 +92,26 @@ class StateDiagnostics:
             whole = self.gather_fields()
             if self.root:
                 d = self._invariants(whole)
-                d.update(courant_numbers(self.grid, whole.u, whole.v, whole.h, self.scene.dt, self.g,
-                                         "pressure_gradient" in self.scene.terms))
+                d.update(
+                    courant_numbers(
+                        self.grid,
+                        whole.u,
+                        whole.v,
+                        whole.h,
+                        self.scene.dt,
+                        self.g,
+                        "pressure_gradient" in self.scene.terms,
+                    )
+                )
         if not self.root:
             return None
         names = {"mass_change": "mass", "total_energy_change": "energy", "potential_enstrophy_change": "enstrophy"}
         changes = "".join(f"  {name} {d[k]:+.3e}" for k, name in names.items() if k in d)
         grav = "" if math.isnan(d["courant_gravity"]) else f" gravity-wave {d['courant_gravity']:.3f}"
-        return (f"step {self.step} day {self.scene.day(self.step):.4f}{changes}  Courant advective "
-                f"{d['courant_advective']:.3f}{grav}")
+        return (
+            f"step {self.step} day {self.scene.day(self.step):.4f}{changes}  Courant advective "
+            f"{d['courant_advective']:.3f}{grav}"
+        )
 
     def _stability_limit(self) -> tuple[float, str, float, str] | None:
         """(limit, what it limits, the scene dt's value of it on the current state,
@@ -112,8 +125,12 @@ class StateDiagnostics:
             speed = c["courant_advective"] + (0.0 if math.isnan(c["courant_gravity"]) else c["courant_gravity"])
             return kind.courant_limit, "a Courant number (|v| + sqrt(g h)) dt/dx", speed, "measured on TC2"
         if kind.advective_courant_limit is not None:
-            return (kind.advective_courant_limit, "an advective Courant number |v| dt/dx", c["courant_advective"],
-                    "its explicit advection's, measured on TC5, TC6 and Galewsky")
+            return (
+                kind.advective_courant_limit,
+                "an advective Courant number |v| dt/dx",
+                c["courant_advective"],
+                "its explicit advection's, measured on TC5, TC6 and Galewsky",
+            )
         return None
 
     def largest_dt_within_limit(self) -> float | None:
@@ -130,14 +147,20 @@ class StateDiagnostics:
         if limit is None or limit[2] <= limit[0]:
             return None
         limit, what, speed, source = limit
-        return (f"warning: dt = {self.scene.dt:g} s gives {what} of {speed:.3g}, above "
-                f"{self.scene.stepper}'s stability limit of about {limit:g} ({source}); it may blow up "
-                f"(dt <= {self.scene.dt * limit / speed:.4g} s keeps below)")
+        return (
+            f"warning: dt = {self.scene.dt:g} s gives {what} of {speed:.3g}, above "
+            f"{self.scene.stepper}'s stability limit of about {limit:g} ({source}); it may blow up "
+            f"(dt <= {self.scene.dt * limit / speed:.4g} s keeps below)"
+        )
 
     def courant(self, whole: WholeFields | None = None) -> dict:
         """Advective and gravity-wave Courant numbers of the scene's dt on the current
         state (call on every rank; ``whole``: its ``gather_fields`` when the caller
         has them, on every rank or on none)."""
         u, v, h = self.fields() if whole is None else (whole.u, whole.v, whole.h)
-        c = courant_numbers(self.grid, u, v, h, self.scene.dt, self.g, "pressure_gradient" in self.scene.terms) if self.root else None
+        c = (
+            courant_numbers(self.grid, u, v, h, self.scene.dt, self.g, "pressure_gradient" in self.scene.terms)
+            if self.root
+            else None
+        )
         return self.topology.bcast(c)

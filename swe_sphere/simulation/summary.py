@@ -69,8 +69,10 @@ class Ledger:
             if timed >= ESTIMATE_STEPS or spent >= ESTIMATE_SECONDS:
                 self.estimating, left = False, spent / timed * (s.nsteps - n)
                 if left > DAY:
-                    self.notify(f"this run will take about {left / DAY:.3g} days of wall time to day {s.days:g} "
-                                f"({spent / timed:.3g} s a step over steps {first + 2}-{n}; {s.nsteps - n} steps left)")
+                    self.notify(
+                        f"this run will take about {left / DAY:.3g} days of wall time to day {s.days:g} "
+                        f"({spent / timed:.3g} s a step over steps {first + 2}-{n}; {s.nsteps - n} steps left)"
+                    )
 
     def next_steps(self, step: int) -> list[int]:
         """The last step the wall-time estimate needs, while ``step`` is before it
@@ -78,14 +80,36 @@ class Ledger:
         end = self.first_step + 1 + ESTIMATE_STEPS
         return [end] if step < end else []
 
-    def result(self, step: int, history: list, courant: dict, output, blowup, checkpoint, setup_time: float,
-               compile_time: float) -> RunResult:
+    def result(
+        self,
+        step: int,
+        history: list,
+        courant: dict,
+        output,
+        blowup,
+        checkpoint,
+        setup_time: float,
+        compile_time: float,
+    ) -> RunResult:
         """The ``RunResult`` of the run at ``step`` (the rest as ``RunResult`` names them)."""
         c = self.c
-        return RunResult(steps=step, rhs_evals=c["rhs_evals"], wall_time=c["wall_time"], setup_time=setup_time,
-                         diagnostics=history[-1], courant=courant, output=output, blowup=blowup, history=history,
-                         iterations=dict(c["iterations"]), compile_time=compile_time, first_step_time=self.first_time,
-                         first_step=self.first_step, loop_time=c["wall_time"] - self.wall0, checkpoint=checkpoint)
+        return RunResult(
+            steps=step,
+            rhs_evals=c["rhs_evals"],
+            wall_time=c["wall_time"],
+            setup_time=setup_time,
+            diagnostics=history[-1],
+            courant=courant,
+            output=output,
+            blowup=blowup,
+            history=history,
+            iterations=dict(c["iterations"]),
+            compile_time=compile_time,
+            first_step_time=self.first_time,
+            first_step=self.first_step,
+            loop_time=c["wall_time"] - self.wall0,
+            checkpoint=checkpoint,
+        )
 
 
 def interruption(name: str, step: int, scene, output, kept_restart, checkpoint, abandoned) -> str:
@@ -99,7 +123,9 @@ def interruption(name: str, step: int, scene, output, kept_restart, checkpoint, 
     else:
         kept = [f"output so far in {output}"] if output is not None else []
         if kept_restart is not None:
-            kept.append(f"no restart file: {kept_restart} exists (--overwrite, or overwrite=True in Python, replaces it)")
+            kept.append(
+                f"no restart file: {kept_restart} exists (--overwrite, or overwrite=True in Python, replaces it)"
+            )
         how = ""
         if abandoned:
             b, m = abandoned  # steps b+1..m were taken in a block not yet checked: dropped with m + 1

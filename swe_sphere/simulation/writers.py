@@ -6,12 +6,12 @@ import math
 import time
 from pathlib import Path
 
-from . import checkpoint as ckpt
-from ..core.constants import DAY
-from ..io.run_file import OUTPUT_FIELDS, RunWriter
-from ..core.runtime import package_version
-from .schedules import output_steps, restart_steps
 from ..cases.scoring import truth
+from ..core.constants import DAY
+from ..core.runtime import package_version
+from ..io.run_file import OUTPUT_FIELDS, RunWriter
+from . import checkpoint as ckpt
+from .schedules import output_steps, restart_steps
 
 
 def stream_path(output: Path, name: str) -> Path:
@@ -47,7 +47,9 @@ def run_attrs(sim, history: str | None, courant: dict) -> dict:
         "mpi_ranks": sim.topology.comm.size,
         "initialization": "none" if s.initialization is None else s.initialization["method"],
         "reference": truth(sim.case, s.reference_file),  # what the error series are against
-        **{f"planet_{k}": v for k, v in s.planet.items()},  # planet_radius (m), planet_omega (1/s), planet_gravity (m/s^2)
+        **{
+            f"planet_{k}": v for k, v in s.planet.items()
+        },  # planet_radius (m), planet_omega (1/s), planet_gravity (m/s^2)
         **(sim.dfi.attrs(s.digital_filter) if sim.dfi is not None else {}),
         **({"continued_from_day": s.day(sim.step)} if sim.step else {}),
         **ckpt.branch_attrs(s),
@@ -66,13 +68,27 @@ class RunFiles:
     def __init__(self, sim, output: Path | None, on_output=None):
         s = sim.scene
         self.sim, self.on_output, self.history = sim, on_output, []
-        self.streams = [] if output is None else [
-            (Path(output), s.output_fields or OUTPUT_FIELDS, output_steps(s)),
-            *((stream_path(output, st["name"]), st["fields"], output_steps(s, st["every_days"])) for st in s.output_streams)]
+        self.streams = (
+            []
+            if output is None
+            else [
+                (Path(output), s.output_fields or OUTPUT_FIELDS, output_steps(s)),
+                *(
+                    (stream_path(output, st["name"]), st["fields"], output_steps(s, st["every_days"]))
+                    for st in s.output_streams
+                ),
+            ]
+        )
         self.paths = [path for path, _, _ in self.streams]
         self.steps = set().union(*(steps for _, _, steps in self.streams)) if self.streams else output_steps(s)
         self.divergence = any("divergence" in fields for _, fields, _ in self.streams)
-        self.series = ["steps", "rhs_evals", *(f"{k}_iterations" for k in sim.stepper.solvers), "wall_time", *sim.initial.keys()]
+        self.series = [
+            "steps",
+            "rhs_evals",
+            *(f"{k}_iterations" for k in sim.stepper.solvers),
+            "wall_time",
+            *sim.initial.keys(),
+        ]
         self.writers = [None] * len(self.streams)  # rank 0's RunWriters, one a stream
         self.last = [None] * len(self.streams)  # the step each run file wrote last (on every rank)
 
@@ -80,8 +96,16 @@ class RunFiles:
         """Create the files (rank 0) with the global attributes ``attrs``; on failure none is left."""
         try:
             for i, (path, fields, _) in enumerate(self.streams):
-                self.writers[i] = RunWriter(path, self.sim.grid, self.sim.hs, attrs, self.series, overwrite=overwrite,
-                                            compress=compress, fields=fields)
+                self.writers[i] = RunWriter(
+                    path,
+                    self.sim.grid,
+                    self.sim.hs,
+                    attrs,
+                    self.series,
+                    overwrite=overwrite,
+                    compress=compress,
+                    fields=fields,
+                )
         except BaseException:
             self.abort()
             raise
@@ -103,8 +127,15 @@ class RunFiles:
             if (final or step in steps) and self.last[i] != step:
                 self.last[i] = step
                 if self.writers[i] is not None:  # rank 0 (the fields DSS'd, element-local, s-1)
-                    self.writers[i].append(s.day(step), whole.u, whole.v, whole.h, {k: d[k] for k in self.series},
-                                           vorticity=whole.vorticity, divergence=whole.divergence)
+                    self.writers[i].append(
+                        s.day(step),
+                        whole.u,
+                        whole.v,
+                        whole.h,
+                        {k: d[k] for k in self.series},
+                        vorticity=whole.vorticity,
+                        divergence=whole.divergence,
+                    )
 
     def unwritten(self, step: int) -> bool:
         """Whether some run file (or, without one, the history) lacks ``step``."""
@@ -148,5 +179,6 @@ class Checkpointer:
 
     def save(self) -> None:
         """Write the restart file of the current step (call on every rank)."""
-        self.written = self.sim.write_checkpoint(self.path, overwrite=self.overwrite or self.written is not None,
-                                                 restart_every=self.every_days)
+        self.written = self.sim.write_checkpoint(
+            self.path, overwrite=self.overwrite or self.written is not None, restart_every=self.every_days
+        )

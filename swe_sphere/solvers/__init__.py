@@ -7,4 +7,4 @@ by KIOPS, Gaudreault, Rainwater & Tokman 2018).
 May import: ``core``, ``grid``, ``model``, ``kernels``; never ``steppers``.
 """
 
-__all__ = ['helmholtz', 'jacobian', 'kiops', 'krylov']
+__all__ = ["helmholtz", "jacobian", "kiops", "krylov"]

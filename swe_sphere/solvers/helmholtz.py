@@ -53,13 +53,13 @@ import numpy as np
 import scipy.sparse as sp
 import warp as wp
 
+from ..core.errors import StepFailure
 from ..core.graphs import captured
+from ..core.parallel import record, reduction_chunk
 from ..kernels import gravity_wave as gk
 from ..kernels import helmholtz as hk
 from ..kernels import operators
 from ..model.shallow_water import ShallowWater
-from ..core.parallel import record, reduction_chunk
-from ..core.errors import StepFailure
 
 f64 = wp.float64
 # the solver options the semi-implicit, IMEX and JFNK steppers no longer have, and why (``Stepper.removed_options``)
@@ -69,7 +69,9 @@ REMOVED_SOLVER_OPTIONS = {
 
 
 PRECISIONS = ("double", "mixed")
-MAX_GUESS_HISTORY = 32  # past solutions a solve's start is projected on (``GuessHistory``); k vectors cost 2k of memory and k dots
+MAX_GUESS_HISTORY = (
+    32  # past solutions a solve's start is projected on (``GuessHistory``); k vectors cost 2k of memory and k dots
+)
 
 
 def check_precision(precision: str) -> None:
@@ -183,7 +185,9 @@ class GravityWave:
     model without continuity and pressure gradient.
     """
 
-    def __init__(self, model: ShallowWater, mean_depth=0.0, tol=1e-10, maxiter=500, warm=False, precision="double", history=0):
+    def __init__(
+        self, model: ShallowWater, mean_depth=0.0, tol=1e-10, maxiter=500, warm=False, precision="double", history=0
+    ):
         for term in ("continuity", "pressure_gradient"):
             if term not in model.terms:
                 raise ValueError(f"the gravity-wave operator needs the {term} term")
@@ -192,7 +196,9 @@ class GravityWave:
         dev, N, nu = model.device, model.N, model.topology.nunique
         self.Gh, self.Dv = wp.zeros((2, N), dtype=f64, device=dev), wp.zeros((1, N), dtype=f64, device=dev)
         self.b, self.y = wp.zeros(nu, dtype=f64, device=dev), wp.zeros(nu, dtype=f64, device=dev)
-        self.stats = wp.zeros(3, dtype=f64, device=dev)  # iterations, failures, the first failure's residual (hk.ITERATIONS …)
+        self.stats = wp.zeros(
+            3, dtype=f64, device=dev
+        )  # iterations, failures, the first failure's residual (hk.ITERATIONS …)
         self.cg = HelmholtzCG(model, f64, self.b, self.y, self.stats)
         self.low = None if precision == "double" else HelmholtzCG(model, wp.float32, stats=self.stats)
         rec = self.cg._rec
@@ -203,9 +209,26 @@ class GravityWave:
             self._widen = rec(hk.add_converted, nu, [self.y, self.low.y])
             cg, low = self.cg, self.low
             self._check_first, self._check_next = (
-                wp.launch(hk.refine_check, 1, [cg.sums, first, f64(self.tol**2), self.maxiter, cg.cs, cg.ic, low.cs, low.ic, f64(SINGLE_FLOOR**2), self.stats],
-                          device=dev, record_cmd=True)
-                for first in (1, 0))
+                wp.launch(
+                    hk.refine_check,
+                    1,
+                    [
+                        cg.sums,
+                        first,
+                        f64(self.tol**2),
+                        self.maxiter,
+                        cg.cs,
+                        cg.ic,
+                        low.cs,
+                        low.ic,
+                        f64(SINGLE_FLOOR**2),
+                        self.stats,
+                    ],
+                    device=dev,
+                    record_cmd=True,
+                )
+                for first in (1, 0)
+            )
         # with one rank a solve is one graph per (r, z, a, scale, H), its loops conditional nodes
         # (``graphable``; so may a caller's graph hold it: a stepper's whole step): a CUDA
         # graph, or on one CPU thread Warp's CPU graph (the same bits; 13 % off an IMEX step at ne30:
@@ -214,7 +237,9 @@ class GravityWave:
         self._graphs: dict[tuple, object] = {}
         self._schur_launches: dict[tuple, tuple] = {}
         cpu = wp.get_device(dev).is_cpu
-        self.graphable = not model.topology.distributed and (model.threads == 1 if cpu else wp.is_conditional_graph_supported())
+        self.graphable = not model.topology.distributed and (
+            model.threads == 1 if cpu else wp.is_conditional_graph_supported()
+        )
         # with ``history`` k > 0, the start of each solve: a GuessHistory per a (the basis is A's),
         # shared by a step's stages of one a (IMEX ARS's all): their span holds the last stage's
         # solution, today's warm start (TC5 ne8 ARS(3,4,3) @ 8 dt_g, CG iterations a solve:
@@ -225,7 +250,10 @@ class GravityWave:
         if self.history:
             self._y0, self._w0 = wp.zeros(nu, dtype=f64, device=dev), wp.zeros(nu, dtype=f64, device=dev)
             self._hpartial = wp.zeros((self.history + 4, self.cg.partial.shape[1]), dtype=f64, device=dev)
-            self._alpha, self._hsums = wp.zeros(self.history, dtype=f64, device=dev), wp.zeros(self.history + 4, dtype=f64, device=dev)
+            self._alpha, self._hsums = (
+                wp.zeros(self.history, dtype=f64, device=dev),
+                wp.zeros(self.history + 4, dtype=f64, device=dev),
+            )
 
     # -- what carries over between solves (for bitwise restarts) ----------------------
     def state(self) -> dict:
@@ -257,15 +285,20 @@ class GravityWave:
             for n in range(int(entry(state, "helmholtz_histories"))):
                 a = float(entry(state, f"helmholtz_history{n}_a"))
                 h = self._histories.get(a) or self._histories.setdefault(a, GuessHistory(self))
-                h.set(int(entry(state, f"helmholtz_history{n}_count")),
-                      [entry(state, f"helmholtz_history{n}_{m}") for m in range(h.arrays)], f"stepper state 'helmholtz_history{n}'")
+                h.set(
+                    int(entry(state, f"helmholtz_history{n}_count")),
+                    [entry(state, f"helmholtz_history{n}_{m}") for m in range(h.arrays)],
+                    f"stepper state 'helmholtz_history{n}'",
+                )
                 named.add(a)
             for a, h in self._histories.items():
                 if a not in named:
                     h.hic.zero_()
         elif self.warm:
             topo = self.model.topology
-            guess = topo.distribute(entry(state, "helmholtz_guess"), 3, "stepper state 'helmholtz_guess'")  # on rank 0 only when several ranks
+            guess = topo.distribute(
+                entry(state, "helmholtz_guess"), 3, "stepper state 'helmholtz_guess'"
+            )  # on rank 0 only when several ranks
             self.y.assign(guess[2][topo.first.numpy()])
 
     # -- L and the Schur complement (element-local) ---------------------------------
@@ -291,7 +324,9 @@ class GravityWave:
         (``GuessHistory``)."""
         a = float(a)
         self._history = None
-        if self.history and not (self.low is not None and self.tol >= SINGLE_TOL):  # not the one float32 solve from zero
+        if self.history and not (
+            self.low is not None and self.tol >= SINGLE_TOL
+        ):  # not the one float32 solve from zero
             self._history = self._histories.get(a)
             if self._history is None:
                 self._history = self._histories[a] = GuessHistory(self)
@@ -302,8 +337,10 @@ class GravityWave:
         m = self.model
         if m.per_element:  # the CPU's layout: two fused passes each side of the CG (_schur)
             rhs, back = self._schur(r, z, implicit)
-            for launch, values in ((rhs[0], {"s": scale, "aH": a * self.H}),
-                                   (back[-1], {"s": scale, "ag": a * m.g, "ia": 1.0 / a, "mis": -scale / a})):
+            for launch, values in (
+                (rhs[0], {"s": scale, "aH": a * self.H}),
+                (back[-1], {"s": scale, "ag": a * m.g, "ia": 1.0 / a, "mis": -scale / a}),
+            ):
                 for name, value in values.items():
                     launch.set_param_by_name(name, f64(value))
             for launch in rhs:
@@ -321,7 +358,9 @@ class GravityWave:
         if implicit is None:
             m.pointwise(gk.schur_wind, r, self.Gh, f64(scale), f64(a * m.g), z)
         else:
-            m.pointwise(gk.schur_wind_implicit, r, self.Gh, f64(scale), f64(a * m.g), z, f64(1.0 / a), f64(-scale / a), implicit)
+            m.pointwise(
+                gk.schur_wind_implicit, r, self.Gh, f64(scale), f64(a * m.g), z, f64(1.0 / a), f64(-scale / a), implicit
+            )
 
     def _schur(self, r, z, implicit=None) -> tuple[list, list]:
         """The per-element layout's launches around the CG, recorded once per (r, z): the right-hand
@@ -335,17 +374,62 @@ class GravityWave:
             m, topo, cg = self.model, self.model.topology, self.cg
             rows, np_, halo = cg._rows, m.grid.np, topo.owned.recv_buffer
             elements = dict(nodes_per_index=np_**2)
-            rhs = [cg._rec(hk.helmholtz_rhs(np_), m.grid.nelem,
-                           [rows(r), rows(cg.Dinv), rows(cg.metdet), rows(cg.spheremp), cg.dvv, f64(0.0), f64(0.0), rows(cg.z)], **elements),
-                   *topo.exchange(cg.z),
-                   cg._rec(hk.helmholtz_assemble(topo.table.shape[1]), cg.partial.shape[1],
-                           [cg.z, topo.ghost, topo.N, topo.table, topo.first, self.y, self.b, cg.partial, cg.chunk], nodes_per_index=cg.chunk)]
-            back = [*topo.exchange(self.y.reshape((1, topo.nunique)), unique=True),
-                    cg._rec(hk.helmholtz_gradient(np_), m.grid.nelem, [self.y, halo, topo.gid, rows(cg.Dinv), rows(cg.spheremp), cg.dvv, rows(cg.wg)], **elements),
-                    *topo.exchange(cg.wg),
-                    cg._rec(hk.helmholtz_back_substitution(np_, topo.table.shape[1], implicit is not None), m.grid.nelem,
-                            [cg.wg, topo.ghost, topo.N, topo.table, cg.rspheremp, self.y, halo, topo.gid, rows(r), f64(0.0), f64(0.0), rows(z),
-                             f64(0.0), f64(0.0), rows(z if implicit is None else implicit)], **elements)]
+            rhs = [
+                cg._rec(
+                    hk.helmholtz_rhs(np_),
+                    m.grid.nelem,
+                    [
+                        rows(r),
+                        rows(cg.Dinv),
+                        rows(cg.metdet),
+                        rows(cg.spheremp),
+                        cg.dvv,
+                        f64(0.0),
+                        f64(0.0),
+                        rows(cg.z),
+                    ],
+                    **elements,
+                ),
+                *topo.exchange(cg.z),
+                cg._rec(
+                    hk.helmholtz_assemble(topo.table.shape[1]),
+                    cg.partial.shape[1],
+                    [cg.z, topo.ghost, topo.N, topo.table, topo.first, self.y, self.b, cg.partial, cg.chunk],
+                    nodes_per_index=cg.chunk,
+                ),
+            ]
+            back = [
+                *topo.exchange(self.y.reshape((1, topo.nunique)), unique=True),
+                cg._rec(
+                    hk.helmholtz_gradient(np_),
+                    m.grid.nelem,
+                    [self.y, halo, topo.gid, rows(cg.Dinv), rows(cg.spheremp), cg.dvv, rows(cg.wg)],
+                    **elements,
+                ),
+                *topo.exchange(cg.wg),
+                cg._rec(
+                    hk.helmholtz_back_substitution(np_, topo.table.shape[1], implicit is not None),
+                    m.grid.nelem,
+                    [
+                        cg.wg,
+                        topo.ghost,
+                        topo.N,
+                        topo.table,
+                        cg.rspheremp,
+                        self.y,
+                        halo,
+                        topo.gid,
+                        rows(r),
+                        f64(0.0),
+                        f64(0.0),
+                        rows(z),
+                        f64(0.0),
+                        f64(0.0),
+                        rows(z if implicit is None else implicit),
+                    ],
+                    **elements,
+                ),
+            ]
             launches = self._schur_launches[key] = (rhs, back)
         return launches
 
@@ -367,7 +451,9 @@ class GravityWave:
         its, failures, residual = self.stats.numpy()
         self.stats.zero_()
         if failures:
-            raise StepFailure(f"Helmholtz CG did not converge in {self.maxiter} iterations (residual {residual:.3e} > {self.tol:.3e}; {int(failures)} of the solves since the last check)")
+            raise StepFailure(
+                f"Helmholtz CG did not converge in {self.maxiter} iterations (residual {residual:.3e} > {self.tol:.3e}; {int(failures)} of the solves since the last check)"
+            )
         return int(its)
 
     # -- the Helmholtz solve on unique nodes, (M + cK) y = b: any device, threads and ranks --
@@ -449,13 +535,24 @@ class GuessHistory:
         self.arrays = (2 * k + 2) // 3
         rec, nchunks, chunk, nu = cg._rec, cg.partial.shape[1], cg.chunk, topo.nunique
         partial, alpha, sums, y, y0, w0 = gw._hpartial, gw._alpha, gw._hsums, gw.y, gw._y0, gw._w0
-        self._guess = [rec(hk.history_dots, nchunks, [self.X, gw.b, self.hic, partial, chunk], nodes_per_index=chunk),
-                       *topo.device_sums(partial, k, alpha), alpha,
-                       rec(hk.history_guess, nu, [self.X, self.AX, alpha, self.hic, y, cg.w, y0, w0])]
-        self._store = [rec(hk.history_increment_dots, nchunks, [self.X, y, y0, gw.b, cg.r, w0, self.hic, partial, chunk], nodes_per_index=chunk),
-                       *topo.device_sums(partial, k + 4, sums), sums,
-                       wp.launch(hk.history_coefficients, 1, [sums, k, self.hic, self.hcs], device=dev, record_cmd=True),
-                       rec(hk.history_store, nu, [self.X, self.AX, y, y0, gw.b, cg.r, w0, self.hic, self.hcs])]
+        self._guess = [
+            rec(hk.history_dots, nchunks, [self.X, gw.b, self.hic, partial, chunk], nodes_per_index=chunk),
+            *topo.device_sums(partial, k, alpha),
+            alpha,
+            rec(hk.history_guess, nu, [self.X, self.AX, alpha, self.hic, y, cg.w, y0, w0]),
+        ]
+        self._store = [
+            rec(
+                hk.history_increment_dots,
+                nchunks,
+                [self.X, y, y0, gw.b, cg.r, w0, self.hic, partial, chunk],
+                nodes_per_index=chunk,
+            ),
+            *topo.device_sums(partial, k + 4, sums),
+            sums,
+            wp.launch(hk.history_coefficients, 1, [sums, k, self.hic, self.hcs], device=dev, record_cmd=True),
+            rec(hk.history_store, nu, [self.X, self.AX, y, y0, gw.b, cg.r, w0, self.hic, self.hcs]),
+        ]
 
     def _play(self, launches) -> None:
         for launch in launches:
@@ -576,7 +673,10 @@ class HelmholtzCG:
         same = dtype is f64
         cast = lambda a: a if same else wp.array(a.numpy(), dtype=dtype, device=dev)  # noqa: E731
         self.Dinv, self.metdet = cast(model.Dinv), cast(model.metdet)
-        self.spheremp, self.rspheremp = cast(topo.spheremp[: topo.N]), cast(topo.rspheremp)  # the local copies' masses (the ghosts' follow on a rank)
+        self.spheremp, self.rspheremp = (
+            cast(topo.spheremp[: topo.N]),
+            cast(topo.rspheremp),
+        )  # the local copies' masses (the ghosts' follow on a rank)
         self.dvv = model.dvv_rows if same else operators.dvv_matrix(model.grid.rule.dvv, dtype)
         self.minv = wp.array(1.0 / topo.area, dtype=dtype, device=dev)
         self.area, self.ones = wp.array(topo.area, dtype=dtype, device=dev), wp.ones(nu, dtype=dtype, device=dev)
@@ -595,8 +695,16 @@ class HelmholtzCG:
         update = [self.p, self.s, self.y, self.r, self.u, self.w, self.minv, self.partial, chunk]
         self._update = rec(hk.cg_update(dtype), nchunks, [self.cs, 0, *update], nodes_per_index=chunk)
         self._restart = rec(hk.cg_update(dtype), nchunks, [self.cs, 1, *update], nodes_per_index=chunk)
-        self._first, self._check = (wp.launch(hk.cg_check, 1, [self.sums, first, f64(0.0), 0, self.cs, self.ic, self.stats], device=dev, record_cmd=True)
-                                    for first in (1, 0))
+        self._first, self._check = (
+            wp.launch(
+                hk.cg_check,
+                1,
+                [self.sums, first, f64(0.0), 0, self.cs, self.ic, self.stats],
+                device=dev,
+                record_cmd=True,
+            )
+            for first in (1, 0)
+        )
         self._alpha = wp.launch(hk.cg_alpha, 1, [self.sums, self.cs, self.ic], device=dev, record_cmd=True)
         # over ranks an iteration keeps Chronopoulos–Gear's one reduction (an allreduce costs more there
         # than the converged iteration's product, a 1/P share); on one rank the sums stay on the device
@@ -616,16 +724,47 @@ class HelmholtzCG:
             m, topo, dt = self.model, self.model.topology, self.dtype
             halo = topo.owned.recv_buffer
             y2 = y.reshape((1, topo.nunique))
-            div = self._rec(hk.helmholtz_divergence(m.grid.np, topo.table.shape[1], dt), m.grid.nelem,
-                            [self.wg, topo.ghost, topo.N, topo.table, self.rspheremp, y, halo, topo.gid, self._rows(self.Dinv),
-                             self._rows(self.metdet), self._rows(self.spheremp), self.dvv, dt(0.0), self._rows(self.z)],
-                            nodes_per_index=m.grid.np**2)
-            grad = self._rec(hk.helmholtz_gradient(m.grid.np, dt), m.grid.nelem,
-                             [y, halo, topo.gid, self._rows(self.Dinv), self._rows(self.spheremp), self.dvv, self._rows(self.wg)],
-                             nodes_per_index=m.grid.np**2)
-            assemble = self._rec(hk.helmholtz_assemble(topo.table.shape[1], dt), self.partial.shape[1],
-                                 [self.z, topo.ghost, topo.N, topo.table, topo.first, y, out, self.partial, self.chunk], nodes_per_index=self.chunk)
-            launches = self._ops[key] = [*topo.exchange(y2, unique=True), grad, *topo.exchange(self.wg), div, *topo.exchange(self.z), assemble]
+            div = self._rec(
+                hk.helmholtz_divergence(m.grid.np, topo.table.shape[1], dt),
+                m.grid.nelem,
+                [
+                    self.wg,
+                    topo.ghost,
+                    topo.N,
+                    topo.table,
+                    self.rspheremp,
+                    y,
+                    halo,
+                    topo.gid,
+                    self._rows(self.Dinv),
+                    self._rows(self.metdet),
+                    self._rows(self.spheremp),
+                    self.dvv,
+                    dt(0.0),
+                    self._rows(self.z),
+                ],
+                nodes_per_index=m.grid.np**2,
+            )
+            grad = self._rec(
+                hk.helmholtz_gradient(m.grid.np, dt),
+                m.grid.nelem,
+                [y, halo, topo.gid, self._rows(self.Dinv), self._rows(self.spheremp), self.dvv, self._rows(self.wg)],
+                nodes_per_index=m.grid.np**2,
+            )
+            assemble = self._rec(
+                hk.helmholtz_assemble(topo.table.shape[1], dt),
+                self.partial.shape[1],
+                [self.z, topo.ghost, topo.N, topo.table, topo.first, y, out, self.partial, self.chunk],
+                nodes_per_index=self.chunk,
+            )
+            launches = self._ops[key] = [
+                *topo.exchange(y2, unique=True),
+                grad,
+                *topo.exchange(self.wg),
+                div,
+                *topo.exchange(self.z),
+                assemble,
+            ]
             self._div[key] = [div, None]
         return launches
 
@@ -636,8 +775,12 @@ class HelmholtzCG:
         launches = self._ops.get(key)
         if launches is None:
             topo = self.model.topology
-            combine = self._rec(hk.helmholtz_combine, self.partial.shape[1],
-                                [self.z, topo.first, y, self.area, f64(0.0), out, self.partial, self.chunk], nodes_per_index=self.chunk)
+            combine = self._rec(
+                hk.helmholtz_combine,
+                self.partial.shape[1],
+                [self.z, topo.first, y, self.area, f64(0.0), out, self.partial, self.chunk],
+                nodes_per_index=self.chunk,
+            )
             launches = self._ops[key] = [combine]
             self._div[key] = [combine, None]
         return launches
@@ -668,8 +811,12 @@ class HelmholtzCG:
         key = tuple(a.ptr for a in (a0, b0, a1, b1, a2, b2))
         launch = self._inner.get(key)
         if launch is None:
-            launch = self._inner[key] = self._rec(hk.inner3(self.dtype), self.partial.shape[1], [a0, b0, a1, b1, a2, b2, self.partial, self.chunk],
-                                                  nodes_per_index=self.chunk)
+            launch = self._inner[key] = self._rec(
+                hk.inner3(self.dtype),
+                self.partial.shape[1],
+                [a0, b0, a1, b1, a2, b2, self.partial, self.chunk],
+                nodes_per_index=self.chunk,
+            )
         launch.launch()
         self.totals()
 

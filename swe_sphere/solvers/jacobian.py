@@ -22,9 +22,9 @@ import math
 import numpy as np
 import warp as wp
 
+from ..core.parallel import record, reduction_chunk
 from ..kernels import implicit as ik
 from ..kernels import krylov as kk
-from ..core.parallel import record, reduction_chunk
 from .krylov import NumpyViews
 
 f64 = wp.float64
@@ -54,15 +54,23 @@ class KernelPasses:
         self._partial = wp.zeros((1, (n + chunk - 1) // chunk), dtype=f64, device=dev)
         self.xx, self.ww, self.eps = (wp.zeros(k, dtype=f64, device=dev) for k in (1, 1, 2))  # ‖x‖², ‖w‖², (ε, scale/ε)
         self._squares = {}  # (v.ptr, out.ptr) -> the recorded launches of v·v into out (with v)
-        self._epsilon = wp.launch(ik.fd_epsilon, 1, [self.ww, self.xx, f64(_SQRT_EPS), f64(1.0), self.eps], device=dev, record_cmd=True)
+        self._epsilon = wp.launch(
+            ik.fd_epsilon, 1, [self.ww, self.xx, f64(_SQRT_EPS), f64(1.0), self.eps], device=dev, record_cmd=True
+        )
 
     def _square(self, v, out) -> None:
         """out[0] = v·v over all processes (one row of ``kernels.krylov.project_dots``, k_sub = k_dot = 0)."""
         topo, key = self.topology, (v.ptr, out.ptr)
         entry = self._squares.get(key)
         if entry is None:
-            dots = record(kk.project_dots, self._partial.shape[1], [v.reshape((1, v.shape[0])), 0, out, v, 0, self._partial, self._chunk],
-                          device=topo.device, threads=topo.threads, nodes_per_index=self._chunk)
+            dots = record(
+                kk.project_dots,
+                self._partial.shape[1],
+                [v.reshape((1, v.shape[0])), 0, out, v, 0, self._partial, self._chunk],
+                device=topo.device,
+                threads=topo.threads,
+                nodes_per_index=self._chunk,
+            )
             entry = self._squares[key] = ([dots, *topo.device_sums(self._partial, 1, out)], v)
         for launch in entry[0]:
             launch.launch()
@@ -90,7 +98,9 @@ class KernelPasses:
 
     def difference(self, w, Fx, Fp, shift: float, out) -> None:
         topo = self.topology
-        self.model.pointwise(ik.jacobian_vector, w, Fx, Fp, topo.first, topo.nunique, f64(shift), self.eps, out, unique=True)
+        self.model.pointwise(
+            ik.jacobian_vector, w, Fx, Fp, topo.first, topo.nunique, f64(shift), self.eps, out, unique=True
+        )
 
     def norm(self, v) -> float:
         return self.topology.norm(v)
@@ -132,7 +142,9 @@ class HostPasses:
             launch.launch()
         np.multiply(src, a, out=self.ext[:n])
         np.multiply(self.halo, a, out=self.ext[n:])
-        np.take(self.ext, self.gid3, out=self._np(out).ravel(), mode="clip")  # clip: no bounds pass (the indices are valid)
+        np.take(
+            self.ext, self.gid3, out=self._np(out).ravel(), mode="clip"
+        )  # clip: no bounds pass (the indices are valid)
 
     def gather(self, a: float, v, out) -> None:
         o = self._np(out)
@@ -162,7 +174,9 @@ class HostPasses:
         o, d, c = self._np(out), self._np(Fp), self.c
         if shift:
             np.multiply(self._np(w), shift, out=self.tmp)  # first: out may alias w
-        np.subtract(d, self._np(Fx), out=d)  # on every copy (one subtraction pass over (3, N) costs less than a second gather)
+        np.subtract(
+            d, self._np(Fx), out=d
+        )  # on every copy (one subtraction pass over (3, N) costs less than a second gather)
         np.take(d.ravel(), self.first3, out=o, mode="clip")
         np.multiply(o, c, out=o)
         if shift:

@@ -140,7 +140,9 @@ class Kiops:
         self.H[j, j - 1] = nrm
         return nrm
 
-    def apply(self, matvec, u0, us, out, tau: float = 1.0, tol: float = 1e-7, m: int = 10, m_min: int = 10) -> KiopsStats:
+    def apply(
+        self, matvec, u0, us, out, tau: float = 1.0, tol: float = 1e-7, m: int = 10, m_min: int = 10
+    ) -> KiopsStats:
         b, H, p, m_max = self.basis, self.H, self.p, self.m_max
         if len(us) > p:
             raise ValueError(f"at most {p} vectors u_1 … u_p (got {len(us)})")
@@ -170,8 +172,10 @@ class Kiops:
         order, kest, order_measured, kest_measured = 1.0, 2.0, False, False
         while tau_now < tau_end:
             if substeps + rejected >= MAX_SUBSTEPS or tau < 1e-12 * tau_end:
-                raise StepFailure(f"KIOPS did not reach tol {tol:.1e} in {substeps + rejected} substeps (at τ {tau_now:.3e} of {tau_end:.3e}, "
-                                  f"substep {tau:.1e}, Krylov size {m})")
+                raise StepFailure(
+                    f"KIOPS did not reach tol {tol:.1e} in {substeps + rejected} substeps (at τ {tau_now:.3e} of {tau_end:.3e}, "
+                    f"substep {tau:.1e}, Krylov size {m})"
+                )
             if j == 0:
                 H[:] = 0.0
                 beta = self._start(out, tau_now, mu)

@@ -34,8 +34,8 @@ import numpy as np
 import warp as wp
 
 from ..core.graphs import captured
-from ..kernels import krylov as kk
 from ..core.parallel import record, reduction_chunk
+from ..kernels import krylov as kk
 
 f64 = wp.float64
 
@@ -63,7 +63,7 @@ class KernelVectors:
     on the device in index order (``Topology.device_sums``), over ranks through the
     host (``Topology.allreduce``; nothing comes back on one rank)."""
 
-    def __init__(self, basis: "KrylovBasis"):
+    def __init__(self, basis: KrylovBasis):
         n, rows, topo = basis.n, basis.V.shape[0], basis.topology
         self.n, self.topology = n, topo
         self.chunk = chunk = reduction_chunk(n, topo.device)
@@ -79,15 +79,22 @@ class KernelVectors:
         launch = self._launches.get(key)
         if launch is None:
             topo = self.topology
-            launch = self._launches[key] = record(kernel, dim, inputs, device=topo.device, threads=topo.threads,
-                                                  nodes_per_index=nodes_per_index)
+            launch = self._launches[key] = record(
+                kernel, dim, inputs, device=topo.device, threads=topo.threads, nodes_per_index=nodes_per_index
+            )
         for name, value in params.items():
             launch.set_param_by_name(name, value)
         launch.launch()
 
     def dots(self, B, w, k_sub, h, k_dot, out):
-        self._launch(kk.project_dots, self.partial.shape[1], [B, 0, h, w, 0, self.partial, self.chunk],
-                     nodes_per_index=self.chunk, k_sub=k_sub, k_dot=k_dot)
+        self._launch(
+            kk.project_dots,
+            self.partial.shape[1],
+            [B, 0, h, w, 0, self.partial, self.chunk],
+            nodes_per_index=self.chunk,
+            k_sub=k_sub,
+            k_dot=k_dot,
+        )
         rows = k_dot + 1  # the rows it wrote
         key = (out.ptr, rows)
         totals = self._totals.get(key)
@@ -126,7 +133,7 @@ class HostVectors:
     model's threads (SWE_SPHERE_THREADS), which never touch these passes. The
     coefficient arrays are read and written in place (CPU memory: no copy)."""
 
-    def __init__(self, basis: "KrylovBasis"):
+    def __init__(self, basis: KrylovBasis):
         self.topology = basis.topology
         self.tmp = np.zeros(basis.n)
         self._np = NumpyViews()
@@ -252,7 +259,9 @@ class FGMRES(KrylovBasis):
         rec = lambda kernel, inputs: wp.launch(kernel, 1, inputs, device=dev, record_cmd=True)  # noqa: E731
         self._start = rec(kk.fgmres_start, [self.h1, f64(0.0), 0, self.info])
         self._cycle = rec(kk.fgmres_cycle, [self.info, self.g, self.coef, self.go])
-        self._column = rec(kk.arnoldi_column, [0, self.h1, self.h2, self.H, self.cs, self.sn, self.g, self.cv, self.info, self.go])
+        self._column = rec(
+            kk.arnoldi_column, [0, self.h1, self.h2, self.H, self.cs, self.sn, self.g, self.cv, self.info, self.go]
+        )
         self._end = rec(kk.fgmres_end, [self.H, self.cs, self.sn, self.g, self.info, self.y, self.e])
         self._graphs: dict = {}
 
@@ -277,7 +286,9 @@ class FGMRES(KrylovBasis):
     def _replay_steps(self, key, matvec, precond, guard) -> None:
         """``_steps`` as the graph captured under ``key`` on its first use (``graphs.captured``:
         a failure turns ``guard`` off with one line and runs them inline)."""
-        captured(self._graphs, key, lambda: self._steps(matvec, precond), self.topology.device, guard, "an FGMRES cycle")
+        captured(
+            self._graphs, key, lambda: self._steps(matvec, precond), self.topology.device, guard, "an FGMRES cycle"
+        )
 
     def solve(self, matvec, precond, b, x, rtol: float, maxiter: int, graph_key=None, guard=None):
         vec = self.vectors

@@ -16,18 +16,32 @@ substeps), ``mri`` (MIS and MRI-GARK tables).
 
 from __future__ import annotations
 
+from ..core.errors import StepFailure
 from ..model.shallow_water import ShallowWater
 from .base import Stepper, StepStats, option_types
-from ..core.errors import StepFailure
-from .exponential import Epi2, Epi3
 from .explicit import FBRK32, Leapfrog, LeapfrogTrapezoidal
+from .exponential import Epi2, Epi3
 from .implicit import Implicit
 from .multirate import Mri, SplitExplicit
 from .runge_kutta import Imex, Tableau, explicit_steppers
 from .semi_implicit import SemiImplicit
 
 STEPPERS: dict[str, type[Stepper]] = {
-    cls.name: cls for cls in (Leapfrog, LeapfrogTrapezoidal, *explicit_steppers(), FBRK32, SplitExplicit, Mri, SemiImplicit, Implicit, Imex, Tableau, Epi2, Epi3)
+    cls.name: cls
+    for cls in (
+        Leapfrog,
+        LeapfrogTrapezoidal,
+        *explicit_steppers(),
+        FBRK32,
+        SplitExplicit,
+        Mri,
+        SemiImplicit,
+        Implicit,
+        Imex,
+        Tableau,
+        Epi2,
+        Epi3,
+    )
 }
 
 

@@ -23,7 +23,6 @@ import numpy as np
 import warp as wp
 
 from ..model.shallow_water import ShallowWater
-from ..core.errors import StepFailure
 
 f64 = wp.float64
 
@@ -45,7 +44,6 @@ def option_types(options_cls) -> dict[str, type]:
     """Option name → type (float, int, str; tuple: a TOML array) of an options dataclass (the scene schema's table)."""
     hints = typing.get_type_hints(options_cls)
     return {f.name: hints[f.name] for f in dataclasses.fields(options_cls)}
-
 
 
 class Stepper:
@@ -145,7 +143,9 @@ class Stepper:
     def _load(self, a: wp.array, state, key) -> None:
         """Set a (rows, N) array from a whole-grid entry of ``state`` (read on rank 0
         when several ranks: None on the others; call on every rank)."""
-        a.assign(self.model.topology.distribute(self._entry(state, key), a.shape[0], f"{self.name} stepper state {key!r}"))
+        a.assign(
+            self.model.topology.distribute(self._entry(state, key), a.shape[0], f"{self.name} stepper state {key!r}")
+        )
 
     # -- stepping ----------------------------------------------------------------------
     def step(self, x: wp.array2d) -> StepStats:

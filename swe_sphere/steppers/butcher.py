@@ -40,7 +40,6 @@ MAX_ORDER = 6
 PARTS = ("A", "b", "c", "A_E", "b_E", "A_I", "b_I")
 
 
-
 def frozen_table(value):
     """A TOML array (lists, or tuples) as nested tuples."""
     return tuple(frozen_table(v) for v in value) if isinstance(value, (list, tuple)) else value
@@ -120,7 +119,7 @@ def table_entry(value, where: str) -> Fraction:
             return Fraction(value.strip())
         except (ValueError, ZeroDivisionError):
             pass
-    raise ValueError(f"{where} = {value!r} is not a number or a fraction such as \"1/6\"")
+    raise ValueError(f'{where} = {value!r} is not a number or a fraction such as "1/6"')
 
 
 def _vector(o, key: str, s: int | None) -> tuple:
@@ -141,8 +140,12 @@ def _matrix(o, key: str) -> tuple:
         if not isinstance(row, tuple):
             raise ValueError(f"{key} row {i + 1} must be an array of numbers (got {row!r})")
         if len(row) != s:
-            raise ValueError(f"{key} row {i + 1} has {len(row)} entries, not {s}: {key} must be square (s x s, {s} rows)")
-    return tuple(tuple(table_entry(v, f"{key} entry ({i + 1},{j + 1})") for j, v in enumerate(row)) for i, row in enumerate(rows))
+            raise ValueError(
+                f"{key} row {i + 1} has {len(row)} entries, not {s}: {key} must be square (s x s, {s} rows)"
+            )
+    return tuple(
+        tuple(table_entry(v, f"{key} entry ({i + 1},{j + 1})") for j, v in enumerate(row)) for i, row in enumerate(rows)
+    )
 
 
 def parse(o) -> Table:
@@ -154,16 +157,24 @@ def parse(o) -> Table:
     given = [key for key in PARTS if getattr(o, key)]
     explicit, pair = {"A", "b"} & set(given), {"A_E", "b_E", "A_I", "b_I"} & set(given)
     if explicit and pair:
-        raise ValueError(f"give A, b (an explicit table) or A_E, b_E, A_I, b_I (an IMEX pair), not both (got {', '.join(given)})")
+        raise ValueError(
+            f"give A, b (an explicit table) or A_E, b_E, A_I, b_I (an IMEX pair), not both (got {', '.join(given)})"
+        )
     needed = ("A_E", "b_E", "A_I", "b_I", "c") if pair else ("A", "b", "c")
     for key in needed:
         if key not in given:
-            kind = "an IMEX pair needs A_E, b_E, A_I, b_I and c" if pair else "an explicit table needs A, b and c (an IMEX pair A_E, b_E, A_I, b_I and c)"
+            kind = (
+                "an IMEX pair needs A_E, b_E, A_I, b_I and c"
+                if pair
+                else "an explicit table needs A, b and c (an IMEX pair A_E, b_E, A_I, b_I and c)"
+            )
             raise ValueError(f"{key} is missing: {kind}")
     if not o.name.strip():
         raise ValueError("name is missing: name the table (the run file and `swe-sphere list` show it)")
     if not 1 <= o.order <= MAX_ORDER:
-        raise ValueError(f"order must be the order the table claims, 1..{MAX_ORDER} (got {o.order}): its order conditions are checked")
+        raise ValueError(
+            f"order must be the order the table claims, 1..{MAX_ORDER} (got {o.order}): its order conditions are checked"
+        )
     A_E = _matrix(o, "A_E" if pair else "A")
     s = len(A_E)
     b_E = _vector(o, "b_E" if pair else "b", s)
@@ -176,9 +187,15 @@ def parse(o) -> Table:
         implicit = key == "A_I"
         for i, j in itertools.product(range(s), repeat=2):
             if A[i][j] and (j > i or (j == i and not implicit)):
-                why = ("the implicit part must be diagonally implicit (lower triangular)" if implicit else
-                       "an explicit part is strictly lower triangular" + ("" if pair else " (an implicit part goes in A_I of an IMEX pair)"))
-                raise ValueError(f"{key} entry ({i + 1},{j + 1}) = {_text(A[i][j])} is {'above' if j > i else 'on'} the diagonal: {why}")
+                why = (
+                    "the implicit part must be diagonally implicit (lower triangular)"
+                    if implicit
+                    else "an explicit part is strictly lower triangular"
+                    + ("" if pair else " (an implicit part goes in A_I of an IMEX pair)")
+                )
+                raise ValueError(
+                    f"{key} entry ({i + 1},{j + 1}) = {_text(A[i][j])} is {'above' if j > i else 'on'} the diagonal: {why}"
+                )
         for i in range(s):
             if abs(sum(A[i]) - c[i]) > TOL:
                 raise ValueError(f"{key} row {i + 1} sums to {_text(sum(A[i]))}, not c entry {i + 1} = {_text(c[i])}")
@@ -249,7 +266,9 @@ def _label(forest, sub: bool) -> str:
         text = "c" if tree == LEAF else "A" + (f"_{tree[0]} " if sub else "") + _label(tree[1], sub)
         factors[text] = factors.get(text, 0) + 1
     power = str.maketrans("0123456789", "⁰¹²³⁴⁵⁶⁷⁸⁹")
-    parts = [(t if t == "c" or k == 1 else f"({t})") + (str(k).translate(power) if k > 1 else "") for t, k in factors.items()]
+    parts = [
+        (t if t == "c" or k == 1 else f"({t})") + (str(k).translate(power) if k > 1 else "") for t, k in factors.items()
+    ]
     return parts[0] if len(parts) == 1 else "(" + "∘".join(parts) + ")"
 
 
@@ -270,8 +289,10 @@ def _check_order(table: Table) -> None:
         if abs(value - target) > TOL:
             sub = f"_{root}" if table.imex else ""
             name = f"Σb{sub}" if not forest else f"b{sub}·{_label(forest, table.imex)}"
-            raise ValueError(f"order = {table.order} claimed, but the order-{p} condition {name} = {target} fails "
-                             f"(it is {_text(value)})")
+            raise ValueError(
+                f"order = {table.order} claimed, but the order-{p} condition {name} = {target} fails "
+                f"(it is {_text(value)})"
+            )
 
 
 # -- an explicit table as recorded stages ------------------------------------------------------
@@ -347,7 +368,9 @@ def stage_form(A, b, c) -> tuple[tuple, tuple]:
     for j in range(s):
         k, last = j + 1, j == s - 1
         cut = [[*t[: k + 1], *[Fraction(0)] * (n - k - 1)] for t in (*Y[k:], Z)]  # what is to come, in e_0..e_k
-        kept = [name for name, v in content.items() if name == "x" or _in_span(v, [*cut, content["x"]])]  # x is kept anyway
+        kept = [
+            name for name, v in content.items() if name == "x" or _in_span(v, [*cut, content["x"]])
+        ]  # x is kept anyway
         writes = []  # (target, links)
         if last:
             writes.append((Z, _express(Z, k, content)))
@@ -387,7 +410,9 @@ def stage_form(A, b, c) -> tuple[tuple, tuple]:
             target, links = writes[w]
             out = outs[w]
             for link in links:
-                updates.append((out, tuple((a if src == "k" else float(a), out if src is None else src) for a, src in link)))
+                updates.append(
+                    (out, tuple((a if src == "k" else float(a), out if src is None else src) for a, src in link))
+                )
         stages.append((float(c[j]), holder, tuple(updates)))
         content = {**{name: content[name] for name in kept}, **{outs[w]: writes[w][0] for w in order}}
         free = [name for name in pool if name not in content]

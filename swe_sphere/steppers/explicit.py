@@ -54,7 +54,9 @@ class FBRK32(Stepper):
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
         self.continuity = tuple(t for t in model.terms if t in ("continuity", "forcing"))
-        self.momentum = tuple(t for t in model.terms if t in ("momentum_advection", "coriolis", "pressure_gradient", "topography"))
+        self.momentum = tuple(
+            t for t in model.terms if t in ("momentum_advection", "coriolis", "pressure_gradient", "topography")
+        )
         if not self.continuity:
             raise ValueError("fbrk32 advances the depth first: it needs the continuity term (or a forcing)")
         # s: the momentum half's input (u⁽ⁱ⁻¹⁾, v⁽ⁱ⁻¹⁾, h̃); t: x⁽ⁱ⁾ of stages 1 and 2;
@@ -205,7 +207,10 @@ class LeapfrogTrapezoidal(_LeapfrogFamily):
 
     def _record_scheme(self, x):
         dt = self.dt
-        self._pred = ((None, self.new, ((1.0, self.old), (2 * dt, None))), (None, self.half, ((1.0, x), (dt / 2, None))))
+        self._pred = (
+            (None, self.new, ((1.0, self.old), (2 * dt, None))),
+            (None, self.half, ((1.0, x), (dt / 2, None))),
+        )
         self._corr = ((None, self.old, ((1.0, x),)), (None, x, ((1.0, self.half), (dt / 2, None))))  # keep x(n); x(n+1)
 
     def _step(self, x):

@@ -52,9 +52,9 @@ import numpy as np
 import warp as wp
 
 from ..kernels import blas
-from .base import Stepper, StepStats
 from ..solvers.jacobian import FiniteDifferenceJacobian
 from ..solvers.kiops import Kiops
+from .base import Stepper, StepStats
 
 f64 = wp.float64
 

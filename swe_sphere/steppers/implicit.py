@@ -44,13 +44,13 @@ from dataclasses import dataclass
 
 import warp as wp
 
+from ..core.errors import StepFailure
 from ..kernels import blas
 from ..kernels import implicit as ik
-from .base import Stepper, StepStats
-from ..core.errors import StepFailure
 from ..solvers.helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, check_precision
 from ..solvers.jacobian import FiniteDifferenceJacobian, KernelPasses
 from ..solvers.krylov import FGMRES, KernelVectors
+from .base import Stepper, StepStats
 
 f64 = wp.float64
 
@@ -120,8 +120,11 @@ class Implicit(Stepper):
     name = "implicit"
     Options = ImplicitOptions
     solvers = ("newton", "gmres", "precond", "helmholtz")
-    removed_options = {**REMOVED_SOLVER_OPTIONS, "chebyshev_degree": REMOVED_SOLVER_OPTIONS["helmholtz_solver"],
-                       "krylov": "one flexible GMRES on Warp arrays runs on every device and rank count"}
+    removed_options = {
+        **REMOVED_SOLVER_OPTIONS,
+        "chebyshev_degree": REMOVED_SOLVER_OPTIONS["helmholtz_solver"],
+        "krylov": "one flexible GMRES on Warp arrays runs on every device and rank count",
+    }
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
@@ -196,9 +199,15 @@ class Implicit(Stepper):
         Helmholtz preconditioner (its CG reads its inner products back). Its launches
         depend on the backends, the iterate and F(x) arrays (Fx alternates), Δt and β."""
         m, topo = self.model, self.topology
-        if (self.gw is not None or m.forcing is not None or topo.distributed or not m.graph_guard.enabled
-                or not isinstance(self.fgmres.vectors, KernelVectors) or not isinstance(self.jacobian.passes, KernelPasses)
-                or (m.threads > 1 if wp.get_device(m.device).is_cpu else not wp.is_conditional_graph_supported())):
+        if (
+            self.gw is not None
+            or m.forcing is not None
+            or topo.distributed
+            or not m.graph_guard.enabled
+            or not isinstance(self.fgmres.vectors, KernelVectors)
+            or not isinstance(self.jacobian.passes, KernelPasses)
+            or (m.threads > 1 if wp.get_device(m.device).is_cpu else not wp.is_conditional_graph_supported())
+        ):
             return None
         return (id(self.fgmres.vectors), id(self.jacobian.passes), self.x.ptr, self.Fx.ptr, self.dt, self.beta)
 
@@ -206,8 +215,16 @@ class Implicit(Stepper):
         """Solve J δ = −R (on unique nodes) to relative tolerance eta by right-preconditioned
         flexible GMRES; δ into ``delta``. Each iteration one J·v (one RHS)."""
         self._gather(-1.0, self.R, self.minus_R)
-        its, _ = self.fgmres.solve(self._jv, self._unique_precondition, self.minus_R, self.w, eta, self.o["gmres_maxiter"],
-                                   graph_key=self._cycle_key(), guard=self.model.graph_guard)
+        its, _ = self.fgmres.solve(
+            self._jv,
+            self._unique_precondition,
+            self.minus_R,
+            self.w,
+            eta,
+            self.o["gmres_maxiter"],
+            graph_key=self._cycle_key(),
+            guard=self.model.graph_guard,
+        )
         self.rhs_evals += its
         self._counts["gmres"] += its
         if self.gw is not None:
@@ -242,7 +259,9 @@ class Implicit(Stepper):
         eta = rprev = None
         while not (rnorm <= o["atol"] or rnorm <= o["rtol"] * r0):
             if newton == o["maxiter"]:
-                raise StepFailure(f"Newton did not converge in {newton} iterations (residual RMS {rnorm:.3e} > {o['atol']:.1e})")
+                raise StepFailure(
+                    f"Newton did not converge in {newton} iterations (residual RMS {rnorm:.3e} > {o['atol']:.1e})"
+                )
             if not math.isfinite(rnorm):
                 raise StepFailure("Newton residual is not finite")
             eta = self._eta(newton, rnorm, rprev, eta)

@@ -63,8 +63,10 @@ class DigitalFilter:
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"dfi.{name} must be > 0 (got {value!r})")
         if self.span_hours < 2 * self.cutoff_hours:
-            raise ValueError(f"dfi.span_hours = {self.span_hours:g} is too short for a cutoff of {self.cutoff_hours:g} h "
-                             f"(needs >= 2 x dfi.cutoff_hours = {2 * self.cutoff_hours:g})")
+            raise ValueError(
+                f"dfi.span_hours = {self.span_hours:g} is too short for a cutoff of {self.cutoff_hours:g} h "
+                f"(needs >= 2 x dfi.cutoff_hours = {2 * self.cutoff_hours:g})"
+            )
 
     def steps(self, rate: float) -> tuple[float, int]:
         """(Δt in s, n): the RK4 step and the steps each way to span/2, Δt ≤ COURANT / ``rate``
@@ -92,15 +94,25 @@ class FilterResult:
 
     def attrs(self, f: DigitalFilter) -> dict:
         """The run file's global attributes (prefix dfi_)."""
-        return {"dfi_span_hours": f.span_hours, "dfi_cutoff_hours": f.cutoff_hours, "dfi_dt": self.dt, "dfi_steps": self.steps,
-                "dfi_rhs_evals": self.rhs_evals, "dfi_wall_time": self.wall_time, "dfi_dhdt_rms_before": self.dhdt_rms[0],
-                "dfi_dhdt_rms_after": self.dhdt_rms[1], "dfi_mass_change": self.mass_change}
+        return {
+            "dfi_span_hours": f.span_hours,
+            "dfi_cutoff_hours": f.cutoff_hours,
+            "dfi_dt": self.dt,
+            "dfi_steps": self.steps,
+            "dfi_rhs_evals": self.rhs_evals,
+            "dfi_wall_time": self.wall_time,
+            "dfi_dhdt_rms_before": self.dhdt_rms[0],
+            "dfi_dhdt_rms_after": self.dhdt_rms[1],
+            "dfi_mass_change": self.mass_change,
+        }
 
     def describe(self, f: DigitalFilter) -> str:
         """One line for the run's header."""
-        return (f"digital filter (Lynch & Huang 1992): cutoff {f.cutoff_hours:g} h, span +-{f.span_hours / 2:g} h, RK4 dt "
-                f"{self.dt:.4g} s x {self.steps} steps each way, {self.wall_time:.2f} s; rms dh/dt {self.dhdt_rms[0]:.3e} -> "
-                f"{self.dhdt_rms[1]:.3e} m/s, mass change {self.mass_change:+.1e}")
+        return (
+            f"digital filter (Lynch & Huang 1992): cutoff {f.cutoff_hours:g} h, span +-{f.span_hours / 2:g} h, RK4 dt "
+            f"{self.dt:.4g} s x {self.steps} steps each way, {self.wall_time:.2f} s; rms dh/dt {self.dhdt_rms[0]:.3e} -> "
+            f"{self.dhdt_rms[1]:.3e} m/s, mass change {self.mass_change:+.1e}"
+        )
 
 
 def digital_filter(f: DigitalFilter, x0: np.ndarray, *, grid, terms, fcor, hs, g, device, topology) -> FilterResult:
@@ -126,8 +138,10 @@ def digital_filter(f: DigitalFilter, x0: np.ndarray, *, grid, terms, fcor, hs, g
             stepper.step(x)
             acc += w[n + sign * k] * (x.numpy() if sign > 0 else reverse * x.numpy())
         if model.bad_nodes.first(x) is not None:
-            raise ValueError(f"the digital filter's {'forward' if sign > 0 else 'backward'} integration over {f.span_hours / 2:g} h "
-                             f"(RK4, dt = {dt:.4g} s) went non-finite or dry; try a shorter dfi.span_hours")
+            raise ValueError(
+                f"the digital filter's {'forward' if sign > 0 else 'backward'} integration over {f.span_hours / 2:g} h "
+                f"(RK4, dt = {dt:.4g} s) went non-finite or dry; try a shorter dfi.span_hours"
+            )
 
     def dhdt_rms(state):  # L&H's measure of noise: the tendency of the free surface
         x, tend = models[1].new_state(*state), models[1].new_state()
@@ -135,5 +149,12 @@ def digital_filter(f: DigitalFilter, x0: np.ndarray, *, grid, terms, fcor, hs, g
         return math.sqrt(topology.mean(tend.numpy()[2] ** 2))
 
     mass0 = topology.integrate(x0[2])
-    return FilterResult(x=acc, dt=dt, steps=n - 1, rhs_evals=8 * (n - 1), wall_time=time.perf_counter() - t0,
-                        dhdt_rms=(dhdt_rms(x0), dhdt_rms(acc)), mass_change=(topology.integrate(acc[2]) - mass0) / mass0)
+    return FilterResult(
+        x=acc,
+        dt=dt,
+        steps=n - 1,
+        rhs_evals=8 * (n - 1),
+        wall_time=time.perf_counter() - t0,
+        dhdt_rms=(dhdt_rms(x0), dhdt_rms(acc)),
+        mass_change=(topology.integrate(acc[2]) - mass0) / mass0,
+    )

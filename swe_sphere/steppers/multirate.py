@@ -80,7 +80,7 @@ def check_substeps(substeps, fast_courant) -> None:
     """ValueError 'substeps must be ...' unless an integer ≥ 1 or "auto", 'fast_courant
     must be ...' unless > 0."""
     if substeps != "auto" and (isinstance(substeps, bool) or not isinstance(substeps, int) or substeps < 1):
-        raise ValueError(f"substeps must be an integer >= 1 or \"auto\" (got {substeps!r})")
+        raise ValueError(f'substeps must be an integer >= 1 or "auto" (got {substeps!r})')
     if isinstance(fast_courant, bool) or not isinstance(fast_courant, (int, float)) or not fast_courant > 0:
         raise ValueError(f"fast_courant must be > 0 (got {fast_courant!r})")
 
@@ -327,10 +327,17 @@ class SplitExplicit(_Multirate):
         h′_old + (1 + β)τ(ρ_h − D(h_s v)) beside h′ (its DSS serves both); ``first`` (a
         stage's first substep, which has no last one): h̃ = h′."""
         g, W, w, beta = self.model.g, self.W, self.w, self.options.divergence_damping
-        self.model.gradient_update(w if not first and beta else prev, 2,
-                                   [(W[0:2], ((1.0, (prev if first else W)[0:2]), (tau, forcing[0:2]), (-g * tau, None)))])
-        weighted = [(slice(2, 3), w, ((1.0, prev), ((1.0 + beta) * tau, forcing), ((1.0 + beta) * tau, None)))] if beta else []
-        self.model.rhs_update(W, [*weighted, (slice(2, 3), out, ((1.0, prev), (tau, forcing), (tau, None)))], ("continuity",))
+        self.model.gradient_update(
+            w if not first and beta else prev,
+            2,
+            [(W[0:2], ((1.0, (prev if first else W)[0:2]), (tau, forcing[0:2]), (-g * tau, None)))],
+        )
+        weighted = (
+            [(slice(2, 3), w, ((1.0, prev), ((1.0 + beta) * tau, forcing), ((1.0 + beta) * tau, None)))] if beta else []
+        )
+        self.model.rhs_update(
+            W, [*weighted, (slice(2, 3), out, ((1.0, prev), (tau, forcing), (tau, None)))], ("continuity",)
+        )
 
 
 # -- multirate infinitesimal tables ----------------------------------------------------
@@ -400,7 +407,9 @@ def _square(t: dict, key: str, s: int | None) -> list:
         raise ValueError(f"{key} must be a non-empty array of rows (got {rows!r})")
     if len(rows) != (s or len(rows)) or any(len(r) != len(rows) for r in rows):
         shape = f"{len(rows)} rows of {', '.join(str(len(r)) for r in rows)} entries"
-        raise ValueError(f"{key} must be square (got {shape})" if s is None else f"{key} must be {s} x {s}, as beta (got {shape})")
+        raise ValueError(
+            f"{key} must be square (got {shape})" if s is None else f"{key} must be {s} x {s}, as beta (got {shape})"
+        )
     s = len(rows)
     out = [[table_entry(v, f"{key} entry ({i + 1},{j + 1})") for j, v in enumerate(r)] for i, r in enumerate(rows)]
     for i in range(s):
@@ -424,7 +433,9 @@ def parse_mri(o: MriOptions) -> MriTable:
     d = [sum(row) for row in beta]
     for r, span in enumerate(d):
         if span <= 0:
-            raise ValueError(f"beta row {r + 1} sums to {float(span):.6g}: each inner solve's span d = the row sum must be > 0")
+            raise ValueError(
+                f"beta row {r + 1} sums to {float(span):.6g}: each inner solve's span d = the row sum must be > 0"
+            )
     # the slow part: Y_{r+2} − x(n) = Σ_j (α + γ)_rj (Y_{j+1} − x(n)) + Δt Σ_j (β + β¹/2)_rj F_{j+1}
     A = [[Fraction(0)] * s]
     for r in range(s):
@@ -433,10 +444,18 @@ def parse_mri(o: MriOptions) -> MriTable:
             row = [a + (alpha[r][j] + gamma[r][j]) * y for a, y in zip(row, A[j])]
         A.append(row)
     c = [sum(row) for row in A[:s]]
-    slow = TableauOptions(name=str(t["name"]), description=str(t.get("description", "")), order=int(t.get("order", 0)),
-                          A=tuple(tuple(str(a) for a in row) for row in A[:s]), b=tuple(str(a) for a in A[s]), c=tuple(str(a) for a in c))
+    slow = TableauOptions(
+        name=str(t["name"]),
+        description=str(t.get("description", "")),
+        order=int(t.get("order", 0)),
+        A=tuple(tuple(str(a) for a in row) for row in A[:s]),
+        b=tuple(str(a) for a in A[s]),
+        c=tuple(str(a) for a in c),
+    )
     arr = lambda m: np.array([[float(v) for v in row] for row in m])  # noqa: E731
-    return MriTable(arr(alpha), arr(beta), arr(gamma), arr(beta1), np.array([float(v) for v in d]), tuple(float(v) for v in c), slow)
+    return MriTable(
+        arr(alpha), arr(beta), arr(gamma), arr(beta1), np.array([float(v) for v in d]), tuple(float(v) for v in c), slow
+    )
 
 
 class Mri(_Multirate):
@@ -522,8 +541,13 @@ class Mri(_Multirate):
             elif out is not z:
                 wp.copy(out, z)
             d = tab.d[r]
-            self._combine(self.rho0, [*((tab.beta[r, j] / d, self.S[j]) for j in range(r + 1)),
-                                      *((tab.gamma[r, j] / (d * dt), self.D.get(j)) for j in range(1, r + 1))])
+            self._combine(
+                self.rho0,
+                [
+                    *((tab.beta[r, j] / d, self.S[j]) for j in range(r + 1)),
+                    *((tab.gamma[r, j] / (d * dt), self.D.get(j)) for j in range(1, r + 1)),
+                ],
+            )
             timed = bool(tab.beta1[r].any())
             if timed:
                 self._combine(self.rho1, [(tab.beta1[r, j] / d, self.S[j]) for j in range(r + 1)])
@@ -555,7 +579,13 @@ class Mri(_Multirate):
             self.split.fast(arrays[arg], self.K, rho)
             for out, terms in updates:
                 dst = arrays[out]
-                self._comb(dst, *((float(a) * tau, self.K) if src == "k" else (a, dst if src is None else arrays[src]) for a, src in terms))
+                self._comb(
+                    dst,
+                    *(
+                        (float(a) * tau, self.K) if src == "k" else (a, dst if src is None else arrays[src])
+                        for a, src in terms
+                    ),
+                )
 
     def _fbrk32(self, z, tau, k, n, timed) -> None:
         """One FB-RK(3,2) step (``explicit.FBRK32``: the depth first, the wind with h̃) of the
@@ -573,7 +603,12 @@ class Mri(_Multirate):
                 self._comb(z[2:3], (1.0, s[2:3]))
                 self.model.gradient_update(t, 2, [(z[0:2], ((1.0, z[0:2]), (ct, rho[0:2]), (-g * ct, None)))])
             else:  # h̃ = β h⁽ⁱ⁾ + (1 − β) h(n) into s, h⁽ⁱ⁾ into t
-                self.model.divergence_update(prev, [(s[2:3], ((1.0, z[2:3]), (beta * ct, rho[2:3]), (-H * beta * ct, None))),
-                                                    (t[2:3], ((1.0, z[2:3]), (ct, rho[2:3]), (-H * ct, None)))])
+                self.model.divergence_update(
+                    prev,
+                    [
+                        (s[2:3], ((1.0, z[2:3]), (beta * ct, rho[2:3]), (-H * beta * ct, None))),
+                        (t[2:3], ((1.0, z[2:3]), (ct, rho[2:3]), (-H * ct, None))),
+                    ],
+                )
                 self.model.gradient_update(s, 2, [(t[0:2], ((1.0, z[0:2]), (ct, rho[0:2]), (-g * ct, None)))])
             c_prev = c

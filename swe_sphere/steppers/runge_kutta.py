@@ -59,9 +59,9 @@ from fractions import Fraction
 import warp as wp
 
 from ..kernels import blas
+from ..solvers.helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, HelmholtzSteps, check_solve_options
 from .base import Stepper, StepStats
 from .butcher import PARTS, Table, TableauOptions, parse, stage_form
-from ..solvers.helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, HelmholtzSteps, check_solve_options
 from .tables import COURANT_LIMITS, EXPLICIT, IMEX
 
 f64 = wp.float64
@@ -98,10 +98,18 @@ class ExplicitRK(Stepper):
         arrays = {"x": x, "k": None, **self._buffers}  # None: F itself (``rhs_update``)
         self._x = x
         self._stages = [
-            (c, arrays[arg], tuple(
-                (None, arrays[out], tuple((_dt_times(a, self.dt) if src == "k" else a, arrays[src]) for a, src in terms))
-                for out, terms in updates
-            ))
+            (
+                c,
+                arrays[arg],
+                tuple(
+                    (
+                        None,
+                        arrays[out],
+                        tuple((_dt_times(a, self.dt) if src == "k" else a, arrays[src]) for a, src in terms),
+                    )
+                    for out, terms in updates
+                ),
+            )
             for c, arg, updates in self._form
         ]
 
@@ -118,8 +126,11 @@ class ExplicitRK(Stepper):
 def explicit_steppers() -> tuple[type[Stepper], ...]:
     """A registered stepper class per built-in explicit table (``tables.EXPLICIT``)."""
     return tuple(
-        type(key.upper(), (ExplicitRK,), {"name": key, "TABLE": TABLES[key], "courant_limit": COURANT_LIMITS[key],
-                                          "__doc__": t["description"]})
+        type(
+            key.upper(),
+            (ExplicitRK,),
+            {"name": key, "TABLE": TABLES[key], "courant_limit": COURANT_LIMITS[key], "__doc__": t["description"]},
+        )
         for key, t in EXPLICIT.items()
     )
 
@@ -139,7 +150,9 @@ class ImexRK(HelmholtzSteps, Stepper):
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
         o = self.options
-        self.gw = GravityWave(model, o.mean_depth, o.tol, o.maxiter, warm=True, precision=o.precision, history=o.guess_history)
+        self.gw = GravityWave(
+            model, o.mean_depth, o.tol, o.maxiter, warm=True, precision=o.precision, history=o.guess_history
+        )
         A_E, b_E, A_I, b_I, self.c = self.table().floats()
         stages = len(b_E)
         self.A_E, self.A_I, self.b_E, self.b_I = A_E, A_I, b_E, b_I
@@ -171,9 +184,15 @@ class ImexRK(HelmholtzSteps, Stepper):
         s = len(F)
         # combination k: stage k's right-hand side (or, a_kk = 0, Y_k) for k < s, x(n+1) for k = s; each is
         # x(n) + Σ c·a in passes from x itself, which holds x(n) until the last combination writes it
-        combos = [self._passes([(dt * A_E[k, j], F[j]) for j in range(k)] + [(dt * (A_I[k, j] - A_E[k, j]), L[j]) for j in range(k)])
-                  for k in range(s)]
-        combos.append(self._passes([(dt * b_E[j], F[j]) for j in range(s)] + [(dt * (b_I[j] - b_E[j]), L[j]) for j in range(s)]))
+        combos = [
+            self._passes(
+                [(dt * A_E[k, j], F[j]) for j in range(k)] + [(dt * (A_I[k, j] - A_E[k, j]), L[j]) for j in range(k)]
+            )
+            for k in range(s)
+        ]
+        combos.append(
+            self._passes([(dt * b_E[j], F[j]) for j in range(s)] + [(dt * (b_I[j] - b_E[j]), L[j]) for j in range(s)])
+        )
         outs = [L[k] if A_I[k, k] != 0.0 else self.Y for k in range(s)] + [x]
         done = [False] * (s + 1)  # a combination written with the RHS of the stage before (``_rhs``)
         evals = 0
@@ -310,8 +329,12 @@ class Tableau(Stepper):
     def attrs(self) -> dict:
         o = self.options
         table = {key: getattr(o, key) for key in PARTS if getattr(o, key)}
-        return {"tableau": o.name, "tableau_description": o.description, "tableau_order": o.order,
-                "tableau_table": json.dumps(table)}
+        return {
+            "tableau": o.name,
+            "tableau_description": o.description,
+            "tableau_order": o.order,
+            "tableau_table": json.dumps(table),
+        }
 
 
 class TableauRK(Tableau, ExplicitRK):

@@ -24,9 +24,9 @@ from dataclasses import dataclass
 import warp as wp
 
 from ..kernels import blas
+from ..solvers.helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, HelmholtzSteps, check_solve_options
 from .base import StepStats
 from .explicit import Leapfrog, LeapfrogOptions
-from ..solvers.helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, HelmholtzSteps, check_solve_options
 
 f64 = wp.float64
 
@@ -77,7 +77,9 @@ class SemiImplicit(HelmholtzSteps, Leapfrog):
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
         o = self.options
-        self.gw = GravityWave(model, o.mean_depth, o.tol, o.maxiter, warm=True, precision=o.precision, history=o.guess_history)
+        self.gw = GravityWave(
+            model, o.mean_depth, o.tol, o.maxiter, warm=True, precision=o.precision, history=o.guess_history
+        )
         self.F, self.W, self.LW = self._buffer(), self._buffer(), self._buffer()
 
     @property

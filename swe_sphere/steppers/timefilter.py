@@ -53,10 +53,14 @@ class TimeFilter:
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"filter {name.replace('_', ' ')} must be positive (got {value:g})")
         if 2 * self.every_hours / 24 >= self.period_days:
-            raise ValueError(f"filter period of {self.period_days:g} days needs snapshots more often than every {self.every_hours:g} h")
+            raise ValueError(
+                f"filter period of {self.period_days:g} days needs snapshots more often than every {self.every_hours:g} h"
+            )
         per = self.half_window_days * 24 / self.every_hours
         if abs(per - round(per)) > 1e-9:
-            raise ValueError(f"filter half window of {self.half_window_days:g} days is not a multiple of its {self.every_hours:g} h snapshots")
+            raise ValueError(
+                f"filter half window of {self.half_window_days:g} days is not a multiple of its {self.every_hours:g} h snapshots"
+            )
 
     @property
     def n(self) -> int:
@@ -69,7 +73,9 @@ class TimeFilter:
     def days(self, target: float) -> np.ndarray:
         """The snapshot days around ``target``; ``ValueError`` if the window starts before day 0."""
         if target - self.half_window_days < -1e-9:
-            raise ValueError(f"filter window of ±{self.half_window_days:g} days around day {target:g} starts before the run")
+            raise ValueError(
+                f"filter window of ±{self.half_window_days:g} days around day {target:g} starts before the run"
+            )
         return target + self.every_hours / 24 * np.arange(-self.n, self.n + 1)
 
     def apply(self, snapshots) -> np.ndarray:

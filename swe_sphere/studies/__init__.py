@@ -6,4 +6,4 @@ largest stable Δt), ``analysis`` (spectra, zonal means), ``plotting``.
 May import: every layer below (``core`` to ``simulation``).
 """
 
-__all__ = ['analysis', 'plotting', 'stability', 'sweep']
+__all__ = ["analysis", "plotting", "stability", "sweep"]

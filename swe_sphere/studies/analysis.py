@@ -20,9 +20,9 @@ import numpy as np
 import xarray as xr
 
 from ..core.constants import EARTH
-from ..io.run_file import FIELDS
-from ..io.remap import Remapper, latlon_grid, open_netcdf, remap_bytes, run_grid
 from ..core.runtime import check_memory
+from ..io.remap import Remapper, latlon_grid, open_netcdf, remap_bytes, run_grid
+from ..io.run_file import FIELDS
 
 # name → (long name, units on the colour bar, scale applied before drawing, colour map, symmetric about 0)
 MAP_FIELDS = {
@@ -121,8 +121,10 @@ def _on_latlon(ds, fields, days, resolution):
         raise ValueError("the run holds no output time")
     nodes = np.array([[field_at_nodes(ds, f, d) for d in days] for f in fields])  # ValueError for a day not stored
     lat, lon = latlon_grid(default_resolution(grid) if resolution is None else resolution)
-    check_memory(remap_bytes(lat.size * lon.size, grid.np, nodes.shape[0] * nodes.shape[1]),
-                 f"a {lat.size} x {lon.size} lat-lon grid")
+    check_memory(
+        remap_bytes(lat.size * lon.size, grid.np, nodes.shape[0] * nodes.shape[1]),
+        f"a {lat.size} x {lon.size} lat-lon grid",
+    )
     values = Remapper(grid, np.radians(lat)[:, None], np.radians(lon)[None, :])(nodes)
     return lat, lon, np.array([days_of(ds)[time_index(ds, d)] for d in days]), values
 
@@ -149,14 +151,20 @@ def zonal_mean(run, field: str = "h", days=None, resolution: float | None = None
     ds = _loaded(run)
     lat, _, days, values = _on_latlon(ds, [field], days, resolution)
     long_name = MAP_FIELDS[field][0]
-    units = FIELDS[{"h_surface": "h", "speed": "u"}.get(field, field)]["units"]  # the file's (MAP_FIELDS': the colour bar's)
+    units = FIELDS[{"h_surface": "h", "speed": "u"}.get(field, field)][
+        "units"
+    ]  # the file's (MAP_FIELDS': the colour bar's)
     mean = values[0].mean(axis=-1)
     if field in ("u", "v"):  # at a pole east and north turn with longitude: a wind component's mean over a
         mean[:, np.abs(lat) == 90.0] = 0.0  # shrinking circle of latitude tends to 0, its limit there
     return xr.DataArray(
-        mean, dims=("time", "lat"), name=f"{field}_zonal_mean",
-        coords=dict(time=("time", days, dict(units="days", long_name="model time")),
-                    lat=("lat", lat, dict(units="degrees_north", standard_name="latitude"))),
+        mean,
+        dims=("time", "lat"),
+        name=f"{field}_zonal_mean",
+        coords=dict(
+            time=("time", days, dict(units="days", long_name="model time")),
+            lat=("lat", lat, dict(units="degrees_north", standard_name="latitude")),
+        ),
         attrs=dict(units=units, long_name=f"zonal mean of the {long_name}"),
     )
 
@@ -222,11 +230,19 @@ def kinetic_energy_spectrum(run, days=None, lmax: int | None = None) -> xr.Datas
     e_rot, e_div = a * a / (8 * math.pi * l * (l + 1)) * power[:, :, 1:]
     attrs = {k: dict(units="m2 s-2", long_name=v) for k, v in SPECTRUM_PARTS.items()}
     return xr.Dataset(
-        {"E_rot": (("time", "l"), e_rot, attrs["E_rot"]), "E_div": (("time", "l"), e_div, attrs["E_div"]),
-         "E": (("time", "l"), e_rot + e_div, attrs["E"])},
-        coords=dict(time=("time", days, dict(units="days", long_name="model time")),
-                    l=("l", l, dict(long_name="spherical-harmonic degree"))),
-        attrs=dict(radius=a, definition="E(l) = a^2 / (8 pi l (l+1)) sum_m |zeta_lm|^2 (and delta_lm), orthonormal "
-                   "harmonics; sum_l E(l) = global mean of |v|^2 / 2 (Koshyk & Hamilton 2001)",
-                   source=f"ducc0 analysis of the vorticity and divergence on a {180 / rows:g} degree Clenshaw-Curtis grid"),
+        {
+            "E_rot": (("time", "l"), e_rot, attrs["E_rot"]),
+            "E_div": (("time", "l"), e_div, attrs["E_div"]),
+            "E": (("time", "l"), e_rot + e_div, attrs["E"]),
+        },
+        coords=dict(
+            time=("time", days, dict(units="days", long_name="model time")),
+            l=("l", l, dict(long_name="spherical-harmonic degree")),
+        ),
+        attrs=dict(
+            radius=a,
+            definition="E(l) = a^2 / (8 pi l (l+1)) sum_m |zeta_lm|^2 (and delta_lm), orthonormal "
+            "harmonics; sum_l E(l) = global mean of |v|^2 / 2 (Koshyk & Hamilton 2001)",
+            source=f"ducc0 analysis of the vorticity and divergence on a {180 / rows:g} degree Clenshaw-Curtis grid",
+        ),
     )

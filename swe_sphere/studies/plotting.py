@@ -29,13 +29,22 @@ import numpy as np
 import xarray as xr
 from matplotlib.ticker import MaxNLocator
 
-from .analysis import DAY_TOL, DERIVED, MAP_FIELDS, days_of, field_at_nodes, kinetic_energy_spectrum, run_name, zonal_mean
 from ..cases.library import make_case
+from ..cases.reference import Reference, cases_of, locate
 from ..core.constants import EARTH, PLANET_KEYS, Planet
 from ..io.initial_state import SCENE_CASES
-from ..io.run_file import atomic_path, check_distinct, check_target
-from ..cases.reference import Reference, cases_of, locate
 from ..io.remap import Remapper, cached_grid, open_netcdf, run_grid
+from ..io.run_file import atomic_path, check_distinct, check_target
+from .analysis import (
+    DAY_TOL,
+    DERIVED,
+    MAP_FIELDS,
+    days_of,
+    field_at_nodes,
+    kinetic_energy_spectrum,
+    run_name,
+    zonal_mean,
+)
 
 INVARIANTS = ("mass_change", "total_energy_change", "potential_enstrophy_change")
 FIGSIZE, DPI = (12.0, 6.0), 100  # map: 1200 × 600 pixels
@@ -189,7 +198,11 @@ def draw_map(fig, ax, lon_edges, lat_edges, values, *, cmap, symmetric, label, c
     ax.set_aspect("equal" if span > 179 else "auto")
     ax.set_xticks(np.arange(0, 361, 60))
     step = 30 if span > 120 else 15 if span > 45 else 5
-    ax.set_yticks(np.arange(-90, 91, step)[(np.arange(-90, 91, step) >= lat_edges[0]) & (np.arange(-90, 91, step) <= lat_edges[-1])])
+    ax.set_yticks(
+        np.arange(-90, 91, step)[
+            (np.arange(-90, 91, step) >= lat_edges[0]) & (np.arange(-90, 91, step) <= lat_edges[-1])
+        ]
+    )
     ax.set_xlabel("longitude (°E)")
     ax.set_ylabel("latitude (°N)")
     cbar = fig.colorbar(mesh, ax=ax, shrink=0.85, pad=0.02)
@@ -255,7 +268,9 @@ def plot_map(ds, field: str, day: float, path=None, diff=None, lat_range=None) -
     if interval is not None:  # the interval is stated, so a reader can count the lines
         label = info["colorbar_label"] = f"{label}; contours every {interval:g} {units}"
     info["contour_interval"] = interval
-    draw_map(fig, ax, lon_e, lat_e, shown * scale, cmap=draw_cmap, symmetric=draw_symmetric, label=label, contours=contours)
+    draw_map(
+        fig, ax, lon_e, lat_e, shown * scale, cmap=draw_cmap, symmetric=draw_symmetric, label=label, contours=contours
+    )
     ax.set_title(title, fontsize=11)
     info["figure"] = fig
     if path is not None:
@@ -298,7 +313,9 @@ def _lines(ax, lines, *, logx=False, logy=False, markers=True, xlabel="", ylabel
     return drawn
 
 
-def line_plot(path, lines, *, xlabel="", ylabel="", title="", logx=False, logy=False, markers=True, figsize=(8.0, 5.0)) -> Path:
+def line_plot(
+    path, lines, *, xlabel="", ylabel="", title="", logx=False, logy=False, markers=True, figsize=(8.0, 5.0)
+) -> Path:
     """Generic x-y line figure to the PNG ``path`` (figsize × 100 dpi pixels).
 
     ``lines``: iterable of ``(label, x, y)``; non-finite points (and non-positive ones
@@ -320,8 +337,17 @@ def error_label(y: str) -> str:
     return f"{kind} error: normalized l2 of {field.lstrip('_').replace('_', ' ') or 'h + hs'}"
 
 
-def sweep_plot(path, rows, x: str, *, xlabel: str = "", floor: float | None = None, y: str = "temporal_error", figsize=(8.0, 5.0),
-               title: str = "") -> Path:
+def sweep_plot(
+    path,
+    rows,
+    x: str,
+    *,
+    xlabel: str = "",
+    floor: float | None = None,
+    y: str = "temporal_error",
+    figsize=(8.0, 5.0),
+    title: str = "",
+) -> Path:
     """Sweep figure (``swe_sphere.studies.sweep``): ``y`` against ``x`` per stepper, log-log, for the
     stable runs of ``rows`` (dicts with ``stepper``, ``stable``, ``x``, ``y``); unstable runs
     are crosses along the top edge at their x. ``floor``: the spatial error, drawn as a
@@ -331,12 +357,23 @@ def sweep_plot(path, rows, x: str, *, xlabel: str = "", floor: float | None = No
     lines = []
     for st in steppers:
         # joined in order of Δt, so a line reads as the stepper's cost-accuracy path
-        pts = [(float(r[x]), float(r[y])) for r in sorted(rows, key=lambda r: r.get("dt", 0.0)) if r["stepper"] == st and r.get("stable", True)]
+        pts = [
+            (float(r[x]), float(r[y]))
+            for r in sorted(rows, key=lambda r: r.get("dt", 0.0))
+            if r["stepper"] == st and r.get("stable", True)
+        ]
         lines.append((st, [p[0] for p in pts], [p[1] for p in pts]))
     fig = _figure(figsize)
     ax = fig.add_subplot()
-    drawn = _lines(ax, lines, logx=True, logy=True, xlabel=xlabel or x, ylabel=error_label(y),
-                   title=f"{title + ': ' if title else ''}{y.replace('_', ' ')} against {xlabel or x}")
+    drawn = _lines(
+        ax,
+        lines,
+        logx=True,
+        logy=True,
+        xlabel=xlabel or x,
+        ylabel=error_label(y),
+        title=f"{title + ': ' if title else ''}{y.replace('_', ' ')} against {xlabel or x}",
+    )
     if floor is not None and math.isfinite(floor) and floor > 0:
         ax.axhline(floor, color="0.4", linestyle="--", linewidth=1, label="spatial error")
         if y.startswith("temporal"):
@@ -369,15 +406,33 @@ def plot_series(ds, path=None):
     left, right = fig.subplots(1, 2)
     inv = [(k.replace("_change", ""), days, np.abs(ds[k].values)) for k in INVARIANTS if k in ds.variables]
     if not _lines(left, inv, logy=True, xlabel="day", ylabel="|relative change since t = 0|", title="invariants"):
-        left.text(0.5, 0.5, "no invariants in this file (or all exactly conserved)", ha="center", va="center", transform=left.transAxes)
+        left.text(
+            0.5,
+            0.5,
+            "no invariants in this file (or all exactly conserved)",
+            ha="center",
+            va="center",
+            transform=left.transAxes,
+        )
     norm_names = [
         f"{pre}{n}_{f}" for pre in ("", "ref_") for f in ("h", "h_surface", "wind") for n in ("l1", "l2", "linf")
     ]
     norms = [(k, days, ds[k].values) for k in norm_names if k in ds.variables]
     against = ds.attrs.get("reference", "")  # the run file's truth: "exact solution", a reference file's name or "none"
-    title = "error norms against the exact solution" if against == "exact solution" else f"error norms (ref_: against {against})"
+    title = (
+        "error norms against the exact solution"
+        if against == "exact solution"
+        else f"error norms (ref_: against {against})"
+    )
     if not _lines(right, norms, logy=True, xlabel="day", ylabel="normalized error", title=title):
-        right.text(0.5, 0.5, "no exact or reference solution for this case", ha="center", va="center", transform=right.transAxes)
+        right.text(
+            0.5,
+            0.5,
+            "no exact or reference solution for this case",
+            ha="center",
+            va="center",
+            transform=right.transAxes,
+        )
     fig.suptitle(_scene_label(ds), fontsize=12)
     if path is not None:
         _save(fig, path)
@@ -405,7 +460,12 @@ def _run_case(ds):
     them), or None for a scene this version does not know."""
     case, params, _, _ = _run_identity(ds)
     try:
-        return make_case(case, params, Planet.from_table({k: ds.attrs[f"planet_{k}"] for k in PLANET_KEYS if f"planet_{k}" in ds.attrs}), SCENE_CASES)
+        return make_case(
+            case,
+            params,
+            Planet.from_table({k: ds.attrs[f"planet_{k}"] for k in PLANET_KEYS if f"planet_{k}" in ds.attrs}),
+            SCENE_CASES,
+        )
     except ValueError:
         return None
 
@@ -419,16 +479,23 @@ def check_comparable(ds, diff) -> None:
     if isinstance(diff, _Run):
         other = _run_identity(diff.ds)
         if (case, params) != other[:2]:
+
             def label(c, p):
                 return c + "".join(f" {k}={v}" for k, v in p.items())
 
-            raise ValueError(f"{diff.label} is a run of case {label(*other[:2])}, not {label(case, params)} (--force to compare anyway)")
+            raise ValueError(
+                f"{diff.label} is a run of case {label(*other[:2])}, not {label(case, params)} (--force to compare anyway)"
+            )
         if (ne, np_) != other[2:]:
-            raise ValueError(f"{diff.label} is a run on ne={other[2]} np={other[3]}, not ne={ne} np={np_} (--force to compare anyway)")
+            raise ValueError(
+                f"{diff.label} is a run on ne={other[2]} np={other[3]}, not ne={ne} np={np_} (--force to compare anyway)"
+            )
     elif (case_obj := _run_case(ds)) is not None:  # None: a scene this version does not know, nothing to check against
         if case_obj.planet != EARTH:
-            raise ValueError(f"{diff.label} is a reference of Williamson's Earth, not of the run's planet "
-                             f"(radius {case_obj.planet.a:g} m) (--force to compare anyway)")
+            raise ValueError(
+                f"{diff.label} is a reference of Williamson's Earth, not of the run's planet "
+                f"(radius {case_obj.planet.a:g} m) (--force to compare anyway)"
+            )
         solves, own = cases_of(diff.ref.path, case_obj)
         if own is None or solves not in (None, own):
             raise ValueError(f"{diff.label} is not a reference of case {case} (--force to compare anyway)")
@@ -454,8 +521,17 @@ def _days_to_plot(ds, days) -> list[float]:
     return [float(stored[-1])] if not days else [float(d) for d in days]
 
 
-def plot_run(run_path, fields=("h_surface",), days=None, diff_path=None, outdir=".", lat_range=None, *, force=False,
-             overwrite=False) -> list[Path]:
+def plot_run(
+    run_path,
+    fields=("h_surface",),
+    days=None,
+    diff_path=None,
+    outdir=".",
+    lat_range=None,
+    *,
+    force=False,
+    overwrite=False,
+) -> list[Path]:
     """``swe-sphere plot``: maps of ``fields`` at ``days`` (default: the last output
     time) and the time-series figure, PNGs in ``outdir`` (created if missing).
 
@@ -481,7 +557,11 @@ def plot_run(run_path, fields=("h_surface",), days=None, diff_path=None, outdir=
                     raise ValueError(f"day must be finite (got {day})")
                 if diff is not None:
                     diff.check(field, day)
-        maps = [(field, day, outdir / map_name(run_path, field, day, diff is not None, lat_range)) for field in fields for day in days]
+        maps = [
+            (field, day, outdir / map_name(run_path, field, day, diff is not None, lat_range))
+            for field in fields
+            for day in days
+        ]
         series = outdir / f"{Path(run_path).stem}_series.png"
         series_fig = plot_series(ds)
         same = series.is_file() and not series.is_symlink() and series.read_bytes() == _png(series_fig)
@@ -537,9 +617,18 @@ def plot_zonal_mean(mean: xr.DataArray, path=None, lat_range=None, title: str = 
     ax = fig.add_subplot()
     field = str(mean.name).removesuffix("_zonal_mean")
     long_name, units, scale = MAP_FIELDS[field][:3]
-    lines = [(f"day {day:g}", mean["lat"].values, mean.isel(time=it).values * scale) for it, day in enumerate(mean["time"].values)]
-    _lines(ax, lines, markers=False, xlabel="latitude (°N)", ylabel=f"{field} ({units})",
-           title=f"{title + ': ' if title else ''}zonal mean of the {long_name}")
+    lines = [
+        (f"day {day:g}", mean["lat"].values, mean.isel(time=it).values * scale)
+        for it, day in enumerate(mean["time"].values)
+    ]
+    _lines(
+        ax,
+        lines,
+        markers=False,
+        xlabel="latitude (°N)",
+        ylabel=f"{field} ({units})",
+        title=f"{title + ': ' if title else ''}zonal mean of the {long_name}",
+    )
     ax.set_xlim(*(check_lat_range(lat_range) if lat_range is not None else (-90, 90)))
     if path is not None:
         _save(fig, path)
@@ -555,7 +644,9 @@ def analysis_names(run_path, days, fields=(), spectrum=False, lat_range=None) ->
     return names + [Path(f"{stem}_{field}_zonal_mean_{when}{band}.png") for field in fields]
 
 
-def plot_analyses(run_path, days=None, outdir=".", *, spectrum=False, zonal_fields=(), lat_range=None, overwrite=False) -> list[Path]:
+def plot_analyses(
+    run_path, days=None, outdir=".", *, spectrum=False, zonal_fields=(), lat_range=None, overwrite=False
+) -> list[Path]:
     """``swe-sphere plot --spectrum`` and ``--zonal-mean``: the kinetic-energy
     spectrum (``analysis.kinetic_energy_spectrum``: a PNG, ``plot_spectrum``, and
     its numbers as CSV, columns day, l, E_rot, E_div, E in m² s⁻²) and the zonal

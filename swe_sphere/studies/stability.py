@@ -13,13 +13,13 @@ import math
 import time
 from dataclasses import dataclass, field
 
+from ..cases.scoring import ENERGY_GROWTH_LIMIT, instability
 from ..config.scene import Scene, load_scene
 from ..core.constants import DAY
-from ..io.run_file import atomic_path, check_results
-from ..cases.scoring import ENERGY_GROWTH_LIMIT, instability
-from ..simulation.simulation import Simulation
 from ..core.errors import BlowUp
 from ..core.workers import InProcess
+from ..io.run_file import atomic_path, check_results
+from ..simulation.simulation import Simulation
 
 # The hard cases: (label, scene, days, grid override); None keeps the scene's value.
 HARD_CASES = (
@@ -72,7 +72,9 @@ def largest_stable_dt(scene: Scene, device: str, *, tolerance: float = 0.05, log
         s = dataclasses.replace(scene, dt=DAY / n)
         ok, reason, wall = run_is_stable(s, device)
         trials.append((s.dt, ok, reason, wall))
-        log(f"  {scene.name} {scene.stepper} dt = {s.dt:9.2f} s: {'stable' if ok else 'unstable'} ({wall:.1f} s) {reason}")
+        log(
+            f"  {scene.name} {scene.stepper} dt = {s.dt:9.2f} s: {'stable' if ok else 'unstable'} ({wall:.1f} s) {reason}"
+        )
         return ok
 
     n = max(1, round(DAY / scene.dt))
@@ -120,8 +122,9 @@ def largest_stable_dt(scene: Scene, device: str, *, tolerance: float = 0.05, log
     )
 
 
-def run_suite(cases, steppers, device, *, ne=None, np=None, days=None, overrides=None, log=print,
-              pool=None) -> list[StabilityResult]:
+def run_suite(
+    cases, steppers, device, *, ne=None, np=None, days=None, overrides=None, log=print, pool=None
+) -> list[StabilityResult]:
     """Largest stable Δt for every (case, stepper). ``cases``: entries of ``HARD_CASES``;
     ``ne``/``np`` override the grid and ``days`` the run length of cases that do not
     fix them; ``overrides`` ({"section.key": value}, as ``load_scene``) apply to
@@ -132,8 +135,9 @@ def run_suite(cases, steppers, device, *, ne=None, np=None, days=None, overrides
     futures = []
     for label, scene_name, case_days, case_ne in cases:
         for stepper in steppers:
-            scene = load_scene(scene_name, ne=case_ne or ne, np=np, days=case_days or days, stepper=stepper,
-                               overrides=overrides)
+            scene = load_scene(
+                scene_name, ne=case_ne or ne, np=np, days=case_days or days, stepper=stepper, overrides=overrides
+            )
             scene = dataclasses.replace(scene, name=label)
             log(f"{label}: {stepper} on ne={scene.ne} np={scene.np}, {scene.days:g} days")
             futures.append(pool.submit(largest_stable_dt, scene, device, log=log))
@@ -165,7 +169,9 @@ def write_table(results, directory, *, overwrite: bool = False) -> tuple:
 
 
 def format_table(results) -> str:
-    lines = [f"{'case':28s} {'stepper':22s} {'ne':>3s} {'np':>3s} {'days':>5s} {'dt stable':>10s} {'dt unstable':>11s} {'C_grav':>7s} {'C_adv':>6s}"]
+    lines = [
+        f"{'case':28s} {'stepper':22s} {'ne':>3s} {'np':>3s} {'days':>5s} {'dt stable':>10s} {'dt unstable':>11s} {'C_grav':>7s} {'C_adv':>6s}"
+    ]
     for r in results:
         lines.append(
             f"{r.case:28s} {r.stepper:22s} {r.ne:3d} {r.np:3d} {r.days:5g} {r.dt_stable:10.1f} {r.dt_unstable:11.1f} "

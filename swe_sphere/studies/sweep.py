@@ -47,20 +47,19 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
-from ..simulation.checkpoint import branch_attrs
-from ..config.scene import Scene
-from ..core.constants import DAY
-from ..model.diagnostics import max_signal_rate
-from ..io.run_file import atomic_path, check_results
-from .plotting import sweep_plot
 from ..cases.reference import FLOORS, floor
 from ..cases.scoring import instability, truth, unscored
+from ..config.scene import Scene
+from ..core.constants import DAY
+from ..core.errors import BlowUp, Interrupted
 from ..core.runtime import package_version
-from ..core.errors import Interrupted
-from ..simulation.simulation import Simulation
-from ..core.errors import BlowUp
-from ..steppers import STEPPERS
 from ..core.workers import InProcess
+from ..io.run_file import atomic_path, check_results
+from ..model.diagnostics import max_signal_rate
+from ..simulation.checkpoint import branch_attrs
+from ..simulation.simulation import Simulation
+from ..steppers import STEPPERS
+from .plotting import sweep_plot
 
 SUFFICIENT = 0.1  # temporal error ≤ 10 % of the spatial error
 # The reference RK4 run's Δt is at most this multiple of the gravity-wave limit, also
@@ -68,8 +67,11 @@ SUFFICIENT = 0.1  # temporal error ≤ 10 % of the spatial error
 REFERENCE_MAX_GRAVITY_COURANT = 0.25
 SPATIAL = ("total_error", "total_error_vorticity", "total_error_divergence")  # the small-Δt run's, against the truth
 # the sweep info's spatial errors → the keys of the reference's own errors beside them
-FLOOR_OF = {"spatial_error": "reference_floor", "spatial_error_vorticity": "reference_floor_vorticity",
-            "spatial_error_divergence": "reference_floor_divergence"}
+FLOOR_OF = {
+    "spatial_error": "reference_floor",
+    "spatial_error_vorticity": "reference_floor_vorticity",
+    "spatial_error_divergence": "reference_floor_divergence",
+}
 FLOOR_MARGIN = 2.0  # a spatial error within this factor of the reference's own error is not the run's alone
 
 
@@ -105,7 +107,11 @@ def changes(old, new, prefix: str = "") -> list[str]:
     e.g. "scene.days 2.0 (now 1.0)"."""
     if isinstance(old, dict) and isinstance(new, dict):
         return [c for k in sorted(set(old) | set(new)) for c in changes(old.get(k), new.get(k), f"{prefix}{k}.")]
-    return [] if _canonical(old) == _canonical(new) else [f"{prefix.rstrip('.')} {_canonical(old)} (now {_canonical(new)})"]
+    return (
+        []
+        if _canonical(old) == _canonical(new)
+        else [f"{prefix.rstrip('.')} {_canonical(old)} (now {_canonical(new)})"]
+    )
 
 
 def stale(stored: dict | None, key: dict) -> str | None:
@@ -141,11 +147,27 @@ def _write_npz(path: Path, key: dict, **arrays) -> None:
             np.savez(out, key=np.array(_canonical(key)), **arrays)
 
 
-PROSE = ("description", "notes", "log_every_steps")  # scene values that describe or report a run, not make it: in no key
+PROSE = (
+    "description",
+    "notes",
+    "log_every_steps",
+)  # scene values that describe or report a run, not make it: in no key
 # Scene values a digital-filter start does not depend on either (``initialization.digital_filter``
 # leaves ∇⁴ out and takes its own steps): a sweep with another of them shares the start
-NOT_IN_START = (*PROSE, "name", "days", "dt", "stepper", "stepper_options", "output_every_days", "reference",
-                "nu", "nu_div", "nu_s", "hypervis_subcycle")
+NOT_IN_START = (
+    *PROSE,
+    "name",
+    "days",
+    "dt",
+    "stepper",
+    "stepper_options",
+    "output_every_days",
+    "reference",
+    "nu",
+    "nu_div",
+    "nu_s",
+    "hypervis_subcycle",
+)
 
 
 def start_state(scene: Scene, directory, device: str, log=print) -> np.ndarray | None:
@@ -158,15 +180,24 @@ def start_state(scene: Scene, directory, device: str, log=print) -> np.ndarray |
     if f is None:
         return None
     path = Path(directory) / "runs" / f"start_dfi{f.cutoff_hours:g}h{f.span_hours:g}h.npz"
-    key = json.loads(_canonical({"scene": {k: v for k, v in scene.as_dict().items() if k not in NOT_IN_START},
-                                 "device": device, "code": code_version()}))
+    key = json.loads(
+        _canonical(
+            {
+                "scene": {k: v for k, v in scene.as_dict().items() if k not in NOT_IN_START},
+                "device": device,
+                "code": code_version(),
+            }
+        )
+    )
     kept, why = _read_npz(path, key)
     if kept is not None:
         log(f"start state: reused {path} (made earlier with the same settings)")
         return kept["x"]
     if why:
         log(f"start state: made again ({path}: {why})")
-    sim = Simulation(dataclasses.replace(scene, days=scene.dt / DAY, output_every_days=scene.dt / DAY), device, progress=False)
+    sim = Simulation(
+        dataclasses.replace(scene, days=scene.dt / DAY, output_every_days=scene.dt / DAY), device, progress=False
+    )
     x = np.stack(sim.fields())
     path.parent.mkdir(parents=True, exist_ok=True)
     _write_npz(path, key, x=x)
@@ -180,11 +211,16 @@ def explicit_limits(scene: Scene, device: str, start: np.ndarray | None = None) 
     leapfrog's measured stability limit there (``dt_leapfrog``: (|v| + sqrt(g h)) Δt/Δx
     = ``courant_limit`` of the leapfrog stepper, 0.58), to quote multiples as papers
     whose explicit reference is leapfrog do (presumably Evans, Taylor & Drake 2010)."""
-    sim = Simulation(dataclasses.replace(scene, days=scene.start_day + scene.dt / DAY), device, progress=False, start=start)
+    sim = Simulation(
+        dataclasses.replace(scene, days=scene.start_day + scene.dt / DAY), device, progress=False, start=start
+    )
     c = sim.courant()
     speed = max_signal_rate(sim.grid, *sim.fields(), sim.g)
-    return {"dt_gravity": scene.dt / c["courant_gravity"], "dt_advective": scene.dt / c["courant_advective"],
-            "dt_leapfrog": STEPPERS["leapfrog"].courant_limit / speed}
+    return {
+        "dt_gravity": scene.dt / c["courant_gravity"],
+        "dt_advective": scene.dt / c["courant_advective"],
+        "dt_leapfrog": STEPPERS["leapfrog"].courant_limit / speed,
+    }
 
 
 def rhs_time(sim: Simulation, span: float = 0.2, rounds: int = 5, clock=time.perf_counter) -> float:
@@ -244,15 +280,22 @@ class Sweep:
         self.base = next(iter(self.scenes.values()))
         order = list(self.scenes)
         # a set: two --runs multiples that round to one Δt are one run, not two racing on its file
-        self.pairs = sorted(set(self.pairs or [(s, dt) for s in self.scenes for dt in self.dts]), key=lambda p: (order.index(p[0]), p[1]))
+        self.pairs = sorted(
+            set(self.pairs or [(s, dt) for s in self.scenes for dt in self.dts]),
+            key=lambda p: (order.index(p[0]), p[1]),
+        )
         # the small-Δt run: RK4 at a quarter of the smallest Δt, at most reference_dt_max
-        self.reference_dt = dt_for_day(min(min(self.dts) / 4, self.reference_dt_max),
-                                       self.base.run_days if self.time_filter is None else self.time_filter.every_hours / 24)
+        self.reference_dt = dt_for_day(
+            min(min(self.dts) / 4, self.reference_dt_max),
+            self.base.run_days if self.time_filter is None else self.time_filter.every_hours / 24,
+        )
         self.reference_scene = dataclasses.replace(self.base, stepper="rk4", stepper_options={}, dt=self.reference_dt)
         reference = self.base.reference_file
         # what the runs are scored against: in every key (a reference file's contents by their hash)
-        self.scored_against = {"name": truth(self.base.make_case(), reference),
-                               "sha256": _file_sha256(reference) if reference is not None and reference.is_file() else None}
+        self.scored_against = {
+            "name": truth(self.base.make_case(), reference),
+            "sha256": _file_sha256(reference) if reference is not None and reference.is_file() else None,
+        }
 
     def key(self, scene: Scene, **more) -> dict:
         """What makes a run of ``scene`` (as stored in its file): the resolved scene
@@ -263,8 +306,18 @@ class Sweep:
         its temporal errors are against)."""
         f = self.time_filter
         scene = {k: v for k, v in scene.as_dict().items() if k not in PROSE}
-        return json.loads(_canonical({"scene": scene, "truth": self.scored_against, "device": self.device, "code": code_version(),
-                                      "time_filter": None if f is None else dataclasses.asdict(f), **more}))
+        return json.loads(
+            _canonical(
+                {
+                    "scene": scene,
+                    "truth": self.scored_against,
+                    "device": self.device,
+                    "code": code_version(),
+                    "time_filter": None if f is None else dataclasses.asdict(f),
+                    **more,
+                }
+            )
+        )
 
     @property
     def tag(self) -> str:
@@ -277,8 +330,11 @@ class Sweep:
         start = f"_dfi{d.cutoff_hours:g}h{d.span_hours:g}h" if d is not None else ""
         if b is not None:  # runs branched from a restart file start from its state, not the case's
             start = f"_from{Path(b['restart']).name.removesuffix('.nc').removesuffix('.restart')}"
-        return ("" if f is None else f"_lp{f.period_days:g}d{f.half_window_days:g}d{f.every_hours:g}h") + start + (
-            "" if own else f"_ref{ref.stem}")
+        return (
+            ("" if f is None else f"_lp{f.period_days:g}d{f.half_window_days:g}d{f.every_hours:g}h")
+            + start
+            + ("" if own else f"_ref{ref.stem}")
+        )
 
     def simulate(self, scene):
         """Run ``scene`` (beyond its last day by the filter's half window, when
@@ -342,8 +398,12 @@ class Sweep:
         return self._reference({"x": x, "filtered": filtered, **errors})
 
     def _reference(self, arrays: dict) -> dict:
-        return {"dt": self.reference_dt, "x": arrays["x"], "filtered": arrays.get("filtered"),
-                **{k: float(arrays[k]) if k in arrays else math.nan for k in SPATIAL}}
+        return {
+            "dt": self.reference_dt,
+            "x": arrays["x"],
+            "filtered": arrays.get("filtered"),
+            **{k: float(arrays[k]) if k in arrays else math.nan for k in SPATIAL},
+        }
 
     # -- one run ------------------------------------------------------------------
     def run_path(self, stepper: str, dt: float) -> Path:
@@ -374,9 +434,18 @@ class Sweep:
         row = {"stepper": stepper, "dt": dt, "setup_time": sim.setup_time, "startup_time": startup_time}
         reason = instability(result)
         stable = not reason
-        row.update(stable=stable, reason=reason, wall_time=at["wall_time"], cpu_time=at["cpu_time"], load_average=at["load_average"],
-                   threads=sim.model.threads, steps=at["steps"], rhs_evals=at["rhs_evals"],
-                   rhs_time=rhs_time(sim), rhs_cpu_time=rhs_time(sim, clock=time.process_time))
+        row.update(
+            stable=stable,
+            reason=reason,
+            wall_time=at["wall_time"],
+            cpu_time=at["cpu_time"],
+            load_average=at["load_average"],
+            threads=sim.model.threads,
+            steps=at["steps"],
+            rhs_evals=at["rhs_evals"],
+            rhs_time=rhs_time(sim),
+            rhs_cpu_time=rhs_time(sim, clock=time.process_time),
+        )
         row.update({f"{k}_iterations": at[f"{k}_iterations"] for k in result.iterations})
         final = result.history[-1]
         for k in ("mass_change", "total_energy_change", "potential_enstrophy_change"):
@@ -395,7 +464,9 @@ class Sweep:
         t0 = time.perf_counter()
         dt = min(self.dts)
         span = 2 * dt / DAY
-        scene = dataclasses.replace(self.scenes[stepper], dt=dt, days=self.base.start_day + span, output_every_days=span)
+        scene = dataclasses.replace(
+            self.scenes[stepper], dt=dt, days=self.base.start_day + span, output_every_days=span
+        )
         try:
             Simulation(scene, self.device, progress=False, start=self.start).run(None)
         except BlowUp:  # unstable at this Δt (its own run will record it); every kernel has run once
@@ -424,7 +495,10 @@ class Sweep:
         def report(future):  # a made run's line, once it has finished
             stepper, dt, replaced = made.pop(future)
             rows[stepper, dt] = row = future.result()  # a run's error is raised here
-            self.log(f"[{len(rows)}/{n}] {stepper} dt = {dt:.6g} s: {outcome(row)}" + (f"; replaces a run with {replaced}" if replaced else ""))
+            self.log(
+                f"[{len(rows)}/{n}] {stepper} dt = {dt:.6g} s: {outcome(row)}"
+                + (f"; replaces a run with {replaced}" if replaced else "")
+            )
 
         try:
             ref = self.reference()
@@ -452,7 +526,10 @@ class Sweep:
                 future.cancel()
             raise self._interrupted(err, ref is not None, len(rows)) from None
         self.log(f"runs: {reused} reused, {n - reused} made (in {self.directory / 'runs'})")
-        d, b = self.base.digital_filter, self.base.branch  # in the sweep's netCDF attributes: which start the runs share
+        d, b = (
+            self.base.digital_filter,
+            self.base.branch,
+        )  # in the sweep's netCDF attributes: which start the runs share
         floors = {}
         if not case.exact_solution and reference is not None:
             own = floor(reference, self.base.days)
@@ -460,11 +537,20 @@ class Sweep:
             if own is not None:
                 floors["reference_floor_source"] = f"{FLOORS[reference.name][0]}, day {self.base.days:g}"
         return [rows[pair] for pair in self.pairs], {
-            **self.record(), "spatial_error": ref["total_error"], "spatial_error_vorticity": ref["total_error_vorticity"],
-            "spatial_error_divergence": ref["total_error_divergence"], "reference_dt": ref["dt"], **floors,
-            **({} if d is None or b is not None else {"dfi_cutoff_hours": d.cutoff_hours, "dfi_span_hours": d.span_hours}),
+            **self.record(),
+            "spatial_error": ref["total_error"],
+            "spatial_error_vorticity": ref["total_error_vorticity"],
+            "spatial_error_divergence": ref["total_error_divergence"],
+            "reference_dt": ref["dt"],
+            **floors,
+            **(
+                {}
+                if d is None or b is not None
+                else {"dfi_cutoff_hours": d.cutoff_hours, "dfi_span_hours": d.span_hours}
+            ),
             **branch_attrs(self.base),
-            **({} if why is None else {"unscored": why})}
+            **({} if why is None else {"unscored": why}),
+        }
 
     def record(self) -> dict:
         """What the sweep is made with, for sweep.csv's columns and sweep.nc's
@@ -474,23 +560,40 @@ class Sweep:
         ``time_filter`` (JSON of its settings; "" for none), ``device``,
         ``swe_sphere_version`` and ``source_sha256`` (``code_version``)."""
         b, f, code = self.base, self.time_filter, code_version()
-        return {"scene": b.name, "case": b.case, "ne": b.ne, "np": b.np, "days": b.days,
-                "overrides": "; ".join(f"{k}={_canonical(v)}" for k, v in self.overrides.items()),
-                "stepper_options": _canonical({s: scene.stepper_options for s, scene in self.scenes.items()}),
-                "reference": self.scored_against["name"], "time_filter": "" if f is None else _canonical(dataclasses.asdict(f)),
-                "device": self.device, "swe_sphere_version": code["version"], "source_sha256": code["source_sha256"]}
+        return {
+            "scene": b.name,
+            "case": b.case,
+            "ne": b.ne,
+            "np": b.np,
+            "days": b.days,
+            "overrides": "; ".join(f"{k}={_canonical(v)}" for k, v in self.overrides.items()),
+            "stepper_options": _canonical({s: scene.stepper_options for s, scene in self.scenes.items()}),
+            "reference": self.scored_against["name"],
+            "time_filter": "" if f is None else _canonical(dataclasses.asdict(f)),
+            "device": self.device,
+            "swe_sphere_version": code["version"],
+            "source_sha256": code["source_sha256"],
+        }
 
     def _interrupted(self, err: BaseException, reference_made: bool, kept: int) -> Interrupted:
         """The ``Interrupted`` that ends a sweep stopped by ``err`` (a signal), saying what is kept."""
         signum = getattr(err, "signum", signal.SIGINT)
         head, where = f"interrupted by {signal.Signals(signum).name}", self.directory / "runs"
         if not reference_made:
-            at = f" at model day {self.base.start_day + err.result.steps * self.reference_dt / DAY:.4g}" if isinstance(err, Interrupted) else ""
-            text = (f"{head} in the sweep's reference run (rk4, dt = {self.reference_dt:.6g} s){at}, which is not kept (a rerun "
-                    f"of the same command makes it again); the runs already in {where} are kept")
+            at = (
+                f" at model day {self.base.start_day + err.result.steps * self.reference_dt / DAY:.4g}"
+                if isinstance(err, Interrupted)
+                else ""
+            )
+            text = (
+                f"{head} in the sweep's reference run (rk4, dt = {self.reference_dt:.6g} s){at}, which is not kept (a rerun "
+                f"of the same command makes it again); the runs already in {where} are kept"
+            )
         else:
-            text = (f"{head}: the reference run and {kept} of {len(self.pairs)} runs are kept in {where}; a rerun of the same "
-                    f"command reuses them and makes the other {len(self.pairs) - kept}")
+            text = (
+                f"{head}: the reference run and {kept} of {len(self.pairs)} runs are kept in {where}; a rerun of the same "
+                f"command reuses them and makes the other {len(self.pairs) - kept}"
+            )
         out = Interrupted(text)
         out.signum = signum
         return out
@@ -500,7 +603,11 @@ def outcome(row: dict) -> str:
     """A finished run in a few words: its errors and CPU time, or why it is unstable."""
     if not row["stable"]:
         return f"unstable ({row['reason']}); CPU {row['cpu_time']:.3g} s"
-    errors = [f"{k.replace('_', ' ')} {row[k]:.3e}" for k in ("total_error", "temporal_error") if math.isfinite(row.get(k, math.nan))]
+    errors = [
+        f"{k.replace('_', ' ')} {row[k]:.3e}"
+        for k in ("total_error", "temporal_error")
+        if math.isfinite(row.get(k, math.nan))
+    ]
     return ", ".join(errors) + f"; CPU {row['cpu_time']:.3g} s"
 
 
@@ -525,10 +632,19 @@ COLUMN_ATTRS = {
     "rhs_time": ("s", "wall time of one right-hand-side evaluation"),
     "rhs_cpu_time": ("s", "CPU time of one right-hand-side evaluation"),
     "rhs_equivalents": ("1", "cost_time over the time of one right-hand-side evaluation on the same clock"),
-    **{f"{k}_iterations": ("1", f"cumulative {what}") for k, what in (
-        ("newton", "Newton iterations"), ("gmres", "GMRES iterations"), ("precond", "applications of the JFNK preconditioner"),
-        ("helmholtz", "Helmholtz-solve iterations"), ("krylov", "Krylov vectors of KIOPS"), ("substeps", "accepted KIOPS substeps"),
-        ("rejected", "rejected KIOPS substeps"), ("fast", "fast (gravity-wave) evaluations of the multirate substeps"))},
+    **{
+        f"{k}_iterations": ("1", f"cumulative {what}")
+        for k, what in (
+            ("newton", "Newton iterations"),
+            ("gmres", "GMRES iterations"),
+            ("precond", "applications of the JFNK preconditioner"),
+            ("helmholtz", "Helmholtz-solve iterations"),
+            ("krylov", "Krylov vectors of KIOPS"),
+            ("substeps", "accepted KIOPS substeps"),
+            ("rejected", "rejected KIOPS substeps"),
+            ("fast", "fast (gravity-wave) evaluations of the multirate substeps"),
+        )
+    },
     "total_error": ("1", f"{_ERR} of h + hs against the truth"),
     "total_error_vorticity": ("1", f"{_ERR} of vorticity against the truth"),
     "total_error_divergence": ("1", f"{_ERR} of divergence against the truth"),
@@ -584,9 +700,27 @@ CRITERIA = {
     "gravity waves (divergence)": ("temporal_error_divergence", "spatial_error_divergence"),
 }
 THRESHOLDS = (0.1, 0.5)  # temporal error as a fraction of the spatial error
-RUN_VERDICT_COLUMNS = ("dt", "dt_over_gravity_limit", "dt_over_advective_limit", "dt_over_leapfrog_limit", "cost_time", "wall_time",
-                       "cpu_time", "rhs_evals", "helmholtz_iterations", "rhs_equivalents")  # the qualifying run's
-VERDICT_COLUMNS = ("criterion", "threshold", "stepper", *RUN_VERDICT_COLUMNS, "temporal_error", "spatial_error", "reference_floor")
+RUN_VERDICT_COLUMNS = (
+    "dt",
+    "dt_over_gravity_limit",
+    "dt_over_advective_limit",
+    "dt_over_leapfrog_limit",
+    "cost_time",
+    "wall_time",
+    "cpu_time",
+    "rhs_evals",
+    "helmholtz_iterations",
+    "rhs_equivalents",
+)  # the qualifying run's
+VERDICT_COLUMNS = (
+    "criterion",
+    "threshold",
+    "stepper",
+    *RUN_VERDICT_COLUMNS,
+    "temporal_error",
+    "spatial_error",
+    "reference_floor",
+)
 
 
 def _cheapest(rows, stepper, column, limit):
@@ -608,8 +742,10 @@ def floor_note(info, spatial_key: str) -> str:
         return "floor unknown"
     note = f"reference floor {known:.1e} ({info['reference_floor_source']})"
     if info[spatial_key] <= FLOOR_MARGIN * known:
-        note += (f"; within {FLOOR_MARGIN:g}x of the floor: the reference cannot tell the run's spatial error from its own, "
-                 "so these verdicts are provisional")
+        note += (
+            f"; within {FLOOR_MARGIN:g}x of the floor: the reference cannot tell the run's spatial error from its own, "
+            "so these verdicts are provisional"
+        )
     return note
 
 
@@ -629,8 +765,13 @@ def verdicts(rows, info) -> list[dict]:
         for threshold in THRESHOLDS:
             for stepper in steppers:
                 best = _cheapest(rows, stepper, column, threshold * spatial)
-                v = {"criterion": criterion, "threshold": threshold, "stepper": stepper, "spatial_error": spatial,
-                     "reference_floor": info.get(FLOOR_OF[spatial_key], math.nan)}
+                v = {
+                    "criterion": criterion,
+                    "threshold": threshold,
+                    "stepper": stepper,
+                    "spatial_error": spatial,
+                    "reference_floor": info.get(FLOOR_OF[spatial_key], math.nan),
+                }
                 v.update({c: math.nan for c in VERDICT_COLUMNS if c not in v})
                 if best is not None:
                     v.update({c: best.get(c, math.nan) for c in RUN_VERDICT_COLUMNS}, temporal_error=best[column])
@@ -660,7 +801,10 @@ def format_verdicts(verdict_rows, info) -> str:
 
 def cheapest_sufficient(rows, spatial_error) -> dict:
     """Per stepper, the cheapest (``cost_time``) stable run whose temporal error ≤ 10 % of the spatial error."""
-    best = {s: _cheapest(rows, s, "temporal_error", SUFFICIENT * spatial_error) for s in dict.fromkeys(r["stepper"] for r in rows)}
+    best = {
+        s: _cheapest(rows, s, "temporal_error", SUFFICIENT * spatial_error)
+        for s in dict.fromkeys(r["stepper"] for r in rows)
+    }
     return {s: r for s, r in best.items() if r is not None}
 
 
@@ -681,11 +825,16 @@ def format_summary(rows, info) -> str:
             f"{r['total_energy_change']:10.2e}"
         )
     if "unscored" in info:
-        lines.append(f"spatial error: none, so no run is judged sufficient and there are no verdicts ({info['unscored']})")
+        lines.append(
+            f"spatial error: none, so no run is judged sufficient and there are no verdicts ({info['unscored']})"
+        )
         return "\n".join(lines)
     spatial, note = info["spatial_error"], floor_note(info, "spatial_error")
-    lines.append(f"spatial error (RK4 at dt = {info['reference_dt']:.4g} s, against {info['reference']}): {spatial:.3e}"
-                 + (f", {note}" if note else "") + f"; sufficient accuracy: temporal error <= {SUFFICIENT * spatial:.3e}")
+    lines.append(
+        f"spatial error (RK4 at dt = {info['reference_dt']:.4g} s, against {info['reference']}): {spatial:.3e}"
+        + (f", {note}" if note else "")
+        + f"; sufficient accuracy: temporal error <= {SUFFICIENT * spatial:.3e}"
+    )
     best = cheapest_sufficient(rows, spatial)
     explicit = [best[s]["cost_time"] for s in best if STEPPERS[s].explicit]
     ref_time = min(explicit) if explicit else math.nan
@@ -700,13 +849,27 @@ def format_summary(rows, info) -> str:
             f"{b['cost_time'] / ref_time:.2f} x best explicit, "
             f"{b['rhs_equivalents']:.0f} RHS-eq"
         )
-    lines.append("verdicts: the cheapest run per criterion with temporal error <= 10 % / 50 % of that criterion's spatial error")
+    lines.append(
+        "verdicts: the cheapest run per criterion with temporal error <= 10 % / 50 % of that criterion's spatial error"
+    )
     lines.append(format_verdicts(verdicts(rows, info), info))
     return "\n".join(lines)
 
 
-RECORD = ("scene", "case", "ne", "np", "days", "overrides", "stepper_options", "reference", "time_filter", "device",
-          "swe_sphere_version", "source_sha256")  # ``Sweep.record``'s keys: sweep.csv's last columns
+RECORD = (
+    "scene",
+    "case",
+    "ne",
+    "np",
+    "days",
+    "overrides",
+    "stepper_options",
+    "reference",
+    "time_filter",
+    "device",
+    "swe_sphere_version",
+    "source_sha256",
+)  # ``Sweep.record``'s keys: sweep.csv's last columns
 
 
 def sweep_dataset(df, attrs: dict):
@@ -722,14 +885,25 @@ def sweep_dataset(df, attrs: dict):
         values = df[c].to_numpy()
         return values.astype(np.int32) if values.dtype.kind == "i" else values  # CF-1.8 has no 64-bit integers
 
-    ds = xr.Dataset({c: ("run", column(c, units)) for c, (units, _) in COLUMN_ATTRS.items()},
-                    coords=dict(run=("run", np.arange(len(df), dtype=np.int32), dict(long_name="run of the sweep (row of sweep.csv)", units="1"))))
+    ds = xr.Dataset(
+        {c: ("run", column(c, units)) for c, (units, _) in COLUMN_ATTRS.items()},
+        coords=dict(
+            run=(
+                "run",
+                np.arange(len(df), dtype=np.int32),
+                dict(long_name="run of the sweep (row of sweep.csv)", units="1"),
+            )
+        ),
+    )
     for c, (units, long_name) in COLUMN_ATTRS.items():
         ds[c].attrs.update(long_name=long_name, **({} if units is None else dict(units=units)))
     ds.attrs.update({k: v if isinstance(v, (str, int)) else float(v) for k, v in attrs.items()})
     stamp = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
-    ds.attrs.update(Conventions="CF-1.8", title=f"swe_sphere sweep: {attrs['case']} ne{attrs['ne']} np{attrs['np']}, {attrs['days']:g} days",
-                    history=f"{stamp}: swe_sphere sweep (swe_sphere {package_version()})")
+    ds.attrs.update(
+        Conventions="CF-1.8",
+        title=f"swe_sphere sweep: {attrs['case']} ne{attrs['ne']} np{attrs['np']}, {attrs['days']:g} days",
+        history=f"{stamp}: swe_sphere sweep (swe_sphere {package_version()})",
+    )
     return ds
 
 
@@ -737,10 +911,24 @@ PLOTS = (  # (x, y, file name, x label, spatial-error key): the frontier per cri
     ("wall_time", "total_error", "error_vs_wall_time.png", "wall time [s]", "spatial_error"),
     ("dt", "total_error", "error_vs_dt.png", "dt [s]", "spatial_error"),
     ("dt", "temporal_error", "temporal_error_vs_dt.png", "dt [s]", "spatial_error"),
-    ("wall_time", "total_error_vorticity", "error_vs_wall_time_vorticity.png", "wall time [s]", "spatial_error_vorticity"),
-    ("wall_time", "total_error_divergence", "error_vs_wall_time_divergence.png", "wall time [s]", "spatial_error_divergence"),
+    (
+        "wall_time",
+        "total_error_vorticity",
+        "error_vs_wall_time_vorticity.png",
+        "wall time [s]",
+        "spatial_error_vorticity",
+    ),
+    (
+        "wall_time",
+        "total_error_divergence",
+        "error_vs_wall_time_divergence.png",
+        "wall time [s]",
+        "spatial_error_divergence",
+    ),
 )
-OUTPUTS = ("sweep.csv", "sweep.nc", "verdicts.csv") + tuple(name for _, _, name, _, _ in PLOTS)  # what write_outputs writes
+OUTPUTS = ("sweep.csv", "sweep.nc", "verdicts.csv") + tuple(
+    name for _, _, name, _, _ in PLOTS
+)  # what write_outputs writes
 
 
 def write_outputs(rows, info, limits, directory, *, overwrite: bool = False) -> list[Path]:
@@ -762,7 +950,9 @@ def write_outputs(rows, info, limits, directory, *, overwrite: bool = False) -> 
     with atomic_path(vcsv, overwrite=overwrite) as tmp:
         pd.DataFrame(verdicts(rows, info), columns=list(VERDICT_COLUMNS)).to_csv(tmp, index=False)
     with atomic_path(nc, overwrite=overwrite) as tmp:
-        sweep_dataset(df, {**info, **limits}).to_netcdf(tmp, encoding={k: {"dtype": "S1"} for k in ("stepper", "reason")})
+        sweep_dataset(df, {**info, **limits}).to_netcdf(
+            tmp, encoding={k: {"dtype": "S1"} for k in ("stepper", "reason")}
+        )
     paths = [csv, nc, vcsv]
     title = f"{info['case']} ne{info['ne']} np{info['np']}, {info['days']:g} days"
     for x, y, name, label, spatial in PLOTS:

@@ -18,7 +18,11 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-FIELDS = ("hfree_spec", "vort_spec", "div_spec")  # the T-truncated mountain (hs_spec) is left out: scoring uses the exact cone
+FIELDS = (
+    "hfree_spec",
+    "vort_spec",
+    "div_spec",
+)  # the T-truncated mountain (hs_spec) is left out: scoring uses the exact cone
 
 # bundled file → (the case its title names, the days kept). T213: the days the
 # earlier gridded files stored (tests and runs score at them); T341: the days the
@@ -48,8 +52,10 @@ def bundle(source: Path, dest: Path, name: str) -> None:
     truncation = f"T{int(attrs['lmax'])}"
     attrs["title"] = f"{truncation} spectral-transform reference solution: {case}"
     attrs["spectral_convention"] = attrs["spectral_convention"].replace("float64", "float32")
-    attrs["bundled"] = (f"days {', '.join(map(str, days))} of the run, coefficients rounded to float32; "
-                        "the T-truncated mountain hs_spec left out (testcases/reference/bundle.py)")
+    attrs["bundled"] = (
+        f"days {', '.join(map(str, days))} of the run, coefficients rounded to float32; "
+        "the T-truncated mountain hs_spec left out (testcases/reference/bundle.py)"
+    )
     out.attrs = attrs
     out["time"].attrs = {"units": "days", "long_name": "time since the initial condition"}
     encoding = {v: {"zlib": True, "complevel": 9, "shuffle": True} for v in out.data_vars}

@@ -1,16 +1,14 @@
 """The GLL dual mesh (``swe_sphere.io.dual``): one control volume a unique node, its area the
 node's assembled spheremp; written into every run file as the UGRID mesh the fields live
-on and as CF cell bounds. Then the tools that read them: uxarray, the CF checkers and CDO,
-each test skipping only where its tool is absent."""
+on and as CF cell bounds. Then the tools that read them: uxarray and CDO, each test
+skipping only where its tool is absent (the CF checkers and cf_xarray: test_cf.py)."""
 
 from __future__ import annotations
 
-import json
 import math
 import shutil
 import subprocess
 from collections import Counter
-from importlib import resources
 
 import netCDF4
 import numpy as np
@@ -200,97 +198,3 @@ def test_cdo_fldmean_and_remapcon_of_the_native_file(tc5_ne4, tmp_path):
     cdo("remapcon,r72x36", "-selname,h", tc5_ne4, tmp_path / "ll.nc")
     remapped = np.array(cdo("outputf,%.17g", "-fldmean", tmp_path / "ll.nc").split(), dtype=float)
     assert np.allclose(remapped, mine, rtol=1e-4, atol=0)
-
-
-@pytest.fixture(scope="module")
-def cf_files(tc5_ne4, tmp_path_factory):
-    """The run file, its lat-lon file and a sweep's sweep.nc."""
-    out = tmp_path_factory.mktemp("cf")
-    latlon = out / "tc5_latlon.nc"
-    assert main(["remap", str(tc5_ne4), "--resolution", "10", "--output", str(latlon)]) == 0
-    assert (
-        main(
-            [
-                "sweep",
-                "tc2_steady",
-                "--ne",
-                "2",
-                "--days",
-                "0.25",
-                "--steppers",
-                "ssprk3",
-                "--dt",
-                "3600",
-                "--device",
-                "cpu",
-                "--output",
-                str(out / "sweep"),
-            ]
-        )
-        == 0
-    )
-    return {"run": tc5_ne4, "latlon": latlon, "sweep": out / "sweep" / "sweep.nc"}
-
-
-# UGRID's cf_role values, which CF adopted with UGRID in CF-1.11; both checkers know only CF-1.8's
-# (timeseries_id, profile_id, trajectory_id) and flag them. Nothing else may be an error.
-UGRID_ROLES = ("mesh_topology", "face_node_connectivity")
-
-
-def standard_name_table():
-    """The CF standard-name table that compliance-checker ships (CI has no network)."""
-    pytest.importorskip("compliance_checker")
-    return resources.files("compliance_checker") / "data" / "cf-standard-name-table.xml"
-
-
-@pytest.mark.parametrize("which", ["run", "latlon", "sweep"])
-def test_ncas_cf_checker_finds_no_errors(cf_files, which, tmp_path):
-    try:
-        from cfchecker.cfchecks import CFChecker
-    except (ImportError, OSError) as exc:  # cfunits needs the udunits2 C library
-        pytest.skip(f"the NCAS CF checker (cfchecker) is not usable here: {exc}")
-    table = standard_name_table()
-    path = cf_files[which]
-    # the files use no area_type or region: empty tables stand in for the ones it would download
-    tables = {}
-    for key, root in (("cfAreaTypesXML", "area_type_table"), ("cfRegionNamesXML", "standard_region_list")):
-        tables[key] = tmp_path / f"{root}.xml"
-        tables[key].write_text(f"<{root}><version_number>0</version_number><date>none</date></{root}>")
-    checker = CFChecker(cfStandardNamesXML=str(table), **{k: str(v) for k, v in tables.items()}, silent=True)
-    result = checker.checker(str(path))
-    with netCDF4.Dataset(path) as nc:
-        roles = {name: getattr(var, "cf_role", None) for name, var in nc.variables.items()}
-    errors = [(None, m) for m in result["global"]["FATAL"] + result["global"]["ERROR"]]
-    for name, found in result["variables"].items():
-        for m in found["FATAL"] + found["ERROR"]:
-            if not (roles[name] in UGRID_ROLES and m == "(9.5): Invalid value for cf_role attribute"):
-                errors.append((name, m))
-    assert errors == []
-    assert sum(r in UGRID_ROLES for r in roles.values()) == (4 if which == "run" else 0)
-
-
-@pytest.mark.filterwarnings("ignore::DeprecationWarning")  # loading every suite loads its deprecated ioos_sos
-@pytest.mark.parametrize("which", ["run", "latlon", "sweep"])
-def test_ioos_compliance_checker_cf18_finds_no_errors(cf_files, which, tmp_path):
-    pytest.importorskip("compliance_checker")
-    from compliance_checker.runner import CheckSuite, ComplianceChecker
-
-    CheckSuite.load_all_available_checkers()
-    report = tmp_path / "report.json"
-    ComplianceChecker.run_checker(
-        str(cf_files[which]), ["cf:1.8"], 0, "normal", output_filename=str(report), output_format="json"
-    )
-    failed = [
-        msg
-        for check in json.loads(report.read_text())["cf:1.8"]["high_priorities"]
-        if check["value"][0] < check["value"][1]
-        for msg in check["msgs"]
-    ]
-    assert [
-        m
-        for m in failed
-        if not any(
-            m == f"{r} is not a valid cf_role value. It must be one of timeseries_id, profile_id, trajectory_id"
-            for r in UGRID_ROLES
-        )
-    ] == []

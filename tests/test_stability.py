@@ -27,7 +27,10 @@ def test_bisection_brackets_a_known_limit(monkeypatch, tmp_path):
     csv, nc = stability.write_table([r, dataclasses.replace(r, stepper="rk4")], tmp_path)
     df = pd.read_csv(csv)
     assert list(df["stepper"]) == ["ssprk3", "rk4"] and df["dt_stable"][0] == pytest.approx(DAY / 87)
-    assert xr.open_dataset(nc)["dt_stable"].sel(case="tc2_steady", stepper="rk4") == pytest.approx(DAY / 87)
+    with xr.open_dataset(nc) as ds:  # one row a (case, stepper), as stability.csv
+        assert list(ds.stepper.values) == ["ssprk3", "rk4"] and list(ds.case.values) == ["tc2_steady"] * 2
+        table = ds.set_index(row=["case", "stepper"])
+        assert float(table.dt_stable.sel(row=("tc2_steady", "rk4"))) == pytest.approx(DAY / 87)
 
 
 def test_suite_days_and_overrides_reach_every_scene(monkeypatch):

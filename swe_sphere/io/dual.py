@@ -235,12 +235,14 @@ def write_dual_mesh(ds, grid: CubedSphere) -> None:
         face_coordinates="lon lat",
     )
     vlat, vlon = np.degrees(lat_lon(verts))
-    for name, values, std, units in (
-        ("dual_lon", vlon, "longitude", "degrees_east"),
-        ("dual_lat", vlat, "latitude", "degrees_north"),
+    for name, values, what in (
+        ("dual_lon", vlon, "longitude (degrees east)"),
+        ("dual_lat", vlat, "latitude (degrees north)"),
     ):
         var = ds.createVariable(name, "f8", (NODE_DIM,), zlib=True, shuffle=True)
-        var.setncatts(dict(standard_name=std, units=units, long_name=f"{std} of the control volumes' corners"))
+        # no standard_name and plain degrees (not degrees_north/east): lat/lon stay the file's one
+        # latitude and longitude for cf_xarray (``ds.cf["latitude"]``), with decode_coords="all" too
+        var.setncatts(dict(units="degrees", long_name=f"{what} of the control volumes' corners"))
         var[:] = values
     blat, blon = np.degrees(lat_lon(verts[_padded(corners)]))
     lon = ds["lon"][:][:, None]

@@ -20,16 +20,15 @@ from __future__ import annotations
 import functools
 import json
 import math
-import time
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 from scipy.sparse import csr_matrix
 
-from ..core.runtime import check_memory, package_version
+from ..core.runtime import check_memory
 from ..grid.cubed_sphere import _FACES, CubedSphere
-from .run_file import atomic_path, check_distinct
+from .run_file import atomic_path, check_distinct, history_line
 
 #: node fields (time, ncol) or (ncol,) that ``remap_dataset`` carries to the lat-lon grid
 NODE_FIELDS = ("h", "hs", "u", "v", "vorticity", "divergence")
@@ -128,8 +127,8 @@ def run_grid(ds: xr.Dataset) -> CubedSphere:
     """The grid of a run file (from its ``scene`` attribute, else ``ne``/``np``),
     checked against the file's ``lat``/``lon``. Raises ``ValueError`` if the file is
     not a swe_sphere run or its nodes do not match."""
-    if "ncol" not in ds.dims or "lat" not in ds.variables or "lon" not in ds.variables:
-        raise ValueError("not a swe_sphere run file (no ncol/lat/lon)")
+    if "ncol" not in ds.dims or any(name not in ds.variables for name in ("lat", "lon", "area")):
+        raise ValueError("not a swe_sphere run file (no ncol/lat/lon/area)")
     try:
         scene = json.loads(ds.attrs["scene"])
         ne, np_ = int(scene["ne"]), int(scene["np"])
@@ -165,6 +164,16 @@ def latlon_grid(resolution: float) -> tuple[np.ndarray, np.ndarray]:
     return lat, lon
 
 
+def latlon_areas(lat: np.ndarray, nlon: int) -> np.ndarray:
+    """Areas (nlat, nlon) on the unit sphere of the cells about the points of a regular
+    node grid (``latlon_grid``): each point's cell reaches half way to its neighbours,
+    the pole rows' cells are caps of half the spacing; they sum to 4π."""
+    half = 0.5 * (lat[1] - lat[0])
+    top, bottom = np.radians(np.minimum(lat + half, 90.0)), np.radians(np.maximum(lat - half, -90.0))
+    band = (np.sin(top) - np.sin(bottom)) * (2 * math.pi / nlon)
+    return np.repeat(band[:, None], nlon, axis=1)
+
+
 def remap_bytes(points: int, np_: int, ntime: int) -> int:
     """Estimated peak bytes of ``remap_dataset`` onto ``points`` lat-lon points: the
     locator's temporaries (~40 floats), the interpolation weights and sparse matrix
@@ -187,8 +196,9 @@ def remap_dataset(ds, resolution: float = 1.0) -> xr.Dataset:
     vorticity, divergence (s⁻¹) on (time, lat, lon) ((lat, lon) for hs), their
     units and names, ``h_surface`` = h + hs (m), the run's diagnostics time series
     on ``time`` (model days, exact multiples of the output interval, so
-    ``.sel(time=3)`` works) and the run's global attributes with a ``remap``
-    note. Each value is the owning element's GLL polynomial evaluated at the
+    ``.sel(time=3)`` works), ``area`` (lat, lon) (m²: the cells about the points,
+    ``latlon_areas`` on the run's sphere; the fields' ``cell_measures``) and the
+    run's global attributes with a ``remap`` note. Each value is the owning element's GLL polynomial evaluated at the
     point (``Remapper``): no smoothing, the model's own interpolant. E.g.
     ``swe_sphere.remap_dataset("run.nc").h_surface.sel(time=3).plot()`` draws a
     lat-lon map.
@@ -215,6 +225,14 @@ def remap_dataset(ds, resolution: float = 1.0) -> xr.Dataset:
     )
     if "time" in ds.variables:
         out = out.assign_coords(time=ds["time"].variable.copy())
+    out["area"] = (  # the planet's a² from the run's own spheremp, whatever its radius
+        ("lat", "lon"),
+        latlon_areas(lat, lon.size) * float(ds["area"].sum()) / (4 * math.pi),
+        dict(
+            units="m2", long_name="area of the cell about the grid point (caps at the poles)", standard_name="cell_area"
+        ),
+    )
+    measure = {"cell_measures": "area: area"}  # cf_xarray: ds.h.cf.weighted("area") with decode_coords="all"
     keep = ("units", "long_name", "standard_name")
     for name in NODE_FIELDS:
         if name not in ds.variables:
@@ -225,11 +243,11 @@ def remap_dataset(ds, resolution: float = 1.0) -> xr.Dataset:
             continue
         values = rm(np.asarray(var.values, dtype=np.float64))
         attrs = {k: v for k, v in var.attrs.items() if k in keep}
-        out[name] = (var.dims[:-1] + ("lat", "lon"), values, attrs)
+        out[name] = (var.dims[:-1] + ("lat", "lon"), values, {**attrs, **measure})
     if "h" in out and "hs" in out:
         out["h_surface"] = out["h"] + out["hs"]
         out["h_surface"].attrs = dict(
-            units="m", long_name="free-surface height h + hs", standard_name="height_above_mean_sea_level"
+            units="m", long_name="free-surface height h + hs", standard_name="height_above_mean_sea_level", **measure
         )
     for name, var in ds.data_vars.items():
         if var.dims == ("time",):
@@ -240,8 +258,7 @@ def remap_dataset(ds, resolution: float = 1.0) -> xr.Dataset:
         f"GLL interpolation (each element's own polynomial) from ne={grid.ne} np={grid.np} "
         f"to a regular {resolution:g} degree lat-lon grid by swe_sphere.io.remap"
     )
-    stamp = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())  # CF: the newest history line first
-    line = f"{stamp}: swe_sphere.io.remap to {resolution:g} degrees (swe_sphere {package_version()})"
+    line = history_line(f"swe_sphere.io.remap to {resolution:g} degrees")  # CF: the newest line first
     out.attrs["history"] = f"{line}\n{ds.attrs['history']}" if ds.attrs.get("history") else line
     return out
 

@@ -3,7 +3,8 @@ a run of what it holds).
 
 A restart file is a netCDF4 file (CF-1.8 attributes) holding the element-local
 state ``x`` (3, N) as the variables ``u``, ``v`` (m s⁻¹) and ``h`` (m) on
-``node`` (every element's copy of its GLL nodes), the stepper's ``state()``
+``node`` (every element's copy of its GLL nodes; their ``lat``, ``lon`` and
+``area``, the unassembled spheremp, beside them for tools), the stepper's ``state()``
 (arrays (3, N) as variables ``stepper_<key>`` on (``row``, ``node``), scalars as
 attributes ``stepper_<key>``), the run's counters
 (step, RHS evaluations, solver iterations, wall time), the invariants at t = 0
@@ -26,7 +27,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import time
 from pathlib import Path
 
 import netCDF4
@@ -35,7 +35,8 @@ import numpy as np
 from ..core.constants import Planet
 from ..core.errors import CheckpointError
 from ..core.runtime import package_version
-from .run_file import FIELDS, WRITING, ExclusiveFile
+from ..grid.cubed_sphere import CubedSphere
+from .run_file import AREA_ATTRS, FIELD_ATTRS, FIELDS, NODE_COORDINATES, WRITING, ExclusiveFile, history_line
 
 FORMAT = 3  # bump when the layout changes (2: checksums and content hash; 3: the state as named fields)
 STATE = ("u", "v", "h")  # the rows of x, each a variable with output.FIELDS' attributes
@@ -90,6 +91,7 @@ def write(
     counters: dict,
     initial: dict,
     *,
+    grid: CubedSphere,
     overwrite: bool = True,
     restart_every: float | None = None,
 ) -> Path:
@@ -99,15 +101,18 @@ def write(
     in m s⁻¹, h in m) at ``step`` (model time step·dt); ``stepper_state``:
     ``Stepper.state()`` (arrays (3, N), scalars); ``counters``: {"rhs_evals",
     "wall_time" (s), "iterations": {solver: n}}; ``initial``: the diagnostics at
-    t = 0; ``restart_every``: the run's restart interval (days; None: none), which a
-    continuation keeps. Raises ``output.OutputError`` when ``path`` exists and not
-    ``overwrite`` (or is a link / being written)."""
+    t = 0; ``grid``: the run's grid, whose element-local ``lat``/``lon`` (degrees) and
+    ``spheremp`` (m², the variable ``area``) go beside the state as its CF coordinates
+    and cell measure (for tools; ``read`` does not need them); ``restart_every``: the
+    run's restart interval (days; None: none), which a continuation keeps. Raises
+    ``output.OutputError`` when ``path`` exists and not ``overwrite`` (or is a link /
+    being written)."""
     path = Path(path)
     with WRITING, ExclusiveFile(path, overwrite=overwrite) as tmp:  # WRITING: see mpi.watch_failures
         with netCDF4.Dataset(tmp, "w", format="NETCDF4") as ds:
             ds.Conventions = "CF-1.8"
             ds.title = f"swe_sphere restart file of scene {scene.name}"
-            ds.history = f"{time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime())}: swe_sphere restart at step {int(step)}"
+            ds.history = history_line(f"swe_sphere restart at step {int(step)}")
             ds.swe_sphere_checkpoint = FORMAT
             ds.swe_sphere_version = package_version()
             ds.scene = json.dumps(scene.as_dict())
@@ -120,9 +125,26 @@ def write(
                 ds.restart_every_days = float(restart_every)
             ds.createDimension("row", 3)
             ds.createDimension("node", x.shape[1])
+            for name, values, attrs in (
+                ("lat", np.degrees(grid.lat), NODE_COORDINATES["lat"]),
+                ("lon", np.degrees(grid.lon), NODE_COORDINATES["lon"]),
+                (
+                    "area",
+                    grid.spheremp,
+                    dict(AREA_ATTRS, long_name="spheremp: GLL weight x metdet x a^2 (not assembled)"),
+                ),
+            ):
+                ds.createVariable(name, "f8", ("node",), fletcher32=True).setncatts(attrs)
+                ds[name][:] = values
             for name, row in zip(STATE, x):
                 var = ds.createVariable(name, "f8", ("node",), fletcher32=True)
-                var.setncatts({**FIELDS[name], "long_name": f"{FIELDS[name]['long_name']} at each element's GLL nodes"})
+                var.setncatts(
+                    {
+                        **FIELDS[name],
+                        **FIELD_ATTRS,
+                        "long_name": f"{FIELDS[name]['long_name']} at each element's GLL nodes",
+                    }
+                )
                 var[:] = row
             for key, value in stepper_state.items():
                 if isinstance(value, np.ndarray):

@@ -14,12 +14,14 @@ import fcntl
 import json
 import os
 import threading
+import time
 from pathlib import Path
 
 import netCDF4
 import numpy as np
 
 from ..core.errors import OutputError
+from ..core.runtime import package_version
 from ..grid.cubed_sphere import CubedSphere
 from .dual import MESH as DUAL_MESH
 from .dual import write_dual_mesh
@@ -35,8 +37,18 @@ FIELDS = {
     ),
     "divergence": dict(units="s-1", long_name="divergence of the wind", standard_name="divergence_of_wind"),
 }
+NODE_COORDINATES = {  # lat/lon of the unique nodes: the one latitude and longitude of a run file
+    "lat": dict(units="degrees_north", standard_name="latitude", long_name="latitude of the GLL node"),
+    "lon": dict(units="degrees_east", standard_name="longitude", long_name="longitude of the GLL node"),
+}
+AREA_ATTRS = dict(
+    units="m2", long_name="area of the node's quadrature cell (assembled spheremp)", standard_name="cell_area"
+)
 OUTPUT_FIELDS = ("h", "u", "v", "vorticity", "divergence")  # the (time, ncol) fields of a run file, in its order
-FIELD_ATTRS = {"coordinates": "lat lon", "cell_measures": "area: area"}  # on each of them
+# On each node field (and hs). ``area`` is a cell measure, not a coordinate: listed in
+# ``coordinates`` CDO warns on every command; xarray makes it a coordinate of the fields with
+# ``decode_coords="all"``, and then cf_xarray's ``ds.h.cf.weighted("area")`` is the GLL quadrature.
+FIELD_ATTRS = {"coordinates": "lat lon", "cell_measures": "area: area"}
 # Held while a file is written: a failure reported from another MPI rank
 # (``mpi.watch_failures``) closes the run's files between writes, never inside one.
 WRITING = threading.RLock()
@@ -122,6 +134,12 @@ def attribute(value):
     if isinstance(value, (int, np.integer)) and not isinstance(value, bool) and -(2**31) <= value < 2**31:
         return np.int32(value)
     return value
+
+
+def history_line(what: str) -> str:
+    """One line of a file's CF ``history`` attribute: the UTC time, ``what`` made the
+    file, and the package version (CF: the newest line first, one line an operation)."""
+    return f"{time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime())}: {what} (swe_sphere {package_version()})"
 
 
 def check_target(path: Path, overwrite: bool = False) -> None:
@@ -359,20 +377,13 @@ class RunWriter:
         ds.createDimension("ncol", grid.nunique)
         t = ds.createVariable("time", "f8", ("time",))
         t.setncatts(TIME_ATTRS)
-        for name, deg, std in (("lat", np.degrees(grid.lat), "latitude"), ("lon", np.degrees(grid.lon), "longitude")):
-            var = ds.createVariable(name, "f8", ("ncol",))
-            var.units = "degrees_north" if name == "lat" else "degrees_east"
-            var.standard_name = std
-            var[:] = grid.to_unique(deg)
-        area = ds.createVariable("area", "f8", ("ncol",))
-        area.units, area.long_name, area.standard_name = (
-            "m2",
-            "area of the node's quadrature cell (assembled spheremp)",
-            "cell_area",
-        )
-        area[:] = grid.area
+        for name, deg in (("lat", np.degrees(grid.lat)), ("lon", np.degrees(grid.lon))):
+            ds.createVariable(name, "f8", ("ncol",)).setncatts(NODE_COORDINATES[name])
+            ds[name][:] = grid.to_unique(deg)
+        ds.createVariable("area", "f8", ("ncol",)).setncatts(AREA_ATTRS)
+        ds["area"][:] = grid.area
         hsv = ds.createVariable("hs", "f8", ("ncol",))
-        hsv.setncatts({**FIELDS["hs"], "coordinates": "lat lon", **UGRID_FACE})
+        hsv.setncatts({**FIELDS["hs"], **FIELD_ATTRS, **UGRID_FACE})
         hsv[:] = grid.to_unique(hs)
         write_dual_mesh(ds, grid)  # first: uxarray opens the first mesh_topology, the one the fields are on
         write_mesh(ds, grid)
@@ -432,24 +443,17 @@ def node_dataset(grid: CubedSphere, hs: np.ndarray, day: float, fields: dict, at
     (degrees) coordinates, ``area`` (m²), a scalar ``time`` (days, ``TIME_ATTRS``) and ``attrs``."""
     import xarray as xr
 
-    node = {"coordinates": "lat lon"}
     ds = xr.Dataset(
         {name: ("ncol", grid.to_unique(f), {**FIELDS[name], **FIELD_ATTRS}) for name, f in fields.items()},
         coords=dict(
-            lat=("ncol", grid.to_unique(np.degrees(grid.lat)), dict(units="degrees_north", standard_name="latitude")),
-            lon=("ncol", grid.to_unique(np.degrees(grid.lon)), dict(units="degrees_east", standard_name="longitude")),
+            lat=("ncol", grid.to_unique(np.degrees(grid.lat)), NODE_COORDINATES["lat"]),
+            lon=("ncol", grid.to_unique(np.degrees(grid.lon)), NODE_COORDINATES["lon"]),
             time=((), day, TIME_ATTRS),
         ),
         attrs={k: attribute(v) for k, v in attrs.items()},
     )
-    ds["hs"] = ("ncol", grid.to_unique(hs), {**FIELDS["hs"], **node})
-    ds["area"] = (
-        "ncol",
-        grid.area,
-        dict(
-            units="m2", long_name="area of the node's quadrature cell (assembled spheremp)", standard_name="cell_area"
-        ),
-    )
+    ds["hs"] = ("ncol", grid.to_unique(hs), {**FIELDS["hs"], **FIELD_ATTRS})
+    ds["area"] = ("ncol", grid.area, AREA_ATTRS)
     return ds
 
 

@@ -382,6 +382,7 @@ class Simulation(StateDiagnostics):
             state,
             self.counters,
             self.initial,
+            grid=self.grid,
             overwrite=overwrite,
             restart_every=restart_every,
         )

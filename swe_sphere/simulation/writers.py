@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import math
-import time
 from pathlib import Path
 
 from ..cases.scoring import truth
 from ..core.constants import DAY
 from ..core.runtime import package_version
-from ..io.run_file import OUTPUT_FIELDS, RunWriter
+from ..io.run_file import OUTPUT_FIELDS, RunWriter, history_line
 from . import checkpoint as ckpt
 from .schedules import output_steps, restart_steps
 
@@ -30,10 +29,9 @@ def run_attrs(sim, history: str | None, courant: dict) -> dict:
     """The global attributes of ``sim``'s run files: what ran, where, from which
     start and command line (``history``), and its Courant numbers at the start."""
     s = sim.scene
-    stamp = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
     return {
         "title": f"swe_sphere run of scene {s.name}",
-        "history": f"{stamp}: {history or f'swe_sphere.Simulation.run of scene {s.name}'} (swe_sphere {package_version()})",
+        "history": history_line(history or f"swe_sphere.Simulation.run of scene {s.name}"),
         "source": f"swe_sphere {package_version()}",
         "swe_sphere_version": package_version(),
         "scene": s.as_dict(),

@@ -18,7 +18,8 @@ from ..config.scene import Scene, load_scene
 from ..core.constants import DAY
 from ..core.errors import BlowUp
 from ..core.workers import InProcess
-from ..io.run_file import atomic_path, check_results
+from ..io.run_file import atomic_path, check_results, history_line
+from ..io.table_file import table_dataset, write_table_file
 from ..simulation.simulation import Simulation
 
 # The hard cases: (label, scene, days, grid override); None keeps the scene's value.
@@ -145,26 +146,47 @@ def run_suite(
 
 
 OUTPUTS = ("stability.csv", "stability.nc")  # what write_table writes
+COLUMN_ATTRS = {  # stability.csv's columns: (units, None for text; long_name), stability.nc's variables
+    "case": (None, "case label (a hard case of the suite)"),
+    "stepper": (None, "time stepper"),
+    "ne": ("1", "elements along a cube edge"),
+    "np": ("1", "GLL points along an element edge"),
+    "days": ("day", "run length"),
+    "dt_stable": ("s", "largest time step found stable (NaN if none)"),
+    "dt_unstable": ("s", "smallest time step found unstable (NaN if none up to one day)"),
+    "courant_gravity": ("1", "gravity-wave Courant number sqrt(g h) dt / dx of dt_stable at t = 0"),
+    "courant_advective": ("1", "advective Courant number |v| dt / dx of dt_stable at t = 0"),
+    "trials": ("1", "runs of the bisection"),
+}
 
 
 def write_table(results, directory, *, overwrite: bool = False) -> tuple:
-    """Write ``OUTPUTS`` (stability.csv, stability.nc) under ``directory``; return their
-    paths. Raises ``output.OutputError`` before writing either if one exists (unless
-    ``overwrite``)."""
+    """Write ``OUTPUTS`` under ``directory``; return their paths: stability.csv, one row
+    a (case, stepper), and stability.nc, the same rows on one ``row`` dimension
+    (``table_file.table_dataset``: ``COLUMN_ATTRS``, ``case`` and ``stepper`` as
+    character arrays, integers int32; ``ds.set_index(row=["case", "stepper"])`` labels
+    the rows) with the stability criterion as a global attribute. Raises
+    ``OutputError`` before writing either if one exists (unless ``overwrite``)."""
     import pandas as pd
 
     rows = [{k: v for k, v in dataclasses.asdict(r).items() if k != "trials"} for r in results]
     for row, r in zip(rows, results):
         row["trials"] = len(r.trials)
-    df = pd.DataFrame(rows)
+    df = pd.DataFrame(rows, columns=list(COLUMN_ATTRS))
     check_results(directory, OUTPUTS, overwrite)
     csv, nc = (directory / name for name in OUTPUTS)
     with atomic_path(csv, overwrite=overwrite) as tmp:
         df.to_csv(tmp, index=False)
-    ds = df.set_index(["case", "stepper"]).to_xarray()
-    ds.attrs["criterion"] = f"finite fields, depth > 0, total energy <= {1 + ENERGY_GROWTH_LIMIT} x initial"
-    with atomic_path(nc, overwrite=overwrite) as tmp:
-        ds.to_netcdf(tmp)
+    ds = table_dataset(
+        df,
+        "row",
+        COLUMN_ATTRS,
+        row_long_name="(case, stepper) of the suite (row of stability.csv)",
+        title="swe_sphere stability suite: the largest stable time step of each stepper on the hard cases",
+        history=history_line("swe_sphere stability"),
+        attrs=dict(criterion=f"finite fields, depth > 0, total energy <= {1 + ENERGY_GROWTH_LIMIT} x initial"),
+    )
+    write_table_file(ds, nc, overwrite=overwrite)
     return csv, nc
 
 

@@ -54,7 +54,8 @@ from ..core.constants import DAY
 from ..core.errors import BlowUp, Interrupted
 from ..core.runtime import package_version
 from ..core.workers import InProcess
-from ..io.run_file import atomic_path, check_results
+from ..io.run_file import atomic_path, check_results, history_line
+from ..io.table_file import table_dataset, write_table_file
 from ..model.diagnostics import max_signal_rate
 from ..simulation.checkpoint import branch_attrs
 from ..simulation.simulation import Simulation
@@ -873,38 +874,19 @@ RECORD = (
 
 
 def sweep_dataset(df, attrs: dict):
-    """sweep.nc as an ``xarray.Dataset``: one ``run`` dimension (sweep.csv's rows), each
-    of ``COLUMNS`` a variable on it with its units and long_name (``COLUMN_ATTRS``;
-    ``stepper`` and ``reason`` strings, written as CF character arrays), ``attrs``
-    (integers as 32-bit integers) with CF's Conventions, title and history."""
-    import xarray as xr
-
-    def column(c, units):
-        if units is None:
-            return df[c].fillna("").astype(str).to_numpy()
-        values = df[c].to_numpy()
-        return values.astype(np.int32) if values.dtype.kind == "i" else values  # CF-1.8 has no 64-bit integers
-
-    ds = xr.Dataset(
-        {c: ("run", column(c, units)) for c, (units, _) in COLUMN_ATTRS.items()},
-        coords=dict(
-            run=(
-                "run",
-                np.arange(len(df), dtype=np.int32),
-                dict(long_name="run of the sweep (row of sweep.csv)", units="1"),
-            )
-        ),
-    )
-    for c, (units, long_name) in COLUMN_ATTRS.items():
-        ds[c].attrs.update(long_name=long_name, **({} if units is None else dict(units=units)))
-    ds.attrs.update({k: v if isinstance(v, (str, int)) else float(v) for k, v in attrs.items()})
-    stamp = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
-    ds.attrs.update(
-        Conventions="CF-1.8",
+    """sweep.nc as an ``xarray.Dataset`` (``table_file.table_dataset``): one ``run``
+    dimension (sweep.csv's rows), each of ``COLUMNS`` a variable on it with its units
+    and long_name (``COLUMN_ATTRS``; ``stepper`` and ``reason`` text), ``attrs`` the
+    global attributes, with CF's Conventions, title and history."""
+    return table_dataset(
+        df,
+        "run",
+        COLUMN_ATTRS,
+        row_long_name="run of the sweep (row of sweep.csv)",
         title=f"swe_sphere sweep: {attrs['case']} ne{attrs['ne']} np{attrs['np']}, {attrs['days']:g} days",
-        history=f"{stamp}: swe_sphere sweep (swe_sphere {package_version()})",
+        history=history_line("swe_sphere sweep"),
+        attrs=attrs,
     )
-    return ds
 
 
 PLOTS = (  # (x, y, file name, x label, spatial-error key): the frontier per criterion
@@ -949,10 +931,7 @@ def write_outputs(rows, info, limits, directory, *, overwrite: bool = False) -> 
         df.assign(**{k: info[k] for k in RECORD}).to_csv(tmp, index=False)
     with atomic_path(vcsv, overwrite=overwrite) as tmp:
         pd.DataFrame(verdicts(rows, info), columns=list(VERDICT_COLUMNS)).to_csv(tmp, index=False)
-    with atomic_path(nc, overwrite=overwrite) as tmp:
-        sweep_dataset(df, {**info, **limits}).to_netcdf(
-            tmp, encoding={k: {"dtype": "S1"} for k in ("stepper", "reason")}
-        )
+    write_table_file(sweep_dataset(df, {**info, **limits}), nc, overwrite=overwrite)
     paths = [csv, nc, vcsv]
     title = f"{info['case']} ne{info['ne']} np{info['np']}, {info['days']:g} days"
     for x, y, name, label, spatial in PLOTS:

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..core.constants import EARTH
 from .gll import gll
+from .mesh import Mesh
 
 # Face k: centre c, in-face axes (ea, eb) with c × ea = eb, so every face is
 # seen counter-clockwise from outside and metdet > 0 in the (east, north) basis.
@@ -397,3 +398,21 @@ def _build(ne: int, rule, radius: float, elements: np.ndarray) -> dict:
         halo=halo,
         halo_spheremp=spheremp[np.searchsorted(ext, halo)],
     )
+
+
+def cube_mesh(ne: int) -> Mesh:
+    """The uniform equiangular cube with ``ne``×``ne`` elements a face as a ``Mesh``: element
+    e = face·ne² + jb·ne + ia of ``CubedSphere`` with corners (ia, jb), (ia+1, jb), (ia+1,
+    jb+1), (ia, jb+1) of its face (counter-clockwise), the corner nodes numbered in the order
+    of their first copies. Raises ``ValueError`` for ne < 1."""
+    if isinstance(ne, bool) or int(ne) != ne or ne < 1:
+        raise ValueError(f"ne must be an integer >= 1 (got {ne})")
+    numbering = Numbering(int(ne), 2)
+    corner = np.array([0, 1, 3, 2])  # counter-clockwise corner k → node p = 2·[j > 0] + [i > 0]
+    quads = numbering.rows(np.arange(6 * ne * ne))[0].reshape(-1, 4)[:, corner]
+    copies = np.arange(quads.size)
+    first = np.zeros(int(quads.max()) + 1, dtype=np.int64)
+    first[quads.ravel()[::-1]] = copies[::-1]  # each node's first copy (reverse: the smallest wins)
+    e, k = np.divmod(first, 4)
+    xi, eta = np.array([-1.0, 1, 1, -1]), np.array([-1.0, -1, 1, 1])
+    return Mesh(reference_to_sphere(ne, e, xi[k], eta[k]), quads.astype(np.int64), f"ne{ne} cube")

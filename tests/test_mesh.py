@@ -4,19 +4,15 @@ checks a mesh must pass on reading (one line naming the element or node)."""
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import netCDF4
 import numpy as np
 import pytest
+from meshes import MOUNTAIN, TEMPEST_NE2
 
 from swe_sphere.core.errors import SceneError
 from swe_sphere.grid.cubed_sphere import cube_mesh
 from swe_sphere.grid.mesh import Mesh, check, element_areas, read_exodus, write_exodus
-
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"
-TEMPEST_NE2 = SHARED / "TEMPEST_NE2.g"
-MOUNTAIN = SHARED / "mountain_10_x2.g"
 
 
 @pytest.mark.parametrize("ne", [1, 2, 5])

@@ -14,9 +14,10 @@ from scipy.spatial import cKDTree
 
 from swe_sphere.cases.library import make_case
 from swe_sphere.grid.cubed_sphere import CubedSphere, Numbering, cube_mesh
-from swe_sphere.grid.element_local import MeshNumbering
+from swe_sphere.grid.element_local import MeshNumbering, locate
 from swe_sphere.grid.mesh import element_areas, read_exodus, write_exodus
 from swe_sphere.grid.partition import mesh_order, mesh_partition
+from swe_sphere.grid.schmidt import schmidt_cube
 from swe_sphere.grid.topology import SerialComm, Topology
 from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.steppers import make_stepper
@@ -218,3 +219,24 @@ def test_tc2_on_a_refined_mesh_keeps_its_mass_and_its_steady_state(mountain):
     if MOUNTAIN.is_file():
         assert errors[0] <= errors[1]
     assert errors[1] < 1e-5  # the ne10 cube's 4.5e-6: a wrong metric term gives O(1e-3)
+
+
+@pytest.mark.parametrize("which", ["mountain", "stretched"])
+def test_locate_inverts_the_element_local_map(mountain, which, rng):
+    """Random reference points of random elements, mapped to the sphere and located back:
+    the same element and (a, b) to a few roundings (Newton converges quadratically)."""
+    mesh = mountain if which == "mountain" else schmidt_cube(6, 4.0, 30.0, 100.0)
+    grid = CubedSphere(0, 4, mesh=mesh)
+    n = 5000
+    e, a, b = rng.integers(0, mesh.nelem, n), rng.uniform(-1, 1, n), rng.uniform(-1, 1, n)
+    found, a2, b2 = locate(mesh, grid.reference_to_sphere(e, a, b))
+    assert np.array_equal(found, e)
+    roundoff.within(max(np.max(np.abs(a2 - a)), np.max(np.abs(b2 - b))), roundoff.bound(100), "(a, b)")
+
+
+def test_the_grids_map_places_its_own_gll_nodes(mountain):
+    grid = CubedSphere(0, 4, mesh=mountain)
+    e, p = np.divmod(grid.dss_table[:, 0].astype(np.int64), 16)  # each node's first copy
+    j, i = np.divmod(p, 4)
+    xyz = grid.reference_to_sphere(e, grid.rule.points[i], grid.rule.points[j])
+    assert np.max(np.abs(xyz.T - grid.xyz)) <= roundoff.bound(2)

@@ -19,7 +19,7 @@ import math
 import numpy as np
 
 from ..core.constants import EARTH
-from .element_local import ElementLocalMap, MeshNumbering, epsilon_bubble
+from .element_local import ElementLocalMap, MeshNumbering, bilinear, epsilon_bubble
 from .gll import gll
 from .mesh import Mesh
 
@@ -101,6 +101,14 @@ class CubedSphere:
     def map(self) -> str:
         """The reference map: ``"equiangular"`` or ``"element_local"`` (on ``mesh``)."""
         return "equiangular" if self.mesh is None else "element_local"
+
+    def reference_to_sphere(self, e: np.ndarray, xi: np.ndarray, eta: np.ndarray) -> np.ndarray:
+        """Unit position vectors (n, 3) of the points (ξ, η) ∈ [−1, 1]² (n,) of elements ``e``
+        (n,) (global indices) through the grid's map (equiangular, or element-local on ``mesh``)."""
+        if self.mesh is None:
+            return reference_to_sphere(self.ne, e, xi, eta)
+        p = bilinear(self.mesh, np.asarray(e), np.asarray(xi, dtype=np.float64), np.asarray(eta, dtype=np.float64))[0]
+        return p / np.linalg.norm(p, axis=1)[:, None]
 
     def part(self, elements) -> CubedSphere:
         """The same grid built for ``elements`` only (ascending global indices)."""

@@ -18,6 +18,17 @@ import numpy as np
 from .mesh import Mesh, element_areas
 
 
+def bilinear(mesh: Mesh, e: np.ndarray, a: np.ndarray, b: np.ndarray):
+    """The element-local map before projection at the points (a, b) ∈ [−1, 1]² (n,) of elements
+    ``e`` (n,) of ``mesh``: (p (n, 3), 4 ∂p/∂a (n, 3), 4 ∂p/∂b (n, 3)); x = p/|p| is the point on
+    the unit sphere (HOMME ``ref2sphere`` with ``cubed_sphere_map = 2``)."""
+    c = mesh.coords[mesh.quads[e]]  # (n, 4, 3)
+    q = np.stack([(1 - a) * (1 - b), (1 + a) * (1 - b), (1 + a) * (1 + b), (1 - a) * (1 + b)], axis=1) / 4
+    dq_da = np.stack([-(1 - b), 1 - b, 1 + b, -(1 + b)], axis=1)
+    dq_db = np.stack([-(1 - a), -(1 + a), 1 + a, 1 - a], axis=1)
+    return np.einsum("nk,nki->ni", q, c), np.einsum("nk,nki->ni", dq_da, c), np.einsum("nk,nki->ni", dq_db, c)
+
+
 class ElementLocalMap:
     """The element-local map of ``mesh`` at the GLL points of ``rule``, for the grid's
     ``_metric``: ``at(copies)`` of global element-local node indices e·np² + j·np + i gives
@@ -33,17 +44,60 @@ class ElementLocalMap:
         npts = self.rule.np
         e, p = np.divmod(copies, npts * npts)
         j, i = np.divmod(p, npts)
-        a, b = self.rule.points[i], self.rule.points[j]
-        c = self.mesh.coords[self.mesh.quads[e]]  # (n, 4, 3)
-        q = np.stack([(1 - a) * (1 - b), (1 + a) * (1 - b), (1 + a) * (1 + b), (1 - a) * (1 + b)], axis=1) / 4
-        dq_da = np.stack([-(1 - b), 1 - b, 1 + b, -(1 + b)], axis=1)
-        dq_db = np.stack([-(1 - a), -(1 + a), 1 + a, 1 - a], axis=1)
-        return (
-            np.einsum("nk,nki->ni", q, c),
-            np.einsum("nk,nki->ni", dq_da, c),
-            np.einsum("nk,nki->ni", dq_db, c),
-            self.factor,
-        )
+        return (*bilinear(self.mesh, e, self.rule.points[i], self.rule.points[j]), self.factor)
+
+
+def locate(mesh: Mesh, xyz: np.ndarray, candidates: int = 8, tolerance: float = 1e-10):
+    """The element and reference point (e, a, b) (n,) each of points xyz (n, 3) on the unit
+    sphere: the inverse of the element-local map, by Newton's method on the part of p(a, b)
+    across x (p ∥ x, p·x > 0) in each of the ``candidates`` elements with the nearest
+    centroids, keeping the first whose (a, b) lies in [−1, 1]² (to ``tolerance``). A point on
+    an element edge gets one of its elements. Raises ``ValueError`` naming the first point no
+    candidate holds (a mesh whose elements are far larger than their neighbours': raise
+    ``candidates``)."""
+    from scipy.spatial import cKDTree
+
+    xyz = np.asarray(xyz, dtype=np.float64)
+    n = xyz.shape[0]
+    k = min(candidates, mesh.nelem)
+    near = cKDTree(mesh.centroids()).query(xyz, k=k)[1].reshape(n, k)
+    # a tangent basis (t1, t2) at each point, from the axis it is least aligned with
+    axis = np.eye(3)[np.argmin(np.abs(xyz), axis=1)]
+    t1 = np.cross(xyz, axis)
+    t1 /= np.linalg.norm(t1, axis=1)[:, None]
+    t2 = np.cross(xyz, t1)
+    found = np.full(n, -1, dtype=np.int64)
+    out_a, out_b = np.zeros(n), np.zeros(n)
+    for column in range(k):
+        todo = np.flatnonzero(found < 0)
+        if not todo.size:
+            break
+        e, x, u, v = near[todo, column], xyz[todo], t1[todo], t2[todo]
+        a, b = np.zeros(todo.size), np.zeros(todo.size)
+        for _ in range(30):  # quadratic convergence from the centre; bounded for elements that do not hold x
+            p, pa, pb = bilinear(mesh, e, a, b)
+            f = np.stack([np.einsum("ni,ni->n", p, u), np.einsum("ni,ni->n", p, v)], axis=1)
+            J = (
+                np.stack(
+                    [
+                        np.stack([np.einsum("ni,ni->n", pa, u), np.einsum("ni,ni->n", pb, u)], axis=1),
+                        np.stack([np.einsum("ni,ni->n", pa, v), np.einsum("ni,ni->n", pb, v)], axis=1),
+                    ],
+                    axis=1,
+                )
+                / 4
+            )
+            step = np.linalg.solve(J, f[..., None])[..., 0]
+            a, b = np.clip(a - step[:, 0], -3, 3), np.clip(b - step[:, 1], -3, 3)
+            if np.max(np.abs(step)) < 1e-15:
+                break
+        inside = (np.abs(a) <= 1 + tolerance) & (np.abs(b) <= 1 + tolerance)
+        inside &= np.einsum("ni,ni->n", bilinear(mesh, e, a, b)[0], x) > 0
+        hit = todo[inside]
+        found[hit], out_a[hit], out_b[hit] = e[inside], np.clip(a[inside], -1, 1), np.clip(b[inside], -1, 1)
+    if np.any(found < 0):
+        raise ValueError(f"point {int(np.flatnonzero(found < 0)[0])} lies in none of its {k} nearest elements")
+    return found, out_a, out_b
 
 
 def epsilon_bubble(mesh: Mesh, rule, radius: float, elements: np.ndarray, metdet: np.ndarray) -> np.ndarray:

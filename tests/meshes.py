@@ -1,10 +1,74 @@
-"""E3SM's HOMME test meshes beside the checkout (``../shared/meshes``), where present: tests that
-read them skip without them; the project's own ``.g`` files (``cube_mesh``) cover the same ground."""
+"""Meshes for the tests: E3SM's HOMME test meshes beside the checkout (``../shared/meshes``), where
+present (tests that need them skip without), and the project's own, built here: the cube
+(``cube_mesh``) and ``icosahedral_mesh``, whose nodes are shared by 3 to 6 elements as on a refined
+mesh."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
+from swe_sphere.grid.mesh import Mesh, check
+
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"
 TEMPEST_NE2 = SHARED / "TEMPEST_NE2.g"  # the uniform ne2 cube, made by TempestRemap
 MOUNTAIN = SHARED / "mountain_10_x2.g"  # ne10 refined 2x over TC5's mountain (CUBIT paving)
+
+
+def _icosahedron() -> tuple[np.ndarray, np.ndarray]:
+    """The regular icosahedron's 12 unit vertices and 20 faces, counter-clockwise from outside."""
+    t = (1 + 5**0.5) / 2
+    v = np.array(
+        [[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t], [0, -1, -t], [0, 1, -t]]
+        + [[t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]],
+        dtype=float,
+    )
+    f = np.array(
+        [[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2]]
+        + [[10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5]]
+        + [[2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]]
+    )
+    return v / np.linalg.norm(v, axis=1)[:, None], f
+
+
+def _midpoints(coords: list, faces: np.ndarray) -> tuple[np.ndarray, list]:
+    """(F, 3) the node of each face edge's midpoint (k: from corner k to k+1), added to ``coords``."""
+    index: dict = {}
+    mids = np.empty(faces.shape, dtype=np.int64)
+    for n, face in enumerate(faces):
+        for k in range(3):
+            key = tuple(sorted((face[k], face[(k + 1) % 3])))
+            if key not in index:
+                m = coords[key[0]] + coords[key[1]]
+                index[key] = len(coords)
+                coords.append(m / np.linalg.norm(m))
+            mids[n, k] = index[key]
+    return mids, coords
+
+
+def icosahedral_mesh(subdivisions: int = 1) -> Mesh:
+    """The icosahedron's triangles, each split into 4 ``subdivisions`` times (new nodes on the
+    sphere), then into 3 quadrilaterals through its centre and edge midpoints: a conforming
+    quadrilateral mesh with nodes shared by 3 (triangle centres), 4 (edge midpoints), 5 (the
+    icosahedron's vertices) and 6 elements (the subdivisions' vertices). 60·4^s elements."""
+    v, faces = _icosahedron()
+    coords = list(v)
+    for _ in range(subdivisions):
+        m, coords = _midpoints(coords, faces)
+        a, b, c = faces.T
+        faces = np.concatenate(
+            [np.stack(x, axis=1) for x in ((a, m[:, 0], m[:, 2]), (b, m[:, 1], m[:, 0]), (c, m[:, 2], m[:, 1]), m.T)]
+        )
+    m, coords = _midpoints(coords, faces)
+    centres = np.array(coords)[faces].sum(axis=1)
+    centre = len(coords) + np.arange(len(faces))
+    coords = np.vstack([coords, centres / np.linalg.norm(centres, axis=1)[:, None]])
+    a, b, c = faces.T
+    quads = np.concatenate(
+        [
+            np.stack(x, axis=1)
+            for x in ((a, m[:, 0], centre, m[:, 2]), (b, m[:, 1], centre, m[:, 0]), (c, m[:, 2], centre, m[:, 1]))
+        ]
+    )
+    return check(Mesh(coords, quads, f"icosahedral quads ({subdivisions} subdivisions)"))

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 import warp as wp
-from meshes import MOUNTAIN, TEMPEST_NE2
+from meshes import MOUNTAIN, TEMPEST_NE2, icosahedral_mesh
 from scipy.spatial import cKDTree
 
 from swe_sphere.cases.library import make_case
@@ -29,11 +29,19 @@ TABLES = ("gid", "dss_table", "first", "area", "halo", "halo_spheremp")
 TC6_TERMS = ["continuity", "momentum_advection", "coriolis", "pressure_gradient", "hyperviscosity"]
 
 
-@pytest.fixture(scope="module")
-def mountain():
-    """A refined mesh with node valences 3 to 6: E3SM's mountain_10_x2.g where present, else
-    the project's own ne4 cube (valence 3 and 4)."""
-    return read_exodus(MOUNTAIN) if MOUNTAIN.is_file() else cube_mesh(4)
+@pytest.fixture(
+    scope="module",
+    params=[
+        "icosahedral",
+        pytest.param(
+            "mountain_10_x2.g", marks=pytest.mark.skipif(not MOUNTAIN.is_file(), reason="E3SM's mesh not present")
+        ),
+    ],
+)
+def mountain(request):
+    """A refined-like mesh: the project's own icosahedral quadrilaterals (node valences 3 to 6),
+    and E3SM's mountain_10_x2.g (ne10 refined 2x; valences 3 to 6) where present."""
+    return icosahedral_mesh(1) if request.param == "icosahedral" else read_exodus(MOUNTAIN)
 
 
 @pytest.mark.parametrize("ne", [1, 2, 3])
@@ -98,7 +106,7 @@ def test_the_partition_of_a_mesh_follows_a_curve_through_its_centroids(mountain)
     order = mesh_order(mountain)
     assert np.array_equal(np.sort(order), np.arange(mountain.nelem))
     shared = [len(set(mountain.quads[a]) & set(mountain.quads[b])) for a, b in zip(order[:-1], order[1:])]
-    assert np.mean(np.array(shared) >= 1) >= 0.95  # consecutive elements touch (0.99 on mountain_10_x2.g)
+    assert np.mean(np.array(shared) >= 1) >= 0.9  # consecutive elements touch (0.95 icosahedral, 0.99 mountain)
     sizes = [p.size for p in mesh_partition(mountain, 7)]
     assert max(sizes) - min(sizes) <= 1 and sum(sizes) == mountain.nelem
 
@@ -200,9 +208,10 @@ def test_tempest_ne2_gives_the_built_in_cubes_metric_and_state_to_round_off():
 
 
 def test_tc2_on_a_refined_mesh_keeps_its_mass_and_its_steady_state(mountain):
-    """TC2 (steady, exact) for 30 minutes on the refined mesh: mass to round-off, and the
-    normalized l2 error of h no larger than on the uniform cube of its base spacing (ne10
-    with the same map; 4.3e-6 against 4.5e-6 on mountain_10_x2.g)."""
+    """TC2 (steady, exact) for 30 minutes on the mesh: mass to round-off, and the normalized
+    l2 error of h: on mountain_10_x2.g no larger than on the uniform cube of its base spacing
+    (ne10 with the same map; 4.3e-6 against 4.5e-6); on the 240 icosahedral quadrilaterals
+    4.2e-5 (2.7 times the ne6 cube's, for its distortion 2.9 against 1.7)."""
     terms = ["continuity", "momentum_advection", "coriolis", "pressure_gradient"]
     steps = 12
     errors = []
@@ -216,9 +225,9 @@ def test_tc2_on_a_refined_mesh_keeps_its_mass_and_its_steady_state(mountain):
             "|mass change|",
         )
         errors.append(math.sqrt(grid.integrate((h - h0) ** 2) / grid.integrate(h0**2)))
-    if MOUNTAIN.is_file():
-        assert errors[0] <= errors[1]
+    print(f"TC2 l2(h) after {steps} steps: {mountain.name} {errors[0]:.3e}, ne10 cube {errors[1]:.3e}")
     assert errors[1] < 1e-5  # the ne10 cube's 4.5e-6: a wrong metric term gives O(1e-3)
+    assert errors[0] <= (errors[1] if mountain.name == MOUNTAIN.name else 1e-4)
 
 
 @pytest.mark.parametrize("which", ["mountain", "stretched"])

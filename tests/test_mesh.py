@@ -8,7 +8,7 @@ import math
 import netCDF4
 import numpy as np
 import pytest
-from meshes import MOUNTAIN, TEMPEST_NE2
+from meshes import MOUNTAIN, TEMPEST_NE2, icosahedral_mesh
 
 from swe_sphere.core.errors import SceneError
 from swe_sphere.grid.cubed_sphere import cube_mesh
@@ -39,6 +39,13 @@ def test_a_written_mesh_reads_back_bit_for_bit(tmp_path):
         assert f["connect1"].getncattr("elem_type") == "SHELL4"
         assert int(f["connect1"][:].min()) == 1
         assert len(f.dimensions["num_el_blk"]) == 1
+
+
+def test_a_mesh_with_nodes_of_3_to_6_elements_passes_its_checks_and_reads_back(tmp_path):
+    mesh = icosahedral_mesh(1)
+    assert sorted(set(np.bincount(mesh.quads.ravel()))) == [3, 4, 5, 6]
+    back = read_exodus(write_exodus(tmp_path / "ico.g", mesh))
+    assert np.array_equal(back.coords, mesh.coords) and np.array_equal(back.quads, mesh.quads)
 
 
 def test_coordx_coordy_coordz_are_read_like_coord(tmp_path):

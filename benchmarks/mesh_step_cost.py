@@ -24,33 +24,17 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from meshes import icosahedral_mesh  # noqa: E402
+from meshes import TC6_TERMS, case_model, icosahedral_mesh  # noqa: E402
 
-from swe_sphere.cases.library import make_case  # noqa: E402
 from swe_sphere.core.runtime import init_warp  # noqa: E402
 from swe_sphere.grid.cubed_sphere import CubedSphere, cube_mesh  # noqa: E402
 from swe_sphere.grid.mesh import read_exodus  # noqa: E402
-from swe_sphere.model.shallow_water import ShallowWater  # noqa: E402
 from swe_sphere.steppers import make_stepper  # noqa: E402
-
-TERMS = ["continuity", "momentum_advection", "coriolis", "pressure_gradient", "hyperviscosity"]
 
 
 def stepper_on(grid):
     """(stepper, state) of TC6 on ``grid``, one thread, two steps taken (compiled, recorded)."""
-    case = make_case("tc6_rossby_haurwitz")
-    model = ShallowWater(
-        grid,
-        TERMS,
-        case.fcor(grid.lat, grid.lon),
-        case.hs(grid.lat, grid.lon),
-        nu=1e15,
-        nu_div=1e15,
-        nu_s=1e15,
-        g=case.planet.g,
-        device="cpu",
-        threads=1,
-    )
+    case, model = case_model(grid, "tc6_rossby_haurwitz", TC6_TERMS, nu=1e15, nu_div=1e15, nu_s=1e15, threads=1)
     stepper = make_stepper("ssprk3", model, 60.0)
     x = model.new_state(*np.stack(case.initial(grid.lat, grid.lon)))
     for _ in range(2):

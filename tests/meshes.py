@@ -9,11 +9,23 @@ from pathlib import Path
 
 import numpy as np
 
+from swe_sphere.cases.library import make_case
 from swe_sphere.grid.mesh import Mesh, check
+from swe_sphere.model.shallow_water import ShallowWater
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"
 TEMPEST_NE2 = SHARED / "TEMPEST_NE2.g"  # the uniform ne2 cube, made by TempestRemap
 MOUNTAIN = SHARED / "mountain_10_x2.g"  # ne10 refined 2x over TC5's mountain (CUBIT paving)
+TC2_TERMS = ["continuity", "momentum_advection", "coriolis", "pressure_gradient"]
+TC6_TERMS = [*TC2_TERMS, "hyperviscosity"]
+
+
+def case_model(grid, case_name: str, terms: list, **options):
+    """(case, its ShallowWater on ``grid`` on the CPU with the case's fcor, hs and g; ``options``
+    the model's others: nu, threads, per_element...)."""
+    case = make_case(case_name)
+    fcor, hs = case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon)
+    return case, ShallowWater(grid, terms, fcor, hs, g=case.planet.g, device="cpu", **options)
 
 
 def _icosahedron() -> tuple[np.ndarray, np.ndarray]:

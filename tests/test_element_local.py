@@ -9,24 +9,21 @@ import math
 import numpy as np
 import pytest
 import warp as wp
-from meshes import MOUNTAIN, TEMPEST_NE2, icosahedral_mesh
+from meshes import MOUNTAIN, TC2_TERMS, TC6_TERMS, TEMPEST_NE2, case_model, icosahedral_mesh
 from scipy.spatial import cKDTree
 
-from swe_sphere.cases.library import make_case
 from swe_sphere.grid.cubed_sphere import CubedSphere, Numbering, cube_mesh
 from swe_sphere.grid.element_local import MeshNumbering, locate
 from swe_sphere.grid.mesh import element_areas, read_exodus, write_exodus
 from swe_sphere.grid.partition import mesh_order, mesh_partition
 from swe_sphere.grid.schmidt import schmidt_cube
 from swe_sphere.grid.topology import SerialComm, Topology
-from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.steppers import make_stepper
 
 import roundoff
 
 GRID_ARRAYS = ("xyz", "lat", "lon", "east", "north", "D", "Dinv", "metdet", "spheremp", "rspheremp", "dx")
 TABLES = ("gid", "dss_table", "first", "area", "halo", "halo_spheremp")
-TC6_TERMS = ["continuity", "momentum_advection", "coriolis", "pressure_gradient", "hyperviscosity"]
 
 
 @pytest.fixture(
@@ -145,10 +142,7 @@ def test_a_partitioned_dss_on_a_mesh_is_the_serial_one_bit_for_bit(mountain, ran
 
 def run(grid, case_name, terms, steps, dt, **nu):
     """The state (u, v, h) (3, N) after ``steps`` SSP-RK3 steps of ``case_name`` on ``grid``, and its start."""
-    case = make_case(case_name)
-    model = ShallowWater(
-        grid, terms, case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon), g=case.planet.g, device="cpu", **nu
-    )
+    case, model = case_model(grid, case_name, terms, **nu)
     stepper = make_stepper("ssprk3", model, dt)
     start = np.stack(case.initial(grid.lat, grid.lon))
     x = model.new_state(*start)
@@ -212,12 +206,11 @@ def test_tc2_on_a_refined_mesh_keeps_its_mass_and_its_steady_state(mountain):
     l2 error of h: on mountain_10_x2.g no larger than on the uniform cube of its base spacing
     (ne10 with the same map; 4.3e-6 against 4.5e-6); on the 240 icosahedral quadrilaterals
     4.2e-5 (2.7 times the ne6 cube's, for its distortion 2.9 against 1.7)."""
-    terms = ["continuity", "momentum_advection", "coriolis", "pressure_gradient"]
     steps = 12
     errors = []
     for mesh in (mountain, cube_mesh(10)):
         grid = CubedSphere(0, 4, mesh=mesh)
-        x, start = run(grid, "tc2_steady", terms, steps, 150.0)
+        x, start = run(grid, "tc2_steady", TC2_TERMS, steps, 150.0)
         h, h0 = x[2], start[2]
         roundoff.within(
             abs(grid.integrate(h) / grid.integrate(h0) - 1),

@@ -8,14 +8,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import warp as wp
-from meshes import icosahedral_mesh
+from meshes import TC6_TERMS, case_model, icosahedral_mesh
 
-from swe_sphere.cases.library import make_case
 from swe_sphere.grid.cubed_sphere import CubedSphere
-from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.steppers import make_stepper
 
-TERMS = ["continuity", "momentum_advection", "coriolis", "pressure_gradient", "hyperviscosity"]
 STEPPERS = ("ssprk3", "semi_implicit", "imex", "implicit")
 
 
@@ -31,19 +28,9 @@ def launched_modules(grid, monkeypatch) -> dict:
         return real_launch(kernel, *args, **kwargs)
 
     monkeypatch.setattr(wp, "launch", launch)
-    case = make_case("tc6_rossby_haurwitz")
     for per_element in (False, True):
-        model = ShallowWater(
-            grid,
-            TERMS,
-            case.fcor(grid.lat, grid.lon),
-            case.hs(grid.lat, grid.lon),
-            nu=1e15,
-            nu_div=1e15,
-            nu_s=1e15,
-            g=case.planet.g,
-            device="cpu",
-            per_element=per_element,
+        case, model = case_model(
+            grid, "tc6_rossby_haurwitz", TC6_TERMS, nu=1e15, nu_div=1e15, nu_s=1e15, per_element=per_element
         )
         for name in STEPPERS:
             stepper = make_stepper(name, model, 300.0)

@@ -7,12 +7,11 @@ import math
 
 import numpy as np
 import pytest
+from meshes import TC2_TERMS, case_model
 
-from swe_sphere.cases.library import make_case
 from swe_sphere.grid.cubed_sphere import CubedSphere, cube_mesh
 from swe_sphere.grid.mesh import check, element_areas
 from swe_sphere.grid.schmidt import rotation_to, schmidt_cube
-from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.steppers import make_stepper
 
 import roundoff
@@ -82,18 +81,11 @@ def test_tc2_on_a_stretched_cube_converges_spectrally_in_np_and_keeps_its_mass()
     """TC2 (steady, exact) 12 minutes on the ne6 cube stretched by 2.5 toward (45°, 260°):
     the normalized l2 error of h falls by ≥ 3 per np from 3 to 6 (measured 4.4 to 6.0),
     and mass is kept to round-off."""
-    case, steps = make_case("tc2_steady"), 12
+    steps = 12
     errors = []
     for np_ in (3, 4, 5, 6):
         g = CubedSphere(6, np_, mesh=schmidt_cube(6, 2.5, 45.0, 260.0))
-        model = ShallowWater(
-            g,
-            ["continuity", "momentum_advection", "coriolis", "pressure_gradient"],
-            case.fcor(g.lat, g.lon),
-            case.hs(g.lat, g.lon),
-            g=case.planet.g,
-            device="cpu",
-        )
+        case, model = case_model(g, "tc2_steady", TC2_TERMS)
         stepper = make_stepper("ssprk3", model, 60.0)
         start = np.stack(case.initial(g.lat, g.lon))
         x = model.new_state(*start)

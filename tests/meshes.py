@@ -59,11 +59,23 @@ def _midpoints(coords: list, faces: np.ndarray) -> tuple[np.ndarray, list]:
     return mids, coords
 
 
+def quadrilaterals(coords: list, faces: np.ndarray, name: str) -> Mesh:
+    """The checked mesh of a triangulation (unit ``coords``, ``faces`` counter-clockwise from
+    outside) with each triangle split into 3 quadrilaterals through its centre and edge
+    midpoints: a node of k triangles is one of k quadrilaterals, edge midpoints of 4, centres of 3."""
+    m, coords = _midpoints(list(coords), faces)
+    centres = np.array(coords)[faces].sum(axis=1)
+    centre = len(coords) + np.arange(len(faces))
+    coords = np.vstack([coords, centres / np.linalg.norm(centres, axis=1)[:, None]])
+    a, b, c = faces.T
+    corners = ((a, m[:, 0], centre, m[:, 2]), (b, m[:, 1], centre, m[:, 0]), (c, m[:, 2], centre, m[:, 1]))
+    return check(Mesh(coords, np.concatenate([np.stack(x, axis=1) for x in corners]), name))
+
+
 def icosahedral_mesh(subdivisions: int = 1) -> Mesh:
     """The icosahedron's triangles, each split into 4 ``subdivisions`` times (new nodes on the
-    sphere), then into 3 quadrilaterals through its centre and edge midpoints: a conforming
-    quadrilateral mesh with nodes shared by 3 (triangle centres), 4 (edge midpoints), 5 (the
-    icosahedron's vertices) and 6 elements (the subdivisions' vertices). 60·4^s elements."""
+    sphere), as ``quadrilaterals``: nodes shared by 3 (triangle centres), 4 (edge midpoints),
+    5 (the icosahedron's vertices) and 6 elements (the subdivisions' vertices). 60·4^s elements."""
     v, faces = _icosahedron()
     coords = list(v)
     for _ in range(subdivisions):
@@ -72,15 +84,17 @@ def icosahedral_mesh(subdivisions: int = 1) -> Mesh:
         faces = np.concatenate(
             [np.stack(x, axis=1) for x in ((a, m[:, 0], m[:, 2]), (b, m[:, 1], m[:, 0]), (c, m[:, 2], m[:, 1]), m.T)]
         )
-    m, coords = _midpoints(coords, faces)
-    centres = np.array(coords)[faces].sum(axis=1)
-    centre = len(coords) + np.arange(len(faces))
-    coords = np.vstack([coords, centres / np.linalg.norm(centres, axis=1)[:, None]])
-    a, b, c = faces.T
-    quads = np.concatenate(
-        [
-            np.stack(x, axis=1)
-            for x in ((a, m[:, 0], centre, m[:, 2]), (b, m[:, 1], centre, m[:, 0]), (c, m[:, 2], centre, m[:, 1]))
-        ]
+    return quadrilaterals(coords, faces, f"icosahedral quads ({subdivisions} subdivisions)")
+
+
+def bipyramid_mesh(n: int) -> Mesh:
+    """The n-gonal bipyramid's 2n triangles (the poles and n points on the equator) as
+    ``quadrilaterals``: both poles are nodes of n elements (``check`` refuses n > 7)."""
+    lon = 2 * np.pi * np.arange(n) / n
+    coords = [np.array([0.0, 0, 1]), np.array([0.0, 0, -1]), *np.stack([np.cos(lon), np.sin(lon), 0 * lon], axis=1)]
+    k = np.arange(n)
+    ring, nxt = 2 + k, 2 + (k + 1) % n
+    faces = np.concatenate(
+        [np.stack([np.zeros(n, int), ring, nxt], axis=1), np.stack([np.ones(n, int), nxt, ring], axis=1)]
     )
-    return check(Mesh(coords, quads, f"icosahedral quads ({subdivisions} subdivisions)"))
+    return quadrilaterals(coords, faces, f"{n}-gonal bipyramid quads")

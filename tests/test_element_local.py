@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 import warp as wp
-from meshes import MOUNTAIN, TC2_TERMS, TC6_TERMS, TEMPEST_NE2, case_model, icosahedral_mesh
+from meshes import MOUNTAIN, TC2_TERMS, TC6_TERMS, TEMPEST_NE2, bipyramid_mesh, case_model, icosahedral_mesh
 from scipy.spatial import cKDTree
 
 from swe_sphere.grid.cubed_sphere import CubedSphere, Numbering, cube_mesh
@@ -66,6 +66,22 @@ def test_a_refined_mesh_numbers_every_node_once_and_sums_all_its_copies(mountain
         assert np.array_equal(g.xyz[:, rows[have, k]], g.xyz[:, rows[have, 0]])
     distance, _ = cKDTree(g.to_unique(g.xyz).T).query(g.to_unique(g.xyz).T, k=2)
     assert distance[:, 1].min() > 0.01 * g.dx.min() / g.radius
+
+
+@pytest.mark.roundoff
+def test_nodes_of_7_elements_number_dss_and_keep_mass():
+    """The bipyramid's poles are nodes of 7 elements: their 7 copies are one node, the DSS
+    sums all 7 (the table's width), and TC2 keeps its mass to round-off across them."""
+    mesh = bipyramid_mesh(7)
+    g = CubedSphere(0, 4, mesh=mesh)
+    assert g.dss_table.shape[1] == 7 and g.nunique == mesh.nelem * 9 + 2 == g.first.size
+    poles = np.flatnonzero(np.count_nonzero(g.dss_table >= 0, axis=1) == 7)
+    assert poles.size == 14 and np.all(np.abs(g.xyz[2, poles]) == 1)
+    steps = 12
+    x, start = run(g, "tc2_steady", TC2_TERMS, steps, 150.0)
+    assert np.array_equal(x[:, g.dss_table[poles, 0]], x[:, g.dss_table[poles, 6]])  # continuous at the poles
+    change = abs(g.integrate(x[2]) / g.integrate(start[2]) - 1)
+    roundoff.within(change, roundoff.mass_change_bound(3 * steps, g.npts), "|mass change|")
 
 
 def test_the_element_local_metric_covers_each_element_and_the_sphere(mountain):

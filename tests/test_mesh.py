@@ -8,7 +8,7 @@ import math
 import netCDF4
 import numpy as np
 import pytest
-from meshes import MOUNTAIN, TEMPEST_NE2, icosahedral_mesh
+from meshes import MOUNTAIN, TEMPEST_NE2, bipyramid_mesh, icosahedral_mesh
 
 from swe_sphere.core.errors import SceneError
 from swe_sphere.grid.cubed_sphere import cube_mesh
@@ -133,6 +133,13 @@ def test_a_bad_mesh_is_refused_in_one_line_naming_the_element_or_node(make, mess
     with pytest.raises(SceneError, match=message) as err:
         check(make())
     assert "\n" not in str(err.value)
+
+
+def test_a_node_of_8_elements_is_refused():
+    with pytest.raises(
+        SceneError, match=r"^8-gonal bipyramid quads: node 1 is shared by 8 elements \(3 to 7 allowed\)$"
+    ):
+        bipyramid_mesh(8)
 
 
 def write_raw(path, coords, blocks, nodes_per_element=4):

@@ -1,14 +1,14 @@
 """The kernels a mesh builds for itself compile for CUDA (sm_90), GPU or not: the DSS, ∇⁴ and
 Helmholtz kernels are generated for the DSS table's width, the most copies of a node (4 on the
-cube, up to 7 on a refined mesh), so a mesh with nodes of 5 and 6 elements makes modules that no
-cube run makes (``test_cuda_compile`` compiles the cube's)."""
+cube, up to 7 on a refined mesh), so a mesh with nodes of 7 elements makes modules that no cube
+run makes (``test_cuda_compile`` compiles the cube's)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import warp as wp
-from meshes import TC6_TERMS, case_model, icosahedral_mesh
+from meshes import TC6_TERMS, bipyramid_mesh, case_model
 
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.steppers import make_stepper
@@ -41,20 +41,20 @@ def launched_modules(grid, monkeypatch) -> dict:
     return found
 
 
-def test_the_kernels_of_a_mesh_with_nodes_of_6_elements_compile_for_cuda(tmp_path):
+def test_the_kernels_of_a_mesh_with_nodes_of_7_elements_compile_for_cuda(tmp_path):
     wp.init()
     context = wp._src.context if hasattr(wp, "_src") else wp.context  # as test_cuda_compile: no public query
     if not context.runtime.core.wp_is_cuda_compatibility_enabled():
         pytest.skip("this Warp build has no CUDA compiler (NVRTC)")
-    mesh_grid = CubedSphere(0, 4, mesh=icosahedral_mesh(1))
-    assert mesh_grid.dss_table.shape[1] == 6
+    mesh_grid = CubedSphere(0, 4, mesh=bipyramid_mesh(7))
+    assert mesh_grid.dss_table.shape[1] == 7
     with pytest.MonkeyPatch.context() as mp:
         on_mesh = launched_modules(mesh_grid, mp)
     with pytest.MonkeyPatch.context() as mp:
         on_cube = launched_modules(CubedSphere(2, 4), mp)
     new = sorted(set(on_mesh) - set(on_cube))
     print("compiled for the mesh alone:", new)
-    assert any(name.startswith("dss") for name in new), new  # the width-6 DSS at least
+    assert any(name.startswith("dss") for name in new), new  # the width-7 DSS at least
     for name in new:
         paths = wp.compile_aot_module(on_mesh[name], arch=90, module_dir=tmp_path / name, use_ptx=True)
         assert len(paths) == 1 and ".entry" in paths[0].read_text(), name

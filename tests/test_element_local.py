@@ -17,7 +17,7 @@ from swe_sphere.grid.element_local import MeshNumbering, locate
 from swe_sphere.grid.mesh import element_areas, read_exodus, write_exodus
 from swe_sphere.grid.partition import mesh_order, mesh_partition
 from swe_sphere.grid.schmidt import schmidt_cube
-from swe_sphere.grid.topology import SerialComm, Topology
+from swe_sphere.grid.topology import GatheredGrid, SerialComm, Topology
 from swe_sphere.steppers import make_stepper
 
 import roundoff
@@ -258,3 +258,13 @@ def test_the_grids_map_places_its_own_gll_nodes(mountain):
     j, i = np.divmod(p, 4)
     xyz = grid.reference_to_sphere(e, grid.rule.points[i], grid.rule.points[j])
     assert np.max(np.abs(xyz.T - grid.xyz)) <= roundoff.bound(2)
+
+
+def test_the_gathered_grid_of_a_mesh_keeps_its_map_and_counts(mountain):
+    """What rank 0 writes from (``GatheredGrid``): the mesh's element and unique-node counts and
+    its map, whose points are the built grid's bit for bit."""
+    g = CubedSphere(0, 4, mesh=mountain)
+    gathered = GatheredGrid(g, np.stack([g.lat, g.lon, g.spheremp, g.dx, g.gid]), g.first, g.area)
+    assert (gathered.nelem, gathered.nunique, gathered.map) == (mountain.nelem, g.nunique, "element_local")
+    e, a = np.arange(mountain.nelem), np.linspace(-1, 1, mountain.nelem)
+    assert np.array_equal(gathered.reference_to_sphere(e, a, a[::-1]), g.reference_to_sphere(e, a, a[::-1]))

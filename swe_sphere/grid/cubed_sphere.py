@@ -48,6 +48,9 @@ class CubedSphere:
     ``mesh`` is ``cube_mesh(ne)`` (its elements are then the cube's, and so is its partition).
     Without, the equiangular map (HOMME ``cubed_sphere_map = 0``).
 
+    ne, np, radius (m), rule (``GLL``), mesh (the ``Mesh`` or None), nelem_total (elements of
+    the whole grid: 6·ne² on the cube, ``mesh.nelem``), elements (E,) int64 (those held).
+
     Arrays (float64 unless said; N = nelem·np² element-local nodes held, those of
     ``elements`` in order; "global" indices are those of the whole grid):
       nodes (N,) int64   global element-local index of each node held

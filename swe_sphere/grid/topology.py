@@ -57,14 +57,16 @@ def _ops(comm):
 
 class GatheredGrid:
     """The whole grid as rank 0 diagnoses and writes it, gathered from the ranks'
-    parts rather than built (no metric, no DSS tables): ne, np, radius, rule,
-    nelem, npts, nunique; lat, lon, spheremp, dx (npts,) and gid (npts,) int32;
-    first (nunique,) int32 and area (nunique,); ``integrate`` and ``to_unique``
-    as ``CubedSphere``'s, whose values these are, bit for bit."""
+    parts rather than built (no metric, no DSS tables): ne, np, radius, rule, mesh,
+    nelem (= nelem_total), npts, nunique; lat, lon, spheremp, dx (npts,) and gid (npts,) int32;
+    first (nunique,) int32 and area (nunique,); ``integrate``, ``to_unique``, ``map`` and
+    ``reference_to_sphere`` as ``CubedSphere``'s, whose values these are, bit for bit."""
 
     nunique = CubedSphere.nunique
     integrate = CubedSphere.integrate
     to_unique = CubedSphere.to_unique
+    map = CubedSphere.map
+    reference_to_sphere = CubedSphere.reference_to_sphere
 
     def __init__(self, part, fields: np.ndarray, first: np.ndarray, area: np.ndarray):
         self.ne, self.np, self.radius, self.rule, self.mesh = part.ne, part.np, part.radius, part.rule, part.mesh

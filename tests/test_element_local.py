@@ -268,3 +268,24 @@ def test_the_gathered_grid_of_a_mesh_keeps_its_map_and_counts(mountain):
     assert (gathered.nelem, gathered.nunique, gathered.map) == (mountain.nelem, g.nunique, "element_local")
     e, a = np.arange(mountain.nelem), np.linspace(-1, 1, mountain.nelem)
     assert np.array_equal(gathered.reference_to_sphere(e, a, a[::-1]), g.reference_to_sphere(e, a, a[::-1]))
+
+
+def test_d_is_the_jacobian_of_the_element_local_map(mountain):
+    """D at the element boundary's nodes (which the epsilon bubble leaves alone) against
+    central differences of a·x(a, b) in the node's (east, north) basis: agreement to the
+    differences' O(h²) error (h = 1e-5: ~1e-10 of |D|)."""
+    g = CubedSphere(0, 4, mesh=mountain)
+    e, p = np.divmod(g.nodes, 16)
+    j, i = np.divmod(p, 4)
+    boundary = (i == 0) | (i == 3) | (j == 0) | (j == 3)
+    e, a, b = e[boundary], g.rule.points[i[boundary]], g.rule.points[j[boundary]]
+    east, north = g.east[:, boundary].T, g.north[:, boundary].T
+    h = 1e-5
+    columns = []
+    for da, db in ((h, 0), (0, h)):
+        dx = g.radius * (g.reference_to_sphere(e, a + da, b + db) - g.reference_to_sphere(e, a - da, b - db)) / (2 * h)
+        columns.append(np.stack([np.einsum("ni,ni->n", east, dx), np.einsum("ni,ni->n", north, dx)], axis=1))
+    D = g.D[:, boundary].T.reshape(-1, 2, 2)
+    fd = np.stack(columns, axis=2)
+    print(f"{mountain.name}: |D - differences| / |D| = {np.max(np.abs(fd - D)) / np.max(np.abs(D)):.1e}")
+    assert np.max(np.abs(fd - D)) <= 1e-9 * np.max(np.abs(D))

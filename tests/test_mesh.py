@@ -112,6 +112,13 @@ def two_spheres():
     return bad(mesh, coords=np.vstack([mesh.coords] * 2), quads=np.vstack([mesh.quads, mesh.quads + mesh.nnodes]))
 
 
+def doubled():
+    """One square about the north pole, twice: every edge in two elements, run the same way."""
+    lon = np.pi / 2 * np.arange(4)
+    coords = np.stack([0.5 * np.cos(lon), 0.5 * np.sin(lon), np.full(4, np.sqrt(0.75))], axis=1)
+    return Mesh(coords, np.array([[0, 1, 2, 3], [0, 1, 2, 3]]), "bad.g")
+
+
 def repeated_corner():
     mesh = cube_mesh(2)
     quads = mesh.quads.copy()
@@ -127,6 +134,7 @@ def repeated_corner():
         (non_conforming, r"^bad.g: the edge from node \d+ to node \d+ is in 1 element\(s\) \(\d+\), not 2"),
         (two_spheres, r"^bad.g: V − E \+ F = 4, not 2"),
         (repeated_corner, r"^bad.g: element 4 repeats a corner node"),
+        (doubled, r"^bad.g: elements 1 and 2 run the same way along the edge from node 1 to node 2: they overlap$"),
     ],
 )
 def test_a_bad_mesh_is_refused_in_one_line_naming_the_element_or_node(make, message):

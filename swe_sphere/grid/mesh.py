@@ -88,7 +88,8 @@ def element_areas(corners: np.ndarray) -> np.ndarray:
 
 def check(mesh: Mesh) -> Mesh:
     """``mesh`` itself once it is a conforming, counter-clockwise quadrilateral cover of the
-    unit sphere with node valence 3 to 7. Raises ``SceneError`` with one line naming the mesh
+    unit sphere (neighbours running along their shared edge in opposite directions, V − E + F
+    = 2, total area 4π) with node valence 3 to 7. Raises ``SceneError`` with one line naming the mesh
     and the first offending element or node (1-based) otherwise."""
     name, x, q = mesh.name, mesh.coords, mesh.quads
     if x.ndim != 2 or x.shape[1] != 3 or q.ndim != 2 or q.shape[1] != 4 or not q.size:
@@ -128,6 +129,17 @@ def check(mesh: Mesh) -> Mesh:
         raise SceneError(
             f"{name}: the edge from node {a} to node {b} is in {count[bad[0]]} element(s) "
             f"({', '.join(map(str, owners))}), not 2: the mesh is not conforming"
+        )
+    forward = np.bincount(
+        element_edges.ravel(), weights=(q < np.roll(q, -1, axis=1)).ravel(), minlength=len(edge_nodes)
+    )
+    bad = np.flatnonzero(forward != 1)  # counter-clockwise neighbours run along a shared edge in opposite directions
+    if bad.size:
+        a, b = edge_nodes[bad[0]] + 1
+        owners = np.flatnonzero((element_edges == bad[0]).any(axis=1)) + 1
+        raise SceneError(
+            f"{name}: elements {owners[0]} and {owners[1]} run the same way along the edge from node {a} to node {b}: "
+            "they overlap"
         )
     valence = np.bincount(q.ravel(), minlength=len(x))
     bad = np.flatnonzero((valence < VALENCE[0]) | (valence > VALENCE[1]))

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from meshes import MOUNTAIN, TEMPEST_NE2, bipyramid_mesh, icosahedral_mesh
 
-from swe_sphere.core.errors import SceneError
+from swe_sphere.core.errors import OutputError, SceneError
 from swe_sphere.grid.cubed_sphere import cube_mesh
 from swe_sphere.grid.mesh import Mesh, check, element_areas, read_exodus, write_exodus
 
@@ -46,6 +46,13 @@ def test_a_mesh_with_nodes_of_3_to_6_elements_passes_its_checks_and_reads_back(t
     assert sorted(set(np.bincount(mesh.quads.ravel()))) == [3, 4, 5, 6]
     back = read_exodus(write_exodus(tmp_path / "ico.g", mesh))
     assert np.array_equal(back.coords, mesh.coords) and np.array_equal(back.quads, mesh.quads)
+
+
+def test_a_mesh_is_written_readable_by_others_or_refused_in_one_line(tmp_path):
+    path = write_exodus(tmp_path / "ne1.g", cube_mesh(1))
+    assert path.stat().st_mode & 0o777 == 0o644
+    with pytest.raises(OutputError, match=r"^cannot write .*/nowhere/ne1.g: No such file or directory$"):
+        write_exodus(tmp_path / "nowhere" / "ne1.g", cube_mesh(1))
 
 
 def test_coordx_coordy_coordz_are_read_like_coord(tmp_path):

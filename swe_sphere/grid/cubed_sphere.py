@@ -90,7 +90,7 @@ class CubedSphere:
 
     def __init__(self, ne: int, np: int, radius: float = EARTH.a, elements=None, mesh: Mesh | None = None):
         if isinstance(ne, bool) or int(ne) != ne or ne < (0 if mesh is not None else 1):
-            raise ValueError(f"ne must be an integer >= 1 (got {ne})")
+            raise ValueError(f"ne must be an integer >= {0 if mesh is not None else 1} (got {ne})")
         if mesh is not None and ne and mesh.nelem != 6 * ne * ne:
             raise ValueError(f"ne={ne} needs a mesh of {6 * ne * ne} elements ({mesh.name} has {mesh.nelem})")
         self.ne, self.np, self.radius, self.mesh = int(ne), int(np), float(radius), mesh

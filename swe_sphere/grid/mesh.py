@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.errors import SceneError
+from ..core.errors import OutputError, SceneError
 
 RADIUS_TOLERANCE = 1e-10  # |‖x‖ − 1| allowed of a node (files hold float64 unit vectors)
 AREA_TOLERANCE = 1e-8  # relative difference allowed between the elements' total area and 4π
@@ -200,12 +200,17 @@ def read_exodus(path: str | os.PathLike) -> Mesh:
 def write_exodus(path: str | os.PathLike, mesh: Mesh, title: str | None = None) -> Path:
     """Write ``mesh`` as an Exodus II file HOMME reads (netCDF-3, ``coord``, one block
     ``connect1`` of 1-based ``SHELL4`` elements), whole or not at all: written to a temporary
-    name beside ``path`` and renamed. Returns the path."""
+    name beside ``path`` and renamed. Returns the path. Raises ``OutputError`` (one line) where
+    ``path``'s folder cannot be written."""
     import netCDF4
 
     path = Path(path)
-    handle, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent or ".")
+    try:
+        handle, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    except OSError as err:
+        raise OutputError(f"cannot write {path}: {err.strerror}") from None
     os.close(handle)
+    os.chmod(tmp, 0o644)  # mkstemp's is 0600: a mesh is for others to read, as a run file
     try:
         with netCDF4.Dataset(tmp, "w", format="NETCDF3_64BIT_OFFSET") as f:
             f.title = title or f"swe_sphere: {mesh.name}"

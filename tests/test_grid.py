@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from swe_sphere.grid.cubed_sphere import CubedSphere, _geometry
+from swe_sphere.grid.cubed_sphere import CubedSphere, reference_to_sphere
 
 from conftest import cached_grid
 from numpy_ops import NumpyOps
@@ -65,7 +65,9 @@ def test_positions_are_their_first_copies_computed_alone_bit_for_bit(ne, np_):
     in one batch here: the metric reuses a first copy's position from the batch
     of all copies rather than computing it twice, with the same bits."""
     g = cached_grid(ne, np_)
-    xyz = _geometry(ne, g.rule, g.dss_table[:, 0].astype(np.int64))[-1]
+    e, p = np.divmod(g.dss_table[:, 0].astype(np.int64), np_ * np_)
+    j, i = np.divmod(p, np_)
+    xyz = reference_to_sphere(ne, e, g.rule.points[i], g.rule.points[j])
     xyz[np.abs(xyz) < 1e-15] = 0.0
     xyz /= np.linalg.norm(xyz, axis=1)[:, None]
     assert np.array_equal(g.xyz, xyz.T)

@@ -19,7 +19,9 @@ import math
 import numpy as np
 
 from ..core.constants import EARTH
+from .element_local import ElementLocalMap, MeshNumbering, bilinear, epsilon_bubble
 from .gll import gll
+from .mesh import Mesh
 
 # Face k: centre c, in-face axes (ea, eb) with c × ea = eb, so every face is
 # seen counter-clockwise from outside and metdet > 0 in the (east, north) basis.
@@ -40,6 +42,15 @@ class CubedSphere:
     """Cubed-sphere SE grid with ``ne``×``ne`` elements per face and ``np`` GLL points,
     or the part of it made of ``elements`` (an MPI rank's: only those are built and stored).
 
+    With ``mesh`` (a checked ``Mesh``), the grid of that quadrilateral mesh through the
+    element-local map (HOMME ``cubed_sphere_map = 2``, ``element_local``), np ≥ 3: ``ne = 0``
+    for a mesh from a file (HOMME's ``ne = 0`` with ``mesh_file``), or the cube's ne when
+    ``mesh`` is ``cube_mesh(ne)`` (its elements are then the cube's, and so is its partition).
+    Without, the equiangular map (HOMME ``cubed_sphere_map = 0``).
+
+    ne, np, radius (m), rule (``GLL``), mesh (the ``Mesh`` or None), nelem_total (elements of
+    the whole grid: 6·ne² on the cube, ``mesh.nelem``), elements (E,) int64 (those held).
+
     Arrays (float64 unless said; N = nelem·np² element-local nodes held, those of
     ``elements`` in order; "global" indices are those of the whole grid):
       nodes (N,) int64   global element-local index of each node held
@@ -51,15 +62,18 @@ class CubedSphere:
                        components, row-major [D11, D12, D21, D22]; units m
                        (D includes the radius a) and 1/m
       metdet (N,)      det D (m²), with one global factor so that GLL quadrature
-                       of it gives 4πa² (HOMME's area correction, map0)
+                       of it gives 4πa² (HOMME's area correction, map0); on a mesh, a
+                       factor per element on its interior nodes so that its quadrature
+                       gives the element's spherical area (HOMME's epsilon bubble, map2)
       spheremp (N,)    GLL weight × metdet (m²): the element mass matrix
       rspheremp (N,)   1 / (DSS-summed spheremp): inverse assembled mass
       dx (N,)          distance to the nearest neighbouring GLL node (m), for CFL
-      gid (N,) int32   global unique-node id; there are 6·ne²·(np−1)² + 2 ids,
+      gid (N,) int32   global unique-node id; there are nelem_total·(np−1)² + 2 ids,
                        numbered in the order of their first copies
       dss_table (N, C) int32  the global indices of all copies of node p's unique
                        node, ascending (the DSS's summation order), padded with −1
-                       (C = most copies of a node: 4, 3 at ne = 1)
+                       (C = most copies of a node: 4, 3 at ne = 1; a mesh's largest
+                       node valence, up to 7)
       first (n,) int32  local index of the first copy of each unique node whose
                        first copy is held, ascending gid (all nunique of them when whole)
       area (n,)        assembled spheremp of those unique nodes (m²); sums to 4πa² when whole
@@ -67,24 +81,45 @@ class CubedSphere:
                        held (global indices, ascending) and their spheremp (m²)
 
     A part's arrays are the whole grid's at its nodes, bit for bit: every value is
-    computed per node, the numbering from the cube's topology, and the area
-    correction from the analytic Jacobian (the same for any part).
-    Raises ``ValueError`` for ne < 1, np outside 2..8, or elements not ascending
+    computed per node, the numbering from the cube's (or mesh's) topology, and the area
+    correction from the analytic Jacobian (or per element: the same for any part).
+    Raises ``ValueError`` for ne < 1 (ne < 0 with a mesh, or ne > 0 not the mesh's
+    6·ne² elements), np outside 2..8 (2 with a mesh), or elements not ascending
     distinct indices of the grid.
     """
 
-    def __init__(self, ne: int, np: int, radius: float = EARTH.a, elements=None):
-        if isinstance(ne, bool) or int(ne) != ne or ne < 1:
-            raise ValueError(f"ne must be an integer >= 1 (got {ne})")
-        self.ne, self.np, self.radius = int(ne), int(np), float(radius)
+    def __init__(self, ne: int, np: int, radius: float = EARTH.a, elements=None, mesh: Mesh | None = None):
+        if isinstance(ne, bool) or int(ne) != ne or ne < (0 if mesh is not None else 1):
+            raise ValueError(f"ne must be an integer >= {0 if mesh is not None else 1} (got {ne})")
+        if mesh is not None and ne and mesh.nelem != 6 * ne * ne:
+            raise ValueError(f"ne={ne} needs a mesh of {6 * ne * ne} elements ({mesh.name} has {mesh.nelem})")
+        self.ne, self.np, self.radius, self.mesh = int(ne), int(np), float(radius), mesh
         self.rule = gll(self.np)  # validates np
-        self.elements = _elements(6 * self.ne * self.ne, elements)
-        for name, value in _build(self.ne, self.rule, self.radius, self.elements).items():
+        self.nelem_total = 6 * self.ne * self.ne if mesh is None else mesh.nelem
+        self.elements = _elements(self.nelem_total, elements)
+        for name, value in _build(self.ne, self.rule, self.radius, self.elements, mesh).items():
             setattr(self, name, value)
 
     @property
+    def map(self) -> str:
+        """The reference map: ``"equiangular"`` or ``"element_local"`` (on ``mesh``)."""
+        return "equiangular" if self.mesh is None else "element_local"
+
+    def reference_to_sphere(self, e: np.ndarray, xi: np.ndarray, eta: np.ndarray) -> np.ndarray:
+        """Unit position vectors (n, 3) of the points (ξ, η) ∈ [−1, 1]² (n,) of elements ``e``
+        (n,) (global indices) through the grid's map (equiangular, or element-local on ``mesh``)."""
+        if self.mesh is None:
+            return reference_to_sphere(self.ne, e, xi, eta)
+        p = bilinear(self.mesh, np.asarray(e), np.asarray(xi, dtype=np.float64), np.asarray(eta, dtype=np.float64))[0]
+        return p / np.linalg.norm(p, axis=1)[:, None]
+
+    def part(self, elements) -> CubedSphere:
+        """The same grid built for ``elements`` only (ascending global indices)."""
+        return CubedSphere(self.ne, self.np, self.radius, elements=elements, mesh=self.mesh)
+
+    @property
     def nelem(self) -> int:
-        """Elements held (6·ne² for the whole grid)."""
+        """Elements held (nelem_total, 6·ne² on the cube, for the whole grid)."""
         return self.elements.size
 
     @property
@@ -94,8 +129,9 @@ class CubedSphere:
 
     @property
     def nunique(self) -> int:
-        """Unique nodes of the whole grid."""
-        return 6 * self.ne * self.ne * (self.np - 1) ** 2 + 2
+        """Unique nodes of the whole grid: F(np−1)² + 2 for any quadrilateral mesh of the
+        sphere with F elements (V = F + 2 corners, E = 2F edges)."""
+        return self.nelem_total * (self.np - 1) ** 2 + 2
 
     def integrate(self, f: np.ndarray) -> float:
         """Area integral ∫ f dA (m² × units of f) of a continuous element-local field f (N,)."""
@@ -241,15 +277,26 @@ def element_neighbours(ne: int) -> np.ndarray:
     return np.sort(Numbering(ne, 2).edge_neighbours, axis=1)
 
 
-def _geometry(ne: int, rule, copies: np.ndarray):
-    """Per element-local node (global indices ``copies``): the equiangular angles
-    α, β, the face's axes ea, eb, |P| and the unit position P/|P| of P = c + tan α ea + tan β eb."""
-    npts = rule.np
-    e, p = np.divmod(copies, npts * npts)
-    j, i = np.divmod(p, npts)
-    alpha, beta, face, P = _equiangular(ne, e, rule.points[i], rule.points[j])
-    rP = np.linalg.norm(P, axis=1)
-    return alpha, beta, _FACES[face, 1], _FACES[face, 2], rP, P / rP[:, None]
+class EquiangularMap:
+    """The equiangular gnomonic map of the ne cube at the GLL points of ``rule``, for
+    ``_metric``: ``at(copies)`` of global element-local node indices gives (P = c + tan α ea +
+    tan β eb (n, 3), ∂P/∂ξ and ∂P/∂η (n, 3) each divided by ``factor`` = Δα/2)."""
+
+    def __init__(self, ne: int, rule):
+        self.ne, self.rule = ne, rule
+        self.factor = math.pi / 2 / ne / 2
+
+    def at(self, copies: np.ndarray):
+        npts = self.rule.np
+        e, p = np.divmod(copies, npts * npts)
+        j, i = np.divmod(p, npts)
+        alpha, beta, face, P = _equiangular(self.ne, e, self.rule.points[i], self.rule.points[j])
+        return (
+            P,
+            _FACES[face, 1] / np.cos(alpha)[:, None] ** 2,
+            _FACES[face, 2] / np.cos(beta)[:, None] ** 2,
+            self.factor,
+        )
 
 
 def _equiangular(ne: int, e: np.ndarray, xi: np.ndarray, eta: np.ndarray):
@@ -270,6 +317,17 @@ def reference_to_sphere(ne: int, e: np.ndarray, xi: np.ndarray, eta: np.ndarray)
     square of elements ``e`` (n,) of the ne grid, through the equiangular gnomonic map."""
     P = _equiangular(ne, np.asarray(e), np.asarray(xi), np.asarray(eta))[-1]
     return P / np.linalg.norm(P, axis=1)[:, None]
+
+
+def cube_element(ne: int, xyz: np.ndarray) -> np.ndarray:
+    """(n,) int64: the element e = face·ne² + jb·ne + ia of the ne equiangular cube that
+    holds each point xyz (n, 3) (unit or not; on an element edge, either side)."""
+    face = np.argmax(xyz @ _FACES[:, 0].T, axis=1)
+    c, ea, eb = (np.einsum("ni,ni->n", xyz, _FACES[face, k]) for k in range(3))
+    cell = [
+        np.clip(np.floor((np.arctan2(t, c) / (math.pi / 2) + 0.5) * ne), 0, ne - 1).astype(np.int64) for t in (ea, eb)
+    ]
+    return face * ne * ne + cell[1] * ne + cell[0]
 
 
 def _quadrature_area(ne: int, rule, radius: float) -> float:
@@ -293,26 +351,29 @@ def lat_lon(xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.arcsin(np.clip(xyz[..., 2], -1, 1)), np.mod(np.arctan2(xyz[..., 1], xyz[..., 0]), 2 * math.pi)
 
 
-def _metric(ne: int, rule, radius: float, copies: np.ndarray, rep: np.ndarray):
+def _metric(reference_map, radius: float, copies: np.ndarray, rep: np.ndarray):
     """(xyz, lat, lon, east, north, D) of element-local nodes ``copies`` (global
     indices) whose unique nodes' first copies are ``rep``: the position and
     (east, north) basis are the first copy's, so every copy's agree bit for bit;
     D (n, 2, 2) is the Jacobian of X = a P/|P| w.r.t. the element reference
-    coordinates (ξ, η) in that basis, before the area correction."""
-    alpha, beta, ea, eb, rP, xhat = _geometry(ne, rule, copies)
+    coordinates (ξ, η) in that basis, before the area correction, with P and its
+    derivatives from ``reference_map.at`` (``EquiangularMap`` or ``ElementLocalMap``)."""
+    P, t_xi, t_eta, factor = reference_map.at(copies)
+    rP = np.linalg.norm(P, axis=1)
+    xhat = P / rP[:, None]
     xyz = xhat.copy()
     moved = rep != copies  # most copies are their node's first: only the others need their first's position
-    xyz[moved] = _geometry(ne, rule, rep[moved])[-1]  # the same bits as computed there (elementwise, per node)
+    P_rep = reference_map.at(rep[moved])[0]
+    xyz[moved] = P_rep / np.linalg.norm(P_rep, axis=1)[:, None]  # the same bits as computed there (per node)
     xyz[np.abs(xyz) < 1e-15] = 0.0
     xyz /= np.linalg.norm(xyz, axis=1)[:, None]
     lat, lon = lat_lon(xyz)
     east = np.stack([-np.sin(lon), np.cos(lon), np.zeros_like(lon)], axis=1)
     north = np.stack([-np.sin(lat) * np.cos(lon), -np.sin(lat) * np.sin(lon), np.cos(lat)], axis=1)
-    dalpha = math.pi / 2 / ne
     proj = np.eye(3)[None] - xhat[:, :, None] * xhat[:, None, :]
-    scale = radius * dalpha / 2 / rP
-    dX_dxi = scale[:, None] * np.einsum("nij,nj->ni", proj, ea / np.cos(alpha)[:, None] ** 2)
-    dX_deta = scale[:, None] * np.einsum("nij,nj->ni", proj, eb / np.cos(beta)[:, None] ** 2)
+    scale = radius * factor / rP
+    dX_dxi = scale[:, None] * np.einsum("nij,nj->ni", proj, t_xi)
+    dX_deta = scale[:, None] * np.einsum("nij,nj->ni", proj, t_eta)
     D = np.empty((copies.size, 2, 2))
     D[:, 0, 0] = np.einsum("ni,ni->n", east, dX_dxi)
     D[:, 0, 1] = np.einsum("ni,ni->n", east, dX_deta)
@@ -321,11 +382,16 @@ def _metric(ne: int, rule, radius: float, copies: np.ndarray, rep: np.ndarray):
     return xyz, lat, lon, east, north, D
 
 
-def _build(ne: int, rule, radius: float, elements: np.ndarray) -> dict:
+def _build(ne: int, rule, radius: float, elements: np.ndarray, mesh: Mesh | None) -> dict:
     npts = rule.np
     npe = npts * npts
     nodes = (elements[:, None] * npe + np.arange(npe)).ravel()
-    gid, table = Numbering(ne, npts).rows(elements)
+    if mesh is None:
+        gid, table = Numbering(ne, npts).rows(elements)
+        reference_map = EquiangularMap(ne, rule)
+    else:
+        gid, table = MeshNumbering(mesh, npts).rows(elements)
+        reference_map = ElementLocalMap(mesh, rule)
     # The nodes held and the other elements' copies of them (for the assembled
     # mass); every copy gets the coordinates of its first copy, so lat/lon/basis
     # agree bit for bit.
@@ -342,23 +408,33 @@ def _build(ne: int, rule, radius: float, elements: np.ndarray) -> dict:
     for a in range(0, n, _CHUNK):  # per node: in pieces, to bound the temporaries
         part = slice(a, a + _CHUNK)
         xyz[part], lat[part], lon[part], east[part], north[part], D[part] = _metric(
-            ne, rule, radius, ext[part], rep[part]
+            reference_map, radius, ext[part], rep[part]
         )
     metdet = np.linalg.det(D)
     if np.any(metdet <= 0):
         raise RuntimeError("non-positive metric determinant")
 
-    # Area correction (HOMME geometry_mod::set_area_correction_map0): one global
-    # factor on the metric so that the GLL-quadrature area of the sphere is 4πa².
-    # A single factor keeps element-edge fluxes consistent, hence mass
-    # conservation to round-off; a per-element factor would not.
+    here = np.searchsorted(ext, nodes)
     w2 = np.outer(rule.weights, rule.weights).ravel()  # index j*np + i
-    s = math.sqrt(4 * math.pi * radius**2 / _quadrature_area(ne, rule, radius))
-    D *= s
-    metdet = metdet * s**2
+    if mesh is None:
+        # Area correction (HOMME geometry_mod::set_area_correction_map0): one global
+        # factor on the metric so that the GLL-quadrature area of the sphere is 4πa².
+        # A single factor keeps element-edge fluxes consistent, hence mass
+        # conservation to round-off; a per-element factor would not.
+        s = math.sqrt(4 * math.pi * radius**2 / _quadrature_area(ne, rule, radius))
+        D *= s
+        metdet = metdet * s**2
+    else:
+        # HOMME's epsilon bubble (set_area_correction_map2): a factor per element on
+        # its interior nodes only, which no other element shares, so the edge
+        # fluxes still cancel; the copies of shared nodes held for the mass keep theirs.
+        alpha = epsilon_bubble(mesh, rule, radius, elements, metdet[here].reshape(-1, npts, npts))
+        p = here.reshape(-1, npts, npts)[:, 1:-1, 1:-1]
+        a = np.broadcast_to(alpha[:, None, None], p.shape)
+        D[p.ravel()] *= np.sqrt(a.ravel())[:, None, None]
+        metdet[p.ravel()] *= a.ravel()
     spheremp = metdet * w2[ext % npe]
 
-    here = np.searchsorted(ext, nodes)
     mass = np.zeros(nodes.size)  # Σ over the copies in table order, one add at a time
     for column in table.T:
         ok = column >= 0
@@ -397,3 +473,21 @@ def _build(ne: int, rule, radius: float, elements: np.ndarray) -> dict:
         halo=halo,
         halo_spheremp=spheremp[np.searchsorted(ext, halo)],
     )
+
+
+def cube_mesh(ne: int) -> Mesh:
+    """The uniform equiangular cube with ``ne``×``ne`` elements a face as a ``Mesh``: element
+    e = face·ne² + jb·ne + ia of ``CubedSphere`` with corners (ia, jb), (ia+1, jb), (ia+1,
+    jb+1), (ia, jb+1) of its face (counter-clockwise), the corner nodes numbered in the order
+    of their first copies. Raises ``ValueError`` for ne < 1."""
+    if isinstance(ne, bool) or int(ne) != ne or ne < 1:
+        raise ValueError(f"ne must be an integer >= 1 (got {ne})")
+    numbering = Numbering(int(ne), 2)
+    corner = np.array([0, 1, 3, 2])  # counter-clockwise corner k → node p = 2·[j > 0] + [i > 0]
+    quads = numbering.rows(np.arange(6 * ne * ne))[0].reshape(-1, 4)[:, corner]
+    copies = np.arange(quads.size)
+    first = np.zeros(int(quads.max()) + 1, dtype=np.int64)
+    first[quads.ravel()[::-1]] = copies[::-1]  # each node's first copy (reverse: the smallest wins)
+    e, k = np.divmod(first, 4)
+    xi, eta = np.array([-1.0, 1, 1, -1]), np.array([-1.0, -1, 1, 1])
+    return Mesh(reference_to_sphere(ne, e, xi[k], eta[k]), quads.astype(np.int64), f"ne{ne} cube")

@@ -9,13 +9,22 @@ ne × ne face for any ne (Červený 2019, https://github.com/jakubcerveny/gilber
 from one corner to an adjacent corner, and the six faces are chained, each
 face's curve turned and mirrored so that it starts next to where the previous
 face's ended. Chunks differ in size by at most one element.
+
+A mesh read from a file (``mesh_partition``) is ordered along the same curve on a
+cube fine enough that few of its cells hold more than one element centroid: each
+element takes the curve position of the cell its centroid falls in (HOMME's
+``mesh_mod`` likewise orders a file mesh's elements by a space-filling curve
+through their centroids on the cube).
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from .cubed_sphere import element_neighbours
+from .cubed_sphere import cube_element, element_neighbours
+from .mesh import Mesh
 
 
 def _sgn(a: int) -> int:
@@ -101,9 +110,33 @@ def partition(ne: int, parts: int) -> list[np.ndarray]:
     nelem = 6 * ne * ne
     if parts < 1 or parts > nelem:
         raise ValueError(f"cannot split {nelem} elements into {parts} parts (1..{nelem})")
-    order = sfc_order(ne)
-    bounds = [k * nelem // parts for k in range(parts + 1)]
+    return _chunks(sfc_order(ne), parts)
+
+
+def mesh_order(mesh: Mesh) -> np.ndarray:
+    """(F,) the elements of ``mesh`` along the cube's space-filling curve (``sfc_order``) at
+    ne_curve = 2⌈√(F/6)⌉ (about four cells an element), by the cell of each centroid; elements
+    in one cell in ascending index."""
+    ne_curve = 2 * math.ceil(math.sqrt(mesh.nelem / 6))
+    position = np.empty(6 * ne_curve * ne_curve, dtype=np.int64)
+    position[sfc_order(ne_curve)] = np.arange(position.size)
+    return np.argsort(position[cube_element(ne_curve, mesh.centroids())], kind="stable")
+
+
+def _chunks(order: np.ndarray, parts: int) -> list[np.ndarray]:
+    """``order`` cut into ``parts`` contiguous chunks of ⌊n/parts⌋ or ⌈n/parts⌉ entries.
+    Raises ValueError for parts < 1 or more parts than entries."""
+    n = order.size
+    if parts < 1 or parts > n:
+        raise ValueError(f"cannot split {n} elements into {parts} parts (1..{n})")
+    bounds = [k * n // parts for k in range(parts + 1)]
     return [order[bounds[k] : bounds[k + 1]] for k in range(parts)]
+
+
+def mesh_partition(mesh: Mesh, parts: int) -> list[np.ndarray]:
+    """``mesh_order(mesh)`` cut into ``parts`` contiguous chunks (chunk k for rank k), as
+    ``partition``. Raises ValueError for parts < 1 or more parts than elements."""
+    return _chunks(mesh_order(mesh), parts)
 
 
 def edge_cut(ne: int, parts: list[np.ndarray]) -> int:

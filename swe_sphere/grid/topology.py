@@ -27,7 +27,7 @@ import warp as wp
 from ..core.parallel import record
 from ..kernels import blas, dss
 from .cubed_sphere import CubedSphere
-from .partition import partition
+from .partition import mesh_partition, partition
 
 f64 = wp.float64
 DEVICE_TOTALS = 64  # partial sums a row that one GPU thread adds directly (``Topology.device_sums``)
@@ -57,29 +57,33 @@ def _ops(comm):
 
 class GatheredGrid:
     """The whole grid as rank 0 diagnoses and writes it, gathered from the ranks'
-    parts rather than built (no metric, no DSS tables): ne, np, radius, rule,
-    nelem, npts, nunique; lat, lon, spheremp, dx (npts,) and gid (npts,) int32;
-    first (nunique,) int32 and area (nunique,); ``integrate`` and ``to_unique``
-    as ``CubedSphere``'s, whose values these are, bit for bit."""
+    parts rather than built (no metric, no DSS tables): ne, np, radius, rule, mesh,
+    nelem (= nelem_total), npts, nunique; lat, lon, spheremp, dx (npts,) and gid (npts,) int32;
+    first (nunique,) int32 and area (nunique,); ``integrate``, ``to_unique``, ``map`` and
+    ``reference_to_sphere`` as ``CubedSphere``'s, whose values these are, bit for bit."""
 
     nunique = CubedSphere.nunique
     integrate = CubedSphere.integrate
     to_unique = CubedSphere.to_unique
+    map = CubedSphere.map
+    reference_to_sphere = CubedSphere.reference_to_sphere
 
     def __init__(self, part, fields: np.ndarray, first: np.ndarray, area: np.ndarray):
-        self.ne, self.np, self.radius, self.rule = part.ne, part.np, part.radius, part.rule
-        self.nelem, self.npts = 6 * part.ne**2, fields.shape[1]
+        self.ne, self.np, self.radius, self.rule, self.mesh = part.ne, part.np, part.radius, part.rule, part.mesh
+        self.nelem = self.nelem_total = part.nelem_total
+        self.npts = fields.shape[1]
         self.lat, self.lon, self.spheremp, self.dx = fields[:4]
         self.gid = fields[4].astype(np.int32)
         self.first, self.area = first.astype(np.int32), area
 
 
-def rank_parts(ne: int, size: int) -> list[np.ndarray]:
+def rank_parts(ne: int, size: int, mesh=None) -> list[np.ndarray]:
     """The elements of each of ``size`` ranks, ascending: all of them on one rank,
-    else the chunks of ``partition.partition``."""
+    else the chunks of ``partition.partition`` (the cube's for ne ≥ 1, else of ``mesh``'s
+    elements along the curve through their centroids, ``partition.mesh_partition``)."""
     if size == 1:  # skip the curve: one part in natural order is the whole grid
-        return [np.arange(6 * ne * ne)]
-    return [np.sort(p) for p in partition(ne, size)]
+        return [np.arange(6 * ne * ne if ne else mesh.nelem)]
+    return [np.sort(p) for p in (partition(ne, size) if ne else mesh_partition(mesh, size))]
 
 
 def _lookup(keys: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -142,7 +146,7 @@ class Topology:
     threads : CPU threads a launch is split over (``swe_sphere.core.parallel``).
     comm : an mpi4py communicator, or None (``SerialComm()``: all elements here).
         With several ranks, rank k holds chunk k of ``partition.partition``.
-    parts : ``rank_parts(grid.ne, comm.size)`` when the caller has it already.
+    parts : ``rank_parts(grid.ne, comm.size, grid.mesh)`` when the caller has it already.
 
     Unique-node vectors (what the Krylov solvers iterate on) are distributed:
     a unique node belongs to the rank of its first copy in the grid's order,
@@ -181,12 +185,12 @@ class Topology:
         self.distributed = size > 1
         if size > 1 and not wp.get_device(device).is_cpu:
             raise ValueError("runs over several MPI ranks are CPU-only so far (use --device cpu)")
-        self.parts = parts = rank_parts(grid.ne, size) if parts is None else parts
+        self.parts = parts = rank_parts(grid.ne, size, grid.mesh) if parts is None else parts
         if not np.array_equal(grid.elements, parts[rank]):
-            grid = CubedSphere(grid.ne, grid.np, grid.radius, elements=parts[rank])
+            grid = grid.part(parts[rank])
         self.grid = grid
         self.elements, self.nodes = grid.elements, grid.nodes
-        self.N, self.npts_total = grid.npts, 6 * grid.ne**2 * grid.np**2
+        self.N, self.npts_total = grid.npts, grid.nelem_total * grid.np**2
         self._build_halos(parts, rank)
 
         def up(a, dtype=f64):

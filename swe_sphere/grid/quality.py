@@ -1,0 +1,70 @@
+"""A grid's element sizes and shapes as HOMME reports them (``cube_mod::metric_atomic``,
+``global_norms_mod::test_global_integral`` and ``print_cfl``): the Dinv-based length scales and
+element distortion, from the singular values of D⁻¹ at every GLL node.
+
+With σ_max, σ_min the largest and smallest singular values of D⁻¹ (1/m; D maps the reference
+element [−1, 1]² to the sphere of radius a) over an element's nodes: its short length scale is
+dx_short = 2 / ((np − 1) σ_max) and its long one dx_long = 2 / ((np − 1) σ_min) (m; HOMME's
+``dx_short``/``dx_long`` in km on the unit sphere), its distortion dx_long / dx_short = σ_max /
+σ_min (1 on a square, ≈ 1.7 at the equiangular cube's corners; HOMME warns above 4), and its
+"normDinv" σ_max, which sets the explicit step: the gravity-wave and advective limits scale as
+1 / max σ_max over the mesh.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+def dinv_singular_values(Dinv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(σ_max, σ_min) (N,) each: the singular values of the 2×2 matrices Dinv (4, N) (row-major),
+    in closed form (the square roots of the eigenvalues of Dinv Dinvᵀ)."""
+    a, b, c, d = Dinv
+    trace = a * a + b * b + c * c + d * d
+    det = np.abs(a * d - b * c)
+    spread = np.sqrt(np.maximum(trace * trace - 4 * det * det, 0))
+    large = np.sqrt((trace + spread) / 2)
+    return large, det / large  # σ_max σ_min = |det Dinv|: no cancellation for σ_min
+
+
+@dataclass(frozen=True)
+class ElementSizes:
+    """Per element held (E,): ``dx_short``, ``dx_long`` (m), ``distortion`` (dx_long / dx_short),
+    ``norm_dinv`` (1/m, σ_max over the element's nodes) and ``area`` (m², Σ spheremp)."""
+
+    dx_short: np.ndarray
+    dx_long: np.ndarray
+    distortion: np.ndarray
+    norm_dinv: np.ndarray
+    area: np.ndarray
+
+    def summary(self) -> dict:
+        """The figures HOMME prints at start (over the elements held: a rank's part, or all):
+        dx_short min/mean/max (m), the largest distortion, the area ratio max/min and the
+        largest σ_max (1/m)."""
+        return {
+            "dx_short_min": float(self.dx_short.min()),
+            "dx_short_mean": float(self.dx_short.mean()),
+            "dx_short_max": float(self.dx_short.max()),
+            "distortion_max": float(self.distortion.max()),
+            "area_ratio": float(self.area.max() / self.area.min()),
+            "norm_dinv_max": float(self.norm_dinv.max()),
+        }
+
+
+def element_sizes(grid) -> ElementSizes:
+    """The ``ElementSizes`` of the elements ``grid`` (a ``CubedSphere``) holds."""
+    large, small = dinv_singular_values(grid.Dinv)
+    per_element = (grid.nelem, grid.np * grid.np)
+    sigma_max = large.reshape(per_element).max(axis=1)
+    sigma_min = small.reshape(per_element).min(axis=1)
+    half = (grid.np - 1) / 2
+    return ElementSizes(
+        dx_short=1 / (half * sigma_max),
+        dx_long=1 / (half * sigma_min),
+        distortion=sigma_max / sigma_min,
+        norm_dinv=sigma_max,
+        area=grid.spheremp.reshape(per_element).sum(axis=1),
+    )

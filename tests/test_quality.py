@@ -1,0 +1,57 @@
+"""Element sizes and shapes as HOMME reports them (Dinv-based length scales and distortion)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from meshes import MOUNTAIN
+
+from swe_sphere.grid.cubed_sphere import CubedSphere
+from swe_sphere.grid.mesh import read_exodus
+from swe_sphere.grid.quality import dinv_singular_values, element_sizes
+from swe_sphere.grid.schmidt import schmidt_cube
+
+
+def test_the_closed_form_singular_values_are_numpys(rng):
+    m = rng.standard_normal((500, 2, 2))
+    large, small = dinv_singular_values(m.reshape(500, 4).T)
+    s = np.linalg.svd(m, compute_uv=False)
+    assert np.allclose(large, s[:, 0], rtol=1e-13, atol=0)
+    assert np.allclose(small, s[:, 1], rtol=1e-12, atol=0)
+
+
+@pytest.mark.parametrize("ne", [2, 5])
+def test_the_equiangular_cubes_worst_distortion_is_sqrt3_at_its_corners(ne):
+    """At a cube corner the equiangular map's two reference directions meet at 120°
+    (three faces share the corner): D's singular values differ by √3 there, and nowhere more."""
+    sizes = element_sizes(CubedSphere(ne, 4))
+    assert sizes.summary()["distortion_max"] == pytest.approx(math.sqrt(3), rel=1e-13)
+    assert sizes.distortion[0] == pytest.approx(math.sqrt(3), rel=1e-13)  # element 0 holds a cube corner
+    assert sizes.area.sum() == pytest.approx(4 * math.pi * 6.37122e6**2, rel=1e-13)
+
+
+def test_a_stretched_cubes_spacing_follows_the_stretch():
+    """The elements at the target (around face 4's centre) are about c times finer than the
+    cube's same elements, those at its antipode about c times coarser (the map's scale varies
+    across them, more across the larger ones: 2.1 % and 8.7 % from c at ne8, c = 2)."""
+    c, ne = 2.0, 8
+    plain = element_sizes(CubedSphere(ne, 4, mesh=schmidt_cube(ne, 1.0))).dx_short
+    stretched = element_sizes(CubedSphere(ne, 4, mesh=schmidt_cube(ne, c))).dx_short
+    mid = ne // 2
+    at = [face * ne * ne + jb * ne + ia for face in (4, 5) for jb in (mid - 1, mid) for ia in (mid - 1, mid)]
+    ratio = plain[at] / stretched[at]
+    assert np.all(np.abs(ratio[:4] / c - 1) < 0.05)  # face 4: the target
+    assert np.all(np.abs(ratio[4:] * c - 1) < 0.1)  # face 5: the antipode
+
+
+@pytest.mark.skipif(not MOUNTAIN.is_file(), reason="mountain_10_x2.g (E3SM's HOMME test mesh) not present")
+def test_the_mountain_mesh_figures():
+    """mountain_10_x2.g at np4: its transition elements are distorted past HOMME's warning (4),
+    its smallest element sets the step 3.1 times below its ne10 base's (σ_max ratio)."""
+    mesh = element_sizes(CubedSphere(0, 4, mesh=read_exodus(MOUNTAIN))).summary()
+    base = element_sizes(CubedSphere(10, 4)).summary()
+    assert mesh["distortion_max"] == pytest.approx(5.449, abs=1e-3)
+    assert mesh["norm_dinv_max"] / base["norm_dinv_max"] == pytest.approx(3.103, abs=1e-3)
+    assert mesh["dx_short_max"] == pytest.approx(base["dx_short_max"], rel=0.01)  # the coarse region is ne10's

@@ -23,7 +23,7 @@ from .gll import gll
 
 # Face k: centre c, in-face axes (ea, eb) with c × ea = eb, so every face is
 # seen counter-clockwise from outside and metdet > 0 in the (east, north) basis.
-_FACES = np.array(
+FACES = np.array(
     [
         [[1, 0, 0], [0, 1, 0], [0, 0, 1]],
         [[0, 1, 0], [-1, 0, 0], [0, 0, 1]],
@@ -135,7 +135,7 @@ def _lattice_groups(ne: int, npts: int, elements: np.ndarray, positions: np.ndar
     jb, ia = np.divmod(rest, ne)
     k = ia[:, None] * (npts - 1) + positions % npts
     l = jb[:, None] * (npts - 1) + positions // npts
-    F, key = _FACES.astype(np.int64), np.zeros(k.shape, dtype=np.int64)
+    F, key = FACES.astype(np.int64), np.zeros(k.shape, dtype=np.int64)
     for d in range(3):  # the point's coordinates Q_d in [0, 2M], one at a time (memory)
         key = key * (2 * M + 1) + (
             M * F[face, 0, d, None] + (2 * k - M) * F[face, 1, d, None] + (2 * l - M) * F[face, 2, d, None] + M
@@ -249,7 +249,7 @@ def _geometry(ne: int, rule, copies: np.ndarray):
     j, i = np.divmod(p, npts)
     alpha, beta, face, P = _equiangular(ne, e, rule.points[i], rule.points[j])
     rP = np.linalg.norm(P, axis=1)
-    return alpha, beta, _FACES[face, 1], _FACES[face, 2], rP, P / rP[:, None]
+    return alpha, beta, FACES[face, 1], FACES[face, 2], rP, P / rP[:, None]
 
 
 def _equiangular(ne: int, e: np.ndarray, xi: np.ndarray, eta: np.ndarray):
@@ -261,7 +261,7 @@ def _equiangular(ne: int, e: np.ndarray, xi: np.ndarray, eta: np.ndarray):
     dalpha = math.pi / 2 / ne
     alpha = edges[ia] + (xi + 1) * dalpha / 2
     beta = edges[jb] + (eta + 1) * dalpha / 2
-    c, ea, eb = _FACES[face, 0], _FACES[face, 1], _FACES[face, 2]
+    c, ea, eb = FACES[face, 0], FACES[face, 1], FACES[face, 2]
     return alpha, beta, face, c + np.tan(alpha)[:, None] * ea + np.tan(beta)[:, None] * eb
 
 

@@ -64,12 +64,6 @@ from ..model.gravity_wave import GravityWaveOperator, check_mean_depth
 from ..model.shallow_water import ShallowWater
 
 f64 = wp.float64
-# the solver options the semi-implicit, IMEX and JFNK steppers no longer have, and why (``Stepper.removed_options``)
-REMOVED_SOLVER_OPTIONS = {
-    "helmholtz_solver": "the compiled CG is the only Helmholtz solver (the host solvers cg, amg, chebyshev, vcycle were slower at the default threads)",
-}
-
-
 PRECISIONS = ("double", "mixed")
 MAX_GUESS_HISTORY = (
     32  # past solutions a solve's start is projected on (``GuessHistory``); k vectors cost 2k of memory and k dots
@@ -611,36 +605,6 @@ class GuessHistory:
             for row, v in enumerate(rows[3 * m : 3 * m + 3]):
                 v.assign(part[row][first])
         self.hic.assign(np.array([count, 0, 0], dtype=np.int32))
-
-
-class HelmholtzSteps:
-    """What the semi-implicit and IMEX steppers (their ``HelmholtzSolver`` ``helmholtz``, built
-    with ``warm``) share, put before their ``Stepper`` base: the mean depth and the CG's warm
-    guess in ``state``/``restore``; the CG's device counters as ``counts`` (read with the
-    step when not ``deferred``, ``Stepper._device_counts``); and a graph key once the step
-    reads nothing: H fixed (the first step's host read, ``set_depth``), the counters
-    ``deferred``, and the CG's loops able to be graph nodes (``HelmholtzSolver.graphable``:
-    one rank; on CUDA conditional nodes)."""
-
-    capturable = True
-    solvers = ("helmholtz",)
-
-    def counts(self):
-        return {"helmholtz": self.helmholtz.iterations()}
-
-    def device_arrays(self):
-        return [self.helmholtz.stats]
-
-    def graph_key(self):
-        solver = self.helmholtz
-        return super().graph_key() if solver.H and solver.graphable and self.deferred else None
-
-    def state(self):
-        return {**super().state(), **self.helmholtz.state()}
-
-    def restore(self, state):
-        super().restore(state)
-        self.helmholtz.restore(state, self._entry)
 
 
 # the float32 CG's reach: a tolerance at or above SINGLE_TOL is solved in float32 alone;

@@ -48,10 +48,11 @@ from ..core.errors import StepFailure
 from ..kernels import blas
 from ..kernels import implicit as ik
 from ..model.gravity_wave import GravityWaveOperator, check_mean_depth
-from ..solvers.helmholtz import REMOVED_SOLVER_OPTIONS, HelmholtzOptions, HelmholtzSolver, check_precision
+from ..solvers.helmholtz import HelmholtzOptions, HelmholtzSolver, check_precision
 from ..solvers.jacobian import FiniteDifferenceJacobian, KernelPasses
 from ..solvers.krylov import FGMRES, KernelVectors
 from .base import Stepper, StepStats
+from .helmholtz_steps import REMOVED_SOLVER_OPTIONS
 
 f64 = wp.float64
 

@@ -59,11 +59,11 @@ from fractions import Fraction
 import warp as wp
 
 from ..kernels import blas
-from ..model.gravity_wave import GravityWaveOperator
 from ..model.launches import Update
-from ..solvers.helmholtz import REMOVED_SOLVER_OPTIONS, HelmholtzOptions, HelmholtzSolver, HelmholtzSteps
+from ..solvers.helmholtz import HelmholtzOptions
 from .base import Stepper, StepStats
 from .butcher import PARTS, Table, TableauOptions, parse, stage_form
+from .helmholtz_steps import REMOVED_SOLVER_OPTIONS, HelmholtzSteps
 from .tables import COURANT_LIMITS, EXPLICIT, IMEX
 
 f64 = wp.float64
@@ -150,9 +150,6 @@ class ImexRK(HelmholtzSteps, Stepper):
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
-        o = self.options
-        self.linear = GravityWaveOperator(model, o.mean_depth)
-        self.helmholtz = HelmholtzSolver(self.linear, o, warm=True)
         A_E, b_E, A_I, b_I, self.c = self.table().floats()
         stages = len(b_E)
         self.A_E, self.A_I, self.b_E, self.b_I = A_E, A_I, b_E, b_I

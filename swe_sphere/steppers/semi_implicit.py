@@ -24,10 +24,10 @@ from dataclasses import dataclass
 import warp as wp
 
 from ..kernels import blas
-from ..model.gravity_wave import GravityWaveOperator
-from ..solvers.helmholtz import REMOVED_SOLVER_OPTIONS, HelmholtzOptions, HelmholtzSolver, HelmholtzSteps
+from ..solvers.helmholtz import HelmholtzOptions
 from .base import StepStats
 from .explicit import Leapfrog, LeapfrogOptions
+from .helmholtz_steps import REMOVED_SOLVER_OPTIONS, HelmholtzSteps
 
 f64 = wp.float64
 
@@ -74,9 +74,6 @@ class SemiImplicit(HelmholtzSteps, Leapfrog):
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
-        o = self.options
-        self.linear = GravityWaveOperator(model, o.mean_depth)
-        self.helmholtz = HelmholtzSolver(self.linear, o, warm=True)
         self.F, self.W, self.LW = self._buffer(), self._buffer(), self._buffer()
 
     @property

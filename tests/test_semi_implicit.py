@@ -31,6 +31,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import math
+import re
 
 import numpy as np
 import pytest
@@ -44,6 +45,7 @@ from swe_sphere.model.gravity_wave import GravityWaveOperator, reference_depth
 from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.solvers.helmholtz import GuessHistory, HelmholtzOptions, HelmholtzSolver, helmholtz_matrix
+from swe_sphere.steppers import STEPPERS
 
 import roundoff
 from conftest import make_sim, requires_cuda, run, write_tc2_scene
@@ -162,12 +164,6 @@ def _gw(tol=1e-13, ne=2):
     return sim, gw, NumpyOps(sim.grid)
 
 
-def _numpy_L(ops, z, g, H):
-    """L z = (−g G z_h, −H D z_v) with the independent numpy operators."""
-    G = ops.dss(ops.gradient(z[2]))
-    return np.concatenate([-g * G, -H * ops.dss(ops.divergence(z[0], z[1])[None])])
-
-
 @pytest.mark.roundoff
 def test_helmholtz_matrix_equals_the_matrix_free_operator(rng):
     """K = −M D G assembled from the model's element kernels (ne = 2) against the
@@ -220,7 +216,7 @@ def test_schur_solve_inverts_i_minus_a_l(rng):
         gw.solve(wp.array(r, dtype=wp.float64, device=DEVICE), a, z, scale=s)
         its = gw.iterations()
         zn = z.numpy()
-        resid = rel(zn - a * _numpy_L(ops, zn, m.g, gw.H), s * r)
+        resid = rel(zn - a * ops.gravity_wave(zn, m.g, gw.H), s * r)
         mass = (np.sum(w * zn[2]) - s * np.sum(w * r[2])) / np.sum(w * np.abs(s * r[2]))
         print(
             f"\na = {a:g}: {its} iterations, relative residual {resid:.1e}, mass {mass:.1e}, |z - r| / |r| {rel(zn, s * r):.2f}",
@@ -550,3 +546,24 @@ def test_bad_semi_implicit_option_exits_2(option, needle, tmp_path, capsys, monk
     assert code == 2
     assert len(lines) == 1 and needle in lines[0]
     assert not list(tmp_path.glob("*.nc*"))
+
+
+@pytest.mark.parametrize("stepper", ["semi_implicit", "imex", "tableau"])
+def test_the_helmholtz_options_are_one_declaration(stepper):
+    """The [semi_implicit], [imex] and [tableau] tables take the Helmholtz solve's options
+    from ``HelmholtzOptions`` (semi_implicit with its own tighter tol): the same keys and
+    defaults, the same one-line errors."""
+    cls = STEPPERS[stepper]
+    assert issubclass(cls.Options, HelmholtzOptions)
+    o = cls.make_options()
+    assert (o.maxiter, o.mean_depth, o.precision, o.guess_history) == (500, 0.0, "double", 8)
+    assert o.tol == (1e-7 if stepper == "semi_implicit" else 1e-6)
+    for key, value, message in (
+        ("tol", 1.0, "tol must be in (0, 1)"),
+        ("maxiter", 0, "maxiter must be >= 1"),
+        ("mean_depth", -5.0, "mean_depth must be >= 0"),
+        ("precision", "single", "precision must be one of double, mixed"),
+        ("guess_history", 33, "guess_history must be in 0..32"),
+    ):
+        with pytest.raises(ValueError, match=re.escape(f"{message} (got {value!r})")):
+            cls.make_options(**{key: value})

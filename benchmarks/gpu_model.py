@@ -110,8 +110,8 @@ def cpu_check(ne, repeat):
     model.rhs(x, y)
     model.hv.operator(x, y)
     rows = []
-    for key in (k for k in model._recorded if k[0] in ("rhs", "hvop")):
-        for launch in model._recorded[key][0]:
+    for key in (k for k in model.launches.keys() if k[0] in ("rhs", "hvop")):
+        for launch in model.launches.recorded(key):
             seen = array_bytes(launch.fwd_args)
             times = []
             for _ in range(repeat):

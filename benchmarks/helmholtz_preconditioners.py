@@ -43,8 +43,9 @@ wp.config.quiet = True
 from swe_sphere.config.scene import load_scene  # noqa: E402
 from swe_sphere.core.constants import DAY  # noqa: E402
 from swe_sphere.grid.gll import gll  # noqa: E402
+from swe_sphere.model.gravity_wave import GravityWaveOperator  # noqa: E402
 from swe_sphere.simulation.simulation import Simulation  # noqa: E402
-from swe_sphere.solvers.helmholtz import GravityWave, helmholtz_matrix  # noqa: E402
+from swe_sphere.solvers.helmholtz import HelmholtzOptions, HelmholtzSolver, helmholtz_matrix  # noqa: E402
 
 SGS = ("gauss_seidel", {"sweep": "symmetric"})
 SMOOTHING = 3  # Chebyshev steps before and after the p-MG coarse correction
@@ -153,7 +154,7 @@ def record(path, spin_up, count):
     sim = Simulation(
         load_scene("tc5_mountain", ne=30, np=4, days=1.0, stepper="imex", dt=2160.0), "cpu", progress=False
     )
-    sim.graphs, gw = "off", sim.stepper.gw
+    sim.graphs, gw = "off", sim.stepper.helmholtz
     gw.graphable = False
     sim.advance(spin_up)
     seen, solve, first = {"c": [], "b": [], "x0": [], "its": []}, gw.cg.solve, sim.step
@@ -187,7 +188,9 @@ def production(path, tol, rounds, stride):
     assert np.all(d["c"] == c), "one c a run"  # the IMEX ARS(3,4,3) stages share a_ii
     grid, minv = sim.grid, 1 / sim.grid.area
     A = (sp.diags(grid.area) + c * helmholtz_matrix(sim.model)).tocsr()
-    gw = GravityWave(sim.model, 1.0, tol, 5000)  # the model's CG from zero on the first b: its time an iteration
+    gw = HelmholtzSolver(
+        GravityWaveOperator(sim.model, 1.0), HelmholtzOptions(tol, 5000, guess_history=0)
+    )  # the model's CG from zero on the first b: its time an iteration
     gw.b.assign(d["b"][0])
     gw._pcg(c)
     its0 = gw.iterations()
@@ -246,7 +249,7 @@ def build(ne):
     sim = Simulation(
         load_scene("tc5_mountain", ne=ne, np=4, days=1.0, stepper="semi_implicit", dt=60.0), "cpu", progress=False
     )
-    sim.stepper.gw.set_depth(sim.x)
+    sim.stepper.helmholtz.operator.set_depth(sim.x)
     return sim, 60.0 / sim.courant()["courant_gravity"]
 
 

@@ -10,7 +10,7 @@ a node (an FMA is 2), both from the kernels' code; the median time; the bytes'
 rate; and the same bytes at this machine's stream-triad rate measured alongside
 (numpy, a working set inside the L3 cache and one far outside it).
 
-Then a whole solve of the semi-implicit Schur complement (``GravityWave.solve``, as the
+Then a whole solve of the semi-implicit Schur complement (``HelmholtzSolver.solve``, as the
 steppers call it: its right-hand side, the CG from zero, the mean's correction and the
 back-substitution; a replayed graph on one thread) at five tolerances, and a
 least-squares line through (CG iterations k, ms): its slope is an iteration's cost and
@@ -87,7 +87,7 @@ def launches(cg: HelmholtzCG, c: float) -> dict:
 def solve_cost(sim: Simulation, clock, repeat: int) -> tuple[list, float, float]:
     """[(k, ms)] of whole cold solves (IMEX ARS(3,4,3)'s at 8 Δt_g) at five tolerances (median of ``repeat`` rounds of 5),
     and the line ms = fixed + k·per_iteration through them: (rows, per_iteration, fixed)."""
-    gw = sim.stepper.gw
+    gw = sim.stepper.helmholtz
     sim.stepper.step(sim.x)  # H fixed, the step's graphs made
     gw.iterations()
     gw.warm = False
@@ -136,7 +136,7 @@ def main() -> None:
         )
         if args.solve_only:
             continue
-        cgs = {name: (sim.stepper.gw.cg if t is wp.float64 else HelmholtzCG(m, t)) for name, t in TYPES.items()}
+        cgs = {name: (sim.stepper.helmholtz.cg if t is wp.float64 else HelmholtzCG(m, t)) for name, t in TYPES.items()}
         rng = np.random.default_rng(0)
         runs = {}
         for name, cg in cgs.items():

@@ -16,9 +16,9 @@ subtracted):
 * ∇⁴: ``model.hyperviscosity`` (split after the step);
 * Helmholtz op: the operator M + cK of the compiled CG (``HelmholtzCG.apply``, both
   precisions);
-* Helmholtz rest: the rest of ``GravityWave.solve`` (the CG's vector updates
+* Helmholtz rest: the rest of ``HelmholtzSolver.solve`` (the CG's vector updates
   and inner products, the preconditioner fused into them, the Schur pieces);
-  where a solve is a replayed graph (one CPU thread, CUDA; ``GravityWave``) the
+  where a solve is a replayed graph (one CPU thread, CUDA; ``HelmholtzSolver``) the
   whole solve, its operator included (Helmholtz op then 0);
 * Krylov vectors: the Krylov basis's Gram–Schmidt and combinations
   (the backend's ``dots``/``combine``: FGMRES's, KIOPS's; FGMRES's one-thread kernels
@@ -154,7 +154,7 @@ def build(case, ne, stepper, dt, options, clock, device, backend=None):
     timers.wrap(sim.model, "rhs", "RHS")
     timers.wrap(sim.model, "rhs_update", "RHS")  # the explicit steppers' stages, combinations included
     timers.wrap(sim.model, "hyperviscosity", "∇⁴")
-    gw = getattr(sim.stepper, "gw", None)
+    gw = getattr(sim.stepper, "helmholtz", None)
     if gw is not None:
         timers.wrap(gw, "solve", "Helmholtz rest")
         for cg in (

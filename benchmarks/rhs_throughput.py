@@ -148,7 +148,7 @@ def rhs_compulsory_bytes(model) -> int:
     out = wp.zeros_like(x)
     model.rhs(x, out)
     arrays = {}
-    for launch in model._recorded[("rhs", model.terms, x.ptr, out.ptr)][0]:
+    for launch in model.launches.recorded(model.rhs_key(x, out)):
         launch = launch.whole if isinstance(launch, SplitLaunch) else launch
         arrays.update(array_bytes(launch.fwd_args or []))
     for a in (x, out, model.tend):
@@ -173,7 +173,7 @@ def rhs_flops(model) -> float:
 
 def dss_launch(model, x, out):
     """The recorded DSS launch of ``model.rhs(x, out)`` (its last launch)."""
-    return model._recorded[("rhs", model.terms, x.ptr, out.ptr)][0][-1]
+    return model.launches.recorded(model.rhs_key(x, out))[-1]
 
 
 class Timers:

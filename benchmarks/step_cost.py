@@ -58,7 +58,7 @@ RUNS = [
 
 def count(tally: Tally, call, sim=None) -> tuple:
     """(launches, MB) of ``call()``; with ``sim``: of its step outside the solves and the ∇⁴."""
-    gw = getattr(sim.stepper, "gw", None) if sim is not None else None
+    gw = getattr(sim.stepper, "helmholtz", None) if sim is not None else None
     paused = [(o, n) for o, n in ((gw, "solve"), (sim and sim.model, "hyperviscosity")) if o is not None]
     for obj, name in paused:
         setattr(obj, name, tally.paused(getattr(obj, name)))
@@ -95,8 +95,8 @@ def main() -> None:
             s = sims[label] = Simulation(
                 dataclasses.replace(base, stepper=stepper, stepper_options=options, dt=dt), "cpu", progress=False
             )
-            if hasattr(s.stepper, "gw"):
-                s.stepper.gw.graphable = False  # the solves' launches seen one by one
+            if hasattr(s.stepper, "helmholtz"):
+                s.stepper.helmholtz.graphable = False  # the solves' launches seen one by one
             calls[label] = lambda s=s: s.stepper.step(s.x)
         for call in calls.values():  # record and compile outside the clock and the counts
             call(), call()

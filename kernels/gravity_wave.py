@@ -1,9 +1,8 @@
 """The linear gravity-wave operator about a mean depth H in one element pass (``linear``,
-``linear_element``: both halves before their DSS, the multirate steppers' fast part), and
-pointwise pieces of it
-(``steppers.helmholtz.GravityWave``): L_v = −g G h, L_h = −H D v, with
-G = DSS∘grad and D = DSS∘div the model's strong operators, and the two
-element-wise halves of the Schur-complement solve of (I − aL) z = s·r:
+``linear_element``: both halves before their DSS; ``model.gravity_wave.GravityWaveOperator``):
+L_v = −g G h, L_h = −H D v, with G = DSS∘grad and D = DSS∘div the model's strong
+operators, and the two pointwise halves of the Schur-complement solve of (I − aL) z = s·r
+(``solvers.helmholtz.HelmholtzSolver``):
 
     (I − a²gH DG) z_h = s (r_h − aH D r_v),    z_v = s r_v − a g G z_h,
 
@@ -90,26 +89,6 @@ def linear_element(np: int):
 
     linear_element.__qualname__ = "linear_element"  # the kernel's key
     return wp.kernel(linear_element, enable_backward=False, module="unique", module_options=CPU_FAST)
-
-
-@wp.kernel
-def apply(
-    Gh: wp.array2d(dtype=f64),
-    Dv: wp.array2d(dtype=f64),
-    g: f64,
-    H: f64,
-    out: wp.array2d(dtype=f64),
-    block: int,
-    offset: int,
-):
-    """out = L x from G h (rows 0, 1) and D v (row 0): (−g G h, −H D v)."""
-    r, k = wp.tid()
-    start = (k + offset) * block
-    for p in range(start, start + block):
-        if r < 2:
-            out[r, p] = -g * Gh[r, p]
-        else:
-            out[r, p] = -H * Dv[0, p]
 
 
 @wp.kernel

@@ -1,5 +1,5 @@
 """The Helmholtz operator M + cK on unique nodes, matrix-free, and the
-preconditioned CG that inverts it (``steppers.helmholtz.GravityWave``).
+preconditioned CG that inverts it (``solvers.helmholtz.HelmholtzSolver``).
 
 K = −M D G with G = DSS∘grad and D = DSS∘div the model's strong operators;
 on unique nodes, with P the scatter to element-local copies, W = diag(spheremp)
@@ -14,7 +14,7 @@ and S the weighted DSS, (M + cK) y = Pᵀ W (P y − c D̂ S Ĝ P y). Three laun
   divergence and z = P y − c D̂ S Ĝ P y;
 * ``helmholtz_assemble`` of W z: Pᵀ W z.
 
-Around a solve of the semi-implicit Schur complement (``GravityWave``), in the same
+Around a solve of the semi-implicit Schur complement (``HelmholtzSolver``), in the same
 layout: ``helmholtz_rhs`` (with ``helmholtz_assemble``) builds its right-hand side,
 and ``helmholtz_gradient`` with ``helmholtz_back_substitution`` the state from its
 solution (and, for an IMEX stage, its implicit tendency L z).
@@ -477,7 +477,7 @@ def cg_update(dtype=f64):
 
 
 # The scalars of a solve on the device (``cs``, float64; ``ic``, int32) and the
-# counters it shares with the solves of one GravityWave until the host reads
+# counters it shares with the solves of one HelmholtzSolver until the host reads
 # them (``stats``, float64): indices.
 GAMMA, DELTA, RR, ALPHA, BETA, BB, BOUND, TOL2 = (wp.constant(k) for k in range(8))
 GO, IT, MAXIT = (wp.constant(k) for k in range(3))  # GO first: ``wp.capture_while`` tests ic[0]

@@ -138,6 +138,12 @@ class NumpyOps:
         """DSS'd shallow-water tendency (3, N)."""
         return self.dss(self.sw_tendency(state, terms, fcor, hs, g), weighted=True)
 
+    def gravity_wave(self, z, g, H):
+        """(3, N) L z = (−g G z_h, −H D z_v), the linear gravity-wave operator about the
+        depth H with the DSS'd gradient G and divergence D."""
+        G = self.dss(self.gradient(z[2]))
+        return np.concatenate([-g * G, -H * self.dss(self.divergence(z[0], z[1])[None])])
+
     # -- hyperviscosity --------------------------------------------------------------
     def biharmonic(self, state, hs, nus=(1.0, 1.0, 1.0)):
         """(4, N) B state, the hyperviscosity operator with (ν, ν_div, ν_s) of

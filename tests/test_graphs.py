@@ -97,7 +97,7 @@ def test_graphed_steps_are_the_bits_of_plain_ones(one_thread, graph_launches, na
     skip_without_conditional_nodes(name, device)
     scene = tc5(name, device)
     plain = stepped(scene, device, False, 5)
-    assert graph_launches[0] == 0  # "off": no graph, not even the solves' own (``GravityWave``)
+    assert graph_launches[0] == 0  # "off": no graph, not even the solves' own (``HelmholtzSolver``)
     for every in (5, 1):
         graph_launches[0] = 0
         graphed = stepped(scene, device, True, every)
@@ -190,7 +190,7 @@ def test_an_unconverged_solve_inside_a_graphed_block_is_reported_as_with_a_check
     )  # ne 2 on CUDA too: the iterations of the CPU to round-off; maxiter suits tol 1e-6
 
     def spoil(sim):
-        gw = sim.stepper.gw
+        gw = sim.stepper.helmholtz
         gw.y.assign(np.random.default_rng(1).standard_normal(gw.y.shape[0]) * 1e3)
 
     runs = [

@@ -67,7 +67,7 @@ def test_long_steps_use_rkl1_stably_and_conservatively(rng):
     x.assign(x0)
     coef = -T / 720  # hv.build applies coef·B x, B including ν
     for _ in range(720):
-        m._replay(("hv", x.ptr, coef), (x,), lambda: m.hv.build(x, coef))
+        m.launches.replay(("hv", x.ptr, coef), (x,), lambda: m.hv.build(x, coef))
     fine = x.numpy()
     distance = np.linalg.norm(rkl - fine) / np.linalg.norm(fine - x0)
     print(f"\nRKL1 (9 stages) against 720 forward-Euler substeps: {distance:.2e} of the change")

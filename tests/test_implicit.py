@@ -408,7 +408,7 @@ def test_fgmres_reaches_the_true_residual_with_an_inexact_inner_solve():
     sim = make_sim(dataclasses.replace(base, stepper_options=options))
     st, x = sim.stepper, sim.x
     # the first Newton iteration of a θ = 0.5 step from x (as Implicit.step sets it up)
-    st.gw.set_depth(x)
+    st.helmholtz.operator.set_depth(x)
     st.rhs_evals, st.beta, st.x = 0, 0.5, x
     st._F(x, st.Fx)
     st._axpby(1.0, x, 0.5 * st.dt, st.Fx, st.b)
@@ -515,7 +515,7 @@ def test_krylov_backends_agree_on_cn_steps_and_fgmres_reads_once_a_cycle():
 
             return call
 
-        st.fgmres.solve, st.gw.solve = counted(st.fgmres.solve, 1), counted(st.gw.solve, -1)
+        st.fgmres.solve, st.helmholtz.solve = counted(st.fgmres.solve, 1), counted(st.helmholtz.solve, -1)
         with instrumented(tally), tally.counting():
             its = [st.step(sim.x).iterations for _ in range(3)]
         runs[backend] = sim.x.numpy(), its, own[0], tally.launches["fgmres_end"]

@@ -92,7 +92,7 @@ def test_fast_evaluation_cost_in_launches_and_bytes():
     sim, split, xp, F, fast, slow = parts("tc5_mountain")
     m = split.model
     fb = sim_of("tc5_mountain", ne=4, stepper="split_explicit").stepper
-    fb.split.H = split.H
+    fb.split.set_depth_value(split.H)
     z = wp.clone(xp)
     tally = Tally()
     counts = {}

@@ -21,6 +21,7 @@ from swe_sphere.grid.gll import gll
 from swe_sphere.kernels import dss as dss_k
 from swe_sphere.kernels import operators
 from swe_sphere.model.diagnostics import HARMONIC_KINDS, harmonic_state, hyperviscosity_rate, ideal_hyperviscosity_rate
+from swe_sphere.model.launches import Update
 from swe_sphere.model.shallow_water import TERMS, ShallowWater
 
 import roundoff
@@ -382,11 +383,11 @@ def test_rhs_update_is_rhs_then_its_combinations(terms, rng):
     m = ShallowWater(g, terms, fcor, hs, device=DEV)
     H = slice(2, 3)
     cases = [
-        lambda x, a, b: ((None, a, ((1.0, x), (0.5, None))), (None, b, ((1.0, x), (0.25, None)))),  # rk4
-        lambda x, a, b: ((None, x, ((1 / 3, x), (2 / 3, a), (0.4, None))),),  # ssprk3: the input overwritten
-        lambda x, a, b: ((None, b, ((1.0, x),)), (None, x, ((1.0, a), (0.3, None)))),  # leapfrog-trapezoidal
-        lambda x, a, b: ((H, a, ((0.6, x), (0.2, None), (0.4, b))), (H, b, ((1.0, x), (0.7, None)))),  # fbrk32
-        lambda x, a, b: ((H, a, ((1.0, None),)), (None, b, ((1.0, a), (-0.5, b), (0.1, None)))),  # F alone; reads a
+        lambda x, a, b: (Update(a, ((1.0, x), (0.5, None))), Update(b, ((1.0, x), (0.25, None)))),  # rk4
+        lambda x, a, b: (Update(x, ((1 / 3, x), (2 / 3, a), (0.4, None))),),  # ssprk3: the input overwritten
+        lambda x, a, b: (Update(b, ((1.0, x),)), Update(x, ((1.0, a), (0.3, None)))),  # leapfrog-trapezoidal
+        lambda x, a, b: (Update(a, ((0.6, x), (0.2, None), (0.4, b)), H), Update(b, ((1.0, x), (0.7, None)), H)),
+        lambda x, a, b: (Update(a, ((1.0, None),), H), Update(b, ((1.0, a), (-0.5, b), (0.1, None)))),  # F alone
     ]
     for case in cases:
         got, want = ([m.new_state(*st) for _ in range(3)] for _ in range(2))
@@ -399,7 +400,7 @@ def test_rhs_update_is_rhs_then_its_combinations(terms, rng):
         x, a, b = want
         k = wp.zeros_like(x)
         m.rhs(x, k, terms)
-        for rows, out, t in case(x, a, b):
+        for out, t, rows in case(x, a, b):
             rows = rows or slice(0, 3)
             m.lincomb(out[rows], ((c, (k if src is None else src)[rows]) for c, src in t)).launch()
         for g_, w_ in zip(got, want):

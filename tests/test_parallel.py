@@ -71,9 +71,7 @@ def test_operators_bitwise_equal_to_one_thread(small_parts, threads, rng):
             "dss",
         ]
         if n > 1:
-            assert all(
-                isinstance(launch, parallel.SplitLaunch) for launch in m._recorded[("rhs", m.terms, x.ptr, out.ptr)][0]
-            )
+            assert all(isinstance(launch, parallel.SplitLaunch) for launch in m.launches.recorded(m.rhs_key(x, out)))
         m.hyperviscosity(x, 3600.0)
         grad, div = wp.zeros((2, m.N), dtype=wp.float64), wp.zeros((1, m.N), dtype=wp.float64)
         m.gradient(x, 2, grad)
@@ -112,7 +110,7 @@ def test_steps_same_with_per_node_kernels(small_parts, name, rng):
     """CUDA's per-node layout (run here on the CPU) steps to the CPU layout's
     state up to round-off (FMA contraction, summation order): 3 steps of 600 s. For the
     semi-implicit and IMEX solves this also holds the CPU layout's fused right-hand side
-    and back-substitution (``GravityWave._schur``: no DSS before the assembly) to the
+    and back-substitution (``HelmholtzSolver._schur``: no DSS before the assembly) to the
     per-node form's seven passes.
 
     The bound is the run's own round-off floor: how far the same layout ends from a

@@ -2,7 +2,7 @@
 
 A value at a target point is the owning element's own GLL interpolant evaluated
 there: the target's Cartesian position is mapped back through the equiangular
-gnomonic projection of ``grid._FACES`` (face by the largest c·P, then
+gnomonic projection of ``grid.FACES`` (face by the largest c·P, then
 tan α = P·ea / P·c, tan β = P·eb / P·c) to an element (ia, jb) and reference
 coordinates (ξ, η) ∈ [-1, 1]², and the field is Σ_ij ℓ_i(ξ) ℓ_j(η) f_ij with
 ℓ the Lagrange basis on the GLL points. No smoothing: a polynomial of degree
@@ -27,7 +27,7 @@ import xarray as xr
 from scipy.sparse import csr_matrix
 
 from ..core.runtime import check_memory
-from ..grid.cubed_sphere import _FACES, CubedSphere
+from ..grid.cubed_sphere import FACES, CubedSphere
 from .run_file import atomic_path, check_distinct, history_line
 
 #: node fields (time, ncol) or (ncol,) that ``remap_dataset`` carries to the lat-lon grid
@@ -56,11 +56,11 @@ def locate(ne: int, lat, lon):
     lat = np.asarray(lat, dtype=np.float64).ravel()
     lon = np.asarray(lon, dtype=np.float64).ravel()
     P = np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=1)
-    cdot = P @ _FACES[:, 0].T  # (M, 6): c_k · P
+    cdot = P @ FACES[:, 0].T  # (M, 6): c_k · P
     face = np.argmax(cdot, axis=1)
     cp = cdot[np.arange(P.shape[0]), face]
-    ta = np.einsum("ij,ij->i", P, _FACES[face, 1]) / cp
-    tb = np.einsum("ij,ij->i", P, _FACES[face, 2]) / cp
+    ta = np.einsum("ij,ij->i", P, FACES[face, 1]) / cp
+    tb = np.einsum("ij,ij->i", P, FACES[face, 2]) / cp
     dalpha = math.pi / 2 / ne
     sa = (np.arctan(ta) + math.pi / 4) / dalpha
     sb = (np.arctan(tb) + math.pi / 4) / dalpha

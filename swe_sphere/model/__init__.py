@@ -1,10 +1,13 @@
 """The model layer: the shallow-water right-hand side and what acts on a state of it.
 
-``shallow_water.ShallowWater`` (the RHS by labelled terms), ``hyperviscosity.Hyperviscosity``
+``shallow_water.ShallowWater`` (the RHS by labelled terms), ``gravity_wave.GravityWaveOperator``
+(the linear gravity-wave operator L and its mean-depth rule), ``hyperviscosity.Hyperviscosity``
 (HOMME's ``biharmonic_wk`` ∇⁴, its substeps), ``bad_nodes.BadNodes`` (the non-finite or dry-node
-check), ``diagnostics`` (invariants, Courant numbers, signal rates).
+check), ``launches`` (the launch recorder they all launch through, and ``Update``, a linear
+combination written by an operator's DSS), ``diagnostics`` (invariants, Courant numbers,
+signal rates).
 
 May import: ``core``, ``grid``, ``kernels``.
 """
 
-__all__ = ["bad_nodes", "diagnostics", "hyperviscosity", "shallow_water"]
+__all__ = ["bad_nodes", "diagnostics", "gravity_wave", "hyperviscosity", "launches", "shallow_water"]

@@ -11,7 +11,7 @@ from ..kernels import blas
 class BadNodes:
     """The bad-node check of ``model``'s states (3, N): a node is bad where u, v or h
     is not finite or (when the scene has a pressure gradient, so h is a depth) h ≤ 0
-    (``kernels.blas.first_bad_node``, launched through the model's recorded launches).
+    (``kernels.blas.first_bad_node``, launched through the model's recorder).
     Holds two int32 arrays of a slot per CPU thread: ``bad`` (``first``'s) and
     ``watched`` (``watch``'s)."""
 
@@ -25,7 +25,7 @@ class BadNodes:
         None if all are good. Reads the device (a host synchronisation)."""
         N = self.model.N
         self.bad.fill_(N)
-        self._launch(x, self.bad, "guard")
+        self._check(x, self.bad, "guard")
         first = int(self.bad.numpy().min())
         return self.model.topology.first_node(None if first == N else first)
 
@@ -33,7 +33,7 @@ class BadNodes:
         """Flag on the device whether x has a bad node, without reading it back: the
         flag (the smallest bad index seen) holds every state watched since the last
         ``watched_bad``, so a block of steps needs one read."""
-        self._launch(x, self.watched, "watch")
+        self._check(x, self.watched, "watch")
 
     def watched_bad(self) -> bool:
         """Whether any state given to ``watch`` since the last call had a bad node on
@@ -44,14 +44,14 @@ class BadNodes:
         self.watched.fill_(N)
         return self.model.topology.max(float(bad)) > 0.0
 
-    def _launch(self, x, first, name):
+    def _check(self, x, first, name):
         """Launch ``blas.first_bad_node`` on x into the per-thread slots of ``first``
         (an atomic minimum: the same index whatever order the threads run in)."""
         m = self.model
         check_depth = 1 if "pressure_gradient" in m.terms else 0
         slots = [first[k : k + 1] for k in range(first.shape[0])]  # one per thread: CPU atomics are plain
-        m._replay(
+        m.launches.replay(
             (name, x.ptr),
             (x,),
-            lambda: [m._launch(blas.first_bad_node, m.N, [x, check_depth, first], {"first": slots})],
+            lambda: [m.launches.nodes(blas.first_bad_node, m.N, [x, check_depth, first], {"first": slots})],
         )

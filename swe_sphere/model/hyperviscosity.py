@@ -2,7 +2,7 @@
 
 ``Hyperviscosity`` holds what the ∇⁴ needs beyond the model's arrays (its work
 arrays, the operator's spectral radius, each Δt's plan of forward-Euler substeps
-or an RKL1 super-step) and records its launches through the model's. Mirrors
+or an RKL1 super-step) and records its launches through the model's recorder (``launches.LaunchRecorder``). Mirrors
 HOMME's ``biharmonic_wk`` and ``advance_hypervis`` (``viscosity_mod``,
 ``prim_advance_mod``); the kernels are ``kernels.hyperviscosity``.
 """
@@ -34,7 +34,7 @@ class Hyperviscosity:
         self.hv_L = wp.zeros((4, N), dtype=f64, device=device)  # the weak forms of Y₁ and Y₂
         if m.per_element:  # the weak Laplacian's metric, fixed: computed once, not by every ∇⁴ evaluation
             self.hv_metric = wp.zeros((4, N), dtype=f64, device=device)
-            m._launch(hyperviscosity.laplacian_metric, N, [m.Dinv, m.spheremp, self.hv_metric]).launch()
+            m.launches.nodes(hyperviscosity.laplacian_metric, N, [m.Dinv, m.spheremp, self.hv_metric]).launch()
         else:  # the Cartesian state and the weak Laplacian's flux of the per-node kernels
             self.hv_X = wp.zeros((4, N), dtype=f64, device=device)
             self.hv_flux = wp.zeros((8, N), dtype=f64, device=device)
@@ -58,7 +58,7 @@ class Hyperviscosity:
         c = wp.vec4d(nu, nu_div - nu, nu_s, shift)
         divergent = nu_div != nu
         delta = m.scalar_dss  # δ = DSS(∇·v), read only when divergent
-        launches = m._build_div(x, delta) if divergent else []
+        launches = m.divergence_launches(x, delta) if divergent else []
         # each pass is given the node frame's arrays it reads: the first the position (and the
         # per-element one the wind's basis), ∇δ Dinv and the basis; the second none
         names = ("xyz", *(("east", "north") if m.per_element or divergent else ()), *(("Dinv",) if divergent else ()))
@@ -76,17 +76,21 @@ class Hyperviscosity:
                     m.dvv_rows,
                     m.as_rows(L),
                 ]
-                return [m._launch_elements(kernel, args)]
+                return [m.launches.elements(kernel, args)]
         else:
 
             def laplacian(second):
                 src = Y if second else self.hv_X
-                first = [] if second else [m._launch(hyperviscosity.to_cartesian, N, [x, m.hs, m.east, m.north, src])]
+                first = (
+                    []
+                    if second
+                    else [m.launches.nodes(hyperviscosity.to_cartesian, N, [x, m.hs, m.east, m.north, src])]
+                )
                 args = [self.hv_flux, src, delta, c, self._frame(*() if second else names), m.spheremp, m.dvv, np_, L]
                 return [
                     *first,
-                    m._launch(operators.laplace_wk_flux, N, [src, m.Dinv, m.spheremp, m.dvv, np_, self.hv_flux]),
-                    m._launch(hyperviscosity.laplacian_node(second, divergent), N, args),
+                    m.launches.nodes(operators.laplace_wk_flux, N, [src, m.Dinv, m.spheremp, m.dvv, np_, self.hv_flux]),
+                    m.launches.nodes(hyperviscosity.laplacian_node(second, divergent), N, args),
                 ]
 
         def apply(rows, copies, ghosts):  # ``Topology.gathering``'s kernel factory
@@ -95,7 +99,7 @@ class Hyperviscosity:
         return [
             *launches,
             *laplacian(False),
-            *m._dss(L, 0, Y),
+            *m.topology.dss(L, 0, Y),
             *laplacian(True),
             *m.topology.gathering(L, apply, [f64(coef), self._frame("east", "north"), out]),
         ]
@@ -119,7 +123,7 @@ class Hyperviscosity:
         ``out`` must not alias ``x``."""
         m = self.model
         out.zero_()
-        m._replay(("hvop", array_key(x), array_key(out)), (x, out), lambda: self.build(x, 1.0, out))
+        m.launches.replay(("hvop", array_key(x), array_key(out)), (x, out), lambda: self.build(x, 1.0, out))
 
     def biharmonic_radius(self, iterations: int = 20) -> float:
         """Largest eigenvalue λ (m⁻⁴) of the discrete ∇⁴ operator with unit
@@ -132,7 +136,7 @@ class Hyperviscosity:
             z = m.topology.standard_normal(rng, 3)  # the same vector on any ranks
             z = wp.array(z, dtype=f64, device=m.device)
             w, zc = wp.zeros_like(z), wp.zeros_like(z)
-            for launch in m._dss(z, 1, zc):
+            for launch in m.topology.dss(z, 1, zc):
                 launch.launch()
             lam = 0.0
             hs, m.hs = m.hs, wp.zeros_like(m.hs)  # the operator without the hs offset
@@ -201,7 +205,7 @@ class Hyperviscosity:
             return
         coef = -dt / n
         for _ in range(n):
-            m._replay(("hv", x.ptr, coef), (x,), lambda: self.build(x, coef))
+            m.launches.replay(("hv", x.ptr, coef), (x,), lambda: self.build(x, coef))
 
     def _rkl1(self, x, dt, s):
         """One s-stage RKL1 step (Meyer, Balsara & Aslam 2014, eqs. 10–11) of
@@ -217,7 +221,7 @@ class Hyperviscosity:
 
         def euler(src):  # e = E(src)
             wp.copy(e, src)
-            m._replay(("hv", e.ptr, coef), (e,), lambda: self.build(e, coef))
+            m.launches.replay(("hv", e.ptr, coef), (e,), lambda: self.build(e, coef))
 
         wp.copy(ym2, x)
         euler(x)

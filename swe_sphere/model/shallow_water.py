@@ -17,12 +17,13 @@ import warp as wp
 
 from ..core.constants import EARTH
 from ..core.graphs import GraphGuard
-from ..core.parallel import array_key, default_threads, record
+from ..core.parallel import array_key, default_threads
 from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology
-from ..kernels import blas, gravity_wave, operators, tendencies
+from ..kernels import operators, tendencies
 from .bad_nodes import BadNodes
 from .hyperviscosity import Hyperviscosity
+from .launches import LaunchRecorder, check_updates, update_arrays, update_key
 
 TERMS = (
     "continuity",
@@ -130,6 +131,8 @@ class ShallowWater:
         self.xyz, self.east, self.north = up(grid.xyz), up(grid.east), up(grid.north)
         self.fcor, self.hs = up(fcor), up(hs)
 
+        # every launch of the model and of what acts on its states, recorded once and replayed
+        self.launches = LaunchRecorder(device, self.threads, grid.np, N, topo.nunique, self.per_element)
         self.tend = wp.zeros((3, N), dtype=f64, device=device)
         self.scalar = wp.zeros((1, N), dtype=f64, device=device)
         self.scalar_dss = wp.zeros((1, N), dtype=f64, device=device)
@@ -147,83 +150,17 @@ class ShallowWater:
             )
             forcing = -self.g * self.topo_forcing.numpy()
             self.topo_forcing.assign(forcing)
-        self._recorded: dict[tuple, tuple] = {}
-        self._pointwise_launches: dict[tuple, object] = {}
         self.hv = Hyperviscosity(self) if "hyperviscosity" in terms else None  # the ∇⁴: its plan, work arrays, launches
         self.bad_nodes = BadNodes(self)  # the check of a state for non-finite or dry nodes
 
-    # -- launch recording ---------------------------------------------------
-    def _launch(self, kernel, dim, inputs, per_part=None):
-        """Record a launch of a kernel with a trailing ``offset`` argument (not in
-        ``inputs``) over dim N or (rows, N): split over ``threads`` node ranges on CPU."""
-        return record(
-            kernel, dim, inputs, device=self.device, threads=self.threads, block=self.grid.np**2, per_part=per_part
-        )
-
-    def _launch_elements(self, kernel, inputs):
-        """Record a per-element kernel (dim nelem, trailing element ``offset``)."""
-        return record(
-            kernel, self.grid.nelem, inputs, device=self.device, threads=self.threads, nodes_per_index=self.grid.np**2
-        )
-
-    def _launch_pointwise(self, kernel, rows, inputs):
-        """Record a pointwise kernel with trailing ``block`` and ``offset`` arguments
-        (``kernels.blas``) over (rows, N), or N if ``rows`` is None: np² nodes a
-        thread with the per-element layout, one on CUDA."""
-        block = self.grid.np**2 if self.per_element else 1
-        n = self.N // block
-        return record(
-            kernel,
-            n if rows is None else (rows, n),
-            [*inputs, block],
-            device=self.device,
-            threads=self.threads,
-            nodes_per_index=block,
-        )
-
+    # -- the recorder's (``launches.LaunchRecorder``) -----------------------
     def lincomb(self, out, terms):
-        """The recorded launch of out = Σ c·x over one to three (c, x) terms of
-        (rows, N) arrays (row views such as ``x[2:3]`` included; out may alias
-        any x), ``blas.axpby``/``axpbypcz`` (one term: c·x + 0·x), split over
-        the CPU threads like the model's own launches."""
-        terms = tuple(terms)
-        if len(terms) == 1:
-            terms += ((0.0, terms[0][1]),)
-        args = [a for c, x in terms for a in (f64(c), x)]
-        kernel = blas.axpby if len(terms) == 2 else blas.axpbypcz
-        return self._launch_pointwise(kernel, out.shape[0], [*args, out])
+        """``launches.lincomb``: the recorded launch of out = Σ c·x over (c, x) terms."""
+        return self.launches.lincomb(out, terms)
 
     def pointwise(self, kernel, *inputs, unique=False) -> None:
-        """Run a pointwise kernel (``kernels.blas`` convention: trailing ``block``,
-        ``offset``) on ``inputs`` over (3, N), or over (3, nunique) if ``unique``
-        (trailing ``offset`` only): recorded on the first call with these arrays,
-        later calls only set its scalar arguments."""
-        key = (kernel.key, *(a.ptr if isinstance(a, wp.array) else None for a in inputs))
-        launch = self._pointwise_launches.get(key)
-        if launch is None:
-            build = (
-                self._launch(kernel, (3, self.topology.nunique), list(inputs))
-                if unique
-                else self._launch_pointwise(kernel, 3, list(inputs))
-            )
-            launch = self._pointwise_launches[key] = build
-        else:
-            for arg, value in zip(kernel.adj.args, inputs):
-                if not isinstance(value, wp.array):
-                    launch.set_param_by_name(arg.label, value)
-        launch.launch()
-
-    def _replay(self, key, arrays, build):
-        """Replay the launches recorded under ``key``, recording them first if new.
-        The cache holds ``arrays`` so that their addresses (part of the key) stay theirs."""
-        entry = self._recorded.get(key)
-        if entry is None:
-            entry = self._recorded[key] = (build(), arrays)
-        for launch in entry[0]:
-            launch.launch()
-
-    def _dss(self, x, weighted, out):
-        return self.topology.dss(x, weighted, out)
+        """``launches.run_pointwise``: run a pointwise kernel, recorded on first use."""
+        self.launches.run_pointwise(kernel, *inputs, unique=unique)
 
     # -- right-hand side ----------------------------------------------------
     def _build_tendency(self, x, named):
@@ -238,17 +175,17 @@ class ShallowWater:
             if self.per_element:
                 kernel = tendencies.tendency_element(terms, self.grid.np)
                 launches.append(
-                    self._launch_elements(
+                    self.launches.elements(
                         kernel, [*map(self.as_rows, args), self.g, self.dvv_rows, self.as_rows(self.tend)]
                     )
                 )
             else:
                 kernel = tendencies.tendency(terms)
-                launches.append(self._launch(kernel, self.N, [*args, self.dvv, self.grid.np, self.g, self.tend]))
+                launches.append(self.launches.nodes(kernel, self.N, [*args, self.dvv, self.grid.np, self.g, self.tend]))
         forced = self.forcing is not None and "forcing" in named
         if forced:
             kernel, params = self.forcing
-            launch = self._launch_pointwise(
+            launch = self.launches.pointwise(
                 kernel, None, [self.xyz, self.east, self.north, params, f64(self.time), self.tend]
             )
             self._forcing_launches.append(launch)
@@ -260,7 +197,9 @@ class ShallowWater:
     def _build_rhs(self, x, out, named):
         launches, lo, hi = self._build_tendency(x, named)
         launches.extend(
-            self._dss(self.tend[lo:hi], 1, out[lo:hi]) if (lo, hi) != (0, 3) else self._dss(self.tend, 1, out)
+            self.topology.dss(self.tend[lo:hi], 1, out[lo:hi])
+            if (lo, hi) != (0, 3)
+            else self.topology.dss(self.tend, 1, out)
         )
         return launches
 
@@ -268,7 +207,7 @@ class ShallowWater:
         launches, lo, hi = self._build_tendency(x, named)
         groups = []  # (rows, [(out, terms)]): one DSS for each run of at most two updates of the same rows
         rest = []  # F is zero in the rows its terms do not write: there the arrays' combination alone
-        for rows, out, terms in updates:
+        for out, terms, rows in updates:
             if rows is None:
                 arrays = tuple((a, src) for a, src in terms if src is not None)
                 for r0, r1 in ((0, lo), (hi, 3)):
@@ -319,14 +258,14 @@ class ShallowWater:
         momentum halves), compiled for that subset; only the rows it writes are
         assembled and written (a continuity half leaves out's du, dv rows as they
         were, a momentum half its dh row). ValueError names a term the scene lacks."""
-        terms = self._rhs_terms(terms)
-        self._replay(("rhs", terms, x.ptr, out.ptr), (x, out), lambda: self._build_rhs(x, out, terms))
+        key = self.rhs_key(x, out, terms)
+        self.launches.replay(key, (x, out), lambda: self._build_rhs(x, out, key[1]))
 
     def rhs_update(self, x: wp.array2d, updates, terms: tuple | None = None) -> None:
         """F = F(x, t) as ``rhs`` computes it, not stored but written, as its DSS
         makes it, into linear combinations (an explicit stage's x + aΔt F with
-        no pass of its own): for each (rows, out, terms) of ``updates``, in
-        order, out[rows] = Σ a·src[rows] over terms (a, src), src a (3, N) array
+        no pass of its own): for each ``Update(out, terms, rows)`` of ``updates``,
+        in order, out[rows] = Σ a·src[rows] over terms (a, src), src a (3, N) array
         or None standing for F; rows a slice of the rows the ``terms`` of the
         RHS write, or None: all three, F zero in the rows the terms do not
         write (as ``rhs`` leaves a zeroed out). One to three terms, at most two
@@ -335,30 +274,21 @@ class ShallowWater:
         terms (a later update reads an earlier one's result). Summed left to
         right as ``blas.axpby``/``axpbypcz``: the bits of ``rhs`` followed by
         those combinations. Recorded once per arrays and coefficients;
-        ValueError for rows F lacks."""
-        terms = self._rhs_terms(terms)
-        key = (
-            "rhs_update",
-            terms,
-            x.ptr,
-            tuple(
-                (
-                    None if rows is None else (rows.start, rows.stop),
-                    out.ptr,
-                    tuple((a, None if src is None else src.ptr) for a, src in t),
-                )
-                for rows, out, t in updates
-            ),
-        )
-        arrays = (x, *(a for _, out, t in updates for a in (out, *(src for _, src in t if src is not None))))
-        self._replay(key, arrays, lambda: self._build_rhs_update(x, updates, terms))
+        ValueError for rows F lacks; TypeError for an update that is not an ``Update``."""
+        terms, updates = self._rhs_terms(terms), check_updates(updates)
+        key = ("rhs_update", terms, x.ptr, update_key(updates))
+        self.launches.replay(key, (x, *update_arrays(updates)), lambda: self._build_rhs_update(x, updates, terms))
 
     def rhs_kernels(self, x: wp.array2d, out: wp.array2d) -> list[str]:
         """Names of the kernels ``rhs(x, out)`` launches (recorded on first use)."""
-        key = ("rhs", self.terms, x.ptr, out.ptr)
-        if key not in self._recorded:
+        key = self.rhs_key(x, out)
+        if self.launches.recorded(key) is None:
             self.rhs(x, out)
-        return [launch.kernel.key for launch in self._recorded[key][0]]
+        return [launch.kernel.key for launch in self.launches.recorded(key)]
+
+    def rhs_key(self, x: wp.array2d, out: wp.array2d, terms: tuple | None = None) -> tuple:
+        """The key under which ``rhs(x, out, terms)`` records its launches (``launches.recorded``)."""
+        return ("rhs", self._rhs_terms(terms), x.ptr, out.ptr)
 
     # -- hyperviscosity (``hypervis.Hyperviscosity``) ----------------------
     def hyperviscosity(self, x: wp.array2d, dt: float) -> None:
@@ -376,122 +306,81 @@ class ShallowWater:
     def _element_grad(self, x, row):
         """The launch of the element-local ∇ x[row] into ``vec_work``."""
         if self.per_element:
-            return self._launch_elements(
+            return self.launches.elements(
                 operators.gradient_element(self.grid.np),
                 [self.as_rows(x), row, self.as_rows(self.Dinv), self.dvv_rows, self.as_rows(self.vec_work)],
             )
-        return self._launch(
+        return self.launches.nodes(
             operators.gradient_sphere, self.N, [x, row, self.Dinv, self.dvv, self.grid.np, self.vec_work]
         )
 
     def _element_div(self, x):
         """The launch of the element-local ∇·v of x's rows 0, 1 into ``scalar``."""
         if self.per_element:
-            return self._launch_elements(
+            return self.launches.elements(
                 operators.divergence_element(self.grid.np),
                 [*map(self.as_rows, (x, self.Dinv, self.metdet)), self.dvv_rows, self.as_rows(self.scalar_flat)],
             )
-        return self._launch(
+        return self.launches.nodes(
             operators.divergence_sphere, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.scalar_flat]
         )
 
     def _build_grad(self, x, row, out):
-        return [self._element_grad(x, row), *self._dss(self.vec_work, 1, out)]
+        return [self._element_grad(x, row), *self.topology.dss(self.vec_work, 1, out)]
 
-    def _build_div(self, x, out):
-        return [self._element_div(x), *self._dss(self.scalar, 1, out)]
+    def divergence_launches(self, x: wp.array2d, out: wp.array2d) -> list:
+        """The launches (unrecorded by the model) of ``divergence(x, out)``: the element pass into
+        ``scalar`` and its DSS (the ∇⁴'s δ when ν_div ≠ ν)."""
+        return [self._element_div(x), *self.topology.dss(self.scalar, 1, out)]
 
     def gradient(self, x: wp.array2d, row: int, out: wp.array2d) -> None:
         """out (2, N) = G f = DSS(∇ x[row]) (units of x per m)."""
-        self._replay(("grad", array_key(x), row, array_key(out)), (x, out), lambda: self._build_grad(x, row, out))
+        self.launches.replay(
+            ("grad", array_key(x), row, array_key(out)), (x, out), lambda: self._build_grad(x, row, out)
+        )
 
     def divergence(self, x: wp.array2d, out: wp.array2d) -> None:
         """out (1, N) = D v = DSS(∇·v) of the wind in rows 0, 1 of x (s⁻¹ × units)."""
-        self._replay(("div", array_key(x), array_key(out)), (x, out), lambda: self._build_div(x, out))
+        self.launches.replay(("div", array_key(x), array_key(out)), (x, out), lambda: self.divergence_launches(x, out))
+
+    def dss_update(self, x: wp.array2d, updates) -> list:
+        """The launches (unrecorded) of the weighted DSS of the element-local x (rows, N)
+        written into one or two ``Update``s of all rows (``Topology.dss_update``; src None
+        standing for the DSS'd x): what an operator's ``*_update`` ends with."""
+        return self.topology.dss_update(x, [(u.out, u.terms) for u in updates])
 
     def gradient_update(self, x: wp.array2d, row: int, updates) -> None:
         """G x[row] = DSS(∇ x[row]) as ``gradient`` computes it, not stored but written,
-        as its DSS makes it, into one or two (out, terms) combinations of (2, N) arrays
+        as its DSS makes it, into one or two ``Update(out, terms)`` of (2, N) arrays
         (row views such as ``z[0:2]``): out = Σ a·src over terms (a, src), src None
         standing for G x[row] (``Topology.dss_update``: one to three terms, at most two
         arrays). Outputs may alias x and the terms. Recorded once per arrays and coefficients."""
-        key = (
-            "grad_update",
-            array_key(x),
-            row,
-            tuple(
-                (array_key(out), tuple((a, None if src is None else array_key(src)) for a, src in t))
-                for out, t in updates
-            ),
-        )
-        arrays = (x, *(a for out, t in updates for a in (out, *(src for _, src in t if src is not None))))
-        self._replay(
-            key, arrays, lambda: [self._element_grad(x, row), *self.topology.dss_update(self.vec_work, updates)]
+        updates = check_updates(updates)
+        key = ("grad_update", array_key(x), row, update_key(updates))
+        self.launches.replay(
+            key,
+            (x, *update_arrays(updates)),
+            lambda: [self._element_grad(x, row), *self.dss_update(self.vec_work, updates)],
         )
 
     def divergence_update(self, x: wp.array2d, updates) -> None:
         """D v = DSS(∇·v) of x's rows 0, 1 as ``divergence`` computes it, written into
-        one or two (out, terms) combinations of (1, N) arrays as ``gradient_update``'s."""
-        key = (
-            "div_update",
-            array_key(x),
-            tuple(
-                (array_key(out), tuple((a, None if src is None else array_key(src)) for a, src in t))
-                for out, t in updates
-            ),
+        one or two ``Update(out, terms)`` of (1, N) arrays as ``gradient_update``'s."""
+        updates = check_updates(updates)
+        key = ("div_update", array_key(x), update_key(updates))
+        self.launches.replay(
+            key, (x, *update_arrays(updates)), lambda: [self._element_div(x), *self.dss_update(self.scalar, updates)]
         )
-        arrays = (x, *(a for out, t in updates for a in (out, *(src for _, src in t if src is not None))))
-        self._replay(key, arrays, lambda: [self._element_div(x), *self.topology.dss_update(self.scalar, updates)])
-
-    def linear_update(self, x: wp.array2d, H: float, updates) -> None:
-        """L x = (−g G h, −H D v), the linear gravity-wave operator about the depth H (m) of
-        x = (u, v, h) (``helmholtz.GravityWave``'s), in one element pass
-        (``kernels.gravity_wave.linear``) and one DSS of its three rows, not stored but
-        written into one or two (out, terms) combinations of (3, N) arrays as
-        ``gradient_update``'s (src None standing for L x). Recorded once per arrays, H and
-        coefficients."""
-        key = (
-            "linear_update",
-            array_key(x),
-            H,
-            tuple(
-                (array_key(out), tuple((a, None if src is None else array_key(src)) for a, src in t))
-                for out, t in updates
-            ),
-        )
-        arrays = (x, *(a for out, t in updates for a in (out, *(src for _, src in t if src is not None))))
-
-        def build():
-            if self.per_element:
-                element = self._launch_elements(
-                    gravity_wave.linear_element(self.grid.np),
-                    [
-                        *map(self.as_rows, (x, self.Dinv, self.metdet)),
-                        self.g,
-                        f64(H),
-                        self.dvv_rows,
-                        self.as_rows(self.tend),
-                    ],
-                )
-            else:
-                element = self._launch(
-                    gravity_wave.linear,
-                    self.N,
-                    [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.g, f64(H), self.tend],
-                )
-            return [element, *self.topology.dss_update(self.tend, updates)]
-
-        self._replay(key, arrays, build)
 
     def assemble(self, x: wp.array2d, row: int, out: wp.array) -> None:
         """Unique-node out (nunique,) = M x[row]: assembled mass times a continuous field."""
-        self._replay(
+        self.launches.replay(
             ("assemble", array_key(x), row, array_key(out)), (x, out), lambda: self.topology.assemble(x, row, out)
         )
 
     def scatter(self, y: wp.array, out: wp.array2d, row: int, rows: int = 1) -> None:
         """Element-local out[row : row + rows] from a unique-node vector y of ``rows`` rows."""
-        self._replay(
+        self.launches.replay(
             ("scatter", array_key(y), array_key(out), row, rows),
             (y, out),
             lambda: self.topology.scatter(y, out, row, rows),
@@ -500,21 +389,21 @@ class ShallowWater:
     # -- diagnostics helpers ------------------------------------------------
     def vorticity(self, x: wp.array2d) -> np.ndarray:
         """Relative vorticity ζ (s⁻¹), (N,) numpy, with the model's operator and a DSS."""
-        self._replay(
+        self.launches.replay(
             ("vort", array_key(x)),
             (x,),
             lambda: [
-                self._launch_elements(
+                self.launches.elements(
                     operators.vorticity_element(self.grid.np),
                     [*map(self.as_rows, (x, self.D, self.metdet)), self.dvv_rows, self.as_rows(self.scalar_flat)],
                 )
                 if self.per_element
-                else self._launch(
+                else self.launches.nodes(
                     operators.vorticity_sphere,
                     self.N,
                     [x, self.D, self.metdet, self.dvv, self.grid.np, self.scalar_flat],
                 ),
-                *self._dss(self.scalar, 1, self.scalar_dss),
+                *self.topology.dss(self.scalar, 1, self.scalar_dss),
             ],
         )
         return self.scalar_dss.numpy()[0].copy()

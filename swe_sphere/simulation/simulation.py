@@ -343,7 +343,7 @@ class Simulation(StateDiagnostics):
                 initial_diagnostics=ck.initial,  # the state handed out; no second digital filter
                 graphs=graphs,
             )
-            sim._restore_history(ck)
+            sim.restore_history(ck)
         if not isinstance(checkpoint, ckpt.Checkpoint):
             sim.inputs = (Path(checkpoint),)
         return sim
@@ -357,9 +357,9 @@ class Simulation(StateDiagnostics):
         except ValueError as err:
             raise ckpt.CheckpointError(str(err)) from None
         self.x.assign(x)
-        self._restore_history(ck)
+        self.restore_history(ck)
 
-    def _restore_history(self, ck: ckpt.Checkpoint) -> None:
+    def restore_history(self, ck: ckpt.Checkpoint) -> None:
         """``restore`` but the state (already ``ck.x``)."""
         try:
             self.stepper.restore(ck.stepper_state)

@@ -1,12 +1,10 @@
-"""The linear gravity-wave operator shared by the semi-implicit stepper, the
-JFNK preconditioner and the IMEX stepper.
+"""The Helmholtz solve of the semi-implicit stepper, the JFNK preconditioner and the
+IMEX stepper: (I − aL) z = s·r for the linear gravity-wave operator
 
-About a mean depth H, the gravity-wave part of the shallow-water RHS is
+    L_v = −g G h,    L_h = −H D v
 
-    L_v = −g G h,    L_h = −H D v,
-
-with G = DSS∘grad and D = DSS∘div the model's own strong operators (so the
-split F = (F − L) + L of the model's RHS is exact). ``GravityWave.solve``
+about a mean depth H (``model.gravity_wave.GravityWaveOperator``, G = DSS∘grad and
+D = DSS∘div the model's own strong operators). ``HelmholtzSolver.solve``
 inverts (I − aL) for any a through its Schur complement, the Helmholtz
 equation for the height (HOMME ``advance_si_nonstag``; Lott, Woodward &
 Evans 2015 for its use as a preconditioner):
@@ -28,7 +26,7 @@ on the device with no host read: its scalar recurrences, convergence test and
 loop (``wp.capture_while``), the refinement of "mixed" precision and the area
 shift; with one rank a solve is one graph (a CUDA graph; Warp's CPU graph on one
 CPU thread). Its iterations and a failure are counted on the device and read
-once, by ``GravityWave.iterations`` (a step's one host read, or, under
+once, by ``HelmholtzSolver.iterations`` (a step's one host read, or, under
 ``Simulation.run``, a block's: ``Stepper.deferred``); over several ranks
 each inner product's per-rank sums are added on the host (``Topology.allreduce``).
 The operator's bits depend on neither threads nor ranks (its DSS is a gather in
@@ -49,25 +47,23 @@ keeps mass to round-off.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import NamedTuple
+
 import numpy as np
 import scipy.sparse as sp
 import warp as wp
 
 from ..core.errors import StepFailure
 from ..core.graphs import captured
-from ..core.parallel import record, reduction_chunk
+from ..core.parallel import reduction_chunk
 from ..kernels import gravity_wave as gk
 from ..kernels import helmholtz as hk
 from ..kernels import operators
+from ..model.gravity_wave import GravityWaveOperator, check_mean_depth
 from ..model.shallow_water import ShallowWater
 
 f64 = wp.float64
-# the solver options the semi-implicit, IMEX and JFNK steppers no longer have, and why (``Stepper.removed_options``)
-REMOVED_SOLVER_OPTIONS = {
-    "helmholtz_solver": "the compiled CG is the only Helmholtz solver (the host solvers cg, amg, chebyshev, vcycle were slower at the default threads)",
-}
-
-
 PRECISIONS = ("double", "mixed")
 MAX_GUESS_HISTORY = (
     32  # past solutions a solve's start is projected on (``GuessHistory``); k vectors cost 2k of memory and k dots
@@ -80,18 +76,45 @@ def check_precision(precision: str) -> None:
         raise ValueError(f"precision must be one of {', '.join(PRECISIONS)} (got {precision!r})")
 
 
-def check_solve_options(o) -> None:
-    """The checks of a stepper's accurate-solve options ``tol``, ``maxiter``,
-    ``mean_depth``, ``precision``, ``guess_history`` (semi-implicit, IMEX): ValueError '<option> must ...'."""
-    check_precision(o.precision)
-    if not 0 < o.tol < 1:
-        raise ValueError(f"tol must be in (0, 1) (got {o.tol})")
-    if o.maxiter < 1:
-        raise ValueError(f"maxiter must be >= 1 (got {o.maxiter})")
-    if o.mean_depth < 0:
-        raise ValueError(f"mean_depth must be >= 0 (got {o.mean_depth})")
-    if not 0 <= o.guess_history <= MAX_GUESS_HISTORY:
-        raise ValueError(f"guess_history must be in 0..{MAX_GUESS_HISTORY} (got {o.guess_history})")
+@dataclass(frozen=True)
+class HelmholtzOptions:
+    """The options of a Helmholtz solve (the scene tables ``[semi_implicit]``, ``[imex]``
+    and an IMEX ``[tableau]`` hold them among their own): ``tol``, the CG's relative
+    residual ‖r‖ ≤ tol‖b‖, in (0, 1); ``maxiter`` ≥ 1, the CG iterations a solve may take
+    (past it the step fails, ``HelmholtzSolver.iterations``); ``mean_depth`` H (m, ≥ 0;
+    0: the initial state's, ``model.gravity_wave.reference_depth``); ``precision`` (one of
+    ``PRECISIONS``: "double", or "mixed", float32 CG passes refined in float64 to ``tol``);
+    ``guess_history`` (0..``MAX_GUESS_HISTORY``: past solutions a solve starts from the
+    projection on, ``GuessHistory``; 0: from the last solution, or zero). Raises
+    ValueError '<option> must ...'."""
+
+    tol: float = 1e-6
+    maxiter: int = 500
+    mean_depth: float = 0.0
+    precision: str = "double"
+    guess_history: int = 8
+
+    def __post_init__(self):
+        check_precision(self.precision)
+        if not 0 < self.tol < 1:
+            raise ValueError(f"tol must be in (0, 1) (got {self.tol})")
+        if self.maxiter < 1:
+            raise ValueError(f"maxiter must be >= 1 (got {self.maxiter})")
+        check_mean_depth(self.mean_depth)
+        if not 0 <= self.guess_history <= MAX_GUESS_HISTORY:
+            raise ValueError(f"guess_history must be in 0..{MAX_GUESS_HISTORY} (got {self.guess_history})")
+
+
+class HistoryWork(NamedTuple):
+    """The work arrays a solver's ``GuessHistory``s share: the solve's start y0 and its
+    product w0 (nunique,), the partial sums (k + 4, chunks), the projection's coefficients
+    (k,) and the increment's sums (k + 4,)."""
+
+    y0: wp.array
+    w0: wp.array
+    partial: wp.array
+    alpha: wp.array
+    sums: wp.array
 
 
 def element_gradient(model: ShallowWater) -> tuple[sp.csr_matrix, sp.csr_matrix]:
@@ -159,40 +182,36 @@ def helmholtz_matrix(model: ShallowWater) -> sp.csr_matrix:
     return K
 
 
-class GravityWave:
-    """The linear gravity-wave operator L and solves of (I − aL) z = s·r.
+class HelmholtzSolver:
+    """Solves of (I − aL) z = s·r for the linear gravity-wave operator L.
 
-    Parameters: the model; ``mean_depth`` H (m; 0 = the mean depth of the first
-    state passed to ``set_depth``); ``tol`` (relative residual of the CG, ‖r‖ ≤ tol‖b‖) and
-    ``maxiter``; ``warm``: start each CG from the last solution (for a
-    sequence of similar solves, as the semi-implicit steps); ``history`` k > 0: start it
-    from the projection onto past solutions instead (``GuessHistory``, one per a), with no
-    product for its residual; ``precision``:
+    Parameters: ``operator``, the ``GravityWaveOperator`` L (its model and its mean depth H,
+    fixed by ``operator.set_depth``); ``options``, a ``HelmholtzOptions``: ``tol`` (relative
+    residual of the CG, ‖r‖ ≤ tol‖b‖) and ``maxiter``; ``guess_history`` k > 0: start each CG
+    from the projection onto past solutions (``GuessHistory``, one per a), with no product for
+    its residual; ``precision``:
     "double", or "mixed" (the CG in float32, ``HelmholtzCG``, refined in float64
     to ``tol``, ``_refined``; float32 alone for a tol it reaches, as the JFNK
     preconditioner's 1e-2). On the CPU the float32 product is no faster than the
     float64 one (it is bound by its gathers, not its bytes:
-    ``benchmarks/helmholtz_roofline.py``), so "double" is every stepper's default.
+    ``benchmarks/helmholtz_roofline.py``), so "double" is every stepper's default. ``warm``:
+    with k = 0, start each CG from the last solution (for a sequence of similar solves, as
+    the semi-implicit steps), else from zero.
 
-    ``apply(x, out)``: out = L x (states (3, N), element-local). ``solve(r, a,
-    z, scale)``: z = (I − aL)⁻¹ (scale·r), enqueued on the device with nothing read
+    ``solve(r, a, z, scale)``: z = (I − aL)⁻¹ (scale·r), enqueued on the device with nothing read
     back (with one rank a graph per (r, z, a, scale, H), captured on its first call:
     a CUDA graph, or Warp's CPU graph on one CPU thread; inline while a caller
     captures). ``iterations()``: the CG iterations of the solves since its last call
     — one host read — raising
     ``StepFailure`` when one of them did not reach ``tol`` within ``maxiter`` (the
-    steppers call it once a step, JFNK once a GMRES solve). ``ValueError`` for a
-    model without continuity and pressure gradient.
+    steppers call it once a step, JFNK once a GMRES solve).
     """
 
-    def __init__(
-        self, model: ShallowWater, mean_depth=0.0, tol=1e-10, maxiter=500, warm=False, precision="double", history=0
-    ):
-        for term in ("continuity", "pressure_gradient"):
-            if term not in model.terms:
-                raise ValueError(f"the gravity-wave operator needs the {term} term")
-        self.model, self.H = model, float(mean_depth)
-        self.tol, self.maxiter, self.warm = float(tol), int(maxiter), bool(warm)
+    def __init__(self, operator: GravityWaveOperator, options: HelmholtzOptions, warm: bool = False):
+        self.operator = operator
+        self.model = model = operator.model
+        self.tol, self.maxiter, self.warm = float(options.tol), int(options.maxiter), bool(warm)
+        precision = options.precision
         dev, N, nu = model.device, model.N, model.topology.nunique
         self.Gh, self.Dv = wp.zeros((2, N), dtype=f64, device=dev), wp.zeros((1, N), dtype=f64, device=dev)
         self.b, self.y = wp.zeros(nu, dtype=f64, device=dev), wp.zeros(nu, dtype=f64, device=dev)
@@ -201,7 +220,7 @@ class GravityWave:
         )  # iterations, failures, the first failure's residual (hk.ITERATIONS …)
         self.cg = HelmholtzCG(model, f64, self.b, self.y, self.stats)
         self.low = None if precision == "double" else HelmholtzCG(model, wp.float32, stats=self.stats)
-        rec = self.cg._rec
+        rec = model.launches.record
         self._shift = rec(hk.add_mean_difference, nu, [self.y, self.cg.sums, f64(model.topology.total_area)])
         if self.low is not None:  # the refinement's conversions between the two solves and its test
             self._narrow = rec(hk.converted(wp.float32), nu, [self.b, self.low.b])
@@ -244,16 +263,22 @@ class GravityWave:
         # shared by a step's stages of one a (IMEX ARS's all): their span holds the last stage's
         # solution, today's warm start (TC5 ne8 ARS(3,4,3) @ 8 dt_g, CG iterations a solve:
         # 18.2 warm, per stage 19.5-19.7 with k = 2..8, shared 17.9 / 17.3 / 16.3 with k = 2 / 4 / 8)
-        self.history = int(history)
+        self.history = int(options.guess_history)
         self._histories: dict[float, GuessHistory] = {}
         self._history = None
         if self.history:
-            self._y0, self._w0 = wp.zeros(nu, dtype=f64, device=dev), wp.zeros(nu, dtype=f64, device=dev)
-            self._hpartial = wp.zeros((self.history + 4, self.cg.partial.shape[1]), dtype=f64, device=dev)
-            self._alpha, self._hsums = (
-                wp.zeros(self.history, dtype=f64, device=dev),
-                wp.zeros(self.history + 4, dtype=f64, device=dev),
+            self.history_work = HistoryWork(
+                y0=wp.zeros(nu, dtype=f64, device=dev),
+                w0=wp.zeros(nu, dtype=f64, device=dev),
+                partial=wp.zeros((self.history + 4, self.cg.partial.shape[1]), dtype=f64, device=dev),
+                alpha=wp.zeros(self.history, dtype=f64, device=dev),
+                sums=wp.zeros(self.history + 4, dtype=f64, device=dev),
             )
+
+    @property
+    def H(self) -> float:
+        """The operator's mean depth H (m; 0 until fixed)."""
+        return self.operator.H
 
     # -- what carries over between solves (for bitwise restarts) ----------------------
     def state(self) -> dict:
@@ -277,7 +302,7 @@ class GravityWave:
 
     def restore(self, state: dict, entry) -> None:
         """Set what ``state()`` returned; ``entry(state, key)`` raises ValueError for a missing key."""
-        self.H = float(entry(state, "mean_depth"))
+        self.operator.H = float(entry(state, "mean_depth"))
         if self.history:
             # in place: the solves' graphs (``_run``) hold the bases' arrays; a sequence the
             # state does not name starts empty, as a new one would
@@ -301,19 +326,7 @@ class GravityWave:
             )  # on rank 0 only when several ranks
             self.y.assign(guess[2][topo.first.numpy()])
 
-    # -- L and the Schur complement (element-local) ---------------------------------
-    def set_depth(self, x) -> None:
-        """Take H as the area mean of x's depth if no mean depth was given."""
-        if self.H == 0.0:
-            self.H = self.model.topology.mean(x.numpy()[2])
-
-    def apply(self, x, out) -> None:
-        """out = L x = (−g G h, −H D v)."""
-        m = self.model
-        m.gradient(x, 2, self.Gh)
-        m.divergence(x, self.Dv)
-        m.pointwise(gk.apply, self.Gh, self.Dv, f64(m.g), f64(self.H), out)
-
+    # -- the Schur complement (element-local) -------------------------------------------
     def solve(self, r, a: float, z, scale: float = 1.0, implicit=None) -> None:
         """z = (I − aL)⁻¹ (scale·r) through the Helmholtz equation; z may alias r. ``implicit``
         (a (3, N) array, may alias r, not z): also L z = (z − scale·r)/a, written by the
@@ -372,10 +385,10 @@ class GravityWave:
         launches = self._schur_launches.get(key)
         if launches is None:
             m, topo, cg = self.model, self.model.topology, self.cg
-            rows, np_, halo = cg._rows, m.grid.np, topo.owned.recv_buffer
+            rows, np_, halo, rec = m.as_rows, m.grid.np, topo.owned.recv_buffer, m.launches.record
             elements = dict(nodes_per_index=np_**2)
             rhs = [
-                cg._rec(
+                rec(
                     hk.helmholtz_rhs(np_),
                     m.grid.nelem,
                     [
@@ -391,7 +404,7 @@ class GravityWave:
                     **elements,
                 ),
                 *topo.exchange(cg.z),
-                cg._rec(
+                rec(
                     hk.helmholtz_assemble(topo.table.shape[1]),
                     cg.partial.shape[1],
                     [cg.z, topo.ghost, topo.N, topo.table, topo.first, self.y, self.b, cg.partial, cg.chunk],
@@ -400,14 +413,14 @@ class GravityWave:
             ]
             back = [
                 *topo.exchange(self.y.reshape((1, topo.nunique)), unique=True),
-                cg._rec(
+                rec(
                     hk.helmholtz_gradient(np_),
                     m.grid.nelem,
                     [self.y, halo, topo.gid, rows(cg.Dinv), rows(cg.spheremp), cg.dvv, rows(cg.wg)],
                     **elements,
                 ),
                 *topo.exchange(cg.wg),
-                cg._rec(
+                rec(
                     hk.helmholtz_back_substitution(np_, topo.table.shape[1], implicit is not None),
                     m.grid.nelem,
                     [
@@ -507,7 +520,7 @@ class GravityWave:
 
 
 class GuessHistory:
-    """The start of a sequence of solves (M + cK) y = b with one c (``GravityWave``'s with
+    """The start of a sequence of solves (M + cK) y = b with one c (``HelmholtzSolver``'s with
     ``history`` k): projection onto the past solutions (Fischer 1998, Comput. Methods Appl.
     Mech. Engrg. 163, 193, "method 2"; PETSc's ``KSPFischerGuess``). X (k, nunique) is an
     A-orthonormal basis of up to k vectors, AX their products; the start is y0 = Σ (Xⱼ·b) Xⱼ,
@@ -519,13 +532,13 @@ class GuessHistory:
     products are summed on the device in index order and over ranks by ``Topology``
     (``HelmholtzCG.totals``' way): the same bits on any threads, to round-off on any ranks.
 
-    ``guess()``: y, w (and the copies y0, w0) of ``GravityWave``'s CG set to the start;
+    ``guess()``: y, w (and the copies y0, w0) of ``HelmholtzSolver``'s CG set to the start;
     ``store()``: the solution into the basis (launches, nothing read back). ``count()``:
     the vectors in use (a host read); ``whole()``/``set(count, arrays, what)``: X and AX
     as ``arrays`` whole-grid (3, npts_total) arrays, three vectors each (rows past 2k zero),
-    for ``GravityWave.state``/``restore`` (ValueError naming ``what`` for a misshapen one)."""
+    for ``HelmholtzSolver.state``/``restore`` (ValueError naming ``what`` for a misshapen one)."""
 
-    def __init__(self, gw: GravityWave):
+    def __init__(self, gw: HelmholtzSolver):
         cg, topo, dev, k = gw.cg, gw.model.topology, gw.model.device, gw.history
         self.topology, self.k = topo, k
         self.X = wp.zeros((k, topo.nunique), dtype=f64, device=dev)
@@ -533,8 +546,8 @@ class GuessHistory:
         self.hic = wp.zeros(3, dtype=wp.int32, device=dev)  # kernels.helmholtz COUNT, MODE, SLOT
         self.hcs = wp.zeros(max(k + 1, 3), dtype=f64, device=dev)  # 1/‖·‖_A, the βⱼ
         self.arrays = (2 * k + 2) // 3
-        rec, nchunks, chunk, nu = cg._rec, cg.partial.shape[1], cg.chunk, topo.nunique
-        partial, alpha, sums, y, y0, w0 = gw._hpartial, gw._alpha, gw._hsums, gw.y, gw._y0, gw._w0
+        rec, nchunks, chunk, nu = gw.model.launches.record, cg.partial.shape[1], cg.chunk, topo.nunique
+        y, (y0, w0, partial, alpha, sums) = gw.y, gw.history_work
         self._guess = [
             rec(hk.history_dots, nchunks, [self.X, gw.b, self.hic, partial, chunk], nodes_per_index=chunk),
             *topo.device_sums(partial, k, alpha),
@@ -594,36 +607,6 @@ class GuessHistory:
         self.hic.assign(np.array([count, 0, 0], dtype=np.int32))
 
 
-class HelmholtzSteps:
-    """What the semi-implicit and IMEX steppers (their ``GravityWave`` ``gw``, built with
-    ``warm``) share, put before their ``Stepper`` base: the mean depth and the CG's warm
-    guess in ``state``/``restore``; the CG's device counters as ``counts`` (read with the
-    step when not ``deferred``, ``Stepper._device_counts``); and a graph key once the step
-    reads nothing: H fixed (the first step's host read, ``set_depth``), the counters
-    ``deferred``, and the CG's loops able to be graph nodes (``GravityWave.graphable``:
-    one rank; on CUDA conditional nodes)."""
-
-    capturable = True
-    solvers = ("helmholtz",)
-
-    def counts(self):
-        return {"helmholtz": self.gw.iterations()}
-
-    def device_arrays(self):
-        return [self.gw.stats]
-
-    def graph_key(self):
-        gw = self.gw
-        return super().graph_key() if gw.H and gw.graphable and self.deferred else None
-
-    def state(self):
-        return {**super().state(), **self.gw.state()}
-
-    def restore(self, state):
-        super().restore(state)
-        self.gw.restore(state, self._entry)
-
-
 # the float32 CG's reach: a tolerance at or above SINGLE_TOL is solved in float32 alone;
 # below it, refinement passes each reduce the float64 residual by SINGLE_FLOOR at most
 # (float32's unit round-off 6e-8 times the growth of CG's recurrences)
@@ -634,7 +617,7 @@ SINGLE_FLOOR = 1e-4
 class HelmholtzCG:
     """(M + cK) y = b on unique nodes (``nunique``,) by Chronopoulos–Gear CG (1989, J.
     Comput. Appl. Math. 25, 153) preconditioned by M⁻¹, matrix-free, in ``dtype``
-    (float64, or float32 for the inner solves of ``GravityWave``'s "mixed"
+    (float64, or float32 for the inner solves of ``HelmholtzSolver``'s "mixed"
     precision); inner products summed in float64 in a fixed order on any device,
     threads and ranks. ``b``, ``y``: the right-hand side and solution vectors
     (float64 ones may be given, shared with the caller); ``stats``: the float64
@@ -649,7 +632,7 @@ class HelmholtzCG:
     (k iterations cost k products, k + 1 from a warm start; over ranks k + 1 and one
     reduction an iteration, as Chronopoulos–Gear's order). The loop is
     ``wp.capture_while`` on a device flag: a host loop on the CPU (it reads the flag
-    in place, no copy), a conditional node inside a CUDA graph (``GravityWave``
+    in place, no copy), a conditional node inside a CUDA graph (``HelmholtzSolver``
     captures the solve) — the same kernels, so the same bits on CPU threads and to
     round-off on CUDA. Over several MPI ranks the per-rank sums go through the host
     between the two (``Topology.allreduce``: one read an iteration); on one rank no
@@ -658,7 +641,7 @@ class HelmholtzCG:
     ``apply(y, out, c)``: out = (M + cK) y. ``solve(c, tol, maxiter, warm)``: y to the
     relative residual tol from y (``warm``) or from zero; adds its iterations to
     ``stats`` and, past ``maxiter``, a failure (nothing is read back: the caller reads
-    ``stats``, ``GravityWave.iterations``). ``residual(c)``: r = b − Ay and r·r into
+    ``stats``, ``HelmholtzSolver.iterations``). ``residual(c)``: r = b − Ay and r·r into
     ``sums[2]``, b·b into ``sums[1]`` (refinement's)."""
 
     def __init__(self, model: ShallowWater, dtype=f64, b=None, y=None, stats=None):
@@ -691,7 +674,7 @@ class HelmholtzCG:
         self._ops: dict[tuple, list] = {}
         self._div: dict[tuple, list] = {}  # each operator's divergence launch and the c it has
         self._inner = {}
-        rec, nchunks = self._rec, self.partial.shape[1]
+        rec, nchunks = model.launches.record, self.partial.shape[1]
         update = [self.p, self.s, self.y, self.r, self.u, self.w, self.minv, self.partial, chunk]
         self._update = rec(hk.cg_update(dtype), nchunks, [self.cs, 0, *update], nodes_per_index=chunk)
         self._restart = rec(hk.cg_update(dtype), nchunks, [self.cs, 1, *update], nodes_per_index=chunk)
@@ -710,12 +693,6 @@ class HelmholtzCG:
         # than the converged iteration's product, a 1/P share); on one rank the sums stay on the device
         self._one_reduction = topo.distributed
 
-    def _rec(self, kernel, dim, inputs, **kw):
-        return record(kernel, dim, inputs, device=self.model.device, threads=self.model.threads, **kw)
-
-    def _rows(self, a):
-        return operators.row_vectors(a, self.model.grid.np)
-
     def _operator(self, y, out) -> list:
         """Launches for out = (M + cK) y (unique-node vectors; c set by ``apply``), recorded once per pair."""
         key = (y.ptr, out.ptr)
@@ -724,7 +701,7 @@ class HelmholtzCG:
             m, topo, dt = self.model, self.model.topology, self.dtype
             halo = topo.owned.recv_buffer
             y2 = y.reshape((1, topo.nunique))
-            div = self._rec(
+            div = self.model.launches.record(
                 hk.helmholtz_divergence(m.grid.np, topo.table.shape[1], dt),
                 m.grid.nelem,
                 [
@@ -736,22 +713,30 @@ class HelmholtzCG:
                     y,
                     halo,
                     topo.gid,
-                    self._rows(self.Dinv),
-                    self._rows(self.metdet),
-                    self._rows(self.spheremp),
+                    self.model.as_rows(self.Dinv),
+                    self.model.as_rows(self.metdet),
+                    self.model.as_rows(self.spheremp),
                     self.dvv,
                     dt(0.0),
-                    self._rows(self.z),
+                    self.model.as_rows(self.z),
                 ],
                 nodes_per_index=m.grid.np**2,
             )
-            grad = self._rec(
+            grad = self.model.launches.record(
                 hk.helmholtz_gradient(m.grid.np, dt),
                 m.grid.nelem,
-                [y, halo, topo.gid, self._rows(self.Dinv), self._rows(self.spheremp), self.dvv, self._rows(self.wg)],
+                [
+                    y,
+                    halo,
+                    topo.gid,
+                    self.model.as_rows(self.Dinv),
+                    self.model.as_rows(self.spheremp),
+                    self.dvv,
+                    self.model.as_rows(self.wg),
+                ],
                 nodes_per_index=m.grid.np**2,
             )
-            assemble = self._rec(
+            assemble = self.model.launches.record(
                 hk.helmholtz_assemble(topo.table.shape[1], dt),
                 self.partial.shape[1],
                 [self.z, topo.ghost, topo.N, topo.table, topo.first, y, out, self.partial, self.chunk],
@@ -775,7 +760,7 @@ class HelmholtzCG:
         launches = self._ops.get(key)
         if launches is None:
             topo = self.model.topology
-            combine = self._rec(
+            combine = self.model.launches.record(
                 hk.helmholtz_combine,
                 self.partial.shape[1],
                 [self.z, topo.first, y, self.area, f64(0.0), out, self.partial, self.chunk],
@@ -811,7 +796,7 @@ class HelmholtzCG:
         key = tuple(a.ptr for a in (a0, b0, a1, b1, a2, b2))
         launch = self._inner.get(key)
         if launch is None:
-            launch = self._inner[key] = self._rec(
+            launch = self._inner[key] = self.model.launches.record(
                 hk.inner3(self.dtype),
                 self.partial.shape[1],
                 [a0, b0, a1, b1, a2, b2, self.partial, self.chunk],

@@ -32,7 +32,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from ..solvers.helmholtz import check_solve_options
+from ..solvers.helmholtz import HelmholtzOptions
 from .tables import EXPLICIT
 
 TOL = 1e-9  # order conditions and row sums hold to this (rational entries exactly)
@@ -46,7 +46,7 @@ def frozen_table(value):
 
 
 @dataclass(frozen=True)
-class TableauOptions:
+class TableauOptions(HelmholtzOptions):
     """Scene table ``[tableau]``: ``name`` and ``description`` of the table (strings,
     shown by the run file and ``swe-sphere list``), the ``order`` it claims (1..6),
     an explicit table ``A`` (s × s), ``b``, ``c`` (s) or an IMEX pair ``A_E``,
@@ -65,11 +65,6 @@ class TableauOptions:
     b_E: tuple = ()
     A_I: tuple = ()
     b_I: tuple = ()
-    tol: float = 1e-6
-    maxiter: int = 500
-    mean_depth: float = 0.0
-    precision: str = "double"
-    guess_history: int = 8
 
     def __post_init__(self):
         for key in PARTS:  # a table read back from JSON (a restart file's scene) holds lists
@@ -77,7 +72,7 @@ class TableauOptions:
         if not self.name and not self.order and not any(getattr(self, key) for key in PARTS):
             for key, value in EXPLICIT["rk4"].items():  # the default: the classical RK4 table
                 object.__setattr__(self, key, value)
-        check_solve_options(self)
+        super().__post_init__()
         parse(self)
 
 

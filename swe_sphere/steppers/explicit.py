@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..model.launches import Update
 from .base import Stepper, StepStats
 
 
@@ -82,12 +83,12 @@ class FBRK32(Stepper):
                 tilde = ((2 * beta, x), (beta * c * dt, None), (1 - 2 * beta, t))
             else:  # h̃ = β h⁽ⁱ⁾ + (1 − β) h(n)
                 tilde = ((1.0, x), (beta * c * dt, None))
-            depth = ((U, kh, ((1.0, None),)),) if forced else ()
-            depth += ((H, s, tilde), (H, out, ((1.0, x), (c * dt, None))))
+            depth = (Update(kh, ((1.0, None),), U),) if forced else ()
+            depth += (Update(s, tilde, H), Update(out, ((1.0, x), (c * dt, None)), H))
             wind = ((1.0, x), *(((c * dt, kh),) if forced else ()), (c * dt, None))  # u⁽ⁱ⁾ = u(n) + cΔt (F_u)
             if self.momentum:
                 launches = [self._lincomb(s[U], (1.0, x[U]), (0.0, x[U]))] if i == 0 else []  # u⁽⁰⁾ = u(n)
-                momentum = ((U, out, wind),) + (() if last else ((U, s, wind),))
+                momentum = (Update(out, wind, U),) + (() if last else (Update(s, wind, U),))
             else:
                 launches, momentum = [self._lincomb(out[U], (1.0, x[U]), (c * dt, kh[U]))], None
             self._stages.append((self.C[i - 1] if i else 0.0, x if i == 0 else t, depth, launches, momentum))
@@ -137,8 +138,8 @@ class _LeapfrogFamily(Stepper):
         """Record the launches on x (once per state array)."""
         dt = self.dt
         self._x = x
-        self._start_mid = ((None, self.new, ((1.0, x), (dt / 2, None))),)  # x(n + 1/2), from F(x(n))
-        self._start_end = ((None, self.old, ((1.0, x),)), (None, x, ((1.0, x), (dt, None))))  # keep x(n); x(n+1)
+        self._start_mid = (Update(self.new, ((1.0, x), (dt / 2, None))),)  # x(n + 1/2), from F(x(n))
+        self._start_end = (Update(self.old, ((1.0, x),)), Update(x, ((1.0, x), (dt, None))))  # keep x(n); x(n+1)
         self._start_keep = self._lincomb(self.old, (1.0, x), (0.0, x))  # the semi-implicit start's
         self._copy_new = self._lincomb(x, (1.0, self.new), (0.0, self.new))
         self._record_scheme(x)
@@ -179,7 +180,7 @@ class Leapfrog(_LeapfrogFamily):
 
     def _record_scheme(self, x):
         eps = self.options.robert_asselin
-        self._lf = ((None, self.new, ((1.0, self.old), (2 * self.dt, None))),)
+        self._lf = (Update(self.new, ((1.0, self.old), (2 * self.dt, None))),)
         self._ra = self._lincomb(self.old, (1 - 2 * eps, x), (eps, self.old), (eps, self.new))
 
     def _step(self, x):
@@ -208,10 +209,10 @@ class LeapfrogTrapezoidal(_LeapfrogFamily):
     def _record_scheme(self, x):
         dt = self.dt
         self._pred = (
-            (None, self.new, ((1.0, self.old), (2 * dt, None))),
-            (None, self.half, ((1.0, x), (dt / 2, None))),
+            Update(self.new, ((1.0, self.old), (2 * dt, None))),
+            Update(self.half, ((1.0, x), (dt / 2, None))),
         )
-        self._corr = ((None, self.old, ((1.0, x),)), (None, x, ((1.0, self.half), (dt / 2, None))))  # keep x(n); x(n+1)
+        self._corr = (Update(self.old, ((1.0, x),)), Update(x, ((1.0, self.half), (dt / 2, None))))  # keep x(n); x(n+1)
 
     def _step(self, x):
         m = self.model

@@ -25,7 +25,7 @@ extrapolation 2x(n) − x(n−1) (``initial_guess``; x(n) on the first step).
 
 Preconditioner (``preconditioner = "helmholtz"``, the default; Lott, Woodward
 & Evans 2015): the linearised gravity-wave block P = I/Δt − β L
-(L_v = −g∇h, L_h = −H∇·v, ``helmholtz.GravityWave``), P⁻¹ = Δt (I − βΔt L)⁻¹
+(L_v = −g∇h, L_h = −H∇·v, ``model.gravity_wave.GravityWaveOperator``), P⁻¹ = Δt (I − βΔt L)⁻¹
 through its Schur complement, the Helmholtz equation solved by the compiled
 mass-preconditioned CG to ``helmholtz_tol`` (1e-2: an inexact, varying inner
 solve, which flexible GMRES allows).
@@ -47,10 +47,12 @@ import warp as wp
 from ..core.errors import StepFailure
 from ..kernels import blas
 from ..kernels import implicit as ik
-from ..solvers.helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, check_precision
+from ..model.gravity_wave import GravityWaveOperator, check_mean_depth
+from ..solvers.helmholtz import HelmholtzOptions, HelmholtzSolver, check_precision
 from ..solvers.jacobian import FiniteDifferenceJacobian, KernelPasses
 from ..solvers.krylov import FGMRES, KernelVectors
 from .base import Stepper, StepStats
+from .helmholtz_steps import REMOVED_SOLVER_OPTIONS
 
 f64 = wp.float64
 
@@ -89,8 +91,7 @@ class ImplicitOptions:
                 raise ValueError(f"{name} must be in (0, 1) (got {getattr(self, name)})")
         if self.preconditioner not in ("none", "helmholtz"):
             raise ValueError(f"preconditioner must be 'none' or 'helmholtz' (got {self.preconditioner!r})")
-        if self.mean_depth < 0:
-            raise ValueError(f"mean_depth must be >= 0 (got {self.mean_depth})")
+        check_mean_depth(self.mean_depth)
         if self.initial_guess not in ("extrapolate", "previous"):
             raise ValueError(f"initial_guess must be 'extrapolate' or 'previous' (got {self.initial_guess!r})")
 
@@ -130,9 +131,10 @@ class Implicit(Stepper):
         super().__init__(model, dt, options)
         o = self.o = dataclasses.asdict(self.options)
         dev, N = model.device, self.N
-        self.gw = None
-        if o["preconditioner"] == "helmholtz":
-            self.gw = GravityWave(model, o["mean_depth"], o["helmholtz_tol"], 1000, precision=o["precision"])
+        self.helmholtz = None
+        if o["preconditioner"] == "helmholtz":  # a loose solve from zero each time
+            solve = HelmholtzOptions(o["helmholtz_tol"], 1000, o["mean_depth"], o["precision"], guess_history=0)
+            self.helmholtz = HelmholtzSolver(GravityWaveOperator(model, o["mean_depth"]), solve)
         for name in ("xn", "xprev", "b", "Fx", "R", "delta", "trial", "Ft", "Rt", "v", "z"):
             setattr(self, name, wp.zeros((3, N), dtype=f64, device=dev))
         # Krylov vectors live on unique nodes; the J·v's RHS evaluations are counted by the GMRES
@@ -169,7 +171,7 @@ class Implicit(Stepper):
     # -- the linear operator: J P⁻¹ ----------------------------------------------
     def _precondition(self, r, z):
         """z = P⁻¹ r = Δt (I − βΔt L)⁻¹ r (element-local states; see the module docstring)."""
-        self.gw.solve(r, self.beta * self.dt, z, scale=self.dt)  # its iterations read after the GMRES solve
+        self.helmholtz.solve(r, self.beta * self.dt, z, scale=self.dt)  # its iterations read after the GMRES solve
         self._counts["precond"] += 1
 
     def _scatter(self, u, out):
@@ -184,7 +186,7 @@ class Implicit(Stepper):
 
     def _unique_precondition(self, w, out):
         """out = P⁻¹ w on unique-node vectors (out = w without a preconditioner)."""
-        if self.gw is None:
+        if self.helmholtz is None:
             wp.copy(out, w)
             return
         self._scatter(w, self.v)
@@ -200,7 +202,7 @@ class Implicit(Stepper):
         depend on the backends, the iterate and F(x) arrays (Fx alternates), Δt and β."""
         m, topo = self.model, self.topology
         if (
-            self.gw is not None
+            self.helmholtz is not None
             or m.forcing is not None
             or topo.distributed
             or not m.graph_guard.enabled
@@ -227,8 +229,8 @@ class Implicit(Stepper):
         )
         self.rhs_evals += its
         self._counts["gmres"] += its
-        if self.gw is not None:
-            self._counts["helmholtz"] += self.gw.iterations()  # and a failed preconditioner solve raised
+        if self.helmholtz is not None:
+            self._counts["helmholtz"] += self.helmholtz.iterations()  # and a failed preconditioner solve raised
         self._scatter(self.w, self.delta)
 
     # -- Newton ------------------------------------------------------------------------
@@ -295,16 +297,16 @@ class Implicit(Stepper):
 
     def state(self):
         s = super().state()
-        if self.gw is not None:
-            s["mean_depth"] = self.gw.H  # 0 until fixed by the first step
+        if self.helmholtz is not None:
+            s["mean_depth"] = self.helmholtz.H  # 0 until fixed by the first step
         if self._uses_previous():
             s["previous"] = self._save(self.xprev)
         return s
 
     def restore(self, state):
         super().restore(state)
-        if self.gw is not None:
-            self.gw.restore(state, self._entry)
+        if self.helmholtz is not None:
+            self.helmholtz.restore(state, self._entry)
         if self._uses_previous():
             self._load(self.xprev, state, "previous")
 
@@ -312,8 +314,8 @@ class Implicit(Stepper):
         o, m = self.o, self.model
         self.rhs_evals = 0
         self._counts = dict.fromkeys(self._counts, 0)
-        if self.gw is not None:
-            self.gw.set_depth(x)
+        if self.helmholtz is not None:
+            self.helmholtz.operator.set_depth(x)
         wp.copy(self.xn, x)
         if o["method"] == "bdf2" and self.steps > 0:
             self.beta = 2.0 / 3.0

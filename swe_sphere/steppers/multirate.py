@@ -2,7 +2,7 @@
 that take many cheap fast substeps a slow step without a global solve.
 
 The split (``GravitySplit``). About a reference depth H, the fast part is the linear
-gravity-wave operator of ``helmholtz.GravityWave``, L x = (−g G h, −H D v) (G = DSS∘grad,
+gravity-wave operator ``model.gravity_wave.GravityWaveOperator``, L x = (−g G h, −H D v) (G = DSS∘grad,
 D = DSS∘div); the slow part N = F − L is the rest: −(ζ + f) k×v − ∇(½|v|²), the
 mountain's −g∇hs, −∇·(h′v) with h′ = h − H, and the forcing. The steppers carry the
 depth as h′ through a step (h − H is exact for H/2 ≤ h ≤ 2H, Sterbenz), so N is the
@@ -11,7 +11,7 @@ tendency pass and one DSS, compiled for those terms (``ShallowWater.rhs`` with
 ``terms``), not F − L by two evaluations. A fast evaluation L z + ρ is one element pass
 of the gradient of h′ and the divergence of v (``kernels.gravity_wave.linear_element``)
 and one DSS of its three rows into the combination that uses it
-(``ShallowWater.linear_update``): 2 launches moving 0.86× the bytes of the RHS's 2
+(``GravityWaveOperator.update``): 2 launches moving 0.86× the bytes of the RHS's 2
 (``tally.Tally``), with far less arithmetic than the flux-form tendency. Mass: both parts'
 depth rows are DSS'd divergences, whose area integral is zero, so every stage keeps ∫h to
 round-off.
@@ -66,6 +66,8 @@ from fractions import Fraction
 import numpy as np
 import warp as wp
 
+from ..model.gravity_wave import GravityWaveOperator, check_mean_depth
+from ..model.launches import Update
 from .base import Stepper, StepStats
 from .butcher import TableauOptions, frozen_table, parse, stage_form, table_entry
 from .tables import EXPLICIT, MULTIRATE
@@ -92,45 +94,41 @@ def substeps_label(options) -> str:
     return f"n={options.substeps}"
 
 
-def check_mean_depth(mean_depth) -> None:
-    """ValueError 'mean_depth must be ...' unless ≥ 0 (0: the initial mean)."""
-    if not mean_depth >= 0:
-        raise ValueError(f"mean_depth must be >= 0 (got {mean_depth})")
-
-
-def reference_depth(mean: float) -> float:
-    """H from the area-mean depth, rounded to 6 significant digits: any depth near the mean
-    serves the split, and a rounded one is the same on any number of ranks (whose sums
-    of the mean differ in their last bits)."""
-    return float(f"{mean:.6g}")
-
-
 class GravitySplit:
     """The fast/slow split of the model's RHS about a reference depth H (m; 0: the
-    rounded area-mean depth of the first state given to ``set_depth``).
+    rounded area-mean depth of the first state given to ``set_depth``, the
+    ``GravityWaveOperator``'s rule).
 
     States are (3, N) element-local with the depth as h′ = h − H (``to_perturbation``,
     ``from_perturbation``). ``slow(x, out)``: out = N(x) = F(u, v, h) − L x, the model's
     RHS without its pressure gradient at h′ (one tendency pass and its DSS); ``fast(x,
-    out)``: out = L x (a forward–backward substep takes its halves apart, through
-    ``ShallowWater.gradient_update`` and ``divergence_update``). ValueError for a model
-    without the continuity and pressure-gradient terms."""
+    out)``: out = L x (``linear``, the ``GravityWaveOperator``; a forward–backward substep
+    takes its halves apart, through ``ShallowWater.gradient_update`` and
+    ``divergence_update``). ValueError for a model without the continuity and
+    pressure-gradient terms."""
 
     def __init__(self, model, mean_depth: float = 0.0):
-        for term in ("continuity", "pressure_gradient"):
-            if term not in model.terms:
-                raise ValueError(f"the fast/slow split needs the {term} term")
-        self.model, self.H = model, float(mean_depth)
+        self.linear = GravityWaveOperator(model, mean_depth)
+        self.model = model
         self.slow_terms = tuple(t for t in model.terms if t not in ("pressure_gradient", "hyperviscosity"))
         self.depth = wp.zeros((1, model.N), dtype=f64, device=model.device)  # H at every node
         self._shifts: dict[tuple, tuple] = {}
-        if self.H:
-            self.depth.fill_(self.H)
+        self.set_depth_value(mean_depth)
+
+    @property
+    def H(self) -> float:
+        """The reference depth H (m; 0 until fixed), the operator's."""
+        return self.linear.H
+
+    def set_depth_value(self, H: float) -> None:
+        """Set H (m; 0: not yet fixed) and, fixed, the depth array the shifts subtract."""
+        self.linear.H = float(H)
+        if self.linear.H:
+            self.depth.fill_(self.linear.H)
 
     def set_depth(self, x) -> None:
         """Fix H from x (a state with the full depth) unless given or fixed before."""
-        if self.H == 0.0:
-            self.H = reference_depth(self.model.topology.mean(x.numpy()[2]))
+        self.linear.set_depth(x)
         self.depth.fill_(self.H)
 
     def to_perturbation(self, x) -> None:
@@ -153,9 +151,8 @@ class GravitySplit:
 
     def fast(self, x, out, forcing=None) -> None:
         """out (3, N) = L x = (−g G h′, −H D v) (+ forcing, a (3, N) array), both halves in
-        one element pass and one DSS (``ShallowWater.linear_update``)."""
-        terms = ((1.0, None),) if forcing is None else ((1.0, None), (1.0, forcing))
-        self.model.linear_update(x, self.H, [(out, terms)])
+        one element pass and one DSS (``GravityWaveOperator.apply``)."""
+        self.linear.apply(x, out, forcing)
 
 
 class _Multirate(Stepper):
@@ -191,9 +188,7 @@ class _Multirate(Stepper):
 
     def restore(self, state):
         super().restore(state)
-        self.split.H = float(self._entry(state, "mean_depth"))
-        if self.split.H:
-            self.split.depth.fill_(self.split.H)
+        self.split.set_depth_value(self._entry(state, "mean_depth"))
         self.n_fast = None
 
     def graph_key(self):
@@ -330,13 +325,15 @@ class SplitExplicit(_Multirate):
         self.model.gradient_update(
             w if not first and beta else prev,
             2,
-            [(W[0:2], ((1.0, (prev if first else W)[0:2]), (tau, forcing[0:2]), (-g * tau, None)))],
+            [Update(W[0:2], ((1.0, (prev if first else W)[0:2]), (tau, forcing[0:2]), (-g * tau, None)))],
         )
         weighted = (
-            [(slice(2, 3), w, ((1.0, prev), ((1.0 + beta) * tau, forcing), ((1.0 + beta) * tau, None)))] if beta else []
+            [Update(w, ((1.0, prev), ((1.0 + beta) * tau, forcing), ((1.0 + beta) * tau, None)), slice(2, 3))]
+            if beta
+            else []
         )
         self.model.rhs_update(
-            W, [*weighted, (slice(2, 3), out, ((1.0, prev), (tau, forcing), (tau, None)))], ("continuity",)
+            W, [*weighted, Update(out, ((1.0, prev), (tau, forcing), (tau, None)), slice(2, 3))], ("continuity",)
         )
 
 
@@ -598,17 +595,17 @@ class Mri(_Multirate):
             prev = z if i == 0 else t
             ct = c * tau
             if last:  # h(n+1) into s, then h̃ = β h(n+1) + (1 − 2β) h⁽²⁾ + β h(n) into t, h(n+1) into z
-                self.model.divergence_update(prev, [(s[2:3], ((1.0, z[2:3]), (ct, rho[2:3]), (-H * ct, None)))])
+                self.model.divergence_update(prev, [Update(s[2:3], ((1.0, z[2:3]), (ct, rho[2:3]), (-H * ct, None)))])
                 self._comb(t[2:3], (beta, s[2:3]), (1.0 - 2.0 * beta, t[2:3]), (beta, z[2:3]))
                 self._comb(z[2:3], (1.0, s[2:3]))
-                self.model.gradient_update(t, 2, [(z[0:2], ((1.0, z[0:2]), (ct, rho[0:2]), (-g * ct, None)))])
+                self.model.gradient_update(t, 2, [Update(z[0:2], ((1.0, z[0:2]), (ct, rho[0:2]), (-g * ct, None)))])
             else:  # h̃ = β h⁽ⁱ⁾ + (1 − β) h(n) into s, h⁽ⁱ⁾ into t
                 self.model.divergence_update(
                     prev,
                     [
-                        (s[2:3], ((1.0, z[2:3]), (beta * ct, rho[2:3]), (-H * beta * ct, None))),
-                        (t[2:3], ((1.0, z[2:3]), (ct, rho[2:3]), (-H * ct, None))),
+                        Update(s[2:3], ((1.0, z[2:3]), (beta * ct, rho[2:3]), (-H * beta * ct, None))),
+                        Update(t[2:3], ((1.0, z[2:3]), (ct, rho[2:3]), (-H * ct, None))),
                     ],
                 )
-                self.model.gradient_update(s, 2, [(t[0:2], ((1.0, z[0:2]), (ct, rho[0:2]), (-g * ct, None)))])
+                self.model.gradient_update(s, 2, [Update(t[0:2], ((1.0, z[0:2]), (ct, rho[0:2]), (-g * ct, None)))])
             c_prev = c

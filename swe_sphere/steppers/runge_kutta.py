@@ -12,7 +12,7 @@ combination fewer than its accumulator form).
 
 IMEX additive pairs (``ImexRK``; Ascher, Ruuth & Spiteri 1997, Appl. Numer.
 Math. 25, 151; Kennedy & Carpenter 2003): the linear gravity-wave terms L
-(``helmholtz.GravityWave``) implicit, the rest N = F − L explicit, as HOMME-NH
+(``model.gravity_wave.GravityWaveOperator``) implicit, the rest N = F − L explicit, as HOMME-NH
 and ClimaTimeSteppers split. With the explicit table (A_E, b_E), the implicit
 one (A_I, b_I) of s stages, A_I lower triangular (diagonally implicit,
 a_ii = 0 allowed: an explicit stage), A_E strictly lower triangular, and
@@ -24,7 +24,7 @@ common abscissae c,
 Each stage with a_ii ≠ 0 is one solve of (I − a_ii Δt L) Y_i = rhs_i through
 the Helmholtz equation, and L Y_i = (Y_i − rhs_i)/(a_ii Δt) follows from it
 without another product, written by the solve's back-substitution
-(``GravityWave.solve``'s ``implicit``) in rhs_i's own array; an explicit stage
+(``HelmholtzSolver.solve``'s ``implicit``) in rhs_i's own array; an explicit stage
 takes L Y_i from a product, and only where the two tables weigh it differently
 (N = F − L). Each combination
 (rhs_i, and x(n+1)) is summed from x itself (x(n) until the last writes it) in
@@ -59,9 +59,11 @@ from fractions import Fraction
 import warp as wp
 
 from ..kernels import blas
-from ..solvers.helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, HelmholtzSteps, check_solve_options
+from ..model.launches import Update
+from ..solvers.helmholtz import HelmholtzOptions
 from .base import Stepper, StepStats
 from .butcher import PARTS, Table, TableauOptions, parse, stage_form
+from .helmholtz_steps import REMOVED_SOLVER_OPTIONS, HelmholtzSteps
 from .tables import COURANT_LIMITS, EXPLICIT, IMEX
 
 f64 = wp.float64
@@ -102,8 +104,7 @@ class ExplicitRK(Stepper):
                 c,
                 arrays[arg],
                 tuple(
-                    (
-                        None,
+                    Update(
                         arrays[out],
                         tuple((_dt_times(a, self.dt) if src == "k" else a, arrays[src]) for a, src in terms),
                     )
@@ -149,10 +150,6 @@ class ImexRK(HelmholtzSteps, Stepper):
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
-        o = self.options
-        self.gw = GravityWave(
-            model, o.mean_depth, o.tol, o.maxiter, warm=True, precision=o.precision, history=o.guess_history
-        )
         A_E, b_E, A_I, b_I, self.c = self.table().floats()
         stages = len(b_E)
         self.A_E, self.A_I, self.b_E, self.b_I = A_E, A_I, b_E, b_I
@@ -178,8 +175,8 @@ class ImexRK(HelmholtzSteps, Stepper):
             src = out
 
     def advance(self, x):
-        m, gw, dt = self.model, self.gw, self.dt
-        gw.set_depth(x)
+        m, dt = self.model, self.dt
+        self.linear.set_depth(x)
         A_E, A_I, b_E, b_I, F, L = self.A_E, self.A_I, self.b_E, self.b_I, self.F, self.L
         s = len(F)
         # combination k: stage k's right-hand side (or, a_kk = 0, Y_k) for k < s, x(n+1) for k = s; each is
@@ -204,10 +201,10 @@ class ImexRK(HelmholtzSteps, Stepper):
             if a == 0.0:
                 Y = r
                 if self.needs_L[i]:
-                    gw.apply(Y, L[i])
+                    self.linear.apply(Y, L[i])
             else:  # (I − aL) Y_i = rhs_i, and L Y_i = (Y_i − rhs_i)/a in its back-substitution
                 Y = self.Y
-                gw.solve(r, a, Y, implicit=L[i])
+                self.helmholtz.solve(r, a, Y, implicit=L[i])
             if self.needs_F[i]:
                 self._at(float(self.c[i]))
                 done[i + 1] = self._rhs(i, Y, combos, outs, x)
@@ -232,27 +229,22 @@ class ImexRK(HelmholtzSteps, Stepper):
         out = outs[k]
         self._combine(out, x, passes[:p])
         stored = any(arr is F[i] for combo in combos[k + 1 :] for pair in combo for _, arr in pair)
-        fused = (None, out, ((1.0, out if p else x), *((c, None if arr is F[i] else arr) for c, arr in passes[p])))
-        self.model.rhs_update(Y, [(None, F[i], ((1.0, None),)), fused] if stored else [fused])
+        fused = Update(out, ((1.0, out if p else x), *((c, None if arr is F[i] else arr) for c, arr in passes[p])))
+        self.model.rhs_update(Y, [Update(F[i], ((1.0, None),)), fused] if stored else [fused])
         self._combine(out, out, passes[p + 1 :])
         return True
 
 
 @dataclass(frozen=True)
-class ImexOptions:
-    """Scene table ``[imex]`` (see ``Imex``)."""
+class ImexOptions(HelmholtzOptions):
+    """Scene table ``[imex]`` (see ``Imex``): the pair and the Helmholtz solve's options."""
 
     scheme: str = "ars343"
-    tol: float = 1e-6
-    maxiter: int = 500
-    mean_depth: float = 0.0
-    precision: str = "double"
-    guess_history: int = 8
 
     def __post_init__(self):
         if self.scheme not in IMEX:
             raise ValueError(f"scheme must be one of {', '.join(IMEX)} (got {self.scheme!r})")
-        check_solve_options(self)
+        super().__post_init__()
 
 
 class Imex(ImexRK):
@@ -265,7 +257,7 @@ class Imex(ImexRK):
     1e-9's, with 2.8–2.9x fewer iterations; at 1.9x they move by up to 8.7 %, and 1e-7
     is needed for ≤ 1 % at 1.5x the iterations), ``maxiter`` (500), ``mean_depth``
     (H, m; 0 = the initial mean depth), ``precision`` ("double" | "mixed", as
-    ``semi_implicit``'s). The Helmholtz solve is ``helmholtz.GravityWave``'s
+    ``semi_implicit``'s). The Helmholtz solve is ``helmholtz.HelmholtzSolver``'s
     compiled CG; each stage's solve starts from the projection onto past solutions
     of the stages with its a (all of ARS's), ``guess_history`` (0..32, 8) of them
     (``helmholtz.GuessHistory``; 0: from the last one's solution; TC5 ne8 ARS(3,4,3),

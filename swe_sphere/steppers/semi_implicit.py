@@ -4,7 +4,7 @@ The linear gravity-wave terms about a mean depth H — the pressure gradient
 −g∇h and −H∇·v — are averaged over levels n−1 and n+1; everything else
 (N = F − L) is leapfrogged at level n. Eliminating v(n+1) leaves a Helmholtz
 equation for the height, solved by the shared gravity-wave operator
-(``helmholtz.GravityWave``: L is built from the DSS'd operators of the
+(``helmholtz.HelmholtzSolver`` of ``model.gravity_wave.GravityWaveOperator``: L is built from the DSS'd operators of the
 explicit RHS, so the elimination is exact and mass is kept to round-off):
 
     (I − Δt L) x(n+1) = x(n−1) + 2Δt F(x(n)) + Δt L (x(n−1) − 2x(n)).
@@ -24,26 +24,24 @@ from dataclasses import dataclass
 import warp as wp
 
 from ..kernels import blas
-from ..solvers.helmholtz import REMOVED_SOLVER_OPTIONS, GravityWave, HelmholtzSteps, check_solve_options
+from ..solvers.helmholtz import HelmholtzOptions
 from .base import StepStats
 from .explicit import Leapfrog, LeapfrogOptions
+from .helmholtz_steps import REMOVED_SOLVER_OPTIONS, HelmholtzSteps
 
 f64 = wp.float64
 
 
 @dataclass(frozen=True)
-class SemiImplicitOptions(LeapfrogOptions):
-    """Scene table ``[semi_implicit]`` (see ``SemiImplicit``)."""
+class SemiImplicitOptions(HelmholtzOptions, LeapfrogOptions):
+    """Scene table ``[semi_implicit]`` (see ``SemiImplicit``): the leapfrog's and the
+    Helmholtz solve's options, a tighter ``tol`` by default."""
 
     tol: float = 1e-7
-    maxiter: int = 500
-    mean_depth: float = 0.0
-    precision: str = "double"
-    guess_history: int = 8
 
     def __post_init__(self):
-        super().__post_init__()
-        check_solve_options(self)
+        LeapfrogOptions.__post_init__(self)
+        HelmholtzOptions.__post_init__(self)
 
 
 class SemiImplicit(HelmholtzSteps, Leapfrog):
@@ -56,7 +54,7 @@ class SemiImplicit(HelmholtzSteps, Leapfrog):
     by up to 19 % (the filtered vorticity's) with 1.36x fewer than 1e-7; mass is exact
     either way), ``maxiter`` (500),
     ``mean_depth`` (H in m; 0 = the initial state's mean depth). The
-    Helmholtz solve is ``helmholtz.GravityWave``'s compiled CG; each solve
+    Helmholtz solve is ``helmholtz.HelmholtzSolver``'s compiled CG; each solve
     starts from the projection of its right-hand side onto past solutions,
     ``guess_history`` (0..32, 8) of them (``helmholtz.GuessHistory``; 0: from the
     last solution; TC5 ne8 at 2x the gravity-wave limit, CG iterations a solve over
@@ -76,28 +74,24 @@ class SemiImplicit(HelmholtzSteps, Leapfrog):
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
-        o = self.options
-        self.gw = GravityWave(
-            model, o.mean_depth, o.tol, o.maxiter, warm=True, precision=o.precision, history=o.guess_history
-        )
         self.F, self.W, self.LW = self._buffer(), self._buffer(), self._buffer()
 
     @property
     def H(self) -> float:
         """The mean depth H (m) of the linear gravity-wave terms."""
-        return self.gw.H
+        return self.linear.H
 
     def _si(self, old, cur, new, dt):
         """new = semi-implicit leapfrog from old over 2dt, explicit terms at cur (the solve's
-        iterations counted on the device, ``GravityWave.iterations``)."""
-        m, gw = self.model, self.gw
-        gw.set_depth(cur)
+        iterations counted on the device, ``HelmholtzSolver.iterations``)."""
+        m = self.model
+        self.linear.set_depth(cur)
         self._at(0.0)  # cur is x(n)
         m.rhs(cur, self.F)
         self._pointwise(blas.axpby, f64(1.0), old, f64(-2.0), cur, self.W)
-        gw.apply(self.W, self.LW)
+        self.linear.apply(self.W, self.LW)
         self._pointwise(blas.axpbypcz, f64(1.0), old, f64(2.0 * dt), self.F, f64(dt), self.LW, new)
-        gw.solve(new, dt, new)
+        self.helmholtz.solve(new, dt, new)
 
     def advance(self, x):
         m = self.model

@@ -1,0 +1,49 @@
+"""What the steppers that solve with the linear gravity-wave operator share: the operator,
+its Helmholtz solver, and the solver options they no longer take."""
+
+from __future__ import annotations
+
+from ..model.gravity_wave import GravityWaveOperator
+from ..solvers.helmholtz import HelmholtzSolver
+
+# the solver options the semi-implicit, IMEX and JFNK steppers no longer have, and why (``Stepper.removed_options``)
+REMOVED_SOLVER_OPTIONS = {
+    "helmholtz_solver": "the compiled CG is the only Helmholtz solver (the host solvers cg, amg, chebyshev, vcycle were slower at the default threads)",
+}
+
+
+class HelmholtzSteps:
+    """What the semi-implicit and IMEX steppers share, put before their ``Stepper`` base:
+    ``linear``, the ``GravityWaveOperator`` about their options' ``mean_depth``, and
+    ``helmholtz``, its ``HelmholtzSolver`` with their ``HelmholtzOptions`` (``warm``); the
+    mean depth and the CG's warm guess in ``state``/``restore``; the CG's device counters as
+    ``counts`` (read with the step when not ``deferred``, ``Stepper._device_counts``); and a
+    graph key once the step reads nothing: H fixed (the first step's host read,
+    ``GravityWaveOperator.set_depth``), the counters ``deferred``, and the CG's loops able to
+    be graph nodes (``HelmholtzSolver.graphable``: one rank; on CUDA conditional nodes).
+    Raises ValueError for a model without the continuity and pressure-gradient terms."""
+
+    capturable = True
+    solvers = ("helmholtz",)
+
+    def __init__(self, model, dt, options=None):
+        super().__init__(model, dt, options)
+        self.linear = GravityWaveOperator(model, self.options.mean_depth)
+        self.helmholtz = HelmholtzSolver(self.linear, self.options, warm=True)
+
+    def counts(self):
+        return {"helmholtz": self.helmholtz.iterations()}
+
+    def device_arrays(self):
+        return [self.helmholtz.stats]
+
+    def graph_key(self):
+        solver = self.helmholtz
+        return super().graph_key() if solver.H and solver.graphable and self.deferred else None
+
+    def state(self):
+        return {**super().state(), **self.helmholtz.state()}
+
+    def restore(self, state):
+        super().restore(state)
+        self.helmholtz.restore(state, self._entry)

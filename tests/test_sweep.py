@@ -3,6 +3,7 @@
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -858,3 +859,59 @@ def test_a_stored_key_says_what_changed():
         'other settings: code {"version": "0.0.1"} (now null), device "cuda" (now "cpu")'
     )
     assert sweep_mod.stale(None, key) == "made by an earlier swe_sphere that did not record its settings"
+
+
+def test_the_plan_is_what_the_cli_runs(tmp_path, capsys):
+    """``plan`` with the options of ``swe-sphere sweep --runs rk4@0.77`` resolves to the
+    Δt the command ran (the largest at or below 0.77 × the gravity-wave limit that divides
+    the 6 h run) and to the notes it printed before its runs; ``Plan.run`` on a copy of
+    the command's runs reuses them and writes the same sweep.csv, logging the same lines."""
+    cli = tmp_path / "cli"
+    args = ["sweep", "tc2_steady", "--ne", "2", "--days", "0.25", "--runs", "rk4@0.77"]
+    assert main([*args, "--device", "cpu", "--output", str(cli)]) == 0
+    printed = capsys.readouterr().out.splitlines()
+    p = sweep_mod.plan("tc2_steady", ne=2, days=0.25, runs=[("rk4", 0.77)])
+    assert list(p.scenes) == ["rk4"] and p.multiples == (0.77,) and p.dts is None
+    resolved = p.resolve(tmp_path / "py", "cpu")
+    g = resolved.limits["dt_gravity"]
+    steps = math.ceil(0.25 * 86400 / (0.77 * g) - 1e-9)
+    assert resolved.dts == [0.25 * 86400 / steps] and resolved.dts[0] < 0.77 * g * (1 - 1e-3)
+    assert resolved.pairs == (("rk4", resolved.dts[0]),)
+    assert list(pd.read_csv(cli / "sweep.csv")["dt"]) == resolved.dts
+    assert printed[: len(resolved.notes)] == resolved.notes and len(resolved.notes) == 2
+    assert resolved.notes[0].startswith(f"note        --runs rk4@0.77 runs at {resolved.dts[0] / g:.3g} x the")
+
+    py = tmp_path / "py"
+    shutil.copytree(cli / "runs", py / "runs", dirs_exist_ok=True)
+    logged = []
+    rows, info, paths = p.run(py, "cpu", log=logged.append)
+    assert [path.name for path in paths] == list(sweep_mod.OUTPUTS) and len(rows) == 1
+    pd.testing.assert_frame_equal(pd.read_csv(py / "sweep.csv"), pd.read_csv(cli / "sweep.csv"), check_exact=True)
+    said = "\n".join(logged).splitlines()
+    assert said[:2] == printed[:2] and f"runs: 1 reused, 0 made (in {py / 'runs'})" in said
+    table = [printed.index(line) for line in printed if line.startswith("stepper ")] + [
+        said.index(line) for line in said if line.startswith("stepper ")
+    ]
+    n = len(printed) - table[0] - len(sweep_mod.OUTPUTS)  # the table, summary and verdicts
+    assert n > 5
+    assert said[table[1] : table[1] + n] == printed[table[0] : table[0] + n]
+
+
+@pytest.mark.parametrize(
+    "options, words",
+    [
+        (dict(runs=[("rk4", 1.0)], steppers=["rk4"]), "not both"),
+        (dict(dts=[3600.0], courant=[1.0]), "one of --dt, --courant and --runs"),
+        (dict(dts=[-5.0]), "--dt values must be > 0 (got -5)"),
+        (dict(courant=[]), "--courant values must be > 0 (got none)"),
+        (dict(runs=[("rk4", 0.0)]), "--runs values must be > 0 (got 0)"),
+        (dict(dts=[7000.0]), "dt = 7000 s does not divide the run length of 1 days"),
+        (dict(dts=[1000.0], filter_days=0.5), "dt = 1000 s does not divide the filter's snapshot interval of 3 h"),
+    ],
+)
+def test_the_plan_refuses_what_the_cli_refuses(options, words):
+    """Bad options raise ValueError naming them as the command line spells them, before any run."""
+    given = options if "runs" in options else {"steppers": ["rk4"], **options}
+    with pytest.raises(ValueError) as err:
+        sweep_mod.plan("tc2_steady", ne=2, days=1, **given)
+    assert words in str(err.value)

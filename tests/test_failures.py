@@ -42,7 +42,7 @@ def scene_with(tmp_path, name="s.toml", **replace):
     return path
 
 
-# -- the former tracebacks (issue 13's survey), now one line ---------------------
+# -- failures that were tracebacks once, now one line ----------------------------
 
 
 @pytest.mark.parametrize("value", ["0", "-2", "abc"])

@@ -1,4 +1,4 @@
-"""A GPU user's first run cannot fail on an untested path (issue 44, item 3): graphs
+"""A GPU user's first run cannot fail on an untested path: graphs
 checked on first use, and every failure of a capture, its conditional nodes or
 device totals, a replay or a check falls back to plain launches with one line.
 

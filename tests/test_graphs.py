@@ -1,4 +1,4 @@
-"""Steps replayed as captured graphs (``Simulation.graphs``, ISSUE 32 items 2 and 3)
+"""Steps replayed as captured graphs (``Simulation.graphs``)
 and the host reads inside a step (``swe_sphere.core.tally``).
 
 Warp captures and replays graphs on a CPU too (its launches recorded and replayed

@@ -1,4 +1,4 @@
-"""An initial state of one's own (issue 35, item 1): ``[case] name = "file"`` with a
+"""An initial state of one's own: ``[case] name = "file"`` with a
 netCDF file on the model's nodes or on a lat-lon grid, and ``initial=`` a function.
 
 Written from TC2's initial state, each reproduces it: a node file bit for bit (the
@@ -239,7 +239,7 @@ def test_case_switch_on_every_bundled_scene(tmp_path, capsys, name):
 
 
 def test_tc2_switched_to_a_file_runs(tmp_path, capsys):
-    """The command of issue 44 (tc2_steady switched to a file of TC2's state, α = π/4,
+    """A user's command (tc2_steady switched to a file of TC2's state, α = π/4,
     which the scene's alpha = 0 would have been refused by) runs, from that state."""
     tc2 = tc2_sim()
     tc2.state().to_netcdf(tmp_path / "run.nc")

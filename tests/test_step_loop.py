@@ -1,4 +1,4 @@
-"""The Python step loop (issue 35, item 4): ``Simulation(scene, **overrides)``,
+"""The Python step loop: ``Simulation(scene, **overrides)``,
 ``advance``, ``steps``, ``state``, callbacks, and the run files' ``[output] fields``
 and ``[[output.streams]]``."""
 

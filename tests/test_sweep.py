@@ -562,7 +562,7 @@ TC5 = ["sweep", "tc5_mountain", "--ne", "2", "--steppers", "rk4", "--device", "c
 
 
 def test_a_sweep_of_other_days_or_overrides_into_the_same_folder_makes_its_runs_again(tmp_path, capsys):
-    """The issue's sequence on a tiny grid: a 2-day sweep, then a 1-day one of part of
+    """A user's sequence on a tiny grid: a 2-day sweep, then a 1-day one of part of
     it into the same folder. The second makes the small-Δt run and its runs again
     (it printed the 2-day errors, labelled day 1) and its rows equal a fresh 1-day
     sweep's; it says what changed. An override then makes them again too; an

@@ -20,7 +20,7 @@ from swe_sphere.model.diagnostics import harmonic_state
 from swe_sphere.studies import plotting
 from swe_sphere.studies.analysis import kinetic_energy_spectrum, zonal_mean
 
-from conftest import TINY, cli_main, cli_one_line
+from helpers import TINY, cli_main, cli_one_line
 from test_plotting import old_file, png_size  # noqa: F401 (old_file: a run file without vorticity, a fixture)
 
 A, OMEGA, G = EARTH.a, EARTH.omega, EARTH.g

@@ -28,7 +28,7 @@ from swe_sphere.config.scene import efold_nu
 from swe_sphere.io.run_file import RunWriter
 
 import roundoff
-from conftest import TINY, cached_grid, cli_main, console_script, one_line
+from helpers import TINY, cached_grid, cli_main, console_script, one_line
 
 REPO = Path(__file__).resolve().parents[1]
 TESTCASES = REPO / "testcases"

@@ -26,7 +26,7 @@ from swe_sphere.simulation import simulation
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.solvers.helmholtz import HelmholtzCG
 
-from conftest import ON_CUDA, cli_main, cli_one_line, one_line
+from helpers import ON_CUDA, cli_main, cli_one_line, one_line
 
 DEVICES = ["cpu", ON_CUDA]
 STEPS = 8

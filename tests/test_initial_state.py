@@ -21,7 +21,7 @@ from swe_sphere.core.errors import SceneError
 from swe_sphere.io.initial_state import SCENE_CASES
 from swe_sphere.simulation.simulation import Simulation
 
-from conftest import cached_grid, cli_main, cli_one_line
+from helpers import cached_grid, cli_main, cli_one_line
 
 ALPHA = math.pi / 4  # the flow crosses the poles: the winds' interpolation there is tested
 TC2 = make_case("tc2_steady", {"alpha": ALPHA})

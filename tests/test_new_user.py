@@ -10,7 +10,7 @@ from test_initial_state import LL, latlon_file, scene_file
 
 from swe_sphere.studies import stability, sweep
 
-from conftest import TINY, cli_main, cli_one_line
+from helpers import TINY, cli_main, cli_one_line
 
 
 @pytest.fixture(autouse=True)

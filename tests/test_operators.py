@@ -24,7 +24,7 @@ from swe_sphere.model.diagnostics import HARMONIC_KINDS, harmonic_state, hypervi
 from swe_sphere.model.shallow_water import TERMS, ShallowWater
 
 import roundoff
-from conftest import cached_grid, requires_cuda
+from helpers import cached_grid, requires_cuda
 from numpy_ops import NumpyOps
 
 DEV = "cpu"

@@ -19,7 +19,7 @@ from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.io.run_file import RunWriter
 from swe_sphere.studies import analysis, plotting
 
-from conftest import cli_main, cli_one_line
+from helpers import cli_main, cli_one_line
 
 TC5_REF = find_reference("tc5_mountain")
 

@@ -32,7 +32,7 @@ from swe_sphere.simulation import checkpoint as ckpt
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
 
-from conftest import make_sim, requires_cuda, write_tc2_scene
+from helpers import make_sim, requires_cuda, write_tc2_scene
 
 # and a Butcher table's IMEX pair (its default is an explicit table), read back from the restart file's JSON;
 # and the float32 Helmholtz solves

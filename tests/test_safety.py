@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import TINY, one_line
+from helpers import TINY, one_line
 
 SCRIPT = Path(sys.executable).with_name("swe-sphere")
 SCRIPT = str(SCRIPT) if SCRIPT.is_file() else shutil.which("swe-sphere")

@@ -45,7 +45,7 @@ from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.solvers.helmholtz import GravityWave, GuessHistory, helmholtz_matrix
 
 import roundoff
-from conftest import make_sim, requires_cuda, run, write_tc2_scene
+from helpers import make_sim, requires_cuda, run, write_tc2_scene
 from numpy_ops import NumpyOps
 
 DEVICE = "cpu"

@@ -22,7 +22,7 @@ from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.studies import sweep as sweep_mod
 
 import roundoff
-from conftest import cached_grid
+from helpers import cached_grid
 
 
 @pytest.fixture(scope="module")

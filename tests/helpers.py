@@ -27,6 +27,7 @@ from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.simulation.simulation import Simulation
 
 TINY = ("--ne", "2", "--np", "4", "--device", "cpu", "--no-progress")
+EIGHTH_DAY = ("--dt", "1800", "--days", "0.125", "-s", "output.every_days=0.125")  # 6 steps, outputs at 0 and 0.125
 
 
 NEEDS_CUDA = (pytest.mark.gpu, pytest.mark.skipif(not wp.is_cuda_available(), reason="needs a CUDA device"))

@@ -273,3 +273,17 @@ def test_imex_dt_above_its_advective_limit_warns(tmp_path):
     assert "imex's stability limit of about 1 " in warning and "dt <= 2.55e+04 s" in warning
     assert make_sim(big).largest_dt_within_limit() == pytest.approx(43200.0 / 1.69, rel=3e-3)  # the dt it offers
     assert make_sim(dataclasses.replace(big, dt=21600.0)).stability_warning() is None
+
+
+def test_api_errors_are_importable_and_name_the_api():
+    import swe_sphere
+    from swe_sphere.config import scene as config
+    from swe_sphere.io import run_file as output
+
+    assert swe_sphere.SceneError is config.SceneError and swe_sphere.OutputError is output.OutputError
+    for name in ("CheckpointError", "BlowUp", "Interrupted", "StepFailure", "ResourceError"):
+        assert issubclass(getattr(swe_sphere, name), Exception)
+    with pytest.raises(swe_sphere.SceneError, match=r"ne must be an integer >= 1 \(got '8', a str\)"):
+        swe_sphere.run("tc2_steady", ne="8", days=1, device="cpu")
+    with pytest.raises(swe_sphere.SceneError, match=r"dt must be > 0 \(got '60', a str\)"):
+        swe_sphere.run("tc2_steady", ne=2, dt="60", days=1, device="cpu")

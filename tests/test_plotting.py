@@ -19,7 +19,7 @@ from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.io.run_file import RunWriter
 from swe_sphere.studies import analysis, plotting
 
-from helpers import cli_main, cli_one_line
+from helpers import EIGHTH_DAY, TINY, cli_main, cli_one_line
 
 TC5_REF = find_reference("tc5_mountain")
 
@@ -227,3 +227,42 @@ def test_remapped_file_can_be_plotted_by_xarray_users(run_file, tmp_path):
         field.plot(ax=ax)
         plotting._save(fig, tmp_path / "xr.png")
     assert png_size(tmp_path / "xr.png") == (600, 300)
+
+
+def test_tc2_plots_say_they_are_against_the_exact_solution(tmp_path, capsys, monkeypatch):
+    """TC2's series panel said "against T213"; ``plot --diff T213`` said "reference file not found"."""
+    monkeypatch.chdir(tmp_path)
+    from swe_sphere.studies.plotting import open_run, plot_series
+
+    assert (
+        cli_main(
+            capsys,
+            "run",
+            "tc2_steady",
+            *TINY,
+            *EIGHTH_DAY,
+            "--output",
+            "tc2.nc",
+        )[0]
+        == 0
+    )
+    ds = open_run(tmp_path / "tc2.nc")
+    try:
+        assert plot_series(ds).axes[1].get_title() == "error norms against the exact solution"
+    finally:
+        ds.close()
+    cli_one_line(
+        capsys,
+        ["plot", "tc2.nc", "--diff", "T213"],
+        2,
+        "no T213 reference for this case: it is scored against its exact solution",
+    )
+    assert not list(tmp_path.glob("*.png"))
+
+
+def test_sweep_error_axes_name_the_norm_and_field():
+    from swe_sphere.studies.plotting import error_label
+
+    assert error_label("total_error") == "total error: normalized l2 of h + hs"
+    assert error_label("temporal_error_vorticity") == "temporal error: normalized l2 of vorticity"
+    assert error_label("wall_time") == "wall time"

@@ -22,7 +22,7 @@ from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.studies import sweep as sweep_mod
 
 import roundoff
-from helpers import cached_grid
+from helpers import cached_grid, cli_one_line
 
 
 @pytest.fixture(scope="module")
@@ -864,7 +864,8 @@ def test_a_stored_key_says_what_changed():
 def test_the_plan_is_what_the_cli_runs(tmp_path, capsys):
     """``plan`` with the options of ``swe-sphere sweep --runs rk4@0.77`` resolves to the
     Δt the command ran (the largest at or below 0.77 × the gravity-wave limit that divides
-    the 6 h run) and to the notes it printed before its runs; ``Plan.run`` on a copy of
+    the 6 h run) and to the notes it printed before its runs, the first saying the multiple
+    that ran (sweep.csv's), not the 0.77 asked for; ``Plan.run`` on a copy of
     the command's runs reuses them and writes the same sweep.csv, logging the same lines."""
     cli = tmp_path / "cli"
     args = ["sweep", "tc2_steady", "--ne", "2", "--days", "0.25", "--runs", "rk4@0.77"]
@@ -915,3 +916,10 @@ def test_the_plan_refuses_what_the_cli_refuses(options, words):
     with pytest.raises(ValueError) as err:
         sweep_mod.plan("tc2_steady", ne=2, days=1, **given)
     assert words in str(err.value)
+
+
+@pytest.mark.parametrize("flag", ["--runs", "--courant", "--dt"])
+def test_sweep_refuses_an_empty_list(capsys, flag, tmp_path, monkeypatch):
+    """An empty --runs / --courant / --dt was read as "not given" and ran the whole default sweep."""
+    monkeypatch.chdir(tmp_path)
+    cli_one_line(capsys, ["sweep", "tc2_steady", "--ne", "2", flag, "", "--output", "o"], 2, flag)

@@ -1087,10 +1087,24 @@ class Plan:
     ):
         """What `swe-sphere sweep` runs: under a lock on ``directory`` (``folder_lock``;
         an earlier sweep's results refused unless ``overwrite``), ``resolve`` and ``log``
-        its notes, make or reuse every run (``Sweep.run`` on ``pool``: a
-        ``concurrent.futures`` executor, None for one run after another here), ``log``
-        the summary (``format_summary``) and write ``OUTPUTS`` (``write_outputs``);
-        ``device`` as for ``resolve``.
+        its notes, make or reuse every run (``Sweep.run`` on ``pool``), ``log`` the
+        summary (``format_summary``) and write ``OUTPUTS`` (``write_outputs``).
+
+        Parameters
+        ----------
+        directory : str or path
+            The results' folder (created), its runs kept under ``runs/`` and reused
+            where made with the same settings.
+        device : {"cpu", "cuda"}, optional
+            Warp device (default: CUDA when present).
+        pool : concurrent.futures.Executor, optional
+            Runs the runs (``core.workers.executor``); None: one after another, here.
+        cost : {"cpu", "wall"}
+            The clock the runs are ranked by (``table``).
+        overwrite : bool
+            Replace an earlier sweep's results in ``directory``.
+        log : callable
+            Called with each line to show.
 
         Returns
         -------

@@ -1,5 +1,10 @@
 """Step-size efficiency sweeps: error against Δt against wall time, per stepper.
 
+``plan(scene, ...)`` turns a scene and the options of `swe-sphere sweep` into a ``Plan``
+(the steppers' scenes, Δt values or multiples of the gravity-wave limit, the time
+filter); ``Plan.run`` is what the command runs (``Plan.resolve``: the Δt values and
+notes alone). Below it, ``Sweep`` makes the runs.
+
 For each (stepper, Δt) the scene is run on one grid; recorded are the wall
 time of the time loop (compilation and start-up measured apart, in a warm-up
 run per stepper), RHS evaluations, solver iterations, the cost in RHS-evaluation

@@ -119,3 +119,18 @@ def tally():
     t = Tally()
     with instrumented(t):
         yield t
+
+
+@pytest.fixture(scope="module")
+def old_file(tmp_path_factory):
+    """A run file as written before vorticity existed: no vorticity values (NaN)."""
+    from swe_sphere.io.run_file import RunWriter
+
+    grid = cached_grid(2, 3)
+    out = tmp_path_factory.mktemp("old") / "old.nc"
+    attrs = {"scene": {"name": "synthetic", "ne": 2, "np": 3}}
+    w = RunWriter(out, grid, np.zeros(grid.npts), attrs, ["mass_change"])
+    h = 1000 + 100 * np.sin(grid.lat)
+    w.append(0.0, np.cos(grid.lat), 0 * grid.lat, h, {"mass_change": 0.0})
+    w.close()
+    return out

@@ -11,6 +11,7 @@ import dataclasses
 import functools
 import math
 import shutil
+import struct
 import sys
 import time
 from pathlib import Path
@@ -198,3 +199,10 @@ def write_tc2_scene(path, *, stepper="ssprk3", ne=2, dt=3600.0, days=1.0, tables
     """Write a TC2 scene file (``tables``: extra TOML, e.g. a stepper's options); returns its path."""
     path.write_text(TC2_SCENE.format(ne=ne, stepper=stepper, dt=dt, days=days, tables=tables))
     return path
+
+
+def png_size(path: Path) -> tuple[int, int]:
+    """(width, height) from the PNG header."""
+    data = Path(path).read_bytes()[:24]
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and data[12:16] == b"IHDR"
+    return struct.unpack(">II", data[16:24])

@@ -20,8 +20,7 @@ from swe_sphere.model.diagnostics import harmonic_state
 from swe_sphere.studies import plotting
 from swe_sphere.studies.analysis import kinetic_energy_spectrum, zonal_mean
 
-from helpers import EIGHTH_DAY, TINY, cli_main, cli_one_line
-from test_plotting import old_file, png_size  # noqa: F401 (old_file: a run file without vorticity, a fixture)
+from helpers import EIGHTH_DAY, TINY, cli_main, cli_one_line, png_size
 
 A, OMEGA, G = EARTH.a, EARTH.omega, EARTH.g
 U0 = 2 * math.pi * A / (12 * DAY)  # TC2's solid-body speed at the equator
@@ -218,7 +217,7 @@ def test_plot_functions_return_figures(tc2_file):
 )
 def test_bad_input_exits_2_one_line_nothing_written(
     tc2_file,
-    old_file,  # noqa: F811 (the fixture)
+    old_file,
     tmp_path,
     monkeypatch,
     capsys,

@@ -1,4 +1,4 @@
-"""The GPU performance model on paper (ISSUE 23): bytes per point of every
+"""The GPU performance model on paper: bytes per point of every
 kernel, launches per step of every stepper, and the predicted times on an
 H100 and an H200, from counts taken off the code on the CPU.
 

@@ -1,4 +1,4 @@
-"""The measurements of ISSUE 23's item 3 and ISSUE 32's targets, one subcommand each (driven by
+"""The GPU measurements (agreement with the CPU, throughput, graphs, host reads, iterations), one subcommand each (driven by
 ``gpu_session.sh``, which time-boxes them and keeps their output under $OUT):
 
 * ``agreement``: TC5 for ``--days`` on ``--ne``, every stepper (semi_implicit,

@@ -1,4 +1,4 @@
-"""Preconditioners for the Helmholtz operator M + cK on the production solves (ISSUE 43 item 4).
+"""Preconditioners for the Helmholtz operator M + cK on the production solves.
 
 ``--record PATH``: the production solves, TC5 ne30 np4 IMEX (ARS(3,4,3), ``guess_history`` 8)
 at 2160 s after ``--spin-up`` days, the next ``--count`` solves' c, b, start x0 (the projected

@@ -14,8 +14,8 @@ Then a whole solve of the semi-implicit Schur complement (``HelmholtzSolver.solv
 steppers call it: its right-hand side, the CG from zero, the mean's correction and the
 back-substitution; a replayed graph on one thread) at five tolerances, and a
 least-squares line through (CG iterations k, ms): its slope is an iteration's cost and
-its intercept the solve's fixed cost, also given in iterations (ISSUE 31's "a solve of
-k iterations costs ≤ k + 1 products").
+its intercept the solve's fixed cost, also given in iterations (the target: a solve of
+k iterations costs ≤ k + 1 products).
 
 What it says: a launch at the triad's rate is bound by bandwidth; one far below
 it, whose float32 form (half the bytes) is no faster, by the instructions around

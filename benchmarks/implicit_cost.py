@@ -1,4 +1,4 @@
-"""What an implicit-type or exponential step costs, broken down, against the best explicit stepper (ISSUES 21, 33).
+"""What an implicit-type or exponential step costs, broken down, against the best explicit stepper.
 
 Per configuration (case, stepper, Δt as a multiple of the gravity-wave limit
 Δt_g = min Δx / max sqrt(g h) of the initial state), one interleaved run:
@@ -81,7 +81,7 @@ CONFIGS = {
     "tc6_rossby_haurwitz": [("imex", "imex", 4.7, {}), ("CN", "implicit", 4.7, {})],
 }
 # case → explicit references (stepper, Δt in s): the largest stable steps measured at ne30 np4 on
-# an idle machine (ISSUE 21: TC5 ssprk3 216 s, the cheapest there; TC6 ssprk3 160 s, rk4 200 s,
+# an idle machine (TC5 ssprk3 216 s, the cheapest there; TC6 ssprk3 160 s, rk4 200 s,
 # leapfrog_trapezoidal 90 s). Other ne: --explicit.
 EXPLICIT = {
     "tc5_mountain": [("ssprk3", 216.0)],

@@ -9,7 +9,7 @@ arrays the run must hold: the state and the metric/index arrays on the device,
 the model's and the stepper's work arrays, and the grid's host (numpy) arrays.
 
     python benchmarks/memory.py              # ne = 30
-    python benchmarks/memory.py --ne 60      # the issue's figure
+    python benchmarks/memory.py --ne 60      # benchmarks/README.md's figure
 """
 
 from __future__ import annotations

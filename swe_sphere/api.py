@@ -24,35 +24,61 @@ def run(
 ):
     """Run a scene and return its output as an ``xarray.Dataset`` (loaded in memory).
 
-    ``scene``: a scene file, the name of a bundled scene ("tc5_mountain") or a
-    ``config.Scene``. ``overrides`` as on the command line: ``ne``, ``np``,
-    ``dt`` (s), ``days``, ``stepper`` (dt and ν rescale with a new grid as for
-    ``--ne``), and any scene value by its table, e.g. ``hyperviscosity={"nu":
-    5e14}``, ``implicit={"preconditioner": "helmholtz"}``, ``output={"every_days":
-    0.25}``, ``terms=[...]``, ``planet={"radius": 637122.0, "omega": 7.292e-4}``
-    (m, s⁻¹; ``gravity`` in m s⁻²: a planet of one's own, see ``config``); all
-    validated like the file (``SceneError``, a ValueError, names the offending
-    value). ``device``: "cpu" | "cuda"
-    (default: CUDA when present). ``output_file``: also keep the netCDF file there
-    (``OutputError`` if it exists, unless ``overwrite``); ``restart_every``
-    (days) writes its restart file (see ``Simulation.run``). ``initial``: a function
-    ``initial(lat, lon) -> (h, u, v)`` (radians in; m, m s⁻¹ out) giving the state
-    at t = 0 instead of the case's (which still gives fcor and hs, and the truth
-    the errors are against; ``initial_state.from_function``). Streams of
-    ``output={"streams": [...]}`` are written beside ``output_file`` (without
-    one, they are dropped with the temporary folder). ``graphs``: "auto", "on" or
-    "off" (``Simulation``'s; default ``SWE_SPHERE_GRAPHS``, else "auto").
+    Parameters
+    ----------
+    scene : str, path or Scene
+        A scene file, the name of a bundled scene ("tc5_mountain") or a ``config.Scene``.
+    device : {"cpu", "cuda"}, optional
+        Warp device (default: CUDA when present, else the CPU).
+    output_file : str or path, optional
+        Also keep the run's netCDF file there; streams of ``output={"streams": [...]}``
+        are written beside it (without it they are dropped with a temporary folder).
+    overwrite : bool
+        Replace an existing ``output_file`` (and restart file).
+    restart_every : float, optional
+        Write a restart file every this many model days and at the end (``Simulation.run``).
+    progress : bool
+        Show a progress bar.
+    verbose : bool
+        Show Warp's banner and module loads, and with ``output={"log_every_steps": N}``
+        a line of invariant changes and Courant numbers every N steps
+        (``Simulation.log_line``); quiet otherwise.
+    initial : callable, optional
+        ``initial(lat, lon) -> (h, u, v)`` (lat, lon in radians; h in m, u, v in m s⁻¹),
+        the state at t = 0 instead of the case's; the case still gives fcor, hs and the
+        truth the errors are against (``initial_state.from_function``).
+    graphs : {"auto", "on", "off"} or bool, optional
+        Steps as captured graphs (``Simulation``'s; default ``SWE_SPHERE_GRAPHS``, else "auto").
+    **overrides
+        As on the command line: ``ne``, ``np``, ``dt`` (s), ``days``, ``stepper`` (dt
+        and ν rescale with a new grid as for ``--ne``), and any scene value by its
+        table, e.g. ``hyperviscosity={"nu": 5e14}``, ``implicit={"preconditioner":
+        "helmholtz"}``, ``output={"every_days": 0.25}``, ``terms=[...]``,
+        ``planet={"radius": 637122.0, "omega": 7.292e-4}`` (m, s⁻¹; ``gravity`` in
+        m s⁻²); validated like the file.
 
-    Quiet unless ``verbose`` (no Warp banner or module-load lines; ``progress``
-    shows a progress bar; with ``output={"log_every_steps": N}`` a line of
-    invariant changes and Courant numbers every N steps, ``Simulation.log_line``). Raises ``simulation.BlowUp`` (the result is on the
-    exception, the file keeps every good output), ``runtime.Interrupted``
-    (SIGINT/SIGTERM in the main thread), ``steppers.StepFailure``,
-    ``runtime.ResourceError`` (not enough memory for the grid).
+    Returns
+    -------
+    xarray.Dataset
+        h, u, v, vorticity on (time, ncol) with time in model days (the file's CF time
+        read undecoded: ``ds.h.sel(time=3)``), lat, lon, area on ncol, the diagnostics
+        time series (mass_change, l2_h, ...) and the resolved scene in ``ds.attrs["scene"]``.
 
-    The dataset holds h, u, v, vorticity on (time, ncol) with time in model
-    days (the file's CF time read undecoded: ``ds.h.sel(time=3)``), lat/lon/area on ncol, the diagnostics time
-    series (mass_change, l2_h, ...) and the resolved scene in ``ds.attrs["scene"]``.
+    Raises
+    ------
+    SceneError
+        A bad scene or override (a ValueError; the message names the value).
+    OutputError
+        ``output_file`` exists (without ``overwrite``) or is an input.
+    BlowUp
+        The state became non-finite or the depth non-positive; the result is on the
+        exception, the file keeps every good output.
+    StepFailure
+        A solver did not converge.
+    Interrupted
+        SIGINT or SIGTERM in the main thread.
+    ResourceError
+        Too little memory for the grid.
     """
     import xarray as xr
     from tqdm import tqdm

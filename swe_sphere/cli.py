@@ -282,13 +282,11 @@ def _warp_device(requested):
 
 
 def _numbers(text: str, name: str) -> list[float]:
+    """``--name 1,2.5`` → [1.0, 2.5]; the sweep's plan checks the values."""
     try:
-        values = [float(v) for v in text.split(",") if v.strip()]
+        return [float(v) for v in text.split(",") if v.strip()]
     except ValueError:
         raise ValueError(f"--{name} must be comma-separated numbers (got {text!r})") from None
-    if not values or not all(math.isfinite(v) and v > 0 for v in values):
-        raise ValueError(f"--{name} values must be > 0 (got {text!r})")
-    return values
 
 
 def _steppers(text: str) -> list[str]:
@@ -325,139 +323,30 @@ def _runs(text: str) -> list[tuple[str, float]]:
 
 
 def _cmd_sweep(args) -> int:
-    from .config.scene import load_scene
-
-    if args.runs and args.steppers:
-        raise ValueError("--runs names its own steppers: give --steppers or --runs, not both")
-    pairs = _runs(args.runs) if args.runs is not None else None  # (stepper, Courant factor)
-    steppers = (
-        list(dict.fromkeys(s for s, _ in pairs))
-        if pairs
-        else _steppers("leapfrog,ssprk3,semi_implicit,implicit" if args.steppers is None else args.steppers)
-    )
-    overrides = _overrides(args.set)
-    ck = None
-    if args.branch_from is not None:  # every run a branch from the restart file's state (``checkpoint.branch``)
-        from .simulation import checkpoint
-
-        for flag, given in (("SCENE", args.scene), ("--ne", args.ne), ("--np", args.np), ("-s", args.set)):
-            if given:
-                raise ValueError(
-                    f"--from takes the scene and grid from the restart file: give --from or {flag}, not both"
-                )
-        ck = checkpoint.read(args.branch_from)
-        scenes = {s: checkpoint.branch(ck, stepper=s, days=args.days) for s in steppers}
-    elif args.scene is None:
-        raise ValueError("sweep needs a SCENE (or --from RESTART.nc)")
-    else:
-        scenes = {
-            s: load_scene(args.scene, ne=args.ne, np=args.np, days=args.days, stepper=s, overrides=overrides)
-            for s in steppers
-        }
-    dts = _numbers(args.dt, "dt") if args.dt is not None else None
-    factors = sorted({f for _, f in pairs}) if pairs else None
-    if dts is None and factors is None:
-        factors = _numbers("0.5,1,2,5,10,30,60,100" if args.courant is None else args.courant, "courant")
-    base = next(iter(scenes.values()))
-    length = base.run_days  # from t = 0, or from the day of --from's restart file
-    time_filter, span = None, length  # Δt must divide span (days)
-    if args.filter_days is not None:
-        from .steppers.timefilter import TimeFilter
-
-        time_filter = TimeFilter(args.filter_days, args.filter_every, args.filter_window)
-        time_filter.days(length)  # the window must start within the run
-        span = time_filter.every_hours / 24
-        if abs(length / span - round(length / span)) > 1e-9:
-            raise ValueError(
-                f"the run length of {length:g} days is not a multiple of the filter's {time_filter.every_hours:g} h snapshots"
-            )
-    for dt in dts or ():
-        if abs(round(span * 86400 / dt) * dt - span * 86400) > 1e-6 * dt and time_filter is not None:
-            raise ValueError(
-                f"dt = {dt:g} s does not divide the filter's snapshot interval of {time_filter.every_hours:g} h"
-            )
-    device = _warp_device(args.device)
     from .core.workers import executor
-    from .io.run_file import check_results, folder_lock
-    from .studies.sweep import (
-        OUTPUTS,
-        REFERENCE_MAX_GRAVITY_COURANT,
-        Sweep,
-        dt_for_day,
-        explicit_limits,
-        format_summary,
-        start_state,
-        table,
-        write_outputs,
-    )
+    from .studies import sweep
 
+    runs = _runs(args.runs) if args.runs is not None else None
+    plan = sweep.plan(
+        args.scene,
+        steppers=None if args.steppers is None else _steppers(args.steppers),
+        dts=None if args.dt is None else _numbers(args.dt, "dt"),
+        courant=None if args.courant is None else _numbers(args.courant, "courant"),
+        runs=runs,
+        ne=args.ne,
+        np=args.np,
+        days=args.days,
+        overrides=_overrides(args.set),
+        restart=args.branch_from,
+        filter_days=args.filter_days,
+        filter_every=args.filter_every,
+        filter_window=args.filter_window,
+    )
+    device = _warp_device(args.device)
     with executor(args.workers) as pool:
         if pool is None:  # an MPI worker rank: its share is done
             return 0
-        with folder_lock(args.output, "sweep.lock"):  # a second sweep into this folder is refused now, not at its end
-            check_results(
-                args.output, OUTPUTS, args.overwrite
-            )  # an earlier sweep's results: refused now, not at the end
-            # the restart file's state, or a digital-filter start made once for every run
-            start = ck.x if ck is not None else start_state(base, args.output, device)
-            limits = explicit_limits(base, device, start)
-            if dts is None:
-                dt_of = {f: dt_for_day(f * limits["dt_gravity"], span) for f in factors}
-                dts = sorted(set(dt_of.values()))
-                asked = {f: "/".join(f"{s}@{f:g}" for s, g in pairs if g == f) if pairs else f"{f:g}" for f in factors}
-                pairs = [(s, dt_of[f]) for s, f in pairs] if pairs else None
-                capped = [f for f in factors if f * limits["dt_gravity"] > span * 86400 * (1 + 1e-9)]
-                if capped and time_filter is not None:  # Δt must divide the filter's snapshot interval
-                    print(
-                        f"note        --courant {','.join(f'{f:g}' for f in capped)}: dt capped at the filter's "
-                        f"{time_filter.every_hours:g} h snapshot interval ({span * 86400 / limits['dt_gravity']:.3g} x the "
-                        "gravity-wave limit); --filter-every sets it"
-                    )
-                said = capped if time_filter is not None else []
-                rounded = [
-                    f"{asked[f]} runs at {dt_of[f] / limits['dt_gravity']:.3g}"
-                    for f in factors
-                    if f not in said and dt_of[f] < f * limits["dt_gravity"] * (1 - 1e-3)
-                ]
-                if rounded:  # the multiple that ran, not the one asked for
-                    print(
-                        f"note        {'--runs' if pairs else '--courant'} {', '.join(rounded)} x the gravity-wave limit "
-                        f"(each dt the largest at or below its multiple that divides {min(span, 1.0):g} days)"
-                    )
-            for dt in dts:
-                if abs(round(length * 86400 / dt) * dt - length * 86400) > 1e-6 * dt:
-                    raise ValueError(f"dt = {dt:g} s does not divide the run length of {length:g} days")
-            print(
-                f"sweep {base.name} ne={base.ne} np={base.np}, {f'day {base.start_day:g} to ' if ck else ''}{base.days:g} days; explicit limits: gravity-wave dt = "
-                f"{limits['dt_gravity']:.1f} s, advective dt = {limits['dt_advective']:.1f} s; dt = {', '.join(f'{d:.4g}' for d in dts)}"
-            )
-            if ck is not None:
-                b = base.branch
-                print(
-                    f"start       the state of {args.branch_from} at day {b['day']:g} (step {b['step']} of {b['stepper']}, "
-                    f"dt = {b['dt']:g} s), for every run and the reference run; each stepper starts there afresh"
-                )
-            elif start is not None:
-                print(
-                    f"start       digital-filter initialization (cutoff {base.digital_filter.cutoff_hours:g} h, span "
-                    f"{base.digital_filter.span_hours:g} h), the same state for every run; the spectral reference starts "
-                    "impulsively, so the spatial error (and the verdicts' thresholds) include the gravity waves it keeps"
-                )
-            rows, info = Sweep(
-                scenes,
-                dts,
-                args.output,
-                device,
-                time_filter=time_filter,
-                start=start,
-                pairs=pairs,
-                overrides=overrides,
-                reference_dt_max=REFERENCE_MAX_GRAVITY_COURANT * limits["dt_gravity"],
-            ).run(pool)
-            rows = table(rows, limits, args.cost)
-            print(format_summary(rows, info))
-            for path in write_outputs(rows, info, limits, args.output, overwrite=args.overwrite):
-                print(f"wrote {path}")
+        plan.run(args.output, device, pool=pool, cost=args.cost, overwrite=args.overwrite)
     return 0
 
 

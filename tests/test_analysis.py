@@ -20,8 +20,7 @@ from swe_sphere.model.diagnostics import harmonic_state
 from swe_sphere.studies import plotting
 from swe_sphere.studies.analysis import kinetic_energy_spectrum, zonal_mean
 
-from conftest import TINY, cli_main, cli_one_line
-from test_plotting import old_file, png_size  # noqa: F401 (old_file: a run file without vorticity, a fixture)
+from helpers import EIGHTH_DAY, TINY, cli_main, cli_one_line, png_size
 
 A, OMEGA, G = EARTH.a, EARTH.omega, EARTH.g
 U0 = 2 * math.pi * A / (12 * DAY)  # TC2's solid-body speed at the equator
@@ -218,7 +217,7 @@ def test_plot_functions_return_figures(tc2_file):
 )
 def test_bad_input_exits_2_one_line_nothing_written(
     tc2_file,
-    old_file,  # noqa: F811 (the fixture)
+    old_file,
     tmp_path,
     monkeypatch,
     capsys,
@@ -322,3 +321,31 @@ def test_log_every_steps_must_not_be_negative(capsys, tmp_path):
         "output.log_every_steps must be int",
     )
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_zonal_mean_of_the_wind_at_the_poles_is_its_limit(tmp_path, capsys, monkeypatch):
+    """TC2 with its jet over the poles (α = π/4), whose zonal mean of u is u0 cos(lat) cos(α)
+    (Williamson 1992 eq. 90 averaged over longitude): the pole rows were ±27.6 m/s off it at
+    ne2 (east turns with longitude there), 4.6x the worst other row; now they are the limit, 0
+    (v's too), exact."""
+    monkeypatch.chdir(tmp_path)
+    from swe_sphere.studies.analysis import zonal_mean
+
+    assert (
+        cli_main(
+            capsys,
+            "run",
+            "tc2_steady_alpha_pi4",
+            *TINY,
+            *EIGHTH_DAY,
+            "--output",
+            "a.nc",
+        )[0]
+        == 0
+    )
+    for field in ("u", "v"):
+        assert zonal_mean(tmp_path / "a.nc", field).isel(time=-1).values[[0, -1]].tolist() == [0.0, 0.0], field
+    u = zonal_mean(tmp_path / "a.nc", "u").isel(time=-1)
+    u0 = 2 * np.pi * 6.37122e6 / (12 * 86400)
+    error = np.abs(u.values - u0 * np.cos(np.radians(u.lat.values)) * np.cos(np.pi / 4))
+    assert error[[0, -1]].max() < 1e-9 < error[1:-1].max()

@@ -26,7 +26,7 @@ from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.simulation import checkpoint as ckpt
 from swe_sphere.simulation.simulation import Simulation
 
-from conftest import cli_main, cli_one_line, make_sim, write_tc2_scene
+from helpers import cli_main, cli_one_line, make_sim, write_tc2_scene
 
 EVERY = "[output]\nevery_days = 0.25\n"
 RUN = ("--device", "cpu", "--no-progress")

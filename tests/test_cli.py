@@ -28,7 +28,7 @@ from swe_sphere.config.scene import efold_nu
 from swe_sphere.io.run_file import RunWriter
 
 import roundoff
-from conftest import TINY, cached_grid, cli_main, console_script, one_line
+from helpers import TINY, cached_grid, cli_main, console_script, one_line
 
 REPO = Path(__file__).resolve().parents[1]
 TESTCASES = REPO / "testcases"
@@ -192,7 +192,7 @@ def test_run_writes_a_complete_netcdf_file(which, tc2_run, tc5_run_file):
             assert ds.linf_h.values[-1] < 1e-2
             assert ds.l2_wind.values[-1] < 3e-2
         else:
-            assert scene["stepper"] == "rk4"  # the efficiency study's choice (docs/efficiency.md, 2026-11-23)
+            assert scene["stepper"] == "rk4"  # the efficiency study's choice (docs/efficiency.md)
             assert "topography" in scene["terms"] and "hyperviscosity" in scene["terms"]
             assert scene["nu"] == pytest.approx(
                 efold_nu(3.0, 2, 4, 6.37122e6), rel=1e-12

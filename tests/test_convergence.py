@@ -30,7 +30,7 @@ from swe_sphere.config.scene import load_scene
 from swe_sphere.simulation.simulation import Simulation
 
 import roundoff
-from conftest import cached_grid
+from helpers import cached_grid
 
 DEVICE = "cpu"
 

@@ -19,7 +19,7 @@ from swe_sphere.core.constants import DAY
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
 
-from conftest import requires_cuda
+from helpers import requires_cuda
 
 STEPS = 6
 # relative max-norm difference of the final state, per stepper family

@@ -16,7 +16,7 @@ import xarray as xr
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.errors import BlowUp, Interrupted, StepFailure
 
-from conftest import RUN_TIMES, assert_same_runs, make_sim, watched_run, write_tc2_scene
+from helpers import RUN_TIMES, assert_same_runs, make_sim, watched_run, write_tc2_scene
 
 
 def test_blow_up_inside_a_block_is_reported_as_with_a_check_every_step(tmp_path):

@@ -21,7 +21,7 @@ from swe_sphere.cli import main
 from swe_sphere.config.scene import load_scene
 
 import roundoff
-from conftest import make_sim, write_tc2_scene
+from helpers import make_sim, write_tc2_scene
 
 AMPLITUDE = 1e-6  # s⁻¹: the perturbation's wind is ~ A a ≈ 6 m/s
 

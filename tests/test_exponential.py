@@ -35,7 +35,7 @@ from swe_sphere.grid.topology import Topology
 from swe_sphere.solvers.kiops import Kiops
 
 import roundoff
-from conftest import cached_grid, cli_main, cli_one_line, make_sim, run, tc6_error, write_tc2_scene
+from helpers import cached_grid, cli_main, cli_one_line, make_sim, run, tc6_error, write_tc2_scene
 
 
 def dense_phi(A: np.ndarray, tau: float, u: list[np.ndarray]) -> np.ndarray:

@@ -19,7 +19,7 @@ from swe_sphere.config.scene import load_scene
 from swe_sphere.core.errors import ResourceError, SceneError
 from swe_sphere.core.runtime import check_memory, run_bytes
 
-from conftest import TC2_SCENE, TINY, cli_one_line, write_tc2_scene
+from helpers import TC2_SCENE, TINY, cli_one_line, write_tc2_scene
 
 
 @pytest.fixture(autouse=True)
@@ -42,7 +42,7 @@ def scene_with(tmp_path, name="s.toml", **replace):
     return path
 
 
-# -- the former tracebacks (issue 13's survey), now one line ---------------------
+# -- failures that were tracebacks once, now one line ----------------------------
 
 
 @pytest.mark.parametrize("value", ["0", "-2", "abc"])
@@ -249,7 +249,7 @@ def test_compress_stores_float32(tmp_path):
 def test_explicit_dt_above_the_stability_limit_warns(tmp_path):
     """leapfrog on TC2 ne = 2: dt = 3600 s (Courant sum 0.77 > 0.58) warns and does blow
     up; dt = 1800 s (0.38) neither warns nor blows up."""
-    from conftest import make_sim, run
+    from helpers import make_sim, run
 
     fast = make_sim(load_scene(write_tc2_scene(tmp_path / "a.toml", stepper="leapfrog", dt=3600.0, days=2.0)))
     warning = fast.stability_warning()
@@ -265,7 +265,7 @@ def test_imex_dt_above_its_advective_limit_warns(tmp_path):
     """IMEX treats advection explicitly: on TC2 ne = 2, dt = 12 h gives |v| dt/dx = 1.69
     (> 1.0, Imex.advective_courant_limit) and warns with the dt that keeps below; 6 h
     (0.85) does not, though its gravity-wave Courant number is 3.8."""
-    from conftest import make_sim
+    from helpers import make_sim
 
     big = load_scene(write_tc2_scene(tmp_path / "a.toml", stepper="imex", dt=43200.0, days=2.0))
     warning = make_sim(big).stability_warning()
@@ -273,3 +273,17 @@ def test_imex_dt_above_its_advective_limit_warns(tmp_path):
     assert "imex's stability limit of about 1 " in warning and "dt <= 2.55e+04 s" in warning
     assert make_sim(big).largest_dt_within_limit() == pytest.approx(43200.0 / 1.69, rel=3e-3)  # the dt it offers
     assert make_sim(dataclasses.replace(big, dt=21600.0)).stability_warning() is None
+
+
+def test_api_errors_are_importable_and_name_the_api():
+    import swe_sphere
+    from swe_sphere.config import scene as config
+    from swe_sphere.io import run_file as output
+
+    assert swe_sphere.SceneError is config.SceneError and swe_sphere.OutputError is output.OutputError
+    for name in ("CheckpointError", "BlowUp", "Interrupted", "StepFailure", "ResourceError"):
+        assert issubclass(getattr(swe_sphere, name), Exception)
+    with pytest.raises(swe_sphere.SceneError, match=r"ne must be an integer >= 1 \(got '8', a str\)"):
+        swe_sphere.run("tc2_steady", ne="8", days=1, device="cpu")
+    with pytest.raises(swe_sphere.SceneError, match=r"dt must be > 0 \(got '60', a str\)"):
+        swe_sphere.run("tc2_steady", ne=2, dt="60", days=1, device="cpu")

@@ -1,4 +1,4 @@
-"""A GPU user's first run cannot fail on an untested path (issue 44, item 3): graphs
+"""A GPU user's first run cannot fail on an untested path: graphs
 checked on first use, and every failure of a capture, its conditional nodes or
 device totals, a replay or a check falls back to plain launches with one line.
 
@@ -26,7 +26,7 @@ from swe_sphere.simulation import simulation
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.solvers.helmholtz import HelmholtzCG
 
-from conftest import ON_CUDA, cli_main, cli_one_line, one_line
+from helpers import ON_CUDA, cli_main, cli_one_line, one_line
 
 DEVICES = ["cpu", ON_CUDA]
 STEPS = 8

@@ -1,4 +1,4 @@
-"""Steps replayed as captured graphs (``Simulation.graphs``, ISSUE 32 items 2 and 3)
+"""Steps replayed as captured graphs (``Simulation.graphs``)
 and the host reads inside a step (``swe_sphere.core.tally``).
 
 Warp captures and replays graphs on a CPU too (its launches recorded and replayed
@@ -26,7 +26,7 @@ from swe_sphere.core.tally import Tally, instrumented
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
 
-from conftest import ON_CUDA, assert_same_runs, watched_run, write_tc2_scene
+from helpers import ON_CUDA, assert_same_runs, watched_run, write_tc2_scene
 
 # the capturable steppers (explicit, semi-implicit, IMEX), and "tableau", whose default table is explicit (a ``TableauRK``)
 CAPTURABLE = [name for name, cls in STEPPERS.items() if cls.capturable] + ["tableau"]

@@ -10,7 +10,7 @@ from scipy.spatial import cKDTree
 
 from swe_sphere.grid.cubed_sphere import CubedSphere, reference_to_sphere
 
-from conftest import cached_grid
+from helpers import cached_grid
 from numpy_ops import NumpyOps
 
 

@@ -19,7 +19,7 @@ import warp as wp
 from swe_sphere.config.scene import load_scene
 
 import roundoff
-from conftest import make_sim
+from helpers import make_sim
 
 
 def _tc5(ne=4):

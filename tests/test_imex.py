@@ -30,9 +30,9 @@ from swe_sphere.solvers.helmholtz import HelmholtzOptions, HelmholtzSolver
 from swe_sphere.steppers.runge_kutta import TABLES
 from swe_sphere.steppers.tables import IMEX as SCHEMES
 
-import conftest
+import helpers
 import roundoff
-from conftest import cached_grid, run
+from helpers import cached_grid, run
 
 
 def _ars232():
@@ -96,7 +96,7 @@ def test_ars_tableaux_satisfy_the_order_conditions(scheme):
 
 
 def tc6_error(scheme, nsteps):
-    return conftest.tc6_error(ORDER_DAYS, 2048, "imex", nsteps, (("scheme", scheme), ("tol", 1e-13)))[:2]
+    return helpers.tc6_error(ORDER_DAYS, 2048, "imex", nsteps, (("scheme", scheme), ("tol", 1e-13)))[:2]
 
 
 @pytest.mark.roundoff
@@ -190,7 +190,7 @@ def test_an_imex_step_launches_what_its_fused_passes_need(tally, scheme):
 
 
 @pytest.mark.roundoff
-@pytest.mark.parametrize("device", ["cpu", conftest.ON_CUDA])
+@pytest.mark.parametrize("device", ["cpu", helpers.ON_CUDA])
 @pytest.mark.parametrize("per_element", [True, False])
 def test_a_solve_writes_the_stage_tendency_with_the_bits_of_its_own_pass(device, per_element):
     """``HelmholtzSolver.solve(r, a, z, s, implicit=lz)`` (an IMEX stage's L Y = (Y − rhs)/a written

@@ -60,9 +60,9 @@ from swe_sphere.core.errors import BlowUp
 from swe_sphere.core.tally import Tally, instrumented
 from swe_sphere.grid.topology import Topology
 
-import conftest
+import helpers
 import roundoff
-from conftest import cached_grid, make_sim, run, write_tc2_scene
+from helpers import cached_grid, make_sim, run, write_tc2_scene
 from numpy_ops import NumpyOps
 
 DEVICE = "cpu"
@@ -142,7 +142,7 @@ ORDER_ATOL = 1e-12
 
 def tc6_error(nsteps, options):
     """Normalized l2 distance of the whole state (u, v, h) to the rk4 reference."""
-    return conftest.tc6_error(ORDER_DAYS, ORDER_REF_STEPS, "implicit", nsteps, options)
+    return helpers.tc6_error(ORDER_DAYS, ORDER_REF_STEPS, "implicit", nsteps, options)
 
 
 @pytest.mark.parametrize(

@@ -1,4 +1,4 @@
-"""An initial state of one's own (issue 35, item 1): ``[case] name = "file"`` with a
+"""An initial state of one's own: ``[case] name = "file"`` with a
 netCDF file on the model's nodes or on a lat-lon grid, and ``initial=`` a function.
 
 Written from TC2's initial state, each reproduces it: a node file bit for bit (the
@@ -21,7 +21,7 @@ from swe_sphere.core.errors import SceneError
 from swe_sphere.io.initial_state import SCENE_CASES
 from swe_sphere.simulation.simulation import Simulation
 
-from conftest import cached_grid, cli_main, cli_one_line
+from helpers import TINY, cached_grid, cli_main, cli_one_line
 
 ALPHA = math.pi / 4  # the flow crosses the poles: the winds' interpolation there is tested
 TC2 = make_case("tc2_steady", {"alpha": ALPHA})
@@ -239,7 +239,7 @@ def test_case_switch_on_every_bundled_scene(tmp_path, capsys, name):
 
 
 def test_tc2_switched_to_a_file_runs(tmp_path, capsys):
-    """The command of issue 44 (tc2_steady switched to a file of TC2's state, α = π/4,
+    """A user's command (tc2_steady switched to a file of TC2's state, α = π/4,
     which the scene's alpha = 0 would have been refused by) runs, from that state."""
     tc2 = tc2_sim()
     tc2.state().to_netcdf(tmp_path / "run.nc")
@@ -303,3 +303,63 @@ def test_node_file_of_another_grid_refused(tmp_path):
     tc2_sim(ne=2).state().to_netcdf(tmp_path / "ne2.nc")
     with pytest.raises(SceneError, match="not those of this run's grid"):
         Simulation(load_scene(scene_file(tmp_path, tmp_path / "ne2.nc", ne=3)), "cpu", progress=False)
+
+
+def test_the_initial_state_file_is_never_replaced(tmp_path, capsys, monkeypatch):
+    """``--output`` naming the file ``case.path`` reads: refused even with --overwrite."""
+    monkeypatch.chdir(tmp_path)
+    state = latlon_file(tmp_path / "state.nc", *LL)
+    before = state.read_bytes()
+    cli_one_line(
+        capsys,
+        ["run", scene_file(tmp_path, state), "--device", "cpu", "--no-progress", "--output", "state.nc", "--overwrite"],
+        2,
+        "would replace the input",
+        "state.nc",
+    )
+    assert state.read_bytes() == before
+
+
+@pytest.mark.parametrize(
+    "lat, lon, words",
+    [
+        (np.arange(-30.0, 30.0), np.arange(360.0), ["lat covers -30 to 29 degrees, not the globe"]),
+        (np.radians(np.linspace(-90.0, 90.0, 19)), np.radians(np.arange(36) * 10.0), ["not the globe", "radians?"]),
+    ],
+)
+def test_an_initial_state_not_covering_the_globe_is_refused(tmp_path, capsys, lat, lon, words, monkeypatch):
+    """A regional lat-lon file was extrapolated to the poles; one in radians was read as
+    a tiny regional one. Both: one line, exit 2, no output."""
+    monkeypatch.chdir(tmp_path)
+    scene = scene_file(tmp_path, latlon_file(tmp_path / "part.nc", lat, lon))
+    cli_one_line(
+        capsys, ["run", scene, "--device", "cpu", "--no-progress", "--output", "out.nc"], 2, "case.path", *words
+    )
+    assert not (tmp_path / "out.nc").exists()
+
+
+def test_a_switched_case_is_named_in_header_title_and_file_name(tmp_path, capsys, monkeypatch):
+    """``-s case.name=file`` on tc2_steady: the header, the run file's title and its
+    default name say the case that ran, not the scene file's own."""
+    monkeypatch.chdir(tmp_path)
+    state = latlon_file(tmp_path / "state.nc", *LL)
+    code, out, err = cli_main(
+        capsys,
+        "run",
+        "tc2_steady",
+        *TINY,
+        "--dt",
+        "1800",
+        "--days",
+        "0.125",
+        "-s",
+        "case.name=file",
+        "-s",
+        f"case.path={state}",
+        "-s",
+        "output.every_days=0.125",
+    )
+    assert code == 0, err
+    assert "scene       file_in_tc2_steady: case file with scene tc2_steady's grid, terms and stepping" in out
+    with xr.open_dataset(tmp_path / "file_in_tc2_steady_ne2np4_ssprk3.nc") as ds:
+        assert ds.attrs["title"] == "swe_sphere run of scene file_in_tc2_steady" and ds.attrs["case"] == "file"

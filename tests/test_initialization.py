@@ -25,7 +25,7 @@ from swe_sphere.steppers.initialization import DigitalFilter, digital_filter
 from swe_sphere.studies.sweep import Sweep, start_state
 
 import roundoff
-from conftest import cli_one_line, make_sim
+from helpers import cli_one_line, make_sim
 
 
 def _filter(sim, f):

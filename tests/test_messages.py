@@ -1,4 +1,4 @@
-"""Messages a new user met (issue 34, item 9): each one line, exit 2, naming the value."""
+"""Messages a new user met: each one line, exit 2, naming the value."""
 
 from __future__ import annotations
 

@@ -28,7 +28,7 @@ from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS as STEPPER_REGISTRY
 
 import roundoff
-from conftest import cached_grid, one_line
+from helpers import cached_grid, one_line
 
 
 def _beside_python(name: str) -> str | None:
@@ -109,7 +109,7 @@ def test_each_output_time_gathers_a_state_once(tmp_path, monkeypatch):
     from swe_sphere.config.scene import load_scene
     from swe_sphere.core.constants import DAY
 
-    from conftest import make_sim
+    from helpers import make_sim
 
     dt = 1800.0
     scene = load_scene("tc2_steady", ne=2, np=4, dt=dt, days=4 * dt / DAY, stepper="ssprk3")

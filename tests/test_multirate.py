@@ -22,7 +22,7 @@ from swe_sphere.steppers.tables import MULTIRATE
 from swe_sphere.studies.stability import run_is_stable
 from swe_sphere.studies.sweep import explicit_limits
 
-from conftest import cli_main, one_line
+from helpers import cli_main, one_line
 
 EPS = np.finfo(float).eps
 

@@ -25,7 +25,7 @@ from swe_sphere.model.launches import Update
 from swe_sphere.model.shallow_water import TERMS, ShallowWater
 
 import roundoff
-from conftest import cached_grid, requires_cuda
+from helpers import cached_grid, requires_cuda
 from numpy_ops import NumpyOps
 
 DEV = "cpu"
@@ -668,7 +668,7 @@ def test_cuda_matches_cpu():
     for r in range(3):
         assert np.abs(res["cuda"][0][r] - res["cpu"][0][r]).max() <= 1e-13 * scale[r]
         # against the row's largest value, not node by node: v after the ∇⁴ step crosses zero
-        # (3.3e-13 of max |v| on an H100, 2026-11-22; elementwise that is 26× near a zero of v)
+        # (about 3e-13 of max |v| on a GPU; elementwise that is 26× near a zero of v)
         after = res["cpu"][1][r]
         assert np.abs(res["cuda"][1][r] - after).max() <= 1e-12 * np.abs(after).max()
 

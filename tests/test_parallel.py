@@ -12,7 +12,7 @@ from swe_sphere.model.shallow_water import TERMS, ShallowWater
 from swe_sphere.steppers import STEPPERS, make_stepper
 
 import roundoff
-from conftest import cached_grid
+from helpers import cached_grid
 
 
 @pytest.fixture

@@ -7,7 +7,7 @@ import pytest
 
 from swe_sphere.grid import partition as P
 
-from conftest import cached_grid
+from helpers import cached_grid
 
 
 @pytest.mark.parametrize("ne", [1, 2, 3, 4, 5, 7, 8])

@@ -19,7 +19,7 @@ from swe_sphere.core.constants import EARTH
 from swe_sphere.core.errors import SceneError
 from swe_sphere.simulation.simulation import Simulation
 
-from conftest import TINY, cli_main, cli_one_line
+from helpers import TINY, cli_main, cli_one_line
 
 ERRORS = ("l1_h", "l2_h", "linf_h", "l1_wind", "l2_wind", "linf_wind", "l2_vorticity", "l2_divergence")
 

@@ -5,7 +5,6 @@ plot, and bad input (exit 2, one line, nothing written)."""
 
 from __future__ import annotations
 
-import struct
 from pathlib import Path
 
 import numpy as np
@@ -15,20 +14,11 @@ import xarray as xr
 from swe_sphere import cli
 from swe_sphere.cases.reference import find_reference
 from swe_sphere.cli import main
-from swe_sphere.grid.cubed_sphere import CubedSphere
-from swe_sphere.io.run_file import RunWriter
 from swe_sphere.studies import analysis, plotting
 
-from conftest import cli_main, cli_one_line
+from helpers import EIGHTH_DAY, TINY, cli_main, cli_one_line, png_size
 
 TC5_REF = find_reference("tc5_mountain")
-
-
-def png_size(path: Path) -> tuple[int, int]:
-    """(width, height) from the PNG header."""
-    data = Path(path).read_bytes()[:24]
-    assert data[:8] == b"\x89PNG\r\n\x1a\n" and data[12:16] == b"IHDR"
-    return struct.unpack(">II", data[16:24])
 
 
 def distinct_colours(path: Path) -> int:
@@ -41,19 +31,6 @@ def distinct_colours(path: Path) -> int:
 @pytest.fixture
 def run_file(tc5_run_file):
     return tc5_run_file
-
-
-@pytest.fixture(scope="module")
-def old_file(tmp_path_factory):
-    """A run file as written before vorticity existed: no vorticity values (NaN)."""
-    grid = CubedSphere(2, 3)
-    out = tmp_path_factory.mktemp("old") / "old.nc"
-    attrs = {"scene": {"name": "synthetic", "ne": 2, "np": 3}}
-    w = RunWriter(out, grid, np.zeros(grid.npts), attrs, ["mass_change"])
-    h = 1000 + 100 * np.sin(grid.lat)
-    w.append(0.0, np.cos(grid.lat), 0 * grid.lat, h, {"mass_change": 0.0})
-    w.close()
-    return out
 
 
 def test_cli_fields_are_the_plotting_fields():
@@ -227,3 +204,42 @@ def test_remapped_file_can_be_plotted_by_xarray_users(run_file, tmp_path):
         field.plot(ax=ax)
         plotting._save(fig, tmp_path / "xr.png")
     assert png_size(tmp_path / "xr.png") == (600, 300)
+
+
+def test_tc2_plots_say_they_are_against_the_exact_solution(tmp_path, capsys, monkeypatch):
+    """TC2's series panel said "against T213"; ``plot --diff T213`` said "reference file not found"."""
+    monkeypatch.chdir(tmp_path)
+    from swe_sphere.studies.plotting import open_run, plot_series
+
+    assert (
+        cli_main(
+            capsys,
+            "run",
+            "tc2_steady",
+            *TINY,
+            *EIGHTH_DAY,
+            "--output",
+            "tc2.nc",
+        )[0]
+        == 0
+    )
+    ds = open_run(tmp_path / "tc2.nc")
+    try:
+        assert plot_series(ds).axes[1].get_title() == "error norms against the exact solution"
+    finally:
+        ds.close()
+    cli_one_line(
+        capsys,
+        ["plot", "tc2.nc", "--diff", "T213"],
+        2,
+        "no T213 reference for this case: it is scored against its exact solution",
+    )
+    assert not list(tmp_path.glob("*.png"))
+
+
+def test_sweep_error_axes_name_the_norm_and_field():
+    from swe_sphere.studies.plotting import error_label
+
+    assert error_label("total_error") == "total error: normalized l2 of h + hs"
+    assert error_label("temporal_error_vorticity") == "temporal error: normalized l2 of vorticity"
+    assert error_label("wall_time") == "wall time"

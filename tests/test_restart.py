@@ -32,7 +32,7 @@ from swe_sphere.simulation import checkpoint as ckpt
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
 
-from conftest import make_sim, requires_cuda, write_tc2_scene
+from helpers import EIGHTH_DAY, TINY, cli_main, cli_one_line, make_sim, requires_cuda, write_tc2_scene
 
 # and a Butcher table's IMEX pair (its default is an explicit table), read back from the restart file's JSON;
 # and the float32 Helmholtz solves
@@ -334,3 +334,43 @@ def test_concurrent_writers(tmp_path, capsys):
     with pytest.raises(OutputError, match="another run is writing"):
         with ExclusiveFile(tmp_path / "b.nc"):
             ExclusiveFile(tmp_path / "b.nc")
+
+
+def test_continue_at_the_end_day_without_days_is_refused(tmp_path, capsys, monkeypatch):
+    """``--continue R.restart.nc`` of a finished run, no --days: it ran 0 steps, exit 0, and
+    wrote R_continued.nc, which then blocked the real continuation. Now exit 2, nothing written."""
+    monkeypatch.chdir(tmp_path)
+    run = ["run", "tc2_steady", *TINY, "--dt", "1800", "--days", "0.25", "-s", "output.every_days=0.25"]
+    assert cli_main(capsys, *run, "--restart-every", "0.25", "--output", "r.nc")[0] == 0
+    before = sorted(p.name for p in tmp_path.iterdir())
+    cli_one_line(
+        capsys,
+        ["run", "--continue", "r.restart.nc", "--device", "cpu", "--no-progress"],
+        2,
+        "r.restart.nc is already at its run's end day 0.25",
+        "--days",
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+    assert (
+        cli_main(capsys, "run", "--continue", "r.restart.nc", "--days", "0.5", "--device", "cpu", "--no-progress")[0]
+        == 0
+    )
+    assert (tmp_path / "r_continued.nc").is_file()
+
+
+def test_a_continued_run_keeps_writing_restart_files(tmp_path, capsys, monkeypatch):
+    """A run with --restart-every 0.125, continued without it: the continuation writes
+    its restart file at its interval (the header says so), which continues again."""
+    monkeypatch.chdir(tmp_path)
+    from swe_sphere.simulation import checkpoint
+
+    run = ["run", "tc2_steady", *TINY, *EIGHTH_DAY]
+    assert cli_main(capsys, *run, "--restart-every", "0.125", "--output", "r.nc")[0] == 0
+    assert checkpoint.read(tmp_path / "r.restart.nc").restart_every == 0.125
+    code, out, err = cli_main(
+        capsys, "run", "--continue", "r.restart.nc", "--days", "0.25", "--device", "cpu", "--no-progress"
+    )
+    assert code == 0, err
+    assert "every 0.125 days and at the end" in out
+    again = checkpoint.read(tmp_path / "r_continued.restart.nc")
+    assert (again.step, again.restart_every) == (12, 0.125)

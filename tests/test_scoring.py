@@ -21,7 +21,7 @@ from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
 from swe_sphere.simulation.simulation import RunResult
 
-from conftest import make_sim
+from helpers import make_sim
 
 
 def integral(grid, f):

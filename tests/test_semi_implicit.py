@@ -48,7 +48,7 @@ from swe_sphere.solvers.helmholtz import GuessHistory, HelmholtzOptions, Helmhol
 from swe_sphere.steppers import STEPPERS
 
 import roundoff
-from conftest import make_sim, requires_cuda, run, write_tc2_scene
+from helpers import make_sim, requires_cuda, run, write_tc2_scene
 from numpy_ops import NumpyOps
 
 DEVICE = "cpu"

@@ -1,4 +1,4 @@
-"""The Python step loop (issue 35, item 4): ``Simulation(scene, **overrides)``,
+"""The Python step loop: ``Simulation(scene, **overrides)``,
 ``advance``, ``steps``, ``state``, callbacks, and the run files' ``[output] fields``
 and ``[[output.streams]]``."""
 
@@ -15,7 +15,7 @@ from swe_sphere.core.errors import SceneError
 from swe_sphere.io.run_file import OUTPUT_FIELDS
 from swe_sphere.simulation.simulation import Simulation
 
-from conftest import TINY, cli_main, write_tc2_scene
+from helpers import TINY, cli_main, write_tc2_scene
 
 DT = 1800.0  # s: 48 steps a day
 KW = dict(ne=2, dt=DT, days=0.25, output={"every_days": 0.125})  # 12 steps, outputs at steps 0, 6, 12

@@ -34,7 +34,7 @@ from swe_sphere.kernels.tendencies import TENDENCY_TERMS
 from swe_sphere.steppers import STEPPERS
 
 import roundoff
-from conftest import cached_grid, make_sim, tc6_final, write_tc2_scene
+from helpers import cached_grid, make_sim, tc6_final, write_tc2_scene
 
 # RHS evaluations: (first step, every later step), as the steppers document them.
 # A registered stepper missing here (e.g. an iterative implicit one, whose count

@@ -3,6 +3,7 @@
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -21,7 +22,7 @@ from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.studies import sweep as sweep_mod
 
 import roundoff
-from conftest import cached_grid
+from helpers import cached_grid, cli_one_line
 
 
 @pytest.fixture(scope="module")
@@ -561,7 +562,7 @@ TC5 = ["sweep", "tc5_mountain", "--ne", "2", "--steppers", "rk4", "--device", "c
 
 
 def test_a_sweep_of_other_days_or_overrides_into_the_same_folder_makes_its_runs_again(tmp_path, capsys):
-    """The issue's sequence on a tiny grid: a 2-day sweep, then a 1-day one of part of
+    """A user's sequence on a tiny grid: a 2-day sweep, then a 1-day one of part of
     it into the same folder. The second makes the small-Δt run and its runs again
     (it printed the 2-day errors, labelled day 1) and its rows equal a fresh 1-day
     sweep's; it says what changed. An override then makes them again too; an
@@ -858,3 +859,67 @@ def test_a_stored_key_says_what_changed():
         'other settings: code {"version": "0.0.1"} (now null), device "cuda" (now "cpu")'
     )
     assert sweep_mod.stale(None, key) == "made by an earlier swe_sphere that did not record its settings"
+
+
+def test_the_plan_is_what_the_cli_runs(tmp_path, capsys):
+    """``plan`` with the options of ``swe-sphere sweep --runs rk4@0.77`` resolves to the
+    Δt the command ran (the largest at or below 0.77 × the gravity-wave limit that divides
+    the 6 h run) and to the notes it printed before its runs, the first saying the multiple
+    that ran (sweep.csv's), not the 0.77 asked for; ``Plan.run`` on a copy of
+    the command's runs reuses them and writes the same sweep.csv, logging the same lines."""
+    cli = tmp_path / "cli"
+    args = ["sweep", "tc2_steady", "--ne", "2", "--days", "0.25", "--runs", "rk4@0.77"]
+    assert main([*args, "--device", "cpu", "--output", str(cli)]) == 0
+    printed = capsys.readouterr().out.splitlines()
+    p = sweep_mod.plan("tc2_steady", ne=2, days=0.25, runs=[("rk4", 0.77)])
+    assert list(p.scenes) == ["rk4"] and p.multiples == (0.77,) and p.dts is None
+    resolved = p.resolve(tmp_path / "py", "cpu")
+    g = resolved.limits["dt_gravity"]
+    steps = math.ceil(0.25 * 86400 / (0.77 * g) - 1e-9)
+    assert resolved.dts == [0.25 * 86400 / steps] and resolved.dts[0] < 0.77 * g * (1 - 1e-3)
+    assert resolved.pairs == (("rk4", resolved.dts[0]),)
+    assert list(pd.read_csv(cli / "sweep.csv")["dt"]) == resolved.dts
+    assert printed[: len(resolved.notes)] == resolved.notes and len(resolved.notes) == 2
+    assert resolved.notes[0].startswith(f"note        --runs rk4@0.77 runs at {resolved.dts[0] / g:.3g} x the")
+
+    py = tmp_path / "py"
+    shutil.copytree(cli / "runs", py / "runs", dirs_exist_ok=True)
+    logged = []
+    rows, info, paths = p.run(py, "cpu", log=logged.append)
+    assert [path.name for path in paths] == list(sweep_mod.OUTPUTS) and len(rows) == 1
+    pd.testing.assert_frame_equal(pd.read_csv(py / "sweep.csv"), pd.read_csv(cli / "sweep.csv"), check_exact=True)
+    said = "\n".join(logged).splitlines()
+    assert said[:2] == printed[:2] and f"runs: 1 reused, 0 made (in {py / 'runs'})" in said
+    table = [printed.index(line) for line in printed if line.startswith("stepper ")] + [
+        said.index(line) for line in said if line.startswith("stepper ")
+    ]
+    n = len(printed) - table[0] - len(sweep_mod.OUTPUTS)  # the table, summary and verdicts
+    assert n > 5
+    assert said[table[1] : table[1] + n] == printed[table[0] : table[0] + n]
+
+
+@pytest.mark.parametrize(
+    "options, words",
+    [
+        (dict(runs=[("rk4", 1.0)], steppers=["rk4"]), "not both"),
+        (dict(dts=[3600.0], courant=[1.0]), "one of --dt, --courant and --runs"),
+        (dict(dts=[-5.0]), "--dt values must be > 0 (got -5)"),
+        (dict(courant=[]), "--courant values must be > 0 (got none)"),
+        (dict(runs=[("rk4", 0.0)]), "--runs values must be > 0 (got 0)"),
+        (dict(dts=[7000.0]), "dt = 7000 s does not divide the run length of 1 days"),
+        (dict(dts=[1000.0], filter_days=0.5), "dt = 1000 s does not divide the filter's snapshot interval of 3 h"),
+    ],
+)
+def test_the_plan_refuses_what_the_cli_refuses(options, words):
+    """Bad options raise ValueError naming them as the command line spells them, before any run."""
+    given = options if "runs" in options else {"steppers": ["rk4"], **options}
+    with pytest.raises(ValueError) as err:
+        sweep_mod.plan("tc2_steady", ne=2, days=1, **given)
+    assert words in str(err.value)
+
+
+@pytest.mark.parametrize("flag", ["--runs", "--courant", "--dt"])
+def test_sweep_refuses_an_empty_list(capsys, flag, tmp_path, monkeypatch):
+    """An empty --runs / --courant / --dt was read as "not given" and ran the whole default sweep."""
+    monkeypatch.chdir(tmp_path)
+    cli_one_line(capsys, ["sweep", "tc2_steady", "--ne", "2", flag, "", "--output", "o"], 2, flag)

@@ -29,9 +29,9 @@ from swe_sphere.steppers.butcher import TableauOptions, conditions, stage_form
 from swe_sphere.steppers.runge_kutta import ImexRK, TableauARK, TableauRK
 from swe_sphere.steppers.tables import EXPLICIT
 
-import conftest
+import helpers
 import roundoff
-from conftest import TINY, cached_grid, cli_main, cli_one_line, make_sim, write_tc2_scene
+from helpers import TINY, cached_grid, cli_main, cli_one_line, make_sim, write_tc2_scene
 
 # the built-in explicit schemes' Butcher tables: ssprk3 from its Shu–Osher form, kgu35 from
 # the stages of its docstring (u5 = (5 u1 − u0)/4 + 3Δt/4 f(u4) = u0 + Δt/4 f(u0) + 3Δt/4 f(u4))
@@ -104,7 +104,7 @@ def final_state(scene, steps):
 
 
 def example(name) -> tuple:
-    """A bundled example scene's table as hashable (key, value) pairs (``conftest.tc6_final``)."""
+    """A bundled example scene's table as hashable (key, value) pairs (``helpers.tc6_final``)."""
     o = TableauOptions(**load_scene(name).stepper_options)
     return tuple(
         (f.name, getattr(o, f.name)) for f in dataclasses.fields(o) if f.name not in ("tol", "maxiter", "mean_depth")
@@ -349,8 +349,8 @@ def test_example_tables_converge_at_their_order(scene, order):
     last stage; mass kept to round-off, an update of the depth per RHS evaluation and
     Helmholtz iteration (``roundoff.operations``)."""
     options = (*(PAIRS[scene] if scene in PAIRS else example(scene)), ("tol", 1e-13))
-    coarse, _, _ = conftest.tc6_error(0.25, 2048, "tableau", 64, options)
-    fine, rf, _ = conftest.tc6_error(0.25, 2048, "tableau", 128, options)
+    coarse, _, _ = helpers.tc6_error(0.25, 2048, "tableau", 64, options)
+    fine, rf, _ = helpers.tc6_error(0.25, 2048, "tableau", 128, options)
     rate = math.log2(coarse / fine)
     print(
         f"\n{scene}: error {coarse:.4e} -> {fine:.4e}, rate {rate:.3f}, mass change {rf.diagnostics['mass_change']:.1e}"

@@ -10,7 +10,7 @@ import pytest
 from swe_sphere.cli import main
 from swe_sphere.steppers.timefilter import TimeFilter, lanczos_weights, response
 
-from conftest import cli_one_line
+from helpers import cli_one_line
 
 
 def test_weights_sum_to_one_symmetric_half_power_at_cutoff():

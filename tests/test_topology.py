@@ -12,7 +12,7 @@ import warp as wp
 from swe_sphere.grid.topology import SerialComm, Topology
 
 import roundoff
-from conftest import cached_grid
+from helpers import cached_grid
 
 
 def table_order_sum(g, x, weight):

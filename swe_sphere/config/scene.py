@@ -83,13 +83,55 @@ def efold_nu(hours: float, ne: int, np: int, radius: float) -> float:
 
 @dataclass(frozen=True)
 class Scene:
-    """A validated, resolved scene (all values final, overrides applied).
+    """A validated, resolved scene: all values final, overrides applied (``load_scene``).
 
-    dt in s, days in days, nu, nu_div, nu_s in m⁴ s⁻¹ (already scaled to this grid).
-    ``initialization``: None (the case's initial state) or {"method": "dfi",
-    "span_hours": ..., "cutoff_hours": ...} (``initialization.DigitalFilter``).
-    ``reference``: None (the case's bundled reference, if any) or the absolute
-    path of the reference file the run is scored against (``case.reference``).
+    Attributes
+    ----------
+    name, description : str
+        The scene's name (its file's stem) and one line saying what it runs.
+    case : str
+        The case (``cases.library``: Williamson et al. 1992 TC1, TC2, TC5, TC6; Galewsky
+        et al. 2004; ...).
+    case_params : dict
+        The case's parameters ([case] table).
+    terms : tuple of str
+        The terms integrated (``model.shallow_water.TERMS``); an absent term costs nothing.
+    ne, np : int
+        Elements along a cube edge; GLL points per element direction.
+    stepper : str
+        The time stepper (``steppers.STEPPERS``).
+    stepper_options : dict
+        Its options (the scene's table of the stepper's name).
+    dt : float
+        Time step (s).
+    days : float
+        The last model day (from t = 0); the run is ``start_day`` to ``days``.
+    output_every_days : float
+        Output interval (days), a whole number of steps.
+    nu, nu_div, nu_s : float
+        ∇⁴ hyperviscosity coefficients (m⁴ s⁻¹) on the rotational wind, the divergent
+        wind and h, already scaled to this grid.
+    hypervis_subcycle : int
+        Hyperviscosity substeps a step.
+    notes : tuple of str
+        What resolving the scene changed (e.g. dt scaled to the grid), for the run's header.
+    branch : dict or None
+        A run branched from a restart file (``checkpoint.branch``): its path and SHA-256,
+        step, day, stepper and dt; its steps count from that day.
+    initialization : dict or None
+        None (the case's initial state) or {"method": "dfi", "span_hours": ...,
+        "cutoff_hours": ...} (``initialization.DigitalFilter``).
+    reference : str or None
+        None (the case's bundled reference, if any) or the absolute path of the
+        reference file the run is scored against (``case.reference``).
+    log_every_steps : int
+        A log line every so many steps (``Simulation.run``'s ``log``); 0: none.
+    planet : dict
+        [planet]: radius (m), omega (s⁻¹), gravity (m s⁻²).
+    output_fields : tuple of str
+        The node fields the run file holds; (): all (``OUTPUT_FIELDS``).
+    output_streams : tuple of dict
+        More run files, each {"name": suffix, "every_days": interval, "fields": (...)}.
     """
 
     name: str
@@ -436,14 +478,36 @@ def _apply_overrides(raw: dict, overrides: dict) -> None:
 def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, overrides: dict | None = None) -> Scene:
     """Read, validate and resolve a scene file, applying command-line overrides.
 
-    ``overrides``: {"section.key": value} set in the file's values before they
-    are validated (``-s hyperviscosity.nu=5e14``), so they are checked like the file.
-    When the grid is overridden and dt is not, dt scales with the smallest
-    node spacing (first GLL interval / ne) and is shortened to divide the
-    output interval (or the run, if shorter; a note warns when that cuts dt by
-    more than 2×); ν scales as the mean spacing 1/(ne·(np−1)) to the power 3.2.
-    Duplicate terms, and terms that omit what the case needs
-    (``Case.required_terms``), are refused. Raises ``SceneError``.
+    Parameters
+    ----------
+    path : str or path
+        A scene file (TOML) or the name of a bundled scene under ``testcases/``.
+    ne, np : int, optional
+        Elements along a cube edge and GLL points per element direction. When the grid
+        is overridden and ``dt`` is not, dt scales with the smallest node spacing
+        (first GLL interval / ne) and is shortened to divide the output interval (or
+        the run, if shorter; a note warns when that cuts dt by more than 2×); ν scales
+        as the mean spacing 1/(ne·(np−1)) to the power 3.2 (HOMME's rule).
+    dt : float, optional
+        Time step (s).
+    days : float, optional
+        Run length (days).
+    stepper : str, optional
+        Time stepper (``steppers.STEPPERS``).
+    overrides : dict, optional
+        ``{"section.key": value}`` set in the file's values before they are validated
+        (``-s hyperviscosity.nu=5e14``), so they are checked like the file.
+
+    Returns
+    -------
+    Scene
+
+    Raises
+    ------
+    SceneError
+        An unreadable file or malformed TOML; an unknown or invalid value (the message
+        names the field); duplicate terms, or terms that omit what the case needs
+        (``Case.required_terms``).
     """
     path = resolve_path(str(path))
     try:

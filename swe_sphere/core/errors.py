@@ -13,23 +13,43 @@ from __future__ import annotations
 
 
 class SweSphereError(Exception):
-    """Base of the errors below; the message is one line that names the field, value or place."""
+    """Base of the errors below; the message is one line that names the field, value or place.
+
+    Catch it to catch every error swe_sphere raises for a reason it can name; an
+    exception of another class is a bug.
+    """
 
 
 class SceneError(SweSphereError, ValueError):
-    """Invalid scene or override; the message names the field or value."""
+    """An invalid scene or override; the message names the field or value.
+
+    Raised by ``load_scene``, ``Simulation`` and ``swe_sphere.run`` before anything is
+    run or written (command line: exit 2).
+    """
 
 
 class OutputError(SweSphereError, ValueError):
-    """An output path that must not be written; the message names it."""
+    """An output path that must not be written; the message names it.
+
+    The file exists (and ``overwrite`` was not given), it is one of the run's inputs
+    (the same name, a link or a hard link), or another process is writing it; raised
+    before anything is written (command line: exit 2).
+    """
 
 
 class CheckpointError(SweSphereError, ValueError):
-    """A checkpoint cannot be used; the message says why."""
+    """A restart file cannot be used; the message says why.
+
+    Unreadable or damaged (checksum, content hash, a state no run makes), of another
+    scene, grid or version, or already at the end day asked for (command line: exit 2).
+    """
 
 
 class ResourceError(SweSphereError, RuntimeError):
-    """The machine cannot do what was asked (too little memory); the message says how much is needed."""
+    """The machine cannot do what was asked; the message says how much memory is needed.
+
+    Raised before the grid's arrays are allocated (command line: exit 3).
+    """
 
 
 class MPIUnavailable(SweSphereError, ValueError):
@@ -38,19 +58,42 @@ class MPIUnavailable(SweSphereError, ValueError):
 
 
 class StepFailure(SweSphereError, RuntimeError):
-    """A step could not be completed (a solver did not converge); the message says why."""
+    """A step could not be completed; the message says why.
+
+    A solver (the Helmholtz CG, Newton–Krylov, KIOPS) did not converge or met a
+    non-finite value (command line: exit 3).
+    """
 
 
 class BlowUp(SweSphereError, RuntimeError):
-    """The state became non-finite or the depth non-positive; the message gives step, time and place."""
+    """The state became non-finite or the depth non-positive; the message gives step, time and place.
+
+    The run file is closed with every good output time first (command line: exit 3).
+
+    Attributes
+    ----------
+    result : RunResult
+        The run up to the last good step (when raised by ``Simulation.run``).
+    """
 
 
 class Interrupted(SweSphereError, RuntimeError):
-    """SIGINT or SIGTERM stopped the run after a complete step (a step still going
-    on ``interrupts.ABANDON_AFTER`` s after the signal is abandoned, its state dropped), or
-    came after its last step, while its output was being closed (then whole);
-    ``signum``, ``result`` and ``checkpoint`` (the restart file written, or None)
-    are attached."""
+    """SIGINT or SIGTERM stopped the run; the message says what is kept.
+
+    The run stops after a complete step (a step still going on
+    ``interrupts.ABANDON_AFTER`` s after the signal is abandoned, its state dropped),
+    or the signal came after its last step, while its output was being closed (then
+    whole). Command line: exit 128 + the signal's number (130, 143).
+
+    Attributes
+    ----------
+    signum : int
+        The signal.
+    result : RunResult
+        The run up to the last complete step (when raised by ``Simulation.run``).
+    checkpoint : Path or None
+        The restart file written, if any (likewise).
+    """
 
 
 __all__ = [

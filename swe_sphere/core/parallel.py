@@ -30,7 +30,7 @@ from .workers import cpus as _usable_cpus
 
 MIN_POINTS_PER_PART = 2048  # below this a split costs more in hand-offs than it gains
 CPU_CHUNK = 256  # entries per partial sum of an inner product on the CPU
-CUDA_CHUNKS = 4096  # partial sums an inner product aims at on CUDA, 8 to 32 entries each (measured on an H100)
+CUDA_CHUNKS = 4096  # partial sums an inner product aims at on CUDA, 8 to 32 entries each (see reduction_chunk)
 
 _pools: dict[int, ThreadPoolExecutor] = {}
 _pools_lock = threading.Lock()
@@ -167,11 +167,10 @@ def reduction_chunk(n: int, device) -> int:
     """Entries per partial sum of an inner product over n entries (the chunked,
     fixed-order reductions of ``kernels.helmholtz`` and ``kernels.krylov``): on
     the CPU ``CPU_CHUNK`` (so the bits do not depend on the threads); on CUDA
-    about n / ``CUDA_CHUNKS``, within 8–32. A GPU thread sums a chunk in a
-    serial loop, latency-bound: on an H100 at ne30, chunks of 256 made a pcg
-    iteration cost 40 RHS, of 32 twice what chunks of 12 cost; at ne120 chunks of
-    190 cost 1.8× chunks of 32. ``Topology.device_sums`` adds the partial sums
-    on the device."""
+    about n / ``CUDA_CHUNKS``, within 8–32: a GPU thread sums a chunk in a
+    serial loop, latency-bound, so long chunks cost (benchmarks/README.md,
+    "Measurements behind the code"). ``Topology.device_sums`` adds the partial
+    sums on the device."""
     if wp.get_device(device).is_cpu:
         return CPU_CHUNK
     return min(32, max(8, -(-int(n) // CUDA_CHUNKS)))

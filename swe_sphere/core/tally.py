@@ -1,6 +1,6 @@
 """What the model asks of the device, counted: kernel launches, their bytes, memsets
 and copies, and host reads (the measure of ``benchmarks/gpu_model.py`` and of
-the tests that a step needs no host round trip, ISSUE 32).
+the tests that a step needs no host round trip).
 
 ``instrumented(tally)`` wraps Warp's launch entry points (recorded
 ``wp.Launch.launch`` and direct ``wp.launch``), its memsets and copies

@@ -185,28 +185,46 @@ def remap_bytes(points: int, np_: int, ntime: int) -> int:
 def remap_dataset(ds, resolution: float = 1.0) -> xr.Dataset:
     """A run on a regular lat-lon grid, for maps and lat-lon tools (xarray, CDO).
 
-    ``ds``: a run as an ``xarray.Dataset`` (``swe_sphere.run``'s result, or a run
-    file opened with ``xr.open_dataset``) or the path of a run file (read into
-    memory and closed). ``resolution``: the grid spacing in degrees; it must
-    divide 180: the grid is ``latlon_grid(resolution)``, lat −90..90 with both
-    poles (``180/resolution + 1`` rows), lon 0..360 − resolution (``360/resolution``
-    columns), degrees_north / degrees_east.
+    Each value is the owning element's GLL polynomial evaluated at the point
+    (``Remapper``, as HOMME's ``interpolate_mod``): no smoothing, the model's own
+    interpolant.
 
-    Returns an ``xarray.Dataset`` with the node fields h, hs (m), u, v (m s⁻¹),
-    vorticity, divergence (s⁻¹) on (time, lat, lon) ((lat, lon) for hs), their
-    units and names, ``h_surface`` = h + hs (m), the run's diagnostics time series
-    on ``time`` (model days, exact multiples of the output interval, so
-    ``.sel(time=3)`` works), ``area`` (lat, lon) (m²: the cells about the points,
-    ``latlon_areas`` on the run's sphere; the fields' ``cell_measures``) and the
-    run's global attributes with a ``remap`` note. Each value is the owning element's GLL polynomial evaluated at the
-    point (``Remapper``): no smoothing, the model's own interpolant. E.g.
-    ``swe_sphere.remap_dataset("run.nc").h_surface.sel(time=3).plot()`` draws a
-    lat-lon map.
+    Parameters
+    ----------
+    ds : xarray.Dataset or path
+        A run (``swe_sphere.run``'s result, or a run file opened with
+        ``xr.open_dataset``), or the path of a run file (read into memory and closed).
+    resolution : float
+        Grid spacing in degrees; it must divide 180. The grid is
+        ``latlon_grid(resolution)``: lat −90..90 with both poles (``180/resolution + 1``
+        rows), lon 0..360 − resolution (``360/resolution`` columns), degrees_north /
+        degrees_east.
 
-    Raises ``FileNotFoundError`` for a missing file, ``ValueError`` (one line) for
-    a file or dataset that is not a swe_sphere run or a resolution that does not
-    divide 180 degrees, ``runtime.ResourceError`` when the grid would not fit in
-    memory."""
+    Returns
+    -------
+    xarray.Dataset
+        The node fields h, hs (m), u, v (m s⁻¹), vorticity, divergence (s⁻¹) on
+        (time, lat, lon) ((lat, lon) for hs) with their units and names,
+        ``h_surface`` = h + hs (m), the run's diagnostics time series on ``time``
+        (model days, exact multiples of the output interval, so ``.sel(time=3)``
+        works), ``area`` (lat, lon) (m²: the cells about the points, ``latlon_areas``
+        on the run's sphere; the fields' ``cell_measures``) and the run's global
+        attributes with a ``remap`` note.
+
+    Raises
+    ------
+    FileNotFoundError
+        A missing file.
+    ValueError
+        A file or dataset that is not a swe_sphere run, or a resolution that does not
+        divide 180 degrees (one line).
+    ResourceError
+        The grid would not fit in memory.
+
+    Examples
+    --------
+    >>> swe_sphere.remap_dataset("run.nc").h_surface.sel(time=3).plot()  # doctest: +SKIP
+    """
     if not isinstance(ds, xr.Dataset):
         with open_netcdf(ds) as opened:
             return remap_dataset(opened.load(), resolution)  # loaded: the result outlives the file

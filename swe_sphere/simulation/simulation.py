@@ -125,52 +125,78 @@ def _compile_timer(acc: list):
 class Simulation(StateDiagnostics):
     """Build the grid, case, model and stepper of a scene; ``run`` integrates it.
 
-    ``device``: "cpu" or "cuda" (Warp device names). ``progress``: a tqdm bar (rank 0,
-    stderr a terminal). ``from_checkpoint`` continues a restart file instead of t = 0.
-    ``comm``: an mpi4py communicator to run one simulation over its ranks (each steps
-    its part of the elements, ``topology.Topology``; rank 0 writes the files); None:
-    this process alone. Explicit steppers give the same bits on any number of ranks.
-    ``start``: a whole-grid state (3, npts) (u, v in m s⁻¹, h in m) to start from
-    instead of the case's initial state and the scene's initialization (a
-    restart's, or a digital-filter start made once for many runs, as a sweep's).
-    With the scene's ``initialization`` (a digital filter, see
-    ``initialization``) and no ``start``, the filter runs here (its cost is part
-    of ``setup_time``) and ``dfi`` holds its ``FilterResult``, else None.
-    ``inputs``: the files the simulation was made from (its scene file, restart
-    file), which ``run`` refuses to write over.
-    ``initial``: a function ``initial(lat, lon) -> (h, u, v)`` (radians in; m,
-    m s⁻¹ out) giving the state at t = 0 instead of the case's, which still
-    gives fcor, hs and the truth errors are taken against
-    (``initial_state.from_function``; ``SceneError`` for a wrong shape, a
-    non-finite value or h <= 0); the scene's digital filter, if any, then runs on it.
-    ``initial_diagnostics``: the t = 0 diagnostics that relative changes are taken against,
-    the same on every rank (a checkpoint's, when continuing: the start state is
-    then not diagnosed for nothing); None: the start state's (``diagnose(0)``).
+    A scene may be given as ``swe_sphere.run`` takes it, ``Simulation("tc2_steady", ne=4,
+    days=2)``. Python drives it step by step with ``advance``, ``steps``, ``state`` and
+    ``add_callback``; ``run`` integrates to the scene's end; ``from_checkpoint``
+    continues a restart file instead of starting at t = 0.
 
-    ``graphs`` ("auto", "on" or "off", or True for "on", False for "off"; default
-    the environment's ``SWE_SPHERE_GRAPHS``, else "auto"; ``graphs.graphs_mode``,
-    ValueError for another value; also an attribute to set): with "on", and "auto" on
-    CUDA, ``run`` replays each step of a ``capturable`` stepper (the explicit ones;
-    semi-implicit and IMEX after their first step, their Helmholtz CG's loops
-    conditional nodes inside, on CUDA where Warp has them) as a graph captured of an
-    earlier step with the same ``Stepper.graph_key`` (on CUDA a CUDA graph, one host
-    call a step instead of one a launch; the same bits as launched one by one), its
-    first replay checked against the step launched plainly
-    (``graphs.GraphedSteps``); a model with a time-dependent forcing runs plain. On
-    a CPU it takes one thread a launch (SWE_SPHERE_THREADS=1; Warp replays a CPU
-    graph in one thread) and one process; otherwise the steps run plain. "off":
-    plain launches throughout (the solvers' own graphs too). A capture, replay or
-    check that fails prints one line on stderr naming the feature, and the run goes
-    on with plain launches from the plain step's state.
-    ``check_every`` (steps; 1 on a CPU, ``guard.CHECK_EVERY_STEPS`` on a GPU): ``run``
-    reads the device's bad-state check back once a block of so many steps, a failed
-    block re-run one checked step at a time (``guard.Guard``; the same bits either way).
+    Parameters
+    ----------
+    scene : Scene, str or path
+        A resolved scene, or a scene file or bundled name with ``overrides``
+        (``config.resolve_scene``).
+    device : {"cpu", "cuda"}, optional
+        Warp device (default: CUDA when present, ``runtime.pick_device``).
+    progress : bool
+        A tqdm bar (rank 0, stderr a terminal).
+    comm : mpi4py communicator, optional
+        Run one simulation over its ranks: each steps its part of the elements
+        (``topology.Topology``), rank 0 writes the files; explicit steppers give the
+        same bits on any number of ranks. None: this process alone.
+    start : ndarray, shape (3, npts), optional
+        A whole-grid state (u, v in m s⁻¹, h in m) to start from instead of the case's
+        initial state and the scene's initialization (a restart's, or a digital-filter
+        start made once for many runs, as a sweep's).
+    initial : callable, optional
+        ``initial(lat, lon) -> (h, u, v)`` (radians in; m, m s⁻¹ out), the state at
+        t = 0 instead of the case's, which still gives fcor, hs and the truth errors
+        are taken against (``initial_state.from_function``); the scene's digital
+        filter, if any, then runs on it. Not with ``start``.
+    initial_diagnostics : dict, optional
+        The t = 0 diagnostics that relative changes are taken against, the same on
+        every rank (a checkpoint's, when continuing); None: the start state's.
+    graphs : {"auto", "on", "off"} or bool, optional
+        Steps replayed as captured graphs (see Notes); default the environment's
+        ``SWE_SPHERE_GRAPHS``, else "auto". Also an attribute to set.
+    **overrides
+        As for ``swe_sphere.run``: ``ne``, ``np``, ``dt``, ``days``, ``stepper`` and
+        any scene value by its table.
 
-    A scene may also be given as ``swe_sphere.run`` takes it, ``Simulation("tc2_steady",
-    ne=4, days=2)``: a scene file or bundled name with overrides
-    (``config.resolve_scene``), device None: CUDA when present
-    (``runtime.pick_device``). Python drives it step by step with ``advance``,
-    ``steps``, ``state`` and ``add_callback``; ``run`` integrates to the scene's end.
+    Attributes
+    ----------
+    check_every : int
+        ``run`` reads the device's bad-state check back once a block of so many steps
+        (1 on a CPU, ``guard.CHECK_EVERY_STEPS`` on a GPU), a failed block re-run one
+        checked step at a time (``guard.Guard``; the same bits either way).
+    dfi : FilterResult or None
+        The digital-filter initialization's result, when the scene has one
+        (``initialization``) and no ``start`` was given; its cost is in ``setup_time``.
+    inputs : tuple of Path
+        The files the simulation was made from (scene file, restart file), which
+        ``run`` refuses to write over.
+
+    Raises
+    ------
+    SceneError
+        A bad scene, override, or ``initial`` state (wrong shape, non-finite, h <= 0).
+    ValueError
+        ``initial`` not callable or given with ``start``; an unknown ``graphs`` mode.
+    ResourceError
+        Too little memory for the grid.
+
+    Notes
+    -----
+    With ``graphs`` "on", and "auto" on CUDA, ``run`` replays each step of a
+    ``capturable`` stepper (the explicit ones; semi-implicit and IMEX after their first
+    step, their Helmholtz CG's loops conditional nodes inside, on CUDA where Warp has
+    them) as a graph captured of an earlier step with the same ``Stepper.graph_key``
+    (on CUDA one host call a step instead of one a launch; the same bits as launched
+    one by one), its first replay checked against the step launched plainly
+    (``graphs.GraphedSteps``); a model with a time-dependent forcing runs plain. On a
+    CPU it takes one thread a launch (SWE_SPHERE_THREADS=1) and one process; otherwise
+    the steps run plain. "off": plain launches throughout (the solvers' own graphs
+    too). A capture, replay or check that fails prints one line on stderr naming the
+    feature, and the run goes on with plain launches from the plain step's state.
     """
 
     inputs: tuple = ()
@@ -308,15 +334,41 @@ class Simulation(StateDiagnostics):
         comm=None,
         graphs: str | bool | None = None,
     ) -> Simulation:
-        """A simulation that continues a restart file (path or ``checkpoint.Checkpoint``),
-        to model day ``days`` (from t = 0; default the checkpointed scene's),
-        bitwise as if never stopped. With another ``stepper`` or ``dt`` (s) than
-        the checkpoint's it is a branch (``checkpoint.branch``): a new run from the
-        checkpoint's state, its stepper's history dropped (multistep steppers start
-        as at t = 0), its counters from zero and its invariants' changes against
-        that state, steps counted from the checkpoint's day. ``graphs`` as for the
-        constructor. Raises
-        ``checkpoint.CheckpointError`` or ``config.SceneError`` (one line)."""
+        """A simulation that continues a restart file, bitwise as if never stopped.
+
+        With another ``stepper`` or ``dt`` than the checkpoint's it is a branch
+        (``checkpoint.branch``): a new run from the checkpoint's state, its stepper's
+        history dropped (multistep steppers start as at t = 0), its counters from zero
+        and its invariants' changes against that state, steps counted from the
+        checkpoint's day.
+
+        Parameters
+        ----------
+        checkpoint : str, path or checkpoint.Checkpoint
+            The restart file (read on rank 0 only, ``checkpoint.read_on_root``).
+        device : {"cpu", "cuda"}
+            Warp device.
+        days : float, optional
+            The new last model day, from t = 0 (default: the checkpointed scene's).
+        stepper : str, optional
+            Another stepper: a branch.
+        dt : float, optional
+            Another time step (s): a branch.
+        progress, comm, graphs
+            As for the constructor.
+
+        Returns
+        -------
+        Simulation
+            At the checkpoint's step.
+
+        Raises
+        ------
+        CheckpointError
+            An unreadable or damaged restart file, or a ``days`` before its step.
+        SceneError
+            A branch it cannot make (unknown stepper, dt <= 0, a length not whole steps).
+        """
         ck = checkpoint if isinstance(checkpoint, ckpt.Checkpoint) else ckpt.read_on_root(checkpoint, comm)
         start = ON_ROOT if ck.x is None else ck.x  # ranks > 0 of ``read_on_root`` have no arrays
         if (stepper is not None and stepper != ck.scene.stepper) or (dt is not None and dt != ck.scene.dt):
@@ -409,32 +461,81 @@ class Simulation(StateDiagnostics):
         return self.scene.day(self.step)
 
     def advance(self, days: float) -> RunResult:
-        """Step ``days`` (a whole number of steps) further, with ``run``'s loop (same
-        bits as one run; blow-up, signals and callbacks as there; no output file).
-        Past the scene's end the run is lengthened (``config.with_days``). Returns
-        the ``RunResult`` of these steps; raises ValueError for a ``days`` that is
-        not whole steps, and what ``run`` raises."""
+        """Step ``days`` further with ``run``'s loop (the same bits as one run; blow-up,
+        signals and callbacks as there; no output file). Past the scene's end the run
+        is lengthened (``config.with_days``).
+
+        Parameters
+        ----------
+        days : float
+            Model days, a whole number of steps.
+
+        Returns
+        -------
+        RunResult
+            Of these steps.
+
+        Raises
+        ------
+        ValueError
+            ``days`` is not a whole number of steps.
+        BlowUp, StepFailure, Interrupted
+            As ``run``.
+        """
         target = self.step + steps_of(self.scene, days, "days")
         if target > self.scene.nsteps:
             self.scene = with_days(self.scene, self.scene.start_day + target * self.scene.dt / DAY, "the scene's")
         return self.run(None, until_step=target)
 
     def steps(self, every: float):
-        """Iterate the run to the scene's end, yielding the model time (days) at each
-        multiple of ``every`` days from t = 0 (``for t in sim.steps(every=0.5):``
-        ``ds = sim.state()``); stops at the last multiple at or before the end.
-        ValueError unless ``every`` is a whole number of steps."""
+        """Iterate the run to the scene's end, one multiple of ``every`` days from t = 0
+        at a time (``for t in sim.steps(every=0.5): ds = sim.state()``); stops at the last
+        multiple at or before the end.
+
+        Parameters
+        ----------
+        every : float
+            Model days between yields, a whole number of steps.
+
+        Yields
+        ------
+        float
+            The model time reached (days since t = 0).
+
+        Raises
+        ------
+        ValueError
+            ``every`` is not a whole number of steps.
+        BlowUp, StepFailure, Interrupted
+            As ``run``.
+        """
         per = steps_of(self.scene, every, "every")
         while (target := (self.step // per + 1) * per) <= self.scene.nsteps:
             self.run(None, until_step=target)
             yield self.time
 
     def state(self, remap: float | None = None):
-        """The current state as an ``xarray.Dataset`` (rank 0; None on the others; call
-        on every rank): on the nodes as a run file holds one output time (h, u, v,
-        vorticity, divergence on ``ncol`` with hs, area, lat, lon; ``time`` in days;
-        ``output.node_dataset``), or with ``remap`` (degrees) on a regular lat-lon grid
-        (``remap.remap_dataset``, with h_surface = h + hs)."""
+        """The current state as an ``xarray.Dataset``; call on every rank.
+
+        Parameters
+        ----------
+        remap : float, optional
+            Grid spacing in degrees: the state on a regular lat-lon grid
+            (``remap.remap_dataset``, with h_surface = h + hs). None: on the nodes.
+
+        Returns
+        -------
+        xarray.Dataset or None
+            On the nodes, as a run file holds one output time: h (m), u, v (m s⁻¹),
+            vorticity, divergence (s⁻¹) on ``ncol`` with hs, area, lat, lon and ``time``
+            in days (``run_file.node_dataset``); or on (lat, lon). None on ranks other
+            than 0.
+
+        Raises
+        ------
+        ValueError
+            A ``remap`` spacing that does not divide 180 degrees.
+        """
         whole = self.gather_fields(divergence=True)
         if not self.root:
             return None
@@ -466,25 +567,56 @@ class Simulation(StateDiagnostics):
     ) -> RunResult:
         """Integrate the scene from the current step; write ``output`` (netCDF) if given.
 
-        ``overwrite``: replace an existing output (and restart) file; else
-        ``output.OutputError``. ``restart_every`` (days): write ``restart_file``
-        (default ``restart_path(output)``) every so many days and at the end.
-        ``catch_signals`` (main thread only): SIGINT/SIGTERM finish the current
-        step, close the output (global attributes ``interrupted``,
-        ``interrupted_at_day``) and write the restart file, then raise
-        ``Interrupted``; without ``restart_every`` an existing default restart
-        file is neither refused nor replaced (no restart file on a signal).
-        ``compress``: float32 + zlib fields. ``history``: the
-        command line, for the file's ``history`` attribute. ``on_output(step, x)``: called
-        at every output step with the (3, N) device state. ``notify(line)``: called
-        (rank 0) with a one-line note when the wall time estimated from the first
-        steps exceeds a day. ``log(line)``: called (rank 0) with ``log_line`` every
-        ``scene.log_every_steps`` steps since t = 0 (given on every rank alike, or on
-        none: the fields are gathered then). ``until_step``: stop after this step
-        (default the scene's last; ``advance``). The scene's ``[[output.streams]]``
-        are written beside ``output`` (``stream_path``), each at its own interval,
-        and the callbacks (``add_callback``) are called. Raises ``BlowUp`` after closing the output with every
-        good output time and the last good state (the step before the failure).
+        The scene's ``[[output.streams]]`` are written beside ``output``
+        (``stream_path``), each at its own interval, and the callbacks
+        (``add_callback``) are called.
+
+        Parameters
+        ----------
+        output : path, optional
+            The run file.
+        overwrite : bool
+            Replace an existing output (and restart) file.
+        restart_every : float, optional
+            Write ``restart_file`` every so many model days and at the end.
+        restart_file : path, optional
+            Default ``restart_path(output)``. Without ``restart_every`` an existing
+            default restart file is neither refused nor replaced.
+        catch_signals : bool
+            (Main thread only.) SIGINT/SIGTERM finish the current step, close the
+            output (global attributes ``interrupted``, ``interrupted_at_day``) and
+            write the restart file, then raise ``Interrupted``.
+        compress : bool
+            Fields as float32 with zlib.
+        history : str, optional
+            The command line, for the file's ``history`` attribute.
+        on_output : callable, optional
+            ``on_output(step, x)`` at every output step, x the (3, N) device state.
+        notify : callable, optional
+            ``notify(line)`` (rank 0) with a one-line note when the wall time estimated
+            from the first steps exceeds a day.
+        log : callable, optional
+            ``log(line)`` (rank 0) with ``log_line`` every ``scene.log_every_steps``
+            steps since t = 0 (given on every rank alike, or on none).
+        until_step : int, optional
+            Stop after this step (default: the scene's last; ``advance``).
+
+        Returns
+        -------
+        RunResult
+            Steps, RHS evaluations, solver iterations, times and the diagnostics' history.
+
+        Raises
+        ------
+        OutputError
+            An output or restart file exists (without ``overwrite``) or is an input.
+        BlowUp
+            After closing the output with every good output time and the last good
+            state (the step before the failure); the result is on the exception.
+        StepFailure
+            A solver did not converge.
+        Interrupted
+            SIGINT or SIGTERM (with ``catch_signals``).
         """
         s, stepper = self.scene, self.stepper
         ckp = Checkpointer(self, output, restart_every, restart_file, overwrite)

@@ -250,8 +250,8 @@ class HelmholtzSolver:
             )
         # with one rank a solve is one graph per (r, z, a, scale, H), its loops conditional nodes
         # (``graphable``; so may a caller's graph hold it: a stepper's whole step): a CUDA
-        # graph, or on one CPU thread Warp's CPU graph (the same bits; 13 % off an IMEX step at ne30:
-        # no Python per launch). Not over several CPU threads (``SplitLaunch`` is a Python pool), nor
+        # graph, or on one CPU thread Warp's CPU graph (the same bits, and no Python per launch:
+        # benchmarks/README.md, "Measurements behind the code"). Not over several CPU threads (``SplitLaunch`` is a Python pool), nor
         # with a CUDA driver below 12.4 (no conditional nodes: host loops, a read an iteration).
         self._graphs: dict[tuple, object] = {}
         self._schur_launches: dict[tuple, tuple] = {}
@@ -775,7 +775,7 @@ class HelmholtzCG:
         layout, and float32 on any device): the three fused element kernels. Per node
         (CUDA's, float64): the model's per-node gradient and divergence with their DSS,
         then ``helmholtz_combine`` — the element kernels run a thread per element, whose
-        strided reads cost 4.5 RHS a product at ne120 on an H100."""
+        strided reads are slow on a GPU (benchmarks/README.md, "Measurements behind the code")."""
         m = self.model
         if m.per_element or self.dtype is not f64:
             launches = self._operator(y, out)

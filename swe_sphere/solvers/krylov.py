@@ -23,8 +23,9 @@ solve). Why not ``pyamg.krylov.fgmres`` or ``warp.optim.linear.gmres``: the
 first works on host vectors and ends every restart cycle with an explicit
 residual b − A x (one more Jacobian-vector product, i.e. RHS evaluation, per
 Newton iteration, ~20 % of JFNK's RHS evaluations at 4–10× the gravity-wave
-limit); the second is not flexible (measured on an H100, TC5 ne30 at 4× Δt:
-64 GMRES iterations a step against FGMRES's 4, and a state 1e-5 away).
+limit); the second is not flexible, so a preconditioner that is itself an inexact
+solve costs it many times FGMRES's iterations (benchmarks/README.md, "Measurements
+behind the code").
 Here the residual after a cycle comes from the least-squares problem.
 """
 

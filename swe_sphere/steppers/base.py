@@ -72,7 +72,7 @@ class Stepper:
     # True: once recorded, a step launches the same kernels with the same arguments every
     # step and reads nothing back (the explicit steppers; the semi-implicit and IMEX ones
     # with ``deferred``), so ``Simulation`` may replay it as a captured graph (``graph_key``).
-    # JFNK's Newton test stays on the host (ISSUE 32 item 3).
+    # JFNK's Newton test reads its residual on the host every iteration: never capturable.
     capturable = False
     # True (``Simulation.run`` sets it): a step leaves its solvers' device counters
     # unread (``StepStats.iterations`` empty for them), read by ``counts`` once a block

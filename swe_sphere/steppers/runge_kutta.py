@@ -274,9 +274,8 @@ class Imex(ImexRK):
     name = "imex"
     Options = ImexOptions
     removed_options = REMOVED_SOLVER_OPTIONS
-    # ARS(3,4,3) in the 2026-11-23 study (docs/efficiency.md), |v| Δt/Δx at t = 0: stable at
-    # 0.88 (TC5 ne16), 1.47 (TC6 ne16), 1.20 (Galewsky ne30); blew up at 1.10 (TC5 ne30,
-    # day 2.9, where the flow round the mountain speeds up), 2.21 and above elsewhere
+    # |v| Δt/Δx at t = 0: below what ARS(3,4,3) ran stably on every case of the efficiency
+    # study, above none it blew up at (benchmarks/README.md, "Measurements behind the code")
     advective_courant_limit = 1.0
 
     def table(self):

@@ -48,17 +48,14 @@ class SemiImplicit(HelmholtzSteps, Leapfrog):
     """Semi-implicit leapfrog: 1 RHS evaluation and one Helmholtz solve per step.
 
     Options (scene table ``[semi_implicit]``): ``robert_asselin`` (0.05),
-    ``tol`` (the Helmholtz CG's relative residual, 1e-7: on TC5 ne16 over 15 days at
-    1.94x the gravity-wave limit, where the semi-implicit is used, the sweep's temporal
-    errors are within 0.52 % of 1e-9's, with 1.7x fewer iterations; 1e-6 changed them
-    by up to 19 % (the filtered vorticity's) with 1.36x fewer than 1e-7; mass is exact
-    either way), ``maxiter`` (500),
+    ``tol`` (the Helmholtz CG's relative residual, 1e-7: where a tighter one no longer
+    changes the sweep's temporal errors; benchmarks/README.md, "Measurements behind the
+    code"), ``maxiter`` (500),
     ``mean_depth`` (H in m; 0 = the initial state's mean depth). The
     Helmholtz solve is ``helmholtz.HelmholtzSolver``'s compiled CG; each solve
     starts from the projection of its right-hand side onto past solutions,
     ``guess_history`` (0..32, 8) of them (``helmholtz.GuessHistory``; 0: from the
-    last solution; TC5 ne8 at 2x the gravity-wave limit, CG iterations a solve over
-    a day after 6 h: 10.2 from the last solution, 8.6 with 8). ``precision`` ("double" | "mixed":
+    last solution). ``precision`` ("double" | "mixed":
     float32 CG passes refined in float64 to the same ``tol``; "double" is the
     default because the float32 product is no faster on the CPU, benchmarks/README.md).
     Reports the Helmholtz iterations per step (under ``Simulation.run`` counted on

@@ -39,7 +39,7 @@ def response(weights: np.ndarray, frequency) -> np.ndarray:
 class TimeFilter:
     """Low-pass in time: ``period_days`` the cutoff period, snapshots every
     ``every_hours`` at days target − half_window_days … target + half_window_days
-    (default half window: 1.5 periods, the issue's 3 days for a 2-day filter)."""
+    (default half window: 1.5 periods, 3 days for a 2-day filter)."""
 
     period_days: float
     every_hours: float = 3.0

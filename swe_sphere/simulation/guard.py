@@ -12,13 +12,6 @@ from ..core.errors import StepFailure
 from ..steppers import StepStats
 from .schedules import next_multiple
 
-# Steps between host reads of the bad-state check on a GPU (``Simulation.check_every``).
-# A read waits for the device to drain its queue: ~10-50 µs, as long as a whole launch-bound
-# ne30 step, so reading every step serialises the loop; 64 steps make it ~1 % of the time
-# and bound the re-run that finds a blow-up's step to 64 steps (ClimaAtmos checks for NaN
-# every 1024 steps, without the step). On a CPU a read costs nothing: every step is checked.
-CHECK_EVERY_STEPS = 64
-
 
 class Guard:
     """The bad-state check of one run of ``sim`` (``Simulation.check_every``).

@@ -22,13 +22,13 @@ from tqdm import tqdm
 
 from ..cases.scoring import Scorer
 from ..config.scene import Scene, resolve_scene, with_days
+from ..core.backend import Backend, pick_device
 from ..core.constants import DAY
 from ..core.errors import BlowUp, Interrupted, ResourceError, SceneError, StepFailure
 from ..core.graphs import GraphedSteps, default_mode, graphs_mode
 from ..core.interrupts import StepAbandoned, StopSignals
 from ..core.mpi import node_local_size
-from ..core.parallel import default_threads
-from ..core.runtime import check_memory, pick_device, run_bytes
+from ..core.runtime import run_bytes
 from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology, rank_parts
 from ..io import restart_file
@@ -40,7 +40,7 @@ from ..steppers import StepStats, make_stepper
 from ..steppers.initialization import digital_filter
 from . import checkpoint as ckpt
 from .callbacks import Callbacks
-from .guard import CHECK_EVERY_STEPS, Guard
+from .guard import Guard
 from .schedules import steps_of
 from .state_diagnostics import StateDiagnostics
 from .summary import Ledger, RunResult, interruption
@@ -79,12 +79,12 @@ def _check_memory(scene: Scene, comm, device: str = "cpu") -> None:
     else the host's): the whole run on one process; over MPI ranks, the share of
     the ranks on each node (each holds its elements)."""
     need, what = run_bytes(scene.ne, scene.np, scene.stepper), f"ne={scene.ne} np={scene.np} with {scene.stepper}"
-    dev = wp.get_device(device)
+    backend = Backend.of(device)
     if comm is None or comm.size == 1:
-        return check_memory(need, what, dev)
+        return backend.check_memory(need, what)
     local = node_local_size(comm)
     try:
-        check_memory(need * local // comm.size, f"{what} over {comm.size} MPI ranks ({local} on this node)", dev)
+        backend.check_memory(need * local // comm.size, f"{what} over {comm.size} MPI ranks ({local} on this node)")
         error = None
     except ResourceError as err:
         error = str(err)
@@ -162,14 +162,14 @@ class Simulation(StateDiagnostics):
     plain launches throughout (the solvers' own graphs too). A capture, replay or
     check that fails prints one line on stderr naming the feature, and the run goes
     on with plain launches from the plain step's state.
-    ``check_every`` (steps; 1 on a CPU, ``guard.CHECK_EVERY_STEPS`` on a GPU): ``run``
+    ``check_every`` (steps; ``Backend.check_every``: 1 on a CPU, 64 on a GPU): ``run``
     reads the device's bad-state check back once a block of so many steps, a failed
     block re-run one checked step at a time (``guard.Guard``; the same bits either way).
 
     A scene may also be given as ``swe_sphere.run`` takes it, ``Simulation("tc2_steady",
     ne=4, days=2)``: a scene file or bundled name with overrides
     (``config.resolve_scene``), device None: CUDA when present
-    (``runtime.pick_device``). Python drives it step by step with ``advance``,
+    (``backend.pick_device``). Python drives it step by step with ``advance``,
     ``steps``, ``state`` and ``add_callback``; ``run`` integrates to the scene's end.
     """
 
@@ -211,7 +211,7 @@ class Simulation(StateDiagnostics):
         parts = rank_parts(scene.ne, size)
         self.case = case = scene.make_case()
         local = CubedSphere(scene.ne, scene.np, case.planet.a, elements=parts[rank])  # this rank's elements only
-        self.topology = topo = Topology(local, device, default_threads(device), comm, parts=parts)
+        self.topology = topo = Topology(local, device, Backend.of(device).threads(), comm, parts=parts)
         self.root = rank == 0  # the rank that diagnoses, writes files and shows progress
         self.progress = progress and self.root
         # the whole grid and fields for diagnostics and output: on rank 0 only (None elsewhere)
@@ -260,7 +260,7 @@ class Simulation(StateDiagnostics):
             start = topo.distribute(None if start is ON_ROOT else start, 3, "start state")
         self.x = self.model.new_state(*(self.dfi.x if self.dfi is not None else start))
         self.last_good = wp.clone(self.x)  # the state at the start of the block of steps in progress (``guard``)
-        self.check_every = 1 if wp.get_device(device).is_cpu else CHECK_EVERY_STEPS
+        self.check_every = topo.backend.check_every
         if not self.root:  # a fallback's warning once, from rank 0
             self.model.graph_guard.warn = lambda line: None
         self._graphed = GraphedSteps(device, self.model.graph_guard)

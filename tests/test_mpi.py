@@ -260,7 +260,7 @@ def test_blow_up_on_two_ranks_is_one_line(tmp_path):
 
 CHECKED_EVERY = """
 import sys
-from swe_sphere import simulation
+from swe_sphere.simulation import simulation
 from swe_sphere.cli import main
 
 EVERY = int(sys.argv[1])
@@ -375,7 +375,7 @@ def test_memory_guard_counts_the_ranks_on_the_node(tmp_path):
 FAIL_ON_RANK_0 = """
 import sys
 from mpi4py import MPI
-from swe_sphere import simulation
+from swe_sphere.simulation import simulation
 from swe_sphere.cli import main
 
 def run(self, *args, **kwargs):  # rank 0 alone fails, as when its output's disk fills
@@ -400,7 +400,7 @@ def test_failure_on_rank_0_alone_ends_the_job_with_its_status(tmp_path):
 FAIL_ON_RANK_1 = """
 import sys
 from mpi4py import MPI
-from swe_sphere import simulation
+from swe_sphere.simulation import simulation
 from swe_sphere.cli import main
 
 WHERE = sys.argv[1]

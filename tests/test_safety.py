@@ -417,7 +417,7 @@ def test_a_signal_after_the_output_is_complete_exits_130_in_one_line(tmp_path):
 
 LAST_OUTPUT_SIGNAL = """
 import os, signal, sys
-from swe_sphere import simulation
+from swe_sphere.simulation import simulation
 from swe_sphere.cli import main
 
 run = simulation.Simulation.run

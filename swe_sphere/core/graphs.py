@@ -151,6 +151,7 @@ class GraphedSteps:
 
     def __init__(self, device, guard: GraphGuard, mode: str = "auto"):
         self.device, self.guard = device, guard
+        self.backend = Backend.of(device)
         self._graphs: dict = {}  # (stepper, graph_key, watch, x's address) → _Entry, or None: seen once
         self.mode = mode
 
@@ -169,7 +170,7 @@ class GraphedSteps:
     @property
     def active(self) -> bool:
         """Whether whole steps may run as graphs."""
-        on = self._mode == "on" or (self._mode == "auto" and Backend.of(self.device).graphs_pay)
+        on = self._mode == "on" or (self._mode == "auto" and self.backend.graphs_pay)
         return on and self.guard.enabled
 
     @property
@@ -190,7 +191,7 @@ class GraphedSteps:
                 wp.capture_launch(entry.graph)
             except Exception as err:  # refused before it ran (as in ``captured``): the step runs plain
                 self._graphs.clear()
-                self.guard.fail(f"{Backend.of(self.device).graph_name} of the {stepper.name} step{failed(err)}")
+                self.guard.fail(f"{self.backend.graph_name} of the {stepper.name} step{failed(err)}")
                 return self._plain(stepper, model, x, watch)
             return stepper.replayed(entry.stats)
         if key not in self._graphs:
@@ -219,7 +220,7 @@ class GraphedSteps:
             self.guard.enabled = True
         plain = self._snapshot(stepper, x, arrays)
         self._restore(before, stepper, x, arrays)
-        what = f"{Backend.of(self.device).graph_name} of the {stepper.name} step"
+        what = f"{self.backend.graph_name} of the {stepper.name} step"
         try:  # modules are loaded by the key's first step: loading all of them (Warp's default
             # before CUDA 12.3) would compile every kernel the package defines
             with wp.ScopedCapture(device=self.device, force_module_load=False) as capture:

@@ -175,6 +175,8 @@ class Simulation(StateDiagnostics):
     (``config.resolve_scene``), device None: CUDA when present
     (``backend.pick_device``). Python drives it step by step with ``advance``,
     ``steps``, ``state`` and ``add_callback``; ``run`` integrates to the scene's end.
+    ``activities``: what the loop does between steps, by name (``activities``: each a
+    schedule and a call; callbacks and output writers of one's own go here).
     """
 
     inputs: tuple = ()

@@ -85,6 +85,11 @@ def test_steps_fit_the_simulations_own_dt():
     late.advance(days=1 / 27)  # a step taken: Δt stays
     with pytest.raises(ValueError, match=r"every must be a positive multiple of dt = 3200 s = [0-9.]+ days \(got"):
         next(late.steps(every=0.5))
+    late = Simulation("galewsky", "cpu", **kw)
+    late.advance(days=0.5)  # advance fits its interval alike
+    assert late.scene.dt == 43200 / 14 and late.step == 14
+    with pytest.raises(ValueError, match=r"every = 0.0123 days .* is 8.64 s, less than half: give a dt"):
+        next(Simulation("galewsky", "cpu", **kw).steps(every=0.0123))  # 0.0001-day multiples: refused
 
 
 def test_callbacks_at_their_steps():

@@ -395,12 +395,14 @@ class Simulation(StateDiagnostics):
         )
 
     # -- driven from Python (Oceananigans' Simulation: step, inspect, call back) ---------
-    def fit_dt(self, every: float) -> None:
+    def fit_dt(self, every: float, what: str = "every") -> None:
         """Shorten Δt, before the first step, to the largest that divides ``every`` (days),
         the run, its output intervals (where shorter than the run) and the intervals of
         the activities scheduled in days (``every``; their steps follow): a new stepper,
         and the start's diagnostics again (their Courant numbers); a note in
-        ``scene.notes``. ValueError after the first step, or for ``every`` <= 0."""
+        ``scene.notes`` naming ``what``. ValueError (one line) after the first step, for
+        ``every`` <= 0, and where that Δt is less than half the present one (an interval
+        of odd decimals: give a dt, or an interval of whole steps)."""
         s = self.scene
         if self.step != 0 or not is_interval(every):
             raise ValueError(
@@ -410,7 +412,13 @@ class Simulation(StateDiagnostics):
         days = [a.schedule.days for a in self.activities.values() if getattr(a.schedule, "days", None) is not None]
         span = common_interval(every, s.run_days, *(d for d in outputs if d < s.run_days), *days) * DAY
         dt = span / math.ceil(span / s.dt - 1e-9)
-        note = f"dt shortened from {s.dt:g} s to {dt:g} s to divide every = {every:g} days"
+        if dt < s.dt / 2:
+            raise ValueError(
+                f"{what} = {every:g} days is not a whole number of steps of dt = {s.dt:g} s, and the longest dt "
+                f"that divides it, the run and its output intervals is {dt:g} s, less than half: give a dt, "
+                "or an interval of whole steps"
+            )
+        note = f"dt shortened from {s.dt:g} s to {dt:g} s to divide {what} = {every:g} days"
         self.scene = dataclasses.replace(s, dt=dt, notes=(*s.notes, note))
         _check_hyperviscosity(self.model, self.scene)
         self.stepper = make_stepper(self.scene.stepper, self.model, dt, **self.scene.stepper_options)
@@ -430,7 +438,14 @@ class Simulation(StateDiagnostics):
             raise ValueError("an interval needs exactly one of every_days, every_steps")
         if steps is not None and not (isinstance(steps, int) and steps >= 1):
             raise ValueError(f"every_steps must be an integer >= 1 (got {steps!r})")
-        return EverySteps(steps) if days is None else EverySteps(steps_of(self.scene, days, "every_days"), days)
+        return EverySteps(steps) if days is None else EverySteps(self._steps_in(days, "every_days"), days)
+
+    def _steps_in(self, days: float, what: str) -> int:
+        """The whole number of steps in ``days`` (``what`` names it in a refusal), Δt first
+        fitted to it (``fit_dt``) where Δt is the simulation's own and no step was taken."""
+        if self._own_dt and self.step == 0 and is_interval(days) and not whole_steps(self.scene, days):
+            self.fit_dt(days, what)
+        return steps_of(self.scene, days, what, "" if self._own_dt else ", the dt given")
 
     def add_callback(
         self, fn, *, every_days: float | None = None, every_steps: int | None = None, name: str | None = None
@@ -454,9 +469,9 @@ class Simulation(StateDiagnostics):
         """Step ``days`` (a whole number of steps) further, with ``run``'s loop (same
         bits as one run; blow-up, signals and callbacks as there; no output file).
         Past the scene's end the run is lengthened (``config.with_days``). Returns
-        the ``RunResult`` of these steps; raises ValueError for a ``days`` that is
-        not whole steps, and what ``run`` raises."""
-        target = self.step + steps_of(self.scene, days, "days")
+        the ``RunResult`` of these steps; Δt fitted as for ``steps``; raises ValueError
+        for a ``days`` that is not whole steps then, and what ``run`` raises."""
+        target = self.step + self._steps_in(days, "days")
         if target > self.scene.nsteps:
             self.scene = with_days(self.scene, self.scene.start_day + target * self.scene.dt / DAY, "the scene's")
         return self.run(None, until_step=target)
@@ -470,11 +485,9 @@ class Simulation(StateDiagnostics):
         ``swe-sphere run`` shortens it likewise to divide the output interval) and no step
         has been taken, a Δt that does not divide ``every`` is first shortened to the
         largest that divides ``every``, the run, its output intervals and the callbacks'
-        (``fit_dt``). ValueError unless ``every`` is then a whole number of steps (naming
-        a Δt that was given)."""
-        if self._own_dt and self.step == 0 and is_interval(every) and not whole_steps(self.scene, every):
-            self.fit_dt(every)
-        per = steps_of(self.scene, every, "every", "" if self._own_dt else ", the dt given")
+        (``fit_dt``; so do ``advance`` and ``every`` for their intervals). ValueError
+        unless ``every`` is then a whole number of steps (naming a Δt that was given)."""
+        per = self._steps_in(every, "every")
         while (target := (self.step // per + 1) * per) <= self.scene.nsteps:
             self.run(None, until_step=target)
             yield self.time

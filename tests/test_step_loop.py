@@ -139,6 +139,10 @@ def test_an_output_writer_of_ones_own(tmp_path, whole_run):
     assert list(s.activities) == ["mean_depth"]  # the run's own activities are gone after it
     with pytest.raises(ValueError, match="every_days must be a positive multiple of dt"):
         MeanDepth(s, tmp_path / "x.txt", 0.01)
+    s.activities["log"] = MeanDepth(s, tmp_path / "x.txt", 0.125)
+    with pytest.raises(ValueError, match=r"activities log: a run's own names \(choose another\)"):
+        s.run(tmp_path / "again.nc")
+    assert not (tmp_path / "again.nc").exists() and not (tmp_path / "x.txt").exists()
 
 
 def test_state_on_a_latlon_grid():

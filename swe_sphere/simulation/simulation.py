@@ -54,6 +54,7 @@ from .writers import Checkpointer, RunFiles, run_attrs
 __all__ = ["ON_ROOT", "BlowUp", "Interrupted", "RunResult", "Simulation"]
 
 
+RUN_ACTIVITIES = ("run_file", "checkpointer", "log")  # the names ``run`` gives its own activities
 ON_ROOT = object()  # ``start`` on the ranks > 0 when rank 0 alone holds the whole-grid start state
 
 MAX_HYPERVIS_EVALUATIONS = 10_000  # ∇⁴ evaluations a step; beyond, ν is ~10⁷ times its explicit bound or more
@@ -575,7 +576,11 @@ class Simulation(StateDiagnostics):
 
     def _open(self, output, overwrite, restart_every, restart_file, compress, history, on_output) -> tuple:
         """A run's run files and checkpointer (paths checked; the files created on rank 0),
-        the start's gathered fields and its Courant numbers."""
+        the start's gathered fields and its Courant numbers. ValueError for a user's
+        activity under a name the run gives its own."""
+        taken = sorted(set(self.activities) & set(RUN_ACTIVITIES))
+        if taken:
+            raise ValueError(f"activities {', '.join(taken)}: a run's own names (choose another)")
         ckp = Checkpointer(self, output, restart_every, restart_file, overwrite)
         files = RunFiles(self, output, on_output)
         if self.root:

@@ -54,8 +54,9 @@ sys.path.insert(
 )  # numpy_ops; not the repo root, which would shadow the installed package
 
 from swe_sphere.config.scene import load_scene  # noqa: E402
-from swe_sphere.core.parallel import SplitLaunch, default_threads  # noqa: E402
-from swe_sphere.core.runtime import default_device, init_warp  # noqa: E402
+from swe_sphere.core.backend import Backend, default_device  # noqa: E402
+from swe_sphere.core.parallel import SplitLaunch  # noqa: E402
+from swe_sphere.core.runtime import init_warp  # noqa: E402
 from swe_sphere.core.tally import array_bytes  # noqa: E402
 from swe_sphere.grid.cubed_sphere import CubedSphere  # noqa: E402
 from swe_sphere.model.shallow_water import ShallowWater  # noqa: E402
@@ -309,7 +310,7 @@ def main(argv=None):
     global clock
     clock = CLOCKS[args.clock]
     init_warp()  # quietly
-    threads = args.threads or default_threads(args.device)
+    threads = args.threads or Backend.of(args.device).threads()
     print(
         f"Warp {wp.__version__}, device {args.device}, threads {threads}, {args.clock} clock, load average {os.getloadavg()[0]:.2f}"
     )

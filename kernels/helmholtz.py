@@ -24,7 +24,7 @@ one-reduction form: one fused vector update (``cg_update``) and one operator
 product an iteration, the three inner products it needs computed by the update
 (r·u, r·r) and the assembly (w·u) as they write. Inner products are per-chunk
 partial sums over ``chunk`` unique nodes in index order (a launch argument,
-``parallel.reduction_chunk``), added on the device in index order
+``backend.Backend.reduction_chunk``), added on the device in index order
 (``Topology.device_sums``): the bits do not depend on the CPU threads a launch
 is split over. The scalar recurrences and the convergence test are one-thread
 kernels (``cg_check`` after an update, ``cg_alpha`` after a product, and

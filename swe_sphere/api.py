@@ -5,7 +5,7 @@ from __future__ import annotations
 import tempfile
 from pathlib import Path
 
-from .core.runtime import pick_device
+from .core.backend import pick_device
 from .simulation.simulation import Simulation
 
 

@@ -276,7 +276,7 @@ def _cmd_list() -> int:
 
 
 def _warp_device(requested):
-    from .core.runtime import pick_device
+    from .core.backend import pick_device
 
     return pick_device(requested)
 
@@ -503,7 +503,7 @@ def _run(args, scene, output, device, comm) -> int:
     from tqdm import tqdm
 
     from .core import mpi
-    from .core.parallel import threads_note
+    from .core.backend import Backend
     from .core.workers import cpus, limit_threads
     from .simulation.schedules import restart_steps
     from .simulation.simulation import Simulation
@@ -550,7 +550,7 @@ def _run(args, scene, output, device, comm) -> int:
         )
     grav = "" if math.isnan(c["courant_gravity"]) else f", gravity-wave {c['courant_gravity']:.3f}"
     print(f"Courant     advective {c['courant_advective']:.3f}{grav} (max over nodes at t = {scene.day(sim.step):g} d)")
-    extra = [n for n in (sim.stability_warning(), threads_note(device)) if n]
+    extra = [n for n in (sim.stability_warning(), Backend.of(device).threads_note()) if n]
     for note in (*scene.notes, *extra):
         if note.startswith("warning: "):
             if sim.root:  # once, not once a rank

@@ -8,6 +8,8 @@ import warp as wp
 
 from swe_sphere.cases.library import make_case
 from swe_sphere.core import parallel
+from swe_sphere.core.backend import Backend
+from swe_sphere.core.workers import cpus
 from swe_sphere.model.shallow_water import TERMS, ShallowWater
 from swe_sphere.steppers import STEPPERS, make_stepper
 
@@ -45,12 +47,13 @@ def test_split_points_cut_at_elements():
 
 def test_threads_env_and_validation(monkeypatch):
     monkeypatch.setenv("SWE_SPHERE_THREADS", "1")
-    assert parallel.default_threads("cpu") == 1
+    cpu = Backend.of("cpu")
+    assert cpu.threads() == 1
     monkeypatch.setenv("SWE_SPHERE_THREADS", "3")
-    assert parallel.default_threads("cpu") == min(3, parallel._usable_cpus())  # never more than the CPUs
+    assert cpu.threads() == min(3, cpus())  # never more than the CPUs
     monkeypatch.setenv("SWE_SPHERE_THREADS", "0")
-    with pytest.raises(ValueError):
-        parallel.default_threads("cpu")
+    with pytest.raises(ValueError, match="SWE_SPHERE_THREADS must be >= 1"):
+        cpu.threads()
     g = cached_grid(1, 2)
     z = np.zeros(g.npts)
     with pytest.raises(ValueError):

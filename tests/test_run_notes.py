@@ -50,17 +50,19 @@ def test_an_option_of_another_stepper_warns(tmp_path, capsys, monkeypatch):
 def test_more_threads_than_cpus_are_clamped_with_a_note(tmp_path, monkeypatch):
     import warp as wp
 
-    from swe_sphere.core.parallel import _usable_cpus, default_threads, threads_note
+    from swe_sphere.core.backend import Backend
+    from swe_sphere.core.workers import cpus
 
     monkeypatch.setenv("SWE_SPHERE_THREADS", "1000")
     wp.init()
-    assert default_threads("cpu") == _usable_cpus()
+    cpu = Backend.of("cpu")
+    assert cpu.threads() == cpus()
     assert (
-        threads_note("cpu")
-        == f"SWE_SPHERE_THREADS=1000 is more than the {_usable_cpus()} CPUs this process may run on: {_usable_cpus()} threads"
+        cpu.threads_note()
+        == f"SWE_SPHERE_THREADS=1000 is more than the {cpus()} CPUs this process may run on: {cpus()} threads"
     )
     monkeypatch.setenv("SWE_SPHERE_THREADS", "1")
-    assert default_threads("cpu") == 1 and threads_note("cpu") is None
+    assert cpu.threads() == 1 and cpu.threads_note() is None
 
 
 def test_a_cold_kernel_cache_is_announced_once_on_a_terminal(tmp_path):

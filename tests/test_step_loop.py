@@ -60,8 +60,36 @@ def test_steps_yield_the_multiples():
     s = sim()
     assert list(s.steps(every=0.0625)) == [0.0625, 0.125, 0.1875, 0.25]
     assert s.step == 12
-    with pytest.raises(ValueError, match="every must be a positive multiple of dt"):
+    with pytest.raises(ValueError, match=r"every must be a positive multiple of dt = 1800 s = .*, the dt given"):
         next(sim().steps(every=0.03))
+
+
+def test_steps_fit_the_simulations_own_dt():
+    """Without a dt the loop shortens its own Δt to divide ``every`` (as ``run`` on the
+    command line does for the output interval): Galewsky at ne = 2 has 3200 s, 13.5
+    steps in half a day, fitted to 43200/14 s; the run is then the one given that dt, bit
+    for bit, and a callback in days follows (27 steps a day before, 28 after)."""
+    kw = dict(ne=2, days=1, progress=False)
+    own = Simulation("galewsky", "cpu", **kw)
+    assert own.scene.dt == 3200.0
+    seen = []
+    own.add_callback(lambda s: seen.append((s.step, s.time)), every_days=1)
+    assert list(own.steps(every=0.5)) == [0.5, 1.0]
+    assert own.scene.dt == 43200 / 14 and own.step == 28 and seen == [(28, 1.0)]
+    assert own.scene.notes[-1] == "dt shortened from 3200 s to 3085.71 s to divide every = 0.5 days"
+    given = Simulation("galewsky", "cpu", dt=43200 / 14, **kw)
+    given.advance(days=1)
+    np.testing.assert_array_equal(own.x.numpy(), given.x.numpy())
+    assert own.initial == given.initial  # the start's Courant numbers are the new dt's
+    late = Simulation("galewsky", "cpu", **kw)
+    late.advance(days=1 / 27)  # a step taken: Δt stays
+    with pytest.raises(ValueError, match=r"every must be a positive multiple of dt = 3200 s = [0-9.]+ days \(got"):
+        next(late.steps(every=0.5))
+    late = Simulation("galewsky", "cpu", **kw)
+    late.advance(days=0.5)  # advance fits its interval alike
+    assert late.scene.dt == 43200 / 14 and late.step == 14
+    with pytest.raises(ValueError, match=r"every = 0.0123 days .* is 8.64 s, less than half: give a dt"):
+        next(Simulation("galewsky", "cpu", **kw).steps(every=0.0123))  # 0.0001-day multiples: refused
 
 
 def test_callbacks_at_their_steps():
@@ -84,6 +112,37 @@ def test_callbacks_at_their_steps():
     assert seen[2:] == [-4, -8, -12]
     with pytest.raises(ValueError, match="exactly one"):
         r.add_callback(print)
+
+
+class MeanDepth:
+    """An output writer of one's own (docs/experiments.md): the global mean depth to a
+    text file at the steps of its schedule."""
+
+    def __init__(self, sim, path, every_days):
+        self.schedule, self.path = sim.every(days=every_days), path
+
+    def __call__(self, sim):
+        with open(self.path, "a") as f:
+            f.write(f"{sim.time} {float(sim.state().h.mean())!r}\n")
+
+
+def test_an_output_writer_of_ones_own(tmp_path, whole_run):
+    """A writer set in ``Simulation.activities`` is called at its steps in ``run``,
+    beside the run file, after it (a block ends there), and sees the state of its step."""
+    s = sim()
+    s.activities["mean_depth"] = MeanDepth(s, tmp_path / "h.txt", 0.125)
+    s.run(tmp_path / "run.nc")
+    rows = [line.split() for line in (tmp_path / "h.txt").read_text().splitlines()]
+    assert [float(t) for t, _ in rows] == [0.125, 0.25]
+    for t, h in rows:
+        assert float(h) == float(whole_run.h.sel(time=float(t)).mean())
+    assert list(s.activities) == ["mean_depth"]  # the run's own activities are gone after it
+    with pytest.raises(ValueError, match="every_days must be a positive multiple of dt"):
+        MeanDepth(s, tmp_path / "x.txt", 0.01)
+    s.activities["log"] = MeanDepth(s, tmp_path / "x.txt", 0.125)
+    with pytest.raises(ValueError, match=r"activities log: a run's own names \(choose another\)"):
+        s.run(tmp_path / "again.nc")
+    assert not (tmp_path / "again.nc").exists() and not (tmp_path / "x.txt").exists()
 
 
 def test_state_on_a_latlon_grid():

@@ -32,6 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
+from .backend import Backend
+
 MODES = ("off", "on", "auto")
 ENV = "SWE_SPHERE_GRAPHS"
 # traceback frames that name the feature that failed in a capture or replay (the innermost wins)
@@ -90,10 +92,6 @@ def failed(err: BaseException) -> str:
     return f" failed in {name}: {text}" if name else f" failed: {text}"
 
 
-def _kind(device) -> str:
-    return "CUDA graph" if wp.get_device(device).is_cuda else "CPU graph"
-
-
 def captured(graphs: dict, key, fn, device, guard: GraphGuard | None, what: str) -> None:
     """fn() as the graph captured under ``key`` in ``graphs`` on its first call and
     replayed after; inline (plain launches) while a caller captures (its graph holds
@@ -115,7 +113,7 @@ def captured(graphs: dict, key, fn, device, guard: GraphGuard | None, what: str)
         if guard is None:
             raise
         graphs.clear()
-        guard.fail(f"{_kind(dev)} of {what}{failed(err)}")
+        guard.fail(f"{Backend.of(dev).graph_name} of {what}{failed(err)}")
         fn()
 
 
@@ -153,6 +151,7 @@ class GraphedSteps:
 
     def __init__(self, device, guard: GraphGuard, mode: str = "auto"):
         self.device, self.guard = device, guard
+        self.backend = Backend.of(device)
         self._graphs: dict = {}  # (stepper, graph_key, watch, x's address) → _Entry, or None: seen once
         self.mode = mode
 
@@ -171,7 +170,7 @@ class GraphedSteps:
     @property
     def active(self) -> bool:
         """Whether whole steps may run as graphs."""
-        on = self._mode == "on" or (self._mode == "auto" and wp.get_device(self.device).is_cuda)
+        on = self._mode == "on" or (self._mode == "auto" and self.backend.graphs_pay)
         return on and self.guard.enabled
 
     @property
@@ -192,7 +191,7 @@ class GraphedSteps:
                 wp.capture_launch(entry.graph)
             except Exception as err:  # refused before it ran (as in ``captured``): the step runs plain
                 self._graphs.clear()
-                self.guard.fail(f"{_kind(self.device)} of the {stepper.name} step{failed(err)}")
+                self.guard.fail(f"{self.backend.graph_name} of the {stepper.name} step{failed(err)}")
                 return self._plain(stepper, model, x, watch)
             return stepper.replayed(entry.stats)
         if key not in self._graphs:
@@ -221,7 +220,7 @@ class GraphedSteps:
             self.guard.enabled = True
         plain = self._snapshot(stepper, x, arrays)
         self._restore(before, stepper, x, arrays)
-        what = f"{_kind(self.device)} of the {stepper.name} step"
+        what = f"{self.backend.graph_name} of the {stepper.name} step"
         try:  # modules are loaded by the key's first step: loading all of them (Warp's default
             # before CUDA 12.3) would compile every kernel the package defines
             with wp.ScopedCapture(device=self.device, force_module_load=False) as capture:

@@ -12,8 +12,8 @@ wrote. Every kernel writes only its own nodes and reads only nodes written by
 earlier launches (the DSS is a gather), so the results are the same bits as
 one serial launch.
 
-The number of threads: ``SWE_SPHERE_THREADS`` if set, else the CPUs this
-process may run on; 1 on CUDA devices (nothing is split there).
+The number of threads: ``backend.Backend.threads`` (``SWE_SPHERE_THREADS`` if set,
+else the CPUs this process may run on; 1 on CUDA devices: nothing is split there).
 """
 
 from __future__ import annotations
@@ -26,44 +26,12 @@ from concurrent.futures import ThreadPoolExecutor
 
 import warp as wp
 
-from .workers import cpus as _usable_cpus
+from .backend import Backend
 
 MIN_POINTS_PER_PART = 2048  # below this a split costs more in hand-offs than it gains
-CPU_CHUNK = 256  # entries per partial sum of an inner product on the CPU
-CUDA_CHUNKS = 4096  # partial sums an inner product aims at on CUDA, 8 to 32 entries each (see reduction_chunk)
 
 _pools: dict[int, ThreadPoolExecutor] = {}
 _pools_lock = threading.Lock()
-
-
-def _requested_threads() -> int | None:
-    """SWE_SPHERE_THREADS as an integer >= 1, or None when unset (``ValueError`` otherwise)."""
-    env = os.environ.get("SWE_SPHERE_THREADS", "").strip()
-    if not env:
-        return None
-    try:
-        n = int(env)
-    except ValueError:
-        raise ValueError(f"SWE_SPHERE_THREADS must be an integer >= 1 (got {env!r})") from None
-    if n < 1:
-        raise ValueError(f"SWE_SPHERE_THREADS must be >= 1 (got {env!r})")
-    return n
-
-
-def default_threads(device) -> int:
-    """Threads for CPU launches on ``device``: SWE_SPHERE_THREADS, else the usable CPUs,
-    never more than those (more threads than CPUs made ne16 3.9x slower); 1 on CUDA."""
-    if not wp.get_device(device).is_cpu:
-        return 1
-    return min(_requested_threads() or _usable_cpus(), _usable_cpus())
-
-
-def threads_note(device) -> str | None:
-    """A one-line note when SWE_SPHERE_THREADS asks for more threads than ``default_threads`` gives."""
-    n = _requested_threads() if wp.get_device(device).is_cpu else None
-    if n is None or n <= _usable_cpus():
-        return None
-    return f"SWE_SPHERE_THREADS={n} is more than the {_usable_cpus()} CPUs this process may run on: {_usable_cpus()} threads"
 
 
 def _pool(workers: int) -> ThreadPoolExecutor:
@@ -163,19 +131,6 @@ def split_points(n: int, block: int, parts: int) -> list[int]:
     return [round(k * nblocks / parts) * block for k in range(parts + 1)]
 
 
-def reduction_chunk(n: int, device) -> int:
-    """Entries per partial sum of an inner product over n entries (the chunked,
-    fixed-order reductions of ``kernels.helmholtz`` and ``kernels.krylov``): on
-    the CPU ``CPU_CHUNK`` (so the bits do not depend on the threads); on CUDA
-    about n / ``CUDA_CHUNKS``, within 8–32: a GPU thread sums a chunk in a
-    serial loop, latency-bound, so long chunks cost (benchmarks/README.md,
-    "Measurements behind the code"). ``Topology.device_sums`` adds the partial
-    sums on the device."""
-    if wp.get_device(device).is_cpu:
-        return CPU_CHUNK
-    return min(32, max(8, -(-int(n) // CUDA_CHUNKS)))
-
-
 def array_key(a: wp.array) -> tuple:
     """What a recorded launch fixes of an array: its address, shape and strides (part of
     the key under which a model's launches are recorded and replayed)."""
@@ -190,7 +145,7 @@ def record(kernel, dim, inputs, *, device, threads: int, block: int = 1, per_par
     many index ranges (cut at multiples of ``block``); otherwise a plain
     ``wp.Launch`` (``per_part`` values of the first range)."""
     rows, n = (None, dim) if isinstance(dim, int) else dim
-    parts = min(threads, n * nodes_per_index // MIN_POINTS_PER_PART) if wp.get_device(device).is_cpu else 1
+    parts = min(Backend.of(device).launch_parts(threads), n * nodes_per_index // MIN_POINTS_PER_PART)
     if n % block == 0:
         parts = min(parts, n // block)  # no empty range
     launch = wp.launch(kernel, dim, [*inputs, 0], device=device, record_cmd=True)

@@ -1,4 +1,4 @@
-"""The machine a run meets: Warp initialised quietly, the device chosen, memory
+"""The machine a run meets: Warp initialised quietly, memory
 estimated before anything large is allocated.
 
 Memory figures are from ``benchmarks/memory.py`` (tc5_mountain ne = 60 np = 4,
@@ -94,21 +94,6 @@ def _note_first_compilation(wp) -> None:
     Module._run_codegen = run_codegen
 
 
-def default_device() -> str:
-    """'cuda' when Warp sees a CUDA device, else 'cpu'."""
-    return "cuda" if init_warp().is_cuda_available() else "cpu"
-
-
-def pick_device(requested: str | None = None, *, verbose: bool = False) -> str:
-    """The Warp device to run on: ``requested`` ("cpu" | "cuda"), else CUDA when
-    present. Raises ValueError when CUDA is asked for and absent."""
-    wp = init_warp(verbose)
-    device = requested or default_device()
-    if device == "cuda" and not wp.is_cuda_available():
-        raise ValueError("device cuda is not available on this machine (use --device cpu)")
-    return device
-
-
 def available_memory() -> int:
     """Bytes the process may still allocate: MemAvailable (Linux), else physical memory."""
     try:
@@ -130,22 +115,15 @@ def run_bytes(ne: int, np_: int, stepper: str) -> int:
     return nodes * (RUN_BYTES_PER_NODE + STEPPER_BYTES_PER_NODE.get(stepper, 0))
 
 
-def check_memory(need: int, what: str, device=None) -> None:
-    """Raise ``ResourceError`` (one line) when ``need`` bytes exceed the available memory:
-    a CUDA ``device``'s (a Warp device: its ``free_memory``, where the run's arrays
-    live), else the host's (``available_memory``)."""
-    if device is not None and device.is_cuda:
-        have = device.free_memory
-        if need > have:
-            raise ResourceError(
-                f"{what} needs about {_gib(need)} of GPU memory; {_gib(have)} free of "
-                f"{_gib(device.total_memory)} on {device}"
-            )
-        return
+def check_memory(need: int, what: str) -> None:
+    """Raise ``ResourceError`` (one line) when ``need`` bytes exceed the host's
+    available memory (``available_memory``); a run's arrays on a GPU are checked
+    against its memory instead (``backend.Backend.check_memory``)."""
     have = available_memory()
     if need > have:
-        raise ResourceError(f"{what} needs about {_gib(need)} of memory; {_gib(have)} is available")
+        raise ResourceError(f"{what} needs about {gib(need)} of memory; {gib(have)} is available")
 
 
-def _gib(n: int) -> str:
+def gib(n: int) -> str:
+    """n bytes in GiB, three figures."""
     return f"{n / 2**30:.3g} GiB"

@@ -24,13 +24,13 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from ..core.backend import Backend
 from ..core.parallel import record
 from ..kernels import blas, dss
 from .cubed_sphere import CubedSphere
 from .partition import mesh_partition, partition
 
 f64 = wp.float64
-DEVICE_TOTALS = 64  # partial sums a row that one GPU thread adds directly (``Topology.device_sums``)
 MAX_ROWS = 4  # most rows a DSS assembles at once (the hyperviscosity's Cartesian wind + h)
 
 
@@ -179,11 +179,12 @@ class Topology:
 
     def __init__(self, grid, device: str = "cpu", threads: int = 1, comm=None, parts=None):
         self.device, self.threads = device, int(threads)
+        self.backend = Backend.of(device)
         self.comm = comm if comm is not None else SerialComm()
         self._sum, self._max, self._min = _ops(self.comm)
         rank, size = self.comm.rank, self.comm.size
         self.distributed = size > 1
-        if size > 1 and not wp.get_device(device).is_cpu:
+        if size > 1 and not self.backend.distributes:
             raise ValueError("runs over several MPI ranks are CPU-only so far (use --device cpu)")
         self.parts = parts = rank_parts(grid.ne, size, grid.mesh) if parts is None else parts
         if not np.array_equal(grid.elements, parts[rank]):
@@ -318,7 +319,7 @@ class Topology:
         where Warp's cost per thread is a fifth of a DSS's (0.52 → 0.42 ms at
         ne30), one on CUDA. The neighbours' copies are exchanged first."""
         kernel = kernel(x.shape[0], self.table.shape[1], bool(len(self.neighbours)))
-        block = self.grid.np**2 if wp.get_device(self.device).is_cpu else 1
+        block = self.backend.nodes_per_thread(self.grid.np)
         launch = record(
             kernel,
             self.N // block,
@@ -464,12 +465,12 @@ class Topology:
     def device_sums(self, partial: wp.array2d, rows: int, out: wp.array) -> list:
         """Recorded launches that put the totals of the first ``rows`` rows of per-chunk
         partial sums into the float64 device array ``out`` (rows,), added in index order
-        on the device (``blas.row_totals``, one thread): no host read. On CUDA more than
-        ``DEVICE_TOTALS`` partial sums a row are first added in chunks of about √n
-        (``blas.chunk_sums``), so that the one thread adds ≈ 2√n values. The totals are
+        on the device (``blas.row_totals``, one thread): no host read. Where the backend
+        says so (``Backend.direct_totals``: CUDA, long rows) they are first added in chunks of
+        about √n (``blas.chunk_sums``), so that the one thread adds ≈ 2√n values. The totals are
         this process's: ``allreduce`` adds them over ranks."""
         n, src, launches = partial.shape[1], partial[:rows], []
-        if not wp.get_device(self.device).is_cpu and n > DEVICE_TOTALS:
+        if not self.backend.direct_totals(n):
             chunk = int(np.ceil(np.sqrt(n)))
             mid = wp.zeros((rows, (n + chunk - 1) // chunk), dtype=f64, device=self.device)
             launches.append(
@@ -493,10 +494,8 @@ class Topology:
         node once): the inner product a Krylov solver over the topology's vectors needs."""
         if isinstance(a, np.ndarray):
             local = float(a.ravel().dot(b.ravel()))
-        elif wp.get_device(self.device).is_cpu:
-            local = float(a.numpy().ravel().dot(b.numpy().ravel()))  # as np.linalg.norm
         else:
-            local = float(wp.utils.array_inner(a.flatten(), b.flatten()))
+            local = self.backend.inner(a, b)
         return self.sum(local)
 
     def norm(self, a) -> float:

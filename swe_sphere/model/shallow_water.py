@@ -15,9 +15,10 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from ..core.backend import Backend
 from ..core.constants import EARTH
 from ..core.graphs import GraphGuard
-from ..core.parallel import array_key, default_threads
+from ..core.parallel import array_key
 from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology
 from ..kernels import operators, tendencies
@@ -112,11 +113,11 @@ class ShallowWater:
                 raise ValueError(f"hyperviscosity {name} must be >= 0 (got {value})")
         self.nu_div, self.nu_s = float(nu_div), float(nu_s)
         self.grid, self.terms, self.device = grid, terms, device
-        self.threads = default_threads(device) if threads is None else int(threads)
+        self.threads = Backend.of(device).threads() if threads is None else int(threads)
         if self.threads < 1:
             raise ValueError(f"threads must be >= 1 (got {threads})")
         self.nu, self.hypervis_subcycle, self.g = float(nu), int(hypervis_subcycle), float(g)
-        self.per_element = wp.get_device(device).is_cpu if per_element is None else bool(per_element)
+        self.per_element = Backend.of(device).per_element if per_element is None else bool(per_element)
         self.dvv_rows = operators.dvv_matrix(grid.rule.dvv)  # the per-element kernels' dvv argument
         N = grid.npts
         self.N = N

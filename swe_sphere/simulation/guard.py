@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import bisect
 import math
 
 import numpy as np
@@ -12,21 +11,13 @@ from ..core.errors import StepFailure
 from ..steppers import StepStats
 from .schedules import next_multiple
 
-# Steps between host reads of the bad-state check on a GPU (``Simulation.check_every``).
-# A read waits for the device to drain its queue: ~10-50 µs, as long as a whole launch-bound
-# ne30 step, so reading every step serialises the loop; 64 steps make it ~1 % of the time
-# and bound the re-run that finds a blow-up's step to 64 steps (ClimaAtmos checks for NaN
-# every 1024 steps, without the step). On a CPU a read costs nothing: every step is checked.
-CHECK_EVERY_STEPS = 64
-
 
 class Guard:
     """The bad-state check of one run of ``sim`` (``Simulation.check_every``).
 
     The state is checked for a non-finite value or h <= 0 after every step on the
     device (``ShallowWater.watch``) and the check read back once a block of steps
-    (``block_end``: every ``check_every`` steps and at every output, restart, log
-    and callback step), so that a GPU step needs no host round trip; the solvers'
+    (``block_end``: every ``check_every`` steps and at every step an activity is due), so that a GPU step needs no host round trip; the solvers'
     iteration counters of the semi-implicit and IMEX steps are read there too
     (``Stepper.deferred``, ``Stepper.counts``), and a solve that missed its
     tolerance fails the block like a bad state. A block whose check fails is
@@ -36,29 +27,23 @@ class Guard:
     step (the same bits either way). A single step is checked at once
     (``BadNodes.first``), its solvers' counters read inside it."""
 
-    def __init__(self, sim, stop_step: int, marks: list[int], log_every: int, ledger):
-        """``marks``: the run's output and restart steps, sorted; ``log_every``: its
-        log's interval (0: none); ``ledger``: its ``summary.Ledger``."""
-        self.sim, self.first_step, self.stop_step, self.marks = sim, sim.step, stop_step, marks
-        self.log_every, self.ledger = log_every, ledger
+    def __init__(self, sim, stop_step: int, ledger):
+        """``stop_step``: the run's last step; ``ledger``: its ``summary.Ledger``."""
+        self.sim, self.first_step, self.stop_step, self.ledger = sim, sim.step, stop_step, ledger
         self.every = max(1, int(sim.check_every))
         self._saved = None  # a block's stepper history and counters at its start
 
     def block_end(self, b: int) -> int:
         """The last step of the block that starts after step b: the next multiple of
-        ``check_every``, or the run's next output, restart, log or callback step, the
-        last step of its wall-time estimate or its end, whichever comes first."""
+        ``check_every``, the next step an activity is due (``Simulation.activities``:
+        output, restart, callback, log), the last step of the run's wall-time estimate
+        or its end, whichever comes first."""
         if self.every == 1 or b == self.first_step:  # the first step alone: its time is first_step_time
             return b + 1
-        i = bisect.bisect_right(self.marks, b)
-        ends = [
-            self.stop_step,
-            next_multiple(b, self.every),
-            *self.marks[i : i + 1],
-            *self.sim.callbacks.next_steps(b),
-            *self.ledger.next_steps(b),
-        ]
-        return min(ends + ([next_multiple(b, self.log_every)] if self.log_every else []))
+        due = (a.schedule.next_after(b) for a in self.sim.activities.values())
+        return min(
+            self.stop_step, next_multiple(b, self.every), *(n for n in due if n is not None), *self.ledger.next_steps(b)
+        )
 
     def begin(self, b: int, block: bool) -> None:
         """Keep the state of step b in ``last_good`` and, for a block, the stepper's

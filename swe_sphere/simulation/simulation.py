@@ -2,14 +2,18 @@
 
 On Oceananigans' pattern, the loop (``Simulation.run``) is short and takes its
 steps by one path; what happens around the steps is each a small part: the step
-itself (``graphs.GraphedSteps``), the bad-state guard (``guard``), the run files and
-restart files (``writers``), callbacks (``callbacks``), signals (``interrupts``),
-and the counts and result (``summary``); the state's diagnostics are
-``state_diagnostics``."""
+itself (``graphs.GraphedSteps``), the bad-state guard (``guard``), the activities
+called at the steps their schedules name (``activities``: the run files and restart
+files of ``writers``, callbacks, user writers, the log; all in ``Simulation.activities``),
+signals (``interrupts``), and the counts and result (``summary``); the state's
+diagnostics are ``state_diagnostics``."""
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
+import itertools
+import math
 import signal
 import sys
 import time
@@ -22,13 +26,13 @@ from tqdm import tqdm
 
 from ..cases.scoring import Scorer
 from ..config.scene import Scene, resolve_scene, with_days
+from ..core.backend import Backend, pick_device
 from ..core.constants import DAY
 from ..core.errors import BlowUp, Interrupted, ResourceError, SceneError, StepFailure
 from ..core.graphs import GraphedSteps, default_mode, graphs_mode
 from ..core.interrupts import StepAbandoned, StopSignals
 from ..core.mpi import node_local_size
-from ..core.parallel import default_threads
-from ..core.runtime import check_memory, pick_device, run_bytes
+from ..core.runtime import run_bytes
 from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology, rank_parts
 from ..io import restart_file
@@ -39,17 +43,18 @@ from ..model.shallow_water import ShallowWater
 from ..steppers import StepStats, make_stepper
 from ..steppers.initialization import digital_filter
 from . import checkpoint as ckpt
-from .callbacks import Callbacks
-from .guard import CHECK_EVERY_STEPS, Guard
-from .schedules import steps_of
+from .activities import Callback, Log
+from .guard import Guard
+from .schedules import EverySteps, common_interval, is_interval, steps_of, whole_steps
 from .state_diagnostics import StateDiagnostics
-from .summary import Ledger, RunResult, interruption
+from .summary import Ledger, RunResult, Stop, interruption
 from .writers import Checkpointer, RunFiles, run_attrs
 
 # The names users catch and read from here (``swe_sphere.BlowUp``, ``swe_sphere.Interrupted``).
 __all__ = ["ON_ROOT", "BlowUp", "Interrupted", "RunResult", "Simulation"]
 
 
+RUN_ACTIVITIES = ("run_file", "checkpointer", "log")  # the names ``run`` gives its own activities
 ON_ROOT = object()  # ``start`` on the ranks > 0 when rank 0 alone holds the whole-grid start state
 
 MAX_HYPERVIS_EVALUATIONS = 10_000  # ∇⁴ evaluations a step; beyond, ν is ~10⁷ times its explicit bound or more
@@ -79,12 +84,12 @@ def _check_memory(scene: Scene, comm, device: str = "cpu") -> None:
     else the host's): the whole run on one process; over MPI ranks, the share of
     the ranks on each node (each holds its elements)."""
     need, what = run_bytes(scene.ne, scene.np, scene.stepper), f"ne={scene.ne} np={scene.np} with {scene.stepper}"
-    dev = wp.get_device(device)
+    backend = Backend.of(device)
     if comm is None or comm.size == 1:
-        return check_memory(need, what, dev)
+        return backend.check_memory(need, what)
     local = node_local_size(comm)
     try:
-        check_memory(need * local // comm.size, f"{what} over {comm.size} MPI ranks ({local} on this node)", dev)
+        backend.check_memory(need * local // comm.size, f"{what} over {comm.size} MPI ranks ({local} on this node)")
         error = None
     except ResourceError as err:
         error = str(err)
@@ -136,7 +141,7 @@ class Simulation(StateDiagnostics):
         A resolved scene, or a scene file or bundled name with ``overrides``
         (``config.resolve_scene``).
     device : {"cpu", "cuda"}, optional
-        Warp device (default: CUDA when present, ``runtime.pick_device``).
+        Warp device (default: CUDA when present, ``backend.pick_device``).
     progress : bool
         A tqdm bar (rank 0, stderr a terminal).
     comm : mpi4py communicator, optional
@@ -166,11 +171,14 @@ class Simulation(StateDiagnostics):
     ----------
     check_every : int
         ``run`` reads the device's bad-state check back once a block of so many steps
-        (1 on a CPU, ``guard.CHECK_EVERY_STEPS`` on a GPU), a failed block re-run one
+        (``Backend.check_every``: 1 on a CPU, 64 on a GPU), a failed block re-run one
         checked step at a time (``guard.Guard``; the same bits either way).
     dfi : FilterResult or None
         The digital-filter initialization's result, when the scene has one
         (``initialization``) and no ``start`` was given; its cost is in ``setup_time``.
+    activities : dict
+        What the loop does between steps, by name: each a schedule and a call
+        (``simulation.activities``); callbacks and output writers of one's own go here.
     inputs : tuple of Path
         The files the simulation was made from (scene file, restart file), which
         ``run`` refuses to write over.
@@ -215,6 +223,8 @@ class Simulation(StateDiagnostics):
         **overrides,
     ):
         graphs = graphs_mode(default_mode() if graphs is None else graphs)
+        # Δt the simulation may fit to the user's intervals (``steps``): not given, restored or stated in a Scene
+        self._own_dt = not isinstance(scene, Scene) and "dt" not in overrides and initial_diagnostics is None
         scene, inputs = resolve_scene(scene, overrides)
         if device is None:
             device = pick_device()
@@ -222,7 +232,7 @@ class Simulation(StateDiagnostics):
             raise ValueError("initial must be a function (lat, lon) -> (h, u, v), and not given with start")
         t0 = time.perf_counter()
         self._compile = [0.0]
-        self.callbacks = Callbacks()
+        self.activities: dict = {}  # name -> activity (``activities``): the user's; ``run`` adds its own
         with _compile_timer(self._compile):
             self._build(scene, device, progress, comm, start, initial, initial_diagnostics)
         self.graphs = graphs
@@ -237,7 +247,7 @@ class Simulation(StateDiagnostics):
         parts = rank_parts(scene.ne, size)
         self.case = case = scene.make_case()
         local = CubedSphere(scene.ne, scene.np, case.planet.a, elements=parts[rank])  # this rank's elements only
-        self.topology = topo = Topology(local, device, default_threads(device), comm, parts=parts)
+        self.topology = topo = Topology(local, device, Backend.of(device).threads(), comm, parts=parts)
         self.root = rank == 0  # the rank that diagnoses, writes files and shows progress
         self.progress = progress and self.root
         # the whole grid and fields for diagnostics and output: on rank 0 only (None elsewhere)
@@ -286,7 +296,7 @@ class Simulation(StateDiagnostics):
             start = topo.distribute(None if start is ON_ROOT else start, 3, "start state")
         self.x = self.model.new_state(*(self.dfi.x if self.dfi is not None else start))
         self.last_good = wp.clone(self.x)  # the state at the start of the block of steps in progress (``guard``)
-        self.check_every = 1 if wp.get_device(device).is_cpu else CHECK_EVERY_STEPS
+        self.check_every = topo.backend.check_every
         if not self.root:  # a fallback's warning once, from rank 0
             self.model.graph_guard.warn = lambda line: None
         self._graphed = GraphedSteps(device, self.model.graph_guard)
@@ -440,20 +450,70 @@ class Simulation(StateDiagnostics):
         )
 
     # -- driven from Python (Oceananigans' Simulation: step, inspect, call back) ---------
-    def add_callback(self, fn, *, every_days: float | None = None, every_steps: int | None = None) -> None:
-        """Call ``fn(sim)`` after every step n that is a multiple of ``every_steps``
-        (or of the steps in ``every_days``, whole steps) counted from step 0, in
-        ``run``, ``advance`` and ``steps`` (Oceananigans' ``add_callback!`` with an
-        ``IterationInterval``); not at step 0, whose state the caller has. ``fn`` may
-        read ``sim.step``, ``sim.time``, ``sim.state()``; what it raises ends the run
-        (its output files dropped). Under MPI add it on every rank. ValueError for
-        an interval that is not whole steps, or not exactly one of the two."""
-        if (every_days is None) == (every_steps is None):
-            raise ValueError("add_callback needs exactly one of every_days, every_steps")
-        if every_steps is not None and not (isinstance(every_steps, int) and every_steps >= 1):
-            raise ValueError(f"every_steps must be an integer >= 1 (got {every_steps!r})")
-        steps = every_steps if every_days is None else steps_of(self.scene, every_days, "every_days")
-        self.callbacks.add(fn, steps)
+    def fit_dt(self, every: float, what: str = "every") -> None:
+        """Shorten Δt, before the first step, to the largest that divides ``every`` (days),
+        the run, its output intervals (where shorter than the run) and the intervals of
+        the activities scheduled in days (``every``; their steps follow): a new stepper,
+        and the start's diagnostics again (their Courant numbers); a note in
+        ``scene.notes`` naming ``what``. ValueError (one line) after the first step, for
+        ``every`` <= 0, and where that Δt is less than half the present one (an interval
+        of odd decimals: give a dt, or an interval of whole steps)."""
+        s = self.scene
+        if self.step != 0 or not is_interval(every):
+            raise ValueError(
+                f"dt is fitted to an interval > 0 before the first step (got {every!r} at step {self.step})"
+            )
+        outputs = [s.output_every_days, *(st["every_days"] for st in s.output_streams)]
+        days = [a.schedule.days for a in self.activities.values() if getattr(a.schedule, "days", None) is not None]
+        span = common_interval(every, s.run_days, *(d for d in outputs if d < s.run_days), *days) * DAY
+        dt = span / math.ceil(span / s.dt - 1e-9)
+        if dt < s.dt / 2:
+            raise ValueError(
+                f"{what} = {every:g} days is not a whole number of steps of dt = {s.dt:g} s, and the longest dt "
+                f"that divides it, the run and its output intervals is {dt:g} s, less than half: give a dt, "
+                "or an interval of whole steps"
+            )
+        note = f"dt shortened from {s.dt:g} s to {dt:g} s to divide {what} = {every:g} days"
+        self.scene = dataclasses.replace(s, dt=dt, notes=(*s.notes, note))
+        _check_hyperviscosity(self.model, self.scene)
+        self.stepper = make_stepper(self.scene.stepper, self.model, dt, **self.scene.stepper_options)
+        self.stepper.t0 = self.scene.start_day * DAY
+        for activity in self.activities.values():
+            if getattr(activity.schedule, "days", None) is not None:
+                activity.schedule = self.every(days=activity.schedule.days)
+        self.initial = self.diagnose(self.scene.start_day * DAY)
+
+    def every(self, *, days: float | None = None, steps: int | None = None) -> EverySteps:
+        """The schedule of an activity (``activities``) due after every step that is a
+        multiple of ``steps``, or of the steps in ``days`` (whole steps), counted from
+        step 0 (Oceananigans' ``IterationInterval``); not at step 0, whose state the
+        caller has. ValueError for an interval that is not whole steps, or not exactly
+        one of the two."""
+        if (days is None) == (steps is None):
+            raise ValueError("an interval needs exactly one of every_days, every_steps")
+        if steps is not None and not (isinstance(steps, int) and steps >= 1):
+            raise ValueError(f"every_steps must be an integer >= 1 (got {steps!r})")
+        return EverySteps(steps) if days is None else EverySteps(self._steps_in(days, "every_days"), days)
+
+    def _steps_in(self, days: float, what: str) -> int:
+        """The whole number of steps in ``days`` (``what`` names it in a refusal), Δt first
+        fitted to it (``fit_dt``) where Δt is the simulation's own and no step was taken."""
+        if self._own_dt and self.step == 0 and is_interval(days) and not whole_steps(self.scene, days):
+            self.fit_dt(days, what)
+        return steps_of(self.scene, days, what, "" if self._own_dt else ", the dt given")
+
+    def add_callback(
+        self, fn, *, every_days: float | None = None, every_steps: int | None = None, name: str | None = None
+    ) -> None:
+        """Call ``fn(sim)`` after every ``every_steps``-th step, or every ``every_days``
+        (``every``), in ``run``, ``advance`` and ``steps`` (Oceananigans' ``add_callback!``):
+        an activity in ``activities`` under ``name`` (default "callback N"). ``fn`` may read
+        ``sim.step``, ``sim.time``, ``sim.state()``; what it raises ends the run (its
+        output files dropped). Under MPI add it on every rank. ValueError as ``every``."""
+        schedule = self.every(days=every_days, steps=every_steps)
+        if name is None:
+            name = next(f"callback {k}" for k in itertools.count(1) if f"callback {k}" not in self.activities)
+        self.activities[name] = Callback(fn, schedule)
 
     @property
     def time(self) -> float:
@@ -482,7 +542,7 @@ class Simulation(StateDiagnostics):
         BlowUp, StepFailure, Interrupted
             As ``run``.
         """
-        target = self.step + steps_of(self.scene, days, "days")
+        target = self.step + self._steps_in(days, "days")
         if target > self.scene.nsteps:
             self.scene = with_days(self.scene, self.scene.start_day + target * self.scene.dt / DAY, "the scene's")
         return self.run(None, until_step=target)
@@ -491,6 +551,12 @@ class Simulation(StateDiagnostics):
         """Iterate the run to the scene's end, one multiple of ``every`` days from t = 0
         at a time (``for t in sim.steps(every=0.5): ds = sim.state()``); stops at the last
         multiple at or before the end.
+
+        Where Δt is the simulation's own (no ``dt`` given, the scene named or a file:
+        ``swe-sphere run`` shortens it likewise to divide the output interval) and no step
+        has been taken, a Δt that does not divide ``every`` is first shortened to the
+        largest that divides ``every``, the run, its output intervals and the callbacks'
+        (``fit_dt``; so do ``advance`` and ``every`` for their intervals).
 
         Parameters
         ----------
@@ -505,11 +571,11 @@ class Simulation(StateDiagnostics):
         Raises
         ------
         ValueError
-            ``every`` is not a whole number of steps.
+            ``every`` is not then a whole number of steps (naming a Δt that was given).
         BlowUp, StepFailure, Interrupted
             As ``run``.
         """
-        per = steps_of(self.scene, every, "every")
+        per = self._steps_in(every, "every")
         while (target := (self.step // per + 1) * per) <= self.scene.nsteps:
             self.run(None, until_step=target)
             yield self.time
@@ -567,9 +633,9 @@ class Simulation(StateDiagnostics):
     ) -> RunResult:
         """Integrate the scene from the current step; write ``output`` (netCDF) if given.
 
-        The scene's ``[[output.streams]]`` are written beside ``output``
-        (``stream_path``), each at its own interval, and the callbacks
-        (``add_callback``) are called.
+        Blocks of steps, each checked by the guard (``guard.Guard``), then the activities
+        due (``activities``): the run file and its ``[[output.streams]]`` (``stream_path``),
+        the restart file, the callbacks and writers in ``activities``, the log.
 
         Parameters
         ----------
@@ -618,7 +684,39 @@ class Simulation(StateDiagnostics):
         Interrupted
             SIGINT or SIGTERM (with ``catch_signals``).
         """
-        s, stepper = self.scene, self.stepper
+        files, ckp, start, courant = self._open(
+            output, overwrite, restart_every, restart_file, compress, history, on_output
+        )
+        ledger = Ledger(self.counters, self.scene, self.step, notify if self.root else None)
+        guard = Guard(self, self.scene.nsteps if until_step is None else until_step, ledger)
+        stop = Stop()
+        # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
+        # pay, and on a busy machine OpenBLAS's spinning threads made a norm cost 10 ms
+        with StopSignals(self.topology, catch_signals) as signals, threadpool_limits(limits=1, user_api="blas"):
+            try:
+                with self._during_run(files, ckp, log), _compile_timer(self._compile):
+                    files.record(self.step, whole=start, final=True)
+                    with self._progress_bar() as bar:
+                        stop = self._loop(guard, signals, ledger, bar)
+                    self._stopped(stop, files, ckp)
+                files.close()  # under this run's handlers: a signal now waits, and is answered below
+            except BaseException:
+                files.abort()
+                raise
+        if stop.signum is None and stop.blowup is None:  # a signal after the last step's check: the output is whole
+            stop.signum = signals.asked() or None
+        result = ledger.result(
+            self.step, files.history, courant, output, stop.blowup, ckp.written, self.setup_time, self._compile[0]
+        )
+        return self._outcome(stop, result, output, ckp)
+
+    def _open(self, output, overwrite, restart_every, restart_file, compress, history, on_output) -> tuple:
+        """A run's run files and checkpointer (paths checked; the files created on rank 0),
+        the start's gathered fields and its Courant numbers. ValueError for a user's
+        activity under a name the run gives its own."""
+        taken = sorted(set(self.activities) & set(RUN_ACTIVITIES))
+        if taken:
+            raise ValueError(f"activities {', '.join(taken)}: a run's own names (choose another)")
         ckp = Checkpointer(self, output, restart_every, restart_file, overwrite)
         files = RunFiles(self, output, on_output)
         if self.root:
@@ -630,103 +728,90 @@ class Simulation(StateDiagnostics):
         courant = self.courant(start)
         if output is not None and self.root:
             files.open(run_attrs(self, history, courant), overwrite=overwrite, compress=compress)
-        stop_step = s.nsteps if until_step is None else until_step
-        log_every = s.log_every_steps if log is not None else 0
-        ledger = Ledger(self.counters, s, self.step, notify if self.root else None)
-        guard = Guard(self, stop_step, sorted(files.steps | ckp.steps), log_every, ledger)
+        return files, ckp, start, courant
 
-        def finish(n: int, done: int) -> None:
-            """Step n (the last of ``done`` steps) is good: output, restart, callbacks, log, progress."""
-            self.step = n
-            if n in files.steps:
-                files.record(n)
-            if n in ckp.steps:
-                ckp.save()
-            self.callbacks(self, n)
-            if log_every and n % log_every == 0:
-                line = self.log_line(files.history[-1] if n in files.steps else None)
-                if line is not None:
-                    log(line)
-            bar.update(done)
-            if n % 50 < done or n == s.nsteps:  # a multiple of 50 in the steps done
-                bar.set_postfix(
-                    day=f"{s.day(n):.2f}",
-                    sim_days_per_s=f"{n * s.dt / DAY / max(self.counters['wall_time'], 1e-9):.3g}",
-                )
+    @contextlib.contextmanager
+    def _during_run(self, files: RunFiles, ckp: Checkpointer, log):
+        """The run's own activities in ``activities`` (the run file and checkpointer before
+        the user's, the log after), and the stepper's solver counters read with the
+        bad-state check (``Stepper.deferred``), while the loop runs."""
+        own = self.activities
+        self.activities = {"run_file": files, "checkpointer": ckp, **own}
+        if log is not None and self.scene.log_every_steps:
+            self.activities["log"] = Log(log, EverySteps(self.scene.log_every_steps), files)
+        self.stepper.deferred = True
+        try:
+            yield
+        finally:
+            self.stepper.deferred = False
+            self.activities = own
 
-        blowup = interrupted = abandoned = None
-        # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
-        # pay, and on a busy machine OpenBLAS's spinning threads made a norm cost 10 ms
-        with StopSignals(self.topology, catch_signals) as signals, threadpool_limits(limits=1, user_api="blas"):
-            stepper.deferred = True  # its solvers' device counters read with the bad-state check (``guard``)
-            try:
-                with _compile_timer(self._compile):
-                    files.record(self.step, whole=start, final=True)
-                    # disable=None: a bar only on a terminal, not redrawn into a log (or mpiexec's pipe)
-                    with tqdm(
-                        initial=self.step,
-                        total=s.nsteps,
-                        unit="step",
-                        disable=None if self.progress else True,
-                        file=sys.stderr,
-                        dynamic_ncols=True,
-                    ) as bar:
-                        rerun_to = self.step  # steps up to here are re-run one at a time: their block found trouble
-                        while self.step < stop_step:
-                            if self.step >= rerun_to and (
-                                signum := signals.asked()
-                            ):  # every rank stops at the same step
-                                interrupted = signum
-                                break
-                            b = self.step
-                            e = (
-                                guard.block_end(b) if b >= rerun_to else b + 1
-                            )  # a re-run goes on to the trouble it looks for
-                            m, trouble, detail = self._steps(b, e, guard, signals, ledger)
-                            if trouble is None:  # m > b: a step without trouble was taken
-                                finish(m, m - b)
-                            elif trouble == "abandoned":
-                                interrupted, abandoned = detail, (b, m)
-                                break
-                            elif e > b + 1:  # the block is re-run from b, a checked step at a time
-                                rerun_to = m + 1 if trouble == "failure" else m  # a failure: in step m + 1
-                            else:
-                                blowup = guard.message(b + 1, trouble, detail)
-                                if files.unwritten(b):
-                                    files.record(b, self.last_good, final=True)
-                                files.set_attrs(blowup=blowup)
-                                break
-                    if interrupted is not None:
-                        if files.unwritten(self.step):
-                            files.record(self.step, final=True)
-                        # after an abandoned step the stepper's history is half updated: no restart file
-                        if ckp.path is not None and self.step not in ckp.steps and not abandoned:
-                            ckp.save()
-                        files.set_attrs(
-                            interrupted=signal.Signals(interrupted).name,
-                            interrupted_at_step=self.step,
-                            interrupted_at_day=s.day(self.step),
-                        )
-                files.close()  # under this run's handlers: a signal now waits, and is answered below
-            except BaseException:
-                files.abort()
-                raise
-            finally:
-                stepper.deferred = False
-        if interrupted is None and blowup is None:  # a signal after the last step's check: the output is whole
-            interrupted = signals.asked() or None
-        result = ledger.result(
-            self.step, files.history, courant, output, blowup, ckp.written, self.setup_time, self._compile[0]
+    def _progress_bar(self) -> tqdm:
+        # disable=None: a bar only on a terminal, not redrawn into a log (or mpiexec's pipe)
+        return tqdm(
+            initial=self.step,
+            total=self.scene.nsteps,
+            unit="step",
+            disable=None if self.progress else True,
+            file=sys.stderr,
+            dynamic_ncols=True,
         )
-        if blowup is not None:
-            err = BlowUp(blowup)
+
+    def _loop(self, guard: Guard, signals: StopSignals, ledger: Ledger, bar) -> Stop:
+        """Blocks of steps to ``guard.stop_step``, the activities due called after each good
+        step; a block that finds trouble is re-run a checked step at a time. Returns why
+        the loop stopped (``summary.Stop``: nothing, a signal, an abandoned step or a blow-up)."""
+        rerun_to = self.step  # steps up to here are re-run one at a time: their block found trouble
+        while self.step < guard.stop_step:
+            if self.step >= rerun_to and (signum := signals.asked()):  # every rank stops at the same step
+                return Stop(signum=signum)
+            b = self.step
+            e = guard.block_end(b) if b >= rerun_to else b + 1  # a re-run goes on to the trouble it looks for
+            m, trouble, detail = self._steps(b, e, guard, signals, ledger)
+            if trouble is None:  # m > b: a step without trouble was taken
+                self._after_steps(m, m - b, bar)
+            elif trouble == "abandoned":
+                return Stop(signum=detail, abandoned=(b, m))
+            elif e > b + 1:  # the block is re-run from b, a checked step at a time
+                rerun_to = m + 1 if trouble == "failure" else m  # a failure: in step m + 1
+            else:
+                return Stop(blowup=guard.message(b + 1, trouble, detail))
+        return Stop()
+
+    def _after_steps(self, n: int, done: int, bar) -> None:
+        """Step n (the last of ``done`` steps) is good: the activities due there, the progress bar."""
+        self.step = n
+        for activity in list(self.activities.values()):
+            if activity.schedule.due(n):
+                activity(self)
+        bar.update(done)
+        if n % 50 < done or n == self.scene.nsteps:  # a multiple of 50 in the steps done
+            bar.set_postfix(
+                day=f"{self.scene.day(n):.2f}",
+                sim_days_per_s=f"{n * self.scene.dt / DAY / max(self.counters['wall_time'], 1e-9):.3g}",
+            )
+
+    def _stopped(self, stop: Stop, files: RunFiles, ckp: Checkpointer) -> None:
+        """Close the files of a run that stopped early: after a blow-up with the last good
+        state (``step`` is the last good step again), after a signal with the current one
+        and its restart file."""
+        if stop.blowup is not None:
+            files.end(self.step, self.last_good, blowup=stop.blowup)
+        elif stop.signum is not None:
+            name, day = signal.Signals(stop.signum).name, self.scene.day(self.step)
+            files.end(self.step, interrupted=name, interrupted_at_step=self.step, interrupted_at_day=day)
+            ckp.interrupted(self.step, abandoned=stop.abandoned is not None)
+
+    def _outcome(self, stop: Stop, result: RunResult, output, ckp: Checkpointer) -> RunResult:
+        """``result``, or ``BlowUp`` or ``Interrupted`` raised with it."""
+        if stop.blowup is not None:
+            err = BlowUp(stop.blowup)
             err.result = result
             raise err
-        if interrupted is not None:
-            err = Interrupted(
-                interruption(signal.Signals(interrupted).name, self.step, s, output, ckp.kept, ckp.written, abandoned)
-            )
-            err.signum, err.result, err.checkpoint = interrupted, result, ckp.written
+        if stop.signum is not None:
+            name = signal.Signals(stop.signum).name
+            err = Interrupted(interruption(name, self.step, self.scene, output, ckp.kept, ckp.written, stop.abandoned))
+            err.signum, err.result, err.checkpoint = stop.signum, result, ckp.written
             raise err
         return result
 

@@ -10,7 +10,7 @@ from ..core.constants import DAY
 from ..core.runtime import package_version
 from ..io.run_file import OUTPUT_FIELDS, RunWriter, history_line
 from . import checkpoint as ckpt
-from .schedules import output_steps, restart_steps
+from .schedules import AtSteps, output_steps, restart_steps
 
 
 def stream_path(output: Path, name: str) -> Path:
@@ -61,7 +61,8 @@ class RunFiles:
     its own output steps (``schedules.output_steps``); without ``output`` none, the
     diagnostics still taken at the scene's output steps. ``record`` diagnoses an
     output step on every rank (into ``history``; ``on_output(step, x)`` is called
-    with the (3, N) device state) and rank 0 appends it to the files."""
+    with the (3, N) device state) and rank 0 appends it to the files. An activity
+    (``activities``): ``files(sim)`` records ``sim.step`` at the steps of ``schedule``."""
 
     def __init__(self, sim, output: Path | None, on_output=None):
         s = sim.scene
@@ -79,6 +80,7 @@ class RunFiles:
         )
         self.paths = [path for path, _, _ in self.streams]
         self.steps = set().union(*(steps for _, _, steps in self.streams)) if self.streams else output_steps(s)
+        self.schedule = AtSteps.of(self.steps)
         self.divergence = any("divergence" in fields for _, fields, _ in self.streams)
         self.series = [
             "steps",
@@ -135,6 +137,16 @@ class RunFiles:
                         divergence=whole.divergence,
                     )
 
+    def __call__(self, sim) -> None:
+        self.record(sim.step)
+
+    def end(self, step: int, x=None, **attrs) -> None:
+        """Close a run that stops early at ``step`` (state x, default the current one):
+        the step recorded where it is not yet, and the global ``attrs`` set (why it stopped)."""
+        if self.unwritten(step):
+            self.record(step, x, final=True)
+        self.set_attrs(**attrs)
+
     def unwritten(self, step: int) -> bool:
         """Whether some run file (or, without one, the history) lacks ``step``."""
         return step not in self.steps or any(at != step for at in self.last)
@@ -161,7 +173,8 @@ class Checkpointer:
     every ``every_days`` (whole steps) and at the end, and on a signal. Without
     ``every_days`` and ``overwrite``, an existing default restart file is neither
     refused nor replaced (``kept``: no restart file on a signal). Raises ValueError
-    for an interval that is not whole steps, or one with neither output nor path."""
+    for an interval that is not whole steps, or one with neither output nor path.
+    An activity (``activities``): ``checkpointer(sim)`` saves at the steps of ``schedule``."""
 
     def __init__(self, sim, output: Path | None, every_days: float | None, path: Path | None, overwrite: bool):
         self.sim, self.overwrite, self.kept, self.written = sim, overwrite, None, None
@@ -172,8 +185,19 @@ class Checkpointer:
                 path, self.kept = None, path
         self.path = path
         self.steps = restart_steps(sim.scene, every_days) if every_days is not None else set()
+        self.schedule = AtSteps.of(self.steps)
         if every_days is not None and path is None:
             raise ValueError("a restart interval needs an output or restart file")
+
+    def __call__(self, sim) -> None:
+        self.save()
+
+    def interrupted(self, step: int, abandoned: bool) -> None:
+        """Save the restart file of a run stopped by a signal at ``step``, unless it has
+        none, already saved this step, or the step was ``abandoned`` (the stepper's history
+        is then half updated)."""
+        if self.path is not None and step not in self.steps and not abandoned:
+            self.save()
 
     def save(self) -> None:
         """Write the restart file of the current step (call on every rank)."""

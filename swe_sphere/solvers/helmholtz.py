@@ -56,7 +56,6 @@ import warp as wp
 
 from ..core.errors import StepFailure
 from ..core.graphs import captured
-from ..core.parallel import reduction_chunk
 from ..kernels import gravity_wave as gk
 from ..kernels import helmholtz as hk
 from ..kernels import operators
@@ -255,10 +254,7 @@ class HelmholtzSolver:
         # with a CUDA driver below 12.4 (no conditional nodes: host loops, a read an iteration).
         self._graphs: dict[tuple, object] = {}
         self._schur_launches: dict[tuple, tuple] = {}
-        cpu = wp.get_device(dev).is_cpu
-        self.graphable = not model.topology.distributed and (
-            model.threads == 1 if cpu else wp.is_conditional_graph_supported()
-        )
+        self.graphable = not model.topology.distributed and model.topology.backend.solver_graphs(model.threads)
         # with ``history`` k > 0, the start of each solve: a GuessHistory per a (the basis is A's),
         # shared by a step's stages of one a (IMEX ARS's all): their span holds the last stage's
         # solution, today's warm start (TC5 ne8 ARS(3,4,3) @ 8 dt_g, CG iterations a solve:
@@ -663,7 +659,7 @@ class HelmholtzCG:
         self.dvv = model.dvv_rows if same else operators.dvv_matrix(model.grid.rule.dvv, dtype)
         self.minv = wp.array(1.0 / topo.area, dtype=dtype, device=dev)
         self.area, self.ones = wp.array(topo.area, dtype=dtype, device=dev), wp.ones(nu, dtype=dtype, device=dev)
-        self.chunk = chunk = reduction_chunk(nu, dev)
+        self.chunk = chunk = topo.backend.reduction_chunk(nu)
         self.partial = wp.zeros((3, (nu + chunk - 1) // chunk), dtype=f64, device=dev)
         # the device scalars: the inner products' totals, the recurrences' (hk.GAMMA …), the flag and counts (hk.GO …)
         self.sums = wp.zeros(3, dtype=f64, device=dev)

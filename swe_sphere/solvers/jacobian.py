@@ -22,7 +22,7 @@ import math
 import numpy as np
 import warp as wp
 
-from ..core.parallel import record, reduction_chunk
+from ..core.parallel import record
 from ..kernels import implicit as ik
 from ..kernels import krylov as kk
 from .krylov import NumpyViews
@@ -50,7 +50,7 @@ class KernelPasses:
     def __init__(self, model):
         self.model, self.topology = model, model.topology
         dev, n = model.device, 3 * model.topology.nunique
-        self._chunk = chunk = reduction_chunk(n, dev)
+        self._chunk = chunk = model.topology.backend.reduction_chunk(n)
         self._partial = wp.zeros((1, (n + chunk - 1) // chunk), dtype=f64, device=dev)
         self.xx, self.ww, self.eps = (wp.zeros(k, dtype=f64, device=dev) for k in (1, 1, 2))  # ‖x‖², ‖w‖², (ε, scale/ε)
         self._squares = {}  # (v.ptr, out.ptr) -> the recorded launches of v·v into out (with v)
@@ -194,8 +194,8 @@ class FiniteDifferenceJacobian:
     F evaluation (none for w = 0, out = 0, where ε is a host value). x and Fx are left alone.
 
     ``passes``: the backend of the pointwise passes (gather, scatter, x + εw, the difference),
-    chosen once here: ``HostPasses`` (numpy) on a CPU device, ``KernelPasses``
-    elsewhere; either may be given."""
+    by the backend (``Backend.choose``): ``HostPasses`` (numpy) on a CPU device,
+    ``KernelPasses`` elsewhere; either may be given."""
 
     def __init__(self, model, F, passes=None):
         self.model, self.F = model, F
@@ -203,9 +203,7 @@ class FiniteDifferenceJacobian:
         self.nu = self.topology.nunique
         self.xp = wp.zeros((3, model.N), dtype=f64, device=model.device)  # x + εw
         self.Fp = wp.zeros((3, model.N), dtype=f64, device=model.device)  # F(x + εw)
-        if passes is None:
-            passes = HostPasses if wp.get_device(model.device).is_cpu else KernelPasses
-        self.passes = passes(model)
+        self.passes = (passes or self.topology.backend.choose(HostPasses, KernelPasses))(model)
 
     def norm(self, a) -> float:
         """Euclidean norm of an array (3, N) or (3·nunique,) over all processes."""

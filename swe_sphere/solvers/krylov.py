@@ -35,7 +35,7 @@ import numpy as np
 import warp as wp
 
 from ..core.graphs import captured
-from ..core.parallel import record, reduction_chunk
+from ..core.parallel import record
 from ..kernels import krylov as kk
 
 f64 = wp.float64
@@ -60,14 +60,14 @@ class NumpyViews:
 class KernelVectors:
     """A ``KrylovBasis``'s vector work in ``kernels.krylov``'s Warp kernels (the
     backend on CUDA): each operation one launch, recorded once per set of arrays;
-    inner products as per-chunk partial sums (``parallel.reduction_chunk``) added
+    inner products as per-chunk partial sums (``Backend.reduction_chunk``) added
     on the device in index order (``Topology.device_sums``), over ranks through the
     host (``Topology.allreduce``; nothing comes back on one rank)."""
 
     def __init__(self, basis: KrylovBasis):
         n, rows, topo = basis.n, basis.V.shape[0], basis.topology
         self.n, self.topology = n, topo
-        self.chunk = chunk = reduction_chunk(n, topo.device)
+        self.chunk = chunk = topo.backend.reduction_chunk(n)
         self.partial = wp.zeros((rows + 1, (n + chunk - 1) // chunk), dtype=f64, device=topo.device)
         self._launches: dict[tuple, object] = {}
         self._totals: dict[tuple, tuple] = {}
@@ -174,9 +174,9 @@ class KrylovBasis:
     row range of ``V``, FGMRES's preconditioned vectors), its inner products summed
     over the topology's processes. Shared by ``FGMRES`` and ``kiops.Kiops``.
 
-    ``vectors``: the backend of that work, chosen once here: ``HostVectors``
-    (numpy/BLAS on views of the arrays) on a CPU device, ``KernelVectors``
-    (``kernels.krylov``) elsewhere; either may be given (the tests check the two
+    ``vectors``: the implementation of that work, chosen by the topology's backend
+    (``Backend.choose``): ``HostVectors`` (numpy/BLAS on views of the arrays) on a CPU
+    device, ``KernelVectors`` (``kernels.krylov``) elsewhere; either may be given (the tests check the two
     agree to round-off). A backend's operations take their coefficients from and
     put their inner products into device arrays (float64, (rows + 1,) at most):
     ``dots(B, w, k_sub, h, k_dot, out)``: w −= Σ_{i<k_sub} h[i] B_i, out[:k_dot + 1] =
@@ -194,9 +194,7 @@ class KrylovBasis:
         self.w = wp.zeros(n, dtype=f64, device=dev)
         self.coef = wp.zeros(rows + 1, dtype=f64, device=dev)  # host coefficients, on the device
         self.sums = wp.zeros(rows + 1, dtype=f64, device=dev)  # inner products
-        if vectors is None:
-            vectors = HostVectors if wp.get_device(dev).is_cpu else KernelVectors
-        self.vectors = vectors(self)
+        self.vectors = (vectors or topology.backend.choose(HostVectors, KernelVectors))(self)
 
     def project_dots(self, B, w, k_sub: int, h: np.ndarray | None, k_dot: int) -> np.ndarray:
         """w −= Σ_{i<k_sub} h_i B_i; returns (B_i·w for i < k_dot, w·w) over all processes

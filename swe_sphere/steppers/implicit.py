@@ -208,7 +208,7 @@ class Implicit(Stepper):
             or not m.graph_guard.enabled
             or not isinstance(self.fgmres.vectors, KernelVectors)
             or not isinstance(self.jacobian.passes, KernelPasses)
-            or (m.threads > 1 if wp.get_device(m.device).is_cpu else not wp.is_conditional_graph_supported())
+            or not topo.backend.solver_graphs(m.threads)
         ):
             return None
         return (id(self.fgmres.vectors), id(self.jacobian.passes), self.x.ptr, self.Fx.ptr, self.dt, self.beta)

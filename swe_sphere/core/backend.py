@@ -1,0 +1,192 @@
+"""The backend: what a run does differently on a CPU and on a CUDA device, decided once.
+
+On Oceananigans' pattern (its ``Architectures``: ``CPU()``, ``GPU()``), the device is
+looked up once (``Backend.of``) and every choice that depends on it is an attribute or
+method here: the node layout of the element kernels, the CPU threads a launch is split
+over, the chunk of a fixed-order inner product, the host or kernel passes of the Krylov
+solvers (``choose``), which graphs pay, how often the bad-state check is read back, and
+whose memory a run must fit in. Nothing outside this module asks whether a device is a
+CPU or a GPU.
+
+``pick_device`` chooses the device itself: the one asked for, else CUDA when present.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import warp as wp
+
+from .errors import ResourceError
+from .runtime import check_memory, gib, init_warp
+from .workers import cpus
+
+THREADS_ENV = "SWE_SPHERE_THREADS"
+CPU_CHUNK = 256  # entries per partial sum of an inner product on the CPU
+CUDA_CHUNKS = 4096  # partial sums an inner product aims at on CUDA, 8 to 32 entries each (measured on an H100)
+DEVICE_TOTALS = 64  # partial sums a row that one GPU thread adds directly (``Topology.device_sums``)
+# Steps between host reads of the bad-state check on a GPU (``Simulation.check_every``).
+# A read waits for the device to drain its queue: ~10-50 µs, as long as a whole launch-bound
+# ne30 step, so reading every step serialises the loop; 64 steps make it ~1 % of the time
+# and bound the re-run that finds a blow-up's step to 64 steps (ClimaAtmos checks for NaN
+# every 1024 steps, without the step). On a CPU a read costs nothing: every step is checked.
+CHECK_EVERY_STEPS = 64
+
+
+def requested_threads() -> int | None:
+    """``SWE_SPHERE_THREADS`` as an integer >= 1, or None when unset; ValueError naming it otherwise."""
+    env = os.environ.get(THREADS_ENV, "").strip()
+    if not env:
+        return None
+    try:
+        n = int(env)
+    except ValueError:
+        raise ValueError(f"{THREADS_ENV} must be an integer >= 1 (got {env!r})") from None
+    if n < 1:
+        raise ValueError(f"{THREADS_ENV} must be >= 1 (got {env!r})")
+    return n
+
+
+def default_device() -> str:
+    """'cuda' when Warp sees a CUDA device, else 'cpu'."""
+    return "cuda" if init_warp().is_cuda_available() else "cpu"
+
+
+def pick_device(requested: str | None = None, *, verbose: bool = False) -> str:
+    """The Warp device to run on: ``requested`` ("cpu" | "cuda"), else CUDA when
+    present. Raises ValueError when CUDA is asked for and absent."""
+    warp = init_warp(verbose)
+    device = requested or default_device()
+    if device == "cuda" and not warp.is_cuda_available():
+        raise ValueError("device cuda is not available on this machine (use --device cpu)")
+    return device
+
+
+@dataclass(frozen=True)
+class Backend:
+    """The device-dependent choices of a run on the Warp device ``device`` ("cpu",
+    "cuda", "cuda:0"): ``host`` is True on a CPU device, whose arrays are host memory
+    (numpy views of them are zero-copy). Build it with ``Backend.of``."""
+
+    device: str
+    host: bool
+
+    @classmethod
+    def of(cls, device) -> Backend:
+        """The backend of a Warp device (a name or ``wp.Device``)."""
+        return cls(str(device), bool(wp.get_device(device).is_cpu))
+
+    # -- layout ---------------------------------------------------------------
+    @property
+    def per_element(self) -> bool:
+        """Whether the element kernels run an element (np² nodes) a thread (a CPU, where
+        Warp's cost per thread dominates) rather than a node a thread (CUDA)."""
+        return self.host
+
+    def nodes_per_thread(self, np_: int) -> int:
+        """Consecutive nodes one thread of a node-wise gathering kernel takes: an
+        element's np² on a CPU (``Topology.gathering``), one on CUDA."""
+        return np_ * np_ if self.host else 1
+
+    # -- CPU threads ------------------------------------------------------------
+    def threads(self) -> int:
+        """Threads for CPU launches: ``SWE_SPHERE_THREADS``, else the usable CPUs, never
+        more than those (more threads than CPUs made ne16 3.9x slower); 1 on CUDA.
+        ValueError for a bad ``SWE_SPHERE_THREADS``."""
+        if not self.host:
+            return 1
+        return min(requested_threads() or cpus(), cpus())
+
+    def threads_note(self) -> str | None:
+        """A one-line note when ``SWE_SPHERE_THREADS`` asks for more threads than ``threads`` gives."""
+        n = requested_threads() if self.host else None
+        if n is None or n <= cpus():
+            return None
+        return f"{THREADS_ENV}={n} is more than the {cpus()} CPUs this process may run on: {cpus()} threads"
+
+    def launch_parts(self, threads: int) -> int:
+        """The most node ranges a recorded launch is split into (``parallel.record``):
+        ``threads`` on a CPU (Warp runs a CPU launch as one serial loop), 1 on CUDA."""
+        return threads if self.host else 1
+
+    # -- reductions -------------------------------------------------------------
+    def reduction_chunk(self, n: int) -> int:
+        """Entries per partial sum of an inner product over n entries (the chunked,
+        fixed-order reductions of ``kernels.helmholtz`` and ``kernels.krylov``): on a
+        CPU ``CPU_CHUNK`` (so the bits do not depend on the threads); on CUDA about
+        n / ``CUDA_CHUNKS``, within 8–32. A GPU thread sums a chunk in a serial loop,
+        latency-bound: on an H100 at ne30, chunks of 256 made a pcg iteration cost 40
+        RHS, of 32 twice what chunks of 12 cost; at ne120 chunks of 190 cost 1.8×
+        chunks of 32. ``Topology.device_sums`` adds the partial sums on the device."""
+        if self.host:
+            return CPU_CHUNK
+        return min(32, max(8, -(-int(n) // CUDA_CHUNKS)))
+
+    def direct_totals(self, n: int) -> bool:
+        """Whether one thread adds a row of n partial sums directly; else they are first
+        added in chunks of about √n (on CUDA above ``DEVICE_TOTALS``: a GPU thread's
+        serial loop is latency-bound)."""
+        return self.host or n <= DEVICE_TOTALS
+
+    def inner(self, a: wp.array, b: wp.array) -> float:
+        """Σ a·b of two device arrays of one shape on this process: numpy's dot on
+        zero-copy views on a CPU (as ``np.linalg.norm``), Warp's ``array_inner`` on CUDA."""
+        if self.host:
+            return float(a.numpy().ravel().dot(b.numpy().ravel()))
+        return float(wp.utils.array_inner(a.flatten(), b.flatten()))
+
+    # -- the Krylov solvers' vector work ------------------------------------------
+    def choose(self, host, kernel):
+        """One of a pair of implementations of the same passes: ``host`` (numpy/BLAS on
+        zero-copy views: Warp's CPU kernels are 7–15× slower at short vector passes) on
+        a CPU, ``kernel`` (Warp kernels) on CUDA (``krylov.HostVectors`` and
+        ``KernelVectors``, ``jacobian.HostPasses`` and ``KernelPasses``)."""
+        return host if self.host else kernel
+
+    # -- graphs and host reads ------------------------------------------------------
+    @property
+    def graph_name(self) -> str:
+        """What a captured graph is called here, for messages."""
+        return "CPU graph" if self.host else "CUDA graph"
+
+    @property
+    def graphs_pay(self) -> bool:
+        """Whether whole steps run as graphs in the "auto" mode (``graphs.GraphedSteps``):
+        on CUDA, where a graph is one host call instead of one a launch."""
+        return not self.host
+
+    def solver_graphs(self, threads: int) -> bool:
+        """Whether a solver's loops can be captured as one graph on one rank: on CUDA
+        with conditional graph nodes (driver ≥ 12.4), on a CPU with one thread a launch
+        (a ``parallel.SplitLaunch`` is a Python pool; Warp replays a CPU graph in one thread)."""
+        return threads == 1 if self.host else wp.is_conditional_graph_supported()
+
+    @property
+    def check_every(self) -> int:
+        """Steps between host reads of the bad-state check (``guard.Guard``): 1 on a CPU,
+        where a read costs nothing, ``CHECK_EVERY_STEPS`` on a GPU."""
+        return 1 if self.host else CHECK_EVERY_STEPS
+
+    # -- ranks and memory -----------------------------------------------------------
+    @property
+    def distributes(self) -> bool:
+        """Whether a run may span several MPI ranks (CPU only so far)."""
+        return self.host
+
+    def check_memory(self, need: int, what: str) -> None:
+        """Raise ``ResourceError`` (one line) when ``need`` bytes exceed the memory the
+        run's arrays live in: a GPU's free memory on CUDA, else the host's available
+        memory (``runtime.check_memory``)."""
+        if self.host:
+            check_memory(need, what)
+            return
+        dev = wp.get_device(self.device)
+        if need > dev.free_memory:
+            raise ResourceError(
+                f"{what} needs about {gib(need)} of GPU memory; {gib(dev.free_memory)} free of "
+                f"{gib(dev.total_memory)} on {dev}"
+            )
+
+
+__all__ = ["Backend", "default_device", "pick_device", "requested_threads"]

@@ -1,0 +1,63 @@
+"""What a run does between its steps, each an activity of one shape (Oceananigans' output
+writers and callbacks): a ``schedule`` (``schedules.AtSteps``, ``schedules.EverySteps``, or any
+object with ``due(step) -> bool`` and ``next_after(step) -> int | None``) and a call
+``activity(sim)``, made after each step the schedule names once the state there is known to be
+good (``sim.step`` is that step).
+
+``Simulation.activities`` holds them by name, called in order: during ``run`` the run file and its
+streams (``"run_file"``, ``writers.RunFiles``), the restart file (``"checkpointer"``,
+``writers.Checkpointer``), then those the user added (``Simulation.add_callback``, or an output
+writer of one's own set as ``sim.activities[name] = writer``), then the log (``"log"``, ``Log``).
+Blocks of steps end at every step some activity is due (``guard.Guard.block_end``), so an
+activity always sees the state of its own step.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
+
+from .schedules import EverySteps
+
+
+class Schedule(Protocol):
+    def due(self, step: int) -> bool: ...
+
+    def next_after(self, step: int) -> int | None: ...
+
+
+class Activity(Protocol):
+    """Something a run does at the steps of its ``schedule``: ``activity(sim)``."""
+
+    schedule: Schedule
+
+    def __call__(self, sim) -> None: ...
+
+
+@dataclass
+class Callback:
+    """``fn(sim)`` at the steps of ``schedule`` (``Simulation.add_callback``)."""
+
+    fn: Callable
+    schedule: Schedule
+
+    def __call__(self, sim) -> None:
+        self.fn(sim)
+
+
+@dataclass
+class Log:
+    """``log(line)`` with ``Simulation.log_line`` every ``schedule`` steps (rank 0; the
+    fields are gathered on every rank), from the diagnostics ``files`` (a ``RunFiles``)
+    recorded at this step when it did."""
+
+    log: Callable
+    schedule: EverySteps
+    files: Activity
+
+    def __call__(self, sim) -> None:
+        files = self.files
+        line = sim.log_line(files.history[-1] if files.schedule.due(sim.step) else None)
+        if line is not None:
+            self.log(line)

@@ -1,0 +1,78 @@
+"""The backend: every device-dependent choice made in ``core.backend``, and nowhere else."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+from swe_sphere.core.backend import CHECK_EVERY_STEPS, CPU_CHUNK, DEVICE_TOTALS, Backend
+from swe_sphere.solvers.jacobian import HostPasses, KernelPasses
+from swe_sphere.solvers.krylov import HostVectors, KernelVectors
+
+ROOT = Path(__file__).resolve().parents[1]
+# what asks a Warp device whether it is a CPU or a GPU, or whether CUDA has graph conditionals
+DEVICE_QUESTIONS = {"is_cpu", "is_cuda", "is_conditional_graph_supported"}
+
+
+def device_questions(path: Path) -> list[str]:
+    """'file:line attribute' for each device question in one module's source."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    return [
+        f"{path.relative_to(ROOT)}:{node.lineno} {node.attr}"
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Attribute) and node.attr in DEVICE_QUESTIONS
+    ]
+
+
+def test_only_the_backend_asks_what_the_device_is():
+    """Outside ``core/backend.py`` no module of the package or its kernels branches on the device."""
+    modules = sorted((ROOT / "swe_sphere").rglob("*.py")) + sorted((ROOT / "kernels").rglob("*.py"))
+    backend = ROOT / "swe_sphere" / "core" / "backend.py"
+    assert backend in modules and len(device_questions(backend)) >= 2  # the scan sees what it looks for
+    found = [q for path in modules if path != backend for q in device_questions(path)]
+    assert found == []
+
+
+def test_the_cpu_backend():
+    cpu = Backend.of("cpu")
+    assert cpu.host and cpu.per_element and cpu.distributes and not cpu.graphs_pay
+    assert cpu.nodes_per_thread(4) == 16 and cpu.launch_parts(3) == 3
+    assert cpu.reduction_chunk(10**6) == CPU_CHUNK  # the bits do not depend on the length or threads
+    assert cpu.direct_totals(10**6) and cpu.check_every == 1 and cpu.graph_name == "CPU graph"
+    assert cpu.choose(HostVectors, KernelVectors) is HostVectors
+    assert cpu.choose(HostPasses, KernelPasses) is HostPasses
+
+
+def test_the_cuda_backend_without_a_gpu(monkeypatch):
+    """The choices a CUDA device gets (those that ask the driver nothing), on any machine."""
+    monkeypatch.setenv("SWE_SPHERE_THREADS", "4")
+    cuda = Backend("cuda:0", host=False)
+    assert not (cuda.per_element or cuda.distributes) and cuda.graphs_pay
+    assert cuda.threads() == 1 and cuda.threads_note() is None and cuda.launch_parts(4) == 1
+    assert cuda.nodes_per_thread(4) == 1
+    # about n / 4096 entries a partial sum, within 8 to 32
+    assert [cuda.reduction_chunk(n) for n in (1000, 20 * 4096, 10**7)] == [8, 20, 32]
+    assert cuda.direct_totals(DEVICE_TOTALS) and not cuda.direct_totals(DEVICE_TOTALS + 1)
+    assert cuda.check_every == CHECK_EVERY_STEPS == 64 and cuda.graph_name == "CUDA graph"
+    assert cuda.choose(HostVectors, KernelVectors) is KernelVectors
+    assert cuda.choose(HostPasses, KernelPasses) is KernelPasses
+
+
+def test_a_model_takes_its_choices_from_its_backend():
+    """The topology holds the backend; the solvers' vector work is the one it chooses."""
+    from swe_sphere.simulation.simulation import Simulation
+
+    sim = Simulation("tc5_mountain", "cpu", progress=False, ne=2, stepper="implicit")
+    assert sim.topology.backend == Backend.of("cpu")
+    assert isinstance(sim.stepper.fgmres.vectors, HostVectors)
+    assert isinstance(sim.stepper.jacobian.passes, HostPasses)
+    assert sim.model.per_element and sim.check_every == 1
+
+
+@pytest.mark.parametrize("value", ["0", "two"])
+def test_a_bad_thread_count_is_named(monkeypatch, value):
+    monkeypatch.setenv("SWE_SPHERE_THREADS", value)
+    with pytest.raises(ValueError, match=f"SWE_SPHERE_THREADS must be .*{value!r}"):
+        Backend.of("cpu").threads()

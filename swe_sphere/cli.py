@@ -11,6 +11,7 @@ kept; also for a signal once the outputs are complete); 1 an internal error. Eve
 from __future__ import annotations
 
 import argparse
+import errno
 import math
 import os
 import sys
@@ -464,7 +465,7 @@ def _cmd_sweep(args) -> int:
 def _cmd_stability(args) -> int:
     from .core.workers import executor
     from .io.run_file import check_results, folder_lock
-    from .studies.stability import HARD_CASES, OUTPUTS, format_table, run_suite, write_table
+    from .studies.stability import HARD_CASES, OUTPUTS, format_table, run_suite, suite_scenes, write_table
 
     known = {c[0]: c for c in HARD_CASES}
     for label in args.cases:
@@ -475,6 +476,8 @@ def _cmd_stability(args) -> int:
         raise SceneError(f"--ne must be an integer >= 1 (got {args.ne})")
     device = _warp_device(args.device)
     cases = [known[c] for c in args.cases] if args.cases else list(HARD_CASES)
+    given = dict(ne=args.ne, np=args.np, days=args.days, overrides=_overrides(args.set))
+    suite_scenes(cases, steppers, **given)  # every value refused before --output's folder is made
     with executor(args.workers) as pool:
         if pool is None:  # an MPI worker rank: its share is done
             return 0
@@ -484,16 +487,7 @@ def _cmd_stability(args) -> int:
             check_results(
                 args.output, OUTPUTS, args.overwrite
             )  # an earlier suite's results: refused now, not at the end
-            results = run_suite(
-                cases,
-                steppers,
-                device,
-                ne=args.ne,
-                np=args.np,
-                days=args.days,
-                overrides=_overrides(args.set),
-                pool=pool,
-            )
+            results = run_suite(cases, steppers, device, **given, pool=pool)
             print(format_table(results))
             for path in write_table(results, args.output, overwrite=args.overwrite):
                 print(f"wrote {path}")
@@ -571,7 +565,7 @@ def _cmd_run(args) -> int:
     from .config.scene import load_scene, resolve_path
     from .core import mpi
     from .core.graphs import default_mode, graphs_mode
-    from .io.run_file import check_distinct, check_target, close_open_runs
+    from .io.run_file import check_distinct, check_target, check_unlocked, close_open_runs
     from .simulation.writers import restart_path
 
     if args.continue_from is None:
@@ -601,6 +595,7 @@ def _cmd_run(args) -> int:
         [output, restart_path(output)], [args.continue_from, args.scene and resolve_path(str(args.scene)), initial]
     )
     check_target(output, args.overwrite)
+    check_unlocked(output)  # another run writing it now (with --overwrite): refused before the header
     if args.restart_every is not None:  # else written only on SIGINT/SIGTERM, and then not over an existing one
         check_target(restart_path(output), args.overwrite)
     args.graphs = graphs_mode(args.graphs, "--graphs") if args.graphs is not None else default_mode()  # the flag wins
@@ -847,7 +842,9 @@ def _classify(err: BaseException) -> tuple[int, str]:
         return EXIT_BLOWUP, str(err)
     if isinstance(err, MemoryError):
         return EXIT_BLOWUP, "out of memory" + (f" ({err})" if str(err) else "")
-    if isinstance(err, (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError)):
+    if isinstance(err, (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError)) or (
+        isinstance(err, OSError) and err.errno == errno.EROFS  # a folder to make on a read-only file system
+    ):
         return EXIT_BAD_INPUT, f"{err.filename}: {err.strerror}" if err.filename else str(err)
     if isinstance(err, OSError):
         return EXIT_BLOWUP, f"{err.filename + ': ' if err.filename else ''}{err.strerror or err}"

@@ -190,8 +190,7 @@ class Simulation(StateDiagnostics):
     ):
         graphs = graphs_mode(default_mode() if graphs is None else graphs)
         scene, inputs = resolve_scene(scene, overrides)
-        if device is None:
-            device = pick_device()
+        device = pick_device(device)  # a name Warp does not know is refused in one line
         if initial is not None and (start is not None or not callable(initial)):
             raise ValueError("initial must be a function (lat, lon) -> (h, u, v), and not given with start")
         t0 = time.perf_counter()

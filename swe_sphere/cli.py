@@ -18,7 +18,7 @@ import sys
 import time
 from pathlib import Path
 
-from .core.errors import BlowUp, CheckpointError, Interrupted, ResourceError, SceneError, StepFailure
+from .core.errors import BlowUp, CheckpointError, Interrupted, OutputError, ResourceError, SceneError, StepFailure
 
 EXIT_INTERNAL, EXIT_BAD_INPUT, EXIT_BLOWUP = 1, 2, 3
 
@@ -79,7 +79,12 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--days", type=float, help="run length in days")
     r.add_argument("--stepper", help="time stepper (see `swe-sphere list`)")
     r.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
-    r.add_argument("--output", type=Path, help="netCDF output file (default: <scene>_ne<ne>np<np>_<stepper>.nc)")
+    r.add_argument(
+        "--output",
+        type=Path,
+        help="netCDF output file (default: <scene>_ne<ne>np<np>_<stepper>.nc, with _<days>d, _dt<dt> and the "
+        "planet where they are not the scene's)",
+    )
     r.add_argument("--no-progress", action="store_true", help="no progress bar (there is one only on a terminal)")
     r.add_argument(
         "-s",
@@ -561,6 +566,56 @@ def _continued(args, device, comm):
     )
 
 
+def _default_output(name, given: dict, scene) -> Path:
+    """The run file's default name, in the working folder:
+    ``<scene>_ne<ne>np<np>_<stepper>[_a<radius>][_omega<Ω>][_g<gravity>][_<days>d][_dt<dt>].nc``,
+    where the planet's values (SI units) appear when they are not the scene file's, the
+    run length when it is not the scene file's, and Δt when one was given (``--dt``,
+    ``-s time.dt``) that is not the one the scene would take itself for that grid and
+    length. Runs of a scene that differ in these get different files, so a page's
+    commands run in order do not meet "output file exists". ``name``: the scene as
+    given; ``given``: ``load_scene``'s keywords that made ``scene``."""
+    from .config.scene import load_scene
+
+    overrides = given["overrides"]
+    parts = [f"{scene.name}_ne{scene.ne}np{scene.np}_{scene.stepper}"]
+    own = load_scene(name)  # the file as it is (it loaded with the overrides: it loads without them)
+    for key, tag in (("radius", "a"), ("omega", "omega"), ("gravity", "g")):
+        if scene.planet[key] != own.planet[key]:
+            parts.append(f"{tag}{scene.planet[key]:g}")
+    if scene.days != own.days:
+        parts.append(f"{scene.days:g}d")
+    if given["dt"] is not None or "time.dt" in overrides:
+        try:  # the dt it would take itself, all else as given
+            unset = {k: v for k, v in overrides.items() if k != "time.dt"}
+            chosen = load_scene(name, **{**given, "dt": None, "overrides": unset}).dt
+        except SceneError:  # none that fits the output interval: the dt given is its own
+            chosen = None
+        if scene.dt != chosen:
+            parts.append(f"dt{scene.dt:g}")
+    return Path("_".join(parts) + ".nc")
+
+
+def _refuse_a_blown_up_run(output: Path) -> None:
+    """Raise ``OutputError`` when ``output`` holds a run that blew up (its ``blowup``
+    attribute): the line says so, so that the user who reruns with a fix sees why
+    the file is there and how to replace it."""
+    import netCDF4
+
+    if not output.is_file() or output.is_symlink():
+        return
+    try:
+        with netCDF4.Dataset(output) as ds:
+            blowup = getattr(ds, "blowup", None)
+    except OSError:  # not netCDF: check_target's own refusal
+        return
+    if blowup is not None:
+        raise OutputError(
+            f"output file exists: {output}, a run that ended in a {str(blowup).partition(': ')[0]} (--overwrite "
+            "replaces it, --output names another)"
+        )
+
+
 def _cmd_run(args) -> int:
     from .config.scene import load_scene, resolve_path
     from .core import mpi
@@ -571,16 +626,11 @@ def _cmd_run(args) -> int:
     if args.continue_from is None:
         if args.scene is None:
             raise ValueError("run needs a SCENE (or --continue CHECKPOINT)")
-        scene = load_scene(
-            args.scene,
-            ne=args.ne,
-            np=args.np,
-            dt=args.dt,
-            days=args.days,
-            stepper=args.stepper,
-            overrides=_overrides(args.set),
+        given = dict(
+            ne=args.ne, np=args.np, dt=args.dt, days=args.days, stepper=args.stepper, overrides=_overrides(args.set)
         )
-        output = args.output or Path(f"{scene.name}_ne{scene.ne}np{scene.np}_{scene.stepper}.nc")
+        scene = load_scene(args.scene, **given)
+        output = args.output or _default_output(args.scene, given, scene)
     else:
         scene = None  # the restart file's
         stem = args.continue_from.name.removesuffix(".nc").removesuffix(".restart")
@@ -594,6 +644,8 @@ def _cmd_run(args) -> int:
     check_distinct(
         [output, restart_path(output)], [args.continue_from, args.scene and resolve_path(str(args.scene)), initial]
     )
+    if not args.overwrite:
+        _refuse_a_blown_up_run(output)
     check_target(output, args.overwrite)
     check_unlocked(output)  # another run writing it now (with --overwrite): refused before the header
     if args.restart_every is not None:  # else written only on SIGINT/SIGTERM, and then not over an existing one
@@ -609,6 +661,7 @@ def _run(args, scene, output, device, comm) -> int:
     from tqdm import tqdm
 
     from .core import mpi
+    from .core.constants import EARTH
     from .core.parallel import threads_note
     from .core.workers import cpus, limit_threads
     from .simulation.schedules import restart_steps
@@ -633,6 +686,12 @@ def _run(args, scene, output, device, comm) -> int:
         f"grid        ne={scene.ne} np={scene.np}: {6 * scene.ne**2} elements, {sim.topology.grid.nunique} unique nodes, "
         f"min node spacing {dx / 1e3:.1f} km"
     )
+    if scene.planet != EARTH.as_table():
+        p = scene.planet
+        print(
+            f"planet      radius {p['radius']:g} m, omega {p['omega']:g} 1/s, gravity {p['gravity']:g} m/s^2 "
+            f"(the Earth's: {EARTH.a:g} m, {EARTH.omega:g} 1/s, {EARTH.g:g} m/s^2)"
+        )
     print(
         f"terms       {', '.join(scene.terms)}"
         + (f" (nu = {scene.nu:.3g} m^4/s, subcycle {scene.hypervis_subcycle})" if scene.nu else "")

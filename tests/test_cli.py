@@ -339,7 +339,7 @@ def test_fractional_days_end_with_the_final_state(capsys, tmp_path):
 def test_default_output_name_in_the_working_folder(capsys, tmp_path):
     code, stdout, err = run_cli(capsys, "tc2_steady", *TINY, "--days", "1")
     assert code == 0, err
-    assert nc_files(tmp_path) == [tmp_path / "tc2_steady_ne2np4_ssprk3.nc"]
+    assert nc_files(tmp_path) == [tmp_path / "tc2_steady_ne2np4_ssprk3_1d.nc"]  # not the scene's 5 days
 
 
 def test_scene_given_as_a_path_outside_testcases(capsys, tmp_path):

@@ -71,3 +71,87 @@ def test_an_unreadable_file_is_named_without_the_exception_type(capsys, command,
     Path("junk.nc").write_bytes(content)
     line = cli_one_line(capsys, [command, "junk.nc"], 2)
     assert line == "swe-sphere: error: junk.nc: not a readable netCDF file"
+
+
+def run_names(capsys, *commands) -> list[str]:
+    """The default file name of each ``run`` command line (run in order, each must succeed)."""
+    names = []
+    for command in commands:
+        before = set(Path().glob("*.nc"))
+        code, _, err = cli_main(capsys, "run", *command.split(), *TINY)
+        assert code == 0, err
+        (new,) = set(Path().glob("*.nc")) - before
+        names.append(new.name)
+    return names
+
+
+def test_default_run_names_say_the_days_dt_and_planet_that_differ_from_the_scenes(capsys):
+    """A page's runs of one scene at other lengths and steps, in order: each its own file
+    (the default name ignored --days and --dt, and the second run met "output file exists")."""
+    assert run_names(
+        capsys,
+        "tc2_steady",  # the scene's 5 days at its own dt for ne2
+        "tc2_steady --days 0.5",
+        "tc2_steady -s time.days=0.25",
+        "tc2_steady --days 0.5 --dt 1800",
+        "tc2_steady --days 0.05 -s planet.radius=637122 -s planet.omega=7.292e-4",
+    ) == [
+        "tc2_steady_ne2np4_ssprk3.nc",
+        "tc2_steady_ne2np4_ssprk3_0.5d.nc",
+        "tc2_steady_ne2np4_ssprk3_0.25d.nc",
+        "tc2_steady_ne2np4_ssprk3_0.5d_dt1800.nc",
+        "tc2_steady_ne2np4_ssprk3_a637122_omega0.0007292_0.05d.nc",
+    ]
+    # the dt the scene takes itself at ne2 for 0.5 days: the same run, the same name
+    cli_one_line(
+        capsys, ["run", "tc2_steady", "--days", "0.5", "--dt", "2400", *TINY], 2, "output file exists", "_0.5d.nc"
+    )
+
+
+def test_a_blown_up_runs_file_is_named_as_one_when_it_blocks_a_rerun(capsys):
+    """A run that blew up keeps its good outputs; the same command again is refused with
+    a line that says the file is that run's, and how to replace it."""
+    command = ["run", "tc2_steady", "--days", "1", "--dt", "14400", *TINY]  # Courant number 3 with ssprk3
+    assert cli_main(capsys, *command)[0] == 3
+    cli_one_line(
+        capsys,
+        command,
+        2,
+        "output file exists: tc2_steady_ne2np4_ssprk3_1d_dt14400.nc, a run that ended in a blow-up at step 4 "
+        "(model time 0.6667 days) (--overwrite replaces it",
+    )
+    assert cli_main(capsys, *command, "--dt", "1800")[0] == 0  # a smaller step: a file of its own
+    assert sorted(p.name for p in Path().glob("*.nc")) == [
+        "tc2_steady_ne2np4_ssprk3_1d_dt14400.nc",
+        "tc2_steady_ne2np4_ssprk3_1d_dt1800.nc",
+    ]
+
+
+def test_a_small_planet_run_names_its_planet_and_why_dt_changed(capsys):
+    """Without --ne the grid is the scene's: Δt 300 s → 30 s is the radius's doing alone,
+    and the header said "scaled with the smallest node spacing" and named no planet."""
+    code, out, err = cli_main(
+        capsys,
+        "run",
+        "tc2_steady",
+        "-s",
+        "planet.radius=637122",
+        "-s",
+        "planet.omega=7.292e-4",
+        "-s",
+        "grid.ne=2",  # the scene's own grid, made small (not --ne: that scales dt with the grid too)
+        "--days",
+        "0.05",
+        "-s",
+        "output.every_days=0.05",
+        "--device",
+        "cpu",
+        "--no-progress",
+    )
+    assert code == 0, err
+    lines = out.splitlines()
+    assert "planet      radius 637122 m, omega 0.0007292 1/s, gravity 9.80616 m/s^2 (the Earth's: " in out
+    assert (
+        "note        dt scaled with the planet's radius (637122 m against the scene's 6.37122e+06 m) to 30 s" in lines
+    )
+    assert "output      tc2_steady_ne2np4_ssprk3_a637122_omega0.0007292_0.05d.nc (every 0.05 days)" in lines

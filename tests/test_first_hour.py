@@ -155,3 +155,39 @@ def test_a_small_planet_run_names_its_planet_and_why_dt_changed(capsys):
         "note        dt scaled with the planet's radius (637122 m against the scene's 6.37122e+06 m) to 30 s" in lines
     )
     assert "output      tc2_steady_ne2np4_ssprk3_a637122_omega0.0007292_0.05d.nc (every 0.05 days)" in lines
+
+
+def test_an_interrupted_run_and_its_continuation_join_without_a_repeated_time(tmp_path):
+    """Both files held the interrupt time: joined with ``xr.open_mfdataset`` (or ``cdo
+    mergetime``) it appeared twice. The continuation leaves it to the first file; joined,
+    they are the uninterrupted run's file, bit for bit."""
+    import os
+    import signal
+
+    import numpy as np
+    import xarray as xr
+
+    from swe_sphere.config.scene import load_scene
+    from swe_sphere.core.errors import Interrupted
+
+    scene = load_scene("tc2_steady", ne=2, np=4, days=1.0, overrides={"output.every_days": 0.25})
+    first = Simulation(scene, "cpu", progress=False)
+    first.add_callback(lambda sim: os.kill(os.getpid(), signal.SIGINT), every_steps=7)  # between output times
+    with pytest.raises(Interrupted):
+        first.run(tmp_path / "first.nc")
+    Simulation.from_checkpoint(tmp_path / "first.restart.nc", "cpu", progress=False).run(tmp_path / "cont.nc")
+    Simulation(scene, "cpu", progress=False).run(tmp_path / "whole.nc")
+    step = scene.dt * 7 / 86400
+    with (
+        xr.open_mfdataset(
+            [tmp_path / "first.nc", tmp_path / "cont.nc"],
+            decode_times=False,
+            data_vars="minimal",
+            coords="minimal",
+            compat="override",
+        ) as joined,
+        xr.open_dataset(tmp_path / "whole.nc", decode_times=False) as whole,
+    ):
+        assert joined.time.values.tolist() == [0.0, step, 0.25, 0.5, 0.75, 1.0]
+        for day in whole.time.values:
+            np.testing.assert_array_equal(joined.h.sel(time=day).values, whole.h.sel(time=day).values)

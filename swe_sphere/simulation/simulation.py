@@ -527,7 +527,9 @@ class Simulation(StateDiagnostics):
             stepper.deferred = True  # its solvers' device counters read with the bad-state check (``guard``)
             try:
                 with _compile_timer(self._compile):
-                    files.record(self.step, whole=start, final=True)
+                    # a continuation's first time is the last of the file it continues (where its restart
+                    # file was written): not written again, so that the two files join without a repeat
+                    files.record(self.step, whole=start, final=True, write=not self.step)
                     # disable=None: a bar only on a terminal, not redrawn into a log (or mpiexec's pipe)
                     with tqdm(
                         initial=self.step,

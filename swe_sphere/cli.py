@@ -797,12 +797,15 @@ def _summary(r, sim) -> None:
         print(f"  error wind  l1 {d['l1_wind']:.3e}  l2 {d['l2_wind']:.3e}  linf {d['linf_wind']:.3e}")
         print(f"  error wind  l2 vorticity {d['l2_vorticity']:.3e}  l2 divergence {d['l2_divergence']:.3e}")
     if "ref_l2_h_surface" in d:
-        # the reference stores whole days only: quote the last output time past the start it has
+        # the reference stores a few days only: quote the last output time past the start it has
         name = sim.scene.reference_file.stem.rsplit("_", 1)[-1]  # the truncation, for the spectral files ("T213")
         vs = f"vs {name}"
         scored = [h for h in r.history if h["steps"] > 0 and math.isfinite(h["ref_l2_h_surface"])]
         if not scored:
-            print(f"  {vs:11s} none: no output time after t = 0 is one the reference stores (whole days)")
+            from .cases.reference import stored_days
+
+            days = ", ".join(f"{day:g}" for day in stored_days(sim.scene.reference_file))
+            print(f"  {vs:11s} none: no output time after t = 0 is one {name} stores (days {days})")
         else:
             d = scored[-1]
             at = (

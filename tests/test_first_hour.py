@@ -191,3 +191,40 @@ def test_an_interrupted_run_and_its_continuation_join_without_a_repeated_time(tm
         assert joined.time.values.tolist() == [0.0, step, 0.25, 0.5, 0.75, 1.0]
         for day in whole.time.values:
             np.testing.assert_array_equal(joined.h.sel(time=day).values, whole.h.sel(time=day).values)
+
+
+README_OUTPUTS = (  # what the README's commands write in a clone's top folder
+    "tc5_mountain_ne30np4_rk4.nc",
+    "tc5_r.restart.nc",
+    "tc5.nc.part",
+    "tc5.nc.lock",
+    "sweep_tc5/sweep.csv",
+    "sweep_tc5/verdicts.csv",
+    "sweep/runs/rk4_211_x.npz",
+    "sweep/sweep.lock",
+    "stability.csv",
+    "stability.nc",
+    "figs/tc5_vorticity_day5.png",
+    "tc5_series.png",
+    "tc5_spectrum_day0_5.csv",
+)
+
+
+@pytest.mark.skipif(not (Path(__file__).parents[1] / ".git").exists(), reason="not a git checkout")
+def test_what_the_readme_writes_in_a_clone_is_ignored_by_git():
+    import subprocess
+
+    root = Path(__file__).parents[1]
+    proc = subprocess.run(
+        ["git", "-C", str(root), "check-ignore", "--no-index", *README_OUTPUTS], capture_output=True, text=True
+    )
+    assert sorted(proc.stdout.split()) == sorted(README_OUTPUTS), proc.stderr
+    kept = [
+        "testcases/tc5_mountain.toml",
+        "testcases/reference/tc5_mountain_T213.nc",
+        "docs/efficiency/tc5_ne30_temporal_error.png",
+    ]
+    assert (
+        subprocess.run(["git", "-C", str(root), "check-ignore", "--no-index", *kept], capture_output=True).returncode
+        == 1
+    )

@@ -579,7 +579,10 @@ def _default_output(name, given: dict, scene) -> Path:
 
     overrides = given["overrides"]
     parts = [f"{scene.name}_ne{scene.ne}np{scene.np}_{scene.stepper}"]
-    own = load_scene(name)  # the file as it is (it loaded with the overrides: it loads without them)
+    try:
+        own = load_scene(name)  # the file as it is
+    except SceneError:  # a file that loads only with the overrides: nothing of its own to differ from
+        own = scene
     for key, tag in (("radius", "a"), ("omega", "omega"), ("gravity", "g")):
         if scene.planet[key] != own.planet[key]:
             parts.append(f"{tag}{scene.planet[key]:g}")

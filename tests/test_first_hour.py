@@ -228,3 +228,13 @@ def test_what_the_readme_writes_in_a_clone_is_ignored_by_git():
         subprocess.run(["git", "-C", str(root), "check-ignore", "--no-index", *kept], capture_output=True).returncode
         == 1
     )
+
+
+def test_a_scene_that_loads_only_with_its_overrides_still_gets_a_name(capsys):
+    """A scene file without time.dt runs with -s time.dt=...; its name could not be made
+    by loading the file alone."""
+    from conftest import write_tc2_scene
+
+    path = write_tc2_scene(Path("nodt.toml"), dt=1800.0, days=0.25)
+    path.write_text(path.read_text().replace("dt = 1800.0\n", ""))
+    assert run_names(capsys, "nodt.toml -s time.dt=1800") == ["nodt_ne2np4_ssprk3_dt1800.nc"]

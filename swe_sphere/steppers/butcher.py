@@ -135,9 +135,10 @@ def imaginary_axis_limit(A, b) -> float:
     if lowest >= 0:
         return 0.0
     polynomial = np.polynomial.Polynomial([float(g) for g in growth])
-    ys = np.linspace(0.0, s + 1.0, 4000 * (s + 1) + 1)[1:]  # the limit is below s (Hairer & Wanner, IV.2)
-    bad = ys[polynomial(ys) > 1e-12]
-    lo, hi = 0.0, bad[0]
+    # scanned past s − 1, the most s stages reach (Vichnevetsky 1983), then the first crossing bisected
+    ys = np.linspace(0.0, s + 1.0, 4000 * (s + 1) + 1)
+    first = int(np.argmax(polynomial(ys) > 1e-12))  # 1 ≤ first: stable just past 0 (checked above)
+    lo, hi = ys[first - 1], ys[first]
     while hi - lo > 1e-10:
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if polynomial(mid) <= 1e-12 else (lo, mid)

@@ -249,7 +249,11 @@ def _parser() -> argparse.ArgumentParser:
         help="override a scene value in every case, e.g. -s hyperviscosity.efold_hours=6 (as for run)",
     )
     st.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
-    st.add_argument("--output", type=Path, default=Path("."), help="directory for stability.csv and stability.nc")
+    st.add_argument(
+        "--output",
+        type=Path,
+        help="directory for stability.csv and stability.nc (default: stability_<cases, or all>_ne<ne>, made if missing)",
+    )
     st.add_argument(
         "--overwrite", action="store_true", help="replace an earlier stability.csv and stability.nc in --output"
     )
@@ -483,18 +487,16 @@ def _cmd_stability(args) -> int:
     cases = [known[c] for c in args.cases] if args.cases else list(HARD_CASES)
     given = dict(ne=args.ne, np=args.np, days=args.days, overrides=_overrides(args.set))
     suite_scenes(cases, steppers, **given)  # every value refused before --output's folder is made
+    # a folder of its own per suite, so that a page's suites run in order do not meet each other's files
+    output = args.output or Path(f"stability_{'_'.join(args.cases) or 'all'}_ne{args.ne}")
     with executor(args.workers) as pool:
         if pool is None:  # an MPI worker rank: its share is done
             return 0
-        with folder_lock(
-            args.output, "stability.lock"
-        ):  # a second suite into this folder is refused now, not at its end
-            check_results(
-                args.output, OUTPUTS, args.overwrite
-            )  # an earlier suite's results: refused now, not at the end
+        with folder_lock(output, "stability.lock"):  # a second suite into this folder is refused now, not at its end
+            check_results(output, OUTPUTS, args.overwrite)  # an earlier suite's results: refused now, not at the end
             results = run_suite(cases, steppers, device, **given, pool=pool)
             print(format_table(results))
-            for path in write_table(results, args.output, overwrite=args.overwrite):
+            for path in write_table(results, output, overwrite=args.overwrite):
                 print(f"wrote {path}")
     return 0
 

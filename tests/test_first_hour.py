@@ -32,7 +32,22 @@ def test_plot_into_a_folder_on_a_read_only_file_system_is_bad_input(tc5_run_file
 
 def test_stability_refuses_a_bad_value_before_making_its_folder(capsys):
     cli_one_line(capsys, ["stability", "galewsky", "--days", "-1", "--output", "suite"], 2, "days", "-1")
-    assert not Path("suite").exists()
+    cli_one_line(capsys, ["stability", "galewsky", "--days", "-1"], 2, "days", "-1")
+    assert list(Path().iterdir()) == []
+
+
+def test_two_suites_each_write_into_a_folder_of_their_own(capsys):
+    """A page's two `stability` commands wrote stability.csv into the same folder: the
+    second met "output file exists"."""
+    for cases in (["tc5_mountain"], ["tc5_mountain", "galewsky"]):
+        code, out, err = cli_main(
+            capsys, "stability", *cases, "--steppers", "ssprk3", "--ne", "2", "--days", "0.5", "--device", "cpu"
+        )
+        assert code == 0, err
+    assert sorted(str(p) for p in Path().glob("*/stability.csv")) == [
+        "stability_tc5_mountain_galewsky_ne2/stability.csv",
+        "stability_tc5_mountain_ne2/stability.csv",
+    ]
 
 
 def test_a_run_to_a_file_another_run_writes_is_refused_before_its_header(capsys):
@@ -202,8 +217,7 @@ README_OUTPUTS = (  # what the README's commands write in a clone's top folder
     "sweep_tc5/verdicts.csv",
     "sweep/runs/rk4_211_x.npz",
     "sweep/sweep.lock",
-    "stability.csv",
-    "stability.nc",
+    "stability_tc5_mountain_galewsky_ne8/stability.csv",
     "figs/tc5_vorticity_day5.png",
     "tc5_series.png",
     "tc5_spectrum_day0_5.csv",

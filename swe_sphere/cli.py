@@ -11,13 +11,14 @@ kept; also for a signal once the outputs are complete); 1 an internal error. Eve
 from __future__ import annotations
 
 import argparse
+import errno
 import math
 import os
 import sys
 import time
 from pathlib import Path
 
-from .core.errors import BlowUp, CheckpointError, Interrupted, ResourceError, SceneError, StepFailure
+from .core.errors import BlowUp, CheckpointError, Interrupted, OutputError, ResourceError, SceneError, StepFailure
 
 EXIT_INTERNAL, EXIT_BAD_INPUT, EXIT_BLOWUP = 1, 2, 3
 
@@ -78,7 +79,12 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--days", type=float, help="run length in days")
     r.add_argument("--stepper", help="time stepper (see `swe-sphere list`)")
     r.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
-    r.add_argument("--output", type=Path, help="netCDF output file (default: <scene>_ne<ne>np<np>_<stepper>.nc)")
+    r.add_argument(
+        "--output",
+        type=Path,
+        help="netCDF output file (default: <scene>_ne<ne>np<np>_<stepper>.nc, with _<days>d, _dt<dt> and the "
+        "planet where they are not the scene's)",
+    )
     r.add_argument("--no-progress", action="store_true", help="no progress bar (there is one only on a terminal)")
     r.add_argument(
         "-s",
@@ -243,7 +249,11 @@ def _parser() -> argparse.ArgumentParser:
         help="override a scene value in every case, e.g. -s hyperviscosity.efold_hours=6 (as for run)",
     )
     st.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
-    st.add_argument("--output", type=Path, default=Path("."), help="directory for stability.csv and stability.nc")
+    st.add_argument(
+        "--output",
+        type=Path,
+        help="directory for stability.csv and stability.nc (default: stability_<cases, or all>_ne<ne>, made if missing)",
+    )
     st.add_argument(
         "--overwrite", action="store_true", help="replace an earlier stability.csv and stability.nc in --output"
     )
@@ -353,7 +363,7 @@ def _cmd_sweep(args) -> int:
 def _cmd_stability(args) -> int:
     from .core.workers import executor
     from .io.run_file import check_results, folder_lock
-    from .studies.stability import HARD_CASES, OUTPUTS, format_table, run_suite, write_table
+    from .studies.stability import HARD_CASES, OUTPUTS, format_table, run_suite, suite_scenes, write_table
 
     known = {c[0]: c for c in HARD_CASES}
     for label in args.cases:
@@ -364,27 +374,18 @@ def _cmd_stability(args) -> int:
         raise SceneError(f"--ne must be an integer >= 1 (got {args.ne})")
     device = _warp_device(args.device)
     cases = [known[c] for c in args.cases] if args.cases else list(HARD_CASES)
+    given = dict(ne=args.ne, np=args.np, days=args.days, overrides=_overrides(args.set))
+    suite_scenes(cases, steppers, **given)  # every value refused before --output's folder is made
+    # a folder of its own per suite, so that a page's suites run in order do not meet each other's files
+    output = args.output or Path(f"stability_{'_'.join(args.cases) or 'all'}_ne{args.ne}")
     with executor(args.workers) as pool:
         if pool is None:  # an MPI worker rank: its share is done
             return 0
-        with folder_lock(
-            args.output, "stability.lock"
-        ):  # a second suite into this folder is refused now, not at its end
-            check_results(
-                args.output, OUTPUTS, args.overwrite
-            )  # an earlier suite's results: refused now, not at the end
-            results = run_suite(
-                cases,
-                steppers,
-                device,
-                ne=args.ne,
-                np=args.np,
-                days=args.days,
-                overrides=_overrides(args.set),
-                pool=pool,
-            )
+        with folder_lock(output, "stability.lock"):  # a second suite into this folder is refused now, not at its end
+            check_results(output, OUTPUTS, args.overwrite)  # an earlier suite's results: refused now, not at the end
+            results = run_suite(cases, steppers, device, **given, pool=pool)
             print(format_table(results))
-            for path in write_table(results, args.output, overwrite=args.overwrite):
+            for path in write_table(results, output, overwrite=args.overwrite):
                 print(f"wrote {path}")
     return 0
 
@@ -456,26 +457,74 @@ def _continued(args, device, comm):
     )
 
 
+def _default_output(name, given: dict, scene) -> Path:
+    """The run file's default name, in the working folder:
+    ``<scene>_ne<ne>np<np>_<stepper>[_a<radius>][_omega<Ω>][_g<gravity>][_<days>d][_dt<dt>].nc``,
+    where the planet's values (SI units) appear when they are not the scene file's, the
+    run length when it is not the scene file's, and Δt when one was given (``--dt``,
+    ``-s time.dt``) that is not the one the scene would take itself for that grid and
+    length. Runs of a scene that differ in these get different files, so a page's
+    commands run in order do not meet "output file exists". ``name``: the scene as
+    given; ``given``: ``load_scene``'s keywords that made ``scene``."""
+    from .config.scene import load_scene
+
+    overrides = given["overrides"]
+    parts = [f"{scene.name}_ne{scene.ne}np{scene.np}_{scene.stepper}"]
+    try:
+        own = load_scene(name)  # the file as it is
+    except SceneError:  # a file that loads only with the overrides: nothing of its own to differ from
+        own = scene
+    for key, tag in (("radius", "a"), ("omega", "omega"), ("gravity", "g")):
+        if scene.planet[key] != own.planet[key]:
+            parts.append(f"{tag}{scene.planet[key]:g}")
+    if scene.days != own.days:
+        parts.append(f"{scene.days:g}d")
+    if given["dt"] is not None or "time.dt" in overrides:
+        try:  # the dt it would take itself, all else as given
+            unset = {k: v for k, v in overrides.items() if k != "time.dt"}
+            chosen = load_scene(name, **{**given, "dt": None, "overrides": unset}).dt
+        except SceneError:  # none that fits the output interval: the dt given is its own
+            chosen = None
+        if scene.dt != chosen:
+            parts.append(f"dt{scene.dt:g}")
+    return Path("_".join(parts) + ".nc")
+
+
+def _refuse_a_blown_up_run(output: Path) -> None:
+    """Raise ``OutputError`` when ``output`` holds a run that blew up (its ``blowup``
+    attribute): the line says so, so that the user who reruns with a fix sees why
+    the file is there and how to replace it."""
+    import netCDF4
+
+    if not output.is_file() or output.is_symlink():
+        return
+    try:
+        with netCDF4.Dataset(output) as ds:
+            blowup = getattr(ds, "blowup", None)
+    except OSError:  # not netCDF: check_target's own refusal
+        return
+    if blowup is not None:
+        raise OutputError(
+            f"output file exists: {output}, a run that ended in a {str(blowup).partition(': ')[0]} (--overwrite "
+            "replaces it, --output names another)"
+        )
+
+
 def _cmd_run(args) -> int:
     from .config.scene import load_scene, resolve_path
     from .core import mpi
     from .core.graphs import default_mode, graphs_mode
-    from .io.run_file import check_distinct, check_target, close_open_runs
+    from .io.run_file import check_distinct, check_target, check_unlocked, close_open_runs
     from .simulation.writers import restart_path
 
     if args.continue_from is None:
         if args.scene is None:
             raise ValueError("run needs a SCENE (or --continue CHECKPOINT)")
-        scene = load_scene(
-            args.scene,
-            ne=args.ne,
-            np=args.np,
-            dt=args.dt,
-            days=args.days,
-            stepper=args.stepper,
-            overrides=_overrides(args.set),
+        given = dict(
+            ne=args.ne, np=args.np, dt=args.dt, days=args.days, stepper=args.stepper, overrides=_overrides(args.set)
         )
-        output = args.output or Path(f"{scene.name}_ne{scene.ne}np{scene.np}_{scene.stepper}.nc")
+        scene = load_scene(args.scene, **given)
+        output = args.output or _default_output(args.scene, given, scene)
     else:
         scene = None  # the restart file's
         stem = args.continue_from.name.removesuffix(".nc").removesuffix(".restart")
@@ -489,7 +538,10 @@ def _cmd_run(args) -> int:
     check_distinct(
         [output, restart_path(output)], [args.continue_from, args.scene and resolve_path(str(args.scene)), initial]
     )
+    if not args.overwrite:
+        _refuse_a_blown_up_run(output)
     check_target(output, args.overwrite)
+    check_unlocked(output)  # another run writing it now (with --overwrite): refused before the header
     if args.restart_every is not None:  # else written only on SIGINT/SIGTERM, and then not over an existing one
         check_target(restart_path(output), args.overwrite)
     args.graphs = graphs_mode(args.graphs, "--graphs") if args.graphs is not None else default_mode()  # the flag wins
@@ -504,6 +556,7 @@ def _run(args, scene, output, device, comm) -> int:
 
     from .core import mpi
     from .core.backend import Backend
+    from .core.constants import EARTH
     from .core.workers import cpus, limit_threads
     from .simulation.schedules import restart_steps
     from .simulation.simulation import Simulation
@@ -527,6 +580,12 @@ def _run(args, scene, output, device, comm) -> int:
         f"grid        ne={scene.ne} np={scene.np}: {6 * scene.ne**2} elements, {sim.topology.grid.nunique} unique nodes, "
         f"min node spacing {dx / 1e3:.1f} km"
     )
+    if scene.planet != EARTH.as_table():
+        p = scene.planet
+        print(
+            f"planet      radius {p['radius']:g} m, omega {p['omega']:g} 1/s, gravity {p['gravity']:g} m/s^2 "
+            f"(the Earth's: {EARTH.a:g} m, {EARTH.omega:g} 1/s, {EARTH.g:g} m/s^2)"
+        )
     print(
         f"terms       {', '.join(scene.terms)}"
         + (f" (nu = {scene.nu:.3g} m^4/s, subcycle {scene.hypervis_subcycle})" if scene.nu else "")
@@ -632,12 +691,15 @@ def _summary(r, sim) -> None:
         print(f"  error wind  l1 {d['l1_wind']:.3e}  l2 {d['l2_wind']:.3e}  linf {d['linf_wind']:.3e}")
         print(f"  error wind  l2 vorticity {d['l2_vorticity']:.3e}  l2 divergence {d['l2_divergence']:.3e}")
     if "ref_l2_h_surface" in d:
-        # the reference stores whole days only: quote the last output time past the start it has
+        # the reference stores a few days only: quote the last output time past the start it has
         name = sim.scene.reference_file.stem.rsplit("_", 1)[-1]  # the truncation, for the spectral files ("T213")
         vs = f"vs {name}"
         scored = [h for h in r.history if h["steps"] > 0 and math.isfinite(h["ref_l2_h_surface"])]
         if not scored:
-            print(f"  {vs:11s} none: no output time after t = 0 is one the reference stores (whole days)")
+            from .cases.reference import stored_days
+
+            days = ", ".join(f"{day:g}" for day in stored_days(sim.scene.reference_file))
+            print(f"  {vs:11s} none: no output time after t = 0 is one {name} stores (days {days})")
         else:
             d = scored[-1]
             at = (
@@ -736,7 +798,9 @@ def _classify(err: BaseException) -> tuple[int, str]:
         return EXIT_BLOWUP, str(err)
     if isinstance(err, MemoryError):
         return EXIT_BLOWUP, "out of memory" + (f" ({err})" if str(err) else "")
-    if isinstance(err, (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError)):
+    if isinstance(err, (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError)) or (
+        isinstance(err, OSError) and err.errno == errno.EROFS  # a folder to make on a read-only file system
+    ):
         return EXIT_BAD_INPUT, f"{err.filename}: {err.strerror}" if err.filename else str(err)
     if isinstance(err, OSError):
         return EXIT_BLOWUP, f"{err.filename + ': ' if err.filename else ''}{err.strerror or err}"

@@ -16,7 +16,7 @@ from swe_sphere.core.constants import DAY
 from swe_sphere.studies import stability
 
 from cf_checks import cdo, ioos_cf_errors, ncas_cf_errors, needs_cdo, ugrid_roles
-from conftest import TINY
+from helpers import TINY
 
 SPATIAL = ("run", "restart", "latlon")  # the files with fields on the sphere
 TABLES = ("sweep", "stability")

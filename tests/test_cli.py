@@ -93,7 +93,7 @@ def tc2_run(tmp_path_factory):
 
 @pytest.mark.parametrize("days, quoted", [(1.25, "(day 1, its last output time T213 stores)"), (0.25, None)])
 def test_summary_quotes_the_last_output_time_the_reference_stores(tmp_path, capsys, days, quoted):
-    """T213 stores whole days: a 1.25-day run quotes its day-1 errors (labelled),
+    """T213 stores days 0, 1, 2, 5, 10 and 15: a 1.25-day run quotes its day-1 errors (labelled),
     a 0.25-day run says there is none (not "nan"); t = 0 is never quoted."""
     assert (
         main(["run", "tc5_mountain", *TINY, "--dt", "1800", "--days", str(days), "--output", str(tmp_path / "r.nc")])
@@ -102,7 +102,7 @@ def test_summary_quotes_the_last_output_time_the_reference_stores(tmp_path, caps
     lines = [line for line in capsys.readouterr().out.splitlines() if "vs T213" in line]
     assert not any("nan" in line for line in lines)
     if quoted is None:
-        assert lines == ["  vs T213     none: no output time after t = 0 is one the reference stores (whole days)"]
+        assert lines == ["  vs T213     none: no output time after t = 0 is one T213 stores (days 0, 1, 2, 5, 10, 15)"]
     else:
         assert len(lines) == 3 and lines[0].endswith(quoted)
         with xr.open_dataset(
@@ -339,7 +339,7 @@ def test_fractional_days_end_with_the_final_state(capsys, tmp_path):
 def test_default_output_name_in_the_working_folder(capsys, tmp_path):
     code, stdout, err = run_cli(capsys, "tc2_steady", *TINY, "--days", "1")
     assert code == 0, err
-    assert nc_files(tmp_path) == [tmp_path / "tc2_steady_ne2np4_ssprk3.nc"]
+    assert nc_files(tmp_path) == [tmp_path / "tc2_steady_ne2np4_ssprk3_1d.nc"]  # not the scene's 5 days
 
 
 def test_scene_given_as_a_path_outside_testcases(capsys, tmp_path):

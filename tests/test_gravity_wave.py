@@ -14,7 +14,7 @@ from swe_sphere.model.launches import Update
 from swe_sphere.model.shallow_water import ShallowWater
 
 import roundoff
-from conftest import make_sim
+from helpers import make_sim
 from numpy_ops import NumpyOps
 
 

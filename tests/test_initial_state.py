@@ -361,5 +361,5 @@ def test_a_switched_case_is_named_in_header_title_and_file_name(tmp_path, capsys
     )
     assert code == 0, err
     assert "scene       file_in_tc2_steady: case file with scene tc2_steady's grid, terms and stepping" in out
-    with xr.open_dataset(tmp_path / "file_in_tc2_steady_ne2np4_ssprk3.nc") as ds:
+    with xr.open_dataset(tmp_path / "file_in_tc2_steady_ne2np4_ssprk3_0.125d_dt1800.nc") as ds:
         assert ds.attrs["title"] == "swe_sphere run of scene file_in_tc2_steady" and ds.attrs["case"] == "file"

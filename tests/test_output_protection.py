@@ -43,7 +43,9 @@ def test_sweep_keeps_an_earlier_studys_results(tmp_path, capsys, name, monkeypat
 @pytest.mark.parametrize("name", stability.OUTPUTS)
 def test_stability_keeps_an_earlier_suites_results(tmp_path, capsys, name, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    (tmp_path / name).write_text("earlier suite")
+    earlier = tmp_path / "stability_tc5_mountain_ne2" / name  # the suite's default folder
+    earlier.parent.mkdir()
+    earlier.write_text("earlier suite")
     cli_one_line(
         capsys,
         ["stability", "tc5_mountain", "--steppers", "rk4", "--ne", "2", "--device", "cpu"],
@@ -52,8 +54,8 @@ def test_stability_keeps_an_earlier_suites_results(tmp_path, capsys, name, monke
         name,
         "--overwrite",
     )
-    assert (tmp_path / name).read_text() == "earlier suite"
-    assert sorted(p.name for p in tmp_path.iterdir()) == [name]
+    assert earlier.read_text() == "earlier suite"
+    assert sorted(p.name for p in earlier.parent.iterdir()) == [name]
 
 
 def cli(cwd, *args, timeout=120):

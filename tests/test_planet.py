@@ -87,7 +87,10 @@ def test_cli_small_planet_run_and_continuation_keep_the_planet(tmp_path, capsys)
     args = ["run", "tc2_steady", *TINY, *small]
     code, out, err = cli_main(capsys, *args, "--days", "0.1", "--output", tmp_path / "whole.nc")
     assert code == 0, err
-    assert "dt scaled with the smallest node spacing to 240 s" in out  # the note of the scaled dt
+    assert (  # the note of the scaled dt
+        "dt scaled with the smallest node spacing and the planet's radius (637122 m against the scene's "
+        "6.37122e+06 m) to 240 s" in out
+    )
     code, _, err = cli_main(capsys, *args, "--days", "0.05", "--output", tmp_path / "cut.nc", "--restart-every", "0.05")
     assert code == 0, err
     code, _, err = cli_main(

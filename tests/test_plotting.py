@@ -73,7 +73,7 @@ def test_plot_map_values_and_colour_bar_units(run_file, tmp_path):
         info = plotting.plot_map(ds, "vorticity", 1.0, tmp_path / "z.png")
         assert abs(info["max"]) < 1e-3 and info["max"] > 0 > info["min"]  # s-1, both signs
         # drawn scaled, labelled so, with the contour interval stated (2e-5 s-1)
-        assert info["colorbar_label"] == "vorticity (10$^{-5}$ s$^{-1}$); contours every 2 10$^{-5}$ s$^{-1}$"
+        assert info["colorbar_label"] == "vorticity (10$^{-5}$ s$^{-1}$); contours every 2 × 10$^{-5}$ s$^{-1}$"
         assert "day 1" in info["title"] and "tc5_mountain ne2 np4" in info["title"]
         info = plotting.plot_map(ds, "divergence", 1.0, tmp_path / "d.png")
         assert abs(info["max"]) < 1e-4 and info["max"] > 0 > info["min"]
@@ -243,3 +243,42 @@ def test_sweep_error_axes_name_the_norm_and_field():
     assert error_label("total_error") == "total error: normalized l2 of h + hs"
     assert error_label("temporal_error_vorticity") == "temporal error: normalized l2 of vorticity"
     assert error_label("wall_time") == "wall time"
+
+
+def shown_labels(ax, axis="x") -> list[str]:
+    """The tick labels drawn on ``ax``'s ``axis`` (major and minor) inside its view, in order."""
+    ax.figure.canvas.draw()
+    which = ax.xaxis if axis == "x" else ax.yaxis
+    low, high = sorted(which.get_view_interval())
+    ticks = [t for t in which.get_major_ticks() + which.get_minor_ticks() if low <= t.get_loc() <= high]
+    return [t.label1.get_text() for t in sorted(ticks, key=lambda t: t.get_loc()) if t.label1.get_text()]
+
+
+@pytest.mark.parametrize(
+    "low, high, labels",
+    [
+        (0.6, 8.0, ["1", "2", "5"]),  # within a decade: more than the one decade label, none crowding
+        (0.15, 0.9, ["0.2", "0.5"]),  # no decade inside at all
+        (0.3, 15.0, ["0.5", "1", "2", "5", "10"]),
+        (0.01, 100.0, ["0.01", "0.1", "1", "10", "100"]),  # four decades: the decades alone
+    ],
+)
+def test_a_log_axis_is_labelled_in_plain_numbers_that_never_crowd(low, high, labels):
+    """A Δt/Δt_g axis from 0.6 to 8 had one label (10⁰) and minor ones written into each other."""
+    fig = plotting._figure((3.2, 3.2))
+    ax = fig.add_subplot()
+    ax.plot([low, high], [1.0, 2.0])
+    ax.set_xscale("log")
+    ax.set_xlim(low, high)
+    plotting.label_log_axis(ax.xaxis)
+    assert shown_labels(ax) == labels
+
+
+def test_the_series_panels_span_the_runs_days(run_file):
+    """The error panel of a run whose reference stores only day 0 showed day 0 alone,
+    centred on −0.04..0.04; both panels now span the run's output days."""
+    with xr.open_dataset(run_file, decode_times=False) as ds:
+        fig = plotting.plot_series(ds)
+        days = ds.time.values
+    left, right = fig.axes[:2]
+    assert left.get_xlim() == right.get_xlim() == (days[0], days[-1])

@@ -482,3 +482,53 @@ def test_without_a_table_it_is_rk4():
     _, ref, _ = final_state(short("rk4", {}), 3)
     _, x, _ = final_state(short("tableau", {}), 3)
     np.testing.assert_array_equal(x, ref)
+
+
+# -- a table's stability limit ------------------------------------------------------
+HEUN2 = dict(name="heun2", A=[[0, 0], [1, 0]], b=["1/2", "1/2"], c=[0, 1], order=2)
+HEUN3 = dict(
+    name="heun3", A=[[0, 0, 0], ["1/3", 0, 0], [0, "2/3", 0]], b=["1/4", 0, "3/4"], c=[0, "1/3", "2/3"], order=3
+)
+
+
+@pytest.mark.parametrize(
+    "table, limit",
+    [
+        (BUILT_IN["ssprk3"], math.sqrt(3)),  # every three-stage third-order table's
+        (HEUN3, math.sqrt(3)),
+        (BUILT_IN["rk4"], math.sqrt(8)),
+        (BUILT_IN["kgu35"], math.sqrt(15)),  # its docstring's
+        (HEUN2, 0.0),  # |R(iy)|² = 1 + y⁴/4
+        (dict(A=[[0]], b=[1]), 0.0),  # forward Euler: 1 + y²
+    ],
+    ids=["ssprk3", "heun3", "rk4", "kgu35", "heun2", "euler"],
+)
+def test_the_imaginary_axis_limit_of_a_table(table, limit):
+    from swe_sphere.steppers.butcher import imaginary_axis_limit
+
+    A = [[Fraction(a) for a in row] for row in table["A"]]
+    assert imaginary_axis_limit(A, [Fraction(b) for b in table["b"]]) == pytest.approx(limit, abs=1e-8)
+
+
+def test_a_tables_courant_limit_follows_its_stability_polynomial_as_the_measured_ones_do():
+    """The rule (rk4's measured limit over its axis limit, times the table's) lands within
+    5 % of ssprk3's and kgu35's measured limits, the tables it was not taken from."""
+    from swe_sphere.steppers.runge_kutta import COURANT_PER_AXIS_LIMIT
+    from swe_sphere.steppers.tables import COURANT_LIMITS
+
+    assert COURANT_PER_AXIS_LIMIT == pytest.approx(1.73 / math.sqrt(8), rel=1e-9)
+    for name, axis in (("ssprk3", math.sqrt(3)), ("kgu35", math.sqrt(15))):
+        assert COURANT_PER_AXIS_LIMIT * axis == pytest.approx(COURANT_LIMITS[name], rel=0.05), name
+
+
+def test_a_table_warns_above_its_courant_limit_and_heuns_second_order_one_always():
+    """Tables had no Courant warning: Heun's second-order method blew up in TC2 and TC5 at
+    the scenes' own Δt without one."""
+    heun2 = make_sim(short("tableau", HEUN2))
+    assert heun2.stepper.courant_limit == 0.0
+    warning = heun2.stability_warning()
+    assert warning.startswith("warning: tableau heun2 is stable on no stretch of the imaginary axis"), warning
+    fast = make_sim(short("tableau", HEUN3, dt=7200.0))  # Courant number 1.54 at ne2
+    assert fast.stepper.courant_limit == pytest.approx(1.73 / math.sqrt(8) * math.sqrt(3), rel=1e-9)
+    assert "above tableau heun3's stability limit of about 1.06" in fast.stability_warning()
+    assert make_sim(short("tableau", HEUN3, dt=3600.0)).stability_warning() is None

@@ -8,17 +8,21 @@ known), with its RHS evaluations and Helmholtz CG iterations, and the
 largest Δt at which Crank–Nicolson stays within 10 % and 50 %) and one table
 per sweep (the cheapest qualifying run of each stepper per criterion). With
 ``--figures DIR`` it also draws, per sweep, the temporal error against
-Δt/Δt_g for each criterion (``DIR/<sweep>_temporal_error.png``).
+Δt/Δt_g for each criterion (``DIR/<sweep>_temporal_error.png``; DIR is made if
+missing). A folder that is not a sweep's, or a --figures path that is not a folder,
+is refused in one line (exit 2) before anything is printed.
 
     python docs/efficiency/tables.py study/tc5_ne8 study/tc5_ne16 --figures docs/efficiency
     python docs/efficiency/tables.py study/tc5_epi_ne30 --family epi2,epi3   # the family against the rest
 """
 
 import argparse
+import re
 from pathlib import Path
 
 import pandas as pd
 
+from swe_sphere.studies.plotting import label_log_axis
 from swe_sphere.studies.sweep import CRITERIA as SWEEP_CRITERIA
 
 CRITERIA = list(SWEEP_CRITERIA)  # the verdicts' criteria, in their order
@@ -108,7 +112,7 @@ def summary(dirs) -> str:
     ]
     for d in dirs:
         s = pd.read_csv(d / "sweep.csv")
-        case, ne = d.name.rsplit("_ne", 1)
+        case, ne = case_and_grid(d)
         for c, spatial, shown, best in cheapest(d, 0.1):
             big = [largest(s, "implicit", c, t * spatial) for t in (0.1, 0.5)]
             impc = " ".join(
@@ -203,6 +207,7 @@ def figure(d: Path, out: Path):
         ax.axhline(spatial, ls=":", c="k", lw=0.8)
         ax.set_title(title, fontsize=9)
         ax.set_xlabel("Δt / Δt_g")
+        label_log_axis(ax.xaxis)
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("temporal error (normalized l2)")
     axes[-1].legend(fontsize=7)
@@ -212,15 +217,52 @@ def figure(d: Path, out: Path):
     plt.close(fig)
 
 
+def case_and_grid(d: Path) -> tuple[str, int]:
+    """(case, ne) of the sweep folder ``d``: from its name ``<case>_ne<N>`` (the study's
+    folders: "tc5_ne30"), else from its sweep.csv's ``case`` and ``ne`` columns. Raises
+    ValueError (one line) when neither says."""
+    named = re.fullmatch(r"(.+)_ne(\d+)", d.name)
+    if named:
+        return named[1], int(named[2])
+    s = pd.read_csv(d / "sweep.csv")
+    if {"case", "ne"} <= set(s.columns) and len(s):
+        return str(s["case"].iloc[0]), int(s["ne"].iloc[0])
+    raise ValueError(f"{d}: a sweep folder is named <case>_ne<N> (e.g. tc5_ne30), or its sweep.csv has case and ne")
+
+
+def check(args) -> None:
+    """Refuse (ValueError, one line) what would stop the tables half-printed: a folder that
+    is not a sweep's, a case or grid not known, a --figures path that is not a folder
+    (a missing one is made)."""
+    for d in args.sweeps:
+        missing = [name for name in ("sweep.csv", "verdicts.csv") if not (d / name).is_file()]
+        if missing:
+            raise ValueError(f"{d}: not a sweep folder (no {' or '.join(missing)}; `swe-sphere sweep` writes them)")
+        case_and_grid(d)
+    if args.figures is not None:
+        if args.figures.exists() and not args.figures.is_dir():
+            raise ValueError(f"--figures {args.figures}: not a folder")
+        try:
+            args.figures.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            raise ValueError(f"--figures {args.figures}: cannot make the folder ({err.strerror})") from None
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("sweeps", nargs="+", type=Path, help="sweep directories (named <case>_ne<ne>)")
+    p.add_argument(
+        "sweeps", nargs="+", type=Path, help="sweep directories (named <case>_ne<ne>, else case and ne from sweep.csv)"
+    )
     p.add_argument("--figures", type=Path, metavar="DIR", help="also draw the temporal-error figures into DIR")
     p.add_argument(
         "--family",
         help="comma-separated steppers (e.g. epi2,epi3): also their cheapest qualifying run against the others'",
     )
     args = p.parse_args()
+    try:
+        check(args)
+    except ValueError as err:
+        p.exit(2, f"{p.prog}: error: {err}\n")
     print(summary(args.sweeps))
     if args.family:
         print("\n" + versus(args.sweeps, args.family.split(",")))

@@ -55,8 +55,8 @@ def _open(path) -> xr.Dataset:
         raise FileNotFoundError(f"reference file not found: {path}")
     try:
         ds = xr.open_dataset(path, decode_times=False)
-    except Exception as exc:  # netCDF4 / xarray raise several types, some with many-line messages
-        raise ValueError(f"{path}: not a readable netCDF file ({type(exc).__name__})") from None
+    except Exception:  # netCDF4 / xarray raise several types, some with many-line messages
+        raise ValueError(f"{path}: not a readable netCDF file") from None
     try:
         missing = [name for name in (_SPECTRAL if _is_spectral(ds) else _GRIDDED) if name not in ds.variables]
         if missing:

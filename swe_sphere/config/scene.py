@@ -627,6 +627,15 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
             dt1 = interval / max(1, math.ceil(interval / scaled - 1e-9))
             radius = f" radius={planet.a:g} m" if scale != 1.0 else ""
             dt_source = f"time.dt of scene {path.stem} scaled to ne={ne1} np={np1}{radius}"
+            # what the smallest node spacing changed with: the grid, the planet's radius or both
+            spacing = " and ".join(
+                what
+                for what, changed in (
+                    ("the smallest node spacing", min_ratio != scale),
+                    (f"the planet's radius ({planet.a:g} m against the scene's {file_radius:g} m)", scale != 1.0),
+                )
+                if changed
+            )
             if scaled / dt1 > 2:  # one line for both: "scaled to" the cut dt read as if the grid had asked for it
                 if days1 <= every:
                     what = f"the run length of {days1:g} days"
@@ -635,11 +644,11 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
                 else:
                     what = f"both the output interval of {every:g} and the run length of {days1:g} days"
                 notes.append(
-                    f"warning: dt cut {scaled / dt1:.3g}x (from {scaled:g} s, scaled with the smallest node spacing) "
+                    f"warning: dt cut {scaled / dt1:.3g}x (from {scaled:g} s, scaled with {spacing}) "
                     f"to {dt1:g} s to divide {what}"
                 )
             else:
-                notes.append(f"dt scaled with the smallest node spacing to {dt1:g} s")
+                notes.append(f"dt scaled with {spacing} to {dt1:g} s")
     else:
         dt1, dt_source = dt, "the dt given"
     if not (_is_number(dt1) and math.isfinite(dt1) and dt1 > 0):

@@ -14,6 +14,7 @@ CPU or a GPU.
 from __future__ import annotations
 
 import os
+import re
 from dataclasses import dataclass
 
 import warp as wp
@@ -54,12 +55,16 @@ def default_device() -> str:
 
 
 def pick_device(requested: str | None = None, *, verbose: bool = False) -> str:
-    """The Warp device to run on: ``requested`` ("cpu" | "cuda"), else CUDA when
-    present. Raises ValueError when CUDA is asked for and absent."""
+    """The Warp device to run on: ``requested`` ("cpu", "cuda" or "cuda:N"), else CUDA
+    when present. Raises ValueError (one line) for another name, and when the CUDA
+    device asked for is absent."""
+    if requested is not None and not re.fullmatch(r"cpu|cuda(:\d+)?", str(requested)):
+        raise ValueError(f"device must be 'cpu', 'cuda' or 'cuda:N' (got {requested!r})")
     warp = init_warp(verbose)
     device = requested or default_device()
-    if device == "cuda" and not warp.is_cuda_available():
-        raise ValueError("device cuda is not available on this machine (use --device cpu)")
+    ordinal = int(device.partition(":")[2] or 0)
+    if device.startswith("cuda") and ordinal >= warp.get_cuda_device_count():
+        raise ValueError(f"device {device} is not available on this machine (use --device cpu)")
     return device
 
 

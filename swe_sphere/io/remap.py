@@ -119,8 +119,8 @@ def open_netcdf(path) -> xr.Dataset:
         raise FileNotFoundError(f"file not found: {path}")
     try:
         return xr.open_dataset(path, decode_times=False)
-    except Exception as exc:  # netCDF4 / xarray raise several types
-        raise ValueError(f"{path}: not a readable netCDF file ({type(exc).__name__})") from None
+    except Exception:  # netCDF4 / xarray raise several types (their text: a many-line trace or the type)
+        raise ValueError(f"{path}: not a readable netCDF file") from None
 
 
 def run_grid(ds: xr.Dataset) -> CubedSphere:

@@ -222,6 +222,24 @@ def acquire_lock(lock: Path, what) -> int:
         os.close(fd)
 
 
+def check_unlocked(path: Path) -> None:
+    """Raise ``OutputError`` (one line) when another process writes ``path`` now (holds
+    the lock of its ``ExclusiveFile``), so a command can refuse before its set-up. A
+    shared lock, taken and dropped at once: nothing is created, and any number of
+    processes (an MPI run's ranks) may look at the same time."""
+    lock = Path(path).with_name(Path(path).name + ".lock")
+    try:
+        fd = os.open(lock, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+    except OSError:  # none (or not ours to read): the writer's own lock still decides
+        return
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except OSError:
+        raise OutputError(f"another run is writing {path} (it holds {lock})") from None
+    finally:
+        os.close(fd)
+
+
 def release_lock(lock: Path, fd: int) -> None:
     """Undo ``acquire_lock``: remove the file first, so a waiting process retries on a new one."""
     lock.unlink(missing_ok=True)

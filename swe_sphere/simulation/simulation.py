@@ -226,8 +226,7 @@ class Simulation(StateDiagnostics):
         # Δt the simulation may fit to the user's intervals (``steps``): not given, restored or stated in a Scene
         self._own_dt = not isinstance(scene, Scene) and "dt" not in overrides and initial_diagnostics is None
         scene, inputs = resolve_scene(scene, overrides)
-        if device is None:
-            device = pick_device()
+        device = pick_device(device)  # a name Warp does not know is refused in one line
         if initial is not None and (start is not None or not callable(initial)):
             raise ValueError("initial must be a function (lat, lon) -> (h, u, v), and not given with start")
         t0 = time.perf_counter()
@@ -695,7 +694,9 @@ class Simulation(StateDiagnostics):
         with StopSignals(self.topology, catch_signals) as signals, threadpool_limits(limits=1, user_api="blas"):
             try:
                 with self._during_run(files, ckp, log), _compile_timer(self._compile):
-                    files.record(self.step, whole=start, final=True)
+                    # a continuation's first time is the last of the file it continues (where its
+                    # restart file was written): not written again, so the two files join without a repeat
+                    files.record(self.step, whole=start, final=True, write=not self.step)
                     with self._progress_bar() as bar:
                         stop = self._loop(guard, signals, ledger, bar)
                     self._stopped(stop, files, ckp)

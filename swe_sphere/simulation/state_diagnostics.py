@@ -115,15 +115,16 @@ class StateDiagnostics:
 
     def _stability_limit(self) -> tuple[float, str, float, str] | None:
         """(limit, what it limits, the scene dt's value of it on the current state,
-        where the limit was measured) of the stepper's measured stability limit
+        where the limit comes from) of the stepper's stability limit (measured, or an
+        explicit table's from its stability polynomial)
         (``Stepper.courant_limit`` on (|v| + √(gh)) Δt/Δx for explicit steppers,
         ``Stepper.advective_courant_limit`` on |v| Δt/Δx for IMEX and multirate), or
         None for a stepper without one."""
-        kind = type(self.stepper)
+        kind = self.stepper  # the instance: a table's limit is its own (``TableauRK``)
         c = self.courant()
         if kind.courant_limit is not None:
             speed = c["courant_advective"] + (0.0 if math.isnan(c["courant_gravity"]) else c["courant_gravity"])
-            return kind.courant_limit, "a Courant number (|v| + sqrt(g h)) dt/dx", speed, "measured on TC2"
+            return kind.courant_limit, "a Courant number (|v| + sqrt(g h)) dt/dx", speed, kind.courant_limit_source
         if kind.advective_courant_limit is not None:
             return (
                 kind.advective_courant_limit,
@@ -147,9 +148,16 @@ class StateDiagnostics:
         if limit is None or limit[2] <= limit[0]:
             return None
         limit, what, speed, source = limit
+        stepper = self.stepper.label(self.scene.stepper_options)  # a table by its name
+        if limit == 0:
+            return (
+                f"warning: {stepper} is stable on no stretch of the imaginary axis (its stability polynomial "
+                "has |R(iy)| > 1 for every y > 0): waves grow at every dt, held back only by hyperviscosity; it "
+                "may blow up (three-stage third-order tables are stable to y = 1.73)"
+            )
         return (
             f"warning: dt = {self.scene.dt:g} s gives {what} of {speed:.3g}, above "
-            f"{self.scene.stepper}'s stability limit of about {limit:g} ({source}); it may blow up "
+            f"{stepper}'s stability limit of about {limit:.3g} ({source}); it may blow up "
             f"(dt <= {self.scene.dt * limit / speed:.4g} s keeps below)"
         )
 

@@ -110,10 +110,11 @@ class RunFiles:
             self.abort()
             raise
 
-    def record(self, step: int, x=None, whole=None, final: bool = False) -> None:
+    def record(self, step: int, x=None, whole=None, final: bool = False, write: bool = True) -> None:
         """Diagnose ``step`` (state x, default the current one; ``whole`` its gathered
         fields when the caller has them) and write it to the run files whose schedule
-        holds it (``final``: to every one). Call on every rank."""
+        holds it (``final``: to every one; ``write`` False: to none, the diagnostics
+        kept in ``history`` alone). Call on every rank."""
         sim, s, c = self.sim, self.sim.scene, self.sim.counters
         if whole is None:  # once per output time, on every rank
             whole = sim.gather_fields(x, divergence=self.divergence)
@@ -124,7 +125,7 @@ class RunFiles:
         if self.on_output is not None:
             self.on_output(step, sim.x if x is None else x)
         for i, (_, _, steps) in enumerate(self.streams):
-            if (final or step in steps) and self.last[i] != step:
+            if write and (final or step in steps) and self.last[i] != step:
                 self.last[i] = step
                 if self.writers[i] is not None:  # rank 0 (the fields DSS'd, element-local, s-1)
                     self.writers[i].append(

@@ -65,6 +65,7 @@ class Stepper:
     # ne 8 np 4 and ne 3 np 6 (leapfrog 0.618 / 0.580 / 0.646, leapfrog_trapezoidal
     # 0.926 / 0.883 / 1.005, ssprk3 1.195 / 1.108 / 1.242, rk4 1.853 / 1.726 / 1.919)
     courant_limit: float | None = None
+    courant_limit_source = "measured on TC2"  # where ``courant_limit`` comes from, for the warning
     # steppers whose advection alone is explicit (IMEX): the largest |v| Δt / Δx at t = 0
     # the study ran stably (a warning threshold, not a bisection)
     advective_courant_limit: float | None = None

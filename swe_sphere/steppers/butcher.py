@@ -98,6 +98,48 @@ class Table:
         return tuple(arr(t) for t in (self.A_E, self.b_E, self.A_I, self.b_I, self.c))
 
 
+def _square(p: list) -> list:
+    """The coefficients of the square of the polynomial with coefficients ``p`` (lowest first)."""
+    return [
+        sum(p[i] * p[k - i] for i in range(max(0, k - len(p) + 1), min(k, len(p) - 1) + 1))
+        for k in range(2 * len(p) - 1)
+    ]
+
+
+def imaginary_axis_limit(A, b) -> float:
+    """The largest y ≥ 0 with |R(iy')| ≤ 1 for every 0 ≤ y' ≤ y, where
+    R(z) = 1 + Σ_k z^k bᵀ A^(k−1) 1 is the stability polynomial of the explicit table
+    (A, b) (s × s and s entries, numbers or ``Fraction``s): the Courant number of a
+    wave (an eigenvalue iω of the right-hand side, ωΔt = y) the table steps without
+    growth (Hairer & Wanner 1996, *Solving ODEs II*, §IV.2). 0 where no stretch of the
+    axis is stable (forward Euler; every two-stage second-order table, whose
+    |R(iy)|² = 1 + y⁴/4); √3 for every three-stage third-order table, 2√2 for the
+    four-stage fourth-order ones. To 1e-9."""
+    s = len(b)
+    A = [[Fraction(a) for a in row] for row in A]
+    coeffs, power = [Fraction(1)], [Fraction(1)] * s  # c_k = bᵀ A^(k−1) 1, exactly
+    for _ in range(s):
+        coeffs.append(sum(Fraction(bj) * pj for bj, pj in zip(b, power)))
+        power = [sum(a * p for a, p in zip(row, power)) for row in A]
+    # |R(iy)|² − 1 = Re² + Im² − 1, a polynomial in y: stable near 0 iff its lowest term is negative
+    re = [c * (-1) ** (k // 2) if k % 2 == 0 else 0 for k, c in enumerate(coeffs)]
+    im = [c * (-1) ** (k // 2) if k % 2 else 0 for k, c in enumerate(coeffs)]
+    growth = [x + y for x, y in zip(_square(re), _square(im))]
+    growth[0] -= 1
+    lowest = next((g for g in growth[1:] if g != 0), Fraction(0))
+    if lowest >= 0:
+        return 0.0
+    polynomial = np.polynomial.Polynomial([float(g) for g in growth])
+    # scanned past s − 1, the most s stages reach (Vichnevetsky 1983), then the first crossing bisected
+    ys = np.linspace(0.0, s + 1.0, 4000 * (s + 1) + 1)
+    first = int(np.argmax(polynomial(ys) > 1e-12))  # 1 ≤ first: stable just past 0 (checked above)
+    lo, hi = ys[first - 1], ys[first]
+    while hi - lo > 1e-10:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if polynomial(mid) <= 1e-12 else (lo, mid)
+    return lo
+
+
 def _text(q: Fraction) -> str:
     """An entry for a message: "1/6" for a small denominator, else ten digits."""
     return str(q) if q.denominator <= 10**4 else f"{float(q):.10g}"

@@ -266,7 +266,8 @@ def plot_map(ds, field: str, day: float, path=None, diff=None, lat_range=None) -
         top = np.ceil(np.nanmax(np.abs(shown * scale)) / 2) * 2
         contours, interval = [c for c in np.arange(-top, top + 1, 2.0) if c != 0], 2.0  # 2e-5 s-1, as Galewsky et al.
     if interval is not None:  # the interval is stated, so a reader can count the lines
-        label = info["colorbar_label"] = f"{label}; contours every {interval:g} {units}"
+        step = f"{interval:g} × {units}" if scale != 1 else f"{interval:g} {units}"  # "2 × 10⁻⁵ s⁻¹", not "2 10⁻⁵"
+        label = info["colorbar_label"] = f"{label}; contours every {step}"
     info["contour_interval"] = interval
     draw_map(
         fig, ax, lon_e, lat_e, shown * scale, cmap=draw_cmap, symmetric=draw_symmetric, label=label, contours=contours
@@ -286,6 +287,23 @@ def _scene_label(ds) -> str:
         return run_name(ds)
 
 
+def label_log_axis(axis) -> None:
+    """Label the log-scale ``axis`` (a matplotlib ``Axis``) in plain numbers (0.5, 1, 2,
+    5, 10): the decades, and the minor ticks at 2 and 5 × 10^k where the axis spans
+    under two decades, so that one within a decade has more than one label and the
+    minor labels never crowd (matplotlib's own wrote 2×10⁰, 3×10⁰, ... into each other)."""
+    from matplotlib.ticker import FuncFormatter, LogLocator
+
+    def minor(value, _):
+        low, high = sorted(axis.get_view_interval())
+        return f"{value:g}" if high < 100 * low and f"{value:.0e}"[0] in "25" else ""
+
+    axis.set_major_locator(LogLocator(base=10))
+    axis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+    axis.set_minor_locator(LogLocator(base=10, subs=tuple(range(2, 10))))
+    axis.set_minor_formatter(FuncFormatter(minor))
+
+
 def _lines(ax, lines, *, logx=False, logy=False, markers=True, xlabel="", ylabel="", title=""):
     drawn = 0
     for label, x, y in lines:
@@ -296,11 +314,8 @@ def _lines(ax, lines, *, logx=False, logy=False, markers=True, xlabel="", ylabel
         ax.plot(x[ok], y[ok], marker="o" if markers else None, markersize=3, linewidth=1.2, label=label)
         drawn += 1
     if logx and drawn:
-        from matplotlib.ticker import FuncFormatter
-
         ax.set_xscale("log")
-        # minor labels at 2 and 5 × 10^k only: readable within a decade, no crowding
-        ax.xaxis.set_minor_formatter(FuncFormatter(lambda v, _: f"{v:g}" if f"{v:.0e}"[0] in "25" else ""))
+        label_log_axis(ax.xaxis)
     if logy and drawn:
         ax.set_yscale("log")
     ax.set_xlabel(xlabel)
@@ -403,7 +418,7 @@ def plot_series(ds, path=None):
     Returns the ``matplotlib.figure.Figure`` (Agg canvas, no pyplot)."""
     days = days_of(ds)
     fig = _figure(SERIES_FIGSIZE)
-    left, right = fig.subplots(1, 2)
+    left, right = fig.subplots(1, 2, sharex=True)  # the run's span in both, however few points each has
     inv = [(k.replace("_change", ""), days, np.abs(ds[k].values)) for k in INVARIANTS if k in ds.variables]
     if not _lines(left, inv, logy=True, xlabel="day", ylabel="|relative change since t = 0|", title="invariants"):
         left.text(
@@ -433,6 +448,8 @@ def plot_series(ds, path=None):
             va="center",
             transform=right.transAxes,
         )
+    if days.size > 1 and days[-1] > days[0]:
+        left.set_xlim(days[0], days[-1])
     fig.suptitle(_scene_label(ds), fontsize=12)
     if path is not None:
         _save(fig, path)

@@ -123,25 +123,36 @@ def largest_stable_dt(scene: Scene, device: str, *, tolerance: float = 0.05, log
     )
 
 
+def suite_scenes(cases, steppers, *, ne=None, np=None, days=None, overrides=None) -> list[Scene]:
+    """The scene of every (case, stepper) of ``run_suite``, in that order, named by the
+    case's label. ``cases``: entries of ``HARD_CASES``; ``ne``/``np`` override the grid
+    and ``days`` the run length of cases that do not fix them; ``overrides``
+    ({"section.key": value}, as ``load_scene``) apply to every case. Raises
+    ``SceneError`` on a bad value, before anything runs or is written."""
+    return [
+        dataclasses.replace(
+            load_scene(
+                scene_name, ne=case_ne or ne, np=np, days=case_days or days, stepper=stepper, overrides=overrides
+            ),
+            name=label,
+        )
+        for label, scene_name, case_days, case_ne in cases
+        for stepper in steppers
+    ]
+
+
 def run_suite(
     cases, steppers, device, *, ne=None, np=None, days=None, overrides=None, log=print, pool=None
 ) -> list[StabilityResult]:
-    """Largest stable Δt for every (case, stepper). ``cases``: entries of ``HARD_CASES``;
-    ``ne``/``np`` override the grid and ``days`` the run length of cases that do not
-    fix them; ``overrides`` ({"section.key": value}, as ``load_scene``) apply to
-    every case. Raises ``SceneError`` on a bad override. The bisections
-    are independent: ``pool`` (a concurrent.futures executor, ``swe_sphere.core.workers``;
-    None: here, one after another) runs them; results in (case, stepper) order."""
+    """Largest stable Δt for every (case, stepper) of ``suite_scenes`` (its arguments
+    and errors). The bisections are independent: ``pool`` (a concurrent.futures
+    executor, ``swe_sphere.core.workers``; None: here, one after another) runs them;
+    results in (case, stepper) order."""
     pool = pool or InProcess()
     futures = []
-    for label, scene_name, case_days, case_ne in cases:
-        for stepper in steppers:
-            scene = load_scene(
-                scene_name, ne=case_ne or ne, np=np, days=case_days or days, stepper=stepper, overrides=overrides
-            )
-            scene = dataclasses.replace(scene, name=label)
-            log(f"{label}: {stepper} on ne={scene.ne} np={scene.np}, {scene.days:g} days")
-            futures.append(pool.submit(largest_stable_dt, scene, device, log=log))
+    for scene in suite_scenes(cases, steppers, ne=ne, np=np, days=days, overrides=overrides):
+        log(f"{scene.name}: {scene.stepper} on ne={scene.ne} np={scene.np}, {scene.days:g} days")
+        futures.append(pool.submit(largest_stable_dt, scene, device, log=log))
     return [f.result() for f in futures]
 
 

@@ -55,9 +55,10 @@ import warp as wp
 from ..cases.reference import FLOORS, floor
 from ..cases.scoring import instability, truth, unscored
 from ..config.scene import Scene, load_scene
+from ..core.backend import pick_device
 from ..core.constants import DAY
 from ..core.errors import BlowUp, Interrupted
-from ..core.runtime import package_version, pick_device
+from ..core.runtime import package_version
 from ..core.workers import InProcess
 from ..io.run_file import atomic_path, check_results, folder_lock, history_line
 from ..io.table_file import table_dataset, write_table_file

@@ -1,0 +1,67 @@
+"""docs/efficiency/tables.py, the script that makes docs/efficiency.md's tables and
+figures from sweep folders: it runs on any sweep folder, and refuses in one line what
+is not one (it ended in a traceback)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from swe_sphere.cli import main
+
+SCRIPT = Path(__file__).resolve().parents[1] / "docs" / "efficiency" / "tables.py"
+
+
+@pytest.fixture(scope="module")
+def sweep(tmp_path_factory) -> Path:
+    """A TC2 sweep (ne = 2, 1 day, ssprk3 at three steps), in a folder named as the study's."""
+    out = tmp_path_factory.mktemp("study") / "tc2_ne2"
+    args = ["sweep", "tc2_steady", "--ne", "2", "--days", "1", "--steppers", "ssprk3", "--dt", "900,1800,3600"]
+    assert main([*args, "--device", "cpu", "--output", str(out)]) == 0
+    return out
+
+
+def tables(cwd, *args) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, str(SCRIPT), *map(str, args)],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={**os.environ, "MPLBACKEND": "Agg"},
+    )
+
+
+def test_the_tables_and_a_missing_figures_folder_made(sweep, tmp_path):
+    proc = tables(tmp_path, sweep, "--figures", "figs/new")
+    assert proc.returncode == 0, proc.stderr
+    assert "| tc2 | 2 | total h+hs |" in proc.stdout
+    assert (tmp_path / "figs" / "new" / "tc2_ne2_temporal_error.png").is_file()
+
+
+def test_a_sweep_folder_of_another_name_takes_case_and_grid_from_its_table(sweep, tmp_path):
+    shutil.copytree(sweep, tmp_path / "my sweep")
+    proc = tables(tmp_path, "my sweep")
+    assert proc.returncode == 0, proc.stderr
+    assert "| tc2_steady | 2 | total h+hs |" in proc.stdout
+
+
+@pytest.mark.parametrize(
+    "make, args, words",
+    [
+        (lambda d: (d / "empty").mkdir(), ["empty"], "empty: not a sweep folder (no sweep.csv or verdicts.csv"),
+        (lambda d: (d / "figs").write_text(""), ["SWEEP", "--figures", "figs"], "--figures figs: not a folder"),
+    ],
+    ids=["not_a_sweep", "figures_is_a_file"],
+)
+def test_what_is_refused_is_one_line_before_any_table(sweep, tmp_path, make, args, words):
+    make(tmp_path)
+    proc = tables(tmp_path, *[sweep if a == "SWEEP" else a for a in args])
+    lines = [line for line in proc.stderr.splitlines() if line.strip()]
+    assert proc.returncode == 2 and len(lines) == 1 and words in lines[0], proc.stderr
+    assert proc.stdout == ""

@@ -1,0 +1,254 @@
+"""A new user's first hour on a fresh clone, as the user meets it: exit 2 and one line
+naming the field, value or file for bad input, nothing made before the refusal."""
+
+from __future__ import annotations
+
+import errno
+from pathlib import Path
+
+import pytest
+
+from swe_sphere.io.run_file import acquire_lock, release_lock
+from swe_sphere.simulation.simulation import Simulation
+
+from helpers import TINY, cli_main, cli_one_line
+
+
+@pytest.fixture(autouse=True)
+def _in_tmp(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+
+
+def test_plot_into_a_folder_on_a_read_only_file_system_is_bad_input(tc5_run_file, capsys, monkeypatch):
+    """A folder to be made where the file system is mounted read-only: EROFS is neither
+    a PermissionError nor a blow-up, and was answered with exit 3."""
+
+    def read_only(self, *args, **kwargs):
+        raise OSError(errno.EROFS, "Read-only file system", str(self))
+
+    monkeypatch.setattr(Path, "mkdir", read_only)
+    cli_one_line(capsys, ["plot", tc5_run_file, "--output", "figs"], 2, "figs: Read-only file system")
+
+
+def test_stability_refuses_a_bad_value_before_making_its_folder(capsys):
+    cli_one_line(capsys, ["stability", "galewsky", "--days", "-1", "--output", "suite"], 2, "days", "-1")
+    cli_one_line(capsys, ["stability", "galewsky", "--days", "-1"], 2, "days", "-1")
+    assert list(Path().iterdir()) == []
+
+
+def test_two_suites_each_write_into_a_folder_of_their_own(capsys):
+    """A page's two `stability` commands wrote stability.csv into the same folder: the
+    second met "output file exists"."""
+    for cases in (["tc5_mountain"], ["tc5_mountain", "galewsky"]):
+        code, out, err = cli_main(
+            capsys, "stability", *cases, "--steppers", "ssprk3", "--ne", "2", "--days", "0.5", "--device", "cpu"
+        )
+        assert code == 0, err
+    assert sorted(str(p) for p in Path().glob("*/stability.csv")) == [
+        "stability_tc5_mountain_galewsky_ne2/stability.csv",
+        "stability_tc5_mountain_ne2/stability.csv",
+    ]
+
+
+def test_a_run_to_a_file_another_run_writes_is_refused_before_its_header(capsys):
+    """The second of two runs to one file printed its 9-line header, built its model,
+    then refused at the first write."""
+    lock = Path("o.nc.lock")
+    fd = acquire_lock(lock, "o.nc")  # as the first run's writer holds it
+    try:
+        code, out, err = cli_main(capsys, "run", "tc2_steady", *TINY, "--days", "0.25", "--output", "o.nc")
+    finally:
+        release_lock(lock, fd)
+    assert out == ""
+    cli_line = [line for line in err.splitlines() if line.strip()]
+    assert code == 2 and cli_line == ["swe-sphere: error: another run is writing o.nc (it holds o.nc.lock)"], err
+    assert sorted(p.name for p in Path().iterdir()) == []
+
+
+def test_a_left_lock_file_of_a_killed_run_does_not_refuse(capsys):
+    """The lock file of a killed run stays, unlocked: the run goes ahead."""
+    Path("o.nc.lock").touch()
+    code, out, err = cli_main(capsys, "run", "tc2_steady", *TINY, "--days", "0.25", "--output", "o.nc")
+    assert code == 0 and Path("o.nc").is_file(), err
+
+
+@pytest.mark.parametrize("device", ["tpu", "cuda:x", "CPU"])
+def test_an_unknown_device_is_named_in_python(device):
+    """Warp's own "Invalid device identifier" came through from deep in the set-up."""
+    with pytest.raises(ValueError, match=f"^device must be 'cpu', 'cuda' or 'cuda:N' \\(got '{device}'\\)$"):
+        Simulation("tc2_steady", device, ne=2)
+
+
+@pytest.mark.parametrize("command", ["plot", "remap"])
+@pytest.mark.parametrize("content", [b"not netCDF\n", b"\x89HDF\r\n\x1a\n" + bytes(100)], ids=["text", "cut_hdf5"])
+def test_an_unreadable_file_is_named_without_the_exception_type(capsys, command, content):
+    """ "junk.nc: not a readable netCDF file (ValueError)": the type told a user nothing."""
+    Path("junk.nc").write_bytes(content)
+    line = cli_one_line(capsys, [command, "junk.nc"], 2)
+    assert line == "swe-sphere: error: junk.nc: not a readable netCDF file"
+
+
+def run_names(capsys, *commands) -> list[str]:
+    """The default file name of each ``run`` command line (run in order, each must succeed)."""
+    names = []
+    for command in commands:
+        before = set(Path().glob("*.nc"))
+        code, _, err = cli_main(capsys, "run", *command.split(), *TINY)
+        assert code == 0, err
+        (new,) = set(Path().glob("*.nc")) - before
+        names.append(new.name)
+    return names
+
+
+def test_default_run_names_say_the_days_dt_and_planet_that_differ_from_the_scenes(capsys):
+    """A page's runs of one scene at other lengths and steps, in order: each its own file
+    (the default name ignored --days and --dt, and the second run met "output file exists")."""
+    assert run_names(
+        capsys,
+        "tc2_steady",  # the scene's 5 days at its own dt for ne2
+        "tc2_steady --days 0.5",
+        "tc2_steady -s time.days=0.25",
+        "tc2_steady --days 0.5 --dt 1800",
+        "tc2_steady --days 0.05 -s planet.radius=637122 -s planet.omega=7.292e-4",
+    ) == [
+        "tc2_steady_ne2np4_ssprk3.nc",
+        "tc2_steady_ne2np4_ssprk3_0.5d.nc",
+        "tc2_steady_ne2np4_ssprk3_0.25d.nc",
+        "tc2_steady_ne2np4_ssprk3_0.5d_dt1800.nc",
+        "tc2_steady_ne2np4_ssprk3_a637122_omega0.0007292_0.05d.nc",
+    ]
+    # the dt the scene takes itself at ne2 for 0.5 days: the same run, the same name
+    cli_one_line(
+        capsys, ["run", "tc2_steady", "--days", "0.5", "--dt", "2400", *TINY], 2, "output file exists", "_0.5d.nc"
+    )
+
+
+def test_a_blown_up_runs_file_is_named_as_one_when_it_blocks_a_rerun(capsys):
+    """A run that blew up keeps its good outputs; the same command again is refused with
+    a line that says the file is that run's, and how to replace it."""
+    command = ["run", "tc2_steady", "--days", "1", "--dt", "14400", *TINY]  # Courant number 3 with ssprk3
+    assert cli_main(capsys, *command)[0] == 3
+    cli_one_line(
+        capsys,
+        command,
+        2,
+        "output file exists: tc2_steady_ne2np4_ssprk3_1d_dt14400.nc, a run that ended in a blow-up at step 4 "
+        "(model time 0.6667 days) (--overwrite replaces it",
+    )
+    assert cli_main(capsys, *command, "--dt", "1800")[0] == 0  # a smaller step: a file of its own
+    assert sorted(p.name for p in Path().glob("*.nc")) == [
+        "tc2_steady_ne2np4_ssprk3_1d_dt14400.nc",
+        "tc2_steady_ne2np4_ssprk3_1d_dt1800.nc",
+    ]
+
+
+def test_a_small_planet_run_names_its_planet_and_why_dt_changed(capsys):
+    """Without --ne the grid is the scene's: Δt 300 s → 30 s is the radius's doing alone,
+    and the header said "scaled with the smallest node spacing" and named no planet."""
+    code, out, err = cli_main(
+        capsys,
+        "run",
+        "tc2_steady",
+        "-s",
+        "planet.radius=637122",
+        "-s",
+        "planet.omega=7.292e-4",
+        "-s",
+        "grid.ne=2",  # the scene's own grid, made small (not --ne: that scales dt with the grid too)
+        "--days",
+        "0.05",
+        "-s",
+        "output.every_days=0.05",
+        "--device",
+        "cpu",
+        "--no-progress",
+    )
+    assert code == 0, err
+    lines = out.splitlines()
+    assert "planet      radius 637122 m, omega 0.0007292 1/s, gravity 9.80616 m/s^2 (the Earth's: " in out
+    assert (
+        "note        dt scaled with the planet's radius (637122 m against the scene's 6.37122e+06 m) to 30 s" in lines
+    )
+    assert "output      tc2_steady_ne2np4_ssprk3_a637122_omega0.0007292_0.05d.nc (every 0.05 days)" in lines
+
+
+def test_an_interrupted_run_and_its_continuation_join_without_a_repeated_time(tmp_path):
+    """Both files held the interrupt time: joined with ``xr.open_mfdataset`` (or ``cdo
+    mergetime``) it appeared twice. The continuation leaves it to the first file; joined,
+    they are the uninterrupted run's file, bit for bit."""
+    import os
+    import signal
+
+    import numpy as np
+    import xarray as xr
+
+    from swe_sphere.config.scene import load_scene
+    from swe_sphere.core.errors import Interrupted
+
+    scene = load_scene("tc2_steady", ne=2, np=4, days=1.0, overrides={"output.every_days": 0.25})
+    first = Simulation(scene, "cpu", progress=False)
+    first.add_callback(lambda sim: os.kill(os.getpid(), signal.SIGINT), every_steps=7)  # between output times
+    with pytest.raises(Interrupted):
+        first.run(tmp_path / "first.nc")
+    Simulation.from_checkpoint(tmp_path / "first.restart.nc", "cpu", progress=False).run(tmp_path / "cont.nc")
+    Simulation(scene, "cpu", progress=False).run(tmp_path / "whole.nc")
+    step = scene.dt * 7 / 86400
+    with (
+        xr.open_mfdataset(
+            [tmp_path / "first.nc", tmp_path / "cont.nc"],
+            decode_times=False,
+            data_vars="minimal",
+            coords="minimal",
+            compat="override",
+        ) as joined,
+        xr.open_dataset(tmp_path / "whole.nc", decode_times=False) as whole,
+    ):
+        assert joined.time.values.tolist() == [0.0, step, 0.25, 0.5, 0.75, 1.0]
+        for day in whole.time.values:
+            np.testing.assert_array_equal(joined.h.sel(time=day).values, whole.h.sel(time=day).values)
+
+
+README_OUTPUTS = (  # what the README's commands write in a clone's top folder
+    "tc5_mountain_ne30np4_rk4.nc",
+    "tc5_r.restart.nc",
+    "tc5.nc.part",
+    "tc5.nc.lock",
+    "sweep_tc5/sweep.csv",
+    "sweep_tc5/verdicts.csv",
+    "sweep/runs/rk4_211_x.npz",
+    "sweep/sweep.lock",
+    "stability_tc5_mountain_galewsky_ne8/stability.csv",
+    "figs/tc5_vorticity_day5.png",
+    "tc5_series.png",
+    "tc5_spectrum_day0_5.csv",
+)
+
+
+@pytest.mark.skipif(not (Path(__file__).parents[1] / ".git").exists(), reason="not a git checkout")
+def test_what_the_readme_writes_in_a_clone_is_ignored_by_git():
+    import subprocess
+
+    root = Path(__file__).parents[1]
+    proc = subprocess.run(
+        ["git", "-C", str(root), "check-ignore", "--no-index", *README_OUTPUTS], capture_output=True, text=True
+    )
+    assert sorted(proc.stdout.split()) == sorted(README_OUTPUTS), proc.stderr
+    kept = [
+        "testcases/tc5_mountain.toml",
+        "testcases/reference/tc5_mountain_T213.nc",
+        "docs/efficiency/tc5_ne30_temporal_error.png",
+    ]
+    assert (
+        subprocess.run(["git", "-C", str(root), "check-ignore", "--no-index", *kept], capture_output=True).returncode
+        == 1
+    )
+
+
+def test_a_scene_that_loads_only_with_its_overrides_still_gets_a_name(capsys):
+    """A scene file without time.dt runs with -s time.dt=...; its name could not be made
+    by loading the file alone."""
+    from helpers import write_tc2_scene
+
+    path = write_tc2_scene(Path("nodt.toml"), dt=1800.0, days=0.25)
+    path.write_text(path.read_text().replace("dt = 1800.0\n", ""))
+    assert run_names(capsys, "nodt.toml -s time.dt=1800") == ["nodt_ne2np4_ssprk3_dt1800.nc"]

@@ -257,6 +257,7 @@ def _tiny_dataset():
             "time": [0.0],
             "lat": ("ncol", np.degrees(grid.lat[grid.first])),
             "lon": ("ncol", np.degrees(grid.lon[grid.first])),
+            "area": ("ncol", grid.to_unique(grid.spheremp)),
         },
         attrs={"ne": 2, "np": 3},
     )

@@ -74,6 +74,12 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("scene", nargs="?", help="scene file, e.g. testcases/tc5_mountain.toml, or a bundled scene name")
     r.add_argument("--ne", type=int, help="elements along a cube edge")
     r.add_argument("--np", type=int, help="GLL points per element direction (2..8)")
+    r.add_argument(
+        "--mesh",
+        type=Path,
+        metavar="FILE.g",
+        help="run on this Exodus II mesh (HOMME's mesh_file, ne = 0) instead of the scene's grid",
+    )
     r.add_argument("--dt", type=float, help="time step in seconds")
     r.add_argument("--days", type=float, help="run length in days")
     r.add_argument("--stepper", help="time stepper (see `swe-sphere list`)")
@@ -533,6 +539,10 @@ def _continued(args, device, comm):
             raise CheckpointError(
                 f"{args.continue_from} is a run with {flag.lstrip('-')} = {have}; it cannot continue with {flag} {value}"
             )
+    if args.mesh is not None:
+        raise CheckpointError(
+            f"{args.continue_from} is a run on {ck.scene.grid_text}; it continues on its own mesh, not on --mesh {args.mesh}"
+        )
     if args.set:
         raise CheckpointError("-s cannot change a checkpointed scene")
     if args.scene is not None:
@@ -584,9 +594,10 @@ def _cmd_run(args) -> int:
             dt=args.dt,
             days=args.days,
             stepper=args.stepper,
+            mesh=args.mesh,
             overrides=_overrides(args.set),
         )
-        output = args.output or Path(f"{scene.name}_ne{scene.ne}np{scene.np}_{scene.stepper}.nc")
+        output = args.output or Path(f"{scene.name}_{scene.grid_label}np{scene.np}_{scene.stepper}.nc")
     else:
         scene = None  # the restart file's
         stem = args.continue_from.name.removesuffix(".nc").removesuffix(".restart")
@@ -635,7 +646,7 @@ def _run(args, scene, output, device, comm) -> int:
     dx = -sim.topology.max(-float(sim.topology.grid.dx.min()))
     print(f"scene       {scene.name}: {scene.description}")
     print(
-        f"grid        ne={scene.ne} np={scene.np}: {6 * scene.ne**2} elements, {sim.topology.grid.nunique} unique nodes, "
+        f"grid        {scene.grid_text}: {scene.nelem} elements, {sim.topology.grid.nunique} unique nodes, "
         f"min node spacing {dx / 1e3:.1f} km"
     )
     print(

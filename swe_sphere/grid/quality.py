@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .cubed_sphere import CubedSphere
+
 
 def dinv_singular_values(Dinv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(σ_max, σ_min) (N,) each: the singular values of the 2×2 matrices Dinv (4, N) (row-major),
@@ -68,3 +70,12 @@ def element_sizes(grid) -> ElementSizes:
         norm_dinv=sigma_max,
         area=grid.spheremp.reshape(per_element).sum(axis=1),
     )
+
+
+def smallest_dx(ne: int, npts: int, mesh=None) -> float:
+    """The smallest ``dx_short`` (HOMME's Dinv-based length scale) of the grid ``CubedSphere(ne,
+    npts, mesh=mesh)`` on the unit sphere: what the explicit step scales with between grids. On
+    the equiangular cube only its first element is built: a face corner's, the smallest
+    element (the eight cube corners' are alike by symmetry)."""
+    elements = np.array([0]) if mesh is None else None
+    return float(element_sizes(CubedSphere(ne, npts, 1.0, elements=elements, mesh=mesh)).dx_short.min())

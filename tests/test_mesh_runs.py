@@ -1,0 +1,155 @@
+"""Runs on meshes chosen by a scene's [grid] (or ``--mesh``): a project-written Exodus II cube and
+a Schmidt-stretched cube. TC2's error stays that of the uniform cube's size, mass is kept to
+round-off, a restart continues bitwise and refuses another mesh, and bad [grid] input is one
+line, exit 2, nothing written."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from meshes import icosahedral_mesh
+
+from swe_sphere.cli import main
+from swe_sphere.config.scene import efold_nu, load_scene
+from swe_sphere.core.constants import DAY
+from swe_sphere.core.errors import SceneError
+from swe_sphere.grid.cubed_sphere import cube_mesh
+from swe_sphere.grid.mesh import write_exodus
+from swe_sphere.simulation.simulation import Simulation
+
+import roundoff
+from conftest import write_tc2_scene
+
+DT = 600.0  # s: within the gravity-wave limit of the ne2 np4 element-local cube (1838 s) and the stretched ne4
+STEPS = 12  # 2 hours
+H_L2 = "l2_h"  # the normalized l2 error of h (Williamson 1992) in a run's diagnostics
+
+
+@pytest.fixture
+def cube_file(tmp_path):
+    """The ne2 cube written as an Exodus II file by the project."""
+    return write_exodus(tmp_path / "cube2.g", cube_mesh(2))
+
+
+def tc2(**grid):
+    """TC2 (no ∇⁴) for ``STEPS`` steps of ``DT`` on the grid ``load_scene`` is given."""
+    return load_scene("tc2_steady", dt=DT, days=STEPS * DT / DAY, **grid)
+
+
+def run(scene):
+    sim = Simulation(scene, "cpu", progress=False)
+    return sim, sim.run(None)
+
+
+@pytest.mark.roundoff
+def test_tc2_on_a_written_cube_file_is_the_cube_and_keeps_mass(cube_file):
+    """TC2 on the ne2 cube read back from the .g file it was written to (ne = 0, element-local
+    map): the same grid as the built-in ne2 cube through the element-local map, so the same
+    state bit for bit; its h error is within 2x the equiangular ne2 cube's (1.88x: the
+    bilinear map's nodes are less even on so coarse a cube), and mass is kept to round-off."""
+    on_file, result = run(tc2(mesh=cube_file))
+    assert on_file.scene.ne == 0 and on_file.scene.nelem == 24 and on_file.grid.mesh.nelem == 24
+    built_in, _ = run(tc2(ne=2, overrides={"grid.map": "element_local"}))
+    _, cube = run(tc2(ne=2))
+    assert np.array_equal(on_file.x.numpy(), built_in.x.numpy())
+    e_file, e_cube = result.diagnostics[H_L2], cube.diagnostics[H_L2]
+    assert e_cube < e_file < 2 * e_cube, (e_file, e_cube)
+    roundoff.mass_kept(result.history, on_file.grid.npts)
+
+
+@pytest.mark.roundoff
+def test_tc2_on_a_stretched_cube(tmp_path):
+    """TC2 on the ne4 cube stretched 2x toward (40°N, 90°E): h's l2 error after 2 hours is
+    below the uniform ne4 cube's times the coarsest elements' factor (c = 2, error ∝ dx⁴
+    at np4: 16); the mass is kept to round-off. c = 1 is the element-local cube."""
+    stretched = {"grid.stretch_factor": 2.0, "grid.target_lat": 40.0, "grid.target_lon": 90.0}
+    sim, result = run(tc2(ne=4, overrides=stretched))
+    assert sim.scene.mesh["stretch_factor"] == 2.0 and sim.grid.map == "element_local"
+    _, cube = run(tc2(ne=4))
+    e, e_cube = result.diagnostics[H_L2], cube.diagnostics[H_L2]
+    assert e_cube < e < 16 * e_cube, (e, e_cube)
+    roundoff.mass_kept(result.history, sim.grid.npts)
+    unstretched, _ = run(tc2(ne=4, overrides={"grid.stretch_factor": 1.0}))
+    local, _ = run(tc2(ne=4, overrides={"grid.map": "element_local"}))
+    assert np.array_equal(unstretched.x.numpy(), local.x.numpy())
+
+
+def test_the_efold_rule_is_stated_at_the_mean_spacing(cube_file):
+    """ν from efold_hours on a mesh file is the uniform cube's of as many elements (√(F/6))."""
+    on_file = load_scene("tc5_mountain", mesh=cube_file)
+    assert on_file.nu == efold_nu(3.0, 2, 4, 6.37122e6) == load_scene("tc5_mountain", ne=2).nu
+
+
+def test_restart_on_a_mesh_file_is_bitwise_and_refuses_another_mesh(cube_file, tmp_path, capsys):
+    """6 steps straight against 3 + a restart file + 3 more from it on the .g mesh: the same
+    bits. The restart records the mesh (the file and its SHA-256); with the file replaced
+    by another mesh, or with --mesh, the continuation is refused in one line."""
+    scene = dataclasses.replace(tc2(mesh=cube_file), days=6 * DT / DAY)
+    straight, _ = run(scene)
+    first, _ = run(dataclasses.replace(scene, days=3 * DT / DAY))
+    restart = first.write_checkpoint(tmp_path / "r.restart.nc")
+    continued = Simulation.from_checkpoint(restart, "cpu", days=scene.days, progress=False)
+    assert continued.scene.mesh == scene.mesh and continued.step == 3
+    continued.run(None)
+    assert np.array_equal(continued.x.numpy(), straight.x.numpy())
+
+    other = write_exodus(tmp_path / "ico.g", icosahedral_mesh(0))
+    code = main(["run", "--continue", str(restart), "--mesh", str(other), "--output", str(tmp_path / "c.nc")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "continues on its own mesh" in err[0], err
+    write_exodus(cube_file, icosahedral_mesh(0))  # the file now holds another mesh
+    with pytest.raises(SceneError, match="not the mesh this run was made on"):
+        Simulation.from_checkpoint(restart, "cpu", progress=False)
+    assert not (tmp_path / "c.nc").exists()
+
+
+BAD_GRIDS = [
+    ('map = "gnomonic"', "grid.map must be one of"),
+    ("stretch_factor = 0.5", "grid.stretch_factor must be >= 1"),
+    ("stretch_factor = 2.0\ntarget_lat = 95.0", "grid.target_lat must be in [-90, 90]"),
+    ("target_lon = 10.0", "grid.target_lon needs grid.stretch_factor"),
+    ('stretch_factor = 2.0\nmap = "equiangular"', 'grid.map = "equiangular" cannot stretch'),
+    ('mesh_file = "absent.g"', "absent.g not found"),
+    ('mesh_file = "cube2.g"\nstretch_factor = 2.0', "grid.stretch_factor stretches the cube"),
+    ('mesh_file = "cube2.g"\nmap = "equiangular"', 'grid.map = "equiangular" is the cube\'s map'),
+    ('mesh_file = "garbage.g"', "garbage.g cannot be read as an Exodus II"),
+    ('mesh_file = "cube2.g"\nne_ = 1', "unknown key grid.ne_"),
+    ('mesh_file = "cube2.g"\nmap = 2', "grid.map must be str"),
+]
+
+
+@pytest.mark.parametrize("table, message", BAD_GRIDS, ids=[m.split()[0] for _, m in BAD_GRIDS])
+def test_bad_grid_input_is_one_line_exit_2(tmp_path, capsys, cube_file, table, message):
+    """Each bad [grid] key: one line naming it, exit 2, no output written."""
+    (tmp_path / "garbage.g").write_text("not netCDF")
+    scene = write_tc2_scene(tmp_path / "s.toml", ne=0)
+    scene.write_text(scene.read_text().replace("ne = 0\n", table + "\n"))
+    code = main(["run", str(scene), "--output", str(tmp_path / "o.nc")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and message in err[0], err
+    assert not (tmp_path / "o.nc").exists()
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (("--ne", "2"), "ne = 2 and mesh"),
+        (("--np", "2"), "np must be >= 3 on mesh cube2.g"),
+    ],
+)
+def test_bad_mesh_options_are_one_line_exit_2(tmp_path, capsys, cube_file, args, message):
+    """--mesh with --ne (a mesh file's elements are its own), or with np = 2 (the
+    element-local map's area correction needs interior nodes): one line, exit 2."""
+    code = main(["run", "tc2_steady", "--mesh", str(cube_file), *args, "--output", str(tmp_path / "o.nc")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and message in err[0], err
+    assert not (tmp_path / "o.nc").exists()
+
+
+def test_a_mesh_file_needs_ne_0(tmp_path, cube_file):
+    scene = write_tc2_scene(tmp_path / "s.toml", ne=2)
+    scene.write_text(scene.read_text().replace("ne = 2\n", 'ne = 2\nmesh_file = "cube2.g"\n'))
+    with pytest.raises(SceneError, match="grid.ne must be 0 with grid.mesh_file"):
+        load_scene(scene)

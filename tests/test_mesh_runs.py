@@ -6,9 +6,11 @@ line, exit 2, nothing written."""
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
+import xarray as xr
 from meshes import icosahedral_mesh
 
 from swe_sphere.cli import main
@@ -17,6 +19,7 @@ from swe_sphere.core.constants import DAY
 from swe_sphere.core.errors import SceneError
 from swe_sphere.grid.cubed_sphere import cube_mesh
 from swe_sphere.grid.mesh import write_exodus
+from swe_sphere.io.run_file import CELLS_NOTE
 from swe_sphere.simulation.simulation import Simulation
 
 import roundoff
@@ -153,3 +156,17 @@ def test_a_mesh_file_needs_ne_0(tmp_path, cube_file):
     scene.write_text(scene.read_text().replace("ne = 2\n", 'ne = 2\nmesh_file = "cube2.g"\n'))
     with pytest.raises(SceneError, match="grid.ne must be 0 with grid.mesh_file"):
         load_scene(scene)
+
+
+def test_run_file_on_a_mesh_file_has_no_cells_yet(tmp_path, capsys, cube_file):
+    """`swe-sphere run --mesh`: the run file records the mesh in its scene, holds the nodes and
+    the sub-cell mesh (the fields on its nodes) and says in ``cells`` that the control volumes
+    are not built on such meshes yet; the default name uses the file's stem."""
+    out = tmp_path / "run.nc"
+    code = main(["run", "tc2_steady", "--mesh", str(cube_file), "--dt", "600", "--days", "0.125", "--output", str(out)])
+    assert code == 0
+    with xr.open_dataset(out, decode_times=False) as ds:
+        assert json.loads(ds.attrs["scene"])["mesh"]["file"] == str(cube_file)
+        assert ds.sizes["ncol"] == 24 * 9 + 2 and "mesh_dual" not in ds.variables
+        assert ds.attrs["cells"] == CELLS_NOTE
+        assert (ds.h.attrs["mesh"], ds.h.attrs["location"]) == ("mesh_topology", "node")

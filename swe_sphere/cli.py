@@ -621,6 +621,42 @@ def _cmd_run(args) -> int:
         return _run(args, scene, output, device, comm)
 
 
+MAX_DISTORTION = 4.0  # HOMME's print_cfl warns of elements more distorted than this (dx_long / dx_short)
+
+
+def _mesh_lines(sim) -> list[str]:
+    """HOMME's ``print_cfl`` figures of a run's mesh (rank 0; [] on the others; call on every
+    rank): the Dinv-based node spacing (``grid.quality``), the largest distortion (a warning
+    line above ``MAX_DISTORTION``), the area ratio and the worst element's Courant numbers."""
+    from .grid.quality import element_sizes
+    from .io.run_file import CELLS_NOTE
+    from .model.diagnostics import worst_element_courant
+
+    u, v, h = sim.fields()
+    if not sim.root:
+        return []
+    sizes = element_sizes(sim.grid)
+    s, scene = sizes.summary(), sim.scene
+    c = worst_element_courant(sim.grid, sizes, u, v, h, scene.dt, sim.g, "pressure_gradient" in scene.terms)
+    grav = "" if math.isnan(c["courant_gravity"]) else f"gravity-wave {c['courant_gravity']:.3f}, "
+    lines = [
+        f"mesh        node spacing (Dinv-based) {s['dx_short_min'] / 1e3:.1f} to {s['dx_long_max'] / 1e3:.1f} km "
+        f"(dx_short mean {s['dx_short_mean'] / 1e3:.1f} km), largest distortion {s['distortion_max']:.2f}, "
+        f"area ratio {s['area_ratio']:.2f}",
+        f"mesh        worst element {s['worst'] + 1} (dx_short {sizes.dx_short[s['worst']] / 1e3:.1f} km): Courant "
+        f"{grav}advective {c['courant_advective']:.3f} (dt / dx_short)",
+    ]
+    if s["distortion_max"] > MAX_DISTORTION:
+        e = int(sizes.distortion.argmax())
+        lines.append(
+            f"swe-sphere: warning: element {e + 1} is distorted {s['distortion_max']:.2f}x (dx_long / dx_short, above "
+            f"HOMME's {MAX_DISTORTION:g}): its spacing is uneven and it sets a short explicit step"
+        )
+    if sim.grid.mesh is not None:
+        lines.append(f"note        {CELLS_NOTE}")
+    return lines
+
+
 def _run(args, scene, output, device, comm) -> int:
     from tqdm import tqdm
 
@@ -644,11 +680,14 @@ def _run(args, scene, output, device, comm) -> int:
         restart_steps(scene, args.restart_every)  # checks the interval before the run
     c = sim.courant()
     dx = -sim.topology.max(-float(sim.topology.grid.dx.min()))
+    mesh_lines = _mesh_lines(sim) if scene.mesh is not None else []  # every rank: it gathers the state
     print(f"scene       {scene.name}: {scene.description}")
     print(
         f"grid        {scene.grid_text}: {scene.nelem} elements, {sim.topology.grid.nunique} unique nodes, "
         f"min node spacing {dx / 1e3:.1f} km"
     )
+    for line in mesh_lines:
+        print(line, file=sys.stderr if line.startswith("swe-sphere: warning") else sys.stdout)
     print(
         f"terms       {', '.join(scene.terms)}"
         + (f" (nu = {scene.nu:.3g} m^4/s, subcycle {scene.hypervis_subcycle})" if scene.nu else "")

@@ -17,8 +17,10 @@ from swe_sphere.cli import main
 from swe_sphere.config.scene import efold_nu, load_scene
 from swe_sphere.core.constants import DAY
 from swe_sphere.core.errors import SceneError
-from swe_sphere.grid.cubed_sphere import cube_mesh
+from swe_sphere.grid.cubed_sphere import CubedSphere, cube_mesh
 from swe_sphere.grid.mesh import write_exodus
+from swe_sphere.grid.quality import element_sizes
+from swe_sphere.grid.schmidt import schmidt_cube
 from swe_sphere.io.run_file import CELLS_NOTE
 from swe_sphere.simulation.simulation import Simulation
 
@@ -170,3 +172,36 @@ def test_run_file_on_a_mesh_file_has_no_cells_yet(tmp_path, capsys, cube_file):
         assert ds.sizes["ncol"] == 24 * 9 + 2 and "mesh_dual" not in ds.variables
         assert ds.attrs["cells"] == CELLS_NOTE
         assert (ds.h.attrs["mesh"], ds.h.attrs["location"]) == ("mesh_topology", "node")
+
+
+def test_a_run_on_a_mesh_prints_homme_print_cfl_figures(tmp_path, capsys):
+    """At start, on the ne2 cube stretched 3x toward the north pole: the Dinv-based spacing
+    (dx_short min to dx_long max), the largest distortion (21.4: a warning line, above
+    HOMME's 4), the area ratio and the worst element's Courant numbers, as
+    ``quality.element_sizes`` gives them; a uniform cube prints none of it."""
+    args = ["--ne", "2", "--dt", "300", "--days", "0.125", "--no-progress"]
+    stretched = ["-s", "grid.stretch_factor=3.0", "--output", str(tmp_path / "s.nc")]
+    assert main(["run", "tc2_steady", *args, *stretched]) == 0
+    out, err = capsys.readouterr()
+    s = element_sizes(CubedSphere(2, 4, mesh=schmidt_cube(2, 3.0))).summary()
+    assert s["distortion_max"] == pytest.approx(21.41, abs=0.01)
+    mesh_lines = [line for line in out.splitlines() if line.startswith("mesh ")]
+    assert mesh_lines[0].endswith(
+        f"{s['dx_short_min'] / 1e3:.1f} to {s['dx_long_max'] / 1e3:.1f} km (dx_short mean "
+        f"{s['dx_short_mean'] / 1e3:.1f} km), largest distortion {s['distortion_max']:.2f}, area ratio {s['area_ratio']:.2f}"
+    )
+    assert f"worst element {s['worst'] + 1} " in mesh_lines[1] and "Courant gravity-wave" in mesh_lines[1]
+    warnings = [line for line in err.splitlines() if "distorted" in line]
+    assert len(warnings) == 1 and f"{s['distortion_max']:.2f}x" in warnings[0]
+    assert main(["run", "tc2_steady", *args, "--output", str(tmp_path / "c.nc")]) == 0
+    out, err = capsys.readouterr()
+    assert "mesh " not in out and "distorted" not in err
+
+
+def test_a_stretch_that_folds_an_element_is_one_line(tmp_path, capsys):
+    """The ne2 cube stretched 5x: the element-local map folds the elements at the antipode
+    (their corners span most of a hemisphere): one line naming the element, exit 2."""
+    code = main(["run", "tc2_steady", "--ne", "2", "-s", "grid.stretch_factor=5.0", "--output", str(tmp_path / "o.nc")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "the map folds in element 21" in err[0], err
+    assert not (tmp_path / "o.nc").exists()

@@ -634,8 +634,11 @@ def load_scene(
     elif (ne0, np0, record0) == (ne1, np1, record1):
         min_ratio = scale
     else:
-        old = smallest_dx(ne0, np0, grid_spec.build_mesh(ne0, record0))
-        new = smallest_dx(ne1, np1, grid_spec.build_mesh(ne1, record1))
+        try:
+            old = smallest_dx(ne0, np0, grid_spec.build_mesh(ne0, record0))
+            new = smallest_dx(ne1, np1, grid_spec.build_mesh(ne1, record1))
+        except ValueError as err:  # a stretch that folds an element
+            raise SceneError(f"{grid_spec.describe(ne1, np1, record1)}: {err}") from None
         min_ratio = new / old * scale
 
     t = s.get("time", {})

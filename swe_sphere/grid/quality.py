@@ -44,15 +44,18 @@ class ElementSizes:
 
     def summary(self) -> dict:
         """The figures HOMME prints at start (over the elements held: a rank's part, or all):
-        dx_short min/mean/max (m), the largest distortion, the area ratio max/min and the
-        largest σ_max (1/m)."""
+        dx_short min/mean/max and the largest dx_long (m), the largest distortion, the area
+        ratio max/min, the largest σ_max (1/m) and the element that has it (``worst``: the one
+        that sets the explicit step; an index into the elements held)."""
         return {
             "dx_short_min": float(self.dx_short.min()),
             "dx_short_mean": float(self.dx_short.mean()),
             "dx_short_max": float(self.dx_short.max()),
+            "dx_long_max": float(self.dx_long.max()),
             "distortion_max": float(self.distortion.max()),
             "area_ratio": float(self.area.max() / self.area.min()),
             "norm_dinv_max": float(self.norm_dinv.max()),
+            "worst": int(np.argmax(self.norm_dinv)),
         }
 
 

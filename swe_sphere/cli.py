@@ -853,7 +853,7 @@ def _cmd_plot(args) -> int:
 
 
 def _cmd_remap(args) -> int:
-    from .io.remap import latlon_grid, open_netcdf, remap_file, run_grid
+    from .io.remap import grid_name, latlon_grid, open_netcdf, remap_file, run_grid
     from .io.run_file import check_distinct, check_target
 
     output = args.output or Path(f"{args.run.stem}_latlon{args.resolution:g}.nc")
@@ -865,9 +865,7 @@ def _cmd_remap(args) -> int:
     with open_netcdf(args.run) as ds:
         grid = run_grid(ds)
     remap_file(args.run, args.resolution, output, overwrite=args.overwrite)
-    print(
-        f"{output}: ne={grid.ne} np={grid.np} -> {lat.size} x {lon.size} lat-lon points ({args.resolution:g} degrees)"
-    )
+    print(f"{output}: {grid_name(grid)} -> {lat.size} x {lon.size} lat-lon points ({args.resolution:g} degrees)")
     return 0
 
 

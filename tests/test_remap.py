@@ -14,7 +14,7 @@ import xarray as xr
 from scipy.spatial import cKDTree
 
 from swe_sphere.cli import main
-from swe_sphere.grid.cubed_sphere import _FACES
+from swe_sphere.grid.cubed_sphere import FACES
 from swe_sphere.io.remap import Remapper, lagrange_basis, latlon_grid, locate, remap_dataset
 
 import roundoff
@@ -43,8 +43,8 @@ def node_angles(grid):
 def point_angles(lat, lon):
     """(face, α, β) of points, independently of remap.locate: α = atan2(P·ea, P·c)."""
     P = cartesian(lat, lon)
-    face = np.argmax(P @ _FACES[:, 0].T, axis=1)
-    c, ea, eb = _FACES[face, 0], _FACES[face, 1], _FACES[face, 2]
+    face = np.argmax(P @ FACES[:, 0].T, axis=1)
+    c, ea, eb = FACES[face, 0], FACES[face, 1], FACES[face, 2]
     pc = np.einsum("ij,ij->i", P, c)
     return face, np.arctan2(np.einsum("ij,ij->i", P, ea), pc), np.arctan2(np.einsum("ij,ij->i", P, eb), pc)
 
@@ -70,7 +70,7 @@ def test_locate_inverts_the_grid(grid_factory, ne, np_):
     d = math.pi / 2 / ne
     alpha = -math.pi / 4 + (ia + (xi + 1) / 2) * d
     beta = -math.pi / 4 + (jb + (eta + 1) / 2) * d
-    P = _FACES[face, 0] + np.tan(alpha)[:, None] * _FACES[face, 1] + np.tan(beta)[:, None] * _FACES[face, 2]
+    P = FACES[face, 0] + np.tan(alpha)[:, None] * FACES[face, 1] + np.tan(beta)[:, None] * FACES[face, 2]
     P /= np.linalg.norm(P, axis=1)[:, None]
     assert np.abs(P - grid.xyz.T).max() < 1e-14
     # nodes inside an element are found in their own element at their own (ξ, η)

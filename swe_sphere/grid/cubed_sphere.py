@@ -25,7 +25,8 @@ from .mesh import Mesh
 
 # Face k: centre c, in-face axes (ea, eb) with c × ea = eb, so every face is
 # seen counter-clockwise from outside and metdet > 0 in the (east, north) basis.
-_FACES = np.array(
+# FACES[k] = (c, ea, eb) (6, 3, 3): the equiangular map's faces, for those that invert it (remap).
+FACES = np.array(
     [
         [[1, 0, 0], [0, 1, 0], [0, 0, 1]],
         [[0, 1, 0], [-1, 0, 0], [0, 0, 1]],
@@ -172,7 +173,7 @@ def _lattice_groups(ne: int, npts: int, elements: np.ndarray, positions: np.ndar
     jb, ia = np.divmod(rest, ne)
     k = ia[:, None] * (npts - 1) + positions % npts
     l = jb[:, None] * (npts - 1) + positions // npts
-    F, key = _FACES.astype(np.int64), np.zeros(k.shape, dtype=np.int64)
+    F, key = FACES.astype(np.int64), np.zeros(k.shape, dtype=np.int64)
     for d in range(3):  # the point's coordinates Q_d in [0, 2M], one at a time (memory)
         key = key * (2 * M + 1) + (
             M * F[face, 0, d, None] + (2 * k - M) * F[face, 1, d, None] + (2 * l - M) * F[face, 2, d, None] + M
@@ -294,8 +295,8 @@ class EquiangularMap:
         alpha, beta, face, P = _equiangular(self.ne, e, self.rule.points[i], self.rule.points[j])
         return (
             P,
-            _FACES[face, 1] / np.cos(alpha)[:, None] ** 2,
-            _FACES[face, 2] / np.cos(beta)[:, None] ** 2,
+            FACES[face, 1] / np.cos(alpha)[:, None] ** 2,
+            FACES[face, 2] / np.cos(beta)[:, None] ** 2,
             self.factor,
         )
 
@@ -309,7 +310,7 @@ def _equiangular(ne: int, e: np.ndarray, xi: np.ndarray, eta: np.ndarray):
     dalpha = math.pi / 2 / ne
     alpha = edges[ia] + (xi + 1) * dalpha / 2
     beta = edges[jb] + (eta + 1) * dalpha / 2
-    c, ea, eb = _FACES[face, 0], _FACES[face, 1], _FACES[face, 2]
+    c, ea, eb = FACES[face, 0], FACES[face, 1], FACES[face, 2]
     return alpha, beta, face, c + np.tan(alpha)[:, None] * ea + np.tan(beta)[:, None] * eb
 
 
@@ -323,8 +324,8 @@ def reference_to_sphere(ne: int, e: np.ndarray, xi: np.ndarray, eta: np.ndarray)
 def cube_element(ne: int, xyz: np.ndarray) -> np.ndarray:
     """(n,) int64: the element e = face·ne² + jb·ne + ia of the ne equiangular cube that
     holds each point xyz (n, 3) (unit or not; on an element edge, either side)."""
-    face = np.argmax(xyz @ _FACES[:, 0].T, axis=1)
-    c, ea, eb = (np.einsum("ni,ni->n", xyz, _FACES[face, k]) for k in range(3))
+    face = np.argmax(xyz @ FACES[:, 0].T, axis=1)
+    c, ea, eb = (np.einsum("ni,ni->n", xyz, FACES[face, k]) for k in range(3))
     cell = [
         np.clip(np.floor((np.arctan2(t, c) / (math.pi / 2) + 0.5) * ne), 0, ne - 1).astype(np.int64) for t in (ea, eb)
     ]

@@ -4,7 +4,7 @@ Each element's ``np``×``np`` GLL nodes span ``(np−1)²`` quadrilateral sub-ce
 over the sphere that is ``nface = 6·ne²·(np−1)²`` quads on the ``nunique``
 unique nodes (the ``ncol`` of the run file), every node a corner of at least one
 quad. Corners are ordered counter-clockwise as seen from outside the sphere
-(the face axes of ``grid._FACES`` satisfy c × ea = eb, so increasing ξ then η
+(the face axes of ``grid.FACES`` satisfy c × ea = eb, so increasing ξ then η
 turns counter-clockwise). Written into every run file by ``output.RunWriter``
 as a UGRID-1.0 ``mesh_topology`` (Jacobsen et al., UGRID conventions), beside the
 dual mesh of control volumes (``dual``) that the fields live on.

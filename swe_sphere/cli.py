@@ -633,9 +633,10 @@ def _mesh_lines(sim) -> list[str]:
     from .model.diagnostics import worst_element_courant
 
     u, v, h = sim.fields()
+    Dinv = sim.topology.gather(sim.topology.grid.Dinv)  # rank 0's whole grid is gathered, without a metric
     if not sim.root:
         return []
-    sizes = element_sizes(sim.grid)
+    sizes = element_sizes(sim.grid, Dinv)
     s, scene = sizes.summary(), sim.scene
     c = worst_element_courant(sim.grid, sizes, u, v, h, scene.dt, sim.g, "pressure_gradient" in scene.terms)
     grav = "" if math.isnan(c["courant_gravity"]) else f"gravity-wave {c['courant_gravity']:.3f}, "

@@ -59,9 +59,11 @@ class ElementSizes:
         }
 
 
-def element_sizes(grid) -> ElementSizes:
-    """The ``ElementSizes`` of the elements ``grid`` (a ``CubedSphere``) holds."""
-    large, small = dinv_singular_values(grid.Dinv)
+def element_sizes(grid, Dinv: np.ndarray | None = None) -> ElementSizes:
+    """The ``ElementSizes`` of the elements ``grid`` (a ``CubedSphere``) holds; ``Dinv`` (4, N):
+    the grid's, for a grid that holds none (rank 0's gathered whole grid,
+    ``topology.GatheredGrid``: ``Topology.gather`` of the parts' Dinv)."""
+    large, small = dinv_singular_values(grid.Dinv if Dinv is None else Dinv)
     per_element = (grid.nelem, grid.np * grid.np)
     sigma_max = large.reshape(per_element).max(axis=1)
     sigma_min = small.reshape(per_element).min(axis=1)

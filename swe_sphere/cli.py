@@ -434,7 +434,7 @@ def _cmd_sweep(args) -> int:
                 if abs(round(length * 86400 / dt) * dt - length * 86400) > 1e-6 * dt:
                     raise ValueError(f"dt = {dt:g} s does not divide the run length of {length:g} days")
             print(
-                f"sweep {base.name} ne={base.ne} np={base.np}, {f'day {base.start_day:g} to ' if ck else ''}{base.days:g} days; explicit limits: gravity-wave dt = "
+                f"sweep {base.name} {base.grid_text}, {f'day {base.start_day:g} to ' if ck else ''}{base.days:g} days; explicit limits: gravity-wave dt = "
                 f"{limits['dt_gravity']:.1f} s, advective dt = {limits['dt_advective']:.1f} s; dt = {', '.join(f'{d:.4g}' for d in dts)}"
             )
             if ck is not None:

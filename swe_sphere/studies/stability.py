@@ -140,7 +140,7 @@ def run_suite(
                 scene_name, ne=case_ne or ne, np=np, days=case_days or days, stepper=stepper, overrides=overrides
             )
             scene = dataclasses.replace(scene, name=label)
-            log(f"{label}: {stepper} on ne={scene.ne} np={scene.np}, {scene.days:g} days")
+            log(f"{label}: {stepper} on {scene.grid_text}, {scene.days:g} days")
             futures.append(pool.submit(largest_stable_dt, scene, device, log=log))
     return [f.result() for f in futures]
 

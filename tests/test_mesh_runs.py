@@ -241,3 +241,21 @@ def test_remap_of_a_smooth_field_on_a_stretched_cube():
         exact = smooth(np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat))
         errors[np_] = np.max(np.abs(Remapper(grid, lat, lon)(values) - exact))
     assert errors[4] < 1e-2 and errors[6] < errors[4] / 20, errors
+
+
+def test_default_file_names_and_headers_say_the_mesh(cube_file):
+    """A run's default file name (``Scene.grid_label``) and header (``grid_text``) tell the
+    meshes apart; the uniform cube's are as before."""
+    scenes = {
+        "ne2": load_scene("tc2_steady", ne=2),
+        "ne2map2": load_scene("tc2_steady", ne=2, overrides={"grid.map": "element_local"}),
+        "ne2c1.5": load_scene("tc2_steady", ne=2, overrides={"grid.stretch_factor": 1.5}),
+        "cube2": load_scene("tc2_steady", mesh=cube_file),
+    }
+    assert {label: s.grid_label for label, s in scenes.items()} == {label: label for label in scenes}
+    assert [s.grid_text for s in scenes.values()] == [
+        "ne=2 np=4",
+        "ne=2 np=4 element-local",
+        "ne=2 np=4 stretched 1.5x toward (90, 0)",
+        "mesh cube2.g np=4",
+    ]

@@ -179,7 +179,8 @@ class Scene:
 
     @property
     def grid_label(self) -> str:
-        """The grid's part of a default file name: ``ne4``, ``ne4c2.5``, a mesh file's stem."""
+        """The grid's part of a default file name: ``ne4``, ``ne4map2``, ``ne4c2.5``, a mesh
+        file's stem (``grid.spec.label``)."""
         return grid_spec.label(self.ne, self.mesh)
 
     @property

@@ -75,13 +75,13 @@ def mean_ne(ne: int, record: dict | None) -> float:
 
 
 def label(ne: int, record: dict | None) -> str:
-    """The grid's part of a default file name: ``ne4``, ``ne4c2.5`` (stretched by 2.5), or a
-    mesh file's stem."""
+    """The grid's part of a default file name: ``ne4``, ``ne4map2`` (the element-local map,
+    HOMME's ``cubed_sphere_map = 2``), ``ne4c2.5`` (stretched by 2.5), or a mesh file's stem."""
     if record is not None and "file" in record:
         return Path(record["file"]).stem
     if record is not None and "stretch_factor" in record:
         return f"ne{ne}c{record['stretch_factor']:g}"
-    return f"ne{ne}"
+    return f"ne{ne}" if record is None else f"ne{ne}map2"
 
 
 def describe(ne: int, np: int, record: dict | None) -> str:

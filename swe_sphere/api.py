@@ -26,8 +26,8 @@ def run(
 
     ``scene``: a scene file, the name of a bundled scene ("tc5_mountain") or a
     ``config.Scene``. ``overrides`` as on the command line: ``ne``, ``np``,
-    ``dt`` (s), ``days``, ``stepper`` (dt and ν rescale with a new grid as for
-    ``--ne``), and any scene value by its table, e.g. ``hyperviscosity={"nu":
+    ``dt`` (s), ``days``, ``stepper``, ``mesh`` (an Exodus II file, as ``--mesh``; dt and ν
+    rescale with a new grid as for ``--ne``), and any scene value by its table, e.g. ``hyperviscosity={"nu":
     5e14}``, ``implicit={"preconditioner": "helmholtz"}``, ``output={"every_days":
     0.25}``, ``terms=[...]``, ``planet={"radius": 637122.0, "omega": 7.292e-4}``
     (m, s⁻¹; ``gravity`` in m s⁻²: a planet of one's own, see ``config``); all

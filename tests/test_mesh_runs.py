@@ -18,6 +18,7 @@ from swe_sphere.cli import main
 from swe_sphere.config.scene import efold_nu, load_scene
 from swe_sphere.core.constants import DAY
 from swe_sphere.core.errors import SceneError
+from swe_sphere.core.runtime import run_bytes
 from swe_sphere.grid.cubed_sphere import CubedSphere, cube_mesh
 from swe_sphere.grid.mesh import write_exodus
 from swe_sphere.grid.quality import element_sizes
@@ -83,10 +84,13 @@ def test_tc2_on_a_stretched_cube(tmp_path):
     assert np.array_equal(unstretched.x.numpy(), local.x.numpy())
 
 
-def test_the_efold_rule_is_stated_at_the_mean_spacing(cube_file):
+def test_the_efold_rule_and_memory_estimate_on_a_mesh_file(cube_file):
     """ν from efold_hours on a mesh file is the uniform cube's of as many elements (√(F/6))."""
     on_file = load_scene("tc5_mountain", mesh=cube_file)
     assert on_file.nu == efold_nu(3.0, 2, 4, 6.37122e6) == load_scene("tc5_mountain", ne=2).nu
+    # and the memory estimate counts the file's 24 elements as the ne2 cube's
+    need = run_bytes(on_file.ne, on_file.np, on_file.stepper, nelem=on_file.nelem)
+    assert on_file.ne == 0 and need == run_bytes(2, 4, on_file.stepper) > 0
 
 
 def test_restart_on_a_mesh_file_is_bitwise_and_refuses_another_mesh(cube_file, tmp_path, capsys):

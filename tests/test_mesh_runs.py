@@ -11,7 +11,7 @@ import json
 import numpy as np
 import pytest
 import xarray as xr
-from meshes import icosahedral_mesh
+from meshes import MOUNTAIN, icosahedral_mesh
 
 from swe_sphere.cases.library import make_case
 from swe_sphere.cli import main
@@ -263,3 +263,27 @@ def test_default_file_names_and_headers_say_the_mesh(cube_file):
         "ne=2 np=4 stretched 1.5x toward (90, 0)",
         "mesh cube2.g np=4",
     ]
+
+
+MESHES_BESIDE_CUBES = {  # mesh: (its .g, the uniform cube of about as many elements, bound on the l2(h) ratio)
+    "icosahedral": (None, 6, 3.5),  # 240 elements, nodes of 3 to 6, against ne6's 216: 2.81x measured
+    "mountain_10_x2": (MOUNTAIN, 10, 2.5),  # ne10 refined 2x against its ne10 base: 1.90x (HOMME too is worse)
+}
+
+
+@pytest.mark.roundoff
+@pytest.mark.parametrize("name", MESHES_BESIDE_CUBES)
+def test_tc2_on_meshes_beyond_the_cube(tmp_path, name):
+    """TC2 for 2 hours through ``--mesh``'s path on the project's icosahedral quadrilaterals
+    (written to a .g) and on E3SM's mountain_10_x2.g (skipped where absent): mass to
+    round-off, and h's l2 error within a bound of the uniform cube's of about as many
+    elements (measured: 2.81x ne6's, 1.90x ne10's)."""
+    path, ne, bound = MESHES_BESIDE_CUBES[name]
+    if path is None:
+        path = write_exodus(tmp_path / "ico.g", icosahedral_mesh(1))
+    elif not path.is_file():
+        pytest.skip(f"{path} is not beside the checkout")
+    sim, result = run(tc2(mesh=path))
+    _, cube = run(tc2(ne=ne))
+    assert result.diagnostics[H_L2] < bound * cube.diagnostics[H_L2], (result.diagnostics[H_L2], cube.diagnostics[H_L2])
+    roundoff.mass_kept(result.history, sim.grid.npts)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 
 import numpy as np
 import pytest
@@ -20,8 +21,8 @@ from swe_sphere.core.constants import DAY
 from swe_sphere.core.errors import SceneError
 from swe_sphere.core.runtime import run_bytes
 from swe_sphere.grid.cubed_sphere import CubedSphere, cube_mesh
-from swe_sphere.grid.mesh import write_exodus
-from swe_sphere.grid.quality import element_sizes
+from swe_sphere.grid.mesh import read_exodus, write_exodus
+from swe_sphere.grid.quality import element_sizes, smallest_dx
 from swe_sphere.grid.schmidt import schmidt_cube
 from swe_sphere.io.remap import Remapper, latlon_grid, remap_dataset
 from swe_sphere.io.run_file import CELLS_NOTE
@@ -287,3 +288,12 @@ def test_tc2_on_meshes_beyond_the_cube(tmp_path, name):
     _, cube = run(tc2(ne=ne))
     assert result.diagnostics[H_L2] < bound * cube.diagnostics[H_L2], (result.diagnostics[H_L2], cube.diagnostics[H_L2])
     roundoff.mass_kept(result.history, sim.grid.npts)
+
+
+def test_dt_scales_with_the_smallest_dinv_spacing(cube_file):
+    """tc2_steady's 300 s at ne16 np4, on the ne2 cube file: scaled by the ratio of the two
+    grids' smallest dx_short (HOMME's Dinv-based length), then cut to divide the day."""
+    ratio = smallest_dx(0, 4, read_exodus(cube_file)) / smallest_dx(16, 4)
+    assert ratio == pytest.approx(6.24, abs=0.01)
+    scene = load_scene("tc2_steady", mesh=cube_file)
+    assert scene.dt == DAY / math.ceil(DAY / (300 * ratio)) == DAY / 47

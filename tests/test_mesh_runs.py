@@ -24,6 +24,8 @@ from swe_sphere.grid.cubed_sphere import CubedSphere, cube_mesh
 from swe_sphere.grid.mesh import read_exodus, write_exodus
 from swe_sphere.grid.quality import element_sizes, smallest_dx
 from swe_sphere.grid.schmidt import schmidt_cube
+from swe_sphere.grid.spec import file_sha256
+from swe_sphere.io import restart_file
 from swe_sphere.io.remap import Remapper, latlon_grid, remap_dataset
 from swe_sphere.io.run_file import CELLS_NOTE
 from swe_sphere.simulation.simulation import Simulation
@@ -102,6 +104,8 @@ def test_restart_on_a_mesh_file_is_bitwise_and_refuses_another_mesh(cube_file, t
     straight, _ = run(scene)
     first, _ = run(dataclasses.replace(scene, days=3 * DT / DAY))
     restart = first.write_checkpoint(tmp_path / "r.restart.nc")
+    recorded = restart_file.read(restart)["scene"]["mesh"]
+    assert recorded == {"map": "element_local", "file": str(cube_file), "sha256": file_sha256(cube_file), "nelem": 24}
     continued = Simulation.from_checkpoint(restart, "cpu", days=scene.days, progress=False)
     assert continued.scene.mesh == scene.mesh and continued.step == 3
     continued.run(None)

@@ -50,8 +50,9 @@ def run(
     graphs : {"auto", "on", "off"} or bool, optional
         Steps as captured graphs (``Simulation``'s; default ``SWE_SPHERE_GRAPHS``, else "auto").
     **overrides
-        As on the command line: ``ne``, ``np``, ``dt`` (s), ``days``, ``stepper`` (dt
-        and ν rescale with a new grid as for ``--ne``), and any scene value by its
+        As on the command line: ``ne``, ``np``, ``dt`` (s), ``days``, ``stepper``,
+        ``mesh`` (an Exodus II file, as ``--mesh``; dt and ν rescale with a new grid as
+        for ``--ne``), and any scene value by its
         table, e.g. ``hyperviscosity={"nu": 5e14}``, ``implicit={"preconditioner":
         "helmholtz"}``, ``output={"every_days": 0.25}``, ``terms=[...]``,
         ``planet={"radius": 637122.0, "omega": 7.292e-4}`` (m, s⁻¹; ``gravity`` in

@@ -75,6 +75,12 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("scene", nargs="?", help="scene file, e.g. testcases/tc5_mountain.toml, or a bundled scene name")
     r.add_argument("--ne", type=int, help="elements along a cube edge")
     r.add_argument("--np", type=int, help="GLL points per element direction (2..8)")
+    r.add_argument(
+        "--mesh",
+        type=Path,
+        metavar="FILE.g",
+        help="run on this Exodus II mesh (HOMME's mesh_file, ne = 0) instead of the scene's grid",
+    )
     r.add_argument("--dt", type=float, help="time step in seconds")
     r.add_argument("--days", type=float, help="run length in days")
     r.add_argument("--stepper", help="time stepper (see `swe-sphere list`)")
@@ -423,6 +429,10 @@ def _continued(args, device, comm):
             raise CheckpointError(
                 f"{args.continue_from} is a run with {flag.lstrip('-')} = {have}; it cannot continue with {flag} {value}"
             )
+    if args.mesh is not None:
+        raise CheckpointError(
+            f"{args.continue_from} is a run on {ck.scene.grid_text}; it continues on its own mesh, not on --mesh {args.mesh}"
+        )
     if args.set:
         raise CheckpointError("-s cannot change a checkpointed scene")
     if args.scene is not None:
@@ -459,17 +469,18 @@ def _continued(args, device, comm):
 
 def _default_output(name, given: dict, scene) -> Path:
     """The run file's default name, in the working folder:
-    ``<scene>_ne<ne>np<np>_<stepper>[_a<radius>][_omega<Ω>][_g<gravity>][_<days>d][_dt<dt>].nc``,
+    ``<scene>_<grid>np<np>_<stepper>[_a<radius>][_omega<Ω>][_g<gravity>][_<days>d][_dt<dt>].nc``,
     where the planet's values (SI units) appear when they are not the scene file's, the
     run length when it is not the scene file's, and Δt when one was given (``--dt``,
     ``-s time.dt``) that is not the one the scene would take itself for that grid and
     length. Runs of a scene that differ in these get different files, so a page's
-    commands run in order do not meet "output file exists". ``name``: the scene as
+    commands run in order do not meet "output file exists". ``<grid>``: ``ne<ne>``, or
+    the mesh's label (``Scene.grid_label``: the mesh file's stem, ``ne4c2.5``, …). ``name``: the scene as
     given; ``given``: ``load_scene``'s keywords that made ``scene``."""
     from .config.scene import load_scene
 
     overrides = given["overrides"]
-    parts = [f"{scene.name}_ne{scene.ne}np{scene.np}_{scene.stepper}"]
+    parts = [f"{scene.name}_{scene.grid_label}np{scene.np}_{scene.stepper}"]
     try:
         own = load_scene(name)  # the file as it is
     except SceneError:  # a file that loads only with the overrides: nothing of its own to differ from
@@ -521,7 +532,13 @@ def _cmd_run(args) -> int:
         if args.scene is None:
             raise ValueError("run needs a SCENE (or --continue CHECKPOINT)")
         given = dict(
-            ne=args.ne, np=args.np, dt=args.dt, days=args.days, stepper=args.stepper, overrides=_overrides(args.set)
+            ne=args.ne,
+            np=args.np,
+            dt=args.dt,
+            days=args.days,
+            stepper=args.stepper,
+            mesh=args.mesh,
+            overrides=_overrides(args.set),
         )
         scene = load_scene(args.scene, **given)
         output = args.output or _default_output(args.scene, given, scene)
@@ -551,6 +568,43 @@ def _cmd_run(args) -> int:
         return _run(args, scene, output, device, comm)
 
 
+MAX_DISTORTION = 4.0  # HOMME's print_cfl warns of elements more distorted than this (dx_long / dx_short)
+
+
+def _mesh_lines(sim) -> list[str]:
+    """HOMME's ``print_cfl`` figures of a run's mesh (rank 0; [] on the others; call on every
+    rank): the Dinv-based node spacing (``grid.quality``), the largest distortion (a warning
+    line above ``MAX_DISTORTION``), the area ratio and the worst element's Courant numbers."""
+    from .grid.quality import element_sizes
+    from .io.run_file import CELLS_NOTE
+    from .model.diagnostics import worst_element_courant
+
+    u, v, h = sim.fields()
+    Dinv = sim.topology.gather(sim.topology.grid.Dinv)  # rank 0's whole grid is gathered, without a metric
+    if not sim.root:
+        return []
+    sizes = element_sizes(sim.grid, Dinv)
+    s, scene = sizes.summary(), sim.scene
+    c = worst_element_courant(sim.grid, sizes, u, v, h, scene.dt, sim.g, "pressure_gradient" in scene.terms)
+    grav = "" if math.isnan(c["courant_gravity"]) else f"gravity-wave {c['courant_gravity']:.3f}, "
+    lines = [
+        f"mesh        node spacing (Dinv-based) {s['dx_short_min'] / 1e3:.1f} to {s['dx_long_max'] / 1e3:.1f} km "
+        f"(dx_short mean {s['dx_short_mean'] / 1e3:.1f} km), largest distortion {s['distortion_max']:.2f}, "
+        f"area ratio {s['area_ratio']:.2f}",
+        f"mesh        worst element {s['worst'] + 1} (dx_short {sizes.dx_short[s['worst']] / 1e3:.1f} km): Courant "
+        f"{grav}advective {c['courant_advective']:.3f} (dt / dx_short)",
+    ]
+    if s["distortion_max"] > MAX_DISTORTION:
+        e = int(sizes.distortion.argmax())
+        lines.append(
+            f"swe-sphere: warning: element {e + 1} is distorted {s['distortion_max']:.2f}x (dx_long / dx_short, above "
+            f"HOMME's {MAX_DISTORTION:g}): its spacing is uneven and it sets a short explicit step"
+        )
+    if sim.grid.mesh is not None:
+        lines.append(f"note        {CELLS_NOTE}")
+    return lines
+
+
 def _run(args, scene, output, device, comm) -> int:
     from tqdm import tqdm
 
@@ -575,9 +629,10 @@ def _run(args, scene, output, device, comm) -> int:
         restart_steps(scene, args.restart_every)  # checks the interval before the run
     c = sim.courant()
     dx = -sim.topology.max(-float(sim.topology.grid.dx.min()))
+    mesh_lines = _mesh_lines(sim) if scene.mesh is not None else []  # every rank: it gathers the state
     print(f"scene       {scene.name}: {scene.description}")
     print(
-        f"grid        ne={scene.ne} np={scene.np}: {6 * scene.ne**2} elements, {sim.topology.grid.nunique} unique nodes, "
+        f"grid        {scene.grid_text}: {scene.nelem} elements, {sim.topology.grid.nunique} unique nodes, "
         f"min node spacing {dx / 1e3:.1f} km"
     )
     if scene.planet != EARTH.as_table():
@@ -586,6 +641,8 @@ def _run(args, scene, output, device, comm) -> int:
             f"planet      radius {p['radius']:g} m, omega {p['omega']:g} 1/s, gravity {p['gravity']:g} m/s^2 "
             f"(the Earth's: {EARTH.a:g} m, {EARTH.omega:g} 1/s, {EARTH.g:g} m/s^2)"
         )
+    for line in mesh_lines:
+        print(line, file=sys.stderr if line.startswith("swe-sphere: warning") else sys.stdout)
     print(
         f"terms       {', '.join(scene.terms)}"
         + (f" (nu = {scene.nu:.3g} m^4/s, subcycle {scene.hypervis_subcycle})" if scene.nu else "")
@@ -754,7 +811,7 @@ def _cmd_plot(args) -> int:
 
 
 def _cmd_remap(args) -> int:
-    from .io.remap import latlon_grid, open_netcdf, remap_file, run_grid
+    from .io.remap import grid_name, latlon_grid, open_netcdf, remap_file, run_grid
     from .io.run_file import check_distinct, check_target
 
     output = args.output or Path(f"{args.run.stem}_latlon{args.resolution:g}.nc")
@@ -766,9 +823,7 @@ def _cmd_remap(args) -> int:
     with open_netcdf(args.run) as ds:
         grid = run_grid(ds)
     remap_file(args.run, args.resolution, output, overwrite=args.overwrite)
-    print(
-        f"{output}: ne={grid.ne} np={grid.np} -> {lat.size} x {lon.size} lat-lon points ({args.resolution:g} degrees)"
-    )
+    print(f"{output}: {grid_name(grid)} -> {lat.size} x {lon.size} lat-lon points ({args.resolution:g} degrees)")
     return 0
 
 

@@ -2,7 +2,8 @@
 order, in one fresh folder (as a user on a fresh clone: ``testcases/`` beside it),
 with one change: each ``swe-sphere run | sweep | stability`` and each Python
 ``ne=`` runs at a tiny grid (``--ne`` / ``ne=`` set to ``NE``, added where a scene's
-own grid would be used, and default file names ``*_ne<N>np*`` to match). Left out, with the reason: ``pip install`` and
+own grid would be used but for a run on a ``--mesh`` file, and default file names
+``*_ne<N>np*`` to match). Left out, with the reason: ``pip install`` and
 ``python -m pytest`` (this test runs inside them), ``mpiexec`` lines (MPI tests:
 tests/test_mpi.py) and ``--device cuda`` lines (tests/test_cuda.py). README.md is
 in the default run; docs/*.md are ``slow``, but for ``PAGES_LEFT_OUT``."""
@@ -39,7 +40,7 @@ def shell_line(line: str) -> str | None:
         if GRID_COMMAND.match(command):
             if "--ne" in command.split():
                 command = re.sub(r"--ne\s+\d+", f"--ne {NE}", command)
-            elif "--continue" not in command and "--from" not in command:
+            elif not {"--continue", "--from", "--mesh"} & set(command.split()):
                 command += f" --ne {NE}"
         parts.append(re.sub(r"_ne\d+np", f"_ne{NE}np", command))  # a default file name says the grid
     return " && ".join(parts) or None
@@ -87,6 +88,7 @@ def test_shell_lines_are_shortened_only_in_their_grid():
         shell_line("swe-sphere run --continue r.restart.nc --days 20")
         == "swe-sphere run --continue r.restart.nc --days 20"
     )
+    assert shell_line("swe-sphere run tc2_steady --mesh x.g") == "swe-sphere run tc2_steady --mesh x.g"
     assert shell_line("swe-sphere plot tc5.nc --day 5") == "swe-sphere plot tc5.nc --day 5"
     assert (
         shell_line("swe-sphere plot tc2_steady_ne8np4_ssprk3.nc") == f"swe-sphere plot tc2_steady_ne{NE}np4_ssprk3.nc"

@@ -9,7 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mpi_mesh import final_state
-from test_mpi import mpirun_python, needs_mpi  # noqa: F401 (a fixture)
+from test_mpi import assert_same_bits, mpirun_python, needs_mpi  # noqa: F401 (a fixture)
+
+from swe_sphere.grid.cubed_sphere import cube_mesh
+from swe_sphere.grid.mesh import write_exodus
 
 
 @pytest.mark.usefixtures("needs_mpi")
@@ -23,3 +26,16 @@ def test_a_run_on_a_mesh_has_the_same_bits_on_any_rank_count(tmp_path, ranks):
         assert out["ranks"] == ranks
         assert np.array_equal(out["state"], one)
     assert np.abs(one[2]).max() > 0  # a state, not zeros
+
+
+@pytest.mark.usefixtures("needs_mpi")
+def test_a_run_on_a_mesh_file_has_the_same_bits_on_3_ranks(tmp_path):
+    """`swe-sphere run --mesh` on the project-written ne2 cube: the run file of 3 ranks (the
+    mesh's print_cfl figures gathered on rank 0) is the one process's, bit for bit."""
+    write_exodus(tmp_path / "cube2.g", cube_mesh(2))
+    args = ["-m", "swe_sphere.cli", "run", "tc5_mountain", "--mesh", "cube2.g", "--days", "0.25", "--no-progress"]
+    for ranks in (1, 3):
+        proc = mpirun_python(ranks, [*args, "--device", "cpu", "--output", f"r{ranks}.nc"], tmp_path)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        assert "worst element 18 " in proc.stdout
+    assert_same_bits(tmp_path / "r1.nc", tmp_path / "r3.nc")

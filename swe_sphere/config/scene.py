@@ -13,7 +13,13 @@ the run length, the output interval and the hyperviscosity. Layout::
                       instead of the case's bundled T213 one: a bundled truncation
                       or a file; ``reference.locate``)
     [dfi]             span_hours = 48.0, cutoff_hours = 24.0 (``initialization.DigitalFilter``)
-    [grid]            ne = 30, np = 4
+    [grid]            ne = 30, np = 4, and the mesh: the uniform cube of ne (the default),
+                      map = "equiangular" | "element_local" (the cube's map: HOMME's
+                      cubed_sphere_map 0 or 2), stretch_factor = 2.5, target_lat = 40.0,
+                      target_lon = 270.0 (degrees: the Schmidt-stretched cube of ne, FV3's
+                      do_schmidt; element-local), or mesh_file = "x.g" (an Exodus II mesh,
+                      relative to the scene file or absolute; ne = 0 as HOMME's, element-local);
+                      ``grid.spec`` records the choice in ``Scene.mesh``
     [time]            stepper = "leapfrog_trapezoidal", dt = 90.0, days = 15.0
     [output]          every_days = 1.0, log_every_steps = 0 (a line of invariant
                       changes and Courant numbers every so many steps; 0: none),
@@ -62,7 +68,9 @@ from ..cases.library import make_case
 from ..cases.reference import cases_of, locate, reference_path, stored_days
 from ..core.constants import DAY, EARTH, Planet
 from ..core.errors import SceneError
+from ..grid import spec as grid_spec
 from ..grid.gll import NP_MAX, NP_MIN, gll
+from ..grid.quality import smallest_dx
 from ..io.initial_state import SCENE_CASES
 from ..io.run_file import OUTPUT_FIELDS
 from ..model.shallow_water import TERMS
@@ -72,11 +80,15 @@ from ..steppers.initialization import METHODS, DigitalFilter
 HYPERVIS_EXPONENT = 3.2  # ν ∝ Δx^3.2 (HOMME's resolution scaling; Dennis et al. 2012)
 
 
-def efold_nu(hours: float, ne: int, np: int, radius: float) -> float:
+def efold_nu(hours: float, ne: float, np: int, radius: float) -> float:
     """ν (m⁴ s⁻¹) that e-folds a degree-L harmonic in ``hours``, L = 2 ne (np − 1)
     the Nyquist degree of the 4 ne (np − 1) nodes around a great circle:
     ν = a⁴ / (τ (L(L+1))²). The T213 references use the same rule (3 h at
-    l = 213: ν₄ = 7.34e13 m⁴ s⁻¹)."""
+    l = 213: ν₄ = 7.34e13 m⁴ s⁻¹). On a mesh the rule is stated at the mean
+    spacing: ne is that of the uniform cube with as many elements (``grid.spec.mean_ne``:
+    √(F/6) for a file of F elements; a stretched cube's own ne), so ν is the same for
+    the same element count, and elements smaller than the mean are damped faster, as
+    (mean spacing / their spacing)⁴."""
     L = 2 * ne * (np - 1)
     return radius**4 / (hours * 3600.0 * (L * (L + 1)) ** 2)
 
@@ -161,6 +173,8 @@ class Scene:
     output_fields: tuple = ()  # [output] fields: the node fields the run file holds; (): all (``OUTPUT_FIELDS``)
     # [[output.streams]]: more run files, each {"name": suffix, "every_days": interval, "fields": (...)}
     output_streams: tuple = ()
+    # the mesh ([grid] map, stretch_factor, mesh_file): a ``grid.spec`` record; None: the equiangular cube of ne
+    mesh: dict | None = None
 
     @property
     def start_day(self) -> float:
@@ -190,6 +204,27 @@ class Scene:
     def make_case(self):
         return make_case(self.case, self.case_params, Planet.from_table(self.planet), SCENE_CASES)
 
+    def make_mesh(self):
+        """The grid's ``Mesh`` for ``CubedSphere(ne, np, mesh=...)``, None for the equiangular
+        cube (``grid.spec.build_mesh``: ``SceneError`` for a mesh file gone or changed)."""
+        return grid_spec.build_mesh(self.ne, self.mesh)
+
+    @property
+    def nelem(self) -> int:
+        """Elements of the grid: 6·ne² on a cube, a mesh file's own count."""
+        return grid_spec.nelem(self.ne, self.mesh)
+
+    @property
+    def grid_text(self) -> str:
+        """The grid in words: ``ne=4 np=4``, ``mesh x.g np=4``... (``grid.spec.describe``)."""
+        return grid_spec.describe(self.ne, self.np, self.mesh)
+
+    @property
+    def grid_label(self) -> str:
+        """The grid's part of a default file name: ``ne4``, ``ne4map2``, ``ne4c2.5``, a mesh
+        file's stem (``grid.spec.label``)."""
+        return grid_spec.label(self.ne, self.mesh)
+
     @property
     def digital_filter(self) -> DigitalFilter | None:
         """The start's digital filter, or None for the case's own initial state."""
@@ -208,10 +243,10 @@ class Scene:
         return reference_path(self.make_case()) if Planet.from_table(self.planet) == EARTH else None
 
     def as_dict(self) -> dict:
-        """The scene as plain values (JSON-able); the output choices only when made, so a
-        scene without them reads as before they existed (run files, restart files)."""
+        """The scene as plain values (JSON-able); the output choices and the mesh only when
+        made, so a scene without them reads as before they existed (run files, restart files)."""
         d = dataclasses.asdict(self)
-        for key in ("output_fields", "output_streams"):
+        for key in ("output_fields", "output_streams", "mesh"):
             if not d[key]:
                 del d[key]
         return d
@@ -250,7 +285,15 @@ _SCHEMA = {
     "description": str,
     "terms": list,
     "case": dict,
-    "grid": {"ne": int, "np": int},
+    "grid": {
+        "ne": int,
+        "np": int,
+        "map": str,
+        "stretch_factor": float,
+        "target_lat": float,
+        "target_lon": float,
+        "mesh_file": str,
+    },
     "time": {"stepper": str, "dt": float, "days": float},
     "output": {"every_days": float, "log_every_steps": int, "fields": list, "streams": list},
     "hyperviscosity": {"efold_hours": float, "nu": float, "nu_div": float, "nu_s": float, "subcycle": int},
@@ -475,7 +518,38 @@ def _apply_overrides(raw: dict, overrides: dict) -> None:
             raw[name] = value
 
 
-def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, overrides: dict | None = None) -> Scene:
+def _grid_record(grid: dict, scene_path: Path) -> dict | None:
+    """The ``grid.spec`` record of a scene's [grid] table (``_SCHEMA``'s types
+    checked): ``mesh_file`` relative to the scene file's folder, read and checked here. Raises
+    ``SceneError`` naming the key."""
+    chosen = grid.get("map")
+    if chosen is not None and chosen not in grid_spec.MAPS:
+        raise SceneError(f"grid.map must be one of {', '.join(grid_spec.MAPS)} (got {chosen!r})")
+    stretch = [k for k in ("stretch_factor", "target_lat", "target_lon") if k in grid]
+    if "mesh_file" in grid:
+        if stretch:
+            raise SceneError(f"grid.{stretch[0]} stretches the cube; a mesh file is its own mesh (drop one)")
+        if chosen == "equiangular":
+            raise SceneError('grid.map = "equiangular" is the cube\'s map; a mesh file takes "element_local"')
+        given = Path(grid["mesh_file"]).expanduser()
+        return grid_spec.file_record(given if given.is_absolute() else scene_path.parent / given)
+    if stretch:
+        if "stretch_factor" not in grid:
+            raise SceneError(f"grid.{stretch[0]} needs grid.stretch_factor (the Schmidt-stretched cube)")
+        if chosen == "equiangular":
+            raise SceneError('grid.map = "equiangular" cannot stretch the cube; the stretched cube is "element_local"')
+        c, lat, lon = grid["stretch_factor"], grid.get("target_lat", 90.0), grid.get("target_lon", 0.0)
+        if not c >= 1:
+            raise SceneError(f"grid.stretch_factor must be >= 1 (got {c!r})")
+        if not -90 <= lat <= 90:
+            raise SceneError(f"grid.target_lat must be in [-90, 90] degrees (got {lat!r})")
+        return {"map": "element_local", "stretch_factor": c, "target_lat": lat, "target_lon": lon}
+    return {"map": "element_local"} if chosen == "element_local" else None
+
+
+def load_scene(
+    path, *, ne=None, np=None, dt=None, days=None, stepper=None, mesh=None, overrides: dict | None = None
+) -> Scene:
     """Read, validate and resolve a scene file, applying command-line overrides.
 
     Parameters
@@ -494,6 +568,11 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
         Run length (days).
     stepper : str, optional
         Time stepper (``steppers.STEPPERS``).
+    mesh : str or path, optional
+        An Exodus II file (relative to the current folder) to run on instead of the
+        scene's grid (``--mesh``; ne = 0); where the mesh differs from the scene file's,
+        dt scales with the smallest ``dx_short`` of the two (``quality.smallest_dx``) and
+        ν with the mean spacing (``grid.spec.mean_ne``).
     overrides : dict, optional
         ``{"section.key": value}`` set in the file's values before they are validated
         (``-s hyperviscosity.nu=5e14``), so they are checked like the file.
@@ -587,18 +666,46 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
         initialization = {"method": "dfi", **dataclasses.asdict(dfi)}
 
     grid = s.get("grid", {})
-    ne0, np0 = grid.get("ne", 16), grid.get("np", 4)
+    record0 = _grid_record(grid, path)  # the scene file's mesh (None: the equiangular cube)
+    on_file = record0 is not None and "file" in record0
+    ne0, np0 = grid.get("ne", 0 if on_file else 16), grid.get("np", 4)
+    if on_file and ne0 != 0:
+        raise SceneError(f"grid.ne must be 0 with grid.mesh_file (HOMME's ne = 0: the file's elements; got {ne0})")
+    record1 = record0
+    if mesh is not None:  # a mesh file given with the run replaces the scene's grid
+        if ne is not None:
+            raise SceneError(f"ne = {ne} and mesh {mesh}: a mesh file's elements are its own (HOMME's ne = 0)")
+        record1 = grid_spec.file_record(mesh)
+        ne = 0
+    elif on_file and ne not in (None, 0):
+        raise SceneError(f"ne = {ne} with grid.mesh_file: a mesh file's elements are its own (HOMME's ne = 0)")
     ne1 = ne0 if ne is None else ne
     np1 = np0 if np is None else np
-    if "grid" not in s and (ne is None or np is None):
+    if "grid" not in s and (ne is None or np is None) and mesh is None:
         notes.append(f"the scene has no [grid]: ne = {ne1}, np = {np1} (the defaults)")
-    if not _is_integer(ne1) or ne1 < 1:
+    on_file1 = record1 is not None and "file" in record1
+    if not _is_integer(ne1) or (ne1 < 1 and not on_file1):
         raise SceneError(f"ne must be an integer >= 1 (got {_got(ne1)})")
     if not _is_integer(np1) or not NP_MIN <= np1 <= NP_MAX:
         raise SceneError(f"np must be an integer in {NP_MIN}..{NP_MAX} (got {_got(np1)})")
-    ratio = (ne0 * (np0 - 1)) / (ne1 * (np1 - 1))  # mean node spacing, new / scene's
+    if record1 is not None and np1 < 3:
+        raise SceneError(
+            f"np must be >= 3 on {grid_spec.describe(ne1, np1, record1)}: the element-local map's area correction moves interior nodes"
+        )
+    # mean node spacing, new / scene's
+    ratio = (grid_spec.mean_ne(ne0, record0) * (np0 - 1)) / (grid_spec.mean_ne(ne1, record1) * (np1 - 1))
     # smallest node spacing (sets the explicit limit), new / scene's
-    min_ratio = (_first_gll_gap(np1) / ne1) / (_first_gll_gap(np0) / ne0) * scale
+    if record0 is None and record1 is None:
+        min_ratio = (_first_gll_gap(np1) / ne1) / (_first_gll_gap(np0) / ne0) * scale
+    elif (ne0, np0, record0) == (ne1, np1, record1):
+        min_ratio = scale
+    else:
+        try:
+            old = smallest_dx(ne0, np0, grid_spec.build_mesh(ne0, record0))
+            new = smallest_dx(ne1, np1, grid_spec.build_mesh(ne1, record1))
+        except ValueError as err:  # a stretch that folds an element
+            raise SceneError(f"{grid_spec.describe(ne1, np1, record1)}: {err}") from None
+        min_ratio = new / old * scale
 
     t = s.get("time", {})
     stepper1 = stepper or t.get("stepper", "ssprk3")
@@ -626,7 +733,7 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
             scaled = dt1 * min_ratio
             dt1 = interval / max(1, math.ceil(interval / scaled - 1e-9))
             radius = f" radius={planet.a:g} m" if scale != 1.0 else ""
-            dt_source = f"time.dt of scene {path.stem} scaled to ne={ne1} np={np1}{radius}"
+            dt_source = f"time.dt of scene {path.stem} scaled to {grid_spec.describe(ne1, np1, record1)}{radius}"
             # what the smallest node spacing changed with: the grid, the planet's radius or both
             spacing = " and ".join(
                 what
@@ -677,10 +784,13 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
     planet_factor = scale**4
     nus = {key: hv[key] * ratio**HYPERVIS_EXPONENT * planet_factor for key in ("nu", "nu_div", "nu_s") if key in hv}
     if "efold_hours" in hv:
-        rule = efold_nu(hv["efold_hours"], ne1, np1, planet.a)
+        mean_ne = grid_spec.mean_ne(ne1, record1)
+        rule = efold_nu(hv["efold_hours"], mean_ne, np1, planet.a)
         nus = {key: nus.get(key, rule) for key in ("nu", "nu_div", "nu_s")}
         if ratio != 1.0:
-            notes.append(f"nu = {rule:.3g} m^4/s: {hv['efold_hours']:g} h e-folding at degree {2 * ne1 * (np1 - 1)}")
+            notes.append(
+                f"nu = {rule:.3g} m^4/s: {hv['efold_hours']:g} h e-folding at degree {round(2 * mean_ne * (np1 - 1))}"
+            )
     else:
         nus = {key: nus.get(key, nus.get("nu", 0.0)) for key in ("nu", "nu_div", "nu_s")}
     if "hyperviscosity" in terms and max(nus.values()) == 0:
@@ -729,6 +839,7 @@ def load_scene(path, *, ne=None, np=None, dt=None, days=None, stepper=None, over
         planet=planet.as_table(),
         output_fields=output_fields,
         output_streams=streams,
+        mesh=record1,
     )
 
 
@@ -785,14 +896,14 @@ def _output_choices(output: dict, dt: float, days: float, dt_source: str) -> tup
     return fields, tuple(streams)
 
 
-LOAD_KEYWORDS = ("ne", "np", "dt", "days", "stepper")  # ``load_scene``'s own keywords among the overrides
+LOAD_KEYWORDS = ("ne", "np", "dt", "days", "stepper", "mesh")  # ``load_scene``'s own keywords among the overrides
 
 
 def resolve_scene(scene, overrides: dict) -> tuple[Scene, tuple]:
     """(Scene, its input files) of ``swe_sphere.run``'s and ``Simulation``'s
     ``scene`` and ``overrides``: a ``Scene`` as it is (no overrides: change it with
     ``dataclasses.replace``), else a scene file or bundled name loaded with the
-    overrides as on the command line (``ne``, ``np``, ``dt``, ``days``, ``stepper``
+    overrides as on the command line (``ne``, ``np``, ``dt``, ``days``, ``stepper``, ``mesh``
     and tables such as ``hyperviscosity={"nu": 5e14}`` or values ``terms=[...]``).
     The inputs are the scene file (outputs must not replace it). Raises ``SceneError``."""
     if isinstance(scene, Scene):

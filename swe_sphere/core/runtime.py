@@ -109,9 +109,10 @@ def available_memory() -> int:
         return 1 << 62  # unknown: do not refuse
 
 
-def run_bytes(ne: int, np_: int, stepper: str) -> int:
-    """Estimated bytes of a run on the grid ne × np with ``stepper``."""
-    nodes = 6 * ne * ne * np_ * np_
+def run_bytes(ne: int, np_: int, stepper: str, *, nelem: int | None = None) -> int:
+    """Estimated bytes of a run on the grid ne × np with ``stepper``; ``nelem``: the elements
+    of a mesh (ne = 0 for a mesh file), else the cube's 6·ne²."""
+    nodes = (6 * ne * ne if nelem is None else nelem) * np_ * np_
     return nodes * (RUN_BYTES_PER_NODE + STEPPER_BYTES_PER_NODE.get(stepper, 0))
 
 

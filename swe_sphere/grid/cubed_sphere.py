@@ -25,6 +25,7 @@ from .mesh import Mesh
 
 # Face k: centre c, in-face axes (ea, eb) with c × ea = eb, so every face is
 # seen counter-clockwise from outside and metdet > 0 in the (east, north) basis.
+# FACES[k] = (c, ea, eb) (6, 3, 3): the equiangular map's faces, for those that invert it (remap).
 FACES = np.array(
     [
         [[1, 0, 0], [0, 1, 0], [0, 0, 1]],
@@ -84,8 +85,9 @@ class CubedSphere:
     computed per node, the numbering from the cube's (or mesh's) topology, and the area
     correction from the analytic Jacobian (or per element: the same for any part).
     Raises ``ValueError`` for ne < 1 (ne < 0 with a mesh, or ne > 0 not the mesh's
-    6·ne² elements), np outside 2..8 (2 with a mesh), or elements not ascending
-    distinct indices of the grid.
+    6·ne² elements), np outside 2..8 (2 with a mesh), elements not ascending
+    distinct indices of the grid, or a mesh element the element-local map folds
+    (metdet ≤ 0 at a node: its corners span too much of the sphere, one line naming it).
     """
 
     def __init__(self, ne: int, np: int, radius: float = EARTH.a, elements=None, mesh: Mesh | None = None):
@@ -411,8 +413,13 @@ def _build(ne: int, rule, radius: float, elements: np.ndarray, mesh: Mesh | None
             reference_map, radius, ext[part], rep[part]
         )
     metdet = np.linalg.det(D)
-    if np.any(metdet <= 0):
-        raise RuntimeError("non-positive metric determinant")
+    if np.any(metdet <= 0):  # an element-local element whose corners span too much of the sphere: p/|p| folds
+        e = int(ext[np.argmax(metdet <= 0)] // npe)
+        where = f"element {e + 1} of {mesh.name}" if mesh is not None else f"element {e}"
+        raise ValueError(
+            f"the map folds in {where} (metdet <= 0 at a GLL node): its corners span too much of the sphere; "
+            "use smaller elements (a larger ne, a smaller stretch_factor)"
+        )
 
     here = np.searchsorted(ext, nodes)
     w2 = np.outer(rule.weights, rule.weights).ravel()  # index j*np + i

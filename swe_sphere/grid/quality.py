@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .cubed_sphere import CubedSphere
+
 
 def dinv_singular_values(Dinv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(σ_max, σ_min) (N,) each: the singular values of the 2×2 matrices Dinv (4, N) (row-major),
@@ -42,21 +44,26 @@ class ElementSizes:
 
     def summary(self) -> dict:
         """The figures HOMME prints at start (over the elements held: a rank's part, or all):
-        dx_short min/mean/max (m), the largest distortion, the area ratio max/min and the
-        largest σ_max (1/m)."""
+        dx_short min/mean/max and the largest dx_long (m), the largest distortion, the area
+        ratio max/min, the largest σ_max (1/m) and the element that has it (``worst``: the one
+        that sets the explicit step; an index into the elements held)."""
         return {
             "dx_short_min": float(self.dx_short.min()),
             "dx_short_mean": float(self.dx_short.mean()),
             "dx_short_max": float(self.dx_short.max()),
+            "dx_long_max": float(self.dx_long.max()),
             "distortion_max": float(self.distortion.max()),
             "area_ratio": float(self.area.max() / self.area.min()),
             "norm_dinv_max": float(self.norm_dinv.max()),
+            "worst": int(np.argmax(self.norm_dinv)),
         }
 
 
-def element_sizes(grid) -> ElementSizes:
-    """The ``ElementSizes`` of the elements ``grid`` (a ``CubedSphere``) holds."""
-    large, small = dinv_singular_values(grid.Dinv)
+def element_sizes(grid, Dinv: np.ndarray | None = None) -> ElementSizes:
+    """The ``ElementSizes`` of the elements ``grid`` (a ``CubedSphere``) holds; ``Dinv`` (4, N):
+    the grid's, for a grid that holds none (rank 0's gathered whole grid,
+    ``topology.GatheredGrid``: ``Topology.gather`` of the parts' Dinv)."""
+    large, small = dinv_singular_values(grid.Dinv if Dinv is None else Dinv)
     per_element = (grid.nelem, grid.np * grid.np)
     sigma_max = large.reshape(per_element).max(axis=1)
     sigma_min = small.reshape(per_element).min(axis=1)
@@ -68,3 +75,12 @@ def element_sizes(grid) -> ElementSizes:
         norm_dinv=sigma_max,
         area=grid.spheremp.reshape(per_element).sum(axis=1),
     )
+
+
+def smallest_dx(ne: int, npts: int, mesh=None) -> float:
+    """The smallest ``dx_short`` (HOMME's Dinv-based length scale) of the grid ``CubedSphere(ne,
+    npts, mesh=mesh)`` on the unit sphere: what the explicit step scales with between grids. On
+    the equiangular cube only its first element is built: a face corner's, the smallest
+    element (the eight cube corners' are alike by symmetry)."""
+    elements = np.array([0]) if mesh is None else None
+    return float(element_sizes(CubedSphere(ne, npts, 1.0, elements=elements, mesh=mesh)).dx_short.min())

@@ -1,10 +1,12 @@
 """Spectral-element fields → arbitrary points and regular lat-lon grids.
 
 A value at a target point is the owning element's own GLL interpolant evaluated
-there: the target's Cartesian position is mapped back through the equiangular
-gnomonic projection of ``grid.FACES`` (face by the largest c·P, then
-tan α = P·ea / P·c, tan β = P·eb / P·c) to an element (ia, jb) and reference
-coordinates (ξ, η) ∈ [-1, 1]², and the field is Σ_ij ℓ_i(ξ) ℓ_j(η) f_ij with
+there: the target's Cartesian position is mapped back to an element and reference
+coordinates (ξ, η) ∈ [-1, 1]² through the grid's map: on the cube, the equiangular
+gnomonic projection of ``cubed_sphere.FACES`` (face by the largest c·P, then
+tan α = P·ea / P·c, tan β = P·eb / P·c, element (ia, jb)); on a mesh (a file, a
+stretched cube, the element-local map), the inverse of the element-local map
+(``element_local.locate``, Newton's method in the nearest elements). The field is Σ_ij ℓ_i(ξ) ℓ_j(η) f_ij with
 ℓ the Lagrange basis on the GLL points. No smoothing: a polynomial of degree
 < np in (ξ, η) is reproduced exactly, and at a target that coincides with a
 GLL node the node's value comes back to round-off. Points on element or cube
@@ -27,7 +29,9 @@ import xarray as xr
 from scipy.sparse import csr_matrix
 
 from ..core.runtime import check_memory
+from ..grid import spec as grid_spec
 from ..grid.cubed_sphere import FACES, CubedSphere
+from ..grid.element_local import locate as locate_on_mesh
 from .run_file import atomic_path, check_distinct, history_line
 
 #: node fields (time, ncol) or (ncol,) that ``remap_dataset`` carries to the lat-lon grid
@@ -85,7 +89,12 @@ class Remapper:
         self.shape = lat.shape
         self.grid = grid
         n = grid.np
-        elem, xi, eta = locate(grid.ne, lat, lon)
+        if grid.mesh is None:
+            elem, xi, eta = locate(grid.ne, lat, lon)
+        else:
+            cos_lat = np.cos(lat.ravel())
+            xyz = np.stack([cos_lat * np.cos(lon.ravel()), cos_lat * np.sin(lon.ravel()), np.sin(lat.ravel())], axis=1)
+            elem, xi, eta = locate_on_mesh(grid.mesh, xyz)
         li = lagrange_basis(grid.rule.points, xi)  # (M, n) along ξ (index i)
         lj = lagrange_basis(grid.rule.points, eta)  # (M, n) along η (index j)
         m = elem.size
@@ -106,9 +115,20 @@ class Remapper:
         return np.einsum("mk,mk->m", self.weights, f[self.nodes]).reshape(self.shape)
 
 
+def grid_name(grid: CubedSphere) -> str:
+    """A grid in a message: ``ne=4 np=4``, or its mesh's name and np (``cube2.g np=4``)."""
+    return f"{f'ne={grid.ne}' if grid.mesh is None else grid.mesh.name} np={grid.np}"
+
+
+def cached_grid(ne: int, np_: int, mesh: dict | None = None) -> CubedSphere:
+    """The whole ne, np grid on the mesh of the ``grid.spec`` record ``mesh`` (a run's
+    ``Scene.mesh``; None: the equiangular cube), built once a process."""
+    return _grid(ne, np_, json.dumps(mesh, sort_keys=True))
+
+
 @functools.lru_cache(maxsize=4)
-def cached_grid(ne: int, np_: int) -> CubedSphere:
-    return CubedSphere(ne, np_)
+def _grid(ne: int, np_: int, mesh: str) -> CubedSphere:
+    return CubedSphere(ne, np_, mesh=grid_spec.build_mesh(ne, json.loads(mesh)))
 
 
 def open_netcdf(path) -> xr.Dataset:
@@ -124,27 +144,30 @@ def open_netcdf(path) -> xr.Dataset:
 
 
 def run_grid(ds: xr.Dataset) -> CubedSphere:
-    """The grid of a run file (from its ``scene`` attribute, else ``ne``/``np``),
-    checked against the file's ``lat``/``lon``. Raises ``ValueError`` if the file is
-    not a swe_sphere run or its nodes do not match."""
+    """The grid of a run file (from its ``scene`` attribute, else ``ne``/``np``; on the
+    mesh the scene records, ``grid.spec``), checked against the file's ``lat``/``lon``.
+    Raises ``ValueError`` if the file is not a swe_sphere run or its nodes do not match,
+    ``config.SceneError`` (a ValueError) where its mesh file is gone or changed."""
     if "ncol" not in ds.dims or any(name not in ds.variables for name in ("lat", "lon", "area")):
         raise ValueError("not a swe_sphere run file (no ncol/lat/lon/area)")
     try:
         scene = json.loads(ds.attrs["scene"])
-        ne, np_ = int(scene["ne"]), int(scene["np"])
+        ne, np_, mesh = int(scene["ne"]), int(scene["np"]), scene.get("mesh")
     except (KeyError, ValueError, TypeError):
         try:
-            ne, np_ = int(ds.attrs["ne"]), int(ds.attrs["np"])
+            ne, np_, mesh = int(ds.attrs["ne"]), int(ds.attrs["np"]), None
         except (KeyError, ValueError, TypeError):
             raise ValueError("run file has no scene (ne, np) attribute") from None
-    grid = cached_grid(ne, np_)
+    grid = cached_grid(ne, np_, mesh)
     if ds.sizes["ncol"] != grid.nunique:
-        raise ValueError(f"run file has {ds.sizes['ncol']} columns, ne={ne} np={np_} has {grid.nunique}")
+        raise ValueError(
+            f"run file has {ds.sizes['ncol']} columns, {grid_spec.describe(ne, np_, mesh)} has {grid.nunique}"
+        )
     lat = np.radians(np.asarray(ds["lat"].values, dtype=np.float64))
     lon = np.radians(np.asarray(ds["lon"].values, dtype=np.float64))
     a = np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)])
     if np.max(np.abs(a - grid.xyz[:, grid.first])) > 1e-9:
-        raise ValueError("run file's lat/lon do not match the ne/np grid it names")
+        raise ValueError(f"run file's lat/lon do not match the grid it names ({grid_spec.describe(ne, np_, mesh)})")
     return grid
 
 
@@ -273,7 +296,7 @@ def remap_dataset(ds, resolution: float = 1.0) -> xr.Dataset:
     out.attrs = dict(ds.attrs)
     out.attrs["Conventions"] = "CF-1.8"
     out.attrs["remap"] = (
-        f"GLL interpolation (each element's own polynomial) from ne={grid.ne} np={grid.np} "
+        f"GLL interpolation (each element's own polynomial) from {grid_name(grid)} "
         f"to a regular {resolution:g} degree lat-lon grid by swe_sphere.io.remap"
     )
     line = history_line(f"swe_sphere.io.remap to {resolution:g} degrees")  # CF: the newest line first

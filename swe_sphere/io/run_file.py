@@ -25,6 +25,7 @@ from ..core.runtime import package_version
 from ..grid.cubed_sphere import CubedSphere
 from .dual import MESH as DUAL_MESH
 from .dual import write_dual_mesh
+from .ugrid import MESH as SUBCELL_MESH
 from .ugrid import write_mesh
 
 FIELDS = {
@@ -57,6 +58,12 @@ _OPEN: set = set()  # the RunWriters not yet closed or aborted
 # Every node field lives on the faces of the dual mesh (one control volume a node, dual.py):
 # tools that average, integrate and remap need cells; the sub-cell mesh (ugrid.py) shares its nodes.
 UGRID_FACE = {"mesh": DUAL_MESH, "location": "face"}
+# On a mesh (a file, a stretched cube, the element-local map) the cells are not built yet (``dual``
+# places them by the equiangular map): the fields are then the sub-cell mesh's nodes.
+UGRID_NODE = {"mesh": SUBCELL_MESH, "location": "node"}
+CELLS_NOTE = (
+    "the run file's control volumes are not yet built on file meshes: lat-lon remap works, uxarray's cell mesh does not"
+)
 CONVENTIONS = "CF-1.8 UGRID-1.0"
 # CF time: model days since the initial state, put at an arbitrary epoch (the model has no
 # calendar date); CDO and the CF checker need the reference date and the calendar. xarray
@@ -400,15 +407,19 @@ class RunWriter:
             ds[name][:] = grid.to_unique(deg)
         ds.createVariable("area", "f8", ("ncol",)).setncatts(AREA_ATTRS)
         ds["area"][:] = grid.area
+        located = UGRID_FACE if grid.mesh is None else UGRID_NODE
         hsv = ds.createVariable("hs", "f8", ("ncol",))
-        hsv.setncatts({**FIELDS["hs"], **FIELD_ATTRS, **UGRID_FACE})
+        hsv.setncatts({**FIELDS["hs"], **FIELD_ATTRS, **located})
         hsv[:] = grid.to_unique(hs)
-        write_dual_mesh(ds, grid)  # first: uxarray opens the first mesh_topology, the one the fields are on
+        if grid.mesh is None:
+            write_dual_mesh(ds, grid)  # first: uxarray opens the first mesh_topology, the one the fields are on
+        else:
+            ds.cells = CELLS_NOTE
         write_mesh(ds, grid)
         for name in self.fields:
             fill = dict(fill_value=np.nan) if name in ("vorticity", "divergence") else {}  # NaN where a writer got none
             var = ds.createVariable(name, "f4" if compress else "f8", ("time", "ncol"), zlib=compress, **fill)
-            var.setncatts({**FIELDS[name], **FIELD_ATTRS, **UGRID_FACE})
+            var.setncatts({**FIELDS[name], **FIELD_ATTRS, **located})
         for name in series:
             var = ds.createVariable(name, "f8", ("time",))
             var.setncatts(SERIES_ATTRS[name])

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..grid.cubed_sphere import CubedSphere
+from ..grid.quality import ElementSizes
 
 
 def invariants(grid: CubedSphere, u, v, h, hs, zeta, fcor, g) -> dict[str, float]:
@@ -29,6 +30,20 @@ def courant_numbers(grid: CubedSphere, u, v, h, dt, g, gravity_waves=True) -> di
     pressure gradient (h is then a tracer)."""
     adv = float(np.max(np.hypot(u, v) * dt / grid.dx))
     grav = float(np.max(np.sqrt(g * np.maximum(h, 0.0)) * dt / grid.dx)) if gravity_waves else float("nan")
+    return {"courant_advective": adv, "courant_gravity": grav}
+
+
+def worst_element_courant(grid: CubedSphere, sizes: ElementSizes, u, v, h, dt, g, gravity_waves=True) -> dict:
+    """HOMME's ``print_cfl`` Courant numbers of the element that sets the explicit step (the
+    largest σ_max of D⁻¹, ``ElementSizes.summary()["worst"]``): max |v| Δt / dx_short and
+    max sqrt(g h) Δt / dx_short over its nodes, with dx_short its Dinv-based length scale
+    (m); NaN for the gravity-wave number without a pressure gradient. ``grid`` the elements
+    ``sizes`` describes; fields (N,) on them."""
+    e = sizes.summary()["worst"]
+    nodes = slice(e * grid.np * grid.np, (e + 1) * grid.np * grid.np)
+    scale = dt / sizes.dx_short[e]
+    adv = float(np.max(np.hypot(u[nodes], v[nodes])) * scale)
+    grav = float(np.sqrt(g * np.maximum(h[nodes], 0.0)).max() * scale) if gravity_waves else float("nan")
     return {"courant_advective": adv, "courant_gravity": grav}
 
 

@@ -83,7 +83,8 @@ def _check_memory(scene: Scene, comm, device: str = "cpu") -> None:
     estimated memory exceeds what is available on its device (a GPU's free memory,
     else the host's): the whole run on one process; over MPI ranks, the share of
     the ranks on each node (each holds its elements)."""
-    need, what = run_bytes(scene.ne, scene.np, scene.stepper), f"ne={scene.ne} np={scene.np} with {scene.stepper}"
+    need = run_bytes(scene.ne, scene.np, scene.stepper, nelem=scene.nelem)
+    what = f"{scene.grid_text} with {scene.stepper}"
     backend = Backend.of(device)
     if comm is None or comm.size == 1:
         return backend.check_memory(need, what)
@@ -243,9 +244,10 @@ class Simulation(StateDiagnostics):
         _check_memory(scene, comm, device)
         self.scene, self.device = scene, device
         size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
-        parts = rank_parts(scene.ne, size)
+        mesh = scene.make_mesh()  # None: the equiangular cube
+        parts = rank_parts(scene.ne, size, mesh)
         self.case = case = scene.make_case()
-        local = CubedSphere(scene.ne, scene.np, case.planet.a, elements=parts[rank])  # this rank's elements only
+        local = CubedSphere(scene.ne, scene.np, case.planet.a, elements=parts[rank], mesh=mesh)  # this rank's only
         self.topology = topo = Topology(local, device, Backend.of(device).threads(), comm, parts=parts)
         self.root = rank == 0  # the rank that diagnoses, writes files and shows progress
         self.progress = progress and self.root

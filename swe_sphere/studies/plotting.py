@@ -33,7 +33,7 @@ from ..cases.library import make_case
 from ..cases.reference import Reference, cases_of, locate
 from ..core.constants import EARTH, PLANET_KEYS, Planet
 from ..io.initial_state import SCENE_CASES
-from ..io.remap import Remapper, cached_grid, open_netcdf, run_grid
+from ..io.remap import Remapper, open_netcdf, run_grid
 from ..io.run_file import atomic_path, check_distinct, check_target
 from .analysis import (
     DAY_TOL,
@@ -142,15 +142,17 @@ def _save(fig, path) -> Path:
 
 def plot_resolution(grid) -> float:
     """Spacing (degrees) of the cell-centre grid maps are drawn on: 0.5°, or 0.25° when the
-    mean GLL spacing 90/(ne (np−1)) is below 1°."""
-    return 0.5 if 90.0 / (grid.ne * (grid.np - 1)) >= 1.0 else 0.25
+    mean GLL spacing 90/(ne (np−1)) is below 1° (on a mesh of F elements, ne = √(F/6): the
+    uniform cube's of as many elements)."""
+    return 0.5 if 90.0 / (math.sqrt(grid.nelem_total / 6) * (grid.np - 1)) >= 1.0 else 0.25
 
 
 @functools.lru_cache(maxsize=2)
-def _plot_remapper(ne: int, np_: int, res: float) -> Remapper:
-    """Remapper of an ne/np grid to the cell centres of the ``res``-degree plotting grid."""
+def _plot_remapper(grid, res: float) -> Remapper:
+    """Remapper of a run's grid (``run_grid``'s, built once a process) to the cell centres
+    of the ``res``-degree plotting grid."""
     lat_c, lon_c = _centres(*plot_edges(res))
-    return Remapper(cached_grid(ne, np_), lat_c, lon_c)
+    return Remapper(grid, lat_c, lon_c)
 
 
 def plot_edges(res: float) -> tuple[np.ndarray, np.ndarray]:
@@ -233,7 +235,7 @@ def plot_map(ds, field: str, day: float, path=None, diff=None, lat_range=None) -
     res = plot_resolution(grid)
     lat_e, lon_e = plot_edges(res)
     lat_c, lon_c = _centres(lat_e, lon_e)
-    values = _plot_remapper(grid.ne, grid.np, res)(nodes)
+    values = _plot_remapper(grid, res)(nodes)
     if lat_range is not None:
         south, north = check_lat_range(lat_range)
         rows = np.flatnonzero((lat_e[1:] > south) & (lat_e[:-1] < north))

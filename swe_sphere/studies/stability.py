@@ -151,7 +151,7 @@ def run_suite(
     pool = pool or InProcess()
     futures = []
     for scene in suite_scenes(cases, steppers, ne=ne, np=np, days=days, overrides=overrides):
-        log(f"{scene.name}: {scene.stepper} on ne={scene.ne} np={scene.np}, {scene.days:g} days")
+        log(f"{scene.name}: {scene.stepper} on {scene.grid_text}, {scene.days:g} days")
         futures.append(pool.submit(largest_stable_dt, scene, device, log=log))
     return [f.result() for f in futures]
 

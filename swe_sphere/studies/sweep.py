@@ -1049,7 +1049,7 @@ class Plan:
             for dt in dts:
                 _check_divides(dt, base.run_days, f"the run length of {base.run_days:g} days")
         notes.append(
-            f"sweep {base.name} ne={base.ne} np={base.np}, {f'day {base.start_day:g} to ' if ck else ''}"
+            f"sweep {base.name} {base.grid_text}, {f'day {base.start_day:g} to ' if ck else ''}"
             f"{base.days:g} days; explicit limits: gravity-wave dt = {limits['dt_gravity']:.1f} s, advective dt = "
             f"{limits['dt_advective']:.1f} s; dt = {', '.join(f'{d:.4g}' for d in dts)}"
         )

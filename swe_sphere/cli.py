@@ -177,7 +177,7 @@ def _parser() -> argparse.ArgumentParser:
         help="start every run (and the small-dt reference run) from this restart file's state and day, with "
         "its scene and grid; --days sets the end day",
     )
-    sw.add_argument("--steppers", help="comma-separated stepper names (default leapfrog,ssprk3,semi_implicit,implicit)")
+    sw.add_argument("--steppers", help="comma-separated stepper names (default rk4,kgu35,imex,implicit)")
     group = sw.add_mutually_exclusive_group()
     group.add_argument("--dt", help="comma-separated time steps in seconds")
     group.add_argument(

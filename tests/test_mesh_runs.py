@@ -31,7 +31,7 @@ from swe_sphere.io.run_file import CELLS_NOTE
 from swe_sphere.simulation.simulation import Simulation
 
 import roundoff
-from conftest import write_tc2_scene
+from helpers import write_tc2_scene
 
 DT = 600.0  # s: within the gravity-wave limit of the ne2 np4 element-local cube (1838 s) and the stretched ne4
 STEPS = 12  # 2 hours

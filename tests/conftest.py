@@ -53,6 +53,15 @@ def sigint_raises():
     signal.signal(signal.SIGINT, before)
 
 
+@pytest.fixture(autouse=True, scope="session")
+def private_cache(tmp_path_factory):
+    """The grid cache (``core.cache``) of the session in a folder of its own, not the user's
+    (subprocesses inherit it)."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("SWE_SPHERE_CACHE_DIR", str(tmp_path_factory.mktemp("cache")))
+        yield
+
+
 @functools.cache
 def cached_grid(ne: int, np_: int) -> CubedSphere:
     """One CubedSphere per (ne, np) for the whole session (treat as read-only)."""

@@ -23,6 +23,7 @@ from ..core.errors import OutputError
 from ..grid.cubed_sphere import CubedSphere
 from .dual import MESH as DUAL_MESH
 from .dual import write_dual_mesh
+from .ugrid import MESH as SUBCELL_MESH
 from .ugrid import write_mesh
 
 FIELDS = {
@@ -45,6 +46,12 @@ _OPEN: set = set()  # the RunWriters not yet closed or aborted
 # Every node field lives on the faces of the dual mesh (one control volume a node, dual.py):
 # tools that average, integrate and remap need cells; the sub-cell mesh (ugrid.py) shares its nodes.
 UGRID_FACE = {"mesh": DUAL_MESH, "location": "face"}
+# Without the cells (``cells=False``) the fields are on the sub-cell mesh's nodes, and the file says what is missing.
+UGRID_NODE = {"mesh": SUBCELL_MESH, "location": "node"}
+NO_CELLS = (
+    "not written (output.cells = false): lon and lat have no bounds and there is no mesh_dual, "
+    "so conservative remapping (cdo remapcon) and uxarray's cell operations need a run that writes them"
+)
 CONVENTIONS = "CF-1.8 UGRID-1.0"
 # CF time: model days since the initial state, put at an arbitrary epoch (the model has no
 # calendar date); CDO and the CF checker need the reference date and the calendar. xarray
@@ -323,6 +330,11 @@ class RunWriter:
     ``decode_times=False``, ``ds.h.sel(time=3)`` is day 3; ``Scene.day`` makes it exact). ``compress``: the (time, ncol)
     fields as float32 with zlib (about 3× smaller; not for bitwise comparisons).
     ``fields``: the node fields it holds (of ``OUTPUT_FIELDS``; default all).
+    ``cells``: write the control volumes (``dual.write_dual_mesh``: the UGRID mesh the
+    fields are on, and ``lon_bnds``/``lat_bnds``); without them the fields are on the
+    sub-cell mesh's nodes and the global attribute ``cells`` says what is missing.
+    ``cells_seconds``: the CPU seconds spent building the cells, None where they came
+    from the cache or were not written.
     """
 
     def __init__(
@@ -336,8 +348,10 @@ class RunWriter:
         overwrite: bool = False,
         compress: bool = False,
         fields=OUTPUT_FIELDS,
+        cells: bool = True,
     ):
-        self.path, self.fields = Path(path), tuple(fields)
+        self.path, self.fields, self.cells = Path(path), tuple(fields), cells
+        self.cells_seconds = None  # CPU seconds spent building the cells, where they were not in the cache
         self.file = ExclusiveFile(self.path, overwrite=overwrite)
         self.tmp = self.file.tmp
         self.grid = grid
@@ -372,14 +386,18 @@ class RunWriter:
         )
         area[:] = grid.area
         hsv = ds.createVariable("hs", "f8", ("ncol",))
-        hsv.setncatts({**FIELDS["hs"], "coordinates": "lat lon", **UGRID_FACE})
+        ugrid = UGRID_FACE if self.cells else UGRID_NODE
+        hsv.setncatts({**FIELDS["hs"], "coordinates": "lat lon", **ugrid})
         hsv[:] = grid.to_unique(hs)
-        write_dual_mesh(ds, grid)  # first: uxarray opens the first mesh_topology, the one the fields are on
+        if self.cells:  # first: uxarray opens the first mesh_topology, the one the fields are on
+            self.cells_seconds = write_dual_mesh(ds, grid)
+        else:
+            ds.cells = NO_CELLS
         write_mesh(ds, grid)
         for name in self.fields:
             fill = dict(fill_value=np.nan) if name in ("vorticity", "divergence") else {}  # NaN where a writer got none
             var = ds.createVariable(name, "f4" if compress else "f8", ("time", "ncol"), zlib=compress, **fill)
-            var.setncatts({**FIELDS[name], **FIELD_ATTRS, **UGRID_FACE})
+            var.setncatts({**FIELDS[name], **FIELD_ATTRS, **ugrid})
         for name in series:
             var = ds.createVariable(name, "f8", ("time",))
             var.setncatts(SERIES_ATTRS[name])

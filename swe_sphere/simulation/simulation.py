@@ -477,7 +477,7 @@ class Simulation(StateDiagnostics):
         command line, for the file's ``history`` attribute. ``on_output(step, x)``: called
         at every output step with the (3, N) device state. ``notify(line)``: called
         (rank 0) with a one-line note when the wall time estimated from the first
-        steps exceeds a day. ``log(line)``: called (rank 0) with ``log_line`` every
+        steps exceeds a day, and when the run file's cells were built (not cached). ``log(line)``: called (rank 0) with ``log_line`` every
         ``scene.log_every_steps`` steps since t = 0 (given on every rank alike, or on
         none: the fields are gathered then). ``until_step``: stop after this step
         (default the scene's last; ``advance``). The scene's ``[[output.streams]]``
@@ -496,7 +496,7 @@ class Simulation(StateDiagnostics):
             start = self.gather_fields(divergence=files.divergence)  # the first output time's, on every rank
         courant = self.courant(start)
         if output is not None and self.root:
-            files.open(run_attrs(self, history, courant), overwrite=overwrite, compress=compress)
+            files.open(run_attrs(self, history, courant), overwrite=overwrite, compress=compress, notify=notify)
         stop_step = s.nsteps if until_step is None else until_step
         log_every = s.log_every_steps if log is not None else 0
         ledger = Ledger(self.counters, s, self.step, notify if self.root else None)

@@ -30,6 +30,8 @@ from swe_sphere.io.dual import (
     unit_dual_mesh,
 )
 
+from conftest import cli_one_line
+
 GRIDS = [(1, 2), (2, 4), (3, 2), (2, 8), (4, 3), (1, 6), (1, 3), (2, 2)]
 NOT_CONVEX = {(1, 3): 3, (2, 2): 3}  # at most so many cells star-shaped but not convex, on the two coarsest grids
 
@@ -330,7 +332,7 @@ def test_a_run_says_when_it_built_its_cells_and_runs_without_them(tmp_path, monk
     unit_dual_mesh.cache_clear()  # the process's own copy: this test's cache starts empty
     args = ["run", "tc5_mountain", "--ne", "2", "--np", "2", "--days", "0.25", "--device", "cpu", "--no-progress"]
     notes = []
-    for name, extra in (("first", []), ("second", []), ("bare", ["--no-cells"])):
+    for name, extra in (("first", ["--restart-every", "0.25"]), ("second", []), ("bare", ["--no-cells"])):
         unit_dual_mesh.cache_clear()
         assert main([*args, "--output", str(tmp_path / f"{name}.nc"), *extra]) == 0
         notes.append([line for line in capsys.readouterr().err.splitlines() if "cells" in line])
@@ -345,3 +347,6 @@ def test_a_run_says_when_it_built_its_cells_and_runs_without_them(tmp_path, monk
             assert (bare[name].mesh, bare[name].location) == ("mesh_topology", "node")
             assert np.array_equal(bare[name][:], full[name][:])
     assert json.loads(netCDF4.Dataset(tmp_path / "bare.nc").scene)["output_cells"] is False
+    # a continuation keeps its scene's choice: --no-cells cannot change it
+    restart = tmp_path / "first.restart.nc"
+    cli_one_line(capsys, ["run", "--continue", restart, "--days", "0.5", "--no-cells"], 2, "--no-cells", "output.cells")

@@ -50,6 +50,7 @@ CG_ITERATIONS = 20000  # a cap only: an inexact step is checked like any other
 # Walker 1996); from the twisted start to round-off (inexact steps stall there at ne = 2 np = 2)
 CG_RTOL, CG_RTOL_EXACT = 1e-4, 1e-12
 TWIST = 0.1  # the chiral start's rotation (``_start_vertices``)
+CHUNK = 1 << 13  # cells a pass (``_in_chunks``): its temporaries stay under 10 MB
 BUILD = 2  # the fit's version in the cache key: raised by any change that moves the cells' bits
 
 
@@ -109,9 +110,25 @@ def _padded(corners: np.ndarray) -> np.ndarray:
     return out
 
 
+def _in_chunks(f, centre, verts, corners):
+    """``f(centre, verts, corners)`` over ``CHUNK`` cells at a time (``centre`` and ``corners``
+    cut, ``verts`` whole), its per-cell results joined: the temporaries of a pass, a dozen
+    (ncell, 4, 3) arrays, would be 1 KB a cell (0.8 GB at ne120) all at once."""
+    parts = [f(centre[i : i + CHUNK], verts, corners[i : i + CHUNK]) for i in range(0, corners.shape[0], CHUNK)]
+    if isinstance(parts[0], tuple):
+        return tuple(np.concatenate(p) for p in zip(*parts, strict=True))
+    return np.concatenate(parts)
+
+
 def _areas_and_gradients(centre, verts, corners):
     """Spherical areas (ncell,) of cells fanned from ``centre`` (ncell, 3) over ``verts[corners]``
-    (closed, padded), and the gradients (ncell, 4, 3) of each area w.r.t. its vertices.
+    (closed, padded), and the gradients (ncell, 4, 3) of each area w.r.t. its vertices
+    (``_chunk_areas_and_gradients``)."""
+    return _in_chunks(_chunk_areas_and_gradients, centre, verts, corners)
+
+
+def _chunk_areas_and_gradients(centre, verts, corners):
+    """``_areas_and_gradients`` of some cells at once.
 
     Triangle (n, a, b): E = 2 atan2(N, D), N = n·(a × b), D = 1 + n·a + a·b + b·n
     (van Oosterom & Strackee 1983); dE = 2 (D dN − N dD) / (N² + D²),
@@ -150,7 +167,10 @@ def star_shaped(centre, verts, corners) -> np.ndarray:
     """Whether each cell ``verts[corners]`` (−1-padded) is seen counter-clockwise from its
     point ``centre`` (ncell, 3): every fan triangle (centre, a, b) over consecutive vertices
     turns left from outside, (centre · (a × b) > 0), (ncell,) bool. Such a polygon is simple."""
-    closed = _padded(corners)
+    return _in_chunks(_chunk_star_shaped, centre, verts, _padded(corners))
+
+
+def _chunk_star_shaped(centre, verts, closed):
     a = verts[closed]
     b = np.roll(a, -1, axis=1)
     turn = np.einsum("ci,cki->ck", centre, np.cross(a, b))

@@ -117,6 +117,12 @@ def _parser() -> argparse.ArgumentParser:
     )
     r.add_argument("--compress", action="store_true", help="store fields as float32 with zlib (smaller, not bitwise)")
     r.add_argument(
+        "--no-cells",
+        action="store_true",
+        help="leave the GLL control volumes (cell bounds, the UGRID dual mesh) out of the run file: "
+        "the scene's output.cells = false",
+    )
+    r.add_argument(
         "--graphs",
         help="steps as captured graphs: auto (on CUDA; the default, or env SWE_SPHERE_GRAPHS), on "
         "(also on a CPU), off (plain launches); a graph that fails or differs from plain launches "
@@ -435,6 +441,8 @@ def _continued(args, device, comm):
         )
     if args.set:
         raise CheckpointError("-s cannot change a checkpointed scene")
+    if args.no_cells and ck.scene.output_cells:
+        raise CheckpointError("--no-cells cannot change a checkpointed scene (its output.cells is true)")
     if args.scene is not None:
         given = load_scene(args.scene, ne=args.ne, np=args.np)
         mine = {k: v for k, v in ck.scene.as_dict().items() if k not in ("days", "notes", "branch")}
@@ -538,7 +546,7 @@ def _cmd_run(args) -> int:
             days=args.days,
             stepper=args.stepper,
             mesh=args.mesh,
-            overrides=_overrides(args.set),
+            overrides={**_overrides(args.set), **({"output.cells": False} if args.no_cells else {})},
         )
         scene = load_scene(args.scene, **given)
         output = args.output or _default_output(args.scene, given, scene)

@@ -32,6 +32,15 @@ def sigint_raises():
     signal.signal(signal.SIGINT, before)
 
 
+@pytest.fixture(autouse=True, scope="session")
+def private_cache(tmp_path_factory):
+    """The grid cache (``core.cache``) of the session in a folder of its own, not the user's
+    (subprocesses inherit it)."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("SWE_SPHERE_CACHE_DIR", str(tmp_path_factory.mktemp("cache")))
+        yield
+
+
 @pytest.fixture(scope="session")
 def grid_factory():
     """``grid_factory(ne, np)`` → a cached, read-only CubedSphere."""

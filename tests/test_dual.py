@@ -5,6 +5,7 @@ skipping only where its tool is absent (the CF checkers and cf_xarray: test_cf.p
 
 from __future__ import annotations
 
+import json
 import math
 import shutil
 import subprocess
@@ -17,7 +18,18 @@ import xarray as xr
 
 from swe_sphere.cli import main
 from swe_sphere.grid.gll import gll
-from swe_sphere.io.dual import RTOL, cells, control_points, convex, dual_mesh, spherical_areas, star_shaped
+from swe_sphere.io.dual import (
+    RTOL,
+    cells,
+    control_points,
+    convex,
+    dual_mesh,
+    spherical_areas,
+    star_shaped,
+    unit_dual_mesh,
+)
+
+from conftest import cli_one_line
 
 GRIDS = [(1, 2), (2, 4), (3, 2), (2, 8), (4, 3), (1, 6), (1, 3), (2, 2)]
 NOT_CONVEX = {(1, 3): 3, (2, 2): 3}  # at most so many cells star-shaped but not convex, on the two coarsest grids
@@ -107,7 +119,7 @@ def file_mean(path, name="h"):
 
 def test_run_file_carries_the_dual_mesh_and_cell_bounds(tc5_ne4, grid_factory):
     grid = grid_factory(4, 4)
-    verts, corners, _ = dual_mesh(grid)
+    verts, corners, _, _ = unit_dual_mesh(4, 4)  # the writer's
     with netCDF4.Dataset(tc5_ne4) as nc:
         mesh = nc["mesh_dual"]
         assert (mesh.cf_role, int(mesh.topology_dimension)) == ("mesh_topology", 2)
@@ -198,3 +210,48 @@ def test_cdo_fldmean_and_remapcon_of_the_native_file(tc5_ne4, tmp_path):
     cdo("remapcon,r72x36", "-selname,h", tc5_ne4, tmp_path / "ll.nc")
     remapped = np.array(cdo("outputf,%.17g", "-fldmean", tmp_path / "ll.nc").split(), dtype=float)
     assert np.allclose(remapped, mine, rtol=1e-4, atol=0)
+
+
+@pytest.mark.parametrize("np_", range(2, 9))
+@pytest.mark.parametrize("ne", [1, 2, 3])
+def test_the_writers_build_reaches_the_areas_on_every_small_grid(grid_factory, ne, np_):
+    """``unit_dual_mesh``, the build the run file takes (unit sphere), on each grid the command
+    line accepts up to ne = 3: ne = 2 np = 2 stalled at a mirror-symmetric point there."""
+    verts, corners, error, _ = unit_dual_mesh(ne, np_)
+    grid = grid_factory(ne, np_)
+    node = np.stack([grid.to_unique(x) for x in grid.xyz], axis=1)
+    area = spherical_areas(node, verts, corners)
+    assert error <= RTOL and np.max(np.abs(area * grid.radius**2 / grid.area - 1)) <= RTOL  # the Earth's spheremp
+    assert star_shaped(node, verts, corners).all()
+    assert area.sum() == pytest.approx(4 * math.pi, rel=1e-13)
+
+
+def test_a_run_says_when_it_built_its_cells_and_runs_without_them(tmp_path, monkeypatch, capsys):
+    """ne = 2 np = 2 runs; the first run of a grid says in one line what its cells cost
+    (every build, with the threshold lowered), the next reads them quietly; ``--no-cells``
+    leaves them out and the file says what is missing."""
+    from swe_sphere.simulation import writers
+
+    monkeypatch.setenv("SWE_SPHERE_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setattr(writers, "NOTE_SECONDS", 0.0)
+    unit_dual_mesh.cache_clear()  # the process's own copy: this test's cache starts empty
+    args = ["run", "tc5_mountain", "--ne", "2", "--np", "2", "--days", "0.25", "--device", "cpu", "--no-progress"]
+    notes = []
+    for name, extra in (("first", ["--restart-every", "0.25"]), ("second", []), ("bare", ["--no-cells"])):
+        unit_dual_mesh.cache_clear()
+        assert main([*args, "--output", str(tmp_path / f"{name}.nc"), *extra]) == 0
+        notes.append([line for line in capsys.readouterr().err.splitlines() if "cells" in line])
+    assert len(notes[0]) == 1 and "ne 2 np 2" in notes[0][0] and str(tmp_path / "cache") in notes[0][0]
+    assert notes[1:] == [[], []]
+    with netCDF4.Dataset(tmp_path / "first.nc") as full, netCDF4.Dataset(tmp_path / "bare.nc") as bare:
+        assert "mesh_dual" in full.variables and "lon_bnds" in full.variables
+        assert not {"mesh_dual", "lon_bnds", "lat_bnds", "dual_lon"} & set(bare.variables)
+        assert "no mesh_dual" in bare.cells and "remapcon" in bare.cells
+        assert not hasattr(bare["lon"], "bounds")
+        for name in ("h", "hs", "u"):
+            assert (bare[name].mesh, bare[name].location) == ("mesh_topology", "node")
+            assert np.array_equal(bare[name][:], full[name][:])
+    assert json.loads(netCDF4.Dataset(tmp_path / "bare.nc").scene)["output_cells"] is False
+    # a continuation keeps its scene's choice: --no-cells cannot change it
+    restart = tmp_path / "first.restart.nc"
+    cli_one_line(capsys, ["run", "--continue", restart, "--days", "0.5", "--no-cells"], 2, "--no-cells", "output.cells")

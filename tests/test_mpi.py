@@ -188,6 +188,29 @@ def test_run_on_two_ranks_continues_on_three(tmp_path):
 
 
 @pytest.mark.usefixtures("needs_mpi")
+def test_the_run_files_cells_are_built_on_rank_0_alone(tmp_path, monkeypatch):
+    """Rank 0 writes the run file, so it alone builds its cells (``dual.dual_mesh``) into an
+    empty grid cache; the other ranks neither build nor read them."""
+    monkeypatch.setenv("SWE_SPHERE_CACHE_DIR", str(tmp_path / "cache"))
+    code = (
+        "import sys\n"
+        "from mpi4py import MPI\n"
+        "from swe_sphere.io import dual\n"
+        "real = dual.dual_mesh\n"
+        "def counted(grid):\n"
+        "    open(f'built-{MPI.COMM_WORLD.rank}', 'w').close()\n"
+        "    return real(grid)\n"
+        "dual.dual_mesh = counted\n"
+        "from swe_sphere.cli import main\n"
+        "sys.exit(main(['run', 'tc2_steady', '--ne', '3', '--days', '0.1', '--no-progress', '--output', 'o.nc']))\n"
+    )
+    proc = mpirun_python(2, ["-c", code], tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert sorted(p.name for p in tmp_path.glob("built-*")) == ["built-0"]
+    assert len(list((tmp_path / "cache").iterdir())) == 1
+
+
+@pytest.mark.usefixtures("needs_mpi")
 def test_unreadable_restart_file_refused_by_every_rank_in_one_line(tmp_path):
     """Rank 0 alone reads a restart file (the others get its parts from it); when it
     cannot, every rank refuses: one line, exit 2, no output, no hang."""

@@ -24,7 +24,8 @@ the run length, the output interval and the hyperviscosity. Layout::
     [output]          every_days = 1.0, log_every_steps = 0 (a line of invariant
                       changes and Courant numbers every so many steps; 0: none),
                       fields = ["h", "u", "v"] (the run file's node fields; default
-                      all of ``OUTPUT_FIELDS``)
+                      all of ``OUTPUT_FIELDS``), cells = true (the GLL control volumes
+                      that tools remap and integrate on; false: a file without them)
     [[output.streams]] name = "6h", every_days = 0.25, fields = ["h"]: one more run
                       file RUN.6h.nc per table, at its own interval (whole steps)
     [hyperviscosity]  efold_hours = 3.0, nu = ..., nu_div = ..., nu_s = ..., subcycle = 1
@@ -175,6 +176,7 @@ class Scene:
     output_streams: tuple = ()
     # the mesh ([grid] map, stretch_factor, mesh_file): a ``grid.spec`` record; None: the equiangular cube of ne
     mesh: dict | None = None
+    output_cells: bool = True  # [output] cells: the run files hold the control volumes (``dual``)
 
     @property
     def start_day(self) -> float:
@@ -249,6 +251,8 @@ class Scene:
         for key in ("output_fields", "output_streams", "mesh"):
             if not d[key]:
                 del d[key]
+        if d["output_cells"]:  # the default
+            del d["output_cells"]
         return d
 
 
@@ -295,7 +299,7 @@ _SCHEMA = {
         "mesh_file": str,
     },
     "time": {"stepper": str, "dt": float, "days": float},
-    "output": {"every_days": float, "log_every_steps": int, "fields": list, "streams": list},
+    "output": {"every_days": float, "log_every_steps": int, "fields": list, "streams": list, "cells": bool},
     "hyperviscosity": {"efold_hours": float, "nu": float, "nu_div": float, "nu_s": float, "subcycle": int},
     "dfi": {"span_hours": float, "cutoff_hours": float},
     "planet": {"radius": float, "omega": float, "gravity": float},
@@ -840,6 +844,7 @@ def load_scene(
         output_fields=output_fields,
         output_streams=streams,
         mesh=record1,
+        output_cells=s.get("output", {}).get("cells", True),
     )
 
 

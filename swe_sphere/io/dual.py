@@ -28,11 +28,13 @@ counter-clockwise seen from outside: 4 of them, 3 at the 8 cube corners.
 from __future__ import annotations
 
 import functools
+import time
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ..core import cache
 from ..grid.cubed_sphere import CubedSphere, lat_lon, reference_to_sphere
 from .ugrid import subcell_quads, write_topology
 
@@ -41,8 +43,15 @@ CONNECTIVITY = "dual_face_nodes"
 NODE_DIM, CORNER_DIM = "ndual_node", "nv"
 MAX_CORNERS = 4  # cells have 4 vertices, 3 at the cube corners
 RTOL = 1e-10  # the largest |cell area / (spheremp / a²) − 1| accepted (round-off floor: 1e-12 at ne30)
-MAX_ITERATIONS = 60  # 4–5 steps at ne ≥ 8, 16 at ne = 2 np = 4, 27 at ne = 4 np = 3
+MAX_ITERATIONS = 60  # a cap, above the steps of every grid tried (ne ≤ 6 at np 2..8, ne 8 to 120 at np 4)
 MU_START, MU_MIN, MU_MAX = 1e-3, 1e-12, 1e6  # Levenberg–Marquardt damping, relative to mean diag JJᵀ
+CG_ITERATIONS = 20000  # a cap only: an inexact step is checked like any other
+# (JJᵀ + μI)y = ρ solved to the relative residual min(CG_RTOL, max|ρ|) (inexact Newton, Eisenstat &
+# Walker 1996); from the twisted start to round-off (inexact steps stall there at ne = 2 np = 2)
+CG_RTOL, CG_RTOL_EXACT = 1e-4, 1e-12
+TWIST = 0.1  # the chiral start's rotation (``_start_vertices``)
+CHUNK = 1 << 13  # cells a pass (``_in_chunks``): its temporaries stay under 10 MB
+BUILD = 2  # the fit's version in the cache key: raised by any change that moves the cells' bits
 
 
 def control_points(rule) -> np.ndarray:
@@ -53,15 +62,19 @@ def control_points(rule) -> np.ndarray:
     return t
 
 
-def _start_vertices(grid: CubedSphere) -> np.ndarray:
+def _start_vertices(grid: CubedSphere, twist: float) -> np.ndarray:
     """Unit vectors (nsub, 3) of the product-grid points (t_{i+1}, t_{j+1}) of every
-    sub-cell, in the order of ``ugrid.subcell_quads``."""
+    sub-cell, in the order of ``ugrid.subcell_quads``; ``twist`` > 0 turns each point
+    counter-clockwise about its element's centre, (a, b) → (a − twist·b(1 − a²),
+    b + twist·a(1 − b²)) in reference coordinates (element edges stay in place), which
+    breaks the cube's mirror symmetries."""
     n = grid.np
     t = control_points(grid.rule)[1:-1]  # one per sub-cell interval, np − 1 of them
     e, j, i = (
         x.ravel() for x in np.meshgrid(np.arange(6 * grid.ne**2), np.arange(n - 1), np.arange(n - 1), indexing="ij")
     )
-    return reference_to_sphere(grid.ne, e, t[i], t[j])
+    a, b = t[i], t[j]
+    return reference_to_sphere(grid.ne, e, a - twist * b * (1 - a * a), b + twist * a * (1 - b * b))
 
 
 def cells(grid: CubedSphere) -> np.ndarray:
@@ -97,9 +110,25 @@ def _padded(corners: np.ndarray) -> np.ndarray:
     return out
 
 
+def _in_chunks(f, centre, verts, corners):
+    """``f(centre, verts, corners)`` over ``CHUNK`` cells at a time (``centre`` and ``corners``
+    cut, ``verts`` whole), its per-cell results joined: the temporaries of a pass, a dozen
+    (ncell, 4, 3) arrays, would be 1 KB a cell (0.8 GB at ne120) all at once."""
+    parts = [f(centre[i : i + CHUNK], verts, corners[i : i + CHUNK]) for i in range(0, corners.shape[0], CHUNK)]
+    if isinstance(parts[0], tuple):
+        return tuple(np.concatenate(p) for p in zip(*parts, strict=True))
+    return np.concatenate(parts)
+
+
 def _areas_and_gradients(centre, verts, corners):
     """Spherical areas (ncell,) of cells fanned from ``centre`` (ncell, 3) over ``verts[corners]``
-    (closed, padded), and the gradients (ncell, 4, 3) of each area w.r.t. its vertices.
+    (closed, padded), and the gradients (ncell, 4, 3) of each area w.r.t. its vertices
+    (``_chunk_areas_and_gradients``)."""
+    return _in_chunks(_chunk_areas_and_gradients, centre, verts, corners)
+
+
+def _chunk_areas_and_gradients(centre, verts, corners):
+    """``_areas_and_gradients`` of some cells at once.
 
     Triangle (n, a, b): E = 2 atan2(N, D), N = n·(a × b), D = 1 + n·a + a·b + b·n
     (van Oosterom & Strackee 1983); dE = 2 (D dN − N dD) / (N² + D²),
@@ -138,7 +167,10 @@ def star_shaped(centre, verts, corners) -> np.ndarray:
     """Whether each cell ``verts[corners]`` (−1-padded) is seen counter-clockwise from its
     point ``centre`` (ncell, 3): every fan triangle (centre, a, b) over consecutive vertices
     turns left from outside, (centre · (a × b) > 0), (ncell,) bool. Such a polygon is simple."""
-    closed = _padded(corners)
+    return _in_chunks(_chunk_star_shaped, centre, verts, _padded(corners))
+
+
+def _chunk_star_shaped(centre, verts, closed):
     a = verts[closed]
     b = np.roll(a, -1, axis=1)
     turn = np.einsum("ci,cki->ck", centre, np.cross(a, b))
@@ -165,33 +197,55 @@ def dual_mesh(grid: CubedSphere):
     that lowers |ρ| and keeps every cell star-shaped from its node, grows tenfold
     otherwise). Plain Gauss–Newton (μ = 0) stalls at ne = 2 np = 4 and ne = 4 np = 3: JJᵀ
     is nearly singular for the checkerboard of areas (on a uniform quad lattice Jᵀ of the
-    ±1 checkerboard vanishes), the mode at which HOMME's local iteration fails too.
-    One sparse LU a step (SuperLU): 3 s of CPU at ne30 np4, 18 s and 0.8 GB at ne60.
-    Raises ``ArithmeticError`` if RTOL is not reached in MAX_ITERATIONS steps."""
+    ±1 checkerboard vanishes), the mode at which HOMME's local iteration fails too. JJᵀ is
+    singular besides (moving a vertex keeps the total area: Jᵀ·(spheremp/a²) = 0), so ρ is
+    projected off that direction, where it holds only round-off that 1/μ would amplify.
+
+    (JJᵀ + μI)y = ρ couples each node to its 8 neighbours, like a graph Laplacian: solved by
+    conjugate gradients with its diagonal as preconditioner, inexactly (``CG_RTOL``): memory
+    linear in the nodes, where one sparse LU a step grew as nodes^1.5 in fill and flops.
+    Where the fit stalls at a mirror-symmetric point (ne = 1 np = 3 and ne = 2 np = 2, whose
+    24 dual vertices have one degree of freedom each under the cube's mirrors, too few for
+    the 3 distinct targets), it starts again from ``_start_vertices`` twisted by ``TWIST``,
+    its steps solved to round-off.
+    Raises ``ArithmeticError`` if RTOL is not reached in MAX_ITERATIONS steps from either start."""
     corners = cells(grid)
     closed = _padded(corners)
     centre = np.stack([grid.to_unique(x) for x in grid.xyz], axis=1)
     target = grid.area / grid.radius**2
-    verts = _start_vertices(grid)
+    try:
+        verts, error = _fit(centre, _start_vertices(grid, 0.0), corners, closed, target, CG_RTOL)
+    except ArithmeticError:
+        verts, error = _fit(centre, _start_vertices(grid, TWIST), corners, closed, target, CG_RTOL_EXACT)
+    return verts, corners, error
+
+
+def _fit(centre, verts, corners, closed, target, cg_rtol):
+    """``dual_mesh``'s Levenberg–Marquardt iteration from ``verts`` to the areas ``target``
+    (ncell,) within ``RTOL``, each step's linear system solved to the relative residual
+    min(``cg_rtol``, max|ρ|): (vertices, max relative error)."""
     n, nsub = target.size, verts.shape[0]
     rows = np.repeat(np.arange(n), 2 * MAX_CORNERS)
     cols = np.stack([2 * closed, 2 * closed + 1], axis=-1).ravel()
-    eye = sp.identity(n, format="csc")
+    eye = sp.identity(n, format="csr")
     area, grad = _areas_and_gradients(centre, verts, closed)
     mu = MU_START
     for _ in range(MAX_ITERATIONS):
         rho = 1 - area / target
         error, norm = np.max(np.abs(rho)), np.linalg.norm(rho)
         if error <= RTOL:
-            return verts, corners, float(error)
+            return verts, float(error)
+        rho -= (rho @ target) / (target @ target) * target  # round-off: Jᵀ·target = 0
         e1, e2 = _tangent_basis(verts)
         g1 = np.einsum("cki,cki->ck", grad, e1[closed]) / target[:, None]
         g2 = np.einsum("cki,cki->ck", grad, e2[closed]) / target[:, None]
         J = sp.csr_matrix((np.stack([g1, g2], axis=-1).ravel(), (rows, cols)), shape=(n, 2 * nsub))
-        JJ = (J @ J.T).tocsc()
+        JJ = (J @ J.T).tocsr()
         scale = JJ.diagonal().mean()
         while True:
-            d = (J.T @ spla.spsolve(JJ + mu * scale * eye, rho, permc_spec="MMD_AT_PLUS_A")).reshape(nsub, 2)
+            A = JJ + mu * scale * eye
+            y, _ = spla.cg(A, rho, rtol=min(cg_rtol, error), maxiter=CG_ITERATIONS, M=sp.diags(1 / A.diagonal()))
+            d = (J.T @ y).reshape(nsub, 2)
             trial = verts + d[:, :1] * e1 + d[:, 1:] * e2
             trial /= np.linalg.norm(trial, axis=1)[:, None]
             t_area, t_grad = _areas_and_gradients(centre, trial, closed)
@@ -205,22 +259,41 @@ def dual_mesh(grid: CubedSphere):
     raise ArithmeticError(f"dual mesh: cell areas off spheremp by {error:.1e} after {MAX_ITERATIONS} steps")
 
 
+def cache_key(ne: int, np_: int) -> dict:
+    """What the unit-sphere cells are a function of (``core.cache`` key): the mesh (the
+    uniform equiangular cube; a mesh file would add its content's hash and map), ne, np
+    and ``BUILD``."""
+    return {"mesh": "cubed_sphere", "map": "equiangular", "ne": ne, "np": np_, "build": BUILD}
+
+
 @functools.lru_cache(maxsize=4)
 def unit_dual_mesh(ne: int, np_: int):
-    """``dual_mesh`` of the ne, np grid on the unit sphere, computed once a process
-    (every stream and run of a grid writes the same cells)."""
-    return dual_mesh(CubedSphere(ne, np_, radius=1.0))
+    """``dual_mesh`` of the ne, np grid on the unit sphere, read from the cache
+    (``core.cache``, entry ``dual_mesh``) or built and stored there: (vertices, corners,
+    error, CPU seconds of the build or None when read). Once a process besides (every
+    stream and run of a grid writes the same cells)."""
+    seconds = []
+
+    def build():
+        start = time.process_time()
+        verts, corners, error = dual_mesh(CubedSphere(ne, np_, radius=1.0))
+        seconds.append(time.process_time() - start)
+        return {"vertices": verts, "corners": corners, "error": np.float64(error)}
+
+    arrays, _ = cache.cached("dual_mesh", cache_key(ne, np_), build)
+    return arrays["vertices"], arrays["corners"], float(arrays["error"]), seconds[0] if seconds else None
 
 
-def write_dual_mesh(ds, grid: CubedSphere) -> None:
+def write_dual_mesh(ds, grid: CubedSphere) -> float | None:
     """Add the control volumes of ``grid`` to an open ``netCDF4.Dataset`` ``ds`` whose
     ``lon``/``lat`` (degrees) are on the unique nodes ``ncol``: as the UGRID mesh
     ``mesh_dual`` whose faces are the nodes (``ncol``; fields on it are
     ``location = "face"``), and as CF cell bounds ``lon_bnds``/``lat_bnds`` (ncol, nv) of
     ``lon``/``lat``, the three-vertex cells repeating their last vertex (as HOMME's SCRIP
     files do). Adds nv = 4 and ndual_node = 6·ne²·(np−1)² (the dual vertices): 2.4 MB at
-    ne30 np4, compressed."""
-    verts, corners, _ = unit_dual_mesh(grid.ne, grid.np)
+    ne30 np4, compressed. Returns the CPU seconds spent building the cells, None where
+    they came from the cache (``unit_dual_mesh``)."""
+    verts, corners, _, seconds = unit_dual_mesh(grid.ne, grid.np)
     ds.createDimension(NODE_DIM, verts.shape[0])
     ds.createDimension(CORNER_DIM, MAX_CORNERS)
     write_topology(
@@ -251,3 +324,4 @@ def write_dual_mesh(ds, grid: CubedSphere) -> None:
         ds[name].bounds = f"{name}_bnds"
         # CF: bounds carry no attributes; zlib: 1.6 times smaller (lossless)
         ds.createVariable(f"{name}_bnds", "f8", ("ncol", CORNER_DIM), zlib=True, shuffle=True)[:] = values
+    return seconds

@@ -64,6 +64,11 @@ UGRID_NODE = {"mesh": SUBCELL_MESH, "location": "node"}
 CELLS_NOTE = (
     "the run file's control volumes are not yet built on file meshes: lat-lon remap works, uxarray's cell mesh does not"
 )
+# Without the cells (``cells=False``) the fields are on the sub-cell mesh's nodes too, and the file says what is missing.
+NO_CELLS = (
+    "not written (output.cells = false): lon and lat have no bounds and there is no mesh_dual, "
+    "so conservative remapping (cdo remapcon) and uxarray's cell operations need a run that writes them"
+)
 CONVENTIONS = "CF-1.8 UGRID-1.0"
 # CF time: model days since the initial state, put at an arbitrary epoch (the model has no
 # calendar date); CDO and the CF checker need the reference date and the calendar. xarray
@@ -366,6 +371,11 @@ class RunWriter:
     ``decode_times=False``, ``ds.h.sel(time=3)`` is day 3; ``Scene.day`` makes it exact). ``compress``: the (time, ncol)
     fields as float32 with zlib (about 3× smaller; not for bitwise comparisons).
     ``fields``: the node fields it holds (of ``OUTPUT_FIELDS``; default all).
+    ``cells``: write the control volumes (``dual.write_dual_mesh``: the UGRID mesh the
+    fields are on, and ``lon_bnds``/``lat_bnds``); without them the fields are on the
+    sub-cell mesh's nodes and the global attribute ``cells`` says what is missing.
+    ``cells_seconds``: the CPU seconds spent building the cells, None where they came
+    from the cache or were not written.
     """
 
     def __init__(
@@ -379,8 +389,10 @@ class RunWriter:
         overwrite: bool = False,
         compress: bool = False,
         fields=OUTPUT_FIELDS,
+        cells: bool = True,
     ):
-        self.path, self.fields = Path(path), tuple(fields)
+        self.path, self.fields, self.cells = Path(path), tuple(fields), cells
+        self.cells_seconds = None  # CPU seconds spent building the cells, where they were not in the cache
         self.file = ExclusiveFile(self.path, overwrite=overwrite)
         self.tmp = self.file.tmp
         self.grid = grid
@@ -407,14 +419,15 @@ class RunWriter:
             ds[name][:] = grid.to_unique(deg)
         ds.createVariable("area", "f8", ("ncol",)).setncatts(AREA_ATTRS)
         ds["area"][:] = grid.area
-        located = UGRID_FACE if grid.mesh is None else UGRID_NODE
+        cells = self.cells and grid.mesh is None  # on a mesh the control volumes are not built yet
+        located = UGRID_FACE if cells else UGRID_NODE
         hsv = ds.createVariable("hs", "f8", ("ncol",))
         hsv.setncatts({**FIELDS["hs"], **FIELD_ATTRS, **located})
         hsv[:] = grid.to_unique(hs)
-        if grid.mesh is None:
-            write_dual_mesh(ds, grid)  # first: uxarray opens the first mesh_topology, the one the fields are on
+        if cells:  # first: uxarray opens the first mesh_topology, the one the fields are on
+            self.cells_seconds = write_dual_mesh(ds, grid)
         else:
-            ds.cells = CELLS_NOTE
+            ds.cells = NO_CELLS if grid.mesh is None else CELLS_NOTE
         write_mesh(ds, grid)
         for name in self.fields:
             fill = dict(fill_value=np.nan) if name in ("vorticity", "divergence") else {}  # NaN where a writer got none

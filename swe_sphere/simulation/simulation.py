@@ -661,7 +661,8 @@ class Simulation(StateDiagnostics):
             ``on_output(step, x)`` at every output step, x the (3, N) device state.
         notify : callable, optional
             ``notify(line)`` (rank 0) with a one-line note when the wall time estimated
-            from the first steps exceeds a day.
+            from the first steps exceeds a day, and when the run file's cells were
+            built (not read from the cache).
         log : callable, optional
             ``log(line)`` (rank 0) with ``log_line`` every ``scene.log_every_steps``
             steps since t = 0 (given on every rank alike, or on none).
@@ -686,7 +687,7 @@ class Simulation(StateDiagnostics):
             SIGINT or SIGTERM (with ``catch_signals``).
         """
         files, ckp, start, courant = self._open(
-            output, overwrite, restart_every, restart_file, compress, history, on_output
+            output, overwrite, restart_every, restart_file, compress, history, on_output, notify
         )
         ledger = Ledger(self.counters, self.scene, self.step, notify if self.root else None)
         guard = Guard(self, self.scene.nsteps if until_step is None else until_step, ledger)
@@ -713,7 +714,7 @@ class Simulation(StateDiagnostics):
         )
         return self._outcome(stop, result, output, ckp)
 
-    def _open(self, output, overwrite, restart_every, restart_file, compress, history, on_output) -> tuple:
+    def _open(self, output, overwrite, restart_every, restart_file, compress, history, on_output, notify) -> tuple:
         """A run's run files and checkpointer (paths checked; the files created on rank 0),
         the start's gathered fields and its Courant numbers. ValueError for a user's
         activity under a name the run gives its own."""
@@ -730,7 +731,7 @@ class Simulation(StateDiagnostics):
             start = self.gather_fields(divergence=files.divergence)  # the first output time's, on every rank
         courant = self.courant(start)
         if output is not None and self.root:
-            files.open(run_attrs(self, history, courant), overwrite=overwrite, compress=compress)
+            files.open(run_attrs(self, history, courant), overwrite=overwrite, compress=compress, notify=notify)
         return files, ckp, start, courant
 
     @contextlib.contextmanager

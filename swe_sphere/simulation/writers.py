@@ -6,11 +6,14 @@ import math
 from pathlib import Path
 
 from ..cases.scoring import truth
+from ..core.cache import cache_dir
 from ..core.constants import DAY
 from ..core.runtime import package_version
 from ..io.run_file import OUTPUT_FIELDS, RunWriter, history_line
 from . import checkpoint as ckpt
 from .schedules import AtSteps, output_steps, restart_steps
+
+NOTE_SECONDS = 1.0  # a cells build below this is less than a run's set-up (Warp's start alone) and goes unsaid
 
 
 def stream_path(output: Path, name: str) -> Path:
@@ -92,8 +95,11 @@ class RunFiles:
         self.writers = [None] * len(self.streams)  # rank 0's RunWriters, one a stream
         self.last = [None] * len(self.streams)  # the step each run file wrote last (on every rank)
 
-    def open(self, attrs: dict, *, overwrite: bool, compress: bool) -> None:
-        """Create the files (rank 0) with the global attributes ``attrs``; on failure none is left."""
+    def open(self, attrs: dict, *, overwrite: bool, compress: bool, notify=None) -> None:
+        """Create the files (rank 0) with the global attributes ``attrs``; on failure none is left.
+        ``notify(line)``: told in one line when the run file's cells were built rather than
+        read from the cache, at ``NOTE_SECONDS`` of CPU or more (a build can cost more than
+        a short run)."""
         try:
             for i, (path, fields, _) in enumerate(self.streams):
                 self.writers[i] = RunWriter(
@@ -105,10 +111,19 @@ class RunFiles:
                     overwrite=overwrite,
                     compress=compress,
                     fields=fields,
+                    cells=self.sim.scene.output_cells,
                 )
         except BaseException:
             self.abort()
             raise
+        seconds = self.writers[0].cells_seconds if self.writers else None
+        if seconds is not None and seconds >= NOTE_SECONDS and notify is not None:
+            s = self.sim.scene
+            notify(
+                f"the run file's cells (GLL control volumes, ne {s.ne} np {s.np}) took {seconds:.1f} s of CPU to "
+                f"build, once per grid: later runs read them from {cache_dir()}; output.cells = false "
+                "(--no-cells) leaves them out"
+            )
 
     def record(self, step: int, x=None, whole=None, final: bool = False, write: bool = True) -> None:
         """Diagnose ``step`` (state x, default the current one; ``whole`` its gathered

@@ -1,0 +1,77 @@
+"""The run file's cells (GLL control volumes, ``swe_sphere.io.dual``): their first build and a
+read from the grid cache (``swe_sphere.core.cache``), per ne, each in a fresh one-thread
+process: CPU seconds (``time.process_time``) and the process's peak RSS.
+
+    python benchmarks/dual_mesh.py --ne 30 60 120 [--np 4] [--rounds 3]
+
+Each round builds into an empty cache folder (a temporary one; the user's is not touched),
+then reads the entry back in another process; the medians over the rounds are printed
+with the load average. The whole-process comparison of benchmarks/README.md is timed
+apart, with ``/usr/bin/time -v swe-sphere run ...``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+
+CHILD = """
+import json, resource, sys, time
+from swe_sphere.grid.cubed_sphere import CubedSphere
+from swe_sphere.io import dual
+ne, np_, mode = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
+CubedSphere(1, 2)  # imports and first use outside the clock
+start = time.process_time()
+verts, corners, error, built = dual.unit_dual_mesh(ne, np_)
+cpu = time.process_time() - start
+assert (built is None) == (mode == "read"), (mode, built)
+peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+print(json.dumps(dict(cpu=cpu, peak=peak, error=error, nodes=corners.shape[0])))
+"""
+
+
+def child(ne: int, np_: int, mode: str, cache: str) -> dict:
+    env = {
+        **os.environ,
+        "SWE_SPHERE_CACHE_DIR": cache,
+        "OMP_NUM_THREADS": "1",
+        "OPENBLAS_NUM_THREADS": "1",
+        "SWE_SPHERE_THREADS": "1",
+    }
+    out = subprocess.run(
+        [sys.executable, "-c", CHILD, str(ne), str(np_), mode], env=env, capture_output=True, text=True, check=True
+    )
+    return json.loads(out.stdout.splitlines()[-1])
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--ne", type=int, nargs="+", default=[30, 60, 120])
+    p.add_argument("--np", type=int, default=4)
+    p.add_argument("--rounds", type=int, default=1)
+    args = p.parse_args()
+    print(f"load average {os.getloadavg()[0]:.2f} at the start; np {args.np}; one thread; medians of {args.rounds}")
+    print(f"{'ne':>4} {'nodes':>8} {'build s':>8} {'build GB':>9} {'read s':>7} {'read GB':>8} {'area error':>10}")
+    for ne in args.ne:
+        rows = {"build": [], "read": []}
+        for _ in range(args.rounds):
+            with tempfile.TemporaryDirectory(prefix="swe_sphere_cache_") as cache:
+                for mode in ("build", "read"):
+                    rows[mode].append(child(ne, args.np, mode, cache))
+        b, r = ({k: statistics.median(x[k] for x in rows[m]) for k in ("cpu", "peak")} for m in ("build", "read"))
+        last = rows["build"][-1]
+        print(
+            f"{ne:>4} {last['nodes']:>8} {b['cpu']:>8.2f} {b['peak'] / 1e9:>9.2f} {r['cpu']:>7.3f} "
+            f"{r['peak'] / 1e9:>8.2f} {last['error']:>10.1e}",
+            flush=True,
+        )
+    print(f"load average {os.getloadavg()[0]:.2f} at the end")
+
+
+if __name__ == "__main__":
+    main()

@@ -52,7 +52,7 @@ part_setup() {
 
 part_tests() {
     # first the graph fallbacks' CUDA twins (issue 44): the paths a GPU user's first run takes
-    run tests_graph_fallback 60 "$PY" -m pytest -q -rs -p no:cacheprovider tests/test_graph_fallback.py
+    run tests_graph_fallback 60 "$PY" -m pytest -q -rs -p no:cacheprovider tests/core/test_graph_fallback.py
     # the whole default suite on the CUDA device; a CUDA test that skips is a failure here
     run tests 540 "$PY" -m pytest -q -rs -p no:cacheprovider --junitxml="$OUT/tests.xml"
     if grep -q "SKIPPED.*needs a CUDA device" "$OUT/tests_graph_fallback.txt" "$OUT/tests.txt"; then

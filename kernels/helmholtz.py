@@ -344,7 +344,7 @@ def helmholtz_back_substitution(np: int, copies: int, implicit: bool = False):
     in one pass. With ``implicit``, also lz = L z = (z − s·r)/a as ia·z + mis·r (ia = 1/a,
     mis = −s/a), the IMEX stage's implicit tendency with no pass of its own; that variant is
     compiled without FMA contraction (``blas``'s options, not ``CPU_FAST``), so lz has
-    ``blas.axpby``'s bits (and z, at s = 1, those of the plain variant: tests/test_imex.py). Arguments: wg (2, N), ghost, nlocal, table, rspheremp (N), y, halo, gid (N),
+    ``blas.axpby``'s bits (and z, at s = 1, those of the plain variant: tests/steppers/test_imex.py). Arguments: wg (2, N), ghost, nlocal, table, rspheremp (N), y, halo, gid (N),
     r (3, N/np) (a ``operators.row_vectors`` view), s, ag (s·m s⁻²·s), z (3, N/np) (a view; may
     be r's), ia (s⁻¹), mis (s⁻¹), lz (3, N/np) (a view; may be r's, not z's), offset (elements).
     Dim nelem."""

@@ -54,7 +54,7 @@ slow part (``parse_mri``: Y_{r+2} − x(n) = Σ_j (α + γ)_rj (Y_{j+1} − x(n)
 (β + β¹/2)_rj N(Y_{j+1})), checked against the order the table claims by ``butcher.parse``,
 the one engine's order conditions (necessary, not sufficient: the coupling has conditions
 of its own, which the built-in tables meet at their stated orders; measured in
-tests/test_multirate.py).
+tests/steppers/test_multirate.py).
 """
 
 from __future__ import annotations

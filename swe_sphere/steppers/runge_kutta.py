@@ -35,7 +35,7 @@ stored only where a later combination needs it: the same passes in the same
 order, so the bits of storing F and combining after, with fewer passes (TC5
 ne 2, a step's own launches outside the solves and the ∇⁴, with the L Y_i in
 the back-substitution: ARS(3,4,3) 26 → 18, ARS(2,3,2) 19 → 13,
-``tests/test_imex.py``). ARS's pairs
+``tests/steppers/test_imex.py``). ARS's pairs
 (b_E = b_I, the first stage x(n)) cost s RHS evaluations, s − 1 solves and
 one product with L a step. Mass: every stage keeps ∫h (F_h and L_h integrate
 to zero; the solve fixes ∫z_h), so x(n+1) has the mass of x(n) to round-off.

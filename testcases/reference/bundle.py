@@ -27,7 +27,7 @@ FIELDS = (
 # bundled file → (the case its title names, the days kept). T213: the days the
 # earlier gridded files stored (tests and runs score at them); T341: the days the
 # efficiency study scores (TC5 15, TC6 14, Galewsky 6) and TC5's day 1 for a quick
-# check; TC2: its exact solution checks the evaluation (tests/test_reference.py).
+# check; TC2: its exact solution checks the evaluation (tests/cases/test_reference.py).
 BUNDLE = {
     "tc5_mountain_T213.nc": ("tc5_mountain", (0, 1, 2, 5, 10, 15)),
     "tc6_rossby_haurwitz_T213.nc": ("tc6_rossby_haurwitz", (0, 1, 2, 7, 14)),

@@ -29,7 +29,7 @@ from helpers import cached_grid, requires_cuda
 from numpy_ops import NumpyOps
 
 DEV = "cpu"
-UNFORCED = tuple(t for t in TERMS if t != "forcing")  # every term but a forced case's (tests/test_forcing.py)
+UNFORCED = tuple(t for t in TERMS if t != "forcing")  # every term but a forced case's (tests/cases/test_forcing.py)
 RHS_TERMS = tuple(t for t in UNFORCED if t != "hyperviscosity")
 
 

@@ -29,7 +29,7 @@ from swe_sphere.io.dual import (
     unit_dual_mesh,
 )
 
-from conftest import cli_one_line
+from helpers import cli_one_line
 
 GRIDS = [(1, 2), (2, 4), (3, 2), (2, 8), (4, 3), (1, 6), (1, 3), (2, 2)]
 NOT_CONVEX = {(1, 3): 3, (2, 2): 3}  # at most so many cells star-shaped but not convex, on the two coarsest grids

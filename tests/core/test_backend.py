@@ -11,7 +11,7 @@ from swe_sphere.core.backend import CHECK_EVERY_STEPS, CPU_CHUNK, DEVICE_TOTALS,
 from swe_sphere.solvers.jacobian import HostPasses, KernelPasses
 from swe_sphere.solvers.krylov import HostVectors, KernelVectors
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 # what asks a Warp device whether it is a CPU or a GPU, or whether CUDA has graph conditionals
 DEVICE_QUESTIONS = {"is_cpu", "is_cuda", "is_conditional_graph_supported"}
 

@@ -14,7 +14,7 @@ import pytest
 
 from swe_sphere.cli import main
 
-SCRIPT = Path(__file__).resolve().parents[1] / "docs" / "efficiency" / "tables.py"
+SCRIPT = Path(__file__).resolve().parents[2] / "docs" / "efficiency" / "tables.py"
 
 
 @pytest.fixture(scope="module")

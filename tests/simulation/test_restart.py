@@ -146,7 +146,7 @@ def test_checkpoint_contents_and_refusals(tmp_path):
 def test_cli_restart_every_and_continue(tmp_path, capsys):
     """Through the CLI: a 2-day run with a restart file every day, cut at day 1 and
     continued to day 2, ends on the same bits; a changed grid or scene is refused
-    with one line, exit 2 (another stepper or dt is a branch: tests/test_branch.py)."""
+    with one line, exit 2 (another stepper or dt is a branch: tests/simulation/test_branch.py)."""
     scene = write_tc2_scene(tmp_path / "s.toml", stepper="leapfrog_trapezoidal", ne=2, dt=DT, days=2.0)
     args = ["run", str(scene), "--device", "cpu", "--no-progress"]
     assert main([*args, "--output", str(tmp_path / "full.nc")]) == 0

@@ -1,4 +1,4 @@
-"""Command line: ``swe-sphere run | list | plot | remap | sweep | stability``.
+"""Command line: ``swe-sphere run | list | plot | remap | sweep | stability | mesh``.
 
 Exit status: 0 success; 2 bad input (one line naming the field or value, no
 output file); 3 blow-up, solver failure or too little memory (message with
@@ -270,7 +270,54 @@ def _parser() -> argparse.ArgumentParser:
         "--overwrite", action="store_true", help="replace an earlier stability.csv and stability.nc in --output"
     )
     st.add_argument("--workers", type=int, default=1, help=WORKERS_HELP)
+    me = sub.add_parser(
+        "mesh",
+        help="write an Exodus II .g mesh (as HOMME reads): the cube, a stretched cube, or the cube refined over a box",
+        parents=[common],
+    )
+    me.add_argument("--ne", type=int, required=True, help="elements along a cube face's edge (the base cube)")
+    me.add_argument("--stretch-factor", type=float, help="Schmidt stretch c >= 1 toward the target (FV3's stretch_fac)")
+    me.add_argument("--target-lat", type=float, help="the stretch's target latitude, degrees (default 90)")
+    me.add_argument("--target-lon", type=float, help="the stretch's target longitude, degrees east (default 0)")
+    me.add_argument(
+        "--refine-box",
+        nargs=4,
+        type=float,
+        metavar=("LAT_MIN", "LAT_MAX", "LON_MIN", "LON_MAX"),
+        help="refine the cube over this latitude-longitude box (degrees), within one cube face's reach",
+    )
+    me.add_argument("--levels", type=int, help="levels of 2x refinement in the box (default 1: 2x; 2: 4x)")
+    me.add_argument("--smoothing", type=int, help="Laplacian smoothing sweeps at most (default 100)")
+    me.add_argument("--output", "-o", type=Path, required=True, help="the .g file to write")
+    me.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     return p
+
+
+def _cmd_mesh(args) -> int:
+    from .grid.cubed_sphere import CubedSphere
+    from .grid.mesh import write_exodus
+    from .grid.quality import element_sizes
+    from .grid.refine import Box, make_mesh
+    from .io.run_file import check_target
+
+    check_target(args.output, args.overwrite)
+    box = None if args.refine_box is None else Box(*args.refine_box)
+    mesh = make_mesh(
+        args.ne,
+        stretch_factor=args.stretch_factor,
+        target_lat=args.target_lat,
+        target_lon=args.target_lon,
+        box=box,
+        levels=args.levels,
+        smoothing=args.smoothing,
+    )
+    write_exodus(args.output, mesh)
+    sizes = element_sizes(CubedSphere(0, 4, 1.0, mesh=mesh)).summary()
+    print(
+        f"{args.output}: {mesh.name}: {mesh.nelem} elements, {mesh.nnodes} nodes; at np 4 the largest "
+        f"Dinv-based distortion {sizes['distortion_max']:.2f}, area ratio {sizes['area_ratio']:.3g}"
+    )
+    return 0
 
 
 def _cmd_list() -> int:
@@ -842,6 +889,7 @@ COMMANDS = {
     "plot": _cmd_plot,
     "remap": _cmd_remap,
     "run": _cmd_run,
+    "mesh": _cmd_mesh,
 }
 
 

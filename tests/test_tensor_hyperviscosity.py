@@ -149,6 +149,23 @@ def test_the_damping_on_a_stretched_cube_scales_with_the_local_spacing_to_the_po
         assert slope == pytest.approx(scaling or 0.0, abs=tolerance), (scaling, slope)
 
 
+def test_scaling_4_gives_a_stretched_cube_the_uniform_cubes_hyperviscous_limit():
+    """The ∇⁴ substeps follow the operator's largest eigenvalue λ (``biharmonic_radius``), the
+    worst element's: on the ne 8 cube stretched by c = 2.5, constant ν's λ is 17.7× the uniform
+    cube's (its smallest elements, ∝ Δx⁻⁴), while s = 4 keeps every element's ∇⁴ Courant number
+    alike: λ within 5 % of its own on the uniform cube (measured 3 %); s = 3.2 between (1.79×)."""
+    uniform = CubedSphere(8, 4, mesh=schmidt_cube(8, 1.0))
+    stretched = CubedSphere(8, 4, mesh=schmidt_cube(8, 2.5, 40.0, 270.0))
+    lam = {
+        (c, s): hv_model(g, s).hv.biharmonic_radius()
+        for c, g in ((1, uniform), (2.5, stretched))
+        for s in (None, 3.2, 4.0)
+    }
+    assert lam[2.5, None] / lam[1, None] == pytest.approx(17.7, rel=0.02)
+    assert lam[2.5, 4.0] / lam[1, 4.0] == pytest.approx(1.0, abs=0.05)
+    assert 1.2 < lam[2.5, 3.2] / lam[1, 3.2] < lam[2.5, None] / lam[1, None] / 4
+
+
 def test_the_tensor_hyperviscosity_keeps_mass():
     """20 forward-Euler ∇⁴ substeps of s = 3.2 on a stretched cube (per-node and per-element
     layouts) change the mass Σ spheremp·h by round-off only (``mass_change_bound``), while they

@@ -820,7 +820,7 @@ def load_scene(
     if "hyperviscosity" in terms and max(nus.values()) == 0:
         raise SceneError("the hyperviscosity term needs hyperviscosity.nu, nu_div, nu_s or efold_hours > 0")
     if "hyperviscosity" not in terms:
-        if any(k in hv for k in ("nu", "nu_div", "nu_s")):
+        if any(k in hv for k in ("nu", "nu_div", "nu_s", "scaling")):
             notes.append("hyperviscosity coefficients given, but the scene's terms have no hyperviscosity: not used")
         nus = dict.fromkeys(nus, 0.0)
     elif (

@@ -92,7 +92,8 @@ def efold_nu(hours: float, ne: float, np: int, radius: float) -> float:
     spacing: ne is that of the uniform cube with as many elements (``grid.spec.mean_ne``:
     √(F/6) for a file of F elements; a stretched cube's own ne), so ν is the same for
     the same element count, and elements smaller than the mean are damped faster, as
-    (mean spacing / their spacing)⁴."""
+    (mean spacing / their spacing)⁴; with the tensor ∇⁴ (``hyperviscosity.scaling = s``) as
+    that ratio to the power 4 − s, so s = 4 states the rule element by element."""
     L = 2 * ne * (np - 1)
     return radius**4 / (hours * 3600.0 * (L * (L + 1)) ** 2)
 

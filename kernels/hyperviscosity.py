@@ -26,6 +26,12 @@ the second DSS, ``dss_apply``, adds coef·Y₂ to the state as it sums. ∇δ is
 compiled in only when ν_div ≠ ν. Changes the last bits against applying them
 after each DSS.
 
+HOMME's tensor ∇⁴ (``hypervis_scaling``; Guba et al. 2014) replaces the second Laplacian by
+the weak ∇·(V∇Y₁) + 2vY₁/a² (V a fixed 2×2 tensor per node, v = tr V / 2): the same passes with
+the fixed metric spheremp·Dinv V Dinvᵀ and mass spheremp·v in place of spheremp·Dinv Dinvᵀ and
+spheremp (``model.hyperviscosity.Hyperviscosity.tensor_metric``): ``laplacian_element``
+reads either; on CUDA ``tensor_flux`` forms the flux from it, for ``laplacian_node``.
+
 Two layouts, as for the tendency: on CUDA ``to_cartesian``,
 ``operators.laplace_wk_flux`` and ``laplacian_node`` (dim N); on the CPU
 ``laplacian_element`` (dim nelem), the whole weak Laplacian of an element in
@@ -274,6 +280,31 @@ def _laplacian_metric(
 
 # compiled as laplacian_element (CPU_FAST: the same contractions as when it computed these itself)
 laplacian_metric = wp.kernel(_laplacian_metric, enable_backward=False, module="unique", module_options=CPU_FAST)
+
+
+@wp.kernel
+def tensor_flux(
+    f: wp.array2d(dtype=f64),
+    metric: wp.array2d(dtype=f64),
+    dvv: wp.array2d(dtype=f64),
+    np: int,
+    flux: wp.array2d(dtype=f64),
+    offset: int,
+):
+    """``operators.laplace_wk_flux`` of the tensor ∇⁴'s second Laplacian, for every row r of f:
+    flux[2r:2r+2, p] = G (∂ξ f, ∂η f) with G = metric[0:3] (G₁₁, G₁₂, G₂₂) the fixed
+    quadrature-weighted metric spheremp · Dinv V Dinvᵀ of the weak ∇·(V∇f) (HOMME
+    ``laplace_sphere_wk`` with ``var_coef``). Launch with dim N."""
+    p = wp.tid() + offset
+    base, i, j = element_node(p, np)
+    g11 = metric[0, p]
+    g12 = metric[1, p]
+    g22 = metric[2, p]
+    for r in range(f.shape[0]):
+        a = d_xi(f, r, base, i, j, np, dvv)
+        b = d_eta(f, r, base, i, j, np, dvv)
+        flux[2 * r, p] = g11 * a + g12 * b
+        flux[2 * r + 1, p] = g12 * a + g22 * b
 
 
 @wp.kernel

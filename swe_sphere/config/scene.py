@@ -33,7 +33,11 @@ the run length, the output interval and the hyperviscosity. Layout::
                       nu, nu_div, nu_s on every grid (``efold_nu``); nu, nu_div,
                       nu_s (m^4/s at the scene's grid, scaled as dx^3.2): the
                       rotational wind, divergent wind, h + hs (HOMME's names),
-                      given explicitly; without efold_hours nu_div, nu_s default to nu)
+                      given explicitly; without efold_hours nu_div, nu_s default to nu),
+                      scaling = 3.2 (s in 0..4: HOMME's tensor hyperviscosity, hypervis_scaling:
+                      the effective nu along each element direction is nu (dx / dx_ref)^s, dx_ref
+                      the mean spacing's, so s = 4 is the efold_hours rule element by element;
+                      nu, nu_div, nu_s then scale as dx^s between grids; absent: constant nu)
     [leapfrog]        robert_asselin = 0.05   (a table per stepper, named after
                       it, holds that stepper's options; an option typed tuple
                       is a TOML array, e.g. [tableau] A = [[0, 0], ["1/2", 0]])
@@ -89,7 +93,8 @@ def efold_nu(hours: float, ne: float, np: int, radius: float) -> float:
     spacing: ne is that of the uniform cube with as many elements (``grid.spec.mean_ne``:
     √(F/6) for a file of F elements; a stretched cube's own ne), so ν is the same for
     the same element count, and elements smaller than the mean are damped faster, as
-    (mean spacing / their spacing)⁴."""
+    (mean spacing / their spacing)⁴; with the tensor ∇⁴ (``hyperviscosity.scaling = s``) as
+    that ratio to the power 4 − s, so s = 4 states the rule element by element."""
     L = 2 * ne * (np - 1)
     return radius**4 / (hours * 3600.0 * (L * (L + 1)) ** 2)
 
@@ -126,6 +131,9 @@ class Scene:
         wind and h, already scaled to this grid.
     hypervis_subcycle : int
         Hyperviscosity substeps a step.
+    hypervis_scaling : float or None
+        None (constant ν) or s: the tensor ∇⁴ with ν ∝ Δx^s per element direction
+        ([hyperviscosity] scaling; HOMME's ``hypervis_scaling``).
     notes : tuple of str
         What resolving the scene changed (e.g. dt scaled to the grid), for the run's header.
     branch : dict or None
@@ -177,6 +185,7 @@ class Scene:
     # the mesh ([grid] map, stretch_factor, mesh_file): a ``grid.spec`` record; None: the equiangular cube of ne
     mesh: dict | None = None
     output_cells: bool = True  # [output] cells: the run files hold the control volumes (``dual``)
+    hypervis_scaling: float | None = None  # [hyperviscosity] scaling: the tensor ∇⁴'s s; None: constant ν
 
     @property
     def start_day(self) -> float:
@@ -253,6 +262,8 @@ class Scene:
                 del d[key]
         if d["output_cells"]:  # the default
             del d["output_cells"]
+        if d["hypervis_scaling"] is None:
+            del d["hypervis_scaling"]
         return d
 
 
@@ -300,7 +311,14 @@ _SCHEMA = {
     },
     "time": {"stepper": str, "dt": float, "days": float},
     "output": {"every_days": float, "log_every_steps": int, "fields": list, "streams": list, "cells": bool},
-    "hyperviscosity": {"efold_hours": float, "nu": float, "nu_div": float, "nu_s": float, "subcycle": int},
+    "hyperviscosity": {
+        "efold_hours": float,
+        "nu": float,
+        "nu_div": float,
+        "nu_s": float,
+        "subcycle": int,
+        "scaling": float,
+    },
     "dfi": {"span_hours": float, "cutoff_hours": float},
     "planet": {"radius": float, "omega": float, "gravity": float},
     # one table per stepper, named after it, with the stepper's own options
@@ -783,10 +801,17 @@ def load_scene(
             raise SceneError(
                 f"hyperviscosity.{key} must be {'> 0' if key == 'efold_hours' else '>= 0'} (got {hv[key]})"
             )
-    # explicit coefficients (m^4/s at the scene's grid and planet) scale as dx^3.2 and, keeping their damping
-    # time at the grid scale, as a^4 on another planet; efold_hours gives the rest on the run's grid
+    scaling = hv.get("scaling")
+    if scaling is not None and not 0 <= scaling <= 4:
+        raise SceneError(
+            f"hyperviscosity.scaling must be in 0..4 (got {scaling}): the s of nu ~ dx^s per element "
+            "(HOMME's hypervis_scaling, E3SM's 3.2)"
+        )
+    # explicit coefficients (m^4/s at the scene's grid and planet) scale as dx^3.2 (the tensor's: dx^s) and,
+    # keeping their damping time at the grid scale, as a^4 on another planet; efold_hours gives the rest
     planet_factor = scale**4
-    nus = {key: hv[key] * ratio**HYPERVIS_EXPONENT * planet_factor for key in ("nu", "nu_div", "nu_s") if key in hv}
+    exponent = HYPERVIS_EXPONENT if scaling is None else scaling
+    nus = {key: hv[key] * ratio**exponent * planet_factor for key in ("nu", "nu_div", "nu_s") if key in hv}
     if "efold_hours" in hv:
         mean_ne = grid_spec.mean_ne(ne1, record1)
         rule = efold_nu(hv["efold_hours"], mean_ne, np1, planet.a)
@@ -800,7 +825,7 @@ def load_scene(
     if "hyperviscosity" in terms and max(nus.values()) == 0:
         raise SceneError("the hyperviscosity term needs hyperviscosity.nu, nu_div, nu_s or efold_hours > 0")
     if "hyperviscosity" not in terms:
-        if any(k in hv for k in ("nu", "nu_div", "nu_s")):
+        if any(k in hv for k in ("nu", "nu_div", "nu_s", "scaling")):
             notes.append("hyperviscosity coefficients given, but the scene's terms have no hyperviscosity: not used")
         nus = dict.fromkeys(nus, 0.0)
     elif (
@@ -809,7 +834,13 @@ def load_scene(
         and max(nus.values()) > 0
     ):
         notes.append(
-            f"nu scaled as dx^{HYPERVIS_EXPONENT} and radius^4: nu, nu_div, nu_s = {nus['nu']:.3g}, {nus['nu_div']:.3g}, {nus['nu_s']:.3g} m^4/s"
+            f"nu scaled as dx^{exponent:g} and radius^4: nu, nu_div, nu_s = {nus['nu']:.3g}, {nus['nu_div']:.3g}, {nus['nu_s']:.3g} m^4/s"
+        )
+    if scaling is not None and "hyperviscosity" in terms:
+        d_ref = math.pi * planet.a / (4 * grid_spec.mean_ne(ne1, record1))  # ``grid.quality.reference_spacing``
+        notes.append(
+            f"tensor hyperviscosity: nu (dx / {2 * d_ref / (np1 - 1) / 1e3:.4g} km)^{scaling:g} along each element "
+            f"direction (HOMME's hypervis_scaling = {scaling:g}, nu = {nus['nu'] / (planet.a**4 * (d_ref / planet.a) ** scaling):.3g})"
         )
     subcycle = hv.get("subcycle", 1)
     if subcycle < 1:
@@ -845,6 +876,7 @@ def load_scene(
         output_streams=streams,
         mesh=record1,
         output_cells=s.get("output", {}).get("cells", True),
+        hypervis_scaling=None if scaling is None or "hyperviscosity" not in terms else float(scaling),
     )
 
 

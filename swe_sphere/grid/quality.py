@@ -13,6 +13,7 @@ dx_short = 2 / ((np − 1) σ_max) and its long one dx_long = 2 / ((np − 1) σ
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -84,3 +85,46 @@ def smallest_dx(ne: int, npts: int, mesh=None) -> float:
     element (the eight cube corners' are alike by symmetry)."""
     elements = np.array([0]) if mesh is None else None
     return float(element_sizes(CubedSphere(ne, npts, 1.0, elements=elements, mesh=mesh)).dx_short.min())
+
+
+def reference_spacing(grid) -> float:
+    """d_ref (m): half the width of the face-centre element of the uniform cube with as many
+    elements as ``grid`` (ne_mean = √(F/6) for F elements; the cube's own ne), πa / (4 ne_mean):
+    the singular value of D where the equiangular map is conformal, and HOMME's (np − 1) dx / 2
+    with dx = 2πa / (4 ne (np − 1)) in its conversion of ν to the tensor's ``nu`` (``cube_mod``)."""
+    return math.pi * grid.radius / (4 * math.sqrt(grid.nelem_total / 6))
+
+
+def hypervis_tensor(grid, scaling: float) -> np.ndarray:
+    """HOMME's tensor hyperviscosity V at every node ``grid`` holds (``cube_mod::metric_atomic``'s
+    ``tensorVisc``; Guba, Taylor, Ullrich, Overfelt & Levy 2014, GMD 7:2803, §3), (3, N): V₁₁,
+    V₁₂, V₂₂ in the (east, north) basis, dimensionless, before its DSS.
+
+    With the metric inverse M = Dinv Dinvᵀ = E diag(μ) Eᵀ (1/m²), V = (D E) diag(λ*² μ) (D E)ᵀ
+    with λ* = μ^(−s/4) (s = ``scaling``, HOMME's ``hypervis_scaling``), i.e. D M^(1 − s/2) Dᵀ,
+    divided by its value d_ref^s at the ``reference_spacing`` d_ref, where D = d_ref·(a rotation):
+    along a principal direction of an element whose D has singular value d, the effective ν is
+    ν·(d / d_ref)^s (HOMME's eigenvalues are on the unit sphere, scaled by a²; the a^(4−s) of its
+    ``nu`` in 1/s is kept in ν here, m⁴ s⁻¹ at d_ref). s = 0 gives V = I, s = 4 gives
+    (D Dᵀ)² / d_ref⁴. Raises ``ValueError`` for s < 0 or not finite."""
+    if not (math.isfinite(scaling) and scaling >= 0):
+        raise ValueError(f"scaling must be a finite number >= 0 (got {scaling})")
+    D = grid.D.T.reshape(-1, 2, 2)
+    Dinv = grid.Dinv.T.reshape(-1, 2, 2)
+    mu, E = np.linalg.eigh(Dinv @ Dinv.transpose(0, 2, 1))
+    power = (E * (mu ** (1 - scaling / 2))[:, None, :]) @ E.transpose(0, 2, 1)  # M^(1 − s/2)
+    V = D @ power @ D.transpose(0, 2, 1) / reference_spacing(grid) ** scaling
+    return np.stack([V[:, 0, 0], (V[:, 0, 1] + V[:, 1, 0]) / 2, V[:, 1, 1]])
+
+
+def element_bilinear(f: np.ndarray, rule) -> np.ndarray:
+    """Fields f (rows, N), element-local at the GLL nodes of ``rule``, replaced in each element by
+    the bilinear interpolant of its four corner values (HOMME ``global_norms_mod::dss_hvtensor``,
+    after the DSS that makes the corners continuous: the result is then continuous across every
+    edge, linear along it between the same two corners)."""
+    n = rule.np
+    g = f.reshape(f.shape[0], -1, n, n)  # (rows, element, j, i)
+    x, y = rule.points[None, None, None, :], rule.points[None, None, :, None]
+    sw, se, nw, ne = (g[:, :, j, i][:, :, None, None] for j, i in ((0, 0), (0, -1), (-1, 0), (-1, -1)))
+    out = ((1 - x) * (1 - y) * sw + (1 - x) * (1 + y) * nw + (1 + x) * (1 - y) * se + (1 + x) * (1 + y) * ne) / 4
+    return out.reshape(f.shape)

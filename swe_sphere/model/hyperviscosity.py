@@ -4,7 +4,9 @@
 arrays, the operator's spectral radius, each Δt's plan of forward-Euler substeps
 or an RKL1 super-step) and records its launches through the model's recorder (``launches.LaunchRecorder``). Mirrors
 HOMME's ``biharmonic_wk`` and ``advance_hypervis`` (``viscosity_mod``,
-``prim_advance_mod``); the kernels are ``kernels.hyperviscosity``.
+``prim_advance_mod``); the kernels are ``kernels.hyperviscosity``. With the model's
+``hypervis_scaling`` s, HOMME's tensor ∇⁴ (Guba et al. 2014): the second Laplacian reads a fixed
+metric of V (``tensor_metric``), so the effective ν goes as Δx^s along each element direction.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import numpy as np
 import warp as wp
 
 from ..core.parallel import array_key
+from ..grid.quality import element_bilinear, hypervis_tensor
 from ..kernels import blas, hyperviscosity, operators
 
 f64 = wp.float64
@@ -38,6 +41,8 @@ class Hyperviscosity:
         else:  # the Cartesian state and the weak Laplacian's flux of the per-node kernels
             self.hv_X = wp.zeros((4, N), dtype=f64, device=device)
             self.hv_flux = wp.zeros((8, N), dtype=f64, device=device)
+        # the tensor ∇⁴'s second Laplacian reads its own fixed metric (``tensor_metric``); None: constant ν
+        self.hv_tensor = None if m.hypervis_scaling is None else self.tensor_metric(m.hypervis_scaling)
         self._substeps: dict[float, tuple[int, bool]] = {}  # plan
         self._biharmonic_radius = None
         self._rkl_buffers = None
@@ -68,11 +73,12 @@ class Hyperviscosity:
             def laplacian(second):  # → the weak form of Y₁ or Y₂ in L
                 kernel = hyperviscosity.laplacian_element(second, divergent, np_)
                 frame = self._frame(*() if second else names, rows=True)
+                metric = self.hv_tensor if second and self.hv_tensor is not None else self.hv_metric
                 args = [
                     *map(m.as_rows, (Y if second else x, m.hs, delta)),
                     c,
                     frame,
-                    m.as_rows(self.hv_metric),
+                    m.as_rows(metric),
                     m.dvv_rows,
                     m.as_rows(L),
                 ]
@@ -86,12 +92,17 @@ class Hyperviscosity:
                     if second
                     else [m.launches.nodes(hyperviscosity.to_cartesian, N, [x, m.hs, m.east, m.north, src])]
                 )
-                args = [self.hv_flux, src, delta, c, self._frame(*() if second else names), m.spheremp, m.dvv, np_, L]
-                return [
-                    *first,
-                    m.launches.nodes(operators.laplace_wk_flux, N, [src, m.Dinv, m.spheremp, m.dvv, np_, self.hv_flux]),
-                    m.launches.nodes(hyperviscosity.laplacian_node(second, divergent), N, args),
-                ]
+                tensor = second and self.hv_tensor is not None
+                mass = self.hv_tensor[3] if tensor else m.spheremp  # the weight of the +2Y₁/a² shift
+                args = [self.hv_flux, src, delta, c, self._frame(*() if second else names), mass, m.dvv, np_, L]
+                flux = (
+                    m.launches.nodes(hyperviscosity.tensor_flux, N, [src, self.hv_tensor, m.dvv, np_, self.hv_flux])
+                    if tensor
+                    else m.launches.nodes(
+                        operators.laplace_wk_flux, N, [src, m.Dinv, m.spheremp, m.dvv, np_, self.hv_flux]
+                    )
+                )
+                return [*first, flux, m.launches.nodes(hyperviscosity.laplacian_node(second, divergent), N, args)]
 
         def apply(rows, copies, ghosts):  # ``Topology.gathering``'s kernel factory
             return hyperviscosity.dss_apply(copies, ghosts=ghosts)
@@ -103,6 +114,32 @@ class Hyperviscosity:
             *laplacian(True),
             *m.topology.gathering(L, apply, [f64(coef), self._frame("east", "north"), out]),
         ]
+
+    def tensor_metric(self, scaling: float) -> wp.array2d:
+        """The fixed metric (4, N) of the tensor ∇⁴'s second Laplacian, ∇·(V∇Y₁) + 2 v Y₁/a²
+        (Guba et al. 2014; HOMME ``biharmonic_wk`` with ``hypervis_scaling``): rows 0..2 the
+        quadrature-weighted spheremp · Dinv V Dinvᵀ (G₁₁, G₁₂, G₂₂; ``kernels.hyperviscosity``'s
+        ``laplacian_element`` and ``tensor_flux`` read it as the constant ∇⁴ reads spheremp ·
+        Dinv Dinvᵀ), row 3 spheremp · v with v = tr V / 2 the isotropic part of V (HOMME adds
+        2Y₁/a² unscaled, whose units are not those of ∇·(V∇Y₁); scaled, s = 0 is the constant
+        operator). V = ``grid.quality.hypervis_tensor`` (ν·V the effective ν ∝ Δx^s per element
+        direction), made continuous by a spheremp-weighted DSS over the ranks and then bilinear
+        in each element from its corners, as HOMME's ``dss_hvtensor``. Built once, with the grid."""
+        m = self.model
+        grid = m.grid
+        raw = wp.array(hypervis_tensor(grid, scaling), dtype=f64, device=m.device)
+        continuous = wp.zeros_like(raw)
+        for launch in m.topology.dss(raw, True, continuous):
+            launch.launch()
+        V11, V12, V22 = element_bilinear(continuous.numpy(), grid.rule)
+        d0, d1, d2, d3 = grid.Dinv  # Dinv = [[d0, d1], [d2, d3]]
+        w = grid.spheremp
+        # Dinv V Dinvᵀ, V symmetric
+        a11, a12, a21, a22 = d0 * V11 + d1 * V12, d0 * V12 + d1 * V22, d2 * V11 + d3 * V12, d2 * V12 + d3 * V22
+        metric = np.stack(
+            [w * (a11 * d0 + a12 * d1), w * (a11 * d2 + a12 * d3), w * (a21 * d2 + a22 * d3), w * (V11 + V22) / 2]
+        )
+        return wp.array(metric, dtype=f64, device=m.device)
 
     def _frame(self, *names, rows=False):
         """A ``kernels.hyperviscosity.Frame`` holding the model's arrays of these
@@ -129,7 +166,10 @@ class Hyperviscosity:
         """Largest eigenvalue λ (m⁻⁴) of the discrete ∇⁴ operator with unit
         coefficients (ν = ν_div = ν_s = 1 m⁴ s⁻¹, wind and height together), by
         power iteration from a fixed random continuous state. Forward Euler on
-        dx/dt = −ν∇⁴x is stable for max(ν, ν_div, ν_s) Δt λ ≤ 2."""
+        dx/dt = −ν∇⁴x is stable for max(ν, ν_div, ν_s) Δt λ ≤ 2. With the tensor
+        (``tensor_metric``), λ is the tensor operator's: its top mode sits on the element with
+        the largest ∇⁴ Courant number ν_eff Δt / Δx⁴ (the smallest one under constant ν; under
+        s = 4 every element's is alike), which so sets ``substeps`` and ``stages``."""
         m = self.model
         if self._biharmonic_radius is None:
             rng = np.random.default_rng(0)

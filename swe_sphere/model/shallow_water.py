@@ -52,6 +52,9 @@ class ShallowWater:
         None: ``nu``), used if "hyperviscosity" is a term
         (``kernels.hyperviscosity``).
     hypervis_subcycle : forward-Euler substeps per ``hyperviscosity`` call.
+    hypervis_scaling : None (constant ν) or s ≥ 0: HOMME's tensor ∇⁴ (``hypervis_scaling``;
+        Guba et al. 2014), effective ν·(Δx / Δx_ref)^s per element direction
+        (``hyperviscosity.Hyperviscosity.tensor_metric``).
     forcing : (kernel, params) of the "forcing" term, supplied by the case
         (``cases.ForcedLow.forcing``): a pointwise kernel (xyz, east, north,
         params, t, tend, block, offset) that adds the forcing at model time t
@@ -85,6 +88,7 @@ class ShallowWater:
         nu_div=None,
         nu_s=None,
         hypervis_subcycle=1,
+        hypervis_scaling=None,
         g=EARTH.g,
         device="cpu",
         threads=None,
@@ -117,6 +121,7 @@ class ShallowWater:
         if self.threads < 1:
             raise ValueError(f"threads must be >= 1 (got {threads})")
         self.nu, self.hypervis_subcycle, self.g = float(nu), int(hypervis_subcycle), float(g)
+        self.hypervis_scaling = None if hypervis_scaling is None else float(hypervis_scaling)
         self.per_element = Backend.of(device).per_element if per_element is None else bool(per_element)
         self.dvv_rows = operators.dvv_matrix(grid.rule.dvv)  # the per-element kernels' dvv argument
         N = grid.npts

@@ -265,6 +265,7 @@ class Simulation(StateDiagnostics):
             nu_div=scene.nu_div,
             nu_s=scene.nu_s,
             hypervis_subcycle=scene.hypervis_subcycle,
+            hypervis_scaling=scene.hypervis_scaling,
             g=self.g,
             device=device,
             topology=topo,

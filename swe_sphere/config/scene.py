@@ -153,6 +153,11 @@ class Scene:
         The node fields the run file holds; (): all (``OUTPUT_FIELDS``).
     output_streams : tuple of dict
         More run files, each {"name": suffix, "every_days": interval, "fields": (...)}.
+    mesh : dict or None
+        The mesh ([grid] ``map``, ``stretch_factor``/``target_lat``/``target_lon``,
+        ``mesh_file``) as a ``grid.spec`` record; None: the equiangular cube of ne.
+    output_cells : bool
+        [output] cells: the run files hold the control volumes (``io.dual``).
     """
 
     name: str

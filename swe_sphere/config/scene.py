@@ -735,14 +735,10 @@ def load_scene(
             radius = f" radius={planet.a:g} m" if scale != 1.0 else ""
             dt_source = f"time.dt of scene {path.stem} scaled to {grid_spec.describe(ne1, np1, record1)}{radius}"
             # what the smallest node spacing changed with: the grid, the planet's radius or both
-            spacing = " and ".join(
-                what
-                for what, changed in (
-                    ("the smallest node spacing", min_ratio != scale),
-                    (f"the planet's radius ({planet.a:g} m against the scene's {file_radius:g} m)", scale != 1.0),
-                )
-                if changed
-            )
+            changes = ["the smallest node spacing"] if min_ratio != scale else []
+            if scale != 1.0:  # file_radius is None (a dt given by -s time.dt) only where scale is 1
+                changes.append(f"the planet's radius ({planet.a:g} m against the scene's {file_radius:g} m)")
+            spacing = " and ".join(changes)
             if scaled / dt1 > 2:  # one line for both: "scaled to" the cut dt read as if the grid had asked for it
                 if days1 <= every:
                     what = f"the run length of {days1:g} days"

@@ -4,6 +4,7 @@ values or the one-line ``SceneError`` naming the key."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -16,6 +17,9 @@ from swe_sphere.cases.library import make_case
 from swe_sphere.config.scene import (
     HYPERVIS_EXPONENT,
     SceneGrid,
+    SceneHyperviscosity,
+    SceneOutput,
+    SceneTime,
     Spacing,
     efold_nu,
     load_scene,
@@ -62,7 +66,6 @@ def test_a_dt_set_by_an_override_scales_with_another_grid():
 
 A = EARTH.a
 SAME = Spacing(mean=1.0, smallest=1.0, scale=1.0, radii=(A, A))  # the run's grid and planet are the scene file's
-NUS = ("nu", "nu_div", "nu_s")
 STRETCHED = {"map": "element_local", "stretch_factor": 2.0, "target_lat": 40.0, "target_lon": 0.0}
 HV_TERMS = ("continuity", "momentum_advection", "coriolis", "pressure_gradient", "hyperviscosity")
 
@@ -250,18 +253,18 @@ def test_resolve_stepper_options_checks_them_and_warns_of_another_steppers():
 
 def test_resolve_hyperviscosity_scales_the_coefficients_given_and_the_efold_rule():
     grid = SceneGrid(16, 4)
-    assert resolve_hyperviscosity({"nu": 1e15}, HV_TERMS, grid, SAME) == (dict.fromkeys(NUS, 1e15), 1, ())
+    assert resolve_hyperviscosity({"nu": 1e15}, HV_TERMS, grid, SAME) == (SceneHyperviscosity(1e15, 1e15, 1e15, 1), ())
     coarse = Spacing(2.0, 2.0, 1.0, (A, A))  # ne 16 -> 8
-    nus, subcycle, notes = resolve_hyperviscosity({"nu": 1e15, "subcycle": 2}, HV_TERMS, SceneGrid(8, 4), coarse)
-    assert nus == dict.fromkeys(NUS, 1e15 * 2.0**HYPERVIS_EXPONENT) and subcycle == 2
+    hv, notes = resolve_hyperviscosity({"nu": 1e15, "subcycle": 2}, HV_TERMS, SceneGrid(8, 4), coarse)
+    nu = 1e15 * 2.0**HYPERVIS_EXPONENT
+    assert hv == SceneHyperviscosity(nu, nu, nu, 2)
     assert notes == ("nu scaled as dx^3.2 and radius^4: nu, nu_div, nu_s = 9.19e+15, 9.19e+15, 9.19e+15 m^4/s",)
     rule = efold_nu(3.0, 16, 4, A)
-    nus, _, notes = resolve_hyperviscosity({"efold_hours": 3.0, "nu_div": 5e14}, HV_TERMS, grid, SAME)
-    assert nus == {"nu": rule, "nu_div": 5e14, "nu_s": rule} and notes == ()
+    efold = resolve_hyperviscosity({"efold_hours": 3.0, "nu_div": 5e14}, HV_TERMS, grid, SAME)
+    assert efold == (SceneHyperviscosity(rule, 5e14, rule, 1), ())
     unused = resolve_hyperviscosity({"nu": 1e15}, HV_TERMS[:-1], grid, SAME)
     assert unused == (
-        dict.fromkeys(NUS, 0.0),
-        1,
+        SceneHyperviscosity(0.0, 0.0, 0.0, 1),
         ("hyperviscosity coefficients given, but the scene's terms have no hyperviscosity: not used",),
     )
     with pytest.raises(SceneError, match=r"^hyperviscosity.nu_s must be >= 0 \(got -1.0\)$"):
@@ -276,3 +279,15 @@ def test_scene_title_says_when_the_case_is_switched():
         "tc5_mountain_in_tc2_steady",
         "case tc5_mountain with scene tc2_steady's grid, terms and stepping",
     )
+
+
+def test_the_nested_view_groups_the_flat_fields_by_table():
+    scene = load_scene("tc6_rossby_haurwitz", ne=4, days=1.0, overrides={"output.fields": ["h"]})
+    assert scene.grid == SceneGrid(4, 4, None)
+    assert scene.time == SceneTime("kgu35", {}, 86400 / 39, 1.0)  # ne30's 300 s: 2250 s at ne4, 39 a day
+    assert scene.hyperviscosity == SceneHyperviscosity(scene.nu, scene.nu_div, scene.nu_s, 1) and scene.nu > 0
+    assert scene.output == SceneOutput(1.0, 0, ("h",), ())
+    with pytest.raises(AttributeError):
+        scene.grid = SceneGrid(8, 4)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        scene.time.dt = 60.0

@@ -96,8 +96,9 @@ def efold_nu(hours: float, ne: float, np: int, radius: float) -> float:
 
 @dataclass(frozen=True)
 class SceneGrid:
-    """A scene's grid: ``ne`` elements along a cube edge (0 for a mesh file, HOMME's), ``np`` GLL
-    points per element direction, ``mesh`` the ``grid.spec`` record (None: the equiangular cube)."""
+    """A scene's grid ([grid]; ``Scene.grid``): ``ne`` elements along a cube edge (0 for a mesh
+    file, HOMME's), ``np`` GLL points per element direction, ``mesh`` the ``grid.spec`` record
+    (None: the equiangular cube)."""
 
     ne: int
     np: int
@@ -105,8 +106,48 @@ class SceneGrid:
 
 
 @dataclass(frozen=True)
+class SceneTime:
+    """A scene's stepping ([time] and the stepper's table; ``Scene.time``): the ``stepper``
+    (``steppers.STEPPERS``) and its ``options``, the step ``dt`` (s) and the last model day
+    ``days``."""
+
+    stepper: str
+    options: dict
+    dt: float
+    days: float
+
+
+@dataclass(frozen=True)
+class SceneHyperviscosity:
+    """A scene's ∇⁴ hyperviscosity ([hyperviscosity]; ``Scene.hyperviscosity``): ``nu``,
+    ``nu_div``, ``nu_s`` (m⁴ s⁻¹, on this grid; the rotational wind, divergent wind and h + hs,
+    HOMME's names) and ``subcycle`` substeps a step."""
+
+    nu: float
+    nu_div: float
+    nu_s: float
+    subcycle: int
+
+
+@dataclass(frozen=True)
+class SceneOutput:
+    """A scene's output ([output]; ``Scene.output``): the interval ``every_days``, a log line
+    every ``log_every_steps`` (0: none), the run file's node ``fields`` (() : all of
+    ``OUTPUT_FIELDS``) and the more run files ``streams`` ({"name", "every_days", "fields"})."""
+
+    every_days: float
+    log_every_steps: int
+    fields: tuple
+    streams: tuple
+
+
+@dataclass(frozen=True)
 class Scene:
     """A validated, resolved scene: all values final, overrides applied (``load_scene``).
+
+    The fields are flat; the properties ``grid``, ``time``, ``hyperviscosity`` and ``output``
+    group them by their scene table as small frozen dataclasses (``SceneGrid``, ``SceneTime``,
+    ``SceneHyperviscosity``, ``SceneOutput``), read-only.
 
     Attributes
     ----------
@@ -189,6 +230,28 @@ class Scene:
     output_streams: tuple = ()
     # the mesh ([grid] map, stretch_factor, mesh_file): a ``grid.spec`` record; None: the equiangular cube of ne
     mesh: dict | None = None
+
+    # the nested view: the flat fields grouped by their table, read-only (the flat fields stay
+    # what the rest of the package reads)
+    @property
+    def grid(self) -> SceneGrid:
+        """ne, np and the mesh ([grid])."""
+        return SceneGrid(self.ne, self.np, self.mesh)
+
+    @property
+    def time(self) -> SceneTime:
+        """The stepper, its options, dt and days ([time] and the stepper's table)."""
+        return SceneTime(self.stepper, self.stepper_options, self.dt, self.days)
+
+    @property
+    def hyperviscosity(self) -> SceneHyperviscosity:
+        """nu, nu_div, nu_s and the subcycles ([hyperviscosity])."""
+        return SceneHyperviscosity(self.nu, self.nu_div, self.nu_s, self.hypervis_subcycle)
+
+    @property
+    def output(self) -> SceneOutput:
+        """The output interval, log interval, fields and streams ([output])."""
+        return SceneOutput(self.output_every_days, self.log_every_steps, self.output_fields, self.output_streams)
 
     @property
     def start_day(self) -> float:
@@ -840,8 +903,10 @@ def resolve_stepper_options(stepper: str, table: dict, overrides: dict) -> tuple
     return options, (f"warning: -s {', '.join(other)}: not an option of {stepper}, the stepper that runs; not used",)
 
 
-def resolve_hyperviscosity(table: dict, terms: tuple, grid: SceneGrid, spacing: Spacing) -> tuple[dict, int, tuple]:
-    """({"nu", "nu_div", "nu_s"} (m⁴ s⁻¹), subcycle, notes) of the [hyperviscosity] table on the
+def resolve_hyperviscosity(
+    table: dict, terms: tuple, grid: SceneGrid, spacing: Spacing
+) -> tuple[SceneHyperviscosity, tuple]:
+    """(nu, nu_div, nu_s (m⁴ s⁻¹) and subcycle; notes) of the [hyperviscosity] table on the
     run's ``grid`` and planet. Coefficients given are for the scene file's grid and planet: they
     scale as ``spacing.mean`` to ``HYPERVIS_EXPONENT`` and, keeping their damping time at the
     grid scale, as ``spacing.scale``⁴ (the radii's ratio); ``efold_hours``
@@ -880,7 +945,7 @@ def resolve_hyperviscosity(table: dict, terms: tuple, grid: SceneGrid, spacing: 
     subcycle = table.get("subcycle", 1)
     if subcycle < 1:
         raise SceneError(f"hyperviscosity.subcycle must be >= 1 (got {subcycle})")
-    return nus, subcycle, tuple(notes)
+    return SceneHyperviscosity(float(nus["nu"]), float(nus["nu_div"]), float(nus["nu_s"]), int(subcycle)), tuple(notes)
 
 
 def scene_title(case_name: str, file_case: str | None, stem: str, description: str) -> tuple[str, str]:
@@ -955,7 +1020,7 @@ def load_scene(
     dt, dt_source, dt_notes = resolve_dt(time.get("dt"), dt, days, every, path.stem, grid, spacing)
     output_fields, streams = resolve_output_files(output, dt, days, dt_source)
     options, stepper_notes = resolve_stepper_options(stepper, s.get(stepper, {}), overrides)
-    nus, subcycle, hv_notes = resolve_hyperviscosity(s.get("hyperviscosity", {}), terms, grid, spacing)
+    hv, hv_notes = resolve_hyperviscosity(s.get("hyperviscosity", {}), terms, grid, spacing)
     name, description = scene_title(case.name, file_case, path.stem, s.get("description", ""))
     return Scene(
         name=name,
@@ -970,10 +1035,10 @@ def load_scene(
         dt=float(dt),
         days=float(days),
         output_every_days=float(every),
-        nu=float(nus["nu"]),
-        hypervis_subcycle=int(subcycle),
-        nu_div=float(nus["nu_div"]),
-        nu_s=float(nus["nu_s"]),
+        nu=hv.nu,
+        hypervis_subcycle=hv.subcycle,
+        nu_div=hv.nu_div,
+        nu_s=hv.nu_s,
         notes=case.notes + grid_notes + dt_notes + stepper_notes + hv_notes,
         initialization=initialization,
         reference=case.reference,

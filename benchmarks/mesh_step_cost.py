@@ -24,12 +24,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from meshes import TC6_TERMS, case_model, icosahedral_mesh  # noqa: E402
-
 from swe_sphere.core.runtime import init_warp  # noqa: E402
 from swe_sphere.grid.cubed_sphere import CubedSphere, cube_mesh  # noqa: E402
 from swe_sphere.grid.mesh import read_exodus  # noqa: E402
 from swe_sphere.steppers import make_stepper  # noqa: E402
+
+from meshes import TC6_TERMS, case_model, icosahedral_mesh  # noqa: E402
 
 
 def stepper_on(grid):

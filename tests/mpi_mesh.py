@@ -9,12 +9,13 @@ from __future__ import annotations
 import sys
 
 import numpy as np
-from meshes import TC6_TERMS, case_model, icosahedral_mesh
 
 from swe_sphere.core import mpi
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.topology import Topology, rank_parts
 from swe_sphere.steppers import make_stepper
+
+from meshes import TC6_TERMS, case_model, icosahedral_mesh
 
 STEPS = 4
 

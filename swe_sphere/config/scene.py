@@ -68,8 +68,9 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from importlib.resources import files
 from pathlib import Path
+from typing import NamedTuple
 
-from ..cases.library import make_case
+from ..cases.library import Case, make_case
 from ..cases.reference import cases_of, locate, reference_path, stored_days
 from ..core.constants import DAY, EARTH, Planet
 from ..core.errors import SceneError
@@ -100,8 +101,61 @@ def efold_nu(hours: float, ne: float, np: int, radius: float) -> float:
 
 
 @dataclass(frozen=True)
+class SceneGrid:
+    """A scene's grid ([grid]; ``Scene.grid``): ``ne`` elements along a cube edge (0 for a mesh
+    file, HOMME's), ``np`` GLL points per element direction, ``mesh`` the ``grid.spec`` record
+    (None: the equiangular cube)."""
+
+    ne: int
+    np: int
+    mesh: dict | None = None
+
+
+@dataclass(frozen=True)
+class SceneTime:
+    """A scene's stepping ([time] and the stepper's table; ``Scene.time``): the ``stepper``
+    (``steppers.STEPPERS``) and its ``options``, the step ``dt`` (s) and the last model day
+    ``days``."""
+
+    stepper: str
+    options: dict
+    dt: float
+    days: float
+
+
+@dataclass(frozen=True)
+class SceneHyperviscosity:
+    """A scene's ∇⁴ hyperviscosity ([hyperviscosity]; ``Scene.hyperviscosity``): ``nu``,
+    ``nu_div``, ``nu_s`` (m⁴ s⁻¹, on this grid; the rotational wind, divergent wind and h + hs,
+    HOMME's names), ``subcycle`` substeps a step and ``scaling`` (None: constant ν; s: the
+    tensor ∇⁴, ν ∝ Δx^s along each element direction, HOMME's ``hypervis_scaling``)."""
+
+    nu: float
+    nu_div: float
+    nu_s: float
+    subcycle: int
+    scaling: float | None = None
+
+
+@dataclass(frozen=True)
+class SceneOutput:
+    """A scene's output ([output]; ``Scene.output``): the interval ``every_days``, a log line
+    every ``log_every_steps`` (0: none), the run file's node ``fields`` (() : all of
+    ``OUTPUT_FIELDS``) and the more run files ``streams`` ({"name", "every_days", "fields"})."""
+
+    every_days: float
+    log_every_steps: int
+    fields: tuple
+    streams: tuple
+
+
+@dataclass(frozen=True)
 class Scene:
     """A validated, resolved scene: all values final, overrides applied (``load_scene``).
+
+    The fields are flat; the properties ``grid``, ``time``, ``hyperviscosity`` and ``output``
+    group them by their scene table as small frozen dataclasses (``SceneGrid``, ``SceneTime``,
+    ``SceneHyperviscosity``, ``SceneOutput``), read-only.
 
     Attributes
     ----------
@@ -191,6 +245,28 @@ class Scene:
     mesh: dict | None = None
     output_cells: bool = True  # [output] cells: the run files hold the control volumes (``dual``)
     hypervis_scaling: float | None = None  # [hyperviscosity] scaling: the tensor ∇⁴'s s; None: constant ν
+
+    # the nested view: the flat fields grouped by their table, read-only (the flat fields stay
+    # what the rest of the package reads)
+    @property
+    def grid(self) -> SceneGrid:
+        """ne, np and the mesh ([grid])."""
+        return SceneGrid(self.ne, self.np, self.mesh)
+
+    @property
+    def time(self) -> SceneTime:
+        """The stepper, its options, dt and days ([time] and the stepper's table)."""
+        return SceneTime(self.stepper, self.stepper_options, self.dt, self.days)
+
+    @property
+    def hyperviscosity(self) -> SceneHyperviscosity:
+        """nu, nu_div, nu_s and the subcycles ([hyperviscosity])."""
+        return SceneHyperviscosity(self.nu, self.nu_div, self.nu_s, self.hypervis_subcycle, self.hypervis_scaling)
+
+    @property
+    def output(self) -> SceneOutput:
+        """The output interval, log interval, fields and streams ([output])."""
+        return SceneOutput(self.output_every_days, self.log_every_steps, self.output_fields, self.output_streams)
 
     @property
     def start_day(self) -> float:
@@ -574,10 +650,367 @@ def _grid_record(grid: dict, scene_path: Path) -> dict | None:
     return {"map": "element_local"} if chosen == "element_local" else None
 
 
+class Spacing(NamedTuple):
+    """``resolve_spacing``'s answer: the run's node spacing over the scene file's, ``mean`` (on
+    the grid alone; it scales ν) and ``smallest`` (the explicit limit, times ``scale``; it scales
+    dt); ``scale`` the planet's radius over the scene file's (1 where that does not apply), and
+    ``radii`` (m) the planet's and the scene file's (None with a dt set by ``-s time.dt``)."""
+
+    mean: float
+    smallest: float
+    scale: float
+    radii: tuple
+
+
+class ResolvedCase(NamedTuple):
+    """``resolve_case``'s answer: the case's name, its parameters (the [case] table less name,
+    initialization and reference), the start's method ("none" or "dfi"), the reference file's
+    absolute path or None, the ``Case`` built on the planet, and the notes for the run's header."""
+
+    name: str
+    params: dict
+    method: str
+    reference: str | None
+    case: Case
+    notes: tuple
+
+
+def read_scene(path: Path, overrides: dict) -> tuple[dict, float | None, str | None]:
+    """(the tables of the scene file ``path`` with ``overrides`` applied (``_apply_overrides``),
+    their keys and types checked (``_SCHEMA``); the file's own radius (m): that of its [planet]
+    before the overrides, for which its dt and ν are, None with an override of time.dt; the
+    file's own case name, None without one). Raises ``SceneError``: a file that cannot be read
+    or is not TOML, an unknown key, a value of the wrong type, a bad override."""
+    try:
+        raw = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as err:
+        raise SceneError(f"malformed TOML in {path}: {err}") from None
+    except OSError as err:
+        raise SceneError(f"cannot read scene {path}: {err.strerror}") from None
+    table = raw.get("planet", {})
+    file_radius = table.get("radius", EARTH.a) if isinstance(table, dict) and "time.dt" not in overrides else None
+    file_case = raw.get("case", {}).get("name") if isinstance(raw.get("case"), dict) else None
+    _apply_overrides(raw, overrides)
+    return _validate(raw), file_radius, file_case
+
+
+def resolve_planet(table: dict | None) -> Planet:
+    """The [planet] table's ``Planet`` (radius, omega, gravity; Williamson's Earth's by default).
+    Raises ``SceneError`` naming the key (``Planet.from_table``)."""
+    try:
+        return Planet.from_table(table)
+    except ValueError as err:
+        raise SceneError(str(err)) from None
+
+
+def resolve_case(table: dict, planet: Planet, scene_path: Path) -> ResolvedCase:
+    """The [case] table resolved on ``planet``: a ``case.path`` (the "file" case) relative to the
+    current folder, else to ``scene_path``'s folder; a ``case.reference`` located and checked
+    (``_reference``); a note where the case's bundled reference is not used (another planet).
+    Raises ``SceneError`` naming the key: no ``name``, an unknown initialization, case or
+    parameter (``cases.make_case``), a reference on another planet than Williamson's Earth."""
+    params = dict(table)
+    if "name" not in params:
+        raise SceneError("case.name is missing")
+    name = params.pop("name")
+    method = params.pop("initialization", "none")
+    if method not in METHODS:
+        raise SceneError(f"case.initialization must be one of {', '.join(METHODS)} (got {method!r})")
+    reference = params.pop("reference", None)
+    if name == "file" and isinstance(params.get("path"), str):
+        given = Path(params["path"]).expanduser()
+        beside = scene_path.parent / given
+        params["path"] = str((beside if not given.exists() and beside.exists() else given).absolute())
+    try:
+        case = make_case(name, params, planet, SCENE_CASES)
+    except ValueError as err:
+        raise SceneError(str(err)) from None
+    notes = ()
+    if reference is not None:
+        if planet != EARTH:
+            raise SceneError(
+                f"case.reference = {reference!r}: the spectral references are of Williamson's Earth, "
+                f"not of this scene's planet ({_planet_text(planet)}); drop case.reference or [planet]"
+            )
+        reference = _reference(reference, name, case)
+    elif planet != EARTH and case.reference_file is not None:
+        notes = (
+            f"not scored against the {case.reference_file} reference: it is of Williamson's Earth, "
+            f"not of this planet ({_planet_text(planet)})",
+        )
+    return ResolvedCase(name, params, method, reference, case, notes)
+
+
+def resolve_terms(terms: list | None, case: Case, case_name: str) -> tuple:
+    """The ``terms`` list as a tuple (``model.shallow_water.TERMS``). Raises ``SceneError``: none,
+    an unknown or repeated term, one the case needs missing (``Case.required_terms``), forcing
+    for a case without one."""
+    if not terms:
+        raise SceneError("terms is missing or empty")
+    for i, t in enumerate(terms):
+        if t not in TERMS:
+            raise SceneError(f"unknown term {t!r} (known: {', '.join(TERMS)})")
+        if t in terms[:i]:
+            raise SceneError(f"term {t!r} is listed twice in terms")
+    missing = [t for t in TERMS if t in case.required_terms and t not in terms]
+    if missing:
+        raise SceneError(f"case {case_name} needs the term(s) {', '.join(missing)} (terms = {terms})")
+    if "forcing" in terms and case.forcing() is None:
+        raise SceneError(f"case {case_name} has no forcing: drop the term 'forcing'")
+    return tuple(terms)
+
+
+def resolve_initialization(method: str, dfi: dict, case: Case, case_name: str) -> dict | None:
+    """``Scene.initialization`` of ``case.initialization`` and the [dfi] table: None for "none",
+    {"method": "dfi", "span_hours": ..., "cutoff_hours": ...} (``initialization.DigitalFilter``).
+    Raises ``SceneError``: a digital filter on a case with an exact solution, or a bad [dfi]."""
+    if method != "dfi":
+        return None
+    if case.exact_solution:
+        raise SceneError(
+            f'case.initialization = "dfi" would spoil case {case_name}\'s exact solution (its errors are '
+            "measured against it); use it on cases without one (tc5_mountain, tc6_rossby_haurwitz, galewsky)"
+        )
+    try:
+        filt = DigitalFilter(**dfi)
+    except ValueError as err:
+        raise SceneError(str(err)) from None
+    return {"method": "dfi", **dataclasses.asdict(filt)}
+
+
+def resolve_grid(
+    table: dict | None, scene_path: Path, ne=None, np=None, mesh=None
+) -> tuple[SceneGrid, SceneGrid, tuple]:
+    """(the scene file's grid, the run's grid, notes) of the [grid] table (None: absent) and
+    ``load_scene``'s ``ne``, ``np`` and ``mesh`` (an Exodus II file replacing the scene's grid).
+    The defaults are ne = 16 (0 with a mesh file) and np = 4. Raises ``SceneError`` naming the
+    key: ne not 0 with a mesh file, ne < 1 on a cube, np outside ``NP_MIN``..``NP_MAX`` or below 3
+    on the element-local map (``_grid_record`` for the mesh's own keys)."""
+    grid = table or {}
+    record0 = _grid_record(grid, scene_path)  # the scene file's mesh (None: the equiangular cube)
+    on_file = record0 is not None and "file" in record0
+    ne0, np0 = grid.get("ne", 0 if on_file else 16), grid.get("np", 4)
+    if on_file and ne0 != 0:
+        raise SceneError(f"grid.ne must be 0 with grid.mesh_file (HOMME's ne = 0: the file's elements; got {ne0})")
+    record1 = record0
+    if mesh is not None:
+        if ne is not None:
+            raise SceneError(f"ne = {ne} and mesh {mesh}: a mesh file's elements are its own (HOMME's ne = 0)")
+        record1, ne = grid_spec.file_record(mesh), 0
+    elif on_file and ne not in (None, 0):
+        raise SceneError(f"ne = {ne} with grid.mesh_file: a mesh file's elements are its own (HOMME's ne = 0)")
+    ne1 = ne0 if ne is None else ne
+    np1 = np0 if np is None else np
+    notes = ()
+    if table is None and (ne is None or np is None) and mesh is None:
+        notes = (f"the scene has no [grid]: ne = {ne1}, np = {np1} (the defaults)",)
+    if not _is_integer(ne1) or (ne1 < 1 and not (record1 is not None and "file" in record1)):
+        raise SceneError(f"ne must be an integer >= 1 (got {_got(ne1)})")
+    if not _is_integer(np1) or not NP_MIN <= np1 <= NP_MAX:
+        raise SceneError(f"np must be an integer in {NP_MIN}..{NP_MAX} (got {_got(np1)})")
+    if record1 is not None and np1 < 3:
+        raise SceneError(
+            f"np must be >= 3 on {grid_spec.describe(ne1, np1, record1)}: the element-local map's area correction moves interior nodes"
+        )
+    return SceneGrid(ne0, np0, record0), SceneGrid(ne1, np1, record1), notes
+
+
+def resolve_spacing(scene_grid: SceneGrid, run_grid: SceneGrid, radius: float, file_radius) -> Spacing:
+    """How the run's node spacing differs from the scene file's, on ``run_grid`` and a planet of
+    ``radius`` (m) against ``scene_grid`` and ``file_radius`` (m; None or not a positive number:
+    the scene file's dt and ν are not for a radius, scale 1). The mean spacing goes as
+    1 / (``grid.spec.mean_ne`` · (np − 1)); the smallest as the first GLL interval / ne on two
+    equiangular cubes, else as ``quality.smallest_dx`` of both meshes. Raises ``SceneError`` for
+    a stretch that folds an element."""
+    ne0, np0, record0 = scene_grid.ne, scene_grid.np, scene_grid.mesh
+    ne1, np1, record1 = run_grid.ne, run_grid.np, run_grid.mesh
+    scale = radius / file_radius if _is_number(file_radius) and file_radius > 0 else 1.0
+    ratio = (grid_spec.mean_ne(ne0, record0) * (np0 - 1)) / (grid_spec.mean_ne(ne1, record1) * (np1 - 1))
+    if record0 is None and record1 is None:
+        smallest = (_first_gll_gap(np1) / ne1) / (_first_gll_gap(np0) / ne0)
+    elif scene_grid == run_grid:
+        smallest = 1.0
+    else:
+        try:
+            old = smallest_dx(ne0, np0, grid_spec.build_mesh(ne0, record0))
+            new = smallest_dx(ne1, np1, grid_spec.build_mesh(ne1, record1))
+        except ValueError as err:  # a stretch that folds an element
+            raise SceneError(f"{grid_spec.describe(ne1, np1, record1)}: {err}") from None
+        smallest = new / old
+    return Spacing(ratio, smallest * scale, scale, (radius, file_radius))
+
+
+def resolve_output_interval(output: dict) -> tuple[float, int]:
+    """(output.every_days, output.log_every_steps) of the [output] table, defaults 1 day and no
+    log lines. Raises ``SceneError`` naming the key: an interval ≤ 0, a negative log interval."""
+    every = output.get("every_days", 1.0)
+    if not every > 0:
+        raise SceneError(f"output.every_days must be > 0 (got {every})")
+    log_every = output.get("log_every_steps", 0)
+    if log_every < 0:
+        raise SceneError(f"output.log_every_steps must be >= 0 (got {log_every}; 0: no log lines)")
+    return every, log_every
+
+
+def resolve_stepper_days(table: dict, stepper=None, days=None) -> tuple[str, float]:
+    """(stepper, days) of the [time] table and ``load_scene``'s ``stepper`` and ``days`` (defaults
+    ssprk3 and 1 day). Raises ``SceneError``: an unknown stepper, days not a number > 0."""
+    name = stepper or table.get("stepper", "ssprk3")
+    if name not in STEPPERS:
+        raise SceneError(f"unknown stepper {name!r} (known: {', '.join(STEPPERS)})")
+    days = table.get("days", 1.0) if days is None else days
+    if not (_is_number(days) and math.isfinite(days) and days > 0):
+        raise SceneError(f"days must be > 0 (got {_got(days)})")
+    return name, days
+
+
+def resolve_dt(
+    scene_dt, dt, days: float, every: float, scene: str, grid: SceneGrid, spacing: Spacing
+) -> tuple[float, str, tuple]:
+    """(dt (s), where it comes from for messages, notes): ``dt`` as given, else the time.dt of
+    scene ``scene`` (``scene_dt``) times ``spacing.smallest`` (the run's smallest node spacing
+    on ``grid`` over the scene file's), shortened to divide the output interval ``every`` and
+    the run of ``days`` (``_common_interval``). The schedule is checked (``_check_schedule``).
+    Raises ``SceneError``: no time.dt, dt ≤ 0, a run or output interval of no whole steps."""
+    if dt is not None:
+        source, notes = "the dt given", ()
+    elif scene_dt is None:
+        raise SceneError("time.dt is missing")
+    elif not scene_dt > 0:
+        raise SceneError(f"time.dt must be > 0 (got {scene_dt})")
+    elif spacing.smallest == 1.0:
+        dt, source, notes = scene_dt, f"time.dt of scene {scene}", ()
+    else:
+        common = _common_interval(every, days)
+        interval = common * DAY
+        scaled = scene_dt * spacing.smallest
+        dt = interval / max(1, math.ceil(interval / scaled - 1e-9))
+        radius, file_radius = spacing.radii
+        moved = spacing.scale != 1.0  # the planet's radius; file_radius is a number then
+        where = grid_spec.describe(grid.ne, grid.np, grid.mesh) + (f" radius={radius:g} m" if moved else "")
+        source = f"time.dt of scene {scene} scaled to {where}"
+        # what the smallest node spacing changed with: the grid, the planet's radius or both
+        changes = ["the smallest node spacing"] if spacing.smallest != spacing.scale else []
+        if moved:
+            changes.append(f"the planet's radius ({radius:g} m against the scene's {file_radius:g} m)")
+        why = " and ".join(changes)
+        if scaled / dt > 2:  # one line for both: "scaled to" the cut dt read as if the grid had asked for it
+            if days <= every:
+                what = f"the run length of {days:g} days"
+            elif common == every:
+                what = f"the output interval of {every:g} days"
+            else:
+                what = f"both the output interval of {every:g} and the run length of {days:g} days"
+            notes = (
+                f"warning: dt cut {scaled / dt:.3g}x (from {scaled:g} s, scaled with {why}) "
+                f"to {dt:g} s to divide {what}",
+            )
+        else:
+            notes = (f"dt scaled with {why} to {dt:g} s",)
+    if not (_is_number(dt) and math.isfinite(dt) and dt > 0):
+        raise SceneError(f"dt must be > 0 (got {_got(dt)})")
+    _check_schedule(dt, days, every, source)
+    return dt, source, notes
+
+
+def resolve_stepper_options(stepper: str, table: dict, overrides: dict) -> tuple[dict, tuple]:
+    """(the options of ``stepper``: its table, checked by its ``make_options``; notes). An
+    override of another stepper's table is a slip: a note warns that it is not used. Raises
+    ``SceneError`` naming ``stepper.key``."""
+    options = dict(table)
+    try:
+        STEPPERS[stepper].make_options(**options)
+    except ValueError as err:
+        raise SceneError(f"{stepper}.{err}") from None
+    # a scene file may hold tables for other steppers (--stepper picks one); an -s for one is a slip
+    other = sorted(k for k in overrides if k.partition(".")[0] in STEPPERS and k.partition(".")[0] != stepper)
+    if not other:
+        return options, ()
+    return options, (f"warning: -s {', '.join(other)}: not an option of {stepper}, the stepper that runs; not used",)
+
+
+def resolve_hyperviscosity(
+    table: dict, terms: tuple, grid: SceneGrid, spacing: Spacing
+) -> tuple[SceneHyperviscosity, tuple]:
+    """(nu, nu_div, nu_s (m⁴ s⁻¹) and subcycle; notes) of the [hyperviscosity] table on the
+    run's ``grid`` and planet. Coefficients given are for the scene file's grid and planet: they
+    scale as ``spacing.mean`` to ``HYPERVIS_EXPONENT`` and, keeping their damping time at the
+    grid scale, as ``spacing.scale``⁴ (the radii's ratio); ``efold_hours``
+    sets the others on the run's grid (``efold_nu``); without it nu_div and nu_s default to nu.
+    All are 0 without the hyperviscosity term. Raises ``SceneError`` naming the key: a negative
+    coefficient, efold_hours or subcycle not > 0, the term without a coefficient > 0."""
+    for key in ("efold_hours", "nu", "nu_div", "nu_s"):
+        if table.get(key, 0.0) < 0 or (key == "efold_hours" and key in table and table[key] == 0):
+            raise SceneError(
+                f"hyperviscosity.{key} must be {'> 0' if key == 'efold_hours' else '>= 0'} (got {table[key]})"
+            )
+    scaling = table.get("scaling")
+    if scaling is not None and not 0 <= scaling <= 4:
+        raise SceneError(
+            f"hyperviscosity.scaling must be in 0..4 (got {scaling}): the s of nu ~ dx^s per element "
+            "(HOMME's hypervis_scaling, E3SM's 3.2)"
+        )
+    # under the tensor, given coefficients scale as dx^s
+    exponent = HYPERVIS_EXPONENT if scaling is None else scaling
+    ratio, planet_factor = spacing.mean, spacing.scale**4
+    given = [k for k in ("nu", "nu_div", "nu_s") if k in table]
+    nus = {key: table[key] * ratio**exponent * planet_factor for key in given}
+    notes = []
+    if "efold_hours" in table:
+        mean_ne = grid_spec.mean_ne(grid.ne, grid.mesh)
+        rule = efold_nu(table["efold_hours"], mean_ne, grid.np, spacing.radii[0])
+        nus = {key: nus.get(key, rule) for key in ("nu", "nu_div", "nu_s")}
+        if ratio != 1.0:
+            degree = round(2 * mean_ne * (grid.np - 1))
+            notes.append(f"nu = {rule:.3g} m^4/s: {table['efold_hours']:g} h e-folding at degree {degree}")
+    else:
+        nus = {key: nus.get(key, nus.get("nu", 0.0)) for key in ("nu", "nu_div", "nu_s")}
+    if "hyperviscosity" in terms and max(nus.values()) == 0:
+        raise SceneError("the hyperviscosity term needs hyperviscosity.nu, nu_div, nu_s or efold_hours > 0")
+    if "hyperviscosity" not in terms:
+        if given or scaling is not None:
+            notes.append("hyperviscosity coefficients given, but the scene's terms have no hyperviscosity: not used")
+        nus = dict.fromkeys(nus, 0.0)
+    elif (ratio != 1.0 or planet_factor != 1.0) and given and max(nus.values()) > 0:
+        notes.append(
+            f"nu scaled as dx^{exponent:g} and radius^4: nu, nu_div, nu_s = "
+            f"{nus['nu']:.3g}, {nus['nu_div']:.3g}, {nus['nu_s']:.3g} m^4/s"
+        )
+    if scaling is not None and "hyperviscosity" in terms:
+        a = spacing.radii[0]
+        d_ref = math.pi * a / (4 * grid_spec.mean_ne(grid.ne, grid.mesh))  # ``grid.quality.reference_spacing``
+        notes.append(
+            f"tensor hyperviscosity: nu (dx / {2 * d_ref / (grid.np - 1) / 1e3:.4g} km)^{scaling:g} along each element "
+            f"direction (HOMME's hypervis_scaling = {scaling:g}, nu = {nus['nu'] / (a**4 * (d_ref / a) ** scaling):.3g})"
+        )
+    subcycle = table.get("subcycle", 1)
+    if subcycle < 1:
+        raise SceneError(f"hyperviscosity.subcycle must be >= 1 (got {subcycle})")
+    scaling = None if scaling is None or "hyperviscosity" not in terms else float(scaling)
+    hv = SceneHyperviscosity(float(nus["nu"]), float(nus["nu_div"]), float(nus["nu_s"]), int(subcycle), scaling)
+    return hv, tuple(notes)
+
+
+def scene_title(case_name: str, file_case: str | None, stem: str, description: str) -> tuple[str, str]:
+    """(``Scene.name``, ``Scene.description``) of the scene file ``stem`` running ``case_name``:
+    its own, or for a case switched from the file's (``-s case.name=...``) names that say so, for
+    the header, the run file's title and its default name."""
+    if case_name == file_case:
+        return stem, description
+    return f"{case_name}_in_{stem}", f"case {case_name} with scene {stem}'s grid, terms and stepping"
+
+
 def load_scene(
     path, *, ne=None, np=None, dt=None, days=None, stepper=None, mesh=None, overrides: dict | None = None
 ) -> Scene:
     """Read, validate and resolve a scene file, applying command-line overrides.
+
+    Each table is resolved by a function of its own, in this order (the first refusal
+    wins): ``read_scene`` (the file, the overrides, keys and types), ``resolve_planet``,
+    ``resolve_case``, ``resolve_terms``, ``resolve_initialization`` ([dfi]),
+    ``resolve_grid``, ``resolve_spacing``, ``resolve_output_interval``,
+    ``resolve_stepper_days``, ``resolve_dt``, ``resolve_output_files``,
+    ``resolve_stepper_options`` and ``resolve_hyperviscosity``.
 
     Parameters
     ----------
@@ -616,272 +1049,49 @@ def load_scene(
         (``Case.required_terms``).
     """
     path = resolve_path(str(path))
-    try:
-        raw = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as err:
-        raise SceneError(f"malformed TOML in {path}: {err}") from None
-    except OSError as err:
-        raise SceneError(f"cannot read scene {path}: {err.strerror}") from None
-    # the radius the scene's own dt and ν are for: its file's planet (before the overrides), unless dt is overridden too
-    table = raw.get("planet", {})
-    file_radius = (
-        table.get("radius", EARTH.a) if isinstance(table, dict) and "time.dt" not in (overrides or {}) else None
-    )
-    file_case = raw.get("case", {}).get("name") if isinstance(raw.get("case"), dict) else None
-    _apply_overrides(raw, overrides or {})
-    s = _validate(raw)
-    notes = []
-
-    case = dict(s.get("case", {}))
-    if "name" not in case:
-        raise SceneError("case.name is missing")
-    case_name = case.pop("name")
-    method = case.pop("initialization", "none")
-    if method not in METHODS:
-        raise SceneError(f"case.initialization must be one of {', '.join(METHODS)} (got {method!r})")
-    reference = case.pop("reference", None)
-    if case_name == "file" and isinstance(case.get("path"), str):  # relative to the current folder, else to the scene's
-        given = Path(case["path"]).expanduser()
-        beside = path.parent / given
-        case["path"] = str((beside if not given.exists() and beside.exists() else given).absolute())
-    try:
-        planet = Planet.from_table(s.get("planet"))
-        case_obj = make_case(case_name, case, planet, SCENE_CASES)
-    except ValueError as err:
-        raise SceneError(str(err)) from None
-    scale = (
-        planet.a / file_radius if _is_number(file_radius) and file_radius > 0 else 1.0
-    )  # the planet's node spacing, new / scene's
-    if reference is not None:
-        if planet != EARTH:
-            raise SceneError(
-                f"case.reference = {reference!r}: the spectral references are of Williamson's Earth, "
-                f"not of this scene's planet ({_planet_text(planet)}); drop case.reference or [planet]"
-            )
-        reference = _reference(reference, case_name, case_obj)
-    elif planet != EARTH and case_obj.reference_file is not None:
-        notes.append(
-            f"not scored against the {case_obj.reference_file} reference: it is of Williamson's Earth, "
-            f"not of this planet ({_planet_text(planet)})"
-        )
-
-    terms = s.get("terms")
-    if not terms:
-        raise SceneError("terms is missing or empty")
-    for i, t in enumerate(terms):
-        if t not in TERMS:
-            raise SceneError(f"unknown term {t!r} (known: {', '.join(TERMS)})")
-        if t in terms[:i]:
-            raise SceneError(f"term {t!r} is listed twice in terms")
-    missing = [t for t in TERMS if t in case_obj.required_terms and t not in terms]
-    if missing:
-        raise SceneError(f"case {case_name} needs the term(s) {', '.join(missing)} (terms = {terms})")
-    if "forcing" in terms and case_obj.forcing() is None:
-        raise SceneError(f"case {case_name} has no forcing: drop the term 'forcing'")
-
-    initialization = None
-    if method == "dfi":
-        if case_obj.exact_solution:
-            raise SceneError(
-                f'case.initialization = "dfi" would spoil case {case_name}\'s exact solution (its errors are '
-                "measured against it); use it on cases without one (tc5_mountain, tc6_rossby_haurwitz, galewsky)"
-            )
-        try:
-            dfi = DigitalFilter(**s.get("dfi", {}))
-        except ValueError as err:
-            raise SceneError(str(err)) from None
-        initialization = {"method": "dfi", **dataclasses.asdict(dfi)}
-
-    grid = s.get("grid", {})
-    record0 = _grid_record(grid, path)  # the scene file's mesh (None: the equiangular cube)
-    on_file = record0 is not None and "file" in record0
-    ne0, np0 = grid.get("ne", 0 if on_file else 16), grid.get("np", 4)
-    if on_file and ne0 != 0:
-        raise SceneError(f"grid.ne must be 0 with grid.mesh_file (HOMME's ne = 0: the file's elements; got {ne0})")
-    record1 = record0
-    if mesh is not None:  # a mesh file given with the run replaces the scene's grid
-        if ne is not None:
-            raise SceneError(f"ne = {ne} and mesh {mesh}: a mesh file's elements are its own (HOMME's ne = 0)")
-        record1 = grid_spec.file_record(mesh)
-        ne = 0
-    elif on_file and ne not in (None, 0):
-        raise SceneError(f"ne = {ne} with grid.mesh_file: a mesh file's elements are its own (HOMME's ne = 0)")
-    ne1 = ne0 if ne is None else ne
-    np1 = np0 if np is None else np
-    if "grid" not in s and (ne is None or np is None) and mesh is None:
-        notes.append(f"the scene has no [grid]: ne = {ne1}, np = {np1} (the defaults)")
-    on_file1 = record1 is not None and "file" in record1
-    if not _is_integer(ne1) or (ne1 < 1 and not on_file1):
-        raise SceneError(f"ne must be an integer >= 1 (got {_got(ne1)})")
-    if not _is_integer(np1) or not NP_MIN <= np1 <= NP_MAX:
-        raise SceneError(f"np must be an integer in {NP_MIN}..{NP_MAX} (got {_got(np1)})")
-    if record1 is not None and np1 < 3:
-        raise SceneError(
-            f"np must be >= 3 on {grid_spec.describe(ne1, np1, record1)}: the element-local map's area correction moves interior nodes"
-        )
-    # mean node spacing, new / scene's
-    ratio = (grid_spec.mean_ne(ne0, record0) * (np0 - 1)) / (grid_spec.mean_ne(ne1, record1) * (np1 - 1))
-    # smallest node spacing (sets the explicit limit), new / scene's
-    if record0 is None and record1 is None:
-        min_ratio = (_first_gll_gap(np1) / ne1) / (_first_gll_gap(np0) / ne0) * scale
-    elif (ne0, np0, record0) == (ne1, np1, record1):
-        min_ratio = scale
-    else:
-        try:
-            old = smallest_dx(ne0, np0, grid_spec.build_mesh(ne0, record0))
-            new = smallest_dx(ne1, np1, grid_spec.build_mesh(ne1, record1))
-        except ValueError as err:  # a stretch that folds an element
-            raise SceneError(f"{grid_spec.describe(ne1, np1, record1)}: {err}") from None
-        min_ratio = new / old * scale
-
-    t = s.get("time", {})
-    stepper1 = stepper or t.get("stepper", "ssprk3")
-    if stepper1 not in STEPPERS:
-        raise SceneError(f"unknown stepper {stepper1!r} (known: {', '.join(STEPPERS)})")
-    every = s.get("output", {}).get("every_days", 1.0)
-    if not every > 0:
-        raise SceneError(f"output.every_days must be > 0 (got {every})")
-    log_every = s.get("output", {}).get("log_every_steps", 0)
-    if log_every < 0:
-        raise SceneError(f"output.log_every_steps must be >= 0 (got {log_every}; 0: no log lines)")
-    days1 = t.get("days", 1.0) if days is None else days
-    if not (_is_number(days1) and math.isfinite(days1) and days1 > 0):
-        raise SceneError(f"days must be > 0 (got {_got(days1)})")
-    if dt is None:
-        dt1 = t.get("dt")
-        if dt1 is None:
-            raise SceneError("time.dt is missing")
-        if not dt1 > 0:
-            raise SceneError(f"time.dt must be > 0 (got {dt1})")
-        dt_source = f"time.dt of scene {path.stem}"
-        if min_ratio != 1.0:
-            common = _common_interval(every, days1)
-            interval = common * DAY
-            scaled = dt1 * min_ratio
-            dt1 = interval / max(1, math.ceil(interval / scaled - 1e-9))
-            radius = f" radius={planet.a:g} m" if scale != 1.0 else ""
-            dt_source = f"time.dt of scene {path.stem} scaled to {grid_spec.describe(ne1, np1, record1)}{radius}"
-            # what the smallest node spacing changed with: the grid, the planet's radius or both
-            spacing = " and ".join(
-                what
-                for what, changed in (
-                    ("the smallest node spacing", min_ratio != scale),
-                    (f"the planet's radius ({planet.a:g} m against the scene's {file_radius:g} m)", scale != 1.0),
-                )
-                if changed
-            )
-            if scaled / dt1 > 2:  # one line for both: "scaled to" the cut dt read as if the grid had asked for it
-                if days1 <= every:
-                    what = f"the run length of {days1:g} days"
-                elif common == every:
-                    what = f"the output interval of {every:g} days"
-                else:
-                    what = f"both the output interval of {every:g} and the run length of {days1:g} days"
-                notes.append(
-                    f"warning: dt cut {scaled / dt1:.3g}x (from {scaled:g} s, scaled with {spacing}) "
-                    f"to {dt1:g} s to divide {what}"
-                )
-            else:
-                notes.append(f"dt scaled with {spacing} to {dt1:g} s")
-    else:
-        dt1, dt_source = dt, "the dt given"
-    if not (_is_number(dt1) and math.isfinite(dt1) and dt1 > 0):
-        raise SceneError(f"dt must be > 0 (got {_got(dt1)})")
-    _check_schedule(dt1, days1, every, dt_source)
-    output_fields, streams = _output_choices(s.get("output", {}), dt1, days1, dt_source)
-
-    options = dict(s.get(stepper1, {}))
-    try:
-        STEPPERS[stepper1].make_options(**options)
-    except ValueError as err:
-        raise SceneError(f"{stepper1}.{err}") from None
-    # a scene file may hold tables for other steppers (--stepper picks one); an -s for one is a slip
-    other = sorted(k for k in overrides or {} if k.partition(".")[0] in STEPPERS and k.partition(".")[0] != stepper1)
-    if other:
-        notes.append(f"warning: -s {', '.join(other)}: not an option of {stepper1}, the stepper that runs; not used")
-
-    hv = s.get("hyperviscosity", {})
-    for key in ("efold_hours", "nu", "nu_div", "nu_s"):
-        if hv.get(key, 0.0) < 0 or (key == "efold_hours" and key in hv and hv[key] == 0):
-            raise SceneError(
-                f"hyperviscosity.{key} must be {'> 0' if key == 'efold_hours' else '>= 0'} (got {hv[key]})"
-            )
-    scaling = hv.get("scaling")
-    if scaling is not None and not 0 <= scaling <= 4:
-        raise SceneError(
-            f"hyperviscosity.scaling must be in 0..4 (got {scaling}): the s of nu ~ dx^s per element "
-            "(HOMME's hypervis_scaling, E3SM's 3.2)"
-        )
-    # explicit coefficients (m^4/s at the scene's grid and planet) scale as dx^3.2 (the tensor's: dx^s) and,
-    # keeping their damping time at the grid scale, as a^4 on another planet; efold_hours gives the rest
-    planet_factor = scale**4
-    exponent = HYPERVIS_EXPONENT if scaling is None else scaling
-    nus = {key: hv[key] * ratio**exponent * planet_factor for key in ("nu", "nu_div", "nu_s") if key in hv}
-    if "efold_hours" in hv:
-        mean_ne = grid_spec.mean_ne(ne1, record1)
-        rule = efold_nu(hv["efold_hours"], mean_ne, np1, planet.a)
-        nus = {key: nus.get(key, rule) for key in ("nu", "nu_div", "nu_s")}
-        if ratio != 1.0:
-            notes.append(
-                f"nu = {rule:.3g} m^4/s: {hv['efold_hours']:g} h e-folding at degree {round(2 * mean_ne * (np1 - 1))}"
-            )
-    else:
-        nus = {key: nus.get(key, nus.get("nu", 0.0)) for key in ("nu", "nu_div", "nu_s")}
-    if "hyperviscosity" in terms and max(nus.values()) == 0:
-        raise SceneError("the hyperviscosity term needs hyperviscosity.nu, nu_div, nu_s or efold_hours > 0")
-    if "hyperviscosity" not in terms:
-        if any(k in hv for k in ("nu", "nu_div", "nu_s", "scaling")):
-            notes.append("hyperviscosity coefficients given, but the scene's terms have no hyperviscosity: not used")
-        nus = dict.fromkeys(nus, 0.0)
-    elif (
-        (ratio != 1.0 or planet_factor != 1.0)
-        and any(k in hv for k in ("nu", "nu_div", "nu_s"))
-        and max(nus.values()) > 0
-    ):
-        notes.append(
-            f"nu scaled as dx^{exponent:g} and radius^4: nu, nu_div, nu_s = {nus['nu']:.3g}, {nus['nu_div']:.3g}, {nus['nu_s']:.3g} m^4/s"
-        )
-    if scaling is not None and "hyperviscosity" in terms:
-        d_ref = math.pi * planet.a / (4 * grid_spec.mean_ne(ne1, record1))  # ``grid.quality.reference_spacing``
-        notes.append(
-            f"tensor hyperviscosity: nu (dx / {2 * d_ref / (np1 - 1) / 1e3:.4g} km)^{scaling:g} along each element "
-            f"direction (HOMME's hypervis_scaling = {scaling:g}, nu = {nus['nu'] / (planet.a**4 * (d_ref / planet.a) ** scaling):.3g})"
-        )
-    subcycle = hv.get("subcycle", 1)
-    if subcycle < 1:
-        raise SceneError(f"hyperviscosity.subcycle must be >= 1 (got {subcycle})")
-
-    # a switched case (-s case.name=...) is named in the header, the run file's title and its default name
-    switched = case_name != file_case
+    overrides = overrides or {}
+    s, file_radius, file_case = read_scene(path, overrides)
+    planet = resolve_planet(s.get("planet"))
+    case = resolve_case(s.get("case", {}), planet, path)
+    terms = resolve_terms(s.get("terms"), case.case, case.name)
+    initialization = resolve_initialization(case.method, s.get("dfi", {}), case.case, case.name)
+    scene_grid, grid, grid_notes = resolve_grid(s.get("grid"), path, ne, np, mesh)
+    spacing = resolve_spacing(scene_grid, grid, planet.a, file_radius)
+    output, time = s.get("output", {}), s.get("time", {})
+    every, log_every = resolve_output_interval(output)
+    stepper, days = resolve_stepper_days(time, stepper, days)
+    dt, dt_source, dt_notes = resolve_dt(time.get("dt"), dt, days, every, path.stem, grid, spacing)
+    output_fields, streams = resolve_output_files(output, dt, days, dt_source)
+    options, stepper_notes = resolve_stepper_options(stepper, s.get(stepper, {}), overrides)
+    hv, hv_notes = resolve_hyperviscosity(s.get("hyperviscosity", {}), terms, grid, spacing)
+    name, description = scene_title(case.name, file_case, path.stem, s.get("description", ""))
     return Scene(
-        name=f"{case_name}_in_{path.stem}" if switched else path.stem,
-        description=f"case {case_name} with scene {path.stem}'s grid, terms and stepping"
-        if switched
-        else s.get("description", ""),
-        case=case_name,
-        case_params=case,
-        terms=tuple(terms),
-        ne=int(ne1),
-        np=int(np1),
-        stepper=stepper1,
+        name=name,
+        description=description,
+        case=case.name,
+        case_params=case.params,
+        terms=terms,
+        ne=int(grid.ne),
+        np=int(grid.np),
+        stepper=stepper,
         stepper_options=options,
-        dt=float(dt1),
-        days=float(days1),
+        dt=float(dt),
+        days=float(days),
         output_every_days=float(every),
-        nu=float(nus["nu"]),
-        hypervis_subcycle=int(subcycle),
-        nu_div=float(nus["nu_div"]),
-        nu_s=float(nus["nu_s"]),
-        notes=tuple(notes),
+        nu=hv.nu,
+        hypervis_subcycle=hv.subcycle,
+        nu_div=hv.nu_div,
+        nu_s=hv.nu_s,
+        notes=case.notes + grid_notes + dt_notes + stepper_notes + hv_notes,
         initialization=initialization,
-        reference=reference,
+        reference=case.reference,
         log_every_steps=int(log_every),
         planet=planet.as_table(),
         output_fields=output_fields,
         output_streams=streams,
-        mesh=record1,
-        output_cells=s.get("output", {}).get("cells", True),
-        hypervis_scaling=None if scaling is None or "hyperviscosity" not in terms else float(scaling),
+        mesh=grid.mesh,
+        output_cells=output.get("cells", True),
+        hypervis_scaling=hv.scaling,
     )
 
 
@@ -904,7 +1114,7 @@ def _fields(value, key: str) -> tuple:
     return tuple(f for f in OUTPUT_FIELDS if f in value)  # the file's order
 
 
-def _output_choices(output: dict, dt: float, days: float, dt_source: str) -> tuple[tuple, tuple]:
+def resolve_output_files(output: dict, dt: float, days: float, dt_source: str) -> tuple[tuple, tuple]:
     """([output] fields, [[output.streams]]) checked: field names, stream names (a
     file-name suffix, distinct, not "restart") and intervals of whole steps."""
     fields = _fields(output.get("fields"), "output.fields")

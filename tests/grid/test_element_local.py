@@ -9,7 +9,6 @@ import math
 import numpy as np
 import pytest
 import warp as wp
-from meshes import MOUNTAIN, TC2_TERMS, TC6_TERMS, TEMPEST_NE2, bipyramid_mesh, case_model, icosahedral_mesh
 from scipy.spatial import cKDTree
 
 from swe_sphere.grid.cubed_sphere import CubedSphere, Numbering, cube_mesh
@@ -21,6 +20,7 @@ from swe_sphere.grid.topology import GatheredGrid, SerialComm, Topology
 from swe_sphere.steppers import make_stepper
 
 import roundoff
+from meshes import MOUNTAIN, TC2_TERMS, TC6_TERMS, TEMPEST_NE2, bipyramid_mesh, case_model, icosahedral_mesh
 
 GRID_ARRAYS = ("xyz", "lat", "lon", "east", "north", "D", "Dinv", "metdet", "spheremp", "rspheremp", "dx")
 TABLES = ("gid", "dss_table", "first", "area", "halo", "halo_spheremp")

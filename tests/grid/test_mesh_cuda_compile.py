@@ -8,10 +8,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import warp as wp
-from meshes import TC6_TERMS, bipyramid_mesh, case_model
 
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.steppers import make_stepper
+
+from meshes import TC6_TERMS, bipyramid_mesh, case_model
 
 STEPPERS = ("ssprk3", "semi_implicit", "imex", "implicit")
 

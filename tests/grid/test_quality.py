@@ -6,12 +6,13 @@ import math
 
 import numpy as np
 import pytest
-from meshes import MOUNTAIN
 
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.mesh import read_exodus
 from swe_sphere.grid.quality import dinv_singular_values, element_sizes
 from swe_sphere.grid.schmidt import schmidt_cube
+
+from meshes import MOUNTAIN
 
 
 def test_the_closed_form_singular_values_are_numpys(rng):

@@ -7,7 +7,6 @@ import math
 
 import numpy as np
 import pytest
-from meshes import TC2_TERMS, case_model
 
 from swe_sphere.grid.cubed_sphere import CubedSphere, cube_mesh
 from swe_sphere.grid.mesh import check, element_areas
@@ -15,6 +14,7 @@ from swe_sphere.grid.schmidt import rotation_to, schmidt_cube
 from swe_sphere.steppers import make_stepper
 
 import roundoff
+from meshes import TC2_TERMS, case_model
 
 GRID_ARRAYS = ("xyz", "lat", "lon", "D", "Dinv", "metdet", "spheremp", "rspheremp", "dx", "gid", "dss_table")
 

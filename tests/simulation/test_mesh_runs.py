@@ -12,7 +12,6 @@ import math
 import numpy as np
 import pytest
 import xarray as xr
-from meshes import MOUNTAIN, icosahedral_mesh
 
 from swe_sphere.cases.library import make_case
 from swe_sphere.cli import main
@@ -32,6 +31,7 @@ from swe_sphere.simulation.simulation import Simulation
 
 import roundoff
 from helpers import write_tc2_scene
+from meshes import MOUNTAIN, icosahedral_mesh
 
 DT = 600.0  # s: within the gravity-wave limit of the ne2 np4 element-local cube (1838 s) and the stretched ne4
 STEPS = 12  # 2 hours

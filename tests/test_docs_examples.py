@@ -1,12 +1,18 @@
-"""Every shell and Python example of README.md and docs/*.md runs as written, in
-order, in one fresh folder (as a user on a fresh clone: ``testcases/`` beside it),
-with one change: each ``swe-sphere run | sweep | stability`` and each Python
-``ne=`` runs at a tiny grid (``--ne`` / ``ne=`` set to ``NE``, added where a scene's
-own grid would be used but for a run on a ``--mesh`` file, and default file names
-``*_ne<N>np*`` to match). Left out, with the reason: ``pip install`` and
-``python -m pytest`` (this test runs inside them), ``mpiexec`` lines (MPI tests:
-tests/test_mpi.py) and ``--device cuda`` lines (tests/test_cuda.py). README.md is
-in the default run; docs/*.md are ``slow``, but for ``PAGES_LEFT_OUT``."""
+"""Every example of README.md and docs/*.md runs as written, in page order, in one fresh
+folder per page (as a user on a fresh clone: ``testcases/`` beside it): each bash/sh and
+Python code block, and each command written inline (`` `swe-sphere run galewsky --days
+12` ``, a span of one or two lines), one after the other, so that a page whose commands
+collide (a default file name taken twice, a study folder written twice) fails here.
+
+The runs are shortened: ``swe-sphere`` is tests/docs_shortening.py in front of the real
+tool (tiny grids that keep the page's grids apart, at most two runs a sweep); a Python
+block's ``ne=N`` becomes ``ne=small_ne(N)`` likewise. Left out, with the reason: ``pip
+install`` and ``python -m pytest`` (this test runs inside them), ``mpiexec`` lines (MPI
+tests: tests/test_mpi.py), ``--device cuda`` lines (tests/test_cuda.py),
+``python benchmarks/`` (timings: the benchmarks are measured, not examples), a bare
+subcommand written inline (`` `swe-sphere remap` ``: a name, not a command), and a
+command with a placeholder (``NU``, ``S``, ``DT``, ``DIR``, ``...``: a value the reader
+fills in)."""
 
 from __future__ import annotations
 
@@ -18,42 +24,52 @@ from pathlib import Path
 
 import pytest
 
+from docs_shortening import coarser_dt, shorten, small_ne
+
 ROOT = Path(__file__).resolve().parents[1]
-NE = 2
-FENCE = re.compile(r"^```(\w*)\n(.*?)^```", re.M | re.S)
-LEFT_OUT = ("pip install", "python -m pytest", "mpiexec", "--device cuda")
-GRID_COMMAND = re.compile(r"^swe-sphere (run|sweep|stability)\b")
+SHIM = Path(__file__).resolve().with_name("docs_shortening.py")
+# A fenced block (language, text), or an inline code span of one or two lines.
+EXAMPLE = re.compile(r"^```(\w*)\n(.*?)^```|`([^`\n]+(?:\n[^`\n]+)?)`", re.M | re.S)
+INLINE_COMMAND = re.compile(r"(\w+=\S* )*(swe-sphere \w+ \S|python \S)")
+LEFT_OUT = ("pip install", "python -m pytest", "mpiexec", "--device cuda", "python benchmarks/")
+PLACEHOLDER = re.compile(r"(?<![\w$.{'/-])(\.\.\.|[A-Z]{1,3}|DIR)(?![\w.=/'-])")
 
 
-def blocks(path: Path) -> list[tuple[str, str]]:
-    """(language, text) of each bash/sh/python code block of ``path``, in order."""
-    return [(lang, text) for lang, text in FENCE.findall(path.read_text()) if lang in ("bash", "sh", "python")]
+def examples(path: Path, inline: bool = True) -> list[tuple[str, str]]:
+    """(language, text) of each example of ``path`` in page order: its bash/sh/python
+    code blocks and (``inline``) its inline commands, as ``bash``."""
+    out = []
+    for lang, block, span in EXAMPLE.findall(path.read_text()):
+        if span:
+            if inline and INLINE_COMMAND.match(command := " ".join(span.split())):
+                out.append(("bash", command))
+        elif lang in ("bash", "sh", "python"):
+            out.append((lang, block))
+    return out
 
 
 def shell_line(line: str) -> str | None:
-    """The command of one shell line at ``NE`` (None: left out)."""
+    """One shell line without what is left out (None: nothing left)."""
     parts = []
     for command in line.split("&&"):
         command = re.sub(r"\s+#.*$", "", command).strip()
         if not command or any(word in command for word in LEFT_OUT):
             continue
-        if GRID_COMMAND.match(command):
-            if "--ne" in command.split():
-                command = re.sub(r"--ne\s+\d+", f"--ne {NE}", command)
-            elif not {"--continue", "--from", "--mesh"} & set(command.split()):
-                command += f" --ne {NE}"
-        parts.append(re.sub(r"_ne\d+np", f"_ne{NE}np", command))  # a default file name says the grid
+        if "swe-sphere" in command or command.startswith("python "):
+            if PLACEHOLDER.search(command):
+                continue
+        parts.append(command)
     return " && ".join(parts) or None
 
 
-def programs(path: Path) -> list[list[str]]:
-    """The file's examples as commands to run in order: a shell block as one ``bash``
-    script, a Python block as one program after the imports of the page's earlier
-    Python blocks (the page reads as one session; its runs are not made twice)."""
+def programs(path: Path, inline: bool = True) -> list[list[str]]:
+    """The page's examples as commands to run in order: a shell block (or inline command)
+    as one ``bash`` script, a Python block as one program after the imports of the page's
+    earlier Python blocks (the page reads as one session; its runs are not made twice)."""
     out, imports = [], []
-    for lang, text in blocks(path):
+    for lang, text in examples(path, inline):
         if lang == "python":
-            text = re.sub(r"\bne=\d+", f"ne={NE}", text)
+            text = re.sub(r"\bne=(\d+)", lambda m: f"ne={small_ne(int(m[1]))}", text)
             out.append([sys.executable, "-c", "\n".join([*imports, text])])
             imports += [line for line in text.splitlines() if re.match(r"(import|from) \S", line)]
             continue
@@ -65,49 +81,102 @@ def programs(path: Path) -> list[list[str]]:
     return out
 
 
-def run_examples(path: Path, folder: Path) -> None:
+def run_examples(path: Path, folder: Path, inline: bool = True) -> None:
     (folder / "testcases").symlink_to(ROOT / "testcases")
+    (folder / "docs" / "efficiency").mkdir(parents=True)  # the pages' scripts, beside the figures they write
+    (folder / "docs" / "efficiency" / "tables.py").symlink_to(ROOT / "docs" / "efficiency" / "tables.py")
+    bin_ = folder / ".bin"
+    bin_.mkdir()
+    (bin_ / "swe-sphere").write_text(f'#!/bin/sh\nexec "{sys.executable}" "{SHIM}" "$@"\n')
+    (bin_ / "swe-sphere").chmod(0o755)
     env = {
         **os.environ,
-        "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}",
+        "PATH": os.pathsep.join([str(bin_), str(Path(sys.executable).parent), os.environ["PATH"]]),
         "MPLBACKEND": "Agg",
         "SWE_SPHERE_THREADS": "1",
     }
-    for argv in programs(path):
+    for argv in programs(path, inline):
         proc = subprocess.run(argv, cwd=folder, env=env, capture_output=True, text=True, timeout=1800)
         assert proc.returncode == 0, f"{path.name}: example failed:\n{argv[-1]}\n{proc.stderr[-3000:]}"
 
 
-def test_shell_lines_are_shortened_only_in_their_grid():
-    assert (
-        shell_line("swe-sphere run tc5_mountain --ne 16 --days 5  # note")
-        == f"swe-sphere run tc5_mountain --ne {NE} --days 5"
+def test_a_page_grids_stay_apart():
+    assert [small_ne(ne) for ne in (2, 4, 8, 16, 30, 60, 120)] == [2, 2, 2, 3, 4, 5, 6]
+    assert shorten(["run", "tc5_mountain_homme", "--ne", "60"]) == ["run", "tc5_mountain_homme", "--ne", "5"]
+    assert shorten(["run", "tc5_mountain_homme"]) == ["run", "tc5_mountain_homme", "--ne", "4"]  # the scene's 30
+    assert shorten(["run", "tc2_steady", "-s", "a.b=1"]) == ["run", "tc2_steady", "-s", "a.b=1", "--ne", "3"]
+    assert shorten(["stability", "galewsky"]) == ["stability", "galewsky", "--ne", "2"]
+    for argv in (["run", "--continue", "r.restart.nc", "--days", "20"], ["run", "tc2_steady", "--mesh", "x.g"]):
+        assert shorten(argv) == argv
+    assert shorten(["plot", "tc2_steady_ne8np4_ssprk3_2d.nc"]) == ["plot", "tc2_steady_ne2np4_ssprk3_2d.nc"]
+    assert shorten(["run", "tc2_steady", "--ne", "8", "-s", "case.path=tc5_mountain_ne16np4_rk4.nc"])[-1] == (
+        "case.path=tc5_mountain_ne3np4_rk4.nc"
     )
-    assert shell_line("swe-sphere run tc5_mountain -s a.b=1") == f"swe-sphere run tc5_mountain -s a.b=1 --ne {NE}"
-    assert (
-        shell_line("swe-sphere run --continue r.restart.nc --days 20")
-        == "swe-sphere run --continue r.restart.nc --days 20"
+
+
+def test_a_sweep_makes_one_run_in_one_process():
+    assert shorten(["sweep", "tc5_mountain", "--ne", "16", "--runs", "rk4@1,kgu35@2", "--workers", "2"]) == [
+        *["sweep", "tc5_mountain", "--ne", "3", "--runs", "rk4@1"]
+    ]
+    steppers = [
+        "sweep",
+        "tc5_mountain",
+        "--ne",
+        "8",
+        "--steppers",
+        "rk4,kgu35",
+        "--courant",
+        "0.5,1",
+        "--dt",
+        "600,900",
+    ]
+    assert shorten(steppers)[4:] == ["--steppers", "rk4", "--courant", "0.5", "--dt", "2400.0"]
+    assert shorten(["stability", "tc5_mountain", "--steppers", "rk4,kgu35,ssprk3", "--ne", "16"]) == [
+        *["stability", "tc5_mountain", "--steppers", "rk4", "--ne", "3"]
+    ]
+
+
+def test_a_given_dt_keeps_its_courant_number_and_divides_the_day():
+    assert coarser_dt(90.0, 30) == 86400 / 128  # 960 steps a day on ne30 → 128 on ne4 (7.5x coarser)
+    assert coarser_dt(257.14285714285717, 30) == 86400 / 45  # 336 a day → 44.8 → 45
+    assert coarser_dt(3600.0, 4) == 7200.0  # ne4 → ne2: twice as coarse
+    galewsky = shorten(["run", "galewsky", "--stepper", "fbrk32", "--dt", "216"])  # 400 a day on its ne30
+    assert galewsky[-4:] == ["--dt", str(86400 / 53), "--ne", "4"]
+    assert shorten(["run", "--continue", "r.restart.nc", "--dt", "360"])[-1] == "360"  # the file's grid: unknown
+
+
+def test_inline_commands_are_examples_and_placeholders_are_not(tmp_path):
+    page = tmp_path / "page.md"
+    page.write_text(
+        "Run `swe-sphere run galewsky --stepper fbrk32 --dt 257.1\n--days 12` and `--ne 8`;\n"
+        "`swe-sphere remap` is a name, `swe-sphere: error` a message.\n"
+        "```bash\nI=rk4@1\nswe-sphere sweep tc5_mountain --runs $I,${I/rk4/kgu35} --output s  # two\n"
+        "swe-sphere sweep galewsky --runs ... --output g\nmpiexec -n 2 swe-sphere run tc5_mountain\n```\n"
+        "Then `swe-sphere run tc5_mountain --stepper S --dt DT`, "
+        "`swe-sphere run tc6_rossby_haurwitz_homme -s hyperviscosity.nu=NU`, "
+        "`python docs/efficiency/tables.py s --figures DIR` and `python -m pytest -m slow`.\n"
     )
-    assert shell_line("swe-sphere run tc2_steady --mesh x.g") == "swe-sphere run tc2_steady --mesh x.g"
-    assert shell_line("swe-sphere plot tc5.nc --day 5") == "swe-sphere plot tc5.nc --day 5"
-    assert (
-        shell_line("swe-sphere plot tc2_steady_ne8np4_ssprk3.nc") == f"swe-sphere plot tc2_steady_ne{NE}np4_ssprk3.nc"
-    )
-    assert shell_line("pip install -e . && swe-sphere list") == "swe-sphere list"
-    assert shell_line("mpiexec -n 4 swe-sphere run tc5_mountain") is None
+    assert [argv[-1] for argv in programs(page)] == [
+        "set -e\nswe-sphere run galewsky --stepper fbrk32 --dt 257.1 --days 12",
+        "set -e\nI=rk4@1\nswe-sphere sweep tc5_mountain --runs $I,${I/rk4/kgu35} --output s",
+    ]
 
 
 def test_readme_examples_run_as_written(tmp_path):
-    run_examples(ROOT / "README.md", tmp_path)
+    run_examples(ROOT / "README.md", tmp_path, inline=False)  # its inline commands restate its blocks
 
 
-# efficiency.md records studies of hours (hundreds of 15-day runs) and names some run lists "..."
-PAGES_LEFT_OUT = ("efficiency.md",)
+# efficiency.md's studies are ten sweeps and their tables: about a minute of CPU even shortened
+SLOW_PAGES = ("efficiency.md",)
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize(
-    "page", sorted(p.name for p in (ROOT / "docs").glob("*.md") if p.name not in PAGES_LEFT_OUT and blocks(p))
+    "page",
+    [
+        pytest.param(p.name, marks=[pytest.mark.slow] if p.name in SLOW_PAGES else [])
+        for p in sorted((ROOT / "docs").glob("*.md"))
+        if programs(p)
+    ],
 )
 def test_docs_examples_run_as_written(tmp_path, page):
     run_examples(ROOT / "docs" / page, tmp_path)

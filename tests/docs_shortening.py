@@ -1,0 +1,120 @@
+"""``swe-sphere`` as the executed-docs test runs it (tests/test_docs_examples.py puts a
+``swe-sphere`` that runs this file first on PATH): the command line of README.md and
+docs/*.md shortened to a tiny grid and a few runs, then the real command-line tool.
+
+What changes, and why it keeps the pages' order meaningful:
+
+- ``--ne N`` of ``run``, ``sweep`` and ``stability`` becomes ``small_ne(N)``: 2 for
+  N ≤ 8 and one more a doubling (16 → 3, 30 → 4, 60 → 5), so that runs a page tells
+  apart by their grid (``run tc5_mountain_homme`` and ``… --ne 60``) still write
+  different default files; a command without ``--ne`` gets that of its scene's grid
+  (``stability``: of its default ne 8), but for a run on a ``--mesh`` file or from a
+  restart file (``--continue``, ``--from``), whose grid is the file's. A ``--dt`` given
+  with a known grid grows as the grid coarsens (``coarser_dt``: the same Courant number).
+- A default file name in any argument (``…_ne8np4_ssprk3.nc``) says the shortened grid.
+- A sweep makes one run: the first of ``--runs``, or the first of ``--steppers`` at the
+  first of ``--courant`` (``--dt``); ``stability`` bisects the first of ``--steppers``;
+  ``--workers`` is dropped (each worker process imports the model again, which costs
+  more than a tiny run).
+- The run lengths stay: at these grids a 15-day run costs a fraction of a second
+  above the process's start-up, and the pages' days carry meaning (the reference's
+  stored days, restart days, the time filter's window).
+- A sweep times each run's RHS for one short batch instead of five 0.2 s ones: that
+  time is the unit of the cost columns (``sweep.rhs_time``), not an answer these
+  examples check, and it would be most of a tiny sweep's time.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import sys
+import time
+
+GRID_COMMANDS = ("run", "sweep", "stability")
+FILE_GRID = ("--continue", "--from", "--mesh")  # the grid is the file's
+COARSE_NE = 8  # `stability --ne`'s default, the usual coarse grid
+DAY = 86400.0  # s
+
+
+def small_ne(ne: int) -> int:
+    """The shortened grid of ``ne``: 2 for ne ≤ 8, one more a doubling (16 → 3, 30 → 4,
+    60 → 5), so that the grids a page tells apart stay apart."""
+    return 2 + max(0, round(math.log2(ne / 8)))
+
+
+def coarser_dt(dt: float, ne: int) -> float:
+    """A Δt (s) given for grid ``ne`` on the grid ``small_ne(ne)``: as many times longer as
+    the grid is coarser (the same Courant number), then the nearest that divides the day
+    (a given Δt the page chose to divide its output interval still does)."""
+    return DAY / max(1, round(DAY / dt * small_ne(ne) / ne))
+
+
+def scene_ne(scene: str) -> int:
+    """The ne of a scene file or bundled scene's grid (8, the usual coarse grid, where the
+    scene does not load: the real command then says why in one line)."""
+    from swe_sphere.config.scene import load_scene
+    from swe_sphere.core.errors import SweSphereError
+
+    try:
+        return load_scene(scene).ne
+    except SweSphereError:
+        return COARSE_NE
+
+
+KEPT = {  # per command: option → how many of its comma-separated values stay
+    "sweep": {"--runs": 1, "--steppers": 1, "--courant": 1, "--dt": 1},
+    "stability": {"--steppers": 1},
+}
+
+
+def _file_names(args: list[str]) -> list[str]:
+    """``args`` with each default file name's grid (``_ne<N>np``) shortened."""
+    return [re.sub(r"_ne(\d+)np", lambda m: f"_ne{small_ne(int(m[1]))}np", a) for a in args]
+
+
+def shorten(argv: list[str]) -> list[str]:
+    """``swe-sphere``'s arguments (the subcommand first) shortened as the module says."""
+    if not argv or argv[0] not in GRID_COMMANDS:
+        return _file_names(argv)
+    command, args = argv[0], argv[1:]
+    if "--workers" in args:
+        i = args.index("--workers")
+        del args[i : i + 2]
+    for option, n in KEPT.get(command, {}).items():
+        if option in args[:-1]:
+            i = args.index(option) + 1
+            args[i] = ",".join(args[i].split(",")[:n])
+    if "--ne" in args[:-1]:
+        i = args.index("--ne") + 1
+        ne = int(args[i])
+        args[i] = str(small_ne(ne))
+    elif command == "stability":
+        ne = COARSE_NE
+        args += ["--ne", str(small_ne(ne))]
+    elif args and not args[0].startswith("-") and not set(FILE_GRID) & set(args):
+        ne = scene_ne(args[0])
+        args += ["--ne", str(small_ne(ne))]
+    else:
+        ne = None  # the file's grid, not known here: its Δt stays
+    if ne is not None and "--dt" in args[:-1]:
+        i = args.index("--dt") + 1
+        args[i] = ",".join(str(coarser_dt(float(dt), ne)) for dt in args[i].split(","))
+    return [command, *_file_names(args)]
+
+
+def _cut_rhs_timing() -> None:
+    """One short batch for each run's RHS time in a sweep (the module says why)."""
+    from swe_sphere.studies import sweep
+
+    timed = sweep.rhs_time
+    sweep.rhs_time = lambda sim, clock=time.perf_counter: timed(sim, span=1e-3, rounds=1, clock=clock)
+
+
+if __name__ == "__main__":
+    sys.argv[1:] = shorten(sys.argv[1:])
+    if sys.argv[1:2] == ["sweep"]:
+        _cut_rhs_timing()
+    from swe_sphere.cli import main
+
+    sys.exit(main())

@@ -27,8 +27,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.integrate import cumulative_simpson
-from scipy.interpolate import CubicSpline
 
 from ..core.constants import DAY, EARTH, Planet
 from ..kernels import forcing as forcing_kernels
@@ -53,12 +51,17 @@ def _great_circle(lat, lon, lat_c, lon_c):
     return np.arccos(np.clip(cosr, -1.0, 1.0))
 
 
-def zonal_balance(jet, planet, samples: int = 20001) -> CubicSpline:
+def zonal_balance(jet, planet, samples: int = 20001):
     """g·h(φ) − g·h(−π/2) (m² s⁻²) of a zonal flow u = jet(φ) (m s⁻¹, vectorized)
     in gradient-wind balance, d(gh)/dφ = −a u (2Ω sin φ + u tan φ / a)
     (Williamson et al. 1992 eq. 92 for case 3; Galewsky et al. 2004 eq. 3), by
     cumulative Simpson quadrature on ``samples`` latitudes and a cubic spline
-    (error < 1e-12 of gh for the C∞ jets used here)."""
+    (error < 1e-12 of gh for the C∞ jets used here). Returns a ``scipy.interpolate.CubicSpline``
+    of φ (rad)."""
+    # imported here: scipy.integrate costs a third of a second, and only the jets' cases need it
+    from scipy.integrate import cumulative_simpson
+    from scipy.interpolate import CubicSpline
+
     phi = np.linspace(-math.pi / 2, math.pi / 2, samples)
     u = jet(phi)
     with np.errstate(invalid="ignore"):  # tan φ at the poles, where u = 0

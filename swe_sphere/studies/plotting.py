@@ -65,15 +65,15 @@ def open_run(path) -> xr.Dataset:
 
 
 @dataclass
-class _T213:
-    """A T213 reference file (``reference.Reference``) as a comparison source."""
+class _SpectralReference:
+    """A spectral reference file (T213 or T341, ``reference.Reference``) as a comparison source."""
 
     ref: object
     label: str
 
     def check(self, field: str, day: float) -> None:
         if field in DERIVED:
-            raise ValueError(f"{self.label} has no {field} (T213 files hold h_surface, u, v)")
+            raise ValueError(f"{self.label} has no {field} (the spectral references hold h_surface, u, v)")
         if np.min(np.abs(self.ref.days - day), initial=np.inf) > DAY_TOL:
             raise ValueError(f"day {day:g} not in {self.label} (stored: {', '.join(f'{d:g}' for d in self.ref.days)})")
 
@@ -108,7 +108,7 @@ def open_reference(path, case=None):
         ds = open_run(path)
         run_grid(ds)  # validates ne/np against lat/lon
         return _Run(ds, path.name)
-    return _T213(Reference(path), path.name)
+    return _SpectralReference(Reference(path), path.name)
 
 
 # -- drawing -------------------------------------------------------------------

@@ -620,7 +620,8 @@ def test_sweep_files_record_what_the_sweep_was_made_with(swept):
             "ssprk3",
             "implicit",
         }
-    df = pd.read_csv(out / "sweep.csv", keep_default_na=False)
+    # the hash as text: one like "01579e19..." reads as a float otherwise
+    df = pd.read_csv(out / "sweep.csv", keep_default_na=False, dtype={"source_sha256": str})
     assert list(df.columns[-len(sweep_mod.RECORD) :]) == list(sweep_mod.RECORD)
     for k, v in expected.items():
         assert (df[k] == v).all(), k

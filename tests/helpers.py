@@ -28,6 +28,21 @@ from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.simulation.simulation import Simulation
 
 TINY = ("--ne", "2", "--np", "4", "--device", "cpu", "--no-progress")
+# a sweep of two ssprk3 runs of TC2 at ne 2 over one day (append --output DIR and options)
+TINY_SWEEP = (
+    "sweep",
+    "tc2_steady",
+    "--ne",
+    "2",
+    "--days",
+    "1",
+    "--steppers",
+    "ssprk3",
+    "--dt",
+    "1800,3600",
+    "--device",
+    "cpu",
+)
 EIGHTH_DAY = ("--dt", "1800", "--days", "0.125", "-s", "output.every_days=0.125")  # 6 steps, outputs at 0 and 0.125
 
 

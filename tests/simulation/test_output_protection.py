@@ -17,7 +17,7 @@ import pytest
 
 from swe_sphere.studies import stability, sweep
 
-from helpers import TINY, cli_one_line, console_script, one_line
+from helpers import TINY, TINY_SWEEP, cli_one_line, console_script, one_line
 
 
 @pytest.mark.parametrize("name", sweep.OUTPUTS)
@@ -119,18 +119,7 @@ def test_a_second_sweep_into_one_folder_is_refused_at_its_start(tmp_path, paused
     first run's first step); the second exits 2 before computing anything, and the
     first, let go, finishes."""
     argv = (
-        "sweep",
-        "tc2_steady",
-        "--ne",
-        "2",
-        "--days",
-        "1",
-        "--steppers",
-        "ssprk3",
-        "--dt",
-        "1800,3600",
-        "--device",
-        "cpu",
+        *TINY_SWEEP,
         "--output",
         "deep/sw",
     )

@@ -10,7 +10,7 @@ import pytest
 from swe_sphere.cli import main
 from swe_sphere.steppers.timefilter import TimeFilter, lanczos_weights, response
 
-from helpers import cli_one_line
+from helpers import TINY_SWEEP, cli_one_line
 
 
 def test_weights_sum_to_one_symmetric_half_power_at_cutoff():
@@ -65,18 +65,7 @@ def test_filtered_sweep_scores_the_balanced_flow(tmp_path):
 
     out = tmp_path / "sweep"
     args = [
-        "sweep",
-        "tc2_steady",
-        "--ne",
-        "2",
-        "--days",
-        "1",
-        "--steppers",
-        "ssprk3",
-        "--dt",
-        "1800,3600",
-        "--device",
-        "cpu",
+        *TINY_SWEEP,
         "--output",
         str(out),
         "--filter-days",

@@ -482,15 +482,18 @@ def _check_schedule(dt: float, days: float, every: float, dt_source: str = "the 
         raise _not_whole_steps("the output interval (output.every_days)", every, dt, dt_source)
 
 
+def common_interval(*days: float) -> float:
+    """The longest interval (days) that divides each of ``days``: their greatest
+    common divisor as the decimals they are written as (0.5 and 0.75: 0.25)."""
+    parts = [Fraction(repr(float(d))) for d in days]
+    denominator = math.lcm(*(p.denominator for p in parts))
+    return float(Fraction(math.gcd(*(int(p * denominator) for p in parts)), denominator))
+
+
 def _common_interval(every: float, days: float) -> float:
     """The longest interval (days) that divides the run length and, when the run is
-    longer, the output interval: their greatest common divisor as decimals written."""
-    if days <= every:
-        return days
-    a, b = Fraction(repr(every)), Fraction(repr(days))
-    return float(
-        Fraction(math.gcd(a.numerator * b.denominator, b.numerator * a.denominator), a.denominator * b.denominator)
-    )
+    longer, the output interval."""
+    return days if days <= every else common_interval(every, days)
 
 
 def with_days(scene: Scene, days: float, dt_source: str = "the restart file's") -> Scene:

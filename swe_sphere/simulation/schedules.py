@@ -6,7 +6,6 @@ from __future__ import annotations
 import bisect
 import math
 from dataclasses import dataclass
-from fractions import Fraction
 
 from ..config.scene import Scene
 from ..core.constants import DAY
@@ -53,14 +52,6 @@ def restart_steps(scene: Scene, every_days: float) -> set[int]:
 def next_multiple(step: int, every: int) -> int:
     """The first multiple of ``every`` after ``step``."""
     return (step // every + 1) * every
-
-
-def common_interval(*days: float) -> float:
-    """The longest interval (days) that divides each of ``days``: their greatest
-    common divisor as the decimals they are written as (0.5 and 0.75: 0.25)."""
-    parts = [Fraction(repr(float(d))) for d in days]
-    denominator = math.lcm(*(p.denominator for p in parts))
-    return float(Fraction(math.gcd(*(int(p * denominator) for p in parts)), denominator))
 
 
 @dataclass(frozen=True)

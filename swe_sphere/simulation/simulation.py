@@ -25,7 +25,7 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from ..cases.scoring import Scorer
-from ..config.scene import Scene, resolve_scene, with_days
+from ..config.scene import Scene, common_interval, resolve_scene, with_days
 from ..core.backend import Backend, pick_device
 from ..core.constants import DAY
 from ..core.errors import BlowUp, Interrupted, ResourceError, SceneError, StepFailure
@@ -45,7 +45,7 @@ from ..steppers.initialization import digital_filter
 from . import checkpoint as ckpt
 from .activities import Callback, Log
 from .guard import Guard
-from .schedules import EverySteps, common_interval, is_interval, steps_of, whole_steps
+from .schedules import EverySteps, is_interval, steps_of, whole_steps
 from .state_diagnostics import StateDiagnostics
 from .summary import Ledger, RunResult, Stop, interruption
 from .writers import Checkpointer, RunFiles, run_attrs

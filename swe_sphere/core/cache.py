@@ -20,12 +20,13 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import tempfile
 import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+
+from .files import replaced
 
 FORMAT = 1  # of the entry files; part of every key
 
@@ -83,16 +84,10 @@ def write(kind: str, key: dict, arrays: dict[str, np.ndarray]) -> Path:
     path = entry_path(kind, key)
     path.parent.mkdir(parents=True, exist_ok=True)
     header = json.dumps({"key": _key_text(kind, key), "sha256": checksum(arrays)}).encode()
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, header=np.frombuffer(header, dtype=np.uint8), **arrays)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with replaced(path, mode=0o600) as tmp, open(tmp, "wb") as f:
+        np.savez(f, header=np.frombuffer(header, dtype=np.uint8), **arrays)
+        f.flush()
+        os.fsync(f.fileno())
     return path
 
 

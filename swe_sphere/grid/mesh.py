@@ -14,13 +14,13 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..core.errors import OutputError, SceneError
+from ..core.files import replaced
 
 RADIUS_TOLERANCE = 1e-10  # |‖x‖ − 1| allowed of a node (files hold float64 unit vectors)
 AREA_TOLERANCE = 1e-8  # relative difference allowed between the elements' total area and 4π
@@ -202,47 +202,45 @@ def write_exodus(path: str | os.PathLike, mesh: Mesh, title: str | None = None) 
     ``connect1`` of 1-based ``SHELL4`` elements), whole or not at all: written to a temporary
     name beside ``path`` and renamed. Returns the path. Raises ``OutputError`` (one line) where
     ``path``'s folder cannot be written."""
-    import netCDF4
-
     path = Path(path)
     try:
-        handle, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+        with replaced(path) as tmp:  # 0644: a mesh is for others to read, as a run file
+            _write_exodus(tmp, mesh, title)
     except OSError as err:
         raise OutputError(f"cannot write {path}: {err.strerror}") from None
-    os.close(handle)
-    os.chmod(tmp, 0o644)  # mkstemp's is 0600: a mesh is for others to read, as a run file
-    try:
-        with netCDF4.Dataset(tmp, "w", format="NETCDF3_64BIT_OFFSET") as f:
-            f.title = title or f"swe_sphere: {mesh.name}"
-            f.api_version = f.version = np.float32(4.98)
-            f.floating_point_word_size = np.int32(8)
-            f.file_size = np.int32(1)
-            for dim, size in (
-                ("len_string", 33),
-                ("len_line", 81),
-                ("four", 4),
-                ("time_step", None),
-                ("num_dim", 3),
-                ("num_nodes", mesh.nnodes),
-                ("num_elem", mesh.nelem),
-                ("num_el_blk", 1),
-                ("num_el_in_blk1", mesh.nelem),
-                ("num_nod_per_el1", 4),
-            ):
-                f.createDimension(dim, size)
-            f.createVariable("time_whole", "f8", ("time_step",))
-            f.createVariable("eb_status", "i4", ("num_el_blk",))[:] = 1
-            prop = f.createVariable("eb_prop1", "i4", ("num_el_blk",))
-            prop.setncattr("name", "ID")
-            prop[:] = 1
-            names = f.createVariable("coor_names", "S1", ("num_dim", "len_string"))
-            names[:] = netCDF4.stringtochar(np.array(["x", "y", "z"], dtype="S33"))
-            connect = f.createVariable("connect1", "i4", ("num_el_in_blk1", "num_nod_per_el1"))
-            connect.elem_type = "SHELL4"
-            connect[:] = mesh.quads + 1
-            f.createVariable("coord", "f8", ("num_dim", "num_nodes"))[:] = mesh.coords.T
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
     return path
+
+
+def _write_exodus(tmp: Path, mesh: Mesh, title: str | None) -> None:
+    """The Exodus II variables of ``write_exodus`` into the new file ``tmp``."""
+    import netCDF4
+
+    with netCDF4.Dataset(tmp, "w", format="NETCDF3_64BIT_OFFSET") as f:
+        f.title = title or f"swe_sphere: {mesh.name}"
+        f.api_version = f.version = np.float32(4.98)
+        f.floating_point_word_size = np.int32(8)
+        f.file_size = np.int32(1)
+        for dim, size in (
+            ("len_string", 33),
+            ("len_line", 81),
+            ("four", 4),
+            ("time_step", None),
+            ("num_dim", 3),
+            ("num_nodes", mesh.nnodes),
+            ("num_elem", mesh.nelem),
+            ("num_el_blk", 1),
+            ("num_el_in_blk1", mesh.nelem),
+            ("num_nod_per_el1", 4),
+        ):
+            f.createDimension(dim, size)
+        f.createVariable("time_whole", "f8", ("time_step",))
+        f.createVariable("eb_status", "i4", ("num_el_blk",))[:] = 1
+        prop = f.createVariable("eb_prop1", "i4", ("num_el_blk",))
+        prop.setncattr("name", "ID")
+        prop[:] = 1
+        names = f.createVariable("coor_names", "S1", ("num_dim", "len_string"))
+        names[:] = netCDF4.stringtochar(np.array(["x", "y", "z"], dtype="S33"))
+        connect = f.createVariable("connect1", "i4", ("num_el_in_blk1", "num_nod_per_el1"))
+        connect.elem_type = "SHELL4"
+        connect[:] = mesh.quads + 1
+        f.createVariable("coord", "f8", ("num_dim", "num_nodes"))[:] = mesh.coords.T

@@ -211,7 +211,7 @@ def main(argv=None):
             "Simulated days per wall day for TC5 (the scene's Δt at each ne; semi_implicit, implicit, imex at "
             f"{args.implicit_dt_factor:g}× it), without / with graphs:\n"
         )
-        dts = {ne: load_scene("tc5_mountain_homme", ne=ne, np=4).dt for ne in args.at}
+        dts = {ne: load_scene("tc5_mountain_homme", ne=ne, np_=4).dt for ne in args.at}
         print("| stepper | " + " | ".join(f"ne{ne} (Δt {dts[ne]:.1f} s)" for ne in args.at) + " |")
         print("|---|" + "---:|" * len(args.at))
         for name in STEPPERS:

@@ -63,7 +63,7 @@ def _header(title, columns, right):
 
 def _scene(name, ne, dt_factor, **kw):
     """TC5 on ne, np 4 with stepper ``name``; semi_implicit, implicit, imex at dt_factor × the scene's Δt."""
-    scene = load_scene("tc5_mountain", ne=ne, np=4, stepper=name, **kw)
+    scene = load_scene("tc5_mountain", ne=ne, np_=4, stepper=name, **kw)
     if name in IMPLICIT:  # the run rounded to whole steps of the longer Δt (one output, at its end)
         dt = scene.dt * dt_factor
         days = max(1, round(scene.days * DAY / dt)) * dt / DAY
@@ -158,7 +158,7 @@ def graphs(args):
     for name in names:
         us = {}
         for graphed in (False, True):
-            scene = load_scene("tc5_mountain_homme", ne=ne, np=4, stepper=name)
+            scene = load_scene("tc5_mountain_homme", ne=ne, np_=4, stepper=name)
             days = (100 + args.runs * args.graph_steps) * scene.dt / DAY
             sim = Simulation(dataclasses.replace(scene, days=days, output_every_days=days), args.device, progress=False)
             sim.graphs = graphed

@@ -152,7 +152,7 @@ def cpu_seconds(f, repeat) -> float:
 
 def record(path, spin_up, count):
     sim = Simulation(
-        load_scene("tc5_mountain", ne=30, np=4, days=1.0, stepper="imex", dt=2160.0), "cpu", progress=False
+        load_scene("tc5_mountain", ne=30, np_=4, days=1.0, stepper="imex", dt=2160.0), "cpu", progress=False
     )
     sim.graphs, gw = "off", sim.stepper.helmholtz
     gw.graphable = False
@@ -247,7 +247,7 @@ def production(path, tol, rounds, stride):
 
 def build(ne):
     sim = Simulation(
-        load_scene("tc5_mountain", ne=ne, np=4, days=1.0, stepper="semi_implicit", dt=60.0), "cpu", progress=False
+        load_scene("tc5_mountain", ne=ne, np_=4, days=1.0, stepper="semi_implicit", dt=60.0), "cpu", progress=False
     )
     sim.stepper.helmholtz.operator.set_depth(sim.x)
     return sim, 60.0 / sim.courant()["courant_gravity"]

@@ -122,7 +122,7 @@ class Timers:
 
 
 def scene(case, ne, stepper, dt, options):
-    base = load_scene(case, ne=ne, np=4, days=1.0)
+    base = load_scene(case, ne=ne, np_=4, days=1.0)
     return dataclasses.replace(base, stepper=stepper, dt=dt, stepper_options=options, output_every_days=1.0)
 
 

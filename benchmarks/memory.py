@@ -46,7 +46,7 @@ def array_bytes(ne, stepper):
     from swe_sphere.model.shallow_water import ShallowWater
     from swe_sphere.steppers import make_stepper
 
-    scene = load_scene("tc5_mountain_homme", ne=ne, np=4, stepper=stepper)
+    scene = load_scene("tc5_mountain_homme", ne=ne, np_=4, stepper=stepper)
     grid = CubedSphere(ne, 4)
     case = scene.make_case()
     m = ShallowWater(
@@ -121,13 +121,13 @@ def main(argv=None):
     mib = 2.0**20
     need = b["state"] + b["metric"]
     print(
-        f"tc5_mountain_homme ne={args.ne} np=4 ({grid.npts} element-local points), {args.stepper}, {args.days:g} days, CPU"
+        f"tc5_mountain_homme ne={args.ne} np=4 ({grid.nnodes} element-local points), {args.stepper}, {args.days:g} days, CPU"
     )
     print(f"  peak RSS of the run                 {peak / mib:8.1f} MiB")
     print(f"  peak RSS of import + wp.init()      {base / mib:8.1f} MiB")
     print(f"  run minus baseline                  {(peak - base) / mib:8.1f} MiB")
     for k, v in b.items():
-        print(f"  {k + ' arrays':<35} {v / mib:8.1f} MiB  ({v / grid.npts:.0f} B/pt)")
+        print(f"  {k + ' arrays':<35} {v / mib:8.1f} MiB  ({v / grid.nnodes:.0f} B/pt)")
     print(f"  (run - baseline) / (state + metric) {(peak - base) / need:8.1f}x")
     print(f"  (run - baseline) / all arrays above {(peak - base) / sum(b.values()):8.1f}x")
 

@@ -116,9 +116,9 @@ def triad_bandwidth(threads=1, n=20_000_000, repeat=5):
 
 def build(ne, np_, threads, device, stepper=None, dt_factor=1.0, per_element=None):
     """TC5 scene on (ne, np): grid, scene, case fields and initial state, model (``per_element``: its layout)."""
-    scene = load_scene("tc5_mountain_homme", ne=ne, np=np_)
+    scene = load_scene("tc5_mountain_homme", ne=ne, np_=np_)
     if stepper is not None:
-        scene = load_scene("tc5_mountain_homme", ne=ne, np=np_, stepper=stepper, dt=scene.dt * dt_factor)
+        scene = load_scene("tc5_mountain_homme", ne=ne, np_=np_, stepper=stepper, dt=scene.dt * dt_factor)
     grid = CubedSphere(ne, np_)
     case = scene.make_case()
     fcor, hs = case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon)
@@ -224,7 +224,7 @@ def rhs_table(args, threads, triad):
             ops = NumpyOps(grid)
             rhs_terms = [t for t in scene.terms if t != "hyperviscosity"]
             t_np = median_time(lambda: ops.sw_rhs(state, rhs_terms, fcor, hs, m1.g), max(3, args.repeat // 3))
-            pts = grid.npts
+            pts = grid.nnodes
             bpp = rhs_compulsory_bytes(m1) / pts
             best = min(t1, tt)
             gbs = bpp * pts / best / 1e9
@@ -278,7 +278,7 @@ def step_table(args, threads):
             other = t - tt["rhs"] - tt["hv"]
             its = ", ".join(f"{k} {v}" for k, v in stats.iterations.items())
             print(
-                f"{ne:>4} {name:<21} {scene.dt:>6.0f} | {1e3 * t:>9.2f} {1e9 * t / grid.npts:>7.0f} {t / t_rhs:>6.2f} | {1e3 * tt['rhs']:>8.2f} {nn['rhs']:>5} "
+                f"{ne:>4} {name:<21} {scene.dt:>6.0f} | {1e3 * t:>9.2f} {1e9 * t / grid.nnodes:>7.0f} {t / t_rhs:>6.2f} | {1e3 * tt['rhs']:>8.2f} {nn['rhs']:>5} "
                 f"{1e3 * t_dss * nn['rhs']:>7.2f} | {1e3 * tt['hv']:>7.2f} {tt['hv'] / t_rhs:>5.2f} | {1e3 * other:>9.2f} | {100 * tt['rhs'] / t:>4.0f}% | {its}"
             )
 

@@ -92,7 +92,7 @@ def worker(ne: int, steps: int) -> None:
 
     topology._Exchange.launch = timed
     comm = MPI.COMM_WORLD
-    scene = load_scene("tc5_mountain", ne=ne, np=4, stepper="rk4")
+    scene = load_scene("tc5_mountain", ne=ne, np_=4, stepper="rk4")
     sim = Simulation(scene, "cpu", progress=False, comm=comm if comm.size > 1 else None)
     for _ in range(2):  # record launches, load kernels
         sim.stepper.step(sim.x)

@@ -76,7 +76,7 @@ def main() -> None:
     p.add_argument("--rounds", type=int, default=0, help="timing rounds (0: counts only)")
     args = p.parse_args()
     init_warp()  # quietly
-    base = load_scene("tc5_mountain", ne=args.ne, np=4)
+    base = load_scene("tc5_mountain", ne=args.ne, np_=4)
     dt_g = explicit_limits(base, "cpu")["dt_gravity"]
     tally = Tally()
     with instrumented(tally):

@@ -34,7 +34,7 @@ def main() -> None:
     args = parser.parse_args()
     init_warp()
     grid = CubedSphere(args.ne, 4)
-    z = np.zeros(grid.npts)
+    z = np.zeros(grid.nnodes)
     state = np.stack([harmonic_state(grid, 9, "rotational")[0], z, 5000 + harmonic_state(grid, 9, "height")[2]])
     runs, setup = {}, {}
     for per_element in (True, False):
@@ -46,7 +46,7 @@ def main() -> None:
             )  # fmt: skip
             name = f"{'per element' if per_element else 'per node'}, {'constant nu' if scaling is None else 's = 3.2'}"
             setup[name] = time.process_time() - t0
-            x, out = model.new_state(*state), wp.zeros((3, grid.npts), dtype=wp.float64, device="cpu")
+            x, out = model.new_state(*state), wp.zeros((3, grid.nnodes), dtype=wp.float64, device="cpu")
             model.hv.operator(x, out)  # compiled and recorded
             runs[name] = (model, x, out)
     times = {name: [] for name in runs}

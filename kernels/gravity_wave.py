@@ -27,7 +27,7 @@ def linear(
     Dinv: wp.array2d(dtype=f64),
     metdet: wp.array(dtype=f64),
     dvv: wp.array2d(dtype=f64),
-    np: int,
+    np_: int,
     g: f64,
     H: f64,
     out: wp.array2d(dtype=f64),
@@ -37,13 +37,13 @@ def linear(
     node, for CUDA): ``operators.gradient_sphere`` of row 2 and ``divergence_sphere`` of
     rows 0, 1 in one pass, each before its DSS. Dim N."""
     p = wp.tid() + offset
-    base, i, j = element_node(p, np)
-    a = d_xi(x, 2, base, i, j, np, dvv)
-    b = d_eta(x, 2, base, i, j, np, dvv)
+    base, i, j = element_node(p, np_)
+    a = d_xi(x, 2, base, i, j, np_, dvv)
+    b = d_eta(x, 2, base, i, j, np_, dvv)
     div = f64(0.0)
-    for m in range(np):
-        q = base + j * np + m  # along ξ through (i, j)
-        r = base + m * np + i  # along η
+    for m in range(np_):
+        q = base + j * np_ + m  # along ξ through (i, j)
+        r = base + m * np_ + i  # along η
         div += dvv[i, m] * metdet[q] * (Dinv[0, q] * x[0, q] + Dinv[1, q] * x[1, q])
         div += dvv[j, m] * metdet[r] * (Dinv[2, r] * x[0, r] + Dinv[3, r] * x[1, r])
     out[0, p] = -g * (Dinv[0, p] * a + Dinv[2, p] * b)
@@ -52,12 +52,12 @@ def linear(
 
 
 @functools.cache
-def linear_element(np: int):
+def linear_element(np_: int):
     """``linear`` with one thread per element, on GLL rows (``operators.row_vectors``
     views), for the CPU: x (3, N/np), Dinv (4, N/np), metdet (N/np), g, H, dvv
     (``operators.dvv_matrix``), out (3, N/np), offset (in elements). Dim nelem."""
-    vec, mat, along, across = row_derivatives(np)
-    NP = int(np)
+    vec, mat, along, across = row_derivatives(np_)
+    NP = int(np_)
 
     def linear_element(
         x: wp.array2d(dtype=vec),

@@ -82,14 +82,14 @@ def gathers(dtype=f64):
 
 
 @functools.cache
-def gathered(np: int, copies: int, dtype=f64):
+def gathered(np_: int, copies: int, dtype=f64):
     """A ``wp.func`` (wg, ghost, nlocal, table, rspheremp, y, halo, gid, base) → (gx, gy, Y),
     ``np``×``np`` matrices over the element whose GLL row j is entry base + j: the DSS of rows
     0, 1 of the mass-weighted wg (rspheremp[p] · Σ over the copies in ``table`` row p, the
     global order, −1-padded, ``copies`` columns; a copy ≥ nlocal read from ``ghost``,
     ``copy_at``: every copy of a node gets the same bits, as ``dss.gather``) and the
     unique-node y through gid (``unique_value``)."""
-    NP, C = int(np), int(copies)
+    NP, C = int(np_), int(copies)
     _, mat, _, _ = row_derivatives(NP, dtype)
     copy_at, unique_value = gathers(dtype)
 
@@ -128,12 +128,12 @@ def gathered(np: int, copies: int, dtype=f64):
 
 
 @functools.cache
-def scaled_divergence(np: int, dtype=f64):
+def scaled_divergence(np_: int, dtype=f64):
     """A ``wp.func`` (u, v, Dinv, metdet, base, dvv, k) → k·∇·(u, v) = k·(∂ξ(metdet c¹) +
     ∂η(metdet c²))/metdet, c = Dinv (u, v) contravariant (``operators.divergence_element``'s
     form), the ``np``×``np`` matrix over the element whose GLL row j is entry base + j; k (the
     caller's factor) is applied before the division, as the Helmholtz kernels always have."""
-    NP = int(np)
+    NP = int(np_)
     vec, mat, along, across = row_derivatives(NP, dtype)
 
     def scaled_divergence(
@@ -164,15 +164,15 @@ def _name(kernel, name: str, dtype):
 
 
 @functools.cache
-def helmholtz_gradient(np: int, dtype=f64):
+def helmholtz_gradient(np_: int, dtype=f64):
     """Per element: wg[0:2] = spheremp·∇y at its nodes (m² × units of y / m),
     y a unique-node vector read through gid (gid[p] ≥ nunique: from ``halo``,
     the owners' values, as ``dss.scatter``). Arguments: y, halo, gid (N), and as
     ``operators.row_vectors`` views Dinv (4, N/np), spheremp (N/np); dvv
     (``operators.dvv_matrix``); wg (2, N/np) (a view); offset (elements). Dim nelem."""
-    vec, mat, along, across = row_derivatives(np, dtype)
+    vec, mat, along, across = row_derivatives(np_, dtype)
     _, unique_value = gathers(dtype)
-    NP = int(np)
+    NP = int(np_)
 
     def helmholtz_gradient(
         y: wp.array(dtype=dtype),
@@ -207,14 +207,14 @@ def helmholtz_gradient(np: int, dtype=f64):
 
 
 @functools.cache
-def helmholtz_divergence(np: int, copies: int, dtype=f64):
+def helmholtz_divergence(np_: int, copies: int, dtype=f64):
     """Per element: z[0] = spheremp·(y − c·(D̂ S wg)) at its nodes, S the DSS (Σ over the copies of
     a node of wg, times rspheremp; a copy ≥ nlocal read from ``ghost``, ``copy_at``), y read as in
     ``helmholtz_gradient``. Arguments: wg (2, N), ghost, nlocal, table, rspheremp (N), y,
     halo, gid (N), and as ``operators.row_vectors`` views Dinv (4, N/np), metdet,
     spheremp (N/np); dvv (``operators.dvv_matrix``); c (m²); z (1, N/np) (a view),
     offset (elements). Dim nelem."""
-    NP = int(np)
+    NP = int(np_)
     vec, mat, _, _ = row_derivatives(NP, dtype)
     gather, divergence = gathered(NP, copies, dtype), scaled_divergence(NP, dtype)
 
@@ -296,7 +296,7 @@ def helmholtz_assemble(copies: int, dtype=f64):
 
 
 @functools.cache
-def helmholtz_rhs(np: int):
+def helmholtz_rhs(np_: int):
     """Per element: wz[0] = spheremp·s·(r_h − aH·D̂ r_v), the mass-weighted Helmholtz right-hand
     side before its assembly (``helmholtz_assemble``: b = Pᵀ wz), D̂ the element divergence (s⁻¹ ×
     units of r_v) of the wind in rows 0, 1 of r. The DSS of D̂ r_v that ``schur_height``'s form
@@ -304,8 +304,8 @@ def helmholtz_rhs(np: int):
     (rspheremp = 1/Σ spheremp over a node's copies), so one pass less. Arguments
     (``operators.row_vectors`` views): r (3, N/np), Dinv (4, N/np), metdet, spheremp (N/np);
     dvv (``operators.dvv_matrix``); s; aH (s·m); wz (1, N/np); offset (elements). Dim nelem."""
-    vec, mat, _, _ = row_derivatives(np)
-    NP = int(np)
+    vec, mat, _, _ = row_derivatives(np_)
+    NP = int(np_)
     divergence = scaled_divergence(NP, f64)
 
     def helmholtz_rhs(
@@ -336,7 +336,7 @@ def helmholtz_rhs(np: int):
 
 
 @functools.cache
-def helmholtz_back_substitution(np: int, copies: int, implicit: bool = False):
+def helmholtz_back_substitution(np_: int, copies: int, implicit: bool = False):
     """Per element, the solve's state from the Helmholtz solution y: z_h = P y (y read through
     gid, as ``helmholtz_gradient``) and z_v = s·r_v − ag·S wg, S wg the DSS of the mass-weighted
     gradient of y that ``helmholtz_gradient`` wrote (gathered over the node's copies in the
@@ -348,8 +348,8 @@ def helmholtz_back_substitution(np: int, copies: int, implicit: bool = False):
     r (3, N/np) (a ``operators.row_vectors`` view), s, ag (s·m s⁻²·s), z (3, N/np) (a view; may
     be r's), ia (s⁻¹), mis (s⁻¹), lz (3, N/np) (a view; may be r's, not z's), offset (elements).
     Dim nelem."""
-    vec, mat, _, _ = row_derivatives(np)
-    NP = int(np)
+    vec, mat, _, _ = row_derivatives(np_)
+    NP = int(np_)
     gather = gathered(NP, copies, f64)
     IMPLICIT = bool(implicit)
 

@@ -114,7 +114,7 @@ def add_divergent(y: Any, a: Any, b: Any, cw: Any, q: int, f: Any):
 
 
 @functools.cache
-def laplacian_element(second: bool, divergent: bool, np: int):
+def laplacian_element(second: bool, divergent: bool, np_: int):
     """The weak form of Y₁ (``second=False``, from the state ``src`` = x (3, ·)
     and hs) or of Y₂ (``second=True``, from ``src`` = Y₁ (4, ·)) of the elements
     (the module docstring), one thread per element, on GLL rows
@@ -123,7 +123,7 @@ def laplacian_element(second: bool, divergent: bool, np: int):
     (first only). Arguments: src, hs, delta, c (``scale_first``), f
     (``frame_type`` of rows), metric (4, ·) (``laplacian_metric``), dvv
     (``operators.dvv_matrix``), L (4, ·) output, offset (in elements). Dim nelem."""
-    NP = int(np)
+    NP = int(np_)
     vec, mat, along, across = row_derivatives(NP)
     stack = wp.types.matrix(shape=(4, NP), dtype=f64)  # the four fields' values on one row
     S, DIV = bool(second), bool(divergent) and not second
@@ -228,14 +228,14 @@ def laplacian_node(second: bool, divergent: bool):
         f: Frame,
         spheremp: wp.array(dtype=f64),
         dvv: wp.array2d(dtype=f64),
-        np: int,
+        np_: int,
         L: wp.array2d(dtype=f64),
         offset: int,
     ):
         p = wp.tid() + offset
         Lp = wp.vec4d()
         for r in range(4):
-            Lp[r] = weak_divergence(flux, r, dvv, np, p)
+            Lp[r] = weak_divergence(flux, r, dvv, np_, p)
         Xp = wp.vec4d(src[0, p], src[1, p], src[2, p], src[3, p])
         y = wp.vec4d()
         if wp.static(S):
@@ -243,11 +243,11 @@ def laplacian_node(second: bool, divergent: bool):
         else:
             y = scale_first(Lp, Xp, spheremp[p], f, p, c)
             if wp.static(DIV):
-                base, i, j = element_node(p, np)
+                base, i, j = element_node(p, np_)
                 y = add_divergent(
                     y,
-                    d_xi(delta, 0, base, i, j, np, dvv),
-                    d_eta(delta, 0, base, i, j, np, dvv),
+                    d_xi(delta, 0, base, i, j, np_, dvv),
+                    d_eta(delta, 0, base, i, j, np_, dvv),
                     c[1] * spheremp[p],
                     p,
                     f,
@@ -287,7 +287,7 @@ def tensor_flux(
     f: wp.array2d(dtype=f64),
     metric: wp.array2d(dtype=f64),
     dvv: wp.array2d(dtype=f64),
-    np: int,
+    np_: int,
     flux: wp.array2d(dtype=f64),
     offset: int,
 ):
@@ -296,13 +296,13 @@ def tensor_flux(
     quadrature-weighted metric spheremp · Dinv V Dinvᵀ of the weak ∇·(V∇f) (HOMME
     ``laplace_sphere_wk`` with ``var_coef``). Launch with dim N."""
     p = wp.tid() + offset
-    base, i, j = element_node(p, np)
+    base, i, j = element_node(p, np_)
     g11 = metric[0, p]
     g12 = metric[1, p]
     g22 = metric[2, p]
     for r in range(f.shape[0]):
-        a = d_xi(f, r, base, i, j, np, dvv)
-        b = d_eta(f, r, base, i, j, np, dvv)
+        a = d_xi(f, r, base, i, j, np_, dvv)
+        b = d_eta(f, r, base, i, j, np_, dvv)
         flux[2 * r, p] = g11 * a + g12 * b
         flux[2 * r + 1, p] = g12 * a + g22 * b
 

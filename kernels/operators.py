@@ -30,30 +30,30 @@ CPU_FAST = {"cpu_compiler_flags": _CPU_FLAGS + " -ffp-contract=fast"}
 
 
 @wp.func
-def element_node(p: int, np: int):
+def element_node(p: int, np_: int):
     """Node p = e*np*np + j*np + i → (e*np*np, i, j): its element's first index and GLL indices."""
-    npp = np * np
+    npp = np_ * np_
     e = p / npp
     k = p - e * npp
-    j = k / np
-    return e * npp, k - j * np, j
+    j = k / np_
+    return e * npp, k - j * np_, j
 
 
 @wp.func
-def d_xi(f: wp.array2d(dtype=f64), row: int, base: int, i: int, j: int, np: int, dvv: wp.array2d(dtype=f64)):
+def d_xi(f: wp.array2d(dtype=f64), row: int, base: int, i: int, j: int, np_: int, dvv: wp.array2d(dtype=f64)):
     """∂f/∂ξ at node (i, j) of the element starting at ``base``."""
     s = f64(0.0)
-    for m in range(np):
-        s += dvv[i, m] * f[row, base + j * np + m]
+    for m in range(np_):
+        s += dvv[i, m] * f[row, base + j * np_ + m]
     return s
 
 
 @wp.func
-def d_eta(f: wp.array2d(dtype=f64), row: int, base: int, i: int, j: int, np: int, dvv: wp.array2d(dtype=f64)):
+def d_eta(f: wp.array2d(dtype=f64), row: int, base: int, i: int, j: int, np_: int, dvv: wp.array2d(dtype=f64)):
     """∂f/∂η at node (i, j) of the element starting at ``base``."""
     s = f64(0.0)
-    for m in range(np):
-        s += dvv[j, m] * f[row, base + m * np + i]
+    for m in range(np_):
+        s += dvv[j, m] * f[row, base + m * np_ + i]
     return s
 
 
@@ -61,20 +61,20 @@ def d_eta(f: wp.array2d(dtype=f64), row: int, base: int, i: int, j: int, np: int
 def vorticity_at(
     x: wp.array2d(dtype=f64),
     p: int,
-    np: int,
+    np_: int,
     D: wp.array2d(dtype=f64),
     metdet: wp.array(dtype=f64),
     dvv: wp.array2d(dtype=f64),
 ):
     """Relative vorticity (s⁻¹) at node p of the wind in rows 0, 1 of x:
     ζ = (∂ξ v₂ − ∂η v₁)/metdet with covariant components v_c = Dᵀ v."""
-    base, i, j = element_node(p, np)
+    base, i, j = element_node(p, np_)
     dv2 = f64(0.0)
     dv1 = f64(0.0)
-    for m in range(np):
-        q = base + j * np + m
+    for m in range(np_):
+        q = base + j * np_ + m
         dv2 += dvv[i, m] * (D[1, q] * x[0, q] + D[3, q] * x[1, q])
-        q = base + m * np + i
+        q = base + m * np_ + i
         dv1 += dvv[j, m] * (D[0, q] * x[0, q] + D[2, q] * x[1, q])
     return (dv2 - dv1) / metdet[p]
 
@@ -85,15 +85,15 @@ def gradient_sphere(
     row: int,
     Dinv: wp.array2d(dtype=f64),
     dvv: wp.array2d(dtype=f64),
-    np: int,
+    np_: int,
     out: wp.array2d(dtype=f64),
     offset: int,
 ):
     """out[0:2, p] = ∇f (east, north; units of f per m) = Dinvᵀ (∂ξ f, ∂η f)."""
     p = wp.tid() + offset
-    base, i, j = element_node(p, np)
-    a = d_xi(f, row, base, i, j, np, dvv)
-    b = d_eta(f, row, base, i, j, np, dvv)
+    base, i, j = element_node(p, np_)
+    a = d_xi(f, row, base, i, j, np_, dvv)
+    b = d_eta(f, row, base, i, j, np_, dvv)
     out[0, p] = Dinv[0, p] * a + Dinv[2, p] * b
     out[1, p] = Dinv[1, p] * a + Dinv[3, p] * b
 
@@ -104,19 +104,19 @@ def divergence_sphere(
     Dinv: wp.array2d(dtype=f64),
     metdet: wp.array(dtype=f64),
     dvv: wp.array2d(dtype=f64),
-    np: int,
+    np_: int,
     out: wp.array(dtype=f64),
     offset: int,
 ):
     """out[p] = ∇·v (s⁻¹) of the wind in rows 0, 1 of x:
     (∂ξ(metdet c¹) + ∂η(metdet c²))/metdet with contravariant c = Dinv v."""
     p = wp.tid() + offset
-    base, i, j = element_node(p, np)
+    base, i, j = element_node(p, np_)
     s = f64(0.0)
-    for m in range(np):
-        q = base + j * np + m
+    for m in range(np_):
+        q = base + j * np_ + m
         s += dvv[i, m] * metdet[q] * (Dinv[0, q] * x[0, q] + Dinv[1, q] * x[1, q])
-        q = base + m * np + i
+        q = base + m * np_ + i
         s += dvv[j, m] * metdet[q] * (Dinv[2, q] * x[0, q] + Dinv[3, q] * x[1, q])
     out[p] = s / metdet[p]
 
@@ -127,13 +127,13 @@ def vorticity_sphere(
     D: wp.array2d(dtype=f64),
     metdet: wp.array(dtype=f64),
     dvv: wp.array2d(dtype=f64),
-    np: int,
+    np_: int,
     out: wp.array(dtype=f64),
     offset: int,
 ):
     """out[p] = k·∇×v (s⁻¹) of the wind in rows 0, 1 of x."""
     p = wp.tid() + offset
-    out[p] = vorticity_at(x, p, np, D, metdet, dvv)
+    out[p] = vorticity_at(x, p, np_, D, metdet, dvv)
 
 
 @wp.kernel
@@ -142,7 +142,7 @@ def laplace_wk_flux(
     Dinv: wp.array2d(dtype=f64),
     spheremp: wp.array(dtype=f64),
     dvv: wp.array2d(dtype=f64),
-    np: int,
+    np_: int,
     flux: wp.array2d(dtype=f64),
     offset: int,
 ):
@@ -150,15 +150,15 @@ def laplace_wk_flux(
     flux[2r:2r+2, p] = spheremp · Dinv Dinvᵀ (∂ξ f, ∂η f), the quadrature-weighted
     contravariant gradient. Launch with dim N (each thread does every row of its node)."""
     p = wp.tid() + offset
-    base, i, j = element_node(p, np)
+    base, i, j = element_node(p, np_)
     d0 = Dinv[0, p]
     d1 = Dinv[1, p]
     d2 = Dinv[2, p]
     d3 = Dinv[3, p]
     w = spheremp[p]
     for r in range(f.shape[0]):
-        a = d_xi(f, r, base, i, j, np, dvv)
-        b = d_eta(f, r, base, i, j, np, dvv)
+        a = d_xi(f, r, base, i, j, np_, dvv)
+        b = d_eta(f, r, base, i, j, np_, dvv)
         gx = d0 * a + d2 * b
         gy = d1 * a + d3 * b
         flux[2 * r, p] = w * (d0 * gx + d1 * gy)
@@ -166,26 +166,26 @@ def laplace_wk_flux(
 
 
 @wp.func
-def weak_divergence(flux: wp.array2d(dtype=f64), r: int, dvv: wp.array2d(dtype=f64), np: int, p: int):
+def weak_divergence(flux: wp.array2d(dtype=f64), r: int, dvv: wp.array2d(dtype=f64), np_: int, p: int):
     """The second half of the weak Laplacian of row r at node p = (m, n):
     −Σ_i dvv[i, m] flux¹(i, n) − Σ_j dvv[j, n] flux²(m, j), i.e. −∫ ∇φ_mn·∇f
     over the element (m² × units of f / m²), from ``laplace_wk_flux``'s flux."""
-    base, m, n = element_node(p, np)
+    base, m, n = element_node(p, np_)
     s = f64(0.0)
-    for q in range(np):
-        s += dvv[q, m] * flux[2 * r, base + n * np + q] + dvv[q, n] * flux[2 * r + 1, base + q * np + m]
+    for q in range(np_):
+        s += dvv[q, m] * flux[2 * r, base + n * np_ + q] + dvv[q, n] * flux[2 * r + 1, base + q * np_ + m]
     return -s
 
 
 @wp.kernel
 def laplace_wk_div(
-    flux: wp.array2d(dtype=f64), dvv: wp.array2d(dtype=f64), np: int, out: wp.array2d(dtype=f64), offset: int
+    flux: wp.array2d(dtype=f64), dvv: wp.array2d(dtype=f64), np_: int, out: wp.array2d(dtype=f64), offset: int
 ):
     """Second half: out[r, p] = ``weak_divergence`` of row r. Launch with dim N
     (each thread does every row of its node)."""
     p = wp.tid() + offset
     for r in range(out.shape[0]):
-        out[r, p] = weak_divergence(flux, r, dvv, np, p)
+        out[r, p] = weak_divergence(flux, r, dvv, np_, p)
 
 
 # -- the CPU layout: an element as np rows of np nodes -------------------------
@@ -199,27 +199,27 @@ def laplace_wk_div(
 
 
 @functools.cache
-def row_type(np: int, dtype=f64):
+def row_type(np_: int, dtype=f64):
     """The type of one GLL row of an element: ``wp.types.vector(np, dtype)`` (float64 but in
     the float32 Helmholtz solve)."""
-    return wp.types.vector(length=int(np), dtype=dtype)
+    return wp.types.vector(length=int(np_), dtype=dtype)
 
 
-def row_vectors(a: wp.array, np: int) -> wp.array:
+def row_vectors(a: wp.array, np_: int) -> wp.array:
     """A zero-copy view of ``a`` ((rows, N) or (N,) float64 or float32, node p = e*np*np + j*np + i,
     unit stride along the nodes) as (rows, N/np) or (N/np,) ``row_type(np, a.dtype)``: entry
     e*np + j is GLL row j of element e. What the CPU element kernels take."""
-    np = int(np)
+    np_ = int(np_)
     size = wp.types.type_size_in_bytes(a.dtype)
-    if a.dtype not in (f64, wp.float32) or a.strides[-1] != size or a.shape[-1] % np:
+    if a.dtype not in (f64, wp.float32) or a.strides[-1] != size or a.shape[-1] % np_:
         raise ValueError(
-            f"row_vectors needs float64 or float32 with unit node stride and N divisible by np = {np} (got {a.dtype}, {a.shape}, {a.strides})"
+            f"row_vectors needs float64 or float32 with unit node stride and N divisible by np = {np_} (got {a.dtype}, {a.shape}, {a.strides})"
         )
     view = wp.array(
         ptr=a.ptr,
-        dtype=row_type(np, a.dtype),
-        shape=(*a.shape[:-1], a.shape[-1] // np),
-        strides=(*a.strides[:-1], size * np),
+        dtype=row_type(np_, a.dtype),
+        shape=(*a.shape[:-1], a.shape[-1] // np_),
+        strides=(*a.strides[:-1], size * np_),
         capacity=a.capacity,
         device=a.device,
     )
@@ -278,7 +278,7 @@ def covariant(D: wp.array2d(dtype=Any), x: wp.array2d(dtype=Any), q: int):
 
 
 @functools.cache
-def row_derivatives(np: int, dtype=f64):
+def row_derivatives(np_: int, dtype=f64):
     """The reference derivatives on an element held as rows: F a matrix of np
     ``row_type(np, dtype)`` rows, F[j, i] the value at node (i, j). Returns (row type,
     matrix type, ``along``, ``across``), two ``wp.func`` of (F, j, M) → a row:
@@ -293,7 +293,7 @@ def row_derivatives(np: int, dtype=f64):
     by lane (zeros, ±1, the GLL symmetries), the lanes of a row no longer did
     the same work, and the weak Laplacian stayed half scalar (2–2.5× slower a
     field, measured at np 4)."""
-    NP = int(np)
+    NP = int(np_)
     vec = row_type(NP, dtype)
     mat = wp.types.matrix(shape=(NP, NP), dtype=dtype)
 
@@ -324,12 +324,12 @@ def dvv_matrix(dvv, dtype=f64) -> object:
 
 
 @functools.cache
-def gradient_element(np: int):
+def gradient_element(np_: int):
     """``gradient_sphere`` with one thread per element: out[0:2] = ∇ f[row].
     Arguments (``row_vectors`` views): f (rows, N/np), row, Dinv (4, N/np), dvv
     (``dvv_matrix``), out (2, N/np), offset (in elements). Dim nelem."""
-    vec, mat, along, across = row_derivatives(np)
-    NP = int(np)
+    vec, mat, along, across = row_derivatives(np_)
+    NP = int(np_)
 
     def gradient_element(
         f: wp.array2d(dtype=vec),
@@ -356,27 +356,27 @@ def gradient_element(np: int):
 
 
 @functools.cache
-def divergence_element(np: int):
+def divergence_element(np_: int):
     """``divergence_sphere`` with one thread per element: out = ∇·v (s⁻¹) of the
     wind in rows 0, 1 of x. Arguments (``row_vectors`` views): x (rows, N/np),
     M = Dinv (4, N/np), metdet (N/np), dvv (``dvv_matrix``), out (N/np), offset
     (in elements). Dim nelem."""
-    return _wind_element(np, curl=False)
+    return _wind_element(np_, curl=False)
 
 
 @functools.cache
-def vorticity_element(np: int):
+def vorticity_element(np_: int):
     """``vorticity_sphere`` with one thread per element: out = k·∇×v (s⁻¹) of the
     wind in rows 0, 1 of x. Arguments as ``divergence_element``'s, with M = D (4, N/np)."""
-    return _wind_element(np, curl=True)
+    return _wind_element(np_, curl=True)
 
 
-def _wind_element(np: int, curl: bool):
+def _wind_element(np_: int, curl: bool):
     """The divergence (metdet c¹, metdet c² from the contravariant c = Dinv v;
     (∂ξ(metdet c¹) + ∂η(metdet c²))/metdet) or the vorticity (the covariant
     (v₁, v₂) = Dᵀ v; (∂ξ v₂ − ∂η v₁)/metdet) of an element's rows."""
-    vec, mat, along, across = row_derivatives(np)
-    NP, CURL = int(np), bool(curl)
+    vec, mat, along, across = row_derivatives(np_)
+    NP, CURL = int(np_), bool(curl)
 
     def kernel(
         x: wp.array2d(dtype=vec),

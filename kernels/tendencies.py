@@ -106,21 +106,21 @@ def tendency(terms: tuple):
         fcor: wp.array(dtype=f64),
         forcing: wp.array2d(dtype=f64),
         dvv: wp.array2d(dtype=f64),
-        np: int,
+        np_: int,
         g: f64,
         tend: wp.array2d(dtype=f64),
         offset: int,
     ):
         p = wp.tid() + offset
-        base, i, j = element_node(p, np)
+        base, i, j = element_node(p, np_)
         div = f64(0.0)  # Σ ∂(metdet c)        (continuity)
         bx = f64(0.0)  # ∂ξ, ∂η of the Bernoulli function
         by = f64(0.0)
         cx = f64(0.0)  # ∂ξ v₂, ∂η v₁ of the covariant wind (vorticity)
         cy = f64(0.0)
-        for m in range(np):
-            q = base + j * np + m  # along ξ through (i, j)
-            r = base + m * np + i  # along η
+        for m in range(np_):
+            q = base + j * np_ + m  # along ξ through (i, j)
+            r = base + m * np_ + i  # along η
             if wp.static(CONT):
                 div += dvv[i, m] * metdet[q] * x[2, q] * (Dinv[0, q] * x[0, q] + Dinv[1, q] * x[1, q])
                 div += dvv[j, m] * metdet[r] * x[2, r] * (Dinv[2, r] * x[0, r] + Dinv[3, r] * x[1, r])
@@ -145,7 +145,7 @@ def tendency(terms: tuple):
 
 
 @functools.cache
-def tendency_element(terms: tuple, np: int):
+def tendency_element(terms: tuple, np_: int):
     """The tendency kernel for ``terms``, one thread per element, on GLL rows
     (``operators.row_vectors`` views). Arguments: x (3, N/np) state, D, Dinv
     (4, N/np), metdet, fcor (N/np), forcing (2, N/np) topographic −g∇hs, g,
@@ -153,7 +153,7 @@ def tendency_element(terms: tuple, np: int):
     elements). Dim nelem."""
     CONT, ADV, _, PG, _ = _flags(terms)
     GRAD = ADV or PG
-    NP = int(np)
+    NP = int(np_)
     vec, mat, along, across = row_derivatives(NP)
 
     def kernel(

@@ -403,7 +403,7 @@ def _cmd_sweep(args) -> int:
         courant=None if args.courant is None else _numbers(args.courant, "courant"),
         runs=runs,
         ne=args.ne,
-        np=args.np,
+        np_=args.np,
         days=args.days,
         overrides=_overrides(args.set),
         restart=args.branch_from,
@@ -433,7 +433,7 @@ def _cmd_stability(args) -> int:
         raise SceneError(f"--ne must be an integer >= 1 (got {args.ne})")
     device = _warp_device(args.device)
     cases = [known[c] for c in args.cases] if args.cases else list(HARD_CASES)
-    given = dict(ne=args.ne, np=args.np, days=args.days, overrides=_overrides(args.set))
+    given = dict(ne=args.ne, np_=args.np, days=args.days, overrides=_overrides(args.set))
     suite_scenes(cases, steppers, **given)  # every value refused before --output's folder is made
     # a folder of its own per suite, so that a page's suites run in order do not meet each other's files
     output = args.output or Path(f"stability_{'_'.join(args.cases) or 'all'}_ne{args.ne}")
@@ -491,7 +491,7 @@ def _continued(args, device, comm):
     if args.no_cells and ck.scene.output_cells:
         raise CheckpointError("--no-cells cannot change a checkpointed scene (its output.cells is true)")
     if args.scene is not None:
-        given = load_scene(args.scene, ne=args.ne, np=args.np)
+        given = load_scene(args.scene, ne=args.ne, np_=args.np)
         mine = {k: v for k, v in ck.scene.as_dict().items() if k not in ("days", "notes", "branch")}
         theirs = {k: v for k, v in given.as_dict().items() if k not in ("days", "notes", "branch")}
         if mine != theirs:
@@ -588,7 +588,7 @@ def _cmd_run(args) -> int:
             raise ValueError("run needs a SCENE (or --continue CHECKPOINT)")
         given = dict(
             ne=args.ne,
-            np=args.np,
+            np_=args.np,
             dt=args.dt,
             days=args.days,
             stepper=args.stepper,

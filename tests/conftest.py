@@ -138,7 +138,7 @@ def old_file(tmp_path_factory):
     grid = cached_grid(2, 3)
     out = tmp_path_factory.mktemp("old") / "old.nc"
     attrs = {"scene": {"name": "synthetic", "ne": 2, "np": 3}}
-    w = RunWriter(out, grid, np.zeros(grid.npts), attrs, ["mass_change"])
+    w = RunWriter(out, grid, np.zeros(grid.nnodes), attrs, ["mass_change"])
     h = 1000 + 100 * np.sin(grid.lat)
     w.append(0.0, np.cos(grid.lat), 0 * grid.lat, h, {"mass_change": 0.0})
     w.close()

@@ -124,7 +124,7 @@ def run(scene):
 def tc6_inviscid(days: float, case: str = "tc6_rossby_haurwitz"):
     """TC6 (or ``case``) at ne = 4 np = 4 for ``days``, without hyperviscosity, one output
     at the end (the temporal-order tests' case)."""
-    scene = load_scene(case, ne=4, np=4, days=days)
+    scene = load_scene(case, ne=4, np_=4, days=days)
     terms = tuple(t for t in scene.terms if t != "hyperviscosity")
     return dataclasses.replace(scene, terms=terms, nu=0.0, output_every_days=days)
 

@@ -26,7 +26,7 @@ STREAM = {"name": "6h", "every_days": 0.25, "fields": ["h"]}
 VARIANTS = {
     "as_is": {},
     "ne4": {"ne": 4},
-    "ne6_np3_2days": {"ne": 6, "np": 3, "days": 2.0},
+    "ne6_np3_2days": {"ne": 6, "np_": 3, "days": 2.0},
     "ne4_dt600": {"ne": 4, "dt": 600.0, "days": 1.0},
     "ne2_rk4": {"ne": 2, "stepper": "rk4", "days": 0.5},
     "ne5_output_0.1": {"ne": 5, "overrides": {"output.every_days": 0.1}},
@@ -54,7 +54,7 @@ VARIANTS = {
     "other_stepper_option": {"overrides": {"leapfrog.robert_asselin": 0.1, "time.stepper": "rk4"}},
     "description": {"overrides": {"description": "another"}},
 }
-MESH_VARIANTS = {"mesh": {"mesh": TEMPEST_NE2}, "mesh_np3_days": {"mesh": TEMPEST_NE2, "np": 3, "days": 2.0}}
+MESH_VARIANTS = {"mesh": {"mesh": TEMPEST_NE2}, "mesh_np3_days": {"mesh": TEMPEST_NE2, "np_": 3, "days": 2.0}}
 
 # refusals and their notes, each on tc2_steady (or on the scene file ``TOML`` below): load_scene's keywords
 REFUSALS = {
@@ -77,9 +77,9 @@ REFUSALS = {
     "ne_zero": {"ne": 0},
     "ne_text": {"ne": "8"},
     "ne_float": {"ne": 2.5},
-    "np_big": {"np": 9},
-    "np_bool": {"np": True},
-    "np2_map2": {"np": 2, "overrides": {"grid.map": "element_local"}},
+    "np_big": {"np_": 9},
+    "np_bool": {"np_": True},
+    "np2_map2": {"np_": 2, "overrides": {"grid.map": "element_local"}},
     "grid_ne_override": {"overrides": {"grid.ne": 3, "grid.np": 5}},
     "map_bad": {"overrides": {"grid.map": "gnomonic"}},
     "stretch_alone": {"overrides": {"grid.target_lat": 10.0}},

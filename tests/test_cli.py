@@ -164,7 +164,7 @@ def test_run_writes_a_complete_netcdf_file(which, tc2_run, tc5_run_file):
             assert np.isfinite(ds[name].values).all(), name
         assert ds.mass_change.values[0] == 0
         roundoff.mass_kept(
-            roundoff.run_file_history(ds), cached_grid(2, 4).npts, lambda d: 2 * roundoff.operations(d)
+            roundoff.run_file_history(ds), cached_grid(2, 4).nnodes, lambda d: 2 * roundoff.operations(d)
         )  # and leapfrog's time filter
         assert (np.diff(ds.rhs_evals.values) > 0).all()
         assert (np.diff(ds.wall_time.values) >= 0).all() and ds.wall_time.values[0] == 0
@@ -284,7 +284,7 @@ def test_every_stepper_runs_tc2(stepper, capsys, tmp_path):
         assert json.loads(ds.attrs["scene"])["stepper"] == stepper
         assert ds.l2_h.values[-1] < 3e-3  # measured 1.36e-3 .. 1.51e-3 for the four steppers
         roundoff.mass_kept(
-            roundoff.run_file_history(ds), cached_grid(2, 4).npts, lambda d: 2 * roundoff.operations(d)
+            roundoff.run_file_history(ds), cached_grid(2, 4).nnodes, lambda d: 2 * roundoff.operations(d)
         )  # and leapfrog's time filter
 
 

@@ -36,7 +36,7 @@ SOLVER = {
 def tc5_state(name: str, device: str, options: dict | None = None) -> np.ndarray:
     """(3, nelem, np, np) state after STEPS steps of TC5 ne2 np4 on ``device``;
     implicit-type steppers at 4× the scene's Δt."""
-    scene = load_scene("tc5_mountain", ne=2, np=4, stepper=name)
+    scene = load_scene("tc5_mountain", ne=2, np_=4, stepper=name)
     dt = scene.dt * (4.0 if name in SOLVER else 1.0)
     scene = dataclasses.replace(
         scene, dt=dt, days=STEPS * dt / DAY, output_every_days=STEPS * dt / DAY, stepper_options=dict(options or {})

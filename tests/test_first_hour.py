@@ -185,7 +185,7 @@ def test_an_interrupted_run_and_its_continuation_join_without_a_repeated_time(tm
     from swe_sphere.config.scene import load_scene
     from swe_sphere.core.errors import Interrupted
 
-    scene = load_scene("tc2_steady", ne=2, np=4, days=1.0, overrides={"output.every_days": 0.25})
+    scene = load_scene("tc2_steady", ne=2, np_=4, days=1.0, overrides={"output.every_days": 0.25})
     first = Simulation(scene, "cpu", progress=False)
     first.add_callback(lambda sim: os.kill(os.getpid(), signal.SIGINT), every_steps=7)  # between output times
     with pytest.raises(Interrupted):

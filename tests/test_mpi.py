@@ -112,7 +112,7 @@ def test_each_output_time_gathers_a_state_once(tmp_path, monkeypatch):
     from helpers import make_sim
 
     dt = 1800.0
-    scene = load_scene("tc2_steady", ne=2, np=4, dt=dt, days=4 * dt / DAY, stepper="ssprk3")
+    scene = load_scene("tc2_steady", ne=2, np_=4, dt=dt, days=4 * dt / DAY, stepper="ssprk3")
     sim = make_sim(dataclasses.replace(scene, output_every_days=2 * dt / DAY))  # outputs at steps 0, 2, 4
     shapes, real = [], sim.topology.gather
     monkeypatch.setattr(sim.topology, "gather", lambda a: shapes.append(np.shape(a)) or real(a))

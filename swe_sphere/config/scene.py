@@ -86,7 +86,7 @@ from ..steppers.initialization import METHODS, DigitalFilter
 HYPERVIS_EXPONENT = 3.2  # ν ∝ Δx^3.2 (HOMME's resolution scaling; Dennis et al. 2012)
 
 
-def efold_nu(hours: float, ne: float, np: int, radius: float) -> float:
+def efold_nu(hours: float, ne: float, np_: int, radius: float) -> float:
     """ν (m⁴ s⁻¹) that e-folds a degree-L harmonic in ``hours``, L = 2 ne (np − 1)
     the Nyquist degree of the 4 ne (np − 1) nodes around a great circle:
     ν = a⁴ / (τ (L(L+1))²). The T213 references use the same rule (3 h at
@@ -96,7 +96,7 @@ def efold_nu(hours: float, ne: float, np: int, radius: float) -> float:
     the same element count, and elements smaller than the mean are damped faster, as
     (mean spacing / their spacing)⁴; with the tensor ∇⁴ (``hyperviscosity.scaling = s``) as
     that ratio to the power 4 − s, so s = 4 states the rule element by element."""
-    L = 2 * ne * (np - 1)
+    L = 2 * ne * (np_ - 1)
     return radius**4 / (hours * 3600.0 * (L * (L + 1)) ** 2)
 
 
@@ -531,8 +531,8 @@ def _reference(spec, case_name: str, case_obj) -> str:
     return str(path)
 
 
-def _first_gll_gap(npts: int) -> float:
-    x = gll(npts).points
+def _first_gll_gap(np_: int) -> float:
+    x = gll(np_).points
     return float(x[1] - x[0])
 
 
@@ -782,10 +782,10 @@ def resolve_initialization(method: str, dfi: dict, case: Case, case_name: str) -
 
 
 def resolve_grid(
-    table: dict | None, scene_path: Path, ne=None, np=None, mesh=None
+    table: dict | None, scene_path: Path, ne=None, np_=None, mesh=None
 ) -> tuple[SceneGrid, SceneGrid, tuple]:
     """(the scene file's grid, the run's grid, notes) of the [grid] table (None: absent) and
-    ``load_scene``'s ``ne``, ``np`` and ``mesh`` (an Exodus II file replacing the scene's grid).
+    ``load_scene``'s ``ne``, ``np_`` and ``mesh`` (an Exodus II file replacing the scene's grid).
     The defaults are ne = 16 (0 with a mesh file) and np = 4. Raises ``SceneError`` naming the
     key: ne not 0 with a mesh file, ne < 1 on a cube, np outside ``NP_MIN``..``NP_MAX`` or below 3
     on the element-local map (``_grid_record`` for the mesh's own keys)."""
@@ -803,9 +803,9 @@ def resolve_grid(
     elif on_file and ne not in (None, 0):
         raise SceneError(f"ne = {ne} with grid.mesh_file: a mesh file's elements are its own (HOMME's ne = 0)")
     ne1 = ne0 if ne is None else ne
-    np1 = np0 if np is None else np
+    np1 = np0 if np_ is None else np_
     notes = ()
-    if table is None and (ne is None or np is None) and mesh is None:
+    if table is None and (ne is None or np_ is None) and mesh is None:
         notes = (f"the scene has no [grid]: ne = {ne1}, np = {np1} (the defaults)",)
     if not _is_integer(ne1) or (ne1 < 1 and not (record1 is not None and "file" in record1)):
         raise SceneError(f"ne must be an integer >= 1 (got {_got(ne1)})")
@@ -1004,7 +1004,7 @@ def scene_title(case_name: str, file_case: str | None, stem: str, description: s
 
 
 def load_scene(
-    path, *, ne=None, np=None, dt=None, days=None, stepper=None, mesh=None, overrides: dict | None = None
+    path, *, ne=None, np_=None, dt=None, days=None, stepper=None, mesh=None, overrides: dict | None = None
 ) -> Scene:
     """Read, validate and resolve a scene file, applying command-line overrides.
 
@@ -1019,7 +1019,7 @@ def load_scene(
     ----------
     path : str or path
         A scene file (TOML) or the name of a bundled scene under ``testcases/``.
-    ne, np : int, optional
+    ne, np_ : int, optional
         Elements along a cube edge and GLL points per element direction. When the grid
         is overridden and ``dt`` is not, dt scales with the smallest node spacing
         (first GLL interval / ne) and is shortened to divide the output interval (or
@@ -1058,7 +1058,7 @@ def load_scene(
     case = resolve_case(s.get("case", {}), planet, path)
     terms = resolve_terms(s.get("terms"), case.case, case.name)
     initialization = resolve_initialization(case.method, s.get("dfi", {}), case.case, case.name)
-    scene_grid, grid, grid_notes = resolve_grid(s.get("grid"), path, ne, np, mesh)
+    scene_grid, grid, grid_notes = resolve_grid(s.get("grid"), path, ne, np_, mesh)
     spacing = resolve_spacing(scene_grid, grid, planet.a, file_radius)
     output, time = s.get("output", {}), s.get("time", {})
     every, log_every = resolve_output_interval(output)
@@ -1151,7 +1151,8 @@ def resolve_output_files(output: dict, dt: float, days: float, dt_source: str) -
     return fields, tuple(streams)
 
 
-LOAD_KEYWORDS = ("ne", "np", "dt", "days", "stepper", "mesh")  # ``load_scene``'s own keywords among the overrides
+# ``load_scene``'s own keywords among the overrides, by their command-line names (``np`` is its ``np_``)
+LOAD_KEYWORDS = {"ne": "ne", "np": "np_", "dt": "dt", "days": "days", "stepper": "stepper", "mesh": "mesh"}
 
 
 def resolve_scene(scene, overrides: dict) -> tuple[Scene, tuple]:
@@ -1166,7 +1167,7 @@ def resolve_scene(scene, overrides: dict) -> tuple[Scene, tuple]:
             raise SceneError("overrides apply to a scene file; change a Scene with dataclasses.replace")
         return scene, ()
     overrides = dict(overrides)
-    kw = {k: overrides.pop(k) for k in LOAD_KEYWORDS if k in overrides}
+    kw = {name: overrides.pop(k) for k, name in LOAD_KEYWORDS.items() if k in overrides}
     flat = {}
     for key, value in overrides.items():
         if isinstance(value, dict):

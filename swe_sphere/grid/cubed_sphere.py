@@ -90,12 +90,12 @@ class CubedSphere:
     (metdet ≤ 0 at a node: its corners span too much of the sphere, one line naming it).
     """
 
-    def __init__(self, ne: int, np: int, radius: float = EARTH.a, elements=None, mesh: Mesh | None = None):
+    def __init__(self, ne: int, np_: int, radius: float = EARTH.a, elements=None, mesh: Mesh | None = None):
         if isinstance(ne, bool) or int(ne) != ne or ne < (0 if mesh is not None else 1):
             raise ValueError(f"ne must be an integer >= {0 if mesh is not None else 1} (got {ne})")
         if mesh is not None and ne and mesh.nelem != 6 * ne * ne:
             raise ValueError(f"ne={ne} needs a mesh of {6 * ne * ne} elements ({mesh.name} has {mesh.nelem})")
-        self.ne, self.np, self.radius, self.mesh = int(ne), int(np), float(radius), mesh
+        self.ne, self.np, self.radius, self.mesh = int(ne), int(np_), float(radius), mesh
         self.rule = gll(self.np)  # validates np
         self.nelem_total = 6 * self.ne * self.ne if mesh is None else mesh.nelem
         self.elements = _elements(self.nelem_total, elements)
@@ -125,7 +125,7 @@ class CubedSphere:
         return self.elements.size
 
     @property
-    def npts(self) -> int:
+    def nnodes(self) -> int:
         """Element-local nodes held N = nelem·np²."""
         return self.nelem * self.np * self.np
 
@@ -154,7 +154,7 @@ def _elements(nelem: int, elements) -> np.ndarray:
     return e
 
 
-def _lattice_groups(ne: int, npts: int, elements: np.ndarray, positions: np.ndarray):
+def _lattice_groups(ne: int, np_: int, elements: np.ndarray, positions: np.ndarray):
     """The coincident copies among nodes ``positions`` (p = j·np + i) of ``elements``
     (ascending), from the cube's topology in exact integer arithmetic (no search
     over coordinates): (group (E, P) of each node, members (groups, most copies)
@@ -168,11 +168,11 @@ def _lattice_groups(ne: int, npts: int, elements: np.ndarray, positions: np.ndar
     an angle is odd about the face centre (the element edges and the GLL points
     are symmetric), so every copy of a node on a cube edge or corner, seen from
     any face, lands on the same integer point, and only those do."""
-    M, P = ne * (npts - 1), positions.size
+    M, P = ne * (np_ - 1), positions.size
     face, rest = np.divmod(elements, ne * ne)
     jb, ia = np.divmod(rest, ne)
-    k = ia[:, None] * (npts - 1) + positions % npts
-    l = jb[:, None] * (npts - 1) + positions // npts
+    k = ia[:, None] * (np_ - 1) + positions % np_
+    l = jb[:, None] * (np_ - 1) + positions // np_
     F, key = FACES.astype(np.int64), np.zeros(k.shape, dtype=np.int64)
     for d in range(3):  # the point's coordinates Q_d in [0, 2M], one at a time (memory)
         key = key * (2 * M + 1) + (
@@ -187,7 +187,7 @@ def _lattice_groups(ne: int, npts: int, elements: np.ndarray, positions: np.ndar
     group, lead = np.empty(order.size, dtype=np.int64), np.empty(order.size, dtype=bool)
     group[order], lead[order] = sorted_group, starts
     members = np.full((int(sorted_group[-1]) + 1, int(pos.max()) + 1), -1, dtype=np.int64)
-    members[sorted_group, pos] = elements[order // P] * npts * npts + positions[order % P]
+    members[sorted_group, pos] = elements[order // P] * np_ * np_ + positions[order % P]
     return group.reshape(-1, P), members, lead.reshape(-1, P)
 
 
@@ -207,10 +207,10 @@ class Numbering:
     those elements and of their corner neighbours only.
     """
 
-    def __init__(self, ne: int, npts: int):
-        self.ne, self.np = ne, npts
-        nelem, last = 6 * ne * ne, npts - 1
-        i, j = np.tile(np.arange(npts), npts), np.repeat(np.arange(npts), npts)  # node p = j·np + i
+    def __init__(self, ne: int, np_: int):
+        self.ne, self.np = ne, np_
+        nelem, last = 6 * ne * ne, np_ - 1
+        i, j = np.tile(np.arange(np_), np_), np.repeat(np.arange(np_), np_)  # node p = j·np + i
         interior = (i > 0) & (i < last) & (j > 0) & (j < last)
         self.ring = ring = np.flatnonzero(~interior)  # ascending p
         ri, rj = i[ring], j[ring]
@@ -231,13 +231,11 @@ class Numbering:
             raise RuntimeError(f"an element edge without a neighbour (ne={ne})")
         self.edge_neighbours = nbr
         count = (
-            int(interior.sum()) + (npts - 2) * np.sum(elements[:, None] < nbr, axis=1) + self.corner_first.sum(axis=1)
+            int(interior.sum()) + (np_ - 2) * np.sum(elements[:, None] < nbr, axis=1) + self.corner_first.sum(axis=1)
         )
         self.offset = np.concatenate(([0], np.cumsum(count)[:-1]))
-        if int(count.sum()) != 6 * ne * ne * (npts - 1) ** 2 + 2:
-            raise RuntimeError(
-                f"grid has {int(count.sum())} unique nodes, expected {6 * ne * ne * (npts - 1) ** 2 + 2}"
-            )
+        if int(count.sum()) != 6 * ne * ne * (np_ - 1) ** 2 + 2:
+            raise RuntimeError(f"grid has {int(count.sum())} unique nodes, expected {6 * ne * ne * (np_ - 1) ** 2 + 2}")
         self.width = 3 if ne == 1 else 4  # most copies of a node
 
     def _ring_first(self, elements: np.ndarray) -> np.ndarray:

@@ -129,10 +129,10 @@ class MeshNumbering:
     width : most copies of a node (the DSS table's columns)
     """
 
-    def __init__(self, mesh: Mesh, npts: int):
-        self.np = npts
-        last, inner = npts - 1, npts - 2
-        i, j = np.tile(np.arange(npts), npts), np.repeat(np.arange(npts), npts)  # node p = j·np + i
+    def __init__(self, mesh: Mesh, np_: int):
+        self.np = np_
+        last, inner = np_ - 1, np_ - 2
+        i, j = np.tile(np.arange(np_), np_), np.repeat(np.arange(np_), np_)  # node p = j·np + i
         corner = np.select(
             [(i == 0) & (j == 0), (i == last) & (j == 0), (i == last) & (j == last), (i == 0) & (j == last)],
             [0, 1, 2, 3],
@@ -143,7 +143,7 @@ class MeshNumbering:
         interior = (corner < 0) & (edge < 0)
         edge_nodes, element_edges = mesh.edges()
         V, E, F = mesh.nnodes, len(edge_nodes), mesh.nelem
-        key = np.empty((F, npts * npts), dtype=np.int64)
+        key = np.empty((F, np_ * np_), dtype=np.int64)
         at = corner >= 0
         key[:, at] = mesh.quads[:, corner[at]]
         at = (corner < 0) & (edge >= 0)

@@ -34,24 +34,24 @@ class GLL:
     dvv: np.ndarray
 
 
-def gll(npts: int) -> GLL:
+def gll(np_: int) -> GLL:
     """Build the ``npts``-point GLL rule (2 ≤ npts ≤ 8).
 
     Raises ``ValueError`` for npts outside 2..8.
     """
-    if not NP_MIN <= npts <= NP_MAX:
-        raise ValueError(f"np must be in {NP_MIN}..{NP_MAX} (got {npts})")
-    n = npts - 1
+    if not NP_MIN <= np_ <= NP_MAX:
+        raise ValueError(f"np must be in {NP_MIN}..{NP_MAX} (got {np_})")
+    n = np_ - 1
     pn = legendre.Legendre.basis(n)
     interior = np.sort(pn.deriv().roots().real) if n > 1 else np.empty(0)
     x = np.concatenate(([-1.0], interior, [1.0]))
     pnx = pn(x)
     w = 2.0 / (n * (n + 1) * pnx**2)
-    d = np.zeros((npts, npts))
-    for i in range(npts):
-        for j in range(npts):
+    d = np.zeros((np_, np_))
+    for i in range(np_):
+        for j in range(np_):
             if i != j:
                 d[i, j] = pnx[i] / (pnx[j] * (x[i] - x[j]))
     d[0, 0] = -n * (n + 1) / 4.0
     d[n, n] = n * (n + 1) / 4.0
-    return GLL(npts, x, w, d)
+    return GLL(np_, x, w, d)

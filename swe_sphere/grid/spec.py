@@ -84,16 +84,16 @@ def label(ne: int, record: dict | None) -> str:
     return f"ne{ne}" if record is None else f"ne{ne}map2"
 
 
-def describe(ne: int, np: int, record: dict | None) -> str:
+def describe(ne: int, np_: int, record: dict | None) -> str:
     """The grid in words for headers and messages: ``ne=4 np=4``, ``ne=4 np=4 element-local``,
     ``ne=4 np=4 stretched 2.5x toward (40, 270)`` or ``mesh x.g np=4``."""
     if record is None:
-        return f"ne={ne} np={np}"
+        return f"ne={ne} np={np_}"
     if "file" in record:
-        return f"mesh {Path(record['file']).name} np={np}"
+        return f"mesh {Path(record['file']).name} np={np_}"
     if "stretch_factor" in record:
         return (
-            f"ne={ne} np={np} stretched {record['stretch_factor']:g}x toward "
+            f"ne={ne} np={np_} stretched {record['stretch_factor']:g}x toward "
             f"({record['target_lat']:g}, {record['target_lon']:g})"
         )
-    return f"ne={ne} np={np} element-local"
+    return f"ne={ne} np={np_} element-local"

@@ -71,7 +71,7 @@ class GatheredGrid:
     def __init__(self, part, fields: np.ndarray, first: np.ndarray, area: np.ndarray):
         self.ne, self.np, self.radius, self.rule, self.mesh = part.ne, part.np, part.radius, part.rule, part.mesh
         self.nelem = self.nelem_total = part.nelem_total
-        self.npts = fields.shape[1]
+        self.nnodes = fields.shape[1]
         self.lat, self.lon, self.spheremp, self.dx = fields[:4]
         self.gid = fields[4].astype(np.int32)
         self.first, self.area = first.astype(np.int32), area
@@ -191,7 +191,7 @@ class Topology:
             grid = grid.part(parts[rank])
         self.grid = grid
         self.elements, self.nodes = grid.elements, grid.nodes
-        self.N, self.npts_total = grid.npts, grid.nelem_total * grid.np**2
+        self.N, self.npts_total = grid.nnodes, grid.nelem_total * grid.np**2
         self._build_halos(parts, rank)
 
         def up(a, dtype=f64):

@@ -71,8 +71,8 @@ def harmonic_state(grid: CubedSphere, l: int, kind: str, orientations: int = 3, 
         raise ValueError(f"harmonic degree must be >= 1 (got {l})")
     rng = np.random.default_rng(seed)
     r = grid.xyz
-    Y = np.zeros(grid.npts)
-    grad = np.zeros((3, grid.npts))
+    Y = np.zeros(grid.nnodes)
+    grad = np.zeros((3, grid.nnodes))
     for _ in range(orientations):
         e1, e2 = np.linalg.qr(rng.standard_normal((3, 2)))[0].T
         a = e1 + 1j * e2

@@ -71,9 +71,9 @@ class LaunchRecorder:
     per_element : the pointwise kernels' layout: np² nodes a thread (True) or one.
     """
 
-    def __init__(self, device, threads: int, points: int, npts: int, nunique: int, per_element: bool):
+    def __init__(self, device, threads: int, points: int, nnodes: int, nunique: int, per_element: bool):
         self.device, self.threads, self.block = device, int(threads), points * points
-        self.npts, self.nunique, self.per_element = npts, nunique, bool(per_element)
+        self.nnodes, self.nunique, self.per_element = nnodes, nunique, bool(per_element)
         self._recorded: dict[tuple, tuple] = {}
         self._pointwise: dict[tuple, object] = {}
 
@@ -89,14 +89,14 @@ class LaunchRecorder:
 
     def elements(self, kernel, inputs):
         """Record a per-element kernel (dim nelem, trailing element ``offset``)."""
-        return self.record(kernel, self.npts // self.block, inputs, nodes_per_index=self.block)
+        return self.record(kernel, self.nnodes // self.block, inputs, nodes_per_index=self.block)
 
     def pointwise(self, kernel, rows, inputs):
         """Record a pointwise kernel with trailing ``block`` and ``offset`` arguments
         (``kernels.blas``) over (rows, N), or N if ``rows`` is None: np² nodes a thread
         with the per-element layout, one on CUDA."""
         block = self.block if self.per_element else 1
-        n = self.npts // block
+        n = self.nnodes // block
         return self.record(kernel, n if rows is None else (rows, n), [*inputs, block], nodes_per_index=block)
 
     def lincomb(self, out, terms):

@@ -124,7 +124,7 @@ class ShallowWater:
         self.hypervis_scaling = None if hypervis_scaling is None else float(hypervis_scaling)
         self.per_element = Backend.of(device).per_element if per_element is None else bool(per_element)
         self.dvv_rows = operators.dvv_matrix(grid.rule.dvv)  # the per-element kernels' dvv argument
-        N = grid.npts
+        N = grid.nnodes
         self.N = N
 
         def up(a, dtype=f64):

@@ -3,9 +3,9 @@ that take many cheap fast substeps a slow step without a global solve.
 
 The split (``GravitySplit``). About a reference depth H, the fast part is the linear
 gravity-wave operator ``model.gravity_wave.GravityWaveOperator``, L x = (−g G h, −H D v) (G = DSS∘grad,
-D = DSS∘div); the slow part N = F − L is the rest: −(ζ + f) k×v − ∇(½|v|²), the
+D = DSS∘div); the slow part S = F − L is the rest: −(ζ + f) k×v − ∇(½|v|²), the
 mountain's −g∇hs, −∇·(h′v) with h′ = h − H, and the forcing. The steppers carry the
-depth as h′ through a step (h − H is exact for H/2 ≤ h ≤ 2H, Sterbenz), so N is the
+depth as h′ through a step (h − H is exact for H/2 ≤ h ≤ 2H, Sterbenz), so S is the
 model's own RHS without its pressure-gradient term evaluated at (u, v, h′): one
 tendency pass and one DSS, compiled for those terms (``ShallowWater.rhs`` with
 ``terms``), not F − L by two evaluations. A fast evaluation L z + ρ is one element pass
@@ -23,7 +23,7 @@ The steppers (both apply ∇⁴ once a step after it, as every stepper here):
   held fixed over forward–backward substeps of the fast part (Klemp, Skamarock & Dudhia
   2007, MWR 135, 2897, §2; MPAS-Atmosphere's ``atm_srk3``): n/3, n/2 and n substeps
   (rounded up; each stage's substep its span over its count), the wind first,
-  v ← v + τ(N_v − g G h̃), then the depth with the new wind, h ← h − τ D(h_s v),
+  v ← v + τ(S_v − g G h̃), then the depth with the new wind, h ← h − τ D(h_s v),
   with h̃ = h + β(h − h_old) forward-weighted as MPAS damps the divergence (β = 0.1 by
   default, MPAS's smdiv: without it TC2 rotated by π/4 blows up within 100 days, a weak
   instability of the split like those Baldauf 2010, MWR 138, 4475, found in RK3 time
@@ -40,7 +40,7 @@ The steppers (both apply ∇⁴ once a step after it, as every stepper here):
   scene's ``[mri]``): the r-th of s inner solves starts from
   z(0) = x(n) + Σ_j α_rj (Y_{j+1} − x(n)) and integrates dz/dσ = L z + ρ_r(σ/T_r) over
   σ ∈ [0, T_r], T_r = d_r Δt, d_r = Σ_j β_rj, with the slow forcing
-  ρ_r(θ) = (1/d_r) Σ_j ((β_rj + θ β¹_rj) N(Y_{j+1}) + γ_rj (Y_{j+1} − x(n))/Δt),
+  ρ_r(θ) = (1/d_r) Σ_j ((β_rj + θ β¹_rj) S(Y_{j+1}) + γ_rj (Y_{j+1} − x(n))/Δt),
   giving Y_{r+2}; x(n+1) = Y_{s+1}. With α, β, γ the MIS coefficients (Wensch, Knoth &
   Galant 2009, eq. 2.3; Knoth & Wensch 2014) this is MIS; with α = I, γ = 0,
   β = Γ⁰, β¹ = Γ¹ it is explicit MRI-GARK (Sandu 2019, Definition 2.2, σ there
@@ -51,7 +51,7 @@ The steppers (both apply ∇⁴ once a step after it, as every stepper here):
 
 Without a fast part (L = 0) a multirate table is an explicit Runge–Kutta table of the
 slow part (``parse_mri``: Y_{r+2} − x(n) = Σ_j (α + γ)_rj (Y_{j+1} − x(n)) + Δt Σ_j
-(β + β¹/2)_rj N(Y_{j+1})), checked against the order the table claims by ``butcher.parse``,
+(β + β¹/2)_rj S(Y_{j+1})), checked against the order the table claims by ``butcher.parse``,
 the one engine's order conditions (necessary, not sufficient: the coupling has conditions
 of its own, which the built-in tables meet at their stated orders; measured in
 tests/steppers/test_multirate.py).
@@ -100,7 +100,7 @@ class GravitySplit:
     ``GravityWaveOperator``'s rule).
 
     States are (3, N) element-local with the depth as h′ = h − H (``to_perturbation``,
-    ``from_perturbation``). ``slow(x, out)``: out = N(x) = F(u, v, h) − L x, the model's
+    ``from_perturbation``). ``slow(x, out)``: out = S(x) = F(u, v, h) − L x, the model's
     RHS without its pressure gradient at h′ (one tendency pass and its DSS); ``fast(x,
     out)``: out = L x (``linear``, the ``GravityWaveOperator``; a forward–backward substep
     takes its halves apart, through ``ShallowWater.gradient_update`` and

@@ -12,21 +12,21 @@ combination fewer than its accumulator form).
 
 IMEX additive pairs (``ImexRK``; Ascher, Ruuth & Spiteri 1997, Appl. Numer.
 Math. 25, 151; Kennedy & Carpenter 2003): the linear gravity-wave terms L
-(``model.gravity_wave.GravityWaveOperator``) implicit, the rest N = F − L explicit, as HOMME-NH
+(``model.gravity_wave.GravityWaveOperator``) implicit, the rest S = F − L explicit, as HOMME-NH
 and ClimaTimeSteppers split. With the explicit table (A_E, b_E), the implicit
 one (A_I, b_I) of s stages, A_I lower triangular (diagonally implicit,
 a_ii = 0 allowed: an explicit stage), A_E strictly lower triangular, and
 common abscissae c,
 
-    Y_i = x(n) + Δt Σ_{j<i} (A_E,ij N(Y_j) + A_I,ij L Y_j) + Δt A_I,ii L Y_i,
-    x(n+1) = x(n) + Δt Σ_j (b_E,j N(Y_j) + b_I,j L Y_j).
+    Y_i = x(n) + Δt Σ_{j<i} (A_E,ij S(Y_j) + A_I,ij L Y_j) + Δt A_I,ii L Y_i,
+    x(n+1) = x(n) + Δt Σ_j (b_E,j S(Y_j) + b_I,j L Y_j).
 
 Each stage with a_ii ≠ 0 is one solve of (I − a_ii Δt L) Y_i = rhs_i through
 the Helmholtz equation, and L Y_i = (Y_i − rhs_i)/(a_ii Δt) follows from it
 without another product, written by the solve's back-substitution
 (``HelmholtzSolver.solve``'s ``implicit``) in rhs_i's own array; an explicit stage
 takes L Y_i from a product, and only where the two tables weigh it differently
-(N = F − L). Each combination
+(S = F − L). Each combination
 (rhs_i, and x(n+1)) is summed from x itself (x(n) until the last writes it) in
 passes of two terms, as ``blas.axpbypcz``; the pass holding the F that the
 stage before has just evaluated is written by that RHS's DSS

@@ -2,7 +2,7 @@
 
 The linear gravity-wave terms about a mean depth H — the pressure gradient
 −g∇h and −H∇·v — are averaged over levels n−1 and n+1; everything else
-(N = F − L) is leapfrogged at level n. Eliminating v(n+1) leaves a Helmholtz
+(S = F − L) is leapfrogged at level n. Eliminating v(n+1) leaves a Helmholtz
 equation for the height, solved by the shared gravity-wave operator
 (``helmholtz.HelmholtzSolver`` of ``model.gravity_wave.GravityWaveOperator``: L is built from the DSS'd operators of the
 explicit RHS, so the elimination is exact and mass is kept to round-off):

@@ -1168,7 +1168,7 @@ def plan(
     courant=None,
     runs=None,
     ne: int | None = None,
-    np: int | None = None,
+    np_: int | None = None,
     days: float | None = None,
     overrides: dict | None = None,
     restart=None,
@@ -1192,7 +1192,7 @@ def plan(
     runs : sequence of (str, float), optional
         Only these (stepper, multiple of the gravity-wave limit) runs. At most one
         of ``dts``, ``courant`` and ``runs``.
-    ne, np : int, optional
+    ne, np_ : int, optional
         Elements along a cube edge and GLL points per element direction (default: the scene's).
     days : float, optional
         The last model day (default: the scene's, or the restart file's).
@@ -1238,7 +1238,7 @@ def plan(
     overrides = dict(overrides or {})
     ck = None
     if restart is not None:  # every run a branch from the restart file's state (``checkpoint.branch``)
-        for flag, given in (("SCENE", scene), ("--ne", ne), ("--np", np), ("-s", overrides)):
+        for flag, given in (("SCENE", scene), ("--ne", ne), ("--np", np_), ("-s", overrides)):
             if given:
                 raise ValueError(
                     f"--from takes the scene and grid from the restart file: give --from or {flag}, not both"
@@ -1248,7 +1248,7 @@ def plan(
     elif scene is None:
         raise ValueError("sweep needs a SCENE (or --from RESTART.nc)")
     else:
-        scenes = {s: load_scene(scene, ne=ne, np=np, days=days, stepper=s, overrides=overrides) for s in steppers}
+        scenes = {s: load_scene(scene, ne=ne, np_=np_, days=days, stepper=s, overrides=overrides) for s in steppers}
     dts = None if dts is None else _positive(dts, "--dt")
     multiples = None
     if dts is None:

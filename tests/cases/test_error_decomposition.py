@@ -27,7 +27,7 @@ AMPLITUDE = 1e-6  # s⁻¹: the perturbation's wind is ~ A a ≈ 6 m/s
 
 
 def tc2(ne: int):
-    scene = load_scene("tc2_steady_alpha_pi4", ne=ne, np=4, days=1.0)
+    scene = load_scene("tc2_steady_alpha_pi4", ne=ne, np_=4, days=1.0)
     return make_sim(scene)
 
 
@@ -88,7 +88,7 @@ def test_gravity_wave_run_keeps_zero_vorticity_error():
     (measured: l2_vorticity 5e-14, l2_divergence 1.26 at ne4). The vorticity error is
     round-off: each RHS evaluation's gradient, its DSS and the update, three passes of
     ``roundoff.operator_roundings``."""
-    base = load_scene("tc2_steady", ne=4, np=4, days=0.25)
+    base = load_scene("tc2_steady", ne=4, np_=4, days=0.25)
     scene = dataclasses.replace(
         base, terms=("continuity", "pressure_gradient"), stepper="rk4", dt=900.0, output_every_days=0.25
     )

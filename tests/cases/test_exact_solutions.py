@@ -28,7 +28,7 @@ from swe_sphere.simulation.simulation import Simulation
 @functools.cache
 def run_day(name: str, ne: int, np_: int, days: float = 1.0):
     """A scene for ``days`` with rk4 at its Δt scaled to the grid; its history."""
-    scene = load_scene(name, ne=ne, np=np_, days=days, stepper="rk4")
+    scene = load_scene(name, ne=ne, np_=np_, days=days, stepper="rk4")
     result = Simulation(scene, "cpu", progress=False).run()
     assert result.blowup is None
     return scene, result.history

@@ -40,7 +40,7 @@ SCENE = "tc4_forced_low"
 
 def tendency_mismatch(ne: int, t: float) -> np.ndarray:
     """Area-weighted RMS over the sphere of F(x_exact(t), t) − ∂x_exact/∂t, per row (u, v, h)."""
-    sim = Simulation(load_scene(SCENE, ne=ne, np=4, days=1.0), "cpu", progress=False)
+    sim = Simulation(load_scene(SCENE, ne=ne, np_=4, days=1.0), "cpu", progress=False)
     g, case, m = sim.grid, sim.case, sim.model
     out = m.new_state()
     m.set_time(t)
@@ -73,7 +73,7 @@ def test_discrete_tendency_of_the_exact_state_converges():
 def stage_times(stepper: str, steps: int = 2, **options) -> list[list[float]]:
     """The model times (in units of Δt) each of ``steps`` steps of ``stepper`` sets for its RHS evaluations."""
     overrides = {f"{stepper}.{k}": v for k, v in options.items()}
-    scene = load_scene(SCENE, ne=2, np=4, days=1.0, dt=600.0, stepper=stepper, overrides=overrides)
+    scene = load_scene(SCENE, ne=2, np_=4, days=1.0, dt=600.0, stepper=stepper, overrides=overrides)
     sim = Simulation(scene, "cpu", progress=False)
     m, seen = sim.model, []
     real = m.set_time
@@ -116,7 +116,7 @@ def test_every_stepper_evaluates_the_rhs_at_its_stage_times():
 def final_depth(stepper: str, dt: float, options: tuple = ()):
     """TC4 on ne4 np4 for a quarter day: the grid and the final h."""
     overrides = {f"{stepper}.{k}": v for k, v in options}
-    scene = load_scene(SCENE, ne=4, np=4, days=0.25, dt=dt, stepper=stepper, overrides=overrides)
+    scene = load_scene(SCENE, ne=4, np_=4, days=0.25, dt=dt, stepper=stepper, overrides=overrides)
     sim = Simulation(scene, "cpu", progress=False)
     sim.run()
     return sim.grid, sim.x.numpy()[2]
@@ -172,8 +172,8 @@ def test_tc4_temporal_error_converges_at_the_steppers_order(stepper, options, dt
 
 
 def test_the_forcing_is_compiled_and_launched_only_where_a_scene_names_it():
-    forced = Simulation(load_scene(SCENE, ne=2, np=4, days=1.0), "cpu", progress=False).model
-    unforced = Simulation(load_scene("tc2_steady", ne=2, np=4, days=1.0), "cpu", progress=False).model
+    forced = Simulation(load_scene(SCENE, ne=2, np_=4, days=1.0), "cpu", progress=False).model
+    unforced = Simulation(load_scene("tc2_steady", ne=2, np_=4, days=1.0), "cpu", progress=False).model
     x = forced.new_state()
     assert "translating_low" in forced.rhs_kernels(x, forced.new_state())
     assert not any("translating_low" in k for k in unforced.rhs_kernels(unforced.new_state(), unforced.new_state()))
@@ -190,7 +190,7 @@ def test_the_forcing_is_compiled_and_launched_only_where_a_scene_names_it():
 
 
 def test_set_time_changes_the_forcing_without_recording_again():
-    m = Simulation(load_scene(SCENE, ne=2, np=4, days=1.0), "cpu", progress=False).model
+    m = Simulation(load_scene(SCENE, ne=2, np_=4, days=1.0), "cpu", progress=False).model
     x, out = m.new_state(), m.new_state()
     m.set_time(0.0)
     m.rhs(x, out)
@@ -209,7 +209,7 @@ def tc4_errors(nes, np_=4, days=0.5):
     """l2(h) and l2(wind) of TC4 against the exact solution at ``days``, rk4 at the scene's Δt scaled to each grid."""
     out = []
     for ne in nes:
-        scene = load_scene(SCENE, ne=ne, np=np_, days=days, stepper="rk4")
+        scene = load_scene(SCENE, ne=ne, np_=np_, days=days, stepper="rk4")
         d = Simulation(scene, "cpu", progress=False).run().history[-1]
         out.append((d["l2_h"], d["l2_wind"]))
     return out
@@ -248,7 +248,7 @@ def test_a_continued_forced_run_is_bitwise_the_uninterrupted_one(tmp_path, stepp
     dt = 900.0
 
     def scene(steps):
-        s = load_scene(SCENE, ne=2, np=4, dt=dt, days=steps * dt / 86400.0, stepper=stepper)
+        s = load_scene(SCENE, ne=2, np_=4, dt=dt, days=steps * dt / 86400.0, stepper=stepper)
         return dataclasses.replace(s, stepper_options=options, output_every_days=3 * dt / 86400.0)
 
     whole = Simulation(scene(6), "cpu", progress=False)

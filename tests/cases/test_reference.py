@@ -352,7 +352,7 @@ def test_evaluation_error_far_below_model_error_at_ne16(grid, tc5):
     case = make_case("tc5_mountain")
     u, v, h = case.initial(grid.lat, grid.lon)
     evaluation = l2(grid, tc5.at(0.0, grid.lat, grid.lon)["h_surface"], h + case.hs(grid.lat, grid.lon))
-    result = Simulation(load_scene("tc5_mountain", ne=16, np=4, days=1.0), "cpu", progress=False).run(None)
+    result = Simulation(load_scene("tc5_mountain", ne=16, np_=4, days=1.0), "cpu", progress=False).run(None)
     model = result.diagnostics["ref_l2_h_surface"]
     print(f"\nevaluation l2 {evaluation:.2e}, model l2 after 1 day {model:.2e}, ratio {evaluation / model:.1e}")
     assert evaluation <= 2e-3 * model

@@ -58,7 +58,7 @@ def numpy_split(sim, u, v, ut, vt):
 
 
 def run_to(name, ne, days):
-    scene = dataclasses.replace(load_scene(name, ne=ne, np=4, days=days), output_every_days=days)
+    scene = dataclasses.replace(load_scene(name, ne=ne, np_=4, days=days), output_every_days=days)
     sim = make_sim(scene)
     return sim, sim.run(None).history[-1]
 
@@ -171,7 +171,7 @@ def test_tc5_against_t341_differs_from_t213_by_at_most_their_distance(tmp_path):
     (differences 4.9e-5, 4.2e-5); T213 - T341 at the nodes, by the model's
     operators, 4.0e-4, 4.2e-4 (README 1.7e-3, 6.3e-3: ne4 does not resolve
     where they differ)."""
-    scene = load_scene("tc5_mountain", ne=4, np=4, days=1.0, overrides={"case.reference": "T341"})
+    scene = load_scene("tc5_mountain", ne=4, np_=4, days=1.0, overrides={"case.reference": "T341"})
     sim = make_sim(dataclasses.replace(scene, output_every_days=1.0))
     assert sim.scorer.reference.path == find_reference("tc5_mountain", truncation="T341")
     d341 = sim.run(tmp_path / "t341.nc").history[-1]

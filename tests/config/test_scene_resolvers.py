@@ -150,13 +150,13 @@ def test_resolve_grid_gives_the_files_grid_and_the_runs():
     assert resolve_grid(None, path) == (default, default, ("the scene has no [grid]: ne = 16, np = 4 (the defaults)",))
     assert resolve_grid({"ne": 8, "np": 3}, path, ne=4) == (SceneGrid(8, 3), SceneGrid(4, 3), ())
     map2 = {"map": "element_local"}
-    assert resolve_grid({"ne": 8, "map": "element_local"}, path, np=5) == (
+    assert resolve_grid({"ne": 8, "map": "element_local"}, path, np_=5) == (
         SceneGrid(8, 4, map2),
         SceneGrid(8, 5, map2),
         (),
     )
     with pytest.raises(SceneError, match=r"^np must be an integer in 2\.\.8 \(got 9\)$"):
-        resolve_grid({"ne": 8}, path, np=9)
+        resolve_grid({"ne": 8}, path, np_=9)
     with pytest.raises(SceneError, match=r"^grid.stretch_factor must be >= 1 \(got 0.5\)$"):
         resolve_grid({"ne": 8, "stretch_factor": 0.5}, path)
 

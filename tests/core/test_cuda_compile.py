@@ -76,7 +76,7 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
     monkeypatch.setattr(wp, "launch", launch)
     for module, name in ((dss, "dss_rows"), (dss, "dss_update"), (hyperviscosity, "dss_apply")):
         monkeypatch.setattr(module, name, noting(getattr(module, name)))
-    scenes = [load_scene(p, ne=2, np=4) for p in list_scenes()]
+    scenes = [load_scene(p, ne=2, np_=4) for p in list_scenes()]
     richest = max((s for s in scenes if "pressure_gradient" in s.terms), key=lambda s: len(s.terms))
     grid = CubedSphere(2, 4)
     done = set()
@@ -117,7 +117,7 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
                     basis.vectors, stepper.jacobian.passes = KernelVectors(basis), KernelPasses(model)
                     stepper.step(model.new_state(*np.stack(case.initial(grid.lat, grid.lon))))
     for per_element in (False, True):  # the ∇⁴'s ∇(∇·v) term, which no bundled scene has (ν_div ≠ ν)
-        z = np.zeros(grid.npts)
+        z = np.zeros(grid.nnodes)
         model = ShallowWater(
             grid, ["hyperviscosity"], z, z, nu=1e15, nu_div=3e15, device="cpu", per_element=per_element
         )

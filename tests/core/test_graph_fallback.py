@@ -41,7 +41,7 @@ def one_thread(monkeypatch):
 
 def tc5(stepper, dt_factor=1):
     """TC5 (every term, ∇⁴ included) on ne 2 np 4 for ``STEPS`` steps of ``dt_factor`` × its Δt."""
-    scene = load_scene("tc5_mountain", ne=2, np=4, stepper=stepper)
+    scene = load_scene("tc5_mountain", ne=2, np_=4, stepper=stepper)
     dt = scene.dt * dt_factor
     return dataclasses.replace(scene, dt=dt, days=STEPS * dt / DAY, output_every_days=STEPS * dt / DAY)
 

@@ -58,7 +58,7 @@ def graph_launches(monkeypatch):
 
 def tc5(name, device, steps=STEPS, **kw):
     """TC5 (every term, ∇⁴ included) on ne 2 (CPU) or 4 (CUDA) np 4 for ``steps`` steps."""
-    scene = load_scene("tc5_mountain", ne=NE[device], np=4, stepper=name, **kw)
+    scene = load_scene("tc5_mountain", ne=NE[device], np_=4, stepper=name, **kw)
     return dataclasses.replace(scene, days=steps * scene.dt / DAY, output_every_days=steps * scene.dt / DAY)
 
 
@@ -275,7 +275,7 @@ def test_a_time_dependent_forcing_is_not_captured():
     """TC4's forcing reads the model time as a launch argument, which a graph would
     freeze: its explicit steps run plain (no graph key), TC5's are captured."""
     for case, key in (("tc4_forced_low", None), ("tc5_mountain", "step")):
-        sim = Simulation(load_scene(case, ne=2, np=4, stepper="ssprk3"), "cpu", progress=False)
+        sim = Simulation(load_scene(case, ne=2, np_=4, stepper="ssprk3"), "cpu", progress=False)
         assert sim.stepper.graph_key() == key, case
 
 
@@ -289,7 +289,7 @@ def test_capturable_steps_read_nothing_back(one_thread):
     FGMRES, 14 after with the CUDA backends; semi_implicit 21 and imex 32 before the device CG)."""
     tally, counts = Tally(), {}
     for name, cls in STEPPERS.items():
-        scene = load_scene("tc5_mountain", ne=2, np=4, stepper=name)
+        scene = load_scene("tc5_mountain", ne=2, np_=4, stepper=name)
         if not cls.explicit and name != "tableau":
             scene = dataclasses.replace(scene, dt=scene.dt * SOLVER_DT)
         sim = Simulation(scene, "cpu", progress=False)

@@ -55,7 +55,7 @@ def test_threads_env_and_validation(monkeypatch):
     with pytest.raises(ValueError, match="SWE_SPHERE_THREADS must be >= 1"):
         cpu.threads()
     g = cached_grid(1, 2)
-    z = np.zeros(g.npts)
+    z = np.zeros(g.nnodes)
     with pytest.raises(ValueError):
         ShallowWater(g, [], z, z, threads=0)
 

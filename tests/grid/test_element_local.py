@@ -81,7 +81,7 @@ def test_nodes_of_7_elements_number_dss_and_keep_mass():
     x, start = run(g, "tc2_steady", TC2_TERMS, steps, 150.0)
     assert np.array_equal(x[:, g.dss_table[poles, 0]], x[:, g.dss_table[poles, 6]])  # continuous at the poles
     change = abs(g.integrate(x[2]) / g.integrate(start[2]) - 1)
-    roundoff.within(change, roundoff.mass_change_bound(3 * steps, g.npts), "|mass change|")
+    roundoff.within(change, roundoff.mass_change_bound(3 * steps, g.nnodes), "|mass change|")
 
 
 def test_the_element_local_metric_covers_each_element_and_the_sphere(mountain):
@@ -134,8 +134,8 @@ def test_a_partitioned_dss_on_a_mesh_is_the_serial_one_bit_for_bit(mountain, ran
     """Each rank's DSS, its ghosts filled from its neighbours' packed copies, equals the
     one-process DSS at its nodes: the same bits on any rank count."""
     g = CubedSphere(0, 4, mesh=mountain)
-    x = rng.standard_normal((3, g.npts))
-    whole = wp.zeros((3, g.npts), dtype=wp.float64)
+    x = rng.standard_normal((3, g.nnodes))
+    whole = wp.zeros((3, g.nnodes), dtype=wp.float64)
     for launch in Topology(g, "cpu").dss(wp.array(x, dtype=wp.float64), True, whole):
         launch.launch()
     topos = [Topology(g, "cpu", 1, RankOf(r, ranks)) for r in range(ranks)]
@@ -230,7 +230,7 @@ def test_tc2_on_a_refined_mesh_keeps_its_mass_and_its_steady_state(mountain):
         h, h0 = x[2], start[2]
         roundoff.within(
             abs(grid.integrate(h) / grid.integrate(h0) - 1),
-            roundoff.mass_change_bound(3 * steps, grid.npts),
+            roundoff.mass_change_bound(3 * steps, grid.nnodes),
             "|mass change|",
         )
         errors.append(math.sqrt(grid.integrate((h - h0) ** 2) / grid.integrate(h0**2)))

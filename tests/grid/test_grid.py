@@ -20,7 +20,7 @@ def test_unique_node_count(ne, np_):
     g = cached_grid(ne, np_)
     expected = 6 * ne * ne * (np_ - 1) ** 2 + 2
     assert g.nunique == expected
-    assert g.npts == 6 * ne * ne * np_ * np_
+    assert g.nnodes == 6 * ne * ne * np_ * np_
     assert np.unique(g.gid).size == expected
     assert g.gid.min() == 0 and g.gid.max() == expected - 1
     assert g.first.size == expected and g.area.size == expected
@@ -37,7 +37,7 @@ def test_total_area(ne, np_):
     exact = 4 * math.pi * g.radius**2
     assert abs(g.area.sum() - exact) <= 1e-12 * exact
     assert abs(g.spheremp.sum() - exact) <= 1e-12 * exact
-    assert abs(g.integrate(np.ones(g.npts)) - exact) <= 1e-12 * exact
+    assert abs(g.integrate(np.ones(g.nnodes)) - exact) <= 1e-12 * exact
     assert np.all(g.area > 0)
 
 
@@ -79,8 +79,8 @@ def test_dss_lists(ne, np_):
     table = g.dss_table
     counts = np.sum(table >= 0, axis=1)
     # every row lists the copies of its node, ascending, itself among them
-    assert np.all(np.any(table == np.arange(g.npts)[:, None], axis=1))
-    rows = np.where(table >= 0, table, g.npts)
+    assert np.all(np.any(table == np.arange(g.nnodes)[:, None], axis=1))
+    rows = np.where(table >= 0, table, g.nnodes)
     assert np.array_equal(np.sort(rows, axis=1), rows)
     assert np.array_equal(g.gid[np.where(table >= 0, table, 0)][table >= 0], np.repeat(g.gid, counts))
     assert np.array_equal(np.bincount(g.gid), counts[g.first])  # a row for each copy: the node's copy count
@@ -104,7 +104,7 @@ def test_part_is_the_whole_grid_at_its_nodes_bit_for_bit(ne, np_):
         elements = np.sort(rng.choice(g.nelem, size=size, replace=False))
         part = CubedSphere(ne, np_, elements=elements)
         nodes = (elements[:, None] * np_**2 + np.arange(np_**2)).ravel()
-        assert np.array_equal(part.nodes, nodes) and part.nelem == size and part.npts == nodes.size
+        assert np.array_equal(part.nodes, nodes) and part.nelem == size and part.nnodes == nodes.size
         for name in ("xyz", "lat", "lon", "east", "north", "D", "Dinv", "metdet", "spheremp", "rspheremp", "dx", "gid"):
             a = getattr(part, name)
             assert a.shape[-1] == nodes.size, name  # sized by the elements held

@@ -91,7 +91,7 @@ def test_tc2_on_a_refined_mesh_keeps_mass_and_beats_its_base_cube(tmp_path, caps
     days = 12 * 600 / DAY
     sim = Simulation(load_scene("tc2_steady", mesh=path, dt=600, days=days), "cpu", progress=False)
     result = sim.run(None)
-    roundoff.mass_kept(result.history, sim.grid.npts)
+    roundoff.mass_kept(result.history, sim.grid.nnodes)
     base = load_scene("tc2_steady", ne=4, dt=600, days=days, overrides={"grid.map": "element_local"})
     cube = Simulation(base, "cpu", progress=False).run(None)
     assert result.diagnostics["l2_h"] < 0.9 * cube.diagnostics["l2_h"], (result.diagnostics, cube.diagnostics)

@@ -17,7 +17,7 @@ from helpers import cached_grid
 
 def table_order_sum(g, x, weight):
     """Σ over each node's copies, in dss_table order, of weight[c]·x[c], one add at a time (numpy)."""
-    s = np.zeros(x.shape[:-1] + (g.npts,))
+    s = np.zeros(x.shape[:-1] + (g.nnodes,))
     for k in range(g.dss_table.shape[1]):
         c = g.dss_table[:, k]
         have = c >= 0
@@ -35,30 +35,30 @@ def test_dss_is_the_table_order_sum_bit_for_bit(weighted, rng):
     """The DSS is exactly rspheremp · Σ_copies in table order (the order every process keeps)."""
     g = cached_grid(3, 4)
     topo = Topology(g, "cpu", threads=2)
-    x = rng.standard_normal((3, g.npts))
-    out = wp.zeros((3, g.npts), dtype=wp.float64)
+    x = rng.standard_normal((3, g.nnodes))
+    out = wp.zeros((3, g.nnodes), dtype=wp.float64)
     launch_all(topo.dss(wp.array(x, dtype=wp.float64), weighted, out))
-    weight = g.spheremp if weighted else np.ones(g.npts)
+    weight = g.spheremp if weighted else np.ones(g.nnodes)
     assert np.array_equal(out.numpy(), g.rspheremp * table_order_sum(g, x, weight))
 
 
 def test_assemble_scatter_and_reductions_bit_for_bit(rng):
     g = cached_grid(2, 4)
     topo = Topology(g, "cpu")
-    x = rng.standard_normal((2, g.npts))
+    x = rng.standard_normal((2, g.nnodes))
     y = wp.zeros(topo.nunique, dtype=wp.float64)
     xw = wp.array(x, dtype=wp.float64)
     launch_all(topo.assemble(xw, 1, y))
     assert np.array_equal(y.numpy(), table_order_sum(g, x[1], g.spheremp)[g.first])
-    back = wp.zeros((2, g.npts), dtype=wp.float64)
+    back = wp.zeros((2, g.nnodes), dtype=wp.float64)
     launch_all(topo.scatter(y, back, 0))
     assert np.array_equal(back.numpy()[0], y.numpy()[g.gid])
     assert topo.integrate(x[0]) == float(np.sum(g.spheremp * x[0]))
     assert topo.norm(xw) == float(np.linalg.norm(x))
     assert topo.dot(xw, xw) == float(x.ravel() @ x.ravel())
     assert topo.total_area == pytest.approx(4 * np.pi * g.radius**2, rel=1e-14)
-    assert topo.mean(np.full(g.npts, 7.5)) == pytest.approx(7.5, rel=1e-14)
-    assert topo.npts_total == g.npts and topo.nunique == g.nunique
+    assert topo.mean(np.full(g.nnodes, 7.5)) == pytest.approx(7.5, rel=1e-14)
+    assert topo.npts_total == g.nnodes and topo.nunique == g.nunique
 
 
 class RankOf(SerialComm):
@@ -74,8 +74,8 @@ def test_partitioned_dss_with_exchanged_copies_is_the_serial_dss_bit_for_bit(ran
     buffers placed in its ghost buffer (the exchange, done here by hand), each
     rank's DSS equals the one-process DSS on its nodes, bit for bit."""
     g = cached_grid(3, 4)
-    x = rng.standard_normal((3, g.npts))
-    whole = wp.zeros((3, g.npts), dtype=wp.float64)
+    x = rng.standard_normal((3, g.nnodes))
+    whole = wp.zeros((3, g.nnodes), dtype=wp.float64)
     launch_all(Topology(g, "cpu").dss(wp.array(x, dtype=wp.float64), True, whole))
     topos = [Topology(g, "cpu", 1, RankOf(r, ranks)) for r in range(ranks)]
     assert np.array_equal(np.sort(np.concatenate([t.elements for t in topos])), np.arange(g.nelem))
@@ -137,7 +137,7 @@ def test_partitioned_unique_vectors_are_the_serial_ones(ranks, rng):
     ``scatter`` with the owners' values exchanged gives every local copy its value,
     and the owned pieces' dot products add up to the serial one."""
     g = cached_grid(3, 4)
-    x = rng.standard_normal((3, g.npts))
+    x = rng.standard_normal((3, g.nnodes))
     serial = Topology(g, "cpu")
     whole = wp.zeros(g.nunique, dtype=wp.float64)
     launch_all(serial.assemble(wp.array(x, dtype=wp.float64), 2, whole))
@@ -168,7 +168,7 @@ def test_each_rank_draws_its_part_of_one_random_vector(ranks):
     nodes: the parts are the whole-grid vector's, bit for bit (the hyperviscosity
     estimate's start vector is the same on any number of ranks)."""
     g = cached_grid(5, 4)
-    whole = np.random.default_rng(0).standard_normal((3, g.npts))
+    whole = np.random.default_rng(0).standard_normal((3, g.nnodes))
     for r in range(ranks):
         t = Topology(g, "cpu", 1, RankOf(r, ranks))
         assert np.array_equal(t.standard_normal(np.random.default_rng(0), 3), whole[:, t.nodes])
@@ -204,13 +204,13 @@ def test_distribute_hands_each_rank_its_part_and_refuses_a_misshapen_field(ranks
     bit for bit, after one shape broadcast; a field of another shape on rank 0 is
     one ValueError naming it, on every rank (those given None too)."""
     g = cached_grid(3, 4)
-    whole = rng.standard_normal((3, g.npts))
+    whole = rng.standard_normal((3, g.nnodes))
     sent = {}
     topos = [Topology(g, "cpu", 1, Rank0Sends(r, ranks, sent)) for r in range(ranks)]
     for r, t in enumerate(topos):
         assert np.array_equal(t.distribute(whole if r == 0 else None, 3, "start state"), whole[:, t.nodes])
-    assert sent["bcast"] == [(3, g.npts)]  # one broadcast: the shape
-    message = f"start state has shape (2, {g.npts}), the grid needs (3, {g.npts})"
+    assert sent["bcast"] == [(3, g.nnodes)]  # one broadcast: the shape
+    message = f"start state has shape (2, {g.nnodes}), the grid needs (3, {g.nnodes})"
     for r, t in enumerate(topos):
         with pytest.raises(ValueError, match=rf"^{re.escape(message)}$"):
             t.distribute(whole[:2] if r == 0 else None, 3, "start state")

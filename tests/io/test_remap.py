@@ -31,9 +31,9 @@ def random_points(rng, m):
 def node_angles(grid):
     """(face, α, β) of every element-local node, from the index layout of grid.py."""
     ne, n = grid.ne, grid.np
-    e = np.arange(grid.npts) // (n * n)
-    j = (np.arange(grid.npts) // n) % n
-    i = np.arange(grid.npts) % n
+    e = np.arange(grid.nnodes) // (n * n)
+    j = (np.arange(grid.nnodes) // n) % n
+    i = np.arange(grid.nnodes) % n
     face, jb, ia = e // (ne * ne), (e // ne) % ne, e % ne
     d = math.pi / 2 / ne
     ref = grid.rule.points
@@ -75,9 +75,9 @@ def test_locate_inverts_the_grid(grid_factory, ne, np_):
     assert np.abs(P - grid.xyz.T).max() < 1e-14
     # nodes inside an element are found in their own element at their own (ξ, η)
     n = np_
-    i, j = np.arange(grid.npts) % n, (np.arange(grid.npts) // n) % n
+    i, j = np.arange(grid.nnodes) % n, (np.arange(grid.nnodes) // n) % n
     inner = (i > 0) & (i < n - 1) & (j > 0) & (j < n - 1)
-    own = np.arange(grid.npts) // (n * n)
+    own = np.arange(grid.nnodes) // (n * n)
     assert np.array_equal(elem[inner], own[inner])
     assert np.abs(xi[inner] - grid.rule.points[i[inner]]).max() < 1e-13
 

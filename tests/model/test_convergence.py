@@ -46,9 +46,9 @@ def run_scene(scene):
 def tc2_run(name: str, ne: int, dt_factor: float = 1.0):
     """TC2 for one day with rk4, np = 4 and the scene's dt scaled to the grid
     (times ``dt_factor``); cached for the module so tests can share runs."""
-    scene = load_scene(name, ne=ne, np=4, days=1.0, stepper="rk4")
+    scene = load_scene(name, ne=ne, np_=4, days=1.0, stepper="rk4")
     if dt_factor != 1.0:
-        scene = load_scene(name, ne=ne, np=4, days=1.0, stepper="rk4", dt=scene.dt * dt_factor)
+        scene = load_scene(name, ne=ne, np_=4, days=1.0, stepper="rk4", dt=scene.dt * dt_factor)
     result, x, sim = run_scene(scene)
     return scene, result, x, sim
 
@@ -122,7 +122,7 @@ def test_tc2_l2_converges_to_ne32(name):
 @pytest.mark.parametrize("name", ["tc2_steady", "tc2_steady_alpha_pi4"])
 def test_tc2_mass_conserved(name):
     _, result, _, _ = tc2_run(name, 8)
-    roundoff.mass_kept(result.history, cached_grid(8, 4).npts)
+    roundoff.mass_kept(result.history, cached_grid(8, 4).nnodes)
 
 
 # -- TC5: mass conservation with every term ---------------------------------
@@ -140,7 +140,7 @@ def test_tc5_mass_conserved_over_a_day():
     changes = [d["mass_change"] for d in result.history]
     print(f"\ntc5 ne=6 dt={scene.dt:g}: mass change {[f'{c:.1e}' for c in changes]}")
     roundoff.mass_kept(
-        result.history, cached_grid(6, 4).npts, lambda d: 2 * roundoff.operations(d)
+        result.history, cached_grid(6, 4).nnodes, lambda d: 2 * roundoff.operations(d)
     )  # and the time filter
     # the hyperviscosity does dissipate energy, but only a little in a day
     assert -1e-3 < result.diagnostics["total_energy_change"] < 0
@@ -151,7 +151,7 @@ def test_tc5_mass_conserved_over_a_day():
 
 @functools.cache
 def tc1_run(ne: int):
-    scene = load_scene("tc1_cosine_bell", ne=ne, np=4)
+    scene = load_scene("tc1_cosine_bell", ne=ne, np_=4)
     assert scene.days == 12.0
     return run_scene(scene)[0]
 
@@ -165,7 +165,7 @@ def _check_tc1(nes):
     linf = [r.diagnostics["linf_h"] for r in results]
     mass = [max(abs(d["mass_change"]) for d in r.history) for r in results]
     for ne, r in zip(nes, results):
-        roundoff.mass_kept(r.history, cached_grid(ne, 4).npts)
+        roundoff.mass_kept(r.history, cached_grid(ne, 4).nnodes)
     print(
         f"\ntc1 12 days ne {nes}: l2(h) {[f'{e:.4e}' for e in l2]} linf(h) {[f'{e:.4e}' for e in linf]} "
         f"max |mass change| {[f'{m:.1e}' for m in mass]} wall {[f'{r.wall_time:.2f}' for r in results]} s"

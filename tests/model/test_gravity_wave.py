@@ -20,7 +20,7 @@ from numpy_ops import NumpyOps
 
 @pytest.fixture(scope="module")
 def sim():
-    return make_sim(load_scene("tc5_mountain", ne=2, np=4, days=1.0))
+    return make_sim(load_scene("tc5_mountain", ne=2, np_=4, days=1.0))
 
 
 def continuous_state(sim, rng):

@@ -23,7 +23,7 @@ from helpers import make_sim
 
 
 def _tc5(ne=4):
-    sim = make_sim(load_scene("tc5_mountain", ne=ne, np=4, days=1.0))
+    sim = make_sim(load_scene("tc5_mountain", ne=ne, np_=4, days=1.0))
     m = sim.model
     dt_fe = 1.5 / (m.hv.nu_max * m.hv.biharmonic_radius())  # the forward-Euler limit used for substeps
     return sim, m, dt_fe
@@ -88,4 +88,4 @@ def test_long_steps_use_rkl1_stably_and_conservatively(rng):
     assert all(b < a for a, b in zip(norms, norms[1:]))
     assert norms[-1] < 0.5 * norms[0]  # measured 0.28 (the low modes of the noise decay slowly, as they should)
     # each RKL1 stage y_j = μ_j y_{j−1} + ν_j y_{j−2} + μ̃_j τ L y_{j−1} (|μ_j| + |ν_j| < 3) rounds a node by ≤ 3 ε |h|
-    roundoff.within(abs(mass), roundoff.mass_change_bound(10 * m.hv.stages(T) * 3, sim.grid.npts), "|mass change|")
+    roundoff.within(abs(mass), roundoff.mass_change_bound(10 * m.hv.stages(T) * 3, sim.grid.nnodes), "|mass change|")

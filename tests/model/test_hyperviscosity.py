@@ -51,7 +51,7 @@ def test_efold_hours_sets_every_coefficient_on_every_grid(tmp_path):
     the ideal operator; explicit coefficients still override (scaled)."""
     a = 6.37122e6
     for ne, np_ in ((30, 4), (16, 4), (15, 8)):
-        s = load_scene(scene_file(tmp_path, "efold_hours = 3.0\n"), ne=ne, np=np_)
+        s = load_scene(scene_file(tmp_path, "efold_hours = 3.0\n"), ne=ne, np_=np_)
         L = 2 * ne * (np_ - 1)
         assert s.nu == s.nu_div == s.nu_s == pytest.approx(efold_nu(3.0, ne, np_, a), rel=1e-14)
         assert ideal_hyperviscosity_rate(L, "height", 0.0, 0.0, s.nu_s, a) == pytest.approx(1 / (3 * 3600), rel=1e-12)
@@ -83,7 +83,7 @@ def test_the_readmes_hyperviscosity_spectrum(grid_factory, ne, bounds):
     from swe_sphere.model.shallow_water import ShallowWater
 
     grid = grid_factory(ne, 4)
-    z = np.zeros(grid.npts)
+    z = np.zeros(grid.nnodes)
     model = ShallowWater(grid, ["hyperviscosity"], z, z, nu=1.5e15, nu_div=1.5e15, nu_s=1.5e15, device="cpu")
     for l, bound in bounds.items():
         for kind in HARMONIC_KINDS:

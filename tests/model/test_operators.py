@@ -42,7 +42,7 @@ def bare_model(ne, np_) -> ShallowWater:
     key = (ne, np_)
     if key not in _models:
         g = cached_grid(ne, np_)
-        z = np.zeros(g.npts)
+        z = np.zeros(g.nnodes)
         _models[key] = ShallowWater(g, [], z, z, device=DEV)
     return _models[key]
 
@@ -65,7 +65,7 @@ def wp_divergence(m, u, v):
 
 def wp_gradient_element(m, f):
     out = wp.zeros((2, m.N), dtype=wp.float64, device=DEV)
-    rows = functools.partial(operators.row_vectors, np=m.grid.np)  # the element kernels' GLL rows
+    rows = functools.partial(operators.row_vectors, np_=m.grid.np)  # the element kernels' GLL rows
     wp.launch(
         operators.gradient_element(m.grid.np),
         m.grid.nelem,
@@ -77,7 +77,7 @@ def wp_gradient_element(m, f):
 
 def wp_divergence_element(m, u, v):
     out = wp.zeros(m.N, dtype=wp.float64, device=DEV)
-    rows = functools.partial(operators.row_vectors, np=m.grid.np)
+    rows = functools.partial(operators.row_vectors, np_=m.grid.np)
     wp.launch(
         operators.divergence_element(m.grid.np),
         m.grid.nelem,
@@ -89,7 +89,7 @@ def wp_divergence_element(m, u, v):
 
 def wp_vorticity_element(m, u, v):
     out = wp.zeros(m.N, dtype=wp.float64, device=DEV)
-    rows = functools.partial(operators.row_vectors, np=m.grid.np)
+    rows = functools.partial(operators.row_vectors, np_=m.grid.np)
     wp.launch(
         operators.vorticity_element(m.grid.np),
         m.grid.nelem,
@@ -258,7 +258,7 @@ def test_solid_body_rotation():
 @pytest.mark.parametrize("ne,np_", [(2, 4), (3, 2), (2, 7)])
 def test_dss_makes_continuous_and_keeps_integral(ne, np_, rng):
     g, m = cached_grid(ne, np_), bare_model(ne, np_)
-    x = rng.standard_normal((3, g.npts)) + np.array([[0.0], [5.0], [-100.0]])
+    x = rng.standard_normal((3, g.nnodes)) + np.array([[0.0], [5.0], [-100.0]])
     out = wp_dss(m, x, weighted=True)
     rep = g.first[g.gid]
     np.testing.assert_array_equal(out, out[:, rep])  # every copy of a node gets the same bits
@@ -268,7 +268,7 @@ def test_dss_makes_continuous_and_keeps_integral(ne, np_, rng):
     scale = (np.abs(x) * g.spheremp).sum(axis=1)
     roundoff.within(
         (np.abs(after - before) / scale).max(),
-        roundoff.bound(roundoff.operator_roundings(np_) + 2 * math.ceil(math.log2(g.npts))),
+        roundoff.bound(roundoff.operator_roundings(np_) + 2 * math.ceil(math.log2(g.nnodes))),
         "|∫ DSS x − ∫ x| / ∫|x|",
     )
     # DSS of a continuous field is the identity (weighted), and the unweighted
@@ -281,7 +281,7 @@ def test_dss_makes_continuous_and_keeps_integral(ne, np_, rng):
 
 # -- Warp kernels vs numpy reference ----------------------------------------------------------
 def random_continuous(g, ops, rng, rows):
-    return ops.dss(rng.standard_normal((rows, g.npts)))
+    return ops.dss(rng.standard_normal((rows, g.nnodes)))
 
 
 def close(a, b, np_, passes=1, scale=None):
@@ -302,7 +302,7 @@ def test_operator_kernels_match_numpy(np_, rng):
     ops = NumpyOps(g)
     s = smooth_fields(g)
     # a smooth and a rough (element-local random) input for every operator
-    for f, u, v in ((s["f"], s["u"], s["v"]), tuple(rng.standard_normal((3, g.npts)))):
+    for f, u, v in ((s["f"], s["u"], s["v"]), tuple(rng.standard_normal((3, g.nnodes)))):
         assert close(wp_gradient(m, f), ops.gradient(f), np_)
         assert close(wp_divergence(m, u, v), ops.divergence(u, v), np_)
         assert close(wp_gradient_element(m, f), ops.gradient(f), np_)  # the CPU layout
@@ -322,7 +322,7 @@ def test_model_vorticity_diagnostic(rng):
     g, m = cached_grid(2, 5), bare_model(2, 5)
     ops = NumpyOps(g)
     s = smooth_fields(g)
-    for u, v in ((s["u"], s["v"]), tuple(ops.dss(rng.standard_normal((2, g.npts))))):
+    for u, v in ((s["u"], s["v"]), tuple(ops.dss(rng.standard_normal((2, g.nnodes))))):
         ref = ops.dss(ops.vorticity(u, v))
         assert close(m.vorticity(m.new_state(u, v)), ref, 5, 2)
 
@@ -356,7 +356,7 @@ def test_rhs_matches_numpy(np_, per_element, rng):
     g = cached_grid(2, np_)
     ops = NumpyOps(g)
     fcor, hs, st = tc5(g)
-    perturbed = st + ops.dss(rng.standard_normal((3, g.npts)) * np.array([[5.0], [5.0], [50.0]]))
+    perturbed = st + ops.dss(rng.standard_normal((3, g.nnodes)) * np.array([[5.0], [5.0], [50.0]]))
     for state in (st, perturbed):
         scale = rhs_scales(ops, state, fcor, hs, 9.80616)
         for terms in [(t,) for t in RHS_TERMS] + [RHS_TERMS, ("continuity", "coriolis")]:
@@ -417,7 +417,7 @@ def test_rhs_replay_uses_current_state(rng):
     x = m.new_state(*st)
     out = wp.zeros_like(x)
     m.rhs(x, out)
-    new = st + ops.dss(rng.standard_normal((3, g.npts)) * np.array([[5.0], [5.0], [50.0]]))
+    new = st + ops.dss(rng.standard_normal((3, g.nnodes)) * np.array([[5.0], [5.0], [50.0]]))
     x.assign(new)
     m.rhs(x, out)
     ref = ops.sw_rhs(new, RHS_TERMS, fcor, hs, m.g)
@@ -440,7 +440,7 @@ def test_hyperviscosity_matches_numpy(np_, subcycle, ratios, per_element, rng):
     g = cached_grid(2, np_)
     ops = NumpyOps(g)
     fcor, hs, st = tc5(g)
-    state = st + ops.dss(rng.standard_normal((3, g.npts)) * np.array([[10.0], [10.0], [100.0]]))
+    state = st + ops.dss(rng.standard_normal((3, g.nnodes)) * np.array([[10.0], [10.0], [100.0]]))
     dt = 0.5
     m = ShallowWater(
         g, ["hyperviscosity"], fcor, hs, nu=1.0, hypervis_subcycle=subcycle, device=DEV, per_element=per_element
@@ -497,7 +497,7 @@ def test_laplacian_of_spherical_harmonic(l):
 @pytest.mark.parametrize("ne,np_", [(2, 4), (2, 8), (4, 3)])
 def test_laplacian_of_constant_is_zero(ne, np_):
     g, m = cached_grid(ne, np_), bare_model(ne, np_)
-    L = wp_laplacian(m, np.full(g.npts, 3.0))
+    L = wp_laplacian(m, np.full(g.nnodes, 3.0))
     # the first derivative of a constant is its round-off, ``operator_roundings`` of 3/Δx; the
     # second multiplies that by Σ|dvv| ≤ np²/2 over Δx, the DSS adds a pass
     limit = roundoff.bound(roundoff.operator_roundings(np_, 3) * np_**2, 3.0 / g.dx.min() ** 2)
@@ -513,7 +513,7 @@ def test_laplacian_symmetric_negative_semidefinite(ne, np_, rng):
     L = wp_laplacian(m, F)
     w = g.spheremp
     inner = lambda a, b: float(np.sum(w * a * b))  # noqa: E731  (numpy's pairwise sum)
-    limit = roundoff.bound(roundoff.operator_roundings(np_, 3) + 2 * math.ceil(math.log2(g.npts)))
+    limit = roundoff.bound(roundoff.operator_roundings(np_, 3) + 2 * math.ceil(math.log2(g.nnodes)))
     for i in range(3):
         f, gg = F[2 * i], F[2 * i + 1]
         Lf, Lg = L[2 * i], L[2 * i + 1]
@@ -626,7 +626,7 @@ def test_hyperviscosity_launch_list(per_element, nu_div, launch_log):
 
 def test_unknown_term_and_negative_nu_raise():
     g = cached_grid(1, 2)
-    z = np.zeros(g.npts)
+    z = np.zeros(g.nnodes)
     with pytest.raises(ValueError):
         ShallowWater(g, ["continuity", "diffusion"], z, z)
     with pytest.raises(ValueError):
@@ -640,13 +640,13 @@ def test_rhs_conserves_mass(perturb, rng):
     g = cached_grid(4, 4)
     fcor, hs, st = tc5(g)
     if perturb:
-        st = st + NumpyOps(g).dss(rng.standard_normal((3, g.npts)) * np.array([[5.0], [5.0], [50.0]]))
+        st = st + NumpyOps(g).dss(rng.standard_normal((3, g.nnodes)) * np.array([[5.0], [5.0], [50.0]]))
     _, r = run_rhs(g, UNFORCED, fcor, hs, st)
     total = np.sum(g.spheremp * r[2])  # numpy's pairwise sum
     # a node's ∂h/∂t is a difference of fluxes h v over Δx rounded as in ``operator_roundings``
     # (a divergence and its DSS): a balanced flow's ∂h/∂t is far smaller than those terms
     flux = np.sum(g.spheremp * np.abs(st[2]) * np.hypot(st[0], st[1]) / g.dx)
-    limit = roundoff.bound(roundoff.operator_roundings(4, 2) + math.ceil(math.log2(g.npts)), flux)
+    limit = roundoff.bound(roundoff.operator_roundings(4, 2) + math.ceil(math.log2(g.nnodes)), flux)
     roundoff.within(abs(total), limit, "|∫ ∂h/∂t|")
 
 
@@ -679,7 +679,7 @@ def test_cuda_matches_cpu():
 def test_dss_kernels_for_each_row_count_match_numpy(rows, weighted, rng):
     """The DSS compiled per row count (kernel key "dss") equals the numpy reference."""
     g, m = cached_grid(3, 4), bare_model(3, 4)
-    x = rng.standard_normal((rows, g.npts))
+    x = rng.standard_normal((rows, g.nnodes))
     assert dss_k.dss_rows(rows, weighted, 4).key == "dss"
     ref = NumpyOps(g).dss(x, weighted=weighted)
     out = wp_dss(m, x, weighted)
@@ -698,7 +698,7 @@ def test_hyperviscosity_damps_harmonics_at_homme_rates(per_element):
     wind, ν_s on h) to 1e-3 (measured ≤ 3e-4); the rotational l = 1 wind (rigid
     rotation) is not damped (measured 3e-8 of the l = 2 rate)."""
     g = cached_grid(8, 4)
-    z = np.zeros(g.npts)
+    z = np.zeros(g.nnodes)
     nus = (1.5e15, 4.5e15, 0.75e15)
     m = ShallowWater(
         g, ["hyperviscosity"], z, z, nu=nus[0], nu_div=nus[1], nu_s=nus[2], device=DEV, per_element=per_element

@@ -29,7 +29,7 @@ from roundoff import bound, mass_change_bound, operator_roundings, within
 
 
 def hv_model(grid, scaling, per_element=True, nu=1.0):
-    z = np.zeros(grid.npts)
+    z = np.zeros(grid.nnodes)
     return ShallowWater(
         grid, ["hyperviscosity"], z, z, nu=nu, device="cpu", per_element=per_element, hypervis_scaling=scaling
     )
@@ -38,7 +38,7 @@ def hv_model(grid, scaling, per_element=True, nu=1.0):
 def bump(grid, centre, sigma):
     """exp(−θ²/2σ²), θ the angle (rad) from the unit vector ``centre``: h of a state, no wind."""
     theta = np.arccos(np.clip(np.asarray(centre) @ grid.xyz, -1, 1))
-    z = np.zeros(grid.npts)
+    z = np.zeros(grid.nnodes)
     return z, z, np.exp(-((theta / sigma) ** 2) / 2)
 
 
@@ -66,7 +66,7 @@ def test_scaling_0_is_the_constant_nu_operator(per_element):
     the second pass's metric (Dinv I Dinvᵀ formed another way): ``operator_roundings`` of two
     passes of the largest |B x|."""
     grid = CubedSphere(4, 4)
-    z = np.zeros(grid.npts)
+    z = np.zeros(grid.nnodes)
     state = np.stack(
         [harmonic_state(grid, 5, kind)[row] for kind, row in (("rotational", 0), ("divergent", 1), ("height", 2))]
     )
@@ -120,7 +120,7 @@ def test_scaling_4_is_the_constant_nu_at_the_cube_face_centres():
         bound(64),
         "tensor metric - constant metric at the face centres",
     )
-    mean_iso = grid.integrate(iso) / grid.integrate(np.ones(grid.npts))
+    mean_iso = grid.integrate(iso) / grid.integrate(np.ones(grid.nnodes))
     assert 0.79 < mean_iso < 0.82
     constant = hv_model(grid, None)
     for l in (3, 6):
@@ -175,13 +175,13 @@ def test_the_tensor_hyperviscosity_keeps_mass():
     for per_element in (True, False):
         model = hv_model(grid, 3.2, per_element=per_element, nu=4e17)  # the 3 h e-folding rule at ne 4
         model.hypervis_subcycle = 20
-        x = model.new_state(np.zeros(grid.npts), np.zeros(grid.npts), h0)
+        x = model.new_state(np.zeros(grid.nnodes), np.zeros(grid.nnodes), h0)
         mass0 = grid.integrate(x.numpy()[2])
         model.hyperviscosity(x, 3600.0)
         assert model.hv.plan(3600.0) == (20, False)
         h = x.numpy()[2]
         assert np.abs(h - h0).max() > 1.0
-        within(abs(grid.integrate(h) / mass0 - 1), mass_change_bound(20, grid.npts), "mass change")
+        within(abs(grid.integrate(h) / mass0 - 1), mass_change_bound(20, grid.nnodes), "mass change")
 
 
 def test_the_tensor_kernels_compile_for_cuda(tmp_path):

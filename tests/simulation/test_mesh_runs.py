@@ -67,7 +67,7 @@ def test_tc2_on_a_written_cube_file_is_the_cube_and_keeps_mass(cube_file):
     assert np.array_equal(on_file.x.numpy(), built_in.x.numpy())
     e_file, e_cube = result.diagnostics[H_L2], cube.diagnostics[H_L2]
     assert e_cube < e_file < 2 * e_cube, (e_file, e_cube)
-    roundoff.mass_kept(result.history, on_file.grid.npts)
+    roundoff.mass_kept(result.history, on_file.grid.nnodes)
 
 
 @pytest.mark.roundoff
@@ -81,7 +81,7 @@ def test_tc2_on_a_stretched_cube(tmp_path):
     _, cube = run(tc2(ne=4))
     e, e_cube = result.diagnostics[H_L2], cube.diagnostics[H_L2]
     assert e_cube < e < 16 * e_cube, (e, e_cube)
-    roundoff.mass_kept(result.history, sim.grid.npts)
+    roundoff.mass_kept(result.history, sim.grid.nnodes)
     unstretched, _ = run(tc2(ne=4, overrides={"grid.stretch_factor": 1.0}))
     local, _ = run(tc2(ne=4, overrides={"grid.map": "element_local"}))
     assert np.array_equal(unstretched.x.numpy(), local.x.numpy())
@@ -291,7 +291,7 @@ def test_tc2_on_meshes_beyond_the_cube(tmp_path, name):
     sim, result = run(tc2(mesh=path))
     _, cube = run(tc2(ne=ne))
     assert result.diagnostics[H_L2] < bound * cube.diagnostics[H_L2], (result.diagnostics[H_L2], cube.diagnostics[H_L2])
-    roundoff.mass_kept(result.history, sim.grid.npts)
+    roundoff.mass_kept(result.history, sim.grid.nnodes)
 
 
 def test_dt_scales_with_the_smallest_dinv_spacing(cube_file):

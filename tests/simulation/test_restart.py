@@ -48,7 +48,7 @@ DT = 1800.0
 
 def tc2(stepper, options=None, steps=6, every_steps=None):
     """TC2 on ne = 2 np = 4, ``steps`` steps of 30 min (output every ``every_steps``)."""
-    scene = load_scene("tc2_steady", ne=2, np=4, dt=DT, days=steps * DT / DAY, stepper=stepper)
+    scene = load_scene("tc2_steady", ne=2, np_=4, dt=DT, days=steps * DT / DAY, stepper=stepper)
     every = (every_steps or steps) * DT / DAY
     return dataclasses.replace(scene, stepper_options=dict(options or {}), output_every_days=every)
 

@@ -97,7 +97,7 @@ def test_kiops_on_the_model_jacobian(rng):
     ``expm_multiply``, φ₁ + φ₂ against the dense augmented exponential. With the dense
     J·v within tol; with the epi2 stepper's own J·v (forward differences) within
     1e-5 relative (measured 6.4e-7 and 2.3e-7: ~1e-8 of each J·v, through ΔtJ)."""
-    scene = load_scene("tc5_mountain", ne=2, np=4, days=1.0, stepper="epi2", dt=14400.0)
+    scene = load_scene("tc5_mountain", ne=2, np_=4, days=1.0, stepper="epi2", dt=14400.0)
     sim = make_sim(scene)
     st, m, grid = sim.stepper, sim.model, sim.grid
     nu, n = grid.nunique, 3 * grid.nunique
@@ -181,12 +181,12 @@ def test_mass_to_round_off_at_five_times_the_gravity_wave_limit(stepper):
     drifted by −3.3e-13 (ne 8, 10 Δt_g, 9 steps); measured here −1.8e-16. Bound: the
     increment's mass is zeroed, so only adding it rounds, a few ε a step
     (``EXPONENTIAL_UPDATES``), not an ε per Krylov vector."""
-    scene = load_scene("tc5_mountain", ne=4, np=4, days=1.0, stepper=stepper, dt=10800.0)
+    scene = load_scene("tc5_mountain", ne=4, np_=4, days=1.0, stepper=stepper, dt=10800.0)
     result, _, _ = run(scene)
     assert result.blowup is None
     changes = [h["mass_change"] for h in result.history]
     print(f"\n{stepper}: mass change {changes}, {result.iterations}, {result.rhs_evals} RHS")
-    roundoff.mass_kept(result.history, cached_grid(4, 4).npts, lambda d: EXPONENTIAL_UPDATES * d["steps"])
+    roundoff.mass_kept(result.history, cached_grid(4, 4).nnodes, lambda d: EXPONENTIAL_UPDATES * d["steps"])
     it = result.iterations
     assert it["substeps"] >= 8 and it["krylov"] >= 8 * 10
     # F(x(n)) and a J·v per Krylov vector but the first (of the zero vector); epi3's J (x(n−1) − x(n))
@@ -225,7 +225,7 @@ def test_a_state_with_no_tendency_costs_one_rhs():
     """F = 0 exactly (a flat sea at rest is not: the SE gradient of a constant is
     round-off, so the zero state, on TC2's terms without topography): one F, no
     Krylov vector, nothing moves."""
-    scene = load_scene("tc2_steady", ne=2, np=4, days=2 * 3600.0 / DAY, stepper="epi2", dt=3600.0)
+    scene = load_scene("tc2_steady", ne=2, np_=4, days=2 * 3600.0 / DAY, stepper="epi2", dt=3600.0)
     sim = make_sim(scene)
     x = np.zeros((3, sim.model.N))
     sim.x.assign(x)

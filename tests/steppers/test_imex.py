@@ -116,7 +116,7 @@ def test_imex_temporal_order_tc6(scheme, lo, hi):
     assert fine > 1e-8  # far above the rk4 reference's own error (3.5e-12)
     roundoff.within(
         abs(rf.diagnostics["mass_change"]),
-        roundoff.mass_change_bound(roundoff.operations(rf), cached_grid(4, 4).npts),
+        roundoff.mass_change_bound(roundoff.operations(rf), cached_grid(4, 4).nnodes),
         "|mass change|",
     )
 
@@ -132,7 +132,7 @@ def test_imex_conserves_mass_and_is_stable_at_the_advective_limit(scheme):
     hv = {
         f"hyperviscosity.{k}": 1.5e15 for k in ("nu", "nu_div", "nu_s")
     }  # HOMME's nu at ne30 (scaled dx^3.2): the stability measured here is with it
-    base = load_scene("tc5_mountain", ne=8, np=4, days=5.0, overrides=hv)
+    base = load_scene("tc5_mountain", ne=8, np_=4, days=5.0, overrides=hv)
     explicit, sim, _ = run(dataclasses.replace(base, output_every_days=5.0))
     c = sim.courant()
     dt_g = base.dt / c["courant_gravity"]
@@ -150,11 +150,11 @@ def test_imex_conserves_mass_and_is_stable_at_the_advective_limit(scheme):
     assert result.blowup is None
     assert scene.dt >= 11.5 * dt_g
     assert i < 2 * e
-    roundoff.mass_kept(result.history, cached_grid(8, 4).npts)
+    roundoff.mass_kept(result.history, cached_grid(8, 4).nnodes)
 
 
 def _imex_sim(scheme, ne=2):
-    base = load_scene("tc5_mountain", ne=ne, np=4)
+    base = load_scene("tc5_mountain", ne=ne, np_=4)
     return Simulation(
         dataclasses.replace(base, stepper="imex", stepper_options={"scheme": scheme}, dt=base.dt * 4),
         "cpu",
@@ -201,7 +201,7 @@ def test_a_solve_writes_the_stage_tendency_with_the_bits_of_its_own_pass(device,
     At s = 3 the per-element z may differ from the plain solve's in its last bit (s·r_v − ag·S wg
     with and without contraction; at s = 1 the plain kernel's contraction leaves z's bits, as
     checked here): ≤ 4ε relative to each row's largest value."""
-    sim = Simulation(load_scene("tc5_mountain", ne=2, np=4), device, progress=False)
+    sim = Simulation(load_scene("tc5_mountain", ne=2, np_=4), device, progress=False)
     m = sim.model
     if not per_element:
         m = ShallowWater(sim.grid, m.terms, m.fcor.numpy(), m.hs.numpy(), device=device, per_element=False)

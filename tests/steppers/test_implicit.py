@@ -99,7 +99,7 @@ def test_crank_nicolson_keeps_tc2_steady_at_50x_the_explicit_limit(name):
     dt_limit = Δx_min / max sqrt(g h) (the Courant-1 step; ssprk3's measured
     limit is 0.90–0.98 of it, and ssprk3 at dt_limit is checked to fail here).
     The implicit l2(h) must lie within a factor 2 of the explicit one."""
-    base = load_scene(name, ne=4, np=4, days=STEADY_DAYS)
+    base = load_scene(name, ne=4, np_=4, days=STEADY_DAYS)
     limit = courant1_step(base)
     explicit, _, t_exp = run(single_output(base))
     assert explicit.blowup is None
@@ -127,7 +127,7 @@ def test_crank_nicolson_keeps_tc2_steady_at_50x_the_explicit_limit(name):
     assert implicit.diagnostics["l2_wind"] <= 2.0 * explicit.diagnostics["l2_wind"]
     roundoff.within(
         abs(implicit.diagnostics["mass_change"]),
-        roundoff.mass_change_bound(roundoff.operations(implicit), sim.grid.npts),
+        roundoff.mass_change_bound(roundoff.operations(implicit), sim.grid.nnodes),
         "|mass change|",
     )
     assert implicit.iterations["newton"] >= nsteps
@@ -191,7 +191,7 @@ def test_jacobian_vector_product_matches_exact_directional_derivative(name, rng)
     checked first (s = 1 against s = 1e-3, and the second difference scales as s²).
     Direction: random, DSS'd to be continuous, wind ~10 m/s and depth ~100 m.
     Measured: 1.37e-8 (TC5), 1.37e-8 (TC6), 1.36e-8 (TC2) relative."""
-    scene = load_scene(name, ne=2, np=4, days=1.0, stepper="implicit", dt=3600.0)
+    scene = load_scene(name, ne=2, np_=4, days=1.0, stepper="implicit", dt=3600.0)
     sim = make_sim(scene)
     st, m = sim.stepper, sim.model
     x0 = sim.x.numpy().copy()
@@ -253,7 +253,7 @@ def test_jacobian_passes_host_and_kernels_agree(rng):
     norms are summed in another order, KernelPasses' on the device); J·0 = 0."""
     from swe_sphere.solvers.jacobian import FiniteDifferenceJacobian, HostPasses, KernelPasses
 
-    sim = make_sim(load_scene("tc5_mountain", ne=2, np=4, days=1.0, stepper="implicit", dt=3600.0))
+    sim = make_sim(load_scene("tc5_mountain", ne=2, np_=4, days=1.0, stepper="implicit", dt=3600.0))
     m, first = sim.model, sim.grid.first
     Fx = wp.zeros_like(sim.x)
     m.rhs(sim.x, Fx)
@@ -287,7 +287,7 @@ def test_jacobian_passes_host_and_kernels_agree(rng):
 
 
 def _one_step_history(name, exact_inner):
-    scene = load_scene(name, ne=4, np=4, days=1.0, stepper="implicit", dt=3600.0)
+    scene = load_scene(name, ne=4, np_=4, days=1.0, stepper="implicit", dt=3600.0)
     # without the preconditioner: Newton's order does not depend on it, and it
     # reaches round-off in one iteration fewer, leaving one observed order
     scene = dataclasses.replace(scene, stepper_options={"atol": 1e-13, "gmres_tol": 1e-13, "preconditioner": "none"})
@@ -350,13 +350,13 @@ def test_implicit_conserves_mass(atol):
     the Newton updates (the ∇⁴ keeps mass to 3.6e-16 a call). Bound: an update of
     the depth per RHS evaluation and per Newton, GMRES and Helmholtz iteration
     (``roundoff.operations``), far below the tolerance's 1e-3."""
-    scene = load_scene("tc5_mountain", ne=4, np=4, days=1.0, stepper="implicit", dt=21600.0)
+    scene = load_scene("tc5_mountain", ne=4, np_=4, days=1.0, stepper="implicit", dt=21600.0)
     scene = dataclasses.replace(scene, stepper_options={"atol": atol})
     result, _, wall = run(scene)
     assert result.blowup is None
     changes = [h["mass_change"] for h in result.history]
     print(f"\natol {atol:g}: mass change {changes}, {result.iterations}, {wall:.2f} s")
-    roundoff.mass_kept(result.history, cached_grid(4, 4).npts)
+    roundoff.mass_kept(result.history, cached_grid(4, 4).nnodes)
 
 
 # -- the Helmholtz (gravity-wave Schur complement) preconditioner --------------------
@@ -367,7 +367,7 @@ def test_helmholtz_preconditioner_cuts_gmres_iterations():
     flexible GMRES, without and with the gravity-wave preconditioner (Helmholtz
     by Jacobi-CG to 1e-2). Both solve the same equations; the preconditioner
     must at least halve the GMRES iterations, and every application is counted."""
-    base = load_scene("tc5_mountain", ne=4, np=4, days=1.0, stepper="implicit", dt=21600.0)
+    base = load_scene("tc5_mountain", ne=4, np_=4, days=1.0, stepper="implicit", dt=21600.0)
     out = {}
     for pc in ("none", "helmholtz"):
         result, sim, wall = run(dataclasses.replace(base, stepper_options={"preconditioner": pc, "atol": 1e-10}))
@@ -390,7 +390,7 @@ def test_helmholtz_preconditioner_cuts_gmres_iterations():
     assert diff < 1e-8  # both solve the same equations to the Newton tolerance
     roundoff.within(
         abs(helm.diagnostics["mass_change"]),
-        roundoff.mass_change_bound(roundoff.operations(helm), cached_grid(4, 4).npts),
+        roundoff.mass_change_bound(roundoff.operations(helm), cached_grid(4, 4).nnodes),
         "|mass change|",
     )
 
@@ -403,7 +403,7 @@ def test_fgmres_reaches_the_true_residual_with_an_inexact_inner_solve():
     keeps the directions it preconditioned: the true residual ‖J δ + R‖/‖R‖ is
     at η (GMRES on J P⁻¹ with δ = P⁻¹w at the end, right for a fixed P only,
     missed it by orders of magnitude: 6.8e-3)."""
-    base = load_scene("tc5_mountain", ne=4, np=4, days=1.0, stepper="implicit", dt=21600.0)
+    base = load_scene("tc5_mountain", ne=4, np_=4, days=1.0, stepper="implicit", dt=21600.0)
     options = {"helmholtz_tol": 1e-1, "gmres_maxiter": 60}
     sim = make_sim(dataclasses.replace(base, stepper_options=options))
     st, x = sim.stepper, sim.x
@@ -495,7 +495,7 @@ def test_krylov_backends_agree_on_cn_steps_and_fgmres_reads_once_a_cycle():
     least squares stay on the device; before, 4 reads an Arnoldi step)."""
     from swe_sphere.solvers import jacobian, krylov
 
-    scene = load_scene("tc5_mountain", ne=2, np=4, stepper="implicit")
+    scene = load_scene("tc5_mountain", ne=2, np_=4, stepper="implicit")
     scene = dataclasses.replace(scene, dt=4.0 * scene.dt, stepper_options={"gmres_restart": 3})
     runs = {}
     for backend in ("host", "kernels", "nudged"):
@@ -539,7 +539,7 @@ def test_fgmres_cycles_replayed_as_graphs_give_the_bits_of_host_loops(monkeypatc
     from swe_sphere.solvers import jacobian, krylov
 
     monkeypatch.setenv("SWE_SPHERE_THREADS", "1")
-    scene = load_scene("tc5_mountain", ne=2, np=4, stepper="implicit")
+    scene = load_scene("tc5_mountain", ne=2, np_=4, stepper="implicit")
     scene = dataclasses.replace(
         scene, dt=2.0 * scene.dt, stepper_options={"preconditioner": "none", "gmres_restart": 4}
     )

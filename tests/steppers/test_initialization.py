@@ -60,11 +60,11 @@ def test_time_reversal_is_an_exact_symmetry_of_the_discrete_rhs(rng):
     np.testing.assert_array_equal(out[1], -P * out[0])
 
 
-def filter_mass_bound(r, npts: int) -> float:
+def filter_mass_bound(r, np_: int) -> float:
     """Round-off of a filtered state's relative mass: an update of the depth per RK4 RHS
     evaluation of either run (each state's mass error at most that, Σ|w| ≈ 1) and one
     rounding per state added to the weighted sum."""
-    return roundoff.mass_change_bound(r.rhs_evals + 2 * r.steps, npts)
+    return roundoff.mass_change_bound(r.rhs_evals + 2 * r.steps, np_)
 
 
 @pytest.mark.roundoff
@@ -83,7 +83,7 @@ def test_steady_state_is_kept_to_its_discretisation_error():
         sim = make_sim(load_scene("tc2_steady", ne=ne, days=1))
         x0 = sim.x.numpy().copy()
         r = _filter(sim, f)
-        roundoff.within(abs(r.mass_change), filter_mass_bound(r, sim.grid.npts), f"|mass change| ne {ne}")
+        roundoff.within(abs(r.mass_change), filter_mass_bound(r, sim.grid.nnodes), f"|mass change| ne {ne}")
         change[ne] = (np.abs(r.x[2] - x0[2]).max() / x0[2].max(), np.abs(r.x[:2] - x0[:2]).max() / np.abs(x0[:2]).max())
     assert change[8][0] < 4e-5 and change[8][1] < 1.2e-4  # measured 2.9e-5, 9.0e-5
     assert change[4][0] / change[8][0] > 6 and change[4][1] / change[8][1] > 6  # measured 9.0, 11.3
@@ -108,10 +108,10 @@ def test_tc5_gravity_waves_are_removed():
         sim = make_sim(scene)
         if init == "dfi":
             assert sim.dfi.dhdt_rms[0] / sim.dfi.dhdt_rms[1] > 9.5
-            roundoff.within(abs(sim.dfi.mass_change), filter_mass_bound(sim.dfi, sim.grid.npts), "|mass change|")
+            roundoff.within(abs(sim.dfi.mass_change), filter_mass_bound(sim.dfi, sim.grid.nnodes), "|mass change|")
             roundoff.within(
                 abs(sim.initial["mass"] / before.initial["mass"] - 1),
-                filter_mass_bound(sim.dfi, sim.grid.npts),
+                filter_mass_bound(sim.dfi, sim.grid.nnodes),
                 "|initial mass / unfiltered − 1|",
             )
         sim.run(None)

@@ -29,7 +29,7 @@ EPS = np.finfo(float).eps
 
 def sim_of(case, **kw):
     options = kw.pop("options", {})
-    scene = load_scene(case, np=4, **kw)
+    scene = load_scene(case, np_=4, **kw)
     return Simulation(dataclasses.replace(scene, stepper_options=options), "cpu", progress=False)
 
 
@@ -219,7 +219,7 @@ def test_mass_kept_to_round_off(stepper, options):
     that (they are τ·H·D v ≪ h). So the relative mass change after n_steps is at most
     n_steps · passes · ε, passes the depth-writing passes of a step: its fast evaluations,
     its slow ones, the two shifts h ↔ h′ and the ∇⁴ evaluations."""
-    base = load_scene("tc5_mountain", ne=4, np=4, days=2.0, stepper=stepper)
+    base = load_scene("tc5_mountain", ne=4, np_=4, days=2.0, stepper=stepper)
     dt = 86400.0 / math.ceil(86400.0 / (4 * explicit_limits(base, "cpu")["dt_gravity"]))
     sim = Simulation(dataclasses.replace(base, dt=dt, stepper_options=options), "cpu", progress=False)
     st = sim.stepper
@@ -243,7 +243,7 @@ def test_auto_substeps_are_the_fewest_within_the_fast_courant_number(stepper, co
     diagnostic on a still state of depth H, is ≤ fast_courant (split_explicit 0.6, mri 1.0).
     TC5 ne 4, one step at 2 and 7.8 Δt_g; the step takes that many: its forward–backward
     substeps (⌈n/3⌉ + ⌈n/2⌉ + n) or inner ssprk3 stages (3 Σ_r ⌈d_r n⌉), counted."""
-    base = load_scene("tc5_mountain", ne=4, np=4, days=1.0, stepper=stepper)
+    base = load_scene("tc5_mountain", ne=4, np_=4, days=1.0, stepper=stepper)
     dt = 86400.0 / math.ceil(86400.0 / (multiple * explicit_limits(base, "cpu")["dt_gravity"]))
     sim = Simulation(dataclasses.replace(base, dt=dt), "cpu", progress=False)
     counted = [0]
@@ -272,7 +272,7 @@ def test_split_explicit_defaults_hold_tc2_rotated_over_100_days():
     defaults ("auto" takes 2 substeps, the least it takes; divergence damping 0.1) the run
     ends; with one substep a stage and no damping (the defaults before) it blows up on day
     34, the weak instability of the split (SplitExplicit's docstring)."""
-    scene = load_scene("tc2_steady_alpha_pi4", ne=4, np=4, days=100.0, dt=1200.0, stepper="split_explicit")
+    scene = load_scene("tc2_steady_alpha_pi4", ne=4, np_=4, days=100.0, dt=1200.0, stepper="split_explicit")
     sim = Simulation(scene, "cpu", progress=False)
     st = sim.stepper
     st.split.set_depth(sim.x)
@@ -293,8 +293,8 @@ def test_stable_over_twice_the_scene_at_the_defaults(stepper, case, multiple):
     slow step of 6 Δt_g (TC6 4 Δt_g: its advective Courant number is 0.32 of the gravity
     waves', 1.26 there). Measured: every one stable; TC6 blew up at 5.9 Δt_g (split_explicit)
     and, with MIS3C instead of MIS4a, at 2.9 Δt_g."""
-    base = load_scene(case, ne=8, np=4)
-    base = load_scene(case, ne=8, np=4, days=2 * base.days, stepper=stepper)
+    base = load_scene(case, ne=8, np_=4)
+    base = load_scene(case, ne=8, np_=4, days=2 * base.days, stepper=stepper)
     dt = 86400.0 / math.ceil(86400.0 / (multiple * explicit_limits(base, "cpu")["dt_gravity"]))
     ok, reason, _ = run_is_stable(dataclasses.replace(base, dt=dt), "cpu")
     assert ok, reason

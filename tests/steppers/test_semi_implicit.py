@@ -79,7 +79,7 @@ def test_semi_implicit_keeps_tc2_steady_at_its_largest_stable_step(name):
     step (ssprk3 blows up there and at the SI step). SI at 1.78 dt_limit keeps
     l2(h) within 2x of ssprk3 at the scene's step; at 2.2 dt_limit it does not
     (blow-up or l2(h) > 10x), so 1.78 is near its largest stable step."""
-    base = load_scene(name, ne=4, np=4, days=STEADY_DAYS)
+    base = load_scene(name, ne=4, np_=4, days=STEADY_DAYS)
     limit = base.dt / make_sim(base).courant()["courant_gravity"]
     explicit, _, t_exp = run(dataclasses.replace(base, output_every_days=STEADY_DAYS))
     assert explicit.blowup is None
@@ -104,7 +104,7 @@ def test_semi_implicit_keeps_tc2_steady_at_its_largest_stable_step(name):
     assert si.diagnostics["l2_wind"] <= 2.0 * explicit.diagnostics["l2_wind"]
     roundoff.within(
         abs(si.diagnostics["mass_change"]),
-        roundoff.mass_change_bound(2 * roundoff.operations(si), sim.grid.npts),
+        roundoff.mass_change_bound(2 * roundoff.operations(si), sim.grid.nnodes),
         "|mass change|",
     )
     assert explicit_there.blowup is not None
@@ -115,7 +115,7 @@ def test_mean_depth_option_reaches_the_stepper():
     """TC2 (alpha = 0) at 1.99 dt_limit: with the default H (the initial mean depth
     rounded to 6 digits, 2363.02 m) the wave starts to go unstable (l2(h) 1.27e-3, 6.5x ssprk3); with
     mean_depth = 3000 m (the deepest point) it stays steady (1.750e-4)."""
-    base = load_scene("tc2_steady", ne=4, np=4, days=STEADY_DAYS)
+    base = load_scene("tc2_steady", ne=4, np_=4, days=STEADY_DAYS)
     limit = base.dt / make_sim(base).courant()["courant_gravity"]
     e = run(dataclasses.replace(base, output_every_days=STEADY_DAYS))[0].diagnostics["l2_h"]
     default, sim_d, _ = run(at_multiple(base, "semi_implicit", 2.0, limit))
@@ -142,7 +142,7 @@ def test_semi_implicit_conserves_mass_to_round_off(dt):
     """TC5 (with topography and hyperviscosity), ne = 4, one day: mass to round-off,
     two updates of the depth (the leapfrog step and its time filter) per RHS evaluation
     and Helmholtz iteration (``roundoff.mass_kept``)."""
-    scene = load_scene("tc5_mountain", ne=4, np=4, days=1.0, stepper="semi_implicit", dt=dt)
+    scene = load_scene("tc5_mountain", ne=4, np_=4, days=1.0, stepper="semi_implicit", dt=dt)
     result, sim, wall = run(scene)
     assert result.blowup is None
     changes = [h["mass_change"] for h in result.history]
@@ -150,14 +150,14 @@ def test_semi_implicit_conserves_mass_to_round_off(dt):
         f"\ndt {scene.dt:g} s ({scene.nsteps} steps, gravity-wave Courant {result.courant['courant_gravity']:.2f}): "
         f"mass change {changes}, {result.iterations}, {wall:.2f} s"
     )
-    roundoff.mass_kept(result.history, sim.grid.npts, lambda d: 2 * roundoff.operations(d))
+    roundoff.mass_kept(result.history, sim.grid.nnodes, lambda d: 2 * roundoff.operations(d))
 
 
 # -- the shared gravity-wave operator and its Helmholtz solvers ------------------------
 
 
 def _gw(tol=1e-13, ne=2):
-    scene = load_scene("tc5_mountain", ne=ne, np=4, days=1.0, stepper="semi_implicit", dt=1800.0)
+    scene = load_scene("tc5_mountain", ne=ne, np_=4, days=1.0, stepper="semi_implicit", dt=1800.0)
     sim = make_sim(scene)
     gw = HelmholtzSolver(GravityWaveOperator(sim.model, 0.0), HelmholtzOptions(tol, 1000, guess_history=0))
     gw.operator.set_depth(sim.x)
@@ -230,7 +230,7 @@ def test_schur_solve_inverts_i_minus_a_l(rng):
 def _pcg_solve(monkeypatch, threads, ne, c, b, tol=1e-11, precision="double"):
     """(M + cK) y = b by the compiled CG on ``threads`` CPU threads (TC5 grid at ne): (y, iterations, solver)."""
     monkeypatch.setenv("SWE_SPHERE_THREADS", str(threads))
-    scene = load_scene("tc5_mountain", ne=ne, np=4, days=1.0, stepper="semi_implicit", dt=1800.0)
+    scene = load_scene("tc5_mountain", ne=ne, np_=4, days=1.0, stepper="semi_implicit", dt=1800.0)
     sim = make_sim(scene)
     gw = HelmholtzSolver(
         GravityWaveOperator(sim.model, 5000.0), HelmholtzOptions(tol, 2000, precision=precision, guess_history=0)
@@ -256,7 +256,7 @@ def test_pcg_equals_a_direct_sparse_solve(rng, monkeypatch, precision, tol, boun
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
 
-    scene = load_scene("tc5_mountain", ne=4, np=4, days=1.0, stepper="semi_implicit", dt=1800.0)
+    scene = load_scene("tc5_mountain", ne=4, np_=4, days=1.0, stepper="semi_implicit", dt=1800.0)
     sim = make_sim(scene)
     area, K = sim.grid.area, helmholtz_matrix(sim.model)
     b = rng.standard_normal(area.size) * area
@@ -286,7 +286,7 @@ def test_a_history_start_gives_the_answers_in_fewer_iterations(rng, precision):
     (measured 1e-15; the later ones, increments of the residual's size whose products carry
     the CG's round-off ε‖b‖, 1e-7 in float64 and 3e-6 in "mixed": the guess's accuracy;
     the answer's residual gets their errors times the coefficients, round-off of ‖b‖)."""
-    scene = load_scene("tc5_mountain", ne=4, np=4, days=1.0, stepper="semi_implicit", dt=1800.0)
+    scene = load_scene("tc5_mountain", ne=4, np_=4, days=1.0, stepper="semi_implicit", dt=1800.0)
     sim = make_sim(scene)
     area, tol, c = sim.grid.area, 1e-8, 4e10
     f = rng.standard_normal((3, area.size))
@@ -387,7 +387,7 @@ def _steps(monkeypatch, stepper, device="cpu", threads=1, precision="double", ta
     Helmholtz iterations a step, host reads in the third step (``tally``), the solves'
     graphs after the second and the third step)."""
     monkeypatch.setenv("SWE_SPHERE_THREADS", str(threads))
-    scene = load_scene("tc5_mountain", ne=4, np=4, days=1.0, stepper=stepper)
+    scene = load_scene("tc5_mountain", ne=4, np_=4, days=1.0, stepper=stepper)
     scene = dataclasses.replace(scene, dt=8 * scene.dt, stepper_options={"precision": precision})
     sim = Simulation(scene, device, progress=False)
     gw = sim.stepper.helmholtz
@@ -431,7 +431,7 @@ def test_pcg_products_and_the_ranks_order(rng, tally, warm):
     the test between the update and the product (one rank), and one more in Chronopoulos–
     Gear's order (update, product, one reduction: how it runs over ranks), with the same
     iterations and bits. (Before: k + 1 and k + 2.)"""
-    scene = load_scene("tc5_mountain", ne=4, np=4, days=1.0, stepper="semi_implicit", dt=1800.0)
+    scene = load_scene("tc5_mountain", ne=4, np_=4, days=1.0, stepper="semi_implicit", dt=1800.0)
     sim = make_sim(scene)
     b = rng.standard_normal(sim.grid.nunique) * sim.grid.area
     out = {}

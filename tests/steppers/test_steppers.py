@@ -95,7 +95,7 @@ def test_stepper_runs_tc2_stably(name):
     assert d["linf_h"] < 2e-3
     assert d["l2_wind"] < 5e-3
     roundoff.mass_kept(
-        result.history, sim.grid.npts, lambda d: 2 * roundoff.operations(d)
+        result.history, sim.grid.nnodes, lambda d: 2 * roundoff.operations(d)
     )  # and leapfrog's time filter
     assert abs(d["total_energy_change"]) < 1e-6
     if name in DOCUMENTED_RHS:

@@ -93,7 +93,7 @@ def ars343_pair() -> dict:
 
 def short(stepper, options, steps=4, dt=1800.0, scene="tc2_steady"):
     """``scene`` on ne = 2 np = 4 with ``stepper`` and its options for ``steps`` steps of ``dt``."""
-    base = load_scene(scene, ne=2, np=4, dt=dt, days=steps * dt / DAY, stepper=stepper)
+    base = load_scene(scene, ne=2, np_=4, dt=dt, days=steps * dt / DAY, stepper=stepper)
     return dataclasses.replace(base, stepper_options=options, output_every_days=steps * dt / DAY)
 
 
@@ -359,7 +359,7 @@ def test_example_tables_converge_at_their_order(scene, order):
     assert fine > 1e-8  # far above the reference's own error
     roundoff.within(
         abs(rf.diagnostics["mass_change"]),
-        roundoff.mass_change_bound(roundoff.operations(rf), cached_grid(4, 4).npts),
+        roundoff.mass_change_bound(roundoff.operations(rf), cached_grid(4, 4).nnodes),
         "|mass change|",
     )
 

@@ -30,8 +30,8 @@ GH0 = 2.94e4  # TC2's g h at the poles (m² s⁻²)
 def write_run(path, grid, u, v, vorticity, divergence, scene=None):
     """A one-time (day 0) run file of element-local fields, as ``RunWriter`` writes them."""
     scene = {"name": "synthetic", "ne": grid.ne, "np": grid.np, **(scene or {})}
-    w = RunWriter(path, grid, np.zeros(grid.npts), {"scene": scene}, [])
-    w.append(0.0, u, v, np.full(grid.npts, 1e3), {}, vorticity=vorticity, divergence=divergence)
+    w = RunWriter(path, grid, np.zeros(grid.nnodes), {"scene": scene}, [])
+    w.append(0.0, u, v, np.full(grid.nnodes, 1e3), {}, vorticity=vorticity, divergence=divergence)
     w.close()
     return path
 
@@ -56,7 +56,7 @@ def harmonics(tmp_path_factory):
         -12 * y3 / A,
         -0.5 * 30 * y5 / A,
     )
-    area = grid.integrate(np.ones(grid.npts))
+    area = grid.integrate(np.ones(grid.nnodes))
     return path, grid, grid.integrate(0.5 * (ur**2 + vr**2)) / area, grid.integrate(0.125 * (ud**2 + vd**2)) / area
 
 
@@ -252,7 +252,7 @@ def _tiny_dataset():
 
     grid = CubedSphere(2, 3)
     return xr.Dataset(
-        {"h": (("time", "ncol"), grid.to_unique(np.ones(grid.npts))[None])},
+        {"h": (("time", "ncol"), grid.to_unique(np.ones(grid.nnodes))[None])},
         coords={
             "time": [0.0],
             "lat": ("ncol", np.degrees(grid.lat[grid.first])),

@@ -71,7 +71,7 @@ def test_sweep_rows_and_files(swept):
         # measured at ssprk3 3600 s: vorticity 1.9e-3 of 7.1e-2, divergence 4.2e-3 of 1.9e-2
         assert df.loc[0, f"temporal_error_{part}"] < 0.5 * df.loc[0, f"total_error_{part}"]
         assert df.loc[3, f"temporal_error_{part}"] > df.loc[2, f"temporal_error_{part}"]
-    roundoff.mass_kept(roundoff.run_file_history(stable), cached_grid(2, 4).npts)
+    roundoff.mass_kept(roundoff.run_file_history(stable), cached_grid(2, 4).nnodes)
     np.testing.assert_allclose(df["dt_over_gravity_limit"] / df["dt"], df["dt_over_gravity_limit"][0] / 3600.0)
     with xr.open_dataset(out / "sweep.nc") as ds:  # one run dimension: sweep.csv's rows
         assert ds.sizes["run"] == len(df) == 4 and list(ds["stepper"].values) == list(df["stepper"])

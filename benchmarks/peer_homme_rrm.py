@@ -40,10 +40,11 @@ the lat-lon interpolation set-up); medians over rounds and their ratio, the 1-mi
 average. A short run first fills Warp's kernel cache. (2) Accuracy at day 1, both codes, np 4,
 the same settings on: the uniform ne10 cube with the equiangular map (HOMME
 ``cubed_sphere_map = 0``) and with the element-local map (``cubed_sphere_map = 2``, what every
-``.g`` file gets), ``mountain_10_x2.g``, the project's own ×2 and ×4 refinements of ne10 over a
-box on the mountain's face (``swe-sphere mesh --refine-box``) and Schmidt-stretched ne10 cubes
-(c = 2 and 4 toward 30° N, 270° E), all written as ``.g`` for both codes: l1, l2, l∞ of h and
-mass change, each code's l2 over its ne10 equiangular and element-local ones. (3) swe_sphere's
+``.g`` file gets), ``mountain_10_x2.g``, the project's own ×2 and ×4 refinements of ne10 over
+the TC5 mountain (10..50° N, 246.7..293.3° E; ``swe-sphere mesh --refine-box``) and
+Schmidt-stretched ne10 cubes (c = 2 and 4 toward 30° N, 270° E), all written as ``.g`` for both
+codes: l1, l2, l∞ of h and mass change, each code's l2 over its ne10 equiangular and
+element-local ones. (3) swe_sphere's
 error by region on the refined meshes against the ne10 cubes at the same places (each node in
 the region of the nearest refined-mesh element: fine, transition (Dinv-based distortion > 2),
 the coarse elements next to the transition, the other coarse ones): RMS of h − h_exact (m) and
@@ -86,7 +87,7 @@ from swe_sphere.grid.quality import element_sizes
 REPO = Path(__file__).resolve().parents[1]
 NAMELIST = "test/reg_test/namelists/swtc2.nl"
 HOMME_RADIUS = 6.376e6  # HOMME's rearth (physical_constants.F90); Williamson's Ω and g as ours
-BOX = ("0", "36", "243", "297")  # the TC5 mountain's side of its cube face (the refinement must fit in one face)
+BOX = ("10", "50", "246.7", "293.3")  # TC5's mountain: its latitudes and its widest longitudes (270 ± 23.3°)
 TARGET = ("30", "270")  # the stretched cubes' target (lat, lon): the TC5 mountain
 TERMS = '["continuity","momentum_advection","coriolis","pressure_gradient"'
 

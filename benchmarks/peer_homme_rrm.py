@@ -37,7 +37,8 @@ whole process from ``os.wait4`` (user + system, children included: ``mpirun`` an
 HOMME), and the CPU per simulated day past the first, (T_N − T_1)/(N − 1), which leaves out
 start-up (for swe_sphere interpreter, imports and kernel cache, 2–3 s; for HOMME MPI start and
 the lat-lon interpolation set-up); medians over rounds and their ratio, the 1-minute load
-average. A short run first fills Warp's kernel cache. (2) Accuracy at day 1, both codes, np 4,
+average; and the error of h each day of the last round's N-day runs. A short run first fills
+Warp's kernel cache. (2) Accuracy at day 1, both codes, np 4,
 the same settings on: the uniform ne10 cube with the equiangular map (HOMME
 ``cubed_sphere_map = 0``) and with the element-local map (``cubed_sphere_map = 2``, what every
 ``.g`` file gets), ``mountain_10_x2.g``, the project's own ×2 and ×4 refinements of ne10 over
@@ -287,6 +288,10 @@ def main(argv=None) -> int:
             )
         scores = {mountain.label: (swe_scores(got["swe", 1][2], hv), homme_scores(got["homme", 1][2], 1.0))}
         (tmp / "swe1.nc").rename(tmp / "mountain.nc")
+        with xr.open_dataset(tmp / f"swe{args.days}.nc", decode_times=False) as ds:
+            days = [float(t) for t in ds.time.values[1:]]
+            daily = [(d, *(float(ds[k].sel(time=d)) for k in ("l1_h", "l2_h", "linf_h"))) for d in days]
+        daily = [(*row, homme_scores(got["homme", args.days][2], row[0])) for row in daily]
 
         grids = [Grid.cube(10, False), Grid.cube(10, True), *write_meshes(tmp)]
         files = {mountain.label: tmp / "mountain.nc"}
@@ -335,6 +340,13 @@ def main(argv=None) -> int:
         f"ratio of the medians (swe_sphere / HOMME): whole process 1 day {med[0] / med[3]:.3f}, "
         f"{n} days {med[1] / med[4]:.3f}, per simulated day past the first {med[2] / med[5]:.3f}"
     )
+
+    print(f"\nerror of h each day on {mountain.label} (the last round's {n}-day runs)")
+    print(
+        f"{'day':>4} {'swe l1':>10} {'swe l2':>10} {'swe linf':>10} | {'HOMME l1':>10} {'HOMME l2':>10} {'HOMME linf':>10}"
+    )
+    for day, l1, l2, linf, h in daily:
+        print(f"{day:>4g} {l1:>10.4e} {l2:>10.4e} {linf:>10.4e} | {h['l1']:>10.4e} {h['l2']:>10.4e} {h['linf']:>10.4e}")
 
     print("\n2. day-1 error of h against TC2's exact solution, np 4, both codes, HOMME's settings")
     eq = scores["ne10 equiangular"]

@@ -106,6 +106,20 @@ def default_kit() -> Path:
     return main_checkout.parent / "shared" / "peers" / "homme"
 
 
+def add_homme_options(ap: argparse.ArgumentParser) -> None:
+    """``--homme``, ``--kit`` and ``--build-dir``: where ``find_sweqx`` looks for HOMME."""
+    ap.add_argument(
+        "--homme", type=Path, help="a built sweqx (default: BUILD_DIR/build/src/sweqx/sweqx, built when absent)"
+    )
+    ap.add_argument("--kit", type=Path, default=default_kit(), help="the HOMME kit (default: %(default)s)")
+    ap.add_argument(
+        "--build-dir",
+        type=Path,
+        default=Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "swe_sphere" / "homme",
+        help="where the kit builds HOMME (default: %(default)s)",
+    )
+
+
 def find_sweqx(args) -> Path:
     """The ``sweqx`` to time: ``--homme``, or the build folder's, built there when absent."""
     if not (args.kit / NAMELIST).is_file():
@@ -206,16 +220,7 @@ def swe_l2(text: str) -> float:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=3, help="timed rounds, each one run of both (default 3)")
-    ap.add_argument(
-        "--homme", type=Path, help="a built sweqx (default: BUILD_DIR/build/src/sweqx/sweqx, built when absent)"
-    )
-    ap.add_argument("--kit", type=Path, default=default_kit(), help="the HOMME kit (default: %(default)s)")
-    ap.add_argument(
-        "--build-dir",
-        type=Path,
-        default=Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "swe_sphere" / "homme",
-        help="where the kit builds HOMME (default: %(default)s)",
-    )
+    add_homme_options(ap)
     ap.add_argument(
         "--no-l2", dest="l2", action="store_false", help="skip the untimed HOMME run that scores its day 1 against T213"
     )

@@ -8,9 +8,10 @@ What changes, and why it keeps the pages' order meaningful:
   N ≤ 8 and one more a doubling (16 → 3, 30 → 4, 60 → 5), so that runs a page tells
   apart by their grid (``run tc5_mountain_homme`` and ``… --ne 60``) still write
   different default files; a command without ``--ne`` gets that of its scene's grid
-  (``stability``: of its default ne 8), but for a run on a ``--mesh`` file or from a
-  restart file (``--continue``, ``--from``), whose grid is the file's. A ``--dt`` given
-  with a known grid grows as the grid coarsens (``coarser_dt``: the same Courant number).
+  (``stability``: of its default ne 8), but for a run on a mesh file (``--mesh``,
+  ``-s grid.mesh_file=…``) or from a restart file (``--continue``, ``--from``), whose grid
+  is the file's. A ``--dt`` given with a known grid grows as the grid coarsens
+  (``coarser_dt``: the same Courant number).
 - A default file name in any argument (``…_ne8np4_ssprk3.nc``) says the shortened grid.
 - A sweep makes one run: the first of ``--runs``, or the first of ``--steppers`` at the
   first of ``--courant`` (``--dt``); ``stability`` bisects the first of ``--steppers``;
@@ -92,7 +93,7 @@ def shorten(argv: list[str]) -> list[str]:
     elif command == "stability":
         ne = COARSE_NE
         args += ["--ne", str(small_ne(ne))]
-    elif args and not args[0].startswith("-") and not set(FILE_GRID) & set(args):
+    elif args and not args[0].startswith("-") and not set(FILE_GRID) & set(args) and not _mesh_file(args):
         ne = scene_ne(args[0])
         args += ["--ne", str(small_ne(ne))]
     else:
@@ -101,6 +102,11 @@ def shorten(argv: list[str]) -> list[str]:
         i = args.index("--dt") + 1
         args[i] = ",".join(str(coarser_dt(float(dt), ne)) for dt in args[i].split(","))
     return [command, *_file_names(args)]
+
+
+def _mesh_file(args: list[str]) -> bool:
+    """Whether ``args`` set the grid to a mesh file by ``-s grid.mesh_file=...``."""
+    return any(a.startswith("grid.mesh_file=") and args[i - 1] in ("-s", "--set") for i, a in enumerate(args) if i)
 
 
 def _cut_rhs_timing() -> None:

@@ -5,13 +5,18 @@ mesh."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 
 from swe_sphere.cases.library import make_case
+from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.mesh import Mesh, check
 from swe_sphere.model.shallow_water import ShallowWater
+from swe_sphere.steppers import make_stepper
+
+import roundoff
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"
 TEMPEST_NE2 = SHARED / "TEMPEST_NE2.g"  # the uniform ne2 cube, made by TempestRemap
@@ -26,6 +31,28 @@ def case_model(grid, case_name: str, terms: list, **options):
     case = make_case(case_name)
     fcor, hs = case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon)
     return case, ShallowWater(grid, terms, fcor, hs, g=case.planet.g, device="cpu", **options)
+
+
+def tc2_l2_by_np(mesh: Mesh, nps, ne: int = 0, steps: int = 12, dt: float = 60.0) -> list[float]:
+    """TC2 (steady, exact; no ∇⁴) for ``steps`` SSP-RK3 steps of ``dt`` s on ``mesh`` at each
+    np of ``nps`` (``ne``: 0 for a mesh, the cube's for a moved cube, as ``CubedSphere``): the
+    normalized l2 error of h of each run, whose mass change is checked to be round-off
+    (``roundoff.mass_change_bound`` of its RHS evaluations)."""
+    errors = []
+    for np_ in nps:
+        g = CubedSphere(ne, np_, mesh=mesh)
+        case, model = case_model(g, "tc2_steady", TC2_TERMS)
+        stepper = make_stepper("ssprk3", model, dt)
+        start = np.stack(case.initial(g.lat, g.lon))
+        x = model.new_state(*start)
+        for _ in range(steps):
+            stepper.step(x)
+        h, h0 = x.numpy()[2], start[2]
+        roundoff.within(
+            abs(g.integrate(h) / g.integrate(h0) - 1), roundoff.mass_change_bound(3 * steps, g.nnodes), "|mass change|"
+        )
+        errors.append(math.sqrt(g.integrate((h - h0) ** 2) / g.integrate(h0**2)))
+    return errors
 
 
 def _icosahedron() -> tuple[np.ndarray, np.ndarray]:

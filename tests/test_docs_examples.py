@@ -106,7 +106,8 @@ def test_a_page_grids_stay_apart():
     assert shorten(["run", "tc5_mountain_homme"]) == ["run", "tc5_mountain_homme", "--ne", "4"]  # the scene's 30
     assert shorten(["run", "tc2_steady", "-s", "a.b=1"]) == ["run", "tc2_steady", "-s", "a.b=1", "--ne", "3"]
     assert shorten(["stability", "galewsky"]) == ["stability", "galewsky", "--ne", "2"]
-    for argv in (["run", "--continue", "r.restart.nc", "--days", "20"], ["run", "tc2_steady", "--mesh", "x.g"]):
+    file_grids = (["run", "--continue", "r.restart.nc", "--days", "20"], ["run", "tc2_steady", "--mesh", "x.g"])
+    for argv in (*file_grids, ["run", "tc2_steady", "-s", "grid.ne=0", "-s", 'grid.mesh_file="/m/x.g"']):
         assert shorten(argv) == argv
     assert shorten(["plot", "tc2_steady_ne8np4_ssprk3_2d.nc"]) == ["plot", "tc2_steady_ne2np4_ssprk3_2d.nc"]
     assert shorten(["run", "tc2_steady", "--ne", "8", "-s", "case.path=tc5_mountain_ne16np4_rk4.nc"])[-1] == (

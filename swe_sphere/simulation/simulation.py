@@ -37,7 +37,6 @@ from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology, rank_parts
 from ..io import restart_file
 from ..io.initial_state import from_function
-from ..io.remap import remap_dataset
 from ..io.run_file import OUTPUT_FIELDS, check_distinct, check_target, node_dataset
 from ..model.shallow_water import ShallowWater
 from ..steppers import StepStats, make_stepper
@@ -616,6 +615,8 @@ class Simulation(StateDiagnostics):
         )
         if remap is None:
             return ds
+        from ..io.remap import remap_dataset  # here: xarray and scipy.sparse, for the Python API's maps only
+
         return remap_dataset(ds, remap)
 
     def run(

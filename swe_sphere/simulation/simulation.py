@@ -232,7 +232,9 @@ class Simulation(StateDiagnostics):
         t0 = time.perf_counter()
         self._compile = [0.0]
         self.activities: dict = {}  # name -> activity (``activities``): the user's; ``run`` adds its own
-        with _compile_timer(self._compile):
+        # single-threaded BLAS, as in ``run``: the ∇⁴'s power iteration (``_check_hyperviscosity``)
+        # takes 40 norms, and OpenBLAS's threads spinning on a busy machine made them 0.3 s of CPU
+        with _compile_timer(self._compile), threadpool_limits(limits=1, user_api="blas"):
             self._build(scene, device, progress, comm, start, initial, initial_diagnostics)
         self.graphs = graphs
         self.setup_time = time.perf_counter() - t0

@@ -218,8 +218,8 @@ def _parser() -> argparse.ArgumentParser:
     sw.add_argument(
         "--output",
         type=Path,
-        default=Path("sweep"),
-        help="directory for results (default ./sweep); a rerun reuses the runs made there with the same settings",
+        help="directory for results (default ./sweep_<scene>_<grid>np<np>_<days>d, e.g. sweep_tc5_mountain_ne16np4_15d); "
+        "a rerun reuses the runs made there with the same settings",
     )
     sw.add_argument(
         "--overwrite",
@@ -415,7 +415,7 @@ def _cmd_sweep(args) -> int:
     with executor(args.workers) as pool:
         if pool is None:  # an MPI worker rank: its share is done
             return 0
-        plan.run(args.output, device, pool=pool, cost=args.cost, overwrite=args.overwrite)
+        plan.run(args.output or plan.default_output, device, pool=pool, cost=args.cost, overwrite=args.overwrite)
     return 0
 
 

@@ -218,8 +218,8 @@ def _parser() -> argparse.ArgumentParser:
     sw.add_argument(
         "--output",
         type=Path,
-        default=Path("sweep"),
-        help="directory for results (default ./sweep); a rerun reuses the runs made there with the same settings",
+        help="directory for results (default ./sweep_<scene>_<grid>np<np>_<days>d, e.g. sweep_tc5_mountain_ne16np4_15d); "
+        "a rerun reuses the runs made there with the same settings",
     )
     sw.add_argument(
         "--overwrite",
@@ -415,7 +415,7 @@ def _cmd_sweep(args) -> int:
     with executor(args.workers) as pool:
         if pool is None:  # an MPI worker rank: its share is done
             return 0
-        plan.run(args.output, device, pool=pool, cost=args.cost, overwrite=args.overwrite)
+        plan.run(args.output or plan.default_output, device, pool=pool, cost=args.cost, overwrite=args.overwrite)
     return 0
 
 
@@ -891,6 +891,34 @@ COMMANDS = {
     "run": _cmd_run,
     "mesh": _cmd_mesh,
 }
+# the module each command imports first, the one that brings Warp, numpy and the rest
+# (``_import_uncollected``)
+COMMAND_MODULES = {
+    "list": "config.scene",
+    "stability": "studies.stability",
+    "sweep": "studies.sweep",
+    "plot": "studies.plotting",
+    "remap": "io.remap",
+    "run": "simulation.simulation",
+    "mesh": "grid.refine",
+}
+
+
+def _import_uncollected(module: str) -> None:
+    """Import ``module`` (of this package) with the cyclic garbage collector off, then
+    freeze what exists: the imports make objects that live to the end, none of them
+    garbage, and the collector's passes over them cost a tenth of a second of CPU at every
+    start; frozen, later collections skip them too. For the console script only: a
+    caller's process would keep its own cyclic garbage of the moment forever."""
+    import gc
+    import importlib
+
+    gc.disable()
+    try:
+        importlib.import_module(f".{module}", __package__)
+    finally:
+        gc.enable()
+        gc.freeze()
 
 
 def _classify(err: BaseException) -> tuple[int, str]:
@@ -983,6 +1011,8 @@ def main(argv=None) -> int:
         args = _parser().parse_args(argv)
         args.argv, args.console = argv, console
         debug = debug or args.debug
+        if console:
+            _import_uncollected(COMMAND_MODULES[args.command])
         code = COMMANDS[args.command](args)
     except (Exception, KeyboardInterrupt) as err:
         if debug:

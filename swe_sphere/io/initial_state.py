@@ -44,7 +44,6 @@ import numpy as np
 from ..cases.library import CASES, Case, make_case
 from ..core.constants import Planet
 from ..core.errors import SceneError
-from .remap import cached_grid, open_netcdf
 from .restart_file import read as read_restart
 
 DEPTH_UNITS = {"m", "meter", "meters", "metre", "metres"}
@@ -264,6 +263,10 @@ def load_state(path, day: float | None = None):
     """The state of the file ``path`` (module docstring) at model day ``day`` (None: the
     last time): a ``NodeState`` or ``LatLonState`` whose ``initial(lat, lon)`` gives
     (u, v, h) and ``(name, lat, lon)`` any field ("hs": zero when absent). Raises ``SceneError``."""
+    # here, not at the top: remap brings xarray and scipy.sparse, a third of a second that
+    # every command paid on importing the scenes (which import this module)
+    from .remap import cached_grid, open_netcdf
+
     where = f"case.path = {str(path)!r}"
     try:
         ds = open_netcdf(path)

@@ -37,7 +37,6 @@ from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology, rank_parts
 from ..io import restart_file
 from ..io.initial_state import from_function
-from ..io.remap import remap_dataset
 from ..io.run_file import OUTPUT_FIELDS, check_distinct, check_target, node_dataset
 from ..model.shallow_water import ShallowWater
 from ..steppers import StepStats, make_stepper
@@ -233,7 +232,9 @@ class Simulation(StateDiagnostics):
         t0 = time.perf_counter()
         self._compile = [0.0]
         self.activities: dict = {}  # name -> activity (``activities``): the user's; ``run`` adds its own
-        with _compile_timer(self._compile):
+        # single-threaded BLAS, as in ``run``: the ∇⁴'s power iteration (``_check_hyperviscosity``)
+        # takes 40 norms, and OpenBLAS's threads spinning on a busy machine made them 0.3 s of CPU
+        with _compile_timer(self._compile), threadpool_limits(limits=1, user_api="blas"):
             self._build(scene, device, progress, comm, start, initial, initial_diagnostics)
         self.graphs = graphs
         self.setup_time = time.perf_counter() - t0
@@ -616,6 +617,8 @@ class Simulation(StateDiagnostics):
         )
         if remap is None:
             return ds
+        from ..io.remap import remap_dataset  # here: xarray and scipy.sparse, for the Python API's maps only
+
         return remap_dataset(ds, remap)
 
     def run(

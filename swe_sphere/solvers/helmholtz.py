@@ -48,10 +48,9 @@ keeps mass to round-off.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
-import scipy.sparse as sp
 import warp as wp
 
 from ..core.errors import StepFailure
@@ -61,6 +60,9 @@ from ..kernels import helmholtz as hk
 from ..kernels import operators
 from ..model.gravity_wave import GravityWaveOperator, check_mean_depth
 from ..model.shallow_water import ShallowWater
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
 
 f64 = wp.float64
 PRECISIONS = ("double", "mixed")
@@ -124,6 +126,8 @@ def element_gradient(model: ShallowWater) -> tuple[sp.csr_matrix, sp.csr_matrix]
     ``model.vec_work``: a unit value at one local node of every element gives a column of every
     element's matrix exactly. The whole grid on one process.
     """
+    import scipy.sparse as sp  # here, as in helmholtz_matrix: a run needs no sparse matrix
+
     grid, N = model.grid, model.N
     npp = grid.np**2
     base = np.arange(grid.nelem) * npp
@@ -153,6 +157,10 @@ def helmholtz_matrix(model: ShallowWater) -> sp.csr_matrix:
     left in ``model.scalar``); with W = diag(spheremp) and the DSS S = P M⁻¹ Pᵀ W,
     K = −Pᵀ W D̂ S Ĝ P. The whole grid on one process (the host solvers').
     """
+    # here, not at the top: scipy.sparse costs every command's start 0.1 s of CPU, and only
+    # the tests and benchmarks assemble K
+    import scipy.sparse as sp
+
     grid, N = model.grid, model.N
     npp = grid.np**2
     base = np.arange(grid.nelem) * npp

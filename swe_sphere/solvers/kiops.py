@@ -54,7 +54,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import warp as wp
-from scipy.linalg import expm
 
 from ..core.errors import StepFailure
 from .krylov import KrylovBasis
@@ -143,6 +142,8 @@ class Kiops:
     def apply(
         self, matvec, u0, us, out, tau: float = 1.0, tol: float = 1e-7, m: int = 10, m_min: int = 10
     ) -> KiopsStats:
+        from scipy.linalg import expm  # here: scipy.linalg costs every command's start 0.1 s of CPU
+
         b, H, p, m_max = self.basis, self.H, self.p, self.m_max
         if len(us) > p:
             raise ValueError(f"at most {p} vectors u_1 … u_p (got {len(us)})")

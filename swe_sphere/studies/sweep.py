@@ -57,7 +57,7 @@ from ..cases.scoring import instability, truth, unscored
 from ..config.scene import Scene, load_scene
 from ..core.backend import pick_device
 from ..core.constants import DAY
-from ..core.errors import BlowUp, Interrupted
+from ..core.errors import BlowUp, Interrupted, OutputError
 from ..core.runtime import package_version
 from ..core.workers import InProcess
 from ..io.run_file import atomic_path, check_results, folder_lock, history_line
@@ -270,7 +270,9 @@ class Sweep:
     the (stepper, Δt) runs to make, each Δt one of ``dts`` (None: every
     stepper × every Δt). ``overrides``: the ``-s`` settings the scenes were made
     with ({"section.key": value}), for the record (the scenes hold their effect).
-    ``log``: called with each line to show (one per finished run)."""
+    ``log``: called with each line to show (one per finished run). ``code``: the
+    ``code_version`` every key of the sweep names, this process's at the start (the
+    workers check theirs against it)."""
 
     scenes: dict
     dts: list
@@ -282,6 +284,7 @@ class Sweep:
     reference_dt_max: float = math.inf
     pairs: list | None = None
     overrides: dict = field(default_factory=dict)
+    code: dict = field(default_factory=code_version)
 
     def __post_init__(self):
         self.directory = Path(self.directory)
@@ -321,7 +324,7 @@ class Sweep:
                     "scene": scene,
                     "truth": self.scored_against,
                     "device": self.device,
-                    "code": code_version(),
+                    "code": self.code,
                     "time_filter": None if f is None else dataclasses.asdict(f),
                     **more,
                 }
@@ -433,10 +436,23 @@ class Sweep:
 
     def run_one(self, stepper: str, dt: float, startup_time: float) -> dict:
         """Make one (stepper, Δt) run (``startup_time``: its stepper's warm-up's, s),
-        write its row and key; returns the row. The reference run's file must hold its key."""
-        ref, why = _read_npz(self.reference_path(), self.key(self.reference_scene))
+        write its row and key; returns the row. Raises ``OutputError`` when this process's
+        source is not the sweep's (a worker started after an edit) or the reference run's
+        file no longer holds its key (another process wrote into the folder): the runs
+        would mix two versions, and a rerun remakes what is stale."""
+        now = code_version()["source_sha256"]
+        if now != self.code["source_sha256"]:
+            raise OutputError(
+                f"the swe_sphere source changed while the sweep ran (source_sha256 {self.code['source_sha256']} "
+                f"at its start, {now} in the process of the {stepper} dt = {dt:.6g} s run): run the sweep again"
+            )
+        path = self.reference_path()
+        ref, why = _read_npz(path, self.key(self.reference_scene))
         if ref is None:
-            raise RuntimeError(f"{self.reference_path()}: the reference run is {why or 'missing'}")
+            raise OutputError(
+                f"{path}: the sweep's reference run was {'replaced (' + why + ')' if why else 'removed'} while the "
+                f"sweep ran, by another process writing into {self.directory}: run the sweep again"
+            )
         ref = self._reference(ref)
         scene = dataclasses.replace(self.scenes[stepper], dt=dt)
         sim, result, at, x, filtered = self.simulate(scene)
@@ -568,7 +584,7 @@ class Sweep:
         (JSON, stepper → its options), ``reference`` (``scoring.truth``),
         ``time_filter`` (JSON of its settings; "" for none), ``device``,
         ``swe_sphere_version`` and ``source_sha256`` (``code_version``)."""
-        b, f, code = self.base, self.time_filter, code_version()
+        b, f, code = self.base, self.time_filter, self.code
         return {
             "scene": b.name,
             "case": b.case,
@@ -1006,6 +1022,18 @@ class Plan:
     def base(self) -> Scene:
         """The first stepper's scene: the case, grid and days every run shares."""
         return next(iter(self.scenes.values()))
+
+    @property
+    def default_output(self) -> Path:
+        """The results' folder when none is given, in the working folder:
+        ``sweep_<scene>_<grid>np<np>_<days>d`` (``<grid>``: ``Scene.grid_label``), with
+        ``_from<restart file stem>`` for a branch, so that a page's sweeps of other
+        cases, grids or lengths do not meet in one folder, and a rerun finds its runs."""
+        b = self.base
+        name = f"sweep_{b.name}_{b.grid_label}np{b.np}_{b.days:g}d"
+        if self.restart is not None:
+            name += f"_from{Path(self.restart).name.removesuffix('.nc').removesuffix('.restart')}"
+        return Path(name)
 
     @property
     def span(self) -> float:

@@ -899,3 +899,61 @@ def test_sweep_refuses_an_empty_list(capsys, flag, tmp_path, monkeypatch):
     """An empty --runs / --courant / --dt was read as "not given" and ran the whole default sweep."""
     monkeypatch.chdir(tmp_path)
     cli_one_line(capsys, ["sweep", "tc2_steady", "--ne", "2", flag, "", "--output", "o"], 2, flag)
+
+
+def test_sweeps_of_other_cases_grids_and_lengths_default_to_folders_of_their_own():
+    """A page's two sweeps with no --output both wrote into ./sweep: the second met
+    "output file exists: sweep/sweep.csv"."""
+    names = [
+        sweep_mod.plan("tc5_mountain", ne=8, days=4, runs=[("rk4", 1.0)]).default_output,
+        sweep_mod.plan("tc5_mountain", ne=16, days=1, runs=[("rk4", 1.0)]).default_output,
+        sweep_mod.plan("galewsky", ne=16, days=1, runs=[("rk4", 1.0)]).default_output,
+        sweep_mod.plan("tc5_mountain", ne=16, np=3, days=1, runs=[("rk4", 1.0)]).default_output,
+    ]
+    assert [str(p) for p in names] == [
+        "sweep_tc5_mountain_ne8np4_4d",
+        "sweep_tc5_mountain_ne16np4_1d",
+        "sweep_galewsky_ne16np4_1d",
+        "sweep_tc5_mountain_ne16np3_1d",
+    ]
+
+
+def _source_changed(m):
+    """A run's process whose swe_sphere source is not the one the sweep started with (a
+    worker started after an edit)."""
+    m.setattr(sweep_mod, "code_version", lambda: {"version": "0", "source_sha256": "0123456789abcdef"})
+
+
+def _reference_removed(m):
+    """The reference run's file removed by another process once it was made."""
+    warm_up = sweep_mod.Sweep.warm_up
+
+    def removing(self, stepper):
+        self.reference_path().unlink()
+        return warm_up(self, stepper)
+
+    m.setattr(sweep_mod.Sweep, "warm_up", removing)
+
+
+@pytest.mark.parametrize(
+    "change, words",
+    [
+        (
+            _source_changed,
+            ("the swe_sphere source changed while the sweep ran", "0123456789abcdef", "run the sweep again"),
+        ),
+        (
+            _reference_removed,
+            ("reference_rk4_450.npz: the sweep's reference run was removed while", "run the sweep again"),
+        ),
+    ],
+    ids=["source", "reference"],
+)
+def test_a_sweep_whose_folder_changes_under_it_says_so_in_one_line(tmp_path, capsys, monkeypatch, change, words):
+    """Runs that could not be told apart from another version's ended in "internal error:
+    RuntimeError"; the default folder is the scene's, grid's and length's."""
+    monkeypatch.chdir(tmp_path)
+    with monkeypatch.context() as m:
+        change(m)
+        cli_one_line(capsys, TINY_SWEEP, 2, *words)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["sweep_tc2_steady_ne2np4_1d"]

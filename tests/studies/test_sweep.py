@@ -908,7 +908,7 @@ def test_sweeps_of_other_cases_grids_and_lengths_default_to_folders_of_their_own
         sweep_mod.plan("tc5_mountain", ne=8, days=4, runs=[("rk4", 1.0)]).default_output,
         sweep_mod.plan("tc5_mountain", ne=16, days=1, runs=[("rk4", 1.0)]).default_output,
         sweep_mod.plan("galewsky", ne=16, days=1, runs=[("rk4", 1.0)]).default_output,
-        sweep_mod.plan("tc5_mountain", ne=16, np=3, days=1, runs=[("rk4", 1.0)]).default_output,
+        sweep_mod.plan("tc5_mountain", ne=16, np_=3, days=1, runs=[("rk4", 1.0)]).default_output,
     ]
     assert [str(p) for p in names] == [
         "sweep_tc5_mountain_ne8np4_4d",

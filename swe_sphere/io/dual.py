@@ -40,6 +40,7 @@ import time
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.sparse.csgraph import connected_components
 
 from ..core import cache
 from ..grid.cubed_sphere import CubedSphere, lat_lon
@@ -63,6 +64,10 @@ CG_ITERATIONS = 20000  # a cap only: an inexact step is checked like any other
 # from the twisted start to round-off (inexact steps stall there at ne = 2 np = 2)
 CG_RTOL, CG_RTOL_EXACT = 1e-4, 1e-12
 LOCAL_ERROR, LOCAL_RINGS = 0.05, 6  # cells fitted first, and the rings round them (``_fit_worst_first``)
+# the steps allowed to the worst cells' fit and to the global fit after it (the cube: 5 and 2 at ne60), beyond
+# which they have stalled (HOMME's mountain_10_x2.g: the convexity rule holds the worst cells' fit at 6e-3)
+# and the global fit starts again from the start itself with μ = MU_FAR
+NEAR_STEPS = 20
 TWIST = 0.1  # the chiral start's rotation (``_start_vertices``)
 CHUNK = 1 << 13  # cells a pass (``_in_chunks``): its temporaries stay under 10 MB
 BUILD = 5  # the fit's version in the cache key: raised by any change that moves the cells' bits
@@ -240,7 +245,8 @@ def dual_mesh(grid: CubedSphere):
     The start's worst cells (the cube corners' triangles, half their area off) are fitted
     first with their neighbourhood (``_fit_worst_first``), so the global fit starts within
     5e-3 of every area, with μ = ``MU_NEAR``, and takes 2 steps at ne60 (3 at ne30) where it
-    took 5 from the start itself.
+    took 5 from the start itself. Where either stalls (``NEAR_STEPS``; on meshes the convexity
+    rule can hold a cell), the global fit starts again from the start itself with μ = ``MU_FAR``.
 
     (JJᵀ + μI)y = ρ couples each node to its 8 neighbours, like a graph Laplacian: solved by
     conjugate gradients with its diagonal as preconditioner, inexactly (``CG_RTOL``): memory
@@ -255,34 +261,45 @@ def dual_mesh(grid: CubedSphere):
     closed = _padded(corners)
     centre = np.stack([grid.to_unique(x) for x in grid.xyz], axis=1)
     target = grid.area / grid.radius**2
+    start = _start_vertices(grid, 0.0)
     try:
-        start = _fit_worst_first(centre, _start_vertices(grid, 0.0), corners, closed, target, subcell_quads(grid))
-        verts, error = _fit(centre, start, corners, closed, target, CG_RTOL, MU_NEAR, True)
+        near = _fit_worst_first(centre, start, corners, closed, target, subcell_quads(grid))
+        verts, error = _fit(centre, near, corners, closed, target, CG_RTOL, MU_NEAR, True, steps=NEAR_STEPS)
     except ArithmeticError:
-        twisted = _start_vertices(grid, TWIST)
-        verts, error = _fit(centre, twisted, corners, closed, target, CG_RTOL_EXACT, MU_FAR, False)
+        try:
+            verts, error = _fit(centre, start, corners, closed, target, CG_RTOL, MU_FAR, True)
+        except ArithmeticError:
+            twisted = _start_vertices(grid, TWIST)
+            verts, error = _fit(centre, twisted, corners, closed, target, CG_RTOL_EXACT, MU_FAR, False)
     return verts, corners, error
 
 
 def _fit_worst_first(centre, verts, corners, closed, target, quads):
     """The start ``verts`` with the cells more than ``LOCAL_ERROR`` off their areas fitted
-    first, alone with those within ``LOCAL_RINGS`` rings of them (``_fit`` of that region, its
-    boundary vertices held, each target scaled by the region's area over its targets' sum): the
-    region's cells then share its deficit, 2e-4 of their areas about the cube's corners. Else
-    the global fit spends two steps (of five at ne60) spreading half of a cube corner's cell
-    area. ``quads`` (nsub, 4): the 4 cells (nodes) of each dual vertex (``ugrid.subcell_quads``)."""
+    first, with those within ``LOCAL_RINGS`` rings of them: ``_fit`` of that region's cells
+    that have a free vertex (one whose 4 cells are all in the region; the others are held),
+    each target scaled by the area over the targets' sum of its connected part of the region
+    (cells joined by free vertices: moving a free vertex keeps that sum). The region's cells then share its deficit, 2e-4 of their areas about the
+    cube's corners; else the global fit spends two steps (of five at ne60) spreading half of a
+    cube corner's cell area. ``quads`` (nsub, 4): the 4 cells (nodes) of each dual vertex
+    (``ugrid.subcell_quads``). The start itself where that fit fails."""
     area = _areas_and_gradients(centre, verts, closed)[0]
     inside = np.abs(1 - area / target) > LOCAL_ERROR
     if not inside.any():
         return verts
     for _ in range(LOCAL_RINGS):
         inside[quads[np.unique(closed[inside])].ravel()] = True
-    cells_ = np.flatnonzero(inside)
+    free = inside[quads].all(axis=1)
+    cells_ = np.flatnonzero(free[closed].any(axis=1))
     held = np.unique(closed[cells_])
     local = np.full(verts.shape[0], -1)
     local[held] = np.arange(held.size)
     part = np.where(corners[cells_] >= 0, local[corners[cells_]], -1)
-    t = target[cells_] * (area[cells_].sum() / target[cells_].sum())
+    joined = quads[free][:, [0, 1, 2]], quads[free][:, [1, 2, 3]]  # the 4 cells of a free vertex, chained
+    links = sp.coo_matrix((np.ones(joined[0].size), (joined[0].ravel(), joined[1].ravel())), shape=(area.size,) * 2)
+    part_of = np.unique(connected_components(links, directed=False)[1][cells_], return_inverse=True)[1]
+    ratio = np.bincount(part_of, area[cells_]) / np.bincount(part_of, target[cells_])
+    t = target[cells_] * ratio[part_of]
     try:
         moved, _ = _fit(
             centre[cells_],
@@ -293,31 +310,34 @@ def _fit_worst_first(centre, verts, corners, closed, target, quads):
             CG_RTOL,
             MU_FAR,
             True,
-            inside[quads[held]].all(axis=1),
+            free[held],
+            steps=NEAR_STEPS,
         )
-    except ArithmeticError:  # the whole start is then the global fit's
+    except ArithmeticError:
         return verts
     out = verts.copy()
     out[held] = moved
     return out
 
 
-def _fit(centre, verts, corners, closed, target, cg_rtol, mu, keep_convex, free=None):
+def _fit(centre, verts, corners, closed, target, cg_rtol, mu, keep_convex, free=None, tol=RTOL, steps=MAX_ITERATIONS):
     """``dual_mesh``'s Levenberg–Marquardt iteration from ``verts`` to the areas ``target``
-    (ncell,) within ``RTOL``, each step's linear system solved to the relative residual
-    ``cg_rtol`` (``mu``: the first damping), each step kept only where the cells stay star-shaped from their nodes (and,
-    with ``keep_convex``, those convex at the start stay convex); only the vertices ``free``
-    (nsub,) bool move (default all): (vertices, max relative error)."""
+    (ncell,) within ``tol`` (relative), each step's linear system solved to the relative
+    residual ``cg_rtol`` (``mu``: the first damping), each step kept only where the cells stay
+    star-shaped from their nodes (and, with ``keep_convex``, those convex at the start stay
+    convex); only the vertices ``free`` (nsub,) bool move (default all). (vertices, max
+    relative error); ``ArithmeticError`` if no step lowers the error or ``steps`` do not
+    reach ``tol``."""
     n, nsub = target.size, verts.shape[0]
     rows = np.repeat(np.arange(n), 2 * closed.shape[1])
     cols = np.stack([2 * closed, 2 * closed + 1], axis=-1).ravel()
     eye = sp.identity(n, format="csr")
     area, grad = _areas_and_gradients(centre, verts, closed)
     was_convex = convex(verts, corners)
-    for _ in range(MAX_ITERATIONS):
+    for _ in range(steps):
         rho = 1 - area / target
         error, norm = np.max(np.abs(rho)), np.linalg.norm(rho)
-        if error <= RTOL:
+        if error <= tol:
             return verts, float(error)
         rho -= (rho @ target) / (target @ target) * target  # round-off: Jᵀ·target = 0
         e1, e2 = _tangent_basis(verts)
@@ -346,7 +366,7 @@ def _fit(centre, verts, corners, closed, target, cg_rtol, mu, keep_convex, free=
             if mu > MU_MAX:
                 raise ArithmeticError(f"dual mesh: no step lowers the cell-area error {error:.1e}")
         verts, area, grad = trial, t_area, t_grad
-    raise ArithmeticError(f"dual mesh: cell areas off spheremp by {error:.1e} after {MAX_ITERATIONS} steps")
+    raise ArithmeticError(f"dual mesh: cell areas off spheremp by {error:.1e} after {steps} steps")
 
 
 def cache_key(ne: int, np_: int, mesh: Mesh | None = None) -> dict:

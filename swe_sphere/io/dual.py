@@ -70,7 +70,7 @@ LOCAL_ERROR, LOCAL_RINGS = 0.05, 6  # cells fitted first, and the rings round th
 NEAR_STEPS = 20
 TWIST = 0.1  # the chiral start's rotation (``_start_vertices``)
 CHUNK = 1 << 13  # cells a pass (``_in_chunks``): its temporaries stay under 10 MB
-BUILD = 5  # the fit's version in the cache key: raised by any change that moves the cells' bits
+BUILD = 6  # the fit's version in the cache key: raised by any change that moves the cells' bits
 
 
 def control_points(rule) -> np.ndarray:

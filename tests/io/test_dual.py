@@ -328,7 +328,7 @@ def test_a_run_says_when_it_built_its_cells_and_runs_without_them(tmp_path, monk
         unit_dual_mesh.cache_clear()
         assert main([*args, "--output", str(tmp_path / f"{name}.nc"), *extra]) == 0
         notes.append([line for line in capsys.readouterr().err.splitlines() if "cells" in line])
-    assert len(notes[0]) == 1 and "ne 2 np 2" in notes[0][0] and str(tmp_path / "cache") in notes[0][0]
+    assert len(notes[0]) == 1 and "ne=2 np=2" in notes[0][0] and str(tmp_path / "cache") in notes[0][0]
     assert notes[1:] == [[], []]
     with netCDF4.Dataset(tmp_path / "first.nc") as full, netCDF4.Dataset(tmp_path / "bare.nc") as bare:
         assert "mesh_dual" in full.variables and "lon_bnds" in full.variables

@@ -70,7 +70,7 @@ LOCAL_ERROR, LOCAL_RINGS = 0.05, 6  # cells fitted first, and the rings round th
 NEAR_STEPS = 20
 TWIST = 0.1  # the chiral start's rotation (``_start_vertices``)
 CHUNK = 1 << 13  # cells a pass (``_in_chunks``): its temporaries stay under 10 MB
-BUILD = 6  # the fit's version in the cache key: raised by any change that moves the cells' bits
+BUILD = 7  # the fit's version in the cache key: raised by any change that moves the cells' bits
 
 
 def control_points(rule) -> np.ndarray:
@@ -265,7 +265,7 @@ def dual_mesh(grid: CubedSphere):
     try:
         near = _fit_worst_first(centre, start, corners, closed, target, subcell_quads(grid))
         verts, error = _fit(centre, near, corners, closed, target, CG_RTOL, MU_NEAR, True, steps=NEAR_STEPS)
-    except ArithmeticError:
+    except ArithmeticError:  # the worst cells' fit, or the global fit after it, stalled
         try:
             verts, error = _fit(centre, start, corners, closed, target, CG_RTOL, MU_FAR, True)
         except ArithmeticError:
@@ -282,7 +282,7 @@ def _fit_worst_first(centre, verts, corners, closed, target, quads):
     (cells joined by free vertices: moving a free vertex keeps that sum). The region's cells then share its deficit, 2e-4 of their areas about the
     cube's corners; else the global fit spends two steps (of five at ne60) spreading half of a
     cube corner's cell area. ``quads`` (nsub, 4): the 4 cells (nodes) of each dual vertex
-    (``ugrid.subcell_quads``). The start itself where that fit fails."""
+    (``ugrid.subcell_quads``). Raises ``ArithmeticError`` where that fit stalls."""
     area = _areas_and_gradients(centre, verts, closed)[0]
     inside = np.abs(1 - area / target) > LOCAL_ERROR
     if not inside.any():
@@ -300,21 +300,9 @@ def _fit_worst_first(centre, verts, corners, closed, target, quads):
     part_of = np.unique(connected_components(links, directed=False)[1][cells_], return_inverse=True)[1]
     ratio = np.bincount(part_of, area[cells_]) / np.bincount(part_of, target[cells_])
     t = target[cells_] * ratio[part_of]
-    try:
-        moved, _ = _fit(
-            centre[cells_],
-            verts[held],
-            part,
-            local[closed[cells_]],
-            t,
-            CG_RTOL,
-            MU_FAR,
-            True,
-            free[held],
-            steps=NEAR_STEPS,
-        )
-    except ArithmeticError:
-        return verts
+    moved, _ = _fit(
+        centre[cells_], verts[held], part, local[closed[cells_]], t, CG_RTOL, MU_FAR, True, free[held], steps=NEAR_STEPS
+    )
     out = verts.copy()
     out[held] = moved
     return out

@@ -1,6 +1,7 @@
 """The run file's cells (GLL control volumes, ``swe_sphere.io.dual``): their first build and a
 read from the grid cache (``swe_sphere.core.cache``), per ne, each in a fresh one-thread
-process: CPU seconds (``time.process_time``) and the process's peak RSS.
+process: CPU seconds (``time.process_time``) and the process's peak RSS; the cells' largest
+relative area error and how many are not convex.
 
     python benchmarks/dual_mesh.py --ne 30 60 120 [--np 4] [--rounds 3]
 
@@ -31,7 +32,8 @@ verts, corners, error, built = dual.unit_dual_mesh(ne, np_)
 cpu = time.process_time() - start
 assert (built is None) == (mode == "read"), (mode, built)
 peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-print(json.dumps(dict(cpu=cpu, peak=peak, error=error, nodes=corners.shape[0])))
+concave = int((~dual.convex(verts, corners)).sum())
+print(json.dumps(dict(cpu=cpu, peak=peak, error=error, nodes=corners.shape[0], concave=concave)))
 """
 
 
@@ -56,7 +58,10 @@ def main() -> None:
     p.add_argument("--rounds", type=int, default=1)
     args = p.parse_args()
     print(f"load average {os.getloadavg()[0]:.2f} at the start; np {args.np}; one thread; medians of {args.rounds}")
-    print(f"{'ne':>4} {'nodes':>8} {'build s':>8} {'build GB':>9} {'read s':>7} {'read GB':>8} {'area error':>10}")
+    print(
+        f"{'ne':>4} {'nodes':>8} {'build s':>8} {'build GB':>9} {'read s':>7} {'read GB':>8} {'area error':>10} "
+        f"{'not convex':>10}"
+    )
     for ne in args.ne:
         rows = {"build": [], "read": []}
         for _ in range(args.rounds):
@@ -67,7 +72,7 @@ def main() -> None:
         last = rows["build"][-1]
         print(
             f"{ne:>4} {last['nodes']:>8} {b['cpu']:>8.2f} {b['peak'] / 1e9:>9.2f} {r['cpu']:>7.3f} "
-            f"{r['peak'] / 1e9:>8.2f} {last['error']:>10.1e}",
+            f"{r['peak'] / 1e9:>8.2f} {last['error']:>10.1e} {last['concave']:>10}",
             flush=True,
         )
     print(f"load average {os.getloadavg()[0]:.2f} at the end")

@@ -631,7 +631,6 @@ def _mesh_lines(sim) -> list[str]:
     rank): the Dinv-based node spacing (``grid.quality``), the largest distortion (a warning
     line above ``MAX_DISTORTION``), the area ratio and the worst element's Courant numbers."""
     from .grid.quality import element_sizes
-    from .io.run_file import CELLS_NOTE
     from .model.diagnostics import worst_element_courant
 
     u, v, h = sim.fields()
@@ -655,8 +654,6 @@ def _mesh_lines(sim) -> list[str]:
             f"swe-sphere: warning: element {e + 1} is distorted {s['distortion_max']:.2f}x (dx_long / dx_short, above "
             f"HOMME's {MAX_DISTORTION:g}): its spacing is uneven and it sets a short explicit step"
         )
-    if sim.grid.mesh is not None:
-        lines.append(f"note        {CELLS_NOTE}")
     return lines
 
 

@@ -21,7 +21,7 @@ STEPS = 4
 
 
 def final_state(comm=None) -> np.ndarray | None:
-    """The whole-grid (u, v, h) (3, npts) after ``STEPS`` steps over ``comm``'s ranks (None: this
+    """The whole-grid (u, v, h) (3, nnodes) after ``STEPS`` steps over ``comm``'s ranks (None: this
     process), on rank 0; None on the others."""
     mesh = icosahedral_mesh(1)
     size, rank = (1, 0) if comm is None else (comm.size, comm.rank)

@@ -41,7 +41,7 @@ def scene(stepper: str, days: float = DAYS, options: dict | None = None):
 
 
 def final_states(comm=None, nudge=None, runs=None) -> dict[str, np.ndarray]:
-    """Label → final (u, v, h) (3, npts) of a run over ``comm``'s ranks (None: this process),
+    """Label → final (u, v, h) (3, nnodes) of a run over ``comm``'s ranks (None: this process),
     from the start moved by ``nudge(x, grid)`` (None: not moved); ``runs``: a dict to fill
     with each run's RHS evaluations and solver iterations (``roundoff.operations``) and
     how far it moved from its start (the larger of ``roundoff.state_difference``)."""

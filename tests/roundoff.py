@@ -33,12 +33,12 @@ def bound(roundings: float, scale: float = 1.0) -> float:
     return roundings * EPS * scale
 
 
-def mass_change_bound(updates: int, np_: int) -> float:
+def mass_change_bound(updates: int, nnodes: int) -> float:
     """What a relative mass change Σ spheremp·h / Σ spheremp·h₀ − 1 can hold in
     round-off: each update of the depth rounds every node by ≤ ε|h| (h > 0, so
     ≤ ε of the mass), ``updates`` of them added; and the two integrals, numpy's
-    pairwise sums of ``npts`` positive terms, ≤ ⌈log2 npts⌉ ε each."""
-    return bound(updates + 2 * math.ceil(math.log2(np_)))
+    pairwise sums of ``nnodes`` positive terms, ≤ ⌈log2 nnodes⌉ ε each."""
+    return bound(updates + 2 * math.ceil(math.log2(nnodes)))
 
 
 def operator_roundings(np_: int, passes: int = 1) -> int:
@@ -60,14 +60,14 @@ def operations(d) -> int:
     return int(d["rhs_evals"] + sum(v for k, v in d.items() if k.endswith("_iterations")))
 
 
-def mass_kept(history: list[dict], np_: int, updates=operations) -> None:
+def mass_kept(history: list[dict], nnodes: int, updates=operations) -> None:
     """Every output of a run (``RunResult.history``) keeps its mass to round-off:
-    |mass change| ≤ ``mass_change_bound(updates(output), npts)``, ``updates`` the
+    |mass change| ≤ ``mass_change_bound(updates(output), nnodes)``, ``updates`` the
     depth's updates up to that output (default: ``operations``). Records the output
     nearest its bound."""
 
     def limit(d):
-        return mass_change_bound(updates(d), np_)
+        return mass_change_bound(updates(d), nnodes)
 
     worst = max(history, key=lambda d: (abs(d["mass_change"]) / limit(d), d["steps"]))  # ties (all zero): the last
     within(

@@ -110,7 +110,7 @@ class Scorer:
     ``case``: the run's ``cases.Case``; ``model``: its ``ShallowWater``, whose
     vorticity and divergence operators split wind errors; ``topology``: its
     ``Topology``; ``grid``: the whole grid on rank 0 (None elsewhere,
-    ``Topology.whole_grid``); ``hs``: the whole-grid surface height (m, (npts,),
+    ``Topology.whole_grid``); ``hs``: the whole-grid surface height (m, (nnodes,),
     rank 0); ``reference``: the path of the reference file to score against
     (``Scene.reference_file``), read on rank 0, or None (a case scored against
     its exact solution, or one without a truth). Raises ``FileNotFoundError`` or
@@ -130,7 +130,7 @@ class Scorer:
 
     # -- vorticity and divergence ---------------------------------------------------
     def rotation_divergence(self, u, v) -> tuple[np.ndarray, np.ndarray]:
-        """Relative vorticity and divergence (s⁻¹, (npts,) each, whole grid, on rank 0;
+        """Relative vorticity and divergence (s⁻¹, (nnodes,) each, whole grid, on rank 0;
         None elsewhere) of a continuous wind given on this rank's nodes (m s⁻¹,
         (N,) each; the whole grid on one rank), by the model's operators + DSS."""
         a = self.topology.gather(self._rotation_divergence(u, v))
@@ -166,7 +166,7 @@ class Scorer:
         ``ref_l2_vorticity``, ``ref_l2_divergence``, NaN at a day it does not
         store (``unscored`` says why; every output time has every series); {}
         for a case with neither. ``x``: the state on this rank's nodes (3, N) (u, v in m s⁻¹, h in
-        m); ``u``, ``v``, ``h``: the same on the whole grid (npts,) on rank 0
+        m); ``u``, ``v``, ``h``: the same on the whole grid (nnodes,) on rank 0
         (None elsewhere)."""
         local = self.topology.grid
         split = ref_split = None

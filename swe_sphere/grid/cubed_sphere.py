@@ -287,9 +287,9 @@ class EquiangularMap:
         self.factor = math.pi / 2 / ne / 2
 
     def at(self, copies: np.ndarray):
-        npts = self.rule.np
-        e, p = np.divmod(copies, npts * npts)
-        j, i = np.divmod(p, npts)
+        np_ = self.rule.np
+        e, p = np.divmod(copies, np_ * np_)
+        j, i = np.divmod(p, np_)
         alpha, beta, face, P = _equiangular(self.ne, e, self.rule.points[i], self.rule.points[j])
         return (
             P,
@@ -383,14 +383,14 @@ def _metric(reference_map, radius: float, copies: np.ndarray, rep: np.ndarray):
 
 
 def _build(ne: int, rule, radius: float, elements: np.ndarray, mesh: Mesh | None) -> dict:
-    npts = rule.np
-    npe = npts * npts
+    np_ = rule.np
+    npe = np_ * np_
     nodes = (elements[:, None] * npe + np.arange(npe)).ravel()
     if mesh is None:
-        gid, table = Numbering(ne, npts).rows(elements)
+        gid, table = Numbering(ne, np_).rows(elements)
         reference_map = EquiangularMap(ne, rule)
     else:
-        gid, table = MeshNumbering(mesh, npts).rows(elements)
+        gid, table = MeshNumbering(mesh, np_).rows(elements)
         reference_map = ElementLocalMap(mesh, rule)
     # The nodes held and the other elements' copies of them (for the assembled
     # mass); every copy gets the coordinates of its first copy, so lat/lon/basis
@@ -433,8 +433,8 @@ def _build(ne: int, rule, radius: float, elements: np.ndarray, mesh: Mesh | None
         # HOMME's epsilon bubble (set_area_correction_map2): a factor per element on
         # its interior nodes only, which no other element shares, so the edge
         # fluxes still cancel; the copies of shared nodes held for the mass keep theirs.
-        alpha = epsilon_bubble(mesh, rule, radius, elements, metdet[here].reshape(-1, npts, npts))
-        p = here.reshape(-1, npts, npts)[:, 1:-1, 1:-1]
+        alpha = epsilon_bubble(mesh, rule, radius, elements, metdet[here].reshape(-1, np_, np_))
+        p = here.reshape(-1, np_, np_)[:, 1:-1, 1:-1]
         a = np.broadcast_to(alpha[:, None, None], p.shape)
         D[p.ravel()] *= np.sqrt(a.ravel())[:, None, None]
         metdet[p.ravel()] *= a.ravel()
@@ -448,10 +448,10 @@ def _build(ne: int, rule, radius: float, elements: np.ndarray, mesh: Mesh | None
     halo = np.setdiff1d(ext, nodes, assume_unique=True)
 
     # Nearest-neighbour spacing along both element directions.
-    X = radius * xyz[here].reshape(elements.size, npts, npts, 3)
+    X = radius * xyz[here].reshape(elements.size, np_, np_, 3)
     dist_i = np.linalg.norm(np.diff(X, axis=2), axis=3)  # (nelem, j, np-1)
     dist_j = np.linalg.norm(np.diff(X, axis=1), axis=3)  # (nelem, np-1, i)
-    dx = np.full((elements.size, npts, npts), np.inf)
+    dx = np.full((elements.size, np_, np_), np.inf)
     dx[:, :, :-1] = np.minimum(dx[:, :, :-1], dist_i)
     dx[:, :, 1:] = np.minimum(dx[:, :, 1:], dist_i)
     dx[:, :-1, :] = np.minimum(dx[:, :-1, :], dist_j)

@@ -41,9 +41,9 @@ class ElementLocalMap:
         self.mesh, self.rule = mesh, rule
 
     def at(self, copies: np.ndarray):
-        npts = self.rule.np
-        e, p = np.divmod(copies, npts * npts)
-        j, i = np.divmod(p, npts)
+        np_ = self.rule.np
+        e, p = np.divmod(copies, np_ * np_)
+        j, i = np.divmod(p, np_)
         return (*bilinear(self.mesh, e, self.rule.points[i], self.rule.points[j]), self.factor)
 
 
@@ -118,7 +118,7 @@ def epsilon_bubble(mesh: Mesh, rule, radius: float, elements: np.ndarray, metdet
 
 
 class MeshNumbering:
-    """The unique GLL nodes of ``mesh`` at ``npts`` points, numbered in the order of their first
+    """The unique GLL nodes of ``mesh`` at ``np_`` points, numbered in the order of their first
     copies (smallest global index e·np² + p), as ``cubed_sphere.Numbering`` numbers the cube's.
 
     A node is a mesh corner (shared by its 3 to 7 elements), the inner point t of a mesh edge

@@ -35,9 +35,9 @@ class GLL:
 
 
 def gll(np_: int) -> GLL:
-    """Build the ``npts``-point GLL rule (2 ≤ npts ≤ 8).
+    """Build the ``np_``-point GLL rule (2 ≤ np_ ≤ 8).
 
-    Raises ``ValueError`` for npts outside 2..8.
+    Raises ``ValueError`` for np_ outside 2..8.
     """
     if not NP_MIN <= np_ <= NP_MAX:
         raise ValueError(f"np must be in {NP_MIN}..{NP_MAX} (got {np_})")

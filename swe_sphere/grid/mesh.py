@@ -12,6 +12,7 @@ Elements and nodes are named in messages by their 1-based numbers, as in the fil
 
 from __future__ import annotations
 
+import hashlib
 import math
 import os
 from dataclasses import dataclass
@@ -64,6 +65,16 @@ class Mesh:
         pairs = np.stack([np.minimum(a, b), np.maximum(a, b)], axis=-1).reshape(-1, 2)
         edge_nodes, inverse = np.unique(pairs, axis=0, return_inverse=True)
         return edge_nodes, inverse.reshape(self.quads.shape)
+
+    def sha256(self) -> str:
+        """SHA-256 (hex) of the mesh's content: ``coords`` as little-endian float64 and ``quads`` as
+        little-endian int64, with their shapes (what a grid built on it is a function of; the name
+        is left out)."""
+        h = hashlib.sha256()
+        for a in (np.ascontiguousarray(self.coords, dtype="<f8"), np.ascontiguousarray(self.quads, dtype="<i8")):
+            h.update(f"{a.dtype.str}{a.shape};".encode())
+            h.update(a.tobytes())
+        return h.hexdigest()
 
     def centroids(self) -> np.ndarray:
         """(F, 3) unit vectors: the normalised mean of each element's corners."""

@@ -80,7 +80,7 @@ def element_sizes(grid, Dinv: np.ndarray | None = None) -> ElementSizes:
 
 def smallest_dx(ne: int, np_: int, mesh=None) -> float:
     """The smallest ``dx_short`` (HOMME's Dinv-based length scale) of the grid ``CubedSphere(ne,
-    npts, mesh=mesh)`` on the unit sphere: what the explicit step scales with between grids. On
+    np_, mesh=mesh)`` on the unit sphere: what the explicit step scales with between grids. On
     the equiangular cube only its first element is built: a face corner's, the smallest
     element (the eight cube corners' are alike by symmetry)."""
     elements = np.array([0]) if mesh is None else None

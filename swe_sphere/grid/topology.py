@@ -58,7 +58,7 @@ def _ops(comm):
 class GatheredGrid:
     """The whole grid as rank 0 diagnoses and writes it, gathered from the ranks'
     parts rather than built (no metric, no DSS tables): ne, np, radius, rule, mesh,
-    nelem (= nelem_total), npts, nunique; lat, lon, spheremp, dx (npts,) and gid (npts,) int32;
+    nelem (= nelem_total), nnodes, nunique; lat, lon, spheremp, dx (nnodes,) and gid (nnodes,) int32;
     first (nunique,) int32 and area (nunique,); ``integrate``, ``to_unique``, ``map`` and
     ``reference_to_sphere`` as ``CubedSphere``'s, whose values these are, bit for bit."""
 
@@ -159,7 +159,7 @@ class Topology:
     elements (nelem_local,) numpy : the global element indices held, ascending
     nodes (N,) numpy : their element-local nodes' global indices
     N : element-local nodes held (int); nunique : unique nodes owned (int)
-    npts_total : element-local nodes of the whole grid (int)
+    nnodes_total : element-local nodes of the whole grid (int)
     distributed : whether the elements are spread over several ranks (bool)
     spheremp (N + ghosts,) rspheremp (N,) : element mass (local copies, then
         the DSS ghosts) and inverse assembled mass (m², m⁻²)
@@ -191,7 +191,7 @@ class Topology:
             grid = grid.part(parts[rank])
         self.grid = grid
         self.elements, self.nodes = grid.elements, grid.nodes
-        self.N, self.npts_total = grid.nnodes, grid.nelem_total * grid.np**2
+        self.N, self.nnodes_total = grid.nnodes, grid.nelem_total * grid.np**2
         self._build_halos(parts, rank)
 
         def up(a, dtype=f64):
@@ -354,7 +354,7 @@ class Topology:
         return (self.parts[k][:, None] * npe + np.arange(npe)).ravel()
 
     def gather(self, a: np.ndarray) -> np.ndarray | None:
-        """The whole-grid field (..., npts_total) from every rank's part (..., N), on
+        """The whole-grid field (..., nnodes_total) from every rank's part (..., N), on
         rank 0 (``Gatherv``; call on every rank); None on the other ranks. On one
         process, ``a`` itself."""
         if not self.distributed:
@@ -365,21 +365,21 @@ class Topology:
         self.comm.Gatherv(a, [flat, counts] if flat is not None else None, root=0)
         if flat is None:
             return None
-        out = np.empty(a.shape[:-1] + (self.npts_total,))
+        out = np.empty(a.shape[:-1] + (self.nnodes_total,))
         for k, piece in enumerate(np.split(flat, np.cumsum(counts)[:-1])):
             out[..., self._part_nodes(k)] = piece.reshape(a.shape[:-1] + (-1,))
         return out
 
     def distribute(self, whole, rows: int, what: str) -> np.ndarray:
         """This rank's part (rows, N) of a whole-grid field ``whole`` (rows,
-        npts_total) given on rank 0 (``Scatterv``; call on every rank; ``whole``
+        nnodes_total) given on rank 0 (``Scatterv``; call on every rank; ``whole``
         is read on rank 0 only, the others may pass None). On one process,
         ``whole`` itself as float64. Raises ValueError on every rank, one line
         naming ``what``, when rank 0's ``whole`` has another shape:
-        "<what> has shape S, the grid needs (rows, npts_total)"."""
+        "<what> has shape S, the grid needs (rows, nnodes_total)"."""
         shape = self.bcast(np.shape(whole) if self.comm.rank == 0 else None)  # rank 0's: it hands the field out
-        if shape != (rows, self.npts_total):
-            raise ValueError(f"{what} has shape {shape}, the grid needs {(rows, self.npts_total)}")
+        if shape != (rows, self.nnodes_total):
+            raise ValueError(f"{what} has shape {shape}, the grid needs {(rows, self.nnodes_total)}")
         if not self.distributed:
             return np.asarray(whole, dtype=np.float64)
         counts = [rows * p.size * self.grid.np**2 for p in self.parts]
@@ -411,13 +411,13 @@ class Topology:
         return self.comm.bcast(value, root=0)
 
     def standard_normal(self, rng: np.random.Generator, rows: int) -> np.ndarray:
-        """This rank's part (rows, N) of ``rng.standard_normal((rows, npts_total))``:
+        """This rank's part (rows, N) of ``rng.standard_normal((rows, nnodes_total))``:
         the stream drawn in pieces (numpy's generators give the same numbers
         however a stream is split), so no rank holds the whole array."""
-        wanted = (np.arange(rows)[:, None] * self.npts_total + self.nodes).ravel()  # ascending
+        wanted = (np.arange(rows)[:, None] * self.nnodes_total + self.nodes).ravel()  # ascending
         out, start, chunk = np.empty(wanted.size), 0, 1 << 16
-        for lo in range(0, rows * self.npts_total, chunk):
-            draw = rng.standard_normal(min(chunk, rows * self.npts_total - lo))
+        for lo in range(0, rows * self.nnodes_total, chunk):
+            draw = rng.standard_normal(min(chunk, rows * self.nnodes_total - lo))
             stop = np.searchsorted(wanted, lo + draw.size)
             out[start:stop] = draw[wanted[start:stop] - lo]
             start = stop
@@ -426,9 +426,9 @@ class Topology:
     def first_node(self, local: int | None) -> int | None:
         """The smallest whole-grid node index over all ranks of a local node index
         (None: none here); None if no rank has one."""
-        g = int(self.nodes[local]) if local is not None else self.npts_total
+        g = int(self.nodes[local]) if local is not None else self.nnodes_total
         g = int(self.comm.allreduce(g, self._min))
-        return None if g == self.npts_total else g
+        return None if g == self.nnodes_total else g
 
     # -- global reductions (numpy in, Python float out) ------------------------------
     def sum(self, value: float) -> float:

@@ -16,13 +16,20 @@ triangles and iterates on the vertices, but its local iteration does not converg
 the four cells round an element's centre (so it adds pentagons there: E3SM's
 "np4_pentagons" grids); here one global, damped Newton iteration (Levenberg–Marquardt,
 ``dual_mesh``) moves all vertices at once and reaches the areas to RTOL with squares and
-triangles only. The cells come out convex on every grid tried (ne ≤ 6 for np 2..8, ne 16,
-30, 60 at np4) but ne = 1 np = 3 (3 cells star-shaped from their node, hence simple).
+triangles only. The cells come out convex on every grid tried (ne ≤ 4 for np 2..8; ne 5, 6,
+8, 30, 60, 120 at np4; the refined and stretched meshes of the tests) but ne = 2 np = 2 (2
+cells star-shaped from their node, hence simple).
+
+Any conforming quadrilateral mesh (``grid.mesh``: a ``.g`` file, a stretched cube, the cube
+through the element-local map) is built the same way: the start is placed by the grid's own
+map (``CubedSphere.reference_to_sphere``), and a mesh corner shared by k elements (3 to 7)
+gets a cell of k vertices.
 
 Topology: the dual of the sub-cell mesh (``ugrid.subcell_quads``). Dual vertex q sits in
 sub-cell q (starting at reference point (t_{i+1}, t_{j+1}) of the sub-cell between GLL
 nodes i, i+1 and j, j+1); the cell of node g joins the vertices of the sub-cells round g,
-counter-clockwise seen from outside: 4 of them, 3 at the 8 cube corners.
+counter-clockwise seen from outside: 4 of them, as many as the elements round a mesh corner
+(3 at the 8 cube corners).
 """
 
 from __future__ import annotations
@@ -33,25 +40,37 @@ import time
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.sparse.csgraph import connected_components
 
 from ..core import cache
-from ..grid.cubed_sphere import CubedSphere, lat_lon, reference_to_sphere
+from ..grid.cubed_sphere import CubedSphere, lat_lon
+from ..grid.mesh import Mesh
 from .ugrid import subcell_quads, write_topology
 
 MESH = "mesh_dual"
 CONNECTIVITY = "dual_face_nodes"
 NODE_DIM, CORNER_DIM = "ndual_node", "nv"
-MAX_CORNERS = 4  # cells have 4 vertices, 3 at the cube corners
+MIN_CORNERS = 4  # the columns of the corner tables at least: a cube's (4 vertices a cell, 3 at its corners)
 RTOL = 1e-10  # the largest |cell area / (spheremp / a²) − 1| accepted (round-off floor: 1e-12 at ne30)
 MAX_ITERATIONS = 60  # a cap, above the steps of every grid tried (ne ≤ 6 at np 2..8, ne 8 to 120 at np 4)
-MU_START, MU_MIN, MU_MAX = 1e-3, 1e-12, 1e6  # Levenberg–Marquardt damping, relative to mean diag JJᵀ
+MU_MIN, MU_MAX = 1e-12, 1e6  # Levenberg–Marquardt damping, relative to mean diag JJᵀ
+# its first value: far from the areas (the starts; the worst cells' own fit), and for the global fit
+# once the worst cells are fitted (max error 5e-3: nearly Gauss–Newton)
+MU_FAR, MU_NEAR = 1e-3, 1e-6
 CG_ITERATIONS = 20000  # a cap only: an inexact step is checked like any other
-# (JJᵀ + μI)y = ρ solved to the relative residual min(CG_RTOL, max|ρ|) (inexact Newton, Eisenstat &
-# Walker 1996); from the twisted start to round-off (inexact steps stall there at ne = 2 np = 2)
+# (JJᵀ + μI)y = ρ solved to the relative residual CG_RTOL (inexact Newton): a step cuts max|ρ| by about
+# as much (ne60: 2.2e-3, 6.8e-7, 3.5e-11), so two steps of the global fit reach RTOL at ne60 where three
+# at 1e-3 cost a third more;
+# from the twisted start to round-off (inexact steps stall there at ne = 2 np = 2)
 CG_RTOL, CG_RTOL_EXACT = 1e-4, 1e-12
+LOCAL_ERROR, LOCAL_RINGS = 0.05, 6  # cells fitted first, and the rings round them (``_fit_worst_first``)
+# the steps allowed to the worst cells' fit and to the global fit after it (the cube: 5 and 2 at ne60), beyond
+# which they have stalled (HOMME's mountain_10_x2.g: the convexity rule holds the worst cells' fit at 6e-3)
+# and the global fit starts again from the start itself with μ = MU_FAR
+NEAR_STEPS = 20
 TWIST = 0.1  # the chiral start's rotation (``_start_vertices``)
 CHUNK = 1 << 13  # cells a pass (``_in_chunks``): its temporaries stay under 10 MB
-BUILD = 2  # the fit's version in the cache key: raised by any change that moves the cells' bits
+BUILD = 7  # the fit's version in the cache key: raised by any change that moves the cells' bits
 
 
 def control_points(rule) -> np.ndarray:
@@ -64,22 +83,29 @@ def control_points(rule) -> np.ndarray:
 
 def _start_vertices(grid: CubedSphere, twist: float) -> np.ndarray:
     """Unit vectors (nsub, 3) of the product-grid points (t_{i+1}, t_{j+1}) of every
-    sub-cell, in the order of ``ugrid.subcell_quads``; ``twist`` > 0 turns each point
-    counter-clockwise about its element's centre, (a, b) → (a − twist·b(1 − a²),
+    sub-cell, in the order of ``ugrid.subcell_quads``, placed by the grid's map; ``twist`` > 0
+    turns each point counter-clockwise about its element's centre, (a, b) → (a − twist·b(1 − a²),
     b + twist·a(1 − b²)) in reference coordinates (element edges stay in place), which
     breaks the cube's mirror symmetries."""
     n = grid.np
     t = control_points(grid.rule)[1:-1]  # one per sub-cell interval, np − 1 of them
     e, j, i = (
-        x.ravel() for x in np.meshgrid(np.arange(6 * grid.ne**2), np.arange(n - 1), np.arange(n - 1), indexing="ij")
+        x.ravel() for x in np.meshgrid(np.arange(grid.nelem_total), np.arange(n - 1), np.arange(n - 1), indexing="ij")
     )
     a, b = t[i], t[j]
-    return reference_to_sphere(grid.ne, e, a - twist * b * (1 - a * a), b + twist * a * (1 - b * b))
+    return grid.reference_to_sphere(e, a - twist * b * (1 - a * a), b + twist * a * (1 - b * b))
+
+
+def max_corners(grid: CubedSphere) -> int:
+    """Columns of the corner tables of ``grid``'s cells: its largest node valence (the DSS
+    table's width: 4 on a cube, up to 7 on a mesh), at least ``MIN_CORNERS``."""
+    return max(MIN_CORNERS, grid.dss_table.shape[1])
 
 
 def cells(grid: CubedSphere) -> np.ndarray:
-    """Dual vertices (sub-cell indices) of each unique node's cell, int32 (nunique, 4),
-    counter-clockwise seen from outside; the 8 three-vertex cells padded with −1.
+    """Dual vertices (sub-cell indices) of each unique node's cell, int32 (nunique,
+    ``max_corners(grid)``), counter-clockwise seen from outside; cells of fewer vertices (the
+    8 cube corners', a mesh corner's of valence below the largest) padded with −1.
 
     Round node g, the sub-cell after quad q (g its corner k) counter-clockwise is the
     quad holding the directed edge g → q[k−1] (each directed edge lies in one quad)."""
@@ -92,37 +118,46 @@ def cells(grid: CubedSphere) -> np.ndarray:
     successor = order[np.searchsorted(key, want, sorter=order)]  # incidence (q, k) → next incidence round the node
     first = np.full(n, -1, dtype=np.int64)
     first[node[::-1]] = np.arange(4 * nsub)[::-1]  # one incidence of each node
-    out = np.full((n, MAX_CORNERS), -1, dtype=np.int64)
+    width = max_corners(grid)
+    out = np.full((n, width), -1, dtype=np.int64)
     at = first.copy()
-    for m in range(MAX_CORNERS):
+    for m in range(width):
         back = (m > 0) & (at == first)
         out[:, m] = np.where(back, -1, at // 4)
         at = np.where(back, first, successor[at])
     if not np.all(at == first) or not np.all(out[:, :3] >= 0):
-        raise ValueError("the sub-cells round a node do not close in at most 4 steps")
+        raise ValueError(f"the sub-cells round a node do not close in at most {width} steps")
     return out.astype(np.int32)
 
 
 def _padded(corners: np.ndarray) -> np.ndarray:
-    """``corners`` with each −1 replaced by the cell's last vertex (a zero-length edge)."""
+    """``corners`` with each −1 replaced by the cell's last vertex (zero-length edges)."""
     out = corners.copy()
-    out[:, 3] = np.where(out[:, 3] < 0, out[:, 2], out[:, 3])
+    for m in range(3, out.shape[1]):
+        out[:, m] = np.where(out[:, m] < 0, out[:, m - 1], out[:, m])
     return out
 
 
 def _in_chunks(f, centre, verts, corners):
     """``f(centre, verts, corners)`` over ``CHUNK`` cells at a time (``centre`` and ``corners``
     cut, ``verts`` whole), its per-cell results joined: the temporaries of a pass, a dozen
-    (ncell, 4, 3) arrays, would be 1 KB a cell (0.8 GB at ne120) all at once."""
+    (ncell, nv, 3) arrays, would be 1 KB a cell (0.8 GB at ne120) all at once."""
     parts = [f(centre[i : i + CHUNK], verts, corners[i : i + CHUNK]) for i in range(0, corners.shape[0], CHUNK)]
     if isinstance(parts[0], tuple):
         return tuple(np.concatenate(p) for p in zip(*parts, strict=True))
     return np.concatenate(parts)
 
 
+def _cross(a, b):
+    """a × b over the last axis (3): np.cross's arithmetic without its axis moves (3× faster on
+    the (cells, nv, 3) arrays here)."""
+    a0, a1, a2, b0, b1, b2 = a[..., 0], a[..., 1], a[..., 2], b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
 def _areas_and_gradients(centre, verts, corners):
     """Spherical areas (ncell,) of cells fanned from ``centre`` (ncell, 3) over ``verts[corners]``
-    (closed, padded), and the gradients (ncell, 4, 3) of each area w.r.t. its vertices
+    (closed, padded), and the gradients (ncell, nv, 3) of each area w.r.t. its vertices
     (``_chunk_areas_and_gradients``)."""
     return _in_chunks(_chunk_areas_and_gradients, centre, verts, corners)
 
@@ -133,34 +168,38 @@ def _chunk_areas_and_gradients(centre, verts, corners):
     Triangle (n, a, b): E = 2 atan2(N, D), N = n·(a × b), D = 1 + n·a + a·b + b·n
     (van Oosterom & Strackee 1983); dE = 2 (D dN − N dD) / (N² + D²),
     ∂N/∂a = b × n, ∂D/∂a = n + b, ∂N/∂b = n × a, ∂D/∂b = n + a."""
-    a = verts[corners]  # (ncell, 4, 3)
+    a = verts[corners]  # (ncell, nv, 3)
     b = np.roll(a, -1, axis=1)
     c = centre[:, None, :]
-    N = np.einsum("cki,cki->ck", c, np.cross(a, b))
+    N = np.einsum("cki,cki->ck", c, _cross(a, b))
     D = 1 + np.einsum("cki,cki->ck", c, a) + np.einsum("cki,cki->ck", a, b) + np.einsum("cki,cki->ck", b, c)
     area = 2 * np.arctan2(N, D).sum(axis=1)
     s = (2 / (N * N + D * D))[..., None]
-    ga = s * (D[..., None] * np.cross(b, c) - N[..., None] * (c + b))
-    gb = s * (D[..., None] * np.cross(c, a) - N[..., None] * (c + a))
+    ga = s * (D[..., None] * _cross(b, c) - N[..., None] * (c + b))
+    gb = s * (D[..., None] * _cross(c, a) - N[..., None] * (c + a))
     return area, ga + np.roll(gb, 1, axis=1)  # vertex k: first of triangle k, second of triangle k − 1
 
 
 def spherical_areas(centre, verts, corners) -> np.ndarray:
-    """Areas (ncell,) on the unit sphere of the cells ``verts[corners]`` (corners (ncell, 4),
+    """Areas (ncell,) on the unit sphere of the cells ``verts[corners]`` (corners (ncell, nv),
     −1-padded, counter-clockwise; ``centre`` (ncell, 3) a point each cell is star-shaped from)."""
     return _areas_and_gradients(centre, verts, _padded(corners))[0]
 
 
 def convex(verts, corners) -> np.ndarray:
     """Whether each cell ``verts[corners]`` (−1-padded) turns left at every vertex seen from
-    outside, (ncell,) bool: ((b − a) × (c − b)) · b > 0 for consecutive vertices a, b, c."""
-    ok = np.ones(corners.shape[0], dtype=bool)
-    for k in (3, 4):
-        rows = (corners[:, 3] >= 0) == (k == 4)
-        p = verts[corners[rows, :k]]
-        a, c = np.roll(p, 1, axis=1), np.roll(p, -1, axis=1)
-        ok[rows] = (np.einsum("cki,cki->ck", np.cross(p - a, c - p), p) > 0).all(axis=1)
-    return ok
+    outside, (ncell,) bool: ((b − a) × (c − b)) · b = a · (b × c) > 0 for consecutive
+    vertices a, b, c."""
+    return _in_chunks(_chunk_convex, corners, verts, corners)
+
+
+def _chunk_convex(_, verts, corners):
+    count = (corners >= 0).sum(axis=1, keepdims=True)  # the −1s come last
+    k = np.arange(corners.shape[1])
+    a = verts[np.take_along_axis(corners, (k - 1) % count, axis=1)]
+    c = verts[np.take_along_axis(corners, (k + 1) % count, axis=1)]
+    turn = np.einsum("cki,cki->ck", a, _cross(verts[corners], c))
+    return ((turn > 0) | (k >= count)).all(axis=1)
 
 
 def star_shaped(centre, verts, corners) -> np.ndarray:
@@ -173,7 +212,7 @@ def star_shaped(centre, verts, corners) -> np.ndarray:
 def _chunk_star_shaped(centre, verts, closed):
     a = verts[closed]
     b = np.roll(a, -1, axis=1)
-    turn = np.einsum("ci,cki->ck", centre, np.cross(a, b))
+    turn = np.einsum("ci,cki->ck", centre, _cross(a, b))
     return ((turn > 0) | np.all(a == b, axis=2)).all(axis=1)
 
 
@@ -186,20 +225,28 @@ def _tangent_basis(p):
 
 
 def dual_mesh(grid: CubedSphere):
-    """The control volumes of ``grid`` (the whole grid) on the unit sphere:
-    (vertices (nsub, 3) unit vectors, nsub = 6·ne²·(np−1)²; corners (nunique, 4) int32
-    counter-clockwise, −1-padded; relative area error max |area·a²/grid.area − 1|,
-    at most ``RTOL``).
+    """The control volumes of ``grid`` (the whole grid, any mesh) on the unit sphere:
+    (vertices (nsub, 3) unit vectors, nsub = nelem·(np−1)²; corners (nunique,
+    ``max_corners(grid)``) int32 counter-clockwise, −1-padded; relative area error
+    max |area·a²/grid.area − 1|, at most ``RTOL``).
 
     Levenberg–Marquardt on the 2·nsub tangent displacements of the vertices for the
     relative residual ρ = 1 − area/(spheremp/a²): minimum-norm steps δ = Jᵀ(JJᵀ + μI)⁻¹ρ
     (J the Jacobian of ρ, μ relative to JJᵀ's mean diagonal; μ shrinks tenfold after a step
-    that lowers |ρ| and keeps every cell star-shaped from its node, grows tenfold
-    otherwise). Plain Gauss–Newton (μ = 0) stalls at ne = 2 np = 4 and ne = 4 np = 3: JJᵀ
-    is nearly singular for the checkerboard of areas (on a uniform quad lattice Jᵀ of the
-    ±1 checkerboard vanishes), the mode at which HOMME's local iteration fails too. JJᵀ is
-    singular besides (moving a vertex keeps the total area: Jᵀ·(spheremp/a²) = 0), so ρ is
-    projected off that direction, where it holds only round-off that 1/μ would amplify.
+    that lowers |ρ|, keeps every cell star-shaped from its node and keeps convex the cells
+    that start convex, grows tenfold otherwise; without the convexity rule the cells of a
+    refined mesh's distorted transition elements fold inward). Plain Gauss–Newton (μ = 0)
+    stalls at ne = 2 np = 4 and ne = 4 np = 3: JJᵀ is nearly singular for the checkerboard of
+    areas (on a uniform quad lattice Jᵀ of the ±1 checkerboard vanishes), the mode at which
+    HOMME's local iteration fails too. JJᵀ is singular besides (moving a vertex keeps the
+    total area: Jᵀ·(spheremp/a²) = 0), so ρ is projected off that direction, where it holds
+    only round-off that 1/μ would amplify.
+
+    The start's worst cells (the cube corners' triangles, half their area off) are fitted
+    first with their neighbourhood (``_fit_worst_first``), so the global fit starts within
+    5e-3 of every area, with μ = ``MU_NEAR``, and takes 2 steps at ne60 (3 at ne30) where it
+    took 5 from the start itself. Where either stalls (``NEAR_STEPS``; on meshes the convexity
+    rule can hold a cell), the global fit starts again from the start itself with μ = ``MU_FAR``.
 
     (JJᵀ + μI)y = ρ couples each node to its 8 neighbours, like a graph Laplacian: solved by
     conjugate gradients with its diagonal as preconditioner, inexactly (``CG_RTOL``): memory
@@ -207,80 +254,133 @@ def dual_mesh(grid: CubedSphere):
     Where the fit stalls at a mirror-symmetric point (ne = 1 np = 3 and ne = 2 np = 2, whose
     24 dual vertices have one degree of freedom each under the cube's mirrors, too few for
     the 3 distinct targets), it starts again from ``_start_vertices`` twisted by ``TWIST``,
-    its steps solved to round-off.
-    Raises ``ArithmeticError`` if RTOL is not reached in MAX_ITERATIONS steps from either start."""
+    its steps solved to round-off and its cells only star-shaped (2 of ne = 2 np = 2's are not
+    convex). Raises ``ArithmeticError`` if RTOL is not reached in MAX_ITERATIONS steps from
+    either start."""
     corners = cells(grid)
     closed = _padded(corners)
     centre = np.stack([grid.to_unique(x) for x in grid.xyz], axis=1)
     target = grid.area / grid.radius**2
+    start = _start_vertices(grid, 0.0)
     try:
-        verts, error = _fit(centre, _start_vertices(grid, 0.0), corners, closed, target, CG_RTOL)
-    except ArithmeticError:
-        verts, error = _fit(centre, _start_vertices(grid, TWIST), corners, closed, target, CG_RTOL_EXACT)
+        near = _fit_worst_first(centre, start, corners, closed, target, subcell_quads(grid))
+        verts, error = _fit(centre, near, corners, closed, target, CG_RTOL, MU_NEAR, True, steps=NEAR_STEPS)
+    except ArithmeticError:  # the worst cells' fit, or the global fit after it, stalled
+        try:
+            verts, error = _fit(centre, start, corners, closed, target, CG_RTOL, MU_FAR, True)
+        except ArithmeticError:
+            twisted = _start_vertices(grid, TWIST)
+            verts, error = _fit(centre, twisted, corners, closed, target, CG_RTOL_EXACT, MU_FAR, False)
     return verts, corners, error
 
 
-def _fit(centre, verts, corners, closed, target, cg_rtol):
+def _fit_worst_first(centre, verts, corners, closed, target, quads):
+    """The start ``verts`` with the cells more than ``LOCAL_ERROR`` off their areas fitted
+    first, with those within ``LOCAL_RINGS`` rings of them: ``_fit`` of that region's cells
+    that have a free vertex (one whose 4 cells are all in the region; the others are held),
+    each target scaled by the area over the targets' sum of its connected part of the region
+    (cells joined by free vertices: moving a free vertex keeps that sum). The region's cells then share its deficit, 2e-4 of their areas about the
+    cube's corners; else the global fit spends two steps (of five at ne60) spreading half of a
+    cube corner's cell area. ``quads`` (nsub, 4): the 4 cells (nodes) of each dual vertex
+    (``ugrid.subcell_quads``). Raises ``ArithmeticError`` where that fit stalls."""
+    area = _areas_and_gradients(centre, verts, closed)[0]
+    inside = np.abs(1 - area / target) > LOCAL_ERROR
+    if not inside.any():
+        return verts
+    for _ in range(LOCAL_RINGS):
+        inside[quads[np.unique(closed[inside])].ravel()] = True
+    free = inside[quads].all(axis=1)
+    cells_ = np.flatnonzero(free[closed].any(axis=1))
+    held = np.unique(closed[cells_])
+    local = np.full(verts.shape[0], -1)
+    local[held] = np.arange(held.size)
+    part = np.where(corners[cells_] >= 0, local[corners[cells_]], -1)
+    joined = quads[free][:, [0, 1, 2]], quads[free][:, [1, 2, 3]]  # the 4 cells of a free vertex, chained
+    links = sp.coo_matrix((np.ones(joined[0].size), (joined[0].ravel(), joined[1].ravel())), shape=(area.size,) * 2)
+    part_of = np.unique(connected_components(links, directed=False)[1][cells_], return_inverse=True)[1]
+    ratio = np.bincount(part_of, area[cells_]) / np.bincount(part_of, target[cells_])
+    t = target[cells_] * ratio[part_of]
+    moved, _ = _fit(
+        centre[cells_], verts[held], part, local[closed[cells_]], t, CG_RTOL, MU_FAR, True, free[held], steps=NEAR_STEPS
+    )
+    out = verts.copy()
+    out[held] = moved
+    return out
+
+
+def _fit(centre, verts, corners, closed, target, cg_rtol, mu, keep_convex, free=None, tol=RTOL, steps=MAX_ITERATIONS):
     """``dual_mesh``'s Levenberg–Marquardt iteration from ``verts`` to the areas ``target``
-    (ncell,) within ``RTOL``, each step's linear system solved to the relative residual
-    min(``cg_rtol``, max|ρ|): (vertices, max relative error)."""
+    (ncell,) within ``tol`` (relative), each step's linear system solved to the relative
+    residual ``cg_rtol`` (``mu``: the first damping), each step kept only where the cells stay
+    star-shaped from their nodes (and, with ``keep_convex``, those convex at the start stay
+    convex); only the vertices ``free`` (nsub,) bool move (default all). (vertices, max
+    relative error); ``ArithmeticError`` if no step lowers the error or ``steps`` do not
+    reach ``tol``."""
     n, nsub = target.size, verts.shape[0]
-    rows = np.repeat(np.arange(n), 2 * MAX_CORNERS)
+    rows = np.repeat(np.arange(n), 2 * closed.shape[1])
     cols = np.stack([2 * closed, 2 * closed + 1], axis=-1).ravel()
     eye = sp.identity(n, format="csr")
     area, grad = _areas_and_gradients(centre, verts, closed)
-    mu = MU_START
-    for _ in range(MAX_ITERATIONS):
+    was_convex = convex(verts, corners)
+    for _ in range(steps):
         rho = 1 - area / target
         error, norm = np.max(np.abs(rho)), np.linalg.norm(rho)
-        if error <= RTOL:
+        if error <= tol:
             return verts, float(error)
         rho -= (rho @ target) / (target @ target) * target  # round-off: Jᵀ·target = 0
         e1, e2 = _tangent_basis(verts)
         g1 = np.einsum("cki,cki->ck", grad, e1[closed]) / target[:, None]
         g2 = np.einsum("cki,cki->ck", grad, e2[closed]) / target[:, None]
+        if free is not None:
+            g1, g2 = g1 * free[closed], g2 * free[closed]
         J = sp.csr_matrix((np.stack([g1, g2], axis=-1).ravel(), (rows, cols)), shape=(n, 2 * nsub))
         JJ = (J @ J.T).tocsr()
         scale = JJ.diagonal().mean()
         while True:
             A = JJ + mu * scale * eye
-            y, _ = spla.cg(A, rho, rtol=min(cg_rtol, error), maxiter=CG_ITERATIONS, M=sp.diags(1 / A.diagonal()))
+            y, _ = spla.cg(A, rho, rtol=cg_rtol, maxiter=CG_ITERATIONS, M=sp.diags(1 / A.diagonal()))
             d = (J.T @ y).reshape(nsub, 2)
             trial = verts + d[:, :1] * e1 + d[:, 1:] * e2
             trial /= np.linalg.norm(trial, axis=1)[:, None]
             t_area, t_grad = _areas_and_gradients(centre, trial, closed)
-            if np.linalg.norm(1 - t_area / target) < norm and star_shaped(centre, trial, corners).all():
+            if (
+                np.linalg.norm(1 - t_area / target) < norm
+                and star_shaped(centre, trial, corners).all()
+                and (not keep_convex or convex(trial, corners)[was_convex].all())
+            ):
                 mu = max(mu / 10, MU_MIN)
                 break
             mu *= 10
             if mu > MU_MAX:
                 raise ArithmeticError(f"dual mesh: no step lowers the cell-area error {error:.1e}")
         verts, area, grad = trial, t_area, t_grad
-    raise ArithmeticError(f"dual mesh: cell areas off spheremp by {error:.1e} after {MAX_ITERATIONS} steps")
+    raise ArithmeticError(f"dual mesh: cell areas off spheremp by {error:.1e} after {steps} steps")
 
 
-def cache_key(ne: int, np_: int) -> dict:
+def cache_key(ne: int, np_: int, mesh: Mesh | None = None) -> dict:
     """What the unit-sphere cells are a function of (``core.cache`` key): the mesh (the
-    uniform equiangular cube; a mesh file would add its content's hash and map), ne, np
+    uniform equiangular cube, or ``mesh``'s content hash ``Mesh.sha256``), the map, ne, np
     and ``BUILD``."""
-    return {"mesh": "cubed_sphere", "map": "equiangular", "ne": ne, "np": np_, "build": BUILD}
+    if mesh is None:
+        return {"mesh": "cubed_sphere", "map": "equiangular", "ne": ne, "np": np_, "build": BUILD}
+    return {"mesh": mesh.sha256(), "map": "element_local", "ne": ne, "np": np_, "build": BUILD}
 
 
 @functools.lru_cache(maxsize=4)
-def unit_dual_mesh(ne: int, np_: int):
-    """``dual_mesh`` of the ne, np grid on the unit sphere, read from the cache
-    (``core.cache``, entry ``dual_mesh``) or built and stored there: (vertices, corners,
-    error, CPU seconds of the build or None when read). Once a process besides (every
-    stream and run of a grid writes the same cells)."""
+def unit_dual_mesh(ne: int, np_: int, mesh: Mesh | None = None):
+    """``dual_mesh`` of the ne, np grid (on ``mesh`` if given, as ``CubedSphere``) on the
+    unit sphere, read from the cache (``core.cache``, entry ``dual_mesh``) or built and
+    stored there: (vertices, corners, error, CPU seconds of the build or None when read).
+    Once a process besides (every stream and run of a grid writes the same cells)."""
     seconds = []
 
     def build():
         start = time.process_time()
-        verts, corners, error = dual_mesh(CubedSphere(ne, np_, radius=1.0))
+        verts, corners, error = dual_mesh(CubedSphere(ne, np_, radius=1.0, mesh=mesh))
         seconds.append(time.process_time() - start)
         return {"vertices": verts, "corners": corners, "error": np.float64(error)}
 
-    arrays, _ = cache.cached("dual_mesh", cache_key(ne, np_), build)
+    arrays, _ = cache.cached("dual_mesh", cache_key(ne, np_, mesh), build)
     return arrays["vertices"], arrays["corners"], float(arrays["error"]), seconds[0] if seconds else None
 
 
@@ -289,13 +389,13 @@ def write_dual_mesh(ds, grid: CubedSphere) -> float | None:
     ``lon``/``lat`` (degrees) are on the unique nodes ``ncol``: as the UGRID mesh
     ``mesh_dual`` whose faces are the nodes (``ncol``; fields on it are
     ``location = "face"``), and as CF cell bounds ``lon_bnds``/``lat_bnds`` (ncol, nv) of
-    ``lon``/``lat``, the three-vertex cells repeating their last vertex (as HOMME's SCRIP
-    files do). Adds nv = 4 and ndual_node = 6·ne²·(np−1)² (the dual vertices): 2.4 MB at
-    ne30 np4, compressed. Returns the CPU seconds spent building the cells, None where
-    they came from the cache (``unit_dual_mesh``)."""
-    verts, corners, _, seconds = unit_dual_mesh(grid.ne, grid.np)
+    ``lon``/``lat``, the cells of fewer vertices repeating their last vertex (as HOMME's SCRIP
+    files do). Adds nv (4 on a cube, the largest node valence of a mesh) and ndual_node =
+    nelem·(np−1)² (the dual vertices): 2.4 MB at ne30 np4, compressed. Returns the CPU seconds
+    spent building the cells, None where they came from the cache (``unit_dual_mesh``)."""
+    verts, corners, _, seconds = unit_dual_mesh(grid.ne, grid.np, grid.mesh)
     ds.createDimension(NODE_DIM, verts.shape[0])
-    ds.createDimension(CORNER_DIM, MAX_CORNERS)
+    ds.createDimension(CORNER_DIM, corners.shape[1])
     write_topology(
         ds,
         MESH,

@@ -58,13 +58,8 @@ _OPEN: set = set()  # the RunWriters not yet closed or aborted
 # Every node field lives on the faces of the dual mesh (one control volume a node, dual.py):
 # tools that average, integrate and remap need cells; the sub-cell mesh (ugrid.py) shares its nodes.
 UGRID_FACE = {"mesh": DUAL_MESH, "location": "face"}
-# On a mesh (a file, a stretched cube, the element-local map) the cells are not built yet (``dual``
-# places them by the equiangular map): the fields are then the sub-cell mesh's nodes.
+# Without the cells (``cells=False``) the fields are on the sub-cell mesh's nodes, and the file says what is missing.
 UGRID_NODE = {"mesh": SUBCELL_MESH, "location": "node"}
-CELLS_NOTE = (
-    "the run file's control volumes are not yet built on file meshes: lat-lon remap works, uxarray's cell mesh does not"
-)
-# Without the cells (``cells=False``) the fields are on the sub-cell mesh's nodes too, and the file says what is missing.
 NO_CELLS = (
     "not written (output.cells = false): lon and lat have no bounds and there is no mesh_dual, "
     "so conservative remapping (cdo remapcon) and uxarray's cell operations need a run that writes them"
@@ -419,15 +414,14 @@ class RunWriter:
             ds[name][:] = grid.to_unique(deg)
         ds.createVariable("area", "f8", ("ncol",)).setncatts(AREA_ATTRS)
         ds["area"][:] = grid.area
-        cells = self.cells and grid.mesh is None  # on a mesh the control volumes are not built yet
-        located = UGRID_FACE if cells else UGRID_NODE
+        located = UGRID_FACE if self.cells else UGRID_NODE
         hsv = ds.createVariable("hs", "f8", ("ncol",))
         hsv.setncatts({**FIELDS["hs"], **FIELD_ATTRS, **located})
         hsv[:] = grid.to_unique(hs)
-        if cells:  # first: uxarray opens the first mesh_topology, the one the fields are on
+        if self.cells:  # first: uxarray opens the first mesh_topology, the one the fields are on
             self.cells_seconds = write_dual_mesh(ds, grid)
         else:
-            ds.cells = NO_CELLS if grid.mesh is None else CELLS_NOTE
+            ds.cells = NO_CELLS
         write_mesh(ds, grid)
         for name in self.fields:
             fill = dict(fill_value=np.nan) if name in ("vorticity", "divergence") else {}  # NaN where a writer got none

@@ -66,7 +66,7 @@ class LaunchRecorder:
     device : the Warp device.
     threads : CPU threads a launch is split over (``core.parallel.record``; 1 on CUDA).
     points : GLL points per element direction, np (a block of np² nodes is one element).
-    npts : element-local nodes held, N = nelem·np².
+    nnodes : element-local nodes held, N = nelem·np².
     nunique : unique nodes held (the length of a unique-node vector).
     per_element : the pointwise kernels' layout: np² nodes a thread (True) or one.
     """

@@ -148,7 +148,7 @@ class Simulation(StateDiagnostics):
         Run one simulation over its ranks: each steps its part of the elements
         (``topology.Topology``), rank 0 writes the files; explicit steppers give the
         same bits on any number of ranks. None: this process alone.
-    start : ndarray, shape (3, npts), optional
+    start : ndarray, shape (3, nnodes), optional
         A whole-grid state (u, v in m s⁻¹, h in m) to start from instead of the case's
         initial state and the scene's initialization (a restart's, or a digital-filter
         start made once for many runs, as a sweep's).

@@ -14,7 +14,7 @@ from ..model.diagnostics import courant_numbers, invariants
 @dataclass
 class WholeFields:
     """One state's fields gathered on rank 0 (``Simulation.gather_fields``): u, v
-    (m s⁻¹), h (m), vorticity and, when asked for, divergence (s⁻¹, DSS'd), (npts,)
+    (m s⁻¹), h (m), vorticity and, when asked for, divergence (s⁻¹, DSS'd), (nnodes,)
     each on rank 0 and None on the other ranks (divergence None when not asked for).
     Every rank holds one: whether a rank gathers is decided by whether it was
     given one, never by its contents, so all ranks take the same collectives."""
@@ -33,13 +33,13 @@ class StateDiagnostics:
     arithmetic on any number of ranks) and broadcasts the figures."""
 
     def fields(self, x=None):
-        """u, v, h (npts,) of the whole grid, gathered on rank 0 (call on every rank;
+        """u, v, h (nnodes,) of the whole grid, gathered on rank 0 (call on every rank;
         (None, None, None) on the others)."""
         a = self.topology.gather((self.x if x is None else x).numpy())
         return (None, None, None) if a is None else (a[0], a[1], a[2])
 
     def divergence(self, x=None) -> np.ndarray | None:
-        """Divergence of the wind (npts,) of the whole grid, DSS'd (s⁻¹), on rank 0 (None elsewhere)."""
+        """Divergence of the wind (nnodes,) of the whole grid, DSS'd (s⁻¹), on rank 0 (None elsewhere)."""
         return self.topology.gather(self.model.wind_divergence(self.x if x is None else x))
 
     def gather_fields(self, x=None, divergence: bool = False) -> WholeFields:

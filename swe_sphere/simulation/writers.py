@@ -118,9 +118,8 @@ class RunFiles:
             raise
         seconds = self.writers[0].cells_seconds if self.writers else None
         if seconds is not None and seconds >= NOTE_SECONDS and notify is not None:
-            s = self.sim.scene
             notify(
-                f"the run file's cells (GLL control volumes, ne {s.ne} np {s.np}) took {seconds:.1f} s of CPU to "
+                f"the run file's cells (GLL control volumes, {self.sim.scene.grid_text}) took {seconds:.1f} s of CPU to "
                 f"build, once per grid: later runs read them from {cache_dir()}; output.cells = false "
                 "(--no-cells) leaves them out"
             )

@@ -539,7 +539,7 @@ class GuessHistory:
     ``guess()``: y, w (and the copies y0, w0) of ``HelmholtzSolver``'s CG set to the start;
     ``store()``: the solution into the basis (launches, nothing read back). ``count()``:
     the vectors in use (a host read); ``whole()``/``set(count, arrays, what)``: X and AX
-    as ``arrays`` whole-grid (3, npts_total) arrays, three vectors each (rows past 2k zero),
+    as ``arrays`` whole-grid (3, nnodes_total) arrays, three vectors each (rows past 2k zero),
     for ``HelmholtzSolver.state``/``restore`` (ValueError naming ``what`` for a misshapen one)."""
 
     def __init__(self, gw: HelmholtzSolver):

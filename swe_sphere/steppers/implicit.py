@@ -156,7 +156,7 @@ class Implicit(Stepper):
 
     def _rms(self, a) -> float:
         """RMS over the element-local nodes of the whole grid of a (3, N) array."""
-        return self._norm(a) / math.sqrt(3 * self.topology.npts_total)
+        return self._norm(a) / math.sqrt(3 * self.topology.nnodes_total)
 
     def _axpby(self, a, x, b, y, out):
         self._pointwise(blas.axpby, f64(a), x, f64(b), y, out)

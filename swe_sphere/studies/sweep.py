@@ -180,7 +180,7 @@ NOT_IN_START = (
 
 
 def start_state(scene: Scene, directory, device: str, log=print) -> np.ndarray | None:
-    """The whole-grid initial state (3, npts) of a scene with a digital-filter start
+    """The whole-grid initial state (3, nnodes) of a scene with a digital-filter start
     (``Scene.initialization``), filtered once for a whole sweep and kept in
     ``directory/runs/start_dfi<cutoff>h<span>h.npz`` with its key (read back, and
     ``log``ged so, when it is there with the key this start would have); None
@@ -1158,7 +1158,7 @@ class Plan:
 @dataclass(frozen=True)
 class ResolvedPlan:
     """A ``Plan`` resolved on a device (``Plan.resolve``): the Δt values (s, ascending),
-    the (stepper, Δt) runs (None: every stepper × every Δt), the start state (3, npts)
+    the (stepper, Δt) runs (None: every stepper × every Δt), the start state (3, nnodes)
     or None, the explicit limits (``explicit_limits``) and the notes (lines of text)."""
 
     plan: Plan

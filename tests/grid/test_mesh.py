@@ -216,3 +216,15 @@ def test_a_bad_mesh_file_is_refused_in_one_line(tmp_path, make, message):
     with pytest.raises(SceneError, match=message) as err:
         read_exodus(path)
     assert "\n" not in str(err.value)
+
+
+def test_a_meshs_sha256_is_its_content(tmp_path):
+    """``Mesh.sha256`` (the key of its cached cells): the same for the same nodes and elements
+    whatever the name, the integer width or a round trip through a .g file; another for a node
+    moved by one unit in the last place."""
+    cube = cube_mesh(2)
+    again = Mesh(cube.coords.copy(), cube.quads.astype(np.int32), "another name")
+    assert again.sha256() == cube.sha256() == read_exodus(write_exodus(tmp_path / "c.g", cube)).sha256()
+    moved = cube.coords.copy()
+    moved[5, 0] = np.nextafter(moved[5, 0], 2.0)
+    assert Mesh(moved, cube.quads).sha256() != cube.sha256()

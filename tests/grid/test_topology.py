@@ -58,7 +58,7 @@ def test_assemble_scatter_and_reductions_bit_for_bit(rng):
     assert topo.dot(xw, xw) == float(x.ravel() @ x.ravel())
     assert topo.total_area == pytest.approx(4 * np.pi * g.radius**2, rel=1e-14)
     assert topo.mean(np.full(g.nnodes, 7.5)) == pytest.approx(7.5, rel=1e-14)
-    assert topo.npts_total == g.nnodes and topo.nunique == g.nunique
+    assert topo.nnodes_total == g.nnodes and topo.nunique == g.nunique
 
 
 class RankOf(SerialComm):

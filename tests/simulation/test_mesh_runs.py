@@ -26,7 +26,6 @@ from swe_sphere.grid.schmidt import schmidt_cube
 from swe_sphere.grid.spec import file_sha256
 from swe_sphere.io import restart_file
 from swe_sphere.io.remap import Remapper, latlon_grid, remap_dataset
-from swe_sphere.io.run_file import CELLS_NOTE
 from swe_sphere.simulation.simulation import Simulation
 
 import roundoff
@@ -171,18 +170,17 @@ def test_a_mesh_file_needs_ne_0(tmp_path, cube_file):
         load_scene(scene)
 
 
-def test_run_file_on_a_mesh_file_has_no_cells_yet(tmp_path, capsys, cube_file):
-    """`swe-sphere run --mesh`: the run file records the mesh in its scene, holds the nodes and
-    the sub-cell mesh (the fields on its nodes) and says in ``cells`` that the control volumes
-    are not built on such meshes yet; the default name uses the file's stem."""
+def test_run_file_on_a_mesh_file_holds_its_cells(tmp_path, capsys, cube_file):
+    """`swe-sphere run --mesh`: the run file records the mesh in its scene and holds the nodes,
+    the sub-cell mesh and the control volumes the fields live on, as on the cube."""
     out = tmp_path / "run.nc"
     code = main(["run", "tc2_steady", "--mesh", str(cube_file), "--dt", "600", "--days", "0.125", "--output", str(out)])
     assert code == 0
     with xr.open_dataset(out, decode_times=False) as ds:
         assert json.loads(ds.attrs["scene"])["mesh"]["file"] == str(cube_file)
-        assert ds.sizes["ncol"] == 24 * 9 + 2 and "mesh_dual" not in ds.variables
-        assert ds.attrs["cells"] == CELLS_NOTE
-        assert (ds.h.attrs["mesh"], ds.h.attrs["location"]) == ("mesh_topology", "node")
+        assert ds.sizes["ncol"] == 24 * 9 + 2 and "mesh_dual" in ds.variables and "cells" not in ds.attrs
+        assert (ds.h.attrs["mesh"], ds.h.attrs["location"]) == ("mesh_dual", "face")
+        assert ds.sizes["nv"] == 4 and ds.sizes["ndual_node"] == 24 * 9
     # the lat-lon remap locates the points through the element-local map: TC2's initial h to
     # the interpolation error of the ne2 np4 grid (9.8 m, 3.3e-3 of h's largest value; 3.2 m
     # through the equiangular ne2 cube's map; bound 5e-3)

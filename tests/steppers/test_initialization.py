@@ -60,11 +60,11 @@ def test_time_reversal_is_an_exact_symmetry_of_the_discrete_rhs(rng):
     np.testing.assert_array_equal(out[1], -P * out[0])
 
 
-def filter_mass_bound(r, np_: int) -> float:
+def filter_mass_bound(r, nnodes: int) -> float:
     """Round-off of a filtered state's relative mass: an update of the depth per RK4 RHS
     evaluation of either run (each state's mass error at most that, Σ|w| ≈ 1) and one
     rounding per state added to the weighted sum."""
-    return roundoff.mass_change_bound(r.rhs_evals + 2 * r.steps, np_)
+    return roundoff.mass_change_bound(r.rhs_evals + 2 * r.steps, nnodes)
 
 
 @pytest.mark.roundoff

@@ -38,9 +38,6 @@ import functools
 import time
 
 import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
-from scipy.sparse.csgraph import connected_components
 
 from ..core import cache
 from ..grid.cubed_sphere import CubedSphere, lat_lon
@@ -283,6 +280,9 @@ def _fit_worst_first(centre, verts, corners, closed, target, quads):
     cube's corners; else the global fit spends two steps (of five at ne60) spreading half of a
     cube corner's cell area. ``quads`` (nsub, 4): the 4 cells (nodes) of each dual vertex
     (``ugrid.subcell_quads``). Raises ``ArithmeticError`` where that fit stalls."""
+    import scipy.sparse as sp  # here, not at the top: a cached run never builds cells (0.15 s of imports)
+    from scipy.sparse.csgraph import connected_components
+
     area = _areas_and_gradients(centre, verts, closed)[0]
     inside = np.abs(1 - area / target) > LOCAL_ERROR
     if not inside.any():
@@ -316,6 +316,9 @@ def _fit(centre, verts, corners, closed, target, cg_rtol, mu, keep_convex, free=
     convex); only the vertices ``free`` (nsub,) bool move (default all). (vertices, max
     relative error); ``ArithmeticError`` if no step lowers the error or ``steps`` do not
     reach ``tol``."""
+    import scipy.sparse as sp  # here, not at the top: a cached run never builds cells
+    import scipy.sparse.linalg as spla
+
     n, nsub = target.size, verts.shape[0]
     rows = np.repeat(np.arange(n), 2 * closed.shape[1])
     cols = np.stack([2 * closed, 2 * closed + 1], axis=-1).ravel()

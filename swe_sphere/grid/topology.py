@@ -290,6 +290,18 @@ class Topology:
             x, lambda rows, copies, ghosts: dss.dss_rows(rows, bool(weighted), copies, ghosts=ghosts), [out]
         )
 
+    def dss_at(self, x: wp.array2d, weighted: bool, out: wp.array2d, nodes: wp.array) -> list:
+        """Launches for out = DSS(x) as ``dss`` at the element-local ``nodes`` (int32) only,
+        out's other nodes left as they are (``kernels.dss.dss_rows_at``): what a part of
+        the elements contributes, assembled over the nodes it touches
+        (``ShallowWater.element_part``). One process only: ValueError with neighbours."""
+        if len(self.neighbours):
+            raise ValueError("an assembly over part of the nodes runs on one MPI rank only so far")
+        kernel = dss.dss_rows_at(x.shape[0], bool(weighted), self.table.shape[1])
+        return [
+            record(kernel, nodes.shape[0], [x, self.dss_copies, nodes, out], device=self.device, threads=self.threads)
+        ]
+
     def dss_update(self, x: wp.array2d, updates) -> list:
         """Launches for the weighted DSS k of x (rows, N), not stored but used by
         one or two ``updates`` (out, terms) in order: out = Σ a·src over the

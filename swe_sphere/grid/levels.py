@@ -46,9 +46,10 @@ class ElementLevels:
         the finest level's over those of the local one (1 with one level)."""
         return float(self.level.size * 2 ** (self.count - 1) / np.sum(2.0**self.level))
 
-    def runs(self, k: int) -> list[tuple[int, int]]:
-        """Level k's elements as ascending ranges [start, stop) of consecutive indices."""
-        e = np.flatnonzero(self.level == k)
+    def runs(self, k: int, finer: bool = False) -> list[tuple[int, int]]:
+        """Level k's elements (with ``finer``: those of level k and finer) as ascending
+        ranges [start, stop) of consecutive indices."""
+        e = np.flatnonzero(self.level >= k if finer else self.level == k)
         if not e.size:
             return []
         cut = np.flatnonzero(np.diff(e) > 1) + 1

@@ -24,6 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from .cubed_sphere import CubedSphere
+from .mesh import Mesh
 from .quality import element_sizes
 
 ROUNDOFF = 1e-9  # log₂ ratios this close below a whole number count as it (a rate λ_max/2^j exactly)
@@ -102,6 +104,19 @@ def element_levels(grid, rate: np.ndarray, max_levels: int) -> ElementLevels:
         j = moved
     level = j.max() - j
     return ElementLevels(level.astype(np.int64), int(level.max()) + 1)
+
+
+def by_level(mesh: Mesh, npts: int, max_levels: int, rates=None, radius: float = 1.0) -> Mesh:
+    """``mesh`` with its elements renumbered so that its levels (``element_levels`` at np =
+    ``npts``, from ``rates(grid)``, the (E,) rates on the grid of ``mesh`` of this ``radius``
+    (m), e.g. ``element_rates`` of the initial state; None: the geometry's alone, σ_e) are
+    each one range of consecutive elements, coarsest first, in the mesh's order within a
+    level: a level's kernels then run as one launch. The same mesh otherwise: nodes,
+    corners and their order in each element."""
+    grid = CubedSphere(0, npts, radius, mesh=mesh)
+    rate = element_sizes(grid).norm_dinv if rates is None else rates(grid)
+    level = element_levels(grid, rate, max_levels).level
+    return Mesh(mesh.coords, mesh.quads[np.argsort(level, kind="stable")], mesh.name)
 
 
 def _neighbour_min(adjacency: sp.csr_matrix, values: np.ndarray) -> np.ndarray:

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from ..grid.levels import ElementLevels, element_levels, element_rates
+from ..grid.levels import ElementLevels, by_level, element_levels, element_rates
 from .base import Stepper, StepStats
 from .multirate import Mri
 from .runge_kutta import explicit_steppers
@@ -125,6 +125,14 @@ class Lts(Mri):
     def label(cls, options: dict) -> str:
         o = cls.make_options(**options)
         return f"{cls.name} {o.table()['name']} {o.inner} max_levels={o.max_levels}"
+
+    @classmethod
+    def arrange_mesh(cls, mesh, npts: int, options: dict, rates=None, radius: float = 1.0):
+        """A mesh's elements numbered by level (``grid.levels.by_level``, from ``rates``:
+        each level's kernels one launch); the equiangular cube as it is."""
+        if mesh is None:
+            return None
+        return by_level(mesh, npts, cls.make_options(**options).max_levels, rates, radius)
 
     def prepare(self, x) -> None:
         """Fix the element levels from x (3, N) unless fixed (or restored) before. ValueError

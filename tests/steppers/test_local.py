@@ -135,3 +135,23 @@ def test_bad_option_is_one_line(tmp_path, capsys, setting, words):
     )
     one_line(code, err, 2, words)
     assert not out.exists()
+
+
+def test_the_level_assembly_kernel_compiles_for_cuda(tmp_path, refined):
+    """The DSS over a level's nodes (``kernels.dss.dss_rows_at``; the tendency kernels are the
+    whole grid's over element ranges) as two steps of lts on the refined cube record it
+    compiles for CUDA (sm_90), GPU or not."""
+    import warp as wp
+
+    context = wp._src.context if hasattr(wp, "_src") else wp.context  # as test_cuda_compile: no public query
+    wp.init()
+    if not context.runtime.core.wp_is_cuda_compatibility_enabled():
+        pytest.skip("this Warp build has no CUDA compiler (NVRTC)")
+    sim = sim_of("tc2_steady", "lts", 1800.0, 0.125, mesh=refined)
+    steps(sim, 2)
+    kernels = {launch.kernel.key: launch.kernel for key in sim.model.launches.keys() for launch in
+               (sim.model.launches.recorded(key) or []) if hasattr(launch, "kernel") and hasattr(launch.kernel, "module")}  # fmt: skip
+    assert "dss_at" in kernels
+    module = kernels["dss_at"].module
+    paths = wp.compile_aot_module(module, arch=90, module_dir=tmp_path / "dss_at", use_ptx=True)
+    assert len(paths) == 1 and ".entry" in paths[0].read_text()

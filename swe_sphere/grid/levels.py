@@ -24,8 +24,6 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .cubed_sphere import CubedSphere
-from .mesh import Mesh
 from .quality import element_sizes
 
 ROUNDOFF = 1e-9  # log₂ ratios this close below a whole number count as it (a rate λ_max/2^j exactly)
@@ -48,10 +46,9 @@ class ElementLevels:
         the finest level's over those of the local one (1 with one level)."""
         return float(self.level.size * 2 ** (self.count - 1) / np.sum(2.0**self.level))
 
-    def runs(self, k: int, finer: bool = False) -> list[tuple[int, int]]:
-        """Level k's elements (with ``finer``: those of level k and finer) as ascending
-        ranges [start, stop) of consecutive indices."""
-        e = np.flatnonzero(self.level >= k if finer else self.level == k)
+    def runs(self, k: int) -> list[tuple[int, int]]:
+        """Level k's elements as ascending ranges [start, stop) of consecutive indices."""
+        e = np.flatnonzero(self.level == k)
         if not e.size:
             return []
         cut = np.flatnonzero(np.diff(e) > 1) + 1
@@ -104,19 +101,6 @@ def element_levels(grid, rate: np.ndarray, max_levels: int) -> ElementLevels:
         j = moved
     level = j.max() - j
     return ElementLevels(level.astype(np.int64), int(level.max()) + 1)
-
-
-def by_level(mesh: Mesh, npts: int, max_levels: int, rates=None, radius: float = 1.0) -> Mesh:
-    """``mesh`` with its elements renumbered so that its levels (``element_levels`` at np =
-    ``npts``, from ``rates(grid)``, the (E,) rates on the grid of ``mesh`` of this ``radius``
-    (m), e.g. ``element_rates`` of the initial state; None: the geometry's alone, σ_e) are
-    each one range of consecutive elements, coarsest first, in the mesh's order within a
-    level: a level's kernels then run as one launch. The same mesh otherwise: nodes,
-    corners and their order in each element."""
-    grid = CubedSphere(0, npts, radius, mesh=mesh)
-    rate = element_sizes(grid).norm_dinv if rates is None else rates(grid)
-    level = element_levels(grid, rate, max_levels).level
-    return Mesh(mesh.coords, mesh.quads[np.argsort(level, kind="stable")], mesh.name)
 
 
 def _neighbour_min(adjacency: sp.csr_matrix, values: np.ndarray) -> np.ndarray:

@@ -42,14 +42,17 @@ f64 = wp.float64
 
 
 class ElementPart(NamedTuple):
-    """Some of a model's elements (``ShallowWater.element_part``): ``runs`` their (start,
-    stop) index ranges, ``nelem`` how many, ``nodes`` (int32 device array) the element-local
-    nodes whose unique node one of them touches (every copy), ``tend`` (3, N) the part's
-    element-local tendency, zero outside its elements."""
+    """Some of a model's elements (``ShallowWater.element_part``): ``runs`` the (start, stop)
+    element ranges its kernels run over (its elements, and any others between them that a
+    launch less is worth computing), ``nelem`` its elements, ``nodes`` (int32 device array)
+    the element-local nodes whose unique node one of them touches (every copy), ``copies``
+    the DSS's table of its own copies alone (``Topology.part_copies``), ``tend`` (3, N) the
+    element-local tendency its kernels write."""
 
     runs: list
     nelem: int
     nodes: wp.array
+    copies: object
     tend: wp.array2d
 
 
@@ -223,7 +226,7 @@ class ShallowWater:
         if part is None:
             launches.extend(self.topology.dss(rows(tend), 1, rows(out)))
         else:
-            launches.extend(self.topology.dss_at(rows(tend), 1, rows(out), part.nodes))
+            launches.extend(self.topology.dss_at(rows(tend), 1, rows(out), part.nodes, part.copies))
         return launches
 
     def _build_rhs_update(self, x, updates, named):
@@ -284,25 +287,27 @@ class ShallowWater:
         key = self.rhs_key(x, out, terms)
         self.launches.replay(key, (x, out), lambda: self._build_rhs(x, out, key[1]))
 
-    def element_part(self, elements) -> ElementPart:
-        """An ``ElementPart`` of the elements held: ``elements`` (start, stop) ranges of
-        element indices, disjoint and ascending (``grid.levels.ElementLevels.runs``).
-        ValueError for a range outside the elements or not ascending."""
-        runs = [(int(a), int(b)) for a, b in elements]
-        ends = [e for run in runs for e in run]
-        if (
-            any(a >= b for a, b in runs)
-            or ends != sorted(ends)
-            or (ends and (ends[0] < 0 or ends[-1] > self.grid.nelem))
-        ):
-            raise ValueError(f"element ranges must be ascending, disjoint and within 0..{self.grid.nelem} (got {runs})")
-        per = self.grid.np**2
-        mine = np.concatenate([np.arange(a * per, b * per) for a, b in runs]) if runs else np.zeros(0, dtype=np.int64)
-        gid = self.topology.grid.gid
-        nodes = np.flatnonzero(np.isin(gid, gid[mine]))  # every copy of the nodes its elements touch
-        index = wp.array(nodes.astype(np.int32), dtype=wp.int32, device=self.device)
-        tend = wp.zeros((3, self.N), dtype=f64, device=self.device)  # zero outside its elements, always
-        return ElementPart(runs, int(sum(b - a for a, b in runs)), index, tend)
+    def element_part(self, elements, gap: int = 0) -> ElementPart:
+        """An ``ElementPart`` of ``elements`` (indices of elements held, ascending, distinct):
+        its tendency kernels run over ranges of consecutive elements that hold them, two
+        ranges merged where at most ``gap`` other elements lie between (computed, and left
+        out of the assembly: a launch's fixed cost against theirs); its DSS gathers its
+        own elements' copies alone (``Topology.part_copies``). ValueError for indices that
+        are not ascending, distinct elements held; ``gap`` < 0."""
+        e = np.asarray(elements, dtype=np.int64)
+        if e.ndim != 1 or (e.size and (e[0] < 0 or e[-1] >= self.grid.nelem or np.any(np.diff(e) <= 0))):
+            raise ValueError(f"part elements must be ascending distinct indices in 0..{self.grid.nelem - 1}")
+        if isinstance(gap, bool) or int(gap) != gap or gap < 0:
+            raise ValueError(f"gap must be an integer >= 0 (got {gap})")
+        runs = []
+        for k in e.tolist():
+            if runs and k - runs[-1][1] <= gap:
+                runs[-1][1] = k + 1
+            else:
+                runs.append([k, k + 1])
+        nodes, copies = self.topology.part_copies(e)
+        tend = wp.zeros((3, self.N), dtype=f64, device=self.device)
+        return ElementPart([tuple(r) for r in runs], int(e.size), nodes, copies, tend)
 
     def rhs_part(self, x: wp.array2d, out: wp.array2d, part: ElementPart, terms: tuple | None = None) -> None:
         """out = f_P(x, t) = M⁻¹ DSS(the element-local tendency of ``part``'s elements
@@ -312,8 +317,8 @@ class ShallowWater:
         parts that cover every element once, Σ_P f_P = F to round-off (the GLL mass is
         diagonal: Diaz & Grote 2009, SIAM J. Sci. Comput. 31:1985, §2). The tendency
         kernels run over the part's element ranges only and the DSS over its nodes: a cost
-        in proportion to its elements. ``out`` must not alias ``x``. One MPI rank only
-        (``Topology.dss_at``)."""
+        in proportion to its elements (and the ranges' gaps). ``out`` must not alias ``x``.
+        One MPI rank only (``Topology.part_copies``)."""
         key = ("rhs_part", id(part), *self.rhs_key(x, out, terms)[1:])
         self.launches.replay(key, (x, out, part), lambda: self._build_rhs(x, out, key[2], part))
 

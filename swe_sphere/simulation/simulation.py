@@ -34,14 +34,13 @@ from ..core.interrupts import StepAbandoned, StopSignals
 from ..core.mpi import node_local_size
 from ..core.runtime import run_bytes
 from ..grid.cubed_sphere import CubedSphere
-from ..grid.levels import element_rates
 from ..grid.topology import Topology, rank_parts
 from ..io import restart_file
 from ..io.initial_state import from_function
 from ..io.remap import remap_dataset
 from ..io.run_file import OUTPUT_FIELDS, check_distinct, check_target, node_dataset
 from ..model.shallow_water import ShallowWater
-from ..steppers import STEPPERS, StepStats, make_stepper
+from ..steppers import StepStats, make_stepper
 from ..steppers.initialization import digital_filter
 from . import checkpoint as ckpt
 from .activities import Callback, Log
@@ -246,12 +245,8 @@ class Simulation(StateDiagnostics):
         self.scene, self.device = scene, device
         size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
         mesh = scene.make_mesh()  # None: the equiangular cube
-        self.case = case = scene.make_case()
-        rates = None  # the analytic initial state's element rates (a given start's are not known yet)
-        if start is None and initial is None:
-            rates = lambda grid: element_rates(grid, np.stack(case.initial(grid.lat, grid.lon)), case.planet.g)  # noqa: E731
-        mesh = STEPPERS[scene.stepper].arrange_mesh(mesh, scene.np, scene.stepper_options, rates, case.planet.a)
         parts = rank_parts(scene.ne, size, mesh)
+        self.case = case = scene.make_case()
         local = CubedSphere(scene.ne, scene.np, case.planet.a, elements=parts[rank], mesh=mesh)  # this rank's only
         self.topology = topo = Topology(local, device, Backend.of(device).threads(), comm, parts=parts)
         self.root = rank == 0  # the rank that diagnoses, writes files and shows progress

@@ -119,14 +119,6 @@ class Stepper:
         """Global attributes of the run file beyond the scene's (strings, numbers)."""
         return {}
 
-    @classmethod
-    def arrange_mesh(cls, mesh, npts: int, options: dict, rates=None, radius: float = 1.0):
-        """The mesh (``grid.mesh.Mesh``, or None: the equiangular cube) a run of this stepper
-        with the scene's ``options`` builds its grid on, at np = ``npts``: ``mesh`` itself here
-        (local time stepping numbers the elements by level: ``rates(grid)`` the initial
-        flow's element rates on a grid of ``mesh`` of ``radius`` m, or None)."""
-        return mesh
-
     def prepare(self, x: wp.array2d) -> None:
         """Called with the initial state x (3, N) before the first step and before any
         ``restore`` (``Simulation``): what a stepper fixes from the flow at the start

@@ -6,7 +6,8 @@ steps of Δt/2^k, neighbours at most one level apart), fixed from the initial st
 assembled tendency splits exactly by element, F = f_0 + f_fine, f_P = M⁻¹ DSS(part P's
 elements' contributions) (``ShallowWater.rhs_part``; exact because the GLL mass is
 diagonal: Diaz & Grote 2009, SIAM J. Sci. Comput. 31:1985), and each part's evaluation runs
-the kernels over its elements only and assembles only the nodes they touch. The multirate
+the kernels over its elements (merged into few ranges: ``LAUNCH_GAP``) and assembles only
+the nodes they touch. The multirate
 engine of ``multirate.Mri`` steps the split: the coarse level's f_0 is its slow part,
 evaluated s times a step Δt, and the finer levels' f_fine (nonlinear) its fast part,
 integrated in the inner solves by ``inner`` in steps of at most Δt/2^K (K the finest level;
@@ -36,13 +37,17 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from ..grid.levels import ElementLevels, by_level, element_levels, element_rates
+from ..grid.levels import ElementLevels, element_levels, element_rates
 from .base import Stepper, StepStats
 from .multirate import Mri
 from .runge_kutta import explicit_steppers
 from .tables import MULTIRATE
 
 LTS_INNER = ("ssprk3", "rk4")
+# elements of another level a level's kernels compute (and its DSS leaves out) rather than
+# split a launch: a launch's fixed cost is that of about 30 elements' tendency at np 4 on one
+# CPU thread (benchmarks/lts_level_cost.py), so at most this many between two of its ranges
+LAUNCH_GAP = 16
 
 
 @dataclass(frozen=True)
@@ -77,8 +82,8 @@ class LevelSplit:
 
     def __init__(self, model, levels: ElementLevels, combine):
         self.model, self.levels, self.combine = model, levels, combine
-        self.coarse = model.element_part(levels.runs(0))
-        self.finer = model.element_part(levels.runs(1, finer=True))
+        self.coarse = model.element_part(np.flatnonzero(levels.level == 0), LAUNCH_GAP)
+        self.finer = model.element_part(np.flatnonzero(levels.level >= 1), LAUNCH_GAP)
         self.F = wp.zeros((3, model.N), dtype=wp.float64, device=model.device)
 
     def slow(self, x, out) -> None:
@@ -125,14 +130,6 @@ class Lts(Mri):
     def label(cls, options: dict) -> str:
         o = cls.make_options(**options)
         return f"{cls.name} {o.table()['name']} {o.inner} max_levels={o.max_levels}"
-
-    @classmethod
-    def arrange_mesh(cls, mesh, npts: int, options: dict, rates=None, radius: float = 1.0):
-        """A mesh's elements numbered by level (``grid.levels.by_level``, from ``rates``:
-        each level's kernels one launch); the equiangular cube as it is."""
-        if mesh is None:
-            return None
-        return by_level(mesh, npts, cls.make_options(**options).max_levels, rates, radius)
 
     def prepare(self, x) -> None:
         """Fix the element levels from x (3, N) unless fixed (or restored) before. ValueError

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from swe_sphere.grid.cubed_sphere import CubedSphere
-from swe_sphere.grid.levels import by_level, element_levels, element_neighbours, element_rates
+from swe_sphere.grid.levels import element_levels, element_neighbours, element_rates
 from swe_sphere.grid.quality import element_sizes
 from swe_sphere.grid.refine import Box, refined_cube
 
@@ -74,14 +74,3 @@ def test_a_uniform_cube_is_one_level_with_the_flow():
 def test_a_level_count_below_one_is_refused(bad):
     with pytest.raises(ValueError, match="max_levels must be an integer >= 1"):
         element_levels(CubedSphere(1, 4), np.ones(6), bad)
-
-
-def test_a_mesh_numbered_by_level_has_each_level_in_one_range():
-    """``by_level`` on the refined ne4 cube: the same elements (corners in order), each level of
-    the geometry one range of consecutive elements, coarsest first, as many per level."""
-    mesh = refined_grid().mesh
-    ordered = by_level(mesh, 4, 8)
-    assert sorted(map(tuple, ordered.quads)) == sorted(map(tuple, mesh.quads))
-    grid = CubedSphere(0, 4, mesh=ordered)
-    lv = element_levels(grid, element_sizes(grid).norm_dinv, 8)
-    assert lv.runs(0) == [(0, 60)] and lv.runs(1) == [(60, 124)]

@@ -46,14 +46,6 @@ class ElementLevels:
         the finest level's over those of the local one (1 with one level)."""
         return float(self.level.size * 2 ** (self.count - 1) / np.sum(2.0**self.level))
 
-    def runs(self, k: int) -> list[tuple[int, int]]:
-        """Level k's elements as ascending ranges [start, stop) of consecutive indices."""
-        e = np.flatnonzero(self.level == k)
-        if not e.size:
-            return []
-        cut = np.flatnonzero(np.diff(e) > 1) + 1
-        return [(int(r[0]), int(r[-1]) + 1) for r in np.split(e, cut)]
-
     def describe(self) -> str:
         """'levels 2: 420, 336 elements (coarsest first), bound 1.47x'."""
         counts = ", ".join(map(str, self.elements_per_level()))

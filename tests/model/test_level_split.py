@@ -42,9 +42,13 @@ def test_the_levels_tendencies_add_up_to_the_assembled_one(per_element, gap):
     tend = model.tend.numpy()
     parts, total = [], np.zeros((3, model.N))
     for k in range(levels.count):
-        part = model.element_part(np.flatnonzero(levels.level == k), gap)
+        mine = np.flatnonzero(levels.level == k)
+        part = model.element_part(mine, gap)
         assert part.nelem == levels.elements_per_level()[k]
-        assert len(part.runs) == len(levels.runs(k)) if gap == 0 else len(part.runs) < len(levels.runs(k))
+        ranges = 1 + np.count_nonzero(np.diff(mine) > 1)  # of consecutive elements
+        assert len(part.runs) == ranges if gap == 0 else len(part.runs) < ranges
+        ran = np.concatenate([np.arange(a, b) for a, b in part.runs])
+        assert set(mine) <= set(ran) and (gap or len(ran) == len(mine))
         f_k = wp.zeros_like(x)
         model.rhs_part(x, f_k, part)
         model.rhs_part(x, f_k, part)  # replayed: the same

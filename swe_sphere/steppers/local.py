@@ -53,11 +53,13 @@ LAUNCH_GAP = 16
 @dataclass(frozen=True)
 class LtsOptions:
     """Scene table ``[lts]`` (see ``Lts``): ``method`` (a table of ``tables.MULTIRATE``),
-    ``inner`` ("ssprk3" | "rk4"), ``max_levels`` (≥ 1). ValueError names a bad one."""
+    ``inner`` ("ssprk3" | "rk4"), ``max_levels`` (≥ 1), ``substeps`` ("levels" or an
+    integer ≥ 1). ValueError names a bad one."""
 
     method: str = "mis4a"
     inner: str = "rk4"
     max_levels: int = 2
+    substeps: int | str = "levels"
 
     def __post_init__(self):
         if self.method not in MULTIRATE:
@@ -67,6 +69,9 @@ class LtsOptions:
         m = self.max_levels
         if isinstance(m, bool) or not isinstance(m, int) or m < 1:
             raise ValueError(f"max_levels must be an integer >= 1 (got {m!r})")
+        n = self.substeps
+        if n != "levels" and (isinstance(n, bool) or not isinstance(n, int) or n < 1):
+            raise ValueError(f'substeps must be an integer >= 1 or "levels" (got {n!r})')
 
     def table(self) -> dict:
         """The multirate table's entries (``parse_mri``)."""
@@ -104,7 +109,10 @@ class Lts(Mri):
     Wensch, Knoth & Galant 2009 and Knoth & Wensch 2014; "mis4a" third order, Knoth &
     Wensch 2014, the default; "mri_gark_erk33a" third order, Sandu 2019); ``inner``, the
     fast part's integrator ("rk4", fourth order, the default; "ssprk3", third), each
-    solve in ⌈d_r 2^K⌉ steps; ``max_levels``, at most this many levels (default 2).
+    solve in ⌈d_r n⌉ steps; ``substeps`` n, "levels" (the default): 2^K, the finest
+    level's step, or a number (fewer when the coarse step is below 2^K times the worst
+    element's limit: the inner step need only be within the worst element's, as a global
+    step is); ``max_levels``, at most this many levels (default 2).
     A step's order is the lower of the table's and the inner method's.
 
     On a mesh (and flow) with one level the step is ``inner``'s global explicit
@@ -138,7 +146,7 @@ class Lts(Mri):
     @classmethod
     def label(cls, options: dict) -> str:
         o = cls.make_options(**options)
-        return f"{cls.name} {o.table()['name']} {o.inner} max_levels={o.max_levels}"
+        return f"{cls.name} {o.table()['name']} {o.inner} max_levels={o.max_levels} substeps={o.substeps}"
 
     def prepare(self, x) -> None:
         """Fix the element levels from x (3, N) unless fixed (or restored) before. ValueError
@@ -161,8 +169,9 @@ class Lts(Mri):
             self.split, self.single = LevelSplit(self.model, levels, self._comb), None
 
     def substeps(self) -> int:
-        """Fast steps a slow step: 2^K, the finest level's."""
-        return 2 ** (self.levels.count - 1)
+        """Fast steps a slow step: 2^K, the finest level's, or the ``substeps`` option's."""
+        n = self.options.substeps
+        return 2 ** (self.levels.count - 1) if n == "levels" else n
 
     def describe(self) -> list[str]:
         lv = self.levels
@@ -174,13 +183,13 @@ class Lts(Mri):
         return [
             f"{lv.describe()}",
             f"element evaluations a coarse step {evals['local']} against {evals['global']} for a global "
-            f"{self.options.inner} step at the finest level's dt/{2 ** (lv.count - 1)} ({evals['global'] / evals['local']:.2f}x)",
+            f"{self.options.inner} step at the inner step dt/{self.substeps()} ({evals['global'] / evals['local']:.2f}x)",
         ]
 
     def element_evaluations(self) -> dict:
         """Element tendency evaluations a coarse step: ``local`` (this stepper's: the s slow
         stages on level 0, the inner stages on the finer levels) and ``global`` (``inner``
-        over every element at the finest level's step, Δt/2^K)."""
+        over every element at the inner step, Δt/n, n = ``substeps()``)."""
         lv, n = self.levels, self.substeps()
         per = len(self._form)
         fine = int(np.sum(lv.level >= 1))

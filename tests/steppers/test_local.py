@@ -104,7 +104,7 @@ def test_a_run_prints_and_records_its_levels(tmp_path, capsys, refined):
     )  # fmt: skip
     assert code == 0, err
     assert "lts         levels 2: 66, 58 elements (coarsest first), saving's bound 1.36x" in stdout
-    assert "element evaluations a coarse step" in stdout
+    assert "element evaluations a coarse step 1424 against 992 for a global rk4 step at the inner step dt/2" in stdout
     with netCDF4.Dataset(out) as ds:
         assert ds.lts_levels == 2 and ds.lts_elements_per_level == "66, 58"
         assert ds.lts_method == "MIS4a" and ds.lts_order == 3 and ds.lts_inner == "rk4"
@@ -115,6 +115,7 @@ BAD = [
     ("lts.max_levels=0", "lts.max_levels must be an integer >= 1 (got 0)"),
     ("lts.method=mis5", "lts.method must be one of mis2, mis3c, mis4a, mri_gark_erk33a (got 'mis5')"),
     ("lts.inner=fbrk32", "lts.inner must be one of ssprk3, rk4 (got 'fbrk32')"),
+    ("lts.substeps=0", 'lts.substeps must be an integer >= 1 or "levels" (got 0)'),
 ]
 
 
@@ -146,3 +147,17 @@ def test_the_level_assembly_kernel_compiles_for_cuda(tmp_path, refined):
     module = kernels["dss_at"].module
     paths = wp.compile_aot_module(module, arch=90, module_dir=tmp_path / "dss_at", use_ptx=True)
     assert len(paths) == 1 and ".entry" in paths[0].read_text()
+
+
+def test_fewer_substeps_cost_fewer_fast_evaluations(refined):
+    """``substeps`` = 1 on the refined cube at 1800 s (the worst element's RK4 limit is
+    about 2160 s there): MIS4a's solves take one inner step each (4 RK4 steps, 16 fast
+    evaluations a step, not 2^K's 20), and TC2 stays within 1e-3 of the default's depth."""
+    runs = {}
+    for n in ("levels", 1):
+        sim = sim_of("tc2_steady", "lts", 1800.0, 0.25, {"substeps": n}, mesh=refined)
+        result = sim.run(None)
+        runs[n] = (result.iterations["fast"], sim.fields()[2])
+    assert runs["levels"][0] == 12 * 20 and runs[1][0] == 12 * 16
+    h = runs["levels"][1]
+    assert np.abs(runs[1][1] - h).max() / np.abs(h).max() < 1e-3

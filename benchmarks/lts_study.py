@@ -37,6 +37,8 @@ STEPPERS = {  # label → (stepper, options)
     "lts MIS4a/rk4, 2 levels": ("lts", {"max_levels": 2}),
     "lts MIS4a/rk4, 3 levels": ("lts", {"max_levels": 3}),
     "lts MRI-GARK-ERK33a/rk4, 3 levels": ("lts", {"max_levels": 3, "method": "mri_gark_erk33a"}),
+    "lts MIS4a/rk4, 3 levels, substeps 1": ("lts", {"max_levels": 3, "substeps": 1}),
+    "lts MIS4a/rk4, 3 levels, substeps 2": ("lts", {"max_levels": 3, "substeps": 2}),
 }
 
 
@@ -80,11 +82,14 @@ def main() -> None:
     parser.add_argument("--k-ref", type=int, default=1920, help="the reference's steps a day")
     parser.add_argument("--tol", type=float, default=1e-4, help="temporal error allowed (max-norm of h, relative)")
     parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--only", nargs="*", help="these steppers' labels alone (and rk4, the reference)")
     args = parser.parse_args()
     init_warp()
     ref = run(args.mesh, args.days, "rk4", {}, args.k_ref)[0]
     rows = []
     for label, (stepper, options) in STEPPERS.items():
+        if args.only and label != "rk4" and label not in args.only:
+            continue
         k = largest_accurate(args, stepper, options, ref)
         if k is None:
             print(f"{label}: none within {args.tol:g}", flush=True)

@@ -102,6 +102,27 @@ def dss_rows(rows: int, weighted: bool, copies: int, ghosts: bool = False):
 
 
 @functools.cache
+def dss_rows_at(rows: int, weighted: bool, copies: int):
+    """``dss_rows`` at the listed nodes only: out[r, p] = the DSS of x at p (``gather``)
+    for p = nodes[i], i the thread index + offset; out's other nodes are not written (a
+    local time step's level: the copies of the nodes its elements touch,
+    ``Topology.dss_at``). Arguments: x, d (``Copies``), nodes (int32), out, offset; no
+    ghosts (one process). ``out`` must not alias ``x``."""
+    sum_copies = gather(rows, weighted, copies)
+
+    def dss_at(
+        x: wp.array2d(dtype=f64), d: Copies, nodes: wp.array(dtype=wp.int32), out: wp.array2d(dtype=f64), offset: int
+    ):
+        p = nodes[wp.tid() + offset]
+        s = sum_copies(x, d, p)
+        for r in range(wp.static(rows)):
+            out[r, p] = s[r]
+
+    dss_at.__qualname__ = "dss_at"
+    return wp.kernel(dss_at, enable_backward=False, module="unique")
+
+
+@functools.cache
 def combination(pattern: str):
     """A ``wp.func`` (c, k, s0, s1, r, p) → Σ_i c[i]·term_i, summed left to
     right as ``blas.axpby``/``axpbypcz`` do (the same bits), with the terms

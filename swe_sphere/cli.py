@@ -702,6 +702,8 @@ def _run(args, scene, output, device, comm) -> int:
     print(
         f"stepper     {sim.stepper.label(scene.stepper_options)}, dt = {scene.dt:g} s, {scene.nsteps} steps to day {scene.days:g}, device {device}"
     )
+    for line in sim.stepper.describe():
+        print(f"{scene.stepper:11s} {line}")
     if comm is not None:
         sizes = [len(p) for p in sim.topology.parts]
         print(

@@ -222,6 +222,17 @@ def test_unreadable_restart_file_refused_by_every_rank_in_one_line(tmp_path):
 
 
 @pytest.mark.usefixtures("needs_mpi")
+def test_lts_on_two_ranks_is_refused_in_one_line(tmp_path):
+    """Local time stepping runs on one rank so far: two refuse it once, exit 2, no output."""
+    proc = mpirun(
+        2, ["run", "tc5_mountain", "--ne", "2", "--stepper", "lts", "--output", "o.nc", "--no-progress"], tmp_path
+    )
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert proc.stderr.count("lts runs on one MPI rank so far") == 1 and len(proc.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "o.nc").exists()
+
+
+@pytest.mark.usefixtures("needs_mpi")
 def test_sigint_on_two_ranks_is_one_line(tmp_path, paused):
     """Ctrl-C (to mpiexec, which passes it on) reaches every rank, held after step 3,
     which stop at one step together: rank 0 alone says so (it said so once a rank),

@@ -89,12 +89,14 @@ class _Part:
 
 class SplitLaunch:
     """A recorded launch run as ``len(starts) - 1`` disjoint node ranges on as many
-    threads. ``kernel`` and ``launch()`` as on ``wp.Launch``.
+    threads (each shifted by ``start``). ``kernel`` and ``launch()`` as on ``wp.Launch``.
 
     ``per_part`` maps a kernel argument name to one value per range (e.g. a
     private output slot where a kernel would otherwise race)."""
 
-    def __init__(self, launch: wp.Launch, rows: int | None, starts: list[int], per_part: dict | None = None):
+    def __init__(
+        self, launch: wp.Launch, rows: int | None, starts: list[int], per_part: dict | None = None, start: int = 0
+    ):
         self.kernel, self.whole = launch.kernel, launch
         self.parts = []
         for k in range(len(starts) - 1):
@@ -103,7 +105,7 @@ class SplitLaunch:
             part.fwd_args = list(launch.fwd_args) if launch.fwd_args is not None else None
             n = starts[k + 1] - starts[k]
             part.set_dim(n if rows is None else (rows, n))
-            part.set_param_by_name("offset", starts[k])
+            part.set_param_by_name("offset", starts[k] + start)
             for name, values in (per_part or {}).items():
                 part.set_param_by_name(name, values[k])
             self.parts.append(_Part(part))
@@ -137,10 +139,22 @@ def array_key(a: wp.array) -> tuple:
     return (a.ptr, a.shape, a.strides)
 
 
-def record(kernel, dim, inputs, *, device, threads: int, block: int = 1, per_part=None, nodes_per_index: int = 1):
+def record(
+    kernel,
+    dim,
+    inputs,
+    *,
+    device,
+    threads: int,
+    block: int = 1,
+    per_part=None,
+    nodes_per_index: int = 1,
+    start: int = 0,
+):
     """Record ``kernel`` over ``dim`` (N, or (rows, N) with the node index last;
     or the element count, with ``nodes_per_index`` = np²); ``inputs`` without
-    the trailing offset. With ``threads`` > 1 on a CPU device and at least
+    the trailing offset. ``start``: the first index (the launch covers start ..
+    start + n − 1 of the node or element index: a range of the elements). With ``threads`` > 1 on a CPU device and at least
     MIN_POINTS_PER_PART nodes per thread, returns a ``SplitLaunch`` over that
     many index ranges (cut at multiples of ``block``); otherwise a plain
     ``wp.Launch`` (``per_part`` values of the first range)."""
@@ -148,9 +162,9 @@ def record(kernel, dim, inputs, *, device, threads: int, block: int = 1, per_par
     parts = min(Backend.of(device).launch_parts(threads), n * nodes_per_index // MIN_POINTS_PER_PART)
     if n % block == 0:
         parts = min(parts, n // block)  # no empty range
-    launch = wp.launch(kernel, dim, [*inputs, 0], device=device, record_cmd=True)
+    launch = wp.launch(kernel, dim, [*inputs, start], device=device, record_cmd=True)
     if parts <= 1:
         for name, values in (per_part or {}).items():
             launch.set_param_by_name(name, values[0])
         return launch
-    return SplitLaunch(launch, rows, split_points(n, block, parts), per_part)
+    return SplitLaunch(launch, rows, split_points(n, block, parts), per_part, start)

@@ -290,6 +290,33 @@ class Topology:
             x, lambda rows, copies, ghosts: dss.dss_rows(rows, bool(weighted), copies, ghosts=ghosts), [out]
         )
 
+    def part_copies(self, elements: np.ndarray) -> tuple[wp.array, dss.Copies]:
+        """What a DSS over part of the elements (indices ``elements``, held here) gathers:
+        (nodes, copies): the element-local nodes whose unique node one of them touches (every
+        copy, int32 device array) and a ``dss.Copies`` whose table keeps only the part's
+        copies (the others −1): their DSS is M⁻¹ Σ over the part's copies, whatever the
+        other elements' entries hold. One process only: ValueError with neighbours."""
+        if len(self.neighbours):
+            raise ValueError("an assembly over part of the elements runs on one MPI rank only so far")
+        per = self.grid.np**2
+        mine = np.zeros(self.grid.nelem, dtype=bool)
+        mine[elements] = True
+        table = self._table
+        kept = np.where((table >= 0) & mine[np.maximum(table, 0) // per], table, -1)
+        nodes = np.flatnonzero((kept >= 0).any(axis=1))
+        copies = dss.Copies()
+        copies.table = wp.array(kept.astype(np.int32), dtype=wp.int32, device=self.device)
+        copies.nlocal, copies.ghost = self.N, self.ghost
+        copies.spheremp, copies.rspheremp = self.spheremp, self.rspheremp
+        return wp.array(nodes.astype(np.int32), dtype=wp.int32, device=self.device), copies
+
+    def dss_at(self, x: wp.array2d, weighted: bool, out: wp.array2d, nodes: wp.array, copies: dss.Copies) -> list:
+        """Launches for out = DSS(x) over ``copies`` (``part_copies``) at the element-local
+        ``nodes`` only, out's other nodes left as they are (``kernels.dss.dss_rows_at``): what
+        a part of the elements contributes, assembled over the nodes it touches."""
+        kernel = dss.dss_rows_at(x.shape[0], bool(weighted), self.table.shape[1])
+        return [record(kernel, nodes.shape[0], [x, copies, nodes, out], device=self.device, threads=self.threads)]
+
     def dss_update(self, x: wp.array2d, updates) -> list:
         """Launches for the weighted DSS k of x (rows, N), not stored but used by
         one or two ``updates`` (out, terms) in order: out = Σ a·src over the

@@ -82,22 +82,33 @@ class LaunchRecorder:
         ``nodes_per_index`` as there)."""
         return record(kernel, dim, inputs, device=self.device, threads=self.threads, **kw)
 
-    def nodes(self, kernel, dim, inputs, per_part=None):
+    def nodes(self, kernel, dim, inputs, per_part=None, elements=None):
         """Record a per-node kernel with a trailing ``offset`` argument (not in ``inputs``)
-        over dim N or (rows, N): split over the CPU threads at element boundaries."""
+        over dim N or (rows, N): split over the CPU threads at element boundaries.
+        ``elements`` (start, stop): over those elements' nodes only (dim N)."""
+        if elements is not None:
+            start, stop = elements
+            dim, first = (stop - start) * self.block, start * self.block
+            return self.record(kernel, dim, inputs, block=self.block, per_part=per_part, start=first)
         return self.record(kernel, dim, inputs, block=self.block, per_part=per_part)
 
-    def elements(self, kernel, inputs):
-        """Record a per-element kernel (dim nelem, trailing element ``offset``)."""
-        return self.record(kernel, self.nnodes // self.block, inputs, nodes_per_index=self.block)
+    def elements(self, kernel, inputs, elements=None):
+        """Record a per-element kernel (dim nelem, trailing element ``offset``); ``elements``
+        (start, stop): over those elements only."""
+        start, stop = (0, self.nnodes // self.block) if elements is None else elements
+        return self.record(kernel, stop - start, inputs, nodes_per_index=self.block, start=start)
 
-    def pointwise(self, kernel, rows, inputs):
+    def pointwise(self, kernel, rows, inputs, elements=None):
         """Record a pointwise kernel with trailing ``block`` and ``offset`` arguments
         (``kernels.blas``) over (rows, N), or N if ``rows`` is None: np² nodes a thread
-        with the per-element layout, one on CUDA."""
+        with the per-element layout, one on CUDA. ``elements`` (start, stop): over
+        those elements' nodes only."""
         block = self.block if self.per_element else 1
-        n = self.nnodes // block
-        return self.record(kernel, n if rows is None else (rows, n), [*inputs, block], nodes_per_index=block)
+        start, stop = (0, self.nnodes // self.block) if elements is None else elements
+        first, n = start * self.block // block, (stop - start) * self.block // block
+        return self.record(
+            kernel, n if rows is None else (rows, n), [*inputs, block], nodes_per_index=block, start=first
+        )
 
     def lincomb(self, out, terms):
         """The recorded launch of out = Σ c·x over one to three (c, x) terms of (rows, N)

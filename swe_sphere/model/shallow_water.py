@@ -12,6 +12,8 @@ scene names ``forcing``. Mirrors HOMME's ``compute_and_apply_rhs`` + ``advance_h
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 import warp as wp
 
@@ -37,6 +39,21 @@ TERMS = (
 )
 
 f64 = wp.float64
+
+
+class ElementPart(NamedTuple):
+    """Some of a model's elements (``ShallowWater.element_part``): ``runs`` the (start, stop)
+    element ranges its kernels run over (its elements, and any others between them that a
+    launch less is worth computing), ``nelem`` its elements, ``nodes`` (int32 device array)
+    the element-local nodes whose unique node one of them touches (every copy), ``copies``
+    the DSS's table of its own copies alone (``Topology.part_copies``), ``tend`` (3, N) the
+    element-local tendency its kernels write."""
+
+    runs: list
+    nelem: int
+    nodes: wp.array
+    copies: object
+    tend: wp.array2d
 
 
 class ShallowWater:
@@ -169,44 +186,47 @@ class ShallowWater:
         self.launches.run_pointwise(kernel, *inputs, unique=unique)
 
     # -- right-hand side ----------------------------------------------------
-    def _build_tendency(self, x, named):
+    def _build_tendency(self, x, named, part=None):
         """Launches that write the element-local tendency of the terms ``named``
-        into ``self.tend``, and the rows (lo, hi) they write (a continuity half
+        into ``self.tend`` (or, given an ``ElementPart``, into its ``tend`` over its
+        elements only), and the rows (lo, hi) they write (a continuity half
         writes dh alone, a momentum half du, dv)."""
         terms = tuple(term for term in tendencies.TENDENCY_TERMS if term in named)
+        tend, runs = (self.tend, [None]) if part is None else (part.tend, part.runs)
         launches = []
         if terms:
             forcing = self.topo_forcing if self.topo_forcing is not None else self.vec_work  # read only with topography
             args = [x, self.D, self.Dinv, self.metdet, self.fcor, forcing]
-            if self.per_element:
-                kernel = tendencies.tendency_element(terms, self.grid.np)
-                launches.append(
-                    self.launches.elements(
-                        kernel, [*map(self.as_rows, args), self.g, self.dvv_rows, self.as_rows(self.tend)]
-                    )
-                )
-            else:
-                kernel = tendencies.tendency(terms)
-                launches.append(self.launches.nodes(kernel, self.N, [*args, self.dvv, self.grid.np, self.g, self.tend]))
+            for run in runs:
+                if self.per_element:
+                    kernel = tendencies.tendency_element(terms, self.grid.np)
+                    inputs = [*map(self.as_rows, args), self.g, self.dvv_rows, self.as_rows(tend)]
+                    launches.append(self.launches.elements(kernel, inputs, run))
+                else:
+                    kernel = tendencies.tendency(terms)
+                    inputs = [*args, self.dvv, self.grid.np, self.g, tend]
+                    launches.append(self.launches.nodes(kernel, self.N, inputs, elements=run))
         forced = self.forcing is not None and "forcing" in named
         if forced:
             kernel, params = self.forcing
-            launch = self.launches.pointwise(
-                kernel, None, [self.xyz, self.east, self.north, params, f64(self.time), self.tend]
-            )
-            self._forcing_launches.append(launch)
-            launches.append(launch)
+            for run in runs:
+                launch = self.launches.pointwise(
+                    kernel, None, [self.xyz, self.east, self.north, params, f64(self.time), tend], run
+                )
+                self._forcing_launches.append(launch)
+                launches.append(launch)
         lo = 0 if forced or set(terms) - {"continuity"} else 2
         hi = 3 if "continuity" in terms or forced else 2
         return launches, lo, hi
 
-    def _build_rhs(self, x, out, named):
-        launches, lo, hi = self._build_tendency(x, named)
-        launches.extend(
-            self.topology.dss(self.tend[lo:hi], 1, out[lo:hi])
-            if (lo, hi) != (0, 3)
-            else self.topology.dss(self.tend, 1, out)
-        )
+    def _build_rhs(self, x, out, named, part=None):
+        launches, lo, hi = self._build_tendency(x, named, part)
+        tend = self.tend if part is None else part.tend
+        rows = (lambda a: a) if (lo, hi) == (0, 3) else (lambda a: a[lo:hi])
+        if part is None:
+            launches.extend(self.topology.dss(rows(tend), 1, rows(out)))
+        else:
+            launches.extend(self.topology.dss_at(rows(tend), 1, rows(out), part.nodes, part.copies))
         return launches
 
     def _build_rhs_update(self, x, updates, named):
@@ -266,6 +286,41 @@ class ShallowWater:
         were, a momentum half its dh row). ValueError names a term the scene lacks."""
         key = self.rhs_key(x, out, terms)
         self.launches.replay(key, (x, out), lambda: self._build_rhs(x, out, key[1]))
+
+    def element_part(self, elements, gap: int = 0) -> ElementPart:
+        """An ``ElementPart`` of ``elements`` (indices of elements held, ascending, distinct):
+        its tendency kernels run over ranges of consecutive elements that hold them, two
+        ranges merged where at most ``gap`` other elements lie between (computed, and left
+        out of the assembly: a launch's fixed cost against theirs); its DSS gathers its
+        own elements' copies alone (``Topology.part_copies``). ValueError for indices that
+        are not ascending, distinct elements held; ``gap`` < 0."""
+        e = np.asarray(elements, dtype=np.int64)
+        if e.ndim != 1 or (e.size and (e[0] < 0 or e[-1] >= self.grid.nelem or np.any(np.diff(e) <= 0))):
+            raise ValueError(f"part elements must be ascending distinct indices in 0..{self.grid.nelem - 1}")
+        if isinstance(gap, bool) or int(gap) != gap or gap < 0:
+            raise ValueError(f"gap must be an integer >= 0 (got {gap})")
+        runs = []
+        for k in e.tolist():
+            if runs and k - runs[-1][1] <= gap:
+                runs[-1][1] = k + 1
+            else:
+                runs.append([k, k + 1])
+        nodes, copies = self.topology.part_copies(e)
+        tend = wp.zeros((3, self.N), dtype=f64, device=self.device)
+        return ElementPart([tuple(r) for r in runs], int(e.size), nodes, copies, tend)
+
+    def rhs_part(self, x: wp.array2d, out: wp.array2d, part: ElementPart, terms: tuple | None = None) -> None:
+        """out = f_P(x, t) = M⁻¹ DSS(the element-local tendency of ``part``'s elements
+        alone), the others' taken as zero, as ``rhs`` computes F (``terms`` likewise),
+        written at the nodes the part touches (``part.nodes``) and nowhere else: out's
+        other nodes keep what they hold (zero, for a buffer given to this part alone). Over
+        parts that cover every element once, Σ_P f_P = F to round-off (the GLL mass is
+        diagonal: Diaz & Grote 2009, SIAM J. Sci. Comput. 31:1985, §2). The tendency
+        kernels run over the part's element ranges only and the DSS over its nodes: a cost
+        in proportion to its elements (and the ranges' gaps). ``out`` must not alias ``x``.
+        One MPI rank only (``Topology.part_copies``)."""
+        key = ("rhs_part", id(part), *self.rhs_key(x, out, terms)[1:])
+        self.launches.replay(key, (x, out, part), lambda: self._build_rhs(x, out, key[2], part))
 
     def rhs_update(self, x: wp.array2d, updates, terms: tuple | None = None) -> None:
         """F = F(x, t) as ``rhs`` computes it, not stored but written, as its DSS

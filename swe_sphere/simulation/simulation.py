@@ -298,6 +298,7 @@ class Simulation(StateDiagnostics):
         else:
             start = topo.distribute(None if start is ON_ROOT else start, 3, "start state")
         self.x = self.model.new_state(*(self.dfi.x if self.dfi is not None else start))
+        self.stepper.prepare(self.x)
         self.last_good = wp.clone(self.x)  # the state at the start of the block of steps in progress (``guard``)
         self.check_every = topo.backend.check_every
         if not self.root:  # a fallback's warning once, from rank 0
@@ -481,6 +482,7 @@ class Simulation(StateDiagnostics):
         _check_hyperviscosity(self.model, self.scene)
         self.stepper = make_stepper(self.scene.stepper, self.model, dt, **self.scene.stepper_options)
         self.stepper.t0 = self.scene.start_day * DAY
+        self.stepper.prepare(self.x)
         for activity in self.activities.values():
             if getattr(activity.schedule, "days", None) is not None:
                 activity.schedule = self.every(days=activity.schedule.days)

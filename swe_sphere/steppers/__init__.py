@@ -13,7 +13,8 @@ uses the operator.
 Exponential: ``epi2``, ``epi3`` (φ-functions of the Jacobian by KIOPS).
 Multirate (``multirate``: the gravity waves in explicit substeps of their own, no
 global solve): ``split_explicit`` (Wicker–Skamarock RK3, forward–backward
-substeps), ``mri`` (MIS and MRI-GARK tables).
+substeps), ``mri`` (MIS and MRI-GARK tables); ``lts`` (``local``: local time stepping,
+the same engine with the fine elements' tendency fast and the coarse ones' slow).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from .base import Stepper, StepStats, option_types
 from .explicit import FBRK32, Leapfrog, LeapfrogTrapezoidal
 from .exponential import Epi2, Epi3
 from .implicit import Implicit
+from .local import Lts
 from .multirate import Mri, SplitExplicit
 from .runge_kutta import Imex, Tableau, explicit_steppers
 from .semi_implicit import SemiImplicit
@@ -37,6 +39,7 @@ STEPPERS: dict[str, type[Stepper]] = {
         FBRK32,
         SplitExplicit,
         Mri,
+        Lts,
         SemiImplicit,
         Implicit,
         Imex,

@@ -119,6 +119,16 @@ class Stepper:
         """Global attributes of the run file beyond the scene's (strings, numbers)."""
         return {}
 
+    def prepare(self, x: wp.array2d) -> None:
+        """Called with the initial state x (3, N) before the first step and before any
+        ``restore`` (``Simulation``): what a stepper fixes from the flow at the start
+        (local time stepping's element levels). Nothing here."""
+
+    def describe(self) -> list[str]:
+        """Lines a run prints at its start about the stepper beyond its ``label`` (after
+        ``prepare``): none here."""
+        return []
+
     # -- what carries over between steps -------------------------------------------
     def state(self) -> dict:
         """Everything besides x that the next step depends on: numpy arrays

@@ -167,9 +167,13 @@ class _Multirate(Stepper):
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
-        self.split = GravitySplit(model, self.options.mean_depth)
+        self.split = self._make_split()
         self._combs: dict[tuple, object] = {}
         self.n_fast = None  # the fast steps of each stage (or solve), from H at the first step
+
+    def _make_split(self):
+        """The fast/slow split the engine steps: the gravity waves' (``GravitySplit``)."""
+        return GravitySplit(self.model, self.options.mean_depth)
 
     def substeps(self) -> int:
         """n, the fast steps a slow step: the ``substeps`` option, or with "auto" the fewest
@@ -548,8 +552,13 @@ class Mri(_Multirate):
             timed = bool(tab.beta1[r].any())
             if timed:
                 self._combine(self.rho1, [(tab.beta1[r, j] / d, self.S[j]) for j in range(r + 1)])
+            self._solve = ((tab.c[r + 1] if r + 1 < s else 1.0) - d, d)  # its start and span, in Δt
             self._inner(out, d * dt, self.n_fast[r], timed)
         return s
+
+    def _fast_at(self, theta: float) -> None:
+        """Set the model time for a fast evaluation at the fraction θ of the current solve:
+        nothing here (the gravity-wave operator L does not depend on time)."""
 
     def _forcing(self, theta: float, timed: bool):
         """ρ(θ) = ρ⁰ + θ ρ¹ (ρ⁰ itself when constant)."""
@@ -573,6 +582,7 @@ class Mri(_Multirate):
         arrays = {"x": z, **self._rk}
         for c, arg, updates in self._form:
             rho = self._forcing((k + c) / n, timed)
+            self._fast_at((k + c) / n)
             self.split.fast(arrays[arg], self.K, rho)
             for out, terms in updates:
                 dst = arrays[out]

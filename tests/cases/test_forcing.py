@@ -99,6 +99,7 @@ def test_every_stepper_evaluates_the_rhs_at_its_stage_times():
         "split_explicit": [[0, round(1 / 3, 12), 0.5], [1, round(4 / 3, 12), 1.5]],  # Wicker–Skamarock's Δt/3, Δt/2, Δt
         "mri": [cmis, [round(1 + c, 12) for c in cmis]],  # MIS4a's slow stages at its slow table's c
         "tableau": [[0, 0.5, 0.5, 1], [1, 1.5, 1.5, 2]],  # its default table, RK4's
+        "lts": [[0, 0.5, 0.5, 1], [1, 1.5, 1.5, 2]],  # one level on the uniform cube: its inner RK4, globally
         # F(x(n)) and every J·v at t(n); ∂F/∂t from F at t(n) ± Δt/64
         "epi2": [[0, 0.015625, -0.015625, 0], [1, 1.015625, 0.984375, 1]],
         "epi3": [[0, 0.015625, -0.015625, 0], [1, 1.015625, 0.984375, 1]],

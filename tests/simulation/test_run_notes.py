@@ -120,6 +120,7 @@ def test_a_run_longer_than_a_day_says_so_at_its_start(tmp_path):
             "--device",
             "cpu",
             "--no-progress",
+            "--no-cells",  # the cells' build note, if it took long, would come first
             "--days",
             "1000",
             "--dt",

@@ -14,6 +14,7 @@ is refused in one line (exit 2) before anything is printed.
 
     python docs/efficiency/tables.py study/tc5_ne8 study/tc5_ne16 --figures docs/efficiency
     python docs/efficiency/tables.py study/tc5_epi_ne30 --family epi2,epi3   # the family against the rest
+    python docs/efficiency/tables.py study/tc5_x2 --regions   # every run's errors by region (a refined mesh)
 """
 
 import argparse
@@ -22,6 +23,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from swe_sphere.grid.quality import REGIONS
 from swe_sphere.studies.plotting import label_log_axis
 from swe_sphere.studies.sweep import CRITERIA as SWEEP_CRITERIA
 
@@ -128,6 +130,45 @@ def summary(dirs) -> str:
                 f"| {case} | {ne} | {SHORT[c]} | {shown} | {best.stepper} | {best.dt_over_gravity_limit:.2g}× ({best.dt_over_leapfrog_limit:.2g}×) | {best.cost_time:.1f} | {work(best)} | {impc} |"
             )
     return "\n".join(out)
+
+
+def by_region(d: Path) -> str:
+    """Every run of the sweep ``d``, each stepper's by Δt: Δt/Δt_g, the l2 error of h + hs
+    against the truth in total and by region (``quality.REGIONS``; the spatial error's first),
+    the filtered vorticity's temporal error over its spatial error, the CPU time per simulated
+    day and the cost in RHS-equivalents; an unstable run says where it blew up."""
+    s, v = pd.read_csv(d / "sweep.csv"), pd.read_csv(d / "verdicts.csv")
+    ref = v[v.criterion == "balanced flow (filtered vorticity)"].spatial_error.iloc[0]
+    info = pd.read_csv(d / "sweep.csv", nrows=1)
+    out = [
+        "| stepper | Δt/Δt_g | l2 h+hs | "
+        + " | ".join(REGIONS)
+        + " | filtered vorticity: time / space | CPU s/day | RHS-eq |",
+        "|---|---:|---:|" + "---:|" * len(REGIONS) + "---:|---:|---:|",
+    ]
+    spatial = _spatial_by_region(d)
+    out.append("| *spatial error* | | " + " | ".join(f"*{e:.3g}*" for e in spatial) + f" | *{ref:.3g}* | | |")
+    days = float(info.days.iloc[0])
+    for stepper, g in s.groupby("stepper", sort=False):
+        for r in g.sort_values("dt").itertuples():
+            head = f"| {stepper} | {r.dt_over_gravity_limit:.3g} |"
+            if not r.stable:
+                out.append(f"{head} {r.reason.split(':')[0]} |" + " |" * (len(REGIONS) + 3))
+                continue
+            errors = " | ".join(f"{getattr(r, f'total_error_{k}'):.3g}" for k in REGIONS)
+            time_space = r.temporal_error_filtered_vorticity / ref
+            out.append(
+                f"{head} {r.total_error:.3g} | {errors} | {time_space:.0%} | {r.cost_time / days:.2f} | {r.rhs_equivalents / 1000:.3g}k |"
+            )
+    return "\n".join(out)
+
+
+def _spatial_by_region(d: Path) -> list:
+    """The small-Δt run's l2 of h + hs in total and by region (sweep.nc's attributes)."""
+    import xarray as xr
+
+    with xr.open_dataset(d / "sweep.nc") as ds:
+        return [float(ds.attrs["spatial_error"])] + [float(ds.attrs[f"spatial_error_{k}"]) for k in REGIONS]
 
 
 COLORS = dict(
@@ -258,6 +299,7 @@ def main():
         "--family",
         help="comma-separated steppers (e.g. epi2,epi3): also their cheapest qualifying run against the others'",
     )
+    p.add_argument("--regions", action="store_true", help="also every run's errors by region (a refined mesh)")
     args = p.parse_args()
     try:
         check(args)
@@ -269,6 +311,8 @@ def main():
     for d in args.sweeps:
         print(f"\n### {d.name}\n")
         print(per_stepper(d, 0.1))
+        if args.regions:
+            print("\n" + by_region(d))
         if args.figures:
             figure(d, args.figures / f"{d.name}_temporal_error.png")
 

@@ -23,6 +23,7 @@ import numpy as np
 
 from ..core.constants import DAY
 from ..grid.cubed_sphere import CubedSphere
+from ..grid.quality import REGIONS, element_regions, element_sizes
 from .reference import Reference, stored_days, stored_index
 
 ENERGY_GROWTH_LIMIT = 0.01  # a run whose total energy grows by more than this fraction is unstable
@@ -38,6 +39,23 @@ def williamson_norms(grid: CubedSphere, f, f_true) -> dict[str, float]:
         "l2": float(np.sqrt(I(e * e) / I(f_true * f_true))),
         "linf": float(np.max(np.abs(e)) / np.max(np.abs(f_true))),
     }
+
+
+def regional_l2(grid: CubedSphere, f, f_true, node_regions) -> dict[str, float]:
+    """The normalized l2 error of a scalar over each region's elements (``quality.REGIONS``,
+    ``quality.element_regions``): sqrt(I_R(f−fT)²) / sqrt(I_R fT²) with I_R the area integral
+    over region R's elements (Williamson et al. 1992, eq. 83, on a part of the sphere). ``f``,
+    ``f_true`` (N,) element-local; ``node_regions`` (N,) each node's region, its element's
+    (None: a mesh of one resolution, every region NaN); NaN for a region without elements."""
+    out = dict.fromkeys(REGIONS, math.nan)
+    if node_regions is None:
+        return out
+    e = f - f_true
+    for k, name in enumerate(REGIONS):
+        inside = node_regions == k
+        if inside.any():
+            out[name] = float(np.sqrt(grid.integrate(inside * e * e) / grid.integrate(inside * f_true * f_true)))
+    return out
 
 
 def williamson_vector_norms(grid: CubedSphere, u, v, u_true, v_true) -> dict[str, float]:
@@ -117,7 +135,9 @@ class Scorer:
     ``ValueError`` for a file that is not a reference (``reference.Reference``).
 
     Attributes: ``reference`` (``reference.Reference`` on rank 0, else None),
-    ``reference_days`` (its stored days on every rank, None without one).
+    ``reference_days`` (its stored days on every rank, None without one),
+    ``node_regions`` (each whole-grid node's region (nnodes,), its element's
+    ``quality.element_regions``, on rank 0 of a mesh of several resolutions; else None).
     """
 
     def __init__(self, case, model, topology, grid, hs, reference):
@@ -127,6 +147,12 @@ class Scorer:
         self.reference_days = topology.bcast(self.reference.days if self.reference is not None else None)
         self._scratch = model.new_state()  # a wind to differentiate
         self._last = None  # (day, the reference there on the whole grid): the start is scored twice
+        self.node_regions = None
+        if topology.grid.mesh is not None:  # the equiangular cube is one resolution
+            Dinv = topology.gather(topology.grid.Dinv)  # rank 0's whole grid is gathered, without a metric
+            regions = element_regions(element_sizes(grid, Dinv)) if self.root else None
+            if regions is not None:
+                self.node_regions = np.repeat(regions, grid.np**2)  # element-local nodes, element by element
 
     # -- vorticity and divergence ---------------------------------------------------
     def rotation_divergence(self, u, v) -> tuple[np.ndarray, np.ndarray]:
@@ -158,16 +184,18 @@ class Scorer:
         )  # (error, true) × (ζ, δ)
 
     # -- against the truth ----------------------------------------------------------
-    def errors(self, t: float, x: np.ndarray, u, v, h) -> dict:
+    def errors(self, t: float, x: np.ndarray, u, v, h, regions: bool = False) -> dict:
         """Errors of a state at time ``t`` (s) against the truth: with an exact
         solution ``l1_h``, ``l2_h``, ``linf_h``, ``l1_wind``, ``l2_wind``,
         ``linf_wind``, ``l2_vorticity``, ``l2_divergence``; with a reference the
         same of h + hs and the wind as ``ref_l1_h_surface`` … ``ref_linf_wind``,
         ``ref_l2_vorticity``, ``ref_l2_divergence``, NaN at a day it does not
         store (``unscored`` says why; every output time has every series); {}
-        for a case with neither. ``x``: the state on this rank's nodes (3, N) (u, v in m s⁻¹, h in
-        m); ``u``, ``v``, ``h``: the same on the whole grid (nnodes,) on rank 0
-        (None elsewhere)."""
+        for a case with neither. ``regions``: also the l2 of h (h + hs) by region
+        (``regional_l2``) as ``l2_h_refined``, ``l2_h_transition``, ``l2_h_coarse``
+        (``ref_l2_h_surface_refined`` …; NaN without regions). ``x``: the state on this
+        rank's nodes (3, N) (u, v in m s⁻¹, h in m); ``u``, ``v``, ``h``: the same on the
+        whole grid (nnodes,) on rank 0 (None elsewhere)."""
         local = self.topology.grid
         split = ref_split = None
         if self.case.exact_solution:
@@ -184,10 +212,15 @@ class Scorer:
             if self.case.exact_solution:
                 ue, ve, he = self.case.exact(self.grid.lat, self.grid.lon, t)
                 d.update({f"{k}_h": val for k, val in williamson_norms(self.grid, h, he).items()})
+                if regions:
+                    d.update({f"l2_h_{k}": val for k, val in regional_l2(self.grid, h, he, self.node_regions).items()})
                 d.update({f"{k}_wind": val for k, val in williamson_vector_norms(self.grid, u, v, ue, ve).items()})
                 d.update(split)
             if self.reference is not None:
                 d.update(self._reference_errors(u, v, h, r, ref_split))
+                if regions:
+                    truth = None if r is None else r["h_surface"]
+                    d.update({f"ref_l2_h_surface_{k}": val for k, val in self._regional(h + self.hs, truth).items()})
         return self.topology.bcast(d)
 
     def _reference_at(self, day: float) -> dict:
@@ -197,6 +230,13 @@ class Scorer:
         if self._last is None or self._last[0] != day:
             self._last = (day, self.reference.at(day, self.grid.lat, self.grid.lon))
         return self._last[1]
+
+    def _regional(self, f, f_true) -> dict:
+        """``regional_l2`` of ``f`` against ``f_true`` on the whole grid (all NaN for ``f_true`` None:
+        a day the reference does not store)."""
+        if f_true is None:
+            return dict.fromkeys(REGIONS, math.nan)
+        return regional_l2(self.grid, f, f_true, self.node_regions)
 
     def _reference_errors(self, u, v, h, r, split) -> dict:
         """Normalized errors of the free surface h + hs and of the wind against the
@@ -215,14 +255,17 @@ class Scorer:
 
     def total_errors(self, t: float, x: np.ndarray) -> dict:
         """A sweep's total errors of state ``x`` (this rank's (3, N)) at time ``t`` (s):
-        l2 of h (exact solution) or of h + hs (reference) as ``total_error``, and
-        of the wind's vorticity and divergence (``total_error_vorticity``,
-        ``total_error_divergence``); NaN where ``unscored``."""
+        l2 of h (exact solution) or of h + hs (reference) as ``total_error``, the same by
+        region (``regional_l2``: ``total_error_refined``, ``total_error_transition``,
+        ``total_error_coarse``; NaN on a mesh of one resolution), and of the wind's vorticity
+        and divergence (``total_error_vorticity``, ``total_error_divergence``); NaN where
+        ``unscored``."""
         whole = self.topology.gather(x)
-        d = self.errors(t, x, *((None,) * 3 if whole is None else whole[:3]))
-        pre = "" if "l2_h" in d else "ref_"
+        d = self.errors(t, x, *((None,) * 3 if whole is None else whole[:3]), regions=True)
+        pre, h = ("", "l2_h") if "l2_h" in d else ("ref_", "ref_l2_h_surface")
         return {
-            "total_error": d.get("l2_h", d.get("ref_l2_h_surface", math.nan)),
+            "total_error": d.get(h, math.nan),
+            **{f"total_error_{k}": d.get(f"{h}_{k}", math.nan) for k in REGIONS},
             "total_error_vorticity": d.get(f"{pre}l2_vorticity", math.nan),
             "total_error_divergence": d.get(f"{pre}l2_divergence", math.nan),
         }

@@ -678,12 +678,13 @@ class ResolvedCase(NamedTuple):
     notes: tuple
 
 
-def read_scene(path: Path, overrides: dict) -> tuple[dict, float | None, str | None]:
+def read_scene(path: Path, overrides: dict) -> tuple[dict, float | None, str | None, dict]:
     """(the tables of the scene file ``path`` with ``overrides`` applied (``_apply_overrides``),
     their keys and types checked (``_SCHEMA``); the file's own radius (m): that of its [planet]
     before the overrides, for which its dt and ν are, None with an override of time.dt; the
-    file's own case name, None without one). Raises ``SceneError``: a file that cannot be read
-    or is not TOML, an unknown key, a value of the wrong type, a bad override."""
+    file's own case name, None without one; the file's own [grid] before the overrides, for
+    which its dt and ν are, its types checked, {} without one). Raises ``SceneError``: a file
+    that cannot be read or is not TOML, an unknown key, a value of the wrong type, a bad override."""
     try:
         raw = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as err:
@@ -693,8 +694,9 @@ def read_scene(path: Path, overrides: dict) -> tuple[dict, float | None, str | N
     table = raw.get("planet", {})
     file_radius = table.get("radius", EARTH.a) if isinstance(table, dict) and "time.dt" not in overrides else None
     file_case = raw.get("case", {}).get("name") if isinstance(raw.get("case"), dict) else None
+    file_grid = _validate({"grid": raw.get("grid", {})})["grid"]
     _apply_overrides(raw, overrides)
-    return _validate(raw), file_radius, file_case
+    return _validate(raw), file_radius, file_case, file_grid
 
 
 def resolve_planet(table: dict | None) -> Planet:
@@ -781,29 +783,41 @@ def resolve_initialization(method: str, dfi: dict, case: Case, case_name: str) -
     return {"method": "dfi", **dataclasses.asdict(filt)}
 
 
+def _table_grid(grid: dict, scene_path: Path) -> SceneGrid:
+    """The grid a [grid] table names (``_grid_record`` for the mesh's keys; ne defaults to 16, 0
+    with a mesh file, np to 4). Raises ``SceneError``: ne not 0 with a mesh file."""
+    record = _grid_record(grid, scene_path)
+    on_file = record is not None and "file" in record
+    ne, np = grid.get("ne", 0 if on_file else 16), grid.get("np", 4)
+    if on_file and ne != 0:
+        raise SceneError(f"grid.ne must be 0 with grid.mesh_file (HOMME's ne = 0: the file's elements; got {ne})")
+    return SceneGrid(ne, np, record)
+
+
 def resolve_grid(
-    table: dict | None, scene_path: Path, ne=None, np_=None, mesh=None
+    table: dict | None, scene_path: Path, ne=None, np_=None, mesh=None, file_table: dict | None = None
 ) -> tuple[SceneGrid, SceneGrid, tuple]:
-    """(the scene file's grid, the run's grid, notes) of the [grid] table (None: absent) and
-    ``load_scene``'s ``ne``, ``np_`` and ``mesh`` (an Exodus II file replacing the scene's grid).
-    The defaults are ne = 16 (0 with a mesh file) and np = 4. Raises ``SceneError`` naming the
-    key: ne not 0 with a mesh file, ne < 1 on a cube, np outside ``NP_MIN``..``NP_MAX`` or below 3
-    on the element-local map (``_grid_record`` for the mesh's own keys)."""
-    grid = table or {}
-    record0 = _grid_record(grid, scene_path)  # the scene file's mesh (None: the equiangular cube)
-    on_file = record0 is not None and "file" in record0
-    ne0, np0 = grid.get("ne", 0 if on_file else 16), grid.get("np", 4)
-    if on_file and ne0 != 0:
-        raise SceneError(f"grid.ne must be 0 with grid.mesh_file (HOMME's ne = 0: the file's elements; got {ne0})")
-    record1 = record0
+    """(the scene file's grid, the run's grid, notes) of the [grid] table (None: absent; the
+    overrides applied) and ``load_scene``'s ``ne``, ``np_`` and ``mesh`` (an Exodus II file
+    replacing the scene's grid). The scene file's grid is that of ``file_table``, the file's own
+    [grid] before the overrides ({} if it has none; None: ``table``): its dt and ν are for it, so
+    every way of choosing the run's mesh (``-s grid.*``, ``ne``, ``np_``, ``mesh``) scales them
+    alike (``resolve_spacing``). The defaults are ne = 16 (0 with a mesh file) and np = 4.
+    Raises ``SceneError`` naming the key: ne not 0 with a mesh file, ne < 1 on a cube, np
+    outside ``NP_MIN``..``NP_MAX`` or below 3 on the element-local map (``_grid_record`` for
+    the mesh's own keys)."""
+    named = _table_grid(table or {}, scene_path)  # the grid of the tables as overridden
+    scene_grid = named if file_table is None else _table_grid(file_table, scene_path)
+    on_file = named.mesh is not None and "file" in named.mesh
+    record1 = named.mesh
     if mesh is not None:
         if ne is not None:
             raise SceneError(f"ne = {ne} and mesh {mesh}: a mesh file's elements are its own (HOMME's ne = 0)")
         record1, ne = grid_spec.file_record(mesh), 0
     elif on_file and ne not in (None, 0):
         raise SceneError(f"ne = {ne} with grid.mesh_file: a mesh file's elements are its own (HOMME's ne = 0)")
-    ne1 = ne0 if ne is None else ne
-    np1 = np0 if np_ is None else np_
+    ne1 = named.ne if ne is None else ne
+    np1 = named.np if np_ is None else np_
     notes = ()
     if table is None and (ne is None or np_ is None) and mesh is None:
         notes = (f"the scene has no [grid]: ne = {ne1}, np = {np1} (the defaults)",)
@@ -815,7 +829,7 @@ def resolve_grid(
         raise SceneError(
             f"np must be >= 3 on {grid_spec.describe(ne1, np1, record1)}: the element-local map's area correction moves interior nodes"
         )
-    return SceneGrid(ne0, np0, record0), SceneGrid(ne1, np1, record1), notes
+    return scene_grid, SceneGrid(ne1, np1, record1), notes
 
 
 def resolve_spacing(scene_grid: SceneGrid, run_grid: SceneGrid, radius: float, file_radius) -> Spacing:
@@ -1033,9 +1047,9 @@ def load_scene(
         Time stepper (``steppers.STEPPERS``).
     mesh : str or path, optional
         An Exodus II file (relative to the current folder) to run on instead of the
-        scene's grid (``--mesh``; ne = 0); where the mesh differs from the scene file's,
-        dt scales with the smallest ``dx_short`` of the two (``quality.smallest_dx``) and
-        ν with the mean spacing (``grid.spec.mean_ne``).
+        scene's grid (``--mesh``; ne = 0); where the mesh differs from the scene file's own
+        (as do ``-s grid.*`` overrides alike), dt scales with the smallest ``dx_short`` of
+        the two (``quality.smallest_dx``) and ν with the mean spacing (``grid.spec.mean_ne``).
     overrides : dict, optional
         ``{"section.key": value}`` set in the file's values before they are validated
         (``-s hyperviscosity.nu=5e14``), so they are checked like the file.
@@ -1053,12 +1067,12 @@ def load_scene(
     """
     path = resolve_path(str(path))
     overrides = overrides or {}
-    s, file_radius, file_case = read_scene(path, overrides)
+    s, file_radius, file_case, file_grid = read_scene(path, overrides)
     planet = resolve_planet(s.get("planet"))
     case = resolve_case(s.get("case", {}), planet, path)
     terms = resolve_terms(s.get("terms"), case.case, case.name)
     initialization = resolve_initialization(case.method, s.get("dfi", {}), case.case, case.name)
-    scene_grid, grid, grid_notes = resolve_grid(s.get("grid"), path, ne, np_, mesh)
+    scene_grid, grid, grid_notes = resolve_grid(s.get("grid"), path, ne, np_, mesh, file_grid)
     spacing = resolve_spacing(scene_grid, grid, planet.a, file_radius)
     output, time = s.get("output", {}), s.get("time", {})
     every, log_every = resolve_output_interval(output)

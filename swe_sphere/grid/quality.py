@@ -78,6 +78,28 @@ def element_sizes(grid, Dinv: np.ndarray | None = None) -> ElementSizes:
     )
 
 
+REGIONS = ("refined", "transition", "coarse")  # ``element_regions``' labels, finest first
+# a spread of element sizes below this is one resolution: the equiangular cube's own corners
+# and centres differ by 1.17x (Dinv-based mean length, ne10); a 2x refinement spreads 2.35x
+UNIFORM_RATIO = 1.5
+
+
+def element_regions(sizes: ElementSizes) -> np.ndarray | None:
+    """Each element's region (E,) int, an index into ``REGIONS``, by its Dinv-based mean length
+    d = √(dx_short·dx_long) (the local resolution, m) within the mesh's range d_min..d_max, split
+    in three equal ratios: refined where d < d_min·R^(1/3), coarse where d > d_max·R^(−1/3), the
+    transition between (R = d_max / d_min). On a mesh refined by levels of 2× (HOMME's RRM) the
+    refined and coarse elements are the levels' and the transition the elements between; on a
+    stretched cube the thirds of its resolution. None where R < ``UNIFORM_RATIO``: a mesh of one
+    resolution has no regions. ``sizes``: the whole mesh's (``element_sizes``)."""
+    d = np.sqrt(sizes.dx_short * sizes.dx_long)
+    ratio = float(d.max() / d.min())
+    if ratio < UNIFORM_RATIO:
+        return None
+    third = ratio ** (1 / 3)
+    return np.where(d < d.min() * third, 0, np.where(d > d.max() / third, 2, 1))
+
+
 def smallest_dx(ne: int, np_: int, mesh=None) -> float:
     """The smallest ``dx_short`` (HOMME's Dinv-based length scale) of the grid ``CubedSphere(ne,
     np_, mesh=mesh)`` on the unit sphere: what the explicit step scales with between grids. On

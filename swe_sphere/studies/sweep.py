@@ -60,6 +60,7 @@ from ..core.constants import DAY
 from ..core.errors import BlowUp, Interrupted, OutputError
 from ..core.runtime import package_version
 from ..core.workers import InProcess
+from ..grid.quality import REGIONS
 from ..io.run_file import atomic_path, check_results, folder_lock, history_line
 from ..io.table_file import table_dataset, write_table_file
 from ..model.diagnostics import max_signal_rate
@@ -74,7 +75,8 @@ SUFFICIENT = 0.1  # temporal error ≤ 10 % of the spatial error
 # The reference RK4 run's Δt is at most this multiple of the gravity-wave limit, also
 # when every swept Δt is large: RK4 is stable to ≈ 1.7 and its time error there is nil
 REFERENCE_MAX_GRAVITY_COURANT = 0.25
-SPATIAL = ("total_error", "total_error_vorticity", "total_error_divergence")  # the small-Δt run's, against the truth
+# the small-Δt run's, against the truth: h + hs in total and by region (``quality.REGIONS``), the vorticity, the divergence
+SPATIAL = ("total_error", *(f"total_error_{k}" for k in REGIONS), "total_error_vorticity", "total_error_divergence")
 # the sweep info's spatial errors → the keys of the reference's own errors beside them
 FLOOR_OF = {
     "spatial_error": "reference_floor",
@@ -566,6 +568,7 @@ class Sweep:
             "spatial_error": ref["total_error"],
             "spatial_error_vorticity": ref["total_error_vorticity"],
             "spatial_error_divergence": ref["total_error_divergence"],
+            **{f"spatial_error_{k}": ref[f"total_error_{k}"] for k in REGIONS},
             "reference_dt": ref["dt"],
             **floors,
             **(
@@ -671,6 +674,9 @@ COLUMN_ATTRS = {
         )
     },
     "total_error": ("1", f"{_ERR} of h + hs against the truth"),
+    **{
+        f"total_error_{k}": ("1", f"{_ERR} of h + hs against the truth over the {k} region's elements") for k in REGIONS
+    },
     "total_error_vorticity": ("1", f"{_ERR} of vorticity against the truth"),
     "total_error_divergence": ("1", f"{_ERR} of divergence against the truth"),
     "temporal_error": ("1", f"{_ERR} of h + hs against the small-dt run"),
@@ -860,6 +866,9 @@ def format_summary(rows, info) -> str:
         + (f", {note}" if note else "")
         + f"; sufficient accuracy: temporal error <= {SUFFICIENT * spatial:.3e}"
     )
+    by_region = [f"{k} {info[f'spatial_error_{k}']:.3e}" for k in REGIONS if math.isfinite(info[f"spatial_error_{k}"])]
+    if by_region:
+        lines.append(f"  by region (quality.element_regions): {', '.join(by_region)}")
     best = cheapest_sufficient(rows, spatial)
     explicit = [best[s]["cost_time"] for s in best if STEPPERS[s].explicit]
     ref_time = min(explicit) if explicit else math.nan

@@ -19,6 +19,9 @@ from swe_sphere.cases.scoring import Scorer, instability, unscored, williamson_n
 from swe_sphere.cli import main
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
+from swe_sphere.grid.mesh import write_exodus
+from swe_sphere.grid.quality import REGIONS, element_regions, element_sizes
+from swe_sphere.grid.refine import Box, make_mesh
 from swe_sphere.simulation.simulation import RunResult
 
 from helpers import make_sim
@@ -57,6 +60,12 @@ def numpy_split(sim, u, v, ut, vt):
     }
 
 
+def one_resolution(total: dict) -> dict:
+    """A sweep's ``total`` errors on the uniform cube, less their regions, each checked NaN (one resolution)."""
+    assert all(math.isnan(total.pop(f"total_error_{k}")) for k in REGIONS)
+    return total
+
+
 def run_to(name, ne, days):
     scene = dataclasses.replace(load_scene(name, ne=ne, np_=4, days=days), output_every_days=days)
     sim = make_sim(scene)
@@ -78,11 +87,37 @@ def test_tc2_errors_are_williamsons_norms():
     assert expected["l2_h"] > 1e-5  # a real error, not round-off
     for k, val in expected.items():
         assert d[k] == pytest.approx(val, rel=1e-12, abs=0), k
-    assert sim.scorer.total_errors(DAY, sim.x.numpy()) == {
+    assert one_resolution(sim.scorer.total_errors(DAY, sim.x.numpy())) == {
         "total_error": d["l2_h"],
         "total_error_vorticity": d["l2_vorticity"],
         "total_error_divergence": d["l2_divergence"],
     }
+
+
+def test_errors_by_region_on_a_refined_mesh_are_numpy_sums(tmp_path):
+    """TC2 (α = π/4) on ne4 refined 2x over TC5's mountain box, a quarter day: the l2 error of h
+    over each region's elements (``quality.element_regions``) as a numpy sum over the element-local
+    nodes gives it, and the regions' squared errors, weighted by their ∫hT², add up to the total's."""
+    path = write_exodus(tmp_path / "x2.g", make_mesh(4, box=Box(10, 50, 246.7, 293.3), levels=1))
+    sim = make_sim(
+        dataclasses.replace(load_scene("tc2_steady_alpha_pi4", mesh=path, days=0.25), output_every_days=0.25)
+    )
+    sim.run(None)
+    g = sim.grid
+    _, _, h = sim.fields()
+    he = sim.case.exact(g.lat, g.lon, 0.25 * DAY)[2]
+    nodes = np.repeat(element_regions(element_sizes(g)), g.np**2)
+    total = sim.scorer.total_errors(0.25 * DAY, sim.x.numpy())
+    weights = []
+    for k, name in enumerate(REGIONS):
+        inside = nodes == k
+        norm = math.fsum(g.spheremp[inside] * he[inside] ** 2)
+        expected = math.sqrt(math.fsum(g.spheremp[inside] * (h - he)[inside] ** 2) / norm)
+        assert total[f"total_error_{name}"] == pytest.approx(expected, rel=1e-12, abs=0), name
+        weights.append(norm)
+    assert total["total_error_refined"] > 1e-6  # a real error, not round-off
+    by_region = sum(w * total[f"total_error_{k}"] ** 2 for w, k in zip(weights, REGIONS))
+    assert by_region == pytest.approx(total["total_error"] ** 2 * sum(weights), rel=1e-12)
 
 
 def test_tc5_errors_against_t213_are_williamsons_norms():
@@ -106,7 +141,7 @@ def test_tc5_errors_against_t213_are_williamsons_norms():
     assert expected["ref_l2_h_surface"] > 1e-5
     for k, val in expected.items():
         assert d[k] == pytest.approx(val, rel=1e-12, abs=0), k
-    assert sim.scorer.total_errors(DAY, sim.x.numpy()) == {
+    assert one_resolution(sim.scorer.total_errors(DAY, sim.x.numpy())) == {
         "total_error": d["ref_l2_h_surface"],
         "total_error_vorticity": d["ref_l2_vorticity"],
         "total_error_divergence": d["ref_l2_divergence"],

@@ -38,6 +38,9 @@ from swe_sphere.config.scene import (
 )
 from swe_sphere.core.constants import EARTH, Planet
 from swe_sphere.core.errors import SceneError
+from swe_sphere.grid.mesh import write_exodus
+from swe_sphere.grid.quality import smallest_dx
+from swe_sphere.grid.refine import make_mesh
 from swe_sphere.io.run_file import OUTPUT_FIELDS
 
 from meshes import TEMPEST_NE2
@@ -64,6 +67,20 @@ def test_a_dt_set_by_an_override_scales_with_another_grid():
     assert scene.notes == ("dt scaled with the smallest node spacing to 400 s",)
 
 
+def test_every_way_of_choosing_the_mesh_scales_dt_alike(tmp_path):
+    """The scene file's dt is for its own grid (tc5_mountain: ne30): -s grid.ne, -s grid.stretch_factor
+    and -s grid.mesh_file scale it with the smallest node spacing as ne= and mesh= do."""
+    assert load_scene("tc5_mountain", overrides={"grid.ne": 8}).dt == load_scene("tc5_mountain", ne=8).dt == 86400 / 109
+    stretch = {"grid.stretch_factor": 2.5, "grid.target_lat": 30.0, "grid.target_lon": 270.0}
+    stretched = load_scene("tc5_mountain", ne=8, overrides=stretch)
+    # ne8 c = 2.5: its worst dx_short is 2.23x below ne8's cube: 243 steps a day where the cube takes 109
+    ratio = smallest_dx(8, 4, make_mesh(8, stretch_factor=2.5, target_lat=30.0, target_lon=270.0)) / smallest_dx(30, 4)
+    assert stretched.dt == 86400 / math.ceil(86400 / (211.76470588235293 * ratio)) == 86400 / 243
+    path = write_exodus(tmp_path / "ne3.g", make_mesh(3))
+    by_key = load_scene("tc5_mountain", overrides={"grid.mesh_file": str(path), "grid.ne": 0})
+    assert by_key.dt == load_scene("tc5_mountain", mesh=path).dt == 86400 / 49
+
+
 A = EARTH.a
 SAME = Spacing(mean=1.0, smallest=1.0, scale=1.0, radii=(A, A))  # the run's grid and planet are the scene file's
 STRETCHED = {"map": "element_local", "stretch_factor": 2.0, "target_lat": 40.0, "target_lon": 0.0}
@@ -73,9 +90,14 @@ HV_TERMS = ("continuity", "momentum_advection", "coriolis", "pressure_gradient",
 def test_read_scene_applies_overrides_and_keeps_the_files_own_radius_and_case(tmp_path):
     path = tmp_path / "s.toml"
     path.write_text('[case]\nname = "tc2_steady"\n[planet]\nradius = 1e6\n[time]\ndt = 60\n')
-    tables, radius, case = read_scene(path, {"planet.radius": 2e6, "case.name": "tc5_mountain"})
-    assert tables == {"case": {"name": "tc5_mountain"}, "planet": {"radius": 2e6}, "time": {"dt": 60.0}}
-    assert (radius, case) == (1e6, "tc2_steady")  # the file's, before the overrides
+    tables, radius, case, grid = read_scene(path, {"planet.radius": 2e6, "case.name": "tc5_mountain", "grid.ne": 8})
+    assert tables == {
+        "case": {"name": "tc5_mountain"},
+        "planet": {"radius": 2e6},
+        "time": {"dt": 60.0},
+        "grid": {"ne": 8},
+    }
+    assert (radius, case, grid) == (1e6, "tc2_steady", {})  # the file's, before the overrides
     assert read_scene(path, {"time.dt": 30.0})[1] is None  # a dt of the override's own: no radius to scale from
     with pytest.raises(SceneError, match=r"^unknown key time.length in scene \(known: stepper, dt, days\)$"):
         read_scene(path, {"time.length": 3.0})

@@ -9,7 +9,8 @@ import pytest
 
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.mesh import read_exodus
-from swe_sphere.grid.quality import dinv_singular_values, element_sizes
+from swe_sphere.grid.quality import REGIONS, dinv_singular_values, element_regions, element_sizes
+from swe_sphere.grid.refine import Box, make_mesh
 from swe_sphere.grid.schmidt import schmidt_cube
 
 from meshes import MOUNTAIN
@@ -56,3 +57,40 @@ def test_the_mountain_mesh_figures():
     assert mesh["distortion_max"] == pytest.approx(5.449, abs=1e-3)
     assert mesh["norm_dinv_max"] / base["norm_dinv_max"] == pytest.approx(3.103, abs=1e-3)
     assert mesh["dx_short_max"] == pytest.approx(base["dx_short_max"], rel=0.01)  # the coarse region is ne10's
+
+
+def _distance_from(grid, lat: float, lon: float) -> np.ndarray:
+    """Each element's mean node's great-circle distance (degrees) from (lat, lon) (degrees)."""
+    x = np.stack([np.cos(grid.lat) * np.cos(grid.lon), np.cos(grid.lat) * np.sin(grid.lon), np.sin(grid.lat)])
+    c = x.reshape(3, grid.nelem, -1).mean(axis=2)
+    t = np.radians([lat, lon])
+    target = np.array([np.cos(t[0]) * np.cos(t[1]), np.cos(t[0]) * np.sin(t[1]), np.sin(t[0])])
+    return np.degrees(np.arccos(np.clip(target @ c / np.linalg.norm(c, axis=0), -1, 1)))
+
+
+def test_the_regions_of_a_stretched_cube_are_rings_about_its_target():
+    """c = 2.5 toward (30°N, 270°E) at ne4: the finest third of the resolution range nearest the
+    target, the coarsest third farthest (the Schmidt map's scale grows with the distance); the
+    uniform cube has no regions (its sizes spread 1.17x, below UNIFORM_RATIO)."""
+    assert REGIONS == ("refined", "transition", "coarse")
+    assert element_regions(element_sizes(CubedSphere(4, 4))) is None
+    grid = CubedSphere(0, 4, 1.0, mesh=make_mesh(4, stretch_factor=2.5, target_lat=30.0, target_lon=270.0))
+    regions = element_regions(element_sizes(grid))
+    assert np.bincount(regions).tolist() == [48, 36, 12]
+    far = _distance_from(grid, 30.0, 270.0)
+    assert far[regions == 0].max() < far[regions == 1].min() + 10 and far[regions == 0].max() < far[regions == 2].min()
+    assert far[regions == 1].max() < far[regions == 2].max()
+
+
+def test_the_regions_of_a_refined_cube_are_its_levels():
+    """ne4 refined 2x over TC5's mountain box (10..50°N, 246.7..293.3°E): the refined region's
+    elements are the box's (centroids within 45° of the mountain at 30°N, 270°E), about a quarter
+    of a coarse element's area each (2.89x less in the median: the smoothing moves their nodes),
+    the coarse region's the cube's elsewhere."""
+    grid = CubedSphere(0, 4, 1.0, mesh=make_mesh(4, box=Box(10, 50, 246.7, 293.3), levels=1))
+    sizes = element_sizes(grid)
+    regions = element_regions(sizes)
+    assert np.bincount(regions).tolist() == [40, 12, 72]
+    assert _distance_from(grid, 30.0, 270.0)[regions == 0].max() < 45
+    ratio = np.median(sizes.area[regions == 2]) / np.median(sizes.area[regions == 0])
+    assert 2.8 < ratio < 3.0

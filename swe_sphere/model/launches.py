@@ -91,13 +91,14 @@ class LaunchRecorder:
         """Record a per-element kernel (dim nelem, trailing element ``offset``)."""
         return self.record(kernel, self.nnodes // self.block, inputs, nodes_per_index=self.block)
 
-    def pointwise(self, kernel, rows, inputs):
+    def pointwise(self, kernel, rows, inputs, per_part=None):
         """Record a pointwise kernel with trailing ``block`` and ``offset`` arguments
         (``kernels.blas``) over (rows, N), or N if ``rows`` is None: np² nodes a thread
-        with the per-element layout, one on CUDA."""
+        with the per-element layout, one on CUDA (``per_part`` as ``core.parallel.record``'s)."""
         block = self.block if self.per_element else 1
         n = self.nnodes // block
-        return self.record(kernel, n if rows is None else (rows, n), [*inputs, block], nodes_per_index=block)
+        dim = n if rows is None else (rows, n)
+        return self.record(kernel, dim, [*inputs, block], nodes_per_index=block, per_part=per_part)
 
     def lincomb(self, out, terms):
         """The recorded launch of out = Σ c·x over one to three (c, x) terms of (rows, N)

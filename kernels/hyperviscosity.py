@@ -17,7 +17,8 @@ with X the Cartesian wind, P the tangent projection, δ = DSS(∇·v) and every 
 the DSS'd weak Laplacian. Rows of the work arrays: 0..2 Cartesian wind, 3 free
 surface.
 
-In four passes, as HOMME (``vlaplace_sphere_wk_cartesian``) forms each
+In four passes (three on the CPU, whose second weak Laplacian gathers the first DSS
+itself), as HOMME (``vlaplace_sphere_wk_cartesian``) forms each
 Laplacian: everything pointwise in Y₁ and Y₂ is done on the element's weak form
 before its DSS, where the mass is a factor (2v/a² enters as 2·spheremp·v/a²,
 ∇δ as spheremp·∇δ, whose unweighted DSS is the mass-weighted one of ∇δ; P and
@@ -114,20 +115,28 @@ def add_divergent(y: Any, a: Any, b: Any, cw: Any, q: int, f: Any):
 
 
 @functools.cache
-def laplacian_element(second: bool, divergent: bool, np_: int):
+def laplacian_element(second: bool, divergent: bool, np_: int, copies: int = 0, ghosts: bool = False):
     """The weak form of Y₁ (``second=False``, from the state ``src`` = x (3, ·)
     and hs) or of Y₂ (``second=True``, from ``src`` = Y₁ (4, ·)) of the elements
     (the module docstring), one thread per element, on GLL rows
     (``operators.row_vectors`` views, N/np rows); ``divergent``: with the
     (ν_div − ν)·spheremp·∇δ term, δ the DSS'd divergence in ``delta`` (1, ·)
-    (first only). Arguments: src, hs, delta, c (``scale_first``), f
-    (``frame_type`` of rows), metric (4, ·) (``laplacian_metric``), dvv
-    (``operators.dvv_matrix``), L (4, ·) output, offset (in elements). Dim nelem."""
+    (first only). The second pass does the first DSS itself, a ``Topology.gathering``
+    kernel (``copies``, ``ghosts`` as ``dss.gather``; ValueError for copies < 1): each
+    element writes Y₁ = the unweighted DSS of the first pass's weak form x (4, N) at its own
+    nodes into Y (4, N), the bits of ``dss.dss_rows``, and reads it back as ``src``, Y's rows,
+    while it is in cache. Arguments: x (f64), d (``dss.Copies``), Y (f64), src, hs, delta,
+    c (``scale_first``), f (``frame_type`` of rows), metric (4, ·) (``laplacian_metric``),
+    dvv (``operators.dvv_matrix``), L (4, ·) output (aliasing neither x nor Y), block (np²),
+    offset (in elements); the first pass reads neither x, d, Y nor block. Dim nelem."""
     NP = int(np_)
     vec, mat, along, across = row_derivatives(NP)
     stack = wp.types.matrix(shape=(4, NP), dtype=f64)  # the four fields' values on one row
     S, DIV = bool(second), bool(divergent) and not second
     RowFrame = frame_type(vec)
+    if S and copies < 1:
+        raise ValueError(f"the second pass sums the copies of a node: copies must be at least 1 (got {copies})")
+    sum_copies = gather(4, False, max(1, int(copies)), ghosts)
 
     def weak_laplacian(F: mat, G11: mat, G12: mat, G22: mat, dvv: mat, dvvT: mat):
         out = mat()  # −Σ ∂ᵀ(G ∇_ref f): G ∇_ref f is the quadrature-weighted contravariant gradient
@@ -157,6 +166,9 @@ def laplacian_element(second: bool, divergent: bool, np_: int):
     field = wp.func(field)
 
     def kernel(
+        x: wp.array2d(dtype=f64),
+        d: Copies,
+        Y: wp.array2d(dtype=f64),
         src: wp.array2d(dtype=vec),
         hs: wp.array(dtype=vec),
         delta: wp.array2d(dtype=vec),
@@ -165,9 +177,16 @@ def laplacian_element(second: bool, divergent: bool, np_: int):
         metric: wp.array2d(dtype=vec),
         dvv: mat,
         L: wp.array2d(dtype=vec),
+        block: int,
         offset: int,
     ):
-        base = (wp.tid() + offset) * NP
+        e = wp.tid() + offset
+        if wp.static(S):  # Y = the DSS of x at this element's nodes, read back below (as src) in cache
+            for p in range(e * block, e * block + block):
+                s = sum_copies(x, d, p)
+                for r in range(4):
+                    Y[r, p] = s[r]
+        base = e * NP
         dvvT = wp.transpose(dvv)
         G11 = mat()  # the weak Laplacian's metric (``laplacian_metric``), once for all fields
         G12 = mat()

@@ -153,12 +153,10 @@ def test_a_small_planet_run_names_its_planet_and_why_dt_changed(capsys):
         "planet.radius=637122",
         "-s",
         "planet.omega=7.292e-4",
+        "--days",  # the scene's own grid (any other, --ne or -s grid.ne, scales dt with it too)
+        "0.0125",
         "-s",
-        "grid.ne=2",  # the scene's own grid, made small (not --ne: that scales dt with the grid too)
-        "--days",
-        "0.05",
-        "-s",
-        "output.every_days=0.05",
+        "output.every_days=0.0125",
         "--device",
         "cpu",
         "--no-progress",
@@ -169,7 +167,7 @@ def test_a_small_planet_run_names_its_planet_and_why_dt_changed(capsys):
     assert (
         "note        dt scaled with the planet's radius (637122 m against the scene's 6.37122e+06 m) to 30 s" in lines
     )
-    assert "output      tc2_steady_ne2np4_ssprk3_a637122_omega0.0007292_0.05d.nc (every 0.05 days)" in lines
+    assert "output      tc2_steady_ne16np4_ssprk3_a637122_omega0.0007292_0.0125d.nc (every 0.0125 days)" in lines
 
 
 def test_an_interrupted_run_and_its_continuation_join_without_a_repeated_time(tmp_path):

@@ -53,5 +53,7 @@ class BadNodes:
         m.launches.replay(
             (name, x.ptr),
             (x,),
-            lambda: [m.launches.nodes(blas.first_bad_node, m.N, [x, check_depth, first], {"first": slots})],
+            lambda: [
+                m.launches.pointwise(blas.first_bad_node, None, [x, check_depth, first], per_part={"first": slots})
+            ],
         )

@@ -28,15 +28,16 @@ class Hyperviscosity:
     its ν, ν_div, ν_s and ``hypervis_subcycle``): ``operator`` B x, ``apply`` over a
     step, and the step's plan (``substeps``, ``stages``, ``plan``) from the
     operator's spectral radius (``biharmonic_radius``). Allocates its work arrays
-    (4 and, on the per-node layout, 12 rows of N) once."""
+    (12 rows of N and the fixed metric's 4 on the per-element layout, 20 on the per-node one) once."""
 
     def __init__(self, model):
         self.model = m = model
         N, device = m.N, m.device
         self.hv_Y = wp.zeros((4, N), dtype=f64, device=device)  # Y₁ (``kernels.hyperviscosity``)
-        self.hv_L = wp.zeros((4, N), dtype=f64, device=device)  # the weak forms of Y₁ and Y₂
+        self.hv_L = wp.zeros((4, N), dtype=f64, device=device)  # the weak form of Y₁ (and Y₂'s on the per-node layout)
         if m.per_element:  # the weak Laplacian's metric, fixed: computed once, not by every ∇⁴ evaluation
             self.hv_metric = wp.zeros((4, N), dtype=f64, device=device)
+            self.hv_L2 = wp.zeros((4, N), dtype=f64, device=device)  # the weak form of Y₂ (L holds Y₁'s)
             m.launches.nodes(hyperviscosity.laplacian_metric, N, [m.Dinv, m.spheremp, self.hv_metric]).launch()
         else:  # the Cartesian state and the weak Laplacian's flux of the per-node kernels
             self.hv_X = wp.zeros((4, N), dtype=f64, device=device)
@@ -50,10 +51,11 @@ class Hyperviscosity:
     def build(self, x, coef, out=None, nus=None):
         """Launches of out += coef·B x, B = ν∇⁴ the hyperviscosity operator
         (``kernels.hyperviscosity``) with coefficients ``nus`` = (ν, ν_div, ν_s)
-        (None: the model's); out = x if None. Four passes (the per-node
-        layout: ``to_cartesian`` and a flux pass before the first weak
-        Laplacian, a flux pass before the second), and the divergence δ and
-        its DSS first when ν_div ≠ ν."""
+        (None: the model's); out = x if None. Three passes on the per-element
+        layout (the second weak Laplacian sums the first DSS itself), four and
+        three more on the per-node one (the first DSS; ``to_cartesian`` and a
+        flux pass before the first weak Laplacian, a flux pass before the
+        second), and the divergence δ and its DSS first when ν_div ≠ ν."""
         m = self.model
         N, np_ = m.N, m.grid.np
         out = x if out is None else out
@@ -70,19 +72,19 @@ class Hyperviscosity:
 
         if m.per_element:
 
-            def laplacian(second):  # → the weak form of Y₁ or Y₂ in L
-                kernel = hyperviscosity.laplacian_element(second, divergent, np_)
+            def laplacian(second):  # → the weak form of Y₁ in L, or of Y₂ in L2 from the DSS of L
                 frame = self._frame(*() if second else names, rows=True)
                 metric = self.hv_tensor if second and self.hv_tensor is not None else self.hv_metric
-                args = [
-                    *map(m.as_rows, (Y if second else x, m.hs, delta)),
-                    c,
-                    frame,
-                    m.as_rows(metric),
-                    m.dvv_rows,
-                    m.as_rows(L),
-                ]
-                return [m.launches.elements(kernel, args)]
+                args = [m.as_rows(m.hs), m.as_rows(delta), c, frame, m.as_rows(metric), m.dvv_rows]
+                if not second:  # x, d and Y are not read
+                    kernel = hyperviscosity.laplacian_element(False, divergent, np_)
+                    head = [L, m.topology.dss_copies, Y, m.as_rows(x)]
+                    return [m.launches.elements(kernel, [*head, *args, m.as_rows(L), m.launches.block])]
+
+                def gathered(rows, copies, ghosts):  # the first DSS in the second pass, element by element
+                    return hyperviscosity.laplacian_element(True, divergent, np_, copies, ghosts)
+
+                return m.topology.gathering(L, gathered, [Y, m.as_rows(Y), *args, m.as_rows(self.hv_L2)])
         else:
 
             def laplacian(second):
@@ -107,12 +109,15 @@ class Hyperviscosity:
         def apply(rows, copies, ghosts):  # ``Topology.gathering``'s kernel factory
             return hyperviscosity.dss_apply(copies, ghosts=ghosts)
 
+        first = laplacian(False)
+        second = laplacian(True) if m.per_element else [*m.topology.dss(L, 0, Y), *laplacian(True)]
         return [
             *launches,
-            *laplacian(False),
-            *m.topology.dss(L, 0, Y),
-            *laplacian(True),
-            *m.topology.gathering(L, apply, [f64(coef), self._frame("east", "north"), out]),
+            *first,
+            *second,
+            *m.topology.gathering(
+                self.hv_L2 if m.per_element else L, apply, [f64(coef), self._frame("east", "north"), out]
+            ),
         ]
 
     def tensor_metric(self, scaling: float) -> wp.array2d:

@@ -98,16 +98,21 @@ class LaunchRecorder:
         start, stop = (0, self.nnodes // self.block) if elements is None else elements
         return self.record(kernel, stop - start, inputs, nodes_per_index=self.block, start=start)
 
-    def pointwise(self, kernel, rows, inputs, elements=None):
+    def pointwise(self, kernel, rows, inputs, elements=None, per_part=None):
         """Record a pointwise kernel with trailing ``block`` and ``offset`` arguments
         (``kernels.blas``) over (rows, N), or N if ``rows`` is None: np² nodes a thread
         with the per-element layout, one on CUDA. ``elements`` (start, stop): over
-        those elements' nodes only."""
+        those elements' nodes only; ``per_part`` as ``core.parallel.record``'s."""
         block = self.block if self.per_element else 1
         start, stop = (0, self.nnodes // self.block) if elements is None else elements
         first, n = start * self.block // block, (stop - start) * self.block // block
         return self.record(
-            kernel, n if rows is None else (rows, n), [*inputs, block], nodes_per_index=block, start=first
+            kernel,
+            n if rows is None else (rows, n),
+            [*inputs, block],
+            nodes_per_index=block,
+            start=first,
+            per_part=per_part,
         )
 
     def lincomb(self, out, terms):

@@ -26,7 +26,7 @@ from tqdm import tqdm
 
 from ..cases.scoring import Scorer
 from ..config.scene import Scene, common_interval, resolve_scene, with_days
-from ..core.backend import Backend, pick_device
+from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
 from ..core.constants import DAY
 from ..core.errors import BlowUp, Interrupted, ResourceError, SceneError, StepFailure
 from ..core.graphs import GraphedSteps, default_mode, graphs_mode
@@ -171,7 +171,7 @@ class Simulation(StateDiagnostics):
     ----------
     check_every : int
         ``run`` reads the device's bad-state check back once a block of so many steps
-        (``Backend.check_every``: 1 on a CPU, 64 on a GPU), a failed block re-run one
+        (``core.backend.CHECK_EVERY_STEPS``, 64), a failed block re-run one
         checked step at a time (``guard.Guard``; the same bits either way).
     dfi : FilterResult or None
         The digital-filter initialization's result, when the scene has one
@@ -300,7 +300,7 @@ class Simulation(StateDiagnostics):
         self.x = self.model.new_state(*(self.dfi.x if self.dfi is not None else start))
         self.stepper.prepare(self.x)
         self.last_good = wp.clone(self.x)  # the state at the start of the block of steps in progress (``guard``)
-        self.check_every = topo.backend.check_every
+        self.check_every = CHECK_EVERY_STEPS
         if not self.root:  # a fallback's warning once, from rank 0
             self.model.graph_guard.warn = lambda line: None
         self._graphed = GraphedSteps(device, self.model.graph_guard)

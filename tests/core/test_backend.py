@@ -40,7 +40,7 @@ def test_the_cpu_backend():
     assert cpu.host and cpu.per_element and cpu.distributes and not cpu.graphs_pay
     assert cpu.nodes_per_thread(4) == 16 and cpu.launch_parts(3) == 3
     assert cpu.reduction_chunk(10**6) == CPU_CHUNK  # the bits do not depend on the length or threads
-    assert cpu.direct_totals(10**6) and cpu.check_every == 1 and cpu.graph_name == "CPU graph"
+    assert cpu.direct_totals(10**6) and cpu.graph_name == "CPU graph"
     assert cpu.choose(HostVectors, KernelVectors) is HostVectors
     assert cpu.choose(HostPasses, KernelPasses) is HostPasses
 
@@ -55,7 +55,7 @@ def test_the_cuda_backend_without_a_gpu(monkeypatch):
     # about n / 4096 entries a partial sum, within 8 to 32
     assert [cuda.reduction_chunk(n) for n in (1000, 20 * 4096, 10**7)] == [8, 20, 32]
     assert cuda.direct_totals(DEVICE_TOTALS) and not cuda.direct_totals(DEVICE_TOTALS + 1)
-    assert cuda.check_every == CHECK_EVERY_STEPS == 64 and cuda.graph_name == "CUDA graph"
+    assert cuda.graph_name == "CUDA graph"
     assert cuda.choose(HostVectors, KernelVectors) is KernelVectors
     assert cuda.choose(HostPasses, KernelPasses) is KernelPasses
 
@@ -68,7 +68,7 @@ def test_a_model_takes_its_choices_from_its_backend():
     assert sim.topology.backend == Backend.of("cpu")
     assert isinstance(sim.stepper.fgmres.vectors, HostVectors)
     assert isinstance(sim.stepper.jacobian.passes, HostPasses)
-    assert sim.model.per_element and sim.check_every == 1
+    assert sim.model.per_element and sim.check_every == CHECK_EVERY_STEPS == 64
 
 
 @pytest.mark.parametrize("value", ["0", "two"])

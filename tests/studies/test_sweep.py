@@ -547,6 +547,7 @@ def _rows(out):
 TC5 = ["sweep", "tc5_mountain", "--ne", "2", "--steppers", "rk4", "--device", "cpu"]
 
 
+@pytest.mark.slow  # 12 s: the default run's time is kept under ten minutes
 def test_a_sweep_of_other_days_or_overrides_into_the_same_folder_makes_its_runs_again(tmp_path, capsys):
     """A user's sequence on a tiny grid: a 2-day sweep, then a 1-day one of part of
     it into the same folder. The second makes the small-Δt run and its runs again
@@ -754,6 +755,7 @@ def test_the_progress_bar_is_drawn_on_a_terminal_only(tmp_path):
     assert child.wait() == 0 and b"\r" in seen and b"144/144" in seen, seen
 
 
+@pytest.mark.slow  # 12 s: the default run's time is kept under ten minutes
 def test_a_sweep_with_two_workers_says_one_line_a_run(tmp_path):
     """``sweep --workers 2`` of 9 runs into a log: before its table, the sweep's line,
     the small-Δt run's, one line per finished run and the count, nothing from the

@@ -132,7 +132,7 @@ REFUSALS = {
     "mesh_file_map0": {"overrides": {"grid.mesh_file": str(TEMPEST_NE2), "grid.map": "equiangular"}},
     "mesh_file_missing": {"overrides": {"grid.mesh_file": "nowhere.g", "grid.ne": 0}},
 }
-MESH_REFUSALS = {"mesh_and_ne", "mesh_file_ne0", "mesh_file_override_ne"}  # need TEMPEST_NE2 to load
+MESH_REFUSALS = {"mesh_and_ne", "mesh_file_ne0", "mesh_file_override_ne", "mesh_file_ne"}  # need TEMPEST_NE2 to load
 
 # scene files of their own (stem: text), loaded from a temporary folder with load_scene's keywords
 TOML = {

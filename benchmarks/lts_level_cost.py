@@ -11,7 +11,7 @@ the whole-grid ``rhs``; µs per element evaluated and the ratio to the whole gri
 interleaved so that load changes hit all alike; medians; the load average printed.
 
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \\
-        python benchmarks/lts_level_cost.py --mesh ../shared/meshes/mountain_10_x2.g
+        python benchmarks/lts_level_cost.py --mesh PATH/mountain_10_x2.g
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ not blown up yet can be far off), and at that Δt the median CPU time (``time.pr
 of ``Simulation.run``, one thread) of ``--rounds`` runs. The load average is printed.
 
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \\
-        python benchmarks/lts_study.py --mesh ../shared/meshes/mountain_10_x2.g --days 3
+        python benchmarks/lts_study.py --mesh PATH/mountain_10_x2.g --days 3
 """
 
 from __future__ import annotations

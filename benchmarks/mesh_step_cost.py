@@ -8,7 +8,7 @@ load changes hit all alike; medians. Each element-step ratio is to the equiangul
 ``--ne`` (the target: within 1.15).
 
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \\
-        python benchmarks/mesh_step_cost.py --ne 13 --mesh ../shared/meshes/mountain_10_x2.g
+        python benchmarks/mesh_step_cost.py --ne 13 --mesh PATH/mountain_10_x2.g
 """
 
 from __future__ import annotations

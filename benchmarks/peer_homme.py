@@ -34,8 +34,9 @@ from its own summary. HOMME's Earth is larger (``rearth`` 6.376e6 m, the
 reference's and swe_sphere's 6.37122e6 m), so its l2 is 5.6e-5 at day 0 already:
 the figures are not a comparison of accuracy.
 
-HOMME comes from the kit in ``../shared/peers/homme`` (beside the main checkout;
-``--kit``): ``--homme PATH`` names a built ``sweqx``, else the script uses
+HOMME comes from a build kit, ``--kit DIR`` (``build.sh``, ``namelists/`` and HOMME's
+source tarball; by default looked for beside the checkout, not part of the repository):
+``--homme PATH`` names a built ``sweqx``, else the script uses
 ``BUILD/build/src/sweqx/sweqx`` and builds it there with the kit's ``build.sh``
 when absent (Debian packages, root, 3–5 minutes on 2 cores; ``--build-dir``,
 default ``~/.cache/swe_sphere/homme``). Where it cannot, it prints one line with

@@ -57,7 +57,8 @@ would set the floor; Δt 45 s keeps np 7 on the c = 4 cube stable and the time e
 space error), and np 8 with HOMME's settings: the configuration of HOMME's regression baseline.
 
 HOMME comes as for ``peer_homme.py`` (``--homme``, ``--kit``, ``--build-dir``); the mesh from
-``--mesh`` (default: ``shared/meshes/mountain_10_x2.g`` beside the kit). Where either cannot be
+``--mesh`` (E3SM's ``components/homme/test/mesh_files/mountain_10_x2.g``; default: a
+``meshes/`` folder beside the kit). Where either cannot be
 had, one line with the reason and exit 0.
 
     python benchmarks/peer_homme_rrm.py [--rounds 5] [--days 4] [--homme PATH] [--no-np]

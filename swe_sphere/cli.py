@@ -881,25 +881,16 @@ def _cmd_remap(args) -> int:
     return 0
 
 
+# each command's function and the module it imports first, the one that brings Warp, numpy
+# and the rest (``_import_uncollected``)
 COMMANDS = {
-    "list": lambda args: _cmd_list(),
-    "stability": _cmd_stability,
-    "sweep": _cmd_sweep,
-    "plot": _cmd_plot,
-    "remap": _cmd_remap,
-    "run": _cmd_run,
-    "mesh": _cmd_mesh,
-}
-# the module each command imports first, the one that brings Warp, numpy and the rest
-# (``_import_uncollected``)
-COMMAND_MODULES = {
-    "list": "config.scene",
-    "stability": "studies.stability",
-    "sweep": "studies.sweep",
-    "plot": "studies.plotting",
-    "remap": "io.remap",
-    "run": "simulation.simulation",
-    "mesh": "grid.refine",
+    "list": (lambda args: _cmd_list(), "config.scene"),
+    "stability": (_cmd_stability, "studies.stability"),
+    "sweep": (_cmd_sweep, "studies.sweep"),
+    "plot": (_cmd_plot, "studies.plotting"),
+    "remap": (_cmd_remap, "io.remap"),
+    "run": (_cmd_run, "simulation.simulation"),
+    "mesh": (_cmd_mesh, "grid.refine"),
 }
 
 
@@ -1010,9 +1001,10 @@ def main(argv=None) -> int:
         args = _parser().parse_args(argv)
         args.argv, args.console = argv, console
         debug = debug or args.debug
+        command, module = COMMANDS[args.command]
         if console:
-            _import_uncollected(COMMAND_MODULES[args.command])
-        code = COMMANDS[args.command](args)
+            _import_uncollected(module)
+        code = command(args)
     except (Exception, KeyboardInterrupt) as err:
         if debug:
             raise

@@ -16,6 +16,7 @@ from swe_sphere.core.errors import SceneError
 from swe_sphere.grid.cubed_sphere import CubedSphere, cube_mesh
 from swe_sphere.grid.face_map import FIT_TOLERANCE, face_corners
 from swe_sphere.grid.mesh import read_exodus, write_exodus
+from swe_sphere.grid.partition import mesh_partition
 from swe_sphere.grid.refine import Box, make_mesh
 
 import roundoff
@@ -77,6 +78,16 @@ def test_neighbours_place_the_same_gll_points_on_their_shared_edges(refined):
     on_edge = np.maximum(np.abs(np.arctan2(ta, c)), np.abs(np.arctan2(tb, c))) > math.pi / 4 - 1e-12
     assert np.array_equal(across, on_edge) and np.count_nonzero(across) >= 12 * 4 * (g.np - 1) * 2
     assert math.fsum(g.area) == pytest.approx(4 * math.pi * g.radius**2, rel=roundoff.bound(4 * g.np**2))
+
+
+def test_a_part_of_the_grid_is_the_whole_at_its_nodes_bit_for_bit(refined):
+    """An MPI rank's part (the mesh's curve partition): the area correction comes from the whole
+    mesh's analytic quadrature, so every array is the whole grid's at the part's nodes."""
+    whole = CubedSphere(0, 4, mesh=refined)
+    for elements in mesh_partition(refined, 3):
+        part = whole.part(np.sort(elements))
+        for name in (*METRIC[:-1], "gid"):
+            assert np.array_equal(getattr(part, name), getattr(whole, name)[..., part.nodes]), name
 
 
 def test_the_turned_cube_of_a_refined_mesh_is_found(refined):

@@ -277,6 +277,7 @@ def test_default_file_names_and_headers_say_the_mesh(cube_file):
         "ne2map2": load_scene("tc2_steady", ne=2, overrides={"grid.map": "element_local"}),
         "ne2c1.5": load_scene("tc2_steady", ne=2, overrides={"grid.stretch_factor": 1.5}),
         "cube2": load_scene("tc2_steady", mesh=cube_file),
+        "cube2map0": load_scene("tc2_steady", mesh=cube_file, overrides={"grid.map": "equiangular"}),
     }
     assert {label: s.grid_label for label, s in scenes.items()} == {label: label for label in scenes}
     assert [s.grid_text for s in scenes.values()] == [
@@ -284,6 +285,7 @@ def test_default_file_names_and_headers_say_the_mesh(cube_file):
         "ne=2 np=4 element-local",
         "ne=2 np=4 stretched 1.5x toward (90, 0)",
         "mesh cube2.g np=4",
+        "mesh cube2.g np=4 equiangular",
     ]
 
 

@@ -20,9 +20,11 @@ of h each day (Williamson 1992), the relative mass change, the CPU seconds of ea
 h at the last day by region (``grid.quality.element_regions``: fine, transition, coarse by the
 elements' Dinv-based size; ``cases.scoring.regional_l2``), on the refined mesh through both maps
 and on the ne10 cubes (built in, element-local, turned) at the same places (each cube element in the region of the nearest
-refined-mesh element centroid).
+refined-mesh element centroid). With ``--sweqx PATH`` (and ``--homme``), HOMME's own
+``sweqx`` in the same settings on the ne10 cube with ``cubed_sphere_map = 0`` and on the
+mountain mesh with 0 and 2 (``homme_maps``).
 
-    SWE_SPHERE_THREADS=1 python benchmarks/tc2_face_map.py [--days 5] [--dt 90] [--homme]
+    SWE_SPHERE_THREADS=1 python benchmarks/tc2_face_map.py [--days 5] [--dt 90] [--homme [--sweqx PATH]]
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -42,7 +45,8 @@ from scipy.spatial import cKDTree
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from peer_homme_rrm import BOX, HOMME_RADIUS, TERMS, gradient_error, our_nu  # noqa: E402  (benchmarks/)
+from peer_homme import default_kit, run_homme  # noqa: E402  (benchmarks/)
+from peer_homme_rrm import BOX, HOMME_RADIUS, TERMS, gradient_error, homme_scores, kit_namelist, our_nu  # noqa: E402
 
 from swe_sphere.cases.scoring import regional_l2  # noqa: E402
 from swe_sphere.config.scene import load_scene  # noqa: E402
@@ -106,6 +110,24 @@ def run(grid: dict, dt: float, days: float, homme: Path | None):
     return sim, result.history, time.process_time() - start
 
 
+def homme_maps(sweqx: Path, mountain: Path, days: int, folder: Path) -> None:
+    """HOMME's ``sweqx`` in ``swtc2.nl`` on the ne10 cube with ``cubed_sphere_map = 0`` and on
+    ``mountain`` with 0 and 2: its l2 of h each day. HOMME takes map 2 on any mesh file
+    (``namelist_mod.F90``: "must use element_local for var-res grids"), so the two agree."""
+    base = kit_namelist(default_kit())
+    for label, grid in (
+        ("ne10, map 0", "ne = 10\ncubed_sphere_map = 0"),
+        (f"{mountain.name}, map 0", f"mesh_file = '{mountain}'\ncubed_sphere_map = 0"),
+        (f"{mountain.name}, map 2", f"mesh_file = '{mountain}'\ncubed_sphere_map = 2"),
+    ):
+        text = re.sub(r"(?m)^\s*(cubed_sphere_map|ne)\s*=.*$", "", base)
+        text = re.sub(r"(?m)^\s*mesh_file\s*=.*$", grid, text)
+        text = re.sub(r"(?m)^\s*ndays\s*=.*$", f"ndays = {days}", text)
+        cpu, _, out = run_homme(sweqx, text, folder / re.sub(r"\W+", "_", label))
+        errors = "  ".join(f"{homme_scores(out, d)['l2']:.3e}" for d in range(1, days + 1))
+        print(f"HOMME {label:28s} l2 h day 1..{days}: {errors}  CPU {cpu:.1f} s")
+
+
 def node_regions(sim, centroids: np.ndarray, regions: np.ndarray) -> np.ndarray:
     """Each element-local node's region: that of the refined-mesh element whose centroid is
     nearest its own element's centroid."""
@@ -120,6 +142,7 @@ def main(argv=None) -> int:
     parser.add_argument("--dt", type=float, default=90.0)
     parser.add_argument("--mountain", type=Path, default=MOUNTAIN)
     parser.add_argument("--homme", action="store_true", help="HOMME's swtc2.nl settings (leapfrog, tensor ∇⁴)")
+    parser.add_argument("--sweqx", type=Path, help="HOMME's sweqx: run it too (ne10 map 0, the mountain mesh map 0, 2)")
     args = parser.parse_args(argv)
     how = "HOMME swtc2 (leapfrog-trapezoidal, tensor ∇⁴ s 3.2)" if args.homme else "ssprk3, no ∇⁴"
     print(f"load average {os.getloadavg()[0]:.2f}; TC2 np4 {how}, dt {args.dt:g} s, {args.days:g} days")
@@ -166,6 +189,8 @@ def main(argv=None) -> int:
                         f"{label:42s} {sim.grid.nelem:5d} {grad:8.2e} {day:4.0f} {d['l1_h']:10.3e} {d['l2_h']:10.3e} "
                         f"{d['linf_h']:10.3e} {mass} {cpu:7.1f}"
                     )
+        if args.sweqx is not None and args.mountain.is_file():
+            homme_maps(args.sweqx, args.mountain.absolute(), round(args.days), tmp)
         t = args.days * 86400
         print(f"\nl2 of h at day {args.days:g} by region (fine / transition / coarse), the refined mesh's regions")
         for name in files:

@@ -4,6 +4,7 @@ check (the built-in cube and the same cube read from a ``.g`` file give the same
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -179,10 +180,10 @@ def test_the_cube_read_from_its_own_g_file_is_the_built_in_cube_bit_for_bit(tmp_
 
 
 def same_nodes(a, b) -> np.ndarray:
-    """The element-local node of grid b at each of grid a's: the element with the same
-    centroid, and in it the node at the same place (a shared node's copies are told apart
+    """The element-local node of grid b at each of grid a's (a mesh's, or the built-in cube's):
+    the element with the same centroid, and in it the node at the same place (a shared node's copies are told apart
     by their elements)."""
-    _, element = cKDTree(b.mesh.centroids()).query(a.mesh.centroids())
+    _, element = cKDTree(b.mesh.centroids()).query((a.mesh or cube_mesh(a.ne)).centroids())
     npe = a.np**2
     xa = a.xyz.T.reshape(-1, npe, 1, 3)
     xb = b.xyz.T.reshape(-1, 1, npe, 3)[element]
@@ -192,13 +193,15 @@ def same_nodes(a, b) -> np.ndarray:
 
 @pytest.mark.roundoff
 @pytest.mark.skipif(not TEMPEST_NE2.is_file(), reason="TEMPEST_NE2.g (E3SM's HOMME test mesh) not present")
-def test_tempest_ne2_gives_the_built_in_cubes_metric_and_state_to_round_off():
+@pytest.mark.parametrize("map_", ["element_local", "equiangular"])
+def test_tempest_ne2_gives_the_built_in_cubes_metric_and_state_to_round_off(map_):
     """HOMME's swtc6-short-exodus: TEMPEST_NE2.g (its own element order and corner order)
-    against the built-in ne2 cube with the element-local map. Nodes are matched by place;
-    the metric's invariants (metdet, D Dᵀ: the reference axes may turn by 90°) agree to a
-    few roundings of the map; the state after 6 TC6 steps to the roundings they take."""
-    built_in = CubedSphere(2, 4, mesh=cube_mesh(2))
-    tempest = CubedSphere(0, 4, mesh=read_exodus(TEMPEST_NE2))
+    against the built-in ne2 cube with the same map (element-local, or equiangular: in each
+    element's cube face against the cube's own). Nodes are matched by place; the metric's
+    invariants (metdet, D Dᵀ: the reference axes may turn by 90°) agree to a few roundings
+    of the map; the state after 6 TC6 steps to the roundings they take."""
+    built_in = CubedSphere(2, 4, mesh=cube_mesh(2) if map_ == "element_local" else None)
+    tempest = CubedSphere(0, 4, mesh=dataclasses.replace(read_exodus(TEMPEST_NE2), map=map_))
     at = same_nodes(built_in, tempest)
     assert np.max(np.abs(tempest.xyz[:, at] - built_in.xyz)) <= roundoff.bound(8)
     roundoff.within(np.max(np.abs(tempest.metdet[at] / built_in.metdet - 1)), roundoff.bound(32), "metdet")

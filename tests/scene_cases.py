@@ -129,7 +129,6 @@ REFUSALS = {
     "mesh_file_ne0": {"overrides": {"grid.mesh_file": str(TEMPEST_NE2), "grid.ne": 0}},
     "mesh_file_override_ne": {"ne": 3, "overrides": {"grid.mesh_file": str(TEMPEST_NE2), "grid.ne": 0}},
     "mesh_file_stretch": {"overrides": {"grid.mesh_file": str(TEMPEST_NE2), "grid.stretch_factor": 2.0}},
-    "mesh_file_map0": {"overrides": {"grid.mesh_file": str(TEMPEST_NE2), "grid.map": "equiangular"}},
     "mesh_file_missing": {"overrides": {"grid.mesh_file": "nowhere.g", "grid.ne": 0}},
 }
 MESH_REFUSALS = {"mesh_and_ne", "mesh_file_ne0", "mesh_file_override_ne", "mesh_file_ne"}  # need TEMPEST_NE2 to load

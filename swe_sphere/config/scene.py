@@ -18,7 +18,8 @@ the run length, the output interval and the hyperviscosity. Layout::
                       cubed_sphere_map 0 or 2), stretch_factor = 2.5, target_lat = 40.0,
                       target_lon = 270.0 (degrees: the Schmidt-stretched cube of ne, FV3's
                       do_schmidt; element-local), or mesh_file = "x.g" (an Exodus II mesh,
-                      relative to the scene file or absolute; ne = 0 as HOMME's, element-local);
+                      relative to the scene file or absolute; ne = 0 as HOMME's; element-local,
+                      or with map = "equiangular" each element in its cube face);
                       ``grid.spec`` records the choice in ``Scene.mesh``
     [time]            stepper = "leapfrog_trapezoidal", dt = 90.0, days = 15.0
     [output]          every_days = 1.0, log_every_steps = 0 (a line of invariant
@@ -635,10 +636,10 @@ def _grid_record(grid: dict, scene_path: Path) -> dict | None:
     if "mesh_file" in grid:
         if stretch:
             raise SceneError(f"grid.{stretch[0]} stretches the cube; a mesh file is its own mesh (drop one)")
-        if chosen == "equiangular":
-            raise SceneError('grid.map = "equiangular" is the cube\'s map; a mesh file takes "element_local"')
         given = Path(grid["mesh_file"]).expanduser()
-        return grid_spec.file_record(given if given.is_absolute() else scene_path.parent / given)
+        return grid_spec.file_record(
+            given if given.is_absolute() else scene_path.parent / given, chosen or "element_local"
+        )
     if stretch:
         if "stretch_factor" not in grid:
             raise SceneError(f"grid.{stretch[0]} needs grid.stretch_factor (the Schmidt-stretched cube)")
@@ -799,7 +800,7 @@ def resolve_grid(
 ) -> tuple[SceneGrid, SceneGrid, tuple]:
     """(the scene file's grid, the run's grid, notes) of the [grid] table (None: absent; the
     overrides applied) and ``load_scene``'s ``ne``, ``np_`` and ``mesh`` (an Exodus II file
-    replacing the scene's grid). The scene file's grid is that of ``file_table``, the file's own
+    replacing the scene's grid, through the table's ``map`` where it names one). The scene file's grid is that of ``file_table``, the file's own
     [grid] before the overrides ({} if it has none; None: ``table``): its dt and ν are for it, so
     every way of choosing the run's mesh (``-s grid.*``, ``ne``, ``np_``, ``mesh``) scales them
     alike (``resolve_spacing``). The defaults are ne = 16 (0 with a mesh file) and np = 4.
@@ -813,7 +814,7 @@ def resolve_grid(
     if mesh is not None:
         if ne is not None:
             raise SceneError(f"ne = {ne} and mesh {mesh}: a mesh file's elements are its own (HOMME's ne = 0)")
-        record1, ne = grid_spec.file_record(mesh), 0
+        record1, ne = grid_spec.file_record(mesh, (table or {}).get("map", "element_local")), 0
     elif on_file and ne not in (None, 0):
         raise SceneError(f"ne = {ne} with grid.mesh_file: a mesh file's elements are its own (HOMME's ne = 0)")
     ne1 = named.ne if ne is None else ne
@@ -825,7 +826,7 @@ def resolve_grid(
         raise SceneError(f"ne must be an integer >= 1 (got {_got(ne1)})")
     if not _is_integer(np1) or not NP_MIN <= np1 <= NP_MAX:
         raise SceneError(f"np must be an integer in {NP_MIN}..{NP_MAX} (got {_got(np1)})")
-    if record1 is not None and np1 < 3:
+    if record1 is not None and record1["map"] == "element_local" and np1 < 3:
         raise SceneError(
             f"np must be >= 3 on {grid_spec.describe(ne1, np1, record1)}: the element-local map's area correction moves interior nodes"
         )

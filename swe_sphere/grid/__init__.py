@@ -5,11 +5,22 @@ rank partition, and the topology (DSS, assembly and reductions on one rank or ov
 HOMME's ``element_t``), ``gll.gll``, ``partition.partition`` (a space-filling curve),
 ``topology.Topology`` (the one seam for DSS and global sums), ``mesh.Mesh`` (any conforming
 quadrilateral mesh of the sphere; Exodus II ``.g`` files in and out), ``element_local`` (its map and
-numbering), ``schmidt.schmidt_cube`` (the stretched cube), ``refine.refined_cube`` (the cube
+numbering), ``face_map`` (the equiangular map in each element's cube face), ``schmidt.schmidt_cube`` (the stretched cube), ``refine.refined_cube`` (the cube
 refined over a latitude-longitude box; ``refine.make_mesh``, what ``swe-sphere mesh`` writes),
 ``quality.element_sizes`` (HOMME's Dinv-based length scales and distortion).
 
 May import: ``core``, ``kernels``.
 """
 
-__all__ = ["cubed_sphere", "element_local", "gll", "mesh", "partition", "quality", "refine", "schmidt", "topology"]
+__all__ = [
+    "cubed_sphere",
+    "element_local",
+    "face_map",
+    "gll",
+    "mesh",
+    "partition",
+    "quality",
+    "refine",
+    "schmidt",
+    "topology",
+]

@@ -19,35 +19,22 @@ import math
 import numpy as np
 
 from ..core.constants import EARTH
-from .element_local import ElementLocalMap, MeshNumbering, bilinear, epsilon_bubble
+from .element_local import ElementLocalMap, MeshNumbering, epsilon_bubble, mesh_point
+from .face_map import FACES, FaceMap, gnomonic_jacobian
 from .gll import gll
 from .mesh import Mesh
-
-# Face k: centre c, in-face axes (ea, eb) with c × ea = eb, so every face is
-# seen counter-clockwise from outside and metdet > 0 in the (east, north) basis.
-# FACES[k] = (c, ea, eb) (6, 3, 3): the equiangular map's faces, for those that invert it (remap).
-FACES = np.array(
-    [
-        [[1, 0, 0], [0, 1, 0], [0, 0, 1]],
-        [[0, 1, 0], [-1, 0, 0], [0, 0, 1]],
-        [[-1, 0, 0], [0, -1, 0], [0, 0, 1]],
-        [[0, -1, 0], [1, 0, 0], [0, 0, 1]],
-        [[0, 0, 1], [0, 1, 0], [-1, 0, 0]],
-        [[0, 0, -1], [0, 1, 0], [1, 0, 0]],
-    ],
-    dtype=float,
-)
 
 
 class CubedSphere:
     """Cubed-sphere SE grid with ``ne``×``ne`` elements per face and ``np`` GLL points,
     or the part of it made of ``elements`` (an MPI rank's: only those are built and stored).
 
-    With ``mesh`` (a checked ``Mesh``), the grid of that quadrilateral mesh through the
-    element-local map (HOMME ``cubed_sphere_map = 2``, ``element_local``), np ≥ 3: ``ne = 0``
-    for a mesh from a file (HOMME's ``ne = 0`` with ``mesh_file``), or the cube's ne when
-    ``mesh`` is ``cube_mesh(ne)`` (its elements are then the cube's, and so is its partition).
-    Without, the equiangular map (HOMME ``cubed_sphere_map = 0``).
+    With ``mesh`` (a checked ``Mesh``), the grid of that quadrilateral mesh through its map
+    (``mesh.map``): the element-local map (HOMME ``cubed_sphere_map = 2``, ``element_local``),
+    np ≥ 3, or the equiangular map in each element's cube face (``cubed_sphere_map = 0``,
+    ``face_map``); ``ne = 0`` for a mesh from a file (HOMME's ``ne = 0`` with ``mesh_file``), or
+    the cube's ne when ``mesh`` is ``cube_mesh(ne)`` (its elements are then the cube's, and so is
+    its partition). Without, the cube's equiangular map (HOMME ``cubed_sphere_map = 0``).
 
     ne, np, radius (m), rule (``GLL``), mesh (the ``Mesh`` or None), nelem_total (elements of
     the whole grid: 6·ne² on the cube, ``mesh.nelem``), elements (E,) int64 (those held).
@@ -63,9 +50,11 @@ class CubedSphere:
                        components, row-major [D11, D12, D21, D22]; units m
                        (D includes the radius a) and 1/m
       metdet (N,)      det D (m²), with one global factor so that GLL quadrature
-                       of it gives 4πa² (HOMME's area correction, map0); on a mesh, a
-                       factor per element on its interior nodes so that its quadrature
-                       gives the element's spherical area (HOMME's epsilon bubble, map2)
+                       of it gives 4πa² (HOMME's area correction, map0; also on a mesh
+                       through the equiangular map); on a mesh through the element-local
+                       map, a factor per element on its interior nodes so that its
+                       quadrature gives the element's spherical area (HOMME's epsilon
+                       bubble, map2)
       spheremp (N,)    GLL weight × metdet (m²): the element mass matrix
       rspheremp (N,)   1 / (DSS-summed spheremp): inverse assembled mass
       dx (N,)          distance to the nearest neighbouring GLL node (m), for CFL
@@ -85,9 +74,10 @@ class CubedSphere:
     computed per node, the numbering from the cube's (or mesh's) topology, and the area
     correction from the analytic Jacobian (or per element: the same for any part).
     Raises ``ValueError`` for ne < 1 (ne < 0 with a mesh, or ne > 0 not the mesh's
-    6·ne² elements), np outside 2..8 (2 with a mesh), elements not ascending
-    distinct indices of the grid, or a mesh element the element-local map folds
-    (metdet ≤ 0 at a node: its corners span too much of the sphere, one line naming it).
+    6·ne² elements), np outside 2..8 (2 with a mesh through the element-local map),
+    elements not ascending distinct indices of the grid, or a mesh element the map folds
+    (metdet ≤ 0 at a node: its corners span too much of the sphere, one line naming it);
+    ``SceneError`` for a mesh through the equiangular map with an element in no one cube face.
     """
 
     def __init__(self, ne: int, np_: int, radius: float = EARTH.a, elements=None, mesh: Mesh | None = None):
@@ -104,15 +94,17 @@ class CubedSphere:
 
     @property
     def map(self) -> str:
-        """The reference map: ``"equiangular"`` or ``"element_local"`` (on ``mesh``)."""
-        return "equiangular" if self.mesh is None else "element_local"
+        """The reference map: ``"equiangular"`` (the cube's, or ``mesh``'s in its faces) or
+        ``"element_local"`` (``mesh.map``)."""
+        return "equiangular" if self.mesh is None else self.mesh.map
 
     def reference_to_sphere(self, e: np.ndarray, xi: np.ndarray, eta: np.ndarray) -> np.ndarray:
         """Unit position vectors (n, 3) of the points (ξ, η) ∈ [−1, 1]² (n,) of elements ``e``
-        (n,) (global indices) through the grid's map (equiangular, or element-local on ``mesh``)."""
+        (n,) (global indices) through the grid's map (equiangular, or ``mesh``'s own)."""
         if self.mesh is None:
             return reference_to_sphere(self.ne, e, xi, eta)
-        p = bilinear(self.mesh, np.asarray(e), np.asarray(xi, dtype=np.float64), np.asarray(eta, dtype=np.float64))[0]
+        xi, eta = np.asarray(xi, dtype=np.float64), np.asarray(eta, dtype=np.float64)
+        p = mesh_point(self.mesh)(np.asarray(e), xi, eta)[0]
         return p / np.linalg.norm(p, axis=1)[:, None]
 
     def part(self, elements) -> CubedSphere:
@@ -339,7 +331,7 @@ def _quadrature_area(ne: int, rule, radius: float) -> float:
     edges = np.linspace(-math.pi / 4, math.pi / 4, ne + 1)
     t2 = np.tan((edges[:-1, None] + (rule.points[None, :] + 1) * dalpha / 2).ravel()) ** 2
     w = np.tile(rule.weights, ne)
-    J = (1 + t2[:, None]) * (1 + t2[None, :]) / (1 + t2[:, None] + t2[None, :]) ** 1.5
+    J = gnomonic_jacobian(t2[:, None], t2[None, :])
     return 6 * radius**2 * (dalpha / 2) ** 2 * float(np.sum(J * w[:, None] * w[None, :]))
 
 
@@ -357,7 +349,8 @@ def _metric(reference_map, radius: float, copies: np.ndarray, rep: np.ndarray):
     (east, north) basis are the first copy's, so every copy's agree bit for bit;
     D (n, 2, 2) is the Jacobian of X = a P/|P| w.r.t. the element reference
     coordinates (ξ, η) in that basis, before the area correction, with P and its
-    derivatives from ``reference_map.at`` (``EquiangularMap`` or ``ElementLocalMap``)."""
+    derivatives from ``reference_map.at`` (``EquiangularMap``, ``ElementLocalMap`` or
+    ``FaceMap``)."""
     P, t_xi, t_eta, factor = reference_map.at(copies)
     rP = np.linalg.norm(P, axis=1)
     xhat = P / rP[:, None]
@@ -391,7 +384,7 @@ def _build(ne: int, rule, radius: float, elements: np.ndarray, mesh: Mesh | None
         reference_map = EquiangularMap(ne, rule)
     else:
         gid, table = MeshNumbering(mesh, np_).rows(elements)
-        reference_map = ElementLocalMap(mesh, rule)
+        reference_map = (FaceMap if mesh.map == "equiangular" else ElementLocalMap)(mesh, rule)
     # The nodes held and the other elements' copies of them (for the assembled
     # mass); every copy gets the coordinates of its first copy, so lat/lon/basis
     # agree bit for bit.
@@ -421,12 +414,13 @@ def _build(ne: int, rule, radius: float, elements: np.ndarray, mesh: Mesh | None
 
     here = np.searchsorted(ext, nodes)
     w2 = np.outer(rule.weights, rule.weights).ravel()  # index j*np + i
-    if mesh is None:
+    if mesh is None or mesh.map == "equiangular":
         # Area correction (HOMME geometry_mod::set_area_correction_map0): one global
         # factor on the metric so that the GLL-quadrature area of the sphere is 4πa².
         # A single factor keeps element-edge fluxes consistent, hence mass
         # conservation to round-off; a per-element factor would not.
-        s = math.sqrt(4 * math.pi * radius**2 / _quadrature_area(ne, rule, radius))
+        quadrature = _quadrature_area(ne, rule, radius) if mesh is None else radius**2 * reference_map.quadrature_area()
+        s = math.sqrt(4 * math.pi * radius**2 / quadrature)
         D *= s
         metdet = metdet * s**2
     else:

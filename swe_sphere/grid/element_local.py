@@ -13,9 +13,12 @@ quadrilateral; the boundary metric is left alone, so neighbours' edge fluxes sti
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
-from .mesh import Mesh, element_areas
+from .face_map import FaceMap
+from .mesh import Mesh, corner_weights, element_areas
 
 
 def bilinear(mesh: Mesh, e: np.ndarray, a: np.ndarray, b: np.ndarray):
@@ -23,10 +26,15 @@ def bilinear(mesh: Mesh, e: np.ndarray, a: np.ndarray, b: np.ndarray):
     ``e`` (n,) of ``mesh``: (p (n, 3), 4 ∂p/∂a (n, 3), 4 ∂p/∂b (n, 3)); x = p/|p| is the point on
     the unit sphere (HOMME ``ref2sphere`` with ``cubed_sphere_map = 2``)."""
     c = mesh.coords[mesh.quads[e]]  # (n, 4, 3)
-    q = np.stack([(1 - a) * (1 - b), (1 + a) * (1 - b), (1 + a) * (1 + b), (1 - a) * (1 + b)], axis=1) / 4
-    dq_da = np.stack([-(1 - b), 1 - b, 1 + b, -(1 + b)], axis=1)
-    dq_db = np.stack([-(1 - a), -(1 + a), 1 + a, 1 - a], axis=1)
+    q, dq_da, dq_db = corner_weights(a, b)
     return np.einsum("nk,nki->ni", q, c), np.einsum("nk,nki->ni", dq_da, c), np.einsum("nk,nki->ni", dq_db, c)
+
+
+def mesh_point(mesh: Mesh):
+    """The map of ``mesh`` (``mesh.map``) as a function (e, a, b) → (P, 4 ∂P/∂a, 4 ∂P/∂b)
+    (each (n, 3); x = P/|P|): ``bilinear`` (element-local) or ``face_map.FaceMap.point``
+    (equiangular in each element's cube face)."""
+    return FaceMap(mesh).point if mesh.map == "equiangular" else functools.partial(bilinear, mesh)
 
 
 class ElementLocalMap:
@@ -49,8 +57,8 @@ class ElementLocalMap:
 
 def locate(mesh: Mesh, xyz: np.ndarray, candidates: int = 8, tolerance: float = 1e-10):
     """The element and reference point (e, a, b) (n,) each of points xyz (n, 3) on the unit
-    sphere: the inverse of the element-local map, by Newton's method on the part of p(a, b)
-    across x (p ∥ x, p·x > 0) in each of the ``candidates`` elements with the nearest
+    sphere: the inverse of the mesh's map (``mesh_point``: element-local or equiangular), by
+    Newton's method on the part of p(a, b) across x (p ∥ x, p·x > 0) in each of the ``candidates`` elements with the nearest
     centroids, keeping the first whose (a, b) lies in [−1, 1]² (to ``tolerance``). A point on
     an element edge gets one of its elements. Raises ``ValueError`` naming the first point no
     candidate holds (a mesh whose elements are far larger than their neighbours': raise
@@ -58,6 +66,7 @@ def locate(mesh: Mesh, xyz: np.ndarray, candidates: int = 8, tolerance: float = 
     from scipy.spatial import cKDTree
 
     xyz = np.asarray(xyz, dtype=np.float64)
+    point = mesh_point(mesh)
     n = xyz.shape[0]
     k = min(candidates, mesh.nelem)
     near = cKDTree(mesh.centroids()).query(xyz, k=k)[1].reshape(n, k)
@@ -75,7 +84,7 @@ def locate(mesh: Mesh, xyz: np.ndarray, candidates: int = 8, tolerance: float = 
         e, x, u, v = near[todo, column], xyz[todo], t1[todo], t2[todo]
         a, b = np.zeros(todo.size), np.zeros(todo.size)
         for _ in range(30):  # quadratic convergence from the centre; bounded for elements that do not hold x
-            p, pa, pb = bilinear(mesh, e, a, b)
+            p, pa, pb = point(e, a, b)
             f = np.stack([np.einsum("ni,ni->n", p, u), np.einsum("ni,ni->n", p, v)], axis=1)
             J = (
                 np.stack(
@@ -92,7 +101,7 @@ def locate(mesh: Mesh, xyz: np.ndarray, candidates: int = 8, tolerance: float = 
             if np.max(np.abs(step)) < 1e-15:
                 break
         inside = (np.abs(a) <= 1 + tolerance) & (np.abs(b) <= 1 + tolerance)
-        inside &= np.einsum("ni,ni->n", bilinear(mesh, e, a, b)[0], x) > 0
+        inside &= np.einsum("ni,ni->n", point(e, a, b)[0], x) > 0
         hit = todo[inside]
         found[hit], out_a[hit], out_b[hit] = e[inside], np.clip(a[inside], -1, 1), np.clip(b[inside], -1, 1)
     if np.any(found < 0):

@@ -37,11 +37,15 @@ class Mesh:
         outside; corner k sits at reference point (−1, −1), (1, −1), (1, 1), (−1, 1) of the
         element-local map (HOMME ``corners3D``)
     name : where the mesh came from (a file name, or ``"ne<k> cube"``), for messages
+    map : how a grid places its GLL points between an element's corners: ``"element_local"``
+        (HOMME's ``cubed_sphere_map = 2``, ``element_local``) or ``"equiangular"``
+        (``cubed_sphere_map = 0`` element by element, in the angles of its cube face: ``face_map``)
     """
 
     coords: np.ndarray
     quads: np.ndarray
     name: str = "mesh"
+    map: str = "element_local"
 
     @property
     def nelem(self) -> int:
@@ -80,6 +84,16 @@ class Mesh:
         """(F, 3) unit vectors: the normalised mean of each element's corners."""
         c = self.corners().mean(axis=1)
         return c / np.linalg.norm(c, axis=1)[:, None]
+
+
+def corner_weights(a: np.ndarray, b: np.ndarray):
+    """The bilinear weights q_k of an element's corners k = 0..3 (at (−1, −1), (1, −1), (1, 1),
+    (−1, 1)) at reference points (a, b) (n,), and 4 ∂q_k/∂a, 4 ∂q_k/∂b: three (n, 4) arrays
+    (HOMME ``ref2sphere``)."""
+    q = np.stack([(1 - a) * (1 - b), (1 + a) * (1 - b), (1 + a) * (1 + b), (1 - a) * (1 + b)], axis=1) / 4
+    dq_da = np.stack([-(1 - b), 1 - b, 1 + b, -(1 + b)], axis=1)
+    dq_db = np.stack([-(1 - a), -(1 + a), 1 + a, 1 - a], axis=1)
+    return q, dq_da, dq_db
 
 
 def _triangle_area(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:

@@ -9,19 +9,22 @@ A record is one of:
 - ``{"map": "element_local", "stretch_factor": c, "target_lat": φ, "target_lon": λ}`` (degrees):
   the Schmidt-stretched cube of ne (``schmidt.schmidt_cube``; FV3's ``stretch_fac``,
   ``target_lat``, ``target_lon``);
-- ``{"map": "element_local", "file": path, "sha256": hex, "nelem": F}``: an Exodus II ``.g``
-  file (``mesh.read_exodus``; HOMME's ``ne = 0`` with ``mesh_file``), its absolute path, the
-  SHA-256 of its bytes and its element count.
+- ``{"map": m, "file": path, "sha256": hex, "nelem": F}``: an Exodus II ``.g`` file
+  (``mesh.read_exodus``; HOMME's ``ne = 0`` with ``mesh_file``), its absolute path, the SHA-256
+  of its bytes and its element count, through the map m: ``"element_local"`` (the default, as
+  E3SM runs its meshes) or ``"equiangular"`` (each element in its cube face: ``face_map``).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 from pathlib import Path
 
 from ..core.errors import SceneError
 from .cubed_sphere import cube_mesh
+from .face_map import face_corners
 from .mesh import Mesh, read_exodus
 from .schmidt import schmidt_cube
 
@@ -34,12 +37,22 @@ def file_sha256(path) -> str:
         return hashlib.file_digest(f, "sha256").hexdigest()
 
 
-def file_record(path) -> dict:
-    """The record of the Exodus II file ``path`` (made absolute), read and checked. Raises
-    ``SceneError`` (one line) for what ``read_exodus`` refuses."""
+def file_record(path, map_: str = "element_local") -> dict:
+    """The record of the Exodus II file ``path`` (made absolute) through ``map_`` (one of
+    ``MAPS``), read and checked. Raises ``SceneError`` (one line) for what ``read_exodus``
+    refuses, and on the equiangular map for an element in no one cube face
+    (``face_map.face_corners``)."""
     path = Path(path).expanduser().absolute()
-    mesh = read_exodus(path)
-    return {"map": "element_local", "file": str(path), "sha256": file_sha256(path), "nelem": mesh.nelem}
+    mesh = _mapped(read_exodus(path), map_)
+    return {"map": map_, "file": str(path), "sha256": file_sha256(path), "nelem": mesh.nelem}
+
+
+def _mapped(mesh: Mesh, map_: str) -> Mesh:
+    """``mesh`` to be built through ``map_``, checked that it can be (``face_corners``)."""
+    mesh = dataclasses.replace(mesh, map=map_)
+    if map_ == "equiangular":
+        face_corners(mesh)
+    return mesh
 
 
 def build_mesh(ne: int, record: dict | None) -> Mesh | None:
@@ -57,7 +70,7 @@ def build_mesh(ne: int, record: dict | None) -> Mesh | None:
                 f"mesh file {path} is not the mesh this run was made on (sha256 {record['sha256'][:12]}...): "
                 "a run does not continue on another mesh"
             )
-        return read_exodus(path)
+        return _mapped(read_exodus(path), record["map"])
     if "stretch_factor" in record:
         return schmidt_cube(ne, record["stretch_factor"], record["target_lat"], record["target_lon"])
     return cube_mesh(ne)
@@ -76,9 +89,10 @@ def mean_ne(ne: int, record: dict | None) -> float:
 
 def label(ne: int, record: dict | None) -> str:
     """The grid's part of a default file name: ``ne4``, ``ne4map2`` (the element-local map,
-    HOMME's ``cubed_sphere_map = 2``), ``ne4c2.5`` (stretched by 2.5), or a mesh file's stem."""
+    HOMME's ``cubed_sphere_map = 2``), ``ne4c2.5`` (stretched by 2.5), a mesh file's stem, or
+    its stem and ``map0`` through the equiangular map (``cubed_sphere_map = 0``)."""
     if record is not None and "file" in record:
-        return Path(record["file"]).stem
+        return Path(record["file"]).stem + ("map0" if record["map"] == "equiangular" else "")
     if record is not None and "stretch_factor" in record:
         return f"ne{ne}c{record['stretch_factor']:g}"
     return f"ne{ne}" if record is None else f"ne{ne}map2"
@@ -86,11 +100,12 @@ def label(ne: int, record: dict | None) -> str:
 
 def describe(ne: int, np_: int, record: dict | None) -> str:
     """The grid in words for headers and messages: ``ne=4 np=4``, ``ne=4 np=4 element-local``,
-    ``ne=4 np=4 stretched 2.5x toward (40, 270)`` or ``mesh x.g np=4``."""
+    ``ne=4 np=4 stretched 2.5x toward (40, 270)``, ``mesh x.g np=4`` or ``mesh x.g np=4
+    equiangular``."""
     if record is None:
         return f"ne={ne} np={np_}"
     if "file" in record:
-        return f"mesh {Path(record['file']).name} np={np_}"
+        return f"mesh {Path(record['file']).name} np={np_}" + (" equiangular" if record["map"] == "equiangular" else "")
     if "stretch_factor" in record:
         return (
             f"ne={ne} np={np_} stretched {record['stretch_factor']:g}x toward "

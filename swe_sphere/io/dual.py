@@ -366,7 +366,7 @@ def cache_key(ne: int, np_: int, mesh: Mesh | None = None) -> dict:
     and ``BUILD``."""
     if mesh is None:
         return {"mesh": "cubed_sphere", "map": "equiangular", "ne": ne, "np": np_, "build": BUILD}
-    return {"mesh": mesh.sha256(), "map": "element_local", "ne": ne, "np": np_, "build": BUILD}
+    return {"mesh": mesh.sha256(), "map": mesh.map, "ne": ne, "np": np_, "build": BUILD}
 
 
 @functools.lru_cache(maxsize=4)

@@ -5,8 +5,9 @@ there: the target's Cartesian position is mapped back to an element and referenc
 coordinates (ξ, η) ∈ [-1, 1]² through the grid's map: on the cube, the equiangular
 gnomonic projection of ``cubed_sphere.FACES`` (face by the largest c·P, then
 tan α = P·ea / P·c, tan β = P·eb / P·c, element (ia, jb)); on a mesh (a file, a
-stretched cube, the element-local map), the inverse of the element-local map
-(``element_local.locate``, Newton's method in the nearest elements). The field is Σ_ij ℓ_i(ξ) ℓ_j(η) f_ij with
+stretched cube, the element-local map), the inverse of the mesh's own map, element-local or
+equiangular in each element's face (``element_local.locate``, Newton's method in the nearest
+elements). The field is Σ_ij ℓ_i(ξ) ℓ_j(η) f_ij with
 ℓ the Lagrange basis on the GLL points. No smoothing: a polynomial of degree
 < np in (ξ, η) is reproduced exactly, and at a target that coincides with a
 GLL node the node's value comes back to round-off. Points on element or cube

@@ -189,6 +189,9 @@ def test_resolve_grid_gives_the_files_grid_and_the_runs():
 def test_resolve_grid_takes_a_mesh_file_for_the_run():
     scene, run, notes = resolve_grid({"ne": 16}, Path("s.toml"), mesh=TEMPEST_NE2)
     assert scene == SceneGrid(16, 4) and (run.ne, run.np, run.mesh["nelem"], notes) == (0, 4, 24, ())
+    assert (
+        resolve_grid({"ne": 16, "map": "equiangular"}, Path("s.toml"), mesh=TEMPEST_NE2)[1].mesh["map"] == "equiangular"
+    )
     with pytest.raises(SceneError, match=r"^ne = 4 and mesh .*TEMPEST_NE2.g: a mesh file's elements are its own"):
         resolve_grid({}, Path("s.toml"), ne=4, mesh=TEMPEST_NE2)
 

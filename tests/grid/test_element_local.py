@@ -4,6 +4,7 @@ check (the built-in cube and the same cube read from a ``.g`` file give the same
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -17,10 +18,18 @@ from swe_sphere.grid.mesh import element_areas, read_exodus, write_exodus
 from swe_sphere.grid.partition import mesh_order, mesh_partition
 from swe_sphere.grid.schmidt import schmidt_cube
 from swe_sphere.grid.topology import GatheredGrid, SerialComm, Topology
-from swe_sphere.steppers import make_stepper
 
 import roundoff
-from meshes import MOUNTAIN, TC2_TERMS, TC6_TERMS, TEMPEST_NE2, bipyramid_mesh, case_model, icosahedral_mesh
+from meshes import (
+    MOUNTAIN,
+    TC2_TERMS,
+    TC6_TERMS,
+    TEMPEST_NE2,
+    bipyramid_mesh,
+    icosahedral_mesh,
+    refined_equiangular,
+    run_steps,
+)
 
 GRID_ARRAYS = ("xyz", "lat", "lon", "east", "north", "D", "Dinv", "metdet", "spheremp", "rspheremp", "dx")
 TABLES = ("gid", "dss_table", "first", "area", "halo", "halo_spheremp")
@@ -78,7 +87,7 @@ def test_nodes_of_7_elements_number_dss_and_keep_mass():
     poles = np.flatnonzero(np.count_nonzero(g.dss_table >= 0, axis=1) == 7)
     assert poles.size == 14 and np.all(np.abs(g.xyz[2, poles]) == 1)
     steps = 12
-    x, start = run(g, "tc2_steady", TC2_TERMS, steps, 150.0)
+    x, start = run_steps(g, "tc2_steady", TC2_TERMS, steps, 150.0)
     assert np.array_equal(x[:, g.dss_table[poles, 0]], x[:, g.dss_table[poles, 6]])  # continuous at the poles
     change = abs(g.integrate(x[2]) / g.integrate(start[2]) - 1)
     roundoff.within(change, roundoff.mass_change_bound(3 * steps, g.nnodes), "|mass change|")
@@ -156,19 +165,8 @@ def test_a_partitioned_dss_on_a_mesh_is_the_serial_one_bit_for_bit(mountain, ran
         assert np.array_equal(out.numpy(), whole.numpy()[:, t.nodes])
 
 
-def run(grid, case_name, terms, steps, dt, **nu):
-    """The state (u, v, h) (3, N) after ``steps`` SSP-RK3 steps of ``case_name`` on ``grid``, and its start."""
-    case, model = case_model(grid, case_name, terms, **nu)
-    stepper = make_stepper("ssprk3", model, dt)
-    start = np.stack(case.initial(grid.lat, grid.lon))
-    x = model.new_state(*start)
-    for _ in range(steps):
-        stepper.step(x)
-    return x.numpy(), start
-
-
 def tc6(grid, steps=6):
-    return run(grid, "tc6_rossby_haurwitz", TC6_TERMS, steps, 300.0, nu=1e15, nu_div=1e15, nu_s=1e15)[0]
+    return run_steps(grid, "tc6_rossby_haurwitz", TC6_TERMS, steps, 300.0, nu=1e15, nu_div=1e15, nu_s=1e15)[0]
 
 
 def test_the_cube_read_from_its_own_g_file_is_the_built_in_cube_bit_for_bit(tmp_path):
@@ -182,10 +180,10 @@ def test_the_cube_read_from_its_own_g_file_is_the_built_in_cube_bit_for_bit(tmp_
 
 
 def same_nodes(a, b) -> np.ndarray:
-    """The element-local node of grid b at each of grid a's: the element with the same
-    centroid, and in it the node at the same place (a shared node's copies are told apart
+    """The element-local node of grid b at each of grid a's (a mesh's, or the built-in cube's):
+    the element with the same centroid, and in it the node at the same place (a shared node's copies are told apart
     by their elements)."""
-    _, element = cKDTree(b.mesh.centroids()).query(a.mesh.centroids())
+    _, element = cKDTree(b.mesh.centroids()).query((a.mesh or cube_mesh(a.ne)).centroids())
     npe = a.np**2
     xa = a.xyz.T.reshape(-1, npe, 1, 3)
     xb = b.xyz.T.reshape(-1, 1, npe, 3)[element]
@@ -195,13 +193,15 @@ def same_nodes(a, b) -> np.ndarray:
 
 @pytest.mark.roundoff
 @pytest.mark.skipif(not TEMPEST_NE2.is_file(), reason="TEMPEST_NE2.g (E3SM's HOMME test mesh) not present")
-def test_tempest_ne2_gives_the_built_in_cubes_metric_and_state_to_round_off():
+@pytest.mark.parametrize("map_", ["element_local", "equiangular"])
+def test_tempest_ne2_gives_the_built_in_cubes_metric_and_state_to_round_off(map_):
     """HOMME's swtc6-short-exodus: TEMPEST_NE2.g (its own element order and corner order)
-    against the built-in ne2 cube with the element-local map. Nodes are matched by place;
-    the metric's invariants (metdet, D Dᵀ: the reference axes may turn by 90°) agree to a
-    few roundings of the map; the state after 6 TC6 steps to the roundings they take."""
-    built_in = CubedSphere(2, 4, mesh=cube_mesh(2))
-    tempest = CubedSphere(0, 4, mesh=read_exodus(TEMPEST_NE2))
+    against the built-in ne2 cube with the same map (element-local, or equiangular: in each
+    element's cube face against the cube's own). Nodes are matched by place; the metric's
+    invariants (metdet, D Dᵀ: the reference axes may turn by 90°) agree to a few roundings
+    of the map; the state after 6 TC6 steps to the roundings they take."""
+    built_in = CubedSphere(2, 4, mesh=cube_mesh(2) if map_ == "element_local" else None)
+    tempest = CubedSphere(0, 4, mesh=dataclasses.replace(read_exodus(TEMPEST_NE2), map=map_))
     at = same_nodes(built_in, tempest)
     assert np.max(np.abs(tempest.xyz[:, at] - built_in.xyz)) <= roundoff.bound(8)
     roundoff.within(np.max(np.abs(tempest.metdet[at] / built_in.metdet - 1)), roundoff.bound(32), "metdet")
@@ -226,7 +226,7 @@ def test_tc2_on_a_refined_mesh_keeps_its_mass_and_its_steady_state(mountain):
     errors = []
     for mesh in (mountain, cube_mesh(10)):
         grid = CubedSphere(0, 4, mesh=mesh)
-        x, start = run(grid, "tc2_steady", TC2_TERMS, steps, 150.0)
+        x, start = run_steps(grid, "tc2_steady", TC2_TERMS, steps, 150.0)
         h, h0 = x[2], start[2]
         roundoff.within(
             abs(grid.integrate(h) / grid.integrate(h0) - 1),
@@ -239,11 +239,12 @@ def test_tc2_on_a_refined_mesh_keeps_its_mass_and_its_steady_state(mountain):
     assert errors[0] <= (errors[1] if mountain.name == MOUNTAIN.name else 1e-4)
 
 
-@pytest.mark.parametrize("which", ["mountain", "stretched"])
-def test_locate_inverts_the_element_local_map(mountain, which, rng):
+@pytest.mark.parametrize("which", ["mountain", "stretched", "refined_equiangular"])
+def test_locate_inverts_the_meshs_map(mountain, which, rng):
     """Random reference points of random elements, mapped to the sphere and located back:
-    the same element and (a, b) to a few roundings (Newton converges quadratically)."""
-    mesh = mountain if which == "mountain" else schmidt_cube(6, 4.0, 30.0, 100.0)
+    the same element and (a, b) to a few roundings (Newton converges quadratically), through
+    the element-local map and through the equiangular map in each element's face."""
+    mesh = {"mountain": mountain, "stretched": schmidt_cube(6, 4.0, 30.0, 100.0)}.get(which) or refined_equiangular()
     grid = CubedSphere(0, 4, mesh=mesh)
     n = 5000
     e, a, b = rng.integers(0, mesh.nelem, n), rng.uniform(-1, 1, n), rng.uniform(-1, 1, n)

@@ -5,6 +5,7 @@ skipping only where its tool is absent (the CF checkers and cf_xarray: test_cf.p
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import shutil
@@ -133,8 +134,8 @@ def test_cells_on_a_mesh_have_a_vertex_an_element_and_the_spheremp_areas(mesh_gr
 
 def test_a_meshs_cells_are_cached_by_its_content_and_map(tmp_path, monkeypatch):
     """The cells' cache key: the uniform cube's as it was (no hash); a mesh's names its content's
-    SHA-256 and the element-local map, so the cube through the element-local map, the same mesh
-    read again, and a stretched cube each have their own entry, built once and then read."""
+    SHA-256 and its map, so the cube through the element-local map, the same mesh read again
+    (one entry), the same mesh through the equiangular map and a stretched cube each have their own entry, built once and then read."""
     monkeypatch.setenv("SWE_SPHERE_CACHE_DIR", str(tmp_path))
     assert cache_key(2, 4) == {
         "mesh": "cubed_sphere",
@@ -146,6 +147,8 @@ def test_a_meshs_cells_are_cached_by_its_content_and_map(tmp_path, monkeypatch):
     cube, again, stretched = cube_mesh(2), cube_mesh(2), schmidt_cube(2, 1.5)
     assert cache_key(2, 4, cube) == cache_key(2, 4, again) != cache_key(2, 4, stretched)
     assert cache_key(2, 4, cube)["map"] == "element_local" and cache_key(2, 4, cube)["mesh"] == cube.sha256()
+    by_face = dataclasses.replace(cube, map="equiangular")  # the same mesh through the equiangular map
+    assert cache_key(2, 4, by_face) == {**cache_key(2, 4, cube), "map": "equiangular"}
     build = unit_dual_mesh.__wrapped__  # past the process's own lru_cache
     first, read = build(2, 4, cube), build(2, 4, again)
     assert first[3] is not None and read[3] is None and all(np.array_equal(a, b) for a, b in zip(first[:2], read[:2]))

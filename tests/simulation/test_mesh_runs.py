@@ -120,6 +120,24 @@ def test_restart_on_a_mesh_file_is_bitwise_and_refuses_another_mesh(cube_file, t
     assert not (tmp_path / "c.nc").exists()
 
 
+def test_a_restart_on_the_equiangular_map_refuses_the_other_map(cube_file, tmp_path, capsys):
+    """A run of a scene on the .g cube through the equiangular map records the map in its
+    restart; continuing it with the scene changed to the element-local map (and nothing else)
+    is refused in one line."""
+    scene = write_tc2_scene(tmp_path / "s.toml", ne=0, dt=DT, days=3 * DT / DAY)
+    text = scene.read_text()
+    scene.write_text(text.replace("ne = 0\n", 'ne = 0\nmesh_file = "cube2.g"\nmap = "equiangular"\n'))
+    assert main(["run", str(scene), "--restart-every", str(3 * DT / DAY), "--output", str(tmp_path / "eq.nc")]) == 0
+    restart = tmp_path / "eq.restart.nc"
+    assert restart_file.read(restart)["scene"]["mesh"]["map"] == "equiangular"
+    capsys.readouterr()
+    scene.write_text(text.replace("ne = 0\n", 'ne = 0\nmesh_file = "cube2.g"\nmap = "element_local"\n'))
+    code = main(["run", "--continue", str(restart), str(scene), "--days", "0.05", "--output", str(tmp_path / "c.nc")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and err[0].endswith("(differs in: mesh)"), err
+    assert not (tmp_path / "c.nc").exists()
+
+
 BAD_GRIDS = [
     ('map = "gnomonic"', "grid.map must be one of"),
     ("stretch_factor = 0.5", "grid.stretch_factor must be >= 1"),
@@ -128,7 +146,7 @@ BAD_GRIDS = [
     ('stretch_factor = 2.0\nmap = "equiangular"', 'grid.map = "equiangular" cannot stretch'),
     ('mesh_file = "absent.g"', "absent.g not found"),
     ('mesh_file = "cube2.g"\nstretch_factor = 2.0', "grid.stretch_factor stretches the cube"),
-    ('mesh_file = "cube2.g"\nmap = "equiangular"', 'grid.map = "equiangular" is the cube\'s map'),
+    ('mesh_file = "ico.g"\nmap = "equiangular"', "ico.g: element 2 does not lie in one face of a cube"),
     ('mesh_file = "garbage.g"', "garbage.g cannot be read as an Exodus II"),
     ('mesh_file = "cube2.g"\nne_ = 1', "unknown key grid.ne_"),
     ('mesh_file = "cube2.g"\nmap = 2', "grid.map must be str"),
@@ -139,6 +157,7 @@ BAD_GRIDS = [
 def test_bad_grid_input_is_one_line_exit_2(tmp_path, capsys, cube_file, table, message):
     """Each bad [grid] key: one line naming it, exit 2, no output written."""
     (tmp_path / "garbage.g").write_text("not netCDF")
+    write_exodus(tmp_path / "ico.g", icosahedral_mesh(0))
     scene = write_tc2_scene(tmp_path / "s.toml", ne=0)
     scene.write_text(scene.read_text().replace("ne = 0\n", table + "\n"))
     code = main(["run", str(scene), "--output", str(tmp_path / "o.nc")])
@@ -258,6 +277,7 @@ def test_default_file_names_and_headers_say_the_mesh(cube_file):
         "ne2map2": load_scene("tc2_steady", ne=2, overrides={"grid.map": "element_local"}),
         "ne2c1.5": load_scene("tc2_steady", ne=2, overrides={"grid.stretch_factor": 1.5}),
         "cube2": load_scene("tc2_steady", mesh=cube_file),
+        "cube2map0": load_scene("tc2_steady", mesh=cube_file, overrides={"grid.map": "equiangular"}),
     }
     assert {label: s.grid_label for label, s in scenes.items()} == {label: label for label in scenes}
     assert [s.grid_text for s in scenes.values()] == [
@@ -265,6 +285,7 @@ def test_default_file_names_and_headers_say_the_mesh(cube_file):
         "ne=2 np=4 element-local",
         "ne=2 np=4 stretched 1.5x toward (90, 0)",
         "mesh cube2.g np=4",
+        "mesh cube2.g np=4 equiangular",
     ]
 
 

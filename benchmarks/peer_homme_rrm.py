@@ -5,14 +5,27 @@ HOMME's regression ``swtc2`` (``test/reg_test/namelists/swtc2.nl`` in the kit's
 over the TC5 mountain, 780 elements, element-local map), leapfrog-trapezoidal (``LFTfreq = 1``)
 at Δt 90 s, tensor ∇⁴ with ``hypervis_scaling = 3.2``, ``nu = nu_s = 1e-9`` (``nu_div``
 defaults to ``nu``), ``hypervis_subcycle = 2``, 1 day, np 4 (the kit's build). swe_sphere runs
-the same: the ``tc2_steady`` scene with::
+the same: a scene file per grid and np (``homme_scene``), e.g. on ``mountain_10_x2.g``::
 
-    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 swe-sphere run tc2_steady --device cpu \\
-        -s grid.ne=0 -s 'grid.mesh_file="/abs/path/mountain_10_x2.g"' -s grid.np=4 \\
-        -s 'terms=["continuity","momentum_advection","coriolis","pressure_gradient","hyperviscosity"]' \\
-        -s time.stepper=leapfrog_trapezoidal -s time.dt=90 -s time.days=1 -s planet.radius=6.376e6 \\
-        -s hyperviscosity.scaling=3.2 -s hyperviscosity.subcycle=2 \\
-        -s hyperviscosity.nu=3.1635e14 -s hyperviscosity.nu_div=3.1635e14 -s hyperviscosity.nu_s=3.1635e14
+    terms = ["continuity", "momentum_advection", "coriolis", "pressure_gradient", "hyperviscosity"]
+    [case]
+    name = "tc2_steady"
+    [grid]
+    ne = 0
+    mesh_file = "/abs/path/mountain_10_x2.g"
+    np = 4
+    [planet]
+    radius = 6376000.0
+    [time]
+    stepper = "leapfrog_trapezoidal"
+    dt = 90.0
+    days = 1.0
+    [hyperviscosity]
+    nu = 3.1635e14          # nu_div and nu_s alike
+    scaling = 3.2
+    subcycle = 2
+
+run as ``SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 swe-sphere run FILE.toml --device cpu``.
 
 **HOMME's ν in ours.** HOMME's tensor (``cube_mod::metric_atomic``) is V = (D E) diag(λ*² μ)
 (D E)ᵀ with μ the eigenvalues of the unit-sphere metric inverse and λ* = μ^(−s/4)·a²: along an
@@ -24,12 +37,15 @@ two are equal when
     ν = nu · a⁴ · (π / (4 √(F/6)))^s      (m⁴ s⁻¹)
 
 3.16e14 m⁴ s⁻¹ on ``mountain_10_x2.g`` (F = 780), 4.81e14 on the ne10 cube (F = 600), with
-a = 6.376e6 m. The grid is set by ``-s grid...`` and the step by ``-s time.dt`` (not ``--mesh``,
-``--dt``) so that ν is taken as given, not rescaled from the scene file's grid and planet; the
-script checks that each run's header gives HOMME's ``nu`` back. Both codes run on HOMME's
-planet (``rearth`` 6.376e6 m, Williamson's Ω and g) and each scores h against TC2's exact
-(steady) solution on it with the GLL quadrature (HOMME's ``tc2_errors``, printed every
-``statefreq`` steps: the normalized l1, l2, l∞ of the geopotential, which are those of h).
+a = 6.376e6 m. The grid, planet, Δt and ν are the scene file's own, so that they are taken as
+given: the scene's ν and Δt are for its file's grid and planet, and any other way of choosing the
+grid or radius (``--mesh``, ``--ne``, ``-s grid...``, ``-s planet.radius``) rescales them
+(``config.scene.resolve_hyperviscosity``, ``resolve_dt``); the script checks that no run
+scaled either and that each run's header gives HOMME's ``nu`` back (``check_as_given``). Both
+codes run on HOMME's planet (``rearth`` 6.376e6 m, Williamson's Ω and g) and each scores h
+against TC2's exact (steady) solution on it with the GLL quadrature (HOMME's ``tc2_errors``,
+printed every ``statefreq`` steps: the normalized l1, l2, l∞ of the geopotential, which are
+those of h).
 
 **Tables.** (1) Cost on ``mountain_10_x2.g``: per round each code runs 1 day and ``--days`` N
 days (alternating which goes first, so drift in the load hits both alike), CPU seconds of the
@@ -96,23 +112,23 @@ TERMS = ["continuity", "momentum_advection", "coriolis", "pressure_gradient", "h
 
 
 class Grid:
-    """One grid of the study: its label, swe_sphere's ``-s grid...`` overrides, HOMME's namelist
-    lines in place of ``mesh_file``, and its element count F."""
+    """One grid of the study: its label, its [grid] table as ``grid.*`` values (``homme_scene``),
+    HOMME's namelist lines in place of ``mesh_file``, and its element count F."""
 
-    def __init__(self, label: str, swe: list[str], homme: str, nelem: int, mesh: Path | None = None):
-        self.label, self.swe, self.homme, self.nelem, self.mesh = label, swe, homme, nelem, mesh
+    def __init__(self, label: str, scene: dict, homme: str, nelem: int, mesh: Path | None = None):
+        self.label, self.scene, self.homme, self.nelem, self.mesh = label, scene, homme, nelem, mesh
 
     @classmethod
     def cube(cls, ne: int, element_local: bool) -> Grid:
-        swe = ["-s", f"grid.ne={ne}"] + (["-s", 'grid.map="element_local"'] if element_local else [])
+        scene = {"grid.ne": ne, **({"grid.map": "element_local"} if element_local else {})}
         name = f"ne{ne} {'element-local' if element_local else 'equiangular'}"
-        return cls(name, swe, f"ne = {ne}\ncubed_sphere_map = {2 if element_local else 0}", 6 * ne * ne)
+        return cls(name, scene, f"ne = {ne}\ncubed_sphere_map = {2 if element_local else 0}", 6 * ne * ne)
 
     @classmethod
     def file(cls, label: str, path: Path) -> Grid:
         with netCDF4.Dataset(path) as f:
             nelem = len(f.dimensions["num_elem"])
-        return cls(label, ["-s", "grid.ne=0", "-s", f'grid.mesh_file="{path}"'], f"mesh_file = '{path}'", nelem, path)
+        return cls(label, {"grid.ne": 0, "grid.mesh_file": str(path)}, f"mesh_file = '{path}'", nelem, path)
 
 
 def our_nu(homme_nu: float, scaling: float, nelem: int) -> float:
@@ -121,17 +137,60 @@ def our_nu(homme_nu: float, scaling: float, nelem: int) -> float:
     return homme_nu * HOMME_RADIUS**4 * (math.pi / (4 * math.sqrt(nelem / 6))) ** scaling
 
 
-def swe_command(grid: Grid, np_: int, days: float, out: Path, hv: dict | None, dt: float = 90.0) -> list[str]:
-    """The ``swe-sphere run`` arguments of TC2 on ``grid``; ``hv`` HOMME's ∇⁴ (``nu``,
-    ``hypervis_scaling``, ``hypervis_subcycle``) or None for none."""
-    args = ["run", "tc2_steady", *grid.swe, "-s", f"grid.np={np_}", "-s", "time.stepper=leapfrog_trapezoidal"]
-    args += ["-s", f"time.dt={dt:g}", "-s", f"time.days={days:g}", "-s", f"planet.radius={HOMME_RADIUS:g}"]
+def homme_scene(folder: Path, grid: dict, nelem: int, hv: dict | None, dt: float, days: float) -> Path:
+    """A new scene file in ``folder``: TC2 in HOMME's ``swtc2.nl`` settings on ``grid`` (the
+    [grid] table as ``grid.*`` values, np included; default np 4) of ``nelem`` elements, on
+    HOMME's planet, leapfrog-trapezoidal at ``dt`` (s) for ``days``; ``hv`` HOMME's ∇⁴ (``nu``
+    in 1/s, ``hypervis_scaling``, ``hypervis_subcycle``) as ``our_nu``, or None for no ∇⁴
+    (tc2_steady's terms). The grid and planet are the file's own, so that its ν and Δt are
+    taken as given: a scene's are for its file's grid and radius, and any other way of setting
+    them (``-s grid...``, ``--mesh``, ``-s planet.radius``) rescales both."""
+    lines = [f"{key.split('.')[1]} = {json.dumps(value)}" for key, value in grid.items()]
+    text = f"""terms = {json.dumps(TERMS if hv is not None else TERMS[:-1])}
+[case]
+name = "tc2_steady"
+[grid]
+{chr(10).join(lines)}
+[planet]
+radius = {HOMME_RADIUS!r}
+[time]
+stepper = "leapfrog_trapezoidal"
+dt = {float(dt)!r}
+days = {float(days)!r}
+[output]
+every_days = 1.0
+"""
     if hv is not None:
-        nu = repr(our_nu(hv["nu"], hv["hypervis_scaling"], grid.nelem))
-        args += ["-s", f"terms={json.dumps(TERMS)}", "-s", f"hyperviscosity.scaling={hv['hypervis_scaling']}"]
-        args += ["-s", f"hyperviscosity.subcycle={hv['hypervis_subcycle']}"]
-        args += [a for k in ("nu", "nu_div", "nu_s") for a in ("-s", f"hyperviscosity.{k}={nu}")]
-    return args + ["--device", "cpu", "--output", str(out), "--overwrite", "--no-progress"]
+        nu = our_nu(hv["nu"], hv["hypervis_scaling"], nelem)
+        text += f"""[hyperviscosity]
+nu = {nu!r}
+nu_div = {nu!r}
+nu_s = {nu!r}
+scaling = {float(hv["hypervis_scaling"])!r}
+subcycle = {int(hv["hypervis_subcycle"])!r}
+"""
+    path = folder / f"swtc2_{nelem}_{len(list(folder.glob('swtc2_*')))}.toml"
+    path.write_text(text)
+    return path
+
+
+def check_as_given(header: str, homme_nu: float | None) -> None:
+    """Raises ``RuntimeError`` unless the run of ``header`` (its header, or its scene's notes)
+    took its scene's Δt and ν as given (no note of either scaled to the grid) and, with
+    ``homme_nu``, gives HOMME's ``nu`` (1/s) back to the three digits it prints."""
+    if re.search(r"\b(dt|nu) scaled", header):
+        raise RuntimeError(f"the run scaled the scene's dt or nu:\n{header[-2000:]}")
+    if homme_nu is not None:
+        back = re.search(r"hypervis_scaling = \S+, nu = ([^)\s]+)\)", header)
+        if not back or not math.isclose(float(back[1]), homme_nu, rel_tol=2e-3):
+            raise RuntimeError(f"the run's HOMME nu is {back and back[1]}, not the namelist's {homme_nu:g}")
+
+
+def swe_command(folder: Path, grid: Grid, np_: int, days: float, out: Path, hv: dict | None, dt: float = 90.0):
+    """The ``swe-sphere run`` arguments of TC2 on ``grid`` at np ``np_`` (a scene file written in
+    ``folder``, ``homme_scene``); ``hv`` HOMME's ∇⁴ or None for none."""
+    scene = homme_scene(folder, {**grid.scene, "grid.np": np_}, grid.nelem, hv, dt, days)
+    return ["run", str(scene), "--device", "cpu", "--output", str(out), "--overwrite", "--no-progress"]
 
 
 def run_swe(args: list[str]) -> tuple[float, float, str]:
@@ -139,16 +198,14 @@ def run_swe(args: list[str]) -> tuple[float, float, str]:
 
 
 def swe_scores(text: str, hv: dict | None) -> dict:
-    """l1, l2, linf of h and the mass change from a run's summary; with ``hv``, checks that
-    the header's HOMME ``nu`` is the namelist's (the ν conversion)."""
+    """l1, l2, linf of h and the mass change from a run's summary; checks that the run took its
+    Δt and ν as given and, with ``hv``, that its header's HOMME ``nu`` is the namelist's (the ν
+    conversion; ``check_as_given``)."""
     m = re.search(r"error h\s+l1 (\S+)\s+l2 (\S+)\s+linf (\S+)", text)
     mass = re.search(r"mass\s+\S+\s+relative change (\S+)", text)
     if not (m and mass):
         raise RuntimeError(f"no TC2 errors in swe_sphere's summary:\n{text[-2000:]}")
-    if hv is not None:
-        back = re.search(r"hypervis_scaling = \S+, nu = ([^)\s]+)\)", text)
-        if not back or not math.isclose(float(back[1]), hv["nu"], rel_tol=2e-3):
-            raise RuntimeError(f"the run's HOMME nu is {back and back[1]}, not the namelist's {hv['nu']:g}")
+    check_as_given(text, None if hv is None else hv["nu"])
     return {"l1": float(m[1]), "l2": float(m[2]), "linf": float(m[3]), "mass": float(mass[1])}
 
 
@@ -274,14 +331,14 @@ def main(argv=None) -> int:
 
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        run_swe(swe_command(mountain, 4, 0.0125, tmp / "warm.nc", hv))  # fills the kernel cache; not timed
+        run_swe(swe_command(tmp, mountain, 4, 0.0125, tmp / "warm.nc", hv))  # fills the kernel cache; not timed
         rows, got = [], {}
         for k in range(args.rounds):
             order = ("swe", "homme") if k % 2 == 0 else ("homme", "swe")
             for who in order:
                 for days in (1, args.days):
                     if who == "swe":
-                        got["swe", days] = run_swe(swe_command(mountain, 4, days, tmp / f"swe{days}.nc", hv))
+                        got["swe", days] = run_swe(swe_command(tmp, mountain, 4, days, tmp / f"swe{days}.nc", hv))
                     else:
                         got["homme", days] = run_homme(sweqx, homme_namelist(base, mountain, days), tmp / "homme")
             rows.append(({key: v[:2] for key, v in got.items()}, os.getloadavg()[0]))
@@ -299,7 +356,7 @@ def main(argv=None) -> int:
         files = {mountain.label: tmp / "mountain.nc"}
         for n, grid in enumerate(grids):
             files[grid.label] = tmp / f"grid{n}.nc"
-            ours = swe_scores(run_swe(swe_command(grid, 4, 1, files[grid.label], hv))[2], hv)
+            ours = swe_scores(run_swe(swe_command(tmp, grid, 4, 1, files[grid.label], hv))[2], hv)
             theirs = homme_scores(run_homme(sweqx, homme_namelist(base, grid, 1), tmp / "homme")[2], 1.0)
             scores[grid.label] = (ours, theirs)
             print(f"{grid.label}: l2 swe_sphere {ours['l2']:.4e}, HOMME {theirs['l2']:.4e}", file=sys.stderr)
@@ -313,10 +370,10 @@ def main(argv=None) -> int:
         if args.np_study:
             for grid in (mountain, grids[2], grids[4], grids[5]):
                 for np_ in range(3, 8):
-                    text = run_swe(swe_command(grid, np_, 1, tmp / "np.nc", None, dt=45.0))[2]
+                    text = run_swe(swe_command(tmp, grid, np_, 1, tmp / "np.nc", None, dt=45.0))[2]
                     convergence[grid.label, np_] = swe_scores(text, None)["l2"]
                 print(f"{grid.label}: np 3..7 done", file=sys.stderr)
-            regression = swe_scores(run_swe(swe_command(mountain, 8, 1, tmp / "np.nc", hv))[2], hv)
+            regression = swe_scores(run_swe(swe_command(tmp, mountain, 8, 1, tmp / "np.nc", hv))[2], hv)
 
     print(
         f"TC2 (alpha 0), HOMME's swtc2.nl: leapfrog-trapezoidal dt 90 s, tensor hyperviscosity s = "

@@ -30,7 +30,6 @@ mountain mesh with 0 and 2 (``homme_maps``).
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import re
 import subprocess
@@ -46,7 +45,14 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from peer_homme import default_kit, run_homme  # noqa: E402  (benchmarks/)
-from peer_homme_rrm import BOX, HOMME_RADIUS, TERMS, gradient_error, homme_scores, kit_namelist, our_nu  # noqa: E402
+from peer_homme_rrm import (  # noqa: E402
+    BOX,
+    check_as_given,
+    gradient_error,
+    homme_scene,
+    homme_scores,
+    kit_namelist,
+)
 
 from swe_sphere.cases.scoring import regional_l2  # noqa: E402
 from swe_sphere.config.scene import load_scene  # noqa: E402
@@ -54,7 +60,7 @@ from swe_sphere.core.errors import SceneError  # noqa: E402
 from swe_sphere.grid.quality import REGIONS, element_regions, element_sizes  # noqa: E402
 from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 
-HOMME_SWTC2 = {"nu": 1e-9, "scaling": 3.2, "subcycle": 2}  # swtc2.nl's ∇⁴ (``peer_homme_rrm``)
+HOMME_SWTC2 = {"nu": 1e-9, "hypervis_scaling": 3.2, "hypervis_subcycle": 2}  # swtc2.nl's ∇⁴ (``peer_homme_rrm``)
 MOUNTAIN = REPO.parent / "shared" / "meshes" / "mountain_10_x2.g"
 
 
@@ -64,46 +70,14 @@ def write_mesh(path: Path, *options: str) -> Path:
     return path
 
 
-def homme_scene(folder: Path, grid: dict, nelem: int, dt: float, days: float) -> Path:
-    """A scene file of TC2 in HOMME's ``swtc2.nl`` settings on ``grid`` (the ``grid.*`` values):
-    the run's own grid and planet, so that its ν (``peer_homme_rrm.our_nu`` of ``nelem``
-    elements) and Δt are taken as given, not scaled from another grid's."""
-    nu = our_nu(HOMME_SWTC2["nu"], HOMME_SWTC2["scaling"], nelem)
-    lines = [f"{k.split('.')[1]} = {json.dumps(v)}" for k, v in grid.items()]
-    text = f"""terms = {json.dumps(TERMS)}
-[case]
-name = "tc2_steady"
-[grid]
-{chr(10).join(lines)}
-[planet]
-radius = {HOMME_RADIUS!r}
-[time]
-stepper = "leapfrog_trapezoidal"
-dt = {dt!r}
-days = {days!r}
-[output]
-every_days = 1.0
-[hyperviscosity]
-nu = {nu!r}
-nu_div = {nu!r}
-nu_s = {nu!r}
-scaling = {HOMME_SWTC2["scaling"]!r}
-subcycle = {HOMME_SWTC2["subcycle"]!r}
-"""
-    path = folder / f"swtc2_{nelem}_{len(list(folder.glob('swtc2_*')))}.toml"
-    path.write_text(text)
-    return path
-
-
 def run(grid: dict, dt: float, days: float, homme: Path | None):
     """(the Simulation after the run, its history, CPU s) of TC2 on the grid of ``grid`` (the
     ``grid.*`` overrides): the scene's settings, or with ``homme`` (a folder for the scene file)
-    HOMME's ``swtc2.nl`` (``homme_scene``)."""
+    HOMME's ``swtc2.nl`` (``peer_homme_rrm.homme_scene``)."""
     scene = load_scene("tc2_steady", dt=dt, days=days, overrides={"output.every_days": 1.0, **grid})
     if homme is not None:
-        scene = load_scene(homme_scene(homme, grid, scene.nelem, dt, days))
-        if not any(f"nu = {HOMME_SWTC2['nu']:g})" in note for note in scene.notes):
-            raise RuntimeError(f"not HOMME's nu: {scene.notes}")
+        scene = load_scene(homme_scene(homme, grid, scene.nelem, HOMME_SWTC2, dt, days))
+        check_as_given("\n".join(scene.notes), HOMME_SWTC2["nu"])
     start = time.process_time()
     sim = Simulation(scene, "cpu", progress=False)
     result = sim.run(None)

@@ -9,8 +9,8 @@ What changes, and why it keeps the pages' order meaningful:
   apart by their grid (``run tc5_mountain_homme`` and ``… --ne 60``) still write
   different default files; a command without ``--ne`` gets that of its scene's grid
   (``stability``: of its default ne 8), but for a run on a mesh file (``--mesh``,
-  ``-s grid.mesh_file=…``) or from a restart file (``--continue``, ``--from``), whose grid
-  is the file's. A ``--dt`` given with a known grid grows as the grid coarsens
+  ``-s grid.mesh_file=…``, a scene whose ``[grid]`` names one) or from a restart file
+  (``--continue``, ``--from``), whose grid is the file's. A ``--dt`` given with a known grid grows as the grid coarsens
   (``coarser_dt``: the same Courant number).
 - A default file name in any argument (``…_ne8np4_ssprk3.nc``) says the shortened grid.
 - A sweep makes one run: the first of ``--runs``, or the first of ``--steppers`` at the
@@ -93,8 +93,13 @@ def shorten(argv: list[str]) -> list[str]:
     elif command == "stability":
         ne = COARSE_NE
         args += ["--ne", str(small_ne(ne))]
-    elif args and not args[0].startswith("-") and not set(FILE_GRID) & set(args) and not _mesh_file(args):
-        ne = scene_ne(args[0])
+    elif (
+        args
+        and not args[0].startswith("-")
+        and not set(FILE_GRID) & set(args)
+        and not _mesh_file(args)
+        and (ne := scene_ne(args[0]))  # 0: a scene on a mesh file
+    ):
         args += ["--ne", str(small_ne(ne))]
     else:
         ne = None  # the file's grid, not known here: its Δt stays

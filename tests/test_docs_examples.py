@@ -24,6 +24,9 @@ from pathlib import Path
 
 import pytest
 
+from swe_sphere.grid.cubed_sphere import cube_mesh
+from swe_sphere.grid.mesh import write_exodus
+
 from docs_shortening import coarser_dt, shorten, small_ne
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -113,6 +116,17 @@ def test_a_page_grids_stay_apart():
     assert shorten(["run", "tc2_steady", "--ne", "8", "-s", "case.path=tc5_mountain_ne16np4_rk4.nc"])[-1] == (
         "case.path=tc5_mountain_ne3np4_rk4.nc"
     )
+
+
+def test_a_scene_on_a_mesh_file_keeps_the_file_s_grid(tmp_path):
+    write_exodus(tmp_path / "ne2.g", cube_mesh(2))
+    scene = tmp_path / "on_mesh.toml"
+    terms = '["continuity", "momentum_advection", "coriolis", "pressure_gradient"]'
+    scene.write_text(
+        f'terms = {terms}\n[case]\nname = "tc2_steady"\n[grid]\nne = 0\nmesh_file = "ne2.g"\n[time]\ndt = 900.0\n'
+    )
+    assert shorten(["run", str(scene), "--dt", "90"]) == ["run", str(scene), "--dt", "90"]
+    assert shorten(["run", "tc2_steady", "--dt", "90"])[-4:] == ["--dt", str(coarser_dt(90.0, 16)), "--ne", "3"]
 
 
 def test_a_sweep_makes_one_run_in_one_process():

@@ -89,6 +89,7 @@ class MultirateAB3:
         names, self.form = stage_form(table.A_E, table.b_E, table.c)
         self.rk = {name: buffer() for name in names}
         self.K = buffer()
+        self._sums: dict[tuple, list] = {}  # ``_accumulate``'s recorded launches
 
     def substeps(self) -> int:
         """The finest sub-steps a coarse step, 2^K."""
@@ -128,12 +129,28 @@ class MultirateAB3:
             self.at(j / n)
             for k in self._due(j):
                 self._record(k, x)
-            terms = [(1.0, x)]
-            for k, h in enumerate(self.history):
-                terms.extend((self.dt * w, a) for w, a in zip(self.weights[j, k], h))
-            self.combine(x, terms)
+            for k in range(self.levels):
+                self._accumulate(x, j, k)
         counts = self.evaluations()
         return counts[0], sum(counts[1:])
+
+    def _accumulate(self, x, j: int, k: int) -> None:
+        """x += level k's integral over the finest sub-step j, Δt Σ_i w[j, k, i] f_k⁽ⁱ⁾, over
+        the elements that hold its nodes alone (elsewhere its tendencies are zero): two
+        combinations, x + w0 f⁰ + w1 f¹ then + w2 f², recorded once per history order."""
+        h = self.history[k]
+        key = (x.ptr, j, k, *(a.ptr for a in h))
+        launches = self._sums.get(key)
+        if launches is None:
+            w0, w1, w2 = (float(self.dt * w) for w in self.weights[j, k])
+            part = self.parts[k]
+            launches = self._sums[key] = [
+                self.model.lincomb(x, terms, run)
+                for run in ([None] if part is None else part.reach)
+                for terms in (((1.0, x), (w0, h[0]), (w1, h[1])), ((1.0, x), (w2, h[2])))
+            ]
+        for launch in launches:
+            launch.launch()
 
     def _start_step(self, x) -> None:
         """2^K steps of ``inner`` at h_K, the first stage's F the sum of the levels' f_k at

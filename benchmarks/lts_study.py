@@ -42,6 +42,8 @@ STEPPERS = {  # label → (stepper, options)
     "lts MRAB3, 1 level (AB3)": ("lts", {"method": "mrab3", "max_levels": 1}),
     "lts MRAB3, 2 levels": ("lts", {"method": "mrab3", "max_levels": 2}),
     "lts MRAB3, 3 levels": ("lts", {"method": "mrab3", "max_levels": 3}),
+    "lts MRAB3, 2 levels, margin 1.3": ("lts", {"method": "mrab3", "max_levels": 2, "level_margin": 1.3}),
+    "lts MRAB3, 3 levels, margin 1.3": ("lts", {"method": "mrab3", "max_levels": 3, "level_margin": 1.3}),
 }
 
 

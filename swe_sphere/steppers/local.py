@@ -13,6 +13,9 @@ evaluated s times a step Δt, and the finer levels' f_fine (nonlinear) its fast 
 integrated in the inner solves by ``inner`` in steps of at most Δt/2^K (K the finest level;
 each solve r ⌈d_r 2^K⌉ of them). Levels between the coarsest and the finest step with the
 finest (two parts, not a recursion: exact in the levels' count only for two levels).
+Or (``method = "mrab3"``) multirate Adams–Bashforth 3 on one part a level
+(``multirate_ab``): level k evaluated once every Δt/2^k, so a coarse step costs exactly the
+levels' bound in element evaluations, no overlap.
 
 Mass. Each part's depth row is a DSS'd sum of its elements' divergences: its area integral
 is the flux of h v through the part's boundary, which the other part's cancels only when
@@ -55,9 +58,9 @@ LAUNCH_GAP = 16
 
 @dataclass(frozen=True)
 class LtsOptions:
-    """Scene table ``[lts]`` (see ``Lts``): ``method`` (a table of ``tables.MULTIRATE``, or "mrab3"),
-    ``inner`` ("ssprk3" | "rk4"), ``max_levels`` (≥ 1), ``substeps`` ("levels" or an
-    integer ≥ 1). ValueError names a bad one."""
+    """Scene table ``[lts]`` (see ``Lts``): ``method`` (a table of ``tables.MULTIRATE``, or
+    "mrab3"), ``inner`` ("ssprk3" | "rk4"), ``max_levels`` (≥ 1), ``substeps`` ("levels" or
+    an integer ≥ 1), ``level_margin`` (≥ 1). ValueError names a bad one."""
 
     method: str = "mis4a"
     inner: str = "rk4"
@@ -121,8 +124,22 @@ class Lts(Mri):
     solve in ⌈d_r n⌉ steps; ``substeps`` n, "levels" (the default): 2^K, the finest
     level's step, or a number (fewer when the coarse step is below 2^K times the worst
     element's limit: the inner step need only be within the worst element's, as a global
-    step is); ``max_levels``, at most this many levels (default 2).
+    step is); ``max_levels``, at most this many levels (default 2); ``level_margin`` m ≥ 1
+    (default 1): an element is coarser than the finest level only if m times its rate is
+    within the level's limit (``grid.levels.element_levels``).
     A step's order is the lower of the table's and the inner method's.
+
+    ``method = "mrab3"``: multirate Adams–Bashforth 3 (``multirate_ab.MultirateAB3``; Gear
+    & Wells 1984, BIT 24:484; Mikida, Klöckner & Bodony 2019, J. Comput. Phys. 394:345),
+    third order, one evaluation of level k every Δt/2^k (the coarse level's reported as RHS
+    evaluations, the finer levels' as "fast"), the first two coarse steps ``inner``'s at
+    Δt/2^K recording the levels' histories; ``substeps`` unused. With one level it is the
+    global AB3 step (``max_levels = 1``): AB3's stability interval on the imaginary axis is
+    about a quarter of RK4's (0.72 against 2.83, one evaluation a step against four), so its
+    step is about a quarter of RK4's and the ∇⁴, once a step, is applied four times as often.
+    Its coupled levels hold less than each element's own limit near the interfaces on a
+    paved mesh: ``level_margin`` moves the elements nearest a level's limit finer
+    (benchmarks/README.md, "Local time stepping").
 
     On a mesh (and flow) with one level the step is ``inner``'s global explicit
     Runge–Kutta step, the same bits as that stepper (``describe`` says so). s slow
@@ -275,6 +292,11 @@ class Lts(Mri):
         if self.levels is None or Stepper.graph_key(self) is None:
             return None
         return ("step", self.mrab.phase()) if self.mrab is not None else Stepper.graph_key(self)
+
+    def replayed(self, stats):
+        if self.mrab is not None:
+            self.mrab.replayed()
+        return super().replayed(stats)
 
     def _fast_at(self, theta: float) -> None:
         start, span = self._solve

@@ -108,9 +108,8 @@ class MultirateAB3:
 
     def _record(self, k: int, y) -> None:
         """Shift level k's history and evaluate its newest tendency at y."""
-        h = self.history[k]
-        h.insert(0, h.pop())
-        self._evaluate(k, y, h[0])
+        _shift(self.history[k])
+        self._evaluate(k, y, self.history[k][0])
 
     def _due(self, j: int):
         """The levels whose step starts at the finest sub-step j."""
@@ -175,6 +174,15 @@ class MultirateAB3:
                 for out, terms in updates:
                     self.comb(arrays[out], *stage_terms(terms, arrays[out], arrays, self.K, tau))
 
+    def replayed(self) -> None:
+        """The host's part of a step that ran as a captured graph (``Stepper.replayed``):
+        each level's history shifted 2^k times, as the step's evaluations shift it, and the
+        start's progress counted."""
+        for k, h in enumerate(self.history):
+            for _ in range(2**k):
+                _shift(h)
+        self.started = min(self.started + 1, START_STEPS)
+
     def phase(self) -> tuple:
         """What the next step's launches depend on: the start's progress and each level's
         history order (its buffers rotate)."""
@@ -195,3 +203,8 @@ class MultirateAB3:
         for k, h in enumerate(self.history):
             for i, a in enumerate(h):
                 load(a, state, f"mrab_f{k}_{i}")
+
+
+def _shift(history: list) -> None:
+    """The oldest buffer becomes the newest's, to be written (the others one older)."""
+    history.insert(0, history.pop())

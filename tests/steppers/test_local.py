@@ -125,6 +125,7 @@ BAD = [
     ("lts.method=mis5", "lts.method must be one of mis2, mis3c, mis4a, mri_gark_erk33a, mrab3 (got 'mis5')"),
     ("lts.inner=fbrk32", "lts.inner must be one of ssprk3, rk4 (got 'fbrk32')"),
     ("lts.substeps=0", 'lts.substeps must be an integer >= 1 or "levels" (got 0)'),
+    ("lts.level_margin=0.5", "lts.level_margin must be a number >= 1 (got 0.5)"),
 ]
 
 
@@ -228,6 +229,21 @@ def test_mrab3_restarts_bitwise_in_and_after_its_start(refined):
         second.x.assign(x)
         second.stepper.restore(state)
         np.testing.assert_array_equal(steps(second, 6 - split), end)
+
+
+def test_mrab3_replayed_step_shifts_the_histories_as_a_step_does(refined):
+    """A step replayed as a captured graph (``replayed``) leaves the host's history order and
+    start count as the step itself does: in the start and after it."""
+    sim = sim_of("tc5_mountain", "lts", 1800.0, 0.125, MRAB3, mesh=refined)
+    mrab = sim.stepper.mrab
+    for _ in range(4):
+        saved, started = [list(h) for h in mrab.history], mrab.started
+        sim.stepper.step(sim.x)
+        stepped = ([list(h) for h in mrab.history], mrab.started)
+        mrab.history, mrab.started = [list(h) for h in saved], started
+        mrab.replayed()
+        assert ([list(h) for h in mrab.history], mrab.started) == stepped
+        assert stepped[0][1] != saved[1]  # the fine level's buffers moved
 
 
 def test_mrab3_evaluates_level_k_two_to_the_k_times(refined):

@@ -112,7 +112,7 @@ class LevelSplit:
 
 
 class Lts(Mri):
-    """Local time stepping: a multirate table with the coarse elements slow and the fine fast.
+    """Local time stepping: element levels stepped by a multirate table or by multirate AB3.
 
     The element levels (``grid.levels``) from the initial state (``prepare``), the
     coarsest level's tendency the slow part and the finer levels' the fast part of the

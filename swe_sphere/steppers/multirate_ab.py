@@ -136,8 +136,8 @@ class MultirateAB3:
 
     def _accumulate(self, x, j: int, k: int) -> None:
         """x += level k's integral over the finest sub-step j, Δt Σ_i w[j, k, i] f_k⁽ⁱ⁾, over
-        the elements that hold its nodes alone (elsewhere its tendencies are zero): two
-        combinations, x + w0 f⁰ + w1 f¹ then + w2 f², recorded once per history order."""
+        the elements that hold its nodes alone (elsewhere its tendencies are zero): one
+        combination x + w0 f⁰ + w1 f¹ + w2 f², recorded once per history order."""
         h = self.history[k]
         key = (x.ptr, j, k, *(a.ptr for a in h))
         launches = self._sums.get(key)
@@ -145,9 +145,8 @@ class MultirateAB3:
             w0, w1, w2 = (float(self.dt * w) for w in self.weights[j, k])
             part = self.parts[k]
             launches = self._sums[key] = [
-                self.model.lincomb(x, terms, run)
+                self.model.lincomb(x, ((1.0, x), (w0, h[0]), (w1, h[1]), (w2, h[2])), run)
                 for run in ([None] if part is None else part.reach)
-                for terms in (((1.0, x), (w0, h[0]), (w1, h[1])), ((1.0, x), (w2, h[2])))
             ]
         for launch in launches:
             launch.launch()

@@ -90,7 +90,7 @@ class MultirateAB3:
         names, self.form = stage_form(table.A_E, table.b_E, table.c)
         self.rk = {name: buffer() for name in names}
         self.K = buffer()
-        self._sums: dict[tuple, list] = {}  # ``_accumulate``'s recorded launches
+        self._sums: dict[tuple, list] = {}  # ``accumulate``'s recorded launches
 
     def substeps(self) -> int:
         """The finest sub-steps a coarse step, 2^K."""
@@ -100,7 +100,8 @@ class MultirateAB3:
         """Each level's evaluations a coarse step once started: 2^k."""
         return [2**k for k in range(self.levels)]
 
-    def _evaluate(self, k: int, y, out) -> None:
+    def evaluate(self, k: int, y, out) -> None:
+        """out = f_k(y), level k's tendency (3, N) (``rhs_part``; one level: ``rhs``)."""
         part = self.parts[k]
         if part is None:
             self.model.rhs(y, out)
@@ -110,7 +111,7 @@ class MultirateAB3:
     def _record(self, k: int, y) -> None:
         """Shift level k's history and evaluate its newest tendency at y."""
         _shift(self.history[k])
-        self._evaluate(k, y, self.history[k][0])
+        self.evaluate(k, y, self.history[k][0])
 
     def _due(self, j: int):
         """The levels whose step starts at the finest sub-step j."""
@@ -130,11 +131,11 @@ class MultirateAB3:
             for k in self._due(j):
                 self._record(k, x)
             for k in range(self.levels):
-                self._accumulate(x, j, k)
+                self.accumulate(x, j, k)
         counts = self.evaluations()
         return counts[0], sum(counts[1:])
 
-    def _accumulate(self, x, j: int, k: int) -> None:
+    def accumulate(self, x, j: int, k: int) -> None:
         """x += level k's integral over the finest sub-step j, Δt Σ_i w[j, k, i] f_k⁽ⁱ⁾, over
         the elements that hold its nodes alone (elsewhere its tendencies are zero): one
         combination x + w0 f⁰ + w1 f¹ + w2 f², recorded once per history order."""
@@ -166,7 +167,7 @@ class MultirateAB3:
                         if k in due:
                             self._record(k, x)
                         else:
-                            self._evaluate(k, x, self.scratch[k])
+                            self.evaluate(k, x, self.scratch[k])
                     parts = [self.history[k][0] if k in due else self.scratch[k] for k in range(self.levels)]
                     self.combine(self.K, [(1.0, a) for a in parts])
                 else:

@@ -49,6 +49,27 @@ def axpbypcz(
 
 
 @wp.kernel
+def axpbypczpdw(
+    a: f64,
+    x: wp.array2d(dtype=f64),
+    b: f64,
+    y: wp.array2d(dtype=f64),
+    c: f64,
+    z: wp.array2d(dtype=f64),
+    d: f64,
+    w: wp.array2d(dtype=f64),
+    out: wp.array2d(dtype=f64),
+    block: int,
+    offset: int,
+):
+    """out = a·x + b·y + c·z + d·w (out may alias any input). Dim (rows, N/block)."""
+    r, k = wp.tid()
+    start = (k + offset) * block
+    for p in range(start, start + block):
+        out[r, p] = a * x[r, p] + b * y[r, p] + c * z[r, p] + d * w[r, p]
+
+
+@wp.kernel
 def chunk_sums(src: wp.array2d(dtype=f64), chunk: int, dst: wp.array2d(dtype=f64)):
     """dst[r, t] = Σ src[r, t·chunk : (t+1)·chunk] in index order: partial sums of
     partial sums, so that fewer come back to the host. Dim (rows, ceil(n / chunk))."""

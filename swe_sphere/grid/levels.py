@@ -73,18 +73,22 @@ def element_rates(grid, x: np.ndarray, g: float) -> np.ndarray:
     return element_sizes(grid).norm_dinv * (np.sqrt(g * depth) + speed)
 
 
-def element_levels(grid, rate: np.ndarray, max_levels: int) -> ElementLevels:
+def element_levels(grid, rate: np.ndarray, max_levels: int, margin: float = 1.0) -> ElementLevels:
     """The levels of ``grid``'s elements (the whole grid) from their rates λ_e (E,) > 0
     (``element_rates``): at most ``max_levels`` of them, neighbours at most one apart
-    (the module docstring). Raises ValueError for max_levels < 1 or a rate that is not
-    finite and positive."""
+    (the module docstring); with ``margin`` m ≥ 1 an element is K − j or finer when
+    m λ_e ≤ λ_max / 2^j (the finest element's own level unchanged: for a method whose
+    coupled levels hold less than each element's own limit). Raises ValueError for
+    max_levels < 1, margin < 1 or a rate that is not finite and positive."""
     if isinstance(max_levels, bool) or int(max_levels) != max_levels or max_levels < 1:
         raise ValueError(f"max_levels must be an integer >= 1 (got {max_levels})")
     rate = np.asarray(rate, dtype=np.float64)
     if rate.shape != (grid.nelem,) or not np.all(np.isfinite(rate) & (rate > 0)):
         raise ValueError("element rates must be finite and > 0, one per element")
+    if not margin >= 1.0:
+        raise ValueError(f"margin must be >= 1 (got {margin})")
     # j: levels below the finest, from each element's own limit
-    j = np.floor(np.log2(rate.max() / rate) + ROUNDOFF).astype(np.int64)
+    j = np.floor(np.maximum(np.log2(rate.max() / (margin * rate)), 0.0) + ROUNDOFF).astype(np.int64)
     j = np.minimum(j, int(max_levels) - 1)
     adjacency = element_neighbours(grid)
     while True:  # a neighbour's j + 1 bounds j: move the coarser element finer until none is two apart

@@ -115,16 +115,17 @@ class LaunchRecorder:
             per_part=per_part,
         )
 
-    def lincomb(self, out, terms):
-        """The recorded launch of out = Σ c·x over one to three (c, x) terms of (rows, N)
+    def lincomb(self, out, terms, elements=None):
+        """The recorded launch of out = Σ c·x over one to four (c, x) terms of (rows, N)
         arrays (row views such as ``x[2:3]`` included; out may alias any x),
-        ``blas.axpby``/``axpbypcz`` (one term: c·x + 0·x)."""
+        ``blas.axpby``/``axpbypcz``/``axpbypczpdw`` (one term: c·x + 0·x); ``elements``
+        (start, stop): over those elements' nodes only."""
         terms = tuple(terms)
         if len(terms) == 1:
             terms += ((0.0, terms[0][1]),)
         args = [a for c, x in terms for a in (f64(c), x)]
-        kernel = blas.axpby if len(terms) == 2 else blas.axpbypcz
-        return self.pointwise(kernel, out.shape[0], [*args, out])
+        kernel = {2: blas.axpby, 3: blas.axpbypcz, 4: blas.axpbypczpdw}[len(terms)]
+        return self.pointwise(kernel, out.shape[0], [*args, out], elements=elements)
 
     def run_pointwise(self, kernel, *inputs, unique=False) -> None:
         """Run a pointwise kernel (``kernels.blas`` convention: trailing ``block``,

@@ -47,13 +47,28 @@ class ElementPart(NamedTuple):
     launch less is worth computing), ``nelem`` its elements, ``nodes`` (int32 device array)
     the element-local nodes whose unique node one of them touches (every copy), ``copies``
     the DSS's table of its own copies alone (``Topology.part_copies``), ``tend`` (3, N) the
-    element-local tendency its kernels write."""
+    element-local tendency its kernels write, ``reach`` the (start, stop) element ranges
+    that hold every copy in ``nodes`` (where its assembled tendency is nonzero), merged as
+    ``runs``."""
 
     runs: list
     nelem: int
     nodes: wp.array
     copies: object
     tend: wp.array2d
+    reach: list
+
+
+def element_runs(elements, gap: int) -> list[tuple[int, int]]:
+    """(start, stop) ranges of consecutive element indices holding ``elements`` (ascending,
+    distinct), two merged where at most ``gap`` others lie between."""
+    runs = []
+    for k in np.asarray(elements).tolist():
+        if runs and k - runs[-1][1] <= gap:
+            runs[-1][1] = k + 1
+        else:
+            runs.append([k, k + 1])
+    return [tuple(r) for r in runs]
 
 
 class ShallowWater:
@@ -177,9 +192,10 @@ class ShallowWater:
         self.bad_nodes = BadNodes(self)  # the check of a state for non-finite or dry nodes
 
     # -- the recorder's (``launches.LaunchRecorder``) -----------------------
-    def lincomb(self, out, terms):
-        """``launches.lincomb``: the recorded launch of out = Σ c·x over (c, x) terms."""
-        return self.launches.lincomb(out, terms)
+    def lincomb(self, out, terms, elements=None):
+        """``launches.lincomb``: the recorded launch of out = Σ c·x over (c, x) terms
+        (``elements`` (start, stop): over those elements' nodes only)."""
+        return self.launches.lincomb(out, terms, elements)
 
     def pointwise(self, kernel, *inputs, unique=False) -> None:
         """``launches.run_pointwise``: run a pointwise kernel, recorded on first use."""
@@ -299,15 +315,10 @@ class ShallowWater:
             raise ValueError(f"part elements must be ascending distinct indices in 0..{self.grid.nelem - 1}")
         if isinstance(gap, bool) or int(gap) != gap or gap < 0:
             raise ValueError(f"gap must be an integer >= 0 (got {gap})")
-        runs = []
-        for k in e.tolist():
-            if runs and k - runs[-1][1] <= gap:
-                runs[-1][1] = k + 1
-            else:
-                runs.append([k, k + 1])
         nodes, copies = self.topology.part_copies(e)
         tend = wp.zeros((3, self.N), dtype=f64, device=self.device)
-        return ElementPart([tuple(r) for r in runs], int(e.size), nodes, copies, tend)
+        reach = element_runs(np.unique(nodes.numpy() // self.grid.np**2), gap)
+        return ElementPart(element_runs(e, gap), int(e.size), nodes, copies, tend, reach)
 
     def rhs_part(self, x: wp.array2d, out: wp.array2d, part: ElementPart, terms: tuple | None = None) -> None:
         """out = f_P(x, t) = M⁻¹ DSS(the element-local tendency of ``part``'s elements

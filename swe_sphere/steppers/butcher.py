@@ -455,3 +455,9 @@ def stage_form(A, b, c) -> tuple[tuple, tuple]:
         free = [name for name in pool if name not in content]
         holder = None if last else next(name for name, v in content.items() if v == Y[k])
     return tuple(created), tuple(stages)
+
+
+def stage_terms(terms, dst, arrays: dict, K, tau: float) -> tuple:
+    """The (coefficient, array) terms of one ``stage_form`` update into ``dst``: src "k" as
+    (q·tau, K), None as dst itself, a name as that buffer of ``arrays``."""
+    return tuple((float(a) * tau, K) if src == "k" else (a, dst if src is None else arrays[src]) for a, src in terms)

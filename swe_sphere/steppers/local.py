@@ -13,6 +13,9 @@ evaluated s times a step Δt, and the finer levels' f_fine (nonlinear) its fast 
 integrated in the inner solves by ``inner`` in steps of at most Δt/2^K (K the finest level;
 each solve r ⌈d_r 2^K⌉ of them). Levels between the coarsest and the finest step with the
 finest (two parts, not a recursion: exact in the levels' count only for two levels).
+Or (``method = "mrab3"``) multirate Adams–Bashforth 3 on one part a level
+(``multirate_ab``): level k evaluated once every Δt/2^k, so a coarse step costs exactly the
+levels' bound in element evaluations, no overlap.
 
 Mass. Each part's depth row is a DSS'd sum of its elements' divergences: its area integral
 is the flux of h v through the part's boundary, which the other part's cancels only when
@@ -40,10 +43,13 @@ import warp as wp
 from ..grid.levels import ElementLevels, element_levels, element_rates
 from .base import Stepper, StepStats
 from .multirate import Mri
+from .multirate_ab import START_STEPS, MultirateAB3
 from .runge_kutta import explicit_steppers
 from .tables import MULTIRATE
 
 LTS_INNER = ("ssprk3", "rk4")
+MRAB3 = "mrab3"  # multirate Adams–Bashforth 3 (``multirate_ab``), beside the multirate tables
+LTS_METHODS = (*MULTIRATE, MRAB3)
 # elements of another level a level's kernels compute (and its DSS leaves out) rather than
 # split a launch: a launch's fixed cost is that of about 30 elements' tendency at np 4 on one
 # CPU thread (benchmarks/lts_level_cost.py), so at most this many between two of its ranges
@@ -52,29 +58,35 @@ LAUNCH_GAP = 16
 
 @dataclass(frozen=True)
 class LtsOptions:
-    """Scene table ``[lts]`` (see ``Lts``): ``method`` (a table of ``tables.MULTIRATE``),
-    ``inner`` ("ssprk3" | "rk4"), ``max_levels`` (≥ 1), ``substeps`` ("levels" or an
-    integer ≥ 1). ValueError names a bad one."""
+    """Scene table ``[lts]`` (see ``Lts``): ``method`` (a table of ``tables.MULTIRATE``, or
+    "mrab3"), ``inner`` ("ssprk3" | "rk4"), ``max_levels`` (≥ 1), ``substeps`` ("levels" or
+    an integer ≥ 1), ``level_margin`` (≥ 1). ValueError names a bad one."""
 
     method: str = "mis4a"
     inner: str = "rk4"
     max_levels: int = 2
     substeps: int | str = "levels"
+    level_margin: float = 1.0
 
     def __post_init__(self):
-        if self.method not in MULTIRATE:
-            raise ValueError(f"method must be one of {', '.join(MULTIRATE)} (got {self.method!r})")
+        if self.method not in LTS_METHODS:
+            raise ValueError(f"method must be one of {', '.join(LTS_METHODS)} (got {self.method!r})")
         if self.inner not in LTS_INNER:
             raise ValueError(f"inner must be one of {', '.join(LTS_INNER)} (got {self.inner!r})")
         m = self.max_levels
         if isinstance(m, bool) or not isinstance(m, int) or m < 1:
             raise ValueError(f"max_levels must be an integer >= 1 (got {m!r})")
+        margin = self.level_margin
+        if isinstance(margin, bool) or not isinstance(margin, (int, float)) or not margin >= 1:
+            raise ValueError(f"level_margin must be a number >= 1 (got {margin!r})")
         n = self.substeps
         if n != "levels" and (isinstance(n, bool) or not isinstance(n, int) or n < 1):
             raise ValueError(f'substeps must be an integer >= 1 or "levels" (got {n!r})')
 
     def table(self) -> dict:
-        """The multirate table's entries (``parse_mri``)."""
+        """The multirate table's entries (``parse_mri``); MRAB3's name and order alone."""
+        if self.method == MRAB3:
+            return {"name": "MRAB3", "order": 3}
         return dict(MULTIRATE[self.method])
 
 
@@ -100,7 +112,7 @@ class LevelSplit:
 
 
 class Lts(Mri):
-    """Local time stepping: a multirate table with the coarse elements slow and the fine fast.
+    """Local time stepping: element levels stepped by a multirate table or by multirate AB3.
 
     The element levels (``grid.levels``) from the initial state (``prepare``), the
     coarsest level's tendency the slow part and the finer levels' the fast part of the
@@ -112,8 +124,22 @@ class Lts(Mri):
     solve in ⌈d_r n⌉ steps; ``substeps`` n, "levels" (the default): 2^K, the finest
     level's step, or a number (fewer when the coarse step is below 2^K times the worst
     element's limit: the inner step need only be within the worst element's, as a global
-    step is); ``max_levels``, at most this many levels (default 2).
+    step is); ``max_levels``, at most this many levels (default 2); ``level_margin`` m ≥ 1
+    (default 1): an element is coarser than the finest level only if m times its rate is
+    within the level's limit (``grid.levels.element_levels``).
     A step's order is the lower of the table's and the inner method's.
+
+    ``method = "mrab3"``: multirate Adams–Bashforth 3 (``multirate_ab.MultirateAB3``; Gear
+    & Wells 1984, BIT 24:484; Mikida, Klöckner & Bodony 2019, J. Comput. Phys. 394:345),
+    third order, one evaluation of level k every Δt/2^k (the coarse level's reported as RHS
+    evaluations, the finer levels' as "fast"), the first two coarse steps ``inner``'s at
+    Δt/2^K recording the levels' histories; ``substeps`` unused. With one level it is the
+    global AB3 step (``max_levels = 1``): AB3's stability interval on the imaginary axis is
+    about a quarter of RK4's (0.72 against 2.83, one evaluation a step against four), so its
+    step is about a quarter of RK4's and the ∇⁴, once a step, is applied four times as often.
+    Its coupled levels hold less than each element's own limit near the interfaces on a
+    paved mesh: ``level_margin`` moves the elements nearest a level's limit finer
+    (benchmarks/README.md, "Local time stepping").
 
     On a mesh (and flow) with one level the step is ``inner``'s global explicit
     Runge–Kutta step, the same bits as that stepper (``describe`` says so). s slow
@@ -136,9 +162,14 @@ class Lts(Mri):
     solvers = ("fast",)
 
     def __init__(self, model, dt, options=None):
-        super().__init__(model, dt, options)
+        if (options or LtsOptions()).method == MRAB3:  # no multirate table: the engine's buffers alone
+            Stepper.__init__(self, model, dt, options)
+            self.split, self.n_fast, self._combs = None, None, {}
+        else:
+            super().__init__(model, dt, options)
         self.levels: ElementLevels | None = None
         self.single = None  # the inner method's global stepper, with one level
+        self.mrab: MultirateAB3 | None = None  # method "mrab3"'s engine, from the levels
 
     def _make_split(self):
         return None  # from the levels, at ``prepare``
@@ -146,6 +177,8 @@ class Lts(Mri):
     @classmethod
     def label(cls, options: dict) -> str:
         o = cls.make_options(**options)
+        if o.method == MRAB3:
+            return f"{cls.name} MRAB3 (started by {o.inner}) max_levels={o.max_levels}"
         return f"{cls.name} {o.table()['name']} {o.inner} max_levels={o.max_levels} substeps={o.substeps}"
 
     def prepare(self, x) -> None:
@@ -156,11 +189,26 @@ class Lts(Mri):
                 raise ValueError("lts runs on one MPI rank so far (each rank's share of every level is to come)")
             grid = self.model.grid
             self._set_levels(
-                element_levels(grid, element_rates(grid, x.numpy(), self.model.g), self.options.max_levels)
+                element_levels(
+                    grid,
+                    element_rates(grid, x.numpy(), self.model.g),
+                    self.options.max_levels,
+                    self.options.level_margin,
+                )
             )
 
     def _set_levels(self, levels: ElementLevels) -> None:
         self.levels, self.n_fast = levels, None
+        if self.options.method == MRAB3:
+            parts = [None]  # one level: the whole grid's rhs, the global AB3 step
+            if levels.count > 1:
+                parts = [
+                    self.model.element_part(np.flatnonzero(levels.level == k), LAUNCH_GAP) for k in range(levels.count)
+                ]
+            self.mrab = MultirateAB3(
+                self.model, self.dt, parts, self.options.inner, self._comb, self._combine, self._at
+            )
+            return
         for a in self.S:  # a part's f writes only the nodes it touches: none left from other levels
             a.zero_()
         if levels.count == 1:
@@ -169,17 +217,27 @@ class Lts(Mri):
             self.split, self.single = LevelSplit(self.model, levels, self._comb), None
 
     def substeps(self) -> int:
-        """Fast steps a slow step: 2^K, the finest level's, or the ``substeps`` option's."""
-        n = self.options.substeps
+        """Fast steps a slow step: 2^K, the finest level's, or the ``substeps`` option's
+        (MRAB3: 2^K)."""
+        n = "levels" if self.mrab is not None else self.options.substeps
         return 2 ** (self.levels.count - 1) if n == "levels" else n
 
     def describe(self) -> list[str]:
         lv = self.levels
         if lv is None:
             return []
+        evals = self.element_evaluations()
+        if self.mrab is not None:
+            if lv.count == 1:
+                return [f"{lv.describe()}: one level, so the global AB3 step (started by {self.options.inner})"]
+            return [
+                f"{lv.describe()}",
+                f"element evaluations a coarse step {evals['local']} against {evals['global']} for a global AB3 "
+                f"step at the finest step dt/{self.substeps()} ({evals['global'] / evals['local']:.2f}x; the first "
+                f"{START_STEPS} coarse steps {self.options.inner} at dt/{self.substeps()})",
+            ]
         if lv.count == 1:
             return [f"{lv.describe()}: one level, so the global {self.options.inner} step"]
-        evals = self.element_evaluations()
         return [
             f"{lv.describe()}",
             f"element evaluations a coarse step {evals['local']} against {evals['global']} for a global "
@@ -191,6 +249,8 @@ class Lts(Mri):
         stages on level 0, the inner stages on the finer levels) and ``global`` (``inner``
         over every element at the inner step, Δt/n, n = ``substeps()``)."""
         lv, n = self.levels, self.substeps()
+        if self.mrab is not None:  # MRAB3 once started: level k 2^k times, against AB3 at dt/2^K
+            return {"local": int(np.sum(2**lv.level)), "global": n * lv.level.size}
         per = len(self._form)
         fine = int(np.sum(lv.level >= 1))
         fast = per * sum(max(1, math.ceil(d * n - 1e-9)) for d in self.tab.d)
@@ -213,7 +273,10 @@ class Lts(Mri):
         a = np.zeros((3, self.N))
         if self.levels is not None:
             a[0] = np.repeat(self.levels.level, self.model.grid.np**2)
-        return {**Stepper.state(self), "levels": a}
+        out = {**Stepper.state(self), "levels": a}
+        if self.mrab is not None:
+            out |= self.mrab.state(self._save)
+        return out
 
     def restore(self, state):
         Stepper.restore(self, state)
@@ -222,9 +285,18 @@ class Lts(Mri):
             raise ValueError(f"lts stepper state 'levels' must be (3, {self.N}) (got {a.shape})")
         level = a[0, :: self.model.grid.np**2].astype(np.int64)
         self._set_levels(ElementLevels(level, int(level.max()) + 1))
+        if self.mrab is not None:
+            self.mrab.restore(state, self._load, self._entry)
 
     def graph_key(self):
-        return None if self.levels is None else Stepper.graph_key(self)
+        if self.levels is None or Stepper.graph_key(self) is None:
+            return None
+        return ("step", self.mrab.phase()) if self.mrab is not None else Stepper.graph_key(self)
+
+    def replayed(self, stats):
+        if self.mrab is not None:
+            self.mrab.replayed()
+        return super().replayed(stats)
 
     def _fast_at(self, theta: float) -> None:
         start, span = self._solve
@@ -233,6 +305,10 @@ class Lts(Mri):
     def advance(self, x):
         if self.levels is None:
             self.prepare(x)
+        if self.mrab is not None:
+            slow, fast = self.mrab.step(x)
+            self.model.hyperviscosity(x, self.dt)
+            return StepStats(slow, {"fast": fast})
         if self.single is not None:
             self.single.steps, self.single.t0 = self.steps, self.t0
             return self.single.advance(x)

@@ -69,7 +69,7 @@ import warp as wp
 from ..model.gravity_wave import GravityWaveOperator, check_mean_depth
 from ..model.launches import Update
 from .base import Stepper, StepStats
-from .butcher import TableauOptions, frozen_table, parse, stage_form, table_entry
+from .butcher import TableauOptions, frozen_table, parse, stage_form, stage_terms, table_entry
 from .tables import EXPLICIT, MULTIRATE
 
 f64 = wp.float64
@@ -585,14 +585,7 @@ class Mri(_Multirate):
             self._fast_at((k + c) / n)
             self.split.fast(arrays[arg], self.K, rho)
             for out, terms in updates:
-                dst = arrays[out]
-                self._comb(
-                    dst,
-                    *(
-                        (float(a) * tau, self.K) if src == "k" else (a, dst if src is None else arrays[src])
-                        for a, src in terms
-                    ),
-                )
+                self._comb(arrays[out], *stage_terms(terms, arrays[out], arrays, self.K, tau))
 
     def _fbrk32(self, z, tau, k, n, timed) -> None:
         """One FB-RK(3,2) step (``explicit.FBRK32``: the depth first, the wind with h̃) of the

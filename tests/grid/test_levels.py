@@ -70,3 +70,19 @@ def test_a_uniform_cube_is_one_level_with_the_flow():
 def test_a_level_count_below_one_is_refused(bad):
     with pytest.raises(ValueError, match="max_levels must be an integer >= 1"):
         element_levels(CubedSphere(1, 4), np.ones(6), bad)
+
+
+def test_a_margin_moves_elements_near_a_levels_limit_finer():
+    """The refined ne4 cube's Dinv sizes: with margin m an element is coarse only if m λ_e ≤
+    λ_max/2; the worst element keeps the finest level; m = 1 is the default; m < 1 refused."""
+    grid = refined_grid()
+    rate = element_sizes(grid).norm_dinv
+    assert np.array_equal(element_levels(grid, rate, 2, 1.0).level, element_levels(grid, rate, 2).level)
+    for margin in (1.1, 1.3):
+        lv = element_levels(grid, rate, 2, margin)
+        assert lv.level[np.argmax(rate)] == 1
+        coarse = lv.level == 0
+        assert np.all(margin * rate[coarse] <= rate.max() / 2 * (1 + 1e-12))
+        assert coarse.sum() < 60  # fewer than without the margin
+    with pytest.raises(ValueError, match="margin must be >= 1"):
+        element_levels(grid, rate, 2, 0.9)

@@ -39,6 +39,7 @@ from helpers import EIGHTH_DAY, TINY, cli_main, cli_one_line, make_sim, requires
 VARIANTS = (
     [(name, {}) for name in STEPPERS]
     + [("implicit", {"method": "bdf2"}), ("tableau", load_scene("ark324l2sa").stepper_options)]
+    + [("lts", {"method": "mrab3"})]  # one level on the cube: AB3, its start and histories
     + [(name, {"precision": "mixed"}) for name in ("semi_implicit", "imex", "implicit")]
     + [("mri", {"method": "mri_gark_erk33a", "inner": "fbrk32"}), ("mri", {"method": "mis4a", "inner": "rk4"})]
 )

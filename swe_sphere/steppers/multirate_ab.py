@@ -1,0 +1,211 @@
+"""Multirate Adams–Bashforth 3 (MRAB3) on the element levels of local time stepping.
+
+The assembled tendency splits exactly by element level, F = Σ_k f_k, f_k = M⁻¹ DSS(the
+level-k elements' contributions) (``ShallowWater.rhs_part``; ``local``'s module docstring).
+Over a coarse step [t_n, t_n + Δt] level k steps h_k = Δt/2^k (K the finest level). Each
+level keeps its last three tendencies at its own step times, f_k(t_j), f_k(t_j − h_k),
+f_k(t_j − 2h_k), and on [t_j, t_j + h_k] its tendency is the quadratic p_k through them
+(extrapolated: Adams–Bashforth 3). The state at any time t of the step is
+y(t) = y_n + Σ_k ∫_{t_n}^{t} p_k, each level's quadratic integrated exactly (Lagrange basis
+integrals; over a whole step of the level that is AB3's h_k (23 f⁰ − 16 f¹ + 5 f²)/12).
+The step walks the finest sub-steps t_j = t_n + j h_K: at t_j every level whose step starts
+there evaluates f_k(y(t_j)) and shifts its history, then y gains every level's integral over
+[t_j, t_j + h_K]. Gear & Wells 1984 (BIT 24:484, multirate linear multistep methods: the
+slow part's history extrapolated over the fast steps); Mikida, Klöckner & Bodony 2019
+(J. Comput. Phys. 394:345: multirate AB for DG, the states built from each rate's
+polynomial integrated exactly over the fastest step); one evaluation of level k every h_k,
+so a coarse step evaluates level-k elements 2^k times: the levels' bound exactly. Order 3
+(each level's quadratic is third order where it is extrapolated over at most its own step).
+
+With one level it is the global AB3 step: y_{n+1} = y_n + Δt (23 F_n − 16 F_{n−1} + 5 F_{n−2})/12
+through ``ShallowWater.rhs`` (the whole grid's, not a part's).
+
+The start. AB3 needs two coarse steps of history: the first two coarse steps take 2^K steps
+each of the explicit Runge–Kutta table ``inner`` at the finest step h_K, the first stage's F
+the sum of the levels' f_k at the sub-step's start, so each level records f_k at its own
+step times on the way. Their order (4 for RK4, 3 for SSPRK3) keeps the method's.
+
+Mass. f_k's depth row integrates to the flux of h v through level k's boundary at level k's
+times; its neighbour level integrates the same interface flux with its own polynomial, so a
+step changes the mass by the difference of two third-order integrations of one flux:
+zero to the method's order, not to round-off (tests/steppers/test_local.py bounds it on TC2
+by a hundredth of the depth's error and checks that it falls at the method's order).
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+import numpy as np
+import warp as wp
+
+from .butcher import TableauOptions, parse, stage_form, stage_terms
+from .tables import EXPLICIT
+
+f64 = wp.float64
+HISTORY = 3  # tendencies a level keeps: AB3's
+START_STEPS = HISTORY - 1  # coarse steps of the Runge–Kutta start
+
+
+def _antiderivatives(s: Fraction) -> tuple[Fraction, Fraction, Fraction]:
+    """∫_0^s of the Lagrange basis on the nodes 0, −1, −2 (the newest first):
+    L0 = (s+1)(s+2)/2, L1 = −s(s+2), L2 = s(s+1)/2."""
+    return (s**3 / 6 + 3 * s**2 / 4 + s, -(s**3) / 3 - s**2, s**3 / 6 + s**2 / 4)
+
+
+def ab3_weights(levels: int) -> np.ndarray:
+    """(2^K, K + 1, 3) float: entry [j, k, i] the integral over the finest sub-step
+    [t_j, t_j + h_K] of level k's Lagrange basis function i (i = 0 the newest of its three
+    tendencies), in units of Δt: h_k/Δt ∫_a^b L_i, a and b the sub-step's ends in level k's
+    own step. Over a level's whole step the rows sum to AB3's (23, −16, 5)/12 · h_k/Δt."""
+    K = levels - 1
+    out = np.zeros((2**K, levels, HISTORY))
+    for j in range(2**K):
+        for k in range(levels):
+            m = 2 ** (K - k)  # finest sub-steps a level-k step
+            a, b = Fraction(j % m, m), Fraction(j % m + 1, m)
+            lo, hi = _antiderivatives(a), _antiderivatives(b)
+            out[j, k] = [float(Fraction(1, 2**k) * (y - x)) for x, y in zip(lo, hi)]
+    return out
+
+
+class MultirateAB3:
+    """The MRAB3 step (the module docstring) of ``model`` with coarse step ``dt`` (s) on the
+    element ``parts`` (one ``ShallowWater.ElementPart`` a level, coarsest first; [None]: one
+    level, the whole grid's ``rhs``). ``inner`` names the start's explicit table
+    (``tables.EXPLICIT``); ``comb(out, *terms)`` and ``combine(out, terms)`` are the
+    stepper's recorded linear combinations, ``at(c)`` sets the model time to t_n + c Δt."""
+
+    def __init__(self, model, dt: float, parts: list, inner: str, comb, combine, at):
+        self.model, self.dt, self.parts = model, float(dt), parts
+        self.comb, self.combine, self.at = comb, combine, at
+        self.levels = len(parts)
+        self.weights = ab3_weights(self.levels)
+        buffer = lambda: wp.zeros((3, model.N), dtype=f64, device=model.device)  # noqa: E731
+        # each level's tendencies, the newest first; a level's buffers hold its nodes alone
+        self.history = [[buffer() for _ in range(HISTORY)] for _ in parts]
+        self.scratch = [buffer() for _ in parts]  # f_k off its own step times (the start)
+        self.started = 0  # coarse steps of the start taken
+        table = parse(TableauOptions(**EXPLICIT[inner]))
+        names, self.form = stage_form(table.A_E, table.b_E, table.c)
+        self.rk = {name: buffer() for name in names}
+        self.K = buffer()
+        self._sums: dict[tuple, list] = {}  # ``accumulate``'s recorded launches
+
+    def substeps(self) -> int:
+        """The finest sub-steps a coarse step, 2^K."""
+        return 2 ** (self.levels - 1)
+
+    def evaluations(self) -> list[int]:
+        """Each level's evaluations a coarse step once started: 2^k."""
+        return [2**k for k in range(self.levels)]
+
+    def evaluate(self, k: int, y, out) -> None:
+        """out = f_k(y), level k's tendency (3, N) (``rhs_part``; one level: ``rhs``)."""
+        part = self.parts[k]
+        if part is None:
+            self.model.rhs(y, out)
+        else:
+            self.model.rhs_part(y, out, part)
+
+    def _record(self, k: int, y) -> None:
+        """Shift level k's history and evaluate its newest tendency at y."""
+        _shift(self.history[k])
+        self.evaluate(k, y, self.history[k][0])
+
+    def _due(self, j: int):
+        """The levels whose step starts at the finest sub-step j."""
+        return [k for k in range(self.levels) if j % 2 ** (self.levels - 1 - k) == 0]
+
+    def step(self, x) -> tuple[int, int]:
+        """Advance x (3, N) in place over the coarse step (the dynamics alone). Returns the
+        evaluations it took: (the coarsest level's, the finer levels'), or during the start
+        (whole-grid evaluations: the parts' sum counted as one, 0)."""
+        if self.started < START_STEPS:
+            self._start_step(x)
+            self.started += 1
+            return len(self.form) * self.substeps(), 0
+        n = self.substeps()
+        for j in range(n):
+            self.at(j / n)
+            for k in self._due(j):
+                self._record(k, x)
+            for k in range(self.levels):
+                self.accumulate(x, j, k)
+        counts = self.evaluations()
+        return counts[0], sum(counts[1:])
+
+    def accumulate(self, x, j: int, k: int) -> None:
+        """x += level k's integral over the finest sub-step j, Δt Σ_i w[j, k, i] f_k⁽ⁱ⁾, over
+        the elements that hold its nodes alone (elsewhere its tendencies are zero): one
+        combination x + w0 f⁰ + w1 f¹ + w2 f², recorded once per history order."""
+        h = self.history[k]
+        key = (x.ptr, j, k, *(a.ptr for a in h))
+        launches = self._sums.get(key)
+        if launches is None:
+            w0, w1, w2 = (float(self.dt * w) for w in self.weights[j, k])
+            part = self.parts[k]
+            launches = self._sums[key] = [
+                self.model.lincomb(x, ((1.0, x), (w0, h[0]), (w1, h[1]), (w2, h[2])), run)
+                for run in ([None] if part is None else part.reach)
+            ]
+        for launch in launches:
+            launch.launch()
+
+    def _start_step(self, x) -> None:
+        """2^K steps of ``inner`` at h_K, the first stage's F the sum of the levels' f_k at
+        the sub-step's start (recorded in the history at a level's own step times)."""
+        n = self.substeps()
+        tau = self.dt / n
+        arrays = {"x": x, **self.rk}
+        for j in range(n):
+            due = self._due(j)
+            for stage, (c, arg, updates) in enumerate(self.form):
+                self.at((j + c) / n)
+                if stage == 0:
+                    for k in range(self.levels):
+                        if k in due:
+                            self._record(k, x)
+                        else:
+                            self.evaluate(k, x, self.scratch[k])
+                    parts = [self.history[k][0] if k in due else self.scratch[k] for k in range(self.levels)]
+                    self.combine(self.K, [(1.0, a) for a in parts])
+                else:
+                    self.model.rhs(arrays[arg], self.K)
+                for out, terms in updates:
+                    self.comb(arrays[out], *stage_terms(terms, arrays[out], arrays, self.K, tau))
+
+    def replayed(self) -> None:
+        """The host's part of a step that ran as a captured graph (``Stepper.replayed``):
+        each level's history shifted 2^k times, as the step's evaluations shift it, and the
+        start's progress counted."""
+        for k, h in enumerate(self.history):
+            for _ in range(2**k):
+                _shift(h)
+        self.started = min(self.started + 1, START_STEPS)
+
+    def phase(self) -> tuple:
+        """What the next step's launches depend on: the start's progress and each level's
+        history order (its buffers rotate)."""
+        return (self.started, *(tuple(a.ptr for a in h) for h in self.history))
+
+    def state(self, save) -> dict:
+        """The start's progress and each level's history (``save``: a whole-grid copy)."""
+        out = {"mrab_started": self.started}
+        for k, h in enumerate(self.history):
+            for i, a in enumerate(h):
+                out[f"mrab_f{k}_{i}"] = save(a)
+        return out
+
+    def restore(self, state, load, entry) -> None:
+        """Set the progress and histories from ``state()`` (``load(array, state, key)``,
+        ``entry(state, key)`` the stepper's; ValueError names a missing entry)."""
+        self.started = int(entry(state, "mrab_started"))
+        for k, h in enumerate(self.history):
+            for i, a in enumerate(h):
+                load(a, state, f"mrab_f{k}_{i}")
+
+
+def _shift(history: list) -> None:
+    """The oldest buffer becomes the newest's, to be written (the others one older)."""
+    history.insert(0, history.pop())

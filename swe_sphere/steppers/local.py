@@ -148,14 +148,15 @@ class Lts(Mri):
     at ``prepare`` with more). The run file's attributes ``lts_*`` give the table, the
     levels, the elements per level and the saving's bound.
 
-    What it does not reach: the coarse step is not 2^K times the global one. TC5 over 3
-    days on mountain_10_x2.g: RK4 stable to 726 s; lts MIS4a/RK4 to 665 s with 2 levels
-    and 1168 s with 3 (levels promising 2x and 4x); TC2 likewise (540 s against RK4's 720 s
-    with 2 levels), and 8 inner steps a solve instead of 2 do not move it: the coupling of
-    the levels, not the fine substeps, sets the limit (the MIS4a slow table alone holds
-    0.72x RK4's interval on the imaginary axis). And a coarse step evaluates the fine
-    elements s_inner Σ_r ⌈d_r 2^K⌉ times (32 for MIS4a/RK4 at K = 2) where a global step
-    at Δt/2^K does 4·2^K: the inner solves of MIS tables overlap (Σ d_r = 1.47)."""
+    What it does not reach (measured in benchmarks/README.md, "Local time stepping"): with
+    MIS tables the coarse step stays near the global one, since the levels' coupling, not
+    the fine substeps, sets it (the MIS4a slow table alone holds 0.72x RK4's interval on
+    the imaginary axis), and a coarse step evaluates the fine elements s_inner Σ_r ⌈d_r 2^K⌉
+    times (32 for MIS4a/RK4 at K = 2) where a global step at Δt/2^K does 4·2^K: the inner
+    solves of MIS tables overlap (Σ d_r = 1.47). MRAB3 evaluates exactly the levels' bound,
+    but its steps are short (AB3's stable step is a quarter of RK4's, and at equal accuracy
+    its error constant holds it below that), so the ∇⁴ once a step and the levels' sub-step
+    sums cost more than the evaluations it saves."""
 
     name = "lts"
     Options = LtsOptions

@@ -89,7 +89,7 @@ class MultirateAB3:
         table = parse(TableauOptions(**EXPLICIT[inner]))
         names, self.form = stage_form(table.A_E, table.b_E, table.c)
         self.rk = {name: buffer() for name in names}
-        self.K = buffer()
+        self.F = buffer()  # the start's stage tendency
         self._sums: dict[tuple, list] = {}  # ``accumulate``'s recorded launches
 
     def substeps(self) -> int:
@@ -169,11 +169,11 @@ class MultirateAB3:
                         else:
                             self.evaluate(k, x, self.scratch[k])
                     parts = [self.history[k][0] if k in due else self.scratch[k] for k in range(self.levels)]
-                    self.combine(self.K, [(1.0, a) for a in parts])
+                    self.combine(self.F, [(1.0, a) for a in parts])
                 else:
-                    self.model.rhs(arrays[arg], self.K)
+                    self.model.rhs(arrays[arg], self.F)
                 for out, terms in updates:
-                    self.comb(arrays[out], *stage_terms(terms, arrays[out], arrays, self.K, tau))
+                    self.comb(arrays[out], *stage_terms(terms, arrays[out], arrays, self.F, tau))
 
     def replayed(self) -> None:
         """The host's part of a step that ran as a captured graph (``Stepper.replayed``):

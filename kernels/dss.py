@@ -102,13 +102,13 @@ def dss_rows(rows: int, weighted: bool, copies: int, ghosts: bool = False):
 
 
 @functools.cache
-def dss_rows_at(rows: int, weighted: bool, copies: int):
+def dss_rows_at(rows: int, weighted: bool, copies: int, ghosts: bool = False):
     """``dss_rows`` at the listed nodes only: out[r, p] = the DSS of x at p (``gather``)
     for p = nodes[i], i the thread index + offset; out's other nodes are not written (a
     local time step's level: the copies of the nodes its elements touch,
-    ``Topology.dss_at``). Arguments: x, d (``Copies``), nodes (int32), out, offset; no
-    ghosts (one process). ``out`` must not alias ``x``."""
-    sum_copies = gather(rows, weighted, copies)
+    ``Topology.dss_at``). Arguments: x, d (``Copies``), nodes (int32), out, offset.
+    ``ghosts``: copies held by other processes, as in ``gather``. ``out`` must not alias ``x``."""
+    sum_copies = gather(rows, weighted, copies, ghosts)
 
     def dss_at(
         x: wp.array2d(dtype=f64), d: Copies, nodes: wp.array(dtype=wp.int32), out: wp.array2d(dtype=f64), offset: int

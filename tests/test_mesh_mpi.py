@@ -9,10 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mpi_mesh import final_state
-from test_mpi import assert_same_bits, mpirun_python, needs_mpi  # noqa: F401 (a fixture)
+from test_mpi import assert_continues_on_three, assert_same_bits, mpirun, mpirun_python, needs_mpi  # noqa: F401 (a fixture)
 
+from swe_sphere.cli import main
 from swe_sphere.grid.cubed_sphere import cube_mesh
 from swe_sphere.grid.mesh import write_exodus
+from swe_sphere.grid.refine import Box, refined_cube
 
 
 @pytest.mark.usefixtures("needs_mpi")
@@ -39,3 +41,22 @@ def test_a_run_on_a_mesh_file_has_the_same_bits_on_3_ranks(tmp_path):
         assert proc.returncode == 0, proc.stderr[-2000:]
         assert "worst element 18 " in proc.stdout
     assert_same_bits(tmp_path / "r1.nc", tmp_path / "r3.nc")
+
+
+@pytest.mark.usefixtures("needs_mpi")
+@pytest.mark.parametrize("method", ["mis4a", "mrab3"])
+def test_local_time_stepping_has_the_same_bits_on_any_rank_count(tmp_path, method):
+    """lts on the ne4 cube refined 2x over TC5's mountain (two levels, 66 and 58 elements),
+    each rank stepping its share of both levels: 3 ranks give the one process's run file bit
+    for bit; MRAB3 (its levels' histories in the restart file) stopped halfway on 2 ranks and
+    continued on 3 ends with the one process's bits."""
+    mesh = write_exodus(tmp_path / "r4.g", refined_cube(4, Box(15.0, 45.0, 255.0, 285.0), 1))
+    args = ["tc5_mountain", "--mesh", str(mesh), "--stepper", "lts", "-s", f"lts.method={method}", "--dt", "720"]
+    args += ["--no-progress"]
+    assert main(["run", *args, "--days", "0.25", "--output", str(tmp_path / "r1.nc")]) == 0
+    proc = mpirun(3, ["run", *args, "--days", "0.25", "--output", "r3.nc"], tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "levels 2: 66, 58 elements" in proc.stdout
+    assert_same_bits(tmp_path / "r1.nc", tmp_path / "r3.nc")
+    if method == "mrab3":
+        assert_continues_on_three(tmp_path, args, 0.25)

@@ -168,16 +168,15 @@ def test_explicit_run_same_bits_on_1_2_3_ranks(tmp_path, scene, extra):
         assert_same_bits(tmp_path / "r1.nc", out)
 
 
-@pytest.mark.usefixtures("needs_mpi")
-def test_run_on_two_ranks_continues_on_three(tmp_path):
-    """Leapfrog (its x(n-1) in the restart file) stopped after half the run on 2 ranks and
-    continued on 3 ends with the bits of an uninterrupted 1-rank run."""
-    args = ["tc2_steady", "--ne", "2", "--stepper", "leapfrog", "--dt", "1800", "--no-progress"]
-    assert main(["run", *args, "--days", "0.5", "--output", str(tmp_path / "whole.nc")]) == 0
-    proc = mpirun(2, ["run", *args, "--days", "0.25", "--restart-every", "0.25", "--output", "half.nc"], tmp_path)
+def assert_continues_on_three(tmp_path: Path, args: list[str], days: float) -> None:
+    """``swe-sphere run ARGS`` stopped at days/2 on 2 ranks (a restart file there) and
+    continued on 3 to ``days`` ends with the fields of one uninterrupted 1-rank run."""
+    assert main(["run", *args, "--days", str(days), "--output", str(tmp_path / "whole.nc")]) == 0
+    half = str(days / 2)
+    proc = mpirun(2, ["run", *args, "--days", half, "--restart-every", half, "--output", "half.nc"], tmp_path)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert (tmp_path / "half.restart.nc").is_file()
-    proc = mpirun(3, ["run", "--continue", "half.restart.nc", "--days", "0.5", "--output", "rest.nc"], tmp_path)
+    proc = mpirun(3, ["run", "--continue", "half.restart.nc", "--days", str(days), "--output", "rest.nc"], tmp_path)
     assert proc.returncode == 0, proc.stderr[-2000:]
     with (
         xr.open_dataset(tmp_path / "whole.nc", decode_times=False) as whole,
@@ -185,6 +184,15 @@ def test_run_on_two_ranks_continues_on_three(tmp_path):
     ):
         for name in ("u", "v", "h"):
             assert np.array_equal(whole[name].values[-1], rest[name].values[-1]), name
+
+
+@pytest.mark.usefixtures("needs_mpi")
+def test_run_on_two_ranks_continues_on_three(tmp_path):
+    """Leapfrog (its x(n-1) in the restart file) stopped after half the run on 2 ranks and
+    continued on 3 ends with the bits of an uninterrupted 1-rank run."""
+    assert_continues_on_three(
+        tmp_path, ["tc2_steady", "--ne", "2", "--stepper", "leapfrog", "--dt", "1800", "--no-progress"], 0.5
+    )
 
 
 @pytest.mark.usefixtures("needs_mpi")
@@ -218,17 +226,6 @@ def test_unreadable_restart_file_refused_by_every_rank_in_one_line(tmp_path):
     proc = mpirun(2, ["run", "--continue", "junk.nc", "--output", "o.nc", "--no-progress"], tmp_path)
     assert proc.returncode == 2, proc.stderr[-2000:]
     assert proc.stderr.count("junk.nc: not a readable netCDF file") == 1 and len(proc.stderr.strip().splitlines()) == 1
-    assert not (tmp_path / "o.nc").exists()
-
-
-@pytest.mark.usefixtures("needs_mpi")
-def test_lts_on_two_ranks_is_refused_in_one_line(tmp_path):
-    """Local time stepping runs on one rank so far: two refuse it once, exit 2, no output."""
-    proc = mpirun(
-        2, ["run", "tc5_mountain", "--ne", "2", "--stepper", "lts", "--output", "o.nc", "--no-progress"], tmp_path
-    )
-    assert proc.returncode == 2, proc.stderr[-2000:]
-    assert proc.stderr.count("lts runs on one MPI rank so far") == 1 and len(proc.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "o.nc").exists()
 
 

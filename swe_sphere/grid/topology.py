@@ -290,19 +290,25 @@ class Topology:
             x, lambda rows, copies, ghosts: dss.dss_rows(rows, bool(weighted), copies, ghosts=ghosts), [out]
         )
 
-    def part_copies(self, elements: np.ndarray) -> tuple[wp.array, dss.Copies]:
+    def part_copies(self, elements: np.ndarray, whole: np.ndarray | None = None) -> tuple[wp.array, dss.Copies]:
         """What a DSS over part of the elements (indices ``elements``, held here) gathers:
-        (nodes, copies): the element-local nodes whose unique node one of them touches (every
-        copy, int32 device array) and a ``dss.Copies`` whose table keeps only the part's
-        copies (the others −1): their DSS is M⁻¹ Σ over the part's copies, whatever the
-        other elements' entries hold. One process only: ValueError with neighbours."""
-        if len(self.neighbours):
-            raise ValueError("an assembly over part of the elements runs on one MPI rank only so far")
+        (nodes, copies): the element-local nodes whose unique node one of the part's elements
+        touches, here or on another rank (every copy, int32 device array), and a
+        ``dss.Copies`` whose table keeps only the part's copies (the others −1): their DSS
+        is M⁻¹ Σ over the part's copies, whatever the other elements' entries hold.
+        ``whole`` (nelem_total,) bool: the part over the whole grid's elements, which says
+        which received copies are the part's; needed with neighbours (ValueError without,
+        or when it disagrees with ``elements`` here)."""
         per = self.grid.np**2
         mine = np.zeros(self.grid.nelem, dtype=bool)
         mine[elements] = True
+        member = mine[np.arange(self.N) // per]  # each copy's: local copies, then the received ones
+        if len(self.neighbours):
+            if whole is None or not np.array_equal(np.asarray(whole, dtype=bool)[self.elements], mine):
+                raise ValueError("an assembly over part of the elements on several ranks needs the whole part")
+            member = np.concatenate([member, np.asarray(whole, dtype=bool)[self.recv // per]])
         table = self._table
-        kept = np.where((table >= 0) & mine[np.maximum(table, 0) // per], table, -1)
+        kept = np.where((table >= 0) & member[np.maximum(table, 0)], table, -1)
         nodes = np.flatnonzero((kept >= 0).any(axis=1))
         copies = dss.Copies()
         copies.table = wp.array(kept.astype(np.int32), dtype=wp.int32, device=self.device)
@@ -313,9 +319,12 @@ class Topology:
     def dss_at(self, x: wp.array2d, weighted: bool, out: wp.array2d, nodes: wp.array, copies: dss.Copies) -> list:
         """Launches for out = DSS(x) over ``copies`` (``part_copies``) at the element-local
         ``nodes`` only, out's other nodes left as they are (``kernels.dss.dss_rows_at``): what
-        a part of the elements contributes, assembled over the nodes it touches."""
-        kernel = dss.dss_rows_at(x.shape[0], bool(weighted), self.table.shape[1])
-        return [record(kernel, nodes.shape[0], [x, copies, nodes, out], device=self.device, threads=self.threads)]
+        a part of the elements contributes, assembled over the nodes it touches. The
+        neighbours' copies are exchanged first (all of them: the table picks the part's)."""
+        ghosts = bool(len(self.neighbours))
+        kernel = dss.dss_rows_at(x.shape[0], bool(weighted), self.table.shape[1], ghosts)
+        launch = record(kernel, nodes.shape[0], [x, copies, nodes, out], device=self.device, threads=self.threads)
+        return [*self._exchange(x), launch]
 
     def dss_update(self, x: wp.array2d, updates) -> list:
         """Launches for the weighted DSS k of x (rows, N), not stored but used by

@@ -303,19 +303,21 @@ class ShallowWater:
         key = self.rhs_key(x, out, terms)
         self.launches.replay(key, (x, out), lambda: self._build_rhs(x, out, key[1]))
 
-    def element_part(self, elements, gap: int = 0) -> ElementPart:
+    def element_part(self, elements, gap: int = 0, whole=None) -> ElementPart:
         """An ``ElementPart`` of ``elements`` (indices of elements held, ascending, distinct):
         its tendency kernels run over ranges of consecutive elements that hold them, two
         ranges merged where at most ``gap`` other elements lie between (computed, and left
         out of the assembly: a launch's fixed cost against theirs); its DSS gathers its
-        own elements' copies alone (``Topology.part_copies``). ValueError for indices that
-        are not ascending, distinct elements held; ``gap`` < 0."""
+        own elements' copies alone (``Topology.part_copies``), with ``whole`` (nelem_total,)
+        bool, the part over the whole grid, those other ranks hold too (needed on several
+        ranks). ValueError for indices that are not ascending, distinct elements held;
+        ``gap`` < 0; several ranks without ``whole``."""
         e = np.asarray(elements, dtype=np.int64)
         if e.ndim != 1 or (e.size and (e[0] < 0 or e[-1] >= self.grid.nelem or np.any(np.diff(e) <= 0))):
             raise ValueError(f"part elements must be ascending distinct indices in 0..{self.grid.nelem - 1}")
         if isinstance(gap, bool) or int(gap) != gap or gap < 0:
             raise ValueError(f"gap must be an integer >= 0 (got {gap})")
-        nodes, copies = self.topology.part_copies(e)
+        nodes, copies = self.topology.part_copies(e, whole)
         tend = wp.zeros((3, self.N), dtype=f64, device=self.device)
         reach = element_runs(np.unique(nodes.numpy() // self.grid.np**2), gap)
         return ElementPart(element_runs(e, gap), int(e.size), nodes, copies, tend, reach)
@@ -329,7 +331,8 @@ class ShallowWater:
         diagonal: Diaz & Grote 2009, SIAM J. Sci. Comput. 31:1985, §2). The tendency
         kernels run over the part's element ranges only and the DSS over its nodes: a cost
         in proportion to its elements (and the ranges' gaps). ``out`` must not alias ``x``.
-        One MPI rank only (``Topology.part_copies``)."""
+        On several ranks every rank calls it for the same part (the neighbours' copies are
+        exchanged), the same bits as on one (the copies summed in one global order)."""
         key = ("rhs_part", id(part), *self.rhs_key(x, out, terms)[1:])
         self.launches.replay(key, (x, out, part), lambda: self._build_rhs(x, out, key[2], part))
 

@@ -99,8 +99,8 @@ class LevelSplit:
 
     def __init__(self, model, levels: ElementLevels, combine):
         self.model, self.levels, self.combine = model, levels, combine
-        self.coarse = model.element_part(np.flatnonzero(levels.level == 0), LAUNCH_GAP)
-        self.finer = model.element_part(np.flatnonzero(levels.level >= 1), LAUNCH_GAP)
+        self.coarse = level_part(model, levels.level == 0)
+        self.finer = level_part(model, levels.level >= 1)
         self.F = wp.zeros((3, model.N), dtype=wp.float64, device=model.device)
 
     def slow(self, x, out) -> None:
@@ -144,9 +144,11 @@ class Lts(Mri):
     On a mesh (and flow) with one level the step is ``inner``'s global explicit
     Runge–Kutta step, the same bits as that stepper (``describe`` says so). s slow
     evaluations of the coarse elements a step (reported as RHS evaluations) and the
-    inner stages' evaluations of the fine ones ("fast"). One MPI rank so far (ValueError
-    at ``prepare`` with more). The run file's attributes ``lts_*`` give the table, the
-    levels, the elements per level and the saving's bound.
+    inner stages' evaluations of the fine ones ("fast"). On several MPI ranks each rank
+    steps its share of every level, the same bits as on one (the levels are the whole
+    grid's; a level's assembly sums every copy in the one global order); the ranks' parts
+    are the grid's partition, not balanced level by level. The run file's attributes
+    ``lts_*`` give the table, the levels, the elements per level and the saving's bound.
 
     What it does not reach (measured in benchmarks/README.md, "Local time stepping"): with
     MIS tables the coarse step stays near the global one, since the levels' coupling, not
@@ -183,29 +185,26 @@ class Lts(Mri):
         return f"{cls.name} {o.table()['name']} {o.inner} max_levels={o.max_levels} substeps={o.substeps}"
 
     def prepare(self, x) -> None:
-        """Fix the element levels from x (3, N) unless fixed (or restored) before. ValueError
-        over several MPI ranks."""
+        """Fix the element levels from x (3, N) unless fixed (or restored) before: the
+        whole grid's, the same on every rank (each rank's element rates gathered on rank 0,
+        which levels them over the whole grid and hands the levels out)."""
         if self.levels is None:
-            if self.model.topology.distributed:
-                raise ValueError("lts runs on one MPI rank so far (each rank's share of every level is to come)")
-            grid = self.model.grid
-            self._set_levels(
-                element_levels(
-                    grid,
-                    element_rates(grid, x.numpy(), self.model.g),
-                    self.options.max_levels,
-                    self.options.level_margin,
-                )
-            )
+            model, topology = self.model, self.model.topology
+            per = model.grid.np**2
+            whole = topology.whole_grid()
+            rates = topology.gather(np.repeat(element_rates(model.grid, x.numpy(), model.g), per))
+            levels = None
+            if rates is not None:
+                o = self.options
+                levels = element_levels(whole, rates[::per], o.max_levels, o.level_margin)
+            self._set_levels(topology.bcast(levels))
 
     def _set_levels(self, levels: ElementLevels) -> None:
         self.levels, self.n_fast = levels, None
         if self.options.method == MRAB3:
             parts = [None]  # one level: the whole grid's rhs, the global AB3 step
             if levels.count > 1:
-                parts = [
-                    self.model.element_part(np.flatnonzero(levels.level == k), LAUNCH_GAP) for k in range(levels.count)
-                ]
+                parts = [level_part(self.model, levels.level == k) for k in range(levels.count)]
             self.mrab = MultirateAB3(
                 self.model, self.dt, parts, self.options.inner, self._comb, self._combine, self._at
             )
@@ -269,22 +268,24 @@ class Lts(Mri):
         return out
 
     def state(self):
-        """The steps and the levels: (3, N), row 0 each node's element level (rows 1, 2
-        zero: the shape the restart file keeps stepper arrays in)."""
+        """The steps and the levels: (3, nnodes) of the whole grid, row 0 each node's
+        element level (rows 1, 2 zero: the shape the restart file keeps stepper arrays in;
+        on rank 0, None on the others)."""
+        topology = self.model.topology
         a = np.zeros((3, self.N))
         if self.levels is not None:
-            a[0] = np.repeat(self.levels.level, self.model.grid.np**2)
-        out = {**Stepper.state(self), "levels": a}
+            a[0] = np.repeat(self.levels.level[topology.elements], self.model.grid.np**2)
+        out = {**Stepper.state(self), "levels": topology.gather(a)}
         if self.mrab is not None:
             out |= self.mrab.state(self._save)
         return out
 
     def restore(self, state):
         Stepper.restore(self, state)
-        a = np.asarray(self._entry(state, "levels"))
-        if a.shape != (3, self.N):
-            raise ValueError(f"lts stepper state 'levels' must be (3, {self.N}) (got {a.shape})")
-        level = a[0, :: self.model.grid.np**2].astype(np.int64)
+        topology, entry = self.model.topology, self._entry(state, "levels")
+        topology.distribute(entry, 3, f"{self.name} stepper state 'levels'")  # its shape checked on every rank
+        level = topology.bcast(None if entry is None else np.asarray(entry)[0, :: self.model.grid.np**2])
+        level = np.asarray(level).astype(np.int64)
         self._set_levels(ElementLevels(level, int(level.max()) + 1))
         if self.mrab is not None:
             self.mrab.restore(state, self._load, self._entry)
@@ -318,6 +319,13 @@ class Lts(Mri):
         evals = self._advance(x)
         self.model.hyperviscosity(x, self.dt)
         return StepStats(evals, {"fast": self.fast_evaluations()})
+
+
+def level_part(model, whole: np.ndarray):
+    """The ``ElementPart`` of the elements held here among ``whole`` (nelem_total,) bool,
+    a part of the whole grid's elements (``ShallowWater.element_part``, ranges merged over
+    ``LAUNCH_GAP``)."""
+    return model.element_part(np.flatnonzero(whole[model.topology.elements]), LAUNCH_GAP, whole)
 
 
 def _explicit(name: str) -> type[Stepper]:

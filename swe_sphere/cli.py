@@ -250,6 +250,12 @@ def _parser() -> argparse.ArgumentParser:
         "--steppers", default="leapfrog,ssprk3,semi_implicit,implicit", help="comma-separated stepper names"
     )
     st.add_argument("--ne", type=int, default=8, help="coarse grid for cases that do not fix one (default 8)")
+    st.add_argument(
+        "--mesh",
+        type=Path,
+        metavar="FILE.g",
+        help="every case on this Exodus II mesh instead of the ne cube (not the cases that fix their grid)",
+    )
     st.add_argument("--np", type=int, help="GLL points (default: the scene's)")
     st.add_argument("--days", type=float, help="run length for cases that do not fix one (default: the scene's)")
     st.add_argument(
@@ -264,7 +270,8 @@ def _parser() -> argparse.ArgumentParser:
     st.add_argument(
         "--output",
         type=Path,
-        help="directory for stability.csv and stability.nc (default: stability_<cases, or all>_ne<ne>, made if missing)",
+        help="directory for stability.csv and stability.nc (default: stability_<cases, or all>_ne<ne> or "
+        "_<the mesh file's stem>, made if missing)",
     )
     st.add_argument(
         "--overwrite", action="store_true", help="replace an earlier stability.csv and stability.nc in --output"
@@ -433,10 +440,16 @@ def _cmd_stability(args) -> int:
         raise SceneError(f"--ne must be an integer >= 1 (got {args.ne})")
     device = _warp_device(args.device)
     cases = [known[c] for c in args.cases] if args.cases else list(HARD_CASES)
-    given = dict(ne=args.ne, np_=args.np, days=args.days, overrides=_overrides(args.set))
+    if args.mesh is not None:
+        fixed = [label for label, _, _, ne in cases if ne is not None]
+        if fixed:
+            raise SceneError(f"stability case {fixed[0]} fixes its grid: not with --mesh (name the other cases)")
+    ne = None if args.mesh is not None else args.ne
+    given = dict(ne=ne, np_=args.np, days=args.days, mesh=args.mesh, overrides=_overrides(args.set))
     suite_scenes(cases, steppers, **given)  # every value refused before --output's folder is made
     # a folder of its own per suite, so that a page's suites run in order do not meet each other's files
-    output = args.output or Path(f"stability_{'_'.join(args.cases) or 'all'}_ne{args.ne}")
+    grid = f"ne{args.ne}" if args.mesh is None else args.mesh.stem
+    output = args.output or Path(f"stability_{'_'.join(args.cases) or 'all'}_{grid}")
     with executor(args.workers) as pool:
         if pool is None:  # an MPI worker rank: its share is done
             return 0

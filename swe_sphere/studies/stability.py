@@ -123,16 +123,23 @@ def largest_stable_dt(scene: Scene, device: str, *, tolerance: float = 0.05, log
     )
 
 
-def suite_scenes(cases, steppers, *, ne=None, np_=None, days=None, overrides=None) -> list[Scene]:
+def suite_scenes(cases, steppers, *, ne=None, np_=None, days=None, mesh=None, overrides=None) -> list[Scene]:
     """The scene of every (case, stepper) of ``run_suite``, in that order, named by the
     case's label. ``cases``: entries of ``HARD_CASES``; ``ne``/``np_`` override the grid
-    and ``days`` the run length of cases that do not fix them; ``overrides``
+    and ``days`` the run length of cases that do not fix them, ``mesh`` (an Exodus .g
+    path) the grid of every case (HOMME's ne = 0: with ``ne`` None); ``overrides``
     ({"section.key": value}, as ``load_scene``) apply to every case. Raises
     ``SceneError`` on a bad value, before anything runs or is written."""
     return [
         dataclasses.replace(
             load_scene(
-                scene_name, ne=case_ne or ne, np_=np_, days=case_days or days, stepper=stepper, overrides=overrides
+                scene_name,
+                ne=case_ne or ne,
+                np_=np_,
+                days=case_days or days,
+                stepper=stepper,
+                mesh=mesh,
+                overrides=overrides,
             ),
             name=label,
         )
@@ -142,7 +149,7 @@ def suite_scenes(cases, steppers, *, ne=None, np_=None, days=None, overrides=Non
 
 
 def run_suite(
-    cases, steppers, device, *, ne=None, np_=None, days=None, overrides=None, log=print, pool=None
+    cases, steppers, device, *, ne=None, np_=None, days=None, mesh=None, overrides=None, log=print, pool=None
 ) -> list[StabilityResult]:
     """Largest stable Δt for every (case, stepper) of ``suite_scenes`` (its arguments
     and errors). The bisections are independent: ``pool`` (a concurrent.futures
@@ -150,7 +157,7 @@ def run_suite(
     results in (case, stepper) order."""
     pool = pool or InProcess()
     futures = []
-    for scene in suite_scenes(cases, steppers, ne=ne, np_=np_, days=days, overrides=overrides):
+    for scene in suite_scenes(cases, steppers, ne=ne, np_=np_, days=days, mesh=mesh, overrides=overrides):
         log(f"{scene.name}: {scene.stepper} on {scene.grid_text}, {scene.days:g} days")
         futures.append(pool.submit(largest_stable_dt, scene, device, log=log))
     return [f.result() for f in futures]

@@ -28,7 +28,7 @@ from ..core.backend import Backend
 from ..core.parallel import record
 from ..kernels import blas, dss
 from .cubed_sphere import CubedSphere
-from .partition import mesh_partition, partition
+from .partition import level_chunks, mesh_order, mesh_partition, partition, sfc_order
 
 f64 = wp.float64
 MAX_ROWS = 4  # most rows a DSS assembles at once (the hyperviscosity's Cartesian wind + h)
@@ -77,12 +77,16 @@ class GatheredGrid:
         self.first, self.area = first.astype(np.int32), area
 
 
-def rank_parts(ne: int, size: int, mesh=None) -> list[np.ndarray]:
+def rank_parts(ne: int, size: int, mesh=None, level: np.ndarray | None = None) -> list[np.ndarray]:
     """The elements of each of ``size`` ranks, ascending: all of them on one rank,
     else the chunks of ``partition.partition`` (the cube's for ne ≥ 1, else of ``mesh``'s
-    elements along the curve through their centroids, ``partition.mesh_partition``)."""
+    elements along the curve through their centroids, ``partition.mesh_partition``); with
+    ``level`` (one int an element), each rank's share of every level along that curve
+    (``partition.level_chunks``: local time stepping's levels)."""
     if size == 1:  # skip the curve: one part in natural order is the whole grid
         return [np.arange(6 * ne * ne if ne else mesh.nelem)]
+    if level is not None:
+        return [np.sort(p) for p in level_chunks(sfc_order(ne) if ne else mesh_order(mesh), np.asarray(level), size)]
     return [np.sort(p) for p in (partition(ne, size) if ne else mesh_partition(mesh, size))]
 
 

@@ -41,6 +41,7 @@ from ..io.run_file import OUTPUT_FIELDS, check_distinct, check_target, node_data
 from ..model.shallow_water import ShallowWater
 from ..steppers import StepStats, make_stepper
 from ..steppers.initialization import digital_filter
+from ..steppers.local import Lts, size_levels
 from . import checkpoint as ckpt
 from .activities import Callback, Log
 from .guard import Guard
@@ -246,8 +247,12 @@ class Simulation(StateDiagnostics):
         self.scene, self.device = scene, device
         size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
         mesh = scene.make_mesh()  # None: the equiangular cube
-        parts = rank_parts(scene.ne, size, mesh)
         self.case = case = scene.make_case()
+        level = None  # lts on several ranks: each rank its share of every level, the work being Σ 2^level
+        if scene.stepper == Lts.name and size > 1:
+            whole = CubedSphere(scene.ne, scene.np, case.planet.a, mesh=mesh) if rank == 0 else None
+            level = comm.bcast(None if whole is None else size_levels(whole, scene.stepper_options), root=0)
+        parts = rank_parts(scene.ne, size, mesh, level)
         local = CubedSphere(scene.ne, scene.np, case.planet.a, elements=parts[rank], mesh=mesh)  # this rank's only
         self.topology = topo = Topology(local, device, Backend.of(device).threads(), comm, parts=parts)
         self.root = rank == 0  # the rank that diagnoses, writes files and shows progress

@@ -41,6 +41,7 @@ import numpy as np
 import warp as wp
 
 from ..grid.levels import ElementLevels, element_levels, element_rates
+from ..grid.quality import element_sizes
 from .base import Stepper, StepStats
 from .multirate import Mri
 from .multirate_ab import START_STEPS, MultirateAB3
@@ -146,8 +147,9 @@ class Lts(Mri):
     evaluations of the coarse elements a step (reported as RHS evaluations) and the
     inner stages' evaluations of the fine ones ("fast"). On several MPI ranks each rank
     steps its share of every level, the same bits as on one (the levels are the whole
-    grid's; a level's assembly sums every copy in the one global order); the ranks' parts
-    are the grid's partition, not balanced level by level. The run file's attributes
+    grid's; a level's assembly sums every copy in the one global order); the simulation
+    cuts each level along the curve (``size_levels``, ``partition.level_chunks``) so that
+    every rank has an equal share of each. The run file's attributes
     ``lts_*`` give the table, the levels, the elements per level and the saving's bound.
 
     What it does not reach (measured in benchmarks/README.md, "Local time stepping"): with
@@ -319,6 +321,16 @@ class Lts(Mri):
         evals = self._advance(x)
         self.model.hyperviscosity(x, self.dt)
         return StepStats(evals, {"fast": self.fast_evaluations()})
+
+
+def size_levels(grid, options: dict) -> np.ndarray:
+    """(nelem,) int: each element's level from its size alone (its rate normDinv: one wave
+    speed everywhere; ``grid.levels.element_levels``) with the ``[lts]`` ``options``'
+    max_levels and level_margin, on ``grid`` (the whole grid): what a partition balanced
+    level by level knows before the flow (``topology.rank_parts``). ValueError names a
+    bad option."""
+    o = Lts.make_options(**options)
+    return element_levels(grid, element_sizes(grid).norm_dinv, o.max_levels, o.level_margin).level
 
 
 def level_part(model, whole: np.ndarray):

@@ -52,3 +52,25 @@ def test_bad_part_counts_raise():
     for parts in (0, 7):
         with pytest.raises(ValueError, match="cannot split 6 elements"):
             P.partition(1, parts)
+
+
+@pytest.mark.parametrize("parts", [2, 3, 7])
+def test_level_chunks_give_each_part_its_share_of_every_level(parts):
+    """Along the ne4 curve, levels 0/1/2 on 60/30/6 elements: every element in one part,
+    each part within one element of an equal share of every level (the 6 finest over 7 parts:
+    one each, the last part none), each level's share one run of the level's curve order;
+    with one level, ``partition``'s chunks."""
+    order = P.sfc_order(4)
+    level = np.zeros(96, dtype=np.int64)
+    level[order[60:90]], level[order[90:]] = 1, 2
+    chunks = P.level_chunks(order, level, parts)
+    assert np.array_equal(np.sort(np.concatenate(chunks)), np.arange(96))
+    for k, n in enumerate((60, 30, 6)):
+        counts = [np.sum(level[c] == k) for c in chunks]
+        assert sum(counts) == n and max(counts) - min(counts) <= 1 and max(counts) == -(-n // parts)
+        mine = order[level[order] == k]
+        for c in chunks:
+            run = c[level[c] == k]
+            assert run.size == 0 or np.array_equal(run, mine[np.flatnonzero(mine == run[0])[0] :][: run.size])
+    flat = P.level_chunks(order, np.zeros(96, dtype=np.int64), parts)
+    assert all(np.array_equal(a, b) for a, b in zip(flat, P.partition(4, parts)))

@@ -271,28 +271,34 @@ class Scorer:
         }
 
     # -- against a same-grid run ------------------------------------------------------
-    def _against(self, x: np.ndarray, x_ref: np.ndarray) -> tuple[float, float, dict]:
-        """(l2 of h + hs, l2 of the wind, the wind error's split) of state ``x``
-        against ``x_ref`` (this rank's (3, N) each), on every rank."""
+    def _against(self, x: np.ndarray, x_ref: np.ndarray) -> tuple[float, float, dict, dict]:
+        """(l2 of h + hs, l2 of the wind, the wind error's split, l2 of h + hs by region
+        (``regional_l2``)) of state ``x`` against ``x_ref`` (this rank's (3, N) each), on every rank."""
         a, b = self.topology.gather(x), self.topology.gather(x_ref)
         split = self.wind_error_decomposition(x[0], x[1], x_ref[0], x_ref[1])
         norms = None
         if self.root:
-            hs = self.hs
+            surface, surface_ref = a[2] + self.hs, b[2] + self.hs
             norms = (
-                williamson_norms(self.grid, a[2] + hs, b[2] + hs)["l2"],
+                williamson_norms(self.grid, surface, surface_ref)["l2"],
                 williamson_vector_norms(self.grid, a[0], a[1], b[0], b[1])["l2"],
+                regional_l2(self.grid, surface, surface_ref, self.node_regions),
             )
-        return (*self.topology.bcast(norms), split)
+        h, wind, by_region = self.topology.bcast(norms)
+        return h, wind, split, by_region
 
     def temporal_errors(self, x: np.ndarray, x_ref: np.ndarray) -> dict:
         """Temporal errors of a run's state ``x`` against the same-grid small-Δt
         run's ``x_ref`` at the same time (this rank's (3, N) each): l2 of h + hs
-        (``temporal_error``), of the wind (``temporal_error_wind``) and of its
-        vorticity and divergence (``temporal_error_vorticity``, ``temporal_error_divergence``)."""
-        h, wind, split = self._against(x, x_ref)
+        (``temporal_error``), the same by region (``regional_l2``, each region's l2 normalized
+        by the small-Δt run's ∫(h + hs)² over its elements: ``temporal_error_refined``,
+        ``temporal_error_transition``, ``temporal_error_coarse``; NaN on a mesh of one
+        resolution), of the wind (``temporal_error_wind``) and of its vorticity and
+        divergence (``temporal_error_vorticity``, ``temporal_error_divergence``)."""
+        h, wind, split, by_region = self._against(x, x_ref)
         return {
             "temporal_error": h,
+            **{f"temporal_error_{k}": val for k, val in by_region.items()},
             "temporal_error_wind": wind,
             "temporal_error_vorticity": split["l2_vorticity"],
             "temporal_error_divergence": split["l2_divergence"],
@@ -305,5 +311,5 @@ class Scorer:
         (``temporal_error_filtered_vorticity``); NaN without both."""
         if xf is None or xf_ref is None:
             return {"temporal_error_filtered": math.nan, "temporal_error_filtered_vorticity": math.nan}
-        h, _, split = self._against(xf, xf_ref)
+        h, _, split, _ = self._against(xf, xf_ref)
         return {"temporal_error_filtered": h, "temporal_error_filtered_vorticity": split["l2_vorticity"]}

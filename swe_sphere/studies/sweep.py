@@ -680,6 +680,10 @@ COLUMN_ATTRS = {
     "total_error_vorticity": ("1", f"{_ERR} of vorticity against the truth"),
     "total_error_divergence": ("1", f"{_ERR} of divergence against the truth"),
     "temporal_error": ("1", f"{_ERR} of h + hs against the small-dt run"),
+    **{
+        f"temporal_error_{k}": ("1", f"{_ERR} of h + hs against the small-dt run over the {k} region's elements")
+        for k in REGIONS
+    },
     "temporal_error_wind": ("1", f"{_ERR} of the wind against the small-dt run"),
     "temporal_error_vorticity": ("1", f"{_ERR} of vorticity against the small-dt run"),
     "temporal_error_divergence": ("1", f"{_ERR} of divergence against the small-dt run"),
@@ -866,9 +870,17 @@ def format_summary(rows, info) -> str:
         + (f", {note}" if note else "")
         + f"; sufficient accuracy: temporal error <= {SUFFICIENT * spatial:.3e}"
     )
-    by_region = [f"{k} {info[f'spatial_error_{k}']:.3e}" for k in REGIONS if math.isfinite(info[f"spatial_error_{k}"])]
-    if by_region:
-        lines.append(f"  by region (quality.element_regions): {', '.join(by_region)}")
+    spatial_by_region = {k: info[f"spatial_error_{k}"] for k in REGIONS if math.isfinite(info[f"spatial_error_{k}"])}
+    if spatial_by_region:
+        by_region = ", ".join(f"{k} {e:.3e}" for k, e in spatial_by_region.items())
+        lines.append(f"  by region (quality.element_regions): {by_region}")
+        lines.append("  temporal error by region (/ that region's spatial error):")
+        for r in (r for r in rows if r["stable"]):
+            by_region = ", ".join(
+                f"{k} {r[f'temporal_error_{k}']:.3e} ({r[f'temporal_error_{k}'] / e:.3f})"
+                for k, e in spatial_by_region.items()
+            )
+            lines.append(f"    {r['stepper']:22s} dt = {r['dt']:.4g} s: {by_region}")
     best = cheapest_sufficient(rows, spatial)
     explicit = [best[s]["cost_time"] for s in best if STEPPERS[s].explicit]
     ref_time = min(explicit) if explicit else math.nan

@@ -24,6 +24,7 @@ from swe_sphere.grid.quality import REGIONS, element_regions, element_sizes
 from swe_sphere.grid.refine import Box, make_mesh
 from swe_sphere.simulation.simulation import RunResult
 
+import roundoff
 from helpers import make_sim
 
 
@@ -60,10 +61,11 @@ def numpy_split(sim, u, v, ut, vt):
     }
 
 
-def one_resolution(total: dict) -> dict:
-    """A sweep's ``total`` errors on the uniform cube, less their regions, each checked NaN (one resolution)."""
-    assert all(math.isnan(total.pop(f"total_error_{k}")) for k in REGIONS)
-    return total
+def one_resolution(errors: dict, kind: str = "total_error") -> dict:
+    """A sweep's ``errors`` of a ``kind`` ("total_error", "temporal_error") on the uniform cube,
+    less their regions, each checked NaN (one resolution)."""
+    assert all(math.isnan(errors.pop(f"{kind}_{k}")) for k in REGIONS)
+    return errors
 
 
 def run_to(name, ne, days):
@@ -94,15 +96,26 @@ def test_tc2_errors_are_williamsons_norms():
     }
 
 
-def test_errors_by_region_on_a_refined_mesh_are_numpy_sums(tmp_path):
+def refined_tc2(mesh, dt: float | None = None):
+    """TC2 (α = π/4, the scene's SSP-RK3 at its 300 s or ``dt``) run a quarter day on ``mesh``."""
+    scene = dataclasses.replace(load_scene("tc2_steady_alpha_pi4", mesh=mesh, days=0.25), output_every_days=0.25)
+    sim = make_sim(scene if dt is None else dataclasses.replace(scene, dt=dt))
+    sim.run(None)
+    return sim
+
+
+@pytest.fixture(scope="module")
+def refined(tmp_path_factory):
+    """The ne4 cube refined 2x over TC5's mountain box (its path) and ``refined_tc2`` on it."""
+    path = write_exodus(tmp_path_factory.mktemp("x2") / "x2.g", make_mesh(4, box=Box(10, 50, 246.7, 293.3), levels=1))
+    return path, refined_tc2(path)
+
+
+def test_errors_by_region_on_a_refined_mesh_are_numpy_sums(refined):
     """TC2 (α = π/4) on ne4 refined 2x over TC5's mountain box, a quarter day: the l2 error of h
     over each region's elements (``quality.element_regions``) as a numpy sum over the element-local
     nodes gives it, and the regions' squared errors, weighted by their ∫hT², add up to the total's."""
-    path = write_exodus(tmp_path / "x2.g", make_mesh(4, box=Box(10, 50, 246.7, 293.3), levels=1))
-    sim = make_sim(
-        dataclasses.replace(load_scene("tc2_steady_alpha_pi4", mesh=path, days=0.25), output_every_days=0.25)
-    )
-    sim.run(None)
+    _, sim = refined
     g = sim.grid
     _, _, h = sim.fields()
     he = sim.case.exact(g.lat, g.lon, 0.25 * DAY)[2]
@@ -118,6 +131,34 @@ def test_errors_by_region_on_a_refined_mesh_are_numpy_sums(tmp_path):
     assert total["total_error_refined"] > 1e-6  # a real error, not round-off
     by_region = sum(w * total[f"total_error_{k}"] ** 2 for w, k in zip(weights, REGIONS))
     assert by_region == pytest.approx(total["total_error"] ** 2 * sum(weights), rel=1e-12)
+
+
+def test_temporal_errors_by_region_on_a_refined_mesh_are_numpy_sums(refined):
+    """The same TC2 run at 900 s against the 300 s run (the sweep's small-Δt run): the l2 of
+    h + hs over each region's elements, normalized by the 300 s run's ∫(h + hs)² there, as a
+    numpy sum over the element-local nodes gives it; each region's error is real (the steps
+    differ), the regions' squares weighted by those integrals add up to the total's square,
+    and against itself the 300 s run has none in any region."""
+    path, small = refined
+    g, x_ref = small.grid, small.x.numpy()
+    x = refined_tc2(path, dt=900.0).x.numpy()
+    got = small.scorer.temporal_errors(x, x_ref)
+    nodes = np.repeat(element_regions(element_sizes(g)), g.np**2)
+    surface, surface_ref = x[2] + small.hs, x_ref[2] + small.hs
+    n = g.nelem * g.np**2
+    # two pairwise sums of n positive terms a ratio, each ≤ ⌈log2 n⌉ ε; the ratio, root and square ≤ 4 ε
+    ratio_roundings = 2 * math.ceil(math.log2(n)) + 4
+    weights = []
+    for k, name in enumerate(REGIONS):
+        inside = nodes == k
+        weights.append(math.fsum(g.spheremp[inside] * surface_ref[inside] ** 2))
+        e2 = math.fsum(g.spheremp[inside] * (surface - surface_ref)[inside] ** 2) / weights[-1]
+        assert got[f"temporal_error_{name}"] > 1e-7, name  # ssprk3 at 900 s against 300 s: about 1e-6
+        roundoff.within(abs(got[f"temporal_error_{name}"] ** 2 / e2 - 1), roundoff.bound(ratio_roundings), name)
+    by_region = math.fsum(w * got[f"temporal_error_{k}"] ** 2 for w, k in zip(weights, REGIONS))
+    total = got["temporal_error"] ** 2 * math.fsum(weights)
+    roundoff.within(abs(by_region / total - 1), roundoff.bound(2 * ratio_roundings), "regions against the total")
+    assert all(v == 0 for v in small.scorer.temporal_errors(x_ref, x_ref).values())
 
 
 def test_tc5_errors_against_t213_are_williamsons_norms():
@@ -156,7 +197,7 @@ def test_temporal_and_filtered_errors_are_williamsons_norms():
     x = sim.x.numpy()
     x0 = np.stack(sim.case.initial(sim.grid.lat, sim.grid.lon))
     hs = sim.hs
-    got = sim.scorer.temporal_errors(x, x0)
+    got = one_resolution(sim.scorer.temporal_errors(x, x0), "temporal_error")
     split = numpy_split(sim, x[0], x[1], x0[0], x0[1])
     expected = {
         "temporal_error": numpy_norms(sim.grid, x[2] - x0[2], x0[2] + hs)["l2"],

@@ -63,9 +63,29 @@ def numpy_split(sim, u, v, ut, vt):
 
 def one_resolution(errors: dict, kind: str = "total_error") -> dict:
     """A sweep's ``errors`` of a ``kind`` ("total_error", "temporal_error") on the uniform cube,
-    less their regions, each checked NaN (one resolution)."""
-    assert all(math.isnan(errors.pop(f"{kind}_{k}")) for k in REGIONS)
+    less their regions' (h + hs and divergence), each checked NaN (one resolution)."""
+    assert all(math.isnan(errors.pop(f"{kind}_{part}{k}")) for k in REGIONS for part in ("", "divergence_"))
     return errors
+
+
+def region_weights(grid, squared_scale) -> list[float]:
+    """∫ over each region's elements (``quality.REGIONS``) of ``squared_scale`` (element-local), by fsum."""
+    nodes = np.repeat(element_regions(element_sizes(grid)), grid.np**2)
+    return [math.fsum(grid.spheremp[nodes == k] * squared_scale[nodes == k]) for k in range(len(REGIONS))]
+
+
+# a ratio of two pairwise sums of n positive terms, each ≤ ⌈log2 n⌉ ε, then its root and square ≤ 4 ε
+def ratio_roundings(grid) -> int:
+    return 2 * math.ceil(math.log2(grid.nelem * grid.np**2)) + 4
+
+
+def regions_recombine(grid, errors: dict, name: str, weights) -> None:
+    """The regions' squared errors ``errors[f"{name}_{region}"]``, weighted by their normalizers'
+    integrals ``weights`` (``region_weights``), add up to the whole sphere's ``errors[name]``
+    squared times the weights' sum, to the round-off of two ratios (``ratio_roundings``)."""
+    by_region = math.fsum(w * errors[f"{name}_{k}"] ** 2 for w, k in zip(weights, REGIONS))
+    total = errors[name] ** 2 * math.fsum(weights)
+    roundoff.within(abs(by_region / total - 1), roundoff.bound(2 * ratio_roundings(grid)), f"{name} by region")
 
 
 def run_to(name, ne, days):
@@ -114,7 +134,8 @@ def refined(tmp_path_factory):
 def test_errors_by_region_on_a_refined_mesh_are_numpy_sums(refined):
     """TC2 (α = π/4) on ne4 refined 2x over TC5's mountain box, a quarter day: the l2 error of h
     over each region's elements (``quality.element_regions``) as a numpy sum over the element-local
-    nodes gives it, and the regions' squared errors, weighted by their ∫hT², add up to the total's."""
+    nodes gives it, and the regions' squared errors, weighted by their ∫hT², add up to the total's;
+    so do the divergence's, weighted by their ∫(ζT² + δT²)."""
     _, sim = refined
     g = sim.grid
     _, _, h = sim.fields()
@@ -129,35 +150,35 @@ def test_errors_by_region_on_a_refined_mesh_are_numpy_sums(refined):
         assert total[f"total_error_{name}"] == pytest.approx(expected, rel=1e-12, abs=0), name
         weights.append(norm)
     assert total["total_error_refined"] > 1e-6  # a real error, not round-off
-    by_region = sum(w * total[f"total_error_{k}"] ** 2 for w, k in zip(weights, REGIONS))
-    assert by_region == pytest.approx(total["total_error"] ** 2 * sum(weights), rel=1e-12)
+    regions_recombine(g, total, "total_error", weights)
+    zeta, delta = sim.scorer.rotation_divergence(*sim.case.exact(g.lat, g.lon, 0.25 * DAY)[:2])
+    assert all(total[f"total_error_divergence_{k}"] > 1e-5 for k in REGIONS)  # TC2's ≈ 1e-3
+    regions_recombine(g, total, "total_error_divergence", region_weights(g, zeta**2 + delta**2))
 
 
 def test_temporal_errors_by_region_on_a_refined_mesh_are_numpy_sums(refined):
     """The same TC2 run at 900 s against the 300 s run (the sweep's small-Δt run): the l2 of
     h + hs over each region's elements, normalized by the 300 s run's ∫(h + hs)² there, as a
     numpy sum over the element-local nodes gives it; each region's error is real (the steps
-    differ), the regions' squares weighted by those integrals add up to the total's square,
-    and against itself the 300 s run has none in any region."""
+    differ), the regions' squares weighted by those integrals add up to the total's square, and
+    so do the divergence's, weighted by the 300 s run's ∫(ζ² + δ²); against itself the 300 s
+    run has none in any region."""
     path, small = refined
     g, x_ref = small.grid, small.x.numpy()
     x = refined_tc2(path, dt=900.0).x.numpy()
     got = small.scorer.temporal_errors(x, x_ref)
     nodes = np.repeat(element_regions(element_sizes(g)), g.np**2)
     surface, surface_ref = x[2] + small.hs, x_ref[2] + small.hs
-    n = g.nelem * g.np**2
-    # two pairwise sums of n positive terms a ratio, each ≤ ⌈log2 n⌉ ε; the ratio, root and square ≤ 4 ε
-    ratio_roundings = 2 * math.ceil(math.log2(n)) + 4
-    weights = []
+    weights = region_weights(g, surface_ref**2)
     for k, name in enumerate(REGIONS):
         inside = nodes == k
-        weights.append(math.fsum(g.spheremp[inside] * surface_ref[inside] ** 2))
-        e2 = math.fsum(g.spheremp[inside] * (surface - surface_ref)[inside] ** 2) / weights[-1]
+        e2 = math.fsum(g.spheremp[inside] * (surface - surface_ref)[inside] ** 2) / weights[k]
         assert got[f"temporal_error_{name}"] > 1e-7, name  # ssprk3 at 900 s against 300 s: about 1e-6
-        roundoff.within(abs(got[f"temporal_error_{name}"] ** 2 / e2 - 1), roundoff.bound(ratio_roundings), name)
-    by_region = math.fsum(w * got[f"temporal_error_{k}"] ** 2 for w, k in zip(weights, REGIONS))
-    total = got["temporal_error"] ** 2 * math.fsum(weights)
-    roundoff.within(abs(by_region / total - 1), roundoff.bound(2 * ratio_roundings), "regions against the total")
+        assert got[f"temporal_error_divergence_{name}"] > 1e-5, name  # about 1e-4
+        roundoff.within(abs(got[f"temporal_error_{name}"] ** 2 / e2 - 1), roundoff.bound(ratio_roundings(g)), name)
+    regions_recombine(g, got, "temporal_error", weights)
+    zeta, delta = small.scorer.rotation_divergence(x_ref[0], x_ref[1])
+    regions_recombine(g, got, "temporal_error_divergence", region_weights(g, zeta**2 + delta**2))
     assert all(v == 0 for v in small.scorer.temporal_errors(x_ref, x_ref).values())
 
 

@@ -15,9 +15,11 @@ is refused in one line (exit 2) before anything is printed.
     python docs/efficiency/tables.py study/tc5_ne8 study/tc5_ne16 --figures docs/efficiency
     python docs/efficiency/tables.py study/tc5_epi_ne30 --family epi2,epi3   # the family against the rest
     python docs/efficiency/tables.py study/tc5_x2 --regions   # every run's errors by region (a refined mesh)
+    python docs/efficiency/tables.py study/tc5_x2 --temporal-regions   # temporal errors by region over spatial
 """
 
 import argparse
+import math
 import re
 from pathlib import Path
 
@@ -165,10 +167,83 @@ def by_region(d: Path) -> str:
 
 def _spatial_by_region(d: Path) -> list:
     """The small-Δt run's l2 of h + hs in total and by region (sweep.nc's attributes)."""
+    return [_attrs(d)["spatial_error"]] + [_attrs(d)[f"spatial_error_{k}"] for k in REGIONS]
+
+
+def _attrs(d: Path) -> dict:
+    """sweep.nc's global attributes (the spatial errors, the explicit limits)."""
     import xarray as xr
 
     with xr.open_dataset(d / "sweep.nc") as ds:
-        return [float(ds.attrs["spatial_error"])] + [float(ds.attrs[f"spatial_error_{k}"]) for k in REGIONS]
+        return dict(ds.attrs)
+
+
+def reach(multiples, ratios, threshold: float = 0.1) -> tuple[float, bool]:
+    """(Δt/Δt_g at which a temporal error over its spatial error, ``ratios`` at the steps
+    ``multiples`` (increasing), reaches ``threshold``, and whether it was interpolated):
+    log-log between the two runs that bracket it, at their order; else extrapolated at the
+    order of the two runs nearest it. NaN with fewer than two runs."""
+    pts = [(m, r) for m, r in zip(multiples, ratios) if math.isfinite(r) and r > 0]
+    if len(pts) < 2:
+        return math.nan, False
+    pairs = list(zip(pts, pts[1:]))
+    inside = [p for p in pairs if p[0][1] <= threshold <= p[1][1]]
+    ((m0, r0), (m1, r1)) = inside[0] if inside else pairs[-1] if pts[-1][1] < threshold else pairs[0]
+    order = math.log(r1 / r0) / math.log(m1 / m0)
+    return m0 * (threshold / r0) ** (1 / order), bool(inside)
+
+
+# (label, temporal-error column and spatial-error attribute of sweep.nc without "_error"): in total and by region
+TEMPORAL_BY_REGION = [
+    (f"{what}{' ' + k if k else ''}", f"{part}{'_' + k if k else ''}")
+    for what, part in (("h+hs", ""), ("div", "_divergence"))
+    for k in ("", *REGIONS)
+]
+
+
+def temporal_by_region(d: Path) -> str:
+    """Every stable run of the sweep ``d`` (a refined mesh's), each stepper's by Δt: the
+    temporal error of h + hs and of the divergence in total and by region, each over that
+    region's spatial error; per stepper the Δt/Δt_g at which each reaches 10 % (``reach``; *
+    extrapolated); then each region's share of the whole sphere's squared temporal error. The
+    shares: the regions' weights w_R = ∫_R n² / ∫ n² (n² the normalizer, (h + hs)² or ζ² + δ²,
+    of the small-Δt run, so the same in every run) solved by least squares from
+    Σ_R w_R t_R² = t² over the runs, then w_R t_R² / t² (the largest misfit is printed: round-off).
+    A mesh of one resolution has no regions: one line says so."""
+    import numpy as np
+
+    s, a = pd.read_csv(d / "sweep.csv"), _attrs(d)
+    if not math.isfinite(a[f"spatial_error_{REGIONS[0]}"]):
+        return "no temporal errors by region: the mesh has one resolution"
+    s = s[s.stable == 1]
+    out = [
+        "| stepper | Δt/Δt_g | " + " | ".join(label for label, _ in TEMPORAL_BY_REGION) + " |",
+        "|---|---:|" + "---:|" * len(TEMPORAL_BY_REGION),
+        "| *spatial error* | | " + " | ".join(f"*{a[f'spatial_error{c}']:.3g}*" for _, c in TEMPORAL_BY_REGION) + " |",
+    ]
+    for stepper, g in s.groupby("stepper", sort=False):
+        g = g.sort_values("dt")
+        ratios = {c: list(g[f"temporal_error{c}"] / a[f"spatial_error{c}"]) for _, c in TEMPORAL_BY_REGION}
+        for i, m in enumerate(g.dt_over_gravity_limit):
+            out.append(
+                f"| {stepper} | {m:.3g} | " + " | ".join(f"{ratios[c][i]:.3f}" for _, c in TEMPORAL_BY_REGION) + " |"
+            )
+        at = [reach(list(g.dt_over_gravity_limit), ratios[c]) for _, c in TEMPORAL_BY_REGION]
+        out.append(f"| {stepper}: 10 % at | | " + " | ".join(f"{m:.2f}{'' if i else '*'}" for m, i in at) + " |")
+    out += ["", "| stepper | Δt/Δt_g | " + " | ".join(f"{w} {k}" for w in ("h+hs", "div") for k in REGIONS) + " |"]
+    out.append("|---|---:|" + "---:|" * 2 * len(REGIONS))
+    shares, misfit = [], 0.0
+    for part in ("", "_divergence"):
+        squares = np.stack([s[f"temporal_error{part}_{k}"] ** 2 for k in REGIONS], axis=1)
+        total = s[f"temporal_error{part}"].to_numpy() ** 2
+        w = np.linalg.lstsq(squares, total, rcond=None)[0]
+        misfit = max(misfit, float(np.abs(squares @ w / total - 1).max()))
+        shares.append(squares * w / total[:, None])
+    for i, r in enumerate(s.itertuples()):
+        cells = " | ".join(f"{x:.2f}" for part in shares for x in part[i])
+        out.append(f"| {r.stepper} | {r.dt_over_gravity_limit:.3g} | {cells} |")
+    out.append(f"\n(the regions' share of the squared temporal error; the weights' largest misfit {misfit:.1e})")
+    return "\n".join(out)
 
 
 COLORS = dict(
@@ -300,6 +375,11 @@ def main():
         help="comma-separated steppers (e.g. epi2,epi3): also their cheapest qualifying run against the others'",
     )
     p.add_argument("--regions", action="store_true", help="also every run's errors by region (a refined mesh)")
+    p.add_argument(
+        "--temporal-regions",
+        action="store_true",
+        help="also every run's temporal errors by region over their spatial errors (a refined mesh)",
+    )
     args = p.parse_args()
     try:
         check(args)
@@ -313,6 +393,8 @@ def main():
         print(per_stepper(d, 0.1))
         if args.regions:
             print("\n" + by_region(d))
+        if args.temporal_regions:
+            print("\n" + temporal_by_region(d))
         if args.figures:
             figure(d, args.figures / f"{d.name}_temporal_error.png")
 

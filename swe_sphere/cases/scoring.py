@@ -41,21 +41,27 @@ def williamson_norms(grid: CubedSphere, f, f_true) -> dict[str, float]:
     }
 
 
-def regional_l2(grid: CubedSphere, f, f_true, node_regions) -> dict[str, float]:
-    """The normalized l2 error of a scalar over each region's elements (``quality.REGIONS``,
-    ``quality.element_regions``): sqrt(I_R(f−fT)²) / sqrt(I_R fT²) with I_R the area integral
-    over region R's elements (Williamson et al. 1992, eq. 83, on a part of the sphere). ``f``,
-    ``f_true`` (N,) element-local; ``node_regions`` (N,) each node's region, its element's
-    (None: a mesh of one resolution, every region NaN); NaN for a region without elements."""
+def regional_ratio(grid: CubedSphere, squared_error, squared_scale, node_regions) -> dict[str, float]:
+    """sqrt(I_R e²) / sqrt(I_R n²) over each region's elements (``quality.REGIONS``,
+    ``quality.element_regions``), I_R the area integral over region R's elements, of the
+    squared error e² ``squared_error`` and squared scale n² ``squared_scale`` ((N,)
+    element-local each); ``node_regions`` (N,) each node's region, its element's (None: a mesh
+    of one resolution, every region NaN); NaN for a region without elements."""
     out = dict.fromkeys(REGIONS, math.nan)
     if node_regions is None:
         return out
-    e = f - f_true
     for k, name in enumerate(REGIONS):
         inside = node_regions == k
         if inside.any():
-            out[name] = float(np.sqrt(grid.integrate(inside * e * e) / grid.integrate(inside * f_true * f_true)))
+            out[name] = float(np.sqrt(grid.integrate(inside * squared_error) / grid.integrate(inside * squared_scale)))
     return out
+
+
+def regional_l2(grid: CubedSphere, f, f_true, node_regions) -> dict[str, float]:
+    """The normalized l2 error of a scalar over each region's elements (``regional_ratio``):
+    sqrt(I_R(f−fT)²) / sqrt(I_R fT²) (Williamson et al. 1992, eq. 83, on a part of the sphere).
+    ``f``, ``f_true`` (N,) element-local; ``node_regions`` as ``regional_ratio``'s."""
+    return regional_ratio(grid, (f - f_true) ** 2, f_true * f_true, node_regions)
 
 
 def williamson_vector_norms(grid: CubedSphere, u, v, u_true, v_true) -> dict[str, float]:
@@ -167,21 +173,28 @@ class Scorer:
         self._scratch.assign(np.stack([u, v, np.zeros_like(u)]))
         return np.stack([self.model.vorticity(self._scratch), self.model.wind_divergence(self._scratch)])
 
-    def wind_error_decomposition(self, u, v, u_true, v_true) -> dict:
+    def wind_error_decomposition(self, u, v, u_true, v_true, regions: bool = False) -> dict:
         """``l2_vorticity``, ``l2_divergence``: the wind error split into its
         rotational (balanced-flow) and divergent (gravity-wave) parts, as the
         vorticity and divergence of v − vT by the model's operators (one operator
         on both sides, so the derivative's own discretisation error cancels),
-        normalized as in ``rotational_divergent_errors``. Winds on this rank's
-        nodes (N,)."""
+        normalized as in ``rotational_divergent_errors``. ``regions``: also the
+        divergent part by region (``regional_ratio``: each region's sqrt(I_R δe²)
+        over its own sqrt(I_R(ζT² + δT²))) as ``l2_divergence_refined``,
+        ``l2_divergence_transition``, ``l2_divergence_coarse`` (NaN without regions).
+        Winds on this rank's nodes (N,)."""
         a = self.topology.gather(
             np.concatenate(
                 [self._rotation_divergence(u - u_true, v - v_true), self._rotation_divergence(u_true, v_true)]
             )
-        )
-        return self.topology.bcast(
-            rotational_divergent_errors(self.grid, *a) if self.root else None
         )  # (error, true) × (ζ, δ)
+        d = None
+        if self.root:
+            d = rotational_divergent_errors(self.grid, *a)
+            if regions:
+                by_region = regional_ratio(self.grid, a[1] ** 2, a[2] ** 2 + a[3] ** 2, self.node_regions)
+                d.update({f"l2_divergence_{k}": val for k, val in by_region.items()})
+        return self.topology.bcast(d)
 
     # -- against the truth ----------------------------------------------------------
     def errors(self, t: float, x: np.ndarray, u, v, h, regions: bool = False) -> dict:
@@ -193,19 +206,20 @@ class Scorer:
         store (``unscored`` says why; every output time has every series); {}
         for a case with neither. ``regions``: also the l2 of h (h + hs) by region
         (``regional_l2``) as ``l2_h_refined``, ``l2_h_transition``, ``l2_h_coarse``
-        (``ref_l2_h_surface_refined`` …; NaN without regions). ``x``: the state on this
+        (``ref_l2_h_surface_refined`` …; NaN without regions), and the divergence's
+        (``wind_error_decomposition``) as ``l2_divergence_refined`` … (``ref_l2_divergence_refined`` …). ``x``: the state on this
         rank's nodes (3, N) (u, v in m s⁻¹, h in m); ``u``, ``v``, ``h``: the same on the
         whole grid (nnodes,) on rank 0 (None elsewhere)."""
         local = self.topology.grid
         split = ref_split = None
         if self.case.exact_solution:
             ue, ve, _ = self.case.exact(local.lat, local.lon, t)
-            split = self.wind_error_decomposition(x[0], x[1], ue, ve)
+            split = self.wind_error_decomposition(x[0], x[1], ue, ve, regions)
         r = None  # the reference interpolated to the whole grid, on rank 0, at a day it stores
         if self.reference_days is not None and stored_index(self.reference_days, t / DAY) is not None:
             r = self._reference_at(t / DAY) if self.root else None
             ur, vr = self.topology.distribute(np.stack([r["u"], r["v"]]) if self.root else None, 2, "reference wind")
-            ref_split = self.wind_error_decomposition(x[0], x[1], ur, vr)
+            ref_split = self.wind_error_decomposition(x[0], x[1], ur, vr, regions)
         d = None
         if self.root:
             d = {}
@@ -258,8 +272,8 @@ class Scorer:
         l2 of h (exact solution) or of h + hs (reference) as ``total_error``, the same by
         region (``regional_l2``: ``total_error_refined``, ``total_error_transition``,
         ``total_error_coarse``; NaN on a mesh of one resolution), and of the wind's vorticity
-        and divergence (``total_error_vorticity``, ``total_error_divergence``); NaN where
-        ``unscored``."""
+        and divergence (``total_error_vorticity``, ``total_error_divergence``), the divergence's
+        by region too (``total_error_divergence_refined`` …); NaN where ``unscored``."""
         whole = self.topology.gather(x)
         d = self.errors(t, x, *((None,) * 3 if whole is None else whole[:3]), regions=True)
         pre, h = ("", "l2_h") if "l2_h" in d else ("ref_", "ref_l2_h_surface")
@@ -268,34 +282,44 @@ class Scorer:
             **{f"total_error_{k}": d.get(f"{h}_{k}", math.nan) for k in REGIONS},
             "total_error_vorticity": d.get(f"{pre}l2_vorticity", math.nan),
             "total_error_divergence": d.get(f"{pre}l2_divergence", math.nan),
+            **{f"total_error_divergence_{k}": d.get(f"{pre}l2_divergence_{k}", math.nan) for k in REGIONS},
         }
 
     # -- against a same-grid run ------------------------------------------------------
-    def _against(self, x: np.ndarray, x_ref: np.ndarray) -> tuple[float, float, dict]:
-        """(l2 of h + hs, l2 of the wind, the wind error's split) of state ``x``
-        against ``x_ref`` (this rank's (3, N) each), on every rank."""
+    def _against(self, x: np.ndarray, x_ref: np.ndarray) -> tuple[float, float, dict, dict]:
+        """(l2 of h + hs, l2 of the wind, the wind error's split with its divergence by region,
+        l2 of h + hs by region (``regional_l2``)) of state ``x`` against ``x_ref`` (this rank's
+        (3, N) each), on every rank."""
         a, b = self.topology.gather(x), self.topology.gather(x_ref)
-        split = self.wind_error_decomposition(x[0], x[1], x_ref[0], x_ref[1])
+        split = self.wind_error_decomposition(x[0], x[1], x_ref[0], x_ref[1], regions=True)
         norms = None
         if self.root:
-            hs = self.hs
+            surface, surface_ref = a[2] + self.hs, b[2] + self.hs
             norms = (
-                williamson_norms(self.grid, a[2] + hs, b[2] + hs)["l2"],
+                williamson_norms(self.grid, surface, surface_ref)["l2"],
                 williamson_vector_norms(self.grid, a[0], a[1], b[0], b[1])["l2"],
+                regional_l2(self.grid, surface, surface_ref, self.node_regions),
             )
-        return (*self.topology.bcast(norms), split)
+        h, wind, by_region = self.topology.bcast(norms)
+        return h, wind, split, by_region
 
     def temporal_errors(self, x: np.ndarray, x_ref: np.ndarray) -> dict:
         """Temporal errors of a run's state ``x`` against the same-grid small-Δt
         run's ``x_ref`` at the same time (this rank's (3, N) each): l2 of h + hs
-        (``temporal_error``), of the wind (``temporal_error_wind``) and of its
-        vorticity and divergence (``temporal_error_vorticity``, ``temporal_error_divergence``)."""
-        h, wind, split = self._against(x, x_ref)
+        (``temporal_error``), the same by region (``regional_l2``, each region's l2 normalized
+        by the small-Δt run's ∫(h + hs)² over its elements: ``temporal_error_refined``,
+        ``temporal_error_transition``, ``temporal_error_coarse``; NaN on a mesh of one
+        resolution), of the wind (``temporal_error_wind``) and of its vorticity and
+        divergence (``temporal_error_vorticity``, ``temporal_error_divergence``), the
+        divergence's by region too (``temporal_error_divergence_refined`` …)."""
+        h, wind, split, by_region = self._against(x, x_ref)
         return {
             "temporal_error": h,
+            **{f"temporal_error_{k}": val for k, val in by_region.items()},
             "temporal_error_wind": wind,
             "temporal_error_vorticity": split["l2_vorticity"],
             "temporal_error_divergence": split["l2_divergence"],
+            **{f"temporal_error_divergence_{k}": split[f"l2_divergence_{k}"] for k in REGIONS},
         }
 
     def filtered_errors(self, xf: np.ndarray | None, xf_ref: np.ndarray | None) -> dict:
@@ -305,5 +329,5 @@ class Scorer:
         (``temporal_error_filtered_vorticity``); NaN without both."""
         if xf is None or xf_ref is None:
             return {"temporal_error_filtered": math.nan, "temporal_error_filtered_vorticity": math.nan}
-        h, _, split = self._against(xf, xf_ref)
+        h, _, split, _ = self._against(xf, xf_ref)
         return {"temporal_error_filtered": h, "temporal_error_filtered_vorticity": split["l2_vorticity"]}

@@ -75,8 +75,15 @@ SUFFICIENT = 0.1  # temporal error ≤ 10 % of the spatial error
 # The reference RK4 run's Δt is at most this multiple of the gravity-wave limit, also
 # when every swept Δt is large: RK4 is stable to ≈ 1.7 and its time error there is nil
 REFERENCE_MAX_GRAVITY_COURANT = 0.25
-# the small-Δt run's, against the truth: h + hs in total and by region (``quality.REGIONS``), the vorticity, the divergence
-SPATIAL = ("total_error", *(f"total_error_{k}" for k in REGIONS), "total_error_vorticity", "total_error_divergence")
+# the small-Δt run's, against the truth: h + hs in total and by region (``quality.REGIONS``), the vorticity, the
+# divergence in total and by region
+SPATIAL = (
+    "total_error",
+    *(f"total_error_{k}" for k in REGIONS),
+    "total_error_vorticity",
+    "total_error_divergence",
+    *(f"total_error_divergence_{k}" for k in REGIONS),
+)
 # the sweep info's spatial errors → the keys of the reference's own errors beside them
 FLOOR_OF = {
     "spatial_error": "reference_floor",
@@ -569,6 +576,7 @@ class Sweep:
             "spatial_error_vorticity": ref["total_error_vorticity"],
             "spatial_error_divergence": ref["total_error_divergence"],
             **{f"spatial_error_{k}": ref[f"total_error_{k}"] for k in REGIONS},
+            **{f"spatial_error_divergence_{k}": ref[f"total_error_divergence_{k}"] for k in REGIONS},
             "reference_dt": ref["dt"],
             **floors,
             **(
@@ -679,10 +687,25 @@ COLUMN_ATTRS = {
     },
     "total_error_vorticity": ("1", f"{_ERR} of vorticity against the truth"),
     "total_error_divergence": ("1", f"{_ERR} of divergence against the truth"),
+    **{
+        f"total_error_divergence_{k}": ("1", f"{_ERR} of divergence against the truth over the {k} region's elements")
+        for k in REGIONS
+    },
     "temporal_error": ("1", f"{_ERR} of h + hs against the small-dt run"),
+    **{
+        f"temporal_error_{k}": ("1", f"{_ERR} of h + hs against the small-dt run over the {k} region's elements")
+        for k in REGIONS
+    },
     "temporal_error_wind": ("1", f"{_ERR} of the wind against the small-dt run"),
     "temporal_error_vorticity": ("1", f"{_ERR} of vorticity against the small-dt run"),
     "temporal_error_divergence": ("1", f"{_ERR} of divergence against the small-dt run"),
+    **{
+        f"temporal_error_divergence_{k}": (
+            "1",
+            f"{_ERR} of divergence against the small-dt run over the {k} region's elements",
+        )
+        for k in REGIONS
+    },
     "temporal_error_filtered": ("1", f"{_ERR} of time-filtered h + hs against the small-dt run"),
     "temporal_error_filtered_vorticity": ("1", f"{_ERR} of time-filtered vorticity against the small-dt run"),
     "mass_change": ("1", "relative change of mass at the last day"),
@@ -866,9 +889,21 @@ def format_summary(rows, info) -> str:
         + (f", {note}" if note else "")
         + f"; sufficient accuracy: temporal error <= {SUFFICIENT * spatial:.3e}"
     )
-    by_region = [f"{k} {info[f'spatial_error_{k}']:.3e}" for k in REGIONS if math.isfinite(info[f"spatial_error_{k}"])]
-    if by_region:
-        lines.append(f"  by region (quality.element_regions): {', '.join(by_region)}")
+    for quantity, part in (("h + hs", ""), ("divergence", "divergence_")):
+        spatial_by_region = {
+            k: info[f"spatial_error_{part}{k}"] for k in REGIONS if math.isfinite(info[f"spatial_error_{part}{k}"])
+        }
+        if not spatial_by_region:
+            continue
+        by_region = ", ".join(f"{k} {e:.3e}" for k, e in spatial_by_region.items())
+        lines.append(f"  {quantity} by region (quality.element_regions): {by_region}")
+        lines.append(f"    temporal error of {quantity} by region (/ that region's spatial error):")
+        for r in (r for r in rows if r["stable"]):
+            by_region = ", ".join(
+                f"{k} {r[f'temporal_error_{part}{k}']:.3e} ({r[f'temporal_error_{part}{k}'] / e:.3f})"
+                for k, e in spatial_by_region.items()
+            )
+            lines.append(f"      {r['stepper']:22s} dt = {r['dt']:.4g} s: {by_region}")
     best = cheapest_sufficient(rows, spatial)
     explicit = [best[s]["cost_time"] for s in best if STEPPERS[s].explicit]
     ref_time = min(explicit) if explicit else math.nan

@@ -24,6 +24,7 @@ from swe_sphere.grid.quality import REGIONS, element_regions, element_sizes
 from swe_sphere.grid.refine import Box, make_mesh
 from swe_sphere.simulation.simulation import RunResult
 
+import roundoff
 from helpers import make_sim
 
 
@@ -60,10 +61,31 @@ def numpy_split(sim, u, v, ut, vt):
     }
 
 
-def one_resolution(total: dict) -> dict:
-    """A sweep's ``total`` errors on the uniform cube, less their regions, each checked NaN (one resolution)."""
-    assert all(math.isnan(total.pop(f"total_error_{k}")) for k in REGIONS)
-    return total
+def one_resolution(errors: dict, kind: str = "total_error") -> dict:
+    """A sweep's ``errors`` of a ``kind`` ("total_error", "temporal_error") on the uniform cube,
+    less their regions' (h + hs and divergence), each checked NaN (one resolution)."""
+    assert all(math.isnan(errors.pop(f"{kind}_{part}{k}")) for k in REGIONS for part in ("", "divergence_"))
+    return errors
+
+
+def region_weights(grid, squared_scale) -> list[float]:
+    """∫ over each region's elements (``quality.REGIONS``) of ``squared_scale`` (element-local), by fsum."""
+    nodes = np.repeat(element_regions(element_sizes(grid)), grid.np**2)
+    return [math.fsum(grid.spheremp[nodes == k] * squared_scale[nodes == k]) for k in range(len(REGIONS))]
+
+
+# a ratio of two pairwise sums of n positive terms, each ≤ ⌈log2 n⌉ ε, then its root and square ≤ 4 ε
+def ratio_roundings(grid) -> int:
+    return 2 * math.ceil(math.log2(grid.nelem * grid.np**2)) + 4
+
+
+def regions_recombine(grid, errors: dict, name: str, weights) -> None:
+    """The regions' squared errors ``errors[f"{name}_{region}"]``, weighted by their normalizers'
+    integrals ``weights`` (``region_weights``), add up to the whole sphere's ``errors[name]``
+    squared times the weights' sum, to the round-off of two ratios (``ratio_roundings``)."""
+    by_region = math.fsum(w * errors[f"{name}_{k}"] ** 2 for w, k in zip(weights, REGIONS))
+    total = errors[name] ** 2 * math.fsum(weights)
+    roundoff.within(abs(by_region / total - 1), roundoff.bound(2 * ratio_roundings(grid)), f"{name} by region")
 
 
 def run_to(name, ne, days):
@@ -94,15 +116,27 @@ def test_tc2_errors_are_williamsons_norms():
     }
 
 
-def test_errors_by_region_on_a_refined_mesh_are_numpy_sums(tmp_path):
+def refined_tc2(mesh, dt: float | None = None):
+    """TC2 (α = π/4, the scene's SSP-RK3 at its 300 s or ``dt``) run a quarter day on ``mesh``."""
+    scene = dataclasses.replace(load_scene("tc2_steady_alpha_pi4", mesh=mesh, days=0.25), output_every_days=0.25)
+    sim = make_sim(scene if dt is None else dataclasses.replace(scene, dt=dt))
+    sim.run(None)
+    return sim
+
+
+@pytest.fixture(scope="module")
+def refined(tmp_path_factory):
+    """The ne4 cube refined 2x over TC5's mountain box (its path) and ``refined_tc2`` on it."""
+    path = write_exodus(tmp_path_factory.mktemp("x2") / "x2.g", make_mesh(4, box=Box(10, 50, 246.7, 293.3), levels=1))
+    return path, refined_tc2(path)
+
+
+def test_errors_by_region_on_a_refined_mesh_are_numpy_sums(refined):
     """TC2 (α = π/4) on ne4 refined 2x over TC5's mountain box, a quarter day: the l2 error of h
     over each region's elements (``quality.element_regions``) as a numpy sum over the element-local
-    nodes gives it, and the regions' squared errors, weighted by their ∫hT², add up to the total's."""
-    path = write_exodus(tmp_path / "x2.g", make_mesh(4, box=Box(10, 50, 246.7, 293.3), levels=1))
-    sim = make_sim(
-        dataclasses.replace(load_scene("tc2_steady_alpha_pi4", mesh=path, days=0.25), output_every_days=0.25)
-    )
-    sim.run(None)
+    nodes gives it, and the regions' squared errors, weighted by their ∫hT², add up to the total's;
+    so do the divergence's, weighted by their ∫(ζT² + δT²)."""
+    _, sim = refined
     g = sim.grid
     _, _, h = sim.fields()
     he = sim.case.exact(g.lat, g.lon, 0.25 * DAY)[2]
@@ -116,8 +150,36 @@ def test_errors_by_region_on_a_refined_mesh_are_numpy_sums(tmp_path):
         assert total[f"total_error_{name}"] == pytest.approx(expected, rel=1e-12, abs=0), name
         weights.append(norm)
     assert total["total_error_refined"] > 1e-6  # a real error, not round-off
-    by_region = sum(w * total[f"total_error_{k}"] ** 2 for w, k in zip(weights, REGIONS))
-    assert by_region == pytest.approx(total["total_error"] ** 2 * sum(weights), rel=1e-12)
+    regions_recombine(g, total, "total_error", weights)
+    zeta, delta = sim.scorer.rotation_divergence(*sim.case.exact(g.lat, g.lon, 0.25 * DAY)[:2])
+    assert all(total[f"total_error_divergence_{k}"] > 1e-5 for k in REGIONS)  # TC2's ≈ 1e-3
+    regions_recombine(g, total, "total_error_divergence", region_weights(g, zeta**2 + delta**2))
+
+
+def test_temporal_errors_by_region_on_a_refined_mesh_are_numpy_sums(refined):
+    """The same TC2 run at 900 s against the 300 s run (the sweep's small-Δt run): the l2 of
+    h + hs over each region's elements, normalized by the 300 s run's ∫(h + hs)² there, as a
+    numpy sum over the element-local nodes gives it; each region's error is real (the steps
+    differ), the regions' squares weighted by those integrals add up to the total's square, and
+    so do the divergence's, weighted by the 300 s run's ∫(ζ² + δ²); against itself the 300 s
+    run has none in any region."""
+    path, small = refined
+    g, x_ref = small.grid, small.x.numpy()
+    x = refined_tc2(path, dt=900.0).x.numpy()
+    got = small.scorer.temporal_errors(x, x_ref)
+    nodes = np.repeat(element_regions(element_sizes(g)), g.np**2)
+    surface, surface_ref = x[2] + small.hs, x_ref[2] + small.hs
+    weights = region_weights(g, surface_ref**2)
+    for k, name in enumerate(REGIONS):
+        inside = nodes == k
+        e2 = math.fsum(g.spheremp[inside] * (surface - surface_ref)[inside] ** 2) / weights[k]
+        assert got[f"temporal_error_{name}"] > 1e-7, name  # ssprk3 at 900 s against 300 s: about 1e-6
+        assert got[f"temporal_error_divergence_{name}"] > 1e-5, name  # about 1e-4
+        roundoff.within(abs(got[f"temporal_error_{name}"] ** 2 / e2 - 1), roundoff.bound(ratio_roundings(g)), name)
+    regions_recombine(g, got, "temporal_error", weights)
+    zeta, delta = small.scorer.rotation_divergence(x_ref[0], x_ref[1])
+    regions_recombine(g, got, "temporal_error_divergence", region_weights(g, zeta**2 + delta**2))
+    assert all(v == 0 for v in small.scorer.temporal_errors(x_ref, x_ref).values())
 
 
 def test_tc5_errors_against_t213_are_williamsons_norms():
@@ -156,7 +218,7 @@ def test_temporal_and_filtered_errors_are_williamsons_norms():
     x = sim.x.numpy()
     x0 = np.stack(sim.case.initial(sim.grid.lat, sim.grid.lon))
     hs = sim.hs
-    got = sim.scorer.temporal_errors(x, x0)
+    got = one_resolution(sim.scorer.temporal_errors(x, x0), "temporal_error")
     split = numpy_split(sim, x[0], x[1], x0[0], x0[1])
     expected = {
         "temporal_error": numpy_norms(sim.grid, x[2] - x0[2], x0[2] + hs)["l2"],

@@ -4,6 +4,8 @@ is not one (it ended in a traceback)."""
 
 from __future__ import annotations
 
+import importlib.util
+import math
 import os
 import shutil
 import subprocess
@@ -46,9 +48,25 @@ def test_the_tables_and_a_missing_figures_folder_made(sweep, tmp_path):
 
 def test_a_sweep_folder_of_another_name_takes_case_and_grid_from_its_table(sweep, tmp_path):
     shutil.copytree(sweep, tmp_path / "my sweep")
-    proc = tables(tmp_path, "my sweep")
+    proc = tables(tmp_path, "my sweep", "--temporal-regions")
     assert proc.returncode == 0, proc.stderr
     assert "| tc2_steady | 2 | total h+hs |" in proc.stdout
+    assert "no temporal errors by region: the mesh has one resolution" in proc.stdout
+
+
+def test_reach_interpolates_at_the_bracketing_runs_order_and_extrapolates_at_the_nearest():
+    """The step at which a temporal error reaches 10 % of the spatial error: between the two runs
+    that bracket it at their order, else at the order of the two runs nearest it."""
+    spec = importlib.util.spec_from_file_location("efficiency_tables", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    at, inside = module.reach([1, 2, 4], [0.0125, 0.05, 0.2])  # (2, 4) brackets 0.1, order 2
+    assert inside and at == pytest.approx(2 * math.sqrt(2), rel=1e-14)
+    at, inside = module.reach([1, 2, 4], [0.001, 0.01, 0.02])  # beyond: the last pair's order 1
+    assert not inside and at == pytest.approx(20, rel=1e-14)
+    at, inside = module.reach([1, 2, 4], [0.4, 0.8, 3.2])  # below: the first pair's order 1
+    assert not inside and at == pytest.approx(0.25, rel=1e-14)
+    assert math.isnan(module.reach([1], [0.05])[0])
 
 
 @pytest.mark.parametrize(

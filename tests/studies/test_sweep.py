@@ -260,6 +260,41 @@ def test_verdicts_per_criterion_and_threshold():
     assert "  total h+hs: spatial error 1.000e-04\n" in text  # an exact solution: no floor
 
 
+def test_the_summary_gives_each_stable_runs_temporal_error_by_region_over_that_regions_spatial_error():
+    """On a mesh of several resolutions the summary prints, under the spatial errors of h + hs and
+    of the divergence by region, each stable run's temporal errors by region and their shares of
+    that region's spatial error; an unstable run has none."""
+    errors = {"temporal_error_refined": 3e-6, "temporal_error_transition": 1e-6, "temporal_error_coarse": 2.5e-6}
+    errors.update({k.replace("error_", "error_divergence_"): 100 * e for k, e in errors.items()})
+    rows = [
+        {"stepper": "rk4", "dt": 300.0, "stable": True, "temporal_error": 2e-6, **errors},
+        {"stepper": "rk4", "dt": 600.0, "stable": False},
+    ]
+    spatial = {"refined": 3e-5, "transition": 2e-5, "coarse": 1e-4}
+    info = {
+        "spatial_error": 1e-4,
+        **{f"spatial_error_{k}": e for k, e in spatial.items()},
+        "spatial_error_vorticity": 1e-3,
+        "spatial_error_divergence": 1e-3,
+        **{f"spatial_error_divergence_{k}": 10 * e for k, e in spatial.items()},
+        "reference_dt": 75.0,
+        "reference": "exact solution",
+    }
+    limits = {"dt_gravity": 300.0, "dt_advective": 3000.0, "dt_leapfrog": 150.0}
+    text = sweep_mod.format_summary(sweep_mod.table(rows, limits), info)
+    assert (
+        "  h + hs by region (quality.element_regions): refined 3.000e-05, transition 2.000e-05, coarse 1.000e-04\n"
+        "    temporal error of h + hs by region (/ that region's spatial error):\n"
+        "      rk4                    dt = 300 s: refined 3.000e-06 (0.100), transition 1.000e-06 (0.050), "
+        "coarse 2.500e-06 (0.025)\n"
+        "  divergence by region (quality.element_regions): refined 3.000e-04, transition 2.000e-04, coarse 1.000e-03\n"
+        "    temporal error of divergence by region (/ that region's spatial error):\n"
+        "      rk4                    dt = 300 s: refined 3.000e-04 (1.000), transition 1.000e-04 (0.500), "
+        "coarse 2.500e-04 (0.250)\n"
+    ) in text
+    assert "dt = 600 s:" not in text
+
+
 def test_verdicts_quote_the_reference_floor_and_flag_a_spatial_error_within_2x_of_it():
     """Beside each spatial error its reference's own error (``Sweep.run``'s info, from
     ``reference.floor``); within 2x of it the line says the verdicts are provisional."""

@@ -127,6 +127,20 @@ class LaunchRecorder:
         kernel = {2: blas.axpby, 3: blas.axpbypcz, 4: blas.axpbypczpdw}[len(terms)]
         return self.pointwise(kernel, out.shape[0], [*args, out], elements=elements)
 
+    def lincomb_at(self, out, terms, nodes):
+        """The recorded launch of out = Σ c·x over four (c, x) terms of (rows, N) arrays at
+        the element-local ``nodes`` only (a non-empty int32 device array; out's other nodes
+        keep their values), ``blas.axpbypczpdw_at``: at each of them the bits of
+        ``lincomb``'s. np² listed nodes a thread with the per-element layout, one on CUDA.
+        ValueError for another number of terms or no nodes."""
+        terms = tuple(terms)
+        if len(terms) != 4 or nodes.shape[0] == 0:
+            raise ValueError(f"lincomb_at takes four terms and some nodes (got {len(terms)}, {nodes.shape[0]})")
+        block = self.block if self.per_element else 1
+        args = [a for c, x in terms for a in (f64(c), x)]
+        n = -(-nodes.shape[0] // block)
+        return self.record(blas.axpbypczpdw_at, (out.shape[0], n), [*args, out, nodes, block], nodes_per_index=block)
+
     def run_pointwise(self, kernel, *inputs, unique=False) -> None:
         """Run a pointwise kernel (``kernels.blas`` convention: trailing ``block``,
         ``offset``) on ``inputs`` over (3, N), or over (3, nunique) if ``unique``

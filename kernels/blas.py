@@ -84,15 +84,16 @@ def axpbypczpdw_at(
     block: int,
     offset: int,
 ):
-    """``axpbypczpdw`` (the same bits) at the listed nodes only: out[r, p] = a·x + b·y + c·z
-    + d·w for p = nodes[i], i the thread's ``block`` consecutive entries of ``nodes``;
-    out's other nodes are not written (a local time step's sums over the nodes a level
-    holds). Dim (rows, ceil(len(nodes)/block))."""
-    r, k = wp.tid()
-    start = (k + offset) * block
+    """``axpbypczpdw`` (the same bits) on states (3, N) at the listed nodes only: out[r, p] =
+    a·x + b·y + c·z + d·w for p = nodes[i], i the thread's ``block`` consecutive entries
+    of ``nodes``, every row; out's other nodes are not written (a local time step's sums
+    over the nodes a level holds). The three rows in one thread, unrolled: half the CPU
+    time of a thread a row. Dim ceil(len(nodes)/block)."""
+    start = (wp.tid() + offset) * block
     for i in range(start, wp.min(start + block, nodes.shape[0])):
         p = nodes[i]
-        out[r, p] = a * x[r, p] + b * y[r, p] + c * z[r, p] + d * w[r, p]
+        for r in range(3):
+            out[r, p] = a * x[r, p] + b * y[r, p] + c * z[r, p] + d * w[r, p]
 
 
 @wp.kernel

@@ -93,16 +93,18 @@ def ab3_step_weights(levels: int) -> np.ndarray:
 
 
 def sum_nodes(parts: list, device) -> tuple[list, list]:
-    """(read, unread): for each level k but the finest, the element-local nodes (every copy;
-    int32 device arrays) among those level k's part touches (``ElementPart.nodes``) that an
-    element of a finer level also touches (read) and the rest (unread); a node's copies
-    are all in one of the two, so they stay equal. [], [] for one level (``parts`` [None])."""
+    """(read, unread): for each level k, the element-local nodes (every copy; int32 device
+    arrays) among those level k's part touches (``ElementPart.nodes``) that an element of a
+    finer level also touches (read: none for the finest) and the rest (unread); a node's
+    copies are all in one of the two, so they stay equal. [], [] for one level (``parts``
+    [None])."""
     if parts == [None]:
         return [], []
     read, unread = [], []
-    for k, part in enumerate(parts[:-1]):
+    for k, part in enumerate(parts):
         nodes = part.nodes.numpy()
-        mask = np.isin(nodes, np.concatenate([p.nodes.numpy() for p in parts[k + 1 :]]))
+        finer = [p.nodes.numpy() for p in parts[k + 1 :]]
+        mask = np.isin(nodes, np.concatenate(finer)) if finer else np.zeros(nodes.size, dtype=bool)
         read.append(wp.array(nodes[mask], dtype=wp.int32, device=device))
         unread.append(wp.array(nodes[~mask], dtype=wp.int32, device=device))
     return read, unread
@@ -114,7 +116,7 @@ class MultirateAB3:
     level, the whole grid's ``rhs``). ``inner`` names the start's explicit table
     (``tables.EXPLICIT``); ``comb(out, *terms)`` and ``combine(out, terms)`` are the
     stepper's recorded linear combinations, ``at(c)`` sets the model time to t_n + c Δt.
-    ``read`` and ``unread`` (``sum_nodes``): each level's A_k and B_k but the finest's (the
+    ``read`` and ``unread`` (``sum_nodes``): each level's A_k and B_k (the
     module docstring, "The sums")."""
 
     def __init__(self, model, dt: float, parts: list, inner: str, comb, combine, at):
@@ -182,8 +184,8 @@ class MultirateAB3:
         """x += level k's integral over the finest sub-step j where a finer level reads it
         between level k's step boundaries, and over the whole level-k step elsewhere at the
         step's last sub-step (the module docstring, "The sums"): four-term combinations
-        x + w0 f⁰ + w1 f¹ + w2 f², recorded once per history order. One level, or the
-        finest: every node it holds each sub-step, over the element ranges that hold them."""
+        x + w0 f⁰ + w1 f¹ + w2 f² at listed nodes, recorded once per history order. One
+        level: the whole grid's combination, the global AB3 step's."""
         h = self.history[k]
         key = (x.ptr, j, k, *(a.ptr for a in h))
         launches = self._sums.get(key)
@@ -198,14 +200,11 @@ class MultirateAB3:
         def terms(weights):
             return ((1.0, x), *((float(self.dt * w), a) for w, a in zip(weights, h)))
 
-        part = self.parts[k]
-        if part is None or k == self.levels - 1:
-            return [
-                self.model.lincomb(x, terms(self.weights[j, k]), run)
-                for run in ([None] if part is None else part.reach)
-            ]
+        if self.parts[k] is None:
+            return [self.model.lincomb(x, terms(self.weights[j, k]))]
         sums = [(self.read[k], self.weights[j, k])]
-        if j % 2 ** (self.levels - 1 - k) == 2 ** (self.levels - 1 - k) - 1:  # the last of a level-k step
+        m = 2 ** (self.levels - 1 - k)  # finest sub-steps a level-k step
+        if j % m == m - 1:
             sums.append((self.unread[k], self.step_weights[k]))
         record = self.model.launches.lincomb_at
         return [record(x, terms(w), nodes) for nodes, w in sums if nodes.shape[0]]

@@ -80,7 +80,7 @@ def test_part_elements_outside_the_grid_are_refused():
 def test_a_combination_at_listed_nodes_has_the_whole_ones_bits_there_alone(per_element, rng):
     """``lincomb_at`` over 1000 of the refined cube's nodes (not a whole number of elements'
     np² blocks): out = x + a·y + b·z + c·w with ``lincomb``'s bits at those nodes, out's other
-    nodes untouched; three terms or no nodes are refused."""
+    nodes untouched; three terms, one row or no nodes are refused."""
     grid = refined_grid()
     _, model = case_model(grid, "tc2_steady", TC5_TERMS[:4], per_element=per_element, threads=1)
     dev = model.device
@@ -94,7 +94,11 @@ def test_a_combination_at_listed_nodes_has_the_whole_ones_bits_there_alone(per_e
     listed[nodes] = True
     np.testing.assert_array_equal(out.numpy()[:, listed], whole.numpy()[:, listed])
     assert np.all(out.numpy()[:, ~listed] == 7.0)
-    with pytest.raises(ValueError, match="lincomb_at takes four terms and some nodes"):
+    with pytest.raises(ValueError, match="lincomb_at takes four terms, three rows and some nodes"):
         model.launches.lincomb_at(out, terms[:3], wp.array(nodes, dtype=wp.int32, device=dev))
-    with pytest.raises(ValueError, match="lincomb_at takes four terms and some nodes"):
+    with pytest.raises(ValueError, match="lincomb_at takes four terms, three rows and some nodes"):
         model.launches.lincomb_at(out, terms, wp.zeros(0, dtype=wp.int32, device=dev))
+    with pytest.raises(ValueError, match="lincomb_at takes four terms, three rows and some nodes"):
+        model.launches.lincomb_at(
+            out[2:3], tuple((c, a[2:3]) for c, a in terms), wp.array(nodes, dtype=wp.int32, device=dev)
+        )

@@ -268,7 +268,8 @@ def refined3(tmp_path_factory):
 def test_mrab3_sums_a_level_every_sub_step_only_where_a_finer_level_reads_it(refined3):
     """Three levels (168, 104, 104 elements): level k's sums go every finest sub-step to the
     nodes that an element of a finer level also touches, and once a level-k step to the
-    others (from the grid's gid and the levels: whole unique nodes each side). After the
+    others (from the grid's gid and the levels: whole unique nodes each side; the finest
+    level's all the others). After the
     start a coarse step's dynamics equals the sums at every sub-step at every node (the
     sets overridden) to the round-off of the regrouped sums, and every node's copies keep
     one value (the restart file's)."""
@@ -279,13 +280,13 @@ def test_mrab3_sums_a_level_every_sub_step_only_where_a_finer_level_reads_it(ref
     mrab, every, grid = sims[0].stepper.mrab, sims[1].stepper.mrab, sims[0].model.grid
     assert sims[0].stepper.levels.elements_per_level() == [168, 104, 104]
     gid, level = grid.gid, np.repeat(sims[0].stepper.levels.level, grid.np**2)
-    for k in range(2):
+    for k in range(3):
         touched, finer = np.zeros((2, gid.max() + 1), dtype=bool)
         touched[gid[level == k]], finer[gid[level > k]] = True, True
         np.testing.assert_array_equal(mrab.read[k].numpy(), np.flatnonzero((touched & finer)[gid]))
         np.testing.assert_array_equal(mrab.unread[k].numpy(), np.flatnonzero((touched & ~finer)[gid]))
-    every.read = [part.nodes for part in every.parts[:-1]]
-    every.unread = [part.nodes[:0] for part in every.parts[:-1]]
+    every.read = [part.nodes for part in every.parts]
+    every.unread = [part.nodes[:0] for part in every.parts]
     for sim in sims:
         sim.stepper.mrab.step(sim.x)
     x, y = (sim.x.numpy() for sim in sims)

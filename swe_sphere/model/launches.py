@@ -115,17 +115,33 @@ class LaunchRecorder:
             per_part=per_part,
         )
 
-    def lincomb(self, out, terms, elements=None):
+    def lincomb(self, out, terms):
         """The recorded launch of out = Σ c·x over one to four (c, x) terms of (rows, N)
         arrays (row views such as ``x[2:3]`` included; out may alias any x),
-        ``blas.axpby``/``axpbypcz``/``axpbypczpdw`` (one term: c·x + 0·x); ``elements``
-        (start, stop): over those elements' nodes only."""
+        ``blas.axpby``/``axpbypcz``/``axpbypczpdw`` (one term: c·x + 0·x)."""
         terms = tuple(terms)
         if len(terms) == 1:
             terms += ((0.0, terms[0][1]),)
         args = [a for c, x in terms for a in (f64(c), x)]
         kernel = {2: blas.axpby, 3: blas.axpbypcz, 4: blas.axpbypczpdw}[len(terms)]
-        return self.pointwise(kernel, out.shape[0], [*args, out], elements=elements)
+        return self.pointwise(kernel, out.shape[0], [*args, out])
+
+    def lincomb_at(self, out, terms, nodes):
+        """The recorded launch of out = Σ c·x over four (c, x) terms of states (3, N) at the
+        element-local ``nodes`` only (a non-empty int32 device array; out's other nodes
+        keep their values), ``blas.axpbypczpdw_at``: at each of them the bits of
+        ``lincomb``'s. np² listed nodes a thread with the per-element layout, one on CUDA.
+        ValueError for another number of terms, rows, or no nodes."""
+        terms = tuple(terms)
+        if len(terms) != 4 or out.shape[0] != 3 or nodes.shape[0] == 0:
+            raise ValueError(
+                f"lincomb_at takes four terms, three rows and some nodes (got {len(terms)}, {out.shape[0]}, "
+                f"{nodes.shape[0]})"
+            )
+        block = self.block if self.per_element else 1
+        args = [a for c, x in terms for a in (f64(c), x)]
+        n = -(-nodes.shape[0] // block)
+        return self.record(blas.axpbypczpdw_at, n, [*args, out, nodes, block], nodes_per_index=block)
 
     def run_pointwise(self, kernel, *inputs, unique=False) -> None:
         """Run a pointwise kernel (``kernels.blas`` convention: trailing ``block``,

@@ -192,10 +192,9 @@ class ShallowWater:
         self.bad_nodes = BadNodes(self)  # the check of a state for non-finite or dry nodes
 
     # -- the recorder's (``launches.LaunchRecorder``) -----------------------
-    def lincomb(self, out, terms, elements=None):
-        """``launches.lincomb``: the recorded launch of out = Σ c·x over (c, x) terms
-        (``elements`` (start, stop): over those elements' nodes only)."""
-        return self.launches.lincomb(out, terms, elements)
+    def lincomb(self, out, terms):
+        """``launches.lincomb``: the recorded launch of out = Σ c·x over (c, x) terms."""
+        return self.launches.lincomb(out, terms)
 
     def pointwise(self, kernel, *inputs, unique=False) -> None:
         """``launches.run_pointwise``: run a pointwise kernel, recorded on first use."""

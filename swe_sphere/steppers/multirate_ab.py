@@ -17,6 +17,18 @@ polynomial integrated exactly over the fastest step); one evaluation of level k 
 so a coarse step evaluates level-k elements 2^k times: the levels' bound exactly. Order 3
 (each level's quadratic is third order where it is extrapolated over at most its own step).
 
+The sums. Level k's integral is needed between its step boundaries only where a finer level
+reads the state. Its nodes (those its elements touch) split by unique node: A_k, touched by an
+element of a finer level too, and B_k, the rest. At each finest sub-step j, x[A_k] gains
+Δt Σ_i w[j, k, i] f_k⁽ⁱ⁾ (``ab3_weights``); at the last finest sub-step of each level-k step
+(j ≡ m − 1 mod m, m = 2^(K−k)), x[B_k] gains the whole step's Δt Σ_i W[k, i] f_k⁽ⁱ⁾, W the
+exact sum of the step's sub-step weights (``ab3_step_weights``: AB3's). Exact: a B_k node is
+touched only by elements of level k or coarser, which evaluate only at level-k step
+boundaries (their step starts are multiples of h_k), so between them nothing reads it. The
+finest level's nodes are all B_K, summed each sub-step. A node's copies fall on one side, so
+they keep one value. Regrouped, the sums change the state in its last bits only; they cost in
+proportion to the nodes summed (benchmarks/README.md, "Where a step goes").
+
 With one level it is the global AB3 step: y_{n+1} = y_n + Δt (23 F_n − 16 F_{n−1} + 5 F_{n−2})/12
 through ``ShallowWater.rhs`` (the whole grid's, not a part's).
 
@@ -69,18 +81,50 @@ def ab3_weights(levels: int) -> np.ndarray:
     return out
 
 
+def ab3_step_weights(levels: int) -> np.ndarray:
+    """(K + 1, 3) float: entry [k, i] the integral over a whole level-k step of its
+    Lagrange basis function i, in units of Δt: AB3's (23, −16, 5)/12 · h_k/Δt, the exact
+    sum (in fractions) of the level's sub-step weights ``ab3_weights``."""
+    out = np.zeros((levels, HISTORY))
+    for k in range(levels):
+        ends = _antiderivatives(Fraction(0)), _antiderivatives(Fraction(1))
+        out[k] = [float(Fraction(1, 2**k) * (y - x)) for x, y in zip(*ends)]
+    return out
+
+
+def sum_nodes(parts: list, device) -> tuple[list, list]:
+    """(read, unread): for each level k, the element-local nodes (every copy; int32 device
+    arrays) among those level k's part touches (``ElementPart.nodes``) that an element of a
+    finer level also touches (read: none for the finest) and the rest (unread); a node's
+    copies are all in one of the two, so they stay equal. [], [] for one level (``parts``
+    [None])."""
+    if parts == [None]:
+        return [], []
+    read, unread = [], []
+    for k, part in enumerate(parts):
+        nodes = part.nodes.numpy()
+        finer = [p.nodes.numpy() for p in parts[k + 1 :]]
+        mask = np.isin(nodes, np.concatenate(finer)) if finer else np.zeros(nodes.size, dtype=bool)
+        read.append(wp.array(nodes[mask], dtype=wp.int32, device=device))
+        unread.append(wp.array(nodes[~mask], dtype=wp.int32, device=device))
+    return read, unread
+
+
 class MultirateAB3:
     """The MRAB3 step (the module docstring) of ``model`` with coarse step ``dt`` (s) on the
     element ``parts`` (one ``ShallowWater.ElementPart`` a level, coarsest first; [None]: one
     level, the whole grid's ``rhs``). ``inner`` names the start's explicit table
     (``tables.EXPLICIT``); ``comb(out, *terms)`` and ``combine(out, terms)`` are the
-    stepper's recorded linear combinations, ``at(c)`` sets the model time to t_n + c Δt."""
+    stepper's recorded linear combinations, ``at(c)`` sets the model time to t_n + c Δt.
+    ``read`` and ``unread`` (``sum_nodes``): each level's A_k and B_k (the
+    module docstring, "The sums")."""
 
     def __init__(self, model, dt: float, parts: list, inner: str, comb, combine, at):
         self.model, self.dt, self.parts = model, float(dt), parts
         self.comb, self.combine, self.at = comb, combine, at
         self.levels = len(parts)
         self.weights = ab3_weights(self.levels)
+        self.step_weights = ab3_step_weights(self.levels)
         buffer = lambda: wp.zeros((3, model.N), dtype=f64, device=model.device)  # noqa: E731
         # each level's tendencies, the newest first; a level's buffers hold its nodes alone
         self.history = [[buffer() for _ in range(HISTORY)] for _ in parts]
@@ -90,6 +134,7 @@ class MultirateAB3:
         names, self.form = stage_form(table.A_E, table.b_E, table.c)
         self.rk = {name: buffer() for name in names}
         self.F = buffer()  # the start's stage tendency
+        self.read, self.unread = sum_nodes(parts, model.device)
         self._sums: dict[tuple, list] = {}  # ``accumulate``'s recorded launches
 
     def substeps(self) -> int:
@@ -136,21 +181,33 @@ class MultirateAB3:
         return counts[0], sum(counts[1:])
 
     def accumulate(self, x, j: int, k: int) -> None:
-        """x += level k's integral over the finest sub-step j, Δt Σ_i w[j, k, i] f_k⁽ⁱ⁾, over
-        the elements that hold its nodes alone (elsewhere its tendencies are zero): one
-        combination x + w0 f⁰ + w1 f¹ + w2 f², recorded once per history order."""
+        """x += level k's integral over the finest sub-step j where a finer level reads it
+        between level k's step boundaries, and over the whole level-k step elsewhere at the
+        step's last sub-step (the module docstring, "The sums"): four-term combinations
+        x + w0 f⁰ + w1 f¹ + w2 f² at listed nodes, recorded once per history order. One
+        level: the whole grid's combination, the global AB3 step's."""
         h = self.history[k]
         key = (x.ptr, j, k, *(a.ptr for a in h))
         launches = self._sums.get(key)
         if launches is None:
-            w0, w1, w2 = (float(self.dt * w) for w in self.weights[j, k])
-            part = self.parts[k]
-            launches = self._sums[key] = [
-                self.model.lincomb(x, ((1.0, x), (w0, h[0]), (w1, h[1]), (w2, h[2])), run)
-                for run in ([None] if part is None else part.reach)
-            ]
+            launches = self._sums[key] = self._sum_launches(x, j, k, h)
         for launch in launches:
             launch.launch()
+
+    def _sum_launches(self, x, j: int, k: int, h: list) -> list:
+        """The launches of ``accumulate(x, j, k)`` with level k's history h."""
+
+        def terms(weights):
+            return ((1.0, x), *((float(self.dt * w), a) for w, a in zip(weights, h)))
+
+        if self.parts[k] is None:
+            return [self.model.lincomb(x, terms(self.weights[j, k]))]
+        sums = [(self.read[k], self.weights[j, k])]
+        m = 2 ** (self.levels - 1 - k)  # finest sub-steps a level-k step
+        if j % m == m - 1:
+            sums.append((self.unread[k], self.step_weights[k]))
+        record = self.model.launches.lincomb_at
+        return [record(x, terms(w), nodes) for nodes, w in sums if nodes.shape[0]]
 
     def _start_step(self, x) -> None:
         """2^K steps of ``inner`` at h_K, the first stage's F the sum of the levels' f_k at

@@ -74,3 +74,31 @@ def test_part_elements_outside_the_grid_are_refused():
         model.element_part([2, 0])
     with pytest.raises(ValueError, match="gap must be an integer >= 0"):
         model.element_part([0, 1], -1)
+
+
+@pytest.mark.parametrize("per_element", [True, False])
+def test_a_combination_at_listed_nodes_has_the_whole_ones_bits_there_alone(per_element, rng):
+    """``lincomb_at`` over 1000 of the refined cube's nodes (not a whole number of elements'
+    np² blocks): out = x + a·y + b·z + c·w with ``lincomb``'s bits at those nodes, out's other
+    nodes untouched; three terms, one row or no nodes are refused."""
+    grid = refined_grid()
+    _, model = case_model(grid, "tc2_steady", TC5_TERMS[:4], per_element=per_element, threads=1)
+    dev = model.device
+    x, y, z, w = (wp.array(rng.standard_normal((3, model.N)), dtype=wp.float64, device=dev) for _ in range(4))
+    terms = ((1.0, x), (0.3, y), (-0.7, z), (1.1, w))
+    nodes = np.sort(rng.choice(model.N, 1000, replace=False)).astype(np.int32)
+    whole, out = wp.zeros_like(x), wp.full_like(x, 7.0)
+    model.lincomb(whole, terms).launch()
+    model.launches.lincomb_at(out, terms, wp.array(nodes, dtype=wp.int32, device=dev)).launch()
+    listed = np.zeros(model.N, dtype=bool)
+    listed[nodes] = True
+    np.testing.assert_array_equal(out.numpy()[:, listed], whole.numpy()[:, listed])
+    assert np.all(out.numpy()[:, ~listed] == 7.0)
+    with pytest.raises(ValueError, match="lincomb_at takes four terms, three rows and some nodes"):
+        model.launches.lincomb_at(out, terms[:3], wp.array(nodes, dtype=wp.int32, device=dev))
+    with pytest.raises(ValueError, match="lincomb_at takes four terms, three rows and some nodes"):
+        model.launches.lincomb_at(out, terms, wp.zeros(0, dtype=wp.int32, device=dev))
+    with pytest.raises(ValueError, match="lincomb_at takes four terms, three rows and some nodes"):
+        model.launches.lincomb_at(
+            out[2:3], tuple((c, a[2:3]) for c, a in terms), wp.array(nodes, dtype=wp.int32, device=dev)
+        )

@@ -259,6 +259,51 @@ def test_mrab3_evaluates_level_k_two_to_the_k_times(refined):
     assert result.rhs_evals == 2 * 8 + 4 * 1 and result.iterations["fast"] == 4 * 2
 
 
+@pytest.fixture(scope="module")
+def refined3(tmp_path_factory):
+    """The ne6 cube refined 4× over ``BOX`` (376 elements; three levels for MRAB3 at 1800 s)."""
+    return write_exodus(tmp_path_factory.mktemp("mesh") / "r6x4.g", refined_cube(6, BOX, 2))
+
+
+def test_mrab3_sums_a_level_every_sub_step_only_where_a_finer_level_reads_it(refined3):
+    """Three levels (168, 104, 104 elements): level k's sums go every finest sub-step to the
+    nodes that an element of a finer level also touches, and once a level-k step to the
+    others (from the grid's gid and the levels: whole unique nodes each side; the finest
+    level's all the others). After the
+    start a coarse step's dynamics equals the sums at every sub-step at every node (the
+    sets overridden) to the round-off of the regrouped sums, and every node's copies keep
+    one value (the restart file's)."""
+    options = {**MRAB3, "max_levels": 3}
+    sims = [sim_of("tc5_mountain", "lts", 1800.0, 0.125, options, mesh=refined3) for _ in range(2)]
+    for sim in sims:
+        steps(sim, 2)  # the start
+    mrab, every, grid = sims[0].stepper.mrab, sims[1].stepper.mrab, sims[0].model.grid
+    assert sims[0].stepper.levels.elements_per_level() == [168, 104, 104]
+    gid, level = grid.gid, np.repeat(sims[0].stepper.levels.level, grid.np**2)
+    for k in range(3):
+        touched, finer = np.zeros((2, gid.max() + 1), dtype=bool)
+        touched[gid[level == k]], finer[gid[level > k]] = True, True
+        np.testing.assert_array_equal(mrab.read[k].numpy(), np.flatnonzero((touched & finer)[gid]))
+        np.testing.assert_array_equal(mrab.unread[k].numpy(), np.flatnonzero((touched & ~finer)[gid]))
+    every.read = [part.nodes for part in every.parts]
+    every.unread = [part.nodes[:0] for part in every.parts]
+    for sim in sims:
+        sim.stepper.mrab.step(sim.x)
+    x, y = (sim.x.numpy() for sim in sims)
+    # a node's sums: at most 3 levels × 4 sub-steps × 3 additions of x's size on each side;
+    # a later evaluation in the step sees a difference through a step of Courant number < 1,
+    # at most twice (level 1 at sub-step 2, level 2 at 1, 2, 3 after level 1's regrouping),
+    # and a depth's difference δh moves the wind by about δh √(g/h): the wind's scale is
+    # its speed and the gravity wave's
+    depth = np.abs(y[2]).max()
+    wind = np.abs(y[:2]).max() + np.sqrt(sims[0].model.g * depth)
+    scale = np.array([[wind], [wind], [depth]])
+    assert np.all(np.abs(x - y) <= bound(3 * 2 * 36, scale))
+    assert np.any(x != y)  # regrouped
+    _, first, copy_of = np.unique(gid, return_index=True, return_inverse=True)
+    np.testing.assert_array_equal(x, x[:, first[copy_of]])
+
+
 def test_mrab3_order_and_interface_mass_on_tc2(refined):
     """TC2 on the refined cube (two levels), one day at Δt = 450 and 225 s against RK4 at
     56.25 s: the depth's error falls at rate 3 ± 0.3 (measured 2.90); the mass changes by

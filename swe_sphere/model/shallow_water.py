@@ -47,16 +47,13 @@ class ElementPart(NamedTuple):
     launch less is worth computing), ``nelem`` its elements, ``nodes`` (int32 device array)
     the element-local nodes whose unique node one of them touches (every copy), ``copies``
     the DSS's table of its own copies alone (``Topology.part_copies``), ``tend`` (3, N) the
-    element-local tendency its kernels write, ``reach`` the (start, stop) element ranges
-    that hold every copy in ``nodes`` (where its assembled tendency is nonzero), merged as
-    ``runs``."""
+    element-local tendency its kernels write."""
 
     runs: list
     nelem: int
     nodes: wp.array
     copies: object
     tend: wp.array2d
-    reach: list
 
 
 def element_runs(elements, gap: int) -> list[tuple[int, int]]:
@@ -318,8 +315,7 @@ class ShallowWater:
             raise ValueError(f"gap must be an integer >= 0 (got {gap})")
         nodes, copies = self.topology.part_copies(e, whole)
         tend = wp.zeros((3, self.N), dtype=f64, device=self.device)
-        reach = element_runs(np.unique(nodes.numpy() // self.grid.np**2), gap)
-        return ElementPart(element_runs(e, gap), int(e.size), nodes, copies, tend, reach)
+        return ElementPart(element_runs(e, gap), int(e.size), nodes, copies, tend)
 
     def rhs_part(self, x: wp.array2d, out: wp.array2d, part: ElementPart, terms: tuple | None = None) -> None:
         """out = f_P(x, t) = M⁻¹ DSS(the element-local tendency of ``part``'s elements

@@ -29,6 +29,7 @@ from pathlib import Path
 
 import warp as wp
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "steppers"))  # test_tableau and test_imex
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from test_tableau import ars343_pair, example  # noqa: E402

@@ -21,6 +21,8 @@ import subprocess
 import sys
 import tempfile
 
+from results import recorded
+
 CHILD = """
 import json, resource, sys, time
 from swe_sphere.grid.cubed_sphere import CubedSphere
@@ -79,4 +81,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with recorded(__file__):
+        main()

@@ -26,6 +26,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from results import recorded
+
 # The run as the console script runs it (``cli.main()`` with the process's own argv: it
 # ends in ``os._exit`` after the atexit callbacks), with the step loop's CPU seconds
 # written to the file $FIRST_HOUR_LOOP from an atexit callback.
@@ -116,4 +118,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with recorded(__file__):
+        main()

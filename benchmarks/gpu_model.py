@@ -40,6 +40,7 @@ import time
 
 import warp as wp
 from implicit_cost import use_krylov  # noqa: E402  (benchmarks/, the script's directory)
+from results import recorded
 from rhs_throughput import build as tc5  # noqa: E402
 
 from swe_sphere.config.scene import load_scene
@@ -225,4 +226,5 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    with recorded(__file__):
+        main()

@@ -45,6 +45,7 @@ import warp as wp
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from gpu_model import IMPLICIT  # noqa: E402
 from implicit_cost import use_krylov  # noqa: E402
+from results import recorded  # noqa: E402  (benchmarks/, the script's directory)
 from rhs_throughput import build, median_time, rhs_compulsory_bytes  # noqa: E402  (its clock: time.perf_counter)
 
 from swe_sphere.config.scene import load_scene  # noqa: E402
@@ -255,4 +256,5 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    with recorded(__file__):
+        main()

@@ -40,6 +40,8 @@ from threadpoolctl import threadpool_limits
 
 wp.config.quiet = True
 
+from results import recorded  # noqa: E402  (benchmarks/, the script's directory)
+
 from swe_sphere.config.scene import load_scene  # noqa: E402
 from swe_sphere.core.constants import DAY  # noqa: E402
 from swe_sphere.grid.gll import gll  # noqa: E402
@@ -277,4 +279,5 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    with recorded(__file__):
+        main()

@@ -39,6 +39,8 @@ import warp as wp
 
 wp.config.quiet = True
 
+from results import recorded  # noqa: E402  (benchmarks/, the script's directory)
+
 from swe_sphere.config.scene import load_scene  # noqa: E402
 from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 from swe_sphere.solvers.helmholtz import HelmholtzCG  # noqa: E402
@@ -180,4 +182,5 @@ def _noop(x: wp.array(dtype=wp.float64)):
 
 
 if __name__ == "__main__":
-    main()
+    with recorded(__file__):
+        main()

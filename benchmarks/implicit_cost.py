@@ -64,6 +64,8 @@ from threadpoolctl import threadpool_limits
 
 wp.config.quiet = True
 
+from results import recorded  # noqa: E402  (benchmarks/, the script's directory)
+
 from swe_sphere.config.scene import load_scene  # noqa: E402
 from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 from swe_sphere.solvers import jacobian, krylov  # noqa: E402
@@ -291,4 +293,5 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    with recorded(__file__):
+        main()

@@ -28,6 +28,8 @@ import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
+from results import recorded  # noqa: E402  (benchmarks/, the script's directory)
+
 from swe_sphere.core.runtime import init_warp  # noqa: E402
 from swe_sphere.grid.cubed_sphere import CubedSphere  # noqa: E402
 from swe_sphere.grid.levels import element_levels, element_rates  # noqa: E402
@@ -83,4 +85,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with recorded(__file__):
+        main()

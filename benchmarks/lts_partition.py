@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
+from results import recorded
 
 from swe_sphere.config.scene import load_scene
 from swe_sphere.grid.levels import element_levels, element_neighbours, element_rates
@@ -57,4 +58,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with recorded(__file__):
+        main()

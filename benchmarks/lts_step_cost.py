@@ -21,6 +21,8 @@ import os
 import statistics
 import time
 
+from results import recorded
+
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.runtime import init_warp
 from swe_sphere.simulation.simulation import Simulation
@@ -81,4 +83,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with recorded(__file__):
+        main()

@@ -23,6 +23,7 @@ import statistics
 import time
 
 import numpy as np
+from results import recorded
 
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.errors import BlowUp
@@ -122,4 +123,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with recorded(__file__):
+        main()

@@ -23,6 +23,7 @@ import tempfile
 
 import numpy as np
 import warp as wp
+from results import recorded
 
 BASELINE = "import warp as wp; wp.config.quiet = True; wp.config.log_level = wp.LOG_ERROR; wp.init(); import swe_sphere.simulation.simulation"
 
@@ -133,4 +134,5 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    with recorded(__file__):
+        main()

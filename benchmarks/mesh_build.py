@@ -20,6 +20,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from results import recorded
+
 from swe_sphere.core.runtime import init_warp
 from swe_sphere.grid.cubed_sphere import CubedSphere, cube_mesh
 from swe_sphere.grid.mesh import read_exodus, write_exodus
@@ -71,4 +73,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with recorded(__file__):
+        main()

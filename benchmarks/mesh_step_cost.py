@@ -24,6 +24,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
+from results import recorded  # noqa: E402  (benchmarks/, the script's directory)
+
 from swe_sphere.core.runtime import init_warp  # noqa: E402
 from swe_sphere.grid.cubed_sphere import CubedSphere, cube_mesh  # noqa: E402
 from swe_sphere.grid.mesh import read_exodus  # noqa: E402
@@ -79,4 +81,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with recorded(__file__):
+        main()

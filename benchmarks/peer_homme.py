@@ -60,6 +60,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from results import recorded
 
 REPO = Path(__file__).resolve().parents[1]
 NAMELIST = "namelists/swtc5_ne30_1day_timing.nl"
@@ -285,4 +286,6 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    with recorded(__file__):
+        code = main()
+    sys.exit(code)

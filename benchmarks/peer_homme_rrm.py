@@ -97,6 +97,7 @@ import netCDF4
 import numpy as np
 import xarray as xr
 from peer_homme import ONE_CORE, SWE_CHILD, Skip, add_homme_options, default_kit, find_sweqx, run_homme, timed
+from results import recorded
 
 from swe_sphere.core.constants import EARTH
 from swe_sphere.grid.cubed_sphere import CubedSphere, cube_mesh
@@ -454,4 +455,6 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    with recorded(__file__):
+        code = main()
+    sys.exit(code)

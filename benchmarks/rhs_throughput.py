@@ -53,6 +53,8 @@ sys.path.insert(
     0, str(Path(__file__).resolve().parents[1] / "tests")
 )  # numpy_ops; not the repo root, which would shadow the installed package
 
+from results import recorded  # noqa: E402  (benchmarks/, the script's directory)
+
 from swe_sphere.config.scene import load_scene  # noqa: E402
 from swe_sphere.core.backend import Backend, default_device  # noqa: E402
 from swe_sphere.core.parallel import SplitLaunch  # noqa: E402
@@ -326,4 +328,5 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    with recorded(__file__):
+        main()

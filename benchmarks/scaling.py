@@ -37,6 +37,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from results import recorded
 
 
 def partition_table(ne: int, np_: int, ranks: list[int]) -> None:
@@ -175,10 +176,14 @@ def main() -> None:
     if a.worker:
         worker(*a.worker)
         return
-    for ne in a.ne:
-        partition_table(ne, a.np, sorted(set(a.ranks) | set(a.model_ranks)))
-    if a.ranks:
-        time_table(a.ne, a.ranks, a.steps, a.repeat)
+    from swe_sphere.core.runtime import init_warp
+
+    init_warp()  # quietly, before the first table: the topology would init Warp with its banner inside it
+    with recorded(__file__):
+        for ne in a.ne:
+            partition_table(ne, a.np, sorted(set(a.ranks) | set(a.model_ranks)))
+        if a.ranks:
+            time_table(a.ne, a.ranks, a.steps, a.repeat)
 
 
 if __name__ == "__main__":

@@ -32,6 +32,7 @@ import warp as wp
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "steppers"))  # test_tableau and test_imex
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
+from results import recorded  # noqa: E402  (benchmarks/, the script's directory)
 from test_tableau import ars343_pair, example  # noqa: E402
 
 from swe_sphere.config.scene import load_scene  # noqa: E402
@@ -139,4 +140,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with recorded(__file__):
+        main()

@@ -53,6 +53,7 @@ from peer_homme_rrm import (  # noqa: E402
     homme_scores,
     kit_namelist,
 )
+from results import recorded  # noqa: E402  (benchmarks/, the script's directory)
 
 from swe_sphere.cases.scoring import regional_l2  # noqa: E402
 from swe_sphere.config.scene import load_scene  # noqa: E402
@@ -189,4 +190,6 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    with recorded(__file__):
+        code = main()
+    raise SystemExit(code)

@@ -30,6 +30,7 @@ import time
 
 import numpy as np
 import warp as wp
+from results import recorded
 
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.runtime import init_warp
@@ -129,4 +130,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with recorded(__file__):
+        main()

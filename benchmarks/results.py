@@ -1,0 +1,87 @@
+"""A benchmark's latest figures as a file: ``benchmarks/results/<script>.json``, written by every
+script under benchmarks/ at its end through :func:`recorded`, with what a figure needs to be
+read later beside it (the machine's CPU model and cores, the commit and whether the tree
+differed from it, the UTC date, the load average at the start and the end, the command line).
+The figures are what the script printed, line by line, and whatever named figures it adds to
+the dict it is given; benchmarks/README.md quotes them, and git keeps the earlier ones.
+
+Imported as a sibling module (``from results import recorded``): a script run as
+``python benchmarks/NAME.py`` has benchmarks/ first on its path."""
+
+from __future__ import annotations
+
+import contextlib
+import datetime
+import io
+import json
+import os
+import platform
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+RESULTS = HERE / "results"
+
+
+def cpu_model() -> str:
+    """The CPU's model name (Linux's /proc/cpuinfo; elsewhere what ``platform`` says)."""
+    with contextlib.suppress(OSError):
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    return platform.processor() or platform.machine()
+
+
+def commit() -> dict:
+    """The checkout's commit and whether its tracked files differ from it (None outside git)."""
+
+    def git(*args: str) -> str | None:
+        out = subprocess.run(["git", *args], cwd=HERE, capture_output=True, text=True)
+        return out.stdout.strip() if out.returncode == 0 else None
+
+    status = git("status", "--porcelain", "--untracked-files=no")
+    return {"commit": git("rev-parse", "HEAD"), "dirty": None if status is None else bool(status)}
+
+
+class _Tee(io.TextIOBase):
+    """Writes to the terminal and keeps a copy, so that a script prints as it did."""
+
+    def __init__(self, out) -> None:
+        self.out, self.kept = out, io.StringIO()
+
+    def write(self, text: str) -> int:
+        self.kept.write(text)
+        return self.out.write(text)
+
+    def flush(self) -> None:
+        self.out.flush()
+
+
+@contextlib.contextmanager
+def recorded(script: str) -> Iterator[dict]:
+    """Run the block with its printed lines kept; on a normal exit write them, and the named
+    figures the block put in the yielded dict, to ``results/<script's stem>.json`` (the folder
+    made if absent; the file replaced). ``script``: the script's path (``__file__``). Nothing is
+    written when the block raises (a refused option, an interrupted run)."""
+    figures: dict = {}
+    load_start = os.getloadavg()
+    started = datetime.datetime.now(datetime.UTC)
+    tee = _Tee(sys.stdout)
+    with contextlib.redirect_stdout(tee):
+        yield figures
+    record = {
+        "script": Path(script).name,
+        "command": " ".join(["python", f"benchmarks/{Path(script).name}", *sys.argv[1:]]),
+        "date": started.isoformat(timespec="seconds"),
+        "machine": {"cpu": cpu_model(), "cores": os.cpu_count(), "system": platform.platform()},
+        **commit(),
+        "load_average": {"start": [round(x, 2) for x in load_start], "end": [round(x, 2) for x in os.getloadavg()]},
+        "figures": figures,
+        "printed": tee.kept.getvalue().splitlines(),
+    }
+    RESULTS.mkdir(exist_ok=True)
+    path = RESULTS / f"{Path(script).stem}.json"
+    path.write_text(json.dumps(record, indent=1, ensure_ascii=False) + "\n")
+    print(f"figures written to {path.relative_to(HERE.parent)}", file=sys.stderr)

@@ -45,7 +45,7 @@ part_setup() {
     cat "$OUT/device.txt"
     # the machine reaches no index: install the checkout alone, against what is there. Its image had
     # no Warp, netCDF4, cftime or pyamg (2026-11-22): bring them as files and put them on PYTHONPATH
-    # first (benchmarks/README.md, "On a GPU", says how they travelled)
+    # first (benchmarks/GPU.md says how they travel)
     "$PY" -c "import warp, netCDF4, pyamg" || { echo "== setup: warp, netCDF4 or pyamg missing on this machine" | tee -a "$OUT/session.log"; exit 2; }
     run setup 120 "$PY" -m pip install --no-deps --no-build-isolation -e .
 }

@@ -24,10 +24,8 @@ which stay on the host (every process holds the same copy). As KIOPS:
   orthogonality. Classical Gram–Schmidt, its inner products summed over
   processes by ``Topology.sums`` (``krylov.KrylovBasis``), with a
   second pass only when the first removes more than 1 − 1/√2 of the vector's
-  norm (Daniel, Gragg, Kaufman & Stewart 1976, Math. Comp. 30, 772): it ran in
-  30–50 % of the Arnoldi steps of TC5, TC6 and Galewsky at ne8, 2–10 Δt_g, and
-  a pass costs up to half an RHS at ne16 in Warp's CPU kernels (0.1–0.2 in numpy, the
-  CPU's backend now: ``krylov.HostVectors``);
+  norm (Daniel, Gragg, Kaufman & Stewart 1976, Math. Comp. 30, 772; how often it runs and
+  what it costs: docs/reference.md, "Defaults and why");
 * the error estimate β h_{m+1,m} |[exp(τH̃)]_{m,m+1}| (H̃: H_m with a unit
   (1, m+1) entry, so that its exponential holds φ_1(τH_m) e_1 too; Saad 1992,
   SIAM J. Numer. Anal. 29, 209),

@@ -100,22 +100,19 @@ class Implicit(Stepper):
     """Fully implicit θ-method / BDF2 stepper by Jacobian-free Newton–Krylov.
 
     Options (scene table ``[implicit]``): ``method`` ("theta" | "bdf2"),
-    ``theta`` (0.5), ``atol`` (1e-8: changes TC5's day-15 state by 5.6e-7
-    against 1e-10, with 2.3 instead of 3.0 Newton iterations a step),
+    ``theta`` (0.5), ``atol`` (1e-8),
     ``rtol`` (0: off), ``maxiter`` (30), ``gmres_tol`` (1e-11, the floor of
     the forcing term), ``gmres_restart`` (30), ``gmres_maxiter`` (300 inner
     iterations), ``preconditioner`` ("helmholtz" | "none"), ``helmholtz_tol``
-    (1e-2, the relative tolerance of the preconditioner's Helmholtz CG; it
-    cost less per step than one AMG V-cycle, AMG-CG and Chebyshev 4/8/16 on
-    TC5 ne16 at 4x and 10x the gravity-wave limit; 1e-1 was 13 % cheaper
-    still, but Newton stagnated with it on TC2 at 50x), ``mean_depth`` (H, m;
+    (1e-2, the relative tolerance of the preconditioner's Helmholtz CG), ``mean_depth`` (H, m;
     0 = initial mean), ``initial_guess`` ("extrapolate": 2x(n) − x(n−1)
     after the first step, "previous": x(n)), ``precision`` ("double" |
     "mixed": the preconditioner's Helmholtz CG in float32, one solve to
     ``helmholtz_tol``, no refinement).
     Reports Newton and GMRES iterations, preconditioner applications
     (``precond``) and their Helmholtz iterations per step; keeps the last
-    step's residual history in ``residual_history``.
+    step's residual history in ``residual_history``. Why these defaults: docs/reference.md,
+    "Defaults and why".
     """
 
     name = "implicit"

@@ -251,19 +251,14 @@ class Imex(ImexRK):
     """IMEX Runge–Kutta ARS(2,3,2) / ARS(3,4,3): gravity waves implicit, the rest explicit.
 
     Options (scene table ``[imex]``): ``scheme`` ("ars343" | "ars232", the pairs of
-    ``tables.IMEX``), ``tol`` (the Helmholtz CG's relative residual, 1e-6: on TC5
-    ne16 over 15 days at 4.3 and 7.1x the gravity-wave limit, where IMEX is used,
-    ARS(3,4,3)'s temporal errors in the sweep's five criteria are within 0.34 % of
-    1e-9's, with 2.8–2.9x fewer iterations; at 1.9x they move by up to 8.7 %, and 1e-7
-    is needed for ≤ 1 % at 1.5x the iterations), ``maxiter`` (500), ``mean_depth``
+    ``tables.IMEX``), ``tol`` (the Helmholtz CG's relative residual, 1e-6),
+    ``maxiter`` (500), ``mean_depth``
     (H, m; 0 = the initial mean depth), ``precision`` ("double" | "mixed", as
     ``semi_implicit``'s). The Helmholtz solve is ``helmholtz.HelmholtzSolver``'s
     compiled CG; each stage's solve starts from the projection onto past solutions
     of the stages with its a (all of ARS's), ``guess_history`` (0..32, 8) of them
-    (``helmholtz.GuessHistory``; 0: from the last one's solution; TC5 ne8 ARS(3,4,3),
-    CG iterations a solve over a day after 6 h at 2 / 8x the gravity-wave limit: 3.04 /
-    18.2 from the last solution, 3.84 / 17.8, 3.33 / 17.7, 2.68 / 16.4, 2.48 / 15.7 with
-    2, 4, 8, 16). 3 (ARS(2,3,2)) or 4 (ARS(3,4,3)) RHS evaluations and one Helmholtz solve fewer
+    (``helmholtz.GuessHistory``; 0: from the last one's solution). Why these defaults:
+    docs/reference.md, "Defaults and why". 3 (ARS(2,3,2)) or 4 (ARS(3,4,3)) RHS evaluations and one Helmholtz solve fewer
     a step; reports the Helmholtz iterations (under ``Simulation.run`` counted on
     the device and read once a block, the step a graph after the first). Both ARS
     pairs are stiffly accurate in A_I (b = its last row), not in A_E, so F is
@@ -275,7 +270,7 @@ class Imex(ImexRK):
     Options = ImexOptions
     removed_options = REMOVED_SOLVER_OPTIONS
     # |v| Δt/Δx at t = 0: below what ARS(3,4,3) ran stably on every case of the efficiency
-    # study, above none it blew up at (benchmarks/README.md, "Measurements behind the code")
+    # study, above none it blew up at (docs/reference.md, "Defaults and why")
     advective_courant_limit = 1.0
 
     def table(self):

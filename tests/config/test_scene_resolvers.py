@@ -12,16 +12,10 @@ from pathlib import Path
 import pytest
 
 from swe_sphere.cases.library import make_case
-from swe_sphere.config.scene import (
+from swe_sphere.config.resolve import (
     HYPERVIS_EXPONENT,
-    SceneGrid,
-    SceneHyperviscosity,
-    SceneOutput,
-    SceneTime,
     Spacing,
     efold_nu,
-    load_scene,
-    read_scene,
     resolve_case,
     resolve_dt,
     resolve_grid,
@@ -36,6 +30,8 @@ from swe_sphere.config.scene import (
     resolve_terms,
     scene_title,
 )
+from swe_sphere.config.scene import load_scene
+from swe_sphere.config.schema import SceneGrid, SceneHyperviscosity, SceneOutput, SceneTime, read_scene
 from swe_sphere.core.constants import EARTH, Planet
 from swe_sphere.core.errors import SceneError
 from swe_sphere.grid.mesh import write_exodus

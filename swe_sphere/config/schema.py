@@ -109,7 +109,21 @@ def got(value) -> str:
     return repr(value) if is_number(value) else f"{value!r}, a {type(value).__name__}"
 
 
+def refuse_nonfinite(key: str, value) -> None:
+    """Refuse (``SceneError`` naming ``key``, or ``key.k``, ``key[i]`` inside) a NaN or an
+    infinity anywhere in ``value``: no float a scene takes may be one."""
+    if isinstance(value, float) and not math.isfinite(value):
+        raise SceneError(f"{key} must be finite (got {value!r})")
+    if isinstance(value, dict):
+        for k, v in value.items():
+            refuse_nonfinite(f"{key}.{k}", v)
+    elif isinstance(value, (list, tuple)):
+        for i, v in enumerate(value):
+            refuse_nonfinite(f"{key}[{i}]", v)
+
+
 def check_type(key, value, kind):
+    refuse_nonfinite(key, value)
     if isinstance(kind, types.UnionType):  # e.g. a count or "auto": the options' own check names the choices
         return value
     if (
@@ -124,8 +138,6 @@ def check_type(key, value, kind):
         value = int(value)
     if not isinstance(value, kind) or (kind is not bool and isinstance(value, bool)):
         raise SceneError(f"{key} must be {kind.__name__} (got {value!r})")
-    if kind is float and not math.isfinite(value):
-        raise SceneError(f"{key} must be finite (got {value!r})")
     return value
 
 

@@ -1,8 +1,12 @@
 """The config layer: scenes, from TOML to a validated ``Scene``.
 
-``scene`` (``Scene``, ``load_scene``, the bundled scenes).
+``scene`` (``Scene``, ``load_scene``, ``with_days``, ``resolve_scene``: the names the rest of the
+package imports), ``schema`` (the keys and types, the tables' records, the overrides, the file
+read), ``resolve`` (a resolver a table: the case, grid, spacing, dt, hyperviscosity, ...),
+``paths`` (the bundled scenes, a scene named by path or name, a grid's mesh file). Δt and its
+whole-step rule are ``core.clock``'s ``Clock``, which ``Scene.clock`` gives.
 
 May import: every layer below (``core`` to ``io``).
 """
 
-__all__ = ["scene"]
+__all__ = ["paths", "resolve", "schema", "scene"]

@@ -11,26 +11,10 @@ from ..config.scene import Scene
 from ..core.constants import DAY
 
 
-def is_interval(days) -> bool:
-    """Whether ``days`` is a number > 0 and finite."""
-    return isinstance(days, (int, float)) and math.isfinite(days) and days > 0
-
-
-def whole_steps(scene: Scene, days) -> bool:
-    """Whether ``days`` is a positive whole number of the scene's steps (to 1e-6 of a step)."""
-    per = round(days * DAY / scene.dt) if is_interval(days) else 0
-    return per >= 1 and abs(per * scene.dt - days * DAY) <= 1e-6 * scene.dt
-
-
-def steps_of(scene: Scene, days: float, what: str, dt_source: str = "") -> int:
-    """The whole number of steps in ``days``; ValueError naming ``what`` (and where dt comes
-    from, ``dt_source``, e.g. ", the dt given") unless dt divides it."""
-    if not whole_steps(scene, days):
-        raise ValueError(
-            f"{what} must be a positive multiple of dt = {scene.dt:g} s = {scene.dt / DAY:.6g} days{dt_source} "
-            f"(got {days!r} days)"
-        )
-    return round(days * DAY / scene.dt)
+def steps_of(scene: Scene, days: float, what: str) -> int:
+    """The whole number of the scene's steps in ``days`` (``Clock.steps``: ``SceneError``
+    naming ``what`` and where dt comes from unless dt divides it)."""
+    return scene.clock.steps(days, what)
 
 
 def output_steps(scene: Scene, every_days: float | None = None) -> set[int]:
@@ -44,8 +28,8 @@ def output_steps(scene: Scene, every_days: float | None = None) -> set[int]:
 
 def restart_steps(scene: Scene, every_days: float) -> set[int]:
     """Steps at which a run with ``--restart-every every_days`` writes its restart
-    file (and the last step). Raises ValueError unless dt divides the interval."""
-    per = steps_of(scene, every_days, "restart interval")
+    file (and the last step). Raises ``SceneError`` unless dt divides the interval."""
+    per = steps_of(scene, every_days, "the restart interval")
     return set(range(per, scene.nsteps + 1, per)) | {scene.nsteps}
 
 

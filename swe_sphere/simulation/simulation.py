@@ -13,7 +13,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import itertools
-import math
 import signal
 import sys
 import time
@@ -25,8 +24,9 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from ..cases.scoring import Scorer
-from ..config.scene import Scene, common_interval, resolve_scene, with_days
+from ..config.scene import Scene, resolve_scene, with_days
 from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
+from ..core.clock import is_interval
 from ..core.constants import DAY
 from ..core.errors import BlowUp, Interrupted, ResourceError, SceneError, StepFailure
 from ..core.graphs import GraphedSteps, default_mode, graphs_mode
@@ -45,7 +45,7 @@ from ..steppers.local import Lts, size_levels
 from . import checkpoint as ckpt
 from .activities import Callback, Log
 from .guard import Guard
-from .schedules import EverySteps, is_interval, steps_of, whole_steps
+from .schedules import EverySteps, steps_of
 from .state_diagnostics import StateDiagnostics
 from .summary import Ledger, RunResult, Stop, interruption
 from .writers import Checkpointer, RunFiles, run_attrs
@@ -462,30 +462,31 @@ class Simulation(StateDiagnostics):
     def fit_dt(self, every: float, what: str = "every") -> None:
         """Shorten Δt, before the first step, to the largest that divides ``every`` (days),
         the run, its output intervals (where shorter than the run) and the intervals of
-        the activities scheduled in days (``every``; their steps follow): a new stepper,
-        and the start's diagnostics again (their Courant numbers); a note in
-        ``scene.notes`` naming ``what``. ValueError (one line) after the first step, for
-        ``every`` <= 0, and where that Δt is less than half the present one (an interval
-        of odd decimals: give a dt, or an interval of whole steps)."""
+        the activities scheduled in days (``every``; their steps follow): the scene's clock
+        fitted to them (``Clock.fitted``), a new stepper, and the start's diagnostics again
+        (their Courant numbers); a note in ``scene.notes`` naming ``what``. ``SceneError``
+        (one line) after the first step, for ``every`` <= 0, and where that Δt is less than
+        half the present one (an interval of odd decimals: give a dt, or an interval of
+        whole steps)."""
         s = self.scene
         if self.step != 0 or not is_interval(every):
-            raise ValueError(
+            raise SceneError(
                 f"dt is fitted to an interval > 0 before the first step (got {every!r} at step {self.step})"
             )
         outputs = [s.output_every_days, *(st["every_days"] for st in s.output_streams)]
         days = [a.schedule.days for a in self.activities.values() if getattr(a.schedule, "days", None) is not None]
-        span = common_interval(every, s.run_days, *(d for d in outputs if d < s.run_days), *days) * DAY
-        dt = span / math.ceil(span / s.dt - 1e-9)
-        if dt < s.dt / 2:
-            raise ValueError(
+        spans = (every, s.run_days, *(d for d in outputs if d < s.run_days), *days)
+        clock = s.clock.fitted(*spans, source=f"{s.dt_source}, shortened to divide {what} = {every:g} days")
+        if clock.dt < s.dt / 2:
+            raise SceneError(
                 f"{what} = {every:g} days is not a whole number of steps of dt = {s.dt:g} s, and the longest dt "
-                f"that divides it, the run and its output intervals is {dt:g} s, less than half: give a dt, "
+                f"that divides it, the run and its output intervals is {clock.dt:g} s, less than half: give a dt, "
                 "or an interval of whole steps"
             )
-        note = f"dt shortened from {s.dt:g} s to {dt:g} s to divide {what} = {every:g} days"
-        self.scene = dataclasses.replace(s, dt=dt, notes=(*s.notes, note))
+        note = f"dt shortened from {s.dt:g} s to {clock.dt:g} s to divide {what} = {every:g} days"
+        self.scene = dataclasses.replace(s, dt=clock.dt, notes=(*s.notes, note), dt_source=clock.source)
         _check_hyperviscosity(self.model, self.scene)
-        self.stepper = make_stepper(self.scene.stepper, self.model, dt, **self.scene.stepper_options)
+        self.stepper = make_stepper(self.scene.stepper, self.model, clock.dt, **self.scene.stepper_options)
         self.stepper.t0 = self.scene.start_day * DAY
         self.stepper.prepare(self.x)
         for activity in self.activities.values():
@@ -508,9 +509,9 @@ class Simulation(StateDiagnostics):
     def _steps_in(self, days: float, what: str) -> int:
         """The whole number of steps in ``days`` (``what`` names it in a refusal), Δt first
         fitted to it (``fit_dt``) where Δt is the simulation's own and no step was taken."""
-        if self._own_dt and self.step == 0 and is_interval(days) and not whole_steps(self.scene, days):
+        if self._own_dt and self.step == 0 and is_interval(days) and not self.scene.clock.is_whole(days):
             self.fit_dt(days, what)
-        return steps_of(self.scene, days, what, "" if self._own_dt else ", the dt given")
+        return steps_of(self.scene, days, f"the interval {what}")
 
     def add_callback(
         self, fn, *, every_days: float | None = None, every_steps: int | None = None, name: str | None = None

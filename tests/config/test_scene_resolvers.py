@@ -12,16 +12,10 @@ from pathlib import Path
 import pytest
 
 from swe_sphere.cases.library import make_case
-from swe_sphere.config.scene import (
+from swe_sphere.config.resolve import (
     HYPERVIS_EXPONENT,
-    SceneGrid,
-    SceneHyperviscosity,
-    SceneOutput,
-    SceneTime,
     Spacing,
     efold_nu,
-    load_scene,
-    read_scene,
     resolve_case,
     resolve_dt,
     resolve_grid,
@@ -36,6 +30,8 @@ from swe_sphere.config.scene import (
     resolve_terms,
     scene_title,
 )
+from swe_sphere.config.scene import load_scene
+from swe_sphere.config.schema import SceneGrid, SceneHyperviscosity, SceneOutput, SceneTime, read_scene
 from swe_sphere.core.constants import EARTH, Planet
 from swe_sphere.core.errors import SceneError
 from swe_sphere.grid.mesh import write_exodus
@@ -318,3 +314,30 @@ def test_the_nested_view_groups_the_flat_fields_by_table():
         scene.grid = SceneGrid(8, 4)
     with pytest.raises(dataclasses.FrozenInstanceError):
         scene.time.dt = 60.0
+
+
+@pytest.mark.parametrize(
+    ("override", "line"),
+    [
+        ({"case.alpha": math.nan}, "case.alpha must be finite (got nan)"),
+        ({"case.alpha": math.inf}, "case.alpha must be finite (got inf)"),
+        ({"hyperviscosity.nu": -math.inf}, "hyperviscosity.nu must be finite (got -inf)"),
+        ({"output.streams": [{"name": "6h", "every_days": math.nan}]}, "output.streams[0].every_days must be finite"),
+    ],
+)
+def test_every_float_a_scene_takes_is_finite(override, line):
+    """No float a scene takes may be a NaN or an infinity: one line naming the key (issue 65)."""
+    with pytest.raises(SceneError) as err:
+        load_scene("tc2_steady", overrides=override)
+    assert str(err.value).startswith(line) and "\n" not in str(err.value)
+
+
+def test_the_command_line_refuses_a_nan_case_parameter_with_exit_2(capsys, tmp_path, monkeypatch):
+    from helpers import cli_one_line
+
+    monkeypatch.chdir(tmp_path)
+    for text in ("nan", "inf"):
+        cli_one_line(
+            capsys, ["run", "tc2_steady", "-s", f"case.alpha={text}"], 2, f"case.alpha must be finite (got {text})"
+        )
+    assert list(tmp_path.iterdir()) == []  # nothing written

@@ -295,7 +295,7 @@ def test_restore_rejects_a_misshapen_state():
 def test_options_dataclass_defaults_checks_and_schema():
     """Each stepper's options: one frozen dataclass whose fields are the scene
     table's keys; unknown keys and bad values raise ValueError naming them."""
-    from swe_sphere.config.scene import _SCHEMA
+    from swe_sphere.config.schema import SCHEMA as _SCHEMA
     from swe_sphere.steppers import option_types
 
     for name, cls in STEPPERS.items():

@@ -1,0 +1,69 @@
+"""Where scenes and the files they name are: the bundled scenes, a scene named by path or
+name, and a [grid] table's mesh record (its mesh file relative to the scene file)."""
+
+from __future__ import annotations
+
+import difflib
+from importlib.resources import files
+from pathlib import Path
+
+from ..core.errors import SceneError
+from ..grid import spec as grid_spec
+
+
+def scene_dir() -> Path:
+    """Folder of the bundled scenes (testcases/)."""
+    return Path(str(files("swe_sphere.testcases")))
+
+
+SCENE_FOLDERS = ("", "tableaus")  # testcases/ and its folders of bundled scenes (tableaus/: Butcher tables)
+
+
+def list_scenes() -> list[Path]:
+    return [p for folder in SCENE_FOLDERS for p in sorted((scene_dir() / folder).glob("*.toml"))]
+
+
+def resolve_path(spec: str) -> Path:
+    """A scene path, or the name of a bundled scene (with or without .toml, and
+    with or without its folder: "ark2_gkc" or "tableaus/ark2_gkc").
+    Raises ``SceneError``, suggesting the closest bundled names for a typo."""
+    p = Path(spec)
+    if p.exists():
+        return p
+    name = p.name if p.suffix == ".toml" else p.name + ".toml"
+    for folder in SCENE_FOLDERS:
+        bundled = scene_dir() / folder / name
+        if bundled.exists() and p.parent in (Path("."), Path(folder)):
+            return bundled
+    close = difflib.get_close_matches(p.stem, [q.stem for q in list_scenes()], n=3)
+    hint = f" (did you mean {' or '.join(close)}?)" if close and p.parent in map(Path, SCENE_FOLDERS) else ""
+    raise SceneError(f"scene file not found: {spec}{hint}")
+
+
+def grid_record(grid: dict, scene_path: Path) -> dict | None:
+    """The ``grid.spec`` record of a scene's [grid] table (``SCHEMA``'s types
+    checked): ``mesh_file`` relative to the scene file's folder, read and checked here. Raises
+    ``SceneError`` naming the key."""
+    chosen = grid.get("map")
+    if chosen is not None and chosen not in grid_spec.MAPS:
+        raise SceneError(f"grid.map must be one of {', '.join(grid_spec.MAPS)} (got {chosen!r})")
+    stretch = [k for k in ("stretch_factor", "target_lat", "target_lon") if k in grid]
+    if "mesh_file" in grid:
+        if stretch:
+            raise SceneError(f"grid.{stretch[0]} stretches the cube; a mesh file is its own mesh (drop one)")
+        given = Path(grid["mesh_file"]).expanduser()
+        return grid_spec.file_record(
+            given if given.is_absolute() else scene_path.parent / given, chosen or "element_local"
+        )
+    if stretch:
+        if "stretch_factor" not in grid:
+            raise SceneError(f"grid.{stretch[0]} needs grid.stretch_factor (the Schmidt-stretched cube)")
+        if chosen == "equiangular":
+            raise SceneError('grid.map = "equiangular" cannot stretch the cube; the stretched cube is "element_local"')
+        c, lat, lon = grid["stretch_factor"], grid.get("target_lat", 90.0), grid.get("target_lon", 0.0)
+        if not c >= 1:
+            raise SceneError(f"grid.stretch_factor must be >= 1 (got {c!r})")
+        if not -90 <= lat <= 90:
+            raise SceneError(f"grid.target_lat must be in [-90, 90] degrees (got {lat!r})")
+        return {"map": "element_local", "stretch_factor": c, "target_lat": lat, "target_lon": lon}
+    return {"map": "element_local"} if chosen == "element_local" else None

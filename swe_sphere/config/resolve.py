@@ -1,0 +1,477 @@
+"""The resolvers of ``load_scene``: each of a scene's tables, checked types in, final values
+and notes for the run's header out, a function each (the first refusal wins).
+
+Every problem raises ``SceneError`` (a ValueError) with a one-line message naming the key.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+from pathlib import Path
+from typing import NamedTuple
+
+from ..cases.library import Case, make_case
+from ..cases.reference import cases_of, locate, stored_days
+from ..core.clock import Clock, common_interval
+from ..core.constants import EARTH, Planet
+from ..core.errors import SceneError
+from ..grid import spec as grid_spec
+from ..grid.gll import NP_MAX, NP_MIN, gll
+from ..grid.quality import smallest_dx
+from ..io.initial_state import SCENE_CASES
+from ..io.run_file import OUTPUT_FIELDS
+from ..model.shallow_water import TERMS
+from ..steppers import STEPPERS
+from ..steppers.initialization import METHODS, DigitalFilter
+from .paths import grid_record
+from .schema import SceneGrid, SceneHyperviscosity, check_type, got, is_integer, is_number
+
+HYPERVIS_EXPONENT = 3.2  # ν ∝ Δx^3.2 (HOMME's resolution scaling; Dennis et al. 2012)
+
+
+def efold_nu(hours: float, ne: float, np_: int, radius: float) -> float:
+    """ν (m⁴ s⁻¹) that e-folds a degree-L harmonic in ``hours``, L = 2 ne (np − 1)
+    the Nyquist degree of the 4 ne (np − 1) nodes around a great circle:
+    ν = a⁴ / (τ (L(L+1))²). The T213 references use the same rule (3 h at
+    l = 213: ν₄ = 7.34e13 m⁴ s⁻¹). On a mesh the rule is stated at the mean
+    spacing: ne is that of the uniform cube with as many elements (``grid.spec.mean_ne``:
+    √(F/6) for a file of F elements; a stretched cube's own ne), so ν is the same for
+    the same element count, and elements smaller than the mean are damped faster, as
+    (mean spacing / their spacing)⁴; with the tensor ∇⁴ (``hyperviscosity.scaling = s``) as
+    that ratio to the power 4 − s, so s = 4 states the rule element by element."""
+    L = 2 * ne * (np_ - 1)
+    return radius**4 / (hours * 3600.0 * (L * (L + 1)) ** 2)
+
+
+# the starts of load_scene's notes on how it scaled (and cut) dt: stale once a dt is given (a branch's)
+DT_NOTES = ("dt scaled", "warning: dt cut")
+
+
+def _reference(spec, case_name: str, case_obj) -> str:
+    """The absolute path of the reference file ``case.reference`` names (a path, a
+    bundled file name or a truncation, "T341": see ``reference.locate``), its
+    variables and layout checked without reading its fields. Raises ``SceneError`` naming the key and the value."""
+    where = f"case.reference = {spec!r}"
+    if not isinstance(spec, str):
+        raise SceneError(f'case.reference must be a file path or a truncation such as "T341" (got {got(spec)})')
+    if case_obj.exact_solution:
+        raise SceneError(f"{where}: case {case_name} is scored against its exact solution, not a reference file")
+    try:
+        path = locate(spec, case_obj)
+        stored_days(path)
+        solves, expected = cases_of(path, case_obj)
+    except (OSError, ValueError) as err:
+        raise SceneError(f"{where}: {err}") from None
+    if solves is not None and expected is not None and solves != expected:
+        raise SceneError(f"{where}: the file is a {solves} reference (its title), not one of {expected}")
+    return str(path)
+
+
+def _first_gll_gap(np_: int) -> float:
+    x = gll(np_).points
+    return float(x[1] - x[0])
+
+
+class Spacing(NamedTuple):
+    """``resolve_spacing``'s answer: the run's node spacing over the scene file's, ``mean`` (on
+    the grid alone; it scales ν) and ``smallest`` (the explicit limit, times ``scale``; it scales
+    dt); ``scale`` the planet's radius over the scene file's (1 where that does not apply), and
+    ``radii`` (m) the planet's and the scene file's (None with a dt set by ``-s time.dt``)."""
+
+    mean: float
+    smallest: float
+    scale: float
+    radii: tuple
+
+
+class ResolvedCase(NamedTuple):
+    """``resolve_case``'s answer: the case's name, its parameters (the [case] table less name,
+    initialization and reference), the start's method ("none" or "dfi"), the reference file's
+    absolute path or None, the ``Case`` built on the planet, and the notes for the run's header."""
+
+    name: str
+    params: dict
+    method: str
+    reference: str | None
+    case: Case
+    notes: tuple
+
+
+def resolve_planet(table: dict | None) -> Planet:
+    """The [planet] table's ``Planet`` (radius, omega, gravity; Williamson's Earth's by default).
+    Raises ``SceneError`` naming the key (``Planet.from_table``)."""
+    try:
+        return Planet.from_table(table)
+    except ValueError as err:
+        raise SceneError(str(err)) from None
+
+
+def resolve_case(table: dict, planet: Planet, scene_path: Path) -> ResolvedCase:
+    """The [case] table resolved on ``planet``: a ``case.path`` (the "file" case) relative to the
+    current folder, else to ``scene_path``'s folder; a ``case.reference`` located and checked
+    (``_reference``); a note where the case's bundled reference is not used (another planet).
+    Raises ``SceneError`` naming the key: no ``name``, an unknown initialization, case or
+    parameter (``cases.make_case``), a reference on another planet than Williamson's Earth."""
+    params = dict(table)
+    if "name" not in params:
+        raise SceneError("case.name is missing")
+    name = params.pop("name")
+    method = params.pop("initialization", "none")
+    if method not in METHODS:
+        raise SceneError(f"case.initialization must be one of {', '.join(METHODS)} (got {method!r})")
+    reference = params.pop("reference", None)
+    if name == "file" and isinstance(params.get("path"), str):
+        given = Path(params["path"]).expanduser()
+        beside = scene_path.parent / given
+        params["path"] = str((beside if not given.exists() and beside.exists() else given).absolute())
+    try:
+        case = make_case(name, params, planet, SCENE_CASES)
+    except ValueError as err:
+        raise SceneError(str(err)) from None
+    notes = ()
+    if reference is not None:
+        if planet != EARTH:
+            raise SceneError(
+                f"case.reference = {reference!r}: the spectral references are of Williamson's Earth, "
+                f"not of this scene's planet ({_planet_text(planet)}); drop case.reference or [planet]"
+            )
+        reference = _reference(reference, name, case)
+    elif planet != EARTH and case.reference_file is not None:
+        notes = (
+            f"not scored against the {case.reference_file} reference: it is of Williamson's Earth, "
+            f"not of this planet ({_planet_text(planet)})",
+        )
+    return ResolvedCase(name, params, method, reference, case, notes)
+
+
+def resolve_terms(terms: list | None, case: Case, case_name: str) -> tuple:
+    """The ``terms`` list as a tuple (``model.shallow_water.TERMS``). Raises ``SceneError``: none,
+    an unknown or repeated term, one the case needs missing (``Case.required_terms``), forcing
+    for a case without one."""
+    if not terms:
+        raise SceneError("terms is missing or empty")
+    for i, t in enumerate(terms):
+        if t not in TERMS:
+            raise SceneError(f"unknown term {t!r} (known: {', '.join(TERMS)})")
+        if t in terms[:i]:
+            raise SceneError(f"term {t!r} is listed twice in terms")
+    missing = [t for t in TERMS if t in case.required_terms and t not in terms]
+    if missing:
+        raise SceneError(f"case {case_name} needs the term(s) {', '.join(missing)} (terms = {terms})")
+    if "forcing" in terms and case.forcing() is None:
+        raise SceneError(f"case {case_name} has no forcing: drop the term 'forcing'")
+    return tuple(terms)
+
+
+def resolve_initialization(method: str, dfi: dict, case: Case, case_name: str) -> dict | None:
+    """``Scene.initialization`` of ``case.initialization`` and the [dfi] table: None for "none",
+    {"method": "dfi", "span_hours": ..., "cutoff_hours": ...} (``initialization.DigitalFilter``).
+    Raises ``SceneError``: a digital filter on a case with an exact solution, or a bad [dfi]."""
+    if method != "dfi":
+        return None
+    if case.exact_solution:
+        raise SceneError(
+            f'case.initialization = "dfi" would spoil case {case_name}\'s exact solution (its errors are '
+            "measured against it); use it on cases without one (tc5_mountain, tc6_rossby_haurwitz, galewsky)"
+        )
+    try:
+        filt = DigitalFilter(**dfi)
+    except ValueError as err:
+        raise SceneError(str(err)) from None
+    return {"method": "dfi", **dataclasses.asdict(filt)}
+
+
+def _table_grid(grid: dict, scene_path: Path) -> SceneGrid:
+    """The grid a [grid] table names (``grid_record`` for the mesh's keys; ne defaults to 16, 0
+    with a mesh file, np to 4). Raises ``SceneError``: ne not 0 with a mesh file."""
+    record = grid_record(grid, scene_path)
+    on_file = record is not None and "file" in record
+    ne, np = grid.get("ne", 0 if on_file else 16), grid.get("np", 4)
+    if on_file and ne != 0:
+        raise SceneError(f"grid.ne must be 0 with grid.mesh_file (HOMME's ne = 0: the file's elements; got {ne})")
+    return SceneGrid(ne, np, record)
+
+
+def resolve_grid(
+    table: dict | None, scene_path: Path, ne=None, np_=None, mesh=None, file_table: dict | None = None
+) -> tuple[SceneGrid, SceneGrid, tuple]:
+    """(the scene file's grid, the run's grid, notes) of the [grid] table (None: absent; the
+    overrides applied) and ``load_scene``'s ``ne``, ``np_`` and ``mesh`` (an Exodus II file
+    replacing the scene's grid, through the table's ``map`` where it names one). The scene file's grid is that of ``file_table``, the file's own
+    [grid] before the overrides ({} if it has none; None: ``table``): its dt and ν are for it, so
+    every way of choosing the run's mesh (``-s grid.*``, ``ne``, ``np_``, ``mesh``) scales them
+    alike (``resolve_spacing``). The defaults are ne = 16 (0 with a mesh file) and np = 4.
+    Raises ``SceneError`` naming the key: ne not 0 with a mesh file, ne < 1 on a cube, np
+    outside ``NP_MIN``..``NP_MAX`` or below 3 on the element-local map (``grid_record`` for
+    the mesh's own keys)."""
+    named = _table_grid(table or {}, scene_path)  # the grid of the tables as overridden
+    scene_grid = named if file_table is None else _table_grid(file_table, scene_path)
+    on_file = named.mesh is not None and "file" in named.mesh
+    record1 = named.mesh
+    if mesh is not None:
+        if ne is not None:
+            raise SceneError(f"ne = {ne} and mesh {mesh}: a mesh file's elements are its own (HOMME's ne = 0)")
+        record1, ne = grid_spec.file_record(mesh, (table or {}).get("map", "element_local")), 0
+    elif on_file and ne not in (None, 0):
+        raise SceneError(f"ne = {ne} with grid.mesh_file: a mesh file's elements are its own (HOMME's ne = 0)")
+    ne1 = named.ne if ne is None else ne
+    np1 = named.np if np_ is None else np_
+    notes = ()
+    if table is None and (ne is None or np_ is None) and mesh is None:
+        notes = (f"the scene has no [grid]: ne = {ne1}, np = {np1} (the defaults)",)
+    if not is_integer(ne1) or (ne1 < 1 and not (record1 is not None and "file" in record1)):
+        raise SceneError(f"ne must be an integer >= 1 (got {got(ne1)})")
+    if not is_integer(np1) or not NP_MIN <= np1 <= NP_MAX:
+        raise SceneError(f"np must be an integer in {NP_MIN}..{NP_MAX} (got {got(np1)})")
+    if record1 is not None and record1["map"] == "element_local" and np1 < 3:
+        raise SceneError(
+            f"np must be >= 3 on {grid_spec.describe(ne1, np1, record1)}: the element-local map's area correction moves interior nodes"
+        )
+    return scene_grid, SceneGrid(ne1, np1, record1), notes
+
+
+def resolve_spacing(scene_grid: SceneGrid, run_grid: SceneGrid, radius: float, file_radius) -> Spacing:
+    """How the run's node spacing differs from the scene file's, on ``run_grid`` and a planet of
+    ``radius`` (m) against ``scene_grid`` and ``file_radius`` (m; None or not a positive number:
+    the scene file's dt and ν are not for a radius, scale 1). The mean spacing goes as
+    1 / (``grid.spec.mean_ne`` · (np − 1)); the smallest as the first GLL interval / ne on two
+    equiangular cubes, else as ``quality.smallest_dx`` of both meshes. Raises ``SceneError`` for
+    a stretch that folds an element."""
+    ne0, np0, record0 = scene_grid.ne, scene_grid.np, scene_grid.mesh
+    ne1, np1, record1 = run_grid.ne, run_grid.np, run_grid.mesh
+    scale = radius / file_radius if is_number(file_radius) and file_radius > 0 else 1.0
+    ratio = (grid_spec.mean_ne(ne0, record0) * (np0 - 1)) / (grid_spec.mean_ne(ne1, record1) * (np1 - 1))
+    if record0 is None and record1 is None:
+        smallest = (_first_gll_gap(np1) / ne1) / (_first_gll_gap(np0) / ne0)
+    elif scene_grid == run_grid:
+        smallest = 1.0
+    else:
+        try:
+            old = smallest_dx(ne0, np0, grid_spec.build_mesh(ne0, record0))
+            new = smallest_dx(ne1, np1, grid_spec.build_mesh(ne1, record1))
+        except ValueError as err:  # a stretch that folds an element
+            raise SceneError(f"{grid_spec.describe(ne1, np1, record1)}: {err}") from None
+        smallest = new / old
+    return Spacing(ratio, smallest * scale, scale, (radius, file_radius))
+
+
+def resolve_output_interval(output: dict) -> tuple[float, int]:
+    """(output.every_days, output.log_every_steps) of the [output] table, defaults 1 day and no
+    log lines. Raises ``SceneError`` naming the key: an interval ≤ 0, a negative log interval."""
+    every = output.get("every_days", 1.0)
+    if not every > 0:
+        raise SceneError(f"output.every_days must be > 0 (got {every})")
+    log_every = output.get("log_every_steps", 0)
+    if log_every < 0:
+        raise SceneError(f"output.log_every_steps must be >= 0 (got {log_every}; 0: no log lines)")
+    return every, log_every
+
+
+def resolve_stepper_days(table: dict, stepper=None, days=None) -> tuple[str, float]:
+    """(stepper, days) of the [time] table and ``load_scene``'s ``stepper`` and ``days`` (defaults
+    ssprk3 and 1 day). Raises ``SceneError``: an unknown stepper, days not a number > 0."""
+    name = stepper or table.get("stepper", "ssprk3")
+    if name not in STEPPERS:
+        raise SceneError(f"unknown stepper {name!r} (known: {', '.join(STEPPERS)})")
+    days = table.get("days", 1.0) if days is None else days
+    if not (is_number(days) and math.isfinite(days) and days > 0):
+        raise SceneError(f"days must be > 0 (got {got(days)})")
+    return name, days
+
+
+def resolve_dt(
+    scene_dt, dt, days: float, every: float, scene: str, grid: SceneGrid, spacing: Spacing
+) -> tuple[float, str, tuple]:
+    """(dt (s), where it comes from for messages, notes): ``dt`` as given, else the time.dt of
+    scene ``scene`` (``scene_dt``) times ``spacing.smallest`` (the run's smallest node spacing
+    on ``grid`` over the scene file's), shortened to divide the output interval ``every`` and
+    the run of ``days`` (``Clock.fitted``). The schedule is checked (``Clock.check``).
+    Raises ``SceneError``: no time.dt, dt ≤ 0, a run or output interval of no whole steps."""
+    if dt is not None:
+        source, notes = "the dt given", ()
+    elif scene_dt is None:
+        raise SceneError("time.dt is missing")
+    elif not scene_dt > 0:
+        raise SceneError(f"time.dt must be > 0 (got {scene_dt})")
+    elif spacing.smallest == 1.0:
+        dt, source, notes = scene_dt, f"time.dt of scene {scene}", ()
+    else:
+        dt, source, notes = _scaled_dt(scene_dt, days, every, scene, grid, spacing)
+    if not (is_number(dt) and math.isfinite(dt) and dt > 0):
+        raise SceneError(f"dt must be > 0 (got {got(dt)})")
+    Clock(dt, 0.0, days, source).check({"the output interval (output.every_days)": every})
+    return dt, source, notes
+
+
+def _scaled_dt(scene_dt: float, days: float, every: float, scene: str, grid: SceneGrid, spacing: Spacing):
+    """``resolve_dt``'s (dt, source, notes) of a scene's dt scaled to another spacing: the
+    longest that divides the run and, where shorter, the output interval."""
+    spans = (days,) if days <= every else (every, days)
+    scaled = scene_dt * spacing.smallest
+    dt = Clock(scaled, 0.0, days).fitted(*spans).dt
+    radius, file_radius = spacing.radii
+    moved = spacing.scale != 1.0  # the planet's radius; file_radius is a number then
+    where = grid_spec.describe(grid.ne, grid.np, grid.mesh) + (f" radius={radius:g} m" if moved else "")
+    source = f"time.dt of scene {scene} scaled to {where}"
+    # what the smallest node spacing changed with: the grid, the planet's radius or both
+    changes = ["the smallest node spacing"] if spacing.smallest != spacing.scale else []
+    if moved:
+        changes.append(f"the planet's radius ({radius:g} m against the scene's {file_radius:g} m)")
+    why = " and ".join(changes)
+    if scaled / dt <= 2:
+        return dt, source, (f"dt scaled with {why} to {dt:g} s",)
+    # one line for both: "scaled to" the cut dt read as if the grid had asked for it
+    if days <= every:
+        what = f"the run length of {days:g} days"
+    elif common_interval(*spans) == every:
+        what = f"the output interval of {every:g} days"
+    else:
+        what = f"both the output interval of {every:g} and the run length of {days:g} days"
+    cut = f"warning: dt cut {scaled / dt:.3g}x (from {scaled:g} s, scaled with {why}) to {dt:g} s to divide {what}"
+    return dt, source, (cut,)
+
+
+def resolve_stepper_options(stepper: str, table: dict, overrides: dict) -> tuple[dict, tuple]:
+    """(the options of ``stepper``: its table, checked by its ``make_options``; notes). An
+    override of another stepper's table is a slip: a note warns that it is not used. Raises
+    ``SceneError`` naming ``stepper.key``."""
+    options = dict(table)
+    try:
+        STEPPERS[stepper].make_options(**options)
+    except ValueError as err:
+        raise SceneError(f"{stepper}.{err}") from None
+    # a scene file may hold tables for other steppers (--stepper picks one); an -s for one is a slip
+    other = sorted(k for k in overrides if k.partition(".")[0] in STEPPERS and k.partition(".")[0] != stepper)
+    if not other:
+        return options, ()
+    return options, (f"warning: -s {', '.join(other)}: not an option of {stepper}, the stepper that runs; not used",)
+
+
+def resolve_hyperviscosity(
+    table: dict, terms: tuple, grid: SceneGrid, spacing: Spacing
+) -> tuple[SceneHyperviscosity, tuple]:
+    """(nu, nu_div, nu_s (m⁴ s⁻¹) and subcycle; notes) of the [hyperviscosity] table on the
+    run's ``grid`` and planet. Coefficients given are for the scene file's grid and planet: they
+    scale as ``spacing.mean`` to ``HYPERVIS_EXPONENT`` and, keeping their damping time at the
+    grid scale, as ``spacing.scale``⁴ (the radii's ratio); ``efold_hours``
+    sets the others on the run's grid (``efold_nu``); without it nu_div and nu_s default to nu.
+    All are 0 without the hyperviscosity term. Raises ``SceneError`` naming the key: a negative
+    coefficient, efold_hours or subcycle not > 0, the term without a coefficient > 0."""
+    for key in ("efold_hours", "nu", "nu_div", "nu_s"):
+        if table.get(key, 0.0) < 0 or (key == "efold_hours" and key in table and table[key] == 0):
+            raise SceneError(
+                f"hyperviscosity.{key} must be {'> 0' if key == 'efold_hours' else '>= 0'} (got {table[key]})"
+            )
+    scaling = table.get("scaling")
+    if scaling is not None and not 0 <= scaling <= 4:
+        raise SceneError(
+            f"hyperviscosity.scaling must be in 0..4 (got {scaling}): the s of nu ~ dx^s per element "
+            "(HOMME's hypervis_scaling, E3SM's 3.2)"
+        )
+    # under the tensor, given coefficients scale as dx^s
+    exponent = HYPERVIS_EXPONENT if scaling is None else scaling
+    ratio, planet_factor = spacing.mean, spacing.scale**4
+    given = [k for k in ("nu", "nu_div", "nu_s") if k in table]
+    nus = {key: table[key] * ratio**exponent * planet_factor for key in given}
+    notes = []
+    if "efold_hours" in table:
+        mean_ne = grid_spec.mean_ne(grid.ne, grid.mesh)
+        rule = efold_nu(table["efold_hours"], mean_ne, grid.np, spacing.radii[0])
+        nus = {key: nus.get(key, rule) for key in ("nu", "nu_div", "nu_s")}
+        if ratio != 1.0:
+            degree = round(2 * mean_ne * (grid.np - 1))
+            notes.append(f"nu = {rule:.3g} m^4/s: {table['efold_hours']:g} h e-folding at degree {degree}")
+    else:
+        nus = {key: nus.get(key, nus.get("nu", 0.0)) for key in ("nu", "nu_div", "nu_s")}
+    if "hyperviscosity" in terms and max(nus.values()) == 0:
+        raise SceneError("the hyperviscosity term needs hyperviscosity.nu, nu_div, nu_s or efold_hours > 0")
+    if "hyperviscosity" not in terms:
+        if given or scaling is not None:
+            notes.append("hyperviscosity coefficients given, but the scene's terms have no hyperviscosity: not used")
+        nus = dict.fromkeys(nus, 0.0)
+    elif (ratio != 1.0 or planet_factor != 1.0) and given and max(nus.values()) > 0:
+        notes.append(
+            f"nu scaled as dx^{exponent:g} and radius^4: nu, nu_div, nu_s = "
+            f"{nus['nu']:.3g}, {nus['nu_div']:.3g}, {nus['nu_s']:.3g} m^4/s"
+        )
+    if scaling is not None and "hyperviscosity" in terms:
+        a = spacing.radii[0]
+        d_ref = math.pi * a / (4 * grid_spec.mean_ne(grid.ne, grid.mesh))  # ``grid.quality.reference_spacing``
+        notes.append(
+            f"tensor hyperviscosity: nu (dx / {2 * d_ref / (grid.np - 1) / 1e3:.4g} km)^{scaling:g} along each element "
+            f"direction (HOMME's hypervis_scaling = {scaling:g}, nu = {nus['nu'] / (a**4 * (d_ref / a) ** scaling):.3g})"
+        )
+    subcycle = table.get("subcycle", 1)
+    if subcycle < 1:
+        raise SceneError(f"hyperviscosity.subcycle must be >= 1 (got {subcycle})")
+    scaling = None if scaling is None or "hyperviscosity" not in terms else float(scaling)
+    hv = SceneHyperviscosity(float(nus["nu"]), float(nus["nu_div"]), float(nus["nu_s"]), int(subcycle), scaling)
+    return hv, tuple(notes)
+
+
+def scene_title(case_name: str, file_case: str | None, stem: str, description: str) -> tuple[str, str]:
+    """(``Scene.name``, ``Scene.description``) of the scene file ``stem`` running ``case_name``:
+    its own, or for a case switched from the file's (``-s case.name=...``) names that say so, for
+    the header, the run file's title and its default name."""
+    if case_name == file_case:
+        return stem, description
+    return f"{case_name}_in_{stem}", f"case {case_name} with scene {stem}'s grid, terms and stepping"
+
+
+_STREAM_KEYS = ("name", "every_days", "fields")
+
+
+def _fields(value, key: str) -> tuple:
+    """A list of run-file fields, checked (``SceneError``); () for all of them."""
+    if value is None:
+        return ()
+    if not isinstance(value, list) or not value or not all(isinstance(f, str) for f in value):
+        raise SceneError(
+            f"{key} must be a non-empty list of field names from {', '.join(OUTPUT_FIELDS)} (got {value!r})"
+        )
+    for f in value:
+        if f not in OUTPUT_FIELDS:
+            raise SceneError(
+                f"{key}: unknown field {f!r} (known: {', '.join(OUTPUT_FIELDS)}; hs, lat, lon, area are always written)"
+            )
+    return tuple(f for f in OUTPUT_FIELDS if f in value)  # the file's order
+
+
+def resolve_output_files(output: dict, dt: float, days: float, dt_source: str) -> tuple[tuple, tuple]:
+    """([output] fields, [[output.streams]]) checked: field names, stream names (a
+    file-name suffix, distinct, not "restart") and intervals of whole steps."""
+    fields = _fields(output.get("fields"), "output.fields")
+    streams, names = [], set()
+    for i, st in enumerate(output.get("streams", [])):
+        where = f"output.streams[{i}]"
+        if not isinstance(st, dict):
+            raise SceneError(f"{where} must be a table ([[output.streams]] with name, every_days, fields)")
+        unknown = set(st) - set(_STREAM_KEYS)
+        if unknown:
+            raise SceneError(f"unknown key {where}.{sorted(unknown)[0]} (known: {', '.join(_STREAM_KEYS)})")
+        name = st.get("name")
+        if not (isinstance(name, str) and re.fullmatch(r"[A-Za-z0-9_-]+", name)) or name == "restart" or name in names:
+            raise SceneError(
+                f"{where}.name must be a distinct file-name suffix of letters, digits, _ or - other than "
+                f"restart (got {name!r}): the stream's file is RUN.{name}.nc"
+            )
+        names.add(name)
+        every = check_type(f"{where}.every_days", st.get("every_days"), float) if "every_days" in st else None
+        if every is None or not every > 0:
+            raise SceneError(f"{where}.every_days must be > 0 (got {every})")
+        Clock(dt, 0.0, days, dt_source).check({f"the output interval {where}.every_days": every})
+        streams.append(
+            {
+                "name": name,
+                "every_days": every,
+                "fields": _fields(st.get("fields", list(OUTPUT_FIELDS)), f"{where}.fields"),
+            }
+        )
+    return fields, tuple(streams)
+
+
+def _planet_text(planet: Planet) -> str:
+    """A planet for a message: "radius 637122 m, omega 0.0007292 1/s, gravity 9.80616 m/s^2"."""
+    return f"radius {planet.a:g} m, omega {planet.omega:g} 1/s, gravity {planet.g:g} m/s^2"

@@ -1,0 +1,211 @@
+"""Scene files' keys and types: the schema, the small frozen records of a scene's tables, the
+checks of a value's type, the command-line overrides, and the file read into checked tables.
+
+Every problem raises ``SceneError`` (a ValueError) with a one-line message naming the key.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+import types
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..core.constants import EARTH
+from ..core.errors import SceneError
+from ..steppers import STEPPERS, option_types
+
+
+@dataclass(frozen=True)
+class SceneGrid:
+    """A scene's grid ([grid]; ``Scene.grid``): ``ne`` elements along a cube edge (0 for a mesh
+    file, HOMME's), ``np`` GLL points per element direction, ``mesh`` the ``grid.spec`` record
+    (None: the equiangular cube)."""
+
+    ne: int
+    np: int
+    mesh: dict | None = None
+
+
+@dataclass(frozen=True)
+class SceneTime:
+    """A scene's stepping ([time] and the stepper's table; ``Scene.time``): the ``stepper``
+    (``steppers.STEPPERS``) and its ``options``, the step ``dt`` (s) and the last model day
+    ``days``."""
+
+    stepper: str
+    options: dict
+    dt: float
+    days: float
+
+
+@dataclass(frozen=True)
+class SceneHyperviscosity:
+    """A scene's ∇⁴ hyperviscosity ([hyperviscosity]; ``Scene.hyperviscosity``): ``nu``,
+    ``nu_div``, ``nu_s`` (m⁴ s⁻¹, on this grid; the rotational wind, divergent wind and h + hs,
+    HOMME's names), ``subcycle`` substeps a step and ``scaling`` (None: constant ν; s: the
+    tensor ∇⁴, ν ∝ Δx^s along each element direction, HOMME's ``hypervis_scaling``)."""
+
+    nu: float
+    nu_div: float
+    nu_s: float
+    subcycle: int
+    scaling: float | None = None
+
+
+@dataclass(frozen=True)
+class SceneOutput:
+    """A scene's output ([output]; ``Scene.output``): the interval ``every_days``, a log line
+    every ``log_every_steps`` (0: none), the run file's node ``fields`` (() : all of
+    ``OUTPUT_FIELDS``) and the more run files ``streams`` ({"name", "every_days", "fields"})."""
+
+    every_days: float
+    log_every_steps: int
+    fields: tuple
+    streams: tuple
+
+
+SCHEMA = {
+    "description": str,
+    "terms": list,
+    "case": dict,
+    "grid": {
+        "ne": int,
+        "np": int,
+        "map": str,
+        "stretch_factor": float,
+        "target_lat": float,
+        "target_lon": float,
+        "mesh_file": str,
+    },
+    "time": {"stepper": str, "dt": float, "days": float},
+    "output": {"every_days": float, "log_every_steps": int, "fields": list, "streams": list, "cells": bool},
+    "hyperviscosity": {
+        "efold_hours": float,
+        "nu": float,
+        "nu_div": float,
+        "nu_s": float,
+        "subcycle": int,
+        "scaling": float,
+    },
+    "dfi": {"span_hours": float, "cutoff_hours": float},
+    "planet": {"radius": float, "omega": float, "gravity": float},
+    # one table per stepper, named after it, with the stepper's own options
+    **{name: option_types(cls.Options) for name, cls in STEPPERS.items() if option_types(cls.Options)},
+}
+
+
+def is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def is_integer(value) -> bool:
+    return is_number(value) and math.isfinite(value) and int(value) == value
+
+
+def got(value) -> str:
+    """A refused value for a message: its repr, and its type where that is not a number's."""
+    return repr(value) if is_number(value) else f"{value!r}, a {type(value).__name__}"
+
+
+def refuse_nonfinite(key: str, value) -> None:
+    """Refuse (``SceneError`` naming ``key``, or ``key.k``, ``key[i]`` inside) a NaN or an
+    infinity anywhere in ``value``: no float a scene takes may be one."""
+    if isinstance(value, float) and not math.isfinite(value):
+        raise SceneError(f"{key} must be finite (got {value!r})")
+    if isinstance(value, dict):
+        for k, v in value.items():
+            refuse_nonfinite(f"{key}.{k}", v)
+    elif isinstance(value, (list, tuple)):
+        for i, v in enumerate(value):
+            refuse_nonfinite(f"{key}[{i}]", v)
+
+
+def check_type(key, value, kind):
+    refuse_nonfinite(key, value)
+    if isinstance(kind, types.UnionType):  # e.g. a count or "auto": the options' own check names the choices
+        return value
+    if (
+        kind is tuple
+    ):  # a list-valued option (a Butcher table): a TOML array, its entries the stepper's options to check
+        if not isinstance(value, (list, tuple)):
+            raise SceneError(f"{key} must be an array (got {got(value)})")
+        return value
+    if kind is float and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if kind is int and isinstance(value, float) and value.is_integer():
+        value = int(value)
+    if not isinstance(value, kind) or (kind is not bool and isinstance(value, bool)):
+        raise SceneError(f"{key} must be {kind.__name__} (got {value!r})")
+    return value
+
+
+def validate(raw: dict) -> dict:
+    out = {}
+    for key, value in raw.items():
+        if key not in SCHEMA:
+            raise SceneError(f"unknown key {key!r} in scene (known: {', '.join(SCHEMA)})")
+        spec = SCHEMA[key]
+        if isinstance(spec, dict):
+            if not isinstance(value, dict):
+                raise SceneError(f"[{key}] must be a table")
+            sub = {}
+            for k, v in value.items():
+                if k not in spec:
+                    removed = STEPPERS[key].removed(k) if key in STEPPERS else None
+                    if removed:
+                        raise SceneError(f"{key}.{removed}")
+                    raise SceneError(f"unknown key {key}.{k} in scene (known: {', '.join(spec)})")
+                sub[k] = check_type(f"{key}.{k}", v, spec[k])
+            out[key] = sub
+        else:
+            out[key] = check_type(key, value, spec)
+    return out
+
+
+# keys of [case] that say how a run starts, not which flow: they outlive a case switch
+SCENE_CASE_KEYS = ("initialization",)
+
+
+def _apply_overrides(raw: dict, overrides: dict) -> None:
+    """Set ``"section.key": value`` (or ``"key": value``) in the raw TOML dict.
+    A ``case.name`` other than the file's switches the case: the file's [case]
+    parameters (and reference, a truth of the old flow) are the old case's and are
+    dropped, all but ``SCENE_CASE_KEYS``; the ``case.*`` overrides then apply (one
+    the new case does not know is refused by ``cases.make_case``)."""
+    case = raw.get("case")
+    if isinstance(case, dict) and "case.name" in overrides and overrides["case.name"] != case.get("name"):
+        raw["case"] = {k: v for k, v in case.items() if k in SCENE_CASE_KEYS}
+    for key, value in overrides.items():
+        section, _, name = key.rpartition(".")
+        if not name:
+            raise SceneError(f"override {key!r} must be SECTION.KEY or KEY")
+        if section:
+            table = raw.setdefault(section, {})
+            if not isinstance(table, dict):
+                raise SceneError(f"override {key}: {section} is not a table")
+            table[name] = value
+        else:
+            raw[name] = value
+
+
+def read_scene(path: Path, overrides: dict) -> tuple[dict, float | None, str | None, dict]:
+    """(the tables of the scene file ``path`` with ``overrides`` applied (``_apply_overrides``),
+    their keys and types checked (``SCHEMA``); the file's own radius (m): that of its [planet]
+    before the overrides, for which its dt and ν are, None with an override of time.dt; the
+    file's own case name, None without one; the file's own [grid] before the overrides, for
+    which its dt and ν are, its types checked, {} without one). Raises ``SceneError``: a file
+    that cannot be read or is not TOML, an unknown key, a value of the wrong type, a bad override."""
+    try:
+        raw = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as err:
+        raise SceneError(f"malformed TOML in {path}: {err}") from None
+    except OSError as err:
+        raise SceneError(f"cannot read scene {path}: {err.strerror}") from None
+    table = raw.get("planet", {})
+    file_radius = table.get("radius", EARTH.a) if isinstance(table, dict) and "time.dt" not in overrides else None
+    file_case = raw.get("case", {}).get("name") if isinstance(raw.get("case"), dict) else None
+    file_grid = validate({"grid": raw.get("grid", {})})["grid"]
+    _apply_overrides(raw, overrides)
+    return validate(raw), file_radius, file_case, file_grid

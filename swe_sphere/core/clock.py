@@ -1,0 +1,153 @@
+"""The run's clock: Δt, the day of step 0 and the last day, and the one whole-step rule.
+
+A ``Clock`` is decided once, where the scene is resolved (``config.resolve.resolve_dt``), and
+asked by everything that counts steps: the scene's schedule checks, the output and restart
+steps (``simulation.schedules``), the Python drive's intervals and its fitted Δt
+(``Simulation.fit_dt``), the run file's times (``day``). Oceananigans' ``Clock`` (time,
+iteration, last Δt) and HOMME's ``timestep_make_parameters_consistent`` are the models.
+
+The clock is the plan of a fixed-Δt run: step n is at ``start + n Δt``. An adaptive run (a
+controller choosing Δt step to step) keeps this plan as its first Δt and its schedule, and
+the loop owns the running state (step, time reached, last Δt): the fixed Δt is the special
+case where that state is ``day(step)``. So nothing here assumes that Δt is the stepper's for
+the whole run; only ``nsteps`` and ``day`` do, and they are the fixed plan's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from fractions import Fraction
+
+from .constants import DAY
+from .errors import SceneError
+
+MAX_STEPS = 10**9  # a run longer than this is a typo in dt, not a plan
+
+
+def is_interval(days) -> bool:
+    """Whether ``days`` is a number > 0 and finite."""
+    return isinstance(days, (int, float)) and not isinstance(days, bool) and math.isfinite(days) and days > 0
+
+
+def common_interval(*days: float) -> float:
+    """The longest interval (days) that divides each of ``days``: their greatest common divisor
+    as the decimals they are written as (0.5 and 0.75: 0.25; one interval: itself)."""
+    parts = [Fraction(repr(float(d))) for d in days]
+    denominator = math.lcm(*(p.denominator for p in parts))
+    return float(Fraction(math.gcd(*(int(p * denominator) for p in parts)), denominator))
+
+
+def _whole_step_days(dt: float) -> Fraction | None:
+    """The shortest decimal number of days that is a whole number of steps of ``dt`` (s), when a
+    day is a rational number of them with a denominator up to 1000 (dt = 86400/408 s: 0.125
+    days, 51 steps); None otherwise."""
+    per_day = Fraction(DAY / dt).limit_denominator(1000)
+    if abs(per_day - DAY / dt) > 1e-9 * DAY / dt:
+        return None
+    twos_fives = math.gcd(per_day.numerator, 10**30)  # the 2s and 5s of the numerator: a decimal unit absorbs them
+    return Fraction(per_day.denominator, twos_fives)
+
+
+@dataclass(frozen=True)
+class Clock:
+    """A fixed-Δt run's clock.
+
+    Attributes
+    ----------
+    dt : float
+        The step (s), > 0.
+    start : float
+        The model day of step 0 (0, or the day a run branched at).
+    end : float
+        The last model day (from t = 0); the run is ``start`` to ``end``.
+    source : str
+        Where dt comes from, for the refusals: "the dt given", "time.dt of scene tc5_mountain", ...
+    """
+
+    dt: float
+    start: float = 0.0
+    end: float = 1.0
+    source: str = "the dt given"
+
+    @property
+    def length(self) -> float:
+        """The run's length (days): ``end`` − ``start``."""
+        return self.end - self.start
+
+    @property
+    def nsteps(self) -> int:
+        """The steps from ``start`` to ``end``."""
+        return self.steps_in(self.length)
+
+    def steps_in(self, days: float) -> int:
+        """The nearest whole number of steps in ``days`` (whole or not: ``is_whole``)."""
+        return round(days * DAY / self.dt)
+
+    def is_whole(self, days) -> bool:
+        """The one whole-step rule: ``days`` is a number > 0 and within 1e-6 of a step of a
+        positive whole number of steps."""
+        if not is_interval(days):
+            return False
+        n = self.steps_in(days)
+        return n >= 1 and abs(n * self.dt - days * DAY) <= 1e-6 * self.dt
+
+    def steps(self, days, what: str) -> int:
+        """The whole number of steps in ``days``. Raises ``SceneError`` naming ``what``: an
+        interval not > 0, or not whole steps (``refusal``)."""
+        if not is_interval(days):
+            raise SceneError(f"{what} must be a number of days > 0 (got {days!r})")
+        if not self.is_whole(days):
+            raise self.refusal(what, days)
+        return self.steps_in(days)
+
+    def refusal(self, what: str, days: float) -> SceneError:
+        """The one refusal of an interval (``what`` of ``days`` days) that is not a whole number
+        of steps: where dt comes from and the nearest intervals that are."""
+        dt = self.dt
+        unit = _whole_step_days(dt)
+        if unit is not None:
+            below = math.floor(Fraction(repr(days)) / unit) * unit
+            near = " or ".join(f"{float(x):.10g}" for x in (below, below + unit) if x > 0)
+            fits = f"whole-step intervals are the multiples of {float(unit):.10g} days (nearest: {near})"
+        else:
+            n = days * DAY / dt
+            near = " or ".join(f"{k * dt / DAY:.6g}" for k in sorted({max(1, math.floor(n)), math.ceil(n)}))
+            fits = f"the nearest whole-step intervals are {near} days"
+        return SceneError(
+            f"{what} of {days:g} days is not a whole number of steps of dt = {dt:g} s ({self.source}): "
+            f"a run writes and ends at whole steps; {fits}, or set a dt that divides it"
+        )
+
+    def check(self, intervals: dict[str, float] | None = None) -> None:
+        """Refuse (``SceneError``) a run of more than ``MAX_STEPS`` steps, a run length of no
+        whole steps and any of ``intervals`` ({what: days}; output intervals) shorter than the
+        run that is not whole steps; the first refusal wins."""
+        if self.nsteps > MAX_STEPS:
+            raise SceneError(
+                f"dt = {self.dt:g} s gives {self.nsteps:.3g} steps to day {self.length:g} (more than {MAX_STEPS:.0e})"
+            )
+        if not self.is_whole(self.length):
+            raise self.refusal("the run length", self.length)
+        for what, every in (intervals or {}).items():
+            if self.length > every and not self.is_whole(every):
+                raise self.refusal(what, every)
+
+    def day(self, step: int) -> float:
+        """The model time of ``step`` in days: start + step × (length / nsteps), in exact
+        rational arithmetic from the days as written (their shortest decimals), rounded once.
+        So the output times are the multiples of the output interval as typed (3.0, where
+        step × dt / 86400 gives 3.0000000000000004 for dt = 86400/408 s); a run continued to
+        another length of whole steps gives the same times, and a branch at day 10 with
+        another dt gives 10 + the multiples."""
+        start = Fraction(repr(self.start))
+        return float(start + (Fraction(repr(self.end)) - start) * int(step) / self.nsteps)
+
+    def fitted(self, *intervals: float, source: str | None = None) -> Clock:
+        """The clock with the longest Δt no longer than this one's that divides each of
+        ``intervals`` (days; their ``common_interval``): span / ⌈span / Δt⌉. ``source`` the new
+        Δt's, for the refusals (default this one's)."""
+        span = common_interval(*intervals) * DAY
+        dt = span / max(1, math.ceil(span / self.dt - 1e-9))
+        return dataclasses.replace(self, dt=dt, source=self.source if source is None else source)

@@ -98,6 +98,15 @@ class Stepper:
                 raise ValueError(f"unknown option {key!r} for stepper {cls.name} (known: {', '.join(known) or 'none'})")
         return cls.Options(**options)
 
+    @classmethod
+    def partition_levels(cls, whole_grid, options: dict) -> np.ndarray | None:
+        """(nelem,) int, a level for each element of the whole grid, for a stepper whose work
+        goes by levels: a run over several ranks gives each rank its share of every level
+        (``grid.topology.rank_parts``). None (here): a partition by element count.
+        ``whole_grid()`` builds the whole ``CubedSphere`` (called only where needed);
+        ``options`` the scene's ``[<name>]`` table. ValueError names a bad option."""
+        return None
+
     def __init__(self, model: ShallowWater, dt: float, options=None):
         if not dt > 0:
             raise ValueError(f"dt must be > 0 (got {dt})")

@@ -47,7 +47,8 @@ from swe_sphere.core.constants import DAY  # noqa: E402
 from swe_sphere.grid.gll import gll  # noqa: E402
 from swe_sphere.model.gravity_wave import GravityWaveOperator  # noqa: E402
 from swe_sphere.simulation.simulation import Simulation  # noqa: E402
-from swe_sphere.solvers.helmholtz import HelmholtzOptions, HelmholtzSolver, helmholtz_matrix  # noqa: E402
+from swe_sphere.solvers.helmholtz import HelmholtzOptions, HelmholtzSolver  # noqa: E402
+from swe_sphere.solvers.helmholtz_matrix import helmholtz_matrix  # noqa: E402
 
 SGS = ("gauss_seidel", {"sweep": "symmetric"})
 SMOOTHING = 3  # Chebyshev steps before and after the p-MG coarse correction

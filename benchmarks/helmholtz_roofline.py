@@ -43,7 +43,7 @@ from results import recorded  # noqa: E402  (benchmarks/, the script's directory
 
 from swe_sphere.config.scene import load_scene  # noqa: E402
 from swe_sphere.simulation.simulation import Simulation  # noqa: E402
-from swe_sphere.solvers.helmholtz import HelmholtzCG  # noqa: E402
+from swe_sphere.solvers.helmholtz_cg import HelmholtzCG  # noqa: E402
 
 TYPES = {"f64": wp.float64, "f32": wp.float32}
 

@@ -49,16 +49,7 @@ def array_bytes(ne, stepper):
 
     scene = load_scene("tc5_mountain_homme", ne=ne, np_=4, stepper=stepper)
     grid = CubedSphere(ne, 4)
-    case = scene.make_case()
-    m = ShallowWater(
-        grid,
-        scene.terms,
-        case.fcor(grid.lat, grid.lon),
-        case.hs(grid.lat, grid.lon),
-        nu=scene.nu,
-        device="cpu",
-        threads=1,
-    )
+    m = ShallowWater.from_scene(scene, grid, device="cpu", threads=1)
     st = make_stepper(scene.stepper, m, scene.dt, **scene.stepper_options)
     metric = (
         "D",

@@ -123,21 +123,8 @@ def build(ne, np_, threads, device, stepper=None, dt_factor=1.0, per_element=Non
         scene = load_scene("tc5_mountain_homme", ne=ne, np_=np_, stepper=stepper, dt=scene.dt * dt_factor)
     grid = CubedSphere(ne, np_)
     case = scene.make_case()
-    fcor, hs = case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon)
-    model = ShallowWater(
-        grid,
-        scene.terms,
-        fcor,
-        hs,
-        nu=scene.nu,
-        nu_div=scene.nu_div,
-        nu_s=scene.nu_s,
-        hypervis_subcycle=scene.hypervis_subcycle,
-        g=case.planet.g,
-        device=device,
-        threads=threads,
-        per_element=per_element,
-    )
+    model = ShallowWater.from_scene(scene, grid, case, device=device, threads=threads, per_element=per_element)
+    fcor, hs = model.fcor.numpy(), model.hs.numpy()
     u, v, h = case.initial(grid.lat, grid.lon)
     return grid, scene, (fcor, hs, np.stack([u, v, h])), model
 

@@ -31,8 +31,7 @@ def case_model(grid, case_name: str, terms: list, **options):
     """(case, its ShallowWater on ``grid`` on the CPU with the case's fcor, hs and g; ``options``
     the model's others: nu, threads, per_element...)."""
     case = make_case(case_name)
-    fcor, hs = case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon)
-    return case, ShallowWater(grid, terms, fcor, hs, g=case.planet.g, device="cpu", **options)
+    return case, ShallowWater.from_case(grid, case, terms, device="cpu", **options)
 
 
 def equiangular(mesh: Mesh) -> Mesh:

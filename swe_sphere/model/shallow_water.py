@@ -188,6 +188,35 @@ class ShallowWater:
         self.hv = Hyperviscosity(self) if "hyperviscosity" in terms else None  # the ∇⁴: its plan, work arrays, launches
         self.bad_nodes = BadNodes(self)  # the check of a state for non-finite or dry nodes
 
+    @classmethod
+    def from_case(cls, grid: CubedSphere, case, terms, **options) -> ShallowWater:
+        """The model of ``case`` on ``grid``: the case's Coriolis parameter and surface height at
+        the grid's nodes, its planet's g and, with the "forcing" term, its forcing. ``case``: a
+        ``cases.library.Case`` (taken by its methods ``fcor``, ``hs``, ``forcing`` and its
+        ``planet``: the model sits below the cases); ``options`` the constructor's others
+        (nu…, device, threads, per_element, topology). Raises as the constructor."""
+        fcor, hs = case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon)
+        forcing = case.forcing() if "forcing" in terms else None
+        return cls(grid, terms, fcor, hs, g=case.planet.g, forcing=forcing, **options)
+
+    @classmethod
+    def from_scene(cls, scene, grid: CubedSphere, case=None, **options) -> ShallowWater:
+        """The model a scene calls for on ``grid`` (the whole grid, or a rank's part): its
+        terms and ∇⁴ (``nu``, ``nu_div``, ``nu_s``, ``hypervis_subcycle``,
+        ``hypervis_scaling``) and its case's fields (``from_case``; ``case``: the scene's,
+        ``scene.make_case()``, if None). ``scene``: a ``config.Scene``, read by those
+        attributes alone (config sits above the model, which imports nothing of it);
+        ``options`` the constructor's others (device, threads, per_element, topology)."""
+        case = scene.make_case() if case is None else case
+        hyperviscosity = {
+            "nu": scene.nu,
+            "nu_div": scene.nu_div,
+            "nu_s": scene.nu_s,
+            "hypervis_subcycle": scene.hypervis_subcycle,
+            "hypervis_scaling": scene.hypervis_scaling,
+        }
+        return cls.from_case(grid, case, scene.terms, **hyperviscosity, **options)
+
     # -- the recorder's (``launches.LaunchRecorder``) -----------------------
     def lincomb(self, out, terms):
         """``launches.lincomb``: the recorded launch of out = Σ c·x over (c, x) terms."""

@@ -39,9 +39,8 @@ from ..io import restart_file
 from ..io.initial_state import from_function
 from ..io.run_file import OUTPUT_FIELDS, check_distinct, check_target, node_dataset
 from ..model.shallow_water import ShallowWater
-from ..steppers import StepStats, make_stepper
+from ..steppers import STEPPERS, StepStats, make_stepper
 from ..steppers.initialization import digital_filter
-from ..steppers.local import Lts, size_levels
 from . import checkpoint as ckpt
 from .activities import Callback, Log
 from .guard import Guard
@@ -248,10 +247,11 @@ class Simulation(StateDiagnostics):
         size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
         mesh = scene.make_mesh()  # None: the equiangular cube
         self.case = case = scene.make_case()
-        level = None  # lts on several ranks: each rank its share of every level, the work being Σ 2^level
-        if scene.stepper == Lts.name and size > 1:
-            whole = CubedSphere(scene.ne, scene.np, case.planet.a, mesh=mesh) if rank == 0 else None
-            level = comm.bcast(None if whole is None else size_levels(whole, scene.stepper_options), root=0)
+        level = None  # over several ranks: the stepper's element levels, if its work goes by levels (lts)
+        if size > 1:
+            whole = lambda: CubedSphere(scene.ne, scene.np, case.planet.a, mesh=mesh)  # noqa: E731
+            mine = STEPPERS[scene.stepper].partition_levels(whole, scene.stepper_options) if rank == 0 else None
+            level = comm.bcast(mine, root=0)
         parts = rank_parts(scene.ne, size, mesh, level)
         local = CubedSphere(scene.ne, scene.np, case.planet.a, elements=parts[rank], mesh=mesh)  # this rank's only
         self.topology = topo = Topology(local, device, Backend.of(device).threads(), comm, parts=parts)
@@ -259,24 +259,10 @@ class Simulation(StateDiagnostics):
         self.progress = progress and self.root
         # the whole grid and fields for diagnostics and output: on rank 0 only (None elsewhere)
         self.grid = topo.whole_grid()
-        fcor, hs = case.fcor(local.lat, local.lon), case.hs(local.lat, local.lon)
+        self.model = ShallowWater.from_scene(scene, local, case, device=device, topology=topo)
+        self.g = self.model.g
+        fcor, hs = self.model.fcor.numpy(), self.model.hs.numpy()  # the case's, as the model holds them
         self.fcor, self.hs = topo.gather(fcor), topo.gather(hs)
-        self.g = case.planet.g
-        self.model = ShallowWater(
-            local,
-            scene.terms,
-            fcor,
-            hs,
-            nu=scene.nu,
-            nu_div=scene.nu_div,
-            nu_s=scene.nu_s,
-            hypervis_subcycle=scene.hypervis_subcycle,
-            hypervis_scaling=scene.hypervis_scaling,
-            g=self.g,
-            device=device,
-            topology=topo,
-            forcing=case.forcing() if "forcing" in scene.terms else None,
-        )
         _check_hyperviscosity(self.model, scene)
         self.stepper = make_stepper(scene.stepper, self.model, scene.dt, **scene.stepper_options)
         self.stepper.t0 = scene.start_day * DAY

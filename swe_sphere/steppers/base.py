@@ -55,6 +55,15 @@ class Stepper:
     explicit ones set ``courant_limit``, those with explicit advection only
     ``advective_courant_limit``; those whose step can run as a captured graph
     set ``capturable`` (``graph_key``).
+
+    What a stepper needs of the model, the narrow surface it should keep to: the tendency of a
+    state (``rhs``, with ``terms`` for a part of it; ``set_time`` for a forced one); the linear
+    gravity-wave operator (``model.gravity_wave.GravityWaveOperator``, and behind it the
+    Helmholtz solve, ``solvers.helmholtz``); the ∇⁴ step (``hyperviscosity``); new states
+    (``new_state``); and linear combinations of states (``lincomb``). Steppers and solvers still
+    reach further (``topology``, ``grid``, ``launches``, ``as_rows``, ``N``, ``device``,
+    ``rhs_update`` with ``Update`` lists, ``rhs_part``, ``element_part``, ``gradient_update``,
+    ``divergence_update``, ``dvv_rows``, ``vec_work``…): what is to move behind this list.
     """
 
     name = ""
@@ -97,6 +106,15 @@ class Stepper:
             if key not in known:
                 raise ValueError(f"unknown option {key!r} for stepper {cls.name} (known: {', '.join(known) or 'none'})")
         return cls.Options(**options)
+
+    @classmethod
+    def partition_levels(cls, whole_grid, options: dict) -> np.ndarray | None:
+        """(nelem,) int, a level for each element of the whole grid, for a stepper whose work
+        goes by levels: a run over several ranks gives each rank its share of every level
+        (``grid.topology.rank_parts``). None (here): a partition by element count.
+        ``whole_grid()`` builds the whole ``CubedSphere`` (called only where needed);
+        ``options`` the scene's ``[<name>]`` table. ValueError names a bad option."""
+        return None
 
     def __init__(self, model: ShallowWater, dt: float, options=None):
         if not dt > 0:

@@ -180,6 +180,12 @@ class Lts(Mri):
         return None  # from the levels, at ``prepare``
 
     @classmethod
+    def partition_levels(cls, whole_grid, options: dict) -> np.ndarray:
+        """Each element's level from its size alone (``size_levels``): over several ranks
+        each rank takes its share of every level, the work being Σ 2^level."""
+        return size_levels(whole_grid(), options)
+
+    @classmethod
     def label(cls, options: dict) -> str:
         o = cls.make_options(**options)
         if o.method == MRAB3:

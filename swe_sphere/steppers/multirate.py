@@ -1,103 +1,47 @@
-"""Gravity waves on their own clock: the fast/slow split of the RHS and the steppers
-that take many cheap fast substeps a slow step without a global solve.
-
-The split (``GravitySplit``). About a reference depth H, the fast part is the linear
-gravity-wave operator ``model.gravity_wave.GravityWaveOperator``, L x = (−g G h, −H D v) (G = DSS∘grad,
-D = DSS∘div); the slow part S = F − L is the rest: −(ζ + f) k×v − ∇(½|v|²), the
-mountain's −g∇hs, −∇·(h′v) with h′ = h − H, and the forcing. The steppers carry the
-depth as h′ through a step (h − H is exact for H/2 ≤ h ≤ 2H, Sterbenz), so S is the
-model's own RHS without its pressure-gradient term evaluated at (u, v, h′): one
-tendency pass and one DSS, compiled for those terms (``ShallowWater.rhs`` with
-``terms``), not F − L by two evaluations. A fast evaluation L z + ρ is one element pass
-of the gradient of h′ and the divergence of v (``kernels.gravity_wave.linear_element``)
-and one DSS of its three rows into the combination that uses it
-(``GravityWaveOperator.update``): 2 launches moving 0.86× the bytes of the RHS's 2
-(``tally.Tally``), with far less arithmetic than the flux-form tendency. Mass: both parts'
-depth rows are DSS'd divergences, whose area integral is zero, so every stage keeps ∫h to
-round-off.
-
-The steppers (both apply ∇⁴ once a step after it, as every stepper here):
-
-* ``split_explicit``: Wicker & Skamarock (2002, MWR 130, 2088) RK3 for the slow part,
-  the stages of Δt/3, Δt/2, Δt each from x(n) with the slow tendency of the last stage
-  held fixed over forward–backward substeps of the fast part (Klemp, Skamarock & Dudhia
-  2007, MWR 135, 2897, §2; MPAS-Atmosphere's ``atm_srk3``): n/3, n/2 and n substeps
-  (rounded up; each stage's substep its span over its count), the wind first,
-  v ← v + τ(S_v − g G h̃), then the depth with the new wind, h ← h − τ D(h_s v),
-  with h̃ = h + β(h − h_old) forward-weighted as MPAS damps the divergence (β = 0.1 by
-  default, MPAS's smdiv: without it TC2 rotated by π/4 blows up within 100 days, a weak
-  instability of the split like those Baldauf 2010, MWR 138, 4475, found in RK3 time
-  splitting). Its
-  fast part is linear about the depth h_s of the stage whose slow tendency it carries,
-  not about H, as MPAS linearises its acoustic substeps about the stage's state: the
-  whole mass flux is the substeps' (``tendency`` compiled for the continuity alone, on
-  the new wind and h_s), the slow part the momentum's terms without the pressure
-  gradient. About H instead, the slow −∇·(h′v) (h′ = −1.6 km on TC5's mountain) held
-  fixed over a step blew TC5 ne30 up on day 2.25 at 3.6 Δt_g; about h_s it runs 15 days
-  at 7.3 Δt_g. A substep: element gradient and its DSS-update into the wind, continuity
-  tendency and its DSS-update into the depth (4 launches).
-* ``mri``: multirate infinitesimal methods from a table (``tables.MULTIRATE``, or the
-  scene's ``[mri]``): the r-th of s inner solves starts from
-  z(0) = x(n) + Σ_j α_rj (Y_{j+1} − x(n)) and integrates dz/dσ = L z + ρ_r(σ/T_r) over
-  σ ∈ [0, T_r], T_r = d_r Δt, d_r = Σ_j β_rj, with the slow forcing
-  ρ_r(θ) = (1/d_r) Σ_j ((β_rj + θ β¹_rj) S(Y_{j+1}) + γ_rj (Y_{j+1} − x(n))/Δt),
-  giving Y_{r+2}; x(n+1) = Y_{s+1}. With α, β, γ the MIS coefficients (Wensch, Knoth &
-  Galant 2009, eq. 2.3; Knoth & Wensch 2014) this is MIS; with α = I, γ = 0,
-  β = Γ⁰, β¹ = Γ¹ it is explicit MRI-GARK (Sandu 2019, Definition 2.2, σ there
-  scaled by Δc_r). The inner ODE is integrated by ``inner`` with ``substeps`` fast steps a
-  slow step (each solve ⌈d_r n⌉ of them): ``fbrk32`` (the forward–backward FB-RK(3,2) of
-  ``explicit.FBRK32`` on the fast system), or ``ssprk3``/``rk4``, the engine's own tables
-  stepped through its ``butcher.stage_form``.
-
-Without a fast part (L = 0) a multirate table is an explicit Runge–Kutta table of the
-slow part (``parse_mri``: Y_{r+2} − x(n) = Σ_j (α + γ)_rj (Y_{j+1} − x(n)) + Δt Σ_j
-(β + β¹/2)_rj S(Y_{j+1})), checked against the order the table claims by ``butcher.parse``,
-the one engine's order conditions (necessary, not sufficient: the coupling has conditions
-of its own, which the built-in tables meet at their stated orders; measured in
-tests/steppers/test_multirate.py).
-"""
+"""Gravity waves on their own clock: the fast/slow split of the RHS (``GravitySplit``) and
+the steppers that take many cheap fast substeps a slow step without a global solve,
+``split_explicit`` (``SplitExplicit``) and ``mri`` (``Mri``); both apply ∇⁴ once a step
+after it, as every stepper here. Their scene options and the check of a multirate table are
+in ``multirate_options``."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from fractions import Fraction
 
 import numpy as np
 import warp as wp
 
-from ..model.gravity_wave import GravityWaveOperator, check_mean_depth
+from ..model.gravity_wave import GravityWaveOperator
 from ..model.launches import Update
 from .base import Stepper, StepStats
-from .butcher import TableauOptions, frozen_table, parse, stage_form, stage_terms, table_entry
-from .tables import EXPLICIT, MULTIRATE
+from .butcher import TableauOptions, parse, stage_form, stage_terms
+from .multirate_options import MriOptions, SplitExplicitOptions, parse_mri, substeps_label
+from .tables import EXPLICIT
 
 f64 = wp.float64
 
-INNER = ("fbrk32", "ssprk3", "rk4")
 FBRK32_STAGES = ((1 / 3, 0.531), (0.5, 0.531), (1.0, 0.313))  # c, β of ``explicit.FBRK32``
-
-
-def check_substeps(substeps, fast_courant) -> None:
-    """ValueError 'substeps must be ...' unless an integer ≥ 1 or "auto", 'fast_courant
-    must be ...' unless > 0."""
-    if substeps != "auto" and (isinstance(substeps, bool) or not isinstance(substeps, int) or substeps < 1):
-        raise ValueError(f'substeps must be an integer >= 1 or "auto" (got {substeps!r})')
-    if isinstance(fast_courant, bool) or not isinstance(fast_courant, (int, float)) or not fast_courant > 0:
-        raise ValueError(f"fast_courant must be > 0 (got {fast_courant!r})")
-
-
-def substeps_label(options) -> str:
-    """'n=12', or 'n=auto (fast Courant 0.6)'."""
-    if options.substeps == "auto":
-        return f"n=auto (fast Courant {options.fast_courant:g})"
-    return f"n={options.substeps}"
 
 
 class GravitySplit:
     """The fast/slow split of the model's RHS about a reference depth H (m; 0: the
     rounded area-mean depth of the first state given to ``set_depth``, the
     ``GravityWaveOperator``'s rule).
+
+    The fast part is the linear gravity-wave operator ``model.gravity_wave.GravityWaveOperator``,
+    L x = (−g G h, −H D v) (G = DSS∘grad, D = DSS∘div); the slow part S = F − L is the rest:
+    −(ζ + f) k×v − ∇(½|v|²), the mountain's −g∇hs, −∇·(h′v) with h′ = h − H, and the forcing.
+    The steppers carry the depth as h′ through a step (h − H is exact for H/2 ≤ h ≤ 2H,
+    Sterbenz), so S is the model's own RHS without its pressure-gradient term evaluated at
+    (u, v, h′): one tendency pass and one DSS, compiled for those terms (``ShallowWater.rhs``
+    with ``terms``), not F − L by two evaluations. A fast evaluation L z + ρ is one element
+    pass of the gradient of h′ and the divergence of v (``kernels.gravity_wave.linear_element``)
+    and one DSS of its three rows into the combination that uses it
+    (``GravityWaveOperator.update``): 2 launches moving 0.86× the bytes of the RHS's 2
+    (``tally.Tally``), with far less arithmetic than the flux-form tendency. Mass: both parts'
+    depth rows are DSS'd divergences, whose area integral is zero, so every stage keeps ∫h to
+    round-off.
 
     States are (3, N) element-local with the depth as h′ = h − H (``to_perturbation``,
     ``from_perturbation``). ``slow(x, out)``: out = S(x) = F(u, v, h) − L x, the model's
@@ -227,46 +171,34 @@ class _Multirate(Stepper):
         return StepStats(evals, {"fast": self.fast_evaluations()})
 
 
-@dataclass(frozen=True)
-class SplitExplicitOptions:
-    """Scene table ``[split_explicit]`` (see ``SplitExplicit``)."""
-
-    substeps: int | str = "auto"
-    fast_courant: float = 0.6
-    divergence_damping: float = 0.1
-    mean_depth: float = 0.0
-
-    def __post_init__(self):
-        check_substeps(self.substeps, self.fast_courant)
-        if not 0 <= self.divergence_damping < 1:
-            raise ValueError(f"divergence_damping must be in [0, 1) (got {self.divergence_damping})")
-        check_mean_depth(self.mean_depth)
-
-
 class SplitExplicit(_Multirate):
     """Split-explicit Wicker–Skamarock RK3: the gravity waves in forward–backward substeps (MPAS).
 
-    3 slow evaluations a step, each stage's substeps from x(n) with the last stage's slow
-    tendency held fixed, the mass flux in the substeps about that stage's depth (the
-    module docstring).
+    Wicker & Skamarock (2002, MWR 130, 2088) RK3 for the slow part, the stages of Δt/3,
+    Δt/2, Δt each from x(n) with the slow tendency of the last stage held fixed over
+    forward–backward substeps of the fast part (Klemp, Skamarock & Dudhia 2007, MWR 135,
+    2897, §2; MPAS-Atmosphere's ``atm_srk3``): n/3, n/2 and n substeps (rounded up; each
+    stage's substep its span over its count), the wind first, v ← v + τ(S_v − g G h̃), then
+    the depth with the new wind, h ← h − τ D(h_s v), with h̃ = h + β(h − h_old)
+    forward-weighted as MPAS damps the divergence (without it, a weak instability of the
+    split like those Baldauf 2010, MWR 138, 4475, found in RK3 time splitting). Its fast
+    part is linear about the depth h_s of the stage whose slow tendency it carries, not about
+    H, as MPAS linearises its acoustic substeps about the stage's state: the whole mass flux
+    is the substeps' (``tendency`` compiled for the continuity alone, on the new wind and
+    h_s), the slow part the momentum's terms without the pressure gradient (about H, the slow
+    −∇·(h′v) held fixed over a step is unstable over a mountain). A substep: element gradient
+    and its DSS-update into the wind, continuity tendency and its DSS-update into the depth
+    (4 launches).
 
     Options (scene table ``[split_explicit]``): ``substeps`` n, the fast substeps of the
     last stage (the stages take ⌈n/3⌉, ⌈n/2⌉, n), or "auto" (the default): the fewest,
     and at least 2, whose Courant number about the mean depth is ≤ ``fast_courant``
-    (default 0.6; ``_Multirate.substeps``). On TC5 ne8 over 6 days at slow steps of 3.9, 4.7, 5.7, 6.6,
-    7.8 Δt_g the fewest stable of 3, 4, 6, 8, 12, 16, 24 were 4, 6, 6, 8, 8, substeps of
-    0.8–1 Δt_g; 0.6 keeps them at ≤ 0.65 Δt_g (TC5 ne8 at 7.8 Δt_g: n = 13, at 2 Δt_g: 4).
-    ``divergence_damping`` β (the
+    (default 0.6; ``_Multirate.substeps``). ``divergence_damping`` β (the
     forward weighting of the depth in the substeps' pressure gradient, h̃ = h′ + β(h′ −
     h′_old), which damps the fast divergent modes as divergence damping does: Klemp,
     Skamarock & Ha 2018, MWR 146, 1911, §3; MPAS's smdiv = 0.1; default 0.1). A stage's
     first substep has no last one, so with one substep a stage nothing is damped: hence
-    "auto"'s 2. TC2 rotated by π/4 over 100 days at ne8 with β = 0 blew up at Δt = 450 and
-    600 s (n = 1, days 34 and 14), 1800 s (n = 2) and 2400 s (n = 4, day 57), though it ran
-    at 2400 s with n = 3 and 6; with β = 0.1 and n ≥ 2 every one of them ran to the end (and
-    4800 s, above the advective limit). The price: TC5 ne30 over 15 days at 3.64 Δt_g, h +
-    hs temporal error 3.93e-4 against 1.18e-4 with β = 0 (the filtered vorticity's 8.21e-4
-    against 7.26e-4), stable to the same 6.67 Δt_g. ``mean_depth``
+    "auto"'s 2. ``mean_depth``
     H (m; 0: the area-mean depth of the initial state, rounded to 6 digits: the step carries
     the depth as h′ = h − H, and "auto" takes the Courant number about it). 3 slow evaluations a step
     (reported as RHS evaluations) and ⌈n/3⌉ + ⌈n/2⌉ + n fast ones. Slow order 2 (Wicker &
@@ -341,140 +273,28 @@ class SplitExplicit(_Multirate):
         )
 
 
-# -- multirate infinitesimal tables ----------------------------------------------------
-@dataclass(frozen=True)
-class MriOptions:
-    """Scene table ``[mri]`` (see ``Mri``): ``method`` (a built-in table of
-    ``tables.MULTIRATE``), or a table of one's own: ``name``, ``description``, the
-    ``order`` it claims, ``alpha``, ``beta``, ``gamma`` and ``beta1`` (s × s, entries
-    numbers or fractions as strings; alpha, gamma and beta1 may be left out: zero); ``inner``,
-    ``substeps``, ``fast_courant``, ``mean_depth``. Raises ValueError naming the option or entry (``parse_mri``)."""
-
-    method: str = "mis4a"
-    inner: str = "ssprk3"
-    substeps: int | str = "auto"
-    fast_courant: float = 1.0
-    mean_depth: float = 0.0
-    name: str = ""
-    description: str = ""
-    order: int = 0
-    alpha: tuple = ()
-    beta: tuple = ()
-    gamma: tuple = ()
-    beta1: tuple = ()
-
-    def __post_init__(self):
-        for key in MRI_PARTS:  # read back from JSON (a restart file's scene): lists
-            object.__setattr__(self, key, frozen_table(getattr(self, key)))
-        if self.method not in MULTIRATE:
-            raise ValueError(f"method must be one of {', '.join(MULTIRATE)} (got {self.method!r})")
-        if self.inner not in INNER:
-            raise ValueError(f"inner must be one of {', '.join(INNER)} (got {self.inner!r})")
-        check_substeps(self.substeps, self.fast_courant)
-        check_mean_depth(self.mean_depth)
-        parse_mri(self)
-
-    def table(self) -> dict:
-        """The table's entries: the scene's own if it gives one, else ``method``'s."""
-        own = {key: getattr(self, key) for key in MRI_PARTS if getattr(self, key)}
-        if not own and not self.name and not self.order:
-            return dict(MULTIRATE[self.method])
-        return {"name": self.name, "description": self.description, "order": self.order, **own}
-
-
-MRI_PARTS = ("alpha", "beta", "gamma", "beta1")
-
-
-@dataclass(frozen=True)
-class MriTable:
-    """A checked multirate table: alpha, beta, gamma, beta1 (s × s float arrays), d (s,)
-    the solves' spans in Δt, c (s,) the stages' times in Δt (those of the slow table),
-    and the slow part's Butcher table (``TableauOptions``)."""
-
-    alpha: np.ndarray
-    beta: np.ndarray
-    gamma: np.ndarray
-    beta1: np.ndarray
-    d: np.ndarray
-    c: tuple
-    slow: TableauOptions
-
-
-def _square(t: dict, key: str, s: int | None) -> list:
-    rows = frozen_table(t.get(key, ()))
-    if s is not None and not rows:  # alpha, gamma, beta1 left out: zero
-        return [[Fraction(0)] * s for _ in range(s)]
-    if not isinstance(rows, tuple) or not rows or not all(isinstance(r, tuple) for r in rows):
-        raise ValueError(f"{key} must be a non-empty array of rows (got {rows!r})")
-    if len(rows) != (s or len(rows)) or any(len(r) != len(rows) for r in rows):
-        shape = f"{len(rows)} rows of {', '.join(str(len(r)) for r in rows)} entries"
-        raise ValueError(
-            f"{key} must be square (got {shape})" if s is None else f"{key} must be {s} x {s}, as beta (got {shape})"
-        )
-    s = len(rows)
-    out = [[table_entry(v, f"{key} entry ({i + 1},{j + 1})") for j, v in enumerate(r)] for i, r in enumerate(rows)]
-    for i in range(s):
-        for j in range(i + 1, s):
-            if out[i][j]:
-                raise ValueError(f"{key} entry ({i + 1},{j + 1}) is above the diagonal: solve r uses stages 1..r only")
-    return out
-
-
-def parse_mri(o: MriOptions) -> MriTable:
-    """The checked table of ``o``; ValueError (one line) for a missing name or order, a
-    matrix that is not s × s lower triangular, an entry that is not a number, a solve of
-    span d_r = Σ_j β_rj ≤ 0, or a slow part (the method with L = 0, an explicit
-    Runge–Kutta table) that fails its claimed order's conditions (``butcher.parse``)."""
-    t = o.table()
-    if not str(t.get("name", "")).strip():
-        raise ValueError("name is missing: name the table (the run file shows it)")
-    beta = _square(t, "beta", None)
-    s = len(beta)
-    alpha, gamma, beta1 = (_square(t, key, s) for key in ("alpha", "gamma", "beta1"))
-    d = [sum(row) for row in beta]
-    for r, span in enumerate(d):
-        if span <= 0:
-            raise ValueError(
-                f"beta row {r + 1} sums to {float(span):.6g}: each inner solve's span d = the row sum must be > 0"
-            )
-    # the slow part: Y_{r+2} − x(n) = Σ_j (α + γ)_rj (Y_{j+1} − x(n)) + Δt Σ_j (β + β¹/2)_rj F_{j+1}
-    A = [[Fraction(0)] * s]
-    for r in range(s):
-        row = [beta[r][j] + beta1[r][j] / 2 for j in range(s)]
-        for j in range(r + 1):
-            row = [a + (alpha[r][j] + gamma[r][j]) * y for a, y in zip(row, A[j])]
-        A.append(row)
-    c = [sum(row) for row in A[:s]]
-    slow = TableauOptions(
-        name=str(t["name"]),
-        description=str(t.get("description", "")),
-        order=int(t.get("order", 0)),
-        A=tuple(tuple(str(a) for a in row) for row in A[:s]),
-        b=tuple(str(a) for a in A[s]),
-        c=tuple(str(a) for a in c),
-    )
-    arr = lambda m: np.array([[float(v) for v in row] for row in m])  # noqa: E731
-    return MriTable(
-        arr(alpha), arr(beta), arr(gamma), arr(beta1), np.array([float(v) for v in d]), tuple(float(v) for v in c), slow
-    )
-
-
 class Mri(_Multirate):
     """Multirate MIS / MRI-GARK tables (or [mri]'s): the gravity waves by an inner method in substeps.
 
-    Multirate infinitesimal step (MIS) and explicit MRI-GARK methods from a table (the
-    module docstring).
+    From a table (``tables.MULTIRATE``, or the scene's ``[mri]``): the r-th of s inner solves
+    starts from z(0) = x(n) + Σ_j α_rj (Y_{j+1} − x(n)) and integrates dz/dσ = L z + ρ_r(σ/T_r)
+    over σ ∈ [0, T_r], T_r = d_r Δt, d_r = Σ_j β_rj, with the slow forcing
+    ρ_r(θ) = (1/d_r) Σ_j ((β_rj + θ β¹_rj) S(Y_{j+1}) + γ_rj (Y_{j+1} − x(n))/Δt),
+    giving Y_{r+2}; x(n+1) = Y_{s+1}. With α, β, γ the MIS coefficients (Wensch, Knoth &
+    Galant 2009, eq. 2.3; Knoth & Wensch 2014) this is MIS; with α = I, γ = 0,
+    β = Γ⁰, β¹ = Γ¹ it is explicit MRI-GARK (Sandu 2019, Definition 2.2, σ there
+    scaled by Δc_r). The inner ODE is integrated by ``inner`` with ``substeps`` fast steps a
+    slow step (each solve ⌈d_r n⌉ of them): ``fbrk32`` (the forward–backward FB-RK(3,2) of
+    ``explicit.FBRK32`` on the fast system), or ``ssprk3``/``rk4``, the engine's own tables
+    stepped through its ``butcher.stage_form``.
 
     Options (scene table ``[mri]``): ``method`` ("mis2", "mis3c", "mis4a",
-    "mri_gark_erk33a": ``tables.MULTIRATE``; default "mis4a", third order, which ran TC6
-    ne8 28 days at |v|Δt/Δx = 1.54 (4.9 Δt_g) where MIS3C blew up at 0.93) or a table of one's own
+    "mri_gark_erk33a": ``tables.MULTIRATE``; default "mis4a", third order) or a table of one's own
     (``MriOptions``); ``inner`` ("fbrk32" | "ssprk3" | "rk4", the fast integrator;
     default "ssprk3"); ``substeps`` n (fast steps a slow step, ⌈d_r n⌉ a solve) or "auto"
     (the default): the fewest whose Courant number about the mean depth is ≤
-    ``fast_courant`` (default 1.0; ``_Multirate.substeps``). On TC5 ne8 over 6 days MIS3C with
-    ssprk3 needed 3 at 3.9–5.7 Δt_g and 6 at 6.6 and 7.8 Δt_g, inner steps of up to
-    1.3–1.9 Δt_g; with 8 (steps of ≤ 1.2 Δt_g) MIS3C and MIS4a ran 12 days up to 9.5
-    Δt_g); ``mean_depth`` H (m; 0: the area-mean initial depth, rounded to 6 digits).
+    ``fast_courant`` (default 1.0; ``_Multirate.substeps``); ``mean_depth`` H (m; 0: the
+    area-mean initial depth, rounded to 6 digits).
     s slow evaluations a step (reported as RHS evaluations). The run file's attributes
     ``mri`` and ``mri_order`` name the table."""
 

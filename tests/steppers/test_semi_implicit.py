@@ -44,7 +44,9 @@ from swe_sphere.core.errors import StepFailure
 from swe_sphere.model.gravity_wave import GravityWaveOperator, reference_depth
 from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.simulation.simulation import Simulation
-from swe_sphere.solvers.helmholtz import GuessHistory, HelmholtzOptions, HelmholtzSolver, helmholtz_matrix
+from swe_sphere.solvers.guess_history import GuessHistory
+from swe_sphere.solvers.helmholtz import HelmholtzOptions, HelmholtzSolver
+from swe_sphere.solvers.helmholtz_matrix import helmholtz_matrix
 from swe_sphere.steppers import STEPPERS
 
 import roundoff

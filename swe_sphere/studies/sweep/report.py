@@ -12,7 +12,7 @@ from ...grid.quality import REGIONS
 from ...io.run_file import atomic_path, check_results, history_line
 from ...io.table_file import table_dataset, write_table_file
 from ...steppers import STEPPERS
-from ..plotting import sweep_plot
+from ..figures import sweep_plot
 from .verdicts import (
     COLUMN_ATTRS,
     COLUMNS,

@@ -21,7 +21,7 @@ What changes, and why it keeps the pages' order meaningful:
   above the process's start-up, and the pages' days carry meaning (the reference's
   stored days, restart days, the time filter's window).
 - A sweep times each run's RHS for one short batch instead of five 0.2 s ones: that
-  time is the unit of the cost columns (``sweep.rhs_time``), not an answer these
+  time is the unit of the cost columns (``sweep.runs.rhs_time``), not an answer these
   examples check, and it would be most of a tiny sweep's time.
 """
 
@@ -116,10 +116,10 @@ def _mesh_file(args: list[str]) -> bool:
 
 def _cut_rhs_timing() -> None:
     """One short batch for each run's RHS time in a sweep (the module says why)."""
-    from swe_sphere.studies import sweep
+    from swe_sphere.studies.sweep import runs
 
-    timed = sweep.rhs_time
-    sweep.rhs_time = lambda sim, clock=time.perf_counter: timed(sim, span=1e-3, rounds=1, clock=clock)
+    timed = runs.rhs_time
+    runs.rhs_time = lambda sim, clock=time.perf_counter: timed(sim, span=1e-3, rounds=1, clock=clock)
 
 
 if __name__ == "__main__":

@@ -1,25 +1,15 @@
-"""Pictures of a run: lat-lon maps of its fields, its invariants and errors against time.
-
-Maps are drawn from the spectral-element solution itself: each element's GLL
-polynomial evaluated (``remap.Remapper``) at the centres of a regular lat-lon
-grid finer than the GLL spacing, shown cell by cell (``imshow``) on a plain global
-longitude-latitude (equirectangular) projection — no gaps, no seams at the
-cube edges, the date line or the poles. matplotlib draws through its Agg canvas
-directly (no pyplot, no global backend change), so this works headless.
-
-Functions other modules reuse: :func:`plot_map`, :func:`plot_series` (both return
-their ``matplotlib.figure.Figure``, the PNG written only when given a path),
-:func:`line_plot` (generic x-y lines), :func:`sweep_plot` (error against wall time or Δt
-per stepper, for ``swe_sphere.studies.sweep``),
-:func:`open_run`, :func:`open_reference` (a run's fields at its nodes:
-``analysis.field_at_nodes``). For a lat-lon
-field to plot or analyse yourself, ``swe_sphere.remap_dataset``.
-"""
+"""Pictures of a run: lat-lon maps of its fields (``plot_map``), its invariants and errors
+against time (``plot_series``), its spectrum and zonal means; maps drawn from the
+spectral-element solution itself, each element's GLL polynomial evaluated
+(``remap.Remapper``) at the centres of a regular lat-lon grid finer than the GLL spacing and
+shown cell by cell on a plain longitude-latitude projection (no gaps, no seams at the cube
+edges, the date line or the poles), through matplotlib's Agg canvas (``figures``: no pyplot,
+headless); ``open_run`` and ``open_reference`` give a run's fields at its nodes, and the line
+plots (``line_plot``, ``sweep_plot``, ``label_log_axis``) are ``figures``'s, importable here."""
 
 from __future__ import annotations
 
 import functools
-import io
 import json
 import math
 from dataclasses import dataclass
@@ -45,9 +35,16 @@ from .analysis import (
     run_name,
     zonal_mean,
 )
+from .figures import draw_lines, new_figure, png_bytes, save_png
+
+# importable from here as before the line plots had a module of their own
+from .figures import error_label as error_label
+from .figures import label_log_axis as label_log_axis
+from .figures import line_plot as line_plot
+from .figures import sweep_plot as sweep_plot
 
 INVARIANTS = ("mass_change", "total_energy_change", "potential_enstrophy_change")
-FIGSIZE, DPI = (12.0, 6.0), 100  # map: 1200 × 600 pixels
+FIGSIZE = (12.0, 6.0)  # map: 1200 × 600 pixels
 SERIES_FIGSIZE = (12.0, 5.0)  # 1200 × 500 pixels
 
 
@@ -109,35 +106,6 @@ def open_reference(path, case=None):
         run_grid(ds)  # validates ne/np against lat/lon
         return _Run(ds, path.name)
     return _SpectralReference(Reference(path), path.name)
-
-
-# -- drawing -------------------------------------------------------------------
-def _figure(figsize):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=figsize, dpi=DPI, layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _png(fig) -> bytes:
-    """The PNG of ``fig`` (the bytes ``_save`` writes; Agg draws the same figure to the same bytes)."""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=DPI)
-    return buf.getvalue()
-
-
-def _save(fig, path) -> Path:
-    path = Path(path)
-    tmp = path.with_name(path.name + ".part.png")
-    try:
-        fig.savefig(tmp, dpi=DPI)  # no bbox_inches: the pixel size is figsize × DPI
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    tmp.replace(path)
-    return path
 
 
 def plot_resolution(grid) -> float:
@@ -257,7 +225,7 @@ def plot_map(ds, field: str, day: float, path=None, diff=None, lat_range=None) -
         title = f"{long_name}: {scene} − {diff.label}, day {day:g}; normalized l2 = {l2:.3e}"
         draw_symmetric, draw_cmap, label = True, "RdBu_r", f"Δ {field} ({units})"
     info["min"], info["max"] = float(np.nanmin(shown)), float(np.nanmax(shown))
-    fig = _figure(FIGSIZE)
+    fig = new_figure(FIGSIZE)
     ax = fig.add_subplot()
     info["colorbar_label"], info["title"] = label, title
     contours = interval = None
@@ -277,7 +245,7 @@ def plot_map(ds, field: str, day: float, path=None, diff=None, lat_range=None) -
     ax.set_title(title, fontsize=11)
     info["figure"] = fig
     if path is not None:
-        _save(fig, path)
+        save_png(fig, path)
     return info
 
 
@@ -289,140 +257,15 @@ def _scene_label(ds) -> str:
         return run_name(ds)
 
 
-def label_log_axis(axis) -> None:
-    """Label the log-scale ``axis`` (a matplotlib ``Axis``) in plain numbers (0.5, 1, 2,
-    5, 10): the decades, and the minor ticks at 2 and 5 × 10^k where the axis spans
-    under two decades, so that one within a decade has more than one label and the
-    minor labels never crowd (matplotlib's own wrote 2×10⁰, 3×10⁰, ... into each other)."""
-    from matplotlib.ticker import FuncFormatter, LogLocator
-
-    def minor(value, _):
-        low, high = sorted(axis.get_view_interval())
-        return f"{value:g}" if high < 100 * low and f"{value:.0e}"[0] in "25" else ""
-
-    axis.set_major_locator(LogLocator(base=10))
-    axis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
-    axis.set_minor_locator(LogLocator(base=10, subs=tuple(range(2, 10))))
-    axis.set_minor_formatter(FuncFormatter(minor))
-
-
-def _lines(ax, lines, *, logx=False, logy=False, markers=True, xlabel="", ylabel="", title=""):
-    drawn = 0
-    for label, x, y in lines:
-        x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
-        ok = np.isfinite(x) & np.isfinite(y) & ((y > 0) if logy else True) & ((x > 0) if logx else True)
-        if not ok.any():
-            continue
-        ax.plot(x[ok], y[ok], marker="o" if markers else None, markersize=3, linewidth=1.2, label=label)
-        drawn += 1
-    if logx and drawn:
-        ax.set_xscale("log")
-        label_log_axis(ax.xaxis)
-    if logy and drawn:
-        ax.set_yscale("log")
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
-    if title:
-        ax.set_title(title, fontsize=11)
-    ax.grid(True, which="major", alpha=0.3)
-    if drawn:
-        ax.legend(fontsize=8)
-    return drawn
-
-
-def line_plot(
-    path, lines, *, xlabel="", ylabel="", title="", logx=False, logy=False, markers=True, figsize=(8.0, 5.0)
-) -> Path:
-    """Generic x-y line figure to the PNG ``path`` (figsize × 100 dpi pixels).
-
-    ``lines``: iterable of ``(label, x, y)``; non-finite points (and non-positive ones
-    on a log axis) are left out. For sweeps: error against wall time, Δt, ..."""
-    fig = _figure(figsize)
-    ax = fig.add_subplot()
-    if not _lines(ax, lines, logx=logx, logy=logy, markers=markers, xlabel=xlabel, ylabel=ylabel, title=title):
-        ax.text(0.5, 0.5, "no data", ha="center", va="center", transform=ax.transAxes)
-    return _save(fig, path)
-
-
-def error_label(y: str) -> str:
-    """The axis label of a sweep's error column (``scoring.Scorer.total_errors``' l2 norms):
-    "total_error" → "total error: normalized l2 of h + hs", "temporal_error_vorticity" →
-    "temporal error: normalized l2 of vorticity"; another column as it is named."""
-    kind, sep, field = y.partition("_error")
-    if not sep:
-        return y.replace("_", " ")
-    return f"{kind} error: normalized l2 of {field.lstrip('_').replace('_', ' ') or 'h + hs'}"
-
-
-def sweep_plot(
-    path,
-    rows,
-    x: str,
-    *,
-    xlabel: str = "",
-    floor: float | None = None,
-    y: str = "temporal_error",
-    figsize=(8.0, 5.0),
-    title: str = "",
-) -> Path:
-    """Sweep figure (``swe_sphere.studies.sweep``): ``y`` against ``x`` per stepper, log-log, for the
-    stable runs of ``rows`` (dicts with ``stepper``, ``stable``, ``x``, ``y``); unstable runs
-    are crosses along the top edge at their x. ``floor``: the spatial error, drawn as a
-    dashed line, with the sufficient-accuracy level 0.1 × floor dotted for a temporal error.
-    ``title``: what was swept (e.g. "tc5_mountain ne8 np4, 5 days"), before the axes' names."""
-    steppers = list(dict.fromkeys(r["stepper"] for r in rows))
-    lines = []
-    for st in steppers:
-        # joined in order of Δt, so a line reads as the stepper's cost-accuracy path
-        pts = [
-            (float(r[x]), float(r[y]))
-            for r in sorted(rows, key=lambda r: r.get("dt", 0.0))
-            if r["stepper"] == st and r.get("stable", True)
-        ]
-        lines.append((st, [p[0] for p in pts], [p[1] for p in pts]))
-    fig = _figure(figsize)
-    ax = fig.add_subplot()
-    drawn = _lines(
-        ax,
-        lines,
-        logx=True,
-        logy=True,
-        xlabel=xlabel or x,
-        ylabel=error_label(y),
-        title=f"{title + ': ' if title else ''}{y.replace('_', ' ')} against {xlabel or x}",
-    )
-    if floor is not None and math.isfinite(floor) and floor > 0:
-        ax.axhline(floor, color="0.4", linestyle="--", linewidth=1, label="spatial error")
-        if y.startswith("temporal"):
-            ax.axhline(0.1 * floor, color="0.4", linestyle=":", linewidth=1, label="sufficient accuracy (10 %)")
-        ax.set_yscale("log")
-        ax.legend(fontsize=8)
-    unstable = [(r["stepper"], float(r[x])) for r in rows if not r.get("stable", True) and float(r[x]) > 0]
-    if unstable:  # crosses along the top edge, coloured as their stepper's line
-        colours = {line.get_label(): line.get_color() for line in ax.get_lines()}
-        top = ax.get_xaxis_transform()
-        for st, xv in unstable:
-            ax.plot([xv], [0.97], marker="x", color=colours.get(st, "k"), transform=top, clip_on=False)
-        ax.plot([], [], "kx", label="unstable (at its x)")
-        ax.legend(fontsize=8)
-    xs = {v for _, xv, _ in lines for v in xv if math.isfinite(v) and v > 0} | {xv for _, xv in unstable}
-    if len(xs) == 1:  # one Δt (or cost) only: a factor of 2 either side, not matplotlib's zero-width log axis
-        (x0,) = xs
-        ax.set_xlim(x0 / 2, x0 * 2)
-    if not drawn:
-        ax.text(0.5, 0.5, "no stable run", ha="center", va="center", transform=ax.transAxes)
-    return _save(fig, path)
-
-
 def plot_series(ds, path=None):
     """Invariants' |relative change| and the error norms in the file against model day,
     two panels; written to the PNG ``path`` (1200 × 500 pixels) unless None.
     Returns the ``matplotlib.figure.Figure`` (Agg canvas, no pyplot)."""
     days = days_of(ds)
-    fig = _figure(SERIES_FIGSIZE)
+    fig = new_figure(SERIES_FIGSIZE)
     left, right = fig.subplots(1, 2, sharex=True)  # the run's span in both, however few points each has
     inv = [(k.replace("_change", ""), days, np.abs(ds[k].values)) for k in INVARIANTS if k in ds.variables]
-    if not _lines(left, inv, logy=True, xlabel="day", ylabel="|relative change since t = 0|", title="invariants"):
+    if not draw_lines(left, inv, logy=True, xlabel="day", ylabel="|relative change since t = 0|", title="invariants"):
         left.text(
             0.5,
             0.5,
@@ -441,7 +284,7 @@ def plot_series(ds, path=None):
         if against == "exact solution"
         else f"error norms (ref_: against {against})"
     )
-    if not _lines(right, norms, logy=True, xlabel="day", ylabel="normalized error", title=title):
+    if not draw_lines(right, norms, logy=True, xlabel="day", ylabel="normalized error", title=title):
         right.text(
             0.5,
             0.5,
@@ -454,7 +297,7 @@ def plot_series(ds, path=None):
         left.set_xlim(days[0], days[-1])
     fig.suptitle(_scene_label(ds), fontsize=12)
     if path is not None:
-        _save(fig, path)
+        save_png(fig, path)
     return fig
 
 
@@ -583,7 +426,7 @@ def plot_run(
         ]
         series = outdir / f"{Path(run_path).stem}_series.png"
         series_fig = plot_series(ds)
-        same = series.is_file() and not series.is_symlink() and series.read_bytes() == _png(series_fig)
+        same = series.is_file() and not series.is_symlink() and series.read_bytes() == png_bytes(series_fig)
         pngs = [path for *_, path in maps] + [series]
         check_distinct(pngs, [run_path, diff_path])
         if outdir.is_dir():  # a folder still to be made holds none
@@ -592,7 +435,7 @@ def plot_run(
         outdir.mkdir(parents=True, exist_ok=True)
         written = [plot_map(ds, field, day, path, diff, lat_range)["path"] for field, day, path in maps]
         if not same:
-            _save(series_fig, series)
+            save_png(series_fig, series)
         return written + [series]
     finally:
         ds.close()
@@ -606,7 +449,7 @@ def plot_spectrum(spectrum: xr.Dataset, path=None, title: str = ""):
     (E solid, E_rot dashed, E_div dotted; down to 1e-14 of the largest) of ``analysis.kinetic_energy_spectrum``'s
     Dataset; written to the PNG ``path`` (800 × 500 pixels) unless None.
     Returns the ``matplotlib.figure.Figure`` (Agg canvas, no pyplot)."""
-    fig = _figure((8.0, 5.0))
+    fig = new_figure((8.0, 5.0))
     ax = fig.add_subplot()
     l, top = spectrum["l"].values, float(spectrum["E"].max())
     for it, day in enumerate(spectrum["time"].values):
@@ -623,7 +466,7 @@ def plot_spectrum(spectrum: xr.Dataset, path=None, title: str = ""):
     ax.grid(True, which="major", alpha=0.3)
     ax.legend(fontsize=8)
     if path is not None:
-        _save(fig, path)
+        save_png(fig, path)
     return fig
 
 
@@ -632,7 +475,7 @@ def plot_zonal_mean(mean: xr.DataArray, path=None, lat_range=None, title: str = 
     output time, over ``lat_range`` (south, north degrees; default the globe);
     written to the PNG ``path`` (800 × 500 pixels) unless None. Returns the
     ``matplotlib.figure.Figure``."""
-    fig = _figure((8.0, 5.0))
+    fig = new_figure((8.0, 5.0))
     ax = fig.add_subplot()
     field = str(mean.name).removesuffix("_zonal_mean")
     long_name, units, scale = MAP_FIELDS[field][:3]
@@ -640,7 +483,7 @@ def plot_zonal_mean(mean: xr.DataArray, path=None, lat_range=None, title: str = 
         (f"day {day:g}", mean["lat"].values, mean.isel(time=it).values * scale)
         for it, day in enumerate(mean["time"].values)
     ]
-    _lines(
+    draw_lines(
         ax,
         lines,
         markers=False,
@@ -650,7 +493,7 @@ def plot_zonal_mean(mean: xr.DataArray, path=None, lat_range=None, title: str = 
     )
     ax.set_xlim(*(check_lat_range(lat_range) if lat_range is not None else (-90, 90)))
     if path is not None:
-        _save(fig, path)
+        save_png(fig, path)
     return fig
 
 

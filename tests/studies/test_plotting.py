@@ -14,7 +14,7 @@ import xarray as xr
 from swe_sphere import cli
 from swe_sphere.cases.reference import find_reference
 from swe_sphere.cli import main
-from swe_sphere.studies import analysis, plotting
+from swe_sphere.studies import analysis, figures, plotting
 
 from helpers import EIGHTH_DAY, TINY, cli_main, cli_one_line, png_size
 
@@ -199,10 +199,10 @@ def test_remapped_file_can_be_plotted_by_xarray_users(run_file, tmp_path):
     with xr.open_dataset(out, decode_times=False) as r:
         field = r.h_surface.isel(time=-1)
         assert field.dims == ("lat", "lon") and field.shape == (91, 180)
-        fig = plotting._figure((6, 3))
+        fig = figures.new_figure((6, 3))
         ax = fig.add_subplot()
         field.plot(ax=ax)
-        plotting._save(fig, tmp_path / "xr.png")
+        figures.save_png(fig, tmp_path / "xr.png")
     assert png_size(tmp_path / "xr.png") == (600, 300)
 
 
@@ -265,7 +265,7 @@ def shown_labels(ax, axis="x") -> list[str]:
 )
 def test_a_log_axis_is_labelled_in_plain_numbers_that_never_crowd(low, high, labels):
     """A Δt/Δt_g axis from 0.6 to 8 had one label (10⁰) and minor ones written into each other."""
-    fig = plotting._figure((3.2, 3.2))
+    fig = figures.new_figure((3.2, 3.2))
     ax = fig.add_subplot()
     ax.plot([low, high], [1.0, 2.0])
     ax.set_xscale("log")

@@ -1,0 +1,13 @@
+"""Step-size efficiency sweeps: error against Δt against cost, per stepper, and which stepper
+reaches an accuracy cheapest. ``plan`` checks the options of `swe-sphere sweep` and ``Plan.run``
+runs them (``plan``); ``Sweep`` makes the runs (``runs``), each kept with its key and reused
+where made with the same settings (``store``); the verdicts judge them against "sufficient
+accuracy", temporal error ≤ 10 % of the spatial error (Evans, Taylor & Drake 2010;
+``verdicts``); the summary and files are ``report``'s."""
+
+from .plan import Plan, ResolvedPlan, plan
+from .report import OUTPUTS
+from .runs import Sweep, explicit_limits, start_state
+from .verdicts import CRITERIA
+
+__all__ = ["CRITERIA", "OUTPUTS", "Plan", "ResolvedPlan", "Sweep", "explicit_limits", "plan", "start_state"]

@@ -1,0 +1,392 @@
+"""The plan of a sweep: ``plan(scene, ...)`` checks the options of `swe-sphere sweep` and turns
+a scene into a ``Plan`` (the steppers' scenes, Δt values or multiples of the gravity-wave
+limit, the time filter); ``Plan.resolve`` gives the Δt values and notes on a device
+(``ResolvedPlan``), and ``Plan.run`` is what the command runs: the runs (``runs.Sweep``), the
+summary and the files (``report``)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ...config.scene import Scene, load_scene
+from ...core.backend import pick_device
+from ...core.constants import DAY
+from ...io.run_file import check_results, folder_lock
+from ...simulation import checkpoint
+from ...steppers.timefilter import TimeFilter
+from .report import OUTPUTS, format_summary, write_outputs
+from .runs import Sweep, dt_for_day, explicit_limits, start_state
+from .verdicts import table
+
+# The reference RK4 run's Δt is at most this multiple of the gravity-wave limit, also
+# when every swept Δt is large: RK4 is stable to ≈ 1.7 and its time error there is nil
+REFERENCE_MAX_GRAVITY_COURANT = 0.25
+# best of the solver families (IMEX, Crank-Nicolson JFNK): a default sweep answers its question
+DEFAULT_STEPPERS = ("rk4", "kgu35", "imex", "implicit")
+DEFAULT_COURANT = (0.5, 1, 2, 5, 10, 30, 60, 100)  # multiples of the gravity-wave limit
+
+
+def _positive(values, flag: str) -> tuple[float, ...]:
+    """``values`` as a tuple of floats; ValueError (naming ``flag``) for none, or one not finite and > 0."""
+    values = tuple(float(v) for v in values)
+    if not values or not all(math.isfinite(v) and v > 0 for v in values):
+        raise ValueError(f"{flag} values must be > 0 (got {', '.join(f'{v:g}' for v in values) or 'none'})")
+    return values
+
+
+def _check_divides(dt: float, days: float, what: str) -> None:
+    """ValueError unless ``dt`` (s) is a whole number of steps in ``days``."""
+    if abs(round(days * DAY / dt) * dt - days * DAY) > 1e-6 * dt:
+        raise ValueError(f"dt = {dt:g} s does not divide {what}")
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A sweep as asked for (``plan``): its scenes and steps, before the start state
+    and the explicit limits that turn multiples of the gravity-wave limit into Δt.
+
+    Attributes
+    ----------
+    scenes : dict[str, Scene]
+        Stepper name → its resolved scene; one case and grid.
+    dts : tuple[float, ...] or None
+        The Δt values (s) given; None where they come from ``multiples``.
+    multiples : tuple[float, ...] or None
+        Multiples of the gravity-wave limit (Courant number 1) to sweep.
+    runs : tuple[tuple[str, float], ...] or None
+        Only these (stepper, multiple) runs; None: every stepper × every Δt.
+    time_filter : TimeFilter or None
+        The Lanczos low-pass the runs are also scored by.
+    overrides : dict
+        The ``section.key`` settings applied to every scene, for the record.
+    restart : Path or None
+        The restart file every run branches from, as given.
+    checkpoint : Checkpoint or None
+        Its contents (``checkpoint.read``).
+    """
+
+    scenes: dict
+    dts: tuple | None
+    multiples: tuple | None
+    runs: tuple | None
+    time_filter: TimeFilter | None
+    overrides: dict
+    restart: Path | None
+    checkpoint: object | None
+
+    @property
+    def base(self) -> Scene:
+        """The first stepper's scene: the case, grid and days every run shares."""
+        return next(iter(self.scenes.values()))
+
+    @property
+    def default_output(self) -> Path:
+        """The results' folder when none is given, in the working folder:
+        ``sweep_<scene>_<grid>np<np>_<days>d`` (``<grid>``: ``Scene.grid_label``), with
+        ``_from<restart file stem>`` for a branch, so that a page's sweeps of other
+        cases, grids or lengths do not meet in one folder, and a rerun finds its runs."""
+        b = self.base
+        name = f"sweep_{b.name}_{b.grid_label}np{b.np}_{b.days:g}d"
+        if self.restart is not None:
+            name += f"_from{Path(self.restart).name.removesuffix('.nc').removesuffix('.restart')}"
+        return Path(name)
+
+    @property
+    def span(self) -> float:
+        """What every Δt must divide (days): the run length, or the filter's snapshot interval."""
+        return self.base.run_days if self.time_filter is None else self.time_filter.every_hours / 24
+
+    def resolve(self, directory, device: str | None = None, log=print) -> ResolvedPlan:
+        """The runs to make: the start state (the restart file's, or ``start_state``:
+        a digital-filter start made once under ``directory/runs``, ``log``ged), the
+        explicit limits on ``device`` ("cpu" or "cuda"; None: CUDA when present,
+        ``pick_device``; ``explicit_limits``), each multiple's Δt (the
+        largest at or below it that divides ``span`` and a day: ``dt_for_day``) and
+        the notes `swe-sphere sweep` prints before its runs. Raises ValueError for a
+        Δt that does not divide the run length."""
+        base, ck, f, span = self.base, self.checkpoint, self.time_filter, self.span
+        device = pick_device(device)
+        start = ck.x if ck is not None else start_state(base, directory, device, log)
+        limits = explicit_limits(base, device, start)
+        dts, pairs, notes = self.dts, self.runs, []
+        if dts is None:
+            g = limits["dt_gravity"]
+            dt_of = {m: dt_for_day(m * g, span) for m in self.multiples}
+            dts = tuple(sorted(set(dt_of.values())))
+            asked = {m: "/".join(f"{s}@{m:g}" for s, k in pairs if k == m) if pairs else f"{m:g}" for m in dt_of}
+            pairs = tuple((s, dt_of[m]) for s, m in pairs) if pairs else None
+            capped = [m for m in dt_of if f is not None and m * g > span * DAY * (1 + 1e-9)]
+            if capped:  # Δt must divide the filter's snapshot interval
+                notes.append(
+                    f"note        --courant {','.join(f'{m:g}' for m in capped)}: dt capped at the filter's "
+                    f"{f.every_hours:g} h snapshot interval ({span * DAY / g:.3g} x the "
+                    "gravity-wave limit); --filter-every sets it"
+                )
+            rounded = [
+                f"{asked[m]} runs at {dt_of[m] / g:.3g}"
+                for m in dt_of
+                if m not in capped and dt_of[m] < m * g * (1 - 1e-3)
+            ]
+            if rounded:  # the multiple that ran, not the one asked for
+                notes.append(
+                    f"note        {'--runs' if pairs else '--courant'} {', '.join(rounded)} x the gravity-wave limit "
+                    f"(each dt the largest at or below its multiple that divides {min(span, 1.0):g} days)"
+                )
+            for dt in dts:
+                _check_divides(dt, base.run_days, f"the run length of {base.run_days:g} days")
+        notes.append(
+            f"sweep {base.name} {base.grid_text}, {f'day {base.start_day:g} to ' if ck else ''}"
+            f"{base.days:g} days; explicit limits: gravity-wave dt = {limits['dt_gravity']:.1f} s, advective dt = "
+            f"{limits['dt_advective']:.1f} s; dt = {', '.join(f'{d:.4g}' for d in dts)}"
+        )
+        if ck is not None:
+            b = base.branch
+            notes.append(
+                f"start       the state of {self.restart} at day {b['day']:g} (step {b['step']} of {b['stepper']}, "
+                f"dt = {b['dt']:g} s), for every run and the reference run; each stepper starts there afresh"
+            )
+        elif start is not None:
+            notes.append(
+                f"start       digital-filter initialization (cutoff {base.digital_filter.cutoff_hours:g} h, span "
+                f"{base.digital_filter.span_hours:g} h), the same state for every run; the spectral reference starts "
+                "impulsively, so the spatial error (and the verdicts' thresholds) include the gravity waves it keeps"
+            )
+        return ResolvedPlan(self, Path(directory), device, list(dts), pairs, start, limits, notes)
+
+    def run(
+        self, directory, device: str | None = None, *, pool=None, cost: str = "cpu", overwrite: bool = False, log=print
+    ):
+        """What `swe-sphere sweep` runs: under a lock on ``directory`` (``folder_lock``;
+        an earlier sweep's results refused unless ``overwrite``), ``resolve`` and ``log``
+        its notes, make or reuse every run (``Sweep.run`` on ``pool``), ``log`` the
+        summary (``format_summary``) and write ``OUTPUTS`` (``write_outputs``).
+
+        Parameters
+        ----------
+        directory : str or path
+            The results' folder (created), its runs kept under ``runs/`` and reused
+            where made with the same settings.
+        device : {"cpu", "cuda"}, optional
+            Warp device (default: CUDA when present).
+        pool : concurrent.futures.Executor, optional
+            Runs the runs (``core.workers.executor``); None: one after another, here.
+        cost : {"cpu", "wall"}
+            The clock the runs are ranked by (``table``).
+        overwrite : bool
+            Replace an earlier sweep's results in ``directory``.
+        log : callable
+            Called with each line to show.
+
+        Returns
+        -------
+        rows : list[dict]
+            ``table``'s rows, ranked by ``cost`` ("cpu" or "wall").
+        info : dict
+            ``Sweep.run``'s summary: the spatial errors, the reference, the record.
+        paths : list[Path]
+            The files written.
+
+        Raises
+        ------
+        OutputError
+            Another sweep holds ``directory``, or its results exist (without ``overwrite``).
+        ValueError
+            A Δt that does not divide the run length; an unknown ``cost``.
+        BlowUp
+            The small-Δt reference run failed.
+        Interrupted
+            SIGINT or SIGTERM; what is kept is said.
+        """
+        with folder_lock(directory, "sweep.lock"):  # a second sweep into this folder is refused now, not at its end
+            check_results(directory, OUTPUTS, overwrite)  # an earlier sweep's results: refused now, not at the end
+            resolved = self.resolve(directory, device, log)
+            for line in resolved.notes:
+                log(line)
+            rows, info = resolved.sweep(log).run(pool)
+            rows = table(rows, resolved.limits, cost)
+            log(format_summary(rows, info))
+            paths = write_outputs(rows, info, resolved.limits, directory, overwrite=overwrite)
+            for path in paths:
+                log(f"wrote {path}")
+        return rows, info, paths
+
+
+@dataclass(frozen=True)
+class ResolvedPlan:
+    """A ``Plan`` resolved on a device (``Plan.resolve``): the Δt values (s, ascending),
+    the (stepper, Δt) runs (None: every stepper × every Δt), the start state (3, nnodes)
+    or None, the explicit limits (``explicit_limits``) and the notes (lines of text)."""
+
+    plan: Plan
+    directory: Path
+    device: str
+    dts: list
+    pairs: tuple | None
+    start: np.ndarray | None
+    limits: dict
+    notes: list
+
+    def sweep(self, log=print) -> Sweep:
+        """The ``Sweep`` of these runs, its small-Δt reference at most
+        ``REFERENCE_MAX_GRAVITY_COURANT`` × the gravity-wave limit."""
+        p = self.plan
+        return Sweep(
+            p.scenes,
+            self.dts,
+            self.directory,
+            self.device,
+            log=log,
+            time_filter=p.time_filter,
+            start=self.start,
+            pairs=None if self.pairs is None else list(self.pairs),
+            overrides=p.overrides,
+            reference_dt_max=REFERENCE_MAX_GRAVITY_COURANT * self.limits["dt_gravity"],
+        )
+
+
+def plan(
+    scene=None,
+    *,
+    steppers=None,
+    dts=None,
+    courant=None,
+    runs=None,
+    ne: int | None = None,
+    np_: int | None = None,
+    days: float | None = None,
+    overrides: dict | None = None,
+    restart=None,
+    filter_days: float | None = None,
+    filter_every: float = 3.0,
+    filter_window: float | None = None,
+) -> Plan:
+    """The sweep `swe-sphere sweep` would run with these options, validated; no run
+    is made and no file written (``Plan.run`` makes them).
+
+    Parameters
+    ----------
+    scene : str or path, optional
+        Scene file or bundled scene name (``load_scene``); none with ``restart``.
+    steppers : sequence of str, optional
+        Stepper names (default ``DEFAULT_STEPPERS``); none with ``runs``.
+    dts : sequence of float, optional
+        Time steps (s).
+    courant : sequence of float, optional
+        Multiples of the gravity-wave limit (default ``DEFAULT_COURANT``).
+    runs : sequence of (str, float), optional
+        Only these (stepper, multiple of the gravity-wave limit) runs. At most one
+        of ``dts``, ``courant`` and ``runs``.
+    ne, np_ : int, optional
+        Elements along a cube edge and GLL points per element direction (default: the scene's).
+    days : float, optional
+        The last model day (default: the scene's, or the restart file's).
+    overrides : dict, optional
+        ``{"section.key": value}`` applied to every scene (``-s``).
+    restart : str or path, optional
+        A restart file: every run branches from its state, scene and grid (``--from``).
+    filter_days, filter_every, filter_window : float, optional
+        Also score the time-filtered flow (``TimeFilter``: cutoff period in days,
+        snapshot interval in hours, half window in days); every Δt then divides
+        the snapshot interval, and the run length is a multiple of it.
+
+    Returns
+    -------
+    Plan
+
+    Raises
+    ------
+    ValueError
+        Options that conflict, none or non-positive values, a Δt that does not
+        divide the run length or the filter's snapshot interval, a bad filter
+        (messages name the options as `swe-sphere sweep` spells them).
+    SceneError
+        A bad scene, override or stepper (``load_scene``).
+    CheckpointError
+        An unreadable restart file, or a branch it cannot make.
+
+    Examples
+    --------
+    >>> p = plan("tc2_steady", ne=2, days=1, runs=[("rk4", 1), ("imex", 4)])  # doctest: +SKIP
+    >>> rows, info, paths = p.run("sweep", "cpu")  # doctest: +SKIP
+    """
+    runs, steppers = _runs(runs, steppers, dts, courant)
+    overrides = dict(overrides or {})
+    scenes, ck = _scenes(scene, steppers, ne=ne, np_=np_, days=days, overrides=overrides, restart=restart)
+    dts, multiples = _steps(dts, courant, runs)
+    time_filter = _time_filter(next(iter(scenes.values())).run_days, dts, filter_days, filter_every, filter_window)
+    return Plan(scenes, dts, multiples, runs, time_filter, overrides, None if ck is None else Path(restart), ck)
+
+
+def _runs(runs, steppers, dts, courant) -> tuple[tuple | None, list | None]:
+    """``plan``'s (stepper, multiple) runs, checked (None: none given), and the steppers
+    (``runs``'s, where given). Raises ValueError for ``runs`` with ``steppers``, more
+    than one of ``dts``, ``courant`` and ``runs``, or a multiple not > 0."""
+    if runs is not None and steppers is not None:
+        raise ValueError("--runs names its own steppers: give --steppers or --runs, not both")
+    if sum(x is not None for x in (dts, courant, runs)) > 1:
+        raise ValueError("give one of --dt, --courant and --runs")
+    if runs is not None:
+        runs = tuple((s, m) for (s, _), m in zip(runs, _positive([m for _, m in runs], "--runs")))
+        steppers = list(dict.fromkeys(s for s, _ in runs))
+    return runs, steppers
+
+
+def _steps(dts, courant, runs) -> tuple[tuple | None, tuple | None]:
+    """``plan``'s Δt values (s; None: from multiples) and multiples of the gravity-wave
+    limit (None: Δt values given; ``runs``'s, or ``courant``, or ``DEFAULT_COURANT``).
+    Raises ValueError for a value not > 0."""
+    dts = None if dts is None else _positive(dts, "--dt")
+    multiples = None
+    if dts is None:
+        multiples = (
+            tuple(sorted({m for _, m in runs}))
+            if runs
+            else _positive(DEFAULT_COURANT if courant is None else courant, "--courant")
+        )
+    return dts, multiples
+
+
+def _scenes(scene, steppers, *, ne, np_, days, overrides, restart) -> tuple[dict, object | None]:
+    """``plan``'s scenes (stepper name → its resolved scene; ``DEFAULT_STEPPERS`` for
+    ``steppers`` None) and the restart file's contents (``checkpoint.read``; None
+    without ``restart``). Raises ValueError for no stepper, a scene with ``restart``
+    or neither."""
+    steppers = list(DEFAULT_STEPPERS if steppers is None else steppers)
+    if not steppers:
+        raise ValueError("--steppers names no stepper")
+    if restart is None and scene is None:
+        raise ValueError("sweep needs a SCENE (or --from RESTART.nc)")
+    if restart is None:
+        return {s: load_scene(scene, ne=ne, np_=np_, days=days, stepper=s, overrides=overrides) for s in steppers}, None
+    # every run a branch from the restart file's state (``checkpoint.branch``)
+    for flag, given in (("SCENE", scene), ("--ne", ne), ("--np", np_), ("-s", overrides)):
+        if given:
+            raise ValueError(f"--from takes the scene and grid from the restart file: give --from or {flag}, not both")
+    ck = checkpoint.read(restart)
+    return {s: checkpoint.branch(ck, stepper=s, days=days) for s in steppers}, ck
+
+
+def _time_filter(length: float, dts, filter_days, filter_every, filter_window) -> TimeFilter | None:
+    """``plan``'s time filter (None without ``filter_days``), checked against the run's
+    ``length`` (days), and the Δt values ``dts`` (s; None: multiples) checked against
+    the filter's snapshot interval and ``length``: ValueError where one does not divide."""
+    time_filter = None
+    if filter_days is not None:
+        time_filter = TimeFilter(filter_days, filter_every, filter_window)
+        time_filter.days(length)  # the window must start within the run
+        every = time_filter.every_hours / 24
+        if abs(length / every - round(length / every)) > 1e-9:
+            raise ValueError(
+                f"the run length of {length:g} days is not a multiple of the filter's {time_filter.every_hours:g} h snapshots"
+            )
+    for dt in dts if time_filter is not None and dts else ():
+        _check_divides(
+            dt, time_filter.every_hours / 24, f"the filter's snapshot interval of {time_filter.every_hours:g} h"
+        )
+    for dt in dts or ():
+        _check_divides(dt, length, f"the run length of {length:g} days")
+    return time_filter

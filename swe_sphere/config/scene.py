@@ -690,8 +690,10 @@ def read_scene(path: Path, overrides: dict) -> tuple[dict, float | None, str | N
         raw = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as err:
         raise SceneError(f"malformed TOML in {path}: {err}") from None
-    except OSError as err:
-        raise SceneError(f"cannot read scene {path}: {err.strerror}") from None
+    except UnicodeDecodeError as err:  # TOML is UTF-8 text
+        raise SceneError(f"scene {path} is not a text (UTF-8) file: byte {err.start} cannot be read") from None
+    except OSError as err:  # IsADirectoryError's strerror: "Is a directory"
+        raise SceneError(f"cannot read scene {path}: {err.strerror.lower()}") from None
     table = raw.get("planet", {})
     file_radius = table.get("radius", EARTH.a) if isinstance(table, dict) and "time.dt" not in overrides else None
     file_case = raw.get("case", {}).get("name") if isinstance(raw.get("case"), dict) else None
@@ -874,7 +876,7 @@ def resolve_stepper_days(table: dict, stepper=None, days=None) -> tuple[str, flo
     """(stepper, days) of the [time] table and ``load_scene``'s ``stepper`` and ``days`` (defaults
     ssprk3 and 1 day). Raises ``SceneError``: an unknown stepper, days not a number > 0."""
     name = stepper or table.get("stepper", "ssprk3")
-    if name not in STEPPERS:
+    if not isinstance(name, str) or name not in STEPPERS:
         raise SceneError(f"unknown stepper {name!r} (known: {', '.join(STEPPERS)})")
     days = table.get("days", 1.0) if days is None else days
     if not (_is_number(days) and math.isfinite(days) and days > 0):

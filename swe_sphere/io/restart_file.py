@@ -161,6 +161,8 @@ def read(path) -> dict:
     "step", "x" (3, N), "stepper_state", "counters", "initial", "version", "path"
     (absolute), "sha256" (of the file's bytes)}. Raises ``CheckpointError`` (one line)."""
     path = Path(path)
+    if path.is_dir():
+        raise CheckpointError(f"checkpoint {path} is a directory, not a restart file")
     if not path.is_file():
         raise CheckpointError(f"checkpoint not found: {path}")
     with open(path, "rb") as f:

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 from ..config.scene import Scene
 from ..core.constants import DAY
+from ..core.errors import SceneError
 
 
 def is_interval(days) -> bool:
@@ -23,10 +24,10 @@ def whole_steps(scene: Scene, days) -> bool:
 
 
 def steps_of(scene: Scene, days: float, what: str, dt_source: str = "") -> int:
-    """The whole number of steps in ``days``; ValueError naming ``what`` (and where dt comes
-    from, ``dt_source``, e.g. ", the dt given") unless dt divides it."""
+    """The whole number of steps in ``days``; ``SceneError`` (a ValueError) naming ``what`` (and
+    where dt comes from, ``dt_source``, e.g. ", the dt given") unless dt divides it."""
     if not whole_steps(scene, days):
-        raise ValueError(
+        raise SceneError(
             f"{what} must be a positive multiple of dt = {scene.dt:g} s = {scene.dt / DAY:.6g} days{dt_source} "
             f"(got {days!r} days)"
         )

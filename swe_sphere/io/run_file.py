@@ -13,6 +13,8 @@ import contextlib
 import fcntl
 import json
 import os
+import shlex
+import sys
 import threading
 import time
 from pathlib import Path
@@ -147,6 +149,15 @@ def history_line(what: str) -> str:
     """One line of a file's CF ``history`` attribute: the UTC time, ``what`` made the
     file, and the package version (CF: the newest line first, one line an operation)."""
     return f"{time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime())}: {what} (swe_sphere {package_version()})"
+
+
+def command_line(default: str) -> str:
+    """What made a file, for its ``history``: the command line when this process is the
+    ``swe-sphere`` console script (as a run file records it), else ``default`` (a Python
+    call, whose ``sys.argv`` is not the command's)."""
+    if Path(sys.argv[0]).name != "swe-sphere":
+        return default
+    return shlex.join(["swe-sphere", *sys.argv[1:]])
 
 
 def check_target(path: Path, overwrite: bool = False) -> None:

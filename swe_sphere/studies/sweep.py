@@ -61,7 +61,7 @@ from ..core.errors import BlowUp, Interrupted, OutputError
 from ..core.runtime import package_version
 from ..core.workers import InProcess
 from ..grid.quality import REGIONS
-from ..io.run_file import atomic_path, check_results, folder_lock, history_line
+from ..io.run_file import atomic_path, check_results, command_line, folder_lock, history_line
 from ..io.table_file import table_dataset, write_table_file
 from ..model.diagnostics import max_signal_rate
 from ..simulation import checkpoint
@@ -952,7 +952,7 @@ def sweep_dataset(df, attrs: dict):
         COLUMN_ATTRS,
         row_long_name="run of the sweep (row of sweep.csv)",
         title=f"swe_sphere sweep: {attrs['case']} ne{attrs['ne']} np{attrs['np']}, {attrs['days']:g} days",
-        history=history_line("swe_sphere sweep"),
+        history=history_line(command_line("swe_sphere sweep")),
         attrs=attrs,
     )
 

@@ -34,7 +34,7 @@ from ..core.runtime import check_memory
 from ..grid import spec as grid_spec
 from ..grid.cubed_sphere import FACES, CubedSphere
 from ..grid.element_local import locate as locate_on_mesh
-from .run_file import atomic_path, check_distinct, history_line
+from .run_file import atomic_path, check_distinct, element_mesh, history_line
 
 #: node fields (time, ncol) or (ncol,) that ``remap_dataset`` carries to the lat-lon grid
 NODE_FIELDS = ("h", "hs", "u", "v", "vorticity", "divergence")
@@ -151,8 +151,10 @@ def open_netcdf(path) -> xr.Dataset:
 def run_grid(ds: xr.Dataset) -> CubedSphere:
     """The grid of a run file (from its ``scene`` attribute, else ``ne``/``np``; on the
     mesh the scene records, ``grid.spec``), checked against the file's ``lat``/``lon``.
-    Raises ``SceneError`` (a ValueError; one line) if the file is not a swe_sphere run, its
-    nodes do not match, or its mesh file is gone or changed."""
+    Where the mesh file is gone, the elements' mesh the run file carries
+    (``run_file.element_mesh``). Raises ``SceneError`` (a ValueError; one line) if the file is
+    not a swe_sphere run, its nodes do not match, or its mesh file is changed (or gone from a
+    run file that carries no mesh)."""
     if "ncol" not in ds.dims or any(name not in ds.variables for name in ("lat", "lon", "area")):
         raise SceneError("not a swe_sphere run file (no ncol/lat/lon/area)")
     try:
@@ -163,7 +165,13 @@ def run_grid(ds: xr.Dataset) -> CubedSphere:
             ne, np_, mesh = int(ds.attrs["ne"]), int(ds.attrs["np"]), None
         except (KeyError, ValueError, TypeError):
             raise SceneError("run file has no scene (ne, np) attribute") from None
-    grid = cached_grid(ne, np_, mesh)
+    if mesh is not None and "file" in mesh and not Path(mesh["file"]).is_file():
+        try:  # the file moved or sent on: the elements' mesh the run file carries
+            grid = CubedSphere(ne, np_, mesh=element_mesh(ds, mesh))
+        except KeyError:
+            raise SceneError(f"mesh file {mesh['file']} not found, and the run file carries no mesh") from None
+    else:
+        grid = cached_grid(ne, np_, mesh)
     if ds.sizes["ncol"] != grid.nunique:
         raise SceneError(
             f"run file has {ds.sizes['ncol']} columns, {grid_spec.describe(ne, np_, mesh)} has {grid.nunique}"

@@ -25,6 +25,7 @@ import numpy as np
 from ..core.errors import OutputError
 from ..core.runtime import package_version
 from ..grid.cubed_sphere import CubedSphere
+from ..grid.mesh import Mesh, check
 from .dual import MESH as DUAL_MESH
 from .dual import write_dual_mesh
 from .ugrid import MESH as SUBCELL_MESH
@@ -434,6 +435,8 @@ class RunWriter:
         else:
             ds.cells = NO_CELLS
         write_mesh(ds, grid)
+        if grid.mesh is not None:
+            write_element_mesh(ds, grid.mesh)
         for name in self.fields:
             fill = dict(fill_value=np.nan) if name in ("vorticity", "divergence") else {}  # NaN where a writer got none
             var = ds.createVariable(name, "f4" if compress else "f8", ("time", "ncol"), zlib=compress, **fill)
@@ -481,6 +484,43 @@ class RunWriter:
                     self.ds.close()
             finally:
                 self.file.discard()
+
+
+ELEMENT_NODES, ELEMENT_CORNERS = "element_mesh_node_xyz", "element_mesh_corners"
+
+
+def write_element_mesh(ds, mesh: Mesh) -> None:
+    """The elements' mesh (its nodes and corners, a few kB) into the run file ``ds``, so that
+    ``remap`` and ``plot`` rebuild the grid where the mesh file is not (``element_mesh``)."""
+    ds.createDimension("element_mesh_node", mesh.nnodes)
+    ds.createDimension("element_mesh_elem", mesh.nelem)
+    ds.createDimension("xyz", 3)
+    ds.createDimension("corner", 4)
+    xyz = ds.createVariable(ELEMENT_NODES, "f8", ("element_mesh_node", "xyz"))
+    xyz.setncatts(dict(long_name=f"nodes of the elements' mesh {mesh.name} (unit vectors)", units="1"))
+    xyz[:] = mesh.coords
+    corners = ds.createVariable(ELEMENT_CORNERS, "i4", ("element_mesh_elem", "corner"))
+    corners.setncatts(
+        dict(
+            long_name="each element's corner nodes (0-based rows of element_mesh_node_xyz), counter-clockwise",
+            units="1",
+        )
+    )
+    corners[:] = mesh.quads
+
+
+def element_mesh(ds, record: dict) -> Mesh:
+    """The elements' ``Mesh`` a run file carries (``write_element_mesh``; an ``xarray`` or
+    netCDF4 dataset), named and mapped as the run's mesh record ``record`` (``grid.spec``).
+    Raises ``KeyError`` where the file carries none (written before it did)."""
+    return check(
+        Mesh(
+            np.asarray(ds[ELEMENT_NODES][:], dtype=np.float64),
+            np.asarray(ds[ELEMENT_CORNERS][:], dtype=np.int64),
+            Path(record["file"]).name,
+            record["map"],
+        )
+    )
 
 
 def node_dataset(grid: CubedSphere, hs: np.ndarray, day: float, fields: dict, attrs: dict):

@@ -6,6 +6,7 @@ import tempfile
 from pathlib import Path
 
 from .core.backend import pick_device
+from .core.errors import OutputError
 from .simulation.simulation import Simulation
 
 
@@ -68,9 +69,10 @@ def run(
     Raises
     ------
     SceneError
-        A bad scene or override (a ValueError; the message names the value).
+        A bad scene, override, ``device`` or ``initial`` (a ValueError; the message names
+        the value).
     OutputError
-        ``output_file`` exists (without ``overwrite``) or is an input.
+        ``output_file`` exists (without ``overwrite``), is an input or a directory.
     BlowUp
         The state became non-finite or the depth non-positive; the result is on the
         exception, the file keeps every good output.
@@ -84,6 +86,8 @@ def run(
     import xarray as xr
     from tqdm import tqdm
 
+    if output_file is not None and (Path(output_file).name in ("", "..") or Path(output_file).is_dir()):
+        raise OutputError(f"output_file = {str(output_file)!r} is a directory: give a file name in it")
     device = pick_device(device, verbose=verbose)
     sim = Simulation(scene, device, progress=progress, initial=initial, graphs=graphs, **overrides)
     scene = sim.scene

@@ -1,5 +1,5 @@
-"""Meshes for the tests: E3SM's HOMME test meshes beside the checkout (``../shared/meshes``), where
-present (tests that need them skip without), and the project's own, built here: the cube
+"""Meshes for the tests: E3SM's HOMME test meshes, shipped in ``tests/data/meshes`` (its README names
+their source and licence), and the project's own, built here: the cube
 (``cube_mesh``) and ``icosahedral_mesh``, whose nodes are shared by 3 to 6 elements as on a refined
 mesh."""
 
@@ -20,9 +20,9 @@ from swe_sphere.steppers import make_stepper
 
 import roundoff
 
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"
-TEMPEST_NE2 = SHARED / "TEMPEST_NE2.g"  # the uniform ne2 cube, made by TempestRemap
-MOUNTAIN = SHARED / "mountain_10_x2.g"  # ne10 refined 2x over TC5's mountain (CUBIT paving)
+MESHES = Path(__file__).resolve().parent / "data" / "meshes"
+TEMPEST_NE2 = MESHES / "TEMPEST_NE2.g"  # the uniform ne2 cube, made by TempestRemap
+MOUNTAIN = MESHES / "mountain_10_x2.g"  # ne10 refined 2x over TC5's mountain (CUBIT paving)
 TC2_TERMS = ["continuity", "momentum_advection", "coriolis", "pressure_gradient"]
 TC6_TERMS = [*TC2_TERMS, "hyperviscosity"]
 

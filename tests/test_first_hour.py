@@ -250,3 +250,25 @@ def test_a_scene_that_loads_only_with_its_overrides_still_gets_a_name(capsys):
     path = write_tc2_scene(Path("nodt.toml"), dt=1800.0, days=0.25)
     path.write_text(path.read_text().replace("dt = 1800.0\n", ""))
     assert run_names(capsys, "nodt.toml -s time.dt=1800") == ["nodt_ne2np4_ssprk3_dt1800.nc"]
+
+
+FOLDER_OR_NOT_THE_FORMAT = [
+    (["run", "adir.nc"], "adir.nc: is a directory"),
+    (["run", "tc2_steady", "-s", "case.name=file", "-s", "case.path=adir.nc", "-s", "case.time=0"], "is a directory"),
+    (["run", "tc2_steady", "--continue", "adir.nc"], "checkpoint adir.nc is a directory"),
+    (["run", "tc2_steady", "--mesh", "adir.nc"], "adir.nc is a directory"),
+    (["plot", "adir.nc"], "adir.nc: is a directory"),
+    (["run", "binary.toml"], "scene binary.toml is not a text (UTF-8) file"),
+    (["run", "tc2_steady", "--mesh", "notamesh.g"], "notamesh.g is not a netCDF file"),
+]
+
+
+@pytest.mark.parametrize("args, words", FOLDER_OR_NOT_THE_FORMAT, ids=lambda a: " ".join(a)[:40])
+def test_a_folder_or_a_file_of_another_format_is_named_as_such(capsys, args, words):
+    """A folder was reported "not found"; a binary scene, a mesh that is not netCDF gave
+    Python's, numpy's or netCDF's wording (issue 65, item 4)."""
+    Path("adir.nc").mkdir()
+    Path("binary.toml").write_bytes(b"\xff\xfe[time]\n")
+    Path("notamesh.g").write_text("not netCDF")
+    cli_one_line(capsys, [*args, *TINY[4:]] if args[0] == "run" else args, 2, words)
+    assert sorted(p.name for p in Path().iterdir()) == ["adir.nc", "binary.toml", "notamesh.g"]

@@ -201,8 +201,10 @@ def read_scene(path: Path, overrides: dict) -> tuple[dict, float | None, str | N
         raw = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as err:
         raise SceneError(f"malformed TOML in {path}: {err}") from None
-    except OSError as err:
-        raise SceneError(f"cannot read scene {path}: {err.strerror}") from None
+    except UnicodeDecodeError as err:  # TOML is UTF-8 text
+        raise SceneError(f"scene {path} is not a text (UTF-8) file: byte {err.start} cannot be read") from None
+    except OSError as err:  # IsADirectoryError's strerror: "Is a directory"
+        raise SceneError(f"cannot read scene {path}: {err.strerror.lower()}") from None
     table = raw.get("planet", {})
     file_radius = table.get("radius", EARTH.a) if isinstance(table, dict) and "time.dt" not in overrides else None
     file_case = raw.get("case", {}).get("name") if isinstance(raw.get("case"), dict) else None

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import warp as wp
 
-from .errors import ResourceError
+from .errors import ResourceError, SceneError
 from .runtime import check_memory, gib, init_warp
 from .workers import cpus
 
@@ -58,15 +58,15 @@ def default_device() -> str:
 
 def pick_device(requested: str | None = None, *, verbose: bool = False) -> str:
     """The Warp device to run on: ``requested`` ("cpu", "cuda" or "cuda:N"), else CUDA
-    when present. Raises ValueError (one line) for another name, and when the CUDA
-    device asked for is absent."""
+    when present. Raises ``SceneError`` (a ValueError; one line) for another name, and when
+    the CUDA device asked for is absent."""
     if requested is not None and not re.fullmatch(r"cpu|cuda(:\d+)?", str(requested)):
-        raise ValueError(f"device must be 'cpu', 'cuda' or 'cuda:N' (got {requested!r})")
+        raise SceneError(f"device must be 'cpu', 'cuda' or 'cuda:N' (got {requested!r})")
     warp = init_warp(verbose)
     device = requested or default_device()
     ordinal = int(device.partition(":")[2] or 0)
     if device.startswith("cuda") and ordinal >= warp.get_cuda_device_count():
-        raise ValueError(f"device {device} is not available on this machine (use --device cpu)")
+        raise SceneError(f"device {device} is not available on this machine (use --device cpu)")
     return device
 
 

@@ -191,11 +191,16 @@ def read_exodus(path: str | os.PathLike) -> Mesh:
 
     path = Path(path)
     name = path.name
+    if path.is_dir():
+        raise SceneError(f"mesh file {path} is a directory, not an Exodus II file")
     if not path.is_file():
         raise SceneError(f"mesh file {path} not found")
     try:
         with open(path, "rb") as f:
-            classic = f.read(3) == b"CDF"
+            magic = f.read(8)
+        classic = magic[:3] == b"CDF"
+        if not classic and magic != b"\x89HDF\r\n\x1a\n":  # neither netCDF-3 nor netCDF-4 (HDF5)
+            raise SceneError(f"{name} is not a netCDF file: an Exodus II mesh (.g) is one")
         if classic:  # netCDF-C reads a truncated netCDF-3 file's missing bytes as zeros: scipy's reader refuses it
             scipy.io.netcdf_file(path, mmap=False).close()
         with netCDF4.Dataset(path) as f:
@@ -217,8 +222,8 @@ def read_exodus(path: str | os.PathLike) -> Mesh:
             quads = np.asarray(connect[:], dtype=np.int64) - 1
     except SceneError:
         raise
-    except (OSError, RuntimeError, IndexError, ValueError) as err:  # netCDF4's not-netCDF / truncated
-        raise SceneError(f"{name} cannot be read as an Exodus II (netCDF) mesh: {err}") from None
+    except (OSError, RuntimeError, IndexError, ValueError):  # netCDF4's, scipy's and numpy's wordings
+        raise SceneError(f"{name}: its arrays cannot be read in full (a truncated or damaged netCDF file)") from None
     return check(Mesh(np.ascontiguousarray(coords), np.ascontiguousarray(quads), name))
 
 

@@ -35,6 +35,7 @@ the run's grid.
 from __future__ import annotations
 
 import functools
+import inspect
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -96,8 +97,12 @@ def check_state(h, u, v, hs, where: str) -> None:
 def from_function(fn, lat, lon) -> np.ndarray:
     """The state (3, ...) rows u, v, h of ``fn(lat, lon) -> (h, u, v)`` at the nodes
     (lat, lon in radians). Raises ``SceneError`` for another number or shape of
-    values, non-finite values or h <= 0."""
+    values, a ``fn`` that cannot be called with (lat, lon), non-finite values or h <= 0."""
     where = f"initial={getattr(fn, '__name__', type(fn).__name__)}"
+    try:  # bound first, so that a TypeError inside fn is fn's own, not ours
+        inspect.signature(fn).bind(lat, lon)
+    except (TypeError, ValueError) as err:  # not callable, or callable but not with two arguments
+        raise SceneError(f"{where} must be a function of (lat, lon) returning (h, u, v) ({err})") from None
     out = fn(lat, lon)
     if not isinstance(out, (tuple, list)) or len(out) != 3:
         raise SceneError(

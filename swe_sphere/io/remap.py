@@ -29,11 +29,12 @@ import numpy as np
 import xarray as xr
 from scipy.sparse import csr_matrix
 
+from ..core.errors import SceneError
 from ..core.runtime import check_memory
 from ..grid import spec as grid_spec
 from ..grid.cubed_sphere import FACES, CubedSphere
 from ..grid.element_local import locate as locate_on_mesh
-from .run_file import atomic_path, check_distinct, history_line
+from .run_file import atomic_path, check_distinct, element_mesh, history_line
 
 #: node fields (time, ncol) or (ncol,) that ``remap_dataset`` carries to the lat-lon grid
 NODE_FIELDS = ("h", "hs", "u", "v", "vorticity", "divergence")
@@ -134,23 +135,28 @@ def _grid(ne: int, np_: int, mesh: str) -> CubedSphere:
 
 def open_netcdf(path) -> xr.Dataset:
     """A netCDF file opened lazily with xarray, times as numbers (``decode_times=False``).
-    Raises ``FileNotFoundError`` or ``ValueError`` (one line) for a missing or unreadable file."""
+    Raises ``SceneError`` (a ValueError; one line naming the file) for a missing file, a folder
+    or a file that netCDF cannot read."""
     path = Path(path)
+    if path.is_dir():
+        raise SceneError(f"{path}: is a directory, not a netCDF file")
     if not path.is_file():
-        raise FileNotFoundError(f"file not found: {path}")
+        raise SceneError(f"file not found: {path}")
     try:
         return xr.open_dataset(path, decode_times=False)
     except Exception:  # netCDF4 / xarray raise several types (their text: a many-line trace or the type)
-        raise ValueError(f"{path}: not a readable netCDF file") from None
+        raise SceneError(f"{path}: not a readable netCDF file") from None
 
 
 def run_grid(ds: xr.Dataset) -> CubedSphere:
     """The grid of a run file (from its ``scene`` attribute, else ``ne``/``np``; on the
     mesh the scene records, ``grid.spec``), checked against the file's ``lat``/``lon``.
-    Raises ``ValueError`` if the file is not a swe_sphere run or its nodes do not match,
-    ``config.SceneError`` (a ValueError) where its mesh file is gone or changed."""
+    Where the mesh file is gone, the elements' mesh the run file carries
+    (``run_file.element_mesh``). Raises ``SceneError`` (a ValueError; one line) if the file is
+    not a swe_sphere run, its nodes do not match, or its mesh file is changed (or gone from a
+    run file that carries no mesh)."""
     if "ncol" not in ds.dims or any(name not in ds.variables for name in ("lat", "lon", "area")):
-        raise ValueError("not a swe_sphere run file (no ncol/lat/lon/area)")
+        raise SceneError("not a swe_sphere run file (no ncol/lat/lon/area)")
     try:
         scene = json.loads(ds.attrs["scene"])
         ne, np_, mesh = int(scene["ne"]), int(scene["np"]), scene.get("mesh")
@@ -158,30 +164,38 @@ def run_grid(ds: xr.Dataset) -> CubedSphere:
         try:
             ne, np_, mesh = int(ds.attrs["ne"]), int(ds.attrs["np"]), None
         except (KeyError, ValueError, TypeError):
-            raise ValueError("run file has no scene (ne, np) attribute") from None
-    grid = cached_grid(ne, np_, mesh)
+            raise SceneError("run file has no scene (ne, np) attribute") from None
+    if mesh is not None and "file" in mesh and not Path(mesh["file"]).is_file():
+        try:  # the file moved or sent on: the elements' mesh the run file carries
+            grid = CubedSphere(ne, np_, mesh=element_mesh(ds, mesh))
+        except KeyError:
+            raise SceneError(f"mesh file {mesh['file']} not found, and the run file carries no mesh") from None
+    else:
+        grid = cached_grid(ne, np_, mesh)
     if ds.sizes["ncol"] != grid.nunique:
-        raise ValueError(
+        raise SceneError(
             f"run file has {ds.sizes['ncol']} columns, {grid_spec.describe(ne, np_, mesh)} has {grid.nunique}"
         )
     lat = np.radians(np.asarray(ds["lat"].values, dtype=np.float64))
     lon = np.radians(np.asarray(ds["lon"].values, dtype=np.float64))
     a = np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)])
     if np.max(np.abs(a - grid.xyz[:, grid.first])) > 1e-9:
-        raise ValueError(f"run file's lat/lon do not match the grid it names ({grid_spec.describe(ne, np_, mesh)})")
+        raise SceneError(f"run file's lat/lon do not match the grid it names ({grid_spec.describe(ne, np_, mesh)})")
     return grid
 
 
 def latlon_grid(resolution: float) -> tuple[np.ndarray, np.ndarray]:
     """Regular node grid (degrees): lat −90, −90+r, …, 90 (both poles) and lon 0, r, …, 360−r.
 
-    Raises ``ValueError`` unless 0 < r ≤ 90 and 180/r is an integer (to 1e-9)."""
+    Raises ``SceneError`` (a ValueError) unless 0 < r ≤ 90 and 180/r is an integer (to 1e-9)."""
+    if isinstance(resolution, bool) or not isinstance(resolution, (int, float, np.floating, np.integer)):
+        raise SceneError(f"resolution must be a number of degrees (got {resolution!r})")
     r = float(resolution)
     if not (math.isfinite(r) and 0 < r <= 90):
-        raise ValueError(f"resolution must be in (0, 90] degrees (got {resolution})")
+        raise SceneError(f"resolution must be in (0, 90] degrees (got {resolution})")
     nlat = 180.0 / r
     if abs(nlat - round(nlat)) > 1e-9 * nlat:
-        raise ValueError(f"resolution must divide 180 degrees (got {resolution})")
+        raise SceneError(f"resolution must divide 180 degrees (got {resolution})")
     nlat = int(round(nlat))
     lat = np.linspace(-90.0, 90.0, nlat + 1)
     lon = np.arange(2 * nlat) * (360.0 / (2 * nlat))
@@ -237,11 +251,10 @@ def remap_dataset(ds, resolution: float = 1.0) -> xr.Dataset:
 
     Raises
     ------
-    FileNotFoundError
-        A missing file.
-    ValueError
-        A file or dataset that is not a swe_sphere run, or a resolution that does not
-        divide 180 degrees (one line).
+    SceneError
+        A missing file, a folder, a file or dataset that is not a swe_sphere run, a
+        resolution that is not in (0, 90] or does not divide 180 degrees (a ValueError;
+        one line naming it).
     ResourceError
         The grid would not fit in memory.
 

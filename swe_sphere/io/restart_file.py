@@ -113,10 +113,10 @@ def write(
             ds.Conventions = "CF-1.8"
             ds.title = f"swe_sphere restart file of scene {scene.name}"
             ds.history = history_line(f"swe_sphere restart at step {int(step)}")
-            ds.swe_sphere_checkpoint = FORMAT
+            ds.swe_sphere_checkpoint = np.int32(FORMAT)
             ds.swe_sphere_version = package_version()
             ds.scene = json.dumps(scene.as_dict())
-            ds.step = int(step)
+            ds.step = np.int32(step)  # no 64-bit attributes: `nccopy -k classic` copies the file
             ds.time_days = scene.day(step)
             ds.counters = json.dumps(counters)
             ds.initial = json.dumps(initial)
@@ -151,8 +151,11 @@ def write(
                     var = ds.createVariable(f"stepper_{key}", "f8", ("row", "node"), fletcher32=True)
                     var.long_name = f"the stepper's history {key!r} (Stepper.state(); rows u, v, h)"
                     var[:] = value
-                else:
-                    ds.setncattr(f"stepper_{key}", value)
+                else:  # an integer as int32 (read back as a Python int: the same content hash)
+                    ds.setncattr(
+                        f"stepper_{key}",
+                        np.int32(value) if isinstance(value, int) and not isinstance(value, bool) else value,
+                    )
     return path
 
 
@@ -161,6 +164,8 @@ def read(path) -> dict:
     "step", "x" (3, N), "stepper_state", "counters", "initial", "version", "path"
     (absolute), "sha256" (of the file's bytes)}. Raises ``CheckpointError`` (one line)."""
     path = Path(path)
+    if path.is_dir():
+        raise CheckpointError(f"checkpoint {path} is a directory, not a restart file")
     if not path.is_file():
         raise CheckpointError(f"checkpoint not found: {path}")
     with open(path, "rb") as f:

@@ -13,6 +13,8 @@ import contextlib
 import fcntl
 import json
 import os
+import shlex
+import sys
 import threading
 import time
 from pathlib import Path
@@ -23,6 +25,7 @@ import numpy as np
 from ..core.errors import OutputError
 from ..core.runtime import package_version
 from ..grid.cubed_sphere import CubedSphere
+from ..grid.mesh import Mesh, check
 from .dual import MESH as DUAL_MESH
 from .dual import write_dual_mesh
 from .ugrid import MESH as SUBCELL_MESH
@@ -147,6 +150,15 @@ def history_line(what: str) -> str:
     """One line of a file's CF ``history`` attribute: the UTC time, ``what`` made the
     file, and the package version (CF: the newest line first, one line an operation)."""
     return f"{time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime())}: {what} (swe_sphere {package_version()})"
+
+
+def command_line(default: str) -> str:
+    """What made a file, for its ``history``: the command line when this process is the
+    ``swe-sphere`` console script (as a run file records it), else ``default`` (a Python
+    call, whose ``sys.argv`` is not the command's)."""
+    if Path(sys.argv[0]).name != "swe-sphere":
+        return default
+    return shlex.join(["swe-sphere", *sys.argv[1:]])
 
 
 def check_target(path: Path, overwrite: bool = False) -> None:
@@ -423,6 +435,8 @@ class RunWriter:
         else:
             ds.cells = NO_CELLS
         write_mesh(ds, grid)
+        if grid.mesh is not None:
+            write_element_mesh(ds, grid.mesh)
         for name in self.fields:
             fill = dict(fill_value=np.nan) if name in ("vorticity", "divergence") else {}  # NaN where a writer got none
             var = ds.createVariable(name, "f4" if compress else "f8", ("time", "ncol"), zlib=compress, **fill)
@@ -470,6 +484,43 @@ class RunWriter:
                     self.ds.close()
             finally:
                 self.file.discard()
+
+
+ELEMENT_NODES, ELEMENT_CORNERS = "element_mesh_node_xyz", "element_mesh_corners"
+
+
+def write_element_mesh(ds, mesh: Mesh) -> None:
+    """The elements' mesh (its nodes and corners, a few kB) into the run file ``ds``, so that
+    ``remap`` and ``plot`` rebuild the grid where the mesh file is not (``element_mesh``)."""
+    ds.createDimension("element_mesh_node", mesh.nnodes)
+    ds.createDimension("element_mesh_elem", mesh.nelem)
+    ds.createDimension("xyz", 3)
+    ds.createDimension("corner", 4)
+    xyz = ds.createVariable(ELEMENT_NODES, "f8", ("element_mesh_node", "xyz"))
+    xyz.setncatts(dict(long_name=f"nodes of the elements' mesh {mesh.name} (unit vectors)", units="1"))
+    xyz[:] = mesh.coords
+    corners = ds.createVariable(ELEMENT_CORNERS, "i4", ("element_mesh_elem", "corner"))
+    corners.setncatts(
+        dict(
+            long_name="each element's corner nodes (0-based rows of element_mesh_node_xyz), counter-clockwise",
+            units="1",
+        )
+    )
+    corners[:] = mesh.quads
+
+
+def element_mesh(ds, record: dict) -> Mesh:
+    """The elements' ``Mesh`` a run file carries (``write_element_mesh``; an ``xarray`` or
+    netCDF4 dataset), named and mapped as the run's mesh record ``record`` (``grid.spec``).
+    Raises ``KeyError`` where the file carries none (written before it did)."""
+    return check(
+        Mesh(
+            np.asarray(ds[ELEMENT_NODES][:], dtype=np.float64),
+            np.asarray(ds[ELEMENT_CORNERS][:], dtype=np.int64),
+            Path(record["file"]).name,
+            record["map"],
+        )
+    )
 
 
 def node_dataset(grid: CubedSphere, hs: np.ndarray, day: float, fields: dict, attrs: dict):

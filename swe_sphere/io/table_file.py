@@ -24,8 +24,8 @@ def table_dataset(df, dim: str, columns: dict, *, row_long_name: str, title: str
 
     ``columns``: {column: (units, long_name)}, in the file's order; ``units`` None marks
     a text column (missing values become ""; CF needs no units for text); integer
-    columns become int32. ``attrs``: global attributes, strings and integers kept,
-    other numbers as floats. ``title`` and ``history`` (``run_file.history_line``) join
+    columns become int32. ``attrs``: global attributes, strings kept, integers as int32
+    (no 64-bit attributes: ``nccopy -k classic`` copies the file), other numbers as floats. ``title`` and ``history`` (``run_file.history_line``) join
     ``Conventions = "CF-1.8"``. Raises ``KeyError`` for a column ``df`` lacks."""
     import xarray as xr
 
@@ -42,9 +42,18 @@ def table_dataset(df, dim: str, columns: dict, *, row_long_name: str, title: str
         },
         coords={dim: (dim, np.arange(len(df), dtype=np.int32), dict(long_name=row_long_name, units="1"))},
     )
-    ds.attrs.update({k: v if isinstance(v, (str, int)) else float(v) for k, v in (attrs or {}).items()})
+    ds.attrs.update({k: _attribute(v) for k, v in (attrs or {}).items()})
     ds.attrs.update(Conventions=CONVENTIONS, title=title, history=history)
     return ds
+
+
+def _attribute(value):
+    """A global attribute's value as netCDF-3 can hold it: text, int32 or float64."""
+    if isinstance(value, str):
+        return value
+    if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+        return np.int32(value)
+    return float(value)
 
 
 def write_table_file(ds, path, *, overwrite: bool = False) -> None:

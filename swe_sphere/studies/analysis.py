@@ -144,7 +144,7 @@ def zonal_mean(run, field: str = "h", days=None, resolution: float | None = None
     Returns an ``xarray.DataArray`` (time, lat), time in model days, lat in
     degrees_north (−90..90, both poles; u's and v's means there are their limit, 0:
     a wind component's mean over a shrinking circle), in the field's units (m, m s⁻¹, s⁻¹),
-    named ``<field>_zonal_mean``. Raises ``FileNotFoundError`` for a missing
+    named ``<field>_zonal_mean``. Raises ``SceneError`` (a ValueError) for a missing
     file, ``ValueError`` (one line) for an unknown field, a day not stored, a
     field the file lacks or a resolution that does not divide 180°,
     ``runtime.ResourceError`` when the grid would not fit in memory."""
@@ -205,7 +205,7 @@ def kinetic_energy_spectrum(run, days=None, lmax: int | None = None) -> xr.Datas
 
     Returns an ``xarray.Dataset`` with ``E_rot``, ``E_div`` and ``E`` (their
     sum) on (time, l), l = 1..lmax, m² s⁻², time in model days; attributes
-    ``radius`` (m) and ``definition``. Raises ``FileNotFoundError`` for a
+    ``radius`` (m) and ``definition``. Raises ``SceneError`` (a ValueError) for a
     missing file, ``ValueError`` (one line) for a day not stored, a file without
     vorticity or divergence (written before they were), an lmax < 1,
     ``runtime.ResourceError`` when the grid would not fit in memory."""

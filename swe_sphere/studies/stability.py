@@ -18,7 +18,7 @@ from ..config.scene import Scene, load_scene
 from ..core.constants import DAY
 from ..core.errors import BlowUp
 from ..core.workers import InProcess
-from ..io.run_file import atomic_path, check_results, history_line
+from ..io.run_file import atomic_path, check_results, command_line, history_line
 from ..io.table_file import table_dataset, write_table_file
 from ..simulation.simulation import Simulation
 
@@ -201,7 +201,7 @@ def write_table(results, directory, *, overwrite: bool = False) -> tuple:
         COLUMN_ATTRS,
         row_long_name="(case, stepper) of the suite (row of stability.csv)",
         title="swe_sphere stability suite: the largest stable time step of each stepper on the hard cases",
-        history=history_line("swe_sphere stability"),
+        history=history_line(command_line("swe_sphere stability")),
         attrs=dict(criterion=f"finite fields, depth > 0, total energy <= {1 + ENERGY_GROWTH_LIMIT} x initial"),
     )
     write_table_file(ds, nc, overwrite=overwrite)

@@ -201,14 +201,20 @@ def missing(tmp_path):
     return tmp_path / "bad.g"
 
 
+def a_folder(tmp_path):
+    (tmp_path / "bad.g").mkdir()
+    return tmp_path / "bad.g"
+
+
 @pytest.mark.parametrize(
     "make, message",
     [
         (five_nodes, r"^bad.g: elements of 5 nodes; quadrilaterals \(4\) are needed$"),
         (two_blocks, r"^bad.g: 2 element blocks; one block of quadrilaterals is supported$"),
-        (truncated, r"^bad.g cannot be read as an Exodus II \(netCDF\) mesh: "),
-        (not_netcdf, r"^bad.g cannot be read as an Exodus II \(netCDF\) mesh: "),
+        (truncated, r"^bad.g: its arrays cannot be read in full \(a truncated or damaged netCDF file\)$"),
+        (not_netcdf, r"^bad.g is not a netCDF file: an Exodus II mesh \(.g\) is one$"),
         (missing, r"^mesh file .*bad.g not found$"),
+        (a_folder, r"^mesh file .*bad.g is a directory, not an Exodus II file$"),
     ],
 )
 def test_a_bad_mesh_file_is_refused_in_one_line(tmp_path, make, message):

@@ -147,7 +147,7 @@ BAD_GRIDS = [
     ('mesh_file = "absent.g"', "absent.g not found"),
     ('mesh_file = "cube2.g"\nstretch_factor = 2.0', "grid.stretch_factor stretches the cube"),
     ('mesh_file = "ico.g"\nmap = "equiangular"', "ico.g: element 2 does not lie in one face of a cube"),
-    ('mesh_file = "garbage.g"', "garbage.g cannot be read as an Exodus II"),
+    ('mesh_file = "garbage.g"', "garbage.g is not a netCDF file"),
     ('mesh_file = "cube2.g"\nne_ = 1', "unknown key grid.ne_"),
     ('mesh_file = "cube2.g"\nmap = 2', "grid.map must be str"),
 ]

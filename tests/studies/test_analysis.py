@@ -14,6 +14,7 @@ import pandas as pd
 import pytest
 
 from swe_sphere.core.constants import DAY, EARTH
+from swe_sphere.core.errors import SceneError
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.io.run_file import RunWriter
 from swe_sphere.model.diagnostics import harmonic_state
@@ -243,7 +244,7 @@ def test_api_refusals():
         zonal_mean(_tiny_dataset(), "pv")
     with pytest.raises(ValueError, match="lmax must be an integer >= 1"):
         kinetic_energy_spectrum(_tiny_dataset(), lmax=0)
-    with pytest.raises(FileNotFoundError):
+    with pytest.raises(SceneError, match="no_such_run.nc"):
         zonal_mean("no_such_run.nc")
 
 

@@ -65,7 +65,7 @@ def test_remap_dataset_of_a_run_file_is_a_lat_lon_dataset(run_dir):
 
 
 def test_remap_dataset_refuses_what_is_not_a_run(run_dir, tmp_path):
-    with pytest.raises(FileNotFoundError, match="nope.nc"):
+    with pytest.raises(swe_sphere.SceneError, match="file not found: .*nope.nc"):
         swe_sphere.remap_dataset(tmp_path / "nope.nc")
     (tmp_path / "text.nc").write_text("not netCDF")
     with pytest.raises(ValueError, match="text.nc: not a readable netCDF file"):

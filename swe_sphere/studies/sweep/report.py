@@ -9,7 +9,7 @@ import math
 from pathlib import Path
 
 from ...grid.quality import REGIONS
-from ...io.run_file import atomic_path, check_results, history_line
+from ...io.run_file import atomic_path, check_results, command_line, history_line
 from ...io.table_file import table_dataset, write_table_file
 from ...steppers import STEPPERS
 from ..figures import sweep_plot
@@ -135,7 +135,7 @@ def sweep_dataset(df, attrs: dict):
         COLUMN_ATTRS,
         row_long_name="run of the sweep (row of sweep.csv)",
         title=f"swe_sphere sweep: {attrs['case']} ne{attrs['ne']} np{attrs['np']}, {attrs['days']:g} days",
-        history=history_line("swe_sphere sweep"),
+        history=history_line(command_line("swe_sphere sweep")),
         attrs=attrs,
     )
 

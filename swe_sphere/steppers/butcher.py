@@ -379,8 +379,7 @@ def _check_order(table: Table, b_E, b_I, order: int, weights: str = "b") -> None
             sub = f"_{root}" if table.imex else ""
             name = f"Σ{weights}{sub}" if not forest else f"{weights}{sub}·{_label(forest, table.imex)}"
             raise ValueError(
-                f"{claim} = {order} claimed, but the order-{p} condition {name} = {target} fails "
-                f"(it is {_text(value)})"
+                f"{claim} = {order} claimed, but the order-{p} condition {name} = {target} fails (it is {_text(value)})"
             )
 
 

@@ -3,7 +3,7 @@
 Runge–Kutta methods by their tables, one engine (``runge_kutta``; the tables in
 ``tables``, their checks in ``butcher``): explicit ``ssprk3``, ``rk4``,
 ``kgu35`` and the embedded pairs ``bs32``, ``dp54``, ``ssprk43``, ``rdpk3sp35`` (their
-``error_estimate`` a step's local error); ``imex`` (ARS and Kennedy–Carpenter IMEX pairs,
+``error_estimate`` a step's local error); ``imex`` (ARS IMEX pairs,
 the linear gravity waves implicit) and the embedded IMEX pairs ``ark324``, ``ark436``;
 ``tableau`` (an explicit table or IMEX pair from the scene). Their own classes:
 explicit ``leapfrog``, ``leapfrog_trapezoidal``, ``fbrk32`` (``explicit``);

@@ -65,12 +65,12 @@ from ..solvers.helmholtz import HelmholtzOptions
 from .base import Stepper, StepStats
 from .butcher import PARTS, Table, TableauOptions, imaginary_axis_limit, parse, stage_form
 from .helmholtz_steps import REMOVED_SOLVER_OPTIONS, HelmholtzSteps
-from .tables import COURANT_LIMITS, EXPLICIT, IMEX
+from .tables import COURANT_LIMITS, EXPLICIT, IMEX, IMEX_PAIRS
 
 f64 = wp.float64
 
 # the built-in tables, checked once
-TABLES = {key: parse(TableauOptions(**t)) for key, t in {**EXPLICIT, **IMEX}.items()}
+TABLES = {key: parse(TableauOptions(**t)) for key, t in {**EXPLICIT, **IMEX, **IMEX_PAIRS}.items()}
 
 
 def _dt_times(q: Fraction, dt: float) -> float:
@@ -267,7 +267,7 @@ class ImexRK(HelmholtzSteps, Stepper):
 
 
 class ImexPair(ImexRK):
-    """A built-in embedded IMEX pair of ``tables.IMEX`` as a stepper of its own
+    """A built-in embedded IMEX pair of ``tables.IMEX_PAIRS`` as a stepper of its own
     (``imex_pair_steppers``); options the Helmholtz solve's, as ``imex``'s."""
 
     Options = HelmholtzOptions
@@ -292,8 +292,7 @@ def imex_pair_steppers() -> tuple[type[Stepper], ...]:
                 "__doc__": t["description"],
             },
         )
-        for key, t in IMEX.items()
-        if TABLES[key].estimate is not None
+        for key, t in IMEX_PAIRS.items()
     )
 
 

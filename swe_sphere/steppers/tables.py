@@ -1,7 +1,7 @@
 """The built-in Runge–Kutta tables, as data: the explicit steppers ``ssprk3``,
 ``rk4``, ``kgu35``, the embedded pairs ``bs32``, ``dp54``, ``ssprk43``,
-``rdpk3sp35`` and the IMEX pairs of ``imex`` (``scheme``; ``ark324`` and ``ark436``,
-embedded pairs, also steppers of their own), each a
+``rdpk3sp35``, the IMEX pairs of ``imex`` (``scheme``) and the embedded IMEX pairs
+``ark324`` and ``ark436`` (``IMEX_PAIRS``, steppers of their own), each a
 ``[tableau]`` table (``butcher.TableauOptions``' parts, entries numbers or
 fractions as strings), checked by ``butcher.parse`` as a user's table is and
 stepped by the same engine (``runge_kutta``).
@@ -221,7 +221,7 @@ _BH436 = (
     "-3700637/11593932",
     "61727/225920",
 )
-IMEX |= {
+IMEX_PAIRS = {
     "ark324": dict(
         name="ARK3(2)4L[2]SA",
         order=3,

@@ -14,11 +14,11 @@ import pytest
 from swe_sphere.config.scene import load_scene
 from swe_sphere.steppers import STEPPERS
 from swe_sphere.steppers.butcher import TableauOptions, parse
-from swe_sphere.steppers.tables import EXPLICIT, IMEX
+from swe_sphere.steppers.tables import EXPLICIT, IMEX_PAIRS
 
 from helpers import make_sim
 
-PAIRS = {key: t for key, t in {**EXPLICIT, **IMEX}.items() if t.get("embedded_order")}
+PAIRS = {key: t for key, t in {**EXPLICIT, **IMEX_PAIRS}.items() if t.get("embedded_order")}
 CLAIMS = {"bs32": (3, 2), "dp54": (5, 4), "ssprk43": (3, 2), "rdpk3sp35": (3, 2), "ark324": (3, 2), "ark436": (4, 3)}
 
 
@@ -73,7 +73,7 @@ def test_a_wrong_embedding_is_refused_in_one_line(change, words):
 
 
 def test_an_imex_pair_needs_both_embedded_rows():
-    t = {**IMEX["ark324"], "b_hat_I": ()}
+    t = {**IMEX_PAIRS["ark324"], "b_hat_I": ()}
     with pytest.raises(ValueError, match="b_hat_I is missing"):
         parse(TableauOptions(**t))
 

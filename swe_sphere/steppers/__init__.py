@@ -2,7 +2,9 @@
 
 Runge–Kutta methods by their tables, one engine (``runge_kutta``; the tables in
 ``tables``, their checks in ``butcher``): explicit ``ssprk3``, ``rk4``,
-``kgu35``; ``imex`` (ARS IMEX pairs, the linear gravity waves implicit);
+``kgu35`` and the embedded pairs ``bs32``, ``dp54``, ``ssprk43``, ``rdpk3sp35`` (their
+``error_estimate`` a step's local error); ``imex`` (ARS IMEX pairs,
+the linear gravity waves implicit) and the embedded IMEX pairs ``ark324``, ``ark436``;
 ``tableau`` (an explicit table or IMEX pair from the scene). Their own classes:
 explicit ``leapfrog``, ``leapfrog_trapezoidal``, ``fbrk32`` (``explicit``);
 ``semi_implicit`` (leapfrog, gravity waves averaged over n ± 1); ``implicit``
@@ -27,7 +29,7 @@ from .exponential import Epi2, Epi3
 from .implicit import Implicit
 from .local import Lts
 from .multirate import Mri, SplitExplicit
-from .runge_kutta import Imex, Tableau, explicit_steppers
+from .runge_kutta import Imex, Tableau, explicit_steppers, imex_pair_steppers
 from .semi_implicit import SemiImplicit
 
 STEPPERS: dict[str, type[Stepper]] = {
@@ -43,6 +45,7 @@ STEPPERS: dict[str, type[Stepper]] = {
         SemiImplicit,
         Implicit,
         Imex,
+        *imex_pair_steppers(),
         Tableau,
         Epi2,
         Epi3,

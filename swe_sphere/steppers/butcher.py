@@ -37,7 +37,7 @@ from .tables import EXPLICIT
 
 TOL = 1e-9  # order conditions and row sums hold to this (rational entries exactly)
 MAX_ORDER = 6
-PARTS = ("A", "b", "c", "A_E", "b_E", "A_I", "b_I")
+PARTS = ("A", "b", "c", "A_E", "b_E", "A_I", "b_I", "b_hat", "b_hat_E", "b_hat_I")
 
 
 def frozen_table(value):
@@ -51,7 +51,10 @@ class TableauOptions(HelmholtzOptions):
     shown by the run file and ``swe-sphere list``), the ``order`` it claims (1..6),
     an explicit table ``A`` (s × s), ``b``, ``c`` (s) or an IMEX pair ``A_E``,
     ``b_E``, ``A_I``, ``b_I`` and ``c``, entries numbers or fractions as strings
-    ("1/6"); for a pair also the Helmholtz solve's ``tol``, ``maxiter``,
+    ("1/6"); an embedded pair adds the weights ``b_hat`` (an IMEX pair ``b_hat_E`` and
+    ``b_hat_I``, equal in Kennedy & Carpenter's) of a solution of ``embedded_order``
+    (1..order − 1), whose difference from x(n+1) is the step's error estimate;
+    for a pair also the Helmholtz solve's ``tol``, ``maxiter``,
     ``mean_depth``, ``precision`` and ``guess_history`` (as ``[imex]``'s). No table at all: the classical RK4 table.
     Raises ValueError naming the entry or the failing condition (``parse``)."""
 
@@ -65,6 +68,10 @@ class TableauOptions(HelmholtzOptions):
     b_E: tuple = ()
     A_I: tuple = ()
     b_I: tuple = ()
+    b_hat: tuple = ()
+    b_hat_E: tuple = ()
+    b_hat_I: tuple = ()
+    embedded_order: int = 0
 
     def __post_init__(self):
         for key in PARTS:  # a table read back from JSON (a restart file's scene) holds lists
@@ -79,7 +86,8 @@ class TableauOptions(HelmholtzOptions):
 @dataclass(frozen=True)
 class Table:
     """A checked table in exact arithmetic: A_E, b_E (the explicit part; an explicit
-    table's A, b), A_I, b_I (None for an explicit table), c, order."""
+    table's A, b), A_I, b_I (None for an explicit table), c, order; an embedded pair's
+    b̂ (``bh_E``, ``bh_I``: None without one) and ``embedded_order`` (0 without)."""
 
     A_E: tuple
     b_E: tuple
@@ -87,10 +95,22 @@ class Table:
     b_I: tuple | None
     c: tuple
     order: int
+    bh_E: tuple | None = None
+    bh_I: tuple | None = None
+    embedded_order: int = 0
 
     @property
     def imex(self) -> bool:
         return self.A_I is not None
+
+    @property
+    def estimate(self) -> tuple | None:
+        """The error estimate's weights (b_E − b̂_E, b_I − b̂_I; an explicit table's b_I
+        None), exact: e = Δt Σ_j (d_E,j S(Y_j) + d_I,j L Y_j); None without a b̂."""
+        if self.bh_E is None:
+            return None
+        d = lambda b, bh: None if b is None else tuple(x - y for x, y in zip(b, bh))  # noqa: E731
+        return d(self.b_E, self.bh_E), d(self.b_I, self.bh_I)
 
     def floats(self):
         """(A_E, b_E, A_I, b_I, c) as float arrays (an explicit table: A_I, b_I None)."""
@@ -126,7 +146,9 @@ def imaginary_axis_limit(A, b) -> float:
     im = [c * (-1) ** (k // 2) if k % 2 else 0 for k, c in enumerate(coeffs)]
     growth = [x + y for x, y in zip(_square(re), _square(im))]
     growth[0] -= 1
-    lowest = next((g for g in growth[1:] if g != 0), Fraction(0))
+    # a coefficient within TOL of 0 is 0: a table given to 30 digits (rdpk3sp35) misses its
+    # order conditions, and so the zeros they make here, by ~1e-30
+    lowest = next((g for g in growth[1:] if abs(g) > TOL), Fraction(0))
     if lowest >= 0:
         return 0.0
     polynomial = np.polynomial.Polynomial([float(g) for g in growth])
@@ -192,7 +214,7 @@ def parse(o) -> Table:
     lower triangular, an implicit part not lower triangular, a row sum other than c,
     or a failing order condition."""
     given = [key for key in PARTS if getattr(o, key)]
-    explicit, pair = {"A", "b"} & set(given), {"A_E", "b_E", "A_I", "b_I"} & set(given)
+    explicit, pair = {"A", "b", "b_hat"} & set(given), {"A_E", "b_E", "A_I", "b_I", "b_hat_E", "b_hat_I"} & set(given)
     if explicit and pair:
         raise ValueError(
             f"give A, b (an explicit table) or A_E, b_E, A_I, b_I (an IMEX pair), not both (got {', '.join(given)})"
@@ -236,9 +258,36 @@ def parse(o) -> Table:
         for i in range(s):
             if abs(sum(A[i]) - c[i]) > TOL:
                 raise ValueError(f"{key} row {i + 1} sums to {_text(sum(A[i]))}, not c entry {i + 1} = {_text(c[i])}")
-    table = Table(A_E, b_E, A_I, b_I, c, o.order)
-    _check_order(table)
+    bh_E, bh_I = _embedded(o, pair, s)
+    table = Table(A_E, b_E, A_I, b_I, c, o.order, bh_E, bh_I, o.embedded_order)
+    _check_order(table, table.b_E, table.b_I, table.order)
+    if bh_E is not None:
+        _check_order(table, bh_E, bh_I, table.embedded_order, "b_hat")
     return table
+
+
+def _embedded(o, pair: bool, s: int) -> tuple:
+    """(b̂_E, b̂_I) of ``o`` (an explicit table's b̂_I None), or (None, None) without; ValueError
+    for a b̂ without ``embedded_order`` or the other way round, half a pair's b̂, or an
+    embedded order not below the order."""
+    keys = ("b_hat_E", "b_hat_I") if pair else ("b_hat",)
+    given = [key for key in keys if getattr(o, key)]
+    if not given and not o.embedded_order:
+        return None, None
+    if len(given) < len(keys):
+        missing = next(key for key in keys if key not in given)
+        raise ValueError(
+            f"{missing} is missing: an embedded pair gives "
+            + (" and ".join(keys) if pair else "b_hat")
+            + " with its embedded_order"
+        )
+    if not 1 <= o.embedded_order < o.order:
+        raise ValueError(
+            f"embedded_order must be the order b_hat claims, 1..order − 1 = {o.order - 1} (got {o.embedded_order}): "
+            "its order conditions are checked"
+        )
+    bh = [_vector(o, key, s) for key in keys]
+    return bh[0], (bh[1] if pair else None)
 
 
 # -- order conditions ------------------------------------------------------------------
@@ -319,16 +368,18 @@ def conditions(order: int, imex: bool):
                 yield p, root, forest, Fraction(1, _density(("root", forest)))
 
 
-def _check_order(table: Table) -> None:
-    for p, root, forest, target in conditions(table.order, table.imex):
-        b = table.b_E if root == "E" else table.b_I
+def _check_order(table: Table, b_E, b_I, order: int, weights: str = "b") -> None:
+    """ValueError naming the first order condition up to ``order`` that the weights
+    (b_E, b_I) of ``table``'s stages fail (``weights``: "b", or "b_hat" for the embedded ones)."""
+    claim = "order" if weights == "b" else "embedded_order"
+    for p, root, forest, target in conditions(order, table.imex):
+        b = b_E if root == "E" else b_I
         value = sum(x * y for x, y in zip(b, _weights(forest, table, table.c)))
         if abs(value - target) > TOL:
             sub = f"_{root}" if table.imex else ""
-            name = f"Σb{sub}" if not forest else f"b{sub}·{_label(forest, table.imex)}"
+            name = f"Σ{weights}{sub}" if not forest else f"{weights}{sub}·{_label(forest, table.imex)}"
             raise ValueError(
-                f"order = {table.order} claimed, but the order-{p} condition {name} = {target} fails "
-                f"(it is {_text(value)})"
+                f"{claim} = {order} claimed, but the order-{p} condition {name} = {target} fails (it is {_text(value)})"
             )
 
 
@@ -378,7 +429,7 @@ def _express(target, k: int, sources: dict):
     return [arrays[:2] + ([(x[-1], "k")] if x[-1] else [])] + [[(Fraction(1), None), t] for t in arrays[2:]]
 
 
-def stage_form(A, b, c) -> tuple[tuple, tuple]:
+def stage_form(A, b, c, d=None) -> tuple[tuple, tuple]:
     """(buffers, stages) for the explicit table (A, b, c) (Fractions): the buffers'
     names, and per stage (c, the buffer whose RHS F is evaluated, updates), each
     update (out, terms) with out = Σ a·src over two or three (a, src) terms, in
@@ -396,21 +447,27 @@ def stage_form(A, b, c) -> tuple[tuple, tuple]:
     and the others become free for its outputs, in the order that needs the
     fewest buffers: a table whose stages read few earlier stages writes as few
     combinations as its Shu–Osher form (ssprk3's, kgu35's; RK4 one fewer than
-    its accumulator form). The state x is overwritten last, with x(n+1)."""
+    its accumulator form). The state x is overwritten last, with x(n+1).
+
+    With the weights d = b − b̂ of an embedded pair (``Table.estimate``) the error
+    estimate e = Δt Σ d_j K_j is one more combination to come, written by the last
+    stage into the buffer "e" (the last of the buffers) before x(n+1), no RHS of its
+    own; without d the form is the one of before there were pairs (the same bits)."""
     s, n = len(b), len(b) + 1
     Y = [[Fraction(1), *A[i]] for i in range(s)]
     Z = [Fraction(1), *b]
+    ends = [Z] if d is None else [[Fraction(0), *d], Z]  # what the last stage writes, the estimate first
     content = {"x": [Fraction(int(i == 0)) for i in range(n)]}  # live buffers, in creation order
     free, created, holder, stages = [], [], "x", []
     for j in range(s):
         k, last = j + 1, j == s - 1
-        cut = [[*t[: k + 1], *[Fraction(0)] * (n - k - 1)] for t in (*Y[k:], Z)]  # what is to come, in e_0..e_k
+        cut = [[*t[: k + 1], *[Fraction(0)] * (n - k - 1)] for t in (*Y[k:], *ends)]  # what is to come, in e_0..e_k
         kept = [
             name for name, v in content.items() if name == "x" or _in_span(v, [*cut, content["x"]])
         ]  # x is kept anyway
         writes = []  # (target, links)
-        if last:
-            writes.append((Z, _express(Z, k, content)))
+        if last:  # the estimate before x(n+1), which overwrites the x it may read
+            writes += [(t, _express(t, k, content)) for t in ends]
         else:
             held = [name for name in kept if content[name] == Y[k]]
             if not held:
@@ -426,7 +483,7 @@ def stage_form(A, b, c) -> tuple[tuple, tuple]:
                 later = {src for w2 in order[pos + 1 :] for link in writes[w2][1] for _, src in link}
                 later |= {src for link in writes[w][1][1:] for _, src in link}
                 if last:
-                    outs[w] = "x"
+                    outs[w] = "x" if writes[w][0] is Z else "e"
                     continue
                 out = next((name for name in pool if name not in later), None)
                 if out is None:
@@ -454,7 +511,7 @@ def stage_form(A, b, c) -> tuple[tuple, tuple]:
         content = {**{name: content[name] for name in kept}, **{outs[w]: writes[w][0] for w in order}}
         free = [name for name in pool if name not in content]
         holder = None if last else next(name for name, v in content.items() if v == Y[k])
-    return tuple(created), tuple(stages)
+    return tuple(created) + (() if d is None else ("e",)), tuple(stages)
 
 
 def stage_terms(terms, dst, arrays: dict, K, tau: float) -> tuple:

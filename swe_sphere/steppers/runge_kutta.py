@@ -56,6 +56,7 @@ import json
 from dataclasses import dataclass
 from fractions import Fraction
 
+import numpy as np
 import warp as wp
 
 from ..kernels import blas
@@ -64,12 +65,12 @@ from ..solvers.helmholtz import HelmholtzOptions
 from .base import Stepper, StepStats
 from .butcher import PARTS, Table, TableauOptions, imaginary_axis_limit, parse, stage_form
 from .helmholtz_steps import REMOVED_SOLVER_OPTIONS, HelmholtzSteps
-from .tables import COURANT_LIMITS, EXPLICIT, IMEX
+from .tables import COURANT_LIMITS, EXPLICIT, IMEX, IMEX_PAIRS
 
 f64 = wp.float64
 
 # the built-in tables, checked once
-TABLES = {key: parse(TableauOptions(**t)) for key, t in {**EXPLICIT, **IMEX}.items()}
+TABLES = {key: parse(TableauOptions(**t)) for key, t in {**EXPLICIT, **IMEX, **IMEX_PAIRS}.items()}
 
 
 def _dt_times(q: Fraction, dt: float) -> float:
@@ -91,9 +92,17 @@ class ExplicitRK(Stepper):
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
         table = self.table()
-        buffers, self._form = stage_form(table.A_E, table.b_E, table.c)
+        estimate = table.estimate
+        buffers, self._form = stage_form(table.A_E, table.b_E, table.c, None if estimate is None else estimate[0])
         self._buffers = {name: self._buffer() for name in buffers}
         self._x = None
+
+    @property
+    def error_estimate(self) -> wp.array2d | None:
+        """An embedded pair's local error estimate of the last step, e = Δt Σ (b − b̂)_j K_j
+        (3, N), in x's units (m s⁻¹ for u, v, m for h), without the ∇⁴ step; written by the
+        step's last stage, no RHS of its own. None for a table without b̂."""
+        return self._buffers.get("e")
 
     def _record(self, x):
         """The stages on x: (c, the RHS's argument, its updates), Δt folded into F's coefficients."""
@@ -125,15 +134,22 @@ class ExplicitRK(Stepper):
 
 
 def explicit_steppers() -> tuple[type[Stepper], ...]:
-    """A registered stepper class per built-in explicit table (``tables.EXPLICIT``)."""
-    return tuple(
-        type(
-            key.upper(),
-            (ExplicitRK,),
-            {"name": key, "TABLE": TABLES[key], "courant_limit": COURANT_LIMITS[key], "__doc__": t["description"]},
-        )
-        for key, t in EXPLICIT.items()
-    )
+    """A registered stepper class per built-in explicit table (``tables.EXPLICIT``): its
+    measured Courant limit (``tables.COURANT_LIMITS``), or where none was measured its
+    stability polynomial's estimate (as a ``tableau``'s, ``TableauRK.courant_limit``)."""
+    classes = []
+    for key, t in EXPLICIT.items():
+        table, limit = TABLES[key], {"courant_limit": COURANT_LIMITS.get(key)}
+        if limit["courant_limit"] is None:
+            axis = imaginary_axis_limit(table.A_E, table.b_E)
+            limit = {
+                "courant_limit": axis * COURANT_PER_AXIS_LIMIT,
+                "courant_limit_source": f"its stability polynomial's imaginary-axis limit {axis:.3g} "
+                f"x {COURANT_PER_AXIS_LIMIT:.3g}, as rk4's measured limit is its own",
+            }
+        attrs = {"name": key, "TABLE": table, "order": table.order, "embedded_order": table.embedded_order}
+        classes.append(type(key.upper(), (ExplicitRK,), {**attrs, **limit, "__doc__": t["description"]}))
+    return tuple(classes)
 
 
 class ImexRK(HelmholtzSteps, Stepper):
@@ -155,11 +171,20 @@ class ImexRK(HelmholtzSteps, Stepper):
         self.A_E, self.A_I, self.b_E, self.b_I = A_E, A_I, b_E, b_I
         # F(Y_j) is needed where the explicit part weighs it, L Y_j where the two parts weigh it
         # differently (N_j = F_j − L_j enters with A_E, b_E; L Y_j with A_I, b_I)
-        self.needs_F = [bool(b_E[j] != 0 or (A_E[j + 1 :, j] != 0).any()) for j in range(stages)]
-        self.needs_L = [bool(b_I[j] != b_E[j] or (A_I[j + 1 :, j] != A_E[j + 1 :, j]).any()) for j in range(stages)]
+        # and the estimate's weights d = b − b̂ (exact, then rounded; zero without a b̂)
+        estimate = self.table().estimate
+        self.d_E, self.d_I = (b_E * 0, b_I * 0) if estimate is None else (np.array(d, dtype=float) for d in estimate)
+        self.needs_F = [bool(b_E[j] != 0 or self.d_E[j] != 0 or (A_E[j + 1 :, j] != 0).any()) for j in range(stages)]
+        self.needs_L = [
+            bool(b_I[j] != b_E[j] or self.d_I[j] != self.d_E[j] or (A_I[j + 1 :, j] != A_E[j + 1 :, j]).any())
+            for j in range(stages)
+        ]
         self.F = [self._buffer() for _ in range(stages)]  # F(Y_j), where a combination not written by its DSS needs it
         self.L = [self._buffer() for _ in range(stages)]  # L Y_j (first the stage's right-hand side)
         self.Y = self._buffer()
+        # an embedded pair's error estimate of the last step, e = Δt Σ_j (d_E,j S(Y_j) + d_I,j L Y_j)
+        # (3, N; as ``ExplicitRK.error_estimate``), summed after x(n+1) from the stored F_j and L Y_j
+        self.error_estimate = None if estimate is None else self._buffer()
 
     @staticmethod
     def _passes(terms) -> list:
@@ -187,9 +212,10 @@ class ImexRK(HelmholtzSteps, Stepper):
             )
             for k in range(s)
         ]
-        combos.append(
-            self._passes([(dt * b_E[j], F[j]) for j in range(s)] + [(dt * (b_I[j] - b_E[j]), L[j]) for j in range(s)])
-        )
+        for wE, wI in ((b_E, b_I), (self.d_E, self.d_I)):  # x(n+1), then the estimate's (from zero)
+            combos.append(
+                self._passes([(dt * wE[j], F[j]) for j in range(s)] + [(dt * (wI[j] - wE[j]), L[j]) for j in range(s)])
+            )
         outs = [L[k] if A_I[k, k] != 0.0 else self.Y for k in range(s)] + [x]
         done = [False] * (s + 1)  # a combination written with the RHS of the stage before (``_rhs``)
         evals = 0
@@ -211,6 +237,11 @@ class ImexRK(HelmholtzSteps, Stepper):
                 evals += 1
         if not done[s]:
             self._combine(x, x, combos[s])
+        if self.error_estimate is not None:  # e = the first pass, then the others added
+            e, (first, *rest) = self.error_estimate, combos[s + 1]
+            (c1, a1), (c2, a2) = first if len(first) == 2 else (*first, (0.0, first[0][1]))
+            self._pointwise(blas.axpby, f64(c1), a1, f64(c2), a2, e)
+            self._combine(e, e, rest)
         m.hyperviscosity(x, dt)
         return StepStats(evals, self._device_counts())
 
@@ -233,6 +264,36 @@ class ImexRK(HelmholtzSteps, Stepper):
         self.model.rhs_update(Y, [Update(F[i], ((1.0, None),)), fused] if stored else [fused])
         self._combine(out, out, passes[p + 1 :])
         return True
+
+
+class ImexPair(ImexRK):
+    """A built-in embedded IMEX pair of ``tables.IMEX_PAIRS`` as a stepper of its own
+    (``imex_pair_steppers``); options the Helmholtz solve's, as ``imex``'s."""
+
+    Options = HelmholtzOptions
+    removed_options = REMOVED_SOLVER_OPTIONS
+    TABLE: Table
+
+    def table(self) -> Table:
+        return self.TABLE
+
+
+def imex_pair_steppers() -> tuple[type[Stepper], ...]:
+    """A registered stepper class per built-in IMEX pair with an embedding (``ark324``, ``ark436``)."""
+    return tuple(
+        type(
+            key.upper(),
+            (ImexPair,),
+            {
+                "name": key,
+                "TABLE": TABLES[key],
+                "order": TABLES[key].order,
+                "embedded_order": TABLES[key].embedded_order,
+                "__doc__": t["description"],
+            },
+        )
+        for key, t in IMEX_PAIRS.items()
+    )
 
 
 @dataclass(frozen=True)

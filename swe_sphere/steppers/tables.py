@@ -1,5 +1,7 @@
 """The built-in Runge–Kutta tables, as data: the explicit steppers ``ssprk3``,
-``rk4``, ``kgu35`` and the IMEX pairs of ``imex`` (``scheme``), each a
+``rk4``, ``kgu35``, the embedded pairs ``bs32``, ``dp54``, ``ssprk43``,
+``rdpk3sp35``, the IMEX pairs of ``imex`` (``scheme``) and the embedded IMEX pairs
+``ark324`` and ``ark436`` (``IMEX_PAIRS``, steppers of their own), each a
 ``[tableau]`` table (``butcher.TableauOptions``' parts, entries numbers or
 fractions as strings), checked by ``butcher.parse`` as a user's table is and
 stepped by the same engine (``runge_kutta``).
@@ -48,7 +50,117 @@ EXPLICIT = {
     ),
 }
 
-# the largest stable (|v| + sqrt(g h)) Δt / Δx (``Stepper.courant_limit``)
+# Embedded pairs: b_hat the weights of a solution of embedded_order from the same stages, the
+# step's error estimate Δt Σ (b − b_hat)_j K_j. A first-same-as-last (FSAL) pair is written with
+# its last stage, F(x(n+1)), as a stage of the step (A's last row b, b's last entry 0): correct,
+# one RHS a step dearer than reusing it as the next step's first.
+_RDPK_B = (
+    "0.114793597102354117173360132449",
+    "0.0893344285311331559270838452313",
+    "0.43558710250086169924837226938",
+    "0.247357618820145114672972586681",
+    "0.112927253045505912978211166259",
+)
+EXPLICIT |= {
+    "bs32": dict(
+        name="bs32",
+        order=3,
+        embedded_order=2,
+        description="""Bogacki–Shampine 3(2) embedded pair, FSAL: third order with a second-order error
+        estimate (Bogacki & Shampine 1989, Appl. Math. Lett. 2, 321). 4 RHS evaluations per step
+        (the FSAL stage evaluated).""",
+        A=((0, 0, 0, 0), ("1/2", 0, 0, 0), (0, "3/4", 0, 0), ("2/9", "1/3", "4/9", 0)),
+        b=("2/9", "1/3", "4/9", 0),
+        b_hat=("7/24", "1/4", "1/3", "1/8"),
+        c=(0, "1/2", "3/4", 1),
+    ),
+    "dp54": dict(
+        name="dp54",
+        order=5,
+        embedded_order=4,
+        description="""Dormand–Prince 5(4) embedded pair, FSAL: fifth order with a fourth-order error
+        estimate (Dormand & Prince 1980, J. Comput. Appl. Math. 6, 19: RK5(4)7M, MATLAB's ode45).
+        7 RHS evaluations per step (the FSAL stage evaluated).""",
+        A=(
+            (0,) * 7,
+            ("1/5", 0, 0, 0, 0, 0, 0),
+            ("3/40", "9/40", 0, 0, 0, 0, 0),
+            ("44/45", "-56/15", "32/9", 0, 0, 0, 0),
+            ("19372/6561", "-25360/2187", "64448/6561", "-212/729", 0, 0, 0),
+            ("9017/3168", "-355/33", "46732/5247", "49/176", "-5103/18656", 0, 0),
+            ("35/384", 0, "500/1113", "125/192", "-2187/6784", "11/84", 0),
+        ),
+        b=("35/384", 0, "500/1113", "125/192", "-2187/6784", "11/84", 0),
+        b_hat=("5179/57600", 0, "7571/16695", "393/640", "-92097/339200", "187/2100", "1/40"),
+        c=(0, "1/5", "3/10", "4/5", "8/9", 1, 1),
+    ),
+    "ssprk43": dict(
+        name="ssprk43",
+        order=3,
+        embedded_order=2,
+        description="""SSPRK(4,3) with a second-order embedded error estimate: four-stage third-order
+        SSP Runge–Kutta (Kraaijevanger 1991, SSP coefficient 2: three Euler steps of Δt/2, an
+        average, one more) with Conde, Fekete & Shadid's 2018 (arXiv 1806.08693) embedding, the
+        SSPRK(3,2) of its first three stages. 4 RHS evaluations per step.""",
+        A=((0, 0, 0, 0), ("1/2", 0, 0, 0), ("1/2", "1/2", 0, 0), ("1/6", "1/6", "1/6", 0)),
+        b=("1/6", "1/6", "1/6", "1/2"),
+        b_hat=("1/3", "1/3", "1/3", 0),
+        c=(0, "1/2", 1, "1/2"),
+    ),
+    # Ranocha, Dalcin, Parsani & Ketcheson 2022 (Commun. Appl. Math. Comput. 4, 1191), RDPK3SpFSAL35:
+    # their 3S*+ low-storage coefficients (36 digits, as OrdinaryDiffEq.jl's
+    # RDPK3SpFSAL35ConstantCache) turned into the Butcher table in exact arithmetic, here to 30 digits
+    "rdpk3sp35": dict(
+        name="rdpk3sp35",
+        order=3,
+        embedded_order=2,
+        description="""RDPK3SpFSAL35 of Ranocha, Dalcin, Parsani & Ketcheson 2022: five stages, third
+        order, a second-order FSAL embedding, optimised for error-controlled spectral-element and
+        DG runs. 6 RHS evaluations per step (the FSAL stage evaluated).""",
+        A=(
+            (0,) * 6,
+            ("0.230029862451807622389941828631", 0, 0, 0, 0, 0),
+            ("0.102861190514670210323409604056", "0.302143416694828880903440211956", 0, 0, 0, 0),
+            (
+                "0.0627887262584205148075854540791",
+                "0.0294329445692917459561847267896",
+                "0.802560618541631093758300908587",
+                0,
+                0,
+                0,
+            ),
+            (
+                "0.0477155788514121837269000574229",
+                "0.0363703046324337341309728634311",
+                "0.203211915038468890103895714999",
+                "0.436215894360344093065514824515",
+                0,
+                0,
+            ),
+            (*_RDPK_B, 0),
+        ),
+        b=(*_RDPK_B, 0),
+        b_hat=(
+            "9.484166705035703392326247283838082847e-02",
+            "1.726371339430353766966762629176676070e-01",
+            "3.998243189084371024483169698618455770e-01",
+            "1.718016807580178450618829007973835152e-01",
+            "5.881914422155740300718268359027168467e-02",
+            "1.020760551185952388626787099944507877e-01",
+        ),
+        c=(
+            0,
+            "0.230029862451807622389941828631",
+            "0.405004607209499091226849816012",
+            "0.894782289369343354522071089456",
+            "0.723513692882658901027283460368",
+            1,
+        ),
+    ),
+}
+
+# the largest stable (|v| + sqrt(g h)) Δt / Δx (``Stepper.courant_limit``); a table missing here
+# takes its stability polynomial's estimate (``runge_kutta.COURANT_PER_AXIS_LIMIT``)
 COURANT_LIMITS = {
     "ssprk3": 1.11,
     "rk4": 1.73,
@@ -85,6 +197,105 @@ IMEX = {
         b_E=(0, _B1, _B2, _G3),
         b_I=(0, _B1, _B2, _G3),
         c=(0, _G3, 0.7179332607542293, 1.0),
+    ),
+}
+
+# Kennedy & Carpenter 2003 (Appl. Numer. Math. 44, 139) ARK3(2)4L[2]SA and ARK4(3)6L[2]SA: the
+# ERK and ESDIRK tables (first stage explicit, then γ on the diagonal; L-stable, stiffly accurate)
+# with one b and one embedded b̂ for both parts, as SUNDIALS ARKODE's ARK324L2SA_ERK_4_2_3 /
+# _DIRK_4_2_3 and ARK436L2SA_ERK_6_3_4 / _DIRK_6_3_4 print them
+_G324 = "1767732205903/4055673282236"
+_B324 = ("1471266399579/7840856788654", "-4482444167858/7529755066697", "11266239266428/11593286722821", _G324)
+_BH324 = (
+    "2756255671327/12835298489170",
+    "-10771552573575/22201958757719",
+    "9247589265047/10645013368117",
+    "2193209047091/5459859503100",
+)
+_B436 = ("82889/524892", 0, "15625/83664", "69875/102672", "-2260/8211", "1/4")
+_BH436 = (
+    "4586570599/29645900160",
+    0,
+    "178811875/945068544",
+    "814220225/1159782912",
+    "-3700637/11593932",
+    "61727/225920",
+)
+IMEX_PAIRS = {
+    "ark324": dict(
+        name="ARK3(2)4L[2]SA",
+        order=3,
+        embedded_order=2,
+        description="""IMEX ARK3(2)4L[2]SA of Kennedy & Carpenter 2003: third order, a second-order
+        embedded error estimate, the gravity waves implicit; 4 stages, 3 Helmholtz solves and 4 RHS
+        evaluations per step.""",
+        A_E=(
+            (0, 0, 0, 0),
+            ("1767732205903/2027836641118", 0, 0, 0),
+            ("5535828885825/10492691773637", "788022342437/10882634858940", 0, 0),
+            ("6485989280629/16251701735622", "-4246266847089/9704473918619", "10755448449292/10357097424841", 0),
+        ),
+        A_I=(
+            (0, 0, 0, 0),
+            (_G324, _G324, 0, 0),
+            ("2746238789719/10658868560708", "-640167445237/6845629431997", _G324, 0),
+            _B324,
+        ),
+        b_E=_B324,
+        b_I=_B324,
+        b_hat_E=_BH324,
+        b_hat_I=_BH324,
+        c=(0, "1767732205903/2027836641118", "3/5", 1),
+    ),
+    "ark436": dict(
+        name="ARK4(3)6L[2]SA",
+        order=4,
+        embedded_order=3,
+        description="""IMEX ARK4(3)6L[2]SA of Kennedy & Carpenter 2003: fourth order, a third-order
+        embedded error estimate, the gravity waves implicit; 6 stages, 5 Helmholtz solves and 6 RHS
+        evaluations per step.""",
+        A_E=(
+            (0,) * 6,
+            ("1/2", 0, 0, 0, 0, 0),
+            ("13861/62500", "6889/62500", 0, 0, 0, 0),
+            (
+                "-116923316275/2393684061468",
+                "-2731218467317/15368042101831",
+                "9408046702089/11113171139209",
+                0,
+                0,
+                0,
+            ),
+            (
+                "-451086348788/2902428689909",
+                "-2682348792572/7519795681897",
+                "12662868775082/11960479115383",
+                "3355817975965/11060851509271",
+                0,
+                0,
+            ),
+            (
+                "647845179188/3216320057751",
+                "73281519250/8382639484533",
+                "552539513391/3454668386233",
+                "3354512671639/8306763924573",
+                "4040/17871",
+                0,
+            ),
+        ),
+        A_I=(
+            (0,) * 6,
+            ("1/4", "1/4", 0, 0, 0, 0),
+            ("8611/62500", "-1743/31250", "1/4", 0, 0, 0),
+            ("5012029/34652500", "-654441/2922500", "174375/388108", "1/4", 0, 0),
+            ("15267082809/155376265600", "-71443401/120774400", "730878875/902184768", "2285395/8070912", "1/4", 0),
+            _B436,
+        ),
+        b_E=_B436,
+        b_I=_B436,
+        b_hat_E=_BH436,
+        b_hat_I=_BH436,
+        c=(0, "1/2", "83/250", "31/50", "17/20", 1),
     ),
 }
 

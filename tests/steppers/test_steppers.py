@@ -319,5 +319,9 @@ def test_options_dataclass_defaults_checks_and_schema():
         "ssprk3",
         "rk4",
         "kgu35",
+        "bs32",
+        "dp54",
+        "ssprk43",
+        "rdpk3sp35",
         "fbrk32",
     }

@@ -1,0 +1,27 @@
+"""The per-node terms of an error estimate's weighted RMS norm (``steppers.control.ErrorNorm``)."""
+
+import warp as wp
+
+f64 = wp.float64
+wp.set_module_options({"enable_backward": False})
+
+
+@wp.kernel
+def weighted_squares(
+    e: wp.array2d(dtype=f64),
+    x0: wp.array2d(dtype=f64),
+    x1: wp.array2d(dtype=f64),
+    first: wp.array(dtype=wp.int32),
+    atol: wp.array(dtype=f64),
+    rtol: f64,
+    out: wp.array(dtype=f64),
+):
+    """out[i] = Σ_r (e[r, p] / (atol[r] + rtol·max(|x0[r, p]|, |x1[r, p]|)))² over the rows r of the
+    states (3, N), at the unique node p = first[i] (its first copy). Dim len(first)."""
+    i = wp.tid()
+    p = first[i]
+    s = f64(0.0)
+    for r in range(3):
+        q = e[r, p] / (atol[r] + rtol * wp.max(wp.abs(x0[r, p]), wp.abs(x1[r, p])))
+        s += q * q
+    out[i] = s

@@ -1,0 +1,131 @@
+"""Error control's parts apart from the stepper: the error norm of an embedded pair's
+estimate and the step-size controllers (Söderlind's digital filters).
+
+``ErrorNorm``: the weighted RMS norm of a step's error estimate e (``error_estimate``
+of an embedded pair, ``runge_kutta``) over the unique nodes and the fields u, v, h,
+
+    ‖e‖ = sqrt( mean over nodes n and fields f of (e / (atol_f + rtol·max(|x_n|, |x_{n+1}|)))² ),
+
+(Hairer, Nørsett & Wanner 1993, *Solving ODEs I*, §II.4, eq. 4.11; ARKODE's and
+OrdinaryDiffEq's), so that ‖e‖ ≤ 1 is a step within tolerance. One global reduction:
+the per-node terms (``kernels.error_norm``) added by ``math.fsum``, the correctly
+rounded sum, after gathering them from every rank: the same bits on any rank count.
+
+``Controller``: the next step from this step's norm and the accepted history
+(Söderlind 2003, ACM TOMS 29, 1, "Digital filters in adaptive time-stepping"),
+
+    Δt' = Δt · safety · ε_n^(−k1/k) · ε_{n−1}^(−k2/k) · ε_{n−2}^(−k3/k) · (Δt_n/Δt_{n−1})^k4,
+
+ε the norms of the accepted steps, k = min(p, p̂) + 1 (the pair's orders), the factor
+held within [shrink, grow]; a step with ε > 1 is rejected and retried at
+Δt·max(shrink, safety·ε^(−1/k)). The coefficient sets (``CONTROLLERS``) are SUNDIALS
+ARKODE's (``SUNAdaptController_Soderlind``: I, PI, PID, H211) and Ranocha, Dalcin,
+Parsani & Ketcheson's (2022, Commun. Appl. Math. Comput. 4, 1191) PID sets tuned for
+``bs32``, ``ssprk43`` and ``rdpk3sp35``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import warp as wp
+
+from ..kernels import error_norm
+
+f64 = wp.float64
+
+# (k1, k2, k3, k4): the exponents of ε_n, ε_{n−1}, ε_{n−2} (over k, negated) and of Δt_n/Δt_{n−1}
+CONTROLLERS = {
+    "i": (1.0, 0.0, 0.0, 0.0),  # elementary: ARKODE's default since v7.3.0, SciPy's
+    "pi": (0.8, -0.31, 0.0, 0.0),  # ARKODE's PI
+    "pid": (0.58, -0.21, 0.1, 0.0),  # ARKODE's PID
+    "h211": (0.25, 0.25, 0.0, -0.25),  # Söderlind's H211b, b = 4 (his Table 1): β1 = β2 = α2 = 1/b
+    "pid_bs32": (0.60, -0.20, 0.0, 0.0),  # Ranocha et al. 2022, for BS3
+    "pid_ssprk43": (0.55, -0.27, 0.05, 0.0),  # for SSPRK43
+    "pid_rdpk3sp35": (0.70, -0.23, 0.0, 0.0),  # for RDPK3SpFSAL35
+}
+
+
+class ErrorNorm:
+    """The weighted RMS norm (dimensionless) of error estimates e (3, N) on ``topology``'s
+    element-local nodes, rows u, v (m s⁻¹) and h (m): ``rtol`` (> 0) relative,
+    ``atol_wind`` (m s⁻¹) and ``atol_h`` (m) absolute tolerances. ValueError for a
+    tolerance that is not positive (rtol) or negative (atol)."""
+
+    def __init__(self, topology, rtol: float, atol_wind: float = 1e-3, atol_h: float = 1e-2):
+        if not rtol > 0:
+            raise ValueError(f"rtol must be > 0 (got {rtol!r})")
+        for key, value in (("atol_wind", atol_wind), ("atol_h", atol_h)):
+            if not value >= 0:
+                raise ValueError(f"{key} must be ≥ 0 (got {value!r}, {'m/s' if key == 'atol_wind' else 'm'})")
+        self.topology, self.rtol = topology, float(rtol)
+        self.atol = wp.array(np.array([atol_wind, atol_wind, atol_h]), dtype=f64, device=topology.device)
+        self._terms = wp.zeros(topology.nunique, dtype=f64, device=topology.device)
+        self.count = 3 * int(round(topology.sum(float(topology.nunique))))  # the terms over every rank
+
+    def __call__(self, e, x0, x1) -> float:
+        """‖e‖ with the weights of the states x0 (the step's start) and x1 (its end), (3, N) each;
+        the same value on every rank."""
+        t = self.topology
+        wp.launch(
+            error_norm.weighted_squares,
+            t.nunique,
+            [e, x0, x1, t.first, self.atol, f64(self.rtol), self._terms],
+            device=t.device,
+        )
+        terms = self._terms.numpy()
+        if t.distributed:
+            terms = np.concatenate(t.comm.allgather(terms))
+        return math.sqrt(math.fsum(terms) / self.count)
+
+
+@dataclass
+class Controller:
+    """A step-size controller for a pair of orders p, p̂ (``order`` k = min(p, p̂) + 1):
+    ``coefficients`` (k1, k2, k3, k4) or a name of ``CONTROLLERS``, ``safety`` (0.9),
+    the bounds of a step's change ``shrink`` (0.2) and ``grow`` (10; Diffrax's).
+    ``propose(dt, err)`` → (accepted, next Δt); ``state()``/``restore()`` its history.
+    ValueError for an unknown name or bounds that do not hold 1 inside."""
+
+    order: int
+    coefficients: tuple | str = "i"
+    safety: float = 0.9
+    shrink: float = 0.2
+    grow: float = 10.0
+    errors: list = field(default_factory=lambda: [1.0, 1.0])  # ε_{n−1}, ε_{n−2} (1 before any step: ARKODE's)
+    dts: list = field(default_factory=list)  # the last accepted Δt
+
+    def __post_init__(self):
+        if isinstance(self.coefficients, str):
+            if self.coefficients not in CONTROLLERS:
+                raise ValueError(f"controller must be one of {', '.join(CONTROLLERS)} (got {self.coefficients!r})")
+            self.coefficients = CONTROLLERS[self.coefficients]
+        if not (0 < self.shrink < 1 < self.grow and 0 < self.safety <= 1 and self.order >= 1):
+            raise ValueError(
+                f"need 0 < shrink < 1 < grow, 0 < safety ≤ 1 and order ≥ 1 "
+                f"(got shrink {self.shrink}, grow {self.grow}, safety {self.safety}, order {self.order})"
+            )
+
+    def propose(self, dt: float, err: float) -> tuple[bool, float]:
+        """(accepted, the next Δt, s) for a step of ``dt`` whose error norm is ``err``:
+        accepted when err ≤ 1 (the history then moves on), else the retry's Δt."""
+        k, err = self.order, max(err, 1e-10)  # a zero estimate grows the step by ``grow``
+        if err > 1.0:
+            return False, dt * max(self.shrink, self.safety * err ** (-1.0 / k))
+        k1, k2, k3, k4 = self.coefficients
+        e1, e2 = self.errors
+        factor = self.safety * err ** (-k1 / k) * e1 ** (-k2 / k) * e2 ** (-k3 / k)
+        if k4 and self.dts:
+            factor *= (dt / self.dts[-1]) ** k4
+        self.errors, self.dts = [err, e1], [dt]
+        return True, dt * min(self.grow, max(self.shrink, factor))
+
+    def state(self) -> dict:
+        """The history, as numbers (a restart file's)."""
+        return {"errors": list(self.errors), "dts": list(self.dts)}
+
+    def restore(self, state: dict) -> None:
+        """Continue from ``state()``: the same proposals as the controller it came from."""
+        self.errors, self.dts = [float(v) for v in state["errors"]], [float(v) for v in state["dts"]]

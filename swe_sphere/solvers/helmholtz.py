@@ -338,6 +338,14 @@ class HelmholtzSolver:
             launches = self._schur_launches[key] = (rhs, back)
         return launches
 
+    def keep_only(self, coefficients) -> None:
+        """Drop the guess histories and the solves' graphs of every a not in ``coefficients``
+        (a stepper whose Δt changed solves with other a's, and a basis is its A's): what a
+        run whose Δt changes every step holds stays one step's."""
+        keep = {float(a) for a in coefficients}
+        self._histories = {a: h for a, h in self._histories.items() if a in keep}
+        self._graphs = {key: g for key, g in self._graphs.items() if key[0] != "solve" or key[4] in keep}
+
     def _run(self, key: tuple, fn, *args) -> None:
         """fn(*args) as a graph captured on the first call per ``key`` (the launch
         parameters it bakes in) and replayed after, where ``graphable`` and the model's

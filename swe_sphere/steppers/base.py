@@ -88,6 +88,14 @@ class Stepper:
     # unread (``StepStats.iterations`` empty for them), read by ``counts`` once a block
     deferred = False
     removed_options: dict[str, str] = {}  # option → why it is gone, for the error message
+    # True: ``set_dt`` may change Δt between steps (a one-step method that re-records its
+    # launches or reads Δt each step). False where Δt is part of the history (leapfrog's
+    # x(n−1), BDF2's, a multirate split's substeps): those run at a fixed Δt only.
+    variable_dt = False
+    # an embedded pair's local error estimate of the last step, (3, N) in x's units
+    # (``runge_kutta``); None for a stepper without one
+    error_estimate = None
+    embedded_order = 0  # the embedded solution's order (0: no embedded pair)
 
     @classmethod
     def removed(cls, key: str) -> str | None:
@@ -127,6 +135,12 @@ class Stepper:
         self.N = model.N
         self.steps = 0  # steps taken since the initial state
         self.t0 = 0.0  # s, the model time of that state (a branched run's start; ``Simulation`` sets it)
+
+    @classmethod
+    def has_estimate(cls, options: dict) -> bool:
+        """Whether the stepper with these scene options gives an ``error_estimate`` (an
+        embedded pair): what error control needs. ValueError names a bad option."""
+        return cls.embedded_order > 0
 
     @classmethod
     def label(cls, options: dict) -> str:
@@ -186,6 +200,24 @@ class Stepper:
     def advance(self, x: wp.array2d) -> StepStats:
         raise NotImplementedError
 
+    def set_dt(self, dt: float) -> None:
+        """Take the next steps with Δt = ``dt`` (s): the state of the stepper as if it had been
+        built with ``dt`` and restored from this one's ``state()`` (``_dt_changed`` drops what
+        depends on the old Δt). The model time reached, t0 + steps·Δt, stays (t0 rebased).
+        ValueError: dt not > 0, or a stepper that cannot change Δt (``variable_dt``)."""
+        if not self.variable_dt:
+            raise ValueError(f"{self.name} cannot change its dt between steps (its history is the old dt's)")
+        if not dt > 0:
+            raise ValueError(f"dt must be > 0 (got {dt})")
+        dt = float(dt)
+        if dt != self.dt:
+            self.t0 += self.steps * (self.dt - dt)
+            self.dt = dt
+            self._dt_changed()
+
+    def _dt_changed(self) -> None:
+        """Forget what was built for the old Δt (recorded launches with Δt folded in)."""
+
     def counts(self) -> dict:
         """Solver iterations (by name, as ``StepStats.iterations``) counted on the device
         by the steps since the last call, then zeroed: one host read. Raises
@@ -210,7 +242,7 @@ class Stepper:
         cannot be captured, because the stepper is not ``capturable`` or the model has a
         time-dependent forcing (its time, ``_at``, is a launch argument a graph would freeze;
         kept on the host, as a device scalar would need a launch per stage to set)."""
-        return "step" if self.capturable and self.model.forcing is None else None
+        return ("step", self.dt) if self.capturable and self.model.forcing is None else None  # Δt: ``set_dt``
 
     def replayed(self, stats: StepStats) -> StepStats:
         """Count a step that ran as the graph of an earlier step with the same ``graph_key``

@@ -22,6 +22,11 @@ held within [shrink, grow]; a step with ε > 1 is rejected and retried at
 ARKODE's (``SUNAdaptController_Soderlind``: I, PI, PID, H211) and Ranocha, Dalcin,
 Parsani & Ketcheson's (2022, Commun. Appl. Math. Comput. 4, 1191) PID sets tuned for
 ``bs32``, ``ssprk43`` and ``rdpk3sp35``.
+
+``CflController``: the next step from the Courant numbers of this one, as the model's
+diagnostics compute them (``model.diagnostics.courant_numbers``), toward a target, growing
+at most ``max_change`` a step (WRF's ``target_cfl``, Oceananigans' ``TimeStepWizard``); alone,
+or as a cap on the error controller's proposal (``capped``).
 """
 
 from __future__ import annotations
@@ -129,3 +134,40 @@ class Controller:
     def restore(self, state: dict) -> None:
         """Continue from ``state()``: the same proposals as the controller it came from."""
         self.errors, self.dts = [float(v) for v in state["errors"]], [float(v) for v in state["dts"]]
+
+
+@dataclass(frozen=True)
+class CflController:
+    """The step that brings a Courant number to ``cfl`` (> 0): with ``gravity_waves`` the
+    signal's, advective + gravity-wave (what an explicit stepper's ``courant_limit`` is
+    stated in), else the advective one alone (what limits a stepper whose gravity waves are
+    implicit, ``advective_courant_limit``). A step grows at most ``max_change`` (> 1) times
+    the last; it shrinks to the target at once (a Courant number above it is a stability
+    risk now, not a trend to follow). ValueError for cfl ≤ 0 or max_change ≤ 1."""
+
+    cfl: float
+    gravity_waves: bool = True
+    max_change: float = 1.1  # Oceananigans' TimeStepWizard
+
+    def __post_init__(self):
+        if not (self.cfl > 0 and self.max_change > 1):
+            raise ValueError(f"need cfl > 0 and max_change > 1 (got cfl {self.cfl}, max_change {self.max_change})")
+
+    def courant(self, numbers: dict) -> float:
+        """The Courant number the target is on, from ``courant_numbers``' dict
+        (``courant_advective``, ``courant_gravity``: NaN without a pressure gradient)."""
+        gravity = numbers["courant_gravity"]
+        counts = self.gravity_waves and not math.isnan(gravity)
+        return numbers["courant_advective"] + (gravity if counts else 0.0)
+
+    def propose(self, dt: float, numbers: dict) -> float:
+        """The next Δt (s) after a step of ``dt`` whose state has the Courant numbers
+        ``numbers`` at ``dt`` (``courant_numbers(..., dt, ...)``)."""
+        c = self.courant(numbers)
+        grown = dt * self.max_change
+        return grown if c <= 0 else min(grown, dt * self.cfl / c)
+
+
+def capped(dt_error: float, dt_cfl: float | None) -> float:
+    """The error controller's next Δt held at the CFL controller's (None: no cap)."""
+    return dt_error if dt_cfl is None else min(dt_error, dt_cfl)

@@ -47,7 +47,7 @@ class FBRK32(Stepper):
     row-wise fast/slow split, the one split-explicit and multirate methods need."""
 
     name = "fbrk32"
-    explicit = capturable = True
+    explicit = capturable = variable_dt = True
     courant_limit = 1.58  # bisection on TC2 (5 days) at ne 8 np 4 only: 1.43 × ssprk3's there
     BETA = (0.531, 0.531, 0.313)
     C = (1.0 / 3.0, 0.5, 1.0)
@@ -92,6 +92,9 @@ class FBRK32(Stepper):
             else:
                 launches, momentum = [self._lincomb(out[U], (1.0, x[U]), (c * dt, kh[U]))], None
             self._stages.append((self.C[i - 1] if i else 0.0, x if i == 0 else t, depth, launches, momentum))
+
+    def _dt_changed(self):
+        self._x = None  # re-recorded with the new Δt by the next step
 
     def advance(self, x):
         if self._x is not x:

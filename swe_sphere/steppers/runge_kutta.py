@@ -82,7 +82,7 @@ class ExplicitRK(Stepper):
     """An explicit Runge–Kutta step of the table ``table()`` (a ``butcher.Table``),
     recorded once from its ``stage_form``: s RHS evaluations a step."""
 
-    explicit = capturable = True
+    explicit = capturable = variable_dt = True
     TABLE: Table  # a built-in's (``explicit_steppers``)
 
     def table(self) -> Table:
@@ -123,6 +123,9 @@ class ExplicitRK(Stepper):
             for c, arg, updates in self._form
         ]
 
+    def _dt_changed(self):
+        self._x = None  # re-recorded with the new Δt by the next step
+
     def advance(self, x):
         if self._x is not x:
             self._record(x)
@@ -160,9 +163,14 @@ class ImexRK(HelmholtzSteps, Stepper):
     the projection onto past solutions of the stages with its a_ii
     (``helmholtz.GuessHistory``; ``guess_history`` 0: from the last one's solution). Raises ValueError without the continuity and pressure-gradient terms."""
 
+    variable_dt = True  # the combinations read Δt every step
+
     def table(self) -> Table:
         """The checked pair this stepper steps."""
         raise NotImplementedError
+
+    def _dt_changed(self):
+        self.helmholtz.keep_only(a * self.dt for a in np.diag(self.A_I) if a != 0.0)
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
@@ -363,6 +371,7 @@ class Tableau(Stepper):
     name = "tableau"
     Options = TableauOptions
     explicit = False  # depends on the table: an instance of an explicit one is (``TableauRK``)
+    variable_dt = True  # either engine
     courant_limit = None
     advective_courant_limit = None
     removed_options: dict = {}
@@ -377,8 +386,22 @@ class Tableau(Stepper):
     def label(cls, options: dict) -> str:
         return f"{cls.name} {cls.make_options(**options).name}"
 
+    @classmethod
+    def has_estimate(cls, options: dict) -> bool:
+        return parse(cls.make_options(**options)).estimate is not None
+
     def table(self) -> Table:
         return parse(self.options)
+
+    @property
+    def order(self) -> int:
+        """The table's order."""
+        return self.table().order
+
+    @property
+    def embedded_order(self) -> int:
+        """Its embedded solution's order (0: no b̂ row)."""
+        return self.table().embedded_order
 
     def attrs(self) -> dict:
         o = self.options

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from swe_sphere.config.scene import load_scene
-from swe_sphere.steppers.control import CONTROLLERS, Controller, ErrorNorm
+from swe_sphere.model.diagnostics import courant_numbers
+from swe_sphere.steppers.control import CONTROLLERS, CflController, Controller, ErrorNorm, capped
 from swe_sphere.steppers.runge_kutta import TABLES
 
 from helpers import make_sim
@@ -124,3 +125,27 @@ def test_the_norm_is_one_reduction_equal_to_numpys():
     assert 1 < expected < 100
     with pytest.raises(ValueError, match="rtol must be > 0"):
         ErrorNorm(topo, rtol=0.0)
+
+
+def test_the_cfl_controller_brings_the_courant_number_to_its_target():
+    """TC2 ne 2: the proposed Δt's Courant number, as the diagnostics compute it, is the
+    target (the signal's: advective + gravity-wave; or the advective alone); a step grows at
+    most ``max_change``, shrinks to the target at once; a NaN gravity-wave number (no
+    pressure gradient) counts as none."""
+    sim = make_sim(load_scene("tc2_steady", ne=2, days=1.0))
+    u, v, h = sim.fields()
+    numbers = lambda dt: courant_numbers(sim.grid, u, v, h, dt, sim.g)  # noqa: E731
+    for gravity_waves, target in ((True, 1.2), (False, 0.3)):
+        ctrl = CflController(target, gravity_waves, max_change=1e6)
+        dt = ctrl.propose(600.0, numbers(600.0))
+        assert ctrl.courant(numbers(dt)) == pytest.approx(target, rel=1e-13)
+    ctrl = CflController(1.2)
+    c = ctrl.courant(numbers(12000.0))  # 2.56
+    assert ctrl.propose(12000.0, numbers(12000.0)) == 12000.0 * 1.2 / c < 6000.0  # above the target: at once
+    assert ctrl.propose(1.0, numbers(1.0)) == pytest.approx(1.1)  # far below: 10 % a step
+    only_wind = {"courant_advective": 0.5, "courant_gravity": float("nan")}
+    assert ctrl.propose(100.0, only_wind) == pytest.approx(110.0)
+    assert CflController(0.25).propose(100.0, only_wind) == pytest.approx(50.0)
+    assert capped(300.0, 200.0) == 200.0 and capped(300.0, None) == 300.0
+    with pytest.raises(ValueError, match="need cfl > 0 and max_change > 1"):
+        CflController(0.0)

@@ -17,7 +17,9 @@ the run length, the output interval and the hyperviscosity. Layout::
                       map = "equiangular" | "element_local" (the cube's map: HOMME's
                       cubed_sphere_map 0 or 2), stretch_factor = 2.5, target_lat = 40.0,
                       target_lon = 270.0 (degrees: the Schmidt-stretched cube of ne, FV3's
-                      do_schmidt; element-local), or mesh_file = "x.g" (an Exodus II mesh,
+                      do_schmidt; element-local), cube = "equiangular" | "equidistant" (the
+                      cube's element corners equally spaced in angle, the default, or on the
+                      cube's faces as pySEs's grid; element-local unless map says), or mesh_file = "x.g" (an Exodus II mesh,
                       relative to the scene file or absolute; ne = 0 as HOMME's; element-local,
                       or with map = "equiangular" each element in its cube face);
                       ``grid.spec`` records the choice in ``Scene.mesh``
@@ -389,6 +391,7 @@ _SCHEMA = {
         "stretch_factor": float,
         "target_lat": float,
         "target_lon": float,
+        "cube": str,
         "mesh_file": str,
     },
     "time": {"stepper": str, "dt": float, "days": float},
@@ -633,6 +636,15 @@ def _grid_record(grid: dict, scene_path: Path) -> dict | None:
     if chosen is not None and chosen not in grid_spec.MAPS:
         raise SceneError(f"grid.map must be one of {', '.join(grid_spec.MAPS)} (got {chosen!r})")
     stretch = [k for k in ("stretch_factor", "target_lat", "target_lon") if k in grid]
+    cube = grid.get("cube", "equiangular")
+    if cube not in grid_spec.CUBES:
+        raise SceneError(f"grid.cube must be one of {', '.join(grid_spec.CUBES)} (got {cube!r})")
+    if cube != "equiangular" and ("mesh_file" in grid or stretch):
+        raise SceneError(
+            f"grid.cube = {cube!r} is a cube of ne; drop grid.{'mesh_file' if 'mesh_file' in grid else stretch[0]}"
+        )
+    if cube == "equidistant":
+        return {"map": chosen or "element_local", "cube": cube}
     if "mesh_file" in grid:
         if stretch:
             raise SceneError(f"grid.{stretch[0]} stretches the cube; a mesh file is its own mesh (drop one)")

@@ -17,8 +17,8 @@ def _continued(args, device, comm):
     """The Simulation of ``run --continue``: a continuation (keeping the restart file's
     ``--restart-every`` unless given: ``args.restart_every`` set), or with another
     --stepper or --dt a branch (``Simulation.from_checkpoint``); refuses a changed
-    scene or grid, and a continuation at its end day without --days."""
-    from ..config.scene import load_scene
+    scene or grid, and a continuation of no step (at its end day, or at the --days given)."""
+    from ..config.scene import load_scene, with_days
     from ..simulation import checkpoint
     from ..simulation.simulation import Simulation
 
@@ -46,12 +46,17 @@ def _continued(args, device, comm):
                 f"{args.continue_from} is a run of another scene than {args.scene} (differs in: {differ})"
             )
     continued = args.stepper is None and args.dt is None  # not a branch (which refuses a length of 0 days itself)
-    if (
-        continued and args.days is None and ck.step >= ck.scene.nsteps
-    ):  # else 0 steps, and a file that blocks the real one
-        raise CheckpointError(
-            f"{args.continue_from} is already at its run's end day {ck.scene.days:g}: give --days for the new end day"
-        )
+    if continued:  # 0 steps would leave an empty file that blocks the real one
+        end = ck.scene if args.days is None else with_days(ck.scene, args.days)
+        if args.days is None and ck.step >= end.nsteps:
+            raise CheckpointError(
+                f"{args.continue_from} is already at its run's end day {ck.scene.days:g}: give --days for the new end day"
+            )
+        if end.nsteps == ck.step:
+            raise CheckpointError(
+                f"{args.continue_from}: the checkpoint is already at day {ck.scene.day(ck.step):g} (--days is the "
+                "model day the continued run ends at: give a later one)"
+            )
     if (
         continued and args.restart_every is None
     ):  # a run that wrote restart files goes on writing them, as if never stopped

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from .values import netcdf_output
+
 
 def command(args) -> int:
     from ..io.remap import grid_name, latlon_grid, open_netcdf, remap_file, run_grid
     from ..io.run_file import check_distinct, check_target
 
-    output = args.output or Path(f"{args.run.stem}_latlon{args.resolution:g}.nc")
+    output = netcdf_output(args.output) or Path(f"{args.run.stem}_latlon{args.resolution:g}.nc")
     lat, lon = latlon_grid(args.resolution)
     if not args.run.is_file():
         raise ValueError(f"file not found: {args.run}")

@@ -10,7 +10,7 @@ from pathlib import Path
 from ..core.errors import BlowUp, CheckpointError, OutputError, SceneError
 from .exits import EXIT_BLOWUP, hold_signals
 from .report import header, summary
-from .values import overrides
+from .values import netcdf_output, overrides
 
 
 def _continued(args, device, comm):
@@ -135,6 +135,7 @@ def command(args) -> int:
     from ..io.run_file import check_distinct, check_target, check_unlocked, close_open_runs
     from ..simulation.writers import restart_path
 
+    netcdf_output(args.output)
     if args.continue_from is None:
         if args.scene is None:
             raise ValueError("run needs a SCENE (or --continue CHECKPOINT)")

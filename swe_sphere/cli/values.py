@@ -4,6 +4,7 @@ lists, comma-separated numbers and ``--runs`` pairs."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 
 def overrides(pairs) -> dict:
@@ -64,3 +65,11 @@ def runs(text: str) -> list[tuple[str, float]]:
             )
         pairs.append((stepper, multiple))
     return pairs
+
+
+def netcdf_output(path: Path | None) -> Path | None:
+    """``--output`` of a command that writes netCDF: refused unless it ends in .nc (a
+    run file under another name is found by nothing that looks for one)."""
+    if path is not None and path.suffix != ".nc":
+        raise ValueError(f"--output {path}: the file is netCDF, its name must end in .nc")
+    return path

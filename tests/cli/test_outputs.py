@@ -21,3 +21,18 @@ def test_a_run_file_not_named_nc_is_refused(capsys, tmp_path, name):
 def test_a_remap_not_named_nc_is_refused(capsys, tmp_path, tc5_run_file):
     line = cli_one_line(capsys, ["remap", tc5_run_file, "--output", "ll.txt"], 2, "--output ll.txt", "end in .nc")
     assert list(tmp_path.iterdir()) == [], line
+
+
+@pytest.mark.parametrize("folder", ["figs", "figs/day1"])
+def test_plot_into_a_read_only_folder_is_worded_as_run_words_it(capsys, tmp_path, tc5_run_file, monkeypatch, folder):
+    """`plot` said "figs: Read-only file system" where run, remap and mesh say "output
+    directory is not writable"; the folder is made by nothing."""
+    import os
+
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda path, mode, **kw: False if mode == os.W_OK else real(path, mode, **kw))
+    line = cli_one_line(capsys, ["plot", tc5_run_file, "--output", folder], 2)
+    assert line == f"swe-sphere: error: output directory is not writable: {tmp_path}", line
+    line = cli_one_line(capsys, ["run", "tc2_steady", *TINY, "--output", "x.nc"], 2)
+    assert line == f"swe-sphere: error: output directory is not writable: {tmp_path}", line
+    assert list(tmp_path.iterdir()) == []

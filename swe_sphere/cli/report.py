@@ -25,7 +25,7 @@ def _mesh_lines(sim) -> list[str]:
     c = worst_element_courant(sim.grid, sizes, u, v, h, scene.dt, sim.g, "pressure_gradient" in scene.terms)
     grav = "" if math.isnan(c["courant_gravity"]) else f"gravity-wave {c['courant_gravity']:.3f}, "
     lines = [
-        f"mesh        node spacing (Dinv-based) {s['dx_short_min'] / 1e3:.1f} to {s['dx_long_max'] / 1e3:.1f} km "
+        f"mesh        node spacing (Dinv-based, the one dt scales with on a mesh) {s['dx_short_min'] / 1e3:.1f} to {s['dx_long_max'] / 1e3:.1f} km "
         f"(dx_short mean {s['dx_short_mean'] / 1e3:.1f} km), largest distortion {s['distortion_max']:.2f}, "
         f"area ratio {s['area_ratio']:.2f}",
         f"mesh        worst element {s['worst'] + 1} (dx_short {sizes.dx_short[s['worst']] / 1e3:.1f} km): Courant "
@@ -51,8 +51,8 @@ def header(args, sim, output, device, comm) -> None:
     mesh_lines = _mesh_lines(sim) if scene.mesh is not None else []  # every rank: it gathers the state
     print(f"scene       {scene.name}: {scene.description}")
     print(
-        f"grid        {scene.grid_text}: {scene.nelem} elements, {sim.topology.grid.nunique} unique nodes, "
-        f"min node spacing {dx / 1e3:.1f} km"
+        f"grid        {scene.grid_text}: {scene.nelem} elements, {sim.topology.grid.nunique} unique nodes"
+        + ("" if mesh_lines else f", min node spacing {dx / 1e3:.1f} km")  # a mesh's: its Dinv-based line
     )
     if scene.planet != EARTH.as_table():
         p = scene.planet

@@ -135,7 +135,6 @@ def command(args) -> int:
     from ..io.run_file import check_distinct, check_target, check_unlocked, close_open_runs
     from ..simulation.writers import restart_path
 
-    netcdf_output(args.output)
     if args.continue_from is None:
         if args.scene is None:
             raise ValueError("run needs a SCENE (or --continue CHECKPOINT)")
@@ -159,6 +158,7 @@ def command(args) -> int:
         output = args.output or args.continue_from.with_name(
             f"{stem}_{'branch' + changes if changes else 'continued'}.nc"
         )
+    netcdf_output(output)  # after the scene's own refusals, as check_target
     initial = scene.case_params.get("path") if scene is not None else None  # a file case's initial state: an input too
     check_distinct(
         [output, restart_path(output)], [args.continue_from, args.scene and resolve_path(str(args.scene)), initial]

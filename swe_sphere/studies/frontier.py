@@ -161,7 +161,9 @@ class Frontier:
             overrides=self.overrides,
         )
 
-    def run(self, directory, device: str | None = None, *, pool=None, cost: str = "cpu", overwrite=False, log=print):
+    def run(
+        self, directory, device: str | None = None, *, pool=None, cost="cpu", targets=(), overwrite=False, log=print
+    ):
         """Make or reuse every run, ``log`` each grid's sweep and then the frontier's table
         (``format_table``), write ``OUTPUTS`` under ``directory`` (each grid's sweep in
         ``directory/ne<ne>np<np>``, its files replaced, its runs reused).
@@ -176,6 +178,8 @@ class Frontier:
             Runs each sweep's runs (``core.workers.executor``); None: here, one after another.
         cost : {"cpu", "wall"}
             The clock of the cost (the sweep's ``--cost``).
+        targets : sequence of float
+            Errors for which the table names the cheapest run (``cheapest_for``).
         overwrite : bool
             Replace an earlier frontier's files in ``directory``.
         log : callable
@@ -217,7 +221,7 @@ class Frontier:
                 "error_of": ERRORS[self.error][2],
                 "cost_clock": cost,
             }
-            log(format_table(rows, attrs))
+            log(format_table(rows, attrs, targets))
             paths = write_outputs(rows, attrs, directory, overwrite=overwrite)
             for path in paths:
                 log(f"wrote {path}")
@@ -307,9 +311,10 @@ def plan(scene, *, ne, np_, steppers=None, error=None, reference=None, days=None
     return frontier if error is not None else dataclasses.replace(frontier, error=DEFAULT_ERROR.get(bases[0].case, "h"))
 
 
-def format_table(rows, attrs) -> str:
+def format_table(rows, attrs, targets=()) -> str:
     """The frontier as text: every run by cost per day, its error and whether it is on the
-    front (``*``), then the front from cheapest to most accurate."""
+    front (``*``), the front from cheapest to most accurate, and for each of ``targets``
+    (errors) the cheapest run that reaches it (``cheapest_for``)."""
     lines = [
         f"frontier: {attrs['scene']}, {attrs['days']:g} days, {attrs['error_of']} l2 against {attrs['reference']}, "
         f"{attrs['cost_clock']} s per simulated day",
@@ -323,6 +328,16 @@ def format_table(rows, attrs) -> str:
         )
     front = sorted((r for r in rows if r["on_front"]), key=lambda r: r["cost_per_day"])
     lines.append("front (cheapest first): " + ", ".join(f"{r['label']} {r['error']:.3g}" for r in front))
+    for target in targets:
+        best = cheapest_for(rows, target)
+        lines.append(
+            f"cheapest for error <= {target:g}: "
+            + (
+                f"{best['label']} at {best['dt']:.4g} s, {best['cost_per_day']:.3g} s/day"
+                if best
+                else "no run reaches it"
+            )
+        )
     return "\n".join(lines)
 
 

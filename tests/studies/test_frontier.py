@@ -122,9 +122,13 @@ def test_a_rerun_reuses_every_run(ladder, monkeypatch):
     monkeypatch.setattr(
         Simulation, "run", lambda self, output=None, **kw: runs.append(self.scene.dt) or real_run(self, output, **kw)
     )
-    again, _ = f.run(out, "cpu", overwrite=True, log=lines.append)
+    again, _ = f.run(out, "cpu", targets=(5e-4, 1e-5), overwrite=True, log=lines.append)
     assert runs == []  # no run, no reference run, no warm-up
     assert sum(line.startswith("runs: 2 reused, 0 made") for line in lines) == 4
+    table = next(line for line in lines if line.startswith("frontier: tc2_steady"))
+    assert (
+        "cheapest for error <= 0.0005: ne3/np4/" in table and "cheapest for error <= 1e-05: no run reaches it" in table
+    )
     assert [(r["label"], r["error"], r["cpu_time"]) for r in again] == [
         (r["label"], r["error"], r["cpu_time"]) for r in rows
     ]

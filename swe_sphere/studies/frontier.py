@@ -375,7 +375,8 @@ def write_outputs(rows, attrs: dict, directory, *, overwrite: bool = False) -> l
 
 def frontier_plot(path, rows, *, title: str = "", xlabel: str = "s per simulated day", figsize=(9.0, 6.0)) -> Path:
     """Error against cost per day, log-log: each stable run of ``rows`` (``Frontier.run``'s)
-    a point coloured by stepper, shaped by np and labelled ne/np/stepper; the front a line
+    a point coloured by stepper, shaped by np and labelled ne/np/stepper (the front's in
+    black, the others small and grey: points of one cost and error overlap); the front a line
     through its points from cheapest to most accurate. Returns ``path`` (PNG)."""
     fig = new_figure(figsize)
     ax = fig.add_subplot()
@@ -393,8 +394,16 @@ def frontier_plot(path, rows, *, title: str = "", xlabel: str = "s per simulated
                     label=f"{stepper}, np{p}",
                     zorder=3,
                 )
-    for r in stable:
-        ax.annotate(r["label"], (r["cost_per_day"], r["error"]), fontsize=7, xytext=(3, 3), textcoords="offset points")
+    for r in stable:  # the front's labels above its points, the others' small and grey below theirs
+        on = bool(r["on_front"])
+        ax.annotate(
+            r["label"],
+            (r["cost_per_day"], r["error"]),
+            fontsize=8 if on else 6,
+            color="black" if on else "0.45",
+            xytext=(4, 4) if on else (4, -9),
+            textcoords="offset points",
+        )
     front = sorted((r for r in stable if r["on_front"]), key=lambda r: r["cost_per_day"])
     ax.plot([r["cost_per_day"] for r in front], [r["error"] for r in front], color="0.3", linewidth=1, label="front")
     if stable:

@@ -148,6 +148,13 @@ class Frontier:
     days: float | None
     overrides: dict
 
+    @property
+    def default_output(self) -> Path:
+        """The results' folder when none is given, in the working folder:
+        ``frontier_<scene>_<days>d`` (a rerun finds its runs there)."""
+        base = self.sweep_plan(*self.grids[0]).base
+        return Path(f"frontier_{base.name}_{base.days:g}d")
+
     def sweep_plan(self, ne: int, np_: int, multiples=None) -> sweep.Plan:
         """The sweep of grid (ne, np): the runs at ``multiples`` of the gravity-wave limit
         (one per run, in order; None: 1, for checking the options alone)."""

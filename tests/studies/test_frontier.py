@@ -58,6 +58,7 @@ def test_steppers_near_their_limit_are_checked():
 def test_the_plan_orders_the_ladder_and_picks_the_error():
     f = frontier.plan("tc2_steady", **LADDER)
     assert f.grids == ((2, 3), (2, 4), (3, 3), (3, 4)) and f.error == "h"
+    assert str(f.default_output) == "frontier_tc2_steady_0.1d"
     g = frontier.plan("galewsky", ne=[2], np_=[4], reference="T341")
     assert g.error == "vorticity" and g.overrides == {"case.reference": "T341"}
     assert g.runs == (("kgu35", 0.8), ("fbrk32", 0.8))

@@ -9,8 +9,8 @@ import sys
 import time
 
 from ..core.errors import BlowUp, Interrupted, ResourceError, StepFailure
+from . import frontier, mesh, plot, remap, run, stability, sweep
 from . import list as list_
-from . import mesh, plot, remap, run, stability, sweep
 from .exits import EXIT_BAD_INPUT, EXIT_BLOWUP, EXIT_INTERNAL, exit_process, hold_signals, on_sigterm
 from .parser import parser
 
@@ -20,6 +20,7 @@ COMMANDS = {
     "list": (list_.command, "config.scene"),
     "stability": (stability.command, "studies.stability"),
     "sweep": (sweep.command, "studies.sweep"),
+    "frontier": (frontier.command, "studies.frontier"),
     "plot": (plot.command, "studies.plotting"),
     "remap": (remap.command, "io.remap"),
     "run": (run.command, "simulation.simulation"),

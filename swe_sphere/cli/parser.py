@@ -95,6 +95,7 @@ def parser() -> argparse.ArgumentParser:
     _plot(sub, [common, overwrite])
     _remap(sub, [common, overwrite])
     _sweep(sub, [common, scene, overwrite])
+    _frontier(sub, [common, overwrite])
     _stability(sub, [common, scene, overwrite])
     _mesh(sub, [common, overwrite])
     return p
@@ -248,6 +249,46 @@ def _sweep(sub, parents) -> None:
         "--filter-every", type=float, default=3.0, metavar="HOURS", help="the filter's snapshot interval (default 3 h)"
     )
     sw.add_argument("--workers", type=int, default=1, help=WORKERS_HELP)
+
+
+def _frontier(sub, parents) -> None:
+    fr = sub.add_parser(
+        "frontier",
+        help="error against cost over grids (ne x np) and steppers: the Pareto front (resumable)",
+        parents=parents,
+    )
+    fr.add_argument("scene", help="scene file or bundled scene name")
+    fr.add_argument("--ne", required=True, help="comma-separated elements along a cube edge, e.g. 8,16,30")
+    fr.add_argument("--np", required=True, help="comma-separated GLL points per element direction (2..8), e.g. 3,4,6")
+    fr.add_argument(
+        "--steppers",
+        metavar="STEPPER[@FRACTION],...",
+        help="explicit steppers, each at a fraction of its stability limit (default kgu35,fbrk32 at 0.8)",
+    )
+    fr.add_argument("--error", choices=("h", "vorticity", "divergence"), help="the error scored (default: the case's)")
+    fr.add_argument(
+        "--reference", help='what the runs are scored against: "T213", "T341" or a file (default: the scene\'s)'
+    )
+    fr.add_argument("--days", type=float, help="run length in days (default: the scene's)")
+    fr.add_argument(
+        "-s",
+        "--set",
+        action="append",
+        default=[],
+        metavar="SECTION.KEY=VALUE",
+        help="override a scene value in every run",
+    )
+    fr.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
+    fr.add_argument(
+        "--cost", choices=("cpu", "wall"), default="cpu", help="the clock that costs the runs (default cpu)"
+    )
+    fr.add_argument("--target", help="comma-separated errors: the cheapest configuration that reaches each")
+    fr.add_argument(
+        "--output",
+        type=path,
+        help="directory for results (default ./frontier_<scene>_<days>d); a rerun reuses its runs",
+    )
+    fr.add_argument("--workers", type=int, default=1, help=WORKERS_HELP)
 
 
 def _stability(sub, parents) -> None:

@@ -33,6 +33,14 @@ def numbers(text: str, name: str) -> list[float]:
         raise ValueError(f"--{name} must be comma-separated numbers (got {text!r})") from None
 
 
+def integers(text: str, name: str) -> list[int]:
+    """``--name 8,16`` → [8, 16]; the frontier's plan checks the values."""
+    try:
+        return [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise ValueError(f"--{name} must be comma-separated integers (got {text!r})") from None
+
+
 def steppers(text: str) -> list[str]:
     """``--steppers a,b`` → ["a", "b"], each a registered stepper."""
     from ..steppers import STEPPERS

@@ -148,8 +148,7 @@ class ShallowWater:
                 raise ValueError(f"hyperviscosity {name} must be >= 0 (got {value})")
         self.nu_div, self.nu_s = float(nu_div), float(nu_s)
         self.grid, self.terms, self.device = grid, terms, device
-        # the device's choices, decided once: the topology's where it is given
-        self.backend = Backend.of(device) if topology is None else topology.backend
+        self.backend = Backend.of(device) if topology is None else topology.backend  # decided once
         self.threads = self.backend.threads() if threads is None else int(threads)
         if self.threads < 1:
             raise ValueError(f"threads must be >= 1 (got {threads})")

@@ -85,19 +85,18 @@ def header(args, sim, output, device, comm) -> None:
             f"branch      from {args.continue_from} at its step {b['step']} (day {b['day']:g}; {b['stepper']}, dt = {b['dt']:g} s): "
             f"{scene.stepper} starts there afresh"
         )
-    _courant_notes_outputs(args, sim, output, device, c)
+    _courant_notes_outputs(args, sim, output, c)
 
 
-def _courant_notes_outputs(args, sim, output, device, c) -> None:
+def _courant_notes_outputs(args, sim, output, c) -> None:
     """The header's lines from the Courant numbers ``c`` (``Simulation.courant``) on:
     notes and warnings, the output files, the log, the digital-filter start, setup time."""
-    from ..core.backend import Backend
     from ..simulation.writers import restart_path, stream_path
 
     scene = sim.scene
     grav = "" if math.isnan(c["courant_gravity"]) else f", gravity-wave {c['courant_gravity']:.3f}"
     print(f"Courant     advective {c['courant_advective']:.3f}{grav} (max over nodes at t = {scene.day(sim.step):g} d)")
-    extra = [n for n in (sim.stability_warning(), Backend.of(device).threads_note()) if n]
+    extra = [n for n in (sim.stability_warning(), sim.backend.threads_note()) if n]
     for note in (*scene.notes, *extra):
         if note.startswith("warning: "):
             if sim.root:  # once, not once a rank

@@ -182,6 +182,9 @@ class Scene:
         ``mesh_file``) as a ``grid.spec`` record; None: the equiangular cube of ne.
     output_cells : bool
         [output] cells: the run files hold the control volumes (``io.dual``).
+    dt_source : str
+        Where ``dt`` comes from, for messages ("the scene's", "the dt given", ...): not part
+        of the scene's identity (left out of comparisons and of ``as_dict``).
     """
 
     name: str

@@ -1,6 +1,6 @@
 """The public API's docstrings state its contract in numpydoc sections: ``swe_sphere.run``,
-``Simulation`` and its public methods, ``load_scene``, ``remap_dataset`` and the sweep's
-``plan`` name every parameter under Parameters and have Returns (or Yields) and Raises;
+``Simulation`` and its public methods, ``load_scene``, ``remap_dataset``, the sweep's and the
+frontier's ``plan`` name every parameter under Parameters and have Returns (or Yields) and Raises;
 ``Scene`` names every field under Attributes; each error says what it is."""
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from swe_sphere.config.scene import Scene, load_scene
 from swe_sphere.core import errors
 from swe_sphere.io.remap import remap_dataset
 from swe_sphere.simulation.simulation import Simulation
+from swe_sphere.studies import frontier
 from swe_sphere.studies.sweep import Plan, plan
 
 HEADER = re.compile(r"^ *(\w[\w ]*)\n *-{3,}\n", re.M)
@@ -49,6 +50,8 @@ FUNCTIONS = [
     remap_dataset,
     plan,
     Plan.run,
+    frontier.plan,
+    frontier.Frontier.run,
 ]
 
 

@@ -48,6 +48,15 @@ def grid_record(grid: dict, scene_path: Path) -> dict | None:
     if chosen is not None and chosen not in grid_spec.MAPS:
         raise SceneError(f"grid.map must be one of {', '.join(grid_spec.MAPS)} (got {chosen!r})")
     stretch = [k for k in ("stretch_factor", "target_lat", "target_lon") if k in grid]
+    cube = grid.get("cube", "equiangular")
+    if cube not in grid_spec.CUBES:
+        raise SceneError(f"grid.cube must be one of {', '.join(grid_spec.CUBES)} (got {cube!r})")
+    if cube != "equiangular" and ("mesh_file" in grid or stretch):
+        raise SceneError(
+            f"grid.cube = {cube!r} is a cube of ne; drop grid.{'mesh_file' if 'mesh_file' in grid else stretch[0]}"
+        )
+    if cube == "equidistant":
+        return {"map": chosen or "element_local", "cube": cube}
     if "mesh_file" in grid:
         if stretch:
             raise SceneError(f"grid.{stretch[0]} stretches the cube; a mesh file is its own mesh (drop one)")

@@ -17,7 +17,10 @@ the run length, the output interval and the hyperviscosity. Layout::
                       map = "equiangular" | "element_local" (the cube's map: HOMME's
                       cubed_sphere_map 0 or 2), stretch_factor = 2.5, target_lat = 40.0,
                       target_lon = 270.0 (degrees: the Schmidt-stretched cube of ne, FV3's
-                      do_schmidt; element-local), or mesh_file = "x.g" (an Exodus II mesh,
+                      do_schmidt; element-local), cube = "equiangular" | "equidistant" (the
+                      cube's element corners equally spaced in angle, the default, or on the
+                      cube's faces as pySEs's grid; element-local unless map says), or
+                      mesh_file = "x.g" (an Exodus II mesh,
                       relative to the scene file or absolute; ne = 0 as HOMME's; element-local,
                       or with map = "equiangular" each element in its cube face);
                       ``grid.spec`` records the choice in ``Scene.mesh``
@@ -179,6 +182,9 @@ class Scene:
         ``mesh_file``) as a ``grid.spec`` record; None: the equiangular cube of ne.
     output_cells : bool
         [output] cells: the run files hold the control volumes (``io.dual``).
+    dt_source : str
+        Where ``dt`` comes from, for messages ("the scene's", "the dt given", ...): not part
+        of the scene's identity (left out of comparisons and of ``as_dict``).
     """
 
     name: str

@@ -77,6 +77,7 @@ SCHEMA = {
         "stretch_factor": float,
         "target_lat": float,
         "target_lon": float,
+        "cube": str,
         "mesh_file": str,
     },
     "time": {"stepper": str, "dt": float, "days": float},

@@ -16,7 +16,7 @@ import sys
 
 from .errors import ResourceError
 
-RUN_BYTES_PER_NODE = 1100  # measured 1 020 (benchmarks/README.md, "Memory"), + 32 for the ∇⁴ work array, rounded up
+RUN_BYTES_PER_NODE = 1100  # measured 1 020 (the benchmarks notebook (git show 5fa9286:benchmarks/README.md), "Memory"), + 32 for the ∇⁴ work array, rounded up
 STEPPER_BYTES_PER_NODE = {
     "semi_implicit": 400,  # ~10 more (k, N) rows and the Helmholtz CG's unique-node vectors
     "implicit": 1200,  # 13 (3, N) buffers, 6 unique-node vectors and a GMRES basis of 30

@@ -5,7 +5,8 @@ rank partition, and the topology (DSS, assembly and reductions on one rank or ov
 HOMME's ``element_t``), ``gll.gll``, ``partition.partition`` (a space-filling curve),
 ``topology.Topology`` (the one seam for DSS and global sums), ``mesh.Mesh`` (any conforming
 quadrilateral mesh of the sphere; Exodus II ``.g`` files in and out), ``element_local`` (its map and
-numbering), ``face_map`` (the equiangular map in each element's cube face), ``schmidt.schmidt_cube`` (the stretched cube), ``refine.refined_cube`` (the cube
+numbering), ``face_map`` (the equiangular map in each element's cube face), ``schmidt.schmidt_cube`` (the stretched cube),
+``equidistant.equidistant_cube`` (the gnomonic equidistant cube, pySEs's), ``refine.refined_cube`` (the cube
 refined over a latitude-longitude box; ``refine.make_mesh``, what ``swe-sphere mesh`` writes),
 ``quality.element_sizes`` (HOMME's Dinv-based length scales and distortion).
 
@@ -15,6 +16,7 @@ May import: ``core``, ``kernels``.
 __all__ = [
     "cubed_sphere",
     "element_local",
+    "equidistant",
     "face_map",
     "gll",
     "mesh",

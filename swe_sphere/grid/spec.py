@@ -9,6 +9,8 @@ A record is one of:
 - ``{"map": "element_local", "stretch_factor": c, "target_lat": φ, "target_lon": λ}`` (degrees):
   the Schmidt-stretched cube of ne (``schmidt.schmidt_cube``; FV3's ``stretch_fac``,
   ``target_lat``, ``target_lon``);
+- ``{"map": m, "cube": "equidistant"}``: the gnomonic equidistant cube of ne
+  (``equidistant.equidistant_cube``; pySEs's grid with m = ``"element_local"``);
 - ``{"map": m, "file": path, "sha256": hex, "nelem": F}``: an Exodus II ``.g`` file
   (``mesh.read_exodus``; HOMME's ``ne = 0`` with ``mesh_file``), its absolute path, the SHA-256
   of its bytes and its element count, through the map m: ``"element_local"`` (the default, as
@@ -24,11 +26,13 @@ from pathlib import Path
 
 from ..core.errors import SceneError
 from .cubed_sphere import cube_mesh
+from .equidistant import equidistant_cube
 from .face_map import face_corners
 from .mesh import Mesh, read_exodus
 from .schmidt import schmidt_cube
 
 MAPS = ("equiangular", "element_local")  # HOMME's cubed_sphere_map = 0 and 2
+CUBES = ("equiangular", "equidistant")  # where the cube's element corners lie: equal angles or equal tangents
 
 
 def file_sha256(path) -> str:
@@ -73,6 +77,8 @@ def build_mesh(ne: int, record: dict | None) -> Mesh | None:
         return _mapped(read_exodus(path), record["map"])
     if "stretch_factor" in record:
         return schmidt_cube(ne, record["stretch_factor"], record["target_lat"], record["target_lon"])
+    if record.get("cube") == "equidistant":
+        return _mapped(equidistant_cube(ne), record["map"])
     return cube_mesh(ne)
 
 
@@ -89,19 +95,22 @@ def mean_ne(ne: int, record: dict | None) -> float:
 
 def label(ne: int, record: dict | None) -> str:
     """The grid's part of a default file name: ``ne4``, ``ne4map2`` (the element-local map,
-    HOMME's ``cubed_sphere_map = 2``), ``ne4c2.5`` (stretched by 2.5), a mesh file's stem, or
+    HOMME's ``cubed_sphere_map = 2``), ``ne4c2.5`` (stretched by 2.5), ``ne4ed`` (the equidistant
+    cube; ``ne4edmap0`` through the equiangular map), a mesh file's stem, or
     its stem and ``map0`` through the equiangular map (``cubed_sphere_map = 0``)."""
     if record is not None and "file" in record:
         return Path(record["file"]).stem + ("map0" if record["map"] == "equiangular" else "")
     if record is not None and "stretch_factor" in record:
         return f"ne{ne}c{record['stretch_factor']:g}"
+    if record is not None and record.get("cube") == "equidistant":
+        return f"ne{ne}ed" + ("map0" if record["map"] == "equiangular" else "")
     return f"ne{ne}" if record is None else f"ne{ne}map2"
 
 
 def describe(ne: int, np_: int, record: dict | None) -> str:
     """The grid in words for headers and messages: ``ne=4 np=4``, ``ne=4 np=4 element-local``,
-    ``ne=4 np=4 stretched 2.5x toward (40, 270)``, ``mesh x.g np=4`` or ``mesh x.g np=4
-    equiangular``."""
+    ``ne=4 np=4 stretched 2.5x toward (40, 270)``, ``ne=4 np=4 equidistant cube element-local``,
+    ``mesh x.g np=4`` or ``mesh x.g np=4 equiangular``."""
     if record is None:
         return f"ne={ne} np={np_}"
     if "file" in record:
@@ -111,4 +120,6 @@ def describe(ne: int, np_: int, record: dict | None) -> str:
             f"ne={ne} np={np_} stretched {record['stretch_factor']:g}x toward "
             f"({record['target_lat']:g}, {record['target_lon']:g})"
         )
+    if record.get("cube") == "equidistant":
+        return f"ne={ne} np={np_} equidistant cube " + record["map"].replace("_", "-")
     return f"ne={ne} np={np_} element-local"

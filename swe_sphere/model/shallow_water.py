@@ -98,6 +98,8 @@ class ShallowWater:
         in cache) or one thread per node (on CUDA). Same results to round-off.
     topology : the ``Topology`` that assembles the grid's elements (DSS,
         unique-node vectors, global reductions); None: one over the whole grid.
+        Its ``backend`` (``core.backend``) is the model's ``backend``, the device's
+        choices decided once.
 
     The state is a ``wp.array2d`` (3, N) of rows u, v (m s⁻¹, east/north) and h
     (fluid depth, m), element-local and continuous (equal on all copies).
@@ -146,12 +148,13 @@ class ShallowWater:
                 raise ValueError(f"hyperviscosity {name} must be >= 0 (got {value})")
         self.nu_div, self.nu_s = float(nu_div), float(nu_s)
         self.grid, self.terms, self.device = grid, terms, device
-        self.threads = Backend.of(device).threads() if threads is None else int(threads)
+        self.backend = Backend.of(device) if topology is None else topology.backend  # decided once
+        self.threads = self.backend.threads() if threads is None else int(threads)
         if self.threads < 1:
             raise ValueError(f"threads must be >= 1 (got {threads})")
         self.nu, self.hypervis_subcycle, self.g = float(nu), int(hypervis_subcycle), float(g)
         self.hypervis_scaling = None if hypervis_scaling is None else float(hypervis_scaling)
-        self.per_element = Backend.of(device).per_element if per_element is None else bool(per_element)
+        self.per_element = self.backend.per_element if per_element is None else bool(per_element)
         self.dvv_rows = operators.dvv_matrix(grid.rule.dvv)  # the per-element kernels' dvv argument
         N = grid.nnodes
         self.N = N

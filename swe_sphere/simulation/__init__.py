@@ -1,6 +1,6 @@
 """The simulation layer: a run of a scene.
 
-``simulation.Simulation`` (grid, case, model and stepper; ``run``, stepping, restarts), its
+``simulation.Simulation`` (its loop, ``run``; its ``build``, ``restart`` and Python ``drive``), its
 activities (``activities``: one shape, a schedule and a call; ``writers``: run and restart
 files; ``schedules``), ``guard`` (the
 bad-state check), ``summary`` (counts and the result), ``state_diagnostics``, ``checkpoint``
@@ -9,4 +9,16 @@ bad-state check), ``summary`` (counts and the result), ``state_diagnostics``, ``
 May import: every layer below (``core`` to ``config``).
 """
 
-__all__ = ["activities", "checkpoint", "guard", "schedules", "simulation", "state_diagnostics", "summary", "writers"]
+__all__ = [
+    "activities",
+    "build",
+    "checkpoint",
+    "drive",
+    "guard",
+    "restart",
+    "schedules",
+    "simulation",
+    "state_diagnostics",
+    "summary",
+    "writers",
+]

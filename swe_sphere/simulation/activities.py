@@ -48,7 +48,7 @@ class Callback:
 
 @dataclass
 class Log:
-    """``log(line)`` with ``Simulation.log_line`` every ``schedule`` steps (rank 0; the
+    """``log(line)`` with ``StateDiagnostics.log_line`` every ``schedule`` steps (rank 0; the
     fields are gathered on every rank), from the diagnostics ``files`` (a ``RunFiles``)
     recorded at this step when it did."""
 
@@ -58,6 +58,6 @@ class Log:
 
     def __call__(self, sim) -> None:
         files = self.files
-        line = sim.log_line(files.history[-1] if files.schedule.due(sim.step) else None)
+        line = sim.diagnostics.log_line(files.history[-1] if files.schedule.due(sim.step) else None)
         if line is not None:
             self.log(line)

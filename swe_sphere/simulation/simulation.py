@@ -5,99 +5,44 @@ steps by one path; what happens around the steps is each a small part: the step
 itself (``graphs.GraphedSteps``), the bad-state guard (``guard``), the activities
 called at the steps their schedules name (``activities``: the run files and restart
 files of ``writers``, callbacks, user writers, the log; all in ``Simulation.activities``),
-signals (``interrupts``), and the counts and result (``summary``); the state's
-diagnostics are ``state_diagnostics``."""
+signals (``interrupts``), and the counts and result (``summary``). The build is
+``build``'s, restarts and branches ``restart``'s, driving from Python ``drive``'s (their
+functions bound here as methods); the state's diagnostics a ``state_diagnostics``
+component, ``Simulation.diagnostics``."""
 
 from __future__ import annotations
 
 import contextlib
-import dataclasses
-import itertools
 import signal
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
-import warp as wp
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
-from ..cases.scoring import Scorer
-from ..config.scene import Scene, resolve_scene, with_days
-from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
-from ..core.clock import is_interval
+from ..config.scene import Scene, resolve_scene
+from ..core.backend import Backend, pick_device
 from ..core.constants import DAY
-from ..core.errors import BlowUp, Interrupted, ResourceError, SceneError, StepFailure
+from ..core.errors import BlowUp, Interrupted, StepFailure
 from ..core.graphs import GraphedSteps, default_mode, graphs_mode
 from ..core.interrupts import StepAbandoned, StopSignals
-from ..core.mpi import node_local_size
-from ..core.runtime import run_bytes
-from ..grid.cubed_sphere import CubedSphere
-from ..grid.topology import Topology, rank_parts
-from ..io import restart_file
-from ..io.initial_state import from_function
-from ..io.run_file import OUTPUT_FIELDS, check_distinct, check_target, node_dataset
-from ..model.shallow_water import ShallowWater
-from ..steppers import STEPPERS, StepStats, make_stepper
-from ..steppers.initialization import digital_filter
-from . import checkpoint as ckpt
-from .activities import Callback, Log
+from ..io.run_file import check_distinct, check_target
+from ..steppers import StepStats
+from . import drive, restart
+from .activities import Log
+from .build import build
 from .guard import Guard
-from .schedules import EverySteps, steps_of
-from .state_diagnostics import StateDiagnostics
+from .schedules import EverySteps
 from .summary import Ledger, RunResult, Stop, interruption
 from .writers import Checkpointer, RunFiles, run_attrs
 
 # The names users catch and read from here (``swe_sphere.BlowUp``, ``swe_sphere.Interrupted``).
-__all__ = ["ON_ROOT", "BlowUp", "Interrupted", "RunResult", "Simulation"]
+__all__ = ["BlowUp", "Interrupted", "RunResult", "Simulation"]
 
 
 RUN_ACTIVITIES = ("run_file", "checkpointer", "log")  # the names ``run`` gives its own activities
-ON_ROOT = object()  # ``start`` on the ranks > 0 when rank 0 alone holds the whole-grid start state
-
-MAX_HYPERVIS_EVALUATIONS = 10_000  # ∇⁴ evaluations a step; beyond, ν is ~10⁷ times its explicit bound or more
-
-
-def _check_hyperviscosity(model: ShallowWater, scene: Scene) -> None:
-    """Refuse (``SceneError``, before the run) a ν whose ∇⁴ sub-stepping
-    (``hypervis.Hyperviscosity.plan``) would take more than
-    ``MAX_HYPERVIS_EVALUATIONS`` evaluations a step: such a step runs for hours
-    and is a mistyped coefficient, not a setting."""
-    if model.hv is None or model.hv.nu_max == 0.0:
-        return
-    hv = model.hv
-    evals, _ = hv.plan(scene.dt)
-    if evals > MAX_HYPERVIS_EVALUATIONS:
-        bound = 1.5 / (scene.dt * hv.biharmonic_radius())
-        raise SceneError(
-            f"hyperviscosity nu = {hv.nu_max:.3g} m^4/s is {hv.nu_max / bound:.2g}x its explicit bound "
-            f"({bound:.3g} m^4/s at dt = {scene.dt:g} s): {evals:.3g} ∇⁴ evaluations a step (at most "
-            f"{MAX_HYPERVIS_EVALUATIONS}); lower hyperviscosity.nu"
-        )
-
-
-def _check_memory(scene: Scene, comm, device: str = "cpu") -> None:
-    """Refuse (``runtime.ResourceError``, one line, on every rank) a run whose
-    estimated memory exceeds what is available on its device (a GPU's free memory,
-    else the host's): the whole run on one process; over MPI ranks, the share of
-    the ranks on each node (each holds its elements)."""
-    need = run_bytes(scene.ne, scene.np, scene.stepper, nelem=scene.nelem)
-    what = f"{scene.grid_text} with {scene.stepper}"
-    backend = Backend.of(device)
-    if comm is None or comm.size == 1:
-        return backend.check_memory(need, what)
-    local = node_local_size(comm)
-    try:
-        backend.check_memory(need * local // comm.size, f"{what} over {comm.size} MPI ranks ({local} on this node)")
-        error = None
-    except ResourceError as err:
-        error = str(err)
-    errors = [e for e in comm.allgather(error) if e is not None]  # every rank refuses if one node must
-    if errors:
-        err = ResourceError(errors[0])
-        err.on_every_rank = True  # the console script says it once (rank 0), without MPI_Abort
-        raise err
 
 
 @contextlib.contextmanager
@@ -127,7 +72,7 @@ def _compile_timer(acc: list):
         Module.load = real
 
 
-class Simulation(StateDiagnostics):
+class Simulation:
     """Build the grid, case, model and stepper of a scene; ``run`` integrates it.
 
     A scene may be given as ``swe_sphere.run`` takes it, ``Simulation("tc2_steady", ne=4,
@@ -182,6 +127,12 @@ class Simulation(StateDiagnostics):
     inputs : tuple of Path
         The files the simulation was made from (scene file, restart file), which
         ``run`` refuses to write over.
+    diagnostics : StateDiagnostics
+        The state's fields gathered on rank 0, invariants, errors, Courant numbers and
+        the log line (``state_diagnostics``); ``fields``, ``divergence``, ``courant``,
+        ``stability_warning`` and ``largest_dt_within_limit`` are also the simulation's.
+    backend : Backend
+        The device's choices (``core.backend``), decided once; ``device`` its name.
 
     Raises
     ------
@@ -226,85 +177,54 @@ class Simulation(StateDiagnostics):
         # Δt the simulation may fit to the user's intervals (``steps``): not given, restored or stated in a Scene
         self._own_dt = not isinstance(scene, Scene) and "dt" not in overrides and initial_diagnostics is None
         scene, inputs = resolve_scene(scene, overrides)
-        device = pick_device(device)  # a name Warp does not know is refused in one line
+        backend = Backend.of(pick_device(device))  # a name Warp does not know is refused in one line
         if initial is not None and (start is not None or not callable(initial)):
             raise ValueError("initial must be a function (lat, lon) -> (h, u, v), and not given with start")
         t0 = time.perf_counter()
         self._compile = [0.0]
         self.activities: dict = {}  # name -> activity (``activities``): the user's; ``run`` adds its own
-        # single-threaded BLAS, as in ``run``: the ∇⁴'s power iteration (``_check_hyperviscosity``)
+        # single-threaded BLAS, as in ``run``: the ∇⁴'s power iteration (``build.check_hyperviscosity``)
         # takes 40 norms, and OpenBLAS's threads spinning on a busy machine made them 0.3 s of CPU
         with _compile_timer(self._compile), threadpool_limits(limits=1, user_api="blas"):
-            self._build(scene, device, progress, comm, start, initial, initial_diagnostics)
-        self.graphs = graphs
+            build(self, scene, backend, progress, comm, start, initial, initial_diagnostics)
+        self._graphed = GraphedSteps(backend.device, self.model.graph_guard, graphs)
         self.setup_time = time.perf_counter() - t0
         if inputs:
             self.inputs = inputs
 
-    def _build(self, scene, device, progress, comm, start, initial, initial_diagnostics):
-        _check_memory(scene, comm, device)
-        self.scene, self.device = scene, device
-        size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
-        mesh = scene.make_mesh()  # None: the equiangular cube
-        self.case = case = scene.make_case()
-        level = None  # over several ranks: the stepper's element levels, if its work goes by levels (lts)
-        if size > 1:
-            whole = lambda: CubedSphere(scene.ne, scene.np, case.planet.a, mesh=mesh)  # noqa: E731
-            mine = STEPPERS[scene.stepper].partition_levels(whole, scene.stepper_options) if rank == 0 else None
-            level = comm.bcast(mine, root=0)
-        parts = rank_parts(scene.ne, size, mesh, level)
-        local = CubedSphere(scene.ne, scene.np, case.planet.a, elements=parts[rank], mesh=mesh)  # this rank's only
-        self.topology = topo = Topology(local, device, Backend.of(device).threads(), comm, parts=parts)
-        self.root = rank == 0  # the rank that diagnoses, writes files and shows progress
-        self.progress = progress and self.root
-        # the whole grid and fields for diagnostics and output: on rank 0 only (None elsewhere)
-        self.grid = topo.whole_grid()
-        self.model = ShallowWater.from_scene(scene, local, case, device=device, topology=topo)
-        self.g = self.model.g
-        fcor, hs = self.model.fcor.numpy(), self.model.hs.numpy()  # the case's, as the model holds them
-        self.fcor, self.hs = topo.gather(fcor), topo.gather(hs)
-        _check_hyperviscosity(self.model, scene)
-        self.stepper = make_stepper(scene.stepper, self.model, scene.dt, **scene.stepper_options)
-        self.stepper.t0 = scene.start_day * DAY
-        self.scorer = Scorer(case, self.model, topo, self.grid, self.hs, scene.reference_file)
-        self.dfi = None
-        if start is None:
-            start = (
-                np.stack(case.initial(local.lat, local.lon))
-                if initial is None
-                else from_function(initial, local.lat, local.lon)
-            )
-            if scene.digital_filter is not None:
-                self.dfi = digital_filter(
-                    scene.digital_filter,
-                    start,
-                    grid=local,
-                    terms=scene.terms,
-                    fcor=fcor,
-                    hs=hs,
-                    g=self.g,
-                    device=device,
-                    topology=topo,
-                )
-        else:
-            start = topo.distribute(None if start is ON_ROOT else start, 3, "start state")
-        self.x = self.model.new_state(*(self.dfi.x if self.dfi is not None else start))
-        self.stepper.prepare(self.x)
-        self.last_good = wp.clone(self.x)  # the state at the start of the block of steps in progress (``guard``)
-        self.check_every = CHECK_EVERY_STEPS
-        if not self.root:  # a fallback's warning once, from rank 0
-            self.model.graph_guard.warn = lambda line: None
-        self._graphed = GraphedSteps(device, self.model.graph_guard)
-        self.initial = initial_diagnostics
-        if initial_diagnostics is None:
-            self.initial = self.diagnose(scene.start_day * DAY)
-        self.step = 0  # steps taken since t = 0 (a branched run: since its branch day, ``Scene.start_day``)
-        self.counters = {
-            "rhs_evals": 0,
-            "wall_time": 0.0,
-            "cpu_time": 0.0,
-            "iterations": {k: 0 for k in self.stepper.solvers},
-        }
+    # -- restarts and branches (``restart``), driven from Python (``drive``) ----------
+    from_checkpoint = classmethod(restart.from_checkpoint)
+    restore = restart.restore
+    restore_history = restart.restore_history
+    write_checkpoint = restart.write_checkpoint
+    fit_dt = drive.fit_dt
+    every = drive.every
+    add_callback = drive.add_callback
+    time = property(drive.time)
+    advance = drive.advance
+    steps = drive.steps
+    state = drive.state
+
+    # -- the state's diagnostics (``state_diagnostics``) --------------------------
+    def fields(self, x=None):
+        """``StateDiagnostics.fields``: u, v, h of the whole grid on rank 0."""
+        return self.diagnostics.fields(x)
+
+    def divergence(self, x=None):
+        """``StateDiagnostics.divergence``: the wind's divergence on rank 0."""
+        return self.diagnostics.divergence(x)
+
+    def courant(self, whole=None) -> dict:
+        """``StateDiagnostics.courant``: the Courant numbers of the current state."""
+        return self.diagnostics.courant(whole)
+
+    def stability_warning(self) -> str | None:
+        """``StateDiagnostics.stability_warning``: a line when Δt exceeds the stepper's limit."""
+        return self.diagnostics.stability_warning()
+
+    def largest_dt_within_limit(self) -> float | None:
+        """``StateDiagnostics.largest_dt_within_limit``: the Δt at the stepper's limit."""
+        return self.diagnostics.largest_dt_within_limit()
 
     # -- the step --------------------------------------------------------------
     @property
@@ -324,296 +244,6 @@ class Simulation(StateDiagnostics):
         graphs (``graphs.GraphedSteps``)."""
         stats = self._graphed.step(self.stepper, self.model, self.x, watch)
         return stats if watch else StepStats(stats.rhs_evals, {**stats.iterations, **self.stepper.counts()})
-
-    # -- restart --------------------------------------------------------------
-    @classmethod
-    def from_checkpoint(
-        cls,
-        checkpoint,
-        device: str,
-        *,
-        days: float | None = None,
-        stepper: str | None = None,
-        dt: float | None = None,
-        progress: bool = True,
-        comm=None,
-        graphs: str | bool | None = None,
-    ) -> Simulation:
-        """A simulation that continues a restart file, bitwise as if never stopped.
-
-        With another ``stepper`` or ``dt`` than the checkpoint's it is a branch
-        (``checkpoint.branch``): a new run from the checkpoint's state, its stepper's
-        history dropped (multistep steppers start as at t = 0), its counters from zero
-        and its invariants' changes against that state, steps counted from the
-        checkpoint's day.
-
-        Parameters
-        ----------
-        checkpoint : str, path or checkpoint.Checkpoint
-            The restart file (read on rank 0 only, ``checkpoint.read_on_root``).
-        device : {"cpu", "cuda"}
-            Warp device.
-        days : float, optional
-            The new last model day, from t = 0 (default: the checkpointed scene's).
-        stepper : str, optional
-            Another stepper: a branch.
-        dt : float, optional
-            Another time step (s): a branch.
-        progress, comm, graphs
-            As for the constructor.
-
-        Returns
-        -------
-        Simulation
-            At the checkpoint's step.
-
-        Raises
-        ------
-        CheckpointError
-            An unreadable or damaged restart file, or a ``days`` before its step.
-        SceneError
-            A branch it cannot make (unknown stepper, dt <= 0, a length not whole steps).
-        """
-        ck = checkpoint if isinstance(checkpoint, ckpt.Checkpoint) else ckpt.read_on_root(checkpoint, comm)
-        start = ON_ROOT if ck.x is None else ck.x  # ranks > 0 of ``read_on_root`` have no arrays
-        if (stepper is not None and stepper != ck.scene.stepper) or (dt is not None and dt != ck.scene.dt):
-            sim = cls(
-                ckpt.branch(ck, stepper=stepper, dt=dt, days=days),
-                device,
-                progress=progress,
-                comm=comm,
-                start=start,
-                graphs=graphs,
-            )
-        else:
-            scene = ck.scene if days is None else with_days(ck.scene, days)
-            if scene.nsteps < ck.step:
-                raise ckpt.CheckpointError(
-                    f"the run length {scene.days:g} days ends before the checkpoint (day {ck.scene.day(ck.step):g})"
-                )
-            sim = cls(
-                scene,
-                device,
-                progress=progress,
-                comm=comm,
-                start=start,
-                initial_diagnostics=ck.initial,  # the state handed out; no second digital filter
-                graphs=graphs,
-            )
-            sim.restore_history(ck)
-        if not isinstance(checkpoint, ckpt.Checkpoint):
-            sim.inputs = (Path(checkpoint),)
-        return sim
-
-    def restore(self, ck: ckpt.Checkpoint) -> None:
-        """Set the state, stepper history, counters and t = 0 invariants from a checkpoint."""
-        try:
-            x = self.topology.distribute(
-                ck.x, 3, "checkpoint state"
-            )  # ck.x on rank 0 only (``checkpoint.read_on_root``)
-        except ValueError as err:
-            raise ckpt.CheckpointError(str(err)) from None
-        self.x.assign(x)
-        self.restore_history(ck)
-
-    def restore_history(self, ck: ckpt.Checkpoint) -> None:
-        """``restore`` but the state (already ``ck.x``)."""
-        try:
-            self.stepper.restore(ck.stepper_state)
-        except ValueError as err:
-            raise ckpt.CheckpointError(f"checkpoint does not fit the stepper: {err}") from None
-        self.step, self.counters, self.initial = ck.step, ck.counters, ck.initial
-
-    def write_checkpoint(self, path, *, overwrite: bool = True, restart_every: float | None = None) -> Path:
-        """Write a restart file of the current step (see ``checkpoint``): whole-grid
-        fields, gathered from every rank (call on all), written by rank 0;
-        ``restart_every`` (days) recorded for a continuation to keep."""
-        x, state = self.topology.gather(self.x.numpy()), self.stepper.state()
-        if not self.root:
-            return Path(path)
-        return restart_file.write(
-            path,
-            self.scene,
-            self.step,
-            x,
-            state,
-            self.counters,
-            self.initial,
-            grid=self.grid,
-            overwrite=overwrite,
-            restart_every=restart_every,
-        )
-
-    # -- driven from Python (Oceananigans' Simulation: step, inspect, call back) ---------
-    def fit_dt(self, every: float, what: str = "every") -> None:
-        """Shorten Δt, before the first step, to the largest that divides ``every`` (days),
-        the run, its output intervals (where shorter than the run) and the intervals of
-        the activities scheduled in days (``every``; their steps follow): the scene's clock
-        fitted to them (``Clock.fitted``), a new stepper, and the start's diagnostics again
-        (their Courant numbers); a note in ``scene.notes`` naming ``what``. ``SceneError``
-        (one line) after the first step, for ``every`` <= 0, and where that Δt is less than
-        half the present one (an interval of odd decimals: give a dt, or an interval of
-        whole steps)."""
-        s = self.scene
-        if self.step != 0 or not is_interval(every):
-            raise SceneError(
-                f"dt is fitted to an interval > 0 before the first step (got {every!r} at step {self.step})"
-            )
-        outputs = [s.output_every_days, *(st["every_days"] for st in s.output_streams)]
-        days = [a.schedule.days for a in self.activities.values() if getattr(a.schedule, "days", None) is not None]
-        spans = (every, s.run_days, *(d for d in outputs if d < s.run_days), *days)
-        clock = s.clock.fitted(*spans, source=f"{s.dt_source}, shortened to divide {what} = {every:g} days")
-        if clock.dt < s.dt / 2:
-            raise SceneError(
-                f"{what} = {every:g} days is not a whole number of steps of dt = {s.dt:g} s, and the longest dt "
-                f"that divides it, the run and its output intervals is {clock.dt:g} s, less than half: give a dt, "
-                "or an interval of whole steps"
-            )
-        note = f"dt shortened from {s.dt:g} s to {clock.dt:g} s to divide {what} = {every:g} days"
-        self.scene = dataclasses.replace(s, dt=clock.dt, notes=(*s.notes, note), dt_source=clock.source)
-        _check_hyperviscosity(self.model, self.scene)
-        self.stepper = make_stepper(self.scene.stepper, self.model, clock.dt, **self.scene.stepper_options)
-        self.stepper.t0 = self.scene.start_day * DAY
-        self.stepper.prepare(self.x)
-        for activity in self.activities.values():
-            if getattr(activity.schedule, "days", None) is not None:
-                activity.schedule = self.every(days=activity.schedule.days)
-        self.initial = self.diagnose(self.scene.start_day * DAY)
-
-    def every(self, *, days: float | None = None, steps: int | None = None) -> EverySteps:
-        """The schedule of an activity (``activities``) due after every step that is a
-        multiple of ``steps``, or of the steps in ``days`` (whole steps), counted from
-        step 0 (Oceananigans' ``IterationInterval``); not at step 0, whose state the
-        caller has. ValueError for an interval that is not whole steps, or not exactly
-        one of the two."""
-        if (days is None) == (steps is None):
-            raise ValueError("an interval needs exactly one of every_days, every_steps")
-        if steps is not None and not (isinstance(steps, int) and steps >= 1):
-            raise ValueError(f"every_steps must be an integer >= 1 (got {steps!r})")
-        return EverySteps(steps) if days is None else EverySteps(self._steps_in(days, "every_days"), days)
-
-    def _steps_in(self, days: float, what: str) -> int:
-        """The whole number of steps in ``days`` (``what`` names it in a refusal), Δt first
-        fitted to it (``fit_dt``) where Δt is the simulation's own and no step was taken."""
-        if self._own_dt and self.step == 0 and is_interval(days) and not self.scene.clock.is_whole(days):
-            self.fit_dt(days, what)
-        return steps_of(self.scene, days, f"the interval {what}")
-
-    def add_callback(
-        self, fn, *, every_days: float | None = None, every_steps: int | None = None, name: str | None = None
-    ) -> None:
-        """Call ``fn(sim)`` after every ``every_steps``-th step, or every ``every_days``
-        (``every``), in ``run``, ``advance`` and ``steps`` (Oceananigans' ``add_callback!``):
-        an activity in ``activities`` under ``name`` (default "callback N"). ``fn`` may read
-        ``sim.step``, ``sim.time``, ``sim.state()``; what it raises ends the run (its
-        output files dropped). Under MPI add it on every rank. ValueError as ``every``."""
-        schedule = self.every(days=every_days, steps=every_steps)
-        if name is None:
-            name = next(f"callback {k}" for k in itertools.count(1) if f"callback {k}" not in self.activities)
-        self.activities[name] = Callback(fn, schedule)
-
-    @property
-    def time(self) -> float:
-        """The model time of the current step, days since t = 0."""
-        return self.scene.day(self.step)
-
-    def advance(self, days: float) -> RunResult:
-        """Step ``days`` further with ``run``'s loop (the same bits as one run; blow-up,
-        signals and callbacks as there; no output file). Past the scene's end the run
-        is lengthened (``config.with_days``).
-
-        Parameters
-        ----------
-        days : float
-            Model days, a whole number of steps.
-
-        Returns
-        -------
-        RunResult
-            Of these steps.
-
-        Raises
-        ------
-        ValueError
-            ``days`` is not a whole number of steps.
-        BlowUp, StepFailure, Interrupted
-            As ``run``.
-        """
-        target = self.step + self._steps_in(days, "days")
-        if target > self.scene.nsteps:
-            self.scene = with_days(self.scene, self.scene.start_day + target * self.scene.dt / DAY, "the scene's")
-        return self.run(None, until_step=target)
-
-    def steps(self, every: float):
-        """Iterate the run to the scene's end, one multiple of ``every`` days from t = 0
-        at a time (``for t in sim.steps(every=0.5): ds = sim.state()``); stops at the last
-        multiple at or before the end.
-
-        Where Δt is the simulation's own (no ``dt`` given, the scene named or a file:
-        ``swe-sphere run`` shortens it likewise to divide the output interval) and no step
-        has been taken, a Δt that does not divide ``every`` is first shortened to the
-        largest that divides ``every``, the run, its output intervals and the callbacks'
-        (``fit_dt``; so do ``advance`` and ``every`` for their intervals).
-
-        Parameters
-        ----------
-        every : float
-            Model days between yields, a whole number of steps.
-
-        Yields
-        ------
-        float
-            The model time reached (days since t = 0).
-
-        Raises
-        ------
-        ValueError
-            ``every`` is not then a whole number of steps (naming a Δt that was given).
-        BlowUp, StepFailure, Interrupted
-            As ``run``.
-        """
-        per = self._steps_in(every, "every")
-        while (target := (self.step // per + 1) * per) <= self.scene.nsteps:
-            self.run(None, until_step=target)
-            yield self.time
-
-    def state(self, remap: float | None = None):
-        """The current state as an ``xarray.Dataset``; call on every rank.
-
-        Parameters
-        ----------
-        remap : float, optional
-            Grid spacing in degrees: the state on a regular lat-lon grid
-            (``remap.remap_dataset``, with h_surface = h + hs). None: on the nodes.
-
-        Returns
-        -------
-        xarray.Dataset or None
-            On the nodes, as a run file holds one output time: h (m), u, v (m s⁻¹),
-            vorticity, divergence (s⁻¹) on ``ncol`` with hs, area, lat, lon and ``time``
-            in days (``run_file.node_dataset``); or on (lat, lon). None on ranks other
-            than 0.
-
-        Raises
-        ------
-        ValueError
-            A ``remap`` spacing that does not divide 180 degrees.
-        """
-        whole = self.gather_fields(divergence=True)
-        if not self.root:
-            return None
-        ds = node_dataset(
-            self.grid,
-            self.hs,
-            self.time,
-            {k: getattr(whole, k) for k in OUTPUT_FIELDS},
-            {"scene": self.scene.as_dict(), "ne": self.scene.ne, "np": self.scene.np, "step": self.step},
-        )
-        if remap is None:
-            return ds
-        from ..io.remap import remap_dataset  # here: xarray and scipy.sparse, for the Python API's maps only
-
-        return remap_dataset(ds, remap)
 
     def run(
         self,
@@ -726,7 +356,9 @@ class Simulation(StateDiagnostics):
             if ckp.path is not None:
                 check_target(ckp.path, overwrite)
         with _compile_timer(self._compile):  # a continuation's first use of the diagnostic kernels
-            start = self.gather_fields(divergence=files.divergence)  # the first output time's, on every rank
+            start = self.diagnostics.gather_fields(
+                divergence=files.divergence
+            )  # the first output time's, on every rank
         courant = self.courant(start)
         if output is not None and self.root:
             files.open(run_attrs(self, history, courant), overwrite=overwrite, compress=compress, notify=notify)

@@ -13,7 +13,7 @@ from ..model.diagnostics import courant_numbers, invariants
 
 @dataclass
 class WholeFields:
-    """One state's fields gathered on rank 0 (``Simulation.gather_fields``): u, v
+    """One state's fields gathered on rank 0 (``StateDiagnostics.gather_fields``): u, v
     (m s⁻¹), h (m), vorticity and, when asked for, divergence (s⁻¹, DSS'd), (nnodes,)
     each on rank 0 and None on the other ranks (divergence None when not asked for).
     Every rank holds one: whether a rank gathers is decided by whether it was
@@ -27,29 +27,33 @@ class WholeFields:
 
 
 class StateDiagnostics:
-    """The diagnostics of a ``Simulation``'s state (its base class: they read its
-    ``x``, ``model``, ``topology``, ``grid``, ``scorer``, ``scene``, ``initial``).
+    """The diagnostics of a ``Simulation``'s state, held by it as ``Simulation.diagnostics``:
+    they read its ``x``, ``model``, ``topology``, ``grid``, ``scorer``, ``scene``, ``stepper``,
+    ``step`` and ``initial`` as they are at the call (a fitted Δt, a restored state).
     Fields are gathered on rank 0, which diagnoses the whole grid (the same
     arithmetic on any number of ranks) and broadcasts the figures."""
+
+    def __init__(self, sim):
+        self.sim = sim
 
     def fields(self, x=None):
         """u, v, h (nnodes,) of the whole grid, gathered on rank 0 (call on every rank;
         (None, None, None) on the others)."""
-        a = self.topology.gather((self.x if x is None else x).numpy())
+        a = self.sim.topology.gather((self.sim.x if x is None else x).numpy())
         return (None, None, None) if a is None else (a[0], a[1], a[2])
 
     def divergence(self, x=None) -> np.ndarray | None:
         """Divergence of the wind (nnodes,) of the whole grid, DSS'd (s⁻¹), on rank 0 (None elsewhere)."""
-        return self.topology.gather(self.model.wind_divergence(self.x if x is None else x))
+        return self.sim.topology.gather(self.sim.model.wind_divergence(self.sim.x if x is None else x))
 
     def gather_fields(self, x=None, divergence: bool = False) -> WholeFields:
         """u, v, h, the vorticity and (``divergence``) the divergence of state x
         (default the current one), in one gather on rank 0 (call on every rank)."""
-        x = self.x if x is None else x
-        rows = [x.numpy(), self.model.vorticity(x)[None]]
+        x = self.sim.x if x is None else x
+        rows = [x.numpy(), self.sim.model.vorticity(x)[None]]
         if divergence:
-            rows.append(self.model.wind_divergence(x)[None])
-        a = self.topology.gather(np.concatenate(rows))
+            rows.append(self.sim.model.wind_divergence(x)[None])
+        a = self.sim.topology.gather(np.concatenate(rows))
         if a is None:
             return WholeFields(None, None, None, None)
         return WholeFields(a[0], a[1], a[2], a[3], a[4] if divergence else None)
@@ -61,22 +65,22 @@ class StateDiagnostics:
         every rank, or on none)."""
         whole = self.gather_fields(x) if whole is None else whole
         u, v, h = whole.u, whole.v, whole.h
-        errors = self.scorer.errors(t, (self.x if x is None else x).numpy(), u, v, h)
+        errors = self.sim.scorer.errors(t, (self.sim.x if x is None else x).numpy(), u, v, h)
         d = None
-        if self.root:
+        if self.sim.root:
             d = self._invariants(whole)
             d.update(errors)
-            d.update(
-                courant_numbers(self.grid, u, v, h, self.scene.dt, self.g, "pressure_gradient" in self.scene.terms)
-            )
-        return self.topology.bcast(d)
+            d.update(self._courant_numbers(u, v, h))
+        return self.sim.topology.bcast(d)
 
     def _invariants(self, whole: WholeFields) -> dict:
         """The invariants of ``whole`` and their change relative to ``initial`` (rank 0)."""
-        d = invariants(self.grid, whole.u, whole.v, whole.h, self.hs, whole.vorticity, self.fcor, self.g)
-        if not self.case.h_is_depth:  # h is a tracer (TC1): only its mass is an invariant
+        d = invariants(
+            self.sim.grid, whole.u, whole.v, whole.h, self.sim.hs, whole.vorticity, self.sim.fcor, self.sim.g
+        )
+        if not self.sim.case.h_is_depth:  # h is a tracer (TC1): only its mass is an invariant
             d = {"mass": d["mass"]}
-        start = self.initial or d  # diagnosing the initial state itself
+        start = self.sim.initial or d  # diagnosing the initial state itself
         for k in list(d):
             d[f"{k}_change"] = (d[k] - start[k]) / abs(start[k])
         return d
@@ -90,26 +94,16 @@ class StateDiagnostics:
         Call on every rank; None on the ranks > 0."""
         if d is None:
             whole = self.gather_fields()
-            if self.root:
+            if self.sim.root:
                 d = self._invariants(whole)
-                d.update(
-                    courant_numbers(
-                        self.grid,
-                        whole.u,
-                        whole.v,
-                        whole.h,
-                        self.scene.dt,
-                        self.g,
-                        "pressure_gradient" in self.scene.terms,
-                    )
-                )
-        if not self.root:
+                d.update(self._courant_numbers(whole.u, whole.v, whole.h))
+        if not self.sim.root:
             return None
         names = {"mass_change": "mass", "total_energy_change": "energy", "potential_enstrophy_change": "enstrophy"}
         changes = "".join(f"  {name} {d[k]:+.3e}" for k, name in names.items() if k in d)
         grav = "" if math.isnan(d["courant_gravity"]) else f" gravity-wave {d['courant_gravity']:.3f}"
         return (
-            f"step {self.step} day {self.scene.day(self.step):.4f}{changes}  Courant advective "
+            f"step {self.sim.step} day {self.sim.scene.day(self.sim.step):.4f}{changes}  Courant advective "
             f"{d['courant_advective']:.3f}{grav}"
         )
 
@@ -120,7 +114,7 @@ class StateDiagnostics:
         (``Stepper.courant_limit`` on (|v| + √(gh)) Δt/Δx for explicit steppers,
         ``Stepper.advective_courant_limit`` on |v| Δt/Δx for IMEX and multirate), or
         None for a stepper without one."""
-        kind = self.stepper  # the instance: a table's limit is its own (``TableauRK``)
+        kind = self.sim.stepper  # the instance: a table's limit is its own (``TableauRK``)
         c = self.courant()
         if kind.courant_limit is not None:
             speed = c["courant_advective"] + (0.0 if math.isnan(c["courant_gravity"]) else c["courant_gravity"])
@@ -139,7 +133,7 @@ class StateDiagnostics:
         measured stability limit (``stability_warning``'s), or None for a stepper
         without one."""
         limit = self._stability_limit()
-        return None if limit is None else self.scene.dt * limit[0] / limit[2]
+        return None if limit is None else self.sim.scene.dt * limit[0] / limit[2]
 
     def stability_warning(self) -> str | None:
         """A one-line warning when Δt exceeds the stepper's measured stability limit on
@@ -148,7 +142,7 @@ class StateDiagnostics:
         if limit is None or limit[2] <= limit[0]:
             return None
         limit, what, speed, source = limit
-        stepper = self.stepper.label(self.scene.stepper_options)  # a table by its name
+        stepper = self.sim.stepper.label(self.sim.scene.stepper_options)  # a table by its name
         if limit == 0:
             return (
                 f"warning: {stepper} is stable on no stretch of the imaginary axis (its stability polynomial "
@@ -156,9 +150,9 @@ class StateDiagnostics:
                 "may blow up (three-stage third-order tables are stable to y = 1.73)"
             )
         return (
-            f"warning: dt = {self.scene.dt:g} s gives {what} of {speed:.3g}, above "
+            f"warning: dt = {self.sim.scene.dt:g} s gives {what} of {speed:.3g}, above "
             f"{stepper}'s stability limit of about {limit:.3g} ({source}); it may blow up "
-            f"(dt <= {self.scene.dt * limit / speed:.4g} s keeps below)"
+            f"(dt <= {self.sim.scene.dt * limit / speed:.4g} s keeps below)"
         )
 
     def courant(self, whole: WholeFields | None = None) -> dict:
@@ -166,9 +160,9 @@ class StateDiagnostics:
         state (call on every rank; ``whole``: its ``gather_fields`` when the caller
         has them, on every rank or on none)."""
         u, v, h = self.fields() if whole is None else (whole.u, whole.v, whole.h)
-        c = (
-            courant_numbers(self.grid, u, v, h, self.scene.dt, self.g, "pressure_gradient" in self.scene.terms)
-            if self.root
-            else None
-        )
-        return self.topology.bcast(c)
+        return self.sim.topology.bcast(self._courant_numbers(u, v, h) if self.sim.root else None)
+
+    def _courant_numbers(self, u, v, h) -> dict:
+        """``diagnostics.courant_numbers`` of the scene's dt on whole-grid fields (rank 0)."""
+        sim = self.sim
+        return courant_numbers(sim.grid, u, v, h, sim.scene.dt, sim.g, "pressure_gradient" in sim.scene.terms)

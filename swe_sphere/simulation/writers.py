@@ -131,8 +131,8 @@ class RunFiles:
         kept in ``history`` alone). Call on every rank."""
         sim, s, c = self.sim, self.sim.scene, self.sim.counters
         if whole is None:  # once per output time, on every rank
-            whole = sim.gather_fields(x, divergence=self.divergence)
-        d = sim.diagnose(s.start_day * DAY + step * s.dt, x, whole)
+            whole = sim.diagnostics.gather_fields(x, divergence=self.divergence)
+        d = sim.diagnostics.diagnose(s.start_day * DAY + step * s.dt, x, whole)
         d.update(steps=step, rhs_evals=c["rhs_evals"], wall_time=c["wall_time"], cpu_time=c["cpu_time"])
         d.update({f"{k}_iterations": c["iterations"].get(k, 0) for k in sim.stepper.solvers})
         self.history.append(d)

@@ -146,7 +146,7 @@ class HelmholtzSolver:
         # with one rank a solve is one graph per (r, z, a, scale, H), its loops conditional nodes
         # (``graphable``; so may a caller's graph hold it: a stepper's whole step): a CUDA
         # graph, or on one CPU thread Warp's CPU graph (the same bits, and no Python per launch:
-        # benchmarks/README.md, "Measurements behind the code"). Not over several CPU threads (``SplitLaunch`` is a Python pool), nor
+        # the benchmarks notebook (git show 5fa9286:benchmarks/README.md), "Measurements behind the code"). Not over several CPU threads (``SplitLaunch`` is a Python pool), nor
         # with a CUDA driver below 12.4 (no conditional nodes: host loops, a read an iteration).
         self._graphs: dict[tuple, object] = {}
         self._schur_launches: dict[tuple, tuple] = {}

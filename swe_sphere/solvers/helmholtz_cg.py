@@ -186,7 +186,7 @@ class HelmholtzCG:
         layout, and float32 on any device): the three fused element kernels. Per node
         (CUDA's, float64): the model's per-node gradient and divergence with their DSS,
         then ``helmholtz_combine`` — the element kernels run a thread per element, whose
-        strided reads are slow on a GPU (benchmarks/README.md, "Measurements behind the code")."""
+        strided reads are slow on a GPU (the benchmarks notebook (git show 5fa9286:benchmarks/README.md), "Measurements behind the code")."""
         m = self.model
         if m.per_element or self.dtype is not f64:
             launches = self._operator(y, out)

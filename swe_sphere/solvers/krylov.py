@@ -24,7 +24,7 @@ first works on host vectors and ends every restart cycle with an explicit
 residual b − A x (one more Jacobian-vector product, i.e. RHS evaluation, per
 Newton iteration, ~20 % of JFNK's RHS evaluations at 4–10× the gravity-wave
 limit); the second is not flexible, so a preconditioner that is itself an inexact
-solve costs it many times FGMRES's iterations (benchmarks/README.md, "Measurements
+solve costs it many times FGMRES's iterations (the benchmarks notebook (git show 5fa9286:benchmarks/README.md), "Measurements
 behind the code").
 Here the residual after a cycle comes from the least-squares problem.
 """

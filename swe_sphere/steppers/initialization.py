@@ -115,10 +115,10 @@ class FilterResult:
         )
 
 
-def digital_filter(f: DigitalFilter, x0: np.ndarray, *, grid, terms, fcor, hs, g, device, topology) -> FilterResult:
+def digital_filter(f: DigitalFilter, x0: np.ndarray, *, grid, terms, fcor, hs, g, topology) -> FilterResult:
     """Filter the state ``x0`` ((3, N) element-local numpy, this rank's part) with
     ``f`` (see the module docstring). ``grid``, ``fcor``, ``hs`` (N,), ``topology``:
-    this rank's part as for ``model.ShallowWater``; ``terms`` the scene's (the
+    this rank's part as for ``model.ShallowWater`` (the topology's device); ``terms`` the scene's (the
     hyperviscosity is left out; ``forcing``, not time-reversible, is not expected:
     the forced case TC4 has an exact solution, so its scenes refuse a filter). Collective over the topology's ranks. Raises
     ``ValueError`` if either integration ends with a non-finite value or a depth
@@ -131,7 +131,9 @@ def digital_filter(f: DigitalFilter, x0: np.ndarray, *, grid, terms, fcor, hs, g
     acc = w[n] * x0
     models = {}
     for sign in (1, -1):
-        model = models[sign] = ShallowWater(grid, terms, sign * fcor, hs, g=g, device=device, topology=topology)
+        model = models[sign] = ShallowWater(
+            grid, terms, sign * fcor, hs, g=g, device=topology.device, topology=topology
+        )
         x = model.new_state(*(x0 if sign > 0 else reverse * x0))
         stepper = make_stepper("rk4", model, dt)
         for k in range(1, n):  # w[0] = w[2n] = 0: the states at ± n Δt are not needed

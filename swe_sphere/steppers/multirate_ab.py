@@ -27,7 +27,7 @@ touched only by elements of level k or coarser, which evaluate only at level-k s
 boundaries (their step starts are multiples of h_k), so between them nothing reads it. The
 finest level's nodes are all B_K, summed each sub-step. A node's copies fall on one side, so
 they keep one value. Regrouped, the sums change the state in its last bits only; they cost in
-proportion to the nodes summed (benchmarks/README.md, "Where a step goes").
+proportion to the nodes summed (the benchmarks notebook (git show 5fa9286:benchmarks/README.md), "Where a step goes").
 
 With one level it is the global AB3 step: y_{n+1} = y_n + Δt (23 F_n − 16 F_{n−1} + 5 F_{n−2})/12
 through ``ShallowWater.rhs`` (the whole grid's, not a part's).

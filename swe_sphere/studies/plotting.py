@@ -51,7 +51,7 @@ SERIES_FIGSIZE = (12.0, 5.0)  # 1200 × 500 pixels
 # -- reading -----------------------------------------------------------------
 def open_run(path) -> xr.Dataset:
     """A swe_sphere run file, times as model days (``decode_times=False``).
-    Raises ``FileNotFoundError`` / ``ValueError`` (one line) for a missing or unreadable file."""
+    Raises ``SceneError`` (a ValueError) / ``ValueError`` (one line) for a missing or unreadable file."""
     path = Path(path)
     ds = open_netcdf(path)
     if "ncol" not in ds.dims:
@@ -97,7 +97,7 @@ def open_reference(path, case=None):
     """A comparison source for ``--diff``: another run file (has ``ncol``) or a
     reference file, given as a path, a bundled reference's file name or, with the
     run's case object, its truncation ("T341"), as ``case.reference`` takes them
-    (``reference.locate``). Raises ``FileNotFoundError``/``ValueError``."""
+    (``reference.locate``). Raises ``SceneError`` (a ValueError)/``ValueError``."""
     path = locate(str(path), case)
     with open_netcdf(path) as probe:
         is_run = "ncol" in probe.dims
@@ -397,7 +397,7 @@ def plot_run(
     """``swe-sphere plot``: maps of ``fields`` at ``days`` (default: the last output
     time) and the time-series figure, PNGs in ``outdir`` (created if missing).
 
-    Every input is checked before anything is written; raises ``FileNotFoundError`` or
+    Every input is checked before anything is written; raises ``SceneError`` (a ValueError) or
     ``ValueError`` (one line) for a missing file, an unknown field or a missing day,
     and (unless ``force``) a ``diff_path`` of another case or grid; ``output.OutputError``
     for a map PNG that exists (unless ``overwrite``) or would replace an input. The
@@ -515,7 +515,7 @@ def plot_analyses(
     means of ``zonal_fields`` (``plot_zonal_mean``, one PNG per field), at
     ``days`` (default: the last output time), in ``outdir`` (created if missing).
 
-    Every input is checked before anything is written: ``FileNotFoundError`` or
+    Every input is checked before anything is written: ``SceneError`` (a ValueError) or
     ``ValueError`` (one line) for a missing file, a day not stored, a field the
     file lacks (vorticity and divergence for the spectrum); ``output.OutputError``
     for an output that exists (unless ``overwrite``) or would replace the run."""

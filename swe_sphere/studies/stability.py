@@ -12,11 +12,12 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from ..cases.scoring import ENERGY_GROWTH_LIMIT, instability
 from ..config.scene import Scene, load_scene
 from ..core.constants import DAY
-from ..core.errors import BlowUp
+from ..core.errors import BlowUp, SceneError
 from ..core.workers import InProcess
 from ..io.run_file import atomic_path, check_results, command_line, history_line
 from ..io.table_file import table_dataset, write_table_file
@@ -161,6 +162,46 @@ def run_suite(
         log(f"{scene.name}: {scene.stepper} on {scene.grid_text}, {scene.days:g} days")
         futures.append(pool.submit(largest_stable_dt, scene, device, log=log))
     return [f.result() for f in futures]
+
+
+@dataclass(frozen=True)
+class Suite:
+    """A stability suite, every value checked (``plan``): its ``HARD_CASES`` entries, the
+    steppers, ``suite_scenes``'s keywords and the folder its results go to by default."""
+
+    cases: tuple
+    steppers: tuple
+    given: dict
+    default_output: Path
+
+    def run(self, device: str, *, log=print, pool=None) -> list[StabilityResult]:
+        """``run_suite`` of this suite."""
+        return run_suite(self.cases, self.steppers, device, **self.given, log=log, pool=pool)
+
+
+def plan(labels, steppers, *, ne: int, np_=None, days=None, mesh=None, overrides=None) -> Suite:
+    """The suite of the case ``labels`` (none: every hard case) and ``steppers``, on the
+    ``ne`` cube or on ``mesh`` (an Exodus .g path; not with a case that fixes its grid);
+    the other keywords as ``suite_scenes``. Its default folder is
+    ``stability_<labels, or all>_ne<ne>`` or ``_<the mesh file's stem>``: one per suite, so
+    that a page's suites run in order do not meet each other's files. Raises
+    ``ValueError`` (an unknown label) or ``SceneError`` on a bad value, before anything
+    runs or is written."""
+    known = {c[0]: c for c in HARD_CASES}
+    for label in labels:
+        if label not in known:
+            raise ValueError(f"unknown stability case {label!r} (known: {', '.join(known)})")
+    if ne < 1:
+        raise SceneError(f"--ne must be an integer >= 1 (got {ne})")
+    cases = tuple(known[c] for c in labels) if labels else HARD_CASES
+    if mesh is not None:
+        fixed = [label for label, _, _, case_ne in cases if case_ne is not None]
+        if fixed:
+            raise SceneError(f"stability case {fixed[0]} fixes its grid: not with --mesh (name the other cases)")
+    given = dict(ne=None if mesh is not None else ne, np_=np_, days=days, mesh=mesh, overrides=overrides)
+    suite_scenes(cases, steppers, **given)  # every value refused before the output folder is made
+    grid = f"ne{ne}" if mesh is None else Path(mesh).stem
+    return Suite(cases, tuple(steppers), given, Path(f"stability_{'_'.join(labels) or 'all'}_{grid}"))
 
 
 OUTPUTS = ("stability.csv", "stability.nc")  # what write_table writes

@@ -1,0 +1,184 @@
+"""What ``swe-sphere run`` prints: the header before the loop (scene, grid, mesh
+figures, stepper, Courant numbers, notes, outputs) and the summary after it."""
+
+from __future__ import annotations
+
+import math
+import sys
+
+MAX_DISTORTION = 4.0  # HOMME's print_cfl warns of elements more distorted than this (dx_long / dx_short)
+
+
+def _mesh_lines(sim) -> list[str]:
+    """HOMME's ``print_cfl`` figures of a run's mesh (rank 0; [] on the others; call on every
+    rank): the Dinv-based node spacing (``grid.quality``), the largest distortion (a warning
+    line above ``MAX_DISTORTION``), the area ratio and the worst element's Courant numbers."""
+    from ..grid.quality import element_sizes
+    from ..model.diagnostics import worst_element_courant
+
+    u, v, h = sim.fields()
+    Dinv = sim.topology.gather(sim.topology.grid.Dinv)  # rank 0's whole grid is gathered, without a metric
+    if not sim.root:
+        return []
+    sizes = element_sizes(sim.grid, Dinv)
+    s, scene = sizes.summary(), sim.scene
+    c = worst_element_courant(sim.grid, sizes, u, v, h, scene.dt, sim.g, "pressure_gradient" in scene.terms)
+    grav = "" if math.isnan(c["courant_gravity"]) else f"gravity-wave {c['courant_gravity']:.3f}, "
+    lines = [
+        f"mesh        node spacing (Dinv-based, the one dt scales with on a mesh) {s['dx_short_min'] / 1e3:.1f} to {s['dx_long_max'] / 1e3:.1f} km "
+        f"(dx_short mean {s['dx_short_mean'] / 1e3:.1f} km), largest distortion {s['distortion_max']:.2f}, "
+        f"area ratio {s['area_ratio']:.2f}",
+        f"mesh        worst element {s['worst'] + 1} (dx_short {sizes.dx_short[s['worst']] / 1e3:.1f} km): Courant "
+        f"{grav}advective {c['courant_advective']:.3f} (dt / dx_short)",
+    ]
+    if s["distortion_max"] > MAX_DISTORTION:
+        e = int(sizes.distortion.argmax())
+        lines.append(
+            f"swe-sphere: warning: element {e + 1} is distorted {s['distortion_max']:.2f}x (dx_long / dx_short, above "
+            f"HOMME's {MAX_DISTORTION:g}): its spacing is uneven and it sets a short explicit step"
+        )
+    return lines
+
+
+def header(args, sim, output, device, comm) -> None:
+    """The lines before the loop (rank 0 prints; call on every rank: the mesh figures
+    and the smallest spacing gather over ranks)."""
+    from ..core.constants import EARTH
+
+    scene = sim.scene
+    c = sim.courant()
+    dx = -sim.topology.max(-float(sim.topology.grid.dx.min()))
+    mesh_lines = _mesh_lines(sim) if scene.mesh is not None else []  # every rank: it gathers the state
+    print(f"scene       {scene.name}: {scene.description}")
+    print(
+        f"grid        {scene.grid_text}: {scene.nelem} elements, {sim.topology.grid.nunique} unique nodes"
+        + ("" if mesh_lines else f", min node spacing {dx / 1e3:.1f} km")  # a mesh's: its Dinv-based line
+    )
+    if scene.planet != EARTH.as_table():
+        p = scene.planet
+        print(
+            f"planet      radius {p['radius']:g} m, omega {p['omega']:g} 1/s, gravity {p['gravity']:g} m/s^2 "
+            f"(the Earth's: {EARTH.a:g} m, {EARTH.omega:g} 1/s, {EARTH.g:g} m/s^2)"
+        )
+    for line in mesh_lines:
+        print(line, file=sys.stderr if line.startswith("swe-sphere: warning") else sys.stdout)
+    print(
+        f"terms       {', '.join(scene.terms)}"
+        + (f" (nu = {scene.nu:.3g} m^4/s, subcycle {scene.hypervis_subcycle})" if scene.nu else "")
+    )
+    print(
+        f"stepper     {sim.stepper.label(scene.stepper_options)}, dt = {scene.dt:g} s, {scene.nsteps} steps to day {scene.days:g}, device {device}"
+    )
+    for line in sim.stepper.describe():
+        print(f"{scene.stepper:11s} {line}")
+    if comm is not None:
+        sizes = [len(p) for p in sim.topology.parts]
+        print(
+            f"ranks       {comm.size} MPI ranks: {min(sizes)}-{max(sizes)} elements each along a space-filling curve, "
+            f"{sim.model.threads} CPU threads each"
+        )
+    if sim.step:
+        print(f"continue    from {args.continue_from} at step {sim.step} (day {scene.day(sim.step):g})")
+    elif args.continue_from is not None and scene.branch is not None:
+        b = scene.branch
+        print(
+            f"branch      from {args.continue_from} at its step {b['step']} (day {b['day']:g}; {b['stepper']}, dt = {b['dt']:g} s): "
+            f"{scene.stepper} starts there afresh"
+        )
+    _courant_notes_outputs(args, sim, output, c)
+
+
+def _courant_notes_outputs(args, sim, output, c) -> None:
+    """The header's lines from the Courant numbers ``c`` (``Simulation.courant``) on:
+    notes and warnings, the output files, the log, the digital-filter start, setup time."""
+    from ..simulation.writers import restart_path, stream_path
+
+    scene = sim.scene
+    grav = "" if math.isnan(c["courant_gravity"]) else f", gravity-wave {c['courant_gravity']:.3f}"
+    print(f"Courant     advective {c['courant_advective']:.3f}{grav} (max over nodes at t = {scene.day(sim.step):g} d)")
+    extra = [n for n in (sim.stability_warning(), sim.backend.threads_note()) if n]
+    for note in (*scene.notes, *extra):
+        if note.startswith("warning: "):
+            if sim.root:  # once, not once a rank
+                print(f"swe-sphere: {note}", file=sys.stderr)  # seen even with stdout redirected
+        else:
+            print(f"note        {note}")
+    only = f": {', '.join(scene.output_fields)}" if scene.output_fields else ""
+    print(f"output      {output} (every {scene.output_every_days:g} days{only})")
+    for st in scene.output_streams:
+        print(
+            f"stream      {stream_path(output, st['name'])} (every {st['every_days']:g} days: {', '.join(st['fields'])})"
+        )
+    if scene.log_every_steps:
+        print(
+            f"log         every {scene.log_every_steps} steps: relative change of mass, energy, enstrophy since t = 0; max Courant numbers"
+        )
+    if args.restart_every is not None:
+        print(f"restart     {restart_path(output)} (every {args.restart_every:g} days and at the end)")
+    if sim.dfi is not None:
+        print(f"initial     {sim.dfi.describe(scene.digital_filter)}")
+    print(f"setup       {sim.setup_time:.2f} s")
+
+
+def summary(r, sim) -> None:
+    d = r.diagnostics
+    steps, loop = r.steps - r.first_step, r.loop_time
+    print("summary")
+    print(
+        f"  wall time   {loop:.2f} s for {steps} steps, setup {r.setup_time:.2f} s"
+        + (f" (cumulative since t = 0: {r.wall_time:.2f} s)" if r.first_step else "")
+    )
+    if steps:
+        rest = (
+            f", then {1e3 * (loop - r.first_step_time) / (steps - 1):.2f} ms/step over {steps - 1} steps"
+            if steps > 1
+            else ""
+        )
+        print(
+            f"  time        compile {r.compile_time:.2f} s (setup and loop), first step {r.first_step_time:.3f} s{rest}"
+        )
+    print(f"  RHS evals   {r.rhs_evals}")
+    if sim.dfi is not None:
+        print(
+            f"  initial     digital-filter start: {sim.dfi.rhs_evals} RHS evals, {sim.dfi.wall_time:.2f} s (in setup); rms dh/dt "
+            f"{sim.dfi.dhdt_rms[0]:.3e} -> {sim.dfi.dhdt_rms[1]:.3e} m/s"
+        )
+    elif sim.scene.initialization is not None:
+        print("  initial     digital-filter start of the run continued (not redone)")
+    for k, total in r.iterations.items():
+        print(f"  {k:11s} {total} iterations, {total / max(r.steps, 1):.1f} per step")
+    for k in ("mass", "total_energy", "potential_enstrophy"):
+        if k in d:
+            print(f"  {k:20s} {d[k]:.10e}  relative change {d[k + '_change']:+.3e}")
+    cmax = {k: max(h[k] for h in r.history) for k in ("courant_advective", "courant_gravity")}
+    grav = "" if math.isnan(cmax["courant_gravity"]) else f", gravity-wave {cmax['courant_gravity']:.3f}"
+    print(f"  Courant     max over output times: advective {cmax['courant_advective']:.3f}{grav}")
+    if "l2_h" in d:
+        print(f"  error h     l1 {d['l1_h']:.3e}  l2 {d['l2_h']:.3e}  linf {d['linf_h']:.3e}")
+        print(f"  error wind  l1 {d['l1_wind']:.3e}  l2 {d['l2_wind']:.3e}  linf {d['linf_wind']:.3e}")
+        print(f"  error wind  l2 vorticity {d['l2_vorticity']:.3e}  l2 divergence {d['l2_divergence']:.3e}")
+    if "ref_l2_h_surface" in d:
+        # the reference stores a few days only: quote the last output time past the start it has
+        name = sim.scene.reference_file.stem.rsplit("_", 1)[-1]  # the truncation, for the spectral files ("T213")
+        vs = f"vs {name}"
+        scored = [h for h in r.history if h["steps"] > 0 and math.isfinite(h["ref_l2_h_surface"])]
+        if not scored:
+            from ..cases.reference import stored_days
+
+            days = ", ".join(f"{day:g}" for day in stored_days(sim.scene.reference_file))
+            print(f"  {vs:11s} none: no output time after t = 0 is one {name} stores (days {days})")
+        else:
+            d = scored[-1]
+            at = (
+                ""
+                if d is r.history[-1]
+                else f" (day {sim.scene.day(d['steps']):g}, its last output time {name} stores)"
+            )
+            print(
+                f"  {vs} h+hs l1 {d['ref_l1_h_surface']:.3e}  l2 {d['ref_l2_h_surface']:.3e}  linf {d['ref_linf_h_surface']:.3e}{at}"
+            )
+            print(f"  {vs} wind l1 {d['ref_l1_wind']:.3e}  l2 {d['ref_l2_wind']:.3e}  linf {d['ref_linf_wind']:.3e}")
+            print(f"  {vs} wind l2 vorticity {d['ref_l2_vorticity']:.3e}  l2 divergence {d['ref_l2_divergence']:.3e}")
+    print(f"  output      {r.output}")
+    if r.checkpoint is not None:
+        print(f"  restart     {r.checkpoint}")

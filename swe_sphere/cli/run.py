@@ -1,0 +1,217 @@
+"""``swe-sphere run``: a scene, or the continuation or branch of a restart file; the
+output's default name and the refusals made before anything is built."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+from ..core.errors import BlowUp, CheckpointError, OutputError, SceneError
+from .exits import EXIT_BLOWUP, hold_signals
+from .report import header, summary
+from .values import netcdf_output, overrides
+
+
+def _continued(args, device, comm):
+    """The Simulation of ``run --continue``: a continuation (keeping the restart file's
+    ``--restart-every`` unless given: ``args.restart_every`` set), or with another
+    --stepper or --dt a branch (``Simulation.from_checkpoint``); refuses a changed
+    scene or grid, and a continuation of no step (at its end day, or at the --days given)."""
+    from ..config.scene import load_scene, with_days
+    from ..simulation import checkpoint
+    from ..simulation.simulation import Simulation
+
+    ck = checkpoint.read_on_root(args.continue_from, comm)  # the whole state on rank 0 only
+    for flag, value, have in (("--ne", args.ne, ck.scene.ne), ("--np", args.np, ck.scene.np)):
+        if value is not None and value != have:
+            raise CheckpointError(
+                f"{args.continue_from} is a run with {flag.lstrip('-')} = {have}; it cannot continue with {flag} {value}"
+            )
+    if args.mesh is not None:
+        raise CheckpointError(
+            f"{args.continue_from} is a run on {ck.scene.grid_text}; it continues on its own mesh, not on --mesh {args.mesh}"
+        )
+    if args.set:
+        raise CheckpointError("-s cannot change a checkpointed scene")
+    if args.no_cells and ck.scene.output_cells:
+        raise CheckpointError("--no-cells cannot change a checkpointed scene (its output.cells is true)")
+    if args.scene is not None:
+        given = load_scene(args.scene, ne=args.ne, np_=args.np)
+        mine = {k: v for k, v in ck.scene.as_dict().items() if k not in ("days", "notes", "branch")}
+        theirs = {k: v for k, v in given.as_dict().items() if k not in ("days", "notes", "branch")}
+        if mine != theirs:
+            differ = ", ".join(k for k in mine if mine[k] != theirs.get(k))
+            raise CheckpointError(
+                f"{args.continue_from} is a run of another scene than {args.scene} (differs in: {differ})"
+            )
+    continued = args.stepper is None and args.dt is None  # not a branch (which refuses a length of 0 days itself)
+    if continued:  # 0 steps would leave an empty file that blocks the real one
+        end = ck.scene if args.days is None else with_days(ck.scene, args.days)
+        if args.days is None and ck.step >= end.nsteps:
+            raise CheckpointError(
+                f"{args.continue_from} is already at its run's end day {ck.scene.days:g}: give --days for the new end day"
+            )
+        if end.nsteps == ck.step:
+            raise CheckpointError(
+                f"{args.continue_from}: the checkpoint is already at day {ck.scene.day(ck.step):g} (--days is the "
+                "model day the continued run ends at: give a later one)"
+            )
+    if (
+        continued and args.restart_every is None
+    ):  # a run that wrote restart files goes on writing them, as if never stopped
+        args.restart_every = ck.restart_every
+    return Simulation.from_checkpoint(
+        ck,
+        device,
+        days=args.days,
+        stepper=args.stepper,
+        dt=args.dt,
+        progress=not args.no_progress,
+        comm=comm,
+        graphs=args.graphs,
+    )
+
+
+def default_output(name, given: dict, scene) -> Path:
+    """The run file's default name, in the working folder:
+    ``<scene>_<grid>np<np>_<stepper>[_a<radius>][_omega<Ω>][_g<gravity>][_<days>d][_dt<dt>].nc``,
+    where the planet's values (SI units) appear when they are not the scene file's, the
+    run length when it is not the scene file's, and Δt when one was given (``--dt``,
+    ``-s time.dt``) that is not the one the scene would take itself for that grid and
+    length. Runs of a scene that differ in these get different files, so a page's
+    commands run in order do not meet "output file exists". ``<grid>``: ``ne<ne>``, or
+    the mesh's label (``Scene.grid_label``: the mesh file's stem, ``ne4c2.5``, …). ``name``: the scene as
+    given; ``given``: ``load_scene``'s keywords that made ``scene``."""
+    from ..config.scene import load_scene
+
+    overrides = given["overrides"]
+    parts = [f"{scene.name}_{scene.grid_label}np{scene.np}_{scene.stepper}"]
+    try:
+        own = load_scene(name)  # the file as it is
+    except SceneError:  # a file that loads only with the overrides: nothing of its own to differ from
+        own = scene
+    for key, tag in (("radius", "a"), ("omega", "omega"), ("gravity", "g")):
+        if scene.planet[key] != own.planet[key]:
+            parts.append(f"{tag}{scene.planet[key]:g}")
+    if scene.days != own.days:
+        parts.append(f"{scene.days:g}d")
+    if given["dt"] is not None or "time.dt" in overrides:
+        try:  # the dt it would take itself, all else as given
+            unset = {k: v for k, v in overrides.items() if k != "time.dt"}
+            chosen = load_scene(name, **{**given, "dt": None, "overrides": unset}).dt
+        except SceneError:  # none that fits the output interval: the dt given is its own
+            chosen = None
+        if scene.dt != chosen:
+            parts.append(f"dt{scene.dt:g}")
+    return Path("_".join(parts) + ".nc")
+
+
+def _refuse_a_blown_up_run(output: Path) -> None:
+    """Raise ``OutputError`` when ``output`` holds a run that blew up (its ``blowup``
+    attribute): the line says so, so that the user who reruns with a fix sees why
+    the file is there and how to replace it."""
+    import netCDF4
+
+    if not output.is_file() or output.is_symlink():
+        return
+    try:
+        with netCDF4.Dataset(output) as ds:
+            blowup = getattr(ds, "blowup", None)
+    except OSError:  # not netCDF: check_target's own refusal
+        return
+    if blowup is not None:
+        raise OutputError(
+            f"output file exists: {output}, a run that ended in a {str(blowup).partition(': ')[0]} (--overwrite "
+            "replaces it, --output names another)"
+        )
+
+
+def command(args) -> int:
+    from ..config.scene import load_scene, resolve_path
+    from ..core import mpi
+    from ..core.backend import pick_device
+    from ..core.graphs import default_mode, graphs_mode
+    from ..io.run_file import check_distinct, check_target, check_unlocked, close_open_runs
+    from ..simulation.writers import restart_path
+
+    if args.continue_from is None:
+        if args.scene is None:
+            raise ValueError("run needs a SCENE (or --continue CHECKPOINT)")
+        given = dict(
+            ne=args.ne,
+            np_=args.np,
+            dt=args.dt,
+            days=args.days,
+            stepper=args.stepper,
+            mesh=args.mesh,
+            overrides={**overrides(args.set), **({"output.cells": False} if args.no_cells else {})},
+        )
+        scene = load_scene(args.scene, **given)
+        output = args.output or default_output(args.scene, given, scene)
+    else:
+        scene = None  # the restart file's
+        stem = args.continue_from.name.removesuffix(".nc").removesuffix(".restart")
+        changes = "".join(
+            f"_{v}" for v in (args.stepper, args.dt and f"dt{args.dt:g}") if v
+        )  # a branch's (or a no-op's)
+        output = args.output or args.continue_from.with_name(
+            f"{stem}_{'branch' + changes if changes else 'continued'}.nc"
+        )
+    netcdf_output(output)  # after the scene's own refusals, as check_target
+    initial = scene.case_params.get("path") if scene is not None else None  # a file case's initial state: an input too
+    check_distinct(
+        [output, restart_path(output)], [args.continue_from, args.scene and resolve_path(str(args.scene)), initial]
+    )
+    if not args.overwrite:
+        _refuse_a_blown_up_run(output)
+    check_target(output, args.overwrite)
+    check_unlocked(output)  # another run writing it now (with --overwrite): refused before the header
+    if args.restart_every is not None:  # else written only on SIGINT/SIGTERM, and then not over an existing one
+        check_target(restart_path(output), args.overwrite)
+    args.graphs = graphs_mode(args.graphs, "--graphs") if args.graphs is not None else default_mode()  # the flag wins
+    device = pick_device(args.device)
+    comm = mpi.world()  # under mpiexec: one run over all ranks
+    with mpi.watch_failures(comm, close_open_runs):  # a failure on one rank alone ends the job
+        return _run(args, scene, output, device, comm)
+
+
+def _run(args, scene, output, device, comm) -> int:
+    from tqdm import tqdm
+
+    from ..core import mpi
+    from ..core.workers import cpus, limit_threads
+    from ..simulation.schedules import restart_steps
+    from ..simulation.simulation import Simulation
+
+    if comm is not None:
+        limit_threads(max(1, cpus() // mpi.node_local_size(comm)))
+    if args.continue_from is None:
+        sim = Simulation(scene, device, progress=not args.no_progress, comm=comm, graphs=args.graphs)
+    else:
+        sim = _continued(args, device, comm)
+    if not sim.root:  # rank 0 reports; the others' errors still reach stderr
+        sys.stdout = open(os.devnull, "w")
+    if args.restart_every is not None:
+        restart_steps(sim.scene, args.restart_every)  # checks the interval before the run
+    header(args, sim, output, device, comm)
+    try:
+        result = sim.run(
+            output,
+            overwrite=args.overwrite,
+            restart_every=args.restart_every,
+            compress=args.compress,
+            history=" ".join(["swe-sphere", *(sys.argv[1:] if args.argv is None else args.argv)]),
+            notify=lambda line: tqdm.write(f"swe-sphere: note: {line}", file=sys.stderr),  # above the bar
+            log=lambda line: tqdm.write(f"log         {line}", file=sys.stdout),
+        )
+    except BlowUp as err:  # on every rank alike (the bad node is found over all of them)
+        result, blowup = None, f"swe-sphere: {err}; the last good state is in {output}"
+    if args.console:
+        hold_signals()  # the output is closed: a signal from now on is answered as the process ends
+    if result is None:
+        if sim.root:
+            print(blowup, file=sys.stderr)
+        return EXIT_BLOWUP
+    summary(result, sim)
+    return 0

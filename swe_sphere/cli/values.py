@@ -1,0 +1,83 @@
+"""The values of flags that argparse cannot check alone: ``-s`` overrides, stepper
+lists, comma-separated numbers and ``--runs`` pairs."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+
+def overrides(pairs) -> dict:
+    """``-s section.key=value`` pairs → {"section.key": value} (TOML values; a bare word is a string)."""
+    import tomllib
+
+    out = {}
+    for pair in pairs:
+        key, sep, text = pair.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise ValueError(f"-s needs SECTION.KEY=VALUE (got {pair!r})")
+        try:
+            value = tomllib.loads(f"v = {text.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text.strip()
+        out[key] = value
+    return out
+
+
+def numbers(text: str, name: str) -> list[float]:
+    """``--name 1,2.5`` → [1.0, 2.5]; the sweep's plan checks the values."""
+    try:
+        return [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise ValueError(f"--{name} must be comma-separated numbers (got {text!r})") from None
+
+
+def integers(text: str, name: str) -> list[int]:
+    """``--name 8,16`` → [8, 16]; the frontier's plan checks the values."""
+    try:
+        return [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise ValueError(f"--{name} must be comma-separated integers (got {text!r})") from None
+
+
+def steppers(text: str) -> list[str]:
+    """``--steppers a,b`` → ["a", "b"], each a registered stepper."""
+    from ..steppers import STEPPERS
+
+    names = [s for s in text.split(",") if s]
+    if not names:
+        raise ValueError(f"--steppers names no stepper (got {text!r})")
+    for s in names:
+        if s not in STEPPERS:
+            raise ValueError(f"unknown stepper {s!r} (known: {', '.join(STEPPERS)})")
+    return names
+
+
+def runs(text: str) -> list[tuple[str, float]]:
+    """``--runs rk4@1,imex@5`` → [("rk4", 1.0), ("imex", 5.0)]."""
+    pairs = []
+    for item in text.split(","):
+        name, sep, factor = item.strip().partition("@")
+        if not sep:
+            raise ValueError(f"--runs needs STEPPER@COURANT pairs (got {item.strip()!r})")
+        stepper = steppers(name.strip())[0]
+        try:
+            multiple = float(factor)
+        except ValueError:
+            multiple = math.nan
+        if not (math.isfinite(multiple) and multiple > 0):  # the multiple of the gravity-wave limit
+            raise ValueError(
+                f"--runs {item.strip()}: {factor.strip()!r} is not a number > 0 (a multiple of the gravity-wave "
+                f"limit, e.g. {stepper}@0.5)"
+            )
+        pairs.append((stepper, multiple))
+    return pairs
+
+
+def netcdf_output(path: Path | None) -> Path | None:
+    """``--output`` of a command that writes netCDF: refused unless it ends in .nc (a
+    run file under another name is found by nothing that looks for one)."""
+    if path is not None and path.suffix != ".nc":
+        raise ValueError(f"--output {path}: the file is netCDF, its name must end in .nc")
+    return path

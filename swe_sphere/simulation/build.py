@@ -1,0 +1,146 @@
+"""A simulation's build: the checks before it, the partition of the grid over the ranks,
+the model and stepper of the scene, the start state (the case's, a function's, a digital
+filter's or one handed in) and the counters at t = 0 (``build``, which
+``Simulation.__init__`` calls)."""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from ..cases.scoring import Scorer
+from ..config.scene import Scene
+from ..core.backend import CHECK_EVERY_STEPS, Backend
+from ..core.constants import DAY
+from ..core.errors import ResourceError, SceneError
+from ..core.mpi import node_local_size
+from ..core.runtime import run_bytes
+from ..grid.cubed_sphere import CubedSphere
+from ..grid.topology import Topology, rank_parts
+from ..io.initial_state import from_function
+from ..model.shallow_water import ShallowWater
+from ..steppers import STEPPERS, make_stepper
+from ..steppers.initialization import digital_filter
+from .state_diagnostics import StateDiagnostics
+
+ON_ROOT = object()  # ``start`` on the ranks > 0 when rank 0 alone holds the whole-grid start state
+
+MAX_HYPERVIS_EVALUATIONS = 10_000  # ∇⁴ evaluations a step; beyond, ν is ~10⁷ times its explicit bound or more
+
+
+def check_hyperviscosity(model: ShallowWater, scene: Scene) -> None:
+    """Refuse (``SceneError``, before the run) a ν whose ∇⁴ sub-stepping
+    (``hypervis.Hyperviscosity.plan``) would take more than
+    ``MAX_HYPERVIS_EVALUATIONS`` evaluations a step: such a step runs for hours
+    and is a mistyped coefficient, not a setting."""
+    if model.hv is None or model.hv.nu_max == 0.0:
+        return
+    hv = model.hv
+    evals, _ = hv.plan(scene.dt)
+    if evals > MAX_HYPERVIS_EVALUATIONS:
+        bound = 1.5 / (scene.dt * hv.biharmonic_radius())
+        raise SceneError(
+            f"hyperviscosity nu = {hv.nu_max:.3g} m^4/s is {hv.nu_max / bound:.2g}x its explicit bound "
+            f"({bound:.3g} m^4/s at dt = {scene.dt:g} s): {evals:.3g} ∇⁴ evaluations a step (at most "
+            f"{MAX_HYPERVIS_EVALUATIONS}); lower hyperviscosity.nu"
+        )
+
+
+def check_memory(scene: Scene, comm, backend: Backend) -> None:
+    """Refuse (``runtime.ResourceError``, one line, on every rank) a run whose
+    estimated memory exceeds what is available on its device (a GPU's free memory,
+    else the host's): the whole run on one process; over MPI ranks, the share of
+    the ranks on each node (each holds its elements)."""
+    need = run_bytes(scene.ne, scene.np, scene.stepper, nelem=scene.nelem)
+    what = f"{scene.grid_text} with {scene.stepper}"
+    if comm is None or comm.size == 1:
+        return backend.check_memory(need, what)
+    local = node_local_size(comm)
+    try:
+        backend.check_memory(need * local // comm.size, f"{what} over {comm.size} MPI ranks ({local} on this node)")
+        error = None
+    except ResourceError as err:
+        error = str(err)
+    errors = [e for e in comm.allgather(error) if e is not None]  # every rank refuses if one node must
+    if errors:
+        err = ResourceError(errors[0])
+        err.on_every_rank = True  # the console script says it once (rank 0), without MPI_Abort
+        raise err
+
+
+def scene_stepper(scene: Scene, model: ShallowWater):
+    """The scene's stepper on ``model`` at the scene's Δt, its clock at the scene's start
+    day (not yet ``prepare``d); ``SceneError`` first for a ν the ∇⁴ cannot step
+    (``check_hyperviscosity``)."""
+    check_hyperviscosity(model, scene)
+    stepper = make_stepper(scene.stepper, model, scene.dt, **scene.stepper_options)
+    stepper.t0 = scene.start_day * DAY
+    return stepper
+
+
+def partition(scene: Scene, case, comm, backend: Backend) -> Topology:
+    """This rank's part of the scene's grid, assembled over ``comm``'s ranks: the elements
+    of ``topology.rank_parts``, by the stepper's element levels where its work goes by
+    levels (lts; decided on rank 0 from the whole grid and broadcast)."""
+    size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
+    mesh = scene.make_mesh()  # None: the equiangular cube
+    level = None
+    if size > 1:
+        whole = lambda: CubedSphere(scene.ne, scene.np, case.planet.a, mesh=mesh)  # noqa: E731
+        mine = STEPPERS[scene.stepper].partition_levels(whole, scene.stepper_options) if rank == 0 else None
+        level = comm.bcast(mine, root=0)
+    parts = rank_parts(scene.ne, size, mesh, level)
+    local = CubedSphere(scene.ne, scene.np, case.planet.a, elements=parts[rank], mesh=mesh)  # this rank's only
+    return Topology(local, backend.device, backend.threads(), comm, parts=parts)
+
+
+def build(sim, scene: Scene, backend: Backend, progress: bool, comm, start, initial, initial_diagnostics) -> None:
+    """Set ``sim``'s scene, topology, grid, case, model, stepper, scorer, diagnostics,
+    start state (``dfi``: the digital filter's result where it ran) and counters at
+    t = 0; the arguments as ``Simulation``'s. Raises as ``Simulation``."""
+    check_memory(scene, comm, backend)
+    sim.scene, sim.device, sim.backend = scene, backend.device, backend
+    sim.case = case = scene.make_case()
+    sim.topology = topo = partition(scene, case, comm, backend)
+    local = topo.grid
+    sim.root = topo.comm.rank == 0  # the rank that diagnoses, writes files and shows progress
+    sim.progress = progress and sim.root
+    # the whole grid and fields for diagnostics and output: on rank 0 only (None elsewhere)
+    sim.grid = topo.whole_grid()
+    sim.model = model = ShallowWater.from_scene(scene, local, case, device=backend.device, topology=topo)
+    sim.g = model.g
+    fcor, hs = model.fcor.numpy(), model.hs.numpy()  # the case's, as the model holds them
+    sim.fcor, sim.hs = topo.gather(fcor), topo.gather(hs)
+    sim.stepper = scene_stepper(scene, model)
+    sim.scorer = Scorer(case, model, topo, sim.grid, sim.hs, scene.reference_file)
+    sim.diagnostics = StateDiagnostics(sim)
+    sim.dfi = None
+    if start is None:
+        start = (
+            np.stack(case.initial(local.lat, local.lon))
+            if initial is None
+            else from_function(initial, local.lat, local.lon)
+        )
+        if scene.digital_filter is not None:
+            sim.dfi = digital_filter(
+                scene.digital_filter, start, grid=local, terms=scene.terms, fcor=fcor, hs=hs, g=sim.g, topology=topo
+            )
+            start = sim.dfi.x
+    else:
+        start = topo.distribute(None if start is ON_ROOT else start, 3, "start state")
+    sim.x = model.new_state(*start)
+    sim.stepper.prepare(sim.x)
+    sim.last_good = wp.clone(sim.x)  # the state at the start of the block of steps in progress (``guard``)
+    sim.check_every = CHECK_EVERY_STEPS
+    if not sim.root:  # a fallback's warning once, from rank 0
+        model.graph_guard.warn = lambda line: None
+    sim.initial = initial_diagnostics
+    if initial_diagnostics is None:
+        sim.initial = sim.diagnostics.diagnose(scene.start_day * DAY)
+    sim.step = 0  # steps taken since t = 0 (a branched run: since its branch day, ``Scene.start_day``)
+    sim.counters = {
+        "rhs_evals": 0,
+        "wall_time": 0.0,
+        "cpu_time": 0.0,
+        "iterations": {k: 0 for k in sim.stepper.solvers},
+    }

@@ -1,0 +1,133 @@
+"""A simulation's restarts: continued from a restart file, bitwise as if never stopped, or
+branched from it (another stepper or Δt); its state and history restored; a restart file
+written. ``Simulation``'s methods ``from_checkpoint`` (a class method), ``restore``,
+``restore_history`` and ``write_checkpoint``, bound in its class body (``self``: the
+simulation)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..config.scene import with_days
+from ..io import restart_file
+from . import checkpoint as ckpt
+from .build import ON_ROOT
+
+
+def from_checkpoint(
+    cls,
+    checkpoint,
+    device: str,
+    *,
+    days: float | None = None,
+    stepper: str | None = None,
+    dt: float | None = None,
+    progress: bool = True,
+    comm=None,
+    graphs: str | bool | None = None,
+):
+    """A simulation that continues a restart file, bitwise as if never stopped.
+
+    With another ``stepper`` or ``dt`` than the checkpoint's it is a branch
+    (``checkpoint.branch``): a new run from the checkpoint's state, its stepper's
+    history dropped (multistep steppers start as at t = 0), its counters from zero
+    and its invariants' changes against that state, steps counted from the
+    checkpoint's day.
+
+    Parameters
+    ----------
+    checkpoint : str, path or checkpoint.Checkpoint
+        The restart file (read on rank 0 only, ``checkpoint.read_on_root``).
+    device : {"cpu", "cuda"}
+        Warp device.
+    days : float, optional
+        The new last model day, from t = 0 (default: the checkpointed scene's).
+    stepper : str, optional
+        Another stepper: a branch.
+    dt : float, optional
+        Another time step (s): a branch.
+    progress, comm, graphs
+        As for the constructor.
+
+    Returns
+    -------
+    Simulation
+        At the checkpoint's step.
+
+    Raises
+    ------
+    CheckpointError
+        An unreadable or damaged restart file, or a ``days`` before its step.
+    SceneError
+        A branch it cannot make (unknown stepper, dt <= 0, a length not whole steps).
+    """
+    ck = checkpoint if isinstance(checkpoint, ckpt.Checkpoint) else ckpt.read_on_root(checkpoint, comm)
+    start = ON_ROOT if ck.x is None else ck.x  # ranks > 0 of ``read_on_root`` have no arrays
+    if (stepper is not None and stepper != ck.scene.stepper) or (dt is not None and dt != ck.scene.dt):
+        sim = cls(
+            ckpt.branch(ck, stepper=stepper, dt=dt, days=days),
+            device,
+            progress=progress,
+            comm=comm,
+            start=start,
+            graphs=graphs,
+        )
+    else:
+        scene = ck.scene if days is None else with_days(ck.scene, days)
+        if scene.nsteps < ck.step:
+            raise ckpt.CheckpointError(
+                f"the run length {scene.days:g} days ends before the checkpoint (day {ck.scene.day(ck.step):g})"
+            )
+        sim = cls(
+            scene,
+            device,
+            progress=progress,
+            comm=comm,
+            start=start,
+            initial_diagnostics=ck.initial,  # the state handed out; no second digital filter
+            graphs=graphs,
+        )
+        sim.restore_history(ck)
+    if not isinstance(checkpoint, ckpt.Checkpoint):
+        sim.inputs = (Path(checkpoint),)
+    return sim
+
+
+def restore(self, ck: ckpt.Checkpoint) -> None:
+    """Set the state, stepper history, counters and t = 0 invariants from a checkpoint."""
+    try:
+        x = self.topology.distribute(ck.x, 3, "checkpoint state")  # ck.x on rank 0 only (``checkpoint.read_on_root``)
+    except ValueError as err:
+        raise ckpt.CheckpointError(str(err)) from None
+    self.x.assign(x)
+    self.restore_history(ck)
+
+
+def restore_history(self, ck: ckpt.Checkpoint) -> None:
+    """``restore`` but the state (already ``ck.x``)."""
+    try:
+        self.stepper.restore(ck.stepper_state)
+    except ValueError as err:
+        raise ckpt.CheckpointError(f"checkpoint does not fit the stepper: {err}") from None
+    self.step, self.counters, self.initial = ck.step, ck.counters, ck.initial
+
+
+def write_checkpoint(self, path, *, overwrite: bool = True, restart_every: float | None = None) -> Path:
+    """Write a restart file of the current step (see ``checkpoint``): whole-grid
+    fields, gathered from every rank (call on all), written by rank 0;
+    ``restart_every`` (days) recorded for a continuation to keep."""
+    x, state = self.topology.gather(self.x.numpy()), self.stepper.state()
+    if not self.root:
+        return Path(path)
+    return restart_file.write(
+        path,
+        self.scene,
+        self.step,
+        x,
+        state,
+        self.counters,
+        self.initial,
+        grid=self.grid,
+        overwrite=overwrite,
+        restart_every=restart_every,
+    )

@@ -1,0 +1,33 @@
+"""``swe-sphere frontier`` through the in-process command line: a tiny ladder runs, writes the
+frontier's files, and a bad ladder is refused in one line with nothing written."""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from helpers import cli_main
+
+
+def test_a_tiny_frontier_runs_and_writes_its_table(capsys, tmp_path):
+    out = tmp_path / "fr"
+    code, stdout, _ = cli_main(
+        capsys, "frontier", "tc2_steady", "--ne", "2", "--np", "3,4", "--steppers", "rk4", "--days", "0.1",
+        "--device", "cpu", "--output", str(out),
+    )  # fmt: skip
+    assert code == 0
+    rows = pd.read_csv(out / "frontier.csv")
+    assert sorted(rows["np"]) == [3, 4]
+    # np 4 is both dearer and more accurate than np 3 on TC2: both on the front
+    assert rows["on_front"].all()
+    assert (rows.sort_values("np")["error"].diff().dropna() < 0).all()
+    assert "front (cheapest first)" in stdout
+
+
+def test_a_bad_ladder_is_one_line_and_writes_nothing(capsys, tmp_path):
+    out = tmp_path / "fr"
+    code, _, stderr = cli_main(
+        capsys, "frontier", "tc2_steady", "--ne", "2,x", "--np", "4", "--output", str(out),
+    )  # fmt: skip
+    assert code == 2
+    assert stderr.strip().count("\n") == 0 and "--ne" in stderr
+    assert not out.exists()

@@ -1,0 +1,33 @@
+"""``swe-sphere run``'s header: what it says of the grid."""
+
+from __future__ import annotations
+
+import re
+
+from swe_sphere.cli import main
+
+from cli_helpers import (
+    in_tmp,  # noqa: F401  (the fixture: every test in a folder of its own)
+)
+from helpers import cli_main
+
+
+def test_a_mesh_run_gives_one_smallest_spacing_and_says_it_is_the_one_dt_scales_with(capsys):
+    """A mesh run's header gave two "smallest spacings" (the grid line's GLL node distance and
+    the mesh line's Dinv-based one); dt scales with the Dinv-based one (``quality.smallest_dx``)."""
+    assert main(["mesh", "--ne", "2", "-o", "m.g"]) == 0
+    code, out, err = cli_main(
+        capsys, "run", "tc2_steady", "--mesh", "m.g", "--days", "0.25", "--device", "cpu", "--no-progress"
+    )
+    assert code == 0, err
+    (line,) = [line for line in out.splitlines() if line.startswith(("grid", "mesh")) and "spacing" in line]
+    assert line.startswith("mesh        node spacing (Dinv-based, the one dt scales with on a mesh) "), line
+    grid = next(line for line in out.splitlines() if line.startswith("grid "))
+    assert grid.endswith("unique nodes"), grid
+
+
+def test_a_cube_run_gives_its_smallest_spacing_on_the_grid_line(capsys):
+    code, out, err = cli_main(capsys, "run", "tc2_steady", "--ne", "2", "--days", "0.25", "--device", "cpu")
+    grid = next(line for line in out.splitlines() if line.startswith("grid "))
+    assert code == 0 and re.search(r", min node spacing [0-9.]+ km$", grid), grid
+    assert "Dinv" not in out

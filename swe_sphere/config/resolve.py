@@ -24,9 +24,10 @@ from ..io.initial_state import SCENE_CASES
 from ..io.run_file import OUTPUT_FIELDS
 from ..model.shallow_water import TERMS
 from ..steppers import STEPPERS
+from ..steppers.control import CONTROLLERS
 from ..steppers.initialization import METHODS, DigitalFilter
 from .paths import grid_record
-from .schema import SceneGrid, SceneHyperviscosity, check_type, got, is_integer, is_number
+from .schema import SceneControl, SceneGrid, SceneHyperviscosity, check_type, got, is_integer, is_number
 
 HYPERVIS_EXPONENT = 3.2  # ν ∝ Δx^3.2 (HOMME's resolution scaling; Dennis et al. 2012)
 
@@ -331,6 +332,80 @@ def _scaled_dt(scene_dt: float, days: float, every: float, scene: str, grid: Sce
         what = f"both the output interval of {every:g} and the run length of {days:g} days"
     cut = f"warning: dt cut {scaled / dt:.3g}x (from {scaled:g} s, scaled with {why}) to {dt:g} s to divide {what}"
     return dt, source, (cut,)
+
+
+# [time] control's modes and the keys each reads
+CONTROL_KEYS = {
+    "fixed": (),
+    "cfl": ("cfl", "dt_min", "dt_max"),
+    "error": ("rtol", "atol", "controller", "cfl", "dt_min", "dt_max"),
+}
+DT_MIN_FRACTION = 1e-3  # dt_min's default: this fraction of the first step
+
+
+def resolve_control(table: dict, stepper: str, options: dict, dt: float) -> SceneControl | None:
+    """[time]'s step control for ``stepper`` with ``options`` and the first step ``dt`` (s):
+    None for ``control = "fixed"`` (the default). Defaults: rtol 1e-4; atol rtol in each
+    field's units (m s⁻¹, m); the controller Ranocha et al.'s PID for the pair where tuned
+    (``pid_bs32``...), else ARKODE's PI; under "cfl" the target 0.9 × the stepper's measured
+    Courant limit; dt_min ``DT_MIN_FRACTION`` × dt. Raises ``SceneError``, one line naming the
+    key: an unknown mode, a key the mode does not read, a stepper that cannot change its dt,
+    a pair-less stepper under "error", rtol ≤ 0, a bad atol, an unknown controller, cfl ≤ 0,
+    dt_min ≤ 0 or above dt_max."""
+    mode = table.get("control", "fixed")
+    if mode not in CONTROL_KEYS:
+        raise SceneError(f"time.control must be one of {', '.join(CONTROL_KEYS)} (got {mode!r})")
+    for key in CONTROL_KEYS["error"]:
+        if key in table and key not in CONTROL_KEYS[mode]:
+            raise SceneError(f"time.{key} is not read under control = {mode!r} (set time.control)")
+    if mode == "fixed":
+        return None
+    cls = STEPPERS[stepper]
+    if not cls.variable_dt:
+        raise SceneError(
+            f"time.control = {mode!r} needs a stepper that can change its dt between steps; {stepper} cannot "
+            "(its history is its dt's)"
+        )
+    rtol, atol, controller = None, (None, None), None
+    if mode == "error":
+        if not cls.has_estimate(options):
+            pairs = ", ".join(k for k, c in STEPPERS.items() if isinstance(c.embedded_order, int) and c.embedded_order)
+            raise SceneError(
+                f"time.control = 'error' needs an embedded pair; {stepper} has no error estimate "
+                f"(pairs: {pairs}, a tableau with b_hat; or control = 'cfl')"
+            )
+        rtol = table.get("rtol", 1e-4)
+        if not rtol > 0:
+            raise SceneError(f"time.rtol must be > 0 (got {rtol!r})")
+        atol = _atol(table.get("atol", rtol))
+        controller = table.get("controller", f"pid_{stepper}" if f"pid_{stepper}" in CONTROLLERS else "pi")
+        if controller not in CONTROLLERS:
+            raise SceneError(f"time.controller must be one of {', '.join(CONTROLLERS)} (got {controller!r})")
+    cfl = table.get("cfl", _default_cfl(cls, stepper) if mode == "cfl" else None)
+    if cfl is not None and not cfl > 0:
+        raise SceneError(f"time.cfl must be > 0 (got {cfl!r})")
+    dt_min, dt_max = table.get("dt_min", DT_MIN_FRACTION * dt), table.get("dt_max")
+    if not dt_min > 0 or (dt_max is not None and not dt_max > 0):
+        raise SceneError(f"time.dt_min and time.dt_max must be > 0 (got {dt_min!r}, {dt_max!r})")
+    if dt_max is not None and dt_min > dt_max:
+        raise SceneError(f"time.dt_min = {dt_min:g} s is above time.dt_max = {dt_max:g} s")
+    return SceneControl(mode, rtol, *atol, controller, cfl, float(dt_min), None if dt_max is None else float(dt_max))
+
+
+def _atol(value) -> tuple[float, float]:
+    """(wind (m s⁻¹), h (m)) of time.atol: a number ≥ 0 for both, or an array of two."""
+    pair = list(value) if isinstance(value, list) else [value, value]
+    if len(pair) != 2 or not all(is_number(a) and a >= 0 for a in pair):
+        raise SceneError(f"time.atol must be a number >= 0 or [wind (m/s), h (m)] of them (got {got(value)})")
+    return float(pair[0]), float(pair[1])
+
+
+def _default_cfl(cls, stepper: str) -> float:
+    """0.9 × the stepper's measured Courant limit (the signal's, else the advective one's)."""
+    limit = cls.courant_limit if isinstance(cls.courant_limit, float) else cls.advective_courant_limit
+    if not isinstance(limit, float):
+        raise SceneError(f"time.cfl is missing: {stepper} has no measured Courant limit to aim below")
+    return 0.9 * limit
 
 
 def resolve_stepper_options(stepper: str, table: dict, overrides: dict) -> tuple[dict, tuple]:

@@ -81,6 +81,7 @@ from .resolve import (
     HYPERVIS_EXPONENT,
     efold_nu,
     resolve_case,
+    resolve_control,
     resolve_dt,
     resolve_grid,
     resolve_hyperviscosity,
@@ -94,7 +95,7 @@ from .resolve import (
     resolve_terms,
     scene_title,
 )
-from .schema import SCHEMA, SceneGrid, SceneHyperviscosity, SceneOutput, SceneTime, read_scene
+from .schema import SCHEMA, SceneControl, SceneGrid, SceneHyperviscosity, SceneOutput, SceneTime, read_scene
 
 # the names the package, its tests and benchmarks import from here, defined in the config's other modules
 __all__ = [
@@ -182,6 +183,9 @@ class Scene:
         ``mesh_file``) as a ``grid.spec`` record; None: the equiangular cube of ne.
     output_cells : bool
         [output] cells: the run files hold the control volumes (``io.dual``).
+    control : SceneControl or None
+        [time] control: the step chosen step to step by an error or CFL controller, dt the
+        first (``schema.SceneControl``); None: a fixed dt.
     dt_source : str
         Where ``dt`` comes from, for messages ("the scene's", "the dt given", ...): not part
         of the scene's identity (left out of comparisons and of ``as_dict``).
@@ -218,6 +222,7 @@ class Scene:
     mesh: dict | None = None
     output_cells: bool = True  # [output] cells: the run files hold the control volumes (``dual``)
     hypervis_scaling: float | None = None  # [hyperviscosity] scaling: the tensor ∇⁴'s s; None: constant ν
+    control: SceneControl | None = None  # [time] control: None, a fixed dt
     # where dt comes from, for the refusals (``Clock.source``); not part of the scene's record (``as_dict``)
     dt_source: str = field(default="the scene's", compare=False)
 
@@ -231,7 +236,7 @@ class Scene:
     @property
     def time(self) -> SceneTime:
         """The stepper, its options, dt and days ([time] and the stepper's table)."""
-        return SceneTime(self.stepper, self.stepper_options, self.dt, self.days)
+        return SceneTime(self.stepper, self.stepper_options, self.dt, self.days, self.control)
 
     @property
     def hyperviscosity(self) -> SceneHyperviscosity:
@@ -319,8 +324,9 @@ class Scene:
                 del d[key]
         if d["output_cells"]:  # the default
             del d["output_cells"]
-        if d["hypervis_scaling"] is None:
-            del d["hypervis_scaling"]
+        for key in ("hypervis_scaling", "control"):
+            if d[key] is None:
+                del d[key]
         return d
 
 
@@ -349,6 +355,7 @@ def scene_from_dict(d: dict) -> Scene:
             "notes": tuple(d.get("notes", ())),
             "output_fields": tuple(d.get("output_fields", ())),
             "output_streams": streams,
+            "control": None if d.get("control") is None else SceneControl(**d["control"]),
         }
     )
 
@@ -436,6 +443,7 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict) -> S
     dt, dt_source, dt_notes = resolve_dt(time.get("dt"), dt, days, every, path.stem, grid, spacing)
     output_fields, streams = resolve_output_files(output, dt, days, dt_source)
     options, stepper_notes = resolve_stepper_options(stepper, s.get(stepper, {}), overrides)
+    control = resolve_control(time, stepper, options, dt)
     hv, hv_notes = resolve_hyperviscosity(s.get("hyperviscosity", {}), terms, grid, spacing)
     name, description = scene_title(case.name, file_case, path.stem, s.get("description", ""))
     return Scene(
@@ -465,6 +473,7 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict) -> S
         mesh=grid.mesh,
         output_cells=output.get("cells", True),
         hypervis_scaling=hv.scaling,
+        control=control,
         dt_source=dt_source,
     )
 

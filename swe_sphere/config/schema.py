@@ -29,15 +29,36 @@ class SceneGrid:
 
 
 @dataclass(frozen=True)
+class SceneControl:
+    """A scene's step control ([time] ``control`` and its keys; ``Scene.control``, None for a
+    fixed Δt): ``mode`` "cfl" or "error"; under "error" the tolerances ``rtol`` (> 0) and
+    ``atol_wind`` (m s⁻¹, on u and v), ``atol_h`` (m) of ``steppers.control.ErrorNorm`` and the
+    ``controller`` (a name of ``steppers.control.CONTROLLERS``); ``cfl`` the target Courant
+    number (``steppers.control.CflController``; under "error" a cap, None: none); ``dt_min``
+    (s, > 0: a step below it stops the run as a blow-up) and ``dt_max`` (s; None: none). The
+    scene's ``dt`` is the first step."""
+
+    mode: str
+    rtol: float | None = None
+    atol_wind: float | None = None
+    atol_h: float | None = None
+    controller: str | None = None
+    cfl: float | None = None
+    dt_min: float = 0.0
+    dt_max: float | None = None
+
+
+@dataclass(frozen=True)
 class SceneTime:
     """A scene's stepping ([time] and the stepper's table; ``Scene.time``): the ``stepper``
-    (``steppers.STEPPERS``) and its ``options``, the step ``dt`` (s) and the last model day
-    ``days``."""
+    (``steppers.STEPPERS``) and its ``options``, the step ``dt`` (s; under ``control`` the
+    first), the last model day ``days`` and the step ``control`` (None: a fixed Δt)."""
 
     stepper: str
     options: dict
     dt: float
     days: float
+    control: SceneControl | None = None
 
 
 @dataclass(frozen=True)
@@ -80,7 +101,18 @@ SCHEMA = {
         "cube": str,
         "mesh_file": str,
     },
-    "time": {"stepper": str, "dt": float, "days": float},
+    "time": {
+        "stepper": str,
+        "dt": float,
+        "days": float,
+        "control": str,
+        "rtol": float,
+        "atol": float | list,  # one for every field in its units, or [wind (m/s), h (m)]: ``resolve_control``
+        "controller": str,
+        "cfl": float,
+        "dt_min": float,
+        "dt_max": float,
+    },
     "output": {"every_days": float, "log_every_steps": int, "fields": list, "streams": list, "cells": bool},
     "hyperviscosity": {
         "efold_hours": float,

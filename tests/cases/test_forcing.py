@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import functools
 import math
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -33,7 +34,7 @@ from swe_sphere.core.errors import SceneError
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
 from swe_sphere.steppers.multirate import MriOptions, parse_mri
-from swe_sphere.steppers.tables import IMEX
+from swe_sphere.steppers.tables import EXPLICIT, IMEX, IMEX_PAIRS
 
 SCENE = "tc4_forced_low"
 
@@ -104,6 +105,10 @@ def test_every_stepper_evaluates_the_rhs_at_its_stage_times():
         "epi2": [[0, 0.015625, -0.015625, 0], [1, 1.015625, 0.984375, 1]],
         "epi3": [[0, 0.015625, -0.015625, 0], [1, 1.015625, 0.984375, 1]],
     }
+    for name, table in {**EXPLICIT, **IMEX_PAIRS}.items():  # the embedded pairs: each stage at its c
+        if name not in expected:
+            c = [round(float(Fraction(q)), 12) for q in table["c"]]
+            expected[name] = [c, [round(1 + q, 12) for q in c]]
     assert set(expected) | {"implicit"} == set(STEPPERS)
     for name, times in expected.items():
         assert stage_times(name) == times, name

@@ -17,7 +17,7 @@ import functools
 import warp as wp
 
 from .operators import element_node
-from .tendencies import _flags, finish
+from .tendencies import TENDENCY_TERMS, finish
 
 f64 = wp.float64
 
@@ -27,7 +27,10 @@ def tendency(terms: tuple, np_: int):
     """The differentiable ``tendencies.tendency`` for ``terms`` at np = ``np_``. Arguments:
     x (3, N) state, D, Dinv (4, N), metdet, fcor (N), forcing (2, N), dvv (np, np), g, tend
     (3, N) output. Dim N; no offset (one launch over every node, as the tape records it)."""
-    CONT, ADV, _, PG, _ = _flags(terms)
+    unknown = set(terms) - set(TENDENCY_TERMS)
+    if unknown:
+        raise ValueError(f"unknown tendency terms {sorted(unknown)}")
+    CONT, ADV, PG = ("continuity" in terms, "momentum_advection" in terms, "pressure_gradient" in terms)
     GRAD = ADV or PG
     NP = int(np_)
 

@@ -71,7 +71,9 @@ class StepAdjoint:
         self.K = [wp.zeros((3, N), dtype=f64, device=device) for _ in range(s)]
         self.Ybar = [wp.zeros((3, N), dtype=f64, device=device) for _ in range(s)]
         self.kbar = wp.zeros((3, N), dtype=f64, device=device)
+        self.x = wp.zeros((3, N), dtype=f64, device=device)  # x(n), copied in by ``reverse``
         self.lam = wp.zeros((3, N), dtype=f64, device=device)  # λ of the element-local tendency
+        self._combinations: dict[tuple, list] = {}  # ``combine``'s recorded launches
         self.xt = wp.zeros((3, N), dtype=f64, device=device, requires_grad=True)
         self.tend = wp.zeros((3, N), dtype=f64, device=device, requires_grad=True)
         # the ∇⁴ without hs: B₀, the linear part the adjoint applies (see the module's doc)
@@ -93,14 +95,19 @@ class StepAdjoint:
 
     def combine(self, out, terms) -> None:
         """out = Σ c·x over (c, x) terms, zero coefficients left out (``LaunchRecorder.lincomb``,
-        four terms a pass; out may alias any x only as the first term)."""
+        four terms a pass; out may alias any x only as the first term); recorded once per
+        arrays and coefficients (the arrays are this object's, held as long as it)."""
         terms = [(c, x) for c, x in terms if c != 0.0]
         if not terms:
             out.zero_()
             return
-        self.model.lincomb(out, terms[:4]).launch()
-        for i in range(4, len(terms), 3):
-            self.model.lincomb(out, [(1.0, out), *terms[i : i + 3]]).launch()
+        key = (out.ptr, *((c, x.ptr) for c, x in terms))
+        launches = self._combinations.get(key)
+        if launches is None:
+            passes = [terms[:4], *([(1.0, out), *terms[i : i + 3]] for i in range(4, len(terms), 3))]
+            launches = self._combinations[key] = [self.model.lincomb(out, p) for p in passes]
+        for launch in launches:
+            launch.launch()
 
     def stages(self, x) -> None:
         """Y_i and K_i = F(Y_i) of the step from x (the Butcher form)."""
@@ -128,7 +135,8 @@ class StepAdjoint:
         dt, s = self.dt, len(self.b)
         if self.hv_model is not None:
             self.hv_model.hyperviscosity(mu, dt)  # its own transpose: see the module's doc
-        self.stages(x)
+        wp.copy(self.x, x)  # the stages read this object's arrays only (``combine``'s records)
+        self.stages(self.x)
         for i in reversed(range(s)):
             later = [(dt * self.A[j][i], self.Ybar[j]) for j in range(i + 1, s)]
             self.combine(self.kbar, [(dt * self.b[i], mu), *later])

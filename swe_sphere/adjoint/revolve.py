@@ -1,0 +1,81 @@
+"""Binomial checkpointing of a reverse sweep over n steps (Griewank 1992, Optim. Methods Softw.
+1:35; Griewank & Walther 2000, ACM TOMS 26:19, "Algorithm 799: revolve").
+
+A reverse sweep visits the states x(n−1), …, x(0) in that order, each once, while only
+``snapshots`` states are held at any time (x(0) one of them): a state not held is recomputed
+from the nearest one held before it. ``forward_steps(l, c)`` is the fewest forward steps that
+reverse l steps from a held state with c more snapshots free, by the recursion
+T(l, c) = min_m [m + T(l − m, c − 1) + T(m, c)], T(1, c) = 0, T(l, 0) = l(l − 1)/2, and
+``griewank_steps`` its closed form, t = r·l − C(s + r, s + 1) with s = c + 1 snapshots and r
+the least with C(s + r, s) ≥ l (Griewank & Walther 2000, Prop. 1): ``tests/adjoint`` checks
+that the two agree and that ``sweep`` takes exactly that many.
+"""
+
+from __future__ import annotations
+
+import functools
+from math import comb
+
+
+@functools.cache
+def _plan(l: int, c: int) -> tuple[int, int]:
+    """(T(l, c), the first split m achieving it; 0 where none is taken)."""
+    if l <= 1:
+        return 0, 0
+    if c == 0:
+        return l * (l - 1) // 2, 0
+    if c >= l - 1:  # a snapshot for every state: each step once
+        return l - 1, 1
+    best = None
+    for m in range(1, l):
+        cost = m + _plan(l - m, c - 1)[0] + _plan(m, c)[0]
+        if best is None or cost < best[0]:
+            best = (cost, m)
+    return best
+
+
+def forward_steps(l: int, c: int) -> int:
+    """T(l, c): the fewest forward steps of a sweep over l steps from a held state with c
+    snapshots free (the recursion above; O(l² c) the first time, cached)."""
+    return _plan(int(l), int(c))[0]
+
+
+def griewank_steps(l: int, s: int) -> int:
+    """Griewank & Walther's t(l, s) = r·l − C(s + r, s + 1), r least with C(s + r, s) ≥ l: the
+    forward steps of the optimal reversal of l steps with s snapshots (the start's included)."""
+    r = 0
+    while comb(s + r, s) < l:
+        r += 1
+    return r * l - comb(s + r, s + 1)
+
+
+def sweep(n: int, snapshots: int, x0, advance, reverse, copy) -> int:
+    """Run the reverse sweep over n steps from x0 with at most ``snapshots`` (≥ 1) states held,
+    x0 one of them: ``reverse(x, k)`` is called for k = n − 1, …, 0 with x = x(k) (to be read,
+    not changed); ``advance(x)`` steps x in place; ``copy(x)`` returns a new state equal to x
+    (a held snapshot, or a work state). Returns the forward steps taken, T(n, snapshots − 1).
+    ValueError for n < 1 or snapshots < 1."""
+    if n < 1 or snapshots < 1:
+        raise ValueError(f"a sweep needs n >= 1 steps and snapshots >= 1 (got {n}, {snapshots})")
+    taken = 0
+
+    def walk(x, steps):
+        nonlocal taken
+        for _ in range(steps):
+            advance(x)
+        taken += steps
+        return x
+
+    def part(a, b, xa, free):  # reverse steps a..b−1, xa = x(a) held
+        while b - a > 1:
+            if free == 0:
+                for k in range(b - 1, a, -1):
+                    reverse(walk(copy(xa), k - a), k)
+                break
+            m = a + _plan(b - a, free)[1]
+            part(m, b, walk(copy(xa), m - a), free - 1)
+            b = m
+        reverse(xa, a)
+
+    part(0, n, x0, snapshots - 1)
+    return taken

@@ -1,0 +1,167 @@
+"""Gradients of a run (``swe_sphere.adjoint``): dot-product tests of each adjoint piece, Taylor
+tests of the whole n-step gradient, and binomial checkpointing (counts and bits)."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+import warp as wp
+
+from swe_sphere.adjoint import HeightMisfit, gradient
+from swe_sphere.adjoint.explicit import StepAdjoint
+from swe_sphere.adjoint.gradient import scene_model
+from swe_sphere.adjoint.revolve import forward_steps, griewank_steps, sweep
+from swe_sphere.config.scene import load_scene
+from swe_sphere.kernels import taped, tendencies
+
+EPS = float(np.finfo(np.float64).eps)
+f64 = wp.float64
+
+
+@functools.cache
+def tc5(stepper="rk4"):
+    """TC5 at ne 2 np 4, Δt 1800 s (its terms all, the ∇⁴ at the e-folding rule's ν)."""
+    return load_scene("testcases/tc5_mountain.toml", ne=2, np_=4, dt=1800.0, stepper=stepper)
+
+
+@functools.cache
+def setup(stepper="rk4"):
+    return scene_model(tc5(stepper))
+
+
+def continuous(model, a):
+    """The weighted DSS of a (3, N): a continuous state."""
+    out = wp.zeros((3, model.N), dtype=f64)
+    for launch in model.topology.dss(wp.array(a, dtype=f64), True, out):
+        launch.launch()
+    return out.numpy()
+
+
+def unweighted_dss(model, a):
+    out = wp.zeros((3, model.N), dtype=f64)
+    for launch in model.topology.dss(wp.array(a, dtype=f64), False, out):
+        launch.launch()
+    return out.numpy()
+
+
+def test_taped_tendency_is_the_per_node_kernels_bits_and_its_adjoint_the_derivative():
+    model, _, x0 = setup()
+    terms = tuple(t for t in tendencies.TENDENCY_TERMS if t in model.terms)
+    args = [model.D, model.Dinv, model.metdet, model.fcor, model.topo_forcing, model.dvv]
+
+    def run(x):
+        x = wp.array(x, dtype=f64, requires_grad=True)
+        out = wp.zeros((3, model.N), dtype=f64, requires_grad=True)
+        tape = wp.Tape()
+        with tape:
+            wp.launch(taped.tendency(terms, 4), model.N, [x, *args, model.g, out])
+        return x, out, tape
+
+    x, out, tape = run(x0)
+    ref = wp.zeros((3, model.N), dtype=f64)
+    wp.launch(tendencies.tendency(terms), model.N, [wp.array(x0, dtype=f64), *args, 4, model.g, ref, 0])
+    np.testing.assert_array_equal(out.numpy(), ref.numpy())
+    rng = np.random.default_rng(1)
+    y, dx = rng.standard_normal((2, 3, model.N))
+    tape.backward(grads={out: wp.array(y, dtype=f64)})
+    adjoint = np.sum(x.grad.numpy() * dx)
+    e = 1e-4  # central differences: error e² · (third derivative) ≈ 1e-10 relative here
+    fd = np.sum(y * (run(x0 + e * dx)[1].numpy() - run(x0 - e * dx)[1].numpy())) / (2 * e)
+    assert abs(fd - adjoint) <= 1e-8 * abs(adjoint)
+
+
+def test_dss_transpose_is_the_mass_times_the_unweighted_dss():
+    # K = R Q W t (weighted DSS): for any t, λ: ⟨K t, λ⟩ = ⟨t, W R Q λ⟩
+    model, _, _ = setup()
+    rng = np.random.default_rng(2)
+    t, lam = rng.standard_normal((2, 3, model.N))
+    w = model.grid.spheremp
+    left = np.sum(continuous(model, t) * lam)
+    right = np.sum(t * w * unweighted_dss(model, lam))
+    # each side a sum of 3N products of ≤ 8 roundings each (copies ≤ 4, weight, inverse mass)
+    assert abs(left - right) <= 8 * 3 * model.N * EPS * np.sum(np.abs(t * w * unweighted_dss(model, np.abs(lam))))
+
+
+def test_hyperviscosity_step_is_its_own_transpose_in_the_mass_form():
+    # H₀ δ = δ − (Δt) B₀ δ: for continuous δ and any λ, ⟨H₀ δ, λ⟩ = Σ spheremp·δ·H₀(R Q λ)
+    model, stepper, _ = setup()
+    adjoint = StepAdjoint(model, stepper.table(), stepper.dt)
+    rng = np.random.default_rng(3)
+    delta = continuous(model, rng.standard_normal((3, model.N)) * np.array([[10.0], [10.0], [100.0]]))
+    lam = rng.standard_normal((3, model.N))
+    hd = wp.array(delta, dtype=f64)
+    adjoint.hv_model.hyperviscosity(hd, stepper.dt)
+    mu = wp.array(unweighted_dss(model, lam), dtype=f64)
+    adjoint.hv_model.hyperviscosity(mu, stepper.dt)
+    left = np.sum(hd.numpy() * lam)
+    right = np.sum(model.grid.spheremp * delta * mu.numpy())
+    assert np.abs(hd.numpy() - delta).max() > 1e-3 * np.abs(delta).max()  # the ∇⁴ acts
+    scale = np.sum(np.abs(hd.numpy() * lam)) + np.sum(np.abs(delta * lam))
+    assert abs(left - right) <= 1e-12 * scale  # measured 1e-16 relative (ne 2 np 4)
+
+
+def taylor_slopes(stepper, steps, weights):
+    """Remainders |J(x + εδx) − J(x) − ε⟨∇J, δx⟩| over ε = 1e-1 … 1e-5 and their log-log slopes."""
+    model, _, x0 = setup(stepper)
+    rng = np.random.default_rng(0)
+    cost = HeightMisfit(x0[2] + 50 * continuous(model, rng.standard_normal((3, model.N)))[2])
+    g = gradient(tc5(stepper), steps, cost)
+    dx = continuous(model, rng.standard_normal((3, model.N)) * np.array(weights)[:, None])
+    dJ = np.sum(model.grid.spheremp * g.grad * dx)
+    eps = 10.0 ** -np.arange(1.0, 5.5, 1.0)
+    rest = [abs(gradient(tc5(stepper), steps, cost, x0=x0 + e * dx).cost - g.cost - e * dJ) for e in eps]
+    return np.diff(np.log(rest)) / np.diff(np.log(eps)), rest, g.cost
+
+
+@pytest.mark.parametrize("stepper", ["rk4", "ssprk3"])
+def test_taylor_remainder_of_the_initial_state_gradient_falls_as_eps_squared(stepper):
+    slopes, rest, J = taylor_slopes(stepper, 4, [1.0, 1.0, 10.0])
+    # measured (rk4, 6 steps): 2.00002, 2.000006, 2.000002, 2.0000006, 2.00000003, … down to 2.0004 at 1e-5
+    assert np.all(np.abs(slopes - 2.0) < 0.1), (slopes, rest)
+    assert rest[-1] > 1e4 * EPS * J  # the last remainder still above the cost's round-off
+
+
+def test_revolve_counts_are_griewank_and_walthers():
+    for l in range(1, 60):
+        for c in range(5):
+            assert forward_steps(l, c) == griewank_steps(l, c + 1)
+    assert griewank_steps(10, 3) == 15 and forward_steps(10, 9) == 9
+
+
+@pytest.mark.parametrize(("n", "snapshots"), [(10, 3), (7, 1), (12, 4), (5, 9)])
+def test_sweep_reverses_every_step_once_in_order_with_the_predicted_recomputation(n, snapshots):
+    held, seen = [], []
+
+    def copy(x):
+        held.append(1)
+        return list(x)
+
+    def advance(x):
+        x[0] += 1
+
+    taken = sweep(n, snapshots, [0], advance, lambda x, k: seen.append((k, x[0])), copy)
+    assert seen == [(k, k) for k in reversed(range(n))]
+    assert taken == forward_steps(n, snapshots - 1)
+
+
+def test_a_checkpointed_gradient_is_the_same_bits_as_one_that_stores_every_state():
+    model, _, x0 = setup()
+    cost = HeightMisfit(x0[2] + 10.0)
+    every = gradient(tc5(), 8, cost)
+    few = gradient(tc5(), 8, cost, snapshots=2)
+    np.testing.assert_array_equal(every.grad, few.grad)
+    assert every.cost == few.cost
+    assert (every.forward_steps, few.forward_steps) == (8 + 7, 8 + griewank_steps(8, 2))  # 8 + 7, 8 + 20
+
+
+def test_gradient_refuses_an_implicit_stepper_and_bad_sizes():
+    model, _, x0 = setup()
+    cost = HeightMisfit(x0[2])
+    with pytest.raises(ValueError, match="explicit Runge–Kutta"):
+        gradient(tc5("implicit"), 1, cost)
+    with pytest.raises(ValueError, match="steps and snapshots"):
+        gradient(tc5(), 0, cost)
+    with pytest.raises(ValueError, match=r"x0 must have shape \(3, 384\)"):
+        gradient(tc5(), 1, cost, x0=x0[:2])

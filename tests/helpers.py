@@ -1,6 +1,6 @@
 """Helpers shared by the tests (imported by name; pytest's fixtures and hooks are in conftest.py):
 tiny-grid CLI arguments and the calls that run the command line in this process
-(``cli_main``, ``cli_one_line``, ``one_line``, ``console_script``), the CUDA marks,
+(``cli_main``, ``cli_ok``, ``cli_one_line``, ``one_line``, ``console_script``), the CUDA marks,
 the session's cached grids and runs (``cached_grid``, ``tc6_final``, ``tc6_error``),
 ``make_sim``, ``run``, ``watched_run`` and ``assert_same_runs``, and a TC2 scene file
 (``write_tc2_scene``)."""
@@ -164,6 +164,13 @@ def cli_main(capsys, *args):
         code = exc.code
     out, err = capsys.readouterr()
     return code, out, err
+
+
+def cli_ok(*args) -> bool:
+    """``swe_sphere.cli.main(args)`` in this process returned 0 (its output left to the terminal)."""
+    from swe_sphere.cli import main
+
+    return main([str(a) for a in args]) == 0
 
 
 def one_line(code: int, err: str, expected: int, *words: str) -> str:

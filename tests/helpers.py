@@ -2,13 +2,14 @@
 tiny-grid CLI arguments and the calls that run the command line in this process
 (``cli_main``, ``cli_ok``, ``cli_one_line``, ``one_line``, ``console_script``), the CUDA marks,
 the session's cached grids and runs (``cached_grid``, ``tc6_final``, ``tc6_error``),
-``make_sim``, ``run``, ``watched_run`` and ``assert_same_runs``, and a TC2 scene file
-(``write_tc2_scene``)."""
+``make_sim``, ``run``, ``watched_run`` and ``assert_same_runs``, a TC2 scene file
+(``write_tc2_scene``) and a file's ``digest``."""
 
 from __future__ import annotations
 
 import dataclasses
 import functools
+import hashlib
 import math
 import shutil
 import struct
@@ -221,6 +222,11 @@ def write_tc2_scene(path, *, stepper="ssprk3", ne=2, dt=3600.0, days=1.0, tables
     """Write a TC2 scene file (``tables``: extra TOML, e.g. a stepper's options); returns its path."""
     path.write_text(TC2_SCENE.format(ne=ne, stepper=stepper, dt=dt, days=days, tables=tables))
     return path
+
+
+def digest(path) -> str:
+    """The file's sha256 (hex): a file left untouched has the same."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def png_size(path: Path) -> tuple[int, int]:

@@ -13,7 +13,6 @@ the same bits whatever the clock reads.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 
 import numpy as np
@@ -26,7 +25,7 @@ from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.simulation import checkpoint as ckpt
 from swe_sphere.simulation.simulation import Simulation
 
-from helpers import cli_main, cli_ok, cli_one_line, make_sim, write_tc2_scene
+from helpers import cli_main, cli_ok, cli_one_line, digest, make_sim, write_tc2_scene
 
 EVERY = "[output]\nevery_days = 0.25\n"
 RUN = ("--device", "cpu", "--no-progress")
@@ -105,7 +104,7 @@ def test_a_branch_to_another_stepper_and_dt_is_a_fresh_run_from_the_state(spun_u
         assert b.attrs["branched_from"] == str(restart.resolve()) and b.attrs["branched_from_step"] == 24
         assert b.attrs["branched_from_day"] == 1.0 and b.attrs["branched_from_stepper"] == "rk4"
         assert b.attrs["branched_from_dt"] == 3600.0 and "continued_from_day" not in b.attrs
-        assert b.attrs["branched_from_sha256"] == hashlib.sha256(restart.read_bytes()).hexdigest()
+        assert b.attrs["branched_from_sha256"] == digest(restart)
         assert b.attrs["stepper"] == "ssprk3" and b.attrs["dt"] == DT_408
         np.testing.assert_array_equal(b.h.sel(time=1).values, spin.h.sel(time=1).values)  # the branch state
         grid = fresh.grid
@@ -237,7 +236,7 @@ def test_sweep_from_a_restart_file_branches_every_run_there(spun_up, tmp_path, c
         r["stepper"]: r for r in (json.loads(p.read_text())["row"] for p in (tmp_path / "sw" / "runs").glob("*.json"))
     }
     keys = [json.loads(p.read_text())["key"] for p in (tmp_path / "sw" / "runs").glob("*.json")]
-    sha = hashlib.sha256(restart.read_bytes()).hexdigest()
+    sha = digest(restart)
     for key in keys:
         assert key["scene"]["branch"]["restart"] == str(restart.resolve()) and key["scene"]["branch"]["sha256"] == sha
     for stepper, row in rows.items():

@@ -19,7 +19,35 @@ wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level instead
 if hasattr(wp, "LOG_WARNING"):
     wp.config.log_level = wp.LOG_WARNING
 
+from swe_sphere.core.backend import THREADS_ENV  # noqa: E402
+from swe_sphere.core.workers import cpus  # noqa: E402
+
 from helpers import TINY, cached_grid  # noqa: E402  (after Warp is quietened: it imports swe_sphere)
+
+
+def pytest_configure(config):
+    """Under pytest-xdist, each worker's CPU threads (``SWE_SPHERE_THREADS``, unless set) are
+    its share of the CPUs, not all of them each (more threads than CPUs made ne16 3.9x
+    slower: ``Backend.threads``). Subprocesses the tests start inherit it."""
+    workers = os.environ.get("PYTEST_XDIST_WORKER_COUNT")
+    if workers and THREADS_ENV not in os.environ:
+        os.environ[THREADS_ENV] = str(max(1, cpus() // int(workers)))
+
+
+def pytest_xdist_make_scheduler(config, log):
+    """Under ``--dist loadgroup``, one worker runs a test module's tests, or a group's where
+    they name one (``xdist_group``, e.g. the MPI tests): a module's tests share the runs it
+    caches (``functools.cache``, module fixtures), which two workers would each compute."""
+    if config.getvalue("dist") != "loadgroup":
+        return None
+    from xdist.scheduler import LoadGroupScheduling
+
+    class ModuleOrGroup(LoadGroupScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            scope = super()._split_scope(nodeid)
+            return nodeid.split("::")[0] if scope == nodeid else scope
+
+    return ModuleOrGroup(config, log)
 
 
 @pytest.fixture(autouse=True, scope="session")

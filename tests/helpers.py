@@ -1,14 +1,15 @@
 """Helpers shared by the tests (imported by name; pytest's fixtures and hooks are in conftest.py):
 tiny-grid CLI arguments and the calls that run the command line in this process
-(``cli_main``, ``cli_one_line``, ``one_line``, ``console_script``), the CUDA marks,
+(``cli_main``, ``cli_ok``, ``cli_one_line``, ``one_line``, ``console_script``), the CUDA marks,
 the session's cached grids and runs (``cached_grid``, ``tc6_final``, ``tc6_error``),
-``make_sim``, ``run``, ``watched_run`` and ``assert_same_runs``, and a TC2 scene file
-(``write_tc2_scene``)."""
+``make_sim``, ``run``, ``watched_run`` and ``assert_same_runs``, a TC2 scene file
+(``write_tc2_scene``) and a file's ``digest``."""
 
 from __future__ import annotations
 
 import dataclasses
 import functools
+import hashlib
 import math
 import shutil
 import struct
@@ -166,6 +167,13 @@ def cli_main(capsys, *args):
     return code, out, err
 
 
+def cli_ok(*args) -> bool:
+    """``swe_sphere.cli.main(args)`` in this process returned 0 (its output left to the terminal)."""
+    from swe_sphere.cli import main
+
+    return main([str(a) for a in args]) == 0
+
+
 def one_line(code: int, err: str, expected: int, *words: str) -> str:
     """Assert a failure's form: exit status ``expected``, one non-blank line on stderr
     holding every one of ``words``, no traceback; returns the line."""
@@ -214,6 +222,11 @@ def write_tc2_scene(path, *, stepper="ssprk3", ne=2, dt=3600.0, days=1.0, tables
     """Write a TC2 scene file (``tables``: extra TOML, e.g. a stepper's options); returns its path."""
     path.write_text(TC2_SCENE.format(ne=ne, stepper=stepper, dt=dt, days=days, tables=tables))
     return path
+
+
+def digest(path) -> str:
+    """The file's sha256 (hex): a file left untouched has the same."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def png_size(path: Path) -> tuple[int, int]:

@@ -16,6 +16,10 @@ from swe_sphere.grid.cubed_sphere import cube_mesh
 from swe_sphere.grid.mesh import write_exodus
 from swe_sphere.grid.refine import Box, refined_cube
 
+# one worker runs the MPI tests one after another: each starts up to 4 ranks on this
+# machine, and two such jobs at once would share its CPUs with each other as well
+pytestmark = pytest.mark.xdist_group("mpi")
+
 
 @pytest.mark.usefixtures("needs_mpi")
 @pytest.mark.parametrize("ranks", [2, 3])

@@ -30,6 +30,10 @@ from swe_sphere.steppers import STEPPERS as STEPPER_REGISTRY
 import roundoff
 from helpers import cached_grid, one_line
 
+# one worker runs the MPI tests one after another: each starts up to 4 ranks on this
+# machine, and two such jobs at once would share its CPUs with each other as well
+pytestmark = pytest.mark.xdist_group("mpi")
+
 
 def _beside_python(name: str) -> str | None:
     beside = Path(sys.executable).with_name(name)

@@ -13,7 +13,6 @@ the same bits whatever the clock reads.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 
 import numpy as np
@@ -26,7 +25,7 @@ from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.simulation import checkpoint as ckpt
 from swe_sphere.simulation.simulation import Simulation
 
-from helpers import cli_main, cli_one_line, make_sim, write_tc2_scene
+from helpers import cli_main, cli_ok, cli_one_line, digest, make_sim, write_tc2_scene
 
 EVERY = "[output]\nevery_days = 0.25\n"
 RUN = ("--device", "cpu", "--no-progress")
@@ -41,16 +40,10 @@ def spun_up(tmp_path, monkeypatch):
 
     def make(stepper="rk4", dt=3600.0, name="spin"):
         scene = write_tc2_scene(tmp_path / f"{name}.toml", stepper=stepper, dt=dt, days=1.0, tables=EVERY)
-        assert cli_main_ok("run", scene, *RUN, "--restart-every", "1", "--output", f"{name}.nc")
+        assert cli_ok("run", scene, *RUN, "--restart-every", "1", "--output", f"{name}.nc")
         return scene, tmp_path / f"{name}.restart.nc"
 
     return make
-
-
-def cli_main_ok(*args) -> bool:
-    from swe_sphere.cli import main
-
-    return main([str(a) for a in args]) == 0
 
 
 def fresh_from(restart, stepper, dt, days):
@@ -66,8 +59,8 @@ def test_a_branch_with_an_unchanged_stepper_and_dt_is_the_continuation(spun_up, 
     """--stepper and --dt naming the checkpoint's own: the continuation, bitwise (its
     history and counters kept, no branch record)."""
     _, restart = spun_up("leapfrog", 1800.0)
-    assert cli_main_ok("run", "--continue", restart, "--days", "2", *RUN, "--output", "cont.nc")
-    assert cli_main_ok(
+    assert cli_ok("run", "--continue", restart, "--days", "2", *RUN, "--output", "cont.nc")
+    assert cli_ok(
         "run",
         "--continue",
         restart,
@@ -111,7 +104,7 @@ def test_a_branch_to_another_stepper_and_dt_is_a_fresh_run_from_the_state(spun_u
         assert b.attrs["branched_from"] == str(restart.resolve()) and b.attrs["branched_from_step"] == 24
         assert b.attrs["branched_from_day"] == 1.0 and b.attrs["branched_from_stepper"] == "rk4"
         assert b.attrs["branched_from_dt"] == 3600.0 and "continued_from_day" not in b.attrs
-        assert b.attrs["branched_from_sha256"] == hashlib.sha256(restart.read_bytes()).hexdigest()
+        assert b.attrs["branched_from_sha256"] == digest(restart)
         assert b.attrs["stepper"] == "ssprk3" and b.attrs["dt"] == DT_408
         np.testing.assert_array_equal(b.h.sel(time=1).values, spin.h.sel(time=1).values)  # the branch state
         grid = fresh.grid
@@ -144,7 +137,7 @@ def test_a_leapfrog_branch_starts_as_at_t0(spun_up, tmp_path, spin, stepper, dt)
     the bits of a fresh run from the state; and it differs from what the history
     would give (the same leapfrog at the same dt continued)."""
     _, restart = spun_up(spin, 1800.0 if spin == "leapfrog" else 3600.0)
-    assert cli_main_ok(
+    assert cli_ok(
         "run", "--continue", restart, "--stepper", stepper, "--dt", dt, "--days", "1.5", *RUN, "--output", "b.nc"
     )
     fresh = fresh_from(restart, stepper, dt, 0.5)
@@ -166,9 +159,9 @@ def test_a_branched_run_continues_bitwise_and_keeps_its_record(spun_up, tmp_path
     the run branched from."""
     _, restart = spun_up("rk4")
     branch = ("run", "--continue", restart, "--stepper", "ssprk3", "--dt", "1800", *RUN)
-    assert cli_main_ok(*branch, "--days", "2", "--output", "whole.nc")
-    assert cli_main_ok(*branch, "--days", "1.5", "--output", "cut.nc", "--restart-every", "0.25")
-    assert cli_main_ok("run", "--continue", "cut.restart.nc", "--days", "2", *RUN, "--output", "rest.nc")
+    assert cli_ok(*branch, "--days", "2", "--output", "whole.nc")
+    assert cli_ok(*branch, "--days", "1.5", "--output", "cut.nc", "--restart-every", "0.25")
+    assert cli_ok("run", "--continue", "cut.restart.nc", "--days", "2", *RUN, "--output", "rest.nc")
     with xr.open_dataset("whole.nc", decode_times=False) as a, xr.open_dataset("rest.nc", decode_times=False) as b:
         assert list(b.time.values) == [1.75, 2.0] and b.attrs["continued_from_day"] == 1.5
         assert b.attrs["branched_from"] == str(restart.resolve()) and b.attrs["branched_from_day"] == 1.0
@@ -243,7 +236,7 @@ def test_sweep_from_a_restart_file_branches_every_run_there(spun_up, tmp_path, c
         r["stepper"]: r for r in (json.loads(p.read_text())["row"] for p in (tmp_path / "sw" / "runs").glob("*.json"))
     }
     keys = [json.loads(p.read_text())["key"] for p in (tmp_path / "sw" / "runs").glob("*.json")]
-    sha = hashlib.sha256(restart.read_bytes()).hexdigest()
+    sha = digest(restart)
     for key in keys:
         assert key["scene"]["branch"]["restart"] == str(restart.resolve()) and key["scene"]["branch"]["sha256"] == sha
     for stepper, row in rows.items():
@@ -262,7 +255,7 @@ def test_sweep_from_a_restart_file_branches_every_run_there(spun_up, tmp_path, c
     code, out, _ = cli_main(capsys, *sweep, "--overwrite")
     assert code == 0 and "runs: 2 reused, 0 made" in out
     # the restart file rewritten (a spin-up at another dt): the runs are made again
-    assert cli_main_ok(
+    assert cli_ok(
         "run", "spin.toml", *RUN, "--dt", "1800", "--restart-every", "1", "--output", "spin.nc", "--overwrite"
     )
     code, out, _ = cli_main(capsys, *sweep, "--overwrite")

@@ -27,12 +27,6 @@ def _in_tmp(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
 
 
-def one_line(capsys, argv, code, *words, env=None, monkeypatch=None):
-    for k, v in (env or {}).items():
-        monkeypatch.setenv(k, v)
-    return cli_one_line(capsys, argv, code, *words)
-
-
 def scene_with(tmp_path, name="s.toml", **replace):
     text = TC2_SCENE.format(ne=2, stepper="ssprk3", dt=1800.0, days=1.0, tables="")
     for old, new in replace.items():
@@ -47,22 +41,15 @@ def scene_with(tmp_path, name="s.toml", **replace):
 
 @pytest.mark.parametrize("value", ["0", "-2", "abc"])
 def test_bad_thread_count_is_one_line(capsys, monkeypatch, value):
-    one_line(
-        capsys,
-        ["run", "tc2_steady", *TINY, "--days", "0.25"],
-        2,
-        "SWE_SPHERE_THREADS",
-        repr(value),
-        env={"SWE_SPHERE_THREADS": value},
-        monkeypatch=monkeypatch,
-    )
+    monkeypatch.setenv("SWE_SPHERE_THREADS", value)
+    cli_one_line(capsys, ["run", "tc2_steady", *TINY, "--days", "0.25"], 2, "SWE_SPHERE_THREADS", repr(value))
 
 
 def test_tiny_output_interval_with_a_grid_override(tmp_path, capsys):
     """every_days = 1e-12 with --ne: was ZeroDivisionError; now dt is cut to the
     interval with a warning note, and the step count is refused (bad input)."""
     path = scene_with(tmp_path, **{"days = 1.0": "days = 1.0\n[output]\nevery_days = 1e-12"})
-    one_line(capsys, ["run", str(path), "--ne", "3", "--device", "cpu"], 2, "steps to day 1", "1e+09")
+    cli_one_line(capsys, ["run", str(path), "--ne", "3", "--device", "cpu"], 2, "steps to day 1", "1e+09")
 
 
 def test_dt_cut_more_than_twice_warns(tmp_path):
@@ -76,21 +63,21 @@ def test_dt_cut_more_than_twice_warns(tmp_path):
 
 
 def test_stability_ne_zero_and_unknown_names(capsys):
-    one_line(capsys, ["stability", "--ne", "0", "tc5_mountain"], 2, "--ne", "0")
-    one_line(capsys, ["stability", "nope"], 2, "unknown stability case 'nope'")
-    one_line(capsys, ["stability", "--steppers", "leapfrog,nope"], 2, "unknown stepper 'nope'")
+    cli_one_line(capsys, ["stability", "--ne", "0", "tc5_mountain"], 2, "--ne", "0")
+    cli_one_line(capsys, ["stability", "nope"], 2, "unknown stability case 'nope'")
+    cli_one_line(capsys, ["stability", "--steppers", "leapfrog,nope"], 2, "unknown stepper 'nope'")
 
 
 def test_sweep_bad_input(capsys):
-    one_line(capsys, ["sweep", "tc2_steady", "--steppers", "bogus"], 2, "unknown stepper 'bogus'")
-    one_line(capsys, ["sweep", "tc2_steady", "--dt", "1,x"], 2, "--dt")
-    one_line(capsys, ["sweep", "tc2_steady", "--ne", "0"], 2, "ne must be")
+    cli_one_line(capsys, ["sweep", "tc2_steady", "--steppers", "bogus"], 2, "unknown stepper 'bogus'")
+    cli_one_line(capsys, ["sweep", "tc2_steady", "--dt", "1,x"], 2, "--dt")
+    cli_one_line(capsys, ["sweep", "tc2_steady", "--ne", "0"], 2, "ne must be")
 
 
 def test_memory_guard_refuses_before_allocating(capsys):
     """--ne 100000 (960 G nodes, about a petabyte, more than any host has): refused by
     the estimate (exit 3, one line), not by a MemoryError after allocating."""
-    line = one_line(
+    line = cli_one_line(
         capsys, ["run", "tc2_steady", "--ne", "100000", "--device", "cpu"], 3, "ne=100000 np=4", "GiB of memory"
     )
     assert "available" in line
@@ -103,7 +90,7 @@ def test_memory_guard_refuses_before_allocating(capsys):
 def test_remap_resolution_guard(tmp_path, capsys):
     assert main(["run", "tc2_steady", *TINY, "--days", "0.25", "--output", "r.nc"]) == 0
     capsys.readouterr()
-    one_line(capsys, ["remap", "r.nc", "--resolution", "0.01"], 3, "remapping to 0.01 degrees", "18001 x 36000")
+    cli_one_line(capsys, ["remap", "r.nc", "--resolution", "0.01"], 3, "remapping to 0.01 degrees", "18001 x 36000")
     assert not list(tmp_path.glob("*latlon*"))
 
 
@@ -112,11 +99,11 @@ def test_remap_resolution_guard(tmp_path, capsys):
 
 def test_duplicate_and_missing_terms(tmp_path, capsys):
     dup = scene_with(tmp_path, "dup.toml", **{'"coriolis"': '"coriolis", "coriolis"'})
-    one_line(capsys, ["run", str(dup), "--device", "cpu"], 2, "term 'coriolis' is listed twice")
+    cli_one_line(capsys, ["run", str(dup), "--device", "cpu"], 2, "term 'coriolis' is listed twice")
     cor = scene_with(
         tmp_path, "cor.toml", **{'"continuity", "momentum_advection", "coriolis", "pressure_gradient"': '"coriolis"'}
     )
-    one_line(
+    cli_one_line(
         capsys,
         ["run", str(cor), "--device", "cpu"],
         2,
@@ -152,13 +139,13 @@ def test_plot_diff_refuses_another_case_unless_forced(tmp_path, capsys):
         == 0
     )
     capsys.readouterr()
-    one_line(
+    cli_one_line(
         capsys, ["plot", "tc2.nc", "--diff", "tc6.nc", "--output", "png"], 2, "case tc6_rossby_haurwitz", "--force"
     )
-    one_line(capsys, ["plot", "tc2.nc", "--diff", "tc2ne3.nc", "--output", "png"], 2, "ne=3 np=4", "--force")
+    cli_one_line(capsys, ["plot", "tc2.nc", "--diff", "tc2ne3.nc", "--output", "png"], 2, "ne=3 np=4", "--force")
     from swe_sphere.cases.reference import find_reference
 
-    one_line(
+    cli_one_line(
         capsys,
         ["plot", "tc2.nc", "--diff", str(find_reference("tc5_mountain")), "--output", "png"],
         2,
@@ -175,21 +162,21 @@ def test_plot_diff_refuses_another_case_unless_forced(tmp_path, capsys):
 def test_set_overrides_are_validated_like_the_file(tmp_path, capsys):
     scene = load_scene("tc5_mountain", overrides={"hyperviscosity.nu": 5e14, "output.every_days": 0.25})
     assert scene.output_every_days == 0.25 and scene.nu == 5e14
-    one_line(
+    cli_one_line(
         capsys,
         ["run", "tc5_mountain", "-s", "hyperviscosity.nu=-1", "--device", "cpu"],
         2,
         "hyperviscosity.nu must be >= 0",
     )
-    one_line(
+    cli_one_line(
         capsys,
         ["run", "tc5_mountain", "-s", "implicit.preconditioner=amg", "--stepper", "implicit", "--device", "cpu"],
         2,
         "implicit.preconditioner must be",
     )
-    one_line(capsys, ["run", "tc5_mountain", "-s", "bogus.key=1", "--device", "cpu"], 2, "unknown key 'bogus'")
-    one_line(capsys, ["run", "tc5_mountain", "-s", "time.dt=abc", "--device", "cpu"], 2, "time.dt must be float")
-    one_line(capsys, ["run", "tc5_mountain", "-s", "nonsense", "--device", "cpu"], 2, "SECTION.KEY=VALUE")
+    cli_one_line(capsys, ["run", "tc5_mountain", "-s", "bogus.key=1", "--device", "cpu"], 2, "unknown key 'bogus'")
+    cli_one_line(capsys, ["run", "tc5_mountain", "-s", "time.dt=abc", "--device", "cpu"], 2, "time.dt must be float")
+    cli_one_line(capsys, ["run", "tc5_mountain", "-s", "nonsense", "--device", "cpu"], 2, "SECTION.KEY=VALUE")
     assert (
         main(["run", "tc2_steady", *TINY, "--days", "0.25", "-s", "output.every_days=0.125", "--output", "o.nc"]) == 0
     )

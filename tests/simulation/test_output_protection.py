@@ -7,7 +7,6 @@ one line, exit 2, the input's bytes unchanged."""
 
 from __future__ import annotations
 
-import hashlib
 import os
 import shutil
 import subprocess
@@ -17,7 +16,7 @@ import pytest
 
 from swe_sphere.studies import stability, sweep
 
-from helpers import TINY, TINY_SWEEP, cli_one_line, console_script, one_line
+from helpers import TINY, TINY_SWEEP, cli_one_line, console_script, digest, one_line
 
 
 @pytest.mark.parametrize("name", sweep.OUTPUTS)
@@ -63,10 +62,6 @@ def cli(cwd, *args, timeout=120):
     return subprocess.run(
         [console_script(), *map(str, args)], cwd=cwd, capture_output=True, text=True, timeout=timeout, env=env
     )
-
-
-def digest(path) -> str:
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def refused(proc, *words):

@@ -16,7 +16,8 @@ at its defaults (τ = 0.010938 in Dinosaur's units of 1/(2Ω), i.e. 75 s; order 
 step multiplies a mode of total wavenumber l by exp(−(dt/τ)(l/L)^36)); no other diffusion.
 Transforms: ``FastSphericalHarmonics`` with ``fourier_method="fft"`` (``--transforms real``:
 Dinosaur's default ``RealSphericalHarmonics``, matrix products). Grids: Dinosaur's ``T42``
-(64 × 128 Gaussian), ``T85`` (128 × 256), ``T170`` (256 × 512), Δt 1200, 600, 600 s. Constants:
+(64 × 128 Gaussian), ``T85`` (128 × 256), ``T170`` (256 × 512), Δt 1200, 600, 600 s
+(``--truncations ... T213``: 320 × 640, 300 s, about 80 CPU s a simulated day). Constants:
 Dinosaur's defaults, which are Williamson's (a = 6.37122e6 m, Ω = 7.292e-5 s⁻¹, g = 9.80616).
 
 **The same initial state.** Dinosaur's own Galewsky (``shallow_water_states.barotropic_instability_tc``)

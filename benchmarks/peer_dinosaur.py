@@ -1,0 +1,339 @@
+"""Galewsky et al. (2004) in Dinosaur beside swe_sphere: day-6 vorticity error against T341 and
+CPU seconds a simulated day, one thread each, in one run.
+
+Dinosaur (Google's JAX spectral core, PyPI ``dinosaur`` 1.5) is a peer, not a dependency: it runs
+in a virtual environment of its own, made once with::
+
+    python -m venv /work/venvs/dinosaur && /work/venvs/dinosaur/bin/pip install dinosaur jax
+
+(``--python`` names that environment's interpreter; where it cannot import dinosaur the script
+prints one line and exits 0). The measured versions: dinosaur 1.5.1, jax/jaxlib 0.10.2.
+
+**The peer's run.** Float64 (``jax_enable_x64``), one layer, ``ShallowWaterEquations`` with no
+orography, ``imex_rk_sil3`` (Whitaker & Kar 2013: the gravity-wave terms implicit) and the filter
+Dinosaur's own shallow-water tests and examples pair with it, ``exponential_step_filter(grid, dt)``
+at its defaults (τ = 0.010938 in Dinosaur's units of 1/(2Ω), i.e. 75 s; order 18, cutoff 0: each
+step multiplies a mode of total wavenumber l by exp(−(dt/τ)(l/L)^36)); no other diffusion.
+Transforms: ``FastSphericalHarmonics`` with ``fourier_method="fft"`` (``--transforms real``:
+Dinosaur's default ``RealSphericalHarmonics``, matrix products). Grids: Dinosaur's ``T42``
+(64 × 128 Gaussian), ``T85`` (128 × 256), ``T170`` (256 × 512), Δt 1200, 600, 600 s
+(``--truncations ... T213``: 320 × 640, 300 s, about 80 CPU s a simulated day). Constants:
+Dinosaur's defaults, which are Williamson's (a = 6.37122e6 m, Ω = 7.292e-5 s⁻¹, g = 9.80616).
+
+**The same initial state.** Dinosaur's own Galewsky (``shallow_water_states.barotropic_instability_tc``)
+is not used: it draws the bump's latitude at random, and passes sin(latitude) as the latitude of
+the bump (``get_height(*grid.nodal_mesh, ...)``; ``nodal_mesh`` is (longitude, sin latitude)).
+Instead this script evaluates the project's ``cases.Galewsky`` (jet u0 = 80 m/s between π/7
+and π/2 − π/7, h in gradient-wind balance with mean depth 10 km, the 120 m bump at 45°N, α = 1/3,
+β = 1/15, longitudes taken to (−π, π]) at the peer's Gaussian nodes and hands u, v = 0 and h to it;
+the peer turns them into its spectral vorticity, divergence and geopotential (its own
+``uv_nodal_to_vor_div_modal`` and ``to_modal``), the mean depth its reference geopotential.
+
+**Scoring, the project's code for every model.** Day-6 relative vorticity, normalized l2
+(Williamson et al. 1992 eq. 83: sqrt(Σ w (ζ − ζT)²) / sqrt(Σ w ζT²)) against the bundled T341
+reference (``cases.reference.Reference.at``: the spherical-harmonic coefficients synthesised
+exactly at each model's own points), with each model's own quadrature: the peer's Gauss weights
+× 2π/nlon at its nodes; swe_sphere's assembled ``spheremp`` (the run file's ``area``) at its
+unique nodes, with the vorticity its run file writes (the model's operator + DSS). The same for
+h (``l2 h``). swe_sphere's own scorer (``ref_l2_vorticity``: the vorticity of the wind error by the
+model's operator, over sqrt(∫ ζT² + δT²)) is printed beside it. A sanity line: the T213 reference
+scored the same way at the finest peer grid's points (the reference's own distance from T341).
+
+**Cost, one clock.** Every model runs as a child process pinned to core 0 (``taskset -c 0``) with
+one thread (``XLA_FLAGS=--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1``;
+``SWE_SPHERE_THREADS=1``), in the order given, the models interleaved. The peer's figure: CPU
+seconds (``time.process_time``) of its whole 6-day time loop (``jax.lax.scan`` of the filtered
+steps, compiled ahead of time, compilation excluded) / 6. swe_sphere's: its run's own step-loop
+CPU clock (``simulation.summary.Ledger``: output and scoring excluded) between day 1 and day 6,
+/ 5 (the first day's first step, with its launch recording, left out). ``galewsky`` runs at
+the scene's Δt for each ne (216 s at ne30, rescaled with ne) and ν (the 3-hour e-folding rule),
+output every day, ``-s case.reference=T341``.
+
+    python benchmarks/peer_dinosaur.py [--truncations T42 T85 T170] [--ne 16 30]
+        [--steppers fbrk32 kgu35] [--rounds 1] [--python /work/venvs/dinosaur/bin/python]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+DAYS = 6.0
+GRIDS = {"T42": (32, 1200.0), "T85": (64, 600.0), "T170": (128, 600.0), "T213": (160, 300.0)}  # gaussian_nodes, Δt s
+ONE_THREAD = {
+    "XLA_FLAGS": "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1",
+    "SWE_SPHERE_THREADS": "1",
+    "OMP_NUM_THREADS": "1",
+    "OPENBLAS_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+}
+DEFAULT_PYTHON = Path("/work/venvs/dinosaur/bin/python")
+
+
+def gaussian_grid(nodes: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Dinosaur's ``Grid.construct(gaussian_nodes=nodes)`` points: (lat, lon, weights), each
+    (4 nodes, 2 nodes) (longitude first, as Dinosaur's nodal arrays); radians; Gauss–Legendre
+    latitudes, longitudes 2πk/nlon from 0; weights the Gauss weights × 2π/nlon (sum 4π)."""
+    sin_lat, w = np.polynomial.legendre.leggauss(2 * nodes)
+    lon = 2 * math.pi * np.arange(4 * nodes) / (4 * nodes)
+    lat2, lon2 = np.meshgrid(np.arcsin(sin_lat), lon)
+    return lat2, lon2, np.broadcast_to(w * 2 * math.pi / lon.size, lat2.shape).copy()
+
+
+# -- the peer, in its own environment ----------------------------------------------------------
+def peer_child(inp: Path, out: Path, transforms: str) -> None:
+    """Run Dinosaur on the state in ``inp`` (``run_peer`` writes it) and write the day-6
+    vorticity (s⁻¹) and h (m) on its grid, with the loop's CPU and wall seconds, to ``out``."""
+    import functools
+    import time
+
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    from dinosaur import (
+        coordinate_systems,
+        layer_coordinates,
+        scales,
+        shallow_water,
+        spherical_harmonic,
+        time_integration,
+        units,
+    )
+
+    d = np.load(inp)
+    truncation, nodes, dt = int(d["truncation"]), int(d["nodes"]), float(d["dt"])
+    impl = (
+        functools.partial(spherical_harmonic.FastSphericalHarmonics, fourier_method="fft")
+        if transforms == "fft"
+        else spherical_harmonic.RealSphericalHarmonics
+    )
+    grid = spherical_harmonic.Grid.construct(truncation, nodes, spherical_harmonics_impl=impl)
+    lon, sin_lat = grid.nodal_axes
+    assert np.allclose(lon, d["lon"][:, 0], atol=1e-12) and np.allclose(sin_lat, np.sin(d["lat"][0]), atol=1e-12)
+    coords = coordinate_systems.CoordinateSystem(grid, layer_coordinates.LayerCoordinates(1))
+    specs = units.SimUnits.from_si()
+    u_, m, s = scales.units, scales.units.m, scales.units.s
+    nd = specs.nondimensionalize
+    wind = float(nd(1.0 * m / s))
+    g, depth = specs.g, float(nd(float(d["mean_depth"]) * m))
+    vor, div = spherical_harmonic.uv_nodal_to_vor_div_modal(grid, d["u"] * wind, d["v"] * wind)
+    potential = grid.to_modal(g * (d["h"] * float(nd(1.0 * m)) - depth))
+    state = shallow_water.State(vor[None], div[None], potential[None])
+    eq = shallow_water.ShallowWaterEquations(coords, specs, None, np.array([g * depth]))
+    dt_nd = float(nd(dt * s))
+    step = time_integration.step_with_filters(
+        time_integration.imex_rk_sil3(eq, dt_nd), [time_integration.exponential_step_filter(grid, dt_nd)]
+    )
+    nsteps = round(DAYS * 86400 / dt)
+    loop = jax.jit(time_integration.repeated(step, nsteps)).lower(state).compile()
+    cpu0, wall0 = time.process_time(), time.perf_counter()
+    final = jax.block_until_ready(loop(state))
+    cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
+    per_second = float(specs.dimensionalize(1.0, u_("1/s")).magnitude)
+    zeta = np.asarray(grid.to_nodal(grid.clip_wavenumbers(final.vorticity)))[0] * per_second
+    h = np.asarray(grid.to_nodal(grid.clip_wavenumbers(final.potential)))[0] / g / float(nd(1.0 * m)) + float(
+        d["mean_depth"]
+    )
+    np.savez(out, vorticity=zeta, h=h, cpu=cpu, wall=wall, steps=nsteps)
+
+
+# -- swe_sphere, in the project's environment --------------------------------------------------
+def swe_child(ne: int, stepper: str, out: Path) -> None:
+    """Run the ``galewsky`` scene at ``ne`` with ``stepper`` for 6 days and write its day-6
+    vorticity and h at its unique nodes, their lat/lon (rad) and area, its Δt, the step loop's
+    CPU seconds between day 1 and day 6, and its own ``ref_l2_vorticity``, to ``out``."""
+    import netCDF4
+
+    from swe_sphere.simulation.simulation import Simulation
+
+    sim = Simulation(
+        "galewsky", "cpu", ne=ne, stepper=stepper, days=DAYS, output={"every_days": 1.0}, case={"reference": "T341"}
+    )
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "run.nc"
+        result = sim.run(path)
+        cpu = {round(h["steps"] * sim.scene.dt / 86400, 6): h["cpu_time"] for h in result.history}
+        with netCDF4.Dataset(path) as ds:
+            f = {k: np.asarray(ds[k][...], dtype=np.float64) for k in ("lat", "lon", "area")}
+            zeta, h = (np.asarray(ds[k][-1], dtype=np.float64) for k in ("vorticity", "h"))
+            own = float(ds["ref_l2_vorticity"][-1])
+    np.savez(
+        out,
+        vorticity=zeta,
+        h=h,
+        lat=np.radians(f["lat"]),
+        lon=np.radians(f["lon"]),
+        area=f["area"],
+        dt=sim.scene.dt,
+        cpu_per_day=(cpu[DAYS] - cpu[1.0]) / (DAYS - 1.0),
+        own=own,
+    )
+
+
+# -- the parent: runs the children one at a time and scores them ----------------------------
+def child_env() -> dict:
+    """The environment of a timed child: one thread, and this checkout first on the path."""
+    return {**os.environ, **ONE_THREAD, "PYTHONPATH": str(REPO)}
+
+
+def pinned(cmd: list[str]) -> list[str]:
+    """``cmd`` pinned to core 0 where ``taskset`` exists."""
+    return ["taskset", "-c", "0", *cmd] if shutil.which("taskset") else cmd
+
+
+def run_child(python: str, args: list[str]) -> None:
+    """Run this script as a child (``python`` its interpreter) with ``args``; raise with its
+    last lines when it fails."""
+    out = subprocess.run(pinned([python, __file__, *args]), env=child_env(), capture_output=True, text=True)
+    if out.returncode != 0:
+        raise RuntimeError(f"{' '.join(args[:3])} failed:\n" + "\n".join(out.stderr.splitlines()[-15:]))
+
+
+def run_peer(python: str, truncation: str, transforms: str, tmp: Path) -> dict:
+    """The peer at ``truncation`` (a key of ``GRIDS``) from the project's Galewsky state:
+    its day-6 fields, points, weights and CPU seconds a simulated day."""
+    from swe_sphere.cases.library import make_case
+
+    nodes, dt = GRIDS[truncation]
+    lat, lon, w = gaussian_grid(nodes)
+    case = make_case("galewsky")
+    u, v, h = case.initial(lat, lon)
+    inp, out = tmp / f"{truncation}_in.npz", tmp / f"{truncation}_out.npz"
+    np.savez(
+        inp,
+        truncation=int(truncation[1:]),
+        nodes=nodes,
+        dt=dt,
+        u=u,
+        v=v,
+        h=h,
+        lat=lat,
+        lon=lon,
+        mean_depth=case.mean_depth,
+    )
+    run_child(python, ["--peer-child", str(inp), str(out), transforms])
+    r = np.load(out)
+    return dict(
+        vorticity=r["vorticity"], h=r["h"], lat=lat, lon=lon, weights=w, dt=dt, cpu_per_day=float(r["cpu"]) / DAYS
+    )
+
+
+def run_swe(ne: int, stepper: str, tmp: Path) -> dict:
+    """swe_sphere's ``galewsky`` at ``ne`` with ``stepper`` (``swe_child``), as ``run_peer``'s dict."""
+    out = tmp / f"ne{ne}_{stepper}.npz"
+    run_child(sys.executable, ["--swe-child", str(ne), stepper, str(out)])
+    r = np.load(out)
+    return dict(
+        vorticity=r["vorticity"],
+        h=r["h"],
+        lat=r["lat"],
+        lon=r["lon"],
+        weights=r["area"],
+        dt=float(r["dt"]),
+        cpu_per_day=float(r["cpu_per_day"]),
+        own=float(r["own"]),
+    )
+
+
+def l2(w, f, f_true) -> float:
+    """Williamson et al. (1992) eq. 83 with quadrature weights ``w``."""
+    return float(np.sqrt(np.sum(w * (f - f_true) ** 2) / np.sum(w * f_true**2)))
+
+
+def scores(run: dict, reference) -> tuple[float, float]:
+    """(vorticity l2, h l2) of a run's day-6 fields against ``reference`` at its own points."""
+    r = reference.at(DAYS, run["lat"], run["lon"])
+    return l2(run["weights"], run["vorticity"], r["vorticity"]), l2(run["weights"], run["h"], r["h"])
+
+
+def peer_available(python: str) -> str | None:
+    """Why the peer's interpreter cannot run Dinosaur, or None when it can."""
+    if not Path(python).exists():
+        return f"no interpreter at {python} (see the docstring's install line)"
+    out = subprocess.run([python, "-c", "import dinosaur, jax; print(jax.__version__)"], capture_output=True, text=True)
+    return None if out.returncode == 0 else f"{python} cannot import dinosaur and jax"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--truncations", nargs="+", default=["T42", "T85", "T170"], choices=list(GRIDS))
+    ap.add_argument("--ne", nargs="+", type=int, default=[16, 30])
+    ap.add_argument("--steppers", nargs="+", default=["fbrk32", "kgu35"])
+    ap.add_argument("--rounds", type=int, default=1)
+    ap.add_argument("--transforms", choices=["fft", "real"], default="fft")
+    ap.add_argument("--python", default=str(DEFAULT_PYTHON), help="the peer's interpreter (default: %(default)s)")
+    args = ap.parse_args()
+    why = peer_available(args.python)
+    if why is not None:
+        print(f"peer_dinosaur: skipped: {why}")
+        return
+    from results import recorded
+
+    from swe_sphere.cases.library import make_case
+    from swe_sphere.cases.reference import Reference, reference_path
+
+    case = make_case("galewsky")
+    t341, t213 = Reference(reference_path(case, "T341")), Reference(reference_path(case, "T213"))
+    jobs = [("peer", t) for t in args.truncations] + [("swe", (ne, s)) for ne in args.ne for s in args.steppers]
+    order = interleave(jobs[: len(args.truncations)], jobs[len(args.truncations) :])
+    with recorded(__file__) as figures, tempfile.TemporaryDirectory() as tmp:
+        print(f"Galewsky day {DAYS:g}, vorticity and h l2 against T341 at each model's points; one thread, core 0")
+        print(f"peer: dinosaur, imex_rk_sil3 + exponential_step_filter defaults, float64, {args.transforms} transforms")
+        table: dict[str, dict] = {}
+        for rnd in range(args.rounds):
+            for kind, what in order:
+                load = os.getloadavg()[0]
+                if kind == "peer":
+                    name, run = f"dinosaur {what}", run_peer(args.python, what, args.transforms, Path(tmp))
+                else:
+                    name, run = f"swe_sphere ne{what[0]} np4 {what[1]}", run_swe(*what, Path(tmp))
+                zeta, h = scores(run, t341)
+                row = table.setdefault(name, dict(l2_vorticity=zeta, l2_h=h, dt=run["dt"], cpu_per_day=[], load=[]))
+                row["cpu_per_day"].append(run["cpu_per_day"])
+                row["load"].append(load)
+                if "own" in run:
+                    row["own_ref_l2_vorticity"] = run["own"]
+                own = f", own scorer {run['own']:.4g}" if "own" in run else ""
+                print(
+                    f"round {rnd + 1} {name} dt {run['dt']:g} s: vorticity l2 {zeta:.4g}, h l2 {h:.4g}{own}; "
+                    f"{run['cpu_per_day']:.3g} CPU s a simulated day (load {load:.2f})"
+                )
+                if kind == "peer" and what == args.truncations[-1]:
+                    zr = t341.at(DAYS, run["lat"], run["lon"])["vorticity"]
+                    zt = t213.at(DAYS, run["lat"], run["lon"])["vorticity"]
+                    row["t213_vs_t341"] = l2(run["weights"], zt, zr)
+        print("model | dt s | vorticity l2 | h l2 | CPU s / simulated day (median) | load")
+        for name, row in table.items():
+            row["cpu_per_day_median"] = statistics.median(row["cpu_per_day"])
+            print(
+                f"{name} | {row['dt']:g} | {row['l2_vorticity']:.3g} | {row['l2_h']:.3g} | "
+                f"{row['cpu_per_day_median']:.3g} | {min(row['load']):.1f}-{max(row['load']):.1f}"
+            )
+            if "t213_vs_t341" in row:
+                print(f"  (T213 reference against T341 at {name}'s points: vorticity l2 {row['t213_vs_t341']:.3g})")
+        figures["runs"] = table
+
+
+def interleave(a: list, b: list) -> list:
+    """a[0], b[0], a[1], b[1], ... then the rest of the longer list."""
+    out = [x for pair in zip(a, b) for x in pair]
+    return out + a[len(b) :] + b[len(a) :]
+
+
+if __name__ == "__main__":
+    if len(sys.argv) > 1 and sys.argv[1] == "--peer-child":
+        peer_child(Path(sys.argv[2]), Path(sys.argv[3]), sys.argv[4])
+    elif len(sys.argv) > 1 and sys.argv[1] == "--swe-child":
+        swe_child(int(sys.argv[2]), sys.argv[3], Path(sys.argv[4]))
+    else:
+        main()

@@ -42,7 +42,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import swe_sphere  # noqa: E402
 from swe_sphere.cases.library import make_case  # noqa: E402
 from swe_sphere.grid.cubed_sphere import CubedSphere  # noqa: E402
-from swe_sphere.grid.equidistant import equidistant_cube  # noqa: E402
+from swe_sphere.mesh.equidistant import equidistant_cube  # noqa: E402
 from swe_sphere.model.shallow_water import ShallowWater  # noqa: E402
 
 wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level (as tests/conftest.py)

@@ -14,18 +14,24 @@ from pathlib import Path
 
 from ..core.constants import EARTH
 from ..core.errors import SceneError
+from ..mesh.records import MeshRecord, mesh_of
 from ..steppers import STEPPERS, option_types
 
 
 @dataclass(frozen=True)
 class SceneGrid:
     """A scene's grid ([grid]; ``Scene.grid``): ``ne`` elements along a cube edge (0 for a mesh
-    file, HOMME's), ``np`` GLL points per element direction, ``mesh`` the ``grid.spec`` record
-    (None: the equiangular cube)."""
+    file, HOMME's), ``np`` GLL points per element direction, ``mesh`` the mesh record
+    (``mesh.records``; None: the equiangular cube)."""
 
     ne: int
     np: int
-    mesh: dict | None = None
+    mesh: MeshRecord | None = None
+
+    @property
+    def record(self) -> MeshRecord:
+        """The mesh record, the equiangular cube's too (``mesh.records.mesh_of``)."""
+        return mesh_of(self.ne, self.mesh)
 
 
 @dataclass(frozen=True)

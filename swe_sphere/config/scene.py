@@ -218,6 +218,12 @@ class Scene:
     hypervis_scaling: float | None = None  # [hyperviscosity] scaling: the tensor ∇⁴'s s; None: constant ν
     # where dt comes from, for the refusals (``Clock.source``); not part of the scene's record (``as_dict``)
     dt_source: str = field(default="the scene's", compare=False)
+    # what a run of the scene file as it is would take, for default file names (``cli.run``); not
+    # part of the record either: the dt it would choose itself on this grid and length (None: none
+    # that fits), and the file's own planet and days (None: the file does not load alone)
+    own_dt: float | None = field(default=None, compare=False)
+    own_planet: dict | None = field(default=None, compare=False)
+    own_days: float | None = field(default=None, compare=False)
 
     def __post_init__(self):
         # a cube's record follows ne (``dataclasses.replace(scene, ne=...)``), as its JSON does
@@ -315,7 +321,8 @@ class Scene:
         """The scene as plain values (JSON-able); the output choices and the mesh only when
         made, so a scene without them reads as before they existed (run files, restart files)."""
         d = dataclasses.asdict(self)
-        del d["dt_source"]
+        for key in ("dt_source", "own_dt", "own_planet", "own_days"):
+            del d[key]
         d["mesh"] = None if self.mesh is None else self.mesh.as_json()
         for key in ("output_fields", "output_streams", "mesh"):
             if not d[key]:
@@ -427,7 +434,7 @@ def load_scene(
 
 def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict) -> Scene:
     """``load_scene``'s work on the scene file ``path``: its tables resolved in order."""
-    s, file_radius, file_case, file_grid = read_scene(path, overrides)
+    s, file_radius, file_case, file_grid, own = read_scene(path, overrides)
     planet = resolve_planet(s.get("planet"))
     case = resolve_case(s.get("case", {}), planet, path)
     terms = resolve_terms(s.get("terms"), case.case, case.name)
@@ -438,6 +445,14 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict) -> S
     every, log_every = resolve_output_interval(output)
     stepper, days = resolve_stepper_days(time, stepper, days)
     dt, dt_source, dt_notes = resolve_dt(time.get("dt"), dt, days, every, path.stem, grid, spacing)
+    own_dt = dt
+    if dt_source == "the dt given" or "time.dt" in overrides:  # the dt it would choose itself, all else as given
+        try:
+            own_spacing = resolve_spacing(scene_grid, grid, planet.a, own.get("planet", {}).get("radius", EARTH.a))
+            own_dt = resolve_dt(own.get("time", {}).get("dt"), None, days, every, path.stem, grid, own_spacing)[0]
+        except SceneError:  # none that fits the output interval
+            own_dt = None
+    own_planet, own_days = _own_planet_days(own)
     output_fields, streams = resolve_output_files(output, dt, days, dt_source)
     options, stepper_notes = resolve_stepper_options(stepper, s.get(stepper, {}), overrides)
     hv, hv_notes = resolve_hyperviscosity(s.get("hyperviscosity", {}), terms, grid, spacing)
@@ -470,7 +485,23 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict) -> S
         output_cells=output.get("cells", True),
         hypervis_scaling=hv.scaling,
         dt_source=dt_source,
+        own_dt=own_dt,
+        own_planet=own_planet,
+        own_days=own_days,
     )
+
+
+def _own_planet_days(own: dict) -> tuple[dict | None, float | None]:
+    """(planet, days) of the scene file's own checked tables ``own`` (``read_scene``); (None,
+    None) where it has none of its own ({}: it checks only with the overrides)."""
+    if not own:
+        return None, None
+    try:
+        return resolve_planet(own.get("planet")).as_table(), float(
+            resolve_stepper_days(own.get("time", {}), None, None)[1]
+        )
+    except SceneError:
+        return None, None
 
 
 # ``load_scene``'s own keywords among the overrides, by their command-line names (``np`` is its ``np_``)

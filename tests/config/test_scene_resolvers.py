@@ -89,7 +89,9 @@ HV_TERMS = ("continuity", "momentum_advection", "coriolis", "pressure_gradient",
 def test_read_scene_applies_overrides_and_keeps_the_files_own_radius_and_case(tmp_path):
     path = tmp_path / "s.toml"
     path.write_text('[case]\nname = "tc2_steady"\n[planet]\nradius = 1e6\n[time]\ndt = 60\n')
-    tables, radius, case, grid = read_scene(path, {"planet.radius": 2e6, "case.name": "tc5_mountain", "grid.ne": 8})
+    tables, radius, case, grid, own = read_scene(
+        path, {"planet.radius": 2e6, "case.name": "tc5_mountain", "grid.ne": 8}
+    )
     assert tables == {
         "case": {"name": "tc5_mountain"},
         "planet": {"radius": 2e6},
@@ -97,6 +99,7 @@ def test_read_scene_applies_overrides_and_keeps_the_files_own_radius_and_case(tm
         "grid": {"ne": 8},
     }
     assert (radius, case, grid) == (1e6, "tc2_steady", {})  # the file's, before the overrides
+    assert own == {"case": {"name": "tc2_steady"}, "planet": {"radius": 1e6}, "time": {"dt": 60.0}}
     assert read_scene(path, {"time.dt": 30.0})[1] is None  # a dt of the override's own: no radius to scale from
     with pytest.raises(SceneError, match=r"^unknown key time.length in scene \(known: stepper, dt, days\)$"):
         read_scene(path, {"time.length": 3.0})

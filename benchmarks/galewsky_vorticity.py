@@ -1,7 +1,7 @@
 """Why pySEs is more accurate than us on Galewsky at ne16 np4 (issue 63, item 3): the grid.
 
 pySEs's "quasi-uniform" cube is the gnomonic equidistant cube (its element corners equally
-spaced on the cube's faces: ``grid.equidistant``), ours the equiangular one. With the same
+spaced on the cube's faces: ``mesh.equidistant``), ours the equiangular one. With the same
 operators, the discrete vorticity of the exact wind at t = 0 is then pySEs's on its cube and ours
 on ours, and the jet, along the cube edges (35–45° N) where the equidistant cube is about 1.5×
 finer, is resolved better there; TC2's smooth flow worse.
@@ -42,7 +42,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import swe_sphere  # noqa: E402
 from swe_sphere.cases.library import make_case  # noqa: E402
 from swe_sphere.grid.cubed_sphere import CubedSphere  # noqa: E402
-from swe_sphere.grid.equidistant import equidistant_cube  # noqa: E402
+from swe_sphere.mesh.equidistant import equidistant_cube  # noqa: E402
 from swe_sphere.model.shallow_water import ShallowWater  # noqa: E402
 
 wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level (as tests/conftest.py)

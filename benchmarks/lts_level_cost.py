@@ -33,7 +33,7 @@ from results import recorded  # noqa: E402  (benchmarks/, the script's directory
 from swe_sphere.core.runtime import init_warp  # noqa: E402
 from swe_sphere.grid.cubed_sphere import CubedSphere  # noqa: E402
 from swe_sphere.grid.levels import element_levels, element_rates  # noqa: E402
-from swe_sphere.grid.mesh import read_exodus  # noqa: E402
+from swe_sphere.mesh.mesh import read_exodus  # noqa: E402
 
 from meshes import case_model  # noqa: E402
 

@@ -23,10 +23,11 @@ from pathlib import Path
 from results import recorded
 
 from swe_sphere.core.runtime import init_warp
-from swe_sphere.grid.cubed_sphere import CubedSphere, cube_mesh
-from swe_sphere.grid.mesh import read_exodus, write_exodus
+from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.topology import Topology
 from swe_sphere.io.dual import unit_dual_mesh
+from swe_sphere.mesh.cube import cube_mesh
+from swe_sphere.mesh.mesh import read_exodus, write_exodus
 
 
 def cpu(call, rounds: int):

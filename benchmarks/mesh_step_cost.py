@@ -27,8 +27,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from results import recorded  # noqa: E402  (benchmarks/, the script's directory)
 
 from swe_sphere.core.runtime import init_warp  # noqa: E402
-from swe_sphere.grid.cubed_sphere import CubedSphere, cube_mesh  # noqa: E402
-from swe_sphere.grid.mesh import read_exodus  # noqa: E402
+from swe_sphere.grid.cubed_sphere import CubedSphere  # noqa: E402
+from swe_sphere.mesh.cube import cube_mesh  # noqa: E402
+from swe_sphere.mesh.mesh import read_exodus  # noqa: E402
 from swe_sphere.steppers import make_stepper  # noqa: E402
 
 from meshes import TC6_TERMS, case_model, icosahedral_mesh  # noqa: E402

@@ -100,9 +100,10 @@ from peer_homme import ONE_CORE, SWE_CHILD, Skip, add_homme_options, default_kit
 from results import recorded
 
 from swe_sphere.core.constants import EARTH
-from swe_sphere.grid.cubed_sphere import CubedSphere, cube_mesh
-from swe_sphere.grid.mesh import read_exodus
+from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.quality import element_sizes
+from swe_sphere.mesh.cube import cube_mesh
+from swe_sphere.mesh.mesh import read_exodus
 
 REPO = Path(__file__).resolve().parents[1]
 NAMELIST = "test/reg_test/namelists/swtc2.nl"

@@ -13,8 +13,8 @@ import numpy as np
 
 from swe_sphere.cases.library import make_case
 from swe_sphere.grid.cubed_sphere import CubedSphere
-from swe_sphere.grid.mesh import Mesh, check
 from swe_sphere.grid.refine import Box, make_mesh
+from swe_sphere.mesh.mesh import Mesh, check
 from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.steppers import make_stepper
 

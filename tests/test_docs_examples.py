@@ -24,8 +24,8 @@ from pathlib import Path
 
 import pytest
 
-from swe_sphere.grid.cubed_sphere import cube_mesh
-from swe_sphere.grid.mesh import write_exodus
+from swe_sphere.mesh.cube import cube_mesh
+from swe_sphere.mesh.mesh import write_exodus
 
 from docs_shortening import coarser_dt, shorten, small_ne
 

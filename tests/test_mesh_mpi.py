@@ -12,9 +12,9 @@ from mpi_mesh import final_state
 from test_mpi import assert_continues_on_three, assert_same_bits, mpirun, mpirun_python, needs_mpi  # noqa: F401 (a fixture)
 
 from swe_sphere.cli import main
-from swe_sphere.grid.cubed_sphere import cube_mesh
-from swe_sphere.grid.mesh import write_exodus
 from swe_sphere.grid.refine import Box, refined_cube
+from swe_sphere.mesh.cube import cube_mesh
+from swe_sphere.mesh.mesh import write_exodus
 
 # one worker runs the MPI tests one after another: each starts up to 4 ranks on this
 # machine, and two such jobs at once would share its CPUs with each other as well

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 def command(args) -> int:
     from ..grid.cubed_sphere import CubedSphere
-    from ..grid.mesh import write_exodus
     from ..grid.quality import element_sizes
     from ..grid.refine import Box, make_mesh
     from ..io.run_file import check_target
+    from ..mesh.mesh import write_exodus
 
     check_target(args.output, args.overwrite)
     box = None if args.refine_box is None else Box(*args.refine_box)

@@ -7,7 +7,7 @@ import os
 import sys
 from pathlib import Path
 
-from ..core.errors import BlowUp, CheckpointError, OutputError, SceneError
+from ..core.errors import BlowUp, CheckpointError, OutputError
 from .exits import EXIT_BLOWUP, hold_signals
 from .report import header, summary
 from .values import netcdf_output, overrides
@@ -73,7 +73,7 @@ def _continued(args, device, comm):
     )
 
 
-def default_output(name, given: dict, scene) -> Path:
+def default_output(scene) -> Path:
     """The run file's default name, in the working folder:
     ``<scene>_<grid>np<np>_<stepper>[_a<radius>][_omega<Ω>][_g<gravity>][_<days>d][_dt<dt>].nc``,
     where the planet's values (SI units) appear when they are not the scene file's, the
@@ -81,29 +81,17 @@ def default_output(name, given: dict, scene) -> Path:
     ``-s time.dt``) that is not the one the scene would take itself for that grid and
     length. Runs of a scene that differ in these get different files, so a page's
     commands run in order do not meet "output file exists". ``<grid>``: ``ne<ne>``, or
-    the mesh's label (``Scene.grid_label``: the mesh file's stem, ``ne4c2.5``, …). ``name``: the scene as
-    given; ``given``: ``load_scene``'s keywords that made ``scene``."""
-    from ..config.scene import load_scene
-
-    overrides = given["overrides"]
+    the mesh's label (``Scene.grid_label``: the mesh file's stem, ``ne4c2.5``, …). The scene file's own
+    values are the scene's (``Scene.own_planet``, ``own_days``, ``own_dt``): it is loaded once."""
     parts = [f"{scene.name}_{scene.grid_label}np{scene.np}_{scene.stepper}"]
-    try:
-        own = load_scene(name)  # the file as it is
-    except SceneError:  # a file that loads only with the overrides: nothing of its own to differ from
-        own = scene
+    planet = scene.planet if scene.own_planet is None else scene.own_planet  # None: nothing of its own
     for key, tag in (("radius", "a"), ("omega", "omega"), ("gravity", "g")):
-        if scene.planet[key] != own.planet[key]:
+        if scene.planet[key] != planet[key]:
             parts.append(f"{tag}{scene.planet[key]:g}")
-    if scene.days != own.days:
+    if scene.days != (scene.days if scene.own_days is None else scene.own_days):
         parts.append(f"{scene.days:g}d")
-    if given["dt"] is not None or "time.dt" in overrides:
-        try:  # the dt it would take itself, all else as given
-            unset = {k: v for k, v in overrides.items() if k != "time.dt"}
-            chosen = load_scene(name, **{**given, "dt": None, "overrides": unset}).dt
-        except SceneError:  # none that fits the output interval: the dt given is its own
-            chosen = None
-        if scene.dt != chosen:
-            parts.append(f"dt{scene.dt:g}")
+    if scene.dt != scene.own_dt:
+        parts.append(f"dt{scene.dt:g}")
     return Path("_".join(parts) + ".nc")
 
 
@@ -148,7 +136,7 @@ def command(args) -> int:
             overrides={**overrides(args.set), **({"output.cells": False} if args.no_cells else {})},
         )
         scene = load_scene(args.scene, **given)
-        output = args.output or default_output(args.scene, given, scene)
+        output = args.output or default_output(scene)
     else:
         scene = None  # the restart file's
         stem = args.continue_from.name.removesuffix(".nc").removesuffix(".restart")

@@ -1,5 +1,6 @@
 """Where scenes and the files they name are: the bundled scenes, a scene named by path or
-name, and a [grid] table's mesh record (its mesh file relative to the scene file)."""
+name, and a [grid] table's mesh record (its mesh file relative to the scene file, or to the
+working folder where the command line names it)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from importlib.resources import files
 from pathlib import Path
 
 from ..core.errors import SceneError
-from ..grid import spec as grid_spec
+from ..mesh.records import CUBES, MAPS, CubeMesh, MeshFile, MeshRecord, StretchedCube
 
 
 def scene_dir() -> Path:
@@ -40,30 +41,31 @@ def resolve_path(spec: str) -> Path:
     raise SceneError(f"scene file not found: {spec}{hint}")
 
 
-def grid_record(grid: dict, scene_path: Path) -> dict | None:
-    """The ``grid.spec`` record of a scene's [grid] table (``SCHEMA``'s types
-    checked): ``mesh_file`` relative to the scene file's folder, read and checked here. Raises
-    ``SceneError`` naming the key."""
+def grid_record(grid: dict, scene_path: Path, file_folder: Path | None = None) -> MeshRecord | None:
+    """The mesh record (``mesh.records``; None: the equiangular cube) of a scene's [grid] table
+    (``SCHEMA``'s types checked) for a cube of its ``ne`` (default 16): a relative ``mesh_file``
+    relative to ``file_folder`` (the working folder for one typed on the command line), else to
+    the scene file's folder; read and checked here. Raises ``SceneError`` naming the key."""
     chosen = grid.get("map")
-    if chosen is not None and chosen not in grid_spec.MAPS:
-        raise SceneError(f"grid.map must be one of {', '.join(grid_spec.MAPS)} (got {chosen!r})")
+    if chosen is not None and chosen not in MAPS:
+        raise SceneError(f"grid.map must be one of {', '.join(MAPS)} (got {chosen!r})")
     stretch = [k for k in ("stretch_factor", "target_lat", "target_lon") if k in grid]
     cube = grid.get("cube", "equiangular")
-    if cube not in grid_spec.CUBES:
-        raise SceneError(f"grid.cube must be one of {', '.join(grid_spec.CUBES)} (got {cube!r})")
+    if cube not in CUBES:
+        raise SceneError(f"grid.cube must be one of {', '.join(CUBES)} (got {cube!r})")
     if cube != "equiangular" and ("mesh_file" in grid or stretch):
         raise SceneError(
             f"grid.cube = {cube!r} is a cube of ne; drop grid.{'mesh_file' if 'mesh_file' in grid else stretch[0]}"
         )
+    ne = grid.get("ne", 16)
     if cube == "equidistant":
-        return {"map": chosen or "element_local", "cube": cube}
+        return CubeMesh(ne, chosen or "element_local", cube)
     if "mesh_file" in grid:
         if stretch:
             raise SceneError(f"grid.{stretch[0]} stretches the cube; a mesh file is its own mesh (drop one)")
         given = Path(grid["mesh_file"]).expanduser()
-        return grid_spec.file_record(
-            given if given.is_absolute() else scene_path.parent / given, chosen or "element_local"
-        )
+        folder = scene_path.parent if file_folder is None else file_folder
+        return MeshFile.of(given if given.is_absolute() else folder / given, chosen or "element_local")
     if stretch:
         if "stretch_factor" not in grid:
             raise SceneError(f"grid.{stretch[0]} needs grid.stretch_factor (the Schmidt-stretched cube)")
@@ -74,5 +76,5 @@ def grid_record(grid: dict, scene_path: Path) -> dict | None:
             raise SceneError(f"grid.stretch_factor must be >= 1 (got {c!r})")
         if not -90 <= lat <= 90:
             raise SceneError(f"grid.target_lat must be in [-90, 90] degrees (got {lat!r})")
-        return {"map": "element_local", "stretch_factor": c, "target_lat": lat, "target_lon": lon}
-    return {"map": "element_local"} if chosen == "element_local" else None
+        return StretchedCube(ne, c, lat, lon)
+    return CubeMesh(ne, "element_local") if chosen == "element_local" else None

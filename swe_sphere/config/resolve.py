@@ -17,11 +17,11 @@ from ..cases.reference import cases_of, locate, stored_days
 from ..core.clock import Clock, common_interval
 from ..core.constants import EARTH, Planet
 from ..core.errors import SceneError
-from ..grid import spec as grid_spec
 from ..grid.gll import NP_MAX, NP_MIN, gll
 from ..grid.quality import smallest_dx
 from ..io.initial_state import SCENE_CASES
 from ..io.run_file import OUTPUT_FIELDS
+from ..mesh.records import MeshFile, with_ne
 from ..model.shallow_water import TERMS
 from ..steppers import STEPPERS
 from ..steppers.control import CONTROLLERS
@@ -37,7 +37,7 @@ def efold_nu(hours: float, ne: float, np_: int, radius: float) -> float:
     the Nyquist degree of the 4 ne (np − 1) nodes around a great circle:
     ν = a⁴ / (τ (L(L+1))²). The T213 references use the same rule (3 h at
     l = 213: ν₄ = 7.34e13 m⁴ s⁻¹). On a mesh the rule is stated at the mean
-    spacing: ne is that of the uniform cube with as many elements (``grid.spec.mean_ne``:
+    spacing: ne is that of the uniform cube with as many elements (``mesh.records``' ``mean_ne``:
     √(F/6) for a file of F elements; a stretched cube's own ne), so ν is the same for
     the same element count, and elements smaller than the mean are damped faster, as
     (mean spacing / their spacing)⁴; with the tensor ∇⁴ (``hyperviscosity.scaling = s``) as
@@ -184,11 +184,12 @@ def resolve_initialization(method: str, dfi: dict, case: Case, case_name: str) -
     return {"method": "dfi", **dataclasses.asdict(filt)}
 
 
-def _table_grid(grid: dict, scene_path: Path) -> SceneGrid:
-    """The grid a [grid] table names (``grid_record`` for the mesh's keys; ne defaults to 16, 0
-    with a mesh file, np to 4). Raises ``SceneError``: ne not 0 with a mesh file."""
-    record = grid_record(grid, scene_path)
-    on_file = record is not None and "file" in record
+def _table_grid(grid: dict, scene_path: Path, file_folder: Path | None = None) -> SceneGrid:
+    """The grid a [grid] table names (``grid_record`` for the mesh's keys, a relative mesh file
+    in ``file_folder`` if given; ne defaults to 16, 0 with a mesh file, np to 4). Raises
+    ``SceneError``: ne not 0 with a mesh file."""
+    record = grid_record(grid, scene_path, file_folder)
+    on_file = isinstance(record, MeshFile)
     ne, np = grid.get("ne", 0 if on_file else 16), grid.get("np", 4)
     if on_file and ne != 0:
         raise SceneError(f"grid.ne must be 0 with grid.mesh_file (HOMME's ne = 0: the file's elements; got {ne})")
@@ -207,14 +208,15 @@ def resolve_grid(
     Raises ``SceneError`` naming the key: ne not 0 with a mesh file, ne < 1 on a cube, np
     outside ``NP_MIN``..``NP_MAX`` or below 3 on the element-local map (``grid_record`` for
     the mesh's own keys)."""
-    named = _table_grid(table or {}, scene_path)  # the grid of the tables as overridden
+    typed, folder = _typed_mesh_file(table or {}, file_table)
+    named = _table_grid(typed, scene_path, folder)  # the grid of the tables as overridden
     scene_grid = named if file_table is None else _table_grid(file_table, scene_path)
-    on_file = named.mesh is not None and "file" in named.mesh
+    on_file = isinstance(named.mesh, MeshFile)
     record1 = named.mesh
     if mesh is not None:
         if ne is not None:
             raise SceneError(f"ne = {ne} and mesh {mesh}: a mesh file's elements are its own (HOMME's ne = 0)")
-        record1, ne = grid_spec.file_record(mesh, (table or {}).get("map", "element_local")), 0
+        record1, ne = MeshFile.of(mesh, (table or {}).get("map", "element_local")), 0
     elif on_file and ne not in (None, 0):
         raise SceneError(f"ne = {ne} with grid.mesh_file: a mesh file's elements are its own (HOMME's ne = 0)")
     ne1 = named.ne if ne is None else ne
@@ -222,38 +224,52 @@ def resolve_grid(
     notes = ()
     if table is None and (ne is None or np_ is None) and mesh is None:
         notes = (f"the scene has no [grid]: ne = {ne1}, np = {np1} (the defaults)",)
-    if not is_integer(ne1) or (ne1 < 1 and not (record1 is not None and "file" in record1)):
+    if not is_integer(ne1) or (ne1 < 1 and not isinstance(record1, MeshFile)):
         raise SceneError(f"ne must be an integer >= 1 (got {got(ne1)})")
     if not is_integer(np1) or not NP_MIN <= np1 <= NP_MAX:
         raise SceneError(f"np must be an integer in {NP_MIN}..{NP_MAX} (got {got(np1)})")
-    if record1 is not None and record1["map"] == "element_local" and np1 < 3:
+    run_grid = SceneGrid(ne1, np1, with_ne(record1, ne1))
+    if run_grid.record.map == "element_local" and np1 < 3:
         raise SceneError(
-            f"np must be >= 3 on {grid_spec.describe(ne1, np1, record1)}: the element-local map's area correction moves interior nodes"
+            f"np must be >= 3 on {run_grid.record.description(np1)}: the element-local map's area correction moves interior nodes"
         )
-    return scene_grid, SceneGrid(ne1, np1, record1), notes
+    return scene_grid, run_grid, notes
+
+
+def _typed_mesh_file(table: dict, file_table: dict | None) -> tuple[dict, Path | None]:
+    """(the [grid] table, the folder of a relative mesh file) where ``-s grid.mesh_file`` was
+    typed on the command line (``table``'s differs from the file's own ``file_table``): the file's
+    elements (the scene file's ne dropped, as ``--mesh``) and the working folder, else ``table``
+    and None (the scene file's folder)."""
+    own = file_table or {}
+    if file_table is None or "mesh_file" not in table or table["mesh_file"] == own.get("mesh_file"):
+        return table, None
+    if "ne" in own and table.get("ne") == own["ne"]:  # the scene file's cube, not one typed with the file
+        table = {k: v for k, v in table.items() if k != "ne"}
+    return table, Path.cwd()
 
 
 def resolve_spacing(scene_grid: SceneGrid, run_grid: SceneGrid, radius: float, file_radius) -> Spacing:
     """How the run's node spacing differs from the scene file's, on ``run_grid`` and a planet of
     ``radius`` (m) against ``scene_grid`` and ``file_radius`` (m; None or not a positive number:
     the scene file's dt and ν are not for a radius, scale 1). The mean spacing goes as
-    1 / (``grid.spec.mean_ne`` · (np − 1)); the smallest as the first GLL interval / ne on two
+    1 / (the record's ``mean_ne`` · (np − 1)); the smallest as the first GLL interval / ne on two
     equiangular cubes, else as ``quality.smallest_dx`` of both meshes. Raises ``SceneError`` for
     a stretch that folds an element."""
-    ne0, np0, record0 = scene_grid.ne, scene_grid.np, scene_grid.mesh
-    ne1, np1, record1 = run_grid.ne, run_grid.np, run_grid.mesh
+    ne0, np0, record0 = scene_grid.ne, scene_grid.np, scene_grid.record
+    ne1, np1, record1 = run_grid.ne, run_grid.np, run_grid.record
     scale = radius / file_radius if is_number(file_radius) and file_radius > 0 else 1.0
-    ratio = (grid_spec.mean_ne(ne0, record0) * (np0 - 1)) / (grid_spec.mean_ne(ne1, record1) * (np1 - 1))
-    if record0 is None and record1 is None:
+    ratio = (record0.mean_ne * (np0 - 1)) / (record1.mean_ne * (np1 - 1))
+    if scene_grid.mesh is None and run_grid.mesh is None:
         smallest = (_first_gll_gap(np1) / ne1) / (_first_gll_gap(np0) / ne0)
     elif scene_grid == run_grid:
         smallest = 1.0
     else:
         try:
-            old = smallest_dx(ne0, np0, grid_spec.build_mesh(ne0, record0))
-            new = smallest_dx(ne1, np1, grid_spec.build_mesh(ne1, record1))
+            old = smallest_dx(ne0, np0, record0.build())
+            new = smallest_dx(ne1, np1, record1.build())
         except ValueError as err:  # a stretch that folds an element
-            raise SceneError(f"{grid_spec.describe(ne1, np1, record1)}: {err}") from None
+            raise SceneError(f"{record1.description(np1)}: {err}") from None
         smallest = new / old
     return Spacing(ratio, smallest * scale, scale, (radius, file_radius))
 
@@ -314,7 +330,7 @@ def _scaled_dt(scene_dt: float, days: float, every: float, scene: str, grid: Sce
     dt = Clock(scaled, 0.0, days).fitted(*spans).dt
     radius, file_radius = spacing.radii
     moved = spacing.scale != 1.0  # the planet's radius; file_radius is a number then
-    where = grid_spec.describe(grid.ne, grid.np, grid.mesh) + (f" radius={radius:g} m" if moved else "")
+    where = grid.record.description(grid.np) + (f" radius={radius:g} m" if moved else "")
     source = f"time.dt of scene {scene} scaled to {where}"
     # what the smallest node spacing changed with: the grid, the planet's radius or both
     changes = ["the smallest node spacing"] if spacing.smallest != spacing.scale else []
@@ -452,7 +468,7 @@ def resolve_hyperviscosity(
     nus = {key: table[key] * ratio**exponent * planet_factor for key in given}
     notes = []
     if "efold_hours" in table:
-        mean_ne = grid_spec.mean_ne(grid.ne, grid.mesh)
+        mean_ne = grid.record.mean_ne
         rule = efold_nu(table["efold_hours"], mean_ne, grid.np, spacing.radii[0])
         nus = {key: nus.get(key, rule) for key in ("nu", "nu_div", "nu_s")}
         if ratio != 1.0:
@@ -473,7 +489,7 @@ def resolve_hyperviscosity(
         )
     if scaling is not None and "hyperviscosity" in terms:
         a = spacing.radii[0]
-        d_ref = math.pi * a / (4 * grid_spec.mean_ne(grid.ne, grid.mesh))  # ``grid.quality.reference_spacing``
+        d_ref = math.pi * a / (4 * grid.record.mean_ne)  # ``grid.quality.reference_spacing``
         notes.append(
             f"tensor hyperviscosity: nu (dx / {2 * d_ref / (grid.np - 1) / 1e3:.4g} km)^{scaling:g} along each element "
             f"direction (HOMME's hypervis_scaling = {scaling:g}, nu = {nus['nu'] / (a**4 * (d_ref / a) ** scaling):.3g})"

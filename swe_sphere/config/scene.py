@@ -21,9 +21,10 @@ the run length, the output interval and the hyperviscosity. Layout::
                       cube's element corners equally spaced in angle, the default, or on the
                       cube's faces as pySEs's grid; element-local unless map says), or
                       mesh_file = "x.g" (an Exodus II mesh,
-                      relative to the scene file or absolute; ne = 0 as HOMME's; element-local,
+                      relative to the scene file or absolute, or to the working folder when
+                      given by -s grid.mesh_file; ne = 0 as HOMME's; element-local,
                       or with map = "equiangular" each element in its cube face);
-                      ``grid.spec`` records the choice in ``Scene.mesh``
+                      ``mesh.records`` records the choice in ``Scene.mesh``
     [time]            stepper = "leapfrog_trapezoidal", dt = 90.0, days = 15.0
     [output]          every_days = 1.0, log_every_steps = 0 (a line of invariant
                       changes and Courant numbers every so many steps; 0: none),
@@ -72,8 +73,8 @@ from ..cases.reference import reference_path
 from ..core.clock import Clock
 from ..core.constants import EARTH, Planet
 from ..core.errors import SceneError
-from ..grid import spec as grid_spec
 from ..io.initial_state import SCENE_CASES
+from ..mesh.records import MeshRecord, from_json, with_ne
 from ..steppers.initialization import DigitalFilter
 from .paths import list_scenes, resolve_path, scene_dir
 from .resolve import (
@@ -178,9 +179,9 @@ class Scene:
         The node fields the run file holds; (): all (``OUTPUT_FIELDS``).
     output_streams : tuple of dict
         More run files, each {"name": suffix, "every_days": interval, "fields": (...)}.
-    mesh : dict or None
-        The mesh ([grid] ``map``, ``stretch_factor``/``target_lat``/``target_lon``,
-        ``mesh_file``) as a ``grid.spec`` record; None: the equiangular cube of ne.
+    mesh : CubeMesh, StretchedCube, MeshFile or None
+        The mesh ([grid] ``map``, ``stretch_factor``/``target_lat``/``target_lon``, ``cube``,
+        ``mesh_file``) as a ``mesh.records`` record; None: the equiangular cube of ne.
     output_cells : bool
         [output] cells: the run files hold the control volumes (``io.dual``).
     control : SceneControl or None
@@ -189,6 +190,10 @@ class Scene:
     dt_source : str
         Where ``dt`` comes from, for messages ("the scene's", "the dt given", ...): not part
         of the scene's identity (left out of comparisons and of ``as_dict``).
+    own_dt, own_planet, own_days : float, dict, float or None
+        What the scene file as it is would take on this grid and length: the dt it would
+        choose itself (None: none that fits), its planet and its days (None: the file does not
+        load alone); for default file names (``cli.run``), not part of the record.
     """
 
     name: str
@@ -218,13 +223,23 @@ class Scene:
     output_fields: tuple = ()  # [output] fields: the node fields the run file holds; (): all (``OUTPUT_FIELDS``)
     # [[output.streams]]: more run files, each {"name": suffix, "every_days": interval, "fields": (...)}
     output_streams: tuple = ()
-    # the mesh ([grid] map, stretch_factor, mesh_file): a ``grid.spec`` record; None: the equiangular cube of ne
-    mesh: dict | None = None
+    # the mesh ([grid] map, stretch_factor, mesh_file): a ``mesh.records`` record; None: the equiangular cube of ne
+    mesh: MeshRecord | None = None
     output_cells: bool = True  # [output] cells: the run files hold the control volumes (``dual``)
     hypervis_scaling: float | None = None  # [hyperviscosity] scaling: the tensor ∇⁴'s s; None: constant ν
     control: SceneControl | None = None  # [time] control: None, a fixed dt
     # where dt comes from, for the refusals (``Clock.source``); not part of the scene's record (``as_dict``)
     dt_source: str = field(default="the scene's", compare=False)
+    # what a run of the scene file as it is would take, for default file names (``cli.run``); not
+    # part of the record either: the dt it would choose itself on this grid and length (None: none
+    # that fits), and the file's own planet and days (None: the file does not load alone)
+    own_dt: float | None = field(default=None, compare=False)
+    own_planet: dict | None = field(default=None, compare=False)
+    own_days: float | None = field(default=None, compare=False)
+
+    def __post_init__(self):
+        # a cube's record follows ne (``dataclasses.replace(scene, ne=...)``), as its JSON does
+        object.__setattr__(self, "mesh", with_ne(self.mesh, self.ne))
 
     # the nested view: the flat fields grouped by their table, read-only (the flat fields stay
     # what the rest of the package reads)
@@ -278,24 +293,24 @@ class Scene:
 
     def make_mesh(self):
         """The grid's ``Mesh`` for ``CubedSphere(ne, np, mesh=...)``, None for the equiangular
-        cube (``grid.spec.build_mesh``: ``SceneError`` for a mesh file gone or changed)."""
-        return grid_spec.build_mesh(self.ne, self.mesh)
+        cube (the record's ``build``: ``SceneError`` for a mesh file gone or changed)."""
+        return self.grid.record.build()
 
     @property
     def nelem(self) -> int:
         """Elements of the grid: 6·ne² on a cube, a mesh file's own count."""
-        return grid_spec.nelem(self.ne, self.mesh)
+        return self.grid.record.nelem
 
     @property
     def grid_text(self) -> str:
-        """The grid in words: ``ne=4 np=4``, ``mesh x.g np=4``... (``grid.spec.describe``)."""
-        return grid_spec.describe(self.ne, self.np, self.mesh)
+        """The grid in words: ``ne=4 np=4``, ``mesh x.g np=4``... (the record's ``description``)."""
+        return self.grid.record.description(self.np)
 
     @property
     def grid_label(self) -> str:
         """The grid's part of a default file name: ``ne4``, ``ne4map2``, ``ne4c2.5``, a mesh
-        file's stem (``grid.spec.label``)."""
-        return grid_spec.label(self.ne, self.mesh)
+        file's stem (the record's ``label``)."""
+        return self.grid.record.label
 
     @property
     def digital_filter(self) -> DigitalFilter | None:
@@ -318,7 +333,9 @@ class Scene:
         """The scene as plain values (JSON-able); the output choices and the mesh only when
         made, so a scene without them reads as before they existed (run files, restart files)."""
         d = dataclasses.asdict(self)
-        del d["dt_source"]
+        for key in ("dt_source", "own_dt", "own_planet", "own_days"):
+            del d[key]
+        d["mesh"] = None if self.mesh is None else self.mesh.as_json()
         for key in ("output_fields", "output_streams", "mesh"):
             if not d[key]:
                 del d[key]
@@ -356,6 +373,7 @@ def scene_from_dict(d: dict) -> Scene:
             "output_fields": tuple(d.get("output_fields", ())),
             "output_streams": streams,
             "control": None if d.get("control") is None else SceneControl(**d["control"]),
+            "mesh": from_json(d["ne"], d.get("mesh")),
         }
     )
 
@@ -409,7 +427,7 @@ def load_scene(
         An Exodus II file (relative to the current folder) to run on instead of the
         scene's grid (``--mesh``; ne = 0); where the mesh differs from the scene file's own
         (as do ``-s grid.*`` overrides alike), dt scales with the smallest ``dx_short`` of
-        the two (``quality.smallest_dx``) and ν with the mean spacing (``grid.spec.mean_ne``).
+        the two (``quality.smallest_dx``) and ν with the mean spacing (the record's ``mean_ne``).
     overrides : dict, optional
         ``{"section.key": value}`` set in the file's values before they are validated
         (``-s hyperviscosity.nu=5e14``), so they are checked like the file.
@@ -430,7 +448,7 @@ def load_scene(
 
 def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict) -> Scene:
     """``load_scene``'s work on the scene file ``path``: its tables resolved in order."""
-    s, file_radius, file_case, file_grid = read_scene(path, overrides)
+    s, file_radius, file_case, file_grid, own = read_scene(path, overrides)
     planet = resolve_planet(s.get("planet"))
     case = resolve_case(s.get("case", {}), planet, path)
     terms = resolve_terms(s.get("terms"), case.case, case.name)
@@ -441,6 +459,14 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict) -> S
     every, log_every = resolve_output_interval(output)
     stepper, days = resolve_stepper_days(time, stepper, days)
     dt, dt_source, dt_notes = resolve_dt(time.get("dt"), dt, days, every, path.stem, grid, spacing)
+    own_dt = dt
+    if dt_source == "the dt given" or "time.dt" in overrides:  # the dt it would choose itself, all else as given
+        try:
+            own_spacing = resolve_spacing(scene_grid, grid, planet.a, own.get("planet", {}).get("radius", EARTH.a))
+            own_dt = resolve_dt(own.get("time", {}).get("dt"), None, days, every, path.stem, grid, own_spacing)[0]
+        except SceneError:  # none that fits the output interval
+            own_dt = None
+    own_planet, own_days = _own_planet_days(own)
     output_fields, streams = resolve_output_files(output, dt, days, dt_source)
     options, stepper_notes = resolve_stepper_options(stepper, s.get(stepper, {}), overrides)
     control = resolve_control(time, stepper, options, dt)
@@ -475,7 +501,23 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict) -> S
         hypervis_scaling=hv.scaling,
         control=control,
         dt_source=dt_source,
+        own_dt=own_dt,
+        own_planet=own_planet,
+        own_days=own_days,
     )
+
+
+def _own_planet_days(own: dict) -> tuple[dict | None, float | None]:
+    """(planet, days) of the scene file's own checked tables ``own`` (``read_scene``); (None,
+    None) where it has none of its own ({}: it checks only with the overrides)."""
+    if not own:
+        return None, None
+    try:
+        return resolve_planet(own.get("planet")).as_table(), float(
+            resolve_stepper_days(own.get("time", {}), None, None)[1]
+        )
+    except SceneError:
+        return None, None
 
 
 # ``load_scene``'s own keywords among the overrides, by their command-line names (``np`` is its ``np_``)

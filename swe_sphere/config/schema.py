@@ -14,18 +14,24 @@ from pathlib import Path
 
 from ..core.constants import EARTH
 from ..core.errors import SceneError
+from ..mesh.records import MeshRecord, mesh_of
 from ..steppers import STEPPERS, option_types
 
 
 @dataclass(frozen=True)
 class SceneGrid:
     """A scene's grid ([grid]; ``Scene.grid``): ``ne`` elements along a cube edge (0 for a mesh
-    file, HOMME's), ``np`` GLL points per element direction, ``mesh`` the ``grid.spec`` record
-    (None: the equiangular cube)."""
+    file, HOMME's), ``np`` GLL points per element direction, ``mesh`` the mesh record
+    (``mesh.records``; None: the equiangular cube)."""
 
     ne: int
     np: int
-    mesh: dict | None = None
+    mesh: MeshRecord | None = None
+
+    @property
+    def record(self) -> MeshRecord:
+        """The mesh record, the equiangular cube's too (``mesh.records.mesh_of``)."""
+        return mesh_of(self.ne, self.mesh)
 
 
 @dataclass(frozen=True)
@@ -223,12 +229,14 @@ def _apply_overrides(raw: dict, overrides: dict) -> None:
             raw[name] = value
 
 
-def read_scene(path: Path, overrides: dict) -> tuple[dict, float | None, str | None, dict]:
+def read_scene(path: Path, overrides: dict) -> tuple[dict, float | None, str | None, dict, dict]:
     """(the tables of the scene file ``path`` with ``overrides`` applied (``_apply_overrides``),
     their keys and types checked (``SCHEMA``); the file's own radius (m): that of its [planet]
     before the overrides, for which its dt and ν are, None with an override of time.dt; the
     file's own case name, None without one; the file's own [grid] before the overrides, for
-    which its dt and ν are, its types checked, {} without one). Raises ``SceneError``: a file
+    which its dt and ν are, its types checked, {} without one; the file's own tables before the
+    overrides, checked, {} where they do not check without the overrides: what a run of the file
+    as it is would take, for ``Scene.own_dt``/``own_planet``/``own_days``). Raises ``SceneError``: a file
     that cannot be read or is not TOML, an unknown key, a value of the wrong type, a bad override."""
     try:
         raw = tomllib.loads(path.read_text())
@@ -242,5 +250,9 @@ def read_scene(path: Path, overrides: dict) -> tuple[dict, float | None, str | N
     file_radius = table.get("radius", EARTH.a) if isinstance(table, dict) and "time.dt" not in overrides else None
     file_case = raw.get("case", {}).get("name") if isinstance(raw.get("case"), dict) else None
     file_grid = validate({"grid": raw.get("grid", {})})["grid"]
+    try:
+        own = validate(raw)
+    except SceneError:  # a file that checks only with the overrides: nothing of its own
+        own = {}
     _apply_overrides(raw, overrides)
-    return validate(raw), file_radius, file_case, file_grid
+    return validate(raw), file_radius, file_case, file_grid, own

@@ -1,28 +1,16 @@
-"""The grid layer: GLL points, the cubed sphere's nodes and metric terms, its numbering, the
-rank partition, and the topology (DSS, assembly and reductions on one rank or over MPI).
+"""The grid layer: the assembled spectral-element grid on a mesh (``swe_sphere.mesh``, the layer
+below): GLL points, the cubed sphere's nodes and metric terms, the rank partition, and the
+topology (DSS, assembly and reductions on one rank or over MPI); mesh quality and refinement,
+which measure and make meshes through the assembled grid.
 
 ``cubed_sphere.CubedSphere`` (``D``, ``Dinv``, ``metdet``, ``spheremp``, lat/lon per node, as
 HOMME's ``element_t``), ``gll.gll``, ``partition.partition`` (a space-filling curve),
-``topology.Topology`` (the one seam for DSS and global sums), ``mesh.Mesh`` (any conforming
-quadrilateral mesh of the sphere; Exodus II ``.g`` files in and out), ``element_local`` (its map and
-numbering), ``face_map`` (the equiangular map in each element's cube face), ``schmidt.schmidt_cube`` (the stretched cube),
-``equidistant.equidistant_cube`` (the gnomonic equidistant cube, pySEs's), ``refine.refined_cube`` (the cube
+``topology.Topology`` (the one seam for DSS and global sums), ``refine.refined_cube`` (the cube
 refined over a latitude-longitude box; ``refine.make_mesh``, what ``swe-sphere mesh`` writes),
-``quality.element_sizes`` (HOMME's Dinv-based length scales and distortion).
+``quality.element_sizes`` (HOMME's Dinv-based length scales and distortion), ``levels`` (element
+levels of local time stepping).
 
-May import: ``core``, ``kernels``.
+May import: ``mesh``, ``core``, ``kernels``.
 """
 
-__all__ = [
-    "cubed_sphere",
-    "element_local",
-    "equidistant",
-    "face_map",
-    "gll",
-    "mesh",
-    "partition",
-    "quality",
-    "refine",
-    "schmidt",
-    "topology",
-]
+__all__ = ["cubed_sphere", "gll", "partition", "quality", "refine", "topology"]

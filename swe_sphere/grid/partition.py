@@ -23,8 +23,8 @@ import math
 
 import numpy as np
 
-from .cubed_sphere import cube_element, element_neighbours
-from .mesh import Mesh
+from ..mesh.cube import cube_element, element_neighbours
+from ..mesh.mesh import Mesh
 
 
 def _sgn(a: int) -> int:

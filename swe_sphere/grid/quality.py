@@ -18,7 +18,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core import cache
 from .cubed_sphere import CubedSphere
+
+SMALLEST_DX_BUILD = 1  # the ``smallest_dx`` cache entries' version: raised by any change that moves their bits
 
 
 def dinv_singular_values(Dinv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -104,9 +107,17 @@ def smallest_dx(ne: int, np_: int, mesh=None) -> float:
     """The smallest ``dx_short`` (HOMME's Dinv-based length scale) of the grid ``CubedSphere(ne,
     np_, mesh=mesh)`` on the unit sphere: what the explicit step scales with between grids. On
     the equiangular cube only its first element is built: a face corner's, the smallest
-    element (the eight cube corners' are alike by symmetry)."""
-    elements = np.array([0]) if mesh is None else None
-    return float(element_sizes(CubedSphere(ne, np_, 1.0, elements=elements, mesh=mesh)).dx_short.min())
+    element (the eight cube corners' are alike by symmetry); on a mesh it is read from the cache
+    (``core.cache``, entry ``smallest_dx``, keyed by the mesh's content as the dual mesh is) or
+    built once and stored there."""
+    if mesh is None:
+        return float(element_sizes(CubedSphere(ne, np_, 1.0, elements=np.array([0]))).dx_short.min())
+
+    def build():
+        return {"dx": np.float64(element_sizes(CubedSphere(ne, np_, 1.0, mesh=mesh)).dx_short.min())}
+
+    key = {"mesh": mesh.sha256(), "map": mesh.map, "ne": ne, "np": np_, "build": SMALLEST_DX_BUILD}
+    return float(cache.cached("smallest_dx", key, build)[0]["dx"])
 
 
 def reference_spacing(grid) -> float:

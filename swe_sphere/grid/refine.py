@@ -22,10 +22,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cubed_sphere import CubedSphere, cube_mesh, reference_to_sphere
-from .mesh import Mesh, check
+from ..mesh.cube import cube_mesh, reference_to_sphere
+from ..mesh.mesh import Mesh, check
+from ..mesh.schmidt import rotation_to, schmidt_cube
+from .cubed_sphere import CubedSphere
 from .quality import element_sizes
-from .schmidt import rotation_to, schmidt_cube
 
 FACE = 4  # the cube face turned onto the box (its centre is the north pole before the turn)
 SMOOTHING = 100  # Laplacian smoothing iterations (SQuadGen's --smooth_iter)

@@ -41,7 +41,7 @@ import numpy as np
 
 from ..core import cache
 from ..grid.cubed_sphere import CubedSphere, lat_lon
-from ..grid.mesh import Mesh
+from ..mesh.mesh import Mesh
 from .ugrid import subcell_quads, write_topology
 
 MESH = "mesh_dual"

@@ -31,9 +31,10 @@ from scipy.sparse import csr_matrix
 
 from ..core.errors import SceneError
 from ..core.runtime import check_memory
-from ..grid import spec as grid_spec
-from ..grid.cubed_sphere import FACES, CubedSphere
-from ..grid.element_local import locate as locate_on_mesh
+from ..grid.cubed_sphere import CubedSphere
+from ..mesh.element_local import locate as locate_on_mesh
+from ..mesh.face_map import FACES
+from ..mesh.records import MeshFile, MeshRecord, from_json, mesh_of
 from .run_file import atomic_path, check_distinct, element_mesh, history_line
 
 #: node fields (time, ncol) or (ncol,) that ``remap_dataset`` carries to the lat-lon grid
@@ -123,14 +124,14 @@ def grid_name(grid: CubedSphere) -> str:
 
 
 def cached_grid(ne: int, np_: int, mesh: dict | None = None) -> CubedSphere:
-    """The whole ne, np grid on the mesh of the ``grid.spec`` record ``mesh`` (a run's
-    ``Scene.mesh``; None: the equiangular cube), built once a process."""
-    return _grid(ne, np_, json.dumps(mesh, sort_keys=True))
+    """The whole ne, np grid on the mesh ``mesh`` (a run's ``Scene.mesh`` as a run file records
+    it, ``mesh.records.from_json``; None: the equiangular cube), built once a process."""
+    return _grid(ne, np_, from_json(ne, mesh))
 
 
 @functools.lru_cache(maxsize=4)
-def _grid(ne: int, np_: int, mesh: str) -> CubedSphere:
-    return CubedSphere(ne, np_, mesh=grid_spec.build_mesh(ne, json.loads(mesh)))
+def _grid(ne: int, np_: int, record: MeshRecord | None) -> CubedSphere:
+    return CubedSphere(ne, np_, mesh=mesh_of(ne, record).build())
 
 
 def open_netcdf(path) -> xr.Dataset:
@@ -150,7 +151,7 @@ def open_netcdf(path) -> xr.Dataset:
 
 def run_grid(ds: xr.Dataset) -> CubedSphere:
     """The grid of a run file (from its ``scene`` attribute, else ``ne``/``np``; on the
-    mesh the scene records, ``grid.spec``), checked against the file's ``lat``/``lon``.
+    mesh the scene records, ``mesh.records``), checked against the file's ``lat``/``lon``.
     Where the mesh file is gone, the elements' mesh the run file carries
     (``run_file.element_mesh``). Raises ``SceneError`` (a ValueError; one line) if the file is
     not a swe_sphere run, its nodes do not match, or its mesh file is changed (or gone from a
@@ -165,22 +166,21 @@ def run_grid(ds: xr.Dataset) -> CubedSphere:
             ne, np_, mesh = int(ds.attrs["ne"]), int(ds.attrs["np"]), None
         except (KeyError, ValueError, TypeError):
             raise SceneError("run file has no scene (ne, np) attribute") from None
-    if mesh is not None and "file" in mesh and not Path(mesh["file"]).is_file():
+    record = mesh_of(ne, from_json(ne, mesh))
+    if isinstance(record, MeshFile) and not Path(record.path).is_file():
         try:  # the file moved or sent on: the elements' mesh the run file carries
-            grid = CubedSphere(ne, np_, mesh=element_mesh(ds, mesh))
+            grid = CubedSphere(ne, np_, mesh=element_mesh(ds, record))
         except KeyError:
-            raise SceneError(f"mesh file {mesh['file']} not found, and the run file carries no mesh") from None
+            raise SceneError(f"mesh file {record.path} not found, and the run file carries no mesh") from None
     else:
         grid = cached_grid(ne, np_, mesh)
     if ds.sizes["ncol"] != grid.nunique:
-        raise SceneError(
-            f"run file has {ds.sizes['ncol']} columns, {grid_spec.describe(ne, np_, mesh)} has {grid.nunique}"
-        )
+        raise SceneError(f"run file has {ds.sizes['ncol']} columns, {record.description(np_)} has {grid.nunique}")
     lat = np.radians(np.asarray(ds["lat"].values, dtype=np.float64))
     lon = np.radians(np.asarray(ds["lon"].values, dtype=np.float64))
     a = np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)])
     if np.max(np.abs(a - grid.xyz[:, grid.first])) > 1e-9:
-        raise SceneError(f"run file's lat/lon do not match the grid it names ({grid_spec.describe(ne, np_, mesh)})")
+        raise SceneError(f"run file's lat/lon do not match the grid it names ({record.description(np_)})")
     return grid
 
 

@@ -25,7 +25,8 @@ import numpy as np
 from ..core.errors import OutputError
 from ..core.runtime import package_version
 from ..grid.cubed_sphere import CubedSphere
-from ..grid.mesh import Mesh, check
+from ..mesh.mesh import Mesh, check
+from ..mesh.records import MeshFile
 from .dual import MESH as DUAL_MESH
 from .dual import write_dual_mesh
 from .ugrid import MESH as SUBCELL_MESH
@@ -509,16 +510,16 @@ def write_element_mesh(ds, mesh: Mesh) -> None:
     corners[:] = mesh.quads
 
 
-def element_mesh(ds, record: dict) -> Mesh:
+def element_mesh(ds, record: MeshFile) -> Mesh:
     """The elements' ``Mesh`` a run file carries (``write_element_mesh``; an ``xarray`` or
-    netCDF4 dataset), named and mapped as the run's mesh record ``record`` (``grid.spec``).
+    netCDF4 dataset), named and mapped as the run's mesh file ``record`` (``mesh.records.MeshFile``).
     Raises ``KeyError`` where the file carries none (written before it did)."""
     return check(
         Mesh(
             np.asarray(ds[ELEMENT_NODES][:], dtype=np.float64),
             np.asarray(ds[ELEMENT_CORNERS][:], dtype=np.int64),
-            Path(record["file"]).name,
-            record["map"],
+            Path(record.path).name,
+            record.map,
         )
     )
 

@@ -19,9 +19,9 @@ from swe_sphere.cases.scoring import Scorer, instability, unscored, williamson_n
 from swe_sphere.cli import main
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
-from swe_sphere.grid.mesh import write_exodus
 from swe_sphere.grid.quality import REGIONS, element_regions, element_sizes
 from swe_sphere.grid.refine import Box, make_mesh
+from swe_sphere.mesh.mesh import write_exodus
 from swe_sphere.simulation.simulation import RunResult
 
 import roundoff

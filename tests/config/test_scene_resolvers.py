@@ -34,10 +34,11 @@ from swe_sphere.config.scene import load_scene
 from swe_sphere.config.schema import SceneGrid, SceneHyperviscosity, SceneOutput, SceneTime, read_scene
 from swe_sphere.core.constants import EARTH, Planet
 from swe_sphere.core.errors import SceneError
-from swe_sphere.grid.mesh import write_exodus
 from swe_sphere.grid.quality import smallest_dx
 from swe_sphere.grid.refine import make_mesh
 from swe_sphere.io.run_file import OUTPUT_FIELDS
+from swe_sphere.mesh.mesh import write_exodus
+from swe_sphere.mesh.records import CubeMesh, StretchedCube
 
 from meshes import TEMPEST_NE2
 from roundoff import bound
@@ -81,14 +82,16 @@ def test_every_way_of_choosing_the_mesh_scales_dt_alike(tmp_path):
 
 A = EARTH.a
 SAME = Spacing(mean=1.0, smallest=1.0, scale=1.0, radii=(A, A))  # the run's grid and planet are the scene file's
-STRETCHED = {"map": "element_local", "stretch_factor": 2.0, "target_lat": 40.0, "target_lon": 0.0}
+STRETCHED = StretchedCube(4, 2.0, 40.0, 0.0)
 HV_TERMS = ("continuity", "momentum_advection", "coriolis", "pressure_gradient", "hyperviscosity")
 
 
 def test_read_scene_applies_overrides_and_keeps_the_files_own_radius_and_case(tmp_path):
     path = tmp_path / "s.toml"
     path.write_text('[case]\nname = "tc2_steady"\n[planet]\nradius = 1e6\n[time]\ndt = 60\n')
-    tables, radius, case, grid = read_scene(path, {"planet.radius": 2e6, "case.name": "tc5_mountain", "grid.ne": 8})
+    tables, radius, case, grid, own = read_scene(
+        path, {"planet.radius": 2e6, "case.name": "tc5_mountain", "grid.ne": 8}
+    )
     assert tables == {
         "case": {"name": "tc5_mountain"},
         "planet": {"radius": 2e6},
@@ -96,6 +99,7 @@ def test_read_scene_applies_overrides_and_keeps_the_files_own_radius_and_case(tm
         "grid": {"ne": 8},
     }
     assert (radius, case, grid) == (1e6, "tc2_steady", {})  # the file's, before the overrides
+    assert own == {"case": {"name": "tc2_steady"}, "planet": {"radius": 1e6}, "time": {"dt": 60.0}}
     assert read_scene(path, {"time.dt": 30.0})[1] is None  # a dt of the override's own: no radius to scale from
     with pytest.raises(
         SceneError,
@@ -172,7 +176,7 @@ def test_resolve_grid_gives_the_files_grid_and_the_runs():
     default = SceneGrid(16, 4, None)
     assert resolve_grid(None, path) == (default, default, ("the scene has no [grid]: ne = 16, np = 4 (the defaults)",))
     assert resolve_grid({"ne": 8, "np": 3}, path, ne=4) == (SceneGrid(8, 3), SceneGrid(4, 3), ())
-    map2 = {"map": "element_local"}
+    map2 = CubeMesh(8, "element_local")
     assert resolve_grid({"ne": 8, "map": "element_local"}, path, np_=5) == (
         SceneGrid(8, 4, map2),
         SceneGrid(8, 5, map2),
@@ -187,10 +191,8 @@ def test_resolve_grid_gives_the_files_grid_and_the_runs():
 @pytest.mark.skipif(not TEMPEST_NE2.is_file(), reason="needs the shared meshes")
 def test_resolve_grid_takes_a_mesh_file_for_the_run():
     scene, run, notes = resolve_grid({"ne": 16}, Path("s.toml"), mesh=TEMPEST_NE2)
-    assert scene == SceneGrid(16, 4) and (run.ne, run.np, run.mesh["nelem"], notes) == (0, 4, 24, ())
-    assert (
-        resolve_grid({"ne": 16, "map": "equiangular"}, Path("s.toml"), mesh=TEMPEST_NE2)[1].mesh["map"] == "equiangular"
-    )
+    assert scene == SceneGrid(16, 4) and (run.ne, run.np, run.mesh.nelem, notes) == (0, 4, 24, ())
+    assert resolve_grid({"ne": 16, "map": "equiangular"}, Path("s.toml"), mesh=TEMPEST_NE2)[1].mesh.map == "equiangular"
     with pytest.raises(SceneError, match=r"^ne = 4 and mesh .*TEMPEST_NE2.g: a mesh file's elements are its own"):
         resolve_grid({}, Path("s.toml"), ne=4, mesh=TEMPEST_NE2)
 

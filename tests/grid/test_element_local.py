@@ -12,12 +12,13 @@ import pytest
 import warp as wp
 from scipy.spatial import cKDTree
 
-from swe_sphere.grid.cubed_sphere import CubedSphere, Numbering, cube_mesh
-from swe_sphere.grid.element_local import MeshNumbering, locate
-from swe_sphere.grid.mesh import element_areas, read_exodus, write_exodus
+from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.partition import mesh_order, mesh_partition
-from swe_sphere.grid.schmidt import schmidt_cube
 from swe_sphere.grid.topology import GatheredGrid, SerialComm, Topology
+from swe_sphere.mesh.cube import Numbering, cube_mesh
+from swe_sphere.mesh.element_local import MeshNumbering, locate
+from swe_sphere.mesh.mesh import element_areas, read_exodus, write_exodus
+from swe_sphere.mesh.schmidt import schmidt_cube
 
 import roundoff
 from meshes import (

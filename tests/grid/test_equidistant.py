@@ -11,10 +11,11 @@ import pytest
 
 from swe_sphere.config.scene import resolve_grid
 from swe_sphere.core.errors import SceneError
-from swe_sphere.grid.cubed_sphere import CubedSphere, cube_mesh
-from swe_sphere.grid.equidistant import equidistant_cube
-from swe_sphere.grid.mesh import check
-from swe_sphere.grid.spec import build_mesh, describe, label
+from swe_sphere.grid.cubed_sphere import CubedSphere
+from swe_sphere.mesh.cube import cube_mesh
+from swe_sphere.mesh.equidistant import equidistant_cube
+from swe_sphere.mesh.mesh import check
+from swe_sphere.mesh.records import CubeMesh
 
 import roundoff
 from meshes import TC2_TERMS, case_model
@@ -78,11 +79,12 @@ def test_the_equidistant_cube_resolves_the_jet_better_and_tc2_worse():
 def test_a_scene_chooses_the_equidistant_cube_by_grid_cube(tmp_path):
     path = tmp_path / "s.toml"
     _, grid, _ = resolve_grid({"ne": 4, "cube": "equidistant"}, path)
-    assert grid.mesh == {"map": "element_local", "cube": "equidistant"}
-    assert label(4, grid.mesh) == "ne4ed" and describe(4, 4, grid.mesh) == "ne=4 np=4 equidistant cube element-local"
-    assert np.array_equal(build_mesh(4, grid.mesh).coords, equidistant_cube(4).coords)
+    assert grid.mesh == CubeMesh(4, "element_local", "equidistant")
+    assert grid.mesh.as_json() == {"map": "element_local", "cube": "equidistant"}
+    assert grid.mesh.label == "ne4ed" and grid.mesh.description(4) == "ne=4 np=4 equidistant cube element-local"
+    assert np.array_equal(grid.mesh.build().coords, equidistant_cube(4).coords)
     _, grid, _ = resolve_grid({"ne": 4, "cube": "equidistant", "map": "equiangular"}, path)
-    assert build_mesh(4, grid.mesh).map == "equiangular" and label(4, grid.mesh) == "ne4edmap0"
+    assert grid.mesh.build().map == "equiangular" and grid.mesh.label == "ne4edmap0"
     assert resolve_grid({"ne": 4, "cube": "equiangular"}, path)[1].mesh is None
     with pytest.raises(SceneError, match=r"^grid.cube must be one of equiangular, equidistant \(got 'round'\)$"):
         resolve_grid({"ne": 4, "cube": "round"}, path)

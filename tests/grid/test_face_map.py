@@ -13,11 +13,12 @@ import numpy as np
 import pytest
 
 from swe_sphere.core.errors import SceneError
-from swe_sphere.grid.cubed_sphere import CubedSphere, cube_mesh
-from swe_sphere.grid.face_map import FIT_TOLERANCE, face_corners
-from swe_sphere.grid.mesh import read_exodus, write_exodus
+from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.partition import mesh_partition
 from swe_sphere.grid.refine import Box, make_mesh
+from swe_sphere.mesh.cube import cube_mesh
+from swe_sphere.mesh.face_map import FIT_TOLERANCE, face_corners
+from swe_sphere.mesh.mesh import read_exodus, write_exodus
 
 import roundoff
 from meshes import MOUNTAIN, TC2_TERMS, TC6_TERMS, equiangular, icosahedral_mesh, refined_equiangular, run_steps

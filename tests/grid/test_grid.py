@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from swe_sphere.grid.cubed_sphere import CubedSphere, reference_to_sphere
+from swe_sphere.grid.cubed_sphere import CubedSphere
+from swe_sphere.mesh.cube import reference_to_sphere
 
 from helpers import cached_grid
 from numpy_ops import NumpyOps

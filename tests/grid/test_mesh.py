@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from swe_sphere.core.errors import OutputError, SceneError
-from swe_sphere.grid.cubed_sphere import cube_mesh
-from swe_sphere.grid.mesh import Mesh, check, element_areas, read_exodus, write_exodus
+from swe_sphere.mesh.cube import cube_mesh
+from swe_sphere.mesh.mesh import Mesh, check, element_areas, read_exodus, write_exodus
 
 from meshes import MOUNTAIN, TEMPEST_NE2, bipyramid_mesh, icosahedral_mesh
 

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from swe_sphere.grid.cubed_sphere import CubedSphere
-from swe_sphere.grid.mesh import read_exodus
 from swe_sphere.grid.quality import REGIONS, dinv_singular_values, element_regions, element_sizes
 from swe_sphere.grid.refine import Box, make_mesh
-from swe_sphere.grid.schmidt import schmidt_cube
+from swe_sphere.mesh.mesh import read_exodus
+from swe_sphere.mesh.schmidt import schmidt_cube
 
 from meshes import MOUNTAIN
 

@@ -12,11 +12,12 @@ import pytest
 from swe_sphere.cli import main
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
-from swe_sphere.grid.cubed_sphere import CubedSphere, cube_mesh
-from swe_sphere.grid.mesh import check, element_areas, read_exodus
+from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.quality import element_sizes
 from swe_sphere.grid.refine import Box, refined_cube
-from swe_sphere.grid.schmidt import schmidt_cube
+from swe_sphere.mesh.cube import cube_mesh
+from swe_sphere.mesh.mesh import check, element_areas, read_exodus
+from swe_sphere.mesh.schmidt import schmidt_cube
 from swe_sphere.simulation.simulation import Simulation
 
 import roundoff

@@ -8,9 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from swe_sphere.grid.cubed_sphere import CubedSphere, cube_mesh
-from swe_sphere.grid.mesh import check, element_areas
-from swe_sphere.grid.schmidt import rotation_to, schmidt_cube
+from swe_sphere.grid.cubed_sphere import CubedSphere
+from swe_sphere.mesh.cube import cube_mesh
+from swe_sphere.mesh.mesh import check, element_areas
+from swe_sphere.mesh.schmidt import rotation_to, schmidt_cube
 
 import roundoff
 from meshes import tc2_l2_by_np

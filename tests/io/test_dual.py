@@ -18,12 +18,9 @@ import pytest
 import xarray as xr
 
 from swe_sphere.cli import main
-from swe_sphere.grid.cubed_sphere import CubedSphere, cube_mesh
+from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.gll import gll
-from swe_sphere.grid.mesh import read_exodus
 from swe_sphere.grid.refine import Box, refined_cube
-from swe_sphere.grid.schmidt import schmidt_cube
-from swe_sphere.grid.spec import build_mesh
 from swe_sphere.io.dual import (
     RTOL,
     cache_key,
@@ -35,6 +32,10 @@ from swe_sphere.io.dual import (
     star_shaped,
     unit_dual_mesh,
 )
+from swe_sphere.mesh.cube import cube_mesh
+from swe_sphere.mesh.mesh import read_exodus
+from swe_sphere.mesh.records import from_json, mesh_of
+from swe_sphere.mesh.schmidt import schmidt_cube
 
 from helpers import cli_one_line
 from meshes import MOUNTAIN
@@ -187,7 +188,9 @@ def run_file(request, tc5_ne4, tc2_meshes):
     path = tc5_ne4 if request.param == "cube" else tc2_meshes[request.param]
     with netCDF4.Dataset(path) as nc:
         scene = json.loads(nc.scene)
-    return path, CubedSphere(scene["ne"], scene["np"], mesh=build_mesh(scene["ne"], scene.get("mesh")))
+    return path, CubedSphere(
+        scene["ne"], scene["np"], mesh=mesh_of(scene["ne"], from_json(scene["ne"], scene.get("mesh"))).build()
+    )
 
 
 def file_mean(path, name="h"):

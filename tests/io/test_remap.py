@@ -14,8 +14,8 @@ import xarray as xr
 from scipy.spatial import cKDTree
 
 from swe_sphere.cli import main
-from swe_sphere.grid.cubed_sphere import FACES
 from swe_sphere.io.remap import Remapper, lagrange_basis, latlon_grid, locate, remap_dataset
+from swe_sphere.mesh.face_map import FACES
 
 import roundoff
 

@@ -20,7 +20,7 @@ from test_mpi import assert_same_bits, mpirun_python, needs_mpi  # noqa: F401 (a
 
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.quality import dinv_singular_values, hypervis_tensor, reference_spacing
-from swe_sphere.grid.schmidt import schmidt_cube
+from swe_sphere.mesh.schmidt import schmidt_cube
 from swe_sphere.model.diagnostics import harmonic_state, hyperviscosity_rate
 from swe_sphere.model.shallow_water import ShallowWater
 

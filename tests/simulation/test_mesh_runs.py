@@ -19,13 +19,14 @@ from swe_sphere.config.scene import efold_nu, load_scene
 from swe_sphere.core.constants import DAY
 from swe_sphere.core.errors import SceneError
 from swe_sphere.core.runtime import run_bytes
-from swe_sphere.grid.cubed_sphere import CubedSphere, cube_mesh
-from swe_sphere.grid.mesh import read_exodus, write_exodus
+from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.quality import element_sizes, smallest_dx
-from swe_sphere.grid.schmidt import schmidt_cube
-from swe_sphere.grid.spec import file_sha256
 from swe_sphere.io import restart_file
 from swe_sphere.io.remap import Remapper, latlon_grid, remap_dataset
+from swe_sphere.mesh.cube import cube_mesh
+from swe_sphere.mesh.mesh import read_exodus, write_exodus
+from swe_sphere.mesh.records import file_sha256
+from swe_sphere.mesh.schmidt import schmidt_cube
 from swe_sphere.simulation.simulation import Simulation
 
 import roundoff
@@ -76,7 +77,7 @@ def test_tc2_on_a_stretched_cube(tmp_path):
     at np4: 16); the mass is kept to round-off. c = 1 is the element-local cube."""
     stretched = {"grid.stretch_factor": 2.0, "grid.target_lat": 40.0, "grid.target_lon": 90.0}
     sim, result = run(tc2(ne=4, overrides=stretched))
-    assert sim.scene.mesh["stretch_factor"] == 2.0 and sim.grid.map == "element_local"
+    assert sim.scene.mesh.factor == 2.0 and sim.grid.map == "element_local"
     _, cube = run(tc2(ne=4))
     e, e_cube = result.diagnostics[H_L2], cube.diagnostics[H_L2]
     assert e_cube < e < 16 * e_cube, (e, e_cube)

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from swe_sphere.config.scene import load_scene
-from swe_sphere.grid.mesh import write_exodus
 from swe_sphere.grid.refine import Box, refined_cube
+from swe_sphere.mesh.mesh import write_exodus
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers.multirate_ab import ab3_weights
 

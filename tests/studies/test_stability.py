@@ -113,8 +113,8 @@ def test_local_time_stepping_on_a_refined_mesh_outlasts_rk4(tmp_path, capsys):
     the fine ones take two steps); a case that fixes its own grid is
     refused with --mesh, one line, exit 2, nothing written."""
     from swe_sphere.cli import main
-    from swe_sphere.grid.mesh import write_exodus
     from swe_sphere.grid.refine import Box, refined_cube
+    from swe_sphere.mesh.mesh import write_exodus
 
     from helpers import one_line
 

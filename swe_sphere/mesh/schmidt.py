@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from .cubed_sphere import cube_mesh
+from .cube import cube_mesh
 from .mesh import Mesh
 
 

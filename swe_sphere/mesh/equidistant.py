@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from .cubed_sphere import cube_mesh
+from .cube import cube_mesh
 from .face_map import FACES
 from .mesh import Mesh
 

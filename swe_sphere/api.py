@@ -41,23 +41,21 @@ def run(
     progress : bool
         Show a progress bar.
     verbose : bool
-        Show Warp's banner and module loads, and with ``output={"log_every_steps": N}``
-        a line of invariant changes and Courant numbers every N steps
-        (``Simulation.log_line``); quiet otherwise.
+        Show Warp's banner and module loads, and with ``output={"log_every_steps": N}`` a line of
+        invariant changes and Courant numbers every N steps (``Simulation.log_line``); quiet otherwise.
     initial : callable, optional
-        ``initial(lat, lon) -> (h, u, v)`` (lat, lon in radians; h in m, u, v in m s⁻¹),
-        the state at t = 0 instead of the case's; the case still gives fcor, hs and the
-        truth the errors are against (``initial_state.from_function``).
+        ``initial(lat, lon) -> (h, u, v)`` (lat, lon in radians; h in m, u, v in m s⁻¹), the state
+        at t = 0 instead of the case's; the case still gives fcor, hs and the truth the errors are
+        against (``initial_state.from_function``).
     graphs : {"auto", "on", "off"} or bool, optional
         Steps as captured graphs (``Simulation``'s; default ``SWE_SPHERE_GRAPHS``, else "auto").
     **overrides
-        As on the command line: ``ne``, ``np``, ``dt`` (s), ``days``, ``stepper``,
-        ``mesh`` (an Exodus II file, as ``--mesh``; dt and ν rescale with a new grid as
-        for ``--ne``), and any scene value by its
-        table, e.g. ``hyperviscosity={"nu": 5e14}``, ``implicit={"preconditioner":
-        "helmholtz"}``, ``output={"every_days": 0.25}``, ``terms=[...]``,
-        ``planet={"radius": 637122.0, "omega": 7.292e-4}`` (m, s⁻¹; ``gravity`` in
-        m s⁻²); validated like the file.
+        As on the command line: ``ne``, ``np``, ``dt`` (s), ``days``, ``stepper``, ``mesh`` (an
+        Exodus II file, as ``--mesh``; dt and ν rescale with a new grid as for ``--ne``), and any
+        scene value by its table, e.g. ``hyperviscosity={"nu": 5e14}``,
+        ``implicit={"preconditioner": "helmholtz"}``, ``output={"every_days": 0.25}``,
+        ``terms=[...]``, ``planet={"radius": 637122.0, "omega": 7.292e-4}`` (m, s⁻¹; ``gravity``
+        in m s⁻²); validated like the file.
 
     Returns
     -------
@@ -83,13 +81,19 @@ def run(
     ResourceError
         Too little memory for the grid.
     """
-    import xarray as xr
-    from tqdm import tqdm
-
     if output_file is not None and (Path(output_file).name in ("", "..") or Path(output_file).is_dir()):
         raise OutputError(f"output_file = {str(output_file)!r} is a directory: give a file name in it")
     device = pick_device(device, verbose=verbose)
     sim = Simulation(scene, device, progress=progress, initial=initial, graphs=graphs, **overrides)
+    return _run_and_load(sim, output_file, overwrite, restart_every, verbose)
+
+
+def _run_and_load(sim: Simulation, output_file, overwrite: bool, restart_every: float | None, verbose: bool):
+    """Run ``sim`` into ``output_file`` (or a temporary file) and return the file's contents
+    loaded in memory, time in model days (``output.TIME_ATTRS``)."""
+    import xarray as xr
+    from tqdm import tqdm
+
     scene = sim.scene
     with tempfile.TemporaryDirectory(prefix="swe_sphere_") as tmp:
         path = Path(output_file) if output_file is not None else Path(tmp) / f"{scene.name}.nc"
@@ -100,7 +104,7 @@ def run(
             history=f"swe_sphere.run({scene.name!r})",
             log=tqdm.write if verbose else None,
         )  # output={"log_every_steps": N}: a line every N steps
-        with xr.open_dataset(path, decode_times=False) as ds:  # time in model days (output.TIME_ATTRS)
+        with xr.open_dataset(path, decode_times=False) as ds:
             return ds.load()
 
 

@@ -11,7 +11,7 @@ import pytest
 from swe_sphere.io.run_file import acquire_lock, release_lock
 from swe_sphere.simulation.simulation import Simulation
 
-from helpers import TINY, cli_main, cli_one_line
+from helpers import TINY, cli_main, cli_one_line, one_line
 
 
 @pytest.fixture(autouse=True)
@@ -63,6 +63,35 @@ def test_a_run_to_a_file_another_run_writes_is_refused_before_its_header(capsys)
     cli_line = [line for line in err.splitlines() if line.strip()]
     assert code == 2 and cli_line == ["swe-sphere: error: another run is writing o.nc (it holds o.nc.lock)"], err
     assert sorted(p.name for p in Path().iterdir()) == []
+
+
+def test_the_second_of_two_runs_started_together_is_refused_before_its_header(capsys, monkeypatch):
+    """Two runs to one file started together: the second came in while the first was still
+    setting up (its writer not yet made, no lock held), printed its 9-line header, then
+    refused. The first now holds the lock from before its header: the second, started at
+    the first's header, prints nothing, exits 2 in one line and writes nothing; the first
+    finishes."""
+    from swe_sphere.cli import run as cli_run
+
+    argv = ("run", "tc2_steady", *TINY, "--days", "0.25", "--output", "o.nc")
+    second = []
+
+    def header_then_second(*args, **kwargs):
+        if not second:
+            second.append(cli_main(capsys, *argv))
+            second.append(sorted(p.name for p in Path().iterdir()))
+        return header(*args, **kwargs)
+
+    header = cli_run.header
+    monkeypatch.setattr(cli_run, "header", header_then_second)
+    code, out, err = cli_main(capsys, *argv)
+    (code2, out2, err2), files = second
+    assert (
+        out2 == "" and one_line(code2, err2, 2) == "swe-sphere: error: another run is writing o.nc (it holds o.nc.lock)"
+    )
+    assert files == ["o.nc.lock"]  # the first run's lock, nothing of the second's
+    assert code == 0 and "tc2_steady" in out, err
+    assert sorted(p.name for p in Path().iterdir()) == ["o.nc"]
 
 
 def test_a_left_lock_file_of_a_killed_run_does_not_refuse(capsys):

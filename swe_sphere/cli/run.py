@@ -3,6 +3,7 @@ output's default name and the refusals made before anything is built."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 from pathlib import Path
@@ -120,7 +121,7 @@ def command(args) -> int:
     from ..core import mpi
     from ..core.backend import pick_device
     from ..core.graphs import default_mode, graphs_mode
-    from ..io.run_file import check_distinct, check_target, check_unlocked, close_open_runs
+    from ..io.run_file import check_distinct, check_target, close_open_runs
     from ..simulation.writers import restart_path
 
     if args.continue_from is None:
@@ -154,14 +155,35 @@ def command(args) -> int:
     if not args.overwrite:
         _refuse_a_blown_up_run(output)
     check_target(output, args.overwrite)
-    check_unlocked(output)  # another run writing it now (with --overwrite): refused before the header
     if args.restart_every is not None:  # else written only on SIGINT/SIGTERM, and then not over an existing one
         check_target(restart_path(output), args.overwrite)
     args.graphs = graphs_mode(args.graphs, "--graphs") if args.graphs is not None else default_mode()  # the flag wins
     device = pick_device(args.device)
     comm = mpi.world()  # under mpiexec: one run over all ranks
-    with mpi.watch_failures(comm, close_open_runs):  # a failure on one rank alone ends the job
+    with (
+        _output_lock(output, comm),
+        mpi.watch_failures(comm, close_open_runs),
+    ):  # a failure on one rank alone ends the job
         return _run(args, scene, output, device, comm)
+
+
+def _output_lock(output: Path, comm):
+    """The writer's lock of ``output`` taken before the set-up and the header, on the rank
+    that writes (rank 0; ``HeldLock``, which the run's writer takes over): every rank raises
+    ``OutputError`` (one line) when another run writes ``output`` now."""
+    from ..io.run_file import HeldLock
+
+    held, refusal = contextlib.nullcontext(), None
+    if comm is None or comm.rank == 0:
+        try:
+            held = HeldLock(output)
+        except OutputError as err:
+            refusal = str(err)
+    if comm is not None:
+        refusal = comm.bcast(refusal, root=0)
+    if refusal is not None:
+        raise OutputError(refusal)
+    return held
 
 
 def _run(args, scene, output, device, comm) -> int:

@@ -210,54 +210,11 @@ def _build(ne: int, rule, radius: float, elements: np.ndarray, mesh: Mesh | None
     else:
         gid, table = MeshNumbering(mesh, np_).rows(elements)
         reference_map = (FaceMap if mesh.map == "equiangular" else ElementLocalMap)(mesh, rule)
-    # The nodes held and the other elements' copies of them (for the assembled
-    # mass); every copy gets the coordinates of its first copy, so lat/lon/basis
-    # agree bit for bit.
-    valid = table >= 0
-    ext = np.sort(table[valid])
-    ext = ext[
-        np.concatenate(([True], ext[1:] != ext[:-1]))
-    ]  # distinct, ascending (np.unique's hashing is 10x slower here)
-    rep = np.empty(ext.size, dtype=np.int64)
-    rep[np.searchsorted(ext, table[valid])] = np.broadcast_to(table[:, :1], table.shape)[valid]
-    n = ext.size
-    xyz, east, north, lat, lon = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty(n)
-    D = np.empty((n, 2, 2))
-    for a in range(0, n, _CHUNK):  # per node: in pieces, to bound the temporaries
-        part = slice(a, a + _CHUNK)
-        xyz[part], lat[part], lon[part], east[part], north[part], D[part] = _metric(
-            reference_map, radius, ext[part], rep[part]
-        )
-    metdet = np.linalg.det(D)
-    if np.any(metdet <= 0):  # an element-local element whose corners span too much of the sphere: p/|p| folds
-        e = int(ext[np.argmax(metdet <= 0)] // npe)
-        where = f"element {e + 1} of {mesh.name}" if mesh is not None else f"element {e}"
-        raise ValueError(
-            f"the map folds in {where} (metdet <= 0 at a GLL node): its corners span too much of the sphere; "
-            "use smaller elements (a larger ne, a smaller stretch_factor)"
-        )
-
+    ext, rep = _held(table)
+    xyz, lat, lon, east, north, D = _held_metric(reference_map, radius, ext, rep)
     here = np.searchsorted(ext, nodes)
-    w2 = np.outer(rule.weights, rule.weights).ravel()  # index j*np + i
-    if mesh is None or mesh.map == "equiangular":
-        # Area correction (HOMME geometry_mod::set_area_correction_map0): one global
-        # factor on the metric so that the GLL-quadrature area of the sphere is 4πa².
-        # A single factor keeps element-edge fluxes consistent, hence mass
-        # conservation to round-off; a per-element factor would not.
-        quadrature = _quadrature_area(ne, rule, radius) if mesh is None else radius**2 * reference_map.quadrature_area()
-        s = math.sqrt(4 * math.pi * radius**2 / quadrature)
-        D *= s
-        metdet = metdet * s**2
-    else:
-        # HOMME's epsilon bubble (set_area_correction_map2): a factor per element on
-        # its interior nodes only, which no other element shares, so the edge
-        # fluxes still cancel; the copies of shared nodes held for the mass keep theirs.
-        alpha = epsilon_bubble(mesh, rule, radius, elements, metdet[here].reshape(-1, np_, np_))
-        p = here.reshape(-1, np_, np_)[:, 1:-1, 1:-1]
-        a = np.broadcast_to(alpha[:, None, None], p.shape)
-        D[p.ravel()] *= np.sqrt(a.ravel())[:, None, None]
-        metdet[p.ravel()] *= a.ravel()
-    spheremp = metdet * w2[ext % npe]
+    metdet = _area_corrected(np.linalg.det(D), D, ne, rule, radius, elements, mesh, reference_map, ext, here)
+    spheremp = metdet * np.outer(rule.weights, rule.weights).ravel()[ext % npe]  # weights at index j*np + i
 
     mass = np.zeros(nodes.size)  # Σ over the copies in table order, one add at a time
     for column in table.T:
@@ -265,16 +222,6 @@ def _build(ne: int, rule, radius: float, elements: np.ndarray, mesh: Mesh | None
         mass[ok] += spheremp[np.searchsorted(ext, column[ok])]
     first = np.flatnonzero(table[:, 0] == nodes)  # first copies held: ascending gid
     halo = np.setdiff1d(ext, nodes, assume_unique=True)
-
-    # Nearest-neighbour spacing along both element directions.
-    X = radius * xyz[here].reshape(elements.size, np_, np_, 3)
-    dist_i = np.linalg.norm(np.diff(X, axis=2), axis=3)  # (nelem, j, np-1)
-    dist_j = np.linalg.norm(np.diff(X, axis=1), axis=3)  # (nelem, np-1, i)
-    dx = np.full((elements.size, np_, np_), np.inf)
-    dx[:, :, :-1] = np.minimum(dx[:, :, :-1], dist_i)
-    dx[:, :, 1:] = np.minimum(dx[:, :, 1:], dist_i)
-    dx[:, :-1, :] = np.minimum(dx[:, :-1, :], dist_j)
-    dx[:, 1:, :] = np.minimum(dx[:, 1:, :], dist_j)
 
     D = D[here]
     return dict(
@@ -289,7 +236,7 @@ def _build(ne: int, rule, radius: float, elements: np.ndarray, mesh: Mesh | None
         metdet=metdet[here],
         spheremp=spheremp[here],
         rspheremp=1.0 / mass,
-        dx=dx.ravel(),
+        dx=_spacing(radius * xyz[here].reshape(elements.size, np_, np_, 3)).ravel(),
         gid=gid.astype(np.int32),
         dss_table=table.astype(np.int32),
         first=first.astype(np.int32),
@@ -297,3 +244,75 @@ def _build(ne: int, rule, radius: float, elements: np.ndarray, mesh: Mesh | None
         halo=halo,
         halo_spheremp=spheremp[np.searchsorted(ext, halo)],
     )
+
+
+def _held(table: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The nodes held and the other elements' copies of them (for the assembled mass), distinct
+    and ascending, and for each the first copy in ``table``'s rows: every copy gets the
+    coordinates of its first copy, so lat/lon/basis agree bit for bit."""
+    valid = table >= 0
+    ext = np.sort(table[valid])
+    ext = ext[
+        np.concatenate(([True], ext[1:] != ext[:-1]))
+    ]  # distinct, ascending (np.unique's hashing is 10x slower here)
+    rep = np.empty(ext.size, dtype=np.int64)
+    rep[np.searchsorted(ext, table[valid])] = np.broadcast_to(table[:, :1], table.shape)[valid]
+    return ext, rep
+
+
+def _held_metric(reference_map, radius: float, ext: np.ndarray, rep: np.ndarray):
+    """(xyz, lat, lon, east, north, D) at the nodes ``ext`` (their first copies ``rep``), in
+    pieces of ``_CHUNK`` nodes to bound the temporaries."""
+    n = ext.size
+    xyz, east, north, lat, lon = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty(n)
+    D = np.empty((n, 2, 2))
+    for a in range(0, n, _CHUNK):
+        part = slice(a, a + _CHUNK)
+        xyz[part], lat[part], lon[part], east[part], north[part], D[part] = _metric(
+            reference_map, radius, ext[part], rep[part]
+        )
+    return xyz, lat, lon, east, north, D
+
+
+def _area_corrected(metdet, D, ne: int, rule, radius: float, elements, mesh, reference_map, ext, here) -> np.ndarray:
+    """The metric determinant with the area correction, ``D`` scaled to match in place.
+    Raises ValueError where the map folds (metdet ≤ 0 at a node)."""
+    np_ = rule.np
+    if np.any(metdet <= 0):  # an element-local element whose corners span too much of the sphere: p/|p| folds
+        e = int(ext[np.argmax(metdet <= 0)] // (np_ * np_))
+        where = f"element {e + 1} of {mesh.name}" if mesh is not None else f"element {e}"
+        raise ValueError(
+            f"the map folds in {where} (metdet <= 0 at a GLL node): its corners span too much of the sphere; "
+            "use smaller elements (a larger ne, a smaller stretch_factor)"
+        )
+    if mesh is None or mesh.map == "equiangular":
+        # Area correction (HOMME geometry_mod::set_area_correction_map0): one global
+        # factor on the metric so that the GLL-quadrature area of the sphere is 4πa².
+        # A single factor keeps element-edge fluxes consistent, hence mass
+        # conservation to round-off; a per-element factor would not.
+        quadrature = _quadrature_area(ne, rule, radius) if mesh is None else radius**2 * reference_map.quadrature_area()
+        s = math.sqrt(4 * math.pi * radius**2 / quadrature)
+        D *= s
+        return metdet * s**2
+    # HOMME's epsilon bubble (set_area_correction_map2): a factor per element on
+    # its interior nodes only, which no other element shares, so the edge
+    # fluxes still cancel; the copies of shared nodes held for the mass keep theirs.
+    alpha = epsilon_bubble(mesh, rule, radius, elements, metdet[here].reshape(-1, np_, np_))
+    p = here.reshape(-1, np_, np_)[:, 1:-1, 1:-1]
+    a = np.broadcast_to(alpha[:, None, None], p.shape)
+    D[p.ravel()] *= np.sqrt(a.ravel())[:, None, None]
+    metdet[p.ravel()] *= a.ravel()
+    return metdet
+
+
+def _spacing(X: np.ndarray) -> np.ndarray:
+    """Nearest-neighbour spacing along both element directions, (nelem, np, np), of the node
+    positions ``X`` (nelem, np, np, 3)."""
+    dist_i = np.linalg.norm(np.diff(X, axis=2), axis=3)  # (nelem, j, np-1)
+    dist_j = np.linalg.norm(np.diff(X, axis=1), axis=3)  # (nelem, np-1, i)
+    dx = np.full(X.shape[:3], np.inf)
+    dx[:, :, :-1] = np.minimum(dx[:, :, :-1], dist_i)
+    dx[:, :, 1:] = np.minimum(dx[:, :, 1:], dist_i)
+    dx[:, :-1, :] = np.minimum(dx[:, :-1, :], dist_j)
+    dx[:, 1:, :] = np.minimum(dx[:, 1:, :], dist_j)
+    return dx

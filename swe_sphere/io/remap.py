@@ -272,6 +272,24 @@ def remap_dataset(ds, resolution: float = 1.0) -> xr.Dataset:
         f"remapping to {resolution:g} degrees ({lat.size} x {lon.size} points)",
     )
     rm = Remapper(grid, np.radians(lat)[:, None], np.radians(lon)[None, :])
+    out = _latlon_frame(ds, lat, lon)
+    _add_fields(out, ds, rm)
+    out.attrs = dict(ds.attrs)
+    out.attrs["Conventions"] = "CF-1.8"
+    out.attrs["remap"] = (
+        f"GLL interpolation (each element's own polynomial) from {grid_name(grid)} "
+        f"to a regular {resolution:g} degree lat-lon grid by swe_sphere.io.remap"
+    )
+    line = history_line(f"swe_sphere.io.remap to {resolution:g} degrees")  # CF: the newest line first
+    out.attrs["history"] = f"{line}\n{ds.attrs['history']}" if ds.attrs.get("history") else line
+    return out
+
+
+_MEASURE = {"cell_measures": "area: area"}  # cf_xarray: ds.h.cf.weighted("area") with decode_coords="all"
+
+
+def _latlon_frame(ds: xr.Dataset, lat: np.ndarray, lon: np.ndarray) -> xr.Dataset:
+    """The lat-lon grid's coordinates (degrees), the run's time and the cells' ``area`` (m²)."""
     out = xr.Dataset(
         coords=dict(
             lat=("lat", lat, dict(units="degrees_north", standard_name="latitude", long_name="latitude", axis="Y")),
@@ -287,7 +305,12 @@ def remap_dataset(ds, resolution: float = 1.0) -> xr.Dataset:
             units="m2", long_name="area of the cell about the grid point (caps at the poles)", standard_name="cell_area"
         ),
     )
-    measure = {"cell_measures": "area: area"}  # cf_xarray: ds.h.cf.weighted("area") with decode_coords="all"
+    return out
+
+
+def _add_fields(out: xr.Dataset, ds: xr.Dataset, rm: Remapper) -> None:
+    """The run's node fields interpolated by ``rm`` onto ``out``'s grid, h + hs as ``h_surface``,
+    and its diagnostics time series copied."""
     keep = ("units", "long_name", "standard_name")
     for name in NODE_FIELDS:
         if name not in ds.variables:
@@ -298,24 +321,15 @@ def remap_dataset(ds, resolution: float = 1.0) -> xr.Dataset:
             continue
         values = rm(np.asarray(var.values, dtype=np.float64))
         attrs = {k: v for k, v in var.attrs.items() if k in keep}
-        out[name] = (var.dims[:-1] + ("lat", "lon"), values, {**attrs, **measure})
+        out[name] = (var.dims[:-1] + ("lat", "lon"), values, {**attrs, **_MEASURE})
     if "h" in out and "hs" in out:
         out["h_surface"] = out["h"] + out["hs"]
         out["h_surface"].attrs = dict(
-            units="m", long_name="free-surface height h + hs", standard_name="height_above_mean_sea_level", **measure
+            units="m", long_name="free-surface height h + hs", standard_name="height_above_mean_sea_level", **_MEASURE
         )
     for name, var in ds.data_vars.items():
         if var.dims == ("time",):
             out[name] = var.copy()
-    out.attrs = dict(ds.attrs)
-    out.attrs["Conventions"] = "CF-1.8"
-    out.attrs["remap"] = (
-        f"GLL interpolation (each element's own polynomial) from {grid_name(grid)} "
-        f"to a regular {resolution:g} degree lat-lon grid by swe_sphere.io.remap"
-    )
-    line = history_line(f"swe_sphere.io.remap to {resolution:g} degrees")  # CF: the newest line first
-    out.attrs["history"] = f"{line}\n{ds.attrs['history']}" if ds.attrs.get("history") else line
-    return out
 
 
 def remap_file(path, resolution: float, output, *, overwrite: bool = False) -> Path:

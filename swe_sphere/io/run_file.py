@@ -242,24 +242,6 @@ def acquire_lock(lock: Path, what) -> int:
         os.close(fd)
 
 
-def check_unlocked(path: Path) -> None:
-    """Raise ``OutputError`` (one line) when another process writes ``path`` now (holds
-    the lock of its ``ExclusiveFile``), so a command can refuse before its set-up. A
-    shared lock, taken and dropped at once: nothing is created, and any number of
-    processes (an MPI run's ranks) may look at the same time."""
-    lock = Path(path).with_name(Path(path).name + ".lock")
-    try:
-        fd = os.open(lock, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
-    except OSError:  # none (or not ours to read): the writer's own lock still decides
-        return
-    try:
-        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-    except OSError:
-        raise OutputError(f"another run is writing {path} (it holds {lock})") from None
-    finally:
-        os.close(fd)
-
-
 def release_lock(lock: Path, fd: int) -> None:
     """Undo ``acquire_lock``: remove the file first, so a waiting process retries on a new one."""
     lock.unlink(missing_ok=True)
@@ -284,10 +266,37 @@ def folder_lock(folder: Path, name: str):
         release_lock(lock, fd)
 
 
+_HELD: dict[str, int] = {}  # lock file (absolute) → descriptor: held ahead by ``HeldLock``, not yet taken by a writer
+
+
+class HeldLock:
+    """``with HeldLock(path):`` the writer's lock of ``path`` (``path.lock``) taken now, when
+    the object is made, so that a command refuses at its start (``OutputError``, one line,
+    when another process writes ``path``) rather than after its set-up and header; the next
+    ``ExclusiveFile`` of ``path`` in this process takes it over and releases it when done.
+    A lock no writer took over is released at the block's end."""
+
+    def __init__(self, path):
+        path = Path(path)
+        self.lock = path.with_name(path.name + ".lock")
+        self.key = os.path.abspath(self.lock)
+        self.fd = acquire_lock(self.lock, path)
+        _HELD[self.key] = self.fd
+
+    def __enter__(self) -> HeldLock:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if _HELD.get(self.key) == self.fd:
+            del _HELD[self.key]
+            release_lock(self.lock, self.fd)
+
+
 class ExclusiveFile:
     """Write ``path`` through ``path.part``, so two processes never write the
     same file and a file is never written through a link: the writer holds an
-    exclusive ``flock`` on ``path.lock`` (removed when done) and creates the
+    exclusive ``flock`` on ``path.lock`` (removed when done; taken over from a
+    ``HeldLock`` of this process where there is one) and creates the
     part with O_EXCL | O_NOFOLLOW. A second writer gets ``OutputError``; a
     ``.part`` left by a killed run (its lock is free) is replaced with
     ``overwrite``, else refused. ``commit`` moves the finished part onto
@@ -320,7 +329,8 @@ class ExclusiveFile:
             raise
 
     def _acquire(self) -> int:
-        return acquire_lock(self.lock, self.path)
+        held = _HELD.pop(os.path.abspath(self.lock), None)  # taken ahead by the command (``HeldLock``)
+        return acquire_lock(self.lock, self.path) if held is None else held
 
     def _create(self) -> None:
         try:

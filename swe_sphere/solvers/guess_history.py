@@ -9,7 +9,7 @@ from typing import NamedTuple
 import numpy as np
 import warp as wp
 
-from ..kernels import helmholtz as hk
+from ..kernels import helmholtz_cg as cgk
 
 f64 = wp.float64
 
@@ -35,7 +35,7 @@ class GuessHistory:
     than a warm start). After the solve the increment y − y0 (A-orthogonal to X in exact
     arithmetic), A-orthonormalised against X, is appended, its product from the CG's residual
     (A y = b − r); with k vectors the basis restarts from the solution and its start
-    (``kernels.helmholtz.history_coefficients``; Fischer's from the solution alone). The inner
+    (``kernels.helmholtz_cg.history_coefficients``; Fischer's from the solution alone). The inner
     products are summed on the device in index order and over ranks by ``Topology``
     (``HelmholtzCG.totals``' way): the same bits on any threads, to round-off on any ranks.
 
@@ -51,28 +51,28 @@ class GuessHistory:
         self.topology, self.k = topo, k
         self.X = wp.zeros((k, topo.nunique), dtype=f64, device=dev)
         self.AX = wp.zeros((k, topo.nunique), dtype=f64, device=dev)
-        self.hic = wp.zeros(3, dtype=wp.int32, device=dev)  # kernels.helmholtz COUNT, MODE, SLOT
+        self.hic = wp.zeros(3, dtype=wp.int32, device=dev)  # kernels.helmholtz_cg COUNT, MODE, SLOT
         self.hcs = wp.zeros(max(k + 1, 3), dtype=f64, device=dev)  # 1/‖·‖_A, the βⱼ
         self.arrays = (2 * k + 2) // 3
         rec, nchunks, chunk, nu = gw.model.launches.record, cg.partial.shape[1], cg.chunk, topo.nunique
         y, (y0, w0, partial, alpha, sums) = gw.y, gw.history_work
         self._guess = [
-            rec(hk.history_dots, nchunks, [self.X, gw.b, self.hic, partial, chunk], nodes_per_index=chunk),
+            rec(cgk.history_dots, nchunks, [self.X, gw.b, self.hic, partial, chunk], nodes_per_index=chunk),
             *topo.device_sums(partial, k, alpha),
             alpha,
-            rec(hk.history_guess, nu, [self.X, self.AX, alpha, self.hic, y, cg.w, y0, w0]),
+            rec(cgk.history_guess, nu, [self.X, self.AX, alpha, self.hic, y, cg.w, y0, w0]),
         ]
         self._store = [
             rec(
-                hk.history_increment_dots,
+                cgk.history_increment_dots,
                 nchunks,
                 [self.X, y, y0, gw.b, cg.r, w0, self.hic, partial, chunk],
                 nodes_per_index=chunk,
             ),
             *topo.device_sums(partial, k + 4, sums),
             sums,
-            wp.launch(hk.history_coefficients, 1, [sums, k, self.hic, self.hcs], device=dev, record_cmd=True),
-            rec(hk.history_store, nu, [self.X, self.AX, y, y0, gw.b, cg.r, w0, self.hic, self.hcs]),
+            wp.launch(cgk.history_coefficients, 1, [sums, k, self.hic, self.hcs], device=dev, record_cmd=True),
+            rec(cgk.history_store, nu, [self.X, self.AX, y, y0, gw.b, cg.r, w0, self.hic, self.hcs]),
         ]
 
     def _play(self, launches) -> None:
@@ -89,7 +89,7 @@ class GuessHistory:
         self._play(self._store)
 
     def count(self) -> int:
-        return int(self.hic.numpy()[hk.COUNT])
+        return int(self.hic.numpy()[cgk.COUNT])
 
     def _rows(self):
         return [self.X[j] for j in range(self.k)] + [self.AX[j] for j in range(self.k)]

@@ -14,6 +14,7 @@ from ..core.errors import StepFailure
 from ..core.graphs import captured
 from ..kernels import gravity_wave as gk
 from ..kernels import helmholtz as hk
+from ..kernels import helmholtz_cg as cgk
 from ..model.gravity_wave import GravityWaveOperator, check_mean_depth
 from .guess_history import GuessHistory, HistoryWork
 from .helmholtz_cg import SINGLE_FLOOR, SINGLE_TOL, HelmholtzCG
@@ -112,19 +113,19 @@ class HelmholtzSolver:
         self.b, self.y = wp.zeros(nu, dtype=f64, device=dev), wp.zeros(nu, dtype=f64, device=dev)
         self.stats = wp.zeros(
             3, dtype=f64, device=dev
-        )  # iterations, failures, the first failure's residual (hk.ITERATIONS …)
+        )  # iterations, failures, the first failure's residual (cgk.ITERATIONS …)
         self.cg = HelmholtzCG(model, f64, self.b, self.y, self.stats)
         self.low = None if precision == "double" else HelmholtzCG(model, wp.float32, stats=self.stats)
         rec = model.launches.record
-        self._shift = rec(hk.add_mean_difference, nu, [self.y, self.cg.sums, f64(model.topology.total_area)])
+        self._shift = rec(cgk.add_mean_difference, nu, [self.y, self.cg.sums, f64(model.topology.total_area)])
         if self.low is not None:  # the refinement's conversions between the two solves and its test
-            self._narrow = rec(hk.converted(wp.float32), nu, [self.b, self.low.b])
-            self._narrow_r = rec(hk.converted(wp.float32), nu, [self.cg.r, self.low.b])
-            self._widen = rec(hk.add_converted, nu, [self.y, self.low.y])
+            self._narrow = rec(cgk.converted(wp.float32), nu, [self.b, self.low.b])
+            self._narrow_r = rec(cgk.converted(wp.float32), nu, [self.cg.r, self.low.b])
+            self._widen = rec(cgk.add_converted, nu, [self.y, self.low.y])
             cg, low = self.cg, self.low
             self._check_first, self._check_next = (
                 wp.launch(
-                    hk.refine_check,
+                    cgk.refine_check,
                     1,
                     [
                         cg.sums,

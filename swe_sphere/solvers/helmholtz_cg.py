@@ -12,6 +12,7 @@ from __future__ import annotations
 import warp as wp
 
 from ..kernels import helmholtz as hk
+from ..kernels import helmholtz_cg as cgk
 from ..kernels import operators
 from ..model.shallow_water import ShallowWater
 
@@ -32,7 +33,7 @@ class HelmholtzCG:
     precision); inner products summed in float64 in a fixed order on any device,
     threads and ranks. ``b``, ``y``: the right-hand side and solution vectors
     (float64 ones may be given, shared with the caller); ``stats``: the float64
-    device counters (``kernels.helmholtz.ITERATIONS``, ``FAILURES``, ``RESIDUAL``)
+    device counters (``kernels.helmholtz_cg.ITERATIONS``, ``FAILURES``, ``RESIDUAL``)
     the solve adds to, shared with the caller's other solves (its own if None).
 
     The whole solve runs on the device: the inner products' partial sums are added
@@ -76,7 +77,7 @@ class HelmholtzCG:
         self.area, self.ones = wp.array(topo.area, dtype=dtype, device=dev), wp.ones(nu, dtype=dtype, device=dev)
         self.chunk = chunk = topo.backend.reduction_chunk(nu)
         self.partial = wp.zeros((3, (nu + chunk - 1) // chunk), dtype=f64, device=dev)
-        # the device scalars: the inner products' totals, the recurrences' (hk.GAMMA …), the flag and counts (hk.GO …)
+        # the device scalars: the inner products' totals, the recurrences' (cgk.GAMMA …), the flag and counts (cgk.GO …)
         self.sums = wp.zeros(3, dtype=f64, device=dev)
         self.cs = wp.zeros(8, dtype=f64, device=dev)
         self.ic = wp.zeros(3, dtype=wp.int32, device=dev)
@@ -87,11 +88,11 @@ class HelmholtzCG:
         self._inner = {}
         rec, nchunks = model.launches.record, self.partial.shape[1]
         update = [self.p, self.s, self.y, self.r, self.u, self.w, self.minv, self.partial, chunk]
-        self._update = rec(hk.cg_update(dtype), nchunks, [self.cs, 0, *update], nodes_per_index=chunk)
-        self._restart = rec(hk.cg_update(dtype), nchunks, [self.cs, 1, *update], nodes_per_index=chunk)
+        self._update = rec(cgk.cg_update(dtype), nchunks, [self.cs, 0, *update], nodes_per_index=chunk)
+        self._restart = rec(cgk.cg_update(dtype), nchunks, [self.cs, 1, *update], nodes_per_index=chunk)
         self._first, self._check = (
             wp.launch(
-                hk.cg_check,
+                cgk.cg_check,
                 1,
                 [self.sums, first, f64(0.0), 0, self.cs, self.ic, self.stats],
                 device=dev,
@@ -99,7 +100,7 @@ class HelmholtzCG:
             )
             for first in (1, 0)
         )
-        self._alpha = wp.launch(hk.cg_alpha, 1, [self.sums, self.cs, self.ic], device=dev, record_cmd=True)
+        self._alpha = wp.launch(cgk.cg_alpha, 1, [self.sums, self.cs, self.ic], device=dev, record_cmd=True)
         # over ranks an iteration keeps Chronopoulos–Gear's one reduction (an allreduce costs more there
         # than the converged iteration's product, a 1/P share); on one rank the sums stay on the device
         self._one_reduction = topo.distributed
@@ -208,7 +209,7 @@ class HelmholtzCG:
         launch = self._inner.get(key)
         if launch is None:
             launch = self._inner[key] = self.model.launches.record(
-                hk.inner3(self.dtype),
+                cgk.inner3(self.dtype),
                 self.partial.shape[1],
                 [a0, b0, a1, b1, a2, b2, self.partial, self.chunk],
                 nodes_per_index=self.chunk,

@@ -1,5 +1,5 @@
 """Flexible GMRES (Saad 1993, SIAM J. Sci. Comput. 14, 461) on Warp arrays, for
-the JFNK stepper (the Helmholtz CG is ``kernels.helmholtz``'s), and the Krylov
+the JFNK stepper (the Helmholtz CG is ``kernels.helmholtz_cg``'s), and the Krylov
 basis it is built on (``KrylovBasis``), which the exponential steppers' KIOPS
 (``kiops.Kiops``) shares.
 

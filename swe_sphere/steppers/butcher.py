@@ -465,36 +465,12 @@ def stage_form(A, b, c, d=None) -> tuple[tuple, tuple]:
         kept = [
             name for name, v in content.items() if name == "x" or _in_span(v, [*cut, content["x"]])
         ]  # x is kept anyway
-        writes = []  # (target, links)
         if last:  # the estimate before x(n+1), which overwrites the x it may read
-            writes += [(t, _express(t, k, content)) for t in ends]
+            writes = [(t, _express(t, k, content)) for t in ends]
         else:
-            held = [name for name in kept if content[name] == Y[k]]
-            if not held:
-                writes.append((Y[k], _express(Y[k], k, content)))
-            for target in cut[1:]:
-                if not _in_span(target, [content[name] for name in kept] + [w[0] for w in writes]):
-                    writes.append((target, _express(target, k, content)))
+            writes = _writes(Y[k], cut[1:], k, content, kept)
         dying = [name for name in content if name not in kept] + free
-        best = None
-        for order in itertools.permutations(range(len(writes))) if len(writes) <= 5 else [range(len(writes))]:
-            outs, pool, new = {}, list(dying), 0
-            for pos, w in enumerate(order):
-                later = {src for w2 in order[pos + 1 :] for link in writes[w2][1] for _, src in link}
-                later |= {src for link in writes[w][1][1:] for _, src in link}
-                if last:
-                    outs[w] = "x" if writes[w][0] is Z else "e"
-                    continue
-                out = next((name for name in pool if name not in later), None)
-                if out is None:
-                    new += 1
-                    out = f"new{new}"
-                else:
-                    pool.remove(out)
-                outs[w] = out
-            if best is None or new < best[0]:
-                best = (new, order, outs, pool)
-        _, order, outs, pool = best
+        order, outs, pool = _fewest_buffers(writes, dying, Z if last else None)
         for w in order:  # name the fresh buffers
             if outs[w].startswith("new"):
                 outs[w] = f"s{len(created) + 1}"
@@ -512,6 +488,45 @@ def stage_form(A, b, c, d=None) -> tuple[tuple, tuple]:
         free = [name for name in pool if name not in content]
         holder = None if last else next(name for name, v in content.items() if v == Y[k])
     return tuple(created) + (() if d is None else ("e",)), tuple(stages)
+
+
+def _writes(y, rest, k: int, content: dict, kept: list) -> list:
+    """What a stage that is not the last writes, (target, links) each: Y_(k+1) = ``y`` unless
+    a kept buffer holds it, then each combination of ``rest`` outside the span of the kept
+    buffers and the writes before it."""
+    writes = []
+    if not any(content[name] == y for name in kept):
+        writes.append((y, _express(y, k, content)))
+    for target in rest:
+        if not _in_span(target, [content[name] for name in kept] + [w[0] for w in writes]):
+            writes.append((target, _express(target, k, content)))
+    return writes
+
+
+def _fewest_buffers(writes: list, dying: list, last_x) -> tuple:
+    """(order, outs, pool): the order of ``writes`` (every one of up to five writes tried)
+    and their output buffers that take the fewest fresh buffers ("new1", …), reusing the
+    ``dying`` ones that no later link reads; ``pool`` the dying left unused. In the last stage
+    (``last_x`` the x(n+1) target) the outputs are "x" for x(n+1) and "e" for the estimate."""
+    best = None
+    for order in itertools.permutations(range(len(writes))) if len(writes) <= 5 else [range(len(writes))]:
+        outs, pool, new = {}, list(dying), 0
+        for pos, w in enumerate(order):
+            later = {src for w2 in order[pos + 1 :] for link in writes[w2][1] for _, src in link}
+            later |= {src for link in writes[w][1][1:] for _, src in link}
+            if last_x is not None:
+                outs[w] = "x" if writes[w][0] is last_x else "e"
+                continue
+            out = next((name for name in pool if name not in later), None)
+            if out is None:
+                new += 1
+                out = f"new{new}"
+            else:
+                pool.remove(out)
+            outs[w] = out
+        if best is None or new < best[0]:
+            best = (new, order, outs, pool)
+    return best[1:]
 
 
 def stage_terms(terms, dst, arrays: dict, K, tau: float) -> tuple:

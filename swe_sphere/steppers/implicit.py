@@ -1,39 +1,8 @@
-"""Fully implicit Jacobian-free Newton–Krylov stepper (Evans, Taylor & Drake 2010,
-Mon. Wea. Rev. 138, 3333; HOMME ``implicit_mod`` / ``residual``).
-
-Each step solves R(x) = 0 on the DSS'd state, with F the model's DSS'd RHS:
-
-  θ-method (``method = "theta"``; θ = 0.5 Crank–Nicolson, 1 backward Euler):
-      R(x) = (x − x(n))/Δt − θ F(x) − (1−θ) F(x(n))
-  BDF2 (``method = "bdf2"``; backward Euler on the first step):
-      R(x) = (x − 4/3 x(n) + 1/3 x(n−1))/Δt − 2/3 F(x)
-
-both written R(x) = (x − b)/Δt − β F(x) with b fixed during the step. (HOMME
-multiplies by the mass matrix M; F here is already M⁻¹-weighted by the DSS.)
-
-Newton: δ from J δ = −R by right-preconditioned flexible GMRES
-(``krylov.FGMRES``, on Warp arrays: the same code on CPU threads, CUDA and MPI
-ranks; flexible because the preconditioner's inexact inner solve changes it
-from one iteration to the next), with J v a forward difference of F, ε = sqrt(ε_mach)(1 + ‖x‖)/‖v‖
-(``jacobian.FiniteDifferenceJacobian``); forcing
-terms by Eisenstat & Walker (1996) choice 2 (γ = 0.9, α = 2, safeguarded,
-η ≤ 0.9, η ≥ ``gmres_tol``); a backtracking line search (Armijo, halving up
-to 8 times) when the residual does not fall. Converged when the RMS of R is
-≤ ``atol`` or ≤ ``rtol`` × its first value; at most ``maxiter`` (30)
-iterations, else the step fails (``StepFailure``). Newton starts from the
-extrapolation 2x(n) − x(n−1) (``initial_guess``; x(n) on the first step).
-
-Preconditioner (``preconditioner = "helmholtz"``, the default; Lott, Woodward
-& Evans 2015): the linearised gravity-wave block P = I/Δt − β L
-(L_v = −g∇h, L_h = −H∇·v, ``model.gravity_wave.GravityWaveOperator``), P⁻¹ = Δt (I − βΔt L)⁻¹
-through its Schur complement, the Helmholtz equation solved by the compiled
-mass-preconditioned CG to ``helmholtz_tol`` (1e-2: an inexact, varying inner
-solve, which flexible GMRES allows).
-
-Hyperviscosity is applied after the step, split from the implicit dynamics
-(forward Euler over Δt, subcycled as needed), as for the other steppers: inside
-the residual its ∇⁴ spectrum would dominate the Newton–Krylov iteration for
-a term that only damps the grid scale.
+"""Fully implicit Jacobian-free Newton–Krylov stepper (Evans, Taylor & Drake 2010, Mon. Wea.
+Rev. 138, 3333; HOMME ``implicit_mod`` / ``residual``): the θ-method and BDF2 by Newton with
+flexible GMRES on finite-difference Jacobian-vector products, preconditioned by the Helmholtz
+solve of the gravity-wave block (``Implicit``, whose docstring gives the residual, the Newton
+iteration, the preconditioner and the options), and its ``ImplicitOptions``.
 """
 
 from __future__ import annotations
@@ -98,6 +67,40 @@ class ImplicitOptions:
 
 class Implicit(Stepper):
     """Fully implicit θ-method / BDF2 stepper by Jacobian-free Newton–Krylov.
+
+    Each step solves R(x) = 0 on the DSS'd state, with F the model's DSS'd RHS:
+
+      θ-method (``method = "theta"``; θ = 0.5 Crank–Nicolson, 1 backward Euler):
+          R(x) = (x − x(n))/Δt − θ F(x) − (1−θ) F(x(n))
+      BDF2 (``method = "bdf2"``; backward Euler on the first step):
+          R(x) = (x − 4/3 x(n) + 1/3 x(n−1))/Δt − 2/3 F(x)
+
+    both written R(x) = (x − b)/Δt − β F(x) with b fixed during the step. (HOMME
+    multiplies by the mass matrix M; F here is already M⁻¹-weighted by the DSS.)
+
+    Newton: δ from J δ = −R by right-preconditioned flexible GMRES
+    (``krylov.FGMRES``, on Warp arrays: the same code on CPU threads, CUDA and MPI
+    ranks; flexible because the preconditioner's inexact inner solve changes it
+    from one iteration to the next), with J v a forward difference of F, ε = sqrt(ε_mach)(1 + ‖x‖)/‖v‖
+    (``jacobian.FiniteDifferenceJacobian``); forcing
+    terms by Eisenstat & Walker (1996) choice 2 (γ = 0.9, α = 2, safeguarded,
+    η ≤ 0.9, η ≥ ``gmres_tol``); a backtracking line search (Armijo, halving up
+    to 8 times) when the residual does not fall. Converged when the RMS of R is
+    ≤ ``atol`` or ≤ ``rtol`` × its first value; at most ``maxiter`` (30)
+    iterations, else the step fails (``StepFailure``). Newton starts from the
+    extrapolation 2x(n) − x(n−1) (``initial_guess``; x(n) on the first step).
+
+    Preconditioner (``preconditioner = "helmholtz"``, the default; Lott, Woodward
+    & Evans 2015): the linearised gravity-wave block P = I/Δt − β L
+    (L_v = −g∇h, L_h = −H∇·v, ``model.gravity_wave.GravityWaveOperator``), P⁻¹ = Δt (I − βΔt L)⁻¹
+    through its Schur complement, the Helmholtz equation solved by the compiled
+    mass-preconditioned CG to ``helmholtz_tol`` (1e-2: an inexact, varying inner
+    solve, which flexible GMRES allows).
+
+    Hyperviscosity is applied after the step, split from the implicit dynamics
+    (forward Euler over Δt, subcycled as needed), as for the other steppers: inside
+    the residual its ∇⁴ spectrum would dominate the Newton–Krylov iteration for
+    a term that only damps the grid scale.
 
     Options (scene table ``[implicit]``): ``method`` ("theta" | "bdf2"),
     ``theta`` (0.5), ``atol`` (1e-8),

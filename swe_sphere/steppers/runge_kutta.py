@@ -1,53 +1,12 @@
-"""One engine for Runge–Kutta methods given by their tables (``butcher.Table``):
-the built-in ``ssprk3``, ``rk4``, ``kgu35`` and ``imex`` (its tables in ``tables``)
-and a user's ``tableau`` (its table in the scene) are the same code.
-
-Explicit tables (``ExplicitRK``): x(n+1) = x(n) + Δt Σ b_j K_j, K_i = F(Y_i),
-Y_i = x(n) + Δt Σ_j a_ij K_j, written as ``butcher.stage_form``'s
-combinations, each written by the DSS of its stage's RHS
-(``ShallowWater.rhs_update``) rather than by a pass of its own: F is never
-stored, and the bits are those of storing F and combining after (ssprk3's and
-kgu35's combinations are their Shu–Osher forms; RK4's take one buffer and one
-combination fewer than its accumulator form).
-
-IMEX additive pairs (``ImexRK``; Ascher, Ruuth & Spiteri 1997, Appl. Numer.
-Math. 25, 151; Kennedy & Carpenter 2003): the linear gravity-wave terms L
-(``model.gravity_wave.GravityWaveOperator``) implicit, the rest S = F − L explicit, as HOMME-NH
-and ClimaTimeSteppers split. With the explicit table (A_E, b_E), the implicit
-one (A_I, b_I) of s stages, A_I lower triangular (diagonally implicit,
-a_ii = 0 allowed: an explicit stage), A_E strictly lower triangular, and
-common abscissae c,
-
-    Y_i = x(n) + Δt Σ_{j<i} (A_E,ij S(Y_j) + A_I,ij L Y_j) + Δt A_I,ii L Y_i,
-    x(n+1) = x(n) + Δt Σ_j (b_E,j S(Y_j) + b_I,j L Y_j).
-
-Each stage with a_ii ≠ 0 is one solve of (I − a_ii Δt L) Y_i = rhs_i through
-the Helmholtz equation, and L Y_i = (Y_i − rhs_i)/(a_ii Δt) follows from it
-without another product, written by the solve's back-substitution
-(``HelmholtzSolver.solve``'s ``implicit``) in rhs_i's own array; an explicit stage
-takes L Y_i from a product, and only where the two tables weigh it differently
-(S = F − L). Each combination
-(rhs_i, and x(n+1)) is summed from x itself (x(n) until the last writes it) in
-passes of two terms, as ``blas.axpbypcz``; the pass holding the F that the
-stage before has just evaluated is written by that RHS's DSS
-(``ShallowWater.rhs_update``, as the explicit tables' stages), and that F is
-stored only where a later combination needs it: the same passes in the same
-order, so the bits of storing F and combining after, with fewer passes (TC5
-ne 2, a step's own launches outside the solves and the ∇⁴, with the L Y_i in
-the back-substitution: ARS(3,4,3) 26 → 18, ARS(2,3,2) 19 → 13,
-``tests/steppers/test_imex.py``). ARS's pairs
-(b_E = b_I, the first stage x(n)) cost s RHS evaluations, s − 1 solves and
-one product with L a step. Mass: every stage keeps ∫h (F_h and L_h integrate
-to zero; the solve fixes ∫z_h), so x(n+1) has the mass of x(n) to round-off.
-
-Hyperviscosity is applied after each step, split from the dynamics, as in
-HOMME (``advance_hypervis``): forward Euler over the span the step covers.
-
-A stepper of this engine is a subclass that says which table it steps
-(``table()``); a method of another shape (a multirate MIS or MRI-GARK outer
-table driving a fast inner integrator) is another engine class beside these
-two, reading its own table the same way. FB-RK(3,2) (``explicit.FBRK32``) is not a
-table of this engine: see its docstring.
+"""One engine for Runge–Kutta methods given by their tables (``butcher.Table``): the built-in
+``ssprk3``, ``rk4``, ``kgu35``, the embedded pairs and ``imex`` (their tables in ``tables``) and a
+user's ``tableau`` (its table in the scene) are the same code: explicit tables (``ExplicitRK``)
+and IMEX additive pairs (``ImexRK``), each class's docstring saying how it steps; the ∇⁴ applied
+after each step, split from the dynamics, as in HOMME (``advance_hypervis``: forward Euler over
+the span the step covers). A stepper of this engine is a subclass that says which table it steps
+(``table()``); a method of another shape (a multirate outer table driving a fast inner
+integrator) is another engine class beside these two; FB-RK(3,2) (``explicit.FBRK32``) is not a
+table of this engine.
 """
 
 from __future__ import annotations
@@ -80,7 +39,16 @@ def _dt_times(q: Fraction, dt: float) -> float:
 
 class ExplicitRK(Stepper):
     """An explicit Runge–Kutta step of the table ``table()`` (a ``butcher.Table``),
-    recorded once from its ``stage_form``: s RHS evaluations a step."""
+    recorded once from its ``stage_form``: s RHS evaluations a step.
+
+    x(n+1) = x(n) + Δt Σ b_j K_j, K_i = F(Y_i),
+    Y_i = x(n) + Δt Σ_j a_ij K_j, written as ``butcher.stage_form``'s
+    combinations, each written by the DSS of its stage's RHS
+    (``ShallowWater.rhs_update``) rather than by a pass of its own: F is never
+    stored, and the bits are those of storing F and combining after (ssprk3's and
+    kgu35's combinations are their Shu–Osher forms; RK4's take one buffer and one
+    combination fewer than its accumulator form).
+    """
 
     explicit = capturable = variable_dt = True
     TABLE: Table  # a built-in's (``explicit_steppers``)
@@ -161,7 +129,38 @@ class ImexRK(HelmholtzSteps, Stepper):
     through A_E. Options: the Helmholtz solve's ``tol``, ``maxiter``,
     ``mean_depth``, ``precision``, ``guess_history``; each stage's solve starts from
     the projection onto past solutions of the stages with its a_ii
-    (``helmholtz.GuessHistory``; ``guess_history`` 0: from the last one's solution). Raises ValueError without the continuity and pressure-gradient terms."""
+    (``helmholtz.GuessHistory``; ``guess_history`` 0: from the last one's solution). Raises ValueError without the continuity and pressure-gradient terms.
+
+    IMEX additive pairs (Ascher, Ruuth & Spiteri 1997, Appl. Numer.
+    Math. 25, 151; Kennedy & Carpenter 2003): the linear gravity-wave terms L
+    (``model.gravity_wave.GravityWaveOperator``) implicit, the rest S = F − L explicit, as HOMME-NH
+    and ClimaTimeSteppers split. With the explicit table (A_E, b_E), the implicit
+    one (A_I, b_I) of s stages, A_I lower triangular (diagonally implicit,
+    a_ii = 0 allowed: an explicit stage), A_E strictly lower triangular, and
+    common abscissae c,
+
+        Y_i = x(n) + Δt Σ_{j<i} (A_E,ij S(Y_j) + A_I,ij L Y_j) + Δt A_I,ii L Y_i,
+        x(n+1) = x(n) + Δt Σ_j (b_E,j S(Y_j) + b_I,j L Y_j).
+
+    Each stage with a_ii ≠ 0 is one solve of (I − a_ii Δt L) Y_i = rhs_i through
+    the Helmholtz equation, and L Y_i = (Y_i − rhs_i)/(a_ii Δt) follows from it
+    without another product, written by the solve's back-substitution
+    (``HelmholtzSolver.solve``'s ``implicit``) in rhs_i's own array; an explicit stage
+    takes L Y_i from a product, and only where the two tables weigh it differently
+    (S = F − L). Each combination
+    (rhs_i, and x(n+1)) is summed from x itself (x(n) until the last writes it) in
+    passes of two terms, as ``blas.axpbypcz``; the pass holding the F that the
+    stage before has just evaluated is written by that RHS's DSS
+    (``ShallowWater.rhs_update``, as the explicit tables' stages), and that F is
+    stored only where a later combination needs it: the same passes in the same
+    order, so the bits of storing F and combining after, with fewer passes (TC5
+    ne 2, a step's own launches outside the solves and the ∇⁴, with the L Y_i in
+    the back-substitution: ARS(3,4,3) 26 → 18, ARS(2,3,2) 19 → 13,
+    ``tests/steppers/test_imex.py``). ARS's pairs
+    (b_E = b_I, the first stage x(n)) cost s RHS evaluations, s − 1 solves and
+    one product with L a step. Mass: every stage keeps ∫h (F_h and L_h integrate
+    to zero; the solve fixes ∫z_h), so x(n+1) has the mass of x(n) to round-off.
+    """
 
     variable_dt = True  # the combinations read Δt every step
 

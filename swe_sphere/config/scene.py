@@ -80,6 +80,7 @@ from .resolve import (
     DT_NOTES,
     HYPERVIS_EXPONENT,
     efold_nu,
+    is_controlled,
     resolve_case,
     resolve_control,
     resolve_dt,
@@ -261,7 +262,7 @@ class Scene:
     @property
     def clock(self) -> Clock:
         """The run's clock (``core.clock``): dt, ``start_day``, ``days`` and where dt comes from."""
-        return Clock(self.dt, self.start_day, self.days, self.dt_source)
+        return Clock(self.dt, self.start_day, self.days, self.dt_source, self.control is not None)
 
     @property
     def nsteps(self) -> int:
@@ -371,7 +372,7 @@ def with_days(scene: Scene, days: float, dt_source: str = "the restart file's") 
             + (f": the run branches at day {start:g} and days is the model day it ends at" if start else "")
         )
     scene = dataclasses.replace(scene, days=float(days))
-    Clock(scene.dt, start, scene.days, dt_source).check(
+    Clock(scene.dt, start, scene.days, dt_source, scene.control is not None).check(
         {"the output interval (output.every_days)": scene.output_every_days}
     )
     return scene
@@ -440,8 +441,9 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict) -> S
     output, time = s.get("output", {}), s.get("time", {})
     every, log_every = resolve_output_interval(output)
     stepper, days = resolve_stepper_days(time, stepper, days)
-    dt, dt_source, dt_notes = resolve_dt(time.get("dt"), dt, days, every, path.stem, grid, spacing)
-    output_fields, streams = resolve_output_files(output, dt, days, dt_source)
+    controlled = is_controlled(time)
+    dt, dt_source, dt_notes = resolve_dt(time.get("dt"), dt, days, every, path.stem, grid, spacing, controlled)
+    output_fields, streams = resolve_output_files(output, dt, days, dt_source, controlled)
     options, stepper_notes = resolve_stepper_options(stepper, s.get(stepper, {}), overrides)
     control = resolve_control(time, stepper, options, dt)
     hv, hv_notes = resolve_hyperviscosity(s.get("hyperviscosity", {}), terms, grid, spacing)

@@ -24,7 +24,7 @@ def _sim(rtol, days=1.0, **keys):
 
 def _run(sim, control, t, target):
     while t < target:
-        t = control.step(sim.x, t, target)
+        t, _ = control.step(sim.x, t, target)
     return t
 
 

@@ -37,6 +37,10 @@ from .summary import Stop
 # a target this close past a step's end (relative to Δt) is landed on by that step rather than
 # left to a sliver of a step after it
 LANDING_SLACK = 1e-6
+# the model's recorded launch lists kept under control (``LaunchRecorder.limit``): a fixed-Δt
+# run records about 10; the stages' combinations and the ∇⁴ step fold Δt into their keys, so
+# a Δt that changes every step adds about 5 a step
+LAUNCH_LISTS = 64
 
 
 class StepControl:
@@ -60,6 +64,7 @@ class StepControl:
         gravity_waves = stepper.courant_limit is not None  # explicit gravity waves: the signal's Courant number
         self.cfl = None if control.cfl is None else CflController(control.cfl, gravity_waves)
         self.dt = float(stepper.dt)
+        sim.model.launches.limit = LAUNCH_LISTS
         self.x0 = wp.empty_like(sim.x)
         self.accepted = self.rejected = 0
         self.dt_smallest, self.dt_sum, self.dt_largest = math.inf, 0.0, 0.0

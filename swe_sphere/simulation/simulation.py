@@ -457,7 +457,8 @@ class Simulation:
             raise err
         if stop.signum is not None:
             name = signal.Signals(stop.signum).name
-            err = Interrupted(interruption(name, self.step, self.scene, output, ckp.kept, ckp.written, stop.abandoned))
+            line = interruption(name, self.step, self.time, self.scene, output, ckp.kept, ckp.written, stop.abandoned)
+            err = Interrupted(line)
             err.signum, err.result, err.checkpoint = stop.signum, result, ckp.written
             raise err
         return result

@@ -162,13 +162,13 @@ class StepControl:
             self.controller.restore(state["controller"])
 
 
-def steer(sim, signals, ledger, bar) -> Stop:
+def steer(sim, signals, ledger, after) -> Stop:
     """``Simulation.run``'s loop under ``sim.control`` (a ``StepControl``): accepted steps to
     each day an ``AtDays`` activity is due at (output and restart times) and the scene's end in
     turn, each landed on exactly; every state checked at once (``BadNodes.first``, as the
-    guard's single steps: the same blow-up report) and the activities due called after it
-    (``Simulation._after_steps``). ``signals`` a ``StopSignals``, ``ledger`` the run's
-    ``summary.Ledger``, ``bar`` its progress bar. Returns why the loop stopped (``summary.Stop``)."""
+    guard's single steps: the same blow-up report), then ``after()`` (the activities due, the
+    progress bar). ``signals`` a ``StopSignals``, ``ledger`` the run's ``summary.Ledger``.
+    Returns why the loop stopped (``summary.Stop``)."""
     ctl, guard = sim.control, Guard(sim, sim.step, ledger)
     days = {float(sim.scene.days)}
     for activity in sim.activities.values():
@@ -181,7 +181,7 @@ def steer(sim, signals, ledger, bar) -> Stop:
             blowup = _checked_step(sim, day, guard, ledger)
             if blowup is not None:
                 return Stop(blowup=blowup)
-            sim._after_steps(sim.step, 1, bar)
+            after()
     return Stop()
 
 

@@ -270,7 +270,9 @@ class Simulation:
         Parameters
         ----------
         output : path, optional
-            The run file; ``overwrite``: replace an existing one (and restart file).
+            The run file.
+        overwrite : bool
+            Replace an existing output (and restart) file.
         restart_every : float, optional
             Write ``restart_file`` every so many model days and at the end.
         restart_file : path, optional
@@ -287,8 +289,7 @@ class Simulation:
         on_output : callable, optional
             ``on_output(step, x)`` at every output step, x the (3, N) device state.
         notify : callable, optional
-            ``notify(line)`` (rank 0): a note when the wall time estimated from the first
-            steps exceeds a day, and when the run file's cells were built (not cached).
+            ``notify(line)`` (rank 0): a note of a wall time estimated above a day, or a cells build.
         log : callable, optional
             ``log(line)`` (rank 0) with ``log_line`` every ``scene.log_every_steps``
             steps since t = 0 (given on every rank alike, or on none).
@@ -345,7 +346,7 @@ class Simulation:
                             last = self.scene.nsteps if until_step is None else until_step
                             stop = self._loop(Guard(self, last, ledger), signals, ledger, bar)
                         elif until_step is None:
-                            stop = steer(self, signals, ledger, bar)
+                            stop = steer(self, signals, ledger, lambda: self._after_steps(self.step, 1, bar))
                         else:
                             raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
                     self._stopped(stop, files, ckp)

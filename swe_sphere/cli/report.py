@@ -40,6 +40,18 @@ def _mesh_lines(sim) -> list[str]:
     return lines
 
 
+def _control_line(c) -> str:
+    """The header's line of a scene's step control (a ``SceneControl``)."""
+    what = (
+        f"error: rtol {c.rtol:g}, atol {c.atol_wind:g} m/s (u, v) and {c.atol_h:g} m (h), controller {c.controller}"
+        if c.mode == "error"
+        else "cfl"
+    )
+    cfl = "" if c.cfl is None else f", Courant target {c.cfl:g}"
+    most = "" if c.dt_max is None else f", dt_max {c.dt_max:g} s"
+    return f"{what}{cfl}; dt above is the first step, dt_min {c.dt_min:g} s{most}; steps land on the output times"
+
+
 def header(args, sim, output, device, comm) -> None:
     """The lines before the loop (rank 0 prints; call on every rank: the mesh figures
     and the smallest spacing gather over ranks)."""
@@ -71,6 +83,8 @@ def header(args, sim, output, device, comm) -> None:
     )
     for line in sim.stepper.describe():
         print(f"{scene.stepper:11s} {line}")
+    if scene.control is not None:
+        print(f"control     {_control_line(scene.control)}")
     if comm is not None:
         sizes = [len(p) for p in sim.topology.parts]
         print(
@@ -138,6 +152,8 @@ def summary(r, sim) -> None:
             f"  time        compile {r.compile_time:.2f} s (setup and loop), first step {r.first_step_time:.3f} s{rest}"
         )
     print(f"  RHS evals   {r.rhs_evals}")
+    if sim.control is not None:  # counted since t = 0, as a restart file carries them
+        print(f"  steps       {sim.control.summary()}")
     if sim.dfi is not None:
         print(
             f"  initial     digital-filter start: {sim.dfi.rhs_evals} RHS evals, {sim.dfi.wall_time:.2f} s (in setup); rms dh/dt "

@@ -49,13 +49,13 @@ def _continued(args, device, comm):
     continued = args.stepper is None and args.dt is None  # not a branch (which refuses a length of 0 days itself)
     if continued:  # 0 steps would leave an empty file that blocks the real one
         end = ck.scene if args.days is None else with_days(ck.scene, args.days)
-        if args.days is None and ck.step >= end.nsteps:
+        if args.days is None and ck.day >= end.days:
             raise CheckpointError(
                 f"{args.continue_from} is already at its run's end day {ck.scene.days:g}: give --days for the new end day"
             )
-        if end.nsteps == ck.step:
+        if end.days == ck.day:
             raise CheckpointError(
-                f"{args.continue_from}: the checkpoint is already at day {ck.scene.day(ck.step):g} (--days is the "
+                f"{args.continue_from}: the checkpoint is already at day {ck.day:g} (--days is the "
                 "model day the continued run ends at: give a later one)"
             )
     if (
@@ -202,7 +202,7 @@ def _run(args, scene, output, device, comm) -> int:
         sim = _continued(args, device, comm)
     if not sim.root:  # rank 0 reports; the others' errors still reach stderr
         sys.stdout = open(os.devnull, "w")
-    if args.restart_every is not None:
+    if args.restart_every is not None and sim.control is None:  # under step control any interval lands
         restart_steps(sim.scene, args.restart_every)  # checks the interval before the run
     header(args, sim, output, device, comm)
     try:

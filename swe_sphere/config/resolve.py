@@ -299,12 +299,13 @@ def resolve_stepper_days(table: dict, stepper=None, days=None) -> tuple[str, flo
 
 
 def resolve_dt(
-    scene_dt, dt, days: float, every: float, scene: str, grid: SceneGrid, spacing: Spacing
+    scene_dt, dt, days: float, every: float, scene: str, grid: SceneGrid, spacing: Spacing, controlled: bool = False
 ) -> tuple[float, str, tuple]:
     """(dt (s), where it comes from for messages, notes): ``dt`` as given, else the time.dt of
     scene ``scene`` (``scene_dt``) times ``spacing.smallest`` (the run's smallest node spacing
     on ``grid`` over the scene file's), shortened to divide the output interval ``every`` and
-    the run of ``days`` (``Clock.fitted``). The schedule is checked (``Clock.check``).
+    the run of ``days`` (``Clock.fitted``). The schedule is checked (``Clock.check``; with
+    ``controlled`` steps, ``is_controlled``, dt is the first and need not divide it).
     Raises ``SceneError``: no time.dt, dt ≤ 0, a run or output interval of no whole steps."""
     if dt is not None:
         source, notes = "the dt given", ()
@@ -318,7 +319,7 @@ def resolve_dt(
         dt, source, notes = _scaled_dt(scene_dt, days, every, scene, grid, spacing)
     if not (is_number(dt) and math.isfinite(dt) and dt > 0):
         raise SceneError(f"dt must be > 0 (got {got(dt)})")
-    Clock(dt, 0.0, days, source).check({"the output interval (output.every_days)": every})
+    Clock(dt, 0.0, days, source, controlled).check({"the output interval (output.every_days)": every})
     return dt, source, notes
 
 
@@ -357,6 +358,12 @@ CONTROL_KEYS = {
     "error": ("rtol", "atol", "controller", "cfl", "dt_min", "dt_max"),
 }
 DT_MIN_FRACTION = 1e-3  # dt_min's default: this fraction of the first step
+
+
+def is_controlled(table: dict) -> bool:
+    """Whether [time] ``table`` asks for steps chosen step to step (a ``control`` other than
+    "fixed"; the mode itself checked by ``resolve_control``)."""
+    return table.get("control", "fixed") != "fixed"
 
 
 def resolve_control(table: dict, stepper: str, options: dict, dt: float) -> SceneControl | None:
@@ -530,9 +537,12 @@ def _fields(value, key: str) -> tuple:
     return tuple(f for f in OUTPUT_FIELDS if f in value)  # the file's order
 
 
-def resolve_output_files(output: dict, dt: float, days: float, dt_source: str) -> tuple[tuple, tuple]:
+def resolve_output_files(
+    output: dict, dt: float, days: float, dt_source: str, controlled: bool = False
+) -> tuple[tuple, tuple]:
     """([output] fields, [[output.streams]]) checked: field names, stream names (a
-    file-name suffix, distinct, not "restart") and intervals of whole steps."""
+    file-name suffix, distinct, not "restart") and intervals of whole steps (any interval
+    with ``controlled`` steps, which land on the times)."""
     fields = _fields(output.get("fields"), "output.fields")
     streams, names = [], set()
     for i, st in enumerate(output.get("streams", [])):
@@ -552,7 +562,7 @@ def resolve_output_files(output: dict, dt: float, days: float, dt_source: str) -
         every = check_type(f"{where}.every_days", st.get("every_days"), float) if "every_days" in st else None
         if every is None or not every > 0:
             raise SceneError(f"{where}.every_days must be > 0 (got {every})")
-        Clock(dt, 0.0, days, dt_source).check({f"the output interval {where}.every_days": every})
+        Clock(dt, 0.0, days, dt_source, controlled).check({f"the output interval {where}.every_days": every})
         streams.append(
             {
                 "name": name,

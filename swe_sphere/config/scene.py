@@ -81,6 +81,7 @@ from .resolve import (
     DT_NOTES,
     HYPERVIS_EXPONENT,
     efold_nu,
+    is_controlled,
     resolve_case,
     resolve_control,
     resolve_dt,
@@ -276,7 +277,7 @@ class Scene:
     @property
     def clock(self) -> Clock:
         """The run's clock (``core.clock``): dt, ``start_day``, ``days`` and where dt comes from."""
-        return Clock(self.dt, self.start_day, self.days, self.dt_source)
+        return Clock(self.dt, self.start_day, self.days, self.dt_source, self.control is not None)
 
     @property
     def nsteps(self) -> int:
@@ -389,7 +390,7 @@ def with_days(scene: Scene, days: float, dt_source: str = "the restart file's") 
             + (f": the run branches at day {start:g} and days is the model day it ends at" if start else "")
         )
     scene = dataclasses.replace(scene, days=float(days))
-    Clock(scene.dt, start, scene.days, dt_source).check(
+    Clock(scene.dt, start, scene.days, dt_source, scene.control is not None).check(
         {"the output interval (output.every_days)": scene.output_every_days}
     )
     return scene
@@ -458,16 +459,19 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict) -> S
     output, time = s.get("output", {}), s.get("time", {})
     every, log_every = resolve_output_interval(output)
     stepper, days = resolve_stepper_days(time, stepper, days)
-    dt, dt_source, dt_notes = resolve_dt(time.get("dt"), dt, days, every, path.stem, grid, spacing)
+    controlled = is_controlled(time)
+    dt, dt_source, dt_notes = resolve_dt(time.get("dt"), dt, days, every, path.stem, grid, spacing, controlled)
     own_dt = dt
     if dt_source == "the dt given" or "time.dt" in overrides:  # the dt it would choose itself, all else as given
         try:
             own_spacing = resolve_spacing(scene_grid, grid, planet.a, own.get("planet", {}).get("radius", EARTH.a))
-            own_dt = resolve_dt(own.get("time", {}).get("dt"), None, days, every, path.stem, grid, own_spacing)[0]
+            own_dt = resolve_dt(
+                own.get("time", {}).get("dt"), None, days, every, path.stem, grid, own_spacing, controlled
+            )[0]
         except SceneError:  # none that fits the output interval
             own_dt = None
     own_planet, own_days = _own_planet_days(own)
-    output_fields, streams = resolve_output_files(output, dt, days, dt_source)
+    output_fields, streams = resolve_output_files(output, dt, days, dt_source, controlled)
     options, stepper_notes = resolve_stepper_options(stepper, s.get(stepper, {}), overrides)
     control = resolve_control(time, stepper, options, dt)
     hv, hv_notes = resolve_hyperviscosity(s.get("hyperviscosity", {}), terms, grid, spacing)

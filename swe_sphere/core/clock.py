@@ -64,12 +64,16 @@ class Clock:
         The last model day (from t = 0); the run is ``start`` to ``end``.
     source : str
         Where dt comes from, for the refusals: "the dt given", "time.dt of scene tc5_mountain", ...
+    controlled : bool
+        Δt chosen step to step (``Scene.control``): dt is the first step, and the run and its
+        intervals need not be whole steps of it (``check``); steps land on their times.
     """
 
     dt: float
     start: float = 0.0
     end: float = 1.0
     source: str = "the dt given"
+    controlled: bool = False
 
     @property
     def length(self) -> float:
@@ -123,11 +127,14 @@ class Clock:
     def check(self, intervals: dict[str, float] | None = None) -> None:
         """Refuse (``SceneError``) a run of more than ``MAX_STEPS`` steps, a run length of no
         whole steps and any of ``intervals`` ({what: days}; output intervals) shorter than the
-        run that is not whole steps; the first refusal wins."""
+        run that is not whole steps; the first refusal wins. A ``controlled`` clock's steps land
+        on the times: only the first refusal applies."""
         if self.nsteps > MAX_STEPS:
             raise SceneError(
                 f"dt = {self.dt:g} s gives {self.nsteps:.3g} steps to day {self.length:g} (more than {MAX_STEPS:.0e})"
             )
+        if self.controlled:
+            return
         if not self.is_whole(self.length):
             raise self.refusal("the run length", self.length)
         for what, every in (intervals or {}).items():

@@ -8,8 +8,9 @@ state ``x`` (3, N) as the variables ``u``, ``v`` (m s⁻¹) and ``h`` (m) on
 (arrays (3, N) as variables ``stepper_<key>`` on (``row``, ``node``), scalars as
 attributes ``stepper_<key>``), the run's counters
 (step, RHS evaluations, solver iterations, wall time), the invariants at t = 0
-(so relative changes keep their origin), the resolved scene (JSON) and the
-package version.
+(so relative changes keep their origin), the resolved scene (JSON), under step control
+the control's state (``StepControl.state()``: the next Δt, the controller's history, the
+counts and the time reached; JSON, attribute ``step_control``) and the package version.
 
 Every variable is written with netCDF's per-variable Fletcher-32 checksum, and
 the attribute ``content_sha256`` holds a SHA-256 of the state, the stepper's
@@ -94,6 +95,7 @@ def write(
     grid: CubedSphere,
     overwrite: bool = True,
     restart_every: float | None = None,
+    control: dict | None = None,
 ) -> Path:
     """Write a restart file to ``path`` atomically (via ``output.ExclusiveFile``).
 
@@ -104,7 +106,8 @@ def write(
     t = 0; ``grid``: the run's grid, whose element-local ``lat``/``lon`` (degrees) and
     ``spheremp`` (m², the variable ``area``) go beside the state as its CF coordinates
     and cell measure (for tools; ``read`` does not need them); ``restart_every``: the
-    run's restart interval (days; None: none), which a continuation keeps. Raises
+    run's restart interval (days; None: none), which a continuation keeps; ``control``: under
+    step control ``StepControl.state()`` (its ``day`` the time written). Raises
     ``output.OutputError`` when ``path`` exists and not ``overwrite`` (or is a link /
     being written)."""
     path = Path(path)
@@ -117,12 +120,14 @@ def write(
             ds.swe_sphere_version = package_version()
             ds.scene = json.dumps(scene.as_dict())
             ds.step = np.int32(step)  # no 64-bit attributes: `nccopy -k classic` copies the file
-            ds.time_days = scene.day(step)
+            ds.time_days = scene.day(step) if control is None else control["day"]
             ds.counters = json.dumps(counters)
             ds.initial = json.dumps(initial)
             ds.content_sha256 = content_hash(step, x, stepper_state)
             if restart_every is not None:
                 ds.restart_every_days = float(restart_every)
+            if control is not None:
+                ds.step_control = json.dumps(control)  # floats as repr: read back to the bit
             ds.createDimension("row", 3)
             ds.createDimension("node", x.shape[1])
             for name, values, attrs in (
@@ -162,7 +167,8 @@ def write(
 def read(path) -> dict:
     """Read and check a restart file: {"scene": the scene as stored (``Scene.as_dict()``),
     "step", "x" (3, N), "stepper_state", "counters", "initial", "version", "path"
-    (absolute), "sha256" (of the file's bytes)}. Raises ``CheckpointError`` (one line)."""
+    (absolute), "sha256" (of the file's bytes), "restart_every", "control" (None without
+    step control)}. Raises ``CheckpointError`` (one line)."""
     path = Path(path)
     if path.is_dir():
         raise CheckpointError(f"checkpoint {path} is a directory, not a restart file")
@@ -217,6 +223,7 @@ def read(path) -> dict:
                 path=path.resolve(),
                 sha256=sha256,
                 restart_every=float(attrs["restart_every_days"]) if "restart_every_days" in attrs else None,
+                control=json.loads(attrs["step_control"]) if "step_control" in attrs else None,
             )
             digest = attrs["content_sha256"]
             planet = stored["scene"].get("planet")

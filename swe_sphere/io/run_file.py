@@ -107,6 +107,14 @@ SERIES_ATTRS = {
         units="1", long_name="cumulative fast (gravity-wave) evaluations of the multirate steppers' substeps"
     ),
     "steps": dict(units="1", long_name="time steps taken"),
+    # under step control (``simulation.adaptive``), at each output time
+    "dt": dict(units="s", long_name="length of the last accepted time step (the controller's; cut to land here)"),
+    "rejected_steps": dict(units="1", long_name="cumulative time steps rejected by the error controller"),
+    "error_estimate": dict(
+        units="1",
+        long_name="weighted RMS norm of the last accepted step's local error estimate over rtol and atol "
+        "(<= 1: within tolerance; NaN under CFL control)",
+    ),
 }
 for _f in ("h", "wind"):
     for _n, _long in (("l1", "normalized l1"), ("l2", "normalized l2"), ("linf", "normalized l-infinity")):

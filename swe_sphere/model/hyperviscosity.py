@@ -44,7 +44,7 @@ class Hyperviscosity:
             self.hv_flux = wp.zeros((8, N), dtype=f64, device=device)
         # the tensor ∇⁴'s second Laplacian reads its own fixed metric (``tensor_metric``); None: constant ν
         self.hv_tensor = None if m.hypervis_scaling is None else self.tensor_metric(m.hypervis_scaling)
-        self._substeps: dict[float, tuple[int, bool]] = {}  # plan
+        self._plan: tuple[float, tuple[int, bool]] | None = None  # (dt, its plan): the last dt's only
         self._biharmonic_radius = None
         self._rkl_buffers = None
 
@@ -217,12 +217,11 @@ class Hyperviscosity:
     def plan(self, dt: float) -> tuple[int, bool]:
         """(∇⁴ evaluations, RKL1?) of one ``apply`` over dt: the forward-Euler
         substeps, or the RKL1 stages where those are at most half as many (see
-        ``apply``); cached per dt."""
-        plan = self._substeps.get(dt)
-        if plan is None:
+        ``apply``); the last dt's kept (a controlled run's dt changes every step)."""
+        if self._plan is None or self._plan[0] != dt:
             n, s = self.substeps(dt), self.stages(dt)
-            plan = self._substeps[dt] = (s, True) if n >= 2 * s and n > self.model.hypervis_subcycle else (n, False)
-        return plan
+            self._plan = (dt, (s, True) if n >= 2 * s and n > self.model.hypervis_subcycle else (n, False))
+        return self._plan[1]
 
     def apply(self, x: wp.array2d, dt: float) -> None:
         """Apply ∇⁴ hyperviscosity over dt (s) in place, split from the dynamics:

@@ -69,7 +69,17 @@ class LaunchRecorder:
     nnodes : element-local nodes held, N = nelem·np².
     nunique : unique nodes held (the length of a unique-node vector).
     per_element : the pointwise kernels' layout: np² nodes a thread (True) or one.
+
+    Attributes
+    ----------
+    limit : int or None
+        The most launch lists kept (None: all). A run whose Δt changes step to step
+        (``simulation.adaptive``) sets it: keys that fold Δt into their coefficients (the
+        stages' combinations, the ∇⁴ step) would else add lists every step; the oldest
+        recorded goes first, and is recorded again if asked for.
     """
+
+    limit: int | None = None
 
     def __init__(self, device, threads: int, points: int, nnodes: int, nunique: int, per_element: bool):
         self.device, self.threads, self.block = device, int(threads), points * points
@@ -170,6 +180,8 @@ class LaunchRecorder:
         entry = self._recorded.get(key)
         if entry is None:
             entry = self._recorded[key] = (build(), arrays)
+            if self.limit is not None and len(self._recorded) > self.limit:
+                del self._recorded[next(iter(self._recorded))]
         for launch in entry[0]:
             launch.launch()
 

@@ -1,6 +1,7 @@
 """What a run does between its steps, each an activity of one shape (Oceananigans' output
 writers and callbacks): a ``schedule`` (``schedules.AtSteps``, ``schedules.EverySteps``, or any
-object with ``due(step) -> bool`` and ``next_after(step) -> int | None``) and a call
+object with ``due(step) -> bool`` and ``next_after(step) -> int | None``; under step control
+``schedules.AtDays``, due at days the steps land on) and a call
 ``activity(sim)``, made after each step the schedule names once the state there is known to be
 good (``sim.step`` is that step).
 
@@ -18,13 +19,19 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
-from .schedules import EverySteps
+from .schedules import AtDays, EverySteps
 
 
 class Schedule(Protocol):
     def due(self, step: int) -> bool: ...
 
     def next_after(self, step: int) -> int | None: ...
+
+
+def is_due(schedule: Schedule, sim) -> bool:
+    """Whether ``schedule`` is due at ``sim``'s step (an ``AtDays`` at the day the step landed
+    on, ``Simulation.event_day``)."""
+    return schedule.due(sim.step, sim.event_day) if isinstance(schedule, AtDays) else schedule.due(sim.step)
 
 
 class Activity(Protocol):
@@ -58,6 +65,6 @@ class Log:
 
     def __call__(self, sim) -> None:
         files = self.files
-        line = sim.diagnostics.log_line(files.history[-1] if files.schedule.due(sim.step) else None)
+        line = sim.diagnostics.log_line(files.history[-1] if is_due(files.schedule, sim) else None)
         if line is not None:
             self.log(line)

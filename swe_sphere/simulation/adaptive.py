@@ -10,31 +10,48 @@ at the controller's shorter Δt. A CFL target (``control.CflController``) is the
 under ``cfl``, a cap under ``error``. A proposal below dt_min stops as a blow-up (``BlowUp``:
 step, time, Δt). ``state``/``restore`` keep the proposal, the controller's history and the
 counts, so that a restart continues bitwise.
+
+``steer`` is ``Simulation.run``'s loop under control: accepted steps to each time an activity
+is due at (``schedules.AtDays``: output and restart times) and the end, each landed on exactly.
+Its steps are launched plainly, not replayed as graphs: a graph is keyed by Δt
+(``Stepper.graph_key``), and a Δt that changes every step would capture a graph every step.
 """
 
 from __future__ import annotations
 
 import math
+import time
 
 import warp as wp
 
 from ..config.schema import SceneControl
 from ..core.constants import DAY
-from ..core.errors import BlowUp
+from ..core.errors import BlowUp, StepFailure
 from ..model.diagnostics import courant_numbers
+from ..steppers import StepStats
 from ..steppers.control import CflController, Controller, ErrorNorm, capped
+from .guard import Guard
+from .schedules import AtDays
+from .summary import Stop
 
 # a target this close past a step's end (relative to Δt) is landed on by that step rather than
 # left to a sliver of a step after it
 LANDING_SLACK = 1e-6
+# the model's recorded launch lists kept under control (``LaunchRecorder.limit``): a fixed-Δt
+# run records about 10; the stages' combinations and the ∇⁴ step fold Δt into their keys, so
+# a Δt that changes every step adds about 5 a step
+LAUNCH_LISTS = 64
 
 
 class StepControl:
     """The step control of ``control`` (a ``SceneControl``) over ``stepper`` (``variable_dt``;
     under "error" with an ``error_estimate``) on ``sim``'s state and grid: ``sim.x`` (3, N),
-    ``sim.fields``, ``sim.grid``, ``sim.g``, ``sim.topology``. The first proposal is the
-    stepper's Δt. Counts: ``accepted``, ``rejected``, the smallest, summed and largest
-    accepted Δt (s); ``history``: (time (s), Δt (s), error norm or NaN) per accepted step."""
+    ``sim.fields``, ``sim.grid``, ``sim.g``, ``sim.topology``, ``sim.scene``. The first proposal
+    is the stepper's Δt. Counts: ``accepted``, ``rejected``, the smallest, summed and largest
+    accepted Δt (s); ``history``: (time (s), Δt (s), error norm or NaN) per accepted step.
+    Where the steps are: ``t`` (s since t = 0, from the scene's start day), ``day`` (days;
+    a target's day as given where a step landed on it, ``landed``), the last accepted ``dt_last``
+    and its error norm ``error_last`` (NaN under "cfl")."""
 
     def __init__(self, control: SceneControl, stepper, sim):
         self.control, self.stepper, self.sim = control, stepper, sim
@@ -47,10 +64,21 @@ class StepControl:
         gravity_waves = stepper.courant_limit is not None  # explicit gravity waves: the signal's Courant number
         self.cfl = None if control.cfl is None else CflController(control.cfl, gravity_waves)
         self.dt = float(stepper.dt)
+        sim.model.launches.limit = LAUNCH_LISTS
         self.x0 = wp.empty_like(sim.x)
         self.accepted = self.rejected = 0
         self.dt_smallest, self.dt_sum, self.dt_largest = math.inf, 0.0, 0.0
         self.history: list[tuple[float, float, float]] = []
+        self.day, self.landed = float(sim.scene.start_day), True
+        self.t, self.dt_last, self.error_last = self.day * DAY, math.nan, math.nan
+
+    def step_to(self, x, day: float) -> StepStats:
+        """``step`` from ``t`` toward ``day`` (days from t = 0): ``t``, ``day`` and ``landed``
+        moved on; the ``StepStats`` of its tries (rejected ones included)."""
+        self.t, stats = self.step(x, self.t, day * DAY)
+        self.landed = self.t == day * DAY
+        self.day = day if self.landed else self.t / DAY
+        return stats
 
     def _courant(self, x, dt: float) -> dict:
         u, v, h = self.sim.fields(x)
@@ -58,11 +86,12 @@ class StepControl:
         numbers = courant_numbers(self.sim.grid, u, v, h, dt, self.sim.g, gravity_waves) if self.sim.root else None
         return self.sim.topology.bcast(numbers)
 
-    def step(self, x, t: float, target: float) -> float:
+    def step(self, x, t: float, target: float) -> tuple[float, StepStats]:
         """One accepted step of x (3, N) in place from t (s) toward ``target`` (s, > t), rejected
-        steps retried; the time reached (``target`` itself where the step landed on it).
-        Raises ``BlowUp`` when the proposal falls below dt_min short of the target."""
-        c = self.control
+        steps retried; (the time reached: ``target`` itself where the step landed on it, the
+        ``StepStats`` of every try). Raises ``BlowUp`` when the proposal falls below dt_min
+        short of the target."""
+        c, tries = self.control, StepStats(0, {})
         while True:
             left = target - t
             dt = min(self.dt, c.dt_max or math.inf)
@@ -77,7 +106,9 @@ class StepControl:
             self.stepper.t0 = t - self.stepper.steps * dt  # the forcing's clock: the time reached, exactly
             saved = self.stepper.state() if self.error else None
             wp.copy(self.x0, x)
-            self.stepper.step(x)
+            stats = self.stepper.step(x)
+            iterations = {k: tries.iterations.get(k, 0) + n for k, n in stats.iterations.items()}
+            tries = StepStats(tries.rhs_evals + stats.rhs_evals, {**tries.iterations, **iterations})
             ok, proposal, err = self._propose(x, dt)
             if ok:
                 break
@@ -89,9 +120,10 @@ class StepControl:
         self.accepted += 1
         self.dt_smallest, self.dt_largest = min(self.dt_smallest, dt), max(self.dt_largest, dt)
         self.dt_sum += dt
+        self.dt_last, self.error_last = dt, err
         reached = target if landing else t + dt
         self.history.append((reached, dt, err))
-        return reached
+        return reached, tries
 
     def _propose(self, x, dt: float) -> tuple[bool, float, float]:
         """(accepted, the next Δt, the error norm or NaN) of a step of ``dt`` that ended in x."""
@@ -114,16 +146,72 @@ class StepControl:
 
     def state(self) -> dict:
         """The next proposal, the controller's history and the counts (a restart file's numbers)."""
-        s = {"dt": self.dt, "accepted": self.accepted, "rejected": self.rejected}
+        s = {"dt": self.dt, "accepted": self.accepted, "rejected": self.rejected, "t": self.t, "day": self.day}
         s |= {"dt_smallest": self.dt_smallest, "dt_sum": self.dt_sum, "dt_largest": self.dt_largest}
+        s |= {"landed": self.landed, "dt_last": self.dt_last, "error_last": self.error_last}
         return s | ({"controller": self.controller.state()} if self.error else {})
 
     def restore(self, state: dict) -> None:
         """Continue from ``state()``: the same steps as the control it came from."""
-        self.dt = float(state["dt"])
+        self.dt, self.landed = float(state["dt"]), bool(state["landed"])
         self.accepted, self.rejected = int(state["accepted"]), int(state["rejected"])
-        self.dt_smallest, self.dt_sum, self.dt_largest = (
-            float(state[k]) for k in ("dt_smallest", "dt_sum", "dt_largest")
+        self.t, self.day, self.dt_smallest, self.dt_sum, self.dt_largest, self.dt_last, self.error_last = (
+            float(state[k]) for k in ("t", "day", "dt_smallest", "dt_sum", "dt_largest", "dt_last", "error_last")
         )
         if self.error:
             self.controller.restore(state["controller"])
+
+
+def steer(sim, signals, ledger, after) -> Stop:
+    """``Simulation.run``'s loop under ``sim.control`` (a ``StepControl``): accepted steps to
+    each day an ``AtDays`` activity is due at (output and restart times) and the scene's end in
+    turn, each landed on exactly; every state checked at once (``BadNodes.first``, as the
+    guard's single steps: the same blow-up report), then ``after()`` (the activities due, the
+    progress bar). ``signals`` a ``StopSignals``, ``ledger`` the run's ``summary.Ledger``.
+    Returns why the loop stopped (``summary.Stop``)."""
+    ctl, guard = sim.control, Guard(sim, sim.step, ledger)
+    days = {float(sim.scene.days)}
+    for activity in sim.activities.values():
+        if isinstance(activity.schedule, AtDays):
+            days.update(activity.schedule.days)
+    for day in sorted(d for d in days if d * DAY > ctl.t):
+        while ctl.t < day * DAY:
+            if signum := signals.asked():  # every rank stops at the same step
+                return Stop(signum=signum)
+            blowup = _checked_step(sim, day, guard, ledger)
+            if blowup is not None:
+                return Stop(blowup=blowup)
+            after()
+    return Stop()
+
+
+def _checked_step(sim, day: float, guard: Guard, ledger) -> str | None:
+    """One accepted step of ``sim`` toward ``day`` (``StepControl.step_to``), counted in
+    ``ledger``, its state checked; None when good (``sim.step`` moved on), else the blow-up's
+    line (a proposal below dt_min, a solver's failure, a bad state: its step, time and place)
+    with the state, the control and ``sim.step`` those of the step before (``last_good``)."""
+    ctl = sim.control
+    saved = ctl.state()
+    wp.copy(sim.last_good, sim.x)
+    t0, cpu0 = time.perf_counter(), time.process_time()
+    trouble = node = None
+    try:
+        stats = ctl.step_to(sim.x, day)
+        # the solvers' device counters (``Stepper.deferred``): raises for a solve that missed its tolerance
+        stats = StepStats(stats.rhs_evals, {**stats.iterations, **sim.stepper.counts()})
+        node = sim.model.bad_nodes.first(sim.x)
+    except BlowUp as err:  # the rejected steps put the state back: it is the last good one
+        return str(err)
+    except StepFailure as err:
+        trouble, stats = str(err), None
+    wp.synchronize_device(sim.device)
+    ledger.add(stats)
+    ledger.account(sim.step + 1, t0, cpu0)
+    if trouble is None and node is None:
+        sim.step += 1
+        return None
+    detail = node if trouble is None else trouble
+    line = guard.message(sim.step + 1, "bad" if trouble is None else "failure", detail, ctl.day)
+    wp.copy(sim.x, sim.last_good)
+    ctl.restore(saved)
+    return line

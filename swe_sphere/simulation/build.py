@@ -21,6 +21,7 @@ from ..io.initial_state import from_function
 from ..model.shallow_water import ShallowWater
 from ..steppers import STEPPERS, make_stepper
 from ..steppers.initialization import digital_filter
+from .adaptive import StepControl
 from .state_diagnostics import StateDiagnostics
 
 ON_ROOT = object()  # ``start`` on the ranks > 0 when rank 0 alone holds the whole-grid start state
@@ -137,6 +138,8 @@ def build(sim, scene: Scene, backend: Backend, progress: bool, comm, start, init
     sim.initial = initial_diagnostics
     if initial_diagnostics is None:
         sim.initial = sim.diagnostics.diagnose(scene.start_day * DAY)
+    # Δt chosen step to step (``Scene.control``): the loop's steps land on its times
+    sim.control = None if scene.control is None else StepControl(scene.control, sim.stepper, sim)
     sim.step = 0  # steps taken since t = 0 (a branched run: since its branch day, ``Scene.start_day``)
     sim.counters = {
         "rhs_evals": 0,

@@ -41,6 +41,12 @@ class Checkpoint:
     path: Path | None = None  # the file read (absolute)
     sha256: str | None = None  # SHA-256 (hex) of the file's bytes
     restart_every: float | None = None  # days: the interval the run wrote restart files at (None: at a signal only)
+    control: dict | None = None  # under step control ``StepControl.state()`` (its ``day``: the time reached)
+
+    @property
+    def day(self) -> float:
+        """The model day reached (days from t = 0)."""
+        return self.scene.day(self.step) if self.control is None else self.control["day"]
 
 
 def branch(ck: Checkpoint, *, stepper: str | None = None, dt: float | None = None, days: float | None = None) -> Scene:
@@ -63,7 +69,7 @@ def branch(ck: Checkpoint, *, stepper: str | None = None, dt: float | None = Non
         "restart": None if ck.path is None else str(ck.path),
         "sha256": ck.sha256,
         "step": ck.step,
-        "day": s.day(ck.step),
+        "day": ck.day,
         "stepper": s.stepper,
         "dt": s.dt,
     }

@@ -87,8 +87,15 @@ def add_callback(
 
 
 def time(self) -> float:
-    """The model time of the current step, days since t = 0."""
-    return self.scene.day(self.step)
+    """The model time of the current step, days since t = 0 (under step control the
+    control's: a day as given where the step landed on it)."""
+    return self.scene.day(self.step) if self.control is None else self.control.day
+
+
+def event_day(self) -> float | None:
+    """Under step control the day the current step landed on (an output, restart or end
+    time; ``schedules.AtDays``), else None."""
+    return self.control.day if self.control is not None and self.control.landed else None
 
 
 def advance(self, days: float) -> RunResult:

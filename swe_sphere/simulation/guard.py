@@ -86,13 +86,14 @@ class Guard:
                 sim.counters["rhs_evals"], sim.counters["iterations"] = self._saved[1], self._saved[2]
         return trouble, node
 
-    def message(self, step: int, trouble: str, detail) -> str:
-        """What went wrong in the single step ``step``: where ``detail`` (its bad node,
-        a whole-grid index) went bad, or for a "failure" the solver's message
-        ``detail``, on every rank (call on every rank)."""
+    def message(self, step: int, trouble: str, detail, day: float | None = None) -> str:
+        """What went wrong in the single step ``step`` (at model ``day``, default the clock's):
+        where ``detail`` (its bad node, a whole-grid index) went bad, or for a "failure" the
+        solver's message ``detail``, on every rank (call on every rank)."""
         sim = self.sim
+        day = sim.scene.day(step) if day is None else day
         if trouble == "failure":
-            return f"step {step} failed (model time {sim.scene.day(step):.4f} days): {detail}"
+            return f"step {step} failed (model time {day:.4f} days): {detail}"
         u, v, h = sim.fields()
         if not sim.root:
             return sim.topology.bcast(None)
@@ -103,6 +104,5 @@ class Guard:
             else f"depth h = {h[detail]:.4g} m <= 0"
         )
         return sim.topology.bcast(
-            f"blow-up at step {step} (model time {sim.scene.day(step):.4f} days): {what} "
-            f"at lat {lat:.2f}, lon {lon:.2f} degrees"
+            f"blow-up at step {step} (model time {day:.4f} days): {what} at lat {lat:.2f}, lon {lon:.2f} degrees"
         )

@@ -74,9 +74,9 @@ def from_checkpoint(
         )
     else:
         scene = ck.scene if days is None else with_days(ck.scene, days)
-        if scene.nsteps < ck.step:
+        if scene.days < ck.day:
             raise ckpt.CheckpointError(
-                f"the run length {scene.days:g} days ends before the checkpoint (day {ck.scene.day(ck.step):g})"
+                f"the run length {scene.days:g} days ends before the checkpoint (day {ck.day:g})"
             )
         sim = cls(
             scene,
@@ -110,6 +110,8 @@ def restore_history(self, ck: ckpt.Checkpoint) -> None:
     except ValueError as err:
         raise ckpt.CheckpointError(f"checkpoint does not fit the stepper: {err}") from None
     self.step, self.counters, self.initial = ck.step, ck.counters, ck.initial
+    if self.control is not None and ck.control is not None:  # the steps go on as if never stopped
+        self.control.restore(ck.control)
 
 
 def write_checkpoint(self, path, *, overwrite: bool = True, restart_every: float | None = None) -> Path:
@@ -130,4 +132,5 @@ def write_checkpoint(self, path, *, overwrite: bool = True, restart_every: float
         grid=self.grid,
         overwrite=overwrite,
         restart_every=restart_every,
+        control=None if self.control is None else self.control.state(),
     )

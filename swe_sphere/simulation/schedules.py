@@ -6,6 +6,7 @@ from __future__ import annotations
 import bisect
 import math
 from dataclasses import dataclass
+from fractions import Fraction
 
 from ..config.scene import Scene
 from ..core.constants import DAY
@@ -24,6 +25,21 @@ def output_steps(scene: Scene, every_days: float | None = None) -> set[int]:
     every = every_days * DAY / scene.dt
     n_out = math.floor(scene.run_days / every_days + 1e-9)
     return {min(scene.nsteps, round(k * every)) for k in range(n_out + 1)} | {scene.nsteps}
+
+
+def interval_days(scene: Scene, every_days: float) -> set[float]:
+    """The model days (from t = 0) of every ``every_days`` from the scene's ``start_day`` to
+    its end, and the end: under step control (``Scene.control``) the times the steps land on.
+    Exact from the days as written (as ``Clock.day``), so day 3 is 3.0, not 3.0000000000000004."""
+    start, end, every = (Fraction(repr(float(d))) for d in (scene.start_day, scene.days, every_days))
+    n = math.floor((end - start) / every)
+    return {float(start + k * every) for k in range(1, n + 1)} | {float(end)}
+
+
+def output_days(scene: Scene, every_days: float | None = None) -> set[float]:
+    """``output_steps`` under step control: the output days, the start's and the end's."""
+    every_days = scene.output_every_days if every_days is None else every_days
+    return interval_days(scene, every_days) | {float(scene.start_day)}
 
 
 def restart_steps(scene: Scene, every_days: float) -> set[int]:
@@ -71,3 +87,23 @@ class EverySteps:
 
     def next_after(self, step: int) -> int:
         return next_multiple(step, self.steps)
+
+
+@dataclass(frozen=True)
+class AtDays:
+    """Due at the model days in ``days`` (sorted): a run's output and restart times under step
+    control (``StepControl``), whose steps land on them; ``due(step, day)`` asks of the day a
+    step landed on (None: a step between them; ``activities.is_due`` passes it)."""
+
+    days: tuple
+
+    @classmethod
+    def of(cls, days) -> AtDays:
+        return cls(tuple(sorted(days)))
+
+    def due(self, step: int, day: float | None) -> bool:
+        return day is not None and day in self.days
+
+    def next_after(self, step: int) -> None:
+        """None: steps do not say when a day falls (the loop lands on ``days`` itself)."""
+        return None

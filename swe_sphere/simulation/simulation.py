@@ -24,14 +24,14 @@ from tqdm import tqdm
 
 from ..config.scene import Scene, resolve_scene
 from ..core.backend import Backend, pick_device
-from ..core.constants import DAY
 from ..core.errors import BlowUp, Interrupted, StepFailure
 from ..core.graphs import GraphedSteps, default_mode, graphs_mode
 from ..core.interrupts import StepAbandoned, StopSignals
 from ..io.run_file import check_distinct, check_target
 from ..steppers import StepStats
 from . import drive, restart
-from .activities import Log
+from .activities import Log, is_due
+from .adaptive import steer
 from .build import build
 from .guard import Guard
 from .schedules import EverySteps
@@ -201,6 +201,7 @@ class Simulation:
     every = drive.every
     add_callback = drive.add_callback
     time = property(drive.time)
+    event_day = property(drive.event_day)
     advance = drive.advance
     steps = drive.steps
     state = drive.state
@@ -262,9 +263,9 @@ class Simulation:
     ) -> RunResult:
         """Integrate the scene from the current step; write ``output`` (netCDF) if given.
 
-        Blocks of steps, each checked by the guard (``guard.Guard``), then the activities
-        due (``activities``): the run file and its ``[[output.streams]]`` (``stream_path``),
-        the restart file, the callbacks and writers in ``activities``, the log.
+        Blocks of steps, each checked by the guard (``guard.Guard``; under step control
+        ``adaptive.steer``'s), then the activities due (``activities``): the run file and its
+        ``[[output.streams]]``, the restart file, the callbacks and writers, the log.
 
         Parameters
         ----------
@@ -288,14 +289,12 @@ class Simulation:
         on_output : callable, optional
             ``on_output(step, x)`` at every output step, x the (3, N) device state.
         notify : callable, optional
-            ``notify(line)`` (rank 0) with a one-line note when the wall time estimated
-            from the first steps exceeds a day, and when the run file's cells were
-            built (not read from the cache).
+            ``notify(line)`` (rank 0): a note of a wall time estimated above a day, or a cells build.
         log : callable, optional
             ``log(line)`` (rank 0) with ``log_line`` every ``scene.log_every_steps``
             steps since t = 0 (given on every rank alike, or on none).
         until_step : int, optional
-            Stop after this step (default: the scene's last; ``advance``).
+            Stop after this step (default: the scene's last; ``advance``; not under step control).
 
         Returns
         -------
@@ -304,6 +303,8 @@ class Simulation:
 
         Raises
         ------
+        ValueError
+            ``until_step`` under step control (``scene.control``).
         OutputError
             An output or restart file exists (without ``overwrite``) or is an input.
         BlowUp
@@ -318,7 +319,19 @@ class Simulation:
             output, overwrite, restart_every, restart_file, compress, history, on_output, notify
         )
         ledger = Ledger(self.counters, self.scene, self.step, notify if self.root else None)
-        guard = Guard(self, self.scene.nsteps if until_step is None else until_step, ledger)
+        stop, signals = self._integrate(files, ckp, start, ledger, log, catch_signals, until_step)
+        if stop.signum is None and stop.blowup is None:  # a signal after the last step's check: the output is whole
+            stop.signum = signals.asked() or None
+        result = ledger.result(
+            self.step, files.history, courant, output, stop.blowup, ckp.written, self.setup_time, self._compile[0]
+        )
+        return self._outcome(stop, result, output, ckp)
+
+    def _integrate(self, files, ckp, start, ledger, log, catch_signals, until_step) -> tuple:
+        """``run``'s loop with its files (``RunFiles``, ``Checkpointer``) and signals: the fixed
+        step's (``_loop``) or, under ``scene.control``, the step control's (``adaptive.steer``);
+        (why it stopped, ``summary.Stop``; the ``StopSignals``). The files closed, or dropped
+        on an exception."""
         stop = Stop()
         # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
         # pay, and on a busy machine OpenBLAS's spinning threads made a norm cost 10 ms
@@ -329,18 +342,19 @@ class Simulation:
                     # restart file was written): not written again, so the two files join without a repeat
                     files.record(self.step, whole=start, final=True, write=not self.step)
                     with self._progress_bar() as bar:
-                        stop = self._loop(guard, signals, ledger, bar)
+                        if self.control is None:
+                            last = self.scene.nsteps if until_step is None else until_step
+                            stop = self._loop(Guard(self, last, ledger), signals, ledger, bar)
+                        elif until_step is None:
+                            stop = steer(self, signals, ledger, lambda: self._after_steps(self.step, 1, bar))
+                        else:
+                            raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
                     self._stopped(stop, files, ckp)
                 files.close()  # under this run's handlers: a signal now waits, and is answered below
             except BaseException:
                 files.abort()
                 raise
-        if stop.signum is None and stop.blowup is None:  # a signal after the last step's check: the output is whole
-            stop.signum = signals.asked() or None
-        result = ledger.result(
-            self.step, files.history, courant, output, stop.blowup, ckp.written, self.setup_time, self._compile[0]
-        )
-        return self._outcome(stop, result, output, ckp)
+        return stop, signals
 
     def _open(self, output, overwrite, restart_every, restart_file, compress, history, on_output, notify) -> tuple:
         """A run's run files and checkpointer (paths checked; the files created on rank 0),
@@ -416,13 +430,13 @@ class Simulation:
         """Step n (the last of ``done`` steps) is good: the activities due there, the progress bar."""
         self.step = n
         for activity in list(self.activities.values()):
-            if activity.schedule.due(n):
+            if is_due(activity.schedule, self):
                 activity(self)
         bar.update(done)
         if n % 50 < done or n == self.scene.nsteps:  # a multiple of 50 in the steps done
             bar.set_postfix(
-                day=f"{self.scene.day(n):.2f}",
-                sim_days_per_s=f"{n * self.scene.dt / DAY / max(self.counters['wall_time'], 1e-9):.3g}",
+                day=f"{self.time:.2f}",
+                sim_days_per_s=f"{(self.time - self.scene.start_day) / max(self.counters['wall_time'], 1e-9):.3g}",
             )
 
     def _stopped(self, stop: Stop, files: RunFiles, ckp: Checkpointer) -> None:
@@ -432,7 +446,7 @@ class Simulation:
         if stop.blowup is not None:
             files.end(self.step, self.last_good, blowup=stop.blowup)
         elif stop.signum is not None:
-            name, day = signal.Signals(stop.signum).name, self.scene.day(self.step)
+            name, day = signal.Signals(stop.signum).name, self.time
             files.end(self.step, interrupted=name, interrupted_at_step=self.step, interrupted_at_day=day)
             ckp.interrupted(self.step, abandoned=stop.abandoned is not None)
 
@@ -444,7 +458,8 @@ class Simulation:
             raise err
         if stop.signum is not None:
             name = signal.Signals(stop.signum).name
-            err = Interrupted(interruption(name, self.step, self.scene, output, ckp.kept, ckp.written, stop.abandoned))
+            line = interruption(name, self.step, self.time, self.scene, output, ckp.kept, ckp.written, stop.abandoned)
+            err = Interrupted(line)
             err.signum, err.result, err.checkpoint = stop.signum, result, ckp.written
             raise err
         return result

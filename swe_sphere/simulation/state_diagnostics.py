@@ -103,7 +103,7 @@ class StateDiagnostics:
         changes = "".join(f"  {name} {d[k]:+.3e}" for k, name in names.items() if k in d)
         grav = "" if math.isnan(d["courant_gravity"]) else f" gravity-wave {d['courant_gravity']:.3f}"
         return (
-            f"step {self.sim.step} day {self.sim.scene.day(self.sim.step):.4f}{changes}  Courant advective "
+            f"step {self.sim.step} day {self.sim.time:.4f}{changes}  Courant advective "
             f"{d['courant_advective']:.3f}{grav}"
         )
 

@@ -112,12 +112,11 @@ class Ledger:
         )
 
 
-def interruption(name: str, step: int, scene, output, kept_restart, checkpoint, abandoned) -> str:
-    """The one line of a run stopped by signal ``name`` at ``step``: what was kept
-    (``output``, ``checkpoint`` the restart file written, ``kept_restart`` an existing
+def interruption(name: str, step: int, day: float, scene, output, kept_restart, checkpoint, abandoned) -> str:
+    """The one line of a run stopped by signal ``name`` at ``step`` (model ``day``): what was
+    kept (``output``, ``checkpoint`` the restart file written, ``kept_restart`` an existing
     one left alone) and, for ``abandoned`` = (b, m), the step abandoned."""
-    day = scene.day(step)
-    if step == scene.nsteps:  # the run had ended (an interruption inside it stops before its last step)
+    if day == scene.days:  # the run had ended (an interruption inside it stops before its last step)
         kept = [f"the output {output} is complete"] if output is not None else []
         when = f"after the last step (model time {day:.4f} days)"
     else:

@@ -11,7 +11,7 @@ from ..core.constants import DAY
 from ..core.runtime import package_version
 from ..io.run_file import OUTPUT_FIELDS, RunWriter, history_line
 from . import checkpoint as ckpt
-from .schedules import AtSteps, output_steps, restart_steps
+from .schedules import AtDays, AtSteps, interval_days, output_days, output_steps, restart_steps
 
 NOTE_SECONDS = 1.0  # a cells build below this is less than a run's set-up (Warp's start alone) and goes unsaid
 
@@ -26,6 +26,16 @@ def restart_path(output: Path) -> Path:
     """The restart file beside a run's output: ``run.nc`` → ``run.restart.nc``."""
     output = Path(output)
     return output.with_name(output.stem + ".restart.nc")
+
+
+def _holds(sim, marks: set, step: int) -> bool:
+    """Whether ``marks`` (steps; under step control days, ``output_days``) hold ``step``, the
+    current one under step control (``Simulation.event_day``)."""
+    return step in marks if sim.control is None else sim.event_day in marks
+
+
+# what the run file records of the step control at each output time (``SERIES_ATTRS``)
+CONTROL_SERIES = ("dt", "rejected_steps", "error_estimate")
 
 
 def run_attrs(sim, history: str | None, courant: dict) -> dict:
@@ -52,7 +62,7 @@ def run_attrs(sim, history: str | None, courant: dict) -> dict:
             f"planet_{k}": v for k, v in s.planet.items()
         },  # planet_radius (m), planet_omega (1/s), planet_gravity (m/s^2)
         **(sim.dfi.attrs(s.digital_filter) if sim.dfi is not None else {}),
-        **({"continued_from_day": s.day(sim.step)} if sim.step else {}),
+        **({"continued_from_day": sim.time} if sim.step else {}),
         **ckpt.branch_attrs(s),
         **{k: v for k, v in courant.items() if math.isfinite(v)},
     }
@@ -61,7 +71,8 @@ def run_attrs(sim, history: str | None, courant: dict) -> dict:
 class RunFiles:
     """The run files of ``sim``'s run to ``output``: itself with the scene's
     ``output.fields``, then each ``[[output.streams]]`` (``stream_path``), each at
-    its own output steps (``schedules.output_steps``); without ``output`` none, the
+    its own output steps (``schedules.output_steps``; under step control its days,
+    ``output_days``, and the control's ``CONTROL_SERIES``); without ``output`` none, the
     diagnostics still taken at the scene's output steps. ``record`` diagnoses an
     output step on every rank (into ``history``; ``on_output(step, x)`` is called
     with the (3, N) device state) and rank 0 appends it to the files. An activity
@@ -70,20 +81,21 @@ class RunFiles:
     def __init__(self, sim, output: Path | None, on_output=None):
         s = sim.scene
         self.sim, self.on_output, self.history = sim, on_output, []
+        marks = output_steps if sim.control is None else output_days
         self.streams = (
             []
             if output is None
             else [
-                (Path(output), s.output_fields or OUTPUT_FIELDS, output_steps(s)),
+                (Path(output), s.output_fields or OUTPUT_FIELDS, marks(s)),
                 *(
-                    (stream_path(output, st["name"]), st["fields"], output_steps(s, st["every_days"]))
+                    (stream_path(output, st["name"]), st["fields"], marks(s, st["every_days"]))
                     for st in s.output_streams
                 ),
             ]
         )
         self.paths = [path for path, _, _ in self.streams]
-        self.steps = set().union(*(steps for _, _, steps in self.streams)) if self.streams else output_steps(s)
-        self.schedule = AtSteps.of(self.steps)
+        self.steps = set().union(*(steps for _, _, steps in self.streams)) if self.streams else marks(s)
+        self.schedule = AtSteps.of(self.steps) if sim.control is None else AtDays.of(self.steps)
         self.divergence = any("divergence" in fields for _, fields, _ in self.streams)
         self.series = [
             "steps",
@@ -91,6 +103,7 @@ class RunFiles:
             *(f"{k}_iterations" for k in sim.stepper.solvers),
             "wall_time",
             *sim.initial.keys(),
+            *(CONTROL_SERIES if sim.control is not None else ()),
         ]
         self.writers = [None] * len(self.streams)  # rank 0's RunWriters, one a stream
         self.last = [None] * len(self.streams)  # the step each run file wrote last (on every rank)
@@ -132,18 +145,21 @@ class RunFiles:
         sim, s, c = self.sim, self.sim.scene, self.sim.counters
         if whole is None:  # once per output time, on every rank
             whole = sim.diagnostics.gather_fields(x, divergence=self.divergence)
-        d = sim.diagnostics.diagnose(s.start_day * DAY + step * s.dt, x, whole)
+        ctl = sim.control
+        d = sim.diagnostics.diagnose(s.start_day * DAY + step * s.dt if ctl is None else ctl.t, x, whole)
         d.update(steps=step, rhs_evals=c["rhs_evals"], wall_time=c["wall_time"], cpu_time=c["cpu_time"])
+        if ctl is not None:
+            d.update(dt=ctl.dt_last, rejected_steps=ctl.rejected, error_estimate=ctl.error_last)
         d.update({f"{k}_iterations": c["iterations"].get(k, 0) for k in sim.stepper.solvers})
         self.history.append(d)
         if self.on_output is not None:
             self.on_output(step, sim.x if x is None else x)
         for i, (_, _, steps) in enumerate(self.streams):
-            if write and (final or step in steps) and self.last[i] != step:
+            if write and (final or _holds(sim, steps, step)) and self.last[i] != step:
                 self.last[i] = step
                 if self.writers[i] is not None:  # rank 0 (the fields DSS'd, element-local, s-1)
                     self.writers[i].append(
-                        s.day(step),
+                        s.day(step) if ctl is None else sim.time,
                         whole.u,
                         whole.v,
                         whole.h,
@@ -164,7 +180,7 @@ class RunFiles:
 
     def unwritten(self, step: int) -> bool:
         """Whether some run file (or, without one, the history) lacks ``step``."""
-        return step not in self.steps or any(at != step for at in self.last)
+        return not _holds(self.sim, self.steps, step) or any(at != step for at in self.last)
 
     def set_attrs(self, **attrs) -> None:
         for w in self.writers:
@@ -199,8 +215,10 @@ class Checkpointer:
             if every_days is None and not overwrite and sim.topology.bcast(sim.root and path.exists()):
                 path, self.kept = None, path
         self.path = path
-        self.steps = restart_steps(sim.scene, every_days) if every_days is not None else set()
-        self.schedule = AtSteps.of(self.steps)
+        self.steps = set()  # steps, or under step control days (``schedules.interval_days``)
+        if every_days is not None:
+            self.steps = (restart_steps if sim.control is None else interval_days)(sim.scene, every_days)
+        self.schedule = AtSteps.of(self.steps) if sim.control is None else AtDays.of(self.steps)
         if every_days is not None and path is None:
             raise ValueError("a restart interval needs an output or restart file")
 
@@ -211,7 +229,7 @@ class Checkpointer:
         """Save the restart file of a run stopped by a signal at ``step``, unless it has
         none, already saved this step, or the step was ``abandoned`` (the stepper's history
         is then half updated)."""
-        if self.path is not None and step not in self.steps and not abandoned:
+        if self.path is not None and not _holds(self.sim, self.steps, step) and not abandoned:
             self.save()
 
     def save(self) -> None:

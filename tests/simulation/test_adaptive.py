@@ -24,7 +24,7 @@ def _sim(rtol, days=1.0, **keys):
 
 def _run(sim, control, t, target):
     while t < target:
-        t = control.step(sim.x, t, target)
+        t, _ = control.step(sim.x, t, target)
     return t
 
 
@@ -75,3 +75,61 @@ def test_a_step_below_dt_min_stops_as_a_blow_up():
     sim, control = _sim(1e-12, dt_min=100.0)
     with pytest.raises(BlowUp, match=r"^step 1 at day 0: the controller's dt .* fell below time.dt_min = 100 s"):
         _run(sim, control, 0.0, DAY)
+
+
+def _cli_run(path, *extra, days=1.0):
+    from swe_sphere.cli import main
+
+    args = ["run", "tc2_steady", "--ne", "4", "--stepper", "bs32", "--days", str(days), "-s", "time.control=error"]
+    args += ["-s", "output.every_days=0.25", "--output", str(path), "--no-cells", "--no-progress", "--device", "cpu"]
+    return main([*args, *map(str, extra)])
+
+
+def _series(path, *names):
+    import netCDF4
+
+    with netCDF4.Dataset(path) as ds:
+        return [np.asarray(ds[n][:]) for n in names]
+
+
+def test_the_cli_run_lands_on_its_output_times_and_records_the_control(tmp_path):
+    """Through ``swe-sphere run``: the run file's times are the output times (the steps cut to
+    land on them), its l2 error of h falls from rtol 1e-2 to 1e-3 (3.89e-4 to 1.66e-4; 4.1e-4
+    at 1e-2 without the landings at 0.25, 0.5, 0.75), and a first step of 20000 s is rejected
+    and recorded."""
+    l2 = {}
+    for rtol in (1e-2, 1e-3):
+        assert _cli_run(tmp_path / f"r{rtol}.nc", "-s", f"time.rtol={rtol}") == 0
+        time, err, dt = _series(tmp_path / f"r{rtol}.nc", "time", "l2_h", "dt")
+        assert time.tolist() == [0.0, 0.25, 0.5, 0.75, 1.0]
+        assert np.isnan(dt[0]) and (dt[1:] > 0).all()
+        l2[rtol] = err[-1]
+    assert l2[1e-2] == pytest.approx(3.89e-4, rel=0.01) and l2[1e-3] == pytest.approx(1.66e-4, rel=0.01)
+    assert _cli_run(tmp_path / "big.nc", "-s", "time.rtol=1e-3", "--dt", 20000) == 0
+    rejected, err, steps = _series(tmp_path / "big.nc", "rejected_steps", "error_estimate", "steps")
+    assert rejected[0] == 0 and rejected[-1] >= 1 and (err[1:] <= 1).all() and steps[-1] > 4
+
+
+def test_a_cli_continuation_is_bitwise_the_uninterrupted_run(tmp_path):
+    """``--restart-every`` then ``--continue``: a run stopped at day 1 and continued to day 2
+    holds at day 2 the bits of one run to day 2, its Δt and counts alike (both land on days
+    0.25, 0.5, ... and 1)."""
+    from swe_sphere.cli import main
+
+    assert _cli_run(tmp_path / "whole.nc", "-s", "time.rtol=1e-4", "--restart-every", 0.5, days=2) == 0
+    assert _cli_run(tmp_path / "first.nc", "-s", "time.rtol=1e-4", "--restart-every", 0.5, days=1) == 0
+    args = ["run", "--continue", tmp_path / "first.restart.nc", "--days", 2, "--output", tmp_path / "second.nc"]
+    assert main([*map(str, args), "--no-cells", "--no-progress", "--device", "cpu"]) == 0
+    names = ("time", "h", "u", "dt", "steps", "rejected_steps", "error_estimate")
+    whole, second = _series(tmp_path / "whole.nc", *names), _series(tmp_path / "second.nc", *names)
+    assert second[0].tolist() == [1.25, 1.5, 1.75, 2.0]
+    for a, b in zip(whole, second):
+        np.testing.assert_array_equal(a[-4:], b)
+
+
+def test_a_step_below_dt_min_stops_the_cli_run_as_a_blow_up(tmp_path, capsys):
+    code = _cli_run(tmp_path / "r.nc", "-s", "time.rtol=1e-12", "-s", "time.dt_min=100")
+    assert code == 3
+    assert "fell below time.dt_min = 100 s" in capsys.readouterr().err
+    (time,) = _series(tmp_path / "r.nc", "time")
+    assert time.tolist() == [0.0]  # the good output kept

@@ -75,8 +75,8 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None):
     grid = CubedSphere(scene.ne, scene.np, case.planet.a)
     if hs is not None:
         hs = np.asarray(hs, dtype=float)
-        if hs.shape != (grid.N,):
-            raise ValueError(f"hs must have shape ({grid.N},) (got {hs.shape})")
+        if hs.shape != grid.lat.shape:
+            raise ValueError(f"hs must have shape {grid.lat.shape} (got {hs.shape})")
     model = ShallowWater.from_scene(scene, grid, case if hs is None else _Topography(case, hs), device=device)
     stepper = make_stepper(scene.stepper, model, scene.dt, **scene.stepper_options)
     if not isinstance(stepper, ExplicitRK):

@@ -13,7 +13,7 @@ element-local nodes for a continuous δx. In that form
 - the ∇⁴ is its own transpose: R Q Bᵀ = B R Q, since B = Pᵀ R Q K̃ Π R Q K̃ P with K̃ the
   element weak Laplacian plus the mass shift (symmetric), P the (east, north) → Cartesian
   basis and Π the tangent projection, both continuous and per node, so μ ← μ + c B₀ μ with
-  B₀ the operator without hs (a model of its own with hs = 0);
+  B₀ the operator without hs (the model's ∇⁴ launches recorded with hs = 0);
 - T's transpose is ``kernels.tendency_adjoint`` (written by hand: two gathers a stage), whose
   λ is gathered back by the unweighted DSS, μ = R Q λ.
 The parameters (``parameters=True``): the ∇⁴ substeps x ← L x + c B₀ hs (L = I + c B₀, c ∝ ν)
@@ -84,26 +84,12 @@ class StepAdjoint:
         self.transposes = [self._transpose(terms, Y, Ybar) for Y, Ybar in zip(self.Y, self.Ybar)] if terms else None
         self.d_nu = np.zeros(2)  # ∂J/∂ν (wind rows), ∂J/∂ν_s (h row), m⁻⁴ s · J
         self.d_hs = zeros(1)  # the ∇⁴'s share of ∂J/∂hs, continuous (mass form)
-        self.hv_model, self.substeps = None, 0
+        self.substeps = 0  # of the ∇⁴ (forward Euler)
+        self._hv: dict[int, list] = {}  # ``substep``'s recorded launches, by array
         if m.hv is not None and m.hv.nu_max > 0:
-            # the ∇⁴ without hs, one substep a call: B₀, the linear part the adjoint applies
             self.substeps = m.hv.plan(self.dt)[0]
-            self.hv_model = ShallowWater(
-                m.grid,
-                ("hyperviscosity",),
-                np.zeros(N),
-                np.zeros(N),
-                nu=m.nu,
-                nu_div=m.nu_div,
-                nu_s=m.nu_s,
-                hypervis_subcycle=1,
-                device=device,
-                threads=m.threads,
-                topology=m.topology,
-            )
+            self.zero_hs = wp.zeros(N, dtype=f64, device=device)
             self.phi, self.delta = zeros(3), zeros(3)
-            if self.hv_model.hv.plan(self.dt / self.substeps) != (1, False):  # ν dt λ on a rounding edge
-                raise ValueError(f"the ∇⁴ substeps of Δt = {dt} s cannot be split one by one")
 
     def _transpose(self, terms, Y, Ybar) -> list:
         """The recorded launches of Ybar = R Q Tᵀ(Y) W kbar (``kernels.tendency_adjoint``)."""
@@ -139,27 +125,41 @@ class StepAdjoint:
             self.combine(self.Y[i], [(1.0, x), *((dt * a, self.K[j]) for j, a in enumerate(self.A[i][:i]))])
             m.rhs(self.Y[i], self.K[i])
 
+    def substep(self, x) -> None:
+        """x ← x − (Δt/S) B₀ x in place: one ∇⁴ substep without hs (the model's launches, recorded
+        once per array with the model's hs swapped for zeros, as ``biharmonic_radius`` does)."""
+        launches = self._hv.get(x.ptr)
+        if launches is None:
+            m = self.model
+            hs, m.hs = m.hs, self.zero_hs
+            try:
+                launches = self._hv[x.ptr] = m.hv.build(x, -self.dt / self.substeps)
+            finally:
+                m.hs = hs
+        for launch in launches:
+            launch.launch()
+
     def hyperviscosity_transpose(self, mu) -> None:
         """μ of the ∇⁴'s output → μ of its input Φ, in place (the ∇⁴ its own transpose); with
         ``parameters``, ∂J/∂ν, ∂J/∂ν_s and the hs adjoint of this step summed (module doc)."""
-        h, step = self.hv_model.hyperviscosity, self.dt / self.substeps
+        h = self.substep
         if not self.parameters:
             for _ in range(self.substeps):
-                h(mu, step)
+                h(mu)
             return
         m, dt = self.model, self.dt
         self.combine(self.phi, [(1.0, self.x), *((dt * b, k) for b, k in zip(self.b, self.K))])
         self.combine(self.phi[2:3], [(1.0, self.phi[2:3]), (1.0, m.hs.reshape((1, m.N)))])  # Φ + hs
         wp.copy(self.delta, self.phi)
-        h(self.delta, step)
+        h(self.delta)
         self.combine(self.delta, [(1.0, self.delta), (-1.0, self.phi)])  # Δ₀
         self.combine(self.d_hs, [(1.0, self.d_hs), (-1.0, mu[2:3])])
         for _ in range(self.substeps - 1):
-            h(mu, step)
+            h(mu)
         w = self.model.grid.spheremp * mu.numpy() * self.delta.numpy()
         rows = np.array([w[:2].sum(), w[2].sum()]) * self.substeps
         self.d_nu += np.divide(rows, [m.nu, m.nu_s], out=np.zeros(2), where=np.array([m.nu, m.nu_s]) > 0)
-        h(mu, step)
+        h(mu)
         self.combine(self.d_hs, [(1.0, self.d_hs), (1.0, mu[2:3])])
 
     def hs_gradient(self) -> np.ndarray:
@@ -185,7 +185,7 @@ class StepAdjoint:
         dt, s = self.dt, len(self.b)
         wp.copy(self.x, x)  # the stages read this object's arrays only (``combine``'s records)
         self.stages(self.x)
-        if self.hv_model is not None:
+        if self.substeps:
             self.hyperviscosity_transpose(mu)
         for i in reversed(range(s)):
             later = [(dt * self.A[j][i], self.Ybar[j]) for j in range(i + 1, s)]

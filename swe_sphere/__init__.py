@@ -26,7 +26,8 @@ stepper of a scene; ``run``, ``from_checkpoint``, and step by step::
 
 ``swe_sphere.studies.plotting.plot_map`` draws the ``swe-sphere plot`` maps and
 returns their figures), ``kinetic_energy_spectrum`` and ``zonal_mean`` (a run's
-kinetic-energy spectrum by degree and zonal means, ``swe_sphere.studies.analysis``).
+kinetic-energy spectrum by degree and zonal means, ``swe_sphere.studies.analysis``),
+``gradient`` and ``HeightMisfit`` (a run's gradient, ``swe_sphere.adjoint``).
 Importing them initialises Warp quietly (``swe_sphere.core.runtime.init_warp``).
 """
 
@@ -41,6 +42,8 @@ _LAZY = {
     "remap_dataset": "io.remap",  # a run on a lat-lon grid: maps from Python
     "kinetic_energy_spectrum": "studies.analysis",  # E_rot, E_div by spherical-harmonic degree
     "zonal_mean": "studies.analysis",
+    "gradient": "adjoint.gradient",  # dJ/dx(0), dJ/dν, dJ/dhs of an explicit run (reverse sweep)
+    "HeightMisfit": "adjoint.gradient",
     # the errors (core.errors): every one is a SweSphereError
     **dict.fromkeys(
         [

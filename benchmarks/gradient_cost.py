@@ -1,0 +1,103 @@
+"""The CPU cost of a gradient (``swe_sphere.gradient``) against the forward run it differentiates.
+
+    python benchmarks/gradient_cost.py [--ne 4 8] [--steps 48] [--repeat 3] [--source DIR ...]
+
+TC5 (rk4 at the scene's Δt, np 4, its ∇⁴), a height misfit of the final state, every state held
+(``snapshots`` None). Each ``--source`` (a tree of swe_sphere: a clone, or
+``git archive COMMIT | tar -x -C DIR``) runs in a one-thread child process
+(``SWE_SPHERE_THREADS=1``), which times with the process's CPU clock, medians of ``--repeat``:
+the forward run (``steps`` steps of the stepper, its model built), the same with the model
+built (a whole run, as the gradient builds its own), the whole ``gradient`` call
+(the model and the adjoint built, the forward sweep, the reverse sweep), and the model's
+construction alone. The ratios are gradient / forward and gradient / run; the target of issue 66 is ≤ 4.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from results import recorded
+
+ROOT = Path(__file__).resolve().parent.parent
+
+CHILD = """
+import json, statistics, sys, time
+import numpy as np
+import warp as wp
+wp.config.quiet = True
+from swe_sphere.adjoint import HeightMisfit, gradient
+from swe_sphere.adjoint.gradient import scene_model
+from swe_sphere.config.scene import load_scene
+
+ne, steps, repeat, path = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
+scene = load_scene(path, ne=ne, np_=4, stepper="rk4")
+model, stepper, x0 = scene_model(scene)
+cost = HeightMisfit(x0[2] + 10.0)
+gradient(scene, 2, cost)  # compile and warm the caches
+clock = time.process_time
+rows = {"forward": [], "run": [], "gradient": [], "model": []}
+for _ in range(repeat):
+    t = clock()
+    scene_model(scene)
+    rows["model"].append(clock() - t)
+    x = wp.array(x0, dtype=wp.float64)
+    stepper.prepare(x)
+    t = clock()
+    for _ in range(steps):
+        stepper.advance(x)
+    rows["forward"].append(clock() - t)
+    t = clock()  # a whole run as ``gradient`` makes one: a new model, its ∇⁴ plan, the steps
+    m, st, _ = scene_model(scene)
+    x = wp.array(x0, dtype=wp.float64)
+    st.prepare(x)
+    for _ in range(steps):
+        st.advance(x)
+    rows["run"].append(clock() - t)
+    t = clock()
+    gradient(scene, steps, cost)
+    rows["gradient"].append(clock() - t)
+print(json.dumps({k: statistics.median(v) for k, v in rows.items()} | {"dt": scene.dt}))
+"""
+
+
+def measure(source: str | None, ne: int, steps: int, repeat: int) -> dict:
+    """The child's medians (CPU s) for one tree and grid."""
+    env = dict(os.environ, SWE_SPHERE_THREADS="1", OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    if source is not None:
+        env["PYTHONPATH"] = os.pathsep.join([source, *filter(None, [os.environ.get("PYTHONPATH")])])
+    scene = str(ROOT / "testcases" / "tc5_mountain.toml")
+    args = [sys.executable, "-c", CHILD, str(ne), str(steps), str(repeat), scene]
+    out = subprocess.run(args, env=env, cwd=source or ROOT, capture_output=True, text=True)  # -c puts the cwd first
+    if out.returncode:
+        raise SystemExit(f"ne{ne} ({source or 'default'}): exit {out.returncode}\n{out.stderr[-2000:]}")
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--ne", type=int, nargs="+", default=[4, 8])
+    parser.add_argument("--steps", type=int, default=48)
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--source", nargs="+", default=[None], help="swe_sphere trees (default: the one Python finds)")
+    args = parser.parse_args()
+    with recorded(__file__) as figures:
+        print(f"TC5 rk4 np4, {args.steps} steps, one thread, CPU s (medians of {args.repeat}); load {os.getloadavg()}")
+        for ne in args.ne:
+            for source in args.source:
+                r = measure(source, ne, args.steps, args.repeat)
+                ratio, whole = r["gradient"] / r["forward"], r["gradient"] / r["run"]
+                figures[f"ne{ne} {source or 'default'}"] = r | {"ratio": ratio, "ratio_run": whole}
+                print(
+                    f"ne{ne} dt {r['dt']:.1f} s  {source or 'default'}: forward {r['forward']:.4f}, "
+                    f"run {r['run']:.4f}, gradient {r['gradient']:.4f} ({ratio:.2f}× the forward, {whole:.2f}× the run; "
+                    f"the model's construction {r['model']:.4f})"
+                )
+
+
+if __name__ == "__main__":
+    main()

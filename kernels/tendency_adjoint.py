@@ -1,0 +1,167 @@
+"""The transpose of the per-node tendency kernel (``tendencies.tendency``) with respect to the
+state, written by hand, for the gradients of a run (``swe_sphere.adjoint``).
+
+Why by hand: Warp's generated adjoint of ``tendencies.tendency`` (its GLL loop bound read at
+run time) was wrong (a dot product off by 23 % on TC5 ne2), and that of a copy with the bound
+unrolled at compile time was right but cost 8 RHS evaluations (the forward replayed, an atomic
+add a read, on every coefficient array). The tendency is T(x) = f(x, Σ ∂ of pointwise
+products): the transpose is two launches, each a gather with no atomics:
+- ``point``: at each node, λ = spheremp·k̄ (the DSS's transpose, see ``adjoint.explicit``),
+  the adjoint of the pointwise end (``tendencies.finish``) into the reference derivatives'
+  adjoints s = (d̄iv, b̄x, b̄y, c̄x, c̄y) and the pointwise part of x̄; with topography, λ's wind
+  rows summed into f̄ (the adjoint of the forcing −g∇hs, for ∂J/∂hs);
+- ``gather``: x̄ at node (i', j') += Σ_i dvv[i, i'] s[(i, j')] · ∂(product at (i', j'))
+  along ξ, and Σ_j dvv[j, j'] s[(i', j)] · ∂(product) along η: the transposed derivative.
+Checked against central differences and by dot products in ``tests/adjoint``.
+"""
+
+import functools
+
+import warp as wp
+
+from .operators import element_node
+from .tendencies import TENDENCY_TERMS
+
+f64 = wp.float64
+
+
+def _flags(terms):
+    unknown = set(terms) - set(TENDENCY_TERMS)
+    if unknown:
+        raise ValueError(f"unknown tendency terms {sorted(unknown)}")
+    return tuple(t in terms for t in TENDENCY_TERMS)
+
+
+@functools.cache
+def point(terms: tuple, np_: int):
+    """The pointwise adjoint for ``terms`` at np = ``np_``. Arguments: x (3, N) state, D, Dinv
+    (4, N), metdet, fcor, spheremp (N), dvv (np, np), kbar (3, N) the continuous adjoint of
+    the tendency, s (5, N) out, xbar (3, N) out (overwritten), fbar (2, N) (+= λ's wind rows
+    with topography), offset. Dim N."""
+    CONT, ADV, COR, PG, TOPO = _flags(terms)
+    GRAD = ADV or PG
+    NP = int(np_)
+
+    def kernel(
+        x: wp.array2d(dtype=f64),
+        D: wp.array2d(dtype=f64),
+        Dinv: wp.array2d(dtype=f64),
+        metdet: wp.array(dtype=f64),
+        fcor: wp.array(dtype=f64),
+        spheremp: wp.array(dtype=f64),
+        dvv: wp.array2d(dtype=f64),
+        kbar: wp.array2d(dtype=f64),
+        s: wp.array2d(dtype=f64),
+        xbar: wp.array2d(dtype=f64),
+        fbar: wp.array2d(dtype=f64),
+        offset: int,
+    ):
+        p = wp.tid() + offset
+        w = spheremp[p]
+        lu = w * kbar[0, p]
+        lv = w * kbar[1, p]
+        lh = w * kbar[2, p]
+        ub = f64(0.0)
+        vb = f64(0.0)
+        s[0, p] = f64(0.0)
+        s[1, p] = f64(0.0)
+        s[2, p] = f64(0.0)
+        s[3, p] = f64(0.0)
+        s[4, p] = f64(0.0)
+        if wp.static(CONT):  # dh = −div/metdet
+            s[0, p] = -lh / metdet[p]
+        if wp.static(GRAD):  # du = −(Dinv₀ bx + Dinv₂ by), dv = −(Dinv₁ bx + Dinv₃ by)
+            s[1, p] = -(Dinv[0, p] * lu + Dinv[1, p] * lv)
+            s[2, p] = -(Dinv[2, p] * lu + Dinv[3, p] * lv)
+        if wp.static(ADV or COR):  # du += rot·v, dv −= rot·u
+            rot = f64(0.0)
+            if wp.static(ADV):
+                base, i, j = element_node(p, NP)
+                cx = f64(0.0)
+                cy = f64(0.0)
+                for m in range(wp.static(NP)):
+                    q = base + j * NP + m
+                    r = base + m * NP + i
+                    cx += dvv[i, m] * (D[1, q] * x[0, q] + D[3, q] * x[1, q])
+                    cy += dvv[j, m] * (D[0, r] * x[0, r] + D[2, r] * x[1, r])
+                rot += (cx - cy) / metdet[p]
+                rbar = (lu * x[1, p] - lv * x[0, p]) / metdet[p]
+                s[3, p] = rbar
+                s[4, p] = -rbar
+            if wp.static(COR):
+                rot += fcor[p]
+            ub = -rot * lv
+            vb = rot * lu
+        if wp.static(TOPO):
+            fbar[0, p] += lu
+            fbar[1, p] += lv
+        xbar[0, p] = ub
+        xbar[1, p] = vb
+        xbar[2, p] = f64(0.0)
+
+    kernel.__qualname__ = kernel.__name__ = f"tendency_adjoint_point_np{NP}__" + "__".join(terms)
+    return wp.kernel(kernel, enable_backward=False, module="unique")
+
+
+@functools.cache
+def gather(terms: tuple, np_: int):
+    """The transposed derivatives for ``terms`` at np = ``np_``: x̄ += what the reference
+    derivatives' adjoints s (``point``'s) send back through the products they differentiate.
+    Arguments: x (3, N) state, D, Dinv (4, N), metdet (N), dvv (np, np), g, s (5, N), xbar
+    (3, N) (+=), offset. Dim N."""
+    CONT, ADV, _, PG, _ = _flags(terms)
+    GRAD = ADV or PG
+    NP = int(np_)
+
+    def kernel(
+        x: wp.array2d(dtype=f64),
+        D: wp.array2d(dtype=f64),
+        Dinv: wp.array2d(dtype=f64),
+        metdet: wp.array(dtype=f64),
+        dvv: wp.array2d(dtype=f64),
+        g: f64,
+        s: wp.array2d(dtype=f64),
+        xbar: wp.array2d(dtype=f64),
+        offset: int,
+    ):
+        p = wp.tid() + offset
+        base, i, j = element_node(p, NP)
+        div1 = f64(0.0)  # along ξ: Σ_m dvv[m, i] s[(m, j)]
+        div2 = f64(0.0)  # along η: Σ_m dvv[m, j] s[(i, m)]
+        bern = f64(0.0)
+        c1 = f64(0.0)
+        c2 = f64(0.0)
+        for m in range(wp.static(NP)):
+            q = base + j * NP + m
+            r = base + m * NP + i
+            if wp.static(CONT):
+                div1 += dvv[m, i] * s[0, q]
+                div2 += dvv[m, j] * s[0, r]
+            if wp.static(GRAD):
+                bern += dvv[m, i] * s[1, q] + dvv[m, j] * s[2, r]
+            if wp.static(ADV):
+                c1 += dvv[m, i] * s[3, q]
+                c2 += dvv[m, j] * s[4, r]
+        u = x[0, p]
+        v = x[1, p]
+        ub = f64(0.0)
+        vb = f64(0.0)
+        hb = f64(0.0)
+        if wp.static(CONT):  # metdet h (Dinv₀ u + Dinv₁ v) along ξ, (Dinv₂ u + Dinv₃ v) along η
+            a1 = metdet[p] * div1
+            a2 = metdet[p] * div2
+            h = x[2, p]
+            ub += h * (a1 * Dinv[0, p] + a2 * Dinv[2, p])
+            vb += h * (a1 * Dinv[1, p] + a2 * Dinv[3, p])
+            hb += a1 * (Dinv[0, p] * u + Dinv[1, p] * v) + a2 * (Dinv[2, p] * u + Dinv[3, p] * v)
+        if wp.static(ADV):  # ½|v|², and the covariant wind's D₁u + D₃v along ξ, D₀u + D₂v along η
+            ub += bern * u + c1 * D[1, p] + c2 * D[0, p]
+            vb += bern * v + c1 * D[3, p] + c2 * D[2, p]
+        if wp.static(PG):  # g h
+            hb += g * bern
+        xbar[0, p] += ub
+        xbar[1, p] += vb
+        xbar[2, p] += hb
+
+    kernel.__qualname__ = kernel.__name__ = f"tendency_adjoint_gather_np{NP}__" + "__".join(terms)
+    return wp.kernel(kernel, enable_backward=False, module="unique")

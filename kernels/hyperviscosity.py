@@ -143,12 +143,12 @@ def laplacian_element(second: bool, divergent: bool, np_: int, copies: int = 0, 
         fx = mat()
         fy = mat()
         for j in range(NP):
-            a = along(F, j, dvvT)
+            a = along(F[j], dvvT)
             b = across(F, j, dvv)
             fx[j] = times(G11[j], a) + times(G12[j], b)
             fy[j] = times(G12[j], a) + times(G22[j], b)
         for j in range(NP):
-            out[j] = -(along(fx, j, dvv) + across(fy, j, dvvT))
+            out[j] = -(along(fx[j], dvv) + across(fy, j, dvvT))
         return out
 
     weak_laplacian.__qualname__ = weak_laplacian.__name__ = f"weak_laplacian_rows_np{NP}"
@@ -221,7 +221,7 @@ def laplacian_element(second: bool, divergent: bool, np_: int, copies: int = 0, 
             else:
                 y = scale_first(Lj, Xj, metric[3, q], f, q, c)
                 if wp.static(DIV):
-                    y = add_divergent(y, along(D, j, dvvT), across(D, j, dvv), c[1] * metric[3, q], q, f)
+                    y = add_divergent(y, along(D[j], dvvT), across(D, j, dvv), c[1] * metric[3, q], q, f)
             for r in range(4):
                 L[r, q] = y[r]
 

@@ -281,14 +281,17 @@ def covariant(D: wp.array2d(dtype=Any), x: wp.array2d(dtype=Any), q: int):
 def row_derivatives(np_: int, dtype=f64):
     """The reference derivatives on an element held as rows: F a matrix of np
     ``row_type(np, dtype)`` rows, F[j, i] the value at node (i, j). Returns (row type,
-    matrix type, ``along``, ``across``), two ``wp.func`` of (F, j, M) → a row:
+    matrix type, ``along``, ``across``), two ``wp.func`` → a row:
 
-    * ``along``:  Σ_m M[m] F[j, m] = (F M)[j]  (M's rows scaled by row j's values),
-    * ``across``: Σ_m M[j, m] F[m] = (M F)[j]  (F's rows scaled by M's entries).
+    * ``along(F[j], M)``:  Σ_m M[m] F[j, m] = (F M)[j]  (M's rows scaled by row j's values),
+    * ``across(F, j, M)``: Σ_m M[j, m] F[m] = (M F)[j]  (F's rows scaled by M's entries).
 
-    With dvv (``dvv_matrix``; dvv[i, m] = l_m'(ξ_i)): ∂ξ f = along(F, j, dvvᵀ),
+    With dvv (``dvv_matrix``; dvv[i, m] = l_m'(ξ_i)): ∂ξ f = along(F[j], dvvᵀ),
     ∂η f = across(F, j, dvv), and their transposes in the weak divergence
-    along(F, j, dvv), across(F, j, dvvᵀ). dvv is a kernel argument, not a
+    along(F[j], dvv), across(F, j, dvvᵀ). ``along`` takes the row, not F and j: a Warp
+    function's arguments are copies, and F indexed by the kernels' run-time row j inside
+    it was copied whole (np² values) at every call (np 6 and 8: the tendency 1.2× slower;
+    the same sums either way, the same bits at np 4). dvv is a kernel argument, not a
     compile-time constant: with its entries compiled in, clang folded them lane
     by lane (zeros, ±1, the GLL symmetries), the lanes of a row no longer did
     the same work, and the weak Laplacian stayed half scalar (2–2.5× slower a
@@ -297,10 +300,10 @@ def row_derivatives(np_: int, dtype=f64):
     vec = row_type(NP, dtype)
     mat = wp.types.matrix(shape=(NP, NP), dtype=dtype)
 
-    def along(F: mat, j: int, M: mat):
+    def along(Fj: vec, M: mat):
         s = vec()
         for m in range(NP):
-            s += M[m] * F[j, m]
+            s += M[m] * Fj[m]
         return s
 
     def across(F: mat, j: int, M: mat):
@@ -345,7 +348,7 @@ def gradient_element(np_: int):
         for j in range(NP):
             F[j] = f[row, base + j]
         for j in range(NP):
-            a = along(F, j, dvvT)
+            a = along(F[j], dvvT)
             b = across(F, j, dvv)
             q = base + j
             out[0, q] = times(Dinv[0, q], a) + times(Dinv[2, q], b)
@@ -401,7 +404,7 @@ def _wind_element(np_: int, curl: bool):
                 fy[j] = times(metdet[q], times(M[2, q], x[0, q]) + times(M[3, q], x[1, q]))
         for j in range(NP):
             q = base + j
-            out[q] = over(along(fx, j, dvvT) + across(fy, j, dvv), metdet[q])
+            out[q] = over(along(fx[j], dvvT) + across(fy, j, dvv), metdet[q])
 
     kernel.__qualname__ = kernel.__name__ = "vorticity_element" if CURL else "divergence_element"  # the kernel's key
     return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)

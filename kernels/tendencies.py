@@ -202,12 +202,12 @@ def tendency_element(terms: tuple, np_: int):
             cx = vec()
             cy = vec()
             if wp.static(CONT):
-                div = along(f1, j, dvvT) + across(f2, j, dvv)
+                div = along(f1[j], dvvT) + across(f2, j, dvv)
             if wp.static(GRAD):
-                bx = along(E, j, dvvT)
+                bx = along(E[j], dvvT)
                 by = across(E, j, dvv)
             if wp.static(ADV):
-                cx = along(v2, j, dvvT)
+                cx = along(v2[j], dvvT)
                 cy = across(v1, j, dvv)
             wp.static(finish(terms))(q, div, bx, by, cx, cy, x, Dinv, metdet, fcor, forcing, tend)
 

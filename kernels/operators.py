@@ -319,6 +319,17 @@ def row_derivatives(np_: int, dtype=f64):
     return (vec, mat, *funcs)
 
 
+def across_as_along(np_: int) -> bool:
+    """Whether the element kernels at this np form (M F)[j] as ``along(M[j], F)``, the same
+    products (commuted) summed in the same order as ``across(F, j, M)``, in loops over the
+    rows with a run-time start: np ≥ 5. ``across`` takes M whole and indexes it by the
+    run-time j, so M was copied at every call (measured at ne12, one thread: the np 8
+    tendency 13.7 → 11.4 ns a point, the ∇⁴'s weak Laplacians 56 → 39 and 61 → 47). At
+    np 4 ``across`` and unrolled rows stay: clang vectorizes the other form differently and
+    contracts other products into FMAs, which changes the frozen np 4 bits."""
+    return int(np_) > 4
+
+
 def dvv_matrix(dvv, dtype=f64) -> object:
     """The derivative matrix dvv (np × np, dvv[i, m] = l_m'(ξ_i)) as the value the
     element kernels take (``row_derivatives``' matrix type, of ``dtype``)."""

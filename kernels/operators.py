@@ -326,7 +326,10 @@ def across_as_along(np_: int) -> bool:
     run-time j, so M was copied at every call (measured at ne12, one thread: the np 8
     tendency 13.7 → 11.4 ns a point, the ∇⁴'s weak Laplacians 56 → 39 and 61 → 47). At
     np 4 ``across`` and unrolled rows stay: clang vectorizes the other form differently and
-    contracts other products into FMAs, which changes the frozen np 4 bits."""
+    contracts other products into FMAs, which changes the frozen np 4 bits. Unrolled, np 6's
+    weak Laplacian without ∇δ also came out wrong on the CPU (the ∇⁴ of TC5 2e5 × the per-node
+    layout's; the compiler's or Warp's doing, not found;
+    tests/model/test_operators.py::test_hyperviscosity_rates_at_high_np)."""
     return int(np_) > 4
 
 

@@ -81,11 +81,11 @@ def linear_element(np_: int):
             f2[j] = times(metdet[q], times(Dinv[2, q], x[0, q]) + times(Dinv[3, q], x[1, q]))
         for j in range(NP):
             q = base + j
-            a = along(h, j, dvvT)
+            a = along(h[j], dvvT)
             b = across(h, j, dvv)
             out[0, q] = -g * (times(Dinv[0, q], a) + times(Dinv[2, q], b))
             out[1, q] = -g * (times(Dinv[1, q], a) + times(Dinv[3, q], b))
-            out[2, q] = -H * over(along(f1, j, dvvT) + across(f2, j, dvv), metdet[q])
+            out[2, q] = -H * over(along(f1[j], dvvT) + across(f2, j, dvv), metdet[q])
 
     linear_element.__qualname__ = "linear_element"  # the kernel's key
     return wp.kernel(linear_element, enable_backward=False, module="unique", module_options=CPU_FAST)

@@ -130,7 +130,7 @@ def scaled_divergence(np_: int, dtype=f64):
             f2[j] = times(metdet[q], times(Dinv[2, q], u[j]) + times(Dinv[3, q], v[j]))
         d = mat()
         for j in range(NP):
-            d[j] = over(k * (along(f1, j, dvvT) + across(f2, j, dvv)), metdet[base + j])
+            d[j] = over(k * (along(f1[j], dvvT) + across(f2, j, dvv)), metdet[base + j])
         return d
 
     scaled_divergence.__qualname__ = scaled_divergence.__name__ = f"scaled_divergence_{NP}" + (
@@ -173,7 +173,7 @@ def helmholtz_gradient(np_: int, dtype=f64):
             for i in range(NP):
                 F[j, i] = unique_value(y, halo, gid[(base + j) * NP + i])
         for j in range(NP):
-            a = along(F, j, dvvT)
+            a = along(F[j], dvvT)
             b = across(F, j, dvv)
             q = base + j
             w = spheremp[q]

@@ -46,7 +46,16 @@ from typing import Any
 import warp as wp
 
 from .dss import Copies, gather
-from .operators import CPU_FAST, d_eta, d_xi, element_node, row_derivatives, times, weak_divergence
+from .operators import (
+    CPU_FAST,
+    across_as_along,
+    d_eta,
+    d_xi,
+    element_node,
+    row_derivatives,
+    times,
+    weak_divergence,
+)
 
 f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
@@ -131,6 +140,7 @@ def laplacian_element(second: bool, divergent: bool, np_: int, copies: int = 0, 
     offset (in elements); the first pass reads neither x, d, Y nor block. Dim nelem."""
     NP = int(np_)
     vec, mat, along, across = row_derivatives(NP)
+    ROW = across_as_along(NP)  # rolled rows, (M F)[j] as along(M[j], F)
     stack = wp.types.matrix(shape=(4, NP), dtype=f64)  # the four fields' values on one row
     S, DIV = bool(second), bool(divergent) and not second
     RowFrame = frame_type(vec)
@@ -138,17 +148,28 @@ def laplacian_element(second: bool, divergent: bool, np_: int, copies: int = 0, 
         raise ValueError(f"the second pass sums the copies of a node: copies must be at least 1 (got {copies})")
     sum_copies = gather(4, False, max(1, int(copies)), ghosts)
 
-    def weak_laplacian(F: mat, G11: mat, G12: mat, G22: mat, dvv: mat, dvvT: mat):
+    def weak_laplacian(F: mat, G11: mat, G12: mat, G22: mat, dvv: mat, dvvT: mat, lo: int):
         out = mat()  # −Σ ∂ᵀ(G ∇_ref f): G ∇_ref f is the quadrature-weighted contravariant gradient
         fx = mat()
         fy = mat()
-        for j in range(NP):
-            a = along(F, j, dvvT)
-            b = across(F, j, dvv)
-            fx[j] = times(G11[j], a) + times(G12[j], b)
-            fy[j] = times(G12[j], a) + times(G22[j], b)
-        for j in range(NP):
-            out[j] = -(along(fx, j, dvv) + across(fy, j, dvvT))
+        if wp.static(ROW):  # the rows in loops with a run-time start (lo), which Warp does not unroll
+            for k in range(lo, lo + NP):
+                j = k - lo
+                a = along(F[j], dvvT)
+                b = along(dvv[j], F)
+                fx[j] = times(G11[j], a) + times(G12[j], b)
+                fy[j] = times(G12[j], a) + times(G22[j], b)
+            for k in range(lo, lo + NP):
+                j = k - lo
+                out[j] = -(along(fx[j], dvv) + along(dvvT[j], fy))
+        else:  # np 4: unrolled, its bits
+            for j in range(NP):
+                a = along(F[j], dvvT)
+                b = across(F, j, dvv)
+                fx[j] = times(G11[j], a) + times(G12[j], b)
+                fy[j] = times(G12[j], a) + times(G22[j], b)
+            for j in range(NP):
+                out[j] = -(along(fx[j], dvv) + across(fy, j, dvvT))
         return out
 
     weak_laplacian.__qualname__ = weak_laplacian.__name__ = f"weak_laplacian_rows_np{NP}"
@@ -202,7 +223,7 @@ def laplacian_element(second: bool, divergent: bool, np_: int, copies: int = 0, 
             X = mat()
             for j in range(NP):
                 X[j] = field(src, hs, f, r, base + j)
-            Lr = lap(X, G11, G12, G22, dvv, dvvT)
+            Lr = lap(X, G11, G12, G22, dvv, dvvT, base)
             for j in range(NP):
                 L[r, base + j] = Lr[j]
         D = mat()  # δ
@@ -221,7 +242,7 @@ def laplacian_element(second: bool, divergent: bool, np_: int, copies: int = 0, 
             else:
                 y = scale_first(Lj, Xj, metric[3, q], f, q, c)
                 if wp.static(DIV):
-                    y = add_divergent(y, along(D, j, dvvT), across(D, j, dvv), c[1] * metric[3, q], q, f)
+                    y = add_divergent(y, along(D[j], dvvT), across(D, j, dvv), c[1] * metric[3, q], q, f)
             for r in range(4):
                 L[r, q] = y[r]
 

@@ -281,14 +281,17 @@ def covariant(D: wp.array2d(dtype=Any), x: wp.array2d(dtype=Any), q: int):
 def row_derivatives(np_: int, dtype=f64):
     """The reference derivatives on an element held as rows: F a matrix of np
     ``row_type(np, dtype)`` rows, F[j, i] the value at node (i, j). Returns (row type,
-    matrix type, ``along``, ``across``), two ``wp.func`` of (F, j, M) → a row:
+    matrix type, ``along``, ``across``), two ``wp.func`` → a row:
 
-    * ``along``:  Σ_m M[m] F[j, m] = (F M)[j]  (M's rows scaled by row j's values),
-    * ``across``: Σ_m M[j, m] F[m] = (M F)[j]  (F's rows scaled by M's entries).
+    * ``along(F[j], M)``:  Σ_m M[m] F[j, m] = (F M)[j]  (M's rows scaled by row j's values),
+    * ``across(F, j, M)``: Σ_m M[j, m] F[m] = (M F)[j]  (F's rows scaled by M's entries).
 
-    With dvv (``dvv_matrix``; dvv[i, m] = l_m'(ξ_i)): ∂ξ f = along(F, j, dvvᵀ),
+    With dvv (``dvv_matrix``; dvv[i, m] = l_m'(ξ_i)): ∂ξ f = along(F[j], dvvᵀ),
     ∂η f = across(F, j, dvv), and their transposes in the weak divergence
-    along(F, j, dvv), across(F, j, dvvᵀ). dvv is a kernel argument, not a
+    along(F[j], dvv), across(F, j, dvvᵀ). ``along`` takes the row, not F and j: a Warp
+    function's arguments are copies, and F indexed by the kernels' run-time row j inside
+    it was copied whole (np² values) at every call (np 6 and 8: the tendency 1.2× slower;
+    the same sums either way, the same bits at np 4). dvv is a kernel argument, not a
     compile-time constant: with its entries compiled in, clang folded them lane
     by lane (zeros, ±1, the GLL symmetries), the lanes of a row no longer did
     the same work, and the weak Laplacian stayed half scalar (2–2.5× slower a
@@ -297,10 +300,10 @@ def row_derivatives(np_: int, dtype=f64):
     vec = row_type(NP, dtype)
     mat = wp.types.matrix(shape=(NP, NP), dtype=dtype)
 
-    def along(F: mat, j: int, M: mat):
+    def along(Fj: vec, M: mat):
         s = vec()
         for m in range(NP):
-            s += M[m] * F[j, m]
+            s += M[m] * Fj[m]
         return s
 
     def across(F: mat, j: int, M: mat):
@@ -314,6 +317,20 @@ def row_derivatives(np_: int, dtype=f64):
         f.__qualname__ = f.__name__ = f"{f.__name__}_np{NP}" + ("" if dtype is f64 else f"_{dtype.__name__}")
         funcs.append(wp.func(f))
     return (vec, mat, *funcs)
+
+
+def across_as_along(np_: int) -> bool:
+    """Whether the element kernels at this np form (M F)[j] as ``along(M[j], F)``, the same
+    products (commuted) summed in the same order as ``across(F, j, M)``, in loops over the
+    rows with a run-time start: np ≥ 5. ``across`` takes M whole and indexes it by the
+    run-time j, so M was copied at every call (measured at ne12, one thread: the np 8
+    tendency 13.7 → 11.4 ns a point, the ∇⁴'s weak Laplacians 56 → 39 and 61 → 47). At
+    np 4 ``across`` and unrolled rows stay: clang vectorizes the other form differently and
+    contracts other products into FMAs, which changes the frozen np 4 bits. Unrolled, np 6's
+    weak Laplacian without ∇δ also came out wrong on the CPU (the ∇⁴ of TC5 2e5 × the per-node
+    layout's; the compiler's or Warp's doing, not found;
+    tests/model/test_operators.py::test_hyperviscosity_rates_at_high_np)."""
+    return int(np_) > 4
 
 
 def dvv_matrix(dvv, dtype=f64) -> object:
@@ -345,7 +362,7 @@ def gradient_element(np_: int):
         for j in range(NP):
             F[j] = f[row, base + j]
         for j in range(NP):
-            a = along(F, j, dvvT)
+            a = along(F[j], dvvT)
             b = across(F, j, dvv)
             q = base + j
             out[0, q] = times(Dinv[0, q], a) + times(Dinv[2, q], b)
@@ -401,7 +418,7 @@ def _wind_element(np_: int, curl: bool):
                 fy[j] = times(metdet[q], times(M[2, q], x[0, q]) + times(M[3, q], x[1, q]))
         for j in range(NP):
             q = base + j
-            out[q] = over(along(fx, j, dvvT) + across(fy, j, dvv), metdet[q])
+            out[q] = over(along(fx[j], dvvT) + across(fy, j, dvv), metdet[q])
 
     kernel.__qualname__ = kernel.__name__ = "vorticity_element" if CURL else "divergence_element"  # the kernel's key
     return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)

@@ -23,7 +23,7 @@ from typing import Any
 
 import warp as wp
 
-from .operators import CPU_FAST, covariant, element_node, over, row_derivatives, times
+from .operators import CPU_FAST, across_as_along, covariant, element_node, over, row_derivatives, times
 
 f64 = wp.float64
 
@@ -155,6 +155,7 @@ def tendency_element(terms: tuple, np_: int):
     GRAD = ADV or PG
     NP = int(np_)
     vec, mat, along, across = row_derivatives(NP)
+    ROW = across_as_along(NP)  # ∂η as along(dvv[j], F)
 
     def kernel(
         x: wp.array2d(dtype=vec),
@@ -202,13 +203,22 @@ def tendency_element(terms: tuple, np_: int):
             cx = vec()
             cy = vec()
             if wp.static(CONT):
-                div = along(f1, j, dvvT) + across(f2, j, dvv)
+                if wp.static(ROW):
+                    div = along(f1[j], dvvT) + along(dvv[j], f2)
+                else:
+                    div = along(f1[j], dvvT) + across(f2, j, dvv)
             if wp.static(GRAD):
-                bx = along(E, j, dvvT)
-                by = across(E, j, dvv)
+                bx = along(E[j], dvvT)
+                if wp.static(ROW):
+                    by = along(dvv[j], E)
+                else:
+                    by = across(E, j, dvv)
             if wp.static(ADV):
-                cx = along(v2, j, dvvT)
-                cy = across(v1, j, dvv)
+                cx = along(v2[j], dvvT)
+                if wp.static(ROW):
+                    cy = along(dvv[j], v1)
+                else:
+                    cy = across(v1, j, dvv)
             wp.static(finish(terms))(q, div, bx, by, cx, cy, x, Dinv, metdet, fcor, forcing, tend)
 
     kernel.__qualname__ = kernel.__name__ = "tendency__" + "__".join(terms)

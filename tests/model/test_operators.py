@@ -711,3 +711,19 @@ def test_hyperviscosity_damps_harmonics_at_homme_rates(per_element):
             assert abs(rate / ideal - 1) <= 1e-3, (kind, l, rate / ideal)
     rigid = hyperviscosity_rate(m, harmonic_state(g, 1, "rotational"))
     assert abs(rigid) <= 1e-6 * ideal_hyperviscosity_rate(2, "rotational", *nus, g.radius)
+
+
+@pytest.mark.parametrize("np_", [5, 6, 7, 8])
+def test_hyperviscosity_rates_at_high_np(np_):
+    """The CPU layout's ∇⁴ at np 5–8 (rolled rows, ``operators.across_as_along``), with the
+    scenes' ν_div = ν_s = ν (the first pass without ∇δ), damps the degree 2 and 4 harmonics at
+    HOMME's continuous rates to 1e-4 on ne4 (measured ≤ 1.2e-6, at np 5). With the unrolled
+    rows np 6 was off by 3.1e-3 here, and 2e5 × the per-node (CUDA) layout's ∇⁴ of TC5."""
+    g = cached_grid(4, np_)
+    z = np.zeros(g.nnodes)
+    m = ShallowWater(g, ["hyperviscosity"], z, z, nu=1.5e15, device=DEV, per_element=True)
+    for kind in HARMONIC_KINDS:
+        for l in (2, 4):
+            rate = hyperviscosity_rate(m, harmonic_state(g, l, kind))
+            ideal = ideal_hyperviscosity_rate(l, kind, 1.5e15, 1.5e15, 1.5e15, g.radius)
+            assert abs(rate / ideal - 1) <= 1e-4, (kind, l, rate / ideal)

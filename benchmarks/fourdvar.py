@@ -60,7 +60,7 @@ def bump(grid, amplitude: float, width: float, lat0: float = 30.0, lon0: float =
     return amplitude * np.exp(-((d / width) ** 2))
 
 
-def _run(scene, steps: int):
+def truth_run(scene, steps: int):
     """(x(n), x(0), grid, CPU s) of ``scene`` run ``steps`` steps from its case's state, the CPU
     time that of a whole run as ``gradient`` makes one: its model built, then the steps."""
     clock = time.process_time()
@@ -72,24 +72,32 @@ def _run(scene, steps: int):
     return x.numpy(), x0, model.grid, time.process_time() - clock
 
 
-def recover(scene, steps: int, amplitude: float, width: float, iterations: int) -> Recovery:
-    """The truth run, its observations and the minimisation (module docstring) of ``scene`` over
-    ``steps`` steps, from a first guess ``bump(amplitude, width)`` off the truth."""
-    runs = [_run(scene, steps) for _ in range(3)]  # the first warms Warp's caches
-    final, truth, grid = runs[-1][:3]
-    forward_cpu = min(r[3] for r in runs[1:])
-    misfit = swe_sphere.HeightMisfit(final[2])
+def height_cost(scene, steps: int, grid, x0, h_obs):
+    """The function h0 ↦ (J, dJ/dh0) that L-BFGS is handed: h0 (n,) m at the grid's unique nodes
+    (the wind x0[:2] held), J = ½ ∫ (h(T) − h_obs)² dA / 4πa² (m²) after ``steps`` steps of
+    ``scene``, dJ/dh0 (n,) m (the Euclidean gradient in the unknowns)."""
+    misfit = swe_sphere.HeightMisfit(h_obs)
     total = grid.area.sum()  # 4πa²: J as a mean square, so that L-BFGS's tolerances read in m²
 
     def cost(h0):
         # h0 at the unique nodes → the element-local state (every copy of a node the same value);
         # the gradient is in the mass inner product (δJ = Σ spheremp·grad·δx over the copies), so
         # the derivative with respect to a unique node's value sums its copies' spheremp·grad.
-        x0 = truth.copy()
-        x0[2] = h0[grid.gid]
-        g = swe_sphere.gradient(scene, steps, misfit, x0=x0)
+        x = x0.copy()
+        x[2] = h0[grid.gid]
+        g = swe_sphere.gradient(scene, steps, misfit, x0=x)
         return g.cost / total, np.bincount(grid.gid, grid.spheremp * g.grad[2], minlength=grid.nunique) / total
 
+    return cost
+
+
+def recover(scene, steps: int, amplitude: float, width: float, iterations: int) -> Recovery:
+    """The truth run, its observations and the minimisation (module docstring) of ``scene`` over
+    ``steps`` steps, from a first guess ``bump(amplitude, width)`` off the truth."""
+    runs = [truth_run(scene, steps) for _ in range(3)]  # the first warms Warp's caches
+    final, truth, grid = runs[-1][:3]
+    forward_cpu = min(r[3] for r in runs[1:])
+    cost = height_cost(scene, steps, grid, truth, final[2])
     h_true = truth[2][grid.first]
 
     def error(h0):

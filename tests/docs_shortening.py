@@ -17,6 +17,9 @@ What changes, and why it keeps the pages' order meaningful:
   first of ``--courant`` (``--dt``); ``stability`` bisects the first of ``--steppers``;
   ``--workers`` is dropped (each worker process imports the model again, which costs
   more than a tiny run).
+- ``mesh --levels N`` refines one level (2x, not 2^N x): the refinement, its transitions
+  and the run on the file stay; the 4x mesh's cells took 12 s of CPU to build and its run
+  935 steps, the 2x mesh's a fraction of a second and 468 (README's ne10 box, load 12).
 - The run lengths stay: at these grids a 15-day run costs a fraction of a second
   above the process's start-up, and the pages' days carry meaning (the reference's
   stored days, restart days, the time filter's window).
@@ -76,6 +79,9 @@ def _file_names(args: list[str]) -> list[str]:
 
 def shorten(argv: list[str]) -> list[str]:
     """``swe-sphere``'s arguments (the subcommand first) shortened as the module says."""
+    if argv[:1] == ["mesh"] and "--levels" in argv[:-1]:
+        argv = list(argv)
+        argv[argv.index("--levels") + 1] = "1"
     if not argv or argv[0] not in GRID_COMMANDS:
         return _file_names(argv)
     command, args = argv[0], argv[1:]

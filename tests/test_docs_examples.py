@@ -112,6 +112,8 @@ def test_a_page_grids_stay_apart():
     file_grids = (["run", "--continue", "r.restart.nc", "--days", "20"], ["run", "tc2_steady", "--mesh", "x.g"])
     for argv in (*file_grids, ["run", "tc2_steady", "-s", "grid.ne=0", "-s", 'grid.mesh_file="/m/x.g"']):
         assert shorten(argv) == argv
+    refine = ["mesh", "--ne", "10", "--refine-box", "10", "50", "246.7", "293.3", "--levels", "2", "--output", "x4.g"]
+    assert shorten(refine) == [*refine[:-3], "1", *refine[-2:]]  # one level: the box's transitions need ne10
     assert shorten(["plot", "tc2_steady_ne8np4_ssprk3_2d.nc"]) == ["plot", "tc2_steady_ne2np4_ssprk3_2d.nc"]
     assert shorten(["run", "tc2_steady", "--ne", "8", "-s", "case.path=tc5_mountain_ne16np4_rk4.nc"])[-1] == (
         "case.path=tc5_mountain_ne3np4_rk4.nc"

@@ -195,16 +195,33 @@ def against_fixed(args, ref, days, out: dict) -> None:
             if e <= bound:
                 break
         adaptive[pair] = tried
-    print("\nverdict (loosest qualifying rtol against the cheapest qualifying fixed run):")
+    verdicts(args, adaptive, best, days)
+    out["cost"] = {"days": days, "spatial": spatial, "fixed": fixed, "adaptive": adaptive, "dt_g": dt_g}
+
+
+def verdicts(args, adaptive: dict, best: dict | None, days: float) -> None:
+    """(b)'s verdict: each pair's loosest qualifying rtol (``adaptive``: its tries, loosest first)
+    against ``best``, the cheapest qualifying fixed run; and against the pair itself at a fixed Δt
+    of as many steps (the control's own cost: the norm, the saved state, the launch lists)."""
+    print("\nverdict (loosest qualifying rtol against the cheapest qualifying fixed run; the pair at a fixed")
+    print("Δt of as many steps):")
     for pair, tried in adaptive.items():
         ok = [t for t in tried if t["ok"]]
-        if not ok or best is None:
-            print(f"  {pair}: {'no qualifying rtol' if not ok else 'no qualifying fixed run'}")
+        if not ok:
+            print(f"  {pair}: no qualifying rtol")
             continue
-        print(
-            f"  {pair}@rtol={ok[0]['rtol']:g}: {ok[0]['cpu'] / days:.3f} CPU s/day against {best['run']} {best['cpu'] / days:.3f}: {ok[0]['cpu'] / best['cpu']:.2f}×"
+        same = run("tc5_mountain", args.ne, days, pair, dt=days * DAY / ok[0]["accepted"])
+        ok[0]["fixed_same_steps_cpu"] = same["cpu"]
+        t = ok[0]
+        against = (
+            "no qualifying fixed run"
+            if best is None
+            else f"{best['run']} {best['cpu'] / days:.3f}: {t['cpu'] / best['cpu']:.2f}×"
         )
-    out["cost"] = {"days": days, "spatial": spatial, "fixed": fixed, "adaptive": adaptive, "dt_g": dt_g}
+        print(
+            f"  {pair}@rtol={t['rtol']:g}: {t['cpu'] / days:.3f} CPU s/day against {against}; {pair} fixed, "
+            f"{t['accepted']} steps: {same['cpu'] / days:.3f} ({t['cpu'] / same['cpu']:.2f}× under control)"
+        )
 
 
 def hard_start(args, ref, days, out: dict) -> None:

@@ -25,6 +25,8 @@ every run's). The parts:
 (c) **A start far above the stable step** (TC5): each pair under control from ``--dt`` 5× the
     scene's Δt against the same from the scene's Δt, at rtol ``--hard-rtol``: blow-up or not,
     accepted and rejected steps, CPU s, ratio (issue 64's target ≤ 1.3×).
+(d) **The control's own cost** (TC5): a pair's step at one Δt against a new Δt every step (the
+    launch lists keyed by Δt recorded again), and one error norm; CPU ms.
 """
 
 from __future__ import annotations
@@ -259,6 +261,36 @@ def hard_start(args, ref, days, out: dict) -> None:
     out["hard_start"] = {"scene_dt": scene_dt, "runs": rows}
 
 
+def step_cost(args, out: dict) -> None:
+    """(d): where a controlled step's own cost goes (TC5): each pair's step at one Δt (its launch
+    lists replayed) against a new Δt every step (as under control: the lists keyed by Δt
+    recorded again), and one error norm (``control.ErrorNorm``), ms of CPU each, over
+    ``--step-repeat`` steps."""
+    print(f"\n## TC5 ne{args.ne}: a step's CPU ms at one Δt, at a new Δt every step, and one error norm")
+    rows = {}
+    for pair in args.pairs:
+        sim = run("tc5_mountain", args.ne, 0.25, pair, control={"control": "error", "rtol": 1e-3})["sim"]
+        stepper, ctl, n = sim.stepper, sim.control, args.step_repeat
+
+        def per_step(dts, stepper=stepper, sim=sim) -> float:
+            start = time.process_time()
+            for dt in dts:
+                stepper.set_dt(dt)
+                stepper.step(sim.x)
+            return (time.process_time() - start) / len(dts) * 1e3
+
+        same, new = per_step([500.0] * n), per_step([500.0 + 1e-3 * (i + 1) for i in range(n)])
+        start = time.process_time()
+        for _ in range(n):
+            ctl.norm(stepper.error_estimate, ctl.x0, sim.x)
+        norm = (time.process_time() - start) / n * 1e3
+        rows[pair] = {"one_dt_ms": same, "new_dt_ms": new, "norm_ms": norm}
+        print(
+            f"{pair:10s} one Δt {same:.3f} ms, a new Δt every step {new:.3f} ms ({new / same:.2f}×), the norm {norm:.3f} ms"
+        )
+    out["step_cost"] = rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--ne", type=int, default=8)
@@ -274,7 +306,8 @@ def main() -> None:
         "--fixed", nargs="+", default=["kgu35@1.78", "kgu35@0.89", "fbrk32@1.38", "fbrk32@0.69", "rk4@1.38", "rk4@0.69"]
     )
     parser.add_argument("--hard-rtol", type=float, default=1e-4)
-    parser.add_argument("--parts", nargs="+", default=["a", "b", "c"], choices=["a", "b", "c"])
+    parser.add_argument("--step-repeat", type=int, default=100, help="steps timed in (d)")
+    parser.add_argument("--parts", nargs="+", default=["a", "b", "c", "d"], choices=["a", "b", "c", "d"])
     args = parser.parse_args()
     init_warp()
     with recorded(__file__) as figures:
@@ -283,7 +316,7 @@ def main() -> None:
         if "a" in args.parts:
             proportionality(args, "tc2_steady", args.tc2_days, figures)
         ref = proportionality(args, "tc5_mountain", args.tc5_days, figures) if "a" in args.parts else None
-        if ref is None:
+        if ref is None and {"b", "c"} & set(args.parts):
             ref = run(
                 "tc5_mountain", args.ne, args.tc5_days, "dp54", control={"control": "error", "rtol": args.rtol_ref}
             )
@@ -291,6 +324,8 @@ def main() -> None:
             against_fixed(args, ref, args.tc5_days, figures)
         if "c" in args.parts:
             hard_start(args, ref, args.tc5_days, figures)
+        if "d" in args.parts:
+            step_cost(args, figures)
         print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
 
 

@@ -566,12 +566,16 @@ def node_dataset(grid: CubedSphere, hs: np.ndarray, day: float, fields: dict, at
 def close_open_runs(failed: str) -> None:
     """Close every open run file with the output times it holds and a global
     attribute ``failed`` (the reason), once no file is being written, and keep
-    ``WRITING`` so that nothing is written after: the caller ends the process
-    (``mpi.watch_failures`` on rank 0 when another rank failed)."""
+    ``WRITING`` so that nothing is written after, and release the locks taken ahead of a
+    writer: the caller ends the process (``mpi.watch_failures`` on rank 0 when another rank
+    failed)."""
     WRITING.acquire()
     for writer in list(_OPEN):
         writer.set_attrs(failed=failed)
         writer.close()
+    for key, fd in list(_HELD.items()):  # a lock taken ahead (``HeldLock``) for a run that never wrote
+        del _HELD[key]
+        release_lock(Path(key), fd)
 
 
 def check_results(directory: Path, names, overwrite: bool = False) -> None:

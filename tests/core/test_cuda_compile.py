@@ -24,6 +24,7 @@ import numpy as np
 import pytest
 import warp as wp
 
+import swe_sphere
 import swe_sphere.kernels as kernels_pkg
 from swe_sphere.config.scene import list_scenes, load_scene
 from swe_sphere.grid.cubed_sphere import CubedSphere
@@ -122,6 +123,9 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
             grid, ["hyperviscosity"], z, z, nu=1e15, nu_div=3e15, device="cpu", per_element=per_element
         )
         model.hyperviscosity(model.new_state(), 100.0)
+    # the adjoint's kernels (a gradient's reverse sweep), on TC5's terms with the ∇⁴
+    tc5 = load_scene("tc5_mountain", ne=2, np_=4, dt=1800.0, stepper="rk4")
+    swe_sphere.gradient(tc5, 1, swe_sphere.HeightMisfit(0.0))
     ghosted = [factory(*args, ghosts=True) for factory, args in dss_args]
     return [k for k in launched if k.func.__module__.startswith("swe_sphere.")], ghosted
 

@@ -179,6 +179,8 @@ def test_inline_commands_are_examples_and_placeholders_are_not(tmp_path):
     ]
 
 
+# each page a group of its own, so that the pages (minutes together) spread over the workers
+@pytest.mark.xdist_group("docs-readme")
 def test_readme_examples_run_as_written(tmp_path):
     run_examples(ROOT / "README.md", tmp_path, inline=False)  # its inline commands restate its blocks
 
@@ -190,7 +192,10 @@ SLOW_PAGES = ("efficiency.md",)
 @pytest.mark.parametrize(
     "page",
     [
-        pytest.param(p.name, marks=[pytest.mark.slow] if p.name in SLOW_PAGES else [])
+        pytest.param(
+            p.name,
+            marks=[pytest.mark.xdist_group(f"docs-{p.stem}"), *([pytest.mark.slow] if p.name in SLOW_PAGES else [])],
+        )
         for p in sorted((ROOT / "docs").glob("*.md"))
         if programs(p)
     ],

@@ -30,7 +30,7 @@ f64 = wp.float64
 TENDENCY_TERMS = ("continuity", "momentum_advection", "coriolis", "pressure_gradient", "topography")
 
 
-def _flags(terms):
+def term_flags(terms):
     """Which of ``TENDENCY_TERMS`` are in ``terms``; ValueError for an unknown one."""
     unknown = set(terms) - set(TENDENCY_TERMS)
     if unknown:
@@ -45,7 +45,7 @@ def finish(terms: tuple):
     cx − cy = ∂ξ v₂ − ∂η v₁ (covariant wind), write tend[:, p]. Generic: p is a
     node and the values float64 (per-node kernel), or p is a row and the values
     rows (``operators.row_vectors``, the element kernel)."""
-    CONT, ADV, COR, PG, TOPO = _flags(terms)
+    CONT, ADV, COR, PG, TOPO = term_flags(terms)
     GRAD = ADV or PG
 
     def finish_terms(
@@ -95,7 +95,7 @@ def tendency(terms: tuple):
     """The tendency kernel for ``terms`` (a tuple in ``TENDENCY_TERMS`` order). Arguments:
     x (3, N) state, D, Dinv (4, N), metdet, fcor (N), forcing (2, N) topographic −g∇hs,
     dvv (np, np), np, g, tend (3, N) output, offset."""
-    CONT, ADV, _, PG, _ = _flags(terms)
+    CONT, ADV, _, PG, _ = term_flags(terms)
     GRAD = ADV or PG  # ∇ of the Bernoulli function ½|v|² + g h
 
     def kernel(
@@ -151,7 +151,7 @@ def tendency_element(terms: tuple, np_: int):
     (4, N/np), metdet, fcor (N/np), forcing (2, N/np) topographic −g∇hs, g,
     dvv (``operators.dvv_matrix``), tend (3, N/np) output, offset (in
     elements). Dim nelem."""
-    CONT, ADV, _, PG, _ = _flags(terms)
+    CONT, ADV, _, PG, _ = term_flags(terms)
     GRAD = ADV or PG
     NP = int(np_)
     vec, mat, along, across = row_derivatives(NP)

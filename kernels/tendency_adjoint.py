@@ -20,16 +20,9 @@ import functools
 import warp as wp
 
 from .operators import element_node
-from .tendencies import TENDENCY_TERMS
+from .tendencies import term_flags
 
 f64 = wp.float64
-
-
-def _flags(terms):
-    unknown = set(terms) - set(TENDENCY_TERMS)
-    if unknown:
-        raise ValueError(f"unknown tendency terms {sorted(unknown)}")
-    return tuple(t in terms for t in TENDENCY_TERMS)
 
 
 @functools.cache
@@ -38,7 +31,7 @@ def point(terms: tuple, np_: int):
     (4, N), metdet, fcor, spheremp (N), dvv (np, np), kbar (3, N) the continuous adjoint of
     the tendency, s (5, N) out, xbar (3, N) out (overwritten), fbar (2, N) (+= λ's wind rows
     with topography), offset. Dim N."""
-    CONT, ADV, COR, PG, TOPO = _flags(terms)
+    CONT, ADV, COR, PG, TOPO = term_flags(terms)
     GRAD = ADV or PG
     NP = int(np_)
 
@@ -109,7 +102,7 @@ def gather(terms: tuple, np_: int):
     derivatives' adjoints s (``point``'s) send back through the products they differentiate.
     Arguments: x (3, N) state, D, Dinv (4, N), metdet (N), dvv (np, np), g, s (5, N), xbar
     (3, N) (+=), offset. Dim N."""
-    CONT, ADV, _, PG, _ = _flags(terms)
+    CONT, ADV, _, PG, _ = term_flags(terms)
     GRAD = ADV or PG
     NP = int(np_)
 

@@ -104,7 +104,7 @@ def test_the_cli_run_lands_on_its_output_times_and_records_the_control(tmp_path)
         assert time.tolist() == [0.0, 0.25, 0.5, 0.75, 1.0]
         assert np.isnan(dt[0]) and (dt[1:] > 0).all()
         l2[rtol] = err[-1]
-    assert l2[1e-2] == pytest.approx(3.89e-4, rel=0.01) and l2[1e-3] == pytest.approx(1.66e-4, rel=0.01)
+    assert l2[1e-2] == pytest.approx(3.26e-4, rel=0.01) and l2[1e-3] == pytest.approx(1.66e-4, rel=0.01)
     assert _cli_run(tmp_path / "big.nc", "-s", "time.rtol=1e-3", "--dt", 20000) == 0
     rejected, err, steps = _series(tmp_path / "big.nc", "rejected_steps", "error_estimate", "steps")
     assert rejected[0] == 0 and rejected[-1] >= 1 and (err[1:] <= 1).all() and steps[-1] > 4

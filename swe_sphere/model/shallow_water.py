@@ -68,6 +68,20 @@ def element_runs(elements, gap: int) -> list[tuple[int, int]]:
     return [tuple(r) for r in runs]
 
 
+def _checked_terms(terms, forcing) -> tuple:
+    """``terms`` as a tuple; ValueError for an unknown term, or a forcing term without its
+    forcing or without a tendency term to add to."""
+    terms = tuple(terms)
+    for t in terms:
+        if t not in TERMS:
+            raise ValueError(f"unknown term {t!r} (known: {', '.join(TERMS)})")
+    if "forcing" in terms and forcing is None:
+        raise ValueError("the forcing term needs a forcing (kernel, params); the case supplies it")
+    if "forcing" in terms and not set(terms) & set(tendencies.TENDENCY_TERMS):
+        raise ValueError("the forcing term adds to the tendency: name at least one tendency term")
+    return terms
+
+
 class ShallowWater:
     """Vector-invariant shallow-water equations on a cubed-sphere SE grid.
 
@@ -127,14 +141,7 @@ class ShallowWater:
         topology=None,
         forcing=None,
     ):
-        terms = tuple(terms)
-        for t in terms:
-            if t not in TERMS:
-                raise ValueError(f"unknown term {t!r} (known: {', '.join(TERMS)})")
-        if "forcing" in terms and forcing is None:
-            raise ValueError("the forcing term needs a forcing (kernel, params); the case supplies it")
-        if "forcing" in terms and not set(terms) & set(tendencies.TENDENCY_TERMS):
-            raise ValueError("the forcing term adds to the tendency: name at least one tendency term")
+        terms = _checked_terms(terms, forcing)
         self.forcing = forcing if "forcing" in terms else None
         self.graph_guard = (
             GraphGuard()

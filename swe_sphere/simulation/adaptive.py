@@ -43,14 +43,15 @@ LANDING_SLACK = 1e-6
 # benchmarks/adaptive_proportionality.py (d)); on the grid the same few Δt recur and replay
 DT_GRID = 16
 
+# the model's recorded launch lists kept under control (``LaunchRecorder.limit``): a fixed-Δt
+# run records about 10; the stages' combinations and the ∇⁴ step fold Δt into their keys, so
+# each new Δt adds about 5 (``on_grid`` keeps the Δt few)
+LAUNCH_LISTS = 64
+
 
 def on_grid(dt: float) -> float:
     """``dt`` (s, > 0) rounded down to 2^(k / DT_GRID) s, k an integer."""
     return 2.0 ** (math.floor(math.log2(dt) * DT_GRID) / DT_GRID)
-# the model's recorded launch lists kept under control (``LaunchRecorder.limit``): a fixed-Δt
-# run records about 10; the stages' combinations and the ∇⁴ step fold Δt into their keys, so
-# a Δt that changes every step adds about 5 a step
-LAUNCH_LISTS = 64
 
 
 class StepControl:

@@ -23,9 +23,6 @@ What changes, and why it keeps the pages' order meaningful:
 - The run lengths stay: at these grids a 15-day run costs a fraction of a second
   above the process's start-up, and the pages' days carry meaning (the reference's
   stored days, restart days, the time filter's window).
-- A sweep times each run's RHS for one short batch instead of five 0.2 s ones: that
-  time is the unit of the cost columns (``sweep.runs.rhs_time``), not an answer these
-  examples check, and it would be most of a tiny sweep's time.
 """
 
 from __future__ import annotations
@@ -33,7 +30,6 @@ from __future__ import annotations
 import math
 import re
 import sys
-import time
 
 GRID_COMMANDS = ("run", "sweep", "stability")
 FILE_GRID = ("--continue", "--from", "--mesh")  # the grid is the file's
@@ -120,18 +116,8 @@ def _mesh_file(args: list[str]) -> bool:
     return any(a.startswith("grid.mesh_file=") and args[i - 1] in ("-s", "--set") for i, a in enumerate(args) if i)
 
 
-def _cut_rhs_timing() -> None:
-    """One short batch for each run's RHS time in a sweep (the module says why)."""
-    from swe_sphere.studies.sweep import runs
-
-    timed = runs.rhs_time
-    runs.rhs_time = lambda sim, clock=time.perf_counter: timed(sim, span=1e-3, rounds=1, clock=clock)
-
-
 if __name__ == "__main__":
     sys.argv[1:] = shorten(sys.argv[1:])
-    if sys.argv[1:2] == ["sweep"]:
-        _cut_rhs_timing()
     from swe_sphere.cli import main
 
     sys.exit(main())

@@ -101,6 +101,13 @@ def explicit_limits(scene: Scene, device: str, start: np.ndarray | None = None) 
     }
 
 
+def rhs_span(run_time: float) -> float:
+    """The length (s) of ``rhs_time``'s batches for a run that took ``run_time`` s: 0.2 s, or
+    a tenth of the run where that is shorter (at least 2 ms), so that timing the unit
+    (2 clocks × 5 batches) never costs more than the run it describes."""
+    return min(0.2, max(2e-3, run_time / 10))
+
+
 def rhs_time(sim: Simulation, span: float = 0.2, rounds: int = 5, clock=time.perf_counter) -> float:
     """The time (s) on ``clock`` (wall: ``time.perf_counter``; CPU: ``time.process_time``)
     of one RHS evaluation of ``sim``'s model on its last good state,
@@ -110,7 +117,7 @@ def rhs_time(sim: Simulation, span: float = 0.2, rounds: int = 5, clock=time.per
     just after it, so that it shares the run's threads and, roughly, the machine's
     load. The batches last long enough to be preempted as the run was: on a loaded
     machine a single millisecond-long call often runs within one time slice, and
-    its time understates the run's unit."""
+    its time understates the run's unit (``rhs_span`` sizes them to the run)."""
     model, x = sim.model, sim.last_good
     f = model.new_state()
 
@@ -323,8 +330,8 @@ class Sweep:
             threads=sim.model.threads,
             steps=at["steps"],
             rhs_evals=at["rhs_evals"],
-            rhs_time=rhs_time(sim),
-            rhs_cpu_time=rhs_time(sim, clock=time.process_time),
+            rhs_time=rhs_time(sim, rhs_span(at["wall_time"])),
+            rhs_cpu_time=rhs_time(sim, rhs_span(at["cpu_time"]), clock=time.process_time),
         )
         row.update({f"{k}_iterations": at[f"{k}_iterations"] for k in result.iterations})
         final = result.history[-1]

@@ -34,6 +34,22 @@ def pytest_configure(config):
         os.environ[THREADS_ENV] = str(max(1, cpus() // int(workers)))
 
 
+# The default run's longest work units (an xdist group, or a module), longest first: CPU s on
+# 2026-11-25 (mpi 131, the README's examples 61, methods.md's 47, test_multirate 44, ...). xdist
+# hands out units in the order of their test counts, which put the pages' one test each last:
+# one worker then ran the README's examples alone for the last minute and a half.
+HEAVY_FIRST = (
+    "mpi",
+    "docs-readme",
+    "docs-methods",
+    "tests/steppers/test_multirate.py",
+    "tests/simulation/test_output_protection.py",
+    "tests/studies/test_sweep.py",
+    "docs-experiments",
+    "docs-reference",
+)
+
+
 def pytest_xdist_make_scheduler(config, log):
     """Under ``--dist loadgroup``, one worker runs a test module's tests, or a group's where
     they name one (``xdist_group``, e.g. the MPI tests): a module's tests share the runs it
@@ -46,6 +62,12 @@ def pytest_xdist_make_scheduler(config, log):
         def _split_scope(self, nodeid: str) -> str:
             scope = super()._split_scope(nodeid)
             return nodeid.split("::")[0] if scope == nodeid else scope
+
+        def _assign_work_unit(self, node) -> None:
+            for scope in reversed(HEAVY_FIRST):  # the longest work units first, so no worker ends alone
+                if scope in self.workqueue:
+                    self.workqueue.move_to_end(scope, last=False)
+            super()._assign_work_unit(node)
 
     return ModuleOrGroup(config, log)
 

@@ -17,6 +17,8 @@ What changes, and why it keeps the pages' order meaningful:
   first of ``--courant`` (``--dt``); ``stability`` bisects the first of ``--steppers``;
   ``--workers`` is dropped (each worker process imports the model again, which costs
   more than a tiny run).
+- A frontier keeps the first of its ``--ne`` and ``--steppers`` and two of its ``--np``
+  (each grid is a sweep of its own; the pages' ladders are tiny already).
 - ``mesh --levels N`` refines one level (2x, not 2^N x): the refinement, its transitions
   and the run on the file stay; the 4x mesh's cells took 12 s of CPU to build and its run
   935 steps, the 2x mesh's a fraction of a second and 468 (README's ne10 box, load 12).
@@ -65,6 +67,7 @@ def scene_ne(scene: str) -> int:
 KEPT = {  # per command: option → how many of its comma-separated values stay
     "sweep": {"--runs": 1, "--steppers": 1, "--courant": 1, "--dt": 1},
     "stability": {"--steppers": 1},
+    "frontier": {"--ne": 1, "--np": 2, "--steppers": 1},
 }
 
 
@@ -78,9 +81,9 @@ def shorten(argv: list[str]) -> list[str]:
     if argv[:1] == ["mesh"] and "--levels" in argv[:-1]:
         argv = list(argv)
         argv[argv.index("--levels") + 1] = "1"
-    if not argv or argv[0] not in GRID_COMMANDS:
+    if not argv or argv[0] not in (*GRID_COMMANDS, "frontier"):
         return _file_names(argv)
-    command, args = argv[0], argv[1:]
+    command, args = argv[0], list(argv[1:])
     if "--workers" in args:
         i = args.index("--workers")
         del args[i : i + 2]
@@ -88,6 +91,8 @@ def shorten(argv: list[str]) -> list[str]:
         if option in args[:-1]:
             i = args.index(option) + 1
             args[i] = ",".join(args[i].split(",")[:n])
+    if command == "frontier":  # its ladder's grids are the page's own tiny ones
+        return [command, *args]
     if "--ne" in args[:-1]:
         i = args.index("--ne") + 1
         ne = int(args[i])

@@ -52,7 +52,8 @@ def griewank_steps(l: int, s: int) -> int:
 def sweep(n: int, snapshots: int, x0, advance, reverse, copy) -> int:
     """Run the reverse sweep over n steps from x0 with at most ``snapshots`` (≥ 1) states held,
     x0 one of them: ``reverse(x, k)`` is called for k = n − 1, …, 0 with x = x(k) (to be read,
-    not changed); ``advance(x)`` steps x in place; ``copy(x)`` returns a new state equal to x
+    not changed); ``advance(x, m)`` steps x m ≥ 1 steps in place (a walk between two states
+    held, in one call: a stepper's work array copied in and out once); ``copy(x)`` returns a new state equal to x
     (a held snapshot, or a work state). Returns the forward steps taken, T(n, snapshots − 1).
     ValueError for n < 1 or snapshots < 1."""
     if n < 1 or snapshots < 1:
@@ -61,8 +62,8 @@ def sweep(n: int, snapshots: int, x0, advance, reverse, copy) -> int:
 
     def walk(x, steps):
         nonlocal taken
-        for _ in range(steps):
-            advance(x)
+        if steps:
+            advance(x, steps)
         taken += steps
         return x
 

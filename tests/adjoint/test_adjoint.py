@@ -156,8 +156,9 @@ def test_sweep_reverses_every_step_once_in_order_with_the_predicted_recomputatio
         held.append(1)
         return list(x)
 
-    def advance(x):
-        x[0] += 1
+    def advance(x, steps):
+        assert steps >= 1
+        x[0] += steps
 
     taken = sweep(n, snapshots, [0], advance, lambda x, k: seen.append((k, x[0])), copy)
     assert seen == [(k, k) for k in reversed(range(n))]

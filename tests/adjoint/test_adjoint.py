@@ -13,7 +13,7 @@ import warp as wp
 from swe_sphere.adjoint import HeightMisfit, gradient
 from swe_sphere.adjoint.explicit import StepAdjoint
 from swe_sphere.adjoint.gradient import scene_model
-from swe_sphere.adjoint.revolve import forward_steps, griewank_steps, sweep
+from swe_sphere.adjoint.revolve import forward_steps, griewank_steps, split, sweep
 from swe_sphere.config.scene import load_scene
 from swe_sphere.kernels import tendencies, tendency_adjoint
 
@@ -146,9 +146,13 @@ def test_revolve_counts_are_griewank_and_walthers():
         for c in range(5):
             assert forward_steps(l, c) == griewank_steps(l, c + 1)
     assert griewank_steps(10, 3) == 15 and forward_steps(10, 9) == 9
+    for l in range(2, 40):  # the sweep's closed-form split achieves the recursion's minimum
+        for c in range(1, 5):
+            m = split(l, c)
+            assert m + forward_steps(l - m, c - 1) + forward_steps(m, c) == forward_steps(l, c)
 
 
-@pytest.mark.parametrize(("n", "snapshots"), [(10, 3), (7, 1), (12, 4), (5, 9)])
+@pytest.mark.parametrize(("n", "snapshots"), [(10, 3), (7, 1), (12, 4), (5, 9), (60, 5)])
 def test_sweep_reverses_every_step_once_in_order_with_the_predicted_recomputation(n, snapshots):
     held, seen = [], []
 

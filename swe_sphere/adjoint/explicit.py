@@ -64,7 +64,8 @@ class StepAdjoint:
     cannot serve.
 
     Work arrays (3, N) held: the s stages Y_i; K_j = F(Y_j) only where a stage after the next
-    reads it (with ``parameters``: all); Ȳ_j only where an earlier stage's k̄ reads it; x̄,
+    reads it (with ``parameters``: all); the Ȳ_j an earlier stage's k̄ reads, as many as are
+    live at once (kgu35, rk4: one); x̄,
     a running sum of the Ȳ, and k̄ where the transposes cannot read k̄ as a combination
     (``_plan``)."""
 
@@ -92,7 +93,7 @@ class StepAdjoint:
         self.spheremp = wp.array(m.grid.spheremp, dtype=f64, device=device)
         self._combinations: dict[tuple, list] = {}  # ``combine``'s recorded launches
         self._stages = self._stage_plan(zeros)
-        self.Ybar = [None] * len(self.b)  # the Ȳ_j an earlier stage's k̄ reads (``_record``)
+        self.Ybar: list = []  # the buffers of the Ȳ_j an earlier stage's k̄ reads (``_record``)
         self._adjoints: dict[int, tuple] = {}  # (μ, ``_record``'s launches), by μ's address
         self.d_nu = np.zeros(2)  # ∂J/∂ν (wind rows), ∂J/∂ν_s (h row), m⁻⁴ s · J
         self.d_hs = zeros(1)  # the ∇⁴'s share of ∂J/∂hs, continuous (mass form)
@@ -210,51 +211,62 @@ class StepAdjoint:
         return out + d.numpy()[2]
 
     def _transpose(self, Y, kbar) -> list:
-        """Launches of x̄ = Tᵀ(Y) W k̄, k̄ = Σ c·k over (c, k) ``kbar`` (element-local; the
-        element kernel on the CPU's layout, reading up to three terms, else the per-node
-        ``point`` and ``gather`` on k̄ combined first)."""
-        m = self.model
-        if m.per_element and len(kbar) <= 3:
+        """Launches of x̄ = Tᵀ(Y) W k̄, k̄ = Σ c·k over (c, k) ``kbar`` (element-local): the
+        element kernel on the CPU's layout, reading up to three terms; the per-node ``point``
+        and ``gather`` on CUDA's; k̄ combined by a pass of its own first where they cannot
+        read it as it is."""
+        m, launches = self.model, []
+        if len(kbar) > 3 or not m.per_element and kbar != [(1.0, kbar[0][1])]:
+            if not hasattr(self, "kbar"):
+                self.kbar = self._zeros(3)
+            more = (m.lincomb(self.kbar, [(1.0, self.kbar), *kbar[i : i + 3]]) for i in range(4, len(kbar), 3))
+            launches, kbar = [m.lincomb(self.kbar, kbar[:4]), *more], [(1.0, self.kbar)]
+        if m.per_element:
             R, (c, k) = m.as_rows, zip(*kbar)
             c, k = [*c, *(0.0,) * (3 - len(c))], [*k, *(k[0],) * (3 - len(k))]
             kernel = tendency_adjoint.element(self.terms, m.grid.np, len(kbar))
             args = [*map(R, (Y, m.D, m.Dinv, m.metdet, m.fcor, self.spheremp)), m.g, m.dvv_rows, wp.vec3d(*c)]
-            return [m.launches.elements(kernel, [*args, *map(R, k), R(self.xbar), R(self.fbar)])]
-        if not hasattr(self, "kbar"):
-            self.kbar, self.adj = self._zeros(3), self._zeros(5)
-        more = (m.lincomb(self.kbar, [(1.0, self.kbar), *kbar[i : i + 3]]) for i in range(4, len(kbar), 3))
-        combine = [m.lincomb(self.kbar, kbar[:4]), *more]
-        point = [Y, m.D, m.Dinv, m.metdet, m.fcor, self.spheremp, m.dvv, self.kbar, self.adj, self.xbar, self.fbar]
+            return [*launches, m.launches.elements(kernel, [*args, *map(R, k), R(self.xbar), R(self.fbar)])]
+        if not hasattr(self, "adj"):
+            self.adj = self._zeros(5)
+        point = [Y, m.D, m.Dinv, m.metdet, m.fcor, self.spheremp, m.dvv, kbar[0][1], self.adj, self.xbar, self.fbar]
         gather = [Y, m.D, m.Dinv, m.metdet, m.dvv, m.g, self.adj, self.xbar]
         return [
-            *combine,
+            *launches,
             m.launches.nodes(tendency_adjoint.point(self.terms, m.grid.np), m.N, point),
             m.launches.nodes(tendency_adjoint.gather(self.terms, m.grid.np), m.N, gather),
         ]
 
     def _record(self, mu) -> list:
         """The launches of the stages' transposes, last stage first: k̄_i = Δt (b_i μ + Σ_j a_ji
-        Ȳ_j), x̄ = Tᵀ(Y_i) W k̄_i, Ȳ_i = R Q x̄ written by the unweighted DSS into the Ȳ_j an
-        earlier stage reads and a running sum, the last into μ += Σ Ȳ_i (a stage with no
+        Ȳ_j), x̄ = Tᵀ(Y_i) W k̄_i, Ȳ_i = R Q x̄ written by the unweighted DSS into a running
+        sum, the last into μ += Σ Ȳ_i, and where an earlier stage reads it into a buffer of
+        its own, freed after its last reader's transpose (kgu35, rk4: one; a stage with no
         terms contributes nothing)."""
         dt, s, A = self.dt, len(self.b), self.A
-        kbars = {}
+        reads = {}  # each active stage: the j of the Ȳ_j its k̄ reads
         for i in reversed(range(s) if self.terms else ()):
-            terms = [(dt * self.b[i], mu)] if self.b[i] else []
-            terms += [(dt * A[j][i], self.Ybar[j]) for j in range(i + 1, s) if A[j][i] and j in kbars]
-            if terms:
-                kbars[i] = terms
-                self.Ybar[i] = self._zeros(3) if any(A[i][j] for j in range(i)) else None
-        active = sorted(kbars, reverse=True)
+            js = [j for j in range(i + 1, s) if A[j][i] and j in reads]
+            if self.b[i] or js:
+                reads[i] = js
+        active = sorted(reads, reverse=True)
+        last_read = {j: min(i for i in reads if j in reads[i]) for js in reads.values() for j in js}
         if len(active) > 1 and not hasattr(self, "acc"):
             self.acc = self._zeros(3)
-        launches = []
+        launches, ybar, free = [], {}, list(self.Ybar)
         for n, i in enumerate(active):
-            first, last = n == 0, n == len(active) - 1
-            total = mu if last else self.acc
-            updates = [(self.Ybar[i], ((1.0, None),))] if self.Ybar[i] is not None and not last else []
-            updates.append((total, ((1.0, mu if first else self.acc), (1.0, None))))
-            launches += self._transpose(self.Y[i], kbars[i])
+            kbar = [(dt * self.b[i], mu)] if self.b[i] else []
+            launches += self._transpose(self.Y[i], kbar + [(dt * A[j][i], ybar[j]) for j in reads[i]])
+            free += [ybar[j] for j in reads[i] if last_read[j] == i]  # read: its buffer free for Ȳ_i
+            updates = []
+            if i in last_read:
+                if not free:
+                    self.Ybar.append(self._zeros(3))
+                    free.append(self.Ybar[-1])
+                ybar[i] = free.pop()
+                updates.append((ybar[i], ((1.0, None),)))
+            total = mu if n == len(active) - 1 else self.acc
+            updates.append((total, ((1.0, mu if n == 0 else self.acc), (1.0, None))))
             launches += self.model.topology.dss_update(self.xbar, updates, weighted=False)
         return launches
 

@@ -14,8 +14,9 @@ element-local nodes for a continuous δx. In that form
   element weak Laplacian plus the mass shift (symmetric), P the (east, north) → Cartesian
   basis and Π the tangent projection, both continuous and per node, so μ ← μ + c B₀ μ with
   B₀ the operator without hs (the model's ∇⁴ launches recorded with hs = 0);
-- T's transpose is ``kernels.tendency_adjoint`` (written by hand: two gathers a stage), whose
-  λ is gathered back by the unweighted DSS, μ = R Q λ.
+- T's transpose is ``kernels.tendency_adjoint`` (written by hand: one element kernel a stage
+  on the CPU, two per-node gathers on CUDA), whose λ is gathered back by the unweighted DSS,
+  μ = R Q λ, written straight into the running sum of the stages' adjoints (``dss_update``).
 The parameters (``parameters=True``): the ∇⁴ substeps x ← L x + c B₀ hs (L = I + c B₀, c ∝ ν)
 give, with Δ₀ = c B₀ (Φ + hs) the first substep's increment and μ₁ the adjoint before the
 last substep's transpose, ∂J/∂ν = S ⟨μ₁, Δ₀⟩ / ν over S substeps (L commutes with itself:
@@ -65,9 +66,8 @@ class StepAdjoint:
 
     Work arrays (3, N) held: the s stages Y_i; K_j = F(Y_j) only where a stage after the next
     reads it (with ``parameters``: all); the Ȳ_j an earlier stage's k̄ reads, as many as are
-    live at once (kgu35, rk4: one); x̄,
-    a running sum of the Ȳ, and k̄ where the transposes cannot read k̄ as a combination
-    (``_plan``)."""
+    live at once (kgu35, rk4: one); x̄, a running sum of the Ȳ, and k̄ where the transposes
+    cannot read it as a combination (``_transpose``): kgu35 eight, with (2, N) f̄."""
 
     def __init__(self, model: ShallowWater, table, dt: float, parameters: bool = False):
         why = _refusal(model, dt)
@@ -102,7 +102,8 @@ class StepAdjoint:
         if m.hv is not None and m.hv.nu_max > 0:
             self.substeps = m.hv.plan(self.dt)[0]
             self.zero_hs = wp.zeros(N, dtype=f64, device=device)
-            self.phi, self.delta = zeros(3), zeros(3)
+            if self.parameters:  # Φ + hs and Δ₀ (``hyperviscosity_transpose``)
+                self.phi, self.delta = zeros(3), zeros(3)
         self._zeros = zeros
 
     def _stage_plan(self, zeros) -> list:

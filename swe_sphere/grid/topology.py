@@ -347,7 +347,9 @@ class Topology:
         arrays += arrays[-3:] * (2 - len(updates))
         return self.gathering(
             x,
-            lambda rows, copies, ghosts: dss.dss_update(rows, copies, tuple(patterns), ghosts, bool(weighted)),
+            lambda rows, copies, ghosts: dss.dss_update(
+                rows, copies, tuple(patterns), ghosts=ghosts, weighted=bool(weighted)
+            ),
             [dss.vec6(*coefs), *arrays],
         )
 

@@ -1,9 +1,13 @@
 """The CPU cost of a gradient (``swe_sphere.gradient``) against the forward run it differentiates.
 
-    python benchmarks/gradient_cost.py [--ne 4 8] [--steps 48] [--repeat 3] [--source DIR ...]
+    python benchmarks/gradient_cost.py [--scene tc5_mountain] [--stepper rk4] [--ne 4 8]
+        [--steps 48 | --days D] [--snapshots S] [--repeat 3] [--source DIR ...]
 
-TC5 (rk4 at the scene's Δt, np 4, its ∇⁴), a height misfit of the final state, every state held
-(``snapshots`` None). Each ``--source`` (a tree of swe_sphere: a clone, or
+A scene of testcases/ (default TC5; np 4, the stepper at the scene's Δt, its ∇⁴), a height misfit
+of the final state, ``--snapshots`` states held in the reverse sweep (default every state;
+fewer: binomial checkpointing, its forward steps printed); ``--days`` sets the steps to the
+scene's Δt's count in that many days (issue 66's target: ``--scene galewsky --stepper kgu35
+--ne 16 --days 6 --snapshots 30``). Each ``--source`` (a tree of swe_sphere: a clone, or
 ``git archive COMMIT | tar -x -C DIR``) runs in a one-thread child process
 (``SWE_SPHERE_THREADS=1``), which times with the process's CPU clock, medians of ``--repeat``:
 the forward run (``steps`` steps of the stepper, its model built), the same with the model
@@ -34,11 +38,13 @@ from swe_sphere.adjoint import HeightMisfit, gradient
 from swe_sphere.adjoint.gradient import scene_model
 from swe_sphere.config.scene import load_scene
 
-ne, steps, repeat, path = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
-scene = load_scene(path, ne=ne, np_=4, stepper="rk4")
+ne, steps, repeat, path, stepper_name = int(sys.argv[1]), float(sys.argv[2]), int(sys.argv[3]), sys.argv[4], sys.argv[5]
+snapshots = None if sys.argv[6] == "all" else int(sys.argv[6])
+scene = load_scene(path, ne=ne, np_=4, stepper=stepper_name)
+steps = int(steps) if steps > 0 else round(-steps * 86400.0 / scene.dt)  # negative: days
 model, stepper, x0 = scene_model(scene)
 cost = HeightMisfit(x0[2] + 10.0)
-gradient(scene, 2, cost)  # compile and warm the caches
+gradient(scene, 2, cost, snapshots=min(2, snapshots or 2))  # compile and warm the caches
 clock = time.process_time
 rows = {"forward": [], "run": [], "gradient": [], "model": []}
 for _ in range(repeat):
@@ -59,19 +65,20 @@ for _ in range(repeat):
         st.advance(x)
     rows["run"].append(clock() - t)
     t = clock()
-    gradient(scene, steps, cost)
+    g = gradient(scene, steps, cost, snapshots=snapshots)
     rows["gradient"].append(clock() - t)
-print(json.dumps({k: statistics.median(v) for k, v in rows.items()} | {"dt": scene.dt}))
+taken = {"steps": steps, "forward_steps": g.forward_steps, "dt": scene.dt}
+print(json.dumps({k: statistics.median(v) for k, v in rows.items()} | taken))
 """
 
 
-def measure(source: str | None, ne: int, steps: int, repeat: int) -> dict:
-    """The child's medians (CPU s) for one tree and grid."""
+def measure(source: str | None, ne: int, steps: float, repeat: int, scene: str, stepper: str, snapshots) -> dict:
+    """The child's medians (CPU s) for one tree and grid; steps < 0: that many days."""
     env = dict(os.environ, SWE_SPHERE_THREADS="1", OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     if source is not None:
         env["PYTHONPATH"] = os.pathsep.join([source, *filter(None, [os.environ.get("PYTHONPATH")])])
-    scene = str(ROOT / "testcases" / "tc5_mountain.toml")
-    args = [sys.executable, "-c", CHILD, str(ne), str(steps), str(repeat), scene]
+    path = str(ROOT / "testcases" / f"{scene}.toml")
+    args = [sys.executable, "-c", CHILD, str(ne), str(steps), str(repeat), path, stepper, str(snapshots or "all")]
     out = subprocess.run(args, env=env, cwd=source or ROOT, capture_output=True, text=True)  # -c puts the cwd first
     if out.returncode:
         raise SystemExit(f"ne{ne} ({source or 'default'}): exit {out.returncode}\n{out.stderr[-2000:]}")
@@ -80,20 +87,31 @@ def measure(source: str | None, ne: int, steps: int, repeat: int) -> dict:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scene", default="tc5_mountain", help="a scene of testcases/ (its file's stem)")
+    parser.add_argument("--stepper", default="rk4", help="an explicit Runge–Kutta table")
     parser.add_argument("--ne", type=int, nargs="+", default=[4, 8])
     parser.add_argument("--steps", type=int, default=48)
+    parser.add_argument("--days", type=float, help="the steps in this many days instead of --steps")
+    parser.add_argument("--snapshots", type=int, help="states held in the reverse sweep (default: every state)")
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--source", nargs="+", default=[None], help="swe_sphere trees (default: the one Python finds)")
     args = parser.parse_args()
+    steps = -args.days if args.days else args.steps
+    held = f"{args.snapshots} states held" if args.snapshots else "every state held"
     with recorded(__file__) as figures:
-        print(f"TC5 rk4 np4, {args.steps} steps, one thread, CPU s (medians of {args.repeat}); load {os.getloadavg()}")
+        span = f"{args.days} days" if args.days else f"{args.steps} steps"
+        print(
+            f"{args.scene} {args.stepper} np4, {span}, {held}, one thread, CPU s (medians of {args.repeat}); "
+            f"load {os.getloadavg()}"
+        )
         for ne in args.ne:
             for source in args.source:
-                r = measure(source, ne, args.steps, args.repeat)
+                r = measure(source, ne, steps, args.repeat, args.scene, args.stepper, args.snapshots)
                 ratio, whole = r["gradient"] / r["forward"], r["gradient"] / r["run"]
                 figures[f"ne{ne} {source or 'default'}"] = r | {"ratio": ratio, "ratio_run": whole}
                 print(
-                    f"ne{ne} dt {r['dt']:.1f} s  {source or 'default'}: forward {r['forward']:.4f}, "
+                    f"ne{ne} dt {r['dt']:.1f} s, {r['steps']} steps ({r['forward_steps']} taken forward by the gradient)"
+                    f"  {source or 'default'}: forward {r['forward']:.4f}, "
                     f"run {r['run']:.4f}, gradient {r['gradient']:.4f} ({ratio:.2f}× the forward, {whole:.2f}× the run; "
                     f"the model's construction {r['model']:.4f})"
                 )

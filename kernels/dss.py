@@ -161,8 +161,9 @@ def combination(pattern: str):
 
 
 @functools.cache
-def dss_update(rows: int, copies: int, patterns: tuple, ghosts: bool = False):
-    """The weighted DSS k of ``rows`` rows (``gather``) not stored but used by
+def dss_update(rows: int, copies: int, patterns: tuple, ghosts: bool = False, weighted: bool = True):
+    """The weighted DSS k of ``rows`` rows (``gather``; ``weighted`` False: the unweighted
+    DSS of a weak form, as ``dss_rows``') not stored but used by
     one or two linear combinations, node by node (a Runge–Kutta stage's
     x + aΔt F written straight from the DSS of F's tendency):
     out0[r, p] = ``combination(patterns[0])``(c[0:3], k[r], s00, s01) and then
@@ -174,7 +175,7 @@ def dss_update(rows: int, copies: int, patterns: tuple, ghosts: bool = False):
     (as ``dss_rows``)."""
     if not 1 <= len(patterns) <= 2:
         raise ValueError(f"one or two combinations (got {len(patterns)})")
-    sum_copies = gather(rows, True, copies, ghosts)
+    sum_copies = gather(rows, bool(weighted), copies, ghosts)
     first = combination(patterns[0])
     second = combination(patterns[-1])
     TWO = len(patterns) == 2
@@ -200,7 +201,8 @@ def dss_update(rows: int, copies: int, patterns: tuple, ghosts: bool = False):
                 if wp.static(TWO):
                     out1[r, p] = second(wp.vec3d(c[3], c[4], c[5]), k[r], s10, s11, r, p)
 
-    dss_update.__qualname__ = dss_update.__name__ = "dss_update__" + "__".join(patterns)
+    name = "dss_update__" + "__".join(patterns) + ("" if weighted else "__unweighted")
+    dss_update.__qualname__ = dss_update.__name__ = name
     return wp.kernel(dss_update, enable_backward=False, module="unique")
 
 

@@ -12,6 +12,10 @@ products): the transpose is two launches, each a gather with no atomics:
   rows summed into f̄ (the adjoint of the forcing −g∇hs, for ∂J/∂hs);
 - ``gather``: x̄ at node (i', j') += Σ_i dvv[i, i'] s[(i, j')] · ∂(product at (i', j'))
   along ξ, and Σ_j dvv[j, j'] s[(i', j)] · ∂(product) along η: the transposed derivative.
+``element`` is the same transpose for the CPU, one thread per element on GLL rows as
+``tendencies.tendency_element`` (the two launches fused, k̄ read as a combination of up to
+three arrays): on the CPU Warp's cost per thread made the per-node pair 1.45 ms a stage at
+Galewsky ne16 (one thread), 4× an RHS; the element kernel takes 0.26 ms there.
 Checked against central differences and by dot products in ``tests/adjoint``.
 """
 
@@ -19,7 +23,7 @@ import functools
 
 import warp as wp
 
-from .operators import element_node
+from .operators import CPU_FAST, covariant, element_node, over, row_derivatives, times
 from .tendencies import term_flags
 
 f64 = wp.float64
@@ -158,3 +162,119 @@ def gather(terms: tuple, np_: int):
 
     kernel.__qualname__ = kernel.__name__ = f"tendency_adjoint_gather_np{NP}__" + "__".join(terms)
     return wp.kernel(kernel, enable_backward=False, module="unique")
+
+
+@functools.cache
+def element(terms: tuple, np_: int, nk: int):
+    """``point`` and ``gather`` fused, one thread per element on GLL rows (``operators.row_vectors``
+    views, as ``tendencies.tendency_element``), k̄ = Σ c[t]·kt over the first ``nk`` (1–3) of
+    k0, k1, k2. Arguments: x (3, N/np) state, D, Dinv (4, N/np), metdet, fcor, spheremp
+    (N/np), g, dvv (``operators.dvv_matrix``), c (vec3d), k0, k1, k2 (3, N/np), xbar (3, N/np)
+    out (overwritten: the element-local adjoint, before the unweighted DSS), fbar (2, N/np)
+    (+= λ's wind rows with topography), offset (in elements). Dim nelem."""
+    CONT, ADV, COR, PG, TOPO = term_flags(terms)
+    GRAD = ADV or PG
+    NP, NK = int(np_), int(nk)
+    if not 1 <= NK <= 3:
+        raise ValueError(f"k̄ is a combination of one to three arrays (got {nk})")
+    vec, mat, along, _ = row_derivatives(NP)  # (M F)[j] as along(M[j], F) at every np: no frozen bits here
+
+    def kernel(
+        x: wp.array2d(dtype=vec),
+        D: wp.array2d(dtype=vec),
+        Dinv: wp.array2d(dtype=vec),
+        metdet: wp.array(dtype=vec),
+        fcor: wp.array(dtype=vec),
+        spheremp: wp.array(dtype=vec),
+        g: f64,
+        dvv: mat,
+        c: wp.vec3d,
+        k0: wp.array2d(dtype=vec),
+        k1: wp.array2d(dtype=vec),
+        k2: wp.array2d(dtype=vec),
+        xbar: wp.array2d(dtype=vec),
+        fbar: wp.array2d(dtype=vec),
+        offset: int,
+    ):
+        base = (wp.tid() + offset) * NP
+        dvvT = wp.transpose(dvv)
+        v1 = mat()  # the covariant wind (vorticity)
+        v2 = mat()
+        sd = mat()  # the adjoints of div, bx, by and of cx (cy's is −rb)
+        sx = mat()
+        sy = mat()
+        rb = mat()
+        ub = mat()  # x̄'s pointwise part
+        vb = mat()
+        if wp.static(ADV):
+            for j in range(NP):
+                c1, c2 = covariant(D, x, base + j)
+                v1[j] = c1
+                v2[j] = c2
+        for j in range(NP):
+            q = base + j
+            w = spheremp[q]
+            kb = c[0] * k0[0, q]
+            kv = c[0] * k0[1, q]
+            kh = c[0] * k0[2, q]
+            if wp.static(NK > 1):
+                kb = kb + c[1] * k1[0, q]
+                kv = kv + c[1] * k1[1, q]
+                kh = kh + c[1] * k1[2, q]
+            if wp.static(NK > 2):
+                kb = kb + c[2] * k2[0, q]
+                kv = kv + c[2] * k2[1, q]
+                kh = kh + c[2] * k2[2, q]
+            lu = times(w, kb)
+            lv = times(w, kv)
+            lh = times(w, kh)
+            if wp.static(CONT):  # dh = −div/metdet
+                sd[j] = -over(lh, metdet[q])
+            if wp.static(GRAD):
+                sx[j] = -(times(Dinv[0, q], lu) + times(Dinv[1, q], lv))
+                sy[j] = -(times(Dinv[2, q], lu) + times(Dinv[3, q], lv))
+            if wp.static(ADV or COR):  # du += rot·v, dv −= rot·u
+                rot = vec()
+                if wp.static(ADV):
+                    rot += over(along(v2[j], dvvT) - along(dvv[j], v1), metdet[q])
+                    rb[j] = over(times(lu, x[1, q]) - times(lv, x[0, q]), metdet[q])
+                if wp.static(COR):
+                    rot += fcor[q]
+                ub[j] = -times(rot, lv)
+                vb[j] = times(rot, lu)
+            if wp.static(TOPO):
+                fbar[0, q] = fbar[0, q] + lu
+                fbar[1, q] = fbar[1, q] + lv
+        for q in range(base, base + NP):  # the transposed derivatives: along(s[j], dvv), along(dvvᵀ[j], s)
+            j = q - base
+            u = x[0, q]
+            v = x[1, q]
+            uq = ub[j]
+            vq = vb[j]
+            hq = vec()
+            if wp.static(CONT):  # metdet h (Dinv₀ u + Dinv₁ v) along ξ, (Dinv₂ u + Dinv₃ v) along η
+                a1 = times(metdet[q], along(sd[j], dvv))
+                a2 = times(metdet[q], along(dvvT[j], sd))
+                h = x[2, q]
+                uq += times(h, times(a1, Dinv[0, q]) + times(a2, Dinv[2, q]))
+                vq += times(h, times(a1, Dinv[1, q]) + times(a2, Dinv[3, q]))
+                hq += times(a1, times(Dinv[0, q], u) + times(Dinv[1, q], v))
+                hq += times(a2, times(Dinv[2, q], u) + times(Dinv[3, q], v))
+            if wp.static(GRAD):  # ½|v|² and g h
+                e = along(sx[j], dvv) + along(dvvT[j], sy)
+                if wp.static(ADV):
+                    uq += times(e, u)
+                    vq += times(e, v)
+                if wp.static(PG):
+                    hq += g * e
+            if wp.static(ADV):  # the covariant wind: v₁ = D₀u + D₂v, v₂ = D₁u + D₃v
+                w1 = along(dvvT[j], rb)
+                w2 = along(rb[j], dvv)
+                uq += times(D[1, q], w2) - times(D[0, q], w1)
+                vq += times(D[3, q], w2) - times(D[2, q], w1)
+            xbar[0, q] = uq
+            xbar[1, q] = vq
+            xbar[2, q] = hq
+
+    kernel.__qualname__ = kernel.__name__ = f"tendency_adjoint_element_np{NP}_k{NK}__" + "__".join(terms)
+    return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)

@@ -14,8 +14,9 @@ element-local nodes for a continuous δx. In that form
   element weak Laplacian plus the mass shift (symmetric), P the (east, north) → Cartesian
   basis and Π the tangent projection, both continuous and per node, so μ ← μ + c B₀ μ with
   B₀ the operator without hs (the model's ∇⁴ launches recorded with hs = 0);
-- T's transpose is ``kernels.tendency_adjoint`` (written by hand: two gathers a stage), whose
-  λ is gathered back by the unweighted DSS, μ = R Q λ.
+- T's transpose is ``kernels.tendency_adjoint`` (written by hand: one element kernel a stage
+  on the CPU, two per-node gathers on CUDA), whose λ is gathered back by the unweighted DSS,
+  μ = R Q λ, written straight into the running sum of the stages' adjoints (``dss_update``).
 The parameters (``parameters=True``): the ∇⁴ substeps x ← L x + c B₀ hs (L = I + c B₀, c ∝ ν)
 give, with Δ₀ = c B₀ (Φ + hs) the first substep's increment and μ₁ the adjoint before the
 last substep's transpose, ∂J/∂ν = S ⟨μ₁, Δ₀⟩ / ν over S substeps (L commutes with itself:
@@ -33,6 +34,7 @@ import numpy as np
 import warp as wp
 
 from ..kernels import tendencies, tendency_adjoint
+from ..model.launches import Update
 from ..model.shallow_water import ShallowWater
 
 f64 = wp.float64
@@ -60,7 +62,12 @@ class StepAdjoint:
     adjoint μ of x(n+1) to that of x(n) in place, x = x(n). With ``parameters``, ``reverse``
     also sums ∂J/∂ν, ∂J/∂ν_s (``d_nu``) and the hs adjoint (``d_hs``, ``hs_gradient``) over
     the steps reversed. One rank, CPU or CUDA. ValueError (``_refusal``) for a model it
-    cannot serve."""
+    cannot serve.
+
+    Work arrays (3, N) held: the s stages Y_i; K_j = F(Y_j) only where a stage after the next
+    reads it (with ``parameters``: all); the Ȳ_j an earlier stage's k̄ reads, as many as are
+    live at once (kgu35, rk4: one); x̄, a running sum of the Ȳ, and k̄ where the transposes
+    cannot read it as a combination (``_transpose``): kgu35 eight, with (2, N) f̄."""
 
     def __init__(self, model: ShallowWater, table, dt: float, parameters: bool = False):
         why = _refusal(model, dt)
@@ -75,13 +82,19 @@ class StepAdjoint:
             return wp.zeros((rows, N), dtype=f64, device=device)
 
         s = len(self.b)
-        self.Y, self.K, self.Ybar = ([zeros(3) for _ in range(s)] for _ in range(3))
-        self.kbar, self.x, self.xbar, self.adj = zeros(3), zeros(3), zeros(3), zeros(5)
+        A = self.A
+        self.terms = tuple(t for t in tendencies.TENDENCY_TERMS if t in m.terms)
+        keep_k = [self.parameters or any(A[l][j] for l in range(j + 2, s)) for j in range(s)]
+        self.Y = [zeros(3) for _ in range(s)]
+        self.x = self.Y[0]  # Y_0 = x(n): an explicit table's first row is zero
+        self.K = [zeros(3) if keep else None for keep in keep_k]
+        self.xbar = zeros(3)
         self.fbar = zeros(2)  # Σ λ's wind rows: the adjoint of the forcing −g∇hs
         self.spheremp = wp.array(m.grid.spheremp, dtype=f64, device=device)
         self._combinations: dict[tuple, list] = {}  # ``combine``'s recorded launches
-        terms = tuple(t for t in tendencies.TENDENCY_TERMS if t in m.terms)
-        self.transposes = [self._transpose(terms, Y, Ybar) for Y, Ybar in zip(self.Y, self.Ybar)] if terms else None
+        self._stages = self._stage_plan(zeros)
+        self.Ybar: list = []  # the buffers of the Ȳ_j an earlier stage's k̄ reads (``_record``)
+        self._adjoints: dict[int, tuple] = {}  # (μ, ``_record``'s launches), by μ's address
         self.d_nu = np.zeros(2)  # ∂J/∂ν (wind rows), ∂J/∂ν_s (h row), m⁻⁴ s · J
         self.d_hs = zeros(1)  # the ∇⁴'s share of ∂J/∂hs, continuous (mass form)
         self.substeps = 0  # of the ∇⁴ (forward Euler)
@@ -89,18 +102,33 @@ class StepAdjoint:
         if m.hv is not None and m.hv.nu_max > 0:
             self.substeps = m.hv.plan(self.dt)[0]
             self.zero_hs = wp.zeros(N, dtype=f64, device=device)
-            self.phi, self.delta = zeros(3), zeros(3)
+            if self.parameters:  # Φ + hs and Δ₀ (``hyperviscosity_transpose``)
+                self.phi, self.delta = zeros(3), zeros(3)
+        self._zeros = zeros
 
-    def _transpose(self, terms, Y, Ybar) -> list:
-        """The recorded launches of Ybar = R Q Tᵀ(Y) W kbar (``kernels.tendency_adjoint``)."""
-        m, np_ = self.model, self.model.grid.np
-        point = [Y, m.D, m.Dinv, m.metdet, m.fcor, self.spheremp, m.dvv, self.kbar, self.adj, self.xbar, self.fbar]
-        gather = [Y, m.D, m.Dinv, m.metdet, m.dvv, m.g, self.adj, self.xbar]
-        return [
-            m.launches.nodes(tendency_adjoint.point(terms, np_), m.N, point),
-            m.launches.nodes(tendency_adjoint.gather(terms, np_), m.N, gather),
-            *m.topology.dss(self.xbar, False, Ybar),
-        ]
+    def _stage_plan(self, zeros) -> list:
+        """Per stage i: (F(Y_i)'s ``Update``s, or None where no later stage nor ``parameters``
+        reads K_i; Y_(i+1)'s terms where it is formed by a pass of its own, else None): Y_(i+1)
+        = x + Δt Σ_j a_(i+1)j K_j written by F(Y_i)'s DSS (``rhs_update``) where it is at most
+        three terms, two of them arrays, F(Y_i) one."""
+        A, dt, s, plan = self.A, self.dt, len(self.b), []
+        for i in range(s):
+            updates, separate = [], None
+            if self.K[i] is not None:
+                updates.append(Update(self.K[i], ((1.0, None),)))
+            if i + 1 < s:
+                row = A[i + 1]
+                arrays = [(dt * row[j], self.K[j]) for j in range(i) if row[j]]
+                terms = [(1.0, self.x), *arrays]
+                if row[i] and len(terms) <= 2:
+                    updates.append(Update(self.Y[i + 1], (*terms, (dt * row[i], None))))
+                else:
+                    if row[i] and self.K[i] is None:  # Y_(i+1) reads K_i by a pass of its own
+                        self.K[i] = zeros(3)
+                        updates.insert(0, Update(self.K[i], ((1.0, None),)))
+                    separate = [*terms, *([(dt * row[i], self.K[i])] if row[i] else [])]
+            plan.append((updates or None, separate))
+        return plan
 
     def combine(self, out, terms) -> None:
         """out = Σ c·x over (c, x) terms, zero coefficients left out (``LaunchRecorder.lincomb``,
@@ -118,12 +146,14 @@ class StepAdjoint:
         for launch in launches:
             launch.launch()
 
-    def stages(self, x) -> None:
-        """Y_i and K_i = F(Y_i) of the step from x (the Butcher form)."""
-        m, dt = self.model, self.dt
-        for i in range(len(self.b)):
-            self.combine(self.Y[i], [(1.0, x), *((dt * a, self.K[j]) for j, a in enumerate(self.A[i][:i]))])
-            m.rhs(self.Y[i], self.K[i])
+    def stages(self) -> None:
+        """Y_i of the step from x = Y_0 (the Butcher form), and the K_i = F(Y_i) kept (``_stage_plan``)."""
+        m = self.model
+        for i, (updates, separate) in enumerate(self._stages):
+            if updates is not None:
+                m.rhs_update(self.Y[i], updates)
+            if separate is not None:
+                self.combine(self.Y[i + 1], separate)
 
     def substep(self, x) -> None:
         """x ← x − (Δt/S) B₀ x in place: one ∇⁴ substep without hs (the model's launches, recorded
@@ -167,32 +197,88 @@ class StepAdjoint:
         the ∇⁴'s share and the forcing's, R Q of the pressure gradient's transpose of f̄."""
         m, N = self.model, self.model.N
         out = self.d_hs.numpy()[0]
-        if self.transposes is None or "topography" not in m.terms:
+        if not self.terms or "topography" not in m.terms:
             return out
         kbar = wp.array(np.concatenate([self.fbar.numpy(), np.zeros((1, N))]), dtype=f64, device=m.device)
         ones, xbar, d = wp.ones(N, dtype=f64, device=m.device), wp.zeros_like(kbar), wp.zeros_like(kbar)
-        point = [kbar, m.D, m.Dinv, m.metdet, m.fcor, ones, m.dvv, kbar, self.adj, xbar, self.fbar]
+        adj = self._zeros(5)
+        point = [kbar, m.D, m.Dinv, m.metdet, m.fcor, ones, m.dvv, kbar, adj, xbar, self.fbar]
         terms = ("pressure_gradient",)  # the forcing is −g∇hs: the pressure gradient of hs
         wp.launch(tendency_adjoint.point(terms, m.grid.np), N, [*point, 0], device=m.device)
-        gather = [kbar, m.D, m.Dinv, m.metdet, m.dvv, m.g, self.adj, xbar]
+        gather = [kbar, m.D, m.Dinv, m.metdet, m.dvv, m.g, adj, xbar]
         wp.launch(tendency_adjoint.gather(terms, m.grid.np), N, [*gather, 0], device=m.device)
         for launch in m.topology.dss(xbar, False, d):
             launch.launch()
         return out + d.numpy()[2]
 
+    def _transpose(self, Y, kbar) -> list:
+        """Launches of x̄ = Tᵀ(Y) W k̄, k̄ = Σ c·k over (c, k) ``kbar`` (element-local): the
+        element kernel on the CPU's layout, reading up to three terms; the per-node ``point``
+        and ``gather`` on CUDA's; k̄ combined by a pass of its own first where they cannot
+        read it as it is."""
+        m, launches = self.model, []
+        if len(kbar) > 3 or not m.per_element and kbar != [(1.0, kbar[0][1])]:
+            if not hasattr(self, "kbar"):
+                self.kbar = self._zeros(3)
+            more = (m.lincomb(self.kbar, [(1.0, self.kbar), *kbar[i : i + 3]]) for i in range(4, len(kbar), 3))
+            launches, kbar = [m.lincomb(self.kbar, kbar[:4]), *more], [(1.0, self.kbar)]
+        if m.per_element:
+            R, (c, k) = m.as_rows, zip(*kbar)
+            c, k = [*c, *(0.0,) * (3 - len(c))], [*k, *(k[0],) * (3 - len(k))]
+            kernel = tendency_adjoint.element(self.terms, m.grid.np, len(kbar))
+            args = [*map(R, (Y, m.D, m.Dinv, m.metdet, m.fcor, self.spheremp)), m.g, m.dvv_rows, wp.vec3d(*c)]
+            return [*launches, m.launches.elements(kernel, [*args, *map(R, k), R(self.xbar), R(self.fbar)])]
+        if not hasattr(self, "adj"):
+            self.adj = self._zeros(5)
+        point = [Y, m.D, m.Dinv, m.metdet, m.fcor, self.spheremp, m.dvv, kbar[0][1], self.adj, self.xbar, self.fbar]
+        gather = [Y, m.D, m.Dinv, m.metdet, m.dvv, m.g, self.adj, self.xbar]
+        return [
+            *launches,
+            m.launches.nodes(tendency_adjoint.point(self.terms, m.grid.np), m.N, point),
+            m.launches.nodes(tendency_adjoint.gather(self.terms, m.grid.np), m.N, gather),
+        ]
+
+    def _record(self, mu) -> list:
+        """The launches of the stages' transposes, last stage first: k̄_i = Δt (b_i μ + Σ_j a_ji
+        Ȳ_j), x̄ = Tᵀ(Y_i) W k̄_i, Ȳ_i = R Q x̄ written by the unweighted DSS into a running
+        sum, the last into μ += Σ Ȳ_i, and where an earlier stage reads it into a buffer of
+        its own, freed after its last reader's transpose (kgu35, rk4: one; a stage with no
+        terms contributes nothing)."""
+        dt, s, A = self.dt, len(self.b), self.A
+        reads = {}  # each active stage: the j of the Ȳ_j its k̄ reads
+        for i in reversed(range(s) if self.terms else ()):
+            js = [j for j in range(i + 1, s) if A[j][i] and j in reads]
+            if self.b[i] or js:
+                reads[i] = js
+        active = sorted(reads, reverse=True)
+        last_read = {j: min(i for i in reads if j in reads[i]) for js in reads.values() for j in js}
+        if len(active) > 1 and not hasattr(self, "acc"):
+            self.acc = self._zeros(3)
+        launches, ybar, free = [], {}, list(self.Ybar)
+        for n, i in enumerate(active):
+            kbar = [(dt * self.b[i], mu)] if self.b[i] else []
+            launches += self._transpose(self.Y[i], kbar + [(dt * A[j][i], ybar[j]) for j in reads[i]])
+            free += [ybar[j] for j in reads[i] if last_read[j] == i]  # read: its buffer free for Ȳ_i
+            updates = []
+            if i in last_read:
+                if not free:
+                    self.Ybar.append(self._zeros(3))
+                    free.append(self.Ybar[-1])
+                ybar[i] = free.pop()
+                updates.append((ybar[i], ((1.0, None),)))
+            total = mu if n == len(active) - 1 else self.acc
+            updates.append((total, ((1.0, mu if n == 0 else self.acc), (1.0, None))))
+            launches += self.model.topology.dss_update(self.xbar, updates, weighted=False)
+        return launches
+
     def reverse(self, x, mu) -> None:
         """μ of x(n+1) → μ of x(n), in place; x = x(n) (read only)."""
-        dt, s = self.dt, len(self.b)
-        wp.copy(self.x, x)  # the stages read this object's arrays only (``combine``'s records)
-        self.stages(self.x)
+        wp.copy(self.x, x)  # the stages read this object's arrays only (their records)
+        self.stages()
         if self.substeps:
             self.hyperviscosity_transpose(mu)
-        for i in reversed(range(s)):
-            later = [(dt * self.A[j][i], self.Ybar[j]) for j in range(i + 1, s)]
-            self.combine(self.kbar, [(dt * self.b[i], mu), *later])
-            if self.transposes is None:
-                self.Ybar[i].zero_()
-            else:
-                for launch in self.transposes[i]:
-                    launch.launch()
-        self.combine(mu, [(1.0, mu), *((1.0, y) for y in self.Ybar)])
+        launches = self._adjoints.get(mu.ptr)
+        if launches is None:
+            launches = self._adjoints[mu.ptr] = (mu, self._record(mu))
+        for launch in launches[1]:
+            launch.launch()

@@ -132,9 +132,10 @@ def gradient(
     work = wp.zeros((3, model.N), dtype=f64, device=device)  # the stepper steps this array only
     stepper.prepare(work)
 
-    def advance(x):
+    def advance(x, steps=1):
         wp.copy(work, x)
-        stepper.advance(work)
+        for _ in range(steps):
+            stepper.advance(work)
         wp.copy(x, work)
 
     mu = wp.zeros((3, model.N), dtype=f64, device=device)

@@ -330,8 +330,9 @@ class Topology:
         launch = record(kernel, nodes.shape[0], [x, copies, nodes, out], device=self.device, threads=self.threads)
         return [*self._exchange(x), launch]
 
-    def dss_update(self, x: wp.array2d, updates) -> list:
-        """Launches for the weighted DSS k of x (rows, N), not stored but used by
+    def dss_update(self, x: wp.array2d, updates, weighted: bool = True) -> list:
+        """Launches for the weighted DSS k of x (rows, N) (``weighted`` False: the unweighted
+        one, of a weak form), not stored but used by
         one or two ``updates`` (out, terms) in order: out = Σ a·src over the
         terms (a, src), src an array of x's shape or None for k
         (``kernels.dss.dss_update``: summed left to right, the bits of
@@ -346,7 +347,9 @@ class Topology:
         arrays += arrays[-3:] * (2 - len(updates))
         return self.gathering(
             x,
-            lambda rows, copies, ghosts: dss.dss_update(rows, copies, tuple(patterns), ghosts=ghosts),
+            lambda rows, copies, ghosts: dss.dss_update(
+                rows, copies, tuple(patterns), ghosts=ghosts, weighted=bool(weighted)
+            ),
             [dss.vec6(*coefs), *arrays],
         )
 

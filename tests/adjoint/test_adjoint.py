@@ -13,9 +13,10 @@ import warp as wp
 from swe_sphere.adjoint import HeightMisfit, gradient
 from swe_sphere.adjoint.explicit import StepAdjoint
 from swe_sphere.adjoint.gradient import scene_model
-from swe_sphere.adjoint.revolve import forward_steps, griewank_steps, sweep
+from swe_sphere.adjoint.revolve import forward_steps, griewank_steps, split, sweep
 from swe_sphere.config.scene import load_scene
 from swe_sphere.kernels import tendencies, tendency_adjoint
+from swe_sphere.model.shallow_water import ShallowWater
 
 EPS = float(np.finfo(np.float64).eps)
 f64 = wp.float64
@@ -133,7 +134,7 @@ def taylor_slopes(stepper, steps, weights):
     return np.diff(np.log(rest)) / np.diff(np.log(eps)), rest, g.cost
 
 
-@pytest.mark.parametrize("stepper", ["rk4", "ssprk3"])
+@pytest.mark.parametrize("stepper", ["rk4", "ssprk3", "kgu35", "dp54"])
 def test_taylor_remainder_of_the_initial_state_gradient_falls_as_eps_squared(stepper):
     slopes, rest, J = taylor_slopes(stepper, 4, [1.0, 1.0, 10.0])
     # measured (rk4, 6 steps): 2.00002, 2.000006, 2.000002, 2.0000006, 2.00000003, … down to 2.0004 at 1e-5
@@ -141,14 +142,49 @@ def test_taylor_remainder_of_the_initial_state_gradient_falls_as_eps_squared(ste
     assert rest[-1] > 1e4 * EPS * J  # the last remainder still above the cost's round-off
 
 
+@pytest.mark.parametrize("stepper", ["kgu35", "dp54"])
+def test_the_per_node_transposes_give_the_element_kernels_adjoint(stepper):
+    # the CPU's element kernel (k̄ read as a combination; dp54's first stages combine it first)
+    # against CUDA's per-node point and gather, run here on the CPU: one step's adjoint
+    model, stepper_, x0 = setup(stepper)
+    scene = tc5(stepper)
+    node = ShallowWater.from_scene(scene, model.grid, per_element=False)
+    lam = continuous(model, np.random.default_rng(6).standard_normal((3, model.N)))
+    out = []
+    for m in (model, node):
+        adjoint, mu = StepAdjoint(m, stepper_.table(), stepper_.dt), wp.array(lam, dtype=f64)
+        adjoint.reverse(wp.array(x0, dtype=f64), mu)
+        out.append(mu.numpy())
+    assert np.abs(out[0] - lam).max() > 1e-3 * np.abs(lam).max()  # the step acts
+    # measured 0.9 and 1.3 eps of the largest entry (kgu35, dp54; TC5 ne 2): sums in another order
+    assert np.abs(out[0] - out[1]).max() <= 64 * EPS * np.abs(out[0]).max()
+
+
+def test_a_reversed_step_is_the_same_bits_on_two_threads():
+    # the transposes launch over the forward's element ranges (``LaunchRecorder``), split on two threads
+    model, stepper, x0 = setup("kgu35")
+    lam = continuous(model, np.random.default_rng(7).standard_normal((3, model.N)))
+    out = []
+    for threads in (1, 2):
+        m = ShallowWater.from_scene(tc5("kgu35"), model.grid, threads=threads)
+        adjoint, mu = StepAdjoint(m, stepper.table(), stepper.dt), wp.array(lam, dtype=f64)
+        adjoint.reverse(wp.array(x0, dtype=f64), mu)
+        out.append(mu.numpy())
+    np.testing.assert_array_equal(out[0], out[1])
+
+
 def test_revolve_counts_are_griewank_and_walthers():
     for l in range(1, 60):
         for c in range(5):
             assert forward_steps(l, c) == griewank_steps(l, c + 1)
     assert griewank_steps(10, 3) == 15 and forward_steps(10, 9) == 9
+    for l in range(2, 40):  # the sweep's closed-form split achieves the recursion's minimum
+        for c in range(1, 5):
+            m = split(l, c)
+            assert m + forward_steps(l - m, c - 1) + forward_steps(m, c) == forward_steps(l, c)
 
 
-@pytest.mark.parametrize(("n", "snapshots"), [(10, 3), (7, 1), (12, 4), (5, 9)])
+@pytest.mark.parametrize(("n", "snapshots"), [(10, 3), (7, 1), (12, 4), (5, 9), (60, 5)])
 def test_sweep_reverses_every_step_once_in_order_with_the_predicted_recomputation(n, snapshots):
     held, seen = [], []
 
@@ -156,8 +192,9 @@ def test_sweep_reverses_every_step_once_in_order_with_the_predicted_recomputatio
         held.append(1)
         return list(x)
 
-    def advance(x):
-        x[0] += 1
+    def advance(x, steps):
+        assert steps >= 1
+        x[0] += steps
 
     taken = sweep(n, snapshots, [0], advance, lambda x, k: seen.append((k, x[0])), copy)
     assert seen == [(k, k) for k in reversed(range(n))]

@@ -26,6 +26,7 @@ import warp as wp
 
 import swe_sphere
 import swe_sphere.kernels as kernels_pkg
+from swe_sphere.adjoint.explicit import StepAdjoint
 from swe_sphere.config.scene import list_scenes, load_scene
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.kernels import dss, hyperviscosity
@@ -60,7 +61,7 @@ def _module_kernels() -> list[wp.Kernel]:
 def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
     """The project's kernels launched by every bundled scene's model and steppers
     (see the module docstring), and the ghost variants of the DSS kernels among them."""
-    launched, dss_args = [], set()  # (factory, its arguments but ghosts)
+    launched, dss_args = [], set()  # (factory, its arguments but ghosts, its other keywords)
     real_launch = wp.launch
 
     def launch(kernel, *args, **kwargs):
@@ -68,9 +69,9 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
         return real_launch(kernel, *args, **kwargs)
 
     def noting(factory):
-        def built(*args, ghosts=False):
-            dss_args.add((factory, args))
-            return factory(*args, ghosts=ghosts)
+        def built(*args, ghosts=False, **options):
+            dss_args.add((factory, args, tuple(sorted(options.items()))))
+            return factory(*args, ghosts=ghosts, **options)
 
         return built
 
@@ -123,10 +124,14 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
             grid, ["hyperviscosity"], z, z, nu=1e15, nu_div=3e15, device="cpu", per_element=per_element
         )
         model.hyperviscosity(model.new_state(), 100.0)
-    # the adjoint's kernels (a gradient's reverse sweep), on TC5's terms with the ∇⁴
+    # the adjoint's kernels (a gradient's reverse sweep), on TC5's terms with the ∇⁴: the
+    # element kernel of the CPU's layout, and the per-node pair of CUDA's
     tc5 = load_scene("tc5_mountain", ne=2, np_=4, dt=1800.0, stepper="rk4")
     swe_sphere.gradient(tc5, 1, swe_sphere.HeightMisfit(0.0))
-    ghosted = [factory(*args, ghosts=True) for factory, args in dss_args]
+    model = ShallowWater.from_scene(tc5, grid, per_element=False)
+    x = model.new_state(*np.stack(tc5.make_case().initial(grid.lat, grid.lon)))
+    StepAdjoint(model, make_stepper("rk4", model, tc5.dt).table(), tc5.dt).reverse(x, wp.clone(x))
+    ghosted = [factory(*args, ghosts=True, **dict(options)) for factory, args, options in dss_args]
     return [k for k in launched if k.func.__module__.startswith("swe_sphere.")], ghosted
 
 

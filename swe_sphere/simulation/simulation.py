@@ -237,6 +237,12 @@ class Simulation:
     def graphs(self, value) -> None:
         self._graphed.mode = value
 
+    @property
+    def graphs_kept(self) -> int:
+        """The step graphs checked and kept so far, each replayed by the later steps of its key
+        (``graphs.GraphedSteps.kept``); 0 where steps run plain."""
+        return self._graphed.kept
+
     def _take_step(self, watch: bool):
         """One step of the stepper on x and, with ``watch``, the bad-state flag's launch
         (``ShallowWater.watch``; the solvers' device counters left for the block's

@@ -264,6 +264,11 @@ class FGMRES(KrylovBasis):
         self._end = rec(kk.fgmres_end, [self.H, self.cs, self.sn, self.g, self.info, self.y, self.e])
         self._graphs: dict = {}
 
+    @property
+    def graph_count(self) -> int:
+        """The cycle graphs this solver holds: one per ``graph_key`` captured (0 without)."""
+        return len(self._graphs)
+
     def _arnoldi(self, j: int, matvec, precond) -> None:
         """Arnoldi step j: Z_j = P⁻¹ V_j, w = A Z_j, classical Gram–Schmidt twice (as
         accurate as modified Gram–Schmidt, Giraud et al. 2005, Numer. Math. 101, 87),

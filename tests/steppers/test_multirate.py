@@ -100,7 +100,7 @@ def test_fast_evaluation_cost_in_launches_and_bytes():
         ("rhs", lambda: m.rhs(xp, F)),
         ("slow", lambda: split.slow(xp, slow)),
         ("fast", lambda: split.fast(xp, fast, slow)),
-        ("forward-backward substep", lambda: fb._fb_substep(z, z, 10.0, slow)),
+        ("forward-backward substep", lambda: fb.forward_backward(z, z, 10.0, slow)),
     )
     with instrumented(tally):
         for name, call in calls:

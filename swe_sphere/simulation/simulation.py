@@ -187,7 +187,7 @@ class Simulation:
         # takes 40 norms, and OpenBLAS's threads spinning on a busy machine made them 0.3 s of CPU
         with _compile_timer(self._compile), threadpool_limits(limits=1, user_api="blas"):
             build(self, scene, backend, progress, comm, start, initial, initial_diagnostics)
-        self._graphed = GraphedSteps(backend.device, self.model.graph_guard, graphs)
+        self._graphed = GraphedSteps(backend, self.model.graph_guard, graphs)
         self.setup_time = time.perf_counter() - t0
         if inputs:
             self.inputs = inputs

@@ -177,7 +177,7 @@ class HelmholtzSolver:
     @property
     def histories(self) -> MappingProxyType:
         """The guess histories (``GuessHistory``) kept, by the key of their sequence of solves
-        (a solve's a, s; ``solve_height``'s ``history``), read-only: empty with
+        (``solve``'s a, in s; ``solve_height``'s ``history``), read-only: empty with
         ``guess_history`` 0; those of a's other than a stepper's current Δt's dropped
         (``keep_only``)."""
         return MappingProxyType(self._histories)

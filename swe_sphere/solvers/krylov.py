@@ -81,7 +81,7 @@ class KernelVectors:
         if launch is None:
             topo = self.topology
             launch = self._launches[key] = record(
-                kernel, dim, inputs, device=topo.device, threads=topo.threads, nodes_per_index=nodes_per_index
+                kernel, dim, inputs, device=topo.backend, threads=topo.threads, nodes_per_index=nodes_per_index
             )
         for name, value in params.items():
             launch.set_param_by_name(name, value)

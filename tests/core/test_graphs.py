@@ -213,7 +213,7 @@ def test_an_unconverged_solve_inside_a_graphed_block_is_reported_as_with_a_check
 
 @pytest.mark.parametrize("device", DEVICES)
 def test_graphed_rkl1_hyperviscosity_is_the_bits_of_plain_steps(one_thread, graph_launches, device):
-    """ssprk3 with 10× TC5's ν: the ∇⁴ as an RKL1 super-step (``Hyperviscosity._rkl1``:
+    """ssprk3 with 10× TC5's ν: the ∇⁴ as an RKL1 super-step (``Hyperviscosity.rkl1``:
     copies, and one recorded combination launched with each stage's coefficients)
     inside the graph, the same bits as launched one by one."""
     scene = tc5("ssprk3", device)

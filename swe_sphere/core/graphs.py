@@ -149,9 +149,8 @@ class GraphedSteps:
     one process; ``guard`` (the model's) off: plain launches.
     """
 
-    def __init__(self, device, guard: GraphGuard, mode: str = "auto"):
-        self.device, self.guard = device, guard
-        self.backend = Backend.of(device)
+    def __init__(self, backend: Backend, guard: GraphGuard, mode: str = "auto"):
+        self.backend, self.device, self.guard = backend, backend.device, guard
         self._graphs: dict = {}  # (stepper, graph_key, watch, x's address) → _Entry, or None: seen once
         self.mode = mode
 

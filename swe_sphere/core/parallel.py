@@ -153,16 +153,17 @@ def record(
 ):
     """Record ``kernel`` over ``dim`` (N, or (rows, N) with the node index last;
     or the element count, with ``nodes_per_index`` = np²); ``inputs`` without
-    the trailing offset. ``start``: the first index (the launch covers start ..
+    the trailing offset; ``device`` the run's ``Backend`` (or a Warp device, looked up). ``start``: the first index (the launch covers start ..
     start + n − 1 of the node or element index: a range of the elements). With ``threads`` > 1 on a CPU device and at least
     MIN_POINTS_PER_PART nodes per thread, returns a ``SplitLaunch`` over that
     many index ranges (cut at multiples of ``block``); otherwise a plain
     ``wp.Launch`` (``per_part`` values of the first range)."""
     rows, n = (None, dim) if isinstance(dim, int) else dim
-    parts = min(Backend.of(device).launch_parts(threads), n * nodes_per_index // MIN_POINTS_PER_PART)
+    backend = device if isinstance(device, Backend) else Backend.of(device)
+    parts = min(backend.launch_parts(threads), n * nodes_per_index // MIN_POINTS_PER_PART)
     if n % block == 0:
         parts = min(parts, n // block)  # no empty range
-    launch = wp.launch(kernel, dim, [*inputs, start], device=device, record_cmd=True)
+    launch = wp.launch(kernel, dim, [*inputs, start], device=backend.device, record_cmd=True)
     if parts <= 1:
         for name, values in (per_part or {}).items():
             launch.set_param_by_name(name, values[0])

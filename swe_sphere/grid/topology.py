@@ -146,7 +146,7 @@ class Topology:
     grid : CubedSphere: the whole sphere, or this rank's part of it
         (``CubedSphere(..., elements=rank_parts(ne, size)[rank])``); given the
         whole sphere with several ranks, the rank builds its own part.
-    device : Warp device name.
+    device : the run's ``core.backend.Backend``, or a Warp device name (looked up once).
     threads : CPU threads a launch is split over (``swe_sphere.core.parallel``).
     comm : an mpi4py communicator, or None (``SerialComm()``: all elements here).
         With several ranks, rank k holds chunk k of ``partition.partition``.
@@ -181,9 +181,10 @@ class Topology:
     Raises ValueError on a CUDA device with more than one rank (CPU only so far).
     """
 
-    def __init__(self, grid, device: str = "cpu", threads: int = 1, comm=None, parts=None):
-        self.device, self.threads = device, int(threads)
-        self.backend = Backend.of(device)
+    def __init__(self, grid, device: str | Backend = "cpu", threads: int = 1, comm=None, parts=None):
+        self.backend = device if isinstance(device, Backend) else Backend.of(device)
+        self.device = device = self.backend.device  # the name
+        self.threads = int(threads)
         self.comm = comm if comm is not None else SerialComm()
         self._sum, self._max, self._min = _ops(self.comm)
         rank, size = self.comm.rank, self.comm.size
@@ -256,7 +257,7 @@ class Topology:
             raise RuntimeError("a node's unique value is neither owned nor received")
 
     def _record(self, kernel, dim, inputs):
-        return record(kernel, dim, inputs, device=self.device, threads=self.threads, block=self.grid.np**2)
+        return record(kernel, dim, inputs, device=self.backend, threads=self.threads, block=self.grid.np**2)
 
     def _exchange(self, x: wp.array2d, halo: _Halo | None = None) -> list:
         """Launches that fill ``halo``'s receive buffer (default the DSS ghosts)
@@ -327,7 +328,7 @@ class Topology:
         neighbours' copies are exchanged first (all of them: the table picks the part's)."""
         ghosts = bool(len(self.neighbours))
         kernel = dss.dss_rows_at(x.shape[0], bool(weighted), self.table.shape[1], ghosts)
-        launch = record(kernel, nodes.shape[0], [x, copies, nodes, out], device=self.device, threads=self.threads)
+        launch = record(kernel, nodes.shape[0], [x, copies, nodes, out], device=self.backend, threads=self.threads)
         return [*self._exchange(x), launch]
 
     def dss_update(self, x: wp.array2d, updates, weighted: bool = True) -> list:
@@ -367,7 +368,7 @@ class Topology:
             kernel,
             self.N // block,
             [x, self.dss_copies, *args, block],
-            device=self.device,
+            device=self.backend,
             threads=self.threads,
             nodes_per_index=block,
         )

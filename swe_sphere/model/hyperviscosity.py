@@ -245,18 +245,19 @@ class Hyperviscosity:
             return
         n, rkl = self.plan(dt)
         if rkl:
-            self._rkl1(x, dt, n)
+            self.rkl1(x, dt, n)
             return
         coef = -dt / n
         for _ in range(n):
             m.launches.replay(("hv", x.ptr, coef), (x,), lambda: self.build(x, coef))
 
-    def _rkl1(self, x, dt, s):
+    def rkl1(self, x: wp.array2d, dt: float, s: int) -> None:
         """One s-stage RKL1 step (Meyer, Balsara & Aslam 2014, eqs. 10–11) of
-        dx/dt = M(x) = −B x over dt: Y_0 = x, Y_1 = E(Y_0),
+        dx/dt = M(x) = −B x over dt (s), in place on the state x (3, N): Y_0 = x, Y_1 = E(Y_0),
         Y_j = μ_j E(Y_{j−1}) + ν_j Y_{j−2}, μ_j = (2j − 1)/j, ν_j = −(j − 1)/j,
         with E one forward-Euler step of w₁Δt, w₁ = 2/(s² + s) (so only the
-        recorded ∇⁴ step is used); first order, stable for ν dt λ ≤ s² + s."""
+        recorded ∇⁴ step is used); first order, stable for ν dt λ ≤ s² + s. ``apply``'s
+        super-step with s = ``stages(dt)``; any s ≥ 2 here (a convergence study's)."""
         m = self.model
         if self._rkl_buffers is None:
             self._rkl_buffers = [wp.zeros_like(x) for _ in range(3)]

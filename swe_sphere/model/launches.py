@@ -14,6 +14,7 @@ from typing import NamedTuple
 
 import warp as wp
 
+from ..core.backend import Backend
 from ..core.parallel import record
 from ..kernels import blas
 
@@ -63,7 +64,7 @@ class LaunchRecorder:
 
     Parameters
     ----------
-    device : the Warp device.
+    device : the run's ``core.backend.Backend`` (or a Warp device name, looked up once).
     threads : CPU threads a launch is split over (``core.parallel.record``; 1 on CUDA).
     points : GLL points per element direction, np (a block of np² nodes is one element).
     nnodes : element-local nodes held, N = nelem·np².
@@ -82,7 +83,8 @@ class LaunchRecorder:
     limit: int | None = None
 
     def __init__(self, device, threads: int, points: int, nnodes: int, nunique: int, per_element: bool):
-        self.device, self.threads, self.block = device, int(threads), points * points
+        self.backend = device if isinstance(device, Backend) else Backend.of(device)
+        self.device, self.threads, self.block = self.backend.device, int(threads), points * points
         self.nnodes, self.nunique, self.per_element = nnodes, nunique, bool(per_element)
         self._recorded: dict[tuple, tuple] = {}
         self._pointwise: dict[tuple, object] = {}
@@ -90,7 +92,7 @@ class LaunchRecorder:
     def record(self, kernel, dim, inputs, **kw):
         """``core.parallel.record`` on this device and threads (``block``, ``per_part``,
         ``nodes_per_index`` as there)."""
-        return record(kernel, dim, inputs, device=self.device, threads=self.threads, **kw)
+        return record(kernel, dim, inputs, device=self.backend, threads=self.threads, **kw)
 
     def nodes(self, kernel, dim, inputs, per_part=None, elements=None):
         """Record a per-node kernel with a trailing ``offset`` argument (not in ``inputs``)

@@ -170,14 +170,14 @@ class ShallowWater:
             return wp.array(np.ascontiguousarray(a), dtype=dtype, device=device)
 
         self.D, self.Dinv = up(grid.D), up(grid.Dinv)
-        self.topology = topo = Topology(grid, device, self.threads) if topology is None else topology
+        self.topology = topo = Topology(grid, self.backend, self.threads) if topology is None else topology
         self.metdet, self.spheremp = up(grid.metdet), topo.spheremp
         self.dvv = up(grid.rule.dvv)
         self.xyz, self.east, self.north = up(grid.xyz), up(grid.east), up(grid.north)
         self.fcor, self.hs = up(fcor), up(hs)
 
         # every launch of the model and of what acts on its states, recorded once and replayed
-        self.launches = LaunchRecorder(device, self.threads, grid.np, N, topo.nunique, self.per_element)
+        self.launches = LaunchRecorder(self.backend, self.threads, grid.np, N, topo.nunique, self.per_element)
         self.tend = wp.zeros((3, N), dtype=f64, device=device)
         self.scalar = wp.zeros((1, N), dtype=f64, device=device)
         self.scalar_dss = wp.zeros((1, N), dtype=f64, device=device)

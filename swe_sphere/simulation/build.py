@@ -92,7 +92,7 @@ def partition(scene: Scene, case, comm, backend: Backend) -> Topology:
         level = comm.bcast(mine, root=0)
     parts = rank_parts(scene.ne, size, mesh, level)
     local = CubedSphere(scene.ne, scene.np, case.planet.a, elements=parts[rank], mesh=mesh)  # this rank's only
-    return Topology(local, backend.device, backend.threads(), comm, parts=parts)
+    return Topology(local, backend, backend.threads(), comm, parts=parts)
 
 
 def build(sim, scene: Scene, backend: Backend, progress: bool, comm, start, initial, initial_diagnostics) -> None:

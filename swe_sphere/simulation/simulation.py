@@ -187,7 +187,7 @@ class Simulation:
         # takes 40 norms, and OpenBLAS's threads spinning on a busy machine made them 0.3 s of CPU
         with _compile_timer(self._compile), threadpool_limits(limits=1, user_api="blas"):
             build(self, scene, backend, progress, comm, start, initial, initial_diagnostics)
-        self._graphed = GraphedSteps(backend.device, self.model.graph_guard, graphs)
+        self._graphed = GraphedSteps(backend, self.model.graph_guard, graphs)
         self.setup_time = time.perf_counter() - t0
         if inputs:
             self.inputs = inputs
@@ -236,6 +236,12 @@ class Simulation:
     @graphs.setter
     def graphs(self, value) -> None:
         self._graphed.mode = value
+
+    @property
+    def graphs_kept(self) -> int:
+        """The step graphs checked and kept so far, each replayed by the later steps of its key
+        (``graphs.GraphedSteps.kept``); 0 where steps run plain."""
+        return self._graphed.kept
 
     def _take_step(self, watch: bool):
         """One step of the stepper on x and, with ``watch``, the bad-state flag's launch

@@ -7,6 +7,7 @@ from ``guess_history``'s projection; ``HelmholtzOptions`` are its scene options.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import MappingProxyType
 
 import warp as wp
 
@@ -173,6 +174,20 @@ class HelmholtzSolver:
         """The operator's mean depth H (m; 0 until fixed)."""
         return self.operator.H
 
+    @property
+    def histories(self) -> MappingProxyType:
+        """The guess histories (``GuessHistory``) kept, by the key of their sequence of solves
+        (``solve``'s a, in s; ``solve_height``'s ``history``), read-only: empty with
+        ``guess_history`` 0; those of a's other than a stepper's current Δt's dropped
+        (``keep_only``)."""
+        return MappingProxyType(self._histories)
+
+    @property
+    def graph_count(self) -> int:
+        """The solve graphs this solver holds: one per (r, z, a, scale, H) captured (0 where not
+        ``graphable``)."""
+        return len(self._graphs)
+
     # -- what carries over between solves (for bitwise restarts) ----------------------
     def state(self) -> dict:
         """The mean depth (0 until fixed) and, with ``history``, each sequence's basis
@@ -229,15 +244,19 @@ class HelmholtzSolver:
         from the projection onto the past solutions of the solves with the same a
         (``GuessHistory``)."""
         a = float(a)
-        self._history = None
-        if self.history and not (
-            self.low is not None and self.tol >= SINGLE_TOL
-        ):  # not the one float32 solve from zero
-            self._history = self._histories.get(a)
-            if self._history is None:
-                self._history = self._histories[a] = GuessHistory(self)
+        self._history = self._guesses(a)
         lz = None if implicit is None else implicit.ptr
         self._run(("solve", r.ptr, z.ptr, lz, a, scale, self.H), self._solve, r, a, z, scale, implicit)
+
+    def _guesses(self, key):
+        """The ``GuessHistory`` of the solves under ``key`` (made on first use), or None: no
+        key, ``guess_history`` 0, or the one float32 solve from zero."""
+        if key is None or not self.history or (self.low is not None and self.tol >= SINGLE_TOL):
+            return None
+        history = self._histories.get(key)
+        if history is None:
+            history = self._histories[key] = GuessHistory(self)
+        return history
 
     def _solve(self, r, a: float, z, scale: float, implicit=None) -> None:
         m = self.model
@@ -371,9 +390,22 @@ class HelmholtzSolver:
         return int(its)
 
     # -- the Helmholtz solve on unique nodes, (M + cK) y = b: any device, threads and ranks --
-    def _apply(self, y, out, c: float) -> None:
-        """out = (M + cK) y in float64 (``HelmholtzCG.apply``)."""
+    def apply(self, y, out, c: float) -> None:
+        """out = (M + cK) y in float64 (``HelmholtzCG.apply``): the Helmholtz operator on
+        unique-node vectors y, out (``nunique``,), y a height (m), out in m³ (M the assembled
+        mass, m²); c = a²gH (m²) and K = −M D G the SPD stiffness (``helmholtz_matrix``)."""
         self.cg.apply(y, out, c)
+
+    def solve_height(self, c: float, history: float | None = None) -> None:
+        """The Helmholtz equation alone, (M + cK) y = b on unique nodes (``apply``'s), the
+        right-hand side in ``b`` and the solution into ``y`` (both (``nunique``,) float64: m³,
+        m), as ``solve`` solves it between its two Schur passes: to ``tol``, its area integral
+        then set to b's, its iterations and a failure counted on the device (``iterations``),
+        nothing read back and no graph. ``history``: the key of the sequence of solves
+        (``histories``; ``solve`` uses its a) whose ``GuessHistory`` starts the CG and keeps
+        this solution, with ``guess_history`` > 0; None: from zero, or from y with ``warm``."""
+        self._history = self._guesses(history)
+        self._pcg(c)
 
     def _pcg(self, c: float) -> None:
         """(M + cK) y = b to the relative residual ``tol`` in float64 (``precision``

@@ -50,7 +50,9 @@ class HelmholtzCG:
     between the two (``Topology.allreduce``: one read an iteration); on one rank no
     value comes back to the host during a solve.
 
-    ``apply(y, out, c)``: out = (M + cK) y. ``solve(c, tol, maxiter, warm)``: y to the
+    ``apply(y, out, c)``: out = (M + cK) y. ``one_reduction``: Chronopoulos–Gear's order,
+    one reduction an iteration and the converged iteration's product (True over ranks, else
+    False; either gives the same iterations and bits). ``solve(c, tol, maxiter, warm)``: y to the
     relative residual tol from y (``warm``) or from zero; adds its iterations to
     ``stats`` and, past ``maxiter``, a failure (nothing is read back: the caller reads
     ``stats``, ``HelmholtzSolver.iterations``). ``residual(c)``: r = b − Ay and r·r into
@@ -103,7 +105,13 @@ class HelmholtzCG:
         self._alpha = wp.launch(cgk.cg_alpha, 1, [self.sums, self.cs, self.ic], device=dev, record_cmd=True)
         # over ranks an iteration keeps Chronopoulos–Gear's one reduction (an allreduce costs more there
         # than the converged iteration's product, a 1/P share); on one rank the sums stay on the device
-        self._one_reduction = topo.distributed
+        self.one_reduction = topo.distributed
+
+    @property
+    def parts(self) -> int:
+        """The CPU threads each of the CG's vector passes runs on (``core.parallel.SplitLaunch``'s
+        ranges; 1: one launch, as on CUDA or for a grid too small to split)."""
+        return len(getattr(self._update, "parts", (self._update,)))
 
     def _operator(self, y, out) -> list:
         """Launches for out = (M + cK) y (unique-node vectors; c set by ``apply``), recorded once per pair."""
@@ -254,7 +262,7 @@ class HelmholtzCG:
         self._first.set_param_by_name("tol2", f64(tol * tol if tol > 0 else 0.0))
         self._first.set_param_by_name("maxiter", int(maxiter))
         self._first.launch()  # the bound; go?
-        if self._one_reduction:  # the first product and α ahead of the loop
+        if self.one_reduction:  # the first product and α ahead of the loop
             self._product(c)
         wp.capture_while(self.ic, self._iteration, c=c)
 
@@ -267,12 +275,12 @@ class HelmholtzCG:
     def _iteration(self, c: float) -> None:
         """One CG iteration: the product, α, the update with the device's α and β, the test
         (over ranks: the update, the product, then the test and α on one reduction)."""
-        if not self._one_reduction:
+        if not self.one_reduction:
             self._product(c)
         self._update.launch()  # p, s, y, r, u; r·u, r·r
-        if self._one_reduction:
+        if self.one_reduction:
             self.apply(self.u, self.w, c)  # and w·u, summed with them
         self.totals()
         self._check.launch()  # β; go?
-        if self._one_reduction:
+        if self.one_reduction:
             self._alpha.launch()

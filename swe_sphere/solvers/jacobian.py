@@ -67,7 +67,7 @@ class KernelPasses:
                 kk.project_dots,
                 self._partial.shape[1],
                 [v.reshape((1, v.shape[0])), 0, out, v, 0, self._partial, self._chunk],
-                device=topo.device,
+                device=topo.backend,
                 threads=topo.threads,
                 nodes_per_index=self._chunk,
             )

@@ -81,7 +81,7 @@ class KernelVectors:
         if launch is None:
             topo = self.topology
             launch = self._launches[key] = record(
-                kernel, dim, inputs, device=topo.device, threads=topo.threads, nodes_per_index=nodes_per_index
+                kernel, dim, inputs, device=topo.backend, threads=topo.threads, nodes_per_index=nodes_per_index
             )
         for name, value in params.items():
             launch.set_param_by_name(name, value)
@@ -263,6 +263,11 @@ class FGMRES(KrylovBasis):
         )
         self._end = rec(kk.fgmres_end, [self.H, self.cs, self.sn, self.g, self.info, self.y, self.e])
         self._graphs: dict = {}
+
+    @property
+    def graph_count(self) -> int:
+        """The cycle graphs this solver holds: one per ``graph_key`` captured (0 without)."""
+        return len(self._graphs)
 
     def _arnoldi(self, j: int, matvec, precond) -> None:
         """Arnoldi step j: Z_j = P⁻¹ V_j, w = A Z_j, classical Gram–Schmidt twice (as

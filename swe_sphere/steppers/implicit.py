@@ -180,8 +180,12 @@ class Implicit(Stepper):
     def _gather(self, a, v, out):
         self.jacobian.gather(a, v, out)
 
-    def _jv(self, w, out):
-        """out = J w = w/Δt − β F'(x) w (unique-node vectors), about the current iterate x."""
+    def jacobian_product(self, w, out) -> None:
+        """out = J w = w/Δt − β F'(x) w, Newton's Jacobian of the residual R (the class
+        docstring) applied to w about the current iterate ``x`` (with its ``Fx`` = F(x) and
+        ``xnorm``): one RHS evaluation, a forward difference (``jacobian.FiniteDifferenceJacobian``).
+        w, out: unique-node vectors (3·nunique,), row r of node g at r·nunique + g (wind in
+        m s⁻¹, depth in m; out in those units per s); out must not alias w. GMRES's product."""
         self.jacobian.apply(self.x, self.Fx, self.xnorm, w, out, 1.0 / self.dt, -self.beta)
 
     def _unique_precondition(self, w, out):
@@ -218,7 +222,7 @@ class Implicit(Stepper):
         flexible GMRES; δ into ``delta``. Each iteration one J·v (one RHS)."""
         self._gather(-1.0, self.R, self.minus_R)
         its, _ = self.fgmres.solve(
-            self._jv,
+            self.jacobian_product,
             self._unique_precondition,
             self.minus_R,
             self.w,
@@ -234,8 +238,12 @@ class Implicit(Stepper):
         self._scatter(self.w, self.delta)
 
     # -- Newton ------------------------------------------------------------------------
-    def _eta(self, k, rnorm, rprev, eta_prev):
-        """Eisenstat–Walker (1996) choice 2 forcing term, safeguarded."""
+    def forcing_term(self, k: int, rnorm: float, rprev: float | None, eta_prev: float | None) -> float:
+        """The relative tolerance η of Newton iteration k's GMRES solve: Eisenstat & Walker's
+        (1996, SIAM J. Sci. Comput. 17, 16) choice 2, γ (‖R_k‖/‖R_{k−1}‖)^α with γ = 0.9,
+        α = 2 (0.1 for k = 0), safeguarded by γ η_{k−1}^α above 0.1, at most 0.9, at least
+        ``gmres_tol`` and 0.5 ``atol``/‖R_k‖ (no oversolving). rnorm, rprev: the residual
+        RMS of this and the last iterate (None for k = 0); eta_prev the last η."""
         gamma, alpha, o = 0.9, 2.0, self.o
         if k == 0:
             eta = 0.1
@@ -266,7 +274,7 @@ class Implicit(Stepper):
                 )
             if not math.isfinite(rnorm):
                 raise StepFailure("Newton residual is not finite")
-            eta = self._eta(newton, rnorm, rprev, eta)
+            eta = self.forcing_term(newton, rnorm, rprev, eta)
             self._gather(1.0, x, self.xu)
             self.xnorm = self.jacobian.point_norm(self.xu)  # on the device with KernelPasses
             self._gmres(eta)

@@ -244,14 +244,16 @@ class SplitExplicit(_Multirate):
             out = x if i == len(self.C) - 1 else self.z
             tau = float(c) * self.dt / n
             for k in range(n):
-                self._fb_substep(out if k else self.xn, out, tau, self.S, first=k == 0)
+                self.forward_backward(out if k else self.xn, out, tau, self.S, first=k == 0)
             self._comb(out[0:2], (1.0, self.W[0:2]))
             src = self.z
         return len(self.C)
 
-    def _fb_substep(self, prev, out, tau, forcing, first=False) -> None:
-        """One forward–backward step of the fast system from prev's depth h′ (and wind, when
-        ``first``; else the last substep's, in W) into W's wind and out's depth (may be prev):
+    def forward_backward(self, prev, out, tau: float, forcing, first: bool = False) -> None:
+        """One forward–backward substep of τ (s) of the fast system, 4 launches (``prev``, ``out``,
+        ``forcing``: (3, N) arrays, wind in m s⁻¹ and depth h′ in m, ρ in those per s): from
+        prev's depth h′ (and wind, when ``first``; else the last substep's, in W) into W's
+        wind and out's depth (may be prev):
         v ← v + τ(ρ_v − g G h̃), then h′ ← h′ + τ(ρ_h − D(h_s v)) with the new wind, h_s the
         stage's full depth (W's row 2), ρ = ``forcing``. h̃ = h′ + β(h′ − h′_old), h′_old the
         last substep's depth, is written by the last substep's depth update as

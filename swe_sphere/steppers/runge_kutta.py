@@ -163,6 +163,10 @@ class ImexRK(HelmholtzSteps, Stepper):
     """
 
     variable_dt = True  # the combinations read Δt every step
+    fused = True
+    """Whether a combination's pass holding F(Y_i) is written by that RHS's DSS (``rhs_update``;
+    the class docstring). False: every F stored by a plain ``rhs`` and combined after, the
+    reference whose bits the fused passes keep (``tests/steppers/test_tableau.py``)."""
 
     def table(self) -> Table:
         """The checked pair this stepper steps."""
@@ -261,7 +265,7 @@ class ImexRK(HelmholtzSteps, Stepper):
         F, k = self.F, i + 1
         passes = combos[k]
         p = next((n for n, pair in enumerate(passes) if any(arr is F[i] for _, arr in pair)), None)
-        if p is None or (p > 0 and outs[k] is Y):
+        if not self.fused or p is None or (p > 0 and outs[k] is Y):
             self.model.rhs(Y, F[i])
             return False
         out = outs[k]

@@ -183,7 +183,7 @@ def test_the_forcing_is_compiled_and_launched_only_where_a_scene_names_it():
     x = forced.new_state()
     assert "translating_low" in forced.rhs_kernels(x, forced.new_state())
     assert not any("translating_low" in k for k in unforced.rhs_kernels(unforced.new_state(), unforced.new_state()))
-    assert unforced._forcing_launches == []  # set_time only stores t
+    assert unforced.forcing is None  # no forcing launch recorded: set_time only stores t
     unforced.set_time(123.0)
     assert unforced.time == 123.0
     with pytest.raises(SceneError, match="has no forcing"):

@@ -213,7 +213,7 @@ def test_checked_graphs_run_and_keep_the_bits_of_plain_launches(capsys, stepper,
     assert capsys.readouterr().err == ""
     np.testing.assert_array_equal(graphed[0], plain[0])
     assert graphed[1:4] == plain[1:4]
-    assert graphed[4]._graphed.kept >= 1 and graphed[4].model.graph_guard.failure is None
+    assert graphed[4].graphs_kept >= 1 and graphed[4].model.graph_guard.failure is None
 
 
 def test_the_graph_mode_from_cli_environment_and_python(tmp_path, monkeypatch, capsys):

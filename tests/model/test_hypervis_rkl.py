@@ -38,7 +38,7 @@ def test_rkl1_is_first_order():
     def run(k, s=6):
         x.assign(x0)
         for _ in range(k):
-            m.hv._rkl1(x, T / k, s)
+            m.hv.rkl1(x, T / k, s)
         return x.numpy().copy()
 
     ref = run(1024)

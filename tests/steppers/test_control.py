@@ -113,7 +113,7 @@ def test_the_norm_is_one_reduction_equal_to_numpys():
     x1 = x0 * (1 + 0.01 * rng.standard_normal(x0.shape))
     e = 1e-4 * np.abs(x0) * rng.standard_normal(x0.shape)
     norm = ErrorNorm(topo, rtol=1e-5, atol_wind=1e-3, atol_h=1e-2)
-    arrays = [sim.stepper._buffer() for _ in range(3)]
+    arrays = [sim.model.new_state() for _ in range(3)]
     for a, v in zip(arrays, (e, x0, x1)):
         a.assign(v)
     atol = np.array([1e-3, 1e-3, 1e-2])[:, None]

@@ -164,7 +164,7 @@ def _imex_sim(scheme, ne=2):
 
 # a step's own launches (and memsets/copies) at ne 2, the solves and the ∇⁴ apart: ARS(3,4,3) 26
 # and ARS(2,3,2) 19 with plain passes; 21 and 15 with the combinations' F-holding passes in the
-# RHS's DSS (``ImexRK._rhs``); 18 and 13 with L Y_i written by the solve's back-substitution;
+# RHS's DSS (``ImexRK.fused``); 18 and 13 with L Y_i written by the solve's back-substitution;
 # 15 and 10 with L x(n) in one element pass and one DSS (``GravityWaveOperator``)
 OWN_LAUNCHES = {"ars343": 15, "ars232": 10}
 

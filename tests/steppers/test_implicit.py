@@ -183,7 +183,7 @@ def test_second_order_schemes_beat_backward_euler_at_the_same_step():
 
 @pytest.mark.parametrize("name", ["tc5_mountain", "tc6_rossby_haurwitz", "tc2_steady_alpha_pi4"])
 def test_jacobian_vector_product_matches_exact_directional_derivative(name, rng):
-    """ne = 2. ``Implicit._jv`` (forward difference, ε = sqrt(ε_mach)(1 + ‖x‖)/‖v‖,
+    """ne = 2. ``Implicit.jacobian_product`` (forward difference, ε = sqrt(ε_mach)(1 + ‖x‖)/‖v‖,
     on unique-node vectors) against the exact directional derivative. Every term of F is at most quadratic
     in the state (h v, ζ v, |v|², linear Coriolis and pressure gradient, constant
     topography; the DSS is linear), so the central difference
@@ -214,7 +214,7 @@ def test_jacobian_vector_product_matches_exact_directional_derivative(name, rng)
     assert rel(small, exact) < 1e-9
     assert rel(second2, second1) < 1e-10
 
-    # the stepper's state for a θ = 0.5 step at x0 (as _newton sets it up)
+    # the stepper's state for a θ = 0.5 step at x0 (as its Newton iteration sets it up)
     st.rhs_evals, st.beta, st.x = 0, 0.5, sim.x
     st.xnorm = np.linalg.norm(x0[:, sim.grid.first])
     m.rhs(sim.x, st.Fx)
@@ -225,7 +225,7 @@ def test_jacobian_vector_product_matches_exact_directional_derivative(name, rng)
     out = wp.zeros_like(vw)
     evals, F = [0], st.jacobian.F
     st.jacobian.F = lambda *a: (evals.__setitem__(0, evals[0] + 1), F(*a))
-    st._jv(vw, out)
+    st.jacobian_product(vw, out)
     assert evals[0] == 1  # one F evaluation per product
     Jv = out.numpy().copy()  # numpy() is a view of the Warp array on the CPU
     JF = (vu / st.dt - Jv) / st.beta  # the F'(x) v inside it
@@ -239,9 +239,9 @@ def test_jacobian_vector_product_matches_exact_directional_derivative(name, rng)
     assert err_J < 1e-6
     np.testing.assert_array_equal(sim.x.numpy(), x0)  # J v leaves the iterate alone
     # linear in v (to the difference's accuracy), and zero for v = 0
-    st._jv(wp.array(-3.0 * vu, dtype=wp.float64, device=DEVICE), out)
+    st.jacobian_product(wp.array(-3.0 * vu, dtype=wp.float64, device=DEVICE), out)
     assert rel(out.numpy(), -3.0 * Jv) < 1e-6
-    st._jv(wp.zeros_like(vw), out)
+    st.jacobian_product(wp.zeros_like(vw), out)
     assert not np.any(out.numpy())
 
 
@@ -295,7 +295,7 @@ def _one_step_history(name, exact_inner):
     st = sim.stepper
     if exact_inner:
         # inexact Newton → Newton: the forcing term at its floor on every iteration
-        st._eta = lambda *args: st.o["gmres_tol"]
+        st.forcing_term = lambda *args: st.o["gmres_tol"]
     x = sim.x.numpy()
     noise = EPS * math.sqrt(np.mean(x**2)) / scene.dt  # round-off level of R = (x - b)/dt - βF
     stats = st.step(sim.x)
@@ -407,22 +407,24 @@ def test_fgmres_reaches_the_true_residual_with_an_inexact_inner_solve():
     options = {"helmholtz_tol": 1e-1, "gmres_maxiter": 60}
     sim = make_sim(dataclasses.replace(base, stepper_options=options))
     st, x = sim.stepper, sim.x
-    # the first Newton iteration of a θ = 0.5 step from x (as Implicit.step sets it up)
-    st.helmholtz.operator.set_depth(x)
-    st.rhs_evals, st.beta, st.x = 0, 0.5, x
-    st._F(x, st.Fx)
-    st._axpby(1.0, x, 0.5 * st.dt, st.Fx, st.b)
-    st._residual(x, st.Fx, st.R)
-    st._gather(1.0, x, st.xu)
-    st.xnorm = st.jacobian.point_norm(st.xu)
-    st._gmres(1e-6)
-    delta, jv = wp.zeros_like(st.w), wp.zeros_like(st.w)
-    st._gather(1.0, st.delta, delta)
-    st._jv(delta, jv)
-    st._gather(1.0, st.R, st.minus_R)
-    true = rel(jv.numpy(), -st.minus_R.numpy())  # ‖J δ + R‖ / ‖R‖
-    print(f"\n{st._counts}, true relative residual {true:.2e}", end="")
-    assert true < 2e-6
+    st.forcing_term = lambda *args: 1e-6  # the first Newton iteration's η
+    solve, found = st.fgmres.solve, {}
+
+    class Solved(Exception):
+        """The first Newton system solved: the step stops there."""
+
+    def first_system(matvec, precond, minus_R, delta, *args, **kw):  # δ (unique nodes) from J δ = −R
+        found["its"], _ = solve(matvec, precond, minus_R, delta, *args, **kw)
+        jv = wp.zeros_like(delta)
+        st.jacobian_product(delta, jv)  # about the step's first iterate, x
+        found["true"] = rel(jv.numpy(), minus_R.numpy())  # ‖J δ + R‖ / ‖R‖
+        raise Solved
+
+    st.fgmres.solve = first_system
+    with pytest.raises(Solved):
+        st.step(x)
+    print(f"\n{found['its']} GMRES iterations, true relative residual {found['true']:.2e}", end="")
+    assert found["true"] < 2e-6
 
 
 @pytest.mark.parametrize("backend", ["HostVectors", "KernelVectors"])
@@ -549,16 +551,16 @@ def test_fgmres_cycles_replayed_as_graphs_give_the_bits_of_host_loops(monkeypatc
         st = sim.stepper
         st.fgmres.vectors, st.jacobian.passes = krylov.KernelVectors(st.fgmres), jacobian.KernelPasses(st.model)
         if not graphs:
-            monkeypatch.setattr(st, "_cycle_key", lambda: None)
-        jv, calls = st._jv, [0]
+            st.model.graph_guard.enabled = False  # no cycle captured: the model's solvers run plain
+        jv, calls = st.jacobian_product, [0]
 
         def counted(w, out):
             calls[0] += 1
             jv(w, out)
 
-        st._jv = counted
+        st.jacobian_product = counted
         stats = [st.step(sim.x) for _ in range(3)]
-        runs[graphs] = sim.x.numpy(), [(s.rhs_evals, s.iterations) for s in stats], calls[0], len(st.fgmres._graphs)
+        runs[graphs] = sim.x.numpy(), [(s.rhs_evals, s.iterations) for s in stats], calls[0], st.fgmres.graph_count
     (plain, plain_stats, plain_calls, _), (graphed, graphed_stats, graphed_calls, captured) = runs[False], runs[True]
     its = sum(s[1]["gmres"] for s in plain_stats)
     print(f"\n{plain_stats}; {captured} graphs; J·v called {graphed_calls} times graphed, {plain_calls} plain", end="")

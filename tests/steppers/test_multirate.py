@@ -100,7 +100,7 @@ def test_fast_evaluation_cost_in_launches_and_bytes():
         ("rhs", lambda: m.rhs(xp, F)),
         ("slow", lambda: split.slow(xp, slow)),
         ("fast", lambda: split.fast(xp, fast, slow)),
-        ("forward-backward substep", lambda: fb._fb_substep(z, z, 10.0, slow)),
+        ("forward-backward substep", lambda: fb.forward_backward(z, z, 10.0, slow)),
     )
     with instrumented(tally):
         for name, call in calls:
@@ -247,7 +247,7 @@ def test_auto_substeps_are_the_fewest_within_the_fast_courant_number(stepper, co
     dt = 86400.0 / math.ceil(86400.0 / (multiple * explicit_limits(base, "cpu")["dt_gravity"]))
     sim = Simulation(dataclasses.replace(base, dt=dt), "cpu", progress=False)
     counted = [0]
-    owner, name = (sim.stepper, "_fb_substep") if stepper == "split_explicit" else (sim.stepper.split, "fast")
+    owner, name = (sim.stepper, "forward_backward") if stepper == "split_explicit" else (sim.stepper.split, "fast")
     real = getattr(owner, name)
 
     def counting(*args, **kwargs):

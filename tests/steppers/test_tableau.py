@@ -334,7 +334,7 @@ def test_a_pair_replayed_as_graphs_has_the_bits_of_plain_steps(monkeypatch, pair
         sim = make_sim(scene)
         sim.graphs, sim.check_every = graphs, every
         result = sim.run(None)
-        runs.append((sim.x.numpy(), result.iterations, sim._graphed.kept))
+        runs.append((sim.x.numpy(), result.iterations, sim.graphs_kept))
     np.testing.assert_array_equal(runs[0][0], runs[1][0])
     assert runs[0][1] == runs[1][1] and runs[0][1]["helmholtz"] > 12
     assert runs[1][2] >= 1  # steps were captured
@@ -366,21 +366,16 @@ def test_example_tables_converge_at_their_order(scene, order):
 
 @pytest.mark.parametrize("pair", ["ars232", "ars343", *PAIRS, "ark2_gkc", "ark324l2sa"])
 def test_fused_combinations_have_the_bits_of_plain_passes(monkeypatch, pair):
-    """IMEX combinations with their F-holding passes in the RHS's DSS (``ImexRK._rhs``: the
+    """IMEX combinations with their F-holding passes in the RHS's DSS (``ImexRK.fused``: the
     ``imex`` schemes; pairs with b_E ≠ b_I, L terms after the F ones, an explicit last stage
     writing the Y its RHS reads, five solves) bitwise those of storing every F and combining
-    after (``_rhs`` a plain ``rhs``): TC5 ne = 2, 4 steps of 1 h."""
+    after (``fused`` False: a plain ``rhs``): TC5 ne = 2, 4 steps of 1 h."""
     if pair.startswith("ars"):
         scene = short("imex", {"scheme": pair}, dt=3600.0, scene="tc5_mountain")
     else:
         scene = short("tableau", dict(PAIRS[pair] if pair in PAIRS else example(pair)), dt=3600.0, scene="tc5_mountain")
     runs = [final_state(scene, 4)[1]]
-
-    def plain(self, i, Y, combos, outs, x):
-        self.model.rhs(Y, self.F[i])
-        return False
-
-    monkeypatch.setattr(ImexRK, "_rhs", plain)
+    monkeypatch.setattr(ImexRK, "fused", False)
     runs.append(final_state(scene, 4)[1])
     np.testing.assert_array_equal(*runs)
 

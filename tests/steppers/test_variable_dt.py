@@ -75,7 +75,7 @@ def test_the_model_time_reached_stays_and_the_imex_histories_follow_dt():
     assert s.t0 + s.steps * s.dt == pytest.approx(86400.0 + 3 * 1200.0, rel=4 * np.finfo(float).eps)
     s.step(sim.x)
     diagonal = {float(a) * 480.0 for a in np.diag(s.A_I) if a != 0.0}
-    assert set(s.helmholtz._histories) == diagonal  # the 1200 s histories gone
+    assert set(s.helmholtz.histories) == diagonal  # the 1200 s histories gone
 
 
 @pytest.mark.parametrize("key", [k for k, cls in STEPPERS.items() if not cls.variable_dt])

@@ -14,14 +14,22 @@ def weighted_squares(
     first: wp.array(dtype=wp.int32),
     atol: wp.array(dtype=f64),
     rtol: f64,
+    check_depth: int,
+    block: int,
     out: wp.array(dtype=f64),
 ):
     """out[i] = Σ_r (e[r, p] / (atol[r] + rtol·max(|x0[r, p]|, |x1[r, p]|)))² over the rows r of the
-    states (3, N), at the unique node p = first[i] (its first copy). Dim len(first)."""
-    i = wp.tid()
-    p = first[i]
-    s = f64(0.0)
-    for r in range(3):
-        q = e[r, p] / (atol[r] + rtol * wp.max(wp.abs(x0[r, p]), wp.abs(x1[r, p])))
-        s += q * q
-    out[i] = s
+    states (3, N), at the unique node p = first[i] (its first copy); +inf where (``check_depth``
+    ≠ 0) x1's depth h = x1[2, p] ≤ 0, so that a finite sum is a state whose every node is finite
+    and wet. Dim ceil(len(first) / block): ``block`` consecutive i a thread (a CPU thread's
+    fixed cost against its work; 1 on CUDA)."""
+    start = wp.tid() * block
+    for i in range(start, wp.min(start + block, first.shape[0])):
+        p = first[i]
+        s = f64(0.0)
+        for r in range(3):
+            q = e[r, p] / (atol[r] + rtol * wp.max(wp.abs(x0[r, p]), wp.abs(x1[r, p])))
+            s += q * q
+        if check_depth != 0 and not x1[2, p] > f64(0.0):
+            s = f64(wp.inf)
+        out[i] = s

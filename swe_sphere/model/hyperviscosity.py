@@ -249,7 +249,7 @@ class Hyperviscosity:
             return
         coef = -dt / n
         for _ in range(n):
-            m.launches.replay(("hv", x.ptr, coef), (x,), lambda: self.build(x, coef))
+            m.launches.replay(("hv", x.ptr), (x,), lambda c: self.build(x, c[0]), (coef,))
 
     def _rkl1(self, x, dt, s):
         """One s-stage RKL1 step (Meyer, Balsara & Aslam 2014, eqs. 10–11) of
@@ -265,7 +265,7 @@ class Hyperviscosity:
 
         def euler(src):  # e = E(src)
             wp.copy(e, src)
-            m.launches.replay(("hv", e.ptr, coef), (e,), lambda: self.build(e, coef))
+            m.launches.replay(("hv", e.ptr), (e,), lambda c: self.build(e, c[0]), (coef,))
 
         wp.copy(ym2, x)
         euler(x)

@@ -8,8 +8,11 @@ of an embedded pair, ``runge_kutta``) over the unique nodes and the fields u, v,
 
 (Hairer, Nørsett & Wanner 1993, *Solving ODEs I*, §II.4, eq. 4.11; ARKODE's and
 OrdinaryDiffEq's), so that ‖e‖ ≤ 1 is a step within tolerance. One global reduction:
-the per-node terms (``kernels.error_norm``) added by ``math.fsum``, the correctly
-rounded sum, after gathering them from every rank: the same bits on any rank count.
+the per-node terms (``kernels.error_norm``) gathered from every rank into the whole grid's
+order of the unique nodes (their global ids) and added there by one ``np.sum``: the same
+terms in the same order on any rank count, so the same bits. (``math.fsum``, the correctly
+rounded sum, gave that too at 5 ms a norm at ne30, 40 % of a bs32 step; the ordered sum
+takes 0.05 ms: benchmarks/control_overhead.py.)
 
 ``Controller``: the next step from this step's norm and the accepted history
 (Söderlind 2003, ACM TOMS 29, 1, "Digital filters in adaptive time-stepping"),
@@ -56,34 +59,44 @@ CONTROLLERS = {
 class ErrorNorm:
     """The weighted RMS norm (dimensionless) of error estimates e (3, N) on ``topology``'s
     element-local nodes, rows u, v (m s⁻¹) and h (m): ``rtol`` (> 0) relative,
-    ``atol_wind`` (m s⁻¹) and ``atol_h`` (m) absolute tolerances. ValueError for a
-    tolerance that is not positive (rtol) or negative (atol)."""
+    ``atol_wind`` (m s⁻¹) and ``atol_h`` (m) absolute tolerances. With ``check_depth``
+    (h a depth: a scene with a pressure gradient) a step that ends with h ≤ 0 anywhere has
+    the norm +inf, and one with a non-finite value NaN or inf: a finite norm is a state the
+    bad-node check (``model.bad_nodes``) passes. ValueError for a tolerance that is not
+    positive (rtol) or negative (atol)."""
 
-    def __init__(self, topology, rtol: float, atol_wind: float = 1e-3, atol_h: float = 1e-2):
+    def __init__(self, topology, rtol: float, atol_wind: float = 1e-3, atol_h: float = 1e-2, check_depth: bool = False):
         if not rtol > 0:
             raise ValueError(f"rtol must be > 0 (got {rtol!r})")
         for key, value in (("atol_wind", atol_wind), ("atol_h", atol_h)):
             if not value >= 0:
                 raise ValueError(f"{key} must be ≥ 0 (got {value!r}, {'m/s' if key == 'atol_wind' else 'm'})")
-        self.topology, self.rtol = topology, float(rtol)
+        self.topology, self.rtol, self.check_depth = topology, float(rtol), int(bool(check_depth))
+        self.block = 64 if topology.backend.host else 1
+        self._launches: dict[tuple, tuple] = {}  # (e, x0, x1) addresses: the recorded launch, its arrays
         self.atol = wp.array(np.array([atol_wind, atol_wind, atol_h]), dtype=f64, device=topology.device)
         self._terms = wp.zeros(topology.nunique, dtype=f64, device=topology.device)
         self.count = 3 * int(round(topology.sum(float(topology.nunique))))  # the terms over every rank
+        self._order = None  # one rank holds its unique nodes in the global ids' order (ascending)
+        if topology.distributed:  # the order of the ranks' nodes gathered one after another
+            grid = topology.grid
+            self._order = np.argsort(np.concatenate(topology.comm.allgather(grid.gid[grid.first])), kind="stable")
 
     def __call__(self, e, x0, x1) -> float:
         """‖e‖ with the weights of the states x0 (the step's start) and x1 (its end), (3, N) each;
-        the same value on every rank."""
+        the same value on every rank, and the same bits on any number of ranks."""
         t = self.topology
-        wp.launch(
-            error_norm.weighted_squares,
-            t.nunique,
-            [e, x0, x1, t.first, self.atol, f64(self.rtol), self._terms],
-            device=t.device,
-        )
+        key = (e.ptr, x0.ptr, x1.ptr)
+        if key not in self._launches:
+            args = [e, x0, x1, t.first, self.atol, f64(self.rtol), self.check_depth, self.block, self._terms]
+            dim = -(-t.nunique // self.block)
+            launch = wp.launch(error_norm.weighted_squares, dim, args, device=t.device, record_cmd=True)
+            self._launches[key] = (launch, (e, x0, x1))
+        self._launches[key][0].launch()
         terms = self._terms.numpy()
         if t.distributed:
-            terms = np.concatenate(t.comm.allgather(terms))
-        return math.sqrt(math.fsum(terms) / self.count)
+            terms = np.concatenate(t.comm.allgather(terms))[self._order]
+        return math.sqrt(float(np.sum(terms)) / self.count)
 
 
 @dataclass

@@ -17,13 +17,14 @@ def weighted_squares(
     check_depth: int,
     block: int,
     out: wp.array(dtype=f64),
+    offset: int,
 ):
     """out[i] = Σ_r (e[r, p] / (atol[r] + rtol·max(|x0[r, p]|, |x1[r, p]|)))² over the rows r of the
     states (3, N), at the unique node p = first[i] (its first copy); +inf where (``check_depth``
     ≠ 0) x1's depth h = x1[2, p] ≤ 0, so that a finite sum is a state whose every node is finite
     and wet. Dim ceil(len(first) / block): ``block`` consecutive i a thread (a CPU thread's
-    fixed cost against its work; 1 on CUDA)."""
-    start = wp.tid() * block
+    fixed cost against its work; 1 on CUDA), the blocks from ``offset`` on (``core.parallel``)."""
+    start = (wp.tid() + offset) * block
     for i in range(start, wp.min(start + block, first.shape[0])):
         p = first[i]
         s = f64(0.0)

@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
+from ..core.parallel import record
 from ..kernels import error_norm
 
 f64 = wp.float64
@@ -90,7 +91,9 @@ class ErrorNorm:
         if key not in self._launches:
             args = [e, x0, x1, t.first, self.atol, f64(self.rtol), self.check_depth, self.block, self._terms]
             dim = -(-t.nunique // self.block)
-            launch = wp.launch(error_norm.weighted_squares, dim, args, device=t.device, record_cmd=True)
+            launch = record(
+                error_norm.weighted_squares, dim, args, device=t.device, threads=t.threads, nodes_per_index=self.block
+            )  # split over the CPU threads as the model's launches
             self._launches[key] = (launch, (e, x0, x1))
         self._launches[key][0].launch()
         terms = self._terms.numpy()

@@ -34,3 +34,31 @@ def weighted_squares(
         if check_depth != 0 and not x1[2, p] > f64(0.0):
             s = f64(wp.inf)
         out[i] = s
+
+
+@wp.kernel
+def courant_squares(
+    x: wp.array2d(dtype=f64),
+    rdx2: wp.array(dtype=f64),
+    g: f64,
+    check_depth: int,
+    block: int,
+    out: wp.array2d(dtype=f64),
+    offset: int,
+):
+    """Over the ``block`` element-local nodes p of block k = tid + offset of the state x (3, N):
+    out[0, k] = max (u² + v²)/Δx², out[1, k] = max g·max(h, 0)/Δx² (``rdx2`` = 1/Δx², m⁻²),
+    out[2, k] = 1 where a node is bad (u, v or h not finite, or with ``check_depth`` h ≤ 0), else
+    0: the squares of ``model.diagnostics.courant_numbers``' maxima over Δt (s⁻²), a slot a block
+    (no race, the same maxima however the blocks are split)."""
+    k = wp.tid() + offset
+    adv, grav, bad = f64(0.0), f64(0.0), f64(0.0)
+    for p in range(k * block, wp.min((k + 1) * block, x.shape[1])):
+        u, v, h = x[0, p], x[1, p], x[2, p]
+        if not ((u - u) + (v - v) + (h - h) == f64(0.0)) or (check_depth != 0 and not h > f64(0.0)):
+            bad = f64(1.0)
+        adv = wp.max(adv, (u * u + v * v) * rdx2[p])
+        grav = wp.max(grav, g * wp.max(h, f64(0.0)) * rdx2[p])
+    out[0, k] = adv
+    out[1, k] = grav
+    out[2, k] = bad

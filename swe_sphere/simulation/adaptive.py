@@ -27,9 +27,8 @@ import warp as wp
 from ..config.schema import SceneControl
 from ..core.constants import DAY
 from ..core.errors import BlowUp, StepFailure
-from ..model.diagnostics import courant_numbers
 from ..steppers import StepStats
-from ..steppers.control import CflController, Controller, ErrorNorm, capped
+from ..steppers.control import CflController, Controller, CourantMax, ErrorNorm, capped
 from .guard import Guard
 from .schedules import AtDays
 from .summary import Stop
@@ -78,6 +77,9 @@ class StepControl:
             self.norm = ErrorNorm(sim.topology, control.rtol, control.atol_wind, control.atol_h, depth)
         gravity_waves = stepper.courant_limit is not None  # explicit gravity waves: the signal's Courant number
         self.cfl = None if control.cfl is None else CflController(control.cfl, gravity_waves)
+        pressure = "pressure_gradient" in sim.scene.terms
+        self.courant = None if self.cfl is None else CourantMax(sim.topology, sim.topology.grid.dx, sim.g, pressure)
+        self.checked = False  # the last try's state found good by the norm or the Courant numbers' pass
         self.dt = float(stepper.dt)
         sim.model.launches.limit, sim.model.launches.variants = LAUNCH_LISTS, LAUNCH_VARIANTS
         self.x0 = sim.last_good  # a step's start: the guard's last good state (``_checked_step``)
@@ -94,12 +96,6 @@ class StepControl:
         self.landed = self.t == day * DAY
         self.day = day if self.landed else self.t / DAY
         return stats
-
-    def _courant(self, x, dt: float) -> dict:
-        u, v, h = self.sim.fields(x)
-        gravity_waves = "pressure_gradient" in self.sim.scene.terms
-        numbers = courant_numbers(self.sim.grid, u, v, h, dt, self.sim.g, gravity_waves) if self.sim.root else None
-        return self.sim.topology.bcast(numbers)
 
     def step(self, x, t: float, target: float) -> tuple[float, StepStats]:
         """One accepted step of x (3, N) in place from t (s) toward ``target`` (s, > t), rejected
@@ -143,13 +139,16 @@ class StepControl:
 
     def _propose(self, x, dt: float) -> tuple[bool, float, float]:
         """(accepted, the next Δt, the error norm or NaN) of a step of ``dt`` that ended in x."""
-        err, ok, proposal = math.nan, True, dt
+        err, ok, proposal, self.checked = math.nan, True, dt, False
         if self.error:
             err = self.norm(self.stepper.error_estimate, self.x0, x)
             ok, proposal = self.controller.propose(dt, err)
+            self.checked = math.isfinite(err)  # every node finite and wet (``ErrorNorm``)
         if self.cfl is not None and ok:  # a rejected step's retry is the error controller's
-            cap = self.cfl.propose(dt, self._courant(x, dt))
+            numbers, bad = self.courant(x, dt)
+            cap = self.cfl.propose(dt, numbers)
             proposal = capped(proposal, cap) if self.error else cap
+            self.checked = self.checked or not bad
         return ok, proposal, err
 
     def summary(self) -> str:
@@ -214,7 +213,7 @@ def _checked_step(sim, day: float, guard: Guard, ledger) -> str | None:
         stats = ctl.step_to(sim.x, day)
         # the solvers' device counters (``Stepper.deferred``): raises for a solve that missed its tolerance
         stats = StepStats(stats.rhs_evals, {**stats.iterations, **sim.stepper.counts()})
-        if not math.isfinite(ctl.error_last):  # a finite norm: every node finite and wet (``ErrorNorm``)
+        if not ctl.checked:  # else the norm's or the Courant numbers' pass found every node good
             node = sim.model.bad_nodes.first(sim.x)
     except BlowUp as err:  # the rejected steps put the state back: it is the last good one
         return str(err)

@@ -142,6 +142,12 @@ EXPLICIT_RUNS = [  # (scene, its options): each of these runs has the same bits 
         ["--stepper", "rk4", "--dt", "3600", "--days", "1", "-s", "case.initialization=dfi"]
         + ["-s", "dfi.cutoff_hours=6", "-s", "dfi.span_hours=12"],
     ),
+    (  # steps that choose themselves: the error norm's sum in the whole grid's node order (its series
+        # in the run file), a rejected step, the CFL cap's Courant numbers (it binds from step 2)
+        "tc5_mountain",
+        ["--stepper", "bs32", "--days", "0.1", "-s", "time.control=error", "-s", "time.rtol=1e-5"]
+        + ["-s", "time.cfl=0.1"],
+    ),
 ]
 
 # the runs of EXPLICIT_RUNS one after another in one process: a rank's start-up (imports, kernels)

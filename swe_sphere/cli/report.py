@@ -185,11 +185,7 @@ def summary(r, sim) -> None:
             print(f"  {vs:11s} none: no output time after t = 0 is one {name} stores (days {days})")
         else:
             d = scored[-1]
-            at = (
-                ""
-                if d is r.history[-1]
-                else f" (day {sim.scene.day(d['steps']):g}, its last output time {name} stores)"
-            )
+            at = "" if d is r.history[-1] else f" (day {d['day']:g}, its last output time {name} stores)"
             print(
                 f"  {vs} h+hs l1 {d['ref_l1_h_surface']:.3e}  l2 {d['ref_l2_h_surface']:.3e}  linf {d['ref_linf_h_surface']:.3e}{at}"
             )

@@ -16,7 +16,7 @@ from __future__ import annotations
 import warp as wp
 
 from ..kernels import gravity_wave
-from .launches import Update, check_updates, update_arrays, update_key
+from .launches import Update, check_updates
 
 f64 = wp.float64
 
@@ -70,11 +70,12 @@ class GravityWaveOperator:
         """L x, not stored but written, as its DSS makes it, into one or two
         ``Update(out, terms)`` of (3, N) arrays: out = Σ a·src over terms (a, src), src None
         standing for L x (``Topology.dss_update``: one to three terms, at most two arrays).
-        Outputs may alias x and the terms (the element pass reads x first). Recorded once per arrays, H and coefficients."""
+        Outputs may alias x and the terms (the element pass reads x first). Recorded once per arrays and H, the coefficients launch arguments
+        (``LaunchRecorder.replay_updates``)."""
         m, updates = self.model, check_updates(updates)
         H = self.H
 
-        def build():
+        def build(updates):
             if m.per_element:
                 element = m.launches.elements(
                     gravity_wave.linear_element(m.grid.np),
@@ -86,5 +87,4 @@ class GravityWaveOperator:
                 )
             return [element, *m.dss_update(m.tend, updates)]
 
-        key = ("linear_update", (x.ptr, x.shape, x.strides), H, update_key(updates))
-        m.launches.replay(key, (x, *update_arrays(updates)), build)
+        m.launches.replay_updates(("linear_update", (x.ptr, x.shape, x.strides), H), (x,), updates, build)

@@ -249,7 +249,7 @@ class Hyperviscosity:
             return
         coef = -dt / n
         for _ in range(n):
-            m.launches.replay(("hv", x.ptr, coef), (x,), lambda: self.build(x, coef))
+            m.launches.replay(("hv", x.ptr), (x,), lambda c: self.build(x, c[0]), (coef,))
 
     def rkl1(self, x: wp.array2d, dt: float, s: int) -> None:
         """One s-stage RKL1 step (Meyer, Balsara & Aslam 2014, eqs. 10–11) of
@@ -266,7 +266,7 @@ class Hyperviscosity:
 
         def euler(src):  # e = E(src)
             wp.copy(e, src)
-            m.launches.replay(("hv", e.ptr, coef), (e,), lambda: self.build(e, coef))
+            m.launches.replay(("hv", e.ptr), (e,), lambda c: self.build(e, c[0]), (coef,))
 
         wp.copy(ym2, x)
         euler(x)

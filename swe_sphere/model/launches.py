@@ -10,6 +10,7 @@ argument packing in the time loop), and linear combinations of arrays as such la
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import warp as wp
@@ -34,15 +35,29 @@ class Update(NamedTuple):
 
 def update_key(updates) -> tuple:
     """What a recorded combination fixes of ``updates``: each out's and src's address,
-    shape and strides, the coefficients, the rows."""
+    shape and strides, the rows; not the coefficients (``coefficients``: launch arguments
+    set in place, ``LaunchRecorder.replay_updates``)."""
     return tuple(
         (
             None if u.rows is None else (u.rows.start, u.rows.stop),
             (u.out.ptr, u.out.shape, u.out.strides),
-            tuple((a, None if src is None else (src.ptr, src.shape, src.strides)) for a, src in u.terms),
+            tuple(None if src is None else (src.ptr, src.shape, src.strides) for _, src in u.terms),
         )
         for u in updates
     )
+
+
+def coefficients(updates) -> tuple:
+    """The coefficients a of ``updates``' terms (a, src), in order (floats)."""
+    return tuple(float(a) for u in updates for a, _ in u.terms)
+
+
+def with_coefficients(updates, values) -> tuple:
+    """``updates`` with their coefficients, in ``coefficients``' order, replaced by ``values``."""
+    values, out = iter(values), []
+    for u in updates:
+        out.append(Update(u.out, tuple((next(values), src) for _, src in u.terms), u.rows))
+    return tuple(out)
 
 
 def update_arrays(updates) -> tuple:
@@ -74,13 +89,18 @@ class LaunchRecorder:
     Attributes
     ----------
     limit : int or None
-        The most launch lists kept (None: all). A run whose Δt changes step to step
-        (``simulation.adaptive``) sets it: keys that fold Δt into their coefficients (the
-        stages' combinations, the ∇⁴ step) would else add lists every step; the oldest
-        recorded goes first, and is recorded again if asked for.
+        The most keys kept (None: all): the oldest recorded goes first, and is recorded
+        again if asked for.
+    variants : int or None
+        The most coefficient sets kept recorded under one key of ``replay`` with
+        ``coefficients`` (None: all). Past it the least recently replayed list takes the
+        new coefficients in place (its launch arguments set, nothing recorded): a run whose
+        Δt changes step to step (``simulation.adaptive``) sets it, so that a new Δt costs
+        the arguments' setting, not a recording.
     """
 
     limit: int | None = None
+    variants: int | None = None
 
     def __init__(self, device, threads: int, points: int, nnodes: int, nunique: int, per_element: bool):
         self.backend = device if isinstance(device, Backend) else Backend.of(device)
@@ -175,23 +195,130 @@ class LaunchRecorder:
                     launch.set_param_by_name(arg.label, value)
         launch.launch()
 
-    def replay(self, key, arrays, build) -> None:
+    def replay(self, key, arrays, build, coefficients=None) -> None:
         """Replay the launches recorded under ``key``, recording them first (``build()``,
         a list of launches) if new. The cache holds ``arrays`` so that their addresses
-        (part of the key) stay theirs."""
+        (part of the key) stay theirs. With ``coefficients`` (a tuple of floats), ``build``
+        takes them (``build(coefficients)``) and each must reach the launches only as a
+        float64 argument or a component of a float64 vector argument: a list recorded under
+        ``key`` with other coefficients is replayed with these set as its arguments
+        (``variants``), the same bits as a list recorded with them. ValueError for a
+        coefficient that reaches no argument."""
         entry = self._recorded.get(key)
         if entry is None:
-            entry = self._recorded[key] = (build(), arrays)
+            entry = self._recorded[key] = (build() if coefficients is None else _Variants(), arrays)
             if self.limit is not None and len(self._recorded) > self.limit:
                 del self._recorded[next(iter(self._recorded))]
-        for launch in entry[0]:
+        launches = entry[0] if coefficients is None else entry[0].launches(build, coefficients, self.variants)
+        for launch in launches:
             launch.launch()
+
+    def replay_updates(self, key, arrays, updates, build) -> None:
+        """``replay`` of the launches ``build(updates)`` makes of ``Update``s (an operator's
+        element pass and its DSS into ``updates``' combinations) under ``key`` and the
+        updates' arrays (``update_key``), their coefficients launch arguments."""
+        self.replay(
+            (*key, update_key(updates)),
+            (*arrays, *update_arrays(updates)),
+            lambda values: build(with_coefficients(updates, values)),
+            coefficients(updates),
+        )
 
     def recorded(self, key) -> list | None:
         """The launches recorded under ``key`` (None if none)."""
         entry = self._recorded.get(key)
-        return None if entry is None else entry[0]
+        if entry is None:
+            return None
+        return entry[0].latest() if isinstance(entry[0], _Variants) else entry[0]
+
+    def lists(self) -> int:
+        """How many launch lists are recorded (each coefficient set's of a key its own)."""
+        return sum(len(e[0].lists) if isinstance(e[0], _Variants) else 1 for e in self._recorded.values())
 
     def keys(self) -> list:
         """The keys of the recorded launches, in recording order."""
         return list(self._recorded)
+
+
+# what a list with coefficients is first recorded with, to find the arguments each reaches:
+# values no coefficient or other argument takes (negative, of order 1e-271)
+def _stand_ins(n: int) -> tuple:
+    return tuple(-math.pi * 2.0**-900 * (k + 1) for k in range(n))
+
+
+class _Slot(NamedTuple):
+    """A launch argument that holds coefficients: ``components`` (component or None for a
+    scalar, coefficient index) over the vector ``template`` (None for a scalar)."""
+
+    launch: object
+    name: str
+    template: object
+    components: tuple
+
+    def set(self, values) -> None:
+        if self.template is None:
+            self.launch.set_param_by_name(self.name, f64(values[self.components[0][1]]))
+            return
+        v = list(self.template)
+        for component, k in self.components:
+            v[component] = values[k]
+        self.launch.set_param_by_name(self.name, type(self.template)(*v))
+
+
+def _slots(launches, stand_ins) -> list:
+    """The arguments of ``launches`` (``wp.Launch`` or ``SplitLaunch``) that hold ``stand_ins``.
+    ValueError for a stand-in none holds."""
+    index, slots = {v: k for k, v in enumerate(stand_ins)}, []
+    for launch in launches:
+        whole = getattr(launch, "whole", launch)
+        kernel, args = getattr(whole, "kernel", None), getattr(whole, "fwd_args", None)
+        if kernel is None or args is None:  # a halo exchange: no arguments
+            continue
+        for arg, value in zip(kernel.adj.args, args):
+            if wp.types.type_is_vector(arg.type) and arg.type._wp_scalar_type_ is f64:
+                found = tuple((c, index[float(v)]) for c, v in enumerate(value) if float(v) in index)
+                template = value
+            elif arg.type is f64:
+                v = float(getattr(value, "value", value))
+                found, template = (((None, index[v]),) if v in index else ()), None
+            else:
+                continue
+            if found:
+                slots.append(_Slot(launch, arg.label, template, found))
+    reached = {k for slot in slots for _, k in slot.components}
+    if len(reached) != len(stand_ins):
+        missing = sorted(set(range(len(stand_ins))) - reached)
+        raise ValueError(f"coefficients {missing} reach no launch argument (used otherwise by the build)")
+    return slots
+
+
+class _Variants:
+    """The lists recorded under one key with coefficients: [coefficients, launches, slots],
+    the most recently replayed last."""
+
+    def __init__(self):
+        self.lists: list[list] = []
+
+    def latest(self) -> list:
+        return self.lists[-1][1]
+
+    def launches(self, build, values: tuple, most: int | None) -> list:
+        """The launches with the coefficients ``values``: a list recorded with them, a new one
+        (fewer than ``most`` kept), or the least recently replayed one set to them."""
+        lists = self.lists
+        for k in range(len(lists) - 1, -1, -1):
+            if lists[k][0] == values:
+                if k != len(lists) - 1:
+                    lists.append(lists.pop(k))
+                return lists[-1][1]
+        if most is None or len(lists) < most:
+            stand_ins = _stand_ins(len(values))
+            launches = build(stand_ins)
+            lists.append([None, launches, _slots(launches, stand_ins)])
+        else:
+            lists.append(lists.pop(0))
+        entry = lists[-1]
+        for slot in entry[2]:
+            slot.set(values)
+        entry[0] = values
+        return entry[1]

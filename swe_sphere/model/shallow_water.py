@@ -26,7 +26,7 @@ from ..grid.topology import Topology
 from ..kernels import operators, tendencies
 from .bad_nodes import BadNodes
 from .hyperviscosity import Hyperviscosity
-from .launches import LaunchRecorder, check_updates, update_arrays, update_key
+from .launches import LaunchRecorder, check_updates
 
 TERMS = (
     "continuity",
@@ -382,11 +382,13 @@ class ShallowWater:
         time. Outputs may alias x (only the tendency reads it, before) and the
         terms (a later update reads an earlier one's result). Summed left to
         right as ``blas.axpby``/``axpbypcz``: the bits of ``rhs`` followed by
-        those combinations. Recorded once per arrays and coefficients;
+        those combinations. Recorded once per arrays, the coefficients launch
+        arguments set in place (``LaunchRecorder.replay_updates``: a new Δt records nothing);
         ValueError for rows F lacks; TypeError for an update that is not an ``Update``."""
         terms, updates = self._rhs_terms(terms), check_updates(updates)
-        key = ("rhs_update", terms, x.ptr, update_key(updates))
-        self.launches.replay(key, (x, *update_arrays(updates)), lambda: self._build_rhs_update(x, updates, terms))
+        self.launches.replay_updates(
+            ("rhs_update", terms, x.ptr), (x,), updates, lambda u: self._build_rhs_update(x, u, terms)
+        )
 
     def rhs_kernels(self, x: wp.array2d, out: wp.array2d) -> list[str]:
         """Names of the kernels ``rhs(x, out)`` launches (recorded on first use)."""
@@ -463,22 +465,23 @@ class ShallowWater:
         as its DSS makes it, into one or two ``Update(out, terms)`` of (2, N) arrays
         (row views such as ``z[0:2]``): out = Σ a·src over terms (a, src), src None
         standing for G x[row] (``Topology.dss_update``: one to three terms, at most two
-        arrays). Outputs may alias x and the terms. Recorded once per arrays and coefficients."""
-        updates = check_updates(updates)
-        key = ("grad_update", array_key(x), row, update_key(updates))
-        self.launches.replay(
-            key,
-            (x, *update_arrays(updates)),
-            lambda: [self._element_grad(x, row), *self.dss_update(self.vec_work, updates)],
+        arrays). Outputs may alias x and the terms. Recorded once per arrays, the coefficients
+        launch arguments (``LaunchRecorder.replay_updates``)."""
+        self.launches.replay_updates(
+            ("grad_update", array_key(x), row),
+            (x,),
+            check_updates(updates),
+            lambda u: [self._element_grad(x, row), *self.dss_update(self.vec_work, u)],
         )
 
     def divergence_update(self, x: wp.array2d, updates) -> None:
         """D v = DSS(∇·v) of x's rows 0, 1 as ``divergence`` computes it, written into
         one or two ``Update(out, terms)`` of (1, N) arrays as ``gradient_update``'s."""
-        updates = check_updates(updates)
-        key = ("div_update", array_key(x), update_key(updates))
-        self.launches.replay(
-            key, (x, *update_arrays(updates)), lambda: [self._element_div(x), *self.dss_update(self.scalar, updates)]
+        self.launches.replay_updates(
+            ("div_update", array_key(x)),
+            (x,),
+            check_updates(updates),
+            lambda u: [self._element_div(x), *self.dss_update(self.scalar, u)],
         )
 
     def assemble(self, x: wp.array2d, row: int, out: wp.array) -> None:

@@ -27,9 +27,8 @@ import warp as wp
 from ..config.schema import SceneControl
 from ..core.constants import DAY
 from ..core.errors import BlowUp, StepFailure
-from ..model.diagnostics import courant_numbers
 from ..steppers import StepStats
-from ..steppers.control import CflController, Controller, ErrorNorm, capped
+from ..steppers.control import CflController, Controller, CourantMax, ErrorNorm, capped
 from .guard import Guard
 from .schedules import AtDays
 from .summary import Stop
@@ -37,15 +36,18 @@ from .summary import Stop
 # a target this close past a step's end (relative to Δt) is landed on by that step rather than
 # left to a sliver of a step after it
 LANDING_SLACK = 1e-6
-# a proposal is taken rounded down to one of DT_GRID steps an octave (each ≤ 4.4 % below the next):
-# the model records its stage combinations and ∇⁴ step per Δt (``LaunchRecorder``), so a Δt
-# new every step rebuilt them every step (1.4–3.1 ms a step at ne8 against a 0.9 ms bs32 step,
-# benchmarks/adaptive_proportionality.py (d)); on the grid the same few Δt recur and replay
+# a proposal is taken rounded down to one of DT_GRID steps an octave (each ≤ 4.4 % below the next),
+# so that the same few Δt recur: the stages' combinations and the ∇⁴ step keep a recorded launch
+# list for each of the last LAUNCH_VARIANTS coefficient sets (``LaunchRecorder.variants``), and
+# a Δt among them replays its list as recorded; another sets the least recently used list's
+# coefficient arguments in place (nothing recorded). Before they were arguments, a new Δt
+# recorded the lists again: 1.4–3.1 ms a step at ne8 against a 0.9 ms bs32 step
+# (benchmarks/adaptive_proportionality.py (d)); now benchmarks/control_overhead.py
 DT_GRID = 16
+LAUNCH_VARIANTS = 4
 
-# the model's recorded launch lists kept under control (``LaunchRecorder.limit``): a fixed-Δt
-# run records about 10; the stages' combinations and the ∇⁴ step fold Δt into their keys, so
-# each new Δt adds about 5 (``on_grid`` keeps the Δt few)
+# the model's recorded launch lists kept under control (``LaunchRecorder.limit``): a bound only,
+# as the keys no longer hold Δt (a fixed-Δt run records about 10)
 LAUNCH_LISTS = 64
 
 
@@ -71,12 +73,16 @@ class StepControl:
         if self.error:
             order = min(stepper.order, stepper.embedded_order) + 1
             self.controller = Controller(order, control.controller)
-            self.norm = ErrorNorm(sim.topology, control.rtol, control.atol_wind, control.atol_h)
+            depth = "pressure_gradient" in sim.model.terms  # h a depth: h ≤ 0 is a bad state
+            self.norm = ErrorNorm(sim.topology, control.rtol, control.atol_wind, control.atol_h, depth)
         gravity_waves = stepper.courant_limit is not None  # explicit gravity waves: the signal's Courant number
         self.cfl = None if control.cfl is None else CflController(control.cfl, gravity_waves)
+        pressure = "pressure_gradient" in sim.scene.terms
+        self.courant = None if self.cfl is None else CourantMax(sim.topology, sim.topology.grid.dx, sim.g, pressure)
+        self.checked = False  # the last try's state found good by the norm or the Courant numbers' pass
         self.dt = float(stepper.dt)
-        sim.model.launches.limit = LAUNCH_LISTS
-        self.x0 = wp.empty_like(sim.x)
+        sim.model.launches.limit, sim.model.launches.variants = LAUNCH_LISTS, LAUNCH_VARIANTS
+        self.x0 = sim.last_good  # a step's start: the guard's last good state (``_checked_step``)
         self.accepted = self.rejected = 0
         self.dt_smallest, self.dt_sum, self.dt_largest = math.inf, 0.0, 0.0
         self.history: list[tuple[float, float, float]] = []
@@ -91,18 +97,13 @@ class StepControl:
         self.day = day if self.landed else self.t / DAY
         return stats
 
-    def _courant(self, x, dt: float) -> dict:
-        u, v, h = self.sim.fields(x)
-        gravity_waves = "pressure_gradient" in self.sim.scene.terms
-        numbers = courant_numbers(self.sim.grid, u, v, h, dt, self.sim.g, gravity_waves) if self.sim.root else None
-        return self.sim.topology.bcast(numbers)
-
     def step(self, x, t: float, target: float) -> tuple[float, StepStats]:
         """One accepted step of x (3, N) in place from t (s) toward ``target`` (s, > t), rejected
         steps retried; (the time reached: ``target`` itself where the step landed on it, the
         ``StepStats`` of every try). Raises ``BlowUp`` when the proposal falls below dt_min
         short of the target."""
         c, tries = self.control, StepStats(0, {})
+        wp.copy(self.x0, x)  # the tries' start
         while True:
             left = target - t
             dt = min(self.dt, c.dt_max or math.inf)
@@ -117,7 +118,6 @@ class StepControl:
             self.stepper.set_dt(dt)
             self.stepper.t0 = t - self.stepper.steps * dt  # the forcing's clock: the time reached, exactly
             saved = self.stepper.state() if self.error else None
-            wp.copy(self.x0, x)
             stats = self.stepper.step(x)
             iterations = {k: tries.iterations.get(k, 0) + n for k, n in stats.iterations.items()}
             tries = StepStats(tries.rhs_evals + stats.rhs_evals, {**tries.iterations, **iterations})
@@ -139,13 +139,16 @@ class StepControl:
 
     def _propose(self, x, dt: float) -> tuple[bool, float, float]:
         """(accepted, the next Δt, the error norm or NaN) of a step of ``dt`` that ended in x."""
-        err, ok, proposal = math.nan, True, dt
+        err, ok, proposal, self.checked = math.nan, True, dt, False
         if self.error:
             err = self.norm(self.stepper.error_estimate, self.x0, x)
             ok, proposal = self.controller.propose(dt, err)
+            self.checked = math.isfinite(err)  # every node finite and wet (``ErrorNorm``)
         if self.cfl is not None and ok:  # a rejected step's retry is the error controller's
-            cap = self.cfl.propose(dt, self._courant(x, dt))
+            numbers, bad = self.courant(x, dt)
+            cap = self.cfl.propose(dt, numbers)
             proposal = capped(proposal, cap) if self.error else cap
+            self.checked = self.checked or not bad
         return ok, proposal, err
 
     def summary(self) -> str:
@@ -203,15 +206,15 @@ def _checked_step(sim, day: float, guard: Guard, ledger) -> str | None:
     line (a proposal below dt_min, a solver's failure, a bad state: its step, time and place)
     with the state, the control and ``sim.step`` those of the step before (``last_good``)."""
     ctl = sim.control
-    saved = ctl.state()
-    wp.copy(sim.last_good, sim.x)
+    saved = ctl.state()  # the state itself: ``last_good``, where ``StepControl.step`` keeps its start
     t0, cpu0 = time.perf_counter(), time.process_time()
     trouble = node = None
     try:
         stats = ctl.step_to(sim.x, day)
         # the solvers' device counters (``Stepper.deferred``): raises for a solve that missed its tolerance
         stats = StepStats(stats.rhs_evals, {**stats.iterations, **sim.stepper.counts()})
-        node = sim.model.bad_nodes.first(sim.x)
+        if not ctl.checked:  # else the norm's or the Courant numbers' pass found every node good
+            node = sim.model.bad_nodes.first(sim.x)
     except BlowUp as err:  # the rejected steps put the state back: it is the last good one
         return str(err)
     except StepFailure as err:

@@ -147,7 +147,8 @@ class RunFiles:
             whole = sim.diagnostics.gather_fields(x, divergence=self.divergence)
         ctl = sim.control
         d = sim.diagnostics.diagnose(s.start_day * DAY + step * s.dt if ctl is None else ctl.t, x, whole)
-        d.update(steps=step, rhs_evals=c["rhs_evals"], wall_time=c["wall_time"], cpu_time=c["cpu_time"])
+        day = s.day(step) if ctl is None else sim.time  # under control the steps are not the fixed plan's
+        d.update(steps=step, day=day, rhs_evals=c["rhs_evals"], wall_time=c["wall_time"], cpu_time=c["cpu_time"])
         if ctl is not None:
             d.update(dt=ctl.dt_last, rejected_steps=ctl.rejected, error_estimate=ctl.error_last)
         d.update({f"{k}_iterations": c["iterations"].get(k, 0) for k in sim.stepper.solvers})
@@ -159,7 +160,7 @@ class RunFiles:
                 self.last[i] = step
                 if self.writers[i] is not None:  # rank 0 (the fields DSS'd, element-local, s-1)
                     self.writers[i].append(
-                        s.day(step) if ctl is None else sim.time,
+                        day,
                         whole.u,
                         whole.v,
                         whole.h,

@@ -88,8 +88,8 @@ class Stepper:
     # unread (``StepStats.iterations`` empty for them), read by ``counts`` once a block
     deferred = False
     removed_options: dict[str, str] = {}  # option → why it is gone, for the error message
-    # True: ``set_dt`` may change Δt between steps (a one-step method that re-records its
-    # launches or reads Δt each step). False where Δt is part of the history (leapfrog's
+    # True: ``set_dt`` may change Δt between steps (a one-step method whose launches take Δt's
+    # coefficients as arguments, or that reads Δt each step). False where Δt is part of the history (leapfrog's
     # x(n−1), BDF2's, a multirate split's substeps): those run at a fixed Δt only.
     variable_dt = False
     # an embedded pair's local error estimate of the last step, (3, N) in x's units

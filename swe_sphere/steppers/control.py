@@ -8,8 +8,11 @@ of an embedded pair, ``runge_kutta``) over the unique nodes and the fields u, v,
 
 (Hairer, Nørsett & Wanner 1993, *Solving ODEs I*, §II.4, eq. 4.11; ARKODE's and
 OrdinaryDiffEq's), so that ‖e‖ ≤ 1 is a step within tolerance. One global reduction:
-the per-node terms (``kernels.error_norm``) added by ``math.fsum``, the correctly
-rounded sum, after gathering them from every rank: the same bits on any rank count.
+the per-node terms (``kernels.error_norm``) gathered from every rank into the whole grid's
+order of the unique nodes (their global ids) and added there by one ``np.sum``: the same
+terms in the same order on any rank count, so the same bits. (``math.fsum``, the correctly
+rounded sum, gave that too at 5 ms a norm at ne30, 40 % of a bs32 step; the ordered sum
+takes 0.05 ms: benchmarks/control_overhead.py.)
 
 ``Controller``: the next step from this step's norm and the accepted history
 (Söderlind 2003, ACM TOMS 29, 1, "Digital filters in adaptive time-stepping"),
@@ -37,6 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
+from ..core.parallel import record
 from ..kernels import error_norm
 
 f64 = wp.float64
@@ -56,34 +60,80 @@ CONTROLLERS = {
 class ErrorNorm:
     """The weighted RMS norm (dimensionless) of error estimates e (3, N) on ``topology``'s
     element-local nodes, rows u, v (m s⁻¹) and h (m): ``rtol`` (> 0) relative,
-    ``atol_wind`` (m s⁻¹) and ``atol_h`` (m) absolute tolerances. ValueError for a
-    tolerance that is not positive (rtol) or negative (atol)."""
+    ``atol_wind`` (m s⁻¹) and ``atol_h`` (m) absolute tolerances. With ``check_depth``
+    (h a depth: a scene with a pressure gradient) a step that ends with h ≤ 0 anywhere has
+    the norm +inf, and one with a non-finite value NaN or inf: a finite norm is a state the
+    bad-node check (``model.bad_nodes``) passes. ValueError for a tolerance that is not
+    positive (rtol) or negative (atol)."""
 
-    def __init__(self, topology, rtol: float, atol_wind: float = 1e-3, atol_h: float = 1e-2):
+    def __init__(self, topology, rtol: float, atol_wind: float = 1e-3, atol_h: float = 1e-2, check_depth: bool = False):
         if not rtol > 0:
             raise ValueError(f"rtol must be > 0 (got {rtol!r})")
         for key, value in (("atol_wind", atol_wind), ("atol_h", atol_h)):
             if not value >= 0:
                 raise ValueError(f"{key} must be ≥ 0 (got {value!r}, {'m/s' if key == 'atol_wind' else 'm'})")
-        self.topology, self.rtol = topology, float(rtol)
+        self.topology, self.rtol, self.check_depth = topology, float(rtol), int(bool(check_depth))
+        self.block = 64 if topology.backend.host else 1
+        self._launches: dict[tuple, tuple] = {}  # (e, x0, x1) addresses: the recorded launch, its arrays
         self.atol = wp.array(np.array([atol_wind, atol_wind, atol_h]), dtype=f64, device=topology.device)
         self._terms = wp.zeros(topology.nunique, dtype=f64, device=topology.device)
         self.count = 3 * int(round(topology.sum(float(topology.nunique))))  # the terms over every rank
+        self._order = None  # one rank holds its unique nodes in the global ids' order (ascending)
+        if topology.distributed:  # the order of the ranks' nodes gathered one after another
+            grid = topology.grid
+            self._order = np.argsort(np.concatenate(topology.comm.allgather(grid.gid[grid.first])), kind="stable")
 
     def __call__(self, e, x0, x1) -> float:
         """‖e‖ with the weights of the states x0 (the step's start) and x1 (its end), (3, N) each;
-        the same value on every rank."""
+        the same value on every rank, and the same bits on any number of ranks."""
         t = self.topology
-        wp.launch(
-            error_norm.weighted_squares,
-            t.nunique,
-            [e, x0, x1, t.first, self.atol, f64(self.rtol), self._terms],
-            device=t.device,
-        )
+        key = (e.ptr, x0.ptr, x1.ptr)
+        if key not in self._launches:
+            args = [e, x0, x1, t.first, self.atol, f64(self.rtol), self.check_depth, self.block, self._terms]
+            dim = -(-t.nunique // self.block)
+            launch = record(
+                error_norm.weighted_squares, dim, args, device=t.device, threads=t.threads, nodes_per_index=self.block
+            )  # split over the CPU threads as the model's launches
+            self._launches[key] = (launch, (e, x0, x1))
+        self._launches[key][0].launch()
         terms = self._terms.numpy()
         if t.distributed:
-            terms = np.concatenate(t.comm.allgather(terms))
-        return math.sqrt(math.fsum(terms) / self.count)
+            terms = np.concatenate(t.comm.allgather(terms))[self._order]
+        return math.sqrt(float(np.sum(terms)) / self.count)
+
+
+class CourantMax:
+    """The largest advective and gravity-wave Courant numbers of states x (3, N) on
+    ``topology``'s nodes at a Δt, reduced on the device to a slot a block of nodes and over the
+    ranks by a maximum (exact: the same numbers on any rank or thread count), and whether a
+    node is bad; as ``model.diagnostics.courant_numbers`` computes them on the gathered state,
+    to round-off, without the gather (1.1 ms a step at ne30, 12 % of an ssprk3 step).
+    ``dx`` (N,) the nodes' spacing (m), ``g`` (m s⁻²); ``gravity_waves`` False: the
+    gravity-wave number NaN (h is a tracer), and h ≤ 0 no bad node."""
+
+    def __init__(self, topology, dx, g: float, gravity_waves: bool):
+        self.topology, self.g, self.gravity_waves = topology, float(g), bool(gravity_waves)
+        device = topology.device
+        self.rdx2 = wp.array(1.0 / np.asarray(dx, dtype=np.float64) ** 2, dtype=f64, device=device)
+        self.block = 64 if topology.backend.host else 1
+        self._out = wp.zeros((3, -(-topology.N // self.block)), dtype=f64, device=device)
+        self._launches: dict[int, tuple] = {}
+
+    def __call__(self, x, dt: float) -> tuple[dict, bool]:
+        """(``courant_numbers``' dict of x at ``dt`` (s), whether x has a bad node)."""
+        t = self.topology
+        if x.ptr not in self._launches:
+            args = [x, self.rdx2, f64(self.g), int(self.gravity_waves), self.block, self._out]
+            n = self._out.shape[1]
+            launch = record(
+                error_norm.courant_squares, n, args, device=t.device, threads=t.threads, nodes_per_index=self.block
+            )
+            self._launches[x.ptr] = (launch, x)
+        self._launches[x.ptr][0].launch()
+        adv, grav, bad = (t.max(float(v)) for v in self._out.numpy().max(axis=1))
+        numbers = {"courant_advective": math.sqrt(adv) * dt}
+        numbers["courant_gravity"] = math.sqrt(grav) * dt if self.gravity_waves else math.nan
+        return numbers, bad > 0
 
 
 @dataclass

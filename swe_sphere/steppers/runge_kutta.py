@@ -92,7 +92,7 @@ class ExplicitRK(Stepper):
         ]
 
     def _dt_changed(self):
-        self._x = None  # re-recorded with the new Δt by the next step
+        self._x = None  # the stages' coefficients made again with the new Δt (the model's launches take them in place)
 
     def advance(self, x):
         if self._x is not x:

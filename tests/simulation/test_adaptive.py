@@ -11,7 +11,8 @@ import pytest
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
 from swe_sphere.core.errors import BlowUp
-from swe_sphere.simulation.adaptive import StepControl
+from swe_sphere.model.diagnostics import courant_numbers
+from swe_sphere.simulation.adaptive import DT_GRID, StepControl
 
 from helpers import make_sim
 
@@ -75,6 +76,25 @@ def test_a_step_below_dt_min_stops_as_a_blow_up():
     sim, control = _sim(1e-12, dt_min=100.0)
     with pytest.raises(BlowUp, match=r"^step 1 at day 0: the controller's dt .* fell below time.dt_min = 100 s"):
         _run(sim, control, 0.0, DAY)
+
+
+def test_cfl_control_steps_at_the_requested_courant_number():
+    """TC2 ne 2, ssprk3 under ``control = "cfl"`` at cfl 1.2 from a step a third of it: the
+    step grows by at most 1.1 a step, then holds the signal's Courant number (advective +
+    gravity-wave, as ``courant_numbers`` gives them) at the target, at most one notch of the
+    controller's Δt grid (2^(−1/16)) below it."""
+    overrides = {"time.control": "cfl", "time.cfl": 1.2}
+    sim = make_sim(load_scene("tc2_steady", ne=2, days=10.0, stepper="ssprk3", dt=2000.0, overrides=overrides))
+    control = StepControl(sim.scene.control, sim.stepper, sim)
+    t = 0.0
+    for _ in range(20):
+        t, _ = control.step(sim.x, t, 10 * DAY)
+    dts = [dt for _, dt, _ in control.history]
+    assert all(b <= 1.1 * a for a, b in zip(dts, dts[1:])) and dts[-1] > 2.5 * dts[0]
+    u, v, h = sim.fields()
+    courant = control.cfl.courant(courant_numbers(sim.grid, u, v, h, dts[-1], sim.g))
+    assert 1.2 * 2 ** (-1 / DT_GRID) * (1 - 1e-3) <= courant <= 1.2 * (1 + 1e-3)
+    assert dts[-1] == dts[-2]  # TC2 is steady: the same step again
 
 
 def _cli_run(path, *extra, days=1.0):

@@ -10,7 +10,7 @@ import pytest
 
 from swe_sphere.config.scene import load_scene
 from swe_sphere.model.diagnostics import courant_numbers
-from swe_sphere.steppers.control import CONTROLLERS, CflController, Controller, ErrorNorm, capped
+from swe_sphere.steppers.control import CONTROLLERS, CflController, Controller, CourantMax, ErrorNorm, capped
 from swe_sphere.steppers.runge_kutta import TABLES
 
 from helpers import make_sim
@@ -149,3 +149,25 @@ def test_the_cfl_controller_brings_the_courant_number_to_its_target():
     assert capped(300.0, 200.0) == 200.0 and capped(300.0, None) == 300.0
     with pytest.raises(ValueError, match="need cfl > 0 and max_change > 1"):
         CflController(0.0)
+
+
+def test_the_courant_numbers_on_the_device_are_the_gathered_states():
+    """TC2 ne 2: ``CourantMax``'s numbers are ``courant_numbers``' of the gathered state to a few
+    ε, the gravity-wave one NaN without gravity waves; a NaN or a dry node is flagged."""
+    sim = make_sim(load_scene("tc2_steady", ne=2, days=1.0))
+    topo, x = sim.model.topology, sim.x
+    u, v, h = sim.fields()
+    for gravity_waves in (True, False):
+        numbers, bad = CourantMax(topo, topo.grid.dx, sim.g, gravity_waves)(x, 900.0)
+        expected = courant_numbers(sim.grid, u, v, h, 900.0, sim.g, gravity_waves)
+        assert not bad and numbers["courant_advective"] == pytest.approx(expected["courant_advective"], rel=4e-16)
+        if gravity_waves:
+            assert 0.1 < numbers["courant_gravity"] == pytest.approx(expected["courant_gravity"], rel=4e-16)
+        else:
+            assert np.isnan(numbers["courant_gravity"])
+    good = x.numpy().copy()
+    for row, value in ((0, np.nan), (2, 0.0)):
+        bent = good.copy()
+        bent[row, 77] = value
+        x.assign(bent)
+        assert CourantMax(topo, topo.grid.dx, sim.g, True)(x, 900.0)[1]

@@ -1,0 +1,181 @@
+"""What step control (``[time] control = "error"`` or ``"cfl"``) costs a step beyond the step
+itself, at ne30.
+
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \\
+        python benchmarks/control_overhead.py [--ne 30] [--control error cfl] [--pair bs32] [--rtol 1e-5]
+            [--cfl-stepper ssprk3] [--cfl 1.0] [--days 0.5]
+
+TC5 (``tc5_mountain``), np4, one thread, CPU clock (``time.process_time``), every run in this
+process after a warm-up run of each kind (no kernel compiles inside a timing); no run file.
+Issue 64's target: the controller costs ≤ 2 % of a step at ne30. For each of ``--control``, error
+control (``--pair`` at ``--rtol``) and CFL control (``--cfl-stepper`` at ``--cfl``), the parts:
+
+(a) **Whole runs.** The stepper under its control over ``--days`` (``Simulation.run``:
+    the steps it chose, their error norms, rejections, the landing on the end): CPU s per accepted
+    step. Against it the same stepper at a fixed Δt, the controlled run's mean Δt, over as many steps
+    (``Simulation.run`` of a fixed-Δt scene: its guard's blocks), and the controlled run's own Δt
+    sequence stepped bare (``set_dt`` and ``step``, nothing else: what the steps alone cost).
+    The overhead: controlled against each, %.
+(b) **Its parts**, ms of CPU each over ``--repeat`` calls: the stepper's step at one Δt; at a Δt
+    never taken before every step (the recorded launches take the new coefficients as arguments
+    in place, nothing recorded; before that change, each such step recorded its lists again);
+    at three Δt of the controller's grid in turn (``simulation.adaptive.on_grid``: fewer than
+    ``LAUNCH_VARIANTS``, so each replays its own lists as recorded); one error norm
+    (``control.ErrorNorm``) or, under "cfl", one pass of the Courant numbers (``control.CourantMax``);
+    and one controlled step (``StepControl.step``: the state kept, the
+    step, the norm, the controller) at one Δt.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+from results import recorded
+
+from swe_sphere.config.scene import load_scene
+from swe_sphere.core.runtime import init_warp
+from swe_sphere.simulation.adaptive import on_grid
+from swe_sphere.simulation.simulation import Simulation
+
+
+def build(args, days, dt=None, control=True) -> Simulation:
+    """TC5 at ``args.ne`` (np 4) over ``days`` with ``args.pair`` at ``dt`` (None: the scene's),
+    under ``args.control`` (error control at ``args.rtol``, or CFL control at ``args.cfl``) or at a
+    fixed Δt; one output, at the end."""
+    overrides = {"output.every_days": days}
+    if control:
+        keys = {"rtol": args.rtol} if args.control == "error" else {"cfl": args.cfl}
+        overrides |= {"time.control": args.control, **{f"time.{k}": v for k, v in keys.items()}}
+    scene = load_scene("tc5_mountain", ne=args.ne, np_=4, dt=dt, days=days, stepper=args.pair, overrides=overrides)
+    return Simulation(scene, "cpu", progress=False)
+
+
+def what(args) -> str:
+    """The control, as the headings name it."""
+    return f"rtol {args.rtol:g}" if args.control == "error" else f"cfl {args.cfl:g}"
+
+
+def cpu(call) -> float:
+    """CPU s of ``call()``."""
+    start = time.process_time()
+    call()
+    return time.process_time() - start
+
+
+def whole_runs(args, out: dict) -> None:
+    """(a): the controlled run, the fixed-Δt run of as many steps at its mean Δt, its Δt stepped bare."""
+    sim = build(args, args.days)
+    controlled = cpu(lambda: sim.run(None))
+    ctl = sim.control
+    steps, dts = ctl.accepted, [dt for _, dt, _ in ctl.history]
+    mean = ctl.dt_sum / steps
+    fixed = build(args, steps * mean / 86400.0, dt=mean, control=False)
+    fixed_cpu = cpu(lambda: fixed.run(None))
+    bare = build(args, args.days)
+
+    def stepped():
+        for dt in dts:
+            bare.stepper.set_dt(dt)
+            bare.stepper.step(bare.x)
+
+    bare_cpu = cpu(stepped)
+    per = {
+        "controlled": controlled / steps,
+        "fixed": fixed_cpu / fixed.step,
+        "bare": bare_cpu / len(dts),
+    }
+    row = {"accepted": steps, "rejected": ctl.rejected, "fixed_steps": fixed.step, "dt_mean": mean}
+    row |= {f"{k}_ms": v * 1e3 for k, v in per.items()}
+    row |= {f"overhead_vs_{k}_pct": (per["controlled"] / per[k] - 1) * 100 for k in ("fixed", "bare")}
+    out["whole_runs"] = row
+    print(
+        f"\n## TC5 ne{args.ne} {args.pair} {what(args)}, {args.days:g} days: {steps} steps accepted, "
+        f"{ctl.rejected} rejected, dt {ctl.dt_smallest:.1f}/{mean:.1f}/{ctl.dt_largest:.1f} s"
+    )
+    print(f"controlled     {per['controlled'] * 1e3:8.3f} ms a step")
+    print(f"fixed dt {mean:7.1f} s {per['fixed'] * 1e3:8.3f} ms a step ({fixed.step} steps)")
+    print(f"its dt, bare   {per['bare'] * 1e3:8.3f} ms a step")
+    print(
+        f"overhead: {row['overhead_vs_fixed_pct']:+.2f} % against the fixed dt, "
+        f"{row['overhead_vs_bare_pct']:+.2f} % against its own steps bare"
+    )
+
+
+def parts(args, out: dict) -> None:
+    """(b): a step at one Δt, at a new Δt every step, one error norm, one controlled step."""
+    sim = build(args, 0.25)
+    sim.run(None)  # records the launches, sets the control's proposal
+    stepper, ctl, n = sim.stepper, sim.control, args.repeat
+    dt = on_grid(ctl.dt)
+
+    def steps(dts) -> float:
+        def call():
+            for d in dts:
+                stepper.set_dt(d)
+                stepper.step(sim.x)
+
+        return cpu(call) / len(dts) * 1e3
+
+    grid = [on_grid(dt * 2.0 ** (k / 16)) for k in range(-1, 2)]  # three neighbours on the controller's grid
+    steps(grid)  # each recorded once
+    one = steps([dt] * n)
+    new = steps([dt * (1 - 1e-4 * (k + 1)) for k in range(n)])
+    turn = steps([grid[k % len(grid)] for k in range(n)])
+    if ctl.error:
+        norm = cpu(lambda: [ctl.norm(stepper.error_estimate, ctl.x0, sim.x) for _ in range(n)]) / n * 1e3
+    else:
+        norm = cpu(lambda: [ctl.courant(sim.x, dt) for _ in range(n)]) / n * 1e3
+    ctl.dt, t = dt, ctl.t
+
+    def controlled():
+        nonlocal t
+        for _ in range(n):
+            ctl.dt = dt
+            t, _ = ctl.step(sim.x, t, t + 100 * dt)
+
+    step = cpu(controlled) / n * 1e3
+    row = {"one_dt_ms": one, "new_dt_ms": new, "grid_dt_ms": turn, "norm_ms": norm, "controlled_step_ms": step}
+    row["dt"] = dt
+    out["parts"] = row
+    print(f"\n## TC5 ne{args.ne} {args.pair} {what(args)}: CPU ms of each part, {n} calls")
+    print(f"a step at one dt ({dt:.1f} s)    {one:8.3f}")
+    print(f"a new dt every step            {new:8.3f} ({(new / one - 1) * 100:+.2f} %)")
+    print(f"three grid dt in turn          {turn:8.3f} ({(turn / one - 1) * 100:+.2f} %)")
+    name = "one error norm" if ctl.error else "one Courant pass"
+    print(f"{name:30s} {norm:8.3f} ({norm / one * 100:.2f} % of a step)")
+    print(f"one controlled step (one dt)   {step:8.3f} ({(step / one - 1) * 100:+.2f} %)")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--ne", type=int, default=30)
+    parser.add_argument("--control", nargs="+", default=["error", "cfl"], choices=["error", "cfl"])
+    parser.add_argument("--pair", default="bs32", help="the stepper under error control")
+    parser.add_argument("--rtol", type=float, default=1e-5)
+    parser.add_argument("--cfl-stepper", default="ssprk3", help="the stepper under CFL control")
+    parser.add_argument("--cfl", type=float, default=1.0, help="the target Courant number under CFL control")
+    parser.add_argument("--days", type=float, default=0.5)
+    parser.add_argument("--repeat", type=int, default=40, help="calls timed in (b)")
+    parser.add_argument("--parts", nargs="+", default=["a", "b"], choices=["a", "b"])
+    args = parser.parse_args()
+    init_warp()
+    with recorded(__file__) as figures:
+        print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+        figures["args"] = vars(args)
+        for control in args.control:
+            pair = args.pair if control == "error" else args.cfl_stepper
+            one = argparse.Namespace(**{**vars(args), "control": control, "pair": pair})
+            build(one, 0.125).run(None)  # warm-ups: every kernel compiled
+            build(one, 0.125, control=False).run(None)
+            figures[control] = {}
+            if "a" in args.parts:
+                whole_runs(one, figures[control])
+            if "b" in args.parts:
+                parts(one, figures[control])
+        print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+
+
+if __name__ == "__main__":
+    main()

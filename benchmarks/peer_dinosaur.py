@@ -103,7 +103,9 @@ STUDIES = {
         ("ne16/np4/fbrk32", "ne16/np4/kgu35", "ne30/np4/fbrk32", "ne30/np4/kgu35"),
         "peer_dinosaur",
     ),
-    # the TC5 frontier's front (docs/efficiency.md), kgu35 at 0.8 of its limit: Δt as there
+    # kgu35 at 0.8 of its limit, Δt as the frontier makes it (86400 / a whole number): the TC5
+    # frontier's front (docs/efficiency.md) and grids between its points (ne10 np4, ne12 np3 and
+    # np4 about Dinosaur T42's error; ne16 np5 and ne24 np4)
     "tc5": Study(
         "tc5_mountain",
         15.0,
@@ -111,8 +113,13 @@ STUDIES = {
         "h + hs",
         (
             "ne8/np4/kgu35,86400/50",
+            "ne12/np3/kgu35,86400/42",
+            "ne10/np4/kgu35,86400/63",
+            "ne12/np4/kgu35,86400/75",
             "ne16/np3/kgu35,86400/56",
             "ne16/np4/kgu35,86400/100",
+            "ne24/np4/kgu35,86400/150",
+            "ne16/np5/kgu35,86400/160",
             "ne16/np6/kgu35,86400/235",
         ),
         "peer_dinosaur_tc5",

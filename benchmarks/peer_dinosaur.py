@@ -1,5 +1,6 @@
-"""Galewsky et al. (2004) in Dinosaur beside swe_sphere: day-6 vorticity error against T341 and
-CPU seconds a simulated day, one thread each, in one run.
+"""Galewsky et al. (2004) and Williamson et al. (1992) case 5 in Dinosaur beside swe_sphere:
+Galewsky's day-6 vorticity error or TC5's day-15 h + hs error against T341, and CPU seconds a
+simulated day, one thread each, in one run (``--case galewsky``, the default, or ``tc5``).
 
 Dinosaur (Google's JAX spectral core, PyPI ``dinosaur`` 1.5) is a peer, not a dependency: it runs
 in a virtual environment of its own, made once with::
@@ -9,8 +10,8 @@ in a virtual environment of its own, made once with::
 (``--python`` names that environment's interpreter; where it cannot import dinosaur the script
 prints one line and exits 0). The measured versions: dinosaur 1.5.1, jax/jaxlib 0.10.2.
 
-**The peer's run.** Float64 (``jax_enable_x64``), one layer, ``ShallowWaterEquations`` with no
-orography, ``imex_rk_sil3`` (Whitaker & Kar 2013: the gravity-wave terms implicit) and the filter
+**The peer's run.** Float64 (``jax_enable_x64``), one layer, ``ShallowWaterEquations`` (no
+orography on Galewsky; on TC5 below), ``imex_rk_sil3`` (Whitaker & Kar 2013: the gravity-wave terms implicit) and the filter
 Dinosaur's own shallow-water tests and examples pair with it, ``exponential_step_filter(grid, dt)``
 at its defaults (τ = 0.010938 in Dinosaur's units of 1/(2Ω), i.e. 75 s; order 18, cutoff 0: each
 step multiplies a mode of total wavenumber l by exp(−(dt/τ)(l/L)^36)); no other diffusion.
@@ -29,28 +30,44 @@ and π/2 − π/7, h in gradient-wind balance with mean depth 10 km, the 120 m b
 the peer turns them into its spectral vorticity, divergence and geopotential (its own
 ``uv_nodal_to_vor_div_modal`` and ``to_modal``), the mean depth its reference geopotential.
 
-**Scoring, the project's code for every model.** Day-6 relative vorticity, normalized l2
+**TC5** (``--case tc5``): the project's ``cases.Mountain`` (u0 = 20 m/s, h0 = 5960 m, the
+2000 m cone of radius π/9 at (30°N, 270°E)) at the peer's nodes: u, v = 0, the fluid depth
+h = surface − hs to its potential g (h − H) (H: h's mean over the sphere, Gauss-weighted) and
+the cone g hs to ``ShallowWaterEquations``' ``orography`` (modal geopotential, nondimensional:
+``to_modal`` of g hs in Dinosaur's units, as its own ``shallow_water_test._get_mountain``; the
+equations add it to the potential in the pressure gradient only). Its h + hs is the modal
+potential + orography, clipped of the top wavenumber as its tendencies are. A day-0 check is
+printed per truncation: ``start_h_surface_l2`` (its h + hs at t = 0 against ours at its nodes;
+1e-9, round-off of the transforms) and ``orography_l2`` (its truncated cone against the exact one).
+swe_sphere's rows: ``tc5_mountain`` with ``kgu35`` at 0.8 of its limit, at the Δt the frontier
+(``swe-sphere frontier``) makes on each grid (86400 / a whole number), ν by the scene's rule.
+
+**Scoring, the project's code for every model.** Galewsky: day-6 relative vorticity, normalized l2
 (Williamson et al. 1992 eq. 83: sqrt(Σ w (ζ − ζT)²) / sqrt(Σ w ζT²)) against the bundled T341
 reference (``cases.reference.Reference.at``: the spherical-harmonic coefficients synthesised
 exactly at each model's own points), with each model's own quadrature: the peer's Gauss weights
 × 2π/nlon at its nodes; swe_sphere's assembled ``spheremp`` (the run file's ``area``) at its
 unique nodes, with the vorticity its run file writes (the model's operator + DSS). The same for
-h (``l2 h``). swe_sphere's own scorer (``ref_l2_vorticity``: the vorticity of the wind error by the
-model's operator, over sqrt(∫ ζT² + δT²)) is printed beside it. A sanity line: the T213 reference
+h (``l2 h``) and h + hs (``l2 h_surface``: TC5's score, at day 15, against the reference's h + hs;
+swe_sphere's h + the exact hs at its nodes). swe_sphere's own scorer (``ref_l2_vorticity``: the
+vorticity of the wind error by the model's operator, over sqrt(∫ ζT² + δT²); on TC5
+``ref_l2_h_surface``) is printed beside it. A sanity line: the T213 reference
 scored the same way at the finest peer grid's points (the reference's own distance from T341).
 
 **Cost, one clock.** Every model runs as a child process pinned to core 0 (``taskset -c 0``) with
 one thread (``XLA_FLAGS=--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1``;
 ``SWE_SPHERE_THREADS=1``), in the order given, the models interleaved. The peer's figure: CPU
-seconds (``time.process_time``) of its whole 6-day time loop (``jax.lax.scan`` of the filtered
-steps, compiled ahead of time, compilation excluded) / 6. swe_sphere's: its run's own step-loop
-CPU clock (``simulation.summary.Ledger``: output and scoring excluded) between day 1 and day 6,
-/ 5 (the first day's first step, with its launch recording, left out). ``galewsky`` runs at
-the scene's Δt for each ne (216 s at ne30, rescaled with ne) and ν (the 3-hour e-folding rule),
-output every day, ``-s case.reference=T341``.
+seconds (``time.process_time``) of its whole time loop (``jax.lax.scan`` of the filtered
+steps, compiled ahead of time, compilation excluded) / days. swe_sphere's: its run's own step-loop
+CPU clock (``simulation.summary.Ledger``: output and scoring excluded) between day 1 and the
+last, / (days − 1) (the first day's first step, with its launch recording, left out). ``galewsky``
+runs at the scene's Δt for each ne (216 s at ne30, rescaled with ne) and ν (the 3-hour
+e-folding rule), output every day, ``-s case.reference=T341``. ``--swe`` names swe_sphere's runs,
+``neNE/npNP/STEPPER`` (the scene's Δt) or ``neNE/npNP/STEPPER,DT`` (``DT`` s or ``86400/N``).
+Figures: ``benchmarks/results/peer_dinosaur.json`` (Galewsky), ``peer_dinosaur_tc5.json`` (TC5).
 
-    python benchmarks/peer_dinosaur.py [--truncations T42 T85 T170] [--ne 16 30]
-        [--steppers fbrk32 kgu35] [--rounds 1] [--python /work/venvs/dinosaur/bin/python]
+    python benchmarks/peer_dinosaur.py [--case galewsky|tc5] [--truncations T42 T85 T170]
+        [--swe ne16/np4/fbrk32 ne16/np4/kgu35,400 ...] [--rounds 1] [--python /work/venvs/dinosaur/bin/python]
 """
 
 from __future__ import annotations

@@ -308,13 +308,15 @@ def run_child(python: str, args: list[str]) -> None:
         raise RuntimeError(f"{' '.join(args[:3])} failed:\n" + "\n".join(out.stderr.splitlines()[-15:]))
 
 
-def run_peer(python: str, study: str, truncation: str, transforms: str, tmp: Path) -> dict:
+def run_peer(python: str, study: str, truncation: str, transforms: str, tmp: Path, dt: float | None = None) -> dict:
     """The peer at ``truncation`` (a key of ``GRIDS``) from the project's initial state of
-    ``study``'s case at its nodes: its last day's fields (``peer_fields``), its start's
-    (``start_`` + name), points, weights and CPU seconds a simulated day."""
+    ``study``'s case at its nodes, at Δt ``dt`` s (None: ``GRIDS``'): its last day's fields
+    (``peer_fields``), its start's (``start_`` + name), points, weights and CPU seconds a
+    simulated day."""
     from swe_sphere.cases.library import make_case
 
-    st, (nodes, dt) = STUDIES[study], GRIDS[truncation]
+    st, (nodes, grid_dt) = STUDIES[study], GRIDS[truncation]
+    dt = dt or grid_dt
     lat, lon, w = gaussian_grid(nodes)
     case = make_case(st.scene)
     u, v, h = case.initial(lat, lon)
@@ -375,12 +377,16 @@ def arguments():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--case", choices=list(STUDIES), default="galewsky")
     ap.add_argument("--truncations", nargs="+", default=["T42", "T85", "T170"], choices=list(GRIDS))
-    ap.add_argument("--swe", nargs="+", help="swe_sphere runs, neNE/npNP/STEPPER[,DT] (default: the case's)")
+    ap.add_argument(
+        "--swe", nargs="*", help="swe_sphere runs, neNE/npNP/STEPPER[,DT] (default: the case's; none: none)"
+    )
+    ap.add_argument("--peer-dt", type=float, help="the peer's Δt (s) at every truncation (default: GRIDS')")
+    ap.add_argument("--results", help="the results file's stem (default: the case's, e.g. peer_dinosaur_tc5)")
     ap.add_argument("--rounds", type=int, default=1)
     ap.add_argument("--transforms", choices=["fft", "real"], default="fft")
     ap.add_argument("--python", default=str(DEFAULT_PYTHON), help="the peer's interpreter (default: %(default)s)")
     args = ap.parse_args()
-    args.swe = args.swe or list(STUDIES[args.case].swe)
+    args.swe = list(STUDIES[args.case].swe) if args.swe is None else args.swe
     for config in args.swe:
         try:
             parse_swe(config)
@@ -404,7 +410,7 @@ def main() -> None:
     case = make_case(st.scene)
     t341, t213 = Reference(reference_path(case, "T341")), Reference(reference_path(case, "T213"))
     order = interleave([("peer", t) for t in args.truncations], [("swe", c) for c in args.swe])
-    with recorded(__file__, stem=st.stem) as figures, tempfile.TemporaryDirectory() as tmp:
+    with recorded(__file__, stem=args.results or st.stem) as figures, tempfile.TemporaryDirectory() as tmp:
         print(f"{st.scene} day {st.days:g}, l2 against T341 at each model's points; one thread, core 0")
         print(f"peer: dinosaur, imex_rk_sil3 + exponential_step_filter defaults, float64, {args.transforms} transforms")
         table: dict[str, dict] = {}
@@ -412,7 +418,8 @@ def main() -> None:
             for kind, what in order:
                 load = os.getloadavg()[0]
                 if kind == "peer":
-                    name, run = f"dinosaur {what}", run_peer(args.python, args.case, what, args.transforms, Path(tmp))
+                    peer = run_peer(args.python, args.case, what, args.transforms, Path(tmp), args.peer_dt)
+                    name, run = f"dinosaur {what}", peer
                 else:
                     name, run = f"swe_sphere {what.split(',')[0]}", run_swe(args.case, what, Path(tmp))
                 l2s = scores(run, t341, st.days)

@@ -1,8 +1,8 @@
 """The frontier figures of docs/efficiency.md with the peers' points: frontier_<case>.png from
 frontier_<case>.csv (the merged ladders' rows) and peers_<case>.csv, which this script writes
 from the peer benchmarks' results (``benchmarks/results/peer_dinosaur.json`` for Galewsky,
-``peer_dinosaur_tc5.json`` for TC5: each Dinosaur truncation's error in the frontier's
-quantity and its median CPU seconds a simulated day) and, for Galewsky, pySEs's point as
+``peer_dinosaur_tc5.json`` and ``peer_dinosaur_tc5_dt{600,300,150}.json`` for TC5: each Dinosaur
+run's error in the frontier's quantity and its median CPU seconds a simulated day) and, for Galewsky, pySEs's point as
 issue 63 measured it (not rerun: a cited figure, labelled so). The figure is the frontier's own
 (``studies.frontier.frontier_figure``); peers_<case>.csv is what ``swe-sphere frontier --peers``
 reads, so a user's frontier can show the same points.
@@ -21,8 +21,17 @@ from swe_sphere.studies import frontier
 
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE.parents[1] / "benchmarks" / "results"
-# case: (its peer benchmark's results file, the frontier's field there)
-CASES = {"galewsky": ("peer_dinosaur.json", "l2_vorticity"), "tc5": ("peer_dinosaur_tc5.json", "l2_h_surface")}
+DINOSAUR = "Dinosaur 1.5.1, imex_rk_sil3 + filter"
+# case: (the frontier's field in the peer benchmark's rows, its results files: (file, the
+# legend's model, the point's label from the truncation t and Δt dt)); TC5 also at shorter Δt
+CASES = {
+    "galewsky": ("l2_vorticity", [("peer_dinosaur.json", DINOSAUR, "{t}")]),
+    "tc5": (
+        "l2_h_surface",
+        [("peer_dinosaur_tc5.json", DINOSAUR + ", Galewsky's Δt", "{t}")]
+        + [(f"peer_dinosaur_tc5_dt{dt}.json", "Dinosaur, shorter Δt", "{t} {dt:g} s") for dt in (600, 300, 150)],
+    ),
+}
 CITED = {  # issue 63's table, not rerun here: (model, label, error, CPU s a simulated day)
     "galewsky": [("pySEs 0.1.3, issue 63's figure (not rerun)", "ne16 np4", 0.76, 18.9)],
 }
@@ -30,24 +39,33 @@ CITED = {  # issue 63's table, not rerun here: (model, label, error, CPU s a sim
 
 def peers(case: str) -> list[dict]:
     """The case's peer points (``frontier.PEER_COLUMNS``): Dinosaur's from its benchmark's
-    results, then the cited ones."""
-    name, field = CASES[case]
-    record = json.loads((RESULTS / name).read_text())
-    version = "Dinosaur 1.5.1, imex_rk_sil3 + filter"
-    out = [
-        {"model": version, "label": key.split()[-1], "error": row[field], "cost_per_day": row["cpu_per_day_median"]}
-        for key, row in record["figures"]["runs"].items()
-        if key.startswith("dinosaur ")
-    ]
+    results files, then the cited ones."""
+    field, sources = CASES[case]
+    out = []
+    for name, model, label in sources:
+        runs = json.loads((RESULTS / name).read_text())["figures"]["runs"]
+        out += [
+            {
+                "model": model,
+                "label": label.format(t=key.split()[-1], dt=row["dt"]),
+                "error": row[field],
+                "cost_per_day": row["cpu_per_day_median"],
+            }
+            for key, row in runs.items()
+            if key.startswith("dinosaur ")
+        ]
     out += [dict(zip(frontier.PEER_COLUMNS, values)) for values in CITED.get(case, [])]
     return out
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("cases", nargs="*", default=list(CASES), choices=list(CASES))
+    ap.add_argument("cases", nargs="*", help=f"any of {', '.join(CASES)} (default: all)")
     args = ap.parse_args()
-    for case in args.cases:
+    unknown = set(args.cases) - set(CASES)
+    if unknown:
+        ap.error(f"unknown case(s): {', '.join(sorted(unknown))} (known: {', '.join(CASES)})")
+    for case in args.cases or CASES:
         points = peers(case)
         peer_file = HERE / f"peers_{case}.csv"
         with peer_file.open("w", newline="") as f:

@@ -38,7 +38,7 @@ the cone g hs to ``ShallowWaterEquations``' ``orography`` (modal geopotential, n
 equations add it to the potential in the pressure gradient only). Its h + hs is the modal
 potential + orography, clipped of the top wavenumber as its tendencies are. A day-0 check is
 printed per truncation: ``start_h_surface_l2`` (its h + hs at t = 0 against ours at its nodes;
-1e-9, round-off of the transforms) and ``orography_l2`` (its truncated cone against the exact one).
+about 1e-9) and ``orography_l2`` (its truncated cone against the exact one).
 swe_sphere's rows: ``tc5_mountain`` with ``kgu35`` at 0.8 of its limit, at the Δt the frontier
 (``swe-sphere frontier``) makes on each grid (86400 / a whole number), ν by the scene's rule.
 

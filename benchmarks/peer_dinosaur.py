@@ -1,5 +1,6 @@
-"""Galewsky et al. (2004) in Dinosaur beside swe_sphere: day-6 vorticity error against T341 and
-CPU seconds a simulated day, one thread each, in one run.
+"""Galewsky et al. (2004) and Williamson et al. (1992) case 5 in Dinosaur beside swe_sphere:
+Galewsky's day-6 vorticity error or TC5's day-15 h + hs error against T341, and CPU seconds a
+simulated day, one thread each, in one run (``--case galewsky``, the default, or ``tc5``).
 
 Dinosaur (Google's JAX spectral core, PyPI ``dinosaur`` 1.5) is a peer, not a dependency: it runs
 in a virtual environment of its own, made once with::
@@ -9,8 +10,8 @@ in a virtual environment of its own, made once with::
 (``--python`` names that environment's interpreter; where it cannot import dinosaur the script
 prints one line and exits 0). The measured versions: dinosaur 1.5.1, jax/jaxlib 0.10.2.
 
-**The peer's run.** Float64 (``jax_enable_x64``), one layer, ``ShallowWaterEquations`` with no
-orography, ``imex_rk_sil3`` (Whitaker & Kar 2013: the gravity-wave terms implicit) and the filter
+**The peer's run.** Float64 (``jax_enable_x64``), one layer, ``ShallowWaterEquations`` (no
+orography on Galewsky; on TC5 below), ``imex_rk_sil3`` (Whitaker & Kar 2013: the gravity-wave terms implicit) and the filter
 Dinosaur's own shallow-water tests and examples pair with it, ``exponential_step_filter(grid, dt)``
 at its defaults (τ = 0.010938 in Dinosaur's units of 1/(2Ω), i.e. 75 s; order 18, cutoff 0: each
 step multiplies a mode of total wavenumber l by exp(−(dt/τ)(l/L)^36)); no other diffusion.
@@ -29,28 +30,44 @@ and π/2 − π/7, h in gradient-wind balance with mean depth 10 km, the 120 m b
 the peer turns them into its spectral vorticity, divergence and geopotential (its own
 ``uv_nodal_to_vor_div_modal`` and ``to_modal``), the mean depth its reference geopotential.
 
-**Scoring, the project's code for every model.** Day-6 relative vorticity, normalized l2
+**TC5** (``--case tc5``): the project's ``cases.Mountain`` (u0 = 20 m/s, h0 = 5960 m, the
+2000 m cone of radius π/9 at (30°N, 270°E)) at the peer's nodes: u, v = 0, the fluid depth
+h = surface − hs to its potential g (h − H) (H: h's mean over the sphere, Gauss-weighted) and
+the cone g hs to ``ShallowWaterEquations``' ``orography`` (modal geopotential, nondimensional:
+``to_modal`` of g hs in Dinosaur's units, as its own ``shallow_water_test._get_mountain``; the
+equations add it to the potential in the pressure gradient only). Its h + hs is the modal
+potential + orography, clipped of the top wavenumber as its tendencies are. A day-0 check is
+printed per truncation: ``start_h_surface_l2`` (its h + hs at t = 0 against ours at its nodes;
+about 1e-9) and ``orography_l2`` (its truncated cone against the exact one).
+swe_sphere's rows: ``tc5_mountain`` with ``kgu35`` at 0.8 of its limit, at the Δt the frontier
+(``swe-sphere frontier``) makes on each grid (86400 / a whole number), ν by the scene's rule.
+
+**Scoring, the project's code for every model.** Galewsky: day-6 relative vorticity, normalized l2
 (Williamson et al. 1992 eq. 83: sqrt(Σ w (ζ − ζT)²) / sqrt(Σ w ζT²)) against the bundled T341
 reference (``cases.reference.Reference.at``: the spherical-harmonic coefficients synthesised
 exactly at each model's own points), with each model's own quadrature: the peer's Gauss weights
 × 2π/nlon at its nodes; swe_sphere's assembled ``spheremp`` (the run file's ``area``) at its
 unique nodes, with the vorticity its run file writes (the model's operator + DSS). The same for
-h (``l2 h``). swe_sphere's own scorer (``ref_l2_vorticity``: the vorticity of the wind error by the
-model's operator, over sqrt(∫ ζT² + δT²)) is printed beside it. A sanity line: the T213 reference
+h (``l2 h``) and h + hs (``l2 h_surface``: TC5's score, at day 15, against the reference's h + hs;
+swe_sphere's h + the exact hs at its nodes). swe_sphere's own scorer (``ref_l2_vorticity``: the
+vorticity of the wind error by the model's operator, over sqrt(∫ ζT² + δT²); on TC5
+``ref_l2_h_surface``) is printed beside it. A sanity line: the T213 reference
 scored the same way at the finest peer grid's points (the reference's own distance from T341).
 
 **Cost, one clock.** Every model runs as a child process pinned to core 0 (``taskset -c 0``) with
 one thread (``XLA_FLAGS=--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1``;
 ``SWE_SPHERE_THREADS=1``), in the order given, the models interleaved. The peer's figure: CPU
-seconds (``time.process_time``) of its whole 6-day time loop (``jax.lax.scan`` of the filtered
-steps, compiled ahead of time, compilation excluded) / 6. swe_sphere's: its run's own step-loop
-CPU clock (``simulation.summary.Ledger``: output and scoring excluded) between day 1 and day 6,
-/ 5 (the first day's first step, with its launch recording, left out). ``galewsky`` runs at
-the scene's Δt for each ne (216 s at ne30, rescaled with ne) and ν (the 3-hour e-folding rule),
-output every day, ``-s case.reference=T341``.
+seconds (``time.process_time``) of its whole time loop (``jax.lax.scan`` of the filtered
+steps, compiled ahead of time, compilation excluded) / days. swe_sphere's: its run's own step-loop
+CPU clock (``simulation.summary.Ledger``: output and scoring excluded) between day 1 and the
+last, / (days − 1) (the first day's first step, with its launch recording, left out). ``galewsky``
+runs at the scene's Δt for each ne (216 s at ne30, rescaled with ne) and ν (the 3-hour
+e-folding rule), output every day, ``-s case.reference=T341``. ``--swe`` names swe_sphere's runs,
+``neNE/npNP/STEPPER`` (the scene's Δt) or ``neNE/npNP/STEPPER,DT`` (``DT`` s or ``86400/N``).
+Figures: ``benchmarks/results/peer_dinosaur.json`` (Galewsky), ``peer_dinosaur_tc5.json`` (TC5).
 
-    python benchmarks/peer_dinosaur.py [--truncations T42 T85 T170] [--ne 16 30]
-        [--steppers fbrk32 kgu35] [--rounds 1] [--python /work/venvs/dinosaur/bin/python]
+    python benchmarks/peer_dinosaur.py [--case galewsky|tc5] [--truncations T42 T85 T170]
+        [--swe ne16/np4/fbrk32 ne16/np4/kgu35,400 ...] [--rounds 1] [--python /work/venvs/dinosaur/bin/python]
 """
 
 from __future__ import annotations
@@ -63,12 +80,12 @@ import statistics
 import subprocess
 import sys
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-DAYS = 6.0
 GRIDS = {"T42": (32, 1200.0), "T85": (64, 600.0), "T170": (128, 600.0), "T213": (160, 300.0)}  # gaussian_nodes, Δt s
 ONE_THREAD = {
     "XLA_FLAGS": "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1",
@@ -78,6 +95,53 @@ ONE_THREAD = {
     "MKL_NUM_THREADS": "1",
 }
 DEFAULT_PYTHON = Path("/work/venvs/dinosaur/bin/python")
+
+
+@dataclass(frozen=True)
+class Study:
+    """A case as this benchmark runs it: swe_sphere's scene, the day scored, the field scored
+    (a key of ``scores``' dict), its name, swe_sphere's default configurations (``parse_swe``)
+    and the results file's stem (``benchmarks/results/<stem>.json``)."""
+
+    scene: str
+    days: float
+    field: str
+    field_name: str
+    swe: tuple[str, ...]
+    stem: str
+
+
+STUDIES = {
+    "galewsky": Study(
+        "galewsky",
+        6.0,
+        "vorticity",
+        "vorticity",
+        ("ne16/np4/fbrk32", "ne16/np4/kgu35", "ne30/np4/fbrk32", "ne30/np4/kgu35"),
+        "peer_dinosaur",
+    ),
+    # kgu35 at 0.8 of its limit, Δt as the frontier makes it (86400 / a whole number): the TC5
+    # frontier's front (docs/efficiency.md) and grids between its points (ne10 np4, ne12 np3 and
+    # np4 about Dinosaur T42's error; ne16 np5 and ne24 np4)
+    "tc5": Study(
+        "tc5_mountain",
+        15.0,
+        "h_surface",
+        "h + hs",
+        (
+            "ne8/np4/kgu35,86400/50",
+            "ne12/np3/kgu35,86400/42",
+            "ne10/np4/kgu35,86400/63",
+            "ne12/np4/kgu35,86400/75",
+            "ne16/np3/kgu35,86400/56",
+            "ne16/np4/kgu35,86400/100",
+            "ne24/np4/kgu35,86400/150",
+            "ne16/np5/kgu35,86400/160",
+            "ne16/np6/kgu35,86400/235",
+        ),
+        "peer_dinosaur_tc5",
+    ),
+}
 
 
 def gaussian_grid(nodes: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -92,26 +156,19 @@ def gaussian_grid(nodes: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 # -- the peer, in its own environment ----------------------------------------------------------
 def peer_child(inp: Path, out: Path, transforms: str) -> None:
-    """Run Dinosaur on the state in ``inp`` (``run_peer`` writes it) and write the day-6
-    vorticity (s⁻¹) and h (m) on its grid, with the loop's CPU and wall seconds, to ``out``."""
+    """Run Dinosaur on the state in ``inp`` (``run_peer`` writes it) and write its fields at
+    the start and at the last day (``peer_fields``: vorticity s⁻¹, h and h + hs m) on its
+    grid, with the loop's CPU and wall seconds, to ``out``."""
     import functools
     import time
 
     import jax
 
     jax.config.update("jax_enable_x64", True)
-    from dinosaur import (
-        coordinate_systems,
-        layer_coordinates,
-        scales,
-        shallow_water,
-        spherical_harmonic,
-        time_integration,
-        units,
-    )
+    from dinosaur import coordinate_systems, layer_coordinates, scales, spherical_harmonic, time_integration, units
 
     d = np.load(inp)
-    truncation, nodes, dt = int(d["truncation"]), int(d["nodes"]), float(d["dt"])
+    truncation, nodes, dt, days = int(d["truncation"]), int(d["nodes"]), float(d["dt"]), float(d["days"])
     impl = (
         functools.partial(spherical_harmonic.FastSphericalHarmonics, fourier_method="fft")
         if transforms == "fft"
@@ -122,62 +179,114 @@ def peer_child(inp: Path, out: Path, transforms: str) -> None:
     assert np.allclose(lon, d["lon"][:, 0], atol=1e-12) and np.allclose(sin_lat, np.sin(d["lat"][0]), atol=1e-12)
     coords = coordinate_systems.CoordinateSystem(grid, layer_coordinates.LayerCoordinates(1))
     specs = units.SimUnits.from_si()
-    u_, m, s = scales.units, scales.units.m, scales.units.s
-    nd = specs.nondimensionalize
-    wind = float(nd(1.0 * m / s))
-    g, depth = specs.g, float(nd(float(d["mean_depth"]) * m))
-    vor, div = spherical_harmonic.uv_nodal_to_vor_div_modal(grid, d["u"] * wind, d["v"] * wind)
-    potential = grid.to_modal(g * (d["h"] * float(nd(1.0 * m)) - depth))
-    state = shallow_water.State(vor[None], div[None], potential[None])
-    eq = shallow_water.ShallowWaterEquations(coords, specs, None, np.array([g * depth]))
-    dt_nd = float(nd(dt * s))
+    state, eq = peer_state(grid, coords, specs, d)
+    dt_nd = float(specs.nondimensionalize(dt * scales.units.s))
     step = time_integration.step_with_filters(
         time_integration.imex_rk_sil3(eq, dt_nd), [time_integration.exponential_step_filter(grid, dt_nd)]
     )
-    nsteps = round(DAYS * 86400 / dt)
+    nsteps = round(days * 86400 / dt)
     loop = jax.jit(time_integration.repeated(step, nsteps)).lower(state).compile()
     cpu0, wall0 = time.process_time(), time.perf_counter()
     final = jax.block_until_ready(loop(state))
     cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
-    per_second = float(specs.dimensionalize(1.0, u_("1/s")).magnitude)
-    zeta = np.asarray(grid.to_nodal(grid.clip_wavenumbers(final.vorticity)))[0] * per_second
-    h = np.asarray(grid.to_nodal(grid.clip_wavenumbers(final.potential)))[0] / g / float(nd(1.0 * m)) + float(
-        d["mean_depth"]
+    start = {f"start_{k}": v for k, v in peer_fields(grid, specs, eq, state, d).items()}
+    np.savez(out, **peer_fields(grid, specs, eq, final, d), **start, cpu=cpu, wall=wall, steps=nsteps)
+
+
+def peer_state(grid, coords, specs, d):
+    """The peer's modal state and equations from the nodal u, v (m/s), fluid depth h and
+    surface height hs (m) in ``d``: its vorticity and divergence from the wind
+    (``uv_nodal_to_vor_div_modal``), its potential g (h − H) (H: ``d["mean_depth"]``, the
+    reference geopotential g H of its semi-implicit step), its orography g hs, modal
+    (Dinosaur's own mountain test sets these two so: ``shallow_water_test._get_mountain``;
+    None without a mountain). Nondimensional, Dinosaur's units."""
+    from dinosaur import scales, shallow_water, spherical_harmonic
+
+    m, s = scales.units.m, scales.units.s
+    nd = specs.nondimensionalize
+    wind, metre, g = float(nd(1.0 * m / s)), float(nd(1.0 * m)), specs.g
+    depth = float(d["mean_depth"]) * metre
+    vor, div = spherical_harmonic.uv_nodal_to_vor_div_modal(grid, d["u"] * wind, d["v"] * wind)
+    potential = grid.to_modal(g * (d["h"] * metre - depth))
+    orography = grid.to_modal(g * d["hs"] * metre) if np.any(d["hs"]) else None
+    state = shallow_water.State(vor[None], div[None], potential[None])
+    return state, shallow_water.ShallowWaterEquations(coords, specs, orography, np.array([g * depth]))
+
+
+def peer_fields(grid, specs, eq, state, d) -> dict:
+    """The peer's nodal relative vorticity (s⁻¹), fluid depth h and free surface h + hs (m,
+    with its own orography) of a modal ``state``, each clipped of its top total wavenumber as
+    the peer's tendencies are (``clip_wavenumbers``: its orography's top mode never acts)."""
+    from dinosaur import scales
+
+    per_second = float(specs.dimensionalize(1.0, scales.units("1/s")).magnitude)
+    metre, g = float(specs.nondimensionalize(1.0 * scales.units.m)), specs.g
+    potential = grid.clip_wavenumbers(state.potential[0])
+    surface = potential if eq.orography is None else grid.clip_wavenumbers(state.potential[0] + eq.orography)
+    depth = float(d["mean_depth"])
+    return dict(
+        vorticity=np.asarray(grid.to_nodal(grid.clip_wavenumbers(state.vorticity)))[0] * per_second,
+        h=np.asarray(grid.to_nodal(potential)) / g / metre + depth,
+        h_surface=np.asarray(grid.to_nodal(surface)) / g / metre + depth,
     )
-    np.savez(out, vorticity=zeta, h=h, cpu=cpu, wall=wall, steps=nsteps)
 
 
 # -- swe_sphere, in the project's environment --------------------------------------------------
-def swe_child(ne: int, stepper: str, out: Path) -> None:
-    """Run the ``galewsky`` scene at ``ne`` with ``stepper`` for 6 days and write its day-6
-    vorticity and h at its unique nodes, their lat/lon (rad) and area, its Δt, the step loop's
-    CPU seconds between day 1 and day 6, and its own ``ref_l2_vorticity``, to ``out``."""
+def swe_child(study: str, config: str, out: Path) -> None:
+    """Run ``study``'s scene in the configuration ``config`` (``parse_swe``) to its last day and
+    write its vorticity, h and h + hs at the last day at its unique nodes, their lat/lon (rad)
+    and area, its Δt, the step loop's CPU seconds a day between day 1 and the last, and its
+    own score of the study's field (``ref_l2_vorticity`` or ``ref_l2_h_surface``), to ``out``."""
     import netCDF4
 
     from swe_sphere.simulation.simulation import Simulation
 
+    st, (ne, np_, stepper, dt) = STUDIES[study], parse_swe(config)
+    kw = {} if dt is None else {"dt": dt}
     sim = Simulation(
-        "galewsky", "cpu", ne=ne, stepper=stepper, days=DAYS, output={"every_days": 1.0}, case={"reference": "T341"}
+        st.scene,
+        "cpu",
+        ne=ne,
+        np=np_,
+        stepper=stepper,
+        days=st.days,
+        output={"every_days": 1.0},
+        case={"reference": "T341"},
+        **kw,
     )
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "run.nc"
         result = sim.run(path)
         cpu = {round(h["steps"] * sim.scene.dt / 86400, 6): h["cpu_time"] for h in result.history}
         with netCDF4.Dataset(path) as ds:
-            f = {k: np.asarray(ds[k][...], dtype=np.float64) for k in ("lat", "lon", "area")}
+            f = {k: np.asarray(ds[k][...], dtype=np.float64) for k in ("lat", "lon", "area", "hs")}
             zeta, h = (np.asarray(ds[k][-1], dtype=np.float64) for k in ("vorticity", "h"))
-            own = float(ds["ref_l2_vorticity"][-1])
+            own = float(ds[f"ref_l2_{st.field}"][-1])
     np.savez(
         out,
         vorticity=zeta,
         h=h,
+        h_surface=h + f["hs"],
         lat=np.radians(f["lat"]),
         lon=np.radians(f["lon"]),
         area=f["area"],
         dt=sim.scene.dt,
-        cpu_per_day=(cpu[DAYS] - cpu[1.0]) / (DAYS - 1.0),
+        cpu_per_day=(cpu[st.days] - cpu[1.0]) / (st.days - 1.0),
         own=own,
     )
+
+
+def parse_swe(config: str) -> tuple[int, int, str, float | None]:
+    """``"ne16/np4/kgu35"`` (the scene's Δt, rescaled with ne) or ``"ne16/np4/kgu35,864"``
+    (Δt 864 s; ``86400/100`` allowed) → (ne, np, stepper, Δt s or None). Raises ValueError."""
+    grid, _, dt = config.partition(",")
+    try:
+        ne, np_, stepper = grid.split("/")
+        num, _, den = dt.partition("/")
+        seconds = (float(num) / float(den) if den else float(num)) if dt else None
+        return int(ne.removeprefix("ne")), int(np_.removeprefix("np")), stepper, seconds
+    except ValueError:
+        raise ValueError(f"--swe {config!r}: expected neNE/npNP/STEPPER[,DT]") from None
 
 
 # -- the parent: runs the children one at a time and scores them ----------------------------
@@ -199,50 +308,37 @@ def run_child(python: str, args: list[str]) -> None:
         raise RuntimeError(f"{' '.join(args[:3])} failed:\n" + "\n".join(out.stderr.splitlines()[-15:]))
 
 
-def run_peer(python: str, truncation: str, transforms: str, tmp: Path) -> dict:
-    """The peer at ``truncation`` (a key of ``GRIDS``) from the project's Galewsky state:
-    its day-6 fields, points, weights and CPU seconds a simulated day."""
+def run_peer(python: str, study: str, truncation: str, transforms: str, tmp: Path, dt: float | None = None) -> dict:
+    """The peer at ``truncation`` (a key of ``GRIDS``) from the project's initial state of
+    ``study``'s case at its nodes, at Δt ``dt`` s (None: ``GRIDS``'): its last day's fields
+    (``peer_fields``), its start's (``start_`` + name), points, weights and CPU seconds a
+    simulated day."""
     from swe_sphere.cases.library import make_case
 
-    nodes, dt = GRIDS[truncation]
+    st, (nodes, grid_dt) = STUDIES[study], GRIDS[truncation]
+    dt = dt or grid_dt
     lat, lon, w = gaussian_grid(nodes)
-    case = make_case("galewsky")
+    case = make_case(st.scene)
     u, v, h = case.initial(lat, lon)
+    hs = case.hs(lat, lon)
+    # the reference geopotential of the semi-implicit step: the case's mean depth, else h's
+    mean_depth = getattr(case, "mean_depth", None) or float(np.sum(w * h) / np.sum(w))
     inp, out = tmp / f"{truncation}_in.npz", tmp / f"{truncation}_out.npz"
-    np.savez(
-        inp,
-        truncation=int(truncation[1:]),
-        nodes=nodes,
-        dt=dt,
-        u=u,
-        v=v,
-        h=h,
-        lat=lat,
-        lon=lon,
-        mean_depth=case.mean_depth,
-    )
+    state = dict(u=u, v=v, h=h, hs=hs, lat=lat, lon=lon, mean_depth=mean_depth)
+    np.savez(inp, truncation=int(truncation[1:]), nodes=nodes, dt=dt, days=st.days, **state)
     run_child(python, ["--peer-child", str(inp), str(out), transforms])
-    r = np.load(out)
-    return dict(
-        vorticity=r["vorticity"], h=r["h"], lat=lat, lon=lon, weights=w, dt=dt, cpu_per_day=float(r["cpu"]) / DAYS
-    )
+    r = dict(np.load(out))
+    r.update(lat=lat, lon=lon, weights=w, dt=dt, cpu_per_day=float(r["cpu"]) / st.days, initial=(h, hs))
+    return r
 
 
-def run_swe(ne: int, stepper: str, tmp: Path) -> dict:
-    """swe_sphere's ``galewsky`` at ``ne`` with ``stepper`` (``swe_child``), as ``run_peer``'s dict."""
-    out = tmp / f"ne{ne}_{stepper}.npz"
-    run_child(sys.executable, ["--swe-child", str(ne), stepper, str(out)])
-    r = np.load(out)
-    return dict(
-        vorticity=r["vorticity"],
-        h=r["h"],
-        lat=r["lat"],
-        lon=r["lon"],
-        weights=r["area"],
-        dt=float(r["dt"]),
-        cpu_per_day=float(r["cpu_per_day"]),
-        own=float(r["own"]),
-    )
+def run_swe(study: str, config: str, tmp: Path) -> dict:
+    """swe_sphere's run of ``study`` in ``config`` (``swe_child``), as ``run_peer``'s dict."""
+    out = tmp / f"{config.replace('/', '_').replace(',', '_')}.npz"
+    run_child(sys.executable, ["--swe-child", study, config, str(out)])
+    r = dict(np.load(out))
+    r.update(weights=r["area"], dt=float(r["dt"]), cpu_per_day=float(r["cpu_per_day"]), own=float(r["own"]))
+    return r
 
 
 def l2(w, f, f_true) -> float:
@@ -250,10 +346,23 @@ def l2(w, f, f_true) -> float:
     return float(np.sqrt(np.sum(w * (f - f_true) ** 2) / np.sum(w * f_true**2)))
 
 
-def scores(run: dict, reference) -> tuple[float, float]:
-    """(vorticity l2, h l2) of a run's day-6 fields against ``reference`` at its own points."""
-    r = reference.at(DAYS, run["lat"], run["lon"])
-    return l2(run["weights"], run["vorticity"], r["vorticity"]), l2(run["weights"], run["h"], r["h"])
+FIELDS = ("vorticity", "h", "h_surface")  # relative vorticity, fluid depth, free surface h + hs
+
+
+def scores(run: dict, reference, day: float) -> dict:
+    """The l2 (``l2``) of a run's ``FIELDS`` at ``day`` against ``reference`` at its own points."""
+    r = reference.at(day, run["lat"], run["lon"])
+    return {f: l2(run["weights"], run[f], r[f]) for f in FIELDS}
+
+
+def start_check(run: dict) -> dict:
+    """A peer's start against the project's state at its nodes: its h + hs's l2 from ours, and
+    its (truncated) orography's from the exact hs (NaN without a mountain)."""
+    h, hs = run["initial"]
+    out = {"start_h_surface_l2": l2(run["weights"], run["start_h_surface"], h + hs)}
+    peer_hs = run["start_h_surface"] - run["start_h"]
+    out["orography_l2"] = l2(run["weights"], peer_hs, hs) if np.any(hs) else math.nan
+    return out
 
 
 def peer_available(python: str) -> str | None:
@@ -264,15 +373,30 @@ def peer_available(python: str) -> str | None:
     return None if out.returncode == 0 else f"{python} cannot import dinosaur and jax"
 
 
-def main() -> None:
+def arguments():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--case", choices=list(STUDIES), default="galewsky")
     ap.add_argument("--truncations", nargs="+", default=["T42", "T85", "T170"], choices=list(GRIDS))
-    ap.add_argument("--ne", nargs="+", type=int, default=[16, 30])
-    ap.add_argument("--steppers", nargs="+", default=["fbrk32", "kgu35"])
+    ap.add_argument(
+        "--swe", nargs="*", help="swe_sphere runs, neNE/npNP/STEPPER[,DT] (default: the case's; none: none)"
+    )
+    ap.add_argument("--peer-dt", type=float, help="the peer's Δt (s) at every truncation (default: GRIDS')")
+    ap.add_argument("--results", help="the results file's stem (default: the case's, e.g. peer_dinosaur_tc5)")
     ap.add_argument("--rounds", type=int, default=1)
     ap.add_argument("--transforms", choices=["fft", "real"], default="fft")
     ap.add_argument("--python", default=str(DEFAULT_PYTHON), help="the peer's interpreter (default: %(default)s)")
     args = ap.parse_args()
+    args.swe = list(STUDIES[args.case].swe) if args.swe is None else args.swe
+    for config in args.swe:
+        try:
+            parse_swe(config)
+        except ValueError as e:
+            ap.error(str(e))
+    return args
+
+
+def main() -> None:
+    args = arguments()
     why = peer_available(args.python)
     if why is not None:
         print(f"peer_dinosaur: skipped: {why}")
@@ -282,46 +406,55 @@ def main() -> None:
     from swe_sphere.cases.library import make_case
     from swe_sphere.cases.reference import Reference, reference_path
 
-    case = make_case("galewsky")
+    st = STUDIES[args.case]
+    case = make_case(st.scene)
     t341, t213 = Reference(reference_path(case, "T341")), Reference(reference_path(case, "T213"))
-    jobs = [("peer", t) for t in args.truncations] + [("swe", (ne, s)) for ne in args.ne for s in args.steppers]
-    order = interleave(jobs[: len(args.truncations)], jobs[len(args.truncations) :])
-    with recorded(__file__) as figures, tempfile.TemporaryDirectory() as tmp:
-        print(f"Galewsky day {DAYS:g}, vorticity and h l2 against T341 at each model's points; one thread, core 0")
+    order = interleave([("peer", t) for t in args.truncations], [("swe", c) for c in args.swe])
+    with recorded(__file__, stem=args.results or st.stem) as figures, tempfile.TemporaryDirectory() as tmp:
+        print(f"{st.scene} day {st.days:g}, l2 against T341 at each model's points; one thread, core 0")
         print(f"peer: dinosaur, imex_rk_sil3 + exponential_step_filter defaults, float64, {args.transforms} transforms")
         table: dict[str, dict] = {}
         for rnd in range(args.rounds):
             for kind, what in order:
                 load = os.getloadavg()[0]
                 if kind == "peer":
-                    name, run = f"dinosaur {what}", run_peer(args.python, what, args.transforms, Path(tmp))
+                    peer = run_peer(args.python, args.case, what, args.transforms, Path(tmp), args.peer_dt)
+                    name, run = f"dinosaur {what}", peer
                 else:
-                    name, run = f"swe_sphere ne{what[0]} np4 {what[1]}", run_swe(*what, Path(tmp))
-                zeta, h = scores(run, t341)
-                row = table.setdefault(name, dict(l2_vorticity=zeta, l2_h=h, dt=run["dt"], cpu_per_day=[], load=[]))
-                row["cpu_per_day"].append(run["cpu_per_day"])
-                row["load"].append(load)
-                if "own" in run:
-                    row["own_ref_l2_vorticity"] = run["own"]
-                own = f", own scorer {run['own']:.4g}" if "own" in run else ""
+                    name, run = f"swe_sphere {what.split(',')[0]}", run_swe(args.case, what, Path(tmp))
+                l2s = scores(run, t341, st.days)
+                row = table.setdefault(name, dict(**{f"l2_{k}": v for k, v in l2s.items()}, dt=run["dt"]))
+                row.setdefault("cpu_per_day", []).append(run["cpu_per_day"])
+                row.setdefault("load", []).append(load)
+                extra = start_check(run) if kind == "peer" else {f"own_ref_l2_{st.field}": run["own"]}
+                row.update(extra)
                 print(
-                    f"round {rnd + 1} {name} dt {run['dt']:g} s: vorticity l2 {zeta:.4g}, h l2 {h:.4g}{own}; "
-                    f"{run['cpu_per_day']:.3g} CPU s a simulated day (load {load:.2f})"
+                    f"round {rnd + 1} {name} dt {run['dt']:g} s: vorticity l2 {l2s['vorticity']:.4g}, h l2 "
+                    f"{l2s['h']:.4g}, h + hs l2 {l2s['h_surface']:.4g}; "
+                    + ", ".join(f"{k} {v:.3g}" for k, v in extra.items())
+                    + f"; {run['cpu_per_day']:.3g} CPU s a simulated day (load {load:.2f})"
                 )
                 if kind == "peer" and what == args.truncations[-1]:
-                    zr = t341.at(DAYS, run["lat"], run["lon"])["vorticity"]
-                    zt = t213.at(DAYS, run["lat"], run["lon"])["vorticity"]
-                    row["t213_vs_t341"] = l2(run["weights"], zt, zr)
-        print("model | dt s | vorticity l2 | h l2 | CPU s / simulated day (median) | load")
-        for name, row in table.items():
-            row["cpu_per_day_median"] = statistics.median(row["cpu_per_day"])
-            print(
-                f"{name} | {row['dt']:g} | {row['l2_vorticity']:.3g} | {row['l2_h']:.3g} | "
-                f"{row['cpu_per_day_median']:.3g} | {min(row['load']):.1f}-{max(row['load']):.1f}"
-            )
-            if "t213_vs_t341" in row:
-                print(f"  (T213 reference against T341 at {name}'s points: vorticity l2 {row['t213_vs_t341']:.3g})")
+                    r213 = dict(run, **t213.at(st.days, run["lat"], run["lon"]))
+                    row["t213_vs_t341"] = scores(r213, t341, st.days)[st.field]
+        summary(table, st)
+        figures["case"] = st.scene
+        figures["field"] = st.field
+        figures["days"] = st.days
         figures["runs"] = table
+
+
+def summary(table: dict, st: Study) -> None:
+    """Print the table, one line a model, each row's median CPU cost added to it."""
+    print(f"model | dt s | {st.field_name} l2 | vorticity l2 | h l2 | CPU s / simulated day (median) | load")
+    for name, row in table.items():
+        row["cpu_per_day_median"] = statistics.median(row["cpu_per_day"])
+        print(
+            f"{name} | {row['dt']:g} | {row[f'l2_{st.field}']:.3g} | {row['l2_vorticity']:.3g} | {row['l2_h']:.3g} | "
+            f"{row['cpu_per_day_median']:.3g} | {min(row['load']):.1f}-{max(row['load']):.1f}"
+        )
+        if "t213_vs_t341" in row:
+            print(f"  (T213 reference against T341 at {name}'s points: {st.field_name} l2 {row['t213_vs_t341']:.3g})")
 
 
 def interleave(a: list, b: list) -> list:
@@ -334,6 +467,6 @@ if __name__ == "__main__":
     if len(sys.argv) > 1 and sys.argv[1] == "--peer-child":
         peer_child(Path(sys.argv[2]), Path(sys.argv[3]), sys.argv[4])
     elif len(sys.argv) > 1 and sys.argv[1] == "--swe-child":
-        swe_child(int(sys.argv[2]), sys.argv[3], Path(sys.argv[4]))
+        swe_child(sys.argv[2], sys.argv[3], Path(sys.argv[4]))
     else:
         main()

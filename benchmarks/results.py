@@ -60,11 +60,12 @@ class _Tee(io.TextIOBase):
 
 
 @contextlib.contextmanager
-def recorded(script: str) -> Iterator[dict]:
+def recorded(script: str, stem: str | None = None) -> Iterator[dict]:
     """Run the block with its printed lines kept; on a normal exit write them, and the named
-    figures the block put in the yielded dict, to ``results/<script's stem>.json`` (the folder
-    made if absent; the file replaced). ``script``: the script's path (``__file__``). Nothing is
-    written when the block raises (a refused option, an interrupted run)."""
+    figures the block put in the yielded dict, to ``results/<stem>.json`` (default the script's
+    stem; the folder made if absent; the file replaced). ``script``: the script's path
+    (``__file__``). Nothing is written when the block raises (a refused option, an interrupted
+    run)."""
     figures: dict = {}
     load_start = os.getloadavg()
     started = datetime.datetime.now(datetime.UTC)
@@ -82,6 +83,6 @@ def recorded(script: str) -> Iterator[dict]:
         "printed": tee.kept.getvalue().splitlines(),
     }
     RESULTS.mkdir(exist_ok=True)
-    path = RESULTS / f"{Path(script).stem}.json"
+    path = RESULTS / f"{stem or Path(script).stem}.json"
     path.write_text(json.dumps(record, indent=1, ensure_ascii=False) + "\n")
     print(f"figures written to {path.relative_to(HERE.parent)}", file=sys.stderr)

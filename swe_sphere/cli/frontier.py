@@ -23,6 +23,7 @@ def command(args) -> int:
     )
     device = pick_device(args.device)
     targets = numbers(args.target, "target") if args.target else ()
+    peers = frontier.read_peers(args.peers) if args.peers else ()  # refused before any run
     with executor(args.workers) as pool:
         if pool is None:  # an MPI worker rank: its share is done
             return 0
@@ -33,5 +34,6 @@ def command(args) -> int:
             cost=args.cost,
             targets=targets,
             overwrite=args.overwrite,
+            peers=peers,
         )
     return 0

@@ -284,6 +284,12 @@ def _frontier(sub, parents) -> None:
     )
     fr.add_argument("--target", help="comma-separated errors: the cheapest configuration that reaches each")
     fr.add_argument(
+        "--peers",
+        type=path,
+        metavar="FILE",
+        help="other models' points for frontier.png: CSV or JSON of model, label, error, cost_per_day",
+    )
+    fr.add_argument(
         "--output",
         type=path,
         help="directory for results (default ./frontier_<scene>_<days>d); a rerun reuses its runs",

@@ -169,7 +169,16 @@ class Frontier:
         )
 
     def run(
-        self, directory, device: str | None = None, *, pool=None, cost="cpu", targets=(), overwrite=False, log=print
+        self,
+        directory,
+        device: str | None = None,
+        *,
+        pool=None,
+        cost="cpu",
+        targets=(),
+        overwrite=False,
+        peers=(),
+        log=print,
     ):
         """Make or reuse every run, ``log`` each grid's sweep and then the frontier's table
         (``format_table``), write ``OUTPUTS`` under ``directory`` (each grid's sweep in
@@ -189,6 +198,8 @@ class Frontier:
             Errors for which the table names the cheapest run (``cheapest_for``).
         overwrite : bool
             Replace an earlier frontier's files in ``directory``.
+        peers : sequence of dict
+            Other models' points for the figure (``read_peers``; ``frontier_plot``), not the table.
         log : callable
             Called with each line to show.
 
@@ -229,7 +240,7 @@ class Frontier:
                 "cost_clock": cost,
             }
             log(format_table(rows, attrs, targets))
-            paths = write_outputs(rows, attrs, directory, overwrite=overwrite)
+            paths = write_outputs(rows, attrs, directory, overwrite=overwrite, peers=peers)
             for path in paths:
                 log(f"wrote {path}")
         return rows, paths
@@ -362,11 +373,11 @@ def frontier_dataset(df, attrs: dict):
     )
 
 
-def write_outputs(rows, attrs: dict, directory, *, overwrite: bool = False) -> list[Path]:
+def write_outputs(rows, attrs: dict, directory, *, overwrite: bool = False, peers=()) -> list[Path]:
     """frontier.csv (``COLUMNS``, then ``attrs`` as constant columns), frontier.nc
-    (``frontier_dataset``) and frontier.png (``frontier_plot``): ``OUTPUTS`` under
-    ``directory``; returns the paths. Raises ``OutputError`` before writing anything
-    when one exists (unless ``overwrite``)."""
+    (``frontier_dataset``) and frontier.png (``frontier_plot``, with ``peers``' points):
+    ``OUTPUTS`` under ``directory``; returns the paths. Raises ``OutputError`` before writing
+    anything when one exists (unless ``overwrite``)."""
     import pandas as pd
 
     directory = Path(directory)
@@ -376,15 +387,27 @@ def write_outputs(rows, attrs: dict, directory, *, overwrite: bool = False) -> l
     with atomic_path(csv, overwrite=overwrite) as tmp:
         df.assign(**attrs).to_csv(tmp, index=False)
     write_table_file(frontier_dataset(df, attrs), nc, overwrite=overwrite)
+    return [csv, nc, frontier_figure(png, rows, attrs, peers)]
+
+
+def frontier_figure(path, rows, attrs: dict, peers=()) -> Path:
+    """frontier.png of ``rows`` with ``peers`` (``frontier_plot``), titled from ``attrs``
+    (``write_outputs``'; frontier.csv's constant columns): its scene, days, error, reference
+    and clock. Returns ``path``."""
     title = f"{attrs['scene']}, {attrs['days']:g} days: {attrs['error_of']} against {attrs['reference']}"
-    return [csv, nc, frontier_plot(png, rows, title=title, xlabel=f"{attrs['cost_clock']} s per simulated day")]
+    xlabel = f"{attrs['cost_clock']} s per simulated day"
+    return frontier_plot(path, rows, title=title, xlabel=xlabel, peers=peers)
 
 
-def frontier_plot(path, rows, *, title: str = "", xlabel: str = "s per simulated day", figsize=(9.0, 6.0)) -> Path:
+def frontier_plot(
+    path, rows, *, title: str = "", xlabel: str = "s per simulated day", figsize=(9.0, 6.0), peers=()
+) -> Path:
     """Error against cost per day, log-log: each stable run of ``rows`` (``Frontier.run``'s)
     a point coloured by stepper, shaped by np and labelled ne/np/stepper (the front's in
     black, the others small and grey: points of one cost and error overlap); the front a line
-    through its points from cheapest to most accurate. Returns ``path`` (PNG)."""
+    through its points from cheapest to most accurate; ``peers`` (``read_peers``' dicts: other
+    models, scored and costed the same way elsewhere) large open markers, one shape a model,
+    each labelled in its model's colour and joined by a dashed line. Returns ``path`` (PNG)."""
     fig = new_figure(figsize)
     ax = fig.add_subplot()
     stable = [r for r in rows if r["stable"] and r["cost_per_day"] > 0 and r["error"] > 0]
@@ -413,7 +436,8 @@ def frontier_plot(path, rows, *, title: str = "", xlabel: str = "s per simulated
         )
     front = sorted((r for r in stable if r["on_front"]), key=lambda r: r["cost_per_day"])
     ax.plot([r["cost_per_day"] for r in front], [r["error"] for r in front], color="0.3", linewidth=1, label="front")
-    if stable:
+    _plot_peers(ax, peers)
+    if stable or peers:
         ax.set_xscale("log")
         ax.set_yscale("log")
         label_log_axis(ax.xaxis)
@@ -423,3 +447,61 @@ def frontier_plot(path, rows, *, title: str = "", xlabel: str = "s per simulated
     ax.set_title(title, fontsize=10)
     ax.legend(fontsize=7)
     return save_png(fig, path)
+
+
+PEER_STYLES = (("*", "crimson"), ("X", "darkviolet"), ("P", "darkgreen"), ("h", "saddlebrown"))
+PEER_COLUMNS = ("model", "label", "error", "cost_per_day")
+
+
+def _plot_peers(ax, peers) -> None:
+    """``frontier_plot``'s peers on ``ax``: per model (in order of appearance) one marker and
+    colour of ``PEER_STYLES``, a dashed line through its points by cost, each point labelled."""
+    models = list(dict.fromkeys(p["model"] for p in peers))
+    for model, (marker, colour) in zip(models, PEER_STYLES * (len(models) // len(PEER_STYLES) + 1)):
+        pts = sorted((p for p in peers if p["model"] == model), key=lambda p: p["cost_per_day"])
+        x, y = [p["cost_per_day"] for p in pts], [p["error"] for p in pts]
+        ax.plot(x, y, color=colour, linestyle="--", linewidth=0.8, zorder=2)
+        ax.scatter(
+            x, y, s=110, marker=marker, facecolors="none", edgecolors=colour, linewidths=1.4, label=model, zorder=4
+        )
+        for p in pts:
+            ax.annotate(
+                p["label"],
+                (p["cost_per_day"], p["error"]),
+                fontsize=8,
+                color=colour,
+                xytext=(6, -10),
+                textcoords="offset points",
+            )
+
+
+def read_peers(path) -> list[dict]:
+    """Other models' points for ``frontier_plot`` from a CSV (a header row) or a JSON list of
+    objects, each with ``PEER_COLUMNS``: ``model`` (the legend's name), ``label`` (the point's,
+    e.g. "T85"), ``error`` (the frontier's error, normalized l2) and ``cost_per_day`` (s per
+    simulated day on the frontier's clock). Returns the points as dicts. Raises
+    ``FileNotFoundError``; ``ValueError`` (naming the file) for a missing column, or an error or
+    cost that is not a number > 0."""
+    import json
+
+    path = Path(path)
+    if path.suffix.lower() == ".json":
+        items = json.loads(path.read_text())
+    else:
+        import csv
+
+        with path.open(newline="") as f:
+            items = list(csv.DictReader(f))
+    peers = []
+    for i, item in enumerate(items if isinstance(items, list) else [items]):
+        missing = [k for k in PEER_COLUMNS if not isinstance(item, dict) or k not in item]
+        if missing:
+            raise ValueError(f"{path}: peer {i + 1} lacks {', '.join(missing)} (columns: {', '.join(PEER_COLUMNS)})")
+        try:
+            error, cost = float(item["error"]), float(item["cost_per_day"])
+        except (TypeError, ValueError):
+            error = cost = math.nan
+        if not (error > 0 and cost > 0 and math.isfinite(error) and math.isfinite(cost)):
+            raise ValueError(f"{path}: peer {i + 1} ({item['label']}): error and cost_per_day must be numbers > 0")
+        peers.append({"model": str(item["model"]), "label": str(item["label"]), "error": error, "cost_per_day": cost})
+    return peers

@@ -1,6 +1,7 @@
 """The frontier on a tiny ladder: TC2 at ne 2–3 × np 3–4, kgu35 and RK4 near their limits, 0.1 day;
 its front, its files, and a rerun that reuses every run."""
 
+import json
 import math
 
 import numpy as np
@@ -112,6 +113,40 @@ def test_the_files_hold_the_table(ladder):
     assert (out / "frontier.png").stat().st_size > 10_000
     for n, p in ((2, 3), (3, 4)):  # each grid's sweep, with its own files
         assert len(pd.read_csv(out / f"ne{n}np{p}" / "sweep.csv")) == 2
+
+
+PEERS_CSV = (
+    "model,label,error,cost_per_day\nDinosaur,T42,0.767,0.155\nDinosaur,T85,0.247,2.71\npySEs,ne16 np4,0.76,18.9\n"
+)
+
+
+def test_peers_are_read_from_csv_or_json_and_checked(tmp_path):
+    csv = tmp_path / "peers.csv"
+    csv.write_text(PEERS_CSV)
+    peers = frontier.read_peers(csv)
+    assert peers[1] == {"model": "Dinosaur", "label": "T85", "error": 0.247, "cost_per_day": 2.71}
+    assert [p["model"] for p in peers] == ["Dinosaur", "Dinosaur", "pySEs"]
+    js = tmp_path / "peers.json"
+    js.write_text(json.dumps([{**p, "error": str(p["error"])} for p in peers]))  # numbers as text too
+    assert frontier.read_peers(js) == peers
+    (tmp_path / "no_cost.csv").write_text("model,label,error\nDinosaur,T42,0.767\n")
+    with pytest.raises(ValueError, match=r"no_cost.csv: peer 1 lacks cost_per_day"):
+        frontier.read_peers(tmp_path / "no_cost.csv")
+    (tmp_path / "bad.csv").write_text("model,label,error,cost_per_day\nDinosaur,T42,-1,0.155\n")
+    with pytest.raises(ValueError, match=r"bad.csv: peer 1 \(T42\): error and cost_per_day must be numbers > 0"):
+        frontier.read_peers(tmp_path / "bad.csv")
+    rows = [
+        {
+            "label": "ne8/np3/kgu35",
+            "np": 3,
+            "stepper": "kgu35",
+            "stable": 1,
+            "on_front": 1,
+            "cost_per_day": 0.03,
+            "error": 0.9,
+        }
+    ]
+    assert frontier.frontier_plot(tmp_path / "f.png", rows, peers=peers).stat().st_size > 10_000
 
 
 def test_a_rerun_reuses_every_run(ladder, monkeypatch):

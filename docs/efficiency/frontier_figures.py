@@ -1,6 +1,8 @@
 """The frontier figures of docs/efficiency.md with the peers' points: frontier_<case>.png from
 frontier_<case>.csv (the merged ladders' rows) and peers_<case>.csv, which this script writes
-from the peer benchmarks' results (``benchmarks/results/peer_dinosaur.json`` for Galewsky,
+from the peer benchmarks' results (``benchmarks/results/peer_dinosaur.json`` for Galewsky, with
+swe_sphere's np 5-6 runs beyond the ladder from ``peer_dinosaur_galewsky_np56.json`` and
+``peer_dinosaur_galewsky_np6_ne26.json``,
 ``peer_dinosaur_tc5.json`` and ``peer_dinosaur_tc5_dt{600,300,150}.json`` for TC5: each Dinosaur
 run's error in the frontier's quantity and its median CPU seconds a simulated day) and, for Galewsky, pySEs's point as
 issue 63 measured it (not rerun: a cited figure, labelled so). The figure is the frontier's own
@@ -23,9 +25,16 @@ HERE = Path(__file__).resolve().parent
 RESULTS = HERE.parents[1] / "benchmarks" / "results"
 DINOSAUR = "Dinosaur 1.5.1, imex_rk_sil3 + filter"
 # case: (the frontier's field in the peer benchmark's rows, its results files: (file, the
-# legend's model, the point's label from the truncation t and Δt dt)); TC5 also at shorter Δt
+# legend's model, the point's label from the truncation t and Δt dt)); TC5 also at shorter Δt.
+# A file given as the SWE model's contributes its swe_sphere rows (t: the grid), the others
+# their Dinosaur rows: Galewsky's np 5-6 runs lie beyond the frontier's ladder.
+SWE = "swe_sphere kgu35, np 5-6 runs beside Dinosaur"
 CASES = {
-    "galewsky": ("l2_vorticity", [("peer_dinosaur.json", DINOSAUR, "{t}")]),
+    "galewsky": (
+        "l2_vorticity",
+        [("peer_dinosaur.json", DINOSAUR, "{t}")]
+        + [(f"peer_dinosaur_galewsky_{stem}.json", SWE, "{t}") for stem in ("np56", "np6_ne26")],
+    ),
     "tc5": (
         "l2_h_surface",
         [("peer_dinosaur_tc5.json", DINOSAUR + ", Galewsky's Δt", "{t}")]
@@ -52,7 +61,7 @@ def peers(case: str) -> list[dict]:
                 "cost_per_day": row["cpu_per_day_median"],
             }
             for key, row in runs.items()
-            if key.startswith("dinosaur ")
+            if key.startswith("swe_sphere " if model == SWE else "dinosaur ")
         ]
     out += [dict(zip(frontier.PEER_COLUMNS, values)) for values in CITED.get(case, [])]
     return out

@@ -165,10 +165,12 @@ class Controller:
 
     def propose(self, dt: float, err: float) -> tuple[bool, float]:
         """(accepted, the next Δt, s) for a step of ``dt`` whose error norm is ``err``:
-        accepted when err ≤ 1 (the history then moves on), else the retry's Δt."""
-        k, err = self.order, max(err, 1e-10)  # a zero estimate grows the step by ``grow``
-        if err > 1.0:
-            return False, dt * max(self.shrink, self.safety * err ** (-1.0 / k))
+        accepted when err ≤ 1 (the history then moves on), else the retry's Δt (a NaN norm:
+        ``shrink``)."""
+        k = self.order
+        if not err <= 1.0:  # a NaN norm too (max(nan, ...) is nan, and nan > 1 is false)
+            return False, dt * (self.shrink if math.isnan(err) else max(self.shrink, self.safety * err ** (-1.0 / k)))
+        err = max(err, 1e-10)  # a zero estimate grows the step by ``grow``
         k1, k2, k3, k4 = self.coefficients
         e1, e2 = self.errors
         factor = self.safety * err ** (-k1 / k) * e1 ** (-k2 / k) * e2 ** (-k3 / k)

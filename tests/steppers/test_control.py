@@ -5,6 +5,8 @@ the error norm's one reduction on a grid is numpy's."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -92,6 +94,8 @@ def test_controller_numbers():
     c = Controller(3, "i")
     assert c.propose(100.0, 0.125) == (True, pytest.approx(100.0 * 0.9 * 2.0))
     assert c.propose(100.0, 8.0) == (False, pytest.approx(100.0 * 0.9 * 0.5))
+    assert c.propose(100.0, math.nan) == (False, pytest.approx(100.0 * 0.2))  # never accepted
+    assert c.propose(100.0, math.inf) == (False, pytest.approx(100.0 * 0.2))
     assert c.propose(100.0, 1e6)[1] == pytest.approx(20.0)
     assert c.propose(100.0, 0.0)[1] == pytest.approx(1000.0)
     h = Controller(2, "h211")

@@ -2,8 +2,8 @@
 frontier_<case>.csv (the merged ladders' rows) and peers_<case>.csv, which this script writes
 from the peer benchmarks' results (``benchmarks/results/peer_dinosaur.json`` for Galewsky, with
 swe_sphere's np 5-6 runs beyond the ladder from ``peer_dinosaur_galewsky_np56.json`` and
-``peer_dinosaur_galewsky_np6_ne26.json``,
-``peer_dinosaur_tc5.json`` and ``peer_dinosaur_tc5_dt{600,300,150}.json`` for TC5: each Dinosaur
+``peer_dinosaur_galewsky_np6_ne26.json``, and HOMME's ``sweqx`` from ``peer_homme_galewsky.json`` and ``peer_homme_galewsky_lft.json``;
+``peer_dinosaur_tc5.json`` and ``peer_dinosaur_tc5_dt{600,300,150}.json`` for TC5: each peer
 run's error in the frontier's quantity and its median CPU seconds a simulated day) and, for Galewsky, pySEs's point as
 issue 63 measured it (not rerun: a cited figure, labelled so). The figure is the frontier's own
 (``studies.frontier.frontier_figure``); peers_<case>.csv is what ``swe-sphere frontier --peers``
@@ -24,21 +24,26 @@ from swe_sphere.studies import frontier
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE.parents[1] / "benchmarks" / "results"
 DINOSAUR = "Dinosaur 1.5.1, imex_rk_sil3 + filter"
+HOMME = "HOMME sweqx (E3SM 75e17cce), ne16 np4"
 # case: (the frontier's field in the peer benchmark's rows, its results files: (file, the
-# legend's model, the point's label from the truncation t and Δt dt)); TC5 also at shorter Δt.
-# A file given as the SWE model's contributes its swe_sphere rows (t: the grid), the others
-# their Dinosaur rows: Galewsky's np 5-6 runs lie beyond the frontier's ladder.
+# legend's model, the point's label from the run's setting t (the key's last word) and Δt dt,
+# the keys of the rows taken)); TC5 also at shorter Δt. Galewsky's swe_sphere np 5-6 runs
+# beside Dinosaur lie beyond the frontier's ladder.
 SWE = "swe_sphere kgu35, np 5-6 runs beside Dinosaur"
 CASES = {
     "galewsky": (
         "l2_vorticity",
-        [("peer_dinosaur.json", DINOSAUR, "{t}")]
-        + [(f"peer_dinosaur_galewsky_{stem}.json", SWE, "{t}") for stem in ("np56", "np6_ne26")],
+        [("peer_dinosaur.json", DINOSAUR, "{t}", "dinosaur ")]
+        + [(f"peer_dinosaur_galewsky_{stem}.json", SWE, "{t}", "swe_sphere ") for stem in ("np56", "np6_ne26")]
+        + [(f"peer_homme_galewsky{stem}.json", HOMME, "{t}", "homme ") for stem in ("", "_lft")],
     ),
     "tc5": (
         "l2_h_surface",
-        [("peer_dinosaur_tc5.json", DINOSAUR + ", Galewsky's Δt", "{t}")]
-        + [(f"peer_dinosaur_tc5_dt{dt}.json", "Dinosaur, shorter Δt", "{t} {dt:g} s") for dt in (600, 300, 150)],
+        [("peer_dinosaur_tc5.json", DINOSAUR + ", Galewsky's Δt", "{t}", "dinosaur ")]
+        + [
+            (f"peer_dinosaur_tc5_dt{dt}.json", "Dinosaur, shorter Δt", "{t} {dt:g} s", "dinosaur ")
+            for dt in (600, 300, 150)
+        ],
     ),
 }
 CITED = {  # issue 63's table, not rerun here: (model, label, error, CPU s a simulated day)
@@ -47,11 +52,11 @@ CITED = {  # issue 63's table, not rerun here: (model, label, error, CPU s a sim
 
 
 def peers(case: str) -> list[dict]:
-    """The case's peer points (``frontier.PEER_COLUMNS``): Dinosaur's from its benchmark's
+    """The case's peer points (``frontier.PEER_COLUMNS``): the peers' from their benchmarks'
     results files, then the cited ones."""
     field, sources = CASES[case]
     out = []
-    for name, model, label in sources:
+    for name, model, label, prefix in sources:
         runs = json.loads((RESULTS / name).read_text())["figures"]["runs"]
         out += [
             {
@@ -61,7 +66,7 @@ def peers(case: str) -> list[dict]:
                 "cost_per_day": row["cpu_per_day_median"],
             }
             for key, row in runs.items()
-            if key.startswith("swe_sphere " if model == SWE else "dinosaur ")
+            if key.startswith(prefix)
         ]
     out += [dict(zip(frontier.PEER_COLUMNS, values)) for values in CITED.get(case, [])]
     return out

@@ -2,7 +2,7 @@
 frontier_<case>.csv (the merged ladders' rows) and peers_<case>.csv, which this script writes
 from the peer benchmarks' results (``benchmarks/results/peer_dinosaur.json`` for Galewsky, with
 swe_sphere's np 5-6 runs beyond the ladder from ``peer_dinosaur_galewsky_np56.json`` and
-``peer_dinosaur_galewsky_np6_ne26.json``, and HOMME's ``sweqx`` from ``peer_homme_galewsky.json`` and ``peer_homme_galewsky_lft.json``;
+``peer_dinosaur_galewsky_np6_ne26.json``, and HOMME's ``sweqx`` from ``peer_homme_galewsky{,_lft,_lft240}.json``;
 ``peer_dinosaur_tc5.json`` and ``peer_dinosaur_tc5_dt{600,300,150}.json`` for TC5: each peer
 run's error in the frontier's quantity and its median CPU seconds a simulated day) and, for Galewsky, pySEs's point as
 issue 63 measured it (not rerun: a cited figure, labelled so). The figure is the frontier's own
@@ -35,7 +35,7 @@ CASES = {
         "l2_vorticity",
         [("peer_dinosaur.json", DINOSAUR, "{t}", "dinosaur ")]
         + [(f"peer_dinosaur_galewsky_{stem}.json", SWE, "{t}", "swe_sphere ") for stem in ("np56", "np6_ne26")]
-        + [(f"peer_homme_galewsky{stem}.json", HOMME, "{t}", "homme ") for stem in ("", "_lft")],
+        + [(f"peer_homme_galewsky{stem}.json", HOMME, "{t}", "homme ") for stem in ("", "_lft", "_lft240")],
     ),
     "tc5": (
         "l2_h_surface",

@@ -1,9 +1,9 @@
 """The frontier figures of docs/efficiency.md with the peers' points: frontier_<case>.png from
 frontier_<case>.csv (the merged ladders' rows) and peers_<case>.csv, which this script writes
-from the peer benchmarks' results (``benchmarks/results/peer_dinosaur.json`` for Galewsky, with
-swe_sphere's np 5-6 runs beyond the ladder from ``peer_dinosaur_galewsky_np56.json`` and
-``peer_dinosaur_galewsky_np6_ne26.json``, and HOMME's ``sweqx`` from ``peer_homme_galewsky{,_lft,_lft240}.json``;
-``peer_dinosaur_tc5.json`` and ``peer_dinosaur_tc5_dt{600,300,150}.json`` for TC5: each peer
+from the peer benchmarks' results (for Galewsky ``benchmarks/results/peer_dinosaur_galewsky_np56.json``:
+Dinosaur and swe_sphere's np 5-6 runs beyond the ladder, in one run at low load, with
+``peer_dinosaur_galewsky_np6_ne26.json``, and HOMME's ``sweqx`` from
+``peer_homme_galewsky{,_lft,_lft240}.json``; ``peer_dinosaur_tc5.json`` and ``peer_dinosaur_tc5_dt{600,300,150}.json`` for TC5: each peer
 run's error in the frontier's quantity and its median CPU seconds a simulated day) and, for Galewsky, pySEs's point as
 issue 63 measured it (not rerun: a cited figure, labelled so). The figure is the frontier's own
 (``studies.frontier.frontier_figure``); peers_<case>.csv is what ``swe-sphere frontier --peers``
@@ -33,7 +33,8 @@ SWE = "swe_sphere kgu35, np 5-6 runs beside Dinosaur"
 CASES = {
     "galewsky": (
         "l2_vorticity",
-        [("peer_dinosaur.json", DINOSAUR, "{t}", "dinosaur ")]
+        # Dinosaur from the np 5-6 run (load 1.4-2.0), beside the swe_sphere points it is compared with
+        [("peer_dinosaur_galewsky_np56.json", DINOSAUR, "{t}", "dinosaur ")]
         + [(f"peer_dinosaur_galewsky_{stem}.json", SWE, "{t}", "swe_sphere ") for stem in ("np56", "np6_ne26")]
         + [(f"peer_homme_galewsky{stem}.json", HOMME, "{t}", "homme ") for stem in ("", "_lft", "_lft240")],
     ),

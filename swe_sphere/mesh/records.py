@@ -44,8 +44,22 @@ MAPS = ("equiangular", "element_local")  # HOMME's cubed_sphere_map = 0 and 2
 CUBES = ("equiangular", "equidistant")  # where the cube's element corners lie: equal angles or equal tangents
 
 
+class _OnTheCube:
+    """What a record of the cube of ``ne`` elements an edge knows of its size."""
+
+    ne: int
+
+    @property
+    def nelem(self) -> int:
+        return 6 * self.ne * self.ne
+
+    @property
+    def mean_ne(self) -> float:
+        return self.ne
+
+
 @dataclasses.dataclass(frozen=True)
-class CubeMesh:
+class CubeMesh(_OnTheCube):
     """The cube of ``ne`` elements an edge through ``map`` (``MAPS``), its corners at equal
     angles or equal tangents (``cube``, one of ``CUBES``)."""
 
@@ -66,14 +80,6 @@ class CubeMesh:
         return None if self.map == "equiangular" else cube_mesh(self.ne)
 
     @property
-    def nelem(self) -> int:
-        return 6 * self.ne * self.ne
-
-    @property
-    def mean_ne(self) -> float:
-        return self.ne
-
-    @property
     def label(self) -> str:
         """``ne4``, ``ne4map2`` (element-local), ``ne4ed`` (equidistant), ``ne4edmap0``."""
         if self.cube == "equidistant":
@@ -89,7 +95,7 @@ class CubeMesh:
 
 
 @dataclasses.dataclass(frozen=True)
-class StretchedCube:
+class StretchedCube(_OnTheCube):
     """The cube of ``ne`` stretched by ``factor`` ≥ 1 toward (``lat``, ``lon``) (degrees),
     through the element-local map (``schmidt.schmidt_cube``)."""
 
@@ -105,14 +111,6 @@ class StretchedCube:
     def build(self) -> Mesh:
         """The ``Mesh``; ``ValueError`` for a stretch that folds an element."""
         return schmidt_cube(self.ne, self.factor, self.lat, self.lon)
-
-    @property
-    def nelem(self) -> int:
-        return 6 * self.ne * self.ne
-
-    @property
-    def mean_ne(self) -> float:
-        return self.ne
 
     @property
     def label(self) -> str:

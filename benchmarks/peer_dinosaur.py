@@ -60,14 +60,14 @@ one thread (``XLA_FLAGS=--xla_cpu_multi_thread_eigen=false intra_op_parallelism_
 seconds (``time.process_time``) of its whole time loop (``jax.lax.scan`` of the filtered
 steps, compiled ahead of time, compilation excluded) / days. swe_sphere's: its run's own step-loop
 CPU clock (``simulation.summary.Ledger``: output and scoring excluded) between day 1 and the
-last, / (days − 1) (the first day's first step, with its launch recording, left out). ``galewsky``
-runs at the scene's Δt for each ne (216 s at ne30, rescaled with ne) and ν (the 3-hour
-e-folding rule), output every day, ``-s case.reference=T341``. ``--swe`` names swe_sphere's runs,
+last, / (days − 1) (the first day's first step, with its launch recording, left out). ``galewsky``'s
+default runs are its former default, 216 s at ne30 np4, and that Δt rescaled to ne16 (86400/214 s),
+with the scene's ν (the 3-hour e-folding rule), output every day, ``-s case.reference=T341``. ``--swe`` names swe_sphere's runs,
 ``neNE/npNP/STEPPER`` (the scene's Δt) or ``neNE/npNP/STEPPER,DT`` (``DT`` s or ``86400/N``).
 Figures: ``benchmarks/results/peer_dinosaur.json`` (Galewsky), ``peer_dinosaur_tc5.json`` (TC5).
 
     python benchmarks/peer_dinosaur.py [--case galewsky|tc5] [--truncations T42 T85 T170]
-        [--swe ne16/np4/fbrk32 ne16/np4/kgu35,400 ...] [--rounds 1] [--python /work/venvs/dinosaur/bin/python]
+        [--swe ne16/np4/fbrk32,86400/214 ne16/np4/kgu35,400 ...] [--rounds 1] [--python /work/venvs/dinosaur/bin/python]
 """
 
 from __future__ import annotations
@@ -117,7 +117,13 @@ STUDIES = {
         6.0,
         "vorticity",
         "vorticity",
-        ("ne16/np4/fbrk32", "ne16/np4/kgu35", "ne30/np4/fbrk32", "ne30/np4/kgu35"),
+        # the scene's former default (ne30 np4, fbrk32 at 216 s) and its Δt scaled to ne16
+        (
+            "ne16/np4/fbrk32,86400/214",
+            "ne16/np4/kgu35,86400/214",
+            "ne30/np4/fbrk32,86400/400",
+            "ne30/np4/kgu35,86400/400",
+        ),
         "peer_dinosaur",
     ),
     # kgu35 at 0.8 of its limit, Δt as the frontier makes it (86400 / a whole number): the TC5

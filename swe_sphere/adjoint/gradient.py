@@ -1,6 +1,7 @@
 """The gradient of a scalar of a run's final state with respect to its initial state
-(``gradient``), by a checkpointed reverse sweep (``revolve.sweep``, or ``revolve.two_level`` with states on a disk:
-``disk.DiskTier``) of the explicit steps' adjoints (``explicit.StepAdjoint``)."""
+(``gradient``), by a checkpointed reverse sweep (``revolve.sweep``, or ``revolve.two_level``
+with states on a disk: ``disk.DiskTier``) of the explicit steps' adjoints
+(``explicit.StepAdjoint``)."""
 
 from __future__ import annotations
 
@@ -118,7 +119,7 @@ def gradient(
         substep a step reversed).
     hs : (N,) surface height (m), element-local and continuous, instead of the case's.
     disk : None (every state the sweep holds in memory), True (a second tier: a file in
-        ``tempfile.gettempdir()``) or a folder (str or path) for it. A first forward pass
+        ``tempfile.gettempdir()``, on some systems tmpfs, i.e. memory) or a folder (str or path) for it. A first forward pass
         writes x(0), x(K), x(2K), … there, ⌈n/K⌉ states of 3·N·8 bytes (``Gradient.disk_bytes``:
         the tier grows as n/K while memory stays at ``snapshots`` states); each segment of K
         steps, last first, is then read back and reversed as above with ``snapshots`` states

@@ -1,13 +1,18 @@
 """The CPU cost of a gradient (``swe_sphere.gradient``) against the forward run it differentiates.
 
     python benchmarks/gradient_cost.py [--scene tc5_mountain] [--stepper rk4] [--ne 4 8]
-        [--steps 48 | --days D] [--snapshots S] [--repeat 3] [--source DIR ...]
+        [--steps 48 | --days D] [--snapshots S] [--disk [FOLDER]] [--disk-interval K]
+        [--repeat 3] [--source DIR ...]
 
 A scene of testcases/ (default TC5; np 4, the stepper at the scene's Δt, its ∇⁴), a height misfit
 of the final state, ``--snapshots`` states held in the reverse sweep (default every state;
 fewer: binomial checkpointing, its forward steps printed); ``--days`` sets the steps to the
 scene's Δt's count in that many days (issue 66's target: ``--scene galewsky --stepper kgu35
---ne 16 --days 6 --snapshots 30``). Each ``--source`` (a tree of swe_sphere: a clone, or
+--ne 16 --days 6 --snapshots 30``). ``--disk`` times, in the same runs, the two-level gradient
+besides (``gradient(..., disk=FOLDER or True, disk_interval=K)``: states every K steps, default
+``--snapshots``, in a temporary file, each segment reversed with ``--snapshots`` in memory): its
+CPU s, forward steps, the file's bytes, its ratios to the forward steps and to the gradient in
+memory alone, and whether the two gradients are the same bits. Each ``--source`` (a tree of swe_sphere: a clone, or
 ``git archive COMMIT | tar -x -C DIR``) runs in a one-thread child process
 (``SWE_SPHERE_THREADS=1``), which times with the process's CPU clock, medians of ``--repeat``:
 the forward run (``steps`` steps of the stepper, its model built), the same with the model
@@ -40,13 +45,15 @@ from swe_sphere.config.scene import load_scene
 
 ne, steps, repeat, path, stepper_name = int(sys.argv[1]), float(sys.argv[2]), int(sys.argv[3]), sys.argv[4], sys.argv[5]
 snapshots = None if sys.argv[6] == "all" else int(sys.argv[6])
+disk = {"none": None, "temp": True}.get(sys.argv[7], sys.argv[7])
+interval = None if sys.argv[8] == "none" else int(sys.argv[8])
 scene = load_scene(path, ne=ne, np_=4, stepper=stepper_name)
 steps = int(steps) if steps > 0 else round(-steps * 86400.0 / scene.dt)  # negative: days
 model, stepper, x0 = scene_model(scene)
 cost = HeightMisfit(x0[2] + 10.0)
 gradient(scene, 2, cost, snapshots=min(2, snapshots or 2))  # compile and warm the caches
 clock = time.process_time
-rows = {"forward": [], "run": [], "gradient": [], "model": []}
+rows = {"forward": [], "run": [], "gradient": [], "model": []} | ({"two_level": []} if disk else {})
 for _ in range(repeat):
     t = clock()
     scene_model(scene)
@@ -67,18 +74,29 @@ for _ in range(repeat):
     t = clock()
     g = gradient(scene, steps, cost, snapshots=snapshots)
     rows["gradient"].append(clock() - t)
+    if disk:
+        t = clock()
+        d = gradient(scene, steps, cost, snapshots=snapshots, disk=disk, disk_interval=interval)
+        rows["two_level"].append(clock() - t)
 taken = {"steps": steps, "forward_steps": g.forward_steps, "dt": scene.dt}
+if disk:
+    same = bool(np.array_equal(d.grad, g.grad) and d.cost == g.cost)
+    taken |= {"two_level_forward_steps": d.forward_steps, "disk_bytes": d.disk_bytes, "same_bits": same}
 print(json.dumps({k: statistics.median(v) for k, v in rows.items()} | taken))
 """
 
 
-def measure(source: str | None, ne: int, steps: float, repeat: int, scene: str, stepper: str, snapshots) -> dict:
-    """The child's medians (CPU s) for one tree and grid; steps < 0: that many days."""
+def measure(source: str | None, ne: int, steps: float, repeat: int, scene: str, stepper: str, snapshots, disk) -> dict:
+    """The child's medians (CPU s) for one tree and grid; steps < 0: that many days; ``disk``
+    (folder or True, interval or None) or None: the two-level gradient besides."""
     env = dict(os.environ, SWE_SPHERE_THREADS="1", OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     if source is not None:
         env["PYTHONPATH"] = os.pathsep.join([source, *filter(None, [os.environ.get("PYTHONPATH")])])
     path = str(ROOT / "testcases" / f"{scene}.toml")
+    folder, interval = disk or (None, None)
+    folder = {None: "none", True: "temp"}.get(folder, folder)
     args = [sys.executable, "-c", CHILD, str(ne), str(steps), str(repeat), path, stepper, str(snapshots or "all")]
+    args += [str(folder), str(interval or "none")]
     out = subprocess.run(args, env=env, cwd=source or ROOT, capture_output=True, text=True)  # -c puts the cwd first
     if out.returncode:
         raise SystemExit(f"ne{ne} ({source or 'default'}): exit {out.returncode}\n{out.stderr[-2000:]}")
@@ -93,6 +111,15 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=48)
     parser.add_argument("--days", type=float, help="the steps in this many days instead of --steps")
     parser.add_argument("--snapshots", type=int, help="states held in the reverse sweep (default: every state)")
+    parser.add_argument(
+        "--disk",
+        nargs="?",
+        const=True,
+        help="also the two-level gradient, its states in FOLDER (default: a temporary folder)",
+    )
+    parser.add_argument(
+        "--disk-interval", type=int, help="K, the steps between the states on the disk (default --snapshots)"
+    )
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--source", nargs="+", default=[None], help="swe_sphere trees (default: the one Python finds)")
     args = parser.parse_args()
@@ -106,15 +133,28 @@ def main() -> None:
         )
         for ne in args.ne:
             for source in args.source:
-                r = measure(source, ne, steps, args.repeat, args.scene, args.stepper, args.snapshots)
+                disk = (args.disk, args.disk_interval) if args.disk else None
+                r = measure(source, ne, steps, args.repeat, args.scene, args.stepper, args.snapshots, disk)
                 ratio, whole = r["gradient"] / r["forward"], r["gradient"] / r["run"]
                 figures[f"ne{ne} {source or 'default'}"] = r | {"ratio": ratio, "ratio_run": whole}
+                if args.disk:
+                    two = {
+                        k: r["two_level"] / r[d]
+                        for k, d in [("forward", "forward"), ("run", "run"), ("memory", "gradient")]
+                    }
+                    figures[f"ne{ne} {source or 'default'}"] |= {f"two_level_ratio_{k}": v for k, v in two.items()}
                 print(
                     f"ne{ne} dt {r['dt']:.1f} s, {r['steps']} steps ({r['forward_steps']} taken forward by the gradient)"
                     f"  {source or 'default'}: forward {r['forward']:.4f}, "
                     f"run {r['run']:.4f}, gradient {r['gradient']:.4f} ({ratio:.2f}× the forward, {whole:.2f}× the run; "
                     f"the model's construction {r['model']:.4f})"
                 )
+                if args.disk:
+                    print(
+                        f"  two-level: {r['two_level']:.4f} ({two['forward']:.2f}× the forward, {two['run']:.2f}× the run, "
+                        f"{two['memory']:.3f}× the gradient in memory), {r['two_level_forward_steps']} steps taken forward, "
+                        f"{r['disk_bytes']} bytes on the disk, the same bits as in memory: {r['same_bits']}"
+                    )
 
 
 if __name__ == "__main__":

@@ -1,6 +1,7 @@
 """The gradient of a scalar of a run's final state with respect to its initial state
-(``gradient``), by a checkpointed reverse sweep (``revolve.sweep``) of the explicit steps'
-adjoints (``explicit.StepAdjoint``)."""
+(``gradient``), by a checkpointed reverse sweep (``revolve.sweep``, or ``revolve.two_level``
+with states on a disk: ``disk.DiskTier``) of the explicit steps' adjoints
+(``explicit.StepAdjoint``)."""
 
 from __future__ import annotations
 
@@ -14,8 +15,9 @@ from ..grid.cubed_sphere import CubedSphere
 from ..model.shallow_water import ShallowWater
 from ..steppers import make_stepper
 from ..steppers.runge_kutta import ExplicitRK
+from .disk import DiskTier
 from .explicit import StepAdjoint
-from .revolve import sweep
+from .revolve import sweep, two_level
 
 f64 = wp.float64
 
@@ -42,7 +44,8 @@ class Gradient(NamedTuple):
     ``final`` (3, N) the final state; ``forward_steps`` the steps taken forward (the cost's
     included), ``reverse_steps`` n. With ``parameters=True``: ``d_nu`` ∂J/∂ν (ν = ν_div, the
     wind's ∇⁴ coefficient; J per m⁴ s⁻¹), ``d_nu_s`` ∂J/∂ν_s (the surface's), ``d_hs`` (N,)
-    ∂J/∂hs in the mass inner product as ``grad`` (x0 held fixed); None otherwise."""
+    ∂J/∂hs in the mass inner product as ``grad`` (x0 held fixed); None otherwise.
+    ``disk_bytes``: the size of the states' file on the disk (``disk=``; 0 without it)."""
 
     cost: float
     grad: np.ndarray
@@ -52,6 +55,7 @@ class Gradient(NamedTuple):
     d_nu: float | None = None
     d_nu_s: float | None = None
     d_hs: np.ndarray | None = None
+    disk_bytes: int = 0
 
 
 class _Topography:
@@ -93,6 +97,8 @@ def gradient(
     snapshots: int | None = None,
     parameters: bool = False,
     hs=None,
+    disk=None,
+    disk_interval: int | None = None,
     device="cpu",
 ) -> Gradient:
     """The cost J(x(n)) of ``scene`` run ``steps`` steps from x0 and its gradient dJ/dx(0)
@@ -112,23 +118,52 @@ def gradient(
     parameters : also the ∇⁴ coefficients' and the topography's gradients (an extra ∇⁴
         substep a step reversed).
     hs : (N,) surface height (m), element-local and continuous, instead of the case's.
+    disk : None (every state the sweep holds in memory), True (a second tier: a file in
+        ``tempfile.gettempdir()``, on some systems tmpfs, i.e. memory) or a folder (str or path) for it. A first forward pass
+        writes x(0), x(K), x(2K), … there, ⌈n/K⌉ states of 3·N·8 bytes (``Gradient.disk_bytes``:
+        the tier grows as n/K while memory stays at ``snapshots`` states); each segment of K
+        steps, last first, is then read back and reversed as above with ``snapshots`` states
+        in memory: ``revolve.two_level_steps(n, snapshots, K)`` forward steps in all, 2n −
+        ⌈n/K⌉ where K ≤ snapshots (each step taken forward about twice), the same bits. The
+        file has no name in the folder and is gone when ``gradient`` returns or raises.
+    disk_interval : K ≥ 1, the steps between the states written (None: ``snapshots``, the
+        most that reverses a segment with every state held; 1: every state on the disk, each
+        step taken forward once).
     device : "cpu" (one rank; CUDA and MPI not yet).
 
-    Returns a ``Gradient``. ValueError for steps or snapshots < 1, x0 or hs of another shape,
-    or a scene the adjoint cannot serve (``explicit._refusal``, a non-explicit stepper).
+    Returns a ``Gradient``. ValueError for steps, snapshots or disk_interval < 1, a
+    disk_interval without a disk, a disk that is not an existing folder, x0 or hs of another
+    shape, or a scene the adjoint cannot serve (``explicit._refusal``, a non-explicit stepper);
+    OSError from the disk (full, unwritable).
 
     Sources: the adjoints of ``explicit`` (the tendency, the DSS and the ∇⁴ transposed by
-    hand), checkpointing by Griewank & Walther (2000), ACM TOMS 26:19.
+    hand), checkpointing by Griewank & Walther (2000), ACM TOMS 26:19, in two levels by Stumm
+    & Walther (2009), SIAM J. Sci. Comput. 31:1946.
     """
     steps = int(steps)
     snapshots = steps if snapshots is None else int(snapshots)
     if steps < 1 or snapshots < 1:
         raise ValueError(f"steps and snapshots must be >= 1 (got {steps}, {snapshots})")
+    disk = None if disk is False else disk
+    if disk_interval is not None and (disk is None or int(disk_interval) < 1):
+        raise ValueError(f"disk_interval must be >= 1 and needs a disk (got {disk_interval}, disk={disk!r})")
     model, stepper, initial = scene_model(scene, device, hs)
     x0 = initial if x0 is None else np.asarray(x0, dtype=float)
     if x0.shape != (3, model.N):
         raise ValueError(f"x0 must have shape (3, {model.N}) (got {x0.shape})")
     adjoint = StepAdjoint(model, stepper.table(), stepper.dt, parameters)
+    interval = snapshots if disk_interval is None else int(disk_interval)
+    found, mu, taken, used = _reverse_run(model, stepper, adjoint, x0, steps, cost, snapshots, disk, interval)
+    extra = {}
+    if parameters:
+        extra = {"d_nu": adjoint.d_nu[0], "d_nu_s": adjoint.d_nu[1], "d_hs": adjoint.hs_gradient()}
+    return Gradient(found["cost"], mu, found["final"], taken, steps, disk_bytes=used, **extra)
+
+
+def _reverse_run(model, stepper, adjoint, x0, steps, cost, snapshots, disk, interval):
+    """({"cost": J, "final": x(n)}, μ(0) numpy, forward steps, disk bytes) of ``gradient``: the
+    run from x0 (3, N) numpy and its reverse sweep, in memory or with a disk tier."""
+    device = model.device
     work = wp.zeros((3, model.N), dtype=f64, device=device)  # the stepper steps this array only
     stepper.prepare(work)
 
@@ -141,19 +176,24 @@ def gradient(
     mu = wp.zeros((3, model.N), dtype=f64, device=device)
     found = {}
 
+    def finish(xn):  # J at x(n) and μ = R Q λ there
+        found["final"] = xn.numpy()
+        found["cost"], lam = cost(found["final"], model.grid.spheremp)
+        for launch in model.topology.dss(wp.array(lam, dtype=f64, device=device), False, mu):
+            launch.launch()
+
     def reverse(xk, k):
-        if k == steps - 1:  # the sweep's first reversal: x(n) is one step on, J and μ = R Q λ there
+        if "final" not in found:  # in memory alone, x(n) is one step on from the first reversed
             final = wp.clone(xk)
             advance(final)
-            found["final"] = final.numpy()
-            found["cost"], lam = cost(found["final"], model.grid.spheremp)
-            for launch in model.topology.dss(wp.array(lam, dtype=f64, device=device), False, mu):
-                launch.launch()
+            finish(final)
         adjoint.reverse(xk, mu)
 
-    x = wp.array(x0, dtype=f64, device=device)
-    taken = 1 + sweep(steps, snapshots, x, advance, reverse, wp.clone)
-    extra = {}
-    if parameters:
-        extra = {"d_nu": adjoint.d_nu[0], "d_nu_s": adjoint.d_nu[1], "d_hs": adjoint.hs_gradient()}
-    return Gradient(found["cost"], mu.numpy(), found["final"], taken, steps, **extra)
+    x, used = wp.array(x0, dtype=f64, device=device), 0
+    if disk is None:
+        taken = 1 + sweep(steps, snapshots, x, advance, reverse, wp.clone)
+    else:
+        with DiskTier(disk, (3, model.N), device) as tier:
+            taken = two_level(steps, snapshots, interval, x, advance, reverse, wp.clone, tier, finish)
+            used = tier.bytes
+    return found, mu.numpy(), taken, used

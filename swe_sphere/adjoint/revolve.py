@@ -12,6 +12,12 @@ that the two agree and that ``sweep`` takes exactly that many. ``sweep`` splits 
 form (``split``: t is convex in l, its increments r nondecreasing, so m + t(l − m, c) +
 t(m, c + 1) is convex in m and bisected), not the recursion, which costs O(l² c) (6.7 s of
 Python for l = 1284, c = 29, more than the 6-day Galewsky ne16 run it would reverse).
+
+``two_level`` adds a second, slower tier (Stumm & Walther 2009, SIAM J. Sci. Comput. 31:1946,
+"MultiStage approaches for optimal offline checkpointing"; Aupy, Herrmann, Hovland & Robert
+2016, SIAM J. Sci. Comput. 38:C232): a first forward pass writes x(0), x(K), x(2K), … to it,
+then each segment of K steps, last first, is reversed from its state read back by ``sweep``
+with ``snapshots`` states in memory; ``two_level_steps`` counts its forward steps.
 """
 
 from __future__ import annotations
@@ -100,4 +106,40 @@ def sweep(n: int, snapshots: int, x0, advance, reverse, copy) -> int:
         reverse(xa, a)
 
     part(0, n, x0, snapshots - 1)
+    return taken
+
+
+def two_level_steps(n: int, snapshots: int, interval: int) -> int:
+    """The forward steps of ``two_level``: n (the first pass, to x(n)) + Σ_j t(L_j, snapshots)
+    over its segments, ⌊n/K⌋ of L = K = ``interval`` steps and one of n mod K where that is
+    not 0 (t = ``griewank_steps``; with K ≤ snapshots, t(L, s) = L − 1: 2n − ⌈n/K⌉ in all)."""
+    whole, rest = divmod(int(n), int(interval))
+    return n + whole * griewank_steps(interval, snapshots) + (griewank_steps(rest, snapshots) if rest else 0)
+
+
+def two_level(n: int, snapshots: int, interval: int, x0, advance, reverse, copy, tier, final) -> int:
+    """The reverse sweep of ``sweep`` over n steps with a second tier: x0 is advanced in place to
+    x(n) (then ``final(x)`` is called, before any ``reverse``), ``tier.save(j, x)`` storing
+    x(jK) on the way (K = ``interval``, j = 0 … ⌈n/K⌉ − 1); then for j from the last down,
+    ``tier.load(j)`` returns a new state equal to x(jK) and the segment's steps jK … min(jK +
+    K, n) − 1 are reversed by ``sweep`` with at most ``snapshots`` states held (the loaded one
+    included; where K > snapshots, ``sweep``'s work copy besides, from which it recomputes a
+    stretch). ``reverse``, ``advance`` and ``copy`` as ``sweep``'s. Returns the forward steps
+    taken, ``two_level_steps(n, snapshots, interval)``. ValueError for n, snapshots or
+    interval < 1."""
+    if n < 1 or snapshots < 1 or interval < 1:
+        raise ValueError(f"a two-level sweep needs n, snapshots and interval >= 1 (got {n}, {snapshots}, {interval})")
+    starts = range(0, n, interval)
+    for j, a in enumerate(starts):
+        tier.save(j, x0)
+        advance(x0, min(interval, n - a))
+    final(x0)
+    taken = n
+    for j in reversed(range(len(starts))):
+        a = starts[j]
+
+        def shifted(x, k, a=a):
+            reverse(x, a + k)
+
+        taken += sweep(min(interval, n - a), snapshots, tier.load(j), advance, shifted, copy)
     return taken

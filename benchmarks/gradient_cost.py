@@ -1,14 +1,16 @@
 """The CPU cost of a gradient (``swe_sphere.gradient``) against the forward run it differentiates.
 
     python benchmarks/gradient_cost.py [--scene tc5_mountain] [--stepper rk4] [--ne 4 8]
-        [--steps 48 | --days D] [--snapshots S] [--disk [FOLDER]] [--disk-interval K]
+        [--steps 48 | --days D] [--dt DT] [--snapshots S] [--disk [FOLDER]] [--disk-interval K]
         [--repeat 3] [--source DIR ...]
 
-A scene of testcases/ (default TC5; np 4, the stepper at the scene's Δt, its ∇⁴), a height misfit
+A scene of testcases/ (default TC5; np 4, the stepper at the scene's Δt rescaled to the grid or
+``--dt`` s, its ∇⁴), a height misfit
 of the final state, ``--snapshots`` states held in the reverse sweep (default every state;
 fewer: binomial checkpointing, its forward steps printed); ``--days`` sets the steps to the
 scene's Δt's count in that many days (issue 66's target: ``--scene galewsky --stepper kgu35
---ne 16 --days 6 --snapshots 30``). ``--disk`` times, in the same runs, the two-level gradient
+--ne 16 --days 6 --dt 403.7383177570093 --snapshots 30``, the Δt of the scene's former default
+at ne16 np4, 86400/214 s). ``--disk`` times, in the same runs, the two-level gradient
 besides (``gradient(..., disk=FOLDER or True, disk_interval=K)``: states every K steps, default
 ``--snapshots``, in a temporary file, each segment reversed with ``--snapshots`` in memory): its
 CPU s, forward steps, the file's bytes, its ratios to the forward steps and to the gradient in
@@ -47,7 +49,8 @@ ne, steps, repeat, path, stepper_name = int(sys.argv[1]), float(sys.argv[2]), in
 snapshots = None if sys.argv[6] == "all" else int(sys.argv[6])
 disk = {"none": None, "temp": True}.get(sys.argv[7], sys.argv[7])
 interval = None if sys.argv[8] == "none" else int(sys.argv[8])
-scene = load_scene(path, ne=ne, np_=4, stepper=stepper_name)
+dt = None if sys.argv[9] == "scene" else float(sys.argv[9])
+scene = load_scene(path, ne=ne, np_=4, stepper=stepper_name, dt=dt)
 steps = int(steps) if steps > 0 else round(-steps * 86400.0 / scene.dt)  # negative: days
 model, stepper, x0 = scene_model(scene)
 cost = HeightMisfit(x0[2] + 10.0)
@@ -86,9 +89,12 @@ print(json.dumps({k: statistics.median(v) for k, v in rows.items()} | taken))
 """
 
 
-def measure(source: str | None, ne: int, steps: float, repeat: int, scene: str, stepper: str, snapshots, disk) -> dict:
+def measure(
+    source: str | None, ne: int, steps: float, repeat: int, scene: str, stepper: str, snapshots, disk, dt=None
+) -> dict:
     """The child's medians (CPU s) for one tree and grid; steps < 0: that many days; ``disk``
-    (folder or True, interval or None) or None: the two-level gradient besides."""
+    (folder or True, interval or None) or None: the two-level gradient besides; ``dt`` s or None
+    (the scene's, rescaled)."""
     env = dict(os.environ, SWE_SPHERE_THREADS="1", OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     if source is not None:
         env["PYTHONPATH"] = os.pathsep.join([source, *filter(None, [os.environ.get("PYTHONPATH")])])
@@ -96,7 +102,7 @@ def measure(source: str | None, ne: int, steps: float, repeat: int, scene: str, 
     folder, interval = disk or (None, None)
     folder = {None: "none", True: "temp"}.get(folder, folder)
     args = [sys.executable, "-c", CHILD, str(ne), str(steps), str(repeat), path, stepper, str(snapshots or "all")]
-    args += [str(folder), str(interval or "none")]
+    args += [str(folder), str(interval or "none"), "scene" if dt is None else repr(float(dt))]
     out = subprocess.run(args, env=env, cwd=source or ROOT, capture_output=True, text=True)  # -c puts the cwd first
     if out.returncode:
         raise SystemExit(f"ne{ne} ({source or 'default'}): exit {out.returncode}\n{out.stderr[-2000:]}")
@@ -110,6 +116,7 @@ def main() -> None:
     parser.add_argument("--ne", type=int, nargs="+", default=[4, 8])
     parser.add_argument("--steps", type=int, default=48)
     parser.add_argument("--days", type=float, help="the steps in this many days instead of --steps")
+    parser.add_argument("--dt", type=float, help="the step, s (default: the scene's, rescaled to the grid)")
     parser.add_argument("--snapshots", type=int, help="states held in the reverse sweep (default: every state)")
     parser.add_argument(
         "--disk",
@@ -134,7 +141,7 @@ def main() -> None:
         for ne in args.ne:
             for source in args.source:
                 disk = (args.disk, args.disk_interval) if args.disk else None
-                r = measure(source, ne, steps, args.repeat, args.scene, args.stepper, args.snapshots, disk)
+                r = measure(source, ne, steps, args.repeat, args.scene, args.stepper, args.snapshots, disk, args.dt)
                 ratio, whole = r["gradient"] / r["forward"], r["gradient"] / r["run"]
                 figures[f"ne{ne} {source or 'default'}"] = r | {"ratio": ratio, "ratio_run": whole}
                 if args.disk:

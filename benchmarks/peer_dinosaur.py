@@ -1,6 +1,8 @@
-"""Galewsky et al. (2004) and Williamson et al. (1992) case 5 in Dinosaur beside swe_sphere:
+"""Galewsky et al. (2004) and Williamson et al. (1992) cases 5 and 6 in Dinosaur beside swe_sphere:
 Galewsky's day-6 vorticity error or TC5's day-15 h + hs error against T341, and CPU seconds a
-simulated day, one thread each, in one run (``--case galewsky``, the default, or ``tc5``).
+simulated day, one thread each, in one run (``--case galewsky``, the default, ``tc5`` or ``tc6``:
+Rossby–Haurwitz wave 4's day-14 h + hs, no mountain, started as the others from the project's
+state at the peer's nodes).
 
 Dinosaur (Google's JAX spectral core, PyPI ``dinosaur`` 1.5) is a peer, not a dependency: it runs
 in a virtual environment of its own, made once with::
@@ -64,9 +66,10 @@ last, / (days − 1) (the first day's first step, with its launch recording, lef
 default runs are its former default, 216 s at ne30 np4, and that Δt rescaled to ne16 (86400/214 s),
 with the scene's ν (the 3-hour e-folding rule), output every day, ``-s case.reference=T341``. ``--swe`` names swe_sphere's runs,
 ``neNE/npNP/STEPPER`` (the scene's Δt) or ``neNE/npNP/STEPPER,DT`` (``DT`` s or ``86400/N``).
-Figures: ``benchmarks/results/peer_dinosaur.json`` (Galewsky), ``peer_dinosaur_tc5.json`` (TC5).
+Figures: ``benchmarks/results/peer_dinosaur.json`` (Galewsky), ``peer_dinosaur_tc5.json`` (TC5),
+``peer_dinosaur_tc6.json`` (TC6).
 
-    python benchmarks/peer_dinosaur.py [--case galewsky|tc5] [--truncations T42 T85 T170]
+    python benchmarks/peer_dinosaur.py [--case galewsky|tc5|tc6] [--truncations T42 T85 T170]
         [--swe ne16/np4/fbrk32,86400/214 ne16/np4/kgu35,400 ...] [--rounds 1] [--python /work/venvs/dinosaur/bin/python]
 """
 
@@ -146,6 +149,22 @@ STUDIES = {
             "ne16/np6/kgu35,86400/235",
         ),
         "peer_dinosaur_tc5",
+    ),
+    # kgu35 at 0.8 of its limit, the TC6 frontier's grids and Δt (docs/efficiency.md)
+    "tc6": Study(
+        "tc6_rossby_haurwitz",
+        14.0,
+        "h_surface",
+        "h + hs",
+        (
+            "ne4/np6/kgu35,86400/94",
+            "ne8/np4/kgu35,86400/80",
+            "ne8/np5/kgu35,86400/127",
+            "ne8/np6/kgu35,86400/187",
+            "ne16/np4/kgu35,86400/159",
+            "ne16/np5/kgu35,86400/254",
+        ),
+        "peer_dinosaur_tc6",
     ),
 }
 

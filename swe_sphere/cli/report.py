@@ -48,6 +48,10 @@ def _control_line(c) -> str:
         else "cfl"
     )
     cfl = "" if c.cfl is None else f", Courant target {c.cfl:g}"
+    if c.mode == "error":
+        cfl = ", no Courant cap" if c.cfl is None else f", Courant cap {c.cfl:.3g}"
+        if c.cfl_default:
+            cfl += " (the default: 0.9 x the stepper's measured limit; -s time.cfl=false: none)"
     most = "" if c.dt_max is None else f", dt_max {c.dt_max:g} s"
     return f"{what}{cfl}; dt above is the first step, dt_min {c.dt_min:g} s{most}; steps land on the output times"
 

@@ -359,8 +359,8 @@ CONTROL_KEYS = {
 }
 DT_MIN_FRACTION = 1e-3  # dt_min's default: this fraction of the first step
 # time.cfl's default: this fraction of the stepper's measured Courant limit (``Stepper.courant_limit``,
-# a bisection on TC2 at t = 0): the target under "cfl", the cap under "error" (TC5, TC6 and Galewsky
-# reach their limits at 0.83-0.95 of TC2's in the same Courant number: docs/methods.md)
+# a bisection on TC2 at t = 0): the target under "cfl", the cap under "error" (at ne8 the pairs' limits
+# on TC5, TC6 and Galewsky are 0.99-1.42 x TC2's in the same Courant number: docs/efficiency.md)
 CFL_FRACTION = 0.9
 
 
@@ -432,14 +432,11 @@ def _cfl(table: dict, mode: str, cls, stepper: str) -> tuple[float | None, bool]
     "error" ``false``: no cap), else ``CFL_FRACTION`` × the stepper's measured Courant limit
     (under "cfl" the target, refused for a stepper without one; under "error" the cap, none
     for a stepper without one: the IMEX pairs)."""
-    if "cfl" not in table:
-        limit = measured_courant_limit(cls)
-        if limit is None and mode == "cfl":
-            raise SceneError(f"time.cfl is missing: {stepper} has no measured Courant limit to aim below")
-        return (None, False) if limit is None else (CFL_FRACTION * limit, mode == "error")
-    cfl = table["cfl"]
-    if cfl is False and mode == "error":
-        return None, False
+    limit, cfl = measured_courant_limit(cls), table.get("cfl")
+    if "cfl" not in table and limit is None and mode == "cfl":
+        raise SceneError(f"time.cfl is missing: {stepper} has no measured Courant limit to aim below")
+    if "cfl" not in table or (cfl is False and mode == "error"):
+        return (None, False) if limit is None or cfl is False else (CFL_FRACTION * limit, mode == "error")
     if isinstance(cfl, bool) or not is_number(cfl) or not cfl > 0:
         off = " or false (no cap)" if mode == "error" else ""
         raise SceneError(f"time.cfl must be > 0{off} (got {got(cfl)})")

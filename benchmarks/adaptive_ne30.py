@@ -25,6 +25,11 @@ file written; the runs and helpers are ``adaptive_proportionality.py``'s. For ea
   simulated day, against the cheapest qualifying fixed run;
 - Galewsky only: each pair's qualifying run's Δt over time (smallest, mean and largest
   accepted Δt a day) from its ``StepControl.history``.
+
+With ``--dt-runs PAIR@RTOL ...`` only Galewsky's Δt over time at those tolerances instead
+(tighter ones, where the error controller and not the Courant cap sets the step): the
+reference, then each run's temporal error, steps, CPU s a day and Δt a day; written to
+``results/adaptive_ne30_dt.json``.
 """
 
 from __future__ import annotations
@@ -113,6 +118,31 @@ def case_runs(args, label: str, days: float, fixed_specs, out: dict) -> None:
     out[label] |= {"reference_steps": ref["accepted"], "fixed": fixed, "pairs": pairs}
 
 
+def dt_runs(args, days: float, out: dict) -> None:
+    """``--dt-runs``: Galewsky's Δt over time at each PAIR@RTOL, with its temporal error."""
+    scene, reference = CASES["galewsky"]
+    over = {"case.reference": reference}
+    ref = run(scene, args.ne, days, "dp54", control={"control": "error", "rtol": args.rtol_ref}, overrides=over)
+    print(
+        f"\n## {scene} ne{args.ne} np4, {days:g} days: reference dp54 rtol {args.rtol_ref:g}, {ref['accepted']} steps"
+    )
+    rows = {}
+    for spec in args.dt_runs:
+        pair, rtol = spec.split("@")
+        r = run(scene, args.ne, days, pair, control={"control": "error", "rtol": float(rtol)}, overrides=over)
+        ctl, e = r["sim"].control, temporal(r, ref)
+        daily = by_day(ctl.history, days)
+        rows[spec] = {"temporal": e, "accepted": r["accepted"], "rejected": r["rejected"], "capped": ctl.capped}
+        rows[spec] |= {"cpu": r["cpu"], "dt_by_day": daily}
+        print(
+            f"{spec}: temporal {e:.3e}, {r['accepted']} steps ({r['rejected']} rejected, the cap set {ctl.capped}), "
+            f"{r['cpu'] / days:.3f} CPU s a day",
+            flush=True,
+        )
+        print("  " + "  ".join(f"d{i + 1} {a:.0f}/{m:.0f}/{b:.0f}" for i, (a, m, b) in enumerate(daily)), flush=True)
+    out["galewsky_dt"] = {"days": days, "reference_steps": ref["accepted"], "runs": rows}
+
+
 def by_day(history, days: float) -> list:
     """(smallest, mean, largest) accepted Δt (s) of each day, from (time reached (s), Δt, error)
     rows; a step counts for the day it ends in, the last one landed on a day's end in that day."""
@@ -144,13 +174,17 @@ def main() -> None:
     parser.add_argument("--rtol-ref", type=float, default=1e-8)
     parser.add_argument("--tc5-fixed", nargs="+", default=["rk4@0.79", "rk4@1.24", "kgu35@0.8"])
     parser.add_argument("--galewsky-fixed", nargs="+", default=["fbrk32@1.24", "fbrk32@1.05", "kgu35@1.63"])
+    parser.add_argument("--dt-runs", nargs="+", help="PAIR@RTOL: Galewsky's Δt over time at these instead")
     args = parser.parse_args()
     init_warp()
-    with recorded(__file__) as figures:
+    with recorded(__file__, "adaptive_ne30_dt" if args.dt_runs else None) as figures:
         print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}", flush=True)
         fixed = {"tc5": args.tc5_fixed, "galewsky": args.galewsky_fixed}
         days = {"tc5": args.tc5_days, "galewsky": args.galewsky_days}
         steppers = sorted({s.split("@")[0] for c in args.cases for s in fixed[c]} | {*args.pairs, "dp54"})
+        if args.dt_runs:
+            args.cases, args.pairs = ["galewsky"], sorted({s.split("@")[0] for s in args.dt_runs} | {"dp54"})
+            steppers = args.pairs
         for stepper in steppers:  # compile every kernel before any timing
             run(
                 CASES[args.cases[0]][0],
@@ -159,8 +193,10 @@ def main() -> None:
                 stepper,
                 control={"control": "error"} if stepper in args.pairs else None,
             )
-        for label in args.cases:
+        for label in [] if args.dt_runs else args.cases:
             case_runs(args, label, days[label], fixed[label], figures)
+        if args.dt_runs:
+            dt_runs(args, args.galewsky_days, figures)
             print(f"load average: {' '.join(f'{x:.2f}' for x in os.getloadavg())}", flush=True)
         print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
 

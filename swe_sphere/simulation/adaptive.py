@@ -7,10 +7,11 @@ exactly (an output, restart or end time); the stepper told the Δt (``Stepper.se
 ``error`` control a step whose error norm (``control.ErrorNorm`` of the pair's estimate) is
 above 1 is rejected: the state and the stepper's state (``Stepper.state``) put back, retried
 at the controller's shorter Δt. A CFL target (``control.CflController``) is the whole control
-under ``cfl``, a cap under ``error``: by default (``SceneControl.cfl_default``) 0.9 × the
-pair's measured Courant limit, holding the Courant number only (no growth bound: where it does
-not bind, the steps are the error controller's, bit for bit). A proposal below dt_min stops as a blow-up (``BlowUp``:
-step, time, Δt). ``state``/``restore`` keep the proposal, the controller's history and the
+under ``cfl``, a cap under ``error``: by default (``SceneControl.cfl_default``)
+``config.resolve.CFL_FRACTION`` × the pair's measured Courant limit, holding the Courant number
+only (no growth bound: where it does not bind, the steps are the error controller's, bit for
+bit); ``capped`` counts the accepted steps whose next Δt it set. A proposal below dt_min stops
+as a blow-up (``BlowUp``: step, time, Δt). ``state``/``restore`` keep the proposal, the controller's history and the
 counts, so that a restart continues bitwise.
 
 ``steer`` is ``Simulation.run``'s loop under control: accepted steps to each time an activity

@@ -26,10 +26,10 @@ file written; the runs and helpers are ``adaptive_proportionality.py``'s. For ea
 - Galewsky only: each pair's qualifying run's Δt over time (smallest, mean and largest
   accepted Δt a day) from its ``StepControl.history``.
 
-With ``--dt-runs PAIR@RTOL ...`` only Galewsky's Δt over time at those tolerances instead
-(tighter ones, where the error controller and not the Courant cap sets the step): the
-reference, then each run's temporal error, steps, CPU s a day and Δt a day; written to
-``results/adaptive_ne30_dt.json``.
+With ``--dt-runs PAIR@RTOL[@CFL] ...`` only Galewsky's Δt over time at those tolerances instead
+(tighter ones, where the error controller and not the Courant cap sets the step; CFL a
+``time.cfl``, ``false``: no cap): the reference, then each run's temporal error, steps, CPU s a
+day and Δt a day; written to ``results/adaptive_ne30_dt.json`` (``--results``: another name).
 """
 
 from __future__ import annotations
@@ -128,8 +128,10 @@ def dt_runs(args, days: float, out: dict) -> None:
     )
     rows = {}
     for spec in args.dt_runs:
-        pair, rtol = spec.split("@")
-        r = run(scene, args.ne, days, pair, control={"control": "error", "rtol": float(rtol)}, overrides=over)
+        pair, rtol, *cfl = spec.split("@")
+        control = {"control": "error", "rtol": float(rtol)}
+        control |= {"cfl": False if cfl[0] == "false" else float(cfl[0])} if cfl else {}
+        r = run(scene, args.ne, days, pair, control=control, overrides=over)
         ctl, e = r["sim"].control, temporal(r, ref)
         daily = by_day(ctl.history, days)
         rows[spec] = {"temporal": e, "accepted": r["accepted"], "rejected": r["rejected"], "capped": ctl.capped}
@@ -174,10 +176,11 @@ def main() -> None:
     parser.add_argument("--rtol-ref", type=float, default=1e-8)
     parser.add_argument("--tc5-fixed", nargs="+", default=["rk4@0.79", "rk4@1.24", "kgu35@0.8"])
     parser.add_argument("--galewsky-fixed", nargs="+", default=["fbrk32@1.24", "fbrk32@1.05", "kgu35@1.63"])
-    parser.add_argument("--dt-runs", nargs="+", help="PAIR@RTOL: Galewsky's Δt over time at these instead")
+    parser.add_argument("--dt-runs", nargs="+", help="PAIR@RTOL[@CFL]: Galewsky's Δt over time at these instead")
+    parser.add_argument("--results", default="adaptive_ne30_dt", help="--dt-runs' results file's name")
     args = parser.parse_args()
     init_warp()
-    with recorded(__file__, "adaptive_ne30_dt" if args.dt_runs else None) as figures:
+    with recorded(__file__, args.results if args.dt_runs else None) as figures:
         print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}", flush=True)
         fixed = {"tc5": args.tc5_fixed, "galewsky": args.galewsky_fixed}
         days = {"tc5": args.tc5_days, "galewsky": args.galewsky_days}

@@ -49,20 +49,21 @@ DAY = 86400.0
 SNAPSHOT = 10800.0  # s: the sweep's 3-hourly snapshots, which its fixed Δt divide
 
 
-def build(case, ne, days, stepper, dt=None, control=None):
+def build(case, ne, days, stepper, dt=None, control=None, overrides=None):
     """A ``Simulation`` of ``case`` at ``ne`` (np 4) over ``days`` with ``stepper`` at ``dt``
-    (None: the scene's), under ``control`` (a dict of [time] keys, or None: fixed Δt); one
-    output, at the end."""
-    overrides = {"output.every_days": days}
+    (None: the scene's), under ``control`` (a dict of [time] keys, or None: fixed Δt), with the
+    scene ``overrides`` ({"section.key": value}); one output, at the end."""
+    overrides = {"output.every_days": days, **(overrides or {})}
     overrides |= {f"time.{k}": v for k, v in (control or {}).items()}
     scene = load_scene(case, ne=ne, np_=4, dt=dt, days=days, stepper=stepper, overrides=overrides)
     return Simulation(scene, "cpu", progress=False)
 
 
-def run(case, ne, days, stepper, dt=None, control=None) -> dict:
-    """One run: its final h + hs, CPU s, steps (accepted, rejected), Δt (smallest, mean,
-    largest), the final diagnostics; ``blowup`` the line of a run that did not finish."""
-    sim = build(case, ne, days, stepper, dt, control)
+def run(case, ne, days, stepper, dt=None, control=None, overrides=None) -> dict:
+    """One run (``build``'s arguments): its final h + hs, CPU s, steps (accepted, rejected), Δt
+    (smallest, mean, largest), the final diagnostics; ``blowup`` the line of a run that did not
+    finish."""
+    sim = build(case, ne, days, stepper, dt, control, overrides)
     start = time.process_time()
     try:
         result = sim.run(None)

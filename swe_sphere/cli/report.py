@@ -42,12 +42,18 @@ def _mesh_lines(sim) -> list[str]:
 
 def _control_line(c) -> str:
     """The header's line of a scene's step control (a ``SceneControl``)."""
+    from ..config.resolve import CFL_FRACTION
+
     what = (
         f"error: rtol {c.rtol:g}, atol {c.atol_wind:g} m/s (u, v) and {c.atol_h:g} m (h), controller {c.controller}"
         if c.mode == "error"
         else "cfl"
     )
     cfl = "" if c.cfl is None else f", Courant target {c.cfl:g}"
+    if c.mode == "error":
+        cfl = ", no Courant cap" if c.cfl is None else f", Courant cap {c.cfl:.3g}"
+        if c.cfl_default:
+            cfl += f" (the default: {CFL_FRACTION:g} x the stepper's measured limit; -s time.cfl=false: none)"
     most = "" if c.dt_max is None else f", dt_max {c.dt_max:g} s"
     return f"{what}{cfl}; dt above is the first step, dt_min {c.dt_min:g} s{most}; steps land on the output times"
 

@@ -358,6 +358,10 @@ CONTROL_KEYS = {
     "error": ("rtol", "atol", "controller", "cfl", "dt_min", "dt_max"),
 }
 DT_MIN_FRACTION = 1e-3  # dt_min's default: this fraction of the first step
+# time.cfl's default: this fraction of the stepper's measured Courant limit (``Stepper.courant_limit``,
+# a bisection on TC2 at t = 0): the target under "cfl", the cap under "error" (at ne8 the pairs' limits
+# on TC5, TC6 and Galewsky are 0.99-1.42 x TC2's in the same Courant number: docs/efficiency.md)
+CFL_FRACTION = 0.9
 
 
 def is_controlled(table: dict) -> bool:
@@ -370,11 +374,12 @@ def resolve_control(table: dict, stepper: str, options: dict, dt: float) -> Scen
     """[time]'s step control for ``stepper`` with ``options`` and the first step ``dt`` (s):
     None for ``control = "fixed"`` (the default). Defaults: rtol 1e-4; atol rtol in each
     field's units (m s⁻¹, m); the controller Ranocha et al.'s PID for the pair where tuned
-    (``pid_bs32``...), else ARKODE's PI; under "cfl" the target 0.9 × the stepper's measured
-    Courant limit; dt_min ``DT_MIN_FRACTION`` × dt. Raises ``SceneError``, one line naming the
-    key: an unknown mode, a key the mode does not read, a stepper that cannot change its dt,
-    a pair-less stepper under "error", rtol ≤ 0, a bad atol, an unknown controller, cfl ≤ 0,
-    dt_min ≤ 0 or above dt_max."""
+    (``pid_bs32``...), else ARKODE's PI; cfl ``CFL_FRACTION`` × the stepper's measured
+    Courant limit, under "cfl" the target, under "error" a cap (``false``: none; none for a
+    stepper without a measured limit); dt_min ``DT_MIN_FRACTION`` × dt. Raises
+    ``SceneError``, one line naming the key: an unknown mode, a key the mode does not read, a
+    stepper that cannot change its dt, a pair-less stepper under "error", rtol ≤ 0, a bad
+    atol, an unknown controller, cfl ≤ 0, dt_min ≤ 0 or above dt_max."""
     mode = table.get("control", "fixed")
     if mode not in CONTROL_KEYS:
         raise SceneError(f"time.control must be one of {', '.join(CONTROL_KEYS)} (got {mode!r})")
@@ -404,15 +409,14 @@ def resolve_control(table: dict, stepper: str, options: dict, dt: float) -> Scen
         controller = table.get("controller", f"pid_{stepper}" if f"pid_{stepper}" in CONTROLLERS else "pi")
         if controller not in CONTROLLERS:
             raise SceneError(f"time.controller must be one of {', '.join(CONTROLLERS)} (got {controller!r})")
-    cfl = table.get("cfl", _default_cfl(cls, stepper) if mode == "cfl" else None)
-    if cfl is not None and not cfl > 0:
-        raise SceneError(f"time.cfl must be > 0 (got {cfl!r})")
+    cfl, cfl_default = _cfl(table, mode, cls, stepper)
     dt_min, dt_max = table.get("dt_min", DT_MIN_FRACTION * dt), table.get("dt_max")
     if not dt_min > 0 or (dt_max is not None and not dt_max > 0):
         raise SceneError(f"time.dt_min and time.dt_max must be > 0 (got {dt_min!r}, {dt_max!r})")
     if dt_max is not None and dt_min > dt_max:
         raise SceneError(f"time.dt_min = {dt_min:g} s is above time.dt_max = {dt_max:g} s")
-    return SceneControl(mode, rtol, *atol, controller, cfl, float(dt_min), None if dt_max is None else float(dt_max))
+    dt_max = None if dt_max is None else float(dt_max)
+    return SceneControl(mode, rtol, *atol, controller, cfl, float(dt_min), dt_max, cfl_default)
 
 
 def _atol(value) -> tuple[float, float]:
@@ -423,12 +427,28 @@ def _atol(value) -> tuple[float, float]:
     return float(pair[0]), float(pair[1])
 
 
-def _default_cfl(cls, stepper: str) -> float:
-    """0.9 × the stepper's measured Courant limit (the signal's, else the advective one's)."""
-    limit = cls.courant_limit if isinstance(cls.courant_limit, float) else cls.advective_courant_limit
-    if not isinstance(limit, float):
+def _cfl(table: dict, mode: str, cls, stepper: str) -> tuple[float | None, bool]:
+    """(time.cfl, whether it is error control's default cap): the value given (> 0; under
+    "error" ``false``: no cap), else ``CFL_FRACTION`` × the stepper's measured Courant limit
+    (under "cfl" the target, refused for a stepper without one; under "error" the cap, none
+    for a stepper without one: the IMEX pairs)."""
+    limit, cfl = measured_courant_limit(cls), table.get("cfl")
+    if "cfl" not in table and limit is None and mode == "cfl":
         raise SceneError(f"time.cfl is missing: {stepper} has no measured Courant limit to aim below")
-    return 0.9 * limit
+    if "cfl" not in table or (cfl is False and mode == "error"):
+        return (None, False) if limit is None or cfl is False else (CFL_FRACTION * limit, mode == "error")
+    if isinstance(cfl, bool) or not is_number(cfl) or not cfl > 0:
+        off = " or false (no cap)" if mode == "error" else ""
+        raise SceneError(f"time.cfl must be > 0{off} (got {got(cfl)})")
+    return float(cfl), False
+
+
+def measured_courant_limit(cls) -> float | None:
+    """A stepper class's measured Courant limit: the signal's (``Stepper.courant_limit``), else
+    the advective one's (``advective_courant_limit``); None for one without (a user's table:
+    its limit is its instance's)."""
+    limit = cls.courant_limit if isinstance(cls.courant_limit, float) else cls.advective_courant_limit
+    return limit if isinstance(limit, float) else None
 
 
 def resolve_stepper_options(stepper: str, table: dict, overrides: dict) -> tuple[dict, tuple]:

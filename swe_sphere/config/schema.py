@@ -42,7 +42,10 @@ class SceneControl:
     ``controller`` (a name of ``steppers.control.CONTROLLERS``); ``cfl`` the target Courant
     number (``steppers.control.CflController``; under "error" a cap, None: none); ``dt_min``
     (s, > 0: a step below it stops the run as a blow-up) and ``dt_max`` (s; None: none). The
-    scene's ``dt`` is the first step."""
+    scene's ``dt`` is the first step. ``cfl_default``: ``cfl`` is error control's default cap
+    (``config.resolve.CFL_FRACTION`` × the stepper's measured Courant limit), which holds the
+    Courant number only: no bound on a step's growth, so that where it does not bind the steps
+    are the error controller's alone."""
 
     mode: str
     rtol: float | None = None
@@ -52,6 +55,7 @@ class SceneControl:
     cfl: float | None = None
     dt_min: float = 0.0
     dt_max: float | None = None
+    cfl_default: bool = False
 
 
 @dataclass(frozen=True)
@@ -115,7 +119,7 @@ SCHEMA = {
         "rtol": float,
         "atol": float | list,  # one for every field in its units, or [wind (m/s), h (m)]: ``resolve_control``
         "controller": str,
-        "cfl": float,
+        "cfl": float | bool,  # a Courant number, or under control = "error" false: no cap (``resolve._cfl``)
         "dt_min": float,
         "dt_max": float,
     },

@@ -7,8 +7,11 @@ exactly (an output, restart or end time); the stepper told the Δt (``Stepper.se
 ``error`` control a step whose error norm (``control.ErrorNorm`` of the pair's estimate) is
 above 1 is rejected: the state and the stepper's state (``Stepper.state``) put back, retried
 at the controller's shorter Δt. A CFL target (``control.CflController``) is the whole control
-under ``cfl``, a cap under ``error``. A proposal below dt_min stops as a blow-up (``BlowUp``:
-step, time, Δt). ``state``/``restore`` keep the proposal, the controller's history and the
+under ``cfl``, a cap under ``error``: by default (``SceneControl.cfl_default``)
+``config.resolve.CFL_FRACTION`` × the pair's measured Courant limit, holding the Courant number
+only (no growth bound: where it does not bind, the steps are the error controller's, bit for
+bit); ``capped`` counts the accepted steps whose next Δt it set. A proposal below dt_min stops
+as a blow-up (``BlowUp``: step, time, Δt). ``state``/``restore`` keep the proposal, the controller's history and the
 counts, so that a restart continues bitwise.
 
 ``steer`` is ``Simulation.run``'s loop under control: accepted steps to each time an activity
@@ -76,14 +79,15 @@ class StepControl:
             depth = "pressure_gradient" in sim.model.terms  # h a depth: h ≤ 0 is a bad state
             self.norm = ErrorNorm(sim.topology, control.rtol, control.atol_wind, control.atol_h, depth)
         gravity_waves = stepper.courant_limit is not None  # explicit gravity waves: the signal's Courant number
-        self.cfl = None if control.cfl is None else CflController(control.cfl, gravity_waves)
+        growth = math.inf if control.cfl_default else CflController.max_change  # the default cap: a bound only
+        self.cfl = None if control.cfl is None else CflController(control.cfl, gravity_waves, growth)
         pressure = "pressure_gradient" in sim.scene.terms
         self.courant = None if self.cfl is None else CourantMax(sim.topology, sim.topology.grid.dx, sim.g, pressure)
         self.checked = False  # the last try's state found good by the norm or the Courant numbers' pass
         self.dt = float(stepper.dt)
         sim.model.launches.limit, sim.model.launches.variants = LAUNCH_LISTS, LAUNCH_VARIANTS
         self.x0 = sim.last_good  # a step's start: the guard's last good state (``_checked_step``)
-        self.accepted = self.rejected = 0
+        self.accepted = self.rejected = self.capped = 0  # capped: accepted steps whose next Δt the cap set
         self.dt_smallest, self.dt_sum, self.dt_largest = math.inf, 0.0, 0.0
         self.history: list[tuple[float, float, float]] = []
         self.day, self.landed = float(sim.scene.start_day), True
@@ -147,6 +151,8 @@ class StepControl:
         if self.cfl is not None and ok:  # a rejected step's retry is the error controller's
             numbers, bad = self.courant(x, dt)
             cap = self.cfl.propose(dt, numbers)
+            if self.error and cap < proposal:
+                self.capped += 1
             proposal = capped(proposal, cap) if self.error else cap
             self.checked = self.checked or not bad
         return ok, proposal, err
@@ -154,14 +160,18 @@ class StepControl:
     def summary(self) -> str:
         """The summary's line: accepted and rejected steps, the smallest, mean and largest Δt."""
         mean = self.dt_sum / max(self.accepted, 1)
+        cap = ""
+        if self.error and self.cfl is not None:
+            cap = f"; the Courant cap {self.cfl.cfl:.3g} set the next dt after {self.capped} of them"
         return (
             f"{self.accepted} steps accepted, {self.rejected} rejected; dt smallest {self.dt_smallest:.4g} s, "
-            f"mean {mean:.4g} s, largest {self.dt_largest:.4g} s"
+            f"mean {mean:.4g} s, largest {self.dt_largest:.4g} s{cap}"
         )
 
     def state(self) -> dict:
         """The next proposal, the controller's history and the counts (a restart file's numbers)."""
         s = {"dt": self.dt, "accepted": self.accepted, "rejected": self.rejected, "t": self.t, "day": self.day}
+        s |= {"capped": self.capped}
         s |= {"dt_smallest": self.dt_smallest, "dt_sum": self.dt_sum, "dt_largest": self.dt_largest}
         s |= {"landed": self.landed, "dt_last": self.dt_last, "error_last": self.error_last}
         return s | ({"controller": self.controller.state()} if self.error else {})
@@ -170,6 +180,7 @@ class StepControl:
         """Continue from ``state()``: the same steps as the control it came from."""
         self.dt, self.landed = float(state["dt"]), bool(state["landed"])
         self.accepted, self.rejected = int(state["accepted"]), int(state["rejected"])
+        self.capped = int(state.get("capped", 0))  # a restart file from before the count: 0
         self.t, self.day, self.dt_smallest, self.dt_sum, self.dt_largest, self.dt_last, self.error_last = (
             float(state[k]) for k in ("t", "day", "dt_smallest", "dt_sum", "dt_largest", "dt_last", "error_last")
         )

@@ -35,6 +35,20 @@ def test_error_and_cfl_control_and_their_defaults():
     assert _load("imex", control="cfl").control.cfl == pytest.approx(0.9)  # its advective limit 1.0
 
 
+def test_error_control_caps_the_courant_number_by_default():
+    """Under "error" the default cap is 0.9 × the pair's measured Courant limit (dp54 1.28), marked
+    as the default (a bound only) and kept through the record; time.cfl replaces it, false removes
+    it; a pair without a measured limit (the IMEX pairs) has none."""
+    capped = _load("dp54", control="error")
+    assert capped.control.cfl == pytest.approx(0.9 * 1.28) and capped.control.cfl_default
+    assert scene_from_dict(capped.as_dict()) == capped
+    given = _load("dp54", control="error", cfl=0.55).control
+    assert (given.cfl, given.cfl_default) == (0.55, False)
+    off = _load("dp54", control="error", cfl=False).control
+    assert (off.cfl, off.cfl_default) == (None, False)
+    assert _load("ark436", control="error").control.cfl is None
+
+
 @pytest.mark.parametrize(
     "stepper, keys, words",
     [
@@ -50,7 +64,9 @@ def test_error_and_cfl_control_and_their_defaults():
         ),
         ("bs32", dict(control="cfl", dt_min=600.0, dt_max=300.0), "time.dt_min = 600 s is above time.dt_max = 300 s"),
         ("bs32", dict(control="cfl", dt_min=0.0), "time.dt_min and time.dt_max must be > 0"),
-        ("bs32", dict(control="cfl", cfl=-1.0), "time.cfl must be > 0"),
+        ("bs32", dict(control="cfl", cfl=-1.0), "time.cfl must be > 0 (got -1.0)"),
+        ("bs32", dict(control="cfl", cfl=False), "time.cfl must be > 0 (got False, a bool)"),
+        ("bs32", dict(control="error", cfl=True), "time.cfl must be > 0 or false (no cap) (got True, a bool)"),
         ("bs32", dict(control="error", atol=[1.0]), "time.atol must be a number >= 0 or"),
         ("bs32", dict(control="error", atol=-1.0), "time.atol must be a number >= 0 or"),
         ("bs32", dict(rtol=1e-3), "time.rtol is not read under control = 'fixed'"),

@@ -1,9 +1,13 @@
 """Steps that choose themselves (``simulation.adaptive.StepControl``) on TC2 (exact solution),
 ne 4, under ``control = "error"`` with bs32: the error against the exact solution falls with
 rtol, the run ends exactly at its day, and a run stopped at a day and continued from the
-stepper's and the control's state gives the same bits as one that did not stop."""
+stepper's and the control's state gives the same bits as one that did not stop. The default
+Courant cap: it keeps TC5 at a loose tolerance stable, and where it does not bind the steps are
+the error controller's alone, bit for bit."""
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import pytest
@@ -34,13 +38,14 @@ def _l2_h(sim, t):
 
 
 def test_the_error_falls_with_rtol_and_the_run_ends_at_its_day():
-    """Against the exact solution the error falls from rtol 1e-2 to 1e-3 (4.1e-4 to 1.66e-4 in
-    l2 of h: by 1e-3 the grid's own error, 1.66e-4, is all of it); against a run at rtol 1e-7
-    (the time-converged state of this grid) the largest h difference falls with rtol
-    (0.27 m at 1e-4, 4.5e-3 m at 1e-6)."""
+    """The error controller alone (no Courant cap: the default one binds at rtol 1e-2 and 1e-3
+    here, ``test_the_default_cap_...``): against the exact solution the error falls from rtol
+    1e-2 to 1e-3 (3.79e-4 to 1.66e-4 in l2 of h: by 1e-3 the grid's own error, 1.66e-4, is all
+    of it); against a run at rtol 1e-7 (the time-converged state of this grid) the largest h
+    difference falls with rtol (0.27 m at 1e-4, 4.5e-3 m at 1e-6)."""
     runs = {}
     for rtol in (1e-2, 1e-3, 1e-4, 1e-6, 1e-7):
-        sim, control = _sim(rtol)
+        sim, control = _sim(rtol, cfl=False)
         assert _run(sim, control, 0.0, DAY) == DAY  # landed exactly
         assert sum(dt for _, dt, _ in control.history) == pytest.approx(DAY, rel=1e-13)
         assert all(err <= 1.0 for _, _, err in control.history)
@@ -118,8 +123,8 @@ def test_the_cli_run_lands_on_its_output_times_and_records_the_control(tmp_path)
     at 1e-2 without the landings at 0.25, 0.5, 0.75), and a first step of 20000 s is rejected
     and recorded."""
     l2 = {}
-    for rtol in (1e-2, 1e-3):
-        assert _cli_run(tmp_path / f"r{rtol}.nc", "-s", f"time.rtol={rtol}") == 0
+    for rtol in (1e-2, 1e-3):  # the error controller alone: the default Courant cap binds at both
+        assert _cli_run(tmp_path / f"r{rtol}.nc", "-s", f"time.rtol={rtol}", "-s", "time.cfl=false") == 0
         time, err, dt = _series(tmp_path / f"r{rtol}.nc", "time", "l2_h", "dt")
         assert time.tolist() == [0.0, 0.25, 0.5, 0.75, 1.0]
         assert np.isnan(dt[0]) and (dt[1:] > 0).all()
@@ -153,3 +158,48 @@ def test_a_step_below_dt_min_stops_the_cli_run_as_a_blow_up(tmp_path, capsys):
     assert "fell below time.dt_min = 100 s" in capsys.readouterr().err
     (time,) = _series(tmp_path / "r.nc", "time")
     assert time.tolist() == [0.0]  # the good output kept
+
+
+def test_the_default_cap_binds_at_a_loose_tolerance_and_nowhere_else():
+    """TC2 ne 4, bs32: the default cap is 0.9 × bs32's measured Courant limit 1.11; at rtol 1e-2
+    it sets the next Δt after 39 of 40 steps (the error controller alone takes 31 steps of up to
+    5087 s, 2.3 × the capped 2233 s) and the error is the grid's (1.654e-4 in l2 of h, against
+    3.79e-4 uncapped); at rtol 1e-5 it never binds and the run is the uncapped one, bit for bit."""
+    capped, control = _sim(1e-2)
+    assert control.cfl.cfl == pytest.approx(0.999) and control.cfl.max_change == math.inf
+    _run(capped, control, 0.0, DAY)
+    assert (control.accepted, control.capped) == (40, 39)
+    assert _l2_h(capped, DAY) == pytest.approx(1.654e-4, rel=1e-3)
+    u, v, h = capped.fields()
+    assert control.cfl.courant(courant_numbers(capped.grid, u, v, h, control.dt_largest, capped.g)) <= 0.999
+    for cfl in (None, False):
+        keys = {} if cfl is None else {"cfl": cfl}
+        sim, control = _sim(1e-5, **keys)
+        _run(sim, control, 0.0, DAY)
+        assert control.capped == 0
+        if cfl is None:
+            x = sim.x.numpy()
+    assert np.array_equal(x, sim.x.numpy())
+
+
+def test_the_default_cap_keeps_a_loose_tolerance_stable():
+    """TC5 ne 8, dp54 at rtol 0.1 (the analogue of docs/efficiency.md's ne16 blow-up at rtol
+    1e-2): without a cap the controller lets the step past dp54's stability limit and the run
+    stops at step 31, day 0.39, its step below dt_min; under the default cap (0.9 × 1.28) it
+    runs its 1.5 days, 123 steps, none rejected. An explicit time.cfl is the cap instead, with
+    the growth bound of a CFL target."""
+
+    def tc5(**keys):
+        overrides = {"time.control": "error", "time.rtol": 0.1, **{f"time.{k}": v for k, v in keys.items()}}
+        sim = make_sim(load_scene("tc5_mountain", ne=8, np_=4, days=1.5, stepper="dp54", overrides=overrides))
+        return sim, StepControl(sim.scene.control, sim.stepper, sim)
+
+    sim, control = tc5(cfl=False)
+    with pytest.raises(BlowUp, match=r"^step 31 at day 0.3888.* fell below time.dt_min"):
+        _run(sim, control, 0.0, 1.5 * DAY)
+    sim, control = tc5()
+    assert _run(sim, control, 0.0, 1.5 * DAY) == 1.5 * DAY
+    assert (control.accepted, control.rejected) == (123, 0) and control.capped >= 120
+    assert "the Courant cap 1.15 set the next dt after" in control.summary()
+    _, control = tc5(cfl=0.5)
+    assert (control.cfl.cfl, control.cfl.max_change) == (0.5, 1.1)

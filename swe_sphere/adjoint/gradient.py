@@ -139,10 +139,8 @@ def gradient(
         (m s⁻¹, m s⁻¹, m), spheremp (N,) m², λ = ∂J/∂x (3, N) over the element-local entries
         (e.g. ``HeightMisfit``); or a cost of the run: an object with ``at_steps`` (the step
         indices k, 0 ≤ k ≤ n, it observes) called as ``cost(k, x, spheremp)`` → (J_k, λ_k) at
-        x = x(k) (read only; e.g. ``observations.HeightObservations``). The reverse sweep adds
-        R Q λ_k to the adjoint once step k is reversed (x(k) at hand; k = n first, k = 0 last),
-        calling ``cost`` once for each k whatever the checkpointing: J is the same bits in
-        every mode.
+        x = x(k) (read only; e.g. ``HeightObservations``), once a k in any mode (the reverse
+        sweep's, x(k) at hand: R Q λ_k added to the adjoint once step k is reversed).
     x0 : (3, N) initial state (None: the case's).
     snapshots : states held at once during the reverse sweep, x(0) included (None: n, every
         state, each step taken forward once); fewer cost ``revolve.forward_steps(n,

@@ -184,6 +184,8 @@ def recover(s: Setting, iterations: int, length: float, sigma_b: float) -> Recov
 def main() -> None:
     from results import recorded  # benchmarks/ is first on the path of a script run from it
 
+    os.environ.setdefault("SWE_SPHERE_THREADS", "1")  # read when the model is built
+
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ne", type=int, default=8)
     parser.add_argument("--np", type=int, default=4)
@@ -196,7 +198,6 @@ def main() -> None:
     parser.add_argument("--sigma-b", type=float, default=10.0, help="the background's σ_b (m; 0: no background term)")
     parser.add_argument("--iterations", type=int, default=200, help="L-BFGS iterations at most")
     args = parser.parse_args()
-    os.environ.setdefault("SWE_SPHERE_THREADS", "1")  # read when the model is built
     with recorded(__file__) as figures:
         s = setting(args.ne, args.np, args.hours, args.every, args.points, args.sigma, args.seed)
         r = recover(s, args.iterations, args.length * 1e3, args.sigma_b)

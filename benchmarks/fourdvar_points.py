@@ -1,9 +1,9 @@
 """4D-Var from sparse, noisy point observations over a day: Galewsky's height perturbation
 recovered by L-BFGS on ``swe_sphere.gradient`` with a cost of the run (issue 66's example).
 
-    python benchmarks/fourdvar_points.py [--ne 8] [--np 4] [--hours 24] [--every 3] [--points 200]
-                                         [--sigma 0.1] [--seed 0] [--length 500] [--sigma-b 10]
-                                         [--iterations 200]
+    python benchmarks/fourdvar_points.py [--ne 16] [--np 4] [--hours 24] [--every 3] [--points 200]
+                                         [--sigma 0.1] [--seed 0] [--length 400] [--sigma-b 3]
+                                         [--iterations 150]
 
 The truth: Galewsky's jet with its 120 m height bump (the ``galewsky`` scene, kgu35, at the ne
 and np given, Δt its own at that grid shortened to divide ``--every``), run ``--hours``. The
@@ -187,16 +187,16 @@ def main() -> None:
     os.environ.setdefault("SWE_SPHERE_THREADS", "1")  # read when the model is built
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--ne", type=int, default=8)
+    parser.add_argument("--ne", type=int, default=16)
     parser.add_argument("--np", type=int, default=4)
     parser.add_argument("--hours", type=float, default=24.0, help="the window")
     parser.add_argument("--every", type=float, default=3.0, help="hours between observations")
     parser.add_argument("--points", type=int, default=200, help="observed points (fixed, uniform, seeded)")
     parser.add_argument("--sigma", type=float, default=0.1, help="the observations' noise (m)")
     parser.add_argument("--seed", type=int, default=0, help="of the points and the noise")
-    parser.add_argument("--length", type=float, default=500.0, help="the background's correlation length L (km)")
-    parser.add_argument("--sigma-b", type=float, default=10.0, help="the background's σ_b (m; 0: no background term)")
-    parser.add_argument("--iterations", type=int, default=200, help="L-BFGS iterations at most")
+    parser.add_argument("--length", type=float, default=400.0, help="the background's correlation length L (km)")
+    parser.add_argument("--sigma-b", type=float, default=3.0, help="the background's σ_b (m; 0: no background term)")
+    parser.add_argument("--iterations", type=int, default=150, help="L-BFGS iterations at most")
     args = parser.parse_args()
     with recorded(__file__) as figures:
         s = setting(args.ne, args.np, args.hours, args.every, args.points, args.sigma, args.seed)

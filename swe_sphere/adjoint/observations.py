@@ -7,7 +7,7 @@ H evaluates h at a point from the element's own GLL polynomial, Σ_ij ℓ_i(ξ) 
 over the element-local nodes, M points, np² entries a row. The cost's ∂J/∂h is Hᵀ applied to
 the weighted misfit, an element-local λ (nonzero on the np² nodes of each point's element);
 ``gradient`` gathers it to the continuous adjoint (R Q λ). The 4D-Var observation term
-(e.g. Talagrand & Courtier 1987, Q. J. R. Meteorol. Soc. 113:1311, eq. 2; a diagonal
+(e.g. Talagrand & Courtier 1987, Q. J. R. Meteorol. Soc. 113:1311; a diagonal
 observation-error covariance σ²).
 """
 

@@ -27,7 +27,8 @@ stepper of a scene; ``run``, ``from_checkpoint``, and step by step::
 ``swe_sphere.studies.plotting.plot_map`` draws the ``swe-sphere plot`` maps and
 returns their figures), ``kinetic_energy_spectrum`` and ``zonal_mean`` (a run's
 kinetic-energy spectrum by degree and zonal means, ``swe_sphere.studies.analysis``),
-``gradient`` and ``HeightMisfit`` (a run's gradient, ``swe_sphere.adjoint``).
+``gradient``, ``HeightMisfit``, ``PointHeights`` and ``HeightObservations`` (a run's
+gradient, of its final state or against observations at several steps, ``swe_sphere.adjoint``).
 Importing them initialises Warp quietly (``swe_sphere.core.runtime.init_warp``).
 """
 
@@ -44,6 +45,8 @@ _LAZY = {
     "zonal_mean": "studies.analysis",
     "gradient": "adjoint.gradient",  # dJ/dx(0), dJ/dν, dJ/dhs of an explicit run (reverse sweep)
     "HeightMisfit": "adjoint.gradient",
+    "PointHeights": "adjoint.observations",  # h at points, the observation operator H and Hᵀ
+    "HeightObservations": "adjoint.observations",  # a cost of the run: observed h at several steps
     # the errors (core.errors): every one is a SweSphereError
     **dict.fromkeys(
         [

@@ -1,7 +1,7 @@
-"""The gradient of a scalar of a run's final state with respect to its initial state
-(``gradient``), by a checkpointed reverse sweep (``revolve.sweep``, or ``revolve.two_level``
-with states on a disk: ``disk.DiskTier``) of the explicit steps' adjoints
-(``explicit.StepAdjoint``)."""
+"""The gradient of a scalar of a run's final state, or of a cost summed over observed steps of
+the run (``observations``), with respect to its initial state (``gradient``), by a
+checkpointed reverse sweep (``revolve.sweep``, or ``revolve.two_level`` with states on a disk:
+``disk.DiskTier``) of the explicit steps' adjoints (``explicit.StepAdjoint``)."""
 
 from __future__ import annotations
 
@@ -45,7 +45,9 @@ class Gradient(NamedTuple):
     included), ``reverse_steps`` n. With ``parameters=True``: ``d_nu`` ∂J/∂ν (ν = ν_div, the
     wind's ∇⁴ coefficient; J per m⁴ s⁻¹), ``d_nu_s`` ∂J/∂ν_s (the surface's), ``d_hs`` (N,)
     ∂J/∂hs in the mass inner product as ``grad`` (x0 held fixed); None otherwise.
-    ``disk_bytes``: the size of the states' file on the disk (``disk=``; 0 without it)."""
+    ``disk_bytes``: the size of the states' file on the disk (``disk=``; 0 without it).
+    ``costs``: {k: J_k} the terms of J by observed step k (a cost with ``at_steps``; a final-state
+    cost: {n: J}); J is their sum in increasing k."""
 
     cost: float
     grad: np.ndarray
@@ -56,6 +58,29 @@ class Gradient(NamedTuple):
     d_nu_s: float | None = None
     d_hs: np.ndarray | None = None
     disk_bytes: int = 0
+    costs: dict | None = None
+
+
+class _FinalCost:
+    """A final-state cost (x, spheremp) → (J, λ) as a cost of the run observed at step n alone."""
+
+    def __init__(self, cost, n: int):
+        self.cost, self.at_steps = cost, (n,)
+
+    def __call__(self, k, x, spheremp):
+        return self.cost(x, spheremp)
+
+
+def run_cost(cost, steps: int):
+    """``cost`` as a cost of the run: one with ``at_steps`` as it is (its steps checked), any
+    other callable as that of the final state x(n). ValueError for no steps, or one outside
+    0 … ``steps`` or not an integer."""
+    if not hasattr(cost, "at_steps"):
+        return _FinalCost(cost, steps)
+    at = list(cost.at_steps)
+    if not at or any(int(k) != k or not 0 <= k <= steps for k in at):
+        raise ValueError(f"a cost's at_steps must be integers in 0 … {steps} (got {at})")
+    return cost
 
 
 class _Topography:
@@ -101,16 +126,21 @@ def gradient(
     disk_interval: int | None = None,
     device="cpu",
 ) -> Gradient:
-    """The cost J(x(n)) of ``scene`` run ``steps`` steps from x0 and its gradient dJ/dx(0)
-    (and, with ``parameters``, dJ/dν, dJ/dν_s and dJ/dhs).
+    """The cost J of ``scene`` run ``steps`` steps from x0, J(x(n)) or Σ_k J_k(x(k)) over the
+    steps k a cost observes, and its gradient dJ/dx(0) (and, with ``parameters``, dJ/dν,
+    dJ/dν_s and dJ/dhs).
 
     Parameters
     ----------
     scene : a ``config.Scene`` whose stepper is an explicit Runge–Kutta table (ssprk3, rk4,
         kgu35, a tableau), terms without forcing, a ∇⁴ with ν_div = ν and no tensor scaling.
     steps : n ≥ 1 steps of the scene's Δt.
-    cost : callable (x, spheremp) → (J, λ), x (3, N) numpy rows u, v, h (m s⁻¹, m s⁻¹, m),
-        spheremp (N,) m², λ = ∂J/∂x (3, N) over the element-local entries (e.g. ``HeightMisfit``).
+    cost : callable (x, spheremp) → (J, λ) of the final state, x (3, N) numpy rows u, v, h
+        (m s⁻¹, m s⁻¹, m), spheremp (N,) m², λ = ∂J/∂x (3, N) over the element-local entries
+        (e.g. ``HeightMisfit``); or a cost of the run: an object with ``at_steps`` (the step
+        indices k, 0 ≤ k ≤ n, it observes) called as ``cost(k, x, spheremp)`` → (J_k, λ_k) at
+        x = x(k) (read only; e.g. ``HeightObservations``), once a k in any mode (the reverse
+        sweep's, x(k) at hand: R Q λ_k added to the adjoint once step k is reversed).
     x0 : (3, N) initial state (None: the case's).
     snapshots : states held at once during the reverse sweep, x(0) included (None: n, every
         state, each step taken forward once); fewer cost ``revolve.forward_steps(n,
@@ -131,7 +161,8 @@ def gradient(
         step taken forward once).
     device : "cpu" (one rank; CUDA and MPI not yet).
 
-    Returns a ``Gradient``. ValueError for steps, snapshots or disk_interval < 1, a
+    Returns a ``Gradient``. ValueError for steps, snapshots or disk_interval < 1, at_steps
+    outside 0 … n, a
     disk_interval without a disk, a disk that is not an existing folder, x0 or hs of another
     shape, or a scene the adjoint cannot serve (``explicit._refusal``, a non-explicit stepper);
     OSError from the disk (full, unwritable).
@@ -153,16 +184,20 @@ def gradient(
         raise ValueError(f"x0 must have shape (3, {model.N}) (got {x0.shape})")
     adjoint = StepAdjoint(model, stepper.table(), stepper.dt, parameters)
     interval = snapshots if disk_interval is None else int(disk_interval)
+    cost = run_cost(cost, steps)
     found, mu, taken, used = _reverse_run(model, stepper, adjoint, x0, steps, cost, snapshots, disk, interval)
     extra = {}
     if parameters:
         extra = {"d_nu": adjoint.d_nu[0], "d_nu_s": adjoint.d_nu[1], "d_hs": adjoint.hs_gradient()}
-    return Gradient(found["cost"], mu, found["final"], taken, steps, disk_bytes=used, **extra)
+    costs = dict(sorted(found["costs"].items()))
+    total = sum(costs.values())  # in increasing k; a final-state cost's J exactly (0 + J)
+    return Gradient(total, mu, found["final"], taken, steps, disk_bytes=used, costs=costs, **extra)
 
 
 def _reverse_run(model, stepper, adjoint, x0, steps, cost, snapshots, disk, interval):
-    """({"cost": J, "final": x(n)}, μ(0) numpy, forward steps, disk bytes) of ``gradient``: the
-    run from x0 (3, N) numpy and its reverse sweep, in memory or with a disk tier."""
+    """({"costs": {k: J_k}, "final": x(n)}, μ(0) numpy, forward steps, disk bytes) of
+    ``gradient``: the run from x0 (3, N) numpy and its reverse sweep, in memory or with a disk
+    tier; ``cost`` a cost of the run (``run_cost``), called once at each of its steps."""
     device = model.device
     work = wp.zeros((3, model.N), dtype=f64, device=device)  # the stepper steps this array only
     stepper.prepare(work)
@@ -174,13 +209,20 @@ def _reverse_run(model, stepper, adjoint, x0, steps, cost, snapshots, disk, inte
         wp.copy(x, work)
 
     mu = wp.zeros((3, model.N), dtype=f64, device=device)
-    found = {}
+    found, observed = {"costs": {}}, set(cost.at_steps)
+    lam = wp.zeros((3, model.N), dtype=f64, device=device)
+    add = model.topology.dss_update(lam, [(mu, ((1.0, mu), (1.0, None)))], weighted=False)  # μ += R Q λ
 
-    def finish(xn):  # J at x(n) and μ = R Q λ there
+    def observe(x, k):  # J_k at x(k) into found, λ_k into ``lam``
+        found["costs"][k], lam_k = cost(k, np.array(x.numpy()), model.grid.spheremp)
+        wp.copy(lam, wp.array(np.asarray(lam_k, dtype=float), dtype=f64, device=device))
+
+    def finish(xn):  # J_n at x(n) and μ = R Q λ_n there (0 where n is not observed)
         found["final"] = xn.numpy()
-        found["cost"], lam = cost(found["final"], model.grid.spheremp)
-        for launch in model.topology.dss(wp.array(lam, dtype=f64, device=device), False, mu):
-            launch.launch()
+        if steps in observed:
+            observe(xn, steps)
+            for launch in model.topology.dss(lam, False, mu):
+                launch.launch()
 
     def reverse(xk, k):
         if "final" not in found:  # in memory alone, x(n) is one step on from the first reversed
@@ -188,6 +230,10 @@ def _reverse_run(model, stepper, adjoint, x0, steps, cost, snapshots, disk, inte
             advance(final)
             finish(final)
         adjoint.reverse(xk, mu)
+        if k in observed:  # μ(k) += R Q λ_k, x(k) at hand
+            observe(xk, k)
+            for launch in add:
+                launch.launch()
 
     x, used = wp.array(x0, dtype=f64, device=device), 0
     if disk is None:

@@ -7,9 +7,16 @@ Dinosaur and swe_sphere's np 5-6 runs beyond the ladder, in one run at low load,
 run's error in the frontier's quantity and its median CPU seconds a simulated day) and, for Galewsky, pySEs's point as
 issue 63 measured it (not rerun: a cited figure, labelled so). The figure is the frontier's own
 (``studies.frontier.frontier_figure``); peers_<case>.csv is what ``swe-sphere frontier --peers``
-reads, so a user's frontier can show the same points.
+reads, so a user's frontier can show the same points. TC2 and TC6 have no peers' points: their
+figures are the frontier's alone.
 
-    python docs/efficiency/frontier_figures.py            # galewsky and tc5, in docs/efficiency/
+``--merge CASE FRONTIER_CSV...`` first folds sub-ladders' ``frontier.csv`` files (``swe-sphere
+frontier``'s, each a rectangular ladder) into frontier_<case>.csv: a row replaces the row of the
+same label (ne/np/stepper), the others are added, the rows are ordered by ne, np and stepper,
+and ``on_front`` is recomputed over all of them (``frontier.pareto_front``).
+
+    python docs/efficiency/frontier_figures.py            # every case, in docs/efficiency/
+    python docs/efficiency/frontier_figures.py --merge tc5 fr/tc5_np6/frontier.csv   # then tc5's figure
 """
 
 import argparse
@@ -47,6 +54,8 @@ CASES = {
         ],
     ),
 }
+for _case in ("tc2", "tc6"):  # no peer has run these
+    CASES[_case] = ("l2_h_surface", [])
 CITED = {  # issue 63's table, not rerun here: (model, label, error, CPU s a simulated day)
     "galewsky": [("pySEs 0.1.3, issue 63's figure (not rerun)", "ne16 np4", 0.76, 18.9)],
 }
@@ -73,28 +82,56 @@ def peers(case: str) -> list[dict]:
     return out
 
 
+def merge(case: str, files) -> Path:
+    """Fold the sub-ladders' frontier.csv ``files`` into frontier_<case>.csv (module docstring:
+    same label replaced, others added, ordered by ne, np and stepper, ``on_front`` recomputed).
+    Raises ValueError when a file's case, error or clock differs from the table's."""
+    path = HERE / f"frontier_{case}.csv"
+    old = pd.read_csv(path, keep_default_na=False, na_values=[""])
+    new = [pd.read_csv(f, keep_default_na=False, na_values=[""]) for f in files]
+    key = ["case", "error_of", "reference", "cost_clock"]
+    for f, df in zip(files, new):
+        if not df[key].drop_duplicates().equals(old[key].drop_duplicates().reset_index(drop=True)):
+            raise ValueError(f"{f}: not the same case, error, reference and clock as {path.name}")
+    df = pd.concat([old, *new], ignore_index=True).drop_duplicates("label", keep="last")
+    order = {s: i for i, s in enumerate(dict.fromkeys(df["stepper"]))}
+    df = df.sort_values(["ne", "np", "stepper"], key=lambda c: c.map(order) if c.name == "stepper" else c)
+    df["on_front"] = frontier.pareto_front(df["cost_per_day"], df["error"]).astype(int)
+    df[old.columns].to_csv(path, index=False)
+    return path
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("cases", nargs="*", help=f"any of {', '.join(CASES)} (default: all)")
+    ap.add_argument("--merge", nargs="+", metavar=("CASE", "FRONTIER_CSV"), help="fold these into CASE's table first")
     args = ap.parse_args()
+    if args.merge:
+        if args.merge[0] not in CASES or len(args.merge) < 2:
+            ap.error(f"--merge takes a case ({', '.join(CASES)}) and frontier.csv files")
+        print(f"merged into {merge(args.merge[0], args.merge[1:]).name}")
     unknown = set(args.cases) - set(CASES)
     if unknown:
         ap.error(f"unknown case(s): {', '.join(sorted(unknown))} (known: {', '.join(CASES)})")
-    for case in args.cases or CASES:
+    for case in args.cases or ([args.merge[0]] if args.merge else CASES):
         points = peers(case)
         peer_file = HERE / f"peers_{case}.csv"
-        with peer_file.open("w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=frontier.PEER_COLUMNS)
-            writer.writeheader()
-            writer.writerows(
-                {**p, "error": f"{p['error']:.4g}", "cost_per_day": f"{p['cost_per_day']:.4g}"} for p in points
-            )
+        if points:
+            with peer_file.open("w", newline="") as f:
+                writer = csv.DictWriter(f, fieldnames=frontier.PEER_COLUMNS)
+                writer.writeheader()
+                writer.writerows(
+                    {**p, "error": f"{p['error']:.4g}", "cost_per_day": f"{p['cost_per_day']:.4g}"} for p in points
+                )
         df = pd.read_csv(HERE / f"frontier_{case}.csv")
         attrs = df.iloc[0][["scene", "days", "error_of", "reference", "cost_clock"]].to_dict()
         png = frontier.frontier_figure(
-            HERE / f"frontier_{case}.png", df.to_dict("records"), attrs, frontier.read_peers(peer_file)
+            HERE / f"frontier_{case}.png",
+            df.to_dict("records"),
+            attrs,
+            frontier.read_peers(peer_file) if points else (),
         )
-        print(f"wrote {peer_file.name} ({len(points)} points) and {png.name}")
+        print(f"wrote {peer_file.name + ' (' + str(len(points)) + ' points) and ' if points else ''}{png.name}")
 
 
 if __name__ == "__main__":

@@ -3,7 +3,8 @@ frontier_<case>.csv (the merged ladders' rows) and peers_<case>.csv, which this 
 from the peer benchmarks' results (for Galewsky ``benchmarks/results/peer_dinosaur_galewsky_np56.json``:
 Dinosaur and swe_sphere's np 5-6 runs beyond the ladder, in one run at low load, with
 ``peer_dinosaur_galewsky_np6_ne26.json``, and HOMME's ``sweqx`` from
-``peer_homme_galewsky{,_lft,_lft240}.json``; ``peer_dinosaur_tc5.json`` and ``peer_dinosaur_tc5_dt{600,300,150}.json`` for TC5: each peer
+``peer_homme_galewsky{,_lft,_lft240}.json``; ``peer_dinosaur_tc5.json`` and ``peer_dinosaur_tc5_dt{600,300,150}.json`` for TC5;
+``peer_dinosaur_tc6.json`` and ``peer_dinosaur_tc6_fine.json`` for TC6: each peer
 run's error in the frontier's quantity and its median CPU seconds a simulated day) and, for Galewsky, pySEs's point as
 issue 63 measured it (not rerun: a cited figure, labelled so). The figure is the frontier's own
 (``studies.frontier.frontier_figure``); peers_<case>.csv is what ``swe-sphere frontier --peers``
@@ -53,9 +54,15 @@ CASES = {
             for dt in (600, 300, 150)
         ],
     ),
+    "tc6": (
+        "l2_h_surface",
+        # Dinosaur from the first run; the second's swe_sphere rows lie beyond the ladder (ne16 np6,
+        # ne24 np4-5, the scene's ne30 np4)
+        [("peer_dinosaur_tc6.json", DINOSAUR, "{t}", "dinosaur ")]
+        + [("peer_dinosaur_tc6_fine.json", "swe_sphere kgu35, runs beside Dinosaur", "{t}", "swe_sphere ")],
+    ),
+    "tc2": ("l2_h_surface", []),  # no peer has run it
 }
-for _case in ("tc2", "tc6"):  # no peer has run these
-    CASES[_case] = ("l2_h_surface", [])
 CITED = {  # issue 63's table, not rerun here: (model, label, error, CPU s a simulated day)
     "galewsky": [("pySEs 0.1.3, issue 63's figure (not rerun)", "ne16 np4", 0.76, 18.9)],
 }

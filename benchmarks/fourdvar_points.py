@@ -79,10 +79,13 @@ def observed_run(scene, steps: int, x0, every: int):
     return states, time.process_time() - clock
 
 
-def setting(ne: int, np_: int, hours: float, every_hours: float, points: int, sigma: float, seed: int) -> Setting:
-    """The truth run, its observations and the first guess (module docstring)."""
-    own = swe_sphere.load_scene("galewsky", ne=ne, np_=np_, days=hours / 24.0)
-    every = math.ceil(every_hours * 3600.0 / own.dt)  # steps between observations
+def setting(
+    ne: int, np_: int, hours: float, every_hours: float, points: int, sigma: float, seed: int, dt: float | None = None
+) -> Setting:
+    """The truth run, its observations and the first guess (module docstring); ``dt`` (s) the
+    step before it is shortened to divide the observation interval (None: the scene's)."""
+    own = dt or swe_sphere.load_scene("galewsky", ne=ne, np_=np_, days=hours / 24.0).dt
+    every = math.ceil(every_hours * 3600.0 / own)  # steps between observations
     scene = swe_sphere.load_scene("galewsky", ne=ne, np_=np_, days=hours / 24.0, dt=every_hours * 3600.0 / every)
     steps = round(hours / every_hours) * every
     model, _, truth = scene_model(scene)
@@ -197,9 +200,10 @@ def main() -> None:
     parser.add_argument("--length", type=float, default=400.0, help="the background's correlation length L (km)")
     parser.add_argument("--sigma-b", type=float, default=3.0, help="the background's σ_b (m; 0: no background term)")
     parser.add_argument("--iterations", type=int, default=150, help="L-BFGS iterations at most")
+    parser.add_argument("--dt", type=float, help="the step (s) before it divides --every (default: the scene's)")
     args = parser.parse_args()
     with recorded(__file__) as figures:
-        s = setting(args.ne, args.np, args.hours, args.every, args.points, args.sigma, args.seed)
+        s = setting(args.ne, args.np, args.hours, args.every, args.points, args.sigma, args.seed, args.dt)
         r = recover(s, args.iterations, args.length * 1e3, args.sigma_b)
         per_gradient = r.cpu / r.result.nfev
         times = len(s.cost.at_steps)

@@ -159,8 +159,8 @@ def test_a_given_dt_keeps_its_courant_number_and_divides_the_day():
     assert coarser_dt(90.0, 30) == 86400 / 128  # 960 steps a day on ne30 → 128 on ne4 (7.5x coarser)
     assert coarser_dt(257.14285714285717, 30) == 86400 / 45  # 336 a day → 44.8 → 45
     assert coarser_dt(3600.0, 4) == 7200.0  # ne4 → ne2: twice as coarse
-    galewsky = shorten(["run", "galewsky", "--stepper", "fbrk32", "--dt", "216"])  # 400 a day on its ne24
-    assert galewsky[-4:] == ["--dt", str(86400 / 67), "--ne", "4"]  # 400 · 4/24 = 66.7 a day on ne4
+    galewsky = shorten(["run", "galewsky", "--stepper", "fbrk32", "--dt", "216"])  # 400 a day on its ne12
+    assert galewsky[-4:] == ["--dt", str(86400 / 100), "--ne", "3"]  # 400 · 3/12 = 100 a day on ne3
     given = shorten(["run", "galewsky", "--ne", "30", "--np", "4", "--dt", "216"])  # ne30: 53.3 a day on ne4
     assert given[2:] == ["--ne", "4", "--np", "4", "--dt", str(86400 / 53)]
     assert shorten(["run", "--continue", "r.restart.nc", "--dt", "360"])[-1] == "360"  # the file's grid: unknown

@@ -71,31 +71,31 @@ def test_steps_yield_the_multiples():
 
 def test_steps_fit_the_simulations_own_dt():
     """Without a dt the loop shortens its own Δt to divide ``every`` (as ``run`` on the
-    command line does for the output interval): Galewsky at ne = 2 np = 4 has 4547.37 s,
-    9.5 steps in half a day, fitted to 43200/10 s; the run is then the one given that dt, bit
-    for bit, and a callback in days follows (19 steps a day before, 20 after)."""
-    kw = dict(ne=2, np=4, days=1, progress=False)
+    command line does for the output interval): Galewsky at ne = 3 np = 5 has 1694.12 s,
+    25.5 steps in half a day, fitted to 43200/26 s; the run is then the one given that dt, bit
+    for bit, and a callback in days follows (51 steps a day before, 52 after)."""
+    kw = dict(ne=3, np=5, days=1, progress=False)
     own = Simulation("galewsky", "cpu", **kw)
-    assert own.scene.dt == 86400 / 19
+    assert own.scene.dt == 86400 / 51
     seen = []
     own.add_callback(lambda s: seen.append((s.step, s.time)), every_days=1)
     assert list(own.steps(every=0.5)) == [0.5, 1.0]
-    assert own.scene.dt == 43200 / 10 and own.step == 20 and seen == [(20, 1.0)]
-    assert own.scene.notes[-1] == "dt shortened from 4547.37 s to 4320 s to divide every = 0.5 days"
-    given = Simulation("galewsky", "cpu", dt=43200 / 10, **kw)
+    assert own.scene.dt == 43200 / 26 and own.step == 52 and seen == [(52, 1.0)]
+    assert own.scene.notes[-1] == "dt shortened from 1694.12 s to 1661.54 s to divide every = 0.5 days"
+    given = Simulation("galewsky", "cpu", dt=43200 / 26, **kw)
     given.advance(days=1)
     np.testing.assert_array_equal(own.x.numpy(), given.x.numpy())
     assert own.initial == given.initial  # the start's Courant numbers are the new dt's
     late = Simulation("galewsky", "cpu", **kw)
-    late.advance(days=1 / 19)  # a step taken: Δt stays
+    late.advance(days=1 / 51)  # a step taken: Δt stays
     with pytest.raises(
         ValueError,
-        match=r"^the interval every of 0.5 days .* of dt = 4547.37 s \(time.dt of scene galewsky scaled to ne=2 np=4\)",
+        match=r"^the interval every of 0.5 days .* of dt = 1694.12 s \(time.dt of scene galewsky scaled to ne=3 np=5\)",
     ):
         next(late.steps(every=0.5))
     late = Simulation("galewsky", "cpu", **kw)
     late.advance(days=0.5)  # advance fits its interval alike
-    assert late.scene.dt == 43200 / 10 and late.step == 10
+    assert late.scene.dt == 43200 / 26 and late.step == 26
     with pytest.raises(ValueError, match=r"every = 0.0123 days .* is 8.64 s, less than half: give a dt"):
         next(Simulation("galewsky", "cpu", **kw).steps(every=0.0123))  # 0.0001-day multiples: refused
 

@@ -114,6 +114,6 @@ def test_sweeps_of_other_cases_grids_and_lengths_default_to_folders_of_their_own
     assert [str(p) for p in names] == [
         "sweep_tc5_mountain_ne8np4_4d",
         "sweep_tc5_mountain_ne16np4_1d",
-        "sweep_galewsky_ne16np5_1d",  # the scene's np
+        "sweep_galewsky_ne16np8_1d",  # the scene's np
         "sweep_tc5_mountain_ne16np3_1d",
     ]

@@ -309,9 +309,13 @@ def main() -> None:
     parser.add_argument("--hard-rtol", type=float, default=1e-4)
     parser.add_argument("--step-repeat", type=int, default=100, help="steps timed in (d)")
     parser.add_argument("--parts", nargs="+", default=["a", "b", "c", "d"], choices=["a", "b", "c", "d"])
+    parser.add_argument(
+        "--results",
+        help="the results file's stem (default adaptive_proportionality; e.g. adaptive_proportionality_ne16)",
+    )
     args = parser.parse_args()
     init_warp()
-    with recorded(__file__) as figures:
+    with recorded(__file__, stem=args.results) as figures:
         print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
         warm("tc5_mountain", args.ne, sorted({s.split("@")[0] for s in args.fixed} | set(args.pairs)))
         if "a" in args.parts:

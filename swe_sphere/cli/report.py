@@ -49,9 +49,12 @@ def _control_line(c) -> str:
         if c.mode == "error"
         else "cfl"
     )
-    cfl = "" if c.cfl is None else f", Courant target {c.cfl:g}"
-    if c.mode == "error":
-        cfl = ", no Courant cap" if c.cfl is None else f", Courant cap {c.cfl:.3g}"
+    if c.mode != "error":
+        cfl = "" if c.cfl is None else f", Courant target {c.cfl:g}"
+    elif c.cfl is None:
+        cfl = ", no Courant cap"
+    else:
+        cfl = f", Courant cap {c.cfl:.3g}"
         if c.cfl_default:
             cfl += f" (the default: {CFL_FRACTION:g} x the stepper's measured limit; -s time.cfl=false: none)"
     most = "" if c.dt_max is None else f", dt_max {c.dt_max:g} s"

@@ -13,6 +13,11 @@
   (``sim.graphs = False``) and replayed as CUDA graphs (the default on a GPU),
   the bad-state check read every ``check_every`` steps either way: the time
   loop's wall time over ``--graph-steps`` steps after 100, median of ``--runs``.
+* ``bits``: TC5 for ``--steps`` steps (default 10) on ``--ne``, every stepper but
+  ``tableau`` (semi_implicit, implicit, imex at ``--dt-factor`` × Δt) and ``dp54``
+  under error control and ``ssprk3`` under CFL control, its steps launched one by
+  one and replayed as graphs: the step graphs kept, and whether u, v, h have the
+  same bits (issue 67 item 2).
 * ``reads``: host reads (``.numpy()`` read-backs, ``swe_sphere.core.tally``) and
   launches a step of every stepper (semi_implicit, implicit, imex at
   ``--dt-factor`` × Δt; ``--steps`` steps after 2) on ``--device``, and
@@ -172,6 +177,45 @@ def graphs(args):
         print(f"| {name} | {scene.dt:g} | {us[False]:.0f} | {us[True]:.0f} | {us[False] / us[True]:.2f} |", flush=True)
 
 
+BITS_CONTROLLED = {
+    "dp54+error": ("dp54", {"time.control": "error", "time.rtol": 1e-5}),
+    "ssprk3+cfl": ("ssprk3", {"time.control": "cfl"}),
+}
+
+
+def bits(args):
+    ne, steps = args.ne[0], args.steps
+    _header(
+        f"TC5 ne{ne} np4, {steps} steps (semi_implicit, implicit, imex at {args.dt_factor:g}× Δt; {args.device}): "
+        "plain launches against graphs",
+        ["stepper", "Δt s", "graphs kept", "same bits", "max |Δh| m", "wall s plain", "wall s graphs"],
+        5,
+    )
+    names = [n for n in STEPPERS if n != "tableau"]  # tableau reads a user's table file: its engine is rk4's
+    for label in names + list(BITS_CONTROLLED):
+        name, over = BITS_CONTROLLED.get(label, (label, {}))
+        fields, kept, wall = {}, 0, {}
+        for mode in ("off", "on"):
+            scene = _scene(name, ne, args.dt_factor, overrides=over or None)
+            days = steps * scene.dt / DAY
+            scene = dataclasses.replace(scene, days=days, output_every_days=days)
+            sim = Simulation(scene, args.device, progress=False, graphs=mode)
+            t0 = time.perf_counter()
+            sim.run(None)
+            wall[mode] = time.perf_counter() - t0
+            fields[mode] = sim.fields()
+            kept = sim.graphs_kept if mode == "on" else kept
+        same = all(
+            np.array_equal(a.view(np.uint64), b.view(np.uint64))
+            for a, b in zip(fields["off"], fields["on"], strict=True)
+        )
+        dh = float(np.max(np.abs(fields["off"][2] - fields["on"][2])))
+        print(
+            f"| {label} | {scene.dt:g} | {kept} | {'yes' if same else 'NO'} | {dh:.1e} | {wall['off']:.2f} | {wall['on']:.2f} |",
+            flush=True,
+        )
+
+
 def reads(args):
     ne = args.ne[0]
     krylov = f", Krylov work: {args.krylov}" if args.krylov else ""
@@ -225,7 +269,7 @@ def iterations(args):
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("part", choices=("agreement", "throughput", "graphs", "reads", "iterations"))
+    p.add_argument("part", choices=("agreement", "throughput", "graphs", "bits", "reads", "iterations"))
     p.add_argument("--device", default="cuda")
     p.add_argument(
         "--ne", type=int, nargs="+", default=None, help="grid(s), np 4 (default per part: 16 / 30 60 120 240 / 30 / 30)"
@@ -233,7 +277,9 @@ def main(argv=None):
     p.add_argument("--days", type=float, default=5.0)
     p.add_argument("--steppers", nargs="*", default=None)
     p.add_argument("--dt-factor", type=float, default=4.0, help="Δt of semi_implicit, implicit, imex × TC5's")
-    p.add_argument("--steps", type=int, default=3)
+    p.add_argument(
+        "--steps", type=int, default=None, help="reads, iterations: steps timed (default 3); bits: steps run (10)"
+    )
     p.add_argument("--repeat", type=int, default=20)
     p.add_argument("--graph-steps", type=int, default=2000, help="graphs: steps a timed run")
     p.add_argument("--runs", type=int, default=5, help="graphs: timed runs a stepper and mode")
@@ -245,14 +291,20 @@ def main(argv=None):
         help="reads: the Krylov vector work's backend (default: the device's)",
     )
     args = p.parse_args(argv)
+    args.steps = args.steps or (10 if args.part == "bits" else 3)
     args.ne = args.ne or {"agreement": [16], "throughput": [30, 60, 120, 240]}.get(args.part, [30])
     wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level (as tests/conftest.py)
     if hasattr(wp, "LOG_WARNING"):
         wp.config.log_level = wp.LOG_WARNING
     wp.init()
-    {"agreement": agreement, "throughput": throughput, "graphs": graphs, "reads": reads, "iterations": iterations}[
-        args.part
-    ](args)
+    {
+        "agreement": agreement,
+        "throughput": throughput,
+        "graphs": graphs,
+        "bits": bits,
+        "reads": reads,
+        "iterations": iterations,
+    }[args.part](args)
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@
 #   benchmarks/gpu_session.sh agreement            # ≈ 6 min: TC5 ne16 5 days, every stepper, CUDA vs CPU
 #   benchmarks/gpu_session.sh throughput graphs tc5 iterations   # ≈ 9 min
 #   benchmarks/gpu_session.sh reads                 # ≈ 1 min: host reads a step, every stepper (ISSUE 32)
+#   benchmarks/gpu_session.sh tests_gpu bits        # ≤ 4 + 2.5 min: the CUDA tests alone; graphs against plain launches, bitwise (issue 67)
 #   benchmarks/gpu_session.sh study                 # ≤ 9 min: the ne30 TC5 study's runs on the GPU (ISSUE 32)
 #   benchmarks/gpu_session.sh study_fine            # ≤ 9 min a call: TC5, TC6, Galewsky at ne60 and ne120
 #
@@ -50,6 +51,11 @@ part_setup() {
     run setup 120 "$PY" -m pip install --no-deps --no-build-isolation -e .
 }
 
+part_tests_gpu() {  # issue 67 item 1 first: every CUDA test (slow ones too), one worker a GPU-sharing process
+    run tests_gpu "${TESTS_GPU_S:-240}" "$PY" -m pytest -q -rs -p no:cacheprovider -m gpu -n "${TESTS_GPU_N:-6}" --junitxml="$OUT/tests_gpu.xml"
+    grep -q "SKIPPED.*needs a CUDA device" "$OUT/tests_gpu.txt" && echo "== tests_gpu: CUDA tests skipped on the GPU machine" | tee -a "$OUT/session.log"
+}
+
 part_tests() {
     # first the graph fallbacks' CUDA twins (issue 44): the paths a GPU user's first run takes
     run tests_graph_fallback 60 "$PY" -m pytest -q -rs -p no:cacheprovider tests/core/test_graph_fallback.py
@@ -74,6 +80,11 @@ part_throughput() {
 part_graphs() {  # ISSUE 32 target: an explicit TC5 ne30 step <= 0.12 ms
     if [ "$small" = 1 ]; then set -- --ne 2 --graph-steps 20 --runs 2; else set -- --ne 30; fi
     run graphs 240 "$PY" benchmarks/gpu_session.py graphs --device "$DEVICE" "$@"
+}
+
+part_bits() {  # issue 67 item 2: graphs against plain launches, bitwise, every stepper, TC5 ne30 10 steps
+    if [ "$small" = 1 ]; then set -- --ne 2; else set -- --ne 30; fi
+    run bits 150 "$PY" benchmarks/gpu_session.py bits --device "$DEVICE" "$@"
 }
 
 part_reads() {  # ISSUE 32 target: 0 host reads in an explicit, IMEX or semi-implicit step
@@ -117,11 +128,12 @@ part_study_fine() {
     done
 }
 
-part_tc5() {
-    local ne=120 days=1
+part_tc5() {  # issue 67 target: TC5 ne120, 15 days, the scene's own stepper and Δt, >= 20 000 simulated days a wall day
+    local ne=120 days=15
     if [ "$small" = 1 ]; then ne=2 days=0.05; fi
-    run tc5 180 "$PY" -m swe_sphere.cli run tc5_mountain --ne $ne --days $days --stepper ssprk3 --device "$DEVICE" \
-        --no-progress --output "$OUT/tc5_ne${ne}.nc" --overwrite
+    mkdir -p "$STUDY"
+    run tc5 180 "$PY" -m swe_sphere.cli run tc5_mountain --ne $ne --days $days --device "$DEVICE" \
+        --no-progress --output "$STUDY/tc5_ne${ne}.nc" --overwrite
 }
 
 part_iterations() {
@@ -133,7 +145,7 @@ parts=("$@")
 [ ${#parts[@]} -eq 0 ] && parts=(setup tests agreement throughput graphs tc5 iterations)
 for part in "${parts[@]}"; do
     case $part in
-        setup|tests|agreement|throughput|graphs|tc5|iterations|reads|study|study_fine) "part_$part" ;;
-        *) echo "unknown part '$part' (setup tests agreement throughput graphs tc5 iterations reads study study_fine)" >&2; exit 2 ;;
+        setup|tests_gpu|tests|agreement|throughput|graphs|bits|tc5|iterations|reads|study|study_fine) "part_$part" ;;
+        *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_fine)" >&2; exit 2 ;;
     esac
 done

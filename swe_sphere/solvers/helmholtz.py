@@ -440,7 +440,7 @@ class HelmholtzSolver:
             return
         cg.residual(c)  # cg.r = b − Ay, and b·b
         self._check_first.launch()
-        wp.capture_while(cg.ic, self._refinement, c=c)
+        wp.capture_while(cg.go, self._refinement, c=c)
 
     def _refinement(self, c: float) -> None:
         """One pass: e from A e = r in float32 to max(tol‖b‖, SINGLE_FLOOR‖r‖) within the

@@ -83,6 +83,9 @@ class HelmholtzCG:
         self.sums = wp.zeros(3, dtype=f64, device=dev)
         self.cs = wp.zeros(8, dtype=f64, device=dev)
         self.ic = wp.zeros(3, dtype=wp.int32, device=dev)
+        # the loop's flag alone, a view of ic[GO]: uncaptured on CUDA, ``wp.capture_while`` copies its
+        # whole condition array into a one-int host buffer (Warp 1.19), which refuses all of ic
+        self.go = self.ic[cgk.GO : cgk.GO + 1]
         self.stats = wp.zeros(3, dtype=f64, device=dev) if stats is None else stats
         self._totals = topo.device_sums(self.partial, 3, self.sums)
         self._ops: dict[tuple, list] = {}
@@ -264,7 +267,7 @@ class HelmholtzCG:
         self._first.launch()  # the bound; go?
         if self.one_reduction:  # the first product and α ahead of the loop
             self._product(c)
-        wp.capture_while(self.ic, self._iteration, c=c)
+        wp.capture_while(self.go, self._iteration, c=c)
 
     def _product(self, c: float) -> None:
         """w = Au, δ = w·u over all ranks, α."""

@@ -198,7 +198,8 @@ def test_a_solve_writes_the_stage_tendency_with_the_bits_of_its_own_pass(device,
     compiled without FMA contraction as ``blas`` is, or ``schur_wind_implicit`` per node) on TC5
     ne 2's state at a = 1800 s, lz in r's own array (as ``ImexRK`` writes it): lz bitwise
     ``blas.axpby(1/a, z, −s/a, r)``, and at s = 1 (the IMEX stages') z bitwise the plain solve's.
-    At s = 3 the per-element z may differ from the plain solve's in its last bit (s·r_v − ag·S wg
+    On CUDA lz and axpby agree to 2ε relative, not bitwise (each kernel's FMA contraction). At
+    s = 3 the per-element z may differ from the plain solve's in its last bit (s·r_v − ag·S wg
     with and without contraction; at s = 1 the plain kernel's contraction leaves z's bits, as
     checked here): ≤ 4ε relative to each row's largest value."""
     sim = Simulation(load_scene("tc5_mountain", ne=2, np_=4), device, progress=False)
@@ -215,9 +216,15 @@ def test_a_solve_writes_the_stage_tendency_with_the_bits_of_its_own_pass(device,
         gw.solve(sim.x, a, plain, s)
         m.lincomb(axpby, ((1.0 / a, z), (-s / a, sim.x))).launch()
         assert gw.iterations() > 0
-        assert np.array_equal(lz.numpy(), axpby.numpy()), s
-        if s == 1.0:
-            assert np.array_equal(z.numpy(), plain.numpy())
+        if device == "cpu":
+            assert np.array_equal(lz.numpy(), axpby.numpy()), s
+            if s == 1.0:
+                assert np.array_equal(z.numpy(), plain.numpy())
+        else:  # NVRTC contracts a·z + b·r into an FMA (Warp's fuse_fp, on for CPU and CUDA alike: turning it
+            # off would move the CPU's bits) and may fuse the other product in each kernel: an ulp apart
+            terms = (np.abs(z.numpy()) + s * np.abs(sim.x.numpy())) / a  # each a rounding's size, not the sum's
+            d = np.abs(lz.numpy() - axpby.numpy()).max(axis=1) / terms.max(axis=1)
+            roundoff.within(max(d), roundoff.bound(2), f"|lz − axpby| on CUDA at s = {s:g}")
         diff = np.abs(z.numpy() - plain.numpy()).max(axis=1)
         roundoff.within(max(diff / np.abs(plain.numpy()).max(axis=1)), roundoff.bound(4), f"|z − plain z| at s = {s:g}")
         assert np.abs(lz.numpy()).max() > 0.0

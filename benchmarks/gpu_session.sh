@@ -47,7 +47,7 @@ part_setup() {
     # the machine reaches no index: install the checkout alone, against what is there. Its image had
     # no Warp, netCDF4, cftime or pyamg (2026-11-22): bring them as files and put them on PYTHONPATH
     # first (benchmarks/GPU.md says how they travel)
-    "$PY" -c "import warp, netCDF4, pyamg" || { echo "== setup: warp, netCDF4 or pyamg missing on this machine" | tee -a "$OUT/session.log"; exit 2; }
+    "$PY" -c "import warp, netCDF4, ducc0" || { echo "== setup: warp, netCDF4 or ducc0 missing on this machine" | tee -a "$OUT/session.log"; exit 2; }
     run setup 120 "$PY" -m pip install --no-deps --no-build-isolation -e .
 }
 
@@ -78,7 +78,7 @@ part_throughput() {
 }
 
 part_graphs() {  # ISSUE 32 target: an explicit TC5 ne30 step <= 0.12 ms
-    if [ "$small" = 1 ]; then set -- --ne 2 --graph-steps 20 --runs 2; else set -- --ne 30; fi
+    if [ "$small" = 1 ]; then set -- --ne 2 --graph-steps 20 --runs 2; else set -- --ne 30 --graph-steps "${GRAPH_STEPS:-2000}" --runs "${GRAPH_RUNS:-5}"; fi
     run graphs 240 "$PY" benchmarks/gpu_session.py graphs --device "$DEVICE" "$@"
 }
 
@@ -110,6 +110,11 @@ sweep() {  # sweep <name> <seconds> <case> <ne> <days> <filter days> <runs>: one
 
 part_study() {  # ISSUE 32 target: the ne30 TC5 study (15 days) in <= 10 minutes on one GPU
     sweep tc5_ne30 540 tc5_mountain 30 15 2 "$R30,$I30"
+}
+
+part_study_ne60() {  # issue 67 item 4 in one call: TC5 ne60 15 days, the verdict's contenders at their best multiples
+    sweep tc5_ne60_best "${STUDY_S:-240}" tc5_mountain 60 15 2 \
+        leapfrog_trapezoidal@0.64,ssprk3@0.8,rk4@1.24,kgu35@1.6,fbrk32@1.24,semi_implicit@2,imex@8
 }
 
 # ISSUE 32 item 5: every contender at ne60 and ne120; repeat the part until every sweep ends. A run
@@ -145,7 +150,7 @@ parts=("$@")
 [ ${#parts[@]} -eq 0 ] && parts=(setup tests agreement throughput graphs tc5 iterations)
 for part in "${parts[@]}"; do
     case $part in
-        setup|tests_gpu|tests|agreement|throughput|graphs|bits|tc5|iterations|reads|study|study_fine) "part_$part" ;;
-        *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_fine)" >&2; exit 2 ;;
+        setup|tests_gpu|tests|agreement|throughput|graphs|bits|tc5|iterations|reads|study|study_ne60|study_fine) "part_$part" ;;
+        *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_ne60 study_fine)" >&2; exit 2 ;;
     esac
 done

@@ -29,6 +29,8 @@ SOLVER = {
     "semi_implicit",
     "implicit",
     "imex",
+    "ark324",
+    "ark436",
     "epi2",
     "epi3",
 }  # epi: forward-difference J·v (1e-8 of it) reads the last bits

@@ -94,18 +94,21 @@ def sweep(n: int, snapshots: int, x0, advance, reverse, copy) -> int:
         taken += steps
         return x
 
-    def part(a, b, xa, free):  # reverse steps a..b−1, xa = x(a) held
-        while b - a > 1:
-            if free == 0:
-                for k in range(b - 1, a, -1):
-                    reverse(walk(copy(xa), k - a), k)
-                break
+    # The reversal of steps a..b−1 from xa = x(a) held with ``free`` snapshots more: split at m,
+    # reverse m..b−1 from x(m) with one snapshot fewer, then a..m−1 the same way. A stack of
+    # (a, b, xa, free), not recursion: every state held splits at m = a + 1, as deep as n.
+    stack = [(0, n, x0, snapshots - 1)]
+    while stack:
+        a, b, xa, free = stack.pop()
+        if b - a > 1 and free == 0:
+            for k in range(b - 1, a, -1):
+                reverse(walk(copy(xa), k - a), k)
+        elif b - a > 1:
             m = a + split(b - a, free)
-            part(m, b, walk(copy(xa), m - a), free - 1)
-            b = m
+            stack.append((a, m, xa, free))  # after m..b−1, the steps before m
+            stack.append((m, b, walk(copy(xa), m - a), free - 1))
+            continue
         reverse(xa, a)
-
-    part(0, n, x0, snapshots - 1)
     return taken
 
 

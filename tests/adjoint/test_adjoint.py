@@ -201,6 +201,20 @@ def test_sweep_reverses_every_step_once_in_order_with_the_predicted_recomputatio
     assert taken == forward_steps(n, snapshots - 1)
 
 
+@pytest.mark.parametrize("snapshots", [3000, 2000])
+def test_a_sweep_longer_than_pythons_recursion_limit_reverses_every_step(snapshots):
+    """Every state held (``gradient``'s default) splits at each step: 2999 nested splits, which
+    a recursive sweep could not take (a 15-day TC5 run at ne8 is 1636 steps)."""
+    seen = []
+
+    def advance(x, steps):
+        x[0] += steps
+
+    taken = sweep(3000, snapshots, [0], advance, lambda x, k: seen.append((k, x[0])), list)
+    assert seen == [(k, k) for k in reversed(range(3000))]
+    assert taken == griewank_steps(3000, snapshots)  # 2999 with every state, 3998 with 2000
+
+
 def test_a_checkpointed_gradient_is_the_same_bits_as_one_that_stores_every_state():
     model, _, x0 = setup()
     cost = HeightMisfit(x0[2] + 10.0)

@@ -216,6 +216,27 @@ def test_checked_graphs_run_and_keep_the_bits_of_plain_launches(capsys, stepper,
     assert graphed[4].graphs_kept >= 1 and graphed[4].model.graph_guard.failure is None
 
 
+@pytest.mark.parametrize("stepper", ["semi_implicit", "imex"])
+def test_every_device_loop_tests_a_one_int_flag(monkeypatch, stepper):
+    """``wp.capture_while``'s condition is one int32 wherever a solver loops on the device:
+    uncaptured on CUDA, Warp (1.19) copies the whole condition array into a one-int host buffer
+    and raises for a longer one (on an H200, the CG's three counters did, in every plain
+    semi-implicit and IMEX step), while the CPU reads only its first int. Checked here on the
+    CPU, plain and graphed, the solves' refinement loop (``precision = "mixed"``) included."""
+    seen = []
+
+    def one_int(condition, body, stream=None, **kwargs):
+        seen.append(condition.shape)
+        return real(condition, body, stream=stream, **kwargs)
+
+    real = wp.capture_while
+    monkeypatch.setattr(wp, "capture_while", one_int)
+    for graphs, options in (("off", {}), ("on", {}), ("off", {"precision": "mixed"})):
+        scene = dataclasses.replace(tc5(stepper, 4), stepper_options=options)
+        run(scene, "cpu", graphs)
+    assert seen and set(seen) == {(1,)}, set(seen)
+
+
 def test_the_graph_mode_from_cli_environment_and_python(tmp_path, monkeypatch, capsys):
     """``--graphs`` and ``SWE_SPHERE_GRAPHS`` take off, on, auto (the default); another
     value is refused in one line naming it, exit 2, nothing written; the flag wins

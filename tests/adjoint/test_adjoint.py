@@ -121,17 +121,51 @@ def test_hyperviscosity_step_is_its_own_transpose_in_the_mass_form():
     assert abs(left - right) <= 1e-12 * scale  # measured 1e-16 relative (ne 2 np 4)
 
 
-def taylor_slopes(stepper, steps, weights):
-    """Remainders |J(x + εδx) − J(x) − ε⟨∇J, δx⟩| over ε = 1e-1 … 1e-5 and their log-log slopes."""
-    model, _, x0 = setup(stepper)
+def taylor_slopes(stepper, steps, weights, scene=None):
+    """Remainders |J(x + εδx) − J(x) − ε⟨∇J, δx⟩| over ε = 1e-1 … 1e-5 and their log-log slopes
+    (``scene`` None: ``tc5(stepper)``)."""
+    scene = tc5(stepper) if scene is None else scene
+    model, _, x0 = scene_model(scene)
     rng = np.random.default_rng(0)
     cost = HeightMisfit(x0[2] + 50 * continuous(model, rng.standard_normal((3, model.N)))[2])
-    g = gradient(tc5(stepper), steps, cost)
+    g = gradient(scene, steps, cost)
     dx = continuous(model, rng.standard_normal((3, model.N)) * np.array(weights)[:, None])
     dJ = np.sum(model.grid.spheremp * g.grad * dx)
     eps = 10.0 ** -np.arange(1.0, 5.5, 1.0)
-    rest = [abs(gradient(tc5(stepper), steps, cost, x0=x0 + e * dx).cost - g.cost - e * dJ) for e in eps]
+    rest = [abs(gradient(scene, steps, cost, x0=x0 + e * dx).cost - g.cost - e * dJ) for e in eps]
     return np.diff(np.log(rest)) / np.diff(np.log(eps)), rest, g.cost
+
+
+@functools.cache
+def other_case(name):
+    """TC2 (with a ∇⁴ at the e-folding rule's ν, which its scene leaves out) and Galewsky at ne 2
+    np 4, rk4 at Δt 1800 s."""
+    over = None
+    if name == "tc2_steady":
+        terms = [*load_scene(name).terms, "hyperviscosity"]
+        over = {"terms": terms, "hyperviscosity.efold_hours": 3.0}
+    return load_scene(name, ne=2, np_=4, dt=1800.0, stepper="rk4", overrides=over)
+
+
+@pytest.mark.parametrize("case", ["tc2_steady", "galewsky"])
+def test_taylor_remainders_of_the_initial_state_and_nu_gradients_on_tc2_and_galewsky(case):
+    """Issue 66's Taylor tests beyond TC5: the initial state's and ν's remainders fall as ε²."""
+    scene = other_case(case)
+    slopes, rest, J = taylor_slopes("rk4", 4, [1.0, 1.0, 10.0], scene)
+    assert np.all(np.abs(slopes - 2.0) < 0.1), (slopes, rest)
+    assert rest[-1] > 1e4 * EPS * J
+    model, _, x0 = scene_model(scene)
+    cost = HeightMisfit(x0[2] + 50 * continuous(model, np.random.default_rng(6).standard_normal((3, model.N)))[2])
+    g = gradient(scene, 4, cost, parameters=True)
+    delta = 0.2 * scene.nu
+
+    def perturbed(e):
+        nus = {n: getattr(scene, n) + e * delta for n in ("nu", "nu_div")}
+        return gradient(dataclasses.replace(scene, **nus), 4, cost).cost, e * delta * g.d_nu
+
+    slopes, rest, J = parameter_slopes(perturbed)
+    assert np.all(np.abs(slopes - 2.0) < 0.1), (slopes, rest)
+    assert rest[-1] > 1e3 * EPS * J
 
 
 @pytest.mark.parametrize("stepper", ["rk4", "ssprk3", "kgu35", "dp54"])

@@ -177,10 +177,17 @@ def main() -> None:
     parser.add_argument("--tc5-fixed", nargs="+", default=["rk4@0.79", "rk4@1.24", "kgu35@0.8"])
     parser.add_argument("--galewsky-fixed", nargs="+", default=["fbrk32@1.24", "fbrk32@1.05", "kgu35@1.63"])
     parser.add_argument("--dt-runs", nargs="+", help="PAIR@RTOL[@CFL]: Galewsky's Δt over time at these instead")
-    parser.add_argument("--results", default="adaptive_ne30_dt", help="--dt-runs' results file's name")
+    parser.add_argument(
+        "--tc5-reference", default="T213", help="TC5's spectral reference (T341 stores days 1 and 15 only)"
+    )
+    parser.add_argument(
+        "--results", help="the results file's name (default adaptive_ne30; with --dt-runs adaptive_ne30_dt)"
+    )
     args = parser.parse_args()
     init_warp()
-    with recorded(__file__, args.results if args.dt_runs else None) as figures:
+    CASES["tc5"] = ("tc5_mountain", args.tc5_reference)
+    stem = args.results or ("adaptive_ne30_dt" if args.dt_runs else None)
+    with recorded(__file__, stem) as figures:
         print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}", flush=True)
         fixed = {"tc5": args.tc5_fixed, "galewsky": args.galewsky_fixed}
         days = {"tc5": args.tc5_days, "galewsky": args.galewsky_days}

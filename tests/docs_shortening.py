@@ -17,8 +17,9 @@ What changes, and why it keeps the pages' order meaningful:
   first of ``--courant`` (``--dt``); ``stability`` bisects the first of ``--steppers``;
   ``--workers`` is dropped (each worker process imports the model again, which costs
   more than a tiny run).
-- A frontier keeps the first of its ``--ne`` and ``--steppers`` and two of its ``--np``
-  (each grid is a sweep of its own; the pages' ladders are tiny already).
+- A frontier keeps the first of its ``--ne`` (shortened as a run's) and ``--steppers`` and two of
+  its ``--np`` (each grid is a sweep of its own: docs/efficiency.md's ladders at ne 12–24 and np
+  7–8 ran for over 15 minutes at their own grids).
 - ``mesh --levels N`` refines one level (2x, not 2^N x): the refinement, its transitions
   and the run on the file stay; the 4x mesh's cells took 12 s of CPU to build and its run
   935 steps, the 2x mesh's a fraction of a second and 468 (README's ne10 box, load 12).
@@ -91,7 +92,10 @@ def shorten(argv: list[str]) -> list[str]:
         if option in args[:-1]:
             i = args.index(option) + 1
             args[i] = ",".join(args[i].split(",")[:n])
-    if command == "frontier":  # its ladder's grids are the page's own tiny ones
+    if command == "frontier":  # its one grid shortened as a run's (each grid is a sweep of its own)
+        if "--ne" in args[:-1]:
+            i = args.index("--ne") + 1
+            args[i] = str(small_ne(int(args[i])))
         return [command, *args]
     if "--ne" in args[:-1]:
         i = args.index("--ne") + 1

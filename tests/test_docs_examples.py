@@ -150,6 +150,9 @@ def test_a_sweep_makes_one_run_in_one_process():
     assert shorten(steppers)[4:] == ["--steppers", "rk4", "--courant", "0.5", "--dt", "2400.0"]
     frontier = ["frontier", "tc2_steady", "--ne", "2,4", "--np", "3,4,6", "--steppers", "rk4,kgu35", "--days", "1"]
     assert shorten(frontier) == [*frontier[:3], "2", "--np", "3,4", "--steppers", "rk4", "--days", "1"]
+    assert shorten(["frontier", "galewsky", "--ne", "16", "--np", "7,8"]) == [
+        *["frontier", "galewsky", "--ne", "3", "--np", "7,8"]
+    ]  # its grid shortened as a run's
     assert shorten(["stability", "tc5_mountain", "--steppers", "rk4,kgu35,ssprk3", "--ne", "16"]) == [
         *["stability", "tc5_mountain", "--steppers", "rk4", "--ne", "3"]
     ]

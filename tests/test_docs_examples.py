@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -88,6 +89,12 @@ def run_examples(path: Path, folder: Path, inline: bool = True) -> None:
     (folder / "testcases").symlink_to(ROOT / "testcases")
     (folder / "docs" / "efficiency").mkdir(parents=True)  # the pages' scripts, beside the figures they write
     (folder / "docs" / "efficiency" / "tables.py").symlink_to(ROOT / "docs" / "efficiency" / "tables.py")
+    # the frontier figures' script merges into the tables beside itself and draws there (copies:
+    # what it writes stays in the test's folder) and reads the peers' results
+    for f in [ROOT / "docs" / "efficiency" / "frontier_figures.py", *(ROOT / "docs" / "efficiency").glob("*.csv")]:
+        shutil.copy(f, folder / "docs" / "efficiency")
+    (folder / "benchmarks").mkdir()
+    (folder / "benchmarks" / "results").symlink_to(ROOT / "benchmarks" / "results")
     bin_ = folder / ".bin"
     bin_.mkdir()
     (bin_ / "swe-sphere").write_text(f'#!/bin/sh\nexec "{sys.executable}" "{SHIM}" "$@"\n')

@@ -194,7 +194,7 @@ def bits(args):
     names = [n for n in STEPPERS if n != "tableau"]  # tableau reads a user's table file: its engine is rk4's
     for label in names + list(BITS_CONTROLLED):
         name, over = BITS_CONTROLLED.get(label, (label, {}))
-        fields, kept, wall = {}, 0, {}
+        fields, kept, wall = {}, {}, {}
         for mode in ("off", "on"):
             scene = _scene(name, ne, args.dt_factor, overrides=over or None)
             days = steps * scene.dt / DAY
@@ -204,14 +204,14 @@ def bits(args):
             sim.run(None)
             wall[mode] = time.perf_counter() - t0
             fields[mode] = sim.fields()
-            kept = sim.graphs_kept if mode == "on" else kept
+            kept[mode] = sim.graphs_kept
         same = all(
             np.array_equal(a.view(np.uint64), b.view(np.uint64))
             for a, b in zip(fields["off"], fields["on"], strict=True)
         )
         dh = float(np.max(np.abs(fields["off"][2] - fields["on"][2])))
         print(
-            f"| {label} | {scene.dt:g} | {kept} | {'yes' if same else 'NO'} | {dh:.1e} | {wall['off']:.2f} | {wall['on']:.2f} |",
+            f"| {label} | {scene.dt:g} | {kept['on']} | {'yes' if same else 'NO'} | {dh:.1e} | {wall['off']:.2f} | {wall['on']:.2f} |",
             flush=True,
         )
 

@@ -75,7 +75,6 @@ def main() -> None:
     scene, steps, misfit, grid, surface, hs = setting(args.scene, args.ne, args.days, args.truncation)
     total = grid.spheremp.sum()  # 4πa² over the element-local nodes
     norm = math.sqrt(float(np.sum(grid.spheremp * surface**2)))
-    evaluations = []
 
     def run(p):
         s, s_s = np.exp(p)
@@ -83,7 +82,6 @@ def main() -> None:
         g = swe_sphere.gradient(sc, steps, misfit, parameters=True)
         l2 = math.sqrt(2.0 * g.cost) / norm  # ½ Σ spheremp r² = J: Williamson's l2 of h + hs
         dJ = np.array([s * scene.nu * g.d_nu, s_s * scene.nu_s * g.d_nu_s]) / total
-        evaluations.append((float(s), float(s_s), g.cost / total, l2))
         return g.cost / total, dJ, l2
 
     with recorded(__file__) as figures:
@@ -96,7 +94,6 @@ def main() -> None:
             J, _, l2 = run(np.log([s, s]))
             ladder.append({"s": s, "J": J, "l2": l2, "substeps": substeps})
         clock = time.process_time()
-        evaluations.clear()
         result = scipy.optimize.minimize(
             lambda p: run(p)[:2],
             np.zeros(2),

@@ -92,15 +92,12 @@ def shorten(argv: list[str]) -> list[str]:
         if option in args[:-1]:
             i = args.index(option) + 1
             args[i] = ",".join(args[i].split(",")[:n])
-    if command == "frontier":  # its one grid shortened as a run's (each grid is a sweep of its own)
-        if "--ne" in args[:-1]:
-            i = args.index("--ne") + 1
-            args[i] = str(small_ne(int(args[i])))
-        return [command, *args]
-    if "--ne" in args[:-1]:
+    if "--ne" in args[:-1]:  # a frontier's one grid too (each grid is a sweep of its own)
         i = args.index("--ne") + 1
         ne = int(args[i])
         args[i] = str(small_ne(ne))
+    elif command == "frontier":  # its own ladder's grids
+        ne = None
     elif command == "stability":
         ne = COARSE_NE
         args += ["--ne", str(small_ne(ne))]
@@ -114,6 +111,8 @@ def shorten(argv: list[str]) -> list[str]:
         args += ["--ne", str(small_ne(ne))]
     else:
         ne = None  # the file's grid, not known here: its Δt stays
+    if command == "frontier":
+        return [command, *args]
     if ne is not None and "--dt" in args[:-1]:
         i = args.index("--dt") + 1
         args[i] = ",".join(str(coarser_dt(float(dt), ne)) for dt in args[i].split(","))

@@ -215,7 +215,7 @@ def _reverse_run(model, stepper, adjoint, x0, steps, cost, snapshots, disk, inte
 
     def observe(x, k):  # J_k at x(k) into found, λ_k into ``lam``
         found["costs"][k], lam_k = cost(k, np.array(x.numpy()), model.grid.spheremp)
-        wp.copy(lam, wp.array(np.asarray(lam_k, dtype=float), dtype=f64, device=device))
+        lam.assign(np.asarray(lam_k, dtype=float))
 
     def finish(xn):  # J_n at x(n) and μ = R Q λ_n there (0 where n is not observed)
         found["final"] = xn.numpy()

@@ -78,6 +78,7 @@ class StepControl:
             self.controller = Controller(order, control.controller)
             depth = "pressure_gradient" in sim.model.terms  # h a depth: h ≤ 0 is a bad state
             self.norm = ErrorNorm(sim.topology, control.rtol, control.atol_wind, control.atol_h, depth)
+            stepper.carry_last_stage()  # an FSAL pair's last RHS is the next step's first
         gravity_waves = stepper.courant_limit is not None  # explicit gravity waves: the signal's Courant number
         growth = math.inf if control.cfl_default else CflController.max_change  # the default cap: a bound only
         self.cfl = None if control.cfl is None else CflController(control.cfl, gravity_waves, growth)

@@ -142,6 +142,12 @@ class Stepper:
         embedded pair): what error control needs. ValueError names a bad option."""
         return cls.embedded_order > 0
 
+    def carry_last_stage(self) -> bool:
+        """Under error control (the estimate read every step): carry an FSAL pair's last stage
+        over as the next step's first (``runge_kutta.ExplicitRK.carry_last_stage``); whether
+        the stepper does. False here."""
+        return False
+
     @classmethod
     def label(cls, options: dict) -> str:
         """The stepper as ``swe-sphere list`` and a run name it with these scene options."""

@@ -64,13 +64,51 @@ class ExplicitRK(Stepper):
         buffers, self._form = stage_form(table.A_E, table.b_E, table.c, None if estimate is None else estimate[0])
         self._buffers = {name: self._buffer() for name in buffers}
         self._x = None
+        self._carried = None  # ``carry_last_stage``: (F(x) carried, the FSAL weight d_s); valid while ``_k_valid``
+        self._k_valid = False
 
     @property
     def error_estimate(self) -> wp.array2d | None:
         """An embedded pair's local error estimate of the last step, e = Δt Σ (b − b̂)_j K_j
-        (3, N), in x's units (m s⁻¹ for u, v, m for h), without the ∇⁴ step; written by the
-        step's last stage, no RHS of its own. None for a table without b̂."""
+        (3, N), in x's units (m s⁻¹ for u, v, m for h); written by the step's last stage, no
+        RHS of its own, without the ∇⁴ step (with it, its FSAL stage F(x(n+1)) evaluated
+        after the ∇⁴, where ``carry_last_stage``). None for a table without b̂."""
         return self._buffers.get("e")
+
+    def fsal(self) -> bool:
+        """Whether the table is an embedded pair whose last stage is F(x(n+1)) (first same as
+        last: A's last row b, b's last weight 0, c 1), the next step's first stage."""
+        t = self.table()
+        b, last = t.b_E, t.A_E[-1]
+        return t.estimate is not None and t.c[-1] == 1 and b[-1] == 0 and tuple(last[:-1]) == tuple(b[:-1])
+
+    def carry_last_stage(self) -> bool:
+        """Step an FSAL pair (``fsal``) with its last stage carried over as the next step's
+        first, s − 1 RHS evaluations a step instead of s (error control, where the estimate is
+        read every step: ``simulation.adaptive.StepControl``): after the ∇⁴ step, F(x(n+1)) is
+        evaluated once, written into the estimate (weight d_s = b_s − b̂_s) and kept; the next
+        step's first stage combines it instead of evaluating F(x(n)) again. x(n+1) is the
+        same (b_s = 0); the estimate's last term is F after the ∇⁴ rather than before, so it
+        holds the ∇⁴ step's effect on F too. ``restore`` (a rejected step's, a restart's)
+        drops what is carried: the next step evaluates F(x(n)) first, the same bits.
+        Returns whether it does: not for a table that is not FSAL, nor with a time-dependent
+        forcing (the carried F's time would be t(n) + Δt(n) rather than the next step's
+        rebased t0 + steps·Δt, another rounding)."""
+        if self._carried is not None:
+            return True
+        if not self.fsal() or "forcing" in self.model.terms:
+            return False
+        t = self.table()
+        s, d = len(t.b_E), t.estimate[0]
+        cut = [row[: s - 1] for row in t.A_E[: s - 1]]
+        buffers, self._form = stage_form(cut, t.b_E[: s - 1], t.c[: s - 1], d[: s - 1])
+        self._buffers = {name: self._buffer() for name in buffers}
+        self._carried, self._k_valid, self._x = (self._buffer(), d[s - 1]), False, None
+        return True
+
+    def restore(self, state: dict) -> None:
+        super().restore(state)
+        self._k_valid = False  # x is put back: what was carried is F of another state
 
     def _record(self, x):
         """The stages on x: (c, the RHS's argument, its updates), Δt folded into F's coefficients."""
@@ -97,11 +135,31 @@ class ExplicitRK(Stepper):
     def advance(self, x):
         if self._x is not x:
             self._record(x)
-        for c, arg, updates in self._stages:
+        if self._carried is None:
+            for c, arg, updates in self._stages:
+                self._at(c)
+                self.model.rhs_update(arg, updates)
+            self.model.hyperviscosity(x, self.dt)
+            return StepStats(len(self._stages))
+        k, d_s = self._carried
+        evals = len(self._stages)  # the first stage's F carried over; F(x(n+1)) after the ∇⁴
+        if not self._k_valid:
+            self._at(0.0)
+            self.model.rhs(x, k)
+            evals += 1
+        (_, _, first), *rest = self._stages
+        for u in first:  # as ``rhs_update`` sums them (left to right, ``blas``): the same bits
+            args = [v for a, src in u.terms for v in (f64(a), k if src is None else src)]
+            self._pointwise(blas.axpbypcz if len(u.terms) == 3 else blas.axpby, *args, u.out)
+        for c, arg, updates in rest:
             self._at(c)
             self.model.rhs_update(arg, updates)
         self.model.hyperviscosity(x, self.dt)
-        return StepStats(len(self._stages))
+        self._at(1.0)
+        e = self._buffers["e"]
+        self.model.rhs_update(x, (Update(k, ((1.0, None),)), Update(e, ((1.0, e), (_dt_times(d_s, self.dt), None)))))
+        self._k_valid = True
+        return StepStats(evals)
 
 
 def explicit_steppers() -> tuple[type[Stepper], ...]:

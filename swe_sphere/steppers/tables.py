@@ -74,6 +74,20 @@ EXPLICIT |= {
         b_hat=("7/24", "1/4", "1/3", "1/8"),
         c=(0, "1/2", "3/4", 1),
     ),
+    "rk43": dict(
+        name="rk43",
+        order=4,
+        embedded_order=3,
+        description="""Classical RK4 with a third-order FSAL error estimate: ``rk4``'s steps (its bits
+        at a fixed Δt). F(x(n+1)) is a fifth stage with b_hat = (1/6, 1/3, 1/3, 0, 1/6), so
+        e = Δt/6 (F(Y_4) − F(x(n+1))): the third-order conditions with RK4's last weight moved to
+        the FSAL stage (checked by the order conditions). 4 RHS evaluations per step under error
+        control (the FSAL stage is the next step's first), 5 at a fixed Δt.""",
+        A=((0,) * 5, ("1/2", 0, 0, 0, 0), (0, "1/2", 0, 0, 0), (0, 0, 1, 0, 0), ("1/6", "1/3", "1/3", "1/6", 0)),
+        b=("1/6", "1/3", "1/3", "1/6", 0),
+        b_hat=("1/6", "1/3", "1/3", 0, "1/6"),
+        c=(0, "1/2", "1/2", 1, 1),
+    ),
     "dp54": dict(
         name="dp54",
         order=5,
@@ -172,6 +186,7 @@ COURANT_LIMITS = {
     # limit per imaginary-axis unit) are 1.06, 0.61, 1.32 and 1.68: dp54's |R(iy)| passes 1 at
     # y = 1.0 but stays below 1.003 to y = 1.5 and 1.032 to y = 2, a growth the ∇⁴ damps
     "bs32": 1.11,
+    "rk43": 1.73,  # rk4's stability polynomial (b's last weight 0): rk4's limit
     "dp54": 1.28,
     "ssprk43": 1.37,
     "rdpk3sp35": 1.73,

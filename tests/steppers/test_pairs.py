@@ -10,6 +10,7 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
+import warp as wp
 
 from swe_sphere.config.scene import load_scene
 from swe_sphere.steppers import STEPPERS
@@ -19,7 +20,15 @@ from swe_sphere.steppers.tables import EXPLICIT, IMEX_PAIRS
 from helpers import make_sim
 
 PAIRS = {key: t for key, t in {**EXPLICIT, **IMEX_PAIRS}.items() if t.get("embedded_order")}
-CLAIMS = {"bs32": (3, 2), "dp54": (5, 4), "ssprk43": (3, 2), "rdpk3sp35": (3, 2), "ark324": (3, 2), "ark436": (4, 3)}
+CLAIMS = {
+    "bs32": (3, 2),
+    "rk43": (4, 3),
+    "dp54": (5, 4),
+    "ssprk43": (3, 2),
+    "rdpk3sp35": (3, 2),
+    "ark324": (3, 2),
+    "ark436": (4, 3),
+}
 
 
 def test_the_pairs_are_the_claimed_ones_and_registered():
@@ -103,3 +112,58 @@ def test_the_estimate_is_the_step_minus_the_embedded_step(key):
     assert np.all(np.abs(e - (x1 - xh)) <= bound), np.abs(e - (x1 - xh)).max(axis=1)
     assert np.all(np.abs(e).max(axis=1) > 1e3 * bound.ravel()), np.abs(e).max(axis=1)
     assert np.all(np.abs(e).max(axis=1) < 0.1 * np.abs(x1 - x0).max(axis=1))
+
+
+FSAL = ("bs32", "rk43", "dp54", "rdpk3sp35")
+
+
+@pytest.mark.roundoff
+@pytest.mark.parametrize("key", FSAL)
+def test_a_carried_last_stage_keeps_the_steps_bits_and_saves_a_rhs(key):
+    """TC5 ne 2 (with its ∇⁴): an FSAL pair whose last stage is carried over as the next step's
+    first (``carry_last_stage``, error control's) steps x bit for bit as the pair that
+    evaluates it in the step, through a change of Δt and a ``restore`` (which drops what is
+    carried: F(x(n)) evaluated again), with s − 1 RHS evaluations a step but the first and the
+    one after the restore; its estimate is the other's with the last stage's F taken after the
+    ∇⁴: e + Δt d_s (F(x(n+1)) − F(Y_s)), to 16 ε |x|."""
+    scene = load_scene("tc5_mountain", ne=2, days=1.0, stepper=key)
+    assert "hyperviscosity" in scene.terms
+    carried, inline = make_sim(scene), make_sim(scene)
+    assert STEPPERS[key].fsal(carried.stepper) and carried.stepper.carry_last_stage()
+    s = len(PAIRS[key]["b"])
+    d_s = float(Fraction(PAIRS[key]["b"][-1]) - Fraction(PAIRS[key]["b_hat"][-1]))
+    before_hv = []
+    apply = inline.model.hyperviscosity
+    inline.model.hyperviscosity = lambda x, dt: (before_hv.append(x.numpy().copy()), apply(x, dt))
+    F, Y = (wp.zeros((3, inline.model.N), dtype=wp.float64, device=inline.model.device) for _ in range(2))
+    dt = carried.stepper.dt
+    for n, change in enumerate((None, None, 0.7 * dt, "restore", None)):
+        if change == "restore":
+            for sim in (carried, inline):
+                sim.stepper.restore(sim.stepper.state())
+        elif change is not None:
+            for sim in (carried, inline):
+                sim.stepper.set_dt(change)
+        evals = carried.stepper.step(carried.x).rhs_evals
+        assert evals == (s if n in (0, 3) else s - 1)
+        assert inline.stepper.step(inline.x).rhs_evals == s
+        x1 = carried.x.numpy()
+        assert np.array_equal(x1, inline.x.numpy()), n
+        inline.model.rhs(carried.x, F)
+        after = F.numpy().copy()  # numpy() is a view of a CPU array
+        Y.assign(before_hv[-1])
+        inline.model.rhs(Y, F)
+        expected = inline.stepper.error_estimate.numpy() + carried.stepper.dt * d_s * (after - F.numpy())
+        bound = 16 * np.finfo(float).eps * np.abs(x1).max(axis=1, keepdims=True)
+        got = carried.stepper.error_estimate.numpy()
+        assert np.all(np.abs(got - expected) <= bound), (n, np.abs(got - expected).max(axis=1))
+        assert np.all(np.abs(got - inline.stepper.error_estimate.numpy()).max(axis=1) > bound.ravel())
+
+
+def test_rk43_at_a_fixed_dt_is_rk4():
+    """rk43's x(n+1) is RK4's: three TC5 steps (ne 2) the same bits."""
+    sims = [make_sim(load_scene("tc5_mountain", ne=2, days=1.0, stepper=key)) for key in ("rk43", "rk4")]
+    for _ in range(3):
+        for sim in sims:
+            sim.stepper.step(sim.x)
+    assert np.array_equal(sims[0].x.numpy(), sims[1].x.numpy())

@@ -320,6 +320,7 @@ def test_options_dataclass_defaults_checks_and_schema():
         "rk4",
         "kgu35",
         "bs32",
+        "rk43",
         "dp54",
         "ssprk43",
         "rdpk3sp35",

@@ -88,6 +88,27 @@ EXPLICIT |= {
         b_hat=("1/6", "1/3", "1/3", 0, "1/6"),
         c=(0, "1/2", "1/2", 1, 1),
     ),
+    "kgu352": dict(
+        name="kgu352",
+        order=3,
+        embedded_order=2,
+        description="""HOMME's KGU35 with a second-order FSAL error estimate: ``kgu35``'s steps (its
+        bits at a fixed Δt). F(x(n+1)) is a sixth stage and the embedded solution the trapezoidal
+        rule x(n) + Δt/2 (F(x(n)) + F(x(n+1))), b_hat = (1/2, 0, 0, 0, 0, 1/2), so
+        e = Δt (−F(x(n))/4 + 3F(Y_5)/4 − F(x(n+1))/2). 5 RHS evaluations per step under error
+        control (the FSAL stage is the next step's first), 6 at a fixed Δt.""",
+        A=(
+            (0,) * 6,
+            ("1/5", 0, 0, 0, 0, 0),
+            (0, "1/5", 0, 0, 0, 0),
+            (0, 0, "1/3", 0, 0, 0),
+            (0, 0, 0, "2/3", 0, 0),
+            ("1/4", 0, 0, 0, "3/4", 0),
+        ),
+        b=("1/4", 0, 0, 0, "3/4", 0),
+        b_hat=("1/2", 0, 0, 0, 0, "1/2"),
+        c=(0, "1/5", "1/5", "1/3", "2/3", 1),
+    ),
     "dp54": dict(
         name="dp54",
         order=5,
@@ -187,6 +208,7 @@ COURANT_LIMITS = {
     # y = 1.0 but stays below 1.003 to y = 1.5 and 1.032 to y = 2, a growth the ∇⁴ damps
     "bs32": 1.11,
     "rk43": 1.73,  # rk4's stability polynomial (b's last weight 0): rk4's limit
+    "kgu352": 2.32,  # kgu35's, likewise
     "dp54": 1.28,
     "ssprk43": 1.37,
     "rdpk3sp35": 1.73,

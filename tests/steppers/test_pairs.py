@@ -23,6 +23,7 @@ PAIRS = {key: t for key, t in {**EXPLICIT, **IMEX_PAIRS}.items() if t.get("embed
 CLAIMS = {
     "bs32": (3, 2),
     "rk43": (4, 3),
+    "kgu352": (3, 2),
     "dp54": (5, 4),
     "ssprk43": (3, 2),
     "rdpk3sp35": (3, 2),
@@ -114,7 +115,7 @@ def test_the_estimate_is_the_step_minus_the_embedded_step(key):
     assert np.all(np.abs(e).max(axis=1) < 0.1 * np.abs(x1 - x0).max(axis=1))
 
 
-FSAL = ("bs32", "rk43", "dp54", "rdpk3sp35")
+FSAL = ("bs32", "rk43", "kgu352", "dp54", "rdpk3sp35")
 
 
 @pytest.mark.roundoff
@@ -160,9 +161,10 @@ def test_a_carried_last_stage_keeps_the_steps_bits_and_saves_a_rhs(key):
         assert np.all(np.abs(got - inline.stepper.error_estimate.numpy()).max(axis=1) > bound.ravel())
 
 
-def test_rk43_at_a_fixed_dt_is_rk4():
-    """rk43's x(n+1) is RK4's: three TC5 steps (ne 2) the same bits."""
-    sims = [make_sim(load_scene("tc5_mountain", ne=2, days=1.0, stepper=key)) for key in ("rk43", "rk4")]
+@pytest.mark.parametrize("pair, method", [("rk43", "rk4"), ("kgu352", "kgu35")])
+def test_a_pair_built_on_a_method_steps_as_it_at_a_fixed_dt(pair, method):
+    """rk43's x(n+1) is RK4's, kgu352's KGU35's: three TC5 steps (ne 2) the same bits."""
+    sims = [make_sim(load_scene("tc5_mountain", ne=2, days=1.0, stepper=key)) for key in (pair, method)]
     for _ in range(3):
         for sim in sims:
             sim.stepper.step(sim.x)

@@ -321,6 +321,7 @@ def test_options_dataclass_defaults_checks_and_schema():
         "kgu35",
         "bs32",
         "rk43",
+        "kgu352",
         "dp54",
         "ssprk43",
         "rdpk3sp35",

@@ -16,7 +16,7 @@ from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
 from swe_sphere.core.errors import BlowUp
 from swe_sphere.model.diagnostics import courant_numbers
-from swe_sphere.simulation.adaptive import DT_GRID, StepControl
+from swe_sphere.simulation.adaptive import CAP_EVERY, DT_GRID, StepControl
 
 from helpers import make_sim
 
@@ -164,7 +164,8 @@ def test_the_default_cap_binds_at_a_loose_tolerance_and_nowhere_else():
     """TC2 ne 4, bs32: the default cap is 0.9 × bs32's measured Courant limit 1.11; at rtol 1e-2
     it sets the next Δt after 39 of 40 steps (the error controller alone takes 31 steps of up to
     5087 s, 2.3 × the capped 2233 s) and the error is the grid's (1.654e-4 in l2 of h, against
-    3.79e-4 uncapped); at rtol 1e-5 it never binds and the run is the uncapped one, bit for bit."""
+    3.79e-4 uncapped); at rtol 1e-5 it never binds and the run is the uncapped one, bit for bit,
+    its Courant pass taken once in ``CAP_EVERY`` + 1 steps (the proposals far below the cap)."""
     capped, control = _sim(1e-2)
     assert control.cfl.cfl == pytest.approx(0.999) and control.cfl.max_change == math.inf
     _run(capped, control, 0.0, DAY)
@@ -178,8 +179,9 @@ def test_the_default_cap_binds_at_a_loose_tolerance_and_nowhere_else():
         _run(sim, control, 0.0, DAY)
         assert control.capped == 0
         if cfl is None:
-            x = sim.x.numpy()
+            x, passes, steps = sim.x.numpy(), control.courant_passes, control.accepted
     assert np.array_equal(x, sim.x.numpy())
+    assert passes == -(-steps // (CAP_EVERY + 1)), (passes, steps)  # the cap far: one pass in CAP_EVERY + 1 steps
 
 
 def test_the_default_cap_keeps_a_loose_tolerance_stable():

@@ -26,6 +26,10 @@ file written; the runs and helpers are ``adaptive_proportionality.py``'s. For ea
 - Galewsky only: each pair's qualifying run's Δt over time (smallest, mean and largest
   accepted Δt a day) from its ``StepControl.history``.
 
+With ``--rounds R`` the cheapest qualifying fixed run and each pair at its qualifying rtol run
+again, in turn, R times: the medians of their CPU s and the pairs' ratios (the verdict's figures
+where the machine's load moves a single run's clock by 20 %).
+
 With ``--dt-runs PAIR@RTOL[@CFL] ...`` only Galewsky's Δt over time at those tolerances instead
 (tighter ones, where the error controller and not the Courant cap sets the step; CFL a
 ``time.cfl``, ``false``: no cap): the reference, then each run's temporal error, steps, CPU s a
@@ -37,6 +41,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import statistics
 
 from adaptive_proportionality import build, fixed_dt, run, temporal
 from results import recorded
@@ -117,6 +122,30 @@ def case_runs(args, label: str, days: float, fixed_specs, out: dict) -> None:
             print(f"  {pair}@rtol={tried[-1]['rtol']:g}: {cells}")
     out[label] = {"scene": scene, "reference": reference, "days": days, "spatial": spatial, "dt_g": dt_g}
     out[label] |= {"reference_steps": ref["accepted"], "fixed": fixed, "pairs": pairs}
+    if args.rounds and best is not None:
+        out[label]["rounds"] = rounds(args, scene, days, over, best, probe, pairs)
+
+
+def rounds(args, scene, days, over, best, probe, pairs) -> dict:
+    """``--rounds``: the cheapest qualifying fixed run and each pair at its qualifying rtol run
+    again in turn, ``args.rounds`` times: each one's CPU s a round, the medians and the ratio."""
+    stepper, multiple = best["run"].split(" ")[0].split("@")
+    runs = {best["run"]: dict(stepper=stepper, dt=fixed_dt(probe, float(multiple))[0])}
+    for pair, tried in pairs.items():
+        if tried[-1]["ok"]:
+            runs[f"{pair}@rtol={tried[-1]['rtol']:g}"] = dict(
+                stepper=pair, control={"control": "error", "rtol": tried[-1]["rtol"]}
+            )
+    cpu = {name: [] for name in runs}
+    for i in range(args.rounds):
+        for name, spec in runs.items():
+            cpu[name].append(run(scene, args.ne, days, overrides=over, **spec)["cpu"])
+        print(f"round {i + 1}: " + ", ".join(f"{n} {c[-1]:.1f} s" for n, c in cpu.items()), flush=True)
+    base = statistics.median(cpu[best["run"]])
+    print(f"medians of {args.rounds} interleaved rounds (CPU s a day; against {best['run']}):")
+    for name, values in cpu.items():
+        print(f"  {name}: {statistics.median(values) / days:.3f}, {statistics.median(values) / base:.2f}×")
+    return {name: {"cpu": values, "ratio": statistics.median(values) / base} for name, values in cpu.items()}
 
 
 def dt_runs(args, days: float, out: dict) -> None:
@@ -177,6 +206,9 @@ def main() -> None:
     parser.add_argument("--rtol-ref", type=float, default=1e-8)
     parser.add_argument("--tc5-fixed", nargs="+", default=["rk4@0.79", "rk4@1.24", "kgu35@0.8"])
     parser.add_argument("--galewsky-fixed", nargs="+", default=["fbrk32@1.24", "fbrk32@1.05", "kgu35@1.63"])
+    parser.add_argument(
+        "--rounds", type=int, default=0, help="the cheapest fixed run and each qualifying pair again, interleaved"
+    )
     parser.add_argument("--dt-runs", nargs="+", help="PAIR@RTOL[@CFL]: Galewsky's Δt over time at these instead")
     parser.add_argument(
         "--tc5-reference", default="T213", help="TC5's spectral reference (T341 stores days 1 and 15 only)"

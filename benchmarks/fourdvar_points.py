@@ -3,7 +3,7 @@ recovered by L-BFGS on ``swe_sphere.gradient`` with a cost of the run (issue 66'
 
     python benchmarks/fourdvar_points.py [--ne 16] [--np 4] [--hours 24] [--every 3] [--points 200]
                                          [--sigma 0.1] [--seed 0] [--length 400] [--sigma-b 3]
-                                         [--iterations 150]
+                                         [--h-scale 0] [--iterations 150] [--results NAME]
 
 The truth: Galewsky's jet with its 120 m height bump (the ``galewsky`` scene, kgu35, at the ne
 and np given, Δt its own at that grid shortened to divide ``--every``), run ``--hours``. The
@@ -101,16 +101,21 @@ def setting(
     return Setting(scene, steps, cost, grid, truth, guess, min(r[1] for r in runs[1:]))
 
 
-def background_root(grid, length: float, sigma_b: float):
+def background_root(grid, length: float, sigma_b: float, h_b=None, h_scale: float = 0.0):
     """G (n, n) scipy CSR over the grid's unique nodes, symmetric: σ_b c exp(−d²/L²) for chord
     distances d < 3L (``length`` L m, ``sigma_b`` σ_b m), c such that the mean of diag(G Gᵀ)
-    is σ_b² (module docstring)."""
+    is σ_b² (module docstring). With ``h_scale`` L_h > 0 (m) each entry also takes the factor
+    exp(−(h_b,i − h_b,j)²/L_h²) of the background's heights ``h_b`` (n,) m: correlations that
+    follow the background's height contours, which a balanced flow's streamlines follow
+    (Riishøjgaard 1998, Tellus 50A, 42, eq. 5, with the background field h_b)."""
     lat, lon = grid.lat[grid.first], grid.lon[grid.first]
     xyz = grid.radius * np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=1)
     near = scipy.spatial.cKDTree(xyz).query_ball_point(xyz, 3.0 * length)
     rows = np.repeat(np.arange(len(near)), [len(j) for j in near])
     cols = np.concatenate(near)
     w = np.exp(-np.sum((xyz[rows] - xyz[cols]) ** 2, axis=1) / length**2)
+    if h_scale > 0:
+        w *= np.exp(-((h_b[rows] - h_b[cols]) ** 2) / h_scale**2)
     c = 1.0 / np.sqrt(np.sum(w**2) / len(near))
     return scipy.sparse.csr_matrix((sigma_b * c * w, (rows, cols)), shape=(len(near),) * 2)
 
@@ -160,16 +165,17 @@ def unknowns_cost(s: Setting, G):
     return cost, lambda z: h_b + G @ z
 
 
-def recover(s: Setting, iterations: int, length: float, sigma_b: float) -> Recovery:
-    """L-BFGS-B from the first guess (z = 0), at most ``iterations`` iterations; ``length`` (m)
-    and ``sigma_b`` (m, 0: no background term) the background's (``background_root``)."""
+def recover(s: Setting, iterations: int, length: float, sigma_b: float, h_scale: float = 0.0) -> Recovery:
+    """L-BFGS-B from the first guess (z = 0), at most ``iterations`` iterations; ``length`` (m),
+    ``sigma_b`` (m, 0: no background term) and ``h_scale`` (m, 0: none) the background's
+    (``background_root``, on the first guess's heights)."""
     grid, first = s.grid, s.grid.first
     h_true, h_guess = s.truth[2][first], s.guess[2][first]
 
     def error(h0):
         return float(np.sqrt(np.sum(grid.area * (h0 - h_true) ** 2) / np.sum(grid.area * (h_guess - h_true) ** 2)))
 
-    G = background_root(grid, length, sigma_b) if sigma_b > 0 else None
+    G = background_root(grid, length, sigma_b, h_guess, h_scale) if sigma_b > 0 else None
     cost, state = unknowns_cost(s, G)
     z0 = h_guess.copy() if G is None else np.zeros(grid.nunique)
     observed = observation_cost(s)
@@ -199,19 +205,23 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0, help="of the points and the noise")
     parser.add_argument("--length", type=float, default=400.0, help="the background's correlation length L (km)")
     parser.add_argument("--sigma-b", type=float, default=3.0, help="the background's σ_b (m; 0: no background term)")
+    parser.add_argument(
+        "--h-scale", type=float, default=0.0, help="L_h (m): correlations follow the background's heights (0: none)"
+    )
     parser.add_argument("--iterations", type=int, default=150, help="L-BFGS iterations at most")
+    parser.add_argument("--results", help="the results file's name (default fourdvar_points)")
     parser.add_argument("--dt", type=float, help="the step (s) before it divides --every (default: the scene's)")
     args = parser.parse_args()
-    with recorded(__file__) as figures:
+    with recorded(__file__, args.results) as figures:
         s = setting(args.ne, args.np, args.hours, args.every, args.points, args.sigma, args.seed, args.dt)
-        r = recover(s, args.iterations, args.length * 1e3, args.sigma_b)
+        r = recover(s, args.iterations, args.length * 1e3, args.sigma_b, args.h_scale)
         per_gradient = r.cpu / r.result.nfev
         times = len(s.cost.at_steps)
         print(
             f"galewsky ne{args.ne} np{args.np} {s.scene.stepper}, {s.steps} steps of {s.scene.dt:.1f} s "
             f"({s.steps * s.scene.dt / 3600:.2f} h); {args.points} points × {times} times (every "
             f"{args.every:g} h from t = 0), σ {args.sigma:g} m, seed {args.seed}; h(0) at {r.h0.size} "
-            f"unique nodes, wind held; background L {args.length:g} km, σ_b {args.sigma_b:g} m; one thread; "
+            f"unique nodes, wind held; background L {args.length:g} km, σ_b {args.sigma_b:g} m, L_h {args.h_scale:g} m; one thread; "
             f"load {os.getloadavg()}"
         )
         print(f"{'':14} {'J':>12} {'J_o':>12} {'l2 h(0) err / bump':>20}")

@@ -52,3 +52,21 @@ def test_lbfgs_recovers_part_of_the_bump():
     # measured 0.856 in 10 iterations (ne4, 6 h, 40 points at 3 times: far fewer data than the example's)
     assert r.error0 == 1.0 and r.error < 0.95
     assert r.cost < 0.05 * r.cost0  # measured 0.003
+
+
+def test_a_flow_following_background_keeps_its_variance_and_follows_the_heights():
+    """``h_scale``: G symmetric, the mean of diag(G Gᵀ) still σ_b², and every entry the isotropic
+    one's times exp(−Δh_b²/L_h²) before the normalisation (pairs across the jet's height
+    contours weighed down, pairs along them kept)."""
+    s = small()
+    grid, h_b = s.grid, s.guess[2][s.grid.first]
+    iso = script().background_root(grid, 1.0e6, 3.0)
+    flow = script().background_root(grid, 1.0e6, 3.0, h_b, 100.0)
+    assert abs(flow - flow.T).max() == 0.0 and iso.nnz == flow.nnz
+    n = grid.nunique
+    assert np.isclose((flow.multiply(flow)).sum() / n, 9.0, rtol=1e-12)
+    rows, cols = iso.nonzero()
+    factor = np.asarray(flow[rows, cols]).ravel() / np.asarray(iso[rows, cols]).ravel()
+    expected = np.exp(-((h_b[rows] - h_b[cols]) ** 2) / 100.0**2)
+    assert np.allclose(factor / factor.max(), expected / expected.max(), rtol=1e-12)
+    assert expected.min() < 1e-3  # some pairs do straddle the jet

@@ -2,8 +2,8 @@
 recovered by L-BFGS on ``swe_sphere.gradient`` with a cost of the run (issue 66's example).
 
     python benchmarks/fourdvar_points.py [--ne 16] [--np 4] [--hours 24] [--every 3] [--points 200]
-                                         [--sigma 0.1] [--seed 0] [--length 400] [--sigma-b 3]
-                                         [--h-scale 0] [--iterations 150] [--results NAME]
+                                         [--sigma 0.1] [--seed 0] [--length 1000] [--sigma-b 3]
+                                         [--h-scale 100] [--iterations 150] [--results NAME]
 
 The truth: Galewsky's jet with its 120 m height bump (the ``galewsky`` scene, kgu35, at the ne
 and np given, Δt its own at that grid shortened to divide ``--every``), run ``--hours``. The
@@ -13,9 +13,11 @@ the truth by ``PointHeights`` (the element's own GLL polynomial). The first gues
 jet without the bump, also the background h_b of the cost. The unknowns: h(0) at the grid's
 unique nodes (a continuous field), as h0 = h_b + G z (the control-variable transform of
 variational assimilation, B = G Gᵀ the background error covariance): G_ij = σ_b c
-exp(−d_ij²/L²) over the unique nodes' chord distances d_ij < 3L (L = ``--length`` km, σ_b =
-``--sigma-b`` m, c such that the mean of diag(B) is σ_b²; a Gaussian correlation of length
-L√2). The wind is held at the jet's, which is the truth's (Galewsky's perturbation is in h
+exp(−d_ij²/L²) exp(−(h_b,i − h_b,j)²/L_h²) over the unique nodes' chord distances d_ij < 3L
+(L = ``--length`` km, σ_b = ``--sigma-b`` m, L_h = ``--h-scale`` m, c such that the mean of
+diag(B) is σ_b²): correlations that follow the background's height contours, as a balanced
+flow's streamlines do (Riishøjgaard 1998, Tellus 50A, 42), long along the jet and short across
+it (``--h-scale 0``: the isotropic Gaussian of length L√2). The wind is held at the jet's, which is the truth's (Galewsky's perturbation is in h
 alone). L-BFGS-B (scipy) minimises over z
 
     J(z) = ½ zᵀz + Σ_k ½ Σ_m ((H h(t_k; h0))_m − y_km)² / σ²    (dimensionless; J_o ≈ M·K/2 at the truth)
@@ -203,10 +205,10 @@ def main() -> None:
     parser.add_argument("--points", type=int, default=200, help="observed points (fixed, uniform, seeded)")
     parser.add_argument("--sigma", type=float, default=0.1, help="the observations' noise (m)")
     parser.add_argument("--seed", type=int, default=0, help="of the points and the noise")
-    parser.add_argument("--length", type=float, default=400.0, help="the background's correlation length L (km)")
+    parser.add_argument("--length", type=float, default=1000.0, help="the background's correlation length L (km)")
     parser.add_argument("--sigma-b", type=float, default=3.0, help="the background's σ_b (m; 0: no background term)")
     parser.add_argument(
-        "--h-scale", type=float, default=0.0, help="L_h (m): correlations follow the background's heights (0: none)"
+        "--h-scale", type=float, default=100.0, help="L_h (m): correlations follow the background's heights (0: none)"
     )
     parser.add_argument("--iterations", type=int, default=150, help="L-BFGS iterations at most")
     parser.add_argument("--results", help="the results file's name (default fourdvar_points)")

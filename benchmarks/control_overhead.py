@@ -12,7 +12,8 @@ control (``--pair`` at ``--rtol``) and CFL control (``--cfl-stepper`` at ``--cfl
 
 (a) **Whole runs.** The stepper under its control over ``--days`` (``Simulation.run``:
     the steps it chose, their error norms, rejections, the landing on the end): CPU s per accepted
-    step. Against it the same stepper at a fixed Δt, the controlled run's mean Δt, over as many steps
+    step. Against it the same stepper at a fixed Δt (an FSAL pair with its last stage carried over,
+    as under control), the controlled run's mean Δt, over as many steps
     (``Simulation.run`` of a fixed-Δt scene: its guard's blocks), and the controlled run's own Δt
     sequence stepped bare (``set_dt`` and ``step``, nothing else: what the steps alone cost).
     The overhead: controlled against each, %.
@@ -72,6 +73,7 @@ def whole_runs(args, out: dict) -> None:
     steps, dts = ctl.accepted, [dt for _, dt, _ in ctl.history]
     mean = ctl.dt_sum / steps
     fixed = build(args, steps * mean / 86400.0, dt=mean, control=False)
+    fixed.stepper.carry_last_stage()  # an FSAL pair's last stage carried, as under control: s − 1 RHS a step
     fixed_cpu = cpu(lambda: fixed.run(None))
     bare = build(args, args.days)
 

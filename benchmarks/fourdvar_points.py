@@ -17,8 +17,8 @@ exp(−d_ij²/L²) exp(−(h_b,i − h_b,j)²/L_h²) over the unique nodes' chor
 (L = ``--length`` km, σ_b = ``--sigma-b`` m, L_h = ``--h-scale`` m, c such that the mean of
 diag(B) is σ_b²): correlations that follow the background's height contours, as a balanced
 flow's streamlines do (Riishøjgaard 1998, Tellus 50A, 42), long along the jet and short across
-it (``--h-scale 0``: the isotropic Gaussian of length L√2). The wind is held at the jet's, which is the truth's (Galewsky's perturbation is in h
-alone). L-BFGS-B (scipy) minimises over z
+it (``--h-scale 0``: the isotropic Gaussian of length L√2). The wind is held at the jet's,
+which is the truth's (Galewsky's perturbation is in h alone). L-BFGS-B (scipy) minimises over z
 
     J(z) = ½ zᵀz + Σ_k ½ Σ_m ((H h(t_k; h0))_m − y_km)² / σ²    (dimensionless; J_o ≈ M·K/2 at the truth)
 

@@ -143,7 +143,7 @@ class ExplicitRK(Stepper):
                 self.model.rhs_update(arg, updates)
             self.model.hyperviscosity(x, self.dt)
             return StepStats(len(self._stages))
-        evals = len(self._stages) - 1  # the FSAL evaluation after the ∇⁴ added below
+        evals = len(self._stages)  # s − 1 stages; the FSAL evaluation after the ∇⁴ stands for the first
         (c0, arg0, first), *rest = self._stages
         if self._ahead != self.dt:  # not written ahead at this Δt
             self._at(c0)
@@ -157,7 +157,7 @@ class ExplicitRK(Stepper):
         e = self._buffers["e"]
         self.model.rhs_update(x, (Update(e, ((1.0, e), (_dt_times(self._carried, self.dt), None))), *first))
         self._ahead = self.dt
-        return StepStats(evals + 1)
+        return StepStats(evals)
 
 
 def explicit_steppers() -> tuple[type[Stepper], ...]:

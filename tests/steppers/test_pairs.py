@@ -125,12 +125,12 @@ def test_a_carried_last_stage_keeps_the_steps_bits_and_saves_a_rhs(key):
     first (``carry_last_stage``, error control's) steps x bit for bit as the pair that
     evaluates it in the step, through a change of Δt and a ``restore``, with s − 1 RHS
     evaluations a step where the step before wrote its first stage ahead (s at the first step,
-    at a new Δt and after the restore: F(x(n)) evaluated again); its estimate is the other's with the last stage's F taken after the
-    ∇⁴: e + Δt d_s (F(x(n+1)) − F(Y_s)), to 16 ε |x|."""
+    at a new Δt and after the restore: F(x(n)) evaluated again); its estimate is the other's
+    with the last stage's F taken after the ∇⁴: e + Δt d_s (F(x(n+1)) − F(Y_s)), to 16 ε |x|."""
     scene = load_scene("tc5_mountain", ne=2, days=1.0, stepper=key)
     assert "hyperviscosity" in scene.terms
     carried, inline = make_sim(scene), make_sim(scene)
-    assert STEPPERS[key].fsal(carried.stepper) and carried.stepper.carry_last_stage()
+    assert carried.stepper.fsal() and carried.stepper.carry_last_stage()
     s = len(PAIRS[key]["b"])
     d_s = float(Fraction(PAIRS[key]["b"][-1]) - Fraction(PAIRS[key]["b_hat"][-1]))
     before_hv = []

@@ -44,8 +44,6 @@ def _refusal(model: ShallowWater, dt: float) -> str | None:
     """Why the adjoint cannot serve ``model`` at step dt (None: it can)."""
     if model.forcing is not None:
         return "the forcing term has no adjoint yet"
-    if len(model.topology.neighbours):
-        return "gradients run on one rank only (MPI: not yet)"
     if model.hv is not None:
         if model.hypervis_scaling is not None:
             return "the tensor ∇⁴ (hypervis_scaling) is not self-adjoint: no adjoint yet"
@@ -61,8 +59,10 @@ class StepAdjoint:
     ``steppers.butcher.Table``) at Δt = ``dt`` (s): ``reverse(x, mu)`` maps the continuous
     adjoint μ of x(n+1) to that of x(n) in place, x = x(n). With ``parameters``, ``reverse``
     also sums ∂J/∂ν, ∂J/∂ν_s (``d_nu``) and the hs adjoint (``d_hs``, ``hs_gradient``) over
-    the steps reversed. One rank, CPU or CUDA. ValueError (``_refusal``) for a model it
-    cannot serve.
+    the steps reversed. CPU or CUDA; on a rank's part of the grid (the model's ``topology``:
+    μ on its nodes, the DSS's exchanges in the transposes, ``d_nu`` the same on every rank,
+    the same bits on any number of ranks). ValueError (``_refusal``) for a model it cannot
+    serve.
 
     Work arrays (3, N) held: the s stages Y_i; K_j = F(Y_j) only where a stage after the next
     reads it (with ``parameters``: all); the Ȳ_j an earlier stage's k̄ reads, as many as are
@@ -186,14 +186,15 @@ class StepAdjoint:
         self.combine(self.d_hs, [(1.0, self.d_hs), (-1.0, mu[2:3])])
         for _ in range(self.substeps - 1):
             h(mu)
-        w = self.model.grid.spheremp * mu.numpy() * self.delta.numpy()
-        rows = np.array([w[:2].sum(), w[2].sum()]) * self.substeps
+        topo = m.topology  # the products of every rank's nodes, summed on rank 0 in the whole grid's order:
+        w = topo.gather(m.grid.spheremp * mu.numpy() * self.delta.numpy())  # the same bits on any ranks
+        rows = topo.bcast(None if w is None else np.array([w[:2].sum(), w[2].sum()]) * self.substeps)
         self.d_nu += np.divide(rows, [m.nu, m.nu_s], out=np.zeros(2), where=np.array([m.nu, m.nu_s]) > 0)
         h(mu)
         self.combine(self.d_hs, [(1.0, self.d_hs), (1.0, mu[2:3])])
 
     def hs_gradient(self) -> np.ndarray:
-        """∂J/∂hs (N,), continuous (mass form, as μ), summed over the steps reversed so far:
+        """∂J/∂hs (N,) on this rank's nodes, continuous (mass form, as μ), summed over the steps reversed so far:
         the ∇⁴'s share and the forcing's, R Q of the pressure gradient's transpose of f̄."""
         m, N = self.model, self.model.N
         out = self.d_hs.numpy()[0]

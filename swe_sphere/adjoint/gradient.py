@@ -11,7 +11,8 @@ import numpy as np
 import warp as wp
 
 from ..config.scene import Scene
-from ..grid.cubed_sphere import CubedSphere
+from ..core.backend import Backend
+from ..grid.topology import on_ranks
 from ..model.shallow_water import ShallowWater
 from ..steppers import make_stepper
 from ..steppers.runge_kutta import ExplicitRK
@@ -96,21 +97,39 @@ class _Topography:
         return getattr(self.case, name)
 
 
-def scene_model(scene: Scene, device: str = "cpu", hs=None):
-    """(model, stepper, x0) of ``scene`` on one rank: its ``ShallowWater``, its stepper and
-    its case's initial state (3, N) numpy; ``hs`` (N,) m: the surface height instead of the
-    case's. ValueError unless the stepper is an explicit table, or for hs of another shape."""
+def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
+    """(model, stepper, x0) of ``scene`` on this rank's part of its grid (``comm`` an mpi4py
+    communicator; None: one process, the whole grid): its ``ShallowWater`` (``model.topology``
+    assembles the ranks' parts), its stepper and its case's initial state (3, N) numpy on this
+    rank's nodes; ``hs`` (nnodes_total,) m: the whole grid's surface height instead of the
+    case's (read on rank 0). ValueError unless the stepper is an explicit table, or for hs of
+    another shape (on every rank)."""
     case = scene.make_case()
-    grid = CubedSphere(scene.ne, scene.np, case.planet.a)
+    topo = on_ranks(scene.ne, scene.np, case.planet.a, comm, Backend.of(device), scene.make_mesh())
+    grid = topo.grid
     if hs is not None:
-        hs = np.asarray(hs, dtype=float)
-        if hs.shape != grid.lat.shape:
-            raise ValueError(f"hs must have shape {grid.lat.shape} (got {hs.shape})")
-    model = ShallowWater.from_scene(scene, grid, case if hs is None else _Topography(case, hs), device=device)
+        hs = _distributed(topo, hs, 1, "hs")[0]
+    model = ShallowWater.from_scene(scene, grid, case if hs is None else _Topography(case, hs), topology=topo)
     stepper = make_stepper(scene.stepper, model, scene.dt, **scene.stepper_options)
     if not isinstance(stepper, ExplicitRK):
         raise ValueError(f"gradients need an explicit Runge–Kutta stepper (got {scene.stepper!r})")
     return model, stepper, np.stack(case.initial(grid.lat, grid.lon))
+
+
+def _distributed(topo, whole, rows: int, name: str) -> np.ndarray:
+    """This rank's part (rows, N) of the whole-grid field ``whole`` ((nnodes_total,) where
+    rows is 1, else (rows, nnodes_total); read on rank 0). ValueError on every rank for
+    another shape: "<name> must have shape S (got T)"."""
+    want = (topo.nnodes_total,) if rows == 1 else (rows, topo.nnodes_total)
+    shape = topo.bcast(np.shape(whole) if topo.comm.rank == 0 else None)
+    if shape != want:
+        raise ValueError(f"{name} must have shape {want} (got {shape})")
+    return topo.distribute(np.reshape(whole, (rows, -1)) if topo.comm.rank == 0 else None, rows, name)
+
+
+def _whole(topo, a: np.ndarray) -> np.ndarray:
+    """The whole-grid field of every rank's part ``a`` (…, N), on every rank (``a`` itself on one)."""
+    return topo.bcast(topo.gather(a))
 
 
 def gradient(
@@ -125,6 +144,7 @@ def gradient(
     disk=None,
     disk_interval: int | None = None,
     device="cpu",
+    comm=None,
 ) -> Gradient:
     """The cost J of ``scene`` run ``steps`` steps from x0, J(x(n)) or Σ_k J_k(x(k)) over the
     steps k a cost observes, and its gradient dJ/dx(0) (and, with ``parameters``, dJ/dν,
@@ -141,13 +161,14 @@ def gradient(
         indices k, 0 ≤ k ≤ n, it observes) called as ``cost(k, x, spheremp)`` → (J_k, λ_k) at
         x = x(k) (read only; e.g. ``HeightObservations``), once a k in any mode (the reverse
         sweep's, x(k) at hand: R Q λ_k added to the adjoint once step k is reversed).
-    x0 : (3, N) initial state (None: the case's).
+    x0 : (3, N) initial state (None: the case's); with ``comm``, N the whole grid's
+        (nnodes_total), read on rank 0.
     snapshots : states held at once during the reverse sweep, x(0) included (None: n, every
         state, each step taken forward once); fewer cost ``revolve.forward_steps(n,
         snapshots − 1)`` + 1 forward steps in all (Griewank & Walther 2000), the same bits.
     parameters : also the ∇⁴ coefficients' and the topography's gradients (an extra ∇⁴
         substep a step reversed).
-    hs : (N,) surface height (m), element-local and continuous, instead of the case's.
+    hs : (N,) surface height (m), element-local and continuous, instead of the case's (as x0).
     disk : None (every state the sweep holds in memory), True (a second tier: a file in
         ``tempfile.gettempdir()``, on some systems tmpfs, i.e. memory) or a folder (str or path) for it. A first forward pass
         writes x(0), x(K), x(2K), … there, ⌈n/K⌉ states of 3·N·8 bytes (``Gradient.disk_bytes``:
@@ -159,7 +180,15 @@ def gradient(
     disk_interval : K ≥ 1, the steps between the states written (None: ``snapshots``, the
         most that reverses a segment with every state held; 1: every state on the disk, each
         step taken forward once).
-    device : "cpu" (one rank; CUDA and MPI not yet).
+    device : "cpu" (CUDA not yet).
+    comm : an mpi4py communicator (None: one process): the run and its reverse sweep split
+        over its ranks as a ``Simulation``'s (``grid.topology.on_ranks``), every rank calling
+        ``gradient`` alike. The cost is called on rank 0 alone, with the whole grid's x and
+        spheremp (N = nnodes_total, the element-local nodes in the one-rank order), its λ
+        handed back to the ranks; every rank returns the whole-grid ``Gradient``, the same
+        bits on any number of ranks (the forward's DSS sums its copies in one global order;
+        ∂J/∂ν's sum runs on rank 0 in the one-rank order). With ``disk``, each rank writes
+        its own part.
 
     Returns a ``Gradient``. ValueError for steps, snapshots or disk_interval < 1, at_steps
     outside 0 … n, a
@@ -178,20 +207,21 @@ def gradient(
     disk = None if disk is False else disk
     if disk_interval is not None and (disk is None or int(disk_interval) < 1):
         raise ValueError(f"disk_interval must be >= 1 and needs a disk (got {disk_interval}, disk={disk!r})")
-    model, stepper, initial = scene_model(scene, device, hs)
-    x0 = initial if x0 is None else np.asarray(x0, dtype=float)
-    if x0.shape != (3, model.N):
-        raise ValueError(f"x0 must have shape (3, {model.N}) (got {x0.shape})")
+    model, stepper, initial = scene_model(scene, device, hs, comm)
+    topo = model.topology
+    x0 = initial if x0 is None else _distributed(topo, x0, 3, "x0")
     adjoint = StepAdjoint(model, stepper.table(), stepper.dt, parameters)
     interval = snapshots if disk_interval is None else int(disk_interval)
     cost = run_cost(cost, steps)
     found, mu, taken, used = _reverse_run(model, stepper, adjoint, x0, steps, cost, snapshots, disk, interval)
     extra = {}
     if parameters:
-        extra = {"d_nu": adjoint.d_nu[0], "d_nu_s": adjoint.d_nu[1], "d_hs": adjoint.hs_gradient()}
+        d_hs = _whole(topo, adjoint.hs_gradient())
+        extra = {"d_nu": adjoint.d_nu[0], "d_nu_s": adjoint.d_nu[1], "d_hs": d_hs}
     costs = dict(sorted(found["costs"].items()))
     total = sum(costs.values())  # in increasing k; a final-state cost's J exactly (0 + J)
-    return Gradient(total, mu, found["final"], taken, steps, disk_bytes=used, costs=costs, **extra)
+    final = _whole(topo, found["final"])
+    return Gradient(total, _whole(topo, mu), final, taken, steps, disk_bytes=used, costs=costs, **extra)
 
 
 def _reverse_run(model, stepper, adjoint, x0, steps, cost, snapshots, disk, interval):
@@ -213,9 +243,14 @@ def _reverse_run(model, stepper, adjoint, x0, steps, cost, snapshots, disk, inte
     lam = wp.zeros((3, model.N), dtype=f64, device=device)
     add = model.topology.dss_update(lam, [(mu, ((1.0, mu), (1.0, None)))], weighted=False)  # μ += R Q λ
 
-    def observe(x, k):  # J_k at x(k) into found, λ_k into ``lam``
-        found["costs"][k], lam_k = cost(k, np.array(x.numpy()), model.grid.spheremp)
-        lam.assign(np.asarray(lam_k, dtype=float))
+    topo = model.topology
+    spheremp = topo.gather(model.grid.spheremp)  # the whole grid's on rank 0 (None elsewhere)
+
+    def observe(x, k):  # J_k at x(k) into found, λ_k into ``lam``: the cost on rank 0, the whole grid
+        whole = topo.gather(np.array(x.numpy()))
+        J, lam_k = (None, None) if whole is None else cost(k, whole, spheremp)
+        found["costs"][k] = topo.bcast(J)
+        lam.assign(topo.distribute(None if lam_k is None else np.asarray(lam_k, dtype=float), 3, "the cost's λ"))
 
     def finish(xn):  # J_n at x(n) and μ = R Q λ_n there (0 where n is not observed)
         found["final"] = xn.numpy()

@@ -16,7 +16,7 @@ from ..core.errors import ResourceError, SceneError
 from ..core.mpi import node_local_size
 from ..core.runtime import run_bytes
 from ..grid.cubed_sphere import CubedSphere
-from ..grid.topology import Topology, rank_parts
+from ..grid.topology import Topology, on_ranks
 from ..io.initial_state import from_function
 from ..model.shallow_water import ShallowWater
 from ..steppers import STEPPERS, make_stepper
@@ -90,9 +90,7 @@ def partition(scene: Scene, case, comm, backend: Backend) -> Topology:
         whole = lambda: CubedSphere(scene.ne, scene.np, case.planet.a, mesh=mesh)  # noqa: E731
         mine = STEPPERS[scene.stepper].partition_levels(whole, scene.stepper_options) if rank == 0 else None
         level = comm.bcast(mine, root=0)
-    parts = rank_parts(scene.ne, size, mesh, level)
-    local = CubedSphere(scene.ne, scene.np, case.planet.a, elements=parts[rank], mesh=mesh)  # this rank's only
-    return Topology(local, backend, backend.threads(), comm, parts=parts)
+    return on_ranks(scene.ne, scene.np, case.planet.a, comm, backend, mesh, level)
 
 
 def build(sim, scene: Scene, backend: Backend, progress: bool, comm, start, initial, initial_diagnostics) -> None:

@@ -39,7 +39,8 @@ class HeightMisfit:
 
 
 class Gradient(NamedTuple):
-    """What ``gradient`` returns: ``cost`` J; ``grad`` (3, N) rows u, v, h, element-local and
+    """What ``gradient`` returns (N the whole grid's element-local nodes, over MPI ranks too):
+    ``cost`` J; ``grad`` (3, N) rows u, v, h, element-local and
     continuous, the gradient in the mass inner product (δJ = Σ spheremp·grad·δx over the
     element-local nodes for a continuous δx; units of J per m² per unit of the row);
     ``final`` (3, N) the final state; ``forward_steps`` the steps taken forward (the cost's

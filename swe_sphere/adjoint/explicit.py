@@ -25,7 +25,9 @@ for ν_s; and ∂J/∂hs = (μ after − μ before the ∇⁴'s transpose)[h] (�
 plus the forcing −g∇hs's share, the pressure gradient's transpose of Σ λ over the stages.
 Checked by dot-product tests of each piece and a Taylor test of the whole (``tests/adjoint``).
 The forward states are the model's own stepper's; the stages are recomputed here from x(n)
-by the table's Butcher form (the same to round-off as the stepper's combinations).
+by the table's Butcher form (the same to round-off as the stepper's combinations), each F at its
+stage's time: a time-dependent forcing (TC4's) adds to F a term that does not depend on x, so
+it moves the stages, not the transposes.
 """
 
 from __future__ import annotations
@@ -42,8 +44,6 @@ f64 = wp.float64
 
 def _refusal(model: ShallowWater, dt: float) -> str | None:
     """Why the adjoint cannot serve ``model`` at step dt (None: it can)."""
-    if model.forcing is not None:
-        return "the forcing term has no adjoint yet"
     if model.hv is not None:
         if model.hypervis_scaling is not None:
             return "the tensor ∇⁴ (hypervis_scaling) is not self-adjoint: no adjoint yet"
@@ -56,8 +56,9 @@ def _refusal(model: ShallowWater, dt: float) -> str | None:
 
 class StepAdjoint:
     """The adjoint of one step of ``model`` by the explicit table ``table`` (a
-    ``steppers.butcher.Table``) at Δt = ``dt`` (s): ``reverse(x, mu)`` maps the continuous
-    adjoint μ of x(n+1) to that of x(n) in place, x = x(n). With ``parameters``, ``reverse``
+    ``steppers.butcher.Table``) at Δt = ``dt`` (s), the run's steps from model time ``t0``
+    (s): ``reverse(x, mu, k)`` maps the continuous adjoint μ of x(k+1) to that of x(k) in
+    place, x = x(k). With ``parameters``, ``reverse``
     also sums ∂J/∂ν, ∂J/∂ν_s (``d_nu``) and the hs adjoint (``d_hs``, ``hs_gradient``) over
     the steps reversed. CPU or CUDA; on a rank's part of the grid (the model's ``topology``:
     μ on its nodes, the DSS's exchanges in the transposes, ``d_nu`` the same on every rank,
@@ -69,13 +70,14 @@ class StepAdjoint:
     live at once (kgu35, rk4: one); x̄, a running sum of the Ȳ, and k̄ where the transposes
     cannot read it as a combination (``_transpose``): kgu35 eight, with (2, N) f̄."""
 
-    def __init__(self, model: ShallowWater, table, dt: float, parameters: bool = False):
+    def __init__(self, model: ShallowWater, table, dt: float, parameters: bool = False, t0: float = 0.0):
         why = _refusal(model, dt)
         if why is not None:
             raise ValueError(why)
-        self.model, self.dt, self.parameters = model, float(dt), bool(parameters)
+        self.model, self.dt, self.parameters, self.t0 = model, float(dt), bool(parameters), float(t0)
         self.A = [[float(a) for a in row] for row in table.A_E]
         self.b = [float(b) for b in table.b_E]
+        self.c = tuple(table.c)  # the stages' abscissae, as the stepper's ``_at`` takes them
         m, N, device = model, model.N, model.device
 
         def zeros(rows):
@@ -146,11 +148,14 @@ class StepAdjoint:
         for launch in launches:
             launch.launch()
 
-    def stages(self) -> None:
-        """Y_i of the step from x = Y_0 (the Butcher form), and the K_i = F(Y_i) kept (``_stage_plan``)."""
+    def stages(self, k: int = 0) -> None:
+        """Y_i of step k from x = Y_0 (the Butcher form), and the K_i = F(Y_i) kept
+        (``_stage_plan``); each F at the stepper's time of its stage, t0 + (k + c_i)·Δt (a
+        time-dependent forcing reads it: it adds to F, not to F's Jacobian)."""
         m = self.model
         for i, (updates, separate) in enumerate(self._stages):
             if updates is not None:
+                m.set_time(self.t0 + (k + self.c[i]) * self.dt)
                 m.rhs_update(self.Y[i], updates)
             if separate is not None:
                 self.combine(self.Y[i + 1], separate)
@@ -272,10 +277,11 @@ class StepAdjoint:
             launches += self.model.topology.dss_update(self.xbar, updates, weighted=False)
         return launches
 
-    def reverse(self, x, mu) -> None:
-        """μ of x(n+1) → μ of x(n), in place; x = x(n) (read only)."""
+    def reverse(self, x, mu, k: int = 0) -> None:
+        """μ of x(k+1) → μ of x(k), in place; x = x(k) (read only), k the step's index (its
+        stages' times, ``stages``)."""
         wp.copy(self.x, x)  # the stages read this object's arrays only (their records)
-        self.stages()
+        self.stages(k)
         if self.substeps:
             self.hyperviscosity_transpose(mu)
         launches = self._adjoints.get(mu.ptr)

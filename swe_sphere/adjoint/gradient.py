@@ -12,6 +12,7 @@ import warp as wp
 
 from ..config.scene import Scene
 from ..core.backend import Backend
+from ..core.constants import DAY
 from ..grid.topology import on_ranks
 from ..model.shallow_water import ShallowWater
 from ..steppers import make_stepper
@@ -154,7 +155,8 @@ def gradient(
     Parameters
     ----------
     scene : a ``config.Scene`` whose stepper is an explicit Runge–Kutta table (ssprk3, rk4,
-        kgu35, a tableau), terms without forcing, a ∇⁴ with ν_div = ν and no tensor scaling.
+        kgu35, a tableau), any terms (a time-dependent forcing's stages at their times, from
+        the scene's ``start_day``), a ∇⁴ with ν_div = ν and no tensor scaling.
     steps : n ≥ 1 steps of the scene's Δt.
     cost : callable (x, spheremp) → (J, λ) of the final state, x (3, N) numpy rows u, v, h
         (m s⁻¹, m s⁻¹, m), spheremp (N,) m², λ = ∂J/∂x (3, N) over the element-local entries
@@ -211,7 +213,8 @@ def gradient(
     model, stepper, initial = scene_model(scene, device, hs, comm)
     topo = model.topology
     x0 = initial if x0 is None else _distributed(topo, x0, 3, "x0")
-    adjoint = StepAdjoint(model, stepper.table(), stepper.dt, parameters)
+    stepper.t0 = scene.start_day * DAY  # the run's clock, a ``Simulation``'s
+    adjoint = StepAdjoint(model, stepper.table(), stepper.dt, parameters, stepper.t0)
     interval = snapshots if disk_interval is None else int(disk_interval)
     cost = run_cost(cost, steps)
     found, mu, taken, used = _reverse_run(model, stepper, adjoint, x0, steps, cost, snapshots, disk, interval)
@@ -225,25 +228,51 @@ def gradient(
     return Gradient(total, _whole(topo, mu), final, taken, steps, disk_bytes=used, costs=costs, **extra)
 
 
+class _At:
+    """A state x (3, N) of the run and its step index k (its model time t0 + k·Δt)."""
+
+    def __init__(self, x, k: int):
+        self.x, self.k = x, k
+
+
+class _IndexedTier:
+    """A ``DiskTier`` of ``_At`` states: x(jK) saved and loaded with its index jK."""
+
+    def __init__(self, tier, interval: int):
+        self.tier, self.interval = tier, interval
+
+    def save(self, j: int, state: _At) -> None:
+        self.tier.save(j, state.x)
+
+    def load(self, j: int) -> _At:
+        return _At(self.tier.load(j), j * self.interval)
+
+
 def _reverse_run(model, stepper, adjoint, x0, steps, cost, snapshots, disk, interval):
     """({"costs": {k: J_k}, "final": x(n)}, μ(0) numpy, forward steps, disk bytes) of
     ``gradient``: the run from x0 (3, N) numpy and its reverse sweep, in memory or with a disk
-    tier; ``cost`` a cost of the run (``run_cost``), called once at each of its steps."""
+    tier; ``cost`` a cost of the run (``run_cost``), called once at each of its steps. The
+    sweep's states carry their step index (``_At``), so that every step, recomputed or
+    reversed, runs at its model time (a time-dependent forcing's)."""
     device = model.device
     work = wp.zeros((3, model.N), dtype=f64, device=device)  # the stepper steps this array only
     stepper.prepare(work)
 
-    def advance(x, steps=1):
-        wp.copy(work, x)
+    def advance(state, steps=1):
+        wp.copy(work, state.x)
+        stepper.steps = state.k  # its clock: t0 + (k + c)·Δt at each stage, as the run's
         for _ in range(steps):
-            stepper.advance(work)
-        wp.copy(x, work)
+            stepper.step(work)
+        wp.copy(state.x, work)
+        state.k += steps
+
+    def copy(state):
+        return _At(wp.clone(state.x), state.k)
 
     mu = wp.zeros((3, model.N), dtype=f64, device=device)
     found, observed = {"costs": {}}, set(cost.at_steps)
     lam = wp.zeros((3, model.N), dtype=f64, device=device)
     add = model.topology.dss_update(lam, [(mu, ((1.0, mu), (1.0, None)))], weighted=False)  # μ += R Q λ
-
     topo = model.topology
     spheremp = topo.gather(model.grid.spheremp)  # the whole grid's on rank 0 (None elsewhere)
 
@@ -253,29 +282,30 @@ def _reverse_run(model, stepper, adjoint, x0, steps, cost, snapshots, disk, inte
         found["costs"][k] = topo.bcast(J)
         lam.assign(topo.distribute(None if lam_k is None else np.asarray(lam_k, dtype=float), 3, "the cost's λ"))
 
-    def finish(xn):  # J_n at x(n) and μ = R Q λ_n there (0 where n is not observed)
-        found["final"] = xn.numpy()
+    def finish(state):  # J_n at x(n) and μ = R Q λ_n there (0 where n is not observed)
+        found["final"] = state.x.numpy()
         if steps in observed:
-            observe(xn, steps)
+            observe(state.x, steps)
             for launch in model.topology.dss(lam, False, mu):
                 launch.launch()
 
-    def reverse(xk, k):
+    def reverse(state, k):
         if "final" not in found:  # in memory alone, x(n) is one step on from the first reversed
-            final = wp.clone(xk)
+            final = copy(state)
             advance(final)
             finish(final)
-        adjoint.reverse(xk, mu)
+        adjoint.reverse(state.x, mu, k)
         if k in observed:  # μ(k) += R Q λ_k, x(k) at hand
-            observe(xk, k)
+            observe(state.x, k)
             for launch in add:
                 launch.launch()
 
-    x, used = wp.array(x0, dtype=f64, device=device), 0
+    x, used = _At(wp.array(x0, dtype=f64, device=device), 0), 0
     if disk is None:
-        taken = 1 + sweep(steps, snapshots, x, advance, reverse, wp.clone)
+        taken = 1 + sweep(steps, snapshots, x, advance, reverse, copy)
     else:
         with DiskTier(disk, (3, model.N), device) as tier:
-            taken = two_level(steps, snapshots, interval, x, advance, reverse, wp.clone, tier, finish)
+            indexed = _IndexedTier(tier, interval)
+            taken = two_level(steps, snapshots, interval, x, advance, reverse, copy, indexed, finish)
             used = tier.bytes
     return found, mu.numpy(), taken, used

@@ -44,12 +44,15 @@ def _control_line(c) -> str:
     """The header's line of a scene's step control (a ``SceneControl``)."""
     from ..config.resolve import CFL_FRACTION
 
-    what = (
-        f"error: rtol {c.rtol:g}, atol {c.atol_wind:g} m/s (u, v) and {c.atol_h:g} m (h), controller {c.controller}"
-        if c.mode == "error"
-        else "cfl"
-    )
-    if c.mode != "error":
+    what = "cfl"
+    if c.mode == "error":
+        what = (
+            f"error: rtol {c.rtol:g}, atol {c.atol_wind:g} m/s (u, v) and {c.atol_h:g} m (h), controller {c.controller}"
+        )
+    elif c.mode == "balanced":
+        what = f"balanced: a step's error held to {c.balance:g} of the spatial error's estimated rate over it"
+        what += f", controller {c.controller}"
+    if c.mode == "cfl":
         cfl = "" if c.cfl is None else f", Courant target {c.cfl:g}"
     elif c.cfl is None:
         cfl = ", no Courant cap"

@@ -37,7 +37,7 @@ class SceneGrid:
 @dataclass(frozen=True)
 class SceneControl:
     """A scene's step control ([time] ``control`` and its keys; ``Scene.control``, None for a
-    fixed Δt): ``mode`` "cfl" or "error"; under "error" the tolerances ``rtol`` (> 0) and
+    fixed Δt): ``mode`` "cfl", "error" or "balanced"; under "error" the tolerances ``rtol`` (> 0) and
     ``atol_wind`` (m s⁻¹, on u and v), ``atol_h`` (m) of ``steppers.control.ErrorNorm`` and the
     ``controller`` (a name of ``steppers.control.CONTROLLERS``); ``cfl`` the target Courant
     number (``steppers.control.CflController``; under "error" a cap, None: none); ``dt_min``
@@ -45,7 +45,9 @@ class SceneControl:
     scene's ``dt`` is the first step. ``cfl_default``: ``cfl`` is error control's default cap
     (``config.resolve.CFL_FRACTION`` × the stepper's measured Courant limit), which holds the
     Courant number only: no bound on a step's growth, so that where it does not bind the steps
-    are the error controller's alone."""
+    are the error controller's alone. Under "balanced" (error control whose tolerances follow
+    the spatial error's estimated rate, ``simulation.adaptive.Balance``) ``balance`` (> 0) the
+    fraction of it a step's error estimate is held to, per unit of time; rtol and atol None."""
 
     mode: str
     rtol: float | None = None
@@ -56,6 +58,7 @@ class SceneControl:
     dt_min: float = 0.0
     dt_max: float | None = None
     cfl_default: bool = False
+    balance: float | None = None
 
 
 @dataclass(frozen=True)
@@ -119,9 +122,10 @@ SCHEMA = {
         "rtol": float,
         "atol": float | list,  # one for every field in its units, or [wind (m/s), h (m)]: ``resolve_control``
         "controller": str,
-        "cfl": float | bool,  # a Courant number, or under control = "error" false: no cap (``resolve._cfl``)
+        "cfl": float | bool,  # a Courant number, or under "error" and "balanced" false: no cap (``resolve._cfl``)
         "dt_min": float,
         "dt_max": float,
+        "balance": float,
     },
     "output": {"every_days": float, "log_every_steps": int, "fields": list, "streams": list, "cells": bool},
     "hyperviscosity": {

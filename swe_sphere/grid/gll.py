@@ -55,3 +55,16 @@ def gll(np_: int) -> GLL:
     d[0, 0] = -n * (n + 1) / 4.0
     d[n, n] = n * (n + 1) / 4.0
     return GLL(np_, x, w, d)
+
+
+def truncation(np_: int) -> np.ndarray:
+    """(np_, np_) matrix T: for f the values at the ``np_`` GLL points, T f the values there
+    of f's interpolant with its Legendre term of degree np_ − 1 dropped, i.e. its L²
+    projection onto the polynomials of degree ≤ np_ − 2; f − T f is the highest mode's part,
+    the tail whose size estimates a spectral element's truncation error (Mavriplis 1994,
+    J. Sci. Comput. 9:1; the "np − 1 projection"). Raises as ``gll``."""
+    x = gll(np_).points
+    V = legendre.legvander(x, np_ - 1)  # V[i, n] = P_n(x_i): nodal values of the Legendre modes
+    keep = np.ones(np_)
+    keep[-1] = 0.0
+    return V @ np.diag(keep) @ np.linalg.inv(V)

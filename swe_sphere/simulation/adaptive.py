@@ -14,6 +14,11 @@ bit); ``capped`` counts the accepted steps whose next Δt it set. A proposal bel
 as a blow-up (``BlowUp``: step, time, Δt). ``state``/``restore`` keep the proposal, the controller's history and the
 counts, so that a restart continues bitwise.
 
+Under ``balanced`` control the error control's tolerances follow the grid (``Balance``): a
+step's error estimate is held to a fraction of the spatial error an a-posteriori estimate says
+arises over the step, so that the temporal error stays a chosen fraction of the spatial one
+without a sweep over tolerances (issue 64's "a run that asks for an accuracy").
+
 ``steer`` is ``Simulation.run``'s loop under control: accepted steps to each time an activity
 is due at (``schedules.AtDays``: output and restart times) and the end, each landed on exactly.
 Its steps are launched plainly, not replayed as graphs: a graph is keyed by Δt
@@ -25,13 +30,15 @@ from __future__ import annotations
 import math
 import time
 
+import numpy as np
 import warp as wp
 
+from ..config.resolve import ESTIMATED
 from ..config.schema import SceneControl
 from ..core.constants import DAY
 from ..core.errors import BlowUp, StepFailure
 from ..steppers import StepStats
-from ..steppers.control import CflController, Controller, CourantMax, ErrorNorm, capped
+from ..steppers.control import CflController, Controller, CourantMax, ErrorNorm, SpatialRate, capped
 from .guard import Guard
 from .schedules import AtDays
 from .summary import Stop
@@ -57,6 +64,49 @@ LAUNCH_VARIANTS = 4
 CAP_MARGIN = 0.75
 CAP_EVERY = 16
 
+# under "balanced", the spatial error's rate is estimated again after this many accepted steps
+# (one RHS evaluation and a pass over the state: 1/16 of an RHS a step), and no absolute
+# tolerance falls below ATOL_FLOOR (each row's units, m s⁻¹ and m: the round-off of a state)
+BALANCE_EVERY = 16
+ATOL_FLOOR = 1e-12
+
+
+class Balance:
+    """The balanced mode's tolerances (``control = "balanced"``) for ``norm`` (an ``ErrorNorm``
+    with rtol 0) on ``sim``'s model and grid, held to ``fraction`` (``SceneControl.balance``).
+    ``tolerances(x0, t, dt)`` before a try's norm: every ``BALANCE_EVERY`` accepted steps the
+    scales σ (3,) of ``SpatialRate`` from F(x0) at the step's start t (s), one RHS evaluation;
+    then atol_r = max(fraction · Δt · σ_r, ``ATOL_FLOOR``): the step's error estimate held to
+    ``fraction`` of the spatial error the grid makes over Δt, on every row alike (σ is the
+    largest row's relative rate times each row's RMS). Why rates and not the errors
+    themselves: both errors grow with time and are carried by the same flow (Galewsky ne30's
+    spatial error grows 150-fold from day 1 to day 6 while the state's highest-mode tail does not
+    triple), so balancing what each step adds balances their sums as far as the flow carries
+    them alike; a step's estimate being a local error, the mode is per unit step (Δt in the
+    tolerance). ``state``/``restore``: σ and the steps since its estimate (a restart continues
+    bitwise)."""
+
+    def __init__(self, fraction: float, sim, norm: ErrorNorm):
+        self.fraction, self.model, self.norm = float(fraction), sim.model, norm
+        self.rate = SpatialRate(sim.topology)
+        self.F = wp.zeros_like(sim.x)
+        self.sigma, self.since = None, 0
+
+    def tolerances(self, x0, t: float, dt: float) -> None:
+        if self.sigma is None or self.since >= BALANCE_EVERY:
+            self.model.set_time(t)  # a forcing's F at the step's start
+            self.model.rhs(x0, self.F)
+            self.sigma, self.since = self.rate.scales(self.F.numpy(), x0.numpy()), 0
+        self.norm.atol.assign(np.maximum(self.fraction * dt * self.sigma, ATOL_FLOOR))
+
+    def state(self) -> dict:
+        return {"sigma": None if self.sigma is None else [float(v) for v in self.sigma], "since": self.since}
+
+    def restore(self, state: dict) -> None:
+        self.sigma = None if state["sigma"] is None else np.array(state["sigma"], dtype=np.float64)
+        self.since = int(state["since"])
+
+
 # the model's recorded launch lists kept under control (``LaunchRecorder.limit``): a bound only,
 # as the keys no longer hold Δt (a fixed-Δt run records about 10)
 LAUNCH_LISTS = 64
@@ -79,13 +129,17 @@ class StepControl:
 
     def __init__(self, control: SceneControl, stepper, sim):
         self.control, self.stepper, self.sim = control, stepper, sim
-        self.error = control.mode == "error"
-        self.norm = self.controller = None
+        self.error = control.mode in ESTIMATED
+        self.norm = self.controller = self.balance = None
         if self.error:
             order = min(stepper.order, stepper.embedded_order) + 1
             self.controller = Controller(order, control.controller)
             depth = "pressure_gradient" in sim.model.terms  # h a depth: h ≤ 0 is a bad state
-            self.norm = ErrorNorm(sim.topology, control.rtol, control.atol_wind, control.atol_h, depth)
+            if control.mode == "balanced":  # absolute tolerances alone, set every try (``Balance``)
+                self.norm = ErrorNorm(sim.topology, 0.0, ATOL_FLOOR, ATOL_FLOOR, depth)
+                self.balance = Balance(control.balance, sim, self.norm)
+            else:
+                self.norm = ErrorNorm(sim.topology, control.rtol, control.atol_wind, control.atol_h, depth)
             stepper.carry_last_stage()  # an FSAL pair's last RHS is the next step's first
         gravity_waves = stepper.courant_limit is not None  # explicit gravity waves: the signal's Courant number
         growth = math.inf if control.cfl_default else CflController.max_change  # the default cap: a bound only
@@ -134,6 +188,8 @@ class StepControl:
             self.stepper.t0 = t - self.stepper.steps * dt  # the forcing's clock: the time reached, exactly
             saved = self.stepper.state() if self.error else None
             stats = self.stepper.step(x)
+            if self.balance is not None:
+                self.balance.tolerances(self.x0, t, dt)
             iterations = {k: tries.iterations.get(k, 0) + n for k, n in stats.iterations.items()}
             tries = StepStats(tries.rhs_evals + stats.rhs_evals, {**tries.iterations, **iterations})
             ok, proposal, err = self._propose(x, dt)
@@ -145,6 +201,8 @@ class StepControl:
             self.dt = proposal
         self.dt = max(proposal, self.dt) if landing else proposal  # a step cut to land: not a shrink
         self.accepted += 1
+        if self.balance is not None:
+            self.balance.since += 1
         self.dt_smallest, self.dt_largest = min(self.dt_smallest, dt), max(self.dt_largest, dt)
         self.dt_sum += dt
         self.dt_last, self.error_last = dt, err
@@ -185,6 +243,9 @@ class StepControl:
         cap = ""
         if self.error and self.cfl is not None:
             cap = f"; the Courant cap {self.cfl.cfl:.3g} set the next dt after {self.capped} of them"
+        if self.balance is not None and self.balance.sigma is not None:
+            b = self.balance
+            cap += f"; balanced at {b.fraction:g} of the spatial error's rate (last {b.rate.last:.3g} s⁻¹, relative)"
         return (
             f"{self.accepted} steps accepted, {self.rejected} rejected; dt smallest {self.dt_smallest:.4g} s, "
             f"mean {mean:.4g} s, largest {self.dt_largest:.4g} s{cap}"
@@ -196,6 +257,7 @@ class StepControl:
         s |= {"capped": self.capped}
         s |= {"dt_smallest": self.dt_smallest, "dt_sum": self.dt_sum, "dt_largest": self.dt_largest}
         s |= {"landed": self.landed, "dt_last": self.dt_last, "error_last": self.error_last}
+        s |= {"balance": self.balance.state()} if self.balance is not None else {}
         return s | ({"controller": self.controller.state()} if self.error else {})
 
     def restore(self, state: dict) -> None:
@@ -208,6 +270,8 @@ class StepControl:
         )
         if self.error:
             self.controller.restore(state["controller"])
+        if self.balance is not None:
+            self.balance.restore(state["balance"])
         self._cap_seconds = 0.0  # the next step takes the Courant pass
 
 

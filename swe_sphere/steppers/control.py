@@ -41,6 +41,7 @@ import numpy as np
 import warp as wp
 
 from ..core.parallel import record
+from ..grid.gll import truncation
 from ..kernels import error_norm
 
 f64 = wp.float64
@@ -63,12 +64,13 @@ class ErrorNorm:
     ``atol_wind`` (m s⁻¹) and ``atol_h`` (m) absolute tolerances. With ``check_depth``
     (h a depth: a scene with a pressure gradient) a step that ends with h ≤ 0 anywhere has
     the norm +inf, and one with a non-finite value NaN or inf: a finite norm is a state the
-    bad-node check (``model.bad_nodes``) passes. ValueError for a tolerance that is not
-    positive (rtol) or negative (atol)."""
+    bad-node check (``model.bad_nodes``) passes. ``atol`` (3,) the device array of the
+    absolute tolerances (u, v, h), which a caller may set between norms (``adaptive.Balance``).
+    ValueError for a negative tolerance, or rtol 0 with an atol 0."""
 
     def __init__(self, topology, rtol: float, atol_wind: float = 1e-3, atol_h: float = 1e-2, check_depth: bool = False):
-        if not rtol > 0:
-            raise ValueError(f"rtol must be > 0 (got {rtol!r})")
+        if not rtol >= 0 or (rtol == 0 and not min(atol_wind, atol_h) > 0):
+            raise ValueError(f"rtol must be > 0, or 0 with every atol > 0 (got {rtol!r}, {atol_wind!r}, {atol_h!r})")
         for key, value in (("atol_wind", atol_wind), ("atol_h", atol_h)):
             if not value >= 0:
                 raise ValueError(f"{key} must be ≥ 0 (got {value!r}, {'m/s' if key == 'atol_wind' else 'm'})")
@@ -134,6 +136,38 @@ class CourantMax:
         numbers = {"courant_advective": math.sqrt(adv) * dt}
         numbers["courant_gravity"] = math.sqrt(grav) * dt if self.gravity_waves else math.nan
         return numbers, bad > 0
+
+
+class SpatialRate:
+    """An a-posteriori estimate of how fast the spatial discretization's error grows, for the
+    balanced step control: of a tendency F (3, N) at a state x (3, N) on ``topology``'s
+    element-local nodes, per row (u, v, h) the RMS of F's highest-mode tail, F − (T ⊗ T) F
+    element by element (``grid.gll.truncation``: the part of F beyond the np − 1 projection,
+    Mavriplis 1994's estimate of a spectral element's truncation error), over the RMS of x's
+    row (u and v together): s⁻¹, relative. ``scales(F, x)`` returns the largest of the three
+    times each row's RMS, (3,) in x's units a second: the rate at which errors as large as the
+    grid's own arise, which a balanced step's error estimate over Δt is held to a fraction of.
+    RMS weighted by spheremp; the terms gathered to one rank and summed there in the whole
+    grid's order (the same bits on any rank count), every rank getting the result. A row of x
+    that is zero everywhere takes the largest rate times 0."""
+
+    def __init__(self, topology):
+        grid = topology.grid
+        self.topology, self.np = topology, grid.np
+        self.T = truncation(grid.np)
+        self.weight = np.asarray(grid.spheremp, dtype=np.float64)
+        self.last = math.nan  # the last ``scales``' largest relative rate (s⁻¹)
+
+    def scales(self, F: np.ndarray, x: np.ndarray) -> np.ndarray:
+        n, w = self.np, self.weight
+        f = np.asarray(F, dtype=np.float64).reshape(3, -1, n, n)
+        tail = (f - np.einsum("ik,rekl,jl->reij", self.T, f, self.T)).reshape(3, -1)
+        terms = self.topology.gather(np.concatenate([w * tail**2, w * np.asarray(x, dtype=np.float64) ** 2, w[None]]))
+        S = self.topology.bcast(None if terms is None else np.sum(terms, axis=1))  # rank 0's sums, the whole grid's
+        tails, states = np.array([S[0] + S[1], S[2]]), np.array([S[3] + S[4], S[5]])  # (wind, h)
+        rate = self.last = float(np.max(np.sqrt(np.divide(tails, states, out=np.zeros(2), where=states > 0))))
+        rms = np.sqrt(states / np.array([2.0 * S[6], S[6]]))  # a wind component's, h's
+        return rate * rms[[0, 0, 1]]
 
 
 @dataclass

@@ -49,10 +49,28 @@ def test_error_control_caps_the_courant_number_by_default():
     assert _load("ark436", control="error").control.cfl is None
 
 
+def test_balanced_control_and_its_defaults():
+    """Under "balanced" the fraction ``balance`` (default 0.1, the sweep's criterion), the pair's
+    controller and the default cap, no rtol or atol (the mode sets its tolerances)."""
+    scene = _load(control="balanced")
+    c = scene.control
+    assert (c.mode, c.balance, c.controller, c.rtol, c.atol_wind) == ("balanced", 0.1, "pid_bs32", None, None)
+    assert c.cfl_default and c.cfl == pytest.approx(
+        0.9 * 1.11
+    )  # bs32: 0.9 × its measured limit 1.11 (ssprk3's polynomial)
+    assert _load(control="balanced", balance=0.02).control.balance == 0.02
+    assert scene_from_dict(scene.as_dict()) == scene
+
+
 @pytest.mark.parametrize(
     "stepper, keys, words",
     [
-        ("bs32", dict(control="adaptive"), "time.control must be one of fixed, cfl, error (got 'adaptive')"),
+        ("bs32", dict(control="adaptive"), "time.control must be one of fixed, cfl, error, balanced (got 'adaptive')"),
+        ("bs32", dict(control="balanced", balance=0.0), "time.balance must be a number > 0 (got 0.0)"),
+        ("bs32", dict(control="balanced", balance="a lot"), "time.balance must be float (got 'a lot')"),
+        ("bs32", dict(control="balanced", rtol=1e-4), "time.rtol is not read under control = 'balanced'"),
+        ("bs32", dict(control="error", balance=0.1), "time.balance is not read under control = 'error'"),
+        ("ssprk3", dict(control="balanced"), "time.control = 'balanced' needs an embedded pair; ssprk3 has no"),
         ("bs32", dict(control="error", rtol=0.0), "time.rtol must be > 0 (got 0.0)"),
         ("bs32", dict(control="error", rtol=-1e-3), "time.rtol must be > 0"),
         ("bs32", dict(control="error", controller="pd"), "time.controller must be one of i, pi, pid, h211"),

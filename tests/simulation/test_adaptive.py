@@ -16,7 +16,7 @@ from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
 from swe_sphere.core.errors import BlowUp
 from swe_sphere.model.diagnostics import courant_numbers
-from swe_sphere.simulation.adaptive import CAP_EVERY, DT_GRID, StepControl
+from swe_sphere.simulation.adaptive import ATOL_FLOOR, BALANCE_EVERY, CAP_EVERY, DT_GRID, StepControl
 
 from helpers import make_sim
 
@@ -206,3 +206,42 @@ def test_the_default_cap_keeps_a_loose_tolerance_stable():
     assert "the Courant cap 1.15 set the next dt after" in control.summary()
     _, control = tc5(cfl=0.5)
     assert (control.cfl.cfl, control.cfl.max_change) == (0.5, 1.1)
+
+
+def _balanced(balance, days=1.0):
+    overrides = {"time.control": "balanced", "time.balance": balance}
+    sim = make_sim(load_scene("tc5_mountain", ne=4, days=days, stepper="rk43", overrides=overrides))
+    return sim, StepControl(sim.scene.control, sim.stepper, sim)
+
+
+def test_a_balanced_run_follows_its_fraction_and_continues_bitwise():
+    """``control = "balanced"`` on TC5 ne 4 (rk43): every try's absolute tolerances are the
+    fraction × Δt × the spatial rate's scales (``Balance``), re-estimated every
+    ``BALANCE_EVERY`` accepted steps; a smaller fraction takes more steps and comes nearer a
+    run at a tenth of it; and a run stopped at day 0.5 (mid-way between two estimates) and
+    continued from the control's state gives the bits of one that did not stop."""
+    runs = {}
+    for balance in (0.3, 0.03, 0.003):
+        sim, control = _balanced(balance)
+        assert _run(sim, control, 0.0, DAY) == DAY
+        b = control.balance
+        assert b.sigma.min() > 0 and b.since == (control.accepted - 1) % BALANCE_EVERY + 1
+        atol = np.maximum(balance * control.dt_last * b.sigma, ATOL_FLOOR)
+        np.testing.assert_array_equal(control.norm.atol.numpy(), atol)  # the last try's, which landed
+        runs[balance] = (sim.x.numpy(), control.accepted)
+    far, near = (np.abs(runs[b][0][2] - runs[0.003][0][2]).max() for b in (0.3, 0.03))
+    assert runs[0.03][1] > runs[0.3][1] and near < far / 3, (near, far)
+    whole, control = _balanced(0.03)
+    first, control1 = _balanced(0.03)
+    _run(first, control1, 0.0, 0.5 * DAY)
+    assert control1.balance.since not in (0, BALANCE_EVERY)
+    state, stepper_state, x = control1.state(), first.stepper.state(), first.x.numpy()
+    second, control2 = _balanced(0.03)
+    second.x.assign(x)
+    second.stepper.restore(stepper_state)
+    control2.restore(state)
+    _run(second, control2, 0.5 * DAY, DAY)
+    t = _run(whole, control, 0.0, 0.5 * DAY)
+    _run(whole, control, t, DAY)
+    assert np.array_equal(second.x.numpy(), whole.x.numpy())
+    assert control2.state() == control.state()

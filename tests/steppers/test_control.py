@@ -11,8 +11,17 @@ import numpy as np
 import pytest
 
 from swe_sphere.config.scene import load_scene
+from swe_sphere.grid.gll import gll, truncation
 from swe_sphere.model.diagnostics import courant_numbers
-from swe_sphere.steppers.control import CONTROLLERS, CflController, Controller, CourantMax, ErrorNorm, capped
+from swe_sphere.steppers.control import (
+    CONTROLLERS,
+    CflController,
+    Controller,
+    CourantMax,
+    ErrorNorm,
+    SpatialRate,
+    capped,
+)
 from swe_sphere.steppers.runge_kutta import TABLES
 
 from helpers import make_sim
@@ -175,3 +184,33 @@ def test_the_courant_numbers_on_the_device_are_the_gathered_states():
         bent[row, 77] = value
         x.assign(bent)
         assert CourantMax(topo, topo.grid.dx, sim.g, True)(x, 900.0)[1]
+
+
+@pytest.mark.parametrize("np_", [2, 4, 6, 8])
+def test_the_truncation_keeps_degree_np_minus_2_and_drops_the_top_legendre_mode(np_):
+    x = gll(np_).points
+    T = truncation(np_)
+    for degree in range(np_ - 1):
+        np.testing.assert_allclose(T @ x**degree, x**degree, atol=1e-13)
+    top = np.polynomial.legendre.legval(x, [0.0] * (np_ - 1) + [1.0])
+    np.testing.assert_allclose(T @ top, 0.0, atol=1e-13)
+    np.testing.assert_allclose(T @ T, T, atol=1e-13)  # a projection
+
+
+def test_the_spatial_rate_is_the_top_mode_over_the_state_and_scales_every_row_alike():
+    """F whose h row is c·P₃(ξ) in every element (np 4; all of it beyond the np − 1
+    projection) and whose wind rows are constant (none): the rate is √(Σ spheremp F_h²) /
+    √(Σ spheremp h²), the wind's below it, and the scales are that rate times each row's RMS."""
+    sim = make_sim(load_scene("tc2_steady", ne=4))
+    grid, x = sim.grid, sim.x.numpy()
+    top = np.polynomial.legendre.legval(gll(4).points, [0.0, 0.0, 0.0, 1.0])
+    F = np.ones_like(x)
+    F[2] = 1e-3 * np.broadcast_to(top[:, None], (grid.nelem, 4, 4)).ravel()
+    rate = SpatialRate(sim.topology)
+    sigma = rate.scales(F, x)
+    w = grid.spheremp
+    expected = math.sqrt(np.sum(w * F[2] ** 2) / np.sum(w * x[2] ** 2))
+    assert rate.last == pytest.approx(expected, rel=1e-12) and expected > 0
+    rms = np.sqrt([np.sum(w * (x[0] ** 2 + x[1] ** 2)) / (2 * np.sum(w)), np.sum(w * x[2] ** 2) / np.sum(w)])
+    np.testing.assert_allclose(sigma, expected * rms[[0, 0, 1]], rtol=1e-12)
+    assert rate.scales(np.ones_like(x), x).max() < 1e-13  # a constant tendency: no tail

@@ -20,7 +20,8 @@ file written; the runs and helpers are ``adaptive_proportionality.py``'s. For ea
   sweep's cheapest qualifying run on h + hs (TC5 ``rk4`` @ 0.79, Galewsky ``fbrk32`` @ 1.24)
   and its neighbours;
 - each pair of ``--pairs`` under ``control = "error"`` (its default controller and atol, the
-  default Courant cap) at the rtols of ``--rtols``, loosest first, until one qualifies: its
+  default Courant cap) at the rtols of ``--rtols`` (with ``--balances``: under ``control =
+  "balanced"`` at those fractions), loosest first, until one qualifies: its
   temporal error, accepted and rejected steps, how many steps the Courant cap set, CPU s a
   simulated day, against the cheapest qualifying fixed run;
 - Galewsky only: each pair's qualifying run's Δt over time (smallest, mean and largest
@@ -90,16 +91,17 @@ def case_runs(args, label: str, days: float, fixed_specs, out: dict) -> None:
     pairs = {}
     for pair in args.pairs:
         tried = []
-        for rtol in sorted(args.rtols, reverse=True):  # loosest first
-            r = run(scene, ne, days, pair, control={"control": "error", "rtol": rtol}, overrides=over)
+        for name, control in controls(args):  # loosest first
+            r = run(scene, ne, days, pair, control=control, overrides=over)
             e = temporal(r, ref)
             ctl = r["sim"].control
-            row = {"rtol": rtol, "temporal": e, "cpu": r["cpu"], "accepted": r["accepted"], "rejected": r["rejected"]}
+            row = {"try": name, "control": control, "temporal": e, "cpu": r["cpu"], "accepted": r["accepted"]}
+            row["rejected"] = r["rejected"]
             row |= {"capped": ctl.capped, "dt": r["dt"], "ok": e <= bound, "blowup": r["blowup"]}
             if label == "galewsky":
                 row["dt_by_day"] = by_day(ctl.history, days)
             tried.append(row)
-            _line(f"{pair}@rtol={rtol:g}", e, bound, r, days, ctl.capped)
+            _line(f"{pair}@{name}", e, bound, r, days, ctl.capped)
             if row["ok"]:
                 break
         pairs[pair] = tried
@@ -107,23 +109,28 @@ def case_runs(args, label: str, days: float, fixed_specs, out: dict) -> None:
     for pair, tried in pairs.items():
         t = tried[-1]
         if not t["ok"]:
-            print(f"  {pair}: no qualifying rtol of those tried")
+            print(f"  {pair}: none of those tried qualifies")
             continue
         share = t["rejected"] / max(t["accepted"] + t["rejected"], 1)
         against = "no qualifying fixed run" if best is None else f"{best['run']}: {t['cpu'] / best['cpu']:.2f}×"
-        print(
-            f"  {pair}@rtol={t['rtol']:g}: {t['cpu'] / days:.3f} CPU s a day against {against}; "
-            f"{100 * share:.1f} % rejected"
-        )
+        print(f"  {pair}@{t['try']}: {t['cpu'] / days:.3f} CPU s a day against {against}; {100 * share:.1f} % rejected")
     if label == "galewsky":
         print(f"\n{scene}: each pair's qualifying run's accepted Δt a day, smallest/mean/largest (s)")
         for pair, tried in pairs.items():
             cells = "  ".join(f"d{i + 1} {a:.0f}/{m:.0f}/{b:.0f}" for i, (a, m, b) in enumerate(tried[-1]["dt_by_day"]))
-            print(f"  {pair}@rtol={tried[-1]['rtol']:g}: {cells}")
+            print(f"  {pair}@{tried[-1]['try']}: {cells}")
     out[label] = {"scene": scene, "reference": reference, "days": days, "spatial": spatial, "dt_g": dt_g}
     out[label] |= {"reference_steps": ref["accepted"], "fixed": fixed, "pairs": pairs}
     if args.rounds and best is not None:
         out[label]["rounds"] = rounds(args, scene, days, over, best, probe, pairs)
+
+
+def controls(args) -> list:
+    """Each pair's tries, loosest first: (a name, its [time] keys): ``--balances`` under
+    control = "balanced" where given, else ``--rtols`` under "error"."""
+    if args.balances:
+        return [(f"balance={f:g}", {"control": "balanced", "balance": f}) for f in sorted(args.balances, reverse=True)]
+    return [(f"rtol={r:g}", {"control": "error", "rtol": r}) for r in sorted(args.rtols, reverse=True)]
 
 
 def rounds(args, scene, days, over, best, probe, pairs) -> dict:
@@ -133,9 +140,7 @@ def rounds(args, scene, days, over, best, probe, pairs) -> dict:
     runs = {best["run"]: dict(stepper=stepper, dt=fixed_dt(probe, float(multiple))[0])}
     for pair, tried in pairs.items():
         if tried[-1]["ok"]:
-            runs[f"{pair}@rtol={tried[-1]['rtol']:g}"] = dict(
-                stepper=pair, control={"control": "error", "rtol": tried[-1]["rtol"]}
-            )
+            runs[f"{pair}@{tried[-1]['try']}"] = dict(stepper=pair, control=tried[-1]["control"])
     cpu = {name: [] for name in runs}
     for i in range(args.rounds):
         for name, spec in runs.items():
@@ -203,6 +208,9 @@ def main() -> None:
     parser.add_argument("--galewsky-days", type=float, default=6.0)
     parser.add_argument("--pairs", nargs="+", default=["dp54", "ssprk43", "rdpk3sp35"])
     parser.add_argument("--rtols", nargs="+", type=float, default=[1e-2, 1e-4, 1e-5, 1e-6])
+    parser.add_argument(
+        "--balances", nargs="+", type=float, help='fractions f under control = "balanced" instead of --rtols'
+    )
     parser.add_argument("--rtol-ref", type=float, default=1e-8)
     parser.add_argument("--tc5-fixed", nargs="+", default=["rk4@0.79", "rk4@1.24", "kgu35@0.8"])
     parser.add_argument("--galewsky-fixed", nargs="+", default=["fbrk32@1.24", "fbrk32@1.05", "kgu35@1.63"])

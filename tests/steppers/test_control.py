@@ -136,8 +136,12 @@ def test_the_norm_is_one_reduction_equal_to_numpys():
     assert norm.count == 3 * f.size == 3 * (6 * 2 * 2 * 9 + 2)
     assert norm(*arrays) == pytest.approx(expected, rel=8 * np.finfo(float).eps)
     assert 1 < expected < 100
+    with pytest.raises(ValueError, match="rtol must be > 0, or 0 with every atol > 0"):
+        ErrorNorm(topo, rtol=0.0, atol_h=0.0)
     with pytest.raises(ValueError, match="rtol must be > 0"):
-        ErrorNorm(topo, rtol=0.0)
+        ErrorNorm(topo, rtol=-1e-6)
+    absolute = ErrorNorm(topo, rtol=0.0)  # the balanced mode's: atol alone
+    assert absolute(*arrays) == pytest.approx(np.sqrt(np.mean((e[:, f] / atol) ** 2)), rel=8 * np.finfo(float).eps)
 
 
 def test_the_cfl_controller_brings_the_courant_number_to_its_target():

@@ -340,3 +340,15 @@ def test_a_forced_run_s_gradient_steps_at_the_run_s_times():
     slopes, rest, J = taylor_slopes("rk4", 6, [1.0, 1.0, 10.0], scene)
     assert np.all(np.abs(slopes - 2.0) < 0.1), (slopes, rest)
     assert rest[-1] > 1e4 * EPS * J
+
+
+def test_a_run_on_a_mesh_file_has_a_gradient_whose_taylor_remainder_falls_as_eps_squared():
+    """A scene on an Exodus mesh (``grid.mesh_file``: TempestRemap's ne2 cube) is differentiated on
+    that mesh's grid, as its run steps it."""
+    from meshes import TEMPEST_NE2
+
+    scene = load_scene("tc5_mountain", dt=1800.0, stepper="rk4", overrides={"grid.mesh_file": str(TEMPEST_NE2)})
+    assert scene.ne == 0 and scene_model(scene)[0].grid.mesh is not None
+    slopes, rest, J = taylor_slopes("rk4", 4, [1.0, 1.0, 10.0], scene)
+    assert np.all(np.abs(slopes - 2.0) < 0.1), (slopes, rest)
+    assert rest[-1] > 1e4 * EPS * J

@@ -148,6 +148,10 @@ EXPLICIT_RUNS = [  # (scene, its options): each of these runs has the same bits 
         ["--stepper", "bs32", "--days", "0.1", "-s", "time.control=error", "-s", "time.rtol=1e-5"]
         + ["-s", "time.cfl=0.1"],
     ),
+    (  # the balanced mode: the spatial rate's sums in the whole grid's node order, set every 16 steps
+        "tc5_mountain",
+        ["--stepper", "rk43", "--days", "0.5", "-s", "time.control=balanced", "-s", "time.balance=0.01"],
+    ),
 ]
 
 # the runs of EXPLICIT_RUNS one after another in one process: a rank's start-up (imports, kernels)

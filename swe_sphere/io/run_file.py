@@ -115,6 +115,11 @@ SERIES_ATTRS = {
         long_name="weighted RMS norm of the last accepted step's local error estimate over rtol and atol "
         "(<= 1: within tolerance; NaN under CFL control)",
     ),
+    "spatial_rate": dict(
+        units="s-1",
+        long_name="the balanced control's last estimate of the spatial error's relative rate (the tendency's "
+        "highest Legendre mode over the state; NaN under other controls)",
+    ),
 }
 for _f in ("h", "wind"):
     for _n, _long in (("l1", "normalized l1"), ("l2", "normalized l2"), ("linf", "normalized l-infinity")):

@@ -35,7 +35,7 @@ def _holds(sim, marks: set, step: int) -> bool:
 
 
 # what the run file records of the step control at each output time (``SERIES_ATTRS``)
-CONTROL_SERIES = ("dt", "rejected_steps", "error_estimate")
+CONTROL_SERIES = ("dt", "rejected_steps", "error_estimate", "spatial_rate")
 
 
 def run_attrs(sim, history: str | None, courant: dict) -> dict:
@@ -151,6 +151,7 @@ class RunFiles:
         d.update(steps=step, day=day, rhs_evals=c["rhs_evals"], wall_time=c["wall_time"], cpu_time=c["cpu_time"])
         if ctl is not None:
             d.update(dt=ctl.dt_last, rejected_steps=ctl.rejected, error_estimate=ctl.error_last)
+            d.update(spatial_rate=math.nan if ctl.balance is None else ctl.balance.rate.last)
         d.update({f"{k}_iterations": c["iterations"].get(k, 0) for k in sim.stepper.solvers})
         self.history.append(d)
         if self.on_output is not None:

@@ -245,3 +245,17 @@ def test_a_balanced_run_follows_its_fraction_and_continues_bitwise():
     _run(whole, control, t, DAY)
     assert np.array_equal(second.x.numpy(), whole.x.numpy())
     assert control2.state() == control.state()
+
+
+def test_the_run_file_records_the_balanced_mode_s_spatial_rate(tmp_path):
+    """``spatial_rate`` at each output time: the balanced control's last estimate (NaN at the
+    start, before any; finite and positive after), NaN under error control."""
+    from swe_sphere.cli import main
+
+    args = ["run", "tc2_steady", "--ne", "4", "--stepper", "bs32", "--days", "1", "-s", "output.every_days=0.25"]
+    args += ["--no-cells", "--no-progress", "--device", "cpu"]
+    assert main([*args, "-s", "time.control=balanced", "--output", str(tmp_path / "b.nc")]) == 0
+    assert main([*args, "-s", "time.control=error", "--output", str(tmp_path / "e.nc")]) == 0
+    (rate,) = _series(tmp_path / "b.nc", "spatial_rate")
+    assert np.isnan(rate[0]) and np.all(rate[1:] > 0) and np.all(np.isfinite(rate[1:]))
+    assert np.all(np.isnan(_series(tmp_path / "e.nc", "spatial_rate")[0]))

@@ -42,7 +42,7 @@ def _mesh_lines(sim) -> list[str]:
 
 def _control_line(c) -> str:
     """The header's line of a scene's step control (a ``SceneControl``)."""
-    from ..config.resolve import CFL_FRACTION
+    from ..config.control import CFL_FRACTION
 
     what = "cfl"
     if c.mode == "error":

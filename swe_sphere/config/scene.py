@@ -76,14 +76,13 @@ from ..core.errors import SceneError
 from ..io.initial_state import SCENE_CASES
 from ..mesh.records import MeshRecord, from_json, with_ne
 from ..steppers.initialization import DigitalFilter
+from .control import is_controlled, resolve_control
 from .paths import list_scenes, resolve_path, scene_dir
 from .resolve import (
     DT_NOTES,
     HYPERVIS_EXPONENT,
     efold_nu,
-    is_controlled,
     resolve_case,
-    resolve_control,
     resolve_dt,
     resolve_grid,
     resolve_hyperviscosity,

@@ -43,7 +43,7 @@ class SceneControl:
     number (``steppers.control.CflController``; under "error" a cap, None: none); ``dt_min``
     (s, > 0: a step below it stops the run as a blow-up) and ``dt_max`` (s; None: none). The
     scene's ``dt`` is the first step. ``cfl_default``: ``cfl`` is error control's default cap
-    (``config.resolve.CFL_FRACTION`` × the stepper's measured Courant limit), which holds the
+    (``config.control.CFL_FRACTION`` × the stepper's measured Courant limit), which holds the
     Courant number only: no bound on a step's growth, so that where it does not bind the steps
     are the error controller's alone. Under "balanced" (error control whose tolerances follow
     the spatial error's estimated rate, ``simulation.adaptive.Balance``) ``balance`` (> 0) the
@@ -122,7 +122,7 @@ SCHEMA = {
         "rtol": float,
         "atol": float | list,  # one for every field in its units, or [wind (m/s), h (m)]: ``resolve_control``
         "controller": str,
-        "cfl": float | bool,  # a Courant number, or under "error" and "balanced" false: no cap (``resolve._cfl``)
+        "cfl": float | bool,  # a Courant number, or under "error" and "balanced" false: no cap (``control._cfl``)
         "dt_min": float,
         "dt_max": float,
         "balance": float,

@@ -8,7 +8,7 @@ exactly (an output, restart or end time); the stepper told the Δt (``Stepper.se
 above 1 is rejected: the state and the stepper's state (``Stepper.state``) put back, retried
 at the controller's shorter Δt. A CFL target (``control.CflController``) is the whole control
 under ``cfl``, a cap under ``error``: by default (``SceneControl.cfl_default``)
-``config.resolve.CFL_FRACTION`` × the pair's measured Courant limit, holding the Courant number
+``config.control.CFL_FRACTION`` × the pair's measured Courant limit, holding the Courant number
 only (no growth bound: where it does not bind, the steps are the error controller's, bit for
 bit); ``capped`` counts the accepted steps whose next Δt it set. A proposal below dt_min stops
 as a blow-up (``BlowUp``: step, time, Δt). ``state``/``restore`` keep the proposal, the controller's history and the
@@ -33,7 +33,7 @@ import time
 import numpy as np
 import warp as wp
 
-from ..config.resolve import ESTIMATED
+from ..config.control import ESTIMATED
 from ..config.schema import SceneControl
 from ..core.constants import DAY
 from ..core.errors import BlowUp, StepFailure

@@ -1,4 +1,4 @@
-"""[time] control and its keys (``config.resolve.resolve_control``): a fixed dt the default and
+"""[time] control and its keys (``config.control.resolve_control``): a fixed dt the default and
 left out of the scene's record, the defaults of each mode, the record's round trip through
 ``as_dict``, and each bad setting refused in one line naming its key."""
 

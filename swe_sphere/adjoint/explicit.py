@@ -191,9 +191,8 @@ class StepAdjoint:
         self.combine(self.d_hs, [(1.0, self.d_hs), (-1.0, mu[2:3])])
         for _ in range(self.substeps - 1):
             h(mu)
-        topo = m.topology  # the products of every rank's nodes, summed on rank 0 in the whole grid's order:
-        w = topo.gather(m.grid.spheremp * mu.numpy() * self.delta.numpy())  # the same bits on any ranks
-        rows = topo.bcast(None if w is None else np.array([w[:2].sum(), w[2].sum()]) * self.substeps)
+        w = m.topology.whole_sums(m.grid.spheremp * mu.numpy() * self.delta.numpy())  # the same bits on any ranks
+        rows = np.array([w[0] + w[1], w[2]]) * self.substeps
         self.d_nu += np.divide(rows, [m.nu, m.nu_s], out=np.zeros(2), where=np.array([m.nu, m.nu_s]) > 0)
         h(mu)
         self.combine(self.d_hs, [(1.0, self.d_hs), (1.0, mu[2:3])])

@@ -503,6 +503,16 @@ class Topology:
         """Area mean of a continuous element-local field f (N,)."""
         return self.integrate(f) / self.total_area
 
+    def whole_sums(self, rows) -> np.ndarray:
+        """Σ of each row of ``rows`` ((k, N), or k arrays (N,): this rank's element-local
+        nodes) over every rank's nodes, added on rank 0 in the whole grid's element-local
+        order (the one-process array: the same bits on any rank count, unlike ``sums``),
+        every rank getting the k sums (call on every rank)."""
+        if not self.distributed:
+            return np.array([np.sum(r) for r in rows])
+        whole = self.gather(np.stack(rows))
+        return self.bcast(None if whole is None else np.array([np.sum(r) for r in whole]))
+
     def sums(self, values: np.ndarray) -> np.ndarray:
         """Elementwise Σ of a per-process numpy array over all processes: gathered
         and added in rank order, so every rank gets the same bits whatever MPI's

@@ -147,8 +147,8 @@ class SpatialRate:
     row (u and v together): s⁻¹, relative. ``scales(F, x)`` returns the largest of the three
     times each row's RMS, (3,) in x's units a second: the rate at which errors as large as the
     grid's own arise, which a balanced step's error estimate over Δt is held to a fraction of.
-    RMS weighted by spheremp; over ranks the terms gathered to rank 0 and summed there in the
-    whole grid's order (the same bits on any rank count), every rank getting the result. A row
+    RMS weighted by spheremp, the sums ``Topology.whole_sums``' (the same bits on any rank
+    count). A row
     of x that is zero everywhere takes the largest rate times 0. About 1 ms at ne30 (one thread),
     every ``adaptive.BALANCE_EVERY`` steps."""
 
@@ -158,7 +158,7 @@ class SpatialRate:
         T = truncation(grid.np)
         self.TT = np.kron(T, T).T  # (T ⊗ T)ᵀ on an element's n² nodes (either layout: it treats both axes alike)
         self.weight = np.asarray(grid.spheremp, dtype=np.float64)
-        self.area = float(self._sums([self.weight])[0])  # Σ spheremp: the sphere's area (m²)
+        self.area = float(topology.whole_sums(self.weight[None])[0])  # Σ spheremp: the sphere's area (m²)
         self.last = math.nan  # the last ``scales``' largest relative rate (s⁻¹)
 
     def scales(self, F: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -166,20 +166,12 @@ class SpatialRate:
         f = np.asarray(F, dtype=np.float64).reshape(-1, n * n)  # (rows · elements, n²)
         tail = (f - f @ self.TT).reshape(3, -1)  # F − (T ⊗ T) F, element by element
         x = np.asarray(x, dtype=np.float64)
-        tails = self._sums([w * (tail[0] ** 2 + tail[1] ** 2), w * tail[2] ** 2])  # (wind, h)
-        states = self._sums([w * (x[0] ** 2 + x[1] ** 2), w * x[2] ** 2])
+        rows = [w * (tail[0] ** 2 + tail[1] ** 2), w * tail[2] ** 2, w * (x[0] ** 2 + x[1] ** 2), w * x[2] ** 2]
+        sums = self.topology.whole_sums(rows)
+        tails, states = sums[:2], sums[2:]  # (wind, h) each
         rate = self.last = float(np.max(np.sqrt(np.divide(tails, states, out=np.zeros(2), where=states > 0))))
         rms = np.sqrt(states / np.array([2.0 * self.area, self.area]))  # a wind component's, h's
         return rate * rms[[0, 0, 1]]
-
-    def _sums(self, rows: list) -> np.ndarray:
-        """Σ of each (N,) row over every rank's nodes, added on rank 0 in the whole grid's order
-        (a row gathered there is the one-process row: the same bits on any rank count)."""
-        t = self.topology
-        if not t.distributed:
-            return np.array([np.sum(r) for r in rows])
-        whole = t.gather(np.stack(rows))
-        return t.bcast(None if whole is None else np.array([np.sum(r) for r in whole]))
 
 
 @dataclass

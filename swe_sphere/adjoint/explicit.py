@@ -13,7 +13,9 @@ element-local nodes for a continuous δx. In that form
 - the ∇⁴ is its own transpose: R Q Bᵀ = B R Q, since B = Pᵀ R Q K̃ Π R Q K̃ P with K̃ the
   element weak Laplacian plus the mass shift (symmetric), P the (east, north) → Cartesian
   basis and Π the tangent projection, both continuous and per node, so μ ← μ + c B₀ μ with
-  B₀ the operator without hs (the model's ∇⁴ launches recorded with hs = 0);
+  B₀ the operator without hs (the model's ∇⁴ launches recorded with hs = 0); the tensor ∇⁴
+  (its second K̃ the tensor's, K̃_V, also symmetric) has for transpose the operator with its
+  two K̃ swapped (``Hyperviscosity.build(transposed=True)``);
 - T's transpose is ``kernels.tendency_adjoint`` (written by hand: one element kernel a stage
   on the CPU, two per-node gathers on CUDA), whose λ is gathered back by the unweighted DSS,
   μ = R Q λ, written straight into the running sum of the stages' adjoints (``dss_update``).
@@ -45,8 +47,6 @@ f64 = wp.float64
 def _refusal(model: ShallowWater, dt: float) -> str | None:
     """Why the adjoint cannot serve ``model`` at step dt (None: it can)."""
     if model.hv is not None:
-        if model.hypervis_scaling is not None:
-            return "the tensor ∇⁴ (hypervis_scaling) is not self-adjoint: no adjoint yet"
         if model.nu_div != model.nu:
             return "nu_div != nu (the ∇δ term) has no adjoint yet"
         if model.hv.nu_max > 0 and model.hv.plan(dt)[1]:
@@ -100,7 +100,7 @@ class StepAdjoint:
         self.d_nu = np.zeros(2)  # ∂J/∂ν (wind rows), ∂J/∂ν_s (h row), m⁻⁴ s · J
         self.d_hs = zeros(1)  # the ∇⁴'s share of ∂J/∂hs, continuous (mass form)
         self.substeps = 0  # of the ∇⁴ (forward Euler)
-        self._hv: dict[int, list] = {}  # ``substep``'s recorded launches, by array
+        self._hv: dict[tuple, list] = {}  # ``substep``'s recorded launches, by array and direction
         if m.hv is not None and m.hv.nu_max > 0:
             self.substeps = m.hv.plan(self.dt)[0]
             self.zero_hs = wp.zeros(N, dtype=f64, device=device)
@@ -160,24 +160,28 @@ class StepAdjoint:
             if separate is not None:
                 self.combine(self.Y[i + 1], separate)
 
-    def substep(self, x) -> None:
-        """x ← x − (Δt/S) B₀ x in place: one ∇⁴ substep without hs (the model's launches, recorded
-        once per array with the model's hs swapped for zeros, as ``biharmonic_radius`` does)."""
-        launches = self._hv.get(x.ptr)
+    def substep(self, x, transposed: bool = False) -> None:
+        """x ← x − (Δt/S) B₀ x in place (``transposed``: B₀'s transpose in the mass form): one ∇⁴
+        substep without hs (the model's launches, recorded once per array with the model's hs
+        swapped for zeros, as ``biharmonic_radius`` does)."""
+        launches = self._hv.get((x.ptr, transposed))
         if launches is None:
             m = self.model
             hs, m.hs = m.hs, self.zero_hs
             try:
-                launches = self._hv[x.ptr] = m.hv.build(x, -self.dt / self.substeps)
+                launches = self._hv[x.ptr, transposed] = m.hv.build(x, -self.dt / self.substeps, transposed=transposed)
             finally:
                 m.hs = hs
         for launch in launches:
             launch.launch()
 
     def hyperviscosity_transpose(self, mu) -> None:
-        """μ of the ∇⁴'s output → μ of its input Φ, in place (the ∇⁴ its own transpose); with
+        """μ of the ∇⁴'s output → μ of its input Φ, in place (the ∇⁴'s transposed substeps); with
         ``parameters``, ∂J/∂ν, ∂J/∂ν_s and the hs adjoint of this step summed (module doc)."""
-        h = self.substep
+
+        def h(x):
+            self.substep(x, transposed=True)
+
         if not self.parameters:
             for _ in range(self.substeps):
                 h(mu)
@@ -186,7 +190,7 @@ class StepAdjoint:
         self.combine(self.phi, [(1.0, self.x), *((dt * b, k) for b, k in zip(self.b, self.K))])
         self.combine(self.phi[2:3], [(1.0, self.phi[2:3]), (1.0, m.hs.reshape((1, m.N)))])  # Φ + hs
         wp.copy(self.delta, self.phi)
-        h(self.delta)
+        self.substep(self.delta)
         self.combine(self.delta, [(1.0, self.delta), (-1.0, self.phi)])  # Δ₀
         self.combine(self.d_hs, [(1.0, self.d_hs), (-1.0, mu[2:3])])
         for _ in range(self.substeps - 1):

@@ -54,14 +54,18 @@ def steppers(text: str) -> list[str]:
     return names
 
 
-def runs(text: str) -> list[tuple[str, float]]:
-    """``--runs rk4@1,imex@5`` → [("rk4", 1.0), ("imex", 5.0)]."""
+def runs(text: str) -> list[tuple[str, float | str]]:
+    """``--runs rk4@1,imex@5,bs32@rtol=1e-5`` → [("rk4", 1.0), ("imex", 5.0), ("bs32", "rtol=1e-5")]:
+    a multiple of the gravity-wave limit, or a controlled run's KEY=VALUE (the sweep's plan checks it)."""
     pairs = []
     for item in text.split(","):
         name, sep, factor = item.strip().partition("@")
         if not sep:
-            raise ValueError(f"--runs needs STEPPER@COURANT pairs (got {item.strip()!r})")
+            raise ValueError(f"--runs needs STEPPER@COURANT or STEPPER@KEY=VALUE (got {item.strip()!r})")
         stepper = steppers(name.strip())[0]
+        if "=" in factor:
+            pairs.append((stepper, factor.strip()))
+            continue
         try:
             multiple = float(factor)
         except ValueError:

@@ -19,7 +19,13 @@ CONTROL_KEYS = {
     "error": ("rtol", "atol", "controller", "cfl", "dt_min", "dt_max"),
     "balanced": ("balance", "controller", "cfl", "dt_min", "dt_max"),
 }
-ESTIMATED = ("error", "balanced")  # the modes that read an embedded pair's error estimate
+ESTIMATED = ("error", "balanced")
+# a sweep's controlled run, "STEPPER@KEY=VALUE" (``studies.sweep.plan``): the key it sets → the mode it runs in
+TOLERANCES = {
+    "rtol": "error",
+    "balance": "balanced",
+    "cfl": "cfl",
+}  # the modes that read an embedded pair's error estimate
 BALANCE = 0.1  # time.balance's default: the sweep's criterion, temporal error ≤ 10 % of the spatial (docs/methods.md)
 DT_MIN_FRACTION = 1e-3  # dt_min's default: this fraction of the first step
 # time.cfl's default: this fraction of the stepper's measured Courant limit (``Stepper.courant_limit``,
@@ -113,6 +119,13 @@ def _cfl(table: dict, mode: str, cls, stepper: str) -> tuple[float | None, bool]
         off = " or false (no cap)" if mode in ESTIMATED else ""
         raise SceneError(f"time.cfl must be > 0{off} (got {got(cfl)})")
     return float(cfl), False
+
+
+def tolerance(control: SceneControl) -> tuple[str, float]:
+    """The key of ``TOLERANCES`` that ``control``'s mode is asked by and its value (rtol under
+    "error", balance under "balanced", cfl under "cfl"): what names a sweep's controlled run."""
+    key = next(k for k, mode in TOLERANCES.items() if mode == control.mode)
+    return key, getattr(control, key)
 
 
 def measured_courant_limit(cls) -> float | None:

@@ -48,14 +48,18 @@ class Hyperviscosity:
         self._biharmonic_radius = None
         self._rkl_buffers = None
 
-    def build(self, x, coef, out=None, nus=None):
+    def build(self, x, coef, out=None, nus=None, transposed=False):
         """Launches of out += coef·B x, B = ν∇⁴ the hyperviscosity operator
         (``kernels.hyperviscosity``) with coefficients ``nus`` = (ν, ν_div, ν_s)
         (None: the model's); out = x if None. Three passes on the per-element
         layout (the second weak Laplacian sums the first DSS itself), four and
         three more on the per-node one (the first DSS; ``to_cartesian`` and a
         flux pass before the first weak Laplacian, a flux pass before the
-        second), and the divergence δ and its DSS first when ν_div ≠ ν."""
+        second), and the divergence δ and its DSS first when ν_div ≠ ν.
+        ``transposed``: the tensor ∇⁴'s transpose in the mass form (for the adjoint), its two
+        Laplacians' metrics swapped: B = Pᵀ RQ K̃_V RQ Π K̃ P with each K̃ symmetric has
+        M⁻¹Bᵀ M = Pᵀ RQ K̃ Π RQ K̃_V P, the tensor's first (the constant ∇⁴ is its own);
+        ValueError with ν_div ≠ ν (its ∇δ term is not symmetric)."""
         m = self.model
         N, np_ = m.N, m.grid.np
         out = x if out is None else out
@@ -64,6 +68,9 @@ class Hyperviscosity:
         shift = 2.0 / m.grid.radius**2  # HOMME: "so we dont damp rigid rotation"
         c = wp.vec4d(nu, nu_div - nu, nu_s, shift)
         divergent = nu_div != nu
+        if transposed and divergent:
+            raise ValueError("the ∇⁴ with nu_div != nu has no transpose")
+        swap = transposed and self.hv_tensor is not None  # which pass reads the tensor: the second, or the first
         delta = m.scalar_dss  # δ = DSS(∇·v), read only when divergent
         launches = m.divergence_launches(x, delta) if divergent else []
         # each pass is given the node frame's arrays it reads: the first the position (and the
@@ -74,7 +81,7 @@ class Hyperviscosity:
 
             def laplacian(second):  # → the weak form of Y₁ in L, or of Y₂ in L2 from the DSS of L
                 frame = self._frame(*() if second else names, rows=True)
-                metric = self.hv_tensor if second and self.hv_tensor is not None else self.hv_metric
+                metric = self.hv_tensor if self.hv_tensor is not None and second != swap else self.hv_metric
                 args = [m.as_rows(m.hs), m.as_rows(delta), c, frame, m.as_rows(metric), m.dvv_rows]
                 if not second:  # x, d and Y are not read
                     kernel = hyperviscosity.laplacian_element(False, divergent, np_)
@@ -94,7 +101,7 @@ class Hyperviscosity:
                     if second
                     else [m.launches.nodes(hyperviscosity.to_cartesian, N, [x, m.hs, m.east, m.north, src])]
                 )
-                tensor = second and self.hv_tensor is not None
+                tensor = self.hv_tensor is not None and second != swap
                 mass = self.hv_tensor[3] if tensor else m.spheremp  # the weight of the +2Y₁/a² shift
                 args = [self.hv_flux, src, delta, c, self._frame(*() if second else names), mass, m.dvv, np_, L]
                 flux = (

@@ -6,12 +6,14 @@ summary and the files (``report``)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from ...config.control import TOLERANCES, resolve_control
 from ...config.scene import Scene, load_scene
 from ...core.backend import pick_device
 from ...core.constants import DAY
@@ -59,6 +61,9 @@ class Plan:
         Multiples of the gravity-wave limit (Courant number 1) to sweep.
     runs : tuple[tuple[str, float], ...] or None
         Only these (stepper, multiple) runs; None: every stepper × every Δt.
+    controlled : tuple[str, ...]
+        The names of the runs whose steps are chosen step to step ("bs32@rtol=1e-05"),
+        each a key of ``scenes`` (its scene's ``control`` set), run once from its scene's Δt.
     time_filter : TimeFilter or None
         The Lanczos low-pass the runs are also scored by.
     overrides : dict
@@ -73,6 +78,7 @@ class Plan:
     dts: tuple | None
     multiples: tuple | None
     runs: tuple | None
+    controlled: tuple
     time_filter: TimeFilter | None
     overrides: dict
     restart: Path | None
@@ -118,7 +124,7 @@ class Plan:
             dt_of = {m: dt_for_day(m * g, span) for m in self.multiples}
             dts = tuple(sorted(set(dt_of.values())))
             asked = {m: "/".join(f"{s}@{m:g}" for s, k in pairs if k == m) if pairs else f"{m:g}" for m in dt_of}
-            pairs = tuple((s, dt_of[m]) for s, m in pairs) if pairs else None
+            pairs = tuple((s, dt_of[m]) for s, m in pairs) if pairs is not None else None
             capped = [m for m in dt_of if f is not None and m * g > span * DAY * (1 + 1e-9)]
             if capped:  # Δt must divide the filter's snapshot interval
                 notes.append(
@@ -138,10 +144,15 @@ class Plan:
                 )
             for dt in dts:
                 _check_divides(dt, base.run_days, f"the run length of {base.run_days:g} days")
+        if self.controlled:  # each run once, from its scene's Δt
+            pairs = (*(pairs or ()), *((name, self.scenes[name].dt) for name in self.controlled))
+        chosen = ", ".join(f"{name} (first dt {self.scenes[name].dt:.4g} s)" for name in self.controlled)
         notes.append(
             f"sweep {base.name} {base.grid_text}, {f'day {base.start_day:g} to ' if ck else ''}"
             f"{base.days:g} days; explicit limits: gravity-wave dt = {limits['dt_gravity']:.1f} s, advective dt = "
-            f"{limits['dt_advective']:.1f} s; dt = {', '.join(f'{d:.4g}' for d in dts)}"
+            f"{limits['dt_advective']:.1f} s"
+            + (f"; dt = {', '.join(f'{d:.4g}' for d in dts)}" if dts else "")
+            + (f"; steps chosen step to step: {chosen}" if chosen else "")
         )
         if ck is not None:
             b = base.branch
@@ -277,8 +288,11 @@ def plan(
         Time steps (s).
     courant : sequence of float, optional
         Multiples of the gravity-wave limit (default ``DEFAULT_COURANT``).
-    runs : sequence of (str, float), optional
-        Only these (stepper, multiple of the gravity-wave limit) runs. At most one
+    runs : sequence of (str, float or str), optional
+        Only these (stepper, multiple of the gravity-wave limit) runs; a str in place of
+        the multiple, "rtol=1e-5", "balance=0.1" or "cfl=1.5", makes a run whose steps
+        are chosen step to step (``TOLERANCES``: [time] control "error", "balanced" or
+        "cfl" with that key), named "bs32@rtol=1e-05", from the scene's Δt. At most one
         of ``dts``, ``courant`` and ``runs``.
     ne, np_ : int, optional
         Elements along a cube edge and GLL points per element direction (default: the scene's).
@@ -313,26 +327,74 @@ def plan(
     >>> p = plan("tc2_steady", ne=2, days=1, runs=[("rk4", 1), ("imex", 4)])  # doctest: +SKIP
     >>> rows, info, paths = p.run("sweep", "cpu")  # doctest: +SKIP
     """
-    runs, steppers = _runs(runs, steppers, dts, courant)
+    runs, controlled, steppers = _runs(runs, steppers, dts, courant)
     overrides = dict(overrides or {})
     scenes, ck = _scenes(scene, steppers, ne=ne, np_=np_, days=days, overrides=overrides, restart=restart)
+    scenes |= {
+        _name(s, key, value): _controlled(scene, s, key, value, ne=ne, np_=np_, days=days, overrides=overrides, ck=ck)
+        for s, key, value in controlled
+    }
     dts, multiples = _steps(dts, courant, runs)
     time_filter = _time_filter(next(iter(scenes.values())).run_days, dts, filter_days, filter_every, filter_window)
-    return Plan(scenes, dts, multiples, runs, time_filter, overrides, None if ck is None else Path(restart), ck)
+    names = tuple(dict.fromkeys(_name(*c) for c in controlled))
+    return Plan(scenes, dts, multiples, runs, names, time_filter, overrides, None if ck is None else Path(restart), ck)
 
 
-def _runs(runs, steppers, dts, courant) -> tuple[tuple | None, list | None]:
-    """``plan``'s (stepper, multiple) runs, checked (None: none given), and the steppers
-    (``runs``'s, where given). Raises ValueError for ``runs`` with ``steppers``, more
-    than one of ``dts``, ``courant`` and ``runs``, or a multiple not > 0."""
+def _name(stepper: str, key: str, value: float) -> str:
+    """A controlled run's name: "bs32@rtol=1e-05"."""
+    return f"{stepper}@{key}={value:g}"
+
+
+def _tolerance(stepper: str, text: str) -> tuple[str, str, float]:
+    """``runs``'s "KEY=VALUE" in place of a multiple → (stepper, key, value); ValueError naming
+    the run for a key not in ``TOLERANCES`` or a value that is not a number > 0."""
+    key, sep, given = (part.strip() for part in text.partition("="))
+    if not sep or key not in TOLERANCES:
+        raise ValueError(
+            f"--runs {stepper}@{text}: a run's steps are chosen by {', '.join(f'{k}=VALUE' for k in TOLERANCES)} "
+            f"(e.g. {stepper}@rtol=1e-5), or it names a multiple of the gravity-wave limit"
+        )
+    try:
+        value = float(given)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"--runs {stepper}@{text}: {given!r} is not a number > 0")
+    return stepper, key, value
+
+
+def _controlled(scene, stepper, key, value, *, ne, np_, days, overrides, ck) -> Scene:
+    """The scene of a controlled run (``_tolerance``'s): ``stepper`` under [time] control
+    ``TOLERANCES[key]`` with ``key`` = ``value``; a branch of the restart file ``ck`` where
+    given. Raises ``SceneError`` for a stepper that cannot (``resolve_control``)."""
+    table = {"control": TOLERANCES[key], key: value}
+    if ck is None:
+        more = {f"time.{k}": v for k, v in table.items()}
+        return load_scene(scene, ne=ne, np_=np_, days=days, stepper=stepper, overrides={**overrides, **more})
+    s = checkpoint.branch(ck, stepper=stepper, days=days)
+    return dataclasses.replace(s, control=resolve_control(table, stepper, s.stepper_options, s.dt))
+
+
+def _runs(runs, steppers, dts, courant) -> tuple[tuple | None, list, list | None]:
+    """``plan``'s (stepper, multiple) runs, checked (None: none given), its controlled runs
+    ((stepper, key, value): ``_tolerance``) and the steppers of the fixed-Δt runs (``runs``'s,
+    where given). Raises ValueError for ``runs`` with ``steppers``, more than one of ``dts``,
+    ``courant`` and ``runs``, a multiple not > 0 or a bad "KEY=VALUE"."""
     if runs is not None and steppers is not None:
         raise ValueError("--runs names its own steppers: give --steppers or --runs, not both")
     if sum(x is not None for x in (dts, courant, runs)) > 1:
         raise ValueError("give one of --dt, --courant and --runs")
+    controlled = []
+    if runs is None and steppers is not None and not steppers:
+        raise ValueError("--steppers names no stepper")
     if runs is not None:
-        runs = tuple((s, m) for (s, _), m in zip(runs, _positive([m for _, m in runs], "--runs")))
+        if not runs:
+            raise ValueError("--runs names no run")
+        controlled = [_tolerance(s, m) for s, m in runs if isinstance(m, str)]
+        fixed = [(s, m) for s, m in runs if not isinstance(m, str)]
+        runs = tuple((s, m) for (s, _), m in zip(fixed, _positive([m for _, m in fixed], "--runs") if fixed else ()))
         steppers = list(dict.fromkeys(s for s, _ in runs))
-    return runs, steppers
+    return runs, controlled, steppers
 
 
 def _steps(dts, courant, runs) -> tuple[tuple | None, tuple | None]:
@@ -344,7 +406,7 @@ def _steps(dts, courant, runs) -> tuple[tuple | None, tuple | None]:
     if dts is None:
         multiples = (
             tuple(sorted({m for _, m in runs}))
-            if runs
+            if runs is not None
             else _positive(DEFAULT_COURANT if courant is None else courant, "--courant")
         )
     return dts, multiples
@@ -353,11 +415,8 @@ def _steps(dts, courant, runs) -> tuple[tuple | None, tuple | None]:
 def _scenes(scene, steppers, *, ne, np_, days, overrides, restart) -> tuple[dict, object | None]:
     """``plan``'s scenes (stepper name → its resolved scene; ``DEFAULT_STEPPERS`` for
     ``steppers`` None) and the restart file's contents (``checkpoint.read``; None
-    without ``restart``). Raises ValueError for no stepper, a scene with ``restart``
-    or neither."""
+    without ``restart``). Raises ValueError for a scene with ``restart`` or neither."""
     steppers = list(DEFAULT_STEPPERS if steppers is None else steppers)
-    if not steppers:
-        raise ValueError("--steppers names no stepper")
     if restart is None and scene is None:
         raise ValueError("sweep needs a SCENE (or --from RESTART.nc)")
     if restart is None:

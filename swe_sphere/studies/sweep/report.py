@@ -21,6 +21,7 @@ from .verdicts import (
     VERDICT_COLUMNS,
     cheapest_sufficient,
     floor_note,
+    run_name,
     verdicts,
 )
 
@@ -34,6 +35,8 @@ def format_verdicts(verdict_rows, info) -> str:
             criterion, note = v["criterion"], floor_note(info, CRITERIA[v["criterion"]][1])
             lines.append(f"  {criterion}: spatial error {v['spatial_error']:.3e}" + (f", {note}" if note else ""))
         head = f"    {v['criterion']:30s} <= {v['threshold']:3.0%} {v['stepper']:22s}"
+        if math.isfinite(v["tolerance"]):  # a controlled run: the tolerance that qualifies
+            head += f" {v['stepper'].partition('@')[2]} = {v['tolerance']:g}, mean"
         if not math.isfinite(v["dt"]):
             lines.append(f"{head} no run qualifies")
             continue
@@ -55,7 +58,7 @@ def format_summary(rows, info) -> str:
     lines = [head]
     for r in rows:
         lines.append(
-            f"{r['stepper']:22s} {r['dt']:9.2f} {r['dt_over_gravity_limit']:6.2f} {r['dt_over_advective_limit']:6.2f} "
+            f"{run_name(r):22s} {r['dt']:9.2f} {r['dt_over_gravity_limit']:6.2f} {r['dt_over_advective_limit']:6.2f} "
             f"{'yes' if r['stable'] else 'NO':>6s} {r['cpu_time']:9.2f} {r['wall_time']:9.2f} {r['load_average']:5.1f} {r['rhs_evals']:8.0f} {r['rhs_equivalents']:8.0f} "
             f"{r['newton_iterations']:7.0f} "
             f"{r['gmres_iterations']:7.0f} {r['helmholtz_iterations']:7.0f} {r['total_error']:10.3e} {r['temporal_error']:10.3e} "
@@ -86,9 +89,9 @@ def format_summary(rows, info) -> str:
                 f"{k} {r[f'temporal_error_{part}{k}']:.3e} ({r[f'temporal_error_{part}{k}'] / e:.3f})"
                 for k, e in spatial_by_region.items()
             )
-            lines.append(f"      {r['stepper']:22s} dt = {r['dt']:.4g} s: {by_region}")
+            lines.append(f"      {run_name(r):22s} dt = {r['dt']:.4g} s: {by_region}")
     best = cheapest_sufficient(rows, spatial)
-    explicit = [best[s]["cost_time"] for s in best if STEPPERS[s].explicit]
+    explicit = [best[s]["cost_time"] for s in best if STEPPERS[s.partition("@")[0]].explicit]
     ref_time = min(explicit) if explicit else math.nan
     for stepper in dict.fromkeys(r["stepper"] for r in rows):
         if stepper not in best:
@@ -96,7 +99,8 @@ def format_summary(rows, info) -> str:
             continue
         b = best[stepper]
         lines.append(
-            f"  {stepper:22s} cheapest sufficient: dt = {b['dt']:.4g} s = {b['dt_over_gravity_limit']:.2f} x gravity-wave limit, "
+            f"  {stepper:22s} cheapest sufficient: {run_name(b).partition('@')[2] + ', mean ' if '@' in stepper else ''}"
+            f"dt = {b['dt']:.4g} s = {b['dt_over_gravity_limit']:.2f} x gravity-wave limit, "
             f"{b['dt_over_advective_limit']:.2f} x advective limit; CPU {b['cpu_time']:.2f} s, wall {b['wall_time']:.2f} s; "
             f"{b['cost_time'] / ref_time:.2f} x best explicit, "
             f"{b['rhs_equivalents']:.0f} RHS-eq"

@@ -25,6 +25,7 @@ import warp as wp
 
 from ...cases.reference import FLOORS, floor
 from ...cases.scoring import instability, truth, unscored
+from ...config.control import tolerance
 from ...config.scene import Scene
 from ...core.constants import DAY
 from ...core.errors import BlowUp, Interrupted, OutputError
@@ -174,10 +175,12 @@ class Sweep:
         )
         # the small-Δt run: RK4 at a quarter of the smallest Δt, at most reference_dt_max
         self.reference_dt = dt_for_day(
-            min(min(self.dts) / 4, self.reference_dt_max),
+            min(min(self.dts, default=math.inf) / 4, self.reference_dt_max),
             self.base.run_days if self.time_filter is None else self.time_filter.every_hours / 24,
         )
-        self.reference_scene = dataclasses.replace(self.base, stepper="rk4", stepper_options={}, dt=self.reference_dt)
+        self.reference_scene = dataclasses.replace(
+            self.base, stepper="rk4", stepper_options={}, dt=self.reference_dt, control=None
+        )
         reference = self.base.reference_file
         # what the runs are scored against: in every key (a reference file's contents by their hash)
         self.scored_against = {
@@ -217,33 +220,39 @@ class Sweep:
         gives its partial result and None states. The counters carry ``cpu_time``
         (``Simulation``'s: the process's CPU time in the time loop, its threads
         summed) and ``load_average``: the mean of the 1-minute load average at the
-        run's start and at the target (at the end of a blow-up)."""
-        f, target = self.time_filter, scene.days
-        n_target = scene.nsteps
+        run's start and at the target (at the end of a blow-up). An output is known by
+        its step, or under step control (``Scene.control``) by its second from the start
+        (the steps land on the output times)."""
+        f, target, start, unit = self.time_filter, scene.days, scene.start_day, 1.0 if scene.control else scene.dt
         weights = {}
-        if f is not None:  # steps count from the scene's start (t = 0, or a branch's day)
-            weights = {round((d - scene.start_day) * DAY / scene.dt): w for d, w in zip(f.days(target), f.weights)}
+        if f is not None:  # outputs count from the scene's start (t = 0, or a branch's day)
+            weights = {round((d - start) * DAY / unit): w for d, w in zip(f.days(target), f.weights)}
             scene = dataclasses.replace(scene, days=target + f.half_window_days, output_every_days=f.every_hours / 24)
+        sim = Simulation(scene, self.device, progress=False, start=self.start)
+        mark = round((target - start) * DAY / unit)
         kept = {"x": None, "filtered": 0.0, "seen": 0}
         load0 = os.getloadavg()[0]
 
         def clocks():
             return {"load_average": (load0 + os.getloadavg()[0]) / 2}
 
+        def at(step, day):  # an output's mark
+            return round((day - start) * DAY) if scene.control else step
+
         def on_output(step, x):
-            if step == n_target:
+            now = at(step, sim.time)
+            if now == mark:
                 kept["x"] = x.numpy().copy()
                 kept["clocks"] = clocks()
-            if step in weights:
-                kept["filtered"] = kept["filtered"] + weights[step] * x.numpy()
+            if now in weights:
+                kept["filtered"] = kept["filtered"] + weights[now] * x.numpy()
                 kept["seen"] += 1
 
-        sim = Simulation(scene, self.device, progress=False, start=self.start)
         try:
             result = sim.run(None, on_output=on_output)
         except BlowUp as err:
             return sim, err.result, {**err.result.history[-1], **clocks()}, None, None
-        at_target = {**next(h for h in result.history if h["steps"] == n_target), **kept["clocks"]}
+        at_target = {**next(h for h in result.history if at(h["steps"], h["day"]) == mark), **kept["clocks"]}
         filtered = kept["filtered"] if f is not None and kept["seen"] == len(weights) else None
         return sim, result, at_target, kept["x"], filtered
 
@@ -283,6 +292,10 @@ class Sweep:
     def run_path(self, stepper: str, dt: float) -> Path:
         return self.directory / "runs" / f"{stepper}_{dt:.6g}{self.tag}.json"
 
+    def label(self, stepper: str, dt: float) -> str:
+        """A run in the log: "rk4 dt = 600 s", "bs32@rtol=1e-05 first dt = 600 s" (steps chosen step to step)."""
+        return f"{stepper} {'first ' if self.scenes[stepper].control else ''}dt = {dt:.6g} s"
+
     def run_key(self, stepper: str, dt: float) -> dict:
         return self.key(dataclasses.replace(self.scenes[stepper], dt=dt), reference_dt=self.reference_dt)
 
@@ -306,7 +319,7 @@ class Sweep:
         if now != self.code["source_sha256"]:
             raise OutputError(
                 f"the swe_sphere source changed while the sweep ran (source_sha256 {self.code['source_sha256']} "
-                f"at its start, {now} in the process of the {stepper} dt = {dt:.6g} s run): run the sweep again"
+                f"at its start, {now} in the process of the {self.label(stepper, dt)} run): run the sweep again"
             )
         path = self.reference_path()
         ref, why = read_npz(path, self.key(self.reference_scene))
@@ -319,6 +332,10 @@ class Sweep:
         scene = dataclasses.replace(self.scenes[stepper], dt=dt)
         sim, result, at, x, filtered = self.simulate(scene)
         row = {"stepper": stepper, "dt": dt, "setup_time": sim.setup_time, "startup_time": startup_time}
+        if scene.control is not None:  # known by its stepper and key ("bs32@rtol"), Δt its mean
+            key, row["tolerance"] = tolerance(scene.control)
+            row.update(stepper=f"{scene.stepper}@{key}", rejected_steps=at["rejected_steps"])
+            row["dt"] = (at["day"] - scene.start_day) * DAY / max(at["steps"], 1)
         reason = instability(result)
         stable = not reason
         row.update(
@@ -349,7 +366,7 @@ class Sweep:
     def warm_up(self, stepper: str) -> float:
         """Compile and load every kernel a stepper uses (a two-step run); returns its time."""
         t0 = time.perf_counter()
-        dt = min(self.dts)
+        dt = self.scenes[stepper].dt if self.scenes[stepper].control else min(self.dts)
         span = 2 * dt / DAY
         scene = dataclasses.replace(
             self.scenes[stepper], dt=dt, days=self.base.start_day + span, output_every_days=span
@@ -387,7 +404,7 @@ class Sweep:
             stepper, dt, replaced = made.pop(future)
             rows[stepper, dt] = row = future.result()  # a run's error is raised here
             self.log(
-                f"[{len(rows)}/{n}] {stepper} dt = {dt:.6g} s: {outcome(row)}"
+                f"[{len(rows)}/{n}] {self.label(stepper, dt)}: {outcome(row)}"
                 + (f"; replaces a run with {replaced}" if replaced else "")
             )
 
@@ -423,7 +440,7 @@ class Sweep:
                 continue
             rows[stepper, dt] = row
             self.log(
-                f"[{len(rows)}/{len(self.pairs)}] {stepper} dt = {dt:.6g} s: reused (made earlier with the same settings)"
+                f"[{len(rows)}/{len(self.pairs)}] {self.label(stepper, dt)}: reused (made earlier with the same settings)"
             )
         return todo
 

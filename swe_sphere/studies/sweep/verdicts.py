@@ -21,8 +21,18 @@ FLOOR_OF = {
 FLOOR_MARGIN = 2.0  # a spatial error within this factor of the reference's own error is not the run's alone
 
 
+def run_name(row: dict) -> str:
+    """A row's run: its stepper, and under step control its tolerance ("bs32@rtol=1e-05")."""
+    tol = row.get("tolerance", math.nan)
+    return row["stepper"] + (f"={tol:g}" if math.isfinite(tol) else "")
+
+
 def outcome(row: dict) -> str:
-    """A finished run in a few words: its errors and CPU time, or why it is unstable."""
+    """A finished run in a few words: its errors and CPU time, or why it is unstable
+    (under step control its steps, rejected ones and mean Δt first)."""
+    if math.isfinite(row.get("tolerance", math.nan)):
+        head = f"{row['steps']} steps, {row['rejected_steps']} rejected, mean dt {row['dt']:.4g} s; "
+        return head + outcome({**row, "tolerance": math.nan})
     if not row["stable"]:
         return f"unstable ({row['reason']}); CPU {row['cpu_time']:.3g} s"
     errors = [
@@ -36,8 +46,9 @@ def outcome(row: dict) -> str:
 # sweep.csv's columns, in order, and sweep.nc's variables: (units, long_name) each (units None: a string)
 _ERR = "normalized l2 error (Williamson et al. 1992) at the last day"
 COLUMN_ATTRS = {
-    "stepper": (None, "time stepper"),
-    "dt": ("s", "time step"),
+    "stepper": (None, "time stepper (STEPPER@KEY: steps chosen step to step, by the tolerance KEY)"),
+    "tolerance": ("1", "the controlled run's rtol, balance or Courant number (NaN: a fixed dt)"),
+    "dt": ("s", "time step (under step control the mean)"),
     "dt_over_gravity_limit": ("1", "time step over the gravity-wave limit (Courant number 1)"),
     "dt_over_advective_limit": ("1", "time step over the advective limit"),
     "dt_over_leapfrog_limit": ("1", "time step over leapfrog's limit 0.58 (|v| + c) dt / dx = 1"),
@@ -49,7 +60,8 @@ COLUMN_ATTRS = {
     "cost_time": ("s", "the run's time on the clock the sweep ranks by (--cost)"),
     "startup_time": ("s", "time of the stepper's warm-up run (compilation)"),
     "setup_time": ("s", "time to build the simulation"),
-    "steps": ("1", "time steps taken"),
+    "steps": ("1", "time steps taken (under step control the accepted ones)"),
+    "rejected_steps": ("1", "steps rejected by the error control (NaN: a fixed dt)"),
     "rhs_evals": ("1", "right-hand-side evaluations"),
     "rhs_time": ("s", "wall time of one right-hand-side evaluation"),
     "rhs_cpu_time": ("s", "CPU time of one right-hand-side evaluation"),
@@ -141,6 +153,7 @@ CRITERIA = {
 }
 THRESHOLDS = (0.1, 0.5)  # temporal error as a fraction of the spatial error
 RUN_VERDICT_COLUMNS = (
+    "tolerance",
     "dt",
     "dt_over_gravity_limit",
     "dt_over_advective_limit",

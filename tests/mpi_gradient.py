@@ -30,7 +30,7 @@ def whole_gradient(comm=None) -> dict[str, np.ndarray]:
         "grad": g.grad,
         "final": g.final,
         "d_hs": g.d_hs,
-        "numbers": np.array([g.cost, g.d_nu, g.d_nu_s, g.forward_steps, *g.costs.values()]),
+        "numbers": np.array([g.cost, g.d_nu, g.d_nu_s, g.d_g, g.d_omega, g.forward_steps, *g.costs.values()]),
     }
 
 

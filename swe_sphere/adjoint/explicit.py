@@ -25,6 +25,10 @@ last substep's transpose, ∂J/∂ν = S ⟨μ₁, Δ₀⟩ / ν over S substeps
 ⟨L^(S−1−k) μ_S, L^k Δ₀⟩ is the same for every k), the wind rows for ν (= ν_div) and the h row
 for ν_s; and ∂J/∂hs = (μ after − μ before the ∇⁴'s transpose)[h] (Σ_k c B₀ μ_(k+1) telescopes),
 plus the forcing −g∇hs's share, the pressure gradient's transpose of Σ λ over the stages.
+F is linear in g (its pressure gradient and topography, −g∇(h + hs)) and in Ω (the Coriolis
+term f (v, −u), f ∝ Ω), so with k̄_i the adjoint of K_i = F(Y_i) (continuous, as μ),
+g ∂J/∂g = Σ_i ⟨k̄_i, F_g(Y_i)⟩ and Ω ∂J/∂Ω = Σ_i ⟨k̄_i, f (v_i, −u_i)⟩ (``d_planet``), F_g the
+model's RHS of those two terms alone; x(0), hs and a case's forcing held fixed.
 Checked by dot-product tests of each piece and a Taylor test of the whole (``tests/adjoint``).
 The forward states are the model's own stepper's; the stages are recomputed here from x(n)
 by the table's Butcher form (the same to round-off as the stepper's combinations), each F at its
@@ -98,6 +102,8 @@ class StepAdjoint:
         self.Ybar: list = []  # the buffers of the Ȳ_j an earlier stage's k̄ reads (``_record``)
         self._adjoints: dict[int, tuple] = {}  # (μ, ``_record``'s launches), by μ's address
         self.d_nu = np.zeros(2)  # ∂J/∂ν (wind rows), ∂J/∂ν_s (h row), m⁻⁴ s · J
+        self.d_planet = np.zeros(2)  # g ∂J/∂g, Ω ∂J/∂Ω (J): the stages' ⟨k̄_i, F's g and Ω terms⟩
+        self.g_terms = tuple(t for t in ("pressure_gradient", "topography") if t in m.terms)
         self.d_hs = zeros(1)  # the ∇⁴'s share of ∂J/∂hs, continuous (mass form)
         self.substeps = 0  # of the ∇⁴ (forward Euler)
         self._hv: dict[tuple, list] = {}  # ``substep``'s recorded launches, by array and direction
@@ -248,7 +254,8 @@ class StepAdjoint:
         ]
 
     def _record(self, mu) -> list:
-        """The launches of the stages' transposes, last stage first: k̄_i = Δt (b_i μ + Σ_j a_ji
+        """The launches of the stages' transposes, last stage first, as (i, k̄_i's terms, its
+        launches) a stage: k̄_i = Δt (b_i μ + Σ_j a_ji
         Ȳ_j), x̄ = Tᵀ(Y_i) W k̄_i, Ȳ_i = R Q x̄ written by the unweighted DSS into a running
         sum, the last into μ += Σ Ȳ_i, and where an earlier stage reads it into a buffer of
         its own, freed after its last reader's transpose (kgu35, rk4: one; a stage with no
@@ -263,10 +270,11 @@ class StepAdjoint:
         last_read = {j: min(i for i in reads if j in reads[i]) for js in reads.values() for j in js}
         if len(active) > 1 and not hasattr(self, "acc"):
             self.acc = self._zeros(3)
-        launches, ybar, free = [], {}, list(self.Ybar)
+        segments, ybar, free = [], {}, list(self.Ybar)
         for n, i in enumerate(active):
             kbar = [(dt * self.b[i], mu)] if self.b[i] else []
-            launches += self._transpose(self.Y[i], kbar + [(dt * A[j][i], ybar[j]) for j in reads[i]])
+            kbar += [(dt * A[j][i], ybar[j]) for j in reads[i]]
+            launches = self._transpose(self.Y[i], kbar)
             free += [ybar[j] for j in reads[i] if last_read[j] == i]  # read: its buffer free for Ȳ_i
             updates = []
             if i in last_read:
@@ -278,7 +286,23 @@ class StepAdjoint:
             total = mu if n == len(active) - 1 else self.acc
             updates.append((total, ((1.0, mu if n == 0 else self.acc), (1.0, None))))
             launches += self.model.topology.dss_update(self.xbar, updates, weighted=False)
-        return launches
+            segments.append((i, kbar, launches))
+        return segments
+
+    def planet_terms(self, i: int, kbar) -> None:
+        """Add stage i's ⟨k̄_i, g F_g(Y_i)⟩ and ⟨k̄_i, f (v_i, −u_i)⟩ to ``d_planet`` (module doc),
+        k̄_i = Σ c·a over (c, a) ``kbar`` as its transpose reads them (the same bits on any ranks)."""
+        m = self.model
+        kb, w, y = sum(c * a.numpy() for c, a in kbar), m.grid.spheremp, self.Y[i].numpy()
+        pressure = np.zeros_like(w)
+        if self.g_terms:  # g F_g: the RHS of those terms alone (its wind rows)
+            if not hasattr(self, "f_g"):
+                self.f_g = self._zeros(3)
+            m.rhs(self.Y[i], self.f_g, self.g_terms)
+            F = self.f_g.numpy()
+            pressure = kb[0] * F[0] + kb[1] * F[1]
+        coriolis = m.fcor.numpy() * (kb[0] * y[1] - kb[1] * y[0]) if "coriolis" in m.terms else np.zeros_like(w)
+        self.d_planet += m.topology.whole_sums([w * pressure, w * coriolis])
 
     def reverse(self, x, mu, k: int = 0) -> None:
         """μ of x(k+1) → μ of x(k), in place; x = x(k) (read only), k the step's index (its
@@ -287,8 +311,11 @@ class StepAdjoint:
         self.stages(k)
         if self.substeps:
             self.hyperviscosity_transpose(mu)
-        launches = self._adjoints.get(mu.ptr)
-        if launches is None:
-            launches = self._adjoints[mu.ptr] = (mu, self._record(mu))
-        for launch in launches[1]:
-            launch.launch()
+        recorded = self._adjoints.get(mu.ptr)
+        if recorded is None:
+            recorded = self._adjoints[mu.ptr] = (mu, self._record(mu))
+        for i, kbar, launches in recorded[1]:
+            if self.parameters:
+                self.planet_terms(i, kbar)
+            for launch in launches:
+                launch.launch()

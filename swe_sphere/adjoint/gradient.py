@@ -47,7 +47,9 @@ class Gradient(NamedTuple):
     ``final`` (3, N) the final state; ``forward_steps`` the steps taken forward (the cost's
     included), ``reverse_steps`` n. With ``parameters=True``: ``d_nu`` ∂J/∂ν (ν = ν_div, the
     wind's ∇⁴ coefficient; J per m⁴ s⁻¹), ``d_nu_s`` ∂J/∂ν_s (the surface's), ``d_hs`` (N,)
-    ∂J/∂hs in the mass inner product as ``grad`` (x0 held fixed); None otherwise.
+    ∂J/∂hs in the mass inner product as ``grad`` (x0 held fixed), ``d_g`` ∂J/∂g (J per m s⁻²) and
+    ``d_omega`` ∂J/∂Ω (J per s⁻¹; the Coriolis parameter f ∝ Ω), x0, hs and a case's forcing
+    held fixed (a balanced initial state is not rebalanced); None otherwise.
     ``disk_bytes``: the size of the states' file on the disk (``disk=``; 0 without it).
     ``costs``: {k: J_k} the terms of J by observed step k (a cost with ``at_steps``; a final-state
     cost: {n: J}); J is their sum in increasing k."""
@@ -60,6 +62,8 @@ class Gradient(NamedTuple):
     d_nu: float | None = None
     d_nu_s: float | None = None
     d_hs: np.ndarray | None = None
+    d_g: float | None = None
+    d_omega: float | None = None
     disk_bytes: int = 0
     costs: dict | None = None
 
@@ -150,7 +154,7 @@ def gradient(
 ) -> Gradient:
     """The cost J of ``scene`` run ``steps`` steps from x0, J(x(n)) or Σ_k J_k(x(k)) over the
     steps k a cost observes, and its gradient dJ/dx(0) (and, with ``parameters``, dJ/dν,
-    dJ/dν_s and dJ/dhs).
+    dJ/dν_s, dJ/dhs, dJ/dg and dJ/dΩ).
 
     Parameters
     ----------
@@ -169,8 +173,9 @@ def gradient(
     snapshots : states held at once during the reverse sweep, x(0) included (None: n, every
         state, each step taken forward once); fewer cost ``revolve.forward_steps(n,
         snapshots − 1)`` + 1 forward steps in all (Griewank & Walther 2000), the same bits.
-    parameters : also the ∇⁴ coefficients' and the topography's gradients (an extra ∇⁴
-        substep a step reversed).
+    parameters : also the ∇⁴ coefficients', the topography's and the planet's gravity and
+        rotation rate's gradients (an extra ∇⁴ substep a step reversed, and per stage one RHS of
+        the pressure gradient and topography and a host-side sum).
     hs : (N,) surface height (m), element-local and continuous, instead of the case's (as x0).
     disk : None (every state the sweep holds in memory), True (a second tier: a file in
         ``tempfile.gettempdir()``, on some systems tmpfs, i.e. memory) or a folder (str or path) for it. A first forward pass
@@ -221,7 +226,8 @@ def gradient(
     extra = {}
     if parameters:
         d_hs = _whole(topo, adjoint.hs_gradient())
-        extra = {"d_nu": adjoint.d_nu[0], "d_nu_s": adjoint.d_nu[1], "d_hs": d_hs}
+        d_g, d_omega = adjoint.d_planet / [model.g, scene.make_case().planet.omega]  # Ω > 0 (``Planet``)
+        extra = {"d_nu": adjoint.d_nu[0], "d_nu_s": adjoint.d_nu[1], "d_hs": d_hs, "d_g": d_g, "d_omega": d_omega}
     costs = dict(sorted(found["costs"].items()))
     total = sum(costs.values())  # in increasing k; a final-state cost's J exactly (0 + J)
     final = _whole(topo, found["final"])

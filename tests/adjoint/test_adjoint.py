@@ -351,6 +351,26 @@ def test_the_tensor_hyperviscosity_s_gradients_fall_as_eps_squared():
         assert rest[-1] > 1e3 * EPS * J, (perturbed.__name__, rest, J)
 
 
+@pytest.mark.parametrize("constant", ["gravity", "omega"])
+def test_taylor_remainders_of_the_planet_s_gravity_and_rotation_fall_as_eps_squared(constant):
+    """∂J/∂g and ∂J/∂Ω with x(0) and hs held fixed (TC5: its mountain does not depend on them):
+    the remainder of J(p + εδp) − J(p) − εδp ∂J/∂p falls as ε², kgu35 (a table whose k̄ reads Ȳ)."""
+    scene, steps = tc5("kgu35"), 4
+    model, _, x0 = setup("kgu35")
+    cost = HeightMisfit(x0[2] + 50 * continuous(model, np.random.default_rng(8).standard_normal((3, model.N)))[2])
+    g = gradient(scene, steps, cost, parameters=True)
+    d = g.d_g if constant == "gravity" else g.d_omega
+    delta = 0.05 * scene.planet[constant]
+
+    def perturbed(e):
+        planet = {**scene.planet, constant: scene.planet[constant] + e * delta}
+        return gradient(dataclasses.replace(scene, planet=planet), steps, cost, x0=x0).cost, e * delta * d
+
+    slopes, rest, J = parameter_slopes(perturbed)
+    assert np.all(np.abs(slopes - 2.0) < 0.1), (slopes, rest)
+    assert rest[-1] > 1e3 * EPS * J, (rest, J)
+
+
 def test_taylor_remainder_of_the_topography_gradient_falls_as_eps_squared():
     scene, steps = tc5(), 4
     model, _, x0 = setup()

@@ -112,7 +112,7 @@ def measure(
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scene", default="tc5_mountain", help="a scene of testcases/ (its file's stem)")
-    parser.add_argument("--stepper", default="rk4", help="an explicit Runge–Kutta table")
+    parser.add_argument("--stepper", default="rk4", help="an explicit Runge–Kutta table, or fbrk32")
     parser.add_argument("--ne", type=int, nargs="+", default=[4, 8])
     parser.add_argument("--steps", type=int, default=48)
     parser.add_argument("--days", type=float, help="the steps in this many days instead of --steps")
@@ -129,10 +129,11 @@ def main() -> None:
     )
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--source", nargs="+", default=[None], help="swe_sphere trees (default: the one Python finds)")
+    parser.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")
     args = parser.parse_args()
     steps = -args.days if args.days else args.steps
     held = f"{args.snapshots} states held" if args.snapshots else "every state held"
-    with recorded(__file__) as figures:
+    with recorded(__file__, args.results) as figures:
         span = f"{args.days} days" if args.days else f"{args.steps} steps"
         print(
             f"{args.scene} {args.stepper} np4, {span}, {held}, one thread, CPU s (medians of {args.repeat}); "

@@ -75,30 +75,34 @@ class StepAdjoint:
     cannot read it as a combination (``_transpose``): kgu35 eight, with (2, N) f̄."""
 
     def __init__(self, model: ShallowWater, table, dt: float, parameters: bool = False, t0: float = 0.0):
+        self._setup(model, dt, parameters, t0)
+        self.A = [[float(a) for a in row] for row in table.A_E]
+        self.b = [float(b) for b in table.b_E]
+        self.c = tuple(table.c)  # the stages' abscissae, as the stepper's ``_at`` takes them
+        s, A, zeros = len(self.b), self.A, self._zeros
+        keep_k = [self.parameters or any(A[l][j] for l in range(j + 2, s)) for j in range(s)]
+        self.Y = [zeros(3) for _ in range(s)]
+        self.x = self.Y[0]  # Y_0 = x(n): an explicit table's first row is zero
+        self.K = [zeros(3) if keep else None for keep in keep_k]
+        self._stages = self._stage_plan(zeros)
+
+    def _setup(self, model: ShallowWater, dt: float, parameters: bool, t0: float) -> None:
+        """What every step's adjoint holds (``_refusal`` checked): the transposes' x̄ and f̄, the
+        parameters' sums and the ∇⁴'s substeps."""
         why = _refusal(model, dt)
         if why is not None:
             raise ValueError(why)
         self.model, self.dt, self.parameters, self.t0 = model, float(dt), bool(parameters), float(t0)
-        self.A = [[float(a) for a in row] for row in table.A_E]
-        self.b = [float(b) for b in table.b_E]
-        self.c = tuple(table.c)  # the stages' abscissae, as the stepper's ``_at`` takes them
         m, N, device = model, model.N, model.device
 
         def zeros(rows):
             return wp.zeros((rows, N), dtype=f64, device=device)
 
-        s = len(self.b)
-        A = self.A
         self.terms = tuple(t for t in tendencies.TENDENCY_TERMS if t in m.terms)
-        keep_k = [self.parameters or any(A[l][j] for l in range(j + 2, s)) for j in range(s)]
-        self.Y = [zeros(3) for _ in range(s)]
-        self.x = self.Y[0]  # Y_0 = x(n): an explicit table's first row is zero
-        self.K = [zeros(3) if keep else None for keep in keep_k]
         self.xbar = zeros(3)
         self.fbar = zeros(2)  # Σ λ's wind rows: the adjoint of the forcing −g∇hs
         self.spheremp = wp.array(m.grid.spheremp, dtype=f64, device=device)
         self._combinations: dict[tuple, list] = {}  # ``combine``'s recorded launches
-        self._stages = self._stage_plan(zeros)
         self.Ybar: list = []  # the buffers of the Ȳ_j an earlier stage's k̄ reads (``_record``)
         self._adjoints: dict[int, tuple] = {}  # (μ, ``_record``'s launches), by μ's address
         self.d_nu = np.zeros(2)  # ∂J/∂ν (wind rows), ∂J/∂ν_s (h row), m⁻⁴ s · J
@@ -192,8 +196,8 @@ class StepAdjoint:
             for _ in range(self.substeps):
                 h(mu)
             return
-        m, dt = self.model, self.dt
-        self.combine(self.phi, [(1.0, self.x), *((dt * b, k) for b, k in zip(self.b, self.K))])
+        m = self.model
+        self.before_hyperviscosity(self.phi)
         self.combine(self.phi[2:3], [(1.0, self.phi[2:3]), (1.0, m.hs.reshape((1, m.N)))])  # Φ + hs
         wp.copy(self.delta, self.phi)
         self.substep(self.delta)
@@ -206,6 +210,10 @@ class StepAdjoint:
         self.d_nu += np.divide(rows, [m.nu, m.nu_s], out=np.zeros(2), where=np.array([m.nu, m.nu_s]) > 0)
         h(mu)
         self.combine(self.d_hs, [(1.0, self.d_hs), (1.0, mu[2:3])])
+
+    def before_hyperviscosity(self, out) -> None:
+        """out = Φ(x), the step before its ∇⁴: x + Δt Σ b_i K_i (the K_i kept with ``parameters``)."""
+        self.combine(out, [(1.0, self.x), *((self.dt * b, k) for b, k in zip(self.b, self.K))])
 
     def hs_gradient(self) -> np.ndarray:
         """∂J/∂hs (N,) on this rank's nodes, continuous (mass form, as μ), summed over the steps reversed so far:
@@ -226,12 +234,13 @@ class StepAdjoint:
             launch.launch()
         return out + d.numpy()[2]
 
-    def _transpose(self, Y, kbar) -> list:
-        """Launches of x̄ = Tᵀ(Y) W k̄, k̄ = Σ c·k over (c, k) ``kbar`` (element-local): the
-        element kernel on the CPU's layout, reading up to three terms; the per-node ``point``
-        and ``gather`` on CUDA's; k̄ combined by a pass of its own first where they cannot
-        read it as it is."""
+    def _transpose(self, Y, kbar, terms=None) -> list:
+        """Launches of x̄ = Tᵀ(Y) W k̄, k̄ = Σ c·k over (c, k) ``kbar`` (element-local), T the
+        tendency of ``terms`` (None: all the model's): the element kernel on the CPU's layout,
+        reading up to three terms; the per-node ``point`` and ``gather`` on CUDA's; k̄ combined
+        by a pass of its own first where they cannot read it as it is."""
         m, launches = self.model, []
+        terms = self.terms if terms is None else tuple(t for t in self.terms if t in terms)
         if len(kbar) > 3 or not m.per_element and kbar != [(1.0, kbar[0][1])]:
             if not hasattr(self, "kbar"):
                 self.kbar = self._zeros(3)
@@ -240,7 +249,7 @@ class StepAdjoint:
         if m.per_element:
             R, (c, k) = m.as_rows, zip(*kbar)
             c, k = [*c, *(0.0,) * (3 - len(c))], [*k, *(k[0],) * (3 - len(k))]
-            kernel = tendency_adjoint.element(self.terms, m.grid.np, len(kbar))
+            kernel = tendency_adjoint.element(terms, m.grid.np, len(kbar))
             args = [*map(R, (Y, m.D, m.Dinv, m.metdet, m.fcor, self.spheremp)), m.g, m.dvv_rows, wp.vec3d(*c)]
             return [*launches, m.launches.elements(kernel, [*args, *map(R, k), R(self.xbar), R(self.fbar)])]
         if not hasattr(self, "adj"):
@@ -249,13 +258,13 @@ class StepAdjoint:
         gather = [Y, m.D, m.Dinv, m.metdet, m.dvv, m.g, self.adj, self.xbar]
         return [
             *launches,
-            m.launches.nodes(tendency_adjoint.point(self.terms, m.grid.np), m.N, point),
-            m.launches.nodes(tendency_adjoint.gather(self.terms, m.grid.np), m.N, gather),
+            m.launches.nodes(tendency_adjoint.point(terms, m.grid.np), m.N, point),
+            m.launches.nodes(tendency_adjoint.gather(terms, m.grid.np), m.N, gather),
         ]
 
     def _record(self, mu) -> list:
-        """The launches of the stages' transposes, last stage first, as (i, k̄_i's terms, its
-        launches) a stage: k̄_i = Δt (b_i μ + Σ_j a_ji
+        """The launches of the stages' transposes, last stage first, as (Y_i, k̄_i's terms, its
+        launches) a stage (``reverse``): k̄_i = Δt (b_i μ + Σ_j a_ji
         Ȳ_j), x̄ = Tᵀ(Y_i) W k̄_i, Ȳ_i = R Q x̄ written by the unweighted DSS into a running
         sum, the last into μ += Σ Ȳ_i, and where an earlier stage reads it into a buffer of
         its own, freed after its last reader's transpose (kgu35, rk4: one; a stage with no
@@ -286,19 +295,20 @@ class StepAdjoint:
             total = mu if n == len(active) - 1 else self.acc
             updates.append((total, ((1.0, mu if n == 0 else self.acc), (1.0, None))))
             launches += self.model.topology.dss_update(self.xbar, updates, weighted=False)
-            segments.append((i, kbar, launches))
+            segments.append((self.Y[i], kbar, launches))
         return segments
 
-    def planet_terms(self, i: int, kbar) -> None:
-        """Add stage i's ⟨k̄_i, g F_g(Y_i)⟩ and ⟨k̄_i, f (v_i, −u_i)⟩ to ``d_planet`` (module doc),
-        k̄_i = Σ c·a over (c, a) ``kbar`` as its transpose reads them (the same bits on any ranks)."""
+    def planet_terms(self, Y, kbar) -> None:
+        """Add a stage's ⟨k̄, g F_g(Y)⟩ and ⟨k̄, f (v, −u)⟩ to ``d_planet`` (module doc), Y the
+        state its F read, k̄ = Σ c·a over (c, a) ``kbar`` as its transpose reads them (the same
+        bits on any ranks)."""
         m = self.model
-        kb, w, y = sum(c * a.numpy() for c, a in kbar), m.grid.spheremp, self.Y[i].numpy()
+        kb, w, y = sum(c * a.numpy() for c, a in kbar), m.grid.spheremp, Y.numpy()
         pressure = np.zeros_like(w)
         if self.g_terms:  # g F_g: the RHS of those terms alone (its wind rows)
             if not hasattr(self, "f_g"):
                 self.f_g = self._zeros(3)
-            m.rhs(self.Y[i], self.f_g, self.g_terms)
+            m.rhs(Y, self.f_g, self.g_terms)
             F = self.f_g.numpy()
             pressure = kb[0] * F[0] + kb[1] * F[1]
         coriolis = m.fcor.numpy() * (kb[0] * y[1] - kb[1] * y[0]) if "coriolis" in m.terms else np.zeros_like(w)
@@ -314,8 +324,8 @@ class StepAdjoint:
         recorded = self._adjoints.get(mu.ptr)
         if recorded is None:
             recorded = self._adjoints[mu.ptr] = (mu, self._record(mu))
-        for i, kbar, launches in recorded[1]:
-            if self.parameters:
-                self.planet_terms(i, kbar)
+        for Y, kbar, launches in recorded[1]:
+            if self.parameters and kbar is not None:
+                self.planet_terms(Y, kbar)
             for launch in launches:
                 launch.launch()

@@ -16,9 +16,11 @@ from ..core.constants import DAY
 from ..grid.topology import on_ranks
 from ..model.shallow_water import ShallowWater
 from ..steppers import make_stepper
+from ..steppers.explicit import FBRK32
 from ..steppers.runge_kutta import ExplicitRK
 from .disk import DiskTier
 from .explicit import StepAdjoint
+from .forward_backward import ForwardBackwardAdjoint
 from .revolve import sweep, two_level
 
 f64 = wp.float64
@@ -108,7 +110,7 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
     communicator; None: one process, the whole grid): its ``ShallowWater`` (``model.topology``
     assembles the ranks' parts), its stepper and its case's initial state (3, N) numpy on this
     rank's nodes; ``hs`` (nnodes_total,) m: the whole grid's surface height instead of the
-    case's (read on rank 0). ValueError unless the stepper is an explicit table, or for hs of
+    case's (read on rank 0). ValueError unless the stepper is an explicit table or fbrk32, or for hs of
     another shape (on every rank)."""
     case = scene.make_case()
     topo = on_ranks(scene.ne, scene.np, case.planet.a, comm, Backend.of(device), scene.make_mesh())
@@ -117,9 +119,17 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
         hs = _distributed(topo, hs, 1, "hs")[0]
     model = ShallowWater.from_scene(scene, grid, case if hs is None else _Topography(case, hs), topology=topo)
     stepper = make_stepper(scene.stepper, model, scene.dt, **scene.stepper_options)
-    if not isinstance(stepper, ExplicitRK):
-        raise ValueError(f"gradients need an explicit Runge–Kutta stepper (got {scene.stepper!r})")
+    if not isinstance(stepper, (ExplicitRK, FBRK32)):
+        raise ValueError(f"gradients need an explicit Runge–Kutta stepper or fbrk32 (got {scene.stepper!r})")
     return model, stepper, np.stack(case.initial(grid.lat, grid.lon))
+
+
+def step_adjoint(model: ShallowWater, stepper, parameters: bool = False) -> StepAdjoint:
+    """The adjoint of one step of ``stepper`` (``scene_model``'s: an ``ExplicitRK`` or an
+    ``FBRK32``) on ``model``, its steps from the stepper's ``t0``. ValueError as its class."""
+    if isinstance(stepper, FBRK32):
+        return ForwardBackwardAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
+    return StepAdjoint(model, stepper.table(), stepper.dt, parameters, stepper.t0)
 
 
 def _distributed(topo, whole, rows: int, name: str) -> np.ndarray:
@@ -159,8 +169,9 @@ def gradient(
     Parameters
     ----------
     scene : a ``config.Scene`` whose stepper is an explicit Runge–Kutta table (ssprk3, rk4,
-        kgu35, a tableau), any terms (a time-dependent forcing's stages at their times, from
-        the scene's ``start_day``), a ∇⁴ with ν_div = ν and no tensor scaling.
+        kgu35, the pairs, a tableau) or fbrk32, any terms (a time-dependent forcing's stages at
+        their times, from the scene's ``start_day``; not with fbrk32), a ∇⁴ with ν_div = ν,
+        constant or tensor.
     steps : n ≥ 1 steps of the scene's Δt.
     cost : callable (x, spheremp) → (J, λ) of the final state, x (3, N) numpy rows u, v, h
         (m s⁻¹, m s⁻¹, m), spheremp (N,) m², λ = ∂J/∂x (3, N) over the element-local entries
@@ -219,7 +230,7 @@ def gradient(
     topo = model.topology
     x0 = initial if x0 is None else _distributed(topo, x0, 3, "x0")
     stepper.t0 = scene.start_day * DAY  # the run's clock, a ``Simulation``'s
-    adjoint = StepAdjoint(model, stepper.table(), stepper.dt, parameters, stepper.t0)
+    adjoint = step_adjoint(model, stepper, parameters)
     interval = snapshots if disk_interval is None else int(disk_interval)
     cost = run_cost(cost, steps)
     found, mu, taken, used = _reverse_run(model, stepper, adjoint, x0, steps, cost, snapshots, disk, interval)

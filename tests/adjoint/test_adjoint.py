@@ -12,7 +12,7 @@ import warp as wp
 
 from swe_sphere.adjoint import HeightMisfit, gradient
 from swe_sphere.adjoint.explicit import StepAdjoint
-from swe_sphere.adjoint.gradient import scene_model
+from swe_sphere.adjoint.gradient import scene_model, step_adjoint
 from swe_sphere.adjoint.revolve import forward_steps, griewank_steps, split, sweep
 from swe_sphere.config.scene import load_scene
 from swe_sphere.kernels import tendencies, tendency_adjoint
@@ -190,7 +190,7 @@ def test_taylor_remainders_of_the_initial_state_and_nu_gradients_on_tc2_and_gale
     assert rest[-1] > 1e3 * EPS * J
 
 
-@pytest.mark.parametrize("stepper", ["rk4", "ssprk3", "kgu35", "dp54"])
+@pytest.mark.parametrize("stepper", ["rk4", "ssprk3", "kgu35", "dp54", "fbrk32"])
 def test_taylor_remainder_of_the_initial_state_gradient_falls_as_eps_squared(stepper):
     slopes, rest, J = taylor_slopes(stepper, 4, [1.0, 1.0, 10.0])
     # measured (rk4, 6 steps): 2.00002, 2.000006, 2.000002, 2.0000006, 2.00000003, … down to 2.0004 at 1e-5
@@ -198,7 +198,7 @@ def test_taylor_remainder_of_the_initial_state_gradient_falls_as_eps_squared(ste
     assert rest[-1] > 1e4 * EPS * J  # the last remainder still above the cost's round-off
 
 
-@pytest.mark.parametrize("stepper", ["kgu35", "dp54"])
+@pytest.mark.parametrize("stepper", ["kgu35", "dp54", "fbrk32"])
 def test_the_per_node_transposes_give_the_element_kernels_adjoint(stepper):
     # the CPU's element kernel (k̄ read as a combination; dp54's first stages combine it first)
     # against CUDA's per-node point and gather, run here on the CPU: one step's adjoint
@@ -208,7 +208,7 @@ def test_the_per_node_transposes_give_the_element_kernels_adjoint(stepper):
     lam = continuous(model, np.random.default_rng(6).standard_normal((3, model.N)))
     out = []
     for m in (model, node):
-        adjoint, mu = StepAdjoint(m, stepper_.table(), stepper_.dt), wp.array(lam, dtype=f64)
+        adjoint, mu = step_adjoint(m, stepper_), wp.array(lam, dtype=f64)
         adjoint.reverse(wp.array(x0, dtype=f64), mu)
         out.append(mu.numpy())
     assert np.abs(out[0] - lam).max() > 1e-3 * np.abs(lam).max()  # the step acts
@@ -369,6 +369,42 @@ def test_taylor_remainders_of_the_planet_s_gravity_and_rotation_fall_as_eps_squa
     slopes, rest, J = parameter_slopes(perturbed)
     assert np.all(np.abs(slopes - 2.0) < 0.1), (slopes, rest)
     assert rest[-1] > 1e3 * EPS * J, (rest, J)
+
+
+def test_fbrk32_s_parameter_gradients_fall_as_eps_squared():
+    """FB-RK(3,2) (``ForwardBackwardAdjoint``): ∂J/∂ν, ∂J/∂hs, ∂J/∂g and ∂J/∂Ω, each Taylor
+    remainder falling as ε², x(0) held."""
+    scene, steps = tc5("fbrk32"), 4
+    model, _, x0 = setup("fbrk32")
+    rng = np.random.default_rng(9)
+    cost = HeightMisfit(x0[2] + 50 * continuous(model, rng.standard_normal((3, model.N)))[2])
+    g = gradient(scene, steps, cost, parameters=True)
+    hs0, dhs = model.hs.numpy(), 100.0 * continuous(model, rng.standard_normal((3, model.N)))[2]
+
+    def run(e, **changes):
+        return gradient(dataclasses.replace(scene, **changes), steps, cost, x0=x0).cost
+
+    def nu(e):
+        d = 0.2 * scene.nu
+        return run(e, nu=scene.nu + e * d, nu_div=scene.nu_div + e * d), e * d * g.d_nu
+
+    def hs(e):
+        return gradient(scene, steps, cost, x0=x0, hs=hs0 + e * dhs).cost, e * np.sum(
+            model.grid.spheremp * g.d_hs * dhs
+        )
+
+    def planet(key, d):
+        def perturbed(e):
+            delta = 0.05 * scene.planet[key]
+            return run(e, planet={**scene.planet, key: scene.planet[key] + e * delta}), e * delta * d
+
+        perturbed.__name__ = key
+        return perturbed
+
+    for perturbed in (nu, hs, planet("gravity", g.d_g), planet("omega", g.d_omega)):
+        slopes, rest, J = parameter_slopes(perturbed)
+        assert np.all(np.abs(slopes - 2.0) < 0.1), (perturbed.__name__, slopes, rest)
+        assert rest[-1] > 1e3 * EPS * J, (perturbed.__name__, rest, J)
 
 
 def test_taylor_remainder_of_the_topography_gradient_falls_as_eps_squared():

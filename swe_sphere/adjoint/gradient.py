@@ -199,7 +199,8 @@ def gradient(
     disk_interval : K ≥ 1, the steps between the states written (None: ``snapshots``, the
         most that reverses a segment with every state held; 1: every state on the disk, each
         step taken forward once).
-    device : "cpu" (CUDA not yet).
+    device : "cpu" or "cuda" (its per-node transposes are checked against the CPU's element
+        kernels on the CPU; the whole on a GPU by ``tests/adjoint``'s CUDA test).
     comm : an mpi4py communicator (None: one process): the run and its reverse sweep split
         over its ranks as a ``Simulation``'s (``grid.topology.on_ranks``), every rank calling
         ``gradient`` alike. The cost is called on rank 0 alone, with the whole grid's x and

@@ -19,6 +19,8 @@ from swe_sphere.kernels import tendencies, tendency_adjoint
 from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.simulation.simulation import Simulation
 
+from helpers import requires_cuda
+
 EPS = float(np.finfo(np.float64).eps)
 f64 = wp.float64
 
@@ -458,3 +460,19 @@ def test_a_run_on_a_mesh_file_has_a_gradient_whose_taylor_remainder_falls_as_eps
     slopes, rest, J = taylor_slopes("rk4", 4, [1.0, 1.0, 10.0], scene)
     assert np.all(np.abs(slopes - 2.0) < 0.1), (slopes, rest)
     assert rest[-1] > 1e4 * EPS * J
+
+
+@requires_cuda
+@pytest.mark.parametrize("stepper", ["kgu35", "fbrk32"])
+def test_a_gradient_on_cuda_is_the_cpu_s(stepper):
+    """On CUDA (the per-node transposes; their element twins checked on the CPU above) the cost,
+    ∂J/∂x(0) and the parameters' gradients are the CPU's to round-off: sums in another order."""
+    scene = tc5(stepper)
+    model, _, x0 = setup(stepper)
+    cost = HeightMisfit(x0[2] + 50 * continuous(model, np.random.default_rng(10).standard_normal((3, model.N)))[2])
+    cpu, gpu = (gradient(scene, 4, cost, snapshots=2, parameters=True, device=d) for d in ("cpu", "cuda"))
+    assert gpu.cost == pytest.approx(cpu.cost, rel=1e-12)
+    assert np.abs(gpu.grad - cpu.grad).max() <= 1e-10 * np.abs(cpu.grad).max()
+    assert np.abs(gpu.d_hs - cpu.d_hs).max() <= 1e-10 * np.abs(cpu.d_hs).max()
+    for name in ("d_nu", "d_nu_s", "d_g", "d_omega"):
+        assert getattr(gpu, name) == pytest.approx(getattr(cpu, name), rel=1e-10), name

@@ -3,7 +3,9 @@
 A run is stable when it finishes with finite fields, depth > 0 and the total
 energy never more than 1 % above its initial value. The largest stable Δt is
 found by bisection on the number of steps per day (Δt = 86400 s / n, so every
-candidate divides the day and the output interval), on a coarse grid.
+candidate divides the day and the output interval), on a coarse grid. Under step control
+([time] control) the Δt bisected is the first step, from which the controller chooses the
+others: the largest first step from which the run still ends, with the steps it took.
 """
 
 from __future__ import annotations
@@ -47,17 +49,22 @@ class StabilityResult:
     courant_gravity: float  # gravity-wave Courant number of dt_stable at t = 0
     courant_advective: float
     trials: list = field(default_factory=list)  # (dt, stable, reason, wall s)
+    control: str = ""  # the scene's step control ("error", "balanced", "cfl"; "": a fixed dt)
+    steps: float = math.nan  # the dt_stable run's steps (under control the accepted ones)
+    rejected_steps: float = math.nan  # the dt_stable run's rejected steps (NaN: a fixed dt)
+    dt_mean: float = math.nan  # the dt_stable run's mean step (s)
 
 
-def run_is_stable(scene: Scene, device: str) -> tuple[bool, str, float]:
-    """Run a scene; return (stable, reason, wall time)."""
+def run_is_stable(scene: Scene, device: str) -> tuple[bool, str, float, dict]:
+    """Run a scene; return (stable, reason, wall time, its last history entry: ``steps``,
+    ``day``, under step control ``rejected_steps``...)."""
     t0 = time.perf_counter()
     try:
         result = Simulation(scene, device, progress=False).run(None)
     except BlowUp as err:
         result = err.result
     reason = instability(result)
-    return not reason, reason, time.perf_counter() - t0
+    return not reason, reason, time.perf_counter() - t0, result.history[-1] if result.history else {}
 
 
 def largest_stable_dt(scene: Scene, device: str, *, tolerance: float = 0.05, log=print) -> StabilityResult:
@@ -66,16 +73,23 @@ def largest_stable_dt(scene: Scene, device: str, *, tolerance: float = 0.05, log
     Starts from the scene's Δt, doubles or halves it to bracket the limit (down
     to 1/16 of the scene's Δt: below that the case counts as unstable at every
     Δt, dt_stable NaN), then bisects on steps per day until the bracket is
-    within ``tolerance`` (relative).
+    within ``tolerance`` (relative). Under step control the Δt is the first step (the
+    result's ``steps``, ``rejected_steps`` and ``dt_mean``: the dt_stable run's).
     """
-    trials = []
+    trials, counts = [], {}
 
     def stable(n: int) -> bool:
         s = dataclasses.replace(scene, dt=DAY / n)
-        ok, reason, wall = run_is_stable(s, device)
+        ok, reason, wall, counts[n] = run_is_stable(s, device)
         trials.append((s.dt, ok, reason, wall))
+        steps = ""
+        if ok and s.control is not None:
+            c = counts[n]
+            steps = f"; {c['steps']} steps ({c['rejected_steps']} rejected), mean dt {_mean_dt(s, c):.1f} s"
+        first = "first " if s.control is not None else ""
         log(
-            f"  {scene.name} {scene.stepper} dt = {s.dt:9.2f} s: {'stable' if ok else 'unstable'} ({wall:.1f} s) {reason}"
+            f"  {scene.name} {scene.stepper} {first}dt = {s.dt:9.2f} s: {'stable' if ok else 'unstable'} ({wall:.1f} s)"
+            f"{steps} {reason}"
         )
         return ok
 
@@ -108,8 +122,12 @@ def largest_stable_dt(scene: Scene, device: str, *, tolerance: float = 0.05, log
             lo = mid
     dt_stable = DAY / hi if hi is not None else math.nan
     courant = {"courant_gravity": math.nan, "courant_advective": math.nan}
+    run = {}
     if hi is not None:
         courant = Simulation(dataclasses.replace(scene, dt=dt_stable), device, progress=False).courant()
+        c = counts[hi]
+        run = {"steps": c["steps"], "dt_mean": _mean_dt(dataclasses.replace(scene, dt=dt_stable), c)}
+        run["rejected_steps"] = c.get("rejected_steps", math.nan)
     return StabilityResult(
         case=scene.name,
         stepper=scene.stepper,
@@ -121,7 +139,14 @@ def largest_stable_dt(scene: Scene, device: str, *, tolerance: float = 0.05, log
         courant_gravity=courant["courant_gravity"],
         courant_advective=courant["courant_advective"],
         trials=trials,
+        control="" if scene.control is None else scene.control.mode,
+        **run,
     )
+
+
+def _mean_dt(scene: Scene, last: dict) -> float:
+    """The mean step (s) of a run of ``scene`` whose last history entry is ``last``."""
+    return (last["day"] - scene.start_day) * DAY / max(last["steps"], 1)
 
 
 def suite_scenes(cases, steppers, *, ne=None, np_=None, days=None, mesh=None, overrides=None) -> list[Scene]:
@@ -211,11 +236,15 @@ COLUMN_ATTRS = {  # stability.csv's columns: (units, None for text; long_name), 
     "ne": ("1", "elements along a cube edge"),
     "np": ("1", "GLL points along an element edge"),
     "days": ("day", "run length"),
-    "dt_stable": ("s", "largest time step found stable (NaN if none)"),
+    "dt_stable": ("s", "largest time step found stable (under step control the first step; NaN if none)"),
     "dt_unstable": ("s", "smallest time step found unstable (NaN if none up to one day)"),
     "courant_gravity": ("1", "gravity-wave Courant number sqrt(g h) dt / dx of dt_stable at t = 0"),
     "courant_advective": ("1", "advective Courant number |v| dt / dx of dt_stable at t = 0"),
     "trials": ("1", "runs of the bisection"),
+    "control": (None, 'step control of the runs ("error", "balanced", "cfl"; empty: a fixed dt)'),
+    "steps": ("1", "steps of the dt_stable run (under step control the accepted ones)"),
+    "rejected_steps": ("1", "steps the error control rejected in the dt_stable run (NaN: a fixed dt)"),
+    "dt_mean": ("s", "mean time step of the dt_stable run"),
 }
 
 
@@ -250,12 +279,23 @@ def write_table(results, directory, *, overwrite: bool = False) -> tuple:
 
 
 def format_table(results) -> str:
+    """The suite's table; where a run's steps are chosen step to step, its dt the first step
+    and the dt_stable run's accepted and rejected steps and mean dt beside."""
+    controlled = any(r.control for r in results)
     lines = [
         f"{'case':28s} {'stepper':22s} {'ne':>3s} {'np':>3s} {'days':>5s} {'dt stable':>10s} {'dt unstable':>11s} {'C_grav':>7s} {'C_adv':>6s}"
+        + (f" {'control':>8s} {'steps':>7s} {'rejected':>8s} {'dt mean':>8s}" if controlled else "")
     ]
     for r in results:
         lines.append(
             f"{r.case:28s} {r.stepper:22s} {r.ne:3d} {r.np:3d} {r.days:5g} {r.dt_stable:10.1f} {r.dt_unstable:11.1f} "
             f"{r.courant_gravity:7.2f} {r.courant_advective:6.2f}"
+            + (
+                f" {r.control or 'fixed':>8s} {r.steps:7.0f} {r.rejected_steps:8.0f} {r.dt_mean:8.1f}"
+                if controlled
+                else ""
+            )
         )
+    if controlled:
+        lines.append("under step control dt stable is the largest first step from which the run ends")
     return "\n".join(lines)

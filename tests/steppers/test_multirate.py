@@ -279,10 +279,10 @@ def test_split_explicit_defaults_hold_tc2_rotated_over_100_days():
     assert st.substeps() == 2
     st.fewest_auto_substeps = 1
     assert st.substeps() == 1  # what the fast Courant number alone asks for
-    ok, reason, _ = run_is_stable(scene, "cpu")
+    ok, reason, _, _ = run_is_stable(scene, "cpu")
     assert ok, reason
     before = dataclasses.replace(scene, stepper_options={"substeps": 1, "divergence_damping": 0.0})
-    ok, reason, _ = run_is_stable(before, "cpu")
+    ok, reason, _, _ = run_is_stable(before, "cpu")
     assert not ok and "blow-up" in reason
 
 
@@ -296,7 +296,7 @@ def test_stable_over_twice_the_scene_at_the_defaults(stepper, case, multiple):
     base = load_scene(case, ne=8, np_=4)
     base = load_scene(case, ne=8, np_=4, days=2 * base.days, stepper=stepper)
     dt = 86400.0 / math.ceil(86400.0 / (multiple * explicit_limits(base, "cpu")["dt_gravity"]))
-    ok, reason, _ = run_is_stable(dataclasses.replace(base, dt=dt), "cpu")
+    ok, reason, _, _ = run_is_stable(dataclasses.replace(base, dt=dt), "cpu")
     assert ok, reason
 
 

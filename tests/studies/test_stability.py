@@ -18,7 +18,11 @@ from swe_sphere.studies.sweep import explicit_limits
 def test_bisection_brackets_a_known_limit(monkeypatch, tmp_path):
     """With a fake criterion 'stable iff dt <= 1000 s' the search ends with a stable
     dt <= 1000 s and an unstable one above it, within the 5 % tolerance."""
-    monkeypatch.setattr(stability, "run_is_stable", lambda scene, device: (scene.dt <= 1000.0, "", 0.0))
+    monkeypatch.setattr(
+        stability,
+        "run_is_stable",
+        lambda scene, device: (scene.dt <= 1000.0, "", 0.0, {"steps": round(86400 / scene.dt), "day": 1.0}),
+    )
     scene = load_scene("tc2_steady", ne=2, days=1.0, stepper="ssprk3")
     r = stability.largest_stable_dt(scene, "cpu", log=lambda *_: None)
     assert r.dt_stable == DAY / 87 and r.dt_stable <= 1000.0 < r.dt_unstable <= 1.05 * r.dt_stable
@@ -47,13 +51,36 @@ def test_suite_days_and_overrides_reach_every_scene(monkeypatch):
     assert seen["galewsky"].nu == pytest.approx(load_scene("galewsky", ne=4).nu / 2, rel=1e-12)
 
 
+def test_under_step_control_the_suite_bisects_the_first_step_and_says_so(tmp_path):
+    """Under error control a run ends from any first step up to a day (the controller rejects
+    what is too long): dt stable is that first step, beside the steps the run took (its own,
+    as a run made alone), the rejected ones and the mean step; the table says which rows are
+    controlled, and the files hold them."""
+    scene = load_scene(
+        "tc5_mountain", ne=2, days=1.0, stepper="bs32", overrides={"time.control": "error", "time.rtol": 1e-4}
+    )
+    said = []
+    r = stability.largest_stable_dt(scene, "cpu", log=said.append)
+    alone = Simulation(dataclasses.replace(scene, dt=DAY), "cpu", progress=False).run(None).history[-1]
+    assert r.control == "error" and r.dt_stable == DAY and math.isnan(r.dt_unstable)
+    assert (r.steps, r.rejected_steps) == (alone["steps"], alone["rejected_steps"]) and r.rejected_steps >= 1
+    assert r.dt_mean == DAY / r.steps < DAY / 4
+    assert all(" first dt = " in line for line in said) and f"{r.steps} steps ({r.rejected_steps} rejected)" in said[-1]
+    table = stability.format_table([r])
+    assert table.splitlines()[-1].startswith("under step control dt stable is the largest first step")
+    assert f"{'error':>8s} {r.steps:7.0f} {r.rejected_steps:8.0f} {r.dt_mean:8.1f}" in table
+    csv, _ = stability.write_table([r], tmp_path)
+    row = pd.read_csv(csv).iloc[0]
+    assert row["control"] == "error" and row["steps"] == r.steps and row["dt_mean"] == pytest.approx(r.dt_mean)
+
+
 def load_courant(scene):
     return Simulation(scene, "cpu", progress=False).courant()["courant_gravity"]
 
 
 def test_unstable_run_is_detected():
     scene = load_scene("tc2_steady", ne=2, days=2.0, stepper="ssprk3", dt=21600.0)
-    ok, reason, _ = stability.run_is_stable(scene, "cpu")
+    ok, reason, _, _ = stability.run_is_stable(scene, "cpu")
     assert not ok and "blow-up" in reason
 
 
@@ -91,7 +118,7 @@ def test_every_stepper_stable_within_its_limit(label, name):
     dt_max = Simulation(scene, "cpu", progress=False).largest_dt_within_limit()
     if dt_max is not None and dt_max < scene.dt:
         scene = dataclasses.replace(scene, dt=DAY / math.ceil(DAY / dt_max))
-    ok, reason, _ = stability.run_is_stable(scene, "cpu")
+    ok, reason, _, _ = stability.run_is_stable(scene, "cpu")
     assert ok, f"{label} {name} dt={scene.dt}: {reason}"
 
 
@@ -102,7 +129,7 @@ def test_fully_implicit_stable_at_30x_gravity_wave_limit_on_tc5():
     n = math.floor(DAY / (30 * dt_gw))  # the shortest whole-day fraction that is >= 30x the limit
     scene = dataclasses.replace(base, dt=DAY / n)
     assert scene.dt >= 30 * dt_gw
-    ok, reason, _ = stability.run_is_stable(scene, "cpu")
+    ok, reason, _, _ = stability.run_is_stable(scene, "cpu")
     assert ok, reason
 
 

@@ -267,6 +267,7 @@ def test_auto_substeps_are_the_fewest_within_the_fast_courant_number(stepper, co
     assert n > 1 and counted[0] == taken == sim.stepper.fast_evaluations()
 
 
+@pytest.mark.slow  # a 100-day run (10 s); the defaults' short-run stability: test_stable_over_twice_the_scene_at_the_defaults
 def test_split_explicit_defaults_hold_tc2_rotated_over_100_days():
     """TC2 rotated by π/4, ne 4, Δt = 1200 s (fast Courant 0.37 a second), 100 days: at the
     defaults ("auto" takes 2 substeps, the least it takes; divergence damping 0.1) the run

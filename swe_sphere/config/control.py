@@ -60,7 +60,7 @@ def resolve_control(table: dict, stepper: str, options: dict, dt: float) -> Scen
     if mode == "fixed":
         return None
     cls = STEPPERS[stepper]
-    if not cls.variable_dt:
+    if not cls.changes_dt(options):
         raise SceneError(
             f"time.control = {mode!r} needs a stepper that can change its dt between steps; {stepper} cannot "
             "(its history is its dt's)"

@@ -137,6 +137,12 @@ class Stepper:
         self.t0 = 0.0  # s, the model time of that state (a branched run's start; ``Simulation`` sets it)
 
     @classmethod
+    def changes_dt(cls, options: dict) -> bool:
+        """Whether the stepper with these scene options can change its Δt between steps (what
+        step control needs): ``variable_dt``, unless its options tie its history to a Δt."""
+        return cls.variable_dt
+
+    @classmethod
     def has_estimate(cls, options: dict) -> bool:
         """Whether the stepper with these scene options gives an ``error_estimate`` (an
         embedded pair): what error control needs. ValueError names a bad option."""

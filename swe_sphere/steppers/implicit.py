@@ -112,6 +112,15 @@ class Implicit(Stepper):
     after the first step, "previous": x(n)), ``precision`` ("double" |
     "mixed": the preconditioner's Helmholtz CG in float32, one solve to
     ``helmholtz_tol``, no refinement).
+    Under error control (``[time] control = "error"``; Crank–Nicolson, θ = 0.5, alone) each step
+    also gives an ``error_estimate`` of its local error before the ∇⁴, the trapezoidal rule's
+    against its second-order Adams–Bashforth predictor with variable steps (Gresho, Lee & Sani
+    1980; Kay, Gresho, Griffiths & Silvester 2010, SIAM J. Sci. Comput. 32:111, eqs. 2.6–2.8):
+    x_p = x(n) + Δt/2 ((2 + r) F(x(n)) − r F(x(n−1))), r = Δt/Δt_old, which is also Newton's
+    first guess, and e = r (x − x_p) / (3 (1 + r)) (Milne's device: TR's error constant −1/12,
+    AB2's 5/12 at r = 1). The first step has no F(x(n−1)): forward Euler predicts, and e = x − x_p
+    is a second-order estimate (that step comes out short). ``Courant`` limits none: the
+    estimate alone sets Δt, through the gravity waves' phase error too.
     Reports Newton and GMRES iterations, preconditioner applications
     (``precond``) and their Helmholtz iterations per step; keeps the last
     step's residual history in ``residual_history``. Why these defaults: docs/reference.md,
@@ -120,6 +129,8 @@ class Implicit(Stepper):
 
     name = "implicit"
     Options = ImplicitOptions
+    variable_dt = True  # the θ-method: its residual, Jacobian and preconditioner read Δt each call
+    order = embedded_order = 2  # Crank–Nicolson, and the estimate's (TR against AB2)
     solvers = ("newton", "gmres", "precond", "helmholtz")
     removed_options = {
         **REMOVED_SOLVER_OPTIONS,
@@ -146,8 +157,30 @@ class Implicit(Stepper):
         for name in ("w", "minus_R", "xu"):
             setattr(self, name, wp.zeros(n3, dtype=f64, device=dev))
         self.residual_history: list[float] = []
+        self.variable_dt = o["method"] == "theta"  # BDF2's x(n−1) is its Δt's
+        self.error_estimate = None  # made by ``carry_last_stage`` under error control
         self._counts = dict.fromkeys(("gmres", "precond", "helmholtz"), 0)
         self.fgmres = FGMRES(n3, o["gmres_restart"], topo)
+
+    @classmethod
+    def changes_dt(cls, options: dict) -> bool:
+        """The θ-method can (BDF2's x(n−1) is its Δt's)."""
+        return options.get("method", "theta") == "theta"
+
+    @classmethod
+    def has_estimate(cls, options: dict) -> bool:
+        """Crank–Nicolson (θ = 0.5) gives the TR–AB2 estimate (the class docstring)."""
+        return cls.changes_dt(options) and options.get("theta", 0.5) == 0.5
+
+    def carry_last_stage(self) -> bool:
+        """Under error control: estimate each step's error (TR against AB2: F(x(n)) kept for
+        the next step's predictor, which is also Newton's first guess). Not an FSAL pair: False."""
+        if self.has_estimate(self.o) and self.error_estimate is None:
+            dev, N = self.model.device, self.N
+            self.error_estimate = wp.zeros((3, N), dtype=f64, device=dev)
+            self.Fn, self.Fprev, self.xp = (wp.zeros((3, N), dtype=f64, device=dev) for _ in range(3))
+            self.dt_old = math.nan  # no F(x(n−1)) yet
+        return False
 
     # -- vector helpers ----------------------------------------------------------
     def _norm(self, a) -> float:
@@ -298,6 +331,27 @@ class Implicit(Stepper):
         self.residual_history = history
         return newton
 
+    # -- the error estimate (under error control) -------------------------------------------
+    def _predict(self, x) -> None:
+        """x = x_p from x(n) = ``xn`` and F(x(n)) = ``Fx``: AB2, or forward Euler on the first step."""
+        wp.copy(self.Fn, self.Fx)
+        dt = self.dt
+        if math.isfinite(self.dt_old):
+            r = dt / self.dt_old
+            self._axpby(1.0, self.xn, 0.5 * dt * (2.0 + r), self.Fn, self.xp)
+            self._axpby(1.0, self.xp, -0.5 * dt * r, self.Fprev, self.xp)
+        else:
+            self._axpby(1.0, self.xn, dt, self.Fn, self.xp)
+        wp.copy(x, self.xp)
+
+    def _estimate(self, x) -> None:
+        """``error_estimate`` = r (x − x_p) / (3 (1 + r)) (first step: x − x_p); F(x(n)) kept."""
+        r = self.dt / self.dt_old if math.isfinite(self.dt_old) else None
+        c = 1.0 if r is None else r / (3.0 * (1.0 + r))
+        self._axpby(c, x, -c, self.xp, self.error_estimate)
+        self.Fn, self.Fprev = self.Fprev, self.Fn
+        self.dt_old = self.dt
+
     # -- what carries over between steps ------------------------------------------------
     def _uses_previous(self) -> bool:
         """Whether the next step reads x(n−1): BDF2, or the extrapolated initial guess."""
@@ -309,6 +363,8 @@ class Implicit(Stepper):
             s["mean_depth"] = self.helmholtz.H  # 0 until fixed by the first step
         if self._uses_previous():
             s["previous"] = self._save(self.xprev)
+        if self.error_estimate is not None and math.isfinite(self.dt_old):  # the AB2 predictor's
+            s["rhs_previous"], s["dt_previous"] = self._save(self.Fprev), self.dt_old
         return s
 
     def restore(self, state):
@@ -317,6 +373,11 @@ class Implicit(Stepper):
             self.helmholtz.restore(state, self._entry)
         if self._uses_previous():
             self._load(self.xprev, state, "previous")
+        if self.error_estimate is not None:
+            self.dt_old = math.nan
+            if "dt_previous" in state:
+                self._load(self.Fprev, state, "rhs_previous")
+                self.dt_old = float(state["dt_previous"])
 
     def advance(self, x):
         o, m = self.o, self.model
@@ -336,12 +397,18 @@ class Implicit(Stepper):
             self._at(0.0)
             self._F(x, self.Fx)  # F(x(n)): the explicit part and, without extrapolation, Newton's first F
             self._axpby(1.0, x, self.dt * (1.0 - o["theta"]), self.Fx, self.b)
-        extrapolate = o["initial_guess"] == "extrapolate" and self.steps > 0
+        estimating = self.error_estimate is not None
+        extrapolate = o["initial_guess"] == "extrapolate" and self.steps > 0 and not estimating
+        if estimating:  # the predictor x_p, Newton's first guess
+            self._predict(x)
         self._at(1.0)  # every F in the residual is at t(n+1)
         if extrapolate:
             self._axpby(2.0, self.xn, -1.0, self.xprev, x)  # 2x(n) − x(n−1)
         # F(x(n)) at t(n) is Newton's first F only if no term depends on time
-        newton = self._newton(x, Fx_known=o["method"] == "theta" and not extrapolate and m.forcing is None)
+        known = o["method"] == "theta" and not extrapolate and not estimating and m.forcing is None
+        newton = self._newton(x, Fx_known=known)
+        if estimating:
+            self._estimate(x)
         wp.copy(self.xprev, self.xn)
         m.hyperviscosity(x, self.dt)
         return StepStats(self.rhs_evals, {"newton": newton, **self._counts})

@@ -148,6 +148,10 @@ class Stepper:
         embedded pair): what error control needs. ValueError names a bad option."""
         return cls.embedded_order > 0
 
+    def follow_tolerance(self, atol: float) -> None:
+        """Under error control with absolute tolerances ≥ ``atol``: an iterative solve inside
+        the step tightened to stay below the step's error (``implicit.Implicit``); nothing here."""
+
     def carry_last_stage(self) -> bool:
         """Under error control (the estimate read every step): carry an FSAL pair's last stage
         over as the next step's first (``runge_kutta.ExplicitRK.carry_last_stage``); whether

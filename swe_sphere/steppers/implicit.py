@@ -286,7 +286,7 @@ class Implicit(Stepper):
             if safe > 0.1:
                 eta = max(eta, safe)
         eta = min(eta, 0.9)
-        eta = max(eta, 0.5 * o["atol"] / max(rnorm, 1e-300))  # do not oversolve the last iteration
+        eta = max(eta, 0.5 * self._atol() / max(rnorm, 1e-300))  # do not oversolve the last iteration
         return max(eta, o["gmres_tol"])
 
     def _newton(self, x, Fx_known=False):
@@ -300,7 +300,7 @@ class Implicit(Stepper):
         history = [rnorm]
         newton = 0
         eta = rprev = None
-        while not (rnorm <= o["atol"] or rnorm <= o["rtol"] * r0):
+        while not (rnorm <= self._atol() or rnorm <= o["rtol"] * r0):
             if newton == o["maxiter"]:
                 raise StepFailure(
                     f"Newton did not converge in {newton} iterations (residual RMS {rnorm:.3e} > {o['atol']:.1e})"
@@ -332,6 +332,18 @@ class Implicit(Stepper):
         return newton
 
     # -- the error estimate (under error control) -------------------------------------------
+    def follow_tolerance(self, atol: float) -> None:
+        """Under error control with absolute tolerances ≥ ``atol`` (m s⁻¹, m): Newton converges
+        to a residual RMS of at most 0.1 atol / Δt, a state error of about a tenth of the
+        tolerance a step (SUNDIALS' nonlinear-solver coefficient 0.1), so that its own error stays
+        below the step's; ``atol`` (1e-8 s⁻¹ in those units) still bounds it."""
+        self.newton_atol = 0.1 * float(atol)
+
+    def _atol(self) -> float:
+        """Newton's absolute tolerance on the residual RMS this step (``follow_tolerance``)."""
+        scaled = getattr(self, "newton_atol", None)
+        return self.o["atol"] if scaled is None else min(self.o["atol"], scaled / self.dt)
+
     def _predict(self, x) -> None:
         """x = x_p from x(n) = ``xn`` and F(x(n)) = ``Fx``: AB2, or forward Euler on the first step."""
         wp.copy(self.Fn, self.Fx)

@@ -787,3 +787,17 @@ def test_crank_nicolson_under_error_control_continues_bitwise_from_its_restart_f
         assert int(whole["steps"][-1]) == int(second["steps"][-1]) and int(whole["rejected_steps"][-1]) >= 1
     for option in ("implicit.method=bdf2", "implicit.theta=0.6"):
         assert run(tmp_path / "x.nc", 1, "-s", option) == 2
+
+
+def test_under_error_control_newton_converges_below_the_step_s_tolerance():
+    """Newton's own error must stay below the step's: under error control (atol 1e-7 m s⁻¹ and
+    m) it stops at a residual RMS ≤ 0.1 atol / Δt (here below its default 1e-8 s⁻¹), which
+    took TC2 ne16's temporal error from a floor of 3.4e-7 at rtol 1e-5 and 1e-6 (5 days)."""
+    from swe_sphere.simulation.adaptive import StepControl
+
+    overrides = {"time.control": "error", "time.rtol": 1e-7}
+    sim = make_sim(load_scene("tc2_steady", ne=4, days=0.5, stepper="implicit", overrides=overrides))
+    control = StepControl(sim.scene.control, sim.stepper, sim)
+    control.step(sim.x, 0.0, 0.5 * DAY)
+    bound = 0.1 * 1e-7 / sim.stepper.dt
+    assert bound < 1e-8 and sim.stepper.residual_history[-1] <= bound

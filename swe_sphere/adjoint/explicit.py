@@ -15,7 +15,8 @@ element-local nodes for a continuous δx. In that form
   basis and Π the tangent projection, both continuous and per node, so μ ← μ + c B₀ μ with
   B₀ the operator without hs (the model's ∇⁴ launches recorded with hs = 0); the tensor ∇⁴
   (its second K̃ the tensor's, K̃_V, also symmetric) has for transpose the operator with its
-  two K̃ swapped (``Hyperviscosity.build(transposed=True)``);
+  two K̃ swapped (``Hyperviscosity.build(transposed=True)``); with ν_div ≠ ν the ∇δ term is
+  not symmetric and its transpose is added apart (``StepAdjoint._divergent_transpose``);
 - T's transpose is ``kernels.tendency_adjoint`` (written by hand: one element kernel a stage
   on the CPU, two per-node gathers on CUDA), whose λ is gathered back by the unweighted DSS,
   μ = R Q λ, written straight into the running sum of the stages' adjoints (``dss_update``).
@@ -51,8 +52,8 @@ f64 = wp.float64
 def _refusal(model: ShallowWater, dt: float) -> str | None:
     """Why the adjoint cannot serve ``model`` at step dt (None: it can)."""
     if model.hv is not None:
-        if model.nu_div != model.nu:
-            return "nu_div != nu (the ∇δ term) has no adjoint yet"
+        if model.nu_div != model.nu and model.nu == 0:
+            return "nu_div != nu with nu = 0 has no adjoint yet (its ∇δ term's transpose reads the ν-scaled pass)"
         if model.hv.nu_max > 0 and model.hv.plan(dt)[1]:
             return "the RKL1 ∇⁴ super-step has no adjoint yet"
     return None
@@ -92,6 +93,8 @@ class StepAdjoint:
         why = _refusal(model, dt)
         if why is not None:
             raise ValueError(why)
+        if parameters and model.hv is not None and model.nu_div != model.nu:
+            raise ValueError("the parameters' gradients with nu_div != nu are not built yet (the initial state's are)")
         self.model, self.dt, self.parameters, self.t0 = model, float(dt), bool(parameters), float(t0)
         m, N, device = model, model.N, model.device
 
@@ -173,17 +176,56 @@ class StepAdjoint:
     def substep(self, x, transposed: bool = False) -> None:
         """x ← x − (Δt/S) B₀ x in place (``transposed``: B₀'s transpose in the mass form): one ∇⁴
         substep without hs (the model's launches, recorded once per array with the model's hs
-        swapped for zeros, as ``biharmonic_radius`` does)."""
+        swapped for zeros, as ``biharmonic_radius`` does). With ν_div ≠ ν the transpose is the
+        operator's at ν_div = ν plus its ∇δ term's (``_divergent_transpose``)."""
+        m = self.model
+        divergent = transposed and m.nu_div != m.nu
         launches = self._hv.get((x.ptr, transposed))
         if launches is None:
-            m = self.model
             hs, m.hs = m.hs, self.zero_hs
+            nus = (m.nu, m.nu, m.nu_s) if divergent else None
             try:
-                launches = self._hv[x.ptr, transposed] = m.hv.build(x, -self.dt / self.substeps, transposed=transposed)
+                launches = self._hv[x.ptr, transposed] = m.hv.build(
+                    x, -self.dt / self.substeps, nus=nus, transposed=transposed
+                )
             finally:
                 m.hs = hs
         for launch in launches:
             launch.launch()
+        if divergent:
+            self._divergent_transpose(x, -self.dt / self.substeps)
+
+    def _divergent_transpose(self, x, coef: float) -> None:
+        """x[wind] += coef · B_dᵀ μ, μ the x the substep started from: the transpose of the ∇δ
+        term B_d = (ν_div − ν) Pᵀ RQ K̃₂ RQ W P G RQ W D (G the strong gradient, D the strong
+        divergence, W spheremp, P the (east, north) → Cartesian frame), in the mass form
+        B_dᵀ μ = (ν_div − ν) RQ Dᵀ(W s), s = RQ Gᵀ(W Pᵀ Z), Z = RQ K̃₂ P μ: the substep's first
+        pass left ν Π Z in the ∇⁴'s Y₁ (Π's radial part Pᵀ drops). Gᵀ W is the pressure
+        gradient's transpose (∂(−g G h)/∂h: −g Gᵀ W), Dᵀ W the continuity's at h = 1, v = 0
+        (∂(−D(h v))/∂v: −Dᵀ W), each ``_transpose`` with those terms and unweighted DSS'd."""
+        m, topo = self.model, self.model.topology
+        if not hasattr(self, "unit_depth"):
+            self.unit_depth = wp.array(
+                np.stack([np.zeros(m.N), np.zeros(m.N), np.ones(m.N)]), dtype=f64, device=m.device
+            )
+            self.dss_out = self._zeros(3)
+            self.kd = self._zeros(3)
+        Y = m.hv.hv_Y.numpy()[:3] / m.nu  # Π Z, Cartesian
+        east, north = m.east.numpy(), m.north.numpy()
+        self.kd.assign(np.stack([np.sum(Y * east, axis=0), np.sum(Y * north, axis=0), np.zeros(m.N)]))  # Pᵀ Z
+        for launch in [*self._transpose(self.x, [(1.0, self.kd)], ("pressure_gradient",))]:
+            launch.launch()
+        for launch in topo.dss(self.xbar, False, self.dss_out):
+            launch.launch()
+        s = -self.dss_out.numpy()[2] / m.g  # RQ Gᵀ(W Pᵀ Z)
+        self.kd.assign(np.stack([np.zeros(m.N), np.zeros(m.N), s]))
+        for launch in self._transpose(self.unit_depth, [(1.0, self.kd)], ("continuity",)):
+            launch.launch()
+        for launch in topo.dss(self.xbar, False, self.dss_out):
+            launch.launch()
+        wind = x.numpy()
+        wind[:2] -= coef * (m.nu_div - m.nu) * self.dss_out.numpy()[:2]  # RQ Dᵀ(W s) = −RQ x̄
+        x.assign(wind)
 
     def hyperviscosity_transpose(self, mu) -> None:
         """μ of the ∇⁴'s output → μ of its input Φ, in place (the ∇⁴'s transposed substeps); with

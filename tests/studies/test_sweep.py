@@ -16,7 +16,7 @@ from swe_sphere.cases.reference import find_reference
 from swe_sphere.cli import main
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.studies.sweep import report, store, verdicts
-from swe_sphere.studies.sweep.plan import REFERENCE_MAX_GRAVITY_COURANT, plan
+from swe_sphere.studies.sweep.plan import REFERENCE_MAX_GRAVITY_COURANT
 
 import roundoff
 from helpers import cached_grid
@@ -366,41 +366,6 @@ def test_sweep_of_chosen_runs_makes_only_those(tmp_path, capsys):
         err = capsys.readouterr().err.strip()
         assert word in err and "\n" not in err, err
     assert not (tmp_path / "bad").exists()
-
-
-def test_a_sweep_s_controlled_runs_are_named_by_their_tolerance_and_scored_as_the_others(tmp_path):
-    """--runs bs32@rtol=...: a run whose steps the error control chooses, from the scene's Δt;
-    its row is the run made alone (the same steps and bits: its total error to the last digit),
-    known as "bs32@rtol" with its tolerance, its accepted and rejected steps and its mean Δt;
-    a hundredfold tighter rtol cuts the temporal error by more than ten; the verdict of
-    "bs32@rtol" is its cheapest qualifying tolerance. A sweep of controlled runs alone has its
-    reference at REFERENCE_MAX_GRAVITY_COURANT x the gravity-wave limit."""
-    p = plan("tc2_steady", ne=2, days=0.25, runs=[("bs32", "rtol=1e-3"), ("bs32", "rtol=1e-5")])
-    assert p.controlled == ("bs32@rtol=0.001", "bs32@rtol=1e-05") and p.multiples == ()
-    assert p.scenes["bs32@rtol=1e-05"].control.rtol == 1e-5
-    rows, info, _ = p.run(tmp_path / "s", "cpu", log=lambda line: None)
-    loose, tight = rows
-    assert [r["stepper"] for r in rows] == ["bs32@rtol"] * 2 and [r["tolerance"] for r in rows] == [1e-3, 1e-5]
-    sim = Simulation(p.scenes["bs32@rtol=0.001"], "cpu", progress=False)
-    alone = sim.run(None).history[-1]
-    assert (loose["steps"], loose["rejected_steps"], loose["rhs_evals"]) == (
-        alone["steps"],
-        alone["rejected_steps"],
-        alone["rhs_evals"],
-    )
-    assert loose["total_error"] == sim.scorer.total_errors(0.25 * 86400, np.stack(sim.fields()))["total_error"]
-    assert loose["dt"] == 0.25 * 86400 / loose["steps"] and tight["steps"] > loose["steps"]
-    assert 0 < tight["temporal_error"] < loose["temporal_error"] / 10
-    limits = p.resolve(tmp_path / "s", "cpu").limits
-    assert info["reference_dt"] <= REFERENCE_MAX_GRAVITY_COURANT * limits["dt_gravity"] * (1 + 1e-12)
-    table = verdicts.table(rows, limits)
-    v = next(
-        v
-        for v in verdicts.verdicts(table, info)
-        if v["criterion"] == "total h+hs" and v["threshold"] == 0.1 and v["stepper"] == "bs32@rtol"
-    )
-    qualifying = {r["tolerance"]: r for r in table if r["temporal_error"] <= 0.1 * info["spatial_error"]}
-    assert v["tolerance"] in qualifying and v["temporal_error"] == qualifying[v["tolerance"]]["temporal_error"]
 
 
 def _rows(out):

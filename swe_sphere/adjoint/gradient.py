@@ -110,8 +110,13 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
     communicator; None: one process, the whole grid): its ``ShallowWater`` (``model.topology``
     assembles the ranks' parts), its stepper and its case's initial state (3, N) numpy on this
     rank's nodes; ``hs`` (nnodes_total,) m: the whole grid's surface height instead of the
-    case's (read on rank 0). ValueError unless the stepper is an explicit table or fbrk32, or for hs of
-    another shape (on every rank)."""
+    case's (read on rank 0). ValueError unless the stepper is an explicit table or fbrk32 at a
+    fixed Δt (no ``time.control``), or for hs of another shape (on every rank)."""
+    if scene.control is not None:  # its steps are the controller's, not n of the scene's Δt
+        raise ValueError(
+            f"gradients of a run whose steps are chosen step to step (time.control = {scene.control.mode!r}) "
+            "are not built yet: give the scene a fixed dt"
+        )
     case = scene.make_case()
     topo = on_ranks(scene.ne, scene.np, case.planet.a, comm, Backend.of(device), scene.make_mesh())
     grid = topo.grid

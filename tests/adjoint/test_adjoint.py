@@ -302,6 +302,9 @@ def test_gradient_refuses_an_implicit_stepper_and_bad_sizes():
     cost = HeightMisfit(x0[2])
     with pytest.raises(ValueError, match="explicit Runge–Kutta"):
         gradient(tc5("implicit"), 1, cost)
+    controlled = load_scene("tc5_mountain", ne=2, stepper="bs32", overrides={"time.control": "error"})
+    with pytest.raises(ValueError, match="chosen step to step"):  # not silently a fixed-Δt run's gradient
+        gradient(controlled, 1, cost)
     with pytest.raises(ValueError, match="steps and snapshots"):
         gradient(tc5(), 0, cost)
     with pytest.raises(ValueError, match=r"x0 must have shape \(3, 384\)"):

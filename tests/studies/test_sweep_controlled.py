@@ -41,3 +41,14 @@ def test_a_sweep_s_controlled_runs_are_named_by_their_tolerance_and_scored_as_th
     )
     qualifying = {r["tolerance"]: r for r in table if r["temporal_error"] <= 0.1 * info["spatial_error"]}
     assert v["tolerance"] in qualifying and v["temporal_error"] == qualifying[v["tolerance"]]["temporal_error"]
+
+
+def test_a_filtered_sweep_scores_a_controlled_run_s_filtered_flow(tmp_path):
+    """With ``--filter-days`` a controlled run's outputs are known by their time, not their
+    step (its steps land on the filter's 3-hourly snapshots): its filtered temporal error is
+    scored, and its counters are those at the target day, not at the end of the half window."""
+    p = plan("tc5_mountain", ne=2, days=2, runs=[("bs32", "rtol=1e-4")], filter_days=1.0)
+    rows, _, _ = p.run(tmp_path / "s", "cpu", log=lambda line: None)
+    (row,) = rows
+    assert np.isfinite(row["temporal_error_filtered"]) and 0 < row["temporal_error_filtered"] < row["temporal_error"]
+    assert row["dt"] == 2 * 86400 / row["steps"]  # the target's steps: the half window's not counted

@@ -93,8 +93,6 @@ class StepAdjoint:
         why = _refusal(model, dt)
         if why is not None:
             raise ValueError(why)
-        if parameters and model.hv is not None and model.nu_div != model.nu:
-            raise ValueError("the parameters' gradients with nu_div != nu are not built yet (the initial state's are)")
         self.model, self.dt, self.parameters, self.t0 = model, float(dt), bool(parameters), float(t0)
         m, N, device = model, model.N, model.device
 
@@ -241,10 +239,14 @@ class StepAdjoint:
         m = self.model
         self.before_hyperviscosity(self.phi)
         self.combine(self.phi[2:3], [(1.0, self.phi[2:3]), (1.0, m.hs.reshape((1, m.N)))])  # Φ + hs
+        self.combine(self.d_hs, [(1.0, self.d_hs), (-1.0, mu[2:3])])
+        if m.nu_div != m.nu:  # L and ∂L/∂ν do not commute: the substeps' terms one by one
+            self._divergent_parameters(mu)
+            self.combine(self.d_hs, [(1.0, self.d_hs), (1.0, mu[2:3])])
+            return
         wp.copy(self.delta, self.phi)
         self.substep(self.delta)
         self.combine(self.delta, [(1.0, self.delta), (-1.0, self.phi)])  # Δ₀
-        self.combine(self.d_hs, [(1.0, self.d_hs), (-1.0, mu[2:3])])
         for _ in range(self.substeps - 1):
             h(mu)
         w = m.topology.whole_sums(m.grid.spheremp * mu.numpy() * self.delta.numpy())  # the same bits on any ranks
@@ -252,6 +254,32 @@ class StepAdjoint:
         self.d_nu += np.divide(rows, [m.nu, m.nu_s], out=np.zeros(2), where=np.array([m.nu, m.nu_s]) > 0)
         h(mu)
         self.combine(self.d_hs, [(1.0, self.d_hs), (1.0, mu[2:3])])
+
+    def _divergent_parameters(self, mu) -> None:
+        """μ ← the ∇⁴'s transposed substeps of μ, with ∂J/∂ν (ν and ν_div moved together) and
+        ∂J/∂ν_s summed term by term: Σ_k ⟨μ_(k+1), c B₁ y_k⟩, y_k = Φ + hs after k forward
+        substeps (held), B₁ the operator at unit coefficients (its wind rows ∂B/∂ν with ν_div − ν
+        fixed, its h row ∂B/∂ν_s), c = −Δt/S: with ν_div ≠ ν the ∇δ term keeps ∂L/∂ν from
+        commuting with L, so ``hyperviscosity_transpose``'s S⟨μ₁, Δ₀⟩/ν does not hold."""
+        m, S, c = self.model, self.substeps, -self.dt / self.substeps
+        if not hasattr(self, "hv_states"):
+            self.hv_states = [self._zeros(3) for _ in range(S)]
+            self.hv_unit = self._zeros(3)
+        wp.copy(self.hv_states[0], self.phi)
+        for k in range(1, S):
+            wp.copy(self.hv_states[k], self.hv_states[k - 1])
+            self.substep(self.hv_states[k])
+        hs, m.hs = m.hs, self.zero_hs
+        try:
+            for k in reversed(range(S)):
+                self.hv_unit.zero_()
+                for launch in m.hv.build(self.hv_states[k], c, out=self.hv_unit, nus=(1.0, 1.0, 1.0)):
+                    launch.launch()
+                w = m.topology.whole_sums(m.grid.spheremp * mu.numpy() * self.hv_unit.numpy())
+                self.d_nu += [w[0] + w[1], w[2]]
+                self.substep(mu, transposed=True)
+        finally:
+            m.hs = hs
 
     def before_hyperviscosity(self, out) -> None:
         """out = Φ(x), the step before its ∇⁴: x + Δt Σ b_i K_i (the K_i kept with ``parameters``)."""

@@ -175,8 +175,8 @@ def gradient(
     ----------
     scene : a ``config.Scene`` whose stepper is an explicit Runge–Kutta table (ssprk3, rk4,
         kgu35, the pairs, a tableau) or fbrk32, any terms (a time-dependent forcing's stages at
-        their times, from the scene's ``start_day``; not with fbrk32), a ∇⁴ constant or tensor
-        (with ν_div ≠ ν, ``parameters`` False).
+        their times, from the scene's ``start_day``; not with fbrk32), a ∇⁴ constant or tensor,
+        ν_div = ν or not.
     steps : n ≥ 1 steps of the scene's Δt.
     cost : callable (x, spheremp) → (J, λ) of the final state, x (3, N) numpy rows u, v, h
         (m s⁻¹, m s⁻¹, m), spheremp (N,) m², λ = ∂J/∂x (3, N) over the element-local entries

@@ -341,15 +341,27 @@ def test_taylor_remainder_of_the_hyperviscosity_gradient_falls_as_eps_squared(ro
     assert rest[-1] > 1e3 * EPS * J, (rest, J)  # measured 7.9e5 against 1.35e5 (ν, TC5)
 
 
-def test_with_nu_div_apart_from_nu_the_initial_state_s_gradient_falls_as_eps_squared():
-    """ν_div = 2.5 ν (the ∇δ term's transpose in the reverse sweep): the Taylor remainder of x(0)
-    falls as ε²; the parameters' gradients are refused in one line."""
+def test_with_nu_div_apart_from_nu_the_gradients_fall_as_eps_squared():
+    """ν_div = 2.5 ν (the ∇δ term's transpose in the reverse sweep): the Taylor remainders of
+    x(0), of ν (ν and ν_div moved together, ``Gradient.d_nu``: summed substep by substep) and of
+    ν_s fall as ε²."""
     scene = divergent_tc5()
     slopes, rest, J = taylor_slopes("rk4", 4, [1.0, 1.0, 10.0], scene)
     assert np.all(np.abs(slopes - 2.0) < 0.1), (slopes, rest)
     assert rest[-1] > 1e4 * EPS * J
-    with pytest.raises(ValueError, match="nu_div != nu are not built yet"):
-        gradient(scene, 1, HeightMisfit(0.0), parameters=True)
+    model, _, x0 = scene_model(scene)
+    cost = HeightMisfit(x0[2] + 50 * continuous(model, np.random.default_rng(11).standard_normal((3, model.N)))[2])
+    g = gradient(scene, 4, cost, parameters=True)
+    for names, d in ((("nu", "nu_div"), g.d_nu), (("nu_s",), g.d_nu_s)):
+        delta = 0.2 * getattr(scene, names[0])
+
+        def perturbed(e):
+            nus = {n: getattr(scene, n) + e * delta for n in names}
+            return gradient(dataclasses.replace(scene, **nus), 4, cost).cost, e * delta * d
+
+        slopes, rest, J = parameter_slopes(perturbed)
+        assert np.all(np.abs(slopes - 2.0) < 0.1), (names, slopes, rest)
+        assert rest[-1] > 1e3 * EPS * J, (names, rest, J)
 
 
 def test_the_tensor_hyperviscosity_s_gradients_fall_as_eps_squared():

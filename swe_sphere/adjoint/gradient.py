@@ -47,8 +47,8 @@ class Gradient(NamedTuple):
     continuous, the gradient in the mass inner product (δJ = Σ spheremp·grad·δx over the
     element-local nodes for a continuous δx; units of J per m² per unit of the row);
     ``final`` (3, N) the final state; ``forward_steps`` the steps taken forward (the cost's
-    included), ``reverse_steps`` n. With ``parameters=True``: ``d_nu`` ∂J/∂ν (ν = ν_div, the
-    wind's ∇⁴ coefficient; J per m⁴ s⁻¹), ``d_nu_s`` ∂J/∂ν_s (the surface's), ``d_hs`` (N,)
+    included), ``reverse_steps`` n. With ``parameters=True``: ``d_nu`` ∂J/∂ν (the wind's
+    ∇⁴ coefficients ν and ν_div moved together; J per m⁴ s⁻¹), ``d_nu_s`` ∂J/∂ν_s (the surface's), ``d_hs`` (N,)
     ∂J/∂hs in the mass inner product as ``grad`` (x0 held fixed), ``d_g`` ∂J/∂g (J per m s⁻²) and
     ``d_omega`` ∂J/∂Ω (J per s⁻¹; the Coriolis parameter f ∝ Ω), x0, hs and a case's forcing
     held fixed (a balanced initial state is not rebalanced); None otherwise.

@@ -200,30 +200,33 @@ class StepAdjoint:
         B_dᵀ μ = (ν_div − ν) RQ Dᵀ(W s), s = RQ Gᵀ(W Pᵀ Z), Z = RQ K̃₂ P μ: the substep's first
         pass left ν Π Z in the ∇⁴'s Y₁ (Π's radial part Pᵀ drops). Gᵀ W is the pressure
         gradient's transpose (∂(−g G h)/∂h: −g Gᵀ W), Dᵀ W the continuity's at h = 1, v = 0
-        (∂(−D(h v))/∂v: −Dᵀ W), each ``_transpose`` with those terms and unweighted DSS'd."""
+        (∂(−D(h v))/∂v: −Dᵀ W), each ``_transpose`` with those terms and unweighted DSS'd. Each
+        reads only its own rows of k̄: ``kd`` holds Pᵀ Z in its wind rows and s in its h row.
+        The projection Pᵀ on the host; the rest recorded once per x."""
         m, topo = self.model, self.model.topology
-        if not hasattr(self, "unit_depth"):
+        if not hasattr(self, "kd"):
+            self.kd, self.dss_out = self._zeros(3), self._zeros(3)
             self.unit_depth = wp.array(
                 np.stack([np.zeros(m.N), np.zeros(m.N), np.ones(m.N)]), dtype=f64, device=m.device
             )
-            self.dss_out = self._zeros(3)
-            self.kd = self._zeros(3)
-        Y = m.hv.hv_Y.numpy()[:3] / m.nu  # Π Z, Cartesian
-        east, north = m.east.numpy(), m.north.numpy()
-        self.kd.assign(np.stack([np.sum(Y * east, axis=0), np.sum(Y * north, axis=0), np.zeros(m.N)]))  # Pᵀ Z
-        for launch in [*self._transpose(self.x, [(1.0, self.kd)], ("pressure_gradient",))]:
+            self.frame = m.east.numpy() / m.nu, m.north.numpy() / m.nu  # Pᵀ, and Y₁ = ν Π Z
+            self._divergent = {}
+        launches = self._divergent.get(x.ptr)
+        if launches is None:
+            H, U = slice(2, 3), slice(0, 2)
+            launches = self._divergent[x.ptr] = [
+                *self._transpose(self.x, [(1.0, self.kd)], ("pressure_gradient",)),
+                *topo.dss(self.xbar, False, self.dss_out),
+                m.lincomb(self.kd[H], [(-1.0 / m.g, self.dss_out[H])]),  # s = RQ Gᵀ(W Pᵀ Z)
+                *self._transpose(self.unit_depth, [(1.0, self.kd)], ("continuity",)),
+                *topo.dss(self.xbar, False, self.dss_out),  # −RQ Dᵀ(W s)
+                m.lincomb(x[U], [(1.0, x[U]), (-coef * (m.nu_div - m.nu), self.dss_out[U])]),
+            ]
+        Y = m.hv.hv_Y.numpy()[:3]
+        east, north = self.frame
+        self.kd[0:2].assign(np.stack([np.sum(Y * east, axis=0), np.sum(Y * north, axis=0)]))  # Pᵀ Z
+        for launch in launches:
             launch.launch()
-        for launch in topo.dss(self.xbar, False, self.dss_out):
-            launch.launch()
-        s = -self.dss_out.numpy()[2] / m.g  # RQ Gᵀ(W Pᵀ Z)
-        self.kd.assign(np.stack([np.zeros(m.N), np.zeros(m.N), s]))
-        for launch in self._transpose(self.unit_depth, [(1.0, self.kd)], ("continuity",)):
-            launch.launch()
-        for launch in topo.dss(self.xbar, False, self.dss_out):
-            launch.launch()
-        wind = x.numpy()
-        wind[:2] -= coef * (m.nu_div - m.nu) * self.dss_out.numpy()[:2]  # RQ Dᵀ(W s) = −RQ x̄
-        x.assign(wind)
 
     def hyperviscosity_transpose(self, mu) -> None:
         """μ of the ∇⁴'s output → μ of its input Φ, in place (the ∇⁴'s transposed substeps); with
@@ -265,21 +268,24 @@ class StepAdjoint:
         if not hasattr(self, "hv_states"):
             self.hv_states = [self._zeros(3) for _ in range(S)]
             self.hv_unit = self._zeros(3)
+            hs, m.hs = m.hs, self.zero_hs
+            try:  # c B₁ y_k into hv_unit, recorded once per k (y_k holds hs: the model's is zero)
+                self.hv_unit_launches = [
+                    m.hv.build(y, c, out=self.hv_unit, nus=(1.0, 1.0, 1.0)) for y in self.hv_states
+                ]
+            finally:
+                m.hs = hs
         wp.copy(self.hv_states[0], self.phi)
         for k in range(1, S):
             wp.copy(self.hv_states[k], self.hv_states[k - 1])
             self.substep(self.hv_states[k])
-        hs, m.hs = m.hs, self.zero_hs
-        try:
-            for k in reversed(range(S)):
-                self.hv_unit.zero_()
-                for launch in m.hv.build(self.hv_states[k], c, out=self.hv_unit, nus=(1.0, 1.0, 1.0)):
-                    launch.launch()
-                w = m.topology.whole_sums(m.grid.spheremp * mu.numpy() * self.hv_unit.numpy())
-                self.d_nu += [w[0] + w[1], w[2]]
-                self.substep(mu, transposed=True)
-        finally:
-            m.hs = hs
+        for k in reversed(range(S)):
+            self.hv_unit.zero_()
+            for launch in self.hv_unit_launches[k]:
+                launch.launch()
+            w = m.topology.whole_sums(m.grid.spheremp * mu.numpy() * self.hv_unit.numpy())
+            self.d_nu += [w[0] + w[1], w[2]]
+            self.substep(mu, transposed=True)
 
     def before_hyperviscosity(self, out) -> None:
         """out = Φ(x), the step before its ∇⁴: x + Δt Σ b_i K_i (the K_i kept with ``parameters``)."""
@@ -381,7 +387,9 @@ class StepAdjoint:
             m.rhs(Y, self.f_g, self.g_terms)
             F = self.f_g.numpy()
             pressure = kb[0] * F[0] + kb[1] * F[1]
-        coriolis = m.fcor.numpy() * (kb[0] * y[1] - kb[1] * y[0]) if "coriolis" in m.terms else np.zeros_like(w)
+        if not hasattr(self, "fcor"):
+            self.fcor = m.fcor.numpy() if "coriolis" in m.terms else np.zeros_like(w)
+        coriolis = self.fcor * (kb[0] * y[1] - kb[1] * y[0])
         self.d_planet += m.topology.whole_sums([w * pressure, w * coriolis])
 
     def reverse(self, x, mu, k: int = 0) -> None:

@@ -152,6 +152,10 @@ class Stepper:
         """Under error control with absolute tolerances ≥ ``atol``: an iterative solve inside
         the step tightened to stay below the step's error (``implicit.Implicit``); nothing here."""
 
+    def estimate_errors(self) -> None:
+        """Under error control (the estimate read every step): make ``error_estimate`` from now
+        on where the stepper makes it only when asked (``implicit.Implicit``); nothing here."""
+
     def carry_last_stage(self) -> bool:
         """Under error control (the estimate read every step): carry an FSAL pair's last stage
         over as the next step's first (``runge_kutta.ExplicitRK.carry_last_stage``); whether

@@ -158,7 +158,7 @@ class Implicit(Stepper):
             setattr(self, name, wp.zeros(n3, dtype=f64, device=dev))
         self.residual_history: list[float] = []
         self.variable_dt = o["method"] == "theta"  # BDF2's x(n−1) is its Δt's
-        self.error_estimate = None  # made by ``carry_last_stage`` under error control
+        self.error_estimate = None  # made by ``estimate_errors`` under error control
         self._counts = dict.fromkeys(("gmres", "precond", "helmholtz"), 0)
         self.fgmres = FGMRES(n3, o["gmres_restart"], topo)
 
@@ -172,15 +172,14 @@ class Implicit(Stepper):
         """Crank–Nicolson (θ = 0.5) gives the TR–AB2 estimate (the class docstring)."""
         return cls.changes_dt(options) and options.get("theta", 0.5) == 0.5
 
-    def carry_last_stage(self) -> bool:
+    def estimate_errors(self) -> None:
         """Under error control: estimate each step's error (TR against AB2: F(x(n)) kept for
-        the next step's predictor, which is also Newton's first guess). Not an FSAL pair: False."""
+        the next step's predictor, which is also Newton's first guess)."""
         if self.has_estimate(self.o) and self.error_estimate is None:
             dev, N = self.model.device, self.N
             self.error_estimate = wp.zeros((3, N), dtype=f64, device=dev)
             self.Fn, self.Fprev, self.xp = (wp.zeros((3, N), dtype=f64, device=dev) for _ in range(3))
             self.dt_old = math.nan  # no F(x(n−1)) yet
-        return False
 
     # -- vector helpers ----------------------------------------------------------
     def _norm(self, a) -> float:

@@ -344,8 +344,9 @@ class Implicit(Stepper):
         return self.o["atol"] if scaled is None else min(self.o["atol"], scaled / self.dt)
 
     def _predict(self, x) -> None:
-        """x = x_p from x(n) = ``xn`` and F(x(n)) = ``Fx``: AB2, or forward Euler on the first step."""
-        wp.copy(self.Fn, self.Fx)
+        """x = x_p from x(n) = ``xn`` and F(x(n)) = ``Fx``: AB2, or forward Euler on the first step.
+        F(x(n)) is kept by taking its buffer (Newton evaluates F at x_p into the other first)."""
+        self.Fn, self.Fx = self.Fx, self.Fn
         dt = self.dt
         if math.isfinite(self.dt_old):
             r = dt / self.dt_old

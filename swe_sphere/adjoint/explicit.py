@@ -49,6 +49,11 @@ from ..model.shallow_water import ShallowWater
 f64 = wp.float64
 
 
+# the Δt whose records an adjoint keeps besides its own (``StepAdjoint.set_dt``): a controlled run
+# takes its Δt from a grid of 16 an octave (``simulation.adaptive.DT_GRID``), so few recur at once
+HELD_DTS = 8
+
+
 def _refusal(model: ShallowWater, dt: float) -> str | None:
     """Why the adjoint cannot serve ``model`` at step dt (None: it can)."""
     if model.hv is not None:
@@ -85,7 +90,7 @@ class StepAdjoint:
         self.Y = [zeros(3) for _ in range(s)]
         self.x = self.Y[0]  # Y_0 = x(n): an explicit table's first row is zero
         self.K = [zeros(3) if keep else None for keep in keep_k]
-        self._stages = self._stage_plan(zeros)
+        self._for_dt()
 
     def _setup(self, model: ShallowWater, dt: float, parameters: bool, t0: float) -> None:
         """What every step's adjoint holds (``_refusal`` checked): the transposes' x̄ and f̄, the
@@ -95,6 +100,7 @@ class StepAdjoint:
             raise ValueError(why)
         self.model, self.dt, self.parameters, self.t0 = model, float(dt), bool(parameters), float(t0)
         m, N, device = model, model.N, model.device
+        self._held: dict[float, dict] = {}  # another Δt's records (``set_dt``)
 
         def zeros(rows):
             return wp.zeros((rows, N), dtype=f64, device=device)
@@ -103,21 +109,52 @@ class StepAdjoint:
         self.xbar = zeros(3)
         self.fbar = zeros(2)  # Σ λ's wind rows: the adjoint of the forcing −g∇hs
         self.spheremp = wp.array(m.grid.spheremp, dtype=f64, device=device)
-        self._combinations: dict[tuple, list] = {}  # ``combine``'s recorded launches
         self.Ybar: list = []  # the buffers of the Ȳ_j an earlier stage's k̄ reads (``_record``)
-        self._adjoints: dict[int, tuple] = {}  # (μ, ``_record``'s launches), by μ's address
         self.d_nu = np.zeros(2)  # ∂J/∂ν (wind rows), ∂J/∂ν_s (h row), m⁻⁴ s · J
         self.d_planet = np.zeros(2)  # g ∂J/∂g, Ω ∂J/∂Ω (J): the stages' ⟨k̄_i, F's g and Ω terms⟩
         self.g_terms = tuple(t for t in ("pressure_gradient", "topography") if t in m.terms)
         self.d_hs = zeros(1)  # the ∇⁴'s share of ∂J/∂hs, continuous (mass form)
-        self.substeps = 0  # of the ∇⁴ (forward Euler)
-        self._hv: dict[tuple, list] = {}  # ``substep``'s recorded launches, by array and direction
+        self.hv_states: list = []  # the ∇⁴'s forward substeps' states (``_divergent_parameters``)
         if m.hv is not None and m.hv.nu_max > 0:
-            self.substeps = m.hv.plan(self.dt)[0]
             self.zero_hs = wp.zeros(N, dtype=f64, device=device)
             if self.parameters:  # Φ + hs and Δ₀ (``hyperviscosity_transpose``)
                 self.phi, self.delta = zeros(3), zeros(3)
         self._zeros = zeros
+
+    # what depends on Δt: the ∇⁴'s substeps and the launches recorded with Δt in their coefficients
+    _PER_DT = ("substeps", "_stages", "_combinations", "_hv", "_adjoints", "_divergent", "_hv_unit")
+
+    def _for_dt(self) -> None:
+        """The records of a Δt not seen yet (``_PER_DT``), each made on first use."""
+        m = self.model
+        self.substeps = m.hv.plan(self.dt)[0] if m.hv is not None and m.hv.nu_max > 0 else 0  # forward Euler
+        self._combinations: dict[tuple, list] = {}  # ``combine``'s recorded launches
+        self._hv: dict[tuple, list] = {}  # ``substep``'s recorded launches, by array and direction
+        self._adjoints: dict[int, tuple] = {}  # (μ, ``_record``'s launches), by μ's address
+        self._divergent: dict[int, list] = {}  # ``_divergent_transpose``'s, by array
+        self._hv_unit = None  # ``_divergent_parameters``' unit-coefficient ∇⁴ launches
+        self._stages = self._stage_plan(self._zeros)
+
+    def set_dt(self, dt: float) -> None:
+        """Reverse the next steps at Δt = ``dt`` (s): a run whose steps the controller chose
+        (``gradient(..., history=)``). The records of the last ``HELD_DTS`` Δt are kept, so
+        that a Δt that recurs replays its launches. ValueError (``_refusal``) for a Δt the
+        adjoint cannot serve (the ∇⁴'s RKL1 super-step)."""
+        dt = float(dt)
+        if dt == self.dt:
+            return
+        why = _refusal(self.model, dt)
+        if why is not None:
+            raise ValueError(why)
+        self._held[self.dt] = {key: getattr(self, key) for key in self._PER_DT}
+        if len(self._held) > HELD_DTS:
+            del self._held[next(iter(self._held))]
+        self.dt = dt
+        held = self._held.pop(dt, None)
+        if held is None:
+            self._for_dt()
+        else:
+            self.__dict__.update(held)
 
     def _stage_plan(self, zeros) -> list:
         """Per stage i: (F(Y_i)'s ``Update``s, or None where no later stage nor ``parameters``
@@ -210,7 +247,6 @@ class StepAdjoint:
                 np.stack([np.zeros(m.N), np.zeros(m.N), np.ones(m.N)]), dtype=f64, device=m.device
             )
             self.frame = m.east.numpy() / m.nu, m.north.numpy() / m.nu  # Pᵀ, and Y₁ = ν Π Z
-            self._divergent = {}
         launches = self._divergent.get(x.ptr)
         if launches is None:
             H, U = slice(2, 3), slice(0, 2)
@@ -265,14 +301,13 @@ class StepAdjoint:
         fixed, its h row ∂B/∂ν_s), c = −Δt/S: with ν_div ≠ ν the ∇δ term keeps ∂L/∂ν from
         commuting with L, so ``hyperviscosity_transpose``'s S⟨μ₁, Δ₀⟩/ν does not hold."""
         m, S, c = self.model, self.substeps, -self.dt / self.substeps
-        if not hasattr(self, "hv_states"):
-            self.hv_states = [self._zeros(3) for _ in range(S)]
-            self.hv_unit = self._zeros(3)
+        if self._hv_unit is None:
+            self.hv_states += [self._zeros(3) for _ in range(S - len(self.hv_states))]
+            if not hasattr(self, "hv_unit"):
+                self.hv_unit = self._zeros(3)
             hs, m.hs = m.hs, self.zero_hs
             try:  # c B₁ y_k into hv_unit, recorded once per k (y_k holds hs: the model's is zero)
-                self.hv_unit_launches = [
-                    m.hv.build(y, c, out=self.hv_unit, nus=(1.0, 1.0, 1.0)) for y in self.hv_states
-                ]
+                self._hv_unit = [m.hv.build(y, c, out=self.hv_unit, nus=(1.0, 1.0, 1.0)) for y in self.hv_states[:S]]
             finally:
                 m.hs = hs
         wp.copy(self.hv_states[0], self.phi)
@@ -281,7 +316,7 @@ class StepAdjoint:
             self.substep(self.hv_states[k])
         for k in reversed(range(S)):
             self.hv_unit.zero_()
-            for launch in self.hv_unit_launches[k]:
+            for launch in self._hv_unit[k]:
                 launch.launch()
             w = m.topology.whole_sums(m.grid.spheremp * mu.numpy() * self.hv_unit.numpy())
             self.d_nu += [w[0] + w[1], w[2]]

@@ -40,6 +40,10 @@ class ForwardBackwardAdjoint(StepAdjoint):
         self.kh, self.su = zeros(3), zeros(3)  # the continuity half's k̄, R Q x̄ of the momentum half's
         self.zbar = [zeros(3), zeros(3)]
         self.acc = zeros(3)  # x̄(n)'s terms from u_n and h_n in the stages' combinations
+        self._for_dt()
+
+    def _stage_plan(self, zeros) -> None:
+        """None: ``stages`` forms the stages with the Δt of the step."""
 
     def stages(self, k: int = 0) -> None:
         """Z_1…Z_3 and S_0…S_2 of step k from x = Z_0, as the stepper forms them (``FBRK32``:

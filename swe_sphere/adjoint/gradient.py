@@ -19,7 +19,7 @@ from ..steppers import make_stepper
 from ..steppers.explicit import FBRK32
 from ..steppers.runge_kutta import ExplicitRK
 from .disk import DiskTier
-from .explicit import StepAdjoint
+from .explicit import StepAdjoint, _refusal
 from .forward_backward import ForwardBackwardAdjoint
 from .revolve import sweep, two_level
 
@@ -108,15 +108,10 @@ class _Topography:
 def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
     """(model, stepper, x0) of ``scene`` on this rank's part of its grid (``comm`` an mpi4py
     communicator; None: one process, the whole grid): its ``ShallowWater`` (``model.topology``
-    assembles the ranks' parts), its stepper and its case's initial state (3, N) numpy on this
-    rank's nodes; ``hs`` (nnodes_total,) m: the whole grid's surface height instead of the
-    case's (read on rank 0). ValueError unless the stepper is an explicit table or fbrk32 at a
-    fixed Δt (no ``time.control``), or for hs of another shape (on every rank)."""
-    if scene.control is not None:  # its steps are the controller's, not n of the scene's Δt
-        raise ValueError(
-            f"gradients of a run whose steps are chosen step to step (time.control = {scene.control.mode!r}) "
-            "are not built yet: give the scene a fixed dt"
-        )
+    assembles the ranks' parts), its stepper (at the scene's Δt, under no step control) and its
+    case's initial state (3, N) numpy on this rank's nodes; ``hs`` (nnodes_total,) m: the whole
+    grid's surface height instead of the case's (read on rank 0). ValueError unless the stepper
+    is an explicit table or fbrk32, or for hs of another shape (on every rank)."""
     case = scene.make_case()
     topo = on_ranks(scene.ne, scene.np, case.planet.a, comm, Backend.of(device), scene.make_mesh())
     grid = topo.grid
@@ -127,6 +122,39 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
     if not isinstance(stepper, (ExplicitRK, FBRK32)):
         raise ValueError(f"gradients need an explicit Runge–Kutta stepper or fbrk32 (got {scene.stepper!r})")
     return model, stepper, np.stack(case.initial(grid.lat, grid.lon))
+
+
+class Clock:
+    """The steps' Δt and model times: step k (from x(k)) takes Δt_k, its stages at
+    t0_k + (k + c)·Δt_k (a stepper's ``_at`` with ``t0`` and ``steps`` = k), as the run took them.
+    Fixed (``history`` None): Δt_k = ``dt``, t0_k = ``start`` (s). Otherwise ``history`` a
+    controlled run's accepted steps from ``start`` (``StepControl.history``: (time reached (s),
+    Δt (s), error norm) each): Δt_k its k-th Δt, t0_k = t_k − k·Δt_k with t_k the time step k
+    started at (``StepControl.step`` sets the stepper's clock so). ValueError for a Δt that is
+    not a positive finite number or times that do not increase, naming the step."""
+
+    def __init__(self, start: float, dt: float, history=None):
+        self.start, self.dt, self.steps = float(start), float(dt), None
+        if history is None:
+            return
+        rows = [tuple(map(float, row[:2])) for row in history]
+        t = self.start
+        for k, (reached, step) in enumerate(rows):
+            if not (np.isfinite(step) and step > 0 and np.isfinite(reached) and reached > t):
+                raise ValueError(f"history step {k}: dt {step!r} s must be > 0 and its time {reached!r} s after {t!r}")
+            t = reached
+        starts = [self.start, *(reached for reached, _ in rows[:-1])]
+        self.steps = [(t - k * step, step) for k, (t, (_, step)) in enumerate(zip(starts, rows))]
+
+    def __call__(self, k: int) -> tuple[float, float]:
+        """(t0_k, Δt_k) of step k."""
+        return (self.start, self.dt) if self.steps is None else self.steps[k]
+
+    def set(self, stepper, k: int) -> None:
+        """``stepper`` (or an adjoint: ``set_dt``, ``t0``) at step k's Δt and clock."""
+        t0, dt = self(k)
+        stepper.set_dt(dt)
+        stepper.t0 = t0
 
 
 def step_adjoint(model: ShallowWater, stepper, parameters: bool = False) -> StepAdjoint:
@@ -166,6 +194,7 @@ def gradient(
     disk_interval: int | None = None,
     device="cpu",
     comm=None,
+    history=None,
 ) -> Gradient:
     """The cost J of ``scene`` run ``steps`` steps from x0, J(x(n)) or Σ_k J_k(x(k)) over the
     steps k a cost observes, and its gradient dJ/dx(0) (and, with ``parameters``, dJ/dν,
@@ -206,6 +235,12 @@ def gradient(
         step taken forward once).
     device : "cpu" or "cuda" (its per-node transposes are checked against the CPU's element
         kernels on the CPU; the whole on a GPU by ``tests/adjoint``'s CUDA test).
+    history : a run's steps (required for a scene under ``time.control``, whose steps its
+        controller chose): that run's ``Simulation.control.history`` (``StepControl.history``:
+        (time reached (s), Δt (s), error norm) per accepted step, from the scene's start), of
+        which the first n are differentiated with their Δt and times held (``Clock``): the
+        gradient of the run the controller took, not of the controller's choice of Δt (piecewise
+        constant in x(0)). The scene's stepper, without the control, takes each step.
     comm : an mpi4py communicator (None: one process): the run and its reverse sweep split
         over its ranks as a ``Simulation``'s (``grid.topology.on_ranks``), every rank calling
         ``gradient`` alike. The cost is called on rank 0 alone, with the whole grid's x and
@@ -216,7 +251,8 @@ def gradient(
         its own part.
 
     Returns a ``Gradient``. ValueError for steps, snapshots or disk_interval < 1, at_steps
-    outside 0 … n, a
+    outside 0 … n, a controlled scene without a history, a history shorter than n or with a bad
+    step (``Clock``), a
     disk_interval without a disk, a disk that is not an existing folder, x0 or hs of another
     shape, or a scene the adjoint cannot serve (``explicit._refusal``, a non-explicit stepper);
     OSError from the disk (full, unwritable).
@@ -232,14 +268,17 @@ def gradient(
     disk = None if disk is False else disk
     if disk_interval is not None and (disk is None or int(disk_interval) < 1):
         raise ValueError(f"disk_interval must be >= 1 and needs a disk (got {disk_interval}, disk={disk!r})")
+    clock = _clock(scene, steps, history)
     model, stepper, initial = scene_model(scene, device, hs, comm)
+    for dt in {clock(k)[1] for k in range(steps)}:  # every Δt served before a step is taken
+        if (why := _refusal(model, dt)) is not None:
+            raise ValueError(why)
     topo = model.topology
     x0 = initial if x0 is None else _distributed(topo, x0, 3, "x0")
-    stepper.t0 = scene.start_day * DAY  # the run's clock, a ``Simulation``'s
     adjoint = step_adjoint(model, stepper, parameters)
     interval = snapshots if disk_interval is None else int(disk_interval)
     cost = run_cost(cost, steps)
-    found, mu, taken, used = _reverse_run(model, stepper, adjoint, x0, steps, cost, snapshots, disk, interval)
+    found, mu, taken, used = _reverse_run(model, stepper, adjoint, clock, x0, steps, cost, snapshots, disk, interval)
     extra = {}
     if parameters:
         d_hs = _whole(topo, adjoint.hs_gradient())
@@ -249,6 +288,21 @@ def gradient(
     total = sum(costs.values())  # in increasing k; a final-state cost's J exactly (0 + J)
     final = _whole(topo, found["final"])
     return Gradient(total, _whole(topo, mu), final, taken, steps, disk_bytes=used, costs=costs, **extra)
+
+
+def _clock(scene: Scene, steps: int, history) -> Clock:
+    """The ``Clock`` of ``gradient``'s run of ``scene``: its Δt from its start day, or
+    ``history``'s steps. ValueError for a controlled scene without a history (its steps are its
+    controller's) or a history shorter than ``steps``."""
+    if history is None and scene.control is not None:
+        raise ValueError(
+            f"a run under time.control = {scene.control.mode!r} is differentiated along the steps it took: "
+            "give history=Simulation(...).control.history of that run"
+        )
+    clock = Clock(scene.start_day * DAY, scene.dt, history)
+    if clock.steps is not None and len(clock.steps) < steps:
+        raise ValueError(f"history holds {len(clock.steps)} steps, fewer than the {steps} asked for")
+    return clock
 
 
 class _At:
@@ -271,20 +325,21 @@ class _IndexedTier:
         return _At(self.tier.load(j), j * self.interval)
 
 
-def _reverse_run(model, stepper, adjoint, x0, steps, cost, snapshots, disk, interval):
+def _reverse_run(model, stepper, adjoint, clock, x0, steps, cost, snapshots, disk, interval):
     """({"costs": {k: J_k}, "final": x(n)}, μ(0) numpy, forward steps, disk bytes) of
     ``gradient``: the run from x0 (3, N) numpy and its reverse sweep, in memory or with a disk
     tier; ``cost`` a cost of the run (``run_cost``), called once at each of its steps. The
     sweep's states carry their step index (``_At``), so that every step, recomputed or
-    reversed, runs at its model time (a time-dependent forcing's)."""
+    reversed, runs at its Δt and model time (``clock``: a time-dependent forcing's)."""
     device = model.device
     work = wp.zeros((3, model.N), dtype=f64, device=device)  # the stepper steps this array only
     stepper.prepare(work)
 
     def advance(state, steps=1):
         wp.copy(work, state.x)
-        stepper.steps = state.k  # its clock: t0 + (k + c)·Δt at each stage, as the run's
-        for _ in range(steps):
+        for k in range(state.k, state.k + steps):
+            clock.set(stepper, k)
+            stepper.steps = k  # its clock: t0_k + (k + c)·Δt_k at each stage, as the run's
             stepper.step(work)
         wp.copy(state.x, work)
         state.k += steps
@@ -317,6 +372,7 @@ def _reverse_run(model, stepper, adjoint, x0, steps, cost, snapshots, disk, inte
             final = copy(state)
             advance(final)
             finish(final)
+        clock.set(adjoint, k)
         adjoint.reverse(state.x, mu, k)
         if k in observed:  # μ(k) += R Q λ_k, x(k) at hand
             observe(state.x, k)

@@ -159,18 +159,18 @@ def test_hyperviscosity_step_s_transpose_in_the_mass_form(kind, per_element):
     assert abs(left - right) <= 1e-12 * scale
 
 
-def taylor_slopes(stepper, steps, weights, scene=None):
+def taylor_slopes(stepper, steps, weights, scene=None, **kw):
     """Remainders |J(x + εδx) − J(x) − ε⟨∇J, δx⟩| over ε = 1e-1 … 1e-5 and their log-log slopes
-    (``scene`` None: ``tc5(stepper)``)."""
+    (``scene`` None: ``tc5(stepper)``; ``kw`` to each ``gradient``)."""
     scene = tc5(stepper) if scene is None else scene
     model, _, x0 = scene_model(scene)
     rng = np.random.default_rng(0)
     cost = HeightMisfit(x0[2] + 50 * continuous(model, rng.standard_normal((3, model.N)))[2])
-    g = gradient(scene, steps, cost)
+    g = gradient(scene, steps, cost, **kw)
     dx = continuous(model, rng.standard_normal((3, model.N)) * np.array(weights)[:, None])
     dJ = np.sum(model.grid.spheremp * g.grad * dx)
     eps = 10.0 ** -np.arange(1.0, 5.5, 1.0)
-    rest = [abs(gradient(scene, steps, cost, x0=x0 + e * dx).cost - g.cost - e * dJ) for e in eps]
+    rest = [abs(gradient(scene, steps, cost, x0=x0 + e * dx, **kw).cost - g.cost - e * dJ) for e in eps]
     return np.diff(np.log(rest)) / np.diff(np.log(eps)), rest, g.cost
 
 
@@ -293,8 +293,12 @@ def test_gradient_refuses_an_implicit_stepper_and_bad_sizes():
     with pytest.raises(ValueError, match="explicit Runge–Kutta"):
         gradient(tc5("implicit"), 1, cost)
     controlled = load_scene("tc5_mountain", ne=2, stepper="bs32", overrides={"time.control": "error"})
-    with pytest.raises(ValueError, match="chosen step to step"):  # not silently a fixed-Δt run's gradient
+    with pytest.raises(ValueError, match="give history="):  # not silently a fixed-Δt run's gradient
         gradient(controlled, 1, cost)
+    with pytest.raises(ValueError, match="history holds 1 steps, fewer than the 2"):
+        gradient(controlled, 2, cost, history=[(1800.0, 1800.0, 0.5)])
+    with pytest.raises(ValueError, match="history step 1: dt -5.0 s must be > 0"):
+        gradient(controlled, 2, cost, history=[(1800.0, 1800.0, 0.5), (1795.0, -5.0, 0.5)])
     with pytest.raises(ValueError, match="steps and snapshots"):
         gradient(tc5(), 0, cost)
     with pytest.raises(ValueError, match=r"x0 must have shape \(3, 384\)"):
@@ -318,9 +322,9 @@ def misfit(model, x0, rng):
     return HeightMisfit(x0[2] + 50 * continuous(model, rng.standard_normal((3, model.N)))[2])
 
 
-def assert_initial_state_taylor(scene, stepper="rk4"):
-    """The initial state's Taylor remainder (``taylor_slopes``, 4 steps) falls as ε², above round-off."""
-    slopes, rest, J = taylor_slopes(stepper, 4, [1.0, 1.0, 10.0], scene)
+def assert_initial_state_taylor(scene, stepper="rk4", steps=4, **kw):
+    """The initial state's Taylor remainder (``taylor_slopes``) falls as ε², above round-off."""
+    slopes, rest, J = taylor_slopes(stepper, steps, [1.0, 1.0, 10.0], scene, **kw)
     assert np.all(np.abs(slopes - 2.0) < 0.1), (slopes, rest)
     assert rest[-1] > 1e4 * EPS * J
 
@@ -332,14 +336,14 @@ def assert_falls_as_eps_squared(perturbed, name=""):
     assert rest[-1] > 1e3 * EPS * J, (name, rest, J)
 
 
-def coefficients(scene, names, d, steps, cost, x0=None):
+def coefficients(scene, names, d, steps, cost, x0=None, **kw):
     """``perturbed`` for the ∇⁴ coefficients ``names`` moved together by ε · 0.2 × the first (the
     ∇⁴'s substeps the same for every ε here), ``d`` their gradient."""
     delta = 0.2 * getattr(scene, names[0])
 
     def perturbed(e):
         nus = {n: getattr(scene, n) + e * delta for n in names}
-        return gradient(dataclasses.replace(scene, **nus), steps, cost, x0=x0).cost, e * delta * d
+        return gradient(dataclasses.replace(scene, **nus), steps, cost, x0=x0, **kw).cost, e * delta * d
 
     return perturbed
 
@@ -355,10 +359,10 @@ def planet_constant(scene, key, d, steps, cost, x0):
     return perturbed
 
 
-def topography(scene, model, d_hs, dhs, steps, cost, x0):
+def topography(scene, model, d_hs, dhs, steps, cost, x0, **kw):
     """``perturbed`` for hs moved by ε·``dhs``, x(0) held, ``d_hs`` its gradient (mass form)."""
     hs0, dJ = model.hs.numpy(), np.sum(model.grid.spheremp * d_hs * dhs)
-    return lambda e: (gradient(scene, steps, cost, x0=x0, hs=hs0 + e * dhs).cost, e * dJ)
+    return lambda e: (gradient(scene, steps, cost, x0=x0, hs=hs0 + e * dhs, **kw).cost, e * dJ)
 
 
 @pytest.mark.parametrize("rows", ["nu", "nu_s"])
@@ -473,6 +477,42 @@ def test_a_run_on_a_mesh_file_has_a_gradient_whose_taylor_remainder_falls_as_eps
     slopes, rest, J = taylor_slopes("rk4", 4, [1.0, 1.0, 10.0], scene)
     assert np.all(np.abs(slopes - 2.0) < 0.1), (slopes, rest)
     assert rest[-1] > 1e4 * EPS * J
+
+
+@functools.cache
+def controlled_run(case, stepper, mode):
+    """``case`` at ne 2 np 4 under ``mode`` control (rtol 1e-4 under error) for 6 hours from a
+    first Δt of 1800 s, run as a ``Simulation``: (its scene, its steps' history, its final state)."""
+    over = {"time.control": mode} | ({"time.rtol": 1e-4} if mode == "error" else {})
+    scene = load_scene(case, ne=2, np_=4, dt=1800.0, stepper=stepper, overrides=over)
+    sim = Simulation(dataclasses.replace(scene, days=0.25), "cpu", progress=False)
+    sim.run(None)
+    return scene, tuple(sim.control.history), np.stack(sim.fields())
+
+
+@pytest.mark.parametrize(
+    ("case", "stepper", "mode"),
+    [("tc5_mountain", "bs32", "error"), ("tc5_mountain", "fbrk32", "cfl"), ("tc4_forced_low", "rk43", "error")],
+)
+def test_a_controlled_run_s_gradient_follows_the_steps_it_took(case, stepper, mode):
+    """A run whose steps its controller chose (an error-controlled pair; fbrk32 under a CFL
+    target; TC4's forcing at the steps' times) is differentiated along its history: the
+    gradient's forward run is the ``Simulation``'s to the bit, from every state and from three
+    snapshots alike, over Δt that vary, and with the steps held the Taylor remainders of x(0)
+    and ν fall as ε²."""
+    scene, history, final = controlled_run(case, stepper, mode)
+    steps = len(history)
+    assert len({dt for _, dt, _ in history}) >= 3, history  # measured: 17 (bs32), 9 (fbrk32), 4 (TC4 rk43)
+    model, _, x0 = scene_model(scene)
+    cost = misfit(model, x0, np.random.default_rng(12))
+    every = gradient(scene, steps, cost, history=history, parameters=True)
+    few = gradient(scene, steps, cost, history=history, parameters=True, snapshots=3)
+    np.testing.assert_array_equal(every.final, final)
+    np.testing.assert_array_equal(few.grad, every.grad)
+    assert_initial_state_taylor(scene, stepper, steps, history=history)
+    if "hyperviscosity" in scene.terms:
+        nu = coefficients(scene, ("nu", "nu_div"), every.d_nu, steps, cost, history=history)
+        assert_falls_as_eps_squared(nu, "nu")
 
 
 @requires_cuda

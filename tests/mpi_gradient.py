@@ -1,11 +1,13 @@
 """Run by ``test_mpi.py`` under ``mpiexec`` (and imported by it for the one-process run): the
 gradient of TC5 at ne 2 over a few rk4 steps, of a cost of h at points observed at three of
 them, with respect to the initial state, ν, ν_s and hs, from two snapshots (a recomputing
-reverse sweep). Rank 0 saves it: ``python mpi_gradient.py OUT.npz``."""
+reverse sweep); the same by leapfrog, and by rk4 along a history of steps of several Δt (a
+controlled run's). Rank 0 saves them: ``python mpi_gradient.py OUT.npz``."""
 
 from __future__ import annotations
 
 import sys
+from dataclasses import replace
 
 import numpy as np
 
@@ -15,6 +17,9 @@ from swe_sphere.core import mpi
 from swe_sphere.grid.cubed_sphere import CubedSphere
 
 STEPS = 6
+# (time reached, Δt, error norm) a step, as a controlled run's ``history``: Δt of 1800, 900 and 1200 s
+HISTORY = [(t, dt, float("nan")) for t, dt in ((1800.0, 1800.0), (2700.0, 900.0), (3900.0, 1200.0))]
+HISTORY += [(3900.0 + 1800.0 * k, 1800.0, float("nan")) for k in (1, 2, 3)]
 
 
 def whole_gradient(comm=None) -> dict[str, np.ndarray]:
@@ -25,13 +30,14 @@ def whole_gradient(comm=None) -> dict[str, np.ndarray]:
     lat, lon = np.arcsin(rng.uniform(-1, 1, 40)), rng.uniform(0, 2 * np.pi, 40)
     values = {k: 5400.0 + 100.0 * rng.standard_normal(40) for k in (0, 3, STEPS)}
     cost = HeightObservations(PointHeights(grid, lat, lon), values, sigma=10.0)
-    g = gradient(scene, STEPS, cost, snapshots=2, parameters=True, comm=comm)
-    return {
-        "grad": g.grad,
-        "final": g.final,
-        "d_hs": g.d_hs,
-        "numbers": np.array([g.cost, g.d_nu, g.d_nu_s, g.d_g, g.d_omega, g.forward_steps, *g.costs.values()]),
-    }
+    out = {}
+    runs = (("", scene, None), ("_leapfrog", replace(scene, stepper="leapfrog"), None), ("_history", scene, HISTORY))
+    for name, sc, history in runs:
+        g = gradient(sc, STEPS, cost, snapshots=2, parameters=True, comm=comm, history=history)
+        numbers = [g.cost, g.d_nu, g.d_nu_s, g.d_g, g.d_omega, g.forward_steps, *g.costs.values()]
+        out |= {f"grad{name}": g.grad, f"final{name}": g.final, f"d_hs{name}": g.d_hs}
+        out[f"numbers{name}"] = np.array(numbers)
+    return out
 
 
 if __name__ == "__main__":

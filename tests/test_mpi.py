@@ -409,8 +409,9 @@ def test_solver_steppers_agree_with_one_rank(tmp_path, rng):
 def test_a_gradient_is_the_same_bits_on_one_two_and_three_ranks(tmp_path):
     """A run's gradient over ranks (``adjoint.gradient(..., comm=)``, issue 66's "Checks"): a
     cost of h at 40 points observed at three of TC5's six rk4 steps, reversed from two
-    snapshots; its value, the final state and the gradients with respect to the initial
-    state, ν, ν_s and hs are the same bits on 2 and 3 ranks as in one process."""
+    snapshots, and the same by leapfrog and by rk4 along a history of three Δt; their values,
+    final states and gradients with respect to the initial state, ν, ν_s, hs, g and Ω are the
+    same bits on 2 and 3 ranks as in one process."""
     from mpi_gradient import whole_gradient
 
     one = whole_gradient()

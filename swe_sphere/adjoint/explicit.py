@@ -80,6 +80,8 @@ class StepAdjoint:
     live at once (kgu35, rk4: one); x̄, a running sum of the Ȳ, and k̄ where the transposes
     cannot read it as a combination (``_transpose``): kgu35 eight, with (2, N) f̄."""
 
+    levels = 1  # the states a step maps: x(n) alone (``leapfrog``'s: two)
+
     def __init__(self, model: ShallowWater, table, dt: float, parameters: bool = False, t0: float = 0.0):
         self._setup(model, dt, parameters, t0)
         self.A = [[float(a) for a in row] for row in table.A_E]
@@ -434,6 +436,11 @@ class StepAdjoint:
         self.stages(k)
         if self.substeps:
             self.hyperviscosity_transpose(mu)
+        self._replay(mu)
+
+    def _replay(self, mu) -> None:
+        """The transposes after the ∇⁴'s on μ: ``_record``'s segments, recorded once per μ, with
+        the parameters' sums of each F's (Y, k̄)."""
         recorded = self._adjoints.get(mu.ptr)
         if recorded is None:
             recorded = self._adjoints[mu.ptr] = (mu, self._record(mu))

@@ -16,11 +16,12 @@ from ..core.constants import DAY
 from ..grid.topology import on_ranks
 from ..model.shallow_water import ShallowWater
 from ..steppers import make_stepper
-from ..steppers.explicit import FBRK32
+from ..steppers.explicit import FBRK32, Leapfrog, LeapfrogTrapezoidal
 from ..steppers.runge_kutta import ExplicitRK
 from .disk import DiskTier
 from .explicit import StepAdjoint, _refusal
 from .forward_backward import ForwardBackwardAdjoint
+from .leapfrog import LeapfrogAdjoint
 from .revolve import sweep, two_level
 
 f64 = wp.float64
@@ -119,8 +120,10 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
         hs = _distributed(topo, hs, 1, "hs")[0]
     model = ShallowWater.from_scene(scene, grid, case if hs is None else _Topography(case, hs), topology=topo)
     stepper = make_stepper(scene.stepper, model, scene.dt, **scene.stepper_options)
-    if not isinstance(stepper, (ExplicitRK, FBRK32)):
-        raise ValueError(f"gradients need an explicit Runge–Kutta stepper or fbrk32 (got {scene.stepper!r})")
+    if not isinstance(stepper, (ExplicitRK, FBRK32, Leapfrog, LeapfrogTrapezoidal)):
+        raise ValueError(
+            f"gradients need an explicit Runge–Kutta stepper, fbrk32 or a leapfrog (got {scene.stepper!r})"
+        )
     return model, stepper, np.stack(case.initial(grid.lat, grid.lon))
 
 
@@ -153,7 +156,8 @@ class Clock:
     def set(self, stepper, k: int) -> None:
         """``stepper`` (or an adjoint: ``set_dt``, ``t0``) at step k's Δt and clock."""
         t0, dt = self(k)
-        stepper.set_dt(dt)
+        if dt != stepper.dt:  # a three-level stepper keeps one Δt; a controlled run's change step to step
+            stepper.set_dt(dt)
         stepper.t0 = t0
 
 
@@ -162,6 +166,8 @@ def step_adjoint(model: ShallowWater, stepper, parameters: bool = False) -> Step
     ``FBRK32``) on ``model``, its steps from the stepper's ``t0``. ValueError as its class."""
     if isinstance(stepper, FBRK32):
         return ForwardBackwardAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
+    if isinstance(stepper, (Leapfrog, LeapfrogTrapezoidal)):
+        return LeapfrogAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
     return StepAdjoint(model, stepper.table(), stepper.dt, parameters, stepper.t0)
 
 
@@ -330,41 +336,48 @@ def _reverse_run(model, stepper, adjoint, clock, x0, steps, cost, snapshots, dis
     ``gradient``: the run from x0 (3, N) numpy and its reverse sweep, in memory or with a disk
     tier; ``cost`` a cost of the run (``run_cost``), called once at each of its steps. The
     sweep's states carry their step index (``_At``), so that every step, recomputed or
-    reversed, runs at its Δt and model time (``clock``: a time-dependent forcing's)."""
-    device = model.device
+    reversed, runs at its Δt and model time (``clock``: a time-dependent forcing's). A
+    three-level scheme's states and adjoints are (6, N), x(k) and the stepper's x̃(k−1)
+    (``leapfrog``), the cost reading rows 0–2."""
+    device, rows = model.device, 3 * adjoint.levels
     work = wp.zeros((3, model.N), dtype=f64, device=device)  # the stepper steps this array only
     stepper.prepare(work)
+    X, O = slice(0, 3), slice(3, rows)
 
     def advance(state, steps=1):
-        wp.copy(work, state.x)
+        wp.copy(work, state.x[X])
+        if rows > 3:
+            wp.copy(stepper.old, state.x[O])
         for k in range(state.k, state.k + steps):
             clock.set(stepper, k)
             stepper.steps = k  # its clock: t0_k + (k + c)·Δt_k at each stage, as the run's
             stepper.step(work)
-        wp.copy(state.x, work)
+        wp.copy(state.x[X], work)
+        if rows > 3:
+            wp.copy(state.x[O], stepper.old)
         state.k += steps
 
     def copy(state):
         return _At(wp.clone(state.x), state.k)
 
-    mu = wp.zeros((3, model.N), dtype=f64, device=device)
+    mu = wp.zeros((rows, model.N), dtype=f64, device=device)
     found, observed = {"costs": {}}, set(cost.at_steps)
     lam = wp.zeros((3, model.N), dtype=f64, device=device)
-    add = model.topology.dss_update(lam, [(mu, ((1.0, mu), (1.0, None)))], weighted=False)  # μ += R Q λ
+    add = model.topology.dss_update(lam, [(mu[X], ((1.0, mu[X]), (1.0, None)))], weighted=False)  # μ += R Q λ
     topo = model.topology
     spheremp = topo.gather(model.grid.spheremp)  # the whole grid's on rank 0 (None elsewhere)
 
     def observe(x, k):  # J_k at x(k) into found, λ_k into ``lam``: the cost on rank 0, the whole grid
-        whole = topo.gather(np.array(x.numpy()))
+        whole = topo.gather(np.array(x.numpy()[X]))
         J, lam_k = (None, None) if whole is None else cost(k, whole, spheremp)
         found["costs"][k] = topo.bcast(J)
         lam.assign(topo.distribute(None if lam_k is None else np.asarray(lam_k, dtype=float), 3, "the cost's λ"))
 
     def finish(state):  # J_n at x(n) and μ = R Q λ_n there (0 where n is not observed)
-        found["final"] = state.x.numpy()
+        found["final"] = state.x.numpy()[X]
         if steps in observed:
             observe(state.x, steps)
-            for launch in model.topology.dss(lam, False, mu):
+            for launch in model.topology.dss(lam, False, mu[X]):
                 launch.launch()
 
     def reverse(state, k):
@@ -379,12 +392,14 @@ def _reverse_run(model, stepper, adjoint, clock, x0, steps, cost, snapshots, dis
             for launch in add:
                 launch.launch()
 
-    x, used = _At(wp.array(x0, dtype=f64, device=device), 0), 0
+    start = np.zeros((rows, model.N))
+    start[X] = x0  # x̃(−1) is not read: the three-level schemes' first step is a midpoint step
+    x, used = _At(wp.array(start, dtype=f64, device=device), 0), 0
     if disk is None:
         taken = 1 + sweep(steps, snapshots, x, advance, reverse, copy)
     else:
-        with DiskTier(disk, (3, model.N), device) as tier:
+        with DiskTier(disk, (rows, model.N), device) as tier:
             indexed = _IndexedTier(tier, interval)
             taken = two_level(steps, snapshots, interval, x, advance, reverse, copy, indexed, finish)
             used = tier.bytes
-    return found, mu.numpy(), taken, used
+    return found, mu.numpy()[X], taken, used

@@ -1,0 +1,136 @@
+"""The adjoint tests' shared pieces: small scenes (TC5, TC4 at ne 2 np 4), continuous fields,
+and Taylor tests (the remainder of J(p + εδp) − J(p) − ε⟨∇J, δp⟩ falling as ε²)."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import numpy as np
+import warp as wp
+
+from swe_sphere.adjoint import HeightMisfit, gradient
+from swe_sphere.adjoint.gradient import scene_model
+from swe_sphere.config.scene import load_scene
+
+EPS = float(np.finfo(np.float64).eps)
+f64 = wp.float64
+
+
+@functools.cache
+def tc5(stepper="rk4"):
+    """TC5 at ne 2 np 4, Δt 1800 s (its terms all, the ∇⁴ at the e-folding rule's ν)."""
+    return load_scene("testcases/tc5_mountain.toml", ne=2, np_=4, dt=1800.0, stepper=stepper)
+
+
+@functools.cache
+def setup(stepper="rk4"):
+    return scene_model(tc5(stepper))
+
+
+def continuous(model, a):
+    """The weighted DSS of a (3, N): a continuous state."""
+    out = wp.zeros((3, model.N), dtype=f64)
+    for launch in model.topology.dss(wp.array(a, dtype=f64), True, out):
+        launch.launch()
+    return out.numpy()
+
+
+@functools.cache
+def tensor_tc5():
+    """TC5 at ne 2 np 4 with HOMME's tensor ∇⁴ (hypervis_scaling 3.2, Guba et al. 2014)."""
+    return load_scene(
+        "testcases/tc5_mountain.toml",
+        ne=2,
+        np_=4,
+        dt=1800.0,
+        stepper="rk4",
+        overrides={"hyperviscosity.scaling": 3.2},
+    )
+
+
+def divergent_tc5(tensor=False):
+    """TC5 at ne 2 np 4 with ν_div = 2.5 ν (HOMME's nu_div: the ∇δ term), constant or tensor ∇⁴."""
+    scene = tensor_tc5() if tensor else tc5()
+    return dataclasses.replace(scene, nu_div=2.5 * scene.nu)
+
+
+def taylor_slopes(stepper, steps, weights, scene=None, **kw):
+    """Remainders |J(x + εδx) − J(x) − ε⟨∇J, δx⟩| over ε = 1e-1 … 1e-5 and their log-log slopes
+    (``scene`` None: ``tc5(stepper)``; ``kw`` to each ``gradient``)."""
+    scene = tc5(stepper) if scene is None else scene
+    model, _, x0 = scene_model(scene)
+    rng = np.random.default_rng(0)
+    cost = HeightMisfit(x0[2] + 50 * continuous(model, rng.standard_normal((3, model.N)))[2])
+    g = gradient(scene, steps, cost, **kw)
+    dx = continuous(model, rng.standard_normal((3, model.N)) * np.array(weights)[:, None])
+    dJ = np.sum(model.grid.spheremp * g.grad * dx)
+    eps = 10.0 ** -np.arange(1.0, 5.5, 1.0)
+    rest = [abs(gradient(scene, steps, cost, x0=x0 + e * dx, **kw).cost - g.cost - e * dJ) for e in eps]
+    return np.diff(np.log(rest)) / np.diff(np.log(eps)), rest, g.cost
+
+
+def parameter_slopes(perturbed):
+    """Taylor slopes of J along a parameter direction: ``perturbed(e)`` → (J at e, its
+    first-order change ε⟨∇J, δ⟩ from the gradient at 0)."""
+    eps = 10.0 ** -np.arange(1.0, 3.5, 1.0)  # below 1e-3 the remainder nears J's round-off (1e-16 J)
+    J0 = perturbed(0.0)[0]
+    rest = []
+    for e in eps:
+        J, dJ = perturbed(e)
+        rest.append(abs(J - J0 - dJ))
+    return np.diff(np.log(rest)) / np.diff(np.log(eps)), rest, J0
+
+
+def misfit(model, x0, rng):
+    """A height misfit against h(0) plus 50 m of continuous noise drawn from ``rng``."""
+    return HeightMisfit(x0[2] + 50 * continuous(model, rng.standard_normal((3, model.N)))[2])
+
+
+def assert_initial_state_taylor(scene, stepper="rk4", steps=4, **kw):
+    """The initial state's Taylor remainder (``taylor_slopes``) falls as ε², above round-off."""
+    slopes, rest, J = taylor_slopes(stepper, steps, [1.0, 1.0, 10.0], scene, **kw)
+    assert np.all(np.abs(slopes - 2.0) < 0.1), (slopes, rest)
+    assert rest[-1] > 1e4 * EPS * J
+
+
+def assert_falls_as_eps_squared(perturbed, name=""):
+    """A parameter's Taylor remainder (``parameter_slopes``) falls as ε², its last above J's round-off."""
+    slopes, rest, J = parameter_slopes(perturbed)
+    assert np.all(np.abs(slopes - 2.0) < 0.1), (name, slopes, rest)
+    assert rest[-1] > 1e3 * EPS * J, (name, rest, J)
+
+
+def coefficients(scene, names, d, steps, cost, x0=None, **kw):
+    """``perturbed`` for the ∇⁴ coefficients ``names`` moved together by ε · 0.2 × the first (the
+    ∇⁴'s substeps the same for every ε here), ``d`` their gradient."""
+    delta = 0.2 * getattr(scene, names[0])
+
+    def perturbed(e):
+        nus = {n: getattr(scene, n) + e * delta for n in names}
+        return gradient(dataclasses.replace(scene, **nus), steps, cost, x0=x0, **kw).cost, e * delta * d
+
+    return perturbed
+
+
+def planet_constant(scene, key, d, steps, cost, x0):
+    """``perturbed`` for the planet's ``key`` moved by ε · 5 %, x(0) held, ``d`` its gradient."""
+    delta = 0.05 * scene.planet[key]
+
+    def perturbed(e):
+        planet = {**scene.planet, key: scene.planet[key] + e * delta}
+        return gradient(dataclasses.replace(scene, planet=planet), steps, cost, x0=x0).cost, e * delta * d
+
+    return perturbed
+
+
+def topography(scene, model, d_hs, dhs, steps, cost, x0, **kw):
+    """``perturbed`` for hs moved by ε·``dhs``, x(0) held, ``d_hs`` its gradient (mass form)."""
+    hs0, dJ = model.hs.numpy(), np.sum(model.grid.spheremp * d_hs * dhs)
+    return lambda e: (gradient(scene, steps, cost, x0=x0, hs=hs0 + e * dhs, **kw).cost, e * dJ)
+
+
+@functools.cache
+def tc4():
+    """TC4 (the forced translating low: an analytic forcing of x and t) at ne 2 np 4, rk4 at Δt 1800 s."""
+    return load_scene("tc4_forced_low", ne=2, np_=4, dt=1800.0, stepper="rk4")

@@ -31,12 +31,12 @@ def whole_gradient(comm=None) -> dict[str, np.ndarray]:
     values = {k: 5400.0 + 100.0 * rng.standard_normal(40) for k in (0, 3, STEPS)}
     cost = HeightObservations(PointHeights(grid, lat, lon), values, sigma=10.0)
     out = {}
-    runs = (("", scene, None), ("_leapfrog", replace(scene, stepper="leapfrog"), None), ("_history", scene, HISTORY))
+    runs = (("rk4", scene, None), ("leapfrog", replace(scene, stepper="leapfrog"), None), ("history", scene, HISTORY))
     for name, sc, history in runs:
         g = gradient(sc, STEPS, cost, snapshots=2, parameters=True, comm=comm, history=history)
         numbers = [g.cost, g.d_nu, g.d_nu_s, g.d_g, g.d_omega, g.forward_steps, *g.costs.values()]
-        out |= {f"grad{name}": g.grad, f"final{name}": g.final, f"d_hs{name}": g.d_hs}
-        out[f"numbers{name}"] = np.array(numbers)
+        out |= {f"{key}_{name}": value for key, value in (("grad", g.grad), ("final", g.final), ("d_hs", g.d_hs))}
+        out[f"numbers_{name}"] = np.array(numbers)
     return out
 
 

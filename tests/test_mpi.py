@@ -415,7 +415,9 @@ def test_a_gradient_is_the_same_bits_on_one_two_and_three_ranks(tmp_path):
     from mpi_gradient import whole_gradient
 
     one = whole_gradient()
-    assert np.all(np.abs(one["grad"]).max(axis=1) > 0) and np.all(one["numbers"][1:3] != 0)  # every row and ν moved
+    assert np.all(np.abs(one["grad_rk4"]).max(axis=1) > 0) and np.all(
+        one["numbers_rk4"][1:3] != 0
+    )  # every row and ν moved
     script = Path(__file__).with_name("mpi_gradient.py")
     for ranks in (2, 3):
         proc = mpirun_python(ranks, [str(script), f"g{ranks}.npz"], tmp_path)

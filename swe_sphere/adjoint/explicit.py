@@ -54,7 +54,7 @@ f64 = wp.float64
 HELD_DTS = 8
 
 
-def _refusal(model: ShallowWater, dt: float) -> str | None:
+def refusal(model: ShallowWater, dt: float) -> str | None:
     """Why the adjoint cannot serve ``model`` at step dt (None: it can)."""
     if model.hv is not None:
         if model.nu_div != model.nu and model.nu == 0:
@@ -72,7 +72,7 @@ class StepAdjoint:
     also sums ∂J/∂ν, ∂J/∂ν_s (``d_nu``) and the hs adjoint (``d_hs``, ``hs_gradient``) over
     the steps reversed. CPU or CUDA; on a rank's part of the grid (the model's ``topology``:
     μ on its nodes, the DSS's exchanges in the transposes, ``d_nu`` the same on every rank,
-    the same bits on any number of ranks). ValueError (``_refusal``) for a model it cannot
+    the same bits on any number of ranks). ValueError (``refusal``) for a model it cannot
     serve.
 
     Work arrays (3, N) held: the s stages Y_i; K_j = F(Y_j) only where a stage after the next
@@ -95,9 +95,9 @@ class StepAdjoint:
         self._for_dt()
 
     def _setup(self, model: ShallowWater, dt: float, parameters: bool, t0: float) -> None:
-        """What every step's adjoint holds (``_refusal`` checked): the transposes' x̄ and f̄, the
+        """What every step's adjoint holds (``refusal`` checked): the transposes' x̄ and f̄, the
         parameters' sums and the ∇⁴'s substeps."""
-        why = _refusal(model, dt)
+        why = refusal(model, dt)
         if why is not None:
             raise ValueError(why)
         self.model, self.dt, self.parameters, self.t0 = model, float(dt), bool(parameters), float(t0)
@@ -140,12 +140,12 @@ class StepAdjoint:
     def set_dt(self, dt: float) -> None:
         """Reverse the next steps at Δt = ``dt`` (s): a run whose steps the controller chose
         (``gradient(..., history=)``). The records of the last ``HELD_DTS`` Δt are kept, so
-        that a Δt that recurs replays its launches. ValueError (``_refusal``) for a Δt the
+        that a Δt that recurs replays its launches. ValueError (``refusal``) for a Δt the
         adjoint cannot serve (the ∇⁴'s RKL1 super-step)."""
         dt = float(dt)
         if dt == self.dt:
             return
-        why = _refusal(self.model, dt)
+        why = refusal(self.model, dt)
         if why is not None:
             raise ValueError(why)
         self._held[self.dt] = {key: getattr(self, key) for key in self._PER_DT}

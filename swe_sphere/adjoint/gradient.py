@@ -19,7 +19,7 @@ from ..steppers import make_stepper
 from ..steppers.explicit import FBRK32, Leapfrog, LeapfrogTrapezoidal
 from ..steppers.runge_kutta import ExplicitRK
 from .disk import DiskTier
-from .explicit import StepAdjoint, _refusal
+from .explicit import StepAdjoint, refusal
 from .forward_backward import ForwardBackwardAdjoint
 from .leapfrog import LeapfrogAdjoint
 from .revolve import sweep, two_level
@@ -260,7 +260,7 @@ def gradient(
     outside 0 … n, a controlled scene without a history, a history shorter than n or with a bad
     step (``Clock``), a
     disk_interval without a disk, a disk that is not an existing folder, x0 or hs of another
-    shape, or a scene the adjoint cannot serve (``explicit._refusal``, a non-explicit stepper);
+    shape, or a scene the adjoint cannot serve (``explicit.refusal``, a non-explicit stepper);
     OSError from the disk (full, unwritable).
 
     Sources: the adjoints of ``explicit`` (the tendency, the DSS and the ∇⁴ transposed by
@@ -277,7 +277,7 @@ def gradient(
     clock = _clock(scene, steps, history)
     model, stepper, initial = scene_model(scene, device, hs, comm)
     for dt in {clock(k)[1] for k in range(steps)}:  # every Δt served before a step is taken
-        if (why := _refusal(model, dt)) is not None:
+        if (why := refusal(model, dt)) is not None:
             raise ValueError(why)
     topo = model.topology
     x0 = initial if x0 is None else _distributed(topo, x0, 3, "x0")

@@ -14,7 +14,8 @@ What changes, and why it keeps the pages' order meaningful:
   (``coarser_dt``: the same Courant number).
 - A default file name in any argument (``…_ne8np4_ssprk3.nc``) says the shortened grid.
 - A sweep makes one run: the first of ``--runs``, or the first of ``--steppers`` at the
-  first of ``--courant`` (``--dt``); ``stability`` bisects the first of ``--steppers``;
+  first of ``--courant`` (``--dt``); ``stability`` bisects the first of ``--steppers`` on
+  the first of its cases (each case's bisection is the same code on another scene);
   ``--workers`` is dropped (each worker process imports the model again, which costs
   more than a tiny run).
 - A frontier keeps the first of its ``--ne`` (shortened as a run's) and ``--steppers`` and two of
@@ -88,6 +89,9 @@ def shorten(argv: list[str]) -> list[str]:
     if "--workers" in args:
         i = args.index("--workers")
         del args[i : i + 2]
+    if command == "stability":  # its first case: the cases are the arguments before the first option
+        cases = next((i for i, a in enumerate(args) if a.startswith("-")), len(args))
+        del args[1:cases]
     for option, n in KEPT.get(command, {}).items():
         if option in args[:-1]:
             i = args.index(option) + 1

@@ -288,12 +288,19 @@ def test_split_explicit_defaults_hold_tc2_rotated_over_100_days():
 
 
 @pytest.mark.parametrize("stepper", ["split_explicit", "mri"])
-@pytest.mark.parametrize("case, multiple", [("tc5_mountain", 6), ("tc6_rossby_haurwitz", 4), ("galewsky", 6)])
+@pytest.mark.parametrize(
+    "case, multiple",
+    [
+        pytest.param("tc5_mountain", 6, marks=pytest.mark.slow),  # long by construction: TC6, the
+        ("tc6_rossby_haurwitz", 4),  # case nearest its limit, stays in the default run
+        pytest.param("galewsky", 6, marks=pytest.mark.slow),
+    ],
+)
 def test_stable_over_twice_the_scene_at_the_defaults(stepper, case, multiple):
     """ne 8, twice the scene's length (TC5 30 days, TC6 28, Galewsky 12) at the defaults and a
     slow step of 6 Δt_g (TC6 4 Δt_g: its advective Courant number is 0.32 of the gravity
     waves', 1.26 there). Measured: every one stable; TC6 blew up at 5.9 Δt_g (split_explicit)
-    and, with MIS3C instead of MIS4a, at 2.9 Δt_g."""
+    and, with MIS3C instead of MIS4a, at 2.9 Δt_g. TC5 and Galewsky run with ``-m slow``."""
     base = load_scene(case, ne=8, np_=4)
     base = load_scene(case, ne=8, np_=4, days=2 * base.days, stepper=stepper)
     dt = 86400.0 / math.ceil(86400.0 / (multiple * explicit_limits(base, "cpu")["dt_gravity"]))

@@ -190,7 +190,7 @@ class StepAdjoint:
         if not terms:
             out.zero_()
             return
-        key = (out.ptr, *((c, x.ptr) for c, x in terms))
+        key = (out.ptr, out.shape, *((c, x.ptr, x.shape) for c, x in terms))  # a row view shares its array's ptr
         launches = self._combinations.get(key)
         if launches is None:
             passes = [terms[:4], *([(1.0, out), *terms[i : i + 3]] for i in range(4, len(terms), 3))]

@@ -17,11 +17,13 @@ from ..grid.topology import on_ranks
 from ..model.shallow_water import ShallowWater
 from ..steppers import make_stepper
 from ..steppers.explicit import FBRK32, Leapfrog, LeapfrogTrapezoidal
+from ..steppers.multirate import SplitExplicit
 from ..steppers.runge_kutta import ExplicitRK
 from .disk import DiskTier
 from .explicit import StepAdjoint, refusal
 from .forward_backward import ForwardBackwardAdjoint
 from .leapfrog import LeapfrogAdjoint
+from .multirate import SplitExplicitAdjoint
 from .revolve import sweep, two_level
 
 f64 = wp.float64
@@ -120,9 +122,9 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
         hs = _distributed(topo, hs, 1, "hs")[0]
     model = ShallowWater.from_scene(scene, grid, case if hs is None else _Topography(case, hs), topology=topo)
     stepper = make_stepper(scene.stepper, model, scene.dt, **scene.stepper_options)
-    if not isinstance(stepper, (ExplicitRK, FBRK32, Leapfrog, LeapfrogTrapezoidal)):
+    if not isinstance(stepper, (ExplicitRK, FBRK32, Leapfrog, LeapfrogTrapezoidal, SplitExplicit)):
         raise ValueError(
-            f"gradients need an explicit Runge–Kutta stepper, fbrk32 or a leapfrog (got {scene.stepper!r})"
+            f"gradients need an explicit Runge–Kutta stepper, fbrk32, a leapfrog or split_explicit (got {scene.stepper!r})"
         )
     return model, stepper, np.stack(case.initial(grid.lat, grid.lon))
 
@@ -168,6 +170,8 @@ def step_adjoint(model: ShallowWater, stepper, parameters: bool = False) -> Step
         return ForwardBackwardAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
     if isinstance(stepper, (Leapfrog, LeapfrogTrapezoidal)):
         return LeapfrogAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
+    if isinstance(stepper, SplitExplicit):
+        return SplitExplicitAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
     return StepAdjoint(model, stepper.table(), stepper.dt, parameters, stepper.t0)
 
 

@@ -33,7 +33,7 @@ class SplitExplicitAdjoint(StepAdjoint):
     g and the slow part's hs are not summed yet), a model with a forcing, and as ``StepAdjoint``.
 
     Work arrays (3, N): x(n) in h′, the stages' ends z_0…z_2, S, every substep's (v, h_s)
-    (Σ n_i of them), and seven for the adjoints."""
+    (Σ n_i of them), four for the adjoints; (1, N): h̄_old and h̄_s."""
 
     def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
         if parameters or "forcing" in model.terms:
@@ -55,7 +55,8 @@ class SplitExplicitAdjoint(StepAdjoint):
         """The stages and substeps of the step from x = x(n) (full depth), as the stepper takes
         them: z_i, and every substep's W in ``winds``."""
         st, m = self.stepper, self.model
-        split, depth = st.split, st.split.depth
+        assert st.split.H != 0.0  # the stepper's first step fixed H (the sweep steps forward before it reverses)
+        depth = st.split.depth
         if not self.winds:
             self.winds = [self._zeros(3) for _ in range(sum(st.n_fast))]
         self.combine(self.xn, [(1.0, x)])
@@ -71,7 +72,6 @@ class SplitExplicitAdjoint(StepAdjoint):
                 wp.copy(self.winds[j], st.W)
                 j += 1
             self.combine(out[0:2], [(1.0, st.W[0:2])])
-        assert split.H != 0.0  # the stepper's first step fixed H (the sweep steps forward before it reverses)
 
     def _record(self, mu) -> list:
         """The launches of the reverse after the ∇⁴'s transpose (module doc), as one segment."""

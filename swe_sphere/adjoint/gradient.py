@@ -17,13 +17,13 @@ from ..grid.topology import on_ranks
 from ..model.shallow_water import ShallowWater
 from ..steppers import make_stepper
 from ..steppers.explicit import FBRK32, Leapfrog, LeapfrogTrapezoidal
-from ..steppers.multirate import SplitExplicit
+from ..steppers.multirate import Mri, SplitExplicit
 from ..steppers.runge_kutta import ExplicitRK
 from .disk import DiskTier
 from .explicit import StepAdjoint, refusal
 from .forward_backward import ForwardBackwardAdjoint
 from .leapfrog import LeapfrogAdjoint
-from .multirate import SplitExplicitAdjoint
+from .multirate import MriAdjoint, SplitExplicitAdjoint
 from .revolve import sweep, two_level
 
 f64 = wp.float64
@@ -122,9 +122,10 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
         hs = _distributed(topo, hs, 1, "hs")[0]
     model = ShallowWater.from_scene(scene, grid, case if hs is None else _Topography(case, hs), topology=topo)
     stepper = make_stepper(scene.stepper, model, scene.dt, **scene.stepper_options)
-    if not isinstance(stepper, (ExplicitRK, FBRK32, Leapfrog, LeapfrogTrapezoidal, SplitExplicit)):
+    if not isinstance(stepper, (ExplicitRK, FBRK32, Leapfrog, LeapfrogTrapezoidal, SplitExplicit, Mri)):
         raise ValueError(
-            f"gradients need an explicit Runge–Kutta stepper, fbrk32, a leapfrog or split_explicit (got {scene.stepper!r})"
+            "gradients need an explicit Runge–Kutta stepper, fbrk32, a leapfrog, split_explicit or mri "
+            f"(got {scene.stepper!r})"
         )
     return model, stepper, np.stack(case.initial(grid.lat, grid.lon))
 
@@ -172,6 +173,8 @@ def step_adjoint(model: ShallowWater, stepper, parameters: bool = False) -> Step
         return LeapfrogAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
     if isinstance(stepper, SplitExplicit):
         return SplitExplicitAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
+    if isinstance(stepper, Mri):
+        return MriAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
     return StepAdjoint(model, stepper.table(), stepper.dt, parameters, stepper.t0)
 
 

@@ -24,10 +24,30 @@ from __future__ import annotations
 import warp as wp
 
 from ..model.shallow_water import ShallowWater
+from ..steppers.butcher import TableauOptions, parse
+from ..steppers.tables import EXPLICIT
 from .explicit import StepAdjoint
 
 
-class SplitExplicitAdjoint(StepAdjoint):
+class _Recomputed(StepAdjoint):
+    """A step's adjoint that takes the step's stages again from x(n) itself (``_recompute``),
+    then reverses the ∇⁴ and its recorded transposes (``_record``)."""
+
+    def _stage_plan(self, zeros) -> None:
+        """None: ``_recompute`` forms the stages."""
+
+    def _recompute(self, x) -> None:
+        raise NotImplementedError
+
+    def reverse(self, x, mu, k: int = 0) -> None:
+        """μ of x(k+1) → μ of x(k), in place; x = x(k) (read only)."""
+        self._recompute(x)
+        if self.substeps:
+            self.hyperviscosity_transpose(mu)
+        self._replay(mu)
+
+
+class SplitExplicitAdjoint(_Recomputed):
     """The adjoint of one ``SplitExplicit`` step (``stepper``) of ``model`` at Δt = ``dt`` (s):
     ``reverse(x, mu, k)`` as ``StepAdjoint``'s. ValueError for ``parameters`` (the substeps'
     g and the slow part's hs are not summed yet), a model with a forcing, and as ``StepAdjoint``.
@@ -48,10 +68,7 @@ class SplitExplicitAdjoint(StepAdjoint):
         self.old, self.hs_bar = zeros(1), zeros(1)
         self._for_dt()
 
-    def _stage_plan(self, zeros) -> None:
-        """None: ``reverse`` recomputes the stages with the stepper's substeps."""
-
-    def _substeps(self, x) -> None:
+    def _recompute(self, x) -> None:
         """The stages and substeps of the step from x = x(n) (full depth), as the stepper takes
         them: z_i, and every substep's W in ``winds``."""
         st, m = self.stepper, self.model
@@ -116,9 +133,130 @@ class SplitExplicitAdjoint(StepAdjoint):
         out.append(m.lincomb(mu, [(1.0, acc)]))
         return [(None, None, out)]
 
-    def reverse(self, x, mu, k: int = 0) -> None:
-        """μ of x(k+1) → μ of x(k), in place; x = x(k) (read only)."""
-        self._substeps(x)
-        if self.substeps:
-            self.hyperviscosity_transpose(mu)
-        self._replay(mu)
+
+class MriAdjoint(_Recomputed):
+    """The adjoint of one ``Mri`` step (``stepper``: its table ``tab``, an explicit Runge–Kutta
+    ``inner``) of ``model`` at Δt = ``dt`` (s): ``reverse(x, mu, k)`` as ``StepAdjoint``'s.
+
+    The step in h′ (module doc), Y_1 = x(n), D_j = Y_(j+1) − x(n), for r = 0 … s−1:
+    S_r = N(Y_(r+1)) (the RHS without its pressure gradient, at h′), and the solve
+    z(0) = x(n) + Σ_j α_rj D_j, dz/dσ = L z + ρ⁰ + (σ/T) ρ¹ over T = d_r Δt in n_r steps of the
+    inner table (Z_i = z + τ Σ_j a_ij K_j, K_i = L Z_i + ρ(θ_i), z ← z + τ Σ b_i K_i), ρ⁰ =
+    Σ_j (β_rj S_j + γ_rj D_j / Δt) / d_r, ρ¹ = Σ_j β¹_rj S_j / d_r, gives Y_(r+2); x(n+1) =
+    H(Y_(s+1)). L is linear (L x = (−g G h′, −H D v)), so the solves reverse without their
+    states: K̄_i = τ (b_i z̄ + Σ_l a_li Z̄_l), Z̄_i = Lᵀ K̄_i, ρ̄⁰ += K̄_i, ρ̄¹ += θ_i K̄_i, z̄ += Σ Z̄_i,
+    Lᵀ the pressure gradient's and the continuity's transposes at (0, 0, H); then the
+    combinations' coefficients carry z̄(0), ρ̄⁰ and ρ̄¹ to x̄(n), the Ȳ_(j+1) and the S̄_j, and
+    S̄_r to Ȳ_(r+1) by Nᵀ at Y_(r+1), the stages last first. Each reversed step recomputes its
+    stages Y_(r+1) from x(n) (the inner steps by the Butcher form, the stepper's to round-off).
+    ValueError for ``parameters``, a forcing, the fbrk32 inner method, and as ``StepAdjoint``.
+
+    Work arrays (3, N): the s stages and slow tendencies, the inner stages' K_i and Z̄_i,
+    and nine for the solves and the adjoints."""
+
+    def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
+        if parameters or "forcing" in model.terms or stepper.options.inner == "fbrk32":
+            raise ValueError(
+                "mri's gradient is of the initial state alone, with an inner Runge–Kutta table and no forcing yet"
+            )
+        self._setup(model, dt, parameters, t0)
+        self.stepper, self.tab = stepper, stepper.tab
+        inner = parse(TableauOptions(**EXPLICIT[stepper.options.inner]))
+        self.a = [[float(v) for v in row] for row in inner.A_E]
+        self.b, self.ci = [float(v) for v in inner.b_E], [float(v) for v in inner.c]
+        zeros, s = self._zeros, len(self.tab.d)
+        self.Y = [zeros(3) for _ in range(s)]  # Y_1 = x(n) … Y_s, in h′
+        self.S = [zeros(3) for _ in range(s)]
+        self.K = [zeros(3) for _ in self.b]
+        self.z, self.Z, self.rho0, self.rho1, self.rho = (zeros(3) for _ in range(5))
+        self.Ybar, self.Sbar = [zeros(3) for _ in range(s)], [zeros(3) for _ in range(s)]
+        self.zbar, self.kbar_, self.tmp = zeros(3), zeros(3), zeros(3)
+        self.at_H = zeros(3)  # (0, 0, H): where the continuity's transpose is L's depth row's
+        self._for_dt()
+
+    def _solve_terms(self, r: int):
+        """Solve r's z(0), ρ⁰ and ρ¹ as (coefficient, array) terms over x(n), the Y_(j+1) and the S_j."""
+        t, dt, Y, S = self.tab, self.dt, self.Y, self.S
+        d = float(t.d[r])
+        alpha = [float(t.alpha[r, j]) for j in range(1, r + 1)]
+        gamma = [float(t.gamma[r, j]) / (d * dt) for j in range(1, r + 1)]
+        z0 = [(1.0 - sum(alpha), Y[0]), *zip(alpha, Y[1 : r + 1])]
+        rho0 = [
+            *((float(t.beta[r, j]) / d, S[j]) for j in range(r + 1)),
+            (-sum(gamma), Y[0]),
+            *zip(gamma, Y[1 : r + 1]),
+        ]
+        rho1 = [(float(t.beta1[r, j]) / d, S[j]) for j in range(r + 1)]
+        return z0, rho0, rho1, bool(t.beta1[r].any())
+
+    def _recompute(self, x) -> None:
+        """Y_1 … Y_s of the step from x = x(n) (full depth), in h′ (class doc)."""
+        st, split = self.stepper, self.stepper.split
+        assert split.H != 0.0  # the stepper's first step fixed H (the sweep steps forward before it reverses)
+        self.combine(self.Y[0], [(1.0, x)])
+        self.combine(self.Y[0][2:3], [(1.0, x[2:3]), (-1.0, split.depth)])
+        self.combine(self.at_H[2:3], [(1.0, split.depth)])
+        for r in range(len(self.tab.d) - 1):
+            split.slow(self.Y[r], self.S[r])
+            z0, rho0, rho1, timed = self._solve_terms(r)
+            z = self.Y[r + 1]
+            self.combine(z, z0)
+            self.combine(self.rho0, rho0)
+            self.combine(self.rho1, rho1)
+            n = st.n_fast[r]
+            tau = float(self.tab.d[r]) * self.dt / n
+            for k in range(n):
+                for i, row in enumerate(self.a):
+                    self.combine(self.Z, [(1.0, z), *((tau * a, K) for a, K in zip(row[:i], self.K))])
+                    rho = self.rho0
+                    if timed:
+                        rho = self.rho
+                        self.combine(rho, [(1.0, self.rho0), ((k + self.ci[i]) / n, self.rho1)])
+                    split.fast(self.Z, self.K[i], rho)
+                self.combine(z, [(1.0, z), *((tau * b, K) for b, K in zip(self.b, self.K))])
+        split.slow(self.Y[-1], self.S[-1])
+
+    def _lin(self, out, terms) -> list:
+        """The launches of out = Σ c·x over (c, x) ``terms``, zero ones left out (out = 0 for none)."""
+        terms = [(c, x) for c, x in terms if c != 0.0] or [(0.0, out)]
+        m = self.model
+        return [
+            m.lincomb(out, terms[:4]),
+            *(m.lincomb(out, [(1.0, out), *terms[i : i + 3]]) for i in range(4, len(terms), 3)),
+        ]
+
+    def _record(self, mu) -> list:
+        """The launches of the reverse after the ∇⁴'s transpose (class doc), as one segment."""
+        t, dt, s, dss = self.tab, self.dt, len(self.tab.d), self.model.topology.dss
+        Ybar, Sbar, zbar, kb = self.Ybar, self.Sbar, self.zbar, self.kbar_
+        bar = {id(a): b for a, b in zip([*self.Y, *self.S], [*Ybar, *Sbar])}  # each array's adjoint
+        out = [launch for a in (*Ybar, *Sbar) for launch in self._lin(a, [])]  # Ybar[0]: x̄(n)
+        cur = mu
+        for r in reversed(range(s)):
+            n = self.stepper.n_fast[r]
+            tau = float(t.d[r]) * dt / n
+            z0, rho0, rho1, timed = self._solve_terms(r)
+            out += [*self._lin(zbar, [(1.0, cur)]), *self._lin(self.rho0, []), *self._lin(self.rho1, [])]
+            Zbar = self.K  # the inner stages' Z̄_i (the K_i are not read in the reverse)
+            for k in reversed(range(n)):
+                for i in reversed(range(len(self.b))):
+                    terms = [
+                        (tau * self.b[i], zbar),
+                        *((tau * self.a[l][i], Zbar[l]) for l in range(i + 1, len(self.b))),
+                    ]
+                    out += self._lin(kb, terms)
+                    out += [*self._transpose(self.at_H, [(1.0, kb)], ("pressure_gradient", "continuity"))]
+                    out += [*dss(self.xbar, False, Zbar[i])]
+                    out += self._lin(self.rho0, [(1.0, self.rho0), (1.0, kb)])
+                    if timed:
+                        out += self._lin(self.rho1, [(1.0, self.rho1), ((k + self.ci[i]) / n, kb)])
+                out += self._lin(zbar, [(1.0, zbar), *((1.0, Z) for Z in Zbar)])
+            for terms, adjoint in ((z0, zbar), (rho0, self.rho0), (rho1, self.rho1)):
+                for c, a in terms:  # a term c·a of the combination: ā += c × its adjoint
+                    if c:
+                        out += self._lin(bar[id(a)], [(1.0, bar[id(a)]), (c, adjoint)])
+            out += [*self._transpose(self.Y[r], [(1.0, Sbar[r])], self.stepper.split.slow_terms)]
+            out += [*dss(self.xbar, False, self.tmp), *self._lin(Ybar[r], [(1.0, Ybar[r]), (1.0, self.tmp)])]
+            cur = Ybar[r]
+        out += self._lin(mu, [(1.0, Ybar[0])])
+        return [(None, None, out)]

@@ -12,6 +12,7 @@ import warp as wp
 from swe_sphere.adjoint import HeightMisfit, gradient
 from swe_sphere.adjoint.gradient import scene_model
 from swe_sphere.config.scene import load_scene
+from swe_sphere.simulation.simulation import Simulation
 
 EPS = float(np.finfo(np.float64).eps)
 f64 = wp.float64
@@ -134,3 +135,14 @@ def topography(scene, model, d_hs, dhs, steps, cost, x0, **kw):
 def tc4():
     """TC4 (the forced translating low: an analytic forcing of x and t) at ne 2 np 4, rk4 at Δt 1800 s."""
     return load_scene("tc4_forced_low", ne=2, np_=4, dt=1800.0, stepper="rk4")
+
+
+def assert_replays_the_run(scene, steps, cost, **kw):
+    """The gradient (``kw`` to it), from every state and from two snapshots: its forward run is
+    the ``Simulation``'s to the bit, its gradients the same bits; returns the first."""
+    every, few = gradient(scene, steps, cost, **kw), gradient(scene, steps, cost, snapshots=2, **kw)
+    sim = Simulation(dataclasses.replace(scene, days=steps * scene.dt / 86400.0), "cpu", progress=False)
+    sim.run(None)
+    np.testing.assert_array_equal(every.final, np.stack(sim.fields()))
+    np.testing.assert_array_equal(few.grad, every.grad)
+    return every

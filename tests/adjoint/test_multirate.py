@@ -1,5 +1,6 @@
-"""Gradients of split-explicit runs (``adjoint.multirate``): the slow tendency held over the
-gravity waves' forward–backward substeps, each substep reversed."""
+"""Gradients of multirate runs (``adjoint.multirate``): split_explicit (the slow tendency held
+over the gravity waves' forward–backward substeps, each substep reversed) and mri (the inner
+solves of the linear gravity-wave system reversed through their tables)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,6 @@ import warp as wp
 from swe_sphere.adjoint import HeightMisfit, gradient
 from swe_sphere.adjoint.gradient import scene_model, step_adjoint
 from swe_sphere.model.shallow_water import ShallowWater
-from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import make_stepper
 
 import taylor
@@ -27,19 +27,15 @@ def test_a_split_explicit_run_s_gradient_falls_as_eps_squared(damping):
         taylor.tc5("split_explicit"), stepper_options={"substeps": 4, "divergence_damping": damping}
     )
     model, stepper, x0 = scene_model(scene)
-    cost = taylor.misfit(model, x0, np.random.default_rng(17))
-    every, few = gradient(scene, 4, cost), gradient(scene, 4, cost, snapshots=2)
-    sim = Simulation(dataclasses.replace(scene, days=4 * scene.dt / 86400.0), "cpu", progress=False)
-    sim.run(None)
-    np.testing.assert_array_equal(every.final, np.stack(sim.fields()))
-    assert sim.stepper.n_fast == (2, 2, 4)
-    np.testing.assert_array_equal(few.grad, every.grad)
+    taylor.assert_replays_the_run(scene, 4, taylor.misfit(model, x0, np.random.default_rng(17)))
+    assert stepper.substeps() == 4  # 2, 2 and 4 a stage
     taylor.assert_initial_state_taylor(scene, "split_explicit")
 
 
-def test_split_explicit_s_per_node_transposes_give_the_element_kernels_adjoint():
+@pytest.mark.parametrize("stepper", ["split_explicit", "mri"])
+def test_a_multirate_step_s_per_node_transposes_give_the_element_kernels_adjoint(stepper):
     # one step reversed on the CPU's element kernels and on CUDA's per-node point and gather, here on the CPU
-    scene = taylor.tc5("split_explicit")
+    scene = taylor.tc5(stepper)
     model, _, x0 = scene_model(scene)
     node = ShallowWater.from_scene(scene, model.grid, per_element=False)
     lam = taylor.continuous(model, np.random.default_rng(18).standard_normal((3, model.N)))
@@ -56,10 +52,34 @@ def test_split_explicit_s_per_node_transposes_give_the_element_kernels_adjoint()
     assert np.abs(out[0] - out[1]).max() <= 64 * taylor.EPS * np.abs(out[0]).max()
 
 
-def test_split_explicit_s_gradient_refuses_parameters_and_a_forcing():
+@pytest.mark.parametrize(
+    "options",
+    [{}, {"method": "mri_gark_erk33a"}, {"method": "mis2", "inner": "rk4", "substeps": 5}],
+    ids=["mis4a-ssprk3", "mri-gark-erk33a", "mis2-rk4"],
+)
+def test_an_mri_run_s_gradient_falls_as_eps_squared(options):
+    """TC5, 4 steps: MIS4a (α and γ couple the solves) with its default inner ssprk3,
+    MRI-GARK-ERK33a (solves that restart, a forcing linear in the solve's time, β¹) and MIS2
+    with rk4 inside: the gradient's forward run is the ``Simulation``'s to the bit, from two
+    snapshots alike, and the Taylor remainder of x(0) falls as ε²."""
+    scene = dataclasses.replace(taylor.tc5("mri"), stepper_options=options)
+    model, _, x0 = scene_model(scene)
+    taylor.assert_replays_the_run(scene, 4, taylor.misfit(model, x0, np.random.default_rng(19)))
+    taylor.assert_initial_state_taylor(scene, "mri")
+
+
+def test_a_multirate_gradient_refuses_parameters_a_forcing_and_an_fbrk32_inner_solve():
     scene = taylor.tc5("split_explicit")
     cost = HeightMisfit(scene_model(scene)[2][2])
     with pytest.raises(ValueError, match="initial state alone and takes no forcing"):
         gradient(scene, 1, cost, parameters=True)
     with pytest.raises(ValueError, match="initial state alone and takes no forcing"):
         gradient(dataclasses.replace(taylor.tc4(), stepper="split_explicit"), 1, cost)
+    mri = taylor.tc5("mri")
+    for wrong in (
+        dict(scene=mri, parameters=True),
+        dict(scene=dataclasses.replace(taylor.tc4(), stepper="mri")),
+        dict(scene=dataclasses.replace(mri, stepper_options={"inner": "fbrk32"})),
+    ):
+        with pytest.raises(ValueError, match="inner Runge–Kutta table and no forcing"):
+            gradient(wrong.pop("scene"), 1, cost, **wrong)

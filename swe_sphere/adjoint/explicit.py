@@ -411,23 +411,25 @@ class StepAdjoint:
             segments.append((self.Y[i], kbar, launches))
         return segments
 
-    def planet_terms(self, Y, kbar) -> None:
+    def planet_terms(self, Y, kbar, g_terms=None, coriolis: bool = True) -> None:
         """Add a stage's ⟨k̄, g F_g(Y)⟩ and ⟨k̄, f (v, −u)⟩ to ``d_planet`` (module doc), Y the
         state its F read, k̄ = Σ c·a over (c, a) ``kbar`` as its transpose reads them (the same
-        bits on any ranks)."""
+        bits on any ranks); F_g the RHS of ``g_terms`` (None: the model's pressure gradient and
+        topography), the Coriolis term's share only where its F holds it (``coriolis``)."""
         m = self.model
+        g_terms = self.g_terms if g_terms is None else tuple(t for t in g_terms if t in m.terms)
         kb, w, y = sum(c * a.numpy() for c, a in kbar), m.grid.spheremp, Y.numpy()
         pressure = np.zeros_like(w)
-        if self.g_terms:  # g F_g: the RHS of those terms alone (its wind rows)
+        if g_terms:  # g F_g: the RHS of those terms alone (its wind rows)
             if not hasattr(self, "f_g"):
                 self.f_g = self._zeros(3)
-            m.rhs(Y, self.f_g, self.g_terms)
+            m.rhs(Y, self.f_g, g_terms)
             F = self.f_g.numpy()
             pressure = kb[0] * F[0] + kb[1] * F[1]
         if not hasattr(self, "fcor"):
             self.fcor = m.fcor.numpy() if "coriolis" in m.terms else np.zeros_like(w)
-        coriolis = self.fcor * (kb[0] * y[1] - kb[1] * y[0])
-        self.d_planet += m.topology.whole_sums([w * pressure, w * coriolis])
+        rotation = self.fcor * (kb[0] * y[1] - kb[1] * y[0]) if coriolis else np.zeros_like(w)
+        self.d_planet += m.topology.whole_sums([w * pressure, w * rotation])
 
     def reverse(self, x, mu, k: int = 0) -> None:
         """μ of x(k+1) → μ of x(k), in place; x = x(k) (read only), k the step's index (its
@@ -440,12 +442,13 @@ class StepAdjoint:
 
     def _replay(self, mu) -> None:
         """The transposes after the ∇⁴'s on μ: ``_record``'s segments, recorded once per μ, with
-        the parameters' sums of each F's (Y, k̄)."""
+        the parameters' sums of each F's (Y, k̄) before its launches (a segment's fourth entry,
+        where it has one: ``planet_terms``' g_terms and coriolis)."""
         recorded = self._adjoints.get(mu.ptr)
         if recorded is None:
             recorded = self._adjoints[mu.ptr] = (mu, self._record(mu))
-        for Y, kbar, launches in recorded[1]:
+        for Y, kbar, launches, *which in recorded[1]:
             if self.parameters and kbar is not None:
-                self.planet_terms(Y, kbar)
+                self.planet_terms(Y, kbar, *(which[0] if which else ()))
             for launch in launches:
                 launch.launch()

@@ -49,33 +49,38 @@ class _Recomputed(StepAdjoint):
 
 class SplitExplicitAdjoint(_Recomputed):
     """The adjoint of one ``SplitExplicit`` step (``stepper``) of ``model`` at Δt = ``dt`` (s):
-    ``reverse(x, mu, k)`` as ``StepAdjoint``'s. ValueError for ``parameters`` (the substeps'
-    g and the slow part's hs are not summed yet), a model with a forcing, and as ``StepAdjoint``.
+    ``reverse(x, mu, k)`` as ``StepAdjoint``'s; with ``parameters`` its ∇⁴ as there, g's terms
+    those of the slow topography −g∇hs and of the substeps' −gτ G h̃, Ω's the slow Coriolis
+    term's, hs's the topography's (through f̄) and the ∇⁴'s. ValueError for a model with a
+    forcing, and as ``StepAdjoint``.
 
     Work arrays (3, N): x(n) in h′, the stages' ends z_0…z_2, S, every substep's (v, h_s)
-    (Σ n_i of them), four for the adjoints; (1, N): h̄_old and h̄_s."""
+    (Σ n_i of them; with ``parameters`` its h̃ too), four for the adjoints; (1, N): h̄_old
+    and h̄_s."""
 
     def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
-        if parameters or "forcing" in model.terms:
-            raise ValueError("split_explicit's gradient is of the initial state alone and takes no forcing yet")
+        if "forcing" in model.terms:
+            raise ValueError("split_explicit's gradient takes no forcing yet")
         self._setup(model, dt, parameters, t0)
         self.stepper = stepper
         zeros = self._zeros
         self.xn, self.S = zeros(3), zeros(3)
         self.Z = [zeros(3) for _ in stepper.C]
         self.winds: list = []  # every substep's W = (v, h_s), made on the first reverse (n_i from H)
+        self.tilde: list = []  # with ``parameters``, every substep's h̃ (its h row), which −gτ G reads
         self.state, self.tmp, self.acc, self.sbar = zeros(3), zeros(3), zeros(3), zeros(3)
         self.old, self.hs_bar = zeros(1), zeros(1)
         self._for_dt()
 
     def _recompute(self, x) -> None:
         """The stages and substeps of the step from x = x(n) (full depth), as the stepper takes
-        them: z_i, and every substep's W in ``winds``."""
+        them: z_i, and every substep's W in ``winds`` (and h̃ in ``tilde``)."""
         st, m = self.stepper, self.model
         assert st.split.H != 0.0  # the stepper's first step fixed H (the sweep steps forward before it reverses)
-        depth = st.split.depth
+        depth, beta = st.split.depth, st.options.divergence_damping
         if not self.winds:
             self.winds = [self._zeros(3) for _ in range(sum(st.n_fast))]
+            self.tilde = [self._zeros(3) for _ in self.winds] if self.parameters else []
         self.combine(self.xn, [(1.0, x)])
         self.combine(self.xn[2:3], [(1.0, x[2:3]), (-1.0, depth)])  # h′
         j = 0
@@ -85,53 +90,68 @@ class SplitExplicitAdjoint(_Recomputed):
             self.combine(st.W[2:3], [(1.0, src[2:3]), (1.0, depth)])  # h_s
             out, tau = self.Z[i], float(c) * self.dt / n
             for k in range(n):
-                st.forward_backward(out if k else self.xn, out, tau, self.S, first=k == 0)
+                prev = out if k else self.xn
+                if self.tilde:  # the depth the substep's gradient reads (``SplitExplicit.forward_backward``)
+                    self.combine(self.tilde[j][2:3], [(1.0, (st.w if k and beta else prev)[2:3])])
+                st.forward_backward(prev, out, tau, self.S, first=k == 0)
                 wp.copy(self.winds[j], st.W)
                 j += 1
             self.combine(out[0:2], [(1.0, st.W[0:2])])
 
+    def before_hyperviscosity(self, out) -> None:
+        """out = z_2 with its full depth, the step before its ∇⁴."""
+        self.combine(out, [(1.0, self.Z[-1])])
+        self.combine(out[2:3], [(1.0, self.Z[-1][2:3]), (1.0, self.stepper.split.depth)])
+
     def _record(self, mu) -> list:
-        """The launches of the reverse after the ∇⁴'s transpose (module doc), as one segment."""
+        """The launches of the reverse after the ∇⁴'s transpose (module doc) as segments, those
+        that read F_g's and f's arguments with their (Y, k̄, (g_terms, coriolis))."""
         st, m, dss = self.stepper, self.model, self.model.topology.dss
         beta = float(st.options.divergence_damping)
         V, H = slice(0, 2), slice(2, 3)
         s, tmp, old, acc, sbar, hs_bar = self.state, self.tmp, self.old, self.acc, self.sbar, self.hs_bar
-        out = [m.lincomb(acc, [(0.0, acc)])]
+        segments = [(None, None, [m.lincomb(acc, [(0.0, acc)])])]
         zbar, j = mu, len(self.winds)
         for i in reversed(range(len(st.C))):
             tau = float(st.C[i]) * self.dt / st.n_fast[i]
-            out += [m.lincomb(s, [(1.0, zbar)]), *(m.lincomb(a, [(0.0, a)]) for a in (old, sbar, hs_bar))]
+            zero = [m.lincomb(a, [(0.0, a)]) for a in (old, sbar, hs_bar)]
+            segments.append((None, None, [m.lincomb(s, [(1.0, zbar)]), *zero]))
             for k in reversed(range(st.n_fast[i])):
                 j -= 1
                 first = k == 0 or not beta
-                out += [
-                    # the depth update: c̄ = τ h̄ through Cᵀ at (v, h_s); h̄ ← h̄ + h̄_old
+                # the depth update: c̄ = τ h̄ through Cᵀ at (v, h_s); h̄ ← h̄ + h̄_old
+                depth = [
                     *self._transpose(self.winds[j], [(tau, s)], ("continuity",)),
                     *dss(self.xbar, False, tmp),
                     m.lincomb(s[V], [(1.0, s[V]), (1.0, tmp[V])]),
                     m.lincomb(hs_bar, [(1.0, hs_bar), (1.0, tmp[H])]),
                     m.lincomb(s[H], [(1.0, s[H]), (1.0, old)]),
-                    # the wind update: S̄ += τ v̄; h̃̄ = −gτ Gᵀ v̄ (the pressure gradient's transpose at τ v̄)
+                ]
+                # the wind update: S̄ += τ v̄; h̃̄ = −gτ Gᵀ v̄ (the pressure gradient's transpose at τ v̄)
+                wind = [
                     m.lincomb(sbar[V], [(1.0, sbar[V]), (tau, s[V])]),
                     *self._transpose(self.xn, [(tau, s)], ("pressure_gradient",)),
                     *dss(self.xbar, False, tmp),
                     m.lincomb(s[H], [(1.0, s[H]), (1.0 if first else 1.0 + beta, tmp[H])]),
                     m.lincomb(old, [(0.0 if first else -beta, tmp[H])]),
                 ]
+                gradient = (self.tilde[j], [(tau, s)], wind, (("pressure_gradient",), False)) if self.tilde else None
+                segments += [(None, None, depth), gradient or (None, None, wind)]
             src = self.xn if i == 0 else self.Z[i - 1]
-            out += [
+            slow = [
                 m.lincomb(acc, [(1.0, acc), (1.0, s)]),  # x(n) started the substeps
                 *self._transpose(src, [(1.0, sbar)], st.slow_terms),
                 *dss(self.xbar, False, tmp),
                 m.lincomb(tmp[H], [(1.0, tmp[H]), (1.0, hs_bar)]),
             ]
             if i == 0:
-                out.append(m.lincomb(acc, [(1.0, acc), (1.0, tmp)]))
-            else:  # z_(i−1)'s state is read by its stage's slow transpose above only: it holds z̄_(i−1) now
+                slow.append(m.lincomb(acc, [(1.0, acc), (1.0, tmp)]))
+            else:  # z_(i−1)'s state is read by this segment's slow transpose only: it holds z̄_(i−1) next
                 zbar = self.Z[i - 1]
-                out.append(m.lincomb(zbar, [(1.0, tmp)]))
-        out.append(m.lincomb(mu, [(1.0, acc)]))
-        return [(None, None, out)]
+                slow.append(m.lincomb(zbar, [(1.0, tmp)]))
+            segments.append((src, [(1.0, sbar)], slow, (("topography",), True)))
+        segments.append((None, None, [m.lincomb(mu, [(1.0, acc)])]))
+        return segments
 
 
 class MriAdjoint(_Recomputed):
@@ -149,16 +169,17 @@ class MriAdjoint(_Recomputed):
     combinations' coefficients carry z̄(0), ρ̄⁰ and ρ̄¹ to x̄(n), the Ȳ_(j+1) and the S̄_j, and
     S̄_r to Ȳ_(r+1) by Nᵀ at Y_(r+1), the stages last first. Each reversed step recomputes its
     stages Y_(r+1) from x(n) (the inner steps by the Butcher form, the stepper's to round-off).
-    ValueError for ``parameters``, a forcing, the fbrk32 inner method, and as ``StepAdjoint``.
+    With ``parameters`` its ∇⁴ as ``StepAdjoint``'s (from Y_(s+1), the last solve taken too),
+    g's terms those of the slow topography and of L's −g G h′ at every inner stage (their states
+    held), Ω's the slow Coriolis term's, hs's the topography's and the ∇⁴'s. ValueError for a
+    forcing, the fbrk32 inner method, and as ``StepAdjoint``.
 
     Work arrays (3, N): the s stages and slow tendencies, the inner stages' K_i and Z̄_i,
-    and nine for the solves and the adjoints."""
+    nine for the solves and the adjoints; with ``parameters`` every inner stage's state."""
 
     def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
-        if parameters or "forcing" in model.terms or stepper.options.inner == "fbrk32":
-            raise ValueError(
-                "mri's gradient is of the initial state alone, with an inner Runge–Kutta table and no forcing yet"
-            )
+        if "forcing" in model.terms or stepper.options.inner == "fbrk32":
+            raise ValueError("mri's gradient needs an inner Runge–Kutta table and takes no forcing yet")
         self._setup(model, dt, parameters, t0)
         self.stepper, self.tab = stepper, stepper.tab
         inner = parse(TableauOptions(**EXPLICIT[stepper.options.inner]))
@@ -168,10 +189,12 @@ class MriAdjoint(_Recomputed):
         self.Y = [zeros(3) for _ in range(s)]  # Y_1 = x(n) … Y_s, in h′
         self.S = [zeros(3) for _ in range(s)]
         self.K = [zeros(3) for _ in self.b]
-        self.z, self.Z, self.rho0, self.rho1, self.rho = (zeros(3) for _ in range(5))
+        self.Z, self.rho0, self.rho1, self.rho = (zeros(3) for _ in range(4))
         self.Ybar, self.Sbar = [zeros(3) for _ in range(s)], [zeros(3) for _ in range(s)]
         self.zbar, self.kbar_, self.tmp = zeros(3), zeros(3), zeros(3)
         self.at_H = zeros(3)  # (0, 0, H): where the continuity's transpose is L's depth row's
+        self.last = zeros(3) if parameters else None  # Y_(s+1): the step before its ∇⁴
+        self.inner_states: dict = {}  # with ``parameters``: (r, k, i) → Z_i, which L's −g G reads
         self._for_dt()
 
     def _solve_terms(self, r: int):
@@ -190,16 +213,17 @@ class MriAdjoint(_Recomputed):
         return z0, rho0, rho1, bool(t.beta1[r].any())
 
     def _recompute(self, x) -> None:
-        """Y_1 … Y_s of the step from x = x(n) (full depth), in h′ (class doc)."""
-        st, split = self.stepper, self.stepper.split
+        """Y_1 … Y_s of the step from x = x(n) (full depth), in h′ (class doc); with
+        ``parameters`` Y_(s+1) (``last``) and every inner stage's state too."""
+        st, split, s = self.stepper, self.stepper.split, len(self.tab.d)
         assert split.H != 0.0  # the stepper's first step fixed H (the sweep steps forward before it reverses)
         self.combine(self.Y[0], [(1.0, x)])
         self.combine(self.Y[0][2:3], [(1.0, x[2:3]), (-1.0, split.depth)])
         self.combine(self.at_H[2:3], [(1.0, split.depth)])
-        for r in range(len(self.tab.d) - 1):
+        for r in range(s if self.parameters else s - 1):
             split.slow(self.Y[r], self.S[r])
             z0, rho0, rho1, timed = self._solve_terms(r)
-            z = self.Y[r + 1]
+            z = self.Y[r + 1] if r + 1 < s else self.last
             self.combine(z, z0)
             self.combine(self.rho0, rho0)
             self.combine(self.rho1, rho1)
@@ -207,14 +231,25 @@ class MriAdjoint(_Recomputed):
             tau = float(self.tab.d[r]) * self.dt / n
             for k in range(n):
                 for i, row in enumerate(self.a):
-                    self.combine(self.Z, [(1.0, z), *((tau * a, K) for a, K in zip(row[:i], self.K))])
+                    Z = self.Z
+                    if self.parameters:
+                        if (r, k, i) not in self.inner_states:
+                            self.inner_states[r, k, i] = self._zeros(3)
+                        Z = self.inner_states[r, k, i]
+                    self.combine(Z, [(1.0, z), *((tau * a, K) for a, K in zip(row[:i], self.K))])
                     rho = self.rho0
                     if timed:
                         rho = self.rho
                         self.combine(rho, [(1.0, self.rho0), ((k + self.ci[i]) / n, self.rho1)])
-                    split.fast(self.Z, self.K[i], rho)
+                    split.fast(Z, self.K[i], rho)
                 self.combine(z, [(1.0, z), *((tau * b, K) for b, K in zip(self.b, self.K))])
-        split.slow(self.Y[-1], self.S[-1])
+        if not self.parameters:
+            split.slow(self.Y[-1], self.S[-1])
+
+    def before_hyperviscosity(self, out) -> None:
+        """out = Y_(s+1) with its full depth, the step before its ∇⁴."""
+        self.combine(out, [(1.0, self.last)])
+        self.combine(out[2:3], [(1.0, self.last[2:3]), (1.0, self.stepper.split.depth)])
 
     def _lin(self, out, terms) -> list:
         """The launches of out = Σ c·x over (c, x) ``terms``, zero ones left out (out = 0 for none)."""
@@ -226,17 +261,20 @@ class MriAdjoint(_Recomputed):
         ]
 
     def _record(self, mu) -> list:
-        """The launches of the reverse after the ∇⁴'s transpose (class doc), as one segment."""
+        """The launches of the reverse after the ∇⁴'s transpose (class doc) as segments, those
+        that read F_g's and f's arguments with their (Y, k̄, (g_terms, coriolis))."""
         t, dt, s, dss = self.tab, self.dt, len(self.tab.d), self.model.topology.dss
         Ybar, Sbar, zbar, kb = self.Ybar, self.Sbar, self.zbar, self.kbar_
         bar = {id(a): b for a, b in zip([*self.Y, *self.S], [*Ybar, *Sbar])}  # each array's adjoint
-        out = [launch for a in (*Ybar, *Sbar) for launch in self._lin(a, [])]  # Ybar[0]: x̄(n)
+        segments = [(None, None, [launch for a in (*Ybar, *Sbar) for launch in self._lin(a, [])])]  # Ybar[0]: x̄(n)
         cur = mu
         for r in reversed(range(s)):
             n = self.stepper.n_fast[r]
             tau = float(t.d[r]) * dt / n
             z0, rho0, rho1, timed = self._solve_terms(r)
-            out += [*self._lin(zbar, [(1.0, cur)]), *self._lin(self.rho0, []), *self._lin(self.rho1, [])]
+            segments.append(
+                (None, None, [*self._lin(zbar, [(1.0, cur)]), *self._lin(self.rho0, []), *self._lin(self.rho1, [])])
+            )
             Zbar = self.K  # the inner stages' Z̄_i (the K_i are not read in the reverse)
             for k in reversed(range(n)):
                 for i in reversed(range(len(self.b))):
@@ -244,19 +282,28 @@ class MriAdjoint(_Recomputed):
                         (tau * self.b[i], zbar),
                         *((tau * self.a[l][i], Zbar[l]) for l in range(i + 1, len(self.b))),
                     ]
-                    out += self._lin(kb, terms)
-                    out += [*self._transpose(self.at_H, [(1.0, kb)], ("pressure_gradient", "continuity"))]
-                    out += [*dss(self.xbar, False, Zbar[i])]
-                    out += self._lin(self.rho0, [(1.0, self.rho0), (1.0, kb)])
-                    if timed:
-                        out += self._lin(self.rho1, [(1.0, self.rho1), ((k + self.ci[i]) / n, kb)])
-                out += self._lin(zbar, [(1.0, zbar), *((1.0, Z) for Z in Zbar)])
+                    segments.append((None, None, self._lin(kb, terms)))
+                    launches = [
+                        *self._transpose(self.at_H, [(1.0, kb)], ("pressure_gradient", "continuity")),
+                        *dss(self.xbar, False, Zbar[i]),
+                        *self._lin(self.rho0, [(1.0, self.rho0), (1.0, kb)]),
+                        *(self._lin(self.rho1, [(1.0, self.rho1), ((k + self.ci[i]) / n, kb)]) if timed else ()),
+                    ]
+                    state = self.inner_states.get((r, k, i))  # L's −g G h′ read it: g's term, with parameters
+                    segments.append((state, [(1.0, kb)], launches, (("pressure_gradient",), False)))
+                segments.append((None, None, self._lin(zbar, [(1.0, zbar), *((1.0, Z) for Z in Zbar)])))
+            combinations = []
             for terms, adjoint in ((z0, zbar), (rho0, self.rho0), (rho1, self.rho1)):
                 for c, a in terms:  # a term c·a of the combination: ā += c × its adjoint
                     if c:
-                        out += self._lin(bar[id(a)], [(1.0, bar[id(a)]), (c, adjoint)])
-            out += [*self._transpose(self.Y[r], [(1.0, Sbar[r])], self.stepper.split.slow_terms)]
-            out += [*dss(self.xbar, False, self.tmp), *self._lin(Ybar[r], [(1.0, Ybar[r]), (1.0, self.tmp)])]
+                        combinations += self._lin(bar[id(a)], [(1.0, bar[id(a)]), (c, adjoint)])
+            segments.append((None, None, combinations))
+            slow = [
+                *self._transpose(self.Y[r], [(1.0, Sbar[r])], self.stepper.split.slow_terms),
+                *dss(self.xbar, False, self.tmp),
+                *self._lin(Ybar[r], [(1.0, Ybar[r]), (1.0, self.tmp)]),
+            ]
+            segments.append((self.Y[r], [(1.0, Sbar[r])], slow, (("topography",), True)))
             cur = Ybar[r]
-        out += self._lin(mu, [(1.0, Ybar[0])])
-        return [(None, None, out)]
+        segments.append((None, None, self._lin(mu, [(1.0, Ybar[0])])))
+        return segments

@@ -1,7 +1,9 @@
 """The gradient of a scalar of a run's final state, or of a cost summed over observed steps of
 the run (``observations``), with respect to its initial state (``gradient``), by a
 checkpointed reverse sweep (``revolve.sweep``, or ``revolve.two_level`` with states on a disk:
-``disk.DiskTier``) of the explicit steps' adjoints (``explicit.StepAdjoint``)."""
+``disk.DiskTier``) of the explicit steps' adjoints (``explicit.StepAdjoint`` and its kin:
+``forward_backward``, ``leapfrog``, ``multirate``), at the run's Δt or along a controlled run's
+steps (``Clock``)."""
 
 from __future__ import annotations
 
@@ -114,7 +116,7 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
     assembles the ranks' parts), its stepper (at the scene's Δt, under no step control) and its
     case's initial state (3, N) numpy on this rank's nodes; ``hs`` (nnodes_total,) m: the whole
     grid's surface height instead of the case's (read on rank 0). ValueError unless the stepper
-    is an explicit table or fbrk32, or for hs of another shape (on every rank)."""
+    has an adjoint (``step_adjoint``), or for hs of another shape (on every rank)."""
     case = scene.make_case()
     topo = on_ranks(scene.ne, scene.np, case.planet.a, comm, Backend.of(device), scene.make_mesh())
     grid = topo.grid
@@ -165,8 +167,9 @@ class Clock:
 
 
 def step_adjoint(model: ShallowWater, stepper, parameters: bool = False) -> StepAdjoint:
-    """The adjoint of one step of ``stepper`` (``scene_model``'s: an ``ExplicitRK`` or an
-    ``FBRK32``) on ``model``, its steps from the stepper's ``t0``. ValueError as its class."""
+    """The adjoint of one step of ``stepper`` (``scene_model``'s: an ``ExplicitRK``,
+    ``FBRK32``, ``Leapfrog``, ``LeapfrogTrapezoidal``, ``SplitExplicit`` or ``Mri``) on
+    ``model``, its steps from the stepper's ``t0``. ValueError as its class."""
     if isinstance(stepper, FBRK32):
         return ForwardBackwardAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
     if isinstance(stepper, (Leapfrog, LeapfrogTrapezoidal)):
@@ -216,10 +219,11 @@ def gradient(
     Parameters
     ----------
     scene : a ``config.Scene`` whose stepper is an explicit Runge–Kutta table (ssprk3, rk4,
-        kgu35, the pairs, a tableau) or fbrk32, any terms (a time-dependent forcing's stages at
-        their times, from the scene's ``start_day``; not with fbrk32), a ∇⁴ constant or tensor,
-        ν_div = ν or not.
-    steps : n ≥ 1 steps of the scene's Δt.
+        kgu35, the pairs, a tableau), fbrk32, leapfrog, leapfrog_trapezoidal, split_explicit or
+        mri (``step_adjoint``), any terms (a time-dependent forcing's stages at their times,
+        from the scene's ``start_day``; not with fbrk32 and the multirate steppers), a ∇⁴
+        constant or tensor, ν_div = ν or not.
+    steps : n ≥ 1 steps of the scene's Δt (or of ``history``).
     cost : callable (x, spheremp) → (J, λ) of the final state, x (3, N) numpy rows u, v, h
         (m s⁻¹, m s⁻¹, m), spheremp (N,) m², λ = ∂J/∂x (3, N) over the element-local entries
         (e.g. ``HeightMisfit``); or a cost of the run: an object with ``at_steps`` (the step

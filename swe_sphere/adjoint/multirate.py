@@ -1,6 +1,7 @@
-"""The adjoint of one step of the split-explicit Wicker–Skamarock RK3 (``steppers.multirate.
-SplitExplicit``): three stages from x(n), each the slow tendency of its start held over
-forward–backward substeps of the gravity waves, then the split ∇⁴.
+"""The adjoints of one step of the multirate steppers (``steppers.multirate``): the multirate
+infinitesimal tables (``MriAdjoint``: its class doc) and, here, the split-explicit
+Wicker–Skamarock RK3 (``SplitExplicitAdjoint``): three stages from x(n), each the slow tendency
+of its start held over forward–backward substeps of the gravity waves, then the split ∇⁴.
 
 The step in h′ = h − H (a constant shift: its adjoint is the identity), stage i from its
 start s_i (s_0 = x(n), s_i = z_(i−1)) with τ = c_i Δt / n_i, S = N(s_i) (the slow wind terms),
@@ -175,7 +176,7 @@ class MriAdjoint(_Recomputed):
     forcing, the fbrk32 inner method, and as ``StepAdjoint``.
 
     Work arrays (3, N): the s stages and slow tendencies, the inner stages' K_i and Z̄_i,
-    nine for the solves and the adjoints; with ``parameters`` every inner stage's state."""
+    eight for the solves and the adjoints; with ``parameters`` every inner stage's state."""
 
     def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
         if "forcing" in model.terms or stepper.options.inner == "fbrk32":
@@ -191,7 +192,7 @@ class MriAdjoint(_Recomputed):
         self.K = [zeros(3) for _ in self.b]
         self.Z, self.rho0, self.rho1, self.rho = (zeros(3) for _ in range(4))
         self.Ybar, self.Sbar = [zeros(3) for _ in range(s)], [zeros(3) for _ in range(s)]
-        self.zbar, self.kbar_, self.tmp = zeros(3), zeros(3), zeros(3)
+        self.zbar, self.stage_bar, self.tmp = zeros(3), zeros(3), zeros(3)
         self.at_H = zeros(3)  # (0, 0, H): where the continuity's transpose is L's depth row's
         self.last = zeros(3) if parameters else None  # Y_(s+1): the step before its ∇⁴
         self.inner_states: dict = {}  # with ``parameters``: (r, k, i) → Z_i, which L's −g G reads
@@ -264,7 +265,7 @@ class MriAdjoint(_Recomputed):
         """The launches of the reverse after the ∇⁴'s transpose (class doc) as segments, those
         that read F_g's and f's arguments with their (Y, k̄, (g_terms, coriolis))."""
         t, dt, s, dss = self.tab, self.dt, len(self.tab.d), self.model.topology.dss
-        Ybar, Sbar, zbar, kb = self.Ybar, self.Sbar, self.zbar, self.kbar_
+        Ybar, Sbar, zbar, kb = self.Ybar, self.Sbar, self.zbar, self.stage_bar
         bar = {id(a): b for a, b in zip([*self.Y, *self.S], [*Ybar, *Sbar])}  # each array's adjoint
         segments = [(None, None, [launch for a in (*Ybar, *Sbar) for launch in self._lin(a, [])])]  # Ybar[0]: x̄(n)
         cur = mu

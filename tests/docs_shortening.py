@@ -15,7 +15,8 @@ What changes, and why it keeps the pages' order meaningful:
 - A default file name in any argument (``…_ne8np4_ssprk3.nc``) says the shortened grid.
 - A sweep makes one run: the first of ``--runs``, or the first of ``--steppers`` at the
   first of ``--courant`` (``--dt``); ``stability`` bisects the first of ``--steppers`` on
-  the first of its cases (each case's bisection is the same code on another scene);
+  the first of its cases (each case's bisection is the same code on another scene), into the
+  folder the whole suite writes by default (``stability_<cases>_ne<N>``);
   ``--workers`` is dropped (each worker process imports the model again, which costs
   more than a tiny run).
 - A frontier keeps the first of its ``--ne`` (shortened as a run's) and ``--steppers`` and two of
@@ -89,9 +90,10 @@ def shorten(argv: list[str]) -> list[str]:
     if "--workers" in args:
         i = args.index("--workers")
         del args[i : i + 2]
+    cases = []
     if command == "stability":  # its first case: the cases are the arguments before the first option
-        cases = next((i for i, a in enumerate(args) if a.startswith("-")), len(args))
-        del args[1:cases]
+        cases = args[: next((i for i, a in enumerate(args) if a.startswith("-")), len(args))]
+        del args[1 : len(cases)]
     for option, n in KEPT.get(command, {}).items():
         if option in args[:-1]:
             i = args.index(option) + 1
@@ -117,6 +119,8 @@ def shorten(argv: list[str]) -> list[str]:
         ne = None  # the file's grid, not known here: its Δt stays
     if command == "frontier":
         return [command, *args]
+    if len(cases) > 1 and not {"--output", "--mesh"} & set(args):  # the folder the whole suite writes by default
+        args += ["--output", f"stability_{'_'.join(cases)}_ne{args[args.index('--ne') + 1]}"]
     if ne is not None and "--dt" in args[:-1]:
         i = args.index("--dt") + 1
         args[i] = ",".join(str(coarser_dt(float(dt), ne)) for dt in args[i].split(","))

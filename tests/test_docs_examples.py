@@ -117,7 +117,16 @@ def test_a_page_grids_stay_apart():
     assert shorten(["run", "tc2_steady", "-s", "a.b=1"]) == ["run", "tc2_steady", "-s", "a.b=1", "--ne", "3"]
     assert shorten(["stability", "galewsky"]) == ["stability", "galewsky", "--ne", "2"]
     assert shorten(["stability", "tc5_mountain", "galewsky", "--steppers", "rk4,kgu35"]) == [
-        *("stability", "tc5_mountain", "--steppers", "rk4", "--ne", "2")
+        *(
+            "stability",
+            "tc5_mountain",
+            "--steppers",
+            "rk4",
+            "--ne",
+            "2",
+            "--output",
+            "stability_tc5_mountain_galewsky_ne2",
+        )
     ]
     file_grids = (["run", "--continue", "r.restart.nc", "--days", "20"], ["run", "tc2_steady", "--mesh", "x.g"])
     for argv in (*file_grids, ["run", "tc2_steady", "-s", "grid.ne=0", "-s", 'grid.mesh_file="/m/x.g"']):

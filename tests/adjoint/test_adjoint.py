@@ -411,7 +411,7 @@ def test_a_controlled_run_s_gradient_follows_the_steps_it_took(case, stepper, mo
 
 
 @requires_cuda
-@pytest.mark.parametrize("stepper", ["kgu35", "fbrk32"])
+@pytest.mark.parametrize("stepper", ["kgu35", "fbrk32", "leapfrog_trapezoidal", "split_explicit", "mri"])
 def test_a_gradient_on_cuda_is_the_cpu_s(stepper):
     """On CUDA (the per-node transposes; their element twins checked on the CPU above) the cost,
     ∂J/∂x(0) and the parameters' gradients are the CPU's to round-off: sums in another order."""

@@ -95,8 +95,8 @@ def private_cache(tmp_path_factory):
 def compiled_once(tmp_path_factory):
     """The subprocesses the tests start (the command line, the pages' examples, MPI ranks) read
     the modules they import compiled in one cache of the session (``PYTHONPYCACHEPREFIX``), not
-    the checkout: under ``PYTHONDONTWRITEBYTECODE`` (set on the CI machines) each compiled every
-    module again, 0.37 of a tiny run's 1.28 s."""
+    the checkout: under ``PYTHONDONTWRITEBYTECODE`` (set in this project's machine image) each
+    compiled every module again, 0.37 s of a tiny run's 1.28 s."""
     with pytest.MonkeyPatch.context() as mp:
         mp.delenv("PYTHONDONTWRITEBYTECODE", raising=False)
         mp.setenv("PYTHONPYCACHEPREFIX", str(tmp_path_factory.mktemp("pycache")))

@@ -138,11 +138,14 @@ def tc4():
 
 
 def assert_replays_the_run(scene, steps, cost, **kw):
-    """The gradient (``kw`` to it), from every state and from two snapshots: its forward run is
-    the ``Simulation``'s to the bit, its gradients the same bits; returns the first."""
+    """The gradient (``kw`` to it), from every state, from two snapshots and from a disk tier
+    of every third state: its forward run is the ``Simulation``'s to the bit, its gradients the
+    same bits; returns the first."""
     every, few = gradient(scene, steps, cost, **kw), gradient(scene, steps, cost, snapshots=2, **kw)
+    disk = gradient(scene, steps, cost, snapshots=2, disk=True, disk_interval=3, **kw)
     sim = Simulation(dataclasses.replace(scene, days=steps * scene.dt / 86400.0), "cpu", progress=False)
     sim.run(None)
     np.testing.assert_array_equal(every.final, np.stack(sim.fields()))
     np.testing.assert_array_equal(few.grad, every.grad)
+    np.testing.assert_array_equal(disk.grad, every.grad)
     return every

@@ -392,9 +392,9 @@ def controlled_run(case, stepper, mode):
 def test_a_controlled_run_s_gradient_follows_the_steps_it_took(case, stepper, mode):
     """A run whose steps its controller chose (an error-controlled pair; fbrk32 under a CFL
     target; TC4's forcing at the steps' times) is differentiated along its history: the
-    gradient's forward run is the ``Simulation``'s to the bit, from every state and from three
-    snapshots alike, over Δt that vary, and with the steps held the Taylor remainders of x(0)
-    and ν fall as ε²."""
+    gradient's forward run is the ``Simulation``'s to the bit, from every state, from three
+    snapshots and from a disk tier alike, over Δt that vary, and with the steps held the Taylor
+    remainders of x(0) and ν fall as ε²."""
     scene, history, final = controlled_run(case, stepper, mode)
     steps = len(history)
     assert len({dt for _, dt, _ in history}) >= 3, history  # measured: 17 (bs32), 9 (fbrk32), 4 (TC4 rk43)
@@ -402,8 +402,10 @@ def test_a_controlled_run_s_gradient_follows_the_steps_it_took(case, stepper, mo
     cost = misfit(model, x0, np.random.default_rng(12))
     every = gradient(scene, steps, cost, history=history, parameters=True)
     few = gradient(scene, steps, cost, history=history, parameters=True, snapshots=3)
+    disk = gradient(scene, steps, cost, history=history, parameters=True, snapshots=3, disk=True, disk_interval=4)
     np.testing.assert_array_equal(every.final, final)
     np.testing.assert_array_equal(few.grad, every.grad)
+    np.testing.assert_array_equal(disk.grad, every.grad)  # a disk tier's states carry their step index too
     assert_initial_state_taylor(scene, stepper, steps, history=history)
     if "hyperviscosity" in scene.terms:
         nu = coefficients(scene, ("nu", "nu_div"), every.d_nu, steps, cost, history=history)

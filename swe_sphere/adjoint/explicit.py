@@ -347,33 +347,35 @@ class StepAdjoint:
             launch.launch()
         return out + d.numpy()[2]
 
-    def _transpose(self, Y, kbar, terms=None) -> list:
+    def _transpose(self, Y, kbar, terms=None, runs=None) -> list:
         """Launches of x̄ = Tᵀ(Y) W k̄, k̄ = Σ c·k over (c, k) ``kbar`` (element-local), T the
         tendency of ``terms`` (None: all the model's): the element kernel on the CPU's layout,
         reading up to three terms; the per-node ``point`` and ``gather`` on CUDA's; k̄ combined
-        by a pass of its own first where they cannot read it as it is."""
+        by a pass of its own first where they cannot read it as it is. ``runs``: (start, stop)
+        element ranges, the tendency of those elements alone (x̄ zero on the others)."""
         m, launches = self.model, []
+        if runs is not None:
+            launches.append(m.lincomb(self.xbar, [(0.0, self.xbar)]))
+        ranges = [None] if runs is None else list(runs)
         terms = self.terms if terms is None else tuple(t for t in self.terms if t in terms)
         if len(kbar) > 3 or not m.per_element and kbar != [(1.0, kbar[0][1])]:
             if not hasattr(self, "kbar"):
                 self.kbar = self._zeros(3)
             more = (m.lincomb(self.kbar, [(1.0, self.kbar), *kbar[i : i + 3]]) for i in range(4, len(kbar), 3))
-            launches, kbar = [m.lincomb(self.kbar, kbar[:4]), *more], [(1.0, self.kbar)]
+            launches, kbar = [*launches, m.lincomb(self.kbar, kbar[:4]), *more], [(1.0, self.kbar)]
         if m.per_element:
             R, (c, k) = m.as_rows, zip(*kbar)
             c, k = [*c, *(0.0,) * (3 - len(c))], [*k, *(k[0],) * (3 - len(k))]
             kernel = tendency_adjoint.element(terms, m.grid.np, len(kbar))
             args = [*map(R, (Y, m.D, m.Dinv, m.metdet, m.fcor, self.spheremp)), m.g, m.dvv_rows, wp.vec3d(*c)]
-            return [*launches, m.launches.elements(kernel, [*args, *map(R, k), R(self.xbar), R(self.fbar)])]
+            args += [*map(R, k), R(self.xbar), R(self.fbar)]
+            return [*launches, *(m.launches.elements(kernel, args, elements=r) for r in ranges)]
         if not hasattr(self, "adj"):
             self.adj = self._zeros(5)
         point = [Y, m.D, m.Dinv, m.metdet, m.fcor, self.spheremp, m.dvv, kbar[0][1], self.adj, self.xbar, self.fbar]
         gather = [Y, m.D, m.Dinv, m.metdet, m.dvv, m.g, self.adj, self.xbar]
-        return [
-            *launches,
-            m.launches.nodes(tendency_adjoint.point(terms, m.grid.np), m.N, point),
-            m.launches.nodes(tendency_adjoint.gather(terms, m.grid.np), m.N, gather),
-        ]
+        kernels = (tendency_adjoint.point(terms, m.grid.np), point), (tendency_adjoint.gather(terms, m.grid.np), gather)
+        return [*launches, *(m.launches.nodes(k, m.N, a, elements=r) for r in ranges for k, a in kernels)]
 
     def _record(self, mu) -> list:
         """The launches of the stages' transposes, last stage first, as (Y_i, k̄_i's terms, its

@@ -19,13 +19,14 @@ from ..grid.topology import on_ranks
 from ..model.shallow_water import ShallowWater
 from ..steppers import make_stepper
 from ..steppers.explicit import FBRK32, Leapfrog, LeapfrogTrapezoidal
+from ..steppers.local import Lts
 from ..steppers.multirate import Mri, SplitExplicit
 from ..steppers.runge_kutta import ExplicitRK
 from .disk import DiskTier
 from .explicit import StepAdjoint, refusal
 from .forward_backward import ForwardBackwardAdjoint
 from .leapfrog import LeapfrogAdjoint
-from .multirate import MriAdjoint, SplitExplicitAdjoint
+from .multirate import LtsAdjoint, MriAdjoint, SplitExplicitAdjoint
 from .revolve import sweep, two_level
 
 f64 = wp.float64
@@ -126,7 +127,7 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
     stepper = make_stepper(scene.stepper, model, scene.dt, **scene.stepper_options)
     if not isinstance(stepper, (ExplicitRK, FBRK32, Leapfrog, LeapfrogTrapezoidal, SplitExplicit, Mri)):
         raise ValueError(
-            "gradients need an explicit Runge–Kutta stepper, fbrk32, a leapfrog, split_explicit or mri "
+            "gradients need an explicit Runge–Kutta stepper, fbrk32, a leapfrog, split_explicit, mri or lts "
             f"(got {scene.stepper!r})"
         )
     return model, stepper, np.stack(case.initial(grid.lat, grid.lon))
@@ -168,14 +169,21 @@ class Clock:
 
 def step_adjoint(model: ShallowWater, stepper, parameters: bool = False) -> StepAdjoint:
     """The adjoint of one step of ``stepper`` (``scene_model``'s: an ``ExplicitRK``,
-    ``FBRK32``, ``Leapfrog``, ``LeapfrogTrapezoidal``, ``SplitExplicit`` or ``Mri``) on
-    ``model``, its steps from the stepper's ``t0``. ValueError as its class."""
+    ``FBRK32``, ``Leapfrog``, ``LeapfrogTrapezoidal``, ``SplitExplicit``, ``Mri`` or a prepared
+    ``Lts``) on ``model``, its steps from the stepper's ``t0``. ValueError as its class, and
+    for lts with MRAB3."""
     if isinstance(stepper, FBRK32):
         return ForwardBackwardAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
     if isinstance(stepper, (Leapfrog, LeapfrogTrapezoidal)):
         return LeapfrogAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
     if isinstance(stepper, SplitExplicit):
         return SplitExplicitAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
+    if isinstance(stepper, Lts):  # its levels fixed (``prepare``)
+        if stepper.mrab is not None:
+            raise ValueError("lts with method = 'mrab3' has no gradient yet (a multirate table's has)")
+        if stepper.single is not None:  # one level: the inner table's global step
+            return StepAdjoint(model, stepper.single.table(), stepper.dt, parameters, stepper.t0)
+        return LtsAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
     if isinstance(stepper, Mri):
         return MriAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
     return StepAdjoint(model, stepper.table(), stepper.dt, parameters, stepper.t0)
@@ -219,8 +227,8 @@ def gradient(
     Parameters
     ----------
     scene : a ``config.Scene`` whose stepper is an explicit Runge–Kutta table (ssprk3, rk4,
-        kgu35, the pairs, a tableau), fbrk32, leapfrog, leapfrog_trapezoidal, split_explicit or
-        mri (``step_adjoint``), any terms (a time-dependent forcing's stages at their times,
+        kgu35, the pairs, a tableau), fbrk32, leapfrog, leapfrog_trapezoidal, split_explicit,
+        mri or lts with a multirate table (``step_adjoint``), any terms (a time-dependent forcing's stages at their times,
         from the scene's ``start_day``; not with fbrk32 and the multirate steppers), a ∇⁴
         constant or tensor, ν_div = ν or not.
     steps : n ≥ 1 steps of the scene's Δt (or of ``history``).
@@ -292,10 +300,12 @@ def gradient(
             raise ValueError(why)
     topo = model.topology
     x0 = initial if x0 is None else _distributed(topo, x0, 3, "x0")
+    work = wp.array(x0, dtype=f64, device=model.device)  # the stepper steps this array only
+    stepper.prepare(work)  # from x(0): lts fixes its levels by its flow
     adjoint = step_adjoint(model, stepper, parameters)
     interval = snapshots if disk_interval is None else int(disk_interval)
     cost = run_cost(cost, steps)
-    found, mu, taken, used = _reverse_run(model, stepper, adjoint, clock, x0, steps, cost, snapshots, disk, interval)
+    found, mu, taken, used = _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, disk, interval)
     extra = {}
     if parameters:
         d_hs = _whole(topo, adjoint.hs_gradient())
@@ -342,17 +352,15 @@ class _IndexedTier:
         return _At(self.tier.load(j), j * self.interval)
 
 
-def _reverse_run(model, stepper, adjoint, clock, x0, steps, cost, snapshots, disk, interval):
+def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, disk, interval):
     """({"costs": {k: J_k}, "final": x(n)}, μ(0) numpy, forward steps, disk bytes) of
-    ``gradient``: the run from x0 (3, N) numpy and its reverse sweep, in memory or with a disk
+    ``gradient``: the run from x0 = ``work`` (3, N), the array the prepared stepper steps, and its reverse sweep, in memory or with a disk
     tier; ``cost`` a cost of the run (``run_cost``), called once at each of its steps. The
     sweep's states carry their step index (``_At``), so that every step, recomputed or
     reversed, runs at its Δt and model time (``clock``: a time-dependent forcing's). A
     three-level scheme's states and adjoints are (6, N), x(k) and the stepper's x̃(k−1)
     (``leapfrog``), the cost reading rows 0–2."""
     device, rows = model.device, 3 * adjoint.levels
-    work = wp.zeros((3, model.N), dtype=f64, device=device)  # the stepper steps this array only
-    stepper.prepare(work)
     X, O = slice(0, 3), slice(3, rows)
 
     def advance(state, steps=1):
@@ -404,7 +412,7 @@ def _reverse_run(model, stepper, adjoint, clock, x0, steps, cost, snapshots, dis
                 launch.launch()
 
     start = np.zeros((rows, model.N))
-    start[X] = x0  # x̃(−1) is not read: the three-level schemes' first step is a midpoint step
+    start[X] = work.numpy()  # x̃(−1) is not read: the three-level schemes' first step is a midpoint step
     x, used = _At(wp.array(start, dtype=f64, device=device), 0), 0
     if disk is None:
         taken = 1 + sweep(steps, snapshots, x, advance, reverse, copy)

@@ -22,9 +22,10 @@ every substep's wind.
 
 from __future__ import annotations
 
+import numpy as np
 import warp as wp
 
-from ..model.shallow_water import ShallowWater
+from ..model.shallow_water import ShallowWater, element_runs
 from ..steppers.butcher import TableauOptions, parse
 from ..steppers.tables import EXPLICIT
 from .explicit import StepAdjoint
@@ -194,8 +195,9 @@ class MriAdjoint(_Recomputed):
         self.Ybar, self.Sbar = [zeros(3) for _ in range(s)], [zeros(3) for _ in range(s)]
         self.zbar, self.stage_bar, self.tmp = zeros(3), zeros(3), zeros(3)
         self.at_H = zeros(3)  # (0, 0, H): where the continuity's transpose is L's depth row's
-        self.last = zeros(3) if parameters else None  # Y_(s+1): the step before its ∇⁴
+        self.last = zeros(3)  # Y_(s+1): the step before its ∇⁴ (taken where the states are kept)
         self.inner_states: dict = {}  # with ``parameters``: (r, k, i) → Z_i, which L's −g G reads
+        self.keep_states = self.parameters
         self._for_dt()
 
     def _solve_terms(self, r: int):
@@ -214,14 +216,12 @@ class MriAdjoint(_Recomputed):
         return z0, rho0, rho1, bool(t.beta1[r].any())
 
     def _recompute(self, x) -> None:
-        """Y_1 … Y_s of the step from x = x(n) (full depth), in h′ (class doc); with
-        ``parameters`` Y_(s+1) (``last``) and every inner stage's state too."""
+        """Y_1 … Y_s of the step from x = x(n) (full depth), in h′ (class doc); where the inner
+        stages' states are kept (``keep_states``: with ``parameters``), every one of them and
+        Y_(s+1) (``last``) too."""
         st, split, s = self.stepper, self.stepper.split, len(self.tab.d)
-        assert split.H != 0.0  # the stepper's first step fixed H (the sweep steps forward before it reverses)
-        self.combine(self.Y[0], [(1.0, x)])
-        self.combine(self.Y[0][2:3], [(1.0, x[2:3]), (-1.0, split.depth)])
-        self.combine(self.at_H[2:3], [(1.0, split.depth)])
-        for r in range(s if self.parameters else s - 1):
+        self._start(x)
+        for r in range(s if self.keep_states else s - 1):
             split.slow(self.Y[r], self.S[r])
             z0, rho0, rho1, timed = self._solve_terms(r)
             z = self.Y[r + 1] if r + 1 < s else self.last
@@ -233,7 +233,7 @@ class MriAdjoint(_Recomputed):
             for k in range(n):
                 for i, row in enumerate(self.a):
                     Z = self.Z
-                    if self.parameters:
+                    if self.keep_states:
                         if (r, k, i) not in self.inner_states:
                             self.inner_states[r, k, i] = self._zeros(3)
                         Z = self.inner_states[r, k, i]
@@ -244,8 +244,24 @@ class MriAdjoint(_Recomputed):
                         self.combine(rho, [(1.0, self.rho0), ((k + self.ci[i]) / n, self.rho1)])
                     split.fast(Z, self.K[i], rho)
                 self.combine(z, [(1.0, z), *((tau * b, K) for b, K in zip(self.b, self.K))])
-        if not self.parameters:
+        if not self.keep_states:  # else the last solve's slow part was evaluated above
             split.slow(self.Y[-1], self.S[-1])
+
+    def _start(self, x) -> None:
+        """Y_1 = x(n) in h′ (and (0, 0, H) for Lᵀ)."""
+        split = self.stepper.split
+        assert split.H != 0.0  # the stepper's first step fixed H (the sweep steps forward before it reverses)
+        self.combine(self.Y[0], [(1.0, x)])
+        self.combine(self.Y[0][2:3], [(1.0, x[2:3]), (-1.0, split.depth)])
+        self.combine(self.at_H[2:3], [(1.0, split.depth)])
+
+    def _fast_transpose(self, state, kb) -> list:
+        """x̄ = the fast part's transpose applied to k̄ (``kb``): Lᵀ, at (0, 0, H)."""
+        return self._transpose(self.at_H, [(1.0, kb)], ("pressure_gradient", "continuity"))
+
+    def _slow_transpose(self, Y, sbar) -> list:
+        """x̄ = the slow part's transpose at Y applied to S̄ (``sbar``): N's, the RHS without its pressure gradient."""
+        return self._transpose(Y, [(1.0, sbar)], self.stepper.split.slow_terms)
 
     def before_hyperviscosity(self, out) -> None:
         """out = Y_(s+1) with its full depth, the step before its ∇⁴."""
@@ -285,7 +301,7 @@ class MriAdjoint(_Recomputed):
                     ]
                     segments.append((None, None, self._lin(kb, terms)))
                     launches = [
-                        *self._transpose(self.at_H, [(1.0, kb)], ("pressure_gradient", "continuity")),
+                        *self._fast_transpose(self.inner_states.get((r, k, i)), kb),
                         *dss(self.xbar, False, Zbar[i]),
                         *self._lin(self.rho0, [(1.0, self.rho0), (1.0, kb)]),
                         *(self._lin(self.rho1, [(1.0, self.rho1), ((k + self.ci[i]) / n, kb)]) if timed else ()),
@@ -300,7 +316,7 @@ class MriAdjoint(_Recomputed):
                         combinations += self._lin(bar[id(a)], [(1.0, bar[id(a)]), (c, adjoint)])
             segments.append((None, None, combinations))
             slow = [
-                *self._transpose(self.Y[r], [(1.0, Sbar[r])], self.stepper.split.slow_terms),
+                *self._slow_transpose(self.Y[r], Sbar[r]),
                 *dss(self.xbar, False, self.tmp),
                 *self._lin(Ybar[r], [(1.0, Ybar[r]), (1.0, self.tmp)]),
             ]
@@ -308,3 +324,34 @@ class MriAdjoint(_Recomputed):
             cur = Ybar[r]
         segments.append((None, None, self._lin(mu, [(1.0, Ybar[0])])))
         return segments
+
+
+class LtsAdjoint(MriAdjoint):
+    """The adjoint of one ``Lts`` step (``stepper``) with a multirate table on two or more
+    element levels: ``MriAdjoint``'s, with the split by level (``steppers.local.LevelSplit``):
+    the slow part f_0 the coarsest level's elements' tendency, the fast part f_fine the finer
+    levels', nonlinear, so every inner stage's state is held and f_fine's transpose taken there;
+    each part's transpose runs over its own elements alone (x̄ zero on the others, then the
+    unweighted DSS: f_P = R Q_P W T_P in the mass form), in full depth (no h′). The initial
+    state's gradient alone. ValueError for ``parameters``, a forcing, and as ``MriAdjoint``.
+    One level is the inner table's global step (``step_adjoint``: a ``StepAdjoint``); MRAB3
+    has no adjoint."""
+
+    def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
+        if parameters:
+            raise ValueError("lts's gradient is of the initial state alone")
+        super().__init__(model, stepper, dt, parameters, t0)
+        self.keep_states = True  # f_fine's transpose reads them
+        level = stepper.levels.level[model.topology.elements]
+        self.runs = {
+            part: element_runs(np.flatnonzero(mask), 0) for part, mask in (("slow", level == 0), ("fast", level >= 1))
+        }
+
+    def _start(self, x) -> None:
+        self.combine(self.Y[0], [(1.0, x)])
+
+    def _fast_transpose(self, state, kb) -> list:
+        return self._transpose(state, [(1.0, kb)], None, self.runs["fast"])
+
+    def _slow_transpose(self, Y, sbar) -> list:
+        return self._transpose(Y, [(1.0, sbar)], None, self.runs["slow"])

@@ -1,6 +1,7 @@
 """Gradients of multirate runs (``adjoint.multirate``): split_explicit (the slow tendency held
-over the gravity waves' forward–backward substeps, each substep reversed) and mri (the inner
-solves of the linear gravity-wave system reversed through their tables)."""
+over the gravity waves' forward–backward substeps, each substep reversed), mri (the inner
+solves of the linear gravity-wave system reversed through their tables) and lts (the same
+engine on element levels, its fast part nonlinear)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,9 @@ import warp as wp
 
 from swe_sphere.adjoint import HeightMisfit, gradient
 from swe_sphere.adjoint.gradient import scene_model, step_adjoint
+from swe_sphere.config.scene import load_scene
+from swe_sphere.grid.refine import Box, refined_cube
+from swe_sphere.mesh.mesh import write_exodus
 from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.steppers import make_stepper
 
@@ -32,10 +36,44 @@ def test_a_split_explicit_run_s_gradient_falls_as_eps_squared(damping):
     taylor.assert_initial_state_taylor(scene, "split_explicit")
 
 
-@pytest.mark.parametrize("stepper", ["split_explicit", "mri"])
-def test_a_multirate_step_s_per_node_transposes_give_the_element_kernels_adjoint(stepper):
+@pytest.fixture(scope="module")
+def refined(tmp_path_factory):
+    """TC5 by lts (MIS4a, rk4 inside) at 600 s on the ne4 cube refined 2× about its mountain
+    (124 elements, two levels: 66 and 58)."""
+    box = Box(15.0, 45.0, 255.0, 285.0)
+    mesh = write_exodus(tmp_path_factory.mktemp("mesh") / "r4.g", refined_cube(4, box, 1))
+    return load_scene("tc5_mountain", mesh=mesh, dt=600.0, stepper="lts")
+
+
+@pytest.mark.parametrize("options", [{}, {"method": "mis2", "inner": "ssprk3"}], ids=["mis4a-rk4", "mis2-ssprk3"])
+def test_an_lts_run_on_two_levels_has_a_gradient_whose_remainder_falls_as_eps_squared(refined, options):
+    """Two element levels: the coarse level's tendency the slow part, the fine levels' the fast
+    (nonlinear: the inner stages' states held), each part's transpose over its own elements:
+    the forward the ``Simulation``'s to the bit, and x(0)'s Taylor remainder falls as ε²."""
+    scene = dataclasses.replace(refined, stepper_options=options)
+    model, stepper, x0 = scene_model(scene)
+    stepper.prepare(wp.array(x0, dtype=taylor.f64))
+    assert stepper.levels.elements_per_level() == [66, 58]
+    taylor.assert_replays_the_run(scene, 3, taylor.misfit(model, x0, np.random.default_rng(21)))
+    taylor.assert_initial_state_taylor(scene, "lts", 3)
+
+
+def test_an_lts_run_on_one_level_is_its_inner_table_s_gradient():
+    """On the uniform cube lts has one level, the inner table's global step: its gradient is
+    that table's, the same bits as rk4's."""
+    scene = taylor.tc5("lts")
+    model, _, x0 = scene_model(scene)
+    cost = taylor.misfit(model, x0, np.random.default_rng(22))
+    one = gradient(scene, 4, cost, parameters=True)
+    rk4 = gradient(taylor.tc5("rk4"), 4, cost, parameters=True)
+    np.testing.assert_array_equal(one.grad, rk4.grad)
+    assert (one.d_nu, one.d_g) == (rk4.d_nu, rk4.d_g)
+
+
+@pytest.mark.parametrize("stepper", ["split_explicit", "mri", "lts"])
+def test_a_multirate_step_s_per_node_transposes_give_the_element_kernels_adjoint(stepper, refined):
     # one step reversed on the CPU's element kernels and on CUDA's per-node point and gather, here on the CPU
-    scene = taylor.tc5(stepper)
+    scene = refined if stepper == "lts" else taylor.tc5(stepper)
     model, _, x0 = scene_model(scene)
     node = ShallowWater.from_scene(scene, model.grid, per_element=False)
     lam = taylor.continuous(model, np.random.default_rng(18).standard_normal((3, model.N)))
@@ -90,6 +128,14 @@ def test_a_multirate_run_s_parameter_gradients_fall_as_eps_squared(stepper):
     }
     for name, perturbed in perturbations.items():
         taylor.assert_falls_as_eps_squared(perturbed, name)
+
+
+def test_an_lts_gradient_refuses_mrab3_and_parameters(refined):
+    cost = HeightMisfit(scene_model(refined)[2][2])
+    with pytest.raises(ValueError, match="lts with method = 'mrab3' has no gradient yet"):
+        gradient(dataclasses.replace(refined, stepper_options={"method": "mrab3"}), 1, cost)
+    with pytest.raises(ValueError, match="lts's gradient is of the initial state alone"):
+        gradient(refined, 1, cost, parameters=True)
 
 
 def test_a_multirate_gradient_refuses_a_forcing_and_an_fbrk32_inner_solve():

@@ -21,16 +21,16 @@ from .explicit import StepAdjoint
 class ForwardBackwardAdjoint(StepAdjoint):
     """The adjoint of one FB-RK(3,2) step of ``model`` at Δt = ``dt`` (s), the stepper's
     ``C`` and ``BETA`` (``stepper``: an ``FBRK32``); otherwise as ``StepAdjoint`` (``reverse``,
-    ``parameters``: ∂J/∂ν, ν_s, hs, g and Ω). ValueError for a model with a forcing or without
+    ``parameters``: ∂J/∂ν, ν_s, hs, g and Ω; a forcing's stages at their times). ValueError for a model without
     momentum terms (its wind a combination alone), and as ``StepAdjoint``.
 
     Work arrays (3, N) held: Z_0…Z_3, S_0…S_2, the continuity half's k̄, the momentum half's
-    DSS'd x̄, two for the Z̄ and one for x̄(n)'s direct terms: thirteen, with (2, N) f̄."""
+    DSS'd x̄, two for the Z̄, one for x̄(n)'s direct terms and a forcing's wind: fourteen, with (2, N) f̄."""
 
     def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
         self._setup(model, dt, parameters, t0)
-        if not stepper.momentum or "forcing" in model.terms:
-            raise ValueError("fbrk32's adjoint needs the momentum terms and takes no forcing yet")
+        if not stepper.momentum:
+            raise ValueError("fbrk32's adjoint needs the momentum terms")
         self.continuity, self.momentum = stepper.continuity, stepper.momentum
         self.C, self.BETA = tuple(stepper.C), tuple(stepper.BETA)
         zeros = self._zeros
@@ -40,6 +40,7 @@ class ForwardBackwardAdjoint(StepAdjoint):
         self.kh, self.su = zeros(3), zeros(3)  # the continuity half's k̄, R Q x̄ of the momentum half's
         self.zbar = [zeros(3), zeros(3)]
         self.acc = zeros(3)  # x̄(n)'s terms from u_n and h_n in the stages' combinations
+        self.forcing_wind = zeros(3)  # a forcing's wind rows (the continuity half's): x's, not the adjoint's
         self._for_dt()
 
     def _stage_plan(self, zeros) -> None:
@@ -47,21 +48,25 @@ class ForwardBackwardAdjoint(StepAdjoint):
 
     def stages(self, k: int = 0) -> None:
         """Z_1…Z_3 and S_0…S_2 of step k from x = Z_0, as the stepper forms them (``FBRK32``:
-        each half's combinations written by its DSS, the same sums in the same order)."""
+        each half's combinations written by its DSS, the same sums in the same order; a
+        forcing's wind rows, which the continuity half holds, in ``kh`` and added to the wind;
+        each stage at the stepper's time, t0 + (k + c_(i−1))·Δt)."""
         m, dt, x, Z, S = self.model, self.dt, self.x, self.Z, self.S
         U, H = slice(0, 2), slice(2, 3)
+        forced = "forcing" in self.continuity
         self.combine(S[0][U], [(1.0, x[U])])
         for i, (c, beta) in enumerate(zip(self.C, self.BETA)):
             last = i == len(self.C) - 1
+            m.set_time(self.t0 + (k + (self.C[i - 1] if i else 0.0)) * dt)
             tilde = (
                 ((2 * beta, x), (beta * c * dt, None), (1 - 2 * beta, Z[i]))
                 if last
                 else ((1.0, x), (beta * c * dt, None))
             )
-            m.rhs_update(
-                Z[i], (Update(S[i], tilde, H), Update(Z[i + 1], ((1.0, x), (c * dt, None)), H)), self.continuity
-            )
-            wind = ((1.0, x), (c * dt, None))
+            depth = (Update(self.forcing_wind, ((1.0, None),), U),) if forced else ()
+            depth += (Update(S[i], tilde, H), Update(Z[i + 1], ((1.0, x), (c * dt, None)), H))
+            m.rhs_update(Z[i], depth, self.continuity)
+            wind = ((1.0, x), *(((c * dt, self.forcing_wind),) if forced else ()), (c * dt, None))
             m.rhs_update(
                 S[i], (Update(Z[i + 1], wind, U), *(() if last else (Update(S[i + 1], wind, U),))), self.momentum
             )

@@ -228,9 +228,9 @@ def gradient(
     ----------
     scene : a ``config.Scene`` whose stepper is an explicit Runge–Kutta table (ssprk3, rk4,
         kgu35, the pairs, a tableau), fbrk32, leapfrog, leapfrog_trapezoidal, split_explicit,
-        mri or lts with a multirate table (``step_adjoint``), any terms (a time-dependent forcing's stages at their times,
-        from the scene's ``start_day``; not with fbrk32 and the multirate steppers), a ∇⁴
-        constant or tensor, ν_div = ν or not.
+        mri or lts with a multirate table (``step_adjoint``), any terms (a time-dependent
+        forcing's stages at their times, from the scene's ``start_day``), a ∇⁴ constant or
+        tensor, ν_div = ν or not.
     steps : n ≥ 1 steps of the scene's Δt (or of ``history``).
     cost : callable (x, spheremp) → (J, λ) of the final state, x (3, N) numpy rows u, v, h
         (m s⁻¹, m s⁻¹, m), spheremp (N,) m², λ = ∂J/∂x (3, N) over the element-local entries

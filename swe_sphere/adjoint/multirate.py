@@ -38,12 +38,17 @@ class _Recomputed(StepAdjoint):
     def _stage_plan(self, zeros) -> None:
         """None: ``_recompute`` forms the stages."""
 
-    def _recompute(self, x) -> None:
+    def _recompute(self, x, k: int) -> None:
         raise NotImplementedError
 
+    def _at(self, k: int, c: float) -> None:
+        """The model time of step k's abscissa c, t0 + (k + c)·Δt (the stepper's ``_at``: a
+        forcing's, which adds to F, not to its Jacobian)."""
+        self.model.set_time(self.t0 + (k + c) * self.dt)
+
     def reverse(self, x, mu, k: int = 0) -> None:
-        """μ of x(k+1) → μ of x(k), in place; x = x(k) (read only)."""
-        self._recompute(x)
+        """μ of x(k+1) → μ of x(k), in place; x = x(k) (read only), k the step's index."""
+        self._recompute(x, k)
         if self.substeps:
             self.hyperviscosity_transpose(mu)
         self._replay(mu)
@@ -53,16 +58,14 @@ class SplitExplicitAdjoint(_Recomputed):
     """The adjoint of one ``SplitExplicit`` step (``stepper``) of ``model`` at Δt = ``dt`` (s):
     ``reverse(x, mu, k)`` as ``StepAdjoint``'s; with ``parameters`` its ∇⁴ as there, g's terms
     those of the slow topography −g∇hs and of the substeps' −gτ G h̃, Ω's the slow Coriolis
-    term's, hs's the topography's (through f̄) and the ∇⁴'s. ValueError for a model with a
-    forcing, and as ``StepAdjoint``.
+    term's, hs's the topography's (through f̄) and the ∇⁴'s; a forcing (in the slow part) at
+    each stage's time. ValueError as ``StepAdjoint``.
 
     Work arrays (3, N): x(n) in h′, the stages' ends z_0…z_2, S, every substep's (v, h_s)
     (Σ n_i of them; with ``parameters`` its h̃ too), four for the adjoints; (1, N): h̄_old
     and h̄_s."""
 
     def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
-        if "forcing" in model.terms:
-            raise ValueError("split_explicit's gradient takes no forcing yet")
         self._setup(model, dt, parameters, t0)
         self.stepper = stepper
         zeros = self._zeros
@@ -74,8 +77,8 @@ class SplitExplicitAdjoint(_Recomputed):
         self.old, self.hs_bar = zeros(1), zeros(1)
         self._for_dt()
 
-    def _recompute(self, x) -> None:
-        """The stages and substeps of the step from x = x(n) (full depth), as the stepper takes
+    def _recompute(self, x, k: int) -> None:
+        """The stages and substeps of step k from x = x(n) (full depth), as the stepper takes
         them: z_i, and every substep's W in ``winds`` (and h̃ in ``tilde``)."""
         st, m = self.stepper, self.model
         assert st.split.H != 0.0  # the stepper's first step fixed H (the sweep steps forward before it reverses)
@@ -88,14 +91,15 @@ class SplitExplicitAdjoint(_Recomputed):
         j = 0
         for i, (c, n) in enumerate(zip(st.C, st.n_fast)):
             src = self.xn if i == 0 else self.Z[i - 1]
+            self._at(k, float(st.C[i - 1]) if i else 0.0)
             m.rhs(src, self.S, st.slow_terms)
             self.combine(st.W[2:3], [(1.0, src[2:3]), (1.0, depth)])  # h_s
             out, tau = self.Z[i], float(c) * self.dt / n
-            for k in range(n):
-                prev = out if k else self.xn
+            for sub in range(n):
+                prev = out if sub else self.xn
                 if self.tilde:  # the depth the substep's gradient reads (``SplitExplicit.forward_backward``)
-                    self.combine(self.tilde[j][2:3], [(1.0, (st.w if k and beta else prev)[2:3])])
-                st.forward_backward(prev, out, tau, self.S, first=k == 0)
+                    self.combine(self.tilde[j][2:3], [(1.0, (st.w if sub and beta else prev)[2:3])])
+                st.forward_backward(prev, out, tau, self.S, first=sub == 0)
                 wp.copy(self.winds[j], st.W)
                 j += 1
             self.combine(out[0:2], [(1.0, st.W[0:2])])
@@ -173,15 +177,16 @@ class MriAdjoint(_Recomputed):
     stages Y_(r+1) from x(n) (the inner steps by the Butcher form, the stepper's to round-off).
     With ``parameters`` its ∇⁴ as ``StepAdjoint``'s (from Y_(s+1), the last solve taken too),
     g's terms those of the slow topography and of L's −g G h′ at every inner stage (their states
-    held), Ω's the slow Coriolis term's, hs's the topography's and the ∇⁴'s. ValueError for a
-    forcing, the fbrk32 inner method, and as ``StepAdjoint``.
+    held), Ω's the slow Coriolis term's, hs's the topography's and the ∇⁴'s; a forcing (in the
+    slow part) at each stage's time. ValueError for the fbrk32 inner method, and as
+    ``StepAdjoint``.
 
     Work arrays (3, N): the s stages and slow tendencies, the inner stages' K_i and Z̄_i,
     eight for the solves and the adjoints; with ``parameters`` every inner stage's state."""
 
     def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
-        if "forcing" in model.terms or stepper.options.inner == "fbrk32":
-            raise ValueError("mri's gradient needs an inner Runge–Kutta table and takes no forcing yet")
+        if stepper.options.inner == "fbrk32":
+            raise ValueError("mri's gradient needs an inner Runge–Kutta table (ssprk3 or rk4)")
         self._setup(model, dt, parameters, t0)
         self.stepper, self.tab = stepper, stepper.tab
         inner = parse(TableauOptions(**EXPLICIT[stepper.options.inner]))
@@ -198,6 +203,7 @@ class MriAdjoint(_Recomputed):
         self.last = zeros(3)  # Y_(s+1): the step before its ∇⁴ (taken where the states are kept)
         self.inner_states: dict = {}  # with ``parameters``: (r, k, i) → Z_i, which L's −g G reads
         self.keep_states = self.parameters
+        self.timed_fast = False  # L does not depend on time
         self._for_dt()
 
     def _solve_terms(self, r: int):
@@ -215,14 +221,17 @@ class MriAdjoint(_Recomputed):
         rho1 = [(float(t.beta1[r, j]) / d, S[j]) for j in range(r + 1)]
         return z0, rho0, rho1, bool(t.beta1[r].any())
 
-    def _recompute(self, x) -> None:
-        """Y_1 … Y_s of the step from x = x(n) (full depth), in h′ (class doc); where the inner
+    def _recompute(self, x, k: int) -> None:
+        """Y_1 … Y_s of step k from x = x(n) (full depth), in h′ (class doc); where the inner
         stages' states are kept (``keep_states``: with ``parameters``), every one of them and
         Y_(s+1) (``last``) too."""
         st, split, s = self.stepper, self.stepper.split, len(self.tab.d)
         self._start(x)
+        t = self.tab
         for r in range(s if self.keep_states else s - 1):
+            self._at(k, float(t.c[r]))
             split.slow(self.Y[r], self.S[r])
+            start = (float(t.c[r + 1]) if r + 1 < s else 1.0) - float(t.d[r])  # the solve's, in Δt
             z0, rho0, rho1, timed = self._solve_terms(r)
             z = self.Y[r + 1] if r + 1 < s else self.last
             self.combine(z, z0)
@@ -230,21 +239,25 @@ class MriAdjoint(_Recomputed):
             self.combine(self.rho1, rho1)
             n = st.n_fast[r]
             tau = float(self.tab.d[r]) * self.dt / n
-            for k in range(n):
+            for sub in range(n):
                 for i, row in enumerate(self.a):
                     Z = self.Z
                     if self.keep_states:
-                        if (r, k, i) not in self.inner_states:
-                            self.inner_states[r, k, i] = self._zeros(3)
-                        Z = self.inner_states[r, k, i]
+                        if (r, sub, i) not in self.inner_states:
+                            self.inner_states[r, sub, i] = self._zeros(3)
+                        Z = self.inner_states[r, sub, i]
                     self.combine(Z, [(1.0, z), *((tau * a, K) for a, K in zip(row[:i], self.K))])
                     rho = self.rho0
+                    theta = (sub + self.ci[i]) / n
                     if timed:
                         rho = self.rho
-                        self.combine(rho, [(1.0, self.rho0), ((k + self.ci[i]) / n, self.rho1)])
+                        self.combine(rho, [(1.0, self.rho0), (theta, self.rho1)])
+                    if self.timed_fast:  # the fast part's forcing at its time in the solve (lts)
+                        self._at(k, start + theta * float(t.d[r]))
                     split.fast(Z, self.K[i], rho)
                 self.combine(z, [(1.0, z), *((tau * b, K) for b, K in zip(self.b, self.K))])
         if not self.keep_states:  # else the last solve's slow part was evaluated above
+            self._at(k, float(t.c[-1]))
             split.slow(self.Y[-1], self.S[-1])
 
     def _start(self, x) -> None:
@@ -333,7 +346,8 @@ class LtsAdjoint(MriAdjoint):
     levels', nonlinear, so every inner stage's state is held and f_fine's transpose taken there;
     each part's transpose runs over its own elements alone (x̄ zero on the others, then the
     unweighted DSS: f_P = R Q_P W T_P in the mass form), in full depth (no h′). The initial
-    state's gradient alone. ValueError for ``parameters``, a forcing, and as ``MriAdjoint``.
+    state's gradient alone; a forcing at the stages' and the inner stages' times. ValueError
+    for ``parameters``, and as ``MriAdjoint``.
     One level is the inner table's global step (``step_adjoint``: a ``StepAdjoint``); MRAB3
     has no adjoint."""
 
@@ -342,13 +356,17 @@ class LtsAdjoint(MriAdjoint):
             raise ValueError("lts's gradient is of the initial state alone")
         super().__init__(model, stepper, dt, parameters, t0)
         self.keep_states = True  # f_fine's transpose reads them
+        self.timed_fast = "forcing" in model.terms  # f_fine holds the forcing on the fine elements
         level = stepper.levels.level[model.topology.elements]
         self.runs = {
             part: element_runs(np.flatnonzero(mask), 0) for part, mask in (("slow", level == 0), ("fast", level >= 1))
         }
 
     def _start(self, x) -> None:
-        self.combine(self.Y[0], [(1.0, x)])
+        self.combine(self.Y[0], [(1.0, x)])  # in full depth
+
+    def before_hyperviscosity(self, out) -> None:
+        self.combine(out, [(1.0, self.last)])
 
     def _fast_transpose(self, state, kb) -> list:
         return self._transpose(state, [(1.0, kb)], None, self.runs["fast"])

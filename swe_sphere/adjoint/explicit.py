@@ -413,24 +413,36 @@ class StepAdjoint:
             segments.append((self.Y[i], kbar, launches))
         return segments
 
-    def planet_terms(self, Y, kbar, g_terms=None, coriolis: bool = True) -> None:
+    def planet_terms(self, Y, kbar, g_terms=None, coriolis: bool = True, part=None) -> None:
         """Add a stage's ⟨k̄, g F_g(Y)⟩ and ⟨k̄, f (v, −u)⟩ to ``d_planet`` (module doc), Y the
         state its F read, k̄ = Σ c·a over (c, a) ``kbar`` as its transpose reads them (the same
         bits on any ranks); F_g the RHS of ``g_terms`` (None: the model's pressure gradient and
-        topography), the Coriolis term's share only where its F holds it (``coriolis``)."""
+        topography), the Coriolis term's share only where its F holds it (``coriolis``); with
+        ``part`` (an ``ElementPart``: F the part's f_P) both by ``rhs_part``."""
         m = self.model
         g_terms = self.g_terms if g_terms is None else tuple(t for t in g_terms if t in m.terms)
         kb, w, y = sum(c * a.numpy() for c, a in kbar), m.grid.spheremp, Y.numpy()
-        pressure = np.zeros_like(w)
-        if g_terms:  # g F_g: the RHS of those terms alone (its wind rows)
-            if not hasattr(self, "f_g"):
-                self.f_g = self._zeros(3)
-            m.rhs(Y, self.f_g, g_terms)
+        if not hasattr(self, "f_g"):
+            self.f_g = self._zeros(3)
+
+        def winds(terms):  # ⟨k̄, F⟩ node by node over the wind rows, F the RHS of ``terms`` at Y
+            if part is None:
+                m.rhs(Y, self.f_g, terms)
+            else:  # f_P writes the nodes its elements touch alone
+                self.f_g.zero_()
+                m.rhs_part(Y, self.f_g, part, terms)
             F = self.f_g.numpy()
-            pressure = kb[0] * F[0] + kb[1] * F[1]
+            return kb[0] * F[0] + kb[1] * F[1]
+
+        pressure = winds(g_terms) if g_terms else np.zeros_like(w)
         if not hasattr(self, "fcor"):
             self.fcor = m.fcor.numpy() if "coriolis" in m.terms else np.zeros_like(w)
-        rotation = self.fcor * (kb[0] * y[1] - kb[1] * y[0]) if coriolis else np.zeros_like(w)
+        if not coriolis or "coriolis" not in m.terms:
+            rotation = np.zeros_like(w)
+        elif part is None:
+            rotation = self.fcor * (kb[0] * y[1] - kb[1] * y[0])
+        else:
+            rotation = winds(("coriolis",))
         self.d_planet += m.topology.whole_sums([w * pressure, w * rotation])
 
     def reverse(self, x, mu, k: int = 0) -> None:

@@ -204,6 +204,8 @@ class MriAdjoint(_Recomputed):
         self.inner_states: dict = {}  # with ``parameters``: (r, k, i) → Z_i, which L's −g G reads
         self.keep_states = self.parameters
         self.timed_fast = False  # L does not depend on time
+        # ``planet_terms``' terms of each part's F: L's −g G h′; the slow topography and Coriolis
+        self._fast_planet, self._slow_planet = (("pressure_gradient",), False), (("topography",), True)
         self._for_dt()
 
     def _solve_terms(self, r: int):
@@ -319,8 +321,8 @@ class MriAdjoint(_Recomputed):
                         *self._lin(self.rho0, [(1.0, self.rho0), (1.0, kb)]),
                         *(self._lin(self.rho1, [(1.0, self.rho1), ((k + self.ci[i]) / n, kb)]) if timed else ()),
                     ]
-                    state = self.inner_states.get((r, k, i))  # L's −g G h′ read it: g's term, with parameters
-                    segments.append((state, [(1.0, kb)], launches, (("pressure_gradient",), False)))
+                    state = self.inner_states.get((r, k, i))  # the fast part's F read it: g's term, with parameters
+                    segments.append((state, [(1.0, kb)], launches, self._fast_planet))
                 segments.append((None, None, self._lin(zbar, [(1.0, zbar), *((1.0, Z) for Z in Zbar)])))
             combinations = []
             for terms, adjoint in ((z0, zbar), (rho0, self.rho0), (rho1, self.rho1)):
@@ -333,7 +335,7 @@ class MriAdjoint(_Recomputed):
                 *dss(self.xbar, False, self.tmp),
                 *self._lin(Ybar[r], [(1.0, Ybar[r]), (1.0, self.tmp)]),
             ]
-            segments.append((self.Y[r], [(1.0, Sbar[r])], slow, (("topography",), True)))
+            segments.append((self.Y[r], [(1.0, Sbar[r])], slow, self._slow_planet))
             cur = Ybar[r]
         segments.append((None, None, self._lin(mu, [(1.0, Ybar[0])])))
         return segments
@@ -345,17 +347,18 @@ class LtsAdjoint(MriAdjoint):
     the slow part f_0 the coarsest level's elements' tendency, the fast part f_fine the finer
     levels', nonlinear, so every inner stage's state is held and f_fine's transpose taken there;
     each part's transpose runs over its own elements alone (x̄ zero on the others, then the
-    unweighted DSS: f_P = R Q_P W T_P in the mass form), in full depth (no h′). The initial
-    state's gradient alone; a forcing at the stages' and the inner stages' times. ValueError
-    for ``parameters``, and as ``MriAdjoint``.
+    unweighted DSS: f_P = R Q_P W T_P in the mass form), in full depth (no h′). With
+    ``parameters`` the ∇⁴'s as ``StepAdjoint``'s, hs's the topography's over each part, g's and
+    Ω's each part's f_P of those terms (``planet_terms`` with the part); a forcing at the stages'
+    and the inner stages' times. ValueError as ``MriAdjoint``.
     One level is the inner table's global step (``step_adjoint``: a ``StepAdjoint``); MRAB3
     has no adjoint."""
 
     def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
-        if parameters:
-            raise ValueError("lts's gradient is of the initial state alone")
         super().__init__(model, stepper, dt, parameters, t0)
         self.keep_states = True  # f_fine's transpose reads them
+        split = stepper.split  # each part's F holds every term over its elements
+        self._fast_planet, self._slow_planet = (None, True, split.finer), (None, True, split.coarse)
         self.timed_fast = "forcing" in model.terms  # f_fine holds the forcing on the fine elements
         level = stepper.levels.level[model.topology.elements]
         self.runs = {

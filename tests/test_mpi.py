@@ -409,14 +409,13 @@ def test_solver_steppers_agree_with_one_rank(tmp_path, rng):
 def test_a_gradient_is_the_same_bits_on_one_two_and_three_ranks(tmp_path):
     """A run's gradient over ranks (``adjoint.gradient(..., comm=)``, issue 66's "Checks"): a
     cost of h at 40 points observed at three of TC5's six rk4 steps, reversed from two
-    snapshots, and the same by leapfrog, by rk4 along a history of three Δt and by
-    split_explicit and mri; their values, final states and gradients with
+    snapshots, and the same along a history of three Δt and by mri; their values, final states and gradients with
     respect to the initial state, ν, ν_s, hs, g and Ω are the same bits on 2 and 3 ranks as
     in one process."""
     from mpi_gradient import whole_gradient
 
     one = whole_gradient()
-    for name in ("rk4", "leapfrog", "history", "split_explicit", "mri"):
+    for name in ("rk4", "history", "mri"):
         assert np.all(np.abs(one[f"grad_{name}"]).max(axis=1) > 0), name  # every row moved
         assert np.all(one[f"numbers_{name}"][-4:] != 0), name  # ν, ν_s, g and Ω moved
     script = Path(__file__).with_name("mpi_gradient.py")

@@ -80,7 +80,15 @@ class StepAdjoint:
     live at once (kgu35, rk4: one); x̄, a running sum of the Ȳ, and k̄ where the transposes
     cannot read it as a combination (``_transpose``): kgu35 eight, with (2, N) f̄."""
 
-    levels = 1  # the states a step maps: x(n) alone (``leapfrog``'s: two)
+    def carried(self, stepper) -> list:
+        """The (3, N) arrays ``stepper`` carries from step to step besides x, which the reverse
+        sweep's states and adjoints hold after x's rows, in this order: none here (``leapfrog``'s
+        x̃(n−1), ``multirate_ab``'s histories)."""
+        return []
+
+    def set_phase(self, stepper, k: int) -> None:
+        """Put ``stepper`` at step k's phase before it takes step k again from a state of the
+        sweep (beyond its clock and x): nothing here."""
 
     def __init__(self, model: ShallowWater, table, dt: float, parameters: bool = False, t0: float = 0.0):
         self._setup(model, dt, parameters, t0)
@@ -452,6 +460,13 @@ class StepAdjoint:
         self.stages(k)
         if self.substeps:
             self.hyperviscosity_transpose(mu)
+        self._replay(mu)
+
+    def reverse_dynamics(self, x, mu, k: int = 0) -> None:
+        """``reverse`` without the ∇⁴'s transpose: the table's stages alone (a step that is a
+        substep of another's, ``multirate_ab``)."""
+        wp.copy(self.x, x)
+        self.stages(k)
         self._replay(mu)
 
     def _replay(self, mu) -> None:

@@ -27,6 +27,7 @@ from .explicit import StepAdjoint, refusal
 from .forward_backward import ForwardBackwardAdjoint
 from .leapfrog import LeapfrogAdjoint
 from .multirate import LtsAdjoint, MriAdjoint, SplitExplicitAdjoint
+from .multirate_ab import MrabAdjoint
 from .revolve import sweep, two_level
 
 f64 = wp.float64
@@ -170,8 +171,7 @@ class Clock:
 def step_adjoint(model: ShallowWater, stepper, parameters: bool = False) -> StepAdjoint:
     """The adjoint of one step of ``stepper`` (``scene_model``'s: an ``ExplicitRK``,
     ``FBRK32``, ``Leapfrog``, ``LeapfrogTrapezoidal``, ``SplitExplicit``, ``Mri`` or a prepared
-    ``Lts``) on ``model``, its steps from the stepper's ``t0``. ValueError as its class, and
-    for lts with MRAB3."""
+    ``Lts``) on ``model``, its steps from the stepper's ``t0``. ValueError as its class."""
     if isinstance(stepper, FBRK32):
         return ForwardBackwardAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
     if isinstance(stepper, (Leapfrog, LeapfrogTrapezoidal)):
@@ -180,7 +180,7 @@ def step_adjoint(model: ShallowWater, stepper, parameters: bool = False) -> Step
         return SplitExplicitAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
     if isinstance(stepper, Lts):  # its levels fixed (``prepare``)
         if stepper.mrab is not None:
-            raise ValueError("lts with method = 'mrab3' has no gradient yet (a multirate table's has)")
+            return MrabAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
         if stepper.single is not None:  # one level: the inner table's global step
             return StepAdjoint(model, stepper.single.table(), stepper.dt, parameters, stepper.t0)
         return LtsAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
@@ -228,7 +228,7 @@ def gradient(
     ----------
     scene : a ``config.Scene`` whose stepper is an explicit Runge–Kutta table (ssprk3, rk4,
         kgu35, the pairs, a tableau), fbrk32, leapfrog, leapfrog_trapezoidal, split_explicit,
-        mri or lts with a multirate table (``step_adjoint``), any terms (a time-dependent
+        mri or lts (a multirate table or MRAB3, x(0) alone) (``step_adjoint``), any terms (a time-dependent
         forcing's stages at their times, from the scene's ``start_day``), a ∇⁴ constant or
         tensor, ν_div = ν or not.
     steps : n ≥ 1 steps of the scene's Δt (or of ``history``).
@@ -358,22 +358,27 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
     tier; ``cost`` a cost of the run (``run_cost``), called once at each of its steps. The
     sweep's states carry their step index (``_At``), so that every step, recomputed or
     reversed, runs at its Δt and model time (``clock``: a time-dependent forcing's). A
-    three-level scheme's states and adjoints are (6, N), x(k) and the stepper's x̃(k−1)
-    (``leapfrog``), the cost reading rows 0–2."""
-    device, rows = model.device, 3 * adjoint.levels
-    X, O = slice(0, 3), slice(3, rows)
+    stepper that carries arrays from step to step (``StepAdjoint.carried``: leapfrog's x̃(k−1),
+    MRAB3's histories) has them in its states' and adjoints' rows after x's, the cost reading
+    rows 0–2."""
+    device, rows = model.device, 3 * (1 + len(adjoint.carried(stepper)))
+    X = slice(0, 3)
+
+    def carried(x):  # (the stepper's array, the state's rows) pairs, in ``carried``'s order now
+        return [(a, x[3 * i + 3 : 3 * i + 6]) for i, a in enumerate(adjoint.carried(stepper))]
 
     def advance(state, steps=1):
         wp.copy(work, state.x[X])
-        if rows > 3:
-            wp.copy(stepper.old, state.x[O])
+        for a, held in carried(state.x):
+            wp.copy(a, held)
         for k in range(state.k, state.k + steps):
             clock.set(stepper, k)
             stepper.steps = k  # its clock: t0_k + (k + c)·Δt_k at each stage, as the run's
+            adjoint.set_phase(stepper, k)
             stepper.step(work)
         wp.copy(state.x[X], work)
-        if rows > 3:
-            wp.copy(state.x[O], stepper.old)
+        for a, held in carried(state.x):
+            wp.copy(held, a)
         state.k += steps
 
     def copy(state):

@@ -46,7 +46,8 @@ class LeapfrogAdjoint(StepAdjoint):
     Work arrays (3, N): x, x̃, μ_Φ, x̄ (and with the trapezoid x*, μ_*), the start's
     ``StepAdjoint`` (two stages)."""
 
-    levels = 2
+    def carried(self, stepper) -> list:
+        return [stepper.old]  # x̃(n−1)
 
     def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
         self.trapezoidal = isinstance(stepper, LeapfrogTrapezoidal)

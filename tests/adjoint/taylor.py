@@ -56,13 +56,15 @@ def divergent_tc5(tensor=False):
     return dataclasses.replace(scene, nu_div=2.5 * scene.nu)
 
 
-def taylor_slopes(stepper, steps, weights, scene=None, **kw):
+def taylor_slopes(stepper, steps, weights, scene=None, cost=None, **kw):
     """Remainders |J(x + εδx) − J(x) − ε⟨∇J, δx⟩| over ε = 1e-1 … 1e-5 and their log-log slopes
-    (``scene`` None: ``tc5(stepper)``; ``kw`` to each ``gradient``)."""
+    (``scene`` None: ``tc5(stepper)``; ``cost`` None: a misfit to h(0) plus 50 m of noise;
+    ``kw`` to each ``gradient``)."""
     scene = tc5(stepper) if scene is None else scene
     model, _, x0 = scene_model(scene)
     rng = np.random.default_rng(0)
-    cost = HeightMisfit(x0[2] + 50 * continuous(model, rng.standard_normal((3, model.N)))[2])
+    if cost is None:
+        cost = HeightMisfit(x0[2] + 50 * continuous(model, rng.standard_normal((3, model.N)))[2])
     g = gradient(scene, steps, cost, **kw)
     dx = continuous(model, rng.standard_normal((3, model.N)) * np.array(weights)[:, None])
     dJ = np.sum(model.grid.spheremp * g.grad * dx)

@@ -228,7 +228,7 @@ def gradient(
     ----------
     scene : a ``config.Scene`` whose stepper is an explicit Runge–Kutta table (ssprk3, rk4,
         kgu35, the pairs, a tableau), fbrk32, leapfrog, leapfrog_trapezoidal, split_explicit,
-        mri or lts (a multirate table or MRAB3, x(0) alone) (``step_adjoint``), any terms (a time-dependent
+        mri or lts (a multirate table or MRAB3) (``step_adjoint``), any terms (a time-dependent
         forcing's stages at their times, from the scene's ``start_day``), a ∇⁴ constant or
         tensor, ν_div = ν or not.
     steps : n ≥ 1 steps of the scene's Δt (or of ``history``).

@@ -13,7 +13,8 @@ j, x̄ += f_kᵀ(x_j) H̄_k⁰ (its elements alone, ``StepAdjoint._transpose(...
 H̄_k ← (H̄_k¹, H̄_k², 0). The first two coarse steps (the start) take n steps of the inner table
 at Δt/n, recording f_k(x_j) at each level's step starts: each sub-step reversed by the table's
 adjoint (``StepAdjoint.reverse_dynamics``), then the recordings' as above. Each reversed step
-takes its sub-steps again from the state (x(n), H) first, holding x_j.
+takes its sub-steps again from the state (x(n), H) first, holding x_j. With ``parameters``,
+g's and Ω's sums at each evaluation and the start's, ν's and hs's as the other adjoints'.
 """
 
 from __future__ import annotations
@@ -31,15 +32,15 @@ class MrabAdjoint(StepAdjoint):
     """The adjoint of one coarse step of ``stepper`` (an ``Lts`` with ``method = "mrab3"``, its
     levels fixed) of ``model`` at Δt = ``dt`` (s) from model time ``t0`` (s): ``reverse(s, mu,
     k)`` maps the adjoint μ of s(k+1) to that of s(k) in place, s = (x, H_0⁰, H_0¹, H_0², H_1⁰,
-    …) (3 + 9·levels, N) (module doc). The initial state's gradient alone: ValueError for
-    ``parameters``, and as ``StepAdjoint``.
+    …) (3 + 9·levels, N) (module doc). With ``parameters`` the ∇⁴'s sums as ``StepAdjoint``'s
+    (from x_n, the last sub-step taken too), hs's through each level's topography (f̄), g's and
+    Ω's each due level's ⟨H̄_k⁰, its f_k of those terms at x_j⟩ (``planet_terms`` with the
+    level's part) and the start's inner stages' (folded in). ValueError as ``StepAdjoint``.
 
     Work arrays (3, N): the n sub-steps' starts x_j, each level's three tendencies, the inner
     table's stages (its ``StepAdjoint``'s and s + 1 more), two for the transposes."""
 
     def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
-        if parameters:
-            raise ValueError("lts mrab3's gradient is of the initial state alone")
         self._setup(model, dt, parameters, t0)
         self.stepper, mrab = stepper, stepper.mrab
         self.mrab, self.n, self.count = mrab, mrab.substeps(), mrab.levels
@@ -48,11 +49,11 @@ class MrabAdjoint(StepAdjoint):
         self.xs = [zeros(3) for _ in range(self.n)]
         self.H = [[zeros(3) for _ in range(HISTORY)] for _ in range(self.count)]
         table = parse(TableauOptions(**EXPLICIT[stepper.options.inner]))
-        self.inner = StepAdjoint(model, table, dt / self.n, False, t0)  # a start sub-step's stages
+        self.inner = StepAdjoint(model, table, dt / self.n, parameters, t0)  # a start sub-step's stages
         self.a = [[float(v) for v in row] for row in table.A_E]
         self.b = [float(v) for v in table.b_E]
         self.K = [zeros(3) for _ in self.b]
-        self.Y, self.tmp = zeros(3), zeros(3)
+        self.Y, self.tmp, self.last = zeros(3), zeros(3), zeros(3)  # last: x_n, before the ∇⁴
         if mrab.parts == [None]:  # one level: the whole grid's tendency
             self.runs = [None]
         else:
@@ -85,12 +86,13 @@ class MrabAdjoint(StepAdjoint):
         self.combine(x, [(1.0, s[0:3])])
         if k < START_STEPS:  # the inner table in Butcher form (the stepper's stage form to round-off)
             tau = dt / n
-            for j in range(n - 1):
+            for j in range(n if self.parameters else n - 1):
                 for i, row in enumerate(self.a):
                     self.combine(self.Y, [(1.0, self.xs[j]), *((tau * a, K) for a, K in zip(row[:i], self.K))])
                     m.set_time(self.t0 + (k + (j + float(self.inner.c[i])) / n) * dt)
                     m.rhs(self.Y, self.K[i])
-                self.combine(self.xs[j + 1], [(1.0, self.xs[j]), *((tau * b, K) for b, K in zip(self.b, self.K))])
+                end = self.xs[j + 1] if j + 1 < n else self.last
+                self.combine(end, [(1.0, self.xs[j]), *((tau * b, K) for b, K in zip(self.b, self.K))])
             return
         for lv in range(self.count):
             for i in range(HISTORY):
@@ -102,14 +104,22 @@ class MrabAdjoint(StepAdjoint):
                 h = self.H[lv]
                 h.insert(0, h.pop())
                 self.mrab.evaluate(lv, x, h[0])
-            if j + 1 < n:  # x_(j+1), the next sub-step's start, gains every level's integral
+            if j + 1 < n or self.parameters:  # x_(j+1) (x_n: ``last``) gains every level's integral
                 terms = [
                     (dt * float(self.w[j, lv, i]), self.H[lv][i]) for lv in range(self.count) for i in range(HISTORY)
                 ]
-                self.combine(self.xs[j + 1], [(1.0, x), *terms])
+                self.combine(self.xs[j + 1] if j + 1 < n else self.last, [(1.0, x), *terms])
+
+    def before_hyperviscosity(self, out) -> None:
+        """out = x_n, the step before its ∇⁴."""
+        self.combine(out, [(1.0, self.last)])
 
     def _record_transpose(self, x, mu, lv: int) -> None:
-        """μ_x += f_lvᵀ(x) H̄_lv⁰, then H̄_lv ← (H̄_lv¹, H̄_lv², 0)."""
+        """μ_x += f_lvᵀ(x) H̄_lv⁰, then H̄_lv ← (H̄_lv¹, H̄_lv², 0); with ``parameters`` the level's
+        share of g's and Ω's sums first."""
+        if self.parameters:
+            part = self.mrab.parts[lv]
+            self.planet_terms(x, [(1.0, self._rows(mu, lv, 0))], None, True, part)
         launches = self._adjoints.get(("record", x.ptr, mu.ptr, lv))
         if launches is None:
             h = [self._rows(mu, lv, i) for i in range(HISTORY)]
@@ -142,3 +152,9 @@ class MrabAdjoint(StepAdjoint):
                         self.combine(h, [(1.0, h), (self.dt * float(self.w[j, lv, i]), mu[X])])
             for lv in self._due(j):
                 self._record_transpose(self.xs[j], mu, lv)
+        if self.parameters and k < START_STEPS:  # the inner stages' sums into this object's
+            inner = self.inner
+            self.d_planet += inner.d_planet
+            inner.d_planet = np.zeros(2)
+            self.combine(self.fbar, [(1.0, self.fbar), (1.0, inner.fbar)])
+            inner.fbar.zero_()

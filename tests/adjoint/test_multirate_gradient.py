@@ -134,57 +134,31 @@ def test_a_multirate_run_s_parameter_gradients_fall_as_eps_squared(stepper):
         taylor.assert_falls_as_eps_squared(perturbed, name)
 
 
-def test_an_lts_run_s_parameter_gradients_fall_as_eps_squared(refined):
+@pytest.mark.parametrize("method", ["mis4a", "mrab3"])
+def test_an_lts_run_s_parameter_gradients_fall_as_eps_squared(method, refined):
     """On two levels, ∂J/∂ν, ∂J/∂ν_s, ∂J/∂hs (each part's topography), ∂J/∂g and ∂J/∂Ω (each
-    part's f_P of those terms at its own states): each Taylor remainder falls as ε², x(0) held.
-    The cost is a misfit to 1 cm of the run's own final height (ν moves J by a fraction of the
-    round-off of a misfit of metres over 3 steps)."""
-    model, _, x0 = scene_model(refined)
+    part's f_P of those terms at its own states; MRAB3's at each level's evaluations and its
+    start's stages): each Taylor remainder falls as ε², x(0) held. The cost is a misfit to 1 cm
+    of the run's own final height (ν moves J by a fraction of the round-off of a misfit of
+    metres over a few steps)."""
+    scene, steps = refined, 3
+    if method == "mrab3":  # its start's two steps and three of AB3
+        scene, steps = dataclasses.replace(refined, stepper_options={"method": "mrab3"}, dt=300.0), 5
+    model, _, x0 = scene_model(scene)
     rng = np.random.default_rng(24)
-    final = gradient(refined, 3, HeightMisfit(x0[2])).final[2]
+    final = gradient(scene, steps, HeightMisfit(x0[2])).final[2]
     cost = HeightMisfit(final + 0.01 * taylor.continuous(model, rng.standard_normal((3, model.N)))[2])
-    g = gradient(refined, 3, cost, parameters=True)
+    g = gradient(scene, steps, cost, parameters=True)
     dhs = 100.0 * taylor.continuous(model, rng.standard_normal((3, model.N)))[2]
     perturbations = {
-        "nu": taylor.coefficients(refined, ("nu", "nu_div"), g.d_nu, 3, cost, x0),
-        "nu_s": taylor.coefficients(refined, ("nu_s",), g.d_nu_s, 3, cost, x0),
-        "hs": taylor.topography(refined, model, g.d_hs, dhs, 3, cost, x0),
-        "gravity": taylor.planet_constant(refined, "gravity", g.d_g, 3, cost, x0),
-        "omega": taylor.planet_constant(refined, "omega", g.d_omega, 3, cost, x0),
+        "nu": taylor.coefficients(scene, ("nu", "nu_div"), g.d_nu, steps, cost, x0),
+        "nu_s": taylor.coefficients(scene, ("nu_s",), g.d_nu_s, steps, cost, x0),
+        "hs": taylor.topography(scene, model, g.d_hs, dhs, steps, cost, x0),
+        "gravity": taylor.planet_constant(scene, "gravity", g.d_g, steps, cost, x0),
+        "omega": taylor.planet_constant(scene, "omega", g.d_omega, steps, cost, x0),
     }
     for name, perturbed in perturbations.items():
         taylor.assert_falls_as_eps_squared(perturbed, name)
-
-
-@pytest.mark.parametrize("levels", [1, 2])
-def test_an_mrab3_run_s_gradient_carries_its_histories_and_falls_as_eps_squared(levels, refined_mesh):
-    """lts with multirate Adams–Bashforth 3: 5 coarse steps (the two of its inner-table start,
-    three of AB3), each level's three tendencies carried in the sweep's states, on the uniform
-    cube (one level: the global AB3 step) and on the refined one (two): the forward the
-    ``Simulation``'s to the bit, from snapshots and a disk tier alike, and x(0)'s Taylor
-    remainder falls as ε²."""
-    if levels == 1:
-        scene = dataclasses.replace(taylor.tc5("lts"), stepper_options={"method": "mrab3"}, dt=600.0)
-    else:
-        scene = load_scene(
-            "tc5_mountain", mesh=refined_mesh, dt=300.0, stepper="lts", overrides={"lts.method": "mrab3"}
-        )
-    model, stepper, x0 = scene_model(scene)
-    stepper.prepare(wp.array(x0, dtype=taylor.f64))
-    assert stepper.levels.count == levels
-    rng = np.random.default_rng(25)
-    final = taylor.assert_replays_the_run(scene, 5, taylor.misfit(model, x0, rng)).final[2]
-    # a misfit to 1 cm of the run's own end: small enough for a start sub-step's stages taken
-    # at the wrong state to show in the remainder
-    near = HeightMisfit(final + 0.01 * taylor.continuous(model, rng.standard_normal((3, model.N)))[2])
-    taylor.assert_initial_state_taylor(scene, "lts", 5, cost=near)
-
-
-def test_an_mrab3_gradient_refuses_parameters(refined):
-    with pytest.raises(ValueError, match="lts mrab3's gradient is of the initial state alone"):
-        gradient(
-            dataclasses.replace(refined, stepper_options={"method": "mrab3"}), 1, HeightMisfit(0.0), parameters=True
-        )
 
 
 def test_an_mri_gradient_refuses_an_fbrk32_inner_solve():

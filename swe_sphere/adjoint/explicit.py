@@ -54,13 +54,14 @@ f64 = wp.float64
 HELD_DTS = 8
 
 
-def refusal(model: ShallowWater, dt: float) -> str | None:
-    """Why the adjoint cannot serve ``model`` at step dt (None: it can)."""
+def refusal(model: ShallowWater, dt: float, parameters: bool = False) -> str | None:
+    """Why the adjoint cannot serve ``model`` at step dt (None: it can), with ``parameters``
+    or without."""
     if model.hv is not None:
         if model.nu_div != model.nu and model.nu == 0:
             return "nu_div != nu with nu = 0 has no adjoint yet (its ∇δ term's transpose reads the ν-scaled pass)"
-        if model.hv.nu_max > 0 and model.hv.plan(dt)[1]:
-            return "the RKL1 ∇⁴ super-step has no adjoint yet"
+        if parameters and model.hv.nu_max > 0 and model.hv.plan(dt)[1]:
+            return "the parameters' gradients through the RKL1 ∇⁴ super-step are not built yet (x(0)'s is)"
     return None
 
 
@@ -105,7 +106,7 @@ class StepAdjoint:
     def _setup(self, model: ShallowWater, dt: float, parameters: bool, t0: float) -> None:
         """What every step's adjoint holds (``refusal`` checked): the transposes' x̄ and f̄, the
         parameters' sums and the ∇⁴'s substeps."""
-        why = refusal(model, dt)
+        why = refusal(model, dt, parameters)
         if why is not None:
             raise ValueError(why)
         self.model, self.dt, self.parameters, self.t0 = model, float(dt), bool(parameters), float(t0)
@@ -132,12 +133,16 @@ class StepAdjoint:
         self._zeros = zeros
 
     # what depends on Δt: the ∇⁴'s substeps and the launches recorded with Δt in their coefficients
-    _PER_DT = ("substeps", "_stages", "_combinations", "_hv", "_adjoints", "_divergent", "_hv_unit")
+    _PER_DT = ("substeps", "rkl", "_coef", "_stages", "_combinations", "_hv", "_adjoints", "_divergent", "_hv_unit")
 
     def _for_dt(self) -> None:
         """The records of a Δt not seen yet (``_PER_DT``), each made on first use."""
         m = self.model
-        self.substeps = m.hv.plan(self.dt)[0] if m.hv is not None and m.hv.nu_max > 0 else 0  # forward Euler
+        # the ∇⁴'s forward-Euler substeps, or its RKL1 stages (``Hyperviscosity.plan``), and the
+        # coefficient of each of their ∇⁴ steps (``Hyperviscosity.rkl1``'s w₁Δt for RKL1)
+        self.substeps, self.rkl = m.hv.plan(self.dt) if m.hv is not None and m.hv.nu_max > 0 else (0, False)
+        s = self.substeps
+        self._coef = -self.dt * 2.0 / (s * s + s) if self.rkl else -self.dt / max(s, 1)
         self._combinations: dict[tuple, list] = {}  # ``combine``'s recorded launches
         self._hv: dict[tuple, list] = {}  # ``substep``'s recorded launches, by array and direction
         self._adjoints: dict[int, tuple] = {}  # (μ, ``_record``'s launches), by μ's address
@@ -153,7 +158,7 @@ class StepAdjoint:
         dt = float(dt)
         if dt == self.dt:
             return
-        why = refusal(self.model, dt)
+        why = refusal(self.model, dt, self.parameters)
         if why is not None:
             raise ValueError(why)
         self._held[self.dt] = {key: getattr(self, key) for key in self._PER_DT}
@@ -230,15 +235,13 @@ class StepAdjoint:
             hs, m.hs = m.hs, self.zero_hs
             nus = (m.nu, m.nu, m.nu_s) if divergent else None
             try:
-                launches = self._hv[x.ptr, transposed] = m.hv.build(
-                    x, -self.dt / self.substeps, nus=nus, transposed=transposed
-                )
+                launches = self._hv[x.ptr, transposed] = m.hv.build(x, self._coef, nus=nus, transposed=transposed)
             finally:
                 m.hs = hs
         for launch in launches:
             launch.launch()
         if divergent:
-            self._divergent_transpose(x, -self.dt / self.substeps)
+            self._divergent_transpose(x, self._coef)
 
     def _divergent_transpose(self, x, coef: float) -> None:
         """x[wind] += coef · B_dᵀ μ, μ the x the substep started from: the transpose of the ∇δ
@@ -281,6 +284,9 @@ class StepAdjoint:
         def h(x):
             self.substep(x, transposed=True)
 
+        if self.rkl:  # x(0)'s alone (``refusal``)
+            self._rkl1_transpose(mu)
+            return
         if not self.parameters:
             for _ in range(self.substeps):
                 h(mu)
@@ -303,6 +309,30 @@ class StepAdjoint:
         self.d_nu += np.divide(rows, [m.nu, m.nu_s], out=np.zeros(2), where=np.array([m.nu, m.nu_s]) > 0)
         h(mu)
         self.combine(self.d_hs, [(1.0, self.d_hs), (1.0, mu[2:3])])
+
+    def _rkl1_transpose(self, mu) -> None:
+        """μ of an RKL1 super-step's output → μ of its input, in place: the step (``Hyperviscosity.
+        rkl1``) Y_1 = E Y_0, Y_j = μ_j E Y_(j−1) + ν_j Y_(j−2) (E = I + c B₀ its forward-Euler step
+        without hs) reversed, its stages last first: Ȳ_(j−1) += μ_j Eᵀ Ȳ_j, Ȳ_(j−2) += ν_j Ȳ_j, and
+        Ȳ_0 += Eᵀ Ȳ_1 (Eᵀ ``substep``'s transpose, μ_j = (2j − 1)/j, ν_j = −(j − 1)/j)."""
+        if not hasattr(self, "rkl_bars"):
+            self.rkl_bars = [self._zeros(3) for _ in range(3)]
+            self.rkl_work = self._zeros(3)
+        cur, prev, prev2 = self.rkl_bars
+        t = self.rkl_work
+        self.combine(cur, [(1.0, mu)])
+        prev.zero_()
+        prev2.zero_()
+        for j in range(self.substeps, 1, -1):
+            self.combine(t, [(1.0, cur)])
+            self.substep(t, transposed=True)
+            self.combine(prev, [(1.0, prev), ((2.0 * j - 1.0) / j, t)])
+            self.combine(prev2, [(1.0, prev2), (-(j - 1.0) / j, cur)])
+            cur, prev, prev2 = prev, prev2, cur
+            prev2.zero_()
+        self.combine(t, [(1.0, cur)])
+        self.substep(t, transposed=True)
+        self.combine(mu, [(1.0, prev), (1.0, t)])
 
     def _divergent_parameters(self, mu) -> None:
         """μ ← the ∇⁴'s transposed substeps of μ, with ∂J/∂ν (ν and ν_div moved together) and

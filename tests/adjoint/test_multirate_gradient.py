@@ -233,3 +233,18 @@ def test_an_mrab3_reversed_step_recomputes_the_step_it_reverses(refined_mesh):
     model.hyperviscosity(ahead, scene.dt)
     x3 = x.numpy()
     assert np.abs(ahead.numpy() - x3).max() <= 1e3 * taylor.EPS * np.abs(x3).max()
+
+
+@pytest.mark.parametrize("method", ["mis4a", "mrab3"])
+def test_a_run_whose_hyperviscosity_takes_the_rkl1_super_step_has_an_initial_state_gradient(method, refined_mesh):
+    """At 1800 s on the refined cube the finest elements' ∇⁴ takes the RKL1 super-step (4
+    stages, ``Hyperviscosity.plan``): its stages reversed with Eᵀ, the forward the
+    ``Simulation``'s to the bit and x(0)'s Taylor remainder falling as ε²; the parameters'
+    gradients through it are refused in one line."""
+    scene = load_scene("tc5_mountain", mesh=refined_mesh, dt=1800.0, stepper="lts", overrides={"lts.method": method})
+    model, _, x0 = scene_model(scene)
+    assert model.hv.plan(1800.0) == (4, True)
+    taylor.assert_replays_the_run(scene, 4, taylor.misfit(model, x0, np.random.default_rng(26)))
+    taylor.assert_initial_state_taylor(scene, "lts", 4)
+    with pytest.raises(ValueError, match="through the RKL1 ∇⁴ super-step are not built yet"):
+        gradient(scene, 1, HeightMisfit(x0[2]), parameters=True)

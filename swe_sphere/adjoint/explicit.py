@@ -60,8 +60,8 @@ def refusal(model: ShallowWater, dt: float, parameters: bool = False) -> str | N
     if model.hv is not None:
         if model.nu_div != model.nu and model.nu == 0:
             return "nu_div != nu with nu = 0 has no adjoint yet (its ∇δ term's transpose reads the ν-scaled pass)"
-        if parameters and model.hv.nu_max > 0 and model.hv.plan(dt)[1]:
-            return "the parameters' gradients through the RKL1 ∇⁴ super-step are not built yet (x(0)'s is)"
+        if parameters and model.nu_div != model.nu and model.hv.nu_max > 0 and model.hv.plan(dt)[1]:
+            return "the parameters' gradients through the RKL1 ∇⁴ super-step with nu_div != nu are not built yet"
     return None
 
 
@@ -284,7 +284,7 @@ class StepAdjoint:
         def h(x):
             self.substep(x, transposed=True)
 
-        if self.rkl:  # x(0)'s alone (``refusal``)
+        if self.rkl:
             self._rkl1_transpose(mu)
             return
         if not self.parameters:
@@ -312,26 +312,56 @@ class StepAdjoint:
 
     def _rkl1_transpose(self, mu) -> None:
         """μ of an RKL1 super-step's output → μ of its input, in place: the step (``Hyperviscosity.
-        rkl1``) Y_1 = E Y_0, Y_j = μ_j E Y_(j−1) + ν_j Y_(j−2) (E = I + c B₀ its forward-Euler step
-        without hs) reversed, its stages last first: Ȳ_(j−1) += μ_j Eᵀ Ȳ_j, Ȳ_(j−2) += ν_j Ȳ_j, and
-        Ȳ_0 += Eᵀ Ȳ_1 (Eᵀ ``substep``'s transpose, μ_j = (2j − 1)/j, ν_j = −(j − 1)/j)."""
+        rkl1``) Y_1 = E Y_0, Y_j = μ_j E Y_(j−1) + ν_j Y_(j−2) (E y = y + Δ(y), Δ(y) = c B₀ (y + hs)
+        its forward-Euler step) reversed, its stages last first: Ȳ_(j−1) += μ_j Eᵀ Ȳ_j, Ȳ_(j−2) +=
+        ν_j Ȳ_j, and Ȳ_0 += Eᵀ Ȳ_1 (Eᵀ ``substep``'s transpose, μ_j = (2j − 1)/j, ν_j = −(j − 1)/j,
+        μ_1 = 1). With ``parameters`` (ν_div = ν: Δ is then linear in the row's coefficient): the
+        stages taken again from Φ (``before_hyperviscosity``), ∂J/∂ν (wind rows) and ∂J/∂ν_s (h
+        row) += μ_j ⟨Ȳ_j, Δ(Y_(j−1))⟩ / ν, and the hs adjoint += μ_j (Eᵀ Ȳ_j − Ȳ_j)[h]."""
+        m, s = self.model, self.substeps
         if not hasattr(self, "rkl_bars"):
             self.rkl_bars = [self._zeros(3) for _ in range(3)]
             self.rkl_work = self._zeros(3)
+            self.rkl_deltas: list = []
         cur, prev, prev2 = self.rkl_bars
         t = self.rkl_work
+        if self.parameters:  # Δ_j = Δ(Y_(j−1)), the stages from Φ rolling over cur, prev, prev2 for now
+            self.rkl_deltas += [self._zeros(3) for _ in range(s - len(self.rkl_deltas))]
+            free, older, last = [cur, prev, prev2], None, None
+            last = free.pop()
+            self.before_hyperviscosity(last)  # Y_0 = Φ
+            for j in range(1, s + 1):
+                d = self.rkl_deltas[j - 1]
+                self.combine(d, [(1.0, last)])
+                self.combine(d[2:3], [(1.0, d[2:3]), (1.0, m.hs.reshape((1, m.N)))])  # Y_(j−1) + hs
+                self.combine(t, [(1.0, d)])
+                self.substep(d)
+                self.combine(d, [(1.0, d), (-1.0, t)])  # Δ_j
+                if j < s:  # Y_j = μ_j (Y_(j−1) + Δ_j) + ν_j Y_(j−2)
+                    a = (2.0 * j - 1.0) / j
+                    new = free.pop()
+                    self.combine(new, [(a, last), (a, d), *([(-(j - 1.0) / j, older)] if older is not None else [])])
+                    if older is not None:
+                        free.append(older)
+                    older, last = last, new
         self.combine(cur, [(1.0, mu)])
         prev.zero_()
         prev2.zero_()
-        for j in range(self.substeps, 1, -1):
+        for j in range(s, 0, -1):
             self.combine(t, [(1.0, cur)])
             self.substep(t, transposed=True)
-            self.combine(prev, [(1.0, prev), ((2.0 * j - 1.0) / j, t)])
+            weight = (2.0 * j - 1.0) / j  # μ_j (1 for j = 1)
+            if self.parameters:
+                w = m.topology.whole_sums(m.grid.spheremp * cur.numpy() * self.rkl_deltas[j - 1].numpy())
+                rows = weight * np.array([w[0] + w[1], w[2]])
+                self.d_nu += np.divide(rows, [m.nu, m.nu_s], out=np.zeros(2), where=np.array([m.nu, m.nu_s]) > 0)
+                self.combine(self.d_hs, [(1.0, self.d_hs), (weight, t[2:3]), (-weight, cur[2:3])])
+            if j == 1:
+                break
+            self.combine(prev, [(1.0, prev), (weight, t)])
             self.combine(prev2, [(1.0, prev2), (-(j - 1.0) / j, cur)])
             cur, prev, prev2 = prev, prev2, cur
             prev2.zero_()
-        self.combine(t, [(1.0, cur)])
-        self.substep(t, transposed=True)
         self.combine(mu, [(1.0, prev), (1.0, t)])
 
     def _divergent_parameters(self, mu) -> None:

@@ -151,3 +151,19 @@ def assert_replays_the_run(scene, steps, cost, **kw):
     np.testing.assert_array_equal(few.grad, every.grad)
     np.testing.assert_array_equal(disk.grad, every.grad)
     return every
+
+
+def assert_parameter_gradients(scene, model, g, steps, cost, x0, rng, names=("nu", "nu_s", "hs", "gravity", "omega")):
+    """Each of ``names``' Taylor remainder falls as ε² (``assert_falls_as_eps_squared``) for the
+    gradient ``g`` of ``scene`` run ``steps`` steps from x0 under ``cost``, x(0) held (hs moved
+    along 100 m of continuous noise drawn from ``rng``)."""
+    dhs = 100.0 * continuous(model, rng.standard_normal((3, model.N)))[2]
+    perturbations = {
+        "nu": lambda: coefficients(scene, ("nu", "nu_div"), g.d_nu, steps, cost, x0),
+        "nu_s": lambda: coefficients(scene, ("nu_s",), g.d_nu_s, steps, cost, x0),
+        "hs": lambda: topography(scene, model, g.d_hs, dhs, steps, cost, x0),
+        "gravity": lambda: planet_constant(scene, "gravity", g.d_g, steps, cost, x0),
+        "omega": lambda: planet_constant(scene, "omega", g.d_omega, steps, cost, x0),
+    }
+    for name in names:
+        assert_falls_as_eps_squared(perturbations[name](), name)

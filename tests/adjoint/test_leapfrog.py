@@ -30,16 +30,7 @@ def test_a_three_level_run_s_gradients_fall_as_eps_squared(stepper):
     cost = taylor.misfit(model, x0, rng)
     every = taylor.assert_replays_the_run(scene, steps, cost, parameters=True)
     taylor.assert_initial_state_taylor(scene, stepper, steps)
-    dhs = 100.0 * taylor.continuous(model, rng.standard_normal((3, model.N)))[2]
-    perturbations = {
-        "nu": taylor.coefficients(scene, ("nu", "nu_div"), every.d_nu, steps, cost, x0),
-        "nu_s": taylor.coefficients(scene, ("nu_s",), every.d_nu_s, steps, cost, x0),
-        "hs": taylor.topography(scene, model, every.d_hs, dhs, steps, cost, x0),
-        "gravity": taylor.planet_constant(scene, "gravity", every.d_g, steps, cost, x0),
-        "omega": taylor.planet_constant(scene, "omega", every.d_omega, steps, cost, x0),
-    }
-    for name, perturbed in perturbations.items():
-        taylor.assert_falls_as_eps_squared(perturbed, name)
+    taylor.assert_parameter_gradients(scene, model, every, steps, cost, x0, rng)
 
 
 @pytest.mark.parametrize("stepper", THREE_LEVEL)

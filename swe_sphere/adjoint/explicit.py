@@ -54,14 +54,11 @@ f64 = wp.float64
 HELD_DTS = 8
 
 
-def refusal(model: ShallowWater, dt: float, parameters: bool = False) -> str | None:
-    """Why the adjoint cannot serve ``model`` at step dt (None: it can), with ``parameters``
-    or without."""
+def refusal(model: ShallowWater, dt: float) -> str | None:
+    """Why the adjoint cannot serve ``model`` at step dt (None: it can)."""
     if model.hv is not None:
         if model.nu_div != model.nu and model.nu == 0:
             return "nu_div != nu with nu = 0 has no adjoint yet (its ∇δ term's transpose reads the ν-scaled pass)"
-        if parameters and model.nu_div != model.nu and model.hv.nu_max > 0 and model.hv.plan(dt)[1]:
-            return "the parameters' gradients through the RKL1 ∇⁴ super-step with nu_div != nu are not built yet"
     return None
 
 
@@ -106,7 +103,7 @@ class StepAdjoint:
     def _setup(self, model: ShallowWater, dt: float, parameters: bool, t0: float) -> None:
         """What every step's adjoint holds (``refusal`` checked): the transposes' x̄ and f̄, the
         parameters' sums and the ∇⁴'s substeps."""
-        why = refusal(model, dt, parameters)
+        why = refusal(model, dt)
         if why is not None:
             raise ValueError(why)
         self.model, self.dt, self.parameters, self.t0 = model, float(dt), bool(parameters), float(t0)
@@ -134,6 +131,7 @@ class StepAdjoint:
 
     # what depends on Δt: the ∇⁴'s substeps and the launches recorded with Δt in their coefficients
     _PER_DT = ("substeps", "rkl", "_coef", "_stages", "_combinations", "_hv", "_adjoints", "_divergent", "_hv_unit")
+    _PER_DT += ("_rkl_unit",)
 
     def _for_dt(self) -> None:
         """The records of a Δt not seen yet (``_PER_DT``), each made on first use."""
@@ -148,17 +146,18 @@ class StepAdjoint:
         self._adjoints: dict[int, tuple] = {}  # (μ, ``_record``'s launches), by μ's address
         self._divergent: dict[int, list] = {}  # ``_divergent_transpose``'s, by array
         self._hv_unit = None  # ``_divergent_parameters``' unit-coefficient ∇⁴ launches
+        self._rkl_unit: dict[int, list] = {}  # ``_rkl1_transpose``'s, by stage
         self._stages = self._stage_plan(self._zeros)
 
     def set_dt(self, dt: float) -> None:
         """Reverse the next steps at Δt = ``dt`` (s): a run whose steps the controller chose
         (``gradient(..., history=)``). The records of the last ``HELD_DTS`` Δt are kept, so
         that a Δt that recurs replays its launches. ValueError (``refusal``) for a Δt the
-        adjoint cannot serve (the ∇⁴'s RKL1 super-step)."""
+        adjoint cannot serve."""
         dt = float(dt)
         if dt == self.dt:
             return
-        why = refusal(self.model, dt, self.parameters)
+        why = refusal(self.model, dt)
         if why is not None:
             raise ValueError(why)
         self._held[self.dt] = {key: getattr(self, key) for key in self._PER_DT}
@@ -264,7 +263,7 @@ class StepAdjoint:
         if launches is None:
             H, U = slice(2, 3), slice(0, 2)
             launches = self._divergent[x.ptr] = [
-                *self._transpose(self.x, [(1.0, self.kd)], ("pressure_gradient",)),
+                *self._transpose(self.unit_depth, [(1.0, self.kd)], ("pressure_gradient",)),  # linear: any state
                 *topo.dss(self.xbar, False, self.dss_out),
                 m.lincomb(self.kd[H], [(-1.0 / m.g, self.dss_out[H])]),  # s = RQ Gᵀ(W Pᵀ Z)
                 *self._transpose(self.unit_depth, [(1.0, self.kd)], ("continuity",)),
@@ -315,18 +314,21 @@ class StepAdjoint:
         rkl1``) Y_1 = E Y_0, Y_j = μ_j E Y_(j−1) + ν_j Y_(j−2) (E y = y + Δ(y), Δ(y) = c B₀ (y + hs)
         its forward-Euler step) reversed, its stages last first: Ȳ_(j−1) += μ_j Eᵀ Ȳ_j, Ȳ_(j−2) +=
         ν_j Ȳ_j, and Ȳ_0 += Eᵀ Ȳ_1 (Eᵀ ``substep``'s transpose, μ_j = (2j − 1)/j, ν_j = −(j − 1)/j,
-        μ_1 = 1). With ``parameters`` (ν_div = ν: Δ is then linear in the row's coefficient): the
-        stages taken again from Φ (``before_hyperviscosity``), ∂J/∂ν (wind rows) and ∂J/∂ν_s (h
-        row) += μ_j ⟨Ȳ_j, Δ(Y_(j−1))⟩ / ν, and the hs adjoint += μ_j (Eᵀ Ȳ_j − Ȳ_j)[h]."""
+        μ_1 = 1). With ``parameters``: the stages taken again from Φ (``before_hyperviscosity``),
+        ∂J/∂ν (wind rows: ν and ν_div moved together) and ∂J/∂ν_s (h row) += μ_j ⟨Ȳ_j, c B₁ (Y_(j−1)
+        + hs)⟩, B₁ the operator at unit coefficients (``_divergent_parameters``' ∂B/∂ν), and the hs
+        adjoint += μ_j (Eᵀ Ȳ_j − Ȳ_j)[h]."""
         m, s = self.model, self.substeps
         if not hasattr(self, "rkl_bars"):
             self.rkl_bars = [self._zeros(3) for _ in range(3)]
             self.rkl_work = self._zeros(3)
             self.rkl_deltas: list = []
+            self.rkl_units: list = []
         cur, prev, prev2 = self.rkl_bars
         t = self.rkl_work
         if self.parameters:  # Δ_j = Δ(Y_(j−1)), the stages from Φ rolling over cur, prev, prev2 for now
             self.rkl_deltas += [self._zeros(3) for _ in range(s - len(self.rkl_deltas))]
+            self.rkl_units += [self._zeros(3) for _ in range(s - len(self.rkl_units))]
             free, older, last = [cur, prev, prev2], None, None
             last = free.pop()
             self.before_hyperviscosity(last)  # Y_0 = Φ
@@ -337,6 +339,7 @@ class StepAdjoint:
                 self.combine(t, [(1.0, d)])
                 self.substep(d)
                 self.combine(d, [(1.0, d), (-1.0, t)])  # Δ_j
+                self._unit_step(t, j)  # c B₁ (Y_(j−1) + hs)
                 if j < s:  # Y_j = μ_j (Y_(j−1) + Δ_j) + ν_j Y_(j−2)
                     a = (2.0 * j - 1.0) / j
                     new = free.pop()
@@ -352,9 +355,8 @@ class StepAdjoint:
             self.substep(t, transposed=True)
             weight = (2.0 * j - 1.0) / j  # μ_j (1 for j = 1)
             if self.parameters:
-                w = m.topology.whole_sums(m.grid.spheremp * cur.numpy() * self.rkl_deltas[j - 1].numpy())
-                rows = weight * np.array([w[0] + w[1], w[2]])
-                self.d_nu += np.divide(rows, [m.nu, m.nu_s], out=np.zeros(2), where=np.array([m.nu, m.nu_s]) > 0)
+                w = m.topology.whole_sums(m.grid.spheremp * cur.numpy() * self.rkl_units[j - 1].numpy())
+                self.d_nu += weight * np.array([w[0] + w[1], w[2]])
                 self.combine(self.d_hs, [(1.0, self.d_hs), (weight, t[2:3]), (-weight, cur[2:3])])
             if j == 1:
                 break
@@ -363,6 +365,23 @@ class StepAdjoint:
             cur, prev, prev2 = prev, prev2, cur
             prev2.zero_()
         self.combine(mu, [(1.0, prev), (1.0, t)])
+
+    def _unit_step(self, y, j: int) -> None:
+        """``rkl_units[j − 1]`` = c B₁ y (``_rkl1_transpose``), B₁ the ∇⁴ at unit coefficients
+        without hs (y holds it), recorded once per stage."""
+        m, out = self.model, self.rkl_units[j - 1]
+        launches = self._rkl_unit.get(j)
+        if launches is None:
+            hs, m.hs = m.hs, self.zero_hs
+            try:
+                launches = self._rkl_unit[j] = [
+                    m.lincomb(out, [(0.0, out)]),
+                    *m.hv.build(y, self._coef, out=out, nus=(1.0, 1.0, 1.0)),
+                ]
+            finally:
+                m.hs = hs
+        for launch in launches:
+            launch.launch()
 
     def _divergent_parameters(self, mu) -> None:
         """μ ← the ∇⁴'s transposed substeps of μ, with ∂J/∂ν (ν and ν_div moved together) and

@@ -296,7 +296,7 @@ def gradient(
     clock = _clock(scene, steps, history)
     model, stepper, initial = scene_model(scene, device, hs, comm)
     for dt in {clock(k)[1] for k in range(steps)}:  # every Δt served before a step is taken
-        if (why := refusal(model, dt, parameters)) is not None:
+        if (why := refusal(model, dt)) is not None:
             raise ValueError(why)
     topo = model.topology
     x0 = initial if x0 is None else _distributed(topo, x0, 3, "x0")

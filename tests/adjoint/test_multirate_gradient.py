@@ -222,7 +222,7 @@ def test_a_run_whose_hyperviscosity_takes_the_rkl1_super_step_has_its_gradients(
     """At 1800 s on the refined cube the finest elements' ∇⁴ takes the RKL1 super-step (4
     stages, ``Hyperviscosity.plan``): its stages reversed with Eᵀ, the forward the
     ``Simulation``'s to the bit, x(0)'s Taylor remainder falling as ε², and ν's, ν_s's and hs's
-    (summed stage by stage) with g's and Ω's too; with ν_div ≠ ν the parameters are refused."""
+    (summed stage by stage) with g's too, and ν's and ν_s's with ν_div = 2.5 ν."""
     scene = load_scene("tc5_mountain", mesh=refined_mesh, dt=1800.0, stepper="lts", overrides={"lts.method": method})
     model, _, x0 = scene_model(scene)
     assert model.hv.plan(1800.0) == (4, True)
@@ -232,9 +232,9 @@ def test_a_run_whose_hyperviscosity_takes_the_rkl1_super_step_has_its_gradients(
     cost = HeightMisfit(final + 0.01 * taylor.continuous(model, rng.standard_normal((3, model.N)))[2])
     g = gradient(scene, 4, cost, parameters=True)
     taylor.assert_parameter_gradients(scene, model, g, 4, cost, x0, rng, ("nu", "nu_s", "hs", "gravity"))
-    divergent = dataclasses.replace(scene, nu_div=2.5 * scene.nu)
-    with pytest.raises(ValueError, match="RKL1 ∇⁴ super-step with nu_div != nu are not built yet"):
-        gradient(divergent, 1, cost, parameters=True)
+    divergent = dataclasses.replace(scene, nu_div=2.5 * scene.nu)  # ∂B/∂ν no longer B/ν: B₁ at unit coefficients
+    g = gradient(divergent, 4, cost, parameters=True)
+    taylor.assert_parameter_gradients(divergent, model, g, 4, cost, x0, rng, ("nu", "nu_s"))
 
 
 def test_the_rkl1_super_step_s_hs_and_nu_adjoints_are_its_derivatives(refined_mesh):
@@ -269,3 +269,17 @@ def test_the_rkl1_super_step_s_hs_and_nu_adjoints_are_its_derivatives(refined_me
     e = 1e-4
     along = (step(hs, 1 + e) - step(hs, 1 - e)) / (2 * e * scene.nu)
     assert along == pytest.approx(adjoint.d_nu[0], rel=1e-6)
+
+
+@pytest.mark.parametrize("stepper", ["split_explicit", "mri"])
+def test_a_multirate_run_with_nu_div_apart_from_nu_has_its_gradients(stepper):
+    """ν_div = 2.5 ν (the ∇δ term's transpose apart, the parameters summed substep by substep):
+    x(0)'s and ν's Taylor remainders fall as ε² for the multirate steppers too (their ∇⁴ is
+    the same split step as the tables')."""
+    scene = dataclasses.replace(taylor.divergent_tc5(), stepper=stepper)
+    taylor.assert_initial_state_taylor(scene, stepper, 4)
+    model, _, x0 = scene_model(scene)
+    rng = np.random.default_rng(28)
+    cost = taylor.misfit(model, x0, rng)
+    g = gradient(scene, 4, cost, parameters=True)
+    taylor.assert_parameter_gradients(scene, model, g, 4, cost, x0, rng, ("nu",))

@@ -221,14 +221,16 @@ def test_an_mrab3_reversed_step_recomputes_the_step_it_reverses(refined_mesh):
 def test_a_run_whose_hyperviscosity_takes_the_rkl1_super_step_has_its_gradients(method, refined_mesh):
     """At 1800 s on the refined cube the finest elements' ∇⁴ takes the RKL1 super-step (4
     stages, ``Hyperviscosity.plan``): its stages reversed with Eᵀ, the forward the
-    ``Simulation``'s to the bit, x(0)'s Taylor remainder falling as ε², and ν's, ν_s's and hs's
-    (summed stage by stage) with g's too, and ν's and ν_s's with ν_div = 2.5 ν."""
+    ``Simulation``'s to the bit, x(0)'s Taylor remainder falling as ε², and (MIS4a) ν's, ν_s's
+    and hs's (summed stage by stage) with g's too, and ν's and ν_s's with ν_div = 2.5 ν."""
     scene = load_scene("tc5_mountain", mesh=refined_mesh, dt=1800.0, stepper="lts", overrides={"lts.method": method})
     model, _, x0 = scene_model(scene)
     assert model.hv.plan(1800.0) == (4, True)
     rng = np.random.default_rng(26)
     final = taylor.assert_replays_the_run(scene, 4, taylor.misfit(model, x0, rng)).final[2]
     taylor.assert_initial_state_taylor(scene, "lts", 4)
+    if method == "mrab3":  # its stages' sums are those of the MIS one's ∇⁴ below, checked there
+        return
     cost = HeightMisfit(final + 0.01 * taylor.continuous(model, rng.standard_normal((3, model.N)))[2])
     g = gradient(scene, 4, cost, parameters=True)
     taylor.assert_parameter_gradients(scene, model, g, 4, cost, x0, rng, ("nu", "nu_s", "hs", "gravity"))

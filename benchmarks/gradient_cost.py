@@ -94,7 +94,10 @@ for _ in range(repeat):
     replay(stepper)
     rows["forward"].append(clock() - t)
     t = clock()  # a whole run as ``gradient`` makes one (a new model, its ∇⁴ plan, the steps), or the controlled run
-    replay(scene_model(scene)[1]) if history is None else controlled_run()
+    if history is None:
+        replay(scene_model(scene)[1])
+    else:
+        controlled_run()
     rows["run"].append(clock() - t)
     t = clock()
     g = gradient(scene, steps, cost, snapshots=snapshots, history=history)

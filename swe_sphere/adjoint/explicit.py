@@ -205,10 +205,17 @@ class StepAdjoint:
         key = (out.ptr, out.shape, *((c, x.ptr, x.shape) for c, x in terms))  # a row view shares its array's ptr
         launches = self._combinations.get(key)
         if launches is None:
-            passes = [terms[:4], *([(1.0, out), *terms[i : i + 3]] for i in range(4, len(terms), 3))]
-            launches = self._combinations[key] = [self.model.lincomb(out, p) for p in passes]
+            launches = self._combinations[key] = self.combination(out, terms)
         for launch in launches:
             launch.launch()
+
+    def combination(self, out, terms) -> list:
+        """The launches of out = Σ c·x over (c, x) ``terms``, zero coefficients left out (out = 0
+        for none): four terms in the first pass, three more in each next (out may alias any x
+        only as the first term), for a record of one's own (``combine`` keeps them by key)."""
+        terms = [(c, x) for c, x in terms if c != 0.0] or [(0.0, out)]
+        passes = [terms[:4], *([(1.0, out), *terms[i : i + 3]] for i in range(4, len(terms), 3))]
+        return [self.model.lincomb(out, p) for p in passes]
 
     def stages(self, k: int = 0) -> None:
         """Y_i of step k from x = Y_0 (the Butcher form), and the K_i = F(Y_i) kept

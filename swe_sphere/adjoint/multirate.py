@@ -283,29 +283,30 @@ class MriAdjoint(_Recomputed):
         self.combine(out, [(1.0, self.last)])
         self.combine(out[2:3], [(1.0, self.last[2:3]), (1.0, self.stepper.split.depth)])
 
-    def _lin(self, out, terms) -> list:
-        """The launches of out = Σ c·x over (c, x) ``terms``, zero ones left out (out = 0 for none)."""
-        terms = [(c, x) for c, x in terms if c != 0.0] or [(0.0, out)]
-        m = self.model
-        return [
-            m.lincomb(out, terms[:4]),
-            *(m.lincomb(out, [(1.0, out), *terms[i : i + 3]]) for i in range(4, len(terms), 3)),
-        ]
-
     def _record(self, mu) -> list:
         """The launches of the reverse after the ∇⁴'s transpose (class doc) as segments, those
         that read F_g's and f's arguments with their (Y, k̄, (g_terms, coriolis))."""
         t, dt, s, dss = self.tab, self.dt, len(self.tab.d), self.model.topology.dss
         Ybar, Sbar, zbar, kb = self.Ybar, self.Sbar, self.zbar, self.stage_bar
         bar = {id(a): b for a, b in zip([*self.Y, *self.S], [*Ybar, *Sbar])}  # each array's adjoint
-        segments = [(None, None, [launch for a in (*Ybar, *Sbar) for launch in self._lin(a, [])])]  # Ybar[0]: x̄(n)
+        segments = [
+            (None, None, [launch for a in (*Ybar, *Sbar) for launch in self.combination(a, [])])
+        ]  # Ybar[0]: x̄(n)
         cur = mu
         for r in reversed(range(s)):
             n = self.stepper.n_fast[r]
             tau = float(t.d[r]) * dt / n
             z0, rho0, rho1, timed = self._solve_terms(r)
             segments.append(
-                (None, None, [*self._lin(zbar, [(1.0, cur)]), *self._lin(self.rho0, []), *self._lin(self.rho1, [])])
+                (
+                    None,
+                    None,
+                    [
+                        *self.combination(zbar, [(1.0, cur)]),
+                        *self.combination(self.rho0, []),
+                        *self.combination(self.rho1, []),
+                    ],
+                )
             )
             Zbar = self.K  # the inner stages' Z̄_i (the K_i are not read in the reverse)
             for k in reversed(range(n)):
@@ -314,30 +315,30 @@ class MriAdjoint(_Recomputed):
                         (tau * self.b[i], zbar),
                         *((tau * self.a[l][i], Zbar[l]) for l in range(i + 1, len(self.b))),
                     ]
-                    segments.append((None, None, self._lin(kb, terms)))
+                    segments.append((None, None, self.combination(kb, terms)))
                     launches = [
                         *self._fast_transpose(self.inner_states.get((r, k, i)), kb),
                         *dss(self.xbar, False, Zbar[i]),
-                        *self._lin(self.rho0, [(1.0, self.rho0), (1.0, kb)]),
-                        *(self._lin(self.rho1, [(1.0, self.rho1), ((k + self.ci[i]) / n, kb)]) if timed else ()),
+                        *self.combination(self.rho0, [(1.0, self.rho0), (1.0, kb)]),
+                        *(self.combination(self.rho1, [(1.0, self.rho1), ((k + self.ci[i]) / n, kb)]) if timed else ()),
                     ]
                     state = self.inner_states.get((r, k, i))  # the fast part's F read it: g's term, with parameters
                     segments.append((state, [(1.0, kb)], launches, self._fast_planet))
-                segments.append((None, None, self._lin(zbar, [(1.0, zbar), *((1.0, Z) for Z in Zbar)])))
+                segments.append((None, None, self.combination(zbar, [(1.0, zbar), *((1.0, Z) for Z in Zbar)])))
             combinations = []
             for terms, adjoint in ((z0, zbar), (rho0, self.rho0), (rho1, self.rho1)):
                 for c, a in terms:  # a term c·a of the combination: ā += c × its adjoint
                     if c:
-                        combinations += self._lin(bar[id(a)], [(1.0, bar[id(a)]), (c, adjoint)])
+                        combinations += self.combination(bar[id(a)], [(1.0, bar[id(a)]), (c, adjoint)])
             segments.append((None, None, combinations))
             slow = [
                 *self._slow_transpose(self.Y[r], Sbar[r]),
                 *dss(self.xbar, False, self.tmp),
-                *self._lin(Ybar[r], [(1.0, Ybar[r]), (1.0, self.tmp)]),
+                *self.combination(Ybar[r], [(1.0, Ybar[r]), (1.0, self.tmp)]),
             ]
             segments.append((self.Y[r], [(1.0, Sbar[r])], slow, self._slow_planet))
             cur = Ybar[r]
-        segments.append((None, None, self._lin(mu, [(1.0, Ybar[0])])))
+        segments.append((None, None, self.combination(mu, [(1.0, Ybar[0])])))
         return segments
 
 

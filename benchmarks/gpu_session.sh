@@ -11,6 +11,8 @@
 #   benchmarks/gpu_session.sh tests_gpu bits        # ≤ 4 + 2.5 min: the CUDA tests alone; graphs against plain launches, bitwise (issue 67)
 #   benchmarks/gpu_session.sh study                 # ≤ 9 min: the ne30 TC5 study's runs on the GPU (ISSUE 32)
 #   benchmarks/gpu_session.sh study_fine            # ≤ 9 min a call: TC5, TC6, Galewsky at ne60 and ne120
+#   benchmarks/gpu_session.sh criterion_ne60        # ≤ 5 min: TC5 ne60, each family down to the 10 % criterion
+#   benchmarks/gpu_session.sh criterion_ne120       # ≤ 7 min: TC5 ne120, kgu35, rk4 and imex
 #
 # With no part named it runs setup to iterations in that order (≈ 23 min); reads,
 # study and study_fine are named. The studies are `swe-sphere sweep --device cuda
@@ -105,7 +107,8 @@ sweep() {  # sweep <name> <seconds> <case> <ne> <days> <filter days> <runs>: one
     if [ "$small" = 1 ]; then ne=2 days=1 filter=0.5; fi  # day 1: a day the T341 files hold
     run "$name" "$limit" "$PY" -m swe_sphere.cli sweep "$case" --ne "$ne" --np 4 --days "$days" --filter-days "$filter" \
         --runs "$runs" --device "$DEVICE" --cost wall -s case.reference=T341 --output "$STUDY/$name"
-    mkdir -p "$OUT/study" && cp -r "$STUDY/$name" "$OUT/study/"
+    # at most 8 files come back from a call: the table alone (the summary is in $OUT/<name>.txt)
+    [ -f "$STUDY/$name/sweep.csv" ] && cp "$STUDY/$name/sweep.csv" "$OUT/$name.csv"
 }
 
 part_study() {  # ISSUE 32 target: the ne30 TC5 study (15 days) in <= 10 minutes on one GPU
@@ -115,6 +118,19 @@ part_study() {  # ISSUE 32 target: the ne30 TC5 study (15 days) in <= 10 minutes
 part_study_ne60() {  # issue 67 item 4 in one call: TC5 ne60 15 days, the verdict's contenders at their best multiples
     sweep tc5_ne60_best "${STUDY_S:-240}" tc5_mountain 60 15 2 \
         leapfrog_trapezoidal@0.64,ssprk3@0.8,rk4@1.24,kgu35@1.6,fbrk32@1.24,semi_implicit@2,imex@8
+}
+
+# issue 67 item 4: the ne60 verdict's cost at the 10 % criterion (the earlier ne60 call ran each family
+# at its ne30 multiple only; four of them blew up there): each family at half that and below
+part_criterion_ne60() {
+    sweep tc5_ne60_criterion "${STUDY_S:-300}" tc5_mountain 60 15 2 \
+        kgu35@0.8,kgu35@0.4,rk4@0.62,rk4@0.4,fbrk32@0.62,ssprk3@0.4,leapfrog_trapezoidal@0.32,semi_implicit@1,imex@2
+}
+
+# issue 67 item 4 at ne120: the cheapest explicit contenders and IMEX (the small-dt RK4 run,
+# a quarter of 0.75 Δt_g, is most of the call)
+part_criterion_ne120() {
+    sweep tc5_ne120_criterion "${STUDY_S:-420}" tc5_mountain 120 15 2 kgu35@1.5,kgu35@0.75,rk4@0.75,imex@8
 }
 
 # ISSUE 32 item 5: every contender at ne60 and ne120; repeat the part until every sweep ends. A run
@@ -150,7 +166,7 @@ parts=("$@")
 [ ${#parts[@]} -eq 0 ] && parts=(setup tests agreement throughput graphs tc5 iterations)
 for part in "${parts[@]}"; do
     case $part in
-        setup|tests_gpu|tests|agreement|throughput|graphs|bits|tc5|iterations|reads|study|study_ne60|study_fine) "part_$part" ;;
-        *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_ne60 study_fine)" >&2; exit 2 ;;
+        setup|tests_gpu|tests|agreement|throughput|graphs|bits|tc5|iterations|reads|study|study_ne60|study_fine|criterion_ne60|criterion_ne120) "part_$part" ;;
+        *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_ne60 study_fine criterion_ne60 criterion_ne120)" >&2; exit 2 ;;
     esac
 done

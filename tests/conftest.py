@@ -18,6 +18,10 @@ import roundoff
 wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level instead
 if hasattr(wp, "LOG_WARNING"):
     wp.config.log_level = wp.LOG_WARNING
+# Warp's default device is CUDA where there is one, while the tests build their models on the
+# CPU unless they name CUDA and their helpers allocate on the default device: on a GPU machine
+# a helper's CUDA array in a CPU model's launch crashed the process (tests/adjoint, H100, 2026-11-26)
+wp.set_device("cpu")
 
 from swe_sphere.core.backend import THREADS_ENV  # noqa: E402
 from swe_sphere.core.workers import cpus  # noqa: E402

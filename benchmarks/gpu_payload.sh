@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The packages the GPU machine lacks (Warp, netCDF4, cftime, ducc0; benchmarks/GPU.md), as
+# The packages the GPU machine lacks (Warp, netCDF4, cftime, ducc0, and the peer Dinosaur's; benchmarks/GPU.md), as
 # three pieces that each fit the device tool's 64 MiB a call beside the checkout: a Warp wheel
 # alone is 149 MB (1.19.0), the four unpacked without Warp's tests and examples and
 # compressed with xz 116 MB. Run here, from the repository root (≈ 3 min on 2 cores):
@@ -17,13 +17,19 @@
 set -eu
 cd "$(dirname "$0")/.."
 PYV=${PYV:-3.12}  # the GPU machine's Python (its image, 2026-11)
+# the peer Dinosaur (benchmarks/peer_dinosaur.py --device cuda) and what it imports that the image
+# lacks (it has JAX 0.11 with its CUDA plugin, xarray, pandas, scipy, toolz, fsspec, cloudpickle):
+# pure Python, 3 MB; the versions measured on the CPU (/work/venvs/dinosaur)
+PEER="dinosaur==1.5.1 pint==0.25.3 flexcache==0.3 flexparser==0.4 platformdirs==4.14.8 tree-math==0.2.1
+      dask==2026.8.0 partd==1.4.2 locket==1.0.0"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 ver() { python -c "import importlib.metadata as m; print(m.version('$1'))"; }
 python -m pip download -q --no-deps --only-binary=:all: --python-version "$PYV" --implementation cp \
     --platform manylinux_2_28_x86_64 --platform manylinux_2_27_x86_64 --platform manylinux_2_17_x86_64 \
     --platform manylinux2014_x86_64 --platform manylinux1_x86_64 -d "$work/whl" \
-    "warp-lang==$(ver warp-lang)" "netCDF4==$(ver netCDF4)" "cftime==$(ver cftime)" "ducc0==$(ver ducc0)"
+    "warp-lang==$(ver warp-lang)" "netCDF4==$(ver netCDF4)" "cftime==$(ver cftime)" "ducc0==$(ver ducc0)" \
+    $PEER
 mkdir -p "$work/site"
 for w in "$work"/whl/*.whl; do python -m zipfile -e "$w" "$work/site"; done
 rm -rf "$work/site/warp/tests" "$work/site/warp/examples"

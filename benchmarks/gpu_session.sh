@@ -13,6 +13,7 @@
 #   benchmarks/gpu_session.sh study_fine            # ≤ 9 min a call: TC5, TC6, Galewsky at ne60 and ne120
 #   benchmarks/gpu_session.sh criterion_ne60        # ≤ 5 min: TC5 ne60, each family down to the 10 % criterion
 #   benchmarks/gpu_session.sh criterion_ne120       # ≤ 7 min: TC5 ne120, kgu35, rk4 and imex
+#   benchmarks/gpu_session.sh dinosaur              # ≤ 8 min: the peer Dinosaur (JAX) beside swe_sphere on the card
 #
 # With no part named it runs setup to iterations in that order (≈ 23 min); reads,
 # study and study_fine are named. The studies are `swe-sphere sweep --device cuda
@@ -133,6 +134,19 @@ part_criterion_ne120() {
     sweep tc5_ne120_criterion "${STUDY_S:-420}" tc5_mountain 120 15 2 kgu35@1.5,kgu35@0.75,rk4@0.75,imex@8
 }
 
+# issue 67 item 4: the peer Dinosaur (JAX, the image's CUDA plugin; its wheels in the payload) on the
+# same card in the same call, both models' wall seconds a simulated day (benchmarks/peer_dinosaur.py)
+part_dinosaur() {
+    local t="--truncations T42 T85 T170 T213"
+    run dinosaur_galewsky "${PEER_S:-240}" "$PY" benchmarks/peer_dinosaur.py --case galewsky --device "$DEVICE" \
+        --python "$PY" $t --results gpu_peer_dinosaur_galewsky \
+        --swe ne16/np4/fbrk32,86400/214 ne30/np4/kgu35,86400/400 ne60/np4/kgu35,86400/800
+    run dinosaur_tc5 "${PEER_S:-240}" "$PY" benchmarks/peer_dinosaur.py --case tc5 --device "$DEVICE" \
+        --python "$PY" $t --results gpu_peer_dinosaur_tc5 \
+        --swe ne16/np4/kgu35,86400/100 ne30/np4/kgu35,86400/188 ne60/np4/kgu35,86400/375
+    cp benchmarks/results/gpu_peer_dinosaur_*.json "$OUT/" 2>/dev/null
+}
+
 # ISSUE 32 item 5: every contender at ne60 and ne120; repeat the part until every sweep ends. A run
 # is kept only when it ends: one longer than a call's box (likely CN @ 2 Δt_g at ne120, 15 days at
 # 40-90 ms a step) never completes here and needs a longer device slot
@@ -166,7 +180,7 @@ parts=("$@")
 [ ${#parts[@]} -eq 0 ] && parts=(setup tests agreement throughput graphs tc5 iterations)
 for part in "${parts[@]}"; do
     case $part in
-        setup|tests_gpu|tests|agreement|throughput|graphs|bits|tc5|iterations|reads|study|study_ne60|study_fine|criterion_ne60|criterion_ne120) "part_$part" ;;
-        *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_ne60 study_fine criterion_ne60 criterion_ne120)" >&2; exit 2 ;;
+        setup|tests_gpu|tests|agreement|throughput|graphs|bits|tc5|iterations|reads|study|study_ne60|study_fine|criterion_ne60|criterion_ne120|dinosaur) "part_$part" ;;
+        *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_ne60 study_fine criterion_ne60 criterion_ne120 dinosaur)" >&2; exit 2 ;;
     esac
 done

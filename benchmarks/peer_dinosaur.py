@@ -69,8 +69,16 @@ with the scene's ν (the 3-hour e-folding rule), output every day, ``-s case.ref
 Figures: ``benchmarks/results/peer_dinosaur.json`` (Galewsky), ``peer_dinosaur_tc5.json`` (TC5),
 ``peer_dinosaur_tc6.json`` (TC6).
 
+**On a GPU** (``--device cuda``, issue 67: the peer on the same card in the same call): the peer
+under JAX on CUDA (``JAX_PLATFORMS=cuda``, no preallocation), swe_sphere's runs with
+``device="cuda"``, each figure the wall seconds of the same loop (the peer's compiled
+``jax.lax.scan``, compilation excluded; swe_sphere's step loop from day 1), still one host core.
+The GPU machine's image has JAX with its CUDA plugin; Dinosaur and what it imports beyond the
+image travel as wheels (``benchmarks/gpu_session.sh`` part ``dinosaur``; ``--python python3``).
+
     python benchmarks/peer_dinosaur.py [--case galewsky|tc5|tc6] [--truncations T42 T85 T170]
         [--swe ne16/np4/fbrk32,86400/214 ne16/np4/kgu35,400 ...] [--rounds 1] [--python /work/venvs/dinosaur/bin/python]
+        [--device cpu|cuda]
 """
 
 from __future__ import annotations
@@ -257,11 +265,12 @@ def peer_fields(grid, specs, eq, state, d) -> dict:
 
 
 # -- swe_sphere, in the project's environment --------------------------------------------------
-def swe_child(study: str, config: str, out: Path) -> None:
-    """Run ``study``'s scene in the configuration ``config`` (``parse_swe``) to its last day and
-    write its vorticity, h and h + hs at the last day at its unique nodes, their lat/lon (rad)
-    and area, its Δt, the step loop's CPU seconds a day between day 1 and the last, and its
-    own score of the study's field (``ref_l2_vorticity`` or ``ref_l2_h_surface``), to ``out``."""
+def swe_child(study: str, config: str, out: Path, device: str = "cpu") -> None:
+    """Run ``study``'s scene in the configuration ``config`` (``parse_swe``) on ``device`` to its
+    last day and write its vorticity, h and h + hs at the last day at its unique nodes, their
+    lat/lon (rad) and area, its Δt, the step loop's CPU and wall seconds a day between day 1 and
+    the last, and its own score of the study's field (``ref_l2_vorticity`` or
+    ``ref_l2_h_surface``), to ``out``."""
     import netCDF4
 
     from swe_sphere.simulation.simulation import Simulation
@@ -270,7 +279,7 @@ def swe_child(study: str, config: str, out: Path) -> None:
     kw = {} if dt is None else {"dt": dt}
     sim = Simulation(
         st.scene,
-        "cpu",
+        device,
         ne=ne,
         np=np_,
         stepper=stepper,
@@ -282,7 +291,7 @@ def swe_child(study: str, config: str, out: Path) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "run.nc"
         result = sim.run(path)
-        cpu = {round(h["steps"] * sim.scene.dt / 86400, 6): h["cpu_time"] for h in result.history}
+        day = {round(h["steps"] * sim.scene.dt / 86400, 6): h for h in result.history}
         with netCDF4.Dataset(path) as ds:
             f = {k: np.asarray(ds[k][...], dtype=np.float64) for k in ("lat", "lon", "area", "hs")}
             zeta, h = (np.asarray(ds[k][-1], dtype=np.float64) for k in ("vorticity", "h"))
@@ -296,7 +305,8 @@ def swe_child(study: str, config: str, out: Path) -> None:
         lon=np.radians(f["lon"]),
         area=f["area"],
         dt=sim.scene.dt,
-        cpu_per_day=(cpu[st.days] - cpu[1.0]) / (st.days - 1.0),
+        cpu_per_day=(day[st.days]["cpu_time"] - day[1.0]["cpu_time"]) / (st.days - 1.0),
+        wall_per_day=(day[st.days]["wall_time"] - day[1.0]["wall_time"]) / (st.days - 1.0),
         own=own,
     )
 
@@ -315,9 +325,12 @@ def parse_swe(config: str) -> tuple[int, int, str, float | None]:
 
 
 # -- the parent: runs the children one at a time and scores them ----------------------------
-def child_env() -> dict:
-    """The environment of a timed child: one thread, and this checkout first on the path."""
-    return {**os.environ, **ONE_THREAD, "PYTHONPATH": str(REPO)}
+def child_env(device: str = "cpu") -> dict:
+    """The environment of a timed child: one thread, this checkout first on the path (before
+    what the path held), JAX on ``device`` ("cpu" or "cuda", its memory taken as needed)."""
+    path = os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH")) if p)
+    jax = {"JAX_PLATFORMS": device, "XLA_PYTHON_CLIENT_PREALLOCATE": "false"}
+    return {**os.environ, **ONE_THREAD, **jax, "PYTHONPATH": path}
 
 
 def pinned(cmd: list[str]) -> list[str]:
@@ -325,19 +338,21 @@ def pinned(cmd: list[str]) -> list[str]:
     return ["taskset", "-c", "0", *cmd] if shutil.which("taskset") else cmd
 
 
-def run_child(python: str, args: list[str]) -> None:
-    """Run this script as a child (``python`` its interpreter) with ``args``; raise with its
-    last lines when it fails."""
-    out = subprocess.run(pinned([python, __file__, *args]), env=child_env(), capture_output=True, text=True)
+def run_child(python: str, args: list[str], device: str = "cpu") -> None:
+    """Run this script as a child (``python`` its interpreter) with ``args`` (``device`` its
+    JAX platform); raise with its last lines when it fails."""
+    out = subprocess.run(pinned([python, __file__, *args]), env=child_env(device), capture_output=True, text=True)
     if out.returncode != 0:
         raise RuntimeError(f"{' '.join(args[:3])} failed:\n" + "\n".join(out.stderr.splitlines()[-15:]))
 
 
-def run_peer(python: str, study: str, truncation: str, transforms: str, tmp: Path, dt: float | None = None) -> dict:
+def run_peer(
+    python: str, study: str, truncation: str, transforms: str, tmp: Path, dt: float | None = None, device: str = "cpu"
+) -> dict:
     """The peer at ``truncation`` (a key of ``GRIDS``) from the project's initial state of
-    ``study``'s case at its nodes, at Δt ``dt`` s (None: ``GRIDS``'): its last day's fields
-    (``peer_fields``), its start's (``start_`` + name), points, weights and CPU seconds a
-    simulated day."""
+    ``study``'s case at its nodes, at Δt ``dt`` s (None: ``GRIDS``'), under JAX on ``device``:
+    its last day's fields (``peer_fields``), its start's (``start_`` + name), points, weights
+    and CPU and wall seconds a simulated day."""
     from swe_sphere.cases.library import make_case
 
     st, (nodes, grid_dt) = STUDIES[study], GRIDS[truncation]
@@ -351,18 +366,20 @@ def run_peer(python: str, study: str, truncation: str, transforms: str, tmp: Pat
     inp, out = tmp / f"{truncation}_in.npz", tmp / f"{truncation}_out.npz"
     state = dict(u=u, v=v, h=h, hs=hs, lat=lat, lon=lon, mean_depth=mean_depth)
     np.savez(inp, truncation=int(truncation[1:]), nodes=nodes, dt=dt, days=st.days, **state)
-    run_child(python, ["--peer-child", str(inp), str(out), transforms])
+    run_child(python, ["--peer-child", str(inp), str(out), transforms], device)
     r = dict(np.load(out))
-    r.update(lat=lat, lon=lon, weights=w, dt=dt, cpu_per_day=float(r["cpu"]) / st.days, initial=(h, hs))
+    per_day = {"cpu_per_day": float(r["cpu"]) / st.days, "wall_per_day": float(r["wall"]) / st.days}
+    r.update(lat=lat, lon=lon, weights=w, dt=dt, initial=(h, hs), **per_day)
     return r
 
 
-def run_swe(study: str, config: str, tmp: Path) -> dict:
-    """swe_sphere's run of ``study`` in ``config`` (``swe_child``), as ``run_peer``'s dict."""
+def run_swe(study: str, config: str, tmp: Path, device: str = "cpu") -> dict:
+    """swe_sphere's run of ``study`` in ``config`` on ``device`` (``swe_child``), as ``run_peer``'s dict."""
     out = tmp / f"{config.replace('/', '_').replace(',', '_')}.npz"
-    run_child(sys.executable, ["--swe-child", study, config, str(out)])
+    run_child(sys.executable, ["--swe-child", study, config, str(out), device], device)
     r = dict(np.load(out))
-    r.update(weights=r["area"], dt=float(r["dt"]), cpu_per_day=float(r["cpu_per_day"]), own=float(r["own"]))
+    per_day = {k: float(r[k]) for k in ("cpu_per_day", "wall_per_day")}
+    r.update(weights=r["area"], dt=float(r["dt"]), own=float(r["own"]), **per_day)
     return r
 
 
@@ -390,12 +407,13 @@ def start_check(run: dict) -> dict:
     return out
 
 
-def peer_available(python: str) -> str | None:
-    """Why the peer's interpreter cannot run Dinosaur, or None when it can."""
-    if not Path(python).exists():
+def peer_available(python: str, device: str = "cpu") -> str | None:
+    """Why the peer's interpreter cannot run Dinosaur under JAX on ``device``, or None when it can."""
+    if shutil.which(python) is None:
         return f"no interpreter at {python} (see the docstring's install line)"
-    out = subprocess.run([python, "-c", "import dinosaur, jax; print(jax.__version__)"], capture_output=True, text=True)
-    return None if out.returncode == 0 else f"{python} cannot import dinosaur and jax"
+    probe = "import dinosaur, jax; jax.devices()"
+    out = subprocess.run([python, "-c", probe], env=child_env(device), capture_output=True, text=True)
+    return None if out.returncode == 0 else f"{python} cannot import dinosaur and jax on {device}"
 
 
 def arguments():
@@ -410,6 +428,12 @@ def arguments():
     ap.add_argument("--rounds", type=int, default=1)
     ap.add_argument("--transforms", choices=["fft", "real"], default="fft")
     ap.add_argument("--python", default=str(DEFAULT_PYTHON), help="the peer's interpreter (default: %(default)s)")
+    ap.add_argument(
+        "--device",
+        choices=["cpu", "cuda"],
+        default="cpu",
+        help="both models' device; cuda: wall seconds (default: cpu)",
+    )
     args = ap.parse_args()
     args.swe = list(STUDIES[args.case].swe) if args.swe is None else args.swe
     for config in args.swe:
@@ -422,7 +446,7 @@ def arguments():
 
 def main() -> None:
     args = arguments()
-    why = peer_available(args.python)
+    why = peer_available(args.python, args.device)
     if why is not None:
         print(f"peer_dinosaur: skipped: {why}")
         return
@@ -436,20 +460,22 @@ def main() -> None:
     t341, t213 = Reference(reference_path(case, "T341")), Reference(reference_path(case, "T213"))
     order = interleave([("peer", t) for t in args.truncations], [("swe", c) for c in args.swe])
     with recorded(__file__, stem=args.results or st.stem) as figures, tempfile.TemporaryDirectory() as tmp:
-        print(f"{st.scene} day {st.days:g}, l2 against T341 at each model's points; one thread, core 0")
+        clock = "wall" if args.device == "cuda" else "cpu"  # a GPU run's CPU time is the host's waiting
+        where = "one NVIDIA GPU" if args.device == "cuda" else "one thread"
+        print(f"{st.scene} day {st.days:g}, l2 against T341 at each model's points; {where}, host core 0")
         print(f"peer: dinosaur, imex_rk_sil3 + exponential_step_filter defaults, float64, {args.transforms} transforms")
         table: dict[str, dict] = {}
         for rnd in range(args.rounds):
             for kind, what in order:
                 load = os.getloadavg()[0]
                 if kind == "peer":
-                    peer = run_peer(args.python, args.case, what, args.transforms, Path(tmp), args.peer_dt)
+                    peer = run_peer(args.python, args.case, what, args.transforms, Path(tmp), args.peer_dt, args.device)
                     name, run = f"dinosaur {what}", peer
                 else:
-                    name, run = f"swe_sphere {what.split(',')[0]}", run_swe(args.case, what, Path(tmp))
+                    name, run = f"swe_sphere {what.split(',')[0]}", run_swe(args.case, what, Path(tmp), args.device)
                 l2s = scores(run, t341, st.days)
                 row = table.setdefault(name, dict(**{f"l2_{k}": v for k, v in l2s.items()}, dt=run["dt"]))
-                row.setdefault("cpu_per_day", []).append(run["cpu_per_day"])
+                row.setdefault(f"{clock}_per_day", []).append(run[f"{clock}_per_day"])
                 row.setdefault("load", []).append(load)
                 extra = start_check(run) if kind == "peer" else {f"own_ref_l2_{st.field}": run["own"]}
                 row.update(extra)
@@ -457,26 +483,27 @@ def main() -> None:
                     f"round {rnd + 1} {name} dt {run['dt']:g} s: vorticity l2 {l2s['vorticity']:.4g}, h l2 "
                     f"{l2s['h']:.4g}, h + hs l2 {l2s['h_surface']:.4g}; "
                     + ", ".join(f"{k} {v:.3g}" for k, v in extra.items())
-                    + f"; {run['cpu_per_day']:.3g} CPU s a simulated day (load {load:.2f})"
+                    + f"; {run[f'{clock}_per_day']:.3g} {clock} s a simulated day (load {load:.2f})"
                 )
                 if kind == "peer" and what == args.truncations[-1]:
                     r213 = dict(run, **t213.at(st.days, run["lat"], run["lon"]))
                     row["t213_vs_t341"] = scores(r213, t341, st.days)[st.field]
-        summary(table, st)
+        summary(table, st, clock)
+        figures["device"] = args.device
         figures["case"] = st.scene
         figures["field"] = st.field
         figures["days"] = st.days
         figures["runs"] = table
 
 
-def summary(table: dict, st: Study) -> None:
-    """Print the table, one line a model, each row's median CPU cost added to it."""
-    print(f"model | dt s | {st.field_name} l2 | vorticity l2 | h l2 | CPU s / simulated day (median) | load")
+def summary(table: dict, st: Study, clock: str = "cpu") -> None:
+    """Print the table, one line a model, each row's median cost on ``clock`` ("cpu" or "wall") added to it."""
+    print(f"model | dt s | {st.field_name} l2 | vorticity l2 | h l2 | {clock} s / simulated day (median) | load")
     for name, row in table.items():
-        row["cpu_per_day_median"] = statistics.median(row["cpu_per_day"])
+        row[f"{clock}_per_day_median"] = statistics.median(row[f"{clock}_per_day"])
         print(
             f"{name} | {row['dt']:g} | {row[f'l2_{st.field}']:.3g} | {row['l2_vorticity']:.3g} | {row['l2_h']:.3g} | "
-            f"{row['cpu_per_day_median']:.3g} | {min(row['load']):.1f}-{max(row['load']):.1f}"
+            f"{row[f'{clock}_per_day_median']:.3g} | {min(row['load']):.1f}-{max(row['load']):.1f}"
         )
         if "t213_vs_t341" in row:
             print(f"  (T213 reference against T341 at {name}'s points: {st.field_name} l2 {row['t213_vs_t341']:.3g})")
@@ -492,6 +519,6 @@ if __name__ == "__main__":
     if len(sys.argv) > 1 and sys.argv[1] == "--peer-child":
         peer_child(Path(sys.argv[2]), Path(sys.argv[3]), sys.argv[4])
     elif len(sys.argv) > 1 and sys.argv[1] == "--swe-child":
-        swe_child(sys.argv[2], sys.argv[3], Path(sys.argv[4]))
+        swe_child(sys.argv[2], sys.argv[3], Path(sys.argv[4]), sys.argv[5])
     else:
         main()

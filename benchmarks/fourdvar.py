@@ -65,7 +65,7 @@ def truth_run(scene, steps: int):
     time that of a whole run as ``gradient`` makes one: its model built, then the steps."""
     clock = time.process_time()
     model, stepper, x0 = scene_model(scene)
-    x = wp.array(x0, dtype=wp.float64)
+    x = wp.array(x0, dtype=wp.float64, device=model.device)
     stepper.prepare(x)
     for _ in range(steps):
         stepper.advance(x)

@@ -71,7 +71,7 @@ def observed_run(scene, steps: int, x0, every: int):
     from x0 (3, N): its model built, then the steps, as a ``gradient`` call's forward pass."""
     clock = time.process_time()
     model, stepper, _ = scene_model(scene)
-    x = wp.array(x0, dtype=wp.float64)
+    x = wp.array(x0, dtype=wp.float64, device=model.device)
     stepper.prepare(x)
     states = {0: x0.copy()}
     for k in range(1, steps + 1):

@@ -79,7 +79,7 @@ rows = {"forward": [], "run": [], "gradient": [], "model": []} | ({"two_level": 
 
 
 def replay(st):
-    x = wp.array(x0, dtype=wp.float64)
+    x = wp.array(x0, dtype=wp.float64, device=st.model.device)
     st.prepare(x)
     for k in range(steps):
         every.set(st, k)

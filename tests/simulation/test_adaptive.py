@@ -7,6 +7,7 @@ the error controller's alone, bit for bit."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -259,3 +260,22 @@ def test_the_run_file_records_the_balanced_mode_s_spatial_rate(tmp_path):
     (rate,) = _series(tmp_path / "b.nc", "spatial_rate")
     assert np.isnan(rate[0]) and np.all(rate[1:] > 0) and np.all(np.isfinite(rate[1:]))
     assert np.all(np.isnan(_series(tmp_path / "e.nc", "spatial_rate")[0]))
+
+
+@pytest.mark.parametrize("mode", ["error", "balanced"])
+def test_a_controlled_step_reads_the_device_once_a_try(tally, mode):
+    """Issue 64's read-back, counted (``core.tally``: each ``.numpy()``, a host synchronisation
+    on CUDA): TC5 ne4 under control started at 5x its Δt (steps rejected), one day. Each try
+    reads once (the error norm's per-block sums), the Courant cap's pass once where it runs
+    (skipped where it cannot bind: a few steps in a hundred), and the balanced mode's
+    spatial-rate estimate twice (F and x) every ``BALANCE_EVERY`` accepted steps: nothing else."""
+    overrides = {"time.control": mode, **({"time.rtol": 1e-4} if mode == "error" else {})}
+    scene = load_scene("tc5_mountain", ne=4, days=1.0, stepper="rk43", overrides=overrides)
+    sim = make_sim(dataclasses.replace(scene, dt=5 * scene.dt))
+    control = StepControl(sim.scene.control, sim.stepper, sim)
+    with tally.counting():
+        assert _run(sim, control, 0.0, DAY) == DAY
+    tries = control.accepted + control.rejected
+    estimates = 1 + (control.accepted - 1) // BALANCE_EVERY if mode == "balanced" else 0  # before steps 1, 17, …
+    assert control.rejected > 0 and 0 < control.courant_passes < control.accepted / 10
+    assert tally.syncs == tries + control.courant_passes + 2 * estimates

@@ -62,8 +62,13 @@ part_tests_gpu() {  # issue 67 item 1 first: every CUDA test (slow ones too), on
 part_tests() {
     # first the graph fallbacks' CUDA twins (issue 44): the paths a GPU user's first run takes
     run tests_graph_fallback 60 "$PY" -m pytest -q -rs -p no:cacheprovider tests/core/test_graph_fallback.py
-    # the whole default suite on the CUDA device; a CUDA test that skips is a failure here
-    run tests 540 "$PY" -m pytest -q -rs -p no:cacheprovider --junitxml="$OUT/tests.xml"
+    # the whole default suite on the GPU machine (the CUDA tests on the card; the rest on its CPU,
+    # the suite's SWE_SPHERE_DEVICE=cpu); a CUDA test that skips is a failure here. Then the
+    # commands of the docs and the first hour on the card, as a GPU user's first runs
+    # (SWE_SPHERE_DEVICE=cuda: the device of every run that names none)
+    run tests 420 "$PY" -m pytest -q -rs -p no:cacheprovider --junitxml="$OUT/tests.xml"
+    run tests_first_runs 180 env SWE_SPHERE_DEVICE=cuda "$PY" -m pytest -q -rs -p no:cacheprovider \
+        tests/test_docs_examples.py tests/test_first_hour.py
     if grep -q "SKIPPED.*needs a CUDA device" "$OUT/tests_graph_fallback.txt" "$OUT/tests.txt"; then
         echo "== tests: CUDA tests skipped on the GPU machine" | tee -a "$OUT/session.log"
     fi

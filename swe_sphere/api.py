@@ -30,7 +30,7 @@ def run(
     scene : str, path or Scene
         A scene file, the name of a bundled scene ("tc5_mountain") or a ``config.Scene``.
     device : {"cpu", "cuda"}, optional
-        Warp device (default: CUDA when present, else the CPU).
+        Warp device (default: ``SWE_SPHERE_DEVICE`` where set, else CUDA when present, else the CPU).
     output_file : str or path, optional
         Also keep the run's netCDF file there; streams of ``output={"streams": [...]}``
         are written beside it (without it they are dropped with a temporary folder).

@@ -23,10 +23,15 @@ if hasattr(wp, "LOG_WARNING"):
 # a helper's CUDA array in a CPU model's launch crashed the process (tests/adjoint, H100, 2026-11-26)
 wp.set_device("cpu")
 
-from swe_sphere.core.backend import THREADS_ENV  # noqa: E402
+from swe_sphere.core.backend import DEVICE_ENV, THREADS_ENV  # noqa: E402
 from swe_sphere.core.workers import cpus  # noqa: E402
 
 from helpers import TINY, cached_grid  # noqa: E402  (after Warp is quietened: it imports swe_sphere)
+
+# and a run that names no device (the CLI's and the docs' commands, in this process and the
+# subprocesses) on the CPU too, unless the developer asks for another: on a GPU machine the
+# suite's CPU results stay the CPU's (the CUDA tests name CUDA)
+os.environ.setdefault(DEVICE_ENV, "cpu")
 
 
 def pytest_configure(config):

@@ -7,11 +7,13 @@ import errno
 from pathlib import Path
 
 import pytest
+import warp as wp
 
+from swe_sphere.core.backend import DEVICE_ENV
 from swe_sphere.io.run_file import acquire_lock, release_lock
 from swe_sphere.simulation.simulation import Simulation
 
-from helpers import TINY, cli_main, cli_one_line, one_line
+from helpers import EIGHTH_DAY, TINY, cli_main, cli_one_line, one_line
 
 
 @pytest.fixture(autouse=True)
@@ -106,6 +108,25 @@ def test_an_unknown_device_is_named_in_python(device):
     """Warp's own "Invalid device identifier" came through from deep in the set-up."""
     with pytest.raises(ValueError, match=f"^device must be 'cpu', 'cuda' or 'cuda:N' \\(got '{device}'\\)$"):
         Simulation("tc2_steady", device, ne=2)
+
+
+def test_swe_sphere_device_chooses_the_device_a_run_names_none_and_a_bad_one_is_one_line(capsys, monkeypatch):
+    """``SWE_SPHERE_DEVICE`` is the device of a run that names none (the suite sets it to the
+    CPU: a GPU machine's tests keep their CPU runs there); --device and ``device=`` win; a bad
+    value, or a CUDA device the machine lacks, is one line naming it, exit 2, nothing written."""
+    monkeypatch.setenv(DEVICE_ENV, "cpu")
+    assert Simulation("tc2_steady", ne=2).device == "cpu"
+    monkeypatch.setenv(DEVICE_ENV, "tpu")
+    with pytest.raises(ValueError, match=f"^{DEVICE_ENV} must be 'cpu', 'cuda' or 'cuda:N' \\(got 'tpu'\\)$"):
+        Simulation("tc2_steady", ne=2)
+    assert Simulation("tc2_steady", "cpu", ne=2).device == "cpu"  # named: the variable is not read
+    run = ["run", "tc2_steady", "--ne", "2", *EIGHTH_DAY, "--output", "o.nc"]  # no --device
+    line = cli_one_line(capsys, run, 2)
+    assert line == f"swe-sphere: error: {DEVICE_ENV} must be 'cpu', 'cuda' or 'cuda:N' (got 'tpu')"
+    monkeypatch.setenv(DEVICE_ENV, f"cuda:{wp.get_cuda_device_count()}")  # one past the last
+    line = cli_one_line(capsys, run, 2)
+    assert line.endswith(f"is not available on this machine (set {DEVICE_ENV}=cpu or unset it)"), line
+    assert not Path("o.nc").exists()
 
 
 @pytest.mark.parametrize("command", ["plot", "remap"])

@@ -66,7 +66,11 @@ def _scene_flags() -> argparse.ArgumentParser:
         help="override a scene value (in every run of a sweep or suite), e.g. -s hyperviscosity.nu=5e14 "
         "(TOML value; validated like the file)",
     )
-    s.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
+    s.add_argument(
+        "--device",
+        choices=("cpu", "cuda"),
+        help="Warp device (default: SWE_SPHERE_DEVICE where set, else cuda when present, else cpu)",
+    )
     return s
 
 
@@ -279,7 +283,11 @@ def _frontier(sub, parents) -> None:
         metavar="SECTION.KEY=VALUE",
         help="override a scene value in every run",
     )
-    fr.add_argument("--device", choices=("cpu", "cuda"), help="Warp device (default: cuda when present, else cpu)")
+    fr.add_argument(
+        "--device",
+        choices=("cpu", "cuda"),
+        help="Warp device (default: SWE_SPHERE_DEVICE where set, else cuda when present, else cpu)",
+    )
     fr.add_argument(
         "--cost", choices=("cpu", "wall"), default="cpu", help="the clock that costs the runs (default cpu)"
     )

@@ -8,7 +8,8 @@ solvers (``choose``), which graphs pay, how often the bad-state check is read ba
 whose memory a run must fit in. Nothing outside this module asks whether a device is a
 CPU or a GPU.
 
-``pick_device`` chooses the device itself: the one asked for, else CUDA when present.
+``pick_device`` chooses the device itself: the one asked for, else ``SWE_SPHERE_DEVICE``'s,
+else CUDA when present.
 """
 
 from __future__ import annotations
@@ -24,6 +25,9 @@ from .runtime import check_memory, gib, init_warp
 from .workers import cpus
 
 THREADS_ENV = "SWE_SPHERE_THREADS"
+# the device of a run that names none (as JAX's JAX_PLATFORMS): a GPU machine's tests keep
+# their CPU runs on the CPU with it, and a user keeps a shared GPU free
+DEVICE_ENV = "SWE_SPHERE_DEVICE"
 CPU_CHUNK = 256  # entries per partial sum of an inner product on the CPU
 CUDA_CHUNKS = 4096  # partial sums an inner product aims at on CUDA, 8 to 32 entries each (measured on an H100)
 DEVICE_TOTALS = 64  # partial sums a row that one GPU thread adds directly (``Topology.device_sums``)
@@ -52,21 +56,24 @@ def requested_threads() -> int | None:
 
 
 def default_device() -> str:
-    """'cuda' when Warp sees a CUDA device, else 'cpu'."""
-    return "cuda" if init_warp().is_cuda_available() else "cpu"
+    """The device a run takes when none is named: ``SWE_SPHERE_DEVICE`` where set (checked by
+    ``pick_device``), else 'cuda' when Warp sees a CUDA device, else 'cpu'."""
+    return os.environ.get(DEVICE_ENV, "").strip() or ("cuda" if init_warp().is_cuda_available() else "cpu")
 
 
 def pick_device(requested: str | None = None, *, verbose: bool = False) -> str:
-    """The Warp device to run on: ``requested`` ("cpu", "cuda" or "cuda:N"), else CUDA
-    when present. Raises ``SceneError`` (a ValueError; one line) for another name, and when
-    the CUDA device asked for is absent."""
-    if requested is not None and not re.fullmatch(r"cpu|cuda(:\d+)?", str(requested)):
-        raise SceneError(f"device must be 'cpu', 'cuda' or 'cuda:N' (got {requested!r})")
+    """The Warp device to run on: ``requested`` ("cpu", "cuda" or "cuda:N"), else
+    ``default_device()``'s. Raises ``SceneError`` (a ValueError; one line) for another name
+    (naming ``SWE_SPHERE_DEVICE`` where the name is its), and when the CUDA device asked
+    for is absent."""
+    device, what = (requested, "device") if requested is not None else (default_device(), DEVICE_ENV)
+    if not re.fullmatch(r"cpu|cuda(:\d+)?", str(device)):
+        raise SceneError(f"{what} must be 'cpu', 'cuda' or 'cuda:N' (got {device!r})")
     warp = init_warp(verbose)
-    device = requested or default_device()
     ordinal = int(device.partition(":")[2] or 0)
     if device.startswith("cuda") and ordinal >= warp.get_cuda_device_count():
-        raise SceneError(f"device {device} is not available on this machine (use --device cpu)")
+        fix = "use --device cpu" if requested is not None else f"set {DEVICE_ENV}=cpu or unset it"
+        raise SceneError(f"device {device} is not available on this machine ({fix})")
     return device
 
 

@@ -86,7 +86,7 @@ class Simulation:
         A resolved scene, or a scene file or bundled name with ``overrides``
         (``config.resolve_scene``).
     device : {"cpu", "cuda"}, optional
-        Warp device (default: CUDA when present, ``backend.pick_device``).
+        Warp device (default: ``SWE_SPHERE_DEVICE`` where set, else CUDA when present; ``backend.pick_device``).
     progress : bool
         A tqdm bar (rank 0, stderr a terminal).
     comm : mpi4py communicator, optional

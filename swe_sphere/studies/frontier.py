@@ -189,7 +189,7 @@ class Frontier:
         directory : str or path
             The frontier's folder (created).
         device : {"cpu", "cuda"}, optional
-            Warp device (default: CUDA when present).
+            Warp device (default: ``SWE_SPHERE_DEVICE`` where set, else CUDA when present).
         pool : concurrent.futures.Executor, optional
             Runs each sweep's runs (``core.workers.executor``); None: here, one after another.
         cost : {"cpu", "wall"}

@@ -109,7 +109,7 @@ class Plan:
     def resolve(self, directory, device: str | None = None, log=print) -> ResolvedPlan:
         """The runs to make: the start state (the restart file's, or ``start_state``:
         a digital-filter start made once under ``directory/runs``, ``log``ged), the
-        explicit limits on ``device`` ("cpu" or "cuda"; None: CUDA when present,
+        explicit limits on ``device`` ("cpu" or "cuda"; None: ``SWE_SPHERE_DEVICE``, else CUDA when present,
         ``pick_device``; ``explicit_limits``), each multiple's Δt (the
         largest at or below it that divides ``span`` and a day: ``dt_for_day``) and
         the notes `swe-sphere sweep` prints before its runs. Raises ValueError for a
@@ -182,7 +182,7 @@ class Plan:
             The results' folder (created), its runs kept under ``runs/`` and reused
             where made with the same settings.
         device : {"cpu", "cuda"}, optional
-            Warp device (default: CUDA when present).
+            Warp device (default: ``SWE_SPHERE_DEVICE`` where set, else CUDA when present).
         pool : concurrent.futures.Executor, optional
             Runs the runs (``core.workers.executor``); None: one after another, here.
         cost : {"cpu", "wall"}

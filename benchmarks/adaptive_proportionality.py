@@ -15,7 +15,9 @@ every run's). The parts:
     of ``--rtols`` (``--pair-rtols``: a pair's own) for each pair of ``--pairs`` (each pair's default controller; atol the default,
     rtol in each field's units): the temporal error, TC2's error against its exact solution
     (h l2, spatial and temporal together), accepted and rejected steps, CPU s; the slope q of
-    log(temporal error) against log(rtol), least squares (issue 64's target: q in [0.7, 1.1]).
+    log(temporal error) against log(rtol), least squares (issue 64's target: q in [0.7, 1.1]);
+    ``--per-unit-step``: the pairs controlled per unit step (``time.per_unit_step``; the reference
+    per step).
 (b) **Cost against fixed steps** (TC5). The spatial error is the reference run's h + hs l2
     against the case's T213 run; a run qualifies when its temporal error is ≤ 10 % of it (the
     sweep's criterion, docs/methods.md "Sufficient accuracy"). For each pair the loosest
@@ -115,7 +117,8 @@ def proportionality(args, case, days, out: dict) -> dict:
         over = {"terms": [t for t in load_scene(case).terms if t != "hyperviscosity"]}
     ref = run(case, args.ne, days, "dp54", control={"control": "error", "rtol": args.rtol_ref}, overrides=over)
     print(
-        f"\n## {case} ne{args.ne}, {days:g} days{', no ∇⁴' if over else ''}; reference dp54 rtol {args.rtol_ref:g}: "
+        f"\n## {case} ne{args.ne}, {days:g} days{', no ∇⁴' if over else ''}"
+        f"{', the pairs per unit step' if args.per_unit_step else ''}; reference dp54 rtol {args.rtol_ref:g}: "
         f"{ref['accepted']} steps, CPU {ref['cpu']:.1f} s"
     )
     exact = case == "tc2_steady"
@@ -126,10 +129,11 @@ def proportionality(args, case, days, out: dict) -> dict:
     )
     print(head)
     rows = {}
+    unit = {"per_unit_step": True} if args.per_unit_step else {}
     for pair in args.pairs:
         errs, rtols = [], args.pair_rtols.get(pair, args.rtols)
         for rtol in rtols:
-            r = run(case, args.ne, days, pair, control={"control": "error", "rtol": rtol}, overrides=over)
+            r = run(case, args.ne, days, pair, control={"control": "error", "rtol": rtol, **unit}, overrides=over)
             e = temporal(r, ref)
             errs.append(e)
             row = {"rtol": rtol, "temporal": e, "accepted": r["accepted"], "rejected": r["rejected"], "cpu": r["cpu"]}
@@ -146,6 +150,7 @@ def proportionality(args, case, days, out: dict) -> dict:
         print(f"{pair:10s} slope q = {q:.3f} ({verdict})")
         rows[pair] = {"runs": rows[pair], "q": q}
     out[case] = {"days": days, "reference_steps": ref["accepted"], "pairs": rows, "inviscid": over is not None}
+    out[case]["per_unit_step"] = args.per_unit_step
     return ref
 
 
@@ -324,6 +329,9 @@ def main() -> None:
     parser.add_argument("--parts", nargs="+", default=["a", "b", "c", "d"], choices=["a", "b", "c", "d"])
     parser.add_argument("--cases", nargs="+", default=["tc2", "tc5"], choices=["tc2", "tc5"], help="(a)'s cases")
     parser.add_argument("--inviscid", action="store_true", help="(a): TC5 without its ∇⁴")
+    parser.add_argument(
+        "--per-unit-step", action="store_true", help="(a): the pairs' error per unit step (time.per_unit_step)"
+    )
     parser.add_argument(
         "--results",
         help="the results file's stem (default adaptive_proportionality; e.g. adaptive_proportionality_ne16)",

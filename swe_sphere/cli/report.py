@@ -49,6 +49,7 @@ def _control_line(c) -> str:
         what = (
             f"error: rtol {c.rtol:g}, atol {c.atol_wind:g} m/s (u, v) and {c.atol_h:g} m (h), controller {c.controller}"
         )
+        what += ", the error per unit step (a day)" if c.per_unit_step else ""
     elif c.mode == "balanced":
         what = f"balanced: a step's error held to {c.balance:g} of the spatial error's estimated rate over it"
         what += f", controller {c.controller}"

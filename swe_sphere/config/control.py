@@ -16,7 +16,7 @@ from .schema import SceneControl, got, is_number
 CONTROL_KEYS = {
     "fixed": (),
     "cfl": ("cfl", "dt_min", "dt_max"),
-    "error": ("rtol", "atol", "controller", "cfl", "dt_min", "dt_max"),
+    "error": ("rtol", "atol", "per_unit_step", "controller", "cfl", "dt_min", "dt_max"),
     "balanced": ("balance", "controller", "cfl", "dt_min", "dt_max"),
 }
 ESTIMATED = ("error", "balanced")
@@ -43,7 +43,7 @@ def is_controlled(table: dict) -> bool:
 def resolve_control(table: dict, stepper: str, options: dict, dt: float) -> SceneControl | None:
     """[time]'s step control for ``stepper`` with ``options`` and the first step ``dt`` (s):
     None for ``control = "fixed"`` (the default). Defaults: rtol 1e-4; atol rtol in each
-    field's units (m s⁻¹, m); balance ``BALANCE``; the controller Ranocha et al.'s PID for the
+    field's units (m s⁻¹, m); per_unit_step false; balance ``BALANCE``; the controller Ranocha et al.'s PID for the
     pair where tuned (``pid_bs32``...), else ARKODE's PI; cfl ``CFL_FRACTION`` × the
     stepper's measured Courant limit, under "cfl" the target, under "error" and "balanced" a
     cap (``false``: none; none for a stepper without a measured limit); dt_min
@@ -65,7 +65,7 @@ def resolve_control(table: dict, stepper: str, options: dict, dt: float) -> Scen
             f"time.control = {mode!r} needs a stepper that can change its dt between steps; {stepper} cannot "
             "(its history is its dt's)"
         )
-    rtol, atol, controller, balance = None, (None, None), None, None
+    rtol, atol, controller, balance, per_unit_step = None, (None, None), None, None, False
     if mode in ESTIMATED:
         if not cls.has_estimate(options):
             pairs = ", ".join(k for k, c in STEPPERS.items() if isinstance(c.embedded_order, int) and c.embedded_order)
@@ -78,6 +78,7 @@ def resolve_control(table: dict, stepper: str, options: dict, dt: float) -> Scen
         if not rtol > 0:
             raise SceneError(f"time.rtol must be > 0 (got {rtol!r})")
         atol = _atol(table.get("atol", rtol))
+        per_unit_step = table.get("per_unit_step", False)  # a boolean: the schema's types
     if mode == "balanced":
         balance = table.get("balance", BALANCE)
         if isinstance(balance, bool) or not is_number(balance) or not balance > 0:
@@ -94,7 +95,7 @@ def resolve_control(table: dict, stepper: str, options: dict, dt: float) -> Scen
     if dt_max is not None and dt_min > dt_max:
         raise SceneError(f"time.dt_min = {dt_min:g} s is above time.dt_max = {dt_max:g} s")
     dt_max = None if dt_max is None else float(dt_max)
-    return SceneControl(mode, rtol, *atol, controller, cfl, float(dt_min), dt_max, cfl_default, balance)
+    return SceneControl(mode, rtol, *atol, controller, cfl, float(dt_min), dt_max, cfl_default, balance, per_unit_step)
 
 
 def _atol(value) -> tuple[float, float]:

@@ -47,7 +47,10 @@ class SceneControl:
     Courant number only: no bound on a step's growth, so that where it does not bind the steps
     are the error controller's alone. Under "balanced" (error control whose tolerances follow
     the spatial error's estimated rate, ``simulation.adaptive.Balance``) ``balance`` (> 0) the
-    fraction of it a step's error estimate is held to, per unit of time; rtol and atol None."""
+    fraction of it a step's error estimate is held to, per unit of time; rtol and atol None.
+    ``per_unit_step`` (under "error"): the error norm taken per unit step, ‖e‖ · (1 day / Δt),
+    rather than per step (Shampine 1977: tolerance proportionality for any order, a split
+    first-order term's included)."""
 
     mode: str
     rtol: float | None = None
@@ -59,6 +62,7 @@ class SceneControl:
     dt_max: float | None = None
     cfl_default: bool = False
     balance: float | None = None
+    per_unit_step: bool = False
 
 
 @dataclass(frozen=True)
@@ -121,6 +125,7 @@ SCHEMA = {
         "control": str,
         "rtol": float,
         "atol": float | list,  # one for every field in its units, or [wind (m/s), h (m)]: ``resolve_control``
+        "per_unit_step": bool,
         "controller": str,
         "cfl": float | bool,  # a Courant number, or under "error" and "balanced" false: no cap (``control._cfl``)
         "dt_min": float,

@@ -6,7 +6,8 @@ controller's last proposal, held within [dt_min, dt_max] and shortened to land o
 exactly (an output, restart or end time); the stepper told the Δt (``Stepper.set_dt``). Under
 ``error`` control a step whose error norm (``control.ErrorNorm`` of the pair's estimate) is
 above 1 is rejected: the state and the stepper's state (``Stepper.state``) put back, retried
-at the controller's shorter Δt. A CFL target (``control.CflController``) is the whole control
+at the controller's shorter Δt (with ``per_unit_step``, the norm per unit step: ‖e‖ · 1 day / Δt,
+so that the error a run accumulates follows rtol, Shampine 1977). A CFL target (``control.CflController``) is the whole control
 under ``cfl``, a cap under ``error``: by default (``SceneControl.cfl_default``)
 ``config.control.CFL_FRACTION`` × the pair's measured Courant limit, holding the Courant number
 only (no growth bound: where it does not bind, the steps are the error controller's, bit for
@@ -132,7 +133,8 @@ class StepControl:
         self.error = control.mode in ESTIMATED
         self.norm = self.controller = self.balance = None
         if self.error:
-            order = min(stepper.order, stepper.embedded_order) + 1
+            # the estimate's order in Δt: p + 1 a step, p per unit step (p the pair's lower order)
+            order = min(stepper.order, stepper.embedded_order) + (0 if control.per_unit_step else 1)
             self.controller = Controller(order, control.controller)
             depth = "pressure_gradient" in sim.model.terms  # h a depth: h ≤ 0 is a bad state
             if control.mode == "balanced":  # absolute tolerances alone, set every try (``Balance``)
@@ -218,6 +220,8 @@ class StepControl:
         err, ok, proposal, self.checked = math.nan, True, dt, False
         if self.error:
             err = self.norm(self.stepper.error_estimate, self.x0, x)
+            if self.control.per_unit_step:  # a day of such steps adds about err · rtol
+                err *= DAY / dt
             ok, proposal = self.controller.propose(dt, err)
             self.checked = math.isfinite(err)  # every node finite and wet (``ErrorNorm``)
         if self.cfl is not None and ok and not self._cap_idle(dt, proposal):  # a retry's Δt is the error controller's

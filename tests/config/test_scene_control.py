@@ -29,7 +29,9 @@ def test_error_and_cfl_control_and_their_defaults():
     assert scene_from_dict(scene.as_dict()) == scene
     defaults = _load("ark324", control="error").control
     assert (defaults.rtol, defaults.atol_wind, defaults.atol_h, defaults.controller) == (1e-4, 1e-4, 1e-4, "pi")
-    assert defaults.cfl is None and defaults.dt_max is None
+    assert defaults.cfl is None and defaults.dt_max is None and not defaults.per_unit_step
+    per_unit = _load(control="error", per_unit_step=True)
+    assert per_unit.control.per_unit_step and scene_from_dict(per_unit.as_dict()) == per_unit
     cfl = _load("ssprk3", control="cfl").control  # 0.9 × ssprk3's measured limit 1.11
     assert cfl.mode == "cfl" and cfl.cfl == pytest.approx(0.999) and cfl.rtol is None
     assert _load("imex", control="cfl").control.cfl == pytest.approx(0.9)  # its advective limit 1.0
@@ -70,6 +72,8 @@ def test_balanced_control_and_its_defaults():
         ("bs32", dict(control="balanced", balance="a lot"), "time.balance must be float (got 'a lot')"),
         ("bs32", dict(control="balanced", rtol=1e-4), "time.rtol is not read under control = 'balanced'"),
         ("bs32", dict(control="error", balance=0.1), "time.balance is not read under control = 'error'"),
+        ("bs32", dict(control="balanced", per_unit_step=True), "time.per_unit_step is not read under control = 'bal"),
+        ("bs32", dict(control="error", per_unit_step=1), "time.per_unit_step must be bool (got 1)"),
         ("ssprk3", dict(control="balanced"), "time.control = 'balanced' needs an embedded pair; ssprk3 has no"),
         ("bs32", dict(control="error", rtol=0.0), "time.rtol must be > 0 (got 0.0)"),
         ("bs32", dict(control="error", rtol=-1e-3), "time.rtol must be > 0"),

@@ -279,3 +279,27 @@ def test_a_controlled_step_reads_the_device_once_a_try(tally, mode):
     estimates = 1 + (control.accepted - 1) // BALANCE_EVERY if mode == "balanced" else 0  # before steps 1, 17, …
     assert control.rejected > 0 and 0 < control.courant_passes < control.accepted / 10
     assert tally.syncs == tries + control.courant_passes + 2 * estimates
+
+
+def test_per_unit_step_makes_the_error_follow_rtol_where_the_split_hyperviscosity_sets_it():
+    """dp54 on TC5 (ne2, half a day), where the ∇⁴ step split after the pair's stages sets the
+    error (first order), which the carried estimate sees as O(Δt²) a step: controlled per step
+    (the default) the error falls as rtol^(1/2) (3.4x a decade from 1e-5, Δt ∝ rtol^(1/2): q =
+    p/(p + 1), p = 1), per unit step (``time.per_unit_step``: ‖e‖ · 1 day / Δt) as rtol (12.1x
+    a decade from 1e-2; Shampine 1977). h against dp54 at rtol 1e-8 per step."""
+
+    def h(rtol, per_unit_step):
+        overrides = {"time.control": "error", "time.rtol": rtol, "time.per_unit_step": per_unit_step}
+        sim = make_sim(load_scene("tc5_mountain", ne=2, days=0.5, stepper="dp54", overrides=overrides))
+        sim.run(None)
+        assert all(err <= 1.0 for _, _, err in sim.control.history)
+        return sim.x.numpy()[2]
+
+    ref = h(1e-8, False)
+
+    def error(rtol, per_unit_step):
+        return np.sqrt(np.mean((h(rtol, per_unit_step) - ref) ** 2) / np.mean(ref**2))
+
+    per_step = error(1e-5, False) / error(1e-6, False)
+    per_unit_step = error(1e-2, True) / error(1e-3, True)
+    assert 2.5 < per_step < 4.5 and 8 < per_unit_step < 15, (per_step, per_unit_step)

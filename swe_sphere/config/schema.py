@@ -49,8 +49,8 @@ class SceneControl:
     the spatial error's estimated rate, ``simulation.adaptive.Balance``) ``balance`` (> 0) the
     fraction of it a step's error estimate is held to, per unit of time; rtol and atol None.
     ``per_unit_step`` (under "error"): the error norm taken per unit step, ‖e‖ · (1 day / Δt),
-    rather than per step (Shampine 1977: tolerance proportionality for any order, a split
-    first-order term's included)."""
+    rather than per step (Shampine 2005, J. Sci. Comput. 25:3, "error per unit step": tolerance
+    proportionality for any order, a split first-order term's included)."""
 
     mode: str
     rtol: float | None = None

@@ -6,10 +6,11 @@ controller's last proposal, held within [dt_min, dt_max] and shortened to land o
 exactly (an output, restart or end time); the stepper told the Δt (``Stepper.set_dt``). Under
 ``error`` control a step whose error norm (``control.ErrorNorm`` of the pair's estimate) is
 above 1 is rejected: the state and the stepper's state (``Stepper.state``) put back, retried
-at the controller's shorter Δt (with ``per_unit_step``, the norm per unit step: ‖e‖ · 1 day / Δt,
-so that the error a run accumulates follows rtol, Shampine 1977). A CFL target (``control.CflController``) is the whole control
-under ``cfl``, a cap under ``error``: by default (``SceneControl.cfl_default``)
-``config.control.CFL_FRACTION`` × the pair's measured Courant limit, holding the Courant number
+at the controller's shorter Δt (with ``per_unit_step``, the norm per unit step, ‖e‖ · 1 day / Δt,
+so that the error a run accumulates follows rtol: Shampine 2005, J. Sci. Comput. 25:3). A CFL
+target (``control.CflController``) is the whole control under ``cfl``, a cap under ``error``: by
+default (``SceneControl.cfl_default``) ``config.control.CFL_FRACTION`` × the pair's measured
+Courant limit, holding the Courant number
 only (no growth bound: where it does not bind, the steps are the error controller's, bit for
 bit); ``capped`` counts the accepted steps whose next Δt it set. A proposal below dt_min stops
 as a blow-up (``BlowUp``: step, time, Δt). ``state``/``restore`` keep the proposal, the controller's history and the

@@ -286,7 +286,8 @@ def test_per_unit_step_makes_the_error_follow_rtol_where_the_split_hyperviscosit
     error (first order), which the carried estimate sees as O(Δt²) a step: controlled per step
     (the default) the error falls as rtol^(1/2) (3.4x a decade from 1e-5, Δt ∝ rtol^(1/2): q =
     p/(p + 1), p = 1), per unit step (``time.per_unit_step``: ‖e‖ · 1 day / Δt) as rtol (12.1x
-    a decade from 1e-2; Shampine 1977). h against dp54 at rtol 1e-8 per step."""
+    a decade from 1e-2; Shampine 2005, J. Sci. Comput. 25:3). h against dp54 at rtol 1e-8 per
+    step."""
 
     def h(rtol, per_unit_step):
         overrides = {"time.control": "error", "time.rtol": rtol, "time.per_unit_step": per_unit_step}

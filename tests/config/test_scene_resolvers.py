@@ -103,7 +103,7 @@ def test_read_scene_applies_overrides_and_keeps_the_files_own_radius_and_case(tm
     assert read_scene(path, {"time.dt": 30.0})[1] is None  # a dt of the override's own: no radius to scale from
     with pytest.raises(
         SceneError,
-        match=r"^unknown key time.length in scene \(known: stepper, dt, days, control, rtol, atol, controller, cfl, dt_min, dt_max, balance\)$",
+        match=r"^unknown key time.length in scene \(known: stepper, dt, days, control, rtol, atol, per_unit_step, controller, cfl, dt_min, dt_max, balance\)$",
     ):
         read_scene(path, {"time.length": 3.0})
     path.write_text("terms = [\n")

@@ -10,9 +10,8 @@ at the controller's shorter Δt (with ``per_unit_step``, the norm per unit step,
 so that the error a run accumulates follows rtol: Shampine 2005, J. Sci. Comput. 25:3). A CFL
 target (``control.CflController``) is the whole control under ``cfl``, a cap under ``error``: by
 default (``SceneControl.cfl_default``) ``config.control.CFL_FRACTION`` × the pair's measured
-Courant limit, holding the Courant number
-only (no growth bound: where it does not bind, the steps are the error controller's, bit for
-bit); ``capped`` counts the accepted steps whose next Δt it set. A proposal below dt_min stops
+Courant limit, holding the Courant number only (no growth bound: where it does not bind, the
+steps are the error controller's, bit for bit); ``capped`` counts the accepted steps whose next Δt it set. A proposal below dt_min stops
 as a blow-up (``BlowUp``: step, time, Δt). ``state``/``restore`` keep the proposal, the controller's history and the
 counts, so that a restart continues bitwise.
 
@@ -221,7 +220,7 @@ class StepControl:
         err, ok, proposal, self.checked = math.nan, True, dt, False
         if self.error:
             err = self.norm(self.stepper.error_estimate, self.x0, x)
-            if self.control.per_unit_step:  # a day of such steps adds about err · rtol
+            if self.control.per_unit_step:  # the error a day of such steps would add, against the tolerance
                 err *= DAY / dt
             ok, proposal = self.controller.propose(dt, err)
             self.checked = math.isfinite(err)  # every node finite and wet (``ErrorNorm``)

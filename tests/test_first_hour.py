@@ -10,7 +10,7 @@ import pytest
 import warp as wp
 
 from swe_sphere.core.backend import DEVICE_ENV
-from swe_sphere.io.run_file import acquire_lock, release_lock
+from swe_sphere.io.output_files import acquire_lock, release_lock
 from swe_sphere.simulation.simulation import Simulation
 
 from helpers import EIGHTH_DAY, TINY, cli_main, cli_one_line, one_line

@@ -7,7 +7,7 @@ def command(args) -> int:
     from ..grid.cubed_sphere import CubedSphere
     from ..grid.quality import element_sizes
     from ..grid.refine import Box, make_mesh
-    from ..io.run_file import check_target
+    from ..io.output_files import check_target
     from ..mesh.mesh import write_exodus
 
     check_target(args.output, args.overwrite)

@@ -8,8 +8,8 @@ from .values import netcdf_output
 
 
 def command(args) -> int:
+    from ..io.output_files import check_distinct, check_target
     from ..io.remap import grid_name, latlon_grid, open_netcdf, remap_file, run_grid
-    from ..io.run_file import check_distinct, check_target
 
     output = netcdf_output(args.output) or Path(f"{args.run.stem}_latlon{args.resolution:g}.nc")
     lat, lon = latlon_grid(args.resolution)

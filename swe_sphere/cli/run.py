@@ -121,7 +121,8 @@ def command(args) -> int:
     from ..core import mpi
     from ..core.backend import pick_device
     from ..core.graphs import default_mode, graphs_mode
-    from ..io.run_file import check_distinct, check_target, close_open_runs
+    from ..io.output_files import check_distinct, check_target
+    from ..io.run_file import close_open_runs
     from ..simulation.writers import restart_path
 
     if args.continue_from is None:
@@ -171,7 +172,7 @@ def _output_lock(output: Path, comm):
     """The writer's lock of ``output`` taken before the set-up and the header, on the rank
     that writes (rank 0; ``HeldLock``, which the run's writer takes over): every rank raises
     ``OutputError`` (one line) when another run writes ``output`` now."""
-    from ..io.run_file import HeldLock
+    from ..io.output_files import HeldLock
 
     held, refusal = contextlib.nullcontext(), None
     if comm is None or comm.rank == 0:

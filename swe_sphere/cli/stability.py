@@ -9,7 +9,7 @@ from .values import overrides, steppers
 def command(args) -> int:
     from ..core.backend import pick_device
     from ..core.workers import executor
-    from ..io.run_file import check_results, folder_lock
+    from ..io.output_files import check_results, folder_lock
     from ..studies import stability
 
     suite = stability.plan(

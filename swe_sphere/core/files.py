@@ -14,7 +14,7 @@ def replaced(path: Path, mode: int = 0o644):
     ``mode``); when the block succeeds it is moved onto ``p`` by ``os.replace`` (atomic on
     POSIX: a reader sees the old file or the new one, never a part), else removed. Raises
     ``OSError`` where the folder cannot be written. (Run files, which must also not replace
-    another's, go through ``io.run_file.atomic_path`` and its lock.)"""
+    another's, go through ``io.output_files.atomic_path`` and its lock.)"""
     path = Path(path)
     handle, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.close(handle)

@@ -35,7 +35,8 @@ from ..grid.cubed_sphere import CubedSphere
 from ..mesh.element_local import locate as locate_on_mesh
 from ..mesh.face_map import FACES
 from ..mesh.records import MeshFile, MeshRecord, from_json, mesh_of
-from .run_file import atomic_path, check_distinct, element_mesh, history_line
+from .output_files import atomic_path, check_distinct
+from .run_file import element_mesh, history_line
 
 #: node fields (time, ncol) or (ncol,) that ``remap_dataset`` carries to the lat-lon grid
 NODE_FIELDS = ("h", "hs", "u", "v", "vorticity", "divergence")

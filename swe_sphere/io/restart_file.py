@@ -37,7 +37,8 @@ from ..core.constants import Planet
 from ..core.errors import CheckpointError
 from ..core.runtime import package_version
 from ..grid.cubed_sphere import CubedSphere
-from .run_file import AREA_ATTRS, FIELD_ATTRS, FIELDS, NODE_COORDINATES, WRITING, ExclusiveFile, history_line
+from .output_files import ExclusiveFile
+from .run_file import AREA_ATTRS, FIELD_ATTRS, FIELDS, NODE_COORDINATES, WRITING, history_line
 
 FORMAT = 3  # bump when the layout changes (2: checksums and content hash; 3: the state as named fields)
 STATE = ("u", "v", "h")  # the rows of x, each a variable with output.FIELDS' attributes

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .run_file import atomic_path
+from .output_files import atomic_path
 
 CONVENTIONS = "CF-1.8"
 
@@ -57,7 +57,7 @@ def _attribute(value):
 
 
 def write_table_file(ds, path, *, overwrite: bool = False) -> None:
-    """Write a ``table_dataset`` to ``path`` (netCDF4) atomically (``run_file.atomic_path``),
+    """Write a ``table_dataset`` to ``path`` (netCDF4) atomically (``output_files.atomic_path``),
     its text columns as character arrays. Raises ``OutputError`` when ``path`` exists and
     not ``overwrite``."""
     text = {name: {"dtype": "S1"} for name, var in ds.data_vars.items() if var.dtype.kind in "OU"}

@@ -27,7 +27,7 @@ from ..core.backend import Backend, pick_device
 from ..core.errors import BlowUp, Interrupted, StepFailure
 from ..core.graphs import GraphedSteps, default_mode, graphs_mode
 from ..core.interrupts import StepAbandoned, StopSignals
-from ..io.run_file import check_distinct, check_target
+from ..io.output_files import check_distinct, check_target
 from ..steppers import StepStats
 from . import drive, restart
 from .activities import Log, is_due

@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from ..core.backend import pick_device
-from ..io.run_file import atomic_path, check_results, folder_lock, history_line
+from ..io.output_files import atomic_path, check_results, folder_lock
+from ..io.run_file import history_line
 from ..io.table_file import table_dataset, write_table_file
 from ..steppers import STEPPERS
 from . import sweep

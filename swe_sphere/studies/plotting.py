@@ -23,8 +23,8 @@ from ..cases.library import make_case
 from ..cases.reference import Reference, cases_of, locate
 from ..core.constants import EARTH, PLANET_KEYS, Planet
 from ..io.initial_state import SCENE_CASES
+from ..io.output_files import atomic_path, check_distinct, check_target
 from ..io.remap import Remapper, open_netcdf, run_grid
-from ..io.run_file import atomic_path, check_distinct, check_target
 from .analysis import (
     DAY_TOL,
     DERIVED,

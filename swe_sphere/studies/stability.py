@@ -21,7 +21,8 @@ from ..config.scene import Scene, load_scene
 from ..core.constants import DAY
 from ..core.errors import BlowUp, SceneError
 from ..core.workers import InProcess
-from ..io.run_file import atomic_path, check_results, command_line, history_line
+from ..io.output_files import atomic_path, check_results
+from ..io.run_file import command_line, history_line
 from ..io.table_file import table_dataset, write_table_file
 from ..simulation.simulation import Simulation
 

@@ -265,7 +265,7 @@ def test_imex_dt_above_its_advective_limit_warns(tmp_path):
 def test_api_errors_are_importable_and_name_the_api():
     import swe_sphere
     from swe_sphere.config import scene as config
-    from swe_sphere.io import run_file as output
+    from swe_sphere.io import output_files as output
 
     assert swe_sphere.SceneError is config.SceneError and swe_sphere.OutputError is output.OutputError
     for name in ("CheckpointError", "BlowUp", "Interrupted", "StepFailure", "ResourceError"):

@@ -27,7 +27,7 @@ from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
 from swe_sphere.core.errors import OutputError
 from swe_sphere.grid.topology import Topology
-from swe_sphere.io.run_file import ExclusiveFile
+from swe_sphere.io.output_files import ExclusiveFile
 from swe_sphere.simulation import checkpoint as ckpt
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.simulation.state_diagnostics import StateDiagnostics

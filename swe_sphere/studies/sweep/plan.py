@@ -17,7 +17,7 @@ from ...config.control import TOLERANCES, resolve_control
 from ...config.scene import Scene, load_scene
 from ...core.backend import pick_device
 from ...core.constants import DAY
-from ...io.run_file import check_results, folder_lock
+from ...io.output_files import check_results, folder_lock
 from ...simulation import checkpoint
 from ...steppers.timefilter import TimeFilter
 from .report import OUTPUTS, format_summary, write_outputs

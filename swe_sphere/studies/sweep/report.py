@@ -9,7 +9,8 @@ import math
 from pathlib import Path
 
 from ...grid.quality import REGIONS
-from ...io.run_file import atomic_path, check_results, command_line, history_line
+from ...io.output_files import atomic_path, check_results
+from ...io.run_file import command_line, history_line
 from ...io.table_file import table_dataset, write_table_file
 from ...steppers import STEPPERS
 from ..figures import sweep_plot

@@ -31,7 +31,7 @@ from ...core.constants import DAY
 from ...core.errors import BlowUp, Interrupted, OutputError
 from ...core.workers import InProcess
 from ...grid.quality import REGIONS
-from ...io.run_file import atomic_path
+from ...io.output_files import atomic_path
 from ...model.diagnostics import max_signal_rate
 from ...simulation.checkpoint import branch_attrs
 from ...simulation.simulation import Simulation

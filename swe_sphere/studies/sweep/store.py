@@ -17,7 +17,7 @@ import numpy as np
 
 from ...config.scene import Scene
 from ...core.runtime import package_version
-from ...io.run_file import atomic_path
+from ...io.output_files import atomic_path
 
 
 @functools.cache

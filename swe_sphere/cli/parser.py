@@ -222,8 +222,8 @@ def _sweep(sub, parents) -> None:
         "--runs",
         metavar="STEPPER@COURANT,...",
         help="only these (stepper, multiple of the gravity-wave limit) runs, e.g. rk4@1,imex@5,implicit@20, "
-        "instead of every --steppers x --courant; STEPPER@rtol=1e-5, @balance=0.1 or @cfl=1.5: a run whose "
-        "steps are chosen step to step (time.control error, balanced or cfl)",
+        "instead of every --steppers x --courant; STEPPER@rtol=1e-5, @rtol_per_day=1e-4 (per unit step), "
+        "@balance=0.1 or @cfl=1.5: a run whose steps are chosen step to step (time.control error, balanced or cfl)",
     )
     sw.add_argument(
         "--cost",

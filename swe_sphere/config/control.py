@@ -20,12 +20,14 @@ CONTROL_KEYS = {
     "balanced": ("balance", "controller", "cfl", "dt_min", "dt_max"),
 }
 ESTIMATED = ("error", "balanced")
-# a sweep's controlled run, "STEPPER@KEY=VALUE" (``studies.sweep.plan``): the key it sets → the mode it runs in
+# a sweep's controlled run, "STEPPER@KEY=VALUE" (``studies.sweep.plan``): the [time] key the value
+# sets and the others the run takes (``tolerance_table``); rtol_per_day: rtol per unit step
 TOLERANCES = {
-    "rtol": "error",
-    "balance": "balanced",
-    "cfl": "cfl",
-}  # the modes that read an embedded pair's error estimate
+    "rtol": ("rtol", {"control": "error"}),
+    "rtol_per_day": ("rtol", {"control": "error", "per_unit_step": True}),
+    "balance": ("balance", {"control": "balanced"}),
+    "cfl": ("cfl", {"control": "cfl"}),
+}
 BALANCE = 0.1  # time.balance's default: the sweep's criterion, temporal error ≤ 10 % of the spatial (docs/methods.md)
 DT_MIN_FRACTION = 1e-3  # dt_min's default: this fraction of the first step
 # time.cfl's default: this fraction of the stepper's measured Courant limit (``Stepper.courant_limit``,
@@ -122,11 +124,20 @@ def _cfl(table: dict, mode: str, cls, stepper: str) -> tuple[float | None, bool]
     return float(cfl), False
 
 
+def tolerance_table(key: str, value: float) -> dict:
+    """The [time] keys of a sweep's run "STEPPER@KEY=VALUE" (``key`` one of ``TOLERANCES``)."""
+    name, table = TOLERANCES[key]
+    return {**table, name: value}
+
+
 def tolerance(control: SceneControl) -> tuple[str, float]:
-    """The key of ``TOLERANCES`` that ``control``'s mode is asked by and its value (rtol under
-    "error", balance under "balanced", cfl under "cfl"): what names a sweep's controlled run."""
-    key = next(k for k, mode in TOLERANCES.items() if mode == control.mode)
-    return key, getattr(control, key)
+    """The key of ``TOLERANCES`` that ``control`` is asked by and its value (rtol under
+    "error", per unit step rtol_per_day, balance under "balanced", cfl under "cfl"): what
+    names a sweep's controlled run."""
+    for key, (name, table) in TOLERANCES.items():
+        if control.mode == table["control"] and control.per_unit_step == table.get("per_unit_step", False):
+            return key, getattr(control, name)
+    raise ValueError(f"no sweep run is named by control {control.mode!r}")
 
 
 def measured_courant_limit(cls) -> float | None:

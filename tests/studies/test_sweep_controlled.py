@@ -52,3 +52,19 @@ def test_a_filtered_sweep_scores_a_controlled_run_s_filtered_flow(tmp_path):
     (row,) = rows
     assert np.isfinite(row["temporal_error_filtered"]) and 0 < row["temporal_error_filtered"] < row["temporal_error"]
     assert row["dt"] == 2 * 86400 / row["steps"]  # the target's steps: the half window's not counted
+
+
+def test_a_run_controlled_per_unit_step_is_named_apart_beside_a_fixed_one(tmp_path):
+    """--runs rk4@0.5,dp54@rtol_per_day=1e-3,dp54@rtol=1e-3: the second is error control per unit
+    step (``time.per_unit_step``), which -s cannot give one run of a sweep with fixed-Δt runs; its
+    row is known as "dp54@rtol_per_day" with its rtol, and it takes more steps than the same rtol
+    per step (its norm is a day's worth of such steps)."""
+    runs = [("rk4", 0.5), ("dp54", "rtol_per_day=1e-3"), ("dp54", "rtol=1e-3")]
+    p = plan("tc5_mountain", ne=2, days=0.25, runs=runs)
+    assert p.controlled == ("dp54@rtol_per_day=0.001", "dp54@rtol=0.001")
+    per_day, per_step = (p.scenes[n].control for n in p.controlled)
+    assert (per_day.rtol, per_day.per_unit_step, per_step.per_unit_step) == (1e-3, True, False)
+    rows, _, _ = p.run(tmp_path / "s", "cpu", log=lambda line: None)
+    by = {r["stepper"]: r for r in rows}
+    assert set(by) == {"rk4", "dp54@rtol_per_day", "dp54@rtol"} and by["dp54@rtol_per_day"]["tolerance"] == 1e-3
+    assert by["dp54@rtol_per_day"]["steps"] > 2 * by["dp54@rtol"]["steps"]

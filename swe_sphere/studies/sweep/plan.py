@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...config.control import TOLERANCES, resolve_control
+from ...config.control import TOLERANCES, resolve_control, tolerance_table
 from ...config.scene import Scene, load_scene
 from ...core.backend import pick_device
 from ...core.constants import DAY
@@ -290,9 +290,10 @@ def plan(
         Multiples of the gravity-wave limit (default ``DEFAULT_COURANT``).
     runs : sequence of (str, float or str), optional
         Only these (stepper, multiple of the gravity-wave limit) runs; a str in place of
-        the multiple, "rtol=1e-5", "balance=0.1" or "cfl=1.5", makes a run whose steps
-        are chosen step to step (``TOLERANCES``: [time] control "error", "balanced" or
-        "cfl" with that key), named "bs32@rtol=1e-05", from the scene's Δt. At most one
+        the multiple, "rtol=1e-5", "rtol_per_day=1e-4" (rtol per unit step), "balance=0.1"
+        or "cfl=1.5", makes a run whose steps are chosen step to step (``TOLERANCES``: [time]
+        control "error", "balanced" or "cfl" with that key), named "bs32@rtol=1e-05", from
+        the scene's Δt. At most one
         of ``dts``, ``courant`` and ``runs``.
     ne, np_ : int, optional
         Elements along a cube edge and GLL points per element direction (default: the scene's).
@@ -365,9 +366,9 @@ def _tolerance(stepper: str, text: str) -> tuple[str, str, float]:
 
 def _controlled(scene, stepper, key, value, *, ne, np_, days, overrides, ck) -> Scene:
     """The scene of a controlled run (``_tolerance``'s): ``stepper`` under [time] control
-    ``TOLERANCES[key]`` with ``key`` = ``value``; a branch of the restart file ``ck`` where
+    ``tolerance_table(key, value)``; a branch of the restart file ``ck`` where
     given. Raises ``SceneError`` for a stepper that cannot (``resolve_control``)."""
-    table = {"control": TOLERANCES[key], key: value}
+    table = tolerance_table(key, value)
     if ck is None:
         more = {f"time.{k}": v for k, v in table.items()}
         return load_scene(scene, ne=ne, np_=np_, days=days, stepper=stepper, overrides={**overrides, **more})

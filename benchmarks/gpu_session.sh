@@ -28,7 +28,7 @@ OUT=${OUT:-$PWD/gpu_out}
 mkdir -p "$OUT"
 PY=${PYTHON:-python}
 DEVICE=${DEVICE:-cuda}
-export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
+export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 PYTHONUNBUFFERED=1  # a part stopped by its time box keeps the lines it printed
 small=${NE_SMALL:-0}
 STUDY=${STUDY:-$PWD/gpu_study}
 [ "$DEVICE" = cpu ] && export SWE_SPHERE_THREADS=1  # graphs on a CPU need one thread a launch

@@ -161,9 +161,10 @@ def main() -> None:
     parser.add_argument("--days", type=float, default=0.5)
     parser.add_argument("--repeat", type=int, default=40, help="calls timed in (b)")
     parser.add_argument("--parts", nargs="+", default=["a", "b"], choices=["a", "b"])
+    parser.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")
     args = parser.parse_args()
     init_warp()
-    with recorded(__file__) as figures:
+    with recorded(__file__, stem=args.results) as figures:
         print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
         figures["args"] = vars(args)
         for control in args.control:

@@ -51,6 +51,12 @@ NEEDS_CUDA = (pytest.mark.gpu, pytest.mark.skipif(not wp.is_cuda_available(), re
 ON_CUDA = pytest.param("cuda", marks=NEEDS_CUDA)  # a device parameter skipped cleanly without CUDA
 
 
+def rows_apart(a, b) -> list[float]:
+    """Per row r of two states (rows, ...): max |a[r] − b[r]| over max |b[r]|, the relative
+    distance the CUDA-against-CPU tests bound (sums in another order, NVRTC's FMA contraction)."""
+    return [float(np.abs(a[r] - b[r]).max() / np.abs(b[r]).max()) for r in range(b.shape[0])]
+
+
 def requires_cuda(func):
     """Mark a test as a GPU test that is skipped cleanly without CUDA."""
     for mark in reversed(NEEDS_CUDA):

@@ -20,7 +20,7 @@ from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
 from swe_sphere.steppers.base import option_types
 
-from helpers import requires_cuda
+from helpers import requires_cuda, rows_apart
 
 STEPS = 6
 # relative max-norm difference of the final state, per stepper family
@@ -53,7 +53,7 @@ def tc5_state(name: str, device: str, options: dict | None = None) -> np.ndarray
 @pytest.mark.parametrize("name", list(STEPPERS))
 def test_every_stepper_on_cuda_matches_the_cpu(name):
     cpu, cuda = tc5_state(name, "cpu"), tc5_state(name, "cuda")
-    rel = [np.abs(cuda[r] - cpu[r]).max() / np.abs(cpu[r]).max() for r in range(cpu.shape[0])]
+    rel = rows_apart(cuda, cpu)
     tol = TOLERANCE["solver" if name in SOLVER else "explicit"]
     assert max(rel) <= tol, f"{name}: rows differ by {rel} (tolerance {tol:g})"
 
@@ -69,5 +69,5 @@ def test_float32_helmholtz_solves_on_cuda_match_the_cpu(name):
     devices' float32 round-off differs, so the states agree to the solves' tolerance
     (1e-6 relative, refined; JFNK's Newton to its 1e-8), not to round-off."""
     cpu, cuda = (tc5_state(name, d, {"precision": "mixed"}) for d in ("cpu", "cuda"))
-    rel = [np.abs(cuda[r] - cpu[r]).max() / np.abs(cpu[r]).max() for r in range(cpu.shape[0])]
+    rel = rows_apart(cuda, cpu)
     assert max(rel) <= 1e-5, f"{name}: rows differ by {rel}"

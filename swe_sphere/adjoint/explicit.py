@@ -130,8 +130,18 @@ class StepAdjoint:
         self._zeros = zeros
 
     # what depends on Δt: the ∇⁴'s substeps and the launches recorded with Δt in their coefficients
-    _PER_DT = ("substeps", "rkl", "_coef", "_stages", "_combinations", "_hv", "_adjoints", "_divergent", "_hv_unit")
-    _PER_DT += ("_rkl_unit",)
+    _PER_DT = (
+        "substeps",
+        "rkl",
+        "_coef",
+        "_stages",
+        "_combinations",
+        "_hv",
+        "_adjoints",
+        "_divergent",
+        "_hv_unit",
+        "_rkl_unit",
+    )
 
     def _for_dt(self) -> None:
         """The records of a Δt not seen yet (``_PER_DT``), each made on first use."""
@@ -336,7 +346,7 @@ class StepAdjoint:
         if self.parameters:  # Δ_j = Δ(Y_(j−1)), the stages from Φ rolling over cur, prev, prev2 for now
             self.rkl_deltas += [self._zeros(3) for _ in range(s - len(self.rkl_deltas))]
             self.rkl_units += [self._zeros(3) for _ in range(s - len(self.rkl_units))]
-            free, older, last = [cur, prev, prev2], None, None
+            free, older = [cur, prev, prev2], None
             last = free.pop()
             self.before_hyperviscosity(last)  # Y_0 = Φ
             for j in range(1, s + 1):

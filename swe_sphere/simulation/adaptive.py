@@ -191,7 +191,7 @@ class StepControl:
                 )
             self.stepper.set_dt(dt)
             self.stepper.t0 = t - self.stepper.steps * dt  # the forcing's clock: the time reached, exactly
-            saved = self.stepper.state() if self.error else None
+            saved = self.stepper.checkpoint() if self.error else None
             stats = self.stepper.step(x)
             if self.balance is not None:
                 self.balance.tolerances(self.x0, t, dt)
@@ -202,7 +202,7 @@ class StepControl:
                 break
             self.rejected += 1
             wp.copy(x, self.x0)
-            self.stepper.restore(saved)
+            self.stepper.rollback(saved)
             self.dt = proposal
         self.dt = max(proposal, self.dt) if landing else proposal  # a step cut to land: not a shrink
         self.accepted += 1

@@ -40,10 +40,14 @@ class GuessHistory:
     (``HelmholtzCG.totals``' way): the same bits on any threads, to round-off on any ranks.
 
     ``guess()``: y, w (and the copies y0, w0) of ``HelmholtzSolver``'s CG set to the start;
-    ``store()``: the solution into the basis (launches, nothing read back). ``count()``:
+    ``store()``: the solution into the basis (launches, nothing read back); ``fresh``: no
+    vector stored yet (known on the host: the solver starts such a solve from its last
+    solution instead, and ``store(fresh=True)`` keeps the solution itself). ``count()``:
     the vectors in use (a host read); ``whole()``/``set(count, arrays, what)``: X and AX
     as ``arrays`` whole-grid (3, nnodes_total) arrays, three vectors each (rows past 2k zero),
-    for ``HelmholtzSolver.state``/``restore`` (ValueError naming ``what`` for a misshapen one)."""
+    for ``HelmholtzSolver.state``/``restore`` (ValueError naming ``what`` for a misshapen one);
+    ``snapshot()``/``put_back(snap)``: device copies of the basis, for a rejected step's
+    rollback (``HelmholtzSolver.checkpoint``)."""
 
     def __init__(self, gw):
         """gw: the ``HelmholtzSolver`` whose CG (``cg``, ``y``, ``b``) and ``history_work`` it uses."""
@@ -54,6 +58,8 @@ class GuessHistory:
         self.hic = wp.zeros(3, dtype=wp.int32, device=dev)  # kernels.helmholtz_cg COUNT, MODE, SLOT
         self.hcs = wp.zeros(max(k + 1, 3), dtype=f64, device=dev)  # 1/‖·‖_A, the βⱼ
         self.arrays = (2 * k + 2) // 3
+        self.fresh = True
+        self._y0, self._w0 = gw.history_work.y0, gw.history_work.w0
         rec, nchunks, chunk, nu = gw.model.launches.record, cg.partial.shape[1], cg.chunk, topo.nunique
         y, (y0, w0, partial, alpha, sums) = gw.y, gw.history_work
         self._guess = [
@@ -85,8 +91,21 @@ class GuessHistory:
     def guess(self) -> None:
         self._play(self._guess)
 
-    def store(self) -> None:
+    def store(self, fresh: bool = False) -> None:
+        if fresh:  # the solve did not start from ``guess``: the increment from zero, the solution itself
+            self._y0.zero_()
+            self._w0.zero_()
         self._play(self._store)
+        self.fresh = False
+
+    def snapshot(self) -> tuple:
+        return (self.fresh, *(wp.clone(a) for a in (self.X, self.AX, self.hic, self.hcs)))
+
+    def put_back(self, snap: tuple) -> None:
+        """In place: the solves' graphs hold the basis's arrays."""
+        self.fresh = snap[0]
+        for a, saved in zip((self.X, self.AX, self.hic, self.hcs), snap[1:]):
+            wp.copy(a, saved)
 
     def count(self) -> int:
         return int(self.hic.numpy()[cgk.COUNT])
@@ -113,3 +132,4 @@ class GuessHistory:
             for row, v in enumerate(rows[3 * m : 3 * m + 3]):
                 v.assign(part[row][first])
         self.hic.assign(np.array([count, 0, 0], dtype=np.int32))
+        self.fresh = count == 0

@@ -22,6 +22,7 @@ from .helmholtz_cg import SINGLE_FLOOR, SINGLE_TOL, HelmholtzCG
 
 f64 = wp.float64
 PRECISIONS = ("double", "mixed")
+KEPT_COEFFICIENTS = 4  # the a's whose guess histories and solve graphs a solver keeps (``_use``)
 MAX_GUESS_HISTORY = (
     32  # past solutions a solve's start is projected on (``GuessHistory``); k vectors cost 2k of memory and k dots
 )
@@ -151,6 +152,7 @@ class HelmholtzSolver:
         # the benchmarks notebook (git show 5fa9286:benchmarks/README.md), "Measurements behind the code"). Not over several CPU threads (``SplitLaunch`` is a Python pool), nor
         # with a CUDA driver below 12.4 (no conditional nodes: host loops, a read an iteration).
         self._graphs: dict[tuple, object] = {}
+        self._uses: dict[tuple, int] = {}  # the calls of each graph key (``_run``)
         self._schur_launches: dict[tuple, tuple] = {}
         self.graphable = not model.topology.distributed and model.topology.backend.solver_graphs(model.threads)
         # with ``history`` k > 0, the start of each solve: a GuessHistory per a (the basis is A's),
@@ -160,6 +162,8 @@ class HelmholtzSolver:
         self.history = int(options.guess_history)
         self._histories: dict[float, GuessHistory] = {}
         self._history = None
+        self._recent: dict[float, None] = {}  # the a's solved with, least recently used first (``keep_recent``)
+        self._saving = None  # ``checkpoint``'s, while a step may be rejected
         if self.history:
             self.history_work = HistoryWork(
                 y0=wp.zeros(nu, dtype=f64, device=dev),
@@ -178,8 +182,8 @@ class HelmholtzSolver:
     def histories(self) -> MappingProxyType:
         """The guess histories (``GuessHistory``) kept, by the key of their sequence of solves
         (``solve``'s a, in s; ``solve_height``'s ``history``), read-only: empty with
-        ``guess_history`` 0; those of a's other than a stepper's current Δt's dropped
-        (``keep_only``)."""
+        ``guess_history`` 0; at most ``KEPT_COEFFICIENTS`` a's, the least recently used
+        dropped first (``_use``)."""
         return MappingProxyType(self._histories)
 
     @property
@@ -190,17 +194,18 @@ class HelmholtzSolver:
 
     # -- what carries over between solves (for bitwise restarts) ----------------------
     def state(self) -> dict:
-        """The mean depth (0 until fixed) and, with ``history``, each sequence's basis
-        (``helmholtz_histories`` of them: its a, its vectors in use and X, AX packed three
-        a (3, N) array, element-local as a state), else with ``warm`` the last solution: a
-        height, stored element-local in row 2 of a (3, N) array like a state."""
+        """The mean depth (0 until fixed); with ``history``, each sequence's basis, least
+        recently used first (``helmholtz_histories`` of them: its a, its vectors in use and X,
+        AX packed three a (3, N) array, element-local as a state); with ``warm`` the last
+        solution (where a new sequence starts): a height, stored element-local in row 2 of a
+        (3, N) array like a state."""
         s = {"mean_depth": self.H}
         if self.history:
             s["helmholtz_histories"] = len(self._histories)
             for n, (a, h) in enumerate(self._histories.items()):
                 s |= {f"helmholtz_history{n}_a": a, f"helmholtz_history{n}_count": h.count()}
                 s |= {f"helmholtz_history{n}_{m}": whole for m, whole in enumerate(h.whole())}
-        elif self.warm:  # whole-grid, gathered from every rank on rank 0 (call on all)
+        if self.warm:  # whole-grid, gathered from every rank on rank 0 (call on all)
             topo = self.model.topology
             guess = wp.zeros((3, self.model.N), dtype=f64, device=self.model.device)
             for launch in topo.scatter(self.y, guess, 2):
@@ -213,8 +218,8 @@ class HelmholtzSolver:
         self.operator.H = float(entry(state, "mean_depth"))
         if self.history:
             # in place: the solves' graphs (``_run``) hold the bases' arrays; a sequence the
-            # state does not name starts empty, as a new one would
-            named = set()
+            # state does not name is dropped, as it would not be there
+            named = []
             for n in range(int(entry(state, "helmholtz_histories"))):
                 a = float(entry(state, f"helmholtz_history{n}_a"))
                 h = self._histories.get(a) or self._histories.setdefault(a, GuessHistory(self))
@@ -223,11 +228,12 @@ class HelmholtzSolver:
                     [entry(state, f"helmholtz_history{n}_{m}") for m in range(h.arrays)],
                     f"stepper state 'helmholtz_history{n}'",
                 )
-                named.add(a)
-            for a, h in self._histories.items():
-                if a not in named:
-                    h.hic.zero_()
-        elif self.warm:
+                named.append(a)
+            for a in [a for a in self._histories if a not in named]:
+                self._drop(a)
+            self._histories = {a: self._histories[a] for a in named}
+            self._recent = dict.fromkeys(named)
+        if self.warm and (not self.history or "helmholtz_guess" in state):  # a history's: since 2026-11-26
             topo = self.model.topology
             guess = topo.distribute(
                 entry(state, "helmholtz_guess"), 3, "stepper state 'helmholtz_guess'"
@@ -244,6 +250,7 @@ class HelmholtzSolver:
         from the projection onto the past solutions of the solves with the same a
         (``GuessHistory``)."""
         a = float(a)
+        self._use(a)
         self._history = self._guesses(a)
         lz = None if implicit is None else implicit.ptr
         self._run(("solve", r.ptr, z.ptr, lz, a, scale, self.H), self._solve, r, a, z, scale, implicit)
@@ -254,8 +261,12 @@ class HelmholtzSolver:
         if key is None or not self.history or (self.low is not None and self.tol >= SINGLE_TOL):
             return None
         history = self._histories.get(key)
-        if history is None:
+        made = history is None
+        if made:
             history = self._histories[key] = GuessHistory(self)
+        saving = self._saving
+        if saving is not None and key not in saving["histories"]:  # copied before its solve changes it
+            saving["histories"][key] = None if made else history.snapshot()
         return history
 
     def _solve(self, r, a: float, z, scale: float, implicit=None) -> None:
@@ -358,21 +369,68 @@ class HelmholtzSolver:
             launches = self._schur_launches[key] = (rhs, back)
         return launches
 
-    def keep_only(self, coefficients) -> None:
-        """Drop the guess histories and the solves' graphs of every a not in ``coefficients``
-        (a stepper whose Δt changed solves with other a's, and a basis is its A's): what a
-        run whose Δt changes every step holds stays one step's."""
-        keep = {float(a) for a in coefficients}
-        self._histories = {a: h for a, h in self._histories.items() if a in keep}
-        self._graphs = {key: g for key, g in self._graphs.items() if key[0] != "solve" or key[4] in keep}
+    def _use(self, a: float) -> None:
+        """a's guess history and solve graphs made the most recently used; those of the least
+        recently used other a's dropped past ``KEPT_COEFFICIENTS`` (a basis is its A's; a
+        controlled run's Δt returns to a few values of its grid, ``simulation.adaptive.on_grid``,
+        and finds their bases and graphs again)."""
+        if a in self._histories:
+            self._histories[a] = self._histories.pop(a)
+        self._recent[a] = self._recent.pop(a, None)
+        while len(self._recent) > KEPT_COEFFICIENTS:
+            self._drop(next(iter(self._recent)))
+
+    def _drop(self, a: float) -> None:
+        """Forget a's guess history and its solve graphs (which hold the history's arrays);
+        kept aside while a checkpoint is open (``rollback`` brings them back)."""
+        graphs = {key: g for key, g in self._graphs.items() if key[0] == "solve" and key[4] == a}
+        dropped = (self._histories.pop(a, None), graphs)
+        self._recent.pop(a, None)
+        self._graphs = {key: g for key, g in self._graphs.items() if key not in graphs}
+        self._uses = {key: n for key, n in self._uses.items() if key[0] != "solve" or key[4] != a}
+        if self._saving is not None and a in self._saving["recent"]:
+            self._saving["dropped"].setdefault(a, dropped)
+
+    # -- a rejected step's rollback (``Stepper.checkpoint``) ---------------------------
+    def checkpoint(self) -> dict:
+        """What ``rollback`` needs to put the solver back as it is now: the mean depth, the
+        last solution, the a's held in their order; a guess history is copied on the device
+        the first time a solve uses it after (``_guesses``): nothing read back."""
+        self._saving = {"H": self.H, "y": wp.clone(self.y), "recent": list(self._recent)}
+        self._saving |= {"histories": {}, "dropped": {}}
+        return self._saving
+
+    def rollback(self, saving: dict) -> None:
+        """Put back what ``checkpoint`` saved: the histories made since dropped, those dropped
+        since brought back, the copies put back in place; the checkpoint ends."""
+        self._saving = None
+        self.operator.H = saving["H"]
+        wp.copy(self.y, saving["y"])
+        for a in [a for a in self._recent if a not in saving["recent"]]:
+            self._drop(a)
+        for a, (history, graphs) in saving["dropped"].items():
+            if history is not None:
+                self._histories[a] = history
+            self._graphs |= graphs
+        for a, snap in saving["histories"].items():
+            if snap is None:
+                self._histories.pop(a, None)
+            else:
+                self._histories[a].put_back(snap)
+        self._recent = dict.fromkeys(saving["recent"])
+        self._histories = {a: self._histories[a] for a in [*self._recent, *self._histories] if a in self._histories}
 
     def _run(self, key: tuple, fn, *args) -> None:
-        """fn(*args) as a graph captured on the first call per ``key`` (the launch
-        parameters it bakes in) and replayed after, where ``graphable`` and the model's
+        """fn(*args) as a graph captured on the second call per ``key`` (the launch
+        parameters it bakes in; the first runs inline) and replayed after, where ``graphable`` and the model's
         ``graph_guard`` allows (``graphs.captured``: a failure falls back with one line);
         inline while a caller captures and otherwise (the loops host loops testing the
         device flag)."""
-        if not self.graphable:
+        uses = self._uses[key] = self._uses.get(key, 0) + 1
+        # captured from its second call on: a controlled run's Δt that is used once (and a fresh
+        # history's first solve, another sequence of launches) costs no capture (ark324 at ne16:
+        # 5 ms, a third of a step)
+        if not self.graphable or uses < 2 or (self._history is not None and self._history.fresh):
             fn(*args)
             return
         captured(self._graphs, key, lambda: fn(*args), self.model.device, self.model.graph_guard, "the Helmholtz solve")
@@ -412,14 +470,15 @@ class HelmholtzSolver:
         "double"), or in float32 with float64 refinement ("mixed"); then the area
         integral of y set to that of b (on the device). Iterations into ``stats``."""
         h = self._history
-        if h is not None:
+        fresh = h is not None and h.fresh  # no basis yet: from the last solution (warm), not from zero
+        if h is not None and not fresh:
             h.guess()
         if self.low is None:
-            self.cg.solve(c, self.tol, self.maxiter, self.warm, guessed=h is not None)
+            self.cg.solve(c, self.tol, self.maxiter, self.warm, guessed=h is not None and not fresh)
         else:
             self._refined(c)
         if h is not None:
-            h.store()
+            h.store(fresh)
         self.cg.dots(self.b, self.cg.ones, self.cg.area, self.y, self.b, self.b)  # ∫z_h = ∫(right-hand side)
         self._shift.launch()
 

@@ -192,6 +192,16 @@ class Stepper:
         Raises ValueError naming a missing or misshapen entry."""
         self.steps = int(self._entry(state, "steps"))
 
+    def checkpoint(self):
+        """What ``rollback`` needs to undo the next step (a try that error control rejects,
+        ``simulation.adaptive.StepControl``): ``state()`` here; a stepper whose state is dear
+        to gather keeps device copies instead (``helmholtz_steps.HelmholtzSteps``)."""
+        return self.state()
+
+    def rollback(self, saved) -> None:
+        """Back to where ``checkpoint()`` returned ``saved``: ``restore`` here."""
+        self.restore(saved)
+
     def _entry(self, state, key):
         if key not in state:
             raise ValueError(f"{self.name} stepper state lacks {key!r}")

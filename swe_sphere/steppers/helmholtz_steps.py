@@ -47,3 +47,13 @@ class HelmholtzSteps:
     def restore(self, state):
         super().restore(state)
         self.helmholtz.restore(state, self._entry)
+
+    def checkpoint(self):
+        # the solver's guess histories as device copies (``HelmholtzSolver.checkpoint``), not
+        # gathered to the host as ``state`` does (4.3 ms a step at ne16, 28 % of an ark324 step)
+        return super().state(), self.helmholtz.checkpoint()
+
+    def rollback(self, saved):
+        base, solver = saved
+        super().restore(base)
+        self.helmholtz.rollback(solver)

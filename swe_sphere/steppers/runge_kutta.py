@@ -228,9 +228,6 @@ class ImexRK(HelmholtzSteps, Stepper):
         """The checked pair this stepper steps."""
         raise NotImplementedError
 
-    def _dt_changed(self):
-        self.helmholtz.keep_only(a * self.dt for a in np.diag(self.A_I) if a != 0.0)
-
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
         A_E, b_E, A_I, b_I, self.c = self.table().floats()

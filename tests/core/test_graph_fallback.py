@@ -130,9 +130,9 @@ INJECTIONS = {
         conditional_nodes(capturing_a_step),
         "graph of the imex step failed in conditional nodes (wp.capture_while): injected error",
     ),
-    "device totals": (
-        "semi_implicit",
-        2,
+    "device totals": (  # a solve is captured at its second call: imex's in its second step, before a step's
+        "imex",
+        4,
         device_totals(capturing),
         "graph of the Helmholtz solve failed in device totals: injected error",
     ),

@@ -16,15 +16,17 @@ from swe_sphere.steppers import STEPPERS
 from helpers import make_sim
 
 # the engines and classes that take a new Δt: explicit tables (a pair and not), FB-RK(3,2),
-# IMEX pairs (ARS's and a Kennedy–Carpenter pair, whose Helmholtz guess is the last solution:
-# the guess histories are per a_ii Δt, dropped by a change of Δt)
-VARIABLE = ("bs32", "ssprk3", "fbrk32", "ark324", "imex")
+# IMEX pairs (ARS's and a Kennedy–Carpenter pair; "ark324h" with its Helmholtz guess histories,
+# one per a_ii Δt, the others' guess the last solution)
+VARIABLE = ("bs32", "ssprk3", "fbrk32", "ark324", "ark324h", "imex")
 
 
 def _scene(key, dt):
-    scene = load_scene("tc2_steady", ne=2, days=1.0, stepper=key, dt=dt)
+    history = key.endswith("h")
+    scene = load_scene("tc2_steady", ne=2, days=1.0, stepper=key.removesuffix("h"), dt=dt)
     if key in ("ark324", "imex"):
         scene = dataclasses.replace(scene, stepper_options={**scene.stepper_options, "guess_history": 0})
+    assert not history or scene.stepper_options.get("guess_history", 8) > 0
     return scene
 
 
@@ -81,8 +83,13 @@ def test_the_model_time_reached_stays_and_the_imex_histories_follow_dt():
     s.set_dt(480.0)
     assert s.t0 + s.steps * s.dt == pytest.approx(86400.0 + 3 * 1200.0, rel=4 * np.finfo(float).eps)
     s.step(sim.x)
-    diagonal = {float(a) * 480.0 for a in np.diag(s.A_I) if a != 0.0}
-    assert set(s.helmholtz.histories) == diagonal  # the 1200 s histories gone
+    a = [float(a) for a in np.diag(s.A_I) if a != 0.0]
+    assert len(set(a)) == 1  # one a a step (ESDIRK), so one history a Δt
+    assert list(s.helmholtz.histories) == [a[0] * 1200.0, a[0] * 480.0]  # the least recently used first
+    for dt in (500.0, 520.0, 1200.0, 540.0):  # KEPT_COEFFICIENTS: at most four, the least recently used dropped
+        s.set_dt(dt)
+        s.step(sim.x)
+    assert list(s.helmholtz.histories) == [a[0] * dt for dt in (500.0, 520.0, 1200.0, 540.0)]
 
 
 @pytest.mark.parametrize("key", [k for k, cls in STEPPERS.items() if not cls.variable_dt])
@@ -93,3 +100,50 @@ def test_a_stepper_whose_history_is_its_dt_refuses_another(key):
     stepper.name = key
     with pytest.raises(ValueError, match=f"^{key} cannot change its dt between steps"):
         stepper.set_dt(100.0)
+
+
+def _imex(dt=1200.0):
+    return make_sim(load_scene("tc5_mountain", ne=4, days=1.0, stepper="ark324", dt=dt))
+
+
+def _steps(sim, dts) -> list:
+    """Steps at ``dts`` (s); the Helmholtz CG iterations of each."""
+    its = []
+    for dt in dts:
+        sim.stepper.set_dt(dt)
+        its.append(sim.stepper.step(sim.x).iterations["helmholtz"])
+    return its
+
+
+def test_a_rejected_imex_try_leaves_no_trace():
+    """A try that error control rejects (``Stepper.checkpoint``/``rollback``, device copies):
+    a new Δt's history made in it dropped, the least recently used one it pushed out (four
+    a's kept) brought back, a basis it grew put back, the last solution too: the steps after
+    are bit for bit those of a run that never tried."""
+    past = (1200.0, 1100.0, 1000.0, 900.0)  # four a's, 1200 s's the least recently used
+    plain, tried = _imex(), _imex()
+    _steps(plain, past)
+    _steps(tried, past)
+    gamma = {float(a) for a in np.diag(plain.stepper.A_I) if a != 0.0}.pop()  # ESDIRK: one a a step
+    for dt in (700.0, 900.0):  # a new a (1200's pushed out), then one whose basis grows
+        saved, x = tried.stepper.checkpoint(), tried.x.numpy().copy()  # not a view: x changes
+        _steps(tried, [dt])
+        held = list(tried.stepper.helmholtz.histories)
+        assert held[-1] == gamma * dt and (dt == 900.0) == (gamma * 1200.0 in held)
+        tried.x.assign(x)
+        tried.stepper.rollback(saved)
+    assert list(tried.stepper.helmholtz.histories) == list(plain.stepper.helmholtz.histories)
+    assert _steps(tried, [1200.0, 900.0, 1200.0]) == _steps(plain, [1200.0, 900.0, 1200.0])
+    assert np.array_equal(tried.x.numpy(), plain.x.numpy())
+
+
+def test_a_new_dt_starts_its_solves_from_the_last_solution():
+    """A Δt never taken: its guess history is empty, so its first solve starts from the last
+    solution (one product), not from zero; the same step from zero takes more CG iterations."""
+    warm, cold = _imex(7200.0), _imex(7200.0)  # 6 Δt_g: a score of CG iterations a step
+    _steps(warm, [7200.0] * 3)
+    _steps(cold, [7200.0] * 3)
+    cold.stepper.helmholtz.y.zero_()  # as if the new a's first solve started from zero
+    new, zero = _steps(warm, [6480.0])[0], _steps(cold, [6480.0])[0]
+    steady = _steps(warm, [6480.0])[0]
+    assert new <= steady + 3 < zero  # 22, 21 and 28

@@ -22,6 +22,7 @@ from .helmholtz_cg import SINGLE_FLOOR, SINGLE_TOL, HelmholtzCG
 
 f64 = wp.float64
 PRECISIONS = ("double", "mixed")
+TIGHTEST = 1e-12  # the tightest relative residual ``tighten`` sets
 KEPT_COEFFICIENTS = 4  # the a's whose guess histories and solve graphs a solver keeps (``_use``)
 MAX_GUESS_HISTORY = (
     32  # past solutions a solve's start is projected on (``GuessHistory``); k vectors cost 2k of memory and k dots
@@ -368,6 +369,12 @@ class HelmholtzSolver:
             ]
             launches = self._schur_launches[key] = (rhs, back)
         return launches
+
+    def tighten(self, tol: float) -> None:
+        """The CG's relative residual at most ``tol``, not below ``TIGHTEST`` (float64's reach
+        on these systems); the graphs, which hold the old one, dropped."""
+        self.tol = min(self.tol, max(float(tol), TIGHTEST))
+        self._graphs.clear()
 
     def _use(self, a: float) -> None:
         """a's guess history and solve graphs made the most recently used; those of the least

@@ -148,9 +148,10 @@ class Stepper:
         embedded pair): what error control needs. ValueError names a bad option."""
         return cls.embedded_order > 0
 
-    def follow_tolerance(self, atol: float) -> None:
-        """Under error control with absolute tolerances ≥ ``atol``: an iterative solve inside
-        the step tightened to stay below the step's error (``implicit.Implicit``); nothing here."""
+    def follow_tolerance(self, atol: float, rtol: float = 0.0) -> None:
+        """Under error control with absolute tolerances ≥ ``atol`` and the relative ``rtol``: an
+        iterative solve inside the step tightened to stay below the step's error
+        (``implicit.Implicit``, ``runge_kutta.ImexRK``); nothing here."""
 
     def estimate_errors(self) -> None:
         """Under error control (the estimate read every step): make ``error_estimate`` from now

@@ -331,7 +331,7 @@ class Implicit(Stepper):
         return newton
 
     # -- the error estimate (under error control) -------------------------------------------
-    def follow_tolerance(self, atol: float) -> None:
+    def follow_tolerance(self, atol: float, rtol: float = 0.0) -> None:
         """Under error control with absolute tolerances ≥ ``atol`` (m s⁻¹, m): Newton converges
         to a residual RMS of at most 0.1 atol / Δt, a state error of about a tenth of the
         tolerance a step (SUNDIALS' nonlinear-solver coefficient 0.1), so that its own error stays

@@ -391,6 +391,29 @@ class Implicit(Stepper):
                 self._load(self.Fprev, state, "rhs_previous")
                 self.dt_old = float(state["dt_previous"])
 
+    def checkpoint(self):
+        # what ``state`` saves, as device copies: not gathered to the host every try (0.5 ms a
+        # step at ne16, 4 %)
+        saved = {"base": super().state()}
+        if self.helmholtz is not None:
+            saved["mean_depth"] = self.helmholtz.H
+        if self._uses_previous():
+            saved["previous"] = wp.clone(self.xprev)
+        if self.error_estimate is not None and math.isfinite(self.dt_old):
+            saved["rhs_previous"], saved["dt_old"] = wp.clone(self.Fprev), self.dt_old
+        return saved
+
+    def rollback(self, saved):
+        super().restore(saved["base"])
+        if self.helmholtz is not None:
+            self.helmholtz.operator.H = saved["mean_depth"]
+        if "previous" in saved:
+            wp.copy(self.xprev, saved["previous"])
+        if self.error_estimate is not None:
+            self.dt_old = saved.get("dt_old", math.nan)
+            if "rhs_previous" in saved:
+                wp.copy(self.Fprev, saved["rhs_previous"])
+
     def advance(self, x):
         o, m = self.o, self.model
         self.rhs_evals = 0

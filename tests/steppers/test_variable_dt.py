@@ -147,3 +147,31 @@ def test_a_new_dt_starts_its_solves_from_the_last_solution():
     new, zero = _steps(warm, [6480.0])[0], _steps(cold, [6480.0])[0]
     steady = _steps(warm, [6480.0])[0]
     assert new <= steady + 3 < zero  # 22, 21 and 28
+
+
+@pytest.mark.parametrize("estimate", [True, False])
+def test_a_rejected_implicit_try_leaves_no_trace(estimate):
+    """The JFNK stepper's rollback (Crank–Nicolson's; device copies of x(n−1), which the
+    extrapolated guess reads, and of the AB2 predictor's F): after tries at other Δt put
+    back, the steps are bit for bit those of a run that never tried."""
+    runs = []
+    for tries in ((), (2400.0, 600.0)):
+        scene = load_scene("tc5_mountain", ne=4, days=1.0, stepper="implicit", dt=1200.0)
+        sim = make_sim(scene)
+        if estimate:
+            sim.stepper.estimate_errors()
+        for _ in range(3):
+            sim.stepper.step(sim.x)
+        for dt in tries:
+            saved, x = sim.stepper.checkpoint(), sim.x.numpy().copy()
+            sim.stepper.set_dt(dt)
+            sim.stepper.step(sim.x)
+            sim.x.assign(x)
+            sim.stepper.rollback(saved)
+            sim.stepper.set_dt(1200.0)
+        for _ in range(2):
+            sim.stepper.step(sim.x)
+        e = sim.stepper.error_estimate
+        runs.append([sim.x.numpy().copy(), *([] if e is None else [e.numpy().copy()])])
+    assert len(runs[0]) == (2 if estimate else 1)
+    assert all(np.array_equal(a, b) for a, b in zip(*runs, strict=True))

@@ -163,7 +163,7 @@ class HelmholtzSolver:
         self.history = int(options.guess_history)
         self._histories: dict[float, GuessHistory] = {}
         self._history = None
-        self._recent: dict[float, None] = {}  # the a's solved with, least recently used first (``keep_recent``)
+        self._recent: dict[float, None] = {}  # the a's solved with, least recently used first (``_use``)
         self._saving = None  # ``checkpoint``'s, while a step may be rejected
         if self.history:
             self.history_work = HistoryWork(

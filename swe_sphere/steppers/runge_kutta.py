@@ -24,7 +24,7 @@ from ..solvers.helmholtz import HelmholtzOptions
 from .base import Stepper, StepStats
 from .butcher import PARTS, Table, TableauOptions, imaginary_axis_limit, parse, stage_form
 from .helmholtz_steps import REMOVED_SOLVER_OPTIONS, HelmholtzSteps
-from .tables import COURANT_LIMITS, EXPLICIT, IMEX, IMEX_PAIRS
+from .tables import COURANT_LIMITS, EXPLICIT, IMEX, IMEX_ADVECTIVE_LIMITS, IMEX_PAIRS
 
 f64 = wp.float64
 
@@ -363,6 +363,7 @@ def imex_pair_steppers() -> tuple[type[Stepper], ...]:
                 "TABLE": TABLES[key],
                 "order": TABLES[key].order,
                 "embedded_order": TABLES[key].embedded_order,
+                "advective_courant_limit": IMEX_ADVECTIVE_LIMITS[key],
                 "__doc__": t["description"],
             },
         )

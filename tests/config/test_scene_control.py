@@ -29,7 +29,8 @@ def test_error_and_cfl_control_and_their_defaults():
     assert scene_from_dict(scene.as_dict()) == scene
     defaults = _load("ark324", control="error").control
     assert (defaults.rtol, defaults.atol_wind, defaults.atol_h, defaults.controller) == (1e-4, 1e-4, 1e-4, "pi")
-    assert defaults.cfl is None and defaults.dt_max is None and not defaults.per_unit_step
+    assert defaults.cfl == pytest.approx(0.9 * 0.85) and defaults.cfl_default  # its advective limit's
+    assert defaults.dt_max is None and not defaults.per_unit_step
     per_unit = _load(control="error", per_unit_step=True)
     assert per_unit.control.per_unit_step and scene_from_dict(per_unit.as_dict()) == per_unit
     cfl = _load("ssprk3", control="cfl").control  # 0.9 × ssprk3's measured limit 1.11
@@ -40,7 +41,7 @@ def test_error_and_cfl_control_and_their_defaults():
 def test_error_control_caps_the_courant_number_by_default():
     """Under "error" the default cap is 0.9 × the pair's measured Courant limit (dp54 1.28), marked
     as the default (a bound only) and kept through the record; time.cfl replaces it, false removes
-    it; a pair without a measured limit (the IMEX pairs) has none."""
+    it; the IMEX pairs' is on their advective limit (``tables.IMEX_ADVECTIVE_LIMITS``)."""
     capped = _load("dp54", control="error")
     assert capped.control.cfl == pytest.approx(0.9 * 1.28) and capped.control.cfl_default
     assert scene_from_dict(capped.as_dict()) == capped
@@ -48,7 +49,8 @@ def test_error_control_caps_the_courant_number_by_default():
     assert (given.cfl, given.cfl_default) == (0.55, False)
     off = _load("dp54", control="error", cfl=False).control
     assert (off.cfl, off.cfl_default) == (None, False)
-    assert _load("ark436", control="error").control.cfl is None
+    assert _load("ark436", control="error").control.cfl == pytest.approx(0.9 * 0.8)
+    assert _load("ark324", control="error").control.cfl == pytest.approx(0.9 * 0.85)
 
 
 def test_balanced_control_and_its_defaults():

@@ -6,14 +6,15 @@ ne ``--ne`` np 4) and each embedded pair (``--pairs``), three runs under ``time.
 "error"`` at rtol ``--rtol``:
 
 - from the pair's largest stable step (its measured Courant limit ``Stepper.courant_limit`` over
-  the initial state's largest signal rate (|v| + sqrt(g h))/Δx, ``sweep.runs.explicit_limits``);
+  the initial state's largest signal rate (|v| + sqrt(g h))/Δx, ``sweep.runs.explicit_limits``;
+  an IMEX pair's ``advective_courant_limit`` over the largest |v|/Δx);
 - from 5× that step with the default Courant cap (0.9 × the limit: the first step is cut to it);
 - from 5× that step with the cap off (``time.cfl = false``): the error controller alone.
 
 Printed per run: finished or the blow-up's line, accepted and rejected steps, CPU s (one
 thread, ``time.process_time``), the ratio to the run from the stable step.
 
-    SWE_SPHERE_THREADS=1 python benchmarks/adaptive_hard_start.py [--ne 8] [--rtol 1e-4]
+    SWE_SPHERE_THREADS=1 python benchmarks/adaptive_hard_start.py [--ne 8] [--rtol 1e-4] [--pairs ...] [--results STEM]
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from results import recorded
 
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.runtime import init_warp
+from swe_sphere.model.diagnostics import courant_numbers
 from swe_sphere.steppers import STEPPERS
 from swe_sphere.studies.sweep.runs import explicit_limits
 
@@ -34,7 +36,13 @@ CASES = ("tc5_mountain", "tc6_rossby_haurwitz", "tc6_rossby_haurwitz_inviscid", 
 
 def stable_dt(case: str, ne: int, pair: str) -> float:
     """The pair's largest stable Δt (s) at the case's start on ne np4: its Courant limit over
-    the initial state's largest signal rate."""
+    the initial state's largest signal rate; an IMEX pair's (gravity waves implicit) its
+    advective limit over the largest |v|/Δx."""
+    cls = STEPPERS[pair]
+    if cls.courant_limit is None:
+        sim = build(case, ne, 1.0, pair)
+        u, v, h = sim.x.numpy()
+        return cls.advective_courant_limit / courant_numbers(sim.grid, u, v, h, 1.0, sim.g)["courant_advective"]
     base = build(case, ne, 1.0, pair).scene
     limits = explicit_limits(base, "cpu")
     rate = STEPPERS["leapfrog"].courant_limit / limits["dt_leapfrog"]  # (|v| + sqrt(g h)) / Δx, s⁻¹
@@ -76,9 +84,10 @@ def main() -> None:
     parser.add_argument("--cases", nargs="+", default=list(CASES))
     parser.add_argument("--pairs", nargs="+", default=["bs32", "rdpk3sp35", "ssprk43", "dp54"])
     parser.add_argument("--rtol", type=float, default=1e-4)
+    parser.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")
     args = parser.parse_args()
     init_warp()
-    with recorded(__file__) as figures:
+    with recorded(__file__, stem=args.results) as figures:
         print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
         figures["rtol"], figures["ne"] = args.rtol, args.ne
         for case in args.cases:

@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 from swe_sphere.config.scene import load_scene
-from swe_sphere.core.constants import DAY
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
 

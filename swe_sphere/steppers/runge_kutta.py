@@ -32,6 +32,14 @@ f64 = wp.float64
 TABLES = {key: parse(TableauOptions(**t)) for key, t in {**EXPLICIT, **IMEX, **IMEX_PAIRS}.items()}
 
 
+# the IMEX pairs' Helmholtz CG residual under error control, per rtol (``ImexRK.follow_tolerance``):
+# SUNDIALS' 0.1 for an inner solve's error against the step's, and 0.1 more because the CG's
+# relative residual understates the solution's error at these steps (TC5 and TC2 ne8, 5 days,
+# rtol 1e-5 and 1e-6: at 0.1 rtol the noise still shrank the steps, ark436 303 and 366 where
+# 0.01 takes 226 and 196 in less CPU; 0.001 changes nothing more: docs/efficiency.md)
+CG_PER_RTOL = 0.01
+
+
 def _dt_times(q: Fraction, dt: float) -> float:
     """qΔt, rounded as Δt/d for q = 1/d (an exact reciprocal is not representable)."""
     return dt / q.denominator if q.numerator == 1 else float(q) * dt
@@ -230,13 +238,12 @@ class ImexRK(HelmholtzSteps, Stepper):
 
     def follow_tolerance(self, atol: float, rtol: float = 0.0) -> None:
         """Under error control at the relative tolerance ``rtol`` > 0: the Helmholtz CG's relative
-        residual at most 0.1 rtol (SUNDIALS' coefficient for an inner solve, as
-        ``implicit.Implicit``'s Newton; not below ``solvers.helmholtz.TIGHTEST``): a solve's error
-        enters the stages' L Y_j, and through them the estimate, as is, so a CG looser than the
-        step made the estimate its noise (TC5 ne8 over 5 days at the CG's 1e-6: ``ark436`` at rtol
-        1e-7 rejected 3435 tries for 2818 steps). ``atol`` alone (rtol 0) changes nothing."""
+        residual at most ``CG_PER_RTOL`` rtol (not below ``solvers.helmholtz.TIGHTEST``): a solve's
+        error enters the stages' L Y_j, and through them the estimate, as is, so a CG looser than
+        the step made the estimate its noise (TC5 ne8 over 5 days at the CG's 1e-6: ``ark436`` at
+        rtol 1e-7 rejected 3435 tries for 2818 steps). ``atol`` alone (rtol 0) changes nothing."""
         if rtol > 0:
-            self.helmholtz.tighten(0.1 * rtol)
+            self.helmholtz.tighten(CG_PER_RTOL * rtol)
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)

@@ -140,7 +140,7 @@ def test_a_rejected_imex_try_leaves_no_trace():
 def test_a_new_dt_starts_its_solves_from_the_last_solution():
     """A Δt never taken: its guess history is empty, so its first solve starts from the last
     solution (one product), not from zero; the same step from zero takes more CG iterations."""
-    warm, cold = _imex(7200.0), _imex(7200.0)  # 6 Δt_g: a score of CG iterations a step
+    warm, cold = _imex(7200.0), _imex(7200.0)  # a score of CG iterations a step
     _steps(warm, [7200.0] * 3)
     _steps(cold, [7200.0] * 3)
     cold.stepper.helmholtz.y.zero_()  # as if the new a's first solve started from zero

@@ -46,8 +46,9 @@ class GuessHistory:
     the vectors in use (a host read); ``whole()``/``set(count, arrays, what)``: X and AX
     as ``arrays`` whole-grid (3, nnodes_total) arrays, three vectors each (rows past 2k zero),
     for ``HelmholtzSolver.state``/``restore`` (ValueError naming ``what`` for a misshapen one);
-    ``snapshot()``/``put_back(snap)``: device copies of the basis, for a rejected step's
-    rollback (``HelmholtzSolver.checkpoint``)."""
+    ``spare()``: arrays to hold a basis (any history's of the solver); ``snapshot(spare)``/
+    ``put_back(snap)``: the basis copied into them on the device and back, for a rejected
+    step's rollback (``HelmholtzSolver.checkpoint``)."""
 
     def __init__(self, gw):
         """gw: the ``HelmholtzSolver`` whose CG (``cg``, ``y``, ``b``) and ``history_work`` it uses."""
@@ -59,9 +60,9 @@ class GuessHistory:
         self.hcs = wp.zeros(max(k + 1, 3), dtype=f64, device=dev)  # 1/‖·‖_A, the βⱼ
         self.arrays = (2 * k + 2) // 3
         self.fresh = True
-        self._y0, self._w0 = gw.history_work.y0, gw.history_work.w0
         rec, nchunks, chunk, nu = gw.model.launches.record, cg.partial.shape[1], cg.chunk, topo.nunique
         y, (y0, w0, partial, alpha, sums) = gw.y, gw.history_work
+        self._y0, self._w0 = y0, w0
         self._guess = [
             rec(cgk.history_dots, nchunks, [self.X, gw.b, self.hic, partial, chunk], nodes_per_index=chunk),
             *topo.device_sums(partial, k, alpha),
@@ -98,13 +99,21 @@ class GuessHistory:
         self._play(self._store)
         self.fresh = False
 
-    def snapshot(self) -> tuple:
-        return (self.fresh, *(wp.clone(a) for a in (self.X, self.AX, self.hic, self.hcs)))
+    def _basis(self) -> tuple:
+        return self.X, self.AX, self.hic, self.hcs
+
+    def spare(self) -> tuple:
+        return tuple(wp.empty_like(a) for a in self._basis())
+
+    def snapshot(self, spare: tuple) -> tuple:
+        for saved, a in zip(spare, self._basis()):
+            wp.copy(saved, a)
+        return self.fresh, spare
 
     def put_back(self, snap: tuple) -> None:
         """In place: the solves' graphs hold the basis's arrays."""
-        self.fresh = snap[0]
-        for a, saved in zip((self.X, self.AX, self.hic, self.hcs), snap[1:]):
+        self.fresh, spare = snap
+        for a, saved in zip(self._basis(), spare):
             wp.copy(a, saved)
 
     def count(self) -> int:

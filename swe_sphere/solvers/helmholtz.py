@@ -165,6 +165,7 @@ class HelmholtzSolver:
         self._history = None
         self._recent: dict[float, None] = {}  # the a's solved with, least recently used first (``_use``)
         self._saving = None  # ``checkpoint``'s, while a step may be rejected
+        self._saved_y, self._spares = None, []  # the arrays checkpoints copy into, made once
         if self.history:
             self.history_work = HistoryWork(
                 y0=wp.zeros(nu, dtype=f64, device=dev),
@@ -267,8 +268,15 @@ class HelmholtzSolver:
             history = self._histories[key] = GuessHistory(self)
         saving = self._saving
         if saving is not None and key not in saving["histories"]:  # copied before its solve changes it
-            saving["histories"][key] = None if made else history.snapshot()
+            saving["histories"][key] = None if made else history.snapshot(self._spare(len(saving["histories"])))
         return history
+
+    def _spare(self, n: int) -> tuple:
+        """The n-th set of arrays a checkpoint copies a guess history into: made once, reused
+        by every later checkpoint (one is open at a time; a try touches one a's history)."""
+        while len(self._spares) <= n:
+            self._spares.append(next(iter(self._histories.values())).spare())
+        return self._spares[n]
 
     def _solve(self, r, a: float, z, scale: float, implicit=None) -> None:
         m = self.model
@@ -402,8 +410,12 @@ class HelmholtzSolver:
     def checkpoint(self) -> dict:
         """What ``rollback`` needs to put the solver back as it is now: the mean depth, the
         last solution, the a's held in their order; a guess history is copied on the device
-        the first time a solve uses it after (``_guesses``): nothing read back."""
-        self._saving = {"H": self.H, "y": wp.clone(self.y), "recent": list(self._recent)}
+        the first time a solve uses it after (``_guesses``): nothing read back, and into
+        arrays made once (``_spare``), so the time loop allocates nothing."""
+        if self._saved_y is None:
+            self._saved_y = wp.empty_like(self.y)
+        wp.copy(self._saved_y, self.y)
+        self._saving = {"H": self.H, "y": self._saved_y, "recent": list(self._recent)}
         self._saving |= {"histories": {}, "dropped": {}}
         return self._saving
 

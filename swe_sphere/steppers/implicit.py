@@ -148,6 +148,7 @@ class Implicit(Stepper):
             self.helmholtz = HelmholtzSolver(GravityWaveOperator(model, o["mean_depth"]), solve)
         for name in ("xn", "xprev", "b", "Fx", "R", "delta", "trial", "Ft", "Rt", "v", "z"):
             setattr(self, name, wp.zeros((3, N), dtype=f64, device=dev))
+        self._spares: dict[str, wp.array] = {}  # what ``checkpoint`` copies into (``_saved``)
         # Krylov vectors live on unique nodes; the J·v's RHS evaluations are counted by the GMRES
         # iterations (one each), as a captured cycle runs no Python
         self.jacobian = FiniteDifferenceJacobian(model, model.rhs)
@@ -398,10 +399,17 @@ class Implicit(Stepper):
         if self.helmholtz is not None:
             saved["mean_depth"] = self.helmholtz.H
         if self._uses_previous():
-            saved["previous"] = wp.clone(self.xprev)
+            saved["previous"] = self._saved("previous", self.xprev)
         if self.error_estimate is not None and math.isfinite(self.dt_old):
-            saved["rhs_previous"], saved["dt_old"] = wp.clone(self.Fprev), self.dt_old
+            saved["rhs_previous"], saved["dt_old"] = self._saved("rhs_previous", self.Fprev), self.dt_old
         return saved
+
+    def _saved(self, name: str, a: wp.array) -> wp.array:
+        """a copied into the checkpoint's array ``name``, made once (one checkpoint is open at a time)."""
+        if name not in self._spares:
+            self._spares[name] = wp.empty_like(a)
+        wp.copy(self._spares[name], a)
+        return self._spares[name]
 
     def rollback(self, saved):
         super().restore(saved["base"])

@@ -194,14 +194,14 @@ EXPLICIT |= {
     ),
 }
 
-# the largest stable (|v| + sqrt(g h)) Δt / Δx (``Stepper.courant_limit``); a table missing here
-# takes its stability polynomial's estimate (``runge_kutta.COURANT_PER_AXIS_LIMIT``)
 # the IMEX pairs' advective Courant limits (|v| Δt/Δx at t = 0; their gravity waves implicit),
 # below the smallest stable one of the stability suite's bisections at ne 8 (Galewsky np 8, TC6
 # and TC5 np 4; benchmarks/results/stability_imex_pairs_ne8.csv): ark324 2.71 / 2.35 / 0.88,
 # ark436 1.34 / 0.84 / 1.18, as ``imex``'s 1.0 lies below ARS(3,4,3)'s 2.71 / 2.35 / 1.01 there
 IMEX_ADVECTIVE_LIMITS = {"ark324": 0.85, "ark436": 0.8}
 
+# the largest stable (|v| + sqrt(g h)) Δt / Δx (``Stepper.courant_limit``); a table missing here
+# takes its stability polynomial's estimate (``runge_kutta.COURANT_PER_AXIS_LIMIT``)
 COURANT_LIMITS = {
     "ssprk3": 1.11,
     "rk4": 1.73,

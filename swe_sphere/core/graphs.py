@@ -124,6 +124,7 @@ class _Snapshot:
     x: wp.array
     state: dict
     arrays: list
+    carried: object  # ``Stepper.carried``
 
 
 @dataclass
@@ -241,7 +242,7 @@ class GraphedSteps:
 
     @staticmethod
     def _snapshot(stepper, x, arrays) -> _Snapshot:
-        return _Snapshot(wp.clone(x), stepper.state(), [wp.clone(a) for a in arrays])
+        return _Snapshot(wp.clone(x), stepper.state(), [wp.clone(a) for a in arrays], stepper.carried())
 
     @staticmethod
     def _restore(snap: _Snapshot, stepper, x, arrays) -> None:
@@ -249,6 +250,7 @@ class GraphedSteps:
         stepper.restore(snap.state)
         for a, saved in zip(arrays, snap.arrays):
             wp.copy(a, saved)
+        stepper.resume(snap.carried)
 
 
 def _equal(u, v) -> bool:

@@ -22,8 +22,12 @@ without a sweep over tolerances (issue 64's "a run that asks for an accuracy").
 
 ``steer`` is ``Simulation.run``'s loop under control: accepted steps to each time an activity
 is due at (``schedules.AtDays``: output and restart times) and the end, each landed on exactly.
-Its steps are launched plainly, not replayed as graphs: a graph is keyed by Δt
-(``Stepper.graph_key``), and a Δt that changes every step would capture a graph every step.
+Its tries replay as graphs where a fixed-Δt run's steps do (``Simulation.try_step``: on CUDA
+by default): a graph is keyed by Δt (``Stepper.graph_key``), and the controller's Δt are few,
+those of its grid (``on_grid``), so each keeps its graph (a step landed on a target, its Δt off
+the grid, runs plain); the norm's read is the one host read of a try, and the Courant numbers'
+pass, where it is taken, a second. The IMEX pairs' tries run plain (their solver copies its
+guess histories on the host's decision, ``HelmholtzSolver.checkpoint``), as the JFNK stepper's.
 """
 
 from __future__ import annotations
@@ -192,7 +196,7 @@ class StepControl:
             self.stepper.set_dt(dt)
             self.stepper.t0 = t - self.stepper.steps * dt  # the forcing's clock: the time reached, exactly
             saved = self.stepper.checkpoint() if self.error else None
-            stats = self.stepper.step(x)
+            stats = self.sim.try_step(x)
             if self.balance is not None:
                 self.balance.tolerances(self.x0, t, dt)
             iterations = {k: tries.iterations.get(k, 0) + n for k, n in stats.iterations.items()}

@@ -243,6 +243,14 @@ class Simulation:
         (``graphs.GraphedSteps.kept``); 0 where steps run plain."""
         return self._graphed.kept
 
+    def try_step(self, x):
+        """One step of the stepper on x (3, N) in place, replayed as a graph where ``graphs``
+        lets it (``graphs.GraphedSteps``; its key holds Δt, so a controlled run's few Δt of
+        the controller's grid each keep a graph), the bad-state flag not watched and the
+        solvers' counters not read: a controlled run's tries (``adaptive.StepControl``). Its
+        ``StepStats``."""
+        return self._graphed.step(self.stepper, self.model, x, False)
+
     def _take_step(self, watch: bool):
         """One step of the stepper on x and, with ``watch``, the bad-state flag's launch
         (``ShallowWater.watch``; the solvers' device counters left for the block's

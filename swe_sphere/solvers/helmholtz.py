@@ -419,6 +419,11 @@ class HelmholtzSolver:
         self._saving |= {"histories": {}, "dropped": {}}
         return self._saving
 
+    @property
+    def checkpointed(self) -> bool:
+        """Whether a ``checkpoint`` has been taken (its copies made as the solves go)."""
+        return self._saving is not None
+
     def rollback(self, saving: dict) -> None:
         """Put back what ``checkpoint`` saved: the histories made since dropped, those dropped
         since brought back, the copies put back in place; the checkpoint ends."""

@@ -258,8 +258,19 @@ class Stepper:
 
     def device_arrays(self) -> list:
         """The device arrays a step adds to besides x and ``state()``: its solvers' counters
-        (``counts``), which a step run twice (``graphs.GraphedSteps``' check) restores."""
+        (``counts``), what it carries to the next step (``carried``), which a step run twice
+        (``graphs.GraphedSteps``' check) restores."""
         return []
+
+    def carried(self):
+        """What a step leaves on the host for the next besides ``state()``, true only of the
+        ``device_arrays`` as the step left them (an FSAL pair's first stage written ahead,
+        ``ExplicitRK.carry_last_stage``): a step run twice (``graphs.GraphedSteps``' check)
+        puts it back with them (``resume``), where ``restore`` alone forgets it. None here."""
+        return None
+
+    def resume(self, carried) -> None:
+        """Take back ``carried()`` after ``restore``, the device arrays put back as they were."""
 
     def _device_counts(self) -> dict:
         """A step's device-counted iterations for its ``StepStats``: read now (``counts``,

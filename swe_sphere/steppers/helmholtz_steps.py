@@ -39,7 +39,9 @@ class HelmholtzSteps:
 
     def graph_key(self):
         solver = self.helmholtz
-        return super().graph_key() if solver.H and solver.graphable and self.deferred else None
+        # under a checkpoint (a controlled try) a solve copies a guess history on the host's decision
+        ready = solver.H and solver.graphable and self.deferred and not solver.checkpointed
+        return super().graph_key() if ready else None
 
     def state(self):
         return {**super().state(), **self.helmholtz.state()}

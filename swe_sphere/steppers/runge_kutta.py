@@ -120,6 +120,25 @@ class ExplicitRK(Stepper):
         super().restore(state)
         self._ahead = None  # x is put back: the first stage written ahead is of another state
 
+    def device_arrays(self) -> list:
+        return list(self._buffers.values()) if self._carried is not None else []  # the first stage written ahead
+
+    def carried(self):
+        return self._ahead
+
+    def resume(self, carried) -> None:
+        self._ahead = carried
+
+    def graph_key(self):
+        key = super().graph_key()
+        # a carried pair's step evaluates its first stage only where not written ahead at this Δt
+        return key if key is None or self._carried is None else (*key, self._ahead == self.dt)
+
+    def replayed(self, stats: StepStats) -> StepStats:
+        if self._carried is not None:
+            self._ahead = self.dt  # as ``advance`` leaves it
+        return super().replayed(stats)
+
     def _record(self, x):
         """The stages on x: (c, the RHS's argument, its updates), Δt folded into F's coefficients."""
         arrays = {"x": x, "k": None, **self._buffers}  # None: F itself (``rhs_update``)

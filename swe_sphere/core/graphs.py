@@ -143,7 +143,9 @@ class GraphedSteps:
     which a capture may do); its second runs plain (the solvers' own graphs off),
     is captured, replayed from the state before it and compared bit for bit
     (``_checked``); the later ones replay (one that raises: plain, as in
-    ``captured``). The key holds the stepper and x's
+    ``captured``). Keys of one ``Stepper.graph_family`` (a controlled run's Δt: the same
+    launches with other arguments) check only the family's first graph; the others are
+    captured at their second step and replayed, not compared. The key holds the stepper and x's
     address, so a branch, a new dt or another state array captures anew; a
     restore assigns arrays in place, which a graph follows. Whole steps are
     graphs with ``mode`` "on", or "auto" on CUDA, on one CPU thread a launch and
@@ -153,6 +155,7 @@ class GraphedSteps:
     def __init__(self, backend: Backend, guard: GraphGuard, mode: str = "auto"):
         self.backend, self.device, self.guard = backend, backend.device, guard
         self._graphs: dict = {}  # (stepper, graph_key, watch, x's address) → _Entry, or None: seen once
+        self._families: set = set()  # (stepper, graph_family, watch, x's address) whose first graph was checked
         self.mode = mode
 
     @property
@@ -184,6 +187,8 @@ class GraphedSteps:
             key = stepper.graph_key()
         if key is None:
             return self._plain(stepper, model, x, watch)
+        family = stepper.graph_family()
+        family = None if family is None else (stepper, family, watch, x.ptr)
         key = (stepper, key, watch, x.ptr)
         entry = self._graphs.get(key)
         if entry is not None:
@@ -191,13 +196,38 @@ class GraphedSteps:
                 wp.capture_launch(entry.graph)
             except Exception as err:  # refused before it ran (as in ``captured``): the step runs plain
                 self._graphs.clear()
+                self._families.clear()
                 self.guard.fail(f"{self.backend.graph_name} of the {stepper.name} step{failed(err)}")
                 return self._plain(stepper, model, x, watch)
             return stepper.replayed(entry.stats)
         if key not in self._graphs:
             self._graphs[key] = None
             return self._plain(stepper, model, x, watch)
-        return self._checked(key, stepper, model, x, watch)
+        if family in self._families:
+            return self._captured(key, stepper, model, x, watch)
+        stats = self._checked(key, stepper, model, x, watch)
+        if family is not None and self._graphs.get(key) is not None:
+            self._families.add(family)
+        return stats
+
+    def _captured(self, key, stepper, model, x, watch: bool):
+        """The key's second step, of a family whose first graph was checked (``Stepper.graph_family``:
+        the same launches, other arguments): captured and replayed, not compared (as a later replay;
+        a capture or replay that raises: plain, as in ``captured``)."""
+        state, carried = stepper.state(), stepper.carried()  # the capture moves the host's side on
+        try:
+            with wp.ScopedCapture(device=self.device, force_module_load=False) as capture:
+                stats = self._plain(stepper, model, x, watch)  # records the launches, runs none
+            wp.capture_launch(capture.graph)
+        except Exception as err:  # the capture ran nothing, a refused replay nothing: x as before
+            self._graphs.clear()
+            self._families.clear()
+            self.guard.fail(f"{self.backend.graph_name} of the {stepper.name} step{failed(err)}")
+            stepper.restore(state)
+            stepper.resume(carried)
+            return self._plain(stepper, model, x, watch)
+        self._graphs[key] = _Entry(capture.graph, stats)
+        return stats
 
     @staticmethod
     def _plain(stepper, model, x, watch: bool):
@@ -238,6 +268,7 @@ class GraphedSteps:
     def _fall_back(self, plain: _Snapshot, stepper, x, arrays, what: str) -> None:
         self._restore(plain, stepper, x, arrays)
         self._graphs.clear()
+        self._families.clear()
         self.guard.fail(what)
 
     @staticmethod

@@ -286,6 +286,12 @@ class Stepper:
         kept on the host, as a device scalar would need a launch per stage to set)."""
         return ("step", self.dt) if self.capturable and self.model.forcing is None else None  # Δt: ``set_dt``
 
+    def graph_family(self):
+        """``graph_key`` without Δt where the steps at any Δt launch the same kernels with
+        other arguments (the stages' coefficients), so that a graph checked at one Δt stands
+        for the others (``graphs.GraphedSteps``); None: each key's graph checked."""
+        return None
+
     def replayed(self, stats: StepStats) -> StepStats:
         """Count a step that ran as the graph of an earlier step with the same ``graph_key``
         (whose ``stats`` it returns)."""

@@ -134,6 +134,10 @@ class ExplicitRK(Stepper):
         # a carried pair's step evaluates its first stage only where not written ahead at this Δt
         return key if key is None or self._carried is None else (*key, self._ahead == self.dt)
 
+    def graph_family(self):
+        key = self.graph_key()
+        return None if key is None else key[:1] + key[2:]  # Δt enters as the combinations' coefficients
+
     def replayed(self, stats: StepStats) -> StepStats:
         if self._carried is not None:
             self._ahead = self.dt  # as ``advance`` leaves it

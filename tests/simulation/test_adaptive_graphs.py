@@ -16,6 +16,7 @@ import pytest
 import warp as wp
 
 from swe_sphere.config.scene import load_scene
+from swe_sphere.core.graphs import GraphedSteps
 from swe_sphere.core.tally import Tally, instrumented
 from swe_sphere.simulation.simulation import Simulation
 
@@ -65,13 +66,22 @@ def controlled(name: str, control: str, device: str, graphs: bool) -> Simulation
 @pytest.mark.parametrize("device", DEVICES)
 @pytest.mark.parametrize("name, control", CASES)
 def test_controlled_tries_replayed_as_graphs_are_the_bits_of_plain_ones(
-    one_thread, graph_launches, name, control, device
+    one_thread, graph_launches, monkeypatch, name, control, device
 ):
     """The same state, steps, Δt and error norms as plain launches; rejected tries under error
     control; every explicit run keeps graphs (at least one Δt and, for an FSAL pair, its first
-    stage written ahead), replayed by most steps; the IMEX pair's none."""
+    stage written ahead), replayed by most steps, and compares one graph with plain launches a
+    family (``Stepper.graph_family``: two for an FSAL pair, its first stage evaluated or not),
+    not one a Δt; the IMEX pair's steps none."""
     plain = controlled(name, control, device, False)
     assert graph_launches[0] == 0
+    checks, real = [], GraphedSteps._checked
+
+    def checked(self, key, *args):
+        checks.append(key[1])
+        return real(self, key, *args)
+
+    monkeypatch.setattr(GraphedSteps, "_checked", checked)
     graphed = controlled(name, control, device, True)
     np.testing.assert_array_equal(graphed.x.numpy(), plain.x.numpy())
     assert graphed.control.history == plain.control.history
@@ -84,6 +94,39 @@ def test_controlled_tries_replayed_as_graphs_are_the_bits_of_plain_ones(
         assert graphed.graphs_kept == 0
     else:
         assert graphed.graphs_kept >= 1 and graph_launches[0] >= tries / 2, (graphed.graphs_kept, graph_launches)
+        families = {key[:1] + key[2:] for key in checks}
+        assert len(checks) == len(families) <= 2 < graphed.graphs_kept + (control == "cfl"), (checks, families)
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_a_capture_failing_at_a_new_dt_falls_back_to_plain_launches(one_thread, monkeypatch, capsys, device):
+    """A replay that raises in the capture of a checked family's new Δt (``GraphedSteps._captured``):
+    one line, plain launches from the step before for the rest of the run, the bits of a plain run."""
+    plain = controlled("rk43", "error", device, False)
+    calls, real_captured, real_launch = [0], GraphedSteps._captured, wp.capture_launch
+
+    def captured(self, *args):
+        calls[0] += 1
+        return real_captured(self, *args)
+
+    def launch(graph, *a, **k):
+        if calls[0] == 3:
+            calls[0] += 1
+            raise RuntimeError("a refused replay")
+        return real_launch(graph, *a, **k)
+
+    monkeypatch.setattr(GraphedSteps, "_captured", captured)
+    monkeypatch.setattr(wp, "capture_launch", launch)
+    capsys.readouterr()
+    graphed = controlled("rk43", "error", device, True)
+    assert calls[0] == 4, calls
+    np.testing.assert_array_equal(graphed.x.numpy(), plain.x.numpy())
+    assert graphed.control.history == plain.control.history
+    assert graphed.control.accepted == plain.control.accepted and graphed.graphs_kept == 0
+    warnings = capsys.readouterr().err.splitlines()
+    assert warnings == [
+        f"swe-sphere: {graphed.model.backend.graph_name} of the rk43 step failed: a refused replay; running without graphs"
+    ]
 
 
 @pytest.mark.parametrize("device", DEVICES)

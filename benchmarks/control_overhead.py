@@ -7,6 +7,9 @@ itself, at ne30.
 
 TC5 (``tc5_mountain``), np4, one thread, CPU clock (``time.process_time``), every run in this
 process after a warm-up run of each kind (no kernel compiles inside a timing); no run file.
+``--device cuda``: on the card, wall clock (``time.perf_counter``, the device synchronised at
+each end), steps replayed as CUDA graphs by default (``SWE_SPHERE_GRAPHS=off``: plain launches),
+the controlled run's a graph a Δt of the controller's grid (``Simulation.try_step``).
 Issue 64's target: the controller costs ≤ 2 % of a step at ne30. For each of ``--control``, error
 control (``--pair`` at ``--rtol``) and CFL control (``--cfl-stepper`` at ``--cfl``), the parts:
 
@@ -33,6 +36,7 @@ import argparse
 import os
 import time
 
+import warp as wp
 from results import recorded
 
 from swe_sphere.config.scene import load_scene
@@ -50,7 +54,7 @@ def build(args, days, dt=None, control=True) -> Simulation:
         keys = {"rtol": args.rtol} if args.control == "error" else {"cfl": args.cfl}
         overrides |= {"time.control": args.control, **{f"time.{k}": v for k, v in keys.items()}}
     scene = load_scene("tc5_mountain", ne=args.ne, np_=4, dt=dt, days=days, stepper=args.pair, overrides=overrides)
-    return Simulation(scene, "cpu", progress=False)
+    return Simulation(scene, args.device, progress=False)
 
 
 def what(args) -> str:
@@ -58,11 +62,20 @@ def what(args) -> str:
     return f"rtol {args.rtol:g}" if args.control == "error" else f"cfl {args.cfl:g}"
 
 
+DEVICE = "cpu"  # ``--device``: the clock's (CPU time on a CPU, wall time with a device synchronised)
+
+
 def cpu(call) -> float:
-    """CPU s of ``call()``."""
-    start = time.process_time()
+    """CPU s of ``call()`` on a CPU; on CUDA wall s, the device idle at both ends."""
+    if DEVICE == "cpu":
+        start = time.process_time()
+        call()
+        return time.process_time() - start
+    wp.synchronize_device(DEVICE)
+    start = time.perf_counter()
     call()
-    return time.process_time() - start
+    wp.synchronize_device(DEVICE)
+    return time.perf_counter() - start
 
 
 def whole_runs(args, out: dict) -> None:
@@ -162,7 +175,10 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=40, help="calls timed in (b)")
     parser.add_argument("--parts", nargs="+", default=["a", "b"], choices=["a", "b"])
     parser.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")
+    parser.add_argument("--device", default="cpu", help="cpu (CPU clock) or cuda (wall clock)")
     args = parser.parse_args()
+    global DEVICE
+    DEVICE = args.device
     init_warp()
     with recorded(__file__, stem=args.results) as figures:
         print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")

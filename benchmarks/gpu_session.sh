@@ -14,6 +14,7 @@
 #   benchmarks/gpu_session.sh criterion_ne60        # ≤ 5 min: TC5 ne60, each family down to the 10 % criterion
 #   benchmarks/gpu_session.sh criterion_ne120       # ≤ 7 min: TC5 ne120, kgu35, rk4 and imex
 #   benchmarks/gpu_session.sh dinosaur              # ≤ 8 min: the peer Dinosaur (JAX) beside swe_sphere on the card
+#   benchmarks/gpu_session.sh control               # ≤ 3.5 min: TC5 ne60 rk43 under error control, graphs against none (issue 64)
 #
 # With no part named it runs setup to iterations in that order (≈ 23 min); reads,
 # study and study_fine are named. The studies are `swe-sphere sweep --device cuda
@@ -141,6 +142,15 @@ part_criterion_ne120() {
 
 # issue 67 item 4: the peer Dinosaur (JAX, the image's CUDA plugin; its wheels in the payload) on the
 # same card in the same call, both models' wall seconds a simulated day (benchmarks/peer_dinosaur.py)
+part_control() {  # issue 64/67: a controlled run's steps as CUDA graphs (one a grid dt) against a fixed dt, graphs off beside
+    for g in auto off; do
+        run "control_$g" 100 env SWE_SPHERE_GRAPHS=$g "$PY" benchmarks/control_overhead.py --device "$DEVICE" \
+            --ne "$([ "$small" = 1 ] && echo 4 || echo 60)" --control error --pair rk43 --rtol 1e-6 --days 0.25 \
+            --parts a b --repeat 20 --results "gpu_control_overhead_$g"
+    done
+    cp benchmarks/results/gpu_control_overhead_*.json "$OUT/" 2>/dev/null
+}
+
 part_dinosaur() {
     local t="--truncations T42 T85 T170 T213"
     run dinosaur_galewsky "${PEER_S:-240}" "$PY" benchmarks/peer_dinosaur.py --case galewsky --device "$DEVICE" \
@@ -185,7 +195,7 @@ parts=("$@")
 [ ${#parts[@]} -eq 0 ] && parts=(setup tests agreement throughput graphs tc5 iterations)
 for part in "${parts[@]}"; do
     case $part in
-        setup|tests_gpu|tests|agreement|throughput|graphs|bits|tc5|iterations|reads|study|study_ne60|study_fine|criterion_ne60|criterion_ne120|dinosaur) "part_$part" ;;
-        *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_ne60 study_fine criterion_ne60 criterion_ne120 dinosaur)" >&2; exit 2 ;;
+        setup|tests_gpu|tests|agreement|throughput|graphs|bits|tc5|iterations|reads|study|study_ne60|study_fine|criterion_ne60|criterion_ne120|dinosaur|control) "part_$part" ;;
+        *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_ne60 study_fine criterion_ne60 criterion_ne120 dinosaur control)" >&2; exit 2 ;;
     esac
 done

@@ -166,3 +166,25 @@ def test_a_graphed_try_reads_the_host_once(one_thread, monkeypatch, name, contro
     assert reads == [(control == "error") + passes for _, passes in deciding], deciding
     if control == "error":
         assert sum(p for _, p in deciding) < tries / 2, deciding
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_a_graphed_controlled_run_continues_bitwise(tmp_path, one_thread, device):
+    """``rk43`` under error control with graphs, half a day straight against a quarter day, its
+    restart file and a fresh ``Simulation`` from it with graphs for the rest: the same bits, steps
+    and Δt (the continuation's first step evaluates its first stage, as after any restore)."""
+    whole = controlled("rk43", "error", device, True)
+    overrides = {"time.control": "error", "output.every_days": 0.25, "time.rtol": 1e-5}
+    scene = load_scene("tc5_mountain", ne=NE[device], np_=4, stepper="rk43", days=0.25, overrides=overrides)
+    scene = load_scene(
+        "tc5_mountain", ne=NE[device], np_=4, stepper="rk43", days=0.25, dt=5 * scene.dt, overrides=overrides
+    )
+    half = Simulation(scene, device, progress=False, graphs=True)
+    result = half.run(None, restart_every=0.25, restart_file=tmp_path / "half.restart.nc")
+    cont = Simulation.from_checkpoint(result.checkpoint, device, days=0.5, progress=False, graphs=True)
+    cont.run(None)
+    np.testing.assert_array_equal(cont.x.numpy(), whole.x.numpy())
+    assert cont.control.accepted == whole.control.accepted and cont.graphs_kept >= 1
+    assert [dt for _, dt, _ in cont.control.history] == [dt for _, dt, _ in whole.control.history][
+        -len(cont.control.history) :
+    ]

@@ -287,9 +287,11 @@ class Stepper:
         return ("step", self.dt) if self.capturable and self.model.forcing is None else None  # Δt: ``set_dt``
 
     def graph_family(self):
-        """``graph_key`` without Δt where the steps at any Δt launch the same kernels with
-        other arguments (the stages' coefficients), so that a graph checked at one Δt stands
-        for the others (``graphs.GraphedSteps``); None: each key's graph checked."""
+        """``graph_key`` without Δt where the steps at any Δt take the same kinds of work,
+        Δt entering as launch arguments (the stages' coefficients) and counts (the ∇⁴'s
+        substeps), nothing read on the host, so that a graph checked against plain launches at
+        one Δt vouches for the capture at the others (``graphs.GraphedSteps``); None: each
+        key's graph checked."""
         return None
 
     def replayed(self, stats: StepStats) -> StepStats:

@@ -156,6 +156,7 @@ class GraphedSteps:
         self.backend, self.device, self.guard = backend, backend.device, guard
         self._graphs: dict = {}  # (stepper, graph_key, watch, x's address) → _Entry, or None: seen once
         self._families: set = set()  # (stepper, graph_family, watch, x's address) whose first graph was checked
+        self.checked = 0  # the graphs compared with plain launches (``_checked``), kept or not
         self.mode = mode
 
     @property
@@ -241,6 +242,7 @@ class GraphedSteps:
         then from the state before it captured and replayed, the two compared bit for bit.
         Equal: the graph is kept for the key's later steps. Else, or when the capture or
         replay raises: the plain step's result stands and the guard fails (one line)."""
+        self.checked += 1
         arrays = [*stepper.device_arrays(), *([model.bad_nodes.watched] if watch else [])]
         before = self._snapshot(stepper, x, arrays)
         self.guard.enabled = False

@@ -243,6 +243,12 @@ class Simulation:
         (``graphs.GraphedSteps.kept``); 0 where steps run plain."""
         return self._graphed.kept
 
+    @property
+    def graphs_checked(self) -> int:
+        """The step graphs compared bit for bit with the same step launched plainly so far
+        (``graphs.GraphedSteps``: each key's first, or a ``Stepper.graph_family``'s)."""
+        return self._graphed.checked
+
     def try_step(self, x):
         """One step of the stepper on x (3, N) in place, replayed as a graph where ``graphs``
         lets it (``graphs.GraphedSteps``; its key holds Δt, so a controlled run's few Δt of

@@ -49,11 +49,13 @@ def graph_launches(monkeypatch):
     return count
 
 
-def build(name: str, control: str, device: str, graphs: bool, every: float = 0.25) -> Simulation:
+def build(name: str, control: str, device: str, graphs: bool, every: float = 0.25, days=None) -> Simulation:
     """TC5 on ne 2 (CPU) or 4 (CUDA) np 4 under ``control``: half a day at rtol 1e-5, or two
-    days at a Courant number 1; output every ``every`` days (steps landed off the grid), the
-    first step 5× the scene's Δt (tries rejected under error control), with or without graphs."""
-    keys, days = ({"time.rtol": 1e-5}, 0.5) if control == "error" else ({"time.cfl": 1.0}, 2.0)
+    days at a Courant number 1 (or ``days``); output every ``every`` days (steps landed off the
+    grid), the first step 5× the scene's Δt (tries rejected under error control), with or
+    without graphs."""
+    keys, length = ({"time.rtol": 1e-5}, 0.5) if control == "error" else ({"time.cfl": 1.0}, 2.0)
+    days = length if days is None else days
     overrides = {"time.control": control, "output.every_days": min(every, days), **keys}
     scene = load_scene("tc5_mountain", ne=NE[device], np_=4, stepper=name, days=days, overrides=overrides)
     scene = load_scene(
@@ -166,12 +168,7 @@ def test_a_graphed_controlled_run_continues_bitwise(tmp_path, one_thread, device
     restart file and a fresh ``Simulation`` from it with graphs for the rest: the same bits, steps
     and Δt (the continuation's first step evaluates its first stage, as after any restore)."""
     whole = controlled("rk43", "error", device, True)
-    overrides = {"time.control": "error", "output.every_days": 0.25, "time.rtol": 1e-5}
-    scene = load_scene("tc5_mountain", ne=NE[device], np_=4, stepper="rk43", days=0.25, overrides=overrides)
-    scene = load_scene(
-        "tc5_mountain", ne=NE[device], np_=4, stepper="rk43", days=0.25, dt=5 * scene.dt, overrides=overrides
-    )
-    half = Simulation(scene, device, progress=False, graphs=True)
+    half = build("rk43", "error", device, True, days=0.25)
     result = half.run(None, restart_every=0.25, restart_file=tmp_path / "half.restart.nc")
     cont = Simulation.from_checkpoint(result.checkpoint, device, days=0.5, progress=False, graphs=True)
     cont.run(None)

@@ -147,7 +147,8 @@ class StepControl:
             else:
                 self.norm = ErrorNorm(sim.topology, control.rtol, control.atol_wind, control.atol_h, depth)
                 # an inner solve's error below the step's (atol 0: rtol in each field's units)
-                stepper.follow_tolerance(min(control.atol_wind, control.atol_h) or control.rtol, control.rtol)
+                atol = min(control.atol_wind, control.atol_h) or control.rtol
+                stepper.follow_tolerance(atol, control.rtol, control.per_unit_step)
             stepper.estimate_errors()
             stepper.carry_last_stage()  # an FSAL pair's last RHS is the next step's first
         gravity_waves = stepper.courant_limit is not None  # explicit gravity waves: the signal's Courant number

@@ -148,10 +148,12 @@ class Stepper:
         embedded pair): what error control needs. ValueError names a bad option."""
         return cls.embedded_order > 0
 
-    def follow_tolerance(self, atol: float, rtol: float = 0.0) -> None:
+    def follow_tolerance(self, atol: float, rtol: float = 0.0, per_unit_step: bool = False) -> None:
         """Under error control with absolute tolerances ≥ ``atol`` and the relative ``rtol``: an
         iterative solve inside the step tightened to stay below the step's error
-        (``implicit.Implicit``, ``runge_kutta.ImexRK``); nothing here."""
+        (``implicit.Implicit``, ``runge_kutta.ImexRK``); ``per_unit_step``: the tolerances are
+        a day's (``time.per_unit_step``: a step's error held to Δt / 1 day of them). Nothing
+        here."""
 
     def estimate_errors(self) -> None:
         """Under error control (the estimate read every step): make ``error_estimate`` from now

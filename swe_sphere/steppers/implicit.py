@@ -118,9 +118,11 @@ class Implicit(Stepper):
     1980; Kay, Gresho, Griffiths & Silvester 2010, SIAM J. Sci. Comput. 32:111, eqs. 2.6–2.8):
     x_p = x(n) + Δt/2 ((2 + r) F(x(n)) − r F(x(n−1))), r = Δt/Δt_old, which is also Newton's
     first guess, and e = r (x − x_p) / (3 (1 + r)) (Milne's device: TR's error constant −1/12,
-    AB2's 5/12 at r = 1). The first step has no F(x(n−1)): forward Euler predicts, and e = x − x_p
-    is a second-order estimate (that step comes out short). ``Courant`` limits none: the
-    estimate alone sets Δt, through the gravity waves' phase error too.
+    AB2's 5/12 at r = 1). The first step has no F(x(n−1)): Heun's explicit trapezoidal rule
+    predicts (one RHS more), and e = (x − x_p) / 3 (TR's −1/12 against Heun's 1/6 on a linear
+    problem), of TR's order as after it (forward Euler's e = x − x_p, of second order, shrank
+    the first step linearly in Δt, and under ``per_unit_step`` below dt_min). ``Courant`` limits
+    none: the estimate alone sets Δt, through the gravity waves' phase error too.
     Reports Newton and GMRES iterations, preconditioner applications
     (``precond``) and their Helmholtz iterations per step; keeps the last
     step's residual history in ``residual_history``. Why these defaults: docs/reference.md,
@@ -332,11 +334,14 @@ class Implicit(Stepper):
         return newton
 
     # -- the error estimate (under error control) -------------------------------------------
-    def follow_tolerance(self, atol: float, rtol: float = 0.0) -> None:
+    def follow_tolerance(self, atol: float, rtol: float = 0.0, per_unit_step: bool = False) -> None:
         """Under error control with absolute tolerances ≥ ``atol`` (m s⁻¹, m): Newton converges
         to a residual RMS of at most 0.1 atol / Δt, a state error of about a tenth of the
         tolerance a step (SUNDIALS' nonlinear-solver coefficient 0.1), so that its own error stays
-        below the step's; ``atol`` (1e-8 s⁻¹ in those units) still bounds it."""
+        below the step's; ``atol`` (1e-8 s⁻¹ in those units) still bounds it. The same per unit
+        step: 0.1 atol / 1 day, a tenth of a step's share, doubled Newton's iterations (TC5 ne4,
+        a day at a day's rtol 1e-4: 7222 against 3703) and moved h by 2e-5 m, where the
+        tolerances apart moved it by 0.5 m (1e-3 against 1e-4)."""
         self.newton_atol = 0.1 * float(atol)
 
     def _atol(self) -> float:
@@ -345,8 +350,10 @@ class Implicit(Stepper):
         return self.o["atol"] if scaled is None else min(self.o["atol"], scaled / self.dt)
 
     def _predict(self, x) -> None:
-        """x = x_p from x(n) = ``xn`` and F(x(n)) = ``Fx``: AB2, or forward Euler on the first step.
-        F(x(n)) is kept by taking its buffer (Newton evaluates F at x_p into the other first)."""
+        """x = x_p from x(n) = ``xn`` and F(x(n)) = ``Fx``: AB2, or on the first step Heun's
+        x(n) + Δt/2 (F(x(n)) + F(x(n) + Δt F(x(n)))) (its F at t(n+1) into ``Fprev``, free until
+        ``_estimate``). F(x(n)) is kept by taking its buffer (Newton evaluates F at x_p into the
+        other first)."""
         self.Fn, self.Fx = self.Fx, self.Fn
         dt = self.dt
         if math.isfinite(self.dt_old):
@@ -355,12 +362,16 @@ class Implicit(Stepper):
             self._axpby(1.0, self.xp, -0.5 * dt * r, self.Fprev, self.xp)
         else:
             self._axpby(1.0, self.xn, dt, self.Fn, self.xp)
+            self._at(1.0)
+            self._F(self.xp, self.Fprev)
+            self._axpby(1.0, self.xn, 0.5 * dt, self.Fn, self.xp)
+            self._axpby(1.0, self.xp, 0.5 * dt, self.Fprev, self.xp)
         wp.copy(x, self.xp)
 
     def _estimate(self, x) -> None:
-        """``error_estimate`` = r (x − x_p) / (3 (1 + r)) (first step: x − x_p); F(x(n)) kept."""
+        """``error_estimate`` = r (x − x_p) / (3 (1 + r)) (first step: (x − x_p) / 3); F(x(n)) kept."""
         r = self.dt / self.dt_old if math.isfinite(self.dt_old) else None
-        c = 1.0 if r is None else r / (3.0 * (1.0 + r))
+        c = 1.0 / 3.0 if r is None else r / (3.0 * (1.0 + r))
         self._axpby(c, x, -c, self.xp, self.error_estimate)
         self.Fn, self.Fprev = self.Fprev, self.Fn
         self.dt_old = self.dt

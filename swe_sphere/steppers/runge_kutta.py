@@ -18,6 +18,7 @@ from fractions import Fraction
 import numpy as np
 import warp as wp
 
+from ..core.constants import DAY
 from ..kernels import blas
 from ..model.launches import Update
 from ..solvers.helmholtz import HelmholtzOptions
@@ -259,14 +260,16 @@ class ImexRK(HelmholtzSteps, Stepper):
         """The checked pair this stepper steps."""
         raise NotImplementedError
 
-    def follow_tolerance(self, atol: float, rtol: float = 0.0) -> None:
+    def follow_tolerance(self, atol: float, rtol: float = 0.0, per_unit_step: bool = False) -> None:
         """Under error control at the relative tolerance ``rtol`` > 0: the Helmholtz CG's relative
         residual at most ``CG_PER_RTOL`` rtol (not below ``solvers.helmholtz.TIGHTEST``): a solve's
         error enters the stages' L Y_j, and through them the estimate, as is, so a CG looser than
         the step made the estimate its noise (TC5 ne8 over 5 days at the CG's 1e-6: ``ark436`` at
-        rtol 1e-7 rejected 3435 tries for 2818 steps). ``atol`` alone (rtol 0) changes nothing."""
+        rtol 1e-7 rejected 3435 tries for 2818 steps). ``per_unit_step`` (rtol a day's): times
+        the first step's share Δt / 1 day, set once (a new CG tolerance drops the solve graphs).
+        ``atol`` alone (rtol 0) changes nothing."""
         if rtol > 0:
-            self.helmholtz.tighten(CG_PER_RTOL * rtol)
+            self.helmholtz.tighten(CG_PER_RTOL * rtol * (min(self.dt / DAY, 1.0) if per_unit_step else 1.0))
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)

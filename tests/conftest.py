@@ -194,6 +194,25 @@ def rng():
 
 
 @pytest.fixture
+def one_thread(monkeypatch):
+    """CPU launches on one thread (a CPU graph replays in one; split launches run plain)."""
+    monkeypatch.setenv(THREADS_ENV, "1")
+
+
+@pytest.fixture
+def graph_launches(monkeypatch):
+    """[n]: the number of ``wp.capture_launch`` calls since the test began."""
+    count, real = [0], wp.capture_launch
+
+    def launch(*a, **k):
+        count[0] += 1
+        return real(*a, **k)
+
+    monkeypatch.setattr(wp, "capture_launch", launch)
+    return count
+
+
+@pytest.fixture
 def tally():
     """``swe_sphere.core.tally``'s count of launches and host reads, wrapped around Warp for this test only."""
     from swe_sphere.core.tally import Tally, instrumented

@@ -34,9 +34,8 @@ STEPS = 8
 
 
 @pytest.fixture(autouse=True)
-def one_thread(monkeypatch):
-    """CPU launches on one thread (a CPU graph replays in one); no mode from the environment."""
-    monkeypatch.setenv("SWE_SPHERE_THREADS", "1")
+def plain_environment(one_thread, monkeypatch):
+    """CPU launches on one thread (conftest's ``one_thread``); no graphs mode from the environment."""
     monkeypatch.delenv("SWE_SPHERE_GRAPHS", raising=False)
 
 

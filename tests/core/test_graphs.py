@@ -38,25 +38,6 @@ SOLVER_DT = 4.0  # the implicit-type steppers' Δt in the read count, × TC5's
 SOLVERS = ["semi_implicit", "imex"]  # the capturable steppers with a Helmholtz CG
 
 
-@pytest.fixture
-def one_thread(monkeypatch):
-    """CPU launches on one thread (a CPU graph replays in one; split launches run plain)."""
-    monkeypatch.setenv("SWE_SPHERE_THREADS", "1")
-
-
-@pytest.fixture
-def graph_launches(monkeypatch):
-    """[n]: the number of ``wp.capture_launch`` calls since the test began."""
-    count, real = [0], wp.capture_launch
-
-    def launch(*a, **k):
-        count[0] += 1
-        return real(*a, **k)
-
-    monkeypatch.setattr(wp, "capture_launch", launch)
-    return count
-
-
 def tc5(name, device, steps=STEPS, **kw):
     """TC5 (every term, ∇⁴ included) on ne 2 (CPU) or 4 (CUDA) np 4 for ``steps`` steps."""
     scene = load_scene("tc5_mountain", ne=NE[device], np_=4, stepper=name, **kw)

@@ -18,7 +18,6 @@ import pytest
 import warp as wp
 
 from swe_sphere.config.scene import load_scene
-from swe_sphere.core.tally import Tally, instrumented
 from swe_sphere.simulation.simulation import Simulation
 
 from helpers import ON_CUDA
@@ -28,25 +27,6 @@ NE = {"cpu": 2, "cuda": 4}
 # (stepper, control): FSAL pairs with the last stage carried over (rk43, bs32), a pair without
 # (ssprk43), an IMEX pair (plain tries), an explicit stepper under CFL control
 CASES = [("rk43", "error"), ("bs32", "error"), ("ssprk43", "error"), ("ark324", "error"), ("ssprk3", "cfl")]
-
-
-@pytest.fixture
-def one_thread(monkeypatch):
-    """CPU launches on one thread (a CPU graph replays in one; split launches run plain)."""
-    monkeypatch.setenv("SWE_SPHERE_THREADS", "1")
-
-
-@pytest.fixture
-def graph_launches(monkeypatch):
-    """[n]: the number of ``wp.capture_launch`` calls since the test began."""
-    count, real = [0], wp.capture_launch
-
-    def launch(*a, **k):
-        count[0] += 1
-        return real(*a, **k)
-
-    monkeypatch.setattr(wp, "capture_launch", launch)
-    return count
 
 
 def build(name: str, control: str, device: str, graphs: bool, every: float = 0.25, days=None) -> Simulation:
@@ -130,12 +110,12 @@ def test_a_capture_failing_at_a_new_dt_falls_back_to_plain_launches(one_thread, 
 
 @pytest.mark.parametrize("device", DEVICES)
 @pytest.mark.parametrize("name, control", [("rk43", "error"), ("ssprk3", "cfl")])
-def test_a_graphed_try_reads_the_host_once(one_thread, monkeypatch, name, control, device):
+def test_a_graphed_try_reads_the_host_once(one_thread, tally, monkeypatch, name, control, device):
     """Host reads (``.numpy()``, each a device synchronisation) in a controlled run with graphs,
     output at its end only: none in a try's step once its graph is kept, and between one try
     and the next one read (the norm's) plus one where the Courant numbers' pass is taken
     (under error control only every few steps; under CFL control every step)."""
-    tally, inside, between = Tally(), [], []
+    inside, between = [], []
     sim = build(name, control, device, True, every=math.inf)
     real_try = Simulation.try_step
     last = {}
@@ -150,7 +130,7 @@ def test_a_graphed_try_reads_the_host_once(one_thread, monkeypatch, name, contro
         return stats
 
     monkeypatch.setattr(Simulation, "try_step", try_step)
-    with instrumented(tally), tally.counting():
+    with tally.counting():
         sim.run(None)
     tries = sim.control.accepted + sim.control.rejected
     assert len(inside) == tries and len(between) == tries - 1

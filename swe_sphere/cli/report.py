@@ -105,7 +105,7 @@ def header(args, sim, output, device, comm) -> None:
             f"{sim.model.threads} CPU threads each"
         )
     if sim.step:
-        print(f"continue    from {args.continue_from} at step {sim.step} (day {scene.day(sim.step):g})")
+        print(f"continue    from {args.continue_from} at step {sim.step} (day {sim.time:g})")
     elif args.continue_from is not None and scene.branch is not None:
         b = scene.branch
         print(
@@ -122,7 +122,7 @@ def _courant_notes_outputs(args, sim, output, c) -> None:
 
     scene = sim.scene
     grav = "" if math.isnan(c["courant_gravity"]) else f", gravity-wave {c['courant_gravity']:.3f}"
-    print(f"Courant     advective {c['courant_advective']:.3f}{grav} (max over nodes at t = {scene.day(sim.step):g} d)")
+    print(f"Courant     advective {c['courant_advective']:.3f}{grav} (max over nodes at t = {sim.time:g} d)")
     extra = [n for n in (sim.stability_warning(), sim.backend.threads_note()) if n]
     for note in (*scene.notes, *extra):
         if note.startswith("warning: "):

@@ -185,10 +185,10 @@ def run_grid(ds: xr.Dataset) -> CubedSphere:
     return grid
 
 
-def latlon_grid(resolution: float) -> tuple[np.ndarray, np.ndarray]:
-    """Regular node grid (degrees): lat −90, −90+r, …, 90 (both poles) and lon 0, r, …, 360−r.
-
-    Raises ``SceneError`` (a ValueError) unless 0 < r ≤ 90 and 180/r is an integer (to 1e-9)."""
+def latlon_shape(resolution: float) -> tuple[int, int]:
+    """(rows, columns) of ``latlon_grid(resolution)``, 180/r + 1 and 360/r, without building it
+    (a memory check comes first). Raises ``SceneError`` (a ValueError) unless 0 < r ≤ 90 and
+    180/r is an integer (to 1e-9)."""
     if isinstance(resolution, bool) or not isinstance(resolution, (int, float, np.floating, np.integer)):
         raise SceneError(f"resolution must be a number of degrees (got {resolution!r})")
     r = float(resolution)
@@ -198,6 +198,14 @@ def latlon_grid(resolution: float) -> tuple[np.ndarray, np.ndarray]:
     if abs(nlat - round(nlat)) > 1e-9 * nlat:
         raise SceneError(f"resolution must divide 180 degrees (got {resolution})")
     nlat = int(round(nlat))
+    return nlat + 1, 2 * nlat
+
+
+def latlon_grid(resolution: float) -> tuple[np.ndarray, np.ndarray]:
+    """Regular node grid (degrees): lat −90, −90+r, …, 90 (both poles) and lon 0, r, …, 360−r.
+
+    Raises ``SceneError`` (a ValueError) unless 0 < r ≤ 90 and 180/r is an integer (to 1e-9)."""
+    nlat = latlon_shape(resolution)[1] // 2
     lat = np.linspace(-90.0, 90.0, nlat + 1)
     lon = np.arange(2 * nlat) * (360.0 / (2 * nlat))
     return lat, lon
@@ -219,6 +227,23 @@ def remap_bytes(points: int, np_: int, ntime: int) -> int:
     (~6 np² words) and the remapped fields h, hs, u, v, vorticity, divergence, h_surface
     (ntime each, twice: computed and written)."""
     return 8 * points * (40 + 6 * np_ * np_ + 14 * ntime)
+
+
+def check_remap_memory(ds: xr.Dataset, resolution: float) -> tuple[int, int]:
+    """Refuse (``ResourceError``, one line) a remap of the run ``ds`` to ``resolution`` degrees
+    that would not fit in memory (``remap_bytes``), before anything is built: from the grid's
+    shape (``latlon_shape``) and the file's np (its scene's, else 8, the most). Returns the
+    shape. Raises ``SceneError`` for a resolution ``latlon_shape`` refuses."""
+    nlat, nlon = latlon_shape(resolution)
+    try:
+        np_ = int(json.loads(ds.attrs["scene"])["np"])
+    except (KeyError, ValueError, TypeError):
+        np_ = int(ds.attrs["np"]) if str(ds.attrs.get("np", "")).isdigit() else 8
+    check_memory(
+        remap_bytes(nlat * nlon, np_, ds.sizes.get("time", 1)),
+        f"remapping to {resolution:g} degrees ({nlat} x {nlon} points)",
+    )
+    return nlat, nlon
 
 
 def remap_dataset(ds, resolution: float = 1.0) -> xr.Dataset:
@@ -266,12 +291,9 @@ def remap_dataset(ds, resolution: float = 1.0) -> xr.Dataset:
     if not isinstance(ds, xr.Dataset):
         with open_netcdf(ds) as opened:
             return remap_dataset(opened.load(), resolution)  # loaded: the result outlives the file
+    check_remap_memory(ds, resolution)
     grid = run_grid(ds)
     lat, lon = latlon_grid(resolution)
-    check_memory(
-        remap_bytes(lat.size * lon.size, grid.np, ds.sizes.get("time", 1)),
-        f"remapping to {resolution:g} degrees ({lat.size} x {lon.size} points)",
-    )
     rm = Remapper(grid, np.radians(lat)[:, None], np.radians(lon)[None, :])
     out = _latlon_frame(ds, lat, lon)
     _add_fields(out, ds, rm)

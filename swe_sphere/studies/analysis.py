@@ -21,7 +21,7 @@ import xarray as xr
 
 from ..core.constants import EARTH
 from ..core.runtime import check_memory
-from ..io.remap import Remapper, latlon_grid, open_netcdf, remap_bytes, run_grid
+from ..io.remap import Remapper, latlon_grid, latlon_shape, open_netcdf, remap_bytes, run_grid
 from ..io.run_file import FIELDS
 
 # name → (long name, units on the colour bar, scale applied before drawing, colour map, symmetric about 0)
@@ -120,11 +120,10 @@ def _on_latlon(ds, fields, days, resolution):
     if days.size == 0:
         raise ValueError("the run holds no output time")
     nodes = np.array([[field_at_nodes(ds, f, d) for d in days] for f in fields])  # ValueError for a day not stored
-    lat, lon = latlon_grid(default_resolution(grid) if resolution is None else resolution)
-    check_memory(
-        remap_bytes(lat.size * lon.size, grid.np, nodes.shape[0] * nodes.shape[1]),
-        f"a {lat.size} x {lon.size} lat-lon grid",
-    )
+    resolution = default_resolution(grid) if resolution is None else resolution
+    nlat, nlon = latlon_shape(resolution)  # the memory check before the grid is built
+    check_memory(remap_bytes(nlat * nlon, grid.np, nodes.shape[0] * nodes.shape[1]), f"a {nlat} x {nlon} lat-lon grid")
+    lat, lon = latlon_grid(resolution)
     values = Remapper(grid, np.radians(lat)[:, None], np.radians(lon)[None, :])(nodes)
     return lat, lon, np.array([days_of(ds)[time_index(ds, d)] for d in days]), values
 

@@ -16,6 +16,8 @@ fills in)."""
 
 from __future__ import annotations
 
+import importlib
+import importlib.util
 import os
 import re
 import shutil
@@ -25,6 +27,7 @@ from pathlib import Path
 
 import pytest
 
+from swe_sphere.config.schema import SCHEMA
 from swe_sphere.mesh.cube import cube_mesh
 from swe_sphere.mesh.mesh import write_exodus
 
@@ -203,6 +206,50 @@ def test_inline_commands_are_examples_and_placeholders_are_not(tmp_path):
         "set -e\nswe-sphere run galewsky --stepper fbrk32 --dt 257.1 --days 12",
         "set -e\nI=rk4@1\nswe-sphere sweep tc5_mountain --runs $I,${I/rk4/kgu35} --output s",
     ]
+
+
+PAGES = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")))
+SCENE_KEY = re.compile(r"(?:^|\s)([a-z_]+)\.([a-z_][a-z_0-9]*)(?=[=\s]|$)")  # `grid.cube`, `-s grid.cube=...`
+
+
+def _is_python_name(section: str, key: str) -> bool:
+    """Whether ``section.key`` names a module or attribute (``grid.quality``, ``time.process_time``)."""
+    for module in (f"swe_sphere.{section}", section):
+        try:
+            if importlib.util.find_spec(f"{module}.{key}") is not None:
+                return True
+        except ModuleNotFoundError:
+            pass
+        try:
+            if hasattr(importlib.import_module(module), key):
+                return True
+        except ImportError:
+            pass
+    return False
+
+
+def test_the_pages_name_only_scene_keys_that_exist():
+    """docs/efficiency.md named `grid.equidistant` ("unknown key grid.equidistant in scene"; the
+    key is `grid.cube`): every `SECTION.KEY` written in a page's code span, SECTION a scene
+    table of fixed keys, is a key of it."""
+    unknown = []
+    for page in PAGES:
+        for span in re.findall(r"`([^`\n]+)`", page.read_text()):
+            for section, key in SCENE_KEY.findall(span):
+                keys = SCHEMA.get(section)
+                if isinstance(keys, dict) and key not in keys and not _is_python_name(section, key):
+                    unknown.append(f"{page.name}: {section}.{key} in `{span}`")
+    assert unknown == []
+
+
+def test_the_readme_says_what_a_frontier_rerun_takes():
+    """The README said a frontier "rerun reuses the runs"; the same command again is refused
+    ("output file exists: .../frontier.csv") unless --overwrite, as every command that would
+    replace results is (tests/studies/test_frontier.py: the rerun with overwrite reuses them)."""
+    text = " ".join((ROOT / "README.md").read_text().split())
+    frontier = text[text.index("### frontier") : text.index("### stability")]
+    assert "a rerun reuses the runs" not in frontier
+    assert "with `--overwrite` replaces these files and makes only the runs it lacks" in frontier
 
 
 # each page a group of its own, so that the pages (minutes together) spread over the workers

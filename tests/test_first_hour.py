@@ -322,3 +322,28 @@ def test_a_folder_or_a_file_of_another_format_is_named_as_such(capsys, args, wor
     Path("notamesh.g").write_text("not netCDF")
     cli_one_line(capsys, [*args, *TINY[4:]] if args[0] == "run" else args, 2, words)
     assert sorted(p.name for p in Path().iterdir()) == ["adir.nc", "binary.toml", "notamesh.g"]
+
+
+OPTIONS_BEFORE_FILES = [
+    (["run", "tc2_steady", *TINY, "--graphs", "maybe", "--output", "x.nc"], "--graphs must be one of"),
+    (["run", "tc2_steady", *TINY, "--restart-every", "0", "--output", "x.nc"], "--restart-every must be a number"),
+    (["run", "tc2_steady", *TINY, "--restart-every", "0.3", "--output", "x.nc"], "restart interval of 0.3 days"),
+    (["mesh", "--ne", "2", "--target-lat", "30", "--output", "x.g"], "they need stretch_factor"),
+    (["mesh", "--ne", "2", "--output", "x.nc"], "an Exodus II mesh, its name must end in .g or .exo"),
+    (["run", "", *TINY, "--output", "y.nc"], "the scene name is empty"),
+]
+if wp.get_cuda_device_count() == 0:
+    OPTIONS_BEFORE_FILES.append((["run", "tc2_steady", "--device", "cuda", "--output", "x.nc"], "device cuda is not"))
+
+
+@pytest.mark.parametrize("args, words", OPTIONS_BEFORE_FILES, ids=[w for _, w in OPTIONS_BEFORE_FILES])
+def test_a_command_names_what_is_wrong_with_its_options_before_its_files(capsys, args, words):
+    """With the output file there, a bad --graphs, --restart-every or --device was answered
+    "output file exists" (issue 86, item 4); ``mesh --output m.nc`` wrote an Exodus file under a
+    run file's name, and ``run ""`` said "cannot read scene .: is a directory" (item 5)."""
+    Path("x.nc").write_text("mine")
+    Path("x.g").write_text("mine")
+    line = cli_one_line(capsys, args, 2, words)
+    assert "exists" not in line, line
+    assert sorted(p.name for p in Path().iterdir()) == ["x.g", "x.nc"]
+    assert Path("x.nc").read_text() == Path("x.g").read_text() == "mine"

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from .values import exodus_output
+
 
 def command(args) -> int:
     from ..grid.cubed_sphere import CubedSphere
@@ -10,7 +12,7 @@ def command(args) -> int:
     from ..io.output_files import check_target
     from ..mesh.mesh import write_exodus
 
-    check_target(args.output, args.overwrite)
+    exodus_output(args.output)
     box = None if args.refine_box is None else Box(*args.refine_box)
     mesh = make_mesh(
         args.ne,
@@ -21,6 +23,7 @@ def command(args) -> int:
         levels=args.levels,
         smoothing=args.smoothing,
     )
+    check_target(args.output, args.overwrite)  # after the options' own refusals (make_mesh's)
     write_exodus(args.output, mesh)
     sizes = element_sizes(CubedSphere(0, 4, 1.0, mesh=mesh)).summary()
     print(

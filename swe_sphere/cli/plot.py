@@ -23,7 +23,6 @@ def command(args) -> int:
     from ..studies.plotting import plot_analyses, plot_run
 
     fields = args.field or ["h_surface"]
-    _check_folder(args.output)
     if args.spectrum or args.zonal_mean:
         if args.diff is not None or args.force:
             raise ValueError("--diff and --force compare maps: not with --spectrum or --zonal-mean")
@@ -31,6 +30,8 @@ def command(args) -> int:
             raise ValueError(
                 f"--{'field' if args.field else 'lat-range'} applies to maps and --zonal-mean, not --spectrum"
             )
+    _check_folder(args.output)  # after the options' own refusals
+    if args.spectrum or args.zonal_mean:
         paths = plot_analyses(
             args.run,
             args.day,

@@ -8,7 +8,7 @@ import os
 import sys
 from pathlib import Path
 
-from ..core.errors import BlowUp, CheckpointError, OutputError
+from ..core.errors import BlowUp, CheckpointError, OutputError, SceneError
 from .exits import EXIT_BLOWUP, hold_signals
 from .report import header, summary
 from .values import netcdf_output, overrides
@@ -120,9 +120,11 @@ def command(args) -> int:
     from ..config.scene import load_scene, resolve_path
     from ..core import mpi
     from ..core.backend import pick_device
+    from ..core.clock import is_interval
     from ..core.graphs import default_mode, graphs_mode
     from ..io.output_files import check_distinct, check_target
     from ..io.run_file import close_open_runs
+    from ..simulation.schedules import restart_steps
     from ..simulation.writers import restart_path
 
     if args.continue_from is None:
@@ -149,6 +151,14 @@ def command(args) -> int:
             f"{stem}_{'branch' + changes if changes else 'continued'}.nc"
         )
     netcdf_output(output)  # after the scene's own refusals, as check_target
+    # the options' own refusals before the file system is looked at ("output file exists")
+    args.graphs = graphs_mode(args.graphs, "--graphs") if args.graphs is not None else default_mode()  # the flag wins
+    device = pick_device(args.device)
+    if args.restart_every is not None:
+        if not is_interval(args.restart_every):
+            raise SceneError(f"--restart-every must be a number of days > 0 (got {args.restart_every!r})")
+        if scene is not None and scene.control is None:  # under step control any interval lands
+            restart_steps(scene, args.restart_every)  # whole steps (a continuation's: in _run)
     initial = scene.case_params.get("path") if scene is not None else None  # a file case's initial state: an input too
     check_distinct(
         [output, restart_path(output)], [args.continue_from, args.scene and resolve_path(str(args.scene)), initial]
@@ -158,8 +168,6 @@ def command(args) -> int:
     check_target(output, args.overwrite)
     if args.restart_every is not None:  # else written only on SIGINT/SIGTERM, and then not over an existing one
         check_target(restart_path(output), args.overwrite)
-    args.graphs = graphs_mode(args.graphs, "--graphs") if args.graphs is not None else default_mode()  # the flag wins
-    device = pick_device(args.device)
     comm = mpi.world()  # under mpiexec: one run over all ranks
     with (
         _output_lock(output, comm),

@@ -79,9 +79,20 @@ def runs(text: str) -> list[tuple[str, float | str]]:
     return pairs
 
 
-def netcdf_output(path: Path | None) -> Path | None:
-    """``--output`` of a command that writes netCDF: refused unless it ends in .nc (a
-    run file under another name is found by nothing that looks for one)."""
-    if path is not None and path.suffix != ".nc":
-        raise ValueError(f"--output {path}: the file is netCDF, its name must end in .nc")
+def named_output(path: Path | None, kind: str, suffixes: tuple[str, ...]) -> Path | None:
+    """``--output`` of a command that writes ``kind`` files: refused unless its name ends in one
+    of ``suffixes`` (a file under another name is found by nothing that looks for one, or is
+    taken for another format)."""
+    if path is not None and path.suffix not in suffixes:
+        raise ValueError(f"--output {path}: the file is {kind}, its name must end in {' or '.join(suffixes)}")
     return path
+
+
+def netcdf_output(path: Path | None) -> Path | None:
+    """``--output`` of a command that writes netCDF (a run file): it ends in .nc."""
+    return named_output(path, "netCDF", (".nc",))
+
+
+def exodus_output(path: Path | None) -> Path | None:
+    """``--output`` of ``mesh``: an Exodus II mesh, named .g (HOMME's) or .exo, not a run file's .nc."""
+    return named_output(path, "an Exodus II mesh", (".g", ".exo"))

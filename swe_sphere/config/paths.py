@@ -27,7 +27,9 @@ def list_scenes() -> list[Path]:
 def resolve_path(spec: str) -> Path:
     """A scene path, or the name of a bundled scene (with or without .toml, and
     with or without its folder: "ark2_gkc" or "tableaus/ark2_gkc").
-    Raises ``SceneError``, suggesting the closest bundled names for a typo."""
+    Raises ``SceneError``, suggesting the closest bundled names for a typo, or for an empty name."""
+    if not spec.strip():  # Path("") is the current folder
+        raise SceneError(f"the scene name is empty (got {spec!r}): give a scene file or a bundled scene's name")
     p = Path(spec)
     if p.exists():
         return p

@@ -77,3 +77,16 @@ def test_every_error_says_what_it_is(name):
     assert issubclass(cls, errors.SweSphereError) and len(inspect.getdoc(cls)) > 40
     if name in ("BlowUp", "Interrupted"):
         assert {"result"} <= named(sections(cls)["Attributes"])
+
+
+def test_the_reference_names_every_grid_key():
+    """docs/reference.md's `[grid]` paragraph left out `cube` (issue 86, item 5): it names
+    every key of the scene's [grid] table."""
+    from pathlib import Path
+
+    from swe_sphere.config.schema import SCHEMA
+
+    page = (Path(__file__).parents[1] / "docs" / "reference.md").read_text()
+    start = page.index("The mesh, in a scene's `[grid]`")
+    paragraph = page[start : page.index("\n\n", start)]
+    assert [k for k in SCHEMA["grid"] if not re.search(rf"`{k}(`| =)", paragraph)] == []

@@ -124,7 +124,7 @@ def command(args) -> int:
     from ..core.graphs import default_mode, graphs_mode
     from ..io.output_files import check_distinct, check_target
     from ..io.run_file import close_open_runs
-    from ..simulation.schedules import restart_steps
+    from ..simulation.schedules import check_restart_interval
     from ..simulation.writers import restart_path
 
     if args.continue_from is None:
@@ -157,8 +157,8 @@ def command(args) -> int:
     if args.restart_every is not None:
         if not is_interval(args.restart_every):
             raise SceneError(f"--restart-every must be a number of days > 0 (got {args.restart_every!r})")
-        if scene is not None and scene.control is None:  # under step control any interval lands
-            restart_steps(scene, args.restart_every)  # whole steps (a continuation's: in _run)
+        if scene is not None:  # a continuation's: in _run
+            check_restart_interval(scene, args.restart_every)
     initial = scene.case_params.get("path") if scene is not None else None  # a file case's initial state: an input too
     check_distinct(
         [output, restart_path(output)], [args.continue_from, args.scene and resolve_path(str(args.scene)), initial]
@@ -200,7 +200,7 @@ def _run(args, scene, output, device, comm) -> int:
 
     from ..core import mpi
     from ..core.workers import cpus, limit_threads
-    from ..simulation.schedules import restart_steps
+    from ..simulation.schedules import check_restart_interval
     from ..simulation.simulation import Simulation
 
     if comm is not None:
@@ -211,8 +211,8 @@ def _run(args, scene, output, device, comm) -> int:
         sim = _continued(args, device, comm)
     if not sim.root:  # rank 0 reports; the others' errors still reach stderr
         sys.stdout = open(os.devnull, "w")
-    if args.restart_every is not None and sim.control is None:  # under step control any interval lands
-        restart_steps(sim.scene, args.restart_every)  # checks the interval before the run
+    if args.restart_every is not None:
+        check_restart_interval(sim.scene, args.restart_every)  # before the header and the run
     header(args, sim, output, device, comm)
     try:
         result = sim.run(

@@ -24,6 +24,7 @@ from .constants import DAY
 from .errors import SceneError
 
 MAX_STEPS = 10**9  # a run longer than this is a typo in dt, not a plan
+MAX_TIMES = 10**5  # outputs or restart files in one run: more is a typo in the interval (1e-9 days)
 
 
 def is_interval(days) -> bool:
@@ -124,11 +125,25 @@ class Clock:
             f"a run writes and ends at whole steps; {fits}, or set a dt that divides it"
         )
 
+    def check_times(self, what: str, every: float) -> None:
+        """Refuse (``SceneError`` naming ``what``) an interval of ``every`` days (> 0) that gives
+        more than ``MAX_TIMES`` times (outputs, restart files) over the run: O(1), before any
+        schedule is listed (a dt cut to divide 1e-9 days made 1e8 of them)."""
+        times = math.floor(self.length / every + 1e-9)  # as ``schedules.output_steps`` counts them
+        if times > MAX_TIMES:
+            raise SceneError(
+                f"{what} of {every:g} days gives {times:.3g} times over the run of "
+                f"{self.length:g} days (more than {MAX_TIMES:.0e}): give a longer interval"
+            )
+
     def check(self, intervals: dict[str, float] | None = None) -> None:
-        """Refuse (``SceneError``) a run of more than ``MAX_STEPS`` steps, a run length of no
-        whole steps and any of ``intervals`` ({what: days}; output intervals) shorter than the
-        run that is not whole steps; the first refusal wins. A ``controlled`` clock's steps land
-        on the times: only the first refusal applies."""
+        """Refuse (``SceneError``) a run of more than ``MAX_STEPS`` steps, any of ``intervals``
+        ({what: days}; output intervals) that gives more than ``MAX_TIMES`` times
+        (``check_times``), a run length of no whole steps and any of ``intervals`` shorter than
+        the run that is not whole steps; the first refusal wins. A ``controlled`` clock's steps
+        land on the times: the whole-step refusals do not apply."""
+        for what, every in (intervals or {}).items():
+            self.check_times(what, every)
         if self.nsteps > MAX_STEPS:
             raise SceneError(
                 f"dt = {self.dt:g} s gives {self.nsteps:.3g} steps to day {self.length:g} (more than {MAX_STEPS:.0e})"

@@ -44,9 +44,20 @@ def output_days(scene: Scene, every_days: float | None = None) -> set[float]:
 
 def restart_steps(scene: Scene, every_days: float) -> set[int]:
     """Steps at which a run with ``--restart-every every_days`` writes its restart
-    file (and the last step). Raises ``SceneError`` unless dt divides the interval."""
+    file (and the last step). Raises ``SceneError`` unless dt divides the interval, or for more
+    than ``clock.MAX_TIMES`` of them (``Clock.check_times``)."""
     per = steps_of(scene, every_days, "the restart interval")
+    scene.clock.check_times("the restart interval", every_days)
     return set(range(per, scene.nsteps + 1, per)) | {scene.nsteps}
+
+
+def check_restart_interval(scene: Scene, every_days: float) -> None:
+    """Refuse (``SceneError``) a restart interval before a run: more than ``clock.MAX_TIMES``
+    restart files, or, under a fixed Δt, not whole steps (``restart_steps``; under step control
+    any interval lands)."""
+    scene.clock.check_times("the restart interval", every_days)
+    if scene.control is None:
+        restart_steps(scene, every_days)
 
 
 def next_multiple(step: int, every: int) -> int:

@@ -219,6 +219,7 @@ class Checkpointer:
         self.path = path
         self.steps = set()  # steps, or under step control days (``schedules.interval_days``)
         if every_days is not None:
+            sim.scene.clock.check_times("the restart interval", every_days)  # before the times are listed
             self.steps = (restart_steps if sim.control is None else interval_days)(sim.scene, every_days)
         self.schedule = AtSteps.of(self.steps) if sim.control is None else AtDays.of(self.steps)
         if every_days is not None and path is None:

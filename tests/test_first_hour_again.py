@@ -9,10 +9,11 @@ from pathlib import Path
 import pytest
 
 import swe_sphere.io.remap as remap
+from swe_sphere.config.scene import load_scene
 from swe_sphere.core.clock import Clock
 from swe_sphere.core.errors import SceneError
 
-from helpers import cli_main, cli_one_line, one_line
+from helpers import TINY, cli_main, cli_one_line, one_line
 
 
 @pytest.fixture(autouse=True)
@@ -71,3 +72,70 @@ def test_the_count_of_times_is_checked_in_the_clock():
     with pytest.raises(SceneError, match=r"the output interval of 1e-09 days gives 1e\+08 times"):
         clock.check({"the output interval": 1e-9})
     Clock(86.4, 0.0, 100.0).check({"the output interval": 0.001})  # 1e5 outputs: the most
+
+
+def test_an_empty_stepper_name_is_refused(capsys):
+    """`--stepper ""` ran the scene's stepper."""
+    cli_one_line(capsys, ["run", "tc2_steady", *TINY, "--stepper", "", "--output", "x.nc"], 2, "unknown stepper ''")
+    assert list(Path().iterdir()) == []
+
+
+def test_a_sweep_multiple_longer_than_the_run_is_refused(capsys):
+    """`sweep tc2_steady --ne 4 --days 0.1 --runs rk4@1e9` ran one step of the whole run and
+    drew its figures; the gravity-wave limit at ne 2 is 5743 s, 1.5 of it the run's 0.1 days."""
+    args = ["sweep", "tc2_steady", "--ne", "2", "--days", "0.1", "--runs", "rk4@1e9", "--device", "cpu"]
+    line = cli_one_line(capsys, [*args, "--output", "sw"], 2, "--runs rk4@1e+09", "longer than the run of 0.1 days")
+    assert line.endswith("give a multiple of at most 1.5")
+    assert [p for p in Path().rglob("*") if p.is_file()] == []
+
+
+FRONTIER = (
+    "frontier",
+    "tc2_steady",
+    "--ne",
+    "2",
+    "--np",
+    "4",
+    "--steppers",
+    "rk4",
+    "--days",
+    "0.25",
+    "--device",
+    "cpu",
+)
+
+
+def test_a_frontier_target_not_above_zero_is_refused(capsys):
+    cli_one_line(capsys, [*FRONTIER, "--target", "-1", "--output", "fr"], 2, "--target must be errors > 0", "-1")
+    assert not Path("fr").exists()
+
+
+@pytest.mark.parametrize(
+    "content, why",
+    [
+        (b"CDF\x01\x00\x00\x00\x00\xff\xfe", "not UTF-8 text"),  # a netCDF file's first bytes
+        (b"netCDF? no: a note\n", "no header row naming the columns"),
+        (b"model,label,error,cost_per_day\n", "holds no peer"),
+    ],
+)
+def test_a_peers_file_that_is_not_a_table_of_peers_is_refused(capsys, content, why):
+    """`frontier ... --peers notnc.nc`: a file that is not a table of peers was read as none."""
+    Path("notnc.nc").write_bytes(content)
+    cli_one_line(capsys, [*FRONTIER, "--peers", "notnc.nc", "--output", "fr"], 2, "notnc.nc", why)
+    assert not Path("fr").exists()
+
+
+def test_a_courant_target_past_the_stepper_s_limit_is_refused_or_warned(capsys):
+    """`-s time.cfl=50` with ssprk3 under time.control = "cfl" ran without a word (ssprk3's
+    measured limit is 1.11): past twice the limit refused, above it a warning naming it."""
+    cfl = ("--stepper", "ssprk3", "-s", "time.control=cfl")
+    args = ["run", "tc2_steady", *TINY, *cfl, "-s", "time.cfl=50", "--output", "x.nc"]
+    line = cli_one_line(capsys, args, 2, "time.cfl = 50", "ssprk3's measured Courant limit 1.11")
+    assert line.endswith("give at most 2.22")
+    assert list(Path().iterdir()) == []
+    scene = load_scene("tc2_steady", ne=2, stepper="ssprk3", overrides={"time.control": "cfl", "time.cfl": 2.0})
+    assert [n for n in scene.notes if "time.cfl" in n] == [
+        "warning: time.cfl = 2 (the Courant target) is above ssprk3's measured Courant limit 1.11 (TC2 at t = 0): "
+        "its steps may blow up"
+    ]
+    assert not [n for n in load_scene("tc2_steady", ne=2, stepper="ssprk3").notes if "time.cfl" in n]

@@ -34,6 +34,9 @@ DT_MIN_FRACTION = 1e-3  # dt_min's default: this fraction of the first step
 # a bisection on TC2 at t = 0): the target under "cfl", the cap under "error" (at ne8 the pairs' limits
 # on TC5, TC6 and Galewsky are 0.99-1.42 x TC2's in the same Courant number: docs/efficiency.md)
 CFL_FRACTION = 0.9
+# time.cfl past this multiple of the stepper's measured limit is refused (no measured case reached
+# 1.42 x TC2's limit), past the limit itself warned (``cfl_notes``)
+CFL_REFUSED = 2.0
 
 
 def is_controlled(table: dict) -> bool:
@@ -118,10 +121,28 @@ def _cfl(table: dict, mode: str, cls, stepper: str) -> tuple[float | None, bool]
         raise SceneError(f"time.cfl is missing: {stepper} has no measured Courant limit to aim below")
     if "cfl" not in table or (cfl is False and mode in ESTIMATED):
         return (None, False) if limit is None or cfl is False else (CFL_FRACTION * limit, mode in ESTIMATED)
+    off = " or false (no cap)" if mode in ESTIMATED else ""
     if isinstance(cfl, bool) or not is_number(cfl) or not cfl > 0:
-        off = " or false (no cap)" if mode in ESTIMATED else ""
         raise SceneError(f"time.cfl must be > 0{off} (got {got(cfl)})")
+    if limit is not None and cfl > CFL_REFUSED * limit:
+        raise SceneError(
+            f"time.cfl = {cfl:g} is past {CFL_REFUSED:g} x {stepper}'s measured Courant limit {limit:g} (TC2 at "
+            f"t = 0; no measured case reached 1.42 x it): give at most {CFL_REFUSED * limit:.3g}{off}"
+        )
     return float(cfl), False
+
+
+def cfl_notes(control: SceneControl | None, stepper: str) -> tuple[str, ...]:
+    """A warning for a time.cfl given above ``stepper``'s measured Courant limit (and within
+    ``CFL_REFUSED`` x it, ``_cfl``): the steps it asks for may blow up. () otherwise."""
+    limit = measured_courant_limit(STEPPERS[stepper])
+    if control is None or control.cfl is None or limit is None or control.cfl <= limit:
+        return ()
+    what = "target" if control.mode == "cfl" else "cap"
+    return (
+        f"warning: time.cfl = {control.cfl:g} (the Courant {what}) is above {stepper}'s measured Courant limit "
+        f"{limit:g} (TC2 at t = 0): its steps may blow up",
+    )
 
 
 def tolerance_table(key: str, value: float) -> dict:

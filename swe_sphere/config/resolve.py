@@ -288,7 +288,7 @@ def resolve_output_interval(output: dict) -> tuple[float, int]:
 def resolve_stepper_days(table: dict, stepper=None, days=None) -> tuple[str, float]:
     """(stepper, days) of the [time] table and ``load_scene``'s ``stepper`` and ``days`` (defaults
     ssprk3 and 1 day). Raises ``SceneError``: an unknown stepper, days not a number > 0."""
-    name = stepper or table.get("stepper", "ssprk3")
+    name = table.get("stepper", "ssprk3") if stepper is None else stepper  # "" is a name, and unknown
     if not isinstance(name, str) or name not in STEPPERS:
         raise SceneError(f"unknown stepper {name!r} (known: {', '.join(STEPPERS)})")
     days = table.get("days", 1.0) if days is None else days

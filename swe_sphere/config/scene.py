@@ -76,7 +76,7 @@ from ..core.errors import SceneError
 from ..io.initial_state import SCENE_CASES
 from ..mesh.records import MeshRecord, from_json, with_ne
 from ..steppers.initialization import DigitalFilter
-from .control import is_controlled, resolve_control
+from .control import cfl_notes, is_controlled, resolve_control
 from .paths import list_scenes, resolve_path, scene_dir
 from .resolve import (
     DT_NOTES,
@@ -492,7 +492,7 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict) -> S
         hypervis_subcycle=hv.subcycle,
         nu_div=hv.nu_div,
         nu_s=hv.nu_s,
-        notes=case.notes + grid_notes + dt_notes + stepper_notes + hv_notes,
+        notes=case.notes + grid_notes + dt_notes + stepper_notes + cfl_notes(control, stepper) + hv_notes,
         initialization=initialization,
         reference=case.reference,
         log_every_steps=int(log_every),

@@ -158,16 +158,12 @@ class Frontier:
 
     def sweep_plan(self, ne: int, np_: int, multiples=None) -> sweep.Plan:
         """The sweep of grid (ne, np): the runs at ``multiples`` of the gravity-wave limit
-        (one per run, in order; None: 1, for checking the options alone)."""
+        (one per run, in order; None: 1, for checking the options alone), each capped at the run
+        (not refused as a sweep's given multiples are: the frontier chose them)."""
         multiples = multiples or [1.0] * len(self.runs)
-        return sweep.plan(
-            self.scene,
-            runs=[(s, m) for (s, _), m in zip(self.runs, multiples)],
-            ne=ne,
-            np_=np_,
-            days=self.days,
-            overrides=self.overrides,
-        )
+        runs = [(s, m) for (s, _), m in zip(self.runs, multiples)]
+        plan = sweep.plan(self.scene, runs=runs, ne=ne, np_=np_, days=self.days, overrides=self.overrides)
+        return dataclasses.replace(plan, given=False)
 
     def run(
         self,
@@ -196,7 +192,7 @@ class Frontier:
         cost : {"cpu", "wall"}
             The clock of the cost (the sweep's ``--cost``).
         targets : sequence of float
-            Errors for which the table names the cheapest run (``cheapest_for``).
+            Errors (normalized l2, > 0) for which the table names the cheapest run (``cheapest_for``).
         overwrite : bool
             Replace an earlier frontier's files in ``directory``.
         peers : sequence of dict
@@ -216,13 +212,16 @@ class Frontier:
         OutputError
             Another frontier holds ``directory``, or its results exist (without ``overwrite``).
         ValueError
-            An unknown ``cost``.
+            An unknown ``cost``, a target not > 0 (before any run).
         BlowUp
             A grid's small-Δt reference run failed.
         Interrupted
             SIGINT or SIGTERM; the runs made are kept, and a rerun reuses them.
         """
         directory, device = Path(directory), pick_device(device)
+        for target in targets:  # before any run
+            if not (isinstance(target, (int, float)) and math.isfinite(target) and target > 0):
+                raise ValueError(f"--target must be errors > 0 (normalized l2; got {target:g})")
         with folder_lock(directory, "frontier.lock"):
             check_results(directory, OUTPUTS, overwrite)
             rows, record = [], None
@@ -482,17 +481,29 @@ def read_peers(path) -> list[dict]:
     e.g. "T85"), ``error`` (the frontier's error, normalized l2) and ``cost_per_day`` (s per
     simulated day on the frontier's clock). Returns the points as dicts. Raises
     ``FileNotFoundError``; ``ValueError`` (naming the file) for a missing column, or an error or
-    cost that is not a number > 0."""
+    cost that is not a number > 0, a file that is not a table of peers (not UTF-8 text, not
+    JSON where named .json, a CSV whose header lacks the columns, no peer)."""
+    import csv
     import json
 
     path = Path(path)
-    if path.suffix.lower() == ".json":
-        items = json.loads(path.read_text())
-    else:
-        import csv
-
-        with path.open(newline="") as f:
-            items = list(csv.DictReader(f))
+    columns = ", ".join(PEER_COLUMNS)
+    try:
+        if path.suffix.lower() == ".json":
+            items = json.loads(path.read_text())
+        else:
+            with path.open(newline="") as f:
+                table = csv.DictReader(f)
+                if not set(PEER_COLUMNS) & set(table.fieldnames or ()):  # one lacking: its peers say so
+                    raise ValueError("no header row naming the columns")
+                items = list(table)
+    except (UnicodeDecodeError, json.JSONDecodeError, csv.Error, ValueError) as err:
+        why = "not UTF-8 text" if isinstance(err, UnicodeDecodeError) else str(err).partition(":")[0]
+        raise ValueError(
+            f"{path}: not a table of peers ({why}): a CSV with a header row, or a JSON list, of {columns}"
+        ) from None
+    if not items:
+        raise ValueError(f"{path}: holds no peer: a CSV with a header row, or a JSON list, of {columns}")
     peers = []
     for i, item in enumerate(items if isinstance(items, list) else [items]):
         missing = [k for k in PEER_COLUMNS if not isinstance(item, dict) or k not in item]

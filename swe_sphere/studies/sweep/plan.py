@@ -72,6 +72,9 @@ class Plan:
         The restart file every run branches from, as given.
     checkpoint : Checkpoint or None
         Its contents (``checkpoint.read``).
+    given : bool
+        The ``multiples`` were given (``courant`` or ``runs``): one whose Δt is longer than the
+        run is refused (``resolve``); the defaults' are capped at the run.
     """
 
     scenes: dict
@@ -83,6 +86,7 @@ class Plan:
     overrides: dict
     restart: Path | None
     checkpoint: object | None
+    given: bool = False
 
     @property
     def base(self) -> Scene:
@@ -121,6 +125,8 @@ class Plan:
         dts, pairs, notes = self.dts, self.runs, []
         if dts is None:
             g = limits["dt_gravity"]
+            if self.given and f is None:  # a time filter caps Δt at its snapshot interval instead
+                _check_multiples(self.multiples, g, span, pairs)
             dt_of = {m: dt_for_day(m * g, span) for m in self.multiples}
             dts = tuple(sorted(set(dt_of.values())))
             asked = {m: "/".join(f"{s}@{m:g}" for s, k in pairs if k == m) if pairs else f"{m:g}" for m in dt_of}
@@ -335,10 +341,28 @@ def plan(
         _name(s, key, value): _controlled(scene, s, key, value, ne=ne, np_=np_, days=days, overrides=overrides, ck=ck)
         for s, key, value in controlled
     }
+    given = courant is not None or runs is not None
     dts, multiples = _steps(dts, courant, runs)
     time_filter = _time_filter(next(iter(scenes.values())).run_days, dts, filter_days, filter_every, filter_window)
     names = tuple(dict.fromkeys(_name(*c) for c in controlled))
-    return Plan(scenes, dts, multiples, runs, names, time_filter, overrides, None if ck is None else Path(restart), ck)
+    restart = None if ck is None else Path(restart)
+    return Plan(scenes, dts, multiples, runs, names, time_filter, overrides, restart, ck, given)
+
+
+def _check_multiples(multiples, dt_gravity: float, span: float, pairs) -> None:
+    """Refuse (ValueError, one line) a multiple of the gravity-wave limit ``dt_gravity`` (s)
+    whose Δt is longer than the run of ``span`` days: it could only run as one step of the run
+    (``rk4@1e9``). ``pairs``: the (stepper, multiple) runs of ``--runs`` (None: ``--courant``),
+    for the message."""
+    too_long = [m for m in multiples if m * dt_gravity > span * DAY * (1 + 1e-9)]
+    if not too_long:
+        return
+    m = max(too_long)
+    what = f"--runs {'/'.join(s for s, k in pairs if k == m)}@{m:g}" if pairs else f"--courant {m:g}"
+    raise ValueError(
+        f"{what}: {m:g} x the gravity-wave limit ({dt_gravity:.4g} s) is a dt of {m * dt_gravity:.3g} s, longer "
+        f"than the run of {span:g} days; give a multiple of at most {span * DAY / dt_gravity:.3g}"
+    )
 
 
 def _name(stepper: str, key: str, value: float) -> str:

@@ -52,6 +52,7 @@ _LAZY = {
         [
             "SweSphereError",
             "SceneError",
+            "ArgumentError",
             "OutputError",
             "CheckpointError",
             "BlowUp",

@@ -4,11 +4,27 @@ does; none escapes as a TypeError, pathlib's or numpy's wording, or a bare Value
 
 from __future__ import annotations
 
+import functools
+
+import numpy as np
 import pytest
 import warp as wp
 
 import swe_sphere
-from swe_sphere import OutputError, SceneError, Simulation, SweSphereError, remap_dataset
+from swe_sphere import (
+    ArgumentError,
+    HeightMisfit,
+    HeightObservations,
+    OutputError,
+    PointHeights,
+    SceneError,
+    Simulation,
+    SweSphereError,
+    gradient,
+    load_scene,
+    remap_dataset,
+)
+from swe_sphere.adjoint.gradient import scene_model
 
 TINY = dict(ne=2, np=3, days=0.01, device="cpu")
 SIM = dict(ne=2, np=3, days=0.01)
@@ -16,6 +32,23 @@ SIM = dict(ne=2, np=3, days=0.01)
 
 def _sim():
     return Simulation("tc2_steady", "cpu", **SIM)
+
+
+@functools.cache
+def _tc5(stepper="rk4"):
+    """TC5 at ne 2 np 3 (216 element-local nodes) for the gradient's misuses."""
+    return load_scene("tc5_mountain", ne=2, np_=3, stepper=stepper)
+
+
+def _grid():
+    return scene_model(_tc5())[0].grid
+
+
+def _gradient(*args, **kwargs):
+    return gradient(_tc5(), *args, **kwargs)
+
+
+FLAT = HeightMisfit(0.0)
 
 
 MISUSES = {
@@ -46,6 +79,61 @@ MISUSES = {
     "remap_dataset resolution < 0": (lambda f: remap_dataset(f, -1), SceneError, "resolution"),
     "remap_dataset missing file": (lambda f: remap_dataset("nosuch.nc"), SceneError, "nosuch.nc"),
     "remap_dataset a folder": (lambda f: remap_dataset(f.parent), SceneError, "is a directory"),
+    # the gradient and its observations (issue 86, items 2, 3)
+    "gradient of a scene's name": (lambda f: gradient("tc5_mountain", 4, FLAT), ArgumentError, "scene must be a Scene"),
+    "gradient cost None": (lambda f: _gradient(4, None), ArgumentError, "cost must be a callable"),
+    "gradient comm a str": (lambda f: _gradient(1, FLAT, comm="x"), ArgumentError, "comm must be an mpi4py"),
+    "gradient steps 2.5": (lambda f: _gradient(2.5, FLAT), ArgumentError, "steps must be an integer >= 1 (got 2.5)"),
+    "gradient steps 0": (lambda f: _gradient(0, FLAT), ArgumentError, "steps must be an integer >= 1 (got 0)"),
+    "gradient snapshots 1.5": (lambda f: _gradient(2, FLAT, snapshots=1.5), ArgumentError, "snapshots"),
+    "gradient parameters a str": (lambda f: _gradient(1, FLAT, parameters="yes"), ArgumentError, "parameters"),
+    "gradient disk a number": (lambda f: _gradient(1, FLAT, disk=5), ArgumentError, "disk must be"),
+    "gradient history a number": (lambda f: _gradient(1, FLAT, history=5), ArgumentError, "history must be rows"),
+    "gradient x0 with a NaN": (
+        lambda f: _gradient(1, FLAT, x0=np.full((3, 216), np.nan)),
+        ArgumentError,
+        "x0 must be finite",
+    ),
+    "gradient device tpu": (lambda f: _gradient(1, FLAT, device="tpu"), SceneError, "device"),
+    "gradient cost returning a number": (lambda f: _gradient(1, lambda x, s: 1.0), ArgumentError, "cost must return"),
+    "gradient of semi_implicit": (
+        lambda f: gradient(_tc5("semi_implicit"), 1, FLAT),
+        ArgumentError,
+        "got scene.stepper = 'semi_implicit'",
+    ),
+    "HeightMisfit of 7 nodes": (
+        lambda f: _gradient(1, HeightMisfit(np.zeros(7))),
+        ArgumentError,
+        "h_obs must be a number or have shape (216,)",
+    ),
+    "HeightMisfit NaN": (lambda f: HeightMisfit(np.nan), ArgumentError, "h_obs must be finite"),
+    "PointHeights lengths differ": (
+        lambda f: PointHeights(_grid(), [0.1, 0.2], [0.3]),
+        ArgumentError,
+        "lat and lon must have one shape",
+    ),
+    "PointHeights in degrees": (
+        lambda f: PointHeights(_grid(), [100.0], [0.3]),
+        ArgumentError,
+        "lat must be in [-1.5708, 1.5708] (radians",
+    ),
+    "PointHeights lon in degrees": (lambda f: PointHeights(_grid(), [0.1], [300.0]), ArgumentError, "lon must be in"),
+    "PointHeights grid a number": (lambda f: PointHeights(5, [0.1], [0.3]), ArgumentError, "grid must be"),
+    "HeightObservations values a list": (
+        lambda f: HeightObservations(PointHeights(_grid(), [0.1], [0.3]), [1.0]),
+        ArgumentError,
+        "values must be a mapping",
+    ),
+    "HeightObservations step -1": (
+        lambda f: HeightObservations(PointHeights(_grid(), [0.1], [0.3]), {-1: [1.0]}),
+        ArgumentError,
+        "the keys of values must be an integer >= 0",
+    ),
+    "HeightObservations sigma NaN": (
+        lambda f: HeightObservations(PointHeights(_grid(), [0.1], [0.3]), {0: [1.0]}, sigma=np.nan),
+        ArgumentError,
+        "sigma must be a finite number > 0",
+    ),
 }
 if wp.get_cuda_device_count() == 0:
     MISUSES["device cuda without a GPU"] = (

@@ -9,6 +9,8 @@ import tempfile
 import numpy as np
 import warp as wp
 
+from ..core.errors import ArgumentError
+
 
 class DiskTier:
     """States of shape ``shape`` (float64) written to one temporary file in ``folder`` (a path,
@@ -19,13 +21,13 @@ class DiskTier:
 
     ``save(j, x)`` writes x (a warp array of ``shape``) as record j (8·prod(shape) bytes at
     offset j × that); ``load(j)`` returns a new warp array equal to record j; ``bytes`` is the
-    file's size (the records up to the highest written). ValueError for a folder that is not
+    file's size (the records up to the highest written). ``ArgumentError`` for a folder that is not
     a directory; OSError from the writes (a full disk) and reads."""
 
     def __init__(self, folder, shape, device="cpu"):
         folder = tempfile.gettempdir() if folder is True else os.fspath(folder)
         if not os.path.isdir(folder):
-            raise ValueError(f"disk must be True or an existing folder (got {folder!r})")
+            raise ArgumentError(f"disk must be True or an existing folder (got {folder!r})")
         self.shape, self.device = tuple(shape), device
         self.record = 8 * int(np.prod(self.shape))
         self.bytes = 0

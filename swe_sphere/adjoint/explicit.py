@@ -42,6 +42,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from ..core.errors import ArgumentError
 from ..kernels import tendencies, tendency_adjoint
 from ..model.launches import Update
 from ..model.shallow_water import ShallowWater
@@ -70,7 +71,7 @@ class StepAdjoint:
     also sums ∂J/∂ν, ∂J/∂ν_s (``d_nu``) and the hs adjoint (``d_hs``, ``hs_gradient``) over
     the steps reversed. CPU or CUDA; on a rank's part of the grid (the model's ``topology``:
     μ on its nodes, the DSS's exchanges in the transposes, ``d_nu`` the same on every rank,
-    the same bits on any number of ranks). ValueError (``refusal``) for a model it cannot
+    the same bits on any number of ranks). ``ArgumentError`` (``refusal``) for a model it cannot
     serve.
 
     Work arrays (3, N) held: the s stages Y_i; K_j = F(Y_j) only where a stage after the next
@@ -105,7 +106,7 @@ class StepAdjoint:
         parameters' sums and the ∇⁴'s substeps."""
         why = refusal(model, dt)
         if why is not None:
-            raise ValueError(why)
+            raise ArgumentError(why)
         self.model, self.dt, self.parameters, self.t0 = model, float(dt), bool(parameters), float(t0)
         m, N, device = model, model.N, model.device
         self._held: dict[float, dict] = {}  # another Δt's records (``set_dt``)
@@ -162,14 +163,14 @@ class StepAdjoint:
     def set_dt(self, dt: float) -> None:
         """Reverse the next steps at Δt = ``dt`` (s): a run whose steps the controller chose
         (``gradient(..., history=)``). The records of the last ``HELD_DTS`` Δt are kept, so
-        that a Δt that recurs replays its launches. ValueError (``refusal``) for a Δt the
+        that a Δt that recurs replays its launches. ``ArgumentError`` (``refusal``) for a Δt the
         adjoint cannot serve."""
         dt = float(dt)
         if dt == self.dt:
             return
         why = refusal(self.model, dt)
         if why is not None:
-            raise ValueError(why)
+            raise ArgumentError(why)
         self._held[self.dt] = {key: getattr(self, key) for key in self._PER_DT}
         if len(self._held) > HELD_DTS:
             del self._held[next(iter(self._held))]

@@ -13,6 +13,7 @@ other rows are zero.
 
 from __future__ import annotations
 
+from ..core.errors import ArgumentError
 from ..model.launches import Update
 from ..model.shallow_water import ShallowWater
 from .explicit import StepAdjoint
@@ -21,7 +22,7 @@ from .explicit import StepAdjoint
 class ForwardBackwardAdjoint(StepAdjoint):
     """The adjoint of one FB-RK(3,2) step of ``model`` at Δt = ``dt`` (s), the stepper's
     ``C`` and ``BETA`` (``stepper``: an ``FBRK32``); otherwise as ``StepAdjoint`` (``reverse``,
-    ``parameters``: ∂J/∂ν, ν_s, hs, g and Ω; a forcing's stages at their times). ValueError for a model without
+    ``parameters``: ∂J/∂ν, ν_s, hs, g and Ω; a forcing's stages at their times). ``ArgumentError`` for a model without
     momentum terms (its wind a combination alone), and as ``StepAdjoint``.
 
     Work arrays (3, N) held: Z_0…Z_3, S_0…S_2, the continuity half's k̄, the momentum half's
@@ -30,7 +31,7 @@ class ForwardBackwardAdjoint(StepAdjoint):
     def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
         self._setup(model, dt, parameters, t0)
         if not stepper.momentum:
-            raise ValueError("fbrk32's adjoint needs the momentum terms")
+            raise ArgumentError("fbrk32's adjoint needs the momentum terms")
         self.continuity, self.momentum = stepper.continuity, stepper.momentum
         self.C, self.BETA = tuple(stepper.C), tuple(stepper.BETA)
         zeros = self._zeros

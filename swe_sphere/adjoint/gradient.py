@@ -13,12 +13,22 @@ import numpy as np
 import warp as wp
 
 from ..config.scene import Scene
-from ..core.backend import Backend
+from ..core.arguments import (
+    array_argument,
+    callable_argument,
+    flag_argument,
+    instance_argument,
+    integer_argument,
+    path_argument,
+)
+from ..core.backend import Backend, pick_device
 from ..core.constants import DAY
+from ..core.errors import ArgumentError
 from ..grid.topology import on_ranks
 from ..model.shallow_water import ShallowWater
 from ..steppers import make_stepper
 from ..steppers.explicit import FBRK32, Leapfrog, LeapfrogTrapezoidal
+from ..steppers.helmholtz_steps import HelmholtzSteps
 from ..steppers.local import Lts
 from ..steppers.multirate import Mri, SplitExplicit
 from ..steppers.runge_kutta import ExplicitRK
@@ -35,13 +45,26 @@ f64 = wp.float64
 
 class HeightMisfit:
     """J(x) = ½ Σ spheremp (h − h_obs)² over the element-local nodes (m⁴: the area integral
-    ½ ∫ (h − h_obs)² dA of a continuous h), with ``h_obs`` (N,) element-local, m.
-    ``__call__(x, spheremp)``: (J, λ) for x (3, N) numpy rows u, v, h; λ = ∂J/∂x (3, N)."""
+    ½ ∫ (h − h_obs)² dA of a continuous h), with ``h_obs`` a number or (N,) element-local, m
+    (N the whole grid's element-local nodes, ``gradient``'s). ``__call__(x, spheremp)``: (J, λ)
+    for x (3, N) numpy rows u, v, h; λ = ∂J/∂x (3, N). ``ArgumentError`` naming ``h_obs`` for
+    anything but finite numbers of those shapes (``gradient`` checks N before it runs:
+    ``check_nodes``)."""
 
     def __init__(self, h_obs):
-        self.h_obs = np.asarray(h_obs, dtype=float)
+        self.h_obs = array_argument("h_obs", h_obs, unit="m")
+        if self.h_obs.ndim > 1:
+            raise ArgumentError(f"h_obs must be a number or have shape (N,) (got {self.h_obs.shape})")
+
+    def check_nodes(self, n: int) -> None:
+        """Refuse (``ArgumentError``) an ``h_obs`` of another length than the grid's ``n`` nodes."""
+        if self.h_obs.ndim == 1 and self.h_obs.shape != (n,):
+            raise ArgumentError(
+                f"h_obs must be a number or have shape ({n},), the grid's element-local nodes (got {self.h_obs.shape})"
+            )
 
     def __call__(self, x, spheremp):
+        self.check_nodes(np.shape(x)[-1])
         r = x[2] - self.h_obs
         lam = np.zeros_like(x)
         lam[2] = spheremp * r
@@ -83,20 +106,33 @@ class _FinalCost:
     def __init__(self, cost, n: int):
         self.cost, self.at_steps = cost, (n,)
 
+    def check_nodes(self, n: int) -> None:
+        if hasattr(self.cost, "check_nodes"):
+            self.cost.check_nodes(n)
+
     def __call__(self, k, x, spheremp):
         return self.cost(x, spheremp)
 
 
 def run_cost(cost, steps: int):
     """``cost`` as a cost of the run: one with ``at_steps`` as it is (its steps checked), any
-    other callable as that of the final state x(n). ValueError for no steps, or one outside
-    0 … ``steps`` or not an integer."""
+    other callable as that of the final state x(n). ``ArgumentError`` for a cost that is neither,
+    no steps, or one outside 0 … ``steps`` or not an integer."""
     if not hasattr(cost, "at_steps"):
-        return _FinalCost(cost, steps)
-    at = list(cost.at_steps)
-    if not at or any(int(k) != k or not 0 <= k <= steps for k in at):
-        raise ValueError(f"a cost's at_steps must be integers in 0 … {steps} (got {at})")
+        return _FinalCost(callable_argument("cost", cost, _COST), steps)
+    callable_argument("cost", cost, _COST)
+    try:
+        at = list(cost.at_steps)
+    except TypeError:
+        at = None
+    if not at or any(isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 0 <= k <= steps for k in at):
+        raise ArgumentError(
+            f"cost.at_steps must be integers in 0 … {steps} (got {at if at is not None else cost.at_steps!r})"
+        )
     return cost
+
+
+_COST = "a callable (x, spheremp) -> (J, λ), or a cost of the run with at_steps (HeightObservations)"
 
 
 class _Topography:
@@ -117,8 +153,9 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
     communicator; None: one process, the whole grid): its ``ShallowWater`` (``model.topology``
     assembles the ranks' parts), its stepper (at the scene's Δt, under no step control) and its
     case's initial state (3, N) numpy on this rank's nodes; ``hs`` (nnodes_total,) m: the whole
-    grid's surface height instead of the case's (read on rank 0). ValueError unless the stepper
-    has an adjoint (``step_adjoint``), or for hs of another shape (on every rank)."""
+    grid's surface height instead of the case's (read on rank 0). ``ArgumentError`` unless the
+    stepper has an adjoint (``step_adjoint``; not a stepper that solves a Helmholtz problem, e.g.
+    semi_implicit, whose solve has none), or for hs of another shape (on every rank)."""
     case = scene.make_case()
     topo = on_ranks(scene.ne, scene.np, case.planet.a, comm, Backend.of(device), scene.make_mesh())
     grid = topo.grid
@@ -126,10 +163,11 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
         hs = _distributed(topo, hs, 1, "hs")[0]
     model = ShallowWater.from_scene(scene, grid, case if hs is None else _Topography(case, hs), topology=topo)
     stepper = make_stepper(scene.stepper, model, scene.dt, **scene.stepper_options)
-    if not isinstance(stepper, (ExplicitRK, FBRK32, Leapfrog, LeapfrogTrapezoidal, SplitExplicit, Mri)):
-        raise ValueError(
+    explicit = (ExplicitRK, FBRK32, Leapfrog, LeapfrogTrapezoidal, SplitExplicit, Mri)
+    if not isinstance(stepper, explicit) or isinstance(stepper, HelmholtzSteps):  # semi_implicit: a Leapfrog
+        raise ArgumentError(
             "gradients need an explicit Runge–Kutta stepper, fbrk32, a leapfrog, split_explicit, mri or lts "
-            f"(got {scene.stepper!r})"
+            f"(got scene.stepper = {scene.stepper!r})"
         )
     return model, stepper, np.stack(case.initial(grid.lat, grid.lon))
 
@@ -140,18 +178,28 @@ class Clock:
     Fixed (``history`` None): Δt_k = ``dt``, t0_k = ``start`` (s). Otherwise ``history`` a
     controlled run's accepted steps from ``start`` (``StepControl.history``: (time reached (s),
     Δt (s), error norm) each): Δt_k its k-th Δt, t0_k = t_k − k·Δt_k with t_k the time step k
-    started at (``StepControl.step`` sets the stepper's clock so). ValueError for a Δt that is
-    not a positive finite number or times that do not increase, naming the step."""
+    started at (``StepControl.step`` sets the stepper's clock so). ``ArgumentError`` for rows
+    that are not numbers, a Δt that is not a positive finite number or times that do not
+    increase, naming the step."""
 
     def __init__(self, start: float, dt: float, history=None):
         self.start, self.dt, self.steps = float(start), float(dt), None
         if history is None:
             return
-        rows = [tuple(map(float, row[:2])) for row in history]
+        try:
+            rows = [tuple(map(float, row[:2])) for row in history]
+        except (TypeError, ValueError, IndexError):
+            raise ArgumentError(
+                f"history must be rows (time reached (s), dt (s), ...), a run's control.history (got {history!r:.60})"
+            ) from None
+        if any(len(row) < 2 for row in rows):
+            raise ArgumentError("history must be rows (time reached (s), dt (s), ...), a run's control.history")
         t = self.start
         for k, (reached, step) in enumerate(rows):
             if not (np.isfinite(step) and step > 0 and np.isfinite(reached) and reached > t):
-                raise ValueError(f"history step {k}: dt {step!r} s must be > 0 and its time {reached!r} s after {t!r}")
+                raise ArgumentError(
+                    f"history step {k}: dt {step!r} s must be > 0 and its time {reached!r} s after {t!r}"
+                )
             t = reached
         starts = [self.start, *(reached for reached, _ in rows[:-1])]
         self.steps = [(t - k * step, step) for k, (t, (_, step)) in enumerate(zip(starts, rows))]
@@ -189,15 +237,27 @@ def step_adjoint(model: ShallowWater, stepper, parameters: bool = False) -> Step
     return StepAdjoint(model, stepper.table(), stepper.dt, parameters, stepper.t0)
 
 
+def _on_root(topo, check):
+    """``check()`` on rank 0, its ``ArgumentError`` raised on every rank (the others wait for it)."""
+    refusal, value = None, None
+    if topo.comm.rank == 0:
+        try:
+            value = check()
+        except ArgumentError as err:
+            refusal = str(err)
+    refusal = topo.bcast(refusal)
+    if refusal is not None:
+        raise ArgumentError(refusal)
+    return value
+
+
 def _distributed(topo, whole, rows: int, name: str) -> np.ndarray:
     """This rank's part (rows, N) of the whole-grid field ``whole`` ((nnodes_total,) where
-    rows is 1, else (rows, nnodes_total); read on rank 0). ValueError on every rank for
-    another shape: "<name> must have shape S (got T)"."""
+    rows is 1, else (rows, nnodes_total); read on rank 0). ``ArgumentError`` on every rank for
+    another shape ("<name> must have shape S (got T)") or a NaN or an infinity."""
     want = (topo.nnodes_total,) if rows == 1 else (rows, topo.nnodes_total)
-    shape = topo.bcast(np.shape(whole) if topo.comm.rank == 0 else None)
-    if shape != want:
-        raise ValueError(f"{name} must have shape {want} (got {shape})")
-    return topo.distribute(np.reshape(whole, (rows, -1)) if topo.comm.rank == 0 else None, rows, name)
+    whole = _on_root(topo, lambda: array_argument(name, whole, want))
+    return topo.distribute(None if whole is None else np.reshape(whole, (rows, -1)), rows, name)
 
 
 def _whole(topo, a: np.ndarray) -> np.ndarray:
@@ -275,36 +335,49 @@ def gradient(
         ∂J/∂ν's sum runs on rank 0 in the one-rank order). With ``disk``, each rank writes
         its own part.
 
-    Returns a ``Gradient``. ValueError for steps, snapshots or disk_interval < 1, at_steps
-    outside 0 … n, a controlled scene without a history, a history shorter than n or with a bad
-    step (``Clock``), a
-    disk_interval without a disk, a disk that is not an existing folder, x0 or hs of another
-    shape, or a scene the adjoint cannot serve (``explicit.refusal``, a non-explicit stepper);
-    OSError from the disk (full, unwritable).
+    Returns a ``Gradient``. ``ArgumentError`` (a ValueError; one line naming the argument) for a
+    scene that is not a ``Scene``, steps, snapshots or disk_interval not integers >= 1, a cost
+    that is not callable (or whose h_obs does not fit the grid: ``check_nodes``), returns other
+    than (J, λ (3, N)) or a non-finite J, at_steps outside 0 … n, a controlled scene without a
+    history, a history shorter than n or with a bad step (``Clock``), a disk_interval without a
+    disk, a disk that is not an existing folder, x0 or hs of another shape or not finite,
+    ``parameters`` not a bool, ``comm`` not a communicator, or a scene the adjoint cannot serve
+    (``explicit.refusal``, a non-explicit stepper: semi_implicit's Helmholtz solve has no adjoint);
+    ``SceneError`` for another device than "cpu", "cuda" or "cuda:N"; OSError from the disk
+    (full, unwritable).
 
     Sources: the adjoints of ``explicit`` (the tendency, the DSS and the ∇⁴ transposed by
     hand), checkpointing by Griewank & Walther (2000), ACM TOMS 26:19, in two levels by Stumm
     & Walther (2009), SIAM J. Sci. Comput. 31:1946.
     """
-    steps = int(steps)
-    snapshots = steps if snapshots is None else int(snapshots)
-    if steps < 1 or snapshots < 1:
-        raise ValueError(f"steps and snapshots must be >= 1 (got {steps}, {snapshots})")
+    instance_argument("scene", scene, Scene, "a Scene (swe_sphere.load_scene(...))")
+    steps = integer_argument("steps", steps, 1)
+    snapshots = steps if snapshots is None else integer_argument("snapshots", snapshots, 1)
+    cost = run_cost(cost, steps)
+    parameters = flag_argument("parameters", parameters)
     disk = None if disk is False else disk
-    if disk_interval is not None and (disk is None or int(disk_interval) < 1):
-        raise ValueError(f"disk_interval must be >= 1 and needs a disk (got {disk_interval}, disk={disk!r})")
+    if disk is not None and disk is not True:
+        path_argument("disk", disk, "None, True or an existing folder's path")
+    if disk_interval is not None:
+        integer_argument("disk_interval", disk_interval, 1)
+        if disk is None:
+            raise ArgumentError(f"disk_interval needs a disk (got disk_interval={disk_interval!r}, disk=None)")
+    if comm is not None and not all(hasattr(comm, verb) for verb in ("rank", "size", "bcast", "gather")):
+        raise ArgumentError(f"comm must be an mpi4py communicator or None (got {comm!r:.60}, a {type(comm).__name__})")
+    device = pick_device(device)
     clock = _clock(scene, steps, history)
     model, stepper, initial = scene_model(scene, device, hs, comm)
+    if hasattr(cost, "check_nodes"):  # h_obs, the observation operator's grid: before the run
+        cost.check_nodes(model.topology.nnodes_total)
     for dt in {clock(k)[1] for k in range(steps)}:  # every Δt served before a step is taken
         if (why := refusal(model, dt)) is not None:
-            raise ValueError(why)
+            raise ArgumentError(why)
     topo = model.topology
     x0 = initial if x0 is None else _distributed(topo, x0, 3, "x0")
     work = wp.array(x0, dtype=f64, device=model.device)  # the stepper steps this array only
     stepper.prepare(work)  # from x(0): lts fixes its levels by its flow
     adjoint = step_adjoint(model, stepper, parameters)
     interval = snapshots if disk_interval is None else int(disk_interval)
-    cost = run_cost(cost, steps)
     found, mu, taken, used = _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, disk, interval)
     extra = {}
     if parameters:
@@ -319,17 +392,29 @@ def gradient(
 
 def _clock(scene: Scene, steps: int, history) -> Clock:
     """The ``Clock`` of ``gradient``'s run of ``scene``: its Δt from its start day, or
-    ``history``'s steps. ValueError for a controlled scene without a history (its steps are its
-    controller's) or a history shorter than ``steps``."""
+    ``history``'s steps. ``ArgumentError`` for a controlled scene without a history (its steps
+    are its controller's) or a history shorter than ``steps``."""
     if history is None and scene.control is not None:
-        raise ValueError(
+        raise ArgumentError(
             f"a run under time.control = {scene.control.mode!r} is differentiated along the steps it took: "
             "give history=Simulation(...).control.history of that run"
         )
     clock = Clock(scene.start_day * DAY, scene.dt, history)
     if clock.steps is not None and len(clock.steps) < steps:
-        raise ValueError(f"history holds {len(clock.steps)} steps, fewer than the {steps} asked for")
+        raise ArgumentError(f"history holds {len(clock.steps)} steps, fewer than the {steps} asked for")
     return clock
+
+
+def _checked_cost(cost, k: int, x, spheremp) -> tuple[float, np.ndarray]:
+    """(J_k, λ_k) of ``cost`` at x = x(k) (3, N), checked: ``ArgumentError`` naming the cost
+    unless it returns a finite number J and λ of x's shape, finite."""
+    out = cost(k, x, spheremp)
+    if not (isinstance(out, tuple) and len(out) == 2):
+        raise ArgumentError(f"cost must return (J, λ) (got {out!r:.60} at step {k})")
+    J = out[0]
+    if isinstance(J, bool) or not isinstance(J, (int, float, np.number)) or not np.isfinite(J):
+        raise ArgumentError(f"cost's J must be a finite number (got {J!r:.60} at step {k})")
+    return float(J), array_argument("cost's λ", out[1], np.shape(x))
 
 
 class _At:
@@ -393,7 +478,7 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
 
     def observe(x, k):  # J_k at x(k) into found, λ_k into ``lam``: the cost on rank 0, the whole grid
         whole = topo.gather(np.array(x.numpy()[X]))
-        J, lam_k = (None, None) if whole is None else cost(k, whole, spheremp)
+        J, lam_k = _on_root(topo, lambda: _checked_cost(cost, k, whole, spheremp)) or (None, None)
         found["costs"][k] = topo.bcast(J)
         lam.assign(topo.distribute(None if lam_k is None else np.asarray(lam_k, dtype=float), 3, "the cost's λ"))
 

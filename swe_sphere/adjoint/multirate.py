@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from ..core.errors import ArgumentError
 from ..model.shallow_water import ShallowWater, element_runs
 from ..steppers.butcher import TableauOptions, parse
 from ..steppers.tables import EXPLICIT
@@ -178,7 +179,7 @@ class MriAdjoint(_Recomputed):
     With ``parameters`` its ∇⁴ as ``StepAdjoint``'s (from Y_(s+1), the last solve taken too),
     g's terms those of the slow topography and of L's −g G h′ at every inner stage (their states
     held), Ω's the slow Coriolis term's, hs's the topography's and the ∇⁴'s; a forcing (in the
-    slow part) at each stage's time. ValueError for the fbrk32 inner method, and as
+    slow part) at each stage's time. ``ArgumentError`` for the fbrk32 inner method, and as
     ``StepAdjoint``.
 
     Work arrays (3, N): the s stages and slow tendencies, the inner stages' K_i and Z̄_i,
@@ -186,7 +187,7 @@ class MriAdjoint(_Recomputed):
 
     def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
         if stepper.options.inner == "fbrk32":
-            raise ValueError("mri's gradient needs an inner Runge–Kutta table (ssprk3 or rk4)")
+            raise ArgumentError("mri's gradient needs an inner Runge–Kutta table (ssprk3 or rk4)")
         self._setup(model, dt, parameters, t0)
         self.stepper, self.tab = stepper, stepper.tab
         inner = parse(TableauOptions(**EXPLICIT[stepper.options.inner]))

@@ -28,6 +28,16 @@ class SceneError(SweSphereError, ValueError):
     """
 
 
+class ArgumentError(SweSphereError, ValueError):
+    """A Python API argument of the wrong type, shape, unit or range; the message names the
+    argument, what it takes and what it got.
+
+    Raised by ``gradient``, ``HeightMisfit``, ``PointHeights``, ``HeightObservations``,
+    ``CubedSphere`` and the others' arguments that are not a scene's values (those are
+    ``SceneError``s), before anything is run (``core.arguments``).
+    """
+
+
 class OutputError(SweSphereError, ValueError):
     """An output path that must not be written; the message names it.
 
@@ -99,6 +109,7 @@ class Interrupted(SweSphereError, RuntimeError):
 __all__ = [
     "SweSphereError",
     "SceneError",
+    "ArgumentError",
     "OutputError",
     "CheckpointError",
     "ResourceError",

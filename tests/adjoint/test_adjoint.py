@@ -15,6 +15,7 @@ from swe_sphere.adjoint.explicit import StepAdjoint
 from swe_sphere.adjoint.gradient import scene_model, step_adjoint
 from swe_sphere.adjoint.revolve import forward_steps, griewank_steps, split, sweep
 from swe_sphere.config.scene import load_scene
+from swe_sphere.core.errors import ArgumentError
 from swe_sphere.kernels import tendencies, tendency_adjoint
 from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.simulation.simulation import Simulation
@@ -261,7 +262,7 @@ def test_gradient_refuses_an_implicit_stepper_and_bad_sizes():
         gradient(controlled, 2, cost, history=[(1800.0, 1800.0, 0.5)])
     with pytest.raises(ValueError, match="history step 1: dt -5.0 s must be > 0"):
         gradient(controlled, 2, cost, history=[(1800.0, 1800.0, 0.5), (1795.0, -5.0, 0.5)])
-    with pytest.raises(ValueError, match="steps and snapshots"):
+    with pytest.raises(ArgumentError, match=r"^steps must be an integer >= 1 \(got 0\)$"):
         gradient(tc5(), 0, cost)
     with pytest.raises(ValueError, match=r"x0 must have shape \(3, 384\)"):
         gradient(tc5(), 1, cost, x0=x0[:2])

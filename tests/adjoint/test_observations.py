@@ -15,6 +15,7 @@ from swe_sphere.adjoint import HeightMisfit, HeightObservations, PointHeights, g
 from swe_sphere.adjoint.gradient import scene_model
 from swe_sphere.adjoint.revolve import griewank_steps, two_level_steps
 from swe_sphere.config.scene import load_scene
+from swe_sphere.core.errors import ArgumentError
 
 EPS = float(np.finfo(np.float64).eps)
 STEPS = 24  # 6 h of 900 s
@@ -134,7 +135,7 @@ def test_bad_observations_are_refused():
     H = PointHeights(model.grid, *points(5, 5))
     with pytest.raises(ValueError, match=r"at_steps must be integers in 0 … 24"):
         gradient(scene, STEPS, HeightObservations(H, {25: np.zeros(5)}))
-    with pytest.raises(ValueError, match=r"at step 3 must have shape \(5,\)"):
+    with pytest.raises(ArgumentError, match=r"values\[3\] must have shape \(5,\)"):
         HeightObservations(H, {3: np.zeros(4)})
-    with pytest.raises(ValueError, match="sigma must be positive"):
+    with pytest.raises(ArgumentError, match=r"sigma must be a finite number > 0 \(m\) \(got 0.0\)"):
         HeightObservations(H, {3: np.zeros(5)}, sigma=0.0)

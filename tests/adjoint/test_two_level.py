@@ -14,6 +14,7 @@ from swe_sphere.adjoint import HeightMisfit, gradient
 from swe_sphere.adjoint.gradient import scene_model
 from swe_sphere.adjoint.revolve import griewank_steps, two_level, two_level_steps
 from swe_sphere.config.scene import load_scene
+from swe_sphere.core.errors import ArgumentError
 
 
 class State:
@@ -110,7 +111,7 @@ def test_the_states_file_is_gone_after_an_error_and_bad_disks_are_refused(tmp_pa
         assert len(os.listdir("/proc/self/fd")) == fds
     with pytest.raises(ValueError, match="an existing folder"):
         gradient(scene, 2, cost, disk=tmp_path / "absent")
-    with pytest.raises(ValueError, match="disk_interval must be >= 1 and needs a disk"):
+    with pytest.raises(ArgumentError, match="disk_interval needs a disk"):
         gradient(scene, 2, cost, disk_interval=2)
-    with pytest.raises(ValueError, match="disk_interval must be >= 1"):
+    with pytest.raises(ArgumentError, match="disk_interval must be an integer >= 1"):
         gradient(scene, 2, cost, disk=True, disk_interval=0)

@@ -202,7 +202,9 @@ class Scorer:
         solution ``l1_h``, ``l2_h``, ``linf_h``, ``l1_wind``, ``l2_wind``,
         ``linf_wind``, ``l2_vorticity``, ``l2_divergence``; with a reference the
         same of h + hs and the wind as ``ref_l1_h_surface`` … ``ref_linf_wind``,
-        ``ref_l2_vorticity``, ``ref_l2_divergence``, NaN at a day it does not
+        ``ref_l2_vorticity``, ``ref_l2_divergence`` and ``ref_l2_vorticity_eq83`` (Williamson et al.
+        1992 eq. 83 of the vorticity: the state's by the model's operators against the reference's
+        own at the nodes, ``williamson_norms``; the measure other models publish), NaN at a day it does not
         store (``unscored`` says why; every output time has every series); {}
         for a case with neither. ``regions``: also the l2 of h (h + hs) by region
         (``regional_l2``) as ``l2_h_refined``, ``l2_h_transition``, ``l2_h_coarse``
@@ -220,6 +222,7 @@ class Scorer:
             r = self._reference_at(t / DAY) if self.root else None
             ur, vr = self.topology.distribute(np.stack([r["u"], r["v"]]) if self.root else None, 2, "reference wind")
             ref_split = self.wind_error_decomposition(x[0], x[1], ur, vr, regions)
+            zeta = self.rotation_divergence(x[0], x[1])[0]  # the run's own vorticity, as its file writes it
         d = None
         if self.root:
             d = {}
@@ -232,6 +235,8 @@ class Scorer:
                 d.update(split)
             if self.reference is not None:
                 d.update(self._reference_errors(u, v, h, r, ref_split))
+                if r is not None:  # Williamson eq. 83 of the vorticity, as the peers score it
+                    d["ref_l2_vorticity_eq83"] = williamson_norms(self.grid, zeta, r["vorticity"])["l2"]
                 if regions:
                     truth = None if r is None else r["h_surface"]
                     d.update({f"ref_l2_h_surface_{k}": val for k, val in self._regional(h + self.hs, truth).items()})
@@ -259,7 +264,7 @@ class Scorer:
         names = [f"ref_{k}_{f}" for f in ("h_surface", "wind") for k in ("l1", "l2", "linf")]
         names += ["ref_l2_vorticity", "ref_l2_divergence"]
         if r is None:
-            return dict.fromkeys(names, float("nan"))
+            return dict.fromkeys([*names, "ref_l2_vorticity_eq83"], float("nan"))
         out = {f"ref_{k}_h_surface": val for k, val in williamson_norms(self.grid, h + self.hs, r["h_surface"]).items()}
         out.update(
             {f"ref_{k}_wind": val for k, val in williamson_vector_norms(self.grid, u, v, r["u"], r["v"]).items()}

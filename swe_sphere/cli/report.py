@@ -185,7 +185,10 @@ def summary(r, sim) -> None:
     if "l2_h" in d:
         print(f"  error h     l1 {d['l1_h']:.3e}  l2 {d['l2_h']:.3e}  linf {d['linf_h']:.3e}")
         print(f"  error wind  l1 {d['l1_wind']:.3e}  l2 {d['l2_wind']:.3e}  linf {d['linf_wind']:.3e}")
-        print(f"  error wind  l2 vorticity {d['l2_vorticity']:.3e}  l2 divergence {d['l2_divergence']:.3e}")
+        print(
+            f"  error wind  l2 vorticity {d['l2_vorticity']:.3e}  l2 divergence {d['l2_divergence']:.3e} "
+            "(curl and divergence of v - v_exact by the model's operators, over those of v_exact)"
+        )
     if "ref_l2_h_surface" in d:
         # the reference stores a few days only: quote the last output time past the start it has
         name = sim.scene.reference_file.stem.rsplit("_", 1)[-1]  # the truncation, for the spectral files ("T213")
@@ -203,7 +206,14 @@ def summary(r, sim) -> None:
                 f"  {vs} h+hs l1 {d['ref_l1_h_surface']:.3e}  l2 {d['ref_l2_h_surface']:.3e}  linf {d['ref_linf_h_surface']:.3e}{at}"
             )
             print(f"  {vs} wind l1 {d['ref_l1_wind']:.3e}  l2 {d['ref_l2_wind']:.3e}  linf {d['ref_linf_wind']:.3e}")
-            print(f"  {vs} wind l2 vorticity {d['ref_l2_vorticity']:.3e}  l2 divergence {d['ref_l2_divergence']:.3e}")
+            print(
+                f"  {vs} wind l2 vorticity {d['ref_l2_vorticity']:.3e}  l2 divergence {d['ref_l2_divergence']:.3e} "
+                f"(curl and divergence of v - v_{name} by the model's operators, over those of v_{name})"
+            )
+            print(
+                f"  {vs} vorticity l2 {d['ref_l2_vorticity_eq83']:.3e} (Williamson eq. 83: the model's vorticity "
+                f"against {name}'s own at the nodes, as other models publish it)"
+            )
     print(f"  output      {r.output}")
     if r.checkpoint is not None:
         print(f"  restart     {r.checkpoint}")

@@ -145,6 +145,14 @@ for _pre, _what in (
         )
 
 
+SERIES_ATTRS["ref_l2_vorticity_eq83"] = dict(
+    units="1",
+    long_name="normalized l2 error of the relative vorticity (the model's operator) against the spectral "
+    "reference's own vorticity at the nodes, Williamson et al. 1992 eq. 83 (global attribute reference; NaN where "
+    "it stores no output)",
+)
+
+
 def attribute(value):
     """A global attribute as netCDF stores it: a dict, list or tuple as JSON, an
     integer as a 32-bit NC_INT when it fits (the 64-bit type is netCDF-4 only,

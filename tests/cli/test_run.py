@@ -65,7 +65,7 @@ def test_summary_quotes_the_last_output_time_the_reference_stores(tmp_path, caps
     if quoted is None:
         assert lines == ["  vs T213     none: no output time after t = 0 is one T213 stores (days 0, 1, 2, 5, 10, 15)"]
     else:
-        assert len(lines) == 3 and lines[0].endswith(quoted)
+        assert len(lines) == 4 and lines[0].endswith(quoted)  # h+hs, wind, its curl and divergence, eq. 83
         with xr.open_dataset(
             tmp_path / "r.nc", decode_times=False
         ) as ds:  # the quoted l2 is the run file's day-1 value

@@ -6,7 +6,8 @@ collide (a default file name taken twice, a study folder written twice) fails he
 
 The runs are shortened: ``swe-sphere`` is tests/docs_shortening.py in front of the real
 tool (tiny grids that keep the page's grids apart, at most two runs a sweep); a Python
-block's ``ne=N`` becomes ``ne=small_ne(N)`` likewise. Left out, with the reason: ``pip
+block's ``ne=N`` becomes ``ne=small_ne(N)`` likewise, and a ``dt=`` beside it keeps its
+Courant number (``python_line``). Left out, with the reason: ``pip
 install`` and ``python -m pytest`` (this test runs inside them), ``mpiexec`` lines (MPI
 tests: tests/test_mpi.py), ``--device cuda`` lines (tests/test_cuda.py),
 ``python benchmarks/`` (timings: the benchmarks are measured, not examples), a bare
@@ -69,6 +70,18 @@ def shell_line(line: str) -> str | None:
     return " && ".join(parts) or None
 
 
+def python_line(line: str) -> str:
+    """A Python line shortened as a command line is: ``ne=N`` → ``ne=small_ne(N)`` and, with it,
+    ``dt=X`` → ``dt=coarser_dt(X, N)`` (the same Courant number: a Δt written for np 4 that a
+    scene's np 8 breaks still breaks here; README's galewsky loop at ne=8 dt=600 ran at ne 2 with
+    a quarter of its Courant number, stable, where as written it blew up at step 7)."""
+    ne = re.search(r"\bne=(\d+)", line)
+    if ne is None:
+        return line
+    line = re.sub(r"\bdt=(\d+(?:\.\d*)?(?:e\d+)?)", lambda m: f"dt={coarser_dt(float(m[1]), int(ne[1]))}", line)
+    return re.sub(r"\bne=(\d+)", lambda m: f"ne={small_ne(int(m[1]))}", line)
+
+
 def programs(path: Path, inline: bool = True) -> list[list[str]]:
     """The page's examples as commands to run in order: a shell block (or inline command)
     as one ``bash`` script, a Python block as one program after the imports of the page's
@@ -76,7 +89,7 @@ def programs(path: Path, inline: bool = True) -> list[list[str]]:
     out, imports = [], []
     for lang, text in examples(path, inline):
         if lang == "python":
-            text = re.sub(r"\bne=(\d+)", lambda m: f"ne={small_ne(int(m[1]))}", text)
+            text = "\n".join(python_line(line) for line in text.splitlines())
             out.append([sys.executable, "-c", "\n".join([*imports, text])])
             imports += [line for line in text.splitlines() if re.match(r"(import|from) \S", line)]
             continue
@@ -189,6 +202,14 @@ def test_a_given_dt_keeps_its_courant_number_and_divides_the_day():
     given = shorten(["run", "galewsky", "--ne", "30", "--np", "4", "--dt", "216"])  # ne30: 53.3 a day on ne4
     assert given[2:] == ["--ne", "4", "--np", "4", "--dt", str(86400 / 53)]
     assert shorten(["run", "--continue", "r.restart.nc", "--dt", "360"])[-1] == "360"  # the file's grid: unknown
+
+
+def test_a_python_block_keeps_its_courant_number(tmp_path):
+    """README's `Simulation("galewsky", ne=8, days=6, dt=600)` blew up as written (the scene
+    runs np 8) but ran shortened to ne 2 at the same dt, a quarter of its Courant number."""
+    page = tmp_path / "page.md"
+    page.write_text('```python\nsim = Simulation("galewsky", ne=8, days=6, dt=600)\nx = f(ne=2, dt=1800.0)\n```\n')
+    assert programs(page)[0][-1] == 'sim = Simulation("galewsky", ne=2, days=6, dt=2400.0)\nx = f(ne=2, dt=1800.0)'
 
 
 def test_inline_commands_are_examples_and_placeholders_are_not(tmp_path):

@@ -5,8 +5,9 @@ from __future__ import annotations
 import tempfile
 from pathlib import Path
 
+from .core.arguments import flag_argument, number_argument, path_argument
 from .core.backend import pick_device
-from .core.errors import OutputError
+from .core.errors import OutputError, SceneError
 from .simulation.simulation import Simulation
 
 
@@ -67,10 +68,12 @@ def run(
     Raises
     ------
     SceneError
-        A bad scene, override, ``device`` or ``initial`` (a ValueError; the message names
-        the value).
+        A bad scene, override, ``device``, ``initial``, ``graphs`` or ``restart_every`` (not a
+        number of days > 0), or ``overwrite``, ``progress`` or ``verbose`` not a bool (a
+        ValueError; the message names the argument or value).
     OutputError
-        ``output_file`` exists (without ``overwrite``), is an input or a directory.
+        ``output_file`` is not a path (str or os.PathLike), exists (without ``overwrite``), is
+        an input or a directory.
     BlowUp
         The state became non-finite or the depth non-positive; the result is on the
         exception, the file keeps every good output.
@@ -81,8 +84,14 @@ def run(
     ResourceError
         Too little memory for the grid.
     """
-    if output_file is not None and (Path(output_file).name in ("", "..") or Path(output_file).is_dir()):
-        raise OutputError(f"output_file = {str(output_file)!r} is a directory: give a file name in it")
+    for name, value in (("overwrite", overwrite), ("progress", progress), ("verbose", verbose)):
+        flag_argument(name, value, SceneError)
+    if restart_every is not None:
+        number_argument("restart_every", restart_every, "days", positive=True, error=SceneError)
+    if output_file is not None:
+        path = path_argument("output_file", output_file, "a file's path (str or os.PathLike)", OutputError)
+        if path.name in ("", "..") or path.is_dir():
+            raise OutputError(f"output_file = {str(output_file)!r} is a directory: give a file name in it")
     device = pick_device(device, verbose=verbose)
     sim = Simulation(scene, device, progress=progress, initial=initial, graphs=graphs, **overrides)
     return _run_and_load(sim, output_file, overwrite, restart_every, verbose)

@@ -13,6 +13,7 @@ import warp as wp
 import swe_sphere
 from swe_sphere import (
     ArgumentError,
+    CheckpointError,
     HeightMisfit,
     HeightObservations,
     OutputError,
@@ -79,6 +80,34 @@ MISUSES = {
     "remap_dataset resolution < 0": (lambda f: remap_dataset(f, -1), SceneError, "resolution"),
     "remap_dataset missing file": (lambda f: remap_dataset("nosuch.nc"), SceneError, "nosuch.nc"),
     "remap_dataset a folder": (lambda f: remap_dataset(f.parent), SceneError, "is a directory"),
+    # Python's wording from deeper in, or nothing at all (issue 86, item 2)
+    "output_file a number": (lambda f: swe_sphere.run("tc2_steady", output_file=5, **TINY), OutputError, "output_file"),
+    "restart_every 0": (lambda f: swe_sphere.run("tc2_steady", restart_every=0, **TINY), SceneError, "restart_every"),
+    "overwrite a str": (lambda f: swe_sphere.run("tc2_steady", overwrite="no", **TINY), SceneError, "overwrite"),
+    "graphs maybe": (lambda f: swe_sphere.run("tc2_steady", graphs="maybe", **TINY), SceneError, "graphs must be"),
+    "remap_dataset a number": (lambda f: remap_dataset(123), SceneError, "ds must be an xarray.Dataset"),
+    "load_scene overrides a str": (
+        lambda f: load_scene("tc5_mountain", overrides="grid.ne=3"),
+        SceneError,
+        "overrides must be a mapping",
+    ),
+    "load_scene overrides' key a number": (
+        lambda f: load_scene("tc5_mountain", overrides={5: 3}),
+        SceneError,
+        "the keys of overrides must be str",
+    ),
+    "Simulation of None": (lambda f: Simulation(None, "cpu"), SceneError, "scene must be a Scene"),
+    "Simulation.run output a number": (lambda f: _sim().run(5), OutputError, "output must be"),
+    "add_callback of a number": (lambda f: _sim().add_callback(5, every_days=1), SceneError, "fn must be a callable"),
+    "from_checkpoint a number": (lambda f: Simulation.from_checkpoint(5, "cpu"), CheckpointError, "checkpoint must"),
+    "kinetic_energy_spectrum a number": (
+        lambda f: swe_sphere.kinetic_energy_spectrum(5),
+        SceneError,
+        "run must be an xarray.Dataset",
+    ),
+    "zonal_mean of no such field": (lambda f: swe_sphere.zonal_mean(f, "bogus"), SceneError, "'bogus'"),
+    "CubedSphere ne a str": (lambda f: swe_sphere.CubedSphere("x", 4), ArgumentError, "ne must be an integer"),
+    "CubedSphere radius < 0": (lambda f: swe_sphere.CubedSphere(2, 4, -1.0), ArgumentError, "radius must be"),
     # the gradient and its observations (issue 86, items 2, 3)
     "gradient of a scene's name": (lambda f: gradient("tc5_mountain", 4, FLAT), ArgumentError, "scene must be a Scene"),
     "gradient cost None": (lambda f: _gradient(4, None), ArgumentError, "cost must be a callable"),

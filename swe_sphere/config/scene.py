@@ -70,6 +70,7 @@ from pathlib import Path
 
 from ..cases.library import make_case
 from ..cases.reference import reference_path
+from ..core.arguments import mapping_argument, path_argument
 from ..core.clock import Clock
 from ..core.constants import EARTH, Planet
 from ..core.errors import SceneError
@@ -439,11 +440,14 @@ def load_scene(
     Raises
     ------
     SceneError
-        An unreadable file or malformed TOML; an unknown or invalid value (the message
+        A ``path`` that is not a str or path, ``overrides`` that is not a mapping with str
+        keys; an unreadable file or malformed TOML; an unknown or invalid value (the message
         names the field); duplicate terms, or terms that omit what the case needs
         (``Case.required_terms``).
     """
-    return _resolve(resolve_path(str(path)), ne, np_, dt, days, stepper, mesh, overrides or {})
+    path = path_argument("path", path, "a scene file's path or a bundled scene's name (str)", SceneError)
+    overrides = {} if overrides is None else mapping_argument("overrides", overrides, error=SceneError)
+    return _resolve(resolve_path(str(path)), ne, np_, dt, days, stepper, mesh, overrides)
 
 
 def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict) -> Scene:
@@ -538,6 +542,7 @@ def resolve_scene(scene, overrides: dict) -> tuple[Scene, tuple]:
         if overrides:
             raise SceneError("overrides apply to a scene file; change a Scene with dataclasses.replace")
         return scene, ()
+    path_argument("scene", scene, "a Scene, a scene file's path or a bundled scene's name", SceneError)
     overrides = dict(overrides)
     kw = {name: overrides.pop(k) for k, name in LOAD_KEYWORDS.items() if k in overrides}
     flat = {}

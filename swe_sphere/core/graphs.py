@@ -33,6 +33,7 @@ import numpy as np
 import warp as wp
 
 from .backend import Backend
+from .errors import SceneError
 
 MODES = ("off", "on", "auto")
 ENV = "SWE_SPHERE_GRAPHS"
@@ -47,11 +48,11 @@ FEATURES = {
 
 def graphs_mode(value, what: str = "graphs") -> str:
     """ "off", "on" or "auto" from ``value`` (one of them, or a bool: True "on",
-    False "off"). Raises ValueError naming ``what`` and the value."""
+    False "off"). Raises ``SceneError`` (a ValueError) naming ``what`` and the value."""
     if isinstance(value, bool):
         return "on" if value else "off"
-    if value not in MODES:
-        raise ValueError(f"{what} must be one of {', '.join(MODES)} (got {value!r})")
+    if not isinstance(value, str) or value not in MODES:
+        raise SceneError(f"{what} must be one of {', '.join(MODES)} (got {value!r})")
     return value
 
 

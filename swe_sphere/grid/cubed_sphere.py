@@ -18,7 +18,9 @@ import math
 
 import numpy as np
 
+from ..core.arguments import integer_argument, number_argument
 from ..core.constants import EARTH
+from ..core.errors import ArgumentError
 from ..mesh.cube import EquiangularMap, Numbering, reference_to_sphere
 from ..mesh.element_local import ElementLocalMap, MeshNumbering, epsilon_bubble, mesh_point
 from ..mesh.face_map import FaceMap, gnomonic_jacobian
@@ -74,18 +76,25 @@ class CubedSphere:
     A part's arrays are the whole grid's at its nodes, bit for bit: every value is
     computed per node, the numbering from the cube's (or mesh's) topology, and the area
     correction from the analytic Jacobian (or per element: the same for any part).
-    Raises ``ValueError`` for ne < 1 (ne < 0 with a mesh, or ne > 0 not the mesh's
-    6·ne² elements), np outside 2..8 (2 with a mesh through the element-local map),
-    elements not ascending distinct indices of the grid, or a mesh element the map folds
+    Raises ``ArgumentError`` (a ValueError) naming the argument for ne not an integer >= 1
+    (>= 0 with a mesh, or ne > 0 not the mesh's 6·ne² elements), np_ not an integer in 2..8,
+    a radius (m) not finite and > 0, a mesh not a ``Mesh``, elements not ascending distinct
+    indices of the grid; ``ValueError`` for np 2 with a mesh through the element-local map, or
+    a mesh element the map folds
     (metdet ≤ 0 at a node: its corners span too much of the sphere, one line naming it);
     ``SceneError`` for a mesh through the equiangular map with an element in no one cube face.
     """
 
     def __init__(self, ne: int, np_: int, radius: float = EARTH.a, elements=None, mesh: Mesh | None = None):
-        if isinstance(ne, bool) or int(ne) != ne or ne < (0 if mesh is not None else 1):
-            raise ValueError(f"ne must be an integer >= {0 if mesh is not None else 1} (got {ne})")
+        ne = integer_argument("ne", ne, 0 if mesh is not None else 1)
+        np_ = integer_argument("np_", np_, 2)
+        if np_ > 8:
+            raise ArgumentError(f"np_ must be in 2..8 (got {np_})")
+        radius = number_argument("radius", radius, "m", positive=True)
+        if mesh is not None and not isinstance(mesh, Mesh):
+            raise ArgumentError(f"mesh must be a Mesh or None (got {mesh!r:.60})")
         if mesh is not None and ne and mesh.nelem != 6 * ne * ne:
-            raise ValueError(f"ne={ne} needs a mesh of {6 * ne * ne} elements ({mesh.name} has {mesh.nelem})")
+            raise ArgumentError(f"ne={ne} needs a mesh of {6 * ne * ne} elements ({mesh.name} has {mesh.nelem})")
         self.ne, self.np, self.radius, self.mesh = int(ne), int(np_), float(radius), mesh
         self.rule = gll(self.np)  # validates np
         self.nelem_total = 6 * self.ne * self.ne if mesh is None else mesh.nelem
@@ -143,7 +152,7 @@ def _elements(nelem: int, elements) -> np.ndarray:
         return np.arange(nelem)
     e = np.asarray(elements, dtype=np.int64)
     if e.ndim != 1 or (e.size and (e[0] < 0 or e[-1] >= nelem or np.any(np.diff(e) <= 0))):
-        raise ValueError(f"elements must be ascending distinct indices in 0..{nelem - 1}")
+        raise ArgumentError(f"elements must be ascending distinct indices in 0..{nelem - 1}")
     return e
 
 

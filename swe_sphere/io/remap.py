@@ -29,6 +29,7 @@ import numpy as np
 import xarray as xr
 from scipy.sparse import csr_matrix
 
+from ..core.arguments import path_argument
 from ..core.errors import SceneError
 from ..core.runtime import check_memory
 from ..grid.cubed_sphere import CubedSphere
@@ -278,7 +279,7 @@ def remap_dataset(ds, resolution: float = 1.0) -> xr.Dataset:
     Raises
     ------
     SceneError
-        A missing file, a folder, a file or dataset that is not a swe_sphere run, a
+        ``ds`` neither a Dataset nor a path, a missing file, a folder, a file or dataset that is not a swe_sphere run, a
         resolution that is not in (0, 90] or does not divide 180 degrees (a ValueError;
         one line naming it).
     ResourceError
@@ -289,7 +290,8 @@ def remap_dataset(ds, resolution: float = 1.0) -> xr.Dataset:
     >>> swe_sphere.remap_dataset("run.nc").h_surface.sel(time=3).plot()  # doctest: +SKIP
     """
     if not isinstance(ds, xr.Dataset):
-        with open_netcdf(ds) as opened:
+        path = path_argument("ds", ds, "an xarray.Dataset or a run file's path", SceneError)
+        with open_netcdf(path) as opened:
             return remap_dataset(opened.load(), resolution)  # loaded: the result outlives the file
     check_remap_memory(ds, resolution)
     grid = run_grid(ds)

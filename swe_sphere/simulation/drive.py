@@ -9,6 +9,7 @@ import dataclasses
 import itertools
 
 from ..config.scene import with_days
+from ..core.arguments import callable_argument, got
 from ..core.clock import is_interval
 from ..core.constants import DAY
 from ..core.errors import SceneError
@@ -79,7 +80,11 @@ def add_callback(
     (``every``), in ``run``, ``advance`` and ``steps`` (Oceananigans' ``add_callback!``):
     an activity in ``activities`` under ``name`` (default "callback N"). ``fn`` may read
     ``sim.step``, ``sim.time``, ``sim.state()``; what it raises ends the run (its
-    output files dropped). Under MPI add it on every rank. ValueError as ``every``."""
+    output files dropped). Under MPI add it on every rank. ``SceneError`` for ``fn`` not
+    callable, ``name`` not a str, and as ``every``."""
+    callable_argument("fn", fn, "a callable fn(sim)", SceneError)
+    if name is not None and not isinstance(name, str):
+        raise SceneError(f"name must be a str or None (got {got(name)})")
     schedule = self.every(days=every_days, steps=every_steps)
     if name is None:
         name = next(f"callback {k}" for k in itertools.count(1) if f"callback {k}" not in self.activities)

@@ -9,6 +9,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..config.scene import with_days
+from ..core.arguments import path_argument
+from ..core.errors import CheckpointError
 from ..io import restart_file
 from . import checkpoint as ckpt
 from .build import ON_ROOT
@@ -57,10 +59,13 @@ def from_checkpoint(
     Raises
     ------
     CheckpointError
-        An unreadable or damaged restart file, or a ``days`` before its step.
+        ``checkpoint`` not a path or a ``Checkpoint``, an unreadable or damaged restart file,
+        or a ``days`` before its step.
     SceneError
         A branch it cannot make (unknown stepper, dt <= 0, a length not whole steps).
     """
+    if not isinstance(checkpoint, ckpt.Checkpoint):
+        path_argument("checkpoint", checkpoint, "a restart file's path (str or os.PathLike)", CheckpointError)
     ck = checkpoint if isinstance(checkpoint, ckpt.Checkpoint) else ckpt.read_on_root(checkpoint, comm)
     start = ON_ROOT if ck.x is None else ck.x  # ranks > 0 of ``read_on_root`` have no arrays
     if (stepper is not None and stepper != ck.scene.stepper) or (dt is not None and dt != ck.scene.dt):

@@ -23,8 +23,9 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from ..config.scene import Scene, resolve_scene
+from ..core.arguments import flag_argument, number_argument, path_argument
 from ..core.backend import Backend, pick_device
-from ..core.errors import BlowUp, Interrupted, StepFailure
+from ..core.errors import BlowUp, Interrupted, OutputError, SceneError, StepFailure
 from ..core.graphs import GraphedSteps, default_mode, graphs_mode
 from ..core.interrupts import StepAbandoned, StopSignals
 from ..io.output_files import check_distinct, check_target
@@ -173,6 +174,7 @@ class Simulation:
         graphs: str | bool | None = None,
         **overrides,
     ):
+        progress = flag_argument("progress", progress, SceneError)
         graphs = graphs_mode(default_mode() if graphs is None else graphs)
         # Δt the simulation may fit to the user's intervals (``steps``): not given, restored or stated in a Scene
         self._own_dt = not isinstance(scene, Scene) and "dt" not in overrides and initial_diagnostics is None
@@ -335,6 +337,7 @@ class Simulation:
         Interrupted
             SIGINT or SIGTERM (with ``catch_signals``).
         """
+        _check_run_arguments(output, overwrite, restart_every, restart_file, compress, catch_signals)
         files, ckp, start, courant = self._open(
             output, overwrite, restart_every, restart_file, compress, history, on_output, notify
         )
@@ -516,3 +519,16 @@ class Simulation:
         trouble, node = guard.end(b, trouble, ledger)
         ledger.account(m if block else b + 1, t0, cpu0)
         return m, trouble, node if trouble == "bad" else detail
+
+
+def _check_run_arguments(output, overwrite, restart_every, restart_file, compress, catch_signals) -> None:
+    """``Simulation.run``'s arguments, before anything is opened: ``OutputError`` for an output
+    or restart file that is not a path, ``SceneError`` for a flag that is not a bool or a
+    restart interval that is not a number of days > 0; each names the argument."""
+    for name, path in (("output", output), ("restart_file", restart_file)):
+        if path is not None:
+            path_argument(name, path, "a file's path (str or os.PathLike)", OutputError)
+    for name, value in (("overwrite", overwrite), ("compress", compress), ("catch_signals", catch_signals)):
+        flag_argument(name, value, SceneError)
+    if restart_every is not None:
+        number_argument("restart_every", restart_every, "days", positive=True, error=SceneError)

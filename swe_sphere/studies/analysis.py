@@ -19,7 +19,9 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from ..core.arguments import path_argument
 from ..core.constants import EARTH
+from ..core.errors import SceneError
 from ..core.runtime import check_memory
 from ..io.remap import Remapper, latlon_grid, latlon_shape, open_netcdf, remap_bytes, run_grid
 from ..io.run_file import FIELDS
@@ -59,7 +61,7 @@ def time_index(ds, day: float) -> int:
     hits = np.flatnonzero(np.abs(days - day) <= DAY_TOL)
     if hits.size == 0:
         stored = ", ".join(f"{d:g}" for d in days)
-        raise ValueError(f"day {day:g} not in {run_name(ds)} (stored: {stored})")
+        raise SceneError(f"day {day:g} not in {run_name(ds)} (stored: {stored})")
     return int(hits[0])
 
 
@@ -67,12 +69,12 @@ def field_at_nodes(ds, field: str, day: float) -> np.ndarray:
     """``field`` (one of ``MAP_FIELDS``) of a run at ``day`` on its unique nodes (ncol,),
     in the file's units (s⁻¹ for vorticity and divergence). ``ValueError`` if it cannot be had."""
     if field not in MAP_FIELDS:
-        raise ValueError(f"unknown field {field!r} (known: {', '.join(MAP_FIELDS)})")
+        raise SceneError(f"unknown field {field!r} (known: {', '.join(MAP_FIELDS)})")
     it = time_index(ds, day)
 
     def get(name):
         if name not in ds.variables:
-            raise ValueError(f"{run_name(ds)} has no {name!r}")
+            raise SceneError(f"{run_name(ds)} has no {name!r}")
         var = ds[name]
         return np.asarray(var.isel(time=it).values if "time" in var.dims else var.values, dtype=np.float64)
 
@@ -82,7 +84,7 @@ def field_at_nodes(ds, field: str, day: float) -> np.ndarray:
         return np.hypot(get("u"), get("v"))
     values = get(field)
     if field in DERIVED and not np.all(np.isfinite(values)):
-        raise ValueError(f"{run_name(ds)} has no {field} at day {day:g}")
+        raise SceneError(f"{run_name(ds)} has no {field} at day {day:g}")
     return values
 
 
@@ -90,6 +92,7 @@ def _loaded(run) -> xr.Dataset:
     """A run as a Dataset: ``run`` itself, or the file at that path read into memory and closed."""
     if isinstance(run, xr.Dataset):
         return run
+    path_argument("run", run, "an xarray.Dataset or a run file's path", SceneError)
     with open_netcdf(run) as opened:
         ds = opened.load()
     ds.attrs.setdefault("_path", str(run))  # for messages (``run_name``)
@@ -118,7 +121,7 @@ def _on_latlon(ds, fields, days, resolution):
     grid = run_grid(ds)
     days = days_of(ds) if days is None else np.atleast_1d(np.asarray(days, dtype=np.float64))
     if days.size == 0:
-        raise ValueError("the run holds no output time")
+        raise SceneError("the run holds no output time")
     nodes = np.array([[field_at_nodes(ds, f, d) for d in days] for f in fields])  # ValueError for a day not stored
     resolution = default_resolution(grid) if resolution is None else resolution
     nlat, nlon = latlon_shape(resolution)  # the memory check before the grid is built
@@ -214,7 +217,7 @@ def kinetic_energy_spectrum(run, days=None, lmax: int | None = None) -> xr.Datas
     grid = run_grid(ds)
     lmax = 2 * grid.ne * (grid.np - 1) if lmax is None else lmax
     if not (isinstance(lmax, (int, np.integer)) and lmax >= 1):
-        raise ValueError(f"lmax must be an integer >= 1 (got {lmax!r})")
+        raise SceneError(f"lmax must be an integer >= 1 (got {lmax!r})")
     # the grid resolves 2x the node spacing's degree, or lmax + 1 if that is higher
     rows = max(round(180.0 / default_resolution(grid)), lmax + 1)
     lat, lon, days, maps = _on_latlon(ds, ["vorticity", "divergence"], days, 180.0 / rows)

@@ -65,12 +65,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..cases.library import make_case
 from ..cases.reference import reference_path
-from ..core.arguments import mapping_argument, path_argument
+from ..core.arguments import instance_argument, mapping_argument
 from ..core.clock import Clock
 from ..core.constants import EARTH, Planet
 from ..core.errors import SceneError
@@ -445,7 +446,9 @@ def load_scene(
         names the field); duplicate terms, or terms that omit what the case needs
         (``Case.required_terms``).
     """
-    path = path_argument("path", path, "a scene file's path or a bundled scene's name (str)", SceneError)
+    instance_argument(
+        "path", path, (str, os.PathLike), "a scene file's path or a bundled scene's name (str)", SceneError
+    )
     overrides = {} if overrides is None else mapping_argument("overrides", overrides, error=SceneError)
     return _resolve(resolve_path(str(path)), ne, np_, dt, days, stepper, mesh, overrides)
 
@@ -542,7 +545,9 @@ def resolve_scene(scene, overrides: dict) -> tuple[Scene, tuple]:
         if overrides:
             raise SceneError("overrides apply to a scene file; change a Scene with dataclasses.replace")
         return scene, ()
-    path_argument("scene", scene, "a Scene, a scene file's path or a bundled scene's name", SceneError)
+    instance_argument(
+        "scene", scene, (str, os.PathLike), "a Scene, a scene file's path or a bundled scene's name", SceneError
+    )
     overrides = dict(overrides)
     kw = {name: overrides.pop(k) for k, name in LOAD_KEYWORDS.items() if k in overrides}
     flat = {}

@@ -95,8 +95,8 @@ def callable_argument(name: str, value, takes: str, error=ArgumentError):
     return value
 
 
-def instance_argument(name: str, value, kind: type, takes: str, error=ArgumentError):
-    """``value``, an instance of ``kind``."""
+def instance_argument(name: str, value, kind: type | tuple, takes: str, error=ArgumentError):
+    """``value``, an instance of ``kind`` (a type or a tuple of types)."""
     if not isinstance(value, kind):
         raise error(f"{name} must be {takes} (got {got(value)})")
     return value

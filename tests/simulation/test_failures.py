@@ -46,10 +46,11 @@ def test_bad_thread_count_is_one_line(capsys, monkeypatch, value):
 
 
 def test_tiny_output_interval_with_a_grid_override(tmp_path, capsys):
-    """every_days = 1e-12 with --ne: was ZeroDivisionError; now dt is cut to the
-    interval with a warning note, and the step count is refused (bad input)."""
+    """every_days = 1e-12 with --ne: was ZeroDivisionError, then a dt cut to the interval and
+    its step count refused; now the interval itself is refused first, in O(1), naming the
+    count of times it asks for (``Clock.check_times``)."""
     path = scene_with(tmp_path, **{"days = 1.0": "days = 1.0\n[output]\nevery_days = 1e-12"})
-    cli_one_line(capsys, ["run", str(path), "--ne", "3", "--device", "cpu"], 2, "steps to day 1", "1e+09")
+    cli_one_line(capsys, ["run", str(path), "--ne", "3", "--device", "cpu"], 2, "output.every_days", "1e+12 times")
 
 
 def test_dt_cut_more_than_twice_warns(tmp_path):

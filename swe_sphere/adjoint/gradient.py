@@ -161,7 +161,9 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
     grid = topo.grid
     if hs is not None:
         hs = _distributed(topo, hs, 1, "hs")[0]
-    model = ShallowWater.from_scene(scene, grid, case if hs is None else _Topography(case, hs), topology=topo)
+    case = case if hs is None else _Topography(case, hs)
+    # the model's arrays on the device its topology launches on (issue 83: they were the CPU's)
+    model = ShallowWater.from_scene(scene, grid, case, device=topo.backend.device, topology=topo)
     stepper = make_stepper(scene.stepper, model, scene.dt, **scene.stepper_options)
     explicit = (ExplicitRK, FBRK32, Leapfrog, LeapfrogTrapezoidal, SplitExplicit, Mri)
     if not isinstance(stepper, explicit) or isinstance(stepper, HelmholtzSteps):  # semi_implicit: a Leapfrog
@@ -276,7 +278,7 @@ def gradient(
     hs=None,
     disk=None,
     disk_interval: int | None = None,
-    device="cpu",
+    device=None,
     comm=None,
     history=None,
 ) -> Gradient:
@@ -318,8 +320,10 @@ def gradient(
     disk_interval : K ≥ 1, the steps between the states written (None: ``snapshots``, the
         most that reverses a segment with every state held; 1: every state on the disk, each
         step taken forward once).
-    device : "cpu" or "cuda" (its per-node transposes are checked against the CPU's element
-        kernels on the CPU; the whole on a GPU by ``tests/adjoint``'s CUDA test).
+    device : "cpu", "cuda" or "cuda:N"; None: a ``Simulation``'s default (``SWE_SPHERE_DEVICE``
+        where set, else CUDA when present, else the CPU: ``core.backend.pick_device``). Its
+        per-node transposes are checked against the CPU's element kernels on the CPU; the whole on
+        a GPU by ``tests/adjoint``'s CUDA test.
     history : a run's steps (required for a scene under ``time.control``, whose steps its
         controller chose): that run's ``Simulation.control.history`` (``StepControl.history``:
         (time reached (s), Δt (s), error norm) per accepted step, from the scene's start), of

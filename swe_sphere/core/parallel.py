@@ -139,6 +139,41 @@ def array_key(a: wp.array) -> tuple:
     return (a.ptr, a.shape, a.strides)
 
 
+def _lives_on(array: wp.array, device: str) -> bool:
+    """Whether ``array`` is in ``device``'s memory (a Warp device name: "cpu", "cuda", "cuda:N")."""
+    where = array.device
+    if device == where.alias:
+        return True
+    return not where.is_cpu and where == device  # "cuda": the current CUDA device; a host array on none
+
+
+def foreign_arrays(kernel, inputs, device) -> list[str]:
+    """The arguments of a launch of ``kernel`` on ``device`` (a Warp device name or a
+    ``Backend``) with ``inputs`` whose array, or an array field of whose struct, lives on
+    another device, as "name (device)" ("name.field (device)" for a field): Warp passes an
+    array's address to a launch as it is (``wp.config.launch_array_access_mode`` RELAXED), so a
+    host array in a CUDA launch is an illegal memory access found only later, at a sync."""
+    device = device.device if isinstance(device, Backend) else str(device)
+    found = []
+    for arg, value in zip(kernel.adj.args, inputs):
+        if isinstance(value, wp.array):
+            fields = [(arg.label, value)]
+        elif wp.types.type_is_struct(arg.type) and value is not None:
+            fields = [(f"{arg.label}.{name}", getattr(value, name)) for name in arg.type.vars]
+        else:
+            continue
+        found += [f"{name} ({a.device})" for name, a in fields if isinstance(a, wp.array) and not _lives_on(a, device)]
+    return found
+
+
+def check_devices(kernel, inputs, device) -> None:
+    """ValueError naming ``foreign_arrays``' arguments, if any, before a launch is recorded."""
+    found = foreign_arrays(kernel, inputs, device)
+    if found:
+        where = device.device if isinstance(device, Backend) else device
+        raise ValueError(f"kernel {kernel.key!r} launched on {where} takes arrays elsewhere: {', '.join(found)}")
+
+
 def record(
     kernel,
     dim,
@@ -154,12 +189,14 @@ def record(
     """Record ``kernel`` over ``dim`` (N, or (rows, N) with the node index last;
     or the element count, with ``nodes_per_index`` = np²); ``inputs`` without
     the trailing offset; ``device`` the run's ``Backend`` (or a Warp device, looked up). ``start``: the first index (the launch covers start ..
-    start + n − 1 of the node or element index: a range of the elements). With ``threads`` > 1 on a CPU device and at least
+    start + n − 1 of the node or element index: a range of the elements). ValueError for an
+    array (or a struct's array field) on another device than the launch's (``check_devices``). With ``threads`` > 1 on a CPU device and at least
     MIN_POINTS_PER_PART nodes per thread, returns a ``SplitLaunch`` over that
     many index ranges (cut at multiples of ``block``); otherwise a plain
     ``wp.Launch`` (``per_part`` values of the first range)."""
     rows, n = (None, dim) if isinstance(dim, int) else dim
     backend = device if isinstance(device, Backend) else Backend.of(device)
+    check_devices(kernel, inputs, backend)
     parts = min(backend.launch_parts(threads), n * nodes_per_index // MIN_POINTS_PER_PART)
     if n % block == 0:
         parts = min(parts, n // block)  # no empty range

@@ -15,6 +15,7 @@ from swe_sphere.adjoint.explicit import StepAdjoint
 from swe_sphere.adjoint.gradient import scene_model, step_adjoint
 from swe_sphere.adjoint.revolve import forward_steps, griewank_steps, split, sweep
 from swe_sphere.config.scene import load_scene
+from swe_sphere.core.backend import Backend
 from swe_sphere.core.errors import ArgumentError
 from swe_sphere.kernels import tendencies, tendency_adjoint
 from swe_sphere.model.shallow_water import ShallowWater
@@ -406,17 +407,55 @@ def test_a_controlled_run_s_gradient_follows_the_steps_it_took(case, stepper, mo
         assert_falls_as_eps_squared(nu, "nu")
 
 
-@requires_cuda
-@pytest.mark.parametrize("stepper", ["kgu35", "fbrk32", "leapfrog_trapezoidal", "split_explicit", "mri"])
-def test_a_gradient_on_cuda_is_the_cpu_s(stepper):
-    """On CUDA (the per-node transposes; their element twins checked on the CPU above) the cost,
-    ∂J/∂x(0) and the parameters' gradients are the CPU's to round-off: sums in another order."""
+def test_the_gradients_model_is_built_on_the_device_it_launches_on(monkeypatch):
+    """``scene_model`` builds its model on its topology's device: the model's arrays had been
+    the constructor's default CPU ones while the topology recorded its launches on CUDA, an
+    illegal memory access in every CUDA gradient (issue 83; ``parallel.record`` now refuses
+    a launch of arrays on another device)."""
+    options = {}
+    from_scene = ShallowWater.from_scene.__func__
+
+    def spy(cls, scene, grid, case=None, **kw):
+        options.update(kw)
+        return from_scene(cls, scene, grid, case, **kw)
+
+    monkeypatch.setattr(ShallowWater, "from_scene", classmethod(spy))
+    model, _, _ = scene_model(tc5("kgu35"), "cpu")
+    assert options.get("device") == model.topology.backend.device == model.device == "cpu"
+
+
+ON_CUDA = ["kgu35", "fbrk32", "leapfrog_trapezoidal", "split_explicit", "mri"]
+
+
+def assert_gradients_agree(stepper, device, monkeypatch=None):
+    """The gradient of TC5 ne2 on ``device`` equals the CPU's per-element one to round-off (sums in
+    another order): cost, ∂J/∂x(0) and the parameters'. With ``monkeypatch``, ``device`` "cpu" with
+    CUDA's per-node layout (its transposes, DSS and ∇⁴ kernels)."""
     scene = tc5(stepper)
     model, _, x0 = setup(stepper)
     cost = HeightMisfit(x0[2] + 50 * continuous(model, np.random.default_rng(10).standard_normal((3, model.N)))[2])
-    cpu, gpu = (gradient(scene, 4, cost, snapshots=2, parameters=True, device=d) for d in ("cpu", "cuda"))
-    assert gpu.cost == pytest.approx(cpu.cost, rel=1e-12)
-    assert np.abs(gpu.grad - cpu.grad).max() <= 1e-10 * np.abs(cpu.grad).max()
-    assert np.abs(gpu.d_hs - cpu.d_hs).max() <= 1e-10 * np.abs(cpu.d_hs).max()
+    cpu = gradient(scene, 4, cost, snapshots=2, parameters=True, device="cpu")
+    if monkeypatch is not None:
+        monkeypatch.setattr(Backend, "per_element", property(lambda self: False))
+        monkeypatch.setattr(Backend, "nodes_per_thread", lambda self, np_: 1)
+    other = gradient(scene, 4, cost, snapshots=2, parameters=True, device=device)
+    assert other.cost == pytest.approx(cpu.cost, rel=1e-12)
+    assert np.abs(other.grad - cpu.grad).max() <= 1e-10 * np.abs(cpu.grad).max()
+    assert np.abs(other.d_hs - cpu.d_hs).max() <= 1e-10 * np.abs(cpu.d_hs).max()
     for name in ("d_nu", "d_nu_s", "d_g", "d_omega"):
-        assert getattr(gpu, name) == pytest.approx(getattr(cpu, name), rel=1e-10), name
+        assert getattr(other, name) == pytest.approx(getattr(cpu, name), rel=1e-10), name
+
+
+@pytest.mark.parametrize("stepper", ON_CUDA)
+def test_a_gradient_in_the_cuda_layout_is_the_cpu_s(monkeypatch, stepper):
+    """The CUDA test's gradients with CUDA's per-node kernels run on the CPU: the per-node
+    transposes checked without a card (issue 83)."""
+    assert_gradients_agree(stepper, "cpu", monkeypatch)
+
+
+@requires_cuda
+@pytest.mark.parametrize("stepper", ON_CUDA)
+def test_a_gradient_on_cuda_is_the_cpu_s(stepper):
+    """On CUDA (the per-node transposes; their element twins checked on the CPU above) the cost,
+    ∂J/∂x(0) and the parameters' gradients are the CPU's to round-off: sums in another order."""
+    assert_gradients_agree(stepper, "cuda")

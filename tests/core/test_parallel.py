@@ -163,3 +163,25 @@ def _child_rhs(m, x, q):
     out = wp.zeros_like(x)
     m.rhs(x, out)
     q.put(out.numpy().copy())
+
+
+def test_a_launch_is_refused_arrays_on_another_device():
+    """``parallel.record`` checks that every array a launch takes, and every array field of a
+    struct it takes, lives on the launch's device: Warp passes a host array's address to a CUDA
+    launch as it is, an illegal memory access reported only at a later sync (issue 83: the
+    gradient's model held its arrays on the CPU while its topology launched on CUDA). A device
+    name checked without a card: the launch is refused before Warp looks the device up."""
+    from swe_sphere.kernels import blas, hyperviscosity
+
+    x, out = wp.zeros((1, 4), dtype=wp.float64), wp.zeros((1, 4), dtype=wp.float64)
+    inputs = [wp.float64(1.0), x, wp.float64(0.0), x, out, 1]
+    card = Backend("cuda:0", host=False)
+    assert parallel.foreign_arrays(blas.axpby, inputs, "cpu") == []
+    assert parallel.foreign_arrays(blas.axpby, inputs, card) == ["x (cpu)", "y (cpu)", "out (cpu)"]
+    with pytest.raises(ValueError, match=r"launched on cuda:0 takes arrays elsewhere: x \(cpu\), y \(cpu\)"):
+        parallel.record(blas.axpby, 4, inputs, device=card, threads=1)
+    frame = hyperviscosity.Frame()
+    frame.east = wp.zeros((3, 4), dtype=wp.float64)
+    kernel = hyperviscosity.laplacian_node(False, False)
+    assert parallel.foreign_arrays(kernel, [None, None, None, None, frame], card) == ["f.east (cpu)"]
+    assert parallel.foreign_arrays(kernel, [None, None, None, None, frame], "cpu") == []

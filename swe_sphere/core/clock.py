@@ -87,8 +87,14 @@ class Clock:
         return self.steps_in(self.length)
 
     def steps_in(self, days: float) -> int:
-        """The nearest whole number of steps in ``days`` (whole or not: ``is_whole``)."""
+        """The one rounding of days to steps: the nearest whole number of steps in ``days``
+        (whole or not: ``is_whole``)."""
         return round(days * DAY / self.dt)
+
+    def times_in(self, every: float) -> int:
+        """How many intervals of ``every`` days (> 0) end within the run (its length; a hair
+        short counts): the outputs after step 0 (``schedules.output_steps``), ``check_times``'."""
+        return math.floor(self.length / every + 1e-9)
 
     def is_whole(self, days) -> bool:
         """The one whole-step rule: ``days`` is a number > 0 and within 1e-6 of a step of a
@@ -129,7 +135,7 @@ class Clock:
         """Refuse (``SceneError`` naming ``what``) an interval of ``every`` days (> 0) that gives
         more than ``MAX_TIMES`` times (outputs, restart files) over the run: O(1), before any
         schedule is listed (a dt cut to divide 1e-9 days made 1e8 of them)."""
-        times = math.floor(self.length / every + 1e-9)  # as ``schedules.output_steps`` counts them
+        times = self.times_in(every)
         if times > MAX_TIMES:
             raise SceneError(
                 f"{what} of {every:g} days gives {times:.3g} times over the run of "

@@ -24,7 +24,8 @@ def fit_dt(self, every: float, what: str = "every") -> None:
     """Shorten Δt, before the first step, to the largest that divides ``every`` (days),
     the run, its output intervals (where shorter than the run) and the intervals of
     the activities scheduled in days (``every``; their steps follow): the scene's clock
-    fitted to them (``Clock.fitted``), a new stepper, and the start's diagnostics again
+    fitted to them (``Clock.fitted``), set on the stepper (``set_dt``; a stepper that cannot
+    change its Δt, ``variable_dt`` False, built anew), and the start's diagnostics again
     (their Courant numbers); a note in ``scene.notes`` naming ``what``. ``SceneError``
     (one line) after the first step, for ``every`` <= 0, and where that Δt is less than
     half the present one (an interval of odd decimals: give a dt, or an interval of
@@ -44,8 +45,11 @@ def fit_dt(self, every: float, what: str = "every") -> None:
         )
     note = f"dt shortened from {s.dt:g} s to {clock.dt:g} s to divide {what} = {every:g} days"
     self.scene = dataclasses.replace(s, dt=clock.dt, notes=(*s.notes, note), dt_source=clock.source)
-    self.stepper = scene_stepper(self.scene, self.model)
-    self.stepper.prepare(self.x)
+    if self.stepper.variable_dt:  # its own ``set_dt`` (as step control's): what was built for the old Δt dropped
+        self.stepper.set_dt(clock.dt)
+    else:  # Δt folded into what it builds (a Helmholtz operator, a history's weights, element levels): anew
+        self.stepper = scene_stepper(self.scene, self.model)
+        self.stepper.prepare(self.x)
     for activity in self.activities.values():
         if getattr(activity.schedule, "days", None) is not None:
             activity.schedule = self.every(days=activity.schedule.days)

@@ -9,7 +9,6 @@ from dataclasses import dataclass
 from fractions import Fraction
 
 from ..config.scene import Scene
-from ..core.constants import DAY
 
 
 def steps_of(scene: Scene, days: float, what: str) -> int:
@@ -22,9 +21,9 @@ def output_steps(scene: Scene, every_days: float | None = None) -> set[int]:
     """Steps with an output: every output interval (default the scene's
     ``output.every_days``) from step 0 (t = 0, or a branch's day), and the last."""
     every_days = scene.output_every_days if every_days is None else every_days
-    every = every_days * DAY / scene.dt
-    n_out = math.floor(scene.run_days / every_days + 1e-9)
-    return {min(scene.nsteps, round(k * every)) for k in range(n_out + 1)} | {scene.nsteps}
+    clock = scene.clock
+    steps = {min(clock.nsteps, clock.steps_in(k * every_days)) for k in range(clock.times_in(every_days) + 1)}
+    return steps | {clock.nsteps}
 
 
 def interval_days(scene: Scene, every_days: float) -> set[float]:

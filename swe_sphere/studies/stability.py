@@ -94,7 +94,7 @@ def largest_stable_dt(scene: Scene, device: str, *, tolerance: float = 0.05, log
         )
         return ok
 
-    n = max(1, round(DAY / scene.dt))
+    n = max(1, scene.clock.steps_in(1.0))  # steps a day, the scene's Δt rounded to a whole number of them
     lo = hi = None  # lo: largest n found unstable (largest unstable dt); hi: smallest stable n
     if stable(n):
         hi = n

@@ -14,6 +14,9 @@ def test_a_day_at_150_s_is_576_steps():
     assert (clock.nsteps, clock.steps(1.0, "x"), clock.steps(0.25, "x")) == (576, 576, 144)
     assert clock.is_whole(1.0) and not clock.is_whole(0.0001) and not clock.is_whole(-1.0)
     assert clock.day(288) == 0.5 and clock.day(576) == 1.0
+    # the one rounding of days to steps, whole or not, and the intervals that end within the run
+    assert (clock.steps_in(0.1), clock.steps_in(1 / 3), clock.steps_in(0.0)) == (58, 192, 0)
+    assert (clock.times_in(0.25), clock.times_in(0.3), clock.times_in(1 / 3), clock.times_in(2.0)) == (4, 3, 3, 0)
 
 
 def test_a_tenth_of_a_day_at_7_s_is_refused_in_one_line():

@@ -73,14 +73,16 @@ def test_steps_fit_the_simulations_own_dt():
     """Without a dt the loop shortens its own Δt to divide ``every`` (as ``run`` on the
     command line does for the output interval): Galewsky at ne = 3 np = 5 has 1694.12 s,
     25.5 steps in half a day, fitted to 43200/26 s; the run is then the one given that dt, bit
-    for bit, and a callback in days follows (51 steps a day before, 52 after)."""
+    for bit, and a callback in days follows (51 steps a day before, 52 after). kgu35 changes
+    its Δt in place (``set_dt``): the same stepper."""
     kw = dict(ne=3, np=5, days=1, progress=False)
     own = Simulation("galewsky", "cpu", **kw)
     assert own.scene.dt == 86400 / 51
-    seen = []
+    stepper, seen = own.stepper, []
     own.add_callback(lambda s: seen.append((s.step, s.time)), every_days=1)
     assert list(own.steps(every=0.5)) == [0.5, 1.0]
     assert own.scene.dt == 43200 / 26 and own.step == 52 and seen == [(52, 1.0)]
+    assert own.stepper is stepper and stepper.dt == 43200 / 26
     assert own.scene.notes[-1] == "dt shortened from 1694.12 s to 1661.54 s to divide every = 0.5 days"
     given = Simulation("galewsky", "cpu", dt=43200 / 26, **kw)
     given.advance(days=1)
@@ -98,6 +100,21 @@ def test_steps_fit_the_simulations_own_dt():
     assert late.scene.dt == 43200 / 26 and late.step == 26
     with pytest.raises(ValueError, match=r"every = 0.0123 days .* is 8.64 s, less than half: give a dt"):
         next(Simulation("galewsky", "cpu", **kw).steps(every=0.0123))  # 0.0001-day multiples: refused
+
+
+def test_a_stepper_that_cannot_change_dt_is_built_anew_at_the_fitted_dt():
+    """leapfrog (``variable_dt`` False: its start and filter are its Δt's) is built anew when
+    its own Δt is fitted: 2400 s is 4.5 steps in 1/8 day, fitted to 2160 s (5 steps); the run is
+    then the one given that dt, bit for bit."""
+    kw = dict(ne=2, days=0.25, stepper="leapfrog", progress=False)
+    own = Simulation("tc2_steady_alpha_pi4", "cpu", **kw)
+    stepper = own.stepper
+    assert (own.scene.dt, stepper.variable_dt) == (2400.0, False)
+    assert list(own.steps(every=0.125)) == [0.125, 0.25]
+    assert own.stepper is not stepper and own.stepper.dt == own.scene.dt == 2160.0 and own.step == 10
+    given = Simulation("tc2_steady_alpha_pi4", "cpu", dt=2160.0, **kw)
+    given.advance(days=0.25)
+    np.testing.assert_array_equal(own.x.numpy(), given.x.numpy())
 
 
 def test_callbacks_at_their_steps():

@@ -46,7 +46,7 @@ def test_slow_sine_survives_fast_sine_removed():
         (["--filter-days", "2", "--filter-window", "0.3"], "not a multiple of its 3 h snapshots"),
         (
             ["--filter-days", "1", "--filter-window", "0.5", "--dt", "7200"],
-            "does not divide the filter's snapshot interval",
+            "the filter's 3 h snapshot interval of 0.125 days is not a whole number of steps of dt = 7200 s",
         ),
     ],
 )

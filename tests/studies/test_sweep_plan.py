@@ -86,8 +86,11 @@ def test_the_plan_is_what_the_cli_runs(tmp_path, capsys):
         (dict(runs=[("bs32", "rtol=0")]), "--runs bs32@rtol=0: '0' is not a number > 0"),
         (dict(runs=[("bs32", "tol=1e-5")]), "chosen by rtol=VALUE, rtol_per_day=VALUE, balance=VALUE, cfl=VALUE"),
         (dict(runs=[]), "--runs names no run"),
-        (dict(dts=[7000.0]), "dt = 7000 s does not divide the run length of 1 days"),
-        (dict(dts=[1000.0], filter_days=0.5), "dt = 1000 s does not divide the filter's snapshot interval of 3 h"),
+        (dict(dts=[7000.0]), "the run length of 1 days is not a whole number of steps of dt = 7000 s (--dt)"),
+        (
+            dict(dts=[1000.0], filter_days=0.5),
+            "the filter's 3 h snapshot interval of 0.125 days is not a whole number of steps of dt = 1000 s (--dt)",
+        ),
     ],
 )
 def test_the_plan_refuses_what_the_cli_refuses(options, words):

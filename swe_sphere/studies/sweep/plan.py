@@ -16,6 +16,7 @@ import numpy as np
 from ...config.control import TOLERANCES, resolve_control, tolerance_table
 from ...config.scene import Scene, load_scene
 from ...core.backend import pick_device
+from ...core.clock import Clock
 from ...core.constants import DAY
 from ...io.output_files import check_results, folder_lock
 from ...simulation import checkpoint
@@ -40,10 +41,11 @@ def _positive(values, flag: str) -> tuple[float, ...]:
     return values
 
 
-def _check_divides(dt: float, days: float, what: str) -> None:
-    """ValueError unless ``dt`` (s) is a whole number of steps in ``days``."""
-    if abs(round(days * DAY / dt) * dt - days * DAY) > 1e-6 * dt:
-        raise ValueError(f"dt = {dt:g} s does not divide {what}")
+def _check_whole(dt: float, days: float, what: str, source: str = "--dt") -> None:
+    """``SceneError`` unless ``days`` is a whole number of steps of ``dt`` (s): the clock's one
+    whole-step rule and its refusal (``Clock.steps``: ``what`` of ``days`` days, dt from ``source``,
+    the nearest intervals that are)."""
+    Clock(dt, source=source).steps(days, what)
 
 
 @dataclass(frozen=True)
@@ -116,8 +118,8 @@ class Plan:
         explicit limits on ``device`` ("cpu" or "cuda"; None: ``SWE_SPHERE_DEVICE``, else CUDA when present,
         ``pick_device``; ``explicit_limits``), each multiple's Δt (the
         largest at or below it that divides ``span`` and a day: ``dt_for_day``) and
-        the notes `swe-sphere sweep` prints before its runs. Raises ValueError for a
-        Δt that does not divide the run length."""
+        the notes `swe-sphere sweep` prints before its runs. Raises SceneError for a
+        Δt of which the run length is not whole steps (``Clock.steps``)."""
         base, ck, f, span = self.base, self.checkpoint, self.time_filter, self.span
         device = pick_device(device)
         start = ck.x if ck is not None else start_state(base, directory, device, log)
@@ -149,7 +151,7 @@ class Plan:
                     f"(each dt the largest at or below its multiple that divides {min(span, 1.0):g} days)"
                 )
             for dt in dts:
-                _check_divides(dt, base.run_days, f"the run length of {base.run_days:g} days")
+                _check_whole(dt, base.run_days, "the run length", "a multiple of the gravity-wave limit")
         if self.controlled:  # each run once, from its scene's Δt
             pairs = (*(pairs or ()), *((name, self.scenes[name].dt) for name in self.controlled))
         chosen = ", ".join(f"{name} (first dt {self.scenes[name].dt:.4g} s)" for name in self.controlled)
@@ -211,8 +213,10 @@ class Plan:
         ------
         OutputError
             Another sweep holds ``directory``, or its results exist (without ``overwrite``).
+        SceneError
+            A Δt of which the run length is not whole steps (``Clock.steps``).
         ValueError
-            A Δt that does not divide the run length; an unknown ``cost``.
+            An unknown ``cost``.
         BlowUp
             The small-Δt reference run failed.
         Interrupted
@@ -321,11 +325,11 @@ def plan(
     Raises
     ------
     ValueError
-        Options that conflict, none or non-positive values, a Δt that does not
-        divide the run length or the filter's snapshot interval, a bad filter
+        Options that conflict, none or non-positive values, a bad filter
         (messages name the options as `swe-sphere sweep` spells them).
     SceneError
-        A bad scene, override or stepper (``load_scene``).
+        A bad scene, override or stepper (``load_scene``); a Δt of which the run length or
+        the filter's snapshot interval is not whole steps (``Clock.steps``, naming ``--dt``).
     CheckpointError
         An unreadable restart file, or a branch it cannot make.
 
@@ -457,7 +461,8 @@ def _scenes(scene, steppers, *, ne, np_, days, overrides, restart) -> tuple[dict
 def _time_filter(length: float, dts, filter_days, filter_every, filter_window) -> TimeFilter | None:
     """``plan``'s time filter (None without ``filter_days``), checked against the run's
     ``length`` (days), and the Δt values ``dts`` (s; None: multiples) checked against
-    the filter's snapshot interval and ``length``: ValueError where one does not divide."""
+    the filter's snapshot interval and ``length``: SceneError where one is not whole steps
+    (``Clock.steps``)."""
     time_filter = None
     if filter_days is not None:
         time_filter = TimeFilter(filter_days, filter_every, filter_window)
@@ -468,9 +473,7 @@ def _time_filter(length: float, dts, filter_days, filter_every, filter_window) -
                 f"the run length of {length:g} days is not a multiple of the filter's {time_filter.every_hours:g} h snapshots"
             )
     for dt in dts if time_filter is not None and dts else ():
-        _check_divides(
-            dt, time_filter.every_hours / 24, f"the filter's snapshot interval of {time_filter.every_hours:g} h"
-        )
+        _check_whole(dt, time_filter.every_hours / 24, f"the filter's {time_filter.every_hours:g} h snapshot interval")
     for dt in dts or ():
-        _check_divides(dt, length, f"the run length of {length:g} days")
+        _check_whole(dt, length, "the run length")
     return time_filter

@@ -27,6 +27,7 @@ from ...cases.reference import FLOORS, floor
 from ...cases.scoring import instability, truth, unscored
 from ...config.control import tolerance
 from ...config.scene import Scene
+from ...core.clock import Clock
 from ...core.constants import DAY
 from ...core.errors import BlowUp, Interrupted, OutputError
 from ...core.workers import InProcess
@@ -53,8 +54,7 @@ SPATIAL = (
 def dt_for_day(dt: float, run_days: float) -> float:
     """The largest Δt ≤ dt that divides a day (or ``run_days``, if shorter: the run,
     or a time filter's snapshot interval)."""
-    span = min(1.0, run_days) * DAY
-    return span / math.ceil(span / dt - 1e-9)
+    return Clock(dt).fitted(min(1.0, run_days)).dt
 
 
 def start_state(scene: Scene, directory, device: str, log=print) -> np.ndarray | None:
@@ -223,13 +223,15 @@ class Sweep:
         run's start and at the target (at the end of a blow-up). An output is known by
         its step, or under step control (``Scene.control``) by its second from the start
         (the steps land on the output times)."""
-        f, target, start, unit = self.time_filter, scene.days, scene.start_day, 1.0 if scene.control else scene.dt
+        f, target, start = self.time_filter, scene.days, scene.start_day
+        # an output's mark from its days from the start: its step (the clock's rounding), its second under control
+        mark_of = (lambda days: round(days * DAY)) if scene.control else scene.clock.steps_in
         weights = {}
         if f is not None:  # outputs count from the scene's start (t = 0, or a branch's day)
-            weights = {round((d - start) * DAY / unit): w for d, w in zip(f.days(target), f.weights)}
+            weights = {mark_of(d - start): w for d, w in zip(f.days(target), f.weights)}
             scene = dataclasses.replace(scene, days=target + f.half_window_days, output_every_days=f.every_hours / 24)
         sim = Simulation(scene, self.device, progress=False, start=self.start)
-        mark = round((target - start) * DAY / unit)
+        mark = mark_of(target - start)
         kept = {"x": None, "filtered": 0.0, "seen": 0}
         load0 = os.getloadavg()[0]
 

@@ -12,7 +12,7 @@ between them and element-local (3, N) states (``kernels.implicit``).
 (one of the choices of Knoll & Keyes 2004, J. Comput. Phys. 193, 357; ‖·‖ the
 Euclidean norm of the unique-node vectors over all processes). Every term of F is
 at most quadratic in the state, so the difference's error is ε‖F''‖: ~1e-8
-relative (``tests/steppers/test_implicit.py``).
+relative (``tests/solvers/test_jacobian.py``).
 """
 
 from __future__ import annotations
@@ -110,7 +110,7 @@ class HostPasses:
     """``KernelPasses``'s passes in numpy on zero-copy views of the Warp arrays (the
     backend on a CPU device: Warp's CPU kernels took 5–13 ns an entry for them, at ne16
     more than the RHS of the J·v altogether; numpy's take and arithmetic 0.3–1.3 ns). The
-    same arithmetic entry by entry, so the same bits (``tests/steppers/test_implicit.py``) but for
+    same arithmetic entry by entry, so the same bits (``tests/solvers/test_jacobian.py``) but for
     ε, which is a host value here (‖w‖ by BLAS on a view: no copy), and the same whatever
     the model's threads: numpy runs them on one."""
 

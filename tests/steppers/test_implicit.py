@@ -23,9 +23,6 @@ What is checked, and what was measured on Warp's CPU backend (2 busy cores):
   ~1e-3 s⁻¹, are damped by backward Euler as exp(−T ω² Δt / 2), which is
   linear in Δt only once T ω² Δt ≪ 1. Over 0.5 day, CN 8 -> 16 steps gives 0.60,
   BE 256 -> 512 gives 0.68.)
-* The finite-difference Jacobian-vector product against the exact directional
-  derivative (ne = 2): F is quadratic in the state, so a central difference is
-  exact up to round-off for any step; forward difference error 1.4e-8 relative.
 * Newton near the solution (one step of 3600 s, ne = 4): with the default
   Eisenstat–Walker forcing the observed order is 1.80, 2.17 (TC5), 2.13, 2.09
   (TC6); with the inner solve made tight (forcing term 1e-13)
@@ -37,10 +34,10 @@ What is checked, and what was measured on Warp's CPU backend (2 busy cores):
   Courant 10.7, atol 1e-10, flexible GMRES): GMRES 617 -> 95 iterations (6.5x),
   664 -> 128 RHS evaluations, with 1792 Jacobi-CG iterations on the assembled
   Helmholtz matrix (0.37 s -> 0.33 s).
-* Flexible GMRES with an inexact inner solve (AMG-CG to 1e-1): true linear
-  residual at η (9.8e-7 for 1e-6), where scipy's GMRES (not flexible; removed
-  with the other Krylov variants) missed it (6.8e-3).
 * Bad ``[implicit]`` options give exit status 2; a Newton failure exit status 3.
+
+Its solvers' own tests (the Jacobian-vector product, flexible GMRES and its backends) are in
+tests/solvers/.
 """
 
 from __future__ import annotations
@@ -57,13 +54,10 @@ from swe_sphere.cli import main
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
 from swe_sphere.core.errors import BlowUp
-from swe_sphere.core.tally import Tally, instrumented
-from swe_sphere.grid.topology import Topology
 
 import helpers
 import roundoff
 from helpers import cached_grid, make_sim, run, write_tc2_scene
-from numpy_ops import NumpyOps
 
 DEVICE = "cpu"
 EPS = np.finfo(float).eps
@@ -178,111 +172,6 @@ def test_second_order_schemes_beat_backward_euler_at_the_same_step():
     assert cn < bdf2 < be
 
 
-# -- the Jacobian-vector product ---------------------------------------------------
-
-
-@pytest.mark.parametrize("name", ["tc5_mountain", "tc6_rossby_haurwitz", "tc2_steady_alpha_pi4"])
-def test_jacobian_vector_product_matches_exact_directional_derivative(name, rng):
-    """ne = 2. ``Implicit.jacobian_product`` (forward difference, ε = sqrt(ε_mach)(1 + ‖x‖)/‖v‖,
-    on unique-node vectors) against the exact directional derivative. Every term of F is at most quadratic
-    in the state (h v, ζ v, |v|², linear Coriolis and pressure gradient, constant
-    topography; the DSS is linear), so the central difference
-    (F(x + s v) − F(x − s v)) / 2s is exact up to round-off for any s: that is
-    checked first (s = 1 against s = 1e-3, and the second difference scales as s²).
-    Direction: random, DSS'd to be continuous, wind ~10 m/s and depth ~100 m.
-    Measured: 1.37e-8 (TC5), 1.37e-8 (TC6), 1.36e-8 (TC2) relative."""
-    scene = load_scene(name, ne=2, np_=4, days=1.0, stepper="implicit", dt=3600.0)
-    sim = make_sim(scene)
-    st, m = sim.stepper, sim.model
-    x0 = sim.x.numpy().copy()
-    ops = NumpyOps(sim.grid)
-    v = ops.dss(rng.standard_normal((3, m.N)) * np.array([[10.0], [10.0], [100.0]]))
-
-    xa = wp.zeros((3, m.N), dtype=wp.float64, device=DEVICE)
-    fa = wp.zeros_like(xa)
-
-    def F(a):
-        xa.assign(a)
-        m.rhs(xa, fa)
-        return fa.numpy().copy()
-
-    F0 = F(x0)
-    exact = (F(x0 + v) - F(x0 - v)) / 2
-    small = (F(x0 + 1e-3 * v) - F(x0 - 1e-3 * v)) / 2e-3
-    second1 = F(x0 + v) + F(x0 - v) - 2 * F0
-    second2 = (F(x0 + 2 * v) + F(x0 - 2 * v) - 2 * F0) / 4
-    assert rel(small, exact) < 1e-9
-    assert rel(second2, second1) < 1e-10
-
-    # the stepper's state for a θ = 0.5 step at x0 (as its Newton iteration sets it up)
-    st.rhs_evals, st.beta, st.x = 0, 0.5, sim.x
-    st.xnorm = np.linalg.norm(x0[:, sim.grid.first])
-    m.rhs(sim.x, st.Fx)
-    # Krylov vectors are on unique nodes: row r of node g at r·nunique + g
-    unique = lambda a: a[:, sim.grid.first].ravel()  # noqa: E731
-    vu = unique(v)
-    vw = wp.array(vu, dtype=wp.float64, device=DEVICE)
-    out = wp.zeros_like(vw)
-    evals, F = [0], st.jacobian.F
-    st.jacobian.F = lambda *a: (evals.__setitem__(0, evals[0] + 1), F(*a))
-    st.jacobian_product(vw, out)
-    assert evals[0] == 1  # one F evaluation per product
-    Jv = out.numpy().copy()  # numpy() is a view of the Warp array on the CPU
-    JF = (vu / st.dt - Jv) / st.beta  # the F'(x) v inside it
-    err_F = rel(JF, unique(exact))
-    err_J = rel(Jv, vu / st.dt - st.beta * unique(exact))
-    print(
-        f"\n{name}: |F'v - central| / |central| = {err_F:.3e}; whole J v: {err_J:.3e}; "
-        f"central s = 1e-3 vs 1: {rel(small, exact):.1e}; x unchanged: {np.array_equal(sim.x.numpy(), x0)}"
-    )
-    assert err_F < 1e-6
-    assert err_J < 1e-6
-    np.testing.assert_array_equal(sim.x.numpy(), x0)  # J v leaves the iterate alone
-    # linear in v (to the difference's accuracy), and zero for v = 0
-    st.jacobian_product(wp.array(-3.0 * vu, dtype=wp.float64, device=DEVICE), out)
-    assert rel(out.numpy(), -3.0 * Jv) < 1e-6
-    st.jacobian_product(wp.zeros_like(vw), out)
-    assert not np.any(out.numpy())
-
-
-def test_jacobian_passes_host_and_kernels_agree(rng):
-    """``jacobian.FiniteDifferenceJacobian``'s two backends of its pointwise passes
-    (``HostPasses``, numpy, the CPU's; ``KernelPasses``, Warp kernels, CUDA's) on TC5 at
-    ne = 2: the gather, the scatter and shift·w + scale·J w give the same numbers to
-    round-off (measured: the gather and scatter the same bits, J·v 2.5e-17 apart: ε's
-    norms are summed in another order, KernelPasses' on the device); J·0 = 0."""
-    from swe_sphere.solvers.jacobian import FiniteDifferenceJacobian, HostPasses, KernelPasses
-
-    sim = make_sim(load_scene("tc5_mountain", ne=2, np_=4, days=1.0, stepper="implicit", dt=3600.0))
-    m, first = sim.model, sim.grid.first
-    Fx = wp.zeros_like(sim.x)
-    m.rhs(sim.x, Fx)
-    x_np = sim.x.numpy()
-    w = wp.array(rng.standard_normal(3 * first.size) * 10.0, dtype=wp.float64, device=DEVICE)
-    got = {}
-    for passes in (HostPasses, KernelPasses):
-        jac = FiniteDifferenceJacobian(m, m.rhs, passes)
-        u, xu, e, jv = wp.zeros_like(w), wp.zeros_like(w), wp.zeros_like(sim.x), wp.zeros_like(w)
-        jac.gather(-2.0, sim.x, u)
-        jac.gather(1.0, sim.x, xu)
-        jac.scatter(w, e)
-        xnorm = jac.point_norm(xu)  # KernelPasses: a device array
-        jac.apply(sim.x, Fx, xnorm, w, jv, 0.25, -0.5)
-        got[passes] = [a.numpy().copy() for a in (u, e, jv)]
-        jac.apply(sim.x, Fx, xnorm, wp.zeros_like(w), jv, 0.25, -0.5)
-        assert not np.any(jv.numpy())  # w = 0: J w = 0 (KernelPasses: ε = 0 on the device)
-    for name, a, b in zip(("gather", "scatter", "J·v"), got[HostPasses], got[KernelPasses]):
-        print(
-            f"\n{name}: bitwise {np.array_equal(a, b)}, max |host - kernels| / max |kernels| {np.abs(a - b).max() / np.abs(b).max():.1e}",
-            end="",
-        )
-        np.testing.assert_allclose(a, b, rtol=1e-14, atol=1e-14 * np.abs(b).max())
-    np.testing.assert_array_equal(got[HostPasses][0], -2.0 * x_np[:, first].ravel())  # the unique-node layout
-    np.testing.assert_array_equal(
-        got[HostPasses][1], w.numpy().reshape(3, -1)[:, sim.grid.gid]
-    )  # one process: index = gid
-
-
 # -- Newton converges quadratically near the solution ---------------------------------
 
 
@@ -393,211 +282,6 @@ def test_helmholtz_preconditioner_cuts_gmres_iterations():
         roundoff.mass_change_bound(roundoff.operations(helm), cached_grid(4, 4).nnodes),
         "|mass change|",
     )
-
-
-def test_fgmres_reaches_the_true_residual_with_an_inexact_inner_solve():
-    """TC5 ne = 4, the first Newton system J δ = −R of a CN step of 21600 s
-    (gravity-wave Courant 10.7), solved to η = 1e-6 with the preconditioner's
-    Helmholtz equation solved by the compiled CG to a loose 1e-1, so that the
-    preconditioner changes from one application to the next. Flexible GMRES
-    keeps the directions it preconditioned: the true residual ‖J δ + R‖/‖R‖ is
-    at η (GMRES on J P⁻¹ with δ = P⁻¹w at the end, right for a fixed P only,
-    missed it by orders of magnitude: 6.8e-3)."""
-    base = load_scene("tc5_mountain", ne=4, np_=4, days=1.0, stepper="implicit", dt=21600.0)
-    options = {"helmholtz_tol": 1e-1, "gmres_maxiter": 60}
-    sim = make_sim(dataclasses.replace(base, stepper_options=options))
-    st, x = sim.stepper, sim.x
-    st.forcing_term = lambda *args: 1e-6  # the first Newton iteration's η
-    solve, found = st.fgmres.solve, {}
-
-    class Solved(Exception):
-        """The first Newton system solved: the step stops there."""
-
-    def first_system(matvec, precond, minus_R, delta, *args, **kw):  # δ (unique nodes) from J δ = −R
-        found["its"], _ = solve(matvec, precond, minus_R, delta, *args, **kw)
-        jv = wp.zeros_like(delta)
-        st.jacobian_product(delta, jv)  # about the step's first iterate, x
-        found["true"] = rel(jv.numpy(), minus_R.numpy())  # ‖J δ + R‖ / ‖R‖
-        raise Solved
-
-    st.fgmres.solve = first_system
-    with pytest.raises(Solved):
-        st.step(x)
-    print(f"\n{found['its']} GMRES iterations, true relative residual {found['true']:.2e}", end="")
-    assert found["true"] < 2e-6
-
-
-@pytest.mark.parametrize("backend", ["HostVectors", "KernelVectors"])
-def test_fgmres_solves_with_a_changing_preconditioner_and_restarts(backend, rng):
-    """``krylov.FGMRES`` on a random nonsymmetric, diagonally dominant system
-    (n = 200), with either backend of its vector work: with a preconditioner that
-    changes at every application (a random-scaled Jacobi) and restarts every 5
-    iterations, the true residual reaches the tolerance; without restarts the
-    iterations match scipy's GMRES (same Krylov space with a fixed preconditioner)."""
-    import scipy.sparse.linalg as spla
-
-    from swe_sphere.solvers import krylov
-
-    n = 200
-    A = np.diag(np.linspace(1.0, 10.0, n)) + 0.3 * rng.standard_normal((n, n)) / math.sqrt(n)
-    b_np = rng.standard_normal(n)
-    d = 1.0 / np.diag(A)
-    one_process = Topology(cached_grid(2, 4))  # FGMRES takes its device, threads and reductions
-
-    def solve(restart, scaling, rtol, maxiter, rhs=b_np):
-        def matvec(v, out):  # CPU Warp arrays: numpy() is a view
-            out.numpy()[:] = A @ v.numpy()
-
-        def precond(v, out):
-            out.numpy()[:] = d * v.numpy() * scaling()
-
-        b, x = wp.array(rhs, dtype=wp.float64), wp.full(n, 1.0, dtype=wp.float64)
-        its, ok = krylov.FGMRES(n, restart, one_process, getattr(krylov, backend)).solve(
-            matvec, precond, b, x, rtol, maxiter
-        )
-        return x.numpy(), its, ok
-
-    x, its, ok = solve(5, lambda: rng.uniform(0.5, 1.5, n), 1e-10, 500)
-    resid = np.linalg.norm(b_np - A @ x) / np.linalg.norm(b_np)
-    count = [0]
-    spla.gmres(
-        A,
-        b_np,
-        rtol=1e-8,
-        atol=0.0,
-        restart=n,
-        maxiter=1,
-        M=np.diag(d),
-        callback=lambda _: count.__setitem__(0, count[0] + 1),
-        callback_type="pr_norm",
-    )
-    _, its_fixed, _ = solve(n, lambda: 1.0, 1e-8, n)
-    print(
-        f"\nchanging preconditioner, restart 5: {its} iterations, true residual {resid:.1e}; "
-        f"fixed: FGMRES {its_fixed}, scipy GMRES {count[0]} iterations"
-    )
-    assert ok and resid < 2e-10
-    assert abs(its_fixed - count[0]) <= 1
-    # b = 0: x = 0 at once; maxiter = 7 across a restart: 7 products, not converged
-    x0, its0, ok0 = solve(5, lambda: 1.0, 1e-10, 500, rhs=np.zeros(n))
-    assert (its0, ok0) == (0, True) and not np.any(x0)
-    assert solve(5, lambda: 1.0, 1e-10, 7)[1:] == (7, False)
-
-
-@pytest.mark.roundoff
-def test_krylov_backends_agree_on_cn_steps_and_fgmres_reads_once_a_cycle():
-    """TC5 ne = 2 np = 4, three CN steps at 4 Δt_g with ``gmres_restart`` = 3 (so that
-    solves restart): the Krylov work in Warp kernels (``KernelVectors``, ``KernelPasses``:
-    CUDA's backends) against numpy (the CPU's) gives the same Newton and GMRES
-    iterations and states round-off apart (within 3 ops times the run's own floor: its
-    end from a start one rounding away, ``roundoff.nudged``; the backends' sums differ by
-    ≤ 3 roundings in each RHS evaluation and iteration); and with the kernels, inside the GMRES solves
-    (their preconditioner's Helmholtz solves left out), one host read a restart cycle
-    (the tally's ``.numpy()`` read-backs: the J·v's ε, the Gram–Schmidt sums and the
-    least squares stay on the device; before, 4 reads an Arnoldi step)."""
-    from swe_sphere.solvers import jacobian, krylov
-
-    scene = load_scene("tc5_mountain", ne=2, np_=4, stepper="implicit")
-    scene = dataclasses.replace(scene, dt=4.0 * scene.dt, stepper_options={"gmres_restart": 3})
-    runs = {}
-    for backend in ("host", "kernels", "nudged"):
-        sim = make_sim(scene)
-        if backend == "nudged":  # host, from a start one rounding away: the run's round-off floor
-            sim.x.assign(roundoff.nudged(sim.x.numpy(), sim.grid, np.random.default_rng(5)))
-        st, tally, own = sim.stepper, Tally(), [0]
-        if backend == "kernels":
-            st.fgmres.vectors, st.jacobian.passes = krylov.KernelVectors(st.fgmres), jacobian.KernelPasses(st.model)
-
-        def counted(fn, sign):  # the reads inside fn added to own (sign 1) or taken from it (−1)
-            def call(*a, **k):
-                before = tally.syncs
-                out = fn(*a, **k)
-                own[0] += sign * (tally.syncs - before)
-                return out
-
-            return call
-
-        st.fgmres.solve, st.helmholtz.solve = counted(st.fgmres.solve, 1), counted(st.helmholtz.solve, -1)
-        with instrumented(tally), tally.counting():
-            its = [st.step(sim.x).iterations for _ in range(3)]
-        runs[backend] = sim.x.numpy(), its, own[0], tally.launches["fgmres_end"]
-    (host, its_host, _, _), (kern, its_kern, reads, cycles) = runs["host"], runs["kernels"]
-    floor, ops = max(roundoff.state_difference(runs["nudged"][0], host)), sum(sum(i.values()) for i in its_host)
-    print(
-        f"\n{its_kern}; kernels against numpy {rel(kern, host):.1e} (floor {floor:.1e}); {reads} reads in {cycles} GMRES cycles",
-        end="",
-    )
-    assert its_kern == its_host
-    roundoff.within(max(roundoff.state_difference(kern, host)), 3 * ops * floor, "|kernels − numpy| (wind, depth)")
-    assert reads == cycles > sum(i["newton"] for i in its_kern)  # restarts happened
-
-
-def test_fgmres_cycles_replayed_as_graphs_give_the_bits_of_host_loops(monkeypatch):
-    """CN without a preconditioner (HOMME's default) on TC5 ne = 2 at 2 Δt_g, three steps
-    with CUDA's Krylov backends on one CPU thread: each restart cycle's Arnoldi steps
-    captured once per (iterate, F(x), Δt, β) as Warp's CPU graph (conditional steps
-    on the device flag) and replayed give the bits, iterations and RHS count of the
-    steps run as host loops; a replayed cycle runs no Python (its J·v not called)."""
-    from swe_sphere.solvers import jacobian, krylov
-
-    monkeypatch.setenv("SWE_SPHERE_THREADS", "1")
-    scene = load_scene("tc5_mountain", ne=2, np_=4, stepper="implicit")
-    scene = dataclasses.replace(
-        scene, dt=2.0 * scene.dt, stepper_options={"preconditioner": "none", "gmres_restart": 4}
-    )
-    runs = {}
-    for graphs in (False, True):
-        sim = make_sim(scene)
-        st = sim.stepper
-        st.fgmres.vectors, st.jacobian.passes = krylov.KernelVectors(st.fgmres), jacobian.KernelPasses(st.model)
-        if not graphs:
-            st.model.graph_guard.enabled = False  # no cycle captured: the model's solvers run plain
-        jv, calls = st.jacobian_product, [0]
-
-        def counted(w, out):
-            calls[0] += 1
-            jv(w, out)
-
-        st.jacobian_product = counted
-        stats = [st.step(sim.x) for _ in range(3)]
-        runs[graphs] = sim.x.numpy(), [(s.rhs_evals, s.iterations) for s in stats], calls[0], st.fgmres.graph_count
-    (plain, plain_stats, plain_calls, _), (graphed, graphed_stats, graphed_calls, captured) = runs[False], runs[True]
-    its = sum(s[1]["gmres"] for s in plain_stats)
-    print(f"\n{plain_stats}; {captured} graphs; J·v called {graphed_calls} times graphed, {plain_calls} plain", end="")
-    np.testing.assert_array_equal(graphed, plain)
-    assert graphed_stats == plain_stats and plain_calls == its
-    assert 0 < captured and graphed_calls == 4 * captured < its  # the J·v's Python ran while capturing only
-
-
-@pytest.mark.parametrize("backend", ["HostVectors", "KernelVectors"])
-def test_krylov_basis_vector_work_matches_numpy(backend, rng):
-    """``krylov.KrylovBasis``'s two backends of its vector work (numpy/BLAS on the
-    CPU, ``kernels.krylov`` on CUDA, both runnable on the CPU) against a numpy
-    reference on random vectors (n = 1000, not a multiple of the kernels' chunk): the
-    projection with its inner products (k_sub, k_dot in 0–3, B a row range of the
-    basis) and the combinations (out aliasing x; a = 0), to round-off (1e-13 relative:
-    the sums differ only in order and fused multiply–adds)."""
-    from swe_sphere.solvers import krylov
-
-    n, rows = 1000, 6
-    basis = krylov.KrylovBasis(n, rows, Topology(cached_grid(2, 4)), vectors=getattr(krylov, backend))
-    V = rng.standard_normal((rows, n))
-    basis.V.assign(V)
-    close = lambda got, ref: np.testing.assert_allclose(got, ref, rtol=1e-13, atol=1e-13 * np.abs(ref).max())  # noqa: E731
-    for k_sub, k_dot in [(0, 0), (0, 3), (2, 2), (3, 1)]:
-        w = rng.standard_normal(n)
-        basis.w.assign(w)
-        h = rng.standard_normal(k_sub)
-        B = basis.V[2:]  # a row range, as KIOPS's incomplete orthogonalisation takes
-        d = basis.project_dots(B, basis.w, k_sub, h if k_sub else None, k_dot)
-        ref = w - h @ V[2 : 2 + k_sub]
-        close(basis.w.numpy(), ref)
-        close(d, np.append(V[2 : 2 + k_dot] @ ref, ref @ ref))
-    for k, a in [(0, 0.7), (3, -1.3), (5, 0.0)]:
-        c = rng.standard_normal(k)
-        x = basis.V.numpy()[5].copy()
-        basis.lincomb(basis.V, c, a, basis.rows_V[5], basis.rows_V[5])  # out aliasing x
-        close(basis.V.numpy()[5], a * x + c @ V[:k])
 
 
 # -- failures and bad input through the command line ---------------------------------

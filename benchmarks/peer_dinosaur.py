@@ -65,9 +65,30 @@ CPU clock (``simulation.summary.Ledger``: output and scoring excluded) between d
 last, / (days − 1) (the first day's first step, with its launch recording, left out). ``galewsky``'s
 default runs are its former default, 216 s at ne30 np4, and that Δt rescaled to ne16 (86400/214 s),
 with the scene's ν (the 3-hour e-folding rule), output every day, ``-s case.reference=T341``. ``--swe`` names swe_sphere's runs,
-``neNE/npNP/STEPPER`` (the scene's Δt) or ``neNE/npNP/STEPPER,DT`` (``DT`` s or ``86400/N``).
-Figures: ``benchmarks/results/peer_dinosaur.json`` (Galewsky), ``peer_dinosaur_tc5.json`` (TC5),
-``peer_dinosaur_tc6.json`` (TC6).
+``neNE/npNP/STEPPER`` (the scene's Δt) or ``neNE/npNP/STEPPER,DT`` (``DT`` s or ``86400/N``),
+then any of the stepper's (or the scene's) options as ``swe-sphere run -s`` takes them, comma-separated
+``SECTION.KEY=VALUE``: ``ne12/np8/imex,86400/180,imex.scheme=ars232``. A run that fails (a blow-up,
+a refused Δt) is a row that says so, its error NaN.
+
+**The peer at its own best step** (``--best-step``; issue 81): per truncation, Dinosaur at a
+reference Δt (``--reference-dt``: half ``GRIDS``' by default), then at each of ``--peer-steps``
+above it (Δt that divide a day: 450 … 7200 s), upwards, up to the first that blows up or loses
+more than ``--tolerance`` (1 %) of the reference's error (an error that drops is kept); the best
+step is the last kept. Every tried step is a row (``dinosaur T170 900 s``) with its error and cost;
+the results file keeps the search (``best_step``: each step's Δt, error, cost, load, verdict), and
+later ``--rounds`` rerun only the best step. **The summary's last table** gives, per Dinosaur level
+(its best step's, or each Δt's without ``--best-step``), the cheapest ``--swe`` row whose error is
+at or below it, the same eq. 83 measure for both, and the cost ratio ours / Dinosaur's (``levels``
+in the results file).
+
+Figures, one command each: ``benchmarks/results/peer_dinosaur.json`` (Galewsky, Dinosaur at
+``GRIDS``' steps; ``python benchmarks/peer_dinosaur.py``), ``peer_dinosaur_tc5.json`` (TC5;
+``--case tc5``), ``peer_dinosaur_tc6.json`` (TC6; ``--case tc6``); Galewsky with Dinosaur at its best
+step, ``peer_dinosaur_best_step.json``::
+
+    python benchmarks/peer_dinosaur.py --best-step --truncations T42 T85 T170 --swe ne8/np8/kgu35,86400/366 \
+        ne12/np6/kgu35,86400/262 ne16/np5/kgu35,86400/238 ne10/np8/kgu35,86400/457 ne12/np8/kgu35 \
+        ne12/np8/imex,86400/180 ne24/np6/kgu35,86400/524 ne26/np6/kgu35,86400/568 --results peer_dinosaur_best_step
 
 **On a GPU** (``--device cuda``, issue 67: the peer on the same card in the same call): the peer
 under JAX on CUDA (``JAX_PLATFORMS=cuda``, no preallocation), swe_sphere's runs with
@@ -77,8 +98,9 @@ The GPU machine's image has JAX with its CUDA plugin; Dinosaur and what it impor
 image travel as wheels (``benchmarks/gpu_session.sh`` part ``dinosaur``; ``--python python3``).
 
     python benchmarks/peer_dinosaur.py [--case galewsky|tc5|tc6] [--truncations T42 T85 T170]
-        [--swe ne16/np4/fbrk32,86400/214 ne16/np4/kgu35,400 ...] [--rounds 1] [--python /work/venvs/dinosaur/bin/python]
-        [--device cpu|cuda]
+        [--swe ne16/np4/fbrk32,86400/214 ne16/np4/kgu35,400 ne12/np8/imex,480,imex.scheme=ars232 ...]
+        [--peer-dt DT ... | --best-step [--reference-dt DT ...] [--peer-steps DT ...] [--tolerance 0.01]]
+        [--rounds 1] [--python /work/venvs/dinosaur/bin/python] [--device cpu|cuda]
 """
 
 from __future__ import annotations
@@ -106,6 +128,8 @@ ONE_THREAD = {
     "MKL_NUM_THREADS": "1",
 }
 DEFAULT_PYTHON = Path("/work/venvs/dinosaur/bin/python")
+# ``--best-step``'s candidate steps of the peer, s: steps that divide a day (86400 / N)
+DAY_STEPS = (300.0, 450.0, 600.0, 720.0, 900.0, 1200.0, 1440.0, 1800.0, 2400.0, 2880.0, 3600.0, 4320.0, 5400.0, 7200.0)
 
 
 @dataclass(frozen=True)
@@ -275,7 +299,7 @@ def swe_child(study: str, config: str, out: Path, device: str = "cpu") -> None:
 
     from swe_sphere.simulation.simulation import Simulation
 
-    st, (ne, np_, stepper, dt) = STUDIES[study], parse_swe(config)
+    st, (ne, np_, stepper, dt, sets) = STUDIES[study], parse_swe(config)
     kw = {} if dt is None else {"dt": dt}
     sim = Simulation(
         st.scene,
@@ -287,6 +311,7 @@ def swe_child(study: str, config: str, out: Path, device: str = "cpu") -> None:
         output={"every_days": 1.0},
         case={"reference": "T341"},
         **kw,
+        **sets,
     )
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "run.nc"
@@ -311,17 +336,31 @@ def swe_child(study: str, config: str, out: Path, device: str = "cpu") -> None:
     )
 
 
-def parse_swe(config: str) -> tuple[int, int, str, float | None]:
-    """``"ne16/np4/kgu35"`` (the scene's Δt, rescaled with ne) or ``"ne16/np4/kgu35,864"``
-    (Δt 864 s; ``86400/100`` allowed) → (ne, np, stepper, Δt s or None). Raises ValueError."""
-    grid, _, dt = config.partition(",")
+def parse_swe(config: str) -> tuple[int, int, str, float | None, dict]:
+    """``"ne16/np4/kgu35"`` (the scene's Δt, rescaled with ne), ``"ne16/np4/kgu35,864"`` (Δt 864 s;
+    ``86400/100`` allowed), then any ``-s``-style overrides, comma-separated ``SECTION.KEY=VALUE``
+    (TOML values, as ``swe-sphere run -s``; no commas inside a value), e.g.
+    ``"ne12/np8/imex,960,imex.scheme=ars232"`` or ``"ne12/np8/imex,imex.tol=1e-8"`` → (ne, np,
+    stepper, Δt s or None, {"SECTION.KEY": value}). Raises ValueError."""
+    grid, *rest = config.split(",")
+    dts = [r for r in rest if "=" not in r]
     try:
+        if len(dts) > 1 or rest[: len(dts)] != dts:
+            raise ValueError
         ne, np_, stepper = grid.split("/")
-        num, _, den = dt.partition("/")
-        seconds = (float(num) / float(den) if den else float(num)) if dt else None
-        return int(ne.removeprefix("ne")), int(np_.removeprefix("np")), stepper, seconds
+        num, _, den = dts[0].partition("/") if dts else ("", "", "")
+        seconds = (float(num) / float(den) if den else float(num)) if dts else None
+        parsed = int(ne.removeprefix("ne")), int(np_.removeprefix("np")), stepper, seconds
     except ValueError:
-        raise ValueError(f"--swe {config!r}: expected neNE/npNP/STEPPER[,DT]") from None
+        raise ValueError(f"--swe {config!r}: expected neNE/npNP/STEPPER[,DT][,SECTION.KEY=VALUE...]") from None
+    from swe_sphere.cli.values import overrides
+
+    sets = overrides(r for r in rest if "=" in r)
+    if any("." not in k for k in sets):
+        raise ValueError(
+            f"--swe {config!r}: an override is SECTION.KEY=VALUE (ne, np, stepper and Δt have their places)"
+        )
+    return (*parsed, sets)
 
 
 # -- the parent: runs the children one at a time and scores them ----------------------------
@@ -421,9 +460,35 @@ def arguments():
     ap.add_argument("--case", choices=list(STUDIES), default="galewsky")
     ap.add_argument("--truncations", nargs="+", default=["T42", "T85", "T170"], choices=list(GRIDS))
     ap.add_argument(
-        "--swe", nargs="*", help="swe_sphere runs, neNE/npNP/STEPPER[,DT] (default: the case's; none: none)"
+        "--swe",
+        nargs="*",
+        help="swe_sphere runs, neNE/npNP/STEPPER[,DT][,SECTION.KEY=VALUE...] (default: the case's; none: none)",
     )
-    ap.add_argument("--peer-dt", type=float, help="the peer's Δt (s) at every truncation (default: GRIDS')")
+    ap.add_argument(
+        "--peer-dt",
+        type=float,
+        nargs="+",
+        help="the peer's Δt s, one for all truncations or one each (default: GRIDS')",
+    )
+    ap.add_argument(
+        "--best-step",
+        action="store_true",
+        help="search each truncation's largest Δt (of --peer-steps) within --tolerance of its error at --reference-dt",
+    )
+    ap.add_argument(
+        "--peer-steps",
+        type=float,
+        nargs="+",
+        default=list(DAY_STEPS),
+        help="--best-step's candidate Δt s, tried upwards from the reference (default: %(default)s)",
+    )
+    ap.add_argument(
+        "--reference-dt",
+        type=float,
+        nargs="+",
+        help="--best-step's reference Δt s, one for all truncations or one each (default: half GRIDS' Δt)",
+    )
+    ap.add_argument("--tolerance", type=float, default=0.01, help="--best-step's relative error loss (default: 1 %%)")
     ap.add_argument("--results", help="the results file's stem (default: the case's, e.g. peer_dinosaur_tc5)")
     ap.add_argument("--rounds", type=int, default=1)
     ap.add_argument("--transforms", choices=["fft", "real"], default="fft")
@@ -441,7 +506,23 @@ def arguments():
             parse_swe(config)
         except ValueError as e:
             ap.error(str(e))
+    if args.best_step and args.peer_dt is not None:
+        ap.error("--peer-dt and --best-step: the search chooses the peer's Δt")
+    args.reference_dt = per_truncation(ap, "--reference-dt", args.reference_dt, args.truncations, 0.5)
+    args.peer_dt = per_truncation(ap, "--peer-dt", args.peer_dt, args.truncations, 1.0)
+    if any(x <= 0 for x in args.peer_steps) or args.tolerance <= 0:
+        ap.error("--peer-steps and --tolerance must be > 0")
     return args
+
+
+def per_truncation(ap, flag: str, given: list[float] | None, truncations: list[str], share: float) -> dict:
+    """``flag``'s Δt per truncation: one for all or one each (default: ``share`` × ``GRIDS``')."""
+    given = given or [share * GRIDS[t][1] for t in truncations]
+    if len(given) not in (1, len(truncations)):
+        ap.error(f"{flag}: one Δt, or one a truncation ({len(truncations)})")
+    if any(x <= 0 for x in given):
+        ap.error(f"{flag} must be > 0")
+    return dict(zip(truncations, given * len(truncations) if len(given) == 1 else given))
 
 
 def main() -> None:
@@ -465,48 +546,168 @@ def main() -> None:
         print(f"{st.scene} day {st.days:g}, l2 against T341 at each model's points; {where}, host core 0")
         print(f"peer: dinosaur, imex_rk_sil3 + exponential_step_filter defaults, float64, {args.transforms} transforms")
         table: dict[str, dict] = {}
+        search: dict[str, dict] = {}  # truncation -> its best-step search (``best_step``)
+        peers: dict[str, str] = {}  # truncation -> the name of its row the summary compares against
+
+        def measure(rnd: int, kind: str, what: str, dt: float | None = None) -> tuple[str, dict]:
+            """One run, scored, printed and added to ``table``: (its row's name, the row)."""
+            load = os.getloadavg()[0]
+            if kind == "peer":
+                dt = dt or GRIDS[what][1]
+                name = f"dinosaur {what} {dt:g} s"
+            else:
+                name, dt = f"swe_sphere {what}", parse_swe(what)[3]
+            try:
+                if kind == "peer":
+                    run = run_peer(args.python, args.case, what, args.transforms, Path(tmp), dt, args.device)
+                else:
+                    run = run_swe(args.case, what, Path(tmp), args.device)
+            except RuntimeError as e:  # a blow-up the model refuses, a refused option: the row says so
+                print(f"round {rnd + 1} {name}: failed (load {load:.2f}): {str(e).splitlines()[-1]}")
+                row = table.setdefault(name, {f"l2_{f}": math.nan for f in FIELDS} | {"dt": dt or math.nan})
+                row.update(failed=str(e).splitlines()[-1])
+                row.setdefault("load", []).append(load)
+                return name, row
+            l2s = scores(run, t341, st.days)
+            row = table.setdefault(name, dict(**{f"l2_{k}": v for k, v in l2s.items()}, dt=run["dt"]))
+            row.setdefault(f"{clock}_per_day", []).append(run[f"{clock}_per_day"])
+            row.setdefault("load", []).append(load)
+            extra = start_check(run) if kind == "peer" else {f"own_ref_l2_{st.field}": run["own"]}
+            row.update(extra)
+            print(
+                f"round {rnd + 1} {name} dt {run['dt']:g} s: vorticity l2 {l2s['vorticity']:.4g}, h l2 "
+                f"{l2s['h']:.4g}, h + hs l2 {l2s['h_surface']:.4g}; "
+                + ", ".join(f"{k} {v:.3g}" for k, v in extra.items())
+                + f"; {run[f'{clock}_per_day']:.3g} {clock} s a simulated day (load {load:.2f})"
+            )
+            if kind == "peer" and what == args.truncations[-1] and not any("t213_vs_t341" in r for r in table.values()):
+                r213 = dict(run, **t213.at(st.days, run["lat"], run["lon"]))
+                row["t213_vs_t341"] = scores(r213, t341, st.days)[st.field]
+            return name, row
+
         for rnd in range(args.rounds):
             for kind, what in order:
-                load = os.getloadavg()[0]
-                if kind == "peer":
-                    peer = run_peer(args.python, args.case, what, args.transforms, Path(tmp), args.peer_dt, args.device)
-                    name, run = f"dinosaur {what}", peer
+                if kind == "swe":
+                    measure(rnd, kind, what)
+                elif args.best_step and what not in search:
+                    search[what] = best_step(
+                        lambda dt, t=what: measure(rnd, "peer", t, dt),
+                        args.reference_dt[what],
+                        args.peer_steps,
+                        args.tolerance,
+                        st,
+                        clock,
+                    )
+                    peers[what] = f"dinosaur {what} {search[what]['best_dt']:g} s"
                 else:
-                    name, run = f"swe_sphere {what.split(',')[0]}", run_swe(args.case, what, Path(tmp), args.device)
-                l2s = scores(run, t341, st.days)
-                row = table.setdefault(name, dict(**{f"l2_{k}": v for k, v in l2s.items()}, dt=run["dt"]))
-                row.setdefault(f"{clock}_per_day", []).append(run[f"{clock}_per_day"])
-                row.setdefault("load", []).append(load)
-                extra = start_check(run) if kind == "peer" else {f"own_ref_l2_{st.field}": run["own"]}
-                row.update(extra)
-                print(
-                    f"round {rnd + 1} {name} dt {run['dt']:g} s: vorticity l2 {l2s['vorticity']:.4g}, h l2 "
-                    f"{l2s['h']:.4g}, h + hs l2 {l2s['h_surface']:.4g}; "
-                    + ", ".join(f"{k} {v:.3g}" for k, v in extra.items())
-                    + f"; {run[f'{clock}_per_day']:.3g} {clock} s a simulated day (load {load:.2f})"
-                )
-                if kind == "peer" and what == args.truncations[-1]:
-                    r213 = dict(run, **t213.at(st.days, run["lat"], run["lon"]))
-                    row["t213_vs_t341"] = scores(r213, t341, st.days)[st.field]
+                    dt = search[what]["best_dt"] if args.best_step else args.peer_dt[what]
+                    peers[what] = measure(rnd, kind, what, dt)[0]
         summary(table, st, clock)
+        figures["levels"] = levels(table, peers, st, clock)
         figures["device"] = args.device
         figures["case"] = st.scene
         figures["field"] = st.field
         figures["days"] = st.days
+        if search:
+            figures["best_step"] = search
         figures["runs"] = table
+
+
+def best_step(measure, reference_dt: float, steps: list[float], tolerance: float, st: Study, clock: str) -> dict:
+    """The peer's largest Δt that keeps its error within ``tolerance`` (relative) of its error at
+    ``reference_dt``: ``measure(dt)`` (→ (name, row)) at the reference, then at each of ``steps``
+    above it, upwards, up to the first that blows up (a non-finite error or a failed run) or loses
+    more than ``tolerance``. Returns the search: the reference's Δt and error, each tried step's Δt,
+    error, cost a day on ``clock``, load and verdict, and the best Δt and its figures."""
+    name, row = measure(reference_dt)
+    e_ref = row[f"l2_{st.field}"]
+    tried = []
+
+    def note(dt: float, row: dict, verdict: str) -> None:
+        cost = row.get(f"{clock}_per_day", [math.nan])[-1]
+        tried.append(
+            {
+                "dt": dt,
+                f"l2_{st.field}": row[f"l2_{st.field}"],
+                f"{clock}_per_day": cost,
+                "load": row["load"][-1],
+                "verdict": verdict,
+            }
+        )
+
+    if not math.isfinite(e_ref):
+        raise RuntimeError(f"{name}: the reference step blew up; give a smaller --reference-dt")
+    note(reference_dt, row, "reference")
+    best = reference_dt
+    for dt in sorted(x for x in set(steps) if x > reference_dt):
+        _, row = measure(dt)
+        e = row[f"l2_{st.field}"]
+        if not math.isfinite(e) or e > 1e3 * e_ref:
+            note(dt, row, "blew up")
+            break
+        if e > (1 + tolerance) * e_ref:
+            note(dt, row, f"lost {e / e_ref - 1:.2%}")
+            break
+        note(dt, row, f"kept ({e / e_ref - 1:+.2%})")
+        best = dt
+    best_row = next(t for t in tried if t["dt"] == best)
+    print(
+        f"  best step {best:g} s: {st.field_name} l2 {best_row[f'l2_{st.field}']:.4g} ({e_ref:.4g} at "
+        f"{reference_dt:g} s), {best_row[f'{clock}_per_day']:.3g} {clock} s a simulated day; stopped: "
+        + (tried[-1]["verdict"] if tried[-1]["dt"] != best else "no larger step given")
+    )
+    return {
+        "reference_dt": reference_dt,
+        "reference_l2": e_ref,
+        "tolerance": tolerance,
+        "tried": tried,
+        "best_dt": best,
+        f"best_l2_{st.field}": best_row[f"l2_{st.field}"],
+    }
 
 
 def summary(table: dict, st: Study, clock: str = "cpu") -> None:
     """Print the table, one line a model, each row's median cost on ``clock`` ("cpu" or "wall") added to it."""
     print(f"model | dt s | {st.field_name} l2 | vorticity l2 | h l2 | {clock} s / simulated day (median) | load")
     for name, row in table.items():
-        row[f"{clock}_per_day_median"] = statistics.median(row[f"{clock}_per_day"])
+        costs = row.get(f"{clock}_per_day", [])
+        row[f"{clock}_per_day_median"] = statistics.median(costs) if costs else math.nan
         print(
             f"{name} | {row['dt']:g} | {row[f'l2_{st.field}']:.3g} | {row['l2_vorticity']:.3g} | {row['l2_h']:.3g} | "
             f"{row[f'{clock}_per_day_median']:.3g} | {min(row['load']):.1f}-{max(row['load']):.1f}"
+            + (f" | failed: {row['failed']}" if "failed" in row else "")
         )
         if "t213_vs_t341" in row:
             print(f"  (T213 reference against T341 at {name}'s points: {st.field_name} l2 {row['t213_vs_t341']:.3g})")
+
+
+def levels(table: dict, peers: dict, st: Study, clock: str = "cpu") -> list[dict]:
+    """Per peer row the summary compares against (``peers``: truncation -> row name; at its best
+    step under ``--best-step``), the cheapest swe_sphere row (median cost on ``clock``) whose error
+    in the study's field (eq. 83, the same measure for both) is at most the peer's, and the cost
+    ratio ours / the peer's; printed and returned."""
+    key, cost = f"l2_{st.field}", f"{clock}_per_day_median"
+    swe = {n: r for n, r in table.items() if n.startswith("swe_sphere ") and math.isfinite(r[key])}
+    print(f"Dinosaur level ({st.field_name} l2) | its {clock} s a day | cheapest swe_sphere row reaching it | ratio")
+    out = []
+    for t, name in peers.items():
+        peer = table[name]
+        if not math.isfinite(peer[key]):
+            continue
+        reach = sorted((r[cost], n) for n, r in swe.items() if r[key] <= peer[key] and math.isfinite(r[cost]))
+        level = {"truncation": t, "peer": name, "peer_dt": peer["dt"], key: peer[key], "peer_cost": peer[cost]}
+        if reach:
+            c, n = reach[0]
+            level.update(swe=n, swe_l2=swe[n][key], swe_cost=c, ratio=c / peer[cost])
+            print(
+                f"{name} ({peer[key]:.4g}) | {peer[cost]:.3g} | {n} ({swe[n][key]:.4g} @ {c:.3g}) | {c / peer[cost]:.3g}x"
+            )
+        else:
+            near = min(swe, key=lambda n: swe[n][key], default=None)
+            tail = f"none (the nearest: {near}, {swe[near][key]:.4g})" if near else "none"
+            print(f"{name} ({peer[key]:.4g}) | {peer[cost]:.3g} | {tail} | -")
+        out.append(level)
+    return out
 
 
 def interleave(a: list, b: list) -> list:

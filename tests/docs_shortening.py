@@ -32,6 +32,7 @@ What changes, and why it keeps the pages' order meaningful:
 
 from __future__ import annotations
 
+import json
 import math
 import re
 import sys
@@ -40,6 +41,7 @@ GRID_COMMANDS = ("run", "sweep", "stability")
 FILE_GRID = ("--continue", "--from", "--mesh")  # the grid is the file's
 COARSE_NE = 8  # `stability --ne`'s default, the usual coarse grid
 DAY = 86400.0  # s
+EACH = "--each"  # this file's first argument for a block of commands run in one process (``run_each``)
 
 
 def small_ne(ne: int) -> int:
@@ -132,7 +134,29 @@ def _mesh_file(args: list[str]) -> bool:
     return any(a.startswith("grid.mesh_file=") and args[i - 1] in ("-s", "--set") for i, a in enumerate(args) if i)
 
 
+def run_each(commands: list[list[str]]) -> int:
+    """``swe-sphere``'s ``commands`` (each its arguments, as a page writes them) one after the
+    other in this process, each shortened and given to ``main`` as a caller's arguments (the
+    console script's ``main()`` ends the process when its command is done), until one fails: its
+    exit status, else 0. The model's imports and kernels load once for a page's plain commands
+    in a row (a process's start is seconds of CPU on a busy machine)."""
+    from swe_sphere.cli import main
+
+    for args in commands:
+        sys.argv[1:] = argv = shorten(args)
+        try:
+            code = main(argv)
+        except SystemExit as stop:  # the argument parser's
+            code = stop.code
+        if code:
+            print(f"swe-sphere {' '.join(args)}: exit status {code}", file=sys.stderr)
+            return code if isinstance(code, int) else 2
+    return 0
+
+
 if __name__ == "__main__":
+    if sys.argv[1:2] == [EACH]:  # tests/test_docs_examples.py: a block's commands, as JSON
+        sys.exit(run_each(json.loads(sys.argv[2])))
     sys.argv[1:] = shorten(sys.argv[1:])
     from swe_sphere.cli import main
 

@@ -5,7 +5,8 @@ Python code block, and each command written inline (`` `swe-sphere run galewsky 
 collide (a default file name taken twice, a study folder written twice) fails here.
 
 The runs are shortened: ``swe-sphere`` is tests/docs_shortening.py in front of the real
-tool (tiny grids that keep the page's grids apart, at most two runs a sweep); a Python
+tool (tiny grids that keep the page's grids apart, at most two runs a sweep; a block of two or
+more plain commands runs in one process, ``docs_shortening.run_each``); a Python
 block's ``ne=N`` becomes ``ne=small_ne(N)`` likewise, and a ``dt=`` beside it keeps its
 Courant number (``python_line``). Left out, with the reason: ``pip
 install`` and ``python -m pytest`` (this test runs inside them), ``mpiexec`` lines (MPI
@@ -19,8 +20,10 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import json
 import os
 import re
+import shlex
 import shutil
 import subprocess
 import sys
@@ -32,7 +35,7 @@ from swe_sphere.config.schema import SCHEMA
 from swe_sphere.mesh.cube import cube_mesh
 from swe_sphere.mesh.mesh import write_exodus
 
-from docs_shortening import coarser_dt, shorten, small_ne
+from docs_shortening import EACH, coarser_dt, shorten, small_ne
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIM = Path(__file__).resolve().with_name("docs_shortening.py")
@@ -40,6 +43,7 @@ SHIM = Path(__file__).resolve().with_name("docs_shortening.py")
 EXAMPLE = re.compile(r"^```(\w*)\n(.*?)^```|`([^`\n]+(?:\n[^`\n]+)?)`", re.M | re.S)
 INLINE_COMMAND = re.compile(r"(\w+=\S* )*(swe-sphere \w+ \S|python \S)")
 LEFT_OUT = ("pip install", "python -m pytest", "mpiexec", "--device cuda", "python benchmarks/")
+SHELL_SYNTAX = re.compile(r"[$|&;<>()`*?~{}\[\]!#\\]")  # what makes a line more than a command's words
 PLACEHOLDER = re.compile(r"(?<![\w$.{'/-])(\.\.\.|[A-Z]{1,3}|DIR)(?![\w.=/'-])")
 
 
@@ -85,10 +89,21 @@ def python_line(line: str) -> str:
 def programs(path: Path, inline: bool = True) -> list[list[str]]:
     """The page's examples as commands to run in order: a shell block (or inline command)
     as one ``bash`` script, a Python block as one program after the imports of the page's
-    earlier Python blocks (the page reads as one session; its runs are not made twice)."""
-    out, imports = [], []
+    earlier Python blocks (the page reads as one session; its runs are not made twice). Plain
+    ``swe-sphere`` commands one after another (in a block, or blocks and inline commands in a row)
+    run in one process (``plain_words``)."""
+    out, imports, plain = [], [], []
+
+    def flush():  # the plain commands in a row: one process for two or more
+        if len(plain) > 1:
+            out.append([sys.executable, str(SHIM), EACH, json.dumps([words for _, words in plain])])
+        elif plain:
+            out.append(["bash", "-c", f"set -e\n{plain[0][0]}"])
+        plain.clear()
+
     for lang, text in examples(path, inline):
         if lang == "python":
+            flush()
             text = "\n".join(python_line(line) for line in text.splitlines())
             out.append([sys.executable, "-c", "\n".join([*imports, text])])
             imports += [line for line in text.splitlines() if re.match(r"(import|from) \S", line)]
@@ -96,9 +111,25 @@ def programs(path: Path, inline: bool = True) -> list[list[str]]:
         lines = [
             command for line in text.replace("\\\n", " ").splitlines() if (command := shell_line(line)) is not None
         ]
-        if lines:
+        words = [plain_words(line) for line in lines]
+        if lines and None not in words:
+            plain.extend(zip(lines, words))
+        elif lines:
+            flush()
             out.append(["bash", "-c", "\n".join(["set -e", *lines])])
+    flush()
     return out
+
+
+def plain_words(line: str) -> list[str] | None:
+    """The arguments of ``line`` when it is a plain ``swe-sphere`` command (words and quotes,
+    nothing else the shell reads: no variable, glob, pipe, redirection or list), which
+    ``docs_shortening.run_each`` runs in one process with those beside it, one after the other
+    as ``set -e`` runs them; None otherwise (its block runs in bash as written)."""
+    if SHELL_SYNTAX.search(line):
+        return None
+    words = shlex.split(line)
+    return words[1:] if words and words[0] == "swe-sphere" else None
 
 
 def run_examples(path: Path, folder: Path, inline: bool = True) -> None:
@@ -227,6 +258,28 @@ def test_inline_commands_are_examples_and_placeholders_are_not(tmp_path):
         "set -e\nswe-sphere run galewsky --stepper fbrk32 --dt 257.1 --days 12",
         "set -e\nI=rk4@1\nswe-sphere sweep tc5_mountain --runs $I,${I/rk4/kgu35} --output s",
     ]
+
+
+def test_plain_commands_in_a_row_run_in_one_process(tmp_path):
+    """Plain ``swe-sphere`` lines in a row, in a block and the inline command after it: one
+    process (``docs_shortening.run_each``), their words as the shell splits them; a block with
+    anything else the shell reads runs in bash, and so does a plain command alone."""
+    page = tmp_path / "page.md"
+    page.write_text(
+        "```bash\nswe-sphere run tc5_mountain --output 'a b.nc'\nswe-sphere plot \"a b.nc\" --day 5  # a map\n```\n"
+        "then `swe-sphere plot o.nc --day 1`.\n"
+        "```bash\nswe-sphere run tc2_steady --output o.nc\nswe-sphere plot o.nc > o.txt\n```\n"
+        "```python\nimport swe_sphere\n```\nand `swe-sphere plot o.nc --day 2`.\n"
+    )
+    each, bash, _, alone = programs(page)
+    assert each[1:3] == [str(SHIM), EACH]
+    assert json.loads(each[3]) == [
+        ["run", "tc5_mountain", "--output", "a b.nc"],
+        ["plot", "a b.nc", "--day", "5"],
+        ["plot", "o.nc", "--day", "1"],
+    ]
+    assert bash == ["bash", "-c", "set -e\nswe-sphere run tc2_steady --output o.nc\nswe-sphere plot o.nc > o.txt"]
+    assert alone == ["bash", "-c", "set -e\nswe-sphere plot o.nc --day 2"]
 
 
 PAGES = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")))

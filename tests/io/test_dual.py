@@ -158,25 +158,6 @@ def test_a_meshs_cells_are_cached_by_its_content_and_map(tmp_path, monkeypatch):
     assert build(2, 4, stretched)[3] is not None and len(list(tmp_path.iterdir())) == 2
 
 
-def test_the_fits_cg_is_scipys_bit_for_bit():
-    """``dual._cg`` (the fit's CG without scipy's temporaries: issue 83) gives scipy's Jacobi-CG
-    bits on a fit's own system, (JJᵀ + μI) y = ρ of a grid's start, to each tolerance and at
-    an iteration cap."""
-    import scipy.sparse as sp
-    import scipy.sparse.linalg as spla
-
-    rng = np.random.default_rng(3)
-    n = 300
-    J = sp.random(n, 2 * n, density=0.01, random_state=rng, format="csr") + sp.eye(n, 2 * n, format="csr")
-    A = (J @ J.T).tocsr() + 1e-6 * sp.identity(n, format="csr")
-    b = rng.standard_normal(n)
-    for rtol, maxiter in ((1e-4, 20000), (1e-12, 20000), (1e-12, 7)):
-        ours = dual._cg(A, b, rtol, maxiter)
-        theirs, _ = spla.cg(A, b, rtol=rtol, maxiter=maxiter, M=sp.diags(1 / A.diagonal()))
-        assert np.array_equal(ours, theirs), (rtol, maxiter)
-    assert np.array_equal(dual._cg(A, np.zeros(n), 1e-4, 10), np.zeros(n))
-
-
 def test_the_cells_are_built_on_one_blas_thread(tmp_path, monkeypatch):
     """The cells' fit runs with BLAS at one thread (issue 83: OpenBLAS's threads spun through
     its CG's inner products, 423 s of CPU at ne120 on 16 cores, and set the cells' bits by the

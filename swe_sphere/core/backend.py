@@ -61,6 +61,15 @@ def default_device() -> str:
     return os.environ.get(DEVICE_ENV, "").strip() or ("cuda" if init_warp().is_cuda_available() else "cpu")
 
 
+def lives_on(array: wp.array, device: str) -> bool:
+    """Whether ``array`` is in ``device``'s memory (a Warp device name: "cpu", "cuda", "cuda:N";
+    "cuda" is the current CUDA device, on which no host array lives)."""
+    where = array.device
+    if device == where.alias:
+        return True
+    return not where.is_cpu and where == device
+
+
 def pick_device(requested: str | None = None, *, verbose: bool = False) -> str:
     """The Warp device to run on: ``requested`` ("cpu", "cuda" or "cuda:N"), else
     ``default_device()``'s. Raises ``SceneError`` (a ValueError; one line) for another name

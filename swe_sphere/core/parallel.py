@@ -26,7 +26,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import warp as wp
 
-from .backend import Backend
+from .backend import Backend, lives_on
 
 MIN_POINTS_PER_PART = 2048  # below this a split costs more in hand-offs than it gains
 
@@ -139,14 +139,6 @@ def array_key(a: wp.array) -> tuple:
     return (a.ptr, a.shape, a.strides)
 
 
-def _lives_on(array: wp.array, device: str) -> bool:
-    """Whether ``array`` is in ``device``'s memory (a Warp device name: "cpu", "cuda", "cuda:N")."""
-    where = array.device
-    if device == where.alias:
-        return True
-    return not where.is_cpu and where == device  # "cuda": the current CUDA device; a host array on none
-
-
 def foreign_arrays(kernel, inputs, device) -> list[str]:
     """The arguments of a launch of ``kernel`` on ``device`` (a Warp device name or a
     ``Backend``) with ``inputs`` whose array, or an array field of whose struct, lives on
@@ -162,7 +154,7 @@ def foreign_arrays(kernel, inputs, device) -> list[str]:
             fields = [(f"{arg.label}.{name}", getattr(value, name)) for name in arg.type.vars]
         else:
             continue
-        found += [f"{name} ({a.device})" for name, a in fields if isinstance(a, wp.array) and not _lives_on(a, device)]
+        found += [f"{name} ({a.device})" for name, a in fields if isinstance(a, wp.array) and not lives_on(a, device)]
     return found
 
 

@@ -282,7 +282,8 @@ def test_plain_commands_in_a_row_run_in_one_process(tmp_path):
     assert alone == ["bash", "-c", "set -e\nswe-sphere plot o.nc --day 2"]
 
 
-PAGES = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")))
+STUDY_PAGES = tuple(sorted((ROOT / "docs" / "efficiency").glob("*.md")))  # each study of efficiency.md in full
+PAGES = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")), *STUDY_PAGES)
 SCENE_KEY = re.compile(r"(?:^|\s)([a-z_]+)\.([a-z_][a-z_0-9]*)(?=[=\s]|$)")  # `grid.cube`, `-s grid.cube=...`
 
 
@@ -332,18 +333,19 @@ def test_readme_examples_run_as_written(tmp_path):
     run_examples(ROOT / "README.md", tmp_path, inline=False)  # its inline commands restate its blocks
 
 
-# efficiency.md's studies are ten sweeps and their tables: about a minute of CPU even shortened
-SLOW_PAGES = ("efficiency.md",)
+# efficiency.md's studies are ten sweeps and their tables: about a minute of CPU even shortened;
+# each study's own page (docs/efficiency/*.md) runs every command that made it
+SLOW_PAGES = ("efficiency.md", *(p.name for p in STUDY_PAGES))
 
 
 @pytest.mark.parametrize(
     "page",
     [
         pytest.param(
-            p.name,
+            str(p.relative_to(ROOT / "docs")),
             marks=[pytest.mark.xdist_group(f"docs-{p.stem}"), *([pytest.mark.slow] if p.name in SLOW_PAGES else [])],
         )
-        for p in sorted((ROOT / "docs").glob("*.md"))
+        for p in [*sorted((ROOT / "docs").glob("*.md")), *STUDY_PAGES]
         if programs(p)
     ],
 )

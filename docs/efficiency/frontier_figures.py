@@ -1,4 +1,4 @@
-"""The frontier figures of docs/efficiency.md with the peers' points: frontier_<case>.png from
+"""The frontier figures of docs/efficiency/frontier.md with the peers' points: frontier_<case>.png from
 frontier_<case>.csv (the merged ladders' rows) and peers_<case>.csv, which this script writes
 from the peer benchmarks' results (for Galewsky ``benchmarks/results/peer_dinosaur_galewsky_np56.json``:
 Dinosaur and swe_sphere's np 5-6 runs beyond the ladder, in one run at low load, with

@@ -1,4 +1,4 @@
-"""Tables and figures of docs/efficiency.md from the sweeps' own files.
+"""Tables and figures of docs/efficiency/*.md from the sweeps' own files.
 
 Reads each sweep directory's ``sweep.csv`` and ``verdicts.csv`` (written by
 ``swe-sphere sweep``) and prints, as Markdown, the main table (per case, grid

@@ -37,7 +37,7 @@ TABLES = {key: parse(TableauOptions(**t)) for key, t in {**EXPLICIT, **IMEX, **I
 # SUNDIALS' 0.1 for an inner solve's error against the step's, and 0.1 more because the CG's
 # relative residual understates the solution's error at these steps (TC5 and TC2 ne8, 5 days,
 # rtol 1e-5 and 1e-6: at 0.1 rtol the noise still shrank the steps, ark436 303 and 366 where
-# 0.01 takes 226 and 196 in less CPU; 0.001 changes nothing more: docs/efficiency.md)
+# 0.01 takes 226 and 196 in less CPU; 0.001 changes nothing more: docs/efficiency/error_control.md)
 CG_PER_RTOL = 0.01
 
 

@@ -1,4 +1,4 @@
-"""docs/efficiency/tables.py, the script that makes docs/efficiency.md's tables and
+"""docs/efficiency/tables.py, the script that makes the efficiency study's tables and
 figures from sweep folders: it runs on any sweep folder, and refuses in one line what
 is not one (it ended in a traceback)."""
 

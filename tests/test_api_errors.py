@@ -45,6 +45,10 @@ def _grid():
     return scene_model(_tc5())[0].grid
 
 
+def _model():
+    return scene_model(_tc5())[0]
+
+
 def _gradient(*args, **kwargs):
     return gradient(_tc5(), *args, **kwargs)
 
@@ -162,6 +166,48 @@ MISUSES = {
         lambda f: HeightObservations(PointHeights(_grid(), [0.1], [0.3]), {0: [1.0]}, sigma=np.nan),
         ArgumentError,
         "sigma must be a finite number > 0",
+    ),
+    # the model and the stepper registry, public at the top level too (issue 86)
+    "make_stepper name a list": (lambda f: swe_sphere.make_stepper(["rk4"], _model(), 60.0), ArgumentError, "a list"),
+    "make_stepper unknown name": (lambda f: swe_sphere.make_stepper("rk5", _model(), 60.0), ArgumentError, "'rk5'"),
+    "make_stepper model a scene": (
+        lambda f: swe_sphere.make_stepper("rk4", _tc5(), 60.0),
+        ArgumentError,
+        "model must be a ShallowWater",
+    ),
+    "make_stepper dt a string": (lambda f: swe_sphere.make_stepper("rk4", _model(), "60"), ArgumentError, "dt must be"),
+    "make_stepper dt negative": (lambda f: swe_sphere.make_stepper("rk4", _model(), -60.0), ArgumentError, "> 0"),
+    "make_stepper unknown option": (
+        lambda f: swe_sphere.make_stepper("imex", _model(), 60.0, tol2=1e-6),
+        ArgumentError,
+        "unknown option 'tol2'",
+    ),
+    "ShallowWater grid a number": (
+        lambda f: swe_sphere.ShallowWater(5, ["continuity"], np.zeros(3), np.zeros(3)),
+        ArgumentError,
+        "grid must be a CubedSphere",
+    ),
+    "ShallowWater fcor of another length": (
+        lambda f: swe_sphere.ShallowWater(_grid(), ["continuity"], np.zeros(7), np.zeros(_grid().nnodes)),
+        ArgumentError,
+        "fcor must have shape",
+    ),
+    "ShallowWater hs NaN": (
+        lambda f: swe_sphere.ShallowWater(
+            _grid(), ["continuity"], np.zeros(_grid().nnodes), np.full(_grid().nnodes, np.nan)
+        ),
+        ArgumentError,
+        "hs must be finite",
+    ),
+    "ShallowWater nu negative": (
+        lambda f: swe_sphere.ShallowWater(_grid(), ["continuity"], *np.zeros((2, _grid().nnodes)), nu=-1.0),
+        ArgumentError,
+        "nu must be a finite number >= 0",
+    ),
+    "ShallowWater device a number": (
+        lambda f: swe_sphere.ShallowWater(_grid(), ["continuity"], *np.zeros((2, _grid().nnodes)), device=0),
+        ArgumentError,
+        "device must be",
     ),
 }
 if wp.get_cuda_device_count() == 0:

@@ -17,8 +17,10 @@ from typing import NamedTuple
 import numpy as np
 import warp as wp
 
+from ..core.arguments import array_argument, got, integer_argument, number_argument
 from ..core.backend import Backend
 from ..core.constants import EARTH
+from ..core.errors import ArgumentError
 from ..core.graphs import GraphGuard
 from ..core.parallel import array_key
 from ..grid.cubed_sphere import CubedSphere
@@ -119,7 +121,12 @@ class ShallowWater:
     (fluid depth, m), element-local and continuous (equal on all copies).
 
     Raises ``ValueError`` for an unknown term, a negative ν, or the forcing
-    term without a forcing or without any tendency term to add to.
+    term without a forcing or without any tendency term to add to; ``ArgumentError`` (a
+    ``SweSphereError`` and ``ValueError``) naming the argument for a ``grid`` that is not a
+    ``CubedSphere``, ``fcor`` or ``hs`` not finite numbers of shape (N,), ν, g or the subcycle not
+    numbers in range, a ``device`` that is not a name, or a ``device`` other than its
+    ``topology``'s (the model's arrays would live where its launches do not: an illegal
+    memory access on CUDA, issue 83).
     """
 
     def __init__(
@@ -141,6 +148,21 @@ class ShallowWater:
         topology=None,
         forcing=None,
     ):
+        if not isinstance(grid, CubedSphere):
+            raise ArgumentError(f"grid must be a CubedSphere (got {got(grid)})")
+        fcor = array_argument("fcor", fcor, (grid.nnodes,), "s⁻¹")
+        hs = array_argument("hs", hs, (grid.nnodes,), "m")
+        for name, value in (("nu", nu), ("nu_div", nu_div), ("nu_s", nu_s)):
+            if value is not None:
+                number_argument(name, value, "m⁴ s⁻¹", low=0.0)
+        integer_argument("hypervis_subcycle", hypervis_subcycle, low=1)
+        number_argument("g", g, "m s⁻²", positive=True)
+        if not isinstance(device, str) or not device:
+            raise ArgumentError(f"device must be a device's name such as 'cpu' or 'cuda' (got {got(device)})")
+        if topology is not None and Backend.of(device).device != topology.backend.device:
+            raise ArgumentError(
+                f"device {device!r} is not its topology's ({topology.backend.device!r}): give the topology's device"
+            )
         terms = _checked_terms(terms, forcing)
         self.forcing = forcing if "forcing" in terms else None
         self.graph_guard = (

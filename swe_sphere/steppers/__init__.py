@@ -21,7 +21,8 @@ the same engine with the fine elements' tendency fast and the coarse ones' slow)
 
 from __future__ import annotations
 
-from ..core.errors import StepFailure
+from ..core.arguments import got, number_argument
+from ..core.errors import ArgumentError, StepFailure, SweSphereError
 from ..model.shallow_water import ShallowWater
 from .base import Stepper, StepStats, option_types
 from .explicit import FBRK32, Leapfrog, LeapfrogTrapezoidal
@@ -55,11 +56,24 @@ STEPPERS: dict[str, type[Stepper]] = {
 
 def make_stepper(name: str, model: ShallowWater, dt: float, /, **options) -> Stepper:
     """Build a registered stepper from its options as keywords (the scene's
-    ``[<name>]`` table); ValueError names an unknown stepper, option or value."""
-    if name not in STEPPERS:
-        raise ValueError(f"unknown stepper {name!r} (known: {', '.join(STEPPERS)})")
+    ``[<name>]`` table): ``name`` a key of ``STEPPERS``, ``model`` a ``ShallowWater``, ``dt``
+    the step (s, finite, > 0). Raises ``ArgumentError`` (a ``SweSphereError`` and
+    ``ValueError``) naming an unknown stepper, a model or Δt of the wrong kind, or an unknown
+    option or invalid value."""
+    if not isinstance(name, str) or name not in STEPPERS:
+        named = repr(name) if isinstance(name, str) else got(name)
+        raise ArgumentError(f"unknown stepper {named} (known: {', '.join(STEPPERS)})")
+    if not isinstance(model, ShallowWater):
+        raise ArgumentError(f"model must be a ShallowWater (got {got(model)})")
+    dt = number_argument("dt", dt, "s", positive=True)
     cls = STEPPERS[name]
-    return cls(model, dt, cls.make_options(**options))
+    try:
+        made = cls.make_options(**options)
+    except SweSphereError:
+        raise
+    except (TypeError, ValueError) as e:
+        raise ArgumentError(f"{name}: {e}") from None
+    return cls(model, dt, made)
 
 
 __all__ = ["STEPPERS", "StepFailure", "Stepper", "StepStats", "make_stepper", "option_types"]

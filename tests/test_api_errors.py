@@ -167,6 +167,36 @@ MISUSES = {
         ArgumentError,
         "sigma must be a finite number > 0",
     ),
+    "Simulation start of two rows": (
+        lambda f: Simulation("tc2_steady", "cpu", start=np.zeros((2, 216)), **SIM),
+        ArgumentError,
+        "start must have shape (3, any)",
+    ),
+    "Simulation start of another length": (
+        lambda f: Simulation("tc2_steady", "cpu", start=np.zeros((3, 7)), **SIM),
+        ArgumentError,
+        "start state has shape (3, 7)",
+    ),
+    "Simulation start NaN": (
+        lambda f: Simulation("tc2_steady", "cpu", start=np.full((3, 216), np.nan), **SIM),
+        ArgumentError,
+        "start must be finite",
+    ),
+    "Simulation comm a string": (
+        lambda f: Simulation("tc2_steady", "cpu", comm="x", **SIM),
+        ArgumentError,
+        "comm must be an mpi4py communicator",
+    ),
+    "Simulation initial a number": (
+        lambda f: Simulation("tc2_steady", "cpu", initial=5, **SIM),
+        ArgumentError,
+        "initial must be a function",
+    ),
+    "Simulation initial_diagnostics a number": (
+        lambda f: Simulation("tc2_steady", "cpu", initial_diagnostics=5, **SIM),
+        ArgumentError,
+        "initial_diagnostics must be a mapping",
+    ),
     # the model and the stepper registry, public at the top level too (issue 86)
     "make_stepper name a list": (lambda f: swe_sphere.make_stepper(["rk4"], _model(), 60.0), ArgumentError, "a list"),
     "make_stepper unknown name": (lambda f: swe_sphere.make_stepper("rk5", _model(), 60.0), ArgumentError, "'rk5'"),

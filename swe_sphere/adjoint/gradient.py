@@ -16,6 +16,7 @@ from ..config.scene import Scene
 from ..core.arguments import (
     array_argument,
     callable_argument,
+    comm_argument,
     flag_argument,
     instance_argument,
     integer_argument,
@@ -366,8 +367,7 @@ def gradient(
         integer_argument("disk_interval", disk_interval, 1)
         if disk is None:
             raise ArgumentError(f"disk_interval needs a disk (got disk_interval={disk_interval!r}, disk=None)")
-    if comm is not None and not all(hasattr(comm, verb) for verb in ("rank", "size", "bcast", "gather")):
-        raise ArgumentError(f"comm must be an mpi4py communicator or None (got {comm!r:.60}, a {type(comm).__name__})")
+    comm_argument("comm", comm)
     device = pick_device(device)
     clock = _clock(scene, steps, history)
     model, stepper, initial = scene_model(scene, device, hs, comm)

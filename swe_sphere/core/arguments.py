@@ -102,7 +102,15 @@ def instance_argument(name: str, value, kind: type | tuple, takes: str, error=Ar
     return value
 
 
+def comm_argument(name: str, value, error=ArgumentError):
+    """``value``, None or an MPI communicator (what mpi4py's offers: rank, size, bcast, gather)."""
+    if value is not None and not all(hasattr(value, verb) for verb in ("rank", "size", "bcast", "gather")):
+        raise error(f"{name} must be an mpi4py communicator or None (got {got(value)})")
+    return value
+
+
 __all__ = [
+    "comm_argument",
     "got",
     "path_argument",
     "flag_argument",

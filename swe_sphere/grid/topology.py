@@ -25,6 +25,7 @@ import numpy as np
 import warp as wp
 
 from ..core.backend import Backend
+from ..core.errors import ArgumentError
 from ..core.parallel import record
 from ..kernels import blas, dss
 from .cubed_sphere import CubedSphere
@@ -430,11 +431,11 @@ class Topology:
         nnodes_total) given on rank 0 (``Scatterv``; call on every rank; ``whole``
         is read on rank 0 only, the others may pass None). On one process,
         ``whole`` itself as float64. Raises ValueError on every rank, one line
-        naming ``what``, when rank 0's ``whole`` has another shape:
+        naming ``what``, when rank 0's ``whole`` has another shape (``ArgumentError``):
         "<what> has shape S, the grid needs (rows, nnodes_total)"."""
         shape = self.bcast(np.shape(whole) if self.comm.rank == 0 else None)  # rank 0's: it hands the field out
         if shape != (rows, self.nnodes_total):
-            raise ValueError(f"{what} has shape {shape}, the grid needs {(rows, self.nnodes_total)}")
+            raise ArgumentError(f"{what} has shape {shape}, the grid needs {(rows, self.nnodes_total)}")
         if not self.distributed:
             return np.asarray(whole, dtype=np.float64)
         counts = [rows * p.size * self.grid.np**2 for p in self.parts]

@@ -23,9 +23,17 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from ..config.scene import Scene, resolve_scene
-from ..core.arguments import flag_argument, number_argument, path_argument
+from ..core.arguments import (
+    array_argument,
+    comm_argument,
+    flag_argument,
+    got,
+    mapping_argument,
+    number_argument,
+    path_argument,
+)
 from ..core.backend import Backend, pick_device
-from ..core.errors import BlowUp, Interrupted, OutputError, SceneError, StepFailure
+from ..core.errors import ArgumentError, BlowUp, Interrupted, OutputError, SceneError, StepFailure
 from ..core.graphs import GraphedSteps, default_mode, graphs_mode
 from ..core.interrupts import StepAbandoned, StopSignals
 from ..io.output_files import check_distinct, check_target
@@ -33,7 +41,7 @@ from ..steppers import StepStats
 from . import drive, restart
 from .activities import Log, is_due
 from .adaptive import steer
-from .build import build
+from .build import ON_ROOT, build
 from .guard import Guard
 from .schedules import EverySteps
 from .summary import Ledger, RunResult, Stop, interruption
@@ -181,7 +189,14 @@ class Simulation:
         scene, inputs = resolve_scene(scene, overrides)
         backend = Backend.of(pick_device(device))  # a name Warp does not know is refused in one line
         if initial is not None and (start is not None or not callable(initial)):
-            raise ValueError("initial must be a function (lat, lon) -> (h, u, v), and not given with start")
+            raise ArgumentError(
+                f"initial must be a function (lat, lon) -> (h, u, v), and not given with start (got {got(initial)})"
+            )
+        comm_argument("comm", comm)
+        if start is not None and start is not ON_ROOT:
+            start = array_argument("start", start, (3, None), "m s⁻¹ and m")  # the grid's columns: ``distribute``
+        if initial_diagnostics is not None:
+            mapping_argument("initial_diagnostics", initial_diagnostics)
         t0 = time.perf_counter()
         self._compile = [0.0]
         self.activities: dict = {}  # name -> activity (``activities``): the user's; ``run`` adds its own

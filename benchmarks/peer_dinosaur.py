@@ -90,6 +90,14 @@ step, ``peer_dinosaur_best_step.json``::
         ne12/np6/kgu35,86400/262 ne16/np5/kgu35,86400/238 ne10/np8/kgu35,86400/457 ne12/np8/kgu35 \
         ne12/np8/imex,86400/180 ne24/np6/kgu35,86400/524 ne26/np6/kgu35,86400/568 --results peer_dinosaur_best_step
 
+T213 (``peer_dinosaur_best_step_t213.json``; its reference step the default 300 s, not half of it, to save
+time), and the best steps' costs again in two rounds (``peer_dinosaur_best_step_rounds.json``)::
+
+    python benchmarks/peer_dinosaur.py --best-step --truncations T213 --reference-dt 300 \
+        --swe ne30/np6/kgu35,86400/655 --results peer_dinosaur_best_step_t213
+    python benchmarks/peer_dinosaur.py --truncations T42 T85 T170 --peer-dt 7200 2400 900 --swe ne16/np5/kgu35,86400/238 \
+        ne12/np8/kgu35 ne26/np6/kgu35,86400/568 --rounds 2 --results peer_dinosaur_best_step_rounds
+
 **On a GPU** (``--device cuda``, issue 67: the peer on the same card in the same call): the peer
 under JAX on CUDA (``JAX_PLATFORMS=cuda``, no preallocation), swe_sphere's runs with
 ``device="cuda"``, each figure the wall seconds of the same loop (the peer's compiled

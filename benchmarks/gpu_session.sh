@@ -153,12 +153,15 @@ part_control() {  # issue 64/67: a controlled run's steps as CUDA graphs (one a 
 
 part_dinosaur() {
     local t="--truncations T42 T85 T170 T213"
+    # Δt at a fraction of kgu35's measured limit on each grid (peer_dinosaur.py's STEPPER@F), the
+    # fraction the grid has run to the end at: TC5 ne16 at 0.8 (the frontier's), ne30 at 0.75 (1.6 Δt_g,
+    # docs/efficiency/multirate.md), ne60 at 0.65 (1.43 Δt_g ran 15 days there; 0.8 = 86400/375 blew up at
+    # day 2.6 on an H100, issue 83); Galewsky the case's rows (the scene's ne12 np8 and its neighbours)
     run dinosaur_galewsky "${PEER_S:-240}" "$PY" benchmarks/peer_dinosaur.py --case galewsky --device "$DEVICE" \
-        --python "$PY" $t --results gpu_peer_dinosaur_galewsky \
-        --swe ne16/np4/fbrk32,86400/214 ne30/np4/kgu35,86400/400 ne60/np4/kgu35,86400/800
+        --python "$PY" $t --results gpu_peer_dinosaur_galewsky
     run dinosaur_tc5 "${PEER_S:-240}" "$PY" benchmarks/peer_dinosaur.py --case tc5 --device "$DEVICE" \
         --python "$PY" $t --results gpu_peer_dinosaur_tc5 \
-        --swe ne16/np4/kgu35,86400/100 ne30/np4/kgu35,86400/188 ne60/np4/kgu35,86400/375
+        --swe ne16/np4/kgu35@0.8 ne30/np4/kgu35@0.75 ne60/np4/kgu35@0.65
     cp benchmarks/results/gpu_peer_dinosaur_*.json "$OUT/" 2>/dev/null
 }
 

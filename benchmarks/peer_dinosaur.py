@@ -63,9 +63,11 @@ seconds (``time.process_time``) of its whole time loop (``jax.lax.scan`` of the 
 steps, compiled ahead of time, compilation excluded) / days. swe_sphere's: its run's own step-loop
 CPU clock (``simulation.summary.Ledger``: output and scoring excluded) between day 1 and the
 last, / (days − 1) (the first day's first step, with its launch recording, left out). ``galewsky``'s
-default runs are its former default, 216 s at ne30 np4, and that Δt rescaled to ne16 (86400/214 s),
-with the scene's ν (the 3-hour e-folding rule), output every day, ``-s case.reference=T341``. ``--swe`` names swe_sphere's runs,
-``neNE/npNP/STEPPER`` (the scene's Δt) or ``neNE/npNP/STEPPER,DT`` (``DT`` s or ``86400/N``),
+default runs are the shipped scene (ne12 np8 kgu35 at its Δt, 0.7 of its limit) and ne10 and ne16
+np8 at the same 0.7, with the scene's ν (the 3-hour e-folding rule), output every day, ``-s
+case.reference=T341``. ``--swe`` names swe_sphere's runs, ``neNE/npNP/STEPPER`` (the scene's Δt),
+``neNE/npNP/STEPPER,DT`` (``DT`` s or ``86400/N``) or ``neNE/npNP/STEPPER@F`` (86400/N at or below F
+of the stepper's measured limit on that grid, ``at_limit``; ``--list`` prints the rows so resolved),
 then any of the stepper's (or the scene's) options as ``swe-sphere run -s`` takes them, comma-separated
 ``SECTION.KEY=VALUE``: ``ne12/np8/imex,86400/180,imex.scheme=ars232``. A run that fails (a blow-up,
 a refused Δt) is a row that says so, its error NaN.
@@ -160,16 +162,12 @@ STUDIES = {
         6.0,
         "vorticity",
         "vorticity",
-        # the scene's former default (ne30 np4, fbrk32 at 216 s) and its Δt scaled to ne16
-        (
-            "ne16/np4/fbrk32,86400/214",
-            "ne16/np4/kgu35,86400/214",
-            "ne30/np4/fbrk32,86400/400",
-            "ne30/np4/kgu35,86400/400",
-        ),
+        # the shipped scene (ne12 np8, kgu35 at its Δt, 0.7 of its limit) and its neighbours in ne at
+        # the scene's rule (0.7 of kgu35's limit on each grid: at 0.8 np 8 needs a second ∇⁴ substep)
+        ("ne10/np8/kgu35@0.7", "ne12/np8/kgu35", "ne16/np8/kgu35@0.7"),
         "peer_dinosaur",
     ),
-    # kgu35 at 0.8 of its limit, Δt as the frontier makes it (86400 / a whole number): the TC5
+    # kgu35 at 0.8 of its limit (``at_limit``), Δt as the frontier makes it (86400 / a whole number): the TC5
     # frontier's front (docs/efficiency/frontier.md) and grids between its points (ne10 np4, ne12 np3 and
     # np4 about Dinosaur T42's error; ne16 np5 and ne24 np4)
     "tc5": Study(
@@ -177,33 +175,29 @@ STUDIES = {
         15.0,
         "h_surface",
         "h + hs",
-        (
-            "ne8/np4/kgu35,86400/50",
-            "ne12/np3/kgu35,86400/42",
-            "ne10/np4/kgu35,86400/63",
-            "ne12/np4/kgu35,86400/75",
-            "ne16/np3/kgu35,86400/56",
-            "ne16/np4/kgu35,86400/100",
-            "ne24/np4/kgu35,86400/150",
-            "ne16/np5/kgu35,86400/160",
-            "ne16/np6/kgu35,86400/235",
+        tuple(
+            f"{grid}/kgu35@0.8"
+            for grid in (
+                "ne8/np4",
+                "ne12/np3",
+                "ne10/np4",
+                "ne12/np4",
+                "ne16/np3",
+                "ne16/np4",
+                "ne24/np4",
+                "ne16/np5",
+                "ne16/np6",
+            )
         ),
         "peer_dinosaur_tc5",
     ),
-    # kgu35 at 0.8 of its limit, the TC6 frontier's grids and Δt (docs/efficiency/frontier.md)
+    # kgu35 at 0.8 of its limit (``at_limit``), the TC6 frontier's grids and Δt (docs/efficiency/frontier.md)
     "tc6": Study(
         "tc6_rossby_haurwitz",
         14.0,
         "h_surface",
         "h + hs",
-        (
-            "ne4/np6/kgu35,86400/94",
-            "ne8/np4/kgu35,86400/80",
-            "ne8/np5/kgu35,86400/127",
-            "ne8/np6/kgu35,86400/187",
-            "ne16/np4/kgu35,86400/159",
-            "ne16/np5/kgu35,86400/254",
-        ),
+        tuple(f"{grid}/kgu35@0.8" for grid in ("ne4/np6", "ne8/np4", "ne8/np5", "ne8/np6", "ne16/np4", "ne16/np5")),
         "peer_dinosaur_tc6",
     ),
 }
@@ -371,6 +365,44 @@ def parse_swe(config: str) -> tuple[int, int, str, float | None, dict]:
     return (*parsed, sets)
 
 
+def at_limit(study: str, config: str) -> tuple[str, float | None]:
+    """``config`` with ``STEPPER@F`` (``neNE/npNP/STEPPER@F[,SECTION.KEY=VALUE...]``) written as
+    ``STEPPER,86400/N``: the largest Δt that divides a day at or below F of the stepper's measured
+    stability limit on that grid (``courant_limit`` as (|v| + sqrt(g h)) Δt / Δx on the scene's
+    start state: ``studies.frontier.stable_dt`` of ``studies.sweep.explicit_limits``, the
+    frontier's ``kgu35@0.8``), and that Δt's fraction of the limit; any other ``config`` as
+    given, with its fraction where the stepper has a limit (else None). The limit is the
+    scene's at that grid (overrides aside). Raises ValueError."""
+    grid, *rest = config.split(",")
+    head, at, fraction = grid.partition("@")
+    if at and any("=" not in r for r in rest):
+        raise ValueError(f"--swe {config!r}: STEPPER@F is its Δt; give one or the other")
+    ne, np_, stepper, dt, _ = parse_swe(",".join([head, *rest]))
+    from swe_sphere.config.scene import load_scene
+    from swe_sphere.steppers import STEPPERS
+    from swe_sphere.studies.frontier import stable_dt
+    from swe_sphere.studies.sweep import explicit_limits
+
+    if stepper not in STEPPERS:
+        raise ValueError(f"--swe {config!r}: unknown stepper {stepper!r}")
+    if STEPPERS[stepper].courant_limit is None:
+        if at:
+            raise ValueError(f"--swe {config!r}: {stepper} has no measured stability limit to run at a fraction of")
+        return config, None
+    try:
+        f = float(fraction) if at else math.nan
+    except ValueError:
+        f = math.nan
+    if at and not f > 0:
+        raise ValueError(f"--swe {config!r}: STEPPER@F wants F a number > 0")
+    scene = load_scene(STUDIES[study].scene, ne=ne, np_=np_, stepper=stepper)
+    limit = stable_dt(stepper, explicit_limits(scene, "cpu"))
+    if not at:
+        return config, (scene.dt if dt is None else dt) / limit
+    n = math.ceil(86400 / (f * limit))
+    return ",".join([f"{head},86400/{n}", *rest]), 86400 / n / limit
+
+
 # -- the parent: runs the children one at a time and scores them ----------------------------
 def child_env(device: str = "cpu") -> dict:
     """The environment of a timed child: one thread, this checkout first on the path (before
@@ -499,6 +531,7 @@ def arguments():
     ap.add_argument("--tolerance", type=float, default=0.01, help="--best-step's relative error loss (default: 1 %%)")
     ap.add_argument("--results", help="the results file's stem (default: the case's, e.g. peer_dinosaur_tc5)")
     ap.add_argument("--rounds", type=int, default=1)
+    ap.add_argument("--list", action="store_true", help="print swe_sphere's rows (Δt resolved) and run nothing")
     ap.add_argument("--transforms", choices=["fft", "real"], default="fft")
     ap.add_argument("--python", default=str(DEFAULT_PYTHON), help="the peer's interpreter (default: %(default)s)")
     ap.add_argument(
@@ -509,11 +542,19 @@ def arguments():
     )
     args = ap.parse_args()
     args.swe = list(STUDIES[args.case].swe) if args.swe is None else args.swe
+    rows = []
     for config in args.swe:
         try:
-            parse_swe(config)
+            rows.append(at_limit(args.case, config))
         except ValueError as e:
             ap.error(str(e))
+    args.swe = [config for config, _ in rows]
+    if args.list:
+        for config, fraction in rows:
+            ne, np_, stepper, dt, _ = parse_swe(config)
+            where = "" if fraction is None else f", {fraction:.3f} of {stepper}'s limit"
+            print(f"{config}  (Δt {'the scene' + chr(39) + 's' if dt is None else f'{dt:.2f} s'}{where})")
+        raise SystemExit(0)
     if args.best_step and args.peer_dt is not None:
         ap.error("--peer-dt and --best-step: the search chooses the peer's Δt")
     args.reference_dt = per_truncation(ap, "--reference-dt", args.reference_dt, args.truncations, 0.5)

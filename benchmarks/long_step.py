@@ -47,6 +47,7 @@ from threadpoolctl import threadpool_limits  # noqa: E402
 
 wp.config.quiet = True
 
+from lts_step_cost import timed  # noqa: E402  (benchmarks/: the median of mean CPU ms)
 from results import recorded  # noqa: E402  (benchmarks/, the script's directory)
 
 from swe_sphere.cases.reference import Reference, reference_path  # noqa: E402
@@ -139,16 +140,6 @@ def accuracy(args, runs, figures: dict) -> None:
     figures["accuracy"] = rows
 
 
-def _median_ms(fn, rounds: int, reps: int) -> float:
-    times = []
-    for _ in range(rounds):
-        t = time.process_time()
-        for _ in range(reps):
-            fn()
-        times.append((time.process_time() - t) / reps * 1e3)
-    return statistics.median(times)
-
-
 def cost(args, runs, figures: dict) -> None:
     base = simulation(args, "kgu35", runs[0][1][1], {}, 1.0)
     m, x = base.model, base.x
@@ -178,7 +169,7 @@ def cost(args, runs, figures: dict) -> None:
     ms = {k: [] for k in parts}
     for _ in range(args.rounds):  # interleaved: load changes hit every part alike
         for k, fn in parts.items():
-            ms[k].append(_median_ms(fn, 1, args.reps if not k.startswith("step") else max(1, args.reps // 4)))
+            ms[k].append(timed(fn, args.reps if not k.startswith("step") else max(1, args.reps // 4), 1))
     med = {k: statistics.median(v) for k, v in ms.items()}
     rhs = med["rhs"]
     print(f"\n## cost: {args.scene} ne{m.grid.ne} np{m.grid.np}, CPU ms (medians of {args.rounds} rounds), one thread")
@@ -220,7 +211,7 @@ def direct(args, runs, figures: dict) -> None:
         t = time.process_time()
         lu = spla.splu(A, permc_spec=ordering, options={"SymmetricMode": True})
         factor = time.process_time() - t
-        solve = _median_ms(lambda lu=lu: lu.solve(b), 3, 3)
+        solve = timed(lambda lu=lu: lu.solve(b), 3, 3)
         res = float(np.linalg.norm(A @ lu.solve(b) - b) / np.linalg.norm(b))
         fill = int(lu.L.nnz + lu.U.nnz)
         out[ordering] = {"factor_s": factor, "solve_ms": solve, "fill": fill, "residual": res}
@@ -231,7 +222,7 @@ def direct(args, runs, figures: dict) -> None:
     def cg_solve():
         cg.solve(c, 1e-6, 1000, warm=False)
 
-    ms = _median_ms(cg_solve, 3, 3)
+    ms = timed(cg_solve, 3, 3)
     iters = cg.stats.numpy()[0] / 10.0  # 1 + 3 × 3 solves counted
     print(f"  the model's CG from zero to 1e-6: {iters:.0f} iterations, {ms:.1f} ms")
     out["cg"] = {"solve_ms": ms, "iterations": iters}

@@ -61,6 +61,12 @@ def default_device() -> str:
     return os.environ.get(DEVICE_ENV, "").strip() or ("cuda" if init_warp().is_cuda_available() else "cpu")
 
 
+def same_device(a: str, b: str) -> bool:
+    """Whether the Warp device names ``a`` and ``b`` name one device ("cuda" and "cuda:0" do
+    where device 0 is the current one)."""
+    return a == b or wp.get_device(a) == wp.get_device(b)
+
+
 def lives_on(array: wp.array, device: str) -> bool:
     """Whether ``array`` is in ``device``'s memory (a Warp device name: "cpu", "cuda", "cuda:N";
     "cuda" is the current CUDA device, on which no host array lives)."""

@@ -18,7 +18,7 @@ import numpy as np
 import warp as wp
 
 from ..core.arguments import array_argument, got, integer_argument, number_argument
-from ..core.backend import Backend
+from ..core.backend import Backend, same_device
 from ..core.constants import EARTH
 from ..core.errors import ArgumentError
 from ..core.graphs import GraphGuard
@@ -159,7 +159,7 @@ class ShallowWater:
         number_argument("g", g, "m s⁻²", positive=True)
         if not isinstance(device, str) or not device:
             raise ArgumentError(f"device must be a device's name such as 'cpu' or 'cuda' (got {got(device)})")
-        if topology is not None and Backend.of(device).device != topology.backend.device:
+        if topology is not None and not same_device(device, topology.backend.device):
             raise ArgumentError(
                 f"device {device!r} is not its topology's ({topology.backend.device!r}): give the topology's device"
             )

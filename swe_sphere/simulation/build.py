@@ -1,16 +1,17 @@
 """A simulation's build: the checks before it, the partition of the grid over the ranks,
-the model and stepper of the scene, the start state (the case's, a function's, a digital
-filter's or one handed in) and the counters at t = 0 (``build``, which
-``Simulation.__init__`` calls)."""
+the model and stepper of the scene and the start state (the case's, a function's, a digital
+filter's or one handed in): ``build``, which returns them (``Built``) to ``Simulation.__init__``."""
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import warp as wp
 
 from ..cases.scoring import Scorer
 from ..config.scene import Scene
-from ..core.backend import CHECK_EVERY_STEPS, Backend
+from ..core.backend import Backend
 from ..core.constants import DAY
 from ..core.errors import ResourceError, SceneError
 from ..core.mpi import node_local_size
@@ -21,8 +22,6 @@ from ..io.initial_state import from_function
 from ..model.shallow_water import ShallowWater
 from ..steppers import STEPPERS, make_stepper
 from ..steppers.initialization import digital_filter
-from .adaptive import StepControl
-from .state_diagnostics import StateDiagnostics
 
 ON_ROOT = object()  # ``start`` on the ranks > 0 when rank 0 alone holds the whole-grid start state
 
@@ -93,27 +92,50 @@ def partition(scene: Scene, case, comm, backend: Backend) -> Topology:
     return on_ranks(scene.ne, scene.np, case.planet.a, comm, backend, mesh, level)
 
 
-def build(sim, scene: Scene, backend: Backend, progress: bool, comm, start, initial, initial_diagnostics) -> None:
-    """Set ``sim``'s scene, topology, grid, case, model, stepper, scorer, diagnostics,
-    start state (``dfi``: the digital filter's result where it ran) and counters at
-    t = 0; the arguments as ``Simulation``'s. Raises as ``Simulation``."""
+@dataclasses.dataclass
+class Built:
+    """What ``build`` makes, which ``Simulation.__init__`` takes as its attributes of the same names:
+    the scene and its device, this rank's part of the grid (``topology``) and the whole grid on
+    rank 0 (``grid``; None elsewhere), the case, model, stepper (prepared on ``x``) and scorer,
+    the case's fcor and hs gathered, the start state ``x`` and a copy ``last_good`` (``guard``),
+    and ``dfi``, the digital filter's result where it ran."""
+
+    scene: Scene
+    device: str
+    backend: Backend
+    case: object
+    topology: Topology
+    root: bool  # the rank that diagnoses, writes files and shows progress
+    progress: bool
+    grid: CubedSphere | None
+    model: ShallowWater
+    g: float
+    fcor: np.ndarray | None
+    hs: np.ndarray | None
+    stepper: object
+    scorer: Scorer
+    dfi: object
+    x: wp.array
+    last_good: wp.array
+
+
+def build(scene: Scene, backend: Backend, progress: bool, comm, start, initial) -> Built:
+    """The scene's topology, grid, case, model, stepper, scorer and start state (``Built``;
+    ``dfi``: the digital filter's result where it ran); the arguments as ``Simulation``'s.
+    Raises as ``Simulation``."""
     check_memory(scene, comm, backend)
-    sim.scene, sim.device, sim.backend = scene, backend.device, backend
-    sim.case = case = scene.make_case()
-    sim.topology = topo = partition(scene, case, comm, backend)
+    case = scene.make_case()
+    topo = partition(scene, case, comm, backend)
     local = topo.grid
-    sim.root = topo.comm.rank == 0  # the rank that diagnoses, writes files and shows progress
-    sim.progress = progress and sim.root
+    root = topo.comm.rank == 0
     # the whole grid and fields for diagnostics and output: on rank 0 only (None elsewhere)
-    sim.grid = topo.whole_grid()
-    sim.model = model = ShallowWater.from_scene(scene, local, case, device=backend.device, topology=topo)
-    sim.g = model.g
+    grid = topo.whole_grid()
+    model = ShallowWater.from_scene(scene, local, case, device=backend.device, topology=topo)
     fcor, hs = model.fcor.numpy(), model.hs.numpy()  # the case's, as the model holds them
-    sim.fcor, sim.hs = topo.gather(fcor), topo.gather(hs)
-    sim.stepper = scene_stepper(scene, model)
-    sim.scorer = Scorer(case, model, topo, sim.grid, sim.hs, scene.reference_file)
-    sim.diagnostics = StateDiagnostics(sim)
-    sim.dfi = None
+    whole_fcor, whole_hs = topo.gather(fcor), topo.gather(hs)
+    stepper = scene_stepper(scene, model)
+    scorer = Scorer(case, model, topo, grid, whole_hs, scene.reference_file)
+    dfi = None
     if start is None:
         start = (
             np.stack(case.initial(local.lat, local.lon))
@@ -121,27 +143,33 @@ def build(sim, scene: Scene, backend: Backend, progress: bool, comm, start, init
             else from_function(initial, local.lat, local.lon)
         )
         if scene.digital_filter is not None:
-            sim.dfi = digital_filter(
-                scene.digital_filter, start, grid=local, terms=scene.terms, fcor=fcor, hs=hs, g=sim.g, topology=topo
+            dfi = digital_filter(
+                scene.digital_filter, start, grid=local, terms=scene.terms, fcor=fcor, hs=hs, g=model.g, topology=topo
             )
-            start = sim.dfi.x
+            start = dfi.x
     else:
         start = topo.distribute(None if start is ON_ROOT else start, 3, "start state")
-    sim.x = model.new_state(*start)
-    sim.stepper.prepare(sim.x)
-    sim.last_good = wp.clone(sim.x)  # the state at the start of the block of steps in progress (``guard``)
-    sim.check_every = CHECK_EVERY_STEPS
-    if not sim.root:  # a fallback's warning once, from rank 0
+    x = model.new_state(*start)
+    stepper.prepare(x)
+    if not root:  # a fallback's warning once, from rank 0
         model.graph_guard.warn = lambda line: None
-    sim.initial = initial_diagnostics
-    if initial_diagnostics is None:
-        sim.initial = sim.diagnostics.diagnose(scene.start_day * DAY)
-    # Δt chosen step to step (``Scene.control``): the loop's steps land on its times
-    sim.control = None if scene.control is None else StepControl(scene.control, sim.stepper, sim)
-    sim.step = 0  # steps taken since t = 0 (a branched run: since its branch day, ``Scene.start_day``)
-    sim.counters = {
-        "rhs_evals": 0,
-        "wall_time": 0.0,
-        "cpu_time": 0.0,
-        "iterations": {k: 0 for k in sim.stepper.solvers},
-    }
+    last_good = wp.clone(x)  # the state at the start of the block of steps in progress (``guard``)
+    return Built(  # in the order of ``Built``'s fields
+        scene,
+        backend.device,
+        backend,
+        case,
+        topo,
+        root,
+        progress and root,
+        grid,
+        model,
+        model.g,
+        whole_fcor,
+        whole_hs,
+        stepper,
+        scorer,
+        dfi,
+        x,
+        last_good,
+    )

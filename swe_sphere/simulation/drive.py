@@ -1,7 +1,7 @@
 """A simulation driven from Python (Oceananigans' ``Simulation``: step, inspect, call back):
-``Simulation``'s methods ``advance``, ``steps``, ``state``, ``every``, ``add_callback`` and
-``fit_dt`` and its ``time``, bound in its class body (``self``: the simulation); the
-steps go by ``Simulation.run``'s loop."""
+``Drive``, the object a ``Simulation`` holds behind its methods ``advance``, ``steps``,
+``state``, ``every``, ``add_callback`` and ``fit_dt`` (their contracts are the simulation's
+docstrings); the steps go by ``Simulation.run``'s loop."""
 
 from __future__ import annotations
 
@@ -20,189 +20,102 @@ from .schedules import EverySteps, steps_of
 from .summary import RunResult
 
 
-def fit_dt(self, every: float, what: str = "every") -> None:
-    """Shorten Δt, before the first step, to the largest that divides ``every`` (days),
-    the run, its output intervals (where shorter than the run) and the intervals of
-    the activities scheduled in days (``every``; their steps follow): the scene's clock
-    fitted to them (``Clock.fitted``), set on the stepper (``set_dt``; a stepper that cannot
-    change its Δt, ``variable_dt`` False, built anew), and the start's diagnostics again
-    (their Courant numbers); a note in ``scene.notes`` naming ``what``. ``SceneError``
-    (one line) after the first step, for ``every`` <= 0, and where that Δt is less than
-    half the present one (an interval of odd decimals: give a dt, or an interval of
-    whole steps)."""
-    s = self.scene
-    if self.step != 0 or not is_interval(every):
-        raise SceneError(f"dt is fitted to an interval > 0 before the first step (got {every!r} at step {self.step})")
-    outputs = [s.output_every_days, *(st["every_days"] for st in s.output_streams)]
-    days = [a.schedule.days for a in self.activities.values() if getattr(a.schedule, "days", None) is not None]
-    spans = (every, s.run_days, *(d for d in outputs if d < s.run_days), *days)
-    clock = s.clock.fitted(*spans, source=f"{s.dt_source}, shortened to divide {what} = {every:g} days")
-    if clock.dt < s.dt / 2:
-        raise SceneError(
-            f"{what} = {every:g} days is not a whole number of steps of dt = {s.dt:g} s, and the longest dt "
-            f"that divides it, the run and its output intervals is {clock.dt:g} s, less than half: give a dt, "
-            "or an interval of whole steps"
+class Drive:
+    """A simulation's steps driven from Python: Δt fitted to the user's intervals (where it is
+    the simulation's own, ``own_dt``: not given, restored or stated in a ``Scene``), schedules,
+    callbacks, steps to a day, the state as a dataset."""
+
+    def __init__(self, sim, own_dt: bool):
+        self.sim, self.own_dt = sim, own_dt
+
+    def fit_dt(self, every: float, what: str) -> None:
+        """``Simulation.fit_dt``: Δt shortened, before the first step, to divide ``every`` and the run's intervals."""
+        sim = self.sim
+        s = sim.scene
+        if sim.step != 0 or not is_interval(every):
+            raise SceneError(
+                f"dt is fitted to an interval > 0 before the first step (got {every!r} at step {sim.step})"
+            )
+        outputs = [s.output_every_days, *(st["every_days"] for st in s.output_streams)]
+        days = [a.schedule.days for a in sim.activities.values() if getattr(a.schedule, "days", None) is not None]
+        spans = (every, s.run_days, *(d for d in outputs if d < s.run_days), *days)
+        clock = s.clock.fitted(*spans, source=f"{s.dt_source}, shortened to divide {what} = {every:g} days")
+        if clock.dt < s.dt / 2:
+            raise SceneError(
+                f"{what} = {every:g} days is not a whole number of steps of dt = {s.dt:g} s, and the longest dt "
+                f"that divides it, the run and its output intervals is {clock.dt:g} s, less than half: give a dt, "
+                "or an interval of whole steps"
+            )
+        note = f"dt shortened from {s.dt:g} s to {clock.dt:g} s to divide {what} = {every:g} days"
+        sim.scene = dataclasses.replace(s, dt=clock.dt, notes=(*s.notes, note), dt_source=clock.source)
+        if sim.stepper.variable_dt:  # its own ``set_dt`` (as step control's): what was built for the old Δt dropped
+            sim.stepper.set_dt(clock.dt)
+        else:  # Δt folded into what it builds (a Helmholtz operator, a history's weights, element levels): anew
+            sim.stepper = scene_stepper(sim.scene, sim.model)
+            sim.stepper.prepare(sim.x)
+        for activity in sim.activities.values():
+            if getattr(activity.schedule, "days", None) is not None:
+                activity.schedule = sim.every(days=activity.schedule.days)
+        sim.initial = sim.diagnostics.diagnose(sim.scene.start_day * DAY)
+
+    def every(self, days: float | None, steps: int | None) -> EverySteps:
+        """``Simulation.every``: the schedule of every ``steps`` steps, or of the steps in ``days``."""
+        if (days is None) == (steps is None):
+            raise ValueError("an interval needs exactly one of every_days, every_steps")
+        if steps is not None and not (isinstance(steps, int) and steps >= 1):
+            raise ValueError(f"every_steps must be an integer >= 1 (got {steps!r})")
+        return EverySteps(steps) if days is None else EverySteps(self.steps_in(days, "every_days"), days)
+
+    def steps_in(self, days: float, what: str) -> int:
+        """The whole number of steps in ``days`` (``what`` names it in a refusal), Δt first
+        fitted to it (``Simulation.fit_dt``) where Δt is the simulation's own and no step was taken."""
+        sim = self.sim
+        if self.own_dt and sim.step == 0 and is_interval(days) and not sim.scene.clock.is_whole(days):
+            sim.fit_dt(days, what)
+        return steps_of(sim.scene, days, f"the interval {what}")
+
+    def add_callback(self, fn, every_days: float | None, every_steps: int | None, name: str | None) -> None:
+        """``Simulation.add_callback``: ``fn`` an activity under ``name`` (default "callback N")."""
+        sim = self.sim
+        callable_argument("fn", fn, "a callable fn(sim)", SceneError)
+        if name is not None and not isinstance(name, str):
+            raise SceneError(f"name must be a str or None (got {got(name)})")
+        schedule = sim.every(days=every_days, steps=every_steps)
+        if name is None:
+            name = next(f"callback {k}" for k in itertools.count(1) if f"callback {k}" not in sim.activities)
+        sim.activities[name] = Callback(fn, schedule)
+
+    def advance(self, days: float) -> RunResult:
+        """``Simulation.advance``: ``days`` further by ``run``'s loop, the scene lengthened past its end."""
+        sim = self.sim
+        target = sim.step + self.steps_in(days, "days")
+        if target > sim.scene.nsteps:
+            sim.scene = with_days(sim.scene, sim.scene.start_day + target * sim.scene.dt / DAY, "the scene's")
+        return sim.run(None, until_step=target)
+
+    def steps(self, every: float):
+        """``Simulation.steps``: the run to the scene's end, the model day after each multiple of ``every``."""
+        sim = self.sim
+        per = self.steps_in(every, "every")
+        while (target := (sim.step // per + 1) * per) <= sim.scene.nsteps:
+            sim.run(None, until_step=target)
+            yield sim.time
+
+    def state(self, remap: float | None):
+        """``Simulation.state``: the current state as an ``xarray.Dataset`` (None on ranks other than 0)."""
+        sim = self.sim
+        whole = sim.diagnostics.gather_fields(divergence=True)
+        if not sim.root:
+            return None
+        ds = node_dataset(
+            sim.grid,
+            sim.hs,
+            sim.time,
+            {k: getattr(whole, k) for k in OUTPUT_FIELDS},
+            {"scene": sim.scene.as_dict(), "ne": sim.scene.ne, "np": sim.scene.np, "step": sim.step},
         )
-    note = f"dt shortened from {s.dt:g} s to {clock.dt:g} s to divide {what} = {every:g} days"
-    self.scene = dataclasses.replace(s, dt=clock.dt, notes=(*s.notes, note), dt_source=clock.source)
-    if self.stepper.variable_dt:  # its own ``set_dt`` (as step control's): what was built for the old Δt dropped
-        self.stepper.set_dt(clock.dt)
-    else:  # Δt folded into what it builds (a Helmholtz operator, a history's weights, element levels): anew
-        self.stepper = scene_stepper(self.scene, self.model)
-        self.stepper.prepare(self.x)
-    for activity in self.activities.values():
-        if getattr(activity.schedule, "days", None) is not None:
-            activity.schedule = self.every(days=activity.schedule.days)
-    self.initial = self.diagnostics.diagnose(self.scene.start_day * DAY)
+        if remap is None:
+            return ds
+        from ..io.remap import remap_dataset  # here: xarray and scipy.sparse, for the Python API's maps only
 
-
-def every(self, *, days: float | None = None, steps: int | None = None) -> EverySteps:
-    """The schedule of an activity (``activities``) due after every step that is a
-    multiple of ``steps``, or of the steps in ``days`` (whole steps), counted from
-    step 0 (Oceananigans' ``IterationInterval``); not at step 0, whose state the
-    caller has. ValueError for an interval that is not whole steps, or not exactly
-    one of the two."""
-    if (days is None) == (steps is None):
-        raise ValueError("an interval needs exactly one of every_days, every_steps")
-    if steps is not None and not (isinstance(steps, int) and steps >= 1):
-        raise ValueError(f"every_steps must be an integer >= 1 (got {steps!r})")
-    return EverySteps(steps) if days is None else EverySteps(steps_in(self, days, "every_days"), days)
-
-
-def steps_in(self, days: float, what: str) -> int:
-    """The whole number of steps in ``days`` (``what`` names it in a refusal), Δt first
-    fitted to it (``fit_dt``) where Δt is the simulation's own and no step was taken."""
-    if self._own_dt and self.step == 0 and is_interval(days) and not self.scene.clock.is_whole(days):
-        self.fit_dt(days, what)
-    return steps_of(self.scene, days, f"the interval {what}")
-
-
-def add_callback(
-    self, fn, *, every_days: float | None = None, every_steps: int | None = None, name: str | None = None
-) -> None:
-    """Call ``fn(self)`` after every ``every_steps``-th step, or every ``every_days``
-    (``every``), in ``run``, ``advance`` and ``steps`` (Oceananigans' ``add_callback!``):
-    an activity in ``activities`` under ``name`` (default "callback N"). ``fn`` may read
-    ``sim.step``, ``sim.time``, ``sim.state()``; what it raises ends the run (its
-    output files dropped). Under MPI add it on every rank. ``SceneError`` for ``fn`` not
-    callable, ``name`` not a str, and as ``every``."""
-    callable_argument("fn", fn, "a callable fn(sim)", SceneError)
-    if name is not None and not isinstance(name, str):
-        raise SceneError(f"name must be a str or None (got {got(name)})")
-    schedule = self.every(days=every_days, steps=every_steps)
-    if name is None:
-        name = next(f"callback {k}" for k in itertools.count(1) if f"callback {k}" not in self.activities)
-    self.activities[name] = Callback(fn, schedule)
-
-
-def time(self) -> float:
-    """The model time of the current step, days since t = 0 (under step control the
-    control's: a day as given where the step landed on it)."""
-    return self.scene.day(self.step) if self.control is None else self.control.day
-
-
-def event_day(self) -> float | None:
-    """Under step control the day the current step landed on (an output, restart or end
-    time; ``schedules.AtDays``), else None."""
-    return self.control.day if self.control is not None and self.control.landed else None
-
-
-def advance(self, days: float) -> RunResult:
-    """Step ``days`` further with ``run``'s loop (the same bits as one run; blow-up,
-    signals and callbacks as there; no output file). Past the scene's end the run
-    is lengthened (``config.with_days``).
-
-    Parameters
-    ----------
-    days : float
-        Model days, a whole number of steps.
-
-    Returns
-    -------
-    RunResult
-        Of these steps.
-
-    Raises
-    ------
-    ValueError
-        ``days`` is not a whole number of steps.
-    BlowUp, StepFailure, Interrupted
-        As ``run``.
-    """
-    target = self.step + steps_in(self, days, "days")
-    if target > self.scene.nsteps:
-        self.scene = with_days(self.scene, self.scene.start_day + target * self.scene.dt / DAY, "the scene's")
-    return self.run(None, until_step=target)
-
-
-def steps(self, every: float):
-    """Iterate the run to the scene's end, one multiple of ``every`` days from t = 0
-    at a time (``for t in sim.steps(every=0.5): ds = sim.state()``); stops at the last
-    multiple at or before the end.
-
-    Where Δt is the simulation's own (no ``dt`` given, the scene named or a file:
-    ``swe-sphere run`` shortens it likewise to divide the output interval) and no step
-    has been taken, a Δt that does not divide ``every`` is first shortened to the
-    largest that divides ``every``, the run, its output intervals and the callbacks'
-    (``fit_dt``; so do ``advance`` and ``every`` for their intervals).
-
-    Parameters
-    ----------
-    every : float
-        Model days between yields, a whole number of steps.
-
-    Yields
-    ------
-    float
-        The model time reached (days since t = 0).
-
-    Raises
-    ------
-    ValueError
-        ``every`` is not then a whole number of steps (naming a Δt that was given).
-    BlowUp, StepFailure, Interrupted
-        As ``run``.
-    """
-    per = steps_in(self, every, "every")
-    while (target := (self.step // per + 1) * per) <= self.scene.nsteps:
-        self.run(None, until_step=target)
-        yield self.time
-
-
-def state(self, remap: float | None = None):
-    """The current state as an ``xarray.Dataset``; call on every rank.
-
-    Parameters
-    ----------
-    remap : float, optional
-        Grid spacing in degrees: the state on a regular lat-lon grid
-        (``remap.remap_dataset``, with h_surface = h + hs). None: on the nodes.
-
-    Returns
-    -------
-    xarray.Dataset or None
-        On the nodes, as a run file holds one output time: h (m), u, v (m s⁻¹),
-        vorticity, divergence (s⁻¹) on ``ncol`` with hs, area, lat, lon and ``time``
-        in days (``run_file.node_dataset``); or on (lat, lon). None on ranks other
-        than 0.
-
-    Raises
-    ------
-    ValueError
-        A ``remap`` spacing that does not divide 180 degrees.
-    """
-    whole = self.diagnostics.gather_fields(divergence=True)
-    if not self.root:
-        return None
-    ds = node_dataset(
-        self.grid,
-        self.hs,
-        self.time,
-        {k: getattr(whole, k) for k in OUTPUT_FIELDS},
-        {"scene": self.scene.as_dict(), "ne": self.scene.ne, "np": self.scene.np, "step": self.step},
-    )
-    if remap is None:
-        return ds
-    from ..io.remap import remap_dataset  # here: xarray and scipy.sparse, for the Python API's maps only
-
-    return remap_dataset(ds, remap)
+        return remap_dataset(ds, remap)

@@ -1,8 +1,8 @@
 """A simulation's restarts: continued from a restart file, bitwise as if never stopped, or
 branched from it (another stepper or Δt); its state and history restored; a restart file
-written. ``Simulation``'s methods ``from_checkpoint`` (a class method), ``restore``,
-``restore_history`` and ``write_checkpoint``, bound in its class body (``self``: the
-simulation)."""
+written: ``continued`` behind ``Simulation.from_checkpoint``, and ``Restart``, the object a
+``Simulation`` holds behind ``restore``, ``restore_history`` and ``write_checkpoint`` (their
+contracts are the simulation's docstrings)."""
 
 from __future__ import annotations
 
@@ -16,54 +16,8 @@ from . import checkpoint as ckpt
 from .build import ON_ROOT
 
 
-def from_checkpoint(
-    cls,
-    checkpoint,
-    device: str,
-    *,
-    days: float | None = None,
-    stepper: str | None = None,
-    dt: float | None = None,
-    progress: bool = True,
-    comm=None,
-    graphs: str | bool | None = None,
-):
-    """A simulation that continues a restart file, bitwise as if never stopped.
-
-    With another ``stepper`` or ``dt`` than the checkpoint's it is a branch
-    (``checkpoint.branch``): a new run from the checkpoint's state, its stepper's
-    history dropped (multistep steppers start as at t = 0), its counters from zero
-    and its invariants' changes against that state, steps counted from the
-    checkpoint's day.
-
-    Parameters
-    ----------
-    checkpoint : str, path or checkpoint.Checkpoint
-        The restart file (read on rank 0 only, ``checkpoint.read_on_root``).
-    device : {"cpu", "cuda"}
-        Warp device.
-    days : float, optional
-        The new last model day, from t = 0 (default: the checkpointed scene's).
-    stepper : str, optional
-        Another stepper: a branch.
-    dt : float, optional
-        Another time step (s): a branch.
-    progress, comm, graphs
-        As for the constructor.
-
-    Returns
-    -------
-    Simulation
-        At the checkpoint's step.
-
-    Raises
-    ------
-    CheckpointError
-        ``checkpoint`` not a path or a ``Checkpoint``, an unreadable or damaged restart file,
-        or a ``days`` before its step.
-    SceneError
-        A branch it cannot make (unknown stepper, dt <= 0, a length not whole steps).
-    """
+def continued(cls, checkpoint, device, days, stepper, dt, progress, comm, graphs):
+    """``Simulation.from_checkpoint`` (``cls``): a continuation of the restart file, or a branch from it."""
     if not isinstance(checkpoint, ckpt.Checkpoint):
         path_argument("checkpoint", checkpoint, "a restart file's path (str or os.PathLike)", CheckpointError)
     ck = checkpoint if isinstance(checkpoint, ckpt.Checkpoint) else ckpt.read_on_root(checkpoint, comm)
@@ -98,44 +52,50 @@ def from_checkpoint(
     return sim
 
 
-def restore(self, ck: ckpt.Checkpoint) -> None:
-    """Set the state, stepper history, counters and t = 0 invariants from a checkpoint."""
-    try:
-        x = self.topology.distribute(ck.x, 3, "checkpoint state")  # ck.x on rank 0 only (``checkpoint.read_on_root``)
-    except ValueError as err:
-        raise ckpt.CheckpointError(str(err)) from None
-    self.x.assign(x)
-    self.restore_history(ck)
+class Restart:
+    """A simulation's state and history restored from a checkpoint, and its restart file written."""
 
+    def __init__(self, sim):
+        self.sim = sim
 
-def restore_history(self, ck: ckpt.Checkpoint) -> None:
-    """``restore`` but the state (already ``ck.x``)."""
-    try:
-        self.stepper.restore(ck.stepper_state)
-    except ValueError as err:
-        raise ckpt.CheckpointError(f"checkpoint does not fit the stepper: {err}") from None
-    self.step, self.counters, self.initial = ck.step, ck.counters, ck.initial
-    if self.control is not None and ck.control is not None:  # the steps go on as if never stopped
-        self.control.restore(ck.control)
+    def restore(self, ck: ckpt.Checkpoint) -> None:
+        """``Simulation.restore``: the state, then ``restore_history``."""
+        sim = self.sim
+        try:
+            # ck.x on rank 0 only (``checkpoint.read_on_root``)
+            x = sim.topology.distribute(ck.x, 3, "checkpoint state")
+        except ValueError as err:
+            raise ckpt.CheckpointError(str(err)) from None
+        sim.x.assign(x)
+        sim.restore_history(ck)
 
+    def restore_history(self, ck: ckpt.Checkpoint) -> None:
+        """``Simulation.restore_history``: the stepper history, counters and t = 0 invariants."""
+        sim = self.sim
+        try:
+            sim.stepper.restore(ck.stepper_state)
+        except ValueError as err:
+            raise ckpt.CheckpointError(f"checkpoint does not fit the stepper: {err}") from None
+        sim.step, sim.counters, sim.initial = ck.step, ck.counters, ck.initial
+        if sim.control is not None and ck.control is not None:  # the steps go on as if never stopped
+            sim.control.restore(ck.control)
 
-def write_checkpoint(self, path, *, overwrite: bool = True, restart_every: float | None = None) -> Path:
-    """Write a restart file of the current step (see ``checkpoint``): whole-grid
-    fields, gathered from every rank (call on all), written by rank 0;
-    ``restart_every`` (days) recorded for a continuation to keep."""
-    x, state = self.topology.gather(self.x.numpy()), self.stepper.state()
-    if not self.root:
-        return Path(path)
-    return restart_file.write(
-        path,
-        self.scene,
-        self.step,
-        x,
-        state,
-        self.counters,
-        self.initial,
-        grid=self.grid,
-        overwrite=overwrite,
-        restart_every=restart_every,
-        control=None if self.control is None else self.control.state(),
-    )
+    def write(self, path, overwrite: bool, restart_every: float | None) -> Path:
+        """``Simulation.write_checkpoint``: the current step's restart file, written by rank 0."""
+        sim = self.sim
+        x, state = sim.topology.gather(sim.x.numpy()), sim.stepper.state()
+        if not sim.root:
+            return Path(path)
+        return restart_file.write(
+            path,
+            sim.scene,
+            sim.step,
+            x,
+            state,
+            sim.counters,
+            sim.initial,
+            grid=sim.grid,
+            overwrite=overwrite,
+            restart_every=restart_every,
+            control=None if sim.control is None else sim.control.state(),
+        )

@@ -5,46 +5,40 @@ steps by one path; what happens around the steps is each a small part: the step
 itself (``graphs.GraphedSteps``), the bad-state guard (``guard``), the activities
 called at the steps their schedules name (``activities``: the run files and restart
 files of ``writers``, callbacks, user writers, the log; all in ``Simulation.activities``),
-signals (``interrupts``), and the counts and result (``summary``). The build is
-``build``'s, restarts and branches ``restart``'s, driving from Python ``drive``'s (their
-functions bound here as methods); the state's diagnostics a ``state_diagnostics``
-component, ``Simulation.diagnostics``."""
+signals (``interrupts``), and the counts and result (``summary``). ``build`` returns what it
+makes; the simulation holds its run loop (``loop.StepLoop``), restarts (``restart.Restart``)
+and driving from Python (``drive.Drive``) behind its methods; the state's diagnostics a
+``state_diagnostics`` component, ``Simulation.diagnostics``."""
 
 from __future__ import annotations
 
 import contextlib
-import signal
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 from threadpoolctl import threadpool_limits
-from tqdm import tqdm
 
 from ..config.scene import Scene, resolve_scene
-from ..core.arguments import (
-    array_argument,
-    comm_argument,
-    flag_argument,
-    got,
-    mapping_argument,
-    number_argument,
-    path_argument,
-)
-from ..core.backend import Backend, pick_device
-from ..core.errors import ArgumentError, BlowUp, Interrupted, OutputError, SceneError, StepFailure
+from ..core.arguments import array_argument, comm_argument, flag_argument, got, mapping_argument
+from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
+from ..core.constants import DAY
+from ..core.errors import ArgumentError, BlowUp, Interrupted, SceneError
 from ..core.graphs import GraphedSteps, default_mode, graphs_mode
-from ..core.interrupts import StepAbandoned, StopSignals
+from ..core.interrupts import StopSignals
 from ..io.output_files import check_distinct, check_target
 from ..steppers import StepStats
-from . import drive, restart
-from .activities import Log, is_due
-from .adaptive import steer
+from .activities import Log
+from .adaptive import StepControl, steer
 from .build import ON_ROOT, build
+from .checkpoint import Checkpoint
+from .drive import Drive
 from .guard import Guard
+from .loop import StepLoop, check_run_arguments, compile_timer
+from .restart import Restart, continued
 from .schedules import EverySteps
-from .summary import Ledger, RunResult, Stop, interruption
+from .state_diagnostics import StateDiagnostics
+from .summary import Ledger, RunResult, Stop
 from .writers import Checkpointer, RunFiles, run_attrs
 
 # The names users catch and read from here (``swe_sphere.BlowUp``, ``swe_sphere.Interrupted``).
@@ -52,33 +46,6 @@ __all__ = ["BlowUp", "Interrupted", "RunResult", "Simulation"]
 
 
 RUN_ACTIVITIES = ("run_file", "checkpointer", "log")  # the names ``run`` gives its own activities
-
-
-@contextlib.contextmanager
-def _compile_timer(acc: list):
-    """Add the seconds spent loading (compiling on a cold cache) Warp modules to acc[0]."""
-    try:
-        from warp._src.context import Module  # private: without it, compilation counts as stepping
-    except ImportError:
-        yield
-        return
-    real, depth = Module.load, [0]
-
-    def load(self, *args, **kwargs):
-        depth[0] += 1
-        t0 = time.perf_counter()
-        try:
-            return real(self, *args, **kwargs)
-        finally:
-            depth[0] -= 1
-            if depth[0] == 0:
-                acc[0] += time.perf_counter() - t0
-
-    Module.load = load
-    try:
-        yield
-    finally:
-        Module.load = real
 
 
 class Simulation:
@@ -185,7 +152,7 @@ class Simulation:
         progress = flag_argument("progress", progress, SceneError)
         graphs = graphs_mode(default_mode() if graphs is None else graphs)
         # Δt the simulation may fit to the user's intervals (``steps``): not given, restored or stated in a Scene
-        self._own_dt = not isinstance(scene, Scene) and "dt" not in overrides and initial_diagnostics is None
+        own_dt = not isinstance(scene, Scene) and "dt" not in overrides and initial_diagnostics is None
         scene, inputs = resolve_scene(scene, overrides)
         backend = Backend.of(pick_device(device))  # a name Warp does not know is refused in one line
         if initial is not None and (start is not None or not callable(initial)):
@@ -199,29 +166,227 @@ class Simulation:
             mapping_argument("initial_diagnostics", initial_diagnostics)
         t0 = time.perf_counter()
         self._compile = [0.0]
+        # what the simulation holds: driving from Python, restarts, the run's loop
+        self._drive, self._restart, self._loop = Drive(self, own_dt), Restart(self), StepLoop(self, self._take_step)
         self.activities: dict = {}  # name -> activity (``activities``): the user's; ``run`` adds its own
         # single-threaded BLAS, as in ``run``: the ∇⁴'s power iteration (``build.check_hyperviscosity``)
         # takes 40 norms, and OpenBLAS's threads spinning on a busy machine made them 0.3 s of CPU
-        with _compile_timer(self._compile), threadpool_limits(limits=1, user_api="blas"):
-            build(self, scene, backend, progress, comm, start, initial, initial_diagnostics)
+        with compile_timer(self._compile), threadpool_limits(limits=1, user_api="blas"):
+            b = build(scene, backend, progress, comm, start, initial)
+            self.scene, self.device, self.backend, self.case, self.topology = (
+                b.scene,
+                b.device,
+                b.backend,
+                b.case,
+                b.topology,
+            )
+            self.root, self.progress, self.grid, self.model, self.g = b.root, b.progress, b.grid, b.model, b.g
+            self.fcor, self.hs, self.stepper, self.scorer, self.dfi = b.fcor, b.hs, b.stepper, b.scorer, b.dfi
+            self.x, self.last_good, self.check_every = b.x, b.last_good, CHECK_EVERY_STEPS
+            self.diagnostics = StateDiagnostics(self)
+            self.initial = initial_diagnostics
+            if initial_diagnostics is None:
+                self.initial = self.diagnostics.diagnose(scene.start_day * DAY)
+            # Δt chosen step to step (``Scene.control``): the loop's steps land on its times
+            self.control = None if scene.control is None else StepControl(scene.control, self.stepper, self)
+            self.step = 0  # steps taken since t = 0 (a branched run: since its branch day, ``Scene.start_day``)
+            self.counters = {
+                "rhs_evals": 0,
+                "wall_time": 0.0,
+                "cpu_time": 0.0,
+                "iterations": {k: 0 for k in self.stepper.solvers},
+            }
         self._graphed = GraphedSteps(backend, self.model.graph_guard, graphs)
         self.setup_time = time.perf_counter() - t0
         if inputs:
             self.inputs = inputs
 
-    # -- restarts and branches (``restart``), driven from Python (``drive``) ----------
-    from_checkpoint = classmethod(restart.from_checkpoint)
-    restore = restart.restore
-    restore_history = restart.restore_history
-    write_checkpoint = restart.write_checkpoint
-    fit_dt = drive.fit_dt
-    every = drive.every
-    add_callback = drive.add_callback
-    time = property(drive.time)
-    event_day = property(drive.event_day)
-    advance = drive.advance
-    steps = drive.steps
-    state = drive.state
+    # -- restarts and branches (``restart.Restart``), driven from Python (``drive.Drive``) --
+    @classmethod
+    def from_checkpoint(
+        cls,
+        checkpoint,
+        device: str,
+        *,
+        days: float | None = None,
+        stepper: str | None = None,
+        dt: float | None = None,
+        progress: bool = True,
+        comm=None,
+        graphs: str | bool | None = None,
+    ):
+        """A simulation that continues a restart file, bitwise as if never stopped.
+
+        With another ``stepper`` or ``dt`` than the checkpoint's it is a branch
+        (``checkpoint.branch``): a new run from the checkpoint's state, its stepper's
+        history dropped (multistep steppers start as at t = 0), its counters from zero
+        and its invariants' changes against that state, steps counted from the
+        checkpoint's day.
+
+        Parameters
+        ----------
+        checkpoint : str, path or checkpoint.Checkpoint
+            The restart file (read on rank 0 only, ``checkpoint.read_on_root``).
+        device : {"cpu", "cuda"}
+            Warp device.
+        days : float, optional
+            The new last model day, from t = 0 (default: the checkpointed scene's).
+        stepper : str, optional
+            Another stepper: a branch.
+        dt : float, optional
+            Another time step (s): a branch.
+        progress, comm, graphs
+            As for the constructor.
+
+        Returns
+        -------
+        Simulation
+            At the checkpoint's step.
+
+        Raises
+        ------
+        CheckpointError
+            ``checkpoint`` not a path or a ``Checkpoint``, an unreadable or damaged restart file,
+            or a ``days`` before its step.
+        SceneError
+            A branch it cannot make (unknown stepper, dt <= 0, a length not whole steps).
+        """
+        return continued(cls, checkpoint, device, days, stepper, dt, progress, comm, graphs)
+
+    def restore(self, ck: Checkpoint) -> None:
+        """Set the state, stepper history, counters and t = 0 invariants from a checkpoint."""
+        self._restart.restore(ck)
+
+    def restore_history(self, ck: Checkpoint) -> None:
+        """``restore`` but the state (already ``ck.x``)."""
+        self._restart.restore_history(ck)
+
+    def write_checkpoint(self, path, *, overwrite: bool = True, restart_every: float | None = None) -> Path:
+        """Write a restart file of the current step (see ``checkpoint``): whole-grid
+        fields, gathered from every rank (call on all), written by rank 0;
+        ``restart_every`` (days) recorded for a continuation to keep."""
+        return self._restart.write(path, overwrite, restart_every)
+
+    def fit_dt(self, every: float, what: str = "every") -> None:
+        """Shorten Δt, before the first step, to the largest that divides ``every`` (days),
+        the run, its output intervals (where shorter than the run) and the intervals of
+        the activities scheduled in days (``every``; their steps follow): the scene's clock
+        fitted to them (``Clock.fitted``), set on the stepper (``set_dt``; a stepper that cannot
+        change its Δt, ``variable_dt`` False, built anew), and the start's diagnostics again
+        (their Courant numbers); a note in ``scene.notes`` naming ``what``. ``SceneError``
+        (one line) after the first step, for ``every`` <= 0, and where that Δt is less than
+        half the present one (an interval of odd decimals: give a dt, or an interval of
+        whole steps)."""
+        self._drive.fit_dt(every, what)
+
+    def every(self, *, days: float | None = None, steps: int | None = None) -> EverySteps:
+        """The schedule of an activity (``activities``) due after every step that is a
+        multiple of ``steps``, or of the steps in ``days`` (whole steps), counted from
+        step 0 (Oceananigans' ``IterationInterval``); not at step 0, whose state the
+        caller has. ValueError for an interval that is not whole steps, or not exactly
+        one of the two."""
+        return self._drive.every(days, steps)
+
+    def add_callback(
+        self, fn, *, every_days: float | None = None, every_steps: int | None = None, name: str | None = None
+    ) -> None:
+        """Call ``fn(self)`` after every ``every_steps``-th step, or every ``every_days``
+        (``every``), in ``run``, ``advance`` and ``steps`` (Oceananigans' ``add_callback!``):
+        an activity in ``activities`` under ``name`` (default "callback N"). ``fn`` may read
+        ``sim.step``, ``sim.time``, ``sim.state()``; what it raises ends the run (its
+        output files dropped). Under MPI add it on every rank. ``SceneError`` for ``fn`` not
+        callable, ``name`` not a str, and as ``every``."""
+        self._drive.add_callback(fn, every_days, every_steps, name)
+
+    @property
+    def time(self) -> float:
+        """The model time of the current step, days since t = 0 (under step control the
+        control's: a day as given where the step landed on it)."""
+        return self.scene.day(self.step) if self.control is None else self.control.day
+
+    @property
+    def event_day(self) -> float | None:
+        """Under step control the day the current step landed on (an output, restart or end
+        time; ``schedules.AtDays``), else None."""
+        return self.control.day if self.control is not None and self.control.landed else None
+
+    def advance(self, days: float) -> RunResult:
+        """Step ``days`` further with ``run``'s loop (the same bits as one run; blow-up,
+        signals and callbacks as there; no output file). Past the scene's end the run
+        is lengthened (``config.with_days``).
+
+        Parameters
+        ----------
+        days : float
+            Model days, a whole number of steps.
+
+        Returns
+        -------
+        RunResult
+            Of these steps.
+
+        Raises
+        ------
+        ValueError
+            ``days`` is not a whole number of steps.
+        BlowUp, StepFailure, Interrupted
+            As ``run``.
+        """
+        return self._drive.advance(days)
+
+    def steps(self, every: float):
+        """Iterate the run to the scene's end, one multiple of ``every`` days from t = 0
+        at a time (``for t in sim.steps(every=0.5): ds = sim.state()``); stops at the last
+        multiple at or before the end.
+
+        Where Δt is the simulation's own (no ``dt`` given, the scene named or a file:
+        ``swe-sphere run`` shortens it likewise to divide the output interval) and no step
+        has been taken, a Δt that does not divide ``every`` is first shortened to the
+        largest that divides ``every``, the run, its output intervals and the callbacks'
+        (``fit_dt``; so do ``advance`` and ``every`` for their intervals).
+
+        Parameters
+        ----------
+        every : float
+            Model days between yields, a whole number of steps.
+
+        Yields
+        ------
+        float
+            The model time reached (days since t = 0).
+
+        Raises
+        ------
+        ValueError
+            ``every`` is not then a whole number of steps (naming a Δt that was given).
+        BlowUp, StepFailure, Interrupted
+            As ``run``.
+        """
+        yield from self._drive.steps(every)
+
+    def state(self, remap: float | None = None):
+        """The current state as an ``xarray.Dataset``; call on every rank.
+
+        Parameters
+        ----------
+        remap : float, optional
+            Grid spacing in degrees: the state on a regular lat-lon grid
+            (``remap.remap_dataset``, with h_surface = h + hs). None: on the nodes.
+
+        Returns
+        -------
+        xarray.Dataset or None
+            On the nodes, as a run file holds one output time: h (m), u, v (m s⁻¹),
+            vorticity, divergence (s⁻¹) on ``ncol`` with hs, area, lat, lon and ``time``
+            in days (``run_file.node_dataset``); or on (lat, lon). None on ranks other
+            than 0.
+
+        Raises
+        ------
+        ValueError
+            A ``remap`` spacing that does not divide 180 degrees.
+        """
+        return self._drive.state(remap)
 
     # -- the state's diagnostics (``state_diagnostics``) --------------------------
     def fields(self, x=None):
@@ -352,7 +517,7 @@ class Simulation:
         Interrupted
             SIGINT or SIGTERM (with ``catch_signals``).
         """
-        _check_run_arguments(output, overwrite, restart_every, restart_file, compress, catch_signals)
+        check_run_arguments(output, overwrite, restart_every, restart_file, compress, catch_signals)
         files, ckp, start, courant = self._open(
             output, overwrite, restart_every, restart_file, compress, history, on_output, notify
         )
@@ -363,11 +528,11 @@ class Simulation:
         result = ledger.result(
             self.step, files.history, courant, output, stop.blowup, ckp.written, self.setup_time, self._compile[0]
         )
-        return self._outcome(stop, result, output, ckp)
+        return self._loop.outcome(stop, result, output, ckp)
 
     def _integrate(self, files, ckp, start, ledger, log, catch_signals, until_step) -> tuple:
         """``run``'s loop with its files (``RunFiles``, ``Checkpointer``) and signals: the fixed
-        step's (``_loop``) or, under ``scene.control``, the step control's (``adaptive.steer``);
+        step's (``loop.StepLoop``) or, under ``scene.control``, the step control's (``adaptive.steer``);
         (why it stopped, ``summary.Stop``; the ``StopSignals``). The files closed, or dropped
         on an exception."""
         stop = Stop()
@@ -375,19 +540,19 @@ class Simulation:
         # pay, and on a busy machine OpenBLAS's spinning threads made a norm cost 10 ms
         with StopSignals(self.topology, catch_signals) as signals, threadpool_limits(limits=1, user_api="blas"):
             try:
-                with self._during_run(files, ckp, log), _compile_timer(self._compile):
+                with self._during_run(files, ckp, log), compile_timer(self._compile):
                     # a continuation's first time is the last of the file it continues (where its
                     # restart file was written): not written again, so the two files join without a repeat
                     files.record(self.step, whole=start, final=True, write=not self.step)
-                    with self._progress_bar() as bar:
+                    with self._loop.progress_bar() as bar:
                         if self.control is None:
                             last = self.scene.nsteps if until_step is None else until_step
-                            stop = self._loop(Guard(self, last, ledger), signals, ledger, bar)
+                            stop = self._loop.blocks(Guard(self, last, ledger), signals, ledger, bar)
                         elif until_step is None:
-                            stop = steer(self, signals, ledger, lambda: self._after_steps(self.step, 1, bar))
+                            stop = steer(self, signals, ledger, lambda: self._loop.after_steps(self.step, 1, bar))
                         else:
                             raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
-                    self._stopped(stop, files, ckp)
+                    self._loop.stopped(stop, files, ckp)
                 files.close()  # under this run's handlers: a signal now waits, and is answered below
             except BaseException:
                 files.abort()
@@ -407,7 +572,7 @@ class Simulation:
             check_distinct([output, ckp.path, *files.paths], self.inputs)
             if ckp.path is not None:
                 check_target(ckp.path, overwrite)
-        with _compile_timer(self._compile):  # a continuation's first use of the diagnostic kernels
+        with compile_timer(self._compile):  # a continuation's first use of the diagnostic kernels
             start = self.diagnostics.gather_fields(
                 divergence=files.divergence
             )  # the first output time's, on every rank
@@ -431,119 +596,3 @@ class Simulation:
         finally:
             self.stepper.deferred = False
             self.activities = own
-
-    def _progress_bar(self) -> tqdm:
-        # disable=None: a bar only on a terminal, not redrawn into a log (or mpiexec's pipe)
-        return tqdm(
-            initial=self.step,
-            total=self.scene.nsteps,
-            unit="step",
-            disable=None if self.progress else True,
-            file=sys.stderr,
-            dynamic_ncols=True,
-        )
-
-    def _loop(self, guard: Guard, signals: StopSignals, ledger: Ledger, bar) -> Stop:
-        """Blocks of steps to ``guard.stop_step``, the activities due called after each good
-        step; a block that finds trouble is re-run a checked step at a time. Returns why
-        the loop stopped (``summary.Stop``: nothing, a signal, an abandoned step or a blow-up)."""
-        rerun_to = self.step  # steps up to here are re-run one at a time: their block found trouble
-        while self.step < guard.stop_step:
-            if self.step >= rerun_to and (signum := signals.asked()):  # every rank stops at the same step
-                return Stop(signum=signum)
-            b = self.step
-            e = guard.block_end(b) if b >= rerun_to else b + 1  # a re-run goes on to the trouble it looks for
-            m, trouble, detail = self._steps(b, e, guard, signals, ledger)
-            if trouble is None:  # m > b: a step without trouble was taken
-                self._after_steps(m, m - b, bar)
-            elif trouble == "abandoned":
-                return Stop(signum=detail, abandoned=(b, m))
-            elif e > b + 1:  # the block is re-run from b, a checked step at a time
-                rerun_to = m + 1 if trouble == "failure" else m  # a failure: in step m + 1
-            else:
-                return Stop(blowup=guard.message(b + 1, trouble, detail))
-        return Stop()
-
-    def _after_steps(self, n: int, done: int, bar) -> None:
-        """Step n (the last of ``done`` steps) is good: the activities due there, the progress bar."""
-        self.step = n
-        for activity in list(self.activities.values()):
-            if is_due(activity.schedule, self):
-                activity(self)
-        bar.update(done)
-        if n % 50 < done or n == self.scene.nsteps:  # a multiple of 50 in the steps done
-            bar.set_postfix(
-                day=f"{self.time:.2f}",
-                sim_days_per_s=f"{(self.time - self.scene.start_day) / max(self.counters['wall_time'], 1e-9):.3g}",
-            )
-
-    def _stopped(self, stop: Stop, files: RunFiles, ckp: Checkpointer) -> None:
-        """Close the files of a run that stopped early: after a blow-up with the last good
-        state (``step`` is the last good step again), after a signal with the current one
-        and its restart file."""
-        if stop.blowup is not None:
-            files.end(self.step, self.last_good, blowup=stop.blowup)
-        elif stop.signum is not None:
-            name, day = signal.Signals(stop.signum).name, self.time
-            files.end(self.step, interrupted=name, interrupted_at_step=self.step, interrupted_at_day=day)
-            ckp.interrupted(self.step, abandoned=stop.abandoned is not None)
-
-    def _outcome(self, stop: Stop, result: RunResult, output, ckp: Checkpointer) -> RunResult:
-        """``result``, or ``BlowUp`` or ``Interrupted`` raised with it."""
-        if stop.blowup is not None:
-            err = BlowUp(stop.blowup)
-            err.result = result
-            raise err
-        if stop.signum is not None:
-            name = signal.Signals(stop.signum).name
-            line = interruption(name, self.step, self.time, self.scene, output, ckp.kept, ckp.written, stop.abandoned)
-            err = Interrupted(line)
-            err.signum, err.result, err.checkpoint = stop.signum, result, ckp.written
-            raise err
-        return result
-
-    def _steps(self, b: int, e: int, guard: Guard, signals: StopSignals, ledger: Ledger):
-        """Steps b+1..e, the loop's one step path: a single step (e = b + 1) checked at
-        once, a block's steps each flagged on the device and the flag read at its end
-        (``guard.Guard``); a block stops early for a signal. Returns (m, trouble, detail): m the last step
-        taken; trouble None when every state to m was good, else "bad", "unconverged",
-        "failure" (a ``StepFailure`` in step m + 1) or "abandoned" (step m + 1), and then
-        ``step`` is b again (``Guard.end``); detail a single step's bad node or failure
-        message, or the signal that abandoned the step."""
-        block = e > b + 1
-        guard.begin(b, block)
-        t0, cpu0 = time.perf_counter(), time.process_time()
-        m, trouble, detail = b, None, None
-        while m < e:
-            if m > b and signals.asked():  # the loop stops at m, once checked
-                break
-            try:
-                signals.in_step = time.perf_counter()
-                stats = self._take_step(watch=block)
-            except StepFailure as err:
-                trouble, detail = "failure", str(err)
-                break
-            except StepAbandoned as err:  # the state of the last complete step is kept
-                trouble, detail = "abandoned", err.signum
-                break
-            finally:
-                signals.in_step = None
-            ledger.add(stats)
-            m += 1
-            self.step = m  # the steps x holds (not yet checked)
-        trouble, node = guard.end(b, trouble, ledger)
-        ledger.account(m if block else b + 1, t0, cpu0)
-        return m, trouble, node if trouble == "bad" else detail
-
-
-def _check_run_arguments(output, overwrite, restart_every, restart_file, compress, catch_signals) -> None:
-    """``Simulation.run``'s arguments, before anything is opened: ``OutputError`` for an output
-    or restart file that is not a path, ``SceneError`` for a flag that is not a bool or a
-    restart interval that is not a number of days > 0; each names the argument."""
-    for name, path in (("output", output), ("restart_file", restart_file)):
-        if path is not None:
-            path_argument(name, path, "a file's path (str or os.PathLike)", OutputError)
-    for name, value in (("overwrite", overwrite), ("compress", compress), ("catch_signals", catch_signals)):
-        flag_argument(name, value, SceneError)
-    if restart_every is not None:
-        number_argument("restart_every", restart_every, "days", positive=True, error=SceneError)

@@ -7,10 +7,11 @@ Every problem raises ``SceneError`` (a ValueError) with a one-line message namin
 
 from __future__ import annotations
 
+from ..core.arguments import got
 from ..core.errors import SceneError
 from ..steppers import STEPPERS
 from ..steppers.control import CONTROLLERS
-from .schema import SceneControl, got, is_number
+from .schema import SceneControl, is_number
 
 # [time] control's modes and the keys each reads
 CONTROL_KEYS = {

@@ -14,6 +14,7 @@ from typing import NamedTuple
 
 from ..cases.library import Case, make_case
 from ..cases.reference import cases_of, locate, stored_days
+from ..core.arguments import got
 from ..core.clock import Clock, common_interval
 from ..core.constants import EARTH, Planet
 from ..core.errors import SceneError
@@ -26,7 +27,7 @@ from ..model.shallow_water import TERMS
 from ..steppers import STEPPERS
 from ..steppers.initialization import METHODS, DigitalFilter
 from .paths import grid_record
-from .schema import SceneGrid, SceneHyperviscosity, check_type, got, is_integer, is_number
+from .schema import SceneGrid, SceneHyperviscosity, check_type, is_integer, is_number
 
 HYPERVIS_EXPONENT = 3.2  # ν ∝ Δx^3.2 (HOMME's resolution scaling; Dennis et al. 2012)
 

@@ -12,6 +12,7 @@ import types
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..core.arguments import got
 from ..core.constants import EARTH
 from ..core.errors import SceneError
 from ..mesh.records import MeshRecord, mesh_of
@@ -154,11 +155,6 @@ def is_number(value) -> bool:
 
 def is_integer(value) -> bool:
     return is_number(value) and math.isfinite(value) and int(value) == value
-
-
-def got(value) -> str:
-    """A refused value for a message: its repr, and its type where that is not a number's."""
-    return repr(value) if is_number(value) else f"{value!r}, a {type(value).__name__}"
 
 
 def refuse_nonfinite(key: str, value) -> None:

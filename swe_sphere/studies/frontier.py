@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.backend import pick_device
+from ..core.errors import ArgumentError
 from ..io.output_files import atomic_path, check_results, folder_lock
 from ..io.run_file import history_line
 from ..io.table_file import table_dataset, write_table_file
@@ -212,7 +213,7 @@ class Frontier:
         OutputError
             Another frontier holds ``directory``, or its results exist (without ``overwrite``).
         ValueError
-            An unknown ``cost``, a target not > 0 (before any run).
+            An unknown ``cost``; ``ArgumentError`` for a target not a number > 0 (before any run).
         BlowUp
             A grid's small-Δt reference run failed.
         Interrupted
@@ -220,8 +221,10 @@ class Frontier:
         """
         directory, device = Path(directory), pick_device(device)
         for target in targets:  # before any run
-            if not (isinstance(target, (int, float)) and math.isfinite(target) and target > 0):
-                raise ValueError(f"--target must be errors > 0 (normalized l2; got {target:g})")
+            if isinstance(target, bool) or not (
+                isinstance(target, (int, float)) and math.isfinite(target) and target > 0
+            ):
+                raise ArgumentError(f"--target must be errors > 0 (normalized l2; got {target!r})")
         with folder_lock(directory, "frontier.lock"):
             check_results(directory, OUTPUTS, overwrite)
             rows, record = [], None

@@ -211,8 +211,8 @@ def _run(args, scene, output, device, comm) -> int:
         sim = _continued(args, device, comm)
     if not sim.root:  # rank 0 reports; the others' errors still reach stderr
         sys.stdout = open(os.devnull, "w")
-    if args.restart_every is not None:
-        check_restart_interval(sim.scene, args.restart_every)  # before the header and the run
+    if args.restart_every is not None and args.continue_from is not None:  # a new run's: in ``command``
+        check_restart_interval(sim.scene, args.restart_every)  # the checkpoint's scene, before the header
     header(args, sim, output, device, comm)
     try:
         result = sim.run(

@@ -94,22 +94,19 @@ def partition(scene: Scene, case, comm, backend: Backend) -> Topology:
 
 @dataclasses.dataclass
 class Built:
-    """What ``build`` makes, which ``Simulation.__init__`` takes as its attributes of the same names:
-    the scene and its device, this rank's part of the grid (``topology``) and the whole grid on
+    """What ``build`` makes, which ``Simulation.__init__`` takes as its attributes of the same names
+    (beside its scene and backend, and what follows from them): this rank's part of the grid
+    (``topology``) and the whole grid on
     rank 0 (``grid``; None elsewhere), the case, model, stepper (prepared on ``x``) and scorer,
     the case's fcor and hs gathered, the start state ``x`` and a copy ``last_good`` (``guard``),
     and ``dfi``, the digital filter's result where it ran."""
 
-    scene: Scene
-    device: str
-    backend: Backend
     case: object
     topology: Topology
     root: bool  # the rank that diagnoses, writes files and shows progress
     progress: bool
     grid: CubedSphere | None
     model: ShallowWater
-    g: float
     fcor: np.ndarray | None
     hs: np.ndarray | None
     stepper: object
@@ -155,16 +152,12 @@ def build(scene: Scene, backend: Backend, progress: bool, comm, start, initial) 
         model.graph_guard.warn = lambda line: None
     last_good = wp.clone(x)  # the state at the start of the block of steps in progress (``guard``)
     return Built(  # in the order of ``Built``'s fields
-        scene,
-        backend.device,
-        backend,
         case,
         topo,
         root,
         progress and root,
         grid,
         model,
-        model.g,
         whole_fcor,
         whole_hs,
         stepper,

@@ -43,10 +43,9 @@ def output_days(scene: Scene, every_days: float | None = None) -> set[float]:
 
 def restart_steps(scene: Scene, every_days: float) -> set[int]:
     """Steps at which a run with ``--restart-every every_days`` writes its restart
-    file (and the last step). Raises ``SceneError`` unless dt divides the interval, or for more
-    than ``clock.MAX_TIMES`` of them (``Clock.check_times``)."""
+    file (and the last step). Raises ``SceneError`` unless dt divides the interval (its count
+    checked first by the callers, ``check_restart_interval`` and the checkpointer)."""
     per = steps_of(scene, every_days, "the restart interval")
-    scene.clock.check_times("the restart interval", every_days)
     return set(range(per, scene.nsteps + 1, per)) | {scene.nsteps}
 
 

@@ -172,17 +172,9 @@ class Simulation:
         # single-threaded BLAS, as in ``run``: the ∇⁴'s power iteration (``build.check_hyperviscosity``)
         # takes 40 norms, and OpenBLAS's threads spinning on a busy machine made them 0.3 s of CPU
         with compile_timer(self._compile), threadpool_limits(limits=1, user_api="blas"):
-            b = build(scene, backend, progress, comm, start, initial)
-            self.scene, self.device, self.backend, self.case, self.topology = (
-                b.scene,
-                b.device,
-                b.backend,
-                b.case,
-                b.topology,
-            )
-            self.root, self.progress, self.grid, self.model, self.g = b.root, b.progress, b.grid, b.model, b.g
-            self.fcor, self.hs, self.stepper, self.scorer, self.dfi = b.fcor, b.hs, b.stepper, b.scorer, b.dfi
-            self.x, self.last_good, self.check_every = b.x, b.last_good, CHECK_EVERY_STEPS
+            self.scene, self.backend, self.device = scene, backend, backend.device
+            vars(self).update(vars(build(scene, backend, progress, comm, start, initial)))  # ``Built``'s fields
+            self.g, self.check_every = self.model.g, CHECK_EVERY_STEPS
             self.diagnostics = StateDiagnostics(self)
             self.initial = initial_diagnostics
             if initial_diagnostics is None:

@@ -133,7 +133,7 @@ class Plan:
             dts = tuple(sorted(set(dt_of.values())))
             asked = {m: "/".join(f"{s}@{m:g}" for s, k in pairs if k == m) if pairs else f"{m:g}" for m in dt_of}
             pairs = tuple((s, dt_of[m]) for s, m in pairs) if pairs is not None else None
-            capped = [m for m in dt_of if f is not None and m * g > span * DAY * (1 + 1e-9)]
+            capped = [m for m in dt_of if f is not None and _longer(m, g, span)]
             if capped:  # Δt must divide the filter's snapshot interval
                 notes.append(
                     f"note        --courant {','.join(f'{m:g}' for m in capped)}: dt capped at the filter's "
@@ -353,12 +353,17 @@ def plan(
     return Plan(scenes, dts, multiples, runs, names, time_filter, overrides, restart, ck, given)
 
 
+def _longer(multiple: float, dt_gravity: float, span: float) -> bool:
+    """Whether ``multiple`` × ``dt_gravity`` (s) is a Δt longer than ``span`` days (a hair over is not)."""
+    return multiple * dt_gravity > span * DAY * (1 + 1e-9)
+
+
 def _check_multiples(multiples, dt_gravity: float, span: float, pairs) -> None:
     """Refuse (ValueError, one line) a multiple of the gravity-wave limit ``dt_gravity`` (s)
     whose Δt is longer than the run of ``span`` days: it could only run as one step of the run
     (``rk4@1e9``). ``pairs``: the (stepper, multiple) runs of ``--runs`` (None: ``--courant``),
     for the message."""
-    too_long = [m for m in multiples if m * dt_gravity > span * DAY * (1 + 1e-9)]
+    too_long = [m for m in multiples if _longer(m, dt_gravity, span)]
     if not too_long:
         return
     m = max(too_long)

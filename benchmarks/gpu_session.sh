@@ -185,7 +185,10 @@ part_tc5() {  # issue 67 target: TC5 ne120, 15 days, the scene's own stepper and
     local ne=120 days=15
     if [ "$small" = 1 ]; then ne=2 days=0.05; fi
     mkdir -p "$STUDY"
-    run tc5 180 "$PY" -m swe_sphere.cli run tc5_mountain --ne $ne --days $days --device "$DEVICE" \
+    # as a user's first run: the BLAS and OpenMP threads the host's own (issue 83 item 4: the run file's
+    # cells no longer spin on a many-core host), the process's CPU beside its wall time
+    run tc5 180 env -u OMP_NUM_THREADS -u OPENBLAS_NUM_THREADS bash -c 'TIMEFORMAT="process: wall %R s, user %U s, sys %S s"; time "$@"' _ \
+        "$PY" -m swe_sphere.cli run tc5_mountain --ne $ne --days $days --device "$DEVICE" \
         --no-progress --output "$STUDY/tc5_ne${ne}.nc" --overwrite
 }
 

@@ -18,7 +18,8 @@ control (``--pair`` at ``--rtol``) and CFL control (``--cfl-stepper`` at ``--cfl
     step. Against it the same stepper at a fixed Δt (an FSAL pair with its last stage carried over,
     as under control), the controlled run's mean Δt, over as many steps
     (``Simulation.run`` of a fixed-Δt scene: its guard's blocks), and the controlled run's own Δt
-    sequence stepped bare (``set_dt`` and ``step``, nothing else: what the steps alone cost).
+    sequence stepped bare (``set_dt`` and ``step``, nothing else: what the steps alone cost). On
+    CUDA the controlled run again without its tries launched ahead (``StepControl.lookahead``).
     The overhead: controlled against each, %.
 (b) **Its parts**, ms of CPU each over ``--repeat`` calls: the stepper's step at one Δt; at a Δt
     never taken before every step (the recorded launches take the new coefficients as arguments
@@ -79,10 +80,17 @@ def cpu(call) -> float:
 
 
 def whole_runs(args, out: dict) -> None:
-    """(a): the controlled run, the fixed-Δt run of as many steps at its mean Δt, its Δt stepped bare."""
+    """(a): the controlled run, the fixed-Δt run of as many steps at its mean Δt, its Δt stepped bare;
+    where the control launches tries ahead (``StepControl.lookahead``: CUDA), the controlled run
+    without that too."""
     sim = build(args, args.days)
     controlled = cpu(lambda: sim.run(None))
     ctl = sim.control
+    behind = None
+    if ctl.lookahead:
+        unlooked = build(args, args.days)
+        unlooked.control.lookahead = False
+        behind = cpu(lambda: unlooked.run(None)) / unlooked.control.accepted
     steps, dts = ctl.accepted, [dt for _, dt, _ in ctl.history]
     mean = ctl.dt_sum / steps
     fixed = build(args, steps * mean / 86400.0, dt=mean, control=False)
@@ -102,6 +110,9 @@ def whole_runs(args, out: dict) -> None:
         "bare": bare_cpu / len(dts),
     }
     row = {"accepted": steps, "rejected": ctl.rejected, "fixed_steps": fixed.step, "dt_mean": mean}
+    row |= {"ahead_taken": ctl.ahead_taken, "ahead_dropped": ctl.ahead_dropped}
+    if behind is not None:
+        per["no_lookahead"] = behind
     row |= {f"{k}_ms": v * 1e3 for k, v in per.items()}
     row |= {f"overhead_vs_{k}_pct": (per["controlled"] / per[k] - 1) * 100 for k in ("fixed", "bare")}
     out["whole_runs"] = row
@@ -109,7 +120,11 @@ def whole_runs(args, out: dict) -> None:
         f"\n## TC5 ne{args.ne} {args.pair} {what(args)}, {args.days:g} days: {steps} steps accepted, "
         f"{ctl.rejected} rejected, dt {ctl.dt_smallest:.1f}/{mean:.1f}/{ctl.dt_largest:.1f} s"
     )
-    print(f"controlled     {per['controlled'] * 1e3:8.3f} ms a step")
+    print(
+        f"controlled     {per['controlled'] * 1e3:8.3f} ms a step ({ctl.ahead_taken} tries launched ahead taken, {ctl.ahead_dropped} undone)"
+    )
+    if behind is not None:
+        print(f"  no lookahead {behind * 1e3:8.3f} ms a step ({(behind / per['controlled'] - 1) * 100:+.1f} %)")
     print(f"fixed dt {mean:7.1f} s {per['fixed'] * 1e3:8.3f} ms a step ({fixed.step} steps)")
     print(f"its dt, bare   {per['bare'] * 1e3:8.3f} ms a step")
     print(

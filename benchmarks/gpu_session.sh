@@ -143,7 +143,7 @@ part_criterion_ne120() {
 # issue 67 item 4: the peer Dinosaur (JAX, the image's CUDA plugin; its wheels in the payload) on the
 # same card in the same call, both models' wall seconds a simulated day (benchmarks/peer_dinosaur.py)
 part_control() {  # issue 64/67: a controlled run's steps as CUDA graphs (one a grid dt) against a fixed dt, graphs off beside
-    for g in auto off; do
+    for g in ${CONTROL_GRAPHS:-auto off}; do
         run "control_$g" 100 env SWE_SPHERE_GRAPHS=$g "$PY" benchmarks/control_overhead.py --device "$DEVICE" \
             --ne "$([ "$small" = 1 ] && echo 4 || echo 60)" --control error --pair rk43 --rtol 1e-6 --days 0.25 \
             --parts a b --repeat 20 --results "gpu_control_overhead_$g"

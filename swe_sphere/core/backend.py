@@ -197,6 +197,10 @@ class Backend:
         """Whether a run may span several MPI ranks (CPU only so far)."""
         return self.host
 
+    def reader(self, a: wp.array) -> HostRead:
+        """A ``HostRead`` of the device array ``a`` (this backend's)."""
+        return HostRead(a, self.host)
+
     def check_memory(self, need: int, what: str) -> None:
         """Raise ``ResourceError`` (one line) when ``need`` bytes exceed the memory the
         run's arrays live in: a GPU's free memory on CUDA, else the host's available
@@ -212,4 +216,31 @@ class Backend:
             )
 
 
-__all__ = ["Backend", "default_device", "pick_device", "requested_threads"]
+class HostRead:
+    """The values of a device array ``a`` brought to the host without holding the host up:
+    ``start()`` queues the copy on the array's stream (on CUDA into page-locked host memory,
+    an event recorded after it, so the host goes on launching what comes next), ``values()``
+    waits for that event alone and returns a numpy view (valid until the next ``start``).
+    ``host`` (a CPU device): ``a`` is host memory, nothing to copy, ``values()`` its
+    zero-copy view once what was launched before has run (a CPU launch returns when done)."""
+
+    def __init__(self, a: wp.array, host: bool):
+        self.a = a
+        self._pinned = self._event = None
+        if not host:
+            self._pinned = wp.empty(a.shape, dtype=a.dtype, device="cpu", pinned=True)
+            self._event = wp.Event(a.device)
+
+    def start(self) -> None:
+        if self._pinned is not None:
+            wp.copy(self._pinned, self.a)
+            self.a.device.stream.record_event(self._event)
+
+    def values(self):
+        if self._pinned is None:
+            return self.a.numpy()
+        wp.synchronize_event(self._event)
+        return self._pinned.numpy()
+
+
+__all__ = ["Backend", "HostRead", "default_device", "pick_device", "requested_threads"]

@@ -28,12 +28,22 @@ those of its grid (``on_grid``), so each keeps its graph (a step landed on a tar
 the grid, runs plain); the norm's read is the one host read of a try, and the Courant numbers'
 pass, where it is taken, a second. The IMEX pairs' tries run plain (their solver copies its
 guess histories on the host's decision, ``HelmholtzSolver.checkpoint``), as the JFNK stepper's.
+
+Lookahead (``StepControl.lookahead``: on CUDA, an explicit pair under "error" control on one
+rank): a try's norm is queued with its read, then the next try at the same Δt is launched from
+the try's end (kept in ``xs``) before the norm is read, so that the card steps while the host
+reads and decides; where the try is accepted and the next Δt is that one (Δt changes in about
+2 % of ``rk43``'s steps), the try launched ahead is the next step, else it is undone (x back from
+``xs``, the stepper rolled back). Only where nothing reads the state between the two steps
+(``quiet``: no activity due after the first, neither lands on a target). The same tries, counts
+and bits as without it (a try launched ahead and undone is not counted: ``ahead_dropped``).
 """
 
 from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 
 import numpy as np
 import warp as wp
@@ -122,6 +132,17 @@ def on_grid(dt: float) -> float:
     return 2.0 ** (math.floor(math.log2(dt) * DT_GRID) / DT_GRID)
 
 
+@dataclass(frozen=True)
+class _Ahead:
+    """A try launched ahead (``StepControl.lookahead``): its start t (s), Δt (s), the stepper's
+    checkpoint before it and its ``StepStats``."""
+
+    t: float
+    dt: float
+    saved: object
+    stats: StepStats
+
+
 class StepControl:
     """The step control of ``control`` (a ``SceneControl``) over ``stepper`` (``variable_dt``;
     under "error" with an ``error_estimate``) on ``sim``'s state and grid: ``sim.x`` (3, N),
@@ -162,50 +183,69 @@ class StepControl:
         self.dt = float(stepper.dt)
         sim.model.launches.limit, sim.model.launches.variants = LAUNCH_LISTS, LAUNCH_VARIANTS
         self.x0 = sim.last_good  # a step's start: the guard's last good state (``_checked_step``)
+        # the next try launched before this one's norm is read: where the host's read would idle the card
+        topology = sim.model.topology
+        self.lookahead = self.norm is not None and self.balance is None and stepper.explicit
+        self.lookahead = self.lookahead and not topology.backend.host and not topology.distributed
+        self.xs = None  # the start of a try launched ahead (the end of the try before it), made at first use
+        self.ahead: _Ahead | None = None  # the try launched ahead, not yet taken or undone
+        self.ahead_taken = self.ahead_dropped = 0
         self.accepted = self.rejected = self.capped = 0  # capped: accepted steps whose next Δt the cap set
         self.dt_smallest, self.dt_sum, self.dt_largest = math.inf, 0.0, 0.0
         self.history: list[tuple[float, float, float]] = []
         self.day, self.landed = float(sim.scene.start_day), True
         self.t, self.dt_last, self.error_last = self.day * DAY, math.nan, math.nan
 
-    def step_to(self, x, day: float) -> StepStats:
+    def step_to(self, x, day: float, quiet: bool = False) -> StepStats:
         """``step`` from ``t`` toward ``day`` (days from t = 0): ``t``, ``day`` and ``landed``
         moved on; the ``StepStats`` of its tries (rejected ones included)."""
-        self.t, stats = self.step(x, self.t, day * DAY)
+        self.t, stats = self.step(x, self.t, day * DAY, quiet)
         self.landed = self.t == day * DAY
         self.day = day if self.landed else self.t / DAY
         return stats
 
-    def step(self, x, t: float, target: float) -> tuple[float, StepStats]:
+    def step(self, x, t: float, target: float, quiet: bool = False) -> tuple[float, StepStats]:
         """One accepted step of x (3, N) in place from t (s) toward ``target`` (s, > t), rejected
         steps retried; (the time reached: ``target`` itself where the step landed on it, the
-        ``StepStats`` of every try). Raises ``BlowUp`` when the proposal falls below dt_min
-        short of the target."""
+        ``StepStats`` of every try). ``quiet``: nothing reads x between this step and the next,
+        which may then be launched ahead (``lookahead``). Raises ``BlowUp`` when the proposal
+        falls below dt_min short of the target."""
         c, tries = self.control, StepStats(0, {})
-        wp.copy(self.x0, x)  # the tries' start
+        ahead, self.ahead = self.ahead, None
+        wp.copy(self.x0, x if ahead is None else self.xs)  # the tries' start
         while True:
             left = target - t
             dt = min(self.dt, c.dt_max or math.inf)
             dt = max(on_grid(dt), min(dt, c.dt_min))  # not below dt_min by the rounding alone
             landing = left <= dt * (1 + LANDING_SLACK)
             dt = left if landing else dt
+            if ahead is not None and (ahead.t, ahead.dt) != (t, dt):  # launched ahead at another Δt: undone
+                self._undo(x, ahead)
+                ahead = None
             if dt < c.dt_min and not landing:
                 raise BlowUp(
                     f"step {self.accepted + 1} at day {t / DAY:.6g}: the controller's dt {dt:.4g} s fell below "
                     f"time.dt_min = {c.dt_min:g} s ({self.rejected} steps rejected so far)"
                 )
-            self.stepper.set_dt(dt)
-            self.stepper.t0 = t - self.stepper.steps * dt  # the forcing's clock: the time reached, exactly
-            saved = self.stepper.checkpoint() if self.error else None
-            stats = self.sim.try_step(x)
+            if ahead is not None:  # launched ahead as this try
+                saved, stats, ahead = ahead.saved, ahead.stats, None
+                self.ahead_taken += 1
+            else:
+                saved, stats = self._try(x, t, dt)
             if self.balance is not None:
                 self.balance.tolerances(self.x0, t, dt)
+            if self.error:
+                self.norm.launch(self.stepper.error_estimate, self.x0, x)
+                if self.lookahead and quiet and not landing and left - dt > dt * (1 + LANDING_SLACK):
+                    ahead = self._launch_ahead(x, t + dt, dt)
             iterations = {k: tries.iterations.get(k, 0) + n for k, n in stats.iterations.items()}
             tries = StepStats(tries.rhs_evals + stats.rhs_evals, {**tries.iterations, **iterations})
-            ok, proposal, err = self._propose(x, dt)
+            ok, proposal, err = self._propose(x if ahead is None else self.xs, dt)
             if ok:
                 break
             self.rejected += 1
+            if ahead is not None:  # undone with the try it followed
+                self.ahead_dropped, ahead = self.ahead_dropped + 1, None
             wp.copy(x, self.x0)
             self.stepper.rollback(saved)
             self.dt = proposal
@@ -218,13 +258,43 @@ class StepControl:
         self.dt_last, self.error_last = dt, err
         reached = target if landing else t + dt
         self.history.append((reached, dt, err))
+        self.ahead = ahead
         return reached, tries
 
+    def _try(self, x, t: float, dt: float) -> tuple:
+        """A try of ``dt`` from t (s) on x: (the stepper's checkpoint before it or None, its ``StepStats``)."""
+        self.stepper.set_dt(dt)
+        self.stepper.t0 = t - self.stepper.steps * dt  # the forcing's clock: the time reached, exactly
+        saved = self.stepper.checkpoint() if self.error else None
+        return saved, self.sim.try_step(x)
+
+    def _launch_ahead(self, x, t: float, dt: float) -> _Ahead:
+        """The next try, of ``dt`` from t (s), launched on x, its start kept in ``xs``."""
+        if self.xs is None:
+            self.xs = wp.zeros_like(x)
+        wp.copy(self.xs, x)
+        saved, stats = self._try(x, t, dt)
+        return _Ahead(t, dt, saved, stats)
+
+    def _undo(self, x, ahead: _Ahead) -> None:
+        """x and the stepper back to where the try launched ahead started."""
+        wp.copy(x, self.xs)
+        self.stepper.rollback(ahead.saved)
+        self.ahead_dropped += 1
+
+    def settle(self, x) -> None:
+        """Undo a try launched ahead (``lookahead``), if one is: x the last accepted step's state
+        (before the run stops, or anything reads it)."""
+        if self.ahead is not None:
+            self._undo(x, self.ahead)
+            self.ahead = None
+
     def _propose(self, x, dt: float) -> tuple[bool, float, float]:
-        """(accepted, the next Δt, the error norm or NaN) of a step of ``dt`` that ended in x."""
+        """(accepted, the next Δt, the error norm or NaN) of a step of ``dt`` that ended in x
+        (its norm launched: ``ErrorNorm.launch``)."""
         err, ok, proposal, self.checked = math.nan, True, dt, False
         if self.error:
-            err = self.norm(self.stepper.error_estimate, self.x0, x)
+            err = self.norm.read()
             if self.control.per_unit_step:  # the error a day of such steps would add, against the tolerance
                 err *= DAY / dt
             ok, proposal = self.controller.propose(dt, err)
@@ -296,22 +366,30 @@ def steer(sim, signals, ledger, after) -> Stop:
     Returns why the loop stopped (``summary.Stop``)."""
     ctl, guard = sim.control, Guard(sim, sim.step, ledger)
     days = {float(sim.scene.days)}
+    counted = []  # the schedules of whole steps (``EverySteps``, ``AtSteps``): due after a step, they read x
     for activity in sim.activities.values():
         if isinstance(activity.schedule, AtDays):
             days.update(activity.schedule.days)
-    for day in sorted(d for d in days if d * DAY > ctl.t):
-        while ctl.t < day * DAY:
-            if signum := signals.asked():  # every rank stops at the same step
-                return Stop(signum=signum)
-            blowup = _checked_step(sim, day, guard, ledger)
-            if blowup is not None:
-                return Stop(blowup=blowup)
-            after()
-    return Stop()
+        else:
+            counted.append(activity.schedule)
+    try:
+        for day in sorted(d for d in days if d * DAY > ctl.t):
+            while ctl.t < day * DAY:
+                if signum := signals.asked():  # every rank stops at the same step
+                    return Stop(signum=signum)
+                quiet = not any(schedule.due(sim.step + 1) for schedule in counted)
+                blowup = _checked_step(sim, day, guard, ledger, quiet)
+                if blowup is not None:
+                    return Stop(blowup=blowup)
+                after()
+        return Stop()
+    finally:  # a try launched ahead undone: the state the run stops with is the last accepted step's
+        ctl.settle(sim.x)
 
 
-def _checked_step(sim, day: float, guard: Guard, ledger) -> str | None:
-    """One accepted step of ``sim`` toward ``day`` (``StepControl.step_to``), counted in
+def _checked_step(sim, day: float, guard: Guard, ledger, quiet: bool) -> str | None:
+    """One accepted step of ``sim`` toward ``day`` (``StepControl.step_to``; ``quiet``: nothing
+    reads the state after it, so the next may be launched ahead), counted in
     ``ledger``, its state checked; None when good (``sim.step`` moved on), else the blow-up's
     line (a proposal below dt_min, a solver's failure, a bad state: its step, time and place)
     with the state, the control and ``sim.step`` those of the step before (``last_good``)."""
@@ -320,16 +398,18 @@ def _checked_step(sim, day: float, guard: Guard, ledger) -> str | None:
     t0, cpu0 = time.perf_counter(), time.process_time()
     trouble = node = None
     try:
-        stats = ctl.step_to(sim.x, day)
+        stats = ctl.step_to(sim.x, day, quiet)
         # the solvers' device counters (``Stepper.deferred``): raises for a solve that missed its tolerance
         stats = StepStats(stats.rhs_evals, {**stats.iterations, **sim.stepper.counts()})
         if not ctl.checked:  # else the norm's or the Courant numbers' pass found every node good
+            ctl.settle(sim.x)
             node = sim.model.bad_nodes.first(sim.x)
     except BlowUp as err:  # the rejected steps put the state back: it is the last good one
         return str(err)
     except StepFailure as err:
         trouble, stats = str(err), None
-    wp.synchronize_device(sim.device)
+    if ctl.ahead is None:  # else the next try runs on: the step's time is the host's
+        wp.synchronize_device(sim.device)
     ledger.add(stats)
     ledger.account(sim.step + 1, t0, cpu0)
     if trouble is None and node is None:
@@ -337,6 +417,7 @@ def _checked_step(sim, day: float, guard: Guard, ledger) -> str | None:
         return None
     detail = node if trouble is None else trouble
     line = guard.message(sim.step + 1, "bad" if trouble is None else "failure", detail, ctl.day)
+    ctl.settle(sim.x)
     wp.copy(sim.x, sim.last_good)
     ctl.restore(saved)
     return line

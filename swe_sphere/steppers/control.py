@@ -12,7 +12,11 @@ the per-node terms (``kernels.error_norm``) gathered from every rank into the wh
 order of the unique nodes (their global ids) and added there by one ``np.sum``: the same
 terms in the same order on any rank count, so the same bits. (``math.fsum``, the correctly
 rounded sum, gave that too at 5 ms a norm at ne30, 40 % of a bs32 step; the ordered sum
-takes 0.05 ms: benchmarks/control_overhead.py.)
+takes 0.05 ms: benchmarks/control_overhead.py.) On one rank the sum is ``np.sum``'s own
+pairwise summation taken apart (``PairwiseSum``): its leaves of at most 128 terms added on the
+device, a few thousand leaf sums read and added on the host along numpy's tree, the same bits
+as ``np.sum`` of every term without reading them (1.5 MB a norm at ne60: on an H100 the read
+and the host's sum cost 1.4 bare steps, issue 83).
 
 ``Controller``: the next step from this step's norm and the accepted history
 (Söderlind 2003, ACM TOMS 29, 1, "Digital filters in adaptive time-stepping"),
@@ -58,6 +62,55 @@ CONTROLLERS = {
 }
 
 
+# numpy's pairwise summation (``pairwise_sum``, numpy/_core/src/umath/loops_utils.h.src): a run of
+# at most PAIRWISE_LEAF terms is a leaf; a longer one is split at half its length rounded down to a
+# multiple of PAIRWISE_UNROLL, the halves' sums added
+PAIRWISE_LEAF = 128
+PAIRWISE_UNROLL = 8
+
+
+class PairwiseSum:
+    """``np.sum`` of n float64 terms (a contiguous array) in its own order, its leaves apart:
+    ``starts``, ``lengths`` (int32, one a leaf, in order) for ``kernels.error_norm.pairwise_leaves``
+    to add on the device; ``total(leaf_sums)`` adds the leaves' sums (m,) on the host along numpy's
+    tree, a level of additions at a time (about log2(n / 96) numpy passes). Bit for bit
+    ``np.sum`` of the terms (tests/steppers/test_control.py holds it to that)."""
+
+    def __init__(self, n: int):
+        starts, lengths, joins = [], [], []  # joins: (height, left, right), a node's index m + its own
+
+        def node(start: int, count: int) -> tuple[tuple[str, int], int]:
+            if count <= PAIRWISE_LEAF:
+                starts.append(start)
+                lengths.append(count)
+                return ("leaf", len(starts) - 1), 0
+            half = count // 2
+            half -= half % PAIRWISE_UNROLL
+            left, hl = node(start, half)
+            right, hr = node(start + half, count - half)
+            joins.append((max(hl, hr) + 1, left, right))
+            return ("join", len(joins) - 1), max(hl, hr) + 1
+
+        root, _ = node(0, int(n))
+        m = len(starts)
+        at = {"leaf": 0, "join": m}
+        index = lambda ref: at[ref[0]] + ref[1]  # noqa: E731
+        self.starts, self.lengths = np.array(starts, dtype=np.int32), np.array(lengths, dtype=np.int32)
+        self.levels = []  # (out, left, right) index arrays a height, lowest first
+        for height in sorted({h for h, _, _ in joins}):
+            rows = [(m + j, index(lt), index(rt)) for j, (h, lt, rt) in enumerate(joins) if h == height]
+            self.levels.append(tuple(np.array(col, dtype=np.intp) for col in zip(*rows)))
+        self.root, self._values = index(root), np.empty(m + len(joins))
+
+    def total(self, leaf_sums) -> float:
+        """The sum of the terms from their leaves' sums (m,), in numpy's order."""
+        v = self._values
+        v[: len(self.starts)] = leaf_sums
+        for out, left, right in self.levels:
+            v[out] = v[left] + v[right]
+        return float(v[self.root])
+
+
 class ErrorNorm:
     """The weighted RMS norm (dimensionless) of error estimates e (3, N) on ``topology``'s
     element-local nodes, rows u, v (m s⁻¹) and h (m): ``rtol`` (> 0) relative,
@@ -80,14 +133,38 @@ class ErrorNorm:
         self.atol = wp.array(np.array([atol_wind, atol_wind, atol_h]), dtype=f64, device=topology.device)
         self._terms = wp.zeros(topology.nunique, dtype=f64, device=topology.device)
         self.count = 3 * int(round(topology.sum(float(topology.nunique))))  # the terms over every rank
-        self._order = None  # one rank holds its unique nodes in the global ids' order (ascending)
+        self._order = self._sum = None  # one rank holds its unique nodes in the global ids' order (ascending)
         if topology.distributed:  # the order of the ranks' nodes gathered one after another
             grid = topology.grid
             self._order = np.argsort(np.concatenate(topology.comm.allgather(grid.gid[grid.first])), kind="stable")
+            self._read = topology.backend.reader(self._terms)
+        else:  # np.sum's leaves on the device, their sums read
+            self._sum = PairwiseSum(topology.nunique)
+            device = topology.device
+            starts = wp.array(self._sum.starts, dtype=wp.int32, device=device)
+            lengths = wp.array(self._sum.lengths, dtype=wp.int32, device=device)
+            leaves = wp.zeros(len(self._sum.starts), dtype=f64, device=device)
+            args = [self._terms, starts, lengths, leaves]
+            self._leaves = record(
+                error_norm.pairwise_leaves,
+                len(leaves),
+                args,
+                device=device,
+                threads=topology.threads,
+                nodes_per_index=PAIRWISE_LEAF,
+            )
+            self._read = topology.backend.reader(leaves)
 
     def __call__(self, e, x0, x1) -> float:
         """‖e‖ with the weights of the states x0 (the step's start) and x1 (its end), (3, N) each;
-        the same value on every rank, and the same bits on any number of ranks."""
+        the same value on every rank, and the same bits on any number of ranks: ``launch``
+        then ``read``."""
+        self.launch(e, x0, x1)
+        return self.read()
+
+    def launch(self, e, x0, x1) -> None:
+        """Queue the norm's passes over e, x0 and x1 and its read (``core.backend.HostRead``):
+        on CUDA the host goes on (a next step may be launched behind it) until ``read``."""
         t = self.topology
         key = (e.ptr, x0.ptr, x1.ptr)
         if key not in self._launches:
@@ -98,10 +175,20 @@ class ErrorNorm:
             )  # split over the CPU threads as the model's launches
             self._launches[key] = (launch, (e, x0, x1))
         self._launches[key][0].launch()
-        terms = self._terms.numpy()
-        if t.distributed:
-            terms = np.concatenate(t.comm.allgather(terms))[self._order]
+        if self._sum is not None:
+            self._leaves.launch()
+        self._read.start()
+
+    def read(self) -> float:
+        """The norm ``launch`` queued (waits for its read alone)."""
+        values = self._read.values()
+        if self._sum is not None:
+            return math.sqrt(self._sum.total(values) / self.count)
+        terms = np.concatenate(self.topology.comm.allgather(values))[self._order]
         return math.sqrt(float(np.sum(terms)) / self.count)
+
+
+COURANT_BLOCK = 64
 
 
 class CourantMax:
@@ -117,7 +204,9 @@ class CourantMax:
         self.topology, self.g, self.gravity_waves = topology, float(g), bool(gravity_waves)
         device = topology.device
         self.rdx2 = wp.array(1.0 / np.asarray(dx, dtype=np.float64) ** 2, dtype=f64, device=device)
-        self.block = 64 if topology.backend.host else 1
+        # a slot a block of COURANT_BLOCK nodes on either device (maxima: the same numbers however
+        # the nodes are blocked): on CUDA a slot a node made the pass's read 3 N numbers, 8 MB at ne60
+        self.block = COURANT_BLOCK
         self._out = wp.zeros((3, -(-topology.N // self.block)), dtype=f64, device=device)
         self._launches: dict[int, tuple] = {}
 

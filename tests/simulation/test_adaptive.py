@@ -19,7 +19,7 @@ from swe_sphere.core.errors import BlowUp
 from swe_sphere.model.diagnostics import courant_numbers
 from swe_sphere.simulation.adaptive import ATOL_FLOOR, BALANCE_EVERY, CAP_EVERY, DT_GRID, StepControl
 
-from helpers import make_sim
+from helpers import assert_same_runs, make_sim, watched_run
 
 
 def _sim(rtol, days=1.0, **keys):
@@ -364,3 +364,53 @@ def test_per_unit_step_runs_the_jfnk_stepper_and_holds_an_imex_pair_s_cg_to_a_st
         kept.rejected,
         kept.accepted,
     )
+
+
+def test_a_run_with_tries_launched_ahead_is_bitwise_the_run_without(tmp_path):
+    """``StepControl.lookahead`` (on by default on CUDA only) forced on a CPU: TC5 ne4 ``rk43`` at
+    rtol 1e-4 started at 5× its Δt (steps rejected), outputs every 0.25 day (landings), a
+    callback every 10 steps and a log (``watched_run``): the run file, the final state, the
+    callbacks' and the log's states bitwise those of the run without it, the same steps, tries
+    and RHS evaluations. Most steps are tries launched ahead; some were undone (a rejection, a
+    new Δt), and none were launched before an output or a callback."""
+    overrides = {"time.control": "error", "time.rtol": 1e-4, "output.every_days": 0.25}
+    scene = load_scene("tc5_mountain", ne=4, days=1.0, stepper="rk43", overrides=overrides)
+    scene = dataclasses.replace(scene, dt=5 * scene.dt)
+    sims = []
+
+    def ahead(sim):
+        sim.control.lookahead = True
+        sims.append(sim)
+
+    plain = watched_run(scene, tmp_path / "plain.nc")
+    looked = watched_run(scene, tmp_path / "ahead.nc", setup=ahead)
+    assert_same_runs(plain, looked)
+    (sim,) = sims
+    ctl = sim.control
+    assert ctl.rejected > 0 and ctl.ahead is None
+    assert ctl.accepted > ctl.ahead_taken > ctl.accepted / 2 and ctl.ahead_dropped > 0
+    # a try is launched ahead only after a step that neither lands nor has a callback due
+    landings, callbacks = 4, ctl.accepted // 10
+    assert ctl.ahead_taken + ctl.ahead_dropped <= ctl.accepted - landings - callbacks
+
+
+def test_settling_undoes_the_try_launched_ahead_and_the_run_goes_on_bitwise():
+    """``StepControl.settle`` (a run that stops, or a state about to be read): with a try
+    launched ahead on the CPU, x and the stepper go back to the last accepted step's, bitwise
+    those of control without lookahead (TC2 ne4 ``bs32`` at rtol 1e-6), and the steps after it
+    too."""
+    (a, plain), (b, ahead) = _sim(1e-6, cfl=False), _sim(1e-6, cfl=False)
+    ahead.lookahead = True
+    ta = tb = 0.0
+    for n in range(8):
+        ta, _ = plain.step(a.x, ta, DAY, quiet=True)
+        tb, _ = ahead.step(b.x, tb, DAY, quiet=True)
+        if n == 4:
+            assert ahead.ahead is not None
+            launched = b.x.numpy().copy()
+            ahead.settle(b.x)
+            assert ahead.ahead is None and not np.array_equal(launched, b.x.numpy())
+        end = b.x if ahead.ahead is None else ahead.xs  # a try launched ahead goes on from xs
+        assert ta == tb and (ahead.ahead is not None or a.stepper.steps == b.stepper.steps)
+        np.testing.assert_array_equal(a.x.numpy(), end.numpy())
+    assert ahead.ahead_taken > 0

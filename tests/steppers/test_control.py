@@ -9,9 +9,11 @@ import math
 
 import numpy as np
 import pytest
+import warp as wp
 
 from swe_sphere.config.scene import load_scene
 from swe_sphere.grid.gll import gll, truncation
+from swe_sphere.kernels import error_norm
 from swe_sphere.model.diagnostics import courant_numbers
 from swe_sphere.steppers.control import (
     CONTROLLERS,
@@ -19,6 +21,7 @@ from swe_sphere.steppers.control import (
     Controller,
     CourantMax,
     ErrorNorm,
+    PairwiseSum,
     SpatialRate,
     capped,
 )
@@ -142,6 +145,21 @@ def test_the_norm_is_one_reduction_equal_to_numpys():
         ErrorNorm(topo, rtol=-1e-6)
     absolute = ErrorNorm(topo, rtol=0.0)  # the balanced mode's: atol alone
     assert absolute(*arrays) == pytest.approx(np.sqrt(np.mean((e[:, f] / atol) ** 2)), rel=8 * np.finfo(float).eps)
+
+
+@pytest.mark.parametrize("n", [1, 7, 8, 129, 1000, 6 * 30 * 30 * 9 + 2, 6 * 120 * 120 * 9 + 2])
+def test_the_pairwise_sum_is_numpys_to_the_bit(n):
+    """``PairwiseSum``: its leaves added by ``kernels.error_norm.pairwise_leaves``, their sums
+    along its tree, the bits of ``np.sum`` over terms spanning 12 decades (the unique nodes of
+    ne30 and ne120 np4 among the counts): the error norm's sum on one rank without reading
+    every term."""
+    terms = np.random.default_rng(n).random(n) * 10.0 ** np.random.default_rng(1).integers(-6, 6, n)
+    plan = PairwiseSum(n)
+    assert plan.lengths.sum() == n and plan.lengths.max() <= 128 and plan.starts[0] == 0
+    sums = wp.zeros(len(plan.starts), dtype=wp.float64, device="cpu")
+    arrays = [wp.array(v, device="cpu") for v in (terms, plan.starts, plan.lengths)]
+    wp.launch(error_norm.pairwise_leaves, len(plan.starts), [*arrays, sums, 0], device="cpu")
+    assert plan.total(sums.numpy()) == np.sum(terms)
 
 
 def test_the_cfl_controller_brings_the_courant_number_to_its_target():

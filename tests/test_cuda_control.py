@@ -6,6 +6,8 @@ Skipped without a CUDA device."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -13,7 +15,7 @@ from swe_sphere.config.scene import load_scene
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
 
-from helpers import requires_cuda, rows_apart
+from helpers import assert_same_runs, requires_cuda, rows_apart, watched_run
 
 # the steppers error control takes with their scene's options (a tableau's table has no b̂)
 PAIRS = sorted(n for n, cls in STEPPERS.items() if n != "tableau" and cls.has_estimate({}) and cls.changes_dt({}))
@@ -65,3 +67,30 @@ def _tries(name: str, device: str, tries: tuple) -> np.ndarray:
 def test_a_rejected_try_on_cuda_leaves_no_trace(name):
     plain, tried = _tries(name, "cuda", ()), _tries(name, "cuda", (700.0, 2400.0, 900.0))
     assert np.array_equal(tried, plain)
+
+
+@requires_cuda
+def test_tries_launched_ahead_on_cuda_are_bitwise_the_run_without(tmp_path):
+    """``StepControl.lookahead`` (on by default on CUDA): TC5 ne4 ``rk43`` at rtol 1e-4 from 5×
+    its Δt (steps rejected, Δt changing), outputs every 0.25 day, a callback every 10 steps and
+    a log, as CUDA graphs: the run file, the states and the counts bitwise those of the same run
+    with it off; most steps were tries launched ahead."""
+    overrides = {"time.control": "error", "time.rtol": 1e-4, "output.every_days": 0.25}
+    scene = load_scene("tc5_mountain", ne=4, days=1.0, stepper="rk43", overrides=overrides)
+    scene = dataclasses.replace(scene, dt=5 * scene.dt)
+    controls = {}
+
+    def keep(on: bool):
+        def setup(sim):
+            assert sim.control.lookahead  # CUDA's default
+            sim.control.lookahead = on
+            controls[on] = sim.control
+
+        return setup
+
+    runs = [
+        watched_run(scene, tmp_path / f"{on}.nc", device="cuda", graphs=True, setup=keep(on)) for on in (False, True)
+    ]
+    assert_same_runs(*runs)
+    ahead = controls[True]
+    assert ahead.rejected > 0 and ahead.ahead_taken > ahead.accepted / 2 and controls[False].ahead_taken == 0

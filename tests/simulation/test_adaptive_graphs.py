@@ -114,9 +114,11 @@ def test_a_graphed_try_reads_the_host_once(one_thread, tally, monkeypatch, name,
     """Host reads (``.numpy()``, each a device synchronisation) in a controlled run with graphs,
     output at its end only: none in a try's step once its graph is kept, and between one try
     and the next one read (the norm's) plus one where the Courant numbers' pass is taken
-    (under error control only every few steps; under CFL control every step)."""
+    (under error control only every few steps; under CFL control every step). Without tries
+    launched ahead (CUDA's default: their reads, ``test_cuda_control.py``)."""
     inside, between = [], []
     sim = build(name, control, device, True, every=math.inf)
+    sim.control.lookahead = False
     real_try = Simulation.try_step
     last = {}
 

@@ -109,7 +109,7 @@ def start_errors(grid: CubedSphere) -> dict:
         case = make_case(name)
         model = ShallowWater(grid, TERMS, case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon), device="cpu")
         u, v, _ = case.initial(grid.lat, grid.lon)
-        zeta, zt = model.vorticity(model.new_state(u, v)), truth(case, grid.lat)
+        zeta, zt = model.operators.vorticity(model.new_state(u, v)), truth(case, grid.lat)
         out[key] = math.sqrt(grid.integrate((zeta - zt) ** 2) / grid.integrate(zt**2))
     return out
 

@@ -156,7 +156,7 @@ def rhs_flops(model) -> float:
     2 a copy (weighted) and 1 for the inverse mass, with the table's mean copy
     count (1.78 at np 4, ne 30)."""
     np_ = model.grid.np
-    tendency = (21 + 12 * np_ if model.per_element else 40 * np_) + 20
+    tendency = (21 + 12 * np_ if model.operators.per_element else 40 * np_) + 20
     copies = float((model.topology.table.numpy() >= 0).sum()) / model.N
     return tendency + 3 * (2 * copies + 1)
 

@@ -95,7 +95,19 @@ def per_node_error(ne, np_):
     a = V.TendencyVJP(m, x, k).both()[0]
     kernel = V.with_backward(tendencies.tendency(TERMS))
     z = [wp.zeros((r, m.N), dtype=V.f64) for r in (3, 2, 3)]
-    args = [wp.array(x, dtype=V.f64), m.D, m.Dinv, m.metdet, m.fcor, m.topo_forcing, m.dvv, np_, m.g, z[2], 0]
+    args = [
+        wp.array(x, dtype=V.f64),
+        m.operators.D,
+        m.operators.Dinv,
+        m.operators.metdet,
+        m.fcor,
+        m.topo_forcing,
+        m.operators.dvv,
+        np_,
+        m.g,
+        z[2],
+        0,
+    ]
     tb = wp.array(k * m.grid.spheremp, dtype=V.f64)
     adj = [z[0], None, None, None, None, z[1], None, 0, 0.0, tb, 0]
     wp.launch(kernel, m.N, args, adj_inputs=adj, adjoint=True)

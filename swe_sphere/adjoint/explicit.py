@@ -276,7 +276,7 @@ class StepAdjoint:
             self.unit_depth = wp.array(
                 np.stack([np.zeros(m.N), np.zeros(m.N), np.ones(m.N)]), dtype=f64, device=m.device
             )
-            self.frame = m.east.numpy() / m.nu, m.north.numpy() / m.nu  # Pᵀ, and Y₁ = ν Π Z
+            self.frame = m.operators.east.numpy() / m.nu, m.operators.north.numpy() / m.nu  # Pᵀ, and Y₁ = ν Π Z
         launches = self._divergent.get(x.ptr)
         if launches is None:
             H, U = slice(2, 3), slice(0, 2)
@@ -443,10 +443,22 @@ class StepAdjoint:
         kbar = wp.array(np.concatenate([self.fbar.numpy(), np.zeros((1, N))]), dtype=f64, device=m.device)
         ones, xbar, d = wp.ones(N, dtype=f64, device=m.device), wp.zeros_like(kbar), wp.zeros_like(kbar)
         adj = self._zeros(5)
-        point = [kbar, m.D, m.Dinv, m.metdet, m.fcor, ones, m.dvv, kbar, adj, xbar, self.fbar]
+        point = [
+            kbar,
+            m.operators.D,
+            m.operators.Dinv,
+            m.operators.metdet,
+            m.fcor,
+            ones,
+            m.operators.dvv,
+            kbar,
+            adj,
+            xbar,
+            self.fbar,
+        ]
         terms = ("pressure_gradient",)  # the forcing is −g∇hs: the pressure gradient of hs
         wp.launch(tendency_adjoint.point(terms, m.grid.np), N, [*point, 0], device=m.device)
-        gather = [kbar, m.D, m.Dinv, m.metdet, m.dvv, m.g, adj, xbar]
+        gather = [kbar, m.operators.D, m.operators.Dinv, m.operators.metdet, m.operators.dvv, m.g, adj, xbar]
         wp.launch(tendency_adjoint.gather(terms, m.grid.np), N, [*gather, 0], device=m.device)
         for launch in m.topology.dss(xbar, False, d):
             launch.launch()
@@ -463,22 +475,39 @@ class StepAdjoint:
             launches.append(m.lincomb(self.xbar, [(0.0, self.xbar)]))
         ranges = [None] if runs is None else list(runs)
         terms = self.terms if terms is None else tuple(t for t in self.terms if t in terms)
-        if len(kbar) > 3 or not m.per_element and kbar != [(1.0, kbar[0][1])]:
+        if len(kbar) > 3 or not m.operators.per_element and kbar != [(1.0, kbar[0][1])]:
             if not hasattr(self, "kbar"):
                 self.kbar = self._zeros(3)
             more = (m.lincomb(self.kbar, [(1.0, self.kbar), *kbar[i : i + 3]]) for i in range(4, len(kbar), 3))
             launches, kbar = [*launches, m.lincomb(self.kbar, kbar[:4]), *more], [(1.0, self.kbar)]
-        if m.per_element:
-            R, (c, k) = m.as_rows, zip(*kbar)
+        if m.operators.per_element:
+            R, (c, k) = m.operators.as_rows, zip(*kbar)
             c, k = [*c, *(0.0,) * (3 - len(c))], [*k, *(k[0],) * (3 - len(k))]
             kernel = tendency_adjoint.element(terms, m.grid.np, len(kbar))
-            args = [*map(R, (Y, m.D, m.Dinv, m.metdet, m.fcor, self.spheremp)), m.g, m.dvv_rows, wp.vec3d(*c)]
+            args = [
+                *map(R, (Y, m.operators.D, m.operators.Dinv, m.operators.metdet, m.fcor, self.spheremp)),
+                m.g,
+                m.operators.dvv_rows,
+                wp.vec3d(*c),
+            ]
             args += [*map(R, k), R(self.xbar), R(self.fbar)]
             return [*launches, *(m.launches.elements(kernel, args, elements=r) for r in ranges)]
         if not hasattr(self, "adj"):
             self.adj = self._zeros(5)
-        point = [Y, m.D, m.Dinv, m.metdet, m.fcor, self.spheremp, m.dvv, kbar[0][1], self.adj, self.xbar, self.fbar]
-        gather = [Y, m.D, m.Dinv, m.metdet, m.dvv, m.g, self.adj, self.xbar]
+        point = [
+            Y,
+            m.operators.D,
+            m.operators.Dinv,
+            m.operators.metdet,
+            m.fcor,
+            self.spheremp,
+            m.operators.dvv,
+            kbar[0][1],
+            self.adj,
+            self.xbar,
+            self.fbar,
+        ]
+        gather = [Y, m.operators.D, m.operators.Dinv, m.operators.metdet, m.operators.dvv, m.g, self.adj, self.xbar]
         kernels = (tendency_adjoint.point(terms, m.grid.np), point), (tendency_adjoint.gather(terms, m.grid.np), gather)
         return [*launches, *(m.launches.nodes(k, m.N, a, elements=r) for r in ranges for k, a in kernels)]
 

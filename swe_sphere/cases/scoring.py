@@ -171,7 +171,9 @@ class Scorer:
     def _rotation_divergence(self, u, v) -> np.ndarray:
         """(2, N): ``rotation_divergence`` on this rank's nodes, before the gather."""
         self._scratch.assign(np.stack([u, v, np.zeros_like(u)]))
-        return np.stack([self.model.vorticity(self._scratch), self.model.wind_divergence(self._scratch)])
+        return np.stack(
+            [self.model.operators.vorticity(self._scratch), self.model.operators.wind_divergence(self._scratch)]
+        )
 
     def wind_error_decomposition(self, u, v, u_true, v_true, regions: bool = False) -> dict:
         """``l2_vorticity``, ``l2_divergence``: the wind error split into its

@@ -76,15 +76,23 @@ class GravityWaveOperator:
         H = self.H
 
         def build(updates):
-            if m.per_element:
+            if m.operators.per_element:
                 element = m.launches.elements(
                     gravity_wave.linear_element(m.grid.np),
-                    [*map(m.as_rows, (x, m.Dinv, m.metdet)), m.g, f64(H), m.dvv_rows, m.as_rows(m.tend)],
+                    [
+                        *map(m.operators.as_rows, (x, m.operators.Dinv, m.operators.metdet)),
+                        m.g,
+                        f64(H),
+                        m.operators.dvv_rows,
+                        m.operators.as_rows(m.tend),
+                    ],
                 )
             else:
                 element = m.launches.nodes(
-                    gravity_wave.linear, m.N, [x, m.Dinv, m.metdet, m.dvv, m.grid.np, m.g, f64(H), m.tend]
+                    gravity_wave.linear,
+                    m.N,
+                    [x, m.operators.Dinv, m.operators.metdet, m.operators.dvv, m.grid.np, m.g, f64(H), m.tend],
                 )
-            return [element, *m.dss_update(m.tend, updates)]
+            return [element, *m.operators.dss_update(m.tend, updates)]
 
         m.launches.replay_updates(("linear_update", (x.ptr, x.shape, x.strides), H), (x,), updates, build)

@@ -35,10 +35,12 @@ class Hyperviscosity:
         N, device = m.N, m.device
         self.hv_Y = wp.zeros((4, N), dtype=f64, device=device)  # Y₁ (``kernels.hyperviscosity``)
         self.hv_L = wp.zeros((4, N), dtype=f64, device=device)  # the weak form of Y₁ (and Y₂'s on the per-node layout)
-        if m.per_element:  # the weak Laplacian's metric, fixed: computed once, not by every ∇⁴ evaluation
+        if m.operators.per_element:  # the weak Laplacian's metric, fixed: computed once, not by every ∇⁴ evaluation
             self.hv_metric = wp.zeros((4, N), dtype=f64, device=device)
             self.hv_L2 = wp.zeros((4, N), dtype=f64, device=device)  # the weak form of Y₂ (L holds Y₁'s)
-            m.launches.nodes(hyperviscosity.laplacian_metric, N, [m.Dinv, m.spheremp, self.hv_metric]).launch()
+            m.launches.nodes(
+                hyperviscosity.laplacian_metric, N, [m.operators.Dinv, m.spheremp, self.hv_metric]
+            ).launch()
         else:  # the Cartesian state and the weak Laplacian's flux of the per-node kernels
             self.hv_X = wp.zeros((4, N), dtype=f64, device=device)
             self.hv_flux = wp.zeros((8, N), dtype=f64, device=device)
@@ -71,27 +73,40 @@ class Hyperviscosity:
         if transposed and divergent:
             raise ValueError("the ∇⁴ with nu_div != nu has no transpose")
         swap = transposed and self.hv_tensor is not None  # which pass reads the tensor: the second, or the first
-        delta = m.scalar_dss  # δ = DSS(∇·v), read only when divergent
-        launches = m.divergence_launches(x, delta) if divergent else []
+        delta = m.operators.scalar_dss  # δ = DSS(∇·v), read only when divergent
+        launches = m.operators.divergence_launches(x, delta) if divergent else []
         # each pass is given the node frame's arrays it reads: the first the position (and the
         # per-element one the wind's basis), ∇δ Dinv and the basis; the second none
-        names = ("xyz", *(("east", "north") if m.per_element or divergent else ()), *(("Dinv",) if divergent else ()))
+        names = (
+            "xyz",
+            *(("east", "north") if m.operators.per_element or divergent else ()),
+            *(("Dinv",) if divergent else ()),
+        )
 
-        if m.per_element:
+        if m.operators.per_element:
 
             def laplacian(second):  # → the weak form of Y₁ in L, or of Y₂ in L2 from the DSS of L
                 frame = self._frame(*() if second else names, rows=True)
                 metric = self.hv_tensor if self.hv_tensor is not None and second != swap else self.hv_metric
-                args = [m.as_rows(m.hs), m.as_rows(delta), c, frame, m.as_rows(metric), m.dvv_rows]
+                args = [
+                    m.operators.as_rows(m.hs),
+                    m.operators.as_rows(delta),
+                    c,
+                    frame,
+                    m.operators.as_rows(metric),
+                    m.operators.dvv_rows,
+                ]
                 if not second:  # x, d and Y are not read
                     kernel = hyperviscosity.laplacian_element(False, divergent, np_)
-                    head = [L, m.topology.dss_copies, Y, m.as_rows(x)]
-                    return [m.launches.elements(kernel, [*head, *args, m.as_rows(L), m.launches.block])]
+                    head = [L, m.topology.dss_copies, Y, m.operators.as_rows(x)]
+                    return [m.launches.elements(kernel, [*head, *args, m.operators.as_rows(L), m.launches.block])]
 
                 def gathered(rows, copies, ghosts):  # the first DSS in the second pass, element by element
                     return hyperviscosity.laplacian_element(True, divergent, np_, copies, ghosts)
 
-                return m.topology.gathering(L, gathered, [Y, m.as_rows(Y), *args, m.as_rows(self.hv_L2)])
+                return m.topology.gathering(
+                    L, gathered, [Y, m.operators.as_rows(Y), *args, m.operators.as_rows(self.hv_L2)]
+                )
         else:
 
             def laplacian(second):
@@ -99,16 +114,34 @@ class Hyperviscosity:
                 first = (
                     []
                     if second
-                    else [m.launches.nodes(hyperviscosity.to_cartesian, N, [x, m.hs, m.east, m.north, src])]
+                    else [
+                        m.launches.nodes(
+                            hyperviscosity.to_cartesian, N, [x, m.hs, m.operators.east, m.operators.north, src]
+                        )
+                    ]
                 )
                 tensor = self.hv_tensor is not None and second != swap
                 mass = self.hv_tensor[3] if tensor else m.spheremp  # the weight of the +2Y₁/a² shift
-                args = [self.hv_flux, src, delta, c, self._frame(*() if second else names), mass, m.dvv, np_, L]
+                args = [
+                    self.hv_flux,
+                    src,
+                    delta,
+                    c,
+                    self._frame(*() if second else names),
+                    mass,
+                    m.operators.dvv,
+                    np_,
+                    L,
+                ]
                 flux = (
-                    m.launches.nodes(hyperviscosity.tensor_flux, N, [src, self.hv_tensor, m.dvv, np_, self.hv_flux])
+                    m.launches.nodes(
+                        hyperviscosity.tensor_flux, N, [src, self.hv_tensor, m.operators.dvv, np_, self.hv_flux]
+                    )
                     if tensor
                     else m.launches.nodes(
-                        operators.laplace_wk_flux, N, [src, m.Dinv, m.spheremp, m.dvv, np_, self.hv_flux]
+                        operators.laplace_wk_flux,
+                        N,
+                        [src, m.operators.Dinv, m.spheremp, m.operators.dvv, np_, self.hv_flux],
                     )
                 )
                 return [*first, flux, m.launches.nodes(hyperviscosity.laplacian_node(second, divergent), N, args)]
@@ -117,13 +150,13 @@ class Hyperviscosity:
             return hyperviscosity.dss_apply(copies, ghosts=ghosts)
 
         first = laplacian(False)
-        second = laplacian(True) if m.per_element else [*m.topology.dss(L, 0, Y), *laplacian(True)]
+        second = laplacian(True) if m.operators.per_element else [*m.topology.dss(L, 0, Y), *laplacian(True)]
         return [
             *launches,
             *first,
             *second,
             *m.topology.gathering(
-                self.hv_L2 if m.per_element else L, apply, [f64(coef), self._frame("east", "north"), out]
+                self.hv_L2 if m.operators.per_element else L, apply, [f64(coef), self._frame("east", "north"), out]
             ),
         ]
 
@@ -154,15 +187,15 @@ class Hyperviscosity:
         return wp.array(metric, dtype=f64, device=m.device)
 
     def _frame(self, *names, rows=False):
-        """A ``kernels.hyperviscosity.Frame`` holding the model's arrays of these
-        names, the others null: what a ∇⁴ pass reads and no more (a launch's
+        """A ``kernels.hyperviscosity.Frame`` holding the model's geometry arrays of these
+        names (``ElementOperators``: xyz, east, north, Dinv), the others null: what a ∇⁴ pass reads and no more (a launch's
         arguments are what ``benchmarks/gpu_model.py`` counts as its traffic);
         with ``rows``, the element kernels' frame of their row views (``as_rows``)."""
         m = self.model
         frame = hyperviscosity.frame_type(operators.row_type(m.grid.np) if rows else f64)()
         for name in names:
-            array = getattr(m, name)
-            setattr(frame, name, m.as_rows(array) if rows else array)
+            array = getattr(m.operators, name)
+            setattr(frame, name, m.operators.as_rows(array) if rows else array)
         return frame
 
     def operator(self, x: wp.array2d, out: wp.array2d) -> None:

@@ -22,11 +22,11 @@ from ..core.backend import Backend, same_device
 from ..core.constants import EARTH
 from ..core.errors import ArgumentError
 from ..core.graphs import GraphGuard
-from ..core.parallel import array_key
 from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology
 from ..kernels import operators, tendencies
 from .bad_nodes import BadNodes
+from .element_operators import ElementOperators
 from .hyperviscosity import Hyperviscosity
 from .launches import LaunchRecorder, check_updates
 
@@ -183,28 +183,17 @@ class ShallowWater:
             raise ValueError(f"threads must be >= 1 (got {threads})")
         self.nu, self.hypervis_subcycle, self.g = float(nu), int(hypervis_subcycle), float(g)
         self.hypervis_scaling = None if hypervis_scaling is None else float(hypervis_scaling)
-        self.per_element = self.backend.per_element if per_element is None else bool(per_element)
-        self.dvv_rows = operators.dvv_matrix(grid.rule.dvv)  # the per-element kernels' dvv argument
+        per_element = self.backend.per_element if per_element is None else bool(per_element)
         N = grid.nnodes
         self.N = N
-
-        def up(a, dtype=f64):
-            return wp.array(np.ascontiguousarray(a), dtype=dtype, device=device)
-
-        self.D, self.Dinv = up(grid.D), up(grid.Dinv)
         self.topology = topo = Topology(grid, self.backend, self.threads) if topology is None else topology
-        self.metdet, self.spheremp = up(grid.metdet), topo.spheremp
-        self.dvv = up(grid.rule.dvv)
-        self.xyz, self.east, self.north = up(grid.xyz), up(grid.east), up(grid.north)
-        self.fcor, self.hs = up(fcor), up(hs)
+        self.spheremp = topo.spheremp
+        self.fcor, self.hs = (wp.array(np.ascontiguousarray(a), dtype=f64, device=device) for a in (fcor, hs))
 
         # every launch of the model and of what acts on its states, recorded once and replayed
-        self.launches = LaunchRecorder(self.backend, self.threads, grid.np, N, topo.nunique, self.per_element)
+        self.launches = LaunchRecorder(self.backend, self.threads, grid.np, N, topo.nunique, per_element)
+        self.operators = ops = ElementOperators(grid, topo, self.launches, per_element, device)
         self.tend = wp.zeros((3, N), dtype=f64, device=device)
-        self.scalar = wp.zeros((1, N), dtype=f64, device=device)
-        self.scalar_dss = wp.zeros((1, N), dtype=f64, device=device)
-        self.scalar_flat = self.scalar.flatten()
-        self.vec_work = wp.zeros((2, N), dtype=f64, device=device)
         self.topo_forcing = None
         if "topography" in terms:
             self.topo_forcing = wp.zeros((2, N), dtype=f64, device=device)
@@ -212,7 +201,7 @@ class ShallowWater:
             wp.launch(
                 operators.gradient_sphere,
                 N,
-                [hs2, 0, self.Dinv, self.dvv, grid.np, self.topo_forcing, 0],
+                [hs2, 0, ops.Dinv, ops.dvv, grid.np, self.topo_forcing, 0],
                 device=device,
             )
             forcing = -self.g * self.topo_forcing.numpy()
@@ -266,25 +255,25 @@ class ShallowWater:
         writes dh alone, a momentum half du, dv)."""
         terms = tuple(term for term in tendencies.TENDENCY_TERMS if term in named)
         tend, runs = (self.tend, [None]) if part is None else (part.tend, part.runs)
-        launches = []
+        launches, ops = [], self.operators
         if terms:
-            forcing = self.topo_forcing if self.topo_forcing is not None else self.vec_work  # read only with topography
-            args = [x, self.D, self.Dinv, self.metdet, self.fcor, forcing]
+            forcing = self.topo_forcing if self.topo_forcing is not None else ops.vec_work  # read only with topography
+            args = [x, ops.D, ops.Dinv, ops.metdet, self.fcor, forcing]
             for run in runs:
-                if self.per_element:
+                if ops.per_element:
                     kernel = tendencies.tendency_element(terms, self.grid.np)
-                    inputs = [*map(self.as_rows, args), self.g, self.dvv_rows, self.as_rows(tend)]
+                    inputs = [*map(ops.as_rows, args), self.g, ops.dvv_rows, ops.as_rows(tend)]
                     launches.append(self.launches.elements(kernel, inputs, run))
                 else:
                     kernel = tendencies.tendency(terms)
-                    inputs = [*args, self.dvv, self.grid.np, self.g, tend]
+                    inputs = [*args, ops.dvv, self.grid.np, self.g, tend]
                     launches.append(self.launches.nodes(kernel, self.N, inputs, elements=run))
         forced = self.forcing is not None and "forcing" in named
         if forced:
             kernel, params = self.forcing
             for run in runs:
                 launch = self.launches.pointwise(
-                    kernel, None, [self.xyz, self.east, self.north, params, f64(self.time), tend], run
+                    kernel, None, [ops.xyz, ops.east, ops.north, params, f64(self.time), tend], run
                 )
                 self._forcing_launches.append(launch)
                 launches.append(launch)
@@ -430,123 +419,6 @@ class ShallowWater:
         ``advance_hypervis``); nothing without the term."""
         if self.hv is not None:
             self.hv.apply(x, dt)
-
-    def as_rows(self, a: wp.array) -> wp.array:
-        """``a`` as the GLL rows the per-element kernels read and write (``kernels.operators.row_vectors``)."""
-        return operators.row_vectors(a, self.grid.np)
-
-    # -- DSS'd operators for the (semi-)implicit solvers --------------------
-    def _element_grad(self, x, row):
-        """The launch of the element-local ∇ x[row] into ``vec_work``."""
-        if self.per_element:
-            return self.launches.elements(
-                operators.gradient_element(self.grid.np),
-                [self.as_rows(x), row, self.as_rows(self.Dinv), self.dvv_rows, self.as_rows(self.vec_work)],
-            )
-        return self.launches.nodes(
-            operators.gradient_sphere, self.N, [x, row, self.Dinv, self.dvv, self.grid.np, self.vec_work]
-        )
-
-    def _element_div(self, x):
-        """The launch of the element-local ∇·v of x's rows 0, 1 into ``scalar``."""
-        if self.per_element:
-            return self.launches.elements(
-                operators.divergence_element(self.grid.np),
-                [*map(self.as_rows, (x, self.Dinv, self.metdet)), self.dvv_rows, self.as_rows(self.scalar_flat)],
-            )
-        return self.launches.nodes(
-            operators.divergence_sphere, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.scalar_flat]
-        )
-
-    def _build_grad(self, x, row, out):
-        return [self._element_grad(x, row), *self.topology.dss(self.vec_work, 1, out)]
-
-    def divergence_launches(self, x: wp.array2d, out: wp.array2d) -> list:
-        """The launches (unrecorded by the model) of ``divergence(x, out)``: the element pass into
-        ``scalar`` and its DSS (the ∇⁴'s δ when ν_div ≠ ν)."""
-        return [self._element_div(x), *self.topology.dss(self.scalar, 1, out)]
-
-    def gradient(self, x: wp.array2d, row: int, out: wp.array2d) -> None:
-        """out (2, N) = G f = DSS(∇ x[row]) (units of x per m)."""
-        self.launches.replay(
-            ("grad", array_key(x), row, array_key(out)), (x, out), lambda: self._build_grad(x, row, out)
-        )
-
-    def divergence(self, x: wp.array2d, out: wp.array2d) -> None:
-        """out (1, N) = D v = DSS(∇·v) of the wind in rows 0, 1 of x (s⁻¹ × units)."""
-        self.launches.replay(("div", array_key(x), array_key(out)), (x, out), lambda: self.divergence_launches(x, out))
-
-    def dss_update(self, x: wp.array2d, updates) -> list:
-        """The launches (unrecorded) of the weighted DSS of the element-local x (rows, N)
-        written into one or two ``Update``s of all rows (``Topology.dss_update``; src None
-        standing for the DSS'd x): what an operator's ``*_update`` ends with."""
-        return self.topology.dss_update(x, [(u.out, u.terms) for u in updates])
-
-    def gradient_update(self, x: wp.array2d, row: int, updates) -> None:
-        """G x[row] = DSS(∇ x[row]) as ``gradient`` computes it, not stored but written,
-        as its DSS makes it, into one or two ``Update(out, terms)`` of (2, N) arrays
-        (row views such as ``z[0:2]``): out = Σ a·src over terms (a, src), src None
-        standing for G x[row] (``Topology.dss_update``: one to three terms, at most two
-        arrays). Outputs may alias x and the terms. Recorded once per arrays, the coefficients
-        launch arguments (``LaunchRecorder.replay_updates``)."""
-        self.launches.replay_updates(
-            ("grad_update", array_key(x), row),
-            (x,),
-            check_updates(updates),
-            lambda u: [self._element_grad(x, row), *self.dss_update(self.vec_work, u)],
-        )
-
-    def divergence_update(self, x: wp.array2d, updates) -> None:
-        """D v = DSS(∇·v) of x's rows 0, 1 as ``divergence`` computes it, written into
-        one or two ``Update(out, terms)`` of (1, N) arrays as ``gradient_update``'s."""
-        self.launches.replay_updates(
-            ("div_update", array_key(x)),
-            (x,),
-            check_updates(updates),
-            lambda u: [self._element_div(x), *self.dss_update(self.scalar, u)],
-        )
-
-    def assemble(self, x: wp.array2d, row: int, out: wp.array) -> None:
-        """Unique-node out (nunique,) = M x[row]: assembled mass times a continuous field."""
-        self.launches.replay(
-            ("assemble", array_key(x), row, array_key(out)), (x, out), lambda: self.topology.assemble(x, row, out)
-        )
-
-    def scatter(self, y: wp.array, out: wp.array2d, row: int, rows: int = 1) -> None:
-        """Element-local out[row : row + rows] from a unique-node vector y of ``rows`` rows."""
-        self.launches.replay(
-            ("scatter", array_key(y), array_key(out), row, rows),
-            (y, out),
-            lambda: self.topology.scatter(y, out, row, rows),
-        )
-
-    # -- diagnostics helpers ------------------------------------------------
-    def vorticity(self, x: wp.array2d) -> np.ndarray:
-        """Relative vorticity ζ (s⁻¹), (N,) numpy, with the model's operator and a DSS."""
-        self.launches.replay(
-            ("vort", array_key(x)),
-            (x,),
-            lambda: [
-                self.launches.elements(
-                    operators.vorticity_element(self.grid.np),
-                    [*map(self.as_rows, (x, self.D, self.metdet)), self.dvv_rows, self.as_rows(self.scalar_flat)],
-                )
-                if self.per_element
-                else self.launches.nodes(
-                    operators.vorticity_sphere,
-                    self.N,
-                    [x, self.D, self.metdet, self.dvv, self.grid.np, self.scalar_flat],
-                ),
-                *self.topology.dss(self.scalar, 1, self.scalar_dss),
-            ],
-        )
-        return self.scalar_dss.numpy()[0].copy()
-
-    def wind_divergence(self, x: wp.array2d) -> np.ndarray:
-        """Divergence δ = ∇·v (s⁻¹) of the wind in rows 0, 1 of x, (N,) numpy: the
-        operator the model steps with (``divergence``), DSS'd."""
-        self.divergence(x, self.scalar_dss)
-        return self.scalar_dss.numpy()[0].copy()
 
     def new_state(self, u=None, v=None, h=None) -> wp.array2d:
         """A (3, N) device state from element-local numpy rows (zeros where None)."""

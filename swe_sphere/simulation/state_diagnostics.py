@@ -44,15 +44,15 @@ class StateDiagnostics:
 
     def divergence(self, x=None) -> np.ndarray | None:
         """Divergence of the wind (nnodes,) of the whole grid, DSS'd (s⁻¹), on rank 0 (None elsewhere)."""
-        return self.sim.topology.gather(self.sim.model.wind_divergence(self.sim.x if x is None else x))
+        return self.sim.topology.gather(self.sim.model.operators.wind_divergence(self.sim.x if x is None else x))
 
     def gather_fields(self, x=None, divergence: bool = False) -> WholeFields:
         """u, v, h, the vorticity and (``divergence``) the divergence of state x
         (default the current one), in one gather on rank 0 (call on every rank)."""
         x = self.sim.x if x is None else x
-        rows = [x.numpy(), self.sim.model.vorticity(x)[None]]
+        rows = [x.numpy(), self.sim.model.operators.vorticity(x)[None]]
         if divergence:
-            rows.append(self.sim.model.wind_divergence(x)[None])
+            rows.append(self.sim.model.operators.wind_divergence(x)[None])
         a = self.sim.topology.gather(np.concatenate(rows))
         if a is None:
             return WholeFields(None, None, None, None)

@@ -280,7 +280,7 @@ class HelmholtzSolver:
 
     def _solve(self, r, a: float, z, scale: float, implicit=None) -> None:
         m = self.model
-        if m.per_element:  # the CPU's layout: two fused passes each side of the CG (_schur)
+        if m.operators.per_element:  # the CPU's layout: two fused passes each side of the CG (_schur)
             rhs, back = self._schur(r, z, implicit)
             for launch, values in (
                 (rhs[0], {"s": scale, "aH": a * self.H}),
@@ -294,12 +294,12 @@ class HelmholtzSolver:
             for launch in back:
                 launch.launch()
             return
-        m.divergence(r, self.Dv)
+        m.operators.divergence(r, self.Dv)
         m.pointwise(gk.schur_height, r, self.Dv, f64(scale), f64(a * self.H), z)
-        m.assemble(z, 2, self.b)
+        m.operators.assemble(z, 2, self.b)
         self._pcg(a * a * m.g * self.H)
-        m.scatter(self.y, z, 2)
-        m.gradient(z, 2, self.Gh)
+        m.operators.scatter(self.y, z, 2)
+        m.operators.gradient(z, 2, self.Gh)
         if implicit is None:
             m.pointwise(gk.schur_wind, r, self.Gh, f64(scale), f64(a * m.g), z)
         else:
@@ -317,7 +317,7 @@ class HelmholtzSolver:
         launches = self._schur_launches.get(key)
         if launches is None:
             m, topo, cg = self.model, self.model.topology, self.cg
-            rows, np_, halo, rec = m.as_rows, m.grid.np, topo.owned.recv_buffer, m.launches.record
+            rows, np_, halo, rec = m.operators.as_rows, m.grid.np, topo.owned.recv_buffer, m.launches.record
             elements = dict(nodes_per_index=np_**2)
             rhs = [
                 rec(

@@ -69,12 +69,12 @@ class HelmholtzCG:
         # the metric in the solve's type: the model's own arrays in float64, float32 copies else
         same = dtype is f64
         cast = lambda a: a if same else wp.array(a.numpy(), dtype=dtype, device=dev)  # noqa: E731
-        self.Dinv, self.metdet = cast(model.Dinv), cast(model.metdet)
+        self.Dinv, self.metdet = cast(model.operators.Dinv), cast(model.operators.metdet)
         self.spheremp, self.rspheremp = (
             cast(topo.spheremp[: topo.N]),
             cast(topo.rspheremp),
         )  # the local copies' masses (the ghosts' follow on a rank)
-        self.dvv = model.dvv_rows if same else operators.dvv_matrix(model.grid.rule.dvv, dtype)
+        self.dvv = model.operators.dvv_rows if same else operators.dvv_matrix(model.grid.rule.dvv, dtype)
         self.minv = wp.array(1.0 / topo.area, dtype=dtype, device=dev)
         self.area, self.ones = wp.array(topo.area, dtype=dtype, device=dev), wp.ones(nu, dtype=dtype, device=dev)
         self.chunk = chunk = topo.backend.reduction_chunk(nu)
@@ -136,12 +136,12 @@ class HelmholtzCG:
                     y,
                     halo,
                     topo.gid,
-                    self.model.as_rows(self.Dinv),
-                    self.model.as_rows(self.metdet),
-                    self.model.as_rows(self.spheremp),
+                    self.model.operators.as_rows(self.Dinv),
+                    self.model.operators.as_rows(self.metdet),
+                    self.model.operators.as_rows(self.spheremp),
                     self.dvv,
                     dt(0.0),
-                    self.model.as_rows(self.z),
+                    self.model.operators.as_rows(self.z),
                 ],
                 nodes_per_index=m.grid.np**2,
             )
@@ -152,10 +152,10 @@ class HelmholtzCG:
                     y,
                     halo,
                     topo.gid,
-                    self.model.as_rows(self.Dinv),
-                    self.model.as_rows(self.spheremp),
+                    self.model.operators.as_rows(self.Dinv),
+                    self.model.operators.as_rows(self.spheremp),
                     self.dvv,
-                    self.model.as_rows(self.wg),
+                    self.model.operators.as_rows(self.wg),
                 ],
                 nodes_per_index=m.grid.np**2,
             )
@@ -200,13 +200,13 @@ class HelmholtzCG:
         then ``helmholtz_combine`` — the element kernels run a thread per element, whose
         strided reads are slow on a GPU (the benchmarks notebook (git show 5fa9286:benchmarks/README.md), "Measurements behind the code")."""
         m = self.model
-        if m.per_element or self.dtype is not f64:
+        if m.operators.per_element or self.dtype is not f64:
             launches = self._operator(y, out)
         else:
             launches = self._per_node(y, out)
-            m.scatter(y, self.z, 0)
-            m.gradient(self.z, 0, self.wg)
-            m.divergence(self.wg, self.z)
+            m.operators.scatter(y, self.z, 0)
+            m.operators.gradient(self.z, 0, self.wg)
+            m.operators.divergence(self.wg, self.z)
         div = self._div[(y.ptr, out.ptr)]
         if div[1] != c:
             div[0].set_param_by_name("c", self.dtype(c))

@@ -24,8 +24,8 @@ def element_gradient(model: ShallowWater) -> tuple[sp.csr_matrix, sp.csr_matrix]
     """(Ĝ, P): the element gradient Ĝ (2N × N, 1/m: (u, v) components of each element's own
     gradient, before the DSS) and the scatter P (N × nunique, ones: unique → element-local copies).
 
-    Ĝ comes from np² probes of ``model.gradient``, which leaves the element-local result in
-    ``model.vec_work``: a unit value at one local node of every element gives a column of every
+    Ĝ comes from np² probes of ``model.operators.gradient``, which leaves the element-local result in
+    ``model.operators.vec_work``: a unit value at one local node of every element gives a column of every
     element's matrix exactly. The whole grid on one process.
     """
     import scipy.sparse as sp  # here, as in helmholtz_matrix: a run needs no sparse matrix
@@ -42,8 +42,8 @@ def element_gradient(model: ShallowWater) -> tuple[sp.csr_matrix, sp.csr_matrix]
         unit[2] = 0.0
         unit[2, base + k] = 1.0
         x.assign(unit)
-        model.gradient(x, 2, G2)
-        g = model.vec_work.numpy()
+        model.operators.gradient(x, 2, G2)
+        g = model.operators.vec_work.numpy()
         for c in range(2):
             rows.append(c * N + nodes), cols.append(np.repeat(base + k, npp)), vals.append(g[c].copy())
     G_hat = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(2 * N, N))
@@ -55,8 +55,8 @@ def helmholtz_matrix(model: ShallowWater) -> sp.csr_matrix:
     """K = −M D G (nunique × nunique, dimensionless: M in m², D G in m⁻²) on unique nodes, symmetrised (its asymmetry is round-off, ~1e-15 relative).
 
     Built from the model's own element kernels: Ĝ and P from ``element_gradient``, and the
-    element divergence D̂ from 2np² probes of ``model.divergence`` (its element-local result is
-    left in ``model.scalar``); with W = diag(spheremp) and the DSS S = P M⁻¹ Pᵀ W,
+    element divergence D̂ from 2np² probes of ``model.operators.divergence`` (its element-local result is
+    left in ``model.operators.scalar``); with W = diag(spheremp) and the DSS S = P M⁻¹ Pᵀ W,
     K = −Pᵀ W D̂ S Ĝ P. The whole grid on one process (the host solvers').
     """
     # here, not at the top: scipy.sparse costs every command's start 0.1 s of CPU, and only
@@ -78,8 +78,8 @@ def helmholtz_matrix(model: ShallowWater) -> sp.csr_matrix:
             unit[:] = 0.0
             unit[c, base + k] = 1.0
             x.assign(unit)
-            model.divergence(x, D1)
-            drow.append(nodes), dcol.append(c * N + col), dval.append(model.scalar.numpy()[0].copy())
+            model.operators.divergence(x, D1)
+            drow.append(nodes), dcol.append(c * N + col), dval.append(model.operators.scalar.numpy()[0].copy())
     D_hat = sp.csr_matrix((np.concatenate(dval), (np.concatenate(drow), np.concatenate(dcol))), shape=(N, 2 * N))
     D_hat.eliminate_zeros()
     PtW = (P.T @ sp.diags(grid.spheremp)).tocsr()

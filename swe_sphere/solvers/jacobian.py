@@ -80,7 +80,7 @@ class KernelPasses:
         self.model.pointwise(ik.gather, f64(a), v, self.topology.first, self.topology.nunique, out, unique=True)
 
     def scatter(self, u, out) -> None:
-        self.model.scatter(u, out, 0, rows=3)
+        self.model.operators.scatter(u, out, 0, rows=3)
 
     def point_norm(self, u):
         self._square(u, self.xx)

@@ -260,7 +260,7 @@ class SplitExplicit(_Multirate):
         h′_old + (1 + β)τ(ρ_h − D(h_s v)) beside h′ (its DSS serves both); ``first`` (a
         stage's first substep, which has no last one): h̃ = h′."""
         g, W, w, beta = self.model.g, self.W, self.w, self.options.divergence_damping
-        self.model.gradient_update(
+        self.model.operators.gradient_update(
             w if not first and beta else prev,
             2,
             [Update(W[0:2], ((1.0, (prev if first else W)[0:2]), (tau, forcing[0:2]), (-g * tau, None)))],
@@ -420,17 +420,23 @@ class Mri(_Multirate):
             prev = z if i == 0 else t
             ct = c * tau
             if last:  # h(n+1) into s, then h̃ = β h(n+1) + (1 − 2β) h⁽²⁾ + β h(n) into t, h(n+1) into z
-                self.model.divergence_update(prev, [Update(s[2:3], ((1.0, z[2:3]), (ct, rho[2:3]), (-H * ct, None)))])
+                self.model.operators.divergence_update(
+                    prev, [Update(s[2:3], ((1.0, z[2:3]), (ct, rho[2:3]), (-H * ct, None)))]
+                )
                 self._comb(t[2:3], (beta, s[2:3]), (1.0 - 2.0 * beta, t[2:3]), (beta, z[2:3]))
                 self._comb(z[2:3], (1.0, s[2:3]))
-                self.model.gradient_update(t, 2, [Update(z[0:2], ((1.0, z[0:2]), (ct, rho[0:2]), (-g * ct, None)))])
+                self.model.operators.gradient_update(
+                    t, 2, [Update(z[0:2], ((1.0, z[0:2]), (ct, rho[0:2]), (-g * ct, None)))]
+                )
             else:  # h̃ = β h⁽ⁱ⁾ + (1 − β) h(n) into s, h⁽ⁱ⁾ into t
-                self.model.divergence_update(
+                self.model.operators.divergence_update(
                     prev,
                     [
                         Update(s[2:3], ((1.0, z[2:3]), (beta * ct, rho[2:3]), (-H * beta * ct, None))),
                         Update(t[2:3], ((1.0, z[2:3]), (ct, rho[2:3]), (-H * ct, None))),
                     ],
                 )
-                self.model.gradient_update(s, 2, [Update(t[0:2], ((1.0, z[0:2]), (ct, rho[0:2]), (-g * ct, None)))])
+                self.model.operators.gradient_update(
+                    s, 2, [Update(t[0:2], ((1.0, z[0:2]), (ct, rho[0:2]), (-g * ct, None)))]
+                )
             c_prev = c

@@ -89,7 +89,7 @@ class TendencyVJP:
     def __init__(self, model: ShallowWater, x: np.ndarray, kbar: np.ndarray):
         m, N, self.model = model, model.N, model
         terms, np_ = tendency_terms(m), m.grid.np
-        R = m.as_rows
+        R = m.operators.as_rows
 
         def zeros(rows):
             return wp.zeros((rows, N), dtype=f64)
@@ -99,15 +99,15 @@ class TendencyVJP:
         self.xbar, self.fbar, self.xbar_ad, self.fbar_ad = zeros(3), zeros(2), zeros(3), zeros(2)
         self.tend, self.adj_tend = zeros(3), zeros(3)
         forcing = m.topo_forcing if m.topo_forcing is not None else zeros(2)
-        nelem, metric = m.grid.nelem, (self.x, m.D, m.Dinv, m.metdet, m.fcor)
+        nelem, metric = m.grid.nelem, (self.x, m.operators.D, m.operators.Dinv, m.operators.metdet, m.fcor)
         K = R(self.kbar)
         hand = tendency_adjoint.element(terms, np_, 1)
-        args = [*map(R, (*metric, self.spheremp)), m.g, m.dvv_rows, wp.vec3d(1.0, 0.0, 0.0), K, K, K]
+        args = [*map(R, (*metric, self.spheremp)), m.g, m.operators.dvv_rows, wp.vec3d(1.0, 0.0, 0.0), K, K, K]
         self._hand = wp.launch(hand, nelem, [*args, R(self.xbar), R(self.fbar), 0], record_cmd=True)
-        inputs = [*map(R, (*metric, forcing)), m.g, m.dvv_rows, R(self.tend), 0]
+        inputs = [*map(R, (*metric, forcing)), m.g, m.operators.dvv_rows, R(self.tend), 0]
         self._forward = wp.launch(tendencies.tendency_element(terms, np_), nelem, inputs, record_cmd=True)
         # adjoints of the metric terms not asked for: Warp skips a null adjoint array's adds
-        adj = [R(self.xbar_ad), None, None, None, None, R(self.fbar_ad), 0.0, m.dvv_rows, R(self.adj_tend), 0]
+        adj = [R(self.xbar_ad), None, None, None, None, R(self.fbar_ad), 0.0, m.operators.dvv_rows, R(self.adj_tend), 0]
         kernel = autodiff_kernel(terms, np_)
         self._warp = wp.launch(kernel, nelem, inputs, adj_inputs=adj, adjoint=True, record_cmd=True)
         self._weight = wp.launch(weighted, (3, N), [self.kbar, self.spheremp, self.adj_tend], record_cmd=True)
@@ -139,8 +139,14 @@ def tendency(model: ShallowWater, x: np.ndarray) -> np.ndarray:
     """T(x), the element-local tendency (3, N), by the model's CPU kernel."""
     m = model
     forcing = m.topo_forcing if m.topo_forcing is not None else wp.zeros((2, m.N), dtype=f64)
-    tend, R = wp.zeros((3, m.N), dtype=f64), m.as_rows
-    args = [*map(R, (wp.array(x, dtype=f64), m.D, m.Dinv, m.metdet, m.fcor, forcing)), m.g, m.dvv_rows, R(tend), 0]
+    tend, R = wp.zeros((3, m.N), dtype=f64), m.operators.as_rows
+    args = [
+        *map(R, (wp.array(x, dtype=f64), m.operators.D, m.operators.Dinv, m.operators.metdet, m.fcor, forcing)),
+        m.g,
+        m.operators.dvv_rows,
+        R(tend),
+        0,
+    ]
     wp.launch(tendencies.tendency_element(tendency_terms(m), m.grid.np), m.grid.nelem, args)
     return tend.numpy()
 

@@ -51,7 +51,7 @@ def numpy_split(sim, u, v, ut, vt):
 
     def rot_div(a, b):
         x = sim.model.new_state(a, b, np.zeros_like(a))
-        return sim.model.vorticity(x), sim.model.wind_divergence(x)
+        return sim.model.operators.vorticity(x), sim.model.operators.wind_divergence(x)
 
     (ze, de), (zt, dt) = rot_div(u - ut, v - vt), rot_div(ut, vt)
     n = math.sqrt(integral(sim.grid, zt**2 + dt**2))

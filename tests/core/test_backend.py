@@ -68,7 +68,7 @@ def test_a_model_takes_its_choices_from_its_backend():
     assert sim.topology.backend == Backend.of("cpu")
     assert isinstance(sim.stepper.fgmres.vectors, HostVectors)
     assert isinstance(sim.stepper.jacobian.passes, HostPasses)
-    assert sim.model.per_element and sim.check_every == CHECK_EVERY_STEPS == 64
+    assert sim.model.operators.per_element and sim.check_every == CHECK_EVERY_STEPS == 64
 
 
 @pytest.mark.parametrize("value", ["0", "two"])

@@ -77,15 +77,23 @@ def test_operators_bitwise_equal_to_one_thread(small_parts, threads, rng):
             assert all(isinstance(launch, parallel.SplitLaunch) for launch in m.launches.recorded(m.rhs_key(x, out)))
         m.hyperviscosity(x, 3600.0)
         grad, div = wp.zeros((2, m.N), dtype=wp.float64), wp.zeros((1, m.N), dtype=wp.float64)
-        m.gradient(x, 2, grad)
-        m.divergence(x, div)
+        m.operators.gradient(x, 2, grad)
+        m.operators.divergence(x, div)
         unique = wp.zeros(g.nunique, dtype=wp.float64)
-        m.assemble(x, 2, unique)
+        m.operators.assemble(x, 2, unique)
         back = wp.zeros((3, m.N), dtype=wp.float64)
-        m.scatter(unique, back, 1)
+        m.operators.scatter(unique, back, 1)
         bad = x.numpy().copy()  # numpy() is a view of a CPU array
         bad[1, [700, 800]] = np.nan  # the first bad node lies in the last part
-        res[n] = [out.numpy(), x.numpy(), grad.numpy(), div.numpy(), unique.numpy(), back.numpy(), m.vorticity(x)]
+        res[n] = [
+            out.numpy(),
+            x.numpy(),
+            grad.numpy(),
+            div.numpy(),
+            unique.numpy(),
+            back.numpy(),
+            m.operators.vorticity(x),
+        ]
         res[n].append(m.bad_nodes.first(wp.array(bad, dtype=wp.float64)))
     assert res[1][-1] == res[threads][-1] == 700
     names = ["rhs", "hyperviscosity", "gradient", "divergence", "assemble", "scatter", "vorticity"]

@@ -44,7 +44,7 @@ def _vorticity_error(grid, case_name, true_zeta):
     """Normalized l2 of the model's DSS'd vorticity of the case's exact wind at t = 0."""
     case, model = case_model(grid, case_name, TC2_TERMS)
     u, v, _ = case.initial(grid.lat, grid.lon)
-    zeta, zt = model.vorticity(model.new_state(u, v)), true_zeta(case, grid.lat)
+    zeta, zt = model.operators.vorticity(model.new_state(u, v)), true_zeta(case, grid.lat)
     return math.sqrt(grid.integrate((zeta - zt) ** 2) / grid.integrate(zt**2))
 
 

@@ -34,6 +34,7 @@ from swe_sphere.core.runtime import init_warp  # noqa: E402
 from swe_sphere.grid.cubed_sphere import CubedSphere  # noqa: E402
 from swe_sphere.grid.levels import element_levels, element_rates  # noqa: E402
 from swe_sphere.mesh.mesh import read_exodus  # noqa: E402
+from swe_sphere.model.shallow_water import ElementPart  # noqa: E402
 
 from meshes import case_model  # noqa: E402
 
@@ -63,7 +64,7 @@ def main() -> None:
         sets["levels >= 1 (lts's fast part)"] = levels.level >= 1
     for gap in args.gap:
         for name, chosen in sets.items():
-            part = model.element_part(np.flatnonzero(chosen), gap)
+            part = ElementPart.of(model.topology, np.flatnonzero(chosen), gap)
             buf = wp.zeros_like(x)
             label = f"{name}, gap {gap}: {len(part.runs)} ranges"
             calls[label] = (part.nelem, lambda p=part, b=buf: model.rhs_part(x, b, p))

@@ -47,7 +47,7 @@ def setting(name: str, ne: int, days: float, truncation: str):
     if not math.isclose(steps * scene.dt, days * DAY, rel_tol=1e-9):
         raise ValueError(f"{days:g} days is not a whole number of steps of {scene.dt:g} s")
     model, _, _ = scene_model(scene)
-    grid, hs = model.grid, model.hs.numpy()
+    grid, hs = model.grid, model.operators.hs.numpy()
     path = reference_path(scene.make_case(), truncation)
     if path is None:
         raise ValueError(f"no {truncation} reference for {name}")

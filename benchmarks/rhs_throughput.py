@@ -124,7 +124,7 @@ def build(ne, np_, threads, device, stepper=None, dt_factor=1.0, per_element=Non
     grid = CubedSphere(ne, np_)
     case = scene.make_case()
     model = ShallowWater.from_scene(scene, grid, case, device=device, threads=threads, per_element=per_element)
-    fcor, hs = model.fcor.numpy(), model.hs.numpy()
+    fcor, hs = model.operators.fcor.numpy(), model.operators.hs.numpy()
     u, v, h = case.initial(grid.lat, grid.lon)
     return grid, scene, (fcor, hs, np.stack([u, v, h])), model
 

@@ -100,7 +100,7 @@ def per_node_error(ne, np_):
         m.operators.D,
         m.operators.Dinv,
         m.operators.metdet,
-        m.fcor,
+        m.operators.fcor,
         m.topo_forcing,
         m.operators.dvv,
         np_,

@@ -92,5 +92,5 @@ def test_a_two_level_lts_step_graphed_on_cuda_is_the_bits_of_plain_launches(monk
     sim.graphs = True
     sim.run(None)
     np.testing.assert_array_equal(sim.x.numpy(), plain)
-    assert sim.model.graph_guard.failure is None, sim.model.graph_guard.failure
+    assert sim.model.launches.guard.failure is None, sim.model.launches.guard.failure
     assert replays[0] >= 12 - 3, replays[0]

@@ -164,3 +164,60 @@ def test_no_test_reads_the_package_private_names():
         if name not in TEST_PRIVATE_STRINGS
     ]
     assert not reaches, "\n".join(reaches)
+
+
+def model_reads(source: str) -> list[tuple[int, str]]:
+    """(line, member) of each attribute read on a model in ``source``: on the names ``model``
+    and ``m`` and on names bound to ``<something>.model``, and on ``<something>.model`` itself
+    (``self.model.rhs``)."""
+    tree = ast.parse(source)
+    names = {"model", "m"}
+    for node in ast.walk(tree):  # m = self.model, and m, topo = self.model, self.topology
+        if isinstance(node, ast.Assign):
+            for target in node.targets:
+                pairs = [(target, node.value)]
+                if isinstance(target, ast.Tuple) and isinstance(node.value, ast.Tuple):
+                    pairs = list(zip(target.elts, node.value.elts))
+                names.update(
+                    t.id
+                    for t, v in pairs
+                    if isinstance(t, ast.Name) and isinstance(v, ast.Attribute) and v.attr == "model"
+                )
+    return sorted(
+        (node.lineno, node.attr)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Attribute)
+        and (
+            (isinstance(node.value, ast.Name) and node.value.id in names)
+            or (isinstance(node.value, ast.Attribute) and node.value.attr == "model")
+        )
+    )
+
+
+def test_model_reads_are_found():
+    source = "m = self.model\nm.rhs(x)\nmodel.topology.N\nstepper.model.lincomb\nmine, t = sim.model, 1\nmine.g\n"
+    assert model_reads(source) == [(2, "rhs"), (3, "topology"), (4, "lincomb"), (6, "g")]
+
+
+def test_steppers_solvers_and_the_adjoint_ask_the_model_for_its_protocol_alone():
+    """Issue 82: steppers/, solvers/ and adjoint/ read only the members of ``model.protocol.
+    SteppingModel`` (15) of a model, and every one of them is a ``ShallowWater``'s."""
+    from swe_sphere.config.scene import load_scene
+    from swe_sphere.model.protocol import members
+
+    from helpers import make_sim
+
+    public = set(members())
+    assert len(public) == 15
+    files = [p for d in ("steppers", "solvers", "adjoint") for p in sorted((REPO / "swe_sphere" / d).glob("*.py"))]
+    assert len(files) >= 30
+    model = make_sim(load_scene("galewsky", ne=2, np_=4)).model  # every term but the forcing
+    instance = {name for name in dir(model) if not name.startswith("_")}
+    assert public <= instance
+    outside = [
+        f"{path.relative_to(REPO)}:{line}: model.{name}"
+        for path in files
+        for line, name in model_reads(path.read_text())
+        if name in instance and name not in public
+    ]
+    assert not outside, "\n".join(outside)

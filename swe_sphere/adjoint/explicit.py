@@ -58,7 +58,7 @@ HELD_DTS = 8
 def refusal(model: ShallowWater, dt: float) -> str | None:
     """Why the adjoint cannot serve ``model`` at step dt (None: it can)."""
     if model.hv is not None:
-        if model.nu_div != model.nu and model.nu == 0:
+        if model.hv.nu_div != model.hv.nu and model.hv.nu == 0:
             return "nu_div != nu with nu = 0 has no adjoint yet (its ∇δ term's transpose reads the ν-scaled pass)"
     return None
 
@@ -108,7 +108,7 @@ class StepAdjoint:
         if why is not None:
             raise ArgumentError(why)
         self.model, self.dt, self.parameters, self.t0 = model, float(dt), bool(parameters), float(t0)
-        m, N, device = model, model.N, model.device
+        m, N, device = model, model.topology.N, model.topology.device
         self._held: dict[float, dict] = {}  # another Δt's records (``set_dt``)
 
         def zeros(rows):
@@ -117,7 +117,7 @@ class StepAdjoint:
         self.terms = tuple(t for t in tendencies.TENDENCY_TERMS if t in m.terms)
         self.xbar = zeros(3)
         self.fbar = zeros(2)  # Σ λ's wind rows: the adjoint of the forcing −g∇hs
-        self.spheremp = wp.array(m.grid.spheremp, dtype=f64, device=device)
+        self.spheremp = wp.array(m.topology.grid.spheremp, dtype=f64, device=device)
         self.Ybar: list = []  # the buffers of the Ȳ_j an earlier stage's k̄ reads (``_record``)
         self.d_nu = np.zeros(2)  # ∂J/∂ν (wind rows), ∂J/∂ν_s (h row), m⁻⁴ s · J
         self.d_planet = np.zeros(2)  # g ∂J/∂g, Ω ∂J/∂Ω (J): the stages' ⟨k̄_i, F's g and Ω terms⟩
@@ -246,15 +246,15 @@ class StepAdjoint:
         swapped for zeros, as ``biharmonic_radius`` does). With ν_div ≠ ν the transpose is the
         operator's at ν_div = ν plus its ∇δ term's (``_divergent_transpose``)."""
         m = self.model
-        divergent = transposed and m.nu_div != m.nu
+        divergent = transposed and m.hv.nu_div != m.hv.nu
         launches = self._hv.get((x.ptr, transposed))
         if launches is None:
-            hs, m.hs = m.hs, self.zero_hs
-            nus = (m.nu, m.nu, m.nu_s) if divergent else None
+            hs, m.operators.hs = m.operators.hs, self.zero_hs
+            nus = (m.hv.nu, m.hv.nu, m.hv.nu_s) if divergent else None
             try:
                 launches = self._hv[x.ptr, transposed] = m.hv.build(x, self._coef, nus=nus, transposed=transposed)
             finally:
-                m.hs = hs
+                m.operators.hs = hs
         for launch in launches:
             launch.launch()
         if divergent:
@@ -274,9 +274,11 @@ class StepAdjoint:
         if not hasattr(self, "kd"):
             self.kd, self.dss_out = self._zeros(3), self._zeros(3)
             self.unit_depth = wp.array(
-                np.stack([np.zeros(m.N), np.zeros(m.N), np.ones(m.N)]), dtype=f64, device=m.device
+                np.stack([np.zeros(m.topology.N), np.zeros(m.topology.N), np.ones(m.topology.N)]),
+                dtype=f64,
+                device=m.topology.device,
             )
-            self.frame = m.operators.east.numpy() / m.nu, m.operators.north.numpy() / m.nu  # Pᵀ, and Y₁ = ν Π Z
+            self.frame = m.operators.east.numpy() / m.hv.nu, m.operators.north.numpy() / m.hv.nu  # Pᵀ, and Y₁ = ν Π Z
         launches = self._divergent.get(x.ptr)
         if launches is None:
             H, U = slice(2, 3), slice(0, 2)
@@ -286,7 +288,7 @@ class StepAdjoint:
                 m.lincomb(self.kd[H], [(-1.0 / m.g, self.dss_out[H])]),  # s = RQ Gᵀ(W Pᵀ Z)
                 *self._transpose(self.unit_depth, [(1.0, self.kd)], ("continuity",)),
                 *topo.dss(self.xbar, False, self.dss_out),  # −RQ Dᵀ(W s)
-                m.lincomb(x[U], [(1.0, x[U]), (-coef * (m.nu_div - m.nu), self.dss_out[U])]),
+                m.lincomb(x[U], [(1.0, x[U]), (-coef * (m.hv.nu_div - m.hv.nu), self.dss_out[U])]),
             ]
         Y = m.hv.hv_Y.numpy()[:3]
         east, north = self.frame
@@ -310,9 +312,9 @@ class StepAdjoint:
             return
         m = self.model
         self.before_hyperviscosity(self.phi)
-        self.combine(self.phi[2:3], [(1.0, self.phi[2:3]), (1.0, m.hs.reshape((1, m.N)))])  # Φ + hs
+        self.combine(self.phi[2:3], [(1.0, self.phi[2:3]), (1.0, m.operators.hs.reshape((1, m.topology.N)))])  # Φ + hs
         self.combine(self.d_hs, [(1.0, self.d_hs), (-1.0, mu[2:3])])
-        if m.nu_div != m.nu:  # L and ∂L/∂ν do not commute: the substeps' terms one by one
+        if m.hv.nu_div != m.hv.nu:  # L and ∂L/∂ν do not commute: the substeps' terms one by one
             self._divergent_parameters(mu)
             self.combine(self.d_hs, [(1.0, self.d_hs), (1.0, mu[2:3])])
             return
@@ -321,9 +323,11 @@ class StepAdjoint:
         self.combine(self.delta, [(1.0, self.delta), (-1.0, self.phi)])  # Δ₀
         for _ in range(self.substeps - 1):
             h(mu)
-        w = m.topology.whole_sums(m.grid.spheremp * mu.numpy() * self.delta.numpy())  # the same bits on any ranks
+        w = m.topology.whole_sums(
+            m.topology.grid.spheremp * mu.numpy() * self.delta.numpy()
+        )  # the same bits on any ranks
         rows = np.array([w[0] + w[1], w[2]]) * self.substeps
-        self.d_nu += np.divide(rows, [m.nu, m.nu_s], out=np.zeros(2), where=np.array([m.nu, m.nu_s]) > 0)
+        self.d_nu += np.divide(rows, [m.hv.nu, m.hv.nu_s], out=np.zeros(2), where=np.array([m.hv.nu, m.hv.nu_s]) > 0)
         h(mu)
         self.combine(self.d_hs, [(1.0, self.d_hs), (1.0, mu[2:3])])
 
@@ -353,7 +357,7 @@ class StepAdjoint:
             for j in range(1, s + 1):
                 d = self.rkl_deltas[j - 1]
                 self.combine(d, [(1.0, last)])
-                self.combine(d[2:3], [(1.0, d[2:3]), (1.0, m.hs.reshape((1, m.N)))])  # Y_(j−1) + hs
+                self.combine(d[2:3], [(1.0, d[2:3]), (1.0, m.operators.hs.reshape((1, m.topology.N)))])  # Y_(j−1) + hs
                 self.combine(t, [(1.0, d)])
                 self.substep(d)
                 self.combine(d, [(1.0, d), (-1.0, t)])  # Δ_j
@@ -373,7 +377,7 @@ class StepAdjoint:
             self.substep(t, transposed=True)
             weight = (2.0 * j - 1.0) / j  # μ_j (1 for j = 1)
             if self.parameters:
-                w = m.topology.whole_sums(m.grid.spheremp * cur.numpy() * self.rkl_units[j - 1].numpy())
+                w = m.topology.whole_sums(m.topology.grid.spheremp * cur.numpy() * self.rkl_units[j - 1].numpy())
                 self.d_nu += weight * np.array([w[0] + w[1], w[2]])
                 self.combine(self.d_hs, [(1.0, self.d_hs), (weight, t[2:3]), (-weight, cur[2:3])])
             if j == 1:
@@ -390,14 +394,14 @@ class StepAdjoint:
         m, out = self.model, self.rkl_units[j - 1]
         launches = self._rkl_unit.get(j)
         if launches is None:
-            hs, m.hs = m.hs, self.zero_hs
+            hs, m.operators.hs = m.operators.hs, self.zero_hs
             try:
                 launches = self._rkl_unit[j] = [
                     m.lincomb(out, [(0.0, out)]),
                     *m.hv.build(y, self._coef, out=out, nus=(1.0, 1.0, 1.0)),
                 ]
             finally:
-                m.hs = hs
+                m.operators.hs = hs
         for launch in launches:
             launch.launch()
 
@@ -412,11 +416,11 @@ class StepAdjoint:
             self.hv_states += [self._zeros(3) for _ in range(S - len(self.hv_states))]
             if not hasattr(self, "hv_unit"):
                 self.hv_unit = self._zeros(3)
-            hs, m.hs = m.hs, self.zero_hs
+            hs, m.operators.hs = m.operators.hs, self.zero_hs
             try:  # c B₁ y_k into hv_unit, recorded once per k (y_k holds hs: the model's is zero)
                 self._hv_unit = [m.hv.build(y, c, out=self.hv_unit, nus=(1.0, 1.0, 1.0)) for y in self.hv_states[:S]]
             finally:
-                m.hs = hs
+                m.operators.hs = hs
         wp.copy(self.hv_states[0], self.phi)
         for k in range(1, S):
             wp.copy(self.hv_states[k], self.hv_states[k - 1])
@@ -425,7 +429,7 @@ class StepAdjoint:
             self.hv_unit.zero_()
             for launch in self._hv_unit[k]:
                 launch.launch()
-            w = m.topology.whole_sums(m.grid.spheremp * mu.numpy() * self.hv_unit.numpy())
+            w = m.topology.whole_sums(m.topology.grid.spheremp * mu.numpy() * self.hv_unit.numpy())
             self.d_nu += [w[0] + w[1], w[2]]
             self.substep(mu, transposed=True)
 
@@ -436,19 +440,19 @@ class StepAdjoint:
     def hs_gradient(self) -> np.ndarray:
         """∂J/∂hs (N,) on this rank's nodes, continuous (mass form, as μ), summed over the steps reversed so far:
         the ∇⁴'s share and the forcing's, R Q of the pressure gradient's transpose of f̄."""
-        m, N = self.model, self.model.N
+        m, N = self.model, self.model.topology.N
         out = self.d_hs.numpy()[0]
         if not self.terms or "topography" not in m.terms:
             return out
-        kbar = wp.array(np.concatenate([self.fbar.numpy(), np.zeros((1, N))]), dtype=f64, device=m.device)
-        ones, xbar, d = wp.ones(N, dtype=f64, device=m.device), wp.zeros_like(kbar), wp.zeros_like(kbar)
+        kbar = wp.array(np.concatenate([self.fbar.numpy(), np.zeros((1, N))]), dtype=f64, device=m.topology.device)
+        ones, xbar, d = wp.ones(N, dtype=f64, device=m.topology.device), wp.zeros_like(kbar), wp.zeros_like(kbar)
         adj = self._zeros(5)
         point = [
             kbar,
             m.operators.D,
             m.operators.Dinv,
             m.operators.metdet,
-            m.fcor,
+            m.operators.fcor,
             ones,
             m.operators.dvv,
             kbar,
@@ -457,9 +461,9 @@ class StepAdjoint:
             self.fbar,
         ]
         terms = ("pressure_gradient",)  # the forcing is −g∇hs: the pressure gradient of hs
-        wp.launch(tendency_adjoint.point(terms, m.grid.np), N, [*point, 0], device=m.device)
+        wp.launch(tendency_adjoint.point(terms, m.topology.grid.np), N, [*point, 0], device=m.topology.device)
         gather = [kbar, m.operators.D, m.operators.Dinv, m.operators.metdet, m.operators.dvv, m.g, adj, xbar]
-        wp.launch(tendency_adjoint.gather(terms, m.grid.np), N, [*gather, 0], device=m.device)
+        wp.launch(tendency_adjoint.gather(terms, m.topology.grid.np), N, [*gather, 0], device=m.topology.device)
         for launch in m.topology.dss(xbar, False, d):
             launch.launch()
         return out + d.numpy()[2]
@@ -483,9 +487,9 @@ class StepAdjoint:
         if m.operators.per_element:
             R, (c, k) = m.operators.as_rows, zip(*kbar)
             c, k = [*c, *(0.0,) * (3 - len(c))], [*k, *(k[0],) * (3 - len(k))]
-            kernel = tendency_adjoint.element(terms, m.grid.np, len(kbar))
+            kernel = tendency_adjoint.element(terms, m.topology.grid.np, len(kbar))
             args = [
-                *map(R, (Y, m.operators.D, m.operators.Dinv, m.operators.metdet, m.fcor, self.spheremp)),
+                *map(R, (Y, m.operators.D, m.operators.Dinv, m.operators.metdet, m.operators.fcor, self.spheremp)),
                 m.g,
                 m.operators.dvv_rows,
                 wp.vec3d(*c),
@@ -499,7 +503,7 @@ class StepAdjoint:
             m.operators.D,
             m.operators.Dinv,
             m.operators.metdet,
-            m.fcor,
+            m.operators.fcor,
             self.spheremp,
             m.operators.dvv,
             kbar[0][1],
@@ -508,8 +512,11 @@ class StepAdjoint:
             self.fbar,
         ]
         gather = [Y, m.operators.D, m.operators.Dinv, m.operators.metdet, m.operators.dvv, m.g, self.adj, self.xbar]
-        kernels = (tendency_adjoint.point(terms, m.grid.np), point), (tendency_adjoint.gather(terms, m.grid.np), gather)
-        return [*launches, *(m.launches.nodes(k, m.N, a, elements=r) for r in ranges for k, a in kernels)]
+        kernels = (
+            (tendency_adjoint.point(terms, m.topology.grid.np), point),
+            (tendency_adjoint.gather(terms, m.topology.grid.np), gather),
+        )
+        return [*launches, *(m.launches.nodes(k, m.topology.N, a, elements=r) for r in ranges for k, a in kernels)]
 
     def _record(self, mu) -> list:
         """The launches of the stages' transposes, last stage first, as (Y_i, k̄_i's terms, its
@@ -555,7 +562,7 @@ class StepAdjoint:
         ``part`` (an ``ElementPart``: F the part's f_P) both by ``rhs_part``."""
         m = self.model
         g_terms = self.g_terms if g_terms is None else tuple(t for t in g_terms if t in m.terms)
-        kb, w, y = sum(c * a.numpy() for c, a in kbar), m.grid.spheremp, Y.numpy()
+        kb, w, y = sum(c * a.numpy() for c, a in kbar), m.topology.grid.spheremp, Y.numpy()
         if not hasattr(self, "f_g"):
             self.f_g = self._zeros(3)
 
@@ -570,7 +577,7 @@ class StepAdjoint:
 
         pressure = winds(g_terms) if g_terms else np.zeros_like(w)
         if not hasattr(self, "fcor"):
-            self.fcor = m.fcor.numpy() if "coriolis" in m.terms else np.zeros_like(w)
+            self.fcor = m.operators.fcor.numpy() if "coriolis" in m.terms else np.zeros_like(w)
         if not coriolis or "coriolis" not in m.terms:
             rotation = np.zeros_like(w)
         elif part is None:

@@ -378,7 +378,7 @@ def gradient(
             raise ArgumentError(why)
     topo = model.topology
     x0 = initial if x0 is None else _distributed(topo, x0, 3, "x0")
-    work = wp.array(x0, dtype=f64, device=model.device)  # the stepper steps this array only
+    work = wp.array(x0, dtype=f64, device=model.topology.device)  # the stepper steps this array only
     stepper.prepare(work)  # from x(0): lts fixes its levels by its flow
     adjoint = step_adjoint(model, stepper, parameters)
     interval = snapshots if disk_interval is None else int(disk_interval)
@@ -450,7 +450,7 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
     stepper that carries arrays from step to step (``StepAdjoint.carried``: leapfrog's x̃(k−1),
     MRAB3's histories) has them in its states' and adjoints' rows after x's, the cost reading
     rows 0–2."""
-    device, rows = model.device, 3 * (1 + len(adjoint.carried(stepper)))
+    device, rows = model.topology.device, 3 * (1 + len(adjoint.carried(stepper)))
     X = slice(0, 3)
 
     def carried(x):  # (the stepper's array, the state's rows) pairs, in ``carried``'s order now
@@ -473,12 +473,12 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
     def copy(state):
         return _At(wp.clone(state.x), state.k)
 
-    mu = wp.zeros((rows, model.N), dtype=f64, device=device)
+    mu = wp.zeros((rows, model.topology.N), dtype=f64, device=device)
     found, observed = {"costs": {}}, set(cost.at_steps)
-    lam = wp.zeros((3, model.N), dtype=f64, device=device)
+    lam = wp.zeros((3, model.topology.N), dtype=f64, device=device)
     add = model.topology.dss_update(lam, [(mu[X], ((1.0, mu[X]), (1.0, None)))], weighted=False)  # μ += R Q λ
     topo = model.topology
-    spheremp = topo.gather(model.grid.spheremp)  # the whole grid's on rank 0 (None elsewhere)
+    spheremp = topo.gather(model.topology.grid.spheremp)  # the whole grid's on rank 0 (None elsewhere)
 
     def observe(x, k):  # J_k at x(k) into found, λ_k into ``lam``: the cost on rank 0, the whole grid
         whole = topo.gather(np.array(x.numpy()[X]))
@@ -505,13 +505,13 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
             for launch in add:
                 launch.launch()
 
-    start = np.zeros((rows, model.N))
+    start = np.zeros((rows, model.topology.N))
     start[X] = work.numpy()  # x̃(−1) is not read: the three-level schemes' first step is a midpoint step
     x, used = _At(wp.array(start, dtype=f64, device=device), 0), 0
     if disk is None:
         taken = 1 + sweep(steps, snapshots, x, advance, reverse, copy)
     else:
-        with DiskTier(disk, (rows, model.N), device) as tier:
+        with DiskTier(disk, (rows, model.topology.N), device) as tier:
             indexed = _IndexedTier(tier, interval)
             taken = two_level(steps, snapshots, interval, x, advance, reverse, copy, indexed, finish)
             used = tier.bytes

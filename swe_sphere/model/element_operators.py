@@ -5,7 +5,7 @@ tendency (``ShallowWater.rhs``): the gradient G = DSS∘grad and the divergence 
 gravity-wave operator and the Helmholtz solves (``model.gravity_wave``, ``solvers.helmholtz``),
 written into updates as their DSS makes them; the unique-node assembly and scatter; the
 vorticity and divergence the diagnostics report; and the arrays the element kernels take: the
-metric terms D, D⁻¹ and metdet (HOMME's ``D``, ``Dinv``, ``metdet``), the derivative matrix
+metric terms D, D⁻¹ and metdet (HOMME's ``D``, ``Dinv``, ``metdet``), ``fcor`` and ``hs``, the derivative matrix
 ``dvv`` (and as the per-element kernels' rows, ``dvv_rows``), the unit vectors ``east``,
 ``north`` and positions ``xyz`` at the nodes, and work arrays. Every launch is recorded once a
 pair of arrays in the model's ``LaunchRecorder`` and replayed (HOMME's ``derivative_mod``
@@ -32,10 +32,11 @@ class ElementOperators:
 
     Arrays (device, element-local, N the grid's nodes): ``D``, ``Dinv`` (N, 2, 2; m and m⁻¹ per
     reference unit), ``metdet`` (N,), ``dvv`` (np, np), ``dvv_rows`` (the per-element kernels'
-    ``dvv`` argument), ``xyz``, ``east``, ``north`` (N, 3; unit sphere), and the work arrays
+    ``dvv`` argument), ``xyz``, ``east``, ``north`` (N, 3; unit sphere), the case's Coriolis
+    parameter ``fcor`` (N,; s⁻¹) and surface height ``hs`` (N,; m), and the work arrays
     ``scalar`` (1, N), ``scalar_dss`` (1, N) and ``vec_work`` (2, N)."""
 
-    def __init__(self, grid, topology, launches, per_element: bool, device: str):
+    def __init__(self, grid, topology, launches, per_element: bool, device: str, fcor, hs):
         def up(a):
             return wp.array(np.ascontiguousarray(a), dtype=f64, device=device)
 
@@ -44,6 +45,7 @@ class ElementOperators:
         self.D, self.Dinv, self.metdet, self.dvv = up(grid.D), up(grid.Dinv), up(grid.metdet), up(grid.rule.dvv)
         self.dvv_rows = operators.dvv_matrix(grid.rule.dvv)
         self.xyz, self.east, self.north = up(grid.xyz), up(grid.east), up(grid.north)
+        self.fcor, self.hs = up(fcor), up(hs)
         self.scalar = wp.zeros((1, N), dtype=f64, device=device)
         self.scalar_dss = wp.zeros((1, N), dtype=f64, device=device)
         self.scalar_flat = self.scalar.flatten()

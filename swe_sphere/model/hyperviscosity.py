@@ -89,7 +89,7 @@ class Hyperviscosity:
                 frame = self._frame(*() if second else names, rows=True)
                 metric = self.hv_tensor if self.hv_tensor is not None and second != swap else self.hv_metric
                 args = [
-                    m.operators.as_rows(m.hs),
+                    m.operators.as_rows(m.operators.hs),
                     m.operators.as_rows(delta),
                     c,
                     frame,
@@ -116,7 +116,9 @@ class Hyperviscosity:
                     if second
                     else [
                         m.launches.nodes(
-                            hyperviscosity.to_cartesian, N, [x, m.hs, m.operators.east, m.operators.north, src]
+                            hyperviscosity.to_cartesian,
+                            N,
+                            [x, m.operators.hs, m.operators.east, m.operators.north, src],
                         )
                     ]
                 )
@@ -224,9 +226,9 @@ class Hyperviscosity:
             for launch in m.topology.dss(z, 1, zc):
                 launch.launch()
             lam = 0.0
-            hs, m.hs = m.hs, wp.zeros_like(m.hs)  # the operator without the hs offset
+            hs, m.operators.hs = m.operators.hs, wp.zeros_like(m.operators.hs)  # the operator without the hs offset
             launches = self.build(zc, 1.0, w, nus=(1.0, 1.0, 1.0))
-            m.hs = hs
+            m.operators.hs = hs
             for _ in range(iterations):
                 zc.assign(zc.numpy() / m.topology.norm(zc))
                 w.zero_()
@@ -236,6 +238,21 @@ class Hyperviscosity:
                 wp.copy(zc, w)
             self._biharmonic_radius = lam
         return self._biharmonic_radius
+
+    @property
+    def nu(self) -> float:
+        """ν (m⁴ s⁻¹), the rotational wind's coefficient: the model's (``ShallowWater``'s ``nu``)."""
+        return self.model.nu
+
+    @property
+    def nu_div(self) -> float:
+        """ν_div (m⁴ s⁻¹), the divergent wind's: the model's."""
+        return self.model.nu_div
+
+    @property
+    def nu_s(self) -> float:
+        """ν_s (m⁴ s⁻¹), the free surface h + hs's: the model's."""
+        return self.model.nu_s
 
     @property
     def nu_max(self) -> float:

@@ -16,6 +16,7 @@ from typing import NamedTuple
 import warp as wp
 
 from ..core.backend import Backend
+from ..core.graphs import GraphGuard
 from ..core.parallel import record
 from ..kernels import blas
 
@@ -108,6 +109,9 @@ class LaunchRecorder:
         self.nnodes, self.nunique, self.per_element = nnodes, nunique, bool(per_element)
         self._recorded: dict[tuple, tuple] = {}
         self._pointwise: dict[tuple, object] = {}
+        # whether what launches through it may capture graphs (the solvers' loops, whole steps:
+        # ``core.graphs``); off for good on a failure
+        self.guard = GraphGuard()
 
     def record(self, kernel, dim, inputs, **kw):
         """``core.parallel.record`` on this device and threads (``block``, ``per_part``,

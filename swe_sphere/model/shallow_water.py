@@ -21,7 +21,6 @@ from ..core.arguments import array_argument, got, integer_argument, number_argum
 from ..core.backend import Backend, same_device
 from ..core.constants import EARTH
 from ..core.errors import ArgumentError
-from ..core.graphs import GraphGuard
 from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology
 from ..kernels import operators, tendencies
@@ -44,7 +43,7 @@ f64 = wp.float64
 
 
 class ElementPart(NamedTuple):
-    """Some of a model's elements (``ShallowWater.element_part``): ``runs`` the (start, stop)
+    """Some of a model's elements (``ElementPart.of``): ``runs`` the (start, stop)
     element ranges its kernels run over (its elements, and any others between them that a
     launch less is worth computing), ``nelem`` its elements, ``nodes`` (int32 device array)
     the element-local nodes whose unique node one of them touches (every copy), ``copies``
@@ -56,6 +55,26 @@ class ElementPart(NamedTuple):
     nodes: wp.array
     copies: object
     tend: wp.array2d
+
+    @classmethod
+    def of(cls, topology, elements, gap: int = 0, whole=None) -> ElementPart:
+        """The part of ``elements`` (indices of elements ``topology`` holds, ascending, distinct):
+        its tendency kernels run over ranges of consecutive elements that hold them, two
+        ranges merged where at most ``gap`` other elements lie between (computed, and left
+        out of the assembly: a launch's fixed cost against theirs); its DSS gathers its
+        own elements' copies alone (``Topology.part_copies``), with ``whole`` (nelem_total,)
+        bool, the part over the whole grid, those other ranks hold too (needed on several
+        ranks). ValueError for indices that are not ascending, distinct elements held;
+        ``gap`` < 0; several ranks without ``whole``."""
+        e = np.asarray(elements, dtype=np.int64)
+        nelem = topology.grid.nelem
+        if e.ndim != 1 or (e.size and (e[0] < 0 or e[-1] >= nelem or np.any(np.diff(e) <= 0))):
+            raise ValueError(f"part elements must be ascending distinct indices in 0..{nelem - 1}")
+        if isinstance(gap, bool) or int(gap) != gap or gap < 0:
+            raise ValueError(f"gap must be an integer >= 0 (got {gap})")
+        nodes, copies = topology.part_copies(e, whole)
+        tend = wp.zeros((3, topology.N), dtype=f64, device=topology.device)
+        return cls(element_runs(e, gap), int(e.size), nodes, copies, tend)
 
 
 def element_runs(elements, gap: int) -> list[tuple[int, int]]:
@@ -165,9 +184,6 @@ class ShallowWater:
             )
         terms = _checked_terms(terms, forcing)
         self.forcing = forcing if "forcing" in terms else None
-        self.graph_guard = (
-            GraphGuard()
-        )  # whether its solvers may capture graphs (``graphs``; off for good on a failure)
         self.time = 0.0  # s, the model time of the next RHS evaluation (``set_time``)
         self._forcing_launches = []  # every recorded forcing launch, whose t set_time sets
         nu_div = nu if nu_div is None else nu_div
@@ -188,11 +204,10 @@ class ShallowWater:
         self.N = N
         self.topology = topo = Topology(grid, self.backend, self.threads) if topology is None else topology
         self.spheremp = topo.spheremp
-        self.fcor, self.hs = (wp.array(np.ascontiguousarray(a), dtype=f64, device=device) for a in (fcor, hs))
 
         # every launch of the model and of what acts on its states, recorded once and replayed
         self.launches = LaunchRecorder(self.backend, self.threads, grid.np, N, topo.nunique, per_element)
-        self.operators = ops = ElementOperators(grid, topo, self.launches, per_element, device)
+        self.operators = ops = ElementOperators(grid, topo, self.launches, per_element, device, fcor, hs)
         self.tend = wp.zeros((3, N), dtype=f64, device=device)
         self.topo_forcing = None
         if "topography" in terms:
@@ -258,7 +273,7 @@ class ShallowWater:
         launches, ops = [], self.operators
         if terms:
             forcing = self.topo_forcing if self.topo_forcing is not None else ops.vec_work  # read only with topography
-            args = [x, ops.D, ops.Dinv, ops.metdet, self.fcor, forcing]
+            args = [x, ops.D, ops.Dinv, ops.metdet, ops.fcor, forcing]
             for run in runs:
                 if ops.per_element:
                     kernel = tendencies.tendency_element(terms, self.grid.np)
@@ -348,24 +363,6 @@ class ShallowWater:
         were, a momentum half its dh row). ValueError names a term the scene lacks."""
         key = self.rhs_key(x, out, terms)
         self.launches.replay(key, (x, out), lambda: self._build_rhs(x, out, key[1]))
-
-    def element_part(self, elements, gap: int = 0, whole=None) -> ElementPart:
-        """An ``ElementPart`` of ``elements`` (indices of elements held, ascending, distinct):
-        its tendency kernels run over ranges of consecutive elements that hold them, two
-        ranges merged where at most ``gap`` other elements lie between (computed, and left
-        out of the assembly: a launch's fixed cost against theirs); its DSS gathers its
-        own elements' copies alone (``Topology.part_copies``), with ``whole`` (nelem_total,)
-        bool, the part over the whole grid, those other ranks hold too (needed on several
-        ranks). ValueError for indices that are not ascending, distinct elements held;
-        ``gap`` < 0; several ranks without ``whole``."""
-        e = np.asarray(elements, dtype=np.int64)
-        if e.ndim != 1 or (e.size and (e[0] < 0 or e[-1] >= self.grid.nelem or np.any(np.diff(e) <= 0))):
-            raise ValueError(f"part elements must be ascending distinct indices in 0..{self.grid.nelem - 1}")
-        if isinstance(gap, bool) or int(gap) != gap or gap < 0:
-            raise ValueError(f"gap must be an integer >= 0 (got {gap})")
-        nodes, copies = self.topology.part_copies(e, whole)
-        tend = wp.zeros((3, self.N), dtype=f64, device=self.device)
-        return ElementPart(element_runs(e, gap), int(e.size), nodes, copies, tend)
 
     def rhs_part(self, x: wp.array2d, out: wp.array2d, part: ElementPart, terms: tuple | None = None) -> None:
         """out = f_P(x, t) = M⁻¹ DSS(the element-local tendency of ``part``'s elements

@@ -128,7 +128,7 @@ def build(scene: Scene, backend: Backend, progress: bool, comm, start, initial) 
     # the whole grid and fields for diagnostics and output: on rank 0 only (None elsewhere)
     grid = topo.whole_grid()
     model = ShallowWater.from_scene(scene, local, case, device=backend.device, topology=topo)
-    fcor, hs = model.fcor.numpy(), model.hs.numpy()  # the case's, as the model holds them
+    fcor, hs = model.operators.fcor.numpy(), model.operators.hs.numpy()  # the case's, as the model holds them
     whole_fcor, whole_hs = topo.gather(fcor), topo.gather(hs)
     stepper = scene_stepper(scene, model)
     scorer = Scorer(case, model, topo, grid, whole_hs, scene.reference_file)
@@ -149,7 +149,7 @@ def build(scene: Scene, backend: Backend, progress: bool, comm, start, initial) 
     x = model.new_state(*start)
     stepper.prepare(x)
     if not root:  # a fallback's warning once, from rank 0
-        model.graph_guard.warn = lambda line: None
+        model.launches.guard.warn = lambda line: None
     last_good = wp.clone(x)  # the state at the start of the block of steps in progress (``guard``)
     return Built(  # in the order of ``Built``'s fields
         case,

@@ -188,7 +188,7 @@ class Simulation:
                 "cpu_time": 0.0,
                 "iterations": {k: 0 for k in self.stepper.solvers},
             }
-        self._graphed = GraphedSteps(backend, self.model.graph_guard, graphs)
+        self._graphed = GraphedSteps(backend, self.model.launches.guard, graphs)
         self.setup_time = time.perf_counter() - t0
         if inputs:
             self.inputs = inputs

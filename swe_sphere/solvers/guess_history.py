@@ -52,7 +52,7 @@ class GuessHistory:
 
     def __init__(self, gw):
         """gw: the ``HelmholtzSolver`` whose CG (``cg``, ``y``, ``b``) and ``history_work`` it uses."""
-        cg, topo, dev, k = gw.cg, gw.model.topology, gw.model.device, gw.history
+        cg, topo, dev, k = gw.cg, gw.model.topology, gw.model.topology.device, gw.history
         self.topology, self.k = topo, k
         self.X = wp.zeros((k, topo.nunique), dtype=f64, device=dev)
         self.AX = wp.zeros((k, topo.nunique), dtype=f64, device=dev)

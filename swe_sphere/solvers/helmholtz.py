@@ -111,7 +111,7 @@ class HelmholtzSolver:
         self.model = model = operator.model
         self.tol, self.maxiter, self.warm = float(options.tol), int(options.maxiter), bool(warm)
         precision = options.precision
-        dev, N, nu = model.device, model.N, model.topology.nunique
+        dev, N, nu = model.topology.device, model.topology.N, model.topology.nunique
         self.Gh, self.Dv = wp.zeros((2, N), dtype=f64, device=dev), wp.zeros((1, N), dtype=f64, device=dev)
         self.b, self.y = wp.zeros(nu, dtype=f64, device=dev), wp.zeros(nu, dtype=f64, device=dev)
         self.stats = wp.zeros(
@@ -155,7 +155,7 @@ class HelmholtzSolver:
         self._graphs: dict[tuple, object] = {}
         self._uses: dict[tuple, int] = {}  # the calls of each graph key (``_run``)
         self._schur_launches: dict[tuple, tuple] = {}
-        self.graphable = not model.topology.distributed and model.topology.backend.solver_graphs(model.threads)
+        self.graphable = not model.topology.distributed and model.topology.backend.solver_graphs(model.launches.threads)
         # with ``history`` k > 0, the start of each solve: a GuessHistory per a (the basis is A's),
         # shared by a step's stages of one a (IMEX ARS's all): their span holds the last stage's
         # solution, today's warm start (TC5 ne8 ARS(3,4,3) @ 8 dt_g, CG iterations a solve:
@@ -209,7 +209,7 @@ class HelmholtzSolver:
                 s |= {f"helmholtz_history{n}_{m}": whole for m, whole in enumerate(h.whole())}
         if self.warm:  # whole-grid, gathered from every rank on rank 0 (call on all)
             topo = self.model.topology
-            guess = wp.zeros((3, self.model.N), dtype=f64, device=self.model.device)
+            guess = wp.zeros((3, self.model.topology.N), dtype=f64, device=self.model.topology.device)
             for launch in topo.scatter(self.y, guess, 2):
                 launch.launch()
             s["helmholtz_guess"] = topo.gather(guess.numpy())
@@ -317,12 +317,12 @@ class HelmholtzSolver:
         launches = self._schur_launches.get(key)
         if launches is None:
             m, topo, cg = self.model, self.model.topology, self.cg
-            rows, np_, halo, rec = m.operators.as_rows, m.grid.np, topo.owned.recv_buffer, m.launches.record
+            rows, np_, halo, rec = m.operators.as_rows, m.topology.grid.np, topo.owned.recv_buffer, m.launches.record
             elements = dict(nodes_per_index=np_**2)
             rhs = [
                 rec(
                     hk.helmholtz_rhs(np_),
-                    m.grid.nelem,
+                    m.topology.grid.nelem,
                     [
                         rows(r),
                         rows(cg.Dinv),
@@ -347,14 +347,14 @@ class HelmholtzSolver:
                 *topo.exchange(self.y.reshape((1, topo.nunique)), unique=True),
                 rec(
                     hk.helmholtz_gradient(np_),
-                    m.grid.nelem,
+                    m.topology.grid.nelem,
                     [self.y, halo, topo.gid, rows(cg.Dinv), rows(cg.spheremp), cg.dvv, rows(cg.wg)],
                     **elements,
                 ),
                 *topo.exchange(cg.wg),
                 rec(
                     hk.helmholtz_back_substitution(np_, topo.table.shape[1], implicit is not None),
-                    m.grid.nelem,
+                    m.topology.grid.nelem,
                     [
                         cg.wg,
                         topo.ghost,
@@ -447,7 +447,7 @@ class HelmholtzSolver:
     def _run(self, key: tuple, fn, *args) -> None:
         """fn(*args) as a graph captured on the second call per ``key`` (the launch
         parameters it bakes in; the first runs inline) and replayed after, where ``graphable`` and the model's
-        ``graph_guard`` allows (``graphs.captured``: a failure falls back with one line);
+        ``launches.guard`` allows (``graphs.captured``: a failure falls back with one line);
         inline while a caller captures and otherwise (the loops host loops testing the
         device flag)."""
         uses = self._uses[key] = self._uses.get(key, 0) + 1
@@ -457,7 +457,14 @@ class HelmholtzSolver:
         if not self.graphable or uses < 2 or (self._history is not None and self._history.fresh):
             fn(*args)
             return
-        captured(self._graphs, key, lambda: fn(*args), self.model.device, self.model.graph_guard, "the Helmholtz solve")
+        captured(
+            self._graphs,
+            key,
+            lambda: fn(*args),
+            self.model.topology.device,
+            self.model.launches.guard,
+            "the Helmholtz solve",
+        )
 
     def iterations(self) -> int:
         """The CG iterations of the solves since the last call (float32 ones counted alike),

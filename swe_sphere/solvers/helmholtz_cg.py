@@ -59,7 +59,7 @@ class HelmholtzCG:
     ``sums[2]``, b·b into ``sums[1]`` (refinement's)."""
 
     def __init__(self, model: ShallowWater, dtype=f64, b=None, y=None, stats=None):
-        topo, dev, N, nu = model.topology, model.device, model.N, model.topology.nunique
+        topo, dev, N, nu = model.topology, model.topology.device, model.topology.N, model.topology.nunique
         self.model, self.dtype = model, dtype
         z = lambda *shape: wp.zeros(shape, dtype=dtype, device=dev)  # noqa: E731
         self.b = z(nu) if b is None else b
@@ -74,7 +74,7 @@ class HelmholtzCG:
             cast(topo.spheremp[: topo.N]),
             cast(topo.rspheremp),
         )  # the local copies' masses (the ghosts' follow on a rank)
-        self.dvv = model.operators.dvv_rows if same else operators.dvv_matrix(model.grid.rule.dvv, dtype)
+        self.dvv = model.operators.dvv_rows if same else operators.dvv_matrix(model.topology.grid.rule.dvv, dtype)
         self.minv = wp.array(1.0 / topo.area, dtype=dtype, device=dev)
         self.area, self.ones = wp.array(topo.area, dtype=dtype, device=dev), wp.ones(nu, dtype=dtype, device=dev)
         self.chunk = chunk = topo.backend.reduction_chunk(nu)
@@ -125,8 +125,8 @@ class HelmholtzCG:
             halo = topo.owned.recv_buffer
             y2 = y.reshape((1, topo.nunique))
             div = self.model.launches.record(
-                hk.helmholtz_divergence(m.grid.np, topo.table.shape[1], dt),
-                m.grid.nelem,
+                hk.helmholtz_divergence(m.topology.grid.np, topo.table.shape[1], dt),
+                m.topology.grid.nelem,
                 [
                     self.wg,
                     topo.ghost,
@@ -143,11 +143,11 @@ class HelmholtzCG:
                     dt(0.0),
                     self.model.operators.as_rows(self.z),
                 ],
-                nodes_per_index=m.grid.np**2,
+                nodes_per_index=m.topology.grid.np**2,
             )
             grad = self.model.launches.record(
-                hk.helmholtz_gradient(m.grid.np, dt),
-                m.grid.nelem,
+                hk.helmholtz_gradient(m.topology.grid.np, dt),
+                m.topology.grid.nelem,
                 [
                     y,
                     halo,
@@ -157,7 +157,7 @@ class HelmholtzCG:
                     self.dvv,
                     self.model.operators.as_rows(self.wg),
                 ],
-                nodes_per_index=m.grid.np**2,
+                nodes_per_index=m.topology.grid.np**2,
             )
             assemble = self.model.launches.record(
                 hk.helmholtz_assemble(topo.table.shape[1], dt),

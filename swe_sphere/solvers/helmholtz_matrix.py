@@ -30,11 +30,11 @@ def element_gradient(model: ShallowWater) -> tuple[sp.csr_matrix, sp.csr_matrix]
     """
     import scipy.sparse as sp  # here, as in helmholtz_matrix: a run needs no sparse matrix
 
-    grid, N = model.grid, model.N
+    grid, N = model.topology.grid, model.topology.N
     npp = grid.np**2
     base = np.arange(grid.nelem) * npp
-    x = wp.zeros((3, N), dtype=f64, device=model.device)
-    G2 = wp.zeros((2, N), dtype=f64, device=model.device)
+    x = wp.zeros((3, N), dtype=f64, device=model.topology.device)
+    G2 = wp.zeros((2, N), dtype=f64, device=model.topology.device)
     nodes = np.arange(N)  # element-major: the rows of element e are e·np² … (e+1)·np² − 1
     rows, cols, vals = [], [], []
     unit = np.zeros((3, N))
@@ -63,12 +63,12 @@ def helmholtz_matrix(model: ShallowWater) -> sp.csr_matrix:
     # the tests and benchmarks assemble K
     import scipy.sparse as sp
 
-    grid, N = model.grid, model.N
+    grid, N = model.topology.grid, model.topology.N
     npp = grid.np**2
     base = np.arange(grid.nelem) * npp
     G_hat, P = element_gradient(model)
-    x = wp.zeros((3, N), dtype=f64, device=model.device)
-    D1 = wp.zeros((1, N), dtype=f64, device=model.device)
+    x = wp.zeros((3, N), dtype=f64, device=model.topology.device)
+    D1 = wp.zeros((1, N), dtype=f64, device=model.topology.device)
     nodes = np.arange(N)
     drow, dcol, dval = [], [], []
     unit = np.zeros((3, N))

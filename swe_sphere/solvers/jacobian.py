@@ -49,7 +49,7 @@ class KernelPasses:
 
     def __init__(self, model):
         self.model, self.topology = model, model.topology
-        dev, n = model.device, 3 * model.topology.nunique
+        dev, n = model.topology.device, 3 * model.topology.nunique
         self._chunk = chunk = model.topology.backend.reduction_chunk(n)
         self._partial = wp.zeros((1, (n + chunk - 1) // chunk), dtype=f64, device=dev)
         self.xx, self.ww, self.eps = (wp.zeros(k, dtype=f64, device=dev) for k in (1, 1, 2))  # ‖x‖², ‖w‖², (ε, scale/ε)
@@ -116,7 +116,7 @@ class HostPasses:
 
     def __init__(self, model):
         self.topology = topo = model.topology
-        nu, N, nh = topo.nunique, model.N, topo.owned.size
+        nu, N, nh = topo.nunique, model.topology.N, topo.owned.size
         rows = np.arange(3)[:, None]
         # the flat (3, N) index of each unique-node vector entry: row r of node g at r·nunique + g
         self.first3 = (rows * N + topo.first.numpy()[None, :]).ravel().astype(np.intp)
@@ -201,8 +201,8 @@ class FiniteDifferenceJacobian:
         self.model, self.F = model, F
         self.topology = model.topology
         self.nu = self.topology.nunique
-        self.xp = wp.zeros((3, model.N), dtype=f64, device=model.device)  # x + εw
-        self.Fp = wp.zeros((3, model.N), dtype=f64, device=model.device)  # F(x + εw)
+        self.xp = wp.zeros((3, model.topology.N), dtype=f64, device=model.topology.device)  # x + εw
+        self.Fp = wp.zeros((3, model.topology.N), dtype=f64, device=model.topology.device)  # F(x + εw)
         self.passes = (passes or self.topology.backend.choose(HostPasses, KernelPasses))(model)
 
     def norm(self, a) -> float:

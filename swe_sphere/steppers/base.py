@@ -56,14 +56,13 @@ class Stepper:
     ``advective_courant_limit``; those whose step can run as a captured graph
     set ``capturable`` (``graph_key``).
 
-    What a stepper needs of the model, the narrow surface it should keep to: the tendency of a
-    state (``rhs``, with ``terms`` for a part of it; ``set_time`` for a forced one); the linear
-    gravity-wave operator (``model.gravity_wave.GravityWaveOperator``, and behind it the
-    Helmholtz solve, ``solvers.helmholtz``); the ∇⁴ step (``hyperviscosity``); new states
-    (``new_state``); and linear combinations of states (``lincomb``). Steppers and solvers still
-    reach further (``topology``, ``grid``, ``launches``, ``as_rows``, ``N``, ``device``,
-    ``rhs_update`` with ``Update`` lists, ``rhs_part``, ``element_part``, ``gradient_update``,
-    ``divergence_update``, ``dvv_rows``, ``vec_work``…): what is to move behind this list.
+    What a stepper may ask of the model is ``model.protocol.SteppingModel``: the tendency
+    (``rhs``, ``rhs_update``, ``rhs_part``, ``set_time``), the ∇⁴ (``hyperviscosity``, ``hv``),
+    states (``new_state``, ``lincomb``, ``pointwise``, ``bad_nodes``), the operators beside the
+    tendency (``operators``: the gravity-wave operator's G and D, as
+    ``model.gravity_wave.GravityWaveOperator`` and the Helmholtz solves use them) and where it
+    runs (``topology``, ``launches``, ``terms``, ``g``); ``tests/test_layers.py`` holds steppers,
+    solvers and the adjoint to it.
     """
 
     name = ""
@@ -132,7 +131,7 @@ class Stepper:
         if not isinstance(options, self.Options):
             raise TypeError(f"{self.name} options must be {self.Options.__name__} (got {type(options).__name__})")
         self.model, self.dt, self.options = model, float(dt), options
-        self.N = model.N
+        self.N = model.topology.N
         self.steps = 0  # steps taken since the initial state
         self.t0 = 0.0  # s, the model time of that state (a branched run's start; ``Simulation`` sets it)
 
@@ -286,7 +285,7 @@ class Stepper:
         cannot be captured, because the stepper is not ``capturable`` or the model has a
         time-dependent forcing (its time, ``_at``, is a launch argument a graph would freeze;
         kept on the host, as a device scalar would need a launch per stage to set)."""
-        return ("step", self.dt) if self.capturable and self.model.forcing is None else None  # Δt: ``set_dt``
+        return ("step", self.dt) if self.capturable and "forcing" not in self.model.terms else None  # Δt: ``set_dt``
 
     def graph_family(self):
         """``graph_key`` without Δt where the steps at any Δt take the same kinds of work,
@@ -309,7 +308,7 @@ class Stepper:
         self.model.set_time(self.t0 + (self.steps + c) * self.dt)
 
     def _buffer(self):
-        return wp.zeros((3, self.N), dtype=f64, device=self.model.device)
+        return wp.zeros((3, self.N), dtype=f64, device=self.model.topology.device)
 
     def _lincomb(self, out, *terms):
         """``model.lincomb``: the recorded launch of out = Σ c·x over (c, x) terms."""

@@ -92,10 +92,10 @@ class _Exponential(Stepper):
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
         o = self.options
-        dev, N = model.device, self.N
+        dev, N = model.topology.device, self.N
         self.topology = topo = model.topology
         n3 = 3 * topo.nunique
-        self.forced = model.forcing is not None
+        self.forced = "forcing" in model.terms
         self.p = 2 if self.multistep or self.forced else 1  # φ₂ carries R(x(n−1)) and Δt ∂F/∂t
         self.jacobian = FiniteDifferenceJacobian(model, self._F)
         self.kiops = Kiops(n3, self.p, o.m_max, topo, o.iop)

@@ -143,7 +143,7 @@ class Implicit(Stepper):
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
         o = self.o = dataclasses.asdict(self.options)
-        dev, N = model.device, self.N
+        dev, N = model.topology.device, self.N
         self.helmholtz = None
         if o["preconditioner"] == "helmholtz":  # a loose solve from zero each time
             solve = HelmholtzOptions(o["helmholtz_tol"], 1000, o["mean_depth"], o["precision"], guess_history=0)
@@ -179,7 +179,7 @@ class Implicit(Stepper):
         """Under error control: estimate each step's error (TR against AB2: F(x(n)) kept for
         the next step's predictor, which is also Newton's first guess)."""
         if self.has_estimate(self.o) and self.error_estimate is None:
-            dev, N = self.model.device, self.N
+            dev, N = self.model.topology.device, self.N
             self.error_estimate = wp.zeros((3, N), dtype=f64, device=dev)
             self.Fn, self.Fprev, self.xp = (wp.zeros((3, N), dtype=f64, device=dev) for _ in range(3))
             self.dt_old = math.nan  # no F(x(n−1)) yet
@@ -242,12 +242,12 @@ class Implicit(Stepper):
         m, topo = self.model, self.topology
         if (
             self.helmholtz is not None
-            or m.forcing is not None
+            or "forcing" in m.terms
             or topo.distributed
-            or not m.graph_guard.enabled
+            or not m.launches.guard.enabled
             or not isinstance(self.fgmres.vectors, KernelVectors)
             or not isinstance(self.jacobian.passes, KernelPasses)
-            or not topo.backend.solver_graphs(m.threads)
+            or not topo.backend.solver_graphs(m.launches.threads)
         ):
             return None
         return (id(self.fgmres.vectors), id(self.jacobian.passes), self.x.ptr, self.Fx.ptr, self.dt, self.beta)
@@ -264,7 +264,7 @@ class Implicit(Stepper):
             eta,
             self.o["gmres_maxiter"],
             graph_key=self._cycle_key(),
-            guard=self.model.graph_guard,
+            guard=self.model.launches.guard,
         )
         self.rhs_evals += its
         self._counts["gmres"] += its
@@ -459,7 +459,7 @@ class Implicit(Stepper):
         if extrapolate:
             self._axpby(2.0, self.xn, -1.0, self.xprev, x)  # 2x(n) − x(n−1)
         # F(x(n)) at t(n) is Newton's first F only if no term depends on time
-        known = o["method"] == "theta" and not extrapolate and not estimating and m.forcing is None
+        known = o["method"] == "theta" and not extrapolate and not estimating and "forcing" not in m.terms
         newton = self._newton(x, Fx_known=known)
         if estimating:
             self._estimate(x)

@@ -42,6 +42,7 @@ import warp as wp
 
 from ..grid.levels import ElementLevels, element_levels, element_rates
 from ..grid.quality import element_sizes
+from ..model.shallow_water import ElementPart
 from .base import Stepper, StepStats
 from .multirate import Mri
 from .multirate_ab import START_STEPS, MultirateAB3
@@ -102,7 +103,7 @@ class LevelSplit:
         self.model, self.levels, self.combine = model, levels, combine
         self.coarse = level_part(model, levels.level == 0)
         self.finer = level_part(model, levels.level >= 1)
-        self.F = wp.zeros((3, model.N), dtype=wp.float64, device=model.device)
+        self.F = wp.zeros((3, model.topology.N), dtype=wp.float64, device=model.topology.device)
 
     def slow(self, x, out) -> None:
         self.model.rhs_part(x, out, self.coarse)
@@ -198,9 +199,9 @@ class Lts(Mri):
         which levels them over the whole grid and hands the levels out)."""
         if self.levels is None:
             model, topology = self.model, self.model.topology
-            per = model.grid.np**2
+            per = model.topology.grid.np**2
             whole = topology.whole_grid()
-            rates = topology.gather(np.repeat(element_rates(model.grid, x.numpy(), model.g), per))
+            rates = topology.gather(np.repeat(element_rates(model.topology.grid, x.numpy(), model.g), per))
             levels = None
             if rates is not None:
                 o = self.options
@@ -282,7 +283,7 @@ class Lts(Mri):
         topology = self.model.topology
         a = np.zeros((3, self.N))
         if self.levels is not None:
-            a[0] = np.repeat(self.levels.level[topology.elements], self.model.grid.np**2)
+            a[0] = np.repeat(self.levels.level[topology.elements], self.model.topology.grid.np**2)
         out = {**Stepper.state(self), "levels": topology.gather(a)}
         if self.mrab is not None:
             out |= self.mrab.state(self._save)
@@ -292,7 +293,7 @@ class Lts(Mri):
         Stepper.restore(self, state)
         topology, entry = self.model.topology, self._entry(state, "levels")
         topology.distribute(entry, 3, f"{self.name} stepper state 'levels'")  # its shape checked on every rank
-        level = topology.bcast(None if entry is None else np.asarray(entry)[0, :: self.model.grid.np**2])
+        level = topology.bcast(None if entry is None else np.asarray(entry)[0, :: self.model.topology.grid.np**2])
         level = np.asarray(level).astype(np.int64)
         self._set_levels(ElementLevels(level, int(level.max()) + 1))
         if self.mrab is not None:
@@ -341,9 +342,9 @@ def size_levels(grid, options: dict) -> np.ndarray:
 
 def level_part(model, whole: np.ndarray):
     """The ``ElementPart`` of the elements held here among ``whole`` (nelem_total,) bool,
-    a part of the whole grid's elements (``ShallowWater.element_part``, ranges merged over
+    a part of the whole grid's elements (``ElementPart.of``, ranges merged over
     ``LAUNCH_GAP``)."""
-    return model.element_part(np.flatnonzero(whole[model.topology.elements]), LAUNCH_GAP, whole)
+    return ElementPart.of(model.topology, np.flatnonzero(whole[model.topology.elements]), LAUNCH_GAP, whole)
 
 
 def _explicit(name: str) -> type[Stepper]:

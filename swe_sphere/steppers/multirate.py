@@ -55,7 +55,7 @@ class GravitySplit:
         self.linear = GravityWaveOperator(model, mean_depth)
         self.model = model
         self.slow_terms = tuple(t for t in model.terms if t not in ("pressure_gradient", "hyperviscosity"))
-        self.depth = wp.zeros((1, model.N), dtype=f64, device=model.device)  # H at every node
+        self.depth = wp.zeros((1, model.topology.N), dtype=f64, device=model.topology.device)  # H at every node
         self._shifts: dict[tuple, tuple] = {}
         self.set_depth_value(mean_depth)
 
@@ -127,7 +127,7 @@ class _Multirate(Stepper):
         o = self.options
         if o.substeps != "auto":
             return o.substeps
-        dx = -self.model.topology.max(-float(self.model.grid.dx.min()))
+        dx = -self.model.topology.max(-float(self.model.topology.grid.dx.min()))
         n = math.ceil(math.sqrt(self.model.g * self.split.H) * self.dt / (o.fast_courant * dx) - 1e-9)
         return max(self.fewest_auto_substeps, n)
 

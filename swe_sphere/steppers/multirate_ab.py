@@ -125,7 +125,7 @@ class MultirateAB3:
         self.levels = len(parts)
         self.weights = ab3_weights(self.levels)
         self.step_weights = ab3_step_weights(self.levels)
-        buffer = lambda: wp.zeros((3, model.N), dtype=f64, device=model.device)  # noqa: E731
+        buffer = lambda: wp.zeros((3, model.topology.N), dtype=f64, device=model.topology.device)  # noqa: E731
         # each level's tendencies, the newest first; a level's buffers hold its nodes alone
         self.history = [[buffer() for _ in range(HISTORY)] for _ in parts]
         self.scratch = [buffer() for _ in parts]  # f_k off its own step times (the start)
@@ -134,7 +134,7 @@ class MultirateAB3:
         names, self.form = stage_form(table.A_E, table.b_E, table.c)
         self.rk = {name: buffer() for name in names}
         self.F = buffer()  # the start's stage tendency
-        self.read, self.unread = sum_nodes(parts, model.device)
+        self.read, self.unread = sum_nodes(parts, model.topology.device)
         self._sums: dict[tuple, list] = {}  # ``accumulate``'s recorded launches
 
     def substeps(self) -> int:

@@ -129,7 +129,7 @@ def planet_constant(scene, key, d, steps, cost, x0):
 
 def topography(scene, model, d_hs, dhs, steps, cost, x0, **kw):
     """``perturbed`` for hs moved by ε·``dhs``, x(0) held, ``d_hs`` its gradient (mass form)."""
-    hs0, dJ = model.hs.numpy(), np.sum(model.grid.spheremp * d_hs * dhs)
+    hs0, dJ = model.operators.hs.numpy(), np.sum(model.grid.spheremp * d_hs * dhs)
     return lambda e: (gradient(scene, steps, cost, x0=x0, hs=hs0 + e * dhs, **kw).cost, e * dJ)
 
 

@@ -259,12 +259,12 @@ def test_the_rkl1_super_step_s_hs_and_nu_adjoints_are_its_derivatives(refined_me
     def step(hs, scale=1.0):  # ⟨λ, H(Φ)⟩ in the mass form at hs and ν, ν_div scaled by ``scale``
         nus = {key: getattr(scene, key) * scale for key in ("nu", "nu_div")}
         fresh = ShallowWater.from_scene(dataclasses.replace(scene, **nus), model.grid)
-        fresh.hs.assign(hs)
+        fresh.operators.hs.assign(hs)
         y = wp.array(phi, dtype=taylor.f64)
         fresh.hyperviscosity(y, scene.dt)
         return float(np.sum(w * lam * y.numpy()))
 
-    hs = model.hs.numpy()
+    hs = model.operators.hs.numpy()
     dhs = 10.0 * taylor.continuous(model, rng.standard_normal((3, model.N)))[2]
     change = step(hs + dhs) - step(hs)
     assert change == pytest.approx(float(np.sum(w * adjoint.d_hs.numpy()[0] * dhs)), rel=1e-9)

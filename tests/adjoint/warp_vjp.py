@@ -99,7 +99,7 @@ class TendencyVJP:
         self.xbar, self.fbar, self.xbar_ad, self.fbar_ad = zeros(3), zeros(2), zeros(3), zeros(2)
         self.tend, self.adj_tend = zeros(3), zeros(3)
         forcing = m.topo_forcing if m.topo_forcing is not None else zeros(2)
-        nelem, metric = m.grid.nelem, (self.x, m.operators.D, m.operators.Dinv, m.operators.metdet, m.fcor)
+        nelem, metric = m.grid.nelem, (self.x, m.operators.D, m.operators.Dinv, m.operators.metdet, m.operators.fcor)
         K = R(self.kbar)
         hand = tendency_adjoint.element(terms, np_, 1)
         args = [*map(R, (*metric, self.spheremp)), m.g, m.operators.dvv_rows, wp.vec3d(1.0, 0.0, 0.0), K, K, K]
@@ -141,7 +141,9 @@ def tendency(model: ShallowWater, x: np.ndarray) -> np.ndarray:
     forcing = m.topo_forcing if m.topo_forcing is not None else wp.zeros((2, m.N), dtype=f64)
     tend, R = wp.zeros((3, m.N), dtype=f64), m.operators.as_rows
     args = [
-        *map(R, (wp.array(x, dtype=f64), m.operators.D, m.operators.Dinv, m.operators.metdet, m.fcor, forcing)),
+        *map(
+            R, (wp.array(x, dtype=f64), m.operators.D, m.operators.Dinv, m.operators.metdet, m.operators.fcor, forcing)
+        ),
         m.g,
         m.operators.dvv_rows,
         R(tend),

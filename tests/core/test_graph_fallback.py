@@ -163,7 +163,7 @@ def test_a_failure_in_the_capture_path_falls_back_to_plain_launches(monkeypatch,
     one_line(0, err, 0, f"swe-sphere: {kind} {words}; running without graphs")
     np.testing.assert_array_equal(graphed[0], plain[0])
     assert graphed[1:4] == plain[1:4] and graphed[2] == STEPS
-    assert graphed[4].graphs == "on" and graphed[4].model.graph_guard.failure is not None
+    assert graphed[4].graphs == "on" and graphed[4].model.launches.guard.failure is not None
 
 
 @pytest.mark.parametrize("device", DEVICES)
@@ -212,7 +212,7 @@ def test_checked_graphs_run_and_keep_the_bits_of_plain_launches(capsys, stepper,
     assert capsys.readouterr().err == ""
     np.testing.assert_array_equal(graphed[0], plain[0])
     assert graphed[1:4] == plain[1:4]
-    assert graphed[4].graphs_kept >= 1 and graphed[4].model.graph_guard.failure is None
+    assert graphed[4].graphs_kept >= 1 and graphed[4].model.launches.guard.failure is None
 
 
 @pytest.mark.parametrize("stepper", ["semi_implicit", "imex"])
@@ -266,9 +266,9 @@ def test_the_graph_mode_from_cli_environment_and_python(tmp_path, monkeypatch, c
     scene = tc5("ssprk3")
     assert Simulation(scene, "cpu", progress=False).graphs == "off"
     sim = Simulation(scene, "cpu", progress=False, graphs=True)
-    assert sim.graphs == "on" and sim.model.graph_guard.enabled
+    assert sim.graphs == "on" and sim.model.launches.guard.enabled
     sim.graphs = False
-    assert sim.graphs == "off" and not sim.model.graph_guard.enabled  # the solvers' own graphs too
+    assert sim.graphs == "off" and not sim.model.launches.guard.enabled  # the solvers' own graphs too
     with pytest.raises(ValueError, match="graphs must be one of off, on, auto"):
         sim.graphs = "maybe"
     with pytest.raises(ValueError, match=r"graphs must be one of off, on, auto \(got 'x'\)"):

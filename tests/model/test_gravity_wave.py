@@ -38,7 +38,9 @@ def test_the_operator_is_the_numpy_l(sim, rng, per_element):
     ``roundoff.operator_roundings`` (the CPU's layout, and CUDA's run on the CPU)."""
     m = sim.model
     if not per_element:
-        m = ShallowWater(sim.grid, m.terms, m.fcor.numpy(), m.hs.numpy(), device="cpu", per_element=False)
+        m = ShallowWater(
+            sim.grid, m.terms, m.operators.fcor.numpy(), m.operators.hs.numpy(), device="cpu", per_element=False
+        )
     x = continuous_state(sim, rng)
     L = GravityWaveOperator(m, 5000.0)
     out = wp.zeros((3, m.N), dtype=wp.float64, device="cpu")
@@ -82,6 +84,8 @@ def test_the_mean_depth_is_the_area_mean_rounded_to_6_digits(sim):
     assert reference_depth(5619.955914745194) == 5619.96
     with pytest.raises(ValueError, match="mean_depth must be >= 0"):
         GravityWaveOperator(sim.model, -1.0)
-    continuity = ShallowWater(sim.grid, ["continuity"], sim.model.fcor.numpy(), sim.model.hs.numpy(), device="cpu")
+    continuity = ShallowWater(
+        sim.grid, ["continuity"], sim.model.operators.fcor.numpy(), sim.model.operators.hs.numpy(), device="cpu"
+    )
     with pytest.raises(ValueError, match="needs the pressure_gradient term"):
         GravityWaveOperator(continuity)

@@ -1,4 +1,4 @@
-"""The assembled tendency split by element level (``ShallowWater.element_part``/``rhs_part``):
+"""The assembled tendency split by element level (``ElementPart.of``/``rhs_part``):
 f = Σ_k f_k, f_k = M⁻¹ DSS(level k's elements' contributions), on a refined cube."""
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ import warp as wp
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.levels import element_levels, element_rates
 from swe_sphere.grid.refine import Box, refined_cube
+from swe_sphere.model.shallow_water import ElementPart
 
 import roundoff
 from meshes import case_model
@@ -43,7 +44,7 @@ def test_the_levels_tendencies_add_up_to_the_assembled_one(per_element, gap):
     parts, total = [], np.zeros((3, model.N))
     for k in range(levels.count):
         mine = np.flatnonzero(levels.level == k)
-        part = model.element_part(mine, gap)
+        part = ElementPart.of(model.topology, mine, gap)
         assert part.nelem == levels.elements_per_level()[k]
         ranges = 1 + np.count_nonzero(np.diff(mine) > 1)  # of consecutive elements
         assert len(part.runs) == ranges if gap == 0 else len(part.runs) < ranges
@@ -69,11 +70,11 @@ def test_part_elements_outside_the_grid_are_refused():
     grid = CubedSphere(1, 4)
     _, model = case_model(grid, "tc2_steady", TC5_TERMS[:4], threads=1)
     with pytest.raises(ValueError, match="part elements must be ascending distinct indices in 0..5"):
-        model.element_part([3, 7])
+        ElementPart.of(model.topology, [3, 7])
     with pytest.raises(ValueError, match="part elements must be ascending"):
-        model.element_part([2, 0])
+        ElementPart.of(model.topology, [2, 0])
     with pytest.raises(ValueError, match="gap must be an integer >= 0"):
-        model.element_part([0, 1], -1)
+        ElementPart.of(model.topology, [0, 1], -1)
 
 
 @pytest.mark.parametrize("per_element", [True, False])

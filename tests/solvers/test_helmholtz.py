@@ -52,7 +52,12 @@ def test_helmholtz_matrix_equals_the_matrix_free_operator(rng):
     yw = wp.array(y, dtype=wp.float64, device=DEVICE)
     matrix_free = {}
     per_node = ShallowWater(
-        grid, sim.model.terms, sim.model.fcor.numpy(), sim.model.hs.numpy(), device=DEVICE, per_element=False
+        grid,
+        sim.model.terms,
+        sim.model.operators.fcor.numpy(),
+        sim.model.operators.hs.numpy(),
+        device=DEVICE,
+        per_element=False,
     )
     for layout, model in (("per element", sim.model), ("per node", per_node)):  # the CPU's and CUDA's operator
         out = wp.zeros(grid.nunique, dtype=wp.float64, device=DEVICE)

@@ -219,7 +219,7 @@ def test_fgmres_cycles_replayed_as_graphs_give_the_bits_of_host_loops(monkeypatc
         st = sim.stepper
         st.fgmres.vectors, st.jacobian.passes = krylov.KernelVectors(st.fgmres), jacobian.KernelPasses(st.model)
         if not graphs:
-            st.model.graph_guard.enabled = False  # no cycle captured: the model's solvers run plain
+            st.model.launches.guard.enabled = False  # no cycle captured: the model's solvers run plain
         jv, calls = st.jacobian_product, [0]
 
         def counted(w, out):

@@ -205,7 +205,9 @@ def test_a_solve_writes_the_stage_tendency_with_the_bits_of_its_own_pass(device,
     sim = Simulation(load_scene("tc5_mountain", ne=2, np_=4), device, progress=False)
     m = sim.model
     if not per_element:
-        m = ShallowWater(sim.grid, m.terms, m.fcor.numpy(), m.hs.numpy(), device=device, per_element=False)
+        m = ShallowWater(
+            sim.grid, m.terms, m.operators.fcor.numpy(), m.operators.hs.numpy(), device=device, per_element=False
+        )
     gw = HelmholtzSolver(GravityWaveOperator(m, 0.0), HelmholtzOptions(1e-12, 200, guess_history=0))
     gw.operator.set_depth(sim.x)
     a = 1800.0

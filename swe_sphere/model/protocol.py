@@ -1,0 +1,58 @@
+"""What a stepper, a solver or the adjoint may ask of a model: ``SteppingModel``, the 15 members
+of ``ShallowWater`` that ``steppers/``, ``solvers/`` and ``adjoint/`` use (``tests/test_layers.py``
+holds them to this list, as the privacy rule holds modules to public names).
+
+A new stepper's author reads this first. The verbs, as Dinosaur's ``explicit_terms`` /
+``implicit_terms`` / ``implicit_inverse`` and ClimaCore's ``rhs!``:
+
+- **the tendency**: ``rhs`` (F(x), or the part of F named by ``terms``), ``rhs_update`` (F(x)
+  written straight into linear combinations as its DSS makes it: a stage's updates without a
+  pass of their own), ``rhs_part`` (over an ``ElementPart``: local time stepping's levels),
+  ``set_time`` (the model time a time-dependent forcing reads);
+- **the ∇⁴**: ``hyperviscosity`` (its step over Δt, split from the dynamics) and, for the adjoint
+  and the step plans, ``hv`` (the ``Hyperviscosity``: its plan, coefficients and operator; None
+  without the term);
+- **states**: ``new_state``, ``lincomb`` (out = Σ c·x, recorded), ``pointwise`` (a pointwise
+  kernel, recorded), ``bad_nodes`` (the check of a state for non-finite or dry nodes);
+- **the operators beside the tendency**: ``operators`` (``ElementOperators``: the DSS'd G and D
+  of the gravity-wave operator and the Helmholtz solves, scatter and assembly, the geometry
+  arrays the element kernels read);
+- **where and what**: ``topology`` (device, N, grid, the DSS, reductions), ``launches`` (the
+  ``LaunchRecorder`` every launch goes through, its threads and graph guard), ``terms`` (the
+  scene's terms: what F holds), ``g`` (m s⁻²).
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import warp as wp
+
+
+class SteppingModel(Protocol):
+    """The members of a model (``ShallowWater``) that steppers, solvers and the adjoint use
+    (shapes: states (3, N) float64 device arrays, N the element-local nodes)."""
+
+    topology: object  # ``grid.topology.Topology``
+    launches: object  # ``model.launches.LaunchRecorder``
+    operators: object  # ``model.element_operators.ElementOperators``
+    hv: object  # ``model.hyperviscosity.Hyperviscosity`` or None
+    bad_nodes: object  # ``model.bad_nodes.BadNodes``
+    terms: tuple
+    g: float
+
+    def rhs(self, x: wp.array2d, out: wp.array2d, terms: tuple | None = None) -> None: ...
+    def rhs_update(self, x: wp.array2d, updates, terms: tuple | None = None) -> None: ...
+    def rhs_part(self, x: wp.array2d, out: wp.array2d, part, terms: tuple | None = None) -> None: ...
+    def set_time(self, t: float) -> None: ...
+    def hyperviscosity(self, x: wp.array2d, dt: float) -> None: ...
+    def new_state(self, u=None, v=None, h=None) -> wp.array2d: ...
+    def lincomb(self, out, terms): ...
+    def pointwise(self, kernel, *inputs, unique: bool = False) -> None: ...
+
+
+def members() -> set[str]:
+    """The protocol's member names."""
+    return set(SteppingModel.__annotations__) | {
+        name for name in vars(SteppingModel) if not name.startswith("_") and callable(vars(SteppingModel)[name])
+    }

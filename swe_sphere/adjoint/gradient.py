@@ -28,11 +28,6 @@ from ..core.errors import ArgumentError
 from ..grid.topology import on_ranks
 from ..model.shallow_water import ShallowWater
 from ..steppers import make_stepper
-from ..steppers.explicit import FBRK32, Leapfrog, LeapfrogTrapezoidal
-from ..steppers.helmholtz_steps import HelmholtzSteps
-from ..steppers.local import Lts
-from ..steppers.multirate import Mri, SplitExplicit
-from ..steppers.runge_kutta import ExplicitRK
 from .disk import DiskTier
 from .explicit import StepAdjoint, refusal
 from .forward_backward import ForwardBackwardAdjoint
@@ -166,11 +161,10 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
     # the model's arrays on the device its topology launches on (issue 83: they were the CPU's)
     model = ShallowWater.from_scene(scene, grid, case, device=topo.backend.device, topology=topo)
     stepper = make_stepper(scene.stepper, model, scene.dt, **scene.stepper_options)
-    explicit = (ExplicitRK, FBRK32, Leapfrog, LeapfrogTrapezoidal, SplitExplicit, Mri)
-    if not isinstance(stepper, explicit) or isinstance(stepper, HelmholtzSteps):  # semi_implicit: a Leapfrog
+    if _adjoint_of(stepper) is None:
         raise ArgumentError(
-            "gradients need an explicit Runge–Kutta stepper, fbrk32, a leapfrog, split_explicit, mri or lts "
-            f"(got scene.stepper = {scene.stepper!r})"
+            f"gradients need an explicit Runge–Kutta stepper (a built-in table or an explicit tableau) or one of "
+            f"{', '.join(sorted(ADJOINTS))} (got scene.stepper = {scene.stepper!r})"
         )
     return model, stepper, np.stack(case.initial(grid.lat, grid.lon))
 
@@ -219,25 +213,47 @@ class Clock:
         stepper.t0 = t0
 
 
+def _lts(model: ShallowWater, stepper, dt: float, parameters: bool, t0: float):
+    """Local time stepping's adjoint (its levels fixed by ``prepare``): MRAB3's, the inner
+    table's global step on one level, else the multirate levels'."""
+    if stepper.mrab is not None:
+        return MrabAdjoint(model, stepper, dt, parameters, t0)
+    if stepper.single is not None:
+        return StepAdjoint(model, stepper.single.table(), dt, parameters, t0)
+    return LtsAdjoint(model, stepper, dt, parameters, t0)
+
+
+def _table(model: ShallowWater, stepper, dt: float, parameters: bool, t0: float) -> StepAdjoint:
+    """An explicit Runge–Kutta step's adjoint, from its Butcher table alone."""
+    return StepAdjoint(model, stepper.table(), dt, parameters, t0)
+
+
+# the adjoint of a step, (model, stepper, Δt, parameters, t0) → its ``StepAdjoint``, by the stepper's
+# registered name (``steppers.STEPPERS``); any other explicit stepper with a Butcher table (every
+# built-in explicit Runge–Kutta stepper, an explicit ``tableau``) has its table's (``_table``)
+ADJOINTS = {
+    "fbrk32": ForwardBackwardAdjoint,
+    "leapfrog": LeapfrogAdjoint,
+    "leapfrog_trapezoidal": LeapfrogAdjoint,
+    "split_explicit": SplitExplicitAdjoint,
+    "mri": MriAdjoint,
+    "lts": _lts,
+}
+
+
+def _adjoint_of(stepper):
+    """The maker of ``stepper``'s step adjoint, or None where it has none (an implicit,
+    semi-implicit, IMEX or exponential stepper)."""
+    if stepper.name in ADJOINTS:
+        return ADJOINTS[stepper.name]
+    return _table if stepper.explicit and callable(getattr(stepper, "table", None)) else None
+
+
 def step_adjoint(model: ShallowWater, stepper, parameters: bool = False) -> StepAdjoint:
-    """The adjoint of one step of ``stepper`` (``scene_model``'s: an ``ExplicitRK``,
-    ``FBRK32``, ``Leapfrog``, ``LeapfrogTrapezoidal``, ``SplitExplicit``, ``Mri`` or a prepared
-    ``Lts``) on ``model``, its steps from the stepper's ``t0``. ValueError as its class."""
-    if isinstance(stepper, FBRK32):
-        return ForwardBackwardAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
-    if isinstance(stepper, (Leapfrog, LeapfrogTrapezoidal)):
-        return LeapfrogAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
-    if isinstance(stepper, SplitExplicit):
-        return SplitExplicitAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
-    if isinstance(stepper, Lts):  # its levels fixed (``prepare``)
-        if stepper.mrab is not None:
-            return MrabAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
-        if stepper.single is not None:  # one level: the inner table's global step
-            return StepAdjoint(model, stepper.single.table(), stepper.dt, parameters, stepper.t0)
-        return LtsAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
-    if isinstance(stepper, Mri):
-        return MriAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
-    return StepAdjoint(model, stepper.table(), stepper.dt, parameters, stepper.t0)
+    """The adjoint of one step of ``stepper`` (``scene_model``'s: one with an adjoint, ``ADJOINTS``
+    or an explicit Butcher table; lts prepared) on ``model``, its steps from the stepper's ``t0``.
+    ValueError as its class."""
+    return _adjoint_of(stepper)(model, stepper, stepper.dt, parameters, stepper.t0)
 
 
 def _on_root(topo, check):

@@ -472,3 +472,36 @@ def test_a_gradient_on_cuda_is_the_cpu_s(stepper):
     """On CUDA (the per-node transposes; their element twins checked on the CPU above) the cost,
     ∂J/∂x(0) and the parameters' gradients are the CPU's to round-off: sums in another order."""
     assert_gradients_agree(stepper, "cuda")
+
+
+def tableau_tc5(options):
+    """TC5 ne 2 (``tc5``) with ``stepper = "tableau"`` and the table ``options``."""
+    scene = load_scene("testcases/tc5_mountain.toml", ne=2, np_=4, dt=1800.0, stepper="tableau")
+    return dataclasses.replace(scene, stepper_options=options)
+
+
+# Heun's third-order method (Heun 1900): an explicit table no stepper is registered for
+HEUN3 = dict(A=[[0, 0, 0], ["1/3", 0, 0], [0, "2/3", 0]], b=["1/4", 0, "3/4"], c=[0, "1/3", "2/3"], order=3)
+RK4 = dict(
+    A=[[0, 0, 0, 0], ["1/2", 0, 0, 0], [0, "1/2", 0, 0], [0, 0, 1, 0]],
+    b=["1/6", "1/3", "1/3", "1/6"],
+    c=[0, "1/2", "1/2", 1],
+)
+
+
+def test_a_users_explicit_butcher_table_has_its_gradient_with_no_adjoint_code():
+    """Issue 82: a scene's own explicit table (``stepper = "tableau"``) differentiates as the
+    registry's tables do, from the table alone (``adjoint.gradient``'s default: ``StepAdjoint`` of
+    ``table()``): Heun's third-order method's initial-state Taylor remainder falls as ε²; RK4
+    written as a tableau has the built-in ``rk4``'s gradient to the bit. A stepper without an
+    adjoint is refused naming those that have one."""
+    heun = tableau_tc5({"name": "heun3", **HEUN3})
+    assert_initial_state_taylor(heun)
+    model, _, x0 = setup()
+    cost = HeightMisfit(x0[2] + 10.0)
+    built_in = gradient(tc5(), 3, cost)
+    written = gradient(tableau_tc5({"name": "rk4", "order": 4, **RK4}), 3, cost)
+    np.testing.assert_array_equal(written.grad, built_in.grad)
+    assert written.cost == built_in.cost
+    with pytest.raises(ValueError, match="fbrk32, leapfrog, leapfrog_trapezoidal, lts, mri, split_explicit"):
+        gradient(tc5("semi_implicit"), 1, cost)

@@ -28,7 +28,6 @@ import warp as wp
 from ..model.launches import Update
 from ..model.shallow_water import ShallowWater
 from ..steppers.butcher import Table
-from ..steppers.explicit import LeapfrogTrapezoidal
 from .explicit import StepAdjoint
 
 # the three-level schemes' first step: x(1) = x + Δt F(x + Δt/2 F(x)), then the ∇⁴ over Δt
@@ -50,7 +49,7 @@ class LeapfrogAdjoint(StepAdjoint):
         return [stepper.old]  # x̃(n−1)
 
     def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
-        self.trapezoidal = isinstance(stepper, LeapfrogTrapezoidal)
+        self.trapezoidal = stepper.name == "leapfrog_trapezoidal"
         self.step_dt = float(dt)
         self._setup(model, dt if self.trapezoidal else 2 * dt, parameters, t0)
         self.eps = 0.0 if self.trapezoidal else float(stepper.options.robert_asselin)

@@ -51,7 +51,7 @@ part_setup() {
     # the machine reaches no index: install the checkout alone, against what is there. Its image had
     # no Warp, netCDF4, cftime or pyamg (2026-11-22): bring them as files and put them on PYTHONPATH
     # first (benchmarks/GPU.md says how they travel)
-    "$PY" -c "import warp, netCDF4, ducc0" || { echo "== setup: warp, netCDF4 or ducc0 missing on this machine" | tee -a "$OUT/session.log"; exit 2; }
+    "$PY" -c "import warp, netCDF4, ducc0, pyamg" || { echo "== setup: warp, netCDF4, ducc0 or pyamg missing on this machine" | tee -a "$OUT/session.log"; exit 2; }
     run setup 120 "$PY" -m pip install --no-deps --no-build-isolation -e .
 }
 

@@ -19,7 +19,7 @@ and a lower bound as kernels: iterations × (the model's CG iteration + blocks' 
 products, or p-MG's 6 model products and its coarse V-cycle). The random-right-hand-side study
 before it (Chebyshev, low-order-refined and AMG preconditioners, the weak Laplacian, the
 spectra) is in git history (``git log -- benchmarks/helmholtz_preconditioners.py``).
-CPU clock (``time.process_time``); needs pyamg (``pip install -e '.[bench]'``); run with one thread:
+CPU clock (``time.process_time``); run with one thread:
 
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/helmholtz_preconditioners.py --record /tmp/solves.npz
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/helmholtz_preconditioners.py --solves /tmp/solves.npz

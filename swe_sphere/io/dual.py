@@ -61,6 +61,11 @@ CG_ITERATIONS = 20000  # a cap only: an inexact step is checked like any other
 # at 1e-3 cost a third more;
 # from the twisted start to round-off (inexact steps stall there at ne = 2 np = 2)
 CG_RTOL, CG_RTOL_EXACT = 1e-4, 1e-12
+# the fewest unknowns (cells) whose systems are preconditioned by smoothed aggregation (``_preconditioner``), the
+# others by their diagonal: the V-cycles' set-up and Python overhead cost more than Jacobi's extra iterations up to
+# ne60 (194 402 cells, one thread: 3.41 s against 3.06 s for the cells, ne30 1.25 against 0.99), and half as much at
+# ne120 (777 602: 15.9 s against 32.3 s)
+AMG_CELLS = 400_000
 LOCAL_ERROR, LOCAL_RINGS = 0.05, 6  # cells fitted first, and the rings round them (``_fit_worst_first``)
 # the steps allowed to the worst cells' fit and to the global fit after it (the cube: 5 and 2 at ne60), beyond
 # which they have stalled (HOMME's mountain_10_x2.g: the convexity rule holds the worst cells' fit at 6e-3)
@@ -68,7 +73,7 @@ LOCAL_ERROR, LOCAL_RINGS = 0.05, 6  # cells fitted first, and the rings round th
 NEAR_STEPS = 20
 TWIST = 0.1  # the chiral start's rotation (``_start_vertices``)
 CHUNK = 1 << 13  # cells a pass (``_in_chunks``): its temporaries stay under 10 MB
-BUILD = 7  # the fit's version in the cache key: raised by any change that moves the cells' bits
+BUILD = 8  # the fit's version in the cache key: raised by any change that moves the cells' bits
 
 
 def control_points(rule) -> np.ndarray:
@@ -247,8 +252,11 @@ def dual_mesh(grid: CubedSphere):
     rule can hold a cell), the global fit starts again from the start itself with μ = ``MU_FAR``.
 
     (JJᵀ + μI)y = ρ couples each node to its 8 neighbours, like a graph Laplacian: solved by
-    conjugate gradients with its diagonal as preconditioner, inexactly (``CG_RTOL``): memory
-    linear in the nodes, where one sparse LU a step grew as nodes^1.5 in fill and flops.
+    conjugate gradients, inexactly (``CG_RTOL``), preconditioned by its diagonal or, from
+    ``AMG_CELLS`` nodes on, by a V-cycle of pyamg's smoothed aggregation
+    (``_preconditioner``): memory linear in the nodes, where one sparse LU a step grew as
+    nodes^1.5 in fill and flops; the V-cycle's iterations stay at tens (ne120: 16 and 24),
+    where Jacobi's grow with ne (ne120: 725 and 920).
     Where the fit stalls at a mirror-symmetric point (ne = 1 np = 3 and ne = 2 np = 2, whose
     24 dual vertices have one degree of freedom each under the cube's mirrors, too few for
     the 3 distinct targets), it starts again from ``_start_vertices`` twisted by ``TWIST``,
@@ -260,19 +268,63 @@ def dual_mesh(grid: CubedSphere):
     centre = np.stack([grid.to_unique(x) for x in grid.xyz], axis=1)
     target = grid.area / grid.radius**2
     start = _start_vertices(grid, 0.0)
+    quads = subcell_quads(grid)
+    colour = _colouring(quads)
+    fit = functools.partial(_fit, centre, corners=corners, closed=closed, target=target, colour=colour)
     try:
-        near = _fit_worst_first(centre, start, corners, closed, target, subcell_quads(grid))
-        verts, error = _fit(centre, near, corners, closed, target, CG_RTOL, MU_NEAR, True, steps=NEAR_STEPS)
+        near = _fit_worst_first(centre, start, corners, closed, target, quads, colour)
+        verts, error = fit(near, cg_rtol=CG_RTOL, mu=MU_NEAR, keep_convex=True, steps=NEAR_STEPS)
     except ArithmeticError:  # the worst cells' fit, or the global fit after it, stalled
         try:
-            verts, error = _fit(centre, start, corners, closed, target, CG_RTOL, MU_FAR, True)
+            verts, error = fit(start, cg_rtol=CG_RTOL, mu=MU_FAR, keep_convex=True)
         except ArithmeticError:
             twisted = _start_vertices(grid, TWIST)
-            verts, error = _fit(centre, twisted, corners, closed, target, CG_RTOL_EXACT, MU_FAR, False)
+            verts, error = fit(twisted, cg_rtol=CG_RTOL_EXACT, mu=MU_FAR, keep_convex=False)
     return verts, corners, error
 
 
-def _fit_worst_first(centre, verts, corners, closed, target, quads):
+def _colouring(quads) -> np.ndarray:
+    """±1 (nunique,) alternating along every edge of the sub-cell mesh ``quads`` (nsub, 4) (the
+    parity of each node's edge distance from node 0): a quadrilateral mesh of the sphere is
+    bipartite, its cycles sums of its faces' 4-cycles. The checkerboard of ``dual_mesh``'s
+    nearly singular mode. Raises ``ValueError`` if the mesh is not connected."""
+    import scipy.sparse as sp  # here, not at the top: a cached run never builds cells
+    from scipy.sparse.csgraph import shortest_path
+
+    n = int(quads.max()) + 1
+    edges = np.stack([quads.ravel(), np.roll(quads, -1, axis=1).ravel()])
+    graph = sp.csr_matrix((np.ones(edges.shape[1]), edges), shape=(n, n))
+    steps = shortest_path(graph, directed=False, unweighted=True, indices=0)
+    if not np.isfinite(steps).all():
+        raise ValueError("the sub-cell mesh is not connected")
+    return 1.0 - 2.0 * (steps % 2)
+
+
+def _preconditioner(A, colour):
+    """One V-cycle of pyamg's smoothed aggregation for the SPD (JJᵀ + μI) ``A`` (n, n), as a
+    ``LinearOperator``, from the two modes it nearly annihilates: the constant (JJᵀ·target =
+    0, ``dual_mesh``) and the checkerboard ``colour`` (n,) of ±1 (Jᵀ of it vanishes on a
+    uniform lattice); given only the constant, aggregation misses the checkerboard (ne60: 40
+    and 91 iterations where 10 and 13 with both). One Gauss–Seidel sweep before (forward)
+    and after (backward) each coarse correction, a symmetric cycle, as CG needs (ne120: 12
+    and 17 iterations where pyamg's default of two sweeps took 10 and 14, dearer in all). The
+    prolongation's Jacobi smoothing weighted by row sums ("local"): pyamg's default weight
+    needs a spectral radius estimated from a random start, which would change the cells' bits
+    from run to run (and took half the set-up: ne120, 16 and 24 iterations for 1 s less)."""
+    import pyamg  # here, not at the top: a cached run never builds cells
+
+    ml = pyamg.smoothed_aggregation_solver(
+        A,
+        B=np.stack([np.ones_like(colour), colour], axis=1),
+        symmetry="symmetric",
+        smooth=("jacobi", {"weighting": "local"}),
+        presmoother=("gauss_seidel", {"sweep": "forward"}),
+        postsmoother=("gauss_seidel", {"sweep": "backward"}),
+    )
+    return ml.aspreconditioner()
+
+
+def _fit_worst_first(centre, verts, corners, closed, target, quads, colour):
     """The start ``verts`` with the cells more than ``LOCAL_ERROR`` off their areas fitted
     first, with those within ``LOCAL_RINGS`` rings of them: ``_fit`` of that region's cells
     that have a free vertex (one whose 4 cells are all in the region; the others are held),
@@ -280,7 +332,8 @@ def _fit_worst_first(centre, verts, corners, closed, target, quads):
     (cells joined by free vertices: moving a free vertex keeps that sum). The region's cells then share its deficit, 2e-4 of their areas about the
     cube's corners; else the global fit spends two steps (of five at ne60) spreading half of a
     cube corner's cell area. ``quads`` (nsub, 4): the 4 cells (nodes) of each dual vertex
-    (``ugrid.subcell_quads``). Raises ``ArithmeticError`` where that fit stalls."""
+    (``ugrid.subcell_quads``); ``colour`` (ncell,): their checkerboard (``_colouring``).
+    Raises ``ArithmeticError`` where that fit stalls."""
     import scipy.sparse as sp  # here, not at the top: a cached run never builds cells (0.15 s of imports)
     from scipy.sparse.csgraph import connected_components
 
@@ -302,21 +355,41 @@ def _fit_worst_first(centre, verts, corners, closed, target, quads):
     ratio = np.bincount(part_of, area[cells_]) / np.bincount(part_of, target[cells_])
     t = target[cells_] * ratio[part_of]
     moved, _ = _fit(
-        centre[cells_], verts[held], part, local[closed[cells_]], t, CG_RTOL, MU_FAR, True, free[held], steps=NEAR_STEPS
+        centre[cells_],
+        verts[held],
+        part,
+        local[closed[cells_]],
+        t,
+        colour[cells_],
+        CG_RTOL,
+        MU_FAR,
+        True,
+        free[held],
+        steps=NEAR_STEPS,
     )
     out = verts.copy()
     out[held] = moved
     return out
 
 
-def _fit(centre, verts, corners, closed, target, cg_rtol, mu, keep_convex, free=None, tol=RTOL, steps=MAX_ITERATIONS):
+def _fit(
+    centre, verts, corners, closed, target, colour, cg_rtol, mu, keep_convex, free=None, tol=RTOL, steps=MAX_ITERATIONS
+):
     """``dual_mesh``'s Levenberg–Marquardt iteration from ``verts`` to the areas ``target``
     (ncell,) within ``tol`` (relative), each step's linear system solved to the relative
     residual ``cg_rtol`` (``mu``: the first damping), each step kept only where the cells stay
     star-shaped from their nodes (and, with ``keep_convex``, those convex at the start stay
-    convex); only the vertices ``free`` (nsub,) bool move (default all). (vertices, max
-    relative error); ``ArithmeticError`` if no step lowers the error or ``steps`` do not
-    reach ``tol``."""
+    convex); only the vertices ``free`` (nsub,) bool move (default all). ``colour`` (ncell,):
+    the cells' checkerboard (``_colouring``). (vertices, max relative error);
+    ``ArithmeticError`` if no step lowers the error or ``steps`` do not reach ``tol``.
+
+    A V-cycle serves the fit's later systems while μ stays at most ``MU_NEAR`` (built
+    again where μ changes above it): the vertices move by a fraction of a cell, and that small
+    a shift is below the spectrum that sets the iterations (the V-cycle forced at ne60: the
+    near fit's second solve took 15 with the first's V-cycle or its own), where a larger one
+    is not (the far fit from μ = 1e-3: 7, 20, 34, 46, 31 kept against 7, 7, 9, 13, 15 built
+    each step); an older preconditioner costs iterations, never accuracy (CG's residual is the
+    system's own), and its set-up costs as much as a solve."""
     import scipy.sparse as sp  # here, not at the top: a cached run never builds cells
     import scipy.sparse.linalg as spla
 
@@ -326,6 +399,7 @@ def _fit(centre, verts, corners, closed, target, cg_rtol, mu, keep_convex, free=
     eye = sp.identity(n, format="csr")
     area, grad = _areas_and_gradients(centre, verts, closed)
     was_convex = convex(verts, corners)
+    preconditioner, built_for = None, None
     for _ in range(steps):
         rho = 1 - area / target
         error, norm = np.max(np.abs(rho)), np.linalg.norm(rho)
@@ -342,7 +416,11 @@ def _fit(centre, verts, corners, closed, target, cg_rtol, mu, keep_convex, free=
         scale = JJ.diagonal().mean()
         while True:
             A = JJ + mu * scale * eye
-            y, _ = spla.cg(A, rho, rtol=cg_rtol, maxiter=CG_ITERATIONS, M=sp.diags(1 / A.diagonal()))
+            if n < AMG_CELLS:
+                preconditioner = sp.diags(1 / A.diagonal())
+            elif max(mu, MU_NEAR) != built_for:
+                preconditioner, built_for = _preconditioner(A, colour), max(mu, MU_NEAR)
+            y, _ = spla.cg(A, rho, rtol=cg_rtol, maxiter=CG_ITERATIONS, M=preconditioner)
             d = (J.T @ y).reshape(nsub, 2)
             trial = verts + d[:, :1] * e1 + d[:, 1:] * e2
             trial /= np.linalg.norm(trial, axis=1)[:, None]

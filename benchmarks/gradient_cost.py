@@ -24,7 +24,7 @@ construction alone. The ratios are gradient / forward and gradient / run; the ta
 
 ``-s KEY=VALUE`` overrides the scene as ``swe-sphere run -s`` does; under ``time.control`` the
 "run" is the controlled run itself (a ``Simulation`` over the span: its steps, rejected tries and
-control), "forward" its accepted steps replayed by the stepper alone at their Δt (``Clock``), and
+control), "forward" its accepted steps replayed by the stepper alone at their Δt (``StepTimes``), and
 the gradient follows that run's history (``gradient(..., history=)``): "steps" its accepted steps.
 """
 
@@ -49,7 +49,7 @@ import numpy as np
 import warp as wp
 wp.config.quiet = True
 from swe_sphere.adjoint import HeightMisfit, gradient
-from swe_sphere.adjoint.gradient import Clock, scene_model
+from swe_sphere.adjoint.gradient import StepTimes, scene_model
 from swe_sphere.config.scene import load_scene
 from swe_sphere.simulation.simulation import Simulation
 
@@ -73,7 +73,7 @@ def controlled_run():
 
 
 history = controlled_run() if scene.control else None  # compiled too
-steps, every = (steps, Clock(0.0, scene.dt)) if history is None else (len(history), Clock(0.0, scene.dt, history))
+steps, every = (steps, StepTimes(0.0, scene.dt)) if history is None else (len(history), StepTimes(0.0, scene.dt, history))
 gradient(scene, 2, cost, snapshots=min(2, snapshots or 2), history=history)  # compile and warm the caches
 rows = {"forward": [], "run": [], "gradient": [], "model": []} | ({"two_level": []} if disk else {})
 

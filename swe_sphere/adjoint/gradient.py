@@ -3,7 +3,7 @@ the run (``observations``), with respect to its initial state (``gradient``), by
 checkpointed reverse sweep (``revolve.sweep``, or ``revolve.two_level`` with states on a disk:
 ``disk.DiskTier``) of the explicit steps' adjoints (``explicit.StepAdjoint`` and its kin:
 ``forward_backward``, ``leapfrog``, ``multirate``), at the run's Δt or along a controlled run's
-steps (``Clock``)."""
+steps (``StepTimes``)."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ from typing import NamedTuple
 import numpy as np
 import warp as wp
 
+from ..config.parts import partition, scene_stepper
 from ..config.scene import Scene
 from ..core.arguments import (
     array_argument,
@@ -25,9 +26,7 @@ from ..core.arguments import (
 from ..core.backend import Backend, pick_device
 from ..core.constants import DAY
 from ..core.errors import ArgumentError
-from ..grid.topology import on_ranks
 from ..model.shallow_water import ShallowWater
-from ..steppers import make_stepper
 from .disk import DiskTier
 from .explicit import StepAdjoint, refusal
 from .forward_backward import ForwardBackwardAdjoint
@@ -151,16 +150,17 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
     case's initial state (3, N) numpy on this rank's nodes; ``hs`` (nnodes_total,) m: the whole
     grid's surface height instead of the case's (read on rank 0). ``ArgumentError`` unless the
     stepper has an adjoint (``step_adjoint``; not a stepper that solves a Helmholtz problem, e.g.
-    semi_implicit, whose solve has none), or for hs of another shape (on every rank)."""
+    semi_implicit, whose solve has none), or for hs of another shape (on every rank);
+    ``SceneError`` for a ν the ∇⁴ cannot step (``config.parts.scene_stepper``, as a run)."""
     case = scene.make_case()
-    topo = on_ranks(scene.ne, scene.np, case.planet.a, comm, Backend.of(device), scene.make_mesh())
+    topo = partition(scene, case, comm, Backend.of(device))  # as a run's (``simulation.build``)
     grid = topo.grid
     if hs is not None:
         hs = _distributed(topo, hs, 1, "hs")[0]
     case = case if hs is None else _Topography(case, hs)
     # the model's arrays on the device its topology launches on (issue 83: they were the CPU's)
     model = ShallowWater.from_scene(scene, grid, case, device=topo.backend.device, topology=topo)
-    stepper = make_stepper(scene.stepper, model, scene.dt, **scene.stepper_options)
+    stepper = scene_stepper(scene, model)
     if _adjoint_of(stepper) is None:
         raise ArgumentError(
             f"gradients need an explicit Runge–Kutta stepper (a built-in table or an explicit tableau) or one of "
@@ -169,7 +169,7 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
     return model, stepper, np.stack(case.initial(grid.lat, grid.lon))
 
 
-class Clock:
+class StepTimes:
     """The steps' Δt and model times: step k (from x(k)) takes Δt_k, its stages at
     t0_k + (k + c)·Δt_k (a stepper's ``_at`` with ``t0`` and ``steps`` = k), as the run took them.
     Fixed (``history`` None): Δt_k = ``dt``, t0_k = ``start`` (s). Otherwise ``history`` a
@@ -344,11 +344,11 @@ def gradient(
     history : a run's steps (required for a scene under ``time.control``, whose steps its
         controller chose): that run's ``Simulation.control.history`` (``StepControl.history``:
         (time reached (s), Δt (s), error norm) per accepted step, from the scene's start), of
-        which the first n are differentiated with their Δt and times held (``Clock``): the
+        which the first n are differentiated with their Δt and times held (``StepTimes``): the
         gradient of the run the controller took, not of the controller's choice of Δt (piecewise
         constant in x(0)). The scene's stepper, without the control, takes each step.
     comm : an mpi4py communicator (None: one process): the run and its reverse sweep split
-        over its ranks as a ``Simulation``'s (``grid.topology.on_ranks``), every rank calling
+        over its ranks as a ``Simulation``'s (``config.parts.partition``), every rank calling
         ``gradient`` alike. The cost is called on rank 0 alone, with the whole grid's x and
         spheremp (N = nnodes_total, the element-local nodes in the one-rank order), its λ
         handed back to the ranks; every rank returns the whole-grid ``Gradient``, the same
@@ -360,7 +360,7 @@ def gradient(
     scene that is not a ``Scene``, steps, snapshots or disk_interval not integers >= 1, a cost
     that is not callable (or whose h_obs does not fit the grid: ``check_nodes``), returns other
     than (J, λ (3, N)) or a non-finite J, at_steps outside 0 … n, a controlled scene without a
-    history, a history shorter than n or with a bad step (``Clock``), a disk_interval without a
+    history, a history shorter than n or with a bad step (``StepTimes``), a disk_interval without a
     disk, a disk that is not an existing folder, x0 or hs of another shape or not finite,
     ``parameters`` not a bool, ``comm`` not a communicator, or a scene the adjoint cannot serve
     (``explicit.refusal``, a non-explicit stepper: semi_implicit's Helmholtz solve has no adjoint);
@@ -410,8 +410,8 @@ def gradient(
     return Gradient(total, _whole(topo, mu), final, taken, steps, disk_bytes=used, costs=costs, **extra)
 
 
-def _clock(scene: Scene, steps: int, history) -> Clock:
-    """The ``Clock`` of ``gradient``'s run of ``scene``: its Δt from its start day, or
+def _clock(scene: Scene, steps: int, history) -> StepTimes:
+    """The ``StepTimes`` of ``gradient``'s run of ``scene``: its Δt from its start day, or
     ``history``'s steps. ``ArgumentError`` for a controlled scene without a history (its steps
     are its controller's) or a history shorter than ``steps``."""
     if history is None and scene.control is not None:
@@ -419,7 +419,7 @@ def _clock(scene: Scene, steps: int, history) -> Clock:
             f"a run under time.control = {scene.control.mode!r} is differentiated along the steps it took: "
             "give history=Simulation(...).control.history of that run"
         )
-    clock = Clock(scene.start_day * DAY, scene.dt, history)
+    clock = StepTimes(scene.start_day * DAY, scene.dt, history)
     if clock.steps is not None and len(clock.steps) < steps:
         raise ArgumentError(f"history holds {len(clock.steps)} steps, fewer than the {steps} asked for")
     return clock

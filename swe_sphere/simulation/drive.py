@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 
+from ..config.parts import scene_stepper
 from ..config.scene import with_days
 from ..core.arguments import callable_argument, got
 from ..core.clock import is_interval
@@ -15,7 +16,6 @@ from ..core.constants import DAY
 from ..core.errors import SceneError
 from ..io.run_file import OUTPUT_FIELDS, node_dataset
 from .activities import Callback
-from .build import scene_stepper
 from .schedules import EverySteps, steps_of
 from .summary import RunResult
 

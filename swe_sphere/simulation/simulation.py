@@ -169,7 +169,7 @@ class Simulation:
         # what the simulation holds: driving from Python, restarts, the run's loop
         self._drive, self._restart, self._loop = Drive(self, own_dt), Restart(self), StepLoop(self, self._take_step)
         self.activities: dict = {}  # name -> activity (``activities``): the user's; ``run`` adds its own
-        # single-threaded BLAS, as in ``run``: the ∇⁴'s power iteration (``build.check_hyperviscosity``)
+        # single-threaded BLAS, as in ``run``: the ∇⁴'s power iteration (``config.parts.check_hyperviscosity``)
         # takes 40 norms, and OpenBLAS's threads spinning on a busy machine made them 0.3 s of CPU
         with compile_timer(self._compile), threadpool_limits(limits=1, user_api="blas"):
             self.scene, self.backend, self.device = scene, backend, backend.device

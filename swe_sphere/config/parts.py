@@ -1,0 +1,59 @@
+"""What a scene makes of itself on a rank: the part of its grid (``partition``), its model
+(``ShallowWater.from_scene``) and its stepper (``scene_stepper``, after ``check_hyperviscosity``).
+One path for a run (``simulation.build``) and a gradient (``adjoint.gradient.scene_model``), so a
+gradient is taken of the model and stepper a run steps."""
+
+from __future__ import annotations
+
+from ..core.backend import Backend
+from ..core.constants import DAY
+from ..core.errors import SceneError
+from ..grid.cubed_sphere import CubedSphere
+from ..grid.topology import Topology, on_ranks
+from ..model.shallow_water import ShallowWater
+from ..steppers import STEPPERS, make_stepper
+from .scene import Scene
+
+MAX_HYPERVIS_EVALUATIONS = 10_000  # ∇⁴ evaluations a step; beyond, ν is ~10⁷ times its explicit bound or more
+
+
+def check_hyperviscosity(model: ShallowWater, scene: Scene) -> None:
+    """Refuse (``SceneError``, before the run) a ν whose ∇⁴ sub-stepping
+    (``hypervis.Hyperviscosity.plan``) would take more than
+    ``MAX_HYPERVIS_EVALUATIONS`` evaluations a step: such a step runs for hours
+    and is a mistyped coefficient, not a setting."""
+    if model.hv is None or model.hv.nu_max == 0.0:
+        return
+    hv = model.hv
+    evals, _ = hv.plan(scene.dt)
+    if evals > MAX_HYPERVIS_EVALUATIONS:
+        bound = 1.5 / (scene.dt * hv.biharmonic_radius())
+        raise SceneError(
+            f"hyperviscosity nu = {hv.nu_max:.3g} m^4/s is {hv.nu_max / bound:.2g}x its explicit bound "
+            f"({bound:.3g} m^4/s at dt = {scene.dt:g} s): {evals:.3g} ∇⁴ evaluations a step (at most "
+            f"{MAX_HYPERVIS_EVALUATIONS}); lower hyperviscosity.nu"
+        )
+
+
+def scene_stepper(scene: Scene, model: ShallowWater):
+    """The scene's stepper on ``model`` at the scene's Δt, its clock at the scene's start
+    day (not yet ``prepare``d); ``SceneError`` first for a ν the ∇⁴ cannot step
+    (``check_hyperviscosity``)."""
+    check_hyperviscosity(model, scene)
+    stepper = make_stepper(scene.stepper, model, scene.dt, **scene.stepper_options)
+    stepper.t0 = scene.start_day * DAY
+    return stepper
+
+
+def partition(scene: Scene, case, comm, backend: Backend) -> Topology:
+    """This rank's part of the scene's grid, assembled over ``comm``'s ranks (None: one
+    process): the elements of ``topology.rank_parts``, by the stepper's element levels where
+    its work goes by levels (lts; decided on rank 0 from the whole grid and broadcast)."""
+    size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
+    mesh = scene.make_mesh()  # None: the equiangular cube
+    level = None
+    if size > 1:
+        whole = lambda: CubedSphere(scene.ne, scene.np, case.planet.a, mesh=mesh)  # noqa: E731
+        mine = STEPPERS[scene.stepper].partition_levels(whole, scene.stepper_options) if rank == 0 else None
+        level = comm.bcast(mine, root=0)
+    return on_ranks(scene.ne, scene.np, case.planet.a, comm, backend, mesh, level)

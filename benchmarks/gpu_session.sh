@@ -14,7 +14,8 @@
 #   benchmarks/gpu_session.sh criterion_ne60        # ≤ 5 min: TC5 ne60, each family down to the 10 % criterion
 #   benchmarks/gpu_session.sh criterion_ne120       # ≤ 7 min: TC5 ne120, kgu35, rk4 and imex
 #   benchmarks/gpu_session.sh dinosaur              # ≤ 8 min: the peer Dinosaur (JAX) beside swe_sphere on the card
-#   benchmarks/gpu_session.sh control               # ≤ 3.5 min: TC5 ne60 rk43 under error control, graphs against none (issue 64)
+#   benchmarks/gpu_session.sh control               # ≤ 3.5 min: TC5 ne60 rk43 under error control, graphs against none (issue 64; CONTROL_DAYS, CONTROL_GRAPHS)
+#   benchmarks/gpu_session.sh small                 # ≈ 1 min: galewsky and TC5 ne30 one day, ms a step (issue 83 item 5)
 #
 # With no part named it runs setup to iterations in that order (≈ 23 min); reads,
 # study and study_fine are named. The studies are `swe-sphere sweep --device cuda
@@ -142,13 +143,24 @@ part_criterion_ne120() {
 
 # issue 67 item 4: the peer Dinosaur (JAX, the image's CUDA plugin; its wheels in the payload) on the
 # same card in the same call, both models' wall seconds a simulated day (benchmarks/peer_dinosaur.py)
-part_control() {  # issue 64/67: a controlled run's steps as CUDA graphs (one a grid dt) against a fixed dt, graphs off beside
+part_control() {  # issue 64/67/83: a controlled run's steps as CUDA graphs (one a grid dt, tries launched ahead) against a fixed dt
     for g in ${CONTROL_GRAPHS:-auto off}; do
-        run "control_$g" 100 env SWE_SPHERE_GRAPHS=$g "$PY" benchmarks/control_overhead.py --device "$DEVICE" \
-            --ne "$([ "$small" = 1 ] && echo 4 || echo 60)" --control error --pair rk43 --rtol 1e-6 --days 0.25 \
-            --parts a b --repeat 20 --results "gpu_control_overhead_$g"
+        for d in ${CONTROL_DAYS:-0.25}; do  # issue 83 measured 0.25 and 2 days, three rounds each
+            run "control_${g}_${d}d" 100 env SWE_SPHERE_GRAPHS=$g "$PY" benchmarks/control_overhead.py --device "$DEVICE" \
+                --ne "$([ "$small" = 1 ] && echo 4 || echo 60)" --control error --pair rk43 --rtol 1e-6 --days "$d" \
+                --parts a b --repeat 20 --results "gpu_control_overhead_${g}_${d}d"
+        done
     done
     cp benchmarks/results/gpu_control_overhead_*.json "$OUT/" 2>/dev/null
+}
+
+part_small() {  # issue 83 item 5: the default scenes' step on the card, where launches bound it (target <= 0.05 ms)
+    local args="--days 1"
+    [ "$small" = 1 ] && args="--ne 2 --days 0.05"
+    for scene in galewsky tc5_mountain; do
+        run "small_$scene" 120 "$PY" -m swe_sphere.cli run "$scene" $args --device "$DEVICE" --no-progress \
+            --output "$STUDY/small_$scene.nc" --overwrite
+    done
 }
 
 part_dinosaur() {
@@ -201,7 +213,7 @@ parts=("$@")
 [ ${#parts[@]} -eq 0 ] && parts=(setup tests agreement throughput graphs tc5 iterations)
 for part in "${parts[@]}"; do
     case $part in
-        setup|tests_gpu|tests|agreement|throughput|graphs|bits|tc5|iterations|reads|study|study_ne60|study_fine|criterion_ne60|criterion_ne120|dinosaur|control) "part_$part" ;;
-        *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_ne60 study_fine criterion_ne60 criterion_ne120 dinosaur control)" >&2; exit 2 ;;
+        setup|tests_gpu|tests|agreement|throughput|graphs|bits|tc5|iterations|reads|study|study_ne60|study_fine|criterion_ne60|criterion_ne120|dinosaur|control|small) "part_$part" ;;
+        *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_ne60 study_fine criterion_ne60 criterion_ne120 dinosaur control small)" >&2; exit 2 ;;
     esac
 done

@@ -165,17 +165,13 @@ def _areas_and_gradients(centre, verts, corners):
     return _in_chunks(_chunk_areas_and_gradients, centre, verts, corners)
 
 
-def _chunk_areas_and_gradients(centre, verts, corners):
+def _chunk_areas_and_gradients(centre, verts, closed):
     """``_areas_and_gradients`` of some cells at once.
 
     Triangle (n, a, b): E = 2 atan2(N, D), N = n·(a × b), D = 1 + n·a + a·b + b·n
     (van Oosterom & Strackee 1983); dE = 2 (D dN − N dD) / (N² + D²),
     ∂N/∂a = b × n, ∂D/∂a = n + b, ∂N/∂b = n × a, ∂D/∂b = n + a."""
-    a = verts[corners]  # (ncell, nv, 3)
-    b = np.roll(a, -1, axis=1)
-    c = centre[:, None, :]
-    N = np.einsum("cki,cki->ck", c, _cross(a, b))
-    D = 1 + np.einsum("cki,cki->ck", c, a) + np.einsum("cki,cki->ck", a, b) + np.einsum("cki,cki->ck", b, c)
+    a, b, c, N, D = _fan(centre, verts, closed)
     area = 2 * np.arctan2(N, D).sum(axis=1)
     s = (2 / (N * N + D * D))[..., None]
     ga = s * (D[..., None] * _cross(b, c) - N[..., None] * (c + b))
@@ -183,10 +179,28 @@ def _chunk_areas_and_gradients(centre, verts, corners):
     return area, ga + np.roll(gb, 1, axis=1)  # vertex k: first of triangle k, second of triangle k − 1
 
 
+def _chunk_areas(centre, verts, closed):
+    """The areas of ``_chunk_areas_and_gradients`` (the same bits) without the gradients (a
+    third of the time), for passes that use none."""
+    _, _, _, N, D = _fan(centre, verts, closed)
+    return 2 * np.arctan2(N, D).sum(axis=1)
+
+
+def _fan(centre, verts, closed):
+    """The fan triangles (n, a, b) of cells ``verts[closed]`` from ``centre`` (ncell, 3): a and b
+    (ncell, nv, 3), n (ncell, 1, 3), and the N and D (ncell, nv) of their areas 2 atan2(N, D)."""
+    a = verts[closed]  # (ncell, nv, 3)
+    b = np.roll(a, -1, axis=1)
+    c = centre[:, None, :]
+    N = np.einsum("cki,cki->ck", c, _cross(a, b))
+    D = 1 + np.einsum("cki,cki->ck", c, a) + np.einsum("cki,cki->ck", a, b) + np.einsum("cki,cki->ck", b, c)
+    return a, b, c, N, D
+
+
 def spherical_areas(centre, verts, corners) -> np.ndarray:
     """Areas (ncell,) on the unit sphere of the cells ``verts[corners]`` (corners (ncell, nv),
     −1-padded, counter-clockwise; ``centre`` (ncell, 3) a point each cell is star-shaped from)."""
-    return _areas_and_gradients(centre, verts, _padded(corners))[0]
+    return _in_chunks(_chunk_areas, centre, verts, _padded(corners))
 
 
 def convex(verts, corners) -> np.ndarray:
@@ -269,7 +283,7 @@ def dual_mesh(grid: CubedSphere):
     target = grid.area / grid.radius**2
     start = _start_vertices(grid, 0.0)
     quads = subcell_quads(grid)
-    colour = _colouring(quads)
+    colour = _colouring(quads) if corners.shape[0] >= AMG_CELLS else None  # for the V-cycle only
     fit = functools.partial(_fit, centre, corners=corners, closed=closed, target=target, colour=colour)
     try:
         near = _fit_worst_first(centre, start, corners, closed, target, quads, colour)
@@ -312,6 +326,7 @@ def _preconditioner(A, colour):
     needs a spectral radius estimated from a random start, which would change the cells' bits
     from run to run (and took half the set-up: ne120, 16 and 24 iterations for 1 s less)."""
     import pyamg  # here, not at the top: a cached run never builds cells
+    import scipy.sparse.linalg as spla
 
     ml = pyamg.smoothed_aggregation_solver(
         A,
@@ -321,7 +336,25 @@ def _preconditioner(A, colour):
         presmoother=("gauss_seidel", {"sweep": "forward"}),
         postsmoother=("gauss_seidel", {"sweep": "backward"}),
     )
-    return ml.aspreconditioner()
+    return spla.LinearOperator(A.shape, functools.partial(_v_cycle, ml.levels, ml.coarse_solver), dtype=A.dtype)
+
+
+def _v_cycle(levels, coarse_solver, b, lvl=0):
+    """One V-cycle from zero for ``levels[lvl].A`` x = ``b`` over pyamg's ``levels`` and
+    ``coarse_solver``: pyamg's own cycle (the same bits as ``aspreconditioner``), without the
+    residual norms its ``solve`` takes before and after (two fine-level products a cycle, a
+    sixth of its time at ne120)."""
+    level = levels[lvl]
+    x = np.zeros_like(b)
+    level.presmoother(level.A, x, b)
+    coarse_b = level.R @ (b - level.A @ x)
+    if lvl == len(levels) - 2:
+        coarse_x = coarse_solver(levels[-1].A, coarse_b)
+    else:
+        coarse_x = _v_cycle(levels, coarse_solver, coarse_b, lvl + 1)
+    x += level.P @ coarse_x
+    level.postsmoother(level.A, x, b)
+    return x
 
 
 def _fit_worst_first(centre, verts, corners, closed, target, quads, colour):
@@ -332,12 +365,13 @@ def _fit_worst_first(centre, verts, corners, closed, target, quads, colour):
     (cells joined by free vertices: moving a free vertex keeps that sum). The region's cells then share its deficit, 2e-4 of their areas about the
     cube's corners; else the global fit spends two steps (of five at ne60) spreading half of a
     cube corner's cell area. ``quads`` (nsub, 4): the 4 cells (nodes) of each dual vertex
-    (``ugrid.subcell_quads``); ``colour`` (ncell,): their checkerboard (``_colouring``).
+    (``ugrid.subcell_quads``); ``colour`` (ncell,): their checkerboard (``_colouring``), None
+    below ``AMG_CELLS`` cells.
     Raises ``ArithmeticError`` where that fit stalls."""
     import scipy.sparse as sp  # here, not at the top: a cached run never builds cells (0.15 s of imports)
     from scipy.sparse.csgraph import connected_components
 
-    area = _areas_and_gradients(centre, verts, closed)[0]
+    area = _in_chunks(_chunk_areas, centre, verts, closed)
     inside = np.abs(1 - area / target) > LOCAL_ERROR
     if not inside.any():
         return verts
@@ -360,7 +394,7 @@ def _fit_worst_first(centre, verts, corners, closed, target, quads, colour):
         part,
         local[closed[cells_]],
         t,
-        colour[cells_],
+        None if colour is None else colour[cells_],
         CG_RTOL,
         MU_FAR,
         True,
@@ -380,8 +414,8 @@ def _fit(
     residual ``cg_rtol`` (``mu``: the first damping), each step kept only where the cells stay
     star-shaped from their nodes (and, with ``keep_convex``, those convex at the start stay
     convex); only the vertices ``free`` (nsub,) bool move (default all). ``colour`` (ncell,):
-    the cells' checkerboard (``_colouring``). (vertices, max relative error);
-    ``ArithmeticError`` if no step lowers the error or ``steps`` do not reach ``tol``.
+    the cells' checkerboard (``_colouring``), for the V-cycle (None below ``AMG_CELLS`` cells).
+    (vertices, max relative error); ``ArithmeticError`` if no step lowers the error or ``steps`` do not reach ``tol``.
 
     A V-cycle serves the fit's later systems while μ stays at most ``MU_NEAR`` (built
     again where μ changes above it): the vertices move by a fraction of a cell, and that small

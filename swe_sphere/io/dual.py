@@ -283,7 +283,7 @@ def dual_mesh(grid: CubedSphere):
     target = grid.area / grid.radius**2
     start = _start_vertices(grid, 0.0)
     quads = subcell_quads(grid)
-    colour = _colouring(quads) if corners.shape[0] >= AMG_CELLS else None  # for the V-cycle only
+    colour = checkerboard(quads) if corners.shape[0] >= AMG_CELLS else None  # for the V-cycle only
     fit = functools.partial(_fit, centre, corners=corners, closed=closed, target=target, colour=colour)
     try:
         near = _fit_worst_first(centre, start, corners, closed, target, quads, colour)
@@ -297,7 +297,7 @@ def dual_mesh(grid: CubedSphere):
     return verts, corners, error
 
 
-def _colouring(quads) -> np.ndarray:
+def checkerboard(quads) -> np.ndarray:
     """±1 (nunique,) alternating along every edge of the sub-cell mesh ``quads`` (nsub, 4) (the
     parity of each node's edge distance from node 0): a quadrilateral mesh of the sphere is
     bipartite, its cycles sums of its faces' 4-cycles. The checkerboard of ``dual_mesh``'s
@@ -365,7 +365,7 @@ def _fit_worst_first(centre, verts, corners, closed, target, quads, colour):
     (cells joined by free vertices: moving a free vertex keeps that sum). The region's cells then share its deficit, 2e-4 of their areas about the
     cube's corners; else the global fit spends two steps (of five at ne60) spreading half of a
     cube corner's cell area. ``quads`` (nsub, 4): the 4 cells (nodes) of each dual vertex
-    (``ugrid.subcell_quads``); ``colour`` (ncell,): their checkerboard (``_colouring``), None
+    (``ugrid.subcell_quads``); ``colour`` (ncell,): their checkerboard (``checkerboard``), None
     below ``AMG_CELLS`` cells.
     Raises ``ArithmeticError`` where that fit stalls."""
     import scipy.sparse as sp  # here, not at the top: a cached run never builds cells (0.15 s of imports)
@@ -414,7 +414,7 @@ def _fit(
     residual ``cg_rtol`` (``mu``: the first damping), each step kept only where the cells stay
     star-shaped from their nodes (and, with ``keep_convex``, those convex at the start stay
     convex); only the vertices ``free`` (nsub,) bool move (default all). ``colour`` (ncell,):
-    the cells' checkerboard (``_colouring``), for the V-cycle (None below ``AMG_CELLS`` cells).
+    the cells' checkerboard (``checkerboard``), for the V-cycle (None below ``AMG_CELLS`` cells).
     (vertices, max relative error); ``ArithmeticError`` if no step lowers the error or ``steps`` do not reach ``tol``.
 
     A V-cycle serves the fit's later systems while μ stays at most ``MU_NEAR`` (built

@@ -26,6 +26,7 @@ from swe_sphere.io.dual import (
     RTOL,
     cache_key,
     cells,
+    checkerboard,
     control_points,
     convex,
     dual_mesh,
@@ -168,9 +169,9 @@ def test_the_multigrid_preconditioned_fit_on_a_mesh(mesh_grid, monkeypatch):
 
 @pytest.mark.parametrize("ne,np_", [(1, 2), (3, 4)])
 def test_the_checkerboard_alternates_along_every_edge(grid_factory, ne, np_):
-    """``dual._colouring``: ±1 on the unique nodes, opposite at the two ends of every sub-cell edge."""
+    """``checkerboard``: ±1 on the unique nodes, opposite at the two ends of every sub-cell edge."""
     quads = subcell_quads(grid_factory(ne, np_))
-    colour = dual._colouring(quads)
+    colour = checkerboard(quads)
     assert colour.shape == (quads.max() + 1,) and set(np.unique(colour)) == {-1.0, 1.0}
     assert (colour[quads] == -colour[np.roll(quads, -1, axis=1)]).all()
 

@@ -249,12 +249,9 @@ class StepAdjoint:
         divergent = transposed and m.hv.nu_div != m.hv.nu
         launches = self._hv.get((x.ptr, transposed))
         if launches is None:
-            hs, m.operators.hs = m.operators.hs, self.zero_hs
             nus = (m.hv.nu, m.hv.nu, m.hv.nu_s) if divergent else None
-            try:
+            with m.operators.hs_as(self.zero_hs):
                 launches = self._hv[x.ptr, transposed] = m.hv.build(x, self._coef, nus=nus, transposed=transposed)
-            finally:
-                m.operators.hs = hs
         for launch in launches:
             launch.launch()
         if divergent:
@@ -394,14 +391,11 @@ class StepAdjoint:
         m, out = self.model, self.rkl_units[j - 1]
         launches = self._rkl_unit.get(j)
         if launches is None:
-            hs, m.operators.hs = m.operators.hs, self.zero_hs
-            try:
+            with m.operators.hs_as(self.zero_hs):
                 launches = self._rkl_unit[j] = [
                     m.lincomb(out, [(0.0, out)]),
                     *m.hv.build(y, self._coef, out=out, nus=(1.0, 1.0, 1.0)),
                 ]
-            finally:
-                m.operators.hs = hs
         for launch in launches:
             launch.launch()
 
@@ -416,11 +410,10 @@ class StepAdjoint:
             self.hv_states += [self._zeros(3) for _ in range(S - len(self.hv_states))]
             if not hasattr(self, "hv_unit"):
                 self.hv_unit = self._zeros(3)
-            hs, m.operators.hs = m.operators.hs, self.zero_hs
-            try:  # c B₁ y_k into hv_unit, recorded once per k (y_k holds hs: the model's is zero)
+            with m.operators.hs_as(
+                self.zero_hs
+            ):  # c B₁ y_k into hv_unit, once per k (y_k holds hs: the model's is zero)
                 self._hv_unit = [m.hv.build(y, c, out=self.hv_unit, nus=(1.0, 1.0, 1.0)) for y in self.hv_states[:S]]
-            finally:
-                m.operators.hs = hs
         wp.copy(self.hv_states[0], self.phi)
         for k in range(1, S):
             wp.copy(self.hv_states[k], self.hv_states[k - 1])
@@ -440,29 +433,17 @@ class StepAdjoint:
     def hs_gradient(self) -> np.ndarray:
         """∂J/∂hs (N,) on this rank's nodes, continuous (mass form, as μ), summed over the steps reversed so far:
         the ∇⁴'s share and the forcing's, R Q of the pressure gradient's transpose of f̄."""
-        m, N = self.model, self.model.topology.N
+        m, ops, N = self.model, self.model.operators, self.model.topology.N
         out = self.d_hs.numpy()[0]
         if not self.terms or "topography" not in m.terms:
             return out
         kbar = wp.array(np.concatenate([self.fbar.numpy(), np.zeros((1, N))]), dtype=f64, device=m.topology.device)
         ones, xbar, d = wp.ones(N, dtype=f64, device=m.topology.device), wp.zeros_like(kbar), wp.zeros_like(kbar)
         adj = self._zeros(5)
-        point = [
-            kbar,
-            m.operators.D,
-            m.operators.Dinv,
-            m.operators.metdet,
-            m.operators.fcor,
-            ones,
-            m.operators.dvv,
-            kbar,
-            adj,
-            xbar,
-            self.fbar,
-        ]
+        point = [kbar, ops.D, ops.Dinv, ops.metdet, ops.fcor, ones, ops.dvv, kbar, adj, xbar, self.fbar]
         terms = ("pressure_gradient",)  # the forcing is −g∇hs: the pressure gradient of hs
         wp.launch(tendency_adjoint.point(terms, m.topology.grid.np), N, [*point, 0], device=m.topology.device)
-        gather = [kbar, m.operators.D, m.operators.Dinv, m.operators.metdet, m.operators.dvv, m.g, adj, xbar]
+        gather = [kbar, ops.D, ops.Dinv, ops.metdet, ops.dvv, m.g, adj, xbar]
         wp.launch(tendency_adjoint.gather(terms, m.topology.grid.np), N, [*gather, 0], device=m.topology.device)
         for launch in m.topology.dss(xbar, False, d):
             launch.launch()
@@ -474,44 +455,28 @@ class StepAdjoint:
         reading up to three terms; the per-node ``point`` and ``gather`` on CUDA's; k̄ combined
         by a pass of its own first where they cannot read it as it is. ``runs``: (start, stop)
         element ranges, the tendency of those elements alone (x̄ zero on the others)."""
-        m, launches = self.model, []
+        m, ops, launches = self.model, self.model.operators, []
         if runs is not None:
             launches.append(m.lincomb(self.xbar, [(0.0, self.xbar)]))
         ranges = [None] if runs is None else list(runs)
         terms = self.terms if terms is None else tuple(t for t in self.terms if t in terms)
-        if len(kbar) > 3 or not m.operators.per_element and kbar != [(1.0, kbar[0][1])]:
+        if len(kbar) > 3 or not ops.per_element and kbar != [(1.0, kbar[0][1])]:
             if not hasattr(self, "kbar"):
                 self.kbar = self._zeros(3)
             more = (m.lincomb(self.kbar, [(1.0, self.kbar), *kbar[i : i + 3]]) for i in range(4, len(kbar), 3))
             launches, kbar = [*launches, m.lincomb(self.kbar, kbar[:4]), *more], [(1.0, self.kbar)]
-        if m.operators.per_element:
-            R, (c, k) = m.operators.as_rows, zip(*kbar)
+        if ops.per_element:
+            R, (c, k) = ops.as_rows, zip(*kbar)
             c, k = [*c, *(0.0,) * (3 - len(c))], [*k, *(k[0],) * (3 - len(k))]
             kernel = tendency_adjoint.element(terms, m.topology.grid.np, len(kbar))
-            args = [
-                *map(R, (Y, m.operators.D, m.operators.Dinv, m.operators.metdet, m.operators.fcor, self.spheremp)),
-                m.g,
-                m.operators.dvv_rows,
-                wp.vec3d(*c),
-            ]
-            args += [*map(R, k), R(self.xbar), R(self.fbar)]
+            args = [*map(R, (Y, ops.D, ops.Dinv, ops.metdet, ops.fcor, self.spheremp)), m.g, ops.dvv_rows]
+            args += [wp.vec3d(*c), *map(R, k), R(self.xbar), R(self.fbar)]
             return [*launches, *(m.launches.elements(kernel, args, elements=r) for r in ranges)]
         if not hasattr(self, "adj"):
             self.adj = self._zeros(5)
-        point = [
-            Y,
-            m.operators.D,
-            m.operators.Dinv,
-            m.operators.metdet,
-            m.operators.fcor,
-            self.spheremp,
-            m.operators.dvv,
-            kbar[0][1],
-            self.adj,
-            self.xbar,
-            self.fbar,
-        ]
-        gather = [Y, m.operators.D, m.operators.Dinv, m.operators.metdet, m.operators.dvv, m.g, self.adj, self.xbar]
+        point = [Y, ops.D, ops.Dinv, ops.metdet, ops.fcor, self.spheremp, ops.dvv, kbar[0][1]]
+        point += [self.adj, self.xbar, self.fbar]
+        gather = [Y, ops.D, ops.Dinv, ops.metdet, ops.dvv, m.g, self.adj, self.xbar]
         kernels = (
             (tendency_adjoint.point(terms, m.topology.grid.np), point),
             (tendency_adjoint.gather(terms, m.topology.grid.np), gather),

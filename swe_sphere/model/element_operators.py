@@ -15,6 +15,8 @@ operators, ``gradient_sphere``, ``divergence_sphere``, ``vorticity_sphere``, wit
 
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 import warp as wp
 
@@ -50,6 +52,17 @@ class ElementOperators:
         self.scalar_dss = wp.zeros((1, N), dtype=f64, device=device)
         self.scalar_flat = self.scalar.flatten()
         self.vec_work = wp.zeros((2, N), dtype=f64, device=device)
+
+    @contextlib.contextmanager
+    def hs_as(self, hs: wp.array):
+        """``hs`` (N,; m) standing for the surface height inside the block (zeros: the ∇⁴ operator
+        without its hs offset, as ``Hyperviscosity.biharmonic_radius`` and the adjoint's substeps
+        record it), the case's put back after, however the block ends."""
+        saved, self.hs = self.hs, hs
+        try:
+            yield
+        finally:
+            self.hs = saved
 
     def as_rows(self, a: wp.array) -> wp.array:
         """``a`` as the GLL rows the per-element kernels read and write (``kernels.operators.row_vectors``)."""

@@ -226,9 +226,8 @@ class Hyperviscosity:
             for launch in m.topology.dss(z, 1, zc):
                 launch.launch()
             lam = 0.0
-            hs, m.operators.hs = m.operators.hs, wp.zeros_like(m.operators.hs)  # the operator without the hs offset
-            launches = self.build(zc, 1.0, w, nus=(1.0, 1.0, 1.0))
-            m.operators.hs = hs
+            with m.operators.hs_as(wp.zeros_like(m.operators.hs)):  # the operator without the hs offset
+                launches = self.build(zc, 1.0, w, nus=(1.0, 1.0, 1.0))
             for _ in range(iterations):
                 zc.assign(zc.numpy() / m.topology.norm(zc))
                 w.zero_()

@@ -184,9 +184,8 @@ class StepControl:
         sim.model.launches.limit, sim.model.launches.variants = LAUNCH_LISTS, LAUNCH_VARIANTS
         self.x0 = sim.last_good  # a step's start: the guard's last good state (``_checked_step``)
         # the next try launched before this one's norm is read: where the host's read would idle the card
-        topology = sim.model.topology
-        self.lookahead = self.norm is not None and self.balance is None and stepper.explicit
-        self.lookahead = self.lookahead and not topology.backend.host and not topology.distributed
+        on_one_card = not sim.model.topology.backend.host and not sim.model.topology.distributed
+        self.lookahead = on_one_card and self.norm is not None and self.balance is None and stepper.explicit
         self.xs = None  # the start of a try launched ahead (the end of the try before it), made at first use
         self.ahead: _Ahead | None = None  # the try launched ahead, not yet taken or undone
         self.ahead_taken = self.ahead_dropped = 0

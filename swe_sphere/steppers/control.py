@@ -77,35 +77,33 @@ class PairwiseSum:
     ``np.sum`` of the terms (tests/steppers/test_control.py holds it to that)."""
 
     def __init__(self, n: int):
-        starts, lengths, joins = [], [], []  # joins: (height, left, right), a node's index m + its own
+        starts, lengths, leaves, joins = [], [], [], []  # joins: (height, node, left, right), nodes numbered in turn
 
-        def node(start: int, count: int) -> tuple[tuple[str, int], int]:
+        def node(start: int, count: int) -> tuple[int, int]:  # (its number, its height)
             if count <= PAIRWISE_LEAF:
                 starts.append(start)
                 lengths.append(count)
-                return ("leaf", len(starts) - 1), 0
+                leaves.append(len(leaves) + len(joins))
+                return leaves[-1], 0
             half = count // 2
             half -= half % PAIRWISE_UNROLL
-            left, hl = node(start, half)
-            right, hr = node(start + half, count - half)
-            joins.append((max(hl, hr) + 1, left, right))
-            return ("join", len(joins) - 1), max(hl, hr) + 1
+            (left, hl), (right, hr) = node(start, half), node(start + half, count - half)
+            joins.append((max(hl, hr) + 1, len(leaves) + len(joins), left, right))
+            return joins[-1][1], joins[-1][0]
 
-        root, _ = node(0, int(n))
-        m = len(starts)
-        at = {"leaf": 0, "join": m}
-        index = lambda ref: at[ref[0]] + ref[1]  # noqa: E731
+        self.root, _ = node(0, int(n))
         self.starts, self.lengths = np.array(starts, dtype=np.int32), np.array(lengths, dtype=np.int32)
-        self.levels = []  # (out, left, right) index arrays a height, lowest first
-        for height in sorted({h for h, _, _ in joins}):
-            rows = [(m + j, index(lt), index(rt)) for j, (h, lt, rt) in enumerate(joins) if h == height]
+        self.leaves = np.array(leaves, dtype=np.intp)  # each leaf's node
+        self.levels = []  # (node, left, right) index arrays a height, lowest first
+        for height in sorted({h for h, *_ in joins}):
+            rows = [row[1:] for row in joins if row[0] == height]
             self.levels.append(tuple(np.array(col, dtype=np.intp) for col in zip(*rows)))
-        self.root, self._values = index(root), np.empty(m + len(joins))
+        self._values = np.empty(len(leaves) + len(joins))
 
     def total(self, leaf_sums) -> float:
         """The sum of the terms from their leaves' sums (m,), in numpy's order."""
         v = self._values
-        v[: len(self.starts)] = leaf_sums
+        v[self.leaves] = leaf_sums
         for out, left, right in self.levels:
             v[out] = v[left] + v[right]
         return float(v[self.root])

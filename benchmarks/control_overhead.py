@@ -29,12 +29,18 @@ control (``--pair`` at ``--rtol``) and CFL control (``--cfl-stepper`` at ``--cfl
     (``control.ErrorNorm``) or, under "cfl", one pass of the Courant numbers (``control.CourantMax``);
     and one controlled step (``StepControl.step``: the state kept, the
     step, the norm, the controller) at one Δt.
+(p) **Where the host's time goes** (``--parts p``): the controlled run and the fixed-Δt run of
+    (a) again under cProfile, the host's CPU seconds a step (``time.process_time``) beside the wall
+    seconds, and the functions that take most of the host's time. On a card the host must issue a
+    step faster than the card runs it, or the card waits on Python.
 """
 
 from __future__ import annotations
 
 import argparse
+import cProfile
 import os
+import pstats
 import time
 
 import warp as wp
@@ -180,6 +186,34 @@ def parts(args, out: dict) -> None:
     print(f"one controlled step (one dt)   {step:8.3f} ({(step / one - 1) * 100:+.2f} %)")
 
 
+def profiled(args, out: dict) -> None:
+    """(p): the controlled run and the fixed-Δt run of as many steps under cProfile."""
+    sim = build(args, args.days)
+    sim.run(None)
+    ctl = sim.control
+    steps, mean = ctl.accepted, ctl.dt_sum / ctl.accepted
+    for name, make in (
+        ("controlled", lambda: build(args, args.days)),
+        ("fixed", lambda: build(args, steps * mean / 86400.0, dt=mean, control=False)),
+    ):
+        run = make()
+        if name == "fixed":
+            run.stepper.carry_last_stage()
+        profile = cProfile.Profile()
+        wp.synchronize_device(DEVICE)
+        wall, host = time.perf_counter(), time.process_time()
+        profile.enable()
+        run.run(None)
+        wp.synchronize_device(DEVICE)
+        profile.disable()
+        wall, host = time.perf_counter() - wall, time.process_time() - host
+        out[f"profile_{name}"] = {"steps": steps, "wall_ms": wall / steps * 1e3, "host_cpu_ms": host / steps * 1e3}
+        print(
+            f"\n## {name}, {steps} steps under cProfile: wall {wall / steps * 1e3:.3f} ms a step, host CPU {host / steps * 1e3:.3f}"
+        )
+        pstats.Stats(profile).sort_stats("tottime").print_stats(args.profile_rows)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--ne", type=int, default=30)
@@ -190,7 +224,8 @@ def main() -> None:
     parser.add_argument("--cfl", type=float, default=1.0, help="the target Courant number under CFL control")
     parser.add_argument("--days", type=float, default=0.5)
     parser.add_argument("--repeat", type=int, default=40, help="calls timed in (b)")
-    parser.add_argument("--parts", nargs="+", default=["a", "b"], choices=["a", "b"])
+    parser.add_argument("--parts", nargs="+", default=["a", "b"], choices=["a", "b", "p"])
+    parser.add_argument("--profile-rows", type=int, default=25, help="functions (p) prints a run")
     parser.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")
     parser.add_argument("--device", default="cpu", help="cpu (CPU clock) or cuda (wall clock)")
     args = parser.parse_args()
@@ -210,6 +245,8 @@ def main() -> None:
                 whole_runs(one, figures[control])
             if "b" in args.parts:
                 parts(one, figures[control])
+            if "p" in args.parts:
+                profiled(one, figures[control])
         print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
 
 

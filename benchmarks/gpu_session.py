@@ -23,6 +23,11 @@
   ``--dt-factor`` × Δt; ``--steps`` steps after 2) on ``--device``, and
   whether ``Simulation`` replays its steps as graphs; ``--krylov kernels`` gives the
   Krylov steppers CUDA's backends of their vector work on a CPU (``host``: numpy's).
+* ``floor``: where a small grid's step goes (issue 83 item 5): the default scenes (``galewsky``,
+  ``tc5_mountain`` at ``--ne``, default 8 and 30), µs a step of ``Simulation.run``'s time loop, of
+  one step's graph replayed in a bare Python loop, and of ``--chain`` steps captured as one graph
+  (the host's share: the first against the second; the launches' own: the last), ``--graph-steps``
+  steps each, median of ``--runs``. Timing only: a chained graph's bits are not checked.
 * ``iterations``: the semi_implicit, imex and implicit steppers at
   ``--dt-factor`` × TC5's Δt: solver iterations per step on ``--device``
   (their device solvers) against the CPU (its defaults).
@@ -267,9 +272,55 @@ def iterations(args):
             print(f"| {name} | {device} | {its} | {rhs / args.steps:.1f} | {ms:.1f} |", flush=True)
 
 
+def floor(args):
+    _header(
+        f"µs a step ({args.device}; {args.graph_steps} steps, median of {args.runs}): the run's loop, a graph a step "
+        f"from a bare loop, {' and '.join(map(str, args.chain))} steps a graph",
+        [
+            "scene",
+            "ne np",
+            "stepper",
+            "launches a step",
+            "run loop",
+            "graph a step",
+            *(f"{k} a graph" for k in args.chain),
+        ],
+        3 + len(args.chain),
+    )
+    dev, n = wp.get_device(args.device), args.graph_steps
+    for name, ne in [("galewsky", None), *(("tc5_mountain", ne) for ne in args.ne)]:
+        scene = load_scene(name, ne=ne)
+        days = (100 + (args.runs + 1) * n) * scene.dt / DAY
+        sim = Simulation(dataclasses.replace(scene, days=days, output_every_days=days), args.device, progress=False)
+        sim.run(None, until_step=100)  # compiles, records and captures
+        loop = []
+        for k in range(args.runs):
+            loop.append(sim.run(None, until_step=100 + (k + 1) * n).loop_time / n)
+        stepper, x = sim.stepper, sim.x
+        tally = Tally()
+        with instrumented(tally), tally.counting():
+            stepper.step(x)
+        row = [statistics.median(loop)]
+        for chain in (1, *args.chain):
+            with wp.ScopedCapture(device=dev, force_module_load=False) as capture:
+                for _ in range(chain):
+                    stepper.step(x)
+            times = []
+            for _ in range(args.runs):
+                wp.synchronize_device(dev)
+                t0 = time.perf_counter()
+                for _ in range(n // chain):
+                    wp.capture_launch(capture.graph)
+                wp.synchronize_device(dev)
+                times.append((time.perf_counter() - t0) / (n // chain * chain))
+            row.append(statistics.median(times))
+        cells = " | ".join(f"{t * 1e6:.1f}" for t in row)
+        print(f"| {name} | {scene.ne} {scene.np} | {scene.stepper} | {tally.total_launches} | {cells} |", flush=True)
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("part", choices=("agreement", "throughput", "graphs", "bits", "reads", "iterations"))
+    p.add_argument("part", choices=("agreement", "throughput", "graphs", "bits", "reads", "iterations", "floor"))
     p.add_argument("--device", default="cuda")
     p.add_argument(
         "--ne", type=int, nargs="+", default=None, help="grid(s), np 4 (default per part: 16 / 30 60 120 240 / 30 / 30)"
@@ -284,6 +335,7 @@ def main(argv=None):
     p.add_argument("--graph-steps", type=int, default=2000, help="graphs: steps a timed run")
     p.add_argument("--runs", type=int, default=5, help="graphs: timed runs a stepper and mode")
     p.add_argument("--copy-mib", type=int, default=1024)
+    p.add_argument("--chain", type=int, nargs="+", default=[10, 50], help="floor: steps captured as one graph")
     p.add_argument(
         "--krylov",
         choices=("host", "kernels"),
@@ -292,7 +344,7 @@ def main(argv=None):
     )
     args = p.parse_args(argv)
     args.steps = args.steps or (10 if args.part == "bits" else 3)
-    args.ne = args.ne or {"agreement": [16], "throughput": [30, 60, 120, 240]}.get(args.part, [30])
+    args.ne = args.ne or {"agreement": [16], "throughput": [30, 60, 120, 240], "floor": [8, 30]}.get(args.part, [30])
     wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level (as tests/conftest.py)
     if hasattr(wp, "LOG_WARNING"):
         wp.config.log_level = wp.LOG_WARNING
@@ -304,6 +356,7 @@ def main(argv=None):
         "bits": bits,
         "reads": reads,
         "iterations": iterations,
+        "floor": floor,
     }[args.part](args)
 
 

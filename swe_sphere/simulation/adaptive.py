@@ -211,7 +211,11 @@ class StepControl:
         falls below dt_min short of the target."""
         c, tries = self.control, StepStats(0, {})
         ahead, self.ahead = self.ahead, None
-        wp.copy(self.x0, x if ahead is None else self.xs)  # the tries' start
+        if ahead is None:
+            wp.copy(self.x0, x)  # the tries' start
+        else:  # the start of the try launched ahead is in xs: the two swap (a copy fewer a step)
+            self.x0, self.xs = self.xs, self.x0
+            self.sim.last_good = self.x0
         while True:
             left = target - t
             dt = min(self.dt, c.dt_max or math.inf)
@@ -219,7 +223,7 @@ class StepControl:
             landing = left <= dt * (1 + LANDING_SLACK)
             dt = left if landing else dt
             if ahead is not None and (ahead.t, ahead.dt) != (t, dt):  # launched ahead at another Δt: undone
-                self._undo(x, ahead)
+                self._undo(x, ahead, self.x0)
                 ahead = None
             if dt < c.dt_min and not landing:
                 raise BlowUp(
@@ -275,9 +279,9 @@ class StepControl:
         saved, stats = self._try(x, t, dt)
         return _Ahead(t, dt, saved, stats)
 
-    def _undo(self, x, ahead: _Ahead) -> None:
-        """x and the stepper back to where the try launched ahead started."""
-        wp.copy(x, self.xs)
+    def _undo(self, x, ahead: _Ahead, start) -> None:
+        """x and the stepper back to where the try launched ahead started (its state ``start``)."""
+        wp.copy(x, start)
         self.stepper.rollback(ahead.saved)
         self.ahead_dropped += 1
 
@@ -285,7 +289,7 @@ class StepControl:
         """Undo a try launched ahead (``lookahead``), if one is: x the last accepted step's state
         (before the run stops, or anything reads it)."""
         if self.ahead is not None:
-            self._undo(x, self.ahead)
+            self._undo(x, self.ahead, self.xs)
             self.ahead = None
 
     def _propose(self, x, dt: float) -> tuple[bool, float, float]:

@@ -305,14 +305,14 @@ def floor(args):
             with wp.ScopedCapture(device=dev, force_module_load=False) as capture:
                 for _ in range(chain):
                     stepper.step(x)
-            times = []
+            times, replays = [], max(1, n // chain)
             for _ in range(args.runs):
                 wp.synchronize_device(dev)
                 t0 = time.perf_counter()
-                for _ in range(n // chain):
+                for _ in range(replays):
                     wp.capture_launch(capture.graph)
                 wp.synchronize_device(dev)
-                times.append((time.perf_counter() - t0) / (n // chain * chain))
+                times.append((time.perf_counter() - t0) / (replays * chain))
             row.append(statistics.median(times))
         cells = " | ".join(f"{t * 1e6:.1f}" for t in row)
         print(f"| {name} | {scene.ne} {scene.np} | {scene.stepper} | {tally.total_launches} | {cells} |", flush=True)

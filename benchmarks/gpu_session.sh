@@ -16,6 +16,7 @@
 #   benchmarks/gpu_session.sh dinosaur              # ≤ 8 min: the peer Dinosaur (JAX) beside swe_sphere on the card
 #   benchmarks/gpu_session.sh control               # ≤ 3.5 min: TC5 ne60 rk43 under error control, graphs against none (issue 64; CONTROL_DAYS, CONTROL_GRAPHS)
 #   benchmarks/gpu_session.sh small                 # ≈ 1 min: galewsky and TC5 ne30 one day, ms a step (issue 83 item 5)
+#   benchmarks/gpu_session.sh floor                 # ≈ 1 min: where a small grid's step goes: the run's loop, a graph a step, k steps a graph
 #
 # With no part named it runs setup to iterations in that order (≈ 23 min); reads,
 # study and study_fine are named. The studies are `swe-sphere sweep --device cuda
@@ -157,6 +158,7 @@ part_control() {  # issue 64/67/83: a controlled run's steps as CUDA graphs (one
 part_small() {  # issue 83 item 5: the default scenes' step on the card, where launches bound it (target <= 0.05 ms)
     local args="--days 1"
     [ "$small" = 1 ] && args="--ne 2 --days 0.05"
+    mkdir -p "$STUDY"
     for scene in galewsky tc5_mountain; do
         run "small_$scene" 120 "$PY" -m swe_sphere.cli run "$scene" $args --device "$DEVICE" --no-progress \
             --output "$STUDY/small_$scene.nc" --overwrite
@@ -204,6 +206,11 @@ part_tc5() {  # issue 67 target: TC5 ne120, 15 days, the scene's own stepper and
         --no-progress --output "$STUDY/tc5_ne${ne}.nc" --overwrite
 }
 
+part_floor() {  # issue 83 item 5: is a small grid's step the host's (the run's loop) or the launches' own?
+    if [ "$small" = 1 ]; then set -- --ne 2 --graph-steps 20 --runs 2; else set -- --ne 8 30; fi
+    run floor 120 "$PY" benchmarks/gpu_session.py floor --device "$DEVICE" "$@"
+}
+
 part_iterations() {
     if [ "$small" = 1 ]; then set -- --ne 2 --steps 1; else set -- --ne 30; fi
     run iterations 180 "$PY" benchmarks/gpu_session.py iterations --device "$DEVICE" "$@"
@@ -213,7 +220,7 @@ parts=("$@")
 [ ${#parts[@]} -eq 0 ] && parts=(setup tests agreement throughput graphs tc5 iterations)
 for part in "${parts[@]}"; do
     case $part in
-        setup|tests_gpu|tests|agreement|throughput|graphs|bits|tc5|iterations|reads|study|study_ne60|study_fine|criterion_ne60|criterion_ne120|dinosaur|control|small) "part_$part" ;;
-        *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_ne60 study_fine criterion_ne60 criterion_ne120 dinosaur control small)" >&2; exit 2 ;;
+        setup|tests_gpu|tests|agreement|throughput|graphs|bits|tc5|iterations|reads|study|study_ne60|study_fine|criterion_ne60|criterion_ne120|dinosaur|control|small|floor) "part_$part" ;;
+        *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_ne60 study_fine criterion_ne60 criterion_ne120 dinosaur control small floor)" >&2; exit 2 ;;
     esac
 done

@@ -5,7 +5,8 @@ the tests that a step needs no host round trip).
 ``instrumented(tally)`` wraps Warp's launch entry points (recorded
 ``wp.Launch.launch`` and direct ``wp.launch``), its memsets and copies
 (``zero_``, ``fill_``, ``assign``, ``wp.copy``) and its read-back
-``wp.array.numpy`` for as long as the context lasts; a ``Tally`` counts what
+``wp.array.numpy`` and the wait for an event (``wp.synchronize_event``: a read into page-locked
+memory, ``core.backend.HostRead``) for as long as the context lasts; a ``Tally`` counts what
 passes while its ``counting()`` context is active. A ``.numpy()`` of a CUDA
 array waits for the device (a host synchronisation) and cannot be part of a
 CUDA graph: a step that reads none can be captured as one.
@@ -32,8 +33,8 @@ def array_bytes(args) -> dict:
 
 class Tally:
     """Launches (by kernel key), bytes (each distinct array argument's capacity once
-    a launch), memsets/copies and host reads (``syncs``: ``.numpy()`` read-backs)
-    seen while ``counting()``."""
+    a launch), memsets/copies and host reads (``syncs``: ``.numpy()`` read-backs and
+    waits for an event) seen while ``counting()``."""
 
     def __init__(self):
         self.active = False
@@ -101,6 +102,7 @@ def instrumented(tally: Tally):
         "launch": wp.Launch.launch,
         "wp.launch": wp.launch,
         "wp.copy": wp.copy,
+        "wp.synchronize_event": wp.synchronize_event,
         **{name: getattr(wp.array, name) for name in ("zero_", "fill_", "assign", "numpy")},
     }
 
@@ -128,12 +130,18 @@ def instrumented(tally: Tally):
         tally.read()
         return real["numpy"](self)
 
+    def synchronize_event(event):
+        tally.read()
+        return real["wp.synchronize_event"](event)
+
     wp.Launch.launch, wp.launch, wp.copy, wp.array.numpy = record_launch, launch, copy, numpy
+    wp.synchronize_event = synchronize_event
     for name, factor in (("zero_", 1), ("fill_", 1), ("assign", 2)):
         setattr(wp.array, name, memop(name, factor))
     try:
         yield tally
     finally:
         wp.Launch.launch, wp.launch, wp.copy = real["launch"], real["wp.launch"], real["wp.copy"]
+        wp.synchronize_event = real["wp.synchronize_event"]
         for name in ("zero_", "fill_", "assign", "numpy"):
             setattr(wp.array, name, real[name])

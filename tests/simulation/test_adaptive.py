@@ -16,6 +16,7 @@ import pytest
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
 from swe_sphere.core.errors import BlowUp
+from swe_sphere.core.tally import Tally, instrumented
 from swe_sphere.model.diagnostics import courant_numbers
 from swe_sphere.simulation.adaptive import ATOL_FLOOR, BALANCE_EVERY, CAP_EVERY, DT_GRID, StepControl
 
@@ -392,6 +393,32 @@ def test_a_run_with_tries_launched_ahead_is_bitwise_the_run_without(tmp_path):
     # a try is launched ahead only after a step that neither lands nor has a callback due
     landings, callbacks = 4, ctl.accepted // 10
     assert ctl.ahead_taken + ctl.ahead_dropped <= ctl.accepted - landings - callbacks
+
+
+def test_a_step_taken_ahead_copies_no_more_than_a_step_without():
+    """A try launched ahead keeps its start (x into ``xs``), and the step that takes it starts
+    from there by swapping ``xs`` and ``x0`` (``last_good`` follows), not by a copy: steps of
+    TC2 ne4 ``bs32`` at rtol 1e-6 held to one Δt (dt_min = dt_max = 400 s: no rejection, no
+    try undone) make as many copies and memsets (``Tally.memops``) with tries launched ahead as
+    without, and the same bits."""
+    counts, states = [], []
+    for lookahead in (False, True):
+        sim, ctl = _sim(1e-6, cfl=False, dt_min=400.0, dt_max=400.0)
+        ctl.lookahead = lookahead
+        t = 0.0
+        for _ in range(3):  # recorded and compiled outside the count
+            t, _ = ctl.step(sim.x, t, DAY, quiet=True)
+        rejected, taken, tally = ctl.rejected, ctl.ahead_taken, Tally()
+        with instrumented(tally), tally.counting():
+            for _ in range(8):
+                t, _ = ctl.step(sim.x, t, DAY, quiet=True)
+        assert ctl.rejected == rejected and ctl.ahead_taken - taken == (8 if lookahead else 0)
+        ctl.settle(sim.x)
+        assert sim.last_good is ctl.x0
+        counts.append(tally.memops)
+        states.append(sim.x.numpy())
+    assert counts[1] == counts[0] > 0, counts
+    np.testing.assert_array_equal(states[1], states[0])
 
 
 def test_settling_undoes_the_try_launched_ahead_and_the_run_goes_on_bitwise():

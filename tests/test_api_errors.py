@@ -129,10 +129,15 @@ MISUSES = {
     ),
     "gradient device tpu": (lambda f: _gradient(1, FLAT, device="tpu"), SceneError, "device"),
     "gradient cost returning a number": (lambda f: _gradient(1, lambda x, s: 1.0), ArgumentError, "cost must return"),
-    "gradient of semi_implicit": (
-        lambda f: gradient(_tc5("semi_implicit"), 1, FLAT),
+    "gradient of imex": (
+        lambda f: gradient(_tc5("imex"), 1, FLAT),
         ArgumentError,
-        "got scene.stepper = 'semi_implicit'",
+        "got scene.stepper = 'imex'",
+    ),
+    "semi_implicit parameters' gradient": (
+        lambda f: gradient(_tc5("semi_implicit"), 1, FLAT, parameters=True),
+        ArgumentError,
+        "parameters must be False with semi_implicit",
     ),
     "HeightMisfit of 7 nodes": (
         lambda f: _gradient(1, HeightMisfit(np.zeros(7))),

@@ -2,7 +2,8 @@
 the run (``observations``), with respect to its initial state (``gradient``), by a
 checkpointed reverse sweep (``revolve.sweep``, or ``revolve.two_level`` with states on a disk:
 ``disk.DiskTier``) of the explicit steps' adjoints (``explicit.StepAdjoint`` and its kin:
-``forward_backward``, ``leapfrog``, ``multirate``), at the run's Δt or along a controlled run's
+``forward_backward``, ``leapfrog``, ``multirate``) and of the semi-implicit leapfrog's
+(``semi_implicit``: its Helmholtz solve transposed), at the run's Δt or along a controlled run's
 steps (``StepTimes``)."""
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from .leapfrog import LeapfrogAdjoint
 from .multirate import LtsAdjoint, MriAdjoint, SplitExplicitAdjoint
 from .multirate_ab import MrabAdjoint
 from .revolve import sweep, two_level
+from .semi_implicit import SemiImplicitAdjoint
 
 f64 = wp.float64
 
@@ -149,8 +151,8 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
     assembles the ranks' parts), its stepper (at the scene's Δt, under no step control) and its
     case's initial state (3, N) numpy on this rank's nodes; ``hs`` (nnodes_total,) m: the whole
     grid's surface height instead of the case's (read on rank 0). ``ArgumentError`` unless the
-    stepper has an adjoint (``step_adjoint``; not a stepper that solves a Helmholtz problem, e.g.
-    semi_implicit, whose solve has none), or for hs of another shape (on every rank);
+    stepper has an adjoint (``step_adjoint``: not an implicit, IMEX or exponential stepper), or
+    for hs of another shape (on every rank);
     ``SceneError`` for a ν the ∇⁴ cannot step (``config.parts.scene_stepper``, as a run)."""
     case = scene.make_case()
     topo = partition(scene, case, comm, Backend.of(device))  # as a run's (``simulation.build``)
@@ -238,12 +240,13 @@ ADJOINTS = {
     "split_explicit": SplitExplicitAdjoint,
     "mri": MriAdjoint,
     "lts": _lts,
+    "semi_implicit": SemiImplicitAdjoint,
 }
 
 
 def _adjoint_of(stepper):
-    """The maker of ``stepper``'s step adjoint, or None where it has none (an implicit,
-    semi-implicit, IMEX or exponential stepper)."""
+    """The maker of ``stepper``'s step adjoint, or None where it has none (an implicit, IMEX or
+    exponential stepper)."""
     if stepper.name in ADJOINTS:
         return ADJOINTS[stepper.name]
     return _table if stepper.explicit and callable(getattr(stepper, "table", None)) else None
@@ -307,7 +310,7 @@ def gradient(
     ----------
     scene : a ``config.Scene`` whose stepper is an explicit Runge–Kutta table (ssprk3, rk4,
         kgu35, the pairs, a tableau), fbrk32, leapfrog, leapfrog_trapezoidal, split_explicit,
-        mri or lts (a multirate table or MRAB3) (``step_adjoint``), any terms (a time-dependent
+        mri, lts (a multirate table or MRAB3) or semi_implicit (``step_adjoint``), any terms (a time-dependent
         forcing's stages at their times, from the scene's ``start_day``), a ∇⁴ constant or
         tensor, ν_div = ν or not.
     steps : n ≥ 1 steps of the scene's Δt (or of ``history``).
@@ -321,10 +324,12 @@ def gradient(
         (nnodes_total), read on rank 0.
     snapshots : states held at once during the reverse sweep, x(0) included (None: n, every
         state, each step taken forward once); fewer cost ``revolve.forward_steps(n,
-        snapshots − 1)`` + 1 forward steps in all (Griewank & Walther 2000), the same bits.
+        snapshots − 1)`` + 1 forward steps in all (Griewank & Walther 2000), the same bits
+        (semi_implicit's: the same to its CG's ``tol``, a recomputed step's CG starting from
+        the stepper's later guesses).
     parameters : also the ∇⁴ coefficients', the topography's and the planet's gravity and
         rotation rate's gradients (an extra ∇⁴ substep a step reversed, and per stage one RHS of
-        the pressure gradient and topography and a host-side sum).
+        the pressure gradient and topography and a host-side sum); not with semi_implicit.
     hs : (N,) surface height (m), element-local and continuous, instead of the case's (as x0).
     disk : None (every state the sweep holds in memory), True (a second tier: a file in
         ``tempfile.gettempdir()``, on some systems tmpfs, i.e. memory) or a folder (str or path) for it. A first forward pass
@@ -362,13 +367,14 @@ def gradient(
     than (J, λ (3, N)) or a non-finite J, at_steps outside 0 … n, a controlled scene without a
     history, a history shorter than n or with a bad step (``StepTimes``), a disk_interval without a
     disk, a disk that is not an existing folder, x0 or hs of another shape or not finite,
-    ``parameters`` not a bool, ``comm`` not a communicator, or a scene the adjoint cannot serve
-    (``explicit.refusal``, a non-explicit stepper: semi_implicit's Helmholtz solve has no adjoint);
+    ``parameters`` not a bool or True with semi_implicit, ``comm`` not a communicator, or a scene
+    the adjoint cannot serve (``explicit.refusal``; an implicit, IMEX or exponential stepper);
     ``SceneError`` for another device than "cpu", "cuda" or "cuda:N"; OSError from the disk
-    (full, unwritable).
+    (full, unwritable); ``StepFailure`` where a semi-implicit step's transposed solve misses its
+    ``tol`` within ``maxiter``.
 
     Sources: the adjoints of ``explicit`` (the tendency, the DSS and the ∇⁴ transposed by
-    hand), checkpointing by Griewank & Walther (2000), ACM TOMS 26:19, in two levels by Stumm
+    hand; the Helmholtz solve by its symmetry, ``semi_implicit``), checkpointing by Griewank & Walther (2000), ACM TOMS 26:19, in two levels by Stumm
     & Walther (2009), SIAM J. Sci. Comput. 31:1946.
     """
     instance_argument("scene", scene, Scene, "a Scene (swe_sphere.load_scene(...))")

@@ -58,7 +58,11 @@ class LeapfrogAdjoint(StepAdjoint):
         if self.trapezoidal:
             self.star, self.mstar = zeros(3), zeros(3)
         self._for_dt()
-        self.start = StepAdjoint(model, MIDPOINT, dt, parameters, t0)
+        self.start = self._first_step(model, stepper, dt, parameters, t0)
+
+    def _first_step(self, model, stepper, dt: float, parameters: bool, t0: float):
+        """The first step's adjoint (``_reverse_start`` reverses it): the midpoint rule's."""
+        return StepAdjoint(model, MIDPOINT, dt, parameters, t0)
 
     def _stage_plan(self, zeros) -> None:
         """None: ``reverse`` forms the step's states itself."""
@@ -101,7 +105,7 @@ class LeapfrogAdjoint(StepAdjoint):
     def reverse(self, x, mu, k: int = 0) -> None:
         """μ of s(k+1) → μ of s(k), in place; x = s(k) (6, N) (read only), k the step's index."""
         X, O = slice(0, 3), slice(3, 6)
-        if k == 0:
+        if k == 0 and self.start is not None:  # (a first step's own adjoint has no start)
             self._reverse_start(x, mu)
             return
         m, dt = self.model, self.step_dt
@@ -112,9 +116,13 @@ class LeapfrogAdjoint(StepAdjoint):
             m.set_time(self.t_n)
             m.rhs_update(self.x, (Update(self.star, ((1.0, self.old), (2 * dt, None))),))
         self.combine(self.mphi, [(1.0, mu[X]), (self.eps, mu[O])])  # μ_N
+        self._phi_adjoint()
+        self._replay(mu)
+
+    def _phi_adjoint(self) -> None:
+        """μ_N → μ_Φ in ``mphi``, in place: the ∇⁴'s transpose (``semi_implicit`` adds its solve's)."""
         if self.substeps:
             self.hyperviscosity_transpose(self.mphi)
-        self._replay(mu)
 
     def _reverse_start(self, x, mu) -> None:
         """The first step's reverse: the midpoint rule's adjoint on μ_x', plus μ_x̃' (x̃(0) = x(0));

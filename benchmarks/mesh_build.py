@@ -1,6 +1,6 @@
 """What a mesh costs before the first step: reading and checking a ``.g`` file, building
 its grid (element-local metric, numbering, DSS table) and a one-process topology, and reading
-its run file's cells from the grid cache (``io.dual.unit_dual_mesh``; their first build, once
+its run file's cells from the grid cache (``io.dual.cached_cells``; their first build, once
 per mesh, is timed apart), CPU clock, median of ``--rounds``, beside the equiangular cube of the
 same size built in. The cache is a temporary folder (the user's is not touched).
 
@@ -25,7 +25,7 @@ from results import recorded
 from swe_sphere.core.runtime import init_warp
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.topology import Topology
-from swe_sphere.io.dual import unit_dual_mesh
+from swe_sphere.io.dual import cached_cells
 from swe_sphere.mesh.cube import cube_mesh
 from swe_sphere.mesh.mesh import read_exodus, write_exodus
 
@@ -59,7 +59,7 @@ def main() -> None:
             read, mesh = cpu(lambda p=path: read_exodus(p), args.rounds)
             build, grid = cpu(lambda m=mesh: CubedSphere(0, args.np, mesh=m), args.rounds)
             topology, _ = cpu(lambda g=grid: Topology(g, "cpu", 1), args.rounds)
-            cells = functools.partial(unit_dual_mesh.__wrapped__, 0, args.np, mesh)  # past the process's lru_cache
+            cells = functools.partial(cached_cells, 0, args.np, mesh, grid=grid)  # past the process's memo
             first, _ = cpu(cells, 1)
             cached, _ = cpu(cells, args.rounds)
             total = read + build + topology + cached

@@ -34,6 +34,7 @@ counter-clockwise seen from outside: 4 of them, as many as the elements round a 
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import time
 
@@ -41,6 +42,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ..core import cache
+from ..core.constants import EARTH
 from ..grid.cubed_sphere import CubedSphere, lat_lon
 from ..mesh.mesh import Mesh
 from .ugrid import subcell_quads, write_topology
@@ -73,7 +75,7 @@ LOCAL_ERROR, LOCAL_RINGS = 0.05, 6  # cells fitted first, and the rings round th
 NEAR_STEPS = 20
 TWIST = 0.1  # the chiral start's rotation (``_start_vertices``)
 CHUNK = 1 << 13  # cells a pass (``_in_chunks``): its temporaries stay under 10 MB
-BUILD = 8  # the fit's version in the cache key: raised by any change that moves the cells' bits
+BUILD = 9  # the fit's version in the cache key: raised by any change that moves the cells' bits
 
 
 def control_points(rule) -> np.ndarray:
@@ -324,8 +326,9 @@ def _preconditioner(A, colour):
     and 17 iterations where pyamg's default of two sweeps took 10 and 14, dearer in all). The
     prolongation's Jacobi smoothing weighted by row sums ("local"): pyamg's default weight
     needs a spectral radius estimated from a random start, which would change the cells' bits
-    from run to run (and took half the set-up: ne120, 16 and 24 iterations for 1 s less)."""
-    import pyamg  # here, not at the top: a cached run never builds cells
+    from run to run (and took half the set-up: ne120, 16 and 24 iterations for 1 s less).
+    The cycle runs on CSR copies of pyamg's levels (``_v_cycle``)."""
+    import pyamg  # here, not at the top: a cached run never builds cells (0.15 s of imports)
     import scipy.sparse.linalg as spla
 
     ml = pyamg.smoothed_aggregation_solver(
@@ -336,24 +339,27 @@ def _preconditioner(A, colour):
         presmoother=("gauss_seidel", {"sweep": "forward"}),
         postsmoother=("gauss_seidel", {"sweep": "backward"}),
     )
-    return spla.LinearOperator(A.shape, functools.partial(_v_cycle, ml.levels, ml.coarse_solver), dtype=A.dtype)
+    levels = [(level.A.tocsr(), level.R.tocsr(), level.P.tocsr()) for level in ml.levels[:-1]]
+    coarse = functools.partial(ml.coarse_solver, ml.levels[-1].A)
+    return spla.LinearOperator(A.shape, functools.partial(_v_cycle, levels, coarse), dtype=A.dtype)
 
 
 def _v_cycle(levels, coarse_solver, b, lvl=0):
-    """One V-cycle from zero for ``levels[lvl].A`` x = ``b`` over pyamg's ``levels`` and
-    ``coarse_solver``: pyamg's own cycle (the same bits as ``aspreconditioner``), without the
-    residual norms its ``solve`` takes before and after (two fine-level products a cycle, a
-    sixth of its time at ne120)."""
-    level = levels[lvl]
+    """One V-cycle from zero for ``levels[lvl]``'s A x = ``b``, ``levels`` the (A, R, P) of
+    pyamg's levels but the last, as CSR, and ``coarse_solver(b)`` the last's solve: pyamg's own
+    cycle without the residual norms its ``solve`` takes before and after (two fine-level
+    products a cycle, a sixth of its time at ne120), and with point Gauss–Seidel where pyamg's
+    coarse levels (BSR, 2×2 blocks: one a candidate) take block Gauss–Seidel, twice as dear for
+    the same iterations (ne120: 16 and 24 either way; 3.1 s of V-cycles where 4.3 s)."""
+    from pyamg.relaxation.relaxation import gauss_seidel
+
+    A, R, P = levels[lvl]
     x = np.zeros_like(b)
-    level.presmoother(level.A, x, b)
-    coarse_b = level.R @ (b - level.A @ x)
-    if lvl == len(levels) - 2:
-        coarse_x = coarse_solver(levels[-1].A, coarse_b)
-    else:
-        coarse_x = _v_cycle(levels, coarse_solver, coarse_b, lvl + 1)
-    x += level.P @ coarse_x
-    level.postsmoother(level.A, x, b)
+    gauss_seidel(A, x, b, sweep="forward")
+    coarse_b = R @ (b - A @ x)
+    coarse_x = coarse_solver(coarse_b) if lvl == len(levels) - 1 else _v_cycle(levels, coarse_solver, coarse_b, lvl + 1)
+    x += P @ coarse_x
+    gauss_seidel(A, x, b, sweep="backward")
     return x
 
 
@@ -473,22 +479,24 @@ def _fit(
     raise ArithmeticError(f"dual mesh: cell areas off spheremp by {error:.1e} after {steps} steps")
 
 
-def cache_key(ne: int, np_: int, mesh: Mesh | None = None) -> dict:
+def cache_key(ne: int, np_: int, mesh: Mesh | None = None, radius: float = EARTH.a) -> dict:
     """What the unit-sphere cells are a function of (``core.cache`` key): the mesh (the
-    uniform equiangular cube, or ``mesh``'s content hash ``Mesh.sha256``), the map, ne, np
-    and ``BUILD``."""
+    uniform equiangular cube, or ``mesh``'s content hash ``Mesh.sha256``), the map, ne, np,
+    the radius (m) of the grid they are fitted on (its spheremp / a², the targets, differ from
+    another radius's in the last bits: ``unit_dual_mesh``) and ``BUILD``."""
     if mesh is None:
-        return {"mesh": "cubed_sphere", "map": "equiangular", "ne": ne, "np": np_, "build": BUILD}
-    return {"mesh": mesh.sha256(), "map": mesh.map, "ne": ne, "np": np_, "build": BUILD}
+        return {"mesh": "cubed_sphere", "map": "equiangular", "ne": ne, "np": np_, "radius": radius, "build": BUILD}
+    return {"mesh": mesh.sha256(), "map": mesh.map, "ne": ne, "np": np_, "radius": radius, "build": BUILD}
 
 
-@functools.lru_cache(maxsize=4)
-def unit_dual_mesh(ne: int, np_: int, mesh: Mesh | None = None):
-    """``dual_mesh`` of the ne, np grid (on ``mesh`` if given, as ``CubedSphere``) on the
-    unit sphere, read from the cache (``core.cache``, entry ``dual_mesh``) or built and
-    stored there: (vertices, corners, error, CPU seconds of the build or None when read).
-    Once a process besides (every stream and run of a grid writes the same cells). Built on one
-    BLAS thread: the same bits on any host."""
+def cached_cells(ne: int, np_: int, mesh: Mesh | None = None, radius: float = EARTH.a, grid: CubedSphere | None = None):
+    """``dual_mesh`` of the ne, np grid of radius ``radius`` (m; on ``mesh`` if given, as
+    ``CubedSphere``), read from the cache (``core.cache``, entry ``dual_mesh``) or built and
+    stored there: (vertices (nsub, 3) unit vectors, corners, error, CPU seconds of the build or
+    None when read). ``grid``: that grid, whole, where the caller has it (a run's own); else it
+    is built here (3 s of CPU at ne120). The cells are on the unit sphere whatever the radius,
+    fitted to spheremp / a², which differ from a unit grid's by round-off (18 ε at ne30), so the
+    radius is in the key. Built on one BLAS thread: the same bits on any host."""
     seconds = []
 
     def build():
@@ -497,13 +505,56 @@ def unit_dual_mesh(ne: int, np_: int, mesh: Mesh | None = None):
         # split over every core, its threads spinning between them (ne120 on a 16-core host: 423 s
         # of CPU for 71 s of wall; ne30 on 2 cores: 4.4× the CPU and 4.9× the wall of one thread),
         # and whose sums' order, hence the cells' bits, went with the host's core count
-        with threadpool_limits(limits=1, user_api="blas"):
-            verts, corners, error = dual_mesh(CubedSphere(ne, np_, radius=1.0, mesh=mesh))
+        with threadpool_limits(limits=1, user_api="blas"), _small_pages():
+            whole = grid if _is_whole(grid, ne, np_, mesh, radius) else CubedSphere(ne, np_, radius, mesh=mesh)
+            verts, corners, error = dual_mesh(whole)
         seconds.append(time.process_time() - start)
         return {"vertices": verts, "corners": corners, "error": np.float64(error)}
 
-    arrays, _ = cache.cached("dual_mesh", cache_key(ne, np_, mesh), build)
+    arrays, _ = cache.cached("dual_mesh", cache_key(ne, np_, mesh, radius), build)
     return arrays["vertices"], arrays["corners"], float(arrays["error"]), seconds[0] if seconds else None
+
+
+@contextlib.contextmanager
+def _small_pages():
+    """numpy's arrays allocated without madvise(MADV_HUGEPAGE) inside (numpy's own switch, as
+    ``NUMPY_MADVISE_HUGEPAGE=0``; restored after): the fit's temporaries of tens to hundreds of
+    MB are mapped afresh each time, and where the kernel compacts memory to fault them in as
+    2 MB pages (transparent_hugepage/defrag = madvise, the default) that cost 2.2–2.5 s of
+    system CPU at ne120, 0.9 s with 4 kB pages, for the same user time. No switch: no change."""
+    core = np._core if hasattr(np, "_core") else np.core  # numpy ≥ 2, else 1.x
+    switch = getattr(core.multiarray, "_set_madvise_hugepage", lambda enabled: enabled)
+    was = switch(False)
+    try:
+        yield
+    finally:
+        switch(was)
+
+
+def _is_whole(grid, ne: int, np_: int, mesh: Mesh | None, radius: float) -> bool:
+    """Whether ``grid`` is the whole ``CubedSphere`` of these arguments (not an MPI rank's part,
+    nor rank 0's ``GatheredGrid``, which holds no metric)."""
+    whole = isinstance(grid, CubedSphere) and grid.nelem == grid.nelem_total
+    return whole and (grid.ne, grid.np, grid.radius) == (ne, np_, radius) and grid.mesh is mesh
+
+
+_MEMO, MEMO_SIZE = {}, 4  # this process's cells by their cache key, the last MEMO_SIZE grids'
+
+
+def unit_dual_mesh(ne: int, np_: int, mesh: Mesh | None = None, radius: float = EARTH.a, grid=None):
+    """``cached_cells``, once a process for each grid (every stream and run of a grid writes the
+    same cells; ``clear_memo`` forgets them): the same tuple, its seconds those of the build."""
+    key = tuple(cache_key(ne, np_, mesh, radius).items())
+    if key not in _MEMO:
+        if len(_MEMO) >= MEMO_SIZE:
+            del _MEMO[next(iter(_MEMO))]  # the oldest
+        _MEMO[key] = cached_cells(ne, np_, mesh, radius, grid)
+    return _MEMO[key]
+
+
+def clear_memo() -> None:
+    """Forget this process's cells (``unit_dual_mesh``): the next call reads the cache again."""
+    _MEMO.clear()
 
 
 def write_dual_mesh(ds, grid: CubedSphere) -> float | None:
@@ -515,7 +566,7 @@ def write_dual_mesh(ds, grid: CubedSphere) -> float | None:
     files do). Adds nv (4 on a cube, the largest node valence of a mesh) and ndual_node =
     nelem·(np−1)² (the dual vertices): 2.4 MB at ne30 np4, compressed. Returns the CPU seconds
     spent building the cells, None where they came from the cache (``unit_dual_mesh``)."""
-    verts, corners, _, seconds = unit_dual_mesh(grid.ne, grid.np, grid.mesh)
+    verts, corners, _, seconds = unit_dual_mesh(grid.ne, grid.np, grid.mesh, grid.radius, grid)
     ds.createDimension(NODE_DIM, verts.shape[0])
     ds.createDimension(CORNER_DIM, corners.shape[1])
     write_topology(

@@ -122,9 +122,9 @@ def test_a_cache_that_cannot_be_written_costs_a_build_not_the_result(tmp_path, m
 
 @pytest.mark.parametrize("ne,np_", [(2, 4), (3, 3)])
 def test_the_cells_read_from_the_cache_are_those_a_fresh_build_gives(cache_dir, ne, np_):
-    fresh = dual.dual_mesh(CubedSphere(ne, np_, radius=1.0))
-    built = dual.unit_dual_mesh.__wrapped__(ne, np_)  # past the process's own lru_cache
-    read = dual.unit_dual_mesh.__wrapped__(ne, np_)
+    fresh = dual.dual_mesh(CubedSphere(ne, np_))  # the Earth's radius, as the key's default
+    built = dual.cached_cells(ne, np_)  # past the process's memo
+    read = dual.cached_cells(ne, np_)
     assert built[3] is not None and built[3] >= 0 and read[3] is None  # built once, then read
     for got in (built, read):
         for a, b in zip(got[:2], fresh[:2], strict=True):

@@ -18,6 +18,7 @@ import pytest
 import xarray as xr
 
 from swe_sphere.cli import main
+from swe_sphere.core.constants import EARTH
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.gll import gll
 from swe_sphere.grid.refine import Box, refined_cube
@@ -186,14 +187,16 @@ def test_a_meshs_cells_are_cached_by_its_content_and_map(tmp_path, monkeypatch):
         "map": "equiangular",
         "ne": 2,
         "np": 4,
+        "radius": EARTH.a,
         "build": cache_key(2, 4)["build"],
     }
+    assert cache_key(2, 4, radius=1.0) == {**cache_key(2, 4), "radius": 1.0}
     cube, again, stretched = cube_mesh(2), cube_mesh(2), schmidt_cube(2, 1.5)
     assert cache_key(2, 4, cube) == cache_key(2, 4, again) != cache_key(2, 4, stretched)
     assert cache_key(2, 4, cube)["map"] == "element_local" and cache_key(2, 4, cube)["mesh"] == cube.sha256()
     by_face = dataclasses.replace(cube, map="equiangular")  # the same mesh through the equiangular map
     assert cache_key(2, 4, by_face) == {**cache_key(2, 4, cube), "map": "equiangular"}
-    build = unit_dual_mesh.__wrapped__  # past the process's own lru_cache
+    build = dual.cached_cells  # past the process's memo
     first, read = build(2, 4, cube), build(2, 4, again)
     assert first[3] is not None and read[3] is None and all(np.array_equal(a, b) for a, b in zip(first[:2], read[:2]))
     assert build(2, 4, stretched)[3] is not None and len(list(tmp_path.iterdir())) == 2
@@ -214,8 +217,36 @@ def test_the_cells_are_built_on_one_blas_thread(tmp_path, monkeypatch):
 
     monkeypatch.setattr(dual, "dual_mesh", watched)
     with threadpool_limits(limits=2, user_api="blas"):
-        built = unit_dual_mesh.__wrapped__(1, 3)
+        built = dual.cached_cells(1, 3)
     assert built[3] is not None and seen and set(seen) == {1}
+
+
+@pytest.mark.parametrize("ne,np_", [(2, 4), (3, 8), (30, 4)])
+def test_the_run_grids_targets_are_the_unit_grids_to_round_off(grid_factory, ne, np_):
+    """The cells are fitted on the run's grid (radius a), not a second one of radius 1: the
+    same unit vectors bit for bit (P/|P|, no radius), and spheremp / a² within round-off of
+    the unit grid's. The two chains part at a·factor/|P|: some 30 roundings a side from there
+    (the tangents, D's dot products, its determinant, the area factor, the weights, the
+    copies' sum, / a²), 30 ε in all, doubled for the determinant's cancellation where the map
+    skews (cube corners): 64 ε (largest seen 24.5 ε, ne120)."""
+    run, unit = grid_factory(ne, np_), CubedSphere(ne, np_, radius=1.0)
+    assert np.array_equal(run.xyz, unit.xyz)
+    assert np.max(np.abs(run.area / run.radius**2 / unit.area - 1)) <= 64 * np.finfo(float).eps
+
+
+def test_the_cells_from_the_run_grid_are_those_of_a_grid_built_for_them(tmp_path, monkeypatch, grid_factory):
+    """Given the run's whole grid, the cells are fitted on it; given none, or a rank's part, a
+    grid of the same arguments is built (an MPI rank 0 writes from a ``GatheredGrid``): the
+    same bits either way, one key."""
+    grid = grid_factory(2, 4)
+    got = []
+    for folder, given in (("run", grid), ("none", None), ("part", grid.part(np.arange(3)))):
+        monkeypatch.setenv("SWE_SPHERE_CACHE_DIR", str(tmp_path / folder))
+        got.append(dual.cached_cells(2, 4, radius=grid.radius, grid=given))
+    assert all(g[3] is not None for g in got)
+    for other in got[1:]:
+        assert all(np.array_equal(a, b) for a, b in zip(got[0][:3], other[:3], strict=True))
+    assert not dual._is_whole(grid, 2, 4, None, 1.0) and dual._is_whole(grid, 2, 4, None, grid.radius)
 
 
 @pytest.fixture(scope="module")
@@ -389,11 +420,11 @@ def test_a_run_says_when_it_built_its_cells_and_runs_without_them(tmp_path, monk
 
     monkeypatch.setenv("SWE_SPHERE_CACHE_DIR", str(tmp_path / "cache"))
     monkeypatch.setattr(writers, "NOTE_SECONDS", 0.0)
-    unit_dual_mesh.cache_clear()  # the process's own copy: this test's cache starts empty
+    dual.clear_memo()  # the process's own copy: this test's cache starts empty
     args = ["run", "tc5_mountain", "--ne", "2", "--np", "2", "--days", "0.25", "--device", "cpu", "--no-progress"]
     notes = []
     for name, extra in (("first", ["--restart-every", "0.25"]), ("second", []), ("bare", ["--no-cells"])):
-        unit_dual_mesh.cache_clear()
+        dual.clear_memo()
         assert main([*args, "--output", str(tmp_path / f"{name}.nc"), *extra]) == 0
         notes.append([line for line in capsys.readouterr().err.splitlines() if "cells" in line])
     assert len(notes[0]) == 1 and "ne=2 np=2" in notes[0][0] and str(tmp_path / "cache") in notes[0][0]

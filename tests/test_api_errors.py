@@ -129,10 +129,10 @@ MISUSES = {
     ),
     "gradient device tpu": (lambda f: _gradient(1, FLAT, device="tpu"), SceneError, "device"),
     "gradient cost returning a number": (lambda f: _gradient(1, lambda x, s: 1.0), ArgumentError, "cost must return"),
-    "gradient of imex": (
-        lambda f: gradient(_tc5("imex"), 1, FLAT),
+    "gradient of implicit": (
+        lambda f: gradient(_tc5("implicit"), 1, FLAT),
         ArgumentError,
-        "got scene.stepper = 'imex'",
+        "got scene.stepper = 'implicit'",
     ),
     "semi_implicit parameters' gradient": (
         lambda f: gradient(_tc5("semi_implicit"), 1, FLAT, parameters=True),

@@ -2,9 +2,9 @@
 the run (``observations``), with respect to its initial state (``gradient``), by a
 checkpointed reverse sweep (``revolve.sweep``, or ``revolve.two_level`` with states on a disk:
 ``disk.DiskTier``) of the explicit steps' adjoints (``explicit.StepAdjoint`` and its kin:
-``forward_backward``, ``leapfrog``, ``multirate``) and of the semi-implicit leapfrog's
-(``semi_implicit``: its Helmholtz solve transposed), at the run's Δt or along a controlled run's
-steps (``StepTimes``)."""
+``forward_backward``, ``leapfrog``, ``multirate``), of the semi-implicit leapfrog's
+(``semi_implicit``: its Helmholtz solve transposed) and of the IMEX pairs' (``imex``: ``imex``,
+``ark324``, ``ark436``), at the run's Δt or along a controlled run's steps (``StepTimes``)."""
 
 from __future__ import annotations
 
@@ -31,6 +31,7 @@ from ..model.shallow_water import ShallowWater
 from .disk import DiskTier
 from .explicit import StepAdjoint, refusal
 from .forward_backward import ForwardBackwardAdjoint
+from .imex import ImexAdjoint
 from .leapfrog import LeapfrogAdjoint
 from .multirate import LtsAdjoint, MriAdjoint, SplitExplicitAdjoint
 from .multirate_ab import MrabAdjoint
@@ -151,7 +152,7 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
     assembles the ranks' parts), its stepper (at the scene's Δt, under no step control) and its
     case's initial state (3, N) numpy on this rank's nodes; ``hs`` (nnodes_total,) m: the whole
     grid's surface height instead of the case's (read on rank 0). ``ArgumentError`` unless the
-    stepper has an adjoint (``step_adjoint``: not an implicit, IMEX or exponential stepper), or
+    stepper has an adjoint (``step_adjoint``: not the JFNK ``implicit`` nor an exponential stepper), or
     for hs of another shape (on every rank);
     ``SceneError`` for a ν the ∇⁴ cannot step (``config.parts.scene_stepper``, as a run)."""
     case = scene.make_case()
@@ -165,7 +166,7 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
     stepper = scene_stepper(scene, model)
     if _adjoint_of(stepper) is None:
         raise ArgumentError(
-            f"gradients need an explicit Runge–Kutta stepper (a built-in table or an explicit tableau) or one of "
+            f"gradients need an explicit Runge–Kutta or IMEX table (built in or a tableau) or one of "
             f"{', '.join(sorted(ADJOINTS))} (got scene.stepper = {scene.stepper!r})"
         )
     return model, stepper, np.stack(case.initial(grid.lat, grid.lon))
@@ -232,7 +233,8 @@ def _table(model: ShallowWater, stepper, dt: float, parameters: bool, t0: float)
 
 # the adjoint of a step, (model, stepper, Δt, parameters, t0) → its ``StepAdjoint``, by the stepper's
 # registered name (``steppers.STEPPERS``); any other explicit stepper with a Butcher table (every
-# built-in explicit Runge–Kutta stepper, an explicit ``tableau``) has its table's (``_table``)
+# built-in explicit Runge–Kutta stepper, an explicit ``tableau``) has its table's (``_table``), an IMEX
+# ``tableau`` the IMEX pairs' (``ImexAdjoint``: the same engine)
 ADJOINTS = {
     "fbrk32": ForwardBackwardAdjoint,
     "leapfrog": LeapfrogAdjoint,
@@ -241,15 +243,20 @@ ADJOINTS = {
     "mri": MriAdjoint,
     "lts": _lts,
     "semi_implicit": SemiImplicitAdjoint,
+    "imex": ImexAdjoint,
+    "ark324": ImexAdjoint,
+    "ark436": ImexAdjoint,
 }
 
 
 def _adjoint_of(stepper):
-    """The maker of ``stepper``'s step adjoint, or None where it has none (an implicit, IMEX or
-    exponential stepper)."""
+    """The maker of ``stepper``'s step adjoint, or None where it has none (the JFNK ``implicit``,
+    an exponential stepper)."""
     if stepper.name in ADJOINTS:
         return ADJOINTS[stepper.name]
-    return _table if stepper.explicit and callable(getattr(stepper, "table", None)) else None
+    if not callable(getattr(stepper, "table", None)):
+        return None
+    return _table if stepper.explicit else ImexAdjoint if stepper.table().imex else None
 
 
 def step_adjoint(model: ShallowWater, stepper, parameters: bool = False) -> StepAdjoint:
@@ -310,7 +317,8 @@ def gradient(
     ----------
     scene : a ``config.Scene`` whose stepper is an explicit Runge–Kutta table (ssprk3, rk4,
         kgu35, the pairs, a tableau), fbrk32, leapfrog, leapfrog_trapezoidal, split_explicit,
-        mri, lts (a multirate table or MRAB3) or semi_implicit (``step_adjoint``), any terms (a time-dependent
+        mri, lts (a multirate table or MRAB3), semi_implicit, imex, ark324, ark436 or an IMEX
+        tableau (``step_adjoint``), any terms (a time-dependent
         forcing's stages at their times, from the scene's ``start_day``), a ∇⁴ constant or
         tensor, ν_div = ν or not.
     steps : n ≥ 1 steps of the scene's Δt (or of ``history``).
@@ -325,11 +333,12 @@ def gradient(
     snapshots : states held at once during the reverse sweep, x(0) included (None: n, every
         state, each step taken forward once); fewer cost ``revolve.forward_steps(n,
         snapshots − 1)`` + 1 forward steps in all (Griewank & Walther 2000), the same bits
-        (semi_implicit's: the same to its CG's ``tol``, a recomputed step's CG starting from
+        (semi_implicit's and the IMEX pairs': the same to their CG's ``tol``, a recomputed step's CG starting from
         the stepper's later guesses).
     parameters : also the ∇⁴ coefficients', the topography's and the planet's gravity and
         rotation rate's gradients (an extra ∇⁴ substep a step reversed, and per stage one RHS of
-        the pressure gradient and topography and a host-side sum); not with semi_implicit.
+        the pressure gradient and topography and a host-side sum); not with semi_implicit nor
+        the IMEX pairs (their L holds g and H).
     hs : (N,) surface height (m), element-local and continuous, instead of the case's (as x0).
     disk : None (every state the sweep holds in memory), True (a second tier: a file in
         ``tempfile.gettempdir()``, on some systems tmpfs, i.e. memory) or a folder (str or path) for it. A first forward pass
@@ -367,14 +376,15 @@ def gradient(
     than (J, λ (3, N)) or a non-finite J, at_steps outside 0 … n, a controlled scene without a
     history, a history shorter than n or with a bad step (``StepTimes``), a disk_interval without a
     disk, a disk that is not an existing folder, x0 or hs of another shape or not finite,
-    ``parameters`` not a bool or True with semi_implicit, ``comm`` not a communicator, or a scene
-    the adjoint cannot serve (``explicit.refusal``; an implicit, IMEX or exponential stepper);
+    ``parameters`` not a bool or True with semi_implicit or an IMEX pair, ``comm`` not a communicator, or a scene
+    the adjoint cannot serve (``explicit.refusal``; the JFNK implicit, an exponential stepper);
     ``SceneError`` for another device than "cpu", "cuda" or "cuda:N"; OSError from the disk
-    (full, unwritable); ``StepFailure`` where a semi-implicit step's transposed solve misses its
-    ``tol`` within ``maxiter``.
+    (full, unwritable); ``StepFailure`` where a semi-implicit or IMEX step's solve, recomputed or
+    transposed, misses its ``tol`` within ``maxiter``.
 
     Sources: the adjoints of ``explicit`` (the tendency, the DSS and the ∇⁴ transposed by
-    hand; the Helmholtz solve by its symmetry, ``semi_implicit``), checkpointing by Griewank & Walther (2000), ACM TOMS 26:19, in two levels by Stumm
+    hand; the Helmholtz solve by its symmetry, ``semi_implicit``; the IMEX pairs' tables Ascher,
+    Ruuth & Spiteri 1997 and Kennedy & Carpenter 2003, ``imex``), checkpointing by Griewank & Walther (2000), ACM TOMS 26:19, in two levels by Stumm
     & Walther (2009), SIAM J. Sci. Comput. 31:1946.
     """
     instance_argument("scene", scene, Scene, "a Scene (swe_sphere.load_scene(...))")

@@ -40,7 +40,45 @@ from .leapfrog import LeapfrogAdjoint
 GRAVITY = ("continuity", "pressure_gradient")  # the terms whose Jacobian at (0, 0, H) is L
 
 
-class SemiImplicitAdjoint(LeapfrogAdjoint):
+class GravityTransposes:
+    """What the adjoints of the steps that solve with the gravity-wave operator L share (put
+    before ``StepAdjoint``; ``semi_implicit``'s and ``imex``'s): ``gravity_transpose``, the
+    launches of Lᵀ's element part, and ``solve_transpose``, A_a⁻ᵀ = (I − aL)⁻ᵀ (module doc), with
+    ``linear`` the stepper's L, ``solver`` a ``HelmholtzSolver`` of the adjoint's own about it (the
+    stepper's guesses untouched), ``depth`` x_H = (0, 0, H) (3, N) once H is fixed."""
+
+    def _gravity(self, stepper, solver: HelmholtzSolver | None = None) -> None:
+        """``linear`` and ``solver`` (``solver``: shared with another adjoint); before ``_setup``."""
+        self.linear = stepper.linear
+        self.solver = solver or HelmholtzSolver(self.linear, stepper.options, warm=True)
+        self.depth, self.H = None, 0.0
+
+    def fix_depth(self) -> None:
+        """x_H's depth row from the stepper's H (fixed by its first step, before any reverse)."""
+        if self.depth is None or self.linear.H != self.H:
+            self.H, N = self.linear.H, self.model.topology.N
+            self.depth = self._zeros(3) if self.depth is None else self.depth
+            self.depth.assign(np.stack([np.zeros(N), np.zeros(N), np.full(N, self.H)]))
+
+    def gravity_transpose(self, kbar) -> list:
+        """Launches of x̄ = Tᵀ(x_H) W k̄ (element-local, into ``xbar``), k̄ = Σ c·a over (c, a)
+        ``kbar``: Lᵀ k̄ = R Q x̄ by the unweighted DSS that follows."""
+        self.fix_depth()
+        return self._transpose(self.depth, kbar, GRAVITY)
+
+    def solve_transpose(self, mu, a: float) -> None:
+        """μ ← A_a⁻ᵀ μ in place, A_a = I − aL, a (s) > 0, μ (3, N) continuous (mass form; module
+        doc): its h row times −H/g, the Helmholtz solve at a to the stepper's ``tol``, the h row
+        times −g/H. ``StepFailure`` where the CG misses ``tol`` within ``maxiter``."""
+        self.fix_depth()
+        H, g, h = self.H, self.model.g, mu[2:3]
+        self.combine(h, [(-H / g, h)])
+        self.solver.solve(mu, a, mu)
+        self.combine(h, [(-g / H, h)])
+        self.solver.iterations()
+
+
+class SemiImplicitAdjoint(GravityTransposes, LeapfrogAdjoint):
     """The adjoint of one step of ``stepper`` (a ``SemiImplicit``) on ``model`` at Δt = ``dt``
     (s), its steps from model time ``t0`` (s): ``reverse(s, mu, k)`` as ``LeapfrogAdjoint``'s
     (module doc). ``first``: the adjoint of the first step alone (δ = Δt/2, any k reversed as
@@ -67,11 +105,10 @@ class SemiImplicitAdjoint(LeapfrogAdjoint):
                 "parameters must be False with semi_implicit (got True): its gradient is the initial "
                 "state's alone (its gravity-wave operator L holds g and H)"
             )
-        self.first, self.linear = first, stepper.linear
-        self.solver = solver or HelmholtzSolver(self.linear, stepper.options, warm=True)
+        self.first = first
+        self._gravity(stepper, solver)
         super().__init__(model, stepper, dt / 2 if first else dt, parameters, t0)
         self.eps = 0.0 if first else self.eps
-        self.depth, self.H = self._zeros(3), 0.0  # x_H = (0, 0, H) once H is fixed
 
     def _first_step(self, model, stepper, dt: float, parameters: bool, t0: float):
         if not self.first:
@@ -85,27 +122,14 @@ class SemiImplicitAdjoint(LeapfrogAdjoint):
     def _phi_adjoint(self) -> None:
         """μ_N → μ_Φ: the ∇⁴'s transpose, then A_δ⁻ᵀ."""
         super()._phi_adjoint()
-        self.solve_transpose(self.mphi)
-
-    def solve_transpose(self, mu) -> None:
-        """μ ← A_δ⁻ᵀ μ in place, μ (3, N) continuous (mass form; module doc): its h row times
-        −H/g, the Helmholtz solve at a = δ (s) to the stepper's ``tol``, the h row times −g/H.
-        H the stepper's, fixed by its first step. ``StepFailure`` where the CG misses ``tol``."""
-        H, g, h = self.linear.H, self.model.g, mu[2:3]
-        if H != self.H:  # x_H's depth row, once H is fixed
-            self.H, N = H, self.model.topology.N
-            self.depth.assign(np.stack([np.zeros(N), np.zeros(N), np.full(N, H)]))
-        self.combine(h, [(-H / g, h)])
-        self.solver.solve(mu, self.step_dt, mu)
-        self.combine(h, [(-g / H, h)])
-        self.solver.iterations()
+        self.solve_transpose(self.mphi, self.step_dt)
 
     def _record(self, mu) -> list:
         """``leapfrog``'s segments (μ_x = (1 − 2ε) μ_x̃' + 2δ Fᵀ μ_Φ, μ_x̃ = ε μ_x̃' + μ_Φ), then
         Lᵀ μ_Φ added to both (−2δ, δ) by its DSS, and at the first step μ_x += μ_x̃."""
         X, O, d, topo = mu[0:3], mu[3:6], self.step_dt, self.model.topology
         gravity = [
-            *self._transpose(self.depth, [(1.0, self.mphi)], GRAVITY),
+            *self.gravity_transpose([(1.0, self.mphi)]),
             *topo.dss_update(self.xbar, [(X, ((1.0, X), (-2 * d, None))), (O, ((1.0, O), (d, None)))], False),
         ]
         fold = [self.model.lincomb(X, [(1.0, X), (1.0, O)])] if self.first else []

@@ -71,7 +71,7 @@ def test_the_gravity_wave_operator_and_its_solve_transpose_in_the_mass_form():
 
     Ad = applied(solve, delta)
     adjoint, m = step_adjoint(model, stepper), wp.array(mu, dtype=taylor.f64)
-    adjoint.solve_transpose(m)
+    adjoint.solve_transpose(m, stepper.dt)
     At = m.numpy()
     left, right = np.sum(Ad * lam), np.sum(w * delta * At)
     assert np.abs(Ad - delta).max() > 0.5 * np.abs(delta).max()  # the solve acts (measured 1.5×)

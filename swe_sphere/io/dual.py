@@ -34,7 +34,6 @@ counter-clockwise seen from outside: 4 of them, as many as the elements round a 
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import time
 
@@ -66,7 +65,7 @@ CG_RTOL, CG_RTOL_EXACT = 1e-4, 1e-12
 # the fewest unknowns (cells) whose systems are preconditioned by smoothed aggregation (``_preconditioner``), the
 # others by their diagonal: the V-cycles' set-up and Python overhead cost more than Jacobi's extra iterations up to
 # ne60 (194 402 cells, one thread: 3.41 s against 3.06 s for the cells, ne30 1.25 against 0.99), and half as much at
-# ne120 (777 602: 15.9 s against 32.3 s)
+# ne120 (777 602: 15.9 s against 32.3 s; 13.8 s with its levels as CSR and point Gauss-Seidel, BUILD 9)
 AMG_CELLS = 400_000
 LOCAL_ERROR, LOCAL_RINGS = 0.05, 6  # cells fitted first, and the rings round them (``_fit_worst_first``)
 # the steps allowed to the worst cells' fit and to the global fit after it (the cube: 5 and 2 at ne60), beyond
@@ -505,7 +504,7 @@ def cached_cells(ne: int, np_: int, mesh: Mesh | None = None, radius: float = EA
         # split over every core, its threads spinning between them (ne120 on a 16-core host: 423 s
         # of CPU for 71 s of wall; ne30 on 2 cores: 4.4× the CPU and 4.9× the wall of one thread),
         # and whose sums' order, hence the cells' bits, went with the host's core count
-        with threadpool_limits(limits=1, user_api="blas"), _small_pages():
+        with threadpool_limits(limits=1, user_api="blas"):
             whole = grid if _is_whole(grid, ne, np_, mesh, radius) else CubedSphere(ne, np_, radius, mesh=mesh)
             verts, corners, error = dual_mesh(whole)
         seconds.append(time.process_time() - start)
@@ -513,22 +512,6 @@ def cached_cells(ne: int, np_: int, mesh: Mesh | None = None, radius: float = EA
 
     arrays, _ = cache.cached("dual_mesh", cache_key(ne, np_, mesh, radius), build)
     return arrays["vertices"], arrays["corners"], float(arrays["error"]), seconds[0] if seconds else None
-
-
-@contextlib.contextmanager
-def _small_pages():
-    """numpy's arrays allocated without madvise(MADV_HUGEPAGE) inside (numpy's own switch, as
-    ``NUMPY_MADVISE_HUGEPAGE=0``; restored after): the fit's temporaries of tens to hundreds of
-    MB are mapped afresh each time, and where the kernel compacts memory to fault them in as
-    2 MB pages (transparent_hugepage/defrag = madvise, the default) that cost 2.2–2.5 s of
-    system CPU at ne120, 0.9 s with 4 kB pages, for the same user time. No switch: no change."""
-    core = np._core if hasattr(np, "_core") else np.core  # numpy ≥ 2, else 1.x
-    switch = getattr(core.multiarray, "_set_madvise_hugepage", lambda enabled: enabled)
-    was = switch(False)
-    try:
-        yield
-    finally:
-        switch(was)
 
 
 def _is_whole(grid, ne: int, np_: int, mesh: Mesh | None, radius: float) -> bool:

@@ -246,7 +246,11 @@ def test_the_cells_from_the_run_grid_are_those_of_a_grid_built_for_them(tmp_path
     assert all(g[3] is not None for g in got)
     for other in got[1:]:
         assert all(np.array_equal(a, b) for a, b in zip(got[0][:3], other[:3], strict=True))
-    assert not dual._is_whole(grid, 2, 4, None, 1.0) and dual._is_whole(grid, 2, 4, None, grid.radius)
+    # a grid of another radius than the cells' is not theirs: a grid of that radius is built
+    monkeypatch.setenv("SWE_SPHERE_CACHE_DIR", str(tmp_path / "unit"))
+    unit = dual.cached_cells(2, 4, radius=1.0, grid=grid)
+    monkeypatch.setenv("SWE_SPHERE_CACHE_DIR", str(tmp_path / "unit_none"))
+    assert all(np.array_equal(a, b) for a, b in zip(unit[:3], dual.cached_cells(2, 4, radius=1.0)[:3], strict=True))
 
 
 @pytest.fixture(scope="module")

@@ -17,8 +17,8 @@ element-local nodes for a continuous δx. In that form
   (its second K̃ the tensor's, K̃_V, also symmetric) has for transpose the operator with its
   two K̃ swapped (``Hyperviscosity.build(transposed=True)``); with ν_div ≠ ν the ∇δ term is
   not symmetric and its transpose is added apart (``StepAdjoint._divergent_transpose``);
-- T's transpose is ``kernels.tendency_adjoint`` (written by hand: one element kernel a stage
-  on the CPU, two per-node gathers on CUDA), whose λ is gathered back by the unweighted DSS,
+- T's transpose is the model's (``model.transposes.TendencyTranspose``, the kernels
+  ``kernels.tendency_adjoint``), whose λ is gathered back by the unweighted DSS,
   μ = R Q λ, written straight into the running sum of the stages' adjoints (``dss_update``).
 The parameters (``parameters=True``): the ∇⁴ substeps x ← L x + c B₀ hs (L = I + c B₀, c ∝ ν)
 give, with Δ₀ = c B₀ (Φ + hs) the first substep's increment and μ₁ the adjoint before the
@@ -43,7 +43,6 @@ import numpy as np
 import warp as wp
 
 from ..core.errors import ArgumentError
-from ..kernels import tendencies, tendency_adjoint
 from ..model.launches import Update
 from ..model.shallow_water import ShallowWater
 
@@ -77,7 +76,7 @@ class StepAdjoint:
     Work arrays (3, N) held: the s stages Y_i; K_j = F(Y_j) only where a stage after the next
     reads it (with ``parameters``: all); the Ȳ_j an earlier stage's k̄ reads, as many as are
     live at once (kgu35, rk4: one); x̄, a running sum of the Ȳ, and k̄ where the transposes
-    cannot read it as a combination (``_transpose``): kgu35 eight, with (2, N) f̄."""
+    cannot read it as a combination (``TendencyTranspose``): kgu35 eight, with (2, N) f̄."""
 
     def carried(self, stepper) -> list:
         """The (3, N) arrays ``stepper`` carries from step to step besides x, which the reverse
@@ -114,10 +113,9 @@ class StepAdjoint:
         def zeros(rows):
             return wp.zeros((rows, N), dtype=f64, device=device)
 
-        self.terms = tuple(t for t in tendencies.TENDENCY_TERMS if t in m.terms)
-        self.xbar = zeros(3)
-        self.fbar = zeros(2)  # Σ λ's wind rows: the adjoint of the forcing −g∇hs
-        self.spheremp = wp.array(m.topology.grid.spheremp, dtype=f64, device=device)
+        self.tendency = m.operators.tendency_transpose(m.terms, m.g)  # Fᵀ: ``transpose``'s launches
+        # the terms F holds, the x̄ its transposes write, f̄ = Σ λ's wind rows (the forcing −g∇hs's adjoint)
+        self.terms, self.xbar, self.fbar = self.tendency.terms, self.tendency.xbar, self.tendency.fbar
         self.Ybar: list = []  # the buffers of the Ȳ_j an earlier stage's k̄ reads (``_record``)
         self.d_nu = np.zeros(2)  # ∂J/∂ν (wind rows), ∂J/∂ν_s (h row), m⁻⁴ s · J
         self.d_planet = np.zeros(2)  # g ∂J/∂g, Ω ∂J/∂Ω (J): the stages' ⟨k̄_i, F's g and Ω terms⟩
@@ -264,7 +262,7 @@ class StepAdjoint:
         B_dᵀ μ = (ν_div − ν) RQ Dᵀ(W s), s = RQ Gᵀ(W Pᵀ Z), Z = RQ K̃₂ P μ: the substep's first
         pass left ν Π Z in the ∇⁴'s Y₁ (Π's radial part Pᵀ drops). Gᵀ W is the pressure
         gradient's transpose (∂(−g G h)/∂h: −g Gᵀ W), Dᵀ W the continuity's at h = 1, v = 0
-        (∂(−D(h v))/∂v: −Dᵀ W), each ``_transpose`` with those terms and unweighted DSS'd. Each
+        (∂(−D(h v))/∂v: −Dᵀ W), each the tendency's transpose with those terms and unweighted DSS'd. Each
         reads only its own rows of k̄: ``kd`` holds Pᵀ Z in its wind rows and s in its h row.
         The projection Pᵀ on the host; the rest recorded once per x."""
         m, topo = self.model, self.model.topology
@@ -280,10 +278,12 @@ class StepAdjoint:
         if launches is None:
             H, U = slice(2, 3), slice(0, 2)
             launches = self._divergent[x.ptr] = [
-                *self._transpose(self.unit_depth, [(1.0, self.kd)], ("pressure_gradient",)),  # linear: any state
+                *self.tendency.transpose(
+                    self.unit_depth, [(1.0, self.kd)], ("pressure_gradient",)
+                ),  # linear: any state
                 *topo.dss(self.xbar, False, self.dss_out),
                 m.lincomb(self.kd[H], [(-1.0 / m.g, self.dss_out[H])]),  # s = RQ Gᵀ(W Pᵀ Z)
-                *self._transpose(self.unit_depth, [(1.0, self.kd)], ("continuity",)),
+                *self.tendency.transpose(self.unit_depth, [(1.0, self.kd)], ("continuity",)),
                 *topo.dss(self.xbar, False, self.dss_out),  # −RQ Dᵀ(W s)
                 m.lincomb(x[U], [(1.0, x[U]), (-coef * (m.hv.nu_div - m.hv.nu), self.dss_out[U])]),
             ]
@@ -432,56 +432,11 @@ class StepAdjoint:
 
     def hs_gradient(self) -> np.ndarray:
         """∂J/∂hs (N,) on this rank's nodes, continuous (mass form, as μ), summed over the steps reversed so far:
-        the ∇⁴'s share and the forcing's, R Q of the pressure gradient's transpose of f̄."""
-        m, ops, N = self.model, self.model.operators, self.model.topology.N
+        the ∇⁴'s share and the forcing's (``TendencyTranspose.forcing_transpose`` of f̄)."""
         out = self.d_hs.numpy()[0]
-        if not self.terms or "topography" not in m.terms:
+        if not self.terms or "topography" not in self.model.terms:
             return out
-        kbar = wp.array(np.concatenate([self.fbar.numpy(), np.zeros((1, N))]), dtype=f64, device=m.topology.device)
-        ones, xbar, d = wp.ones(N, dtype=f64, device=m.topology.device), wp.zeros_like(kbar), wp.zeros_like(kbar)
-        adj = self._zeros(5)
-        point = [kbar, ops.D, ops.Dinv, ops.metdet, ops.fcor, ones, ops.dvv, kbar, adj, xbar, self.fbar]
-        terms = ("pressure_gradient",)  # the forcing is −g∇hs: the pressure gradient of hs
-        wp.launch(tendency_adjoint.point(terms, m.topology.grid.np), N, [*point, 0], device=m.topology.device)
-        gather = [kbar, ops.D, ops.Dinv, ops.metdet, ops.dvv, m.g, adj, xbar]
-        wp.launch(tendency_adjoint.gather(terms, m.topology.grid.np), N, [*gather, 0], device=m.topology.device)
-        for launch in m.topology.dss(xbar, False, d):
-            launch.launch()
-        return out + d.numpy()[2]
-
-    def _transpose(self, Y, kbar, terms=None, runs=None) -> list:
-        """Launches of x̄ = Tᵀ(Y) W k̄, k̄ = Σ c·k over (c, k) ``kbar`` (element-local), T the
-        tendency of ``terms`` (None: all the model's): the element kernel on the CPU's layout,
-        reading up to three terms; the per-node ``point`` and ``gather`` on CUDA's; k̄ combined
-        by a pass of its own first where they cannot read it as it is. ``runs``: (start, stop)
-        element ranges, the tendency of those elements alone (x̄ zero on the others)."""
-        m, ops, launches = self.model, self.model.operators, []
-        if runs is not None:
-            launches.append(m.lincomb(self.xbar, [(0.0, self.xbar)]))
-        ranges = [None] if runs is None else list(runs)
-        terms = self.terms if terms is None else tuple(t for t in self.terms if t in terms)
-        if len(kbar) > 3 or not ops.per_element and kbar != [(1.0, kbar[0][1])]:
-            if not hasattr(self, "kbar"):
-                self.kbar = self._zeros(3)
-            more = (m.lincomb(self.kbar, [(1.0, self.kbar), *kbar[i : i + 3]]) for i in range(4, len(kbar), 3))
-            launches, kbar = [*launches, m.lincomb(self.kbar, kbar[:4]), *more], [(1.0, self.kbar)]
-        if ops.per_element:
-            R, (c, k) = ops.as_rows, zip(*kbar)
-            c, k = [*c, *(0.0,) * (3 - len(c))], [*k, *(k[0],) * (3 - len(k))]
-            kernel = tendency_adjoint.element(terms, m.topology.grid.np, len(kbar))
-            args = [*map(R, (Y, ops.D, ops.Dinv, ops.metdet, ops.fcor, self.spheremp)), m.g, ops.dvv_rows]
-            args += [wp.vec3d(*c), *map(R, k), R(self.xbar), R(self.fbar)]
-            return [*launches, *(m.launches.elements(kernel, args, elements=r) for r in ranges)]
-        if not hasattr(self, "adj"):
-            self.adj = self._zeros(5)
-        point = [Y, ops.D, ops.Dinv, ops.metdet, ops.fcor, self.spheremp, ops.dvv, kbar[0][1]]
-        point += [self.adj, self.xbar, self.fbar]
-        gather = [Y, ops.D, ops.Dinv, ops.metdet, ops.dvv, m.g, self.adj, self.xbar]
-        kernels = (
-            (tendency_adjoint.point(terms, m.topology.grid.np), point),
-            (tendency_adjoint.gather(terms, m.topology.grid.np), gather),
-        )
-        return [*launches, *(m.launches.nodes(k, m.topology.N, a, elements=r) for r in ranges for k, a in kernels)]
+        return out + self.tendency.forcing_transpose()
 
     def _record(self, mu) -> list:
         """The launches of the stages' transposes, last stage first, as (Y_i, k̄_i's terms, its
@@ -504,7 +459,7 @@ class StepAdjoint:
         for n, i in enumerate(active):
             kbar = [(dt * self.b[i], mu)] if self.b[i] else []
             kbar += [(dt * A[j][i], ybar[j]) for j in reads[i]]
-            launches = self._transpose(self.Y[i], kbar)
+            launches = self.tendency.transpose(self.Y[i], kbar)
             free += [ybar[j] for j in reads[i] if last_read[j] == i]  # read: its buffer free for Ȳ_i
             updates = []
             if i in last_read:

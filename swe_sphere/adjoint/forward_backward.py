@@ -7,7 +7,7 @@ The step's map, x(n) = (u_n, h_n) = Z_0, stage i = 0, 1, 2 with c_i, β_i the st
     S_i = (u_i, h̃_i),  u_(i+1) = u_n + c_i Δt F_u(S_i),  Z_(i+1) = (u_(i+1), h_(i+1)),
 and x(n+1) = H(Z_3). F_h is the continuity half (the depth row), F_u the momentum half (the wind
 rows). Reversed with the adjoints μ = R Q λ of ``explicit`` (the mass form): each half's
-transpose is the tendency's of its own terms (``StepAdjoint._transpose``), read with a k̄ whose
+transpose is the tendency's of its own terms (``TendencyTranspose.transpose``), read with a k̄ whose
 other rows are zero.
 """
 
@@ -88,14 +88,14 @@ class ForwardBackwardAdjoint(StepAdjoint):
         for i in reversed(range(len(self.C))):
             c, beta, last, nxt = self.C[i], self.BETA[i], i == len(self.C) - 1, self.zbar[i % 2]
             ku = [(c * dt, cur)]  # k̄_u = cΔt ū_(i+1)
-            launches = self._transpose(self.S[i], ku, self.momentum)
+            launches = self.tendency.transpose(self.S[i], ku, self.momentum)
             # S̄_i = R Q x̄: its wind Z_i's; its depth h̃_i's, into k̄_h = cΔt h̄_(i+1) + βcΔt h̃̄_i, h̄_n, h̄_2
             kh = (self.kh, ((c * dt, cur), (beta * c * dt, None)))
             launches += topo.dss_update(self.xbar, [kh, (self.su, ((1.0, None),))], weighted=False)
             launches.append(m.lincomb(self.acc[H], [(1.0, self.acc[H]), (2 * beta if last else 1.0, self.su[H])]))
             launches.append(m.lincomb(self.su[H], [((1 - 2 * beta) if last else 0.0, self.su[H])]))
             segments.append((self.S[i], ku, launches))
-            launches = self._transpose(self.Z[i], [(1.0, self.kh)], self.continuity)
+            launches = self.tendency.transpose(self.Z[i], [(1.0, self.kh)], self.continuity)
             total = (1.0, self.acc), (1.0, self.su), (1.0, None)  # acc += Z̄_i: ū_i, h̄_i (stage i − 1's own)
             if i:  # Z̄_i = S̄_i's (the wind, and h̄_2's share of h̃_2) + F_hᵀ's
                 launches += topo.dss_update(self.xbar, [(nxt, ((1.0, self.su), (1.0, None))), (self.acc, total)], False)

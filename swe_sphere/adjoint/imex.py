@@ -98,7 +98,7 @@ class ImexAdjoint(GravityTransposes, StepAdjoint):
             lbar = [(b_I[i] - b_E[i], mu), *((A_I[k][i] - A_E[k][i], self.rbar[k]) for k in active)]
             lbar = [(dt * c, a) for c, a in lbar if c]
             launches, r = [], self.rbar[i]
-            for terms, transpose in ((kbar, self._transpose), (lbar, None)):
+            for terms, transpose in ((kbar, self.tendency.transpose), (lbar, None)):
                 if terms:
                     add = ((1.0, r), (1.0, None)) if launches else ((1.0, None),)  # the first writes r̄_i
                     launches += transpose(self.Y[i], terms) if transpose else self.gravity_transpose(terms)

@@ -92,14 +92,18 @@ class LeapfrogAdjoint(StepAdjoint):
             kbar = [(2 * dt, self.mphi)]
             return [
                 (None, None, [m.lincomb(X, [(1 - 2 * eps, O)]), m.lincomb(O, [(eps, O), (1.0, self.mphi)])]),
-                (self.x, kbar, [*self._transpose(self.x, kbar), *topo.dss_update(self.xbar, [(X, add)], False)]),
+                (
+                    self.x,
+                    kbar,
+                    [*self.tendency.transpose(self.x, kbar), *topo.dss_update(self.xbar, [(X, add)], False)],
+                ),
             ]
         star = [(dt / 2, self.mphi)]
         kbar = [(2 * dt, self.mstar), (dt / 2, self.mphi)]
         return [
-            (self.star, star, [*self._transpose(self.star, star), *topo.dss(self.xbar, False, self.mstar)]),
+            (self.star, star, [*self.tendency.transpose(self.star, star), *topo.dss(self.xbar, False, self.mstar)]),
             (None, None, [m.lincomb(X, [(1.0, O), (1.0, self.mphi)]), m.lincomb(O, [(1.0, self.mstar)])]),
-            (self.x, kbar, [*self._transpose(self.x, kbar), *topo.dss_update(self.xbar, [(X, add)], False)]),
+            (self.x, kbar, [*self.tendency.transpose(self.x, kbar), *topo.dss_update(self.xbar, [(X, add)], False)]),
         ]
 
     def reverse(self, x, mu, k: int = 0) -> None:

@@ -14,7 +14,7 @@ form), the substeps last first, (v̄, h̄, h̄_old) of the state after each:
     c̄ = τ h̄:  v̄ += Cᵀ_v c̄,  h̄_s += Cᵀ_h c̄;   h̄ ← h̄ + h̄_old;
     S̄ += τ v̄;  h̃̄ = −g τ Gᵀ v̄;  h̄ += (1 + β) h̃̄,  h̄_old = −β h̃̄ (the first: h̄ += h̃̄),
 then x̄(n) += (v̄, h̄) and s̄_i = Nᵀ S̄ + (0, 0, h̄_s): x̄(n)'s where i = 0, z̄_(i−1) otherwise.
-Cᵀ, Gᵀ (the pressure gradient's) and Nᵀ are ``StepAdjoint._transpose`` with those terms, each
+Cᵀ, Gᵀ (the pressure gradient's) and Nᵀ are ``TendencyTranspose.transpose`` with those terms, each
 reading only its own rows of k̄, R Q x̄ by the unweighted DSS. Each reversed step recomputes its
 stages and substeps from x(n) with the stepper's own substep (``forward_backward``), holding
 every substep's wind.
@@ -128,7 +128,7 @@ class SplitExplicitAdjoint(_Recomputed):
                 first = k == 0 or not beta
                 # the depth update: c̄ = τ h̄ through Cᵀ at (v, h_s); h̄ ← h̄ + h̄_old
                 depth = [
-                    *self._transpose(self.winds[j], [(tau, s)], ("continuity",)),
+                    *self.tendency.transpose(self.winds[j], [(tau, s)], ("continuity",)),
                     *dss(self.xbar, False, tmp),
                     m.lincomb(s[V], [(1.0, s[V]), (1.0, tmp[V])]),
                     m.lincomb(hs_bar, [(1.0, hs_bar), (1.0, tmp[H])]),
@@ -137,7 +137,7 @@ class SplitExplicitAdjoint(_Recomputed):
                 # the wind update: S̄ += τ v̄; h̃̄ = −gτ Gᵀ v̄ (the pressure gradient's transpose at τ v̄)
                 wind = [
                     m.lincomb(sbar[V], [(1.0, sbar[V]), (tau, s[V])]),
-                    *self._transpose(self.xn, [(tau, s)], ("pressure_gradient",)),
+                    *self.tendency.transpose(self.xn, [(tau, s)], ("pressure_gradient",)),
                     *dss(self.xbar, False, tmp),
                     m.lincomb(s[H], [(1.0, s[H]), (1.0 if first else 1.0 + beta, tmp[H])]),
                     m.lincomb(old, [(0.0 if first else -beta, tmp[H])]),
@@ -147,7 +147,7 @@ class SplitExplicitAdjoint(_Recomputed):
             src = self.xn if i == 0 else self.Z[i - 1]
             slow = [
                 m.lincomb(acc, [(1.0, acc), (1.0, s)]),  # x(n) started the substeps
-                *self._transpose(src, [(1.0, sbar)], st.slow_terms),
+                *self.tendency.transpose(src, [(1.0, sbar)], st.slow_terms),
                 *dss(self.xbar, False, tmp),
                 m.lincomb(tmp[H], [(1.0, tmp[H]), (1.0, hs_bar)]),
             ]
@@ -273,11 +273,11 @@ class MriAdjoint(_Recomputed):
 
     def _fast_transpose(self, state, kb) -> list:
         """x̄ = the fast part's transpose applied to k̄ (``kb``): Lᵀ, at (0, 0, H)."""
-        return self._transpose(self.at_H, [(1.0, kb)], ("pressure_gradient", "continuity"))
+        return self.tendency.transpose(self.at_H, [(1.0, kb)], ("pressure_gradient", "continuity"))
 
     def _slow_transpose(self, Y, sbar) -> list:
         """x̄ = the slow part's transpose at Y applied to S̄ (``sbar``): N's, the RHS without its pressure gradient."""
-        return self._transpose(Y, [(1.0, sbar)], self.stepper.split.slow_terms)
+        return self.tendency.transpose(Y, [(1.0, sbar)], self.stepper.split.slow_terms)
 
     def before_hyperviscosity(self, out) -> None:
         """out = Y_(s+1) with its full depth, the step before its ∇⁴."""
@@ -374,7 +374,7 @@ class LtsAdjoint(MriAdjoint):
         self.combine(out, [(1.0, self.last)])
 
     def _fast_transpose(self, state, kb) -> list:
-        return self._transpose(state, [(1.0, kb)], None, self.runs["fast"])
+        return self.tendency.transpose(state, [(1.0, kb)], None, self.runs["fast"])
 
     def _slow_transpose(self, Y, sbar) -> list:
-        return self._transpose(Y, [(1.0, sbar)], None, self.runs["slow"])
+        return self.tendency.transpose(Y, [(1.0, sbar)], None, self.runs["slow"])

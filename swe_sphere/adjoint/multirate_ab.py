@@ -9,7 +9,7 @@ the tendency, ``rhs_part``), then x_(j+1) = x_j + Δt Σ_k Σ_i w[j, k, i] H_k�
 the stepper's sums regrouped by node, ``multirate_ab``'s "The sums", are the same to
 round-off), and x(n+1) = H(x_n) (the ∇⁴). Reversed, sub-steps last first, with the adjoints μ
 = R Q λ of ``explicit`` (the mass form): H̄_kⁱ += Δt w[j, k, i] x̄; then for each level due at
-j, x̄ += f_kᵀ(x_j) H̄_k⁰ (its elements alone, ``StepAdjoint._transpose(..., runs)``) and
+j, x̄ += f_kᵀ(x_j) H̄_k⁰ (its elements alone, ``TendencyTranspose.transpose(..., runs)``) and
 H̄_k ← (H̄_k¹, H̄_k², 0). The first two coarse steps (the start) take n steps of the inner table
 at Δt/n, recording f_k(x_j) at each level's step starts: each sub-step reversed by the table's
 adjoint (``StepAdjoint.reverse_dynamics``), then the recordings' as above. Each reversed step
@@ -124,7 +124,7 @@ class MrabAdjoint(StepAdjoint):
         if launches is None:
             h = [self._rows(mu, lv, i) for i in range(HISTORY)]
             launches = [
-                *self._transpose(x, [(1.0, h[0])], None, self.runs[lv]),
+                *self.tendency.transpose(x, [(1.0, h[0])], None, self.runs[lv]),
                 *self.model.topology.dss(self.xbar, False, self.tmp),
                 self.model.lincomb(mu[0:3], [(1.0, mu[0:3]), (1.0, self.tmp)]),
                 self.model.lincomb(h[0], [(1.0, h[1])]),

@@ -13,7 +13,7 @@ n ≥ 1: δ = Δt; n = 0: δ = Δt/2 from x̃ = x(0), ε = 0 (so x̃(0) = x(0)).
 and at n = 0, x̃ being x(0), μ_x(0) = μ_x + μ_x̃ (x̃(−1) is not read). Fᵀ and H_2δᵀ are
 ``explicit``'s (mass form: μ = R Q λ, ⟨a, b⟩ = Σ spheremp·a·b over the element-local nodes).
 L is the Jacobian of F's pressure gradient and continuity at x_H = (0, 0, H), so
-Lᵀ μ = R Q Tᵀ(x_H) W μ, those two terms' transpose as any F's (``StepAdjoint._transpose``).
+Lᵀ μ = R Q Tᵀ(x_H) W μ, those two terms' transpose as any F's (``TendencyTranspose.transpose``).
 A_δ⁻ᵀ: GLL differentiation sums by parts (W D + Dᵀ W = B along each direction, applied to
 metdet c^i h, c the contravariant wind), and the element-edge terms cancel between neighbours
 for continuous v and h, so in the mass form D and −G are each other's transposes
@@ -64,7 +64,7 @@ class GravityTransposes:
         """Launches of x̄ = Tᵀ(x_H) W k̄ (element-local, into ``xbar``), k̄ = Σ c·a over (c, a)
         ``kbar``: Lᵀ k̄ = R Q x̄ by the unweighted DSS that follows."""
         self.fix_depth()
-        return self._transpose(self.depth, kbar, GRAVITY)
+        return self.tendency.transpose(self.depth, kbar, GRAVITY)
 
     def solve_transpose(self, mu, a: float) -> None:
         """μ ← A_a⁻ᵀ μ in place, A_a = I − aL, a (s) > 0, μ (3, N) continuous (mass form; module

@@ -4,10 +4,11 @@
 (the linear gravity-wave operator L and its mean-depth rule), ``hyperviscosity.Hyperviscosity``
 (HOMME's ``biharmonic_wk`` ∇⁴, its substeps), ``bad_nodes.BadNodes`` (the non-finite or dry-node
 check), ``launches`` (the launch recorder they all launch through, and ``Update``, a linear
-combination written by an operator's DSS), ``diagnostics`` (invariants, Courant numbers,
+combination written by an operator's DSS), ``transposes`` (the operators' transposes the
+gradients of a run reverse steps with), ``diagnostics`` (invariants, Courant numbers,
 signal rates).
 
 May import: ``core``, ``grid``, ``kernels``.
 """
 
-__all__ = ["bad_nodes", "diagnostics", "gravity_wave", "hyperviscosity", "launches", "shallow_water"]
+__all__ = ["bad_nodes", "diagnostics", "gravity_wave", "hyperviscosity", "launches", "shallow_water", "transposes"]

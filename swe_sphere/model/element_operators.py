@@ -23,6 +23,7 @@ import warp as wp
 from ..core.parallel import array_key
 from ..kernels import operators
 from .launches import check_updates
+from .transposes import TendencyTranspose
 
 f64 = wp.float64
 
@@ -63,6 +64,11 @@ class ElementOperators:
             yield
         finally:
             self.hs = saved
+
+    def tendency_transpose(self, terms: tuple, g: float) -> TendencyTranspose:
+        """A transpose of the tendency of ``terms`` at gravity ``g`` (m s⁻²) on these operators'
+        arrays, with work arrays of its own (``model.transposes``): an adjoint's."""
+        return TendencyTranspose(self, terms, g)
 
     def as_rows(self, a: wp.array) -> wp.array:
         """``a`` as the GLL rows the per-element kernels read and write (``kernels.operators.row_vectors``)."""

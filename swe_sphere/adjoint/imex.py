@@ -106,7 +106,7 @@ class ImexAdjoint(GravityTransposes, StepAdjoint):
             if launches:
                 active.append(i)
                 segments.append((i, launches))
-        total = self.combination(mu, [(1.0, mu), *((1.0, self.rbar[i]) for i in active)])
+        total = self.combinations.combination(mu, [(1.0, mu), *((1.0, self.rbar[i]) for i in active)])
         return [*segments, (None, total)]
 
     def reverse(self, x, mu, k: int = 0) -> None:

@@ -291,7 +291,7 @@ class MriAdjoint(_Recomputed):
         Ybar, Sbar, zbar, kb = self.Ybar, self.Sbar, self.zbar, self.stage_bar
         bar = {id(a): b for a, b in zip([*self.Y, *self.S], [*Ybar, *Sbar])}  # each array's adjoint
         segments = [
-            (None, None, [launch for a in (*Ybar, *Sbar) for launch in self.combination(a, [])])
+            (None, None, [launch for a in (*Ybar, *Sbar) for launch in self.combinations.combination(a, [])])
         ]  # Ybar[0]: x̄(n)
         cur = mu
         for r in reversed(range(s)):
@@ -303,9 +303,9 @@ class MriAdjoint(_Recomputed):
                     None,
                     None,
                     [
-                        *self.combination(zbar, [(1.0, cur)]),
-                        *self.combination(self.rho0, []),
-                        *self.combination(self.rho1, []),
+                        *self.combinations.combination(zbar, [(1.0, cur)]),
+                        *self.combinations.combination(self.rho0, []),
+                        *self.combinations.combination(self.rho1, []),
                     ],
                 )
             )
@@ -316,30 +316,36 @@ class MriAdjoint(_Recomputed):
                         (tau * self.b[i], zbar),
                         *((tau * self.a[l][i], Zbar[l]) for l in range(i + 1, len(self.b))),
                     ]
-                    segments.append((None, None, self.combination(kb, terms)))
+                    segments.append((None, None, self.combinations.combination(kb, terms)))
                     launches = [
                         *self._fast_transpose(self.inner_states.get((r, k, i)), kb),
                         *dss(self.xbar, False, Zbar[i]),
-                        *self.combination(self.rho0, [(1.0, self.rho0), (1.0, kb)]),
-                        *(self.combination(self.rho1, [(1.0, self.rho1), ((k + self.ci[i]) / n, kb)]) if timed else ()),
+                        *self.combinations.combination(self.rho0, [(1.0, self.rho0), (1.0, kb)]),
+                        *(
+                            self.combinations.combination(self.rho1, [(1.0, self.rho1), ((k + self.ci[i]) / n, kb)])
+                            if timed
+                            else ()
+                        ),
                     ]
                     state = self.inner_states.get((r, k, i))  # the fast part's F read it: g's term, with parameters
                     segments.append((state, [(1.0, kb)], launches, self._fast_planet))
-                segments.append((None, None, self.combination(zbar, [(1.0, zbar), *((1.0, Z) for Z in Zbar)])))
+                segments.append(
+                    (None, None, self.combinations.combination(zbar, [(1.0, zbar), *((1.0, Z) for Z in Zbar)]))
+                )
             combinations = []
             for terms, adjoint in ((z0, zbar), (rho0, self.rho0), (rho1, self.rho1)):
                 for c, a in terms:  # a term c·a of the combination: ā += c × its adjoint
                     if c:
-                        combinations += self.combination(bar[id(a)], [(1.0, bar[id(a)]), (c, adjoint)])
+                        combinations += self.combinations.combination(bar[id(a)], [(1.0, bar[id(a)]), (c, adjoint)])
             segments.append((None, None, combinations))
             slow = [
                 *self._slow_transpose(self.Y[r], Sbar[r]),
                 *dss(self.xbar, False, self.tmp),
-                *self.combination(Ybar[r], [(1.0, Ybar[r]), (1.0, self.tmp)]),
+                *self.combinations.combination(Ybar[r], [(1.0, Ybar[r]), (1.0, self.tmp)]),
             ]
             segments.append((self.Y[r], [(1.0, Sbar[r])], slow, self._slow_planet))
             cur = Ybar[r]
-        segments.append((None, None, self.combination(mu, [(1.0, Ybar[0])])))
+        segments.append((None, None, self.combinations.combination(mu, [(1.0, Ybar[0])])))
         return segments
 
 

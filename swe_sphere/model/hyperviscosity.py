@@ -19,6 +19,7 @@ import warp as wp
 from ..core.parallel import array_key
 from ..grid.quality import element_bilinear, hypervis_tensor
 from ..kernels import blas, hyperviscosity, operators
+from .transposes import HyperviscosityTranspose, TendencyTranspose
 
 f64 = wp.float64
 
@@ -161,6 +162,14 @@ class Hyperviscosity:
                 self.hv_L2 if m.operators.per_element else L, apply, [f64(coef), self._frame("east", "north"), out]
             ),
         ]
+
+    def transpose(
+        self, tendency: TendencyTranspose, dt: float, shared: HyperviscosityTranspose | None = None
+    ) -> HyperviscosityTranspose:
+        """The transpose of ``apply`` over dt (s) in the mass form, for an adjoint
+        (``model.transposes.HyperviscosityTranspose``): ``tendency`` its ∇δ term's transposes
+        read (ν_div ≠ ν), its work arrays ``shared``'s (the same adjoint's at another Δt) or its own."""
+        return HyperviscosityTranspose(self, tendency, dt, shared)
 
     def tensor_metric(self, scaling: float) -> wp.array2d:
         """The fixed metric (4, N) of the tensor ∇⁴'s second Laplacian, ∇·(V∇Y₁) + 2 v Y₁/a²

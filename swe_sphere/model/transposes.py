@@ -11,6 +11,8 @@ per-node gathers on CUDA).
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import warp as wp
 
@@ -94,3 +96,261 @@ class TendencyTranspose:
         for launch in topo.dss(xbar, False, d):
             launch.launch()
         return d.numpy()[2]
+
+
+class Combinations:
+    """Linear combinations out = Σ c·x of device arrays, their launches (``LaunchRecorder.lincomb``
+    through ``launches``) recorded once per arrays and coefficients: the reverse sweep's sums."""
+
+    def __init__(self, launches):
+        self.launches = launches
+        self._records: dict[tuple, list] = {}
+
+    def combine(self, out, terms) -> None:
+        """out = Σ c·x over (c, x) terms, zero coefficients left out (``LaunchRecorder.lincomb``,
+        four terms a pass; out may alias any x only as the first term); recorded once per
+        arrays and coefficients (the arrays must be held as long as this object)."""
+        terms = [(c, x) for c, x in terms if c != 0.0]
+        if not terms:
+            out.zero_()
+            return
+        key = (out.ptr, out.shape, *((c, x.ptr, x.shape) for c, x in terms))  # a row view shares its array's ptr
+        launches = self._records.get(key)
+        if launches is None:
+            launches = self._records[key] = self.combination(out, terms)
+        for launch in launches:
+            launch.launch()
+
+    def combination(self, out, terms) -> list:
+        """The launches of out = Σ c·x over (c, x) ``terms``, zero coefficients left out (out = 0
+        for none): four terms in the first pass, three more in each next (out may alias any x
+        only as the first term), for a record of one's own (``combine`` keeps them by key)."""
+        terms = [(c, x) for c, x in terms if c != 0.0] or [(0.0, out)]
+        passes = [terms[:4], *([(1.0, out), *terms[i : i + 3]] for i in range(4, len(terms), 3))]
+        return [self.launches.lincomb(out, p) for p in passes]
+
+
+class HyperviscosityTranspose:
+    """The transpose of ``hv``'s split ∇⁴ step over Δt = ``dt`` (s) (``Hyperviscosity.apply``: S
+    forward-Euler substeps x ← x + c B x, or an RKL1 super-step) in the mass form, μ = R Q λ
+    (``adjoint.explicit``'s module doc), made by ``Hyperviscosity.transpose``: the ∇⁴ is its own
+    transpose, R Q Bᵀ = B R Q (B = Pᵀ R Q K̃ Π R Q K̃ P, K̃ the element weak Laplacian plus the
+    mass shift, symmetric; P the (east, north) → Cartesian basis and Π the tangent projection,
+    continuous and per node), so μ ← μ + c B₀ μ with B₀ the operator without hs (the model's
+    ∇⁴ launches recorded with hs = 0); the tensor ∇⁴'s transpose has its two K̃ swapped
+    (``Hyperviscosity.build(transposed=True)``); with ν_div ≠ ν the ∇δ term is not symmetric and
+    its transpose is added apart (``divergent_transpose``, through ``tendency``, a
+    ``TendencyTranspose``).
+
+    ``substeps``, ``rkl``: the step's plan (``Hyperviscosity.plan``); ``coef`` (s) the
+    coefficient c of each of its ∇⁴ steps (−Δt/S, or RKL1's −w₁Δt). The launches are recorded once
+    per array and kept for this Δt; the work arrays ((3, N), made on first use, the transposes of
+    one adjoint sharing them: ``shared``, another Δt's) in ``work``."""
+
+    def __init__(self, hv, tendency: TendencyTranspose, dt: float, shared: HyperviscosityTranspose | None = None):
+        self.hv, self.model, self.tendency, self.dt = hv, hv.model, tendency, float(dt)
+        m = self.model
+        N, device = m.topology.N, m.topology.device
+        self.work = SimpleNamespace(zero_hs=wp.zeros(N, dtype=f64, device=device)) if shared is None else shared.work
+        self.substeps, self.rkl = hv.plan(self.dt)
+        s = self.substeps
+        self.coef = -self.dt * 2.0 / (s * s + s) if self.rkl else -self.dt / max(s, 1)
+        self.combinations = Combinations(m.launches)  # this Δt's sums' launches
+        self._substeps: dict[tuple, list] = {}  # ``substep``'s recorded launches, by array and direction
+        self._divergent: dict[int, list] = {}  # ``divergent_transpose``'s, by array
+        self._units = None  # ``_divergent_parameters``' unit-coefficient ∇⁴ launches
+        self._rkl_units: dict[int, list] = {}  # ``_unit_step``'s, by stage
+
+    def _zeros(self, rows: int) -> wp.array2d:
+        return wp.zeros((rows, self.model.topology.N), dtype=f64, device=self.model.topology.device)
+
+    def substep(self, x, transposed: bool = False) -> None:
+        """x ← x + c B₀ x in place (``transposed``: B₀'s transpose in the mass form), x (3, N): one ∇⁴
+        substep without hs (the model's launches, recorded once per array with the model's hs
+        swapped for zeros, as ``Hyperviscosity.biharmonic_radius`` does). With ν_div ≠ ν the
+        transpose is the operator's at ν_div = ν plus its ∇δ term's (``divergent_transpose``)."""
+        m, hv = self.model, self.hv
+        divergent = transposed and hv.nu_div != hv.nu
+        launches = self._substeps.get((x.ptr, transposed))
+        if launches is None:
+            nus = (hv.nu, hv.nu, hv.nu_s) if divergent else None
+            with m.operators.hs_as(self.work.zero_hs):
+                launches = self._substeps[x.ptr, transposed] = hv.build(x, self.coef, nus=nus, transposed=transposed)
+        for launch in launches:
+            launch.launch()
+        if divergent:
+            self.divergent_transpose(x, self.coef)
+
+    def divergent_transpose(self, x, coef: float) -> None:
+        """x[wind] += coef · B_dᵀ μ, μ the x (3, N) the substep started from: the transpose of the ∇δ
+        term B_d = (ν_div − ν) Pᵀ RQ K̃₂ RQ W P G RQ W D (G the strong gradient, D the strong
+        divergence, W spheremp, P the (east, north) → Cartesian frame), in the mass form
+        B_dᵀ μ = (ν_div − ν) RQ Dᵀ(W s), s = RQ Gᵀ(W Pᵀ Z), Z = RQ K̃₂ P μ: the substep's first
+        pass left ν Π Z in the ∇⁴'s Y₁ (Π's radial part Pᵀ drops). Gᵀ W is the pressure
+        gradient's transpose (∂(−g G h)/∂h: −g Gᵀ W), Dᵀ W the continuity's at h = 1, v = 0
+        (∂(−D(h v))/∂v: −Dᵀ W), each the tendency's transpose with those terms and unweighted DSS'd. Each
+        reads only its own rows of k̄: ``kd`` holds Pᵀ Z in its wind rows and s in its h row.
+        The projection Pᵀ on the host; the rest recorded once per x."""
+        m, topo, w, t = self.model, self.model.topology, self.work, self.tendency
+        if not hasattr(w, "kd"):
+            w.kd, w.dss_out = self._zeros(3), self._zeros(3)
+            w.unit_depth = wp.array(
+                np.stack([np.zeros(m.topology.N), np.zeros(m.topology.N), np.ones(m.topology.N)]),
+                dtype=f64,
+                device=m.topology.device,
+            )
+            w.frame = m.operators.east.numpy() / self.hv.nu, m.operators.north.numpy() / self.hv.nu  # Pᵀ, Y₁ = ν Π Z
+        launches = self._divergent.get(x.ptr)
+        if launches is None:
+            H, U = slice(2, 3), slice(0, 2)
+            launches = self._divergent[x.ptr] = [
+                *t.transpose(w.unit_depth, [(1.0, w.kd)], ("pressure_gradient",)),  # linear: any state
+                *topo.dss(t.xbar, False, w.dss_out),
+                m.lincomb(w.kd[H], [(-1.0 / m.g, w.dss_out[H])]),  # s = RQ Gᵀ(W Pᵀ Z)
+                *t.transpose(w.unit_depth, [(1.0, w.kd)], ("continuity",)),
+                *topo.dss(t.xbar, False, w.dss_out),  # −RQ Dᵀ(W s)
+                m.lincomb(x[U], [(1.0, x[U]), (-coef * (self.hv.nu_div - self.hv.nu), w.dss_out[U])]),
+            ]
+        Y = self.hv.hv_Y.numpy()[:3]
+        east, north = w.frame
+        w.kd[0:2].assign(np.stack([np.sum(Y * east, axis=0), np.sum(Y * north, axis=0)]))  # Pᵀ Z
+        for launch in launches:
+            launch.launch()
+
+    def transpose(self, mu, phi=None, d_nu=None, d_hs=None) -> None:
+        """μ (3, N) of the ∇⁴ step's output → μ of its input Φ, in place (the transposed substeps, or
+        RKL1's stages, ``_rkl1_transpose``). With ``phi`` (a callable writing Φ into a (3, N)
+        array), the parameters' sums of this step added: ∂J/∂ν (wind rows: ν = ν_div moved
+        together) and ∂J/∂ν_s (h row) into ``d_nu`` (2,; m⁻⁴ s · J, numpy, in place), the hs
+        adjoint into ``d_hs`` (1, N; continuous, mass form). The substeps x ← L x + c B₀ hs
+        (L = I + c B₀, c ∝ ν) give, with Δ₀ = c B₀ (Φ + hs) the first substep's increment and μ₁
+        the adjoint before the last substep's transpose, ∂J/∂ν = S ⟨μ₁, Δ₀⟩ / ν over S substeps
+        (L commutes with itself: ⟨L^(S−1−k) μ_S, L^k Δ₀⟩ is the same for every k), and
+        ∂J/∂hs = (μ after − μ before)[h] (Σ_k c B₀ μ_(k+1) telescopes); with ν_div ≠ ν term by
+        term (``_divergent_parameters``). The sums are the same bits on any ranks."""
+
+        def h(x):
+            self.substep(x, transposed=True)
+
+        if self.rkl:
+            self._rkl1_transpose(mu, phi, d_nu, d_hs)
+            return
+        if phi is None:
+            for _ in range(self.substeps):
+                h(mu)
+            return
+        m, hv, w, combine = self.model, self.hv, self.work, self.combinations.combine
+        if not hasattr(w, "phi"):  # Φ + hs and Δ₀
+            w.phi, w.delta = self._zeros(3), self._zeros(3)
+        phi(w.phi)
+        combine(w.phi[2:3], [(1.0, w.phi[2:3]), (1.0, m.operators.hs.reshape((1, m.topology.N)))])  # Φ + hs
+        combine(d_hs, [(1.0, d_hs), (-1.0, mu[2:3])])
+        if hv.nu_div != hv.nu:  # L and ∂L/∂ν do not commute: the substeps' terms one by one
+            self._divergent_parameters(mu, d_nu)
+            combine(d_hs, [(1.0, d_hs), (1.0, mu[2:3])])
+            return
+        wp.copy(w.delta, w.phi)
+        self.substep(w.delta)
+        combine(w.delta, [(1.0, w.delta), (-1.0, w.phi)])  # Δ₀
+        for _ in range(self.substeps - 1):
+            h(mu)
+        sums = m.topology.whole_sums(m.topology.grid.spheremp * mu.numpy() * w.delta.numpy())
+        rows = np.array([sums[0] + sums[1], sums[2]]) * self.substeps
+        d_nu += np.divide(rows, [hv.nu, hv.nu_s], out=np.zeros(2), where=np.array([hv.nu, hv.nu_s]) > 0)
+        h(mu)
+        combine(d_hs, [(1.0, d_hs), (1.0, mu[2:3])])
+
+    def _rkl1_transpose(self, mu, phi, d_nu, d_hs) -> None:
+        """μ of an RKL1 super-step's output → μ of its input, in place: the step (``Hyperviscosity.
+        rkl1``) Y_1 = E Y_0, Y_j = μ_j E Y_(j−1) + ν_j Y_(j−2) (E y = y + Δ(y), Δ(y) = c B₀ (y + hs)
+        its forward-Euler step) reversed, its stages last first: Ȳ_(j−1) += μ_j Eᵀ Ȳ_j, Ȳ_(j−2) +=
+        ν_j Ȳ_j, and Ȳ_0 += Eᵀ Ȳ_1 (Eᵀ ``substep``'s transpose, μ_j = (2j − 1)/j, ν_j = −(j − 1)/j,
+        μ_1 = 1). With ``phi`` (``transpose``): the stages taken again from Φ, ∂J/∂ν (wind rows: ν
+        and ν_div moved together) and ∂J/∂ν_s (h row) += μ_j ⟨Ȳ_j, c B₁ (Y_(j−1) + hs)⟩, B₁ the
+        operator at unit coefficients (``_divergent_parameters``' ∂B/∂ν), and the hs adjoint += μ_j
+        (Eᵀ Ȳ_j − Ȳ_j)[h]."""
+        m, s, w, combine = self.model, self.substeps, self.work, self.combinations.combine
+        if not hasattr(w, "rkl_bars"):
+            w.rkl_bars = [self._zeros(3) for _ in range(3)]
+            w.rkl_work = self._zeros(3)
+            w.rkl_deltas, w.rkl_units = [], []
+        cur, prev, prev2 = w.rkl_bars
+        t = w.rkl_work
+        if phi is not None:  # Δ_j = Δ(Y_(j−1)), the stages from Φ rolling over cur, prev, prev2 for now
+            w.rkl_deltas += [self._zeros(3) for _ in range(s - len(w.rkl_deltas))]
+            w.rkl_units += [self._zeros(3) for _ in range(s - len(w.rkl_units))]
+            free, older = [cur, prev, prev2], None
+            last = free.pop()
+            phi(last)  # Y_0 = Φ
+            for j in range(1, s + 1):
+                d = w.rkl_deltas[j - 1]
+                combine(d, [(1.0, last)])
+                combine(d[2:3], [(1.0, d[2:3]), (1.0, m.operators.hs.reshape((1, m.topology.N)))])  # Y_(j−1) + hs
+                combine(t, [(1.0, d)])
+                self.substep(d)
+                combine(d, [(1.0, d), (-1.0, t)])  # Δ_j
+                self._unit_step(t, j)  # c B₁ (Y_(j−1) + hs)
+                if j < s:  # Y_j = μ_j (Y_(j−1) + Δ_j) + ν_j Y_(j−2)
+                    a = (2.0 * j - 1.0) / j
+                    new = free.pop()
+                    combine(new, [(a, last), (a, d), *([(-(j - 1.0) / j, older)] if older is not None else [])])
+                    if older is not None:
+                        free.append(older)
+                    older, last = last, new
+        combine(cur, [(1.0, mu)])
+        prev.zero_()
+        prev2.zero_()
+        for j in range(s, 0, -1):
+            combine(t, [(1.0, cur)])
+            self.substep(t, transposed=True)
+            weight = (2.0 * j - 1.0) / j  # μ_j (1 for j = 1)
+            if phi is not None:
+                sums = m.topology.whole_sums(m.topology.grid.spheremp * cur.numpy() * w.rkl_units[j - 1].numpy())
+                d_nu += weight * np.array([sums[0] + sums[1], sums[2]])
+                combine(d_hs, [(1.0, d_hs), (weight, t[2:3]), (-weight, cur[2:3])])
+            if j == 1:
+                break
+            combine(prev, [(1.0, prev), (weight, t)])
+            combine(prev2, [(1.0, prev2), (-(j - 1.0) / j, cur)])
+            cur, prev, prev2 = prev, prev2, cur
+            prev2.zero_()
+        combine(mu, [(1.0, prev), (1.0, t)])
+
+    def _unit_step(self, y, j: int) -> None:
+        """``rkl_units[j − 1]`` = c B₁ y (``_rkl1_transpose``), B₁ the ∇⁴ at unit coefficients
+        without hs (y holds it), recorded once per stage."""
+        m, out = self.model, self.work.rkl_units[j - 1]
+        launches = self._rkl_units.get(j)
+        if launches is None:
+            with m.operators.hs_as(self.work.zero_hs):
+                launches = self._rkl_units[j] = [
+                    m.lincomb(out, [(0.0, out)]),
+                    *self.hv.build(y, self.coef, out=out, nus=(1.0, 1.0, 1.0)),
+                ]
+        for launch in launches:
+            launch.launch()
+
+    def _divergent_parameters(self, mu, d_nu) -> None:
+        """μ ← the ∇⁴'s transposed substeps of μ, with ∂J/∂ν (ν and ν_div moved together) and
+        ∂J/∂ν_s summed into ``d_nu`` term by term: Σ_k ⟨μ_(k+1), c B₁ y_k⟩, y_k = Φ + hs after k
+        forward substeps (held), B₁ the operator at unit coefficients (its wind rows ∂B/∂ν with
+        ν_div − ν fixed, its h row ∂B/∂ν_s), c = −Δt/S: with ν_div ≠ ν the ∇δ term keeps ∂L/∂ν
+        from commuting with L, so ``transpose``'s S⟨μ₁, Δ₀⟩/ν does not hold."""
+        m, S, c, w = self.model, self.substeps, -self.dt / self.substeps, self.work
+        if self._units is None:
+            if not hasattr(w, "hv_states"):
+                w.hv_states, w.hv_unit = [], self._zeros(3)
+            w.hv_states += [self._zeros(3) for _ in range(S - len(w.hv_states))]
+            with m.operators.hs_as(w.zero_hs):  # c B₁ y_k into hv_unit, once per k (y_k holds hs: the model's is zero)
+                self._units = [self.hv.build(y, c, out=w.hv_unit, nus=(1.0, 1.0, 1.0)) for y in w.hv_states[:S]]
+        wp.copy(w.hv_states[0], w.phi)
+        for k in range(1, S):
+            wp.copy(w.hv_states[k], w.hv_states[k - 1])
+            self.substep(w.hv_states[k])
+        for k in reversed(range(S)):
+            w.hv_unit.zero_()
+            for launch in self._units[k]:
+                launch.launch()
+            sums = m.topology.whole_sums(m.topology.grid.spheremp * mu.numpy() * w.hv_unit.numpy())
+            d_nu += [sums[0] + sums[1], sums[2]]
+            self.substep(mu, transposed=True)

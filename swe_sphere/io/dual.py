@@ -44,6 +44,7 @@ from ..core import cache
 from ..core.constants import EARTH
 from ..grid.cubed_sphere import CubedSphere, lat_lon
 from ..mesh.mesh import Mesh
+from .dual_solve import amg_preconditioner, small_pages
 from .ugrid import subcell_quads, write_topology
 
 MESH = "mesh_dual"
@@ -62,10 +63,11 @@ CG_ITERATIONS = 20000  # a cap only: an inexact step is checked like any other
 # at 1e-3 cost a third more;
 # from the twisted start to round-off (inexact steps stall there at ne = 2 np = 2)
 CG_RTOL, CG_RTOL_EXACT = 1e-4, 1e-12
-# the fewest unknowns (cells) whose systems are preconditioned by smoothed aggregation (``_preconditioner``), the
+# the fewest unknowns (cells) whose systems are preconditioned by smoothed aggregation (``dual_solve.amg_preconditioner``), the
 # others by their diagonal: the V-cycles' set-up and Python overhead cost more than Jacobi's extra iterations up to
 # ne60 (194 402 cells, one thread: 3.41 s against 3.06 s for the cells, ne30 1.25 against 0.99), and half as much at
-# ne120 (777 602: 15.9 s against 32.3 s; 13.8 s with its levels as CSR and point Gauss-Seidel, BUILD 9)
+# ne120 (777 602: 15.9 s against 32.3 s; 13.8 s with its levels as CSR and point Gauss-Seidel, BUILD 9;
+# 10.4 s with their block columns sorted in C and 4 kB pages, BUILD 10)
 AMG_CELLS = 400_000
 LOCAL_ERROR, LOCAL_RINGS = 0.05, 6  # cells fitted first, and the rings round them (``_fit_worst_first``)
 # the steps allowed to the worst cells' fit and to the global fit after it (the cube: 5 and 2 at ne60), beyond
@@ -74,7 +76,7 @@ LOCAL_ERROR, LOCAL_RINGS = 0.05, 6  # cells fitted first, and the rings round th
 NEAR_STEPS = 20
 TWIST = 0.1  # the chiral start's rotation (``_start_vertices``)
 CHUNK = 1 << 13  # cells a pass (``_in_chunks``): its temporaries stay under 10 MB
-BUILD = 9  # the fit's version in the cache key: raised by any change that moves the cells' bits
+BUILD = 10  # the fit's version in the cache key: raised by any change that moves the cells' bits
 
 
 def control_points(rule) -> np.ndarray:
@@ -161,8 +163,9 @@ def _cross(a, b):
 
 def _areas_and_gradients(centre, verts, corners):
     """Spherical areas (ncell,) of cells fanned from ``centre`` (ncell, 3) over ``verts[corners]``
-    (closed, padded), and the gradients (ncell, nv, 3) of each area w.r.t. its vertices
-    (``_chunk_areas_and_gradients``)."""
+    (closed, padded), the gradients (ncell, nv, 3) of each area w.r.t. its vertices
+    (``_chunk_areas_and_gradients``) and whether each cell is star-shaped from ``centre``
+    (``star_shaped``: its fan triangles' N > 0, ``_fan``)."""
     return _in_chunks(_chunk_areas_and_gradients, centre, verts, corners)
 
 
@@ -177,7 +180,8 @@ def _chunk_areas_and_gradients(centre, verts, closed):
     s = (2 / (N * N + D * D))[..., None]
     ga = s * (D[..., None] * _cross(b, c) - N[..., None] * (c + b))
     gb = s * (D[..., None] * _cross(c, a) - N[..., None] * (c + a))
-    return area, ga + np.roll(gb, 1, axis=1)  # vertex k: first of triangle k, second of triangle k − 1
+    star = ((N > 0) | np.all(a == b, axis=2)).all(axis=1)
+    return area, ga + np.roll(gb, 1, axis=1), star  # vertex k: first of triangle k, second of triangle k − 1
 
 
 def _chunk_areas(centre, verts, closed):
@@ -194,7 +198,8 @@ def _fan(centre, verts, closed):
     b = np.roll(a, -1, axis=1)
     c = centre[:, None, :]
     N = np.einsum("cki,cki->ck", c, _cross(a, b))
-    D = 1 + np.einsum("cki,cki->ck", c, a) + np.einsum("cki,cki->ck", a, b) + np.einsum("cki,cki->ck", b, c)
+    ca = np.einsum("cki,cki->ck", c, a)
+    D = 1 + ca + np.einsum("cki,cki->ck", a, b) + np.roll(ca, -1, axis=1)  # b·n: the next vertex's n·a
     return a, b, c, N, D
 
 
@@ -204,20 +209,26 @@ def spherical_areas(centre, verts, corners) -> np.ndarray:
     return _in_chunks(_chunk_areas, centre, verts, _padded(corners))
 
 
-def convex(verts, corners) -> np.ndarray:
+def convex(verts, corners, turns=None) -> np.ndarray:
     """Whether each cell ``verts[corners]`` (−1-padded) turns left at every vertex seen from
     outside, (ncell,) bool: ((b − a) × (c − b)) · b = a · (b × c) > 0 for consecutive
-    vertices a, b, c."""
-    return _in_chunks(_chunk_convex, corners, verts, corners)
+    vertices a, b, c; ``turns``: ``turn_table(corners)``, where the caller holds it."""
+    return _in_chunks(_chunk_convex, turn_table(corners) if turns is None else turns, verts, corners)
 
 
-def _chunk_convex(_, verts, corners):
+def turn_table(corners) -> np.ndarray:
+    """Each vertex's predecessor, itself and successor round its cell ``corners`` (−1-padded),
+    (ncell, 3, nv) (``convex``; the −1s stay)."""
     count = (corners >= 0).sum(axis=1, keepdims=True)  # the −1s come last
     k = np.arange(corners.shape[1])
-    a = verts[np.take_along_axis(corners, (k - 1) % count, axis=1)]
-    c = verts[np.take_along_axis(corners, (k + 1) % count, axis=1)]
-    turn = np.einsum("cki,cki->ck", a, _cross(verts[corners], c))
-    return ((turn > 0) | (k >= count)).all(axis=1)
+    after = [np.take_along_axis(corners, (k + m) % count, axis=1) for m in (-1, 1)]
+    return np.stack([after[0], corners, after[1]], axis=1)
+
+
+def _chunk_convex(turns, verts, corners):
+    a, b, c = (verts[turns[:, m]] for m in range(3))
+    turn = np.einsum("cki,cki->ck", a, _cross(b, c))
+    return ((turn > 0) | (corners < 0)).all(axis=1)
 
 
 def star_shaped(centre, verts, corners) -> np.ndarray:
@@ -269,7 +280,7 @@ def dual_mesh(grid: CubedSphere):
     (JJᵀ + μI)y = ρ couples each node to its 8 neighbours, like a graph Laplacian: solved by
     conjugate gradients, inexactly (``CG_RTOL``), preconditioned by its diagonal or, from
     ``AMG_CELLS`` nodes on, by a V-cycle of pyamg's smoothed aggregation
-    (``_preconditioner``): memory linear in the nodes, where one sparse LU a step grew as
+    (``dual_solve.amg_preconditioner``): memory linear in the nodes, where one sparse LU a step grew as
     nodes^1.5 in fill and flops; the V-cycle's iterations stay at tens (ne120: 16 and 24),
     where Jacobi's grow with ne (ne120: 725 and 920).
     Where the fit stalls at a mirror-symmetric point (ne = 1 np = 3 and ne = 2 np = 2, whose
@@ -313,53 +324,6 @@ def checkerboard(quads) -> np.ndarray:
     if not np.isfinite(steps).all():
         raise ValueError("the sub-cell mesh is not connected")
     return 1.0 - 2.0 * (steps % 2)
-
-
-def _preconditioner(A, colour):
-    """One V-cycle of pyamg's smoothed aggregation for the SPD (JJᵀ + μI) ``A`` (n, n), as a
-    ``LinearOperator``, from the two modes it nearly annihilates: the constant (JJᵀ·target =
-    0, ``dual_mesh``) and the checkerboard ``colour`` (n,) of ±1 (Jᵀ of it vanishes on a
-    uniform lattice); given only the constant, aggregation misses the checkerboard (ne60: 40
-    and 91 iterations where 10 and 13 with both). One Gauss–Seidel sweep before (forward)
-    and after (backward) each coarse correction, a symmetric cycle, as CG needs (ne120: 12
-    and 17 iterations where pyamg's default of two sweeps took 10 and 14, dearer in all). The
-    prolongation's Jacobi smoothing weighted by row sums ("local"): pyamg's default weight
-    needs a spectral radius estimated from a random start, which would change the cells' bits
-    from run to run (and took half the set-up: ne120, 16 and 24 iterations for 1 s less).
-    The cycle runs on CSR copies of pyamg's levels (``_v_cycle``)."""
-    import pyamg  # here, not at the top: a cached run never builds cells (0.15 s of imports)
-    import scipy.sparse.linalg as spla
-
-    ml = pyamg.smoothed_aggregation_solver(
-        A,
-        B=np.stack([np.ones_like(colour), colour], axis=1),
-        symmetry="symmetric",
-        smooth=("jacobi", {"weighting": "local"}),
-        presmoother=("gauss_seidel", {"sweep": "forward"}),
-        postsmoother=("gauss_seidel", {"sweep": "backward"}),
-    )
-    levels = [(level.A.tocsr(), level.R.tocsr(), level.P.tocsr()) for level in ml.levels[:-1]]
-    coarse = functools.partial(ml.coarse_solver, ml.levels[-1].A)
-    return spla.LinearOperator(A.shape, functools.partial(_v_cycle, levels, coarse), dtype=A.dtype)
-
-
-def _v_cycle(levels, coarse_solver, b, lvl=0):
-    """One V-cycle from zero for ``levels[lvl]``'s A x = ``b``, ``levels`` the (A, R, P) of
-    pyamg's levels but the last, as CSR, and ``coarse_solver(b)`` the last's solve: pyamg's own
-    cycle without the residual norms its ``solve`` takes before and after (two fine-level
-    products a cycle, a sixth of its time at ne120), and with point Gauss–Seidel where pyamg's
-    coarse levels (BSR, 2×2 blocks: one a candidate) take block Gauss–Seidel, twice as dear for
-    the same iterations (ne120: 16 and 24 either way; 3.1 s of V-cycles where 4.3 s)."""
-    from pyamg.relaxation.relaxation import gauss_seidel
-
-    A, R, P = levels[lvl]
-    x = np.zeros_like(b)
-    gauss_seidel(A, x, b, sweep="forward")
-    coarse_b = R @ (b - A @ x)
-    coarse_x = coarse_solver(coarse_b) if lvl == len(levels) - 1 else _v_cycle(levels, coarse_solver, coarse_b, lvl + 1)
-    x += P @ coarse_x
-    gauss_seidel(A, x, b, sweep="backward")
-    return x
 
 
 def _fit_worst_first(centre, verts, corners, closed, target, quads, colour):
@@ -436,8 +400,9 @@ def _fit(
     rows = np.repeat(np.arange(n), 2 * closed.shape[1])
     cols = np.stack([2 * closed, 2 * closed + 1], axis=-1).ravel()
     eye = sp.identity(n, format="csr")
-    area, grad = _areas_and_gradients(centre, verts, closed)
-    was_convex = convex(verts, corners)
+    area, grad, _ = _areas_and_gradients(centre, verts, closed)
+    turns = turn_table(corners)
+    was_convex = convex(verts, corners, turns)
     preconditioner, built_for = None, None
     for _ in range(steps):
         rho = 1 - area / target
@@ -458,16 +423,16 @@ def _fit(
             if n < AMG_CELLS:
                 preconditioner = sp.diags(1 / A.diagonal())
             elif max(mu, MU_NEAR) != built_for:
-                preconditioner, built_for = _preconditioner(A, colour), max(mu, MU_NEAR)
+                preconditioner, built_for = amg_preconditioner(A, colour), max(mu, MU_NEAR)
             y, _ = spla.cg(A, rho, rtol=cg_rtol, maxiter=CG_ITERATIONS, M=preconditioner)
             d = (J.T @ y).reshape(nsub, 2)
             trial = verts + d[:, :1] * e1 + d[:, 1:] * e2
             trial /= np.linalg.norm(trial, axis=1)[:, None]
-            t_area, t_grad = _areas_and_gradients(centre, trial, closed)
+            t_area, t_grad, star = _areas_and_gradients(centre, trial, closed)
             if (
                 np.linalg.norm(1 - t_area / target) < norm
-                and star_shaped(centre, trial, corners).all()
-                and (not keep_convex or convex(trial, corners)[was_convex].all())
+                and star.all()
+                and (not keep_convex or convex(trial, corners, turns)[was_convex].all())
             ):
                 mu = max(mu / 10, MU_MIN)
                 break
@@ -504,7 +469,7 @@ def cached_cells(ne: int, np_: int, mesh: Mesh | None = None, radius: float = EA
         # split over every core, its threads spinning between them (ne120 on a 16-core host: 423 s
         # of CPU for 71 s of wall; ne30 on 2 cores: 4.4× the CPU and 4.9× the wall of one thread),
         # and whose sums' order, hence the cells' bits, went with the host's core count
-        with threadpool_limits(limits=1, user_api="blas"):
+        with threadpool_limits(limits=1, user_api="blas"), small_pages():
             whole = grid if _is_whole(grid, ne, np_, mesh, radius) else CubedSphere(ne, np_, radius, mesh=mesh)
             verts, corners, error = dual_mesh(whole)
         seconds.append(time.process_time() - start)

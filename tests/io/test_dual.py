@@ -5,11 +5,13 @@ skipping only where its tool is absent (the CF checkers and cf_xarray: test_cf.p
 
 from __future__ import annotations
 
+import ctypes
 import dataclasses
 import json
 import math
 import shutil
 import subprocess
+import sys
 from collections import Counter
 
 import netCDF4
@@ -35,6 +37,7 @@ from swe_sphere.io.dual import (
     star_shaped,
     unit_dual_mesh,
 )
+from swe_sphere.io.dual_solve import PR_GET_THP_DISABLE, small_pages
 from swe_sphere.io.ugrid import subcell_quads
 from swe_sphere.mesh.cube import cube_mesh
 from swe_sphere.mesh.mesh import read_exodus
@@ -166,6 +169,17 @@ def test_the_multigrid_preconditioned_fit_on_a_mesh(mesh_grid, monkeypatch):
     verts, corners, error = dual_mesh(grid)
     node = np.stack([grid.to_unique(x) for x in grid.xyz], axis=1)
     assert error <= RTOL and star_shaped(node, verts, corners).all() and convex(verts, corners).all()
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="prctl(2) is Linux's")
+def test_the_build_faults_its_memory_in_small_pages_and_restores_the_setting():
+    """``small_pages``: the process's transparent huge pages off inside (prctl's
+    PR_GET_THP_DISABLE reads 1), on again after, where they were on before."""
+    prctl = ctypes.CDLL(None).prctl
+    before = prctl(PR_GET_THP_DISABLE, 0, 0, 0, 0)
+    with small_pages():
+        inside = prctl(PR_GET_THP_DISABLE, 0, 0, 0, 0)
+    assert before == 0 and inside == 1 and prctl(PR_GET_THP_DISABLE, 0, 0, 0, 0) == 0
 
 
 @pytest.mark.parametrize("ne,np_", [(1, 2), (3, 4)])

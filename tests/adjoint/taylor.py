@@ -139,17 +139,22 @@ def tc4():
     return load_scene("tc4_forced_low", ne=2, np_=4, dt=1800.0, stepper="rk4")
 
 
-def assert_replays_the_run(scene, steps, cost, **kw):
+def assert_replays_the_run(scene, steps, cost, tol=None, **kw):
     """The gradient (``kw`` to it), from every state, from two snapshots and from a disk tier
     of every third state: its forward run is the ``Simulation``'s to the bit, its gradients the
-    same bits; returns the first."""
+    same bits; returns the first. ``tol``: a stepper that solves (its CG to this relative
+    residual), whose recomputed steps start their CG from the stepper's later guesses: the
+    gradients the same to 1e3 ``tol`` of the largest entry, not to the bit."""
     every, few = gradient(scene, steps, cost, **kw), gradient(scene, steps, cost, snapshots=2, **kw)
     disk = gradient(scene, steps, cost, snapshots=2, disk=True, disk_interval=3, **kw)
     sim = Simulation(dataclasses.replace(scene, days=steps * scene.dt / 86400.0), "cpu", progress=False)
     sim.run(None)
     np.testing.assert_array_equal(every.final, np.stack(sim.fields()))
-    np.testing.assert_array_equal(few.grad, every.grad)
-    np.testing.assert_array_equal(disk.grad, every.grad)
+    for other in (few, disk):
+        if tol is None:
+            np.testing.assert_array_equal(other.grad, every.grad)
+        else:
+            assert np.abs(other.grad - every.grad).max() <= 1e3 * tol * np.abs(every.grad).max()
     return every
 
 

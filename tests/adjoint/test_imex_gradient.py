@@ -110,13 +110,7 @@ def test_an_imex_gradient_replays_its_run():
     scene, steps = imex_tc5(), 4
     model, _, x0 = scene_model(scene)
     cost = taylor.misfit(model, x0, np.random.default_rng(13))
-    every = gradient(scene, steps, cost)
-    sim = Simulation(dataclasses.replace(scene, days=steps * scene.dt / 86400.0), "cpu", progress=False)
-    sim.run(None)
-    np.testing.assert_array_equal(every.final, np.stack(sim.fields()))
-    for kw in ({"snapshots": 2}, {"snapshots": 2, "disk": True, "disk_interval": 3}):
-        other = gradient(scene, steps, cost, **kw)
-        assert np.abs(other.grad - every.grad).max() <= 1e3 * TOL * np.abs(every.grad).max(), kw
+    taylor.assert_replays_the_run(scene, steps, cost, tol=TOL)
     with pytest.raises(ValueError, match="parameters must be False with imex"):
         gradient(scene, 1, cost, parameters=True)
 

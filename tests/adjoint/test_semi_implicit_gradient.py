@@ -4,7 +4,6 @@ tests, the forward the ``Simulation``'s to the bit."""
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 
 import numpy as np
@@ -15,7 +14,6 @@ from swe_sphere.adjoint import gradient
 from swe_sphere.adjoint.gradient import scene_model, step_adjoint
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.backend import Backend
-from swe_sphere.simulation.simulation import Simulation
 
 import taylor
 from helpers import requires_cuda
@@ -98,13 +96,7 @@ def test_a_semi_implicit_gradient_replays_its_run():
     scene, steps = si_tc5(), 6
     model, _, x0 = scene_model(scene)
     cost = taylor.misfit(model, x0, np.random.default_rng(13))
-    every = gradient(scene, steps, cost)
-    sim = Simulation(dataclasses.replace(scene, days=steps * scene.dt / 86400.0), "cpu", progress=False)
-    sim.run(None)
-    np.testing.assert_array_equal(every.final, np.stack(sim.fields()))
-    for kw in ({"snapshots": 2}, {"snapshots": 2, "disk": True, "disk_interval": 3}):
-        other = gradient(scene, steps, cost, **kw)
-        assert np.abs(other.grad - every.grad).max() <= 1e3 * TOL * np.abs(every.grad).max(), kw
+    taylor.assert_replays_the_run(scene, steps, cost, tol=TOL)
     with pytest.raises(ValueError, match="parameters must be False with semi_implicit"):
         gradient(scene, 1, cost, parameters=True)
 

@@ -67,7 +67,7 @@ CG_RTOL, CG_RTOL_EXACT = 1e-4, 1e-12
 # others by their diagonal: the V-cycles' set-up and Python overhead cost more than Jacobi's extra iterations up to
 # ne60 (194 402 cells, one thread: 3.41 s against 3.06 s for the cells, ne30 1.25 against 0.99), and half as much at
 # ne120 (777 602: 15.9 s against 32.3 s; 13.8 s with its levels as CSR and point Gauss-Seidel, BUILD 9;
-# 10.4 s with their block columns sorted in C and 4 kB pages, BUILD 10)
+# 9.6 s with their block columns sorted in C and 4 kB pages, BUILD 10: 10.4 at load 2 on 2 cores)
 AMG_CELLS = 400_000
 LOCAL_ERROR, LOCAL_RINGS = 0.05, 6  # cells fitted first, and the rings round them (``_fit_worst_first``)
 # the steps allowed to the worst cells' fit and to the global fit after it (the cube: 5 and 2 at ne60), beyond

@@ -28,7 +28,9 @@ stepper of a scene; ``run``, ``from_checkpoint``, and step by step::
 returns their figures), ``kinetic_energy_spectrum`` and ``zonal_mean`` (a run's
 kinetic-energy spectrum by degree and zonal means, ``swe_sphere.studies.analysis``),
 ``gradient``, ``HeightMisfit``, ``PointHeights`` and ``HeightObservations`` (a run's
-gradient, of its final state or against observations at several steps, ``swe_sphere.adjoint``).
+gradient, of its final state or against observations at several steps, ``swe_sphere.adjoint``),
+``Ensemble`` and ``Perturbation`` (N members of one scene in the same launches, member k the
+bits of its single run, ``swe_sphere.ensemble``).
 Importing them initialises Warp quietly (``swe_sphere.core.runtime.init_warp``).
 """
 
@@ -47,6 +49,8 @@ _LAZY = {
     "HeightMisfit": "adjoint.gradient",
     "PointHeights": "adjoint.observations",  # h at points, the observation operator H and Hᵀ
     "HeightObservations": "adjoint.observations",  # a cost of the run: observed h at several steps
+    "Ensemble": "ensemble.ensemble",  # N members of one scene in the same launches
+    "Perturbation": "ensemble.ensemble",  # an ensemble's seeded noise in h
     # the errors (core.errors): every one is a SweSphereError
     **dict.fromkeys(
         [

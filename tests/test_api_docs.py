@@ -14,6 +14,7 @@ import pytest
 from swe_sphere import api
 from swe_sphere.config.scene import Scene, load_scene
 from swe_sphere.core import errors
+from swe_sphere.ensemble import Ensemble
 from swe_sphere.io.remap import remap_dataset
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.studies import frontier
@@ -41,6 +42,7 @@ def named(body: str) -> set[str]:
 FUNCTIONS = [
     api.run,  # swe_sphere.run's (the package's own defers the import)
     Simulation,
+    Ensemble,
     Simulation.from_checkpoint,
     Simulation.run,
     Simulation.advance,

@@ -247,6 +247,16 @@ class Hyperviscosity:
             self._biharmonic_radius = lam
         return self._biharmonic_radius
 
+    def use_biharmonic_radius(self, radius: float) -> None:
+        """Take ``radius`` (m⁻⁴, > 0) as ``biharmonic_radius`` instead of computing it: a model
+        whose operator is block-diagonal in copies of another's (an ensemble's members, each
+        a copy of one grid) has that grid's λ, and handed it plans the same substeps and
+        stages as the one grid (its own power iteration, from another random vector, would
+        land on other bits). ValueError unless finite and > 0."""
+        if not np.isfinite(radius) or radius <= 0:
+            raise ValueError(f"the biharmonic radius must be finite and > 0 (got {radius})")
+        self._biharmonic_radius, self._plan = float(radius), None
+
     @property
     def nu(self) -> float:
         """ν (m⁴ s⁻¹), the rotational wind's coefficient: the model's (``ShallowWater``'s ``nu``)."""

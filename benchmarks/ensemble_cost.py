@@ -1,0 +1,84 @@
+"""N members of one scene in the same launches (``swe_sphere.ensemble.Ensemble``) against one
+member, CPU clock (issue 85's target: on one CPU thread, 8 members of `galewsky` ≤ 7× one
+member's run).
+
+Builds an ensemble of one member, one of ``--members`` N (seeded 1 m perturbations of h) and N
+ensembles of one member stepped in turn (what N runs in one process cost: the members' launches
+apart, each member's arrays alone in the cache), times their build (CPU s, compile included for
+the first) and their steps in ``--rounds`` interleaved rounds of ``--steps`` steps (medians, CPU
+ms a step), and prints each against one member, a step and the scene's whole run (its steps
+at those medians plus the build):
+
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \\
+        python benchmarks/ensemble_cost.py --scene galewsky --members 8
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import time
+
+from results import recorded
+
+from swe_sphere.core.runtime import init_warp
+from swe_sphere.ensemble import Ensemble, Perturbation
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scene", default="galewsky")
+    parser.add_argument("--members", type=int, default=8)
+    parser.add_argument("--steps", type=int, default=20, help="steps a round")
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--device", default="cpu")
+    args = parser.parse_args()
+    init_warp()
+    n = args.members
+    kinds = {"1 member": [1], f"{n} members": [n], f"{n} x 1 member in turn": [1] * n}
+    runs, build = {}, {}
+    for name, sizes in kinds.items():
+        t = time.process_time()
+        runs[name] = [
+            Ensemble(args.scene, m, Perturbation(1.0, seed=k), device=args.device) for k, m in enumerate(sizes)
+        ]
+        for ens in runs[name]:
+            ens.step(1)  # recorded: the rounds replay
+        build[name] = time.process_time() - t
+    times: dict = {name: [] for name in runs}
+    for _ in range(args.rounds):
+        for name, ensembles in runs.items():
+            t = time.process_time()
+            for ens in ensembles:
+                ens.step(args.steps)
+            times[name].append((time.process_time() - t) / args.steps)
+    load = os.getloadavg()
+    one = runs["1 member"][0]
+    nsteps = one.scene.nsteps
+    ms = {name: 1e3 * statistics.median(times[name]) for name in runs}
+    whole = {name: build[name] + nsteps * ms[name] / 1e3 for name in runs}
+    print(
+        f"{args.scene} ne{one.grid.ne} np{one.grid.np} {one.scene.stepper} dt {one.dt:.4g} s, {one.grid.nnodes} nodes a "
+        f"member, {os.environ.get('SWE_SPHERE_THREADS', 'all')} thread(s), CPU clock, median of {args.rounds} "
+        f"interleaved rounds of {args.steps} steps"
+    )
+    print(f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
+    for name in runs:
+        print(
+            f"{name:24s} build {build[name]:6.2f} s, {ms[name]:8.2f} ms a step ({ms[name] / ms['1 member']:5.2f}x), "
+            f"whole run ({nsteps} steps) {whole[name]:7.1f} s ({whole[name] / whole['1 member']:5.2f}x)"
+        )
+    figures.update(
+        members=n,
+        ms_a_step=ms,
+        build_s=build,
+        step_ratio=ms[f"{n} members"] / ms["1 member"],
+        run_ratio=whole[f"{n} members"] / whole["1 member"],
+        in_turn_step_ratio=ms[f"{n} x 1 member in turn"] / ms["1 member"],
+    )
+
+
+if __name__ == "__main__":
+    with recorded(__file__) as figures:
+        main()

@@ -1,0 +1,9 @@
+"""Ensembles: N members of one scene in one model, advanced in the same launches
+(``ensemble.Ensemble``), on N disjoint copies of the grid's elements (``members.MemberGrid``).
+
+May import: every layer below (``simulation`` down to ``kernels``)."""
+
+from .ensemble import Ensemble, Perturbation
+from .members import MemberGrid
+
+__all__ = ["Ensemble", "MemberGrid", "Perturbation"]

@@ -1,0 +1,245 @@
+"""N members of one scene advanced together, in the same kernel launches, each with the bits
+of the single run from its initial state (issue 85 item 1, one process, fixed Δt, explicit
+steppers).
+
+The members are N disjoint copies of the grid's elements (``members.MemberGrid``): one
+``Topology``, one ``ShallowWater`` and one stepper over all of them, so a step is the single
+run's launches over N times the nodes (their start-up and the loop's Python paid once). What
+is global over a grid is taken from the one grid, not the copies: the ∇⁴'s spectral radius
+(its substeps) and every member's invariants.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import warp as wp
+from threadpoolctl import threadpool_limits
+
+from ..config.parts import scene_stepper
+from ..config.scene import resolve_scene
+from ..core.arguments import array_argument, got, integer_argument, number_argument
+from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
+from ..core.constants import DAY
+from ..core.errors import ArgumentError, BlowUp
+from ..grid.cubed_sphere import CubedSphere
+from ..grid.topology import Topology
+from ..model.diagnostics import invariants
+from ..model.shallow_water import ShallowWater
+from ..steppers import STEPPERS
+from .members import MemberGrid
+
+
+@dataclasses.dataclass(frozen=True)
+class Perturbation:
+    """Members that differ by seeded noise in the depth: member k starts from the case's
+    initial state with h + ``amplitude``·ξ_k, ξ_k standard normal on the grid's unique nodes
+    (white: one draw a node, every copy of it the same, so the state stays continuous), the
+    N members' ξ drawn as ``numpy.random.default_rng(seed).standard_normal((N, nunique))``.
+    ``amplitude`` in m (≥ 0), ``seed`` an integer ≥ 0."""
+
+    amplitude: float
+    seed: int = 0
+
+    def __post_init__(self):
+        number_argument("perturbation amplitude", self.amplitude, "m", low=0.0)
+        integer_argument("perturbation seed", self.seed, 0)
+
+    def apply(self, grid: CubedSphere, state: np.ndarray, members: int) -> np.ndarray:
+        """(members, 3, n): ``state`` (3, n) on ``grid``'s element-local nodes, perturbed."""
+        xi = np.random.default_rng(self.seed).standard_normal((members, grid.first.size))
+        out = np.repeat(state[None], members, axis=0)
+        out[:, 2] += self.amplitude * xi[:, grid.gid]
+        return out
+
+
+def _checked_scene(scene) -> None:
+    """``ArgumentError`` naming ``scene`` where the ensemble cannot give each member the single
+    run's bits yet: a stepper that is not explicit (its solves and mean depths reduce over
+    the grid), a controlled Δt, a digital-filter start or the tensor ∇⁴ (its reference Δx is
+    the grid's)."""
+    why = None
+    if not STEPPERS[scene.stepper].explicit:
+        explicit = ", ".join(name for name, cls in STEPPERS.items() if cls.explicit)
+        why = f"stepper {scene.stepper} is not explicit (ensembles step {explicit})"
+    elif scene.control is not None:
+        why = "its dt is controlled (ensembles take a fixed dt)"
+    elif scene.digital_filter is not None:
+        why = "it starts from a digital filter (not yet with ensembles)"
+    elif scene.hypervis_scaling is not None:
+        why = "its hyperviscosity has a scaling (the tensor ∇⁴ is not yet with ensembles)"
+    if why is not None:
+        raise ArgumentError(f"scene: {why}")
+
+
+class Ensemble:
+    """``members`` members of one scene, its grid and stepper, advanced in the same launches;
+    member k's state after n steps has the same bits as the single run's (``Simulation``
+    with ``start`` member k's initial state, or this class with ``members=1``).
+
+    Parameters
+    ----------
+    scene : Scene, str or path
+        As ``Simulation`` takes it, with ``overrides`` (``config.resolve_scene``). Its stepper
+        must be explicit (``Stepper.explicit``), its Δt fixed, without a digital filter or a
+        tensor ∇⁴ (``hyperviscosity.scaling``).
+    members : int ≥ 1
+        N, the number of members.
+    initial : None, array (N, 3, n) or Perturbation
+        The members' initial states: None, the case's for every member; an array of rows
+        u, v (m s⁻¹) and h (m) on the grid's n element-local nodes (``CubedSphere``'s order,
+        continuous); a ``Perturbation`` of the case's.
+    device : {"cpu", "cuda"}, optional
+        As ``Simulation``'s (``backend.pick_device``).
+    per_element, threads : bool or None, int or None
+        The model's kernel layout and CPU threads (``ShallowWater``'s: None, the device's).
+    **overrides
+        As ``Simulation``'s.
+
+    Attributes
+    ----------
+    scene, members, dt : the resolved ``Scene``, N, Δt (s).
+    grid : the one ``CubedSphere``; copies : the ``MemberGrid`` of N copies.
+    topology, model, stepper : the copies' ``Topology``, ``ShallowWater`` and stepper.
+    x : wp.array2d (3, N·n), the members' states side by side (member k: nodes k·n … (k + 1)·n − 1).
+    step_count : int, the steps taken.
+
+    Raises
+    ------
+    ArgumentError
+        Naming ``members`` (not an integer ≥ 1), ``initial`` (another shape or kind,
+        non-finite, or h ≤ 0 in a member where h is a depth: the member named) or ``scene``
+        (see above), before the model is built.
+    SceneError
+        As ``Simulation``'s.
+
+    ``step`` and ``advance`` raise ``BlowUp`` naming the members that blew up (policy: stop all).
+    """
+
+    def __init__(self, scene, members: int, initial=None, *, device=None, per_element=None, threads=None, **overrides):
+        members = integer_argument("members", members, 1)
+        scene, _ = resolve_scene(scene, overrides)
+        _checked_scene(scene)
+        self.scene, self.members, self.dt = scene, members, scene.dt
+        self.case = case = scene.make_case()
+        self.grid = grid = CubedSphere(scene.ne, scene.np, case.planet.a, mesh=scene.make_mesh())
+        starts = self._initial_states(initial)
+        backend = Backend.of(pick_device(device))
+        self.copies = MemberGrid(grid, members)
+        options = {"device": backend.device, "per_element": per_element, "threads": threads}
+        # one BLAS thread, as ``Simulation``: the ∇⁴'s power iteration takes 40 norms
+        with threadpool_limits(limits=1, user_api="blas"):
+            threads = backend.threads() if threads is None else threads
+            self.topology = Topology(self.copies, backend, threads, parts=[self.copies.elements])
+            self.model = ShallowWater.from_scene(scene, self.copies, case, **options, topology=self.topology)
+            if self.model.hv is not None and self.model.hv.nu_max > 0 and members > 1:
+                one = ShallowWater.from_scene(scene, grid, case, **options)  # λ of one member's operator
+                self.model.hv.use_biharmonic_radius(one.hv.biharmonic_radius())
+            self.stepper = scene_stepper(scene, self.model)
+        self.x = self.model.new_state(*np.concatenate(list(starts), axis=1))
+        self.stepper.prepare(self.x)
+        self.step_count = 0
+        self._start = wp.clone(self.x)  # a block's first state, to re-run it step by step after a blow-up
+
+    def _initial_states(self, initial) -> np.ndarray:
+        """(N, 3, n) float64 from ``initial`` (see the class), checked."""
+        n, grid = self.grid.nnodes, self.grid
+        if initial is None or isinstance(initial, Perturbation):
+            state = np.stack(self.case.initial(grid.lat, grid.lon))
+            states = (
+                np.repeat(state[None], self.members, axis=0)
+                if initial is None
+                else initial.apply(grid, state, self.members)
+            )
+        elif isinstance(initial, np.ndarray | list | tuple):
+            states = array_argument("initial", initial, (self.members, 3, n), "m s⁻¹ and m")
+        else:
+            raise ArgumentError(
+                f"initial must be None, an array (members, 3, nnodes) or a Perturbation (got {got(initial)})"
+            )
+        if self.case.h_is_depth:
+            low = states[:, 2].min(axis=1)
+            if np.any(low <= 0):
+                k = int(np.argmax(low <= 0))
+                raise ArgumentError(f"initial: member {k}'s depth h is <= 0 (min {low[k]:.4g} m)")
+        return states
+
+    # -- stepping ------------------------------------------------------------------
+    def step(self, n: int = 1) -> None:
+        """Advance every member n steps (n an integer ≥ 0). The members' bad-state check (a
+        non-finite value, or h ≤ 0 where h is a depth) runs on the device every step and is
+        read once every ``core.backend.CHECK_EVERY_STEPS`` steps; a failed block is re-run step by step
+        to name the step. Policy: stop all. A blow-up in any member raises ``BlowUp`` naming
+        every member bad at that step; the states are then those of that step."""
+        n = integer_argument("n", n, 0)
+        done = 0
+        while done < n:
+            block = min(CHECK_EVERY_STEPS, n - done)
+            saved = self.stepper.state()
+            wp.copy(self._start, self.x)
+            for _ in range(block):
+                self.stepper.step(self.x)
+                self.model.bad_nodes.watch(self.x)
+            if self.model.bad_nodes.watched_bad():
+                wp.copy(self.x, self._start)
+                self.stepper.restore(saved)
+                for k in range(block):
+                    self.stepper.step(self.x)
+                    if self.model.bad_nodes.first(self.x) is not None:
+                        self.step_count += k + 1
+                        raise BlowUp(self._blow_up(self.step_count))
+            self.step_count += block
+            done += block
+
+    def advance(self, days: float) -> None:
+        """Advance every member by ``days`` (a whole number of steps of the scene's Δt), as ``step``."""
+        days = number_argument("days", days, "days", low=0.0)
+        n = round(days * DAY / self.dt)
+        if not math.isclose(n * self.dt, days * DAY, rel_tol=1e-9, abs_tol=1e-9):
+            raise ArgumentError(f"days must be a whole number of steps of dt = {self.dt:g} s (got {days})")
+        self.step(n)
+
+    def _blow_up(self, step: int) -> str:
+        """The one line of a blow-up at ``step``: the members bad there, the first one's place."""
+        states = self.states()
+        bad = ~np.isfinite(states).all(axis=1)
+        if self.case.h_is_depth:
+            bad |= states[:, 2] <= 0
+        members = np.flatnonzero(bad.any(axis=1))
+        k = int(members[0])
+        node = int(np.argmax(bad[k]))
+        lat, lon = np.degrees(self.grid.lat[node]), np.degrees(self.grid.lon[node])
+        which = ", ".join(map(str, members))
+        return (
+            f"member{'s' if members.size > 1 else ''} {which} of {self.members} blew up at step {step} "
+            f"(model time {self.scene.day(step):.4f} days; member {k} first at lat {lat:.2f}, lon {lon:.2f} degrees): "
+            "every member stopped (policy: stop all)"
+        )
+
+    # -- the members' states ----------------------------------------------------
+    def states(self) -> np.ndarray:
+        """(N, 3, n) float64: every member's u, v (m s⁻¹) and h (m) on the grid's element-local nodes."""
+        x = self.x.numpy()
+        return np.stack([self.copies.member(x, k) for k in range(self.members)])
+
+    def fields(self, member: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(u, v, h), each (n,), of ``member`` (0 … N − 1) on the grid's element-local nodes
+        (m s⁻¹, m s⁻¹, m). ``ArgumentError`` for another member."""
+        member = integer_argument("member", member, 0)
+        if member >= self.members:
+            raise ArgumentError(f"member must be in 0..{self.members - 1} (got {member})")
+        u, v, h = self.copies.member(self.x.numpy(), member)
+        return u.copy(), v.copy(), h.copy()
+
+    def invariants(self) -> list[dict[str, float]]:
+        """Each member's mass (m³), total energy (m⁵ s⁻²) and potential enstrophy (m s⁻²)
+        (``model.diagnostics.invariants`` on the one grid: the bits of the single run's)."""
+        x, zeta = self.x.numpy(), self.model.operators.vorticity(self.x)
+        hs, fcor = self.model.operators.hs.numpy(), self.model.operators.fcor.numpy()
+        one = lambda a, k: self.copies.member(a, k)  # noqa: E731
+        return [
+            invariants(self.grid, *one(x, k), one(hs, k), one(zeta, k), one(fcor, k), self.model.g)
+            for k in range(self.members)
+        ]

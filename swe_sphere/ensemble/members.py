@@ -1,0 +1,94 @@
+"""An ensemble's grid: N disjoint copies of one whole ``CubedSphere``, member after member.
+
+Member k holds the elements k·E … (k + 1)·E − 1 of the copies (E the grid's elements), its
+element-local nodes k·n … (k + 1)·n − 1 (n = E·np²) and its unique nodes k·u … (k + 1)·u − 1
+(u the grid's). Every per-node array is the grid's repeated, every index the grid's offset by
+its member's block, and each node's DSS copies are those of its own member, in the grid's
+order. A ``Topology`` and a ``ShallowWater`` built on it therefore compute each member as the
+grid alone would: element-local kernels see the same numbers, and the DSS sums the same
+copies in the same order (the same bits). What is global over the grid (a spectral radius,
+a mean, a norm) is the ensemble's over all members, not a member's: the caller takes those
+from the one grid (``ensemble.Ensemble``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.arguments import instance_argument, integer_argument
+from ..core.errors import ArgumentError
+from ..grid.cubed_sphere import CubedSphere
+
+# per-node arrays (..., n) repeated member after member
+_REPEATED = ("xyz", "lat", "lon", "east", "north", "D", "Dinv", "metdet", "spheremp", "rspheremp", "dx")
+
+
+class MemberGrid(CubedSphere):
+    """``members`` copies of the whole grid ``grid`` (a ``CubedSphere`` of every element): a
+    ``CubedSphere`` of N·E elements on N spheres, built from the grid's arrays (not by its
+    constructor), whose attributes a ``grid.topology.Topology`` and a
+    ``model.shallow_water.ShallowWater`` read as ``CubedSphere`` documents them:
+
+    ne, np, radius, rule, mesh : the grid's; single : the grid itself; members : N.
+    nelem_total = elements = N·E (``elements`` (N·E,) int64, all held); nnodes = N·n.
+    nodes (N·n,) int64 : 0 … N·n − 1. gid (N·n,) int32 : the grid's + k·u in member k.
+    dss_table (N·n, C) int32 : the grid's + k·n in member k (−1 padding kept).
+    first (N·u,) int32 : the grid's + k·n; area (N·u,) : the grid's repeated (m²).
+    xyz, lat, lon, east, north, D, Dinv, metdet, spheremp, rspheremp, dx : the grid's
+    repeated along their last axis. halo, halo_spheremp : empty (no other elements).
+    nunique : N·u. ``integrate`` and ``to_unique`` are over all members; ``part`` raises
+    ValueError (the copies are held whole, by one process).
+
+    Raises ``ArgumentError`` for ``grid`` not a ``CubedSphere`` of the whole sphere, or
+    ``members`` not an integer ≥ 1."""
+
+    def __init__(self, grid: CubedSphere, members: int):
+        instance_argument("grid", grid, CubedSphere, "a CubedSphere")
+        members = integer_argument("members", members, 1)
+        if grid.nelem != grid.nelem_total:
+            raise ArgumentError(f"grid must be the whole sphere (it holds {grid.nelem} of {grid.nelem_total} elements)")
+        self.single, self.members = grid, members
+        self.ne, self.np, self.radius, self.rule, self.mesh = grid.ne, grid.np, grid.radius, grid.rule, grid.mesh
+        n, u = grid.nnodes, grid.first.size
+        self.nelem_total = members * grid.nelem
+        self.elements = np.arange(self.nelem_total)
+        self.nodes = np.arange(members * n)
+        for name in _REPEATED:
+            a = getattr(grid, name)
+            setattr(self, name, np.ascontiguousarray(np.tile(a, (1,) * (a.ndim - 1) + (members,))))
+        k = np.arange(members)
+        self.gid = (grid.gid[None, :] + (k * u)[:, None]).ravel().astype(np.int32)
+        table = grid.dss_table[None].astype(np.int64)
+        self.dss_table = np.where(table >= 0, table + (k * n)[:, None, None], -1).reshape(-1, table.shape[2])
+        self.dss_table = self.dss_table.astype(np.int32)
+        self.first = (grid.first[None, :] + (k * n)[:, None]).ravel().astype(np.int32)
+        self.area = np.tile(grid.area, members)
+        self.halo, self.halo_spheremp = np.zeros(0, dtype=np.int64), np.zeros(0)
+
+    @property
+    def nelem(self) -> int:
+        """Elements held: all members' (N·E)."""
+        return self.elements.size
+
+    @property
+    def nnodes(self) -> int:
+        """Element-local nodes of all members (N·n)."""
+        return self.nodes.size
+
+    @property
+    def nunique(self) -> int:
+        """Unique nodes of all members (N·u)."""
+        return self.members * self.single.nunique
+
+    def part(self, elements) -> CubedSphere:
+        """Refused (ValueError): an ensemble's copies are held whole, by one process."""
+        raise ValueError("an ensemble's member grid is held whole (no MPI parts yet)")
+
+    def reference_to_sphere(self, e: np.ndarray, xi: np.ndarray, eta: np.ndarray) -> np.ndarray:
+        """As ``CubedSphere``'s, element e being element e mod E of its member's sphere."""
+        return self.single.reference_to_sphere(np.asarray(e) % self.single.nelem, xi, eta)
+
+    def member(self, a: np.ndarray, k: int) -> np.ndarray:
+        """Member k's part (..., n) of an array (..., N·n) over the copies' nodes (a view)."""
+        n = self.single.nnodes
+        return a[..., k * n : (k + 1) * n]

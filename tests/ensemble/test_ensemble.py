@@ -1,0 +1,95 @@
+"""An ensemble (``swe_sphere.ensemble.Ensemble``): member k after n steps has the bits of the
+single run from its initial state, on both kernel layouts; bad input is refused before anything
+is built, naming the argument; a blow-up names its member."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from swe_sphere.core.errors import ArgumentError, BlowUp
+from swe_sphere.ensemble import Ensemble, MemberGrid, Perturbation
+from swe_sphere.grid.cubed_sphere import CubedSphere
+from swe_sphere.simulation.simulation import Simulation
+
+SMALL = {"ne": 2, "np": 4, "dt": 900.0}
+
+
+def same_bits(a, b) -> bool:
+    return np.array_equal(np.asarray(a).view(np.int64), np.asarray(b).view(np.int64))
+
+
+@pytest.mark.parametrize("stepper", ["rk4", "kgu35"])
+def test_each_member_has_the_bits_of_its_single_run(stepper):
+    ens = Ensemble("galewsky", 3, Perturbation(2.0, seed=4), device="cpu", stepper=stepper, **SMALL)
+    starts = ens.states()
+    assert not same_bits(starts[0], starts[1])  # the members differ
+    ens.step(4)
+    for k in range(3):
+        sim = Simulation("galewsky", "cpu", progress=False, start=starts[k], stepper=stepper, **SMALL)
+        sim.advance(4 * SMALL["dt"] / 86400)
+        assert same_bits(ens.states()[k], sim.x.numpy()), k
+        assert ens.model.hv.biharmonic_radius() == sim.model.hv.biharmonic_radius()  # the one grid's: its ∇⁴ plan
+        assert same_bits(np.stack(ens.fields(k)), sim.x.numpy())
+        invariants = ens.invariants()[k]
+        assert invariants == {key: sim.diagnostics.diagnose(sim.time)[key] for key in invariants}
+
+
+@pytest.mark.parametrize(("scene", "stepper"), [("galewsky", "rk4"), ("tc5_mountain", "kgu35")])
+def test_the_per_node_layout_too(scene, stepper):
+    """CUDA's layout (one thread a node), here on the CPU: member k against N = 1."""
+    states = Ensemble(scene, 2, Perturbation(1.0, seed=2), device="cpu", stepper=stepper, **SMALL).states()
+    ens = Ensemble(scene, 2, states, device="cpu", per_element=False, stepper=stepper, **SMALL)
+    ens.step(3)
+    for k in range(2):
+        one = Ensemble(scene, 1, states[k : k + 1], device="cpu", per_element=False, stepper=stepper, **SMALL)
+        one.step(3)
+        assert same_bits(ens.states()[k], one.states()[0]), k
+
+
+def test_the_member_grid_offsets_each_member():
+    grid = CubedSphere(1, 3)
+    copies = MemberGrid(grid, 2)
+    n, u = grid.nnodes, grid.first.size
+    assert copies.nnodes == 2 * n and copies.nunique == 2 * grid.nunique == 2 * u
+    assert same_bits(copies.member(copies.spheremp, 1), grid.spheremp)
+    assert np.array_equal(copies.gid[n:], grid.gid + u)
+    table = copies.dss_table[n:]
+    assert np.array_equal(table, np.where(grid.dss_table >= 0, grid.dss_table + n, -1))
+    assert np.array_equal(copies.first[u:], grid.first + n)
+
+
+@pytest.mark.parametrize(
+    ("members", "initial", "named"),
+    [
+        (0, None, "members"),
+        (-2, None, "members"),
+        (2.5, None, "members"),
+        ("2", None, "members"),
+        (2, np.zeros((3, 3, 5)), "initial"),
+        (2, "case", "initial"),
+        (2, Perturbation(1e5, seed=0), "initial: member"),  # h <= 0 somewhere
+    ],
+)
+def test_bad_input_names_the_argument(members, initial, named):
+    with pytest.raises(ArgumentError, match=named):
+        Ensemble("galewsky", members, initial, device="cpu", **SMALL)
+
+
+def test_a_bad_perturbation_and_scene_are_refused():
+    with pytest.raises(ArgumentError, match="amplitude"):
+        Perturbation(-1.0)
+    with pytest.raises(ArgumentError, match="seed"):
+        Perturbation(1.0, seed=0.5)
+    with pytest.raises(ArgumentError, match="scene: stepper imex is not explicit"):
+        Ensemble("galewsky", 2, device="cpu", stepper="imex", **SMALL)
+
+
+def test_a_blow_up_names_the_member():
+    good = Ensemble("tc2_steady", 3, device="cpu", ne=2, np=4, stepper="rk4", dt=1800.0).states()
+    good[2, :2] *= 8  # a wind 8 times the steady one: unstable at this dt within a few steps
+    ens = Ensemble("tc2_steady", 3, good, device="cpu", ne=2, np=4, stepper="rk4", dt=1800.0)
+    with pytest.raises(BlowUp, match=r"^member 2 of 3 blew up at step \d+ .*policy: stop all"):
+        ens.step(200)
+    assert ens.step_count > 1  # the block re-run step by step to name the step
+    assert np.isfinite(ens.states()[:2]).all()

@@ -221,3 +221,101 @@ def test_steppers_solvers_and_the_adjoint_ask_the_model_for_its_protocol_alone()
         if name in instance and name not in public
     ]
     assert not outside, "\n".join(outside)
+
+
+def stepper_reads(source: str) -> list[tuple[int, str]]:
+    """(line, member) of each attribute read or written on a stepper in ``source``: on the names
+    ``stepper`` and ``st`` and on names bound to ``stepper`` or ``<something>.stepper``, on
+    ``<something>.stepper`` itself (``self.stepper.multirate``), and ``getattr(stepper, "name")``."""
+    tree = ast.parse(source)
+    names = {"stepper", "st"}
+
+    def is_stepper(node) -> bool:
+        return (isinstance(node, ast.Name) and node.id in names) or (
+            isinstance(node, ast.Attribute) and node.attr == "stepper"
+        )
+
+    for node in ast.walk(tree):  # st = self.stepper, and st, m = stepper, self.model
+        if isinstance(node, ast.Assign):
+            for target in node.targets:
+                pairs = [(target, node.value)]
+                if isinstance(target, ast.Tuple) and isinstance(node.value, ast.Tuple):
+                    pairs = list(zip(target.elts, node.value.elts))
+                names.update(t.id for t, v in pairs if isinstance(t, ast.Name) and is_stepper(v))
+    reads = [
+        (node.lineno, node.attr)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Attribute) and is_stepper(node.value)
+    ]
+    reads += [
+        (node.lineno, node.args[1].value)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Call)
+        and isinstance(node.func, ast.Name)
+        and node.func.id in ("getattr", "hasattr")
+        and len(node.args) >= 2
+        and is_stepper(node.args[0])
+        and isinstance(node.args[1], ast.Constant)
+    ]
+    return sorted(reads)
+
+
+def test_stepper_reads_are_found():
+    source = (
+        "st = self.stepper\nst.split.H\nstepper.mrab.levels\nself.stepper.n_fast = 1\n"
+        "mine, t = stepper, 1\nmine.old\ngetattr(stepper, 'table', None)\nmodel.stepper_like\n"
+    )
+    assert stepper_reads(source) == [(2, "split"), (3, "mrab"), (4, "n_fast"), (6, "old"), (7, "table")]
+
+
+def test_the_adjoint_asks_a_stepper_for_its_protocol_alone():
+    """Issue 82: adjoint/ reads (and writes) only the members of ``steppers.protocol``'s protocols
+    of a stepper (every stepper's ``DifferentiableStepper``; a family's one method returning its
+    step's frozen description), each one a stepper's; and imports nothing of steppers/ but the
+    protocol module and the public table type it names (``butcher.Table``)."""
+    from swe_sphere.config.scene import load_scene
+    from swe_sphere.steppers import explicit, local, multirate, runge_kutta
+    from swe_sphere.steppers.protocol import DifferentiableStepper, members
+
+    from helpers import make_sim
+
+    public = members()
+    assert len(public) == 17, sorted(public)
+    files = sorted((REPO / "swe_sphere" / "adjoint").glob("*.py"))
+    outside = [
+        f"{path.relative_to(REPO)}:{line}: stepper.{name}"
+        for path in files
+        for line, name in stepper_reads(path.read_text())
+        if name not in public
+    ]
+    assert not outside, "\n".join(outside)
+    # every stepper's members on a built stepper; each family's method on its classes
+    stepper = make_sim(load_scene("galewsky", ne=2, np_=4)).stepper
+    assert all(hasattr(stepper, name) for name in members(DifferentiableStepper))
+    families = {
+        "table": [runge_kutta.ExplicitRK, runge_kutta.ImexRK],
+        "fbrk": [explicit.FBRK32],
+        "leapfrog": [explicit.Leapfrog, explicit.LeapfrogTrapezoidal],
+        "split_explicit": [multirate.SplitExplicit],
+        "multirate": [multirate.Mri, local.Lts],
+        "local": [local.Lts],
+    }
+    assert all(callable(getattr(cls, name, None)) for name, classes in families.items() for cls in classes)
+    imports = [
+        f"{path.relative_to(REPO)}:{node.lineno}: {node.module} {[a.name for a in node.names]}"
+        for path in files
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.ImportFrom)
+        and "steppers" in (node.module or "").split(".")
+        and not (node.module.endswith("steppers.protocol"))
+        and not (node.module.endswith("steppers.butcher") and {a.name for a in node.names} <= {"Table"})
+    ]
+    imports += [
+        f"{path.relative_to(REPO)}:{node.lineno}: import {a.name}"
+        for path in files
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.Import)
+        for a in node.names
+        if "steppers" in a.name.split(".")
+    ]
+    assert not imports, "\n".join(imports)

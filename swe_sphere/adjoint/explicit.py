@@ -71,16 +71,6 @@ class StepAdjoint:
     live at once (kgu35, rk4: one); x̄, a running sum of the Ȳ, and k̄ where the transposes
     cannot read it as a combination (``TendencyTranspose``): kgu35 eight, with (2, N) f̄."""
 
-    def carried(self, stepper) -> list:
-        """The (3, N) arrays ``stepper`` carries from step to step besides x, which the reverse
-        sweep's states and adjoints hold after x's rows, in this order: none here (``leapfrog``'s
-        x̃(n−1), ``multirate_ab``'s histories)."""
-        return []
-
-    def set_phase(self, stepper, k: int) -> None:
-        """Put ``stepper`` at step k's phase before it takes step k again from a state of the
-        sweep (beyond its clock and x): nothing here."""
-
     def __init__(self, model: ShallowWater, table, dt: float, parameters: bool = False, t0: float = 0.0):
         self._setup(model, dt, parameters, t0)
         self.A = [[float(a) for a in row] for row in table.A_E]

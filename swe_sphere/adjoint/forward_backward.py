@@ -21,7 +21,7 @@ from .explicit import StepAdjoint
 
 class ForwardBackwardAdjoint(StepAdjoint):
     """The adjoint of one FB-RK(3,2) step of ``model`` at Δt = ``dt`` (s), the stepper's
-    ``C`` and ``BETA`` (``stepper``: an ``FBRK32``); otherwise as ``StepAdjoint`` (``reverse``,
+    c, β and halves (``stepper``: an ``FBRK32``, its ``fbrk()``); otherwise as ``StepAdjoint`` (``reverse``,
     ``parameters``: ∂J/∂ν, ν_s, hs, g and Ω; a forcing's stages at their times). ``ArgumentError`` for a model without
     momentum terms (its wind a combination alone), and as ``StepAdjoint``.
 
@@ -30,10 +30,11 @@ class ForwardBackwardAdjoint(StepAdjoint):
 
     def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
         self._setup(model, dt, parameters, t0)
-        if not stepper.momentum:
+        steps = stepper.fbrk()
+        if not steps.momentum:
             raise ArgumentError("fbrk32's adjoint needs the momentum terms")
-        self.continuity, self.momentum = stepper.continuity, stepper.momentum
-        self.C, self.BETA = tuple(stepper.C), tuple(stepper.BETA)
+        self.continuity, self.momentum = steps.continuity, steps.momentum
+        self.C, self.BETA = tuple(steps.c), tuple(steps.beta)
         zeros = self._zeros
         self.Z = [zeros(3) for _ in range(4)]
         self.x = self.Z[0]

@@ -217,12 +217,13 @@ class StepTimes:
 
 
 def _lts(model: ShallowWater, stepper, dt: float, parameters: bool, t0: float):
-    """Local time stepping's adjoint (its levels fixed by ``prepare``): MRAB3's, the inner
-    table's global step on one level, else the multirate levels'."""
-    if stepper.mrab is not None:
+    """Local time stepping's adjoint (its levels fixed by ``prepare``; its ``local()``): MRAB3's,
+    the inner table's global step on one level, else the multirate levels'."""
+    local = stepper.local()
+    if local.mrab is not None:
         return MrabAdjoint(model, stepper, dt, parameters, t0)
-    if stepper.single is not None:
-        return StepAdjoint(model, stepper.single.table(), dt, parameters, t0)
+    if local.single is not None:
+        return StepAdjoint(model, local.single, dt, parameters, t0)
     return LtsAdjoint(model, stepper, dt, parameters, t0)
 
 
@@ -479,14 +480,14 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
     tier; ``cost`` a cost of the run (``run_cost``), called once at each of its steps. The
     sweep's states carry their step index (``_At``), so that every step, recomputed or
     reversed, runs at its Δt and model time (``clock``: a time-dependent forcing's). A
-    stepper that carries arrays from step to step (``StepAdjoint.carried``: leapfrog's x̃(k−1),
+    stepper that carries arrays from step to step (its ``carried_arrays``: leapfrog's x̃(k−1),
     MRAB3's histories) has them in its states' and adjoints' rows after x's, the cost reading
     rows 0–2."""
-    device, rows = model.topology.device, 3 * (1 + len(adjoint.carried(stepper)))
+    device, rows = model.topology.device, 3 * (1 + len(stepper.carried_arrays()))
     X = slice(0, 3)
 
-    def carried(x):  # (the stepper's array, the state's rows) pairs, in ``carried``'s order now
-        return [(a, x[3 * i + 3 : 3 * i + 6]) for i, a in enumerate(adjoint.carried(stepper))]
+    def carried(x):  # (the stepper's array, the state's rows) pairs, in ``carried_arrays``' order now
+        return [(a, x[3 * i + 3 : 3 * i + 6]) for i, a in enumerate(stepper.carried_arrays())]
 
     def advance(state, steps=1):
         wp.copy(work, state.x[X])
@@ -494,8 +495,7 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
             wp.copy(a, held)
         for k in range(state.k, state.k + steps):
             clock.set(stepper, k)
-            stepper.steps = k  # its clock: t0_k + (k + c)·Δt_k at each stage, as the run's
-            adjoint.set_phase(stepper, k)
+            stepper.set_phase(k)  # its clock, t0_k + (k + c)·Δt_k at each stage as the run's, and start
             stepper.step(work)
         wp.copy(state.x[X], work)
         for a, held in carried(state.x):

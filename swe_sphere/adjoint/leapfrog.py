@@ -1,6 +1,6 @@
 """The adjoint of one step of the three-level schemes (``steppers.explicit``): leapfrog with the
 Robert–Asselin filter and HOMME's leapfrog-trapezoidal. Their state is two levels,
-s(n) = (x(n), x̃(n−1)) (x̃ the stepper's ``old``: the filtered x(n−1), or x(n−1) itself), so the
+s(n) = (x(n), x̃(n−1)) (x̃ the array the stepper carries, ``carried_arrays``: the filtered x(n−1), or x(n−1) itself), so the
 reverse sweep's states and adjoints are (6, N): rows 0–2 x(n)'s, rows 3–5 x̃(n−1)'s.
 
 Leapfrog, n ≥ 1 (F at t(n)):
@@ -20,18 +20,12 @@ The first step (n = 0) of both is the explicit midpoint rule, x̃(0) = x(0): its
 
 from __future__ import annotations
 
-from fractions import Fraction
-
 import numpy as np
 import warp as wp
 
 from ..model.launches import Update
 from ..model.shallow_water import ShallowWater
-from ..steppers.butcher import Table
 from .explicit import StepAdjoint
-
-# the three-level schemes' first step: x(1) = x + Δt F(x + Δt/2 F(x)), then the ∇⁴ over Δt
-MIDPOINT = Table(((0, 0), (Fraction(1, 2), 0)), (0, 1), None, None, (0, Fraction(1, 2)), 2)
 
 
 class LeapfrogAdjoint(StepAdjoint):
@@ -45,14 +39,12 @@ class LeapfrogAdjoint(StepAdjoint):
     Work arrays (3, N): x, x̃, μ_Φ, x̄ (and with the trapezoid x*, μ_*), the start's
     ``StepAdjoint`` (two stages)."""
 
-    def carried(self, stepper) -> list:
-        return [stepper.old]  # x̃(n−1)
-
     def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
-        self.trapezoidal = stepper.name == "leapfrog_trapezoidal"
+        steps = stepper.leapfrog()
+        self.trapezoidal, self.start_table = steps.trapezoidal, steps.start
         self.step_dt = float(dt)
         self._setup(model, dt if self.trapezoidal else 2 * dt, parameters, t0)
-        self.eps = 0.0 if self.trapezoidal else float(stepper.options.robert_asselin)
+        self.eps = steps.robert_asselin
         zeros = self._zeros
         self.x, self.old, self.mphi, self.held = zeros(3), zeros(3), zeros(3), zeros(3)
         if self.trapezoidal:
@@ -61,8 +53,8 @@ class LeapfrogAdjoint(StepAdjoint):
         self.start = self._first_step(model, stepper, dt, parameters, t0)
 
     def _first_step(self, model, stepper, dt: float, parameters: bool, t0: float):
-        """The first step's adjoint (``_reverse_start`` reverses it): the midpoint rule's."""
-        return StepAdjoint(model, MIDPOINT, dt, parameters, t0)
+        """The first step's adjoint (``_reverse_start`` reverses it): its table's (the midpoint rule)."""
+        return StepAdjoint(model, self.start_table, dt, parameters, t0)
 
     def _stage_plan(self, zeros) -> None:
         """None: ``reverse`` forms the step's states itself."""

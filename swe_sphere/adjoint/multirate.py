@@ -27,8 +27,6 @@ import warp as wp
 
 from ..core.errors import ArgumentError
 from ..model.shallow_water import ShallowWater, element_runs
-from ..steppers.butcher import TableauOptions, parse
-from ..steppers.tables import EXPLICIT
 from .explicit import StepAdjoint
 
 
@@ -68,10 +66,10 @@ class SplitExplicitAdjoint(_Recomputed):
 
     def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
         self._setup(model, dt, parameters, t0)
-        self.stepper = stepper
+        self.stepper = stepper  # its ``split_explicit()``, read again once its first step fixed n_fast and H
         zeros = self._zeros
         self.xn, self.S = zeros(3), zeros(3)
-        self.Z = [zeros(3) for _ in stepper.C]
+        self.Z = [zeros(3) for _ in stepper.split_explicit().c]
         self.winds: list = []  # every substep's W = (v, h_s), made on the first reverse (n_i from H)
         self.tilde: list = []  # with ``parameters``, every substep's h̃ (its h row), which −gτ G reads
         self.state, self.tmp, self.acc, self.sbar = zeros(3), zeros(3), zeros(3), zeros(3)
@@ -81,49 +79,49 @@ class SplitExplicitAdjoint(_Recomputed):
     def _recompute(self, x, k: int) -> None:
         """The stages and substeps of step k from x = x(n) (full depth), as the stepper takes
         them: z_i, and every substep's W in ``winds`` (and h̃ in ``tilde``)."""
-        st, m = self.stepper, self.model
-        assert st.split.H != 0.0  # the stepper's first step fixed H (the sweep steps forward before it reverses)
-        depth, beta = st.split.depth, st.options.divergence_damping
+        steps, m = self.stepper.split_explicit(), self.model
+        assert steps.H != 0.0  # the stepper's first step fixed H (the sweep steps forward before it reverses)
+        depth, beta = steps.depth, steps.divergence_damping
         if not self.winds:
-            self.winds = [self._zeros(3) for _ in range(sum(st.n_fast))]
+            self.winds = [self._zeros(3) for _ in range(sum(steps.n_fast))]
             self.tilde = [self._zeros(3) for _ in self.winds] if self.parameters else []
         self.combine(self.xn, [(1.0, x)])
         self.combine(self.xn[2:3], [(1.0, x[2:3]), (-1.0, depth)])  # h′
         j = 0
-        for i, (c, n) in enumerate(zip(st.C, st.n_fast)):
+        for i, (c, n) in enumerate(zip(steps.c, steps.n_fast)):
             src = self.xn if i == 0 else self.Z[i - 1]
-            self._at(k, float(st.C[i - 1]) if i else 0.0)
-            m.rhs(src, self.S, st.slow_terms)
-            self.combine(st.W[2:3], [(1.0, src[2:3]), (1.0, depth)])  # h_s
+            self._at(k, float(steps.c[i - 1]) if i else 0.0)
+            m.rhs(src, self.S, steps.slow_terms)
+            self.combine(steps.wind[2:3], [(1.0, src[2:3]), (1.0, depth)])  # h_s
             out, tau = self.Z[i], float(c) * self.dt / n
             for sub in range(n):
                 prev = out if sub else self.xn
                 if self.tilde:  # the depth the substep's gradient reads (``SplitExplicit.forward_backward``)
-                    self.combine(self.tilde[j][2:3], [(1.0, (st.w if sub and beta else prev)[2:3])])
-                st.forward_backward(prev, out, tau, self.S, first=sub == 0)
-                wp.copy(self.winds[j], st.W)
+                    self.combine(self.tilde[j][2:3], [(1.0, (steps.weighted if sub and beta else prev)[2:3])])
+                steps.substep(prev, out, tau, self.S, first=sub == 0)
+                wp.copy(self.winds[j], steps.wind)
                 j += 1
-            self.combine(out[0:2], [(1.0, st.W[0:2])])
+            self.combine(out[0:2], [(1.0, steps.wind[0:2])])
 
     def before_hyperviscosity(self, out) -> None:
         """out = z_2 with its full depth, the step before its ∇⁴."""
         self.combine(out, [(1.0, self.Z[-1])])
-        self.combine(out[2:3], [(1.0, self.Z[-1][2:3]), (1.0, self.stepper.split.depth)])
+        self.combine(out[2:3], [(1.0, self.Z[-1][2:3]), (1.0, self.stepper.split_explicit().depth)])
 
     def _record(self, mu) -> list:
         """The launches of the reverse after the ∇⁴'s transpose (module doc) as segments, those
         that read F_g's and f's arguments with their (Y, k̄, (g_terms, coriolis))."""
-        st, m, dss = self.stepper, self.model, self.model.topology.dss
-        beta = float(st.options.divergence_damping)
+        steps, m, dss = self.stepper.split_explicit(), self.model, self.model.topology.dss
+        beta = float(steps.divergence_damping)
         V, H = slice(0, 2), slice(2, 3)
         s, tmp, old, acc, sbar, hs_bar = self.state, self.tmp, self.old, self.acc, self.sbar, self.hs_bar
         segments = [(None, None, [m.lincomb(acc, [(0.0, acc)])])]
         zbar, j = mu, len(self.winds)
-        for i in reversed(range(len(st.C))):
-            tau = float(st.C[i]) * self.dt / st.n_fast[i]
+        for i in reversed(range(len(steps.c))):
+            tau = float(steps.c[i]) * self.dt / steps.n_fast[i]
             zero = [m.lincomb(a, [(0.0, a)]) for a in (old, sbar, hs_bar)]
             segments.append((None, None, [m.lincomb(s, [(1.0, zbar)]), *zero]))
-            for k in reversed(range(st.n_fast[i])):
+            for k in reversed(range(steps.n_fast[i])):
                 j -= 1
                 first = k == 0 or not beta
                 # the depth update: c̄ = τ h̄ through Cᵀ at (v, h_s); h̄ ← h̄ + h̄_old
@@ -147,7 +145,7 @@ class SplitExplicitAdjoint(_Recomputed):
             src = self.xn if i == 0 else self.Z[i - 1]
             slow = [
                 m.lincomb(acc, [(1.0, acc), (1.0, s)]),  # x(n) started the substeps
-                *self.tendency.transpose(src, [(1.0, sbar)], st.slow_terms),
+                *self.tendency.transpose(src, [(1.0, sbar)], steps.slow_terms),
                 *dss(self.xbar, False, tmp),
                 m.lincomb(tmp[H], [(1.0, tmp[H]), (1.0, hs_bar)]),
             ]
@@ -186,11 +184,12 @@ class MriAdjoint(_Recomputed):
     eight for the solves and the adjoints; with ``parameters`` every inner stage's state."""
 
     def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
-        if stepper.options.inner == "fbrk32":
+        steps = stepper.multirate()
+        if steps.inner is None:
             raise ArgumentError("mri's gradient needs an inner Runge–Kutta table (ssprk3 or rk4)")
         self._setup(model, dt, parameters, t0)
-        self.stepper, self.tab = stepper, stepper.tab
-        inner = parse(TableauOptions(**EXPLICIT[stepper.options.inner]))
+        self.stepper, self.tab = stepper, steps.table  # its ``multirate()``, read again once n_fast is fixed
+        inner = steps.inner
         self.a = [[float(v) for v in row] for row in inner.A_E]
         self.b, self.ci = [float(v) for v in inner.b_E], [float(v) for v in inner.c]
         zeros, s = self._zeros, len(self.tab.d)
@@ -228,7 +227,7 @@ class MriAdjoint(_Recomputed):
         """Y_1 … Y_s of step k from x = x(n) (full depth), in h′ (class doc); where the inner
         stages' states are kept (``keep_states``: with ``parameters``), every one of them and
         Y_(s+1) (``last``) too."""
-        st, split, s = self.stepper, self.stepper.split, len(self.tab.d)
+        split, s = self.stepper.multirate(), len(self.tab.d)
         self._start(x)
         t = self.tab
         for r in range(s if self.keep_states else s - 1):
@@ -240,7 +239,7 @@ class MriAdjoint(_Recomputed):
             self.combine(z, z0)
             self.combine(self.rho0, rho0)
             self.combine(self.rho1, rho1)
-            n = st.n_fast[r]
+            n = split.n_fast[r]
             tau = float(self.tab.d[r]) * self.dt / n
             for sub in range(n):
                 for i, row in enumerate(self.a):
@@ -265,7 +264,7 @@ class MriAdjoint(_Recomputed):
 
     def _start(self, x) -> None:
         """Y_1 = x(n) in h′ (and (0, 0, H) for Lᵀ)."""
-        split = self.stepper.split
+        split = self.stepper.multirate()
         assert split.H != 0.0  # the stepper's first step fixed H (the sweep steps forward before it reverses)
         self.combine(self.Y[0], [(1.0, x)])
         self.combine(self.Y[0][2:3], [(1.0, x[2:3]), (-1.0, split.depth)])
@@ -277,12 +276,12 @@ class MriAdjoint(_Recomputed):
 
     def _slow_transpose(self, Y, sbar) -> list:
         """x̄ = the slow part's transpose at Y applied to S̄ (``sbar``): N's, the RHS without its pressure gradient."""
-        return self.tendency.transpose(Y, [(1.0, sbar)], self.stepper.split.slow_terms)
+        return self.tendency.transpose(Y, [(1.0, sbar)], self.stepper.multirate().slow_terms)
 
     def before_hyperviscosity(self, out) -> None:
         """out = Y_(s+1) with its full depth, the step before its ∇⁴."""
         self.combine(out, [(1.0, self.last)])
-        self.combine(out[2:3], [(1.0, self.last[2:3]), (1.0, self.stepper.split.depth)])
+        self.combine(out[2:3], [(1.0, self.last[2:3]), (1.0, self.stepper.multirate().depth)])
 
     def _record(self, mu) -> list:
         """The launches of the reverse after the ∇⁴'s transpose (class doc) as segments, those
@@ -293,9 +292,9 @@ class MriAdjoint(_Recomputed):
         segments = [
             (None, None, [launch for a in (*Ybar, *Sbar) for launch in self.combinations.combination(a, [])])
         ]  # Ybar[0]: x̄(n)
-        cur = mu
+        cur, n_fast = mu, self.stepper.multirate().n_fast
         for r in reversed(range(s)):
-            n = self.stepper.n_fast[r]
+            n = n_fast[r]
             tau = float(t.d[r]) * dt / n
             z0, rho0, rho1, timed = self._solve_terms(r)
             segments.append(
@@ -365,10 +364,11 @@ class LtsAdjoint(MriAdjoint):
     def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
         super().__init__(model, stepper, dt, parameters, t0)
         self.keep_states = True  # f_fine's transpose reads them
-        split = stepper.split  # each part's F holds every term over its elements
-        self._fast_planet, self._slow_planet = (None, True, split.finer), (None, True, split.coarse)
+        levels = stepper.multirate()  # each part's F holds every term over its elements
+        coarse, finer = levels.parts
+        self._fast_planet, self._slow_planet = (None, True, finer), (None, True, coarse)
         self.timed_fast = "forcing" in model.terms  # f_fine holds the forcing on the fine elements
-        level = stepper.levels.level[model.topology.elements]
+        level = levels.level[model.topology.elements]
         self.runs = {
             part: element_runs(np.flatnonzero(mask), 0) for part, mask in (("slow", level == 0), ("fast", level >= 1))
         }

@@ -2,8 +2,9 @@
 (``steppers.multirate_ab.MultirateAB3``, local time stepping's ``method = "mrab3"``).
 
 The step carries each level's last three tendencies H_k⁰, H_k¹, H_k² (the newest first) from
-step to step, so the reverse sweep's states and adjoints hold them after x
-(``StepAdjoint.carried``). Over the finest sub-steps j = 0 … n−1 (n = 2^K), x_0 = x(n):
+step to step, so the reverse sweep's states and adjoints hold them after x (the stepper's
+``carried_arrays``). What it reads of the step is the stepper's ``local().mrab``
+(``steppers.protocol.MrabSteps``). Over the finest sub-steps j = 0 … n−1 (n = 2^K), x_0 = x(n):
 at each level k whose step starts at j, H_k ← (f_k(x_j), H_k⁰, H_k¹) (f_k the level's part of
 the tendency, ``rhs_part``), then x_(j+1) = x_j + Δt Σ_k Σ_i w[j, k, i] H_kⁱ (``ab3_weights``;
 the stepper's sums regrouped by node, ``multirate_ab``'s "The sums", are the same to
@@ -22,9 +23,6 @@ from __future__ import annotations
 import numpy as np
 
 from ..model.shallow_water import ShallowWater, element_runs
-from ..steppers.butcher import TableauOptions, parse
-from ..steppers.multirate_ab import HISTORY, START_STEPS, ab3_weights
-from ..steppers.tables import EXPLICIT
 from .explicit import StepAdjoint
 
 
@@ -42,13 +40,13 @@ class MrabAdjoint(StepAdjoint):
 
     def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
         self._setup(model, dt, parameters, t0)
-        self.stepper, mrab = stepper, stepper.mrab
-        self.mrab, self.n, self.count = mrab, mrab.substeps(), mrab.levels
-        self.w = ab3_weights(self.count)  # (n, levels, 3) in Δt
+        mrab = self.mrab = stepper.local().mrab
+        self.n, self.count, self.history, self.start_steps = mrab.substeps, mrab.levels, mrab.history, mrab.start_steps
+        self.w = mrab.weights  # (n, levels, 3) in Δt
         zeros = self._zeros
         self.xs = [zeros(3) for _ in range(self.n)]
-        self.H = [[zeros(3) for _ in range(HISTORY)] for _ in range(self.count)]
-        table = parse(TableauOptions(**EXPLICIT[stepper.options.inner]))
+        self.H = [[zeros(3) for _ in range(self.history)] for _ in range(self.count)]
+        table = mrab.inner
         self.inner = StepAdjoint(model, table, dt / self.n, parameters, t0)  # a start sub-step's stages
         self.a = [[float(v) for v in row] for row in table.A_E]
         self.b = [float(v) for v in table.b_E]
@@ -57,18 +55,12 @@ class MrabAdjoint(StepAdjoint):
         if mrab.parts == [None]:  # one level: the whole grid's tendency
             self.runs = [None]
         else:
-            level = stepper.levels.level[model.topology.elements]
+            level = mrab.level[model.topology.elements]
             self.runs = [element_runs(np.flatnonzero(level == k), 0) for k in range(self.count)]
         self._for_dt()
 
     def _stage_plan(self, zeros) -> None:
         """None: ``reverse`` takes the sub-steps again itself."""
-
-    def carried(self, stepper) -> list:
-        return [a for history in stepper.mrab.history for a in history]  # each level's, the newest first
-
-    def set_phase(self, stepper, k: int) -> None:
-        stepper.mrab.started = min(k, START_STEPS)  # the start's coarse steps taken before step k
 
     def _due(self, j: int) -> list:
         """The levels whose step starts at sub-step j."""
@@ -76,7 +68,7 @@ class MrabAdjoint(StepAdjoint):
 
     def _rows(self, a, k: int, i: int):
         """Level k's tendency i's rows of a state or adjoint ``a`` (module doc)."""
-        first = 3 + 3 * (HISTORY * k + i)
+        first = 3 + 3 * (self.history * k + i)
         return a[first : first + 3]
 
     def _recompute(self, s, k: int) -> None:
@@ -84,7 +76,7 @@ class MrabAdjoint(StepAdjoint):
         n, m, dt = self.n, self.model, self.dt
         x = self.xs[0]
         self.combine(x, [(1.0, s[0:3])])
-        if k < START_STEPS:  # the inner table in Butcher form (the stepper's stage form to round-off)
+        if k < self.start_steps:  # the inner table in Butcher form (the stepper's stage form to round-off)
             tau = dt / n
             for j in range(n if self.parameters else n - 1):
                 for i, row in enumerate(self.a):
@@ -95,7 +87,7 @@ class MrabAdjoint(StepAdjoint):
                 self.combine(end, [(1.0, self.xs[j]), *((tau * b, K) for b, K in zip(self.b, self.K))])
             return
         for lv in range(self.count):
-            for i in range(HISTORY):
+            for i in range(self.history):
                 self.combine(self.H[lv][i], [(1.0, self._rows(s, lv, i))])
         for j in range(n):
             x = self.xs[j]
@@ -106,7 +98,9 @@ class MrabAdjoint(StepAdjoint):
                 self.mrab.evaluate(lv, x, h[0])
             if j + 1 < n or self.parameters:  # x_(j+1) (x_n: ``last``) gains every level's integral
                 terms = [
-                    (dt * float(self.w[j, lv, i]), self.H[lv][i]) for lv in range(self.count) for i in range(HISTORY)
+                    (dt * float(self.w[j, lv, i]), self.H[lv][i])
+                    for lv in range(self.count)
+                    for i in range(self.history)
                 ]
                 self.combine(self.xs[j + 1] if j + 1 < n else self.last, [(1.0, x), *terms])
 
@@ -122,7 +116,7 @@ class MrabAdjoint(StepAdjoint):
             self.planet_terms(x, [(1.0, self._rows(mu, lv, 0))], None, True, part)
         launches = self._adjoints.get(("record", x.ptr, mu.ptr, lv))
         if launches is None:
-            h = [self._rows(mu, lv, i) for i in range(HISTORY)]
+            h = [self._rows(mu, lv, i) for i in range(self.history)]
             launches = [
                 *self.tendency.transpose(x, [(1.0, h[0])], None, self.runs[lv]),
                 *self.model.topology.dss(self.xbar, False, self.tmp),
@@ -142,17 +136,17 @@ class MrabAdjoint(StepAdjoint):
         if self.substeps:
             self.hyperviscosity_transpose(mu[X])
         for j in reversed(range(self.n)):
-            if k < START_STEPS:
+            if k < self.start_steps:
                 self.inner.t0 = self.t0 + k * self.dt  # its sub-step j at t(n) + (j + c)·Δt/n
                 self.inner.reverse_dynamics(self.xs[j], mu[X], j)
             else:  # H̄_kⁱ += Δt w[j, k, i] x̄
                 for lv in range(self.count):
-                    for i in range(HISTORY):
+                    for i in range(self.history):
                         h = self._rows(mu, lv, i)
                         self.combine(h, [(1.0, h), (self.dt * float(self.w[j, lv, i]), mu[X])])
             for lv in self._due(j):
                 self._record_transpose(self.xs[j], mu, lv)
-        if self.parameters and k < START_STEPS:  # the inner stages' sums into this object's
+        if self.parameters and k < self.start_steps:  # the inner stages' sums into this object's
             inner = self.inner
             self.d_planet += inner.d_planet
             inner.d_planet = np.zeros(2)

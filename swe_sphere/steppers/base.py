@@ -62,7 +62,8 @@ class Stepper:
     tendency (``operators``: the gravity-wave operator's G and D, as
     ``model.gravity_wave.GravityWaveOperator`` and the Helmholtz solves use them) and where it
     runs (``topology``, ``launches``, ``terms``, ``g``); ``tests/test_layers.py`` holds steppers,
-    solvers and the adjoint to it.
+    solvers and the adjoint to it. What the adjoint may ask of a stepper is ``steppers.protocol``
+    (``DifferentiableStepper`` and each family's description of its step), held there too.
     """
 
     name = ""
@@ -181,6 +182,17 @@ class Stepper:
     def describe(self) -> list[str]:
         """Lines a run prints at its start about the stepper beyond its ``label`` (after
         ``prepare``): none here."""
+        return []
+
+    def set_phase(self, k: int) -> None:
+        """Put the stepper at step k of its run (the gradient's sweep, taking step k again from a
+        state it held): its step count, on which its clock and its start read. Its Δt and t0 are
+        set apart (``set_dt``)."""
+        self.steps = k
+
+    def carried_arrays(self) -> list:
+        """The (3, N) device arrays the next step reads besides x that a step writes (the
+        gradient's sweep holds them in its states beside x, in this order): none here."""
         return []
 
     # -- what carries over between steps -------------------------------------------

@@ -46,6 +46,7 @@ from ..model.shallow_water import ElementPart
 from .base import Stepper, StepStats
 from .multirate import Mri
 from .multirate_ab import START_STEPS, MultirateAB3
+from .protocol import LocalSteps, MultirateSteps
 from .runge_kutta import explicit_steppers
 from .tables import MULTIRATE
 
@@ -224,6 +225,36 @@ class Lts(Mri):
             self.split, self.single = None, _explicit(self.options.inner)(self.model, self.dt)
         else:
             self.split, self.single = LevelSplit(self.model, levels, self._comb), None
+
+    def local(self) -> LocalSteps:
+        """Which step it takes, as its adjoint reads it (``protocol.LocalSteps``; after
+        ``prepare``): the inner table on one level, MRAB3's, or the multirate levels'."""
+        single = None if self.single is None else self.single.table()
+        return LocalSteps(single, None if self.mrab is None else self.mrab.steps(self.levels.level))
+
+    def multirate(self) -> MultirateSteps:
+        """The multirate levels' step as its adjoint reads it (``protocol.MultirateSteps``;
+        after ``prepare``, on two or more levels with a multirate table): the levels' split;
+        n_fast fixed by the first step."""
+        split = self.split
+        return MultirateSteps(
+            self.tab,
+            self.inner,
+            self.n_fast,
+            split.slow,
+            split.fast,
+            level=self.levels.level,
+            parts=(split.coarse, split.finer),
+        )
+
+    def set_phase(self, k: int) -> None:
+        super().set_phase(k)
+        if self.mrab is not None:
+            self.mrab.started = min(k, START_STEPS)  # the start's coarse steps taken before step k
+
+    def carried_arrays(self) -> list:
+        """MRAB3's: each level's three tendencies, the newest first (none otherwise)."""
+        return [] if self.mrab is None else [a for history in self.mrab.history for a in history]
 
     def substeps(self) -> int:
         """Fast steps a slow step: 2^K, the finest level's, or the ``substeps`` option's

@@ -16,12 +16,14 @@ from ..model.gravity_wave import GravityWaveOperator
 from ..model.launches import Update
 from .base import Stepper, StepStats
 from .butcher import TableauOptions, parse, stage_form, stage_terms
+from .explicit import FBRK32
 from .multirate_options import MriOptions, SplitExplicitOptions, parse_mri, substeps_label
+from .protocol import MultirateSteps, SplitExplicitSteps
 from .tables import EXPLICIT
 
 f64 = wp.float64
 
-FBRK32_STAGES = ((1 / 3, 0.531), (0.5, 0.531), (1.0, 0.313))  # c, β of ``explicit.FBRK32``
+FBRK32_STAGES = tuple(zip(FBRK32.C, FBRK32.BETA))  # c, β of ``explicit.FBRK32``
 
 
 class GravitySplit:
@@ -233,6 +235,22 @@ class SplitExplicit(_Multirate):
         """Fast evaluations (L z) a step."""
         return sum(self.n_fast)
 
+    def split_explicit(self) -> SplitExplicitSteps:
+        """The step as its adjoint reads it (``protocol.SplitExplicitSteps``); n_fast and H
+        fixed by the first step."""
+        split, o = self.split, self.options
+        return SplitExplicitSteps(
+            self.C,
+            self.n_fast,
+            split.H,
+            split.depth,
+            self.slow_terms,
+            o.divergence_damping,
+            self.forward_backward,
+            self.W,
+            self.w,
+        )
+
     def _advance(self, x):
         wp.copy(self.xn, x)
         src = self.xn
@@ -318,10 +336,11 @@ class Mri(_Multirate):
         # Y_{j+1} − x(n), kept where a later solve that does not simply restart reads it
         used = ((self.tab.alpha != 0) | (self.tab.gamma != 0)) & ~np.array([[self._restarts(r)] for r in range(s)])
         self.D = {j: self._buffer() for j in range(1, s) if used[j:, j].any()}
+        self.inner = None  # the inner explicit table (None: fbrk32)
         if o.inner == "fbrk32":
             self.t, self.s = self._buffer(), self._buffer()
         else:
-            table = parse(TableauOptions(**EXPLICIT[o.inner]))
+            table = self.inner = parse(TableauOptions(**EXPLICIT[o.inner]))
             names, self._form = stage_form(table.A_E, table.b_E, table.c)
             self._rk = {name: self._buffer() for name in names}
             self.K = self._buffer()
@@ -342,6 +361,14 @@ class Mri(_Multirate):
     def attrs(self):
         t = self.options.table()
         return {"mri": t["name"], "mri_order": int(t["order"]), "mri_inner": self.options.inner}
+
+    def multirate(self) -> MultirateSteps:
+        """The step as its adjoint reads it (``protocol.MultirateSteps``): the table, the inner
+        table and the gravity waves' split; n_fast and H fixed by the first step."""
+        split = self.split
+        return MultirateSteps(
+            self.tab, self.inner, self.n_fast, split.slow, split.fast, split.H, split.depth, split.slow_terms
+        )
 
     def fast_evaluations(self) -> int:
         """Fast evaluations (L z) a step."""

@@ -52,6 +52,7 @@ import numpy as np
 import warp as wp
 
 from .butcher import TableauOptions, parse, stage_form, stage_terms
+from .protocol import MrabSteps
 from .tables import EXPLICIT
 
 f64 = wp.float64
@@ -130,7 +131,7 @@ class MultirateAB3:
         self.history = [[buffer() for _ in range(HISTORY)] for _ in parts]
         self.scratch = [buffer() for _ in parts]  # f_k off its own step times (the start)
         self.started = 0  # coarse steps of the start taken
-        table = parse(TableauOptions(**EXPLICIT[inner]))
+        table = self.inner = parse(TableauOptions(**EXPLICIT[inner]))  # the start's
         names, self.form = stage_form(table.A_E, table.b_E, table.c)
         self.rk = {name: buffer() for name in names}
         self.F = buffer()  # the start's stage tendency
@@ -140,6 +141,21 @@ class MultirateAB3:
     def substeps(self) -> int:
         """The finest sub-steps a coarse step, 2^K."""
         return 2 ** (self.levels - 1)
+
+    def steps(self, level: np.ndarray) -> MrabSteps:
+        """The step as its adjoint reads it (``protocol.MrabSteps``), ``level`` the element
+        levels (nelem,) of the whole grid."""
+        return MrabSteps(
+            self.levels,
+            self.substeps(),
+            self.parts,
+            self.evaluate,
+            HISTORY,
+            START_STEPS,
+            self.weights,
+            self.inner,
+            level,
+        )
 
     def evaluations(self) -> list[int]:
         """Each level's evaluations a coarse step once started: 2^k."""

@@ -203,7 +203,7 @@ def test_an_mrab3_reversed_step_recomputes_the_step_it_reverses(refined_mesh):
     for _ in range(2):
         stepper.step(x)
     adjoint = step_adjoint(model, stepper)
-    state = np.concatenate([x.numpy(), *(a.numpy() for a in adjoint.carried(stepper))])
+    state = np.concatenate([x.numpy(), *(a.numpy() for a in stepper.carried_arrays())])
     stepper.step(x)
     mu = wp.zeros(state.shape, dtype=taylor.f64)
     adjoint.reverse(wp.array(state, dtype=taylor.f64), mu, 2)

@@ -11,8 +11,8 @@ about the stepper's mean depth H (``semi_implicit``'s), S = F − L, s stages an
     μ_Φ = H_Δtᵀ μ', and for i = s − 1 … 0
     k̄_i = Δt (b^E_i μ_Φ + Σ_{k>i} a^E_ki r̄_k),  l̄_i = Δt ((b^I_i − b^E_i) μ_Φ + Σ_{k>i} (a^I_ki − a^E_ki) r̄_k),
     r̄_i = A_i⁻ᵀ (Fᵀ(Y_i) k̄_i + Lᵀ l̄_i);   μ = μ_Φ + Σ_i r̄_i.
-Fᵀ and H_Δtᵀ are ``explicit``'s (mass form, μ = R Q λ), Lᵀ and A_i⁻ᵀ ``semi_implicit``'s
-(``GravityTransposes``: Lᵀ the pressure gradient's and continuity's transposes at (0, 0, H);
+Fᵀ and H_Δtᵀ are ``explicit``'s (mass form, μ = R Q λ), Lᵀ and A_i⁻ᵀ the model's
+(``model.transposes.GravityTranspose``: Lᵀ the pressure gradient's and continuity's transposes at (0, 0, H);
 A_a⁻ᵀ the forward's Helmholtz solve at a = Δt a^I_ii between two scalings of the h row). The
 stages Y_i are recomputed from x(n) by the same combinations and solves (each F at its stage's
 time), one solve a stage with a^I_ii ≠ 0, and one transposed solve each: 2(s − 1) solves a step
@@ -101,7 +101,9 @@ class ImexAdjoint(GravityTransposes, StepAdjoint):
             for terms, transpose in ((kbar, self.tendency.transpose), (lbar, None)):
                 if terms:
                     add = ((1.0, r), (1.0, None)) if launches else ((1.0, None),)  # the first writes r̄_i
-                    launches += transpose(self.Y[i], terms) if transpose else self.gravity_transpose(terms)
+                    launches += (
+                        transpose(self.Y[i], terms) if transpose else self.gravity.transpose(self.tendency, terms)
+                    )
                     launches += topo.dss_update(self.xbar, [(r, add)], False)
             if launches:
                 active.append(i)

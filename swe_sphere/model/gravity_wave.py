@@ -17,6 +17,7 @@ import warp as wp
 
 from ..kernels import gravity_wave
 from .launches import Update, check_updates
+from .transposes import GravityTranspose
 
 f64 = wp.float64
 
@@ -96,3 +97,10 @@ class GravityWaveOperator:
             return [element, *m.operators.dss_update(m.tend, updates)]
 
         m.launches.replay_updates(("linear_update", (x.ptr, x.shape, x.strides), H), (x,), updates, build)
+
+    def transpose(self, solver) -> GravityTranspose:
+        """The transposes of L and of its implicit solve A_a⁻¹ = (I − aL)⁻¹ in the mass form, for
+        an adjoint (``model.transposes.GravityTranspose``): ``solver`` the ``solvers.helmholtz.
+        HelmholtzSolver`` about this operator that the transposed solve solves with (the
+        adjoint's own, the stepper's guesses untouched)."""
+        return GravityTranspose(self, solver)

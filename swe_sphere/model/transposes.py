@@ -1,4 +1,4 @@
-"""The transpose of the model's tendency, for the gradients of a run (``swe_sphere.adjoint``).
+"""The transposes of the model's operators, for the gradients of a run (``swe_sphere.adjoint``).
 
 ``TendencyTranspose`` (made by ``ElementOperators.tendency_transpose``) launches x̄ = Tᵀ(Y) W k̄,
 T the element-local tendency of ``ShallowWater.rhs`` at the state Y, W the element mass spheremp
@@ -6,7 +6,9 @@ and k̄ a continuous adjoint of F(Y) in the mass form (μ = R Q λ, R the invers
 Q the sum over a node's copies: ``adjoint.explicit``'s module doc); R Q x̄ by the unweighted DSS
 that the caller writes where it needs it is then the adjoint of Y. The kernels are
 ``kernels.tendency_adjoint``'s (written by hand: one element kernel a stage on the CPU, two
-per-node gathers on CUDA).
+per-node gathers on CUDA). ``HyperviscosityTranspose`` (``Hyperviscosity.transpose``) and
+``GravityTranspose`` (``GravityWaveOperator.transpose``: Lᵀ and the transposed implicit solve)
+read it.
 """
 
 from __future__ import annotations
@@ -128,6 +130,57 @@ class Combinations:
         terms = [(c, x) for c, x in terms if c != 0.0] or [(0.0, out)]
         passes = [terms[:4], *([(1.0, out), *terms[i : i + 3]] for i in range(4, len(terms), 3))]
         return [self.launches.lincomb(out, p) for p in passes]
+
+
+class GravityTranspose:
+    """The transposes of ``linear``'s L x = (−g G h, −H D v) (a ``model.gravity_wave.
+    GravityWaveOperator`` about its depth H, m) and of its implicit solve A_a = I − aL in the
+    mass form (μ = R Q λ, ⟨a, b⟩ = Σ spheremp·a·b), made by ``GravityWaveOperator.transpose``
+    for the adjoints of the steps that solve with L (``adjoint.semi_implicit``, ``adjoint.imex``);
+    ``solver`` the Helmholtz solver of A_a they solve with (a ``solvers.helmholtz.
+    HelmholtzSolver`` about ``linear``: ``solve(r, a, z)``, ``iterations()``).
+
+    Lᵀ: L is the Jacobian of F's pressure gradient and continuity at x_H = (0, 0, H), so
+    Lᵀ μ = R Q Tᵀ(x_H) W μ, those two terms' transpose as any F's (``TendencyTranspose``).
+    A_a⁻ᵀ: GLL differentiation sums by parts (W D + Dᵀ W = B along each direction, applied to
+    metdet c^i h, c the contravariant wind), and the element-edge terms cancel between
+    neighbours for continuous v and h, so in the mass form D and −G are each other's transposes
+    (⟨D v, h⟩ = −⟨v, G h⟩) and Lᵀ (v, h) = (H G h, g D v) = −S L S⁻¹, S = diag(1, 1, g/H). With
+    Z = diag(1, 1, −1) (Z L Z = −L): A_aᵀ = I + a S L S⁻¹ = S Z A_a Z S⁻¹, hence
+    A_a⁻ᵀ μ = S Z A_a⁻¹ Z S⁻¹ μ: the h row times −H/g, the forward's Helmholtz solve at a (its
+    operator M + a²gH K is symmetric: ``solvers.helmholtz``), the h row times −g/H.
+
+    Arrays (device): x_H (3, N), made and filled when H is first read (the stepper fixes H by
+    its first step: piecewise constant, held); the h row's scalings recorded once per array."""
+
+    def __init__(self, linear, solver):
+        self.linear, self.solver, self.model = linear, solver, linear.model
+        self.combinations = Combinations(self.model.launches)
+        self.depth, self.H = None, 0.0
+
+    def _fix_depth(self) -> None:
+        """x_H's depth row from ``linear``'s H, where it changed (or was not made)."""
+        if self.depth is None or self.linear.H != self.H:
+            self.H, topo = self.linear.H, self.model.topology
+            if self.depth is None:
+                self.depth = wp.zeros((3, topo.N), dtype=f64, device=topo.device)
+            self.depth.assign(np.stack([np.zeros(topo.N), np.zeros(topo.N), np.full(topo.N, self.H)]))
+
+    def transpose(self, tendency: TendencyTranspose, kbar) -> list:
+        """Launches of x̄ = Tᵀ(x_H) W k̄ into ``tendency.xbar`` (element-local), k̄ = Σ c·a over
+        (c, a) ``kbar`` ((3, N) arrays): Lᵀ k̄ = R Q x̄ by the unweighted DSS that follows."""
+        self._fix_depth()
+        return tendency.transpose(self.depth, kbar, ("continuity", "pressure_gradient"))
+
+    def solve(self, mu, a: float) -> None:
+        """μ ← A_a⁻ᵀ μ in place, A_a = I − aL, a (s) > 0, μ (3, N) continuous (mass form; the
+        class doc): the h row times −H/g, ``solver``'s solve at a to its ``tol``, the h row times
+        −g/H. ``StepFailure`` where the CG misses ``tol`` within ``maxiter``."""
+        H, g, h = self.linear.H, self.model.g, mu[2:3]
+        self.combinations.combine(h, [(-H / g, h)])
+        self.solver.solve(mu, a, mu)
+        self.combinations.combine(h, [(-g / H, h)])
+        self.solver.iterations()
 
 
 class HyperviscosityTranspose:

@@ -39,6 +39,32 @@ def term_flags(terms):
 
 
 @functools.cache
+def absolute_vorticity(terms: tuple):
+    """ζ + f, the parts of the absolute vorticity that ``terms`` name, at p from the curl's
+    reference derivatives cx − cy = ∂ξ v₂ − ∂η v₁ (covariant wind): (cx − cy)/metdet[p] with
+    momentum advection, + fcor[p] with Coriolis. Generic as ``finish``: shared by the tendency's
+    end and its transposes (``tendency_adjoint``), so that they weigh the same ζ + f."""
+    _, ADV, COR, _, _ = term_flags(terms)
+
+    def rot_terms(
+        p: int,
+        cx: Any,
+        cy: Any,
+        metdet: wp.array(dtype=Any),
+        fcor: wp.array(dtype=Any),
+    ):
+        rot = type(cx)(f64(0.0))
+        if wp.static(ADV):
+            rot += over(cx - cy, metdet[p])
+        if wp.static(COR):
+            rot += fcor[p]
+        return rot
+
+    rot_terms.__qualname__ = rot_terms.__name__ = "absolute_vorticity__" + "__".join(terms)
+    return wp.func(rot_terms)
+
+
+@functools.cache
 def finish(terms: tuple):
     """The pointwise end of the tendency, shared by both layouts: from the
     reference derivatives div = Σ∂(metdet h c), (bx, by) = ∂(Bernoulli), and
@@ -71,12 +97,8 @@ def finish(terms: tuple):
         if wp.static(GRAD):
             du = -(times(Dinv[0, p], bx) + times(Dinv[2, p], by))
             dv = -(times(Dinv[1, p], bx) + times(Dinv[3, p], by))
-        rot = zero  # ζ + f, the absolute vorticity's named parts
-        if wp.static(ADV):
-            rot += over(cx - cy, metdet[p])
-        if wp.static(COR):
-            rot += fcor[p]
         if wp.static(ADV or COR):  # −(ζ + f) k×v
+            rot = wp.static(absolute_vorticity(terms))(p, cx, cy, metdet, fcor)
             du += times(rot, x[1, p])
             dv -= times(rot, x[0, p])
         if wp.static(TOPO):

@@ -24,7 +24,7 @@ import functools
 import warp as wp
 
 from .operators import CPU_FAST, covariant, element_node, over, row_derivatives, times
-from .tendencies import term_flags
+from .tendencies import absolute_vorticity, term_flags
 
 f64 = wp.float64
 
@@ -71,22 +71,19 @@ def point(terms: tuple, np_: int):
             s[1, p] = -(Dinv[0, p] * lu + Dinv[1, p] * lv)
             s[2, p] = -(Dinv[2, p] * lu + Dinv[3, p] * lv)
         if wp.static(ADV or COR):  # du += rot·v, dv −= rot·u
-            rot = f64(0.0)
+            cx = f64(0.0)
+            cy = f64(0.0)
             if wp.static(ADV):
                 base, i, j = element_node(p, NP)
-                cx = f64(0.0)
-                cy = f64(0.0)
                 for m in range(wp.static(NP)):
                     q = base + j * NP + m
                     r = base + m * NP + i
                     cx += dvv[i, m] * (D[1, q] * x[0, q] + D[3, q] * x[1, q])
                     cy += dvv[j, m] * (D[0, r] * x[0, r] + D[2, r] * x[1, r])
-                rot += (cx - cy) / metdet[p]
                 rbar = (lu * x[1, p] - lv * x[0, p]) / metdet[p]
                 s[3, p] = rbar
                 s[4, p] = -rbar
-            if wp.static(COR):
-                rot += fcor[p]
+            rot = wp.static(absolute_vorticity(terms))(p, cx, cy, metdet, fcor)
             ub = -rot * lv
             vb = rot * lu
         if wp.static(TOPO):
@@ -234,12 +231,13 @@ def element(terms: tuple, np_: int, nk: int):
                 sx[j] = -(times(Dinv[0, q], lu) + times(Dinv[1, q], lv))
                 sy[j] = -(times(Dinv[2, q], lu) + times(Dinv[3, q], lv))
             if wp.static(ADV or COR):  # du += rot·v, dv −= rot·u
-                rot = vec()
+                cx = vec()
+                cy = vec()
                 if wp.static(ADV):
-                    rot += over(along(v2[j], dvvT) - along(dvv[j], v1), metdet[q])
+                    cx = along(v2[j], dvvT)
+                    cy = along(dvv[j], v1)
                     rb[j] = over(times(lu, x[1, q]) - times(lv, x[0, q]), metdet[q])
-                if wp.static(COR):
-                    rot += fcor[q]
+                rot = wp.static(absolute_vorticity(terms))(q, cx, cy, metdet, fcor)
                 ub[j] = -times(rot, lv)
                 vb[j] = times(rot, lu)
             if wp.static(TOPO):

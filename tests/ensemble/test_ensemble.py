@@ -11,6 +11,7 @@ from swe_sphere.core.errors import ArgumentError, BlowUp
 from swe_sphere.ensemble import Ensemble, MemberGrid, Perturbation
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.simulation.simulation import Simulation
+from swe_sphere.steppers import STEPPERS
 
 SMALL = {"ne": 2, "np": 4, "dt": 900.0}
 
@@ -19,7 +20,11 @@ def same_bits(a, b) -> bool:
     return np.array_equal(np.asarray(a).view(np.int64), np.asarray(b).view(np.int64))
 
 
-@pytest.mark.parametrize("stepper", ["rk4", "kgu35"])
+# every stepper an ensemble steps (``Ensemble``: the registry's explicit ones), a newly registered one too
+EXPLICIT = [name for name, cls in STEPPERS.items() if cls.explicit]
+
+
+@pytest.mark.parametrize("stepper", EXPLICIT)
 def test_each_member_has_the_bits_of_its_single_run(stepper):
     ens = Ensemble("galewsky", 3, Perturbation(2.0, seed=4), device="cpu", stepper=stepper, **SMALL)
     starts = ens.states()

@@ -33,8 +33,8 @@ Lookahead (``StepControl.lookahead``: on CUDA, an explicit pair under "error" co
 rank): a try's norm is queued with its read, then the next try at the same Δt is launched from
 the try's end (kept in ``xs``) before the norm is read, so that the card steps while the host
 reads and decides; where the try is accepted and the next Δt is that one (Δt changes in about
-2 % of ``rk43``'s steps), the try launched ahead is the next step, else it is undone (x back from
-``xs``, the stepper rolled back). Only where nothing reads the state between the two steps
+2 % of ``rk43``'s steps), the try launched ahead is the next step (its start, in ``xs``, swaps
+into ``x0``: no copy), else it is undone (x back from its start, the stepper rolled back). Only where nothing reads the state between the two steps
 (``quiet``: no activity due after the first, neither lands on a target). The same tries, counts
 and bits as without it (a try launched ahead and undone is not counted: ``ahead_dropped``).
 """

@@ -1,6 +1,7 @@
 """N members of one scene in the same launches (``swe_sphere.ensemble.Ensemble``) against one
 member, CPU clock (issue 85's target: on one CPU thread, 8 members of `galewsky` ≤ 7× one
-member's run).
+member's run); with ``--device cuda`` the wall clock, the device synchronised (the target: 32
+members on an H100 ≤ 4× one).
 
 Builds an ensemble of one member, one of ``--members`` N (seeded 1 m perturbations of h) and N
 ensembles of one member stepped in turn (what N runs in one process cost: the members' launches
@@ -20,39 +21,52 @@ import os
 import statistics
 import time
 
+import warp as wp
 from results import recorded
 
 from swe_sphere.core.runtime import init_warp
 from swe_sphere.ensemble import Ensemble, Perturbation
 
 
-def main() -> None:
+def clock(device: str) -> float:
+    """The CPU clock on a CPU; on a card, the wall clock after the device's work has ended."""
+    if device != "cpu":
+        wp.synchronize()
+        return time.perf_counter()
+    return time.process_time()
+
+
+def parse() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scene", default="galewsky")
     parser.add_argument("--members", type=int, default=8)
     parser.add_argument("--steps", type=int, default=20, help="steps a round")
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--device", default="cpu")
-    args = parser.parse_args()
+    parser.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")
+    return parser.parse_args()
+
+
+def main(args: argparse.Namespace, figures: dict) -> None:
     init_warp()
     n = args.members
     kinds = {"1 member": [1], f"{n} members": [n], f"{n} x 1 member in turn": [1] * n}
     runs, build = {}, {}
     for name, sizes in kinds.items():
-        t = time.process_time()
+        t = clock(args.device)
         runs[name] = [
             Ensemble(args.scene, m, Perturbation(1.0, seed=k), device=args.device) for k, m in enumerate(sizes)
         ]
         for ens in runs[name]:
             ens.step(1)  # recorded: the rounds replay
-        build[name] = time.process_time() - t
+        build[name] = clock(args.device) - t
     times: dict = {name: [] for name in runs}
     for _ in range(args.rounds):
         for name, ensembles in runs.items():
-            t = time.process_time()
+            t = clock(args.device)
             for ens in ensembles:
                 ens.step(args.steps)
-            times[name].append((time.process_time() - t) / args.steps)
+            times[name].append((clock(args.device) - t) / args.steps)
     load = os.getloadavg()
     one = runs["1 member"][0]
     nsteps = one.scene.nsteps
@@ -60,7 +74,7 @@ def main() -> None:
     whole = {name: build[name] + nsteps * ms[name] / 1e3 for name in runs}
     print(
         f"{args.scene} ne{one.grid.ne} np{one.grid.np} {one.scene.stepper} dt {one.dt:.4g} s, {one.grid.nnodes} nodes a "
-        f"member, {os.environ.get('SWE_SPHERE_THREADS', 'all')} thread(s), CPU clock, median of {args.rounds} "
+        f"member, {os.environ.get('SWE_SPHERE_THREADS', 'all')} thread(s), {'CPU' if args.device == 'cpu' else 'wall'} clock, median of {args.rounds} "
         f"interleaved rounds of {args.steps} steps"
     )
     print(f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
@@ -80,5 +94,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    with recorded(__file__) as figures:
-        main()
+    arguments = parse()
+    with recorded(__file__, stem=arguments.results) as figures:
+        main(arguments, figures)

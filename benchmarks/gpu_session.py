@@ -28,6 +28,10 @@
   one step's graph replayed in a bare Python loop, and of ``--chain`` steps captured as one graph
   (the host's share: the first against the second; the launches' own: the last), ``--graph-steps``
   steps each, median of ``--runs``. Timing only: a chained graph's bits are not checked.
+* ``kernels``: where a step's GPU time goes: Warp's CUDA activity timing (``wp.timing_begin``,
+  kernels, memsets and copies) over ``--steps`` plain-launched steps of the default scenes
+  (``galewsky``, ``tc5_mountain`` at ``--ne``), µs a step and launches a step of each kernel.
+  ``--layout element`` (also for ``floor``): the per-element kernels (a CPU's) on the card.
 * ``iterations``: the semi_implicit, imex and implicit steppers at
   ``--dt-factor`` × TC5's Δt: solver iterations per step on ``--device``
   (their device solvers) against the CPU (its defaults).
@@ -272,9 +276,18 @@ def iterations(args):
             print(f"| {name} | {device} | {its} | {rhs / args.steps:.1f} | {ms:.1f} |", flush=True)
 
 
+def _layout(args):
+    """``--layout element``: the model's per-element kernels on any device (``Backend.per_element``)."""
+    if args.layout == "element":
+        from swe_sphere.core.backend import Backend
+
+        Backend.per_element = property(lambda self: True)
+
+
 def floor(args):
+    _layout(args)
     _header(
-        f"µs a step ({args.device}; {args.graph_steps} steps, median of {args.runs}): the run's loop, a graph a step "
+        f"µs a step ({args.device}, {args.layout} kernels; {args.graph_steps} steps, median of {args.runs}): the run's loop, a graph a step "
         f"from a bare loop, {' and '.join(map(str, args.chain))} steps a graph",
         [
             "scene",
@@ -318,9 +331,42 @@ def floor(args):
         print(f"| {name} | {scene.ne} {scene.np} | {scene.stepper} | {tally.total_launches} | {cells} |", flush=True)
 
 
+def kernels(args):
+    _layout(args)
+    for name, ne in [("galewsky", None), *(("tc5_mountain", ne) for ne in args.ne)]:
+        scene = load_scene(name, ne=ne)
+        sim = Simulation(scene, args.device, progress=False, graphs=False)
+        for _ in range(3):  # compiles and records
+            sim.stepper.step(sim.x)
+        wp.synchronize_device(args.device)
+        wp.timing_begin(cuda_filter=wp.TIMING_KERNEL | wp.TIMING_MEMCPY | wp.TIMING_MEMSET)
+        t0 = time.perf_counter()
+        for _ in range(args.steps):
+            sim.stepper.step(sim.x)
+        wp.synchronize_device(args.device)
+        wall = (time.perf_counter() - t0) / args.steps
+        results = wp.timing_end()
+        spent, count = {}, {}
+        for r in results:
+            spent[r.name] = spent.get(r.name, 0.0) + r.elapsed * 1e3 / args.steps
+            count[r.name] = count.get(r.name, 0) + 1
+        total = sum(spent.values())
+        _header(
+            f"{name} ne{scene.ne} np{scene.np} {scene.stepper} ({args.layout} kernels, "
+            f"{sim.model.N} nodes): µs a step on the device, {args.steps} plain-launched steps; wall {wall * 1e6:.1f} µs a "
+            f"step, the activities' sum {total:.1f} µs",
+            ["kernel", "a step", "µs a step", "share"],
+            3,
+        )
+        for k in sorted(spent, key=spent.get, reverse=True):
+            print(f"| {k} | {count[k] / args.steps:g} | {spent[k]:.1f} | {spent[k] / (total or 1):.0%} |", flush=True)
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("part", choices=("agreement", "throughput", "graphs", "bits", "reads", "iterations", "floor"))
+    p.add_argument(
+        "part", choices=("agreement", "throughput", "graphs", "bits", "reads", "iterations", "floor", "kernels")
+    )
     p.add_argument("--device", default="cuda")
     p.add_argument(
         "--ne", type=int, nargs="+", default=None, help="grid(s), np 4 (default per part: 16 / 30 60 120 240 / 30 / 30)"
@@ -336,6 +382,7 @@ def main(argv=None):
     p.add_argument("--runs", type=int, default=5, help="graphs: timed runs a stepper and mode")
     p.add_argument("--copy-mib", type=int, default=1024)
     p.add_argument("--chain", type=int, nargs="+", default=[10, 50], help="floor: steps captured as one graph")
+    p.add_argument("--layout", choices=("node", "element"), default="node", help="floor, kernels: the kernels' layout")
     p.add_argument(
         "--krylov",
         choices=("host", "kernels"),
@@ -343,8 +390,13 @@ def main(argv=None):
         help="reads: the Krylov vector work's backend (default: the device's)",
     )
     args = p.parse_args(argv)
-    args.steps = args.steps or (10 if args.part == "bits" else 3)
-    args.ne = args.ne or {"agreement": [16], "throughput": [30, 60, 120, 240], "floor": [8, 30]}.get(args.part, [30])
+    args.steps = args.steps or {"bits": 10, "kernels": 20}.get(args.part, 3)
+    args.ne = args.ne or {
+        "agreement": [16],
+        "throughput": [30, 60, 120, 240],
+        "floor": [8, 30],
+        "kernels": [30, 120],
+    }.get(args.part, [30])
     wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level (as tests/conftest.py)
     if hasattr(wp, "LOG_WARNING"):
         wp.config.log_level = wp.LOG_WARNING
@@ -357,6 +409,7 @@ def main(argv=None):
         "reads": reads,
         "iterations": iterations,
         "floor": floor,
+        "kernels": kernels,
     }[args.part](args)
 
 

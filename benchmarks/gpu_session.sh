@@ -16,7 +16,9 @@
 #   benchmarks/gpu_session.sh dinosaur              # ≤ 8 min: the peer Dinosaur (JAX) beside swe_sphere on the card
 #   benchmarks/gpu_session.sh control               # ≤ 3.5 min: TC5 ne60 rk43 under error control, graphs against none (issue 64; CONTROL_DAYS, CONTROL_GRAPHS)
 #   benchmarks/gpu_session.sh small                 # ≈ 1 min: galewsky and TC5 ne30 one day, ms a step (issue 83 item 5)
-#   benchmarks/gpu_session.sh floor                 # ≈ 1 min: where a small grid's step goes: the run's loop, a graph a step, k steps a graph
+#   benchmarks/gpu_session.sh floor                 # ≈ 1 min: where a small grid's step goes: the run's loop, a graph a step, k steps a graph (LAYOUT=element: a CPU's kernels)
+#   benchmarks/gpu_session.sh kernels               # ≈ 1 min: each kernel's device time a step, galewsky and TC5 ne30, ne120 (LAYOUT as floor)
+#   benchmarks/gpu_session.sh ensemble              # ≈ 1 min: galewsky, 32 members in the same launches against one (issue 85)
 #
 # With no part named it runs setup to iterations in that order (≈ 23 min); reads,
 # study and study_fine are named. The studies are `swe-sphere sweep --device cuda
@@ -208,7 +210,18 @@ part_tc5() {  # issue 67 target: TC5 ne120, 15 days, the scene's own stepper and
 
 part_floor() {  # issue 83 item 5: is a small grid's step the host's (the run's loop) or the launches' own?
     if [ "$small" = 1 ]; then set -- --ne 2 --graph-steps 20 --runs 2; else set -- --ne 8 30; fi
-    run floor 120 "$PY" benchmarks/gpu_session.py floor --device "$DEVICE" "$@"
+    run "floor_${LAYOUT:-node}" 120 "$PY" benchmarks/gpu_session.py floor --device "$DEVICE" --layout "${LAYOUT:-node}" "$@"
+}
+
+part_kernels() {  # issue 83 items 5 and the ne120 target: which kernels a step's device time goes to
+    if [ "$small" = 1 ]; then set -- --ne 2 --steps 2; else set -- --ne 30 120; fi
+    run "kernels_${LAYOUT:-node}" 120 "$PY" benchmarks/gpu_session.py kernels --device "$DEVICE" --layout "${LAYOUT:-node}" "$@"
+}
+
+part_ensemble() {  # issue 85: on an H100, 32 galewsky members <= 4x one member's wall time
+    if [ "$small" = 1 ]; then set -- --members 2 --steps 2 --rounds 1; else set -- --members "${MEMBERS:-32}" --steps 200 --rounds 3; fi
+    run ensemble 150 "$PY" benchmarks/ensemble_cost.py --scene galewsky --device "$DEVICE" --results gpu_ensemble_cost "$@"
+    cp benchmarks/results/gpu_ensemble_cost.json "$OUT/" 2>/dev/null
 }
 
 part_iterations() {
@@ -220,7 +233,7 @@ parts=("$@")
 [ ${#parts[@]} -eq 0 ] && parts=(setup tests agreement throughput graphs tc5 iterations)
 for part in "${parts[@]}"; do
     case $part in
-        setup|tests_gpu|tests|agreement|throughput|graphs|bits|tc5|iterations|reads|study|study_ne60|study_fine|criterion_ne60|criterion_ne120|dinosaur|control|small|floor) "part_$part" ;;
-        *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_ne60 study_fine criterion_ne60 criterion_ne120 dinosaur control small floor)" >&2; exit 2 ;;
+        setup|tests_gpu|tests|agreement|throughput|graphs|bits|tc5|iterations|reads|study|study_ne60|study_fine|criterion_ne60|criterion_ne120|dinosaur|control|small|floor|kernels|ensemble) "part_$part" ;;
+        *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_ne60 study_fine criterion_ne60 criterion_ne120 dinosaur control small floor kernels ensemble)" >&2; exit 2 ;;
     esac
 done

@@ -17,9 +17,9 @@ with X the Cartesian wind, P the tangent projection, δ = DSS(∇·v) and every 
 the DSS'd weak Laplacian. Rows of the work arrays: 0..2 Cartesian wind, 3 free
 surface.
 
-In four passes (three on the CPU, whose second weak Laplacian gathers the first DSS
-itself), as HOMME (``vlaplace_sphere_wk_cartesian``) forms each
-Laplacian: everything pointwise in Y₁ and Y₂ is done on the element's weak form
+In three passes on the CPU (whose second weak Laplacian gathers the first DSS itself)
+and five on CUDA (a flux pass before each weak Laplacian), as HOMME
+(``vlaplace_sphere_wk_cartesian``) forms each Laplacian: everything pointwise in Y₁ and Y₂ is done on the element's weak form
 before its DSS, where the mass is a factor (2v/a² enters as 2·spheremp·v/a²,
 ∇δ as spheremp·∇δ, whose unweighted DSS is the mass-weighted one of ∇δ; P and
 the coefficients commute with the DSS); the first DSS then gives Y₁ itself and
@@ -31,10 +31,10 @@ HOMME's tensor ∇⁴ (``hypervis_scaling``; Guba et al. 2014) replaces the seco
 the weak ∇·(V∇Y₁) + 2vY₁/a² (V a fixed 2×2 tensor per node, v = tr V / 2): the same passes with
 the fixed metric spheremp·Dinv V Dinvᵀ and mass spheremp·v in place of spheremp·Dinv Dinvᵀ and
 spheremp (``model.hyperviscosity.Hyperviscosity.tensor_metric``): ``laplacian_element``
-reads either; on CUDA ``tensor_flux`` forms the flux from it, for ``laplacian_node``.
+reads either; on CUDA ``laplacian_flux`` forms the flux from it, for ``laplacian_node``.
 
-Two layouts, as for the tendency: on CUDA ``to_cartesian``,
-``operators.laplace_wk_flux`` and ``laplacian_node`` (dim N); on the CPU
+Two layouts, as for the tendency: on CUDA ``laplacian_flux`` (which forms the Cartesian wind,
+or gathers the first DSS, as it reads them) and ``laplacian_node`` (dim N); on the CPU
 ``laplacian_element`` (dim nelem), the whole weak Laplacian of an element in
 one pass, on whole GLL rows (packed SIMD). Both finish a node, or a row, with
 the same ``scale_first`` / ``shift_second`` / ``add_divergent``.
@@ -55,6 +55,7 @@ from .operators import (
     row_derivatives,
     times,
     weak_divergence,
+    weak_flux,
 )
 
 f64 = wp.float64
@@ -255,7 +256,7 @@ def laplacian_element(second: bool, divergent: bool, np_: int, copies: int = 0, 
 @functools.cache
 def laplacian_node(second: bool, divergent: bool):
     """``laplacian_element`` with one thread per node, for CUDA: from the flux
-    (8, N) of ``operators.laplace_wk_flux`` of src = X (``to_cartesian``) or Y₁.
+    (8, N) of ``laplacian_flux`` of X or Y₁, and src the X or Y₁ it wrote.
     Arguments: flux, src (4, N), delta (1, N), c, f (``Frame``), spheremp (N),
     dvv (np, np), np, L (4, N) output, offset. Dim N."""
     S, DIV = bool(second), bool(divergent) and not second
@@ -322,45 +323,81 @@ def _laplacian_metric(
 laplacian_metric = wp.kernel(_laplacian_metric, enable_backward=False, module="unique", module_options=CPU_FAST)
 
 
-@wp.kernel
-def tensor_flux(
-    f: wp.array2d(dtype=f64),
-    metric: wp.array2d(dtype=f64),
-    dvv: wp.array2d(dtype=f64),
-    np_: int,
-    flux: wp.array2d(dtype=f64),
-    offset: int,
-):
-    """``operators.laplace_wk_flux`` of the tensor ∇⁴'s second Laplacian, for every row r of f:
-    flux[2r:2r+2, p] = G (∂ξ f, ∂η f) with G = metric[0:3] (G₁₁, G₁₂, G₂₂) the fixed
-    quadrature-weighted metric spheremp · Dinv V Dinvᵀ of the weak ∇·(V∇f) (HOMME
-    ``laplace_sphere_wk`` with ``var_coef``). Launch with dim N."""
-    p = wp.tid() + offset
-    base, i, j = element_node(p, np_)
-    g11 = metric[0, p]
-    g12 = metric[1, p]
-    g22 = metric[2, p]
-    for r in range(f.shape[0]):
-        a = d_xi(f, r, base, i, j, np_, dvv)
-        b = d_eta(f, r, base, i, j, np_, dvv)
-        flux[2 * r, p] = g11 * a + g12 * b
-        flux[2 * r + 1, p] = g12 * a + g22 * b
+@functools.cache
+def laplacian_flux(second: bool, tensor: bool, copies: int = 0, ghosts: bool = False):
+    """The flux pass of a per-node weak Laplacian (CUDA), of a source formed node by node where
+    it is read, so that it takes no pass of its own: the first Laplacian's X = (Cartesian
+    wind, h + hs) from the state, or the second's Y₁ = DSS(L), the unweighted DSS of the
+    first's weak form L (``dss.gather``; ``copies``, ``ghosts`` as there). For every row r:
+    flux[2r:2r+2, p] = ``operators.weak_flux`` of (∂ξ, ∂η) of the source's row r, or with
+    ``tensor`` G (∂ξ, ∂η), G = metric[0:3] (G₁₁, G₁₂, G₂₂) the fixed quadrature-weighted
+    spheremp · Dinv V Dinvᵀ of the weak ∇·(V∇·) (HOMME ``laplace_sphere_wk`` with
+    ``var_coef``); S[:, p] = the source at p (``laplacian_node`` reads it there).
+    Arguments (``Topology.gathering``'s order): src (the state (3, N), or L (4, N)),
+    d (``dss.Copies``; the first pass does not read it), hs (N), f (``Frame``: east, north),
+    Dinv (4, N), spheremp (N), metric (4, N; read with ``tensor`` only), dvv (np, np), np,
+    flux (8, N), S (4, N), block, offset. Dim N/block. The source's arithmetic is that of the
+    passes it replaces (X[c] = u·east[c] + v·north[c], X[3] = h + hs; the DSS's gather), so the
+    flux has their bits where the compiler contracts the same products (every CPU build)."""
+    S2, TENSOR = bool(second), bool(tensor)
+    sum_copies = gather(4, False, copies, ghosts)
 
+    def value(src: wp.array2d(dtype=f64), d: Copies, hs: wp.array(dtype=f64), f: Frame, n: int):
+        X = wp.vec4d()
+        if wp.static(S2):
+            y = sum_copies(src, d, n)
+            for r in range(4):
+                X[r] = y[r]
+        else:
+            for c in range(3):
+                X[c] = src[0, n] * f.east[c, n] + src[1, n] * f.north[c, n]
+            X[3] = src[2, n] + hs[n]
+        return X
 
-@wp.kernel
-def to_cartesian(
-    x: wp.array2d(dtype=f64),
-    hs: wp.array(dtype=f64),
-    east: wp.array2d(dtype=f64),
-    north: wp.array2d(dtype=f64),
-    X: wp.array2d(dtype=f64),
-    offset: int,
-):
-    """X[0:3] = u·east + v·north; X[3] = h + hs."""
-    p = wp.tid() + offset
-    for c in range(3):
-        X[c, p] = x[0, p] * east[c, p] + x[1, p] * north[c, p]
-    X[3, p] = x[2, p] + hs[p]
+    value.__qualname__ = value.__name__ = f"hv_source__{'gathered_' + str(copies) if S2 else 'cartesian'}"
+    source = wp.func(value)
+
+    def kernel(
+        src: wp.array2d(dtype=f64),
+        d: Copies,
+        hs: wp.array(dtype=f64),
+        f: Frame,
+        Dinv: wp.array2d(dtype=f64),
+        spheremp: wp.array(dtype=f64),
+        metric: wp.array2d(dtype=f64),
+        dvv: wp.array2d(dtype=f64),
+        np_: int,
+        flux: wp.array2d(dtype=f64),
+        S: wp.array2d(dtype=f64),
+        block: int,
+        offset: int,
+    ):
+        start = (wp.tid() + offset) * block
+        for p in range(start, start + block):
+            base, i, j = element_node(p, np_)
+            a = wp.vec4d()  # ∂ξ, ∂η of each row, summed as ``operators.d_xi``/``d_eta``
+            b = wp.vec4d()
+            for m in range(np_):
+                sq = source(src, d, hs, f, base + j * np_ + m)
+                sr = source(src, d, hs, f, base + m * np_ + i)
+                for r in range(4):
+                    a[r] = a[r] + dvv[i, m] * sq[r]
+                    b[r] = b[r] + dvv[j, m] * sr[r]
+            for r in range(4):
+                g = wp.vec2d()
+                if wp.static(TENSOR):
+                    g = wp.vec2d(metric[0, p] * a[r] + metric[1, p] * b[r], metric[1, p] * a[r] + metric[2, p] * b[r])
+                else:
+                    g = weak_flux(a[r], b[r], Dinv, spheremp, p)
+                flux[2 * r, p] = g[0]
+                flux[2 * r + 1, p] = g[1]
+            s = source(src, d, hs, f, p)
+            for r in range(4):
+                S[r, p] = s[r]
+
+    name = "laplacian_flux__" + ("second" if S2 else "first") + ("__tensor" if TENSOR else "")
+    kernel.__qualname__ = kernel.__name__ = name
+    return wp.kernel(kernel, enable_backward=False, module="unique")
 
 
 @functools.cache

@@ -136,6 +136,21 @@ def vorticity_sphere(
     out[p] = vorticity_at(x, p, np_, D, metdet, dvv)
 
 
+@wp.func
+def weak_flux(a: f64, b: f64, Dinv: wp.array2d(dtype=f64), spheremp: wp.array(dtype=f64), p: int):
+    """spheremp · Dinv Dinvᵀ (a, b) at node p, (a, b) = (∂ξ f, ∂η f): the quadrature-weighted
+    contravariant gradient whose weak divergence (``weak_divergence``) is the weak Laplacian
+    (HOMME ``laplace_sphere_wk``)."""
+    d0 = Dinv[0, p]
+    d1 = Dinv[1, p]
+    d2 = Dinv[2, p]
+    d3 = Dinv[3, p]
+    w = spheremp[p]
+    gx = d0 * a + d2 * b
+    gy = d1 * a + d3 * b
+    return wp.vec2d(w * (d0 * gx + d1 * gy), w * (d2 * gx + d3 * gy))
+
+
 @wp.kernel
 def laplace_wk_flux(
     f: wp.array2d(dtype=f64),
@@ -147,22 +162,14 @@ def laplace_wk_flux(
     offset: int,
 ):
     """First half of the weak Laplacian, for every row r of f:
-    flux[2r:2r+2, p] = spheremp · Dinv Dinvᵀ (∂ξ f, ∂η f), the quadrature-weighted
-    contravariant gradient. Launch with dim N (each thread does every row of its node)."""
+    flux[2r:2r+2, p] = ``weak_flux`` of (∂ξ f, ∂η f). Launch with dim N (each thread
+    does every row of its node)."""
     p = wp.tid() + offset
     base, i, j = element_node(p, np_)
-    d0 = Dinv[0, p]
-    d1 = Dinv[1, p]
-    d2 = Dinv[2, p]
-    d3 = Dinv[3, p]
-    w = spheremp[p]
     for r in range(f.shape[0]):
-        a = d_xi(f, r, base, i, j, np_, dvv)
-        b = d_eta(f, r, base, i, j, np_, dvv)
-        gx = d0 * a + d2 * b
-        gy = d1 * a + d3 * b
-        flux[2 * r, p] = w * (d0 * gx + d1 * gy)
-        flux[2 * r + 1, p] = w * (d2 * gx + d3 * gy)
+        g = weak_flux(d_xi(f, r, base, i, j, np_, dvv), d_eta(f, r, base, i, j, np_, dvv), Dinv, spheremp, p)
+        flux[2 * r, p] = g[0]
+        flux[2 * r + 1, p] = g[1]
 
 
 @wp.func

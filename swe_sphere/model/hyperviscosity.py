@@ -55,10 +55,10 @@ class Hyperviscosity:
         """Launches of out += coef·B x, B = ν∇⁴ the hyperviscosity operator
         (``kernels.hyperviscosity``) with coefficients ``nus`` = (ν, ν_div, ν_s)
         (None: the model's); out = x if None. Three passes on the per-element
-        layout (the second weak Laplacian sums the first DSS itself), four and
-        three more on the per-node one (the first DSS; ``to_cartesian`` and a
-        flux pass before the first weak Laplacian, a flux pass before the
-        second), and the divergence δ and its DSS first when ν_div ≠ ν.
+        layout (the second weak Laplacian sums the first DSS itself), five on the
+        per-node one (a flux pass before each weak Laplacian, the first forming the
+        Cartesian wind and the second summing the first DSS as they read them), and
+        the divergence δ and its DSS first when ν_div ≠ ν.
         ``transposed``: the tensor ∇⁴'s transpose in the mass form (for the adjoint), its two
         Laplacians' metrics swapped: B = Pᵀ RQ K̃_V RQ Π K̃ P with each K̃ symmetric has
         M⁻¹Bᵀ M = Pᵀ RQ K̃ Π RQ K̃_V P, the tensor's first (the constant ∇⁴ is its own);
@@ -110,20 +110,29 @@ class Hyperviscosity:
                 )
         else:
 
-            def laplacian(second):
-                src = Y if second else self.hv_X
-                first = (
-                    []
-                    if second
-                    else [
-                        m.launches.nodes(
-                            hyperviscosity.to_cartesian,
-                            N,
-                            [x, m.operators.hs, m.operators.east, m.operators.north, src],
-                        )
-                    ]
-                )
+            def laplacian(second):  # → the weak form of Y₁ in L, or of Y₂ in L from the DSS of L
                 tensor = self.hv_tensor is not None and second != swap
+                src = Y if second else self.hv_X  # the flux pass writes the source at each node there
+                flux_args = [
+                    m.operators.hs,
+                    self._frame("east", "north"),
+                    m.operators.Dinv,
+                    m.spheremp,
+                    self.hv_tensor if tensor else m.operators.Dinv,  # the tensor's metric, else not read
+                    m.operators.dvv,
+                    np_,
+                    self.hv_flux,
+                    src,
+                ]
+                if second:  # the first DSS gathered in the flux pass
+
+                    def gathered(rows, copies, ghosts):
+                        return hyperviscosity.laplacian_flux(True, tensor, copies, ghosts)
+
+                    flux = m.topology.gathering(L, gathered, flux_args)
+                else:  # the Cartesian wind formed in the flux pass
+                    kernel = hyperviscosity.laplacian_flux(False, tensor)
+                    flux = [m.launches.nodes(kernel, N, [x, m.topology.dss_copies, *flux_args, 1])]
                 mass = self.hv_tensor[3] if tensor else m.spheremp  # the weight of the +2Y₁/a² shift
                 args = [
                     self.hv_flux,
@@ -136,28 +145,15 @@ class Hyperviscosity:
                     np_,
                     L,
                 ]
-                flux = (
-                    m.launches.nodes(
-                        hyperviscosity.tensor_flux, N, [src, self.hv_tensor, m.operators.dvv, np_, self.hv_flux]
-                    )
-                    if tensor
-                    else m.launches.nodes(
-                        operators.laplace_wk_flux,
-                        N,
-                        [src, m.operators.Dinv, m.spheremp, m.operators.dvv, np_, self.hv_flux],
-                    )
-                )
-                return [*first, flux, m.launches.nodes(hyperviscosity.laplacian_node(second, divergent), N, args)]
+                return [*flux, m.launches.nodes(hyperviscosity.laplacian_node(second, divergent), N, args)]
 
         def apply(rows, copies, ghosts):  # ``Topology.gathering``'s kernel factory
             return hyperviscosity.dss_apply(copies, ghosts=ghosts)
 
-        first = laplacian(False)
-        second = laplacian(True) if m.operators.per_element else [*m.topology.dss(L, 0, Y), *laplacian(True)]
         return [
             *launches,
-            *first,
-            *second,
+            *laplacian(False),
+            *laplacian(True),
             *m.topology.gathering(
                 self.hv_L2 if m.operators.per_element else L, apply, [f64(coef), self._frame("east", "north"), out]
             ),
@@ -175,7 +171,7 @@ class Hyperviscosity:
         """The fixed metric (4, N) of the tensor ∇⁴'s second Laplacian, ∇·(V∇Y₁) + 2 v Y₁/a²
         (Guba et al. 2014; HOMME ``biharmonic_wk`` with ``hypervis_scaling``): rows 0..2 the
         quadrature-weighted spheremp · Dinv V Dinvᵀ (G₁₁, G₁₂, G₂₂; ``kernels.hyperviscosity``'s
-        ``laplacian_element`` and ``tensor_flux`` read it as the constant ∇⁴ reads spheremp ·
+        ``laplacian_element`` and ``laplacian_flux`` read it as the constant ∇⁴ reads spheremp ·
         Dinv Dinvᵀ), row 3 spheremp · v with v = tr V / 2 the isotropic part of V (HOMME adds
         2Y₁/a² unscaled, whose units are not those of ∇·(V∇Y₁); scaled, s = 0 is the constant
         operator). V = ``grid.quality.hypervis_tensor`` (ν·V the effective ν ∝ Δx^s per element

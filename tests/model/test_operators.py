@@ -604,9 +604,9 @@ def test_hyperviscosity_launches_nothing_without_the_term(terms, nu, launch_log)
 @pytest.mark.parametrize("per_element", [True, False], ids=["per-element", "per-node"])
 def test_hyperviscosity_launch_list(per_element, nu_div, launch_log):
     """Three passes on the per-element layout, whose second weak Laplacian does the
-    first DSS itself; four on the per-node layout, with two more before the first
-    weak Laplacian and one before the second; the divergence and its DSS, and the
-    kernel that reads their gradient, only when ν_div ≠ ν."""
+    first DSS itself; five on the per-node layout, a flux pass before each weak Laplacian
+    (the first forms the Cartesian wind, the second sums the first DSS, as they read them);
+    the divergence and its DSS, and the kernel that reads their gradient, only when ν_div ≠ ν."""
     g = cached_grid(2, 4)
     fcor, hs, st = tc5(g)
     m = ShallowWater(
@@ -629,11 +629,9 @@ def test_hyperviscosity_launch_list(per_element, nu_div, launch_log):
         expected = [f"laplacian_element__{first}", "laplacian_element__second", "dss_apply"]
     else:
         expected = [
-            "to_cartesian",
-            "laplace_wk_flux",
+            "laplacian_flux__first",
             f"laplacian_node__{first}",
-            "dss",
-            "laplace_wk_flux",
+            "laplacian_flux__second",
             "laplacian_node__second",
             "dss_apply",
         ]

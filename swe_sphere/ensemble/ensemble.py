@@ -24,6 +24,7 @@ from ..core.arguments import array_argument, got, integer_argument, number_argum
 from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
 from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp
+from ..core.graphs import GraphedSteps, default_mode, graphs_mode
 from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology
 from ..model.diagnostics import invariants
@@ -95,6 +96,9 @@ class Ensemble:
         As ``Simulation``'s (``backend.pick_device``).
     per_element, threads : bool or None, int or None
         The model's kernel layout and CPU threads (``ShallowWater``'s: None, the device's).
+    graphs : {"auto", "on", "off"} or bool, optional
+        As ``Simulation``'s: each step a CUDA graph ("auto", the default, or
+        ``SWE_SPHERE_GRAPHS``: on CUDA only), checked bit for bit against plain launches.
     **overrides
         As ``Simulation``'s.
 
@@ -104,7 +108,7 @@ class Ensemble:
     grid : the one ``CubedSphere``; copies : the ``MemberGrid`` of N copies.
     topology, model, stepper : the copies' ``Topology``, ``ShallowWater`` and stepper.
     x : wp.array2d (3, N·n), the members' states side by side (member k: nodes k·n … (k + 1)·n − 1).
-    step_count : int, the steps taken.
+    step_count : int, the steps taken; graphs_kept : int, the step graphs replayed (``Simulation``'s).
 
     Raises
     ------
@@ -118,8 +122,20 @@ class Ensemble:
     ``step`` and ``advance`` raise ``BlowUp`` naming the members that blew up (policy: stop all).
     """
 
-    def __init__(self, scene, members: int, initial=None, *, device=None, per_element=None, threads=None, **overrides):
+    def __init__(
+        self,
+        scene,
+        members: int,
+        initial=None,
+        *,
+        device=None,
+        per_element=None,
+        threads=None,
+        graphs=None,
+        **overrides,
+    ):
         members = integer_argument("members", members, 1)
+        graphs = graphs_mode(default_mode() if graphs is None else graphs)
         scene, _ = resolve_scene(scene, overrides)
         _checked_scene(scene)
         self.scene, self.members, self.dt = scene, members, scene.dt
@@ -142,6 +158,7 @@ class Ensemble:
         self.stepper.prepare(self.x)
         self.step_count = 0
         self._start = wp.clone(self.x)  # a block's first state, to re-run it step by step after a blow-up
+        self._graphed = GraphedSteps(backend, self.model.launches.guard, graphs)
 
     def _initial_states(self, initial) -> np.ndarray:
         """(N, 3, n) float64 from ``initial`` (see the class), checked."""
@@ -171,7 +188,7 @@ class Ensemble:
         """Advance every member n steps (n an integer ≥ 0). The members' bad-state check (a
         non-finite value, or h ≤ 0 where h is a depth) runs on the device every step and is
         read once every ``core.backend.CHECK_EVERY_STEPS`` steps; a failed block is re-run step by step
-        to name the step. Policy: stop all. A blow-up in any member raises ``BlowUp`` naming
+        to name the step. On CUDA each step is a graph (``core.graphs.GraphedSteps``, as ``Simulation``'s). Policy: stop all. A blow-up in any member raises ``BlowUp`` naming
         every member bad at that step; the states are then those of that step."""
         n = integer_argument("n", n, 0)
         done = 0
@@ -180,8 +197,7 @@ class Ensemble:
             saved = self.stepper.state()
             wp.copy(self._start, self.x)
             for _ in range(block):
-                self.stepper.step(self.x)
-                self.model.bad_nodes.watch(self.x)
+                self._graphed.step(self.stepper, self.model, self.x, True)
             if self.model.bad_nodes.watched_bad():
                 wp.copy(self.x, self._start)
                 self.stepper.restore(saved)
@@ -217,6 +233,11 @@ class Ensemble:
             f"(model time {self.scene.day(step):.4f} days; member {k} first at lat {lat:.2f}, lon {lon:.2f} degrees): "
             "every member stopped (policy: stop all)"
         )
+
+    @property
+    def graphs_kept(self) -> int:
+        """The step graphs checked against plain launches and kept (0 with graphs off)."""
+        return self._graphed.kept
 
     # -- the members' states ----------------------------------------------------
     def states(self) -> np.ndarray:

@@ -13,6 +13,8 @@ from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
 
+from helpers import ON_CUDA
+
 SMALL = {"ne": 2, "np": 4, "dt": 900.0}
 
 
@@ -50,6 +52,18 @@ def test_the_per_node_layout_too(scene, stepper):
         one = Ensemble(scene, 1, states[k : k + 1], device="cpu", per_element=False, stepper=stepper, **SMALL)
         one.step(3)
         assert same_bits(ens.states()[k], one.states()[0]), k
+
+
+@pytest.mark.parametrize("device", ["cpu", ON_CUDA])
+def test_graphed_steps_have_the_bits_of_plain_ones(one_thread, device):
+    """Each step a graph (on a CPU: one thread, graphs "on"; CUDA's default): the bits of the
+    same ensemble launched step by step, with its graph kept."""
+    states = Ensemble("galewsky", 2, Perturbation(1.0, seed=3), device="cpu", **SMALL).states()
+    runs = [Ensemble("galewsky", 2, states, device=device, graphs=g, **SMALL) for g in ("off", "on")]
+    for ens in runs:
+        ens.step(5)
+    assert (runs[0].graphs_kept, runs[1].graphs_kept) == (0, 1)
+    assert same_bits(runs[0].states(), runs[1].states())
 
 
 def test_the_member_grid_offsets_each_member():

@@ -66,9 +66,9 @@ FLOPS = {
     "tendency": 180,  # 4 × (14 continuity + 16 Bernoulli + 10 vorticity) + 20 pointwise finish
     "dss": 14,  # ≈ 2 · rows · copies (1.78 a node on average) + rows; 3 rows
     "dss_update": 26,  # the DSS's 14 and its combinations, ≈ 2 · rows · 2 terms (explicit stages)
-    # 4 rows × (2 × 8 derivative + 6 gradient + 8 flux), the source at 2 np nodes: the Cartesian wind
-    # (10 a node, first pass) or the first DSS (≈ 14 a node, second)
-    "laplacian_flux": 200,
+    # 4 rows × (2 × 8 derivative + 6 gradient + 8 flux); the first pass forms the Cartesian wind
+    # at the 2 np nodes it reads (10 a node)
+    "laplacian_flux": 160,
     "laplacian_node": 92,  # 4 rows × (np × 4 + 1) of the weak divergence + 24 scaling (Y₁; Y₂'s shift: 9)
     "dss_apply": 27,  # 4 rows × 1.78 copies + 4 (unweighted DSS) + 16 (back to east/north, added)
     "axpby": 9,

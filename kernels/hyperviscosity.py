@@ -18,7 +18,7 @@ the DSS'd weak Laplacian. Rows of the work arrays: 0..2 Cartesian wind, 3 free
 surface.
 
 In three passes on the CPU (whose second weak Laplacian gathers the first DSS itself)
-and five on CUDA (a flux pass before each weak Laplacian), as HOMME
+and six on CUDA (a flux pass before each weak Laplacian, the first DSS), as HOMME
 (``vlaplace_sphere_wk_cartesian``) forms each Laplacian: everything pointwise in Y₁ and Y₂ is done on the element's weak form
 before its DSS, where the mass is a factor (2v/a² enters as 2·spheremp·v/a²,
 ∇δ as spheremp·∇δ, whose unweighted DSS is the mass-weighted one of ∇δ; P and
@@ -33,8 +33,8 @@ the fixed metric spheremp·Dinv V Dinvᵀ and mass spheremp·v in place of spher
 spheremp (``model.hyperviscosity.Hyperviscosity.tensor_metric``): ``laplacian_element``
 reads either; on CUDA ``laplacian_flux`` forms the flux from it, for ``laplacian_node``.
 
-Two layouts, as for the tendency: on CUDA ``laplacian_flux`` (which forms the Cartesian wind,
-or gathers the first DSS, as it reads them) and ``laplacian_node`` (dim N); on the CPU
+Two layouts, as for the tendency: on CUDA ``laplacian_flux`` (the first forming the Cartesian
+wind as it reads it) and ``laplacian_node`` (dim N); on the CPU
 ``laplacian_element`` (dim nelem), the whole weak Laplacian of an element in
 one pass, on whole GLL rows (packed SIMD). Both finish a node, or a row, with
 the same ``scale_first`` / ``shift_second`` / ``add_divergent``.
@@ -324,42 +324,38 @@ laplacian_metric = wp.kernel(_laplacian_metric, enable_backward=False, module="u
 
 
 @functools.cache
-def laplacian_flux(second: bool, tensor: bool, copies: int = 0, ghosts: bool = False):
-    """The flux pass of a per-node weak Laplacian (CUDA), of a source formed node by node where
-    it is read, so that it takes no pass of its own: the first Laplacian's X = (Cartesian
-    wind, h + hs) from the state, or the second's Y₁ = DSS(L), the unweighted DSS of the
-    first's weak form L (``dss.gather``; ``copies``, ``ghosts`` as there). For every row r:
-    flux[2r:2r+2, p] = ``operators.weak_flux`` of (∂ξ, ∂η) of the source's row r, or with
-    ``tensor`` G (∂ξ, ∂η), G = metric[0:3] (G₁₁, G₁₂, G₂₂) the fixed quadrature-weighted
+def laplacian_flux(cartesian: bool, tensor: bool):
+    """The flux pass of a per-node weak Laplacian (CUDA), for every row r of its source:
+    flux[2r:2r+2, p] = ``operators.weak_flux`` of (∂ξ, ∂η) of row r, or with ``tensor``
+    G (∂ξ, ∂η), G = metric[0:3] (G₁₁, G₁₂, G₂₂) the fixed quadrature-weighted
     spheremp · Dinv V Dinvᵀ of the weak ∇·(V∇·) (HOMME ``laplace_sphere_wk`` with
-    ``var_coef``); S[:, p] = the source at p (``laplacian_node`` reads it there).
-    Arguments (``Topology.gathering``'s order): src (the state (3, N), or L (4, N)),
-    d (``dss.Copies``; the first pass does not read it), hs (N), f (``Frame``: east, north),
-    Dinv (4, N), spheremp (N), metric (4, N; read with ``tensor`` only), dvv (np, np), np,
-    flux (8, N), S (4, N), block, offset. Dim N/block. The source's arithmetic is that of the
-    passes it replaces (X[c] = u·east[c] + v·north[c], X[3] = h + hs; the DSS's gather), so the
-    flux has their bits where the compiler contracts the same products (every CPU build)."""
-    S2, TENSOR = bool(second), bool(tensor)
-    sum_copies = gather(4, False, copies, ghosts)
+    ``var_coef``). The source is src (4, N) (Y₁, the second Laplacian's), or with
+    ``cartesian`` the first Laplacian's X = (Cartesian wind u·east + v·north, h + hs) formed
+    from the state src (3, N) node by node as it is read, and written at each node to
+    X (4, N) (``laplacian_node`` reads it there): no pass of its own, the bits of one.
+    (The first DSS gathered the same way in the second pass cost more than its own pass
+    at ne120 on an H100: 169 µs against 129, issue 83.)
+    Arguments: src, hs (N), f (``Frame``: east, north; read with ``cartesian``), Dinv (4, N),
+    spheremp (N), metric (4, N; read with ``tensor``), dvv (np, np), np, flux (8, N),
+    X (4, N; written with ``cartesian``), offset. Dim N."""
+    CART, TENSOR = bool(cartesian), bool(tensor)
 
-    def value(src: wp.array2d(dtype=f64), d: Copies, hs: wp.array(dtype=f64), f: Frame, n: int):
+    def value(src: wp.array2d(dtype=f64), hs: wp.array(dtype=f64), f: Frame, n: int):
         X = wp.vec4d()
-        if wp.static(S2):
-            y = sum_copies(src, d, n)
-            for r in range(4):
-                X[r] = y[r]
-        else:
+        if wp.static(CART):
             for c in range(3):
                 X[c] = src[0, n] * f.east[c, n] + src[1, n] * f.north[c, n]
             X[3] = src[2, n] + hs[n]
+        else:
+            for r in range(4):
+                X[r] = src[r, n]
         return X
 
-    value.__qualname__ = value.__name__ = f"hv_source__{'gathered_' + str(copies) if S2 else 'cartesian'}"
+    value.__qualname__ = value.__name__ = f"hv_source__{'cartesian' if CART else 'rows'}"
     source = wp.func(value)
 
     def kernel(
         src: wp.array2d(dtype=f64),
-        d: Copies,
         hs: wp.array(dtype=f64),
         f: Frame,
         Dinv: wp.array2d(dtype=f64),
@@ -368,34 +364,33 @@ def laplacian_flux(second: bool, tensor: bool, copies: int = 0, ghosts: bool = F
         dvv: wp.array2d(dtype=f64),
         np_: int,
         flux: wp.array2d(dtype=f64),
-        S: wp.array2d(dtype=f64),
-        block: int,
+        X: wp.array2d(dtype=f64),
         offset: int,
     ):
-        start = (wp.tid() + offset) * block
-        for p in range(start, start + block):
-            base, i, j = element_node(p, np_)
-            a = wp.vec4d()  # ∂ξ, ∂η of each row, summed as ``operators.d_xi``/``d_eta``
-            b = wp.vec4d()
-            for m in range(np_):
-                sq = source(src, d, hs, f, base + j * np_ + m)
-                sr = source(src, d, hs, f, base + m * np_ + i)
-                for r in range(4):
-                    a[r] = a[r] + dvv[i, m] * sq[r]
-                    b[r] = b[r] + dvv[j, m] * sr[r]
+        p = wp.tid() + offset
+        base, i, j = element_node(p, np_)
+        a = wp.vec4d()  # ∂ξ, ∂η of each row, summed as ``operators.d_xi``/``d_eta``
+        b = wp.vec4d()
+        for m in range(np_):
+            sq = source(src, hs, f, base + j * np_ + m)
+            sr = source(src, hs, f, base + m * np_ + i)
             for r in range(4):
-                g = wp.vec2d()
-                if wp.static(TENSOR):
-                    g = wp.vec2d(metric[0, p] * a[r] + metric[1, p] * b[r], metric[1, p] * a[r] + metric[2, p] * b[r])
-                else:
-                    g = weak_flux(a[r], b[r], Dinv, spheremp, p)
-                flux[2 * r, p] = g[0]
-                flux[2 * r + 1, p] = g[1]
-            s = source(src, d, hs, f, p)
+                a[r] = a[r] + dvv[i, m] * sq[r]
+                b[r] = b[r] + dvv[j, m] * sr[r]
+        for r in range(4):
+            g = wp.vec2d()
+            if wp.static(TENSOR):
+                g = wp.vec2d(metric[0, p] * a[r] + metric[1, p] * b[r], metric[1, p] * a[r] + metric[2, p] * b[r])
+            else:
+                g = weak_flux(a[r], b[r], Dinv, spheremp, p)
+            flux[2 * r, p] = g[0]
+            flux[2 * r + 1, p] = g[1]
+        if wp.static(CART):
+            s = source(src, hs, f, p)
             for r in range(4):
-                S[r, p] = s[r]
+                X[r, p] = s[r]
 
-    name = "laplacian_flux__" + ("second" if S2 else "first") + ("__tensor" if TENSOR else "")
+    name = "laplacian_flux__" + ("cartesian" if CART else "rows") + ("__tensor" if TENSOR else "")
     kernel.__qualname__ = kernel.__name__ = name
     return wp.kernel(kernel, enable_backward=False, module="unique")
 

@@ -55,10 +55,10 @@ class Hyperviscosity:
         """Launches of out += coef·B x, B = ν∇⁴ the hyperviscosity operator
         (``kernels.hyperviscosity``) with coefficients ``nus`` = (ν, ν_div, ν_s)
         (None: the model's); out = x if None. Three passes on the per-element
-        layout (the second weak Laplacian sums the first DSS itself), five on the
+        layout (the second weak Laplacian sums the first DSS itself), six on the
         per-node one (a flux pass before each weak Laplacian, the first forming the
-        Cartesian wind and the second summing the first DSS as they read them), and
-        the divergence δ and its DSS first when ν_div ≠ ν.
+        Cartesian wind as it reads it, and the first DSS), and the divergence δ and
+        its DSS first when ν_div ≠ ν.
         ``transposed``: the tensor ∇⁴'s transpose in the mass form (for the adjoint), its two
         Laplacians' metrics swapped: B = Pᵀ RQ K̃_V RQ Π K̃ P with each K̃ symmetric has
         M⁻¹Bᵀ M = Pᵀ RQ K̃ Π RQ K̃_V P, the tensor's first (the constant ∇⁴ is its own);
@@ -112,8 +112,10 @@ class Hyperviscosity:
 
             def laplacian(second):  # → the weak form of Y₁ in L, or of Y₂ in L from the DSS of L
                 tensor = self.hv_tensor is not None and second != swap
-                src = Y if second else self.hv_X  # the flux pass writes the source at each node there
+                src = Y if second else self.hv_X  # what laplacian_node reads at its node
+                flux = hyperviscosity.laplacian_flux(not second, tensor)  # the first forms X, writes it in hv_X
                 flux_args = [
+                    Y if second else x,
                     m.operators.hs,
                     self._frame("east", "north"),
                     m.operators.Dinv,
@@ -124,15 +126,8 @@ class Hyperviscosity:
                     self.hv_flux,
                     src,
                 ]
-                if second:  # the first DSS gathered in the flux pass
-
-                    def gathered(rows, copies, ghosts):
-                        return hyperviscosity.laplacian_flux(True, tensor, copies, ghosts)
-
-                    flux = m.topology.gathering(L, gathered, flux_args)
-                else:  # the Cartesian wind formed in the flux pass
-                    kernel = hyperviscosity.laplacian_flux(False, tensor)
-                    flux = [m.launches.nodes(kernel, N, [x, m.topology.dss_copies, *flux_args, 1])]
+                passes = [*m.topology.dss(L, 0, Y)] if second else []  # the first DSS: Y₁
+                passes.append(m.launches.nodes(flux, N, flux_args))
                 mass = self.hv_tensor[3] if tensor else m.spheremp  # the weight of the +2Y₁/a² shift
                 args = [
                     self.hv_flux,
@@ -145,7 +140,7 @@ class Hyperviscosity:
                     np_,
                     L,
                 ]
-                return [*flux, m.launches.nodes(hyperviscosity.laplacian_node(second, divergent), N, args)]
+                return [*passes, m.launches.nodes(hyperviscosity.laplacian_node(second, divergent), N, args)]
 
         def apply(rows, copies, ghosts):  # ``Topology.gathering``'s kernel factory
             return hyperviscosity.dss_apply(copies, ghosts=ghosts)

@@ -604,8 +604,8 @@ def test_hyperviscosity_launches_nothing_without_the_term(terms, nu, launch_log)
 @pytest.mark.parametrize("per_element", [True, False], ids=["per-element", "per-node"])
 def test_hyperviscosity_launch_list(per_element, nu_div, launch_log):
     """Three passes on the per-element layout, whose second weak Laplacian does the
-    first DSS itself; five on the per-node layout, a flux pass before each weak Laplacian
-    (the first forms the Cartesian wind, the second sums the first DSS, as they read them);
+    first DSS itself; six on the per-node layout, a flux pass before each weak Laplacian
+    (the first forms the Cartesian wind as it reads it) and the first DSS;
     the divergence and its DSS, and the kernel that reads their gradient, only when ν_div ≠ ν."""
     g = cached_grid(2, 4)
     fcor, hs, st = tc5(g)
@@ -629,9 +629,10 @@ def test_hyperviscosity_launch_list(per_element, nu_div, launch_log):
         expected = [f"laplacian_element__{first}", "laplacian_element__second", "dss_apply"]
     else:
         expected = [
-            "laplacian_flux__first",
+            "laplacian_flux__cartesian",
             f"laplacian_node__{first}",
-            "laplacian_flux__second",
+            "dss",
+            "laplacian_flux__rows",
             "laplacian_node__second",
             "dss_apply",
         ]

@@ -31,7 +31,6 @@
 * ``kernels``: where a step's GPU time goes: Warp's CUDA activity timing (``wp.timing_begin``,
   kernels, memsets and copies) over ``--steps`` plain-launched steps of the default scenes
   (``galewsky``, ``tc5_mountain`` at ``--ne``), µs a step and launches a step of each kernel.
-  ``--layout element`` (also for ``floor``): the per-element kernels (a CPU's) on the card.
 * ``iterations``: the semi_implicit, imex and implicit steppers at
   ``--dt-factor`` × TC5's Δt: solver iterations per step on ``--device``
   (their device solvers) against the CPU (its defaults).
@@ -276,18 +275,9 @@ def iterations(args):
             print(f"| {name} | {device} | {its} | {rhs / args.steps:.1f} | {ms:.1f} |", flush=True)
 
 
-def _layout(args):
-    """``--layout element``: the model's per-element kernels on any device (``Backend.per_element``)."""
-    if args.layout == "element":
-        from swe_sphere.core.backend import Backend
-
-        Backend.per_element = property(lambda self: True)
-
-
 def floor(args):
-    _layout(args)
     _header(
-        f"µs a step ({args.device}, {args.layout} kernels; {args.graph_steps} steps, median of {args.runs}): the run's loop, a graph a step "
+        f"µs a step ({args.device}; {args.graph_steps} steps, median of {args.runs}): the run's loop, a graph a step "
         f"from a bare loop, {' and '.join(map(str, args.chain))} steps a graph",
         [
             "scene",
@@ -332,7 +322,6 @@ def floor(args):
 
 
 def kernels(args):
-    _layout(args)
     for name, ne in [("galewsky", None), *(("tc5_mountain", ne) for ne in args.ne)]:
         scene = load_scene(name, ne=ne)
         sim = Simulation(scene, args.device, progress=False, graphs=False)
@@ -352,7 +341,7 @@ def kernels(args):
             count[r.name] = count.get(r.name, 0) + 1
         total = sum(spent.values())
         _header(
-            f"{name} ne{scene.ne} np{scene.np} {scene.stepper} ({args.layout} kernels, "
+            f"{name} ne{scene.ne} np{scene.np} {scene.stepper} ("
             f"{sim.model.N} nodes): µs a step on the device, {args.steps} plain-launched steps; wall {wall * 1e6:.1f} µs a "
             f"step, the activities' sum {total:.1f} µs",
             ["kernel", "a step", "µs a step", "share"],
@@ -382,7 +371,6 @@ def main(argv=None):
     p.add_argument("--runs", type=int, default=5, help="graphs: timed runs a stepper and mode")
     p.add_argument("--copy-mib", type=int, default=1024)
     p.add_argument("--chain", type=int, nargs="+", default=[10, 50], help="floor: steps captured as one graph")
-    p.add_argument("--layout", choices=("node", "element"), default="node", help="floor, kernels: the kernels' layout")
     p.add_argument(
         "--krylov",
         choices=("host", "kernels"),

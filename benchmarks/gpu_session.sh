@@ -16,8 +16,8 @@
 #   benchmarks/gpu_session.sh dinosaur              # ≤ 8 min: the peer Dinosaur (JAX) beside swe_sphere on the card
 #   benchmarks/gpu_session.sh control               # ≤ 3.5 min: TC5 ne60 rk43 under error control, graphs against none (issue 64; CONTROL_DAYS, CONTROL_GRAPHS)
 #   benchmarks/gpu_session.sh small                 # ≈ 1 min: galewsky and TC5 ne30 one day, ms a step (issue 83 item 5)
-#   benchmarks/gpu_session.sh floor                 # ≈ 1 min: where a small grid's step goes: the run's loop, a graph a step, k steps a graph (LAYOUT=element: a CPU's kernels)
-#   benchmarks/gpu_session.sh kernels               # ≈ 1 min: each kernel's device time a step, galewsky and TC5 ne30, ne120 (LAYOUT as floor)
+#   benchmarks/gpu_session.sh floor                 # ≈ 1 min: where a small grid's step goes: the run's loop, a graph a step, k steps a graph
+#   benchmarks/gpu_session.sh kernels               # ≈ 1 min: each kernel's device time a step, galewsky and TC5 ne30, ne120
 #   benchmarks/gpu_session.sh ensemble              # ≈ 1 min: galewsky, 32 members in the same launches against one (issue 85)
 #
 # With no part named it runs setup to iterations in that order (≈ 23 min); reads,
@@ -210,12 +210,12 @@ part_tc5() {  # issue 67 target: TC5 ne120, 15 days, the scene's own stepper and
 
 part_floor() {  # issue 83 item 5: is a small grid's step the host's (the run's loop) or the launches' own?
     if [ "$small" = 1 ]; then set -- --ne 2 --graph-steps 20 --runs 2; else set -- --ne 8 30; fi
-    run "floor_${LAYOUT:-node}" 120 "$PY" benchmarks/gpu_session.py floor --device "$DEVICE" --layout "${LAYOUT:-node}" "$@"
+    run floor 120 "$PY" benchmarks/gpu_session.py floor --device "$DEVICE" "$@"
 }
 
 part_kernels() {  # issue 83 items 5 and the ne120 target: which kernels a step's device time goes to
     if [ "$small" = 1 ]; then set -- --ne 2 --steps 2; else set -- --ne 30 120; fi
-    run "kernels_${LAYOUT:-node}" 120 "$PY" benchmarks/gpu_session.py kernels --device "$DEVICE" --layout "${LAYOUT:-node}" "$@"
+    run kernels 120 "$PY" benchmarks/gpu_session.py kernels --device "$DEVICE" "$@"
 }
 
 part_ensemble() {  # issue 85: on an H100, 32 galewsky members <= 4x one member's wall time

@@ -145,6 +145,21 @@ def _run(sub, parents) -> None:
         "the scene's output.cells = false",
     )
     r.add_argument(
+        "--members",
+        type=int,
+        metavar="N",
+        help="an ensemble: N members of the scene advanced together in the same launches (explicit steppers, "
+        "fixed dt), one run file with a member dimension, each field's ensemble mean and spread",
+    )
+    r.add_argument(
+        "--perturbation",
+        type=float,
+        metavar="METRES",
+        help="with --members: member k starts from the case's state with h + METRES of white noise "
+        "(seeded, one draw a unique node; default 0: every member the same start)",
+    )
+    r.add_argument("--seed", type=int, help="with --members: the perturbation's random seed (default 0)")
+    r.add_argument(
         "--graphs",
         help="steps as captured graphs: auto (on CUDA; the default, or env SWE_SPHERE_GRAPHS), on "
         "(also on a CPU), off (plain launches); a graph that fails or differs from plain launches "

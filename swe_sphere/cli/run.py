@@ -74,7 +74,7 @@ def _continued(args, device, comm):
     )
 
 
-def default_output(scene) -> Path:
+def default_output(scene, members: int | None = None) -> Path:
     """The run file's default name, in the working folder:
     ``<scene>_<grid>np<np>_<stepper>[_a<radius>][_omega<Ω>][_g<gravity>][_<days>d][_dt<dt>].nc``,
     where the planet's values (SI units) appear when they are not the scene file's, the
@@ -83,7 +83,8 @@ def default_output(scene) -> Path:
     length. Runs of a scene that differ in these get different files, so a page's
     commands run in order do not meet "output file exists". ``<grid>``: ``ne<ne>``, or
     the mesh's label (``Scene.grid_label``: the mesh file's stem, ``ne4c2.5``, …). The scene file's own
-    values are the scene's (``Scene.own_planet``, ``own_days``, ``own_dt``): it is loaded once."""
+    values are the scene's (``Scene.own_planet``, ``own_days``, ``own_dt``): it is loaded once. An
+    ensemble's (``members``) ends in ``_<members>members``."""
     parts = [f"{scene.name}_{scene.grid_label}np{scene.np}_{scene.stepper}"]
     planet = scene.planet if scene.own_planet is None else scene.own_planet  # None: nothing of its own
     for key, tag in (("radius", "a"), ("omega", "omega"), ("gravity", "g")):
@@ -93,6 +94,8 @@ def default_output(scene) -> Path:
         parts.append(f"{scene.days:g}d")
     if scene.dt != scene.own_dt:
         parts.append(f"dt{scene.dt:g}")
+    if members is not None:
+        parts.append(f"{members}members")
     return Path("_".join(parts) + ".nc")
 
 
@@ -127,6 +130,7 @@ def command(args) -> int:
     from ..simulation.schedules import check_restart_interval
     from ..simulation.writers import restart_path
 
+    _check_ensemble_options(args)
     if args.continue_from is None:
         if args.scene is None:
             raise ValueError("run needs a SCENE (or --continue CHECKPOINT)")
@@ -140,7 +144,7 @@ def command(args) -> int:
             overrides={**overrides(args.set), **({"output.cells": False} if args.no_cells else {})},
         )
         scene = load_scene(args.scene, **given)
-        output = args.output or default_output(scene)
+        output = args.output or default_output(scene, args.members)
     else:
         scene = None  # the restart file's
         stem = args.continue_from.name.removesuffix(".nc").removesuffix(".restart")
@@ -169,11 +173,72 @@ def command(args) -> int:
     if args.restart_every is not None:  # else written only on SIGINT/SIGTERM, and then not over an existing one
         check_target(restart_path(output), args.overwrite)
     comm = mpi.world()  # under mpiexec: one run over all ranks
+    if args.members is not None:
+        if comm is not None:
+            raise SceneError("--members: an ensemble runs in one process (not yet under mpiexec)")
+        return _ensemble(args, scene, output, device)
     with (
         _output_lock(output, comm),
         mpi.watch_failures(comm, close_open_runs),
     ):  # a failure on one rank alone ends the job
         return _run(args, scene, output, device, comm)
+
+
+def _check_ensemble_options(args) -> None:
+    """``SceneError`` for the ensemble's options where they do not go together (before anything
+    is read): --perturbation or --seed without --members, --members with a restart."""
+    if args.members is None:
+        given = [
+            flag for flag, value in (("--perturbation", args.perturbation), ("--seed", args.seed)) if value is not None
+        ]
+        if given:
+            raise SceneError(f"{' and '.join(given)} only with --members N")
+        return
+    for flag, value in (("--continue", args.continue_from), ("--restart-every", args.restart_every)):
+        if value is not None:
+            raise SceneError(f"--members: an ensemble has no restart files yet (not with {flag})")
+
+
+def _ensemble(args, scene, output: Path, device) -> int:
+    """``run --members N``: the scene's ensemble (``swe_sphere.ensemble.Ensemble``) to its last
+    day, its run file ``output``; a blow-up stops every member and keeps the file's good times."""
+    import time
+
+    from ..ensemble import Ensemble, Perturbation
+
+    perturbation = None
+    if args.perturbation or args.seed is not None:
+        perturbation = Perturbation(0.0 if args.perturbation is None else args.perturbation, args.seed or 0)
+    t0 = time.perf_counter()
+    ens = Ensemble(scene, args.members, perturbation, device=device, graphs=args.graphs)
+    setup = time.perf_counter() - t0
+    print(f"scene       {scene.name}: {scene.description}")
+    print(f"grid        {scene.grid_text}: {scene.nelem} elements, {ens.grid.nunique} unique nodes")
+    print(
+        f"stepper     {scene.stepper}, dt = {scene.dt:g} s, {scene.nsteps} steps to day {scene.days:g}, device {device}"
+    )
+    print(f"ensemble    {args.members} members in the same launches; initial states {ens.initial}")
+    print(f"output      {output} (every {scene.output_every_days:g} days)")
+    try:
+        ens.run(
+            output,
+            overwrite=args.overwrite,
+            compress=args.compress,
+            history=" ".join(["swe-sphere", *(sys.argv[1:] if args.argv is None else args.argv)]),
+        )
+    except BlowUp as err:
+        print(f"swe-sphere: {err}; the good output times are in {output}", file=sys.stderr)
+        return EXIT_BLOWUP
+    steps = ens.step_count
+    print("summary")
+    print(
+        f"  wall time   {ens.wall_time:.2f} s for {steps} steps ({1e3 * ens.wall_time / max(steps, 1):.2f} ms/step, "
+        f"{1e3 * ens.wall_time / max(steps, 1) / args.members:.3f} ms a member), setup {setup:.2f} s"
+    )
+    spread = ens.h_spread_rms()
+    print(f"  h spread    {spread:.4g} m (area-weighted RMS of the members' standard deviation at day {scene.days:g})")
+    print(f"  output      {output}")
+    return 0
 
 
 def _output_lock(output: Path, comm):

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
+from pathlib import Path
 
 import numpy as np
 import warp as wp
@@ -27,10 +29,14 @@ from ..core.errors import ArgumentError, BlowUp
 from ..core.graphs import GraphedSteps, default_mode, graphs_mode
 from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology
+from ..io.run_file import OUTPUT_FIELDS, RunWriter, area_rms, history_line, member_statistics
 from ..model.diagnostics import invariants
 from ..model.shallow_water import ShallowWater
+from ..simulation.schedules import output_steps
 from ..steppers import STEPPERS
 from .members import MemberGrid
+
+MEMBER_SERIES = ("mass", "total_energy", "potential_enstrophy")  # each member's, at every output time
 
 
 @dataclasses.dataclass(frozen=True)
@@ -142,6 +148,13 @@ class Ensemble:
         self.case = case = scene.make_case()
         self.grid = grid = CubedSphere(scene.ne, scene.np, case.planet.a, mesh=scene.make_mesh())
         starts = self._initial_states(initial)
+        self.initial = (
+            "the case's"
+            if initial is None
+            else f"perturbed: h + {initial.amplitude:g} m white noise, seed {initial.seed}"
+            if isinstance(initial, Perturbation)
+            else "given"
+        )
         backend = Backend.of(pick_device(device))
         self.copies = MemberGrid(grid, members)
         options = {"device": backend.device, "per_element": per_element, "threads": threads}
@@ -157,6 +170,7 @@ class Ensemble:
         self.x = self.model.new_state(*np.concatenate(list(starts), axis=1))
         self.stepper.prepare(self.x)
         self.step_count = 0
+        self.wall_time = 0.0  # s, of ``step``
         self._start = wp.clone(self.x)  # a block's first state, to re-run it step by step after a blow-up
         self._graphed = GraphedSteps(backend, self.model.launches.guard, graphs)
 
@@ -191,7 +205,7 @@ class Ensemble:
         to name the step. On CUDA each step is a graph (``core.graphs.GraphedSteps``, as ``Simulation``'s). Policy: stop all. A blow-up in any member raises ``BlowUp`` naming
         every member bad at that step; the states are then those of that step."""
         n = integer_argument("n", n, 0)
-        done = 0
+        done, t0 = 0, time.perf_counter()
         while done < n:
             block = min(CHECK_EVERY_STEPS, n - done)
             saved = self.stepper.state()
@@ -208,6 +222,8 @@ class Ensemble:
                         raise BlowUp(self._blow_up(self.step_count))
             self.step_count += block
             done += block
+        wp.synchronize_device(self.model.topology.device)
+        self.wall_time += time.perf_counter() - t0
 
     def advance(self, days: float) -> None:
         """Advance every member by ``days`` (a whole number of steps of the scene's Δt), as ``step``."""
@@ -216,6 +232,65 @@ class Ensemble:
         if not math.isclose(n * self.dt, days * DAY, rel_tol=1e-9, abs_tol=1e-9):
             raise ArgumentError(f"days must be a whole number of steps of dt = {self.dt:g} s (got {days})")
         self.step(n)
+
+    def run(self, output, *, overwrite: bool = False, compress: bool = False, history: str | None = None) -> Path:
+        """Advance every member to the scene's last day, writing the run file ``output`` (netCDF)
+        at step 0 and every ``output.every_days`` (``simulation.schedules.output_steps``): each
+        field (time, member, ncol) with its ensemble mean and spread, each member's mass, total
+        energy and potential enstrophy, and the RMS spread of h (``io.run_file.RunWriter`` with
+        ``members``). A blow-up (``BlowUp``, policy stop all) or an interruption closes the file
+        with every output time before it (its global attribute ``stopped`` says why) and is
+        raised again. ``OutputError`` for a path that may not be written (``overwrite``: replace
+        an existing file); ``compress``: the fields as float32 with zlib. Returns the path."""
+        s = self.scene
+        attrs = {
+            "title": f"swe_sphere ensemble of scene {s.name}",
+            "history": history_line(history or f"swe_sphere.Ensemble.run of scene {s.name}"),
+            "scene": s.as_dict(),
+            "case": s.case,
+            "ne": s.ne,
+            "np": s.np,
+            "stepper": s.stepper,
+            "dt": s.dt,
+            "device": str(self.model.topology.device),
+            "members": self.members,
+            "initial_states": self.initial,
+            "blow_up_policy": "stop all",
+        }
+        writer = RunWriter(
+            output,
+            self.grid,
+            self.copies.member(self.model.operators.hs.numpy(), 0),
+            attrs,
+            ("steps", "wall_time"),
+            overwrite=overwrite,
+            compress=compress,
+            fields=s.output_fields or OUTPUT_FIELDS,
+            cells=s.output_cells,
+            members=self.members,
+            member_series=MEMBER_SERIES,
+        )
+        try:
+            for target in sorted(k for k in output_steps(s) if k >= self.step_count):
+                self.step(target - self.step_count)
+                self._write(writer)
+        except BaseException as err:  # a blow-up or an interruption: the good output times kept
+            writer.set_attrs(stopped=str(err) or type(err).__name__)
+            writer.close()
+            raise
+        writer.close()
+        return writer.path
+
+    def _write(self, writer: RunWriter) -> None:
+        """The current step's output time (``run``)."""
+        x, zeta = self.x.numpy(), self.model.operators.vorticity(self.x)
+        div = self.model.operators.wind_divergence(self.x) if "divergence" in writer.fields else None
+        each = lambda a: np.stack([self.copies.member(a, k) for k in range(self.members)])  # noqa: E731
+        series = {"steps": self.step_count, "wall_time": self.wall_time}
+        invariants = self._invariants(x, zeta)
+        series.update({key: np.array([d[key] for d in invariants]) for key in MEMBER_SERIES})
+        u, v, h = (each(x[r]) for r in range(3))
+        writer.append(self.scene.day(self.step_count), u, v, h, series, each(zeta), None if div is None else each(div))
 
     def _blow_up(self, step: int) -> str:
         """The one line of a blow-up at ``step``: the members bad there, the first one's place."""
@@ -254,10 +329,19 @@ class Ensemble:
         u, v, h = self.copies.member(self.x.numpy(), member)
         return u.copy(), v.copy(), h.copy()
 
+    def h_spread_rms(self) -> float:
+        """The ensemble spread of h now (m): the area-weighted RMS over the sphere of the members'
+        standard deviation (``io.run_file.member_statistics``, ``area_rms``), the run file's
+        ``h_spread_rms``."""
+        h = np.stack([self.grid.to_unique(states[2]) for states in self.states()])
+        return area_rms(self.grid, member_statistics(h)[1])
+
     def invariants(self) -> list[dict[str, float]]:
         """Each member's mass (m³), total energy (m⁵ s⁻²) and potential enstrophy (m s⁻²)
         (``model.diagnostics.invariants`` on the one grid: the bits of the single run's)."""
-        x, zeta = self.x.numpy(), self.model.operators.vorticity(self.x)
+        return self._invariants(self.x.numpy(), self.model.operators.vorticity(self.x))
+
+    def _invariants(self, x: np.ndarray, zeta: np.ndarray) -> list[dict[str, float]]:
         hs, fcor = self.model.operators.hs.numpy(), self.model.operators.fcor.numpy()
         one = lambda a, k: self.copies.member(a, k)  # noqa: E731
         return [

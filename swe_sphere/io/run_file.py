@@ -145,6 +145,31 @@ for _pre, _what in (
         )
 
 
+# an ensemble's run file (``RunWriter(members=N)``): its member coordinate and its spread's time series
+MEMBER_ATTRS = dict(standard_name="realization", long_name="ensemble member", units="1")
+SERIES_ATTRS["h_spread_rms"] = dict(
+    units="m",
+    long_name="area-weighted RMS over the sphere of the ensemble spread of h (the members' standard deviation)",
+)
+STATISTICS = (
+    ("mean", "mean", "ensemble mean"),
+    ("spread", "standard_deviation", "ensemble spread (standard deviation) of"),
+)
+
+
+def area_rms(grid: CubedSphere, f: np.ndarray) -> float:
+    """The area-weighted RMS over the sphere of ``f`` (nunique,) on ``grid``'s unique nodes
+    (GLL quadrature: ``grid.area``)."""
+    return float(np.sqrt(np.sum(grid.area * f**2) / np.sum(grid.area)))
+
+
+def member_statistics(fields: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The ensemble mean and spread over the first axis of ``fields`` (members, ...): the mean
+    and the sample standard deviation (N − 1 in the denominator; 0 for one member)."""
+    n = fields.shape[0]
+    return fields.mean(axis=0), fields.std(axis=0, ddof=1) if n > 1 else np.zeros(fields.shape[1:])
+
+
 SERIES_ATTRS["ref_l2_vorticity_eq83"] = dict(
     units="1",
     long_name="normalized l2 error of the relative vorticity (the model's operator) against the spectral "
@@ -195,6 +220,11 @@ class RunWriter:
     sub-cell mesh's nodes and the global attribute ``cells`` says what is missing.
     ``cells_seconds``: the CPU seconds spent building the cells, None where they came
     from the cache or were not written.
+    ``members``: an ensemble's file (``swe_sphere.ensemble``): the dimension and coordinate
+    ``member`` (CF ``realization``), each field (time, member, ncol) beside its ensemble mean
+    and spread ``<field>_mean``, ``<field>_spread`` (time, ncol; CF ``cell_methods``
+    "realization: mean" and "realization: standard_deviation", ``member_statistics``), the time
+    series ``member_series`` (time, member) and ``h_spread_rms`` (time) besides ``series``.
     """
 
     def __init__(
@@ -209,8 +239,11 @@ class RunWriter:
         compress: bool = False,
         fields=OUTPUT_FIELDS,
         cells: bool = True,
+        members: int | None = None,
+        member_series=(),
     ):
         self.path, self.fields, self.cells = Path(path), tuple(fields), cells
+        self.members, self.member_series = members, tuple(member_series)
         self.cells_seconds = None  # CPU seconds spent building the cells, where they were not in the cache
         self.file = ExclusiveFile(self.path, overwrite=overwrite)
         self.tmp = self.file.tmp
@@ -249,18 +282,33 @@ class RunWriter:
         write_mesh(ds, grid)
         if grid.mesh is not None:
             write_element_mesh(ds, grid.mesh)
+        lead = ("time",)
+        if self.members is not None:
+            ds.createDimension("member", self.members)
+            ds.createVariable("member", "i4", ("member",)).setncatts(MEMBER_ATTRS)
+            ds["member"][:] = np.arange(self.members)
+            lead = ("time", "member")
+        dtype = "f4" if compress else "f8"
         for name in self.fields:
             fill = dict(fill_value=np.nan) if name in ("vorticity", "divergence") else {}  # NaN where a writer got none
-            var = ds.createVariable(name, "f4" if compress else "f8", ("time", "ncol"), zlib=compress, **fill)
+            var = ds.createVariable(name, dtype, (*lead, "ncol"), zlib=compress, **fill)
             var.setncatts({**FIELDS[name], **FIELD_ATTRS, **located})
-        for name in series:
-            var = ds.createVariable(name, "f8", ("time",))
-            var.setncatts(SERIES_ATTRS[name])
+            for stat, method, what in STATISTICS if self.members is not None else ():
+                var = ds.createVariable(f"{name}_{stat}", dtype, ("time", "ncol"), zlib=compress, **fill)
+                long_name = f"{what} {FIELDS[name]['long_name']}"
+                var.setncatts({**FIELDS[name], **FIELD_ATTRS, **located, "long_name": long_name})
+                var.cell_methods = f"realization: {method}"
+        for name in (*series, *(("h_spread_rms",) if self.members is not None and "h" in self.fields else ())):
+            ds.createVariable(name, "f8", ("time",)).setncatts(SERIES_ATTRS[name])
+        for name in self.member_series:
+            ds.createVariable(name, "f8", ("time", "member")).setncatts(SERIES_ATTRS[name])
         self.n = 0
 
     def append(self, day: float, u, v, h, series: dict, vorticity=None, divergence=None) -> None:
-        """Add one output time (model days since the start); fields element-local (N,); ``vorticity``
-        and ``divergence`` (s⁻¹, DSS'd, element-local) are optional (NaN in the file without them)."""
+        """Add one output time (model days since the start); fields element-local (N,), an
+        ensemble's (members, N) with ``series`` holding its ``member_series`` as (members,)
+        arrays; ``vorticity`` and ``divergence`` (s⁻¹, DSS'd, element-local) are optional (NaN
+        in the file without them)."""
         with WRITING:
             self._append(day, u, v, h, series, vorticity, divergence)
 
@@ -268,8 +316,17 @@ class RunWriter:
         ds, n, g = self.ds, self.n, self.grid
         ds["time"][n] = day
         for name, f in (("u", u), ("v", v), ("h", h), ("vorticity", vorticity), ("divergence", divergence)):
-            if f is not None and name in self.fields:
+            if f is None or name not in self.fields:
+                continue
+            if self.members is None:
                 ds[name][n, :] = g.to_unique(f)
+                continue
+            each = np.stack([g.to_unique(a) for a in f])
+            ds[name][n, :, :] = each
+            mean, spread = member_statistics(each)
+            ds[f"{name}_mean"][n, :], ds[f"{name}_spread"][n, :] = mean, spread
+            if name == "h":
+                ds["h_spread_rms"][n] = area_rms(g, spread)
         for k, val in series.items():
             ds[k][n] = val
         ds.sync()

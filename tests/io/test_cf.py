@@ -1,4 +1,4 @@
-"""Every file the project writes in the CF tools: the run file, its restart file, the lat-lon
+"""Every file the project writes in the CF tools: the run file, an ensemble's, its restart file, the lat-lon
 remap, sweep.nc and stability.nc through the NCAS CF checker, the IOOS compliance-checker,
 CDO and cf_xarray (each test skips only where its tool is absent)."""
 
@@ -20,15 +20,19 @@ from helpers import TINY
 
 SPATIAL = ("run", "restart", "latlon")  # the files with fields on the sphere
 TABLES = ("sweep", "stability")
+ENSEMBLE = ("ensemble",)  # a run file with a member dimension (``run --members``)
 
 
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
-    """TC5 at ne = 2 np = 4 for half a day with its restart file, its 10° lat-lon file,
-    a one-run sweep's sweep.nc and a stability table of two rows (one without a stable Δt)."""
+    """TC5 at ne = 2 np = 4 for half a day with its restart file, its 10° lat-lon file, a
+    two-member Galewsky ensemble's run file, a one-run sweep's sweep.nc and a stability table
+    of two rows (one without a stable Δt)."""
     out = tmp_path_factory.mktemp("cf")
     run = out / "tc5.nc"
     assert main(["run", "tc5_mountain", *TINY, "--days", "0.5", "--restart-every", "0.5", "--output", str(run)]) == 0
+    ensemble = [*("run", "galewsky", "--ne", "2", "--dt", "900", "--days", "0.5", "--members", "2")]
+    assert main([*ensemble, "--perturbation", "1", "--output", str(out / "ensemble.nc")]) == 0
     latlon = out / "tc5_latlon.nc"
     assert main(["remap", str(run), "--resolution", "10", "--output", str(latlon)]) == 0
     sweep = [*("sweep", "tc2_steady", "--ne", "2", "--days", "0.25", "--steppers", "ssprk3", "--dt", "3600")]
@@ -38,6 +42,7 @@ def files(tmp_path_factory):
     stability.write_table([found, none], out)
     return {
         "run": run,
+        "ensemble": out / "ensemble.nc",
         "restart": out / "tc5.restart.nc",
         "latlon": latlon,
         "sweep": out / "sweep" / "sweep.nc",
@@ -45,14 +50,16 @@ def files(tmp_path_factory):
     }
 
 
-@pytest.mark.parametrize("which", SPATIAL + TABLES)
+@pytest.mark.parametrize("which", SPATIAL + TABLES + ENSEMBLE)
 def test_ncas_cf_checker_finds_no_errors(files, which, tmp_path):
     assert ncas_cf_errors(files[which], tmp_path) == []
-    assert len(ugrid_roles(files[which])) == (4 if which == "run" else 0)  # two meshes, each with its connectivity
+    assert len(ugrid_roles(files[which])) == (
+        4 if which in ("run", "ensemble") else 0
+    )  # two meshes, each with its connectivity
 
 
 @pytest.mark.filterwarnings("ignore::DeprecationWarning")  # loading every suite loads its deprecated ioos_sos
-@pytest.mark.parametrize("which", SPATIAL + TABLES)
+@pytest.mark.parametrize("which", SPATIAL + TABLES + ENSEMBLE)
 def test_ioos_compliance_checker_cf18_finds_no_errors(files, which, tmp_path):
     assert ioos_cf_errors(files[which], tmp_path) == []
 

@@ -1,0 +1,94 @@
+"""An ensemble's run file (``Ensemble.run``, ``swe-sphere run --members``): each member's fields
+have the bits of its single run's file, the ensemble mean and spread are those of the members, a
+blow-up keeps the good output times, and the command line refuses what does not go together with
+one line, exit 2 and no file."""
+
+from __future__ import annotations
+
+import netCDF4
+import numpy as np
+import pytest
+
+from swe_sphere.core.errors import BlowUp
+from swe_sphere.ensemble import Ensemble, Perturbation
+from swe_sphere.simulation.simulation import Simulation
+
+from helpers import cli_main
+
+SMALL = {"ne": 2, "np": 4, "dt": 900.0, "days": 0.5, "output.every_days": 0.25}
+
+
+def read(path, *names):
+    with netCDF4.Dataset(path) as ds:
+        return [ds[name][:].filled(np.nan) if np.ma.isMaskedArray(ds[name][:]) else ds[name][:] for name in names]
+
+
+def test_each_member_in_the_file_is_its_single_run_s(tmp_path):
+    ens = Ensemble("galewsky", 3, Perturbation(2.0, seed=5), device="cpu", **SMALL)
+    starts = ens.states()
+    ens.run(tmp_path / "ens.nc")
+    time, h, u, zeta, mass = read(tmp_path / "ens.nc", "time", "h", "u", "vorticity", "mass")
+    assert list(time) == [0.0, 0.25, 0.5] and h.shape == (3, 3, ens.grid.nunique)
+    for k in range(3):
+        sim = Simulation("galewsky", "cpu", progress=False, start=starts[k], **SMALL)
+        sim.run(tmp_path / f"{k}.nc")
+        h1, u1, zeta1, mass1 = read(tmp_path / f"{k}.nc", "h", "u", "vorticity", "mass")
+        assert np.array_equal(h[:, k], h1) and np.array_equal(u[:, k], u1) and np.array_equal(zeta[:, k], zeta1), k
+        assert np.array_equal(mass[:, k], mass1), k
+
+
+def test_the_mean_and_spread_are_the_members(tmp_path):
+    ens = Ensemble("galewsky", 4, Perturbation(3.0, seed=1), device="cpu", **SMALL)
+    ens.run(tmp_path / "ens.nc")
+    h, mean, spread, rms, area = read(tmp_path / "ens.nc", "h", "h_mean", "h_spread", "h_spread_rms", "area")
+    assert np.array_equal(mean, h.mean(axis=1)) and np.array_equal(spread, h.std(axis=1, ddof=1))
+    assert rms[0] > 2.0  # 3 m of white noise, smoothed by nothing yet
+    assert rms[-1] == ens.h_spread_rms()
+    assert rms[-1] == pytest.approx(np.sqrt(np.sum(area * spread[-1] ** 2) / area.sum()), rel=1e-14)
+    with netCDF4.Dataset(tmp_path / "ens.nc") as ds:
+        assert ds["member"].standard_name == "realization" and list(ds["member"][:]) == [0, 1, 2, 3]
+        assert ds["h_spread"].cell_methods == "realization: standard_deviation"
+        assert ds["h"].dimensions == ("time", "member", "ncol") and ds.members == 4
+
+
+def test_a_blow_up_keeps_the_good_output_times(tmp_path):
+    good = Ensemble("tc2_steady", 3, device="cpu", ne=2, np=4, stepper="rk4", dt=1800.0).states()
+    good[2, :2] *= 8  # unstable at this dt within a few steps (test_ensemble)
+    ens = Ensemble("tc2_steady", 3, good, device="cpu", ne=2, np=4, stepper="rk4", dt=1800.0, days=5)
+    with pytest.raises(BlowUp, match="member 2 of 3"):
+        ens.run(tmp_path / "ens.nc")
+    with netCDF4.Dataset(tmp_path / "ens.nc") as ds:
+        assert "member 2 of 3 blew up" in ds.stopped
+        times = ds["time"][:]
+        assert len(times) >= 1 and times[-1] * 86400 < ens.step_count * 1800.0
+        assert np.isfinite(ds["h"][:]).all()
+
+
+def test_the_command_line_runs_an_ensemble(capsys, tmp_path):
+    out = tmp_path / "g.nc"
+    code = cli_main(
+        capsys, "run", "galewsky", "--ne", "2", "--dt", "900", "--days", "0.5", "--members", "2",
+        "--perturbation", "1", "--seed", "4", "--output", str(out),
+    )  # fmt: skip
+    assert code[0] == 0, code
+    assert "ensemble    2 members" in code[1] and "h spread" in code[1]
+    (h,) = read(out, "h")
+    assert h.shape[1] == 2 and not np.array_equal(h[0, 0], h[0, 1])
+
+
+@pytest.mark.parametrize(
+    ("args", "says"),
+    [
+        (("--seed", "3"), "--seed only with --members N"),
+        (("--perturbation", "1"), "--perturbation only with --members N"),
+        (("--members", "2", "--restart-every", "1"), "not with --restart-every"),
+        (("--members", "0"), "members must be an integer >= 1"),
+        (("--members", "2", "--perturbation", "-1"), "perturbation amplitude"),
+        (("--members", "2", "--stepper", "imex"), "stepper imex is not explicit"),
+    ],
+)
+def test_bad_options_are_one_line_and_exit_2(capsys, tmp_path, args, says):
+    out = tmp_path / "g.nc"
+    code, _, err = cli_main(capsys, "run", "galewsky", "--ne", "2", "--output", str(out), *args)
+    assert code == 2 and says in err and len(err.strip().splitlines()) == 1, err
+    assert not list(tmp_path.iterdir())

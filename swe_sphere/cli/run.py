@@ -130,7 +130,15 @@ def command(args) -> int:
     from ..simulation.schedules import check_restart_interval
     from ..simulation.writers import restart_path
 
-    _check_ensemble_options(args)
+    members = args.members
+    if args.continue_from is not None:  # an ensemble's restart file continues as an ensemble
+        from ..io.restart_file import ensemble_members
+
+        members = ensemble_members(args.continue_from)
+        if args.members is not None and members != args.members:
+            held = "a single run" if members is None else f"{members} members"
+            raise SceneError(f"--members {args.members}: {args.continue_from} holds {held}")
+    _check_ensemble_options(args, members)
     if args.continue_from is None:
         if args.scene is None:
             raise ValueError("run needs a SCENE (or --continue CHECKPOINT)")
@@ -173,7 +181,7 @@ def command(args) -> int:
     if args.restart_every is not None:  # else written only on SIGINT/SIGTERM, and then not over an existing one
         check_target(restart_path(output), args.overwrite)
     comm = mpi.world()  # under mpiexec: one run over all ranks
-    if args.members is not None:
+    if members is not None:
         if comm is not None:
             raise SceneError("--members: an ensemble runs in one process (not yet under mpiexec)")
         return _ensemble(args, scene, output, device)
@@ -184,44 +192,59 @@ def command(args) -> int:
         return _run(args, scene, output, device, comm)
 
 
-def _check_ensemble_options(args) -> None:
+def _check_ensemble_options(args, members: int | None) -> None:
     """``SceneError`` for the ensemble's options where they do not go together (before anything
-    is read): --perturbation or --seed without --members, --members with a restart."""
-    if args.members is None:
-        given = [
-            flag for flag, value in (("--perturbation", args.perturbation), ("--seed", args.seed)) if value is not None
-        ]
+    is built): --perturbation or --seed without an ensemble (``members``: --members, or the
+    member count of the restart file continued), and with a continuation (its members start
+    from the file), --stepper or --dt with an ensemble's continuation (no branches yet)."""
+    given = [
+        flag for flag, value in (("--perturbation", args.perturbation), ("--seed", args.seed)) if value is not None
+    ]
+    if members is None:
         if given:
             raise SceneError(f"{' and '.join(given)} only with --members N")
         return
-    for flag, value in (("--continue", args.continue_from), ("--restart-every", args.restart_every)):
-        if value is not None:
-            raise SceneError(f"--members: an ensemble has no restart files yet (not with {flag})")
+    if args.continue_from is not None:
+        if given:
+            raise SceneError(f"{' and '.join(given)}: a continued ensemble's members start from its restart file")
+        branch = [flag for flag, value in (("--stepper", args.stepper), ("--dt", args.dt)) if value is not None]
+        if branch:
+            raise SceneError(
+                f"{' and '.join(branch)}: an ensemble continues with its own stepper and dt (no branches yet)"
+            )
 
 
 def _ensemble(args, scene, output: Path, device) -> int:
-    """``run --members N``: the scene's ensemble (``swe_sphere.ensemble.Ensemble``) to its last
-    day, its run file ``output``; a blow-up stops every member and keeps the file's good times."""
+    """``run --members N``: the scene's ensemble (``swe_sphere.ensemble.Ensemble``), or the
+    ensemble of the restart file continued, to its last day, its run file ``output`` (and its
+    restart files); a blow-up stops every member and keeps the file's good times."""
     import time
 
     from ..ensemble import Ensemble, Perturbation
 
-    perturbation = None
-    if args.perturbation or args.seed is not None:
-        perturbation = Perturbation(0.0 if args.perturbation is None else args.perturbation, args.seed or 0)
     t0 = time.perf_counter()
-    ens = Ensemble(scene, args.members, perturbation, device=device, graphs=args.graphs)
-    setup = time.perf_counter() - t0
+    if args.continue_from is not None:
+        ens = Ensemble.from_checkpoint(args.continue_from, days=args.days, device=device, graphs=args.graphs)
+        scene = ens.scene
+    else:
+        perturbation = None
+        if args.perturbation or args.seed is not None:
+            perturbation = Perturbation(0.0 if args.perturbation is None else args.perturbation, args.seed or 0)
+        ens = Ensemble(scene, args.members, perturbation, device=device, graphs=args.graphs)
+    setup, first, before = time.perf_counter() - t0, ens.step_count, ens.wall_time
     print(f"scene       {scene.name}: {scene.description}")
     print(f"grid        {scene.grid_text}: {scene.nelem} elements, {ens.grid.nunique} unique nodes")
     print(
         f"stepper     {scene.stepper}, dt = {scene.dt:g} s, {scene.nsteps} steps to day {scene.days:g}, device {device}"
     )
-    print(f"ensemble    {args.members} members in the same launches; initial states {ens.initial}")
+    print(f"ensemble    {ens.members} members in the same launches; initial states {ens.initial}")
+    if first:
+        print(f"continued   from {args.continue_from}, step {first} (day {scene.day(first):g})")
     print(f"output      {output} (every {scene.output_every_days:g} days)")
     try:
         ens.run(
             output,
+            restart_every=args.restart_every,
             overwrite=args.overwrite,
             compress=args.compress,
             history=" ".join(["swe-sphere", *(sys.argv[1:] if args.argv is None else args.argv)]),
@@ -229,11 +252,11 @@ def _ensemble(args, scene, output: Path, device) -> int:
     except BlowUp as err:
         print(f"swe-sphere: {err}; the good output times are in {output}", file=sys.stderr)
         return EXIT_BLOWUP
-    steps = ens.step_count
+    steps, loop = ens.step_count - first, ens.wall_time - before
     print("summary")
     print(
-        f"  wall time   {ens.wall_time:.2f} s for {steps} steps ({1e3 * ens.wall_time / max(steps, 1):.2f} ms/step, "
-        f"{1e3 * ens.wall_time / max(steps, 1) / args.members:.3f} ms a member), setup {setup:.2f} s"
+        f"  wall time   {loop:.2f} s for {steps} steps ({1e3 * loop / max(steps, 1):.2f} ms/step, "
+        f"{1e3 * loop / max(steps, 1) / ens.members:.3f} ms a member), setup {setup:.2f} s"
     )
     spread = ens.h_spread_rms()
     print(f"  h spread    {spread:.4g} m (area-weighted RMS of the members' standard deviation at day {scene.days:g})")

@@ -21,18 +21,22 @@ import warp as wp
 from threadpoolctl import threadpool_limits
 
 from ..config.parts import scene_stepper
-from ..config.scene import resolve_scene
+from ..config.scene import resolve_scene, with_days
 from ..core.arguments import array_argument, got, integer_argument, number_argument
 from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
 from ..core.constants import DAY
-from ..core.errors import ArgumentError, BlowUp
+from ..core.errors import ArgumentError, BlowUp, CheckpointError, Interrupted
 from ..core.graphs import GraphedSteps, default_mode, graphs_mode
+from ..core.interrupts import StopSignals
 from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology
+from ..io import restart_file
 from ..io.run_file import OUTPUT_FIELDS, RunWriter, area_rms, history_line, member_statistics
 from ..model.diagnostics import invariants
 from ..model.shallow_water import ShallowWater
-from ..simulation.schedules import output_steps
+from ..simulation import checkpoint
+from ..simulation.schedules import check_restart_interval, output_steps, restart_steps
+from ..simulation.writers import restart_path
 from ..steppers import STEPPERS
 from .members import MemberGrid
 
@@ -233,16 +237,34 @@ class Ensemble:
             raise ArgumentError(f"days must be a whole number of steps of dt = {self.dt:g} s (got {days})")
         self.step(n)
 
-    def run(self, output, *, overwrite: bool = False, compress: bool = False, history: str | None = None) -> Path:
+    def run(
+        self,
+        output,
+        *,
+        restart_every: float | None = None,
+        overwrite: bool = False,
+        compress: bool = False,
+        history: str | None = None,
+    ) -> Path:
         """Advance every member to the scene's last day, writing the run file ``output`` (netCDF)
-        at step 0 and every ``output.every_days`` (``simulation.schedules.output_steps``): each
-        field (time, member, ncol) with its ensemble mean and spread, each member's mass, total
-        energy and potential enstrophy, and the RMS spread of h (``io.run_file.RunWriter`` with
-        ``members``). A blow-up (``BlowUp``, policy stop all) or an interruption closes the file
-        with every output time before it (its global attribute ``stopped`` says why) and is
-        raised again. ``OutputError`` for a path that may not be written (``overwrite``: replace
-        an existing file); ``compress``: the fields as float32 with zlib. Returns the path."""
+        at the first step and every ``output.every_days`` (``simulation.schedules.output_steps``):
+        each field (time, member, ncol) with its ensemble mean and spread, each member's mass,
+        total energy and potential enstrophy, and the RMS spread of h (``io.run_file.RunWriter``
+        with ``members``). ``restart_every`` (days, whole steps): the restart file
+        ``<output stem>.restart.nc`` (``write_checkpoint``) at those days and the last; without
+        it, one is written when SIGINT or SIGTERM stops the run (not over an existing one unless
+        ``overwrite``). A blow-up (``BlowUp``, policy stop all) or a signal (``Interrupted``,
+        after a complete block of steps: the step reached written as an output time, and its
+        restart file) closes the run file with every good output time (its global attribute
+        ``stopped`` says why) and raises.
+        ``OutputError`` for a path that may not be written (``overwrite``: replace an existing
+        file); ``SceneError`` for a restart interval that is not whole steps; ``compress``: the
+        fields as float32 with zlib. Returns the run file's path."""
         s = self.scene
+        restart, restarts = restart_path(output), set()
+        if restart_every is not None:
+            check_restart_interval(s, restart_every)
+            restarts = restart_steps(s, restart_every)
         attrs = {
             "title": f"swe_sphere ensemble of scene {s.name}",
             "history": history_line(history or f"swe_sphere.Ensemble.run of scene {s.name}"),
@@ -256,6 +278,7 @@ class Ensemble:
             "members": self.members,
             "initial_states": self.initial,
             "blow_up_policy": "stop all",
+            **({"continued_from_day": s.day(self.step_count)} if self.step_count else {}),
         }
         writer = RunWriter(
             output,
@@ -271,15 +294,82 @@ class Ensemble:
             member_series=MEMBER_SERIES,
         )
         try:
-            for target in sorted(k for k in output_steps(s) if k >= self.step_count):
-                self.step(target - self.step_count)
+            with StopSignals(self.topology, catch=True) as signals:
                 self._write(writer)
-        except BaseException as err:  # a blow-up or an interruption: the good output times kept
+                for target in sorted(k for k in output_steps(s) | restarts if k > self.step_count):
+                    while self.step_count < target:  # a stop asked is answered between blocks
+                        self.step(min(CHECK_EVERY_STEPS, target - self.step_count))
+                        if signum := signals.asked():  # the step reached written, as a run's last
+                            self._write(writer)
+                            raise self._interrupted(signum, restart, restart_every is not None or overwrite)
+                    if target in output_steps(s):
+                        self._write(writer)
+                    if target in restarts:
+                        self.write_checkpoint(restart, overwrite=True, restart_every=restart_every)
+        except BaseException as err:  # a blow-up or a signal: the good output times kept
             writer.set_attrs(stopped=str(err) or type(err).__name__)
             writer.close()
             raise
         writer.close()
         return writer.path
+
+    def _interrupted(self, signum: int, restart: Path, write: bool) -> Interrupted:
+        """``run``'s stop at a signal: the restart file written (``write``, or where none is there)."""
+        import signal
+
+        name, day = signal.Signals(signum).name, self.scene.day(self.step_count)
+        kept = None
+        if write or not restart.exists():
+            kept = self.write_checkpoint(restart, overwrite=True)
+        line = f"interrupted by {name} at step {self.step_count} (model time {day:.4f} days); " + (
+            f"continue it from {kept}" if kept is not None else f"no restart file written ({restart} exists)"
+        )
+        err = Interrupted(line)
+        err.signum, err.result, err.checkpoint = signum, None, kept
+        return err
+
+    # -- restart files -------------------------------------------------------------
+    def write_checkpoint(self, path, *, overwrite: bool = False, restart_every: float | None = None) -> Path:
+        """Write the restart file ``path`` of the current step (``io.restart_file``: every member's
+        state and the stepper's history, the member count): ``from_checkpoint`` continues it
+        bitwise. ``OutputError`` where ``path`` exists and not ``overwrite``."""
+        return restart_file.write(
+            path,
+            self.scene,
+            self.step_count,
+            self.x.numpy(),
+            self.stepper.state(),
+            {"rhs_evals": 0, "wall_time": self.wall_time, "iterations": {}},
+            {"initial_states": self.initial},
+            grid=self.copies,
+            overwrite=overwrite,
+            restart_every=restart_every,
+            members=self.members,
+        )
+
+    @classmethod
+    def from_checkpoint(cls, path, *, days=None, device=None, per_element=None, threads=None, graphs=None):
+        """The ensemble of the restart file ``path`` (``write_checkpoint``, or ``run``'s), at its
+        step, to ``days`` (model days from t = 0; None: the file's scene's): every member's next
+        steps the bits of the uninterrupted run's. ``CheckpointError`` (one line) for a file
+        ``simulation.checkpoint.read`` refuses, a single run's restart file, or ``days`` before
+        the file's day; the other arguments as the constructor's."""
+        ck = checkpoint.read(path)
+        if ck.members is None:
+            raise CheckpointError(f"{path}: a single run's restart file (continue it with Simulation.from_checkpoint)")
+        scene = ck.scene if days is None else with_days(ck.scene, days)
+        if scene.days < ck.day:
+            raise CheckpointError(f"the run length {scene.days:g} days ends before the checkpoint (day {ck.day:g})")
+        n = ck.x.shape[1] // ck.members
+        states = ck.x.reshape(3, ck.members, n).transpose(1, 0, 2)
+        ens = cls(scene, ck.members, states, device=device, per_element=per_element, threads=threads, graphs=graphs)
+        try:
+            ens.stepper.restore(ck.stepper_state)
+        except ValueError as err:
+            raise CheckpointError(f"checkpoint does not fit the stepper: {err}") from None
+        ens.step_count, ens.wall_time = ck.step, float(ck.counters.get("wall_time", 0.0))
+        ens.initial = ck.initial.get("initial_states", ens.initial)
+        return ens
 
     def _write(self, writer: RunWriter) -> None:
         """The current step's output time (``run``)."""

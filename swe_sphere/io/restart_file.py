@@ -10,7 +10,8 @@ attributes ``stepper_<key>``), the run's counters
 (step, RHS evaluations, solver iterations, wall time), the invariants at t = 0
 (so relative changes keep their origin), the resolved scene (JSON), under step control
 the control's state (``StepControl.state()``: the next Δt, the controller's history, the
-counts and the time reached; JSON, attribute ``step_control``) and the package version.
+counts and the time reached; JSON, attribute ``step_control``), an ensemble's member count
+(attribute ``ensemble_members``: its state is every member's, side by side) and the package version.
 
 Every variable is written with netCDF's per-variable Fletcher-32 checksum, and
 the attribute ``content_sha256`` holds a SHA-256 of the state, the stepper's
@@ -97,6 +98,7 @@ def write(
     overwrite: bool = True,
     restart_every: float | None = None,
     control: dict | None = None,
+    members: int | None = None,
 ) -> Path:
     """Write a restart file to ``path`` atomically (via ``output.ExclusiveFile``).
 
@@ -108,7 +110,8 @@ def write(
     ``spheremp`` (m², the variable ``area``) go beside the state as its CF coordinates
     and cell measure (for tools; ``read`` does not need them); ``restart_every``: the
     run's restart interval (days; None: none), which a continuation keeps; ``control``: under
-    step control ``StepControl.state()`` (its ``day`` the time written). Raises
+    step control ``StepControl.state()`` (its ``day`` the time written); ``members``: an
+    ensemble's (``swe_sphere.ensemble``; x and ``grid`` its members' copies side by side). Raises
     ``output.OutputError`` when ``path`` exists and not ``overwrite`` (or is a link /
     being written)."""
     path = Path(path)
@@ -129,6 +132,8 @@ def write(
                 ds.restart_every_days = float(restart_every)
             if control is not None:
                 ds.step_control = json.dumps(control)  # floats as repr: read back to the bit
+            if members is not None:
+                ds.ensemble_members = np.int32(members)
             ds.createDimension("row", 3)
             ds.createDimension("node", x.shape[1])
             for name, values, attrs in (
@@ -165,11 +170,22 @@ def write(
     return path
 
 
+def ensemble_members(path) -> int | None:
+    """The member count of an ensemble's restart file ``path``; None for a single run's, or
+    for a file that is not a readable restart file (``read`` says why)."""
+    try:
+        with netCDF4.Dataset(path, "r") as ds:
+            return int(ds.ensemble_members) if "ensemble_members" in ds.ncattrs() else None
+    except (OSError, ValueError, TypeError):
+        return None
+
+
 def read(path) -> dict:
     """Read and check a restart file: {"scene": the scene as stored (``Scene.as_dict()``),
     "step", "x" (3, N), "stepper_state", "counters", "initial", "version", "path"
     (absolute), "sha256" (of the file's bytes), "restart_every", "control" (None without
-    step control)}. Raises ``CheckpointError`` (one line)."""
+    step control), "members" (an ensemble's; None for a single run)}. Raises ``CheckpointError``
+    (one line)."""
     path = Path(path)
     if path.is_dir():
         raise CheckpointError(f"checkpoint {path} is a directory, not a restart file")
@@ -225,6 +241,7 @@ def read(path) -> dict:
                 sha256=sha256,
                 restart_every=float(attrs["restart_every_days"]) if "restart_every_days" in attrs else None,
                 control=json.loads(attrs["step_control"]) if "step_control" in attrs else None,
+                members=int(attrs["ensemble_members"]) if "ensemble_members" in attrs else None,
             )
             digest = attrs["content_sha256"]
             planet = stored["scene"].get("planet")

@@ -42,6 +42,7 @@ class Checkpoint:
     sha256: str | None = None  # SHA-256 (hex) of the file's bytes
     restart_every: float | None = None  # days: the interval the run wrote restart files at (None: at a signal only)
     control: dict | None = None  # under step control ``StepControl.state()`` (its ``day``: the time reached)
+    members: int | None = None  # an ensemble's member count (x every member's, side by side); None: one run
 
     @property
     def day(self) -> float:

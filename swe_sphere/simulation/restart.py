@@ -21,6 +21,11 @@ def continued(cls, checkpoint, device, days, stepper, dt, progress, comm, graphs
     if not isinstance(checkpoint, ckpt.Checkpoint):
         path_argument("checkpoint", checkpoint, "a restart file's path (str or os.PathLike)", CheckpointError)
     ck = checkpoint if isinstance(checkpoint, ckpt.Checkpoint) else ckpt.read_on_root(checkpoint, comm)
+    if ck.members is not None:
+        raise ckpt.CheckpointError(
+            f"{ck.path or 'the checkpoint'} is an ensemble's restart file ({ck.members} members): continue it "
+            "with swe_sphere.Ensemble.from_checkpoint (swe-sphere run --continue does)"
+        )
     start = ON_ROOT if ck.x is None else ck.x  # ranks > 0 of ``read_on_root`` have no arrays
     if (stepper is not None and stepper != ck.scene.stepper) or (dt is not None and dt != ck.scene.dt):
         sim = cls(

@@ -1,15 +1,19 @@
-"""An ensemble's run file (``Ensemble.run``, ``swe-sphere run --members``): each member's fields
-have the bits of its single run's file, the ensemble mean and spread are those of the members, a
-blow-up keeps the good output times, and the command line refuses what does not go together with
-one line, exit 2 and no file."""
+"""An ensemble's run and restart files (``Ensemble.run``, ``swe-sphere run --members``): each
+member's fields have the bits of its single run's file, the ensemble mean and spread are those of
+the members, a blow-up keeps the good output times, a restart file (written on a schedule or at a
+signal) continues bitwise, and the command line refuses what does not go together with one line,
+exit 2 and no file."""
 
 from __future__ import annotations
+
+import os
+import signal
 
 import netCDF4
 import numpy as np
 import pytest
 
-from swe_sphere.core.errors import BlowUp
+from swe_sphere.core.errors import BlowUp, CheckpointError, Interrupted
 from swe_sphere.ensemble import Ensemble, Perturbation
 from swe_sphere.simulation.simulation import Simulation
 
@@ -64,6 +68,62 @@ def test_a_blow_up_keeps_the_good_output_times(tmp_path):
         assert np.isfinite(ds["h"][:]).all()
 
 
+@pytest.mark.parametrize("stepper", ["kgu35", "leapfrog"])  # leapfrog: a stepper history carried over
+def test_a_restart_file_continues_bitwise(tmp_path, stepper):
+    kw = {**SMALL, "stepper": stepper}
+    whole = Ensemble("galewsky", 2, Perturbation(2.0, seed=2), device="cpu", **{**kw, "days": 0.75})
+    whole.run(tmp_path / "whole.nc")
+    first = Ensemble("galewsky", 2, Perturbation(2.0, seed=2), device="cpu", **kw)
+    first.run(tmp_path / "first.nc", restart_every=0.25)
+    rest = Ensemble.from_checkpoint(tmp_path / "first.restart.nc", days=0.75)
+    assert rest.step_count == 48 and rest.initial == first.initial
+    rest.run(tmp_path / "rest.nc")
+    assert np.array_equal(rest.states(), whole.states())
+    (h_whole,), (h_rest, t_rest) = (
+        read(tmp_path / "whole.nc", "h"),
+        read(tmp_path / "rest.nc", "h", "time"),
+    )
+    assert list(t_rest) == [0.5, 0.75] and np.array_equal(h_rest, h_whole[2:])
+
+
+def test_a_signal_stops_after_a_block_with_its_restart_file(tmp_path, monkeypatch):
+    ens = Ensemble("galewsky", 2, Perturbation(1.0, seed=3), device="cpu", **{**SMALL, "days": 1.0})
+    real = Ensemble.step
+
+    def step(self, n=1):  # SIGINT once 30 steps are done: the run stops at the end of that block
+        real(self, n)
+        if self.step_count >= 30 and not hasattr(self, "signalled"):
+            self.signalled = True
+            os.kill(os.getpid(), signal.SIGINT)
+
+    monkeypatch.setattr(Ensemble, "step", step)
+    with pytest.raises(Interrupted, match=r"interrupted by SIGINT at step 48 .*continue it from") as info:
+        ens.run(tmp_path / "e.nc")
+    assert info.value.signum == signal.SIGINT and info.value.checkpoint == tmp_path / "e.restart.nc"
+    with netCDF4.Dataset(tmp_path / "e.nc") as ds:
+        assert list(ds["time"][:]) == [0.0, 0.25, 0.5] and "SIGINT" in ds.stopped
+    monkeypatch.setattr(Ensemble, "step", real)
+    rest = Ensemble.from_checkpoint(tmp_path / "e.restart.nc")
+    rest.step(96 - 48)
+    whole = Ensemble("galewsky", 2, Perturbation(1.0, seed=3), device="cpu", **{**SMALL, "days": 1.0})
+    whole.step(96)
+    assert np.array_equal(rest.states(), whole.states())
+
+
+def test_a_restart_file_is_continued_by_its_own_kind(tmp_path):
+    ens = Ensemble("galewsky", 2, device="cpu", **SMALL)
+    ens.step(4)
+    ens.write_checkpoint(tmp_path / "e.restart.nc")
+    with pytest.raises(CheckpointError, match="an ensemble's restart file \\(2 members\\)"):
+        Simulation.from_checkpoint(tmp_path / "e.restart.nc", "cpu")
+    sim = Simulation("galewsky", "cpu", progress=False, **SMALL)
+    sim.write_checkpoint(tmp_path / "s.restart.nc")
+    with pytest.raises(CheckpointError, match="a single run's restart file"):
+        Ensemble.from_checkpoint(tmp_path / "s.restart.nc")
+    with pytest.raises(CheckpointError, match="ends before the checkpoint"):
+        Ensemble.from_checkpoint(tmp_path / "e.restart.nc", days=0.03125)
+
+
 def test_the_command_line_runs_an_ensemble(capsys, tmp_path):
     out = tmp_path / "g.nc"
     code = cli_main(
@@ -76,12 +136,28 @@ def test_the_command_line_runs_an_ensemble(capsys, tmp_path):
     assert h.shape[1] == 2 and not np.array_equal(h[0, 0], h[0, 1])
 
 
+def test_the_command_line_continues_an_ensemble(capsys, tmp_path):
+    first = tmp_path / "g.nc"
+    run = ("run", "galewsky", "--ne", "2", "--dt", "900", "--days", "0.25", "--members", "2", "--perturbation", "1")
+    assert cli_main(capsys, *run, "--restart-every", "0.25", "--output", first)[0] == 0
+    restart = tmp_path / "g.restart.nc"
+    for args, says in [
+        (("--dt", "450"), "--dt: an ensemble continues with its own stepper and dt"),
+        (("--members", "3"), "--members 3: "),
+        (("--seed", "1"), "--seed: a continued ensemble's members start from its restart file"),
+    ]:
+        code, _, err = cli_main(capsys, "run", "--continue", restart, *args, "--output", tmp_path / "x.nc")
+        assert code == 2 and says in err and len(err.strip().splitlines()) == 1, err
+    code, out, _ = cli_main(capsys, "run", "--continue", restart, "--days", "0.5", "--output", tmp_path / "more.nc")
+    assert code == 0 and "continued   from" in out and "step 24 (day 0.25)" in out
+    assert list(read(tmp_path / "more.nc", "time")[0]) == [0.25, 0.5]
+
+
 @pytest.mark.parametrize(
     ("args", "says"),
     [
         (("--seed", "3"), "--seed only with --members N"),
         (("--perturbation", "1"), "--perturbation only with --members N"),
-        (("--members", "2", "--restart-every", "1"), "not with --restart-every"),
         (("--members", "0"), "members must be an integer >= 1"),
         (("--members", "2", "--perturbation", "-1"), "perturbation amplitude"),
         (("--members", "2", "--stepper", "imex"), "stepper imex is not explicit"),

@@ -31,12 +31,12 @@ from ..core.interrupts import StopSignals
 from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology
 from ..io import restart_file
-from ..io.run_file import OUTPUT_FIELDS, RunWriter, area_rms, history_line, member_statistics
+from ..io.run_file import OUTPUT_FIELDS, RunWriter, area_rms, member_statistics
 from ..model.diagnostics import invariants
 from ..model.shallow_water import ShallowWater
 from ..simulation import checkpoint
 from ..simulation.schedules import check_restart_interval, output_steps, restart_steps
-from ..simulation.writers import restart_path
+from ..simulation.writers import restart_path, scene_attrs
 from ..steppers import STEPPERS
 from .members import MemberGrid
 
@@ -266,14 +266,8 @@ class Ensemble:
             check_restart_interval(s, restart_every)
             restarts = restart_steps(s, restart_every)
         attrs = {
-            "title": f"swe_sphere ensemble of scene {s.name}",
-            "history": history_line(history or f"swe_sphere.Ensemble.run of scene {s.name}"),
-            "scene": s.as_dict(),
-            "case": s.case,
-            "ne": s.ne,
-            "np": s.np,
-            "stepper": s.stepper,
-            "dt": s.dt,
+            **scene_attrs(s, "ensemble", history, "swe_sphere.Ensemble.run"),
+            **self.stepper.attrs(),
             "device": str(self.model.topology.device),
             "members": self.members,
             "initial_states": self.initial,

@@ -38,22 +38,31 @@ def _holds(sim, marks: set, step: int) -> bool:
 CONTROL_SERIES = ("dt", "rejected_steps", "error_estimate", "spatial_rate")
 
 
+def scene_attrs(scene, kind: str, history: str | None, caller: str) -> dict:
+    """The global attributes every run file of ``scene`` opens with: its title (a ``kind`` of
+    scene, "run" or "ensemble"), ``history`` (the command line; None: ``caller`` of scene …),
+    the package, the scene (JSON) and its case, grid, stepper and Δt."""
+    return {
+        "title": f"swe_sphere {kind} of scene {scene.name}",
+        "history": history_line(history or f"{caller} of scene {scene.name}"),
+        "source": f"swe_sphere {package_version()}",
+        "swe_sphere_version": package_version(),
+        "scene": scene.as_dict(),
+        "case": scene.case,
+        "ne": scene.ne,
+        "np": scene.np,
+        "stepper": scene.stepper,
+        "dt": scene.dt,
+    }
+
+
 def run_attrs(sim, history: str | None, courant: dict) -> dict:
     """The global attributes of ``sim``'s run files: what ran, where, from which
     start and command line (``history``), and its Courant numbers at the start."""
     s = sim.scene
     return {
-        "title": f"swe_sphere run of scene {s.name}",
-        "history": history_line(history or f"swe_sphere.Simulation.run of scene {s.name}"),
-        "source": f"swe_sphere {package_version()}",
-        "swe_sphere_version": package_version(),
-        "scene": s.as_dict(),
-        "case": s.case,
-        "ne": s.ne,
-        "np": s.np,
-        "stepper": s.stepper,
+        **scene_attrs(s, "run", history, "swe_sphere.Simulation.run"),
         **sim.stepper.attrs(),  # e.g. which Butcher table ran
-        "dt": s.dt,
         "device": sim.device,
         "mpi_ranks": sim.topology.comm.size,
         "initialization": "none" if s.initialization is None else s.initialization["method"],

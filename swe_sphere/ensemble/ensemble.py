@@ -20,6 +20,7 @@ import numpy as np
 import warp as wp
 from threadpoolctl import threadpool_limits
 
+from ..cases.scoring import Scorer
 from ..config.parts import scene_stepper
 from ..config.scene import resolve_scene, with_days
 from ..core.arguments import array_argument, got, integer_argument, number_argument
@@ -40,7 +41,7 @@ from ..simulation.writers import restart_path, scene_attrs
 from ..steppers import STEPPERS
 from .members import MemberGrid
 
-MEMBER_SERIES = ("mass", "total_energy", "potential_enstrophy")  # each member's, at every output time
+MEMBER_SERIES = ("mass", "total_energy", "potential_enstrophy")  # each member's, at every output time (and errors)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -167,9 +168,10 @@ class Ensemble:
             threads = backend.threads() if threads is None else threads
             self.topology = Topology(self.copies, backend, threads, parts=[self.copies.elements])
             self.model = ShallowWater.from_scene(scene, self.copies, case, **options, topology=self.topology)
+            self._one = None  # one member's model: its ∇⁴'s λ, and the scorer's operators (``_errors``)
             if self.model.hv is not None and self.model.hv.nu_max > 0 and members > 1:
-                one = ShallowWater.from_scene(scene, grid, case, **options)  # λ of one member's operator
-                self.model.hv.use_biharmonic_radius(one.hv.biharmonic_radius())
+                self._one = ShallowWater.from_scene(scene, grid, case, **options)  # λ of one member's operator
+                self.model.hv.use_biharmonic_radius(self._one.hv.biharmonic_radius())
             self.stepper = scene_stepper(scene, self.model)
         self.x = self.model.new_state(*np.concatenate(list(starts), axis=1))
         self.stepper.prepare(self.x)
@@ -177,6 +179,7 @@ class Ensemble:
         self.wall_time = 0.0  # s, of ``step``
         self._start = wp.clone(self.x)  # a block's first state, to re-run it step by step after a blow-up
         self._graphed = GraphedSteps(backend, self.model.launches.guard, graphs)
+        self._options, self._scorer = options, None
 
     def _initial_states(self, initial) -> np.ndarray:
         """(N, 3, n) float64 from ``initial`` (see the class), checked."""
@@ -249,8 +252,8 @@ class Ensemble:
         """Advance every member to the scene's last day, writing the run file ``output`` (netCDF)
         at the first step and every ``output.every_days`` (``simulation.schedules.output_steps``):
         each field (time, member, ncol) with its ensemble mean and spread, each member's mass,
-        total energy and potential enstrophy, and the RMS spread of h (``io.run_file.RunWriter``
-        with ``members``). ``restart_every`` (days, whole steps): the restart file
+        total energy, potential enstrophy and errors against the case's truth (``errors``), and
+        the RMS spread of h (``io.run_file.RunWriter`` with ``members``). ``restart_every`` (days, whole steps): the restart file
         ``<output stem>.restart.nc`` (``write_checkpoint``) at those days and the last; without
         it, one is written when SIGINT or SIGTERM stops the run (not over an existing one unless
         ``overwrite``). A blow-up (``BlowUp``, policy stop all) or a signal (``Interrupted``,
@@ -285,7 +288,7 @@ class Ensemble:
             fields=s.output_fields or OUTPUT_FIELDS,
             cells=s.output_cells,
             members=self.members,
-            member_series=MEMBER_SERIES,
+            member_series=(*MEMBER_SERIES, *self.errors()[0]),  # the errors the case has
         )
         try:
             with StopSignals(self.topology, catch=True) as signals:
@@ -365,14 +368,27 @@ class Ensemble:
         ens.initial = ck.initial.get("initial_states", ens.initial)
         return ens
 
+    def errors(self) -> list[dict[str, float]]:
+        """Each member's errors now against the case's truth, as a single run's file has them
+        (``cases.scoring.Scorer.errors``: Williamson et al. 1992's normalized l1, l2, l∞ of h and
+        the wind against an exact solution, or against the scene's spectral reference where
+        it stores this day); {} a member for a case with neither."""
+        if self._scorer is None:  # one member's model for the wind errors' vorticity and divergence
+            with threadpool_limits(limits=1, user_api="blas"):
+                one = self._one or ShallowWater.from_scene(self.scene, self.grid, self.case, **self._options)
+            hs = self.copies.member(self.model.operators.hs.numpy(), 0)
+            self._scorer = Scorer(self.case, one, one.topology, self.grid, hs, self.scene.reference_file)
+        t, x = self.scene.day(self.step_count) * DAY, self.states()
+        return [self._scorer.errors(t, xk, *xk) for xk in x]
+
     def _write(self, writer: RunWriter) -> None:
         """The current step's output time (``run``)."""
         x, zeta = self.x.numpy(), self.model.operators.vorticity(self.x)
         div = self.model.operators.wind_divergence(self.x) if "divergence" in writer.fields else None
         each = lambda a: np.stack([self.copies.member(a, k) for k in range(self.members)])  # noqa: E731
         series = {"steps": self.step_count, "wall_time": self.wall_time}
-        invariants = self._invariants(x, zeta)
-        series.update({key: np.array([d[key] for d in invariants]) for key in MEMBER_SERIES})
+        per_member = [{**d, **e} for d, e in zip(self._invariants(x, zeta), self.errors())]
+        series.update({key: np.array([d[key] for d in per_member]) for key in writer.member_series})
         u, v, h = (each(x[r]) for r in range(3))
         writer.append(self.scene.day(self.step_count), u, v, h, series, each(zeta), None if div is None else each(div))
 

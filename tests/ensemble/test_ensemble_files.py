@@ -41,6 +41,20 @@ def test_each_member_in_the_file_is_its_single_run_s(tmp_path):
         assert np.array_equal(mass[:, k], mass1), k
 
 
+def test_each_member_s_errors_are_its_single_run_s(tmp_path):
+    """TC2's exact solution: Williamson's norms of every member, as its single run's file has them."""
+    kw = {**SMALL, "dt": 1800.0}
+    starts = Ensemble("tc2_steady", 2, Perturbation(1.0, seed=2), device="cpu", **kw).states()
+    Ensemble("tc2_steady", 2, starts, device="cpu", **kw).run(tmp_path / "ens.nc")
+    names = ("l1_h", "l2_h", "linf_h", "l2_wind", "l2_vorticity", "l2_divergence")
+    errors = read(tmp_path / "ens.nc", *names)
+    assert errors[1][0, 0] > 1e-4  # 1 m of noise against the exact h
+    for k in range(2):
+        Simulation("tc2_steady", "cpu", progress=False, start=starts[k], **kw).run(tmp_path / f"{k}.nc")
+        for name, ours, theirs in zip(names, errors, read(tmp_path / f"{k}.nc", *names)):
+            assert np.array_equal(ours[:, k], theirs), (name, k)
+
+
 def test_the_mean_and_spread_are_the_members(tmp_path):
     ens = Ensemble("galewsky", 4, Perturbation(3.0, seed=1), device="cpu", **SMALL)
     ens.run(tmp_path / "ens.nc")

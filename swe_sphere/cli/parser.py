@@ -191,6 +191,11 @@ def _plot(sub, parents) -> None:
     )
     pl.add_argument("--force", action="store_true", help="--diff against a run of another case or grid")
     pl.add_argument(
+        "--member",
+        metavar="K|mean|spread",
+        help="an ensemble's run file (run --members): plot member K (0 to N-1), the ensemble mean or its spread",
+    )
+    pl.add_argument(
         "--spectrum",
         action="store_true",
         help="instead of maps: the kinetic-energy spectrum by spherical-harmonic degree (rotational, divergent, total; PNG and CSV)",

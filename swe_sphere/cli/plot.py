@@ -40,6 +40,7 @@ def command(args) -> int:
             zonal_fields=fields if args.zonal_mean else (),
             lat_range=args.lat_range,
             overwrite=args.overwrite,
+            member=args.member,
         )
     else:
         paths = plot_run(
@@ -51,6 +52,7 @@ def command(args) -> int:
             args.lat_range,
             force=args.force,
             overwrite=args.overwrite,
+            member=args.member,
         )
     for path in paths:
         print(path)

@@ -39,7 +39,8 @@ from ..mesh.records import MeshFile, MeshRecord, from_json, mesh_of
 from .output_files import atomic_path, check_distinct
 from .run_file import element_mesh, history_line
 
-#: node fields (time, ncol) or (ncol,) that ``remap_dataset`` carries to the lat-lon grid
+#: node fields (time, ncol) or (ncol,) that ``remap_dataset`` carries to the lat-lon grid (an ensemble's
+#: (time, member, ncol) too, with their ``_mean`` and ``_spread``)
 NODE_FIELDS = ("h", "hs", "u", "v", "vorticity", "divergence")
 
 
@@ -151,6 +152,43 @@ def open_netcdf(path) -> xr.Dataset:
         raise SceneError(f"{path}: not a readable netCDF file") from None
 
 
+MEMBER_VIEWS = ("mean", "spread")  # an ensemble's run file read as one run, besides a member k
+
+
+def member_label(member) -> str:
+    """What a plot of ``member`` adds to its files' names: ``member<K>``, ``mean`` or ``spread``."""
+    return member if member in MEMBER_VIEWS else f"member{member}"
+
+
+def member_view(ds: xr.Dataset, path, member, members: int) -> xr.Dataset:
+    """An ensemble's run file ``ds`` (``path``, ``members`` members) read as one run (the plots'
+    ``studies.plotting.open_run``): ``member`` k, "mean" (each field's ensemble mean, the series'
+    mean over the members) or "spread" (each field's spread, hs zero so that h + hs is h's; the
+    series' standard deviation). ``ValueError`` (one line; ``ds`` closed) for another member."""
+    if member not in MEMBER_VIEWS:
+        try:
+            k = int(member)
+        except (TypeError, ValueError):
+            k = -1
+        if not 0 <= k < members or str(member).strip() not in (str(k), f"+{k}"):
+            ds.close()
+            raise ValueError(f"{path}: --member must be 0 to {members - 1}, mean or spread (got {member!r})")
+        view = ds.isel(member=k, drop=True)
+        view.attrs["_member"] = member_label(k)
+        return view
+    out = ds.copy()
+    out.attrs["_member"] = member
+    for name, var in ds.data_vars.items():
+        if "member" in var.dims:
+            stat = f"{name}_{member}"
+            out[name] = (
+                ds[stat] if stat in ds else var.mean("member") if member == "mean" else var.std("member", ddof=1)
+            )
+    if member == "spread":
+        out["hs"] = out["hs"] * 0.0
+    return out.drop_vars("member")
+
+
 def run_grid(ds: xr.Dataset) -> CubedSphere:
     """The grid of a run file (from its ``scene`` attribute, else ``ne``/``np``; on the
     mesh the scene records, ``mesh.records``), checked against the file's ``lat``/``lon``.
@@ -240,8 +278,9 @@ def check_remap_memory(ds: xr.Dataset, resolution: float) -> tuple[int, int]:
         np_ = int(json.loads(ds.attrs["scene"])["np"])
     except (KeyError, ValueError, TypeError):
         np_ = int(ds.attrs["np"]) if str(ds.attrs.get("np", "")).isdigit() else 8
+    fields = ds.sizes.get("time", 1) * (ds.sizes["member"] + 2 if "member" in ds.sizes else 1)  # and mean, spread
     check_memory(
-        remap_bytes(nlat * nlon, np_, ds.sizes.get("time", 1)),
+        remap_bytes(nlat * nlon, np_, fields),
         f"remapping to {resolution:g} degrees ({nlat} x {nlon} points)",
     )
     return nlat, nlon
@@ -336,8 +375,10 @@ def _latlon_frame(ds: xr.Dataset, lat: np.ndarray, lon: np.ndarray) -> xr.Datase
 def _add_fields(out: xr.Dataset, ds: xr.Dataset, rm: Remapper) -> None:
     """The run's node fields interpolated by ``rm`` onto ``out``'s grid, h + hs as ``h_surface``,
     and its diagnostics time series copied."""
-    keep = ("units", "long_name", "standard_name")
-    for name in NODE_FIELDS:
+    keep = ("units", "long_name", "standard_name", "cell_methods")
+    if "member" in ds.variables:  # an ensemble's: its members, and each field's mean and spread
+        out.coords["member"] = ds["member"]
+    for name in (*NODE_FIELDS, *(f"{n}_{view}" for n in NODE_FIELDS for view in MEMBER_VIEWS)):
         if name not in ds.variables:
             continue
         var = ds[name]
@@ -353,7 +394,7 @@ def _add_fields(out: xr.Dataset, ds: xr.Dataset, rm: Remapper) -> None:
             units="m", long_name="free-surface height h + hs", standard_name="height_above_mean_sea_level", **_MEASURE
         )
     for name, var in ds.data_vars.items():
-        if var.dims == ("time",):
+        if var.dims in (("time",), ("time", "member")):
             out[name] = var.copy()
 
 

@@ -24,7 +24,7 @@ from ..cases.reference import Reference, cases_of, locate
 from ..core.constants import EARTH, PLANET_KEYS, Planet
 from ..io.initial_state import SCENE_CASES
 from ..io.output_files import atomic_path, check_distinct, check_target
-from ..io.remap import Remapper, open_netcdf, run_grid
+from ..io.remap import Remapper, member_label, member_view, open_netcdf, run_grid
 from .analysis import (
     DAY_TOL,
     DERIVED,
@@ -49,14 +49,29 @@ SERIES_FIGSIZE = (12.0, 5.0)  # 1200 × 500 pixels
 
 
 # -- reading -----------------------------------------------------------------
-def open_run(path) -> xr.Dataset:
-    """A swe_sphere run file, times as model days (``decode_times=False``).
-    Raises ``SceneError`` (a ValueError) / ``ValueError`` (one line) for a missing or unreadable file."""
+def open_run(path, member=None) -> xr.Dataset:
+    """A swe_sphere run file, times as model days (``decode_times=False``). An ensemble's (a
+    ``member`` dimension, ``swe-sphere run --members``) is read as one run: ``member`` k (its
+    fields and series), "mean" (each field's ensemble mean, the series' mean over the members)
+    or "spread" (each field's spread, hs zero so that h + hs is h's; the series' standard
+    deviation). Raises ``SceneError`` (a ValueError) / ``ValueError`` (one line) for a missing
+    or unreadable file, an ensemble's file without ``member`` or another member, or a
+    ``member`` for a single run's file."""
     path = Path(path)
     ds = open_netcdf(path)
     if "ncol" not in ds.dims:
         ds.close()
         raise ValueError(f"{path}: not a swe_sphere run file (no ncol dimension)")
+    members = ds.sizes.get("member")
+    if (members is None) != (member is None):
+        ds.close()
+        if members is None:
+            raise ValueError(f"{path}: a single run's file (--member is for an ensemble's)")
+        raise ValueError(
+            f"{path}: an ensemble's run file ({members} members): name --member K (0 to {members - 1}), mean or spread"
+        )
+    if member is not None:
+        ds = member_view(ds, path, member, members)
     ds.attrs.setdefault("_path", str(path))
     return ds
 
@@ -250,11 +265,12 @@ def plot_map(ds, field: str, day: float, path=None, diff=None, lat_range=None) -
 
 
 def _scene_label(ds) -> str:
+    view = f", ensemble {ds.attrs['_member']}" if "_member" in ds.attrs else ""  # ``open_run``'s member
     try:
         s = json.loads(ds.attrs["scene"])
-        return f"{s['name']} ne{s['ne']} np{s['np']}"
+        return f"{s['name']} ne{s['ne']} np{s['np']}{view}"
     except (KeyError, ValueError, TypeError):
-        return run_name(ds)
+        return run_name(ds) + view
 
 
 def plot_series(ds, path=None):
@@ -393,9 +409,11 @@ def plot_run(
     *,
     force=False,
     overwrite=False,
+    member=None,
 ) -> list[Path]:
     """``swe-sphere plot``: maps of ``fields`` at ``days`` (default: the last output
-    time) and the time-series figure, PNGs in ``outdir`` (created if missing).
+    time) and the time-series figure, PNGs in ``outdir`` (created if missing); of an
+    ensemble's file, of ``member`` (``open_run``; the files' names end in ``io.remap.member_label``).
 
     Every input is checked before anything is written; raises ``SceneError`` (a ValueError) or
     ``ValueError`` (one line) for a missing file, an unknown field or a missing day,
@@ -405,7 +423,8 @@ def plot_run(
     picture is left as it is (so ``plot --diff`` or other fields after a plain
     ``plot`` go ahead); one with another picture is refused like a map."""
     outdir = _check_outdir(outdir, lat_range)
-    ds = open_run(run_path)
+    ds = open_run(run_path, member)
+    named = _named(run_path, member)
     diff = None
     try:
         days = _days_to_plot(ds, days)
@@ -420,11 +439,11 @@ def plot_run(
                 if diff is not None:
                     diff.check(field, day)
         maps = [
-            (field, day, outdir / map_name(run_path, field, day, diff is not None, lat_range))
+            (field, day, outdir / map_name(named, field, day, diff is not None, lat_range))
             for field in fields
             for day in days
         ]
-        series = outdir / f"{Path(run_path).stem}_series.png"
+        series = outdir / f"{named.stem}_series.png"
         series_fig = plot_series(ds)
         same = series.is_file() and not series.is_symlink() and series.read_bytes() == png_bytes(series_fig)
         pngs = [path for *_, path in maps] + [series]
@@ -506,8 +525,15 @@ def analysis_names(run_path, days, fields=(), spectrum=False, lat_range=None) ->
     return names + [Path(f"{stem}_{field}_zonal_mean_{when}{band}.png") for field in fields]
 
 
+def _named(run_path, member) -> Path:
+    """The path a plot's files are named after: the run file's, its stem followed by
+    ``io.remap.member_label`` for an ensemble's member, mean or spread."""
+    path = Path(run_path)
+    return path if member is None else path.with_name(f"{path.stem}_{member_label(member)}{path.suffix}")
+
+
 def plot_analyses(
-    run_path, days=None, outdir=".", *, spectrum=False, zonal_fields=(), lat_range=None, overwrite=False
+    run_path, days=None, outdir=".", *, spectrum=False, zonal_fields=(), lat_range=None, overwrite=False, member=None
 ) -> list[Path]:
     """``swe-sphere plot --spectrum`` and ``--zonal-mean``: the kinetic-energy
     spectrum (``analysis.kinetic_energy_spectrum``: a PNG, ``plot_spectrum``, and
@@ -518,14 +544,16 @@ def plot_analyses(
     Every input is checked before anything is written: ``SceneError`` (a ValueError) or
     ``ValueError`` (one line) for a missing file, a day not stored, a field the
     file lacks (vorticity and divergence for the spectrum); ``output.OutputError``
-    for an output that exists (unless ``overwrite``) or would replace the run."""
+    for an output that exists (unless ``overwrite``) or would replace the run. ``member``: an
+    ensemble's (``open_run``)."""
     outdir = _check_outdir(outdir, lat_range)
-    with open_run(run_path) as ds:
+    with open_run(run_path, member) as ds:
         days = _days_to_plot(ds, days)
         for day in days:
             for field in [*zonal_fields, *(("vorticity", "divergence") if spectrum else ())]:
                 field_at_nodes(ds, field, day)
-        paths = [outdir / name for name in analysis_names(run_path, days, zonal_fields, spectrum, lat_range)]
+        named = _named(run_path, member)
+        paths = [outdir / name for name in analysis_names(named, days, zonal_fields, spectrum, lat_range)]
         check_distinct(paths, [run_path])
         for path in paths if outdir.is_dir() else ():  # a folder still to be made holds none
             check_target(path, overwrite)

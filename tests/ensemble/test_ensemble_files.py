@@ -182,3 +182,32 @@ def test_bad_options_are_one_line_and_exit_2(capsys, tmp_path, args, says):
     code, _, err = cli_main(capsys, "run", "galewsky", "--ne", "2", "--output", str(out), *args)
     assert code == 2 and says in err and len(err.strip().splitlines()) == 1, err
     assert not list(tmp_path.iterdir())
+
+
+def test_plot_and_remap_read_a_member_the_mean_or_the_spread(capsys, tmp_path):
+    from swe_sphere.studies.analysis import field_at_nodes
+    from swe_sphere.studies.plotting import open_run
+
+    run = tmp_path / "e.nc"
+    Ensemble("galewsky", 2, Perturbation(1.0, seed=1), device="cpu", **SMALL).run(run)
+    code, _, err = cli_main(capsys, "plot", run, "--output", tmp_path / "p")
+    assert code == 2 and "an ensemble's run file (2 members): name --member K (0 to 1), mean or spread" in err
+    assert not (tmp_path / "p").exists()
+    for member, label in (("1", "member1"), ("mean", "mean"), ("spread", "spread")):
+        code, out, _ = cli_main(capsys, "plot", run, "--member", member, "--output", tmp_path / "p")
+        assert code == 0 and f"e_{label}_h_surface_day0.5.png" in out and f"e_{label}_series.png" in out
+    code, _, err = cli_main(capsys, "plot", run, "--member", "2", "--output", tmp_path / "q")
+    assert code == 2 and "--member must be 0 to 1, mean or spread (got '2')" in err
+    h, spread, hs = read(run, "h", "h_spread", "hs")
+    with open_run(run, "1") as ds:
+        assert np.array_equal(field_at_nodes(ds, "h_surface", 0.5), h[-1, 1] + hs)
+    with open_run(run, "spread") as ds:  # h + hs's spread is h's
+        assert np.array_equal(field_at_nodes(ds, "h_surface", 0.5), spread[-1])
+    assert cli_main(capsys, "remap", run, "--resolution", "10", "--output", tmp_path / "l.nc")[0] == 0
+    with netCDF4.Dataset(tmp_path / "l.nc") as ds:
+        assert ds["h"].dimensions == ("time", "member", "lat", "lon") and ds["h_spread"].dimensions == (
+            "time",
+            "lat",
+            "lon",
+        )
+        assert ds["mass"].dimensions == ("time", "member") and ds["member"].standard_name == "realization"

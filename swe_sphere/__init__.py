@@ -29,8 +29,8 @@ returns their figures), ``kinetic_energy_spectrum`` and ``zonal_mean`` (a run's
 kinetic-energy spectrum by degree and zonal means, ``swe_sphere.studies.analysis``),
 ``gradient``, ``HeightMisfit``, ``PointHeights`` and ``HeightObservations`` (a run's
 gradient, of its final state or against observations at several steps, ``swe_sphere.adjoint``),
-``Ensemble`` and ``Perturbation`` (N members of one scene in the same launches, member k the
-bits of its single run, ``swe_sphere.ensemble``).
+``Ensemble``, ``Perturbation`` and ``MemberFile`` (N members of one scene in the same launches,
+member k the bits of its single run, ``swe_sphere.ensemble``).
 Importing them initialises Warp quietly (``swe_sphere.core.runtime.init_warp``).
 """
 
@@ -51,6 +51,7 @@ _LAZY = {
     "HeightObservations": "adjoint.observations",  # a cost of the run: observed h at several steps
     "Ensemble": "ensemble.ensemble",  # N members of one scene in the same launches
     "Perturbation": "ensemble.ensemble",  # an ensemble's seeded noise in h
+    "MemberFile": "ensemble.ensemble",  # an ensemble's initial states from an ensemble's run file
     # the errors (core.errors): every one is a SweSphereError
     **dict.fromkeys(
         [

@@ -160,6 +160,12 @@ def _run(sub, parents) -> None:
     )
     r.add_argument("--seed", type=int, help="with --members: the perturbation's random seed (default 0)")
     r.add_argument(
+        "--initial",
+        type=path,
+        metavar="ENSEMBLE.nc",
+        help="with --members: member k starts from member k of an ensemble's run file at its last time",
+    )
+    r.add_argument(
         "--graphs",
         help="steps as captured graphs: auto (on CUDA; the default, or env SWE_SPHERE_GRAPHS), on "
         "(also on a CPU), off (plain launches); a graph that fails or differs from plain launches "

@@ -173,7 +173,8 @@ def command(args) -> int:
             check_restart_interval(scene, args.restart_every)
     initial = scene.case_params.get("path") if scene is not None else None  # a file case's initial state: an input too
     check_distinct(
-        [output, restart_path(output)], [args.continue_from, args.scene and resolve_path(str(args.scene)), initial]
+        [output, restart_path(output)],
+        [args.continue_from, args.scene and resolve_path(str(args.scene)), initial, args.initial],
     )
     if not args.overwrite:
         _refuse_a_blown_up_run(output)
@@ -194,16 +195,18 @@ def command(args) -> int:
 
 def _check_ensemble_options(args, members: int | None) -> None:
     """``SceneError`` for the ensemble's options where they do not go together (before anything
-    is built): --perturbation or --seed without an ensemble (``members``: --members, or the
-    member count of the restart file continued), and with a continuation (its members start
-    from the file), --stepper or --dt with an ensemble's continuation (no branches yet)."""
-    given = [
-        flag for flag, value in (("--perturbation", args.perturbation), ("--seed", args.seed)) if value is not None
-    ]
+    is built): --perturbation, --seed or --initial without an ensemble (``members``: --members,
+    or the member count of the restart file continued), --initial with a perturbation, those with
+    a continuation (its members start from the file), --stepper or --dt with an ensemble's
+    continuation (no branches yet)."""
+    starts = (("--perturbation", args.perturbation), ("--seed", args.seed), ("--initial", args.initial))
+    given = [flag for flag, value in starts if value is not None]
     if members is None:
         if given:
             raise SceneError(f"{' and '.join(given)} only with --members N")
         return
+    if args.initial is not None and len(given) > 1:
+        raise SceneError(f"{' and '.join(given)}: the members start from --initial's file or from a perturbation")
     if args.continue_from is not None:
         if given:
             raise SceneError(f"{' and '.join(given)}: a continued ensemble's members start from its restart file")
@@ -220,17 +223,17 @@ def _ensemble(args, scene, output: Path, device) -> int:
     restart files); a blow-up stops every member and keeps the file's good times."""
     import time
 
-    from ..ensemble import Ensemble, Perturbation
+    from ..ensemble import Ensemble, MemberFile, Perturbation
 
     t0 = time.perf_counter()
     if args.continue_from is not None:
         ens = Ensemble.from_checkpoint(args.continue_from, days=args.days, device=device, graphs=args.graphs)
         scene = ens.scene
     else:
-        perturbation = None
+        initial = None if args.initial is None else MemberFile(args.initial)
         if args.perturbation or args.seed is not None:
-            perturbation = Perturbation(0.0 if args.perturbation is None else args.perturbation, args.seed or 0)
-        ens = Ensemble(scene, args.members, perturbation, device=device, graphs=args.graphs)
+            initial = Perturbation(0.0 if args.perturbation is None else args.perturbation, args.seed or 0)
+        ens = Ensemble(scene, args.members, initial, device=device, graphs=args.graphs)
     setup, first, before = time.perf_counter() - t0, ens.step_count, ens.wall_time
     print(f"scene       {scene.name}: {scene.description}")
     print(f"grid        {scene.grid_text}: {scene.nelem} elements, {ens.grid.nunique} unique nodes")

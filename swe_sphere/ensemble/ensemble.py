@@ -67,6 +67,51 @@ class Perturbation:
         return out
 
 
+@dataclasses.dataclass(frozen=True)
+class MemberFile:
+    """Members that start from an ensemble's run file (``Ensemble.run``, ``swe-sphere run
+    --members``): member k from the file's member k, its u, v, h at model day ``day`` (None:
+    the file's last time) on the grid's unique nodes, as they were written (a run file that
+    was not compressed gives the states' bits). ``path`` a str or os.PathLike."""
+
+    path: object
+    day: float | None = None
+
+    def apply(self, grid: CubedSphere, members: int) -> np.ndarray:
+        """(members, 3, n) on ``grid``'s element-local nodes. ``ArgumentError`` naming
+        ``initial`` for a file that cannot be read, is not an ensemble's run file, holds
+        another member count or grid, or not ``day``."""
+        import netCDF4
+
+        where = f"initial: {self.path}"
+        try:
+            ds = netCDF4.Dataset(self.path)
+        except (OSError, TypeError) as err:
+            raise ArgumentError(f"{where}: not a readable netCDF file ({err})") from None
+        with ds:
+            if (
+                "member" not in ds.dimensions
+                or "h" not in ds.variables
+                or ds["h"].dimensions != ("time", "member", "ncol")
+            ):
+                raise ArgumentError(f"{where}: not an ensemble's run file (no h on time, member, ncol)")
+            held, ncol = ds.dimensions["member"].size, ds.dimensions["ncol"].size
+            if held != members:
+                raise ArgumentError(f"{where}: the file holds {held} members, the ensemble {members}")
+            if ncol != grid.nunique:
+                raise ArgumentError(f"{where}: the file's grid has {ncol} unique nodes, the scene's {grid.nunique}")
+            days = np.asarray(ds["time"][:], dtype=np.float64)
+            t = days.size - 1 if self.day is None else np.flatnonzero(np.isclose(days, self.day, rtol=0, atol=1e-9))
+            if np.size(t) == 0 or days.size == 0:
+                raise ArgumentError(
+                    f"{where}: no output at day {self.day} (it holds {', '.join(f'{d:g}' for d in days)})"
+                )
+            t = int(np.atleast_1d(t)[0])
+            return np.stack(
+                [np.asarray(ds[name][t], dtype=np.float64)[:, grid.gid] for name in ("u", "v", "h")], axis=1
+            )
+
+
 def _checked_scene(scene) -> None:
     """``ArgumentError`` naming ``scene`` where the ensemble cannot give each member the single
     run's bits yet: a stepper that is not explicit (its solves and mean depths reduce over
@@ -99,10 +144,10 @@ class Ensemble:
         tensor ∇⁴ (``hyperviscosity.scaling``).
     members : int ≥ 1
         N, the number of members.
-    initial : None, array (N, 3, n) or Perturbation
+    initial : None, array (N, 3, n), Perturbation or MemberFile
         The members' initial states: None, the case's for every member; an array of rows
         u, v (m s⁻¹) and h (m) on the grid's n element-local nodes (``CubedSphere``'s order,
-        continuous); a ``Perturbation`` of the case's.
+        continuous); a ``Perturbation`` of the case's; a ``MemberFile``, an ensemble's run file.
     device : {"cpu", "cuda"}, optional
         As ``Simulation``'s (``backend.pick_device``).
     per_element, threads : bool or None, int or None
@@ -158,6 +203,8 @@ class Ensemble:
             if initial is None
             else f"perturbed: h + {initial.amplitude:g} m white noise, seed {initial.seed}"
             if isinstance(initial, Perturbation)
+            else f"from {initial.path}" + ("" if initial.day is None else f" at day {initial.day:g}")
+            if isinstance(initial, MemberFile)
             else "given"
         )
         backend = Backend.of(pick_device(device))
@@ -191,12 +238,17 @@ class Ensemble:
                 if initial is None
                 else initial.apply(grid, state, self.members)
             )
+        elif isinstance(initial, MemberFile):
+            states = initial.apply(grid, self.members)
         elif isinstance(initial, np.ndarray | list | tuple):
             states = array_argument("initial", initial, (self.members, 3, n), "m s⁻¹ and m")
         else:
             raise ArgumentError(
-                f"initial must be None, an array (members, 3, nnodes) or a Perturbation (got {got(initial)})"
+                "initial must be None, an array (members, 3, nnodes), a Perturbation or a MemberFile "
+                f"(got {got(initial)})"
             )
+        if not np.isfinite(states).all():
+            raise ArgumentError("initial: a member's state is not finite")
         if self.case.h_is_depth:
             low = states[:, 2].min(axis=1)
             if np.any(low <= 0):

@@ -211,3 +211,36 @@ def test_plot_and_remap_read_a_member_the_mean_or_the_spread(capsys, tmp_path):
             "lon",
         )
         assert ds["mass"].dimensions == ("time", "member") and ds["member"].standard_name == "realization"
+
+
+def test_members_start_from_an_ensemble_s_run_file(capsys, tmp_path):
+    """``MemberFile``: member k from the file's member k at its last time, the bits of the run that wrote it."""
+    from swe_sphere.core.errors import ArgumentError
+    from swe_sphere.ensemble import MemberFile
+
+    first = Ensemble("galewsky", 2, Perturbation(1.0, seed=6), device="cpu", **SMALL)
+    first.run(tmp_path / "e.nc")
+    again = Ensemble("galewsky", 2, MemberFile(tmp_path / "e.nc"), device="cpu", **SMALL)
+    assert np.array_equal(again.states(), first.states()) and again.initial == f"from {tmp_path / 'e.nc'}"
+    at = Ensemble("galewsky", 2, MemberFile(tmp_path / "e.nc", day=0.25), device="cpu", **SMALL)
+    assert not np.array_equal(at.states(), first.states())
+    Simulation("galewsky", "cpu", progress=False, **SMALL).run(tmp_path / "one.nc")
+    for members, initial, says in [
+        (3, MemberFile(tmp_path / "e.nc"), "holds 2 members, the ensemble 3"),
+        (2, MemberFile(tmp_path / "one.nc"), "not an ensemble's run file"),
+        (2, MemberFile(tmp_path / "none.nc"), "not a readable netCDF file"),
+        (2, MemberFile(tmp_path / "e.nc", day=0.3), "no output at day 0.3"),
+    ]:
+        with pytest.raises(ArgumentError, match=says):
+            Ensemble("galewsky", members, initial, device="cpu", **SMALL)
+    run = ("run", "galewsky", "--ne", "2", "--np", "4", "--dt", "900", "--days", "0.25")
+    code, _, err = cli_main(
+        capsys, *run, "--members", "3", "--initial", tmp_path / "e.nc", "--output", tmp_path / "x.nc"
+    )
+    assert code == 2 and "the file holds 2 members, the ensemble 3" in err and not (tmp_path / "x.nc").exists()
+    code, _, err = cli_main(capsys, *run, "--members", "2", "--initial", tmp_path / "e.nc", "--seed", "1")
+    assert code == 2 and "--seed and --initial: the members start from --initial's file or from a perturbation" in err
+    code, out, _ = cli_main(
+        capsys, *run, "--members", "2", "--initial", tmp_path / "e.nc", "--output", tmp_path / "y.nc"
+    )
+    assert code == 0 and f"initial states from {tmp_path / 'e.nc'}" in out

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import signal
 import time
 from pathlib import Path
 
@@ -215,7 +216,7 @@ class Ensemble:
             threads = backend.threads() if threads is None else threads
             self.topology = Topology(self.copies, backend, threads, parts=[self.copies.elements])
             self.model = ShallowWater.from_scene(scene, self.copies, case, **options, topology=self.topology)
-            self._one = None  # one member's model: its ∇⁴'s λ, and the scorer's operators (``_errors``)
+            self._one = None  # one member's model: its ∇⁴'s λ, and the scorer's operators (``errors``)
             if self.model.hv is not None and self.model.hv.nu_max > 0 and members > 1:
                 self._one = ShallowWater.from_scene(scene, grid, case, **options)  # λ of one member's operator
                 self.model.hv.use_biharmonic_radius(self._one.hv.biharmonic_radius())
@@ -261,7 +262,8 @@ class Ensemble:
         """Advance every member n steps (n an integer ≥ 0). The members' bad-state check (a
         non-finite value, or h ≤ 0 where h is a depth) runs on the device every step and is
         read once every ``core.backend.CHECK_EVERY_STEPS`` steps; a failed block is re-run step by step
-        to name the step. On CUDA each step is a graph (``core.graphs.GraphedSteps``, as ``Simulation``'s). Policy: stop all. A blow-up in any member raises ``BlowUp`` naming
+        to name the step. On CUDA each step is a graph (``core.graphs.GraphedSteps``, as
+        ``Simulation``'s). Policy: stop all. A blow-up in any member raises ``BlowUp`` naming
         every member bad at that step; the states are then those of that step."""
         n = integer_argument("n", n, 0)
         done, t0 = 0, time.perf_counter()
@@ -305,16 +307,16 @@ class Ensemble:
         at the first step and every ``output.every_days`` (``simulation.schedules.output_steps``):
         each field (time, member, ncol) with its ensemble mean and spread, each member's mass,
         total energy, potential enstrophy and errors against the case's truth (``errors``), and
-        the RMS spread of h (``io.run_file.RunWriter`` with ``members``). ``restart_every`` (days, whole steps): the restart file
-        ``<output stem>.restart.nc`` (``write_checkpoint``) at those days and the last; without
-        it, one is written when SIGINT or SIGTERM stops the run (not over an existing one unless
-        ``overwrite``). A blow-up (``BlowUp``, policy stop all) or a signal (``Interrupted``,
-        after a complete block of steps: the step reached written as an output time, and its
-        restart file) closes the run file with every good output time (its global attribute
-        ``stopped`` says why) and raises.
-        ``OutputError`` for a path that may not be written (``overwrite``: replace an existing
-        file); ``SceneError`` for a restart interval that is not whole steps; ``compress``: the
-        fields as float32 with zlib. Returns the run file's path."""
+        the RMS spread of h (``io.run_file.RunWriter`` with ``members``). ``restart_every``
+        (days, whole steps): the restart file ``<output stem>.restart.nc`` (``write_checkpoint``)
+        at those days and the last; without it, one is written when SIGINT or SIGTERM stops the
+        run (not over an existing one unless ``overwrite``). A blow-up (``BlowUp``, policy stop
+        all) or a signal (``Interrupted``, after a complete block of steps: the step reached
+        written as an output time, and its restart file) closes the run file with every good
+        output time (its global attribute ``stopped`` says why) and raises. ``OutputError`` for
+        a path that may not be written (``overwrite``: replace an existing file); ``SceneError``
+        for a restart interval that is not whole steps; ``compress``: the fields as float32 with
+        zlib. Returns the run file's path."""
         s = self.scene
         restart, restarts = restart_path(output), set()
         if restart_every is not None:
@@ -364,8 +366,6 @@ class Ensemble:
 
     def _interrupted(self, signum: int, restart: Path, write: bool) -> Interrupted:
         """``run``'s stop at a signal: the restart file written (``write``, or where none is there)."""
-        import signal
-
         name, day = signal.Signals(signum).name, self.scene.day(self.step_count)
         kept = None
         if write or not restart.exists():

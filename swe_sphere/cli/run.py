@@ -251,6 +251,7 @@ def _ensemble(args, scene, output: Path, device) -> int:
             overwrite=args.overwrite,
             compress=args.compress,
             history=" ".join(["swe-sphere", *(sys.argv[1:] if args.argv is None else args.argv)]),
+            progress=not args.no_progress,
         )
     except BlowUp as err:
         print(f"swe-sphere: {err}; the good output times are in {output}", file=sys.stderr)

@@ -14,12 +14,14 @@ from __future__ import annotations
 import dataclasses
 import math
 import signal
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import warp as wp
 from threadpoolctl import threadpool_limits
+from tqdm import tqdm
 
 from ..cases.scoring import Scorer
 from ..config.parts import scene_stepper
@@ -302,6 +304,7 @@ class Ensemble:
         overwrite: bool = False,
         compress: bool = False,
         history: str | None = None,
+        progress: bool = False,
     ) -> Path:
         """Advance every member to the scene's last day, writing the run file ``output`` (netCDF)
         at the first step and every ``output.every_days`` (``simulation.schedules.output_steps``):
@@ -316,7 +319,8 @@ class Ensemble:
         output time (its global attribute ``stopped`` says why) and raises. ``OutputError`` for
         a path that may not be written (``overwrite``: replace an existing file); ``SceneError``
         for a restart interval that is not whole steps; ``compress``: the fields as float32 with
-        zlib. Returns the run file's path."""
+        zlib; ``progress``: a progress bar on stderr where it is a terminal. Returns the run
+        file's path."""
         s = self.scene
         restart, restarts = restart_path(output), set()
         if restart_every is not None:
@@ -344,12 +348,18 @@ class Ensemble:
             members=self.members,
             member_series=(*MEMBER_SERIES, *self.errors()[0]),  # the errors the case has
         )
+        # disable=None: a bar only on a terminal (as ``Simulation``'s), updated once a block
+        bar = tqdm(
+            initial=self.step_count, total=s.nsteps, unit="step", disable=None if progress else True, file=sys.stderr
+        )
         try:
-            with StopSignals(self.topology, catch=True) as signals:
+            with bar, StopSignals(self.topology, catch=True) as signals:
                 self._write(writer)
                 for target in sorted(k for k in output_steps(s) | restarts if k > self.step_count):
                     while self.step_count < target:  # a stop asked is answered between blocks
-                        self.step(min(CHECK_EVERY_STEPS, target - self.step_count))
+                        block = min(CHECK_EVERY_STEPS, target - self.step_count)
+                        self.step(block)
+                        bar.update(block)
                         if signum := signals.asked():  # the step reached written, as a run's last
                             self._write(writer)
                             raise self._interrupted(signum, restart, restart_every is not None or overwrite)

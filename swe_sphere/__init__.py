@@ -29,7 +29,7 @@ returns their figures), ``kinetic_energy_spectrum`` and ``zonal_mean`` (a run's
 kinetic-energy spectrum by degree and zonal means, ``swe_sphere.studies.analysis``),
 ``gradient``, ``HeightMisfit``, ``PointHeights`` and ``HeightObservations`` (a run's
 gradient, of its final state or against observations at several steps, ``swe_sphere.adjoint``),
-``Ensemble``, ``Perturbation`` and ``MemberFile`` (N members of one scene in the same launches,
+``Ensemble``, ``Perturbation``, ``MemberFile`` and ``Variants`` (N members of one scene in the same launches,
 member k the bits of its single run, ``swe_sphere.ensemble``).
 Importing them initialises Warp quietly (``swe_sphere.core.runtime.init_warp``).
 """
@@ -52,6 +52,7 @@ _LAZY = {
     "Ensemble": "ensemble.ensemble",  # N members of one scene in the same launches
     "Perturbation": "ensemble.ensemble",  # an ensemble's seeded noise in h
     "MemberFile": "ensemble.ensemble",  # an ensemble's initial states from an ensemble's run file
+    "Variants": "ensemble.ensemble",  # an ensemble's members with their own case parameters and Ω
     # the errors (core.errors): every one is a SweSphereError
     **dict.fromkeys(
         [

@@ -377,9 +377,13 @@ class Galewsky(Case):
     alpha_p: float = 1.0 / 3.0
     beta_p: float = 1.0 / 15.0
     lat2: float = math.pi / 4
+    lon2: float = 0.0  # the bump's longitude (rad; theirs 0)
 
     @property
     def reference_file(self):
+        """The bundled T213 run of Galewsky's own values (jet, bump height and place); None for others."""
+        if (self.umax, self.hhat, self.lat2, self.lon2) != (80.0, 120.0, math.pi / 4, 0.0):
+            return None
         return "galewsky_T213.nc" if self.perturbed else "galewsky_balanced_T213.nc"
 
     def jet(self, lat):
@@ -399,7 +403,7 @@ class Galewsky(Case):
     def initial(self, lat, lon):
         h = self._balanced_height()(lat)
         if self.perturbed:
-            lam = np.mod(lon + math.pi, 2 * math.pi) - math.pi  # (-π, π]
+            lam = np.mod(lon - self.lon2 + math.pi, 2 * math.pi) - math.pi  # (-π, π] about the bump (lon - 0: lon)
             h = h + self.hhat * np.cos(lat) * np.exp(-((lam / self.alpha_p) ** 2)) * np.exp(
                 -(((self.lat2 - lat) / self.beta_p) ** 2)
             )
@@ -415,7 +419,8 @@ CASES: dict[str, tuple[type[Case], dict[str, type]]] = {
     "lauter_unsteady": (UnsteadySolidBody, {"alpha": float}),
     "tc5_mountain": (Mountain, {}),
     "tc6_rossby_haurwitz": (RossbyHaurwitz, {}),
-    "galewsky": (Galewsky, {"perturbed": bool}),
+    # the jet's peak wind (m/s), the bump's height (m), latitude and longitude (rad)
+    "galewsky": (Galewsky, {"perturbed": bool, "umax": float, "hhat": float, "lat2": float, "lon2": float}),
 }
 
 

@@ -160,6 +160,13 @@ def _run(sub, parents) -> None:
     )
     r.add_argument("--seed", type=int, help="with --members: the perturbation's random seed (default 0)")
     r.add_argument(
+        "--vary",
+        action="append",
+        metavar="KEY=V1,V2,...",
+        help="with --members: each member's own value of a case parameter (case.NAME) or of planet.omega, "
+        "one a member (e.g. case.hhat=60,120,180), each member the single run of its scene; repeatable",
+    )
+    r.add_argument(
         "--initial",
         type=path,
         metavar="ENSEMBLE.nc",

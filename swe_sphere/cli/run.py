@@ -200,13 +200,16 @@ def _check_ensemble_options(args, members: int | None) -> None:
     a continuation (its members start from the file), --stepper or --dt with an ensemble's
     continuation (no branches yet)."""
     starts = (("--perturbation", args.perturbation), ("--seed", args.seed), ("--initial", args.initial))
-    given = [flag for flag, value in starts if value is not None]
+    given = [flag for flag, value in (*starts, ("--vary", args.vary)) if value is not None]
     if members is None:
         if given:
             raise SceneError(f"{' and '.join(given)} only with --members N")
         return
-    if args.initial is not None and len(given) > 1:
-        raise SceneError(f"{' and '.join(given)}: the members start from --initial's file or from a perturbation")
+    kinds = {"--perturbation": "a perturbation", "--seed": "a perturbation", "--initial": "--initial's file"}
+    if len({kinds.get(flag, "their own values (--vary)") for flag in given}) > 1:
+        raise SceneError(
+            f"{' and '.join(given)}: the members start from one of a perturbation, --initial's file or --vary"
+        )
     if args.continue_from is not None:
         if given:
             raise SceneError(f"{' and '.join(given)}: a continued ensemble's members start from its restart file")
@@ -217,13 +220,27 @@ def _check_ensemble_options(args, members: int | None) -> None:
             )
 
 
+def _varied(items) -> dict:
+    """--vary's KEY=V1,V2,... items as {key: [floats]}; ``SceneError`` naming an item that is not one."""
+    out = {}
+    for item in items:
+        key, _, values = item.partition("=")
+        try:
+            out[key.strip()] = [float(v) for v in values.split(",")]
+        except ValueError:
+            raise SceneError(f"--vary {item!r}: give KEY=V1,V2,... (numbers, one a member)") from None
+        if not key.strip() or not values:
+            raise SceneError(f"--vary {item!r}: give KEY=V1,V2,... (numbers, one a member)")
+    return out
+
+
 def _ensemble(args, scene, output: Path, device) -> int:
     """``run --members N``: the scene's ensemble (``swe_sphere.ensemble.Ensemble``), or the
     ensemble of the restart file continued, to its last day, its run file ``output`` (and its
     restart files); a blow-up stops every member and keeps the file's good times."""
     import time
 
-    from ..ensemble import Ensemble, MemberFile, Perturbation
+    from ..ensemble import Ensemble, MemberFile, Perturbation, Variants
 
     t0 = time.perf_counter()
     if args.continue_from is not None:
@@ -231,6 +248,8 @@ def _ensemble(args, scene, output: Path, device) -> int:
         scene = ens.scene
     else:
         initial = None if args.initial is None else MemberFile(args.initial)
+        if args.vary is not None:
+            initial = Variants(_varied(args.vary))
         if args.perturbation or args.seed is not None:
             initial = Perturbation(0.0 if args.perturbation is None else args.perturbation, args.seed or 0)
         ens = Ensemble(scene, args.members, initial, device=device, graphs=args.graphs)

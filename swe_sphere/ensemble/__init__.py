@@ -3,7 +3,7 @@
 
 May import: every layer below (``simulation`` down to ``kernels``)."""
 
-from .ensemble import Ensemble, MemberFile, Perturbation
+from .ensemble import Ensemble, MemberFile, Perturbation, Variants
 from .members import MemberGrid
 
-__all__ = ["Ensemble", "MemberFile", "MemberGrid", "Perturbation"]
+__all__ = ["Ensemble", "MemberFile", "MemberGrid", "Perturbation", "Variants"]

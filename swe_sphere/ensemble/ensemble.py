@@ -115,6 +115,56 @@ class MemberFile:
             )
 
 
+@dataclasses.dataclass(frozen=True)
+class Variants:
+    """Members that differ by their scene's values: ``values`` {key: a sequence of N values},
+    member k's scene the ensemble's with each key at its k-th value, started from its own
+    case's state; member k has the bits of the single run of its scene. The keys: a case's
+    parameter ``case.<name>`` (what sets the initial state, e.g. Galewsky's ``hhat``, ``umax``
+    or ``lat2``; the surface height hs must come out the same for every member) and
+    ``planet.omega`` (Ω, s⁻¹: the member's Coriolis parameter 2Ω sin φ, and its case's
+    balance). Other values (g, the radius, ν, the grid, Δt) the members' shared kernels take
+    once: ``ArgumentError`` naming the key, as for values of another count or a case that
+    refuses a parameter."""
+
+    values: dict
+
+    def __post_init__(self):
+        if not isinstance(self.values, dict) or not self.values:
+            raise ArgumentError(f"variants: values must be a dict of keys to N values (got {got(self.values)})")
+        for key in self.values:
+            if not (isinstance(key, str) and (key.startswith("case.") or key == "planet.omega")):
+                raise ArgumentError(
+                    f"variants: {key!r} cannot differ between members (the kernels take one value; "
+                    "per member: case.<parameter> and planet.omega)"
+                )
+
+    def scenes(self, scene, members: int) -> list:
+        """The members' scenes (``Scene``s, one a member). ``ArgumentError`` for a count of
+        values other than ``members`` or a value the scene's case refuses."""
+        for key, values in self.values.items():
+            if np.ndim(values) != 1 or len(values) != members:
+                raise ArgumentError(f"variants: {key} needs {members} values, one a member (got {got(values)})")
+        out = []
+        for k in range(members):
+            params = {key[5:]: v[k] for key, v in self.values.items() if key.startswith("case.")}
+            planet = {
+                **scene.planet,
+                **({"omega": float(self.values["planet.omega"][k])} if "planet.omega" in self.values else {}),
+            }
+            member = dataclasses.replace(scene, case_params={**scene.case_params, **params}, planet=planet)
+            try:
+                member.make_case()
+            except (ValueError, TypeError) as err:
+                raise ArgumentError(f"variants: member {k}: {err}") from None
+            out.append(member)
+        return out
+
+    def describe(self) -> str:
+        """The values, as a run file's ``initial_states`` says them."""
+        return "variants: " + "; ".join(f"{k} = {', '.join(f'{v:g}' for v in vs)}" for k, vs in self.values.items())
+
+
 def _checked_scene(scene) -> None:
     """``ArgumentError`` naming ``scene`` where the ensemble cannot give each member the single
     run's bits yet: a stepper that is not explicit (its solves and mean depths reduce over
@@ -147,10 +197,11 @@ class Ensemble:
         tensor ∇⁴ (``hyperviscosity.scaling``).
     members : int ≥ 1
         N, the number of members.
-    initial : None, array (N, 3, n), Perturbation or MemberFile
+    initial : None, array (N, 3, n), Perturbation, MemberFile or Variants
         The members' initial states: None, the case's for every member; an array of rows
         u, v (m s⁻¹) and h (m) on the grid's n element-local nodes (``CubedSphere``'s order,
-        continuous); a ``Perturbation`` of the case's; a ``MemberFile``, an ensemble's run file.
+        continuous); a ``Perturbation`` of the case's; a ``MemberFile``, an ensemble's run file;
+        ``Variants``, each member's own case and Ω.
     device : {"cpu", "cuda"}, optional
         As ``Simulation``'s (``backend.pick_device``).
     per_element, threads : bool or None, int or None
@@ -200,6 +251,8 @@ class Ensemble:
         self.scene, self.members, self.dt = scene, members, scene.dt
         self.case = case = scene.make_case()
         self.grid = grid = CubedSphere(scene.ne, scene.np, case.planet.a, mesh=scene.make_mesh())
+        # each member's case: its own with Variants (its state, Coriolis parameter and truth), else the scene's
+        self.cases = [s.make_case() for s in initial.scenes(scene, members)] if isinstance(initial, Variants) else None
         starts = self._initial_states(initial)
         self.initial = (
             "the case's"
@@ -208,6 +261,8 @@ class Ensemble:
             if isinstance(initial, Perturbation)
             else f"from {initial.path}" + ("" if initial.day is None else f" at day {initial.day:g}")
             if isinstance(initial, MemberFile)
+            else initial.describe()
+            if isinstance(initial, Variants)
             else "given"
         )
         backend = Backend.of(pick_device(device))
@@ -223,6 +278,8 @@ class Ensemble:
                 self._one = ShallowWater.from_scene(scene, grid, case, **options)  # λ of one member's operator
                 self.model.hv.use_biharmonic_radius(self._one.hv.biharmonic_radius())
             self.stepper = scene_stepper(scene, self.model)
+        if self.cases is not None:  # each member's Coriolis parameter (its Ω), in place: the launches read it
+            self.model.operators.fcor.assign(np.concatenate([c.fcor(grid.lat, grid.lon) for c in self.cases]))
         self.x = self.model.new_state(*np.concatenate(list(starts), axis=1))
         self.stepper.prepare(self.x)
         self.step_count = 0
@@ -243,11 +300,17 @@ class Ensemble:
             )
         elif isinstance(initial, MemberFile):
             states = initial.apply(grid, self.members)
+        elif isinstance(initial, Variants):
+            hs = self.case.hs(grid.lat, grid.lon)
+            for k, case in enumerate(self.cases):
+                if not np.array_equal(case.hs(grid.lat, grid.lon), hs):
+                    raise ArgumentError(f"variants: member {k}'s surface height hs differs (the members share hs)")
+            states = np.stack([np.stack(case.initial(grid.lat, grid.lon)) for case in self.cases])
         elif isinstance(initial, np.ndarray | list | tuple):
             states = array_argument("initial", initial, (self.members, 3, n), "m s⁻¹ and m")
         else:
             raise ArgumentError(
-                "initial must be None, an array (members, 3, nnodes), a Perturbation or a MemberFile "
+                "initial must be None, an array (members, 3, nnodes), a Perturbation, a MemberFile or Variants "
                 f"(got {got(initial)})"
             )
         if not np.isfinite(states).all():
@@ -439,9 +502,12 @@ class Ensemble:
             with threadpool_limits(limits=1, user_api="blas"):
                 one = self._one or ShallowWater.from_scene(self.scene, self.grid, self.case, **self._options)
             hs = self.copies.member(self.model.operators.hs.numpy(), 0)
-            self._scorer = Scorer(self.case, one, one.topology, self.grid, hs, self.scene.reference_file)
+            if self.cases is None:
+                self._scorer = [Scorer(self.case, one, one.topology, self.grid, hs, self.scene.reference_file)]
+            else:  # each member's own truth: an exact solution (a reference holds the scene's values only)
+                self._scorer = [Scorer(case, one, one.topology, self.grid, hs, None) for case in self.cases]
         t, x = self.scene.day(self.step_count) * DAY, self.states()
-        return [self._scorer.errors(t, xk, *xk) for xk in x]
+        return [self._scorer[k % len(self._scorer)].errors(t, xk, *xk) for k, xk in enumerate(x)]
 
     def _write(self, writer: RunWriter) -> None:
         """The current step's output time (``run``)."""

@@ -112,3 +112,60 @@ def test_a_blow_up_names_the_member():
         ens.step(200)
     assert ens.step_count > 1  # the block re-run step by step to name the step
     assert np.isfinite(ens.states()[:2]).all()
+
+
+def test_variants_have_the_bits_of_their_own_scenes_single_runs():
+    """``Variants``: Galewsky's bump moved and resized, Ω per member (its Coriolis parameter
+    and balance): member k against the single run of its scene."""
+    import dataclasses
+
+    from swe_sphere.config.scene import load_scene
+    from swe_sphere.ensemble import Variants
+
+    values = {"case.hhat": [60.0, 180.0], "case.lon2": [1.0, -2.0], "planet.omega": [6e-5, 8e-5]}
+    ens = Ensemble("galewsky", 2, Variants(values), device="cpu", **SMALL)
+    ens.step(4)
+    base = load_scene("galewsky", ne=2, np_=4, dt=900.0)
+    for k in range(2):
+        scene = dataclasses.replace(
+            base,
+            case_params={"perturbed": True, "hhat": values["case.hhat"][k], "lon2": values["case.lon2"][k]},
+            planet={**base.planet, "omega": values["planet.omega"][k]},
+        )
+        sim = Simulation(scene, "cpu", progress=False)
+        sim.advance(4 * SMALL["dt"] / 86400)
+        assert same_bits(ens.states()[k], sim.x.numpy()), k
+        invariants = ens.invariants()[k]
+        assert invariants == {key: sim.diagnostics.diagnose(sim.time)[key] for key in invariants}
+    assert not same_bits(ens.states()[0], ens.states()[1])
+
+
+@pytest.mark.parametrize(
+    ("values", "says"),
+    [
+        ({"planet.gravity": [9.0, 10.0]}, "'planet.gravity' cannot differ between members"),
+        ({"hyperviscosity.nu": [1e14, 2e14]}, "cannot differ between members"),
+        ({"case.hhat": [1.0, 2.0, 3.0]}, "case.hhat needs 2 values, one a member"),
+        ({"case.depth": [1.0, 2.0]}, "member 0: unknown parameter case.depth for galewsky"),
+        ({}, "values must be a dict of keys to N values"),
+    ],
+)
+def test_variants_refuse_what_members_cannot_take_apart(values, says):
+    from swe_sphere.ensemble import Variants
+
+    with pytest.raises(ArgumentError, match=says):
+        Ensemble("galewsky", 2, Variants(values), device="cpu", **SMALL)
+
+
+def test_galewsky_s_own_values_keep_their_bits_and_reference():
+    """The bump's longitude 0 and Galewsky's values: the case as before (its T213 reference);
+    another value: no reference (the bundled one holds Galewsky's)."""
+    import math
+
+    from swe_sphere.cases.library import make_case
+
+    grid = CubedSphere(2, 4)
+    own, explicit = make_case("galewsky"), make_case("galewsky", {"lon2": 0.0, "hhat": 120.0, "lat2": math.pi / 4})
+    assert same_bits(np.stack(own.initial(grid.lat, grid.lon)), np.stack(explicit.initial(grid.lat, grid.lon)))
+    assert own.reference_file == explicit.reference_file == "galewsky_T213.nc"
+    assert make_case("galewsky", {"lon2": 1.0}).reference_file is None

@@ -239,8 +239,27 @@ def test_members_start_from_an_ensemble_s_run_file(capsys, tmp_path):
     )
     assert code == 2 and "the file holds 2 members, the ensemble 3" in err and not (tmp_path / "x.nc").exists()
     code, _, err = cli_main(capsys, *run, "--members", "2", "--initial", tmp_path / "e.nc", "--seed", "1")
-    assert code == 2 and "--seed and --initial: the members start from --initial's file or from a perturbation" in err
+    assert code == 2 and "--seed and --initial: the members start from one of a perturbation, --initial's file" in err
     code, out, _ = cli_main(
         capsys, *run, "--members", "2", "--initial", tmp_path / "e.nc", "--output", tmp_path / "y.nc"
     )
     assert code == 0 and f"initial states from {tmp_path / 'e.nc'}" in out
+
+
+def test_variants_from_the_command_line_with_each_member_s_exact_errors(capsys, tmp_path):
+    """TC2 turned by α per member (``--vary case.alpha=...``): each member's errors against its own
+    exact solution, as its single run's file has them."""
+    import math
+
+    out = tmp_path / "v.nc"
+    run = ("run", "tc2_steady", "--ne", "2", "--dt", "1800", "--days", "0.25", "--members", "2")
+    code, stdout, _ = cli_main(capsys, *run, "--vary", f"case.alpha=0,{math.pi / 4}", "--output", out)
+    assert code == 0 and "variants: case.alpha = 0, 0.785398" in stdout
+    (l2,) = read(out, "l2_h")
+    for k, alpha in enumerate((0.0, math.pi / 4)):
+        single = tmp_path / f"{k}.nc"
+        assert cli_main(capsys, "run", "tc2_steady", "--ne", "2", "--dt", "1800", "--days", "0.25",
+                        "-s", f"case.alpha={alpha}", "--output", single)[0] == 0  # fmt: skip
+        assert np.array_equal(l2[:, k], read(single, "l2_h")[0]), k
+    code, _, err = cli_main(capsys, *run, "--vary", "case.alpha=0,1", "--initial", out, "--output", tmp_path / "w.nc")
+    assert code == 2 and "--initial and --vary: the members start from one of" in err

@@ -50,9 +50,9 @@ _LAZY = {
     "PointHeights": "adjoint.observations",  # h at points, the observation operator H and Hᵀ
     "HeightObservations": "adjoint.observations",  # a cost of the run: observed h at several steps
     "Ensemble": "ensemble.ensemble",  # N members of one scene in the same launches
-    "Perturbation": "ensemble.ensemble",  # an ensemble's seeded noise in h
-    "MemberFile": "ensemble.ensemble",  # an ensemble's initial states from an ensemble's run file
-    "Variants": "ensemble.ensemble",  # an ensemble's members with their own case parameters and Ω
+    "Perturbation": "ensemble.initial",  # an ensemble's seeded noise in h
+    "MemberFile": "ensemble.initial",  # an ensemble's initial states from an ensemble's run file
+    "Variants": "ensemble.initial",  # an ensemble's members with their own case parameters and Ω
     # the errors (core.errors): every one is a SweSphereError
     **dict.fromkeys(
         [

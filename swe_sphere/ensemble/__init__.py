@@ -3,7 +3,8 @@
 
 May import: every layer below (``simulation`` down to ``kernels``)."""
 
-from .ensemble import Ensemble, MemberFile, Perturbation, Variants
+from .ensemble import Ensemble
+from .initial import MemberFile, Perturbation, Variants
 from .members import MemberGrid
 
 __all__ = ["Ensemble", "MemberFile", "MemberGrid", "Perturbation", "Variants"]

@@ -1,0 +1,131 @@
+"""How an ensemble's members start (``ensemble.Ensemble``'s ``initial``): seeded noise in the
+case's state (``Perturbation``), an ensemble's run file (``MemberFile``), or each member's own
+case parameters and Ω (``Variants``)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..core.arguments import got, integer_argument, number_argument
+from ..core.errors import ArgumentError
+from ..grid.cubed_sphere import CubedSphere
+
+
+@dataclasses.dataclass(frozen=True)
+class Perturbation:
+    """Members that differ by seeded noise in the depth: member k starts from the case's
+    initial state with h + ``amplitude``·ξ_k, ξ_k standard normal on the grid's unique nodes
+    (white: one draw a node, every copy of it the same, so the state stays continuous), the
+    N members' ξ drawn as ``numpy.random.default_rng(seed).standard_normal((N, nunique))``.
+    ``amplitude`` in m (≥ 0), ``seed`` an integer ≥ 0."""
+
+    amplitude: float
+    seed: int = 0
+
+    def __post_init__(self):
+        number_argument("perturbation amplitude", self.amplitude, "m", low=0.0)
+        integer_argument("perturbation seed", self.seed, 0)
+
+    def apply(self, grid: CubedSphere, state: np.ndarray, members: int) -> np.ndarray:
+        """(members, 3, n): ``state`` (3, n) on ``grid``'s element-local nodes, perturbed."""
+        xi = np.random.default_rng(self.seed).standard_normal((members, grid.first.size))
+        out = np.repeat(state[None], members, axis=0)
+        out[:, 2] += self.amplitude * xi[:, grid.gid]
+        return out
+
+
+@dataclasses.dataclass(frozen=True)
+class MemberFile:
+    """Members that start from an ensemble's run file (``Ensemble.run``, ``swe-sphere run
+    --members``): member k from the file's member k, its u, v, h at model day ``day`` (None:
+    the file's last time) on the grid's unique nodes, as they were written (a run file that
+    was not compressed gives the states' bits). ``path`` a str or os.PathLike."""
+
+    path: object
+    day: float | None = None
+
+    def apply(self, grid: CubedSphere, members: int) -> np.ndarray:
+        """(members, 3, n) on ``grid``'s element-local nodes. ``ArgumentError`` naming
+        ``initial`` for a file that cannot be read, is not an ensemble's run file, holds
+        another member count or grid, or not ``day``."""
+        import netCDF4
+
+        where = f"initial: {self.path}"
+        try:
+            ds = netCDF4.Dataset(self.path)
+        except (OSError, TypeError) as err:
+            raise ArgumentError(f"{where}: not a readable netCDF file ({err})") from None
+        with ds:
+            if (
+                "member" not in ds.dimensions
+                or "h" not in ds.variables
+                or ds["h"].dimensions != ("time", "member", "ncol")
+            ):
+                raise ArgumentError(f"{where}: not an ensemble's run file (no h on time, member, ncol)")
+            held, ncol = ds.dimensions["member"].size, ds.dimensions["ncol"].size
+            if held != members:
+                raise ArgumentError(f"{where}: the file holds {held} members, the ensemble {members}")
+            if ncol != grid.nunique:
+                raise ArgumentError(f"{where}: the file's grid has {ncol} unique nodes, the scene's {grid.nunique}")
+            days = np.asarray(ds["time"][:], dtype=np.float64)
+            t = days.size - 1 if self.day is None else np.flatnonzero(np.isclose(days, self.day, rtol=0, atol=1e-9))
+            if np.size(t) == 0 or days.size == 0:
+                raise ArgumentError(
+                    f"{where}: no output at day {self.day} (it holds {', '.join(f'{d:g}' for d in days)})"
+                )
+            t = int(np.atleast_1d(t)[0])
+            return np.stack(
+                [np.asarray(ds[name][t], dtype=np.float64)[:, grid.gid] for name in ("u", "v", "h")], axis=1
+            )
+
+
+@dataclasses.dataclass(frozen=True)
+class Variants:
+    """Members that differ by their scene's values: ``values`` {key: a sequence of N values},
+    member k's scene the ensemble's with each key at its k-th value, started from its own
+    case's state; member k has the bits of the single run of its scene. The keys: a case's
+    parameter ``case.<name>`` (what sets the initial state, e.g. Galewsky's ``hhat``, ``umax``
+    or ``lat2``; the surface height hs must come out the same for every member) and
+    ``planet.omega`` (Ω, s⁻¹: the member's Coriolis parameter 2Ω sin φ, and its case's
+    balance). Other values (g, the radius, ν, the grid, Δt) the members' shared kernels take
+    once: ``ArgumentError`` naming the key, as for values of another count or a case that
+    refuses a parameter."""
+
+    values: dict
+
+    def __post_init__(self):
+        if not isinstance(self.values, dict) or not self.values:
+            raise ArgumentError(f"variants: values must be a dict of keys to N values (got {got(self.values)})")
+        for key in self.values:
+            if not (isinstance(key, str) and (key.startswith("case.") or key == "planet.omega")):
+                raise ArgumentError(
+                    f"variants: {key!r} cannot differ between members (the kernels take one value; "
+                    "per member: case.<parameter> and planet.omega)"
+                )
+
+    def scenes(self, scene, members: int) -> list:
+        """The members' scenes (``Scene``s, one a member). ``ArgumentError`` for a count of
+        values other than ``members`` or a value the scene's case refuses."""
+        for key, values in self.values.items():
+            if np.ndim(values) != 1 or len(values) != members:
+                raise ArgumentError(f"variants: {key} needs {members} values, one a member (got {got(values)})")
+        out = []
+        for k in range(members):
+            params = {key[5:]: v[k] for key, v in self.values.items() if key.startswith("case.")}
+            planet = {
+                **scene.planet,
+                **({"omega": float(self.values["planet.omega"][k])} if "planet.omega" in self.values else {}),
+            }
+            member = dataclasses.replace(scene, case_params={**scene.case_params, **params}, planet=planet)
+            try:
+                member.make_case()
+            except (ValueError, TypeError) as err:
+                raise ArgumentError(f"variants: member {k}: {err}") from None
+            out.append(member)
+        return out
+
+    def describe(self) -> str:
+        """The values, as a run file's ``initial_states`` says them."""
+        return "variants: " + "; ".join(f"{k} = {', '.join(f'{v:g}' for v in vs)}" for k, vs in self.values.items())

@@ -551,3 +551,34 @@ def test_a_branch_on_two_ranks_has_the_bits_of_one(tmp_path):
     assert_same_bits(tmp_path / "b1.nc", tmp_path / "b2.nc")
     with xr.open_dataset(tmp_path / "b2.nc", decode_times=False) as ds:
         assert ds.attrs["branched_from_day"] == 0.25 and ds.time.values[0] == 0.25 and ds.time.values[-1] == 0.5
+
+
+def test_an_ensemble_s_members_over_ranks_keep_their_bits(needs_mpi, tmp_path):
+    """``run --members 3`` over 2 ranks (members 0, 1 on rank 0, member 2 on rank 1): the run and
+    restart files of one process, bit for bit; its restart file continued on 3 ranks (one member
+    a rank) as on one."""
+    run = ["run", "galewsky", "--ne", "2", "--np", "4", "--dt", "900", "--days", "0.5", "--members", "3"]
+    run += ["--vary", "case.hhat=60,120,180", "--restart-every", "0.25"]
+    assert main([*run, "--output", str(tmp_path / "one.nc")]) == 0
+    two = mpirun(2, [*run, "--output", "two.nc"], tmp_path)
+    assert two.returncode == 0, two.stderr[-2000:]
+    assert "3 members over 2 MPI ranks (2 on rank 0)" in two.stdout
+    with (
+        xr.open_dataset(tmp_path / "one.nc", decode_times=False) as a,
+        xr.open_dataset(tmp_path / "two.nc", decode_times=False) as b,
+    ):
+        assert set(a.data_vars) == set(b.data_vars) and a.sizes["member"] == 3 and a.sizes["time"] == 2
+        for name in a.data_vars:
+            if name != "wall_time":
+                assert np.array_equal(a[name].values, b[name].values, equal_nan=a[name].dtype.kind == "f"), name
+    with xr.open_dataset(tmp_path / "one.restart.nc") as a, xr.open_dataset(tmp_path / "two.restart.nc") as b:
+        assert all(np.array_equal(a[k].values, b[k].values) for k in ("u", "v", "h"))
+    more = ["run", "--continue", "two.restart.nc", "--days", "0.75"]
+    assert main([*more[:2], str(tmp_path / "two.restart.nc"), *more[3:], "--output", str(tmp_path / "c1.nc")]) == 0
+    three = mpirun(3, [*more, "--output", "c3.nc"], tmp_path)
+    assert three.returncode == 0, three.stderr[-2000:]
+    with (
+        xr.open_dataset(tmp_path / "c1.nc", decode_times=False) as a,
+        xr.open_dataset(tmp_path / "c3.nc", decode_times=False) as b,
+    ):
+        assert list(a.time.values) == [0.5, 0.75] and np.array_equal(a.h.values, b.h.values)

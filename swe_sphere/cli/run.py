@@ -182,10 +182,9 @@ def command(args) -> int:
     if args.restart_every is not None:  # else written only on SIGINT/SIGTERM, and then not over an existing one
         check_target(restart_path(output), args.overwrite)
     comm = mpi.world()  # under mpiexec: one run over all ranks
-    if members is not None:
-        if comm is not None:
-            raise SceneError("--members: an ensemble runs in one process (not yet under mpiexec)")
-        return _ensemble(args, scene, output, device)
+    if members is not None:  # its members over the ranks under mpiexec
+        with mpi.watch_failures(comm, close_open_runs):
+            return _ensemble(args, scene, output, device, comm)
     with (
         _output_lock(output, comm),
         mpi.watch_failures(comm, close_open_runs),
@@ -234,7 +233,7 @@ def _varied(items) -> dict:
     return out
 
 
-def _ensemble(args, scene, output: Path, device) -> int:
+def _ensemble(args, scene, output: Path, device, comm) -> int:
     """``run --members N``: the scene's ensemble (``swe_sphere.ensemble.Ensemble``), or the
     ensemble of the restart file continued, to its last day, its run file ``output`` (and its
     restart files); a blow-up stops every member and keeps the file's good times."""
@@ -244,7 +243,7 @@ def _ensemble(args, scene, output: Path, device) -> int:
 
     t0 = time.perf_counter()
     if args.continue_from is not None:
-        ens = Ensemble.from_checkpoint(args.continue_from, days=args.days, device=device, graphs=args.graphs)
+        ens = Ensemble.from_checkpoint(args.continue_from, days=args.days, device=device, graphs=args.graphs, comm=comm)
         scene = ens.scene
     else:
         initial = None if args.initial is None else MemberFile(args.initial)
@@ -252,14 +251,19 @@ def _ensemble(args, scene, output: Path, device) -> int:
             initial = Variants(_varied(args.vary))
         if args.perturbation or args.seed is not None:
             initial = Perturbation(0.0 if args.perturbation is None else args.perturbation, args.seed or 0)
-        ens = Ensemble(scene, args.members, initial, device=device, graphs=args.graphs)
+        ens = Ensemble(scene, args.members, initial, device=device, graphs=args.graphs, comm=comm)
+    if not ens.root:  # rank 0 reports; the others' errors still reach stderr
+        sys.stdout = open(os.devnull, "w")
     setup, first, before = time.perf_counter() - t0, ens.step_count, ens.wall_time
     print(f"scene       {scene.name}: {scene.description}")
     print(f"grid        {scene.grid_text}: {scene.nelem} elements, {ens.grid.nunique} unique nodes")
     print(
         f"stepper     {scene.stepper}, dt = {scene.dt:g} s, {scene.nsteps} steps to day {scene.days:g}, device {device}"
     )
-    print(f"ensemble    {ens.members} members in the same launches; initial states {ens.initial}")
+    where = (
+        "in the same launches" if ens.comm is None else f"over {ens.comm.size} MPI ranks ({ens.held.size} on rank 0)"
+    )
+    print(f"ensemble    {ens.members} members {where}; initial states {ens.initial}")
     if first:
         print(f"continued   from {args.continue_from}, step {first} (day {scene.day(first):g})")
     print(f"output      {output} (every {scene.output_every_days:g} days)")
@@ -272,8 +276,9 @@ def _ensemble(args, scene, output: Path, device) -> int:
             history=" ".join(["swe-sphere", *(sys.argv[1:] if args.argv is None else args.argv)]),
             progress=not args.no_progress,
         )
-    except BlowUp as err:
-        print(f"swe-sphere: {err}; the good output times are in {output}", file=sys.stderr)
+    except BlowUp as err:  # on every rank alike
+        if ens.root:
+            print(f"swe-sphere: {err}; the good output times are in {output}", file=sys.stderr)
         return EXIT_BLOWUP
     steps, loop = ens.step_count - first, ens.wall_time - before
     print("summary")

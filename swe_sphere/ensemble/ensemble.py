@@ -66,6 +66,17 @@ def _checked_scene(scene) -> None:
         raise ArgumentError(f"scene: {why}")
 
 
+class _Ranks:
+    """The members' ranks as ``core.interrupts.StopSignals`` asks of a run's topology: their
+    communicator and the largest of a value over them (collective)."""
+
+    def __init__(self, comm):
+        self.comm = comm
+
+    def max(self, value):
+        return max(self.comm.allgather(value))
+
+
 class Ensemble:
     """``members`` members of one scene, its grid and stepper, advanced in the same launches;
     member k's state after n steps has the same bits as the single run's (``Simulation``
@@ -91,13 +102,19 @@ class Ensemble:
     graphs : {"auto", "on", "off"} or bool, optional
         As ``Simulation``'s: each step a CUDA graph ("auto", the default, or
         ``SWE_SPHERE_GRAPHS``: on CUDA only), checked bit for bit against plain launches.
+    comm : mpi4py communicator, optional
+        The members over its ranks (``mpiexec -n R``; at least one a rank): rank r steps the
+        r-th of R contiguous shares of them (``held``) in its own launches, every member the
+        bits it has on one rank; the states, invariants and errors are gathered on every
+        rank, the run and restart files written by rank 0. Call every method on every rank.
     **overrides
         As ``Simulation``'s.
 
     Attributes
     ----------
     scene, members, dt : the resolved ``Scene``, N, Δt (s).
-    grid : the one ``CubedSphere``; copies : the ``MemberGrid`` of N copies.
+    held : int array, the members this rank steps (all on one rank); root : whether it is rank 0.
+    grid : the one ``CubedSphere``; copies : the ``MemberGrid`` of the held members' copies.
     topology, model, stepper : the copies' ``Topology``, ``ShallowWater`` and stepper.
     x : wp.array2d (3, N·n), the members' states side by side (member k: nodes k·n … (k + 1)·n − 1).
     step_count : int, the steps taken; graphs_kept : int, the step graphs replayed (``Simulation``'s).
@@ -124,9 +141,15 @@ class Ensemble:
         per_element=None,
         threads=None,
         graphs=None,
+        comm=None,
         **overrides,
     ):
         members = integer_argument("members", members, 1)
+        self.comm = comm if comm is not None and comm.size > 1 else None
+        ranks, rank = (1, 0) if self.comm is None else (self.comm.size, self.comm.rank)
+        if members < ranks:
+            raise ArgumentError(f"members: {members} members over {ranks} MPI ranks (one a rank at least)")
+        self.held, self.root = np.array_split(np.arange(members), ranks)[rank], rank == 0
         graphs = graphs_mode(default_mode() if graphs is None else graphs)
         scene, _ = resolve_scene(scene, overrides)
         _checked_scene(scene)
@@ -148,7 +171,7 @@ class Ensemble:
             else "given"
         )
         backend = Backend.of(pick_device(device))
-        self.copies = MemberGrid(grid, members)
+        self.copies = MemberGrid(grid, self.held.size)
         options = {"device": backend.device, "per_element": per_element, "threads": threads}
         # one BLAS thread, as ``Simulation``: the ∇⁴'s power iteration takes 40 norms
         with threadpool_limits(limits=1, user_api="blas"):
@@ -161,8 +184,9 @@ class Ensemble:
                 self.model.hv.use_biharmonic_radius(self._one.hv.biharmonic_radius())
             self.stepper = scene_stepper(scene, self.model)
         if self.cases is not None:  # each member's Coriolis parameter (its Ω), in place: the launches read it
-            self.model.operators.fcor.assign(np.concatenate([c.fcor(grid.lat, grid.lon) for c in self.cases]))
-        self.x = self.model.new_state(*np.concatenate(list(starts), axis=1))
+            fcor = [self.cases[k].fcor(grid.lat, grid.lon) for k in self.held]
+            self.model.operators.fcor.assign(np.concatenate(fcor))
+        self.x = self.model.new_state(*np.concatenate(list(starts[self.held]), axis=1))
         self.stepper.prepare(self.x)
         self.step_count = 0
         self.wall_time = 0.0  # s, of ``step``
@@ -220,18 +244,26 @@ class Ensemble:
             wp.copy(self._start, self.x)
             for _ in range(block):
                 self._graphed.step(self.stepper, self.model, self.x, True)
-            if self.model.bad_nodes.watched_bad():
+            if self._anywhere(self.model.bad_nodes.watched_bad()):
                 wp.copy(self.x, self._start)
                 self.stepper.restore(saved)
                 for k in range(block):
                     self.stepper.step(self.x)
-                    if self.model.bad_nodes.first(self.x) is not None:
+                    if self._anywhere(self.model.bad_nodes.first(self.x) is not None):
                         self.step_count += k + 1
                         raise BlowUp(self._blow_up(self.step_count))
             self.step_count += block
             done += block
         wp.synchronize_device(self.model.topology.device)
         self.wall_time += time.perf_counter() - t0
+
+    def _anywhere(self, flag: bool) -> bool:
+        """Whether ``flag`` holds on any rank (collective)."""
+        return bool(flag) if self.comm is None else self.comm.allreduce(int(bool(flag))) > 0
+
+    def _everyone(self, local: list) -> list:
+        """Every rank's ``local`` (an entry a held member) in member order, on every rank (collective)."""
+        return list(local) if self.comm is None else [e for part in self.comm.allgather(list(local)) for e in part]
 
     def advance(self, days: float) -> None:
         """Advance every member by ``days`` (a whole number of steps of the scene's Δt), as ``step``."""
@@ -280,50 +312,57 @@ class Ensemble:
             "blow_up_policy": "stop all",
             **({"continued_from_day": s.day(self.step_count)} if self.step_count else {}),
         }
-        writer = RunWriter(
-            output,
-            self.grid,
-            self.copies.member(self.model.operators.hs.numpy(), 0),
-            attrs,
-            ("steps", "wall_time"),
-            overwrite=overwrite,
-            compress=compress,
-            fields=s.output_fields or OUTPUT_FIELDS,
-            cells=s.output_cells,
-            members=self.members,
-            member_series=(*MEMBER_SERIES, *self.errors()[0]),  # the errors the case has
+        member_series = (*MEMBER_SERIES, *self.errors()[0])  # the errors the case has (collective)
+        writer = (
+            None
+            if not self.root
+            else RunWriter(
+                output,
+                self.grid,
+                self.copies.member(self.model.operators.hs.numpy(), 0),
+                attrs,
+                ("steps", "wall_time"),
+                overwrite=overwrite,
+                compress=compress,
+                fields=s.output_fields or OUTPUT_FIELDS,
+                cells=s.output_cells,
+                members=self.members,
+                member_series=member_series,
+            )
         )
         # disable=None: a bar only on a terminal (as ``Simulation``'s), updated once a block
         bar = tqdm(
             initial=self.step_count, total=s.nsteps, unit="step", disable=None if progress else True, file=sys.stderr
         )
         try:
-            with bar, StopSignals(self.topology, catch=True) as signals:
-                self._write(writer)
+            with bar, StopSignals(self.topology if self.comm is None else _Ranks(self.comm), catch=True) as signals:
+                self._write(writer, member_series)
                 for target in sorted(k for k in output_steps(s) | restarts if k > self.step_count):
                     while self.step_count < target:  # a stop asked is answered between blocks
                         block = min(CHECK_EVERY_STEPS, target - self.step_count)
                         self.step(block)
                         bar.update(block)
                         if signum := signals.asked():  # the step reached written, as a run's last
-                            self._write(writer)
+                            self._write(writer, member_series)
                             raise self._interrupted(signum, restart, restart_every is not None or overwrite)
                     if target in output_steps(s):
-                        self._write(writer)
+                        self._write(writer, member_series)
                     if target in restarts:
                         self.write_checkpoint(restart, overwrite=True, restart_every=restart_every)
         except BaseException as err:  # a blow-up or a signal: the good output times kept
-            writer.set_attrs(stopped=str(err) or type(err).__name__)
-            writer.close()
+            if writer is not None:
+                writer.set_attrs(stopped=str(err) or type(err).__name__)
+                writer.close()
             raise
-        writer.close()
-        return writer.path
+        if writer is not None:
+            writer.close()
+        return Path(output)
 
     def _interrupted(self, signum: int, restart: Path, write: bool) -> Interrupted:
         """``run``'s stop at a signal: the restart file written (``write``, or where none is there)."""
         name, day = signal.Signals(signum).name, self.scene.day(self.step_count)
         kept = None
-        if write or not restart.exists():
+        if write or not self._from_root(restart.exists()):
             kept = self.write_checkpoint(restart, overwrite=True)
         line = f"interrupted by {name} at step {self.step_count} (model time {day:.4f} days); " + (
             f"continue it from {kept}" if kept is not None else f"no restart file written ({restart} exists)"
@@ -336,23 +375,32 @@ class Ensemble:
     def write_checkpoint(self, path, *, overwrite: bool = False, restart_every: float | None = None) -> Path:
         """Write the restart file ``path`` of the current step (``io.restart_file``: every member's
         state and the stepper's history, the member count): ``from_checkpoint`` continues it
-        bitwise. ``OutputError`` where ``path`` exists and not ``overwrite``."""
+        bitwise. ``OutputError`` where ``path`` exists and not ``overwrite``. Written by rank 0,
+        the members' arrays gathered there (collective)."""
+        x, state = self.x.numpy(), self.stepper.state()
+        if self.comm is not None:  # the ranks' members side by side, in member order
+            x = self.comm.gather(x, root=0)
+            arrays = {k: self.comm.gather(v, root=0) for k, v in state.items() if isinstance(v, np.ndarray)}
+            if not self.root:
+                return Path(path)
+            x = np.concatenate(x, axis=-1)
+            state = {**state, **{k: np.concatenate(v, axis=-1) for k, v in arrays.items()}}
         return restart_file.write(
             path,
             self.scene,
             self.step_count,
-            self.x.numpy(),
-            self.stepper.state(),
+            x,
+            state,
             {"rhs_evals": 0, "wall_time": self.wall_time, "iterations": {}},
             {"initial_states": self.initial},
-            grid=self.copies,
+            grid=MemberGrid(self.grid, self.members) if self.comm is not None else self.copies,
             overwrite=overwrite,
             restart_every=restart_every,
             members=self.members,
         )
 
     @classmethod
-    def from_checkpoint(cls, path, *, days=None, device=None, per_element=None, threads=None, graphs=None):
+    def from_checkpoint(cls, path, *, days=None, device=None, per_element=None, threads=None, graphs=None, comm=None):
         """The ensemble of the restart file ``path`` (``write_checkpoint``, or ``run``'s), at its
         step, to ``days`` (model days from t = 0; None: the file's scene's): every member's next
         steps the bits of the uninterrupted run's. ``CheckpointError`` (one line) for a file
@@ -366,9 +414,13 @@ class Ensemble:
             raise CheckpointError(f"the run length {scene.days:g} days ends before the checkpoint (day {ck.day:g})")
         n = ck.x.shape[1] // ck.members
         states = ck.x.reshape(3, ck.members, n).transpose(1, 0, 2)
-        ens = cls(scene, ck.members, states, device=device, per_element=per_element, threads=threads, graphs=graphs)
+        ens = cls(
+            scene, ck.members, states, device=device, per_element=per_element, threads=threads, graphs=graphs, comm=comm
+        )
+        nodes = (ens.held[:, None] * n + np.arange(n)).ravel()  # the held members' columns of the file's arrays
+        held = {k: v[..., nodes] if isinstance(v, np.ndarray) else v for k, v in ck.stepper_state.items()}
         try:
-            ens.stepper.restore(ck.stepper_state)
+            ens.stepper.restore(held)
         except ValueError as err:
             raise CheckpointError(f"checkpoint does not fit the stepper: {err}") from None
         ens.step_count, ens.wall_time = ck.step, float(ck.counters.get("wall_time", 0.0))
@@ -388,19 +440,28 @@ class Ensemble:
                 self._scorer = [Scorer(self.case, one, one.topology, self.grid, hs, self.scene.reference_file)]
             else:  # each member's own truth: an exact solution (a reference holds the scene's values only)
                 self._scorer = [Scorer(case, one, one.topology, self.grid, hs, None) for case in self.cases]
-        t, x = self.scene.day(self.step_count) * DAY, self.states()
-        return [self._scorer[k % len(self._scorer)].errors(t, xk, *xk) for k, xk in enumerate(x)]
+        t, x = self.scene.day(self.step_count) * DAY, self._held_states()
+        return self._everyone(self._scorer[k % len(self._scorer)].errors(t, xk, *xk) for k, xk in zip(self.held, x))
 
-    def _write(self, writer: RunWriter) -> None:
-        """The current step's output time (``run``)."""
+    def _write(self, writer: RunWriter | None, member_series) -> None:
+        """The current step's output time (``run``): the held members' fields gathered on rank 0,
+        which writes them (collective)."""
         x, zeta = self.x.numpy(), self.model.operators.vorticity(self.x)
-        div = self.model.operators.wind_divergence(self.x) if "divergence" in writer.fields else None
-        each = lambda a: np.stack([self.copies.member(a, k) for k in range(self.members)])  # noqa: E731
-        series = {"steps": self.step_count, "wall_time": self.wall_time}
+        written = self.scene.output_fields or OUTPUT_FIELDS  # the same on every rank
+        div = self.model.operators.wind_divergence(self.x) if "divergence" in written else None
+        rows = [*(x[r] for r in range(3)), zeta, *(() if div is None else (div,))]
+        local = [np.stack([self.copies.member(a, k) for a in rows]) for k in range(self.held.size)]
         per_member = [{**d, **e} for d, e in zip(self._invariants(x, zeta), self.errors())]
-        series.update({key: np.array([d[key] for d in per_member]) for key in writer.member_series})
-        u, v, h = (each(x[r]) for r in range(3))
-        writer.append(self.scene.day(self.step_count), u, v, h, series, each(zeta), None if div is None else each(div))
+        each = self._everyone(local) if self.comm is None else self.comm.gather(local, root=0)
+        if writer is None:
+            return
+        if self.comm is not None:
+            each = [m for part in each for m in part]
+        each = np.stack(each)  # (N, rows, n)
+        series = {"steps": self.step_count, "wall_time": self.wall_time}
+        series.update({key: np.array([d[key] for d in per_member]) for key in member_series})
+        day = self.scene.day(self.step_count)
+        writer.append(day, each[:, 0], each[:, 1], each[:, 2], series, each[:, 3], None if div is None else each[:, 4])
 
     def _blow_up(self, step: int) -> str:
         """The one line of a blow-up at ``step``: the members bad there, the first one's place."""
@@ -419,6 +480,10 @@ class Ensemble:
             "every member stopped (policy: stop all)"
         )
 
+    def _from_root(self, value):
+        """Rank 0's ``value`` on every rank (collective)."""
+        return value if self.comm is None else self.comm.bcast(value, root=0)
+
     @property
     def graphs_kept(self) -> int:
         """The step graphs checked against plain launches and kept (0 with graphs off)."""
@@ -426,9 +491,14 @@ class Ensemble:
 
     # -- the members' states ----------------------------------------------------
     def states(self) -> np.ndarray:
-        """(N, 3, n) float64: every member's u, v (m s⁻¹) and h (m) on the grid's element-local nodes."""
+        """(N, 3, n) float64: every member's u, v (m s⁻¹) and h (m) on the grid's element-local
+        nodes (on every rank: collective)."""
+        return np.stack(self._everyone(self._held_states()))
+
+    def _held_states(self) -> np.ndarray:
+        """(held, 3, n): this rank's members' states."""
         x = self.x.numpy()
-        return np.stack([self.copies.member(x, k) for k in range(self.members)])
+        return np.stack([self.copies.member(x, k) for k in range(self.held.size)])
 
     def fields(self, member: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(u, v, h), each (n,), of ``member`` (0 … N − 1) on the grid's element-local nodes
@@ -436,7 +506,7 @@ class Ensemble:
         member = integer_argument("member", member, 0)
         if member >= self.members:
             raise ArgumentError(f"member must be in 0..{self.members - 1} (got {member})")
-        u, v, h = self.copies.member(self.x.numpy(), member)
+        u, v, h = self.states()[member]
         return u.copy(), v.copy(), h.copy()
 
     def h_spread_rms(self) -> float:
@@ -454,7 +524,7 @@ class Ensemble:
     def _invariants(self, x: np.ndarray, zeta: np.ndarray) -> list[dict[str, float]]:
         hs, fcor = self.model.operators.hs.numpy(), self.model.operators.fcor.numpy()
         one = lambda a, k: self.copies.member(a, k)  # noqa: E731
-        return [
+        return self._everyone(
             invariants(self.grid, *one(x, k), one(hs, k), one(zeta, k), one(fcor, k), self.model.g)
-            for k in range(self.members)
-        ]
+            for k in range(self.held.size)
+        )

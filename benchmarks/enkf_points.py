@@ -52,13 +52,13 @@ def unit_xyz(lat, lon) -> np.ndarray:
     return np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=1)
 
 
-def forecast(s, h0: np.ndarray, guess: np.ndarray) -> np.ndarray:
+def forecast(s, h0: np.ndarray, guess: np.ndarray, device: str = "cpu") -> np.ndarray:
     """The predicted observations (M·K, N) of the members' initial heights h0 (n_unique, N), the
     wind the guess's: the ensemble run over the window, H h at each observation step."""
     grid, H, steps = s.grid, s.cost.operator, sorted(s.cost.values)
     states = np.repeat(guess[None], h0.shape[1], axis=0)
     states[:, 2] = h0.T[:, grid.gid]
-    ens = Ensemble(s.scene, h0.shape[1], states, device="cpu")
+    ens = Ensemble(s.scene, h0.shape[1], states, device=device)
     predicted = []
     for k in steps:
         ens.step(k - ens.step_count)
@@ -98,7 +98,7 @@ def main(args: argparse.Namespace, figures: dict) -> None:
     clock = time.process_time()
     alpha = float(args.iterations)
     for i in range(args.iterations):
-        Y = forecast(s, X, s.guess)
+        Y = forecast(s, X, s.guess, args.device)
         A, D = X - X.mean(axis=1, keepdims=True), Y - Y.mean(axis=1, keepdims=True)
         Cyy = (D @ D.T) / (N - 1) * rho_yy + alpha * args.sigma**2 * np.eye(y.size)
         Cxy = (A @ D.T) / (N - 1) * rho_xy
@@ -107,7 +107,10 @@ def main(args: argparse.Namespace, figures: dict) -> None:
         rows.append((f"update {i + 1}", error(X.mean(axis=1)), spread(X)))
         print(f"{rows[-1][0]:14s} {rows[-1][1]:20.4f} {rows[-1][2]:20.4f}", flush=True)
     cpu = time.process_time() - clock
-    print(f"{args.iterations} ensemble runs of {N} members and updates: CPU {cpu:.1f} s; load {os.getloadavg()[0]:.2f}")
+    print(
+        f"{args.iterations} ensemble runs of {N} members ({args.device}) and updates: CPU {cpu:.1f} s; "
+        f"load {os.getloadavg()[0]:.2f}"
+    )
     figures.update(errors={name: e for name, e, _ in rows}, spreads={name: sp for name, _, sp in rows}, cpu_s=cpu)
 
 
@@ -128,6 +131,7 @@ if __name__ == "__main__":
     parser.add_argument("--iterations", type=int, default=4, help="ES-MDA updates")
     parser.add_argument("--localization", type=float, default=2000.0, help="Gaspari-Cohn half-width c (km)")
     parser.add_argument("--ensemble-seed", type=int, default=100)
+    parser.add_argument("--device", default="cpu", help="the ensemble's forecasts' (the truth runs on the CPU)")
     parser.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")
     arguments = parser.parse_args()
     with recorded(__file__, stem=arguments.results) as figures:

@@ -51,7 +51,7 @@ def _checked_scene(scene) -> None:
     """``ArgumentError`` naming ``scene`` where the ensemble cannot give each member the single
     run's bits yet: a stepper that is not explicit (its solves and mean depths reduce over
     the grid), a controlled Δt, a digital-filter start or the tensor ∇⁴ (its reference Δx is
-    the grid's)."""
+    the grid's); or whose output it does not write yet (``[[output.streams]]``)."""
     why = None
     if not STEPPERS[scene.stepper].explicit:
         explicit = ", ".join(name for name, cls in STEPPERS.items() if cls.explicit)
@@ -62,6 +62,8 @@ def _checked_scene(scene) -> None:
         why = "it starts from a digital filter (not yet with ensembles)"
     elif scene.hypervis_scaling is not None:
         why = "its hyperviscosity has a scaling (the tensor ∇⁴ is not yet with ensembles)"
+    elif scene.output_streams:
+        why = "it names [[output.streams]] (an ensemble writes one run file, not yet its streams)"
     if why is not None:
         raise ArgumentError(f"scene: {why}")
 

@@ -102,6 +102,9 @@ def test_a_bad_perturbation_and_scene_are_refused():
         Perturbation(1.0, seed=0.5)
     with pytest.raises(ArgumentError, match="scene: stepper imex is not explicit"):
         Ensemble("galewsky", 2, device="cpu", stepper="imex", **SMALL)
+    streams = {"output.streams": [{"name": "h", "every_days": 0.125, "fields": ["h"]}]}
+    with pytest.raises(ArgumentError, match=r"scene: it names \[\[output.streams\]\]"):
+        Ensemble("galewsky", 2, device="cpu", **SMALL, **streams)
 
 
 def test_a_blow_up_names_the_member():

@@ -11,7 +11,6 @@ is global over a grid is taken from the one grid, not the copies: the ∇⁴'s s
 
 from __future__ import annotations
 
-import math
 import signal
 import sys
 import time
@@ -268,12 +267,14 @@ class Ensemble:
         return list(local) if self.comm is None else [e for part in self.comm.allgather(list(local)) for e in part]
 
     def advance(self, days: float) -> None:
-        """Advance every member by ``days`` (a whole number of steps of the scene's Δt), as ``step``."""
+        """Advance every member by ``days`` (a whole number of steps of the scene's Δt: the clock's
+        one whole-step rule, ``core.clock``), as ``step``; ``ArgumentError`` with the clock's
+        refusal otherwise."""
         days = number_argument("days", days, "days", low=0.0)
-        n = round(days * DAY / self.dt)
-        if not math.isclose(n * self.dt, days * DAY, rel_tol=1e-9, abs_tol=1e-9):
-            raise ArgumentError(f"days must be a whole number of steps of dt = {self.dt:g} s (got {days})")
-        self.step(n)
+        clock = self.scene.clock
+        if days and not clock.is_whole(days):
+            raise ArgumentError(str(clock.refusal("days", days)))
+        self.step(clock.steps_in(days) if days else 0)
 
     def run(
         self,

@@ -422,6 +422,7 @@ def plot_run(
     series figure depends on the run file alone: an existing one with the same
     picture is left as it is (so ``plot --diff`` or other fields after a plain
     ``plot`` go ahead); one with another picture is refused like a map."""
+    _check_view(member, fields)
     outdir = _check_outdir(outdir, lat_range)
     ds = open_run(run_path, member)
     named = _named(run_path, member)
@@ -525,6 +526,17 @@ def analysis_names(run_path, days, fields=(), spectrum=False, lat_range=None) ->
     return names + [Path(f"{stem}_{field}_zonal_mean_{when}{band}.png") for field in fields]
 
 
+def _check_view(member, fields=(), spectrum: bool = False) -> None:
+    """``ValueError`` (one line) for what an ensemble's spread does not hold: the spread of the
+    wind speed (not |spread of the wind|) and a spectrum (of the spread of the wind)."""
+    if member != "spread":
+        return
+    if "speed" in fields:
+        raise ValueError("--member spread: the file holds the spread of u and v, not of the speed")
+    if spectrum:
+        raise ValueError("--member spread: a kinetic-energy spectrum is of a wind, not of its spread")
+
+
 def _named(run_path, member) -> Path:
     """The path a plot's files are named after: the run file's, its stem followed by
     ``io.remap.member_label`` for an ensemble's member, mean or spread."""
@@ -546,6 +558,7 @@ def plot_analyses(
     file lacks (vorticity and divergence for the spectrum); ``output.OutputError``
     for an output that exists (unless ``overwrite``) or would replace the run. ``member``: an
     ensemble's (``open_run``)."""
+    _check_view(member, zonal_fields, spectrum)
     outdir = _check_outdir(outdir, lat_range)
     with open_run(run_path, member) as ds:
         days = _days_to_plot(ds, days)

@@ -198,6 +198,9 @@ def test_plot_and_remap_read_a_member_the_mean_or_the_spread(capsys, tmp_path):
         assert code == 0 and f"e_{label}_h_surface_day0.5.png" in out and f"e_{label}_series.png" in out
     code, _, err = cli_main(capsys, "plot", run, "--member", "2", "--output", tmp_path / "q")
     assert code == 2 and "--member must be 0 to 1, mean or spread (got '2')" in err
+    for args, says in [(("--field", "speed"), "not of the speed"), (("--spectrum",), "not of its spread")]:
+        code, _, err = cli_main(capsys, "plot", run, "--member", "spread", *args, "--output", tmp_path / "q")
+        assert code == 2 and says in err and not (tmp_path / "q").exists()
     h, spread, hs = read(run, "h", "h_spread", "hs")
     with open_run(run, "1") as ds:
         assert np.array_equal(field_at_nodes(ds, "h_surface", 0.5), h[-1, 1] + hs)

@@ -138,7 +138,6 @@ def command(args) -> int:
         if args.members is not None and members != args.members:
             held = "a single run" if members is None else f"{members} members"
             raise SceneError(f"--members {args.members}: {args.continue_from} holds {held}")
-    _check_ensemble_options(args, members)
     if args.continue_from is None:
         if args.scene is None:
             raise ValueError("run needs a SCENE (or --continue CHECKPOINT)")
@@ -152,8 +151,12 @@ def command(args) -> int:
             overrides={**overrides(args.set), **({"output.cells": False} if args.no_cells else {})},
         )
         scene = load_scene(args.scene, **given)
-        output = args.output or default_output(scene, args.members)
+        if members is None and scene.ensemble is not None:  # the scene's [ensemble]
+            members = scene.ensemble["members"]
+        _check_ensemble_options(args, members)
+        output = args.output or default_output(scene, members)
     else:
+        _check_ensemble_options(args, members)
         scene = None  # the restart file's
         stem = args.continue_from.name.removesuffix(".nc").removesuffix(".restart")
         changes = "".join(
@@ -202,7 +205,7 @@ def _check_ensemble_options(args, members: int | None) -> None:
     given = [flag for flag, value in (*starts, ("--vary", args.vary)) if value is not None]
     if members is None:
         if given:
-            raise SceneError(f"{' and '.join(given)} only with --members N")
+            raise SceneError(f"{' and '.join(given)} only with --members N (or a scene's [ensemble])")
         return
     kinds = {"--perturbation": "a perturbation", "--seed": "a perturbation", "--initial": "--initial's file"}
     if len({kinds.get(flag, "their own values (--vary)") for flag in given}) > 1:
@@ -251,7 +254,8 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
             initial = Variants(_varied(args.vary))
         if args.perturbation or args.seed is not None:
             initial = Perturbation(0.0 if args.perturbation is None else args.perturbation, args.seed or 0)
-        ens = Ensemble(scene, args.members, initial, device=device, graphs=args.graphs, comm=comm)
+        members = scene.ensemble["members"] if args.members is None else args.members
+        ens = Ensemble(scene, members, initial, device=device, graphs=args.graphs, comm=comm)
     if not ens.root:  # rank 0 reports; the others' errors still reach stderr
         sys.stdout = open(os.devnull, "w")
     setup, first, before = time.perf_counter() - t0, ens.step_count, ens.wall_time

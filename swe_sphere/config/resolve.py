@@ -184,6 +184,25 @@ def resolve_initialization(method: str, dfi: dict, case: Case, case_name: str) -
     return {"method": "dfi", **dataclasses.asdict(filt)}
 
 
+def resolve_ensemble(table: dict | None) -> dict | None:
+    """``Scene.ensemble`` of the [ensemble] table: None without one, else {"members": N ≥ 1,
+    "perturbation": metres ≥ 0 (default 0), "seed": ≥ 0 (default 0)} (``swe-sphere run`` runs
+    the scene's ensemble, ``swe_sphere.Ensemble`` takes its members and perturbation by default).
+    Raises ``SceneError`` naming the key."""
+    if not table:
+        return None
+    members, amplitude, seed = table.get("members"), table.get("perturbation", 0.0), table.get("seed", 0)
+    if members is None:
+        raise SceneError("ensemble.members is missing: an [ensemble] table names its members (an integer >= 1)")
+    if members < 1:
+        raise SceneError(f"ensemble.members must be an integer >= 1 (got {members!r})")
+    if not (math.isfinite(amplitude) and amplitude >= 0):
+        raise SceneError(f"ensemble.perturbation must be a number of metres >= 0 (got {amplitude!r})")
+    if seed < 0:
+        raise SceneError(f"ensemble.seed must be an integer >= 0 (got {seed!r})")
+    return {"members": int(members), "perturbation": float(amplitude), "seed": int(seed)}
+
+
 def _table_grid(grid: dict, scene_path: Path, file_folder: Path | None = None) -> SceneGrid:
     """The grid a [grid] table names (``grid_record`` for the mesh's keys, a relative mesh file
     in ``file_folder`` if given; ne defaults to 16, 0 with a mesh file, np to 4). Raises

@@ -13,6 +13,8 @@ the run length, the output interval and the hyperviscosity. Layout::
                       instead of the case's bundled T213 one: a bundled truncation
                       or a file; ``reference.locate``)
     [dfi]             span_hours = 48.0, cutoff_hours = 24.0 (``initialization.DigitalFilter``)
+    [ensemble]        members = 8, perturbation = 1.0 (m of white noise in h), seed = 0: the
+                      scene's ensemble (``swe-sphere run``, ``swe_sphere.Ensemble``'s defaults)
     [grid]            ne = 30, np = 4, and the mesh: the uniform cube of ne (the default),
                       map = "equiangular" | "element_local" (the cube's map: HOMME's
                       cubed_sphere_map 0 or 2), stretch_factor = 2.5, target_lat = 40.0,
@@ -86,6 +88,7 @@ from .resolve import (
     efold_nu,
     resolve_case,
     resolve_dt,
+    resolve_ensemble,
     resolve_grid,
     resolve_hyperviscosity,
     resolve_initialization,
@@ -189,6 +192,8 @@ class Scene:
     control : SceneControl or None
         [time] control: the step chosen step to step by an error or CFL controller, dt the
         first (``schema.SceneControl``); None: a fixed dt.
+    ensemble : dict or None
+        [ensemble] (``resolve.resolve_ensemble``): {"members", "perturbation", "seed"}; None: a single run.
     dt_source : str
         Where ``dt`` comes from, for messages ("the scene's", "the dt given", ...): not part
         of the scene's identity (left out of comparisons and of ``as_dict``).
@@ -230,6 +235,7 @@ class Scene:
     output_cells: bool = True  # [output] cells: the run files hold the control volumes (``dual``)
     hypervis_scaling: float | None = None  # [hyperviscosity] scaling: the tensor ∇⁴'s s; None: constant ν
     control: SceneControl | None = None  # [time] control: None, a fixed dt
+    ensemble: dict | None = None  # [ensemble]: members, perturbation (m), seed; None: one run
     # where dt comes from, for the refusals (``Clock.source``); not part of the scene's record (``as_dict``)
     dt_source: str = field(default="the scene's", compare=False)
     # what a run of the scene file as it is would take, for default file names (``cli.run``); not
@@ -343,7 +349,7 @@ class Scene:
                 del d[key]
         if d["output_cells"]:  # the default
             del d["output_cells"]
-        for key in ("hypervis_scaling", "control"):
+        for key in ("hypervis_scaling", "control", "ensemble"):
             if d[key] is None:
                 del d[key]
         return d
@@ -510,6 +516,7 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict) -> S
         output_cells=output.get("cells", True),
         hypervis_scaling=hv.scaling,
         control=control,
+        ensemble=resolve_ensemble(s.get("ensemble")),
         dt_source=dt_source,
         own_dt=own_dt,
         own_planet=own_planet,

@@ -89,10 +89,11 @@ class Ensemble:
         As ``Simulation`` takes it, with ``overrides`` (``config.resolve_scene``). Its stepper
         must be explicit (``Stepper.explicit``), its Δt fixed, without a digital filter or a
         tensor ∇⁴ (``hyperviscosity.scaling``).
-    members : int ≥ 1
-        N, the number of members.
+    members : int ≥ 1, optional
+        N, the number of members (None: the scene's [ensemble] ``members``).
     initial : None, array (N, 3, n), Perturbation, MemberFile or Variants
-        The members' initial states: None, the case's for every member; an array of rows
+        The members' initial states: None, the case's for every member (or the scene's
+        [ensemble] ``perturbation`` and ``seed`` where it names one > 0); an array of rows
         u, v (m s⁻¹) and h (m) on the grid's n element-local nodes (``CubedSphere``'s order,
         continuous); a ``Perturbation`` of the case's; a ``MemberFile``, an ensemble's run file;
         ``Variants``, each member's own case and Ω.
@@ -135,7 +136,7 @@ class Ensemble:
     def __init__(
         self,
         scene,
-        members: int,
+        members: int | None = None,
         initial=None,
         *,
         device=None,
@@ -145,14 +146,18 @@ class Ensemble:
         comm=None,
         **overrides,
     ):
-        members = integer_argument("members", members, 1)
+        scene, _ = resolve_scene(scene, overrides)
+        if members is None and scene.ensemble is None:
+            raise ArgumentError("members must be given, or the scene name them ([ensemble] members)")
+        members = integer_argument("members", scene.ensemble["members"] if members is None else members, 1)
+        if initial is None and scene.ensemble is not None and scene.ensemble["perturbation"] > 0:
+            initial = Perturbation(scene.ensemble["perturbation"], scene.ensemble["seed"])
         self.comm = comm if comm is not None and comm.size > 1 else None
         ranks, rank = (1, 0) if self.comm is None else (self.comm.size, self.comm.rank)
         if members < ranks:
             raise ArgumentError(f"members: {members} members over {ranks} MPI ranks (one a rank at least)")
         self.held, self.root = np.array_split(np.arange(members), ranks)[rank], rank == 0
         graphs = graphs_mode(default_mode() if graphs is None else graphs)
-        scene, _ = resolve_scene(scene, overrides)
         _checked_scene(scene)
         self.scene, self.members, self.dt = scene, members, scene.dt
         self.case = case = scene.make_case()

@@ -266,3 +266,26 @@ def test_variants_from_the_command_line_with_each_member_s_exact_errors(capsys, 
         assert np.array_equal(l2[:, k], read(single, "l2_h")[0]), k
     code, _, err = cli_main(capsys, *run, "--vary", "case.alpha=0,1", "--initial", out, "--output", tmp_path / "w.nc")
     assert code == 2 and "--initial and --vary: the members start from one of" in err
+
+
+def test_a_scene_s_ensemble_table_runs_its_ensemble(capsys, tmp_path):
+    """[ensemble] (here ``-s ensemble.…``): ``swe-sphere run`` runs the scene's members from its
+    perturbation, as ``--members --perturbation --seed`` do; bad values one line, exit 2."""
+    run = ("run", "galewsky", "--ne", "2", "--np", "4", "--dt", "900", "--days", "0.25")
+    table = ("-s", "ensemble.members=2", "-s", "ensemble.perturbation=1.5", "-s", "ensemble.seed=7")
+    assert cli_main(capsys, *run, *table, "--output", tmp_path / "a.nc")[0] == 0
+    flags = ("--members", "2", "--perturbation", "1.5", "--seed", "7")
+    assert cli_main(capsys, *run, *flags, "--output", tmp_path / "b.nc")[0] == 0
+    (a,), (b,) = read(tmp_path / "a.nc", "h"), read(tmp_path / "b.nc", "h")
+    assert a.shape[1] == 2 and np.array_equal(a, b)
+    ens = Ensemble(
+        "galewsky", initial=None, device="cpu", **SMALL, **{"ensemble.members": 2, "ensemble.perturbation": 1.5}
+    )
+    assert ens.members == 2 and ens.initial == "perturbed: h + 1.5 m white noise, seed 0"
+    for sets, says in [
+        (("ensemble.members=0",), "ensemble.members must be an integer >= 1"),
+        (("ensemble.members=2", "ensemble.seed=-1"), "ensemble.seed must be an integer >= 0"),
+        (("ensemble.seed=1",), "ensemble.members is missing"),
+    ]:
+        code, _, err = cli_main(capsys, *run, *(w for v in sets for w in ("-s", v)), "--output", tmp_path / "c.nc")
+        assert code == 2 and says in err and not (tmp_path / "c.nc").exists()

@@ -320,7 +320,8 @@ class Ensemble:
             "blow_up_policy": "stop all",
             **({"continued_from_day": s.day(self.step_count)} if self.step_count else {}),
         }
-        member_series = (*MEMBER_SERIES, *self.errors()[0])  # the errors the case has (collective)
+        errors = self.errors()  # the first output's, and the errors the case has (collective)
+        member_series, outputs = (*MEMBER_SERIES, *errors[0]), output_steps(s)
         writer = (
             None
             if not self.root
@@ -344,8 +345,8 @@ class Ensemble:
         )
         try:
             with bar, StopSignals(self.topology if self.comm is None else _Ranks(self.comm), catch=True) as signals:
-                self._write(writer, member_series)
-                for target in sorted(k for k in output_steps(s) | restarts if k > self.step_count):
+                self._write(writer, member_series, errors)
+                for target in sorted(k for k in outputs | restarts if k > self.step_count):
                     while self.step_count < target:  # a stop asked is answered between blocks
                         block = min(CHECK_EVERY_STEPS, target - self.step_count)
                         self.step(block)
@@ -353,7 +354,7 @@ class Ensemble:
                         if signum := signals.asked():  # the step reached written, as a run's last
                             self._write(writer, member_series)
                             raise self._interrupted(signum, restart, restart_every is not None or overwrite)
-                    if target in output_steps(s):
+                    if target in outputs:
                         self._write(writer, member_series)
                     if target in restarts:
                         self.write_checkpoint(restart, overwrite=True, restart_every=restart_every)
@@ -440,6 +441,10 @@ class Ensemble:
         (``cases.scoring.Scorer.errors``: Williamson et al. 1992's normalized l1, l2, l∞ of h and
         the wind against an exact solution, or against the scene's spectral reference where
         it stores this day); {} a member for a case with neither."""
+        return self._errors(self._held_states())
+
+    def _errors(self, held: np.ndarray) -> list[dict[str, float]]:
+        """``errors`` of this rank's members' states ``held`` (held, 3, n) (collective)."""
         if self._scorer is None:  # one member's model for the wind errors' vorticity and divergence
             with threadpool_limits(limits=1, user_api="blas"):
                 one = self._one or ShallowWater.from_scene(self.scene, self.grid, self.case, **self._options)
@@ -448,18 +453,19 @@ class Ensemble:
                 self._scorer = [Scorer(self.case, one, one.topology, self.grid, hs, self.scene.reference_file)]
             else:  # each member's own truth: an exact solution (a reference holds the scene's values only)
                 self._scorer = [Scorer(case, one, one.topology, self.grid, hs, None) for case in self.cases]
-        t, x = self.scene.day(self.step_count) * DAY, self._held_states()
-        return self._everyone(self._scorer[k % len(self._scorer)].errors(t, xk, *xk) for k, xk in zip(self.held, x))
+        t = self.scene.day(self.step_count) * DAY
+        return self._everyone(self._scorer[k % len(self._scorer)].errors(t, xk, *xk) for k, xk in zip(self.held, held))
 
-    def _write(self, writer: RunWriter | None, member_series) -> None:
+    def _write(self, writer: RunWriter | None, member_series, errors=None) -> None:
         """The current step's output time (``run``): the held members' fields gathered on rank 0,
-        which writes them (collective)."""
+        which writes them (collective); ``errors`` this step's ``errors()`` where they were taken."""
         x, zeta = self.x.numpy(), self.model.operators.vorticity(self.x)
         written = self.scene.output_fields or OUTPUT_FIELDS  # the same on every rank
         div = self.model.operators.wind_divergence(self.x) if "divergence" in written else None
         rows = [*(x[r] for r in range(3)), zeta, *(() if div is None else (div,))]
         local = [np.stack([self.copies.member(a, k) for a in rows]) for k in range(self.held.size)]
-        per_member = [{**d, **e} for d, e in zip(self._invariants(x, zeta), self.errors())]
+        errors = self._errors(np.stack([m[:3] for m in local])) if errors is None else errors
+        per_member = [{**d, **e} for d, e in zip(self._invariants(x, zeta), errors)]
         each = self._everyone(local) if self.comm is None else self.comm.gather(local, root=0)
         if writer is None:
             return

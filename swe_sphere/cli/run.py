@@ -254,8 +254,8 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
             initial = Variants(_varied(args.vary))
         if args.perturbation or args.seed is not None:
             initial = Perturbation(0.0 if args.perturbation is None else args.perturbation, args.seed or 0)
-        members = scene.ensemble["members"] if args.members is None else args.members
-        ens = Ensemble(scene, members, initial, device=device, graphs=args.graphs, comm=comm)
+        # members None: the scene's [ensemble] members (and, without a start given, its perturbation)
+        ens = Ensemble(scene, args.members, initial, device=device, graphs=args.graphs, comm=comm)
     if not ens.root:  # rank 0 reports; the others' errors still reach stderr
         sys.stdout = open(os.devnull, "w")
     setup, first, before = time.perf_counter() - t0, ens.step_count, ens.wall_time

@@ -70,12 +70,13 @@ class MemberFile:
             if ncol != grid.nunique:
                 raise ArgumentError(f"{where}: the file's grid has {ncol} unique nodes, the scene's {grid.nunique}")
             days = np.asarray(ds["time"][:], dtype=np.float64)
-            t = days.size - 1 if self.day is None else np.flatnonzero(np.isclose(days, self.day, rtol=0, atol=1e-9))
-            if np.size(t) == 0 or days.size == 0:
+            last = np.arange(days.size)[-1:]  # none in a file without output times
+            at = last if self.day is None else np.flatnonzero(np.isclose(days, self.day, rtol=0, atol=1e-9))
+            if at.size == 0:
                 raise ArgumentError(
                     f"{where}: no output at day {self.day} (it holds {', '.join(f'{d:g}' for d in days)})"
                 )
-            t = int(np.atleast_1d(t)[0])
+            t = int(at[0])
             return np.stack(
                 [np.asarray(ds[name][t], dtype=np.float64)[:, grid.gid] for name in ("u", "v", "h")], axis=1
             )

@@ -166,11 +166,8 @@ def member_view(ds: xr.Dataset, path, member, members: int) -> xr.Dataset:
     mean over the members) or "spread" (each field's spread, hs zero so that h + hs is h's; the
     series' standard deviation). ``ValueError`` (one line; ``ds`` closed) for another member."""
     if member not in MEMBER_VIEWS:
-        try:
-            k = int(member)
-        except (TypeError, ValueError):
-            k = -1
-        if not 0 <= k < members or str(member).strip() not in (str(k), f"+{k}"):
+        k = int(member) if str(member).isdigit() else -1
+        if not 0 <= k < members:
             ds.close()
             raise ValueError(f"{path}: --member must be 0 to {members - 1}, mean or spread (got {member!r})")
         view = ds.isel(member=k, drop=True)

@@ -126,7 +126,7 @@ class Hyperviscosity:
                     self.hv_flux,
                     src,
                 ]
-                passes = [*m.topology.dss(L, 0, Y)] if second else []  # the first DSS: Y₁
+                passes = list(m.topology.dss(L, 0, Y)) if second else []  # the first DSS: Y₁
                 passes.append(m.launches.nodes(flux, N, flux_args))
                 mass = self.hv_tensor[3] if tensor else m.spheremp  # the weight of the +2Y₁/a² shift
                 args = [

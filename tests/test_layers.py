@@ -280,7 +280,7 @@ def test_the_adjoint_asks_a_stepper_for_its_protocol_alone():
     from helpers import make_sim
 
     public = members()
-    assert len(public) == 17, sorted(public)
+    assert len(public) == 16, sorted(public)
     files = sorted((REPO / "swe_sphere" / "adjoint").glob("*.py"))
     outside = [
         f"{path.relative_to(REPO)}:{line}: stepper.{name}"
@@ -294,8 +294,7 @@ def test_the_adjoint_asks_a_stepper_for_its_protocol_alone():
     assert all(hasattr(stepper, name) for name in members(DifferentiableStepper))
     families = {
         "table": [runge_kutta.ExplicitRK, runge_kutta.ImexRK],
-        "fbrk": [explicit.FBRK32],
-        "leapfrog": [explicit.Leapfrog, explicit.LeapfrogTrapezoidal],
+        "leapfrog": [explicit.Leapfrog],
         "split_explicit": [multirate.SplitExplicit],
         "multirate": [multirate.Mri, local.Lts],
         "local": [local.Lts],

@@ -55,7 +55,80 @@ def refusal(model: ShallowWater, dt: float) -> str | None:
     return None
 
 
-class StepAdjoint:
+class Transposes:
+    """What every step's adjoint holds and sums beside its own reverse (``StepAdjoint``, the tape's
+    ``tape.TapeAdjoint`` and their kin): the tendency's and ∇⁴'s transposes, the parameters' sums
+    (``d_nu``, ``d_planet``, ``d_hs``, ``hs_gradient``) and ``prepare``."""
+
+    def _setup(self, model: ShallowWater, dt: float, parameters: bool, t0: float) -> None:
+        """What every step's adjoint holds (``refusal`` checked): the transposes' x̄ and f̄, the
+        parameters' sums and the ∇⁴'s substeps."""
+        why = refusal(model, dt)
+        if why is not None:
+            raise ArgumentError(why)
+        self.model, self.dt, self.parameters, self.t0 = model, float(dt), bool(parameters), float(t0)
+        m, N, device = model, model.topology.N, model.topology.device
+        self._held: dict[float, dict] = {}  # another Δt's records (``set_dt``)
+
+        def zeros(rows):
+            return wp.zeros((rows, N), dtype=f64, device=device)
+
+        self.tendency = m.operators.tendency_transpose(m.terms, m.g)  # Fᵀ: ``transpose``'s launches
+        # the terms F holds, the x̄ its transposes write, f̄ = Σ λ's wind rows (the forcing −g∇hs's adjoint)
+        self.terms, self.xbar, self.fbar = self.tendency.terms, self.tendency.xbar, self.tendency.fbar
+        self.Ybar: list = []  # the buffers of the Ȳ_j an earlier stage's k̄ reads (``_record``)
+        self.d_nu = np.zeros(2)  # ∂J/∂ν (wind rows), ∂J/∂ν_s (h row), m⁻⁴ s · J
+        self.d_planet = np.zeros(2)  # g ∂J/∂g, Ω ∂J/∂Ω (J): the stages' ⟨k̄_i, F's g and Ω terms⟩
+        self.g_terms = tuple(t for t in ("pressure_gradient", "topography") if t in m.terms)
+        self.d_hs = zeros(1)  # the ∇⁴'s share of ∂J/∂hs, continuous (mass form)
+        self.hv_transpose = None  # the ∇⁴'s transposed step (``_for_dt``), None without the ∇⁴
+        self._zeros = zeros
+
+    def prepare(self, x0) -> None:
+        """Called by the gradient's driver with x(0) after the run's stepper's ``prepare``: nothing here."""
+
+    def planet_terms(self, Y, kbar, g_terms=None, coriolis: bool = True, part=None) -> None:
+        """Add a stage's ⟨k̄, g F_g(Y)⟩ and ⟨k̄, f (v, −u)⟩ to ``d_planet`` (module doc), Y the
+        state its F read, k̄ = Σ c·a over (c, a) ``kbar`` as its transpose reads them (the same
+        bits on any ranks); F_g the RHS of ``g_terms`` (None: the model's pressure gradient and
+        topography), the Coriolis term's share only where its F holds it (``coriolis``); with
+        ``part`` (an ``ElementPart``: F the part's f_P) both by ``rhs_part``."""
+        m = self.model
+        g_terms = self.g_terms if g_terms is None else tuple(t for t in g_terms if t in m.terms)
+        kb, w, y = sum(c * a.numpy() for c, a in kbar), m.topology.grid.spheremp, Y.numpy()
+        if not hasattr(self, "f_g"):
+            self.f_g = self._zeros(3)
+
+        def winds(terms):  # ⟨k̄, F⟩ node by node over the wind rows, F the RHS of ``terms`` at Y
+            if part is None:
+                m.rhs(Y, self.f_g, terms)
+            else:  # f_P writes the nodes its elements touch alone
+                self.f_g.zero_()
+                m.rhs_part(Y, self.f_g, part, terms)
+            F = self.f_g.numpy()
+            return kb[0] * F[0] + kb[1] * F[1]
+
+        pressure = winds(g_terms) if g_terms else np.zeros_like(w)
+        if not hasattr(self, "fcor"):
+            self.fcor = m.operators.fcor.numpy() if "coriolis" in m.terms else np.zeros_like(w)
+        if not coriolis or "coriolis" not in m.terms:
+            rotation = np.zeros_like(w)
+        elif part is None:
+            rotation = self.fcor * (kb[0] * y[1] - kb[1] * y[0])
+        else:
+            rotation = winds(("coriolis",))
+        self.d_planet += m.topology.whole_sums([w * pressure, w * rotation])
+
+    def hs_gradient(self) -> np.ndarray:
+        """∂J/∂hs (N,) on this rank's nodes, continuous (mass form, as μ), summed over the steps reversed so far:
+        the ∇⁴'s share and the forcing's (``TendencyTranspose.forcing_transpose`` of f̄)."""
+        out = self.d_hs.numpy()[0]
+        if not self.terms or "topography" not in self.model.terms:
+            return out
+        return out + self.tendency.forcing_transpose()
+
+
+class StepAdjoint(Transposes):
     """The adjoint of one step of ``model`` by the explicit table ``table`` (a
     ``steppers.butcher.Table``) at Δt = ``dt`` (s), the run's steps from model time ``t0``
     (s): ``reverse(x, mu, k)`` maps the continuous adjoint μ of x(k+1) to that of x(k) in
@@ -82,30 +155,6 @@ class StepAdjoint:
         self.x = self.Y[0]  # Y_0 = x(n): an explicit table's first row is zero
         self.K = [zeros(3) if keep else None for keep in keep_k]
         self._for_dt()
-
-    def _setup(self, model: ShallowWater, dt: float, parameters: bool, t0: float) -> None:
-        """What every step's adjoint holds (``refusal`` checked): the transposes' x̄ and f̄, the
-        parameters' sums and the ∇⁴'s substeps."""
-        why = refusal(model, dt)
-        if why is not None:
-            raise ArgumentError(why)
-        self.model, self.dt, self.parameters, self.t0 = model, float(dt), bool(parameters), float(t0)
-        m, N, device = model, model.topology.N, model.topology.device
-        self._held: dict[float, dict] = {}  # another Δt's records (``set_dt``)
-
-        def zeros(rows):
-            return wp.zeros((rows, N), dtype=f64, device=device)
-
-        self.tendency = m.operators.tendency_transpose(m.terms, m.g)  # Fᵀ: ``transpose``'s launches
-        # the terms F holds, the x̄ its transposes write, f̄ = Σ λ's wind rows (the forcing −g∇hs's adjoint)
-        self.terms, self.xbar, self.fbar = self.tendency.terms, self.tendency.xbar, self.tendency.fbar
-        self.Ybar: list = []  # the buffers of the Ȳ_j an earlier stage's k̄ reads (``_record``)
-        self.d_nu = np.zeros(2)  # ∂J/∂ν (wind rows), ∂J/∂ν_s (h row), m⁻⁴ s · J
-        self.d_planet = np.zeros(2)  # g ∂J/∂g, Ω ∂J/∂Ω (J): the stages' ⟨k̄_i, F's g and Ω terms⟩
-        self.g_terms = tuple(t for t in ("pressure_gradient", "topography") if t in m.terms)
-        self.d_hs = zeros(1)  # the ∇⁴'s share of ∂J/∂hs, continuous (mass form)
-        self.hv_transpose = None  # the ∇⁴'s transposed step (``_for_dt``), None without the ∇⁴
-        self._zeros = zeros
 
     # what depends on Δt: the ∇⁴'s transposed step and the launches recorded with Δt in their coefficients
     _PER_DT = ("hv_transpose", "substeps", "combinations", "_stages", "_adjoints")
@@ -197,14 +246,6 @@ class StepAdjoint:
         """out = Φ(x), the step before its ∇⁴: x + Δt Σ b_i K_i (the K_i kept with ``parameters``)."""
         self.combine(out, [(1.0, self.x), *((self.dt * b, k) for b, k in zip(self.b, self.K))])
 
-    def hs_gradient(self) -> np.ndarray:
-        """∂J/∂hs (N,) on this rank's nodes, continuous (mass form, as μ), summed over the steps reversed so far:
-        the ∇⁴'s share and the forcing's (``TendencyTranspose.forcing_transpose`` of f̄)."""
-        out = self.d_hs.numpy()[0]
-        if not self.terms or "topography" not in self.model.terms:
-            return out
-        return out + self.tendency.forcing_transpose()
-
     def _record(self, mu) -> list:
         """The launches of the stages' transposes, last stage first, as (Y_i, k̄_i's terms, its
         launches) a stage (``reverse``): k̄_i = Δt (b_i μ + Σ_j a_ji
@@ -240,38 +281,6 @@ class StepAdjoint:
             launches += self.model.topology.dss_update(self.xbar, updates, weighted=False)
             segments.append((self.Y[i], kbar, launches))
         return segments
-
-    def planet_terms(self, Y, kbar, g_terms=None, coriolis: bool = True, part=None) -> None:
-        """Add a stage's ⟨k̄, g F_g(Y)⟩ and ⟨k̄, f (v, −u)⟩ to ``d_planet`` (module doc), Y the
-        state its F read, k̄ = Σ c·a over (c, a) ``kbar`` as its transpose reads them (the same
-        bits on any ranks); F_g the RHS of ``g_terms`` (None: the model's pressure gradient and
-        topography), the Coriolis term's share only where its F holds it (``coriolis``); with
-        ``part`` (an ``ElementPart``: F the part's f_P) both by ``rhs_part``."""
-        m = self.model
-        g_terms = self.g_terms if g_terms is None else tuple(t for t in g_terms if t in m.terms)
-        kb, w, y = sum(c * a.numpy() for c, a in kbar), m.topology.grid.spheremp, Y.numpy()
-        if not hasattr(self, "f_g"):
-            self.f_g = self._zeros(3)
-
-        def winds(terms):  # ⟨k̄, F⟩ node by node over the wind rows, F the RHS of ``terms`` at Y
-            if part is None:
-                m.rhs(Y, self.f_g, terms)
-            else:  # f_P writes the nodes its elements touch alone
-                self.f_g.zero_()
-                m.rhs_part(Y, self.f_g, part, terms)
-            F = self.f_g.numpy()
-            return kb[0] * F[0] + kb[1] * F[1]
-
-        pressure = winds(g_terms) if g_terms else np.zeros_like(w)
-        if not hasattr(self, "fcor"):
-            self.fcor = m.operators.fcor.numpy() if "coriolis" in m.terms else np.zeros_like(w)
-        if not coriolis or "coriolis" not in m.terms:
-            rotation = np.zeros_like(w)
-        elif part is None:
-            rotation = self.fcor * (kb[0] * y[1] - kb[1] * y[0])
-        else:
-            rotation = winds(("coriolis",))
-        self.d_planet += m.topology.whole_sums([w * pressure, w * rotation])
 
     def reverse(self, x, mu, k: int = 0) -> None:
         """μ of x(k+1) → μ of x(k), in place; x = x(k) (read only), k the step's index (its

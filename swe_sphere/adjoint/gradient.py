@@ -29,14 +29,13 @@ from ..core.constants import DAY
 from ..core.errors import ArgumentError
 from ..model.shallow_water import ShallowWater
 from .disk import DiskTier
-from .explicit import StepAdjoint, refusal
-from .forward_backward import ForwardBackwardAdjoint
+from .explicit import Transposes, refusal
 from .imex import ImexAdjoint
-from .leapfrog import LeapfrogAdjoint
 from .multirate import LtsAdjoint, MriAdjoint, SplitExplicitAdjoint
 from .multirate_ab import MrabAdjoint
 from .revolve import sweep, two_level
 from .semi_implicit import SemiImplicitAdjoint
+from .tape import TapeAdjoint
 
 f64 = wp.float64
 
@@ -166,8 +165,9 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
     stepper = scene_stepper(scene, model)
     if _adjoint_of(stepper) is None:
         raise ArgumentError(
-            f"gradients need an explicit Runge–Kutta or IMEX table (built in or a tableau) or one of "
-            f"{', '.join(sorted(ADJOINTS))} (got scene.stepper = {scene.stepper!r})"
+            f"gradients need an explicit stepper (a Runge–Kutta table built in or a tableau, fbrk32, leapfrog, "
+            f"leapfrog_trapezoidal), an IMEX table or one of {', '.join(sorted(ADJOINTS))} "
+            f"(got scene.stepper = {scene.stepper!r})"
         )
     return model, stepper, np.stack(case.initial(grid.lat, grid.lon))
 
@@ -218,28 +218,20 @@ class StepTimes:
 
 def _lts(model: ShallowWater, stepper, dt: float, parameters: bool, t0: float):
     """Local time stepping's adjoint (its levels fixed by ``prepare``; its ``local()``): MRAB3's,
-    the inner table's global step on one level, else the multirate levels'."""
+    the tape's on one level (the inner table's global step), else the multirate levels'."""
     local = stepper.local()
     if local.mrab is not None:
         return MrabAdjoint(model, stepper, dt, parameters, t0)
     if local.single is not None:
-        return StepAdjoint(model, local.single, dt, parameters, t0)
+        return TapeAdjoint(model, stepper, dt, parameters, t0)
     return LtsAdjoint(model, stepper, dt, parameters, t0)
 
 
-def _table(model: ShallowWater, stepper, dt: float, parameters: bool, t0: float) -> StepAdjoint:
-    """An explicit Runge–Kutta step's adjoint, from its Butcher table alone."""
-    return StepAdjoint(model, stepper.table(), dt, parameters, t0)
-
-
 # the adjoint of a step, (model, stepper, Δt, parameters, t0) → its ``StepAdjoint``, by the stepper's
-# registered name (``steppers.STEPPERS``); any other explicit stepper with a Butcher table (every
-# built-in explicit Runge–Kutta stepper, an explicit ``tableau``) has its table's (``_table``), an IMEX
-# ``tableau`` the IMEX pairs' (``ImexAdjoint``: the same engine)
+# registered name (``steppers.STEPPERS``); any other explicit stepper (every explicit Runge–Kutta table
+# built in or a ``tableau``, fbrk32, leapfrog, leapfrog_trapezoidal) the tape of its own step's
+# (``tape.TapeAdjoint``), an IMEX ``tableau`` the IMEX pairs' (``ImexAdjoint``: the same engine)
 ADJOINTS = {
-    "fbrk32": ForwardBackwardAdjoint,
-    "leapfrog": LeapfrogAdjoint,
-    "leapfrog_trapezoidal": LeapfrogAdjoint,
     "split_explicit": SplitExplicitAdjoint,
     "mri": MriAdjoint,
     "lts": _lts,
@@ -255,12 +247,12 @@ def _adjoint_of(stepper):
     an exponential stepper)."""
     if stepper.name in ADJOINTS:
         return ADJOINTS[stepper.name]
-    if not callable(getattr(stepper, "table", None)):
-        return None
-    return _table if stepper.explicit else ImexAdjoint if stepper.table().imex else None
+    if stepper.explicit:
+        return TapeAdjoint
+    return ImexAdjoint if callable(getattr(stepper, "table", None)) and stepper.table().imex else None
 
 
-def step_adjoint(model: ShallowWater, stepper, parameters: bool = False) -> StepAdjoint:
+def step_adjoint(model: ShallowWater, stepper, parameters: bool = False) -> Transposes:
     """The adjoint of one step of ``stepper`` (``scene_model``'s: one with an adjoint, ``ADJOINTS``
     or an explicit Butcher table; lts prepared) on ``model``, its steps from the stepper's ``t0``.
     ValueError as its class."""
@@ -414,6 +406,7 @@ def gradient(
     work = wp.array(x0, dtype=f64, device=model.topology.device)  # the stepper steps this array only
     stepper.prepare(work)  # from x(0): lts fixes its levels by its flow
     adjoint = step_adjoint(model, stepper, parameters)
+    adjoint.prepare(work)
     interval = snapshots if disk_interval is None else int(disk_interval)
     found, mu, taken, used = _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, disk, interval)
     extra = {}

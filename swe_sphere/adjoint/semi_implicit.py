@@ -1,6 +1,7 @@
 """The adjoint of one step of the semi-implicit leapfrog (``steppers.semi_implicit``, HOMME's
-``advance_si_nonstag``): ``leapfrog``'s three-level adjoint with the gravity waves' trapezoid and
-their Helmholtz solve. States and adjoints (6, N) as ``leapfrog``'s: s(n) = (x(n), x̃(n−1)).
+``advance_si_nonstag``): a three-level adjoint with the gravity waves' trapezoid and their
+Helmholtz solve. States and adjoints (6, N): s(n) = (x(n), x̃(n−1)), x̃ the array the stepper
+carries (``carried_arrays``: the filtered x(n−1)).
 
 The step, with δ its half span and A_δ = I − δL (L x = (−g G h, −H D v), the linear
 gravity-wave operator about the mean depth H, ``model.gravity_wave``):
@@ -24,11 +25,13 @@ its first step and rounded: piecewise constant, held). The parameters' gradients
 
 from __future__ import annotations
 
+import warp as wp
+
 from ..core.errors import ArgumentError
 from ..model.shallow_water import ShallowWater
 from ..model.transposes import GravityTranspose
 from ..solvers.helmholtz import HelmholtzSolver
-from .leapfrog import LeapfrogAdjoint
+from .explicit import StepAdjoint
 
 
 class GravityTransposes:
@@ -50,15 +53,17 @@ class GravityTransposes:
         self.gravity.solve(mu, a)
 
 
-class SemiImplicitAdjoint(GravityTransposes, LeapfrogAdjoint):
+class SemiImplicitAdjoint(GravityTransposes, StepAdjoint):
     """The adjoint of one step of ``stepper`` (a ``SemiImplicit``) on ``model`` at Δt = ``dt``
-    (s), its steps from model time ``t0`` (s): ``reverse(s, mu, k)`` as ``LeapfrogAdjoint``'s
-    (module doc). ``first``: the adjoint of the first step alone (δ = Δt/2, any k reversed as
-    step 0), which the run's adjoint holds as its ``start``, sharing its ``gravity``.
-    ``ArgumentError`` with ``parameters`` (not served) and as ``StepAdjoint``; ``StepFailure``
-    (from ``reverse``) where the transposed solve does not reach the stepper's ``tol``.
+    (s), its steps from model time ``t0`` (s): ``reverse(s, mu, k)`` maps the adjoint μ (6, N) of
+    s(k+1) to that of s(k) in place, s = s(k) (6, N) read only (module doc). ``first``: the
+    adjoint of the first step alone (δ = Δt/2, any k reversed as step 0), which the run's adjoint
+    holds as its ``start``, sharing its ``gravity``. ``dt`` (the attribute) is the ∇⁴'s span 2δ,
+    ``step_dt`` δ. ``ArgumentError`` with ``parameters`` (not served) and as ``StepAdjoint``;
+    ValueError from ``set_dt`` for another Δt (the scheme keeps one); ``StepFailure`` (from
+    ``reverse``) where the transposed solve does not reach the stepper's ``tol``.
 
-    Work arrays (3, N): ``leapfrog``'s and x_H; a ``HelmholtzSolver`` of its own (the stepper's
+    Work arrays (3, N): x, x̃, μ_Φ and x̄; a ``HelmholtzSolver`` of its own (the stepper's
     guesses untouched) about the stepper's ``linear`` operator."""
 
     def __init__(
@@ -79,30 +84,49 @@ class SemiImplicitAdjoint(GravityTransposes, LeapfrogAdjoint):
             )
         self.first = first
         self._gravity(stepper, gravity)
-        super().__init__(model, stepper, dt / 2 if first else dt, parameters, t0)
-        self.eps = 0.0 if first else self.eps
+        self.step_dt = float(dt / 2 if first else dt)
+        self._setup(model, 2 * self.step_dt, parameters, t0)
+        self.eps = 0.0 if first else stepper.leapfrog().robert_asselin
+        self.x, self.old, self.mphi = self._zeros(3), self._zeros(3), self._zeros(3)
+        self._for_dt()
+        self.start = None if first else SemiImplicitAdjoint(model, stepper, dt, t0=t0, first=True, gravity=self.gravity)
 
-    def _first_step(self, model, stepper, dt: float, parameters: bool, t0: float):
-        if not self.first:
-            return SemiImplicitAdjoint(model, stepper, dt, parameters, t0, first=True, gravity=self.gravity)
-        return None
+    def _stage_plan(self, zeros) -> None:
+        """None: ``reverse`` forms the step's states itself."""
 
-    def _reverse_start(self, x, mu) -> None:
-        self.start.t0 = self.t0
-        self.start.reverse(x, mu, 0)
-
-    def _phi_adjoint(self) -> None:
-        """μ_N → μ_Φ: the ∇⁴'s transpose, then A_δ⁻ᵀ."""
-        super()._phi_adjoint()
-        self.solve_transpose(self.mphi, self.step_dt)
+    def set_dt(self, dt: float) -> None:
+        if float(dt) != self.step_dt:
+            raise ValueError(f"a three-level scheme's adjoint keeps its dt {self.step_dt!r} s (got {dt!r})")
 
     def _record(self, mu) -> list:
-        """``leapfrog``'s segments (μ_x = (1 − 2ε) μ_x̃' + 2δ Fᵀ μ_Φ, μ_x̃ = ε μ_x̃' + μ_Φ), then
-        Lᵀ μ_Φ added to both (−2δ, δ) by its DSS, and at the first step μ_x += μ_x̃."""
-        X, O, d, topo = mu[0:3], mu[3:6], self.step_dt, self.model.topology
+        """The launches of a step's reverse after μ_Φ (``reverse``), as (Y, k̄'s terms, launches)
+        segments: μ_x = (1 − 2ε) μ_x̃' + 2δ Fᵀ(x) μ_Φ, μ_x̃ = ε μ_x̃' + μ_Φ, then Lᵀ μ_Φ added to
+        both (−2δ, δ) by its DSS, and at the first step μ_x += μ_x̃."""
+        m, topo, d, eps = self.model, self.model.topology, self.step_dt, self.eps
+        X, O = mu[0:3], mu[3:6]
+        kbar = [(2 * d, self.mphi)]
+        add = ((1.0, X), (1.0, None))
         gravity = [
             *self.gravity.transpose(self.tendency, [(1.0, self.mphi)]),
             *topo.dss_update(self.xbar, [(X, ((1.0, X), (-2 * d, None))), (O, ((1.0, O), (d, None)))], False),
         ]
-        fold = [self.model.lincomb(X, [(1.0, X), (1.0, O)])] if self.first else []
-        return [*super()._record(mu), (None, None, gravity + fold)]
+        fold = [m.lincomb(X, [(1.0, X), (1.0, O)])] if self.first else []
+        return [
+            (None, None, [m.lincomb(X, [(1 - 2 * eps, O)]), m.lincomb(O, [(eps, O), (1.0, self.mphi)])]),
+            (self.x, kbar, [*self.tendency.transpose(self.x, kbar), *topo.dss_update(self.xbar, [(X, add)], False)]),
+            (None, None, gravity + fold),
+        ]
+
+    def reverse(self, x, mu, k: int = 0) -> None:
+        """μ of s(k+1) → μ of s(k), in place; x = s(k) (6, N) (read only), k the step's index."""
+        if k == 0 and self.start is not None:
+            self.start.t0 = self.t0
+            self.start.reverse(x, mu, 0)
+            return
+        wp.copy(self.x, x[0:3])
+        wp.copy(self.old, x[3:6])
+        self.combine(self.mphi, [(1.0, mu[0:3]), (self.eps, mu[3:6])])  # μ_N
+        if self.substeps:
+            self.hyperviscosity_transpose(self.mphi)
+        self.solve_transpose(self.mphi, self.step_dt)  # μ_Φ
+        self._replay(mu)

@@ -13,15 +13,10 @@ F is never stored, and the bits are those of storing F and combining after.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from fractions import Fraction
 
 from ..model.launches import Update
 from .base import Stepper, StepStats
-from .butcher import Table
-from .protocol import FbrkSteps, LeapfrogSteps
-
-# the three-level schemes' first step: x(1) = x + Δt F(x + Δt/2 F(x)), then the ∇⁴ over Δt
-MIDPOINT = Table(((0, 0), (Fraction(1, 2), 0)), (0, 1), None, None, (0, Fraction(1, 2)), 2)
+from .protocol import LeapfrogSteps
 
 
 class FBRK32(Stepper):
@@ -70,10 +65,6 @@ class FBRK32(Stepper):
         # kh: the continuity half's wind rows (a forcing's; zero without one)
         self.s, self.t, self.kh = self._buffer(), self._buffer(), self._buffer()
         self._x = None
-
-    def fbrk(self) -> FbrkSteps:
-        """The step as its adjoint reads it (``protocol.FbrkSteps``): c, β and the halves' terms."""
-        return FbrkSteps(self.C, self.BETA, self.continuity, self.momentum)
 
     def _record(self, x):
         """Per stage: the continuity half's F_h writes h̃ into s and h⁽ⁱ⁾ into t
@@ -195,8 +186,8 @@ class Leapfrog(_LeapfrogFamily):
     courant_limit = 0.58
 
     def leapfrog(self) -> LeapfrogSteps:
-        """The step as its adjoint reads it (``protocol.LeapfrogSteps``): ε and the midpoint start."""
-        return LeapfrogSteps(False, float(self.options.robert_asselin), MIDPOINT)
+        """ε, as the semi-implicit leapfrog's adjoint reads it (``protocol.LeapfrogSteps``)."""
+        return LeapfrogSteps(float(self.options.robert_asselin))
 
     def _record_scheme(self, x):
         eps = self.options.robert_asselin
@@ -225,10 +216,6 @@ class LeapfrogTrapezoidal(_LeapfrogFamily):
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
         self.half = self._buffer()  # x(n) + Δt/2 F(x(n)), the corrector's first half
-
-    def leapfrog(self) -> LeapfrogSteps:
-        """The step as its adjoint reads it (``protocol.LeapfrogSteps``): the corrector, no filter."""
-        return LeapfrogSteps(True, 0.0, MIDPOINT)
 
     def _record_scheme(self, x):
         dt = self.dt

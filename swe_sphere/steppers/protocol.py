@@ -8,14 +8,16 @@ A new stepper's author reads this first. The driver replays the run: it sets Δt
 of step k (``dt``, ``set_dt``, ``t0``), puts the stepper at step k's phase (``set_phase``), copies
 x and what the step carries besides x (``carried_arrays``) in and out of the sweep's states, and
 takes the step (``step``), after ``prepare`` from x(0). It picks the step's adjoint by ``name``
-(``adjoint.gradient.ADJOINTS``), or, for a stepper of the Runge–Kutta engine, by ``explicit`` and
-its Butcher table (``table()``): a table needs nothing more, its adjoint reads the table alone.
-The other families' adjoints take the step's stages again from x(n) and transpose them; what they
-need to know of the step is the family's description, which the stepper returns from one method,
-so the step's coefficients (FB-RK's β, MRAB3's weights) live in the stepper alone:
+(``adjoint.gradient.ADJOINTS``); any other ``explicit`` stepper (every explicit Butcher table,
+FB-RK(3,2), leapfrog, leapfrog-trapezoidal) needs nothing more: its adjoint takes a twin of it
+(its class, ``dt`` and ``options``) on a tape of the model's verbs and reverses the tape
+(``adjoint.tape``), so a step written with those verbs (``model.protocol``) differentiates as
+it is. An IMEX table is read by ``table()``. The other families' adjoints take the step's stages
+again from x(n) and transpose them; what they need to know of the step is the family's
+description, which the stepper returns from one method, so the step's coefficients (MRAB3's
+weights) live in the stepper alone:
 
-- ``fbrk()`` (FB-RK(3,2)): ``FbrkSteps``, its c and β and its two halves' terms;
-- ``leapfrog()`` (leapfrog, leapfrog-trapezoidal, the semi-implicit leapfrog): ``LeapfrogSteps``;
+- ``leapfrog()`` (the semi-implicit leapfrog): ``LeapfrogSteps``, its Robert–Asselin ε;
 - ``split_explicit()``: ``SplitExplicitSteps``, its stages, substeps and substep;
 - ``multirate()`` (mri; lts with a multirate table on several levels): ``MultirateSteps``;
 - ``local()`` (lts): ``LocalSteps``, which of its three steps it takes (one level's table, MRAB3's
@@ -69,26 +71,10 @@ class SolvingStepper(DifferentiableStepper, Protocol):
 
 
 @dataclass(frozen=True)
-class FbrkSteps:
-    """FB-RK(3,2)'s step (``explicit.FBRK32``): the stages' abscissae ``c`` and depth weights
-    ``beta`` (each a 3-tuple of floats), the continuity half's terms (continuity, and a forcing)
-    and the momentum half's (the other tendency terms; () without them)."""
-
-    c: tuple
-    beta: tuple
-    continuity: tuple
-    momentum: tuple
-
-
-@dataclass(frozen=True)
 class LeapfrogSteps:
-    """A three-level step (``explicit.Leapfrog``, ``LeapfrogTrapezoidal``, ``semi_implicit``):
-    ``trapezoidal`` (the leapfrog-trapezoidal corrector), the Robert–Asselin ε (0 without the
-    filter), and ``start``, the first step's table (the explicit midpoint rule)."""
+    """The semi-implicit leapfrog's step (``semi_implicit.SemiImplicit``): the Robert–Asselin ε."""
 
-    trapezoidal: bool
     robert_asselin: float
-    start: Table
 
 
 @dataclass(frozen=True)
@@ -163,10 +149,6 @@ class LocalSteps:
     mrab: MrabSteps | None
 
 
-class FbrkStepper(DifferentiableStepper, Protocol):
-    def fbrk(self) -> FbrkSteps: ...
-
-
 class LeapfrogStepper(DifferentiableStepper, Protocol):
     def leapfrog(self) -> LeapfrogSteps: ...
 
@@ -187,7 +169,6 @@ PROTOCOLS = (
     DifferentiableStepper,
     TableStepper,
     SolvingStepper,
-    FbrkStepper,
     LeapfrogStepper,
     SplitExplicitStepper,
     MultirateStepper,

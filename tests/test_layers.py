@@ -274,13 +274,13 @@ def test_the_adjoint_asks_a_stepper_for_its_protocol_alone():
     step's frozen description), each one a stepper's; and imports nothing of steppers/ but the
     protocol module and the public table type it names (``butcher.Table``)."""
     from swe_sphere.config.scene import load_scene
-    from swe_sphere.steppers import explicit, local, multirate, runge_kutta
+    from swe_sphere.steppers import local, multirate
     from swe_sphere.steppers.protocol import DifferentiableStepper, members
 
     from helpers import make_sim
 
     public = members()
-    assert len(public) == 16, sorted(public)
+    assert len(public) == 14, sorted(public)
     files = sorted((REPO / "swe_sphere" / "adjoint").glob("*.py"))
     outside = [
         f"{path.relative_to(REPO)}:{line}: stepper.{name}"
@@ -293,8 +293,6 @@ def test_the_adjoint_asks_a_stepper_for_its_protocol_alone():
     stepper = make_sim(load_scene("galewsky", ne=2, np_=4)).stepper
     assert all(hasattr(stepper, name) for name in members(DifferentiableStepper))
     families = {
-        "table": [runge_kutta.ExplicitRK, runge_kutta.ImexRK],
-        "leapfrog": [explicit.Leapfrog],
         "split_explicit": [multirate.SplitExplicit],
         "multirate": [multirate.Mri, local.Lts],
         "local": [local.Lts],

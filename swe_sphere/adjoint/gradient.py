@@ -30,11 +30,9 @@ from ..core.errors import ArgumentError
 from ..model.shallow_water import ShallowWater
 from .disk import DiskTier
 from .explicit import Transposes, refusal
-from .imex import ImexAdjoint
 from .multirate import LtsAdjoint, MriAdjoint, SplitExplicitAdjoint
 from .multirate_ab import MrabAdjoint
 from .revolve import sweep, two_level
-from .semi_implicit import SemiImplicitAdjoint
 from .tape import TapeAdjoint
 
 f64 = wp.float64
@@ -166,7 +164,8 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
     if _adjoint_of(stepper) is None:
         raise ArgumentError(
             f"gradients need an explicit stepper (a Runge–Kutta table built in or a tableau, fbrk32, leapfrog, "
-            f"leapfrog_trapezoidal), an IMEX table or one of {', '.join(sorted(ADJOINTS))} "
+            f"leapfrog_trapezoidal), one that solves with L (semi_implicit, an IMEX table: imex, ark324, ark436, "
+            f"a tableau) or one of {', '.join(sorted(ADJOINTS))} "
             f"(got scene.stepper = {scene.stepper!r})"
         )
     return model, stepper, np.stack(case.initial(grid.lat, grid.lon))
@@ -227,18 +226,15 @@ def _lts(model: ShallowWater, stepper, dt: float, parameters: bool, t0: float):
     return LtsAdjoint(model, stepper, dt, parameters, t0)
 
 
-# the adjoint of a step, (model, stepper, Δt, parameters, t0) → its ``StepAdjoint``, by the stepper's
-# registered name (``steppers.STEPPERS``); any other explicit stepper (every explicit Runge–Kutta table
-# built in or a ``tableau``, fbrk32, leapfrog, leapfrog_trapezoidal) the tape of its own step's
-# (``tape.TapeAdjoint``), an IMEX ``tableau`` the IMEX pairs' (``ImexAdjoint``: the same engine)
+# the adjoint of a step, (model, stepper, Δt, parameters, t0) → its adjoint, by the stepper's registered
+# name (``steppers.STEPPERS``) for the multirate families; any other explicit stepper (every explicit
+# Runge–Kutta table built in or a ``tableau``, fbrk32, leapfrog, leapfrog_trapezoidal) and any that
+# solves with L (semi_implicit, imex, ark324, ark436, an IMEX ``tableau``) the tape of its own step's
+# (``tape.TapeAdjoint``)
 ADJOINTS = {
     "split_explicit": SplitExplicitAdjoint,
     "mri": MriAdjoint,
     "lts": _lts,
-    "semi_implicit": SemiImplicitAdjoint,
-    "imex": ImexAdjoint,
-    "ark324": ImexAdjoint,
-    "ark436": ImexAdjoint,
 }
 
 
@@ -247,9 +243,7 @@ def _adjoint_of(stepper):
     an exponential stepper)."""
     if stepper.name in ADJOINTS:
         return ADJOINTS[stepper.name]
-    if stepper.explicit:
-        return TapeAdjoint
-    return ImexAdjoint if callable(getattr(stepper, "table", None)) and stepper.table().imex else None
+    return TapeAdjoint if stepper.explicit or getattr(stepper, "linear", None) is not None else None
 
 
 def step_adjoint(model: ShallowWater, stepper, parameters: bool = False) -> Transposes:

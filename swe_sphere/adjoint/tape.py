@@ -3,36 +3,48 @@ the step taken again from x(n) on a tape, then the tape reversed (issue 82's "st
 
 The stepper's own code is the plan. A twin of the stepper (its class, Δt and options) is built on
 a ``TapedModel``, which forwards every verb to the model and writes on the tape what it did:
-- ``rhs_update(x, updates)`` (and ``rhs``, one update of F alone): F(x) at a copy of x taken before
-  the call, then each update out[rows] = Σ a·src (src None: F), in order;
-- a recorded combination's launch (``lincomb``): out = Σ c·x;
-- ``hyperviscosity(x, dt)``: x ← H_dt(x) in place (with ``parameters`` a copy of x before it).
-Any other verb that writes state (``pointwise``, ``rhs_part``) has no transpose here: an
-``ArgumentError`` names it.
+- ``Evaluate``: F(x) (``rhs_update``, or ``rhs`` as one update of F alone) at x as it stood, then
+  each update out[rows] = Σ a·src (src None: F), in order;
+- ``Combine``: out = Σ c·x (a recorded combination's launch, ``lincomb``, or ``pointwise``'s
+  ``blas.axpby`` and ``axpbypcz``);
+- ``Smooth``: x ← H_dt(x) in place, the ∇⁴ (``hyperviscosity``);
+- ``Linear``: the gravity-wave operator L written into updates as F is (``GravityWaveOperator.
+  update``, ``apply``), and ``Solve``: z = (I − aL)⁻¹ (s·r), with ``implicit`` L z = (z − s·r)/a
+  (``HelmholtzSolver.solve``): both write themselves on the tape of the model they were built on.
+Any other verb that writes state (another ``pointwise`` kernel, ``rhs_part``) has no transpose
+here: an ``ArgumentError`` names it.
 
 The reverse walks the tape backwards with one adjoint array per array the step touched, in the
-mass form of ``adjoint.explicit`` (μ = R Q λ: every array the step writes is continuous):
+mass form (μ = R Q λ, ``adjoint.explicit``'s module doc: every array the step writes is continuous):
 - out = Σ c·x: μ_x += c μ_out for each x that is not out, then μ_out ← c_out μ_out (c_out the
   coefficient of out itself, 0 where it is not a term);
-- an F evaluation: its updates last first as combinations, F's share summed into k̄, then
-  μ_x += R Q Tᵀ(x) W k̄ (``model.transposes.TendencyTranspose``, its DSS unweighted), and with
-  ``parameters`` the planet's and topography's sums of (x, k̄) (``StepAdjoint.planet_terms``);
+- an F: its updates last first as combinations, F's share summed into k̄, then μ_x += R Q Tᵀ(x)
+  W k̄ (``model.transposes.TendencyTranspose``, its DSS unweighted), and with ``parameters`` the
+  planet's and topography's sums of (x, k̄) (``Transposes.planet_terms``); L likewise with Lᵀ
+  (``GravityTranspose.transpose``: Tᵀ of the pressure gradient and continuity at (0, 0, H));
 - the ∇⁴: μ ← H_dtᵀ μ in place (``model.transposes.HyperviscosityTranspose``, with ``parameters``
-  ∂J/∂ν, ∂J/∂ν_s and ∂J/∂hs summed from the copy before it).
+  ∂J/∂ν, ∂J/∂ν_s and ∂J/∂hs summed from the state before it);
+- a solve: t = A_a⁻ᵀ (μ_z + μ_Lz/a) (``GravityTranspose.solve``, the same CG between two scalings
+  of the h row), μ_z, μ_Lz ← 0, μ_r += s·t − (s/a) μ_Lz.
 x(n) and the arrays the stepper carries (``carried_arrays``) have the driver's rows of μ; the
 twin's other arrays adjoints of their own, zero at the start of each reverse. A new explicit
-stepper or Butcher table written with these verbs has its gradient with no adjoint code.
-The reverse's launches are recorded once per tape (its arrays and coefficients) and replayed.
+stepper or Butcher table written with these verbs has its gradient with no adjoint code. The
+reverse's launches are recorded once per tape (its arrays and coefficients) and replayed.
 """
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+from typing import NamedTuple
+
 import warp as wp
 
 from ..core.errors import ArgumentError
+from ..kernels import blas
 from ..model.launches import Update
 from ..model.shallow_water import ShallowWater
 from ..model.transposes import Combinations
+from ..solvers.helmholtz import HelmholtzSolver
 from .explicit import HELD_DTS, Transposes
 
 f64 = wp.float64
@@ -48,6 +60,87 @@ def written_rows(terms) -> slice | None:
     return None if depth and wind else slice(2, 3) if depth else slice(0, 2)
 
 
+class Evaluate(NamedTuple):
+    x: object
+    state: object  # x as the reverse reads it: x itself, or a copy where the step overwrites x after
+    updates: tuple
+    terms: tuple
+
+
+class Combine(NamedTuple):
+    out: object
+    terms: tuple
+
+
+class Smooth(NamedTuple):
+    x: object
+    dt: float
+    state: object  # with ``parameters``, x before the ∇⁴ as the reverse reads it; else None
+
+
+class Linear(NamedTuple):
+    x: object
+    updates: tuple
+    operator: object  # the ``GravityWaveOperator``
+
+
+class Solve(NamedTuple):
+    r: object
+    z: object
+    implicit: object  # L z's array, or None
+    a: float
+    scale: float
+    solver: object  # the ``HelmholtzSolver``
+
+
+def _key(a) -> tuple:
+    return (a.ptr, a.shape, a.strides)
+
+
+def _rows(update) -> tuple | None:
+    return None if update.rows is None else (update.rows.start, update.rows.stop)
+
+
+def _updates_key(updates, coefficients: bool) -> tuple:
+    return tuple(
+        (_key(u.out), _rows(u), *((a if coefficients else None, None if s is None else _key(s)) for a, s in u.terms))
+        for u in updates
+    )
+
+
+def _op_key(op, coefficients: bool = True) -> tuple:
+    """An operation's kind, arrays, rows and terms, and its coefficients (``coefficients``)."""
+    c = (lambda v: v) if coefficients else (lambda v: None)
+    if isinstance(op, Evaluate):
+        return ("F", _key(op.x), c(_key(op.state)), op.terms, _updates_key(op.updates, coefficients))
+    if isinstance(op, Combine):
+        return ("C", _key(op.out), *((c(a), _key(x)) for a, x in op.terms))
+    if isinstance(op, Smooth):
+        return ("H", _key(op.x), c(op.dt), op.state is not None and c(_key(op.state)))
+    if isinstance(op, Linear):
+        return ("L", _key(op.x), id(op.operator), _updates_key(op.updates, coefficients))
+    return ("S", _key(op.r), _key(op.z), op.implicit is not None and _key(op.implicit), c(op.a), c(op.scale))
+
+
+def _arrays(op) -> list:
+    if isinstance(op, (Evaluate, Linear)):
+        return [op.x, *(a for u in op.updates for a in (u.out, *(s for _, s in u.terms if s is not None)))]
+    if isinstance(op, Combine):
+        return [op.out, *(a for _, a in op.terms)]
+    if isinstance(op, Smooth):
+        return [op.x]
+    return [op.r, op.z, *([op.implicit] if op.implicit is not None else [])]
+
+
+def combination(kernel, inputs) -> tuple:
+    """(out, terms) of a pointwise ``blas.axpby`` or ``axpbypcz`` launch's inputs; ``ArgumentError``
+    for another kernel (the tape has no transpose for it)."""
+    if kernel is blas.axpby or kernel is blas.axpbypcz:
+        *pairs, out = inputs
+        return out, tuple((float(pairs[i]), pairs[i + 1]) for i in range(0, len(pairs), 2))
+    raise ArgumentError(f"no gradient through the pointwise kernel {kernel.key!r} (the tape's verbs: adjoint/tape.py)")
+
+
 class _TapedLaunch:
     """A recorded combination's launch (``ShallowWater.lincomb``) that writes itself on the tape."""
 
@@ -55,48 +148,54 @@ class _TapedLaunch:
         self.tape, self.real, self.out, self.terms = tape, launch, out, tuple(terms)
 
     def launch(self) -> None:
-        if self.tape.combine(self.out, self.terms):
+        if not self.tape.recording or self.tape.write(Combine(self.out, self.terms)):
             self.real.launch()
 
 
 class TapedModel:
-    """A ``ShallowWater`` whose state-writing verbs are written on ``tape`` as they run
-    (module doc); every other member is the model's."""
+    """A ``ShallowWater`` whose state-writing verbs are written on ``tape`` while it records
+    (module doc); every other member is the model's. The gravity-wave operator and the Helmholtz
+    solver built on it find ``tape`` and write themselves there."""
 
     def __init__(self, model: ShallowWater, tape: Tape):
-        self._model, self._tape = model, tape
+        self._model, self.tape = model, tape
 
     def __getattr__(self, name):
         return getattr(self._model, name)
 
     def rhs(self, x, out, terms=None) -> None:
         rows = written_rows(self._model.terms if terms is None else terms)
-        if self._tape.evaluate(x, (Update(out, ((1.0, None),), rows),), terms):
+        if self.tape.evaluate(x, (Update(out, ((1.0, None),), rows),), terms):
             self._model.rhs(x, out, terms)
 
     def rhs_update(self, x, updates, terms=None) -> None:
-        if self._tape.evaluate(x, tuple(updates), terms):
+        if self.tape.evaluate(x, tuple(updates), terms):
             self._model.rhs_update(x, updates, terms)
 
     def lincomb(self, out, terms):
         terms = list(terms)
-        return _TapedLaunch(self._tape, self._model.lincomb(out, terms), out, terms)
+        return _TapedLaunch(self.tape, self._model.lincomb(out, terms), out, terms)
 
     def hyperviscosity(self, x, dt: float) -> None:
-        if self._tape.smooth(x, dt):
+        if self.tape.smooth(x, dt):
             self._model.hyperviscosity(x, dt)
 
     def pointwise(self, kernel, *inputs, unique=False) -> None:
-        raise ArgumentError(f"no gradient through the pointwise kernel {kernel.key!r} (the tape's verbs: tape.py)")
+        if not self.tape.recording or self.tape.write(Combine(*combination(kernel, inputs))):
+            self._model.pointwise(kernel, *inputs, unique=unique)
 
     def rhs_part(self, x, out, part, terms=None) -> None:
-        raise ArgumentError("no gradient through rhs_part on the tape (local time stepping's own adjoint serves it)")
+        if self.tape.recording:
+            raise ArgumentError(
+                "no gradient through rhs_part on the tape (local time stepping's own adjoint serves it)"
+            )
+        self._model.rhs_part(x, out, part, terms)
 
 
 class Tape:
-    """One step's operations as ``TapedModel`` wrote them (``ops``: kind, the array written or read,
-    then the kind's own), with the copies of the states the reverse reads that the step overwrites
-    (``copies``, (3, N) device arrays reused step after step in the same order).
+    """One step's operations as ``TapedModel`` wrote them (``ops``), while ``recording``, with the
+    copies of the states the reverse reads that the step overwrites (``copies``, (3, N) device
+    arrays reused step after step in the same order).
 
     ``expected``: what the last step's tape showed of a step like it (``analyse``): which
     operations a reverse needs run (those whose results reach a state an F reads: an F at the
@@ -106,61 +205,78 @@ class Tape:
 
     def __init__(self, model: ShallowWater, keep_smoothed: bool):
         self.model, self.keep_smoothed = model, keep_smoothed
-        self.ops: list[tuple] = []
+        self.ops: list = []
         self.copies: list = []
         self.expected = None  # (structure, runs, copies) of the last analysed tape; None: run and copy all
+        self.recording = False
         self._used = 0
 
-    def clear(self) -> None:
-        self.ops, self._used = [], 0
+    @contextmanager
+    def record(self):
+        """Write the operations of what runs inside on a fresh tape."""
+        self.ops, self._used, self.recording = [], 0, True
+        try:
+            yield
+        finally:
+            self.recording = False
 
-    def _decide(self, x) -> tuple[bool, object]:
-        """Whether the next operation runs, and the state it reads as the reverse will (a copy or x)."""
-        i, expected = len(self.ops), self.expected
-        run, copy = (True, True) if expected is None or i >= len(expected[1]) else (expected[1][i], expected[2][i])
-        if not copy:
-            return run, x
-        if self._used == len(self.copies):
-            self.copies.append(wp.zeros((3, self.model.topology.N), dtype=f64, device=self.model.topology.device))
-        out = self.copies[self._used]
-        self._used += 1
-        wp.copy(out, x)
-        return run, out
+    @contextmanager
+    def solving(self, solver, r, a: float, z, scale: float, implicit):
+        """A Helmholtz solve (``HelmholtzSolver.solve``): written on the tape while it records, its
+        own launches not; yields whether it runs."""
+        if not self.recording:
+            yield True
+            return
+        run = self.write(Solve(r, z, implicit, float(a), float(scale), solver))
+        self.recording = False
+        try:
+            yield run
+        finally:
+            self.recording = True
 
-    def evaluate(self, x, updates, terms) -> bool:
-        """An F at x written into ``updates``; whether it runs."""
-        run, state = self._decide(x)
-        self.ops.append(("evaluate", x, state, updates, self.model.terms if terms is None else tuple(terms)))
-        return run
+    def linear(self, operator, x, updates) -> bool:
+        """L x written into ``updates`` (``GravityWaveOperator.update``); whether it runs."""
+        return not self.recording or self.write(Linear(x, tuple(updates), operator))
 
     def _runs(self) -> bool:
         i, expected = len(self.ops), self.expected
         return expected is None or i >= len(expected[1]) or expected[1][i]
 
-    def combine(self, out, terms) -> bool:
-        """out = Σ c·x; whether it runs."""
+    def write(self, op) -> bool:
+        """``op`` on the tape; whether it runs."""
         run = self._runs()
-        self.ops.append(("combine", out, terms))
+        self.ops.append(op)
         return run
+
+    def _state(self, x):
+        """x as the reverse will read it: x itself, or a copy (``expected``)."""
+        i, expected = len(self.ops), self.expected
+        if expected is not None and i < len(expected[2]) and not expected[2][i]:
+            return x
+        if self._used == len(self.copies):
+            self.copies.append(wp.zeros((3, self.model.topology.N), dtype=f64, device=self.model.topology.device))
+        out = self.copies[self._used]
+        self._used += 1
+        wp.copy(out, x)
+        return out
+
+    def evaluate(self, x, updates, terms) -> bool:
+        """An F at x written into ``updates``; whether it runs."""
+        if not self.recording:
+            return True
+        terms = self.model.terms if terms is None else tuple(terms)
+        return self.write(Evaluate(x, self._state(x), updates, terms))
 
     def smooth(self, x, dt: float) -> bool:
         """The ∇⁴ over dt in place on x (nothing without it); whether it runs."""
         hv = self.model.hv
-        if hv is None or hv.nu_max == 0:
-            return False
-        run, state = self._decide(x) if self.keep_smoothed else (self._runs(), None)
-        self.ops.append(("smooth", x, float(dt), state))
-        return run
+        if not self.recording or hv is None or hv.nu_max == 0:
+            return True
+        return self.write(Smooth(x, float(dt), self._state(x) if self.keep_smoothed else None))
 
     def structure(self) -> tuple:
         """The operations' kinds, arrays, rows and terms, not their coefficients."""
-        out = []
-        for kind, a, *rest in self.ops:
-            if kind == "evaluate":
-                out.append((kind, _key(a), rest[2], *((_key(u.out), _rows(u), *_sources(u)) for u in rest[1])))
-            else:
-                out.append((kind, _key(a), *((_key(b) for _, b in rest[0]) if kind == "combine" else ())))
-        return tuple(out)
+        return tuple(_op_key(op, coefficients=False) for op in self.ops)
 
     def analyse(self) -> None:
         """``expected`` from this tape (the class doc), rows as the unit: each array's rows are
@@ -174,64 +290,62 @@ class Tape:
             return {(base.ptr, r) for r in range(r0, r0 + a.shape[0])}
 
         def writes(op) -> set:
-            if op[0] == "evaluate":
-                return set().union(*(cells(u.out, u.rows) for u in op[3]))
-            return cells(op[1])
+            if isinstance(op, (Evaluate, Linear)):
+                return set().union(*(cells(u.out, u.rows) for u in op.updates))
+            if isinstance(op, Solve):
+                return cells(op.z) | (cells(op.implicit) if op.implicit is not None else set())
+            return cells(op.out if isinstance(op, Combine) else op.x)
 
         def reads(op) -> set:
-            if op[0] == "evaluate":
-                return set().union(*(cells(s, u.rows) for u in op[3] for _, s in u.terms if s is not None))
-            return set().union(*(cells(b) for _, b in op[2])) if op[0] == "combine" else cells(op[1])
+            if isinstance(op, (Evaluate, Linear)):
+                sources = set().union(*(cells(s, u.rows) for u in op.updates for _, s in u.terms if s is not None))
+                return sources | cells(op.x) if isinstance(op, Linear) else sources
+            if isinstance(op, Combine):
+                return set().union(*(cells(b) for _, b in op.terms))
+            return cells(op.r) if isinstance(op, Solve) else cells(op.x)
+
+        def linearised(op) -> set:  # the state the reverse reads
+            if isinstance(op, Evaluate) or isinstance(op, Smooth) and self.keep_smoothed:
+                return cells(op.x)
+            return set()
 
         needed, runs = set(), []  # the rows a later operation or the reverse reads, last operation first
         for op in reversed(self.ops):
             written = writes(op)
             runs.append(bool(written & needed))
             if runs[-1]:
-                needed = (needed - written) | reads(op) if op[0] != "smooth" else needed
-            if op[0] == "evaluate" or op[0] == "smooth" and self.keep_smoothed:
-                needed |= cells(op[1])  # the state the reverse linearises about (or Φ)
+                needed = (needed - written) | reads(op)
+            needed |= linearised(op)
         runs.reverse()
         copies = [
-            any(run and writes(later) & cells(op[1]) for later, run in zip(self.ops[i:], runs[i:]))
+            bool(linearised(op))
+            and any(run and writes(later) & cells(op.x) for later, run in zip(self.ops[i:], runs[i:]))
             for i, op in enumerate(self.ops)
         ]
         self.expected = (self.structure(), runs, copies)
-
-
-def _rows(update) -> tuple | None:
-    return None if update.rows is None else (update.rows.start, update.rows.stop)
-
-
-def _sources(update) -> tuple:
-    return tuple(None if s is None else _key(s) for _, s in update.terms)
-
-
-def _arrays(op) -> list:
-    if op[0] == "combine":
-        return [op[1], *(a for _, a in op[2])]
-    if op[0] == "smooth":
-        return [op[1]]
-    return [op[1], *(a for u in op[3] for a in (u.out, *(s for _, s in u.terms if s is not None)))]
-
-
-def _key(a) -> tuple:
-    return (a.ptr, a.shape, a.strides)
 
 
 class TapeAdjoint(Transposes):
     """The adjoint of one step of ``stepper`` on ``model`` at Δt = ``dt`` (s), its steps from model
     time ``t0`` (s), taken from a tape of the step (module doc): ``reverse(s, mu, k)`` maps the
     adjoint μ (3 + 3c, N) of s(k+1) = (x, the c carried arrays) to that of s(k) in place, s = s(k)
-    (3 + 3c, N) read only, after ``prepare`` from x(0). ``parameters`` as ``StepAdjoint``'s (∂J/∂ν, ν_s, hs, g and Ω).
-    ``set_dt`` as the stepper's (ValueError where it keeps one Δt). ``ArgumentError``
-    (``explicit.refusal``) for a model it cannot serve, or, from ``reverse``, for a step with a
-    verb it cannot transpose.
+    (3 + 3c, N) read only, after ``prepare`` from x(0). ``parameters`` as ``StepAdjoint``'s (∂J/∂ν,
+    ν_s, hs, g and Ω). ``set_dt`` as the stepper's (ValueError where it keeps one Δt).
+    ``ArgumentError`` (``explicit.refusal``) for a model it cannot serve, with ``parameters`` for a
+    stepper that solves with L (which holds g and H), or, from ``reverse``, for a step with a verb
+    it cannot transpose; ``StepFailure`` where a solve, taken again or transposed, misses the
+    stepper's ``tol`` within ``maxiter``.
 
-    Work arrays (3, N): the twin stepper's own, a copy of each state an F or the ∇⁴ read, k̄ a
-    F evaluation, an adjoint for each array of the twin's the step writes."""
+    Work arrays (3, N): the twin stepper's own, a copy of each state an F or the ∇⁴ reads that the
+    step overwrites, k̄ an F evaluation where its updates cannot stand for it, an adjoint for each
+    array of the twin's the step writes; with L, a ``HelmholtzSolver`` of its own."""
 
     def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
+        if parameters and getattr(stepper, "linear", None) is not None:
+            raise ArgumentError(
+                f"parameters must be False with {stepper.name} (got True): its gradient is the initial "
+                "state's alone (its gravity-wave operator L holds g and H)"
+            )
         self._setup(model, dt, parameters, t0)
         self.tape = Tape(model, self.parameters)
         self.twin = type(stepper)(TapedModel(model, self.tape), float(dt), stepper.options)
@@ -239,8 +353,9 @@ class TapeAdjoint(Transposes):
         self.work = self._zeros(3)
         self.combinations = Combinations(model.launches)
         self._mu: dict[tuple, object] = {}  # the twin's arrays' adjoints, by address
-        self._kbar: list = []  # k̄ of each F evaluation of a tape, in order
+        self._kbar: list = []  # k̄ of each F or L of a tape, in order
         self._smoothing: dict[float, object] = {}  # the ∇⁴'s transposes, by span
+        self._gravity: dict[int, object] = {}  # L's transposes, by its operator
         self._plans: dict[tuple, list] = {}  # a tape's reverse, by its key
 
     @property
@@ -260,22 +375,25 @@ class TapeAdjoint(Transposes):
         self.dt = dt
 
     def prepare(self, x0) -> None:
-        """The twin prepared from x(0) as the run's stepper (local time stepping fixes its levels)."""
+        """The twin prepared from x(0) as the run's stepper: local time stepping's levels, and L's
+        mean depth where the stepper fixes it by its first step."""
         self.twin.prepare(x0)
+        if getattr(self.twin, "linear", None) is not None:
+            self.twin.linear.set_depth(x0)
 
     def before_hyperviscosity(self, out) -> None:
         """out = the state the last reversed step's ∇⁴ started from (kept with ``parameters``; without
         the ∇⁴ the step's end)."""
-        wp.copy(out, next((op[3] for op in reversed(self.tape.ops) if op[0] == "smooth"), self.work))
+        wp.copy(out, next((op.state for op in reversed(self.tape.ops) if isinstance(op, Smooth)), self.work))
 
     def _take(self, x, k: int) -> None:
         """The twin's step k from s = ``x`` on a fresh tape (``Tape.expected`` deciding what runs)."""
         wp.copy(self.work, x[0:3])
         for i, a in enumerate(self.twin.carried_arrays()):
             wp.copy(a, x[3 * i + 3 : 3 * i + 6])
-        self.tape.clear()
         self.twin.set_phase(k)
-        self.twin.step(self.work)
+        with self.tape.record():
+            self.twin.step(self.work)
 
     def reverse(self, x, mu, k: int = 0) -> None:
         """μ of s(k+1) → μ of s(k), in place; x = s(k) (read only), k the step's index."""
@@ -303,18 +421,19 @@ class TapeAdjoint(Transposes):
         for a in (a for op in self.tape.ops for a in _arrays(op) if a.shape[0] == 3):
             self._adjoint(a)
         actions = [m.zero_ for _, m in self._bases[1 + len(carried) :]]
-        evaluations = sum(op[0] == "evaluate" for op in self.tape.ops)
-        while len(self._kbar) < evaluations:
-            self._kbar.append(self._zeros(3))
-        n = evaluations
+        n = 0
         for op in reversed(self.tape.ops):
-            if op[0] == "combine":
-                actions += self._combination(op[1], op[2])
-            elif op[0] == "smooth":
-                actions.append(self._smoothing_action(*op[1:]))
+            if isinstance(op, Combine):
+                actions += self._combination(op.out, op.terms)
+            elif isinstance(op, Smooth):
+                actions.append(self._smoothing_action(op))
+            elif isinstance(op, Solve):
+                actions += self._solve(op)
             else:
-                n -= 1
-                actions += self._evaluation(self._kbar[n], *op[1:])
+                if len(self._kbar) == n:
+                    self._kbar.append(self._zeros(3))
+                actions += self._evaluation(self._kbar[n], op)
+                n += 1
         return actions
 
     def _adjoint(self, a):
@@ -343,7 +462,8 @@ class TapeAdjoint(Transposes):
         """m ← c·m: nothing for c = 1, a fill for c = 0."""
         return [] if c == 1.0 else [m.zero_] if c == 0.0 else self._launches(m, [(c, m)])
 
-    def _overlaps(self, a, b) -> bool:
+    @staticmethod
+    def _overlaps(a, b) -> bool:
         return a.ptr < b.ptr + b.shape[0] * b.strides[0] and b.ptr < a.ptr + a.shape[0] * a.strides[0]
 
     def _combination(self, out, terms) -> list:
@@ -359,20 +479,21 @@ class TapeAdjoint(Transposes):
                 actions += self._launches(m_a, [(1.0, m_a), (c, m_out)])
         return actions + self._scale(m_out, own)
 
-    def _evaluation(self, kbar, x, state, updates, terms) -> list:
-        """An F evaluation's reverse (module doc): its updates' combinations reversed, last first, F's
-        share summed into k̄, then μ_x += R Q Tᵀ(x) W k̄. Where every update writes all rows of an
-        array of its own that no later update reads, k̄ is the updates' adjoints as they stand
-        before their reverses: Tᵀ reads them so, and only its DSS waits for the combinations."""
-        outs = [u.out for u in updates]
+    def _evaluation(self, kbar, op) -> list:
+        """An F's or L's reverse (module doc): its updates' combinations reversed, last first, its
+        share summed into k̄, then μ_x += R Q (its transpose) W k̄. Where every update writes all
+        rows of an array of its own that no later update reads, k̄ is the updates' adjoints as
+        they stand before their reverses: the transpose reads them so, and only its DSS waits for
+        the combinations."""
+        updates, outs = op.updates, [u.out for u in op.updates]
         direct = all(u.rows is None for u in updates) and not any(
             self._overlaps(o, p) or any(s is not None and self._overlaps(o, s) for _, s in later.terms)
             for j, o in enumerate(outs)
             for p, later in zip(outs[j + 1 :], updates[j + 1 :])
         )
         kterms = [(a, self._adjoint(u.out)) for u in updates for a, src in u.terms if src is None] if direct else []
-        actions, started = self._parameters(state, kterms, terms), False
-        actions += [launch.launch for launch in self.tendency.transpose(state, kterms, terms)] if kterms else []
+        actions = self._transpose(op, kterms)
+        started = False
         for u in reversed(updates):
             rows = slice(0, 3) if u.rows is None else u.rows
             m_out, own = self._adjoint(u.out[rows]), 0.0
@@ -394,40 +515,56 @@ class TapeAdjoint(Transposes):
                     actions += self._launches(m_src, [(1.0, m_src), (a, m_out)])
             actions += self._scale(m_out, own)
         if started:
-            actions += self._parameters(state, [(1.0, kbar)], terms)
-            actions += [launch.launch for launch in self.tendency.transpose(state, [(1.0, kbar)], terms)]
+            actions += self._transpose(op, [(1.0, kbar)])
         if started or kterms:
-            m_x = self._adjoint(x)
+            m_x = self._adjoint(op.x)
             dss = self.model.topology.dss_update(self.xbar, [(m_x, ((1.0, m_x), (1.0, None)))], weighted=False)
             actions += [launch.launch for launch in dss]
         return actions
 
-    def _parameters(self, state, kbar, terms) -> list:
-        """With ``parameters``, the planet's sums of an F at ``state`` whose adjoint is Σ c·a over ``kbar``."""
-        if not (self.parameters and kbar):
+    def _transpose(self, op, kbar) -> list:
+        """x̄ = (F's or L's transpose) W k̄ into ``xbar`` (k̄ = Σ c·a over ``kbar``), with ``parameters``
+        an F's planet sums first."""
+        if not kbar:
             return []
-        g_terms = tuple(t for t in self.g_terms if t in terms)
-        return [lambda: self.planet_terms(state, kbar, g_terms, "coriolis" in terms)]
+        if isinstance(op, Linear):
+            return [launch.launch for launch in self._gravity_of(op.operator).transpose(self.tendency, kbar)]
+        actions = []
+        if self.parameters:
+            state, terms = op.state, op.terms
+            g_terms = tuple(t for t in self.g_terms if t in terms)
+            actions.append(lambda: self.planet_terms(state, kbar, g_terms, "coriolis" in terms))
+        return actions + [launch.launch for launch in self.tendency.transpose(op.state, kbar, op.terms)]
 
-    def _smoothing_action(self, x, dt: float, before):
-        """The ∇⁴ over ``dt`` reversed in place on μ_x (with ``parameters`` its sums, Φ = ``before``)."""
-        transpose = self._smoothing.get(dt)
+    def _gravity_of(self, operator):
+        """L's transposes (``GravityWaveOperator.transpose``), with a Helmholtz solver of their own."""
+        gravity = self._gravity.get(id(operator))
+        if gravity is None:
+            solver = HelmholtzSolver(operator, self.twin.options, warm=True)
+            gravity = self._gravity[id(operator)] = operator.transpose(solver)
+        return gravity
+
+    def _solve(self, op) -> list:
+        """z = A_a⁻¹ (s·r), L z = (z − s·r)/a reversed (module doc), through work arrays t and w."""
+        if not hasattr(self, "_solving"):
+            self._solving = (self._zeros(3), self._zeros(3))
+        t, w = self._solving
+        gravity = self._gravity_of(op.solver.operator)
+        m_z, m_r, a, s = self._adjoint(op.z), self._adjoint(op.r), op.a, op.scale
+        m_w = None if op.implicit is None else self._adjoint(op.implicit)
+        actions = self._launches(t, [(1.0, m_z), *([] if m_w is None else [(1.0 / a, m_w)])])
+        if m_w is not None:
+            actions += self._launches(w, [(1.0, m_w)]) + [m_w.zero_]
+        actions += [m_z.zero_, lambda: gravity.solve(t, a)]
+        return actions + self._launches(m_r, [(1.0, m_r), (s, t), *([] if m_w is None else [(-s / a, w)])])
+
+    def _smoothing_action(self, op):
+        """The ∇⁴ over its span reversed in place on μ_x (with ``parameters`` its sums from the state before it)."""
+        transpose = self._smoothing.get(op.dt)
         if transpose is None:
             shared = next(iter(self._smoothing.values()), None)
-            transpose = self._smoothing[dt] = self.model.hv.transpose(self.tendency, dt, shared)
-        m_x = self._adjoint(x)
+            transpose = self._smoothing[op.dt] = self.model.hv.transpose(self.tendency, op.dt, shared)
+        m_x, before = self._adjoint(op.x), op.state
         if not self.parameters:
             return lambda: transpose.transpose(m_x)
         return lambda: transpose.transpose(m_x, lambda out: wp.copy(out, before), self.d_nu, self.d_hs)
-
-
-def _op_key(op) -> tuple:
-    """An operation's arrays, rows, terms and coefficients: a tape's reverse is recorded once per such key."""
-    kind, x, *rest = op
-    if kind == "combine":
-        return (kind, _key(x), *((c, _key(a)) for c, a in rest[0]))
-    if kind == "smooth":
-        return (kind, _key(x), rest[0], rest[1] is not None and _key(rest[1]))
-    state, updates, terms = rest
-    keyed = ((_key(u.out), _rows(u), *((a, None if s is None else _key(s)) for a, s in u.terms)) for u in updates)
-    return (kind, _key(x), _key(state), terms, *keyed)

@@ -136,7 +136,7 @@ class GravityTranspose:
     """The transposes of ``linear``'s L x = (−g G h, −H D v) (a ``model.gravity_wave.
     GravityWaveOperator`` about its depth H, m) and of its implicit solve A_a = I − aL in the
     mass form (μ = R Q λ, ⟨a, b⟩ = Σ spheremp·a·b), made by ``GravityWaveOperator.transpose``
-    for the adjoints of the steps that solve with L (``adjoint.semi_implicit``, ``adjoint.imex``);
+    for the adjoints of the steps that solve with L (``adjoint.tape``: semi_implicit, the IMEX pairs);
     ``solver`` the Helmholtz solver of A_a they solve with (a ``solvers.helmholtz.
     HelmholtzSolver`` about ``linear``: ``solve(r, a, z)``, ``iterations()``).
 

@@ -6,6 +6,7 @@ from ``guess_history``'s projection; ``HelmholtzOptions`` are its scene options.
 
 from __future__ import annotations
 
+from contextlib import nullcontext
 from dataclasses import dataclass
 from types import MappingProxyType
 
@@ -252,10 +253,13 @@ class HelmholtzSolver:
         from the projection onto the past solutions of the solves with the same a
         (``GuessHistory``)."""
         a = float(a)
-        self._use(a)
-        self._history = self._guesses(a)
-        lz = None if implicit is None else implicit.ptr
-        self._run(("solve", r.ptr, z.ptr, lz, a, scale, self.H), self._solve, r, a, z, scale, implicit)
+        tape = getattr(self.model, "tape", None)  # a gradient's (``adjoint.tape.TapedModel``): the solve written on it
+        with nullcontext(True) if tape is None else tape.solving(self, r, a, z, scale, implicit) as run:
+            if run:
+                self._use(a)
+                self._history = self._guesses(a)
+                lz = None if implicit is None else implicit.ptr
+                self._run(("solve", r.ptr, z.ptr, lz, a, scale, self.H), self._solve, r, a, z, scale, implicit)
 
     def _guesses(self, key):
         """The ``GuessHistory`` of the solves under ``key`` (made on first use), or None: no

@@ -16,7 +16,6 @@ from dataclasses import dataclass
 
 from ..model.launches import Update
 from .base import Stepper, StepStats
-from .protocol import LeapfrogSteps
 
 
 class FBRK32(Stepper):
@@ -184,10 +183,6 @@ class Leapfrog(_LeapfrogFamily):
     name = "leapfrog"
     Options = LeapfrogOptions
     courant_limit = 0.58
-
-    def leapfrog(self) -> LeapfrogSteps:
-        """ε, as the semi-implicit leapfrog's adjoint reads it (``protocol.LeapfrogSteps``)."""
-        return LeapfrogSteps(float(self.options.robert_asselin))
 
     def _record_scheme(self, x):
         eps = self.options.robert_asselin

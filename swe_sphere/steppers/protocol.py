@@ -8,26 +8,24 @@ A new stepper's author reads this first. The driver replays the run: it sets Δt
 of step k (``dt``, ``set_dt``, ``t0``), puts the stepper at step k's phase (``set_phase``), copies
 x and what the step carries besides x (``carried_arrays``) in and out of the sweep's states, and
 takes the step (``step``), after ``prepare`` from x(0). It picks the step's adjoint by ``name``
-(``adjoint.gradient.ADJOINTS``); any other ``explicit`` stepper (every explicit Butcher table,
-FB-RK(3,2), leapfrog, leapfrog-trapezoidal) needs nothing more: its adjoint takes a twin of it
-(its class, ``dt`` and ``options``) on a tape of the model's verbs and reverses the tape
-(``adjoint.tape``), so a step written with those verbs (``model.protocol``) differentiates as
-it is. An IMEX table is read by ``table()``. The other families' adjoints take the step's stages
-again from x(n) and transpose them; what they need to know of the step is the family's
-description, which the stepper returns from one method, so the step's coefficients (MRAB3's
-weights) live in the stepper alone:
+for the multirate families (``adjoint.gradient.ADJOINTS``); any other ``explicit`` stepper (every
+explicit Butcher table, FB-RK(3,2), leapfrog, leapfrog-trapezoidal) and any that solves with the
+gravity-wave operator L (offering ``linear``, the ``model.gravity_wave.GravityWaveOperator``, its
+H fixed by the first step: semi_implicit, the IMEX pairs and tables) needs nothing more: its
+adjoint takes a twin of it (its class, ``dt`` and ``options``) on a tape of the model's verbs,
+L's update and its Helmholtz solve, and reverses the tape (``adjoint.tape``), so a step written
+with those verbs (``model.protocol``) differentiates as it is. The multirate families' adjoints
+take the step's stages again from x(n) and transpose them; what they need to know of the step is
+the family's description, which the stepper returns from one method, so the step's coefficients
+(MRAB3's weights) live in the stepper alone:
 
-- ``leapfrog()`` (the semi-implicit leapfrog): ``LeapfrogSteps``, its Robert–Asselin ε;
 - ``split_explicit()``: ``SplitExplicitSteps``, its stages, substeps and substep;
 - ``multirate()`` (mri; lts with a multirate table on several levels): ``MultirateSteps``;
 - ``local()`` (lts): ``LocalSteps``, which of its three steps it takes (one level's table, MRAB3's
   ``MrabSteps``, or the multirate levels').
 
-The steps that solve with the gravity-wave operator L (semi_implicit, the IMEX pairs) offer
-``linear`` (the ``model.gravity_wave.GravityWaveOperator``, its H fixed by the first step) and
-their ``options`` (the Helmholtz CG's ``tol`` and ``maxiter``), which their adjoints' own solves
-take. A description read before the first step may hold what that step fixes unfixed (a
-multirate step's n_fast and H): an adjoint asks for it again once the sweep has stepped forward.
+A description read before the first step may hold what that step fixes unfixed (a multirate
+step's n_fast and H): an adjoint asks for it again once the sweep has stepped forward.
 Shapes: states (3, N) float64 device arrays, N the element-local nodes; times in s.
 """
 
@@ -58,23 +56,10 @@ class DifferentiableStepper(Protocol):
     def carried_arrays(self) -> list: ...
 
 
-class TableStepper(DifferentiableStepper, Protocol):
-    """A stepper of the Runge–Kutta engine: its Butcher (or IMEX) table is its step."""
-
-    def table(self) -> Table: ...
-
-
 class SolvingStepper(DifferentiableStepper, Protocol):
     """A step that solves with the gravity-wave operator L (semi_implicit, the IMEX pairs)."""
 
     linear: object  # ``model.gravity_wave.GravityWaveOperator``
-
-
-@dataclass(frozen=True)
-class LeapfrogSteps:
-    """The semi-implicit leapfrog's step (``semi_implicit.SemiImplicit``): the Robert–Asselin ε."""
-
-    robert_asselin: float
 
 
 @dataclass(frozen=True)
@@ -149,10 +134,6 @@ class LocalSteps:
     mrab: MrabSteps | None
 
 
-class LeapfrogStepper(DifferentiableStepper, Protocol):
-    def leapfrog(self) -> LeapfrogSteps: ...
-
-
 class SplitExplicitStepper(DifferentiableStepper, Protocol):
     def split_explicit(self) -> SplitExplicitSteps: ...
 
@@ -167,9 +148,7 @@ class LocalStepper(MultirateStepper, Protocol):
 
 PROTOCOLS = (
     DifferentiableStepper,
-    TableStepper,
     SolvingStepper,
-    LeapfrogStepper,
     SplitExplicitStepper,
     MultirateStepper,
     LocalStepper,

@@ -505,6 +505,6 @@ def test_a_users_explicit_butcher_table_has_its_gradient_with_no_adjoint_code():
     assert written.cost == built_in.cost
     with pytest.raises(
         ValueError,
-        match="fbrk32, leapfrog, leapfrog_trapezoidal.*ark324, ark436, imex, lts, mri, semi_implicit, split_explicit",
+        match="fbrk32, leapfrog, leapfrog_trapezoidal.*semi_implicit, an IMEX table.*lts, mri, split_explicit",
     ):
         gradient(tc5("epi2"), 1, cost)

@@ -1,4 +1,4 @@
-"""Gradients of IMEX additive Runge–Kutta runs (``adjoint.imex``: ``imex``'s ARS pairs, ``ark324``,
+"""Gradients of IMEX additive Runge–Kutta runs (``adjoint.tape``, their own steps on a tape: ``imex``'s ARS pairs, ``ark324``,
 ``ark436``, an IMEX ``tableau``): the reversed step against the pair's linear step at rest by a dot product, the whole
 by Taylor tests, the forward the ``Simulation``'s to the bit."""
 

@@ -1,4 +1,4 @@
-"""Gradients of semi-implicit leapfrog runs (``adjoint.semi_implicit``): the gravity-wave
+"""Gradients of semi-implicit leapfrog runs (``adjoint.tape``: its own step on a tape): the gravity-wave
 operator's transpose and the transposed Helmholtz solve by dot products, the whole by Taylor
 tests, the forward the ``Simulation``'s to the bit."""
 
@@ -11,9 +11,10 @@ import pytest
 import warp as wp
 
 from swe_sphere.adjoint import gradient
-from swe_sphere.adjoint.gradient import scene_model, step_adjoint
+from swe_sphere.adjoint.gradient import scene_model
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.backend import Backend
+from swe_sphere.solvers.helmholtz import HelmholtzSolver
 
 import taylor
 from helpers import requires_cuda
@@ -42,7 +43,7 @@ def unweighted_dss(model, a):
 def test_the_gravity_wave_operator_and_its_solve_transpose_in_the_mass_form():
     """The derivation's premise: L = (−g G h, −H D v) is skew in the mass form up to the scaling
     S = diag(1, 1, g/H), ⟨L δ, λ⟩ = −Σ spheremp·δ·S L S⁻¹ (R Q λ) for continuous δ, to round-off;
-    and the adjoint's A⁻ᵀ (``solve_transpose``) against the stepper's own solve A⁻¹ = (I − ΔtL)⁻¹:
+    and the model's A⁻ᵀ (``GravityTranspose.solve``, the adjoint's) against the stepper's own solve A⁻¹ = (I − ΔtL)⁻¹:
     ⟨A⁻¹ δ, λ⟩ = Σ spheremp·δ·A⁻ᵀ(R Q λ), to the CG's tolerance."""
     model, stepper, x0 = scene_model(si_tc5(3))
     w, N, g, H = model.grid.spheremp, model.N, model.g, stepper.H
@@ -68,8 +69,8 @@ def test_the_gravity_wave_operator_and_its_solve_transpose_in_the_mass_form():
         stepper.helmholtz.solve(r, stepper.dt, z)
 
     Ad = applied(solve, delta)
-    adjoint, m = step_adjoint(model, stepper), wp.array(mu, dtype=taylor.f64)
-    adjoint.solve_transpose(m, stepper.dt)
+    m = wp.array(mu, dtype=taylor.f64)
+    stepper.linear.transpose(HelmholtzSolver(stepper.linear, stepper.options, warm=True)).solve(m, stepper.dt)
     At = m.numpy()
     left, right = np.sum(Ad * lam), np.sum(w * delta * At)
     assert np.abs(Ad - delta).max() > 0.5 * np.abs(delta).max()  # the solve acts (measured 1.5×)

@@ -274,7 +274,7 @@ def test_the_adjoint_asks_a_stepper_for_its_protocol_alone():
     step's frozen description), each one a stepper's; and imports nothing of steppers/ but the
     protocol module and the public table type it names (``butcher.Table``)."""
     from swe_sphere.config.scene import load_scene
-    from swe_sphere.steppers import local, multirate
+    from swe_sphere.steppers import local
     from swe_sphere.steppers.protocol import DifferentiableStepper, members
 
     from helpers import make_sim
@@ -293,8 +293,6 @@ def test_the_adjoint_asks_a_stepper_for_its_protocol_alone():
     stepper = make_sim(load_scene("galewsky", ne=2, np_=4)).stepper
     assert all(hasattr(stepper, name) for name in members(DifferentiableStepper))
     families = {
-        "split_explicit": [multirate.SplitExplicit],
-        "multirate": [multirate.Mri, local.Lts],
         "local": [local.Lts],
     }
     assert all(callable(getattr(cls, name, None)) for name, classes in families.items() for cls in classes)

@@ -58,7 +58,7 @@ def refusal(model: ShallowWater, dt: float) -> str | None:
 class Transposes:
     """What every step's adjoint holds and sums beside its own reverse (``StepAdjoint``, the tape's
     ``tape.TapeAdjoint`` and their kin): the tendency's and ∇⁴'s transposes, the parameters' sums
-    (``d_nu``, ``d_planet``, ``d_hs``, ``hs_gradient``) and ``prepare``."""
+    (``d_nu``, ``d_planet``, ``d_hs``, ``hs_gradient``)."""
 
     def _setup(self, model: ShallowWater, dt: float, parameters: bool, t0: float) -> None:
         """What every step's adjoint holds (``refusal`` checked): the transposes' x̄ and f̄, the
@@ -83,9 +83,6 @@ class Transposes:
         self.d_hs = zeros(1)  # the ∇⁴'s share of ∂J/∂hs, continuous (mass form)
         self.hv_transpose = None  # the ∇⁴'s transposed step (``_for_dt``), None without the ∇⁴
         self._zeros = zeros
-
-    def prepare(self, x0) -> None:
-        """Called by the gradient's driver with x(0) after the run's stepper's ``prepare``: nothing here."""
 
     def planet_terms(self, Y, kbar, g_terms=None, coriolis: bool = True, part=None) -> None:
         """Add a stage's ⟨k̄, g F_g(Y)⟩ and ⟨k̄, f (v, −u)⟩ to ``d_planet`` (module doc), Y the

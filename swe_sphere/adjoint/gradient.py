@@ -30,7 +30,6 @@ from ..core.errors import ArgumentError
 from ..model.shallow_water import ShallowWater
 from .disk import DiskTier
 from .explicit import Transposes, refusal
-from .multirate import LtsAdjoint, MriAdjoint, SplitExplicitAdjoint
 from .multirate_ab import MrabAdjoint
 from .revolve import sweep, two_level
 from .tape import TapeAdjoint
@@ -216,26 +215,19 @@ class StepTimes:
 
 
 def _lts(model: ShallowWater, stepper, dt: float, parameters: bool, t0: float):
-    """Local time stepping's adjoint (its levels fixed by ``prepare``; its ``local()``): MRAB3's,
-    the tape's on one level (the inner table's global step), else the multirate levels'."""
-    local = stepper.local()
-    if local.mrab is not None:
+    """Local time stepping's adjoint (its levels fixed by ``prepare``; its ``local()``): MRAB3's, else
+    the tape's (the inner table's global step on one level, the multirate table's on several)."""
+    if stepper.local().mrab is not None:
         return MrabAdjoint(model, stepper, dt, parameters, t0)
-    if local.single is not None:
-        return TapeAdjoint(model, stepper, dt, parameters, t0)
-    return LtsAdjoint(model, stepper, dt, parameters, t0)
+    return TapeAdjoint(model, stepper, dt, parameters, t0)
 
 
-# the adjoint of a step, (model, stepper, Δt, parameters, t0) → its adjoint, by the stepper's registered
-# name (``steppers.STEPPERS``) for the multirate families; any other explicit stepper (every explicit
-# Runge–Kutta table built in or a ``tableau``, fbrk32, leapfrog, leapfrog_trapezoidal) and any that
-# solves with L (semi_implicit, imex, ark324, ark436, an IMEX ``tableau``) the tape of its own step's
-# (``tape.TapeAdjoint``)
-ADJOINTS = {
-    "split_explicit": SplitExplicitAdjoint,
-    "mri": MriAdjoint,
-    "lts": _lts,
-}
+# the adjoint of a step, (model, stepper, Δt, parameters, t0) → its adjoint: the tape of its own step's
+# (``tape.TapeAdjoint``) for every explicit stepper (every explicit Runge–Kutta table built in or a
+# ``tableau``, fbrk32, leapfrog, leapfrog_trapezoidal), any that solves with L (semi_implicit, imex,
+# ark324, ark436, an IMEX ``tableau``) and these multirate families by their registered names
+# (``steppers.STEPPERS``), but MRAB3's (``multirate_ab``)
+ADJOINTS = {"split_explicit": TapeAdjoint, "mri": TapeAdjoint, "lts": _lts}
 
 
 def _adjoint_of(stepper):
@@ -400,7 +392,6 @@ def gradient(
     work = wp.array(x0, dtype=f64, device=model.topology.device)  # the stepper steps this array only
     stepper.prepare(work)  # from x(0): lts fixes its levels by its flow
     adjoint = step_adjoint(model, stepper, parameters)
-    adjoint.prepare(work)
     interval = snapshots if disk_interval is None else int(disk_interval)
     found, mu, taken, used = _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, disk, interval)
     extra = {}

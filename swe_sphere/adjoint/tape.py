@@ -65,6 +65,7 @@ class Evaluate(NamedTuple):
     state: object  # x as the reverse reads it: x itself, or a copy where the step overwrites x after
     updates: tuple
     terms: tuple
+    part: object = None  # an ``ElementPart``: F over its elements alone (``rhs_part``)
 
 
 class Combine(NamedTuple):
@@ -82,6 +83,19 @@ class Linear(NamedTuple):
     x: object
     updates: tuple
     operator: object  # the ``GravityWaveOperator``
+    state: object = None  # with ``parameters``, x as the reverse reads it (g's sum)
+
+
+class Gradient(NamedTuple):
+    x: object
+    row: int
+    updates: tuple  # of (2, N) row views: G x[row] written as L's updates are, its coefficients ∝ g
+    state: object = None  # with ``parameters``, x as the reverse reads it (g's sum)
+
+
+class Divergence(NamedTuple):
+    x: object
+    updates: tuple  # of (1, N) row views: D of x's wind rows written as L's updates are
 
 
 class Solve(NamedTuple):
@@ -112,7 +126,12 @@ def _op_key(op, coefficients: bool = True) -> tuple:
     """An operation's kind, arrays, rows and terms, and its coefficients (``coefficients``)."""
     c = (lambda v: v) if coefficients else (lambda v: None)
     if isinstance(op, Evaluate):
-        return ("F", _key(op.x), c(_key(op.state)), op.terms, _updates_key(op.updates, coefficients))
+        part = None if op.part is None else id(op.part)
+        return ("F", _key(op.x), c(_key(op.state)), op.terms, part, _updates_key(op.updates, coefficients))
+    if isinstance(op, Gradient):
+        return ("G", _key(op.x), op.row, _updates_key(op.updates, coefficients))
+    if isinstance(op, Divergence):
+        return ("D", _key(op.x), _updates_key(op.updates, coefficients))
     if isinstance(op, Combine):
         return ("C", _key(op.out), *((c(a), _key(x)) for a, x in op.terms))
     if isinstance(op, Smooth):
@@ -122,8 +141,16 @@ def _op_key(op, coefficients: bool = True) -> tuple:
     return ("S", _key(op.r), _key(op.z), op.implicit is not None and _key(op.implicit), c(op.a), c(op.scale))
 
 
+def _written(op) -> list:
+    if isinstance(op, (Evaluate, Linear, Gradient, Divergence)):
+        return [u.out if u.rows is None else u.out[u.rows] for u in op.updates]
+    if isinstance(op, Solve):
+        return [op.z, *([op.implicit] if op.implicit is not None else [])]
+    return [op.out if isinstance(op, Combine) else op.x]
+
+
 def _arrays(op) -> list:
-    if isinstance(op, (Evaluate, Linear)):
+    if isinstance(op, (Evaluate, Linear, Gradient, Divergence)):
         return [op.x, *(a for u in op.updates for a in (u.out, *(s for _, s in u.terms if s is not None)))]
     if isinstance(op, Combine):
         return [op.out, *(a for _, a in op.terms)]
@@ -159,6 +186,7 @@ class TapedModel:
 
     def __init__(self, model: ShallowWater, tape: Tape):
         self._model, self.tape = model, tape
+        self.operators = _TapedOperators(model.operators, tape)
 
     def __getattr__(self, name):
         return getattr(self._model, name)
@@ -185,11 +213,28 @@ class TapedModel:
             self._model.pointwise(kernel, *inputs, unique=unique)
 
     def rhs_part(self, x, out, part, terms=None) -> None:
-        if self.tape.recording:
-            raise ArgumentError(
-                "no gradient through rhs_part on the tape (local time stepping's own adjoint serves it)"
-            )
-        self._model.rhs_part(x, out, part, terms)
+        rows = written_rows(self._model.terms if terms is None else terms)
+        if self.tape.evaluate(x, (Update(out, ((1.0, None),), rows),), terms, part):
+            self._model.rhs_part(x, out, part, terms)
+
+
+class _TapedOperators:
+    """The model's ``ElementOperators`` whose gradient and divergence updates (the split-explicit
+    and multirate substeps') are written on the tape while it records; every other member theirs."""
+
+    def __init__(self, operators, tape: Tape):
+        self._operators, self._tape = operators, tape
+
+    def __getattr__(self, name):
+        return getattr(self._operators, name)
+
+    def gradient_update(self, x, row: int, updates) -> None:
+        if self._tape.gradient(x, row, updates):
+            self._operators.gradient_update(x, row, updates)
+
+    def divergence_update(self, x, updates) -> None:
+        if not self._tape.recording or self._tape.write(Divergence(x, tuple(updates))):
+            self._operators.divergence_update(x, updates)
 
 
 class Tape:
@@ -236,7 +281,15 @@ class Tape:
 
     def linear(self, operator, x, updates) -> bool:
         """L x written into ``updates`` (``GravityWaveOperator.update``); whether it runs."""
-        return not self.recording or self.write(Linear(x, tuple(updates), operator))
+        if not self.recording:
+            return True
+        return self.write(Linear(x, tuple(updates), operator, self._state(x) if self.keep_smoothed else None))
+
+    def gradient(self, x, row: int, updates) -> bool:
+        """−g·τ G x[row] written into ``updates`` (``ElementOperators.gradient_update``); whether it runs."""
+        if not self.recording:
+            return True
+        return self.write(Gradient(x, int(row), tuple(updates), self._state(x) if self.keep_smoothed else None))
 
     def _runs(self) -> bool:
         i, expected = len(self.ops), self.expected
@@ -260,12 +313,13 @@ class Tape:
         wp.copy(out, x)
         return out
 
-    def evaluate(self, x, updates, terms) -> bool:
-        """An F at x written into ``updates``; whether it runs."""
+    def evaluate(self, x, updates, terms, part=None) -> bool:
+        """An F at x (over ``part``'s elements alone, an ``ElementPart``) written into ``updates``;
+        whether it runs."""
         if not self.recording:
             return True
         terms = self.model.terms if terms is None else tuple(terms)
-        return self.write(Evaluate(x, self._state(x), updates, terms))
+        return self.write(Evaluate(x, self._state(x), updates, terms, part))
 
     def smooth(self, x, dt: float) -> bool:
         """The ∇⁴ over dt in place on x (nothing without it); whether it runs."""
@@ -290,22 +344,22 @@ class Tape:
             return {(base.ptr, r) for r in range(r0, r0 + a.shape[0])}
 
         def writes(op) -> set:
-            if isinstance(op, (Evaluate, Linear)):
+            if isinstance(op, (Evaluate, Linear, Gradient, Divergence)):
                 return set().union(*(cells(u.out, u.rows) for u in op.updates))
             if isinstance(op, Solve):
                 return cells(op.z) | (cells(op.implicit) if op.implicit is not None else set())
             return cells(op.out if isinstance(op, Combine) else op.x)
 
         def reads(op) -> set:
-            if isinstance(op, (Evaluate, Linear)):
+            if isinstance(op, (Evaluate, Linear, Gradient, Divergence)):
                 sources = set().union(*(cells(s, u.rows) for u in op.updates for _, s in u.terms if s is not None))
-                return sources | cells(op.x) if isinstance(op, Linear) else sources
+                return sources if isinstance(op, Evaluate) else sources | cells(op.x)
             if isinstance(op, Combine):
                 return set().union(*(cells(b) for _, b in op.terms))
             return cells(op.r) if isinstance(op, Solve) else cells(op.x)
 
         def linearised(op) -> set:  # the state the reverse reads
-            if isinstance(op, Evaluate) or isinstance(op, Smooth) and self.keep_smoothed:
+            if isinstance(op, Evaluate) or isinstance(op, (Smooth, Linear, Gradient)) and self.keep_smoothed:
                 return cells(op.x)
             return set()
 
@@ -329,14 +383,15 @@ class TapeAdjoint(Transposes):
     """The adjoint of one step of ``stepper`` on ``model`` at Δt = ``dt`` (s), its steps from model
     time ``t0`` (s), taken from a tape of the step (module doc): ``reverse(s, mu, k)`` maps the
     adjoint μ (3 + 3c, N) of s(k+1) = (x, the c carried arrays) to that of s(k) in place, s = s(k)
-    (3 + 3c, N) read only, after ``prepare`` from x(0). ``parameters`` as ``StepAdjoint``'s (∂J/∂ν,
+    (3 + 3c, N) read only. ``parameters`` as ``StepAdjoint``'s (∂J/∂ν,
     ν_s, hs, g and Ω). ``set_dt`` as the stepper's (ValueError where it keeps one Δt).
     ``ArgumentError`` (``explicit.refusal``) for a model it cannot serve, with ``parameters`` for a
     stepper that solves with L (which holds g and H), or, from ``reverse``, for a step with a verb
     it cannot transpose; ``StepFailure`` where a solve, taken again or transposed, misses the
     stepper's ``tol`` within ``maxiter``.
 
-    Work arrays (3, N): the twin stepper's own, a copy of each state an F or the ∇⁴ reads that the
+    Work arrays (3, N): the twin stepper's own, a copy of each state an F (with ``parameters`` the
+    ∇⁴, L or G too) reads that the
     step overwrites, k̄ an F evaluation where its updates cannot stand for it, an adjoint for each
     array of the twin's the step writes; with L, a ``HelmholtzSolver`` of its own."""
 
@@ -348,6 +403,7 @@ class TapeAdjoint(Transposes):
             )
         self._setup(model, dt, parameters, t0)
         self.tape = Tape(model, self.parameters)
+        self.stepper, self._synced = stepper, False
         self.twin = type(stepper)(TapedModel(model, self.tape), float(dt), stepper.options)
         self.twin.t0 = float(t0)
         self.work = self._zeros(3)
@@ -374,20 +430,18 @@ class TapeAdjoint(Transposes):
             self.twin.set_dt(dt)
         self.dt = dt
 
-    def prepare(self, x0) -> None:
-        """The twin prepared from x(0) as the run's stepper: local time stepping's levels, and L's
-        mean depth where the stepper fixes it by its first step."""
-        self.twin.prepare(x0)
-        if getattr(self.twin, "linear", None) is not None:
-            self.twin.linear.set_depth(x0)
-
     def before_hyperviscosity(self, out) -> None:
         """out = the state the last reversed step's ∇⁴ started from (kept with ``parameters``; without
         the ∇⁴ the step's end)."""
         wp.copy(out, next((op.state for op in reversed(self.tape.ops) if isinstance(op, Smooth)), self.work))
 
     def _take(self, x, k: int) -> None:
-        """The twin's step k from s = ``x`` on a fresh tape (``Tape.expected`` deciding what runs)."""
+        """The twin's step k from s = ``x`` on a fresh tape (``Tape.expected`` deciding what runs); at
+        the first, the twin restored from the stepper's ``state()``: what its first step or
+        ``prepare`` fixed (a mean depth H, local time stepping's levels)."""
+        if not self._synced:
+            self.twin.restore(self.stepper.state())
+            self._synced = True
         wp.copy(self.work, x[0:3])
         for i, a in enumerate(self.twin.carried_arrays()):
             wp.copy(a, x[3 * i + 3 : 3 * i + 6])
@@ -420,6 +474,7 @@ class TapeAdjoint(Transposes):
         self._bases = [(self.work, mu[0:3]), *((a, mu[3 * i + 3 : 3 * i + 6]) for i, a in enumerate(carried))]
         for a in (a for op in self.tape.ops for a in _arrays(op) if a.shape[0] == 3):
             self._adjoint(a)
+        self._check_parts(carried)
         actions = [m.zero_ for _, m in self._bases[1 + len(carried) :]]
         n = 0
         for op in reversed(self.tape.ops):
@@ -436,9 +491,26 @@ class TapeAdjoint(Transposes):
                 n += 1
         return actions
 
+    def _check_parts(self, carried) -> None:
+        """An F over a part (``rhs_part``) writes its part's nodes alone, so it is reversed as a whole
+        overwrite only where its array is the twin's own and nothing but F over that part writes it
+        (its other nodes zero from the start: ``steppers.local.LevelSplit``); ``ArgumentError`` else."""
+        for op in self.tape.ops:
+            if isinstance(op, Evaluate) and op.part is not None:
+                out = op.updates[0].out
+                own = not any(self._overlaps(out, a) for a in (self.work, *carried))
+                others = [
+                    other
+                    for other in self.tape.ops
+                    if not (isinstance(other, Evaluate) and other.part is op.part)
+                    and any(self._overlaps(out, w) for w in _written(other))
+                ]
+                if not own or others:
+                    raise ArgumentError("the tape met rhs_part into an array that other operations write")
+
     def _adjoint(self, a):
-        """The adjoint (rows, N) of the twin's array or row view ``a`` (made for a whole (3, N) array
-        met first)."""
+        """The adjoint (rows, N) of the twin's array or row view ``a``: a view of a whole (3, N)
+        array's, or one of its own shape (made for an array met first, a constant's never read)."""
         rowbytes = a.strides[0]
         for base, m in self._bases:
             offset = a.ptr - base.ptr
@@ -447,11 +519,9 @@ class TapeAdjoint(Transposes):
                 if r0 + a.shape[0] > base.shape[0]:
                     break
                 return m[r0 : r0 + a.shape[0]]
-        if a.shape[0] != 3:
-            raise ArgumentError(f"the tape met rows {a.shape} of an array the step never names whole")
         m = self._mu.get(_key(a))
         if m is None:
-            m = self._mu[_key(a)] = self._zeros(3)
+            m = self._mu[_key(a)] = wp.zeros(a.shape, dtype=f64, device=self.model.topology.device)
         self._bases.append((a, m))
         return m
 
@@ -480,68 +550,116 @@ class TapeAdjoint(Transposes):
         return actions + self._scale(m_out, own)
 
     def _evaluation(self, kbar, op) -> list:
-        """An F's or L's reverse (module doc): its updates' combinations reversed, last first, its
-        share summed into k̄, then μ_x += R Q (its transpose) W k̄. Where every update writes all
-        rows of an array of its own that no later update reads, k̄ is the updates' adjoints as
-        they stand before their reverses: the transpose reads them so, and only its DSS waits for
-        the combinations."""
+        """An F's, L's, G's or D's reverse (module doc): its updates' combinations reversed, last
+        first, its share summed into k̄ (rows 0–2 for F and L, 0–1 for G, 2 for D), then μ_x +=
+        (its transpose) k̄. Where every update of F or L writes all rows of a whole array of its
+        own that no later update reads, k̄ is the updates' adjoints as they stand before their
+        reverses: the transpose reads them so, and only its DSS waits for the combinations."""
         updates, outs = op.updates, [u.out for u in op.updates]
-        direct = all(u.rows is None for u in updates) and not any(
-            self._overlaps(o, p) or any(s is not None and self._overlaps(o, s) for _, s in later.terms)
-            for j, o in enumerate(outs)
-            for p, later in zip(outs[j + 1 :], updates[j + 1 :])
+        krows = slice(0, 2) if isinstance(op, Gradient) else slice(2, 3) if isinstance(op, Divergence) else slice(0, 3)
+        direct = (
+            isinstance(op, (Evaluate, Linear))
+            and all(u.rows is None and u.out.shape[0] == 3 for u in updates)
+            and not any(
+                self._overlaps(o, p) or any(s is not None and self._overlaps(o, s) for _, s in later.terms)
+                for j, o in enumerate(outs)
+                for p, later in zip(outs[j + 1 :], updates[j + 1 :])
+            )
         )
         kterms = [(a, self._adjoint(u.out)) for u in updates for a, src in u.terms if src is None] if direct else []
         actions = self._transpose(op, kterms)
         started = False
         for u in reversed(updates):
-            rows = slice(0, 3) if u.rows is None else u.rows
-            m_out, own = self._adjoint(u.out[rows]), 0.0
+            out, kb = (u.out, kbar[krows]) if u.rows is None else (u.out[u.rows], kbar[u.rows])
+            m_out, own = self._adjoint(out), 0.0
             for a, src in u.terms:
                 if src is None:
                     if direct:
                         continue
-                    if not started and u.rows is None:
-                        actions += self._launches(kbar, [(a, m_out)])
+                    if not started and kb.shape == kbar[krows].shape:
+                        actions += self._launches(kb, [(a, m_out)])
                     else:
                         if not started:
                             actions.append(kbar.zero_)
-                        actions += self._launches(kbar[rows], [(1.0, kbar[rows]), (a, m_out)])
+                        actions += self._launches(kb, [(1.0, kb), (a, m_out)])
                     started = True
                 elif _key(src) == _key(u.out):
                     own += a
                 elif a != 0.0:
-                    m_src = self._adjoint(src[rows])
+                    m_src = self._adjoint(src if u.rows is None else src[u.rows])
                     actions += self._launches(m_src, [(1.0, m_src), (a, m_out)])
             actions += self._scale(m_out, own)
         if started:
             actions += self._transpose(op, [(1.0, kbar)])
         if started or kterms:
-            m_x = self._adjoint(op.x)
-            dss = self.model.topology.dss_update(self.xbar, [(m_x, ((1.0, m_x), (1.0, None)))], weighted=False)
-            actions += [launch.launch for launch in dss]
+            actions += self._gather(op)
         return actions
 
     def _transpose(self, op, kbar) -> list:
-        """x̄ = (F's or L's transpose) W k̄ into ``xbar`` (k̄ = Σ c·a over ``kbar``), with ``parameters``
-        an F's planet sums first."""
+        """The transpose's first part on k̄ = Σ c·a over ``kbar``, with ``parameters`` g's and Ω's
+        sums first: x̄ = (F's or L's transpose) W k̄ into ``xbar``, or for G (D) −D k̄ (−G k̄) into a
+        work array (in the mass form D and −G are each other's transposes: ``GravityTranspose``)."""
         if not kbar:
             return []
+        actions, m = [], self.model
+        if self.parameters and not isinstance(op, Divergence):
+            actions.append(self._planet(op, kbar))
         if isinstance(op, Linear):
-            return [launch.launch for launch in self._gravity_of(op.operator).transpose(self.tendency, kbar)]
-        actions = []
-        if self.parameters:
-            state, terms = op.state, op.terms
-            g_terms = tuple(t for t in self.g_terms if t in terms)
-            actions.append(lambda: self.planet_terms(state, kbar, g_terms, "coriolis" in terms))
-        return actions + [launch.launch for launch in self.tendency.transpose(op.state, kbar, op.terms)]
+            launches = self._gravity_of(op.operator).transpose(self.tendency, kbar)
+        elif isinstance(op, Evaluate):
+            launches = self.tendency.transpose(op.state, kbar, op.terms, None if op.part is None else op.part.exact)
+        else:
+            (c, k), t = kbar[0], self._work()
+            if len(kbar) > 1 or c != 1.0:
+                raise ArgumentError("the tape met G or D read as a combination")  # (``_evaluation`` sums k̄ first)
+            if isinstance(op, Gradient):
+                return actions + [lambda: m.operators.divergence_update(k, [Update(t[2:3], ((-1.0, None),))])]
+            return actions + [lambda: m.operators.gradient_update(k, 2, [Update(t[0:2], ((-1.0, None),))])]
+        return actions + [launch.launch for launch in launches]
 
-    def _gravity_of(self, operator):
-        """L's transposes (``GravityWaveOperator.transpose``), with a Helmholtz solver of their own."""
-        gravity = self._gravity.get(id(operator))
+    def _gather(self, op) -> list:
+        """The transpose's last part, after the updates' combinations: μ_x += R Q x̄ by the unweighted
+        DSS, or for G (D) μ_x[row] (μ_x's wind) += the work array's."""
+        if isinstance(op, (Evaluate, Linear)):
+            m_x = self._adjoint(op.x)
+            dss = self.model.topology.dss_update(self.xbar, [(m_x, ((1.0, m_x), (1.0, None)))], weighted=False)
+            return [launch.launch for launch in dss]
+        t = self._work()
+        rows, src = (slice(op.row, op.row + 1), t[2:3]) if isinstance(op, Gradient) else (slice(0, 2), t[0:2])
+        m_x = self._adjoint(op.x[rows])
+        return self._launches(m_x, [(1.0, m_x), (1.0, src)])
+
+    def _work(self):
+        if not hasattr(self, "_transposed"):
+            self._transposed = self._zeros(3)
+        return self._transposed
+
+    def _planet(self, op, kbar):
+        """With ``parameters``, g's and Ω's sums of an F, L or G whose adjoint is Σ c·a over ``kbar``
+        (``planet_terms``: L's g term its wind rows' −g G h, G's a g-proportional coefficient)."""
+        if isinstance(op, Evaluate):
+            state, part, g_terms, rotation = (
+                op.state,
+                op.part,
+                tuple(t for t in self.g_terms if t in op.terms),
+                "coriolis" in op.terms,
+            )
+        else:
+            state, part, g_terms, rotation = op.state, None, ("pressure_gradient",), False
+            if isinstance(op, Gradient):
+                if op.row != 2:
+                    raise ArgumentError("the tape's gravity sums read G of a depth row")
+                kbar = [(-c / self.model.g, a) for c, a in kbar]
+        return lambda: self.planet_terms(state, kbar, g_terms, rotation, part)
+
+    def _gravity_of(self, operator, solves: bool = False):
+        """L's transposes (``GravityWaveOperator.transpose``); for a solve's (``solves``) with a
+        Helmholtz solver of their own (the twin's options: its ``tol`` and ``maxiter``)."""
+        key = (id(operator), solves)
+        gravity = self._gravity.get(key)
         if gravity is None:
-            solver = HelmholtzSolver(operator, self.twin.options, warm=True)
-            gravity = self._gravity[id(operator)] = operator.transpose(solver)
+            solver = HelmholtzSolver(operator, self.twin.options, warm=True) if solves else None
+            gravity = self._gravity[key] = operator.transpose(solver)
         return gravity
 
     def _solve(self, op) -> list:
@@ -549,7 +667,7 @@ class TapeAdjoint(Transposes):
         if not hasattr(self, "_solving"):
             self._solving = (self._zeros(3), self._zeros(3))
         t, w = self._solving
-        gravity = self._gravity_of(op.solver.operator)
+        gravity = self._gravity_of(op.solver.operator, solves=True)
         m_z, m_r, a, s = self._adjoint(op.z), self._adjoint(op.r), op.a, op.scale
         m_w = None if op.implicit is None else self._adjoint(op.implicit)
         actions = self._launches(t, [(1.0, m_z), *([] if m_w is None else [(1.0 / a, m_w)])])

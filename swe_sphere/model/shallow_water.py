@@ -48,13 +48,15 @@ class ElementPart(NamedTuple):
     launch less is worth computing), ``nelem`` its elements, ``nodes`` (int32 device array)
     the element-local nodes whose unique node one of them touches (every copy), ``copies``
     the DSS's table of its own copies alone (``Topology.part_copies``), ``tend`` (3, N) the
-    element-local tendency its kernels write."""
+    element-local tendency its kernels write, ``exact`` the ranges of its elements alone (a
+    gradient's transposes run over these: a gap's elements are computed, not assembled)."""
 
     runs: list
     nelem: int
     nodes: wp.array
     copies: object
     tend: wp.array2d
+    exact: list
 
     @classmethod
     def of(cls, topology, elements, gap: int = 0, whole=None) -> ElementPart:
@@ -74,7 +76,7 @@ class ElementPart(NamedTuple):
             raise ValueError(f"gap must be an integer >= 0 (got {gap})")
         nodes, copies = topology.part_copies(e, whole)
         tend = wp.zeros((3, topology.N), dtype=f64, device=topology.device)
-        return cls(element_runs(e, gap), int(e.size), nodes, copies, tend)
+        return cls(element_runs(e, gap), int(e.size), nodes, copies, tend, element_runs(e, 0))
 
 
 def element_runs(elements, gap: int) -> list[tuple[int, int]]:

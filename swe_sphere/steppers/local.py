@@ -46,7 +46,7 @@ from ..model.shallow_water import ElementPart
 from .base import Stepper, StepStats
 from .multirate import Mri
 from .multirate_ab import START_STEPS, MultirateAB3
-from .protocol import LocalSteps, MultirateSteps
+from .protocol import LocalSteps
 from .runge_kutta import explicit_steppers
 from .tables import MULTIRATE
 
@@ -228,24 +228,8 @@ class Lts(Mri):
 
     def local(self) -> LocalSteps:
         """Which step it takes, as its adjoint reads it (``protocol.LocalSteps``; after
-        ``prepare``): the inner table on one level, MRAB3's, or the multirate levels'."""
-        single = None if self.single is None else self.single.table()
-        return LocalSteps(single, None if self.mrab is None else self.mrab.steps(self.levels.level))
-
-    def multirate(self) -> MultirateSteps:
-        """The multirate levels' step as its adjoint reads it (``protocol.MultirateSteps``;
-        after ``prepare``, on two or more levels with a multirate table): the levels' split;
-        n_fast fixed by the first step."""
-        split = self.split
-        return MultirateSteps(
-            self.tab,
-            self.inner,
-            self.n_fast,
-            split.slow,
-            split.fast,
-            level=self.levels.level,
-            parts=(split.coarse, split.finer),
-        )
+        ``prepare``): MRAB3's, or None (the inner table on one level, the multirate levels')."""
+        return LocalSteps(None if self.mrab is None else self.mrab.steps(self.levels.level))
 
     def set_phase(self, k: int) -> None:
         super().set_phase(k)

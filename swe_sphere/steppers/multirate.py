@@ -18,7 +18,6 @@ from .base import Stepper, StepStats
 from .butcher import TableauOptions, parse, stage_form, stage_terms
 from .explicit import FBRK32
 from .multirate_options import MriOptions, SplitExplicitOptions, parse_mri, substeps_label
-from .protocol import MultirateSteps, SplitExplicitSteps
 from .tables import EXPLICIT
 
 f64 = wp.float64
@@ -235,24 +234,8 @@ class SplitExplicit(_Multirate):
         """Fast evaluations (L z) a step."""
         return sum(self.n_fast)
 
-    def split_explicit(self) -> SplitExplicitSteps:
-        """The step as its adjoint reads it (``protocol.SplitExplicitSteps``); n_fast and H
-        fixed by the first step."""
-        split, o = self.split, self.options
-        return SplitExplicitSteps(
-            self.C,
-            self.n_fast,
-            split.H,
-            split.depth,
-            self.slow_terms,
-            o.divergence_damping,
-            self.forward_backward,
-            self.W,
-            self.w,
-        )
-
     def _advance(self, x):
-        wp.copy(self.xn, x)
+        self._comb(self.xn, (1.0, x))  # a combination, not a copy: a verb a gradient's tape reads
         src = self.xn
         for i, (c, n) in enumerate(zip(self.C, self.n_fast)):
             self._at(float(self.C[i - 1]) if i else 0.0)
@@ -362,14 +345,6 @@ class Mri(_Multirate):
         t = self.options.table()
         return {"mri": t["name"], "mri_order": int(t["order"]), "mri_inner": self.options.inner}
 
-    def multirate(self) -> MultirateSteps:
-        """The step as its adjoint reads it (``protocol.MultirateSteps``): the table, the inner
-        table and the gravity waves' split; n_fast and H fixed by the first step."""
-        split = self.split
-        return MultirateSteps(
-            self.tab, self.inner, self.n_fast, split.slow, split.fast, split.H, split.depth, split.slow_terms
-        )
-
     def fast_evaluations(self) -> int:
         """Fast evaluations (L z) a step."""
         per = 3 if self.options.inner == "fbrk32" else len(self._form)
@@ -378,7 +353,7 @@ class Mri(_Multirate):
     def _advance(self, x):
         tab, dt, xn, z = self.tab, self.dt, self.xn, self.z
         s = len(tab.d)
-        wp.copy(xn, x)
+        self._comb(xn, (1.0, x))  # a combination, not a copy: a verb a gradient's tape reads
         for r in range(s):
             stage = xn if r == 0 else z  # Y_{r+1}
             self._at(tab.c[r])
@@ -389,7 +364,7 @@ class Mri(_Multirate):
             if r == 0 or not self._restarts(r):  # z(0) = x(n) + Σ_j α_rj (Y_{j+1} − x(n))
                 self._combine(out, [(1.0, xn), *((tab.alpha[r, j], self.D.get(j)) for j in range(1, r + 1))])
             elif out is not z:
-                wp.copy(out, z)
+                self._comb(out, (1.0, z))
             d = tab.d[r]
             self._combine(
                 self.rho0,

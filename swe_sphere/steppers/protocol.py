@@ -7,25 +7,19 @@ description of that step (``tests/test_layers.py`` holds ``adjoint/`` to these m
 A new stepper's author reads this first. The driver replays the run: it sets Δt and the clock
 of step k (``dt``, ``set_dt``, ``t0``), puts the stepper at step k's phase (``set_phase``), copies
 x and what the step carries besides x (``carried_arrays``) in and out of the sweep's states, and
-takes the step (``step``), after ``prepare`` from x(0). It picks the step's adjoint by ``name``
-for the multirate families (``adjoint.gradient.ADJOINTS``); any other ``explicit`` stepper (every
-explicit Butcher table, FB-RK(3,2), leapfrog, leapfrog-trapezoidal) and any that solves with the
-gravity-wave operator L (offering ``linear``, the ``model.gravity_wave.GravityWaveOperator``, its
-H fixed by the first step: semi_implicit, the IMEX pairs and tables) needs nothing more: its
-adjoint takes a twin of it (its class, ``dt`` and ``options``) on a tape of the model's verbs,
-L's update and its Helmholtz solve, and reverses the tape (``adjoint.tape``), so a step written
-with those verbs (``model.protocol``) differentiates as it is. The multirate families' adjoints
-take the step's stages again from x(n) and transpose them; what they need to know of the step is
-the family's description, which the stepper returns from one method, so the step's coefficients
-(MRAB3's weights) live in the stepper alone:
+takes the step (``step``), after ``prepare`` from x(0); an adjoint that takes steps again on a
+twin of the stepper gives it the stepper's ``state`` (``restore``). It picks the step's adjoint
+by ``name`` (``adjoint.gradient.ADJOINTS``) or by being ``explicit`` or solving with the gravity-wave operator L (offering
+``linear``, the ``model.gravity_wave.GravityWaveOperator``): every explicit Butcher table, FB-RK(3,2),
+leapfrog, leapfrog-trapezoidal, semi_implicit, the IMEX pairs and tables, split_explicit, mri and
+lts need nothing more: their adjoint takes a twin of the stepper (its class, ``dt`` and
+``options``, then its ``state``) on a tape of the model's verbs, L's update, the Helmholtz solve
+and the operators' gradient and divergence updates, and reverses the tape (``adjoint.tape``), so a
+step written with those verbs (``model.protocol``) differentiates as it is. MRAB3 (lts with
+``method = "mrab3"``) keeps an adjoint of its own (``adjoint.multirate_ab``), which reads the
+description of its step that ``local()`` returns (``LocalSteps``: ``MrabSteps``), so its
+coefficients live in the stepper alone.
 
-- ``split_explicit()``: ``SplitExplicitSteps``, its stages, substeps and substep;
-- ``multirate()`` (mri; lts with a multirate table on several levels): ``MultirateSteps``;
-- ``local()`` (lts): ``LocalSteps``, which of its three steps it takes (one level's table, MRAB3's
-  ``MrabSteps``, or the multirate levels').
-
-A description read before the first step may hold what that step fixes unfixed (a multirate
-step's n_fast and H): an adjoint asks for it again once the sweep has stepped forward.
 Shapes: states (3, N) float64 device arrays, N the element-local nodes; times in s.
 """
 
@@ -49,6 +43,8 @@ class DifferentiableStepper(Protocol):
     explicit: bool  # True: a table of the engine whose adjoint is its table's (with ``table``)
     options: object  # the stepper's frozen ``Options``
 
+    def state(self) -> dict: ...  # what its first step and ``prepare`` fixed, as a restart keeps it
+    def restore(self, state: dict) -> None: ...
     def set_dt(self, dt: float) -> None: ...
     def set_phase(self, k: int) -> None: ...
     def prepare(self, x) -> None: ...
@@ -60,49 +56,6 @@ class SolvingStepper(DifferentiableStepper, Protocol):
     """A step that solves with the gravity-wave operator L (semi_implicit, the IMEX pairs)."""
 
     linear: object  # ``model.gravity_wave.GravityWaveOperator``
-
-
-@dataclass(frozen=True)
-class SplitExplicitSteps:
-    """The split-explicit step (``multirate.SplitExplicit``): its stages' ``c`` (Fractions of Δt)
-    and substeps ``n_fast`` (None before the first step), the mean depth ``H`` (m; 0 before the
-    first step) and ``depth`` (1, N) H at every node, ``slow_terms`` (the slow part's), the
-    divergence damping β, and the stepper's own ``substep`` (``SplitExplicit.forward_backward``)
-    with the arrays it writes: ``wind`` (3, N: the substeps' wind, the stage's full depth) and
-    ``weighted`` (3, N: row 2 the next substep's h̃)."""
-
-    c: tuple
-    n_fast: tuple | None
-    H: float
-    depth: object
-    slow_terms: tuple
-    divergence_damping: float
-    substep: Callable
-    wind: object
-    weighted: object
-
-
-@dataclass(frozen=True)
-class MultirateSteps:
-    """A multirate table's step (``multirate.Mri``; ``local.Lts`` on several levels): its
-    ``table`` (``multirate_options.MriTable``: alpha, beta, beta1, gamma, c, d), the ``inner``
-    explicit table (None for the fbrk32 inner method), each solve's fast steps ``n_fast`` (None
-    before the first step), and the split: ``slow(x, out)`` and ``fast(x, out, rho)``. The
-    gravity waves' split (mri) has the mean depth ``H`` (m; 0 before the first step), ``depth``
-    (1, N) and ``slow_terms``; the levels' split (lts) ``level`` (the element levels, (nelem,)
-    of the whole grid) and ``parts`` (the coarse and the finer levels' ``ElementPart``), the
-    others None."""
-
-    table: object
-    inner: Table | None
-    n_fast: tuple | None
-    slow: Callable
-    fast: Callable
-    H: float | None = None
-    depth: object = None
-    slow_terms: tuple | None = None
-    level: np.ndarray | None = None
-    parts: tuple | None = None
 
 
 @dataclass(frozen=True)
@@ -126,33 +79,17 @@ class MrabSteps:
 
 @dataclass(frozen=True)
 class LocalSteps:
-    """Which step local time stepping (``local.Lts``, after ``prepare``) takes: ``single`` the
-    inner method's table on one level, ``mrab`` MRAB3's, or neither: the multirate levels'
-    (``multirate()``)."""
+    """Which step local time stepping (``local.Lts``, after ``prepare``) takes: ``mrab`` MRAB3's,
+    or None: a multirate table's or one level's, which the tape reverses (``adjoint.tape``)."""
 
-    single: Table | None
     mrab: MrabSteps | None
 
 
-class SplitExplicitStepper(DifferentiableStepper, Protocol):
-    def split_explicit(self) -> SplitExplicitSteps: ...
-
-
-class MultirateStepper(DifferentiableStepper, Protocol):
-    def multirate(self) -> MultirateSteps: ...
-
-
-class LocalStepper(MultirateStepper, Protocol):
+class LocalStepper(DifferentiableStepper, Protocol):
     def local(self) -> LocalSteps: ...
 
 
-PROTOCOLS = (
-    DifferentiableStepper,
-    SolvingStepper,
-    SplitExplicitStepper,
-    MultirateStepper,
-    LocalStepper,
-)
+PROTOCOLS = (DifferentiableStepper, SolvingStepper, LocalStepper)
 
 
 def members(*protocols) -> set[str]:

@@ -1,4 +1,4 @@
-"""Gradients of multirate runs (``adjoint.multirate``): split_explicit (the slow tendency held
+"""Gradients of multirate runs (``adjoint.tape``, their own steps on a tape; MRAB3 ``adjoint.multirate_ab``): split_explicit (the slow tendency held
 over the gravity waves' forward–backward substeps, each substep reversed), mri (the inner
 solves of the linear gravity-wave system reversed through their tables) and lts (the same
 engine on element levels, its fast part nonlinear)."""
@@ -143,10 +143,18 @@ def test_an_lts_run_s_parameter_gradients_fall_as_eps_squared(method, refined):
     taylor.assert_parameter_gradients(scene, model, g, steps, cost, x0, rng)
 
 
-def test_an_mri_gradient_refuses_an_fbrk32_inner_solve():
-    mri = taylor.tc5("mri")
-    with pytest.raises(ValueError, match="mri's gradient needs an inner Runge–Kutta table"):
-        gradient(dataclasses.replace(mri, stepper_options={"inner": "fbrk32"}), 1, HeightMisfit(0.0))
+def test_an_mri_run_with_fbrk32_inner_solves_has_its_gradients():
+    """Issue 82: what mri's own adjoint refused, the tape reverses: fbrk32 inner solves (the depth
+    first, the wind with h̃, by the operators' gradient and divergence updates, each the other's
+    transpose in the mass form). x(0)'s and g's Taylor remainders fall as ε² (g's through the
+    substeps' −gτ G and L's −g G terms)."""
+    scene = dataclasses.replace(taylor.tc5("mri"), stepper_options={"inner": "fbrk32"})
+    taylor.assert_initial_state_taylor(scene, "mri", 4)
+    model, _, x0 = scene_model(scene)
+    rng = np.random.default_rng(29)
+    cost = taylor.misfit(model, x0, rng)
+    g = gradient(scene, 4, cost, parameters=True)
+    taylor.assert_parameter_gradients(scene, model, g, 4, cost, x0, rng, ("gravity",))
 
 
 @pytest.mark.parametrize("stepper", ["fbrk32", "split_explicit", "mri", "lts"])

@@ -57,7 +57,7 @@ def refusal(model: ShallowWater, dt: float) -> str | None:
 
 class Transposes:
     """What every step's adjoint holds and sums beside its own reverse (``StepAdjoint``, the tape's
-    ``tape.TapeAdjoint`` and their kin): the tendency's and ∇⁴'s transposes, the parameters' sums
+    ``reverse.TapeAdjoint`` and their kin): the tendency's and ∇⁴'s transposes, the parameters' sums
     (``d_nu``, ``d_planet``, ``d_hs``, ``hs_gradient``)."""
 
     def _setup(self, model: ShallowWater, dt: float, parameters: bool, t0: float) -> None:

@@ -31,8 +31,8 @@ from ..model.shallow_water import ShallowWater
 from .disk import DiskTier
 from .explicit import Transposes, refusal
 from .multirate_ab import MrabAdjoint
+from .reverse import TapeAdjoint
 from .revolve import sweep, two_level
-from .tape import TapeAdjoint
 
 f64 = wp.float64
 
@@ -223,7 +223,7 @@ def _lts(model: ShallowWater, stepper, dt: float, parameters: bool, t0: float):
 
 
 # the adjoint of a step, (model, stepper, Δt, parameters, t0) → its adjoint: the tape of its own step's
-# (``tape.TapeAdjoint``) for every explicit stepper (every explicit Runge–Kutta table built in or a
+# (``reverse.TapeAdjoint``) for every explicit stepper (every explicit Runge–Kutta table built in or a
 # ``tableau``, fbrk32, leapfrog, leapfrog_trapezoidal), any that solves with L (semi_implicit, imex,
 # ark324, ark436, an IMEX ``tableau``) and these multirate families by their registered names
 # (``steppers.STEPPERS``), but MRAB3's (``multirate_ab``)

@@ -1,35 +1,21 @@
-"""The adjoint of one step of any stepper whose step is the model's verbs alone, by one mechanism:
-the step taken again from x(n) on a tape, then the tape reversed (issue 82's "step as a plan").
+"""A tape of one step of a stepper: what a gradient's reverse (``reverse.TapeAdjoint``) reads of a
+step taken again from x(n) (issue 82's "step as a plan": the stepper's own code is the plan).
 
-The stepper's own code is the plan. A twin of the stepper (its class, Δt and options) is built on
-a ``TapedModel``, which forwards every verb to the model and writes on the tape what it did:
-- ``Evaluate``: F(x) (``rhs_update``, or ``rhs`` as one update of F alone) at x as it stood, then
-  each update out[rows] = Σ a·src (src None: F), in order;
+A twin of the stepper (its class, Δt and options) is built on a ``TapedModel``, which forwards
+every verb to the model and, while the tape records, writes on it what it did:
+- ``Evaluate``: F(x) (``rhs_update``, or ``rhs`` as one update of F alone; ``rhs_part`` over a
+  part's elements) at x as it stood, then each update out[rows] = Σ a·src (src None: F), in order;
 - ``Combine``: out = Σ c·x (a recorded combination's launch, ``lincomb``, or ``pointwise``'s
   ``blas.axpby`` and ``axpbypcz``);
 - ``Smooth``: x ← H_dt(x) in place, the ∇⁴ (``hyperviscosity``);
+- ``Gradient`` and ``Divergence``: the operators' G x[row] and D of x's wind written into updates
+  (``ElementOperators.gradient_update``, ``divergence_update``: the split-explicit and multirate
+  substeps');
 - ``Linear``: the gravity-wave operator L written into updates as F is (``GravityWaveOperator.
   update``, ``apply``), and ``Solve``: z = (I − aL)⁻¹ (s·r), with ``implicit`` L z = (z − s·r)/a
   (``HelmholtzSolver.solve``): both write themselves on the tape of the model they were built on.
-Any other verb that writes state (another ``pointwise`` kernel, ``rhs_part``) has no transpose
-here: an ``ArgumentError`` names it.
-
-The reverse walks the tape backwards with one adjoint array per array the step touched, in the
-mass form (μ = R Q λ, ``adjoint.explicit``'s module doc: every array the step writes is continuous):
-- out = Σ c·x: μ_x += c μ_out for each x that is not out, then μ_out ← c_out μ_out (c_out the
-  coefficient of out itself, 0 where it is not a term);
-- an F: its updates last first as combinations, F's share summed into k̄, then μ_x += R Q Tᵀ(x)
-  W k̄ (``model.transposes.TendencyTranspose``, its DSS unweighted), and with ``parameters`` the
-  planet's and topography's sums of (x, k̄) (``Transposes.planet_terms``); L likewise with Lᵀ
-  (``GravityTranspose.transpose``: Tᵀ of the pressure gradient and continuity at (0, 0, H));
-- the ∇⁴: μ ← H_dtᵀ μ in place (``model.transposes.HyperviscosityTranspose``, with ``parameters``
-  ∂J/∂ν, ∂J/∂ν_s and ∂J/∂hs summed from the state before it);
-- a solve: t = A_a⁻ᵀ (μ_z + μ_Lz/a) (``GravityTranspose.solve``, the same CG between two scalings
-  of the h row), μ_z, μ_Lz ← 0, μ_r += s·t − (s/a) μ_Lz.
-x(n) and the arrays the stepper carries (``carried_arrays``) have the driver's rows of μ; the
-twin's other arrays adjoints of their own, zero at the start of each reverse. A new explicit
-stepper or Butcher table written with these verbs has its gradient with no adjoint code. The
-reverse's launches are recorded once per tape (its arrays and coefficients) and replayed.
+Another ``pointwise`` kernel has no transpose here: an ``ArgumentError`` names it. ``Tape.analyse``
+tells a step taken again for its reverse which operations need run and which states need a copy.
 """
 
 from __future__ import annotations
@@ -43,9 +29,6 @@ from ..core.errors import ArgumentError
 from ..kernels import blas
 from ..model.launches import Update
 from ..model.shallow_water import ShallowWater
-from ..model.transposes import Combinations
-from ..solvers.helmholtz import HelmholtzSolver
-from .explicit import HELD_DTS, Transposes
 
 f64 = wp.float64
 
@@ -107,7 +90,8 @@ class Solve(NamedTuple):
     solver: object  # the ``HelmholtzSolver``
 
 
-def _key(a) -> tuple:
+def array_key(a) -> tuple:
+    """An array's (or view's) address, shape and strides."""
     return (a.ptr, a.shape, a.strides)
 
 
@@ -117,31 +101,43 @@ def _rows(update) -> tuple | None:
 
 def _updates_key(updates, coefficients: bool) -> tuple:
     return tuple(
-        (_key(u.out), _rows(u), *((a if coefficients else None, None if s is None else _key(s)) for a, s in u.terms))
+        (
+            array_key(u.out),
+            _rows(u),
+            *((a if coefficients else None, None if s is None else array_key(s)) for a, s in u.terms),
+        )
         for u in updates
     )
 
 
-def _op_key(op, coefficients: bool = True) -> tuple:
+def op_key(op, coefficients: bool = True) -> tuple:
     """An operation's kind, arrays, rows and terms, and its coefficients (``coefficients``)."""
     c = (lambda v: v) if coefficients else (lambda v: None)
     if isinstance(op, Evaluate):
         part = None if op.part is None else id(op.part)
-        return ("F", _key(op.x), c(_key(op.state)), op.terms, part, _updates_key(op.updates, coefficients))
+        return ("F", array_key(op.x), c(array_key(op.state)), op.terms, part, _updates_key(op.updates, coefficients))
     if isinstance(op, Gradient):
-        return ("G", _key(op.x), op.row, _updates_key(op.updates, coefficients))
+        return ("G", array_key(op.x), op.row, _updates_key(op.updates, coefficients))
     if isinstance(op, Divergence):
-        return ("D", _key(op.x), _updates_key(op.updates, coefficients))
+        return ("D", array_key(op.x), _updates_key(op.updates, coefficients))
     if isinstance(op, Combine):
-        return ("C", _key(op.out), *((c(a), _key(x)) for a, x in op.terms))
+        return ("C", array_key(op.out), *((c(a), array_key(x)) for a, x in op.terms))
     if isinstance(op, Smooth):
-        return ("H", _key(op.x), c(op.dt), op.state is not None and c(_key(op.state)))
+        return ("H", array_key(op.x), c(op.dt), op.state is not None and c(array_key(op.state)))
     if isinstance(op, Linear):
-        return ("L", _key(op.x), id(op.operator), _updates_key(op.updates, coefficients))
-    return ("S", _key(op.r), _key(op.z), op.implicit is not None and _key(op.implicit), c(op.a), c(op.scale))
+        return ("L", array_key(op.x), id(op.operator), _updates_key(op.updates, coefficients))
+    return (
+        "S",
+        array_key(op.r),
+        array_key(op.z),
+        op.implicit is not None and array_key(op.implicit),
+        c(op.a),
+        c(op.scale),
+    )
 
 
-def _written(op) -> list:
+def written_by(op) -> list:
+    """The arrays (row views) an operation writes."""
     if isinstance(op, (Evaluate, Linear, Gradient, Divergence)):
         return [u.out if u.rows is None else u.out[u.rows] for u in op.updates]
     if isinstance(op, Solve):
@@ -149,7 +145,8 @@ def _written(op) -> list:
     return [op.out if isinstance(op, Combine) else op.x]
 
 
-def _arrays(op) -> list:
+def arrays_of(op) -> list:
+    """Every array an operation names."""
     if isinstance(op, (Evaluate, Linear, Gradient, Divergence)):
         return [op.x, *(a for u in op.updates for a in (u.out, *(s for _, s in u.terms if s is not None)))]
     if isinstance(op, Combine):
@@ -330,12 +327,12 @@ class Tape:
 
     def structure(self) -> tuple:
         """The operations' kinds, arrays, rows and terms, not their coefficients."""
-        return tuple(_op_key(op, coefficients=False) for op in self.ops)
+        return tuple(op_key(op, coefficients=False) for op in self.ops)
 
     def analyse(self) -> None:
         """``expected`` from this tape (the class doc), rows as the unit: each array's rows are
         found in the whole (3, N) arrays the operations name."""
-        wholes = [a for op in self.ops for a in _arrays(op) if a.shape[0] == 3]
+        wholes = [a for op in self.ops for a in arrays_of(op) if a.shape[0] == 3]
 
         def cells(a, rows=None) -> set:
             a = a if rows is None else a[rows]
@@ -377,312 +374,3 @@ class Tape:
             for i, op in enumerate(self.ops)
         ]
         self.expected = (self.structure(), runs, copies)
-
-
-class TapeAdjoint(Transposes):
-    """The adjoint of one step of ``stepper`` on ``model`` at Δt = ``dt`` (s), its steps from model
-    time ``t0`` (s), taken from a tape of the step (module doc): ``reverse(s, mu, k)`` maps the
-    adjoint μ (3 + 3c, N) of s(k+1) = (x, the c carried arrays) to that of s(k) in place, s = s(k)
-    (3 + 3c, N) read only. ``parameters`` as ``StepAdjoint``'s (∂J/∂ν,
-    ν_s, hs, g and Ω). ``set_dt`` as the stepper's (ValueError where it keeps one Δt).
-    ``ArgumentError`` (``explicit.refusal``) for a model it cannot serve, with ``parameters`` for a
-    stepper that solves with L (which holds g and H), or, from ``reverse``, for a step with a verb
-    it cannot transpose; ``StepFailure`` where a solve, taken again or transposed, misses the
-    stepper's ``tol`` within ``maxiter``.
-
-    Work arrays (3, N): the twin stepper's own, a copy of each state an F (with ``parameters`` the
-    ∇⁴, L or G too) reads that the
-    step overwrites, k̄ an F evaluation where its updates cannot stand for it, an adjoint for each
-    array of the twin's the step writes; with L, a ``HelmholtzSolver`` of its own."""
-
-    def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
-        if parameters and getattr(stepper, "linear", None) is not None:
-            raise ArgumentError(
-                f"parameters must be False with {stepper.name} (got True): its gradient is the initial "
-                "state's alone (its gravity-wave operator L holds g and H)"
-            )
-        self._setup(model, dt, parameters, t0)
-        self.tape = Tape(model, self.parameters)
-        self.stepper, self._synced = stepper, False
-        self.twin = type(stepper)(TapedModel(model, self.tape), float(dt), stepper.options)
-        self.twin.t0 = float(t0)
-        self.work = self._zeros(3)
-        self.combinations = Combinations(model.launches)
-        self._mu: dict[tuple, object] = {}  # the twin's arrays' adjoints, by address
-        self._kbar: list = []  # k̄ of each F or L of a tape, in order
-        self._smoothing: dict[float, object] = {}  # the ∇⁴'s transposes, by span
-        self._gravity: dict[int, object] = {}  # L's transposes, by its operator
-        self._plans: dict[tuple, list] = {}  # a tape's reverse, by its key
-
-    @property
-    def t0(self) -> float:
-        return self.twin.t0 if hasattr(self, "twin") else self._t0
-
-    @t0.setter
-    def t0(self, value: float) -> None:
-        if hasattr(self, "twin"):
-            self.twin.t0 = float(value)
-        self._t0 = float(value)
-
-    def set_dt(self, dt: float) -> None:
-        dt = float(dt)
-        if dt != self.twin.dt:
-            self.twin.set_dt(dt)
-        self.dt = dt
-
-    def before_hyperviscosity(self, out) -> None:
-        """out = the state the last reversed step's ∇⁴ started from (kept with ``parameters``; without
-        the ∇⁴ the step's end)."""
-        wp.copy(out, next((op.state for op in reversed(self.tape.ops) if isinstance(op, Smooth)), self.work))
-
-    def _take(self, x, k: int) -> None:
-        """The twin's step k from s = ``x`` on a fresh tape (``Tape.expected`` deciding what runs); at
-        the first, the twin restored from the stepper's ``state()``: what its first step or
-        ``prepare`` fixed (a mean depth H, local time stepping's levels)."""
-        if not self._synced:
-            self.twin.restore(self.stepper.state())
-            self._synced = True
-        wp.copy(self.work, x[0:3])
-        for i, a in enumerate(self.twin.carried_arrays()):
-            wp.copy(a, x[3 * i + 3 : 3 * i + 6])
-        self.twin.set_phase(k)
-        with self.tape.record():
-            self.twin.step(self.work)
-
-    def reverse(self, x, mu, k: int = 0) -> None:
-        """μ of s(k+1) → μ of s(k), in place; x = s(k) (read only), k the step's index."""
-        tape = self.tape
-        self._take(x, k)
-        if tape.expected is None or tape.expected[0] != tape.structure():
-            if tape.expected is not None:  # taken with another step's decisions: again, in full
-                tape.expected = None
-                self._take(x, k)
-            tape.analyse()  # for the next steps
-        key = (mu.ptr, *map(_op_key, tape.ops))
-        plan = self._plans.get(key)
-        if plan is None:
-            if len(self._plans) >= HELD_DTS:
-                del self._plans[next(iter(self._plans))]
-            plan = self._plans[key] = self._plan(mu)
-        for action in plan:
-            action()
-
-    # -- the reverse's plan -------------------------------------------------------------
-    def _plan(self, mu) -> list:
-        """The actions (callables) of the tape's reverse, last operation first (module doc)."""
-        carried = self.twin.carried_arrays()
-        self._bases = [(self.work, mu[0:3]), *((a, mu[3 * i + 3 : 3 * i + 6]) for i, a in enumerate(carried))]
-        for a in (a for op in self.tape.ops for a in _arrays(op) if a.shape[0] == 3):
-            self._adjoint(a)
-        self._check_parts(carried)
-        actions = [m.zero_ for _, m in self._bases[1 + len(carried) :]]
-        n = 0
-        for op in reversed(self.tape.ops):
-            if isinstance(op, Combine):
-                actions += self._combination(op.out, op.terms)
-            elif isinstance(op, Smooth):
-                actions.append(self._smoothing_action(op))
-            elif isinstance(op, Solve):
-                actions += self._solve(op)
-            else:
-                if len(self._kbar) == n:
-                    self._kbar.append(self._zeros(3))
-                actions += self._evaluation(self._kbar[n], op)
-                n += 1
-        return actions
-
-    def _check_parts(self, carried) -> None:
-        """An F over a part (``rhs_part``) writes its part's nodes alone, so it is reversed as a whole
-        overwrite only where its array is the twin's own and nothing but F over that part writes it
-        (its other nodes zero from the start: ``steppers.local.LevelSplit``); ``ArgumentError`` else."""
-        for op in self.tape.ops:
-            if isinstance(op, Evaluate) and op.part is not None:
-                out = op.updates[0].out
-                own = not any(self._overlaps(out, a) for a in (self.work, *carried))
-                others = [
-                    other
-                    for other in self.tape.ops
-                    if not (isinstance(other, Evaluate) and other.part is op.part)
-                    and any(self._overlaps(out, w) for w in _written(other))
-                ]
-                if not own or others:
-                    raise ArgumentError("the tape met rhs_part into an array that other operations write")
-
-    def _adjoint(self, a):
-        """The adjoint (rows, N) of the twin's array or row view ``a``: a view of a whole (3, N)
-        array's, or one of its own shape (made for an array met first, a constant's never read)."""
-        rowbytes = a.strides[0]
-        for base, m in self._bases:
-            offset = a.ptr - base.ptr
-            if base.strides == a.strides and 0 <= offset < base.shape[0] * rowbytes and offset % rowbytes == 0:
-                r0 = offset // rowbytes
-                if r0 + a.shape[0] > base.shape[0]:
-                    break
-                return m[r0 : r0 + a.shape[0]]
-        m = self._mu.get(_key(a))
-        if m is None:
-            m = self._mu[_key(a)] = wp.zeros(a.shape, dtype=f64, device=self.model.topology.device)
-        self._bases.append((a, m))
-        return m
-
-    def _launches(self, out, terms) -> list:
-        return [launch.launch for launch in self.combinations.combination(out, terms)]
-
-    def _scale(self, m, c: float) -> list:
-        """m ← c·m: nothing for c = 1, a fill for c = 0."""
-        return [] if c == 1.0 else [m.zero_] if c == 0.0 else self._launches(m, [(c, m)])
-
-    @staticmethod
-    def _overlaps(a, b) -> bool:
-        return a.ptr < b.ptr + b.shape[0] * b.strides[0] and b.ptr < a.ptr + a.shape[0] * a.strides[0]
-
-    def _combination(self, out, terms) -> list:
-        """out = Σ c·x reversed: μ_x += c μ_out for the x that are not out, μ_out ← c_out μ_out."""
-        m_out, actions, own = self._adjoint(out), [], 0.0
-        for c, a in terms:
-            if _key(a) == _key(out):
-                own += c
-            elif self._overlaps(a, out):
-                raise ArgumentError("the tape met a combination whose output overlaps a term in part")
-            elif c != 0.0:
-                m_a = self._adjoint(a)
-                actions += self._launches(m_a, [(1.0, m_a), (c, m_out)])
-        return actions + self._scale(m_out, own)
-
-    def _evaluation(self, kbar, op) -> list:
-        """An F's, L's, G's or D's reverse (module doc): its updates' combinations reversed, last
-        first, its share summed into k̄ (rows 0–2 for F and L, 0–1 for G, 2 for D), then μ_x +=
-        (its transpose) k̄. Where every update of F or L writes all rows of a whole array of its
-        own that no later update reads, k̄ is the updates' adjoints as they stand before their
-        reverses: the transpose reads them so, and only its DSS waits for the combinations."""
-        updates, outs = op.updates, [u.out for u in op.updates]
-        krows = slice(0, 2) if isinstance(op, Gradient) else slice(2, 3) if isinstance(op, Divergence) else slice(0, 3)
-        direct = (
-            isinstance(op, (Evaluate, Linear))
-            and all(u.rows is None and u.out.shape[0] == 3 for u in updates)
-            and not any(
-                self._overlaps(o, p) or any(s is not None and self._overlaps(o, s) for _, s in later.terms)
-                for j, o in enumerate(outs)
-                for p, later in zip(outs[j + 1 :], updates[j + 1 :])
-            )
-        )
-        kterms = [(a, self._adjoint(u.out)) for u in updates for a, src in u.terms if src is None] if direct else []
-        actions = self._transpose(op, kterms)
-        started = False
-        for u in reversed(updates):
-            out, kb = (u.out, kbar[krows]) if u.rows is None else (u.out[u.rows], kbar[u.rows])
-            m_out, own = self._adjoint(out), 0.0
-            for a, src in u.terms:
-                if src is None:
-                    if direct:
-                        continue
-                    if not started and kb.shape == kbar[krows].shape:
-                        actions += self._launches(kb, [(a, m_out)])
-                    else:
-                        if not started:
-                            actions.append(kbar.zero_)
-                        actions += self._launches(kb, [(1.0, kb), (a, m_out)])
-                    started = True
-                elif _key(src) == _key(u.out):
-                    own += a
-                elif a != 0.0:
-                    m_src = self._adjoint(src if u.rows is None else src[u.rows])
-                    actions += self._launches(m_src, [(1.0, m_src), (a, m_out)])
-            actions += self._scale(m_out, own)
-        if started:
-            actions += self._transpose(op, [(1.0, kbar)])
-        if started or kterms:
-            actions += self._gather(op)
-        return actions
-
-    def _transpose(self, op, kbar) -> list:
-        """The transpose's first part on k̄ = Σ c·a over ``kbar``, with ``parameters`` g's and Ω's
-        sums first: x̄ = (F's or L's transpose) W k̄ into ``xbar``, or for G (D) −D k̄ (−G k̄) into a
-        work array (in the mass form D and −G are each other's transposes: ``GravityTranspose``)."""
-        if not kbar:
-            return []
-        actions, m = [], self.model
-        if self.parameters and not isinstance(op, Divergence):
-            actions.append(self._planet(op, kbar))
-        if isinstance(op, Linear):
-            launches = self._gravity_of(op.operator).transpose(self.tendency, kbar)
-        elif isinstance(op, Evaluate):
-            launches = self.tendency.transpose(op.state, kbar, op.terms, None if op.part is None else op.part.exact)
-        else:
-            (c, k), t = kbar[0], self._work()
-            if len(kbar) > 1 or c != 1.0:
-                raise ArgumentError("the tape met G or D read as a combination")  # (``_evaluation`` sums k̄ first)
-            if isinstance(op, Gradient):
-                return actions + [lambda: m.operators.divergence_update(k, [Update(t[2:3], ((-1.0, None),))])]
-            return actions + [lambda: m.operators.gradient_update(k, 2, [Update(t[0:2], ((-1.0, None),))])]
-        return actions + [launch.launch for launch in launches]
-
-    def _gather(self, op) -> list:
-        """The transpose's last part, after the updates' combinations: μ_x += R Q x̄ by the unweighted
-        DSS, or for G (D) μ_x[row] (μ_x's wind) += the work array's."""
-        if isinstance(op, (Evaluate, Linear)):
-            m_x = self._adjoint(op.x)
-            dss = self.model.topology.dss_update(self.xbar, [(m_x, ((1.0, m_x), (1.0, None)))], weighted=False)
-            return [launch.launch for launch in dss]
-        t = self._work()
-        rows, src = (slice(op.row, op.row + 1), t[2:3]) if isinstance(op, Gradient) else (slice(0, 2), t[0:2])
-        m_x = self._adjoint(op.x[rows])
-        return self._launches(m_x, [(1.0, m_x), (1.0, src)])
-
-    def _work(self):
-        if not hasattr(self, "_transposed"):
-            self._transposed = self._zeros(3)
-        return self._transposed
-
-    def _planet(self, op, kbar):
-        """With ``parameters``, g's and Ω's sums of an F, L or G whose adjoint is Σ c·a over ``kbar``
-        (``planet_terms``: L's g term its wind rows' −g G h, G's a g-proportional coefficient)."""
-        if isinstance(op, Evaluate):
-            state, part, g_terms, rotation = (
-                op.state,
-                op.part,
-                tuple(t for t in self.g_terms if t in op.terms),
-                "coriolis" in op.terms,
-            )
-        else:
-            state, part, g_terms, rotation = op.state, None, ("pressure_gradient",), False
-            if isinstance(op, Gradient):
-                if op.row != 2:
-                    raise ArgumentError("the tape's gravity sums read G of a depth row")
-                kbar = [(-c / self.model.g, a) for c, a in kbar]
-        return lambda: self.planet_terms(state, kbar, g_terms, rotation, part)
-
-    def _gravity_of(self, operator, solves: bool = False):
-        """L's transposes (``GravityWaveOperator.transpose``); for a solve's (``solves``) with a
-        Helmholtz solver of their own (the twin's options: its ``tol`` and ``maxiter``)."""
-        key = (id(operator), solves)
-        gravity = self._gravity.get(key)
-        if gravity is None:
-            solver = HelmholtzSolver(operator, self.twin.options, warm=True) if solves else None
-            gravity = self._gravity[key] = operator.transpose(solver)
-        return gravity
-
-    def _solve(self, op) -> list:
-        """z = A_a⁻¹ (s·r), L z = (z − s·r)/a reversed (module doc), through work arrays t and w."""
-        if not hasattr(self, "_solving"):
-            self._solving = (self._zeros(3), self._zeros(3))
-        t, w = self._solving
-        gravity = self._gravity_of(op.solver.operator, solves=True)
-        m_z, m_r, a, s = self._adjoint(op.z), self._adjoint(op.r), op.a, op.scale
-        m_w = None if op.implicit is None else self._adjoint(op.implicit)
-        actions = self._launches(t, [(1.0, m_z), *([] if m_w is None else [(1.0 / a, m_w)])])
-        if m_w is not None:
-            actions += self._launches(w, [(1.0, m_w)]) + [m_w.zero_]
-        actions += [m_z.zero_, lambda: gravity.solve(t, a)]
-        return actions + self._launches(m_r, [(1.0, m_r), (s, t), *([] if m_w is None else [(-s / a, w)])])
-
-    def _smoothing_action(self, op):
-        """The ∇⁴ over its span reversed in place on μ_x (with ``parameters`` its sums from the state before it)."""
-        transpose = self._smoothing.get(op.dt)
-        if transpose is None:
-            shared = next(iter(self._smoothing.values()), None)
-            transpose = self._smoothing[op.dt] = self.model.hv.transpose(self.tendency, op.dt, shared)
-        m_x, before = self._adjoint(op.x), op.state
-        if not self.parameters:
-            return lambda: transpose.transpose(m_x)
-        return lambda: transpose.transpose(m_x, lambda out: wp.copy(out, before), self.d_nu, self.d_hs)

@@ -492,7 +492,7 @@ RK4 = dict(
 def test_a_users_explicit_butcher_table_has_its_gradient_with_no_adjoint_code():
     """Issue 82: a scene's own explicit table (``stepper = "tableau"``) differentiates as the
     registry's tables do, from its own step with no adjoint code (``adjoint.gradient``'s default
-    for an explicit stepper: ``tape.TapeAdjoint``): Heun's third-order method's initial-state Taylor remainder falls as ε²; RK4
+    for an explicit stepper: ``reverse.TapeAdjoint``): Heun's third-order method's initial-state Taylor remainder falls as ε²; RK4
     written as a tableau has the built-in ``rk4``'s gradient to the bit. A stepper without an
     adjoint is refused naming those that have one."""
     heun = tableau_tc5({"name": "heun3", **HEUN3})

@@ -1,10 +1,9 @@
 """The gradient of a scalar of a run's final state, or of a cost summed over observed steps of
 the run (``observations``), with respect to its initial state (``gradient``), by a
 checkpointed reverse sweep (``revolve.sweep``, or ``revolve.two_level`` with states on a disk:
-``disk.DiskTier``) of the explicit steps' adjoints (``explicit.StepAdjoint`` and its kin:
-``forward_backward``, ``leapfrog``, ``multirate``), of the semi-implicit leapfrog's
-(``semi_implicit``: its Helmholtz solve transposed) and of the IMEX pairs' (``imex``: ``imex``,
-``ark324``, ``ark436``), at the run's Δt or along a controlled run's steps (``StepTimes``)."""
+``disk.DiskTier``) of its steps' adjoints: each step taken again on a tape and the tape reversed
+(``reverse.TapeAdjoint``; MRAB3's ``multirate_ab``), at the run's Δt or along a controlled run's
+steps (``StepTimes``)."""
 
 from __future__ import annotations
 
@@ -361,10 +360,10 @@ def gradient(
     (full, unwritable); ``StepFailure`` where a semi-implicit or IMEX step's solve, recomputed or
     transposed, misses its ``tol`` within ``maxiter``.
 
-    Sources: the adjoints of ``explicit`` (the tendency, the DSS and the ∇⁴ transposed by
-    hand; the Helmholtz solve by its symmetry, ``semi_implicit``; the IMEX pairs' tables Ascher,
-    Ruuth & Spiteri 1997 and Kennedy & Carpenter 2003, ``imex``), checkpointing by Griewank & Walther (2000), ACM TOMS 26:19, in two levels by Stumm
-    & Walther (2009), SIAM J. Sci. Comput. 31:1946.
+    Sources: the model's transposes (``model.transposes``: the tendency, the DSS and the ∇⁴
+    transposed by hand; the Helmholtz solve by its symmetry) on a tape of each step
+    (``tape``, ``reverse``), checkpointing by Griewank & Walther (2000), ACM TOMS 26:19, in two
+    levels by Stumm & Walther (2009), SIAM J. Sci. Comput. 31:1946.
     """
     instance_argument("scene", scene, Scene, "a Scene (swe_sphere.load_scene(...))")
     steps = integer_argument("steps", steps, 1)

@@ -51,17 +51,16 @@ class TapeAdjoint(Transposes):
     """The adjoint of one step of ``stepper`` on ``model`` at Δt = ``dt`` (s), its steps from model
     time ``t0`` (s), taken from a tape of the step (module doc): ``reverse(s, mu, k)`` maps the
     adjoint μ (3 + 3c, N) of s(k+1) = (x, the c carried arrays) to that of s(k) in place, s = s(k)
-    (3 + 3c, N) read only. ``parameters`` as ``StepAdjoint``'s (∂J/∂ν,
-    ν_s, hs, g and Ω). ``set_dt`` as the stepper's (ValueError where it keeps one Δt).
+    (3 + 3c, N) read only. ``parameters`` as ``StepAdjoint``'s (∂J/∂ν, ν_s, hs, g and Ω). ``set_dt`` as the stepper's (ValueError where it keeps one Δt).
     ``ArgumentError`` (``explicit.refusal``) for a model it cannot serve, with ``parameters`` for a
     stepper that solves with L (which holds g and H), or, from ``reverse``, for a step with a verb
     it cannot transpose; ``StepFailure`` where a solve, taken again or transposed, misses the
     stepper's ``tol`` within ``maxiter``.
 
-    Work arrays (3, N): the twin stepper's own, a copy of each state an F (with ``parameters`` the
-    ∇⁴, L or G too) reads that the
-    step overwrites, k̄ an F evaluation where its updates cannot stand for it, an adjoint for each
-    array of the twin's the step writes; with L, a ``HelmholtzSolver`` of its own."""
+    Work arrays (3, N): the twin stepper's own; a copy of each state that an F (with ``parameters``
+    the ∇⁴, L or G too) reads and the step overwrites after; k̄ for each F where its updates cannot
+    stand for it; an adjoint for each array of the twin's that the step writes; with a solve, a
+    ``HelmholtzSolver`` of its own."""
 
     def __init__(self, model: ShallowWater, stepper, dt: float, parameters: bool = False, t0: float = 0.0):
         if parameters and getattr(stepper, "linear", None) is not None:
@@ -73,7 +72,6 @@ class TapeAdjoint(Transposes):
         self.tape = Tape(model, self.parameters)
         self.stepper, self._synced = stepper, False
         self.twin = type(stepper)(TapedModel(model, self.tape), float(dt), stepper.options)
-        self.twin.t0 = float(t0)
         self.work = self._zeros(3)
         self.combinations = Combinations(model.launches)
         self._mu: dict[tuple, object] = {}  # the twin's arrays' adjoints, by address
@@ -81,16 +79,6 @@ class TapeAdjoint(Transposes):
         self._smoothing: dict[float, object] = {}  # the ∇⁴'s transposes, by span
         self._gravity: dict[int, object] = {}  # L's transposes, by its operator
         self._plans: dict[tuple, list] = {}  # a tape's reverse, by its key
-
-    @property
-    def t0(self) -> float:
-        return self.twin.t0 if hasattr(self, "twin") else self._t0
-
-    @t0.setter
-    def t0(self, value: float) -> None:
-        if hasattr(self, "twin"):
-            self.twin.t0 = float(value)
-        self._t0 = float(value)
 
     def set_dt(self, dt: float) -> None:
         dt = float(dt)
@@ -113,6 +101,7 @@ class TapeAdjoint(Transposes):
         wp.copy(self.work, x[0:3])
         for i, a in enumerate(self.twin.carried_arrays()):
             wp.copy(a, x[3 * i + 3 : 3 * i + 6])
+        self.twin.t0 = self.t0  # the run's clock (``gradient.StepTimes`` sets this object's)
         self.twin.set_phase(k)
         with self.tape.record():
             self.twin.step(self.work)
@@ -143,8 +132,7 @@ class TapeAdjoint(Transposes):
         for a in (a for op in self.tape.ops for a in arrays_of(op) if a.shape[0] == 3):
             self._adjoint(a)
         self._check_parts(carried)
-        actions = [m.zero_ for _, m in self._bases[1 + len(carried) :]]
-        n = 0
+        actions, n = [], 0
         for op in reversed(self.tape.ops):
             if isinstance(op, Combine):
                 actions += self._combination(op.out, op.terms)
@@ -157,7 +145,7 @@ class TapeAdjoint(Transposes):
                     self._kbar.append(self._zeros(3))
                 actions += self._evaluation(self._kbar[n], op)
                 n += 1
-        return actions
+        return [m.zero_ for _, m in self._bases[1 + len(carried) :]] + actions  # the twin's own from zero
 
     def _check_parts(self, carried) -> None:
         """An F over a part (``rhs_part``) writes its part's nodes alone, so it is reversed as a whole

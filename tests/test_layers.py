@@ -270,17 +270,16 @@ def test_stepper_reads_are_found():
 
 def test_the_adjoint_asks_a_stepper_for_its_protocol_alone():
     """Issue 82: adjoint/ reads (and writes) only the members of ``steppers.protocol``'s protocols
-    of a stepper (every stepper's ``DifferentiableStepper``; a family's one method returning its
-    step's frozen description), each one a stepper's; and imports nothing of steppers/ but the
-    protocol module and the public table type it names (``butcher.Table``)."""
+    of a stepper (every stepper's ``DifferentiableStepper``, and ``linear`` of one that solves
+    with L), each one a stepper's; and imports nothing of steppers/ but the protocol module and the
+    public table type it names (``butcher.Table``)."""
     from swe_sphere.config.scene import load_scene
-    from swe_sphere.steppers import local
     from swe_sphere.steppers.protocol import DifferentiableStepper, members
 
     from helpers import make_sim
 
     public = members()
-    assert len(public) == 14, sorted(public)
+    assert len(public) == 13, sorted(public)
     files = sorted((REPO / "swe_sphere" / "adjoint").glob("*.py"))
     outside = [
         f"{path.relative_to(REPO)}:{line}: stepper.{name}"
@@ -289,13 +288,9 @@ def test_the_adjoint_asks_a_stepper_for_its_protocol_alone():
         if name not in public
     ]
     assert not outside, "\n".join(outside)
-    # every stepper's members on a built stepper; each family's method on its classes
+    # every stepper's members on a built stepper
     stepper = make_sim(load_scene("galewsky", ne=2, np_=4)).stepper
     assert all(hasattr(stepper, name) for name in members(DifferentiableStepper))
-    families = {
-        "local": [local.Lts],
-    }
-    assert all(callable(getattr(cls, name, None)) for name, classes in families.items() for cls in classes)
     imports = [
         f"{path.relative_to(REPO)}:{node.lineno}: {node.module} {[a.name for a in node.names]}"
         for path in files

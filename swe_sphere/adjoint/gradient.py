@@ -2,7 +2,7 @@
 the run (``observations``), with respect to its initial state (``gradient``), by a
 checkpointed reverse sweep (``revolve.sweep``, or ``revolve.two_level`` with states on a disk:
 ``disk.DiskTier``) of its steps' adjoints: each step taken again on a tape and the tape reversed
-(``reverse.TapeAdjoint``; MRAB3's ``multirate_ab``), at the run's Δt or along a controlled run's
+(``reverse.TapeAdjoint``), at the run's Δt or along a controlled run's
 steps (``StepTimes``)."""
 
 from __future__ import annotations
@@ -28,10 +28,9 @@ from ..core.constants import DAY
 from ..core.errors import ArgumentError
 from ..model.shallow_water import ShallowWater
 from .disk import DiskTier
-from .explicit import Transposes, refusal
-from .multirate_ab import MrabAdjoint
 from .reverse import TapeAdjoint
 from .revolve import sweep, two_level
+from .sums import Transposes, refusal
 
 f64 = wp.float64
 
@@ -213,20 +212,12 @@ class StepTimes:
         stepper.t0 = t0
 
 
-def _lts(model: ShallowWater, stepper, dt: float, parameters: bool, t0: float):
-    """Local time stepping's adjoint (its levels fixed by ``prepare``; its ``local()``): MRAB3's, else
-    the tape's (the inner table's global step on one level, the multirate table's on several)."""
-    if stepper.local().mrab is not None:
-        return MrabAdjoint(model, stepper, dt, parameters, t0)
-    return TapeAdjoint(model, stepper, dt, parameters, t0)
-
-
 # the adjoint of a step, (model, stepper, Δt, parameters, t0) → its adjoint: the tape of its own step's
 # (``reverse.TapeAdjoint``) for every explicit stepper (every explicit Runge–Kutta table built in or a
 # ``tableau``, fbrk32, leapfrog, leapfrog_trapezoidal), any that solves with L (semi_implicit, imex,
 # ark324, ark436, an IMEX ``tableau``) and these multirate families by their registered names
-# (``steppers.STEPPERS``), but MRAB3's (``multirate_ab``)
-ADJOINTS = {"split_explicit": TapeAdjoint, "mri": TapeAdjoint, "lts": _lts}
+# (``steppers.STEPPERS``)
+ADJOINTS = {"split_explicit": TapeAdjoint, "mri": TapeAdjoint, "lts": TapeAdjoint}
 
 
 def _adjoint_of(stepper):
@@ -355,7 +346,7 @@ def gradient(
     history, a history shorter than n or with a bad step (``StepTimes``), a disk_interval without a
     disk, a disk that is not an existing folder, x0 or hs of another shape or not finite,
     ``parameters`` not a bool or True with semi_implicit or an IMEX pair, ``comm`` not a communicator, or a scene
-    the adjoint cannot serve (``explicit.refusal``; the JFNK implicit, an exponential stepper);
+    the adjoint cannot serve (``sums.refusal``; the JFNK implicit, an exponential stepper);
     ``SceneError`` for another device than "cpu", "cuda" or "cuda:N"; OSError from the disk
     (full, unwritable); ``StepFailure`` where a semi-implicit or IMEX step's solve, recomputed or
     transposed, misses its ``tol`` within ``maxiter``.

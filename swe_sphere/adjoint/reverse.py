@@ -1,12 +1,12 @@
 """The adjoint of one step of any stepper whose step is the model's verbs alone, by one mechanism:
 the step taken again from x(n) on a tape (``tape``), then the tape reversed. The reverse walks
 the tape backwards with one adjoint array per array the step touched, in the
-mass form (μ = R Q λ, ``adjoint.explicit``'s module doc: every array the step writes is continuous):
+mass form (μ = R Q λ, ``adjoint.sums``' module doc: every array the step writes is continuous):
 - out = Σ c·x: μ_x += c μ_out for each x that is not out, then μ_out ← c_out μ_out (c_out the
   coefficient of out itself, 0 where it is not a term);
 - an F: its updates last first as combinations, F's share summed into k̄, then μ_x += R Q Tᵀ(x)
   W k̄ (``model.transposes.TendencyTranspose``, its DSS unweighted), and with ``parameters`` the
-  planet's and topography's sums of (x, k̄) (``Transposes.planet_terms``); L likewise with Lᵀ
+  planet's and topography's sums of (x, k̄) (``sums.Transposes.planet_terms``); L likewise with Lᵀ
   (``GravityTranspose.transpose``: Tᵀ of the pressure gradient and continuity at (0, 0, H));
 - the ∇⁴: μ ← H_dtᵀ μ in place (``model.transposes.HyperviscosityTranspose``, with ``parameters``
   ∂J/∂ν, ∂J/∂ν_s and ∂J/∂hs summed from the state before it);
@@ -27,9 +27,10 @@ from ..model.launches import Update
 from ..model.shallow_water import ShallowWater
 from ..model.transposes import Combinations
 from ..solvers.helmholtz import HelmholtzSolver
-from .explicit import HELD_DTS, Transposes
+from .sums import HELD_DTS, Transposes
 from .tape import (
     Combine,
+    CombineAt,
     Divergence,
     Evaluate,
     Gradient,
@@ -51,8 +52,8 @@ class TapeAdjoint(Transposes):
     """The adjoint of one step of ``stepper`` on ``model`` at Δt = ``dt`` (s), its steps from model
     time ``t0`` (s), taken from a tape of the step (module doc): ``reverse(s, mu, k)`` maps the
     adjoint μ (3 + 3c, N) of s(k+1) = (x, the c carried arrays) to that of s(k) in place, s = s(k)
-    (3 + 3c, N) read only. ``parameters`` as ``StepAdjoint``'s (∂J/∂ν, ν_s, hs, g and Ω). ``set_dt`` as the stepper's (ValueError where it keeps one Δt).
-    ``ArgumentError`` (``explicit.refusal``) for a model it cannot serve, with ``parameters`` for a
+    (3 + 3c, N) read only. ``parameters`` summed as ``sums.Transposes`` says (∂J/∂ν, ν_s, hs, g and Ω). ``set_dt`` as the stepper's (ValueError where it keeps one Δt).
+    ``ArgumentError`` (``sums.refusal``) for a model it cannot serve, with ``parameters`` for a
     stepper that solves with L (which holds g and H), or, from ``reverse``, for a step with a verb
     it cannot transpose; ``StepFailure`` where a solve, taken again or transposed, misses the
     stepper's ``tol`` within ``maxiter``.
@@ -99,7 +100,8 @@ class TapeAdjoint(Transposes):
             self.twin.restore(self.stepper.state())
             self._synced = True
         wp.copy(self.work, x[0:3])
-        for i, a in enumerate(self.twin.carried_arrays()):
+        self._carried = self.twin.carried_arrays()  # in the order the state holds them (MRAB3's rotate)
+        for i, a in enumerate(self._carried):
             wp.copy(a, x[3 * i + 3 : 3 * i + 6])
         self.twin.t0 = self.t0  # the run's clock (``gradient.StepTimes`` sets this object's)
         self.twin.set_phase(k)
@@ -131,11 +133,13 @@ class TapeAdjoint(Transposes):
         self._bases = [(self.work, mu[0:3]), *((a, mu[3 * i + 3 : 3 * i + 6]) for i, a in enumerate(carried))]
         for a in (a for op in self.tape.ops for a in arrays_of(op) if a.shape[0] == 3):
             self._adjoint(a)
-        self._check_parts(carried)
+        self._check_parts()
         actions, n = [], 0
         for op in reversed(self.tape.ops):
             if isinstance(op, Combine):
                 actions += self._combination(op.out, op.terms)
+            elif isinstance(op, CombineAt):
+                actions += self._combination_at(op)
             elif isinstance(op, Smooth):
                 actions.append(self._smoothing_action(op))
             elif isinstance(op, Solve):
@@ -145,23 +149,34 @@ class TapeAdjoint(Transposes):
                     self._kbar.append(self._zeros(3))
                 actions += self._evaluation(self._kbar[n], op)
                 n += 1
-        return [m.zero_ for _, m in self._bases[1 + len(carried) :]] + actions  # the twin's own from zero
+        zeros = [m.zero_ for _, m in self._bases[1 + len(carried) :]]  # the twin's own from zero
+        return zeros + actions + self._reorder(mu, carried)
 
-    def _check_parts(self, carried) -> None:
+    def _reorder(self, mu, carried) -> list:
+        """μ's rows of the carried arrays from their order after the step (the plan's) to their
+        order before it, where the step rotates them (MRAB3's histories)."""
+        before = [next(i for i, b in enumerate(carried) if b.ptr == a.ptr) for a in self._carried]
+        if before == list(range(len(carried))):
+            return []
+        held = wp.zeros((3 * len(carried), mu.shape[1]), dtype=f64, device=self.model.topology.device)
+        rows = [(mu[3 * j + 3 : 3 * j + 6], held[3 * i : 3 * i + 3]) for i, j in enumerate(before)]
+        return [
+            lambda: [wp.copy(h, m) for m, h in rows],
+            lambda: [wp.copy(mu[3 * i + 3 : 3 * i + 6], h) for i, (_, h) in enumerate(rows)],
+        ]
+
+    def _check_parts(self) -> None:
         """An F over a part (``rhs_part``) writes its part's nodes alone, so it is reversed as a whole
-        overwrite only where its array is the twin's own and nothing but F over that part writes it
-        (its other nodes zero from the start: ``steppers.local.LevelSplit``); ``ArgumentError`` else."""
+        overwrite only where nothing but F over that part writes its array (its other nodes zero
+        from the start: ``steppers.local.LevelSplit``, MRAB3's histories); ``ArgumentError`` else."""
         for op in self.tape.ops:
             if isinstance(op, Evaluate) and op.part is not None:
                 out = op.updates[0].out
-                own = not any(self._overlaps(out, a) for a in (self.work, *carried))
-                others = [
-                    other
-                    for other in self.tape.ops
-                    if not (isinstance(other, Evaluate) and other.part is op.part)
+                if any(
+                    not (isinstance(other, Evaluate) and other.part is op.part)
                     and any(self._overlaps(out, w) for w in written_by(other))
-                ]
-                if not own or others:
+                    for other in self.tape.ops
+                ) or self._overlaps(out, self.work):
                     raise ArgumentError("the tape met rhs_part into an array that other operations write")
 
     def _adjoint(self, a):
@@ -204,6 +219,22 @@ class TapeAdjoint(Transposes):
                 m_a = self._adjoint(a)
                 actions += self._launches(m_a, [(1.0, m_a), (c, m_out)])
         return actions + self._scale(m_out, own)
+
+    def _combination_at(self, op) -> list:
+        """out = Σ c·x at listed nodes reversed there (``lincomb_at``'s four terms, zeros padding)."""
+        m_out, launches, own = self._adjoint(op.out), [], 0.0
+        record = self.model.launches.lincomb_at
+        for c, a in op.terms:
+            if array_key(a) == array_key(op.out):
+                own += c
+            elif self._overlaps(a, op.out):
+                raise ArgumentError("the tape met a combination whose output overlaps a term in part")
+            elif c != 0.0:
+                m_a = self._adjoint(a)
+                launches.append(record(m_a, [(1.0, m_a), (c, m_out), (0.0, m_out), (0.0, m_out)], op.nodes))
+        if own != 1.0:
+            launches.append(record(m_out, [(own, m_out), (0.0, m_out), (0.0, m_out), (0.0, m_out)], op.nodes))
+        return [launch.launch for launch in launches]
 
     def _evaluation(self, kbar, op) -> list:
         """An F's, L's, G's or D's reverse (module doc): its updates' combinations reversed, last

@@ -6,7 +6,8 @@ every verb to the model and, while the tape records, writes on it what it did:
 - ``Evaluate``: F(x) (``rhs_update``, or ``rhs`` as one update of F alone; ``rhs_part`` over a
   part's elements) at x as it stood, then each update out[rows] = Σ a·src (src None: F), in order;
 - ``Combine``: out = Σ c·x (a recorded combination's launch, ``lincomb``, or ``pointwise``'s
-  ``blas.axpby`` and ``axpbypcz``);
+  ``blas.axpby`` and ``axpbypcz``), and ``CombineAt`` the same at listed nodes (``launches.
+  lincomb_at``: MRAB3's sums);
 - ``Smooth``: x ← H_dt(x) in place, the ∇⁴ (``hyperviscosity``);
 - ``Gradient`` and ``Divergence``: the operators' G x[row] and D of x's wind written into updates
   (``ElementOperators.gradient_update``, ``divergence_update``: the split-explicit and multirate
@@ -54,6 +55,12 @@ class Evaluate(NamedTuple):
 class Combine(NamedTuple):
     out: object
     terms: tuple
+
+
+class CombineAt(NamedTuple):
+    out: object
+    terms: tuple
+    nodes: object  # the element-local nodes it writes (int32 device array); out's others kept
 
 
 class Smooth(NamedTuple):
@@ -120,8 +127,9 @@ def op_key(op, coefficients: bool = True) -> tuple:
         return ("G", array_key(op.x), op.row, _updates_key(op.updates, coefficients))
     if isinstance(op, Divergence):
         return ("D", array_key(op.x), _updates_key(op.updates, coefficients))
-    if isinstance(op, Combine):
-        return ("C", array_key(op.out), *((c(a), array_key(x)) for a, x in op.terms))
+    if isinstance(op, (Combine, CombineAt)):
+        at = () if isinstance(op, Combine) else (op.nodes.ptr,)
+        return ("C", array_key(op.out), *at, *((c(a), array_key(x)) for a, x in op.terms))
     if isinstance(op, Smooth):
         return ("H", array_key(op.x), c(op.dt), op.state is not None and c(array_key(op.state)))
     if isinstance(op, Linear):
@@ -142,14 +150,14 @@ def written_by(op) -> list:
         return [u.out if u.rows is None else u.out[u.rows] for u in op.updates]
     if isinstance(op, Solve):
         return [op.z, *([op.implicit] if op.implicit is not None else [])]
-    return [op.out if isinstance(op, Combine) else op.x]
+    return [op.out if isinstance(op, (Combine, CombineAt)) else op.x]
 
 
 def arrays_of(op) -> list:
     """Every array an operation names."""
     if isinstance(op, (Evaluate, Linear, Gradient, Divergence)):
         return [op.x, *(a for u in op.updates for a in (u.out, *(s for _, s in u.terms if s is not None)))]
-    if isinstance(op, Combine):
+    if isinstance(op, (Combine, CombineAt)):
         return [op.out, *(a for _, a in op.terms)]
     if isinstance(op, Smooth):
         return [op.x]
@@ -166,14 +174,30 @@ def combination(kernel, inputs) -> tuple:
 
 
 class _TapedLaunch:
-    """A recorded combination's launch (``ShallowWater.lincomb``) that writes itself on the tape."""
+    """A recorded combination's launch (``ShallowWater.lincomb``, ``LaunchRecorder.lincomb_at``)
+    that writes itself (``op``, a ``Combine`` or ``CombineAt``) on the tape."""
 
-    def __init__(self, tape: Tape, launch, out, terms):
-        self.tape, self.real, self.out, self.terms = tape, launch, out, tuple(terms)
+    def __init__(self, tape: Tape, launch, op):
+        self.tape, self.real, self.op = tape, launch, op
 
     def launch(self) -> None:
-        if not self.tape.recording or self.tape.write(Combine(self.out, self.terms)):
+        if not self.tape.recording or self.tape.write(self.op):
             self.real.launch()
+
+
+class _TapedLaunches:
+    """The model's ``LaunchRecorder`` whose combinations at listed nodes (``lincomb_at``: MRAB3's
+    sums) write themselves on the tape; every other member its own."""
+
+    def __init__(self, launches, tape: Tape):
+        self._launches, self._tape = launches, tape
+
+    def __getattr__(self, name):
+        return getattr(self._launches, name)
+
+    def lincomb_at(self, out, terms, nodes):
+        terms = tuple(terms)
+        return _TapedLaunch(self._tape, self._launches.lincomb_at(out, terms, nodes), CombineAt(out, terms, nodes))
 
 
 class TapedModel:
@@ -184,6 +208,7 @@ class TapedModel:
     def __init__(self, model: ShallowWater, tape: Tape):
         self._model, self.tape = model, tape
         self.operators = _TapedOperators(model.operators, tape)
+        self.launches = _TapedLaunches(model.launches, tape)
 
     def __getattr__(self, name):
         return getattr(self._model, name)
@@ -198,8 +223,8 @@ class TapedModel:
             self._model.rhs_update(x, updates, terms)
 
     def lincomb(self, out, terms):
-        terms = list(terms)
-        return _TapedLaunch(self.tape, self._model.lincomb(out, terms), out, terms)
+        terms = tuple(terms)
+        return _TapedLaunch(self.tape, self._model.lincomb(out, terms), Combine(out, terms))
 
     def hyperviscosity(self, x, dt: float) -> None:
         if self.tape.smooth(x, dt):
@@ -341,18 +366,14 @@ class Tape:
             return {(base.ptr, r) for r in range(r0, r0 + a.shape[0])}
 
         def writes(op) -> set:
-            if isinstance(op, (Evaluate, Linear, Gradient, Divergence)):
-                return set().union(*(cells(u.out, u.rows) for u in op.updates))
-            if isinstance(op, Solve):
-                return cells(op.z) | (cells(op.implicit) if op.implicit is not None else set())
-            return cells(op.out if isinstance(op, Combine) else op.x)
+            return set().union(*map(cells, written_by(op)))
 
         def reads(op) -> set:
             if isinstance(op, (Evaluate, Linear, Gradient, Divergence)):
                 sources = set().union(*(cells(s, u.rows) for u in op.updates for _, s in u.terms if s is not None))
                 return sources if isinstance(op, Evaluate) else sources | cells(op.x)
-            if isinstance(op, Combine):
-                return set().union(*(cells(b) for _, b in op.terms))
+            if isinstance(op, (Combine, CombineAt)):  # at listed nodes: out's others read as kept
+                return set().union(*(cells(b) for _, b in op.terms), cells(op.out) if isinstance(op, CombineAt) else ())
             return cells(op.r) if isinstance(op, Solve) else cells(op.x)
 
         def linearised(op) -> set:  # the state the reverse reads

@@ -46,7 +46,6 @@ from ..model.shallow_water import ElementPart
 from .base import Stepper, StepStats
 from .multirate import Mri
 from .multirate_ab import START_STEPS, MultirateAB3
-from .protocol import LocalSteps
 from .runge_kutta import explicit_steppers
 from .tables import MULTIRATE
 
@@ -225,11 +224,6 @@ class Lts(Mri):
             self.split, self.single = None, _explicit(self.options.inner)(self.model, self.dt)
         else:
             self.split, self.single = LevelSplit(self.model, levels, self._comb), None
-
-    def local(self) -> LocalSteps:
-        """Which step it takes, as its adjoint reads it (``protocol.LocalSteps``; after
-        ``prepare``): MRAB3's, or None (the inner table on one level, the multirate levels')."""
-        return LocalSteps(None if self.mrab is None else self.mrab.steps(self.levels.level))
 
     def set_phase(self, k: int) -> None:
         super().set_phase(k)

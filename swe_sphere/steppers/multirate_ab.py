@@ -52,7 +52,6 @@ import numpy as np
 import warp as wp
 
 from .butcher import TableauOptions, parse, stage_form, stage_terms
-from .protocol import MrabSteps
 from .tables import EXPLICIT
 
 f64 = wp.float64
@@ -141,21 +140,6 @@ class MultirateAB3:
     def substeps(self) -> int:
         """The finest sub-steps a coarse step, 2^K."""
         return 2 ** (self.levels - 1)
-
-    def steps(self, level: np.ndarray) -> MrabSteps:
-        """The step as its adjoint reads it (``protocol.MrabSteps``), ``level`` the element
-        levels (nelem,) of the whole grid."""
-        return MrabSteps(
-            self.levels,
-            self.substeps(),
-            self.parts,
-            self.evaluate,
-            HISTORY,
-            START_STEPS,
-            self.weights,
-            self.inner,
-            level,
-        )
 
     def evaluations(self) -> list[int]:
         """Each level's evaluations a coarse step once started: 2^k."""

@@ -11,7 +11,6 @@ import pytest
 import warp as wp
 
 from swe_sphere.adjoint import HeightMisfit, gradient
-from swe_sphere.adjoint.explicit import StepAdjoint
 from swe_sphere.adjoint.gradient import scene_model, step_adjoint
 from swe_sphere.adjoint.revolve import forward_steps, griewank_steps, split, sweep
 from swe_sphere.config.scene import load_scene
@@ -134,7 +133,8 @@ def test_hyperviscosity_step_s_transpose_in_the_mass_form(kind, per_element):
     model, stepper, _ = scene_model(scene)
     if not per_element:
         model = ShallowWater.from_scene(scene, model.grid, per_element=False)
-    adjoint = StepAdjoint(model, stepper.table(), stepper.dt)
+    tendency = model.operators.tendency_transpose(model.terms, model.g)
+    adjoint = model.hv.transpose(tendency, stepper.dt)  # the model's (``HyperviscosityTranspose``)
     rng = np.random.default_rng(3)
     delta = continuous(model, rng.standard_normal((3, model.N)) * np.array([[10.0], [10.0], [100.0]]))
     lam = rng.standard_normal((3, model.N))
@@ -206,7 +206,7 @@ def test_a_reversed_step_is_the_same_bits_on_two_threads():
     out = []
     for threads in (1, 2):
         m = ShallowWater.from_scene(tc5("kgu35"), model.grid, threads=threads)
-        adjoint, mu = StepAdjoint(m, stepper.table(), stepper.dt), wp.array(lam, dtype=f64)
+        adjoint, mu = step_adjoint(m, stepper), wp.array(lam, dtype=f64)
         adjoint.reverse(wp.array(x0, dtype=f64), mu)
         out.append(mu.numpy())
     np.testing.assert_array_equal(out[0], out[1])

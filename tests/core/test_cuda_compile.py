@@ -26,7 +26,7 @@ import warp as wp
 
 import swe_sphere
 import swe_sphere.kernels as kernels_pkg
-from swe_sphere.adjoint.explicit import StepAdjoint
+from swe_sphere.adjoint.gradient import step_adjoint
 from swe_sphere.config.scene import list_scenes, load_scene
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.kernels import dss, hyperviscosity
@@ -130,7 +130,7 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
     swe_sphere.gradient(tc5, 1, swe_sphere.HeightMisfit(0.0))
     model = ShallowWater.from_scene(tc5, grid, per_element=False)
     x = model.new_state(*np.stack(tc5.make_case().initial(grid.lat, grid.lon)))
-    StepAdjoint(model, make_stepper("rk4", model, tc5.dt).table(), tc5.dt).reverse(x, wp.clone(x))
+    step_adjoint(model, make_stepper("rk4", model, tc5.dt)).reverse(x, wp.clone(x))
     ghosted = [factory(*args, ghosts=True, **dict(options)) for factory, args, options in dss_args]
     return [k for k in launched if k.func.__module__.startswith("swe_sphere.")], ghosted
 

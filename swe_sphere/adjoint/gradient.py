@@ -30,7 +30,7 @@ from ..model.shallow_water import ShallowWater
 from .disk import DiskTier
 from .reverse import TapeAdjoint
 from .revolve import sweep, two_level
-from .sums import Transposes, refusal
+from .sums import refusal
 
 f64 = wp.float64
 
@@ -158,11 +158,11 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
     # the model's arrays on the device its topology launches on (issue 83: they were the CPU's)
     model = ShallowWater.from_scene(scene, grid, case, device=topo.backend.device, topology=topo)
     stepper = scene_stepper(scene, model)
-    if _adjoint_of(stepper) is None:
+    if not has_gradient(stepper):
         raise ArgumentError(
             f"gradients need an explicit stepper (a Runge–Kutta table built in or a tableau, fbrk32, leapfrog, "
             f"leapfrog_trapezoidal), one that solves with L (semi_implicit, an IMEX table: imex, ark324, ark436, "
-            f"a tableau) or one of {', '.join(sorted(ADJOINTS))} "
+            f"a tableau) or one of {', '.join(sorted(TAPED))} "
             f"(got scene.stepper = {scene.stepper!r})"
         )
     return model, stepper, np.stack(case.initial(grid.lat, grid.lon))
@@ -212,27 +212,23 @@ class StepTimes:
         stepper.t0 = t0
 
 
-# the adjoint of a step, (model, stepper, Δt, parameters, t0) → its adjoint: the tape of its own step's
-# (``reverse.TapeAdjoint``) for every explicit stepper (every explicit Runge–Kutta table built in or a
-# ``tableau``, fbrk32, leapfrog, leapfrog_trapezoidal), any that solves with L (semi_implicit, imex,
-# ark324, ark436, an IMEX ``tableau``) and these multirate families by their registered names
-# (``steppers.STEPPERS``)
-ADJOINTS = {"split_explicit": TapeAdjoint, "mri": TapeAdjoint, "lts": TapeAdjoint}
+# the steppers, besides the explicit ones and those that solve with L, whose steps the tape reads
+# (``reverse.TapeAdjoint``), by their registered names (``steppers.STEPPERS``)
+TAPED = ("split_explicit", "mri", "lts")
 
 
-def _adjoint_of(stepper):
-    """The maker of ``stepper``'s step adjoint, or None where it has none (the JFNK ``implicit``,
-    an exponential stepper)."""
-    if stepper.name in ADJOINTS:
-        return ADJOINTS[stepper.name]
-    return TapeAdjoint if stepper.explicit or getattr(stepper, "linear", None) is not None else None
+def has_gradient(stepper) -> bool:
+    """Whether ``stepper``'s steps have an adjoint (``reverse.TapeAdjoint``): every explicit stepper
+    (every explicit Runge–Kutta table built in or a ``tableau``, fbrk32, leapfrog,
+    leapfrog_trapezoidal), any that solves with L (semi_implicit, imex, ark324, ark436, an IMEX
+    ``tableau``) and ``TAPED``'s; not the JFNK ``implicit`` nor an exponential stepper."""
+    return stepper.explicit or getattr(stepper, "linear", None) is not None or stepper.name in TAPED
 
 
-def step_adjoint(model: ShallowWater, stepper, parameters: bool = False) -> Transposes:
-    """The adjoint of one step of ``stepper`` (``scene_model``'s: one with an adjoint, ``ADJOINTS``
-    or an explicit Butcher table; lts prepared) on ``model``, its steps from the stepper's ``t0``.
-    ValueError as its class."""
-    return _adjoint_of(stepper)(model, stepper, stepper.dt, parameters, stepper.t0)
+def step_adjoint(model: ShallowWater, stepper, parameters: bool = False) -> TapeAdjoint:
+    """The adjoint of one step of ``stepper`` (one with a gradient: ``has_gradient``) on ``model``,
+    its steps from the stepper's ``t0``. ``ArgumentError`` as ``TapeAdjoint``'s."""
+    return TapeAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
 
 
 def _on_root(topo, check):

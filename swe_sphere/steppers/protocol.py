@@ -14,7 +14,7 @@ adjoint takes a twin of the stepper (its class, ``dt`` and ``options``, then its
 and reverses the tape (``adjoint.tape``, ``adjoint.reverse``). So every stepper written with those
 verbs differentiates as it is, with no adjoint code: it is ``explicit``, offers ``linear`` (the
 ``model.gravity_wave.GravityWaveOperator``, its H fixed by the first step), or is registered by
-name in ``adjoint.gradient.ADJOINTS`` (split_explicit, mri, lts). The JFNK ``implicit`` and the
+name in ``adjoint.gradient.TAPED`` (split_explicit, mri, lts). The JFNK ``implicit`` and the
 exponential steppers step through kernels and Krylov solves of their own, which the tape cannot
 read: they have no gradient.
 

@@ -8,7 +8,8 @@ The runs are shortened: ``swe-sphere`` is tests/docs_shortening.py in front of t
 tool (tiny grids that keep the page's grids apart, at most two runs a sweep; a block of two or
 more plain commands runs in one process, ``docs_shortening.run_each``); a Python
 block's ``ne=N`` becomes ``ne=small_ne(N)`` likewise, and a ``dt=`` beside it keeps its
-Courant number (``python_line``). Left out, with the reason: ``pip
+Courant number, and a ``frontier.plan``'s lists keep what ``swe-sphere frontier`` keeps
+(``python_line``). Left out, with the reason: ``pip
 install`` and ``python -m pytest`` (this test runs inside them), ``mpiexec`` lines (MPI
 tests: tests/test_mpi.py), ``--device cuda`` lines (tests/test_cuda.py),
 ``python benchmarks/`` (timings: the benchmarks are measured, not examples), a bare
@@ -35,7 +36,7 @@ from swe_sphere.config.schema import SCHEMA
 from swe_sphere.mesh.cube import cube_mesh
 from swe_sphere.mesh.mesh import write_exodus
 
-from docs_shortening import EACH, coarser_dt, shorten, small_ne
+from docs_shortening import EACH, KEPT, coarser_dt, shorten, small_ne
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIM = Path(__file__).resolve().with_name("docs_shortening.py")
@@ -78,12 +79,23 @@ def python_line(line: str) -> str:
     """A Python line shortened as a command line is: ``ne=N`` → ``ne=small_ne(N)`` and, with it,
     ``dt=X`` → ``dt=coarser_dt(X, N)`` (the same Courant number: a Δt written for np 4 that a
     scene's np 8 breaks still breaks here; README's galewsky loop at ne=8 dt=600 ran at ne 2 with
-    a quarter of its Courant number, stable, where as written it blew up at step 7)."""
+    a quarter of its Courant number, stable, where as written it blew up at step 7). A
+    ``frontier.plan(...)`` keeps what ``swe-sphere frontier`` keeps (``KEPT``): the first of its
+    ``ne=[...]`` (shortened), two of its ``np_=[...]`` and the first of its ``steppers=[...]``."""
+    if "frontier.plan(" in line:
+        line = re.sub(r"\b(ne|np_|steppers)=\[([^\]]*)\]", _frontier_list, line)
     ne = re.search(r"\bne=(\d+)", line)
     if ne is None:
         return line
     line = re.sub(r"\bdt=(\d+(?:\.\d*)?(?:e\d+)?)", lambda m: f"dt={coarser_dt(float(m[1]), int(ne[1]))}", line)
     return re.sub(r"\bne=(\d+)", lambda m: f"ne={small_ne(int(m[1]))}", line)
+
+
+def _frontier_list(match: re.Match) -> str:
+    """A ``frontier.plan`` list argument (``ne=[2, 4]``) shortened as its option on the command line."""
+    name, items = match[1], [item.strip() for item in match[2].split(",")]
+    items = items[: KEPT["frontier"]["--" + name.rstrip("_")]]
+    return f"{name}=[{', '.join(str(small_ne(int(i))) if name == 'ne' else i for i in items)}]"
 
 
 def programs(path: Path, inline: bool = True) -> list[list[str]]:
@@ -241,6 +253,9 @@ def test_a_python_block_keeps_its_courant_number(tmp_path):
     page = tmp_path / "page.md"
     page.write_text('```python\nsim = Simulation("galewsky", ne=8, days=6, dt=600)\nx = f(ne=2, dt=1800.0)\n```\n')
     assert programs(page)[0][-1] == 'sim = Simulation("galewsky", ne=2, days=6, dt=2400.0)\nx = f(ne=2, dt=1800.0)'
+    frontier = 'f = frontier.plan("tc2_steady", ne=[16, 4], np_=[3, 4, 6], steppers=["rk4", "kgu35@0.5"], days=1)'
+    assert python_line(frontier) == 'f = frontier.plan("tc2_steady", ne=[3], np_=[3, 4], steppers=["rk4"], days=1)'
+    assert python_line("f(ne=[16, 4])") == "f(ne=[16, 4])"  # another call's list: as written
 
 
 def test_inline_commands_are_examples_and_placeholders_are_not(tmp_path):

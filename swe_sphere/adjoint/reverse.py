@@ -286,34 +286,36 @@ class TapeAdjoint(Transposes):
         return actions
 
     def _single(self, op) -> list | None:
-        """An F's or L's lone update, out = c·s + a·F or out = c·out + a·F (an explicit stage's),
-        reversed inside the DSS its transpose needs anyway (two updates of one pass,
-        ``Topology.dss_update``): μ_s += c μ_out beside μ_x += R Q x̄, or, where out is x itself,
-        μ_s += c μ_x before μ_x = R Q x̄. None for another op (``_evaluation``'s general path)."""
+        """An F's or L's lone update, out = c_out·out + c·s + a·F (an explicit stage's; either
+        array term may be absent), reversed inside the DSS its transpose needs anyway (two updates
+        of one pass, ``Topology.dss_update``): μ_s += c μ_out beside μ_x += R Q x̄, then μ_out ←
+        c_out μ_out, or, where out is x itself, μ_s += c μ_x before μ_x ← c_out μ_x + R Q x̄. None
+        for another op (``_evaluation``'s general path)."""
         if not isinstance(op, (Evaluate, Linear)) or len(op.updates) != 1:
             return None
         (u,) = op.updates
         forced = [a for a, src in u.terms if src is None]
         arrays = [(c, src) for c, src in u.terms if src is not None]
-        if u.rows is not None or u.out.shape[0] != 3 or len(forced) != 1 or len(arrays) > 1:
+        others = [(c, src) for c, src in arrays if array_key(src) != array_key(u.out)]
+        if u.rows is not None or u.out.shape[0] != 3 or len(forced) != 1 or len(others) > 1 or len(arrays) > 2:
             return None
-        m_out, m_x, same = self._adjoint(u.out), self._adjoint(op.x), array_key(op.x) == array_key(u.out)
-        own = sum(c for c, src in arrays if array_key(src) == array_key(u.out))
-        others = [(c, self._adjoint(src)) for c, src in arrays if array_key(src) != array_key(u.out)]
-        if any(self._overlaps(src, u.out) for c, src in arrays if array_key(src) != array_key(u.out)):
+        if any(self._overlaps(src, u.out) for c, src in others):
             raise ArgumentError("the tape met a combination whose output overlaps a term in part")
+        m_out, m_x = self._adjoint(u.out), self._adjoint(op.x)
+        own = sum(c for c, src in arrays if array_key(src) == array_key(u.out))
+        others = [(c, self._adjoint(src)) for c, src in others]
         tail = []
-        if same:  # x ← c·x + aF, or x ← c·s + aF: μ_s += c μ_x, then μ_x ← own μ_x + R Q x̄
-            updates = [(m_x, ((own, m_x), (1.0, None)))]
-            if others:
-                updates.insert(0, (others[0][1], ((1.0, others[0][1]), (others[0][0], m_x))))
-        elif not others:  # out ← own·out + aF
-            updates, tail = [(m_x, ((1.0, m_x), (1.0, None)))], self._scale(m_out, own)
-        elif others[0][1].ptr == m_x.ptr and others[0][1].shape == m_x.shape:  # out ← c·x + aF
-            updates, tail = [(m_x, ((1.0, m_x), (others[0][0], m_out), (1.0, None)))], [m_out.zero_]
-        else:  # out ← c·s + aF, s another array
-            c, m_s = others[0]
-            updates, tail = [(m_x, ((1.0, m_x), (1.0, None))), (m_s, ((1.0, m_s), (c, m_out)))], [m_out.zero_]
+        if array_key(op.x) == array_key(u.out):  # μ_s += c μ_x, then μ_x ← c_out μ_x + R Q x̄
+            updates = [*((m_s, ((1.0, m_s), (c, m_x))) for c, m_s in others), (m_x, ((own, m_x), (1.0, None)))]
+        elif others and others[0][1].ptr == m_x.ptr and others[0][1].shape == m_x.shape:  # s is x
+            updates = [(m_x, ((1.0, m_x), (others[0][0], m_out), (1.0, None)))]
+            if own not in (0.0, 1.0):
+                updates.append((m_out, ((own, m_out),)))
+            else:
+                tail = self._scale(m_out, own)
+        else:
+            updates = [(m_x, ((1.0, m_x), (1.0, None))), *((m_s, ((1.0, m_s), (c, m_out))) for c, m_s in others)]
+            tail = self._scale(m_out, own)
         dss = self.model.topology.dss_update(self.xbar, updates, weighted=False)
         return self._transpose(op, [(forced[0], m_out)]) + [launch.launch for launch in dss] + tail
 

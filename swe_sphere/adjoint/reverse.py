@@ -136,10 +136,8 @@ class TapeAdjoint(Transposes):
         self._check_parts()
         actions, n = [], 0
         for op in reversed(self.tape.ops):
-            if isinstance(op, Combine):
-                actions += self._combination(op.out, op.terms)
-            elif isinstance(op, CombineAt):
-                actions += self._combination_at(op)
+            if isinstance(op, (Combine, CombineAt)):
+                actions += self._combination(op)
             elif isinstance(op, Smooth):
                 actions.append(self._smoothing_action(op))
             elif isinstance(op, Solve):
@@ -207,23 +205,17 @@ class TapeAdjoint(Transposes):
     def _overlaps(a, b) -> bool:
         return a.ptr < b.ptr + b.shape[0] * b.strides[0] and b.ptr < a.ptr + a.shape[0] * a.strides[0]
 
-    def _combination(self, out, terms) -> list:
-        """out = Σ c·x reversed: μ_x += c μ_out for the x that are not out, μ_out ← c_out μ_out."""
-        m_out, actions, own = self._adjoint(out), [], 0.0
-        for c, a in terms:
-            if array_key(a) == array_key(out):
-                own += c
-            elif self._overlaps(a, out):
-                raise ArgumentError("the tape met a combination whose output overlaps a term in part")
-            elif c != 0.0:
-                m_a = self._adjoint(a)
-                actions += self._launches(m_a, [(1.0, m_a), (c, m_out)])
-        return actions + self._scale(m_out, own)
+    def _combination(self, op) -> list:
+        """out = Σ c·x reversed (at its listed nodes alone for a ``CombineAt``, ``lincomb_at``'s four
+        terms padded with zeros): μ_x += c μ_out for the x that are not out, μ_out ← c_out μ_out."""
+        m_out, actions, own = self._adjoint(op.out), [], 0.0
 
-    def _combination_at(self, op) -> list:
-        """out = Σ c·x at listed nodes reversed there (``lincomb_at``'s four terms, zeros padding)."""
-        m_out, launches, own = self._adjoint(op.out), [], 0.0
-        record = self.model.launches.lincomb_at
+        def write(m, terms) -> list:
+            if isinstance(op, Combine):
+                return self._launches(m, terms)
+            terms = [*terms, *((0.0, m_out),) * (4 - len(terms))]
+            return [self.model.launches.lincomb_at(m, terms, op.nodes).launch]
+
         for c, a in op.terms:
             if array_key(a) == array_key(op.out):
                 own += c
@@ -231,10 +223,10 @@ class TapeAdjoint(Transposes):
                 raise ArgumentError("the tape met a combination whose output overlaps a term in part")
             elif c != 0.0:
                 m_a = self._adjoint(a)
-                launches.append(record(m_a, [(1.0, m_a), (c, m_out), (0.0, m_out), (0.0, m_out)], op.nodes))
-        if own != 1.0:
-            launches.append(record(m_out, [(own, m_out), (0.0, m_out), (0.0, m_out), (0.0, m_out)], op.nodes))
-        return [launch.launch for launch in launches]
+                actions += write(m_a, [(1.0, m_a), (c, m_out)])
+        if isinstance(op, Combine):
+            return actions + self._scale(m_out, own)
+        return actions + (write(m_out, [(own, m_out)]) if own != 1.0 else [])
 
     def _evaluation(self, kbar, op) -> list:
         """An F's, L's, G's or D's reverse (module doc): its updates' combinations reversed, last
@@ -306,7 +298,8 @@ class TapeAdjoint(Transposes):
         others = [(c, self._adjoint(src)) for c, src in others]
         tail = []
         if array_key(op.x) == array_key(u.out):  # μ_s += c μ_x, then μ_x ← c_out μ_x + R Q x̄
-            updates = [*((m_s, ((1.0, m_s), (c, m_x))) for c, m_s in others), (m_x, ((own, m_x), (1.0, None)))]
+            last = (m_x, ((own, m_x), (1.0, None)) if own else ((1.0, None),))  # c_out 0: R Q x̄ alone, no read
+            updates = [*((m_s, ((1.0, m_s), (c, m_x))) for c, m_s in others), last]
         elif others and others[0][1].ptr == m_x.ptr and others[0][1].shape == m_x.shape:  # s is x
             updates = [(m_x, ((1.0, m_x), (others[0][0], m_out), (1.0, None)))]
             if own not in (0.0, 1.0):

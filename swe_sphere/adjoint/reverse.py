@@ -52,7 +52,8 @@ class TapeAdjoint(Transposes):
     """The adjoint of one step of ``stepper`` on ``model`` at Δt = ``dt`` (s), its steps from model
     time ``t0`` (s), taken from a tape of the step (module doc): ``reverse(s, mu, k)`` maps the
     adjoint μ (3 + 3c, N) of s(k+1) = (x, the c carried arrays) to that of s(k) in place, s = s(k)
-    (3 + 3c, N) read only. ``parameters`` summed as ``sums.Transposes`` says (∂J/∂ν, ν_s, hs, g and Ω). ``set_dt`` as the stepper's (ValueError where it keeps one Δt).
+    (3 + 3c, N) read only. ``parameters``: ∂J/∂ν, ν_s, hs, g and Ω summed as ``sums.Transposes``
+    says. ``set_dt`` as the stepper's (ValueError where it keeps one Δt).
     ``ArgumentError`` (``sums.refusal``) for a model it cannot serve, with ``parameters`` for a
     stepper that solves with L (which holds g and H), or, from ``reverse``, for a step with a verb
     it cannot transpose; ``StepFailure`` where a solve, taken again or transposed, misses the
@@ -80,6 +81,8 @@ class TapeAdjoint(Transposes):
         self._smoothing: dict[float, object] = {}  # the ∇⁴'s transposes, by span
         self._gravity: dict[int, object] = {}  # L's transposes, by its operator
         self._plans: dict[tuple, list] = {}  # a tape's reverse, by its key
+        self._solving = None  # a solve's reverse's work arrays (t, w), made at the first
+        self._transposed = None  # G's and D's transposes' work array, made at the first
 
     def set_dt(self, dt: float) -> None:
         dt = float(dt)
@@ -347,7 +350,7 @@ class TapeAdjoint(Transposes):
         return self._launches(m_x, [(1.0, m_x), (1.0, src)])
 
     def _work(self):
-        if not hasattr(self, "_transposed"):
+        if self._transposed is None:
             self._transposed = self._zeros(3)
         return self._transposed
 
@@ -381,7 +384,7 @@ class TapeAdjoint(Transposes):
 
     def _solve(self, op) -> list:
         """z = A_a⁻¹ (s·r), L z = (z − s·r)/a reversed (module doc), through work arrays t and w."""
-        if not hasattr(self, "_solving"):
+        if self._solving is None:
             self._solving = (self._zeros(3), self._zeros(3))
         t, w = self._solving
         gravity = self._gravity_of(op.solver.operator, solves=True)

@@ -124,7 +124,8 @@ def op_key(op, coefficients: bool = True) -> tuple:
         part = None if op.part is None else id(op.part)
         return ("F", array_key(op.x), c(array_key(op.state)), op.terms, part, _updates_key(op.updates, coefficients))
     if isinstance(op, Gradient):
-        return ("G", array_key(op.x), op.row, _updates_key(op.updates, coefficients))
+        state = op.state is not None and c(array_key(op.state))  # read by g's sums (``parameters``)
+        return ("G", array_key(op.x), state, op.row, _updates_key(op.updates, coefficients))
     if isinstance(op, Divergence):
         return ("D", array_key(op.x), _updates_key(op.updates, coefficients))
     if isinstance(op, (Combine, CombineAt)):
@@ -133,7 +134,8 @@ def op_key(op, coefficients: bool = True) -> tuple:
     if isinstance(op, Smooth):
         return ("H", array_key(op.x), c(op.dt), op.state is not None and c(array_key(op.state)))
     if isinstance(op, Linear):
-        return ("L", array_key(op.x), id(op.operator), _updates_key(op.updates, coefficients))
+        state = op.state is not None and c(array_key(op.state))
+        return ("L", array_key(op.x), state, id(op.operator), _updates_key(op.updates, coefficients))
     return (
         "S",
         array_key(op.r),
@@ -267,11 +269,11 @@ class Tape:
     ``expected``: what the last step's tape showed of a step like it (``analyse``): which
     operations a reverse needs run (those whose results reach a state an F reads: an F at the
     last stage, or the ∇⁴ at the end, need not run) and which states need a copy (those an
-    operation that runs writes after an F, or with ``keep_smoothed`` the ∇⁴, read them). A step
+    operation that runs writes after an F, or with ``parameters`` the ∇⁴, L or G, read them). A step
     whose operations turn out otherwise (``structure``) is taken again in full (``TapeAdjoint``)."""
 
-    def __init__(self, model: ShallowWater, keep_smoothed: bool):
-        self.model, self.keep_smoothed = model, keep_smoothed
+    def __init__(self, model: ShallowWater, parameters: bool):
+        self.model, self.parameters = model, parameters
         self.ops: list = []
         self.copies: list = []
         self.expected = None  # (structure, runs, copies) of the last analysed tape; None: run and copy all
@@ -305,13 +307,13 @@ class Tape:
         """L x written into ``updates`` (``GravityWaveOperator.update``); whether it runs."""
         if not self.recording:
             return True
-        return self.write(Linear(x, tuple(updates), operator, self._state(x) if self.keep_smoothed else None))
+        return self.write(Linear(x, tuple(updates), operator, self._state(x) if self.parameters else None))
 
     def gradient(self, x, row: int, updates) -> bool:
         """−g·τ G x[row] written into ``updates`` (``ElementOperators.gradient_update``); whether it runs."""
         if not self.recording:
             return True
-        return self.write(Gradient(x, int(row), tuple(updates), self._state(x) if self.keep_smoothed else None))
+        return self.write(Gradient(x, int(row), tuple(updates), self._state(x) if self.parameters else None))
 
     def _runs(self) -> bool:
         i, expected = len(self.ops), self.expected
@@ -348,7 +350,7 @@ class Tape:
         hv = self.model.hv
         if not self.recording or hv is None or hv.nu_max == 0:
             return True
-        return self.write(Smooth(x, float(dt), self._state(x) if self.keep_smoothed else None))
+        return self.write(Smooth(x, float(dt), self._state(x) if self.parameters else None))
 
     def structure(self) -> tuple:
         """The operations' kinds, arrays, rows and terms, not their coefficients."""
@@ -377,7 +379,7 @@ class Tape:
             return cells(op.r) if isinstance(op, Solve) else cells(op.x)
 
         def linearised(op) -> set:  # the state the reverse reads
-            if isinstance(op, Evaluate) or isinstance(op, (Smooth, Linear, Gradient)) and self.keep_smoothed:
+            if isinstance(op, Evaluate) or isinstance(op, (Smooth, Linear, Gradient)) and self.parameters:
                 return cells(op.x)
             return set()
 

@@ -192,6 +192,8 @@ class Ensemble:
         if self.cases is not None:  # each member's Coriolis parameter (its Ω), in place: the launches read it
             fcor = [self.cases[k].fcor(grid.lat, grid.lon) for k in self.held]
             self.model.operators.fcor.assign(np.concatenate(fcor))
+        # hs and f on the host, read at every output time (the grid's and the members' alone)
+        self._hs, self._fcor = self.model.operators.hs.numpy(), self.model.operators.fcor.numpy()
         self.x = self.model.new_state(*np.concatenate(list(starts[self.held]), axis=1))
         self.stepper.prepare(self.x)
         self.step_count = 0
@@ -328,7 +330,7 @@ class Ensemble:
             else RunWriter(
                 output,
                 self.grid,
-                self.copies.member(self.model.operators.hs.numpy(), 0),
+                self.copies.member(self._hs, 0),
                 attrs,
                 ("steps", "wall_time"),
                 overwrite=overwrite,
@@ -448,7 +450,7 @@ class Ensemble:
         if self._scorer is None:  # one member's model for the wind errors' vorticity and divergence
             with threadpool_limits(limits=1, user_api="blas"):
                 one = self._one or ShallowWater.from_scene(self.scene, self.grid, self.case, **self._options)
-            hs = self.copies.member(self.model.operators.hs.numpy(), 0)
+            hs = self.copies.member(self._hs, 0)
             if self.cases is None:
                 self._scorer = [Scorer(self.case, one, one.topology, self.grid, hs, self.scene.reference_file)]
             else:  # each member's own truth: an exact solution (a reference holds the scene's values only)
@@ -536,9 +538,8 @@ class Ensemble:
         return self._invariants(self.x.numpy(), self.model.operators.vorticity(self.x))
 
     def _invariants(self, x: np.ndarray, zeta: np.ndarray) -> list[dict[str, float]]:
-        hs, fcor = self.model.operators.hs.numpy(), self.model.operators.fcor.numpy()
         one = lambda a, k: self.copies.member(a, k)  # noqa: E731
         return self._everyone(
-            invariants(self.grid, *one(x, k), one(hs, k), one(zeta, k), one(fcor, k), self.model.g)
+            invariants(self.grid, *one(x, k), one(self._hs, k), one(zeta, k), one(self._fcor, k), self.model.g)
             for k in range(self.held.size)
         )

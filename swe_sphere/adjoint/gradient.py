@@ -2,8 +2,7 @@
 the run (``observations``), with respect to its initial state (``gradient``), by a
 checkpointed reverse sweep (``revolve.sweep``, or ``revolve.two_level`` with states on a disk:
 ``disk.DiskTier``) of its steps' adjoints: each step taken again on a tape and the tape reversed
-(``reverse.TapeAdjoint``), at the run's Δt or along a controlled run's
-steps (``StepTimes``)."""
+(``reverse.TapeAdjoint``), at the run's Δt or along a controlled run's steps (``StepTimes``)."""
 
 from __future__ import annotations
 
@@ -14,20 +13,13 @@ import warp as wp
 
 from ..config.parts import partition, scene_stepper
 from ..config.scene import Scene
-from ..core.arguments import (
-    array_argument,
-    callable_argument,
-    comm_argument,
-    flag_argument,
-    instance_argument,
-    integer_argument,
-    path_argument,
-)
+from ..core.arguments import comm_argument, flag_argument, instance_argument, integer_argument, path_argument
 from ..core.backend import Backend, pick_device
 from ..core.constants import DAY
 from ..core.errors import ArgumentError
 from ..model.shallow_water import ShallowWater
 from .disk import DiskTier
+from .observations import checked, run_cost
 from .reverse import TapeAdjoint
 from .revolve import sweep, two_level
 from .sums import refusal
@@ -35,48 +27,19 @@ from .sums import refusal
 f64 = wp.float64
 
 
-class HeightMisfit:
-    """J(x) = ½ Σ spheremp (h − h_obs)² over the element-local nodes (m⁴: the area integral
-    ½ ∫ (h − h_obs)² dA of a continuous h), with ``h_obs`` a number or (N,) element-local, m
-    (N the whole grid's element-local nodes, ``gradient``'s). ``__call__(x, spheremp)``: (J, λ)
-    for x (3, N) numpy rows u, v, h; λ = ∂J/∂x (3, N). ``ArgumentError`` naming ``h_obs`` for
-    anything but finite numbers of those shapes (``gradient`` checks N before it runs:
-    ``check_nodes``)."""
-
-    def __init__(self, h_obs):
-        self.h_obs = array_argument("h_obs", h_obs, unit="m")
-        if self.h_obs.ndim > 1:
-            raise ArgumentError(f"h_obs must be a number or have shape (N,) (got {self.h_obs.shape})")
-
-    def check_nodes(self, n: int) -> None:
-        """Refuse (``ArgumentError``) an ``h_obs`` of another length than the grid's ``n`` nodes."""
-        if self.h_obs.ndim == 1 and self.h_obs.shape != (n,):
-            raise ArgumentError(
-                f"h_obs must be a number or have shape ({n},), the grid's element-local nodes (got {self.h_obs.shape})"
-            )
-
-    def __call__(self, x, spheremp):
-        self.check_nodes(np.shape(x)[-1])
-        r = x[2] - self.h_obs
-        lam = np.zeros_like(x)
-        lam[2] = spheremp * r
-        return 0.5 * float(np.sum(spheremp * r * r)), lam
-
-
 class Gradient(NamedTuple):
     """What ``gradient`` returns (N the whole grid's element-local nodes, over MPI ranks too):
-    ``cost`` J; ``grad`` (3, N) rows u, v, h, element-local and
-    continuous, the gradient in the mass inner product (δJ = Σ spheremp·grad·δx over the
-    element-local nodes for a continuous δx; units of J per m² per unit of the row);
-    ``final`` (3, N) the final state; ``forward_steps`` the steps taken forward (the cost's
-    included), ``reverse_steps`` n. With ``parameters=True``: ``d_nu`` ∂J/∂ν (the wind's
-    ∇⁴ coefficients ν and ν_div moved together; J per m⁴ s⁻¹), ``d_nu_s`` ∂J/∂ν_s (the surface's), ``d_hs`` (N,)
-    ∂J/∂hs in the mass inner product as ``grad`` (x0 held fixed), ``d_g`` ∂J/∂g (J per m s⁻²) and
-    ``d_omega`` ∂J/∂Ω (J per s⁻¹; the Coriolis parameter f ∝ Ω), x0, hs and a case's forcing
-    held fixed (a balanced initial state is not rebalanced); None otherwise.
-    ``disk_bytes``: the size of the states' file on the disk (``disk=``; 0 without it).
-    ``costs``: {k: J_k} the terms of J by observed step k (a cost with ``at_steps``; a final-state
-    cost: {n: J}); J is their sum in increasing k."""
+    ``cost`` J; ``grad`` (3, N) rows u, v, h, element-local and continuous, the gradient in the
+    mass inner product (δJ = Σ spheremp·grad·δx over the element-local nodes for a continuous
+    δx; units of J per m² per unit of the row); ``final`` (3, N) the final state;
+    ``forward_steps`` the steps taken forward (the cost's included), ``reverse_steps`` n. With
+    ``parameters=True``: ``d_nu`` ∂J/∂ν (the wind's ∇⁴ coefficients ν and ν_div moved together;
+    J per m⁴ s⁻¹), ``d_nu_s`` ∂J/∂ν_s (the surface's), ``d_hs`` (N,) ∂J/∂hs in the mass inner
+    product as ``grad``, ``d_g`` ∂J/∂g (J per m s⁻²) and ``d_omega`` ∂J/∂Ω (J per s⁻¹; f ∝ Ω),
+    x0, hs and a case's forcing held fixed (a balanced initial state is not rebalanced); None
+    otherwise. ``disk_bytes``: the states' file's size (``disk=``; 0 without it). ``costs``:
+    {k: J_k} the terms of J by observed step k (a final-state cost: {n: J}); J is their sum in
+    increasing k."""
 
     cost: float
     grad: np.ndarray
@@ -90,41 +53,6 @@ class Gradient(NamedTuple):
     d_omega: float | None = None
     disk_bytes: int = 0
     costs: dict | None = None
-
-
-class _FinalCost:
-    """A final-state cost (x, spheremp) → (J, λ) as a cost of the run observed at step n alone."""
-
-    def __init__(self, cost, n: int):
-        self.cost, self.at_steps = cost, (n,)
-
-    def check_nodes(self, n: int) -> None:
-        if hasattr(self.cost, "check_nodes"):
-            self.cost.check_nodes(n)
-
-    def __call__(self, k, x, spheremp):
-        return self.cost(x, spheremp)
-
-
-def run_cost(cost, steps: int):
-    """``cost`` as a cost of the run: one with ``at_steps`` as it is (its steps checked), any
-    other callable as that of the final state x(n). ``ArgumentError`` for a cost that is neither,
-    no steps, or one outside 0 … ``steps`` or not an integer."""
-    if not hasattr(cost, "at_steps"):
-        return _FinalCost(callable_argument("cost", cost, _COST), steps)
-    callable_argument("cost", cost, _COST)
-    try:
-        at = list(cost.at_steps)
-    except TypeError:
-        at = None
-    if not at or any(isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 0 <= k <= steps for k in at):
-        raise ArgumentError(
-            f"cost.at_steps must be integers in 0 … {steps} (got {at if at is not None else cost.at_steps!r})"
-        )
-    return cost
-
-
-_COST = "a callable (x, spheremp) -> (J, λ), or a cost of the run with at_steps (HeightObservations)"
 
 
 class _Topography:
@@ -142,30 +70,24 @@ class _Topography:
 
 def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
     """(model, stepper, x0) of ``scene`` on this rank's part of its grid (``comm`` an mpi4py
-    communicator; None: one process, the whole grid): its ``ShallowWater`` (``model.topology``
-    assembles the ranks' parts), its stepper (at the scene's Δt, under no step control) and its
-    case's initial state (3, N) numpy on this rank's nodes; ``hs`` (nnodes_total,) m: the whole
-    grid's surface height instead of the case's (read on rank 0). ``ArgumentError`` unless the
-    stepper has an adjoint (``step_adjoint``: not the JFNK ``implicit`` nor an exponential stepper), or
-    for hs of another shape (on every rank);
-    ``SceneError`` for a ν the ∇⁴ cannot step (``config.parts.scene_stepper``, as a run)."""
+    communicator; None: one process, the whole grid), as a run makes them (``config.parts``):
+    its ``ShallowWater`` (``model.topology`` assembles the ranks' parts), its stepper (at the
+    scene's Δt, under no step control) and its case's initial state (3, N) numpy on this rank's
+    nodes; ``hs`` (nnodes_total,) m: the whole grid's surface height instead of the case's (read
+    on rank 0). ``ArgumentError`` for a stepper without a gradient (``has_gradient``) or hs of
+    another shape or not finite (on every rank); ``SceneError`` for a ν the ∇⁴ cannot step."""
     case = scene.make_case()
-    topo = partition(scene, case, comm, Backend.of(device))  # as a run's (``simulation.build``)
-    grid = topo.grid
+    topo = partition(scene, case, comm, Backend.of(device))
     if hs is not None:
-        hs = _distributed(topo, hs, 1, "hs")[0]
-    case = case if hs is None else _Topography(case, hs)
-    # the model's arrays on the device its topology launches on (issue 83: they were the CPU's)
-    model = ShallowWater.from_scene(scene, grid, case, device=topo.backend.device, topology=topo)
+        case = _Topography(case, topo.distribute(hs if topo.comm.rank == 0 else None, 1, "hs")[0])
+    model = ShallowWater.from_scene(scene, topo.grid, case, device=topo.backend.device, topology=topo)
     stepper = scene_stepper(scene, model)
     if not has_gradient(stepper):
         raise ArgumentError(
-            f"gradients need an explicit stepper (a Runge–Kutta table built in or a tableau, fbrk32, leapfrog, "
-            f"leapfrog_trapezoidal), one that solves with L (semi_implicit, an IMEX table: imex, ark324, ark436, "
-            f"a tableau) or one of {', '.join(sorted(TAPED))} "
-            f"(got scene.stepper = {scene.stepper!r})"
+            f"scene.stepper = {scene.stepper!r} has no gradient: gradients need an explicit stepper, one that "
+            f"solves with L (semi_implicit, an IMEX table) or one of {', '.join(TAPED)}"
         )
-    return model, stepper, np.stack(case.initial(grid.lat, grid.lon))
+    return model, stepper, np.stack(case.initial(topo.grid.lat, topo.grid.lon))
 
 
 class StepTimes:
@@ -184,21 +106,19 @@ class StepTimes:
             return
         try:
             rows = [tuple(map(float, row[:2])) for row in history]
-        except (TypeError, ValueError, IndexError):
+            assert all(len(row) == 2 for row in rows)
+        except (TypeError, ValueError, IndexError, AssertionError):
             raise ArgumentError(
                 f"history must be rows (time reached (s), dt (s), ...), a run's control.history (got {history!r:.60})"
             ) from None
-        if any(len(row) < 2 for row in rows):
-            raise ArgumentError("history must be rows (time reached (s), dt (s), ...), a run's control.history")
-        t = self.start
+        t, self.steps = self.start, []
         for k, (reached, step) in enumerate(rows):
             if not (np.isfinite(step) and step > 0 and np.isfinite(reached) and reached > t):
                 raise ArgumentError(
                     f"history step {k}: dt {step!r} s must be > 0 and its time {reached!r} s after {t!r}"
                 )
+            self.steps.append((t - k * step, step))
             t = reached
-        starts = [self.start, *(reached for reached, _ in rows[:-1])]
-        self.steps = [(t - k * step, step) for k, (t, (_, step)) in enumerate(zip(starts, rows))]
 
     def __call__(self, k: int) -> tuple[float, float]:
         """(t0_k, Δt_k) of step k."""
@@ -218,9 +138,8 @@ TAPED = ("split_explicit", "mri", "lts")
 
 
 def has_gradient(stepper) -> bool:
-    """Whether ``stepper``'s steps have an adjoint (``reverse.TapeAdjoint``): every explicit stepper
-    (every explicit Runge–Kutta table built in or a ``tableau``, fbrk32, leapfrog,
-    leapfrog_trapezoidal), any that solves with L (semi_implicit, imex, ark324, ark436, an IMEX
+    """Whether ``stepper``'s steps have an adjoint (``reverse.TapeAdjoint``): every explicit stepper,
+    any that solves with L (its ``linear``: semi_implicit, imex, ark324, ark436, an IMEX
     ``tableau``) and ``TAPED``'s; not the JFNK ``implicit`` nor an exponential stepper."""
     return stepper.explicit or getattr(stepper, "linear", None) is not None or stepper.name in TAPED
 
@@ -245,20 +164,6 @@ def _on_root(topo, check):
     return value
 
 
-def _distributed(topo, whole, rows: int, name: str) -> np.ndarray:
-    """This rank's part (rows, N) of the whole-grid field ``whole`` ((nnodes_total,) where
-    rows is 1, else (rows, nnodes_total); read on rank 0). ``ArgumentError`` on every rank for
-    another shape ("<name> must have shape S (got T)") or a NaN or an infinity."""
-    want = (topo.nnodes_total,) if rows == 1 else (rows, topo.nnodes_total)
-    whole = _on_root(topo, lambda: array_argument(name, whole, want))
-    return topo.distribute(None if whole is None else np.reshape(whole, (rows, -1)), rows, name)
-
-
-def _whole(topo, a: np.ndarray) -> np.ndarray:
-    """The whole-grid field of every rank's part ``a`` (…, N), on every rank (``a`` itself on one)."""
-    return topo.bcast(topo.gather(a))
-
-
 def gradient(
     scene: Scene,
     steps: int,
@@ -280,77 +185,59 @@ def gradient(
 
     Parameters
     ----------
-    scene : a ``config.Scene`` whose stepper is an explicit Runge–Kutta table (ssprk3, rk4,
-        kgu35, the pairs, a tableau), fbrk32, leapfrog, leapfrog_trapezoidal, split_explicit,
-        mri, lts (a multirate table or MRAB3), semi_implicit, imex, ark324, ark436 or an IMEX
-        tableau (``step_adjoint``), any terms (a time-dependent
-        forcing's stages at their times, from the scene's ``start_day``), a ∇⁴ constant or
-        tensor, ν_div = ν or not.
+    scene : a ``config.Scene`` whose stepper has a gradient (``has_gradient``: every explicit
+        one, those that solve with L, split_explicit, mri, lts), any terms (a time-dependent
+        forcing's stages at their times, from the scene's ``start_day``), any ∇⁴.
     steps : n ≥ 1 steps of the scene's Δt (or of ``history``).
     cost : callable (x, spheremp) → (J, λ) of the final state, x (3, N) numpy rows u, v, h
         (m s⁻¹, m s⁻¹, m), spheremp (N,) m², λ = ∂J/∂x (3, N) over the element-local entries
-        (e.g. ``HeightMisfit``); or a cost of the run: an object with ``at_steps`` (the step
-        indices k, 0 ≤ k ≤ n, it observes) called as ``cost(k, x, spheremp)`` → (J_k, λ_k) at
-        x = x(k) (read only; e.g. ``HeightObservations``), once a k in any mode (the reverse
-        sweep's, x(k) at hand: R Q λ_k added to the adjoint once step k is reversed).
+        (e.g. ``HeightMisfit``); or a cost of the run: an object with ``at_steps`` (the steps
+        0 ≤ k ≤ n it observes) called as ``cost(k, x, spheremp)`` → (J_k, λ_k) at x = x(k) (read
+        only; e.g. ``HeightObservations``), once a k.
     x0 : (3, N) initial state (None: the case's); with ``comm``, N the whole grid's
         (nnodes_total), read on rank 0.
-    snapshots : states held at once during the reverse sweep, x(0) included (None: n, every
-        state, each step taken forward once); fewer cost ``revolve.forward_steps(n,
-        snapshots − 1)`` + 1 forward steps in all (Griewank & Walther 2000), the same bits
-        (semi_implicit's and the IMEX pairs': the same to their CG's ``tol``, a recomputed step's CG starting from
-        the stepper's later guesses).
-    parameters : also the ∇⁴ coefficients', the topography's and the planet's gravity and
-        rotation rate's gradients (an extra ∇⁴ substep a step reversed, and per stage one RHS of
-        the pressure gradient and topography and a host-side sum); not with semi_implicit nor
-        the IMEX pairs (their L holds g and H).
+    snapshots : states held at once during the reverse sweep, x(0) included (None: n, each
+        step taken forward once); fewer cost ``revolve.griewank_steps(n, snapshots)`` + 1
+        forward steps in all (Griewank & Walther 2000), the same bits (a semi-implicit or IMEX
+        step's: to its CG's ``tol``, a recomputed solve starting from later guesses).
+    parameters : also the ∇⁴ coefficients', the topography's and g's and Ω's gradients (an extra
+        ∇⁴ substep a step reversed, per stage one RHS of the pressure gradient and topography
+        and a host-side sum); not with a stepper that solves with L (its L holds g and H).
     hs : (N,) surface height (m), element-local and continuous, instead of the case's (as x0).
     disk : None (every state the sweep holds in memory), True (a second tier: a file in
-        ``tempfile.gettempdir()``, on some systems tmpfs, i.e. memory) or a folder (str or path) for it. A first forward pass
-        writes x(0), x(K), x(2K), … there, ⌈n/K⌉ states of 3·N·8 bytes (``Gradient.disk_bytes``:
-        the tier grows as n/K while memory stays at ``snapshots`` states); each segment of K
-        steps, last first, is then read back and reversed as above with ``snapshots`` states
-        in memory: ``revolve.two_level_steps(n, snapshots, K)`` forward steps in all, 2n −
-        ⌈n/K⌉ where K ≤ snapshots (each step taken forward about twice), the same bits. The
-        file has no name in the folder and is gone when ``gradient`` returns or raises.
-    disk_interval : K ≥ 1, the steps between the states written (None: ``snapshots``, the
-        most that reverses a segment with every state held; 1: every state on the disk, each
-        step taken forward once).
-    device : "cpu", "cuda" or "cuda:N"; None: a ``Simulation``'s default (``SWE_SPHERE_DEVICE``
-        where set, else CUDA when present, else the CPU: ``core.backend.pick_device``). Its
-        per-node transposes are checked against the CPU's element kernels on the CPU; the whole on
-        a GPU by ``tests/adjoint``'s CUDA test.
-    history : a run's steps (required for a scene under ``time.control``, whose steps its
-        controller chose): that run's ``Simulation.control.history`` (``StepControl.history``:
-        (time reached (s), Δt (s), error norm) per accepted step, from the scene's start), of
-        which the first n are differentiated with their Δt and times held (``StepTimes``): the
-        gradient of the run the controller took, not of the controller's choice of Δt (piecewise
-        constant in x(0)). The scene's stepper, without the control, takes each step.
-    comm : an mpi4py communicator (None: one process): the run and its reverse sweep split
-        over its ranks as a ``Simulation``'s (``config.parts.partition``), every rank calling
-        ``gradient`` alike. The cost is called on rank 0 alone, with the whole grid's x and
-        spheremp (N = nnodes_total, the element-local nodes in the one-rank order), its λ
-        handed back to the ranks; every rank returns the whole-grid ``Gradient``, the same
-        bits on any number of ranks (the forward's DSS sums its copies in one global order;
-        ∂J/∂ν's sum runs on rank 0 in the one-rank order). With ``disk``, each rank writes
-        its own part.
+        ``tempfile.gettempdir()``, on some systems memory) or a folder for it. A first forward
+        pass writes x(0), x(K), x(2K), … there (⌈n/K⌉ states of 3·N·8 bytes,
+        ``Gradient.disk_bytes``); each segment of K steps, last first, is read back and reversed
+        with ``snapshots`` states in memory: ``revolve.two_level_steps(n, snapshots, K)``
+        forward steps, 2n − ⌈n/K⌉ where K ≤ snapshots, the same bits. The file has no name in
+        the folder and is gone when ``gradient`` returns or raises.
+    disk_interval : K ≥ 1, the steps between the states written (None: ``snapshots``).
+    device : "cpu", "cuda" or "cuda:N"; None: a ``Simulation``'s default
+        (``core.backend.pick_device``).
+    history : a run's steps, required for a scene under ``time.control``: that run's
+        ``Simulation.control.history``, of which the first n are differentiated with their Δt and
+        times held (``StepTimes``): the gradient of the run the controller took, not of its
+        choice of Δt (piecewise constant in x(0)).
+    comm : an mpi4py communicator (None: one process): the run and its sweep split over its
+        ranks as a ``Simulation``'s, every rank calling ``gradient`` alike. The cost is called on
+        rank 0 alone, with the whole grid's x and spheremp (N = nnodes_total, in the one-rank
+        order), its λ handed back to the ranks; every rank returns the whole-grid ``Gradient``,
+        the same bits on any number of ranks. With ``disk``, each rank writes its own part.
 
     Returns a ``Gradient``. ``ArgumentError`` (a ValueError; one line naming the argument) for a
-    scene that is not a ``Scene``, steps, snapshots or disk_interval not integers >= 1, a cost
-    that is not callable (or whose h_obs does not fit the grid: ``check_nodes``), returns other
-    than (J, λ (3, N)) or a non-finite J, at_steps outside 0 … n, a controlled scene without a
-    history, a history shorter than n or with a bad step (``StepTimes``), a disk_interval without a
-    disk, a disk that is not an existing folder, x0 or hs of another shape or not finite,
-    ``parameters`` not a bool or True with semi_implicit or an IMEX pair, ``comm`` not a communicator, or a scene
-    the adjoint cannot serve (``sums.refusal``; the JFNK implicit, an exponential stepper);
-    ``SceneError`` for another device than "cpu", "cuda" or "cuda:N"; OSError from the disk
-    (full, unwritable); ``StepFailure`` where a semi-implicit or IMEX step's solve, recomputed or
-    transposed, misses its ``tol`` within ``maxiter``.
+    scene that is not a ``Scene``, steps, snapshots or disk_interval not integers ≥ 1, a cost
+    that is not callable, does not fit the grid (``check_nodes``), returns other than (J, λ (3,
+    N)) or a non-finite J, at_steps outside 0 … n, a controlled scene without a history, a
+    history shorter than n or with a bad step, a disk_interval without a disk, a disk that is
+    not an existing folder, x0 or hs of another shape or not finite, ``parameters`` not a bool
+    or True with a stepper that solves with L, ``comm`` not a communicator, or a scene the
+    adjoint cannot serve (``sums.refusal``; the JFNK implicit, an exponential stepper);
+    ``SceneError`` for another device; OSError from the disk; ``StepFailure`` where a solve,
+    recomputed or transposed, misses its ``tol`` within ``maxiter``.
 
-    Sources: the model's transposes (``model.transposes``: the tendency, the DSS and the ∇⁴
-    transposed by hand; the Helmholtz solve by its symmetry) on a tape of each step
-    (``tape``, ``reverse``), checkpointing by Griewank & Walther (2000), ACM TOMS 26:19, in two
-    levels by Stumm & Walther (2009), SIAM J. Sci. Comput. 31:1946.
+    Sources: the model's transposes (``model.transposes``) on a tape of each step (``tape``,
+    ``reverse``); checkpointing by Griewank & Walther (2000), ACM TOMS 26:19, in two levels by
+    Stumm & Walther (2009), SIAM J. Sci. Comput. 31:1946.
     """
     instance_argument("scene", scene, Scene, "a Scene (swe_sphere.load_scene(...))")
     steps = integer_argument("steps", steps, 1)
@@ -365,36 +252,6 @@ def gradient(
         if disk is None:
             raise ArgumentError(f"disk_interval needs a disk (got disk_interval={disk_interval!r}, disk=None)")
     comm_argument("comm", comm)
-    device = pick_device(device)
-    clock = _clock(scene, steps, history)
-    model, stepper, initial = scene_model(scene, device, hs, comm)
-    if hasattr(cost, "check_nodes"):  # h_obs, the observation operator's grid: before the run
-        cost.check_nodes(model.topology.nnodes_total)
-    for dt in {clock(k)[1] for k in range(steps)}:  # every Δt served before a step is taken
-        if (why := refusal(model, dt)) is not None:
-            raise ArgumentError(why)
-    topo = model.topology
-    x0 = initial if x0 is None else _distributed(topo, x0, 3, "x0")
-    work = wp.array(x0, dtype=f64, device=model.topology.device)  # the stepper steps this array only
-    stepper.prepare(work)  # from x(0): lts fixes its levels by its flow
-    adjoint = step_adjoint(model, stepper, parameters)
-    interval = snapshots if disk_interval is None else int(disk_interval)
-    found, mu, taken, used = _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, disk, interval)
-    extra = {}
-    if parameters:
-        d_hs = _whole(topo, adjoint.hs_gradient())
-        d_g, d_omega = adjoint.d_planet / [model.g, scene.make_case().planet.omega]  # Ω > 0 (``Planet``)
-        extra = {"d_nu": adjoint.d_nu[0], "d_nu_s": adjoint.d_nu[1], "d_hs": d_hs, "d_g": d_g, "d_omega": d_omega}
-    costs = dict(sorted(found["costs"].items()))
-    total = sum(costs.values())  # in increasing k; a final-state cost's J exactly (0 + J)
-    final = _whole(topo, found["final"])
-    return Gradient(total, _whole(topo, mu), final, taken, steps, disk_bytes=used, costs=costs, **extra)
-
-
-def _clock(scene: Scene, steps: int, history) -> StepTimes:
-    """The ``StepTimes`` of ``gradient``'s run of ``scene``: its Δt from its start day, or
-    ``history``'s steps. ``ArgumentError`` for a controlled scene without a history (its steps
-    are its controller's) or a history shorter than ``steps``."""
     if history is None and scene.control is not None:
         raise ArgumentError(
             f"a run under time.control = {scene.control.mode!r} is differentiated along the steps it took: "
@@ -403,112 +260,90 @@ def _clock(scene: Scene, steps: int, history) -> StepTimes:
     clock = StepTimes(scene.start_day * DAY, scene.dt, history)
     if clock.steps is not None and len(clock.steps) < steps:
         raise ArgumentError(f"history holds {len(clock.steps)} steps, fewer than the {steps} asked for")
-    return clock
-
-
-def _checked_cost(cost, k: int, x, spheremp) -> tuple[float, np.ndarray]:
-    """(J_k, λ_k) of ``cost`` at x = x(k) (3, N), checked: ``ArgumentError`` naming the cost
-    unless it returns a finite number J and λ of x's shape, finite."""
-    out = cost(k, x, spheremp)
-    if not (isinstance(out, tuple) and len(out) == 2):
-        raise ArgumentError(f"cost must return (J, λ) (got {out!r:.60} at step {k})")
-    J = out[0]
-    if isinstance(J, bool) or not isinstance(J, (int, float, np.number)) or not np.isfinite(J):
-        raise ArgumentError(f"cost's J must be a finite number (got {J!r:.60} at step {k})")
-    return float(J), array_argument("cost's λ", out[1], np.shape(x))
-
-
-class _At:
-    """A state x (3, N) of the run and its step index k (its model time t0 + k·Δt)."""
-
-    def __init__(self, x, k: int):
-        self.x, self.k = x, k
-
-
-class _IndexedTier:
-    """A ``DiskTier`` of ``_At`` states: x(jK) saved and loaded with its index jK."""
-
-    def __init__(self, tier, interval: int):
-        self.tier, self.interval = tier, interval
-
-    def save(self, j: int, state: _At) -> None:
-        self.tier.save(j, state.x)
-
-    def load(self, j: int) -> _At:
-        return _At(self.tier.load(j), j * self.interval)
+    model, stepper, initial = scene_model(scene, pick_device(device), hs, comm)
+    topo = model.topology
+    getattr(cost, "check_nodes", lambda n: None)(
+        topo.nnodes_total
+    )  # h_obs, the observation operator's grid: before the run
+    for dt in {clock(k)[1] for k in range(steps)}:  # every Δt served before a step is taken
+        if (why := refusal(model, dt)) is not None:
+            raise ArgumentError(why)
+    x0 = initial if x0 is None else topo.distribute(x0 if topo.comm.rank == 0 else None, 3, "x0")
+    work = wp.array(x0, dtype=f64, device=topo.device)  # the stepper steps this array only
+    stepper.prepare(work)  # from x(0): lts fixes its levels by its flow
+    adjoint = step_adjoint(model, stepper, parameters)
+    interval = snapshots if disk_interval is None else int(disk_interval)
+    found, mu, taken, used = _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, disk, interval)
+    extra = {}
+    if parameters:
+        d_g, d_omega = adjoint.d_planet / [model.g, scene.make_case().planet.omega]  # Ω > 0 (``Planet``)
+        extra = dict(d_nu=adjoint.d_nu[0], d_nu_s=adjoint.d_nu[1], d_hs=adjoint.hs_gradient(), d_g=d_g, d_omega=d_omega)
+        extra["d_hs"] = topo.bcast(topo.gather(extra["d_hs"]))
+    costs = dict(sorted(found["costs"].items()))
+    total = sum(costs.values())  # in increasing k; a final-state cost's J exactly (0 + J)
+    final, mu = (topo.bcast(topo.gather(a)) for a in (found["final"], mu))  # the whole grid's, on every rank
+    return Gradient(total, mu, final, taken, steps, disk_bytes=used, costs=costs, **extra)
 
 
 def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, disk, interval):
     """({"costs": {k: J_k}, "final": x(n)}, μ(0) numpy, forward steps, disk bytes) of
-    ``gradient``: the run from x0 = ``work`` (3, N), the array the prepared stepper steps, and its reverse sweep, in memory or with a disk
-    tier; ``cost`` a cost of the run (``run_cost``), called once at each of its steps. The
-    sweep's states carry their step index (``_At``), so that every step, recomputed or
-    reversed, runs at its Δt and model time (``clock``: a time-dependent forcing's). A
-    stepper that carries arrays from step to step (its ``carried_arrays``: leapfrog's x̃(k−1),
-    MRAB3's histories) has them in its states' and adjoints' rows after x's, the cost reading
-    rows 0–2."""
-    device, rows = model.topology.device, 3 * (1 + len(stepper.carried_arrays()))
-    X = slice(0, 3)
+    ``gradient``: the run from x0 = ``work`` (3, N), the array the prepared stepper steps, and its
+    reverse sweep, in memory or with a disk tier; ``cost`` a cost of the run (``run_cost``),
+    called once at each of its steps. Every step, recomputed or reversed, runs at its Δt and
+    model time (``clock``: a time-dependent forcing's). A stepper that carries arrays from step
+    to step (its ``carried_arrays``: leapfrog's x̃(k−1), MRAB3's histories) has them in its
+    states' and adjoints' rows after x's, the cost reading rows 0–2."""
+    topo, rows, X = model.topology, 3 * (1 + len(stepper.carried_arrays())), slice(0, 3)
 
     def carried(x):  # (the stepper's array, the state's rows) pairs, in ``carried_arrays``' order now
         return [(a, x[3 * i + 3 : 3 * i + 6]) for i, a in enumerate(stepper.carried_arrays())]
 
-    def advance(state, steps=1):
-        wp.copy(work, state.x[X])
-        for a, held in carried(state.x):
+    def advance(x, k, m=1):  # x = x(k) to x(k + m) in place
+        for a, held in [(work, x[X]), *carried(x)]:
             wp.copy(a, held)
-        for k in range(state.k, state.k + steps):
-            clock.set(stepper, k)
-            stepper.set_phase(k)  # its clock, t0_k + (k + c)·Δt_k at each stage as the run's, and start
+        for j in range(k, k + m):
+            clock.set(stepper, j)
+            stepper.set_phase(j)  # its clock, t0_j + (j + c)·Δt_j at each stage as the run's, and start
             stepper.step(work)
-        wp.copy(state.x[X], work)
-        for a, held in carried(state.x):
+        for a, held in [(work, x[X]), *carried(x)]:
             wp.copy(held, a)
-        state.k += steps
 
-    def copy(state):
-        return _At(wp.clone(state.x), state.k)
-
-    mu = wp.zeros((rows, model.topology.N), dtype=f64, device=device)
+    mu = wp.zeros((rows, topo.N), dtype=f64, device=topo.device)
     found, observed = {"costs": {}}, set(cost.at_steps)
-    lam = wp.zeros((3, model.topology.N), dtype=f64, device=device)
-    add = model.topology.dss_update(lam, [(mu[X], ((1.0, mu[X]), (1.0, None)))], weighted=False)  # μ += R Q λ
-    topo = model.topology
-    spheremp = topo.gather(model.topology.grid.spheremp)  # the whole grid's on rank 0 (None elsewhere)
+    lam = wp.zeros((3, topo.N), dtype=f64, device=topo.device)
+    add = topo.dss_update(lam, [(mu[X], ((1.0, mu[X]), (1.0, None)))], weighted=False)  # μ += R Q λ
+    spheremp = topo.gather(topo.grid.spheremp)  # the whole grid's on rank 0 (None elsewhere)
 
-    def observe(x, k):  # J_k at x(k) into found, λ_k into ``lam``: the cost on rank 0, the whole grid
+    def observe(x, k):  # J_k at x(k) into found, μ += R Q λ_k: the cost on rank 0, the whole grid
         whole = topo.gather(np.array(x.numpy()[X]))
-        J, lam_k = _on_root(topo, lambda: _checked_cost(cost, k, whole, spheremp)) or (None, None)
+        J, lam_k = _on_root(topo, lambda: checked(cost, k, whole, spheremp)) or (None, None)
         found["costs"][k] = topo.bcast(J)
         lam.assign(topo.distribute(None if lam_k is None else np.asarray(lam_k, dtype=float), 3, "the cost's λ"))
+        for launch in add:
+            launch.launch()
 
-    def finish(state):  # J_n at x(n) and μ = R Q λ_n there (0 where n is not observed)
-        found["final"] = state.x.numpy()[X]
+    def finish(x):  # J_n at x(n) and μ = R Q λ_n there (0 where n is not observed)
+        found["final"] = x.numpy()[X]
         if steps in observed:
-            observe(state.x, steps)
-            for launch in model.topology.dss(lam, False, mu[X]):
-                launch.launch()
+            observe(x, steps)
 
-    def reverse(state, k):
+    def reverse(x, k):
         if "final" not in found:  # in memory alone, x(n) is one step on from the first reversed
-            final = copy(state)
-            advance(final)
+            final = wp.clone(x)
+            advance(final, k)
             finish(final)
         clock.set(adjoint, k)
-        adjoint.reverse(state.x, mu, k)
+        adjoint.reverse(x, mu, k)
         if k in observed:  # μ(k) += R Q λ_k, x(k) at hand
-            observe(state.x, k)
-            for launch in add:
-                launch.launch()
+            observe(x, k)
 
-    start = np.zeros((rows, model.topology.N))
+    start = np.zeros((rows, topo.N))
     start[X] = work.numpy()  # x̃(−1) is not read: the three-level schemes' first step is a midpoint step
-    x, used = _At(wp.array(start, dtype=f64, device=device), 0), 0
+    x, used = wp.array(start, dtype=f64, device=topo.device), 0
     if disk is None:
-        taken = 1 + sweep(steps, snapshots, x, advance, reverse, copy)
+        taken = 1 + sweep(steps, snapshots, x, advance, reverse, wp.clone)
     else:
-        with DiskTier(disk, (rows, model.topology.N), device) as tier:
-            indexed = _IndexedTier(tier, interval)
-            taken = two_level(steps, snapshots, interval, x, advance, reverse, copy, indexed, finish)
+        with DiskTier(disk, (rows, topo.N), topo.device) as tier:
+            taken = two_level(steps, snapshots, interval, x, advance, reverse, wp.clone, tier, finish)
             used = tier.bytes
     return found, mu.numpy()[X], taken, used

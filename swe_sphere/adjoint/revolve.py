@@ -3,50 +3,23 @@
 
 A reverse sweep visits the states x(n−1), …, x(0) in that order, each once, while only
 ``snapshots`` states are held at any time (x(0) one of them): a state not held is recomputed
-from the nearest one held before it. ``forward_steps(l, c)`` is the fewest forward steps that
-reverse l steps from a held state with c more snapshots free, by the recursion
-T(l, c) = min_m [m + T(l − m, c − 1) + T(m, c)], T(1, c) = 0, T(l, 0) = l(l − 1)/2, and
-``griewank_steps`` its closed form, t = r·l − C(s + r, s + 1) with s = c + 1 snapshots and r
-the least with C(s + r, s) ≥ l (Griewank & Walther 2000, Prop. 1): ``tests/adjoint`` checks
-that the two agree and that ``sweep`` takes exactly that many. ``sweep`` splits by the closed
-form (``split``: t is convex in l, its increments r nondecreasing, so m + t(l − m, c) +
-t(m, c + 1) is convex in m and bisected), not the recursion, which costs O(l² c) (6.7 s of
-Python for l = 1284, c = 29, more than the 6-day Galewsky ne16 run it would reverse).
+from the nearest one held before it. The fewest forward steps that reverse l steps with s
+snapshots (the start's included) are t(l, s) = r·l − C(s + r, s + 1), r the least with
+C(s + r, s) ≥ l (Griewank & Walther 2000, Prop. 1; ``griewank_steps``), the closed form of the
+recursion T(l, c) = min_m [m + T(l − m, c − 1) + T(m, c)] (``tests/adjoint`` checks both and
+that ``sweep`` takes that many). ``sweep`` splits by the closed form (``split``: t is convex in
+l, so the split's cost is convex in m and bisected): the recursion costs O(l² c), 6.7 s of
+Python for l = 1284, c = 29.
 
-``two_level`` adds a second, slower tier (Stumm & Walther 2009, SIAM J. Sci. Comput. 31:1946,
-"MultiStage approaches for optimal offline checkpointing"; Aupy, Herrmann, Hovland & Robert
-2016, SIAM J. Sci. Comput. 38:C232): a first forward pass writes x(0), x(K), x(2K), … to it,
-then each segment of K steps, last first, is reversed from its state read back by ``sweep``
-with ``snapshots`` states in memory; ``two_level_steps`` counts its forward steps.
+``two_level`` adds a second, slower tier (Stumm & Walther 2009, SIAM J. Sci. Comput. 31:1946;
+Aupy, Herrmann, Hovland & Robert 2016, SIAM J. Sci. Comput. 38:C232): a first forward pass
+writes x(0), x(K), x(2K), … to it, then each segment of K steps, last first, is reversed from
+its state read back by ``sweep`` with ``snapshots`` states in memory.
 """
 
 from __future__ import annotations
 
-import functools
 from math import comb
-
-
-@functools.cache
-def _plan(l: int, c: int) -> tuple[int, int]:
-    """(T(l, c), the first split m achieving it; 0 where none is taken)."""
-    if l <= 1:
-        return 0, 0
-    if c == 0:
-        return l * (l - 1) // 2, 0
-    if c >= l - 1:  # a snapshot for every state: each step once
-        return l - 1, 1
-    best = None
-    for m in range(1, l):
-        cost = m + _plan(l - m, c - 1)[0] + _plan(m, c)[0]
-        if best is None or cost < best[0]:
-            best = (cost, m)
-    return best
-
-
-def forward_steps(l: int, c: int) -> int:
-    """T(l, c): the fewest forward steps of a sweep over l steps from a held state with c
-    snapshots free (the recursion above; O(l² c) the first time, cached)."""
-    return _plan(int(l), int(c))[0]
 
 
 def griewank_steps(l: int, s: int) -> int:
@@ -76,21 +49,21 @@ def split(l: int, c: int) -> int:
     return lo
 
 
-def sweep(n: int, snapshots: int, x0, advance, reverse, copy) -> int:
-    """Run the reverse sweep over n steps from x0 with at most ``snapshots`` (≥ 1) states held,
-    x0 one of them: ``reverse(x, k)`` is called for k = n − 1, …, 0 with x = x(k) (to be read,
-    not changed); ``advance(x, m)`` steps x m ≥ 1 steps in place (a walk between two states
-    held, in one call: a stepper's work array copied in and out once); ``copy(x)`` returns a new state equal to x
-    (a held snapshot, or a work state). Returns the forward steps taken, T(n, snapshots − 1).
-    ValueError for n < 1 or snapshots < 1."""
+def sweep(n: int, snapshots: int, x0, advance, reverse, copy, start: int = 0) -> int:
+    """Run the reverse sweep over the n steps from x0 = x(``start``) with at most ``snapshots``
+    (≥ 1) states held, x0 one of them: ``reverse(x, k)`` is called for k = start + n − 1, …, start
+    with x = x(k) (to be read, not changed); ``advance(x, k, m)`` steps x = x(k) m ≥ 1 steps in
+    place (a walk between two states held, in one call); ``copy(x)`` returns a new state equal
+    to x (a held snapshot, or a work state). Returns the forward steps taken,
+    ``griewank_steps(n, snapshots)``. ValueError for n < 1 or snapshots < 1."""
     if n < 1 or snapshots < 1:
         raise ValueError(f"a sweep needs n >= 1 steps and snapshots >= 1 (got {n}, {snapshots})")
     taken = 0
 
-    def walk(x, steps):
+    def walk(x, a, steps):
         nonlocal taken
         if steps:
-            advance(x, steps)
+            advance(x, start + a, steps)
         taken += steps
         return x
 
@@ -102,13 +75,13 @@ def sweep(n: int, snapshots: int, x0, advance, reverse, copy) -> int:
         a, b, xa, free = stack.pop()
         if b - a > 1 and free == 0:
             for k in range(b - 1, a, -1):
-                reverse(walk(copy(xa), k - a), k)
+                reverse(walk(copy(xa), a, k - a), start + k)
         elif b - a > 1:
             m = a + split(b - a, free)
             stack.append((a, m, xa, free))  # after m..b−1, the steps before m
-            stack.append((m, b, walk(copy(xa), m - a), free - 1))
+            stack.append((m, b, walk(copy(xa), a, m - a), free - 1))
             continue
-        reverse(xa, a)
+        reverse(xa, start + a)
     return taken
 
 
@@ -135,14 +108,9 @@ def two_level(n: int, snapshots: int, interval: int, x0, advance, reverse, copy,
     starts = range(0, n, interval)
     for j, a in enumerate(starts):
         tier.save(j, x0)
-        advance(x0, min(interval, n - a))
+        advance(x0, a, min(interval, n - a))
     final(x0)
-    taken = n
-    for j in reversed(range(len(starts))):
-        a = starts[j]
-
-        def shifted(x, k, a=a):
-            reverse(x, a + k)
-
-        taken += sweep(min(interval, n - a), snapshots, tier.load(j), advance, shifted, copy)
-    return taken
+    return n + sum(
+        sweep(min(interval, n - a), snapshots, tier.load(j), advance, reverse, copy, a)
+        for j, a in reversed([*enumerate(starts)])
+    )

@@ -428,14 +428,19 @@ class Topology:
 
     def distribute(self, whole, rows: int, what: str) -> np.ndarray:
         """This rank's part (rows, N) of a whole-grid field ``whole`` (rows,
-        nnodes_total) given on rank 0 (``Scatterv``; call on every rank; ``whole``
+        nnodes_total; one row also (nnodes_total,)) given on rank 0 (``Scatterv``; call on every rank; ``whole``
         is read on rank 0 only, the others may pass None). On one process,
         ``whole`` itself as float64. Raises ValueError on every rank, one line
-        naming ``what``, when rank 0's ``whole`` has another shape (``ArgumentError``):
-        "<what> has shape S, the grid needs (rows, nnodes_total)"."""
-        shape = self.bcast(np.shape(whole) if self.comm.rank == 0 else None)  # rank 0's: it hands the field out
-        if shape != (rows, self.nnodes_total):
-            raise ArgumentError(f"{what} has shape {shape}, the grid needs {(rows, self.nnodes_total)}")
+        naming ``what``, when rank 0's ``whole`` has another shape or is not finite
+        (``ArgumentError``): "<what> has shape S, the grid needs (rows, nnodes_total)"."""
+        root, want = self.comm.rank == 0, (rows, self.nnodes_total)  # rank 0's ``whole``: it hands the field out
+        shape, finite = self.bcast((np.shape(whole), bool(np.isfinite(whole).all())) if root else None)
+        if rows == 1 and shape == want[1:]:  # one row given as (nnodes_total,)
+            whole, shape = np.reshape(whole, want) if root else None, want
+        if shape != want:
+            raise ArgumentError(f"{what} has shape {shape}, the grid needs {want}")
+        if not finite:
+            raise ArgumentError(f"{what} holds a NaN or an infinity")
         if not self.distributed:
             return np.asarray(whole, dtype=np.float64)
         counts = [rows * p.size * self.grid.np**2 for p in self.parts]

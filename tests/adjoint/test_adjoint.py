@@ -12,7 +12,7 @@ import warp as wp
 
 from swe_sphere.adjoint import HeightMisfit, gradient
 from swe_sphere.adjoint.gradient import scene_model, step_adjoint
-from swe_sphere.adjoint.revolve import forward_steps, griewank_steps, split, sweep
+from swe_sphere.adjoint.revolve import griewank_steps, split, sweep
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.backend import Backend
 from swe_sphere.core.errors import ArgumentError
@@ -212,6 +212,17 @@ def test_a_reversed_step_is_the_same_bits_on_two_threads():
     np.testing.assert_array_equal(out[0], out[1])
 
 
+@functools.cache
+def forward_steps(l: int, c: int) -> int:
+    """T(l, c), the fewest forward steps that reverse l steps from a held state with c snapshots
+    free, by Griewank & Walther's (2000) recursion: the oracle of ``revolve``'s closed form."""
+    if l <= 1:
+        return 0
+    if c == 0:
+        return l * (l - 1) // 2
+    return min(m + forward_steps(l - m, c - 1) + forward_steps(m, c) for m in range(1, l))
+
+
 def test_revolve_counts_are_griewank_and_walthers():
     for l in range(1, 60):
         for c in range(5):
@@ -231,8 +242,8 @@ def test_sweep_reverses_every_step_once_in_order_with_the_predicted_recomputatio
         held.append(1)
         return list(x)
 
-    def advance(x, steps):
-        assert steps >= 1
+    def advance(x, k, steps):
+        assert steps >= 1 and x[0] == k
         x[0] += steps
 
     taken = sweep(n, snapshots, [0], advance, lambda x, k: seen.append((k, x[0])), copy)
@@ -246,7 +257,7 @@ def test_a_sweep_longer_than_pythons_recursion_limit_reverses_every_step(snapsho
     a recursive sweep could not take (a 15-day TC5 run at ne8 is 1636 steps)."""
     seen = []
 
-    def advance(x, steps):
+    def advance(x, k, steps):
         x[0] += steps
 
     taken = sweep(3000, snapshots, [0], advance, lambda x, k: seen.append((k, x[0])), list)
@@ -267,7 +278,7 @@ def test_a_checkpointed_gradient_is_the_same_bits_as_one_that_stores_every_state
 def test_gradient_refuses_an_implicit_stepper_and_bad_sizes():
     model, _, x0 = setup()
     cost = HeightMisfit(x0[2])
-    with pytest.raises(ValueError, match="gradients need an explicit stepper"):
+    with pytest.raises(ValueError, match="has no gradient: gradients need an explicit stepper"):
         gradient(tc5("implicit"), 1, cost)
     controlled = load_scene("tc5_mountain", ne=2, stepper="bs32", overrides={"time.control": "error"})
     with pytest.raises(ValueError, match="give history="):  # not silently a fixed-Δt run's gradient
@@ -278,8 +289,12 @@ def test_gradient_refuses_an_implicit_stepper_and_bad_sizes():
         gradient(controlled, 2, cost, history=[(1800.0, 1800.0, 0.5), (1795.0, -5.0, 0.5)])
     with pytest.raises(ArgumentError, match=r"^steps must be an integer >= 1 \(got 0\)$"):
         gradient(tc5(), 0, cost)
-    with pytest.raises(ValueError, match=r"x0 must have shape \(3, 384\)"):
+    with pytest.raises(ValueError, match=r"x0 has shape \(2, 384\), the grid needs \(3, 384\)"):
         gradient(tc5(), 1, cost, x0=x0[:2])
+    with pytest.raises(ValueError, match=r"^x0 holds a NaN or an infinity$"):
+        gradient(tc5(), 1, cost, x0=np.where(np.arange(x0.size).reshape(x0.shape) == 7, np.nan, x0))
+    with pytest.raises(ValueError, match=r"^hs has shape \(383,\), the grid needs \(1, 384\)$"):
+        gradient(tc5(), 1, cost, hs=x0[2, :-1])
 
 
 @pytest.mark.parametrize("rows", ["nu", "nu_s"])
@@ -505,6 +520,6 @@ def test_a_users_explicit_butcher_table_has_its_gradient_with_no_adjoint_code():
     assert written.cost == built_in.cost
     with pytest.raises(
         ValueError,
-        match="fbrk32, leapfrog, leapfrog_trapezoidal.*semi_implicit, an IMEX table.*lts, mri, split_explicit",
+        match=r"'epi2' has no gradient: gradients need an explicit stepper, .*semi_implicit, an IMEX table.*split_explicit, mri, lts",
     ):
         gradient(tc5("epi2"), 1, cost)

@@ -45,8 +45,8 @@ class Tier(dict):
 def test_two_level_reverses_every_step_once_in_order_with_the_formulas_steps(n, snapshots, interval):
     seen, ends = [], []
 
-    def advance(x, steps):
-        assert steps >= 1
+    def advance(x, k, steps):
+        assert steps >= 1 and x.k == k
         x.k += steps
 
     x = State(0)

@@ -201,16 +201,21 @@ class Rank0Sends(RankOf):
 @pytest.mark.parametrize("ranks", [1, 2, 3, 5])
 def test_distribute_hands_each_rank_its_part_and_refuses_a_misshapen_field(ranks, rng):
     """``distribute``: each rank gets its nodes' columns of rank 0's whole-grid field,
-    bit for bit, after one shape broadcast; a field of another shape on rank 0 is
-    one ValueError naming it, on every rank (those given None too)."""
+    bit for bit, after one broadcast of its shape and whether it is finite; a field of another
+    shape or not finite on rank 0 is one ValueError naming it, on every rank (those given None
+    too)."""
     g = cached_grid(3, 4)
     whole = rng.standard_normal((3, g.nnodes))
     sent = {}
     topos = [Topology(g, "cpu", 1, Rank0Sends(r, ranks, sent)) for r in range(ranks)]
     for r, t in enumerate(topos):
         assert np.array_equal(t.distribute(whole if r == 0 else None, 3, "start state"), whole[:, t.nodes])
-    assert sent["bcast"] == [(3, g.nnodes)]  # one broadcast: the shape
+    assert sent["bcast"] == [((3, g.nnodes), True)]  # one broadcast: the shape and finiteness
     message = f"start state has shape (2, {g.nnodes}), the grid needs (3, {g.nnodes})"
     for r, t in enumerate(topos):
         with pytest.raises(ValueError, match=rf"^{re.escape(message)}$"):
             t.distribute(whole[:2] if r == 0 else None, 3, "start state")
+    whole[1, 5] = np.inf
+    for r, t in enumerate(topos):
+        with pytest.raises(ValueError, match=r"^start state holds a NaN or an infinity$"):
+            t.distribute(whole if r == 0 else None, 3, "start state")

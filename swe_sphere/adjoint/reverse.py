@@ -30,7 +30,6 @@ from ..solvers.helmholtz import HelmholtzSolver
 from .sums import HELD_DTS, Transposes
 from .tape import (
     Combine,
-    CombineAt,
     Divergence,
     Evaluate,
     Gradient,
@@ -139,7 +138,7 @@ class TapeAdjoint(Transposes):
         self._check_parts()
         actions, n = [], 0
         for op in reversed(self.tape.ops):
-            if isinstance(op, (Combine, CombineAt)):
+            if isinstance(op, Combine):
                 actions += self._combination(op)
             elif isinstance(op, Smooth):
                 actions.append(self._smoothing_action(op))
@@ -209,12 +208,12 @@ class TapeAdjoint(Transposes):
         return a.ptr < b.ptr + b.shape[0] * b.strides[0] and b.ptr < a.ptr + a.shape[0] * a.strides[0]
 
     def _combination(self, op) -> list:
-        """out = Σ c·x reversed (at its listed nodes alone for a ``CombineAt``, ``lincomb_at``'s four
+        """out = Σ c·x reversed (at its listed nodes alone where it has ``nodes``, ``lincomb_at``'s four
         terms padded with zeros): μ_x += c μ_out for the x that are not out, μ_out ← c_out μ_out."""
         m_out, actions, own = self._adjoint(op.out), [], 0.0
 
         def write(m, terms) -> list:
-            if isinstance(op, Combine):
+            if op.nodes is None:
                 return self._launches(m, terms)
             terms = [*terms, *((0.0, m_out),) * (4 - len(terms))]
             return [self.model.launches.lincomb_at(m, terms, op.nodes).launch]
@@ -227,7 +226,7 @@ class TapeAdjoint(Transposes):
             elif c != 0.0:
                 m_a = self._adjoint(a)
                 actions += write(m_a, [(1.0, m_a), (c, m_out)])
-        if isinstance(op, Combine):
+        if op.nodes is None:
             return actions + self._scale(m_out, own)
         return actions + (write(m_out, [(own, m_out)]) if own != 1.0 else [])
 

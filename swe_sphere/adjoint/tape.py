@@ -6,8 +6,8 @@ every verb to the model and, while the tape records, writes on it what it did:
 - ``Evaluate``: F(x) (``rhs_update``, or ``rhs`` as one update of F alone; ``rhs_part`` over a
   part's elements) at x as it stood, then each update out[rows] = Σ a·src (src None: F), in order;
 - ``Combine``: out = Σ c·x (a recorded combination's launch, ``lincomb``, or ``pointwise``'s
-  ``blas.axpby`` and ``axpbypcz``), and ``CombineAt`` the same at listed nodes (``launches.
-  lincomb_at``: MRAB3's sums);
+  ``blas.axpby`` and ``axpbypcz``), at listed nodes alone with ``nodes`` (``launches.lincomb_at``:
+  MRAB3's sums);
 - ``Smooth``: x ← H_dt(x) in place, the ∇⁴ (``hyperviscosity``);
 - ``Gradient`` and ``Divergence``: the operators' G x[row] and D of x's wind written into updates
   (``ElementOperators.gradient_update``, ``divergence_update``: the split-explicit and multirate
@@ -55,12 +55,7 @@ class Evaluate(NamedTuple):
 class Combine(NamedTuple):
     out: object
     terms: tuple
-
-
-class CombineAt(NamedTuple):
-    out: object
-    terms: tuple
-    nodes: object  # the element-local nodes it writes (int32 device array); out's others kept
+    nodes: object = None  # the element-local nodes it writes alone (int32 device array), out's others kept
 
 
 class Smooth(NamedTuple):
@@ -102,48 +97,23 @@ def array_key(a) -> tuple:
     return (a.ptr, a.shape, a.strides)
 
 
-def _rows(update) -> tuple | None:
-    return None if update.rows is None else (update.rows.start, update.rows.stop)
-
-
-def _updates_key(updates, coefficients: bool) -> tuple:
-    return tuple(
-        (
-            array_key(u.out),
-            _rows(u),
-            *((a if coefficients else None, None if s is None else array_key(s)) for a, s in u.terms),
-        )
-        for u in updates
-    )
-
-
 def op_key(op, coefficients: bool = True) -> tuple:
-    """An operation's kind, arrays, rows and terms, and its coefficients (``coefficients``)."""
-    c = (lambda v: v) if coefficients else (lambda v: None)
-    if isinstance(op, Evaluate):
-        part = None if op.part is None else id(op.part)
-        return ("F", array_key(op.x), c(array_key(op.state)), op.terms, part, _updates_key(op.updates, coefficients))
-    if isinstance(op, Gradient):
-        state = op.state is not None and c(array_key(op.state))  # read by g's sums (``parameters``)
-        return ("G", array_key(op.x), state, op.row, _updates_key(op.updates, coefficients))
-    if isinstance(op, Divergence):
-        return ("D", array_key(op.x), _updates_key(op.updates, coefficients))
-    if isinstance(op, (Combine, CombineAt)):
-        at = () if isinstance(op, Combine) else (op.nodes.ptr,)
-        return ("C", array_key(op.out), *at, *((c(a), array_key(x)) for a, x in op.terms))
-    if isinstance(op, Smooth):
-        return ("H", array_key(op.x), c(op.dt), op.state is not None and c(array_key(op.state)))
-    if isinstance(op, Linear):
-        state = op.state is not None and c(array_key(op.state))
-        return ("L", array_key(op.x), state, id(op.operator), _updates_key(op.updates, coefficients))
-    return (
-        "S",
-        array_key(op.r),
-        array_key(op.z),
-        op.implicit is not None and array_key(op.implicit),
-        c(op.a),
-        c(op.scale),
-    )
+    """An operation's kind and the arrays, rows, terms and operators it names, with its
+    coefficients (floats) and the states its reverse reads (``state``) where ``coefficients``:
+    without them, what a step like it repeats (``Tape.structure``)."""
+
+    def key(v):
+        if isinstance(v, float):
+            return v if coefficients else None
+        if isinstance(v, tuple):  # an ``Update`` too
+            return tuple(map(key, v))
+        if isinstance(v, slice):
+            return (v.start, v.stop)
+        if v is None or isinstance(v, (int, str)):
+            return v
+        return array_key(v) if isinstance(v, wp.array) else id(v)
+
+    return (type(op).__name__, *(key(v) if coefficients or f != "state" else None for f, v in zip(op._fields, op)))
 
 
 def written_by(op) -> list:
@@ -152,14 +122,14 @@ def written_by(op) -> list:
         return [u.out if u.rows is None else u.out[u.rows] for u in op.updates]
     if isinstance(op, Solve):
         return [op.z, *([op.implicit] if op.implicit is not None else [])]
-    return [op.out if isinstance(op, (Combine, CombineAt)) else op.x]
+    return [op.out if isinstance(op, Combine) else op.x]
 
 
 def arrays_of(op) -> list:
     """Every array an operation names."""
     if isinstance(op, (Evaluate, Linear, Gradient, Divergence)):
         return [op.x, *(a for u in op.updates for a in (u.out, *(s for _, s in u.terms if s is not None)))]
-    if isinstance(op, (Combine, CombineAt)):
+    if isinstance(op, Combine):
         return [op.out, *(a for _, a in op.terms)]
     if isinstance(op, Smooth):
         return [op.x]
@@ -177,13 +147,13 @@ def combination(kernel, inputs) -> tuple:
 
 class _TapedLaunch:
     """A recorded combination's launch (``ShallowWater.lincomb``, ``LaunchRecorder.lincomb_at``)
-    that writes itself (``op``, a ``Combine`` or ``CombineAt``) on the tape."""
+    that writes itself (``op``, a ``Combine``) on the tape."""
 
     def __init__(self, tape: Tape, launch, op):
         self.tape, self.real, self.op = tape, launch, op
 
     def launch(self) -> None:
-        if not self.tape.recording or self.tape.write(self.op):
+        if self.tape.runs(lambda: self.op):
             self.real.launch()
 
 
@@ -199,7 +169,7 @@ class _TapedLaunches:
 
     def lincomb_at(self, out, terms, nodes):
         terms = tuple(terms)
-        return _TapedLaunch(self._tape, self._launches.lincomb_at(out, terms, nodes), CombineAt(out, terms, nodes))
+        return _TapedLaunch(self._tape, self._launches.lincomb_at(out, terms, nodes), Combine(out, terms, nodes))
 
 
 class TapedModel:
@@ -215,31 +185,37 @@ class TapedModel:
     def __getattr__(self, name):
         return getattr(self._model, name)
 
+    def _evaluates(self, x, updates, terms, part=None) -> bool:
+        terms = self._model.terms if terms is None else tuple(terms)
+        return self.tape.runs(lambda: Evaluate(x, self.tape.state(x), tuple(updates), terms, part))
+
+    def _whole(self, out, terms) -> tuple:  # F alone into out, on the rows its terms write
+        return (Update(out, ((1.0, None),), written_rows(self._model.terms if terms is None else terms)),)
+
     def rhs(self, x, out, terms=None) -> None:
-        rows = written_rows(self._model.terms if terms is None else terms)
-        if self.tape.evaluate(x, (Update(out, ((1.0, None),), rows),), terms):
+        if self._evaluates(x, self._whole(out, terms), terms):
             self._model.rhs(x, out, terms)
 
     def rhs_update(self, x, updates, terms=None) -> None:
-        if self.tape.evaluate(x, tuple(updates), terms):
+        if self._evaluates(x, updates, terms):
             self._model.rhs_update(x, updates, terms)
+
+    def rhs_part(self, x, out, part, terms=None) -> None:
+        if self._evaluates(x, self._whole(out, terms), terms, part):
+            self._model.rhs_part(x, out, part, terms)
 
     def lincomb(self, out, terms):
         terms = tuple(terms)
         return _TapedLaunch(self.tape, self._model.lincomb(out, terms), Combine(out, terms))
 
     def hyperviscosity(self, x, dt: float) -> None:
-        if self.tape.smooth(x, dt):
+        hv = self._model.hv  # nothing to write without it
+        if hv is None or hv.nu_max == 0 or self.tape.runs(lambda: Smooth(x, float(dt), self.tape.held(x))):
             self._model.hyperviscosity(x, dt)
 
     def pointwise(self, kernel, *inputs, unique=False) -> None:
-        if not self.tape.recording or self.tape.write(Combine(*combination(kernel, inputs))):
+        if self.tape.runs(lambda: Combine(*combination(kernel, inputs))):
             self._model.pointwise(kernel, *inputs, unique=unique)
-
-    def rhs_part(self, x, out, part, terms=None) -> None:
-        rows = written_rows(self._model.terms if terms is None else terms)
-        if self.tape.evaluate(x, (Update(out, ((1.0, None),), rows),), terms, part):
-            self._model.rhs_part(x, out, part, terms)
 
 
 class _TapedOperators:
@@ -253,11 +229,11 @@ class _TapedOperators:
         return getattr(self._operators, name)
 
     def gradient_update(self, x, row: int, updates) -> None:
-        if self._tape.gradient(x, row, updates):
+        if self._tape.runs(lambda: Gradient(x, int(row), tuple(updates), self._tape.held(x))):
             self._operators.gradient_update(x, row, updates)
 
     def divergence_update(self, x, updates) -> None:
-        if not self._tape.recording or self._tape.write(Divergence(x, tuple(updates))):
+        if self._tape.runs(lambda: Divergence(x, tuple(updates))):
             self._operators.divergence_update(x, updates)
 
 
@@ -289,44 +265,33 @@ class Tape:
         finally:
             self.recording = False
 
+    def runs(self, make) -> bool:
+        """Whether the operation ``make()`` builds runs (``expected``), written on the tape while it
+        records; ``make`` is not called otherwise (nothing copied)."""
+        if not self.recording:
+            return True
+        i, expected = len(self.ops), self.expected
+        self.ops.append(make())
+        return expected is None or i >= len(expected[1]) or expected[1][i]
+
     @contextmanager
     def solving(self, solver, r, a: float, z, scale: float, implicit):
         """A Helmholtz solve (``HelmholtzSolver.solve``): written on the tape while it records, its
         own launches not; yields whether it runs."""
-        if not self.recording:
-            yield True
-            return
-        run = self.write(Solve(r, z, implicit, float(a), float(scale), solver))
-        self.recording = False
+        run = self.runs(lambda: Solve(r, z, implicit, float(a), float(scale), solver))
+        recording, self.recording = self.recording, False
         try:
             yield run
         finally:
-            self.recording = True
+            self.recording = recording
 
     def linear(self, operator, x, updates) -> bool:
         """L x written into ``updates`` (``GravityWaveOperator.update``); whether it runs."""
-        if not self.recording:
-            return True
-        return self.write(Linear(x, tuple(updates), operator, self._state(x) if self.parameters else None))
+        return self.runs(lambda: Linear(x, tuple(updates), operator, self.held(x)))
 
-    def gradient(self, x, row: int, updates) -> bool:
-        """−g·τ G x[row] written into ``updates`` (``ElementOperators.gradient_update``); whether it runs."""
-        if not self.recording:
-            return True
-        return self.write(Gradient(x, int(row), tuple(updates), self._state(x) if self.parameters else None))
-
-    def _runs(self) -> bool:
-        i, expected = len(self.ops), self.expected
-        return expected is None or i >= len(expected[1]) or expected[1][i]
-
-    def write(self, op) -> bool:
-        """``op`` on the tape; whether it runs."""
-        run = self._runs()
-        self.ops.append(op)
-        return run
-
-    def _state(self, x):
-        """x as the reverse will read it: x itself, or a copy (``expected``)."""
+    def state(self, x):
+        """x as the reverse will read it, for the operation about to be written: x itself, or a
+        copy (``expected``)."""
         i, expected = len(self.ops), self.expected
         if expected is not None and i < len(expected[2]) and not expected[2][i]:
             return x
@@ -337,20 +302,9 @@ class Tape:
         wp.copy(out, x)
         return out
 
-    def evaluate(self, x, updates, terms, part=None) -> bool:
-        """An F at x (over ``part``'s elements alone, an ``ElementPart``) written into ``updates``;
-        whether it runs."""
-        if not self.recording:
-            return True
-        terms = self.model.terms if terms is None else tuple(terms)
-        return self.write(Evaluate(x, self._state(x), updates, terms, part))
-
-    def smooth(self, x, dt: float) -> bool:
-        """The ∇⁴ over dt in place on x (nothing without it); whether it runs."""
-        hv = self.model.hv
-        if not self.recording or hv is None or hv.nu_max == 0:
-            return True
-        return self.write(Smooth(x, float(dt), self._state(x) if self.parameters else None))
+    def held(self, x):
+        """``state(x)`` where the parameters' sums read it (``parameters``), else None."""
+        return self.state(x) if self.parameters else None
 
     def structure(self) -> tuple:
         """The operations' kinds, arrays, rows and terms, not their coefficients."""
@@ -374,8 +328,8 @@ class Tape:
             if isinstance(op, (Evaluate, Linear, Gradient, Divergence)):
                 sources = set().union(*(cells(s, u.rows) for u in op.updates for _, s in u.terms if s is not None))
                 return sources if isinstance(op, Evaluate) else sources | cells(op.x)
-            if isinstance(op, (Combine, CombineAt)):  # at listed nodes: out's others read as kept
-                return set().union(*(cells(b) for _, b in op.terms), cells(op.out) if isinstance(op, CombineAt) else ())
+            if isinstance(op, Combine):  # at listed nodes: out's others read as kept
+                return set().union(*(cells(b) for _, b in op.terms), cells(op.out) if op.nodes is not None else ())
             return cells(op.r) if isinstance(op, Solve) else cells(op.x)
 
         def linearised(op) -> set:  # the state the reverse reads

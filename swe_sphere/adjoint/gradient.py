@@ -22,7 +22,6 @@ from .disk import DiskTier
 from .observations import checked, run_cost
 from .reverse import TapeAdjoint
 from .revolve import sweep, two_level
-from .sums import refusal
 
 f64 = wp.float64
 
@@ -231,7 +230,7 @@ def gradient(
     history shorter than n or with a bad step, a disk_interval without a disk, a disk that is
     not an existing folder, x0 or hs of another shape or not finite, ``parameters`` not a bool
     or True with a stepper that solves with L, ``comm`` not a communicator, or a scene the
-    adjoint cannot serve (``sums.refusal``; the JFNK implicit, an exponential stepper);
+    adjoint cannot serve (``reverse.refusal``; the JFNK implicit, an exponential stepper);
     ``SceneError`` for another device; OSError from the disk; ``StepFailure`` where a solve,
     recomputed or transposed, misses its ``tol`` within ``maxiter``.
 
@@ -265,9 +264,6 @@ def gradient(
     getattr(cost, "check_nodes", lambda n: None)(
         topo.nnodes_total
     )  # h_obs, the observation operator's grid: before the run
-    for dt in {clock(k)[1] for k in range(steps)}:  # every Δt served before a step is taken
-        if (why := refusal(model, dt)) is not None:
-            raise ArgumentError(why)
     x0 = initial if x0 is None else topo.distribute(x0 if topo.comm.rank == 0 else None, 3, "x0")
     work = wp.array(x0, dtype=f64, device=topo.device)  # the stepper steps this array only
     stepper.prepare(work)  # from x(0): lts fixes its levels by its flow

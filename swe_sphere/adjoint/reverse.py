@@ -1,25 +1,41 @@
 """The adjoint of one step of any stepper whose step is the model's verbs alone, by one mechanism:
-the step taken again from x(n) on a tape (``tape``), then the tape reversed. The reverse walks
-the tape backwards with one adjoint array per array the step touched, in the
-mass form (μ = R Q λ, ``adjoint.sums``' module doc: every array the step writes is continuous):
+the step taken again from x(n) on a tape (``tape``), then the tape reversed.
+
+Adjoints are carried as the continuous fields μ = R Q λ (λ the element-local adjoint: ∂J/∂x
+over every copy; Q the sum over a node's copies, R the inverse assembled mass rspheremp): the
+gradient in the mass inner product, δJ = Σ spheremp · μ · δx over the element-local nodes for a
+continuous δx (every array a step writes is continuous). F = M⁻¹ Q W T(x) (T the element-local
+tendency, W the element mass spheremp, M⁻¹ = R). In that form the DSS's transpose is λ_T = W μ_K
+(R and Q commute, R being continuous); the ∇⁴ is its own transpose, R Q Bᵀ = B R Q (the tensor
+∇⁴'s with its Laplacians swapped, the ∇δ term's added apart); T's transpose is the model's
+(``model.transposes``), whose λ is gathered back by the unweighted DSS, μ = R Q λ.
+
+The reverse walks the tape backwards with one adjoint array per array the step touched:
 - out = Σ c·x: μ_x += c μ_out for each x that is not out, then μ_out ← c_out μ_out (c_out the
   coefficient of out itself, 0 where it is not a term);
 - an F: its updates last first as combinations, F's share summed into k̄, then μ_x += R Q Tᵀ(x)
-  W k̄ (``model.transposes.TendencyTranspose``, its DSS unweighted), and with ``parameters`` the
-  planet's and topography's sums of (x, k̄) (``sums.Transposes.planet_terms``); L likewise with Lᵀ
-  (``GravityTranspose.transpose``: Tᵀ of the pressure gradient and continuity at (0, 0, H));
-- the ∇⁴: μ ← H_dtᵀ μ in place (``model.transposes.HyperviscosityTranspose``, with ``parameters``
-  ∂J/∂ν, ∂J/∂ν_s and ∂J/∂hs summed from the state before it);
+  W k̄ (``TendencyTranspose``, its DSS unweighted); L likewise with Lᵀ (``GravityTranspose``: Tᵀ
+  of the pressure gradient and continuity at (0, 0, H)); G and D each other's transposes;
+- the ∇⁴: μ ← H_dtᵀ μ in place (``HyperviscosityTranspose``);
 - a solve: t = A_a⁻ᵀ (μ_z + μ_Lz/a) (``GravityTranspose.solve``, the same CG between two scalings
   of the h row), μ_z, μ_Lz ← 0, μ_r += s·t − (s/a) μ_Lz.
 x(n) and the arrays the stepper carries (``carried_arrays``) have the driver's rows of μ; the
-twin's other arrays adjoints of their own, zero at the start of each reverse. A new explicit
-stepper or Butcher table written with these verbs has its gradient with no adjoint code. The
-reverse's launches are recorded once per tape (its arrays and coefficients) and replayed.
+twin's other arrays adjoints of their own, zero at the start of each reverse. A new stepper or
+Butcher table written with these verbs has its gradient with no adjoint code. The reverse's
+launches are recorded once per tape (its arrays and coefficients) and replayed.
+
+The parameters (``parameters=True``): ∂J/∂ν, ∂J/∂ν_s and the ∇⁴'s share of ∂J/∂hs summed by the
+∇⁴'s transpose, plus the forcing −g∇hs's share of ∂J/∂hs, the pressure gradient's transpose of
+Σ λ over the F evaluations (``fbar``). F is linear in g (−g∇(h + hs)) and in Ω (f (v, −u),
+f ∝ Ω), so with k̄ the adjoint of an F(Y), g ∂J/∂g = Σ ⟨k̄, F_g(Y)⟩ and Ω ∂J/∂Ω = Σ ⟨k̄, f (v,
+−u)⟩ over the evaluations (``d_planet``), F_g the RHS of those two terms alone; x(0), hs and a
+case's forcing held fixed. Checked by dot-product tests of each piece and Taylor tests of the
+whole (``tests/adjoint``).
 """
 
 from __future__ import annotations
 
+import numpy as np
 import warp as wp
 
 from ..core.errors import ArgumentError
@@ -27,7 +43,6 @@ from ..model.launches import Update
 from ..model.shallow_water import ShallowWater
 from ..model.transposes import Combinations
 from ..solvers.helmholtz import HelmholtzSolver
-from .sums import HELD_DTS, Transposes
 from .tape import (
     Combine,
     Divergence,
@@ -46,14 +61,26 @@ from .tape import (
 
 f64 = wp.float64
 
+# the tapes whose reverses an adjoint keeps recorded (``reverse.TapeAdjoint``): a controlled run
+# takes its Δt from a grid of 16 an octave (``simulation.adaptive.DT_GRID``), so few recur at once
+HELD_DTS = 8
 
-class TapeAdjoint(Transposes):
+
+def refusal(model: ShallowWater) -> str | None:
+    """Why the adjoint cannot serve ``model`` (None: it can)."""
+    if model.hv is not None:
+        if model.hv.nu_div != model.hv.nu and model.hv.nu == 0:
+            return "nu_div != nu with nu = 0 has no adjoint yet (its ∇δ term's transpose reads the ν-scaled pass)"
+    return None
+
+
+class TapeAdjoint:
     """The adjoint of one step of ``stepper`` on ``model`` at Δt = ``dt`` (s), its steps from model
     time ``t0`` (s), taken from a tape of the step (module doc): ``reverse(s, mu, k)`` maps the
     adjoint μ (3 + 3c, N) of s(k+1) = (x, the c carried arrays) to that of s(k) in place, s = s(k)
-    (3 + 3c, N) read only. ``parameters``: ∂J/∂ν, ν_s, hs, g and Ω summed as ``sums.Transposes``
-    says. ``set_dt`` as the stepper's (ValueError where it keeps one Δt).
-    ``ArgumentError`` (``sums.refusal``) for a model it cannot serve, with ``parameters`` for a
+    (3 + 3c, N) read only. ``parameters``: ∂J/∂ν, ν_s, hs, g and Ω summed (module doc: ``d_nu``,
+    ``d_planet``, ``hs_gradient``). ``set_dt`` as the stepper's (ValueError where it keeps one Δt).
+    ``ArgumentError`` (``refusal``) for a model it cannot serve, with ``parameters`` for a
     stepper that solves with L (which holds g and H), or, from ``reverse``, for a step with a verb
     it cannot transpose; ``StepFailure`` where a solve, taken again or transposed, misses the
     stepper's ``tol`` within ``maxiter``.
@@ -69,7 +96,17 @@ class TapeAdjoint(Transposes):
                 f"parameters must be False with {stepper.name} (got True): its gradient is the initial "
                 "state's alone (its gravity-wave operator L holds g and H)"
             )
-        self._setup(model, dt, parameters, t0)
+        why = refusal(model)
+        if why is not None:
+            raise ArgumentError(why)
+        self.model, self.dt, self.parameters, self.t0 = model, float(dt), bool(parameters), float(t0)
+        self.tendency = model.operators.tendency_transpose(model.terms, model.g)  # Fᵀ: ``transpose``'s launches
+        # the terms F holds, the x̄ its transposes write, f̄ = Σ λ's wind rows (the forcing −g∇hs's adjoint)
+        self.terms, self.xbar, self.fbar = self.tendency.terms, self.tendency.xbar, self.tendency.fbar
+        self.d_nu = np.zeros(2)  # ∂J/∂ν (wind rows), ∂J/∂ν_s (h row), m⁻⁴ s · J
+        self.d_planet = np.zeros(2)  # g ∂J/∂g, Ω ∂J/∂Ω (J): the evaluations' ⟨k̄, F's g and Ω terms⟩
+        self.g_terms = tuple(t for t in ("pressure_gradient", "topography") if t in model.terms)
+        self.d_hs = self._zeros(1)  # the ∇⁴'s share of ∂J/∂hs, continuous (mass form)
         self.tape = Tape(model, self.parameters)
         self.stepper, self._synced = stepper, False
         self.twin = type(stepper)(TapedModel(model, self.tape), float(dt), stepper.options)
@@ -405,3 +442,46 @@ class TapeAdjoint(Transposes):
         if not self.parameters:
             return lambda: transpose.transpose(m_x)
         return lambda: transpose.transpose(m_x, lambda out: wp.copy(out, before), self.d_nu, self.d_hs)
+
+    def _zeros(self, rows: int):
+        return wp.zeros((rows, self.model.topology.N), dtype=f64, device=self.model.topology.device)
+
+    def planet_terms(self, Y, kbar, g_terms=None, coriolis: bool = True, part=None) -> None:
+        """Add an F evaluation's ⟨k̄, g F_g(Y)⟩ and ⟨k̄, f (v, −u)⟩ to ``d_planet`` (module doc), Y the
+        state its F read, k̄ = Σ c·a over (c, a) ``kbar`` as its transpose reads them (the same
+        bits on any ranks); F_g the RHS of ``g_terms`` (None: the model's pressure gradient and
+        topography), the Coriolis term's share only where its F holds it (``coriolis``); with
+        ``part`` (an ``ElementPart``: F the part's f_P) both by ``rhs_part``."""
+        m = self.model
+        g_terms = self.g_terms if g_terms is None else tuple(t for t in g_terms if t in m.terms)
+        kb, w, y = sum(c * a.numpy() for c, a in kbar), m.topology.grid.spheremp, Y.numpy()
+        if not hasattr(self, "f_g"):
+            self.f_g = self._zeros(3)
+
+        def winds(terms):  # ⟨k̄, F⟩ node by node over the wind rows, F the RHS of ``terms`` at Y
+            if part is None:
+                m.rhs(Y, self.f_g, terms)
+            else:  # f_P writes the nodes its elements touch alone
+                self.f_g.zero_()
+                m.rhs_part(Y, self.f_g, part, terms)
+            F = self.f_g.numpy()
+            return kb[0] * F[0] + kb[1] * F[1]
+
+        pressure = winds(g_terms) if g_terms else np.zeros_like(w)
+        if not hasattr(self, "fcor"):
+            self.fcor = m.operators.fcor.numpy() if "coriolis" in m.terms else np.zeros_like(w)
+        if not coriolis or "coriolis" not in m.terms:
+            rotation = np.zeros_like(w)
+        elif part is None:
+            rotation = self.fcor * (kb[0] * y[1] - kb[1] * y[0])
+        else:
+            rotation = winds(("coriolis",))
+        self.d_planet += m.topology.whole_sums([w * pressure, w * rotation])
+
+    def hs_gradient(self) -> np.ndarray:
+        """∂J/∂hs (N,) on this rank's nodes, continuous (mass form, as μ), summed over the steps reversed so far:
+        the ∇⁴'s share and the forcing's (``TendencyTranspose.forcing_transpose`` of f̄)."""
+        out = self.d_hs.numpy()[0]
+        if not self.terms or "topography" not in self.model.terms:
+            return out
+        return out + self.tendency.forcing_transpose()

@@ -3,7 +3,7 @@
 ``TendencyTranspose`` (made by ``ElementOperators.tendency_transpose``) launches x̄ = Tᵀ(Y) W k̄,
 T the element-local tendency of ``ShallowWater.rhs`` at the state Y, W the element mass spheremp
 and k̄ a continuous adjoint of F(Y) in the mass form (μ = R Q λ, R the inverse assembled mass,
-Q the sum over a node's copies: ``adjoint.sums``'s module doc); R Q x̄ by the unweighted DSS
+Q the sum over a node's copies: ``adjoint.reverse``'s module doc); R Q x̄ by the unweighted DSS
 that the caller writes where it needs it is then the adjoint of Y. The kernels are
 ``kernels.tendency_adjoint``'s (written by hand: one element kernel a stage on the CPU, two
 per-node gathers on CUDA). ``HyperviscosityTranspose`` (``Hyperviscosity.transpose``) and
@@ -186,7 +186,7 @@ class GravityTranspose:
 class HyperviscosityTranspose:
     """The transpose of ``hv``'s split ∇⁴ step over Δt = ``dt`` (s) (``Hyperviscosity.apply``: S
     forward-Euler substeps x ← x + c B x, or an RKL1 super-step) in the mass form, μ = R Q λ
-    (``adjoint.sums``'s module doc), made by ``Hyperviscosity.transpose``: the ∇⁴ is its own
+    (``adjoint.reverse``'s module doc), made by ``Hyperviscosity.transpose``: the ∇⁴ is its own
     transpose, R Q Bᵀ = B R Q (B = Pᵀ R Q K̃ Π R Q K̃ P, K̃ the element weak Laplacian plus the
     mass shift, symmetric; P the (east, north) → Cartesian basis and Π the tangent projection,
     continuous and per node), so μ ← μ + c B₀ μ with B₀ the operator without hs (the model's

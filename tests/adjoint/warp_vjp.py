@@ -2,7 +2,7 @@
 item 1), beside the hand-written transpose (``kernels.tendency_adjoint.element``): shared by
 tests/adjoint/test_tendency_vjp.py and benchmarks/tendency_vjp.py.
 
-The model's RHS is F = R Q W T(x) (``adjoint.sums``); its VJP in the mass form takes μ to
+The model's RHS is F = R Q W T(x) (``adjoint.reverse``); its VJP in the mass form takes μ to
 R Q Tᵀ(x) W μ. Both sides here stop before the unweighted DSS R Q, which they share: each
 returns x̄ = Tᵀ(x) W k̄ (element-local) and f̄ = the wind rows of W k̄ (the adjoint of the
 topographic forcing −g∇hs, for ∂J/∂hs).

@@ -151,19 +151,28 @@ class TapeAdjoint:
         """μ of s(k+1) → μ of s(k), in place; x = s(k) (read only), k the step's index."""
         tape = self.tape
         self._take(x, k)
-        if tape.expected is None or tape.expected[0] != tape.structure():
-            if tape.expected is not None:  # taken with another step's decisions: again, in full
-                tape.expected = None
-                self._take(x, k)
-            tape.analyse()  # for the next steps
-        key = (mu.ptr, *map(op_key, tape.ops))
-        plan = self._plans.get(key)
+        key = self._key(mu)
+        plan = self._plans.get(key)  # the same operations taken under the same decisions: no more to check
         if plan is None:
-            if len(self._plans) >= HELD_DTS:
-                del self._plans[next(iter(self._plans))]
-            plan = self._plans[key] = self._plan(mu)
+            if tape.expected is not None and tape.expected[0] != tape.structure():
+                tape.expected = None  # taken with another step's decisions: again, in full
+                self._take(x, k)
+                key = self._key(mu)
+            if tape.expected is None:
+                tape.analyse()  # for the next steps
+            plan = self._plans.get(key)
+            if plan is None:
+                if len(self._plans) >= HELD_DTS:
+                    del self._plans[next(iter(self._plans))]
+                plan = self._plans[key] = self._plan(mu)
         for action in plan:
             action()
+
+    def _key(self, mu) -> tuple:
+        """A tape's reverse's key: μ, the decisions the step was taken under (``Tape.expected``'s
+        runs and copies; None: all) and its operations with their coefficients (``op_key``)."""
+        expected = self.tape.expected
+        return (mu.ptr, expected and expected[1:], *map(op_key, self.tape.ops))
 
     # -- the reverse's plan -------------------------------------------------------------
     def _plan(self, mu) -> list:

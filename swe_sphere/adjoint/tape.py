@@ -100,20 +100,32 @@ def array_key(a) -> tuple:
 def op_key(op, coefficients: bool = True) -> tuple:
     """An operation's kind and the arrays, rows, terms and operators it names, with its
     coefficients (floats) and the states its reverse reads (``state``) where ``coefficients``:
-    without them, what a step like it repeats (``Tape.structure``)."""
+    without them, what a step like it repeats (``Tape.structure``). Called twice a step reversed:
+    the fields' kinds are unrolled, not walked."""
 
-    def key(v):
-        if isinstance(v, float):
-            return v if coefficients else None
-        if isinstance(v, tuple):  # an ``Update`` too
-            return tuple(map(key, v))
-        if isinstance(v, slice):
-            return (v.start, v.stop)
-        if v is None or isinstance(v, (int, str)):
-            return v
-        return array_key(v) if isinstance(v, wp.array) else id(v)
+    def c(a):
+        return a if coefficients else None
 
-    return (type(op).__name__, *(key(v) if coefficients or f != "state" else None for f, v in zip(op._fields, op)))
+    def update(u):
+        return (
+            array_key(u.out),
+            u.rows and (u.rows.start, u.rows.stop),
+            *((c(a), s and array_key(s)) for a, s in u.terms),
+        )
+
+    key = [type(op).__name__]
+    for f, v in zip(op._fields, op):
+        if f == "updates":
+            key.append(tuple(map(update, v)))
+        elif f == "terms":  # a combination's (c, x) pairs, or an F's term names
+            key.append(tuple((c(t[0]), array_key(t[1])) if isinstance(t, tuple) else t for t in v))
+        elif isinstance(v, wp.array):
+            key.append(array_key(v) if coefficients or f != "state" else None)
+        elif isinstance(v, float):
+            key.append(c(v))
+        else:  # a row, None, or an operator, solver or element part by identity
+            key.append(v if v is None or isinstance(v, int) else id(v))
+    return tuple(key)
 
 
 def written_by(op) -> list:
@@ -345,9 +357,9 @@ class Tape:
                 needed = (needed - written) | reads(op)
             needed |= linearised(op)
         runs.reverse()
-        copies = [
+        copies = tuple(
             bool(linearised(op))
             and any(run and writes(later) & cells(op.x) for later, run in zip(self.ops[i:], runs[i:]))
             for i, op in enumerate(self.ops)
-        ]
-        self.expected = (self.structure(), runs, copies)
+        )
+        self.expected = (self.structure(), tuple(runs), copies)

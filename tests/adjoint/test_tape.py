@@ -36,8 +36,8 @@ def test_a_runge_kutta_step_taken_again_runs_up_to_its_last_f_and_copies_what_it
     kinds = [type(op) for op in tape.ops]
     assert kinds == [Evaluate, Evaluate, Evaluate, Evaluate, Smooth]
     structure, runs, copies = tape.expected
-    assert runs == [True, True, True, False, False]
-    assert copies == [False, True, True, False, False]
+    assert runs == (True, True, True, False, False)
+    assert copies == (False, True, True, False, False)
     assert [op.state is op.x for op in tape.ops[:4]] == [True, False, False, True]
 
 
@@ -47,7 +47,7 @@ def test_leapfrog_s_step_taken_again_runs_nothing_but_reads_its_f_where_it_stand
     one F's state is x(n) itself."""
     tape = _reversed_once("leapfrog").tape
     assert [type(op) for op in tape.ops] == [Evaluate, Smooth, Combine, Combine]
-    assert tape.expected[1] == [False, False, False, False]
+    assert tape.expected[1] == (False, False, False, False)
     assert tape.ops[0].state is tape.ops[0].x
 
 

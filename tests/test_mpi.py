@@ -553,12 +553,18 @@ def test_a_branch_on_two_ranks_has_the_bits_of_one(tmp_path):
         assert ds.attrs["branched_from_day"] == 0.25 and ds.time.values[0] == 0.25 and ds.time.values[-1] == 0.5
 
 
-def test_an_ensemble_s_members_over_ranks_keep_their_bits(needs_mpi, tmp_path):
+@pytest.mark.parametrize(
+    "more",
+    [[], ["--stepper", "semi_implicit", "--vary", "planet.gravity=9.8,9.7,9.6"]],
+    ids=["shared", "in-turn"],
+)
+def test_an_ensemble_s_members_over_ranks_keep_their_bits(needs_mpi, tmp_path, more):
     """``run --members 3`` over 2 ranks (members 0, 1 on rank 0, member 2 on rank 1): the run and
     restart files of one process, bit for bit; its restart file continued on 3 ranks (one member
-    a rank) as on one."""
+    a rank) as on one. In the same launches, and in turn (each member its own model: a
+    semi-implicit stepper, g per member; the stepper states gathered under each member's name)."""
     run = ["run", "galewsky", "--ne", "2", "--np", "4", "--dt", "900", "--days", "0.5", "--members", "3"]
-    run += ["--vary", "case.hhat=60,120,180", "--restart-every", "0.25"]
+    run += ["--vary", "case.hhat=60,120,180", "--restart-every", "0.25", *more]
     assert main([*run, "--output", str(tmp_path / "one.nc")]) == 0
     two = mpirun(2, [*run, "--output", "two.nc"], tmp_path)
     assert two.returncode == 0, two.stderr[-2000:]

@@ -163,8 +163,9 @@ def _run(sub, parents) -> None:
         "--vary",
         action="append",
         metavar="KEY=V1,V2,...",
-        help="with --members: each member's own value of a case parameter (case.NAME) or of planet.omega, "
-        "one a member (e.g. case.hhat=60,120,180), each member the single run of its scene; repeatable",
+        help="with --members: each member's own value of a case parameter (case.NAME), planet.omega, "
+        "planet.gravity or hyperviscosity.nu (.nu_div, .nu_s), one a member (e.g. case.hhat=60,120,180), "
+        "each member the single run of its scene; repeatable",
     )
     r.add_argument(
         "--initial",

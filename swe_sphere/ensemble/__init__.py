@@ -1,5 +1,7 @@
-"""Ensembles: N members of one scene in one model, advanced in the same launches
-(``ensemble.Ensemble``), on N disjoint copies of the grid's elements (``members.MemberGrid``).
+"""Ensembles: N members of one scene advanced together (``ensemble.Ensemble``): an explicit
+stepper's in the same launches, on N disjoint copies of the grid's elements
+(``members.MemberGrid``); any other's, or members whose g or ν differ, each on a model of its
+own (``units``).
 
 May import: every layer below (``simulation`` down to ``kernels``)."""
 

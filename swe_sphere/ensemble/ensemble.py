@@ -1,12 +1,13 @@
-"""N members of one scene advanced together, in the same kernel launches, each with the bits
-of the single run from its initial state (issue 85 item 1, one process, fixed Δt, explicit
-steppers).
+"""N members of one scene advanced together, each with the bits of the single run from its
+initial state (issue 85, fixed Δt, any stepper).
 
-The members are N disjoint copies of the grid's elements (``members.MemberGrid``): one
-``Topology``, one ``ShallowWater`` and one stepper over all of them, so a step is the single
-run's launches over N times the nodes (their start-up and the loop's Python paid once). What
-is global over a grid is taken from the one grid, not the copies: the ∇⁴'s spectral radius
-(its substeps) and every member's invariants.
+An explicit stepper's members are N disjoint copies of the grid's elements
+(``members.MemberGrid``): one ``Topology``, one ``ShallowWater`` and one stepper over all of
+them, so a step is the single run's launches over N times the nodes (their start-up and the
+loop's Python paid once). A stepper that reduces over the grid, or members whose g or ν differ,
+step each member on a model of its own, in turn (``units``' module doc). What is global over a
+grid is taken from the one grid, not the copies: the ∇⁴'s spectral radius (its substeps) and
+every member's invariants.
 """
 
 from __future__ import annotations
@@ -22,16 +23,14 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from ..cases.scoring import Scorer
-from ..config.parts import scene_stepper
 from ..config.scene import resolve_scene, with_days
 from ..core.arguments import array_argument, got, integer_argument, number_argument
 from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
 from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, CheckpointError, Interrupted
-from ..core.graphs import GraphedSteps, default_mode, graphs_mode
+from ..core.graphs import default_mode, graphs_mode
 from ..core.interrupts import StopSignals
 from ..grid.cubed_sphere import CubedSphere
-from ..grid.topology import Topology
 from ..io import restart_file
 from ..io.run_file import OUTPUT_FIELDS, RunWriter, area_rms, member_statistics
 from ..model.diagnostics import invariants
@@ -39,32 +38,39 @@ from ..model.shallow_water import ShallowWater
 from ..simulation import checkpoint
 from ..simulation.schedules import check_restart_interval, output_steps, restart_steps
 from ..simulation.writers import restart_path, scene_attrs
-from ..steppers import STEPPERS
 from .initial import MemberFile, Perturbation, Variants
 from .members import MemberGrid
+from .units import layout, own_units, shared_unit
 
 MEMBER_SERIES = ("mass", "total_energy", "potential_enstrophy")  # each member's, at every output time (and errors)
 
 
 def _checked_scene(scene) -> None:
     """``ArgumentError`` naming ``scene`` where the ensemble cannot give each member the single
-    run's bits yet: a stepper that is not explicit (its solves and mean depths reduce over
-    the grid), a controlled Δt, a digital-filter start or the tensor ∇⁴ (its reference Δx is
-    the grid's); or whose output it does not write yet (``[[output.streams]]``)."""
+    run's bits yet: a controlled Δt or a digital-filter start; or whose output it does not write
+    yet (``[[output.streams]]``)."""
     why = None
-    if not STEPPERS[scene.stepper].explicit:
-        explicit = ", ".join(name for name, cls in STEPPERS.items() if cls.explicit)
-        why = f"stepper {scene.stepper} is not explicit (ensembles step {explicit})"
-    elif scene.control is not None:
+    if scene.control is not None:
         why = "its dt is controlled (ensembles take a fixed dt)"
     elif scene.digital_filter is not None:
         why = "it starts from a digital filter (not yet with ensembles)"
-    elif scene.hypervis_scaling is not None:
-        why = "its hyperviscosity has a scaling (the tensor ∇⁴ is not yet with ensembles)"
     elif scene.output_streams:
         why = "it names [[output.streams]] (an ensemble writes one run file, not yet its streams)"
     if why is not None:
         raise ArgumentError(f"scene: {why}")
+
+
+def _held_state(state: dict, nodes, prefix: str | None) -> dict:
+    """A unit's stepper state from a restart file's ``state``: its members' columns ``nodes`` of
+    the arrays; the scalars as they are (``prefix`` None) or those under ``prefix``, without it."""
+    arrays = {k: v[..., nodes] for k, v in state.items() if isinstance(v, np.ndarray)}
+    if prefix is None:
+        return {**state, **arrays}
+    return {**arrays, **{k[len(prefix) :]: v for k, v in state.items() if k.startswith(prefix)}}
+
+
+def _fcor(unit) -> np.ndarray:
+    return unit.model.operators.fcor.numpy()
 
 
 class _Ranks:
@@ -86,9 +92,8 @@ class Ensemble:
     Parameters
     ----------
     scene : Scene, str or path
-        As ``Simulation`` takes it, with ``overrides`` (``config.resolve_scene``). Its stepper
-        must be explicit (``Stepper.explicit``), its Δt fixed, without a digital filter or a
-        tensor ∇⁴ (``hyperviscosity.scaling``).
+        As ``Simulation`` takes it, with ``overrides`` (``config.resolve_scene``): any stepper,
+        its Δt fixed, without a digital filter.
     members : int ≥ 1, optional
         N, the number of members (None: the scene's [ensemble] ``members``).
     initial : None, array (N, 3, n), Perturbation, MemberFile or Variants
@@ -96,7 +101,7 @@ class Ensemble:
         [ensemble] ``perturbation`` and ``seed`` where it names one > 0); an array of rows
         u, v (m s⁻¹) and h (m) on the grid's n element-local nodes (``CubedSphere``'s order,
         continuous); a ``Perturbation`` of the case's; a ``MemberFile``, an ensemble's run file;
-        ``Variants``, each member's own case and Ω.
+        ``Variants``, each member's own case, Ω, g or ν.
     device : {"cpu", "cuda"}, optional
         As ``Simulation``'s (``backend.pick_device``).
     per_element, threads : bool or None, int or None
@@ -117,8 +122,9 @@ class Ensemble:
     scene, members, dt : the resolved ``Scene``, N, Δt (s).
     held : int array, the members this rank steps (all on one rank); root : whether it is rank 0.
     grid : the one ``CubedSphere``; copies : the ``MemberGrid`` of the held members' copies.
-    topology, model, stepper : the copies' ``Topology``, ``ShallowWater`` and stepper.
-    x : wp.array2d (3, N·n), the members' states side by side (member k: nodes k·n … (k + 1)·n − 1).
+    layout : "shared" (the held members in the same launches) or "in turn" (each on a model of
+        its own; ``units``' module doc); units : the ``units.Unit`` s that step them (one, or one
+        a member); model, stepper : the first unit's ``ShallowWater`` and stepper.
     step_count : int, the steps taken; graphs_kept : int, the step graphs replayed (``Simulation``'s).
 
     Raises
@@ -163,7 +169,10 @@ class Ensemble:
         self.case = case = scene.make_case()
         self.grid = grid = CubedSphere(scene.ne, scene.np, case.planet.a, mesh=scene.make_mesh())
         # each member's case: its own with Variants (its state, Coriolis parameter and truth), else the scene's
-        self.cases = [s.make_case() for s in initial.scenes(scene, members)] if isinstance(initial, Variants) else None
+        scenes = initial.scenes(scene, members) if isinstance(initial, Variants) else [scene] * members
+        self.cases = [s.make_case() for s in scenes] if isinstance(initial, Variants) else None
+        # the variants' values, as a restart file keeps them (JSON)
+        self._variants = None if self.cases is None else {k: np.asarray(v).tolist() for k, v in initial.values.items()}
         starts = self._initial_states(initial)
         self.initial = (
             "the case's"
@@ -177,30 +186,34 @@ class Ensemble:
             else "given"
         )
         backend = Backend.of(pick_device(device))
-        self.copies = MemberGrid(grid, self.held.size)
         options = {"device": backend.device, "per_element": per_element, "threads": threads}
+        self.layout, held = layout(scene, initial), starts[self.held]
         # one BLAS thread, as ``Simulation``: the ∇⁴'s power iteration takes 40 norms
         with threadpool_limits(limits=1, user_api="blas"):
             threads = backend.threads() if threads is None else threads
-            self.topology = Topology(self.copies, backend, threads, parts=[self.copies.elements])
-            self.model = ShallowWater.from_scene(scene, self.copies, case, **options, topology=self.topology)
-            self._one = None  # one member's model: its ∇⁴'s λ, and the scorer's operators (``errors``)
-            if self.model.hv is not None and self.model.hv.nu_max > 0 and members > 1:
-                self._one = ShallowWater.from_scene(scene, grid, case, **options)  # λ of one member's operator
-                self.model.hv.use_biharmonic_radius(self._one.hv.biharmonic_radius())
-            self.stepper = scene_stepper(scene, self.model)
-        if self.cases is not None:  # each member's Coriolis parameter (its Ω), in place: the launches read it
-            fcor = [self.cases[k].fcor(grid.lat, grid.lon) for k in self.held]
-            self.model.operators.fcor.assign(np.concatenate(fcor))
-        # hs and f on the host, read at every output time (the grid's and the members' alone)
-        self._hs, self._fcor = self.model.operators.hs.numpy(), self.model.operators.fcor.numpy()
-        self.x = self.model.new_state(*np.concatenate(list(starts[self.held]), axis=1))
-        self.stepper.prepare(self.x)
+            if self.layout == "shared":
+                fcor = None if self.cases is None else [self.cases[k].fcor(grid.lat, grid.lon) for k in self.held]
+                unit, self.copies, self._one = shared_unit(
+                    scene, grid, case, held, fcor, backend, threads, options, graphs
+                )
+                self.units = [unit]
+            else:
+                cases = self.cases or [case] * members
+                pick = lambda items: [items[k] for k in self.held]  # noqa: E731
+                self.units = own_units(pick(scenes), grid, pick(cases), held, backend, threads, options, graphs)
+                self.copies, self._one = MemberGrid(grid, self.held.size), self.units[0].model
+        self.model, self.stepper = self.units[0].model, self.units[0].stepper
+        # hs and f on the host, read at every output time (the grid's and the members' alone); g a member
+        self._hs, self._fcor = self._side(lambda u: u.model.operators.hs.numpy()), self._side(_fcor)
+        self._g = [u.model.g for u in self.units for _ in range(u.members)]
         self.step_count = 0
         self.wall_time = 0.0  # s, of ``step``
-        self._start = wp.clone(self.x)  # a block's first state, to re-run it step by step after a blow-up
-        self._graphed = GraphedSteps(backend, self.model.launches.guard, graphs)
         self._options, self._scorer = options, None
+
+    def _side(self, read) -> np.ndarray:
+        """``read(unit)`` of every unit, its members' columns side by side (held·n on the last axis)."""
+        parts = [read(u) for u in self.units]
+        return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=-1)
 
     def _initial_states(self, initial) -> np.ndarray:
         """(N, 3, n) float64 from ``initial`` (see the class), checked."""
@@ -248,16 +261,19 @@ class Ensemble:
         done, t0 = 0, time.perf_counter()
         while done < n:
             block = min(CHECK_EVERY_STEPS, n - done)
-            saved = self.stepper.state()
-            wp.copy(self._start, self.x)
-            for _ in range(block):
-                self._graphed.step(self.stepper, self.model, self.x, True)
-            if self._anywhere(self.model.bad_nodes.watched_bad()):
-                wp.copy(self.x, self._start)
-                self.stepper.restore(saved)
+            saved = [u.stepper.state() for u in self.units]
+            for u in self.units:  # a unit's block of steps, then the next's: each its arrays in the cache
+                wp.copy(u.start, u.x)
+                for _ in range(block):
+                    u.graphed.step(u.stepper, u.model, u.x, True)
+            if self._anywhere(any(u.model.bad_nodes.watched_bad() for u in self.units)):
+                for u, state in zip(self.units, saved):
+                    wp.copy(u.x, u.start)
+                    u.stepper.restore(state)
                 for k in range(block):
-                    self.stepper.step(self.x)
-                    if self._anywhere(self.model.bad_nodes.first(self.x) is not None):
+                    for u in self.units:
+                        u.stepper.step(u.x)
+                    if self._anywhere(any(u.model.bad_nodes.first(u.x) is not None for u in self.units)):
                         self.step_count += k + 1
                         raise BlowUp(self._blow_up(self.step_count))
             self.step_count += block
@@ -317,6 +333,7 @@ class Ensemble:
             **scene_attrs(s, "ensemble", history, "swe_sphere.Ensemble.run"),
             **self.stepper.attrs(),
             "device": str(self.model.topology.device),
+            "ensemble_layout": self.layout,
             "members": self.members,
             "initial_states": self.initial,
             "blow_up_policy": "stop all",
@@ -346,7 +363,10 @@ class Ensemble:
             initial=self.step_count, total=s.nsteps, unit="step", disable=None if progress else True, file=sys.stderr
         )
         try:
-            with bar, StopSignals(self.topology if self.comm is None else _Ranks(self.comm), catch=True) as signals:
+            with (
+                bar,
+                StopSignals(self.model.topology if self.comm is None else _Ranks(self.comm), catch=True) as signals,
+            ):
                 self._write(writer, member_series, errors)
                 for target in sorted(k for k in outputs | restarts if k > self.step_count):
                     while self.step_count < target:  # a stop asked is answered between blocks
@@ -385,17 +405,23 @@ class Ensemble:
     # -- restart files -------------------------------------------------------------
     def write_checkpoint(self, path, *, overwrite: bool = False, restart_every: float | None = None) -> Path:
         """Write the restart file ``path`` of the current step (``io.restart_file``: every member's
-        state and the stepper's history, the member count): ``from_checkpoint`` continues it
-        bitwise. ``OutputError`` where ``path`` exists and not ``overwrite``. Written by rank 0,
-        the members' arrays gathered there (collective)."""
-        x, state = self.x.numpy(), self.stepper.state()
-        if self.comm is not None:  # the ranks' members side by side, in member order
-            x = self.comm.gather(x, root=0)
-            arrays = {k: self.comm.gather(v, root=0) for k, v in state.items() if isinstance(v, np.ndarray)}
+        state and its stepper's history, the member count, the layout and the variants):
+        ``from_checkpoint`` continues it bitwise. ``OutputError`` where ``path`` exists and not
+        ``overwrite``. Written by rank 0, the members' arrays gathered there (collective)."""
+        x, state = self._side(lambda u: u.x.numpy()), self._stepper_state()
+        if self.comm is not None:  # the ranks' members side by side, in member order; every rank's scalars
+            kinds = self.comm.allgather({k: isinstance(v, np.ndarray) for k, v in state.items()})
+            arrays = sorted({k for part in kinds for k, array in part.items() if array})
+            gathered = {k: self.comm.gather(state.get(k, np.zeros_like(x)), root=0) for k in arrays}
+            scalars, x = (
+                self.comm.gather({k: v for k, v in state.items() if k not in arrays}, root=0),
+                self.comm.gather(x),
+            )
             if not self.root:
                 return Path(path)
             x = np.concatenate(x, axis=-1)
-            state = {**state, **{k: np.concatenate(v, axis=-1) for k, v in arrays.items()}}
+            state = {k: v for part in scalars for k, v in part.items()}
+            state |= {k: np.concatenate(v, axis=-1) for k, v in gathered.items()}
         return restart_file.write(
             path,
             self.scene,
@@ -403,20 +429,34 @@ class Ensemble:
             x,
             state,
             {"rhs_evals": 0, "wall_time": self.wall_time, "iterations": {}},
-            {"initial_states": self.initial},
+            {"initial_states": self.initial, "layout": self.layout, "variants": self._variants},
             grid=MemberGrid(self.grid, self.members) if self.comm is not None else self.copies,
             overwrite=overwrite,
             restart_every=restart_every,
             members=self.members,
         )
 
+    def _stepper_state(self) -> dict:
+        """This rank's members' stepper state: the shared stepper's; in turn, the members' arrays
+        side by side (a member without one of them zeros there) and each member's scalars under
+        ``member<k>_`` (k the member's index)."""
+        if self.layout == "shared":
+            return self.stepper.state()
+        states = [u.stepper.state() for u in self.units]
+        n, arrays = self.grid.nnodes, {k for st in states for k, v in st.items() if isinstance(v, np.ndarray)}
+        out = {k: np.concatenate([st.get(k, np.zeros((3, n))) for st in states], axis=-1) for k in sorted(arrays)}
+        for k, st in zip(self.held, states):
+            out |= {f"member{k}_{key}": v for key, v in st.items() if key not in arrays}
+        return out
+
     @classmethod
     def from_checkpoint(cls, path, *, days=None, device=None, per_element=None, threads=None, graphs=None, comm=None):
         """The ensemble of the restart file ``path`` (``write_checkpoint``, or ``run``'s), at its
         step, to ``days`` (model days from t = 0; None: the file's scene's): every member's next
-        steps the bits of the uninterrupted run's. ``CheckpointError`` (one line) for a file
-        ``simulation.checkpoint.read`` refuses, a single run's restart file, or ``days`` before
-        the file's day; the other arguments as the constructor's."""
+        steps the bits of the uninterrupted run's (with its variants' scenes). ``CheckpointError``
+        (one line) for a file ``simulation.checkpoint.read`` refuses, a single run's restart
+        file, one of another layout, or ``days`` before the file's day; the other arguments as
+        the constructor's."""
         ck = checkpoint.read(path)
         if ck.members is None:
             raise CheckpointError(f"{path}: a single run's restart file (continue it with Simulation.from_checkpoint)")
@@ -425,13 +465,18 @@ class Ensemble:
             raise CheckpointError(f"the run length {scene.days:g} days ends before the checkpoint (day {ck.day:g})")
         n = ck.x.shape[1] // ck.members
         states = ck.x.reshape(3, ck.members, n).transpose(1, 0, 2)
-        ens = cls(
-            scene, ck.members, states, device=device, per_element=per_element, threads=threads, graphs=graphs, comm=comm
-        )
-        nodes = (ens.held[:, None] * n + np.arange(n)).ravel()  # the held members' columns of the file's arrays
-        held = {k: v[..., nodes] if isinstance(v, np.ndarray) else v for k, v in ck.stepper_state.items()}
+        variants = ck.initial.get("variants")  # the members' own scenes, then the file's states
+        initial = states if variants is None else Variants(variants)
+        options = {"device": device, "per_element": per_element, "threads": threads, "graphs": graphs, "comm": comm}
+        ens = cls(scene, ck.members, initial, **options)
+        if ens.layout != ck.initial.get("layout", "shared"):
+            raise CheckpointError(f"{path}: written by members {ck.initial.get('layout')}, continued {ens.layout}")
         try:
-            ens.stepper.restore(held)
+            for u, k in zip(ens.units, [ens.held] if ens.layout == "shared" else ens.held[:, None]):
+                nodes = (k[:, None] * n + np.arange(n)).ravel()  # the unit's members' columns of the file's arrays
+                u.x.assign(ck.x[:, nodes])
+                prefix = None if ens.layout == "shared" else f"member{k[0]}_"
+                u.stepper.restore(_held_state(ck.stepper_state, nodes, prefix))
         except ValueError as err:
             raise CheckpointError(f"checkpoint does not fit the stepper: {err}") from None
         ens.step_count, ens.wall_time = ck.step, float(ck.counters.get("wall_time", 0.0))
@@ -461,9 +506,9 @@ class Ensemble:
     def _write(self, writer: RunWriter | None, member_series, errors=None) -> None:
         """The current step's output time (``run``): the held members' fields gathered on rank 0,
         which writes them (collective); ``errors`` this step's ``errors()`` where they were taken."""
-        x, zeta = self.x.numpy(), self.model.operators.vorticity(self.x)
+        x, zeta = self._side(lambda u: u.x.numpy()), self._side(lambda u: u.model.operators.vorticity(u.x))
         written = self.scene.output_fields or OUTPUT_FIELDS  # the same on every rank
-        div = self.model.operators.wind_divergence(self.x) if "divergence" in written else None
+        div = self._side(lambda u: u.model.operators.wind_divergence(u.x)) if "divergence" in written else None
         rows = [*(x[r] for r in range(3)), zeta, *(() if div is None else (div,))]
         local = [np.stack([self.copies.member(a, k) for a in rows]) for k in range(self.held.size)]
         errors = self._errors(np.stack([m[:3] for m in local])) if errors is None else errors
@@ -503,7 +548,7 @@ class Ensemble:
     @property
     def graphs_kept(self) -> int:
         """The step graphs checked against plain launches and kept (0 with graphs off)."""
-        return self._graphed.kept
+        return sum(u.graphed.kept for u in self.units)
 
     # -- the members' states ----------------------------------------------------
     def states(self) -> np.ndarray:
@@ -513,7 +558,7 @@ class Ensemble:
 
     def _held_states(self) -> np.ndarray:
         """(held, 3, n): this rank's members' states."""
-        x = self.x.numpy()
+        x = self._side(lambda u: u.x.numpy())
         return np.stack([self.copies.member(x, k) for k in range(self.held.size)])
 
     def fields(self, member: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -535,11 +580,13 @@ class Ensemble:
     def invariants(self) -> list[dict[str, float]]:
         """Each member's mass (m³), total energy (m⁵ s⁻²) and potential enstrophy (m s⁻²)
         (``model.diagnostics.invariants`` on the one grid: the bits of the single run's)."""
-        return self._invariants(self.x.numpy(), self.model.operators.vorticity(self.x))
+        return self._invariants(
+            self._side(lambda u: u.x.numpy()), self._side(lambda u: u.model.operators.vorticity(u.x))
+        )
 
     def _invariants(self, x: np.ndarray, zeta: np.ndarray) -> list[dict[str, float]]:
         one = lambda a, k: self.copies.member(a, k)  # noqa: E731
         return self._everyone(
-            invariants(self.grid, *one(x, k), one(self._hs, k), one(zeta, k), one(self._fcor, k), self.model.g)
+            invariants(self.grid, *one(x, k), one(self._hs, k), one(zeta, k), one(self._fcor, k), self._g[k])
             for k in range(self.held.size)
         )

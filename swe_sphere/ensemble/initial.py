@@ -1,6 +1,6 @@
 """How an ensemble's members start (``ensemble.Ensemble``'s ``initial``): seeded noise in the
 case's state (``Perturbation``), an ensemble's run file (``MemberFile``), or each member's own
-case parameters and Ω (``Variants``)."""
+case parameters, Ω, g or ν (``Variants``)."""
 
 from __future__ import annotations
 
@@ -82,17 +82,23 @@ class MemberFile:
             )
 
 
+# what a member's own model holds (``Variants.own_model``): its gravity and ∇⁴ coefficients
+MODEL_KEYS = ("planet.gravity", "hyperviscosity.nu", "hyperviscosity.nu_div", "hyperviscosity.nu_s")
+
+
 @dataclasses.dataclass(frozen=True)
 class Variants:
     """Members that differ by their scene's values: ``values`` {key: a sequence of N values},
     member k's scene the ensemble's with each key at its k-th value, started from its own
     case's state; member k has the bits of the single run of its scene. The keys: a case's
     parameter ``case.<name>`` (what sets the initial state, e.g. Galewsky's ``hhat``, ``umax``
-    or ``lat2``; the surface height hs must come out the same for every member) and
+    or ``lat2``; the surface height hs must come out the same for every member),
     ``planet.omega`` (Ω, s⁻¹: the member's Coriolis parameter 2Ω sin φ, and its case's
-    balance). Other values (g, the radius, ν, the grid, Δt) the members' shared kernels take
-    once: ``ArgumentError`` naming the key, as for values of another count or a case that
-    refuses a parameter."""
+    balance), and, each member then on a model of its own (``own_model``), ``planet.gravity``
+    (g, m s⁻²; the case's balance too) and ``hyperviscosity.nu`` (m⁴ s⁻¹; ν_div and ν_s with it
+    where the scene's equal its ν, as a scene file's defaults tie them), ``.nu_div``, ``.nu_s``.
+    Other values (the radius, the grid, Δt) the members share: ``ArgumentError`` naming the
+    key, as for values of another count or a case that refuses a parameter."""
 
     values: dict
 
@@ -100,11 +106,16 @@ class Variants:
         if not isinstance(self.values, dict) or not self.values:
             raise ArgumentError(f"variants: values must be a dict of keys to N values (got {got(self.values)})")
         for key in self.values:
-            if not (isinstance(key, str) and (key.startswith("case.") or key == "planet.omega")):
+            if not (isinstance(key, str) and (key.startswith("case.") or key in ("planet.omega", *MODEL_KEYS))):
                 raise ArgumentError(
-                    f"variants: {key!r} cannot differ between members (the kernels take one value; "
-                    "per member: case.<parameter> and planet.omega)"
+                    f"variants: {key!r} cannot differ between members (per member: case.<parameter>, "
+                    f"planet.omega, {', '.join(MODEL_KEYS)})"
                 )
+
+    @property
+    def own_model(self) -> bool:
+        """Whether the members need a model each (their g or ν differ: values the kernels take once)."""
+        return any(key in MODEL_KEYS for key in self.values)
 
     def scenes(self, scene, members: int) -> list:
         """The members' scenes (``Scene``s, one a member). ``ArgumentError`` for a count of
@@ -114,12 +125,17 @@ class Variants:
                 raise ArgumentError(f"variants: {key} needs {members} values, one a member (got {got(values)})")
         out = []
         for k in range(members):
-            params = {key[5:]: v[k] for key, v in self.values.items() if key.startswith("case.")}
-            planet = {
-                **scene.planet,
-                **({"omega": float(self.values["planet.omega"][k])} if "planet.omega" in self.values else {}),
-            }
-            member = dataclasses.replace(scene, case_params={**scene.case_params, **params}, planet=planet)
+            value = {key: float(v[k]) if not key.startswith("case.") else v[k] for key, v in self.values.items()}
+            params = {key[5:]: v for key, v in value.items() if key.startswith("case.")}
+            planet = {**scene.planet, **{key[7:]: v for key, v in value.items() if key.startswith("planet.")}}
+            nus = {key[15:]: v for key, v in value.items() if key.startswith("hyperviscosity.")}
+            if "nu" in nus:  # ν_div and ν_s follow ν where the scene ties them
+                nus = {**{k: nus["nu"] for k in ("nu_div", "nu_s") if getattr(scene, k) == scene.nu}, **nus}
+            for key in MODEL_KEYS:
+                if key in value and not (value[key] > 0 if key == "planet.gravity" else value[key] >= 0):
+                    bound = "> 0" if key == "planet.gravity" else ">= 0"
+                    raise ArgumentError(f"variants: member {k}: {key} must be {bound} (got {value[key]!r})")
+            member = dataclasses.replace(scene, case_params={**scene.case_params, **params}, planet=planet, **nus)
             try:
                 member.make_case()
             except (ValueError, TypeError) as err:

@@ -174,7 +174,7 @@ def test_the_command_line_continues_an_ensemble(capsys, tmp_path):
         (("--perturbation", "1"), "--perturbation only with --members N"),
         (("--members", "0"), "members must be an integer >= 1"),
         (("--members", "2", "--perturbation", "-1"), "perturbation amplitude"),
-        (("--members", "2", "--stepper", "imex"), "stepper imex is not explicit"),
+        (("--members", "2", "--stepper", "bs32", "-s", "time.control=error"), "its dt is controlled"),
     ],
 )
 def test_bad_options_are_one_line_and_exit_2(capsys, tmp_path, args, says):

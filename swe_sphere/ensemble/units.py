@@ -1,0 +1,91 @@
+"""How an ensemble's held members are stepped (``Ensemble.layout``):
+
+- "shared": every held member in the same launches, one ``ShallowWater`` and stepper over their
+  copies of the grid (``members.MemberGrid``): the launches' start-up and the loop's Python paid
+  once. For an explicit stepper whose members share g and ν.
+- "in turn": each member a ``ShallowWater`` and stepper of its own on the one grid, stepped one
+  after the other a block of steps at a time: for a stepper that reduces over the grid (the
+  solves, mean depth and Krylov bases of semi_implicit, the IMEX pairs, implicit, the
+  exponential steppers, split_explicit's and the multirate ones' checks are a member's own),
+  members whose g or ν differ (``Variants.own_model``), or the tensor ∇⁴ (its reference Δx is
+  the grid's).
+
+Either way member k's steps are its single run's launches on its own numbers: the same bits.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import warp as wp
+
+from ..config.parts import scene_stepper
+from ..core.graphs import GraphedSteps
+from ..grid.cubed_sphere import CubedSphere
+from ..grid.topology import Topology
+from ..model.shallow_water import ShallowWater
+from ..steppers import STEPPERS
+from .initial import Variants
+from .members import MemberGrid
+
+
+@dataclasses.dataclass
+class Unit:
+    """Held members stepped together: their ``model`` and ``stepper``, their states side by side
+    ``x`` (3, members·n), a block's first state ``start`` (to re-run it step by step after a
+    blow-up) and the graphs of their steps ``graphed``."""
+
+    model: ShallowWater
+    stepper: object
+    x: wp.array
+    start: wp.array
+    graphed: GraphedSteps
+    members: int
+
+    @classmethod
+    def of(cls, model: ShallowWater, stepper, starts: np.ndarray, backend, graphs: str) -> Unit:
+        """The unit of ``model`` and ``stepper`` from ``starts`` (members, 3, n), prepared."""
+        x = model.new_state(*np.concatenate(list(starts), axis=1))
+        stepper.prepare(x)
+        return cls(model, stepper, x, wp.clone(x), GraphedSteps(backend, model.launches.guard, graphs), len(starts))
+
+
+def layout(scene, initial) -> str:
+    """The layout of ``scene``'s members started from ``initial`` (module doc)."""
+    own = not STEPPERS[scene.stepper].explicit or scene.hypervis_scaling is not None
+    return "in turn" if own or (isinstance(initial, Variants) and initial.own_model) else "shared"
+
+
+def shared_unit(scene, grid: CubedSphere, case, starts, fcor, backend, threads: int, options: dict, graphs: str):
+    """(the one ``Unit`` of every held member, the ``MemberGrid`` of their copies, one member's
+    model or None): one model over the copies, its ∇⁴'s substeps from one member's operator (the
+    one grid's spectral radius, not the copies'); ``fcor`` (held, n) each member's Coriolis
+    parameter (None: the case's)."""
+    copies = MemberGrid(grid, len(starts))
+    topology = Topology(copies, backend, threads, parts=[copies.elements])
+    model = ShallowWater.from_scene(scene, copies, case, **options, topology=topology)
+    one = None
+    if model.hv is not None and model.hv.nu_max > 0 and len(starts) > 1:
+        one = ShallowWater.from_scene(scene, grid, case, **options)  # λ of one member's operator
+        model.hv.use_biharmonic_radius(one.hv.biharmonic_radius())
+    if fcor is not None:  # in place: the launches read it
+        model.operators.fcor.assign(np.concatenate(list(fcor)))
+    return Unit.of(model, scene_stepper(scene, model), starts, backend, graphs), copies, one
+
+
+def own_units(scenes, grid: CubedSphere, cases, starts, backend, threads: int, options: dict, graphs: str) -> list:
+    """A ``Unit`` a held member (``scenes``, ``cases`` and ``starts`` its own, in order), each its
+    single run's model and stepper on one ``Topology`` of the whole grid; the ∇⁴'s spectral
+    radius, a property of the grid alone, found once."""
+    topology = Topology(grid, backend, threads, parts=[np.arange(grid.nelem)])
+    units, radius = [], None
+    for scene, case, start in zip(scenes, cases, starts):
+        model = ShallowWater.from_scene(scene, grid, case, **options, topology=topology)
+        if model.hv is not None and model.hv.nu_max > 0:
+            if radius is None:
+                radius = model.hv.biharmonic_radius()
+            else:
+                model.hv.use_biharmonic_radius(radius)
+        units.append(Unit.of(model, scene_stepper(scene, model), start[None], backend, graphs))
+    return units

@@ -60,16 +60,21 @@ def test_members_whose_g_and_nu_differ_have_the_bits_of_their_own_scenes():
 
 @pytest.mark.parametrize(
     ("stepper", "initial"),
-    [("semi_implicit", Perturbation(2.0, seed=5)), ("ark324", Variants({"planet.gravity": [9.8, 9.7]}))],
+    [
+        ("semi_implicit", Perturbation(2.0, seed=5)),
+        ("ark324", Variants({"planet.gravity": [9.8, 9.7]})),
+        ("rk4", Variants({"planet.omega": [6e-5, 8e-5]})),
+    ],
 )
-def test_an_in_turn_ensemble_continues_bitwise_from_its_restart_file(tmp_path, stepper, initial):
-    """Each member's stepper state (its mean depth, its solver's guesses) under its own name, the
-    arrays side by side; the variants kept in the file, so a continuation has each member's g."""
+def test_an_ensemble_continues_bitwise_from_its_restart_file_with_its_variants(tmp_path, stepper, initial):
+    """In turn, each member's stepper state (its mean depth, its solver's guesses) under its own
+    name, the arrays side by side; the variants kept in the file, so a continuation has each
+    member's g, or (in the same launches) its Ω."""
     ens = Ensemble("galewsky", 2, initial, device="cpu", stepper=stepper, **SMALL)
     ens.step(2)
     path = ens.write_checkpoint(tmp_path / "r.nc")
     ens.step(3)
     again = Ensemble.from_checkpoint(path)
-    assert again.layout == "in turn" and again.step_count == 2
+    assert again.layout == ens.layout == ("shared" if stepper == "rk4" else "in turn") and again.step_count == 2
     again.step(3)
     assert same_bits(again.states(), ens.states())

@@ -40,7 +40,8 @@ from ..simulation.schedules import check_restart_interval, output_steps, restart
 from ..simulation.writers import restart_path, scene_attrs
 from .initial import MemberFile, Perturbation, Variants
 from .members import MemberGrid
-from .units import layout, own_units, shared_unit
+from .units import layout as members_layout
+from .units import own_units, shared_unit
 
 MEMBER_SERIES = ("mass", "total_energy", "potential_enstrophy")  # each member's, at every output time (and errors)
 
@@ -114,6 +115,9 @@ class Ensemble:
         r-th of R contiguous shares of them (``held``) in its own launches, every member the
         bits it has on one rank; the states, invariants and errors are gathered on every
         rank, the run and restart files written by rank 0. Call every method on every rank.
+    layout : {None, "shared", "in_turn"}, optional
+        How the members step (``units``' module doc): None, in the same launches where they
+        can ("shared"), else each on a model of its own ("in_turn", which any ensemble may ask).
     **overrides
         As ``Simulation``'s.
 
@@ -122,7 +126,7 @@ class Ensemble:
     scene, members, dt : the resolved ``Scene``, N, Δt (s).
     held : int array, the members this rank steps (all on one rank); root : whether it is rank 0.
     grid : the one ``CubedSphere``; copies : the ``MemberGrid`` of the held members' copies.
-    layout : "shared" (the held members in the same launches) or "in turn" (each on a model of
+    layout : "shared" (the held members in the same launches) or "in_turn" (each on a model of
         its own; ``units``' module doc); units : the ``units.Unit`` s that step them (one, or one
         a member); model, stepper : the first unit's ``ShallowWater`` and stepper.
     step_count : int, the steps taken; graphs_kept : int, the step graphs replayed (``Simulation``'s).
@@ -150,6 +154,7 @@ class Ensemble:
         threads=None,
         graphs=None,
         comm=None,
+        layout=None,
         **overrides,
     ):
         scene, _ = resolve_scene(scene, overrides)
@@ -187,7 +192,7 @@ class Ensemble:
         )
         backend = Backend.of(pick_device(device))
         options = {"device": backend.device, "per_element": per_element, "threads": threads}
-        self.layout, held = layout(scene, initial), starts[self.held]
+        self.layout, held = members_layout(scene, initial, layout), starts[self.held]
         # one BLAS thread, as ``Simulation``: the ∇⁴'s power iteration takes 40 norms
         with threadpool_limits(limits=1, user_api="blas"):
             threads = backend.threads() if threads is None else threads
@@ -455,8 +460,8 @@ class Ensemble:
         step, to ``days`` (model days from t = 0; None: the file's scene's): every member's next
         steps the bits of the uninterrupted run's (with its variants' scenes). ``CheckpointError``
         (one line) for a file ``simulation.checkpoint.read`` refuses, a single run's restart
-        file, one of another layout, or ``days`` before the file's day; the other arguments as
-        the constructor's."""
+        file, or ``days`` before the file's day; the other arguments as the constructor's (the
+        layout the file's)."""
         ck = checkpoint.read(path)
         if ck.members is None:
             raise CheckpointError(f"{path}: a single run's restart file (continue it with Simulation.from_checkpoint)")
@@ -468,9 +473,7 @@ class Ensemble:
         variants = ck.initial.get("variants")  # the members' own scenes, then the file's states
         initial = states if variants is None else Variants(variants)
         options = {"device": device, "per_element": per_element, "threads": threads, "graphs": graphs, "comm": comm}
-        ens = cls(scene, ck.members, initial, **options)
-        if ens.layout != ck.initial.get("layout", "shared"):
-            raise CheckpointError(f"{path}: written by members {ck.initial.get('layout')}, continued {ens.layout}")
+        ens = cls(scene, ck.members, initial, **options, layout=ck.initial.get("layout", "shared"))
         try:
             for u, k in zip(ens.units, [ens.held] if ens.layout == "shared" else ens.held[:, None]):
                 nodes = (k[:, None] * n + np.arange(n)).ravel()  # the unit's members' columns of the file's arrays

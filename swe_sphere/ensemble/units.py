@@ -3,7 +3,7 @@
 - "shared": every held member in the same launches, one ``ShallowWater`` and stepper over their
   copies of the grid (``members.MemberGrid``): the launches' start-up and the loop's Python paid
   once. For an explicit stepper whose members share g and ν.
-- "in turn": each member a ``ShallowWater`` and stepper of its own on the one grid, stepped one
+- "in_turn": each member a ``ShallowWater`` and stepper of its own on the one grid, stepped one
   after the other a block of steps at a time: for a stepper that reduces over the grid (the
   solves, mean depth and Krylov bases of semi_implicit, the IMEX pairs, implicit, the
   exponential steppers, split_explicit's and the multirate ones' checks are a member's own),
@@ -21,6 +21,8 @@ import numpy as np
 import warp as wp
 
 from ..config.parts import scene_stepper
+from ..core.arguments import got
+from ..core.errors import ArgumentError
 from ..core.graphs import GraphedSteps
 from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology
@@ -51,10 +53,20 @@ class Unit:
         return cls(model, stepper, x, wp.clone(x), GraphedSteps(backend, model.launches.guard, graphs), len(starts))
 
 
-def layout(scene, initial) -> str:
-    """The layout of ``scene``'s members started from ``initial`` (module doc)."""
+def layout(scene, initial, asked: str | None = None) -> str:
+    """The layout of ``scene``'s members started from ``initial`` (module doc): "in_turn" where
+    they need a model each, else ``asked`` (None: "shared"). ``ArgumentError`` naming ``layout``
+    for another value, or "shared" asked where they need a model each."""
+    if asked not in (None, "shared", "in_turn"):
+        raise ArgumentError(f"layout must be None, 'shared' or 'in_turn' (got {got(asked)})")
     own = not STEPPERS[scene.stepper].explicit or scene.hypervis_scaling is not None
-    return "in turn" if own or (isinstance(initial, Variants) and initial.own_model) else "shared"
+    if own or (isinstance(initial, Variants) and initial.own_model):
+        if asked == "shared":
+            raise ArgumentError(
+                f"layout: these members need a model each (stepper {scene.stepper}, its tensor ∇⁴ or their g or ν): 'in_turn'"
+            )
+        return "in_turn"
+    return asked or "shared"
 
 
 def shared_unit(scene, grid: CubedSphere, case, starts, fcor, backend, threads: int, options: dict, graphs: str):

@@ -27,7 +27,7 @@ def same_bits(a, b) -> bool:
 @pytest.mark.parametrize("stepper", IN_TURN)
 def test_a_solver_stepper_s_members_have_the_bits_of_their_single_runs(stepper):
     ens = Ensemble("galewsky", 2, Perturbation(2.0, seed=4), device="cpu", stepper=stepper, **SMALL)
-    assert ens.layout == "in turn" and len(ens.units) == 2
+    assert ens.layout == "in_turn" and len(ens.units) == 2
     starts = ens.states()
     ens.step(3)
     for k in range(2):
@@ -45,7 +45,7 @@ def test_members_whose_g_and_nu_differ_have_the_bits_of_their_own_scenes():
     ties them."""
     values = {"planet.gravity": [9.80616, 9.5], "hyperviscosity.nu": [1e15, 4e15]}
     ens = Ensemble("galewsky", 2, Variants(values), device="cpu", stepper="rk4", **SMALL)
-    assert ens.layout == "in turn"
+    assert ens.layout == "in_turn"
     ens.step(3)
     scene = load_scene("galewsky", stepper="rk4", **{"np_" if k == "np" else k: v for k, v in SMALL.items()})
     for k in range(2):
@@ -75,6 +75,23 @@ def test_an_ensemble_continues_bitwise_from_its_restart_file_with_its_variants(t
     path = ens.write_checkpoint(tmp_path / "r.nc")
     ens.step(3)
     again = Ensemble.from_checkpoint(path)
-    assert again.layout == ens.layout == ("shared" if stepper == "rk4" else "in turn") and again.step_count == 2
+    assert again.layout == ens.layout == ("shared" if stepper == "rk4" else "in_turn") and again.step_count == 2
     again.step(3)
     assert same_bits(again.states(), ens.states())
+
+
+def test_an_explicit_ensemble_may_step_in_turn_but_a_solver_s_not_in_shared_launches():
+    """``layout="in_turn"`` asked of an explicit stepper's members: the bits of the shared layout;
+    "shared" asked of members that need a model each: one line naming ``layout``."""
+    shared = Ensemble("galewsky", 2, Perturbation(1.0, seed=3), device="cpu", stepper="kgu35", **SMALL)
+    in_turn = Ensemble(
+        "galewsky", 2, Perturbation(1.0, seed=3), device="cpu", stepper="kgu35", layout="in_turn", **SMALL
+    )
+    assert (shared.layout, in_turn.layout, len(in_turn.units)) == ("shared", "in_turn", 2)
+    shared.step(3)
+    in_turn.step(3)
+    assert same_bits(shared.states(), in_turn.states())
+    with pytest.raises(ValueError, match=r"^layout: these members need a model each \(stepper imex"):
+        Ensemble("galewsky", 2, device="cpu", stepper="imex", layout="shared", **SMALL)
+    with pytest.raises(ValueError, match=r"^layout must be None, 'shared' or 'in_turn' \(got 'turns', a str\)$"):
+        Ensemble("galewsky", 2, device="cpu", layout="turns", **SMALL)

@@ -40,8 +40,8 @@ from ..simulation.schedules import check_restart_interval, output_steps, restart
 from ..simulation.writers import restart_path, scene_attrs
 from .initial import MemberFile, Perturbation, Variants
 from .members import MemberGrid
+from .units import held_state, own_units, shared_unit, stepper_state
 from .units import layout as members_layout
-from .units import own_units, shared_unit
 
 MEMBER_SERIES = ("mass", "total_energy", "potential_enstrophy")  # each member's, at every output time (and errors)
 
@@ -59,19 +59,6 @@ def _checked_scene(scene) -> None:
         why = "it names [[output.streams]] (an ensemble writes one run file, not yet its streams)"
     if why is not None:
         raise ArgumentError(f"scene: {why}")
-
-
-def _held_state(state: dict, nodes, prefix: str | None) -> dict:
-    """A unit's stepper state from a restart file's ``state``: its members' columns ``nodes`` of
-    the arrays; the scalars as they are (``prefix`` None) or those under ``prefix``, without it."""
-    arrays = {k: v[..., nodes] for k, v in state.items() if isinstance(v, np.ndarray)}
-    if prefix is None:
-        return {**state, **arrays}
-    return {**arrays, **{k[len(prefix) :]: v for k, v in state.items() if k.startswith(prefix)}}
-
-
-def _fcor(unit) -> np.ndarray:
-    return unit.model.operators.fcor.numpy()
 
 
 class _Ranks:
@@ -209,7 +196,10 @@ class Ensemble:
                 self.copies, self._one = MemberGrid(grid, self.held.size), self.units[0].model
         self.model, self.stepper = self.units[0].model, self.units[0].stepper
         # hs and f on the host, read at every output time (the grid's and the members' alone); g a member
-        self._hs, self._fcor = self._side(lambda u: u.model.operators.hs.numpy()), self._side(_fcor)
+        self._hs, self._fcor = (
+            self._side(lambda u: u.model.operators.hs.numpy()),
+            self._side(lambda u: u.model.operators.fcor.numpy()),
+        )
         self._g = [u.model.g for u in self.units for _ in range(u.members)]
         self.step_count = 0
         self.wall_time = 0.0  # s, of ``step``
@@ -245,14 +235,33 @@ class Ensemble:
                 "initial must be None, an array (members, 3, nnodes), a Perturbation, a MemberFile or Variants "
                 f"(got {got(initial)})"
             )
+        return self._checked(states, "initial")
+
+    def _checked(self, states: np.ndarray, name: str) -> np.ndarray:
+        """``states`` (N, 3, n), refused (``ArgumentError`` naming ``name``) where not finite or
+        where a member's h ≤ 0 and h is a depth."""
         if not np.isfinite(states).all():
-            raise ArgumentError("initial: a member's state is not finite")
+            raise ArgumentError(f"{name}: a member's state is not finite")
         if self.case.h_is_depth:
             low = states[:, 2].min(axis=1)
             if np.any(low <= 0):
                 k = int(np.argmax(low <= 0))
-                raise ArgumentError(f"initial: member {k}'s depth h is <= 0 (min {low[k]:.4g} m)")
+                raise ArgumentError(f"{name}: member {k}'s depth h is <= 0 (min {low[k]:.4g} m)")
         return states
+
+    def set_states(self, states) -> None:
+        """Every member's state now (an ensemble filter's analysis, say): ``states`` (N, 3, n) u,
+        v (m s⁻¹) and h (m) on the grid's element-local nodes, continuous, each rank taking its
+        members'. The steppers go on from them as from their own (a multistep stepper's earlier
+        states and a solver's guesses kept). ``ArgumentError`` as for an ``initial`` array."""
+        shape = (self.members, 3, self.grid.nnodes)
+        states = self._checked(array_argument("states", states, shape, "m s⁻¹ and m"), "states")
+        for u, k in zip(self.units, self._groups()):
+            u.x.assign(np.concatenate(list(states[k]), axis=1))
+
+    def _groups(self) -> list:
+        """The members (indices) of each unit, in order."""
+        return [self.held] if self.layout == "shared" else list(self.held[:, None])
 
     # -- stepping ------------------------------------------------------------------
     def step(self, n: int = 1) -> None:
@@ -413,7 +422,7 @@ class Ensemble:
         state and its stepper's history, the member count, the layout and the variants):
         ``from_checkpoint`` continues it bitwise. ``OutputError`` where ``path`` exists and not
         ``overwrite``. Written by rank 0, the members' arrays gathered there (collective)."""
-        x, state = self._side(lambda u: u.x.numpy()), self._stepper_state()
+        x, state = self._side(lambda u: u.x.numpy()), stepper_state(self.units, self.layout, self.held)
         if self.comm is not None:  # the ranks' members side by side, in member order; every rank's scalars
             kinds = self.comm.allgather({k: isinstance(v, np.ndarray) for k, v in state.items()})
             arrays = sorted({k for part in kinds for k, array in part.items() if array})
@@ -441,19 +450,6 @@ class Ensemble:
             members=self.members,
         )
 
-    def _stepper_state(self) -> dict:
-        """This rank's members' stepper state: the shared stepper's; in turn, the members' arrays
-        side by side (a member without one of them zeros there) and each member's scalars under
-        ``member<k>_`` (k the member's index)."""
-        if self.layout == "shared":
-            return self.stepper.state()
-        states = [u.stepper.state() for u in self.units]
-        n, arrays = self.grid.nnodes, {k for st in states for k, v in st.items() if isinstance(v, np.ndarray)}
-        out = {k: np.concatenate([st.get(k, np.zeros((3, n))) for st in states], axis=-1) for k in sorted(arrays)}
-        for k, st in zip(self.held, states):
-            out |= {f"member{k}_{key}": v for key, v in st.items() if key not in arrays}
-        return out
-
     @classmethod
     def from_checkpoint(cls, path, *, days=None, device=None, per_element=None, threads=None, graphs=None, comm=None):
         """The ensemble of the restart file ``path`` (``write_checkpoint``, or ``run``'s), at its
@@ -475,11 +471,11 @@ class Ensemble:
         options = {"device": device, "per_element": per_element, "threads": threads, "graphs": graphs, "comm": comm}
         ens = cls(scene, ck.members, initial, **options, layout=ck.initial.get("layout", "shared"))
         try:
-            for u, k in zip(ens.units, [ens.held] if ens.layout == "shared" else ens.held[:, None]):
+            for u, k in zip(ens.units, ens._groups()):
                 nodes = (k[:, None] * n + np.arange(n)).ravel()  # the unit's members' columns of the file's arrays
                 u.x.assign(ck.x[:, nodes])
                 prefix = None if ens.layout == "shared" else f"member{k[0]}_"
-                u.stepper.restore(_held_state(ck.stepper_state, nodes, prefix))
+                u.stepper.restore(held_state(ck.stepper_state, nodes, prefix))
         except ValueError as err:
             raise CheckpointError(f"checkpoint does not fit the stepper: {err}") from None
         ens.step_count, ens.wall_time = ck.step, float(ck.counters.get("wall_time", 0.0))

@@ -101,3 +101,28 @@ def own_units(scenes, grid: CubedSphere, cases, starts, backend, threads: int, o
                 model.hv.use_biharmonic_radius(radius)
         units.append(Unit.of(model, scene_stepper(scene, model), start[None], backend, graphs))
     return units
+
+
+def stepper_state(units: list, layout: str, held) -> dict:
+    """The stepper state of a rank's ``units`` (its members ``held``) as a restart file keeps it:
+    the shared stepper's; in turn, the members' arrays (3, n) side by side (a member without one
+    of them zeros there) and each member's scalars under ``member<k>_`` (k its index)."""
+    if layout == "shared":
+        return units[0].stepper.state()
+    states = [u.stepper.state() for u in units]
+    n = units[0].model.topology.N
+    arrays = {k for st in states for k, v in st.items() if isinstance(v, np.ndarray)}
+    out = {k: np.concatenate([st.get(k, np.zeros((3, n))) for st in states], axis=-1) for k in sorted(arrays)}
+    for k, st in zip(held, states):
+        out |= {f"member{k}_{key}": v for key, v in st.items() if key not in arrays}
+    return out
+
+
+def held_state(state: dict, nodes, prefix: str | None) -> dict:
+    """A unit's stepper state from a restart file's ``state`` (``stepper_state``): its members'
+    columns ``nodes`` of the arrays; the scalars as they are (``prefix`` None) or those under
+    ``prefix``, without it."""
+    arrays = {k: v[..., nodes] for k, v in state.items() if isinstance(v, np.ndarray)}
+    if prefix is None:
+        return {**state, **arrays}
+    return {**arrays, **{k[len(prefix) :]: v for k, v in state.items() if k.startswith(prefix)}}

@@ -95,3 +95,25 @@ def test_an_explicit_ensemble_may_step_in_turn_but_a_solver_s_not_in_shared_laun
         Ensemble("galewsky", 2, device="cpu", stepper="imex", layout="shared", **SMALL)
     with pytest.raises(ValueError, match=r"^layout must be None, 'shared' or 'in_turn' \(got 'turns', a str\)$"):
         Ensemble("galewsky", 2, device="cpu", layout="turns", **SMALL)
+
+
+@pytest.mark.parametrize("layout", ["shared", "in_turn"])
+def test_states_set_between_steps_go_on_as_an_ensemble_started_from_them(layout):
+    """``set_states`` (an ensemble filter's analysis): the next steps are those of an ensemble
+    started from the states set; bad states are refused naming them, the members unchanged."""
+    ens = Ensemble("galewsky", 2, Perturbation(1.0, seed=6), device="cpu", stepper="rk4", layout=layout, **SMALL)
+    ens.step(2)
+    analysis = ens.states()
+    analysis[:, 2] += np.linspace(0.0, 3.0, analysis.shape[2])  # not continuous: the model's concern, not the check's
+    ens.set_states(analysis)
+    assert same_bits(ens.states(), analysis)
+    ens.step(2)
+    fresh = Ensemble("galewsky", 2, analysis, device="cpu", stepper="rk4", layout=layout, **SMALL)
+    fresh.step(2)
+    assert same_bits(ens.states(), fresh.states())
+    before = ens.states()
+    with pytest.raises(ValueError, match=r"^states: member 1's depth h is <= 0"):
+        ens.set_states(np.where(np.arange(2)[:, None, None] == 1, -1.0, before))
+    with pytest.raises(ValueError, match=r"^states must have shape \(2, 3, 384\)"):
+        ens.set_states(before[:1])
+    assert same_bits(ens.states(), before)

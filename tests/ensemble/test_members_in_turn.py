@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from swe_sphere.config.scene import load_scene
+from swe_sphere.core.errors import BlowUp
 from swe_sphere.ensemble import Ensemble, Perturbation, Variants
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
@@ -117,3 +118,14 @@ def test_states_set_between_steps_go_on_as_an_ensemble_started_from_them(layout)
     with pytest.raises(ValueError, match=r"^states must have shape \(2, 3, 384\)"):
         ens.set_states(before[:1])
     assert same_bits(ens.states(), before)
+
+
+def test_a_blow_up_in_turn_names_the_member_and_keeps_the_others():
+    """In turn, one member's blow-up stops all at the step it happened, naming it (policy: stop
+    all); the other members' states are finite there."""
+    good = Ensemble("tc2_steady", 3, device="cpu", ne=2, np=4, stepper="rk4", dt=1800.0).states()
+    good[1, :2] *= 8  # a wind 8 times the steady one: unstable at this dt within a few steps
+    ens = Ensemble("tc2_steady", 3, good, device="cpu", ne=2, np=4, stepper="rk4", dt=1800.0, layout="in_turn")
+    with pytest.raises(BlowUp, match=r"^member 1 of 3 blew up at step \d+ .*policy: stop all"):
+        ens.step(200)
+    assert ens.step_count > 1 and np.isfinite(ens.states()[[0, 2]]).all()

@@ -129,3 +129,17 @@ def test_a_blow_up_in_turn_names_the_member_and_keeps_the_others():
     with pytest.raises(BlowUp, match=r"^member 1 of 3 blew up at step \d+ .*policy: stop all"):
         ens.step(200)
     assert ens.step_count > 1 and np.isfinite(ens.states()[[0, 2]]).all()
+
+
+def test_the_tensor_hyperviscosity_s_members_step_in_turn_with_their_single_runs_bits():
+    """The tensor ∇⁴ (its reference Δx is the grid's, not the copies'): in turn, member k the bits
+    of its single run."""
+    tensor = {"hyperviscosity.scaling": 3.2}
+    ens = Ensemble("galewsky", 2, Perturbation(1.0, seed=8), device="cpu", stepper="rk4", **SMALL, **tensor)
+    assert ens.layout == "in_turn" and ens.scene.hypervis_scaling == 3.2
+    starts = ens.states()
+    ens.step(2)
+    for k in range(2):
+        sim = Simulation("galewsky", "cpu", progress=False, start=starts[k], stepper="rk4", **SMALL, **tensor)
+        sim.advance(2 * SMALL["dt"] / 86400)
+        assert same_bits(ens.states()[k], sim.x.numpy()), k

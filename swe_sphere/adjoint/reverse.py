@@ -126,11 +126,6 @@ class TapeAdjoint:
             self.twin.set_dt(dt)
         self.dt = dt
 
-    def before_hyperviscosity(self, out) -> None:
-        """out = the state the last reversed step's ∇⁴ started from (kept with ``parameters``; without
-        the ∇⁴ the step's end)."""
-        wp.copy(out, next((op.state for op in reversed(self.tape.ops) if isinstance(op, Smooth)), self.work))
-
     def _take(self, x, k: int) -> None:
         """The twin's step k from s = ``x`` on a fresh tape (``Tape.expected`` deciding what runs); at
         the first, the twin restored from the stepper's ``state()``: what its first step or

@@ -174,6 +174,13 @@ def _run(sub, parents) -> None:
         help="with --members: member k starts from member k of an ensemble's run file at its last time",
     )
     r.add_argument(
+        "--layout",
+        choices=("shared", "in_turn"),
+        help="with --members: the members in the same launches (shared: the default on CUDA) or each on a "
+        "model of its own (in_turn: the default on a CPU, and for any stepper but an explicit one or members "
+        "whose g or nu differ)",
+    )
+    r.add_argument(
         "--graphs",
         help="steps as captured graphs: auto (on CUDA; the default, or env SWE_SPHERE_GRAPHS), on "
         "(also on a CPU), off (plain launches); a graph that fails or differs from plain launches "

@@ -197,13 +197,14 @@ def command(args) -> int:
 
 def _check_ensemble_options(args, members: int | None) -> None:
     """``SceneError`` for the ensemble's options where they do not go together (before anything
-    is built): --perturbation, --seed or --initial without an ensemble (``members``: --members,
+    is built): --perturbation, --seed, --initial or --layout without an ensemble (``members``: --members,
     or the member count of the restart file continued), --initial with a perturbation, those with
-    a continuation (its members start from the file), --stepper or --dt with an ensemble's
+    a continuation (its members start from the file), --stepper, --dt or --layout with an ensemble's
     continuation (no branches yet)."""
     starts = (("--perturbation", args.perturbation), ("--seed", args.seed), ("--initial", args.initial))
     given = [flag for flag, value in (*starts, ("--vary", args.vary)) if value is not None]
     if members is None:
+        given += ["--layout"] if args.layout is not None else []
         if given:
             raise SceneError(f"{' and '.join(given)} only with --members N (or a scene's [ensemble])")
         return
@@ -215,10 +216,14 @@ def _check_ensemble_options(args, members: int | None) -> None:
     if args.continue_from is not None:
         if given:
             raise SceneError(f"{' and '.join(given)}: a continued ensemble's members start from its restart file")
-        branch = [flag for flag, value in (("--stepper", args.stepper), ("--dt", args.dt)) if value is not None]
+        branch = [
+            flag
+            for flag, value in (("--stepper", args.stepper), ("--dt", args.dt), ("--layout", args.layout))
+            if value is not None
+        ]
         if branch:
             raise SceneError(
-                f"{' and '.join(branch)}: an ensemble continues with its own stepper and dt (no branches yet)"
+                f"{' and '.join(branch)}: an ensemble continues with its own stepper, dt and layout (no branches yet)"
             )
 
 
@@ -255,7 +260,7 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
         if args.perturbation or args.seed is not None:
             initial = Perturbation(0.0 if args.perturbation is None else args.perturbation, args.seed or 0)
         # members None: the scene's [ensemble] members (and, without a start given, its perturbation)
-        ens = Ensemble(scene, args.members, initial, device=device, graphs=args.graphs, comm=comm)
+        ens = Ensemble(scene, args.members, initial, device=device, graphs=args.graphs, comm=comm, layout=args.layout)
     if not ens.root:  # rank 0 reports; the others' errors still reach stderr
         sys.stdout = open(os.devnull, "w")
     setup, first, before = time.perf_counter() - t0, ens.step_count, ens.wall_time
@@ -264,9 +269,9 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
     print(
         f"stepper     {scene.stepper}, dt = {scene.dt:g} s, {scene.nsteps} steps to day {scene.days:g}, device {device}"
     )
-    where = (
-        "in the same launches" if ens.comm is None else f"over {ens.comm.size} MPI ranks ({ens.held.size} on rank 0)"
-    )
+    where = "in the same launches" if ens.layout == "shared" else "each on a model of its own, in turn"
+    if ens.comm is not None:
+        where += f", over {ens.comm.size} MPI ranks ({ens.held.size} on rank 0)"
     print(f"ensemble    {ens.members} members {where}; initial states {ens.initial}")
     if first:
         print(f"continued   from {args.continue_from}, step {first} (day {scene.day(first):g})")

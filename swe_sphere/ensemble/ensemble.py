@@ -103,8 +103,9 @@ class Ensemble:
         bits it has on one rank; the states, invariants and errors are gathered on every
         rank, the run and restart files written by rank 0. Call every method on every rank.
     layout : {None, "shared", "in_turn"}, optional
-        How the members step (``units``' module doc): None, in the same launches where they
-        can ("shared"), else each on a model of its own ("in_turn", which any ensemble may ask).
+        How the members step (``units``' module doc): in the same launches ("shared", where
+        they can) or each on a model of its own ("in_turn"); None: "shared" on CUDA, "in_turn"
+        on a CPU or where the members need a model each (``units.layout``).
     **overrides
         As ``Simulation``'s.
 
@@ -179,7 +180,7 @@ class Ensemble:
         )
         backend = Backend.of(pick_device(device))
         options = {"device": backend.device, "per_element": per_element, "threads": threads}
-        self.layout, held = members_layout(scene, initial, layout), starts[self.held]
+        self.layout, held = members_layout(scene, initial, layout, backend.device), starts[self.held]
         # one BLAS thread, as ``Simulation``: the ∇⁴'s power iteration takes 40 norms
         with threadpool_limits(limits=1, user_api="blas"):
             threads = backend.threads() if threads is None else threads

@@ -28,7 +28,7 @@ EXPLICIT = [name for name, cls in STEPPERS.items() if cls.explicit]
 
 @pytest.mark.parametrize("stepper", EXPLICIT)
 def test_each_member_has_the_bits_of_its_single_run(stepper):
-    ens = Ensemble("galewsky", 3, Perturbation(2.0, seed=4), device="cpu", stepper=stepper, **SMALL)
+    ens = Ensemble("galewsky", 3, Perturbation(2.0, seed=4), device="cpu", stepper=stepper, layout="shared", **SMALL)
     starts = ens.states()
     assert not same_bits(starts[0], starts[1])  # the members differ
     ens.step(4)
@@ -46,7 +46,7 @@ def test_each_member_has_the_bits_of_its_single_run(stepper):
 def test_the_per_node_layout_too(scene, stepper):
     """CUDA's layout (one thread a node), here on the CPU: member k against N = 1."""
     states = Ensemble(scene, 2, Perturbation(1.0, seed=2), device="cpu", stepper=stepper, **SMALL).states()
-    ens = Ensemble(scene, 2, states, device="cpu", per_element=False, stepper=stepper, **SMALL)
+    ens = Ensemble(scene, 2, states, device="cpu", per_element=False, stepper=stepper, layout="shared", **SMALL)
     ens.step(3)
     for k in range(2):
         one = Ensemble(scene, 1, states[k : k + 1], device="cpu", per_element=False, stepper=stepper, **SMALL)
@@ -55,14 +55,15 @@ def test_the_per_node_layout_too(scene, stepper):
 
 
 @pytest.mark.parametrize("device", ["cpu", ON_CUDA])
-def test_graphed_steps_have_the_bits_of_plain_ones(one_thread, device):
+@pytest.mark.parametrize("layout", ["shared", "in_turn"])
+def test_graphed_steps_have_the_bits_of_plain_ones(one_thread, device, layout):
     """Each step a graph (on a CPU: one thread, graphs "on"; CUDA's default): the bits of the
-    same ensemble launched step by step, with its graph kept."""
+    same ensemble launched step by step, with its graph kept (in turn, one a member)."""
     states = Ensemble("galewsky", 2, Perturbation(1.0, seed=3), device="cpu", **SMALL).states()
-    runs = [Ensemble("galewsky", 2, states, device=device, graphs=g, **SMALL) for g in ("off", "on")]
+    runs = [Ensemble("galewsky", 2, states, device=device, graphs=g, layout=layout, **SMALL) for g in ("off", "on")]
     for ens in runs:
         ens.step(5)
-    assert (runs[0].graphs_kept, runs[1].graphs_kept) == (0, 1)
+    assert (runs[0].graphs_kept, runs[1].graphs_kept) == (0, 1 if layout == "shared" else 2)
     assert same_bits(runs[0].states(), runs[1].states())
 
 

@@ -156,7 +156,7 @@ def test_the_command_line_continues_an_ensemble(capsys, tmp_path):
     assert cli_main(capsys, *run, "--restart-every", "0.25", "--output", first)[0] == 0
     restart = tmp_path / "g.restart.nc"
     for args, says in [
-        (("--dt", "450"), "--dt: an ensemble continues with its own stepper and dt"),
+        (("--dt", "450"), "--dt: an ensemble continues with its own stepper, dt and layout"),
         (("--members", "3"), "--members 3: "),
         (("--seed", "1"), "--seed: a continued ensemble's members start from its restart file"),
     ]:
@@ -172,6 +172,7 @@ def test_the_command_line_continues_an_ensemble(capsys, tmp_path):
     [
         (("--seed", "3"), "--seed only with --members N"),
         (("--perturbation", "1"), "--perturbation only with --members N"),
+        (("--layout", "shared"), "--layout only with --members N"),
         (("--members", "0"), "members must be an integer >= 1"),
         (("--members", "2", "--perturbation", "-1"), "perturbation amplitude"),
         (("--members", "2", "--stepper", "bs32", "-s", "time.control=error"), "its dt is controlled"),

@@ -60,18 +60,18 @@ def test_members_whose_g_and_nu_differ_have_the_bits_of_their_own_scenes():
 
 
 @pytest.mark.parametrize(
-    ("stepper", "initial"),
+    ("stepper", "initial", "layout"),
     [
-        ("semi_implicit", Perturbation(2.0, seed=5)),
-        ("ark324", Variants({"planet.gravity": [9.8, 9.7]})),
-        ("rk4", Variants({"planet.omega": [6e-5, 8e-5]})),
+        ("semi_implicit", Perturbation(2.0, seed=5), None),
+        ("ark324", Variants({"planet.gravity": [9.8, 9.7]}), None),
+        ("rk4", Variants({"planet.omega": [6e-5, 8e-5]}), "shared"),
     ],
 )
-def test_an_ensemble_continues_bitwise_from_its_restart_file_with_its_variants(tmp_path, stepper, initial):
+def test_an_ensemble_continues_bitwise_from_its_restart_file_with_its_variants(tmp_path, stepper, initial, layout):
     """In turn, each member's stepper state (its mean depth, its solver's guesses) under its own
     name, the arrays side by side; the variants kept in the file, so a continuation has each
     member's g, or (in the same launches) its Ω."""
-    ens = Ensemble("galewsky", 2, initial, device="cpu", stepper=stepper, **SMALL)
+    ens = Ensemble("galewsky", 2, initial, device="cpu", stepper=stepper, layout=layout, **SMALL)
     ens.step(2)
     path = ens.write_checkpoint(tmp_path / "r.nc")
     ens.step(3)
@@ -82,9 +82,9 @@ def test_an_ensemble_continues_bitwise_from_its_restart_file_with_its_variants(t
 
 
 def test_an_explicit_ensemble_may_step_in_turn_but_a_solver_s_not_in_shared_launches():
-    """``layout="in_turn"`` asked of an explicit stepper's members: the bits of the shared layout;
-    "shared" asked of members that need a model each: one line naming ``layout``."""
-    shared = Ensemble("galewsky", 2, Perturbation(1.0, seed=3), device="cpu", stepper="kgu35", **SMALL)
+    """An explicit stepper's members on a CPU: in turn by default, the bits of the shared layout
+    asked; "shared" asked of members that need a model each: one line naming ``layout``."""
+    shared = Ensemble("galewsky", 2, Perturbation(1.0, seed=3), device="cpu", stepper="kgu35", layout="shared", **SMALL)
     in_turn = Ensemble(
         "galewsky", 2, Perturbation(1.0, seed=3), device="cpu", stepper="kgu35", layout="in_turn", **SMALL
     )

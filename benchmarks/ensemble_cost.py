@@ -1,14 +1,14 @@
-"""N members of one scene in the same launches (``swe_sphere.ensemble.Ensemble``) against one
-member, CPU clock (issue 85's target: on one CPU thread, 8 members of `galewsky` ≤ 7× one
-member's run); with ``--device cuda`` the wall clock, the device synchronised (the target: 32
-members on an H100 ≤ 4× one).
+"""N members of one scene (``swe_sphere.ensemble.Ensemble``) against one member, CPU clock
+(issue 85's target: on one CPU thread, 8 members of `galewsky` ≤ 7× one member's run); with
+``--device cuda`` the wall clock, the device synchronised (the target: 32 members on an H100 ≤ 4×
+one).
 
-Builds an ensemble of one member, one of ``--members`` N (seeded 1 m perturbations of h) and N
-ensembles of one member stepped in turn (what N runs in one process cost: the members' launches
-apart, each member's arrays alone in the cache), times their build (CPU s, compile included for
-the first) and their steps in ``--rounds`` interleaved rounds of ``--steps`` steps (medians, CPU
-ms a step), and prints each against one member, a step and the scene's whole run (its steps
-at those medians plus the build):
+Builds an ensemble of one member, ``--members`` N (seeded 1 m perturbations of h) in each layout
+(``Ensemble.layout``: "shared", the same launches; "in_turn", a model a member, a block of steps
+each) and N ensembles of one member stepped in turn (what N runs in one process cost), times
+their build (CPU s, compile included for the first) and their steps in ``--rounds`` interleaved
+rounds of ``--steps`` steps (medians, CPU ms a step), and prints each against one member, a step
+and the scene's whole run (its steps at those medians plus the build):
 
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \\
         python benchmarks/ensemble_cost.py --scene galewsky --members 8
@@ -50,12 +50,18 @@ def parse() -> argparse.Namespace:
 def main(args: argparse.Namespace, figures: dict) -> None:
     init_warp()
     n = args.members
-    kinds = {"1 member": [1], f"{n} members": [n], f"{n} x 1 member in turn": [1] * n}
+    kinds = {
+        "1 member": [(1, None)],
+        f"{n} members shared": [(n, "shared")],
+        f"{n} members in_turn": [(n, "in_turn")],
+        f"{n} x 1 member in turn": [(1, None)] * n,
+    }
     runs, build = {}, {}
     for name, sizes in kinds.items():
         t = clock(args.device)
         runs[name] = [
-            Ensemble(args.scene, m, Perturbation(1.0, seed=k), device=args.device) for k, m in enumerate(sizes)
+            Ensemble(args.scene, m, Perturbation(1.0, seed=k), device=args.device, layout=layout)
+            for k, (m, layout) in enumerate(sizes)
         ]
         for ens in runs[name]:
             ens.step(1)  # recorded: the rounds replay
@@ -87,8 +93,8 @@ def main(args: argparse.Namespace, figures: dict) -> None:
         members=n,
         ms_a_step=ms,
         build_s=build,
-        step_ratio=ms[f"{n} members"] / ms["1 member"],
-        run_ratio=whole[f"{n} members"] / whole["1 member"],
+        step_ratio={layout: ms[f"{n} members {layout}"] / ms["1 member"] for layout in ("shared", "in_turn")},
+        run_ratio={layout: whole[f"{n} members {layout}"] / whole["1 member"] for layout in ("shared", "in_turn")},
         in_turn_step_ratio=ms[f"{n} x 1 member in turn"] / ms["1 member"],
     )
 

@@ -253,6 +253,16 @@ def _sweep(sub, parents) -> None:
         "its scene and grid; --days sets the end day",
     )
     sw.add_argument("--steppers", help="comma-separated stepper names (default rk4,kgu35,imex,implicit)")
+    sw.add_argument(
+        "--members",
+        type=int,
+        metavar="N",
+        help="with --perturbation: every run made from N starts, the case's state with h + METRES of seeded white "
+        "noise (an ensemble's members), each member's sweep under member<k>/ and each run's errors' mean and spread "
+        "over them in members.csv",
+    )
+    sw.add_argument("--perturbation", type=float, metavar="METRES", help="with --members: the noise's amplitude (m)")
+    sw.add_argument("--seed", type=int, help="with --members: the noise's seed (default 0)")
     group = sw.add_mutually_exclusive_group()
     group.add_argument("--dt", help="comma-separated time steps in seconds")
     group.add_argument(

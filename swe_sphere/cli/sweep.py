@@ -26,9 +26,18 @@ def command(args) -> int:
         filter_every=args.filter_every,
         filter_window=args.filter_window,
     )
+    members = None
+    if args.members is not None or args.perturbation is not None:
+        given = [f for f, v in (("--members", args.members), ("--perturbation", args.perturbation)) if v is None]
+        if given:
+            raise ValueError(f"--members N and --perturbation M go together ({' and '.join(given)} missing)")
+        members = sweep.Members(args.members, args.perturbation, 0 if args.seed is None else args.seed)
+    elif args.seed is not None:
+        raise ValueError("--seed only with --members N --perturbation M")
     device = pick_device(args.device)
     with executor(args.workers) as pool:
         if pool is None:  # an MPI worker rank: its share is done
             return 0
-        plan.run(args.output or plan.default_output, device, pool=pool, cost=args.cost, overwrite=args.overwrite)
+        output = args.output or plan.default_output
+        plan.run(output, device, pool=pool, cost=args.cost, overwrite=args.overwrite, members=members)
     return 0

@@ -21,6 +21,7 @@ from ...core.constants import DAY
 from ...io.output_files import check_results, folder_lock
 from ...simulation import checkpoint
 from ...steppers.timefilter import TimeFilter
+from .members import run_members
 from .report import OUTPUTS, format_summary, write_outputs
 from .runs import Sweep, dt_for_day, explicit_limits, start_state
 from .verdicts import table
@@ -177,7 +178,15 @@ class Plan:
         return ResolvedPlan(self, Path(directory), device, list(dts), pairs, start, limits, notes)
 
     def run(
-        self, directory, device: str | None = None, *, pool=None, cost: str = "cpu", overwrite: bool = False, log=print
+        self,
+        directory,
+        device: str | None = None,
+        *,
+        pool=None,
+        cost: str = "cpu",
+        overwrite: bool = False,
+        log=print,
+        members=None,
     ):
         """What `swe-sphere sweep` runs: under a lock on ``directory`` (``folder_lock``;
         an earlier sweep's results refused unless ``overwrite``), ``resolve`` and ``log``
@@ -199,6 +208,10 @@ class Plan:
             Replace an earlier sweep's results in ``directory``.
         log : callable
             Called with each line to show.
+        members : members.Members, optional
+            N perturbed starts: the sweep made from each under ``member<k>/``, and
+            ``members.csv`` the runs' errors' mean and spread over them
+            (``members.run_members``, whose (rows, infos, paths) by member it returns).
 
         Returns
         -------
@@ -216,17 +229,24 @@ class Plan:
         SceneError
             A Δt of which the run length is not whole steps (``Clock.steps``).
         ValueError
-            An unknown ``cost``.
+            An unknown ``cost``; ``members`` with a restart file's or a digital filter's start.
         BlowUp
             The small-Δt reference run failed.
         Interrupted
             SIGINT or SIGTERM; what is kept is said.
         """
+        if members is not None and (self.checkpoint is not None or self.base.digital_filter is not None):
+            raise ValueError("--members: the members start from the case's state (not with --from or a dfi start)")
         with folder_lock(directory, "sweep.lock"):  # a second sweep into this folder is refused now, not at its end
             check_results(directory, OUTPUTS, overwrite)  # an earlier sweep's results: refused now, not at the end
+            for k in range(0 if members is None else members.count):
+                check_results(Path(directory) / f"member{k}", OUTPUTS, overwrite)
+            check_results(directory, ("members.csv",) if members is not None else (), overwrite)
             resolved = self.resolve(directory, device, log)
             for line in resolved.notes:
                 log(line)
+            if members is not None:  # a sweep a member, then their spread
+                return run_members(resolved, members, pool, cost, overwrite, log)
             rows, info = resolved.sweep(log).run(pool)
             rows = table(rows, resolved.limits, cost)
             log(format_summary(rows, info))
@@ -250,6 +270,7 @@ class ResolvedPlan:
     start: np.ndarray | None
     limits: dict
     notes: list
+    start_id: dict | None = None  # a member's start (``members``): in its runs' keys
 
     def sweep(self, log=print) -> Sweep:
         """The ``Sweep`` of these runs, its small-Δt reference at most
@@ -263,6 +284,7 @@ class ResolvedPlan:
             log=log,
             time_filter=p.time_filter,
             start=self.start,
+            start_id=self.start_id,
             pairs=None if self.pairs is None else list(self.pairs),
             overrides=p.overrides,
             reference_dt_max=REFERENCE_MAX_GRAVITY_COURANT * self.limits["dt_gravity"],

@@ -147,6 +147,8 @@ class Sweep:
     the (stepper, Δt) runs to make, each Δt one of ``dts`` (None: every
     stepper × every Δt). ``overrides``: the ``-s`` settings the scenes were made
     with ({"section.key": value}), for the record (the scenes hold their effect).
+    ``start_id``: what names a ``start`` the scenes do not (a sweep's member's,
+    ``members.Members.key``), in every run's key; None: none.
     ``log``: called with each line to show (one per finished run). ``code``: the
     ``code_version`` every key of the sweep names, this process's at the start (the
     workers check theirs against it)."""
@@ -162,6 +164,7 @@ class Sweep:
     pairs: list | None = None
     overrides: dict = field(default_factory=dict)
     code: dict = field(default_factory=code_version)
+    start_id: dict | None = None
 
     def __post_init__(self):
         self.directory = Path(self.directory)
@@ -192,8 +195,15 @@ class Sweep:
         """What makes a run of ``scene`` in this sweep (``store.run_key``: scored against
         ``scored_against``, with the sweep's time filter, device and ``code``), with ``more``
         (a swept run: the small-Δt run's Δt, which its temporal errors are against)."""
+        start = {} if self.start_id is None else {"start": self.start_id}  # an ensemble member's start
         return run_key(
-            scene, truth=self.scored_against, device=self.device, code=self.code, time_filter=self.time_filter, **more
+            scene,
+            truth=self.scored_against,
+            device=self.device,
+            code=self.code,
+            time_filter=self.time_filter,
+            **start,
+            **more,
         )
 
     @property

@@ -114,7 +114,7 @@ def op_key(op, coefficients: bool = True) -> tuple:
         )
 
     key = [type(op).__name__]
-    for f, v in zip(op._fields, op):
+    for f, v in zip(type(op).__annotations__, op):
         if f == "updates":
             key.append(tuple(map(update, v)))
         elif f == "terms":  # a combination's (c, x) pairs, or an F's term names

@@ -61,6 +61,11 @@ def _checked_scene(scene) -> None:
         raise ArgumentError(f"scene: {why}")
 
 
+def _groups(layout: str, held) -> list:
+    """The members (indices) of each unit of a rank holding ``held``, in order."""
+    return [held] if layout == "shared" else list(held[:, None])
+
+
 class _Ranks:
     """The members' ranks as ``core.interrupts.StopSignals`` asks of a run's topology: their
     communicator and the largest of a value over them (collective)."""
@@ -257,12 +262,8 @@ class Ensemble:
         states and a solver's guesses kept). ``ArgumentError`` as for an ``initial`` array."""
         shape = (self.members, 3, self.grid.nnodes)
         states = self._checked(array_argument("states", states, shape, "m s⁻¹ and m"), "states")
-        for u, k in zip(self.units, self._groups()):
+        for u, k in zip(self.units, _groups(self.layout, self.held)):
             u.x.assign(np.concatenate(list(states[k]), axis=1))
-
-    def _groups(self) -> list:
-        """The members (indices) of each unit, in order."""
-        return [self.held] if self.layout == "shared" else list(self.held[:, None])
 
     # -- stepping ------------------------------------------------------------------
     def step(self, n: int = 1) -> None:
@@ -472,7 +473,7 @@ class Ensemble:
         options = {"device": device, "per_element": per_element, "threads": threads, "graphs": graphs, "comm": comm}
         ens = cls(scene, ck.members, initial, **options, layout=ck.initial.get("layout", "shared"))
         try:
-            for u, k in zip(ens.units, ens._groups()):
+            for u, k in zip(ens.units, _groups(ens.layout, ens.held)):
                 nodes = (k[:, None] * n + np.arange(n)).ravel()  # the unit's members' columns of the file's arrays
                 u.x.assign(ck.x[:, nodes])
                 prefix = None if ens.layout == "shared" else f"member{k[0]}_"

@@ -5,8 +5,8 @@ Python code block, and each command written inline (`` `swe-sphere run galewsky 
 collide (a default file name taken twice, a study folder written twice) fails here.
 
 The runs are shortened: ``swe-sphere`` is tests/docs_shortening.py in front of the real
-tool (tiny grids that keep the page's grids apart, at most two runs a sweep; a block of two or
-more plain commands runs in one process, ``docs_shortening.run_each``); a Python
+tool (tiny grids that keep the page's grids apart, at most two runs a sweep; plain commands and
+Python blocks in a row run in one process, ``docs_shortening.run_each``); a Python
 block's ``ne=N`` becomes ``ne=small_ne(N)`` likewise, and a ``dt=`` beside it keeps its
 Courant number, and a ``frontier.plan``'s lists keep what ``swe-sphere frontier`` keeps
 (``python_line``). Left out, with the reason: ``pip
@@ -36,7 +36,7 @@ from swe_sphere.config.schema import SCHEMA
 from swe_sphere.mesh.cube import cube_mesh
 from swe_sphere.mesh.mesh import write_exodus
 
-from docs_shortening import EACH, KEPT, coarser_dt, shorten, small_ne
+from docs_shortening import EACH, KEPT, coarser_dt, run_each, shorten, small_ne
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIM = Path(__file__).resolve().with_name("docs_shortening.py")
@@ -65,7 +65,7 @@ def shell_line(line: str) -> str | None:
     """One shell line without what is left out (None: nothing left)."""
     parts = []
     for command in line.split("&&"):
-        command = re.sub(r"\s+#.*$", "", command).strip()
+        command = re.sub(r"(^|\s+)#.*$", "", command).strip()  # a comment, or a line of one
         if not command or any(word in command for word in LEFT_OUT):
             continue
         if "swe-sphere" in command or command.startswith("python "):
@@ -102,22 +102,23 @@ def programs(path: Path, inline: bool = True) -> list[list[str]]:
     """The page's examples as commands to run in order: a shell block (or inline command)
     as one ``bash`` script, a Python block as one program after the imports of the page's
     earlier Python blocks (the page reads as one session; its runs are not made twice). Plain
-    ``swe-sphere`` commands one after another (in a block, or blocks and inline commands in a row)
-    run in one process (``plain_words``)."""
-    out, imports, plain = [], [], []
+    ``swe-sphere`` commands (``plain_words``) and Python blocks one after another (in a block, or
+    blocks and inline commands in a row) run in one process (``docs_shortening.run_each``: each
+    block in a namespace of its own); a shell block that is more than plain commands runs between."""
+    out, imports, row = [], [], []  # row: (the program of an item alone, the item for run_each)
 
-    def flush():  # the plain commands in a row: one process for two or more
-        if len(plain) > 1:
-            out.append([sys.executable, str(SHIM), EACH, json.dumps([words for _, words in plain])])
-        elif plain:
-            out.append(["bash", "-c", f"set -e\n{plain[0][0]}"])
-        plain.clear()
+    def flush():  # the items in a row: one process for two or more
+        if len(row) > 1:
+            out.append([sys.executable, str(SHIM), EACH, json.dumps([item for _, item in row])])
+        elif row:
+            out.append(row[0][0])
+        row.clear()
 
     for lang, text in examples(path, inline):
         if lang == "python":
-            flush()
             text = "\n".join(python_line(line) for line in text.splitlines())
-            out.append([sys.executable, "-c", "\n".join([*imports, text])])
+            source = "\n".join([*imports, text])
+            row.append(([sys.executable, "-c", source], source))
             imports += [line for line in text.splitlines() if re.match(r"(import|from) \S", line)]
             continue
         lines = [
@@ -125,7 +126,7 @@ def programs(path: Path, inline: bool = True) -> list[list[str]]:
         ]
         words = [plain_words(line) for line in lines]
         if lines and None not in words:
-            plain.extend(zip(lines, words))
+            row.extend((["bash", "-c", f"set -e\n{line}"], w) for line, w in zip(lines, words))
         elif lines:
             flush()
             out.append(["bash", "-c", "\n".join(["set -e", *lines])])
@@ -275,26 +276,45 @@ def test_inline_commands_are_examples_and_placeholders_are_not(tmp_path):
     ]
 
 
-def test_plain_commands_in_a_row_run_in_one_process(tmp_path):
-    """Plain ``swe-sphere`` lines in a row, in a block and the inline command after it: one
-    process (``docs_shortening.run_each``), their words as the shell splits them; a block with
-    anything else the shell reads runs in bash, and so does a plain command alone."""
+def test_plain_commands_and_python_blocks_in_a_row_run_in_one_process(tmp_path):
+    """Plain ``swe-sphere`` lines and Python blocks in a row (in a block, blocks and the inline
+    command after them, a comment line between): one process (``docs_shortening.run_each``),
+    a command's words as the shell splits them, a block after the page's earlier imports; a block
+    with anything else the shell reads runs in bash between, and so does a plain command alone."""
     page = tmp_path / "page.md"
     page.write_text(
-        "```bash\nswe-sphere run tc5_mountain --output 'a b.nc'\nswe-sphere plot \"a b.nc\" --day 5  # a map\n```\n"
-        "then `swe-sphere plot o.nc --day 1`.\n"
+        "```bash\nswe-sphere run tc5_mountain --output 'a b.nc'\nswe-sphere plot \"a b.nc\" --day 5  # a map\n"
+        "# the same for galewsky\n```\nthen `swe-sphere plot o.nc --day 1`.\n"
+        "```python\nimport swe_sphere\nx = 1\n```\n"
         "```bash\nswe-sphere run tc2_steady --output o.nc\nswe-sphere plot o.nc > o.txt\n```\n"
-        "```python\nimport swe_sphere\n```\nand `swe-sphere plot o.nc --day 2`.\n"
+        "```python\nprint(2)\n```\nand `swe-sphere plot o.nc --day 2`.\n"
+        "```bash\nls > o.txt\n```\nThen `swe-sphere plot o.nc --day 3`.\n"
     )
-    each, bash, _, alone = programs(page)
-    assert each[1:3] == [str(SHIM), EACH]
+    each, bash, each_after, ls, alone = programs(page)
+    assert each[1:3] == each_after[1:3] == [str(SHIM), EACH]
     assert json.loads(each[3]) == [
         ["run", "tc5_mountain", "--output", "a b.nc"],
         ["plot", "a b.nc", "--day", "5"],
         ["plot", "o.nc", "--day", "1"],
+        "import swe_sphere\nx = 1",
     ]
     assert bash == ["bash", "-c", "set -e\nswe-sphere run tc2_steady --output o.nc\nswe-sphere plot o.nc > o.txt"]
-    assert alone == ["bash", "-c", "set -e\nswe-sphere plot o.nc --day 2"]
+    assert json.loads(each_after[3]) == ["import swe_sphere\nprint(2)", ["plot", "o.nc", "--day", "2"]]
+    assert ls == ["bash", "-c", "set -e\nls > o.txt"]
+    assert alone == ["bash", "-c", "set -e\nswe-sphere plot o.nc --day 3"]
+
+
+def test_each_python_block_runs_as_a_program_of_its_own(tmp_path, monkeypatch, capsys):
+    """In one process (``run_each``) a block sees no name an earlier block made, and the first
+    block that raises or exits with a status ends the row with that status (1 for a raise, its
+    traceback on stderr), as ``python -c`` would."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sys, "argv", list(sys.argv))
+    assert run_each(["x = 1", "assert 'x' not in globals() and __name__ == '__main__'"]) == 0
+    assert run_each(["import sys\nsys.exit(3)", "open('after', 'w')"]) == 3
+    assert run_each(["raise ValueError('the block failed')", "open('after', 'w')"]) == 1
+    assert "ValueError: the block failed" in capsys.readouterr().err
+    assert not (tmp_path / "after").exists()
 
 
 STUDY_PAGES = tuple(sorted((ROOT / "docs" / "efficiency").glob("*.md")))  # each study of efficiency.md in full

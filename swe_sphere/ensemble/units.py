@@ -58,7 +58,7 @@ def layout(scene, initial, asked: str | None, device) -> str:
     turn" where they need a model each, else ``asked``; None: "shared" on CUDA (its time a step
     is its launches': 32 Galewsky members 17× one member's step on an H100, 31× in turn), "in_turn"
     on a CPU (its time is the nodes', and a member's arrays stay in the cache through its block of
-    steps: 8 members 7.5× one member's run on one thread, 9.8× shared). ``ArgumentError`` naming
+    steps: 8 members 7.9× one member's run on one thread, 10.1× shared). ``ArgumentError`` naming
     ``layout`` for another value, or "shared" asked where the members need a model each."""
     if asked not in (None, "shared", "in_turn"):
         raise ArgumentError(f"layout must be None, 'shared' or 'in_turn' (got {got(asked)})")

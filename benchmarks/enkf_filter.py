@@ -34,7 +34,7 @@ import os
 import time
 
 import numpy as np
-from enkf_points import gaspari_cohn, unit_xyz
+from enkf_points import ensemble_arguments, gaspari_cohn, unit_xyz
 from fourdvar_points import background_root, observed_run, recover, setting
 from results import recorded
 
@@ -117,25 +117,9 @@ def _element_local(X: np.ndarray, grid, N: int) -> np.ndarray:
 
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--ne", type=int, default=16)
-    parser.add_argument("--np", type=int, default=4)
-    parser.add_argument("--hours", type=float, default=24.0)
-    parser.add_argument("--every", type=float, default=3.0, help="hours between observations")
-    parser.add_argument("--points", type=int, default=200)
-    parser.add_argument("--sigma", type=float, default=0.1, help="observation error (m)")
-    parser.add_argument("--seed", type=int, default=0, help="the points' and the noise's seed (the 4D-Var example's)")
-    parser.add_argument("--dt", type=float, default=None, help="s, before it is shortened to divide --every")
-    parser.add_argument("--length", type=float, default=1000.0, help="background correlation length L (km)")
-    parser.add_argument("--sigma-b", type=float, default=3.0, help="background error σ_b (m)")
-    parser.add_argument("--h-scale", type=float, default=100.0, help="background height scale L_h (m; 0: isotropic)")
-    parser.add_argument("--members", type=int, default=32)
-    parser.add_argument("--localization", type=float, default=1000.0, help="Gaspari-Cohn half-width c (km)")
+    parser = ensemble_arguments(__doc__.splitlines()[0], length=1000.0, h_scale=100.0, localization=1000.0)
     parser.add_argument("--inflation", type=float, default=1.1, help="multiplicative, of the prior anomalies")
-    parser.add_argument("--ensemble-seed", type=int, default=100)
     parser.add_argument("--fourdvar", type=int, default=0, help="also 4D-Var with this many L-BFGS iterations")
-    parser.add_argument("--device", default="cpu", help="the ensemble's forecasts' (the truth runs on the CPU)")
-    parser.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")
     arguments = parser.parse_args()
     with recorded(__file__, stem=arguments.results) as figures:
         main(arguments, figures)

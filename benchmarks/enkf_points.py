@@ -114,8 +114,10 @@ def main(args: argparse.Namespace, figures: dict) -> None:
     figures.update(errors={name: e for name, e, _ in rows}, spreads={name: sp for name, _, sp in rows}, cpu_s=cpu)
 
 
-if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def ensemble_arguments(description: str, length: float, h_scale: float, localization: float):
+    """The options the ensemble scripts share (the 4D-Var example's problem, its background, the
+    members, the localization), with these defaults; each script adds its own."""
+    parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--ne", type=int, default=16)
     parser.add_argument("--np", type=int, default=4)
     parser.add_argument("--hours", type=float, default=24.0)
@@ -124,15 +126,20 @@ if __name__ == "__main__":
     parser.add_argument("--sigma", type=float, default=0.1, help="observation error (m)")
     parser.add_argument("--seed", type=int, default=0, help="the points' and the noise's seed (the 4D-Var example's)")
     parser.add_argument("--dt", type=float, default=None, help="s, before it is shortened to divide --every")
-    parser.add_argument("--length", type=float, default=400.0, help="background correlation length L (km)")
+    parser.add_argument("--length", type=float, default=length, help="background correlation length L (km)")
     parser.add_argument("--sigma-b", type=float, default=3.0, help="background error σ_b (m)")
-    parser.add_argument("--h-scale", type=float, default=0.0, help="background height scale L_h (m; 0: isotropic)")
+    parser.add_argument("--h-scale", type=float, default=h_scale, help="background height scale L_h (m; 0: isotropic)")
     parser.add_argument("--members", type=int, default=32)
-    parser.add_argument("--iterations", type=int, default=4, help="ES-MDA updates")
-    parser.add_argument("--localization", type=float, default=2000.0, help="Gaspari-Cohn half-width c (km)")
+    parser.add_argument("--localization", type=float, default=localization, help="Gaspari-Cohn half-width c (km)")
     parser.add_argument("--ensemble-seed", type=int, default=100)
     parser.add_argument("--device", default="cpu", help="the ensemble's forecasts' (the truth runs on the CPU)")
     parser.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")
+    return parser
+
+
+if __name__ == "__main__":
+    parser = ensemble_arguments(__doc__.splitlines()[0], length=400.0, h_scale=0.0, localization=2000.0)
+    parser.add_argument("--iterations", type=int, default=4, help="ES-MDA updates")
     arguments = parser.parse_args()
     with recorded(__file__, stem=arguments.results) as figures:
         main(arguments, figures)

@@ -39,7 +39,7 @@ from ..simulation import checkpoint
 from ..simulation.schedules import check_restart_interval, output_steps, restart_steps
 from ..simulation.writers import restart_path, scene_attrs
 from .initial import MemberFile, Perturbation, Variants
-from .members import MemberGrid
+from .members import MemberGrid, member_part
 from .units import held_state, own_units, shared_unit, stepper_state
 from .units import layout as members_layout
 
@@ -118,7 +118,8 @@ class Ensemble:
     ----------
     scene, members, dt : the resolved ``Scene``, N, Δt (s).
     held : int array, the members this rank steps (all on one rank); root : whether it is rank 0.
-    grid : the one ``CubedSphere``; copies : the ``MemberGrid`` of the held members' copies.
+    grid : the one ``CubedSphere``; copies : the ``MemberGrid`` of the held members' copies
+        (None in turn: nothing steps on them).
     layout : "shared" (the held members in the same launches) or "in_turn" (each on a model of
         its own; ``units``' module doc); units : the ``units.Unit`` s that step them (one, or one
         a member); model, stepper : the first unit's ``ShallowWater`` and stepper.
@@ -199,7 +200,7 @@ class Ensemble:
                 cases = self.cases or [case] * members
                 pick = lambda items: [items[k] for k in self.held]  # noqa: E731
                 self.units = own_units(pick(scenes), grid, pick(cases), held, backend, threads, options, graphs)
-                self.copies, self._one = MemberGrid(grid, self.held.size), self.units[0].model
+                self.copies, self._one = None, self.units[0].model
         self.model, self.stepper = self.units[0].model, self.units[0].stepper
         # hs and f on the host, read at every output time (the grid's and the members' alone); g a member
         self._hs, self._fcor = (
@@ -210,6 +211,10 @@ class Ensemble:
         self.step_count = 0
         self.wall_time = 0.0  # s, of ``step``
         self._options, self._scorer = options, None
+
+    def _member(self, a: np.ndarray, k: int) -> np.ndarray:
+        """The k-th held member's columns (..., n) of ``a`` (..., held·n), its members side by side."""
+        return member_part(a, k, self.grid.nnodes)
 
     def _side(self, read) -> np.ndarray:
         """``read(unit)`` of every unit, its members' columns side by side (held·n on the last axis)."""
@@ -363,7 +368,7 @@ class Ensemble:
             else RunWriter(
                 output,
                 self.grid,
-                self.copies.member(self._hs, 0),
+                self._member(self._hs, 0),
                 attrs,
                 ("steps", "wall_time"),
                 overwrite=overwrite,
@@ -446,7 +451,7 @@ class Ensemble:
             state,
             {"rhs_evals": 0, "wall_time": self.wall_time, "iterations": {}},
             {"initial_states": self.initial, "layout": self.layout, "variants": self._variants},
-            grid=MemberGrid(self.grid, self.members) if self.comm is not None else self.copies,
+            grid=self.copies if self.copies is not None and self.comm is None else MemberGrid(self.grid, self.members),
             overwrite=overwrite,
             restart_every=restart_every,
             members=self.members,
@@ -496,7 +501,7 @@ class Ensemble:
         if self._scorer is None:  # one member's model for the wind errors' vorticity and divergence
             with threadpool_limits(limits=1, user_api="blas"):
                 one = self._one or ShallowWater.from_scene(self.scene, self.grid, self.case, **self._options)
-            hs = self.copies.member(self._hs, 0)
+            hs = self._member(self._hs, 0)
             if self.cases is None:
                 self._scorer = [Scorer(self.case, one, one.topology, self.grid, hs, self.scene.reference_file)]
             else:  # each member's own truth: an exact solution (a reference holds the scene's values only)
@@ -511,7 +516,7 @@ class Ensemble:
         written = self.scene.output_fields or OUTPUT_FIELDS  # the same on every rank
         div = self._side(lambda u: u.model.operators.wind_divergence(u.x)) if "divergence" in written else None
         rows = [*(x[r] for r in range(3)), zeta, *(() if div is None else (div,))]
-        local = [np.stack([self.copies.member(a, k) for a in rows]) for k in range(self.held.size)]
+        local = [np.stack([self._member(a, k) for a in rows]) for k in range(self.held.size)]
         errors = self._errors(np.stack([m[:3] for m in local])) if errors is None else errors
         per_member = [{**d, **e} for d, e in zip(self._invariants(x, zeta), errors)]
         each = self._everyone(local) if self.comm is None else self.comm.gather(local, root=0)
@@ -560,7 +565,7 @@ class Ensemble:
     def _held_states(self) -> np.ndarray:
         """(held, 3, n): this rank's members' states."""
         x = self._side(lambda u: u.x.numpy())
-        return np.stack([self.copies.member(x, k) for k in range(self.held.size)])
+        return np.stack([self._member(x, k) for k in range(self.held.size)])
 
     def fields(self, member: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(u, v, h), each (n,), of ``member`` (0 … N − 1) on the grid's element-local nodes
@@ -586,7 +591,7 @@ class Ensemble:
         )
 
     def _invariants(self, x: np.ndarray, zeta: np.ndarray) -> list[dict[str, float]]:
-        one = lambda a, k: self.copies.member(a, k)  # noqa: E731
+        one = self._member
         return self._everyone(
             invariants(self.grid, *one(x, k), one(self._hs, k), one(zeta, k), one(self._fcor, k), self._g[k])
             for k in range(self.held.size)

@@ -90,5 +90,10 @@ class MemberGrid(CubedSphere):
 
     def member(self, a: np.ndarray, k: int) -> np.ndarray:
         """Member k's part (..., n) of an array (..., N·n) over the copies' nodes (a view)."""
-        n = self.single.nnodes
-        return a[..., k * n : (k + 1) * n]
+        return member_part(a, k, self.single.nnodes)
+
+
+def member_part(a: np.ndarray, k: int, n: int) -> np.ndarray:
+    """The k-th member's part (..., n) of an array (..., N·n), its members' n columns side by side
+    (a view)."""
+    return a[..., k * n : (k + 1) * n]

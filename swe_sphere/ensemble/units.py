@@ -54,8 +54,8 @@ class Unit:
 
 
 def layout(scene, initial, asked: str | None, device) -> str:
-    """The layout of ``scene``'s members started from ``initial`` on ``device`` (module doc): "in
-    turn" where they need a model each, else ``asked``; None: "shared" on CUDA (its time a step
+    """The layout of ``scene``'s members started from ``initial`` on ``device`` (module doc):
+    "in_turn" where they need a model each, else ``asked``; None: "shared" on CUDA (its time a step
     is its launches': 32 Galewsky members 17× one member's step on an H100, 31× in turn), "in_turn"
     on a CPU (its time is the nodes', and a member's arrays stay in the cache through its block of
     steps: 8 members 7.9× one member's run on one thread, 10.1× shared). ``ArgumentError`` naming

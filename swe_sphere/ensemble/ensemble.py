@@ -24,7 +24,7 @@ from tqdm import tqdm
 
 from ..cases.scoring import Scorer
 from ..config.scene import resolve_scene, with_days
-from ..core.arguments import array_argument, got, integer_argument, number_argument
+from ..core.arguments import array_argument, integer_argument, number_argument
 from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
 from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, CheckpointError, Interrupted
@@ -38,7 +38,7 @@ from ..model.shallow_water import ShallowWater
 from ..simulation import checkpoint
 from ..simulation.schedules import check_restart_interval, output_steps, restart_steps
 from ..simulation.writers import restart_path, scene_attrs
-from .initial import MemberFile, Perturbation, Variants
+from .initial import MemberFile, Perturbation, Variants, checked_states, initial_states
 from .members import MemberGrid, member_part
 from .units import held_state, own_units, shared_unit, stepper_state
 from .units import layout as members_layout
@@ -172,7 +172,7 @@ class Ensemble:
         self.cases = [s.make_case() for s in scenes] if isinstance(initial, Variants) else None
         # the variants' values, as a restart file keeps them (JSON)
         self._variants = None if self.cases is None else {k: np.asarray(v).tolist() for k, v in initial.values.items()}
-        starts = self._initial_states(initial)
+        starts = initial_states(initial, grid, case, members, self.cases)
         self.initial = (
             "the case's"
             if initial is None
@@ -221,52 +221,13 @@ class Ensemble:
         parts = [read(u) for u in self.units]
         return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=-1)
 
-    def _initial_states(self, initial) -> np.ndarray:
-        """(N, 3, n) float64 from ``initial`` (see the class), checked."""
-        n, grid = self.grid.nnodes, self.grid
-        if initial is None or isinstance(initial, Perturbation):
-            state = np.stack(self.case.initial(grid.lat, grid.lon))
-            states = (
-                np.repeat(state[None], self.members, axis=0)
-                if initial is None
-                else initial.apply(grid, state, self.members)
-            )
-        elif isinstance(initial, MemberFile):
-            states = initial.apply(grid, self.members)
-        elif isinstance(initial, Variants):
-            hs = self.case.hs(grid.lat, grid.lon)
-            for k, case in enumerate(self.cases):
-                if not np.array_equal(case.hs(grid.lat, grid.lon), hs):
-                    raise ArgumentError(f"variants: member {k}'s surface height hs differs (the members share hs)")
-            states = np.stack([np.stack(case.initial(grid.lat, grid.lon)) for case in self.cases])
-        elif isinstance(initial, np.ndarray | list | tuple):
-            states = array_argument("initial", initial, (self.members, 3, n), "m s⁻¹ and m")
-        else:
-            raise ArgumentError(
-                "initial must be None, an array (members, 3, nnodes), a Perturbation, a MemberFile or Variants "
-                f"(got {got(initial)})"
-            )
-        return self._checked(states, "initial")
-
-    def _checked(self, states: np.ndarray, name: str) -> np.ndarray:
-        """``states`` (N, 3, n), refused (``ArgumentError`` naming ``name``) where not finite or
-        where a member's h ≤ 0 and h is a depth."""
-        if not np.isfinite(states).all():
-            raise ArgumentError(f"{name}: a member's state is not finite")
-        if self.case.h_is_depth:
-            low = states[:, 2].min(axis=1)
-            if np.any(low <= 0):
-                k = int(np.argmax(low <= 0))
-                raise ArgumentError(f"{name}: member {k}'s depth h is <= 0 (min {low[k]:.4g} m)")
-        return states
-
     def set_states(self, states) -> None:
         """Every member's state now (an ensemble filter's analysis, say): ``states`` (N, 3, n) u,
         v (m s⁻¹) and h (m) on the grid's element-local nodes, continuous, each rank taking its
         members'. The steppers go on from them as from their own (a multistep stepper's earlier
         states and a solver's guesses kept). ``ArgumentError`` as for an ``initial`` array."""
         shape = (self.members, 3, self.grid.nnodes)
-        states = self._checked(array_argument("states", states, shape, "m s⁻¹ and m"), "states")
+        states = checked_states(array_argument("states", states, shape, "m s⁻¹ and m"), self.case, "states")
         for u, k in zip(self.units, _groups(self.layout, self.held)):
             u.x.assign(np.concatenate(list(states[k]), axis=1))
 

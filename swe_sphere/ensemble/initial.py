@@ -8,7 +8,7 @@ import dataclasses
 
 import numpy as np
 
-from ..core.arguments import got, integer_argument, number_argument
+from ..core.arguments import array_argument, got, integer_argument, number_argument
 from ..core.errors import ArgumentError
 from ..grid.cubed_sphere import CubedSphere
 
@@ -146,3 +146,42 @@ class Variants:
     def describe(self) -> str:
         """The values, as a run file's ``initial_states`` says them."""
         return "variants: " + "; ".join(f"{k} = {', '.join(f'{v:g}' for v in vs)}" for k, vs in self.values.items())
+
+
+def initial_states(initial, grid: CubedSphere, case, members: int, cases=None) -> np.ndarray:
+    """(N, 3, n) float64 the members' starts from ``initial`` (``Ensemble``'s: None, an array, a
+    ``Perturbation``, a ``MemberFile`` or ``Variants``, whose members' ``cases`` these are) on
+    ``grid`` from ``case``'s state, checked (``checked_states``). ``ArgumentError`` naming
+    ``initial`` for another kind or shape, or Variants whose surface heights differ."""
+    if initial is None or isinstance(initial, Perturbation):
+        state = np.stack(case.initial(grid.lat, grid.lon))
+        states = np.repeat(state[None], members, axis=0) if initial is None else initial.apply(grid, state, members)
+    elif isinstance(initial, MemberFile):
+        states = initial.apply(grid, members)
+    elif isinstance(initial, Variants):
+        hs = case.hs(grid.lat, grid.lon)
+        for k, member in enumerate(cases):
+            if not np.array_equal(member.hs(grid.lat, grid.lon), hs):
+                raise ArgumentError(f"variants: member {k}'s surface height hs differs (the members share hs)")
+        states = np.stack([np.stack(member.initial(grid.lat, grid.lon)) for member in cases])
+    elif isinstance(initial, np.ndarray | list | tuple):
+        states = array_argument("initial", initial, (members, 3, grid.nnodes), "m s⁻¹ and m")
+    else:
+        raise ArgumentError(
+            "initial must be None, an array (members, 3, nnodes), a Perturbation, a MemberFile or Variants "
+            f"(got {got(initial)})"
+        )
+    return checked_states(states, case, "initial")
+
+
+def checked_states(states: np.ndarray, case, name: str) -> np.ndarray:
+    """``states`` (N, 3, n), refused (``ArgumentError`` naming ``name``) where not finite or where
+    a member's h ≤ 0 and h is ``case``'s depth."""
+    if not np.isfinite(states).all():
+        raise ArgumentError(f"{name}: a member's state is not finite")
+    if case.h_is_depth:
+        low = states[:, 2].min(axis=1)
+        if np.any(low <= 0):
+            k = int(np.argmax(low <= 0))
+            raise ArgumentError(f"{name}: member {k}'s depth h is <= 0 (min {low[k]:.4g} m)")
+    return states

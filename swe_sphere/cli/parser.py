@@ -174,6 +174,12 @@ def _run(sub, parents) -> None:
         help="with --members: member k starts from member k of an ensemble's run file at its last time",
     )
     r.add_argument(
+        "--blow-up",
+        choices=("stop", "drop"),
+        help="with --members: a member's blow-up stops every member (stop: the default) or drops it, the "
+        "others going on (drop: its fields NaN from then on; the members in turn)",
+    )
+    r.add_argument(
         "--layout",
         choices=("shared", "in_turn"),
         help="with --members: the members in the same launches (shared: the default on CUDA) or each on a "

@@ -204,7 +204,7 @@ def _check_ensemble_options(args, members: int | None) -> None:
     starts = (("--perturbation", args.perturbation), ("--seed", args.seed), ("--initial", args.initial))
     given = [flag for flag, value in (*starts, ("--vary", args.vary)) if value is not None]
     if members is None:
-        given += ["--layout"] if args.layout is not None else []
+        given += [f for f, v in (("--layout", args.layout), ("--blow-up", args.blow_up)) if v is not None]
         if given:
             raise SceneError(f"{' and '.join(given)} only with --members N (or a scene's [ensemble])")
         return
@@ -223,7 +223,7 @@ def _check_ensemble_options(args, members: int | None) -> None:
         ]
         if branch:
             raise SceneError(
-                f"{' and '.join(branch)}: an ensemble continues with its own stepper, dt and layout (no branches yet)"
+                f"{' and '.join(branch)}: an ensemble continues with its own stepper, dt, layout and blow-up policy (no branches yet)"
             )
 
 
@@ -248,6 +248,7 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
     import time
 
     from ..ensemble import Ensemble, MemberFile, Perturbation, Variants
+    from ..ensemble.ensemble import POLICIES
 
     t0 = time.perf_counter()
     if args.continue_from is not None:
@@ -260,7 +261,10 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
         if args.perturbation or args.seed is not None:
             initial = Perturbation(0.0 if args.perturbation is None else args.perturbation, args.seed or 0)
         # members None: the scene's [ensemble] members (and, without a start given, its perturbation)
-        ens = Ensemble(scene, args.members, initial, device=device, graphs=args.graphs, comm=comm, layout=args.layout)
+        policy = {"blow_up": args.blow_up} if args.blow_up else {}
+        ens = Ensemble(
+            scene, args.members, initial, device=device, graphs=args.graphs, comm=comm, layout=args.layout, **policy
+        )
     if not ens.root:  # rank 0 reports; the others' errors still reach stderr
         sys.stdout = open(os.devnull, "w")
     setup, first, before = time.perf_counter() - t0, ens.step_count, ens.wall_time
@@ -272,7 +276,9 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
     where = "in the same launches" if ens.layout == "shared" else "each on a model of its own, in turn"
     if ens.comm is not None:
         where += f", over {ens.comm.size} MPI ranks ({ens.held.size} on rank 0)"
-    print(f"ensemble    {ens.members} members {where}; initial states {ens.initial}")
+    print(
+        f"ensemble    {ens.members} members {where}; initial states {ens.initial}; a blow-up: {POLICIES[ens.blow_up]}"
+    )
     if first:
         print(f"continued   from {args.continue_from}, step {first} (day {scene.day(first):g})")
     print(f"output      {output} (every {scene.output_every_days:g} days)")
@@ -290,6 +296,9 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
             print(f"swe-sphere: {err}; the good output times are in {output}", file=sys.stderr)
         return EXIT_BLOWUP
     steps, loop = ens.step_count - first, ens.wall_time - before
+    for line in ens.drops:  # collective
+        if ens.root:
+            print(f"swe-sphere: {line}", file=sys.stderr)
     print("summary")
     print(
         f"  wall time   {loop:.2f} s for {steps} steps ({1e3 * loop / max(steps, 1):.2f} ms/step, "

@@ -24,7 +24,7 @@ from tqdm import tqdm
 
 from ..cases.scoring import Scorer
 from ..config.scene import resolve_scene, with_days
-from ..core.arguments import array_argument, integer_argument, number_argument
+from ..core.arguments import got, integer_argument, number_argument
 from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
 from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, CheckpointError, Interrupted
@@ -38,27 +38,15 @@ from ..model.shallow_water import ShallowWater
 from ..simulation import checkpoint
 from ..simulation.schedules import check_restart_interval, output_steps, restart_steps
 from ..simulation.writers import restart_path, scene_attrs
-from .initial import MemberFile, Perturbation, Variants, checked_states, initial_states
+from .initial import Perturbation, Variants, checked_states, described, initial_states
 from .members import MemberGrid, member_part
-from .units import held_state, own_units, shared_unit, stepper_state
+from .units import checked_scene, held_state, own_units, shared_unit, step_block, stepper_state
 from .units import layout as members_layout
 
+# a blow-up's policies: every member stopped, or the member dropped (no longer stepped, NaN in the
+# run file from then on) and the others going on
+POLICIES = {"stop": "stop all", "drop": "drop the member and go on"}
 MEMBER_SERIES = ("mass", "total_energy", "potential_enstrophy")  # each member's, at every output time (and errors)
-
-
-def _checked_scene(scene) -> None:
-    """``ArgumentError`` naming ``scene`` where the ensemble cannot give each member the single
-    run's bits yet: a controlled Δt or a digital-filter start; or whose output it does not write
-    yet (``[[output.streams]]``)."""
-    why = None
-    if scene.control is not None:
-        why = "its dt is controlled (ensembles take a fixed dt)"
-    elif scene.digital_filter is not None:
-        why = "it starts from a digital filter (not yet with ensembles)"
-    elif scene.output_streams:
-        why = "it names [[output.streams]] (an ensemble writes one run file, not yet its streams)"
-    if why is not None:
-        raise ArgumentError(f"scene: {why}")
 
 
 def _groups(layout: str, held) -> list:
@@ -111,6 +99,9 @@ class Ensemble:
         How the members step (``units``' module doc): in the same launches ("shared", where
         they can) or each on a model of its own ("in_turn"); None: "shared" on CUDA, "in_turn"
         on a CPU or where the members need a model each (``units.layout``).
+    blow_up : {"stop", "drop"}, optional
+        A blow-up's policy (``POLICIES``): stop every member (the default), or drop the member
+        and go on ("in_turn" then).
     **overrides
         As ``Simulation``'s.
 
@@ -134,7 +125,9 @@ class Ensemble:
     SceneError
         As ``Simulation``'s.
 
-    ``step`` and ``advance`` raise ``BlowUp`` naming the members that blew up (policy: stop all).
+    ``step`` and ``advance`` raise ``BlowUp`` naming the members that blew up (``blow_up`` "stop",
+    the default: stop all), or drop them ("drop", in turn: not stepped again, NaN in the states
+    and outputs from then, ``dropped`` and ``drops`` saying which and where) while any is left.
     """
 
     def __init__(
@@ -149,6 +142,7 @@ class Ensemble:
         graphs=None,
         comm=None,
         layout=None,
+        blow_up="stop",
         **overrides,
     ):
         scene, _ = resolve_scene(scene, overrides)
@@ -163,7 +157,7 @@ class Ensemble:
             raise ArgumentError(f"members: {members} members over {ranks} MPI ranks (one a rank at least)")
         self.held, self.root = np.array_split(np.arange(members), ranks)[rank], rank == 0
         graphs = graphs_mode(default_mode() if graphs is None else graphs)
-        _checked_scene(scene)
+        checked_scene(scene)
         self.scene, self.members, self.dt = scene, members, scene.dt
         self.case = case = scene.make_case()
         self.grid = grid = CubedSphere(scene.ne, scene.np, case.planet.a, mesh=scene.make_mesh())
@@ -173,20 +167,14 @@ class Ensemble:
         # the variants' values, as a restart file keeps them (JSON)
         self._variants = None if self.cases is None else {k: np.asarray(v).tolist() for k, v in initial.values.items()}
         starts = initial_states(initial, grid, case, members, self.cases)
-        self.initial = (
-            "the case's"
-            if initial is None
-            else f"perturbed: h + {initial.amplitude:g} m white noise, seed {initial.seed}"
-            if isinstance(initial, Perturbation)
-            else f"from {initial.path}" + ("" if initial.day is None else f" at day {initial.day:g}")
-            if isinstance(initial, MemberFile)
-            else initial.describe()
-            if isinstance(initial, Variants)
-            else "given"
-        )
+        self.initial = described(initial)
+        if blow_up not in POLICIES:
+            raise ArgumentError(f"blow_up must be one of {', '.join(map(repr, POLICIES))} (got {got(blow_up)})")
         backend = Backend.of(pick_device(device))
         options = {"device": backend.device, "per_element": per_element, "threads": threads}
-        self.layout, held = members_layout(scene, initial, layout, backend.device), starts[self.held]
+        self.blow_up, self._out, self._drops = blow_up, {}, []  # dropped units: {unit index: step}, their lines
+        self.layout = members_layout(scene, initial, layout, backend.device, own=blow_up == "drop")
+        held = starts[self.held]
         # one BLAS thread, as ``Simulation``: the ∇⁴'s power iteration takes 40 norms
         with threadpool_limits(limits=1, user_api="blas"):
             threads = backend.threads() if threads is None else threads
@@ -224,11 +212,22 @@ class Ensemble:
     def set_states(self, states) -> None:
         """Every member's state now (an ensemble filter's analysis, say): ``states`` (N, 3, n) u,
         v (m s⁻¹) and h (m) on the grid's element-local nodes, continuous, each rank taking its
-        members'. The steppers go on from them as from their own (a multistep stepper's earlier
-        states and a solver's guesses kept). ``ArgumentError`` as for an ``initial`` array."""
+        members' (a dropped member's, NaN in ``states()``, left out). The steppers go on from them
+        as from their own (a multistep stepper's earlier states and a solver's guesses kept).
+        ``ArgumentError`` as for an ``initial`` array, nothing set."""
         shape = (self.members, 3, self.grid.nnodes)
-        states = checked_states(array_argument("states", states, shape, "m s⁻¹ and m"), self.case, "states")
-        for u, k in zip(self.units, _groups(self.layout, self.held)):
+        try:
+            states = np.asarray(states, dtype=float)
+        except (TypeError, ValueError):
+            raise ArgumentError(f"states must be numbers (m s⁻¹ and m) (got {got(states)})") from None
+        if states.shape != shape:
+            raise ArgumentError(f"states must have shape {shape} (got {states.shape})")
+        going = [
+            (u, k) for i, (u, k) in enumerate(zip(self.units, _groups(self.layout, self.held))) if i not in self._out
+        ]
+        kept = np.concatenate([k for _, k in going]) if going else np.zeros(0, int)  # a dropped member's left as it is
+        checked_states(states[kept], self.case, "states", kept)
+        for u, k in going:
             u.x.assign(np.concatenate(list(states[k]), axis=1))
 
     # -- stepping ------------------------------------------------------------------
@@ -243,25 +242,46 @@ class Ensemble:
         done, t0 = 0, time.perf_counter()
         while done < n:
             block = min(CHECK_EVERY_STEPS, n - done)
-            saved = [u.stepper.state() for u in self.units]
-            for u in self.units:  # a unit's block of steps, then the next's: each its arrays in the cache
-                wp.copy(u.start, u.x)
-                for _ in range(block):
-                    u.graphed.step(u.stepper, u.model, u.x, True)
-            if self._anywhere(any(u.model.bad_nodes.watched_bad() for u in self.units)):
-                for u, state in zip(self.units, saved):
-                    wp.copy(u.x, u.start)
-                    u.stepper.restore(state)
-                for k in range(block):
-                    for u in self.units:
-                        u.stepper.step(u.x)
-                    if self._anywhere(any(u.model.bad_nodes.first(u.x) is not None for u in self.units)):
-                        self.step_count += k + 1
-                        raise BlowUp(self._blow_up(self.step_count))
+            events, stopped = step_block(self._active(), block, self._anywhere, self.blow_up == "drop")
+            for k, bad in events[:-1] if stopped else events:
+                self._drop(bad, self.step_count + k)
+            if stopped:
+                self.step_count += events[-1][0]
+                raise BlowUp(self._blow_up(self.step_count))
             self.step_count += block
             done += block
         wp.synchronize_device(self.model.topology.device)
         self.wall_time += time.perf_counter() - t0
+
+    def _active(self) -> list:
+        """(index, unit) of the units still stepped (all but those dropped at a blow-up)."""
+        return [(i, u) for i, u in enumerate(self.units) if i not in self._out]
+
+    def _drop(self, bad: list, step: int) -> None:
+        """Record the (index, unit, first bad node) ``bad`` dropped at ``step`` and their lines."""
+        for i, _, node in bad:
+            self._out[i] = step
+            lat, lon = np.degrees(self.grid.lat[node]), np.degrees(self.grid.lon[node])
+            self._drops.append(
+                f"member {self.held[i]} of {self.members} blew up at step {step} (model time "
+                f"{self.scene.day(step):.4f} days; first at lat {lat:.2f}, lon {lon:.2f} degrees): dropped, the "
+                "others go on (policy: drop the member and go on)"
+            )
+
+    def mark_dropped(self, dropped: dict) -> None:
+        """Members dropped before ({member: step}, a restart file's): not stepped again, NaN in
+        the states and outputs (policy "drop")."""
+        self._out |= {i: int(dropped[k]) for i, k in enumerate(self.held) if k in dropped}
+
+    @property
+    def dropped(self) -> dict[int, int]:
+        """{member: the step it blew up at} of the members dropped (policy "drop"; collective)."""
+        return dict(self._everyone([(int(self.held[i]), step) for i, step in self._out.items()]))
+
+    @property
+    def drops(self) -> list[str]:
+        """The one line of each member dropped, in the order they were (collective)."""
+        return self._everyone(self._drops)
 
     def _anywhere(self, flag: bool) -> bool:
         """Whether ``flag`` holds on any rank (collective)."""
@@ -298,14 +318,14 @@ class Ensemble:
         the RMS spread of h (``io.run_file.RunWriter`` with ``members``). ``restart_every``
         (days, whole steps): the restart file ``<output stem>.restart.nc`` (``write_checkpoint``)
         at those days and the last; without it, one is written when SIGINT or SIGTERM stops the
-        run (not over an existing one unless ``overwrite``). A blow-up (``BlowUp``, policy stop
-        all) or a signal (``Interrupted``, after a complete block of steps: the step reached
-        written as an output time, and its restart file) closes the run file with every good
-        output time (its global attribute ``stopped`` says why) and raises. ``OutputError`` for
-        a path that may not be written (``overwrite``: replace an existing file); ``SceneError``
-        for a restart interval that is not whole steps; ``compress``: the fields as float32 with
-        zlib; ``progress``: a progress bar on stderr where it is a terminal. Returns the run
-        file's path."""
+        run (not over an existing one unless ``overwrite``). A blow-up that stops all (``BlowUp``)
+        or a signal (``Interrupted``, after a block of steps: the step reached written, and its
+        restart file) closes the run file with every good output time (its attribute ``stopped``
+        says why) and raises; members dropped go as NaN, their lines in ``dropped_members``.
+        ``OutputError`` for a path that may not be written (``overwrite``: replace it);
+        ``SceneError`` for a restart interval that is not whole steps; ``compress``: the fields
+        as float32 with zlib; ``progress``: a bar on stderr where it is a terminal. Returns the
+        run file's path."""
         s = self.scene
         restart, restarts = restart_path(output), set()
         if restart_every is not None:
@@ -318,7 +338,7 @@ class Ensemble:
             "ensemble_layout": self.layout,
             "members": self.members,
             "initial_states": self.initial,
-            "blow_up_policy": "stop all",
+            "blow_up_policy": POLICIES[self.blow_up],
             **({"continued_from_day": s.day(self.step_count)} if self.step_count else {}),
         }
         errors = self.errors()  # the first output's, and the errors the case has (collective)
@@ -367,7 +387,10 @@ class Ensemble:
                 writer.set_attrs(stopped=str(err) or type(err).__name__)
                 writer.close()
             raise
+        drops = self.drops  # collective
         if writer is not None:
+            if drops:
+                writer.set_attrs(dropped_members="; ".join(drops))
             writer.close()
         return Path(output)
 
@@ -391,6 +414,7 @@ class Ensemble:
         ``from_checkpoint`` continues it bitwise. ``OutputError`` where ``path`` exists and not
         ``overwrite``. Written by rank 0, the members' arrays gathered there (collective)."""
         x, state = self._side(lambda u: u.x.numpy()), stepper_state(self.units, self.layout, self.held)
+        policy = {"blow_up": self.blow_up, "dropped": {str(k): step for k, step in self.dropped.items()}}
         if self.comm is not None:  # the ranks' members side by side, in member order; every rank's scalars
             kinds = self.comm.allgather({k: isinstance(v, np.ndarray) for k, v in state.items()})
             arrays = sorted({k for part in kinds for k, array in part.items() if array})
@@ -411,7 +435,7 @@ class Ensemble:
             x,
             state,
             {"rhs_evals": 0, "wall_time": self.wall_time, "iterations": {}},
-            {"initial_states": self.initial, "layout": self.layout, "variants": self._variants},
+            {"initial_states": self.initial, "layout": self.layout, "variants": self._variants, **policy},
             grid=self.copies if self.copies is not None and self.comm is None else MemberGrid(self.grid, self.members),
             overwrite=overwrite,
             restart_every=restart_every,
@@ -437,7 +461,9 @@ class Ensemble:
         variants = ck.initial.get("variants")  # the members' own scenes, then the file's states
         initial = states if variants is None else Variants(variants)
         options = {"device": device, "per_element": per_element, "threads": threads, "graphs": graphs, "comm": comm}
-        ens = cls(scene, ck.members, initial, **options, layout=ck.initial.get("layout", "shared"))
+        layout, policy = ck.initial.get("layout", "shared"), ck.initial.get("blow_up", "stop")
+        ens = cls(scene, ck.members, initial, **options, layout=layout, blow_up=policy)
+        dropped = {int(k): step for k, step in ck.initial.get("dropped", {}).items()}  # their last good states
         try:
             for u, k in zip(ens.units, _groups(ens.layout, ens.held)):
                 nodes = (k[:, None] * n + np.arange(n)).ravel()  # the unit's members' columns of the file's arrays
@@ -446,6 +472,7 @@ class Ensemble:
                 u.stepper.restore(held_state(ck.stepper_state, nodes, prefix))
         except ValueError as err:
             raise CheckpointError(f"checkpoint does not fit the stepper: {err}") from None
+        ens.mark_dropped(dropped)
         ens.step_count, ens.wall_time = ck.step, float(ck.counters.get("wall_time", 0.0))
         ens.initial = ck.initial.get("initial_states", ens.initial)
         return ens
@@ -480,6 +507,9 @@ class Ensemble:
         local = [np.stack([self._member(a, k) for a in rows]) for k in range(self.held.size)]
         errors = self._errors(np.stack([m[:3] for m in local])) if errors is None else errors
         per_member = [{**d, **e} for d, e in zip(self._invariants(x, zeta), errors)]
+        for i in self._out:  # a dropped member: NaN from the step it blew up at
+            local[i] = np.full_like(local[i], np.nan)
+            per_member[i] = dict.fromkeys(per_member[i], np.nan)
         each = self._everyone(local) if self.comm is None else self.comm.gather(local, root=0)
         if writer is None:
             return
@@ -497,7 +527,7 @@ class Ensemble:
         bad = ~np.isfinite(states).all(axis=1)
         if self.case.h_is_depth:
             bad |= states[:, 2] <= 0
-        members = np.flatnonzero(bad.any(axis=1))
+        members = np.array([k for k in np.flatnonzero(bad.any(axis=1)) if k not in self.dropped])
         k = int(members[0])
         node = int(np.argmax(bad[k]))
         lat, lon = np.degrees(self.grid.lat[node]), np.degrees(self.grid.lon[node])
@@ -526,7 +556,9 @@ class Ensemble:
     def _held_states(self) -> np.ndarray:
         """(held, 3, n): this rank's members' states."""
         x = self._side(lambda u: u.x.numpy())
-        return np.stack([self._member(x, k) for k in range(self.held.size)])
+        states = np.stack([self._member(x, k) for k in range(self.held.size)])
+        states[list(self._out)] = np.nan  # a dropped member has no state
+        return states
 
     def fields(self, member: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(u, v, h), each (n,), of ``member`` (0 … N − 1) on the grid's element-local nodes

@@ -174,14 +174,27 @@ def initial_states(initial, grid: CubedSphere, case, members: int, cases=None) -
     return checked_states(states, case, "initial")
 
 
-def checked_states(states: np.ndarray, case, name: str) -> np.ndarray:
-    """``states`` (N, 3, n), refused (``ArgumentError`` naming ``name``) where not finite or where
-    a member's h ≤ 0 and h is ``case``'s depth."""
+def checked_states(states: np.ndarray, case, name: str, members=None) -> np.ndarray:
+    """``states`` (M, 3, n) of ``members`` (their indices; None: 0 … M − 1), refused
+    (``ArgumentError`` naming ``name`` and the member) where not finite or where a member's h ≤ 0
+    and h is ``case``'s depth."""
+    members = np.arange(len(states)) if members is None else np.asarray(members)
     if not np.isfinite(states).all():
         raise ArgumentError(f"{name}: a member's state is not finite")
-    if case.h_is_depth:
+    if case.h_is_depth and len(states):
         low = states[:, 2].min(axis=1)
         if np.any(low <= 0):
             k = int(np.argmax(low <= 0))
-            raise ArgumentError(f"{name}: member {k}'s depth h is <= 0 (min {low[k]:.4g} m)")
+            raise ArgumentError(f"{name}: member {members[k]}'s depth h is <= 0 (min {low[k]:.4g} m)")
     return states
+
+
+def described(initial) -> str:
+    """The members' start in words, as a run file's ``initial_states`` says it."""
+    if initial is None:
+        return "the case's"
+    if isinstance(initial, Perturbation):
+        return f"perturbed: h + {initial.amplitude:g} m white noise, seed {initial.seed}"
+    if isinstance(initial, MemberFile):
+        return f"from {initial.path}" + ("" if initial.day is None else f" at day {initial.day:g}")
+    return initial.describe() if isinstance(initial, Variants) else "given"

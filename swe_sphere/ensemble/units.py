@@ -53,20 +53,37 @@ class Unit:
         return cls(model, stepper, x, wp.clone(x), GraphedSteps(backend, model.launches.guard, graphs), len(starts))
 
 
-def layout(scene, initial, asked: str | None, device) -> str:
+def checked_scene(scene) -> None:
+    """``ArgumentError`` naming ``scene`` where the ensemble cannot give each member the single
+    run's bits yet: a controlled Δt or a digital-filter start; or whose output it does not write
+    yet (``[[output.streams]]``)."""
+    why = None
+    if scene.control is not None:
+        why = "its dt is controlled (ensembles take a fixed dt)"
+    elif scene.digital_filter is not None:
+        why = "it starts from a digital filter (not yet with ensembles)"
+    elif scene.output_streams:
+        why = "it names [[output.streams]] (an ensemble writes one run file, not yet its streams)"
+    if why is not None:
+        raise ArgumentError(f"scene: {why}")
+
+
+def layout(scene, initial, asked: str | None, device, own: bool = False) -> str:
     """The layout of ``scene``'s members started from ``initial`` on ``device`` (module doc):
     "in_turn" where they need a model each, else ``asked``; None: "shared" on CUDA (its time a step
     is its launches': 32 Galewsky members 17× one member's step on an H100, 31× in turn), "in_turn"
     on a CPU (its time is the nodes', and a member's arrays stay in the cache through its block of
     steps: 8 members 7.9× one member's run on one thread, 10.1× shared). ``ArgumentError`` naming
-    ``layout`` for another value, or "shared" asked where the members need a model each."""
+    ``layout`` for another value, or "shared" asked where the members need a model each (``own``:
+    they do, whatever the stepper: a blow-up policy that drops a member)."""
     if asked not in (None, "shared", "in_turn"):
         raise ArgumentError(f"layout must be None, 'shared' or 'in_turn' (got {got(asked)})")
-    own = not STEPPERS[scene.stepper].explicit or scene.hypervis_scaling is not None
+    own = own or not STEPPERS[scene.stepper].explicit or scene.hypervis_scaling is not None
     if own or (isinstance(initial, Variants) and initial.own_model):
         if asked == "shared":
             raise ArgumentError(
-                f"layout: these members need a model each (stepper {scene.stepper}, its tensor ∇⁴ or their g or ν): 'in_turn'"
+                f"layout: these members need a model each (stepper {scene.stepper}, its tensor ∇⁴, their g or ν, "
+                "or blow_up 'drop'): 'in_turn'"
             )
         return "in_turn"
     return asked or ("shared" if str(device).startswith("cuda") else "in_turn")
@@ -129,3 +146,40 @@ def held_state(state: dict, nodes, prefix: str | None) -> dict:
     if prefix is None:
         return {**state, **arrays}
     return {**arrays, **{k[len(prefix) :]: v for k, v in state.items() if k.startswith(prefix)}}
+
+
+def step_block(active: list, block: int, anywhere, drop: bool) -> tuple[list, bool]:
+    """Step the (index, unit) ``active`` ``block`` steps, a unit's block and then the next's (its
+    arrays in the cache), the bad-state check read once at the end (``anywhere(flag)``: whether
+    it holds on any rank). Where a state went bad (a non-finite value, or h ≤ 0 where h is a
+    depth) the block is taken again step by step from its start to find the step. Returns
+    (events, stopped): each event (k, bad), the (index, unit, first bad node) ``bad`` at step k
+    (1 … block) of the block; ``stopped``: the last event stops every unit there (not ``drop``,
+    or none left going). Where ``drop``, an event's units go back to their last good state (their
+    steppers to the block's start) and are not stepped again, the others going on."""
+    saved = {i: u.stepper.state() for i, u in active}
+    for _, u in active:
+        wp.copy(u.start, u.x)
+        for _ in range(block):
+            u.graphed.step(u.stepper, u.model, u.x, True)
+    if not anywhere(any(u.model.bad_nodes.watched_bad() for _, u in active)):
+        return [], False
+    for i, u in active:
+        wp.copy(u.x, u.start)
+        u.stepper.restore(saved[i])
+    events = []
+    for k in range(1, block + 1):
+        for _, u in active:
+            if drop:
+                wp.copy(u.start, u.x)  # its last good state
+            u.stepper.step(u.x)
+        bad = [(i, u, node) for i, u in active if (node := u.model.bad_nodes.first(u.x)) is not None]
+        if anywhere(bool(bad)):
+            events.append((k, bad))
+            if not drop or not anywhere(len(bad) < len(active)):
+                return events, True
+            for i, u, _ in bad:
+                wp.copy(u.x, u.start)
+                u.stepper.restore(saved[i])
+            active = [(i, u) for i, u in active if all(i != j for j, _, _ in bad)]
+    return events, False

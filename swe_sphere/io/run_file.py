@@ -165,7 +165,12 @@ def area_rms(grid: CubedSphere, f: np.ndarray) -> float:
 
 def member_statistics(fields: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The ensemble mean and spread over the first axis of ``fields`` (members, ...): the mean
-    and the sample standard deviation (N − 1 in the denominator; 0 for one member)."""
+    and the sample standard deviation (N − 1 in the denominator; 0 for one member), over the
+    members with no NaN (a member dropped at a blow-up; NaN where none is left)."""
+    if np.isnan(fields).any():
+        fields = fields[~np.isnan(fields.reshape(len(fields), -1)).any(axis=1)]
+        if not len(fields):
+            return (np.full(fields.shape[1:], np.nan),) * 2
     n = fields.shape[0]
     return fields.mean(axis=0), fields.std(axis=0, ddof=1) if n > 1 else np.zeros(fields.shape[1:])
 

@@ -156,7 +156,7 @@ def test_the_command_line_continues_an_ensemble(capsys, tmp_path):
     assert cli_main(capsys, *run, "--restart-every", "0.25", "--output", first)[0] == 0
     restart = tmp_path / "g.restart.nc"
     for args, says in [
-        (("--dt", "450"), "--dt: an ensemble continues with its own stepper, dt and layout"),
+        (("--dt", "450"), "--dt: an ensemble continues with its own stepper, dt, layout and blow-up policy"),
         (("--members", "3"), "--members 3: "),
         (("--seed", "1"), "--seed: a continued ensemble's members start from its restart file"),
     ]:

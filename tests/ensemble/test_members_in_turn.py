@@ -9,6 +9,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+import xarray as xr
 
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.errors import BlowUp
@@ -143,3 +144,40 @@ def test_the_tensor_hyperviscosity_s_members_step_in_turn_with_their_single_runs
         sim = Simulation("galewsky", "cpu", progress=False, start=starts[k], stepper="rk4", **SMALL, **tensor)
         sim.advance(2 * SMALL["dt"] / 86400)
         assert same_bits(ens.states()[k], sim.x.numpy()), k
+
+
+def test_a_member_that_blows_up_is_dropped_and_the_others_go_on(tmp_path):
+    """``blow_up="drop"`` (in turn): member 1 blows up and is dropped at the step it did, named in
+    one line; members 0 and 2 go on to the end with their single runs' bits; the run file has
+    member 1 as NaN from then on, the mean and spread over the others; a restart file continues
+    with the member still dropped. "drop" asked in the same launches is one line."""
+    good = Ensemble("tc2_steady", 3, device="cpu", ne=2, np=4, stepper="rk4", dt=1800.0).states()
+    bad = good.copy()
+    bad[1, :2] *= 8  # a wind 8 times the steady one: unstable at this dt within a few steps
+    kw = {"device": "cpu", "ne": 2, "np": 4, "stepper": "rk4", "dt": 1800.0, "days": 4.0}
+    ens = Ensemble("tc2_steady", 3, bad, blow_up="drop", **kw)
+    out = ens.run(tmp_path / "d.nc", restart_every=2.0)
+    ((k, step),) = ens.dropped.items()
+    assert k == 1 and 1 < step < ens.step_count == ens.scene.nsteps
+    assert len(ens.drops) == 1 and ens.drops[0].startswith(f"member 1 of 3 blew up at step {step} ")
+    assert np.isnan(ens.states()[1]).all() and np.isfinite(ens.states()[[0, 2]]).all()
+    for m in (0, 2):
+        sim = Simulation(
+            "tc2_steady", "cpu", progress=False, start=bad[m], **{k: v for k, v in kw.items() if k != "device"}
+        )
+        sim.advance(4.0)
+        assert same_bits(ens.states()[m], sim.x.numpy()), m
+    with xr.open_dataset(out, decode_times=False) as ds:
+        assert (
+            ds.attrs["blow_up_policy"] == "drop the member and go on" and "member 1 of 3" in ds.attrs["dropped_members"]
+        )
+        assert np.isnan(ds.h.isel(time=-1, member=1)).all() and np.isfinite(ds.h.isel(member=0)).all()
+        np.testing.assert_array_equal(ds.h_mean.isel(time=-1), ds.h.isel(time=-1, member=[0, 2]).mean("member"))
+    again = Ensemble.from_checkpoint(tmp_path / "d.restart.nc", days=5.0)
+    assert again.dropped == {1: step} and again.blow_up == "drop"
+    again.step(4)
+    assert np.isnan(again.states()[1]).all() and np.isfinite(again.states()[[0, 2]]).all()
+    with pytest.raises(ValueError, match=r"^layout: these members need a model each .*blow_up 'drop'"):
+        Ensemble("tc2_steady", 3, good, blow_up="drop", layout="shared", **kw)
+    with pytest.raises(ValueError, match=r"^blow_up must be one of 'stop', 'drop' \(got 'skip', a str\)$"):
+        Ensemble("tc2_steady", 3, good, blow_up="skip", **kw)

@@ -197,10 +197,10 @@ def command(args) -> int:
 
 def _check_ensemble_options(args, members: int | None) -> None:
     """``SceneError`` for the ensemble's options where they do not go together (before anything
-    is built): --perturbation, --seed, --initial or --layout without an ensemble (``members``: --members,
+    is built): --perturbation, --seed, --initial, --layout or --blow-up without an ensemble (``members``: --members,
     or the member count of the restart file continued), --initial with a perturbation, those with
-    a continuation (its members start from the file), --stepper, --dt or --layout with an ensemble's
-    continuation (no branches yet)."""
+    a continuation (its members start from the file), --stepper, --dt, --layout or --blow-up with an
+    ensemble's continuation (no branches yet)."""
     starts = (("--perturbation", args.perturbation), ("--seed", args.seed), ("--initial", args.initial))
     given = [flag for flag, value in (*starts, ("--vary", args.vary)) if value is not None]
     if members is None:
@@ -218,7 +218,12 @@ def _check_ensemble_options(args, members: int | None) -> None:
             raise SceneError(f"{' and '.join(given)}: a continued ensemble's members start from its restart file")
         branch = [
             flag
-            for flag, value in (("--stepper", args.stepper), ("--dt", args.dt), ("--layout", args.layout))
+            for flag, value in (
+                ("--stepper", args.stepper),
+                ("--dt", args.dt),
+                ("--layout", args.layout),
+                ("--blow-up", args.blow_up),
+            )
             if value is not None
         ]
         if branch:

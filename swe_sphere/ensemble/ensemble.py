@@ -236,8 +236,9 @@ class Ensemble:
         non-finite value, or h ≤ 0 where h is a depth) runs on the device every step and is
         read once every ``core.backend.CHECK_EVERY_STEPS`` steps; a failed block is re-run step by step
         to name the step. On CUDA each step is a graph (``core.graphs.GraphedSteps``, as
-        ``Simulation``'s). Policy: stop all. A blow-up in any member raises ``BlowUp`` naming
-        every member bad at that step; the states are then those of that step."""
+        ``Simulation``'s). A blow-up in any member raises ``BlowUp`` naming every member bad at
+        that step, the states those of that step (``blow_up`` "stop"); or drops those members and
+        goes on (``blow_up`` "drop", ``step_block``), raising only when none is left."""
         n = integer_argument("n", n, 0)
         done, t0 = 0, time.perf_counter()
         while done < n:
@@ -535,7 +536,7 @@ class Ensemble:
         return (
             f"member{'s' if members.size > 1 else ''} {which} of {self.members} blew up at step {step} "
             f"(model time {self.scene.day(step):.4f} days; member {k} first at lat {lat:.2f}, lon {lon:.2f} degrees): "
-            "every member stopped (policy: stop all)"
+            f"every member stopped (policy: {POLICIES[self.blow_up]}{'; none left' if self.blow_up == 'drop' else ''})"
         )
 
     def _from_root(self, value):

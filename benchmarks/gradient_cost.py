@@ -49,7 +49,8 @@ import numpy as np
 import warp as wp
 wp.config.quiet = True
 from swe_sphere.adjoint import HeightMisfit, gradient
-from swe_sphere.adjoint.gradient import StepTimes, scene_model
+from swe_sphere.adjoint.gradient import scene_model
+from swe_sphere.core.clock import StepTimes
 from swe_sphere.config.scene import load_scene
 from swe_sphere.simulation.simulation import Simulation
 

@@ -15,6 +15,7 @@ from ..config.parts import partition, scene_stepper
 from ..config.scene import Scene
 from ..core.arguments import comm_argument, flag_argument, instance_argument, integer_argument, path_argument
 from ..core.backend import Backend, pick_device
+from ..core.clock import StepTimes
 from ..core.constants import DAY
 from ..core.errors import ArgumentError
 from ..model.shallow_water import ShallowWater
@@ -73,7 +74,7 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
     its ``ShallowWater`` (``model.topology`` assembles the ranks' parts), its stepper (at the
     scene's Δt, under no step control) and its case's initial state (3, N) numpy on this rank's
     nodes; ``hs`` (nnodes_total,) m: the whole grid's surface height instead of the case's (read
-    on rank 0). ``ArgumentError`` for a stepper without a gradient (``has_gradient``) or hs of
+    on rank 0). ``ArgumentError`` for a stepper without a gradient (not ``differentiable``) or hs of
     another shape or not finite (on every rank); ``SceneError`` for a ν the ∇⁴ cannot step."""
     case = scene.make_case()
     topo = partition(scene, case, comm, Backend.of(device))
@@ -81,70 +82,16 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
         case = _Topography(case, topo.distribute(hs if topo.comm.rank == 0 else None, 1, "hs")[0])
     model = ShallowWater.from_scene(scene, topo.grid, case, device=topo.backend.device, topology=topo)
     stepper = scene_stepper(scene, model)
-    if not has_gradient(stepper):
+    if not stepper.differentiable:
         raise ArgumentError(
             f"scene.stepper = {scene.stepper!r} has no gradient: gradients need an explicit stepper, one that "
-            f"solves with L (semi_implicit, an IMEX table) or one of {', '.join(TAPED)}"
+            "solves with L (semi_implicit, an IMEX table), split_explicit, mri or lts"
         )
     return model, stepper, np.stack(case.initial(topo.grid.lat, topo.grid.lon))
 
 
-class StepTimes:
-    """The steps' Δt and model times: step k (from x(k)) takes Δt_k, its stages at
-    t0_k + (k + c)·Δt_k (a stepper's ``_at`` with ``t0`` and ``steps`` = k), as the run took them.
-    Fixed (``history`` None): Δt_k = ``dt``, t0_k = ``start`` (s). Otherwise ``history`` a
-    controlled run's accepted steps from ``start`` (``StepControl.history``: (time reached (s),
-    Δt (s), error norm) each): Δt_k its k-th Δt, t0_k = t_k − k·Δt_k with t_k the time step k
-    started at (``StepControl.step`` sets the stepper's clock so). ``ArgumentError`` for rows
-    that are not numbers, a Δt that is not a positive finite number or times that do not
-    increase, naming the step."""
-
-    def __init__(self, start: float, dt: float, history=None):
-        self.start, self.dt, self.steps = float(start), float(dt), None
-        if history is None:
-            return
-        try:
-            rows = [tuple(map(float, row[:2])) for row in history]
-            assert all(len(row) == 2 for row in rows)
-        except (TypeError, ValueError, IndexError, AssertionError):
-            raise ArgumentError(
-                f"history must be rows (time reached (s), dt (s), ...), a run's control.history (got {history!r:.60})"
-            ) from None
-        t, self.steps = self.start, []
-        for k, (reached, step) in enumerate(rows):
-            if not (np.isfinite(step) and step > 0 and np.isfinite(reached) and reached > t):
-                raise ArgumentError(
-                    f"history step {k}: dt {step!r} s must be > 0 and its time {reached!r} s after {t!r}"
-                )
-            self.steps.append((t - k * step, step))
-            t = reached
-
-    def __call__(self, k: int) -> tuple[float, float]:
-        """(t0_k, Δt_k) of step k."""
-        return (self.start, self.dt) if self.steps is None else self.steps[k]
-
-    def set(self, stepper, k: int) -> None:
-        """``stepper`` (or an adjoint: ``set_dt``, ``t0``) at step k's Δt and clock."""
-        t0, dt = self(k)
-        if dt != stepper.dt:  # a three-level stepper keeps one Δt; a controlled run's change step to step
-            stepper.set_dt(dt)
-        stepper.t0 = t0
-
-
-# the steppers, besides the explicit ones and those that solve with L, whose steps the tape reads
-# (``reverse.TapeAdjoint``), by their registered names (``steppers.STEPPERS``)
-TAPED = ("split_explicit", "mri", "lts")
-
-
-def has_gradient(stepper) -> bool:
-    """Whether ``stepper``'s steps have an adjoint (``reverse.TapeAdjoint``): every explicit stepper,
-    any that solves with L (its ``linear``: semi_implicit, imex, ark324, ark436, an IMEX
-    ``tableau``) and ``TAPED``'s; not the JFNK ``implicit`` nor an exponential stepper."""
-    return stepper.explicit or getattr(stepper, "linear", None) is not None or stepper.name in TAPED
-
-
 def step_adjoint(model: ShallowWater, stepper, parameters: bool = False) -> TapeAdjoint:
-    """The adjoint of one step of ``stepper`` (one with a gradient: ``has_gradient``) on ``model``,
+    """The adjoint of one step of ``stepper`` (one with a gradient: ``differentiable``) on ``model``,
     its steps from the stepper's ``t0``. ``ArgumentError`` as ``TapeAdjoint``'s."""
     return TapeAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
 
@@ -184,7 +131,7 @@ def gradient(
 
     Parameters
     ----------
-    scene : a ``config.Scene`` whose stepper has a gradient (``has_gradient``: every explicit
+    scene : a ``config.Scene`` whose stepper has a gradient (``differentiable``: every explicit
         one, those that solve with L, split_explicit, mri, lts), any terms (a time-dependent
         forcing's stages at their times, from the scene's ``start_day``), any ∇⁴.
     steps : n ≥ 1 steps of the scene's Δt (or of ``history``).

@@ -137,7 +137,7 @@ class TapeAdjoint:
         self._carried = self.twin.carried_arrays()  # in the order the state holds them (MRAB3's rotate)
         for i, a in enumerate(self._carried):
             wp.copy(a, x[3 * i + 3 : 3 * i + 6])
-        self.twin.t0 = self.t0  # the run's clock (``gradient.StepTimes`` sets this object's)
+        self.twin.t0 = self.t0  # the run's clock (``core.clock.StepTimes`` sets this object's)
         self.twin.set_phase(k)
         with self.tape.record():
             self.twin.step(self.work)

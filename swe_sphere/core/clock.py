@@ -1,4 +1,5 @@
-"""The run's clock: Δt, the day of step 0 and the last day, and the one whole-step rule.
+"""The run's clock: Δt, the day of step 0 and the last day, and the one whole-step rule; and
+the clock of a run replayed step by step (``StepTimes``: a gradient's, a controlled run's).
 
 A ``Clock`` is decided once, where the scene is resolved (``config.resolve.resolve_dt``), and
 asked by everything that counts steps: the scene's schedule checks, the output and restart
@@ -21,7 +22,7 @@ from dataclasses import dataclass
 from fractions import Fraction
 
 from .constants import DAY
-from .errors import SceneError
+from .errors import ArgumentError, SceneError
 
 MAX_STEPS = 10**9  # a run longer than this is a typo in dt, not a plan
 MAX_TIMES = 10**5  # outputs or restart files in one run: more is a typo in the interval (1e-9 days)
@@ -179,3 +180,45 @@ class Clock:
         span = common_interval(*intervals) * DAY
         dt = span / max(1, math.ceil(span / self.dt - 1e-9))
         return dataclasses.replace(self, dt=dt, source=self.source if source is None else source)
+
+
+class StepTimes:
+    """The steps' Δt and model times: step k (from x(k)) takes Δt_k, its stages at
+    t0_k + (k + c)·Δt_k (a stepper's ``_at`` with ``t0`` and ``steps`` = k), as the run took them.
+    Fixed (``history`` None): Δt_k = ``dt``, t0_k = ``start`` (s). Otherwise ``history`` a
+    controlled run's accepted steps from ``start`` (``StepControl.history``: (time reached (s),
+    Δt (s), error norm) each): Δt_k its k-th Δt, t0_k = t_k − k·Δt_k with t_k the time step k
+    started at (``StepControl.step`` sets the stepper's clock so). ``ArgumentError`` for rows
+    that are not numbers, a Δt that is not a positive finite number or times that do not
+    increase, naming the step."""
+
+    def __init__(self, start: float, dt: float, history=None):
+        self.start, self.dt, self.steps = float(start), float(dt), None
+        if history is None:
+            return
+        try:
+            rows = [tuple(map(float, row[:2])) for row in history]
+            assert all(len(row) == 2 for row in rows)
+        except (TypeError, ValueError, IndexError, AssertionError):
+            raise ArgumentError(
+                f"history must be rows (time reached (s), dt (s), ...), a run's control.history (got {history!r:.60})"
+            ) from None
+        t, self.steps = self.start, []
+        for k, (reached, step) in enumerate(rows):
+            if not (math.isfinite(step) and step > 0 and math.isfinite(reached) and reached > t):
+                raise ArgumentError(
+                    f"history step {k}: dt {step!r} s must be > 0 and its time {reached!r} s after {t!r}"
+                )
+            self.steps.append((t - k * step, step))
+            t = reached
+
+    def __call__(self, k: int) -> tuple[float, float]:
+        """(t0_k, Δt_k) of step k."""
+        return (self.start, self.dt) if self.steps is None else self.steps[k]
+
+    def set(self, stepper, k: int) -> None:
+        """``stepper`` (or an adjoint: ``set_dt``, ``t0``) at step k's Δt and clock."""
+        t0, dt = self(k)
+        if dt != stepper.dt:  # a three-level stepper keeps one Δt; a controlled run's change step to step
+            stepper.set_dt(dt)
+        stepper.t0 = t0

@@ -69,6 +69,10 @@ class Stepper:
     name = ""
     Options: type = NoOptions
     explicit = False
+    # True: its step calls only the verbs the adjoint's tape reads (``steppers.protocol``), so
+    # ``adjoint.gradient`` differentiates it: the explicit steppers, those that solve with L and
+    # the multirate and local ones; not the JFNK ``implicit`` nor the exponential ones
+    differentiable = False
     # explicit steppers: the largest stable (|v| + sqrt(g h)) Δt / Δx at t = 0, Δx the
     # nearest-node distance: the smallest of bisections on TC2 (5 days) at ne 4 np 4,
     # ne 8 np 4 and ne 3 np 6 (leapfrog 0.618 / 0.580 / 0.646, leapfrog_trapezoidal

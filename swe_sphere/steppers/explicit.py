@@ -47,7 +47,7 @@ class FBRK32(Stepper):
     row-wise fast/slow split, the one split-explicit and multirate methods need."""
 
     name = "fbrk32"
-    explicit = capturable = variable_dt = True
+    explicit = capturable = variable_dt = differentiable = True
     courant_limit = 1.58  # bisection on TC2 (5 days) at ne 8 np 4 only: 1.43 × ssprk3's there
     BETA = (0.531, 0.531, 0.313)
     C = (1.0 / 3.0, 0.5, 1.0)
@@ -116,7 +116,7 @@ class _LeapfrogFamily(Stepper):
     the first step (``steps == 0``) is the explicit midpoint rule (second order,
     2 RHS evaluations)."""
 
-    explicit = capturable = True
+    explicit = capturable = differentiable = True
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)

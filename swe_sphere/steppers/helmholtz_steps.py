@@ -23,7 +23,7 @@ class HelmholtzSteps:
     be graph nodes (``HelmholtzSolver.graphable``: one rank; on CUDA conditional nodes).
     Raises ValueError for a model without the continuity and pressure-gradient terms."""
 
-    capturable = True
+    capturable = differentiable = True
     solvers = ("helmholtz",)
 
     def __init__(self, model, dt, options=None):

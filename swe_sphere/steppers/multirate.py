@@ -103,7 +103,7 @@ class GravitySplit:
 class _Multirate(Stepper):
     """What both steppers share: the split, H in ``state()``, the step in h′, cached combinations."""
 
-    capturable = True
+    capturable = differentiable = True
     removed_options: dict = {}
     fewest_auto_substeps = 1  # "auto"'s least n
     # the fast evaluations (L z a substep; ~0.9 of an RHS's bytes) reported beside the slow

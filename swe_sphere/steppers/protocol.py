@@ -12,9 +12,9 @@ adjoint takes a twin of the stepper (its class, ``dt`` and ``options``, then its
 ``restore``) on a tape of the verbs the step calls — the model's (``model.protocol``), L's update
 (``GravityWaveOperator``), its Helmholtz solve and the operators' gradient and divergence updates —
 and reverses the tape (``adjoint.tape``, ``adjoint.reverse``). So every stepper written with those
-verbs differentiates as it is, with no adjoint code: it is ``explicit``, offers ``linear`` (the
-``model.gravity_wave.GravityWaveOperator``, its H fixed by the first step), or is registered by
-name in ``adjoint.gradient.TAPED`` (split_explicit, mri, lts). The JFNK ``implicit`` and the
+verbs differentiates as it is, with no adjoint code: it says so (``differentiable``; the
+explicit ones, those that offer ``linear``, the ``model.gravity_wave.GravityWaveOperator`` with
+its H fixed by the first step, split_explicit, mri and lts). The JFNK ``implicit`` and the
 exponential steppers step through kernels and Krylov solves of their own, which the tape cannot
 read: they have no gradient.
 
@@ -32,7 +32,7 @@ class DifferentiableStepper(Protocol):
     name: str  # the registry key (``steppers.STEPPERS``)
     dt: float  # Δt (s)
     t0: float  # the model time (s) of the state its step count runs from
-    explicit: bool  # True: a table of the engine whose adjoint is its table's (with ``table``)
+    differentiable: bool  # True: its step is the verbs the tape reads (``base.Stepper``)
     options: object  # the stepper's frozen ``Options``
 
     def state(self) -> dict: ...  # what its first step and ``prepare`` fixed, as a restart keeps it

@@ -59,7 +59,7 @@ class ExplicitRK(Stepper):
     combination fewer than its accumulator form).
     """
 
-    explicit = capturable = variable_dt = True
+    explicit = capturable = variable_dt = differentiable = True
     TABLE: Table  # a built-in's (``explicit_steppers``)
 
     def table(self) -> Table:

@@ -10,9 +10,10 @@ import numpy as np
 import warp as wp
 
 from swe_sphere.adjoint import HeightMisfit, gradient
-from swe_sphere.adjoint.gradient import StepTimes, scene_model
+from swe_sphere.adjoint.gradient import scene_model
 from swe_sphere.adjoint.observations import checked, run_cost
 from swe_sphere.config.scene import load_scene
+from swe_sphere.core.clock import StepTimes
 from swe_sphere.core.constants import DAY
 from swe_sphere.simulation.simulation import Simulation
 

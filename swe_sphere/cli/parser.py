@@ -263,12 +263,30 @@ def _sweep(sub, parents) -> None:
         "--members",
         type=int,
         metavar="N",
-        help="with --perturbation: every run made from N starts, the case's state with h + METRES of seeded white "
-        "noise (an ensemble's members), each member's sweep under member<k>/ and each run's errors' mean and spread "
-        "over them in members.csv",
+        help="with one start (--perturbation, --initial or --vary): every run made from each of N starts, an "
+        "ensemble's members', each member's sweep under member<k>/ and each run's errors' mean and spread over "
+        "them in members.csv",
     )
-    sw.add_argument("--perturbation", type=float, metavar="METRES", help="with --members: the noise's amplitude (m)")
-    sw.add_argument("--seed", type=int, help="with --members: the noise's seed (default 0)")
+    sw.add_argument(
+        "--perturbation",
+        type=float,
+        metavar="METRES",
+        help="with --members: member k starts from the case's state with h + METRES of seeded white noise",
+    )
+    sw.add_argument("--seed", type=int, help="with --members and --perturbation: the noise's seed (default 0)")
+    sw.add_argument(
+        "--vary",
+        action="append",
+        metavar="KEY=V1,V2,...",
+        help="with --members: member k's sweep is of its scenes with its own value of a case parameter "
+        "(case.NAME), planet.omega, planet.gravity or hyperviscosity.nu (.nu_div, .nu_s); repeatable",
+    )
+    sw.add_argument(
+        "--initial",
+        type=path,
+        metavar="ENSEMBLE.nc",
+        help="with --members: member k starts from member k of an ensemble's run file at its last time",
+    )
     group = sw.add_mutually_exclusive_group()
     group.add_argument("--dt", help="comma-separated time steps in seconds")
     group.add_argument(

@@ -11,7 +11,7 @@ from pathlib import Path
 from ..core.errors import BlowUp, CheckpointError, OutputError, SceneError
 from .exits import EXIT_BLOWUP, hold_signals
 from .report import header, summary
-from .values import netcdf_output, overrides
+from .values import netcdf_output, overrides, varied
 
 
 def _continued(args, device, comm):
@@ -232,20 +232,6 @@ def _check_ensemble_options(args, members: int | None) -> None:
             )
 
 
-def _varied(items) -> dict:
-    """--vary's KEY=V1,V2,... items as {key: [floats]}; ``SceneError`` naming an item that is not one."""
-    out = {}
-    for item in items:
-        key, _, values = item.partition("=")
-        try:
-            out[key.strip()] = [float(v) for v in values.split(",")]
-        except ValueError:
-            raise SceneError(f"--vary {item!r}: give KEY=V1,V2,... (numbers, one a member)") from None
-        if not key.strip() or not values:
-            raise SceneError(f"--vary {item!r}: give KEY=V1,V2,... (numbers, one a member)")
-    return out
-
-
 def _ensemble(args, scene, output: Path, device, comm) -> int:
     """``run --members N``: the scene's ensemble (``swe_sphere.ensemble.Ensemble``), or the
     ensemble of the restart file continued, to its last day, its run file ``output`` (and its
@@ -262,7 +248,7 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
     else:
         initial = None if args.initial is None else MemberFile(args.initial)
         if args.vary is not None:
-            initial = Variants(_varied(args.vary))
+            initial = Variants(varied(args.vary))
         if args.perturbation or args.seed is not None:
             initial = Perturbation(0.0 if args.perturbation is None else args.perturbation, args.seed or 0)
         # members None: the scene's [ensemble] members (and, without a start given, its perturbation)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .values import numbers, overrides, runs, steppers
+from .values import numbers, overrides, runs, steppers, varied
 
 
 def command(args) -> int:
@@ -26,14 +26,7 @@ def command(args) -> int:
         filter_every=args.filter_every,
         filter_window=args.filter_window,
     )
-    members = None
-    if args.members is not None or args.perturbation is not None:
-        given = [f for f, v in (("--members", args.members), ("--perturbation", args.perturbation)) if v is None]
-        if given:
-            raise ValueError(f"--members N and --perturbation M go together ({' and '.join(given)} missing)")
-        members = sweep.Members(args.members, args.perturbation, 0 if args.seed is None else args.seed)
-    elif args.seed is not None:
-        raise ValueError("--seed only with --members N --perturbation M")
+    members = _members(args)
     device = pick_device(args.device)
     with executor(args.workers) as pool:
         if pool is None:  # an MPI worker rank: its share is done
@@ -41,3 +34,32 @@ def command(args) -> int:
         output = args.output or plan.default_output
         plan.run(output, device, pool=pool, cost=args.cost, overwrite=args.overwrite, members=members)
     return 0
+
+
+def _members(args):
+    """``--members N`` with its one start (``--perturbation M [--seed S]``, ``--initial FILE`` or
+    ``--vary KEY=V1,...``) as a ``studies.sweep.Members``, or None without them; ValueError for
+    one without the other, or two starts."""
+    from ..ensemble import MemberFile, Perturbation, Variants
+    from ..studies.sweep import Members
+
+    starts = {"--perturbation": args.perturbation, "--initial": args.initial, "--vary": args.vary}
+    given = [flag for flag, value in starts.items() if value is not None]
+    if args.members is None and not given:
+        if args.seed is not None:
+            raise ValueError("--seed only with --members N --perturbation M")
+        return None
+    if args.members is None or not given:
+        missing = "--members" if args.members is None else "--perturbation, --initial or --vary"
+        raise ValueError(
+            f"--members N and its start (--perturbation M, --initial FILE or --vary KEY=...) go together ({missing} missing)"
+        )
+    if len(given) > 1:
+        raise ValueError(
+            f"{' and '.join(given)}: the members start from one of a perturbation, --initial's file or --vary"
+        )
+    if args.seed is not None and given != ["--perturbation"]:
+        raise ValueError("--seed only with --members N --perturbation M")
+    if args.perturbation is not None:
+        return Members(args.members, Perturbation(args.perturbation, 0 if args.seed is None else args.seed))
+    return Members(args.members, MemberFile(args.initial) if args.initial is not None else Variants(varied(args.vary)))

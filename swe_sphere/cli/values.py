@@ -1,5 +1,5 @@
 """The values of flags that argparse cannot check alone: ``-s`` overrides, stepper
-lists, comma-separated numbers and ``--runs`` pairs."""
+lists, comma-separated numbers, ``--runs`` pairs and ``--vary`` values."""
 
 from __future__ import annotations
 
@@ -96,3 +96,18 @@ def netcdf_output(path: Path | None) -> Path | None:
 def exodus_output(path: Path | None) -> Path | None:
     """``--output`` of ``mesh``: an Exodus II mesh, named .g (HOMME's) or .exo, not a run file's .nc."""
     return named_output(path, "an Exodus II mesh", (".g", ".exo"))
+
+
+def varied(items) -> dict:
+    """``--vary`` KEY=V1,V2,... items → {key: [floats]} (one value a member); ValueError naming
+    an item that is not one."""
+    out = {}
+    for item in items:
+        key, _, values = item.partition("=")
+        try:
+            out[key.strip()] = [float(v) for v in values.split(",")]
+        except ValueError:
+            raise ValueError(f"--vary {item!r}: give KEY=V1,V2,... (numbers, one a member)") from None
+        if not key.strip() or not values:
+            raise ValueError(f"--vary {item!r}: give KEY=V1,V2,... (numbers, one a member)")
+    return out

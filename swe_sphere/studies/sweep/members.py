@@ -1,22 +1,26 @@
-"""A sweep over the members of an ensemble (`swe-sphere sweep --members N --perturbation M`):
-every (stepper, Δt) run made from each of N starts, the case's state with h + M metres of
-seeded white noise (``ensemble.Perturbation``, member k the start an ensemble's member k has),
-so that each run's error comes with its spread over the starts (issue 85: a time integrator's
-error as a spread over members). Member k's sweep is a sweep of its own under
-``member<k>/`` (its runs, reference run and files, its runs' keys naming its start); the Δt
-values are the unperturbed scene's, the same for every member. ``members.csv`` then holds, for
-each run, the members' mean and sample standard deviation of its errors and cost."""
+"""A sweep over the members of an ensemble (`swe-sphere sweep --members N` with `--perturbation
+M`, `--initial FILE` or `--vary KEY=V1,...`): every (stepper, Δt) run made from each of N starts,
+member k's the start an ensemble's member k has (``ensemble.initial``: the case's state with h +
+M metres of seeded white noise, member k of an ensemble's run file, or member k's own case
+parameters, Ω, g or ν, its scenes then its own), so that each run's error comes with its spread
+over the members (issue 85: a time integrator's error as a spread over members). Member k's
+sweep is a sweep of its own under ``member<k>/`` (its runs, reference run and files, its runs'
+keys naming its start); the Δt values are the sweep's scenes', the same for every member.
+``members.csv`` then holds, for each run, the members' mean and sample standard deviation of
+its errors and cost."""
 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import math
 from pathlib import Path
 
 import numpy as np
 
-from ...core.arguments import integer_argument, number_argument
-from ...ensemble.initial import Perturbation
+from ...core.arguments import got, integer_argument, number_argument
+from ...core.errors import ArgumentError
+from ...ensemble.initial import MemberFile, Perturbation, Variants, described, initial_states
 from ...grid.cubed_sphere import CubedSphere
 from ...io.output_files import atomic_path
 from .report import format_summary, write_outputs
@@ -28,40 +32,67 @@ SPREAD = ("total_error", "temporal_error", "total_energy_change", "cost_time", "
 
 @dataclasses.dataclass(frozen=True)
 class Members:
-    """``count`` N ≥ 2 starts: the case's state with h + ``perturbation`` (m, > 0) white noise
-    seeded by ``seed`` (``ensemble.Perturbation``). ``ValueError`` naming the option for
-    another count, amplitude or seed."""
+    """``count`` N ≥ 2 members, started from ``initial`` as an ensemble's are: a ``Perturbation``
+    (h + its amplitude, > 0 m, of seeded white noise), a ``MemberFile`` (an ensemble's run file of
+    N members) or ``Variants`` (each member's own case parameters, Ω, g or ν: member k's sweep is
+    of its own scenes, its reference run too). ``ArgumentError`` naming the option for another
+    count, a perturbation of 0 m or another kind of start."""
 
     count: int
-    perturbation: float
-    seed: int = 0
+    initial: object
 
     def __post_init__(self):
         integer_argument("--members", self.count, 2)
-        number_argument("--perturbation", self.perturbation, "m", positive=True)
-        integer_argument("--seed", self.seed, 0)
+        if isinstance(self.initial, Perturbation):
+            number_argument("--perturbation", self.initial.amplitude, "m", positive=True)
+        elif not isinstance(self.initial, MemberFile | Variants):
+            raise ArgumentError(
+                f"members' initial must be a Perturbation, a MemberFile or Variants (got {got(self.initial)})"
+            )
 
-    def starts(self, scene) -> np.ndarray:
-        """(N, 3, n) the members' starts on ``scene``'s grid."""
-        grid = CubedSphere(scene.ne, scene.np, scene.make_case().planet.a, mesh=scene.make_mesh())
-        state = np.stack(scene.make_case().initial(grid.lat, grid.lon))
-        return Perturbation(self.perturbation, self.seed).apply(grid, state, self.count)
+    def scenes(self, scenes: dict) -> list[dict]:
+        """Each member's scenes (stepper name → ``Scene``) of the sweep's ``scenes``: theirs, or
+        with ``Variants`` each at member k's values (``ArgumentError`` as ``Variants.scenes``)."""
+        if not isinstance(self.initial, Variants):
+            return [scenes] * self.count
+        each = {name: self.initial.scenes(scene, self.count) for name, scene in scenes.items()}
+        return [{name: each[name][k] for name in scenes} for k in range(self.count)]
 
-    def key(self, k: int) -> dict:
-        """What names member k's start in its runs' keys."""
-        return {"member": k, "members": self.count, "perturbation": self.perturbation, "seed": self.seed}
+    def starts(self, scenes: dict) -> np.ndarray:
+        """(N, 3, n) the members' starts on the grid of ``scenes`` (stepper name → ``Scene``),
+        checked (``ensemble.initial.initial_states``: ``ArgumentError`` naming ``initial``)."""
+        scene = next(iter(scenes.values()))
+        case = scene.make_case()
+        grid = CubedSphere(scene.ne, scene.np, case.planet.a, mesh=scene.make_mesh())
+        cases = [next(iter(s.values())).make_case() for s in self.scenes(scenes)]
+        return initial_states(self.initial, grid, case, self.count, cases)
+
+    def key(self, k: int, start: np.ndarray) -> dict:
+        """What names member k's start ``start`` in its runs' keys: a perturbation's amplitude
+        and seed, else the start's own SHA-256 (a file's member, or a variant's state; the
+        variant's values are in its scene's key)."""
+        if isinstance(self.initial, Perturbation):
+            p = self.initial
+            return {"member": k, "members": self.count, "perturbation": p.amplitude, "seed": p.seed}
+        digest = hashlib.sha256(np.ascontiguousarray(start, dtype=np.float64).tobytes()).hexdigest()
+        return {"member": k, "members": self.count, "sha256": digest}
+
+    def describe(self) -> str:
+        """The members' starts in words, as the sweep's log says them."""
+        return described(self.initial)
 
 
-def run_members(resolved, members: Members, pool, cost: str, overwrite: bool, log) -> tuple[list, list, list]:
+def run_members(resolved, members: Members, starts, pool, cost: str, overwrite: bool, log) -> tuple[list, list, list]:
     """(rows by member, info by member, paths) of ``resolved`` (a ``ResolvedPlan`` of a start of
-    the scene's own) made from each of ``members``' starts under ``member<k>/``, then
-    ``members.csv`` (``spread_rows``) in the sweep's folder."""
-    starts = members.starts(resolved.plan.base)
+    the scene's own) made from each of ``members``' ``starts`` (``Members.starts``) under
+    ``member<k>/``, then ``members.csv`` (``spread_rows``) in the sweep's folder."""
+    scenes = members.scenes(resolved.plan.scenes)
     rows, infos, paths = [], [], []
     for k, start in enumerate(starts):
         folder = resolved.directory / f"member{k}"
-        log(f"member      {k} of {members.count}: h + {members.perturbation:g} m of noise (seed {members.seed})")
-        one = dataclasses.replace(resolved, directory=folder, start=start, start_id=members.key(k))
+        log(f"member      {k} of {members.count} ({members.describe()})")
+        plan = dataclasses.replace(resolved.plan, scenes=scenes[k])
+        one = dataclasses.replace(resolved, plan=plan, directory=folder, start=start, start_id=members.key(k, start))
         made, info = one.sweep(log).run(pool)
         made = table(made, resolved.limits, cost)
         paths += write_outputs(made, info, resolved.limits, folder, overwrite=overwrite)
@@ -99,7 +130,7 @@ def spread_rows(rows: list) -> list[dict]:
 def format_spread(spread: list[dict], members: Members) -> str:
     """The members' table as the sweep prints it."""
     head = f"{'stepper':22s} {'dt [s]':>9s} {'stable':>7s} {'total err (mean ± sd)':>24s} {'time err (mean ± sd)':>24s}"
-    lines = [f"over {members.count} members (h + {members.perturbation:g} m, seed {members.seed}):", head]
+    lines = [f"over {members.count} members ({members.describe()}):", head]
     for r in spread:
         total = f"{r['total_error_mean']:.4g} ± {r['total_error_spread']:.2g}"
         temporal = f"{r['temporal_error_mean']:.4g} ± {r['temporal_error_spread']:.2g}"

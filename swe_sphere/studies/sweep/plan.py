@@ -209,9 +209,10 @@ class Plan:
         log : callable
             Called with each line to show.
         members : members.Members, optional
-            N perturbed starts: the sweep made from each under ``member<k>/``, and
-            ``members.csv`` the runs' errors' mean and spread over them
-            (``members.run_members``, whose (rows, infos, paths) by member it returns).
+            N members' starts (perturbed, from an ensemble's file, or varied scenes): the
+            sweep made from each under ``member<k>/``, and ``members.csv`` the runs' errors'
+            mean and spread over them (``members.run_members``, whose (rows, infos, paths)
+            by member it returns).
 
         Returns
         -------
@@ -229,7 +230,8 @@ class Plan:
         SceneError
             A Δt of which the run length is not whole steps (``Clock.steps``).
         ValueError
-            An unknown ``cost``; ``members`` with a restart file's or a digital filter's start.
+            An unknown ``cost``; ``members`` with a restart file's or a digital filter's start,
+            or whose starts are refused (``Members.starts``: an ``ArgumentError``).
         BlowUp
             The small-Δt reference run failed.
         Interrupted
@@ -237,6 +239,7 @@ class Plan:
         """
         if members is not None and (self.checkpoint is not None or self.base.digital_filter is not None):
             raise ValueError("--members: the members start from the case's state (not with --from or a dfi start)")
+        starts = None if members is None else members.starts(self.scenes)  # refused before a folder is made
         with folder_lock(directory, "sweep.lock"):  # a second sweep into this folder is refused now, not at its end
             check_results(directory, OUTPUTS, overwrite)  # an earlier sweep's results: refused now, not at the end
             for k in range(0 if members is None else members.count):
@@ -246,7 +249,7 @@ class Plan:
             for line in resolved.notes:
                 log(line)
             if members is not None:  # a sweep a member, then their spread
-                return run_members(resolved, members, pool, cost, overwrite, log)
+                return run_members(resolved, members, starts, pool, cost, overwrite, log)
             rows, info = resolved.sweep(log).run(pool)
             rows = table(rows, resolved.limits, cost)
             log(format_summary(rows, info))

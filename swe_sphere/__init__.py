@@ -46,9 +46,9 @@ _LAZY = {
     "kinetic_energy_spectrum": "studies.analysis",  # E_rot, E_div by spherical-harmonic degree
     "zonal_mean": "studies.analysis",
     "gradient": "adjoint.gradient",  # dJ/dx(0), dJ/dν, dJ/dhs of an explicit run (reverse sweep)
-    "HeightMisfit": "adjoint.observations",
-    "PointHeights": "adjoint.observations",  # h at points, the observation operator H and Hᵀ
-    "HeightObservations": "adjoint.observations",  # a cost of the run: observed h at several steps
+    "HeightMisfit": "adjoint.costs",
+    "PointHeights": "io.observations",  # h at points, the observation operator H and Hᵀ
+    "HeightObservations": "io.observations",  # a cost of the run: observed h at several steps
     "Ensemble": "ensemble.ensemble",  # N members of one scene in the same launches
     "Perturbation": "ensemble.initial",  # an ensemble's seeded noise in h
     "MemberFile": "ensemble.initial",  # an ensemble's initial states from an ensemble's run file

@@ -1,5 +1,5 @@
 """The gradient of a scalar of a run's final state, or of a cost summed over observed steps of
-the run (``observations``), with respect to its initial state (``gradient``), by a
+the run (``costs``), with respect to its initial state (``gradient``), by a
 checkpointed reverse sweep (``revolve.sweep``, or ``revolve.two_level`` with states on a disk:
 ``disk.DiskTier``) of its steps' adjoints: each step taken again on a tape and the tape reversed
 (``reverse.TapeAdjoint``), at the run's Δt or along a controlled run's steps (``StepTimes``)."""
@@ -19,8 +19,8 @@ from ..core.clock import StepTimes
 from ..core.constants import DAY
 from ..core.errors import ArgumentError
 from ..model.shallow_water import ShallowWater
+from .costs import checked, run_cost
 from .disk import DiskTier
-from .observations import checked, run_cost
 from .reverse import TapeAdjoint
 from .revolve import sweep, two_level
 

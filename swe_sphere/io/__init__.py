@@ -2,9 +2,10 @@
 
 ``run_file`` (the run's CF/UGRID netCDF), ``ugrid`` and ``dual`` (its node mesh and GLL control
 volumes), ``remap`` (to a lat-lon grid), ``restart_file`` (the restart file's layout),
-``initial_state`` (a start of one's own: a file or a function).
+``initial_state`` (a start of one's own: a file or a function), ``observations`` (h observed at
+points, what an assimilation reads of a run).
 
 May import: ``core``, ``grid``, ``model``, ``cases``, ``solvers``, ``steppers``, ``kernels``.
 """
 
-__all__ = ["dual", "initial_state", "remap", "restart_file", "run_file", "ugrid"]
+__all__ = ["dual", "initial_state", "observations", "remap", "restart_file", "run_file", "ugrid"]

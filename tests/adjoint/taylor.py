@@ -11,7 +11,7 @@ import warp as wp
 
 from swe_sphere.adjoint import HeightMisfit, gradient
 from swe_sphere.adjoint.gradient import scene_model
-from swe_sphere.adjoint.observations import checked, run_cost
+from swe_sphere.adjoint.costs import checked, run_cost
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.clock import StepTimes
 from swe_sphere.core.constants import DAY

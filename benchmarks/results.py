@@ -85,4 +85,6 @@ def recorded(script: str, stem: str | None = None) -> Iterator[dict]:
     RESULTS.mkdir(exist_ok=True)
     path = RESULTS / f"{stem or Path(script).stem}.json"
     path.write_text(json.dumps(record, indent=1, ensure_ascii=False) + "\n")
-    print(f"figures written to {path.relative_to(HERE.parent)}", file=sys.stderr)
+    # a stem given as a path (``--results /tmp/x``) is written there: said as it was written, not refused after the run
+    shown = path.relative_to(HERE.parent) if path.is_relative_to(HERE.parent) else path
+    print(f"figures written to {shown}", file=sys.stderr)

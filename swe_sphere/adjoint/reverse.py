@@ -41,7 +41,7 @@ import warp as wp
 from ..core.errors import ArgumentError
 from ..model.launches import Update
 from ..model.shallow_water import ShallowWater
-from ..model.transposes import Combinations
+from ..model.transposes import Combinations, PlanetSums
 from ..solvers.helmholtz import HelmholtzSolver
 from .tape import (
     Combine,
@@ -104,8 +104,8 @@ class TapeAdjoint:
         # the terms F holds, the x̄ its transposes write, f̄ = Σ λ's wind rows (the forcing −g∇hs's adjoint)
         self.terms, self.xbar, self.fbar = self.tendency.terms, self.tendency.xbar, self.tendency.fbar
         self.d_nu = np.zeros(2)  # ∂J/∂ν (wind rows), ∂J/∂ν_s (h row), m⁻⁴ s · J
-        self.d_planet = np.zeros(2)  # g ∂J/∂g, Ω ∂J/∂Ω (J): the evaluations' ⟨k̄, F's g and Ω terms⟩
-        self.g_terms = tuple(t for t in ("pressure_gradient", "topography") if t in model.terms)
+        self.planet = PlanetSums(model)
+        self.d_planet, self.g_terms = self.planet.sums, self.planet.g_terms  # g ∂J/∂g, Ω ∂J/∂Ω (J), summed in place
         self.d_hs = self._zeros(1)  # the ∇⁴'s share of ∂J/∂hs, continuous (mass form)
         self.tape = Tape(model, self.parameters)
         self.stepper, self._synced = stepper, False
@@ -396,7 +396,7 @@ class TapeAdjoint:
 
     def _planet(self, op, kbar):
         """With ``parameters``, g's and Ω's sums of an F, L or G whose adjoint is Σ c·a over ``kbar``
-        (``planet_terms``: L's g term its wind rows' −g G h, G's a g-proportional coefficient)."""
+        (``PlanetSums.add``: L's g term its wind rows' −g G h, G's a g-proportional coefficient)."""
         if isinstance(op, Evaluate):
             state, part, g_terms, rotation = (
                 op.state,
@@ -410,7 +410,7 @@ class TapeAdjoint:
                 if op.row != 2:
                     raise ArgumentError("the tape's gravity sums read G of a depth row")
                 kbar = [(-c / self.model.g, a) for c, a in kbar]
-        return lambda: self.planet_terms(state, kbar, g_terms, rotation, part)
+        return lambda: self.planet.add(state, kbar, g_terms, rotation, part)
 
     def _gravity_of(self, operator, solves: bool = False):
         """L's transposes (``GravityWaveOperator.transpose``); for a solve's (``solves``) with a
@@ -449,38 +449,6 @@ class TapeAdjoint:
 
     def _zeros(self, rows: int):
         return wp.zeros((rows, self.model.topology.N), dtype=f64, device=self.model.topology.device)
-
-    def planet_terms(self, Y, kbar, g_terms=None, coriolis: bool = True, part=None) -> None:
-        """Add an F evaluation's ⟨k̄, g F_g(Y)⟩ and ⟨k̄, f (v, −u)⟩ to ``d_planet`` (module doc), Y the
-        state its F read, k̄ = Σ c·a over (c, a) ``kbar`` as its transpose reads them (the same
-        bits on any ranks); F_g the RHS of ``g_terms`` (None: the model's pressure gradient and
-        topography), the Coriolis term's share only where its F holds it (``coriolis``); with
-        ``part`` (an ``ElementPart``: F the part's f_P) both by ``rhs_part``."""
-        m = self.model
-        g_terms = self.g_terms if g_terms is None else tuple(t for t in g_terms if t in m.terms)
-        kb, w, y = sum(c * a.numpy() for c, a in kbar), m.topology.grid.spheremp, Y.numpy()
-        if not hasattr(self, "f_g"):
-            self.f_g = self._zeros(3)
-
-        def winds(terms):  # ⟨k̄, F⟩ node by node over the wind rows, F the RHS of ``terms`` at Y
-            if part is None:
-                m.rhs(Y, self.f_g, terms)
-            else:  # f_P writes the nodes its elements touch alone
-                self.f_g.zero_()
-                m.rhs_part(Y, self.f_g, part, terms)
-            F = self.f_g.numpy()
-            return kb[0] * F[0] + kb[1] * F[1]
-
-        pressure = winds(g_terms) if g_terms else np.zeros_like(w)
-        if not hasattr(self, "fcor"):
-            self.fcor = m.operators.fcor.numpy() if "coriolis" in m.terms else np.zeros_like(w)
-        if not coriolis or "coriolis" not in m.terms:
-            rotation = np.zeros_like(w)
-        elif part is None:
-            rotation = self.fcor * (kb[0] * y[1] - kb[1] * y[0])
-        else:
-            rotation = winds(("coriolis",))
-        self.d_planet += m.topology.whole_sums([w * pressure, w * rotation])
 
     def hs_gradient(self) -> np.ndarray:
         """∂J/∂hs (N,) on this rank's nodes, continuous (mass form, as μ), summed over the steps reversed so far:

@@ -8,7 +8,7 @@ that the caller writes where it needs it is then the adjoint of Y. The kernels a
 ``kernels.tendency_adjoint``'s (written by hand: one element kernel a stage on the CPU, two
 per-node gathers on CUDA). ``HyperviscosityTranspose`` (``Hyperviscosity.transpose``) and
 ``GravityTranspose`` (``GravityWaveOperator.transpose``: Lᵀ and the transposed implicit solve)
-read it.
+read it. ``PlanetSums``: the evaluations' sums that give ∂J/∂g and ∂J/∂Ω.
 """
 
 from __future__ import annotations
@@ -98,6 +98,50 @@ class TendencyTranspose:
         for launch in topo.dss(xbar, False, d):
             launch.launch()
         return d.numpy()[2]
+
+
+class PlanetSums:
+    """g ∂J/∂g and Ω ∂J/∂Ω of a gradient, summed over the F evaluations a reverse meets
+    (``adjoint.reverse``'s module doc): F is linear in g (−g∇(h + hs)) and in Ω (f (v, −u), f ∝
+    Ω), so with k̄ the adjoint of an F(Y), g ∂J/∂g = Σ ⟨k̄, F_g(Y)⟩ and Ω ∂J/∂Ω = Σ ⟨k̄, f (v,
+    −u)⟩, F_g the RHS of ``model``'s pressure gradient and topography alone (``g_terms``).
+    ``sums`` (2,) J, added to in place by ``add``; a (3, N) work array made at the first."""
+
+    def __init__(self, model):
+        self.model, self.sums = model, np.zeros(2)
+        self.g_terms = tuple(t for t in ("pressure_gradient", "topography") if t in model.terms)
+        self._f = self._fcor = None
+
+    def add(self, Y, kbar, g_terms=None, coriolis: bool = True, part=None) -> None:
+        """Add an F evaluation's ⟨k̄, g F_g(Y)⟩ and ⟨k̄, f (v, −u)⟩ to ``sums``, Y the state its F
+        read, k̄ = Σ c·a over (c, a) ``kbar`` as its transpose reads them (the same bits on any
+        ranks); F_g the RHS of ``g_terms`` (None: ``self.g_terms``), the Coriolis term's share only
+        where its F holds it (``coriolis``); with ``part`` (an ``ElementPart``: F the part's f_P)
+        both by ``rhs_part``."""
+        m = self.model
+        g_terms = self.g_terms if g_terms is None else tuple(t for t in g_terms if t in m.terms)
+        kb, w, y = sum(c * a.numpy() for c, a in kbar), m.topology.grid.spheremp, Y.numpy()
+        if self._f is None:
+            self._f = wp.zeros((3, m.topology.N), dtype=f64, device=m.topology.device)
+            self._fcor = m.operators.fcor.numpy() if "coriolis" in m.terms else np.zeros_like(w)
+
+        def winds(terms):  # ⟨k̄, F⟩ node by node over the wind rows, F the RHS of ``terms`` at Y
+            if part is None:
+                m.rhs(Y, self._f, terms)
+            else:  # f_P writes the nodes its elements touch alone
+                self._f.zero_()
+                m.rhs_part(Y, self._f, part, terms)
+            F = self._f.numpy()
+            return kb[0] * F[0] + kb[1] * F[1]
+
+        pressure = winds(g_terms) if g_terms else np.zeros_like(w)
+        if not coriolis or "coriolis" not in m.terms:
+            rotation = np.zeros_like(w)
+        elif part is None:
+            rotation = self._fcor * (kb[0] * y[1] - kb[1] * y[0])
+        else:
+            rotation = winds(("coriolis",))
+        self.sums += m.topology.whole_sums([w * pressure, w * rotation])
 
 
 class Combinations:

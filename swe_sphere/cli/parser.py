@@ -105,6 +105,35 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
+def _member_starts(p, sweep: bool) -> None:
+    """How the members of ``run --members N`` (an ensemble) or ``sweep --members N`` (a sweep from
+    each member's start) start: --perturbation, --seed, --vary and --initial, one of them."""
+    whose = "member k's sweep is of its scenes with its" if sweep else "each member's"
+    p.add_argument(
+        "--perturbation",
+        type=float,
+        metavar="METRES",
+        help="with --members: member k starts from the case's state with h + METRES of white noise (seeded, one "
+        "draw a unique node" + ("" if sweep else "; default 0: every member the same start") + ")",
+    )
+    p.add_argument("--seed", type=int, help="with --members and --perturbation: the noise's seed (default 0)")
+    p.add_argument(
+        "--vary",
+        action="append",
+        metavar="KEY=V1,V2,...",
+        help=f"with --members: {whose} own value of a case parameter (case.NAME), planet.omega, planet.gravity "
+        "or hyperviscosity.nu (.nu_div, .nu_s), one a member (e.g. case.hhat=60,120,180), "
+        + ("its reference run too" if sweep else "each member the single run of its scene")
+        + "; repeatable",
+    )
+    p.add_argument(
+        "--initial",
+        type=path,
+        metavar="ENSEMBLE.nc",
+        help="with --members: member k starts from member k of an ensemble's run file at its last time",
+    )
+
+
 def _run(sub, parents) -> None:
     r = sub.add_parser("run", help="run a scene (a TOML file under testcases/, or its name)", parents=parents)
     r.add_argument("scene", nargs="?", help="scene file, e.g. testcases/tc5_mountain.toml, or a bundled scene name")
@@ -151,28 +180,7 @@ def _run(sub, parents) -> None:
         help="an ensemble: N members of the scene advanced together in the same launches (explicit steppers, "
         "fixed dt), one run file with a member dimension, each field's ensemble mean and spread",
     )
-    r.add_argument(
-        "--perturbation",
-        type=float,
-        metavar="METRES",
-        help="with --members: member k starts from the case's state with h + METRES of white noise "
-        "(seeded, one draw a unique node; default 0: every member the same start)",
-    )
-    r.add_argument("--seed", type=int, help="with --members: the perturbation's random seed (default 0)")
-    r.add_argument(
-        "--vary",
-        action="append",
-        metavar="KEY=V1,V2,...",
-        help="with --members: each member's own value of a case parameter (case.NAME), planet.omega, "
-        "planet.gravity or hyperviscosity.nu (.nu_div, .nu_s), one a member (e.g. case.hhat=60,120,180), "
-        "each member the single run of its scene; repeatable",
-    )
-    r.add_argument(
-        "--initial",
-        type=path,
-        metavar="ENSEMBLE.nc",
-        help="with --members: member k starts from member k of an ensemble's run file at its last time",
-    )
+    _member_starts(r, sweep=False)
     r.add_argument(
         "--blow-up",
         choices=("stop", "drop"),
@@ -267,26 +275,7 @@ def _sweep(sub, parents) -> None:
         "ensemble's members', each member's sweep under member<k>/ and each run's errors' mean and spread over "
         "them in members.csv",
     )
-    sw.add_argument(
-        "--perturbation",
-        type=float,
-        metavar="METRES",
-        help="with --members: member k starts from the case's state with h + METRES of seeded white noise",
-    )
-    sw.add_argument("--seed", type=int, help="with --members and --perturbation: the noise's seed (default 0)")
-    sw.add_argument(
-        "--vary",
-        action="append",
-        metavar="KEY=V1,V2,...",
-        help="with --members: member k's sweep is of its scenes with its own value of a case parameter "
-        "(case.NAME), planet.omega, planet.gravity or hyperviscosity.nu (.nu_div, .nu_s); repeatable",
-    )
-    sw.add_argument(
-        "--initial",
-        type=path,
-        metavar="ENSEMBLE.nc",
-        help="with --members: member k starts from member k of an ensemble's run file at its last time",
-    )
+    _member_starts(sw, sweep=True)
     group = sw.add_mutually_exclusive_group()
     group.add_argument("--dt", help="comma-separated time steps in seconds")
     group.add_argument(

@@ -168,3 +168,35 @@ def sweep_plot(
     if not drawn:
         ax.text(0.5, 0.5, "no stable run", ha="center", va="center", transform=ax.transAxes)
     return save_png(fig, path)
+
+
+def members_plot(path, spread, y: str = "total_error", *, figsize=(8.0, 5.0), title: str = "") -> Path:
+    """Sweep-over-members figure (``studies.sweep.members``): per stepper, the members' mean of
+    ``y`` against Δt, log-log, each point with a bar of ± one sample standard deviation over the
+    members it was stable in (``spread`` the rows of members.csv: ``stepper``, ``dt``,
+    ``<y>_mean``, ``<y>_spread``); a bar's lower end reaching zero is drawn down to the axis'
+    foot (a log axis has no zero). ``title`` as ``sweep_plot``'s."""
+    fig = new_figure(figsize)
+    ax = fig.add_subplot()
+    lines = [
+        (st, [r["dt"] for r in spread if r["stepper"] == st], [r[f"{y}_mean"] for r in spread if r["stepper"] == st])
+        for st in dict.fromkeys(r["stepper"] for r in spread)
+    ]
+    drawn = draw_lines(
+        ax,
+        lines,
+        logx=True,
+        logy=True,
+        xlabel="dt [s]",
+        ylabel=f"{error_label(y)} (members' mean ± sd)",
+        title=f"{title + ': ' if title else ''}{y.replace('_', ' ')} over the members against dt",
+    )
+    colours = {line.get_label(): line.get_color() for line in ax.get_lines()}
+    for r in spread:
+        mean, sd = float(r[f"{y}_mean"]), float(r[f"{y}_spread"])
+        if r["stepper"] in colours and math.isfinite(mean) and mean > 0 and math.isfinite(sd):
+            low = mean - sd if mean > sd else mean * 1e-3  # below the axis' foot once the mean is at most one sd
+            ax.errorbar([r["dt"]], [mean], yerr=[[mean - low], [sd]], color=colours[r["stepper"]], capsize=3, lw=1)
+    if not drawn:
+        ax.text(0.5, 0.5, "no stable run", ha="center", va="center", transform=ax.transAxes)
+    return save_png(fig, path)

@@ -14,8 +14,9 @@ from swe_sphere.cli import main
 from swe_sphere.config.scene import load_scene
 from swe_sphere.ensemble import Ensemble, MemberFile, Perturbation
 from swe_sphere.studies.sweep import Members
+from swe_sphere.studies.sweep.members import FIGURES
 
-from helpers import cli_main
+from helpers import cli_main, png_size
 
 pytestmark = pytest.mark.xdist_group("sweep_members")  # one module fixture, one worker
 
@@ -40,6 +41,7 @@ def test_members_csv_is_the_mean_and_spread_of_the_members_sweeps(swept):
         np.testing.assert_array_equal(spread[f"{column}_mean"], values.mean(axis=0))
         np.testing.assert_array_equal(spread[f"{column}_spread"], values.std(axis=0, ddof=1))
     assert (spread["temporal_error_spread"] > 0).all()  # the starts differ, and so do the runs' errors
+    assert [png_size(swept / name) for name in FIGURES.values()] == [(800, 500)] * 2  # mean ± sd against dt
 
 
 def test_member_k_starts_where_an_ensemble_s_member_k_does(swept):

@@ -7,7 +7,7 @@ over the members (issue 85: a time integrator's error as a spread over members).
 sweep is a sweep of its own under ``member<k>/`` (its runs, reference run and files, its runs'
 keys naming its start); the Δt values are the sweep's scenes', the same for every member.
 ``members.csv`` then holds, for each run, the members' mean and sample standard deviation of
-its errors and cost."""
+its errors and cost, and ``FIGURES`` draw the errors' mean and spread against Δt."""
 
 from __future__ import annotations
 
@@ -23,11 +23,16 @@ from ...core.errors import ArgumentError
 from ...ensemble.initial import MemberFile, Perturbation, Variants, described, initial_states
 from ...grid.cubed_sphere import CubedSphere
 from ...io.output_files import atomic_path
+from ..figures import members_plot
 from .report import format_summary, write_outputs
 from .verdicts import table
 
 # the columns of a run's row ``members.csv`` takes the members' mean and spread of
 SPREAD = ("total_error", "temporal_error", "total_energy_change", "cost_time", "rhs_equivalents")
+# what a sweep over members writes in its folder besides each member's sweep: the table and its
+# errors' figures (``figures.members_plot``), by column
+FIGURES = {"total_error": "members_error_vs_dt.png", "temporal_error": "members_temporal_error_vs_dt.png"}
+OUTPUTS = ("members.csv", *FIGURES.values())
 
 
 @dataclasses.dataclass(frozen=True)
@@ -104,6 +109,10 @@ def run_members(resolved, members: Members, starts, pool, cost: str, overwrite: 
     with atomic_path(path, overwrite=overwrite) as tmp:
         _write_csv(tmp, spread)
     paths.append(path)
+    first = infos[0]
+    title = f"{first['case']} ne{first['ne']} np{first['np']}, {first['days']:g} days, {members.count} members"
+    for column, name in FIGURES.items():
+        paths.append(members_plot(resolved.directory / name, spread, column, title=title))
     log(format_spread(spread, members))
     return rows, infos, paths
 

@@ -21,6 +21,7 @@ from ...core.constants import DAY
 from ...io.output_files import check_results, folder_lock
 from ...simulation import checkpoint
 from ...steppers.timefilter import TimeFilter
+from .members import OUTPUTS as MEMBER_OUTPUTS
 from .members import run_members
 from .report import OUTPUTS, format_summary, write_outputs
 from .runs import Sweep, dt_for_day, explicit_limits, start_state
@@ -244,7 +245,7 @@ class Plan:
             check_results(directory, OUTPUTS, overwrite)  # an earlier sweep's results: refused now, not at the end
             for k in range(0 if members is None else members.count):
                 check_results(Path(directory) / f"member{k}", OUTPUTS, overwrite)
-            check_results(directory, ("members.csv",) if members is not None else (), overwrite)
+            check_results(directory, MEMBER_OUTPUTS if members is not None else (), overwrite)
             resolved = self.resolve(directory, device, log)
             for line in resolved.notes:
                 log(line)

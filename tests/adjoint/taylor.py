@@ -10,8 +10,8 @@ import numpy as np
 import warp as wp
 
 from swe_sphere.adjoint import HeightMisfit, gradient
-from swe_sphere.adjoint.gradient import scene_model
 from swe_sphere.adjoint.costs import checked, run_cost
+from swe_sphere.adjoint.gradient import scene_model
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.clock import StepTimes
 from swe_sphere.core.constants import DAY

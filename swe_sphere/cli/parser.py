@@ -107,7 +107,8 @@ def parser() -> argparse.ArgumentParser:
 
 def _member_starts(p, sweep: bool) -> None:
     """How the members of ``run --members N`` (an ensemble) or ``sweep --members N`` (a sweep from
-    each member's start) start: --perturbation, --seed, --vary and --initial, one of them."""
+    each member's start) start: --perturbation (with --seed and --perturbation-degrees), --vary or
+    --initial."""
     whose = "member k's sweep is of its scenes with its" if sweep else "each member's"
     p.add_argument(
         "--perturbation",
@@ -117,6 +118,12 @@ def _member_starts(p, sweep: bool) -> None:
         "draw a unique node" + ("" if sweep else "; default 0: every member the same start") + ")",
     )
     p.add_argument("--seed", type=int, help="with --members and --perturbation: the noise's seed (default 0)")
+    p.add_argument(
+        "--perturbation-degrees",
+        metavar="L_MIN,L_MAX",
+        help="with --perturbation: the noise of the spherical harmonics of degrees L_MIN to L_MAX alone (each "
+        "degree the same variance, an area-weighted RMS of METRES) instead of white noise",
+    )
     p.add_argument(
         "--vary",
         action="append",

@@ -11,7 +11,7 @@ from pathlib import Path
 from ..core.errors import BlowUp, CheckpointError, OutputError, SceneError
 from .exits import EXIT_BLOWUP, hold_signals
 from .report import header, summary
-from .values import netcdf_output, overrides, varied
+from .values import degree_band, netcdf_output, overrides, varied
 
 
 def _continued(args, device, comm):
@@ -197,19 +197,27 @@ def command(args) -> int:
 
 def _check_ensemble_options(args, members: int | None) -> None:
     """``SceneError`` for the ensemble's options where they do not go together (before anything
-    is built): --perturbation, --seed, --initial, --layout or --blow-up without an ensemble (``members``: --members,
-    or the member count of the restart file continued), --initial with a perturbation, those with
+    is built): --perturbation, --seed, --perturbation-degrees, --initial, --layout or --blow-up without an
+    ensemble (``members``: --members, or the member count of the restart file continued),
+    --perturbation-degrees without --perturbation, --initial with a perturbation, those with
     a continuation (its members start from the file), --stepper, --dt, --layout or --blow-up with an
     ensemble's continuation (no branches yet)."""
-    starts = (("--perturbation", args.perturbation), ("--seed", args.seed), ("--initial", args.initial))
+    starts = (
+        ("--perturbation", args.perturbation),
+        ("--seed", args.seed),
+        ("--perturbation-degrees", args.perturbation_degrees),
+        ("--initial", args.initial),
+    )
     given = [flag for flag, value in (*starts, ("--vary", args.vary)) if value is not None]
     if members is None:
         given += [f for f, v in (("--layout", args.layout), ("--blow-up", args.blow_up)) if v is not None]
         if given:
             raise SceneError(f"{' and '.join(given)} only with --members N (or a scene's [ensemble])")
         return
-    kinds = {"--perturbation": "a perturbation", "--seed": "a perturbation", "--initial": "--initial's file"}
-    if len({kinds.get(flag, "their own values (--vary)") for flag in given}) > 1:
+    if args.perturbation_degrees is not None and args.perturbation is None:
+        raise SceneError("--perturbation-degrees only with --perturbation M (the noise's amplitude)")
+    kinds = {"--initial": "--initial's file", "--vary": "their own values (--vary)"}
+    if len({kinds.get(flag, "a perturbation") for flag in given}) > 1:
         raise SceneError(
             f"{' and '.join(given)}: the members start from one of a perturbation, --initial's file or --vary"
         )
@@ -249,8 +257,9 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
         initial = None if args.initial is None else MemberFile(args.initial)
         if args.vary is not None:
             initial = Variants(varied(args.vary))
-        if args.perturbation or args.seed is not None:
-            initial = Perturbation(0.0 if args.perturbation is None else args.perturbation, args.seed or 0)
+        degrees = None if args.perturbation_degrees is None else degree_band(args.perturbation_degrees)
+        if args.perturbation or args.seed is not None or degrees is not None:
+            initial = Perturbation(0.0 if args.perturbation is None else args.perturbation, args.seed or 0, degrees)
         # members None: the scene's [ensemble] members (and, without a start given, its perturbation)
         policy = {"blow_up": args.blow_up} if args.blow_up else {}
         ens = Ensemble(

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .values import numbers, overrides, runs, steppers, varied
+from .values import degree_band, numbers, overrides, runs, steppers, varied
 
 
 def command(args) -> int:
@@ -46,8 +46,9 @@ def _members(args):
     starts = {"--perturbation": args.perturbation, "--initial": args.initial, "--vary": args.vary}
     given = [flag for flag, value in starts.items() if value is not None]
     if args.members is None and not given:
-        if args.seed is not None:
-            raise ValueError("--seed only with --members N --perturbation M")
+        for flag, value in (("--seed", args.seed), ("--perturbation-degrees", args.perturbation_degrees)):
+            if value is not None:
+                raise ValueError(f"{flag} only with --members N --perturbation M")
         return None
     if args.members is None or not given:
         missing = "--members" if args.members is None else "--perturbation, --initial or --vary"
@@ -58,8 +59,10 @@ def _members(args):
         raise ValueError(
             f"{' and '.join(given)}: the members start from one of a perturbation, --initial's file or --vary"
         )
-    if args.seed is not None and given != ["--perturbation"]:
-        raise ValueError("--seed only with --members N --perturbation M")
+    for flag, value in (("--seed", args.seed), ("--perturbation-degrees", args.perturbation_degrees)):
+        if value is not None and given != ["--perturbation"]:
+            raise ValueError(f"{flag} only with --members N --perturbation M")
     if args.perturbation is not None:
-        return Members(args.members, Perturbation(args.perturbation, 0 if args.seed is None else args.seed))
+        degrees = None if args.perturbation_degrees is None else degree_band(args.perturbation_degrees)
+        return Members(args.members, Perturbation(args.perturbation, args.seed or 0, degrees))
     return Members(args.members, MemberFile(args.initial) if args.initial is not None else Variants(varied(args.vary)))

@@ -1,5 +1,5 @@
 """The values of flags that argparse cannot check alone: ``-s`` overrides, stepper
-lists, comma-separated numbers, ``--runs`` pairs and ``--vary`` values."""
+lists, comma-separated numbers, ``--runs`` pairs, ``--vary`` values and a perturbation's degrees."""
 
 from __future__ import annotations
 
@@ -111,3 +111,14 @@ def varied(items) -> dict:
         if not key.strip() or not values:
             raise ValueError(f"--vary {item!r}: give KEY=V1,V2,... (numbers, one a member)")
     return out
+
+
+def degree_band(text: str) -> tuple[int, int]:
+    """``--perturbation-degrees 1,20`` → (1, 20); ValueError for anything but two integers (their
+    range is ``ensemble.Perturbation``'s to check)."""
+    parts = text.split(",")
+    try:
+        low, high = (int(p) for p in parts)
+    except ValueError:
+        raise ValueError(f"--perturbation-degrees {text!r}: give L_MIN,L_MAX (two integers)") from None
+    return low, high

@@ -186,9 +186,10 @@ def resolve_initialization(method: str, dfi: dict, case: Case, case_name: str) -
 
 def resolve_ensemble(table: dict | None) -> dict | None:
     """``Scene.ensemble`` of the [ensemble] table: None without one, else {"members": N ≥ 1,
-    "perturbation": metres ≥ 0 (default 0), "seed": ≥ 0 (default 0)} (``swe-sphere run`` runs
-    the scene's ensemble, ``swe_sphere.Ensemble`` takes its members and perturbation by default).
-    Raises ``SceneError`` naming the key."""
+    "perturbation": metres ≥ 0 (default 0), "seed": ≥ 0 (default 0), "degrees": (l_min, l_max)
+    of the noise's spherical harmonics, or None for white noise (``ensemble.Perturbation``)}
+    (``swe-sphere run`` runs the scene's ensemble, ``swe_sphere.Ensemble`` takes its members and
+    perturbation by default). Raises ``SceneError`` naming the key."""
     if not table:
         return None
     members, amplitude, seed = table.get("members"), table.get("perturbation", 0.0), table.get("seed", 0)
@@ -200,7 +201,17 @@ def resolve_ensemble(table: dict | None) -> dict | None:
         raise SceneError(f"ensemble.perturbation must be a number of metres >= 0 (got {amplitude!r})")
     if seed < 0:
         raise SceneError(f"ensemble.seed must be an integer >= 0 (got {seed!r})")
-    return {"members": int(members), "perturbation": float(amplitude), "seed": int(seed)}
+    degrees = table.get("degrees")
+    if degrees is not None and not (
+        len(degrees) == 2
+        and all(isinstance(d, int) and not isinstance(d, bool) for d in degrees)
+        and 1 <= degrees[0] <= degrees[1]
+    ):
+        raise SceneError(
+            f"ensemble.degrees must be [l_min, l_max], integers 1 <= l_min <= l_max (got {list(degrees)!r})"
+        )
+    out = {"members": int(members), "perturbation": float(amplitude), "seed": int(seed)}
+    return out | ({} if degrees is None else {"degrees": tuple(degrees)})
 
 
 def _table_grid(grid: dict, scene_path: Path, file_folder: Path | None = None) -> SceneGrid:

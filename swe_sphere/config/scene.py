@@ -13,7 +13,8 @@ the run length, the output interval and the hyperviscosity. Layout::
                       instead of the case's bundled T213 one: a bundled truncation
                       or a file; ``reference.locate``)
     [dfi]             span_hours = 48.0, cutoff_hours = 24.0 (``initialization.DigitalFilter``)
-    [ensemble]        members = 8, perturbation = 1.0 (m of white noise in h), seed = 0: the
+    [ensemble]        members = 8, perturbation = 1.0 (m of noise in h), seed = 0, degrees = [1, 20]
+                      (the noise's spherical-harmonic band; none: white noise): the
                       scene's ensemble (``swe-sphere run``, ``swe_sphere.Ensemble``'s defaults)
     [grid]            ne = 30, np = 4, and the mesh: the uniform cube of ne (the default),
                       map = "equiangular" | "element_local" (the cube's map: HOMME's
@@ -193,7 +194,7 @@ class Scene:
         [time] control: the step chosen step to step by an error or CFL controller, dt the
         first (``schema.SceneControl``); None: a fixed dt.
     ensemble : dict or None
-        [ensemble] (``resolve.resolve_ensemble``): {"members", "perturbation", "seed"}; None: a single run.
+        [ensemble] (``resolve.resolve_ensemble``): {"members", "perturbation", "seed"[, "degrees"]}; None: a single run.
     dt_source : str
         Where ``dt`` comes from, for messages ("the scene's", "the dt given", ...): not part
         of the scene's identity (left out of comparisons and of ``as_dict``).

@@ -143,7 +143,7 @@ SCHEMA = {
         "scaling": float,
     },
     "dfi": {"span_hours": float, "cutoff_hours": float},
-    "ensemble": {"members": int, "perturbation": float, "seed": int},
+    "ensemble": {"members": int, "perturbation": float, "seed": int, "degrees": tuple},
     "planet": {"radius": float, "omega": float, "gravity": float},
     # one table per stepper, named after it, with the stepper's own options
     **{name: option_types(cls.Options) for name, cls in STEPPERS.items() if option_types(cls.Options)},

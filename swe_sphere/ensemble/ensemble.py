@@ -150,7 +150,9 @@ class Ensemble:
             raise ArgumentError("members must be given, or the scene name them ([ensemble] members)")
         members = integer_argument("members", scene.ensemble["members"] if members is None else members, 1)
         if initial is None and scene.ensemble is not None and scene.ensemble["perturbation"] > 0:
-            initial = Perturbation(scene.ensemble["perturbation"], scene.ensemble["seed"])
+            initial = Perturbation(
+                scene.ensemble["perturbation"], scene.ensemble["seed"], scene.ensemble.get("degrees")
+            )
         self.comm = comm if comm is not None and comm.size > 1 else None
         ranks, rank = (1, 0) if self.comm is None else (self.comm.size, self.comm.rank)
         if members < ranks:

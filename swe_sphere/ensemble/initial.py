@@ -12,28 +12,74 @@ from ..core.arguments import array_argument, got, integer_argument, number_argum
 from ..core.errors import ArgumentError
 from ..grid.cubed_sphere import CubedSphere
 
+# the highest spherical-harmonic degree a perturbation's band may name: far past any grid's
+# resolution here (ne120 np4 resolves l ≈ 720), a typo beyond it
+MAX_DEGREE = 2048
+
 
 @dataclasses.dataclass(frozen=True)
 class Perturbation:
     """Members that differ by seeded noise in the depth: member k starts from the case's
-    initial state with h + ``amplitude``·ξ_k, ξ_k standard normal on the grid's unique nodes
-    (white: one draw a node, every copy of it the same, so the state stays continuous), the
-    N members' ξ drawn as ``numpy.random.default_rng(seed).standard_normal((N, nunique))``.
-    ``amplitude`` in m (≥ 0), ``seed`` an integer ≥ 0."""
+    initial state with h + ``amplitude``·ξ_k on the grid's unique nodes (every copy of a node the
+    same, so the state stays continuous). ``amplitude`` in m (≥ 0), ``seed`` an integer ≥ 0.
+
+    - ``degrees`` None (white noise): ξ_k standard normal, one draw a node, the N members' drawn as
+      ``numpy.random.default_rng(seed).standard_normal((N, nunique))``.
+    - ``degrees`` (l_min, l_max), integers 1 ≤ l_min ≤ l_max ≤ ``MAX_DEGREE``: ξ_k a random field of
+      the spherical harmonics of those degrees alone, each degree holding the same variance (its
+      2l + 1 orthonormal coefficients' real and imaginary parts drawn N(0, 1/(2l + 1)), m = 0's
+      real), summed at the nodes by ``ducc0.sht.synthesis_general`` and scaled to an
+      area-weighted RMS of 1 over the sphere: large-scale noise that the ∇⁴ does not damp in
+      hours, as white noise's grid-scale part is. The members' coefficients are drawn as
+      ``default_rng(seed).standard_normal((N, 2, nalm))``, healpy's (l, m) order."""
 
     amplitude: float
     seed: int = 0
+    degrees: tuple | None = None
 
     def __post_init__(self):
         number_argument("perturbation amplitude", self.amplitude, "m", low=0.0)
         integer_argument("perturbation seed", self.seed, 0)
+        if self.degrees is not None:
+            d = self.degrees
+            if not (
+                isinstance(d, tuple | list)
+                and len(d) == 2
+                and all(isinstance(v, int | np.integer) and not isinstance(v, bool) for v in d)
+                and 1 <= d[0] <= d[1] <= MAX_DEGREE
+            ):
+                raise ArgumentError(
+                    f"perturbation degrees must be two integers 1 <= l_min <= l_max <= {MAX_DEGREE} (got {got(d)})"
+                )
+            object.__setattr__(self, "degrees", (int(d[0]), int(d[1])))
 
     def apply(self, grid: CubedSphere, state: np.ndarray, members: int) -> np.ndarray:
         """(members, 3, n): ``state`` (3, n) on ``grid``'s element-local nodes, perturbed."""
-        xi = np.random.default_rng(self.seed).standard_normal((members, grid.first.size))
+        if self.degrees is None:
+            xi = np.random.default_rng(self.seed).standard_normal((members, grid.first.size))
+        else:
+            xi = self._band(grid, members)
         out = np.repeat(state[None], members, axis=0)
         out[:, 2] += self.amplitude * xi[:, grid.gid]
         return out
+
+    def _band(self, grid: CubedSphere, members: int) -> np.ndarray:
+        """(members, nunique) the fields of the class doc, each of area-weighted RMS 1."""
+        import ducc0
+
+        lo, hi = self.degrees
+        m = np.concatenate([np.full(hi + 1 - k, k) for k in range(hi + 1)])  # healpy's order: m-major
+        l = np.concatenate([np.arange(k, hi + 1) for k in range(hi + 1)])
+        std = np.where(l >= lo, 1.0 / np.sqrt(2 * l + 1), 0.0)
+        z = np.random.default_rng(self.seed).standard_normal((members, 2, l.size))
+        alm = std * (z[:, 0] + 1j * np.where(m > 0, z[:, 1], 0.0))
+        lat, lon = grid.lat[grid.first], grid.lon[grid.first]
+        loc = np.stack([np.clip(np.pi / 2 - lat, 0.0, np.pi), np.mod(lon, 2 * np.pi)], axis=1)
+        xi = np.stack(
+            [ducc0.sht.synthesis_general(alm=a[None], spin=0, lmax=hi, loc=loc, epsilon=1e-12)[0] for a in alm]
+        )
+        rms = np.sqrt(np.sum(grid.area * xi**2, axis=1) / np.sum(grid.area))
+        return xi / rms[:, None]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -194,7 +240,9 @@ def described(initial) -> str:
     if initial is None:
         return "the case's"
     if isinstance(initial, Perturbation):
-        return f"perturbed: h + {initial.amplitude:g} m white noise, seed {initial.seed}"
+        d = initial.degrees
+        kind = "white noise" if d is None else f"noise in spherical-harmonic degrees {d[0]} to {d[1]}"
+        return f"perturbed: h + {initial.amplitude:g} m {kind}, seed {initial.seed}"
     if isinstance(initial, MemberFile):
         return f"from {initial.path}" + ("" if initial.day is None else f" at day {initial.day:g}")
     return initial.describe() if isinstance(initial, Variants) else "given"

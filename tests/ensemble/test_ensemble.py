@@ -108,6 +108,32 @@ def test_a_bad_perturbation_and_scene_are_refused():
         Ensemble("galewsky", 2, device="cpu", **SMALL, **streams)
 
 
+def test_a_perturbation_of_a_band_of_degrees_holds_those_degrees_alone():
+    """``Perturbation(..., degrees=(l_min, l_max))``: degree 1 alone is a linear function of the
+    unit position (x, y, z) on the sphere to round-off; any band's field has the stated
+    area-weighted RMS and no mean (l = 0) to the grid's quadrature; continuous (one value a unique
+    node); the same seed the same bits; bad bands refused naming them."""
+    grid = CubedSphere(6, 4, 6.37122e6)
+    state = np.zeros((3, grid.nnodes))
+    state[2] = 1000.0
+    first = grid.first
+    xyz = np.stack([np.cos(grid.lat) * np.cos(grid.lon), np.cos(grid.lat) * np.sin(grid.lon), np.sin(grid.lat)], 1)
+    linear = Perturbation(2.0, seed=3, degrees=(1, 1)).apply(grid, state, 3)[:, 2] - 1000.0
+    for h in linear:
+        fit = np.linalg.lstsq(xyz[first], h[first], rcond=None)[0]
+        assert np.abs(xyz @ fit - h).max() < 1e-9 * np.abs(h).max()  # every copy of a node too
+    band = Perturbation(2.0, seed=3, degrees=(4, 12))
+    h = band.apply(grid, state, 2)[:, 2][:, first] - 1000.0
+    area = grid.area
+    np.testing.assert_allclose(np.sqrt(np.sum(area * h**2, axis=1) / area.sum()), 2.0, rtol=1e-13)
+    assert np.abs(np.sum(area * h, axis=1) / area.sum()).max() < 1e-4 * 2.0  # no l = 0 but the quadrature's
+    assert same_bits(band.apply(grid, state, 2), band.apply(grid, state, 2))
+    assert not np.array_equal(h[0], h[1])
+    for bad in ((0, 3), (5, 4), (1, 10**4), (1.0, 3), (2,)):
+        with pytest.raises(ArgumentError, match="perturbation degrees must be two integers"):
+            Perturbation(1.0, degrees=bad)
+
+
 def test_a_blow_up_names_the_member():
     good = Ensemble("tc2_steady", 3, device="cpu", ne=2, np=4, stepper="rk4", dt=1800.0).states()
     good[2, :2] *= 8  # a wind 8 times the steady one: unstable at this dt within a few steps

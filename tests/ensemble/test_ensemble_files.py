@@ -177,6 +177,10 @@ def test_the_command_line_continues_an_ensemble(capsys, tmp_path):
         (("--members", "0"), "members must be an integer >= 1"),
         (("--members", "2", "--perturbation", "-1"), "perturbation amplitude"),
         (("--members", "2", "--stepper", "bs32", "-s", "time.control=error"), "its dt is controlled"),
+        (("--members", "2", "--perturbation-degrees", "1,8"), "--perturbation-degrees only with --perturbation M"),
+        (("--members", "2", "--perturbation", "1", "--perturbation-degrees", "1,x"), "give L_MIN,L_MAX"),
+        (("--members", "2", "--perturbation", "1", "--perturbation-degrees", "9,8"), "perturbation degrees must be"),
+        (("--perturbation-degrees", "1,8"), "--perturbation-degrees only with --members N"),
     ],
 )
 def test_bad_options_are_one_line_and_exit_2(capsys, tmp_path, args, says):
@@ -272,7 +276,8 @@ def test_variants_from_the_command_line_with_each_member_s_exact_errors(capsys, 
 
 def test_a_scene_s_ensemble_table_runs_its_ensemble(capsys, tmp_path):
     """[ensemble] (here ``-s ensemble.…``): ``swe-sphere run`` runs the scene's members from its
-    perturbation, as ``--members --perturbation --seed`` do; bad values one line, exit 2."""
+    perturbation, as ``--members --perturbation --seed`` do, its band of degrees as
+    ``--perturbation-degrees``; bad values one line, exit 2."""
     run = ("run", "galewsky", "--ne", "2", "--np", "4", "--dt", "900", "--days", "0.25")
     table = ("-s", "ensemble.members=2", "-s", "ensemble.perturbation=1.5", "-s", "ensemble.seed=7")
     assert cli_main(capsys, *run, *table, "--output", tmp_path / "a.nc")[0] == 0
@@ -284,7 +289,14 @@ def test_a_scene_s_ensemble_table_runs_its_ensemble(capsys, tmp_path):
         "galewsky", initial=None, device="cpu", **SMALL, **{"ensemble.members": 2, "ensemble.perturbation": 1.5}
     )
     assert ens.members == 2 and ens.initial == "perturbed: h + 1.5 m white noise, seed 0"
+    band = ("-s", "ensemble.members=2", "-s", "ensemble.perturbation=1.5", "-s", "ensemble.degrees=[2, 6]")
+    assert cli_main(capsys, *run, *band, "--output", tmp_path / "d.nc")[0] == 0
+    degrees = ("--members", "2", "--perturbation", "1.5", "--perturbation-degrees", "2,6")
+    assert cli_main(capsys, *run, *degrees, "--output", tmp_path / "e.nc")[0] == 0
+    (d,), (e,) = read(tmp_path / "d.nc", "h"), read(tmp_path / "e.nc", "h")
+    assert np.array_equal(d, e) and not np.array_equal(d, a)  # the table's band as the flags' one
     for sets, says in [
+        (("ensemble.members=2", "ensemble.degrees=[0, 6]"), "ensemble.degrees must be [l_min, l_max]"),
         (("ensemble.members=0",), "ensemble.members must be an integer >= 1"),
         (("ensemble.members=2", "ensemble.seed=-1"), "ensemble.seed must be an integer >= 0"),
         (("ensemble.seed=1",), "ensemble.members is missing"),

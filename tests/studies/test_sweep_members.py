@@ -50,6 +50,10 @@ def test_member_k_starts_where_an_ensemble_s_member_k_does(swept):
     scene = load_scene("tc2_steady", ne=2)
     ensemble = Ensemble("tc2_steady", 2, Perturbation(1.0, seed=0), device="cpu", ne=2).states()
     assert np.array_equal(Members(2, Perturbation(1.0, 0)).starts({"kgu35": scene}), ensemble)
+    assert "degrees" not in Members(2, Perturbation(1.0, 0)).key(0, ensemble[0])  # white noise's keys as before
+    band = Members(2, Perturbation(1.0, 0, (1, 4)))
+    in_band = Ensemble("tc2_steady", 2, Perturbation(1.0, 0, (1, 4)), device="cpu", ne=2).states()
+    assert np.array_equal(band.starts({"kgu35": scene}), in_band) and band.key(1, in_band[1])["degrees"] == [1, 4]
     first, second = (pd.read_csv(swept / f"member{k}" / "sweep.csv") for k in range(2))
     assert (first["total_error"] != second["total_error"]).all()
 
@@ -73,6 +77,7 @@ def test_a_rerun_reuses_a_member_s_runs_and_another_seed_makes_them_again(swept,
         (["--members", "2", "--vary", "case.h0=1,2", "--seed", "1"], "--seed only with --members N --perturbation M"),
         (["--members", "2", "--vary", "planet.radius=1,2"], "'planet.radius' cannot differ between members"),
         (["--members", "2", "--initial", "/nonexistent/ens.nc"], "not a readable netCDF file"),
+        (["--members", "2", "--vary", "case.h0=1,2", "--perturbation-degrees", "1,3"], "--perturbation-degrees only"),
         (["--members", "3", "--vary", "case.h0=1,2"], "variants: case.h0 needs 3 values, one a member"),
         (["--members", "1", "--perturbation", "1"], "--members must be an integer >= 2"),
         (["--seed", "1"], "--seed only with --members N --perturbation M"),

@@ -78,7 +78,8 @@ class Members:
         variant's values are in its scene's key)."""
         if isinstance(self.initial, Perturbation):
             p = self.initial
-            return {"member": k, "members": self.count, "perturbation": p.amplitude, "seed": p.seed}
+            band = {} if p.degrees is None else {"degrees": list(p.degrees)}  # white noise's keys as before
+            return {"member": k, "members": self.count, "perturbation": p.amplitude, "seed": p.seed, **band}
         digest = hashlib.sha256(np.ascontiguousarray(start, dtype=np.float64).tobytes()).hexdigest()
         return {"member": k, "members": self.count, "sha256": digest}
 

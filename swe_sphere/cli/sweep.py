@@ -37,9 +37,10 @@ def command(args) -> int:
 
 
 def _members(args):
-    """``--members N`` with its one start (``--perturbation M [--seed S]``, ``--initial FILE`` or
-    ``--vary KEY=V1,...``) as a ``studies.sweep.Members``, or None without them; ValueError for
-    one without the other, or two starts."""
+    """``--members N`` with its one start (``--perturbation M [--seed S] [--perturbation-degrees
+    L_MIN,L_MAX]``, ``--initial FILE`` or ``--vary KEY=V1,...``) as a ``studies.sweep.Members``, or
+    None without them; ValueError for one without the other, two starts, or --seed or
+    --perturbation-degrees without --perturbation."""
     from ..ensemble import MemberFile, Perturbation, Variants
     from ..studies.sweep import Members
 

@@ -22,6 +22,23 @@ def command(args) -> int:
         summary = summary.replace("``", "")  # reST literals read as plain text on a terminal
         sentence = re.split(r"\.\s+(?=[A-Z])", summary)[0].rstrip(".")  # the first sentence, whole ("eq. 2" kept)
         print(f"  {name:32s} {sentence}.")
+        print(f"  {'':32s} {_traits(cls)}.")
     print("terms:")
     print("  " + ", ".join(TERMS))
     return 0
+
+
+def _traits(cls) -> str:
+    """What a stepper class offers, in a few words: explicit (a Courant limit), a gradient
+    (``swe_sphere.gradient``: ``Stepper.differentiable``), error control (an embedded pair's
+    order) and Δt changed between steps (``variable_dt``: a controlled run's)."""
+    if cls.name == "tableau":
+        return "explicit or IMEX by its table; a gradient; error control where the table has an embedding"
+    words = ["explicit"] if cls.explicit else []  # the others' kind their sentence says
+    words.append("a gradient" if cls.differentiable else "no gradient")
+    order = cls.embedded_order
+    if order:
+        words.append(f"error control (an embedded order-{order} estimate)")
+    elif not cls.variable_dt:
+        words.append("one Δt a run")
+    return "; ".join(words)

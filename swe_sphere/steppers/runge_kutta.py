@@ -471,7 +471,7 @@ class Tableau(Stepper):
     name = "tableau"
     Options = TableauOptions
     explicit = False  # depends on the table: an instance of an explicit one is (``TableauRK``)
-    variable_dt = True  # either engine
+    variable_dt = differentiable = True  # either engine
     courant_limit = None
     advective_courant_limit = None
     removed_options: dict = {}

@@ -530,7 +530,8 @@ class Ensemble:
         bad = ~np.isfinite(states).all(axis=1)
         if self.case.h_is_depth:
             bad |= states[:, 2] <= 0
-        members = np.array([k for k in np.flatnonzero(bad.any(axis=1)) if k not in self.dropped])
+        dropped = self.dropped  # collective: once
+        members = np.array([k for k in np.flatnonzero(bad.any(axis=1)) if k not in dropped])
         k = int(members[0])
         node = int(np.argmax(bad[k]))
         lat, lon = np.degrees(self.grid.lat[node]), np.degrees(self.grid.lon[node])

@@ -38,7 +38,7 @@ OUTPUTS = ("members.csv", *FIGURES.values())
 @dataclasses.dataclass(frozen=True)
 class Members:
     """``count`` N ≥ 2 members, started from ``initial`` as an ensemble's are: a ``Perturbation``
-    (h + its amplitude, > 0 m, of seeded white noise), a ``MemberFile`` (an ensemble's run file of
+    (h + its amplitude, > 0 m, of seeded noise, white or of a band of degrees), a ``MemberFile`` (an ensemble's run file of
     N members) or ``Variants`` (each member's own case parameters, Ω, g or ν: member k's sweep is
     of its own scenes, its reference run too). ``ArgumentError`` naming the option for another
     count, a perturbation of 0 m or another kind of start."""
@@ -69,7 +69,8 @@ class Members:
         scene = next(iter(scenes.values()))
         case = scene.make_case()
         grid = CubedSphere(scene.ne, scene.np, case.planet.a, mesh=scene.make_mesh())
-        cases = [next(iter(s.values())).make_case() for s in self.scenes(scenes)]
+        variants = isinstance(self.initial, Variants)  # their cases start them
+        cases = [s.make_case() for s in self.initial.scenes(scene, self.count)] if variants else None
         return initial_states(self.initial, grid, case, self.count, cases)
 
     def key(self, k: int, start: np.ndarray) -> dict:

@@ -181,6 +181,23 @@ class Reference:
         return out
 
 
+def synthesis(alm: np.ndarray, lmax: int, lat, lon, gradient: bool = False) -> np.ndarray:
+    """Σ alm Y_lm (nalm,) complex, healpy's m-major order up to ``lmax``, orthonormal harmonics,
+    a real field Σ_l [a_l0 Y_l0 + 2 Re Σ_{m≥1} a_lm Y_lm]) at the points ``lat``, ``lon`` (1-D,
+    radians, lon in [0, 2π)), (n,); or with ``gradient`` its (∂/∂θ, ∂/∂λ / sin θ) (2, n) on the
+    unit sphere. By ``ducc0.sht.synthesis_general`` to a relative accuracy of 1e-12."""
+    loc = np.stack([np.clip(math.pi / 2 - lat, 0.0, math.pi), lon], axis=1)
+    out = ducc0.sht.synthesis_general(
+        alm=alm[None],
+        lmax=lmax,
+        loc=loc,
+        epsilon=_EPSILON,
+        spin=1 if gradient else 0,
+        mode="DERIV1" if gradient else "STANDARD",
+    )
+    return out if gradient else out[0]
+
+
 class SpectralReference(Reference):
     """A reference stored as spherical-harmonic coefficients, evaluated exactly.
 
@@ -230,18 +247,7 @@ class SpectralReference(Reference):
         self._inverse_laplacian = -(self._a**2) / np.where(ll > 0, ll, 1) * (ll > 0)  # ∇⁻² on the sphere of radius a
 
     def _synthesis(self, alm, lat, lon, gradient=False) -> np.ndarray:
-        """Σ alm Y_lm at the points (1-D, radians), or with ``gradient`` its
-        (∂/∂θ, ∂/∂λ / sin θ) (2, n) on the unit sphere."""
-        loc = np.stack([np.clip(math.pi / 2 - lat, 0.0, math.pi), lon], axis=1)
-        out = ducc0.sht.synthesis_general(
-            alm=alm[None],
-            lmax=self.lmax,
-            loc=loc,
-            epsilon=_EPSILON,
-            spin=1 if gradient else 0,
-            mode="DERIV1" if gradient else "STANDARD",
-        )
-        return out if gradient else out[0]
+        return synthesis(alm, self.lmax, lat, lon, gradient)
 
     def _fields(self, itime, lat, lon):
         dpsi = self._synthesis(self._inverse_laplacian * self._zeta[itime], lat, lon, gradient=True)

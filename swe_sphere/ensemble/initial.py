@@ -28,7 +28,7 @@ class Perturbation:
     - ``degrees`` (l_min, l_max), integers 1 ≤ l_min ≤ l_max ≤ ``MAX_DEGREE``: ξ_k a random field of
       the spherical harmonics of those degrees alone, each degree holding the same variance (its
       2l + 1 orthonormal coefficients' real and imaginary parts drawn N(0, 1/(2l + 1)), m = 0's
-      real), summed at the nodes by ``ducc0.sht.synthesis_general`` and scaled to an
+      real), summed at the nodes (``cases.reference.synthesis``) and scaled to an
       area-weighted RMS of 1 over the sphere: large-scale noise that the ∇⁴ does not damp in
       hours, as white noise's grid-scale part is. The members' coefficients are drawn as
       ``default_rng(seed).standard_normal((N, 2, nalm))``, healpy's (l, m) order."""
@@ -65,7 +65,7 @@ class Perturbation:
 
     def _band(self, grid: CubedSphere, members: int) -> np.ndarray:
         """(members, nunique) the fields of the class doc, each of area-weighted RMS 1."""
-        import ducc0
+        from ..cases.reference import synthesis
 
         lo, hi = self.degrees
         m = np.concatenate([np.full(hi + 1 - k, k) for k in range(hi + 1)])  # healpy's order: m-major
@@ -73,11 +73,8 @@ class Perturbation:
         std = np.where(l >= lo, 1.0 / np.sqrt(2 * l + 1), 0.0)
         z = np.random.default_rng(self.seed).standard_normal((members, 2, l.size))
         alm = std * (z[:, 0] + 1j * np.where(m > 0, z[:, 1], 0.0))
-        lat, lon = grid.lat[grid.first], grid.lon[grid.first]
-        loc = np.stack([np.clip(np.pi / 2 - lat, 0.0, np.pi), np.mod(lon, 2 * np.pi)], axis=1)
-        xi = np.stack(
-            [ducc0.sht.synthesis_general(alm=a[None], spin=0, lmax=hi, loc=loc, epsilon=1e-12)[0] for a in alm]
-        )
+        lat, lon = grid.lat[grid.first], np.mod(grid.lon[grid.first], 2 * np.pi)
+        xi = np.stack([synthesis(a, hi, lat, lon) for a in alm])
         rms = np.sqrt(np.sum(grid.area * xi**2, axis=1) / np.sum(grid.area))
         return xi / rms[:, None]
 

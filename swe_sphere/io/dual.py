@@ -42,6 +42,7 @@ from threadpoolctl import threadpool_limits
 
 from ..core import cache
 from ..core.constants import EARTH
+from ..core.runtime import init_warp
 from ..grid.cubed_sphere import CubedSphere, lat_lon
 from ..mesh.mesh import Mesh
 from .dual_solve import amg_preconditioner, small_pages
@@ -67,7 +68,8 @@ CG_RTOL, CG_RTOL_EXACT = 1e-4, 1e-12
 # others by their diagonal: the V-cycles' set-up and Python overhead cost more than Jacobi's extra iterations up to
 # ne60 (194 402 cells, one thread: 3.41 s against 3.06 s for the cells, ne30 1.25 against 0.99), and half as much at
 # ne120 (777 602: 15.9 s against 32.3 s; 13.8 s with its levels as CSR and point Gauss-Seidel, BUILD 9;
-# 9.6 s with their block columns sorted in C and 4 kB pages, BUILD 10: 10.4 at load 2 on 2 cores)
+# 9.6 s with their block columns sorted in C and 4 kB pages, BUILD 10: 10.4 at load 2 on 2 cores; 7.5 s with the
+# cells' areas, gradients and turns as Warp kernels, BUILD 11)
 AMG_CELLS = 400_000
 LOCAL_ERROR, LOCAL_RINGS = 0.05, 6  # cells fitted first, and the rings round them (``_fit_worst_first``)
 # the steps allowed to the worst cells' fit and to the global fit after it (the cube: 5 and 2 at ne60), beyond
@@ -75,8 +77,7 @@ LOCAL_ERROR, LOCAL_RINGS = 0.05, 6  # cells fitted first, and the rings round th
 # and the global fit starts again from the start itself with μ = MU_FAR
 NEAR_STEPS = 20
 TWIST = 0.1  # the chiral start's rotation (``_start_vertices``)
-CHUNK = 1 << 13  # cells a pass (``_in_chunks``): its temporaries stay under 10 MB
-BUILD = 10  # the fit's version in the cache key: raised by any change that moves the cells' bits
+BUILD = 11  # the fit's version in the cache key: raised by any change that moves the cells' bits
 
 
 def control_points(rule) -> np.ndarray:
@@ -144,105 +145,56 @@ def _padded(corners: np.ndarray) -> np.ndarray:
     return out
 
 
-def _in_chunks(f, centre, verts, corners):
-    """``f(centre, verts, corners)`` over ``CHUNK`` cells at a time (``centre`` and ``corners``
-    cut, ``verts`` whole), its per-cell results joined: the temporaries of a pass, a dozen
-    (ncell, nv, 3) arrays, would be 1 KB a cell (0.8 GB at ne120) all at once."""
-    parts = [f(centre[i : i + CHUNK], verts, corners[i : i + CHUNK]) for i in range(0, corners.shape[0], CHUNK)]
-    if isinstance(parts[0], tuple):
-        return tuple(np.concatenate(p) for p in zip(*parts, strict=True))
-    return np.concatenate(parts)
+def _fan(centre, verts, closed, gradients: bool):
+    """``kernels.dual.fan_areas`` of the cells ``verts[closed]`` (closed: ``_padded``) fanned
+    from ``centre`` (ncell, 3), on the CPU: (areas (ncell,), their gradients (ncell, nv, 3) by
+    the vertices or None, whether each cell is star-shaped from its centre (ncell,) bool)."""
+    from ..kernels import dual as dual_kernels  # here, not at the top: reading a run file needs no Warp
+
+    wp = init_warp()
+    n, nv = closed.shape
+    out = (
+        wp.empty(n, dtype=wp.float64, device="cpu"),
+        wp.empty((n, nv) if gradients else (1, 1), dtype=wp.vec3d, device="cpu"),
+        wp.empty(n, dtype=wp.int32, device="cpu"),
+    )
+    inputs = [_on_cpu(wp, a) for a in (centre, verts, closed)]
+    wp.launch(dual_kernels.fan_areas, n, [*inputs, int(gradients), *out], device="cpu")
+    area, grad, star = (a.numpy() for a in out)
+    return area, grad if gradients else None, star.astype(bool)
 
 
-def _cross(a, b):
-    """a × b over the last axis (3): np.cross's arithmetic without its axis moves (3× faster on
-    the (cells, nv, 3) arrays here)."""
-    a0, a1, a2, b0, b1, b2 = a[..., 0], a[..., 1], a[..., 2], b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
-
-
-def _areas_and_gradients(centre, verts, corners):
-    """Spherical areas (ncell,) of cells fanned from ``centre`` (ncell, 3) over ``verts[corners]``
-    (closed, padded), the gradients (ncell, nv, 3) of each area w.r.t. its vertices
-    (``_chunk_areas_and_gradients``) and whether each cell is star-shaped from ``centre``
-    (``star_shaped``: its fan triangles' N > 0, ``_fan``)."""
-    return _in_chunks(_chunk_areas_and_gradients, centre, verts, corners)
-
-
-def _chunk_areas_and_gradients(centre, verts, closed):
-    """``_areas_and_gradients`` of some cells at once.
-
-    Triangle (n, a, b): E = 2 atan2(N, D), N = n·(a × b), D = 1 + n·a + a·b + b·n
-    (van Oosterom & Strackee 1983); dE = 2 (D dN − N dD) / (N² + D²),
-    ∂N/∂a = b × n, ∂D/∂a = n + b, ∂N/∂b = n × a, ∂D/∂b = n + a."""
-    a, b, c, N, D = _fan(centre, verts, closed)
-    area = 2 * np.arctan2(N, D).sum(axis=1)
-    s = (2 / (N * N + D * D))[..., None]
-    ga = s * (D[..., None] * _cross(b, c) - N[..., None] * (c + b))
-    gb = s * (D[..., None] * _cross(c, a) - N[..., None] * (c + a))
-    star = ((N > 0) | np.all(a == b, axis=2)).all(axis=1)
-    return area, ga + np.roll(gb, 1, axis=1), star  # vertex k: first of triangle k, second of triangle k − 1
-
-
-def _chunk_areas(centre, verts, closed):
-    """The areas of ``_chunk_areas_and_gradients`` (the same bits) without the gradients (a
-    third of the time), for passes that use none."""
-    _, _, _, N, D = _fan(centre, verts, closed)
-    return 2 * np.arctan2(N, D).sum(axis=1)
-
-
-def _fan(centre, verts, closed):
-    """The fan triangles (n, a, b) of cells ``verts[closed]`` from ``centre`` (ncell, 3): a and b
-    (ncell, nv, 3), n (ncell, 1, 3), and the N and D (ncell, nv) of their areas 2 atan2(N, D)."""
-    a = verts[closed]  # (ncell, nv, 3)
-    b = np.roll(a, -1, axis=1)
-    c = centre[:, None, :]
-    N = np.einsum("cki,cki->ck", c, _cross(a, b))
-    ca = np.einsum("cki,cki->ck", c, a)
-    D = 1 + ca + np.einsum("cki,cki->ck", a, b) + np.roll(ca, -1, axis=1)  # b·n: the next vertex's n·a
-    return a, b, c, N, D
+def _on_cpu(wp, a):
+    """``a`` as a CPU kernel's array, on its memory where that is contiguous and of the type (the
+    array then holds it): points (k, 3) as float64 3-vectors, indices as int32."""
+    if np.issubdtype(a.dtype, np.floating):
+        return wp.array(np.ascontiguousarray(a, dtype=np.float64), dtype=wp.vec3d, device="cpu", copy=False)
+    return wp.array(np.ascontiguousarray(a, dtype=np.int32), dtype=wp.int32, device="cpu", copy=False)
 
 
 def spherical_areas(centre, verts, corners) -> np.ndarray:
     """Areas (ncell,) on the unit sphere of the cells ``verts[corners]`` (corners (ncell, nv),
     −1-padded, counter-clockwise; ``centre`` (ncell, 3) a point each cell is star-shaped from)."""
-    return _in_chunks(_chunk_areas, centre, verts, _padded(corners))
+    return _fan(centre, verts, _padded(corners), False)[0]
 
 
-def convex(verts, corners, turns=None) -> np.ndarray:
+def convex(verts, corners) -> np.ndarray:
     """Whether each cell ``verts[corners]`` (−1-padded) turns left at every vertex seen from
     outside, (ncell,) bool: ((b − a) × (c − b)) · b = a · (b × c) > 0 for consecutive
-    vertices a, b, c; ``turns``: ``turn_table(corners)``, where the caller holds it."""
-    return _in_chunks(_chunk_convex, turn_table(corners) if turns is None else turns, verts, corners)
+    vertices a, b, c (``kernels.dual.convex``)."""
+    from ..kernels import dual as dual_kernels  # here, not at the top: reading a run file needs no Warp
 
-
-def turn_table(corners) -> np.ndarray:
-    """Each vertex's predecessor, itself and successor round its cell ``corners`` (−1-padded),
-    (ncell, 3, nv) (``convex``; the −1s stay)."""
-    count = (corners >= 0).sum(axis=1, keepdims=True)  # the −1s come last
-    k = np.arange(corners.shape[1])
-    after = [np.take_along_axis(corners, (k + m) % count, axis=1) for m in (-1, 1)]
-    return np.stack([after[0], corners, after[1]], axis=1)
-
-
-def _chunk_convex(turns, verts, corners):
-    a, b, c = (verts[turns[:, m]] for m in range(3))
-    turn = np.einsum("cki,cki->ck", a, _cross(b, c))
-    return ((turn > 0) | (corners < 0)).all(axis=1)
+    wp = init_warp()
+    out = wp.empty(corners.shape[0], dtype=wp.int32, device="cpu")
+    wp.launch(dual_kernels.convex, corners.shape[0], [_on_cpu(wp, verts), _on_cpu(wp, corners), out], device="cpu")
+    return out.numpy().astype(bool)
 
 
 def star_shaped(centre, verts, corners) -> np.ndarray:
     """Whether each cell ``verts[corners]`` (−1-padded) is seen counter-clockwise from its
     point ``centre`` (ncell, 3): every fan triangle (centre, a, b) over consecutive vertices
     turns left from outside, (centre · (a × b) > 0), (ncell,) bool. Such a polygon is simple."""
-    return _in_chunks(_chunk_star_shaped, centre, verts, _padded(corners))
-
-
-def _chunk_star_shaped(centre, verts, closed):
-    a = verts[closed]
-    b = np.roll(a, -1, axis=1)
-    turn = np.einsum("ci,cki->ck", centre, _cross(a, b))
-    return ((turn > 0) | np.all(a == b, axis=2)).all(axis=1)
+    return _fan(centre, verts, _padded(corners), False)[2]
 
 
 def _tangent_basis(p):
@@ -340,7 +292,7 @@ def _fit_worst_first(centre, verts, corners, closed, target, quads, colour):
     import scipy.sparse as sp  # here, not at the top: a cached run never builds cells (0.15 s of imports)
     from scipy.sparse.csgraph import connected_components
 
-    area = _in_chunks(_chunk_areas, centre, verts, closed)
+    area = _fan(centre, verts, closed, False)[0]
     inside = np.abs(1 - area / target) > LOCAL_ERROR
     if not inside.any():
         return verts
@@ -400,9 +352,8 @@ def _fit(
     rows = np.repeat(np.arange(n), 2 * closed.shape[1])
     cols = np.stack([2 * closed, 2 * closed + 1], axis=-1).ravel()
     eye = sp.identity(n, format="csr")
-    area, grad, _ = _areas_and_gradients(centre, verts, closed)
-    turns = turn_table(corners)
-    was_convex = convex(verts, corners, turns)
+    area, grad, _ = _fan(centre, verts, closed, True)
+    was_convex = convex(verts, corners)
     preconditioner, built_for = None, None
     for _ in range(steps):
         rho = 1 - area / target
@@ -428,11 +379,11 @@ def _fit(
             d = (J.T @ y).reshape(nsub, 2)
             trial = verts + d[:, :1] * e1 + d[:, 1:] * e2
             trial /= np.linalg.norm(trial, axis=1)[:, None]
-            t_area, t_grad, star = _areas_and_gradients(centre, trial, closed)
+            t_area, t_grad, star = _fan(centre, trial, closed, True)
             if (
                 np.linalg.norm(1 - t_area / target) < norm
                 and star.all()
-                and (not keep_convex or convex(trial, corners, turns)[was_convex].all())
+                and (not keep_convex or convex(trial, corners)[was_convex].all())
             ):
                 mu = max(mu / 10, MU_MIN)
                 break

@@ -101,6 +101,18 @@ def test_cells_are_convex_counter_clockwise_with_the_spheremp_areas(grid_factory
     assert area.sum() == pytest.approx(4 * math.pi, rel=1e-13)
 
 
+def test_the_octant_has_a_quarter_hemisphere_and_a_nan_vertex_makes_a_cell_neither_star_shaped_nor_convex():
+    verts = np.eye(3)  # the octant x, y, z > 0: a spherical triangle of three right angles, area π/2
+    corners = np.array([[0, 1, 2, -1]], dtype=np.int32)
+    centre = np.full((1, 3), 1 / math.sqrt(3))
+    assert spherical_areas(centre, verts, corners)[0] == pytest.approx(math.pi / 2, rel=1e-14)
+    assert star_shaped(centre, verts, corners).all() and convex(verts, corners).all()
+    assert not convex(verts, corners[:, [0, 2, 1, 3]]).any()  # clockwise: every turn right
+    bad = verts.copy()
+    bad[1] = np.nan
+    assert not star_shaped(centre, bad, corners).any() and not convex(bad, corners).any()
+
+
 BOX = Box(20.0, 40.0, 255.0, 285.0)  # over TC5's mountain, within one face of the ne4 cube with its transitions
 # (name, mesh, ne, np, {cell vertices: cells}): the cube through the element-local map, a stretched cube,
 # and the cube refined 2x and 4x (transitions: mesh corners shared by 3, 5 and 6 elements)

@@ -445,12 +445,18 @@ _MEMO, MEMO_SIZE = {}, 4  # this process's cells by their cache key, the last ME
 
 def unit_dual_mesh(ne: int, np_: int, mesh: Mesh | None = None, radius: float = EARTH.a, grid=None):
     """``cached_cells``, once a process for each grid (every stream and run of a grid writes the
-    same cells; ``clear_memo`` forgets them): the same tuple, its seconds those of the build."""
+    same cells; ``clear_memo`` forgets them): the same tuple, its seconds those of the build.
+    ``ArithmeticError`` where the fit fails (``dual_mesh``), raised again for that grid."""
     key = tuple(cache_key(ne, np_, mesh, radius).items())
     if key not in _MEMO:
         if len(_MEMO) >= MEMO_SIZE:
             del _MEMO[next(iter(_MEMO))]  # the oldest
-        _MEMO[key] = cached_cells(ne, np_, mesh, radius, grid)
+        try:
+            _MEMO[key] = cached_cells(ne, np_, mesh, radius, grid)
+        except ArithmeticError as err:  # a fit that failed fails again: raised again, not fitted again a stream
+            _MEMO[key] = err
+    if isinstance(_MEMO[key], ArithmeticError):
+        raise _MEMO[key]
     return _MEMO[key]
 
 

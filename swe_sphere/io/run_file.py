@@ -61,10 +61,17 @@ _OPEN: set = set()  # the RunWriters not yet closed or aborted
 UGRID_FACE = {"mesh": DUAL_MESH, "location": "face"}
 # Without the cells (``cells=False``) the fields are on the sub-cell mesh's nodes, and the file says what is missing.
 UGRID_NODE = {"mesh": SUBCELL_MESH, "location": "node"}
-NO_CELLS = (
-    "not written (output.cells = false): lon and lat have no bounds and there is no mesh_dual, "
-    "so conservative remapping (cdo remapcon) and uxarray's cell operations need a run that writes them"
-)
+
+
+def no_cells(why: str) -> str:
+    """The global attribute ``cells`` of a file written without them, ``why`` in parentheses."""
+    return (
+        f"not written ({why}): lon and lat have no bounds and there is no mesh_dual, "
+        "so conservative remapping (cdo remapcon) and uxarray's cell operations need a run that writes them"
+    )
+
+
+NO_CELLS = no_cells("output.cells = false")
 CONVENTIONS = "CF-1.8 UGRID-1.0"
 # CF time: model days since the initial state, put at an arbitrary epoch (the model has no
 # calendar date); CDO and the CF checker need the reference date and the calendar. xarray
@@ -224,7 +231,9 @@ class RunWriter:
     fields are on, and ``lon_bnds``/``lat_bnds``); without them the fields are on the
     sub-cell mesh's nodes and the global attribute ``cells`` says what is missing.
     ``cells_seconds``: the CPU seconds spent building the cells, None where they came
-    from the cache or were not written.
+    from the cache or were not written. ``cells_failure``: where their fit failed
+    (``dual.dual_mesh``'s ``ArithmeticError``), its message, and the file is written without
+    them, its ``cells`` attribute saying so; else None.
     ``members``: an ensemble's file (``swe_sphere.ensemble``): the dimension and coordinate
     ``member`` (CF ``realization``), each field (time, member, ncol) beside its ensemble mean
     and spread ``<field>_mean``, ``<field>_spread`` (time, ncol; CF ``cell_methods``
@@ -250,6 +259,7 @@ class RunWriter:
         self.path, self.fields, self.cells = Path(path), tuple(fields), cells
         self.members, self.member_series = members, tuple(member_series)
         self.cells_seconds = None  # CPU seconds spent building the cells, where they were not in the cache
+        self.cells_failure = None  # why the cells' fit failed, where it did (the file is written without them)
         self.file = ExclusiveFile(self.path, overwrite=overwrite)
         self.tmp = self.file.tmp
         self.grid = grid
@@ -276,14 +286,17 @@ class RunWriter:
             ds[name][:] = grid.to_unique(deg)
         ds.createVariable("area", "f8", ("ncol",)).setncatts(AREA_ATTRS)
         ds["area"][:] = grid.area
+        if self.cells:  # first: uxarray opens the first mesh_topology, the one the fields are on
+            try:
+                self.cells_seconds = write_dual_mesh(ds, grid)
+            except ArithmeticError as err:  # their fit failed, before it wrote anything: the run goes on without them
+                self.cells, self.cells_failure = False, str(err)
+        if not self.cells:
+            ds.cells = NO_CELLS if self.cells_failure is None else no_cells(f"their fit failed: {self.cells_failure}")
         located = UGRID_FACE if self.cells else UGRID_NODE
         hsv = ds.createVariable("hs", "f8", ("ncol",))
         hsv.setncatts({**FIELDS["hs"], **FIELD_ATTRS, **located})
         hsv[:] = grid.to_unique(hs)
-        if self.cells:  # first: uxarray opens the first mesh_topology, the one the fields are on
-            self.cells_seconds = write_dual_mesh(ds, grid)
-        else:
-            ds.cells = NO_CELLS
         write_mesh(ds, grid)
         if grid.mesh is not None:
             write_element_mesh(ds, grid.mesh)

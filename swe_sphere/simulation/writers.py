@@ -121,7 +121,7 @@ class RunFiles:
         """Create the files (rank 0) with the global attributes ``attrs``; on failure none is left.
         ``notify(line)``: told in one line when the run file's cells were built rather than
         read from the cache, at ``NOTE_SECONDS`` of CPU or more (a build can cost more than
-        a short run)."""
+        a short run), or when their fit failed and the files were written without them."""
         try:
             for i, (path, fields, _) in enumerate(self.streams):
                 self.writers[i] = RunWriter(
@@ -138,6 +138,12 @@ class RunFiles:
         except BaseException:
             self.abort()
             raise
+        failure = self.writers[0].cells_failure if self.writers else None
+        if failure is not None and notify is not None:
+            notify(
+                f"the run file's cells (GLL control volumes, {self.sim.scene.grid_text}) could not be fitted "
+                f"({failure}): the file is written without them, as with output.cells = false"
+            )
         seconds = self.writers[0].cells_seconds if self.writers else None
         if seconds is not None and seconds >= NOTE_SECONDS and notify is not None:
             notify(

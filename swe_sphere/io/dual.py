@@ -152,27 +152,35 @@ def _fan(centre, verts, closed, gradients: bool):
     """``kernels.dual.fan_areas`` of the cells ``verts[closed]`` (closed: ``_padded``) fanned
     from ``centre`` (ncell, 3), on the CPU: (areas (ncell,), their gradients (ncell, nv, 3) by
     the vertices or None, whether each cell is star-shaped from its centre (ncell,) bool)."""
-    from ..kernels import dual as dual_kernels  # here, not at the top: reading a run file needs no Warp
-
-    wp = init_warp()
     n, nv = closed.shape
-    out = (
-        wp.empty(n, dtype=wp.float64, device="cpu"),
-        wp.empty((n, nv) if gradients else (1, 1), dtype=wp.vec3d, device="cpu"),
-        wp.empty(n, dtype=wp.int32, device="cpu"),
+    area, grad, star = _launch(
+        "fan_areas",
+        [centre, verts, closed, int(gradients)],
+        [(n, "f8"), ((n, nv) if gradients else (1, 1), "v3"), (n, "i4")],
     )
-    inputs = [_on_cpu(wp, a) for a in (centre, verts, closed)]
-    wp.launch(dual_kernels.fan_areas, n, [*inputs, int(gradients), *out], device="cpu")
-    area, grad, star = (a.numpy() for a in out)
     return area, grad if gradients else None, star.astype(bool)
 
 
-def _on_cpu(wp, a):
-    """``a`` as a CPU kernel's array, on its memory where that is contiguous and of the type (the
-    array then holds it): points (k, 3) as float64 3-vectors, indices as int32."""
-    if np.issubdtype(a.dtype, np.floating):
-        return wp.array(np.ascontiguousarray(a, dtype=np.float64), dtype=wp.vec3d, device="cpu", copy=False)
-    return wp.array(np.ascontiguousarray(a, dtype=np.int32), dtype=wp.int32, device="cpu", copy=False)
+def _launch(name: str, inputs: list, outputs: list) -> list:
+    """``kernels.dual``'s kernel ``name`` on the CPU, one thread a cell (the first output's length):
+    ``inputs`` numpy arrays (points (k, 3) as float64 3-vectors, on their memory where that is
+    contiguous and of the type; indices as int32) or ints; ``outputs`` (shape, "f8" | "v3" |
+    "i4") made empty and returned as numpy views."""
+    from ..kernels import dual as dual_kernels  # here, not at the top: reading a run file needs no Warp
+
+    wp = init_warp()
+    types = {"f8": wp.float64, "v3": wp.vec3d, "i4": wp.int32}
+
+    def held(a):
+        if not isinstance(a, np.ndarray):
+            return a
+        if np.issubdtype(a.dtype, np.floating):
+            return wp.array(np.ascontiguousarray(a, dtype=np.float64), dtype=wp.vec3d, device="cpu", copy=False)
+        return wp.array(np.ascontiguousarray(a, dtype=np.int32), dtype=wp.int32, device="cpu", copy=False)
+
+    out = [wp.empty(shape, dtype=types[t], device="cpu") for shape, t in outputs]
+    wp.launch(getattr(dual_kernels, name), outputs[0][0], [*map(held, inputs), *out], device="cpu")
+    return [a.numpy() for a in out]
 
 
 def spherical_areas(centre, verts, corners) -> np.ndarray:
@@ -185,12 +193,7 @@ def convex(verts, corners) -> np.ndarray:
     """Whether each cell ``verts[corners]`` (−1-padded) turns left at every vertex seen from
     outside, (ncell,) bool: ((b − a) × (c − b)) · b = a · (b × c) > 0 for consecutive
     vertices a, b, c (``kernels.dual.convex``)."""
-    from ..kernels import dual as dual_kernels  # here, not at the top: reading a run file needs no Warp
-
-    wp = init_warp()
-    out = wp.empty(corners.shape[0], dtype=wp.int32, device="cpu")
-    wp.launch(dual_kernels.convex, corners.shape[0], [_on_cpu(wp, verts), _on_cpu(wp, corners), out], device="cpu")
-    return out.numpy().astype(bool)
+    return _launch("convex", [verts, corners], [(corners.shape[0], "i4")])[0].astype(bool)
 
 
 def star_shaped(centre, verts, corners) -> np.ndarray:

@@ -29,6 +29,11 @@ control (``--pair`` at ``--rtol``) and CFL control (``--cfl-stepper`` at ``--cfl
     (``control.ErrorNorm``) or, under "cfl", one pass of the Courant numbers (``control.CourantMax``);
     and one controlled step (``StepControl.step``: the state kept, the
     step, the norm, the controller) at one Δt.
+(g) **What its graphs cost it** (``--parts g``): the controlled run of (a), then twice more on
+    the same ``Simulation`` restored to its start (its restart file at t = 0). The runs take the
+    same steps to the same bits; the third captures no graph (each Δt's was made by the first two),
+    so the first less the third is what capturing a graph for each new Δt (and the plain steps
+    before it) costs the run, and the third against the fixed-Δt run what the control costs a step.
 (p) **Where the host's time goes** (``--parts p``): the controlled run and the fixed-Δt run of
     (a) again under cProfile, the host's CPU seconds a step (``time.process_time``) beside the wall
     seconds, and the functions that take most of the host's time. On a card the host must issue a
@@ -41,13 +46,16 @@ import argparse
 import cProfile
 import os
 import pstats
+import tempfile
 import time
+from pathlib import Path
 
 import warp as wp
 from results import recorded
 
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.runtime import init_warp
+from swe_sphere.simulation import checkpoint
 from swe_sphere.simulation.adaptive import on_grid
 from swe_sphere.simulation.simulation import Simulation
 
@@ -186,6 +194,35 @@ def parts(args, out: dict) -> None:
     print(f"one controlled step (one dt)   {step:8.3f} ({(step / one - 1) * 100:+.2f} %)")
 
 
+def graph_cost(args, out: dict) -> None:
+    """(g): the controlled run, then the same run twice more from its start, its graphs kept."""
+    sim = build(args, args.days)
+    with tempfile.TemporaryDirectory() as tmp:
+        start = checkpoint.read(sim.write_checkpoint(Path(tmp) / "start.nc"))
+    first = cpu(lambda: sim.run(None))
+    steps, end = sim.control.accepted, sim.x.numpy().copy()
+    sim.restore(start)
+    sim.run(None)  # captures the Δt the first run took once (a key's graph is made at its second step)
+    kept = sim.graphs_kept
+    sim.restore(start)
+    again = cpu(lambda: sim.run(None))
+    if sim.control.accepted != steps or (sim.x.numpy() != end).any() or sim.graphs_kept != kept:
+        raise SystemExit("(g): a run again took other steps, reached other bits or captured a graph")
+    mean = sim.control.dt_sum / steps
+    fixed = build(args, steps * mean / 86400.0, dt=mean, control=False)
+    fixed.stepper.carry_last_stage()
+    fixed_s = cpu(lambda: fixed.run(None))
+    row = {"accepted": steps, "graphs": kept}
+    row |= {"first_ms": first / steps * 1e3, "kept_ms": again / steps * 1e3, "fixed_ms": fixed_s / fixed.step * 1e3}
+    row["a_graph_ms"] = (first - again) / kept * 1e3
+    out["graph_cost"] = row
+    print(f"\n## TC5 ne{args.ne} {args.pair} {what(args)}, {args.days:g} days: {steps} steps, {kept} step graphs")
+    print(f"controlled, first run    {row['first_ms']:8.3f} ms a step ({first / fixed_s:.3f}x the fixed dt)")
+    print(f"the same, graphs kept    {row['kept_ms']:8.3f} ms a step ({again / fixed_s:.3f}x)")
+    print(f"fixed dt {mean:7.1f} s      {row['fixed_ms']:8.3f} ms a step")
+    print(f"each step graph costs the first run {row['a_graph_ms']:.3f} ms")
+
+
 def profiled(args, out: dict) -> None:
     """(p): the controlled run and the fixed-Δt run of as many steps under cProfile."""
     sim = build(args, args.days)
@@ -211,7 +248,10 @@ def profiled(args, out: dict) -> None:
         print(
             f"\n## {name}, {steps} steps under cProfile: wall {wall / steps * 1e3:.3f} ms a step, host CPU {host / steps * 1e3:.3f}"
         )
-        pstats.Stats(profile).sort_stats("tottime").print_stats(args.profile_rows)
+        stats = pstats.Stats(profile)
+        stats.sort_stats("tottime").print_stats(args.profile_rows)
+        # the control's own parts and the graphs' captures, with what they call
+        stats.sort_stats("cumulative").print_stats(r"graphs\.py|adaptive\.py|control\.py|capture", args.profile_rows)
 
 
 def main() -> None:
@@ -224,7 +264,7 @@ def main() -> None:
     parser.add_argument("--cfl", type=float, default=1.0, help="the target Courant number under CFL control")
     parser.add_argument("--days", type=float, default=0.5)
     parser.add_argument("--repeat", type=int, default=40, help="calls timed in (b)")
-    parser.add_argument("--parts", nargs="+", default=["a", "b"], choices=["a", "b", "p"])
+    parser.add_argument("--parts", nargs="+", default=["a", "b"], choices=["a", "b", "g", "p"])
     parser.add_argument("--profile-rows", type=int, default=25, help="functions (p) prints a run")
     parser.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")
     parser.add_argument("--device", default="cpu", help="cpu (CPU clock) or cuda (wall clock)")
@@ -245,6 +285,8 @@ def main() -> None:
                 whole_runs(one, figures[control])
             if "b" in args.parts:
                 parts(one, figures[control])
+            if "g" in args.parts:
+                graph_cost(one, figures[control])
             if "p" in args.parts:
                 profiled(one, figures[control])
         print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")

@@ -22,7 +22,7 @@ import warp as wp
 
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
-from swe_sphere.core.graphs import GraphedSteps
+from swe_sphere.core.graphs import GraphedSteps, same_bits
 from swe_sphere.core.tally import Tally, instrumented
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
@@ -64,6 +64,38 @@ def stepped(scene, device, graphs, check_every):
     sim.graphs, sim.check_every = graphs, check_every
     result = sim.run(None)
     return sim.x.numpy(), result.rhs_evals, sim.stepper.steps, result.iterations
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_the_graph_check_compares_bits_on_the_device(device):
+    """``same_bits``, the check a captured step's first replay passes: two arrays equal bit for
+    bit (a NaN against the same NaN too) are the same, while a sign of zero, another NaN
+    payload, one unit in the last place, another shape or dtype differ; strided views compare
+    by their own elements, host values by ``repr``."""
+    rng = np.random.default_rng(3)
+    base = rng.standard_normal((3, 50))
+    base[0, 7], base[1, 3] = np.nan, 0.0
+
+    def arr(a, dtype=wp.float64):
+        return wp.array(np.ascontiguousarray(a), dtype=dtype, device=device)
+
+    assert same_bits([(arr(base), arr(base)), (arr(base[:, ::2]), arr(base)[:, ::2]), (3, 3), ("rk4", "rk4")])
+    spoiled = []
+    for r, p, value in [(1, 3, -0.0), (0, 7, np.frombuffer(np.uint64(0x7FF8000000000001).tobytes())[0])]:
+        other = base.copy()
+        other[r, p] = value
+        spoiled.append(other)
+    other = base.copy()
+    other[2, 49] = np.nextafter(other[2, 49], np.inf)
+    spoiled.append(other)
+    for other in spoiled:
+        assert not same_bits([(arr(base), arr(base)), (arr(base), arr(other))])
+    assert not same_bits([(arr(base), arr(base[:, :49]))])
+    assert not same_bits([(arr(base), arr(base.astype(np.float32), wp.float32))])
+    odd, even = slice(1, None, 2), slice(0, None, 2)  # (2, 49), one ulp off, is in the odd columns
+    assert not same_bits([(arr(base)[:, odd], arr(spoiled[2])[:, odd])])
+    assert same_bits([(arr(base)[:, even], arr(spoiled[2])[:, even])])
+    assert not same_bits([(3, 3.0)])
 
 
 @pytest.mark.parametrize("device", DEVICES)

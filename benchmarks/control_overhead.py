@@ -126,6 +126,7 @@ def whole_runs(args, out: dict) -> None:
     row = {"accepted": steps, "rejected": ctl.rejected, "fixed_steps": fixed.step, "dt_mean": mean}
     row |= {"ahead_taken": ctl.ahead_taken, "ahead_dropped": ctl.ahead_dropped}
     row |= {"graphs_kept": sim.graphs_kept, "fixed_graphs_kept": fixed.graphs_kept}
+    row |= {"courant_passes": ctl.courant_passes, "courant_queued": ctl.courant_queued}
     if behind is not None:
         per["no_lookahead"] = behind
     row |= {f"{k}_ms": v * 1e3 for k, v in per.items()}
@@ -142,6 +143,8 @@ def whole_runs(args, out: dict) -> None:
         print(f"  no lookahead {behind * 1e3:8.3f} ms a step ({(behind / per['controlled'] - 1) * 100:+.1f} %)")
     print(f"fixed dt {mean:7.1f} s {per['fixed'] * 1e3:8.3f} ms a step ({fixed.step} steps)")
     print(f"step graphs kept: {sim.graphs_kept} controlled, {fixed.graphs_kept} fixed (each captured once)")
+    if ctl.courant is not None:
+        print(f"Courant cap passes: {ctl.courant_passes}, {ctl.courant_queued} queued before the try launched ahead")
     print(f"its dt, bare   {per['bare'] * 1e3:8.3f} ms a step")
     print(
         f"overhead: {row['overhead_vs_fixed_pct']:+.2f} % against the fixed dt, "

@@ -206,10 +206,19 @@ class CourantMax:
         # the nodes are blocked): on CUDA a slot a node made the pass's read 3 N numbers, 8 MB at ne60
         self.block = COURANT_BLOCK
         self._out = wp.zeros((3, -(-topology.N // self.block)), dtype=f64, device=device)
+        self._read = topology.backend.reader(self._out)
         self._launches: dict[int, tuple] = {}
 
     def __call__(self, x, dt: float) -> tuple[dict, bool]:
-        """(``courant_numbers``' dict of x at ``dt`` (s), whether x has a bad node)."""
+        """(``courant_numbers``' dict of x at ``dt`` (s), whether x has a bad node): ``launch``
+        then ``read``."""
+        self.launch(x)
+        return self.read(dt)
+
+    def launch(self, x) -> None:
+        """Queue the pass over x and its read (``core.backend.HostRead``): on CUDA the host goes
+        on (a next step may be launched behind it) until ``read``. x is read as it is when the
+        pass runs, in the stream's order."""
         t = self.topology
         if x.ptr not in self._launches:
             args = [x, self.rdx2, f64(self.g), int(self.gravity_waves), self.block, self._out]
@@ -219,7 +228,13 @@ class CourantMax:
             )
             self._launches[x.ptr] = (launch, x)
         self._launches[x.ptr][0].launch()
-        adv, grav, bad = (t.max(float(v)) for v in self._out.numpy().max(axis=1))
+        self._read.start()
+
+    def read(self, dt: float) -> tuple[dict, bool]:
+        """The numbers at ``dt`` (s) of the pass ``launch`` queued, and whether its state has a
+        bad node (waits for its read alone)."""
+        t = self.topology
+        adv, grav, bad = (t.max(float(v)) for v in self._read.values().max(axis=1))
         numbers = {"courant_advective": math.sqrt(adv) * dt}
         numbers["courant_gravity"] = math.sqrt(grav) * dt if self.gravity_waves else math.nan
         return numbers, bad > 0

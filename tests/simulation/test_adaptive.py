@@ -373,21 +373,32 @@ def test_a_run_with_tries_launched_ahead_is_bitwise_the_run_without(tmp_path):
     callback every 10 steps and a log (``watched_run``): the run file, the final state, the
     callbacks' and the log's states bitwise those of the run without it, the same steps, tries
     and RHS evaluations. Most steps are tries launched ahead; some were undone (a rejection, a
-    new Δt), and none were launched before an output or a callback."""
+    new Δt), and none were launched before an output or a callback. The Courant cap's passes
+    are those of the run without, most of them queued before the try launched ahead
+    (``StepControl._pass_likely``), and few queued passes go unused."""
     overrides = {"time.control": "error", "time.rtol": 1e-4, "output.every_days": 0.25}
     scene = load_scene("tc5_mountain", ne=4, days=1.0, stepper="rk43", overrides=overrides)
     scene = dataclasses.replace(scene, dt=5 * scene.dt)
-    sims = []
+    sims, queued = [], []
 
     def ahead(sim):
         sim.control.lookahead = True
         sims.append(sim)
+        launch = sim.control.courant.launch
 
-    plain = watched_run(scene, tmp_path / "plain.nc")
+        def counted(x):
+            queued.append(sim.control.accepted)
+            launch(x)
+
+        sim.control.courant.launch = counted
+
+    plain = watched_run(scene, tmp_path / "plain.nc", setup=sims.append)
     looked = watched_run(scene, tmp_path / "ahead.nc", setup=ahead)
     assert_same_runs(plain, looked)
-    (sim,) = sims
+    (first, sim) = sims
     ctl = sim.control
+    assert ctl.courant_passes == first.control.courant_passes >= ctl.courant_queued > ctl.courant_passes / 2
+    assert ctl.courant_queued <= len(queued) <= 1.5 * ctl.courant_queued, (len(queued), ctl.courant_queued)
     assert ctl.rejected > 0 and ctl.ahead is None
     assert ctl.accepted > ctl.ahead_taken > ctl.accepted / 2 and ctl.ahead_dropped > 0
     # a try is launched ahead only after a step that neither lands nor has a callback due

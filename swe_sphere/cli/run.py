@@ -290,6 +290,7 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
             compress=args.compress,
             history=" ".join(["swe-sphere", *(sys.argv[1:] if args.argv is None else args.argv)]),
             progress=not args.no_progress,
+            notify=_note,
         )
     except BlowUp as err:  # on every rank alike
         if ens.root:
@@ -308,6 +309,13 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
     print(f"  h spread    {spread:.4g} m (area-weighted RMS of the members' standard deviation at day {scene.days:g})")
     print(f"  output      {output}")
     return 0
+
+
+def _note(line: str) -> None:
+    """A run's note on stderr, above its progress bar."""
+    from tqdm import tqdm
+
+    tqdm.write(f"swe-sphere: note: {line}", file=sys.stderr)
 
 
 def _output_lock(output: Path, comm):
@@ -355,7 +363,7 @@ def _run(args, scene, output, device, comm) -> int:
             restart_every=args.restart_every,
             compress=args.compress,
             history=" ".join(["swe-sphere", *(sys.argv[1:] if args.argv is None else args.argv)]),
-            notify=lambda line: tqdm.write(f"swe-sphere: note: {line}", file=sys.stderr),  # above the bar
+            notify=_note,
             log=lambda line: tqdm.write(f"log         {line}", file=sys.stdout),
         )
     except BlowUp as err:  # on every rank alike (the bad node is found over all of them)

@@ -313,6 +313,7 @@ class Ensemble:
         compress: bool = False,
         history: str | None = None,
         progress: bool = False,
+        notify=None,
     ) -> Path:
         """Advance every member to the scene's last day, writing the run file ``output`` (netCDF)
         at the first step and every ``output.every_days`` (``simulation.schedules.output_steps``):
@@ -327,8 +328,9 @@ class Ensemble:
         says why) and raises; members dropped go as NaN, their lines in ``dropped_members``.
         ``OutputError`` for a path that may not be written (``overwrite``: replace it);
         ``SceneError`` for a restart interval that is not whole steps; ``compress``: the fields
-        as float32 with zlib; ``progress``: a bar on stderr where it is a terminal. Returns the
-        run file's path."""
+        as float32 with zlib; ``progress``: a bar on stderr where it is a terminal; ``notify(line)``:
+        told what the run file's cells cost or that they were left out (``RunWriter.cells_notes``).
+        Returns the run file's path."""
         s = self.scene
         restart, restarts = restart_path(output), set()
         if restart_every is not None:
@@ -363,6 +365,8 @@ class Ensemble:
                 member_series=member_series,
             )
         )
+        for line in [] if writer is None or notify is None else writer.cells_notes(s.grid_text):
+            notify(line)
         # disable=None: a bar only on a terminal (as ``Simulation``'s), updated once a block
         bar = tqdm(
             initial=self.step_count, total=s.nsteps, unit="step", disable=None if progress else True, file=sys.stderr

@@ -19,6 +19,7 @@ from pathlib import Path
 import netCDF4
 import numpy as np
 
+from ..core.cache import cache_dir
 from ..core.runtime import package_version
 from ..grid.cubed_sphere import CubedSphere
 from ..mesh.mesh import Mesh, check
@@ -29,6 +30,7 @@ from .output_files import ExclusiveFile, release_held_locks
 from .ugrid import MESH as SUBCELL_MESH
 from .ugrid import write_mesh
 
+CELLS_NOTE_SECONDS = 1.0  # a cells build below this is less than a run's set-up (Warp's start alone) and goes unsaid
 FIELDS = {
     "h": dict(units="m", long_name="fluid depth"),  # CF has no standard name for a shallow-water depth
     "hs": dict(units="m", long_name="surface height", standard_name="surface_altitude"),
@@ -270,6 +272,24 @@ class RunWriter:
             self.abort()
             raise
         _OPEN.add(self)
+
+    def cells_notes(self, grid_text: str) -> list[str]:
+        """The lines to tell a user about this file's cells (``grid_text`` names the grid): that
+        their fit failed and the file is written without them; or that building them took
+        ``CELLS_NOTE_SECONDS`` of CPU or more (a build can cost more than a short run), once per
+        grid; else none."""
+        what = f"the run file's cells (GLL control volumes, {grid_text})"
+        if self.cells_failure is not None:
+            return [
+                f"{what} could not be fitted ({self.cells_failure}): the file is written without them, "
+                "as with output.cells = false"
+            ]
+        if self.cells_seconds is not None and self.cells_seconds >= CELLS_NOTE_SECONDS:
+            return [
+                f"{what} took {self.cells_seconds:.1f} s of CPU to build, once per grid: later runs read them "
+                f"from {cache_dir()}; output.cells = false (--no-cells) leaves them out"
+            ]
+        return []
 
     def _create(self, attrs, hs, series, compress):
         grid = self.grid

@@ -6,14 +6,11 @@ import math
 from pathlib import Path
 
 from ..cases.scoring import truth
-from ..core.cache import cache_dir
 from ..core.constants import DAY
 from ..core.runtime import package_version
 from ..io.run_file import OUTPUT_FIELDS, RunWriter, history_line
 from . import checkpoint as ckpt
 from .schedules import AtDays, AtSteps, interval_days, output_days, output_steps, restart_steps
-
-NOTE_SECONDS = 1.0  # a cells build below this is less than a run's set-up (Warp's start alone) and goes unsaid
 
 
 def stream_path(output: Path, name: str) -> Path:
@@ -120,8 +117,8 @@ class RunFiles:
     def open(self, attrs: dict, *, overwrite: bool, compress: bool, notify=None) -> None:
         """Create the files (rank 0) with the global attributes ``attrs``; on failure none is left.
         ``notify(line)``: told in one line when the run file's cells were built rather than
-        read from the cache, at ``NOTE_SECONDS`` of CPU or more (a build can cost more than
-        a short run), or when their fit failed and the files were written without them."""
+        read from the cache at some cost, or when their fit failed and the files were written
+        without them (``RunWriter.cells_notes``)."""
         try:
             for i, (path, fields, _) in enumerate(self.streams):
                 self.writers[i] = RunWriter(
@@ -138,19 +135,9 @@ class RunFiles:
         except BaseException:
             self.abort()
             raise
-        failure = self.writers[0].cells_failure if self.writers else None
-        if failure is not None and notify is not None:
-            notify(
-                f"the run file's cells (GLL control volumes, {self.sim.scene.grid_text}) could not be fitted "
-                f"({failure}): the file is written without them, as with output.cells = false"
-            )
-        seconds = self.writers[0].cells_seconds if self.writers else None
-        if seconds is not None and seconds >= NOTE_SECONDS and notify is not None:
-            notify(
-                f"the run file's cells (GLL control volumes, {self.sim.scene.grid_text}) took {seconds:.1f} s of CPU to "
-                f"build, once per grid: later runs read them from {cache_dir()}; output.cells = false "
-                "(--no-cells) leaves them out"
-            )
+        if self.writers and notify is not None:
+            for line in self.writers[0].cells_notes(self.sim.scene.grid_text):
+                notify(line)
 
     def record(self, step: int, x=None, whole=None, final: bool = False, write: bool = True) -> None:
         """Diagnose ``step`` (state x, default the current one; ``whole`` its gathered

@@ -447,7 +447,8 @@ def test_the_writers_build_reaches_the_areas_on_every_small_grid(grid_factory, n
 def test_a_run_whose_cells_cannot_be_fitted_is_written_without_them_and_says_so(tmp_path, monkeypatch, capsys):
     """A fit that fails (``dual_mesh``'s ``ArithmeticError``) costs the run its cells, not the run:
     one line says so, the file is the one ``--no-cells`` writes, its ``cells`` attribute naming the
-    failure; the grid is not fitted again in the process."""
+    failure; the grid is not fitted again in the process. An ensemble's run (``--members``) the
+    same."""
     monkeypatch.setenv("SWE_SPHERE_CACHE_DIR", str(tmp_path / "cache"))
     fits = []
 
@@ -456,31 +457,35 @@ def test_a_run_whose_cells_cannot_be_fitted_is_written_without_them_and_says_so(
         raise ArithmeticError("dual mesh: no step lowers the cell-area error 1.4e-10")
 
     monkeypatch.setattr(dual, "dual_mesh", stalled)
-    out = tmp_path / "o.nc"
+    out, ensemble = tmp_path / "o.nc", tmp_path / "members.nc"
     args = ["run", "tc5_mountain", "--ne", "2", "--np", "2", "--days", "0.25", "--device", "cpu", "--no-progress"]
     dual.clear_memo()
+    lines = []
     try:
-        assert main([*args, "--output", str(out)]) == 0
-        lines = [line for line in capsys.readouterr().err.splitlines() if "cells" in line]
+        for path, extra in ((out, []), (ensemble, ["--members", "2", "--perturbation", "1"])):
+            assert main([*args, "--output", str(path), *extra]) == 0
+            lines.append([line for line in capsys.readouterr().err.splitlines() if "cells" in line])
         with pytest.raises(ArithmeticError, match="no step lowers"):
             dual.unit_dual_mesh(2, 2)
     finally:
         dual.clear_memo()
     assert fits == [2]
-    assert len(lines) == 1 and "could not be fitted" in lines[0] and "no step lowers" in lines[0]
-    with netCDF4.Dataset(out) as ds:
-        assert "mesh_dual" not in ds.variables and "their fit failed: dual mesh" in ds.cells
-        assert (ds["h"].mesh, ds["h"].location) == ("mesh_topology", "node") and np.isfinite(ds["h"][:]).all()
+    for said in lines:  # the single run's and the ensemble's
+        assert len(said) == 1 and "could not be fitted" in said[0] and "no step lowers" in said[0], said
+    for path in (out, ensemble):
+        with netCDF4.Dataset(path) as ds:
+            assert "mesh_dual" not in ds.variables and "their fit failed: dual mesh" in ds.cells
+            assert (ds["h"].mesh, ds["h"].location) == ("mesh_topology", "node") and np.isfinite(ds["h"][:]).all()
 
 
 def test_a_run_says_when_it_built_its_cells_and_runs_without_them(tmp_path, monkeypatch, capsys):
     """ne = 2 np = 2 runs; the first run of a grid says in one line what its cells cost
     (every build, with the threshold lowered), the next reads them quietly; ``--no-cells``
     leaves them out and the file says what is missing."""
-    from swe_sphere.simulation import writers
+    from swe_sphere.io import run_file
 
     monkeypatch.setenv("SWE_SPHERE_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.setattr(writers, "NOTE_SECONDS", 0.0)
+    monkeypatch.setattr(run_file, "CELLS_NOTE_SECONDS", 0.0)
     dual.clear_memo()  # the process's own copy: this test's cache starts empty
     args = ["run", "tc5_mountain", "--ne", "2", "--np", "2", "--days", "0.25", "--device", "cpu", "--no-progress"]
     notes = []

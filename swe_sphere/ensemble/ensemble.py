@@ -365,8 +365,9 @@ class Ensemble:
                 member_series=member_series,
             )
         )
-        for line in [] if writer is None or notify is None else writer.cells_notes(s.grid_text):
-            notify(line)
+        if writer is not None and notify is not None:  # rank 0's
+            for line in writer.cells_notes(s.grid_text):
+                notify(line)
         # disable=None: a bar only on a terminal (as ``Simulation``'s), updated once a block
         bar = tqdm(
             initial=self.step_count, total=s.nsteps, unit="step", disable=None if progress else True, file=sys.stderr

@@ -52,9 +52,9 @@ MESH = "mesh_dual"
 CONNECTIVITY = "dual_face_nodes"
 NODE_DIM, CORNER_DIM = "ndual_node", "nv"
 MIN_CORNERS = 4  # the columns of the corner tables at least: a cube's (4 vertices a cell, 3 at its corners)
-# the largest |cell area / (spheremp / a²) − 1| accepted; the fit's floor grows with the cells: 1e-12 at ne30,
-# 1.4e-10 at ne240, where the steps along the nearly singular checkerboard stop being linear and 1e-10 was never
-# reached (the global fit stalled at 1.38e-10 and started again from afar, over 25 minutes of one thread)
+# the fit's tolerance on |cell area / (spheremp / a²) − 1| (a fit stopped at its floor above it keeps what it
+# reached: FLOOR_ERROR); the fit's floor grows with the cells: 1e-12 at ne30, 1.4e-10 at ne240, where the steps
+# along the nearly singular checkerboard stop being linear and 1e-10 was never reached
 RTOL = 1e-9
 MAX_ITERATIONS = 60  # a cap, above the steps of every grid tried (ne ≤ 6 at np 2..8, ne 8 to 120 at np 4)
 MU_MIN, MU_MAX = 1e-12, 1e6  # Levenberg–Marquardt damping, relative to mean diag JJᵀ
@@ -79,8 +79,23 @@ LOCAL_ERROR, LOCAL_RINGS = 0.05, 6  # cells fitted first, and the rings round th
 # which they have stalled (HOMME's mountain_10_x2.g: the convexity rule holds the worst cells' fit at 6e-3)
 # and the global fit starts again from the start itself with μ = MU_FAR
 NEAR_STEPS = 20
+# a fit whose every cell is within FLOOR_ERROR of its area and that rejects FLOOR_TRIALS trial steps in a row
+# (μ up a thousandfold) has reached its round-off floor on this grid, above RTOL: it stops there and keeps what
+# it reached, since another start reaches the same floor (ne240 np4 at RTOL 1e-10 stops at 1.38e-10 after 87 s of
+# one thread, where the far fit from the start took it past 25 minutes). No fit of the tests, nor of the cube at
+# np4 and ne 8 to 240 (RTOL 1e-9), rejects a step below 6.9e-3.
+FLOOR_ERROR, FLOOR_TRIALS = 1e-6, 3
 TWIST = 0.1  # the chiral start's rotation (``_start_vertices``)
 BUILD = 11  # the fit's version in the cache key: raised by any change that moves the cells' bits
+
+
+class FitStopped(ArithmeticError):
+    """A cell-area fit that stopped short of its tolerance: no trial step lowered the error, or its
+    steps ran out. ``verts`` the vertices it reached, ``error`` their largest relative area error."""
+
+    def __init__(self, message: str, verts: np.ndarray, error: float):
+        super().__init__(message)
+        self.verts, self.error = verts, float(error)
 
 
 def control_points(rule) -> np.ndarray:
@@ -215,7 +230,8 @@ def dual_mesh(grid: CubedSphere):
     """The control volumes of ``grid`` (the whole grid, any mesh) on the unit sphere:
     (vertices (nsub, 3) unit vectors, nsub = nelem·(np−1)²; corners (nunique,
     ``max_corners(grid)``) int32 counter-clockwise, −1-padded; relative area error
-    max |area·a²/grid.area − 1|, at most ``RTOL``).
+    max |area·a²/grid.area − 1|, at most ``RTOL``, or ``FLOOR_ERROR`` on a grid whose fit stops
+    at its round-off floor above ``RTOL``).
 
     Levenberg–Marquardt on the 2·nsub tangent displacements of the vertices for the
     relative residual ρ = 1 − area/(spheremp/a²): minimum-norm steps δ = Jᵀ(JJᵀ + μI)⁻¹ρ
@@ -245,8 +261,10 @@ def dual_mesh(grid: CubedSphere):
     24 dual vertices have one degree of freedom each under the cube's mirrors, too few for
     the 3 distinct targets), it starts again from ``_start_vertices`` twisted by ``TWIST``,
     its steps solved to round-off and its cells only star-shaped (2 of ne = 2 np = 2's are not
-    convex). Raises ``ArithmeticError`` if RTOL is not reached in MAX_ITERATIONS steps from
-    either start."""
+    convex). A fit that stops with every cell within ``FLOOR_ERROR`` of its area (``FLOOR_TRIALS``
+    trial steps in a row rejected) has reached the floor of its steps on this grid: it ends there,
+    not restarted (another start reaches the same floor, at ne240 and RTOL 1e-10 after 25 minutes).
+    Raises ``ArithmeticError`` (``FitStopped``) if the areas are reached from no start."""
     corners = cells(grid)
     closed = _padded(corners)
     centre = np.stack([grid.to_unique(x) for x in grid.xyz], axis=1)
@@ -254,17 +272,27 @@ def dual_mesh(grid: CubedSphere):
     start = _start_vertices(grid, 0.0)
     quads = subcell_quads(grid)
     colour = checkerboard(quads) if corners.shape[0] >= AMG_CELLS else None  # for the V-cycle only
-    fit = functools.partial(_fit, centre, corners=corners, closed=closed, target=target, colour=colour)
+    fit = functools.partial(_fit_to_floor, centre, corners=corners, closed=closed, target=target, colour=colour)
     try:
         near = _fit_worst_first(centre, start, corners, closed, target, quads, colour)
         verts, error = fit(near, cg_rtol=CG_RTOL, mu=MU_NEAR, keep_convex=True, steps=NEAR_STEPS)
-    except ArithmeticError:  # the worst cells' fit, or the global fit after it, stalled
+    except ArithmeticError:  # the worst cells' fit, or the global fit after it, stalled above its floor
         try:
             verts, error = fit(start, cg_rtol=CG_RTOL, mu=MU_FAR, keep_convex=True)
         except ArithmeticError:
             twisted = _start_vertices(grid, TWIST)
             verts, error = fit(twisted, cg_rtol=CG_RTOL_EXACT, mu=MU_FAR, keep_convex=False)
     return verts, corners, error
+
+
+def _fit_to_floor(*args, **kwargs) -> tuple[np.ndarray, float]:
+    """``_fit``, or where it stops within ``FLOOR_ERROR`` (its round-off floor), what it reached."""
+    try:
+        return _fit(*args, **kwargs)
+    except FitStopped as stop:
+        if not stop.error <= FLOOR_ERROR:
+            raise
+        return stop.verts, stop.error
 
 
 def checkerboard(quads) -> np.ndarray:
@@ -315,7 +343,7 @@ def _fit_worst_first(centre, verts, corners, closed, target, quads, colour):
     part_of = np.unique(connected_components(links, directed=False)[1][cells_], return_inverse=True)[1]
     ratio = np.bincount(part_of, area[cells_]) / np.bincount(part_of, target[cells_])
     t = target[cells_] * ratio[part_of]
-    moved, _ = _fit(
+    moved, _ = _fit_to_floor(
         centre[cells_],
         verts[held],
         part,
@@ -334,7 +362,7 @@ def _fit_worst_first(centre, verts, corners, closed, target, quads, colour):
 
 
 def _fit(
-    centre, verts, corners, closed, target, colour, cg_rtol, mu, keep_convex, free=None, tol=RTOL, steps=MAX_ITERATIONS
+    centre, verts, corners, closed, target, colour, cg_rtol, mu, keep_convex, free=None, tol=None, steps=MAX_ITERATIONS
 ):
     """``dual_mesh``'s Levenberg–Marquardt iteration from ``verts`` to the areas ``target``
     (ncell,) within ``tol`` (relative), each step's linear system solved to the relative
@@ -342,7 +370,9 @@ def _fit(
     star-shaped from their nodes (and, with ``keep_convex``, those convex at the start stay
     convex); only the vertices ``free`` (nsub,) bool move (default all). ``colour`` (ncell,):
     the cells' checkerboard (``checkerboard``), for the V-cycle (None below ``AMG_CELLS`` cells).
-    (vertices, max relative error); ``ArithmeticError`` if no step lowers the error or ``steps`` do not reach ``tol``.
+    (vertices, max relative error); ``FitStopped`` if no step lowers the error (μ past ``MU_MAX``, or
+    ``FLOOR_TRIALS`` trials in a row within ``FLOOR_ERROR``) or ``steps`` do not reach ``tol`` (None:
+    ``RTOL``).
 
     A V-cycle serves the fit's later systems while μ stays at most ``MU_NEAR`` (built
     again where μ changes above it): the vertices move by a fraction of a cell, and that small
@@ -361,6 +391,7 @@ def _fit(
     area, grad, _ = _fan(centre, verts, closed, True)
     was_convex = convex(verts, corners)
     preconditioner, built_for = None, None
+    tol = RTOL if tol is None else tol
     for _ in range(steps):
         rho = 1 - area / target
         error, norm = np.max(np.abs(rho)), np.linalg.norm(rho)
@@ -375,6 +406,7 @@ def _fit(
         J = sp.csr_matrix((np.stack([g1, g2], axis=-1).ravel(), (rows, cols)), shape=(n, 2 * nsub))
         JJ = (J @ J.T).tocsr()
         scale = JJ.diagonal().mean()
+        rejected = 0  # trial steps in a row
         while True:
             A = JJ + mu * scale * eye
             if n < AMG_CELLS:
@@ -393,11 +425,12 @@ def _fit(
             ):
                 mu = max(mu / 10, MU_MIN)
                 break
-            mu *= 10
-            if mu > MU_MAX:
-                raise ArithmeticError(f"dual mesh: no step lowers the cell-area error {error:.1e}")
+            mu, rejected = mu * 10, rejected + 1
+            if mu > MU_MAX or (error <= FLOOR_ERROR and rejected >= FLOOR_TRIALS):
+                raise FitStopped(f"dual mesh: no step lowers the cell-area error {error:.1e}", verts, error)
         verts, area, grad = trial, t_area, t_grad
-    raise ArithmeticError(f"dual mesh: cell areas off spheremp by {error:.1e} after {steps} steps")
+    error = float(np.max(np.abs(1 - area / target)))
+    raise FitStopped(f"dual mesh: cell areas off spheremp by {error:.1e} after {steps} steps", verts, error)
 
 
 def cache_key(ne: int, np_: int, mesh: Mesh | None = None, radius: float = EARTH.a) -> dict:

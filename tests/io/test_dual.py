@@ -183,6 +183,30 @@ def test_the_multigrid_preconditioned_fit_on_a_mesh(mesh_grid, monkeypatch):
     assert error <= RTOL and star_shaped(node, verts, corners).all() and convex(verts, corners).all()
 
 
+def test_a_fit_that_stops_at_its_floor_keeps_what_it_reached_after_a_few_solves(grid_factory, monkeypatch):
+    """A tolerance below what the fit can reach on a grid (RTOL 1e-16; ne8 np4 stops near 1e-13):
+    the fit ends at its floor, within ``FLOOR_ERROR``, its cells star-shaped and convex and their
+    areas off spheremp by the error it returns, after a few more linear solves than the fit to
+    the real RTOL, not started again from two more starts (before the floor rule: 113 solves,
+    then ``ArithmeticError``; ne240 at RTOL 1e-10 took over 25 minutes that way)."""
+    import scipy.sparse.linalg as spla
+
+    grid = grid_factory(8, 4)
+    solves, cg = [], spla.cg
+    monkeypatch.setattr(spla, "cg", lambda *args, **kwargs: solves.append(1) or cg(*args, **kwargs))
+    _, _, reached = dual_mesh(grid)
+    to_rtol = len(solves)
+    solves.clear()
+    monkeypatch.setattr(dual, "RTOL", 1e-16)
+    verts, corners, error = dual_mesh(grid)
+    assert reached <= RTOL and 1e-16 < error <= dual.FLOOR_ERROR
+    node = np.stack([grid.to_unique(x) for x in grid.xyz], axis=1)
+    assert star_shaped(node, verts, corners).all() and convex(verts, corners).all()
+    area = spherical_areas(node, verts, corners)
+    assert np.max(np.abs(area / (grid.area / grid.radius**2) - 1)) == pytest.approx(error, abs=1e-15)
+    assert to_rtol < len(solves) <= 3 * to_rtol + 2 * dual.FLOOR_TRIALS, (to_rtol, len(solves))
+
+
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="prctl(2) is Linux's")
 def test_the_build_faults_its_memory_in_small_pages_and_restores_the_setting():
     """``small_pages``: the process's transparent huge pages off inside (prctl's

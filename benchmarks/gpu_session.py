@@ -28,6 +28,12 @@
   one step's graph replayed in a bare Python loop, and of ``--chain`` steps captured as one graph
   (the host's share: the first against the second; the launches' own: the last), ``--graph-steps``
   steps each, median of ``--runs``. Timing only: a chained graph's bits are not checked.
+* ``static_np``: the per-node tendency and ∇⁴ kernels compiled for the grid's np (their loops along
+  an element's rows unrolled: ``model.element_operators.STATIC_NP``, off by default) against np
+  read at run time (issue 83 item 5), on the default scenes (``galewsky``, ``tc5_mountain`` at
+  ``--ne``, default 30 and 120): µs a step of one step's graph of each, ``--graph-steps`` steps a
+  round, the two interleaved over ``--runs`` rounds, and how far apart their states end (the same
+  steps: the same arithmetic, to the contractions the compiler makes).
 * ``kernels``: where a step's GPU time goes: Warp's CUDA activity timing (``wp.timing_begin``,
   kernels, memsets and copies) over ``--steps`` plain-launched steps of the default scenes
   (``galewsky``, ``tc5_mountain`` at ``--ne``), µs a step and launches a step of each kernel.
@@ -64,6 +70,7 @@ from rhs_throughput import build, median_time, rhs_compulsory_bytes  # noqa: E40
 from swe_sphere.config.scene import load_scene  # noqa: E402
 from swe_sphere.core.constants import DAY  # noqa: E402
 from swe_sphere.core.tally import Tally, instrumented  # noqa: E402
+from swe_sphere.model import element_operators  # noqa: E402
 from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 from swe_sphere.steppers import STEPPERS  # noqa: E402
 
@@ -275,6 +282,24 @@ def iterations(args):
             print(f"| {name} | {device} | {its} | {rhs / args.steps:.1f} | {ms:.1f} |", flush=True)
 
 
+def _captured(stepper, x, dev, chain=1):
+    """``chain`` steps of ``stepper`` on x captured as one CUDA graph."""
+    with wp.ScopedCapture(device=dev, force_module_load=False) as capture:
+        for _ in range(chain):
+            stepper.step(x)
+    return capture.graph
+
+
+def _replayed(graph, dev, replays, chain=1) -> float:
+    """Seconds a step of ``replays`` launches of a graph of ``chain`` steps from a bare loop, synchronised."""
+    wp.synchronize_device(dev)
+    t0 = time.perf_counter()
+    for _ in range(replays):
+        wp.capture_launch(graph)
+    wp.synchronize_device(dev)
+    return (time.perf_counter() - t0) / (replays * chain)
+
+
 def floor(args):
     _header(
         f"µs a step ({args.device}; {args.graph_steps} steps, median of {args.runs}): the run's loop, a graph a step "
@@ -305,20 +330,44 @@ def floor(args):
             stepper.step(x)
         row = [statistics.median(loop)]
         for chain in (1, *args.chain):
-            with wp.ScopedCapture(device=dev, force_module_load=False) as capture:
-                for _ in range(chain):
-                    stepper.step(x)
-            times, replays = [], max(1, n // chain)
-            for _ in range(args.runs):
-                wp.synchronize_device(dev)
-                t0 = time.perf_counter()
-                for _ in range(replays):
-                    wp.capture_launch(capture.graph)
-                wp.synchronize_device(dev)
-                times.append((time.perf_counter() - t0) / (replays * chain))
-            row.append(statistics.median(times))
+            graph = _captured(stepper, x, dev, chain)
+            row.append(statistics.median(_replayed(graph, dev, max(1, n // chain), chain) for _ in range(args.runs)))
         cells = " | ".join(f"{t * 1e6:.1f}" for t in row)
         print(f"| {name} | {scene.ne} {scene.np} | {scene.stepper} | {tally.total_launches} | {cells} |", flush=True)
+
+
+def static_np(args):
+    """The per-node tendency and ∇⁴ kernels compiled for the grid's np (``STATIC_NP``) against np
+    read at run time: one step's graph of each, replayed in turn, the variants interleaved."""
+    _header(
+        f"µs a step of one step's graph ({args.device}; {args.graph_steps} steps a round, median of {args.runs} "
+        "rounds, the two interleaved): the per-node kernels with np read at run time, and compiled for np",
+        ["scene", "ne np", "stepper", "np at run time", "np compiled", "ratio", "max |Δx| / max |x|"],
+        4,
+    )
+    dev, n = wp.get_device(args.device), args.graph_steps
+    for name, ne in [("galewsky", None), *(("tc5_mountain", ne) for ne in args.ne)]:
+        scene = load_scene(name, ne=ne)
+        days = (100 + args.runs * n) * scene.dt / DAY
+        scene = dataclasses.replace(scene, days=days, output_every_days=days)
+        sims, graphs = [], []
+        for static in (False, True):
+            element_operators.STATIC_NP = static  # read as each model is built
+            sim = Simulation(scene, args.device, progress=False)
+            sim.run(None, until_step=100)  # compiles, records and captures
+            sims.append(sim)
+            graphs.append(_captured(sim.stepper, sim.x, dev))
+        element_operators.STATIC_NP = False
+        times = ([], [])
+        for _ in range(args.runs):
+            for k, graph in enumerate(graphs):
+                times[k].append(_replayed(graph, dev, n))
+        a, b = (statistics.median(t) for t in times)
+        x0, x1 = (sim.x.numpy() for sim in sims)  # the same steps on both: the arithmetic's agreement
+        diff = float(np.max(np.abs(x1 - x0)) / np.max(np.abs(x0)))
+        print(
+            f"| {name} | {scene.ne} {scene.np} | {scene.stepper} | {a * 1e6:.1f} | {b * 1e6:.1f} | {b / a:.3f} | {diff:.1e} |"
+        )
 
 
 def kernels(args):
@@ -354,7 +403,8 @@ def kernels(args):
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument(
-        "part", choices=("agreement", "throughput", "graphs", "bits", "reads", "iterations", "floor", "kernels")
+        "part",
+        choices=("agreement", "throughput", "graphs", "bits", "reads", "iterations", "floor", "static_np", "kernels"),
     )
     p.add_argument("--device", default="cuda")
     p.add_argument(
@@ -383,6 +433,7 @@ def main(argv=None):
         "agreement": [16],
         "throughput": [30, 60, 120, 240],
         "floor": [8, 30],
+        "static_np": [30, 120],
         "kernels": [30, 120],
     }.get(args.part, [30])
     wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level (as tests/conftest.py)
@@ -397,6 +448,7 @@ def main(argv=None):
         "reads": reads,
         "iterations": iterations,
         "floor": floor,
+        "static_np": static_np,
         "kernels": kernels,
     }[args.part](args)
 

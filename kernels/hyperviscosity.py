@@ -254,12 +254,14 @@ def laplacian_element(second: bool, divergent: bool, np_: int, copies: int = 0, 
 
 
 @functools.cache
-def laplacian_node(second: bool, divergent: bool):
+def laplacian_node(second: bool, divergent: bool, np_static: int = 0):
     """``laplacian_element`` with one thread per node, for CUDA: from the flux
     (8, N) of ``laplacian_flux`` of X or Y₁, and src the X or Y₁ it wrote.
     Arguments: flux, src (4, N), delta (1, N), c, f (``Frame``), spheremp (N),
-    dvv (np, np), np, L (4, N) output, offset. Dim N."""
+    dvv (np, np), np, L (4, N) output, offset. Dim N. ``np_static``: as
+    ``tendencies.tendency``'s."""
     S, DIV = bool(second), bool(divergent) and not second
+    NP = int(np_static)
 
     def kernel(
         flux: wp.array2d(dtype=f64),
@@ -274,9 +276,12 @@ def laplacian_node(second: bool, divergent: bool):
         offset: int,
     ):
         p = wp.tid() + offset
+        n = np_
+        if wp.static(NP > 0):
+            n = wp.static(NP)
         Lp = wp.vec4d()
         for r in range(4):
-            Lp[r] = weak_divergence(flux, r, dvv, np_, p)
+            Lp[r] = weak_divergence(flux, r, dvv, n, p)
         Xp = wp.vec4d(src[0, p], src[1, p], src[2, p], src[3, p])
         y = wp.vec4d()
         if wp.static(S):
@@ -284,11 +289,11 @@ def laplacian_node(second: bool, divergent: bool):
         else:
             y = scale_first(Lp, Xp, spheremp[p], f, p, c)
             if wp.static(DIV):
-                base, i, j = element_node(p, np_)
+                base, i, j = element_node(p, n)
                 y = add_divergent(
                     y,
-                    d_xi(delta, 0, base, i, j, np_, dvv),
-                    d_eta(delta, 0, base, i, j, np_, dvv),
+                    d_xi(delta, 0, base, i, j, n, dvv),
+                    d_eta(delta, 0, base, i, j, n, dvv),
                     c[1] * spheremp[p],
                     p,
                     f,
@@ -296,8 +301,8 @@ def laplacian_node(second: bool, divergent: bool):
         for r in range(4):
             L[r, p] = y[r]
 
-    kernel.__qualname__ = kernel.__name__ = "laplacian_node__" + (
-        "second" if S else "first__divergent" if DIV else "first"
+    kernel.__qualname__ = kernel.__name__ = (
+        "laplacian_node__" + ("second" if S else "first__divergent" if DIV else "first") + (f"__np{NP}" if NP else "")
     )
     return wp.kernel(kernel, enable_backward=False, module="unique")
 
@@ -324,7 +329,7 @@ laplacian_metric = wp.kernel(_laplacian_metric, enable_backward=False, module="u
 
 
 @functools.cache
-def laplacian_flux(cartesian: bool, tensor: bool):
+def laplacian_flux(cartesian: bool, tensor: bool, np_static: int = 0):
     """The flux pass of a per-node weak Laplacian (CUDA), for every row r of its source:
     flux[2r:2r+2, p] = ``operators.weak_flux`` of (∂ξ, ∂η) of row r, or with ``tensor``
     G (∂ξ, ∂η), G = metric[0:3] (G₁₁, G₁₂, G₂₂) the fixed quadrature-weighted
@@ -337,8 +342,9 @@ def laplacian_flux(cartesian: bool, tensor: bool):
     at ne120 on an H100: 169 µs against 129, issue 83.)
     Arguments: src, hs (N), f (``Frame``: east, north; read with ``cartesian``), Dinv (4, N),
     spheremp (N), metric (4, N; read with ``tensor``), dvv (np, np), np, flux (8, N),
-    X (4, N; written with ``cartesian``), offset. Dim N."""
+    X (4, N; written with ``cartesian``), offset. Dim N. ``np_static``: as ``tendencies.tendency``'s."""
     CART, TENSOR = bool(cartesian), bool(tensor)
+    NP = int(np_static)
 
     def value(src: wp.array2d(dtype=f64), hs: wp.array(dtype=f64), f: Frame, n: int):
         X = wp.vec4d()
@@ -368,12 +374,15 @@ def laplacian_flux(cartesian: bool, tensor: bool):
         offset: int,
     ):
         p = wp.tid() + offset
-        base, i, j = element_node(p, np_)
+        n = np_
+        if wp.static(NP > 0):
+            n = wp.static(NP)
+        base, i, j = element_node(p, n)
         a = wp.vec4d()  # ∂ξ, ∂η of each row, summed as ``operators.d_xi``/``d_eta``
         b = wp.vec4d()
-        for m in range(np_):
-            sq = source(src, hs, f, base + j * np_ + m)
-            sr = source(src, hs, f, base + m * np_ + i)
+        for m in range(n):
+            sq = source(src, hs, f, base + j * n + m)
+            sr = source(src, hs, f, base + m * n + i)
             for r in range(4):
                 a[r] = a[r] + dvv[i, m] * sq[r]
                 b[r] = b[r] + dvv[j, m] * sr[r]
@@ -391,6 +400,7 @@ def laplacian_flux(cartesian: bool, tensor: bool):
                 X[r, p] = s[r]
 
     name = "laplacian_flux__" + ("cartesian" if CART else "rows") + ("__tensor" if TENSOR else "")
+    name += f"__np{NP}" if NP else ""
     kernel.__qualname__ = kernel.__name__ = name
     return wp.kernel(kernel, enable_backward=False, module="unique")
 

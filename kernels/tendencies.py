@@ -113,12 +113,15 @@ def finish(terms: tuple):
 
 
 @functools.cache
-def tendency(terms: tuple):
+def tendency(terms: tuple, np_static: int = 0):
     """The tendency kernel for ``terms`` (a tuple in ``TENDENCY_TERMS`` order). Arguments:
     x (3, N) state, D, Dinv (4, N), metdet, fcor (N), forcing (2, N) topographic −g∇hs,
-    dvv (np, np), np, g, tend (3, N) output, offset."""
+    dvv (np, np), np, g, tend (3, N) output, offset. ``np_static`` > 0: compiled for that np
+    (the np argument unread): its loops along the element's rows unrolled, its node indices
+    divided by a constant; 0: np read at run time. The same arithmetic either way."""
     CONT, ADV, _, PG, _ = term_flags(terms)
     GRAD = ADV or PG  # ∇ of the Bernoulli function ½|v|² + g h
+    NP = int(np_static)
 
     def kernel(
         x: wp.array2d(dtype=f64),
@@ -134,15 +137,18 @@ def tendency(terms: tuple):
         offset: int,
     ):
         p = wp.tid() + offset
-        base, i, j = element_node(p, np_)
+        n = np_
+        if wp.static(NP > 0):
+            n = wp.static(NP)
+        base, i, j = element_node(p, n)
         div = f64(0.0)  # Σ ∂(metdet c)        (continuity)
         bx = f64(0.0)  # ∂ξ, ∂η of the Bernoulli function
         by = f64(0.0)
         cx = f64(0.0)  # ∂ξ v₂, ∂η v₁ of the covariant wind (vorticity)
         cy = f64(0.0)
-        for m in range(np_):
-            q = base + j * np_ + m  # along ξ through (i, j)
-            r = base + m * np_ + i  # along η
+        for m in range(n):
+            q = base + j * n + m  # along ξ through (i, j)
+            r = base + m * n + i  # along η
             if wp.static(CONT):
                 div += dvv[i, m] * metdet[q] * x[2, q] * (Dinv[0, q] * x[0, q] + Dinv[1, q] * x[1, q])
                 div += dvv[j, m] * metdet[r] * x[2, r] * (Dinv[2, r] * x[0, r] + Dinv[3, r] * x[1, r])
@@ -162,7 +168,7 @@ def tendency(terms: tuple):
                 cy += dvv[j, m] * (D[0, r] * x[0, r] + D[2, r] * x[1, r])
         wp.static(finish(terms))(p, div, bx, by, cx, cy, x, Dinv, metdet, fcor, forcing, tend)
 
-    kernel.__qualname__ = kernel.__name__ = "tendency__" + "__".join(terms)
+    kernel.__qualname__ = kernel.__name__ = "tendency__" + "__".join(terms) + (f"__np{NP}" if NP else "")
     return wp.kernel(kernel, enable_backward=False, module="unique")
 
 

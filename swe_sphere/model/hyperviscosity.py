@@ -113,7 +113,8 @@ class Hyperviscosity:
             def laplacian(second):  # → the weak form of Y₁ in L, or of Y₂ in L from the DSS of L
                 tensor = self.hv_tensor is not None and second != swap
                 src = Y if second else self.hv_X  # what laplacian_node reads at its node
-                flux = hyperviscosity.laplacian_flux(not second, tensor)  # the first forms X, writes it in hv_X
+                # the first forms X, writes it in hv_X
+                flux = hyperviscosity.laplacian_flux(not second, tensor, m.operators.static_np)
                 flux_args = [
                     Y if second else x,
                     m.operators.hs,
@@ -140,7 +141,8 @@ class Hyperviscosity:
                     np_,
                     L,
                 ]
-                return [*passes, m.launches.nodes(hyperviscosity.laplacian_node(second, divergent), N, args)]
+                kernel = hyperviscosity.laplacian_node(second, divergent, m.operators.static_np)
+                return [*passes, m.launches.nodes(kernel, N, args)]
 
         def apply(rows, copies, ghosts):  # ``Topology.gathering``'s kernel factory
             return hyperviscosity.dss_apply(copies, ghosts=ghosts)

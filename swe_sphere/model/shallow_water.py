@@ -282,7 +282,7 @@ class ShallowWater:
                     inputs = [*map(ops.as_rows, args), self.g, ops.dvv_rows, ops.as_rows(tend)]
                     launches.append(self.launches.elements(kernel, inputs, run))
                 else:
-                    kernel = tendencies.tendency(terms)
+                    kernel = tendencies.tendency(terms, ops.static_np)
                     inputs = [*args, ops.dvv, self.grid.np, self.g, tend]
                     launches.append(self.launches.nodes(kernel, self.N, inputs, elements=run))
         forced = self.forcing is not None and "forcing" in named

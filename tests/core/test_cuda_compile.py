@@ -15,6 +15,7 @@ own modules (``warp.optim.linear``) are left to Warp's tests.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import importlib
 import pkgutil
@@ -30,6 +31,7 @@ from swe_sphere.adjoint.gradient import step_adjoint
 from swe_sphere.config.scene import list_scenes, load_scene
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.kernels import dss, hyperviscosity
+from swe_sphere.model import element_operators
 from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.solvers.jacobian import KernelPasses
 from swe_sphere.solvers.krylov import KernelVectors
@@ -124,6 +126,14 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
             grid, ["hyperviscosity"], z, z, nu=1e15, nu_div=3e15, device="cpu", per_element=per_element
         )
         model.hyperviscosity(model.new_state(), 100.0)
+    # the per-node tendency and ∇⁴ compiled for np (``element_operators.STATIC_NP``, off by default
+    # until a card times it): the richest scene's terms, and the ∇⁴ with ν_div ≠ ν
+    monkeypatch.setattr(element_operators, "STATIC_NP", True)
+    divergent = dataclasses.replace(richest, nu_div=3 * richest.nu)
+    model = ShallowWater.from_scene(divergent, grid, device="cpu", per_element=False)
+    start = np.stack(divergent.make_case().initial(grid.lat, grid.lon))
+    make_stepper("ssprk3", model, richest.dt).step(model.new_state(*start))
+    monkeypatch.setattr(element_operators, "STATIC_NP", False)
     # the adjoint's kernels (a gradient's reverse sweep), on TC5's terms with the ∇⁴: the
     # element kernel of the CPU's layout, and the per-node pair of CUDA's
     tc5 = load_scene("tc5_mountain", ne=2, np_=4, dt=1800.0, stepper="rk4")
@@ -194,6 +204,10 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
         "dss_apply",
         "laplacian_element__first__divergent",
         "laplacian_node__first__divergent",
+        "laplacian_flux__cartesian__np4",
+        "laplacian_flux__rows__np4",
+        "laplacian_node__first__divergent__np4",
+        "laplacian_node__second__np4",
         "helmholtz_gradient",
         "helmholtz_divergence",
         "helmholtz_assemble",
@@ -235,6 +249,7 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
         "dss",
     ):
         assert key in keys, key
+    assert "tendency__continuity__momentum_advection__coriolis__pressure_gradient__topography__np4" in keys
     plain_dss = {k.module.name for k in launched if k.key in ("dss", "dss_apply") or k.key.startswith("dss_update__")}
     assert any(k.key.startswith("dss_update__") for k in launched)  # the explicit stages' combinations
     assert len(ghosted) == len(plain_dss) >= 3 and not plain_dss & {k.module.name for k in ghosted}

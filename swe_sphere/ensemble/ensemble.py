@@ -7,8 +7,7 @@ them, so a step is the single run's launches over N times the nodes (their start
 loop's Python paid once). A stepper that reduces over the grid, or members whose g or ν differ,
 step each member on a model of its own, in turn (``units``' module doc). What is global over a
 grid is taken from the one grid, not the copies: the ∇⁴'s spectral radius (its substeps) and
-every member's invariants.
-"""
+every member's invariants."""
 
 from __future__ import annotations
 
@@ -316,10 +315,10 @@ class Ensemble:
         notify=None,
     ) -> Path:
         """Advance every member to the scene's last day, writing the run file ``output`` (netCDF)
-        at the first step and every ``output.every_days`` (``simulation.schedules.output_steps``):
-        each field (time, member, ncol) with its ensemble mean and spread, each member's mass,
-        total energy, potential enstrophy and errors against the case's truth (``errors``), and
-        the RMS spread of h (``io.run_file.RunWriter`` with ``members``). ``restart_every``
+        at the first step (not a continuation's, the last time of the file it continues) and every
+        ``output.every_days`` (``simulation.schedules.output_steps``): each field (time, member,
+        ncol) with its mean and spread, each member's mass, total energy, potential enstrophy and
+        errors against the case's truth (``errors``), the RMS spread of h (``RunWriter``). ``restart_every``
         (days, whole steps): the restart file ``<output stem>.restart.nc`` (``write_checkpoint``)
         at those days and the last; without it, one is written when SIGINT or SIGTERM stops the
         run (not over an existing one unless ``overwrite``). A blow-up that stops all (``BlowUp``)
@@ -377,7 +376,8 @@ class Ensemble:
                 bar,
                 StopSignals(self.model.topology if self.comm is None else _Ranks(self.comm), catch=True) as signals,
             ):
-                self._write(writer, member_series, errors)
+                if not self.step_count:  # as a run's: the two files join without a repeated time
+                    self._write(writer, member_series, errors)
                 for target in sorted(k for k in outputs | restarts if k > self.step_count):
                     while self.step_count < target:  # a stop asked is answered between blocks
                         block = min(CHECK_EVERY_STEPS, target - self.step_count)

@@ -34,7 +34,9 @@ def _continued(args, device, comm):
             f"{args.continue_from} is a run on {ck.scene.grid_text}; it continues on its own mesh, not on --mesh {args.mesh}"
         )
     if args.set:
-        raise CheckpointError("-s cannot change a checkpointed scene")
+        raise CheckpointError(
+            f"-s {args.set[0]}: a checkpointed scene continues as it was written (-s cannot change it)"
+        )
     if args.no_cells and ck.scene.output_cells:
         raise CheckpointError("--no-cells cannot change a checkpointed scene (its output.cells is true)")
     if args.scene is not None:
@@ -342,8 +344,10 @@ def _run(args, scene, output, device, comm) -> int:
 
     from ..core import mpi
     from ..core.workers import cpus, limit_threads
+    from ..io.output_files import check_target
     from ..simulation.schedules import check_restart_interval
     from ..simulation.simulation import Simulation
+    from ..simulation.writers import restart_path
 
     if comm is not None:
         limit_threads(max(1, cpus() // mpi.node_local_size(comm)))
@@ -355,6 +359,7 @@ def _run(args, scene, output, device, comm) -> int:
         sys.stdout = open(os.devnull, "w")
     if args.restart_every is not None and args.continue_from is not None:  # a new run's: in ``command``
         check_restart_interval(sim.scene, args.restart_every)  # the checkpoint's scene, before the header
+        check_target(restart_path(output), args.overwrite)  # where the interval is the checkpoint's own
     header(args, sim, output, device, comm)
     try:
         result = sim.run(

@@ -194,7 +194,8 @@ def run_grid(ds: xr.Dataset) -> CubedSphere:
     not a swe_sphere run, its nodes do not match, or its mesh file is changed (or gone from a
     run file that carries no mesh)."""
     if "ncol" not in ds.dims or any(name not in ds.variables for name in ("lat", "lon", "area")):
-        raise SceneError("not a swe_sphere run file (no ncol/lat/lon/area)")
+        where = ds.encoding.get("source")  # the file it was opened from, named as plot names it
+        raise SceneError(f"{f'{where}: ' if where else ''}not a swe_sphere run file (no ncol/lat/lon/area)")
     try:
         scene = json.loads(ds.attrs["scene"])
         ne, np_, mesh = int(scene["ne"]), int(scene["np"]), scene.get("mesh")

@@ -223,7 +223,7 @@ def test_latlon_file_is_cf_and_selects_by_model_day(run_file, tmp_path):
         (["missing.nc"], "not found"),
         (["RUN", "--resolution", "0.7"], "resolution"),
         (["RUN", "--resolution", "-1"], "resolution"),
-        (["REF"], "not a swe_sphere run"),
+        (["REF"], "REF: not a swe_sphere run"),  # the file named
         (["RUN", "--output", "nodir/out.nc"], "does not exist"),
     ],
 )
@@ -231,7 +231,9 @@ def test_remap_bad_input_exits_2_and_writes_nothing(run_file, tmp_path, monkeypa
     from swe_sphere.cases.reference import find_reference
 
     monkeypatch.chdir(tmp_path)
-    args = [str(run_file) if a == "RUN" else str(find_reference("tc5_mountain")) if a == "REF" else a for a in args]
+    ref = str(find_reference("tc5_mountain"))
+    args = [str(run_file) if a == "RUN" else ref if a == "REF" else a for a in args]
+    message = message.replace("REF", ref)
     try:
         code = main(["remap", *args])
     except SystemExit as exc:

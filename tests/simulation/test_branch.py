@@ -196,7 +196,10 @@ def test_bad_branches_are_one_line_exit_2_and_write_nothing(spun_up, tmp_path, c
         "is a run with ne = 2; it cannot continue with --ne 3",
     )
     cli_one_line(
-        capsys, [*cont, "--stepper", "ssprk3", "-s", "hyperviscosity.nu=1e15", "--days", "2"], 2, "-s cannot change"
+        capsys,
+        [*cont, "--stepper", "ssprk3", "-s", "hyperviscosity.nu=1e15", "--days", "2"],
+        2,
+        "-s hyperviscosity.nu=1e15: a checkpointed scene continues as it was written (-s cannot change it)",
     )
     cli_one_line(
         capsys,

@@ -378,3 +378,12 @@ def test_a_continued_run_keeps_writing_restart_files(tmp_path, capsys, monkeypat
     assert "every 0.125 days and at the end" in out
     again = checkpoint.read(tmp_path / "r_continued.restart.nc")
     assert (again.step, again.restart_every) == (12, 0.125)
+    # its restart file there already: refused as a given --restart-every's is, one line before any header
+    (tmp_path / "r_continued.nc").unlink()
+    code, out, err = cli_main(
+        capsys, "run", "--continue", "r.restart.nc", "--days", "0.25", "--device", "cpu", "--no-progress"
+    )
+    assert code == 2 and out == "" and "output file exists: r_continued.restart.nc" in err
+    assert (
+        checkpoint.read(tmp_path / "r_continued.restart.nc").step == 12 and not (tmp_path / "r_continued.nc").exists()
+    )

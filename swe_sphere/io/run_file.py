@@ -86,6 +86,7 @@ TIME_ATTRS = dict(
     standard_name="time",
     axis="T",
 )
+COURANT_DT = "dt: the scene's; under step control the controller's at that time (the step it goes on with)"
 
 SERIES_ATTRS = {
     "mass": dict(units="m3", long_name="mass (area integral of h)"),
@@ -96,9 +97,11 @@ SERIES_ATTRS = {
     "potential_enstrophy_change": dict(units="1", long_name="relative change of potential enstrophy since t = 0"),
     "rhs_evals": dict(units="1", long_name="cumulative right-hand-side evaluations"),
     "wall_time": dict(units="s", long_name="cumulative wall time of the time loop"),
-    "courant_advective": dict(units="1", long_name="maximum advective Courant number |v| dt / dx over the nodes"),
+    "courant_advective": dict(
+        units="1", long_name="maximum advective Courant number |v| dt / dx over the nodes", comment=COURANT_DT
+    ),
     "courant_gravity": dict(
-        units="1", long_name="maximum gravity-wave Courant number sqrt(g h) dt / dx over the nodes"
+        units="1", long_name="maximum gravity-wave Courant number sqrt(g h) dt / dx over the nodes", comment=COURANT_DT
     ),
     "helmholtz_iterations": dict(
         units="1", long_name="cumulative Helmholtz-solve iterations (CG iterations or AMG V-cycles)"

@@ -156,13 +156,17 @@ class StateDiagnostics:
         )
 
     def courant(self, whole: WholeFields | None = None) -> dict:
-        """Advective and gravity-wave Courant numbers of the scene's dt on the current
-        state (call on every rank; ``whole``: its ``gather_fields`` when the caller
+        """Advective and gravity-wave Courant numbers of the run's dt (``_courant_numbers``) on
+        the current state (call on every rank; ``whole``: its ``gather_fields`` when the caller
         has them, on every rank or on none)."""
         u, v, h = self.fields() if whole is None else (whole.u, whole.v, whole.h)
         return self.sim.topology.bcast(self._courant_numbers(u, v, h) if self.sim.root else None)
 
     def _courant_numbers(self, u, v, h) -> dict:
-        """``diagnostics.courant_numbers`` of the scene's dt on whole-grid fields (rank 0)."""
+        """``diagnostics.courant_numbers`` on whole-grid fields (rank 0) at the run's dt: the
+        scene's, or under step control the controller's current one (the step it goes on with,
+        not one cut short to land on an output time)."""
         sim = self.sim
-        return courant_numbers(sim.grid, u, v, h, sim.scene.dt, sim.g, "pressure_gradient" in sim.scene.terms)
+        control = getattr(sim, "control", None)  # not made yet for the start's: the scene's dt, its first proposal
+        dt = sim.scene.dt if control is None else control.dt
+        return courant_numbers(sim.grid, u, v, h, dt, sim.g, "pressure_gradient" in sim.scene.terms)

@@ -137,6 +137,18 @@ def test_the_cli_run_lands_on_its_output_times_and_records_the_control(tmp_path)
     assert rejected[0] == 0 and rejected[-1] >= 1 and (err[1:] <= 1).all() and steps[-1] > 4
 
 
+def test_a_controlled_run_s_courant_numbers_are_at_the_controller_s_dt():
+    """The Courant numbers a controlled run reports (its run file's at each output time, its log's,
+    its summary's) are those of the step the controller goes on with (``StepControl.dt``), not of
+    the scene's first Δt (1200 s here; the controller ends the half day at about 965 s)."""
+    sim, control = _sim(1e-5, days=0.5)
+    _run(sim, control, 0.0, 0.5 * DAY)
+    sim.control = control
+    u, v, h = sim.fields()
+    expected = courant_numbers(sim.grid, u, v, h, control.dt, sim.g, True)
+    assert abs(control.dt / sim.scene.dt - 1) > 0.1 and sim.courant() == pytest.approx(expected, rel=1e-12)
+
+
 def test_a_cli_continuation_is_bitwise_the_uninterrupted_run(tmp_path):
     """``--restart-every`` then ``--continue``: a run stopped at day 1 and continued to day 2
     holds at day 2 the bits of one run to day 2, its Δt and counts alike (both land on days

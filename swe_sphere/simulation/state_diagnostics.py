@@ -133,7 +133,7 @@ class StateDiagnostics:
         measured stability limit (``stability_warning``'s), or None for a stepper
         without one."""
         limit = self._stability_limit()
-        return None if limit is None else self.sim.scene.dt * limit[0] / limit[2]
+        return None if limit is None else self._dt() * limit[0] / limit[2]
 
     def stability_warning(self) -> str | None:
         """A one-line warning when Δt exceeds the stepper's measured stability limit on
@@ -149,10 +149,11 @@ class StateDiagnostics:
                 "has |R(iy)| > 1 for every y > 0): waves grow at every dt, held back only by hyperviscosity; it "
                 "may blow up (three-stage third-order tables are stable to y = 1.73)"
             )
+        dt = self._dt()
         return (
-            f"warning: dt = {self.sim.scene.dt:g} s gives {what} of {speed:.3g}, above "
+            f"warning: dt = {dt:g} s gives {what} of {speed:.3g}, above "
             f"{stepper}'s stability limit of about {limit:.3g} ({source}); it may blow up "
-            f"(dt <= {self.sim.scene.dt * limit / speed:.4g} s keeps below)"
+            f"(dt <= {dt * limit / speed:.4g} s keeps below)"
         )
 
     def courant(self, whole: WholeFields | None = None) -> dict:
@@ -162,11 +163,13 @@ class StateDiagnostics:
         u, v, h = self.fields() if whole is None else (whole.u, whole.v, whole.h)
         return self.sim.topology.bcast(self._courant_numbers(u, v, h) if self.sim.root else None)
 
+    def _dt(self) -> float:
+        """The run's dt (s): the scene's, or under step control the controller's current one (the
+        step it goes on with, not one cut short to land on an output time)."""
+        control = getattr(self.sim, "control", None)  # not made yet for the start's: the scene's dt, its first proposal
+        return self.sim.scene.dt if control is None else control.dt
+
     def _courant_numbers(self, u, v, h) -> dict:
-        """``diagnostics.courant_numbers`` on whole-grid fields (rank 0) at the run's dt: the
-        scene's, or under step control the controller's current one (the step it goes on with,
-        not one cut short to land on an output time)."""
+        """``diagnostics.courant_numbers`` at the run's dt (``_dt``) on whole-grid fields (rank 0)."""
         sim = self.sim
-        control = getattr(sim, "control", None)  # not made yet for the start's: the scene's dt, its first proposal
-        dt = sim.scene.dt if control is None else control.dt
-        return courant_numbers(sim.grid, u, v, h, dt, sim.g, "pressure_gradient" in sim.scene.terms)
+        return courant_numbers(sim.grid, u, v, h, self._dt(), sim.g, "pressure_gradient" in sim.scene.terms)

@@ -11,7 +11,9 @@ from ..core.errors import OutputError
 def _check_folder(folder: Path) -> None:
     """Raise ``OutputError`` in run/remap/mesh's words when the PNGs' folder, or the
     folder it would be made in, cannot be written (``os.access``: a read-only file
-    system included)."""
+    system included), or is named as an image file is (``x.png``: not made as a folder)."""
+    if folder.suffix.lower() in (".png", ".pdf", ".svg") and not folder.is_dir():  # a file's name, not a folder's
+        raise OutputError(f"--output {folder}: the folder the PNGs go in (each named by its field and day), not a file")
     existing = folder.absolute()
     while not existing.exists() and existing != existing.parent:
         existing = existing.parent

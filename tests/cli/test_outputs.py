@@ -23,6 +23,12 @@ def test_a_remap_not_named_nc_is_refused(capsys, tmp_path, tc5_run_file):
     assert list(tmp_path.iterdir()) == [], line
 
 
+def test_a_plot_output_named_as_an_image_is_refused_not_made_a_folder(capsys, tmp_path, tc5_run_file):
+    """`plot --output nodir/x.png` made a folder called x.png and put the PNGs in it."""
+    line = cli_one_line(capsys, ["plot", tc5_run_file, "--output", "nodir/x.png"], 2, "--output nodir/x.png", "folder")
+    assert list(tmp_path.iterdir()) == [], line
+
+
 @pytest.mark.parametrize("folder", ["figs", "figs/day1"])
 def test_plot_into_a_read_only_folder_is_worded_as_run_words_it(capsys, tmp_path, tc5_run_file, monkeypatch, folder):
     """`plot` said "figs: Read-only file system" where run, remap and mesh say "output

@@ -87,10 +87,7 @@ def header(args, sim, output, device, comm) -> None:
         )
     for line in mesh_lines:
         print(line, file=sys.stderr if line.startswith("swe-sphere: warning") else sys.stdout)
-    print(
-        f"terms       {', '.join(scene.terms)}"
-        + (f" (nu = {scene.nu:.3g} m^4/s, subcycle {scene.hypervis_subcycle})" if scene.nu else "")
-    )
+    print(terms_line(scene))
     print(
         f"stepper     {sim.stepper.label(scene.stepper_options)}, dt = {scene.dt:g} s, {scene.nsteps} steps to day {scene.days:g}, device {device}"
     )
@@ -115,21 +112,39 @@ def header(args, sim, output, device, comm) -> None:
     _courant_notes_outputs(args, sim, output, c)
 
 
+def terms_line(scene) -> str:
+    """The header's ``terms`` line: the scene's terms and its ∇⁴ coefficient."""
+    nu = f" (nu = {scene.nu:.3g} m^4/s, subcycle {scene.hypervis_subcycle})" if scene.nu else ""
+    return f"terms       {', '.join(scene.terms)}{nu}"
+
+
+def courant_line(c: dict, day: float, over: str = "nodes") -> str:
+    """The header's ``Courant`` line of ``courant_numbers``' dict ``c`` at model day ``day``,
+    its maxima ``over`` the nodes (an ensemble's: and its members)."""
+    grav = "" if math.isnan(c["courant_gravity"]) else f", gravity-wave {c['courant_gravity']:.3f}"
+    return f"Courant     advective {c['courant_advective']:.3f}{grav} (max over {over} at t = {day:g} d)"
+
+
+def print_notes(notes, root: bool) -> None:
+    """The header's notes: a ``warning: `` one on stderr (rank 0's alone: seen with stdout
+    redirected), the others as ``note`` lines."""
+    for note in notes:
+        if note.startswith("warning: "):
+            if root:
+                print(f"swe-sphere: {note}", file=sys.stderr)
+        else:
+            print(f"note        {note}")
+
+
 def _courant_notes_outputs(args, sim, output, c) -> None:
     """The header's lines from the Courant numbers ``c`` (``Simulation.courant``) on:
     notes and warnings, the output files, the log, the digital-filter start, setup time."""
     from ..simulation.writers import restart_path, stream_path
 
     scene = sim.scene
-    grav = "" if math.isnan(c["courant_gravity"]) else f", gravity-wave {c['courant_gravity']:.3f}"
-    print(f"Courant     advective {c['courant_advective']:.3f}{grav} (max over nodes at t = {sim.time:g} d)")
+    print(courant_line(c, sim.time))
     extra = [n for n in (sim.stability_warning(), sim.backend.threads_note()) if n]
-    for note in (*scene.notes, *extra):
-        if note.startswith("warning: "):
-            if sim.root:  # once, not once a rank
-                print(f"swe-sphere: {note}", file=sys.stderr)  # seen even with stdout redirected
-        else:
-            print(f"note        {note}")
+    print_notes((*scene.notes, *extra), sim.root)
     only = f": {', '.join(scene.output_fields)}" if scene.output_fields else ""
     print(f"output      {output} (every {scene.output_every_days:g} days{only})")
     for st in scene.output_streams:

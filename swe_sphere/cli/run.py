@@ -250,6 +250,8 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
 
     from ..ensemble import Ensemble, MemberFile, Perturbation, Variants
     from ..ensemble.ensemble import POLICIES
+    from ..model.diagnostics import courant_numbers
+    from .report import courant_line, print_notes, terms_line
 
     t0 = time.perf_counter()
     if args.continue_from is not None:
@@ -270,8 +272,12 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
     if not ens.root:  # rank 0 reports; the others' errors still reach stderr
         sys.stdout = open(os.devnull, "w")
     setup, first, before = time.perf_counter() - t0, ens.step_count, ens.wall_time
+    start = ens.invariants()  # collective: the run's drift, as a single run's summary gives it
+    gravity_waves = "pressure_gradient" in scene.terms
+    courant = [courant_numbers(ens.grid, *x, scene.dt, scene.planet["gravity"], gravity_waves) for x in ens.states()]
     print(f"scene       {scene.name}: {scene.description}")
     print(f"grid        {scene.grid_text}: {scene.nelem} elements, {ens.grid.nunique} unique nodes")
+    print(terms_line(scene))
     print(
         f"stepper     {scene.stepper}, dt = {scene.dt:g} s, {scene.nsteps} steps to day {scene.days:g}, device {device}"
     )
@@ -283,6 +289,9 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
     )
     if first:
         print(f"continued   from {args.continue_from}, step {first} (day {scene.day(first):g})")
+    largest = {k: max(c[k] for c in courant) for k in courant[0]}  # NaN gravity-wave numbers stay NaN
+    print(courant_line(largest, scene.day(first), "nodes and members"))
+    print_notes(scene.notes, ens.root)
     print(f"output      {output} (every {scene.output_every_days:g} days)")
     try:
         ens.run(
@@ -307,6 +316,16 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
         f"  wall time   {loop:.2f} s for {steps} steps ({1e3 * loop / max(steps, 1):.2f} ms/step, "
         f"{1e3 * loop / max(steps, 1) / ens.members:.3f} ms a member), setup {setup:.2f} s"
     )
+    end, errors = ens.invariants(), ens.errors()  # collective
+    kept = [k for k in range(ens.members) if k not in ens.dropped]  # a member dropped has no state to score
+    since = f"since day {scene.day(first):g}"
+    invariant = start[0] if ens.case.h_is_depth else ["mass"]  # h a tracer (TC1): its mass alone, as a run's
+    for key in invariant if kept else ():
+        change = [end[k][key] / start[k][key] - 1 for k in kept]
+        print(f"  {key:<21} relative change {min(change):+.3e} to {max(change):+.3e} {since}, over the members")
+    for key in errors[0] if kept else ():
+        values = [errors[k][key] for k in kept]
+        print(f"  {key:<21} {min(values):.3e} to {max(values):.3e} over the members (the run file's, by member)")
     spread = ens.h_spread_rms()
     print(f"  h spread    {spread:.4g} m (area-weighted RMS of the members' standard deviation at day {scene.days:g})")
     print(f"  output      {output}")

@@ -147,6 +147,11 @@ def test_the_command_line_runs_an_ensemble(capsys, tmp_path):
     )  # fmt: skip
     assert code[0] == 0, code
     assert "ensemble    2 members" in code[1] and "h spread" in code[1]
+    # a single run's header and summary lines too: terms, the Courant numbers, the notes, the drift, the errors
+    said = {line.split()[0] for line in code[1].splitlines() if line.strip()}
+    assert {"terms", "Courant", "mass", "total_energy", "potential_enstrophy", "ref_l2_h_surface"} <= said, code[1]
+    l2 = read(out, "ref_l2_h_surface")[0][-1]  # (members,) at the last time: the summary's range is theirs
+    assert f"{min(l2):.3e} to {max(l2):.3e} over the members" in code[1], code[1]
     (h,) = read(out, "h")
     assert h.shape[1] == 2 and not np.array_equal(h[0, 0], h[0, 1])
 

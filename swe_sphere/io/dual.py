@@ -505,12 +505,12 @@ def write_dual_mesh(ds, grid: CubedSphere) -> float | None:
     """Add the control volumes of ``grid`` to an open ``netCDF4.Dataset`` ``ds`` whose
     ``lon``/``lat`` (degrees) are on the unique nodes ``ncol``: as the UGRID mesh
     ``mesh_dual`` whose faces are the nodes (``ncol``; fields on it are
-    ``location = "face"``), and as CF cell bounds ``lon_bnds``/``lat_bnds`` (ncol, nv) of
+    ``location = "face"``; its ``max_relative_area_error`` the cells' largest |area / spheremp − 1|), and as CF cell bounds ``lon_bnds``/``lat_bnds`` (ncol, nv) of
     ``lon``/``lat``, the cells of fewer vertices repeating their last vertex (as HOMME's SCRIP
     files do). Adds nv (4 on a cube, the largest node valence of a mesh) and ndual_node =
     nelem·(np−1)² (the dual vertices): 2.4 MB at ne30 np4, compressed. Returns the CPU seconds
     spent building the cells, None where they came from the cache (``unit_dual_mesh``)."""
-    verts, corners, _, seconds = unit_dual_mesh(grid.ne, grid.np, grid.mesh, grid.radius, grid)
+    verts, corners, error, seconds = unit_dual_mesh(grid.ne, grid.np, grid.mesh, grid.radius, grid)
     ds.createDimension(NODE_DIM, verts.shape[0])
     ds.createDimension(CORNER_DIM, corners.shape[1])
     write_topology(
@@ -523,6 +523,8 @@ def write_dual_mesh(ds, grid: CubedSphere) -> float | None:
         corners="corners (ndual_node indices) of each node's control volume, counter-clockwise from outside",
         node_coordinates="dual_lon dual_lat",
         face_coordinates="lon lat",
+        # the fit's: at most RTOL, or the floor it stopped at (FLOOR_ERROR) on a grid where that is above
+        max_relative_area_error=np.float64(error),
     )
     vlat, vlon = np.degrees(lat_lon(verts))
     for name, values, what in (

@@ -352,10 +352,11 @@ def test_run_file_carries_the_dual_mesh_and_cell_bounds(run_file):
     """On the cube and on meshes: the UGRID dual mesh the fields live on, the writer's cells (the
     file's corners give spheremp to RTOL), and CF bounds that repeat a short cell's last vertex."""
     path, grid = run_file
-    verts, corners, _, _ = unit_dual_mesh(grid.ne, grid.np, grid.mesh)  # the writer's
+    verts, corners, error, _ = unit_dual_mesh(grid.ne, grid.np, grid.mesh)  # the writer's
     with netCDF4.Dataset(path) as nc:
         mesh = nc["mesh_dual"]
         assert (mesh.cf_role, int(mesh.topology_dimension)) == ("mesh_topology", 2)
+        assert mesh.max_relative_area_error == error <= RTOL  # the fit's, as the file says it
         assert (mesh.node_coordinates, mesh.face_coordinates, mesh.face_dimension) == (
             "dual_lon dual_lat",
             "lon lat",

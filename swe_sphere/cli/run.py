@@ -274,7 +274,8 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
     setup, first, before = time.perf_counter() - t0, ens.step_count, ens.wall_time
     start = ens.invariants()  # collective: the run's drift, as a single run's summary gives it
     gravity_waves = "pressure_gradient" in scene.terms
-    courant = [courant_numbers(ens.grid, *x, scene.dt, scene.planet["gravity"], gravity_waves) for x in ens.states()]
+    states = [x for k, x in enumerate(ens.states()) if k not in ens.dropped]  # a continued run's dropped: NaN
+    courant = [courant_numbers(ens.grid, *x, scene.dt, scene.planet["gravity"], gravity_waves) for x in states]
     print(f"scene       {scene.name}: {scene.description}")
     print(f"grid        {scene.grid_text}: {scene.nelem} elements, {ens.grid.nunique} unique nodes")
     print(terms_line(scene))
@@ -289,8 +290,8 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
     )
     if first:
         print(f"continued   from {args.continue_from}, step {first} (day {scene.day(first):g})")
-    largest = {k: max(c[k] for c in courant) for k in courant[0]}  # NaN gravity-wave numbers stay NaN
-    print(courant_line(largest, scene.day(first), "nodes and members"))
+    if courant:  # NaN gravity-wave numbers (h a tracer) stay NaN
+        print(courant_line({k: max(c[k] for c in courant) for k in courant[0]}, scene.day(first), "nodes and members"))
     print_notes(scene.notes, ens.root)
     print(f"output      {output} (every {scene.output_every_days:g} days)")
     try:

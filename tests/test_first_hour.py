@@ -327,7 +327,10 @@ def test_a_folder_or_a_file_of_another_format_is_named_as_such(capsys, args, wor
 OPTIONS_BEFORE_FILES = [
     (["run", "tc2_steady", *TINY, "--graphs", "maybe", "--output", "x.nc"], "--graphs must be one of"),
     (["run", "tc2_steady", *TINY, "--restart-every", "0", "--output", "x.nc"], "--restart-every must be a number"),
-    (["run", "tc2_steady", *TINY, "--restart-every", "0.3", "--output", "x.nc"], "restart interval of 0.3 days"),
+    (
+        ["run", "tc2_steady", *TINY, "--dt", "3600", "--restart-every", "0.3", "--output", "x.nc"],
+        "restart interval of 0.3 days",
+    ),
     (["mesh", "--ne", "2", "--target-lat", "30", "--output", "x.g"], "they need stretch_factor"),
     (["mesh", "--ne", "2", "--output", "x.nc"], "an Exodus II mesh, its name must end in .g or .exo"),
     (["run", "", *TINY, "--output", "y.nc"], "the scene name is empty"),

@@ -362,6 +362,24 @@ def test_continue_at_the_end_day_without_days_is_refused(tmp_path, capsys, monke
     assert (tmp_path / "r_continued.nc").is_file()
 
 
+def test_a_scaled_dt_is_cut_to_divide_the_restart_interval_and_a_given_one_is_refused(tmp_path, capsys, monkeypatch):
+    """--restart-every 0.2 at ne2, whose dt the scene scales (to divide the output interval and
+    the run: 2356 s, 7.3 steps in 0.2 days): the dt is cut to divide 0.2 days too, a note says so, and the restart file is at the
+    run's end; with a dt given that does not divide it, one line and nothing written."""
+    monkeypatch.chdir(tmp_path)
+    from swe_sphere.simulation import checkpoint
+
+    run = ["run", "tc2_steady", *TINY, "--days", "0.6", "--restart-every", "0.2"]
+    code, out, err = cli_main(capsys, *run, "--output", "r.nc")
+    assert code == 0, err
+    assert sum("to divide the restart interval of 0.2 days" in line for line in out.splitlines()) == 1, out
+    ck = checkpoint.read(tmp_path / "r.restart.nc")
+    per = 0.2 * DAY / ck.scene.dt
+    assert abs(per - round(per)) < 1e-9 and ck.step == 3 * round(per) and ck.day == pytest.approx(0.6)
+    cli_one_line(capsys, [*run, "--dt", "3240", "--output", "y.nc"], 2, "restart interval of 0.2 days")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.nc", "r.restart.nc"]
+
+
 def test_a_continued_run_keeps_writing_restart_files(tmp_path, capsys, monkeypatch):
     """A run with --restart-every 0.125, continued without it: the continuation writes
     its restart file at its interval (the header says so), which continues again."""

@@ -3,7 +3,8 @@
 A run is stable when it finishes with finite fields, depth > 0 and the total
 energy never more than 1 % above its initial value. The largest stable Δt is
 found by bisection on the number of steps per day (Δt = 86400 s / n, so every
-candidate divides the day and the output interval), on a coarse grid. Under step control
+candidate divides the day and the output interval; a run or output interval of no whole number
+of days: per the longest interval that divides it and them, ``span``), on a coarse grid. Under step control
 ([time] control) the Δt bisected is the first step, from which the controller chooses the
 others: the largest first step from which the run still ends, with the steps it took.
 """
@@ -18,6 +19,7 @@ from pathlib import Path
 
 from ..cases.scoring import ENERGY_GROWTH_LIMIT, instability
 from ..config.scene import Scene, load_scene
+from ..core.clock import common_interval
 from ..core.constants import DAY
 from ..core.errors import BlowUp, SceneError
 from ..core.workers import InProcess
@@ -68,19 +70,28 @@ def run_is_stable(scene: Scene, device: str) -> tuple[bool, str, float, dict]:
     return not reason, reason, time.perf_counter() - t0, result.history[-1] if result.history else {}
 
 
+def span(scene: Scene) -> float:
+    """The interval (s) every candidate Δt of ``scene`` divides: a day, or where the run or its
+    output interval is no whole number of days, the longest interval that divides the day, the
+    run and the output interval (where shorter than the run; ``core.clock.common_interval``)."""
+    every = scene.output_every_days
+    return common_interval(1.0, scene.days, *((every,) if every < scene.days else ())) * DAY
+
+
 def largest_stable_dt(scene: Scene, device: str, *, tolerance: float = 0.05, log=print) -> StabilityResult:
     """Bracket and bisect the largest stable Δt of ``scene`` (its stepper, grid and length).
 
     Starts from the scene's Δt, doubles or halves it to bracket the limit (down
     to 1/16 of the scene's Δt: below that the case counts as unstable at every
-    Δt, dt_stable NaN), then bisects on steps per day until the bracket is
+    Δt, dt_stable NaN), then bisects on steps per ``span`` until the bracket is
     within ``tolerance`` (relative). Under step control the Δt is the first step (the
     result's ``steps``, ``rejected_steps`` and ``dt_mean``: the dt_stable run's).
     """
     trials, counts = [], {}
+    whole = span(scene)
 
     def stable(n: int) -> bool:
-        s = dataclasses.replace(scene, dt=DAY / n)
+        s = dataclasses.replace(scene, dt=whole / n)
         ok, reason, wall, counts[n] = run_is_stable(s, device)
         trials.append((s.dt, ok, reason, wall))
         steps = ""
@@ -94,7 +105,7 @@ def largest_stable_dt(scene: Scene, device: str, *, tolerance: float = 0.05, log
         )
         return ok
 
-    n = max(1, scene.clock.steps_in(1.0))  # steps a day, the scene's Δt rounded to a whole number of them
+    n = max(1, scene.clock.steps_in(whole / DAY))  # steps a span, the scene's Δt rounded to a whole number of them
     lo = hi = None  # lo: largest n found unstable (largest unstable dt); hi: smallest stable n
     if stable(n):
         hi = n
@@ -121,7 +132,7 @@ def largest_stable_dt(scene: Scene, device: str, *, tolerance: float = 0.05, log
             hi = mid
         else:
             lo = mid
-    dt_stable = DAY / hi if hi is not None else math.nan
+    dt_stable = whole / hi if hi is not None else math.nan
     courant = {"courant_gravity": math.nan, "courant_advective": math.nan}
     run = {}
     if hi is not None:
@@ -136,7 +147,7 @@ def largest_stable_dt(scene: Scene, device: str, *, tolerance: float = 0.05, log
         np=scene.np,
         days=scene.days,
         dt_stable=dt_stable,
-        dt_unstable=DAY / lo if lo is not None else math.nan,
+        dt_unstable=whole / lo if lo is not None else math.nan,
         courant_gravity=courant["courant_gravity"],
         courant_advective=courant["courant_advective"],
         trials=trials,

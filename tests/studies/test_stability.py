@@ -37,6 +37,25 @@ def test_bisection_brackets_a_known_limit(monkeypatch, tmp_path):
         assert float(table.dt_stable.sel(row=("tc2_steady", "rk4"))) == pytest.approx(DAY / 87)
 
 
+@pytest.mark.parametrize("days, every, part", [(0.5, 1.0, 0.5), (1.0, 0.25, 0.25), (2.0, 1.0, 1.0)])
+def test_every_trial_dt_divides_the_run_and_its_output_interval(monkeypatch, days, every, part):
+    """A half-day run tried Δt = 86400 s / n, most of which do not divide it, and each run was
+    rounded to a whole number of steps: the bisection is on steps per ``span``, the longest
+    interval that divides the day, the run and its output interval (a day for whole days, as
+    before)."""
+    monkeypatch.setattr(
+        stability, "run_is_stable", lambda s, device: (s.dt <= 1000.0, "", 0.0, {"steps": 1, "day": s.days})
+    )
+    scene = load_scene("tc2_steady", ne=2, days=days, stepper="ssprk3", overrides={"output.every_days": every})
+    assert stability.span(scene) == part * DAY
+    r = stability.largest_stable_dt(scene, "cpu", log=lambda *_: None)
+    for dt, *_ in r.trials:
+        for interval in (days, min(every, days)):
+            steps = interval * DAY / dt
+            assert abs(steps - round(steps)) < 1e-9, (dt, interval)
+    assert r.dt_stable <= 1000.0 < r.dt_unstable <= 1.05 * r.dt_stable
+
+
 def test_suite_days_and_overrides_reach_every_scene(monkeypatch):
     """``--days`` sets the run length of the cases that do not fix one (Galewsky: 6 → 12
     days; the 100-day TC2 keeps 100) and ``-s`` overrides every case (∇⁴ e-folding

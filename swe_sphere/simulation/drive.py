@@ -13,7 +13,7 @@ from ..config.scene import with_days
 from ..core.arguments import callable_argument, got
 from ..core.clock import is_interval
 from ..core.constants import DAY
-from ..core.errors import SceneError
+from ..core.errors import ArgumentError, SceneError
 from ..io.run_file import OUTPUT_FIELDS, node_dataset
 from .activities import Callback
 from .schedules import EverySteps, steps_of
@@ -85,9 +85,18 @@ class Drive:
             name = next(f"callback {k}" for k in itertools.count(1) if f"callback {k}" not in sim.activities)
         sim.activities[name] = Callback(fn, schedule)
 
+    def fixed_dt(self, what: str) -> None:
+        """Refuse (``ArgumentError``) ``what`` (a call by whole steps) under step control."""
+        if self.sim.control is not None:
+            raise ArgumentError(
+                f"{what} steps a fixed dt: under step control ([time] control) the controller chooses the "
+                "steps, and a run goes to its end (Simulation.run)"
+            )
+
     def advance(self, days: float) -> RunResult:
         """``Simulation.advance``: ``days`` further by ``run``'s loop, the scene lengthened past its end."""
         sim = self.sim
+        self.fixed_dt("Simulation.advance")
         target = sim.step + self.steps_in(days, "days")
         if target > sim.scene.nsteps:
             sim.scene = with_days(sim.scene, sim.scene.start_day + target * sim.scene.dt / DAY, "the scene's")
@@ -96,6 +105,7 @@ class Drive:
     def steps(self, every: float):
         """``Simulation.steps``: the run to the scene's end, the model day after each multiple of ``every``."""
         sim = self.sim
+        self.fixed_dt("Simulation.steps")
         per = self.steps_in(every, "every")
         while (target := (sim.step // per + 1) * per) <= sim.scene.nsteps:
             sim.run(None, until_step=target)

@@ -321,6 +321,8 @@ class Simulation:
         ------
         ValueError
             ``days`` is not a whole number of steps.
+        ArgumentError
+            Under step control (``[time] control``): the controller chooses the steps; ``run``.
         BlowUp, StepFailure, Interrupted
             As ``run``.
         """
@@ -351,6 +353,8 @@ class Simulation:
         ------
         ValueError
             ``every`` is not then a whole number of steps (naming a Δt that was given).
+        ArgumentError
+            Under step control, as ``advance``.
         BlowUp, StepFailure, Interrupted
             As ``run``.
         """

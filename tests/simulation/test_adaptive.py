@@ -149,6 +149,17 @@ def test_a_controlled_run_s_courant_numbers_are_at_the_controller_s_dt():
     assert abs(control.dt / sim.scene.dt - 1) > 0.1 and sim.courant() == pytest.approx(expected, rel=1e-12)
 
 
+def test_advance_and_steps_are_refused_under_step_control_in_the_api_s_words():
+    """They raised a plain ValueError naming ``until_step``, an argument the user never gives."""
+    from swe_sphere.core.errors import ArgumentError
+
+    sim, _ = _sim(1e-5, days=0.125)
+    for call, name in ((lambda: sim.advance(0.05), "advance"), (lambda: next(sim.steps(0.05)), "steps")):
+        with pytest.raises(ArgumentError, match=f"^Simulation.{name} steps a fixed dt: under step control"):
+            call()
+    assert sim.step == 0
+
+
 def test_a_cli_continuation_is_bitwise_the_uninterrupted_run(tmp_path):
     """``--restart-every`` then ``--continue``: a run stopped at day 1 and continued to day 2
     holds at day 2 the bits of one run to day 2, its Δt and counts alike (both land on days

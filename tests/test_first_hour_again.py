@@ -89,7 +89,9 @@ def test_a_sweep_multiple_longer_than_the_run_is_refused(capsys):
     args = ["sweep", "tc2_steady", "--ne", "2", "--days", "0.1", "--runs", "rk4@1e9", "--device", "cpu"]
     line = cli_one_line(capsys, [*args, "--output", "sw"], 2, "--runs rk4@1e+09", "longer than the run of 0.1 days")
     assert line.endswith("give a multiple of at most 1.5")
-    assert [p for p in Path().rglob("*") if p.is_file()] == []
+    assert list(Path().iterdir()) == []  # not even the folder it would have written in
+    line = cli_one_line(capsys, [*args[:4], "--runs", "@1", "--output", "sw"], 2, "--runs needs STEPPER@COURANT")
+    assert "--steppers" not in line and list(Path().iterdir()) == []
 
 
 FRONTIER = (

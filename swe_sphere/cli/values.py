@@ -60,7 +60,7 @@ def runs(text: str) -> list[tuple[str, float | str]]:
     pairs = []
     for item in text.split(","):
         name, sep, factor = item.strip().partition("@")
-        if not sep:
+        if not sep or not name.strip():
             raise ValueError(f"--runs needs STEPPER@COURANT or STEPPER@KEY=VALUE (got {item.strip()!r})")
         stepper = steppers(name.strip())[0]
         if "=" in factor:

@@ -103,18 +103,28 @@ def release_lock(lock: Path, fd: int) -> None:
 def folder_lock(folder: Path, name: str):
     """Create ``folder`` (with its parents) and hold ``folder/name`` locked while the
     block runs, so a second command on the same folder is refused at its start
-    (``OutputError``) instead of computing everything and failing at the end."""
+    (``OutputError``) instead of computing everything and failing at the end. A block
+    that raises leaves no folder this made and nothing was written in (a refusal writes
+    nothing); one that holds a file is kept."""
     folder = Path(folder)
+    made = [p for p in (folder, *folder.parents) if not p.exists()]  # deepest first
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise OutputError(f"cannot create output directory {folder}: {err.strerror}") from None
     lock = folder / name
     fd = acquire_lock(lock, folder)
+    done = False
     try:
         yield folder
+        done = True
     finally:
         release_lock(lock, fd)
+        for path in made if not done else ():
+            try:
+                path.rmdir()
+            except OSError:  # not empty: what the block wrote is kept
+                break
 
 
 _HELD: dict[str, int] = {}  # lock file (absolute) → descriptor: held ahead by ``HeldLock``, not yet taken by a writer

@@ -245,6 +245,23 @@ def test_unreadable_restart_file_refused_by_every_rank_in_one_line(tmp_path):
 
 
 @pytest.mark.usefixtures("needs_mpi")
+@pytest.mark.parametrize(
+    "args, says",
+    [
+        (["sweep", "tc2_steady", "--ne", "0", "--days", "1", "--runs", "rk4@1"], "ne must be an integer >= 1"),
+        (["stability", "nocase"], "unknown stability case 'nocase'"),
+    ],
+)
+def test_a_study_s_bad_input_under_mpiexec_is_one_line(tmp_path, args, says):
+    """Every rank of a sweep or a stability suite under mpiexec refuses bad input alike: rank 0
+    says it, once (it was said once a rank), exit 2, nothing written."""
+    proc = mpirun(2, [*args, "--output", "out"], tmp_path)
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert proc.stderr.count(says) == 1 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.usefixtures("needs_mpi")
 def test_sigint_on_two_ranks_is_one_line(tmp_path, paused):
     """Ctrl-C (to mpiexec, which passes it on) reaches every rank, held after step 3,
     which stop at one step together: rank 0 alone says so (it said so once a rank),

@@ -111,7 +111,9 @@ def _report(err: BaseException, args) -> int:
     )  # one run over several MPI ranks
     # every rank refuses it, stops at one step, or finds too little memory, alike
     alike = code == EXIT_BAD_INPUT or isinstance(err, Interrupted) or getattr(err, "on_every_rank", False)
-    if comm is None or comm.rank == 0 or not alike:
+    # another command under mpiexec (a sweep's workers) refuses bad input on every rank too: rank 0 says it
+    rank = comm.rank if comm is not None else mpi.launched_rank()
+    if rank == 0 or not alike:
         where = f"rank {comm.rank} of {comm.size}: " if comm is not None and comm.rank else ""
         print(
             f"swe-sphere: {where}{'error: ' if code in (EXIT_BAD_INPUT, EXIT_INTERNAL) else ''}{message}",

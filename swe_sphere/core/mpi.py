@@ -16,6 +16,7 @@ import time
 from .errors import MPIUnavailable
 
 _SIZE_VARIABLES = ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE", "PMIX_SIZE", "SLURM_NTASKS")
+_RANK_VARIABLES = ("PMI_RANK", "OMPI_COMM_WORLD_RANK", "PMIX_RANK", "SLURM_PROCID")
 
 
 def launched_size() -> int:
@@ -25,6 +26,18 @@ def launched_size() -> int:
         if value.isdigit():
             return int(value)
     return 1
+
+
+def launched_rank() -> int:
+    """This process's rank as the process manager announced it (0 outside ``mpiexec``), known
+    without initialising MPI."""
+    if launched_size() <= 1:
+        return 0
+    for name in _RANK_VARIABLES:
+        value = os.environ.get(name, "").strip()
+        if value.isdigit():
+            return int(value)
+    return 0
 
 
 def world():

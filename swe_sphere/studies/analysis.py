@@ -108,10 +108,19 @@ def planet_radius(ds: xr.Dataset) -> float:
         return EARTH.a
 
 
+def node_degree(grid) -> int:
+    """ne (np − 1), the nodes along a cube face's edge: on a mesh (ne 0) with ne the cube's of as
+    many elements, √(elements / 6), rounded, so that its mean node spacing stands for the mesh's
+    (and 45° over it divides 180°, as a lat-lon grid's spacing must)."""
+    if grid.ne:
+        return grid.ne * (grid.np - 1)
+    return max(1, round(math.sqrt(grid.nelem_total / 6) * (grid.np - 1)))
+
+
 def default_resolution(grid) -> float:
-    """Half the mean GLL node spacing, 45°/(ne (np − 1)): the lat-lon spacing (degrees)
-    ``zonal_mean`` and ``kinetic_energy_spectrum`` evaluate a run on by default."""
-    return 45.0 / (grid.ne * (grid.np - 1))
+    """Half the mean GLL node spacing, 45°/(ne (np − 1)) (``node_degree``): the lat-lon spacing
+    (degrees) ``zonal_mean`` and ``kinetic_energy_spectrum`` evaluate a run on by default."""
+    return 45.0 / node_degree(grid)
 
 
 def _on_latlon(ds, fields, days, resolution):
@@ -202,8 +211,8 @@ def kinetic_energy_spectrum(run, days=None, lmax: int | None = None) -> xr.Datas
 
     ``run``: a run as an ``xarray.Dataset`` or a run file's path. ``days``:
     model days, each an output time (default: all). ``lmax``: the highest degree
-    (default 2 ne (np − 1), the degree of the grid's node spacing: above it the
-    spectrum is the elements' edges, not the flow).
+    (default 2 ne (np − 1), ``node_degree``'s, the degree of the grid's node spacing: above
+    it the spectrum is the elements' edges, not the flow).
 
     Returns an ``xarray.Dataset`` with ``E_rot``, ``E_div`` and ``E`` (their
     sum) on (time, l), l = 1..lmax, m² s⁻², time in model days; attributes
@@ -215,7 +224,7 @@ def kinetic_energy_spectrum(run, days=None, lmax: int | None = None) -> xr.Datas
 
     ds = _loaded(run)
     grid = run_grid(ds)
-    lmax = 2 * grid.ne * (grid.np - 1) if lmax is None else lmax
+    lmax = 2 * node_degree(grid) if lmax is None else lmax
     if not (isinstance(lmax, (int, np.integer)) and lmax >= 1):
         raise SceneError(f"lmax must be an integer >= 1 (got {lmax!r})")
     # the grid resolves 2x the node spacing's degree, or lmax + 1 if that is higher

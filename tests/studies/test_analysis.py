@@ -158,6 +158,22 @@ def test_tc2_zonal_mean_depth_is_williamsons(tc2_file):
     assert zonal_mean(tc2_file, "h", days=[1], resolution=2.0).shape == (1, 91)
 
 
+def test_a_mesh_run_has_its_zonal_mean_and_spectrum(tmp_path, capsys):
+    """On a refined mesh (ne 0 in its file) the default resolution and degree divided by zero
+    (``zonal_mean``: ZeroDivisionError) or came out 0 (the spectrum: "lmax must be >= 1"); they
+    are now the cube's of as many elements (``node_degree``). TC2 there: Williamson's h(φ) and
+    E_rot(1) = u0²/3, as on the cube."""
+    mesh, out = tmp_path / "m.g", tmp_path / "m.nc"
+    assert cli_main(capsys, "mesh", "--ne", "4", "--refine-box", "20", "40", "10", "30", "--output", mesh)[0] == 0
+    run = ["run", "tc2_steady", "--mesh", mesh, "--np", "4", "--days", "0.25", "--device", "cpu", "--no-progress"]
+    assert cli_main(capsys, *run, "--output", out)[0] == 0
+    z = zonal_mean(out, "h", days=[0])
+    h = (GH0 - (A * OMEGA * U0 + 0.5 * U0**2) * np.sin(np.radians(z.lat.values)) ** 2) / G
+    assert z.sizes["lat"] > 1 and np.max(np.abs(z.values[0] - h)) < 2e-4 * h.max()
+    e = kinetic_energy_spectrum(out, days=[0]).isel(time=0)
+    assert e.sizes["l"] > 1 and float(e.E_rot.sel(l=1)) == pytest.approx(U0**2 / 3, rel=1e-4)
+
+
 def test_plot_spectrum_and_zonal_mean_files(tc2_file, tmp_path, capsys):
     code, out, err = cli_main(
         capsys,

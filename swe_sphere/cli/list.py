@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
+import re
+
 
 def command(args) -> int:
-    import re
-
     from ..config.scene import list_scenes, load_scene
     from ..model.shallow_water import TERMS
     from ..steppers import STEPPERS
@@ -20,7 +20,7 @@ def command(args) -> int:
     for name, cls in STEPPERS.items():
         summary = " ".join(cls.__doc__.split("\n\n")[0].split())  # the first paragraph, unwrapped
         summary = summary.replace("``", "")  # reST literals read as plain text on a terminal
-        sentence = re.split(r"\.\s+(?=[A-Z])", summary)[0].rstrip(".")  # the first sentence, whole ("eq. 2" kept)
+        sentence = _first_sentence(summary)
         print(f"  {name:32s} {sentence}.")
         print(f"  {'':32s} {_traits(cls)}.")
     print("terms:")
@@ -42,3 +42,12 @@ def _traits(cls) -> str:
     elif not cls.variable_dt:
         words.append("one Δt a run")
     return "; ".join(words)
+
+
+def _first_sentence(text: str) -> str:
+    """The first sentence of ``text``, without its full stop: up to a ". " before a capital outside
+    parentheses ("eq. 2" and a citation's "(… 1989, Appl. Numer. Math.)" kept whole)."""
+    for match in re.finditer(r"\.\s+(?=[A-Z])", text):
+        if text.count("(", 0, match.start()) == text.count(")", 0, match.start()):
+            return text[: match.start()]
+    return text.rstrip(".")

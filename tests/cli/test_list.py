@@ -35,6 +35,8 @@ def test_list_names_every_scene_stepper_and_term(capsys):
     steppers = out.split("steppers:\n")[1].split("terms:\n")[0].splitlines()
     assert "``" not in out  # docstrings' reST literals printed plain
     assert all(len(line) < 400 and line.endswith(".") for line in steppers), steppers  # a whole first sentence each
+    # not cut inside a citation ("(Bogacki & Shampine 1989, Appl." was bs32's)
+    assert all(line.count("(") == line.count(")") for line in steppers), steppers
 
 
 def test_list_says_which_steppers_have_a_gradient_and_error_control(capsys):

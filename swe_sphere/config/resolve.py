@@ -246,6 +246,13 @@ def resolve_grid(
     if mesh is not None:
         if ne is not None:
             raise SceneError(f"ne = {ne} and mesh {mesh}: a mesh file's elements are its own (HOMME's ne = 0)")
+        own = file_table if file_table is not None else (table or {})
+        typed = sorted(k for k, v in (table or {}).items() if k not in ("np", "map") and own.get(k, None) != v)
+        if typed:  # a -s grid.* the mesh file would drop unread (its elements and their layout are the file's)
+            raise SceneError(
+                f"grid.{typed[0]} = {table[typed[0]]!r} and mesh {mesh}: the mesh file's grid replaces the "
+                "scene's (only grid.np and grid.map apply to it)"
+            )
         record1, ne = MeshFile.of(mesh, (table or {}).get("map", "element_local")), 0
     elif on_file and ne not in (None, 0):
         raise SceneError(f"ne = {ne} with grid.mesh_file: a mesh file's elements are its own (HOMME's ne = 0)")

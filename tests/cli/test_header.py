@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 from swe_sphere.cli import main
 
 from cli_helpers import (
     in_tmp,  # noqa: F401  (the fixture: every test in a folder of its own)
 )
-from helpers import cli_main
+from helpers import cli_main, cli_one_line
 
 
 def test_a_mesh_run_gives_one_smallest_spacing_and_says_it_is_the_one_dt_scales_with(capsys):
@@ -31,3 +32,14 @@ def test_a_cube_run_gives_its_smallest_spacing_on_the_grid_line(capsys):
     grid = next(line for line in out.splitlines() if line.startswith("grid "))
     assert code == 0 and re.search(r", min node spacing [0-9.]+ km$", grid), grid
     assert "Dinv" not in out
+
+
+def test_grid_keys_a_mesh_file_would_drop_are_refused(capsys):
+    """`--mesh m.g -s grid.stretch_factor=2` ran the mesh as it is, the stretch dropped unread
+    (likewise grid.cube, grid.ne); grid.np still applies."""
+    assert main(["mesh", "--ne", "2", "-o", "m.g"]) == 0
+    run = ["run", "tc2_steady", "--mesh", "m.g", "--days", "0.25", "--device", "cpu", "--no-progress"]
+    for key, value in (("stretch_factor", "2"), ("cube", "equidistant"), ("ne", "4")):
+        cli_one_line(capsys, [*run, "-s", f"grid.{key}={value}"], 2, f"grid.{key} = ", "mesh m.g", "replaces")
+    assert sorted(p.name for p in Path().iterdir()) == ["m.g"]
+    assert cli_main(capsys, *run, "-s", "grid.np=3")[0] == 0

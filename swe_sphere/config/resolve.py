@@ -336,12 +336,21 @@ def resolve_stepper_days(table: dict, stepper=None, days=None) -> tuple[str, flo
 
 
 def resolve_dt(
-    scene_dt, dt, days: float, every: float, scene: str, grid: SceneGrid, spacing: Spacing, controlled: bool = False
+    scene_dt,
+    dt,
+    days: float,
+    every: float,
+    scene: str,
+    grid: SceneGrid,
+    spacing: Spacing,
+    controlled: bool = False,
+    streams: tuple = (),
 ) -> tuple[float, str, tuple]:
     """(dt (s), where it comes from for messages, notes): ``dt`` as given, else the time.dt of
     scene ``scene`` (``scene_dt``) times ``spacing.smallest`` (the run's smallest node spacing
-    on ``grid`` over the scene file's), shortened to divide the output interval ``every`` and
-    the run of ``days`` (``Clock.fitted``). The schedule is checked (``Clock.check``; with
+    on ``grid`` over the scene file's), shortened to divide the output interval ``every``, the
+    streams' (``streams``, days: the numbers > 0 of ``[[output.streams]] every_days``, checked
+    later) and the run of ``days`` (``Clock.fitted``). The schedule is checked (``Clock.check``; with
     ``controlled`` steps, ``is_controlled``, dt is the first and need not divide it).
     Raises ``SceneError``: no time.dt, dt ≤ 0, a run or output interval of no whole steps."""
     if dt is not None:
@@ -353,17 +362,20 @@ def resolve_dt(
     elif spacing.smallest == 1.0:
         dt, source, notes = scene_dt, f"time.dt of scene {scene}", ()
     else:
-        dt, source, notes = _scaled_dt(scene_dt, days, every, scene, grid, spacing)
+        dt, source, notes = _scaled_dt(scene_dt, days, every, scene, grid, spacing, streams)
     if not (is_number(dt) and math.isfinite(dt) and dt > 0):
         raise SceneError(f"dt must be > 0 (got {got(dt)})")
     Clock(dt, 0.0, days, source, controlled).check({"the output interval (output.every_days)": every})
     return dt, source, notes
 
 
-def _scaled_dt(scene_dt: float, days: float, every: float, scene: str, grid: SceneGrid, spacing: Spacing):
+def _scaled_dt(scene_dt: float, days: float, every: float, scene: str, grid: SceneGrid, spacing: Spacing, streams=()):
     """``resolve_dt``'s (dt, source, notes) of a scene's dt scaled to another spacing: the
-    longest that divides the run and, where shorter, the output interval."""
+    longest that divides the run and, where shorter, the output interval and the streams'."""
     spans = (days,) if days <= every else (every, days)
+    shorter = tuple(e for e in streams if e < days)  # a stream's interval writes within the run
+    if shorter and common_interval(*spans, *shorter) != common_interval(*spans):
+        spans, every = (*spans, *shorter), min(every, *shorter)  # the message names the shortest
     scaled = scene_dt * spacing.smallest
     dt = Clock(scaled, 0.0, days).fitted(*spans).dt
     radius, file_radius = spacing.radii

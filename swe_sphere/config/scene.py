@@ -102,7 +102,7 @@ from .resolve import (
     resolve_terms,
     scene_title,
 )
-from .schema import SCHEMA, SceneControl, SceneGrid, SceneHyperviscosity, SceneOutput, SceneTime, read_scene
+from .schema import SCHEMA, SceneControl, SceneGrid, SceneHyperviscosity, SceneOutput, SceneTime, is_number, read_scene
 
 # the names the package, its tests and benchmarks import from here, defined in the config's other modules
 __all__ = [
@@ -473,13 +473,18 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict) -> S
     every, log_every = resolve_output_interval(output)
     stepper, days = resolve_stepper_days(time, stepper, days)
     controlled = is_controlled(time)
-    dt, dt_source, dt_notes = resolve_dt(time.get("dt"), dt, days, every, path.stem, grid, spacing, controlled)
+    streams = tuple(  # the streams' intervals, for a scaled dt to divide (their values checked with them)
+        st["every_days"]
+        for st in output.get("streams", [])
+        if isinstance(st, dict) and is_number(st.get("every_days")) and st["every_days"] > 0
+    )
+    dt, dt_source, dt_notes = resolve_dt(time.get("dt"), dt, days, every, path.stem, grid, spacing, controlled, streams)
     own_dt = dt
     if dt_source == "the dt given" or "time.dt" in overrides:  # the dt it would choose itself, all else as given
         try:
             own_spacing = resolve_spacing(scene_grid, grid, planet.a, own.get("planet", {}).get("radius", EARTH.a))
             own_dt = resolve_dt(
-                own.get("time", {}).get("dt"), None, days, every, path.stem, grid, own_spacing, controlled
+                own.get("time", {}).get("dt"), None, days, every, path.stem, grid, own_spacing, controlled, streams
             )[0]
         except SceneError:  # none that fits the output interval
             own_dt = None

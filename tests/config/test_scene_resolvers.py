@@ -32,7 +32,7 @@ from swe_sphere.config.resolve import (
 )
 from swe_sphere.config.scene import load_scene
 from swe_sphere.config.schema import SceneGrid, SceneHyperviscosity, SceneOutput, SceneTime, read_scene
-from swe_sphere.core.constants import EARTH, Planet
+from swe_sphere.core.constants import DAY, EARTH, Planet
 from swe_sphere.core.errors import SceneError
 from swe_sphere.grid.quality import smallest_dx
 from swe_sphere.grid.refine import make_mesh
@@ -56,6 +56,20 @@ def test_every_bundled_scene_and_refusal_resolves_as_frozen(tmp_path):
     assert set(got) <= set(frozen)
     differ = [key for key in got if got[key] != frozen[key]]
     assert not differ, f"{len(differ)} differ, first {differ[0]}: {got[differ[0]]} != {frozen[differ[0]]}"
+
+
+def test_a_scaled_dt_divides_the_streams_intervals_too():
+    """tc2_steady at ne2 with a 0.3-day stream: the scaled dt (2400 s, 10.8 steps in 0.3 days)
+    was refused for the stream alone, though it is cut to divide the main output interval; it is
+    cut for the stream too. A dt given is still refused for it."""
+    streams = {"output.every_days": 0.5, "output.streams": [{"name": "a", "every_days": 0.3, "fields": ["h"]}]}
+    scene = load_scene("tc2_steady", ne=2, days=1.0, overrides=streams)
+    for days in (0.3, 0.5, 1.0):
+        steps = days * DAY / scene.dt
+        assert abs(steps - round(steps)) < 1e-9, (days, scene.dt)
+    assert scene.dt == 2160.0
+    with pytest.raises(SceneError, match=r"output.streams\[0\].every_days of 0.3 days is not a whole number"):
+        load_scene("tc2_steady", ne=2, days=1.0, dt=2400.0, overrides=streams)
 
 
 def test_a_dt_set_by_an_override_scales_with_another_grid():

@@ -4,7 +4,6 @@ output's default name and the refusals made before anything is built."""
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import os
 import sys
 from pathlib import Path
@@ -152,6 +151,7 @@ def command(args) -> int:
             stepper=args.stepper,
             mesh=args.mesh,
             overrides={**overrides(args.set), **({"output.cells": False} if args.no_cells else {})},
+            restart_every=args.restart_every,  # a dt the scene scales is cut to divide it too
         )
         scene = load_scene(args.scene, **given)
         if members is None and scene.ensemble is not None:  # the scene's [ensemble]
@@ -176,7 +176,6 @@ def command(args) -> int:
         if not is_interval(args.restart_every):
             raise SceneError(f"--restart-every must be a number of days > 0 (got {args.restart_every!r})")
         if scene is not None:  # a continuation's: in _run
-            scene = _restart_fitted(scene, args.restart_every)
             check_restart_interval(scene, args.restart_every)
     initial = scene.case_params.get("path") if scene is not None else None  # a file case's initial state: an input too
     check_distinct(
@@ -333,19 +332,6 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
     print(f"  h spread    {spread:.4g} m (area-weighted RMS of the members' standard deviation at day {scene.days:g})")
     print(f"  output      {output}")
     return 0
-
-
-def _restart_fitted(scene, every: float):
-    """``scene`` with a dt it scaled itself (not one given) cut to divide the restart interval
-    ``every`` (days) too, as the scaling cut it to divide the output interval and the run, with a
-    note saying so; else ``scene`` (a dt given, or a controlled run's, is checked as it is)."""
-    clock = scene.clock
-    if scene.control is not None or "scaled to" not in scene.dt_source or clock.is_whole(every):
-        return scene
-    spans = [scene.days, every, *([scene.output_every_days] if scene.output_every_days < scene.days else [])]
-    dt = clock.fitted(*spans).dt
-    note = f"dt cut from {scene.dt:g} s to {dt:g} s to divide the restart interval of {every:g} days"
-    return dataclasses.replace(scene, dt=dt, notes=(*scene.notes, note))
 
 
 def _note(line: str) -> None:

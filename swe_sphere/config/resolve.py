@@ -345,12 +345,14 @@ def resolve_dt(
     spacing: Spacing,
     controlled: bool = False,
     streams: tuple = (),
+    restart: float | None = None,
 ) -> tuple[float, str, tuple]:
     """(dt (s), where it comes from for messages, notes): ``dt`` as given, else the time.dt of
     scene ``scene`` (``scene_dt``) times ``spacing.smallest`` (the run's smallest node spacing
     on ``grid`` over the scene file's), shortened to divide the output interval ``every``, the
     streams' (``streams``, days: the numbers > 0 of ``[[output.streams]] every_days``, checked
-    later) and the run of ``days`` (``Clock.fitted``). The schedule is checked (``Clock.check``; with
+    later), the restart interval ``restart`` (days, or None) and the run of ``days``
+    (``Clock.fitted``). The schedule is checked (``Clock.check``; with
     ``controlled`` steps, ``is_controlled``, dt is the first and need not divide it).
     Raises ``SceneError``: no time.dt, dt ≤ 0, a run or output interval of no whole steps."""
     if dt is not None:
@@ -363,6 +365,11 @@ def resolve_dt(
         dt, source, notes = scene_dt, f"time.dt of scene {scene}", ()
     else:
         dt, source, notes = _scaled_dt(scene_dt, days, every, scene, grid, spacing, streams)
+        clock = Clock(dt, 0.0, days)
+        if restart is not None and not clock.is_whole(restart):  # the run's restart files too
+            cut = clock.fitted(days, restart, *(e for e in (every, *streams) if e < days)).dt
+            notes = (*notes, f"dt cut from {dt:g} s to {cut:g} s to divide the restart interval of {restart:g} days")
+            dt = cut
     if not (is_number(dt) and math.isfinite(dt) and dt > 0):
         raise SceneError(f"dt must be > 0 (got {got(dt)})")
     Clock(dt, 0.0, days, source, controlled).check({"the output interval (output.every_days)": every})

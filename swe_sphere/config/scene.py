@@ -405,7 +405,16 @@ def with_days(scene: Scene, days: float, dt_source: str = "the restart file's") 
 
 
 def load_scene(
-    path, *, ne=None, np_=None, dt=None, days=None, stepper=None, mesh=None, overrides: dict | None = None
+    path,
+    *,
+    ne=None,
+    np_=None,
+    dt=None,
+    days=None,
+    stepper=None,
+    mesh=None,
+    overrides: dict | None = None,
+    restart_every: float | None = None,
 ) -> Scene:
     """Read, validate and resolve a scene file, applying command-line overrides.
 
@@ -440,6 +449,9 @@ def load_scene(
     overrides : dict, optional
         ``{"section.key": value}`` set in the file's values before they are validated
         (``-s hyperviscosity.nu=5e14``), so they are checked like the file.
+    restart_every : float, optional
+        The run's restart interval (days, ``--restart-every``): a dt the scene scales itself is
+        shortened to divide it too (a note says so); checked by the run, not here.
 
     Returns
     -------
@@ -457,10 +469,10 @@ def load_scene(
         "path", path, (str, os.PathLike), "a scene file's path or a bundled scene's name (str)", SceneError
     )
     overrides = {} if overrides is None else mapping_argument("overrides", overrides, error=SceneError)
-    return _resolve(resolve_path(str(path)), ne, np_, dt, days, stepper, mesh, overrides)
+    return _resolve(resolve_path(str(path)), ne, np_, dt, days, stepper, mesh, overrides, restart_every)
 
 
-def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict) -> Scene:
+def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict, restart_every=None) -> Scene:
     """``load_scene``'s work on the scene file ``path``: its tables resolved in order."""
     s, file_radius, file_case, file_grid, own = read_scene(path, overrides)
     planet = resolve_planet(s.get("planet"))
@@ -478,7 +490,10 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict) -> S
         for st in output.get("streams", [])
         if isinstance(st, dict) and is_number(st.get("every_days")) and st["every_days"] > 0
     )
-    dt, dt_source, dt_notes = resolve_dt(time.get("dt"), dt, days, every, path.stem, grid, spacing, controlled, streams)
+    restart = restart_every if is_number(restart_every) and restart_every > 0 and not controlled else None
+    dt, dt_source, dt_notes = resolve_dt(
+        time.get("dt"), dt, days, every, path.stem, grid, spacing, controlled, streams, restart
+    )
     own_dt = dt
     if dt_source == "the dt given" or "time.dt" in overrides:  # the dt it would choose itself, all else as given
         try:

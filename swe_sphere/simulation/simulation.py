@@ -176,6 +176,7 @@ class Simulation:
             vars(self).update(vars(build(scene, backend, progress, comm, start, initial)))  # ``Built``'s fields
             self.g, self.check_every = self.model.g, CHECK_EVERY_STEPS
             self.diagnostics = StateDiagnostics(self)
+            self.control = None  # made below: the start's Courant numbers at the scene's dt, its first step
             self.initial = initial_diagnostics
             if initial_diagnostics is None:
                 self.initial = self.diagnostics.diagnose(scene.start_day * DAY)

@@ -166,7 +166,7 @@ class StateDiagnostics:
     def _dt(self) -> float:
         """The run's dt (s): the scene's, or under step control the controller's current one (the
         step it goes on with, not one cut short to land on an output time)."""
-        control = getattr(self.sim, "control", None)  # not made yet for the start's: the scene's dt, its first proposal
+        control = self.sim.control
         return self.sim.scene.dt if control is None else control.dt
 
     def _courant_numbers(self, u, v, h) -> dict:

@@ -28,12 +28,6 @@
   one step's graph replayed in a bare Python loop, and of ``--chain`` steps captured as one graph
   (the host's share: the first against the second; the launches' own: the last), ``--graph-steps``
   steps each, median of ``--runs``. Timing only: a chained graph's bits are not checked.
-* ``static_np``: the per-node tendency and ∇⁴ kernels compiled for the grid's np (their loops along
-  an element's rows unrolled: ``model.element_operators.STATIC_NP``, off by default) against np
-  read at run time (issue 83 item 5), on the default scenes (``galewsky``, ``tc5_mountain`` at
-  ``--ne``, default 30 and 120): µs a step of one step's graph of each, ``--graph-steps`` steps a
-  round, the two interleaved over ``--runs`` rounds, and how far apart their states end (the same
-  steps: the same arithmetic, to the contractions the compiler makes).
 * ``kernels``: where a step's GPU time goes: Warp's CUDA activity timing (``wp.timing_begin``,
   kernels, memsets and copies) over ``--steps`` plain-launched steps of the default scenes
   (``galewsky``, ``tc5_mountain`` at ``--ne``), µs a step and launches a step of each kernel.
@@ -53,7 +47,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import functools
 import statistics
 import sys
 import time
@@ -63,18 +56,14 @@ import numpy as np
 import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import rhs_throughput  # noqa: E402  (its clock: time.perf_counter; static_np sets a CPU's)
 from gpu_model import IMPLICIT  # noqa: E402
 from implicit_cost import use_krylov  # noqa: E402
 from results import recorded  # noqa: E402  (benchmarks/, the script's directory)
-from rhs_throughput import build, interleaved_times, median_time, rhs_compulsory_bytes  # noqa: E402
+from rhs_throughput import build, median_time, rhs_compulsory_bytes  # noqa: E402
 
 from swe_sphere.config.scene import load_scene  # noqa: E402
 from swe_sphere.core.constants import DAY  # noqa: E402
 from swe_sphere.core.tally import Tally, instrumented  # noqa: E402
-from swe_sphere.grid.cubed_sphere import CubedSphere  # noqa: E402
-from swe_sphere.model import element_operators  # noqa: E402
-from swe_sphere.model.shallow_water import ShallowWater  # noqa: E402
 from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 from swe_sphere.steppers import STEPPERS  # noqa: E402
 
@@ -340,69 +329,6 @@ def floor(args):
         print(f"| {name} | {scene.ne} {scene.np} | {scene.stepper} | {tally.total_launches} | {cells} |", flush=True)
 
 
-def static_np(args):
-    """The per-node tendency and ∇⁴ kernels compiled for the grid's np (``STATIC_NP``) against np
-    read at run time, interleaved: one RHS and one ∇⁴ of each on any device, then on CUDA one
-    step's graph of each."""
-    scenes = [
-        (name, load_scene(name, ne=ne)) for name, ne in [("galewsky", None), *(("tc5_mountain", ne) for ne in args.ne)]
-    ]
-    cuda = wp.get_device(args.device).is_cuda
-    rhs_throughput.clock = rhs_throughput.CLOCKS["wall" if cuda else "cpu"]  # a CPU's: one thread's clock
-    _header(
-        f"ms of one RHS and one ∇⁴ on the per-node layout ({args.device}: {'wall' if cuda else 'one thread, CPU'} clock; median of "
-        f"{args.repeat}, the two interleaved): np read at run time, and compiled for np",
-        ["scene", "ne np", "RHS at run time", "compiled", "ratio", "∇⁴ at run time", "compiled", "ratio"],
-        6,
-    )
-    for name, scene in scenes:
-        grid, calls = CubedSphere(scene.ne, scene.np), []
-        for static in (False, True):
-            element_operators.STATIC_NP = static  # read as each model is built
-            model = ShallowWater.from_scene(scene, grid, device=args.device, threads=1, per_element=False)
-            x = model.new_state(*scene.make_case().initial(grid.lat, grid.lon))
-            out = wp.zeros_like(x)
-            calls.append((functools.partial(model.rhs, x, out), functools.partial(model.hyperviscosity, x, scene.dt)))
-        element_operators.STATIC_NP = False
-        sync = args.device if cuda else None
-        rhs = interleaved_times([c[0] for c in calls], args.repeat, sync)
-        hv = interleaved_times([c[1] for c in calls], args.repeat, sync)
-        cells = " | ".join(f"{a * 1e3:.3f} | {b * 1e3:.3f} | {b / a:.3f}" for a, b in (rhs, hv))
-        print(f"| {name} | {scene.ne} {scene.np} | {cells} |", flush=True)
-    if not cuda:
-        return
-    _header(
-        f"µs a step of one step's graph ({args.device}; {args.graph_steps} steps a round, median of {args.runs} "
-        "rounds, the two interleaved): the per-node kernels with np read at run time, and compiled for np",
-        ["scene", "ne np", "stepper", "np at run time", "np compiled", "ratio", "max |Δx| / max |x|"],
-        4,
-    )
-    dev, n = wp.get_device(args.device), args.graph_steps
-    for name, scene in scenes:
-        days = (100 + args.runs * n) * scene.dt / DAY
-        scene = dataclasses.replace(scene, days=days, output_every_days=days)
-        sims, graphs = [], []
-        for static in (False, True):
-            element_operators.STATIC_NP = static  # read as each model is built
-            sim = Simulation(scene, args.device, progress=False)
-            sim.run(None, until_step=100)  # compiles, records and captures
-            sims.append(sim)
-            graphs.append(_captured(sim.stepper, sim.x, dev))
-        element_operators.STATIC_NP = False
-        times = ([], [])
-        for _ in range(args.runs):
-            for k, graph in enumerate(graphs):
-                times[k].append(_replayed(graph, dev, n))
-        a, b = (statistics.median(t) for t in times)
-        x0, x1 = (sim.x.numpy() for sim in sims)  # the same steps on both: the arithmetic's agreement
-        diff = float(np.max(np.abs(x1 - x0)) / np.max(np.abs(x0)))
-        print(
-            f"| {name} | {scene.ne} {scene.np} | {scene.stepper} | {a * 1e6:.1f} | {b * 1e6:.1f} | {b / a:.3f} "
-            f"| {diff:.1e} |",
-            flush=True,
-        )
-
-
 def kernels(args):
     for name, ne in [("galewsky", None), *(("tc5_mountain", ne) for ne in args.ne)]:
         scene = load_scene(name, ne=ne)
@@ -437,7 +363,7 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument(
         "part",
-        choices=("agreement", "throughput", "graphs", "bits", "reads", "iterations", "floor", "static_np", "kernels"),
+        choices=("agreement", "throughput", "graphs", "bits", "reads", "iterations", "floor", "kernels"),
     )
     p.add_argument("--device", default="cuda")
     p.add_argument(
@@ -466,7 +392,6 @@ def main(argv=None):
         "agreement": [16],
         "throughput": [30, 60, 120, 240],
         "floor": [8, 30],
-        "static_np": [30, 120],
         "kernels": [30, 120],
     }.get(args.part, [30])
     wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level (as tests/conftest.py)
@@ -481,7 +406,6 @@ def main(argv=None):
         "reads": reads,
         "iterations": iterations,
         "floor": floor,
-        "static_np": static_np,
         "kernels": kernels,
     }[args.part](args)
 

@@ -17,7 +17,6 @@
 #   benchmarks/gpu_session.sh control               # ≤ 3.5 min: TC5 ne60 rk43 under error control, graphs against none (issue 64; CONTROL_DAYS, CONTROL_GRAPHS)
 #   benchmarks/gpu_session.sh small                 # ≈ 1 min: galewsky and TC5 ne30 one day, ms a step (issue 83 item 5)
 #   benchmarks/gpu_session.sh floor                 # ≈ 1 min: where a small grid's step goes: the run's loop, a graph a step, k steps a graph
-#   benchmarks/gpu_session.sh static_np             # ≈ 1.5 min: the per-node kernels compiled for np against np at run time, graph µs a step
 #   benchmarks/gpu_session.sh kernels               # ≈ 1 min: each kernel's device time a step, galewsky and TC5 ne30, ne120
 #   benchmarks/gpu_session.sh ensemble              # ≈ 1 min: galewsky, 32 members in the same launches against one (issue 85)
 #
@@ -214,11 +213,6 @@ part_floor() {  # issue 83 item 5: is a small grid's step the host's (the run's 
     run floor 120 "$PY" benchmarks/gpu_session.py floor --device "$DEVICE" "$@"
 }
 
-part_static_np() {  # issue 83 item 5: STATIC_NP (loops along an element's rows unrolled), interleaved with np at run time
-    if [ "$small" = 1 ]; then set -- --ne 2 --graph-steps 20 --runs 2; else set -- --ne 30 120 --graph-steps 1000 --runs 5; fi
-    run static_np 150 "$PY" benchmarks/gpu_session.py static_np --device "$DEVICE" "$@"
-}
-
 part_kernels() {  # issue 83 items 5 and the ne120 target: which kernels a step's device time goes to
     if [ "$small" = 1 ]; then set -- --ne 2 --steps 2; else set -- --ne 30 120; fi
     run kernels 120 "$PY" benchmarks/gpu_session.py kernels --device "$DEVICE" "$@"
@@ -239,7 +233,7 @@ parts=("$@")
 [ ${#parts[@]} -eq 0 ] && parts=(setup tests agreement throughput graphs tc5 iterations)
 for part in "${parts[@]}"; do
     case $part in
-        setup|tests_gpu|tests|agreement|throughput|graphs|bits|tc5|iterations|reads|study|study_ne60|study_fine|criterion_ne60|criterion_ne120|dinosaur|control|small|floor|static_np|kernels|ensemble) "part_$part" ;;
-        *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_ne60 study_fine criterion_ne60 criterion_ne120 dinosaur control small floor static_np kernels ensemble)" >&2; exit 2 ;;
+        setup|tests_gpu|tests|agreement|throughput|graphs|bits|tc5|iterations|reads|study|study_ne60|study_fine|criterion_ne60|criterion_ne120|dinosaur|control|small|floor|kernels|ensemble) "part_$part" ;;
+        *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_ne60 study_fine criterion_ne60 criterion_ne120 dinosaur control small floor kernels ensemble)" >&2; exit 2 ;;
     esac
 done

@@ -27,18 +27,15 @@ from .transposes import TendencyTranspose
 
 f64 = wp.float64
 
-# True: the per-node layout's tendency and ∇⁴ kernels compiled for the grid's np (``static_np``: their
-# loops along an element's rows unrolled, the same arithmetic), where a small grid's kernel waits on its
-# own chain of reads (issue 83 item 5). Off until a card times it against np read at run time
-# (benchmarks/gpu_session.py static_np); the CPU's per-element kernels are compiled for their np anyway.
-STATIC_NP = False
-
 
 class ElementOperators:
     """The DSS'd operators of ``grid`` (a ``CubedSphere``) assembled by ``topology`` on
     ``device``, their launches recorded in ``launches`` (the model's ``LaunchRecorder``);
     ``per_element``: the kernels' layout (an element a thread, else a node a thread); ``static_np``
-    the np the per-node tendency and ∇⁴ kernels are compiled for (0: read at run time; ``STATIC_NP``).
+    the np the per-node tendency and ∇⁴ kernels are compiled for (the grid's; 0, the per-element
+    layout's, whose kernels take it otherwise). Compiled for np, their loops along an element's rows
+    unroll and a node's indices divide by a constant: a step's graph 8 % faster for galewsky, 4 % for
+    TC5 ne30 and as fast at ne120 on an H100, the same bits (issue 83 item 5; benchmarks/GPU.md).
 
     Arrays (device, element-local, N the grid's nodes): ``D``, ``Dinv`` (N, 2, 2; m and m⁻¹ per
     reference unit), ``metdet`` (N,), ``dvv`` (np, np), ``dvv_rows`` (the per-element kernels'
@@ -51,7 +48,7 @@ class ElementOperators:
             return wp.array(np.ascontiguousarray(a), dtype=f64, device=device)
 
         self.grid, self.topology, self.launches, self.per_element = grid, topology, launches, bool(per_element)
-        self.static_np = grid.np if STATIC_NP and not self.per_element else 0
+        self.static_np = 0 if self.per_element else grid.np
         self.N = N = grid.nnodes
         self.D, self.Dinv, self.metdet, self.dvv = up(grid.D), up(grid.Dinv), up(grid.metdet), up(grid.rule.dvv)
         self.dvv_rows = operators.dvv_matrix(grid.rule.dvv)

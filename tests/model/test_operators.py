@@ -605,8 +605,8 @@ def test_hyperviscosity_launches_nothing_without_the_term(terms, nu, launch_log)
 def test_hyperviscosity_launch_list(per_element, nu_div, launch_log):
     """Three passes on the per-element layout, whose second weak Laplacian does the
     first DSS itself; six on the per-node layout, a flux pass before each weak Laplacian
-    (the first forms the Cartesian wind as it reads it) and the first DSS;
-    the divergence and its DSS, and the kernel that reads their gradient, only when ν_div ≠ ν."""
+    (the first forms the Cartesian wind as it reads it) and the first DSS, those four compiled
+    for the grid's np; the divergence and its DSS, and the kernel that reads their gradient, only when ν_div ≠ ν."""
     g = cached_grid(2, 4)
     fcor, hs, st = tc5(g)
     m = ShallowWater(
@@ -629,11 +629,11 @@ def test_hyperviscosity_launch_list(per_element, nu_div, launch_log):
         expected = [f"laplacian_element__{first}", "laplacian_element__second", "dss_apply"]
     else:
         expected = [
-            "laplacian_flux__cartesian",
-            f"laplacian_node__{first}",
+            "laplacian_flux__cartesian__np4",
+            f"laplacian_node__{first}__np4",
             "dss",
-            "laplacian_flux__rows",
-            "laplacian_node__second",
+            "laplacian_flux__rows__np4",
+            "laplacian_node__second__np4",
             "dss_apply",
         ]
     if nu_div != 1e15:

@@ -204,8 +204,8 @@ def test_the_tensor_kernels_compile_for_cuda(tmp_path):
         mp.setattr(wp, "launch", launch)
         model = hv_model(grid, 3.2, per_element=False, nu=1e15)
         model.hyperviscosity(model.new_state(), 100.0)
-    assert {"laplacian_flux__rows__tensor", "laplacian_node__second"} <= set(launched), sorted(launched)
-    for key in ("laplacian_flux__rows__tensor", "laplacian_node__second"):
+    assert {"laplacian_flux__rows__tensor__np4", "laplacian_node__second__np4"} <= set(launched), sorted(launched)
+    for key in ("laplacian_flux__rows__tensor__np4", "laplacian_node__second__np4"):
         paths = wp.compile_aot_module(launched[key], arch=90, module_dir=tmp_path / key, use_ptx=True)
         assert len(paths) == 1 and ".entry" in paths[0].read_text() and key in paths[0].read_text(), key
 

@@ -17,7 +17,7 @@ from ..core.arguments import comm_argument, flag_argument, instance_argument, in
 from ..core.backend import Backend, pick_device
 from ..core.clock import StepTimes
 from ..core.constants import DAY
-from ..core.errors import ArgumentError
+from ..core.errors import ArgumentError, BlowUp
 from ..model.shallow_water import ShallowWater
 from .costs import checked, run_cost
 from .disk import DiskTier
@@ -178,7 +178,9 @@ def gradient(
     not an existing folder, x0 or hs of another shape or not finite, ``parameters`` not a bool
     or True with a stepper that solves with L, ``comm`` not a communicator, or a scene the
     adjoint cannot serve (``reverse.refusal``; the JFNK implicit, an exponential stepper);
-    ``SceneError`` for another device; OSError from the disk; ``StepFailure`` where a solve,
+    ``SceneError`` for another device; ``BlowUp`` where a state of the run goes bad (non-finite,
+    or h ≤ 0 with a pressure gradient), naming its step, model time and place, as a run's; OSError
+    from the disk; ``StepFailure`` where a solve,
     recomputed or transposed, misses its ``tol`` within ``maxiter``.
 
     Sources: the model's transposes (``model.transposes``) on a tape of each step (``tape``,
@@ -241,13 +243,30 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
     def carried(x):  # (the stepper's array, the state's rows) pairs, in ``carried_arrays``' order now
         return [(a, x[3 * i + 3 : 3 * i + 6]) for i, a in enumerate(stepper.carried_arrays())]
 
-    def advance(x, k, m=1):  # x = x(k) to x(k + m) in place
+    def load(x):  # the stepper's arrays from x's rows
         for a, held in [(work, x[X]), *carried(x)]:
             wp.copy(a, held)
+
+    def step(j):  # x(j) to x(j + 1) in the stepper's arrays
+        clock.set(stepper, j)
+        stepper.set_phase(j)  # its clock, t0_j + (j + c)·Δt_j at each stage as the run's, and start
+        stepper.step(work)
+
+    def advance(x, k, m=1):  # x = x(k) to x(k + m) in place, each state watched on the device
+        load(x)
         for j in range(k, k + m):
-            clock.set(stepper, j)
-            stepper.set_phase(j)  # its clock, t0_j + (j + c)·Δt_j at each stage as the run's, and start
-            stepper.step(work)
+            step(j)
+            model.bad_nodes.watch(work)
+        if model.bad_nodes.watched_bad():  # one read: which step went bad, the steps again one by one
+            load(x)
+            for j in range(k, k + m):
+                step(j)
+                if (node := model.bad_nodes.first(work)) is not None:
+                    t0, dt = clock(j)
+                    raise BlowUp(
+                        f"blow-up at step {j + 1} (model time {(t0 + (j + 1) * dt) / DAY:.4f} days) of the "
+                        f"gradient's run: {model.bad_nodes.describe(work, node)}"
+                    )
         for a, held in [(work, x[X]), *carried(x)]:
             wp.copy(held, a)
 

@@ -3,6 +3,9 @@ at once (one host read) or flagged on the device over a block of steps and read 
 
 from __future__ import annotations
 
+import math
+
+import numpy as np
 import warp as wp
 
 from ..kernels import blas
@@ -28,6 +31,19 @@ class BadNodes:
         self._check(x, self.bad, "guard")
         first = int(self.bad.numpy().min())
         return self.model.topology.first_node(None if first == N else first)
+
+    def describe(self, x: wp.array2d, node: int) -> str:
+        """What is bad at the whole-grid node ``node`` of x (``first``'s index) and where: "non-finite
+        value" or "depth h = … m <= 0", at lat, lon (degrees); the same line on every rank (call on
+        all: gathers x and the grid)."""
+        topo = self.model.topology
+        values, grid = topo.gather(x.numpy()[:3]), topo.whole_grid()
+        if values is None:
+            return topo.bcast(None)
+        u, v, h = values[:, node]
+        lat, lon = np.degrees(grid.lat[node]), np.degrees(grid.lon[node])
+        what = "non-finite value" if not all(map(math.isfinite, (u, v, h))) else f"depth h = {h:.4g} m <= 0"
+        return topo.bcast(f"{what} at lat {lat:.2f}, lon {lon:.2f} degrees")
 
     def watch(self, x: wp.array2d) -> None:
         """Flag on the device whether x has a bad node, without reading it back: the

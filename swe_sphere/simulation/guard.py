@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
-import numpy as np
 import warp as wp
 
 from ..core.errors import StepFailure
@@ -94,15 +91,4 @@ class Guard:
         day = sim.scene.day(step) if day is None else day
         if trouble == "failure":
             return f"step {step} failed (model time {day:.4f} days): {detail}"
-        u, v, h = sim.fields()
-        if not sim.root:
-            return sim.topology.bcast(None)
-        lat, lon = np.degrees(sim.grid.lat[detail]), np.degrees(sim.grid.lon[detail])
-        what = (
-            "non-finite value"
-            if not all(math.isfinite(f[detail]) for f in (u, v, h))
-            else f"depth h = {h[detail]:.4g} m <= 0"
-        )
-        return sim.topology.bcast(
-            f"blow-up at step {step} (model time {day:.4f} days): {what} at lat {lat:.2f}, lon {lon:.2f} degrees"
-        )
+        return f"blow-up at step {step} (model time {day:.4f} days): {sim.model.bad_nodes.describe(sim.x, detail)}"

@@ -15,7 +15,7 @@ from swe_sphere.adjoint.gradient import scene_model, step_adjoint
 from swe_sphere.adjoint.revolve import griewank_steps, split, sweep
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.backend import Backend
-from swe_sphere.core.errors import ArgumentError
+from swe_sphere.core.errors import ArgumentError, BlowUp
 from swe_sphere.kernels import tendencies, tendency_adjoint
 from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.simulation.simulation import Simulation
@@ -295,6 +295,25 @@ def test_gradient_refuses_an_implicit_stepper_and_bad_sizes():
         gradient(tc5(), 1, cost, x0=np.where(np.arange(x0.size).reshape(x0.shape) == 7, np.nan, x0))
     with pytest.raises(ValueError, match=r"^hs has shape \(383,\), the grid needs \(1, 384\)$"):
         gradient(tc5(), 1, cost, hs=x0[2, :-1])
+
+
+@pytest.mark.parametrize("snapshots", [None, 2])
+def test_a_run_that_blows_up_stops_the_gradient_at_its_step_as_a_run_does(snapshots):
+    """Δt = 12 h is far past RK4's limit on TC5 ne2: the depth goes negative in the first step.
+    The gradient stops there with a run's blow-up line, whatever the checkpointing, instead of a
+    derivative of a dry state (or the cost's non-finite J steps later)."""
+    scene = load_scene("tc5_mountain", ne=2, np_=4, dt=43200.0, stepper="rk4")
+    cost = HeightMisfit(0.0)
+    lines = []
+    for steps in (1, 3):
+        with pytest.raises(BlowUp) as err:
+            gradient(scene, steps, cost, snapshots=snapshots)
+        lines.append(str(err.value))
+    with pytest.raises(BlowUp) as run:  # the run's own guard, at that step
+        Simulation(scene, "cpu", progress=False).run(None, until_step=1)
+    where = str(run.value).removeprefix("blow-up at step 1 (model time 0.5000 days): ")
+    assert where.startswith("depth h = -") and " m <= 0 at lat " in where, str(run.value)
+    assert lines == [f"blow-up at step 1 (model time 0.5000 days) of the gradient's run: {where}"] * 2
 
 
 @pytest.mark.parametrize("rows", ["nu", "nu_s"])

@@ -37,7 +37,7 @@ from ..mesh.element_local import locate as locate_on_mesh
 from ..mesh.face_map import FACES
 from ..mesh.records import MeshFile, MeshRecord, from_json, mesh_of
 from .output_files import atomic_path, check_distinct
-from .run_file import element_mesh, history_line
+from .run_file import element_mesh, history_line, member_statistics
 
 #: node fields (time, ncol) or (ncol,) that ``remap_dataset`` carries to the lat-lon grid (an ensemble's
 #: (time, member, ncol) too, with their ``_mean`` and ``_spread``)
@@ -164,7 +164,8 @@ def member_view(ds: xr.Dataset, path, member, members: int) -> xr.Dataset:
     """An ensemble's run file ``ds`` (``path``, ``members`` members) read as one run (the plots'
     ``studies.plotting.open_run``): ``member`` k, "mean" (each field's ensemble mean, the series'
     mean over the members) or "spread" (each field's spread, hs zero so that h + hs is h's; the
-    series' standard deviation). ``ValueError`` (one line; ``ds`` closed) for another member."""
+    series' standard deviation; the members in ``attrs["_ensemble"]``, for a map drawn from them).
+    ``ValueError`` (one line; ``ds`` closed) for another member."""
     if member not in MEMBER_VIEWS:
         k = int(member) if str(member).isdigit() else -1
         if not 0 <= k < members:
@@ -183,6 +184,9 @@ def member_view(ds: xr.Dataset, path, member, members: int) -> xr.Dataset:
             )
     if member == "spread":
         out["hs"] = out["hs"] * 0.0
+        # a map's spread is the members' where it is drawn: a standard deviation does not commute with
+        # the interpolation (the plots' ``plot_map``); the members as read, not a file's attribute
+        out.attrs["_ensemble"] = ds
     return out.drop_vars("member")
 
 
@@ -372,7 +376,9 @@ def _latlon_frame(ds: xr.Dataset, lat: np.ndarray, lon: np.ndarray) -> xr.Datase
 
 def _add_fields(out: xr.Dataset, ds: xr.Dataset, rm: Remapper) -> None:
     """The run's node fields interpolated by ``rm`` onto ``out``'s grid, h + hs as ``h_surface``,
-    and its diagnostics time series copied."""
+    and its diagnostics time series copied. An ensemble's mean and spread are those of its members
+    interpolated (``run_file.member_statistics``), not the nodes' statistics interpolated: a standard
+    deviation does not commute with the interpolation (its polynomial dips below zero)."""
     keep = ("units", "long_name", "standard_name", "cell_methods")
     if "member" in ds.variables:  # an ensemble's: its members, and each field's mean and spread
         out.coords["member"] = ds["member"]
@@ -383,7 +389,13 @@ def _add_fields(out: xr.Dataset, ds: xr.Dataset, rm: Remapper) -> None:
         dims = tuple(d if d != "ncol" else None for d in var.dims)
         if dims[-1] is not None:
             continue
-        values = rm(np.asarray(var.values, dtype=np.float64))
+        base, _, view = name.rpartition("_")
+        if view in MEMBER_VIEWS and base in out.data_vars and "member" in out[base].dims:
+            members = out[base]
+            stats = member_statistics(np.moveaxis(members.values, members.dims.index("member"), 0))
+            values = stats[MEMBER_VIEWS.index(view)]
+        else:
+            values = rm(np.asarray(var.values, dtype=np.float64))
         attrs = {k: v for k, v in var.attrs.items() if k in keep}
         out[name] = (var.dims[:-1] + ("lat", "lon"), values, {**attrs, **_MEASURE})
     if "h" in out and "hs" in out:

@@ -25,6 +25,7 @@ from ..core.constants import EARTH, PLANET_KEYS, Planet
 from ..io.initial_state import SCENE_CASES
 from ..io.output_files import atomic_path, check_distinct, check_target
 from ..io.remap import Remapper, member_label, member_view, open_netcdf, run_grid
+from ..io.run_file import member_statistics
 from .analysis import (
     DAY_TOL,
     DERIVED,
@@ -218,7 +219,12 @@ def plot_map(ds, field: str, day: float, path=None, diff=None, lat_range=None) -
     res = plot_resolution(grid)
     lat_e, lon_e = plot_edges(res)
     lat_c, lon_c = _centres(lat_e, lon_e)
-    values = _plot_remapper(grid, res)(nodes)
+    remapper = _plot_remapper(grid, res)
+    values = remapper(nodes)
+    if "_ensemble" in ds.attrs:  # a spread: the drawn members' (``member_view``), not its nodes' interpolated
+        members = ds.attrs["_ensemble"]
+        drawn = [remapper(field_at_nodes(members.isel(member=k), field, day)) for k in range(members.sizes["member"])]
+        values = member_statistics(np.stack(drawn))[1]
     if lat_range is not None:
         south, north = check_lat_range(lat_range)
         rows = np.flatnonzero((lat_e[1:] > south) & (lat_e[:-1] < north))
@@ -422,7 +428,7 @@ def plot_run(
     series figure depends on the run file alone: an existing one with the same
     picture is left as it is (so ``plot --diff`` or other fields after a plain
     ``plot`` go ahead); one with another picture is refused like a map."""
-    _check_view(member, fields)
+    _check_view(member, fields, diff=diff_path is not None)
     outdir = _check_outdir(outdir, lat_range)
     ds = open_run(run_path, member)
     named = _named(run_path, member)
@@ -526,11 +532,14 @@ def analysis_names(run_path, days, fields=(), spectrum=False, lat_range=None) ->
     return names + [Path(f"{stem}_{field}_zonal_mean_{when}{band}.png") for field in fields]
 
 
-def _check_view(member, fields=(), spectrum: bool = False) -> None:
+def _check_view(member, fields=(), spectrum: bool = False, diff: bool = False) -> None:
     """``ValueError`` (one line) for what an ensemble's spread does not hold: the spread of the
-    wind speed (not |spread of the wind|) and a spectrum (of the spread of the wind)."""
+    wind speed (not |spread of the wind|), a spectrum (of the spread of the wind) and a
+    difference from a reference (a spread is not a state)."""
     if member != "spread":
         return
+    if diff:
+        raise ValueError("--member spread: --diff compares a state with a reference, and a spread is not a state")
     if "speed" in fields:
         raise ValueError("--member spread: the file holds the spread of u and v, not of the speed")
     if spectrum:

@@ -5,6 +5,9 @@ from __future__ import annotations
 import tempfile
 from pathlib import Path
 
+from tqdm import tqdm
+
+from .config.scene import resolve_scene
 from .core.arguments import flag_argument, number_argument, path_argument
 from .core.backend import pick_device
 from .core.errors import OutputError, SceneError
@@ -64,11 +67,14 @@ def run(
         h, u, v, vorticity on (time, ncol) with time in model days (the file's CF time
         read undecoded: ``ds.h.sel(time=3)``), lat, lon, area on ncol, the diagnostics
         time series (mass_change, l2_h, ...) and the resolved scene in ``ds.attrs["scene"]``.
+        A scene with an [ensemble] (``ensemble={"members": N, ...}``) runs its members
+        (``swe_sphere.Ensemble``, as ``swe-sphere run`` does): the fields on (time, member, ncol)
+        with their ``_mean`` and ``_spread``, the series on (time, member).
 
     Raises
     ------
     SceneError
-        A bad scene, override, ``device``, ``initial``, ``graphs`` or ``restart_every`` (not a
+        A bad scene, override, ``device``, ``initial`` (or one with an [ensemble]), ``graphs`` or ``restart_every`` (not a
         number of days > 0), or ``overwrite``, ``progress`` or ``verbose`` not a bool (a
         ValueError; the message names the argument or value).
     OutputError
@@ -93,26 +99,32 @@ def run(
         if path.name in ("", "..") or path.is_dir():
             raise OutputError(f"output_file = {str(output_file)!r} is a directory: give a file name in it")
     device = pick_device(device, verbose=verbose)
-    sim = Simulation(scene, device, progress=progress, initial=initial, graphs=graphs, **overrides)
-    return _run_and_load(sim, output_file, overwrite, restart_every, verbose)
+    if resolve_scene(scene, overrides)[0].ensemble is not None:  # the scene's [ensemble]: its members
+        if initial is not None:
+            raise SceneError(
+                "initial: an [ensemble]'s members start from its perturbation (swe_sphere.Ensemble takes others)"
+            )
+        from .ensemble import Ensemble
+
+        runner, options = Ensemble(scene, device=device, graphs=graphs, **overrides), {"progress": progress}
+    else:
+        runner = Simulation(scene, device, progress=progress, initial=initial, graphs=graphs, **overrides)
+        options = {"log": tqdm.write if verbose else None}  # output={"log_every_steps": N}: a line every N steps
+    return _run_and_load(runner, output_file, overwrite, restart_every, options)
 
 
-def _run_and_load(sim: Simulation, output_file, overwrite: bool, restart_every: float | None, verbose: bool):
-    """Run ``sim`` into ``output_file`` (or a temporary file) and return the file's contents
-    loaded in memory, time in model days (``output.TIME_ATTRS``)."""
+def _run_and_load(runner, output_file, overwrite: bool, restart_every: float | None, options: dict):
+    """Run ``runner`` (a ``Simulation`` or an ``Ensemble``, its run's ``options``) into
+    ``output_file`` (or a temporary file) and return the file's contents loaded in memory, time in
+    model days (``output.TIME_ATTRS``)."""
     import xarray as xr
-    from tqdm import tqdm
 
-    scene = sim.scene
+    scene = runner.scene
     with tempfile.TemporaryDirectory(prefix="swe_sphere_") as tmp:
         path = Path(output_file) if output_file is not None else Path(tmp) / f"{scene.name}.nc"
-        sim.run(
-            path,
-            overwrite=overwrite,
-            restart_every=restart_every,
-            history=f"swe_sphere.run({scene.name!r})",
-            log=tqdm.write if verbose else None,
-        )  # output={"log_every_steps": N}: a line every N steps
+        runner.run(
+            path, overwrite=overwrite, restart_every=restart_every, history=f"swe_sphere.run({scene.name!r})", **options
+        )
         with xr.open_dataset(path, decode_times=False) as ds:
             return ds.load()
 

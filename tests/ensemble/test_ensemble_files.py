@@ -13,7 +13,8 @@ import netCDF4
 import numpy as np
 import pytest
 
-from swe_sphere.core.errors import BlowUp, CheckpointError, Interrupted
+import swe_sphere
+from swe_sphere.core.errors import BlowUp, CheckpointError, Interrupted, SceneError
 from swe_sphere.ensemble import Ensemble, Perturbation
 from swe_sphere.simulation.simulation import Simulation
 
@@ -198,7 +199,7 @@ def test_bad_options_are_one_line_and_exit_2(capsys, tmp_path, args, says):
 
 def test_plot_and_remap_read_a_member_the_mean_or_the_spread(capsys, tmp_path):
     from swe_sphere.studies.analysis import field_at_nodes
-    from swe_sphere.studies.plotting import open_run
+    from swe_sphere.studies.plotting import open_run, plot_map
 
     run = tmp_path / "e.nc"
     Ensemble("galewsky", 2, Perturbation(1.0, seed=1), device="cpu", **SMALL).run(run)
@@ -210,7 +211,11 @@ def test_plot_and_remap_read_a_member_the_mean_or_the_spread(capsys, tmp_path):
         assert code == 0 and f"e_{label}_h_surface_day0.5.png" in out and f"e_{label}_series.png" in out
     code, _, err = cli_main(capsys, "plot", run, "--member", "2", "--output", tmp_path / "q")
     assert code == 2 and "--member must be 0 to 1, mean or spread (got '2')" in err
-    for args, says in [(("--field", "speed"), "not of the speed"), (("--spectrum",), "not of its spread")]:
+    for args, says in [
+        (("--field", "speed"), "not of the speed"),
+        (("--spectrum",), "not of its spread"),
+        (("--diff", "T213", "--day", "0"), "a spread is not a state"),
+    ]:
         code, _, err = cli_main(capsys, "plot", run, "--member", "spread", *args, "--output", tmp_path / "q")
         assert code == 2 and says in err and not (tmp_path / "q").exists()
     h, spread, hs = read(run, "h", "h_spread", "hs")
@@ -226,6 +231,16 @@ def test_plot_and_remap_read_a_member_the_mean_or_the_spread(capsys, tmp_path):
             "lon",
         )
         assert ds["mass"].dimensions == ("time", "member") and ds["member"].standard_name == "realization"
+        # the mean and spread of the members remapped: the nodes' spread interpolated went below 0
+        h = ds["h"][:]
+        assert np.array_equal(ds["h_mean"][:], h.mean(axis=1))
+        assert np.array_equal(ds["h_spread"][:], h.std(axis=1, ddof=1)) and ds["h_spread"][1:].min() > 0
+    # the map of the spread too: the drawn members' spread, not the nodes' spread interpolated
+    with open_run(run, "spread") as ds:
+        drawn = plot_map(ds, "h", 0.5)
+    with open_run(run, "0") as m0, open_run(run, "1") as m1:
+        a, b = (plot_map(m, "h", 0.5)["figure"].axes[0].images[0].get_array() for m in (m0, m1))
+    assert drawn["min"] >= 0 and np.allclose(drawn["figure"].axes[0].images[0].get_array(), abs(a - b) / np.sqrt(2))
 
 
 def test_members_start_from_an_ensemble_s_run_file(capsys, tmp_path):
@@ -301,6 +316,12 @@ def test_a_scene_s_ensemble_table_runs_its_ensemble(capsys, tmp_path):
     assert cli_main(capsys, *run, *degrees, "--output", tmp_path / "e.nc")[0] == 0
     (d,), (e,) = read(tmp_path / "d.nc", "h"), read(tmp_path / "e.nc", "h")
     assert np.array_equal(d, e) and not np.array_equal(d, a)  # the table's band as the flags' one
+    # swe_sphere.run runs the table's members too (it had run one state, the member dimension gone)
+    table = {"ensemble": {"members": 2, "perturbation": 1.5, "seed": 7}}
+    ds = swe_sphere.run("galewsky", device="cpu", ne=2, np=4, dt=900.0, days=0.25, **table)
+    assert ds["h"].dims == ("time", "member", "ncol") and np.array_equal(ds["h"].values, a)
+    with pytest.raises(SceneError, match=r"^initial: an \[ensemble\]'s members start from its perturbation"):
+        swe_sphere.run("galewsky", device="cpu", ne=2, days=0.25, initial=lambda lat, lon: (lat, lat, lon), **table)
     for sets, says in [
         (("ensemble.members=2", "ensemble.degrees=[0, 6]"), "ensemble.degrees must be [l_min, l_max]"),
         (("ensemble.members=0",), "ensemble.members must be an integer >= 1"),

@@ -35,7 +35,7 @@ from ..io.run_file import OUTPUT_FIELDS, RunWriter, area_rms, member_statistics
 from ..model.diagnostics import invariants
 from ..model.shallow_water import ShallowWater
 from ..simulation import checkpoint
-from ..simulation.schedules import check_restart_interval, output_steps, restart_steps
+from ..simulation.schedules import at_its_end, check_restart_interval, output_steps, restart_steps
 from ..simulation.writers import restart_path, scene_attrs
 from .initial import Perturbation, Variants, checked_states, described, initial_states
 from .members import MemberGrid, member_part
@@ -118,9 +118,8 @@ class Ensemble:
     Raises
     ------
     ArgumentError
-        Naming ``members`` (not an integer ≥ 1), ``initial`` (another shape or kind,
-        non-finite, or h ≤ 0 in a member where h is a depth: the member named) or ``scene``
-        (see above), before the model is built.
+        Naming ``members`` (not an integer ≥ 1), ``initial`` (another shape or kind, non-finite, or
+        h ≤ 0 in a member where h is a depth: the member named) or ``scene``, before the model is built.
     SceneError
         As ``Simulation``'s.
 
@@ -294,9 +293,8 @@ class Ensemble:
         return list(local) if self.comm is None else [e for part in self.comm.allgather(list(local)) for e in part]
 
     def advance(self, days: float) -> None:
-        """Advance every member by ``days`` (a whole number of steps of the scene's Δt: the clock's
-        one whole-step rule, ``core.clock``), as ``step``; ``ArgumentError`` with the clock's
-        refusal otherwise."""
+        """Advance every member by ``days`` (whole steps of the scene's Δt, ``core.clock``'s rule;
+        ``ArgumentError`` with its refusal otherwise), as ``step``."""
         days = number_argument("days", days, "days", low=0.0)
         clock = self.scene.clock
         if days and not clock.is_whole(days):
@@ -325,12 +323,14 @@ class Ensemble:
         or a signal (``Interrupted``, after a block of steps: the step reached written, and its
         restart file) closes the run file with every good output time (its attribute ``stopped``
         says why) and raises; members dropped go as NaN, their lines in ``dropped_members``.
-        ``OutputError`` for a path that may not be written (``overwrite``: replace it);
-        ``SceneError`` for a restart interval that is not whole steps; ``compress``: the fields
-        as float32 with zlib; ``progress``: a bar on stderr where it is a terminal; ``notify(line)``:
-        told what the run file's cells cost or that they were left out (``RunWriter.cells_notes``).
-        Returns the run file's path."""
+        ``OutputError`` for a path that may not be written (``overwrite``: replace it); ``ArgumentError``
+        at the run's end (``advance`` past it); ``SceneError`` for a restart interval that is not whole
+        steps; ``compress``: the fields as float32 with zlib; ``progress``: a bar on stderr where it is a
+        terminal; ``notify(line)``: told what the run file's cells cost or that they were left out
+        (``RunWriter.cells_notes``). Returns the run file's path."""
         s = self.scene
+        if self.step_count >= s.nsteps:
+            raise ArgumentError(at_its_end("Ensemble", self.step_count, s))  # a file of no time
         restart, restarts = restart_path(output), set()
         if restart_every is not None:
             check_restart_interval(s, restart_every)

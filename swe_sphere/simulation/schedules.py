@@ -58,6 +58,15 @@ def check_restart_interval(scene: Scene, every_days: float) -> None:
         restart_steps(scene, every_days)
 
 
+def at_its_end(caller: str, step: int, scene: Scene) -> str:
+    """The refusal of ``caller``'s ``run`` at ``step``, the end of ``scene`` or past it (``advance``
+    went there): nothing is left to run, and its run file would hold no time."""
+    return (
+        f"{caller}.run: at step {step} (day {scene.day(step):g}) the run is at its end (days = {scene.days:g}): "
+        "nothing is left to run, and its file would hold no time (a later end: a scene with more days)"
+    )
+
+
 def next_multiple(step: int, every: int) -> int:
     """The first multiple of ``every`` after ``step``."""
     return (step // every + 1) * every

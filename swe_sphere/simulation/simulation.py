@@ -36,7 +36,7 @@ from .drive import Drive
 from .guard import Guard
 from .loop import StepLoop, check_run_arguments, compile_timer
 from .restart import Restart, continued
-from .schedules import EverySteps
+from .schedules import EverySteps, at_its_end
 from .state_diagnostics import StateDiagnostics
 from .summary import Ledger, RunResult, Stop
 from .writers import Checkpointer, RunFiles, run_attrs
@@ -515,6 +515,8 @@ class Simulation:
             SIGINT or SIGTERM (with ``catch_signals``).
         """
         check_run_arguments(output, overwrite, restart_every, restart_file, compress, catch_signals)
+        if output is not None and self.control is None and self.step >= (until_step or self.scene.nsteps):
+            raise ArgumentError(at_its_end("Simulation", self.step, self.scene))  # a file of no time
         files, ckp, start, courant = self._open(
             output, overwrite, restart_every, restart_file, compress, history, on_output, notify
         )

@@ -56,6 +56,23 @@ def test_advance_past_the_end_lengthens_the_run():
         s.advance(days=0.01)
 
 
+def test_a_run_at_its_end_is_refused_before_a_file_of_no_time(tmp_path):
+    """``run`` after ``advance`` to the end (a Simulation's, or past an Ensemble's): one line,
+    no file (each wrote a run file with no time and said nothing)."""
+    from swe_sphere.core.errors import ArgumentError
+    from swe_sphere.ensemble import Ensemble
+
+    s = sim()
+    s.advance(days=0.375)
+    with pytest.raises(ArgumentError, match=r"^Simulation\.run: at step 18 \(day 0\.375\) the run is at its end"):
+        s.run(tmp_path / "a.nc")
+    ens = Ensemble("tc2_steady_alpha_pi4", 2, device="cpu", **KW)
+    ens.advance(0.5)
+    with pytest.raises(ArgumentError, match=r"^Ensemble\.run: at step 24 \(day 0\.5\) the run is at its end"):
+        ens.run(tmp_path / "b.nc")
+    assert not list(tmp_path.iterdir())
+
+
 def test_steps_yield_the_multiples():
     """``steps(every=1/16)``: 1/16-day multiples to the end (day 0.25); an interval
     that is not whole steps is refused."""
@@ -164,9 +181,10 @@ def test_an_output_writer_of_ones_own(tmp_path, whole_run):
     assert list(s.activities) == ["mean_depth"]  # the run's own activities are gone after it
     with pytest.raises(ValueError, match="^the interval every_days of 0.01 days is not a whole number of steps"):
         MeanDepth(s, tmp_path / "x.txt", 0.01)
-    s.activities["log"] = MeanDepth(s, tmp_path / "x.txt", 0.125)
+    again = sim()  # ``s`` is at its end
+    again.activities["log"] = MeanDepth(again, tmp_path / "x.txt", 0.125)
     with pytest.raises(ValueError, match=r"activities log: a run's own names \(choose another\)"):
-        s.run(tmp_path / "again.nc")
+        again.run(tmp_path / "again.nc")
     assert not (tmp_path / "again.nc").exists() and not (tmp_path / "x.txt").exists()
 
 

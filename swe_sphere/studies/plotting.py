@@ -440,7 +440,8 @@ def plot_run(
             check_comparable(ds, diff)
         for field in fields:
             for day in days:
-                field_at_nodes(ds, field, day)
+                if np.isnan(field_at_nodes(ds, field, day)).all():  # a member dropped at a blow-up
+                    raise ValueError(f"{run_path}: {field} holds no number at day {day:g} (a member dropped?)")
                 if not math.isfinite(day):
                     raise ValueError(f"day must be finite (got {day})")
                 if diff is not None:

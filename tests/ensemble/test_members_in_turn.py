@@ -173,6 +173,14 @@ def test_a_member_that_blows_up_is_dropped_and_the_others_go_on(tmp_path):
         )
         assert np.isnan(ds.h.isel(time=-1, member=1)).all() and np.isfinite(ds.h.isel(member=0)).all()
         np.testing.assert_array_equal(ds.h_mean.isel(time=-1), ds.h.isel(time=-1, member=[0, 2]).mean("member"))
+    # a map of the dropped member after its blow-up is refused in one line (it drew a blank map)
+    from swe_sphere.studies.plotting import plot_run
+
+    with pytest.raises(ValueError, match=r"d\.nc: h_surface holds no number at day 4 \(a member dropped\?\)$"):
+        plot_run(out, ["h_surface"], [4.0], outdir=tmp_path / "maps", member="1")
+    assert not (tmp_path / "maps").exists() and plot_run(
+        out, ["h_surface"], [4.0], outdir=tmp_path / "maps", member="0"
+    )
     again = Ensemble.from_checkpoint(tmp_path / "d.restart.nc", days=5.0)
     assert again.dropped == {1: step} and again.blow_up == "drop"
     again.step(4)

@@ -4,6 +4,7 @@ output's default name and the refusals made before anything is built."""
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import sys
 from pathlib import Path
@@ -325,9 +326,15 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
     for key in invariant if kept else ():
         change = [end[k][key] / start[k][key] - 1 for k in kept]
         print(f"  {key:<21} relative change {min(change):+.3e} to {max(change):+.3e} {since}, over the members")
+    unscored = [key for key in errors[0] if kept and all(math.isnan(errors[k][key]) for k in kept)]
     for key in errors[0] if kept else ():
         values = [errors[k][key] for k in kept]
-        print(f"  {key:<21} {min(values):.3e} to {max(values):.3e} over the members (the run file's, by member)")
+        if key not in unscored:
+            print(f"  {key:<21} {min(values):.3e} to {max(values):.3e} over the members (the run file's, by member)")
+    if unscored:  # a reference's errors at a day it does not store
+        print(
+            f"  {'reference':<21} none at day {scene.days:g}: its reference stores other days ({len(unscored)} errors)"
+        )
     spread = ens.h_spread_rms()
     print(f"  h spread    {spread:.4g} m (area-weighted RMS of the members' standard deviation at day {scene.days:g})")
     print(f"  output      {output}")

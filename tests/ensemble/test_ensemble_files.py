@@ -143,7 +143,7 @@ def test_a_restart_file_is_continued_by_its_own_kind(tmp_path):
 def test_the_command_line_runs_an_ensemble(capsys, tmp_path):
     out = tmp_path / "g.nc"
     code = cli_main(
-        capsys, "run", "galewsky", "--ne", "2", "--dt", "900", "--days", "0.5", "--members", "2",
+        capsys, "run", "galewsky", "--ne", "2", "--dt", "900", "--days", "1", "--members", "2",
         "--perturbation", "1", "--seed", "4", "--output", str(out),
     )  # fmt: skip
     assert code[0] == 0, code
@@ -155,6 +155,13 @@ def test_the_command_line_runs_an_ensemble(capsys, tmp_path):
     assert f"{min(l2):.3e} to {max(l2):.3e} over the members" in code[1], code[1]
     (h,) = read(out, "h")
     assert h.shape[1] == 2 and not np.array_equal(h[0, 0], h[0, 1])
+    # ending on a day the T213 reference does not store: one line, not a "nan to nan" range a key
+    half = ("run", "galewsky", "--ne", "2", "--dt", "900", "--days", "0.5", "--members", "2")
+    code = cli_main(capsys, *half, "--output", tmp_path / "half.nc")
+    assert (
+        code[0] == 0 and "reference             none at day 0.5: its reference stores other days (9 errors)" in code[1]
+    )
+    assert "nan" not in code[1], code[1]
 
 
 def test_the_command_line_continues_an_ensemble(capsys, tmp_path):

@@ -175,8 +175,9 @@ def gradient(
     that is not callable, does not fit the grid (``check_nodes``), returns other than (J, λ (3,
     N)) or a non-finite J, at_steps outside 0 … n, a controlled scene without a history, a
     history shorter than n or with a bad step, a disk_interval without a disk, a disk that is
-    not an existing folder, x0 or hs of another shape or not finite, ``parameters`` not a bool
-    or True with a stepper that solves with L, ``comm`` not a communicator, or a scene the
+    not an existing folder, x0 or hs of another shape or not finite, x0's h ≤ 0 where it is a
+    depth, ``parameters`` not a bool or True with a stepper that solves with L, ``comm`` not a
+    communicator, or a scene the
     adjoint cannot serve (``reverse.refusal``; the JFNK implicit, an exponential stepper);
     ``SceneError`` for another device; ``BlowUp`` where a state of the run goes bad (non-finite,
     or h ≤ 0 with a pressure gradient), naming its step, model time and place, as a run's; OSError
@@ -213,7 +214,11 @@ def gradient(
     getattr(cost, "check_nodes", lambda n: None)(
         topo.nnodes_total
     )  # h_obs, the observation operator's grid: before the run
-    x0 = initial if x0 is None else topo.distribute(x0 if topo.comm.rank == 0 else None, 3, "x0")
+    if x0 is not None:
+        x0 = topo.distribute(x0 if topo.comm.rank == 0 else None, 3, "x0")
+        if "pressure_gradient" in model.terms and (low := -topo.max(-float(x0[2].min()))) <= 0:  # a depth
+            raise ArgumentError(f"x0: its depth h is <= 0 somewhere (min {low:.4g} m)")
+    x0 = initial if x0 is None else x0
     work = wp.array(x0, dtype=f64, device=topo.device)  # the stepper steps this array only
     stepper.prepare(work)  # from x(0): lts fixes its levels by its flow
     adjoint = step_adjoint(model, stepper, parameters)

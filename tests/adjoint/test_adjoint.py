@@ -295,6 +295,8 @@ def test_gradient_refuses_an_implicit_stepper_and_bad_sizes():
         gradient(tc5(), 1, cost, x0=np.where(np.arange(x0.size).reshape(x0.shape) == 7, np.nan, x0))
     with pytest.raises(ValueError, match=r"^hs has shape \(383,\), the grid needs \(1, 384\)$"):
         gradient(tc5(), 1, cost, hs=x0[2, :-1])
+    with pytest.raises(ArgumentError, match=r"^x0: its depth h is <= 0 somewhere \(min -5 m\)$"):
+        gradient(tc5(), 1, cost, x0=np.where(np.arange(x0.size).reshape(x0.shape) == 2 * x0.shape[1] + 5, -5.0, x0))
 
 
 @pytest.mark.parametrize("snapshots", [None, 2])

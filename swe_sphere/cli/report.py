@@ -40,8 +40,8 @@ def _mesh_lines(sim) -> list[str]:
     return lines
 
 
-def _control_line(c) -> str:
-    """The header's line of a scene's step control (a ``SceneControl``)."""
+def _control_line(c, dt: float) -> str:
+    """The header's line of a scene's step control (a ``SceneControl``; ``dt`` the scene's, s)."""
     from ..config.control import CFL_FRACTION
 
     what = "cfl"
@@ -62,7 +62,8 @@ def _control_line(c) -> str:
         if c.cfl_default:
             cfl += f" (the default: {CFL_FRACTION:g} x the stepper's measured limit; -s time.cfl=false: none)"
     most = "" if c.dt_max is None else f", dt_max {c.dt_max:g} s"
-    return f"{what}{cfl}; dt above is the first step, dt_min {c.dt_min:g} s{most}; steps land on the output times"
+    first = "dt above" if c.dt_max is None or c.dt_max >= dt else f"dt_max {c.dt_max:g} s"  # ``StepControl``'s clamp
+    return f"{what}{cfl}; {first} is the first step, dt_min {c.dt_min:g} s{most}; steps land on the output times"
 
 
 def header(args, sim, output, device, comm) -> None:
@@ -94,7 +95,7 @@ def header(args, sim, output, device, comm) -> None:
     for line in sim.stepper.describe():
         print(f"{scene.stepper:11s} {line}")
     if scene.control is not None:
-        print(f"control     {_control_line(scene.control)}")
+        print(f"control     {_control_line(scene.control, scene.dt)}")
     if comm is not None:
         sizes = [len(p) for p in sim.topology.parts]
         print(

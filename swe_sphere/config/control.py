@@ -56,7 +56,7 @@ def resolve_control(table: dict, stepper: str, options: dict, dt: float) -> Scen
     ``DT_MIN_FRACTION`` × dt. Raises ``SceneError``, one line naming the key: an unknown mode,
     a key the mode does not read, a stepper that cannot change its dt, a pair-less stepper
     under "error" or "balanced", rtol ≤ 0, a bad atol, balance ≤ 0, an unknown controller,
-    cfl ≤ 0, dt_min ≤ 0 or above dt_max."""
+    cfl ≤ 0, dt_min ≤ 0 or above dt_max or above dt (the first step)."""
     mode = table.get("control", "fixed")
     if mode not in CONTROL_KEYS:
         raise SceneError(f"time.control must be one of {', '.join(CONTROL_KEYS)} (got {mode!r})")
@@ -100,6 +100,8 @@ def resolve_control(table: dict, stepper: str, options: dict, dt: float) -> Scen
         raise SceneError(f"time.dt_min and time.dt_max must be > 0 (got {dt_min!r}, {dt_max!r})")
     if dt_max is not None and dt_min > dt_max:
         raise SceneError(f"time.dt_min = {dt_min:g} s is above time.dt_max = {dt_max:g} s")
+    if dt_min > dt:  # the first step, at dt (or dt_max below it), would stop the run at once
+        raise SceneError(f"time.dt_min = {dt_min:g} s is above the first step's dt = {dt:g} s (time.dt)")
     dt_max = None if dt_max is None else float(dt_max)
     return SceneControl(mode, rtol, *atol, controller, cfl, float(dt_min), dt_max, cfl_default, balance, per_unit_step)
 

@@ -46,6 +46,27 @@ def tc2_run(tmp_path_factory):
 CONTROLLED = ["--stepper", "bs32", "-s", "time.control=error", "-s", "time.rtol=1e-3"]
 
 
+def test_the_control_line_names_the_first_step_dt_max_clamps(tmp_path, capsys):
+    """Under a dt_max below the scene's dt the first step is dt_max's (``StepControl``): the header
+    says so, where it said the dt above it was."""
+    for cap, says in ((None, "; dt above is the first step, dt_min "), (600, "; dt_max 600 s is the first step, ")):
+        limit = ["-s", f"time.dt_max={cap}"] if cap else []
+        run = [
+            "run",
+            "tc2_steady",
+            *TINY,
+            "--days",
+            "0.25",
+            *CONTROLLED,
+            *limit,
+            "--output",
+            str(tmp_path / f"{cap}.nc"),
+        ]
+        assert main(run) == 0
+        control = [line for line in capsys.readouterr().out.splitlines() if line.startswith("control ")]
+        assert len(control) == 1 and says in control[0], control
+
+
 @pytest.mark.parametrize(
     "days, quoted, extra",
     [

@@ -88,6 +88,7 @@ def test_balanced_control_and_its_defaults():
         ),
         ("bs32", dict(control="cfl", dt_min=600.0, dt_max=300.0), "time.dt_min = 600 s is above time.dt_max = 300 s"),
         ("bs32", dict(control="cfl", dt_min=0.0), "time.dt_min and time.dt_max must be > 0"),
+        ("bs32", dict(control="error", dt_min=5e4), "time.dt_min = 50000 s is above the first step's dt = "),
         ("bs32", dict(control="cfl", cfl=-1.0), "time.cfl must be > 0 (got -1.0)"),
         ("bs32", dict(control="cfl", cfl=False), "time.cfl must be > 0 (got False, a bool)"),
         ("bs32", dict(control="error", cfl=True), "time.cfl must be > 0 or false (no cap) (got True, a bool)"),

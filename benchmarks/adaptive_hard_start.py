@@ -86,6 +86,9 @@ def main() -> None:
     parser.add_argument("--rtol", type=float, default=1e-4)
     parser.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")
     args = parser.parse_args()
+    unknown = [pair for pair in args.pairs if pair not in STEPPERS]
+    if unknown:
+        parser.error(f"--pairs: unknown {', '.join(unknown)} (the steppers: swe-sphere list)")
     init_warp()
     with recorded(__file__, stem=args.results) as figures:
         print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")

@@ -6,6 +6,9 @@
 set -euo pipefail
 BASE=${1:?usage: default_path.sh BASE_TREE [HEAD_TREE]}
 HEAD=${2:-$(cd "$(dirname "$0")/.." && pwd)}
+for tree in "$BASE" "$HEAD"; do  # PYTHONPATH skips a tree that is not there: both would be the installed one
+  [ -d "$tree/swe_sphere" ] || { echo "default_path.sh: error: $tree holds no swe_sphere tree" >&2; exit 2; }
+done
 run() { # tree ne days tag
   local dir; dir=$(mktemp -d); cd "$dir"
   SWE_SPHERE_THREADS=1 PYTHONPATH=$1 /usr/bin/time -f "$4 ne$2 wall %e s cpu %U+%S s maxrss %M KiB" \

@@ -26,7 +26,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from results import recorded
+from results import check_sources, recorded
 
 # The run as the console script runs it (``cli.main()`` with the process's own argv: it
 # ends in ``os._exit`` after the atexit callbacks), with the step loop's CPU seconds
@@ -81,6 +81,7 @@ def main() -> None:
         "--source", nargs="+", default=[None], help="swe_sphere trees, interleaved (default: the one Python finds)"
     )
     args = p.parse_args()
+    check_sources(p, args.source)
     print(
         f"load average {os.getloadavg()[0]:.2f} at the start; {args.scene} --days {args.days}; one thread", flush=True
     )

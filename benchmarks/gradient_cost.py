@@ -37,7 +37,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from results import recorded
+from results import check_sources, recorded
 
 from swe_sphere.cli.values import overrides
 
@@ -165,6 +165,11 @@ def main() -> None:
     parser.add_argument("--source", nargs="+", default=[None], help="swe_sphere trees (default: the one Python finds)")
     parser.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")
     args = parser.parse_args()
+    check_sources(parser, args.source)
+    if args.steps < 1 or (args.days is not None and not args.days > 0):
+        parser.error(f"--steps must be >= 1 and --days > 0 (got {args.steps}, {args.days})")
+    if args.disk not in (None, True) and not Path(args.disk).is_dir():
+        parser.error(f"--disk {args.disk}: not an existing folder")
     steps = -args.days if args.days else args.steps
     held = f"{args.snapshots} states held" if args.snapshots else "every state held"
     with recorded(__file__, args.results) as figures:

@@ -25,6 +25,35 @@ HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results"
 
 
+def one_line(kind, err, tb) -> None:
+    """``sys.excepthook`` of every script that imports this module: the package's own errors (bad
+    input, a blow-up: ``SweSphereError``) and a missing file end the script as the command line
+    ends (one line naming the value, exit 2 or 3: ``swe_sphere.cli.main.classify``); anything else
+    is a defect and keeps its traceback."""
+    from swe_sphere.cli.main import classify
+    from swe_sphere.core.errors import SweSphereError
+
+    if not isinstance(err, (SweSphereError, FileNotFoundError)):
+        sys.__excepthook__(kind, err, tb)
+        return
+    code, message = classify(err)
+    print(f"{Path(sys.argv[0]).name}: error: {message}", file=sys.stderr)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)  # a hook cannot raise SystemExit: the interpreter would report that instead
+
+
+sys.excepthook = one_line
+
+
+def check_sources(parser, sources) -> None:
+    """``parser.error`` (one line, exit 2) for a ``--source`` that holds no swe_sphere tree: on
+    PYTHONPATH it would be skipped, and the installed tree timed under its name."""
+    for source in sources:
+        if source is not None and not (Path(source) / "swe_sphere").is_dir():
+            parser.error(f"--source {source}: no swe_sphere tree there")
+
+
 def cpu_model() -> str:
     """The CPU's model name (Linux's /proc/cpuinfo; elsewhere what ``platform`` says)."""
     with contextlib.suppress(OSError):

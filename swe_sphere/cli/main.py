@@ -45,8 +45,9 @@ def _import_uncollected(module: str) -> None:
         gc.freeze()
 
 
-def _classify(err: BaseException) -> tuple[int, str]:
-    """(exit status, one-line message) of a failure."""
+def classify(err: BaseException) -> tuple[int, str]:
+    """(exit status, one-line message) of a failure, as the command line reports it (and the
+    benchmark scripts, benchmarks/results.py)."""
     import signal
 
     if isinstance(err, Interrupted):
@@ -105,7 +106,7 @@ def _report(err: BaseException, args) -> int:
     return its exit status; under MPI, end the job when one rank may have failed alone."""
     from ..core import mpi
 
-    code, message = _classify(err)
+    code, message = classify(err)
     comm = (
         mpi.world() if args is not None and args.command == "run" and not isinstance(err, mpi.MPIUnavailable) else None
     )  # one run over several MPI ranks

@@ -95,7 +95,7 @@ def main(args: argparse.Namespace, figures: dict) -> None:
 
 
 def parse() -> argparse.Namespace:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--ne", type=int, nargs="+", default=[30, 60, 120])
     p.add_argument("--np", type=int, default=4)
     p.add_argument("--rounds", type=int, default=1)

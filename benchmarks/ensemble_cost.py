@@ -37,7 +37,7 @@ def clock(device: str) -> float:
 
 
 def parse() -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", default="galewsky")
     parser.add_argument("--members", type=int, default=8)
     parser.add_argument("--steps", type=int, default=20, help="steps a round")

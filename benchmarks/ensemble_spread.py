@@ -82,7 +82,7 @@ def main(args: argparse.Namespace, figures: dict) -> None:
 
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--members", type=int, default=8)
     parser.add_argument("--amplitude", type=float, default=1.0, help="m of white noise in h")
     parser.add_argument("--seed", type=int, default=0)

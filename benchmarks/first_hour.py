@@ -73,7 +73,7 @@ def child(code: str, args: list[str], source: str | None, loop_file: Path) -> tu
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--scene", default="tc5_mountain_homme")
     p.add_argument("--days", default="1")
     p.add_argument("--rounds", type=int, default=5)

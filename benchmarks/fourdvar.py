@@ -116,7 +116,7 @@ def recover(scene, steps: int, amplitude: float, width: float, iterations: int) 
 def main() -> None:
     from results import recorded  # benchmarks/ is first on the path of a script run from it
 
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", default="tc5_mountain")
     parser.add_argument("--ne", type=int, default=4)
     parser.add_argument("--hours", type=float, default=6.0, help="the window: truth run and observation time")

@@ -197,7 +197,7 @@ def main() -> None:
 
     os.environ.setdefault("SWE_SPHERE_THREADS", "1")  # read when the model is built
 
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--ne", type=int, default=16)
     parser.add_argument("--np", type=int, default=4)
     parser.add_argument("--hours", type=float, default=24.0, help="the window")

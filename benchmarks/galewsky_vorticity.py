@@ -132,7 +132,7 @@ def pyses(python: Path, ne: int) -> dict | None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--ne", type=int, default=16)
     parser.add_argument("--no-runs", action="store_true", help="only the t = 0 errors")
     parser.add_argument("--pyses", type=Path, default=Path("/work/venvs/pyses/bin/python"))

@@ -130,7 +130,7 @@ def points(ne):
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--ne", type=int, default=8, help="grid the counts are taken on (np 4)")
     p.add_argument("--at", type=int, nargs="+", default=[30, 120, 240], help="grids to predict (np 4)")
     p.add_argument("--steps", type=int, default=3)

@@ -360,7 +360,7 @@ def kernels(args):
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument(
         "part",
         choices=("agreement", "throughput", "graphs", "bits", "reads", "iterations", "floor", "kernels"),

@@ -143,7 +143,7 @@ def measure(
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", default="tc5_mountain", help="a scene of testcases/ (its file's stem)")
     parser.add_argument("--stepper", default="rk4", help="an explicit Runge–Kutta table, or fbrk32")
     parser.add_argument("--ne", type=int, nargs="+", default=[4, 8])

@@ -257,7 +257,7 @@ def build(ne):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     mode = ap.add_mutually_exclusive_group(required=True)
     mode.add_argument("--record", help="write the production solves to this npz")
     mode.add_argument("--solves", help="run the preconditioners on the solves of this npz")

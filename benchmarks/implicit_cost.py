@@ -168,7 +168,7 @@ def build(case, ne, stepper, dt, options, clock, device, backend=None):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--ne", type=int, default=30)
     ap.add_argument("--cases", nargs="+", default=list(CONFIGS), choices=list(CONFIGS))
     ap.add_argument("--steps", type=int, default=5, help="timed steps per configuration")

@@ -42,7 +42,7 @@ TC5_TERMS = ["continuity", "momentum_advection", "coriolis", "pressure_gradient"
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--mesh", required=True, help="an Exodus .g file (a refined mesh)")
     parser.add_argument("--max-levels", type=int, default=3)
     parser.add_argument("--rounds", type=int, default=7)

@@ -25,7 +25,7 @@ from swe_sphere.steppers.local import size_levels
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--mesh", required=True)
     ap.add_argument("--ranks", type=int, nargs="+", default=[2, 3, 4, 8])
     ap.add_argument("--max-levels", type=int, default=3)

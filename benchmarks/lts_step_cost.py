@@ -43,7 +43,7 @@ def timed(f, calls: int, rounds: int) -> float:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--mesh", required=True)
     parser.add_argument("--dt", type=float, required=True, help="s")
     parser.add_argument("--stepper", default="lts")

@@ -86,7 +86,7 @@ def largest_accurate(args, stepper, options, ref):
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--mesh", required=True)
     parser.add_argument("--days", type=float, default=3.0)
     parser.add_argument("--k-range", type=int, nargs=2, default=(24, 480), help="steps a day searched")

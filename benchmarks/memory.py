@@ -81,7 +81,7 @@ def array_bytes(ne, stepper):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--ne", type=int, default=30)
     ap.add_argument("--days", type=float, default=0.05)
     ap.add_argument("--stepper", default="leapfrog_trapezoidal")

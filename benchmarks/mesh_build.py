@@ -41,7 +41,7 @@ def cpu(call, rounds: int):
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--ne", type=int, default=41)
     parser.add_argument("--np", type=int, default=4)
     parser.add_argument("--mesh", nargs="*", default=[], help="Exodus .g files to time instead of the cube")

@@ -46,7 +46,7 @@ def stepper_on(grid):
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--ne", type=int, default=13, help="the uniform cube compared with (default 13: 1014 elements)")
     parser.add_argument("--mesh", nargs="*", default=[], help="Exodus .g files to time too")
     parser.add_argument("--rounds", type=int, default=5)

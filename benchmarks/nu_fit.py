@@ -63,7 +63,7 @@ def with_nu(scene, s: float, s_s: float):
 def main() -> None:
     from results import recorded  # benchmarks/ is first on the path of a script run from it
 
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", default="tc5_mountain")
     parser.add_argument("--ne", type=int, default=16)
     parser.add_argument("--days", type=float, default=1.0, help="the run, to a day the reference stores")

@@ -397,7 +397,7 @@ def galewsky(args, sweqx: Path, figures: dict) -> int:
 
 
 def arguments(argv=None) -> argparse.Namespace:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--case", choices=("tc5", "galewsky"), default="tc5", help="the comparison (default tc5)")
     ap.add_argument("--rounds", type=int, help="timed rounds, each one run of each (default 3 for tc5, 1 for galewsky)")
     add_homme_options(ap)

@@ -310,7 +310,7 @@ def gradient_error(grid, a: float = HOMME_RADIUS) -> float:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rounds", type=int, default=5, help="timed rounds, each 1 and N days of both (default 5)")
     ap.add_argument("--days", type=int, default=4, help="N, the longer timed run in days (default 4)")
     ap.add_argument("--mesh", type=Path, help="HOMME's mountain_10_x2.g (default: shared/meshes beside the kit)")

@@ -273,7 +273,7 @@ def step_table(args, threads):
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--ne", type=int, nargs="+", default=[8, 16, 30])
     p.add_argument("--np", type=int, nargs="+", default=[4, 8])
     p.add_argument(

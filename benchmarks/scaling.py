@@ -164,7 +164,7 @@ def time_table(ne_list, ranks, steps, repeat) -> None:
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--ne", type=int, nargs="+", default=[16, 30, 60])
     p.add_argument("--ranks", type=int, nargs="*", default=[1, 2])
     p.add_argument("--model-ranks", type=int, nargs="*", default=[3, 6, 24])

@@ -112,7 +112,7 @@ def node_regions(sim, centroids: np.ndarray, regions: np.ndarray) -> np.ndarray:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--days", type=float, default=5.0)
     parser.add_argument("--dt", type=float, default=90.0)
     parser.add_argument("--mountain", type=Path, default=MOUNTAIN)

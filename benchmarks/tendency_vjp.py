@@ -161,7 +161,7 @@ def compile_times(nps):
 
 
 def main():
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--ne", type=int, nargs="+", default=[2, 3, 4])
     p.add_argument("--np", type=int, nargs="+", default=[4, 8])
     p.add_argument("--terms", nargs="+", default=["all"], help="'all' (every non-empty set) or comma lists")

@@ -84,7 +84,7 @@ def mesh_steps(args) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--ne", type=int, default=16)
     parser.add_argument("--rounds", type=int, default=7)
     parser.add_argument("--evaluations", type=int, default=50, help="∇⁴ evaluations a round")

@@ -22,7 +22,7 @@ import statistics
 import time
 
 import warp as wp
-from results import recorded
+from results import positive, recorded
 
 from swe_sphere.core.runtime import init_warp
 from swe_sphere.ensemble import Ensemble, Perturbation
@@ -40,7 +40,7 @@ def parse() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", default="galewsky")
     parser.add_argument("--members", type=int, default=8)
-    parser.add_argument("--steps", type=int, default=20, help="steps a round")
+    parser.add_argument("--steps", type=positive(int), default=20, help="steps a round")
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")

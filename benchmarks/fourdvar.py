@@ -114,13 +114,13 @@ def recover(scene, steps: int, amplitude: float, width: float, iterations: int) 
 
 
 def main() -> None:
-    from results import recorded  # benchmarks/ is first on the path of a script run from it
+    from results import positive, recorded  # benchmarks/ is first on the path of a script run from it
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", default="tc5_mountain")
     parser.add_argument("--ne", type=int, default=4)
-    parser.add_argument("--hours", type=float, default=6.0, help="the window: truth run and observation time")
-    parser.add_argument("--iterations", type=int, default=100, help="L-BFGS iterations at most")
+    parser.add_argument("--hours", type=positive(float), default=6.0, help="the window: truth run and observation time")
+    parser.add_argument("--iterations", type=positive(int), default=100, help="L-BFGS iterations at most")
     parser.add_argument("--amplitude", type=float, default=80.0, help="the first guess's bump (m)")
     parser.add_argument("--width", type=float, default=1600.0, help="the bump's e-folding distance (km)")
     args = parser.parse_args()

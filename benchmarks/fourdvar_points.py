@@ -193,15 +193,15 @@ def recover(s: Setting, iterations: int, length: float, sigma_b: float, h_scale:
 
 
 def main() -> None:
-    from results import recorded  # benchmarks/ is first on the path of a script run from it
+    from results import positive, recorded  # benchmarks/ is first on the path of a script run from it
 
     os.environ.setdefault("SWE_SPHERE_THREADS", "1")  # read when the model is built
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--ne", type=int, default=16)
     parser.add_argument("--np", type=int, default=4)
-    parser.add_argument("--hours", type=float, default=24.0, help="the window")
-    parser.add_argument("--every", type=float, default=3.0, help="hours between observations")
+    parser.add_argument("--hours", type=positive(float), default=24.0, help="the window")
+    parser.add_argument("--every", type=positive(float), default=3.0, help="hours between observations")
     parser.add_argument("--points", type=int, default=200, help="observed points (fixed, uniform, seeded)")
     parser.add_argument("--sigma", type=float, default=0.1, help="the observations' noise (m)")
     parser.add_argument("--seed", type=int, default=0, help="of the points and the noise")
@@ -210,7 +210,7 @@ def main() -> None:
     parser.add_argument(
         "--h-scale", type=float, default=100.0, help="L_h (m): correlations follow the background's heights (0: none)"
     )
-    parser.add_argument("--iterations", type=int, default=150, help="L-BFGS iterations at most")
+    parser.add_argument("--iterations", type=positive(int), default=150, help="L-BFGS iterations at most")
     parser.add_argument("--results", help="the results file's name (default fourdvar_points)")
     parser.add_argument("--dt", type=float, help="the step (s) before it divides --every (default: the scene's)")
     args = parser.parse_args()

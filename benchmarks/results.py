@@ -10,6 +10,7 @@ Imported as a sibling module (``from results import recorded``): a script run as
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import datetime
 import io
@@ -44,6 +45,20 @@ def one_line(kind, err, tb) -> None:
 
 
 sys.excepthook = one_line
+
+
+def positive(kind):
+    """An argparse ``type``: a ``kind`` (int or float) > 0, else argparse's one line (exit 2): a
+    count or interval of 0 would end in a division by it or an empty median."""
+
+    def parse(text: str):
+        value = kind(text)
+        if not value > 0:
+            raise argparse.ArgumentTypeError(f"must be > 0 (got {text})")
+        return value
+
+    parse.__name__ = kind.__name__  # argparse names the type in "invalid int value"
+    return parse
 
 
 def check_sources(parser, sources) -> None:

@@ -53,7 +53,7 @@ sys.path.insert(
     0, str(Path(__file__).resolve().parents[1] / "tests")
 )  # numpy_ops; not the repo root, which would shadow the installed package
 
-from results import recorded  # noqa: E402  (benchmarks/, the script's directory)
+from results import positive, recorded  # noqa: E402  (benchmarks/, the script's directory)
 
 from swe_sphere.config.scene import load_scene  # noqa: E402
 from swe_sphere.core.backend import Backend, default_device  # noqa: E402
@@ -286,7 +286,7 @@ def main(argv=None):
         default=None,
         help="CPU threads of the multi-threaded column (default: the model's default)",
     )
-    p.add_argument("--repeat", type=int, default=20)
+    p.add_argument("--repeat", type=positive(int), default=20)
     p.add_argument("--step-repeat", type=int, default=5)
     p.add_argument("--implicit-dt-factor", type=float, default=4.0)
     p.add_argument(

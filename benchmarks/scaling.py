@@ -37,7 +37,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from results import recorded
+from results import positive, recorded
 
 
 def partition_table(ne: int, np_: int, ranks: list[int]) -> None:
@@ -165,12 +165,12 @@ def time_table(ne_list, ranks, steps, repeat) -> None:
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--ne", type=int, nargs="+", default=[16, 30, 60])
+    p.add_argument("--ne", type=positive(int), nargs="+", default=[16, 30, 60])
     p.add_argument("--ranks", type=int, nargs="*", default=[1, 2])
     p.add_argument("--model-ranks", type=int, nargs="*", default=[3, 6, 24])
     p.add_argument("--np", type=int, default=4, help="GLL points of the partition tables (the timed runs use 4)")
-    p.add_argument("--steps", type=int, default=10)
-    p.add_argument("--repeat", type=int, default=3)
+    p.add_argument("--steps", type=positive(int), default=10)
+    p.add_argument("--repeat", type=positive(int), default=3)
     p.add_argument("--worker", type=int, nargs=2, help=argparse.SUPPRESS)
     a = p.parse_args()
     if a.worker:

@@ -26,7 +26,8 @@
 # time box keeps its finished runs, and the same part run again (in the same
 # machine's checkout, or with gpu_study carried to a fresh one) makes only the rest;
 # each call copies the study folders to $OUT. DEVICE=cpu NE_SMALL=1 runs the Python
-# parts and the studies on the CPU on tiny grids (checks the script).
+# parts and the studies on the CPU on tiny grids (checks the script). Every part named runs; the
+# status is 1 when any of them failed or ran out of its time box (session.log names them).
 set -u
 cd "$(dirname "$0")/.."
 OUT=${OUT:-$PWD/gpu_out}
@@ -38,6 +39,7 @@ small=${NE_SMALL:-0}
 STUDY=${STUDY:-$PWD/gpu_study}
 [ "$DEVICE" = cpu ] && export SWE_SPHERE_THREADS=1  # graphs on a CPU need one thread a launch
 
+failed=""  # the parts whose command failed or ran out of its time box
 run() {  # run <part> <seconds> <command...>: output to $OUT/<part>.txt, time-boxed
     local part=$1 limit=$2
     shift 2
@@ -45,6 +47,7 @@ run() {  # run <part> <seconds> <command...>: output to $OUT/<part>.txt, time-bo
     local t0=$SECONDS
     timeout --signal=INT --kill-after=10 "$limit" "$@" >"$OUT/$part.txt" 2>&1
     local rc=$?
+    [ $rc -eq 0 ] || failed="$failed $part"
     echo "== $part: exit $rc after $((SECONDS - t0)) s" | tee -a "$OUT/session.log"
     tail -n 25 "$OUT/$part.txt"
 }
@@ -237,3 +240,9 @@ for part in "${parts[@]}"; do
         *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_ne60 study_fine criterion_ne60 criterion_ne120 dinosaur control small floor kernels ensemble)" >&2; exit 2 ;;
     esac
 done
+# every part ran (a failed one does not stop the rest: each is time-boxed on its own); the status says
+# whether any failed or ran out of its time box, which a resumable study's may do
+if [ -n "$failed" ]; then
+    echo "== failed or stopped by its time box:$failed" | tee -a "$OUT/session.log"
+    exit 1
+fi

@@ -74,9 +74,9 @@ def run(
     Raises
     ------
     SceneError
-        A bad scene, override, ``device``, ``initial`` (or one with an [ensemble]), ``graphs`` or ``restart_every`` (not a
-        number of days > 0), or ``overwrite``, ``progress`` or ``verbose`` not a bool (a
-        ValueError; the message names the argument or value).
+        A bad scene, override, ``device``, ``initial`` (or one with an [ensemble]), ``graphs`` or
+        ``restart_every`` (not a number of days > 0), or ``overwrite``, ``progress`` or ``verbose``
+        not a bool (a ValueError; the message names the argument or value).
     OutputError
         ``output_file`` is not a path (str or os.PathLike), exists (without ``overwrite``), is
         an input or a directory.

@@ -177,12 +177,11 @@ def gradient(
     history shorter than n or with a bad step, a disk_interval without a disk, a disk that is
     not an existing folder, x0 or hs of another shape or not finite, x0's h ≤ 0 where it is a
     depth, ``parameters`` not a bool or True with a stepper that solves with L, ``comm`` not a
-    communicator, or a scene the
-    adjoint cannot serve (``reverse.refusal``; the JFNK implicit, an exponential stepper);
-    ``SceneError`` for another device; ``BlowUp`` where a state of the run goes bad (non-finite,
-    or h ≤ 0 with a pressure gradient), naming its step, model time and place, as a run's; OSError
-    from the disk; ``StepFailure`` where a solve,
-    recomputed or transposed, misses its ``tol`` within ``maxiter``.
+    communicator, or a scene the adjoint cannot serve (``reverse.refusal``; the JFNK implicit, an
+    exponential stepper); ``SceneError`` for another device; ``BlowUp`` where a state of the run
+    goes bad (non-finite, or h ≤ 0 with a pressure gradient), naming its step, model time and
+    place, as a run's; OSError from the disk; ``StepFailure`` where a solve, recomputed or
+    transposed, misses its ``tol`` within ``maxiter``.
 
     Sources: the model's transposes (``model.transposes``) on a tape of each step (``tape``,
     ``reverse``); checkpointing by Griewank & Walther (2000), ACM TOMS 26:19, in two levels by

@@ -50,9 +50,10 @@ wp.config.quiet = True
 from lts_step_cost import timed  # noqa: E402  (benchmarks/: the median of mean CPU ms)
 from results import recorded  # noqa: E402  (benchmarks/, the script's directory)
 
-from swe_sphere.cases.reference import Reference, reference_path  # noqa: E402
+from swe_sphere.cases.reference import Reference, reference_path, stored_days  # noqa: E402
+from swe_sphere.config.scene import load_scene  # noqa: E402
 from swe_sphere.core.constants import DAY  # noqa: E402
-from swe_sphere.core.errors import BlowUp  # noqa: E402
+from swe_sphere.core.errors import ArgumentError, BlowUp  # noqa: E402
 from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 from swe_sphere.solvers.helmholtz_cg import HelmholtzCG  # noqa: E402
 
@@ -246,6 +247,11 @@ def arguments():
 
 def main() -> None:
     args = arguments()
+    if "accuracy" in args.parts:  # its day, checked before the other parts' runs
+        path = reference_path(load_scene(args.scene).make_case(), args.reference)
+        days = [] if path is None else stored_days(path)
+        if not np.isclose(days, args.days).any():
+            raise ArgumentError(f"--days {args.days:g}: not a day {args.reference} stores for {args.scene} ({days})")
     runs = [(text, parse_run(text)) for text in args.runs]
     with recorded(__file__, args.results) as figures, threadpool_limits(limits=1):
         print(f"load average at the start: {os.getloadavg()}")

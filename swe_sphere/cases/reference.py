@@ -23,6 +23,7 @@ import netCDF4
 import numpy as np
 
 from ..core.constants import EARTH
+from ..core.errors import ArgumentError
 from .library import CASES, make_case
 
 _GRIDDED = ("lat", "lon", "time", "h_surface", "hs", "u", "v", "vorticity", "divergence")
@@ -161,12 +162,12 @@ class Reference:
         ``h_surface``: for TC5 ``hs`` is the exact cone, not the truncated
         mountain the spectral model ran with.
 
-        Raises ``ValueError`` if ``day`` is not stored (within 1e-6 day) or a
-        latitude lies outside [−π/2, π/2].
+        Raises ``ArgumentError`` (a ValueError) if ``day`` is not stored (within 1e-6 day),
+        ``ValueError`` if a latitude lies outside [−π/2, π/2].
         """
         itime = stored_index(self.days, day)
         if itime is None:
-            raise ValueError(
+            raise ArgumentError(
                 f"day {day:g} not stored in {self.path.name} (stored: {', '.join(f'{d:g}' for d in self.days)})"
             )
         lat, lon = np.broadcast_arrays(np.asarray(lat, dtype=np.float64), np.asarray(lon, dtype=np.float64))

@@ -117,7 +117,7 @@ def _element_local(X: np.ndarray, grid, N: int) -> np.ndarray:
 
 
 if __name__ == "__main__":
-    parser = ensemble_arguments(__doc__.splitlines()[0], length=1000.0, h_scale=100.0, localization=1000.0)
+    parser = ensemble_arguments(__doc__.split("\n\n")[0], length=1000.0, h_scale=100.0, localization=1000.0)
     parser.add_argument("--inflation", type=float, default=1.1, help="multiplicative, of the prior anomalies")
     parser.add_argument("--fourdvar", type=int, default=0, help="also 4D-Var with this many L-BFGS iterations")
     arguments = parser.parse_args()

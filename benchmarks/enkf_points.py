@@ -30,7 +30,7 @@ import time
 
 import numpy as np
 from fourdvar_points import background_root, setting  # noqa: E402  (benchmarks/, the script's directory)
-from results import recorded
+from results import positive, recorded
 
 from swe_sphere.ensemble import Ensemble
 
@@ -120,17 +120,19 @@ def ensemble_arguments(description: str, length: float, h_scale: float, localiza
     parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--ne", type=int, default=16)
     parser.add_argument("--np", type=int, default=4)
-    parser.add_argument("--hours", type=float, default=24.0)
-    parser.add_argument("--every", type=float, default=3.0, help="hours between observations")
-    parser.add_argument("--points", type=int, default=200)
-    parser.add_argument("--sigma", type=float, default=0.1, help="observation error (m)")
+    parser.add_argument("--hours", type=positive(float), default=24.0)
+    parser.add_argument("--every", type=positive(float), default=3.0, help="hours between observations")
+    parser.add_argument("--points", type=positive(int), default=200)
+    parser.add_argument("--sigma", type=positive(float), default=0.1, help="observation error (m)")
     parser.add_argument("--seed", type=int, default=0, help="the points' and the noise's seed (the 4D-Var example's)")
     parser.add_argument("--dt", type=float, default=None, help="s, before it is shortened to divide --every")
-    parser.add_argument("--length", type=float, default=length, help="background correlation length L (km)")
-    parser.add_argument("--sigma-b", type=float, default=3.0, help="background error σ_b (m)")
+    parser.add_argument("--length", type=positive(float), default=length, help="background correlation length L (km)")
+    parser.add_argument("--sigma-b", type=positive(float), default=3.0, help="background error σ_b (m)")
     parser.add_argument("--h-scale", type=float, default=h_scale, help="background height scale L_h (m; 0: isotropic)")
-    parser.add_argument("--members", type=int, default=32)
-    parser.add_argument("--localization", type=float, default=localization, help="Gaspari-Cohn half-width c (km)")
+    parser.add_argument("--members", type=positive(int, above=1), default=32)
+    parser.add_argument(
+        "--localization", type=positive(float), default=localization, help="Gaspari-Cohn half-width c (km)"
+    )
     parser.add_argument("--ensemble-seed", type=int, default=100)
     parser.add_argument("--device", default="cpu", help="the ensemble's forecasts' (the truth runs on the CPU)")
     parser.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")
@@ -138,7 +140,7 @@ def ensemble_arguments(description: str, length: float, h_scale: float, localiza
 
 
 if __name__ == "__main__":
-    parser = ensemble_arguments(__doc__.splitlines()[0], length=400.0, h_scale=0.0, localization=2000.0)
+    parser = ensemble_arguments(__doc__.split("\n\n")[0], length=400.0, h_scale=0.0, localization=2000.0)
     parser.add_argument("--iterations", type=int, default=4, help="ES-MDA updates")
     arguments = parser.parse_args()
     with recorded(__file__, stem=arguments.results) as figures:

@@ -47,14 +47,14 @@ def one_line(kind, err, tb) -> None:
 sys.excepthook = one_line
 
 
-def positive(kind):
-    """An argparse ``type``: a ``kind`` (int or float) > 0, else argparse's one line (exit 2): a
-    count or interval of 0 would end in a division by it or an empty median."""
+def positive(kind, above=0):
+    """An argparse ``type``: a ``kind`` (int or float) > ``above``, else argparse's one line (exit 2):
+    a count or interval of 0 would end in a division by it or an empty median."""
 
     def parse(text: str):
         value = kind(text)
-        if not value > 0:
-            raise argparse.ArgumentTypeError(f"must be > 0 (got {text})")
+        if not value > above:
+            raise argparse.ArgumentTypeError(f"must be > {above} (got {text})")
         return value
 
     parse.__name__ = kind.__name__  # argparse names the type in "invalid int value"

@@ -44,7 +44,7 @@ from scipy.spatial import cKDTree
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from peer_homme import default_kit, run_homme  # noqa: E402  (benchmarks/)
+from peer_homme import MPIRUN, default_kit, run_homme  # noqa: E402  (benchmarks/)
 from peer_homme_rrm import (  # noqa: E402
     BOX,
     check_as_given,
@@ -119,6 +119,11 @@ def main(argv=None) -> int:
     parser.add_argument("--homme", action="store_true", help="HOMME's swtc2.nl settings (leapfrog, tensor ∇⁴)")
     parser.add_argument("--sweqx", type=Path, help="HOMME's sweqx: run it too (ne10 map 0, the mountain mesh map 0, 2)")
     args = parser.parse_args(argv)
+    if args.sweqx is not None:  # before the swe_sphere runs: HOMME's needs both
+        if not os.access(args.sweqx, os.X_OK) or not Path(MPIRUN).is_file():
+            parser.error(f"--sweqx {args.sweqx}: needs an executable sweqx and {MPIRUN} (peer_homme.py)")
+        if args.days != round(args.days):
+            parser.error(f"--sweqx: HOMME runs whole days (got --days {args.days:g})")
     how = "HOMME swtc2 (leapfrog-trapezoidal, tensor ∇⁴ s 3.2)" if args.homme else "ssprk3, no ∇⁴"
     print(f"load average {os.getloadavg()[0]:.2f}; TC2 np4 {how}, dt {args.dt:g} s, {args.days:g} days")
     with tempfile.TemporaryDirectory() as tmp:

@@ -23,7 +23,7 @@ import statistics
 import time
 
 import numpy as np
-from results import recorded
+from results import positive, recorded
 
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.errors import BlowUp
@@ -88,7 +88,8 @@ def largest_accurate(args, stepper, options, ref):
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--mesh", required=True)
-    parser.add_argument("--days", type=float, default=3.0)
+    # whole days: every dt searched is a day over a whole number of steps (DAY / k)
+    parser.add_argument("--days", type=positive(int), default=3)
     parser.add_argument("--k-range", type=int, nargs=2, default=(24, 480), help="steps a day searched")
     parser.add_argument("--k-ref", type=int, default=1920, help="the reference's steps a day")
     parser.add_argument(

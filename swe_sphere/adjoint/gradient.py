@@ -256,12 +256,16 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
         stepper.set_phase(j)  # its clock, t0_j + (j + c)·Δt_j at each stage as the run's, and start
         stepper.step(work)
 
-    def advance(x, k, m=1):  # x = x(k) to x(k + m) in place, each state watched on the device
+    verified = [0]  # the steps whose states were checked: a recomputation's are not checked again
+
+    def advance(x, k, m=1):  # x = x(k) to x(k + m) in place, each state not yet checked watched on the device
         load(x)
         for j in range(k, k + m):
             step(j)
-            model.bad_nodes.watch(work)
-        if model.bad_nodes.watched_bad():  # one read: which step went bad, the steps again one by one
+            if j >= verified[0]:
+                model.bad_nodes.watch(work)
+        new, verified[0] = k + m > verified[0], max(verified[0], k + m)
+        if new and model.bad_nodes.watched_bad():  # one read: which step went bad, the steps again one by one
             load(x)
             for j in range(k, k + m):
                 step(j)

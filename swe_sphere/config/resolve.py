@@ -109,6 +109,10 @@ def resolve_planet(table: dict | None) -> Planet:
         raise SceneError(str(err)) from None
 
 
+# a case's angles (radians) and their largest magnitude: the tilt of the flow's axis, the bump's place
+ANGLES = {"alpha": (2 * math.pi, "2π"), "lat2": (math.pi / 2, "π/2"), "lon2": (2 * math.pi, "2π")}
+
+
 def resolve_case(table: dict, planet: Planet, scene_path: Path) -> ResolvedCase:
     """The [case] table resolved on ``planet``: a ``case.path`` (the "file" case) relative to the
     current folder, else to ``scene_path``'s folder; a ``case.reference`` located and checked
@@ -131,6 +135,10 @@ def resolve_case(table: dict, planet: Planet, scene_path: Path) -> ResolvedCase:
         case = make_case(name, params, planet, SCENE_CASES)
     except ValueError as err:
         raise SceneError(str(err)) from None
+    for key, value in params.items():  # angles in radians (a number of degrees, or 1e308, is no tilt one means)
+        most = ANGLES.get(key)
+        if most is not None and not abs(value) <= most[0]:
+            raise SceneError(f"case.{key} must be an angle in radians within ±{most[1]} (got {value!r})")
     notes = ()
     if reference is not None:
         if planet != EARTH:
@@ -333,6 +341,34 @@ def resolve_stepper_days(table: dict, stepper=None, days=None) -> tuple[str, flo
     if not (is_number(days) and math.isfinite(days) and days > 0):
         raise SceneError(f"days must be > 0 (got {got(days)})")
     return name, days
+
+
+# the keywords of ``load_scene`` (``--ne``, ``--days``, ...) and the values they replace
+SUPERSEDED = {"grid.ne": "ne", "grid.np": "np_", "time.days": "days", "time.stepper": "stepper", "time.dt": "dt"}
+
+
+def check_superseded(overrides: dict, given: dict) -> None:
+    """Check the overrides (``-s``) that a keyword of ``given`` (``load_scene``'s: ``--ne``,
+    ``--np``, ``--days``, ``--stepper``, ``--dt``) replaces, as the file's own values are checked:
+    a wrong one is refused, not dropped unread. Raises ``SceneError`` naming the key and value."""
+    for key, keyword in SUPERSEDED.items():
+        if key not in overrides or given.get(keyword) is None:
+            continue
+        value = overrides[key]
+        try:
+            if keyword == "ne" and not (is_integer(value) and value >= 0):  # 0: a mesh file's (resolve_grid)
+                raise SceneError(f"must be an integer >= 1, or 0 with a mesh file (got {got(value)})")
+            if keyword == "np_" and not (is_integer(value) and NP_MIN <= value <= NP_MAX):
+                raise SceneError(f"must be an integer in {NP_MIN}..{NP_MAX} (got {got(value)})")
+            if keyword == "dt" and not (is_number(value) and math.isfinite(value) and value > 0):
+                raise SceneError(f"must be > 0 (got {got(value)})")
+            if keyword in ("days", "stepper"):
+                resolve_stepper_days({keyword: value})
+        except SceneError as err:
+            raise SceneError(
+                f"{key} = {value!r}: {str(err).removeprefix('days ')} (though {keyword.rstrip('_')} = "
+                f"{given[keyword]!r} replaces it, -s values are checked as the file's)"
+            ) from None
 
 
 def resolve_dt(

@@ -86,6 +86,7 @@ from .paths import list_scenes, resolve_path, scene_dir
 from .resolve import (
     DT_NOTES,
     HYPERVIS_EXPONENT,
+    check_superseded,
     efold_nu,
     resolve_case,
     resolve_dt,
@@ -415,6 +416,7 @@ def load_scene(
     mesh=None,
     overrides: dict | None = None,
     restart_every: float | None = None,
+    np=None,
 ) -> Scene:
     """Read, validate and resolve a scene file, applying command-line overrides.
 
@@ -430,7 +432,8 @@ def load_scene(
     path : str or path
         A scene file (TOML) or the name of a bundled scene under ``testcases/``.
     ne, np_ : int, optional
-        Elements along a cube edge and GLL points per element direction. When the grid
+        Elements along a cube edge and GLL points per element direction (``np=`` too, as
+        ``swe_sphere.run``, ``Simulation`` and ``Ensemble`` take it). When the grid
         is overridden and ``dt`` is not, dt scales with the smallest node spacing
         (first GLL interval / ne) and is shortened to divide the output interval (or
         the run, if shorter; a note warns when that cuts dt by more than 2×); ν scales
@@ -448,7 +451,9 @@ def load_scene(
         the two (``quality.smallest_dx``) and ν with the mean spacing (the record's ``mean_ne``).
     overrides : dict, optional
         ``{"section.key": value}`` set in the file's values before they are validated
-        (``-s hyperviscosity.nu=5e14``), so they are checked like the file.
+        (``-s hyperviscosity.nu=5e14``), so they are checked like the file; a table's values
+        as a dict (``{"time": {"control": "error"}}``) are merged into the file's table, as
+        ``swe_sphere.run(time={...})`` merges them, not put in its place.
     restart_every : float, optional
         The run's restart interval (days, ``--restart-every``): a dt the scene scales itself is
         shortened to divide it too (a note says so); checked by the run, not here.
@@ -468,13 +473,18 @@ def load_scene(
     instance_argument(
         "path", path, (str, os.PathLike), "a scene file's path or a bundled scene's name (str)", SceneError
     )
-    overrides = {} if overrides is None else mapping_argument("overrides", overrides, error=SceneError)
+    overrides = {} if overrides is None else flat_overrides(mapping_argument("overrides", overrides, error=SceneError))
+    if np is not None:
+        if np_ is not None:
+            raise SceneError(f"np = {np} and np_ = {np_}: give one of them (np_ is np's other name)")
+        np_ = np
     return _resolve(resolve_path(str(path)), ne, np_, dt, days, stepper, mesh, overrides, restart_every)
 
 
 def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict, restart_every=None) -> Scene:
     """``load_scene``'s work on the scene file ``path``: its tables resolved in order."""
     s, file_radius, file_case, file_grid, own = read_scene(path, overrides)
+    check_superseded(overrides, {"ne": ne, "np_": np_, "dt": dt, "days": days, "stepper": stepper})
     planet = resolve_planet(s.get("planet"))
     case = resolve_case(s.get("case", {}), planet, path)
     terms = resolve_terms(s.get("terms"), case.case, case.name)
@@ -509,6 +519,9 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict, rest
     control = resolve_control(time, stepper, options, dt)
     hv, hv_notes = resolve_hyperviscosity(s.get("hyperviscosity", {}), terms, grid, spacing)
     name, description = scene_title(case.name, file_case, path.stem, s.get("description", ""))
+    given = [f"{k} = {v!r}" for k, v in overrides.items() if k.startswith("case.") and k[5:] in case.params]
+    if given and name == path.stem:  # the file's description is of its own values: the header says what runs
+        description = f"{description}; run with {', '.join(given)}"
     return Scene(
         name=name,
         description=description,
@@ -578,11 +591,18 @@ def resolve_scene(scene, overrides: dict) -> tuple[Scene, tuple]:
     )
     overrides = dict(overrides)
     kw = {name: overrides.pop(k) for k, name in LOAD_KEYWORDS.items() if k in overrides}
+    path = resolve_path(str(scene))
+    return load_scene(path, **kw, overrides=overrides), (path,)
+
+
+def flat_overrides(overrides: dict) -> dict:
+    """``overrides`` with each table given as a dict (``{"time": {"control": "error"}}``) spread
+    into its ``"section.key"`` values (``{"time.control": "error"}``): set into the file's table
+    one by one, its other keys kept."""
     flat = {}
     for key, value in overrides.items():
-        if isinstance(value, dict):
+        if isinstance(value, dict) and isinstance(key, str) and "." not in key:
             flat.update({f"{key}.{k}": v for k, v in value.items()})
         else:
             flat[key] = value
-    path = resolve_path(str(scene))
-    return load_scene(path, **kw, overrides=flat), (path,)
+    return flat

@@ -2,7 +2,8 @@
 and what such a step costs, part by part, against the explicit step it would replace.
 
 ``--parts accuracy``: each run of ``--runs`` (``STEPPER@DT``, DT in s or ``86400/N``; with
-``:key=value`` stepper options, e.g. ``imex@86400/90:scheme=ars232``) of ``--scene`` (default
+``:key=value`` stepper options, e.g. ``imex@86400/90:scheme=ars232``, and ``:table.key=value`` the
+scene's, e.g. ``kgu35@86400/548:hyperviscosity.every=12``) of ``--scene`` (default
 ``galewsky``, its own grid unless ``--ne``/``--np``) for ``--days``, scored at the last day by
 Williamson et al. (1992) eq. 83 at the model's own unique nodes with its assembled ``spheremp``
 (the run file's ``area``) against the bundled T341 reference (``cases.reference``): relative
@@ -83,9 +84,13 @@ def _value(v: str):
 
 
 def simulation(args, stepper: str, dt: float, options: dict, days: float, **kw) -> Simulation:
-    """The scene with this stepper, Δt and options (a table named as the stepper), on the CPU."""
+    """The scene with this stepper, Δt and options (a table named as the stepper; a dotted key
+    ``table.key`` the scene's table's), on the CPU."""
     grid = {k: v for k, v in (("ne", args.ne), ("np", args.np)) if v}
-    tables = {stepper: options} if options else {}
+    tables = {}
+    for key, value in options.items():
+        table, _, name = key.rpartition(".")
+        tables.setdefault(table or stepper, {})[name] = value
     return Simulation(
         args.scene, "cpu", progress=False, stepper=stepper, dt=dt, days=days, graphs=False, **grid, **tables, **kw
     )

@@ -115,7 +115,8 @@ def header(args, sim, output, device, comm) -> None:
 
 def terms_line(scene) -> str:
     """The header's ``terms`` line: the scene's terms and its ∇⁴ coefficient."""
-    nu = f" (nu = {scene.nu:.3g} m^4/s, subcycle {scene.hypervis_subcycle})" if scene.nu else ""
+    every = f", every {scene.hypervis_every} steps" if scene.hypervis_every > 1 else ""
+    nu = f" (nu = {scene.nu:.3g} m^4/s, subcycle {scene.hypervis_subcycle}{every})" if scene.nu else ""
     return f"terms       {', '.join(scene.terms)}{nu}"
 
 

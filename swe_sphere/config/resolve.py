@@ -468,7 +468,7 @@ def resolve_hyperviscosity(
     grid scale, as ``spacing.scale``⁴ (the radii's ratio); ``efold_hours``
     sets the others on the run's grid (``efold_nu``); without it nu_div and nu_s default to nu.
     All are 0 without the hyperviscosity term. Raises ``SceneError`` naming the key: a negative
-    coefficient, efold_hours or subcycle not > 0, the term without a coefficient > 0."""
+    coefficient, efold_hours, subcycle or every not > 0, the term without a coefficient > 0."""
     for key in ("efold_hours", "nu", "nu_div", "nu_s"):
         if table.get(key, 0.0) < 0 or (key == "efold_hours" and key in table and table[key] == 0):
             raise SceneError(
@@ -513,12 +513,33 @@ def resolve_hyperviscosity(
             f"tensor hyperviscosity: nu (dx / {2 * d_ref / (grid.np - 1) / 1e3:.4g} km)^{scaling:g} along each element "
             f"direction (HOMME's hypervis_scaling = {scaling:g}, nu = {nus['nu'] / (a**4 * (d_ref / a) ** scaling):.3g})"
         )
-    subcycle = table.get("subcycle", 1)
-    if subcycle < 1:
-        raise SceneError(f"hyperviscosity.subcycle must be >= 1 (got {subcycle})")
+    subcycle, every = table.get("subcycle", 1), table.get("every", 1)
+    for key, value in (("subcycle", subcycle), ("every", every)):
+        if value < 1:
+            raise SceneError(f"hyperviscosity.{key} must be >= 1 (got {value})")
     scaling = None if scaling is None or "hyperviscosity" not in terms else float(scaling)
-    hv = SceneHyperviscosity(float(nus["nu"]), float(nus["nu_div"]), float(nus["nu_s"]), int(subcycle), scaling)
+    hv = SceneHyperviscosity(
+        float(nus["nu"]), float(nus["nu_div"]), float(nus["nu_s"]), int(subcycle), scaling, int(every)
+    )
     return hv, tuple(notes)
+
+
+def check_every(hv: SceneHyperviscosity, stepper: str, controlled: bool) -> None:
+    """Whether the ∇⁴ every k = ``hv.every`` > 1 steps suits the run: a fixed Δt (kΔt is a span
+    of steps of one Δt) and a stepper whose ∇⁴ is one application over its step
+    (``Stepper.sparse_hyperviscosity``). Raises ``SceneError`` naming the key."""
+    if hv.every == 1:
+        return
+    if controlled:
+        raise SceneError(
+            f"hyperviscosity.every = {hv.every} needs a fixed dt (time.control is not 'fixed'): the ∇⁴ "
+            "covers every steps of one dt"
+        )
+    if not STEPPERS[stepper].sparse_hyperviscosity:
+        raise SceneError(
+            f"hyperviscosity.every = {hv.every}: {stepper} applies its ∇⁴ to a three-level scheme's "
+            "new level (1 only; a one-step method takes every > 1)"
+        )
 
 
 def scene_title(case_name: str, file_case: str | None, stem: str, description: str) -> tuple[str, str]:

@@ -45,7 +45,9 @@ the run length, the output interval and the hyperviscosity. Layout::
                       scaling = 3.2 (s in 0..4: HOMME's tensor hyperviscosity, hypervis_scaling:
                       the effective nu along each element direction is nu (dx / dx_ref)^s, dx_ref
                       the mean spacing's, so s = 4 is the efold_hours rule element by element;
-                      nu, nu_div, nu_s then scale as dx^s between grids; absent: constant nu)
+                      nu, nu_div, nu_s then scale as dx^s between grids; absent: constant nu),
+                      every = 1 (k: the ∇⁴ over k dt after every k-th step, fixed dt and a
+                      one-step stepper only: cheaper where its limit is well above dt)
     [leapfrog]        robert_asselin = 0.05   (a table per stepper, named after
                       it, holds that stepper's options; an option typed tuple
                       is a TOML array, e.g. [tableau] A = [[0, 0], ["1/2", 0]])
@@ -86,6 +88,7 @@ from .paths import list_scenes, resolve_path, scene_dir
 from .resolve import (
     DT_NOTES,
     HYPERVIS_EXPONENT,
+    check_every,
     check_superseded,
     efold_nu,
     resolve_case,
@@ -167,6 +170,8 @@ class Scene:
     hypervis_scaling : float or None
         None (constant ν) or s: the tensor ∇⁴ with ν ∝ Δx^s per element direction
         ([hyperviscosity] scaling; HOMME's ``hypervis_scaling``).
+    hypervis_every : int
+        k: the ∇⁴ over kΔt after every k-th step ([hyperviscosity] every; 1: every step).
     notes : tuple of str
         What resolving the scene changed (e.g. dt scaled to the grid), for the run's header.
     branch : dict or None
@@ -236,6 +241,7 @@ class Scene:
     mesh: MeshRecord | None = None
     output_cells: bool = True  # [output] cells: the run files hold the control volumes (``dual``)
     hypervis_scaling: float | None = None  # [hyperviscosity] scaling: the tensor ∇⁴'s s; None: constant ν
+    hypervis_every: int = 1  # [hyperviscosity] every: the ∇⁴ over kΔt after every k-th step
     control: SceneControl | None = None  # [time] control: None, a fixed dt
     ensemble: dict | None = None  # [ensemble]: members, perturbation (m), seed; None: one run
     # where dt comes from, for the refusals (``Clock.source``); not part of the scene's record (``as_dict``)
@@ -266,7 +272,9 @@ class Scene:
     @property
     def hyperviscosity(self) -> SceneHyperviscosity:
         """nu, nu_div, nu_s and the subcycles ([hyperviscosity])."""
-        return SceneHyperviscosity(self.nu, self.nu_div, self.nu_s, self.hypervis_subcycle, self.hypervis_scaling)
+        return SceneHyperviscosity(
+            self.nu, self.nu_div, self.nu_s, self.hypervis_subcycle, self.hypervis_scaling, self.hypervis_every
+        )
 
     @property
     def output(self) -> SceneOutput:
@@ -354,6 +362,8 @@ class Scene:
         for key in ("hypervis_scaling", "control", "ensemble"):
             if d[key] is None:
                 del d[key]
+        if d["hypervis_every"] == 1:  # the default: a scene's dict as before the key
+            del d["hypervis_every"]
         return d
 
 
@@ -518,6 +528,7 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict, rest
     options, stepper_notes = resolve_stepper_options(stepper, s.get(stepper, {}), overrides)
     control = resolve_control(time, stepper, options, dt)
     hv, hv_notes = resolve_hyperviscosity(s.get("hyperviscosity", {}), terms, grid, spacing)
+    check_every(hv, stepper, controlled)
     name, description = scene_title(case.name, file_case, path.stem, s.get("description", ""))
     given = [f"{k} = {v!r}" for k, v in overrides.items() if k.startswith("case.") and k[5:] in case.params]
     if given and name == path.stem:  # the file's description is of its own values: the header says what runs
@@ -549,6 +560,7 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict, rest
         mesh=grid.mesh,
         output_cells=output.get("cells", True),
         hypervis_scaling=hv.scaling,
+        hypervis_every=hv.every,
         control=control,
         ensemble=resolve_ensemble(s.get("ensemble")),
         dt_source=dt_source,

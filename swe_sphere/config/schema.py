@@ -83,14 +83,16 @@ class SceneTime:
 class SceneHyperviscosity:
     """A scene's ∇⁴ hyperviscosity ([hyperviscosity]; ``Scene.hyperviscosity``): ``nu``,
     ``nu_div``, ``nu_s`` (m⁴ s⁻¹, on this grid; the rotational wind, divergent wind and h + hs,
-    HOMME's names), ``subcycle`` substeps a step and ``scaling`` (None: constant ν; s: the
-    tensor ∇⁴, ν ∝ Δx^s along each element direction, HOMME's ``hypervis_scaling``)."""
+    HOMME's names), ``subcycle`` substeps a step, ``scaling`` (None: constant ν; s: the
+    tensor ∇⁴, ν ∝ Δx^s along each element direction, HOMME's ``hypervis_scaling``) and
+    ``every`` (k: the ∇⁴ over kΔt after every k-th step; 1: every step)."""
 
     nu: float
     nu_div: float
     nu_s: float
     subcycle: int
     scaling: float | None = None
+    every: int = 1
 
 
 @dataclass(frozen=True)
@@ -141,6 +143,7 @@ SCHEMA = {
         "nu_s": float,
         "subcycle": int,
         "scaling": float,
+        "every": int,
     },
     "dfi": {"span_hours": float, "cutoff_hours": float},
     "ensemble": {"members": int, "perturbation": float, "seed": int, "degrees": tuple},

@@ -266,6 +266,13 @@ class Hyperviscosity:
         return self.model.nu_s
 
     @property
+    def every(self) -> int:
+        """k, the steps between ∇⁴ applications, each over the k steps' span (the model's
+        ``hypervis_every``, the scene's ``hyperviscosity.every``; 1: every step): a stepper that
+        allows it applies ``apply`` over kΔt after every k-th step (``steppers.base.Stepper``)."""
+        return self.model.hypervis_every
+
+    @property
     def nu_max(self) -> float:
         """The largest of ν, ν_div, ν_s (m⁴ s⁻¹): what limits explicit steps."""
         return max(self.model.nu, self.model.nu_div, self.model.nu_s)

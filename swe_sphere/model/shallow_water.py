@@ -118,6 +118,8 @@ class ShallowWater:
         None: ``nu``), used if "hyperviscosity" is a term
         (``kernels.hyperviscosity``).
     hypervis_subcycle : forward-Euler substeps per ``hyperviscosity`` call.
+    hypervis_every : the steps k between ∇⁴ applications (each over the k steps' span): a
+        stepper applies it at every k-th step (``steppers.base.Stepper.dissipate``); 1: every step.
     hypervis_scaling : None (constant ν) or s ≥ 0: HOMME's tensor ∇⁴ (``hypervis_scaling``;
         Guba et al. 2014), effective ν·(Δx / Δx_ref)^s per element direction
         (``hyperviscosity.Hyperviscosity.tensor_metric``).
@@ -162,6 +164,7 @@ class ShallowWater:
         nu_s=None,
         hypervis_subcycle=1,
         hypervis_scaling=None,
+        hypervis_every=1,
         g=EARTH.g,
         device="cpu",
         threads=None,
@@ -177,6 +180,7 @@ class ShallowWater:
             if value is not None:
                 number_argument(name, value, "m⁴ s⁻¹", low=0.0)
         integer_argument("hypervis_subcycle", hypervis_subcycle, low=1)
+        integer_argument("hypervis_every", hypervis_every, low=1)
         number_argument("g", g, "m s⁻²", positive=True)
         if not isinstance(device, str) or not device:
             raise ArgumentError(f"device must be a device's name such as 'cpu' or 'cuda' (got {got(device)})")
@@ -201,6 +205,7 @@ class ShallowWater:
             raise ValueError(f"threads must be >= 1 (got {threads})")
         self.nu, self.hypervis_subcycle, self.g = float(nu), int(hypervis_subcycle), float(g)
         self.hypervis_scaling = None if hypervis_scaling is None else float(hypervis_scaling)
+        self.hypervis_every = int(hypervis_every)
         per_element = self.backend.per_element if per_element is None else bool(per_element)
         N = grid.nnodes
         self.N = N
@@ -241,7 +246,7 @@ class ShallowWater:
     def from_scene(cls, scene, grid: CubedSphere, case=None, **options) -> ShallowWater:
         """The model a scene calls for on ``grid`` (the whole grid, or a rank's part): its
         terms and ∇⁴ (``nu``, ``nu_div``, ``nu_s``, ``hypervis_subcycle``,
-        ``hypervis_scaling``) and its case's fields (``from_case``; ``case``: the scene's,
+        ``hypervis_scaling``, ``hypervis_every``) and its case's fields (``from_case``; ``case``: the scene's,
         ``scene.make_case()``, if None). ``scene``: a ``config.Scene``, read by those
         attributes alone (config sits above the model, which imports nothing of it);
         ``options`` the constructor's others (device, threads, per_element, topology)."""
@@ -252,6 +257,7 @@ class ShallowWater:
             "nu_s": scene.nu_s,
             "hypervis_subcycle": scene.hypervis_subcycle,
             "hypervis_scaling": scene.hypervis_scaling,
+            "hypervis_every": scene.hypervis_every,
         }
         return cls.from_case(grid, case, scene.terms, **hyperviscosity, **options)
 

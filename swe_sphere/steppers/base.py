@@ -96,6 +96,10 @@ class Stepper:
     # coefficients as arguments, or that reads Δt each step). False where Δt is part of the history (leapfrog's
     # x(n−1), BDF2's, a multirate split's substeps): those run at a fixed Δt only.
     variable_dt = False
+    # True: a step's ∇⁴ is one ``_hyperviscosity`` over its own span (a one-step method), so it may
+    # be applied every k steps over kΔt (the scene's ``hyperviscosity.every``); False where the ∇⁴
+    # acts on a three-level scheme's x(n+1) over 2Δt (the leapfrog family, semi-implicit)
+    sparse_hyperviscosity = True
     # an embedded pair's local error estimate of the last step, (3, N) in x's units
     # (``runge_kutta``); None for a stepper without one
     error_estimate = None
@@ -300,8 +304,14 @@ class Stepper:
         one (``wp.ScopedCapture``) replays the others bit for bit. None: the next step
         cannot be captured, because the stepper is not ``capturable`` or the model has a
         time-dependent forcing (its time, ``_at``, is a launch argument a graph would freeze;
-        kept on the host, as a device scalar would need a launch per stage to set)."""
-        return ("step", self.dt) if self.capturable and "forcing" not in self.model.terms else None  # Δt: ``set_dt``
+        kept on the host, as a device scalar would need a launch per stage to set). With the ∇⁴
+        every k > 1 steps, whether this step applies it (``_hyperviscosity``): two graphs."""
+        if not self.capturable or "forcing" in self.model.terms:
+            return None
+        hv = self.model.hv
+        return (
+            ("step", self.dt) if hv is None or hv.every == 1 else ("step", self.dt, self._dissipates())
+        )  # Δt: ``set_dt``
 
     def graph_family(self):
         """``graph_key`` without Δt where the steps at any Δt take the same kinds of work,
@@ -316,6 +326,23 @@ class Stepper:
         (whose ``stats`` it returns)."""
         self.steps += 1
         return stats
+
+    def _dissipates(self) -> bool:
+        """Whether the step under way (index ``steps``) ends with the ∇⁴ (``_hyperviscosity``)."""
+        return (self.steps + 1) % self.model.hv.every == 0
+
+    def _hyperviscosity(self, x: wp.array2d) -> None:
+        """The step's ∇⁴ on x (3, N) in place over Δt, split from the dynamics
+        (``model.hyperviscosity``; HOMME ``advance_hypervis``); with the scene's
+        ``hyperviscosity.every`` k > 1, over kΔt at the end of every k-th step (steps k, 2k, ...:
+        by the step's index, so a restart or the gradient's step taken again agrees) and not at
+        the others: a lever on the ∇⁴'s cost where its limit is far above Δt (one substep, or
+        one RKL1 super-step, covers kΔt; docs/efficiency.md, "A step's cost")."""
+        hv = self.model.hv
+        if hv is None or hv.every == 1:
+            self.model.hyperviscosity(x, self.dt)
+        elif self._dissipates():
+            self.model.hyperviscosity(x, hv.every * self.dt)
 
     def _at(self, c: float) -> None:
         """Set the model time to t(n) + c·Δt, t(n) = t0 + steps·Δt, for the next RHS

@@ -107,7 +107,7 @@ class FBRK32(Stepper):
                 launch.launch()
             if momentum:
                 m.rhs_update(self.s, momentum, self.momentum)
-        m.hyperviscosity(x, self.dt)
+        self._hyperviscosity(x)
         return StepStats(3)
 
 
@@ -117,6 +117,7 @@ class _LeapfrogFamily(Stepper):
     2 RHS evaluations)."""
 
     explicit = capturable = differentiable = True
+    sparse_hyperviscosity = False  # the ∇⁴ acts on x(n+1), over 2Δt for leapfrog
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)

@@ -193,7 +193,7 @@ class _Exponential(Stepper):
         if stats is not None:
             jac.scatter(self.w, self.work)
             self._pointwise(blas.axpby, f64(1.0), x, f64(self.dt * fnorm), self.work, x)
-        self.model.hyperviscosity(x, self.dt)
+        self._hyperviscosity(x)
         counts = (stats.krylov, stats.substeps, stats.rejected) if stats else (0, 0, 0)
         return StepStats(self.rhs_evals, dict(zip(self.solvers, counts)))
 

@@ -464,5 +464,5 @@ class Implicit(Stepper):
         if estimating:
             self._estimate(x)
         wp.copy(self.xprev, self.xn)
-        m.hyperviscosity(x, self.dt)
+        self._hyperviscosity(x)
         return StepStats(self.rhs_evals, {"newton": newton, **self._counts})

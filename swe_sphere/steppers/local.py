@@ -164,6 +164,7 @@ class Lts(Mri):
     sums cost more than the evaluations it saves."""
 
     name = "lts"
+    sparse_hyperviscosity = False  # MRAB3's graphs are keyed by its own phase; the ∇⁴ once a coarse step
     Options = LtsOptions
     solvers = ("fast",)
 

@@ -168,7 +168,7 @@ class _Multirate(Stepper):
         split.to_perturbation(x)
         evals = self._advance(x)
         split.from_perturbation(x)
-        self.model.hyperviscosity(x, self.dt)
+        self._hyperviscosity(x)
         return StepStats(evals, {"fast": self.fast_evaluations()})
 
 

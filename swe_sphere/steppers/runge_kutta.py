@@ -173,7 +173,7 @@ class ExplicitRK(Stepper):
             for c, arg, updates in self._stages:
                 self._at(c)
                 self.model.rhs_update(arg, updates)
-            self.model.hyperviscosity(x, self.dt)
+            self._hyperviscosity(x)
             return StepStats(len(self._stages))
         evals = len(self._stages)  # s − 1 stages; the FSAL evaluation after the ∇⁴ stands for the first
         (c0, arg0, first), *rest = self._stages
@@ -184,7 +184,7 @@ class ExplicitRK(Stepper):
         for c, arg, updates in rest:
             self._at(c)
             self.model.rhs_update(arg, updates)
-        self.model.hyperviscosity(x, self.dt)
+        self._hyperviscosity(x)
         self._at(1.0)
         e = self._buffers["e"]
         self.model.rhs_update(x, (Update(e, ((1.0, e), (_dt_times(self._carried, self.dt), None))), *first))
@@ -307,7 +307,7 @@ class ImexRK(HelmholtzSteps, Stepper):
             src = out
 
     def advance(self, x):
-        m, dt = self.model, self.dt
+        dt = self.dt
         self.linear.set_depth(x)
         A_E, A_I, b_E, b_I, F, L = self.A_E, self.A_I, self.b_E, self.b_I, self.F, self.L
         s = len(F)
@@ -349,7 +349,7 @@ class ImexRK(HelmholtzSteps, Stepper):
             (c1, a1), (c2, a2) = first if len(first) == 2 else (*first, (0.0, first[0][1]))
             self._pointwise(blas.axpby, f64(c1), a1, f64(c2), a2, e)
             self._combine(e, e, rest)
-        m.hyperviscosity(x, dt)
+        self._hyperviscosity(x)
         return StepStats(evals, self._device_counts())
 
     def _rhs(self, i, Y, combos, outs, x) -> bool:

@@ -181,6 +181,14 @@ def test_taylor_remainder_of_the_initial_state_gradient_falls_as_eps_squared(ste
     assert rest[-1] > 1e4 * EPS * J  # the last remainder still above the cost's round-off
 
 
+def test_taylor_remainder_with_the_hyperviscosity_every_two_steps_falls_as_eps_squared():
+    """``[hyperviscosity] every = 2``: the gradient's steps taken again know their phase (the
+    step's index), the ∇⁴ over 2Δt after the second and fourth steps alone."""
+    scene = dataclasses.replace(tc5(), hypervis_every=2)
+    slopes, rest, _ = taylor_slopes("rk4", 4, [1.0, 1.0, 10.0], scene=scene)
+    assert np.all(np.abs(slopes - 2.0) < 0.1), (slopes, rest)
+
+
 @pytest.mark.parametrize("stepper", ["kgu35", "dp54", "fbrk32"])
 def test_the_per_node_transposes_give_the_element_kernels_adjoint(stepper):
     # the CPU's element kernel (k̄ read as a combination; dp54's first stages combine it first)

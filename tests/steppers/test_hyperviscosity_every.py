@@ -1,0 +1,125 @@
+"""The ∇⁴ every k steps (``[hyperviscosity] every``, issue 99): over kΔt after every k-th step
+and not at the others, by the step's index, so that a continued run and a step's graph agree
+(the gradient's steps taken again: tests/adjoint/test_adjoint.py); refused where it does not fit (one line, exit 2)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import warp as wp
+
+from swe_sphere.config.scene import load_scene
+from swe_sphere.core.constants import DAY
+from swe_sphere.core.errors import SceneError
+from swe_sphere.simulation.simulation import Simulation
+
+from helpers import cli_one_line, make_sim
+
+DT = 1800.0
+
+
+def tc5(every, steps=6, stepper="kgu35"):
+    """TC5 on ne 2 np 4 (its ∇⁴ at the e-folding rule's ν), ``steps`` steps of 30 min."""
+    return load_scene(
+        "tc5_mountain",
+        ne=2,
+        np_=4,
+        dt=DT,
+        days=steps * DT / DAY,
+        stepper=stepper,
+        overrides={"hyperviscosity.every": every, "output.every_days": steps * DT / DAY},
+    )
+
+
+@pytest.mark.parametrize("stepper", ["kgu35", "fbrk32", "imex"])
+def test_every_k_steps_is_k_steps_of_dynamics_then_the_hyperviscosity_over_k_dt(stepper):
+    """Three steps with every = 3: the state of three steps without the ∇⁴ (every = 1000, none
+    due yet) and then ``model.hyperviscosity`` over 3Δt, to the bit; after two steps, no ∇⁴."""
+    k = 3
+    sparse, bare = make_sim(tc5(k, stepper=stepper)), make_sim(tc5(1000, stepper=stepper))
+    assert sparse.model.hv.every == k
+    for s in (sparse, bare):
+        for _ in range(k - 1):
+            s.stepper.step(s.x)
+    np.testing.assert_array_equal(sparse.x.numpy(), bare.x.numpy())
+    sparse.stepper.step(sparse.x)
+    bare.stepper.step(bare.x)
+    before = bare.x.numpy().copy()
+    bare.model.hyperviscosity(bare.x, k * DT)
+    assert np.abs(bare.x.numpy() - before).max() > 1e-3  # the ∇⁴ did something
+    np.testing.assert_array_equal(sparse.x.numpy(), bare.x.numpy())
+
+
+def test_every_one_is_the_scene_without_the_key():
+    """every = 1 takes the ∇⁴ every step: the run of the scene as it was, bit for bit, and its
+    dict (what a restart file holds) without the key."""
+    a, b = make_sim(tc5(1)), make_sim(dataclasses.replace(tc5(1), hypervis_every=1))
+    assert "hypervis_every" not in tc5(1).as_dict() and tc5(2).as_dict()["hypervis_every"] == 2
+    a.advance(6 * DT / DAY)
+    b.advance(6 * DT / DAY)
+    np.testing.assert_array_equal(a.x.numpy(), b.x.numpy())
+
+
+def test_the_graph_key_says_whether_the_step_takes_the_hyperviscosity():
+    """Two graphs with every > 1: the steps that end with the ∇⁴ and those that do not."""
+    sim = make_sim(tc5(3))
+    keys = []
+    for _ in range(6):
+        keys.append(sim.stepper.graph_key())
+        sim.stepper.step(sim.x)
+    assert keys == [("step", DT, False), ("step", DT, False), ("step", DT, True)] * 2
+    assert make_sim(tc5(1)).stepper.graph_key() == ("step", DT)
+
+
+def test_a_continued_run_is_bitwise_the_uninterrupted_one(tmp_path):
+    """Continued from a restart at step 4 of every = 3 (two steps before the next ∇⁴): the phase
+    is the step's index, so the 8-step run's last state is the same bits."""
+    whole = make_sim(dataclasses.replace(tc5(3, 8), output_every_days=4 * DT / DAY))
+    whole.run(tmp_path / "whole.nc")
+    half = make_sim(tc5(3, 4))
+    r = half.run(tmp_path / "half.nc", restart_every=4 * DT / DAY)
+    cont = Simulation.from_checkpoint(r.checkpoint, "cpu", days=8 * DT / DAY, progress=False)
+    assert cont.step == 4 and cont.scene == whole.scene
+    cont.run(tmp_path / "cont.nc")
+    np.testing.assert_array_equal(cont.x.numpy(), whole.x.numpy())
+
+
+@pytest.mark.parametrize(
+    "overrides, words",
+    [
+        ({"hyperviscosity.every": 0}, ("hyperviscosity.every", ">= 1", "got 0")),
+        ({"hyperviscosity.every": 2, "time.stepper": "leapfrog"}, ("hyperviscosity.every = 2", "leapfrog")),
+        ({"hyperviscosity.every": 2, "time.control": "error"}, ("hyperviscosity.every = 2", "fixed dt")),
+    ],
+)
+def test_a_misfit_every_is_one_line(overrides, words):
+    """every < 1, a three-level scheme, or a controlled Δt: SceneError naming the key."""
+    stepper = overrides.pop("time.stepper", "dp54")
+    with pytest.raises(SceneError) as err:
+        load_scene("tc5_mountain", ne=2, stepper=stepper, overrides=overrides)
+    assert all(w in str(err.value) for w in words), str(err.value)
+
+
+def test_the_command_line_refuses_a_misfit_every(capsys, tmp_path):
+    """``-s hyperviscosity.every=0``: one line, exit 2, nothing written."""
+    line = cli_one_line(
+        capsys,
+        [
+            "run",
+            "tc5_mountain",
+            "--ne",
+            "2",
+            "--days",
+            "0.1",
+            "-s",
+            "hyperviscosity.every=0",
+            "--output",
+            str(tmp_path / "x.nc"),
+        ],
+        2,
+        "hyperviscosity.every",
+    )
+    assert line and not list(tmp_path.iterdir())
+    wp.synchronize()

@@ -20,6 +20,11 @@ BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
         ("step_cost.py", ["--ne", "-3"], "step_cost.py: error: ne must be an integer >= 1 (got -3)"),
         ("gradient_cost.py", ["--ne", "2", "--steps", "-2"], "gradient_cost.py: error: --steps must be >= 1"),
         ("ensemble_cost.py", ["--steps", "0"], "ensemble_cost.py: error: argument --steps: must be > 0 (got 0)"),
+        (
+            "hyperviscosity_every.py",
+            ["--scene", "tc2_steady", "--ne", "2"],
+            "hyperviscosity_every.py: error: --scene tc2_steady: its terms have no hyperviscosity",
+        ),
     ],
 )
 def test_a_bad_input_is_one_line_and_exit_2(tmp_path, script, args, says):

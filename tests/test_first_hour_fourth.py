@@ -4,6 +4,7 @@ naming the case as run. Each refusal is one line, exit 2, made before anything i
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -13,7 +14,7 @@ from swe_sphere.core.errors import SceneError
 
 from helpers import cli_main, one_line
 
-RUN = ("run", "tc2_steady", "--ne", "2", "--days", "0.1", "--device", "cpu", "--no-progress")
+RUN = ("run", "tc2_steady", "--ne", "2", "--days", "0.1", "--device", "cpu")  # no bar: stderr is captured
 
 
 @pytest.fixture(autouse=True)
@@ -80,3 +81,124 @@ def test_an_angle_out_of_range_is_refused(capsys, value, words):
     assert out == "" and list(Path().iterdir()) == []
     with pytest.raises(SceneError, match="case.lat2 must be an angle in radians within ±π/2"):
         load_scene("galewsky", ne=2, overrides={"case.lat2": 2.0})
+
+
+def test_an_ensemble_too_large_for_memory_is_refused_before_it_is_built(capsys, monkeypatch):
+    """`run tc2_steady --ne 4 --days 0.1 --members 100000` printed nothing for 90 s (no memory
+    check), where `--ne 100000` is refused at once with its estimate."""
+    import swe_sphere.core.runtime as runtime
+    import swe_sphere.ensemble.ensemble as ensemble
+
+    monkeypatch.setattr(runtime, "available_memory", lambda: 2**30)
+    monkeypatch.setattr(ensemble, "CubedSphere", _not_built)
+    code, out, err = cli_main(capsys, *RUN, "--ne", "4", "--members", "100000", "--output", "e.nc")
+    line = one_line(code, err, 3, "an ensemble of 100000 members of ne=4 np=4 with ssprk3", "1 GiB is available")
+    assert "157 GiB" in line  # 100000 members x 1536 nodes x 1100 bytes
+    assert out == "" and list(Path().iterdir()) == []
+    monkeypatch.setattr(runtime, "available_memory", lambda: 2**40)  # memory enough: the check passes
+    with pytest.raises(AssertionError, match="built before the memory check"):
+        ensemble.Ensemble("tc2_steady", 100, ne=4, device="cpu")
+
+
+def _not_built(*args, **kwargs):
+    raise AssertionError("built before the memory check")
+
+
+def _ensemble_warnings(capsys, *options) -> list[str]:
+    code, out, err = cli_main(capsys, *RUN, "--days", "0.05", "--members", "2", *options, "--output", "e.nc")
+    assert code == 0 and "h spread" in out, err
+    return [line for line in err.splitlines() if "start alike" in line]
+
+
+def test_an_ensemble_of_members_alike_says_so(capsys):
+    """`run galewsky --members 4` (no --perturbation, --vary or --initial) ran four identical
+    members and reported a spread of 0 m without a word."""
+    (line,) = _ensemble_warnings(capsys)
+    assert line.startswith("swe-sphere: warning: the 2 members start alike") and "spread is 0 m" in line
+    assert len(_ensemble_warnings(capsys, "--perturbation", "0", "--overwrite")) == 1
+    assert _ensemble_warnings(capsys, "--perturbation", "1", "--overwrite") == []
+    assert _ensemble_warnings(capsys, "--vary", "case.alpha=0,0.1", "--overwrite") == []
+
+
+def test_members_help_says_any_stepper_and_in_turn(capsys):
+    """`run --help` said --members runs "explicit steppers, fixed dt" in the same launches; an imex
+    ensemble runs, and on a CPU the members run in turn."""
+    code, out, _ = cli_main(capsys, "run", "--help")
+    text = " ".join(out.split())
+    assert code == 0 and "explicit steppers, fixed dt" not in text
+    assert "(any stepper, fixed dt), in the same launches on CUDA for an explicit stepper, else each" in text
+    assert "own in turn (--layout)" in text
+    code, out, _ = cli_main(
+        capsys, *RUN, "--days", "0.05", "--stepper", "imex", "--members", "2", "--perturbation", "1"
+    )
+    assert code == 0 and "ensemble    2 members each on a model of its own, in turn" in out
+
+
+@pytest.fixture
+def slow_clock(monkeypatch):
+    """The progress lines' clock, 100 s of wall time a reading: a line at every block of steps."""
+    import itertools
+
+    import swe_sphere.simulation.progress as progress
+
+    ticks = itertools.count(0.0, 100.0)
+    monkeypatch.setattr(progress, "_clock", lambda: next(ticks))
+
+
+def _span(readings: int) -> str:
+    minutes, seconds = divmod(100 * readings, 60)
+    return f"{minutes} min {seconds:02d} s of wall time"
+
+
+def _progress(out: str) -> list[str]:
+    return [line for line in out.splitlines() if line.startswith("progress    ")]
+
+
+QUARTER = ("--dt", "1800", "--days", "0.25", "-s", "output.every_days=0.125")  # 12 steps, outputs at 6 and 12
+
+
+def test_a_run_off_a_terminal_prints_its_progress_every_n_seconds(capsys, slow_clock):
+    """Off a terminal (a pipe, nohup, CI) a long run printed its header and then nothing until the
+    summary (the README's TC5 run: 72-250 s); a line every --progress-every seconds of wall time."""
+    code, out, _ = cli_main(capsys, *RUN, *QUARTER, "--progress-every", "30", "--output", "p.nc")
+    assert code == 0
+    lines = _progress(out)  # one at the end of each block of steps (the clock: 100 s a reading)
+    assert len(lines) >= 2 and lines[-1].endswith("day 0.25 of 0.25 (100 %), step 12, " + _span(len(lines)))
+    for k, line in enumerate(lines[:-1], 1):
+        step = int(re.search(r"step (\d+),", line)[1])
+        expected = f"progress    day {step / 48:.4g} of 0.25 ({100 * step / 12:.0f} %), step {step}, {_span(k)}, about "
+        assert line.startswith(expected) and line.endswith(" left"), line
+    assert out.index("output      p.nc") < out.index(lines[0]) < out.index("summary")
+    for none in (["--progress-every", "30", "--no-progress"], ["--progress-every", "0"], []):
+        code, out, _ = cli_main(capsys, *RUN, *QUARTER, *none, "--output", "p.nc", "--overwrite")
+        assert code == 0 and _progress(out) == [], none  # in a caller's process: only when asked
+
+
+def test_an_ensemble_off_a_terminal_prints_its_progress(capsys, slow_clock):
+    args = (*RUN, *QUARTER, "--members", "2", "--perturbation", "1", "--progress-every", "30", "--output", "e.nc")
+    code, out, _ = cli_main(capsys, *args)
+    assert code == 0
+    assert _progress(out)[-1] == "progress    day 0.25 of 0.25 (100 %), step 12, 3 min 20 s of wall time"
+
+
+def test_a_progress_line_estimates_the_time_left(monkeypatch):
+    import swe_sphere.simulation.progress as progress
+
+    now, lines = [100.0], []
+    monkeypatch.setattr(progress, "_clock", lambda: now[0])
+    ticker = progress.ProgressLines(lines.append, 30)
+    ticker.start(1.0, 11.0)  # a continued run, from day 1 to day 11
+    for t, step, day in ((120.0, 5, 1.5), (140.0, 10, 3.0), (150.0, 12, 3.4), (4000.0, 99, 10.0)):
+        now[0] = t
+        ticker.tick(step, day)
+    assert lines == [  # not at 120 s (20 s after the start), nor at 150 s (10 s after the last line)
+        "day 3 of 11 (20 %), step 10, 40 s of wall time, about 2 min 40 s left",
+        "day 10 of 11 (90 %), step 99, 1 h 05 min of wall time, about 7 min 13 s left",  # 3900 s x 0.1 / 0.9,
+    ]
+
+
+@pytest.mark.parametrize("value", ["-1", "nan", "inf"])
+def test_a_bad_progress_interval_is_refused(capsys, value):
+    code, out, err = cli_main(capsys, *RUN, "--progress-every", value, "--output", "p.nc")
+    one_line(code, err, 2, "--progress-every must be a number of seconds >= 0", value)
+    assert out == "" and list(Path().iterdir()) == []

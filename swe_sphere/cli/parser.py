@@ -158,7 +158,18 @@ def _run(sub, parents) -> None:
         help="netCDF output file (default: <scene>_ne<ne>np<np>_<stepper>.nc, with _<days>d, _dt<dt> and the "
         "planet where they are not the scene's)",
     )
-    r.add_argument("--no-progress", action="store_true", help="no progress bar (there is one only on a terminal)")
+    r.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bar (there is one only on a terminal), nor progress lines off one",
+    )
+    r.add_argument(
+        "--progress-every",
+        type=float,
+        metavar="SECONDS",
+        help="off a terminal (stderr a pipe or file: nohup, CI), where no bar is drawn: a line of the model day, "
+        "the share done and the time left on stdout every SECONDS of wall time (default 30; 0: none)",
+    )
     r.add_argument(
         "--restart-every",
         type=float,
@@ -184,8 +195,10 @@ def _run(sub, parents) -> None:
         "--members",
         type=int,
         metavar="N",
-        help="an ensemble: N members of the scene advanced together in the same launches (explicit steppers, "
-        "fixed dt), one run file with a member dimension, each field's ensemble mean and spread",
+        help="an ensemble: N members of the scene advanced together (any stepper, fixed dt), in the same launches "
+        "on CUDA for an explicit stepper, else each on a model of its own in turn (--layout); one run file with "
+        "a member dimension, each field's ensemble mean and spread; give the members their starts (--perturbation, "
+        "--vary or --initial), else they are alike",
     )
     _member_starts(r, sweep=False)
     r.add_argument(

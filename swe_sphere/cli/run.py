@@ -170,6 +170,7 @@ def command(args) -> int:
             f"{stem}_{'branch' + changes if changes else 'continued'}.nc"
         )
     netcdf_output(output)  # after the scene's own refusals, as check_target
+    args.progress_lines = _progress_lines(args)
     # the options' own refusals before the file system is looked at ("output file exists")
     args.graphs = graphs_mode(args.graphs, "--graphs") if args.graphs is not None else default_mode()  # the flag wins
     device = pick_device(args.device)
@@ -197,6 +198,23 @@ def command(args) -> int:
         mpi.watch_failures(comm, close_open_runs),
     ):  # a failure on one rank alone ends the job
         return _run(args, scene, output, device, comm)
+
+
+def _progress_lines(args):
+    """The run's ``ProgressLines`` (stdout, every ``--progress-every`` seconds of wall time) where
+    no bar is drawn (stderr not a terminal) and --no-progress is not given, else None; a caller's
+    ``main(argv)`` (its stdout its own) gets them only with --progress-every. ``SceneError`` for
+    an interval that is not a number of seconds >= 0."""
+    from ..simulation.progress import PROGRESS_SECONDS, ProgressLines
+
+    every = args.progress_every
+    if every is not None and not (math.isfinite(every) and every >= 0):
+        raise SceneError(f"--progress-every must be a number of seconds >= 0 (got {every:g})")
+    if every is None:
+        every = PROGRESS_SECONDS if args.console else 0
+    if args.no_progress or not every or sys.stderr.isatty():
+        return None
+    return ProgressLines(lambda line: print(f"progress    {line}", flush=True), every)
 
 
 def _check_ensemble_options(args, members: int | None) -> None:
@@ -295,6 +313,12 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
     if courant:  # NaN gravity-wave numbers (h a tracer) stay NaN
         print(courant_line({k: max(c[k] for c in courant) for k in courant[0]}, scene.day(first), "nodes and members"))
     print_notes(scene.notes, ens.root)
+    if ens.alike and ens.root:  # a run of N copies: say so before it, not only by a spread of 0 m after it
+        print(
+            f"swe-sphere: warning: the {ens.members} members start alike (the case's state: no --perturbation M > 0, "
+            "--vary or --initial), so they stay alike and their spread is 0 m",
+            file=sys.stderr,
+        )
     print(f"output      {output} (every {scene.output_every_days:g} days)")
     try:
         ens.run(
@@ -305,6 +329,7 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
             history=" ".join(["swe-sphere", *(sys.argv[1:] if args.argv is None else args.argv)]),
             progress=not args.no_progress,
             notify=_note,
+            progress_lines=args.progress_lines,
         )
     except BlowUp as err:  # on every rank alike
         if ens.root:
@@ -398,6 +423,7 @@ def _run(args, scene, output, device, comm) -> int:
             history=" ".join(["swe-sphere", *(sys.argv[1:] if args.argv is None else args.argv)]),
             notify=_note,
             log=lambda line: tqdm.write(f"log         {line}", file=sys.stdout),
+            progress_lines=args.progress_lines,
         )
     except BlowUp as err:  # on every rank alike (the bad node is found over all of them)
         result, blowup = None, f"swe-sphere: {err}; the last good state is in {output}"

@@ -88,13 +88,13 @@ from .paths import list_scenes, resolve_path, scene_dir
 from .resolve import (
     DT_NOTES,
     HYPERVIS_EXPONENT,
-    check_every,
     check_superseded,
     efold_nu,
     resolve_case,
     resolve_dt,
     resolve_ensemble,
     resolve_grid,
+    resolve_every,
     resolve_hyperviscosity,
     resolve_initialization,
     resolve_output_files,
@@ -441,9 +441,9 @@ def load_scene(
     ----------
     path : str or path
         A scene file (TOML) or the name of a bundled scene under ``testcases/``.
-    ne, np_ : int, optional
-        Elements along a cube edge and GLL points per element direction (``np=`` too, as
-        ``swe_sphere.run``, ``Simulation`` and ``Ensemble`` take it). When the grid
+    ne, np_, np : int, optional
+        Elements along a cube edge and GLL points per element direction (``np_``, or ``np`` as
+        ``swe_sphere.run``, ``Simulation`` and ``Ensemble`` take it; not both). When the grid
         is overridden and ``dt`` is not, dt scales with the smallest node spacing
         (first GLL interval / ne) and is shortened to divide the output interval (or
         the run, if shorter; a note warns when that cuts dt by more than 2×); ν scales
@@ -528,7 +528,9 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict, rest
     options, stepper_notes = resolve_stepper_options(stepper, s.get(stepper, {}), overrides)
     control = resolve_control(time, stepper, options, dt)
     hv, hv_notes = resolve_hyperviscosity(s.get("hyperviscosity", {}), terms, grid, spacing)
-    check_every(hv, stepper, controlled)
+    steps = tuple(round(days * DAY / dt) for days in (every, days - start_day_of(s)))
+    k, every_notes = resolve_every(s.get("hyperviscosity", {}), hv, grid, spacing, dt, steps, stepper, controlled)
+    hv = dataclasses.replace(hv, every=k)
     name, description = scene_title(case.name, file_case, path.stem, s.get("description", ""))
     given = [f"{k} = {v!r}" for k, v in overrides.items() if k.startswith("case.") and k[5:] in case.params]
     if given and name == path.stem:  # the file's description is of its own values: the header says what runs
@@ -550,7 +552,7 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict, rest
         hypervis_subcycle=hv.subcycle,
         nu_div=hv.nu_div,
         nu_s=hv.nu_s,
-        notes=case.notes + grid_notes + dt_notes + stepper_notes + cfl_notes(control, stepper) + hv_notes,
+        notes=case.notes + grid_notes + dt_notes + stepper_notes + cfl_notes(control, stepper) + hv_notes + every_notes,
         initialization=initialization,
         reference=case.reference,
         log_every_steps=int(log_every),

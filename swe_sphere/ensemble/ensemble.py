@@ -35,6 +35,7 @@ from ..io.run_file import OUTPUT_FIELDS, RunWriter, area_rms, member_statistics
 from ..model.diagnostics import invariants
 from ..model.shallow_water import ShallowWater
 from ..simulation import checkpoint
+from ..simulation.build import check_memory
 from ..simulation.schedules import at_its_end, check_restart_interval, output_steps, restart_steps
 from ..simulation.writers import restart_path, scene_attrs
 from .initial import Perturbation, Variants, checked_states, described, initial_states
@@ -110,6 +111,8 @@ class Ensemble:
     held : int array, the members this rank steps (all on one rank); root : whether it is rank 0.
     grid : the one ``CubedSphere``; copies : the ``MemberGrid`` of the held members' copies
         (None in turn: nothing steps on them).
+    alike : bool, more than one member and every one of them the same start (no perturbation
+        or one of 0 m, no states, file or variants given): they stay alike, their spread 0.
     layout : "shared" (the held members in the same launches) or "in_turn" (each on a model of
         its own; ``units``' module doc); units : the ``units.Unit`` s that step them (one, or one
         a member); model, stepper : the first unit's ``ShallowWater`` and stepper.
@@ -158,6 +161,8 @@ class Ensemble:
         self.held, self.root = np.array_split(np.arange(members), ranks)[rank], rank == 0
         graphs = graphs_mode(default_mode() if graphs is None else graphs)
         checked_scene(scene)
+        backend = Backend.of(pick_device(device))
+        check_memory(scene, self.comm, backend, members)  # before the grid and the members' states are made
         self.scene, self.members, self.dt = scene, members, scene.dt
         self.case = case = scene.make_case()
         self.grid = grid = CubedSphere(scene.ne, scene.np, case.planet.a, mesh=scene.make_mesh())
@@ -168,9 +173,10 @@ class Ensemble:
         self._variants = None if self.cases is None else {k: np.asarray(v).tolist() for k, v in initial.values.items()}
         starts = initial_states(initial, grid, case, members, self.cases)
         self.initial = described(initial)
+        # every member the same start (the case's, or a perturbation of 0 m): the members stay alike
+        self.alike = members > 1 and (initial is None or isinstance(initial, Perturbation) and initial.amplitude == 0)
         if blow_up not in POLICIES:
             raise ArgumentError(f"blow_up must be one of {', '.join(map(repr, POLICIES))} (got {got(blow_up)})")
-        backend = Backend.of(pick_device(device))
         options = {"device": backend.device, "per_element": per_element, "threads": threads}
         self.blow_up, self._out, self._drops = blow_up, {}, []  # dropped units: {unit index: step}, their lines
         self.layout = members_layout(scene, initial, layout, backend.device, own=blow_up == "drop")
@@ -311,6 +317,7 @@ class Ensemble:
         history: str | None = None,
         progress: bool = False,
         notify=None,
+        progress_lines=None,
     ) -> Path:
         """Advance every member to the scene's last day, writing the run file ``output`` (netCDF)
         at the first step (not a continuation's, the last time of the file it continues) and every
@@ -327,7 +334,9 @@ class Ensemble:
         at the run's end (``advance`` past it); ``SceneError`` for a restart interval that is not whole
         steps; ``compress``: the fields as float32 with zlib; ``progress``: a bar on stderr where it is a
         terminal; ``notify(line)``: told what the run file's cells cost or that they were left out
-        (``RunWriter.cells_notes``). Returns the run file's path."""
+        (``RunWriter.cells_notes``); ``progress_lines``: a ``simulation.progress.ProgressLines`` that
+        writes a line of the run's progress every so many seconds of wall time (rank 0). Returns
+        the run file's path."""
         s = self.scene
         if self.step_count >= s.nsteps:
             raise ArgumentError(at_its_end("Ensemble", self.step_count, s))  # a file of no time
@@ -378,11 +387,15 @@ class Ensemble:
             ):
                 if not self.step_count:  # as a run's: the two files join without a repeated time
                     self._write(writer, member_series, errors)
+                if progress_lines is not None:
+                    progress_lines.start(s.day(self.step_count), s.days)
                 for target in sorted(k for k in outputs | restarts if k > self.step_count):
                     while self.step_count < target:  # a stop asked is answered between blocks
                         block = min(CHECK_EVERY_STEPS, target - self.step_count)
                         self.step(block)
                         bar.update(block)
+                        if progress_lines is not None and self.root:
+                            progress_lines.tick(self.step_count, s.day(self.step_count))
                         if signum := signals.asked():  # the step reached written, as a run's last
                             self._write(writer, member_series)
                             raise self._interrupted(signum, restart, restart_every is not None or overwrite)

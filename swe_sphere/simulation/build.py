@@ -25,13 +25,17 @@ from ..steppers.initialization import digital_filter
 ON_ROOT = object()  # ``start`` on the ranks > 0 when rank 0 alone holds the whole-grid start state
 
 
-def check_memory(scene: Scene, comm, backend: Backend) -> None:
+def check_memory(scene: Scene, comm, backend: Backend, members: int = 1) -> None:
     """Refuse (``runtime.ResourceError``, one line, on every rank) a run whose
     estimated memory exceeds what is available on its device (a GPU's free memory,
     else the host's): the whole run on one process; over MPI ranks, the share of
-    the ranks on each node (each holds its elements)."""
-    need = run_bytes(scene.ne, scene.np, scene.stepper, nelem=scene.nelem)
+    the ranks on each node (each holds its elements, or an ensemble's members). An
+    ensemble of ``members`` holds a run's arrays a member (its copies of the grid, or a
+    model each)."""
+    need = run_bytes(scene.ne, scene.np, scene.stepper, nelem=scene.nelem) * members
     what = f"{scene.grid_text} with {scene.stepper}"
+    if members > 1:
+        what = f"an ensemble of {members} members of {what}"
     if comm is None or comm.size == 1:
         return backend.check_memory(need, what)
     local = node_local_size(comm)

@@ -67,6 +67,13 @@ class StepLoop:
 
     def __init__(self, sim, take_step):
         self.sim, self.take_step = sim, take_step
+        self.lines = None  # a run's ``progress.ProgressLines``, where it was given one
+
+    def watched(self, lines) -> None:
+        """Write the run's progress as ``lines`` (a ``progress.ProgressLines``, or None: none) from now on."""
+        self.lines = lines
+        if lines is not None:
+            lines.start(self.sim.time, self.sim.scene.days)
 
     def progress_bar(self) -> tqdm:
         # disable=None: a bar only on a terminal, not redrawn into a log (or mpiexec's pipe)
@@ -108,6 +115,8 @@ class StepLoop:
             if is_due(activity.schedule, sim):
                 activity(sim)
         bar.update(done)
+        if self.lines is not None and sim.root:
+            self.lines.tick(n, sim.time)
         if n % 50 < done or n == sim.scene.nsteps:  # a multiple of 50 in the steps done
             bar.set_postfix(
                 day=f"{sim.time:.2f}",

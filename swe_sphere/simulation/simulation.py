@@ -459,6 +459,7 @@ class Simulation:
         notify=None,
         log=None,
         until_step: int | None = None,
+        progress_lines=None,
     ) -> RunResult:
         """Integrate the scene from the current step; write ``output`` (netCDF) if given.
 
@@ -494,6 +495,9 @@ class Simulation:
             steps since t = 0 (given on every rank alike, or on none).
         until_step : int, optional
             Stop after this step (default: the scene's last; ``advance``; not under step control).
+        progress_lines : progress.ProgressLines, optional
+            A line of the run's progress every so many seconds of wall time (rank 0), where no
+            bar is drawn (``swe-sphere run`` off a terminal).
 
         Returns
         -------
@@ -521,6 +525,7 @@ class Simulation:
             output, overwrite, restart_every, restart_file, compress, history, on_output, notify
         )
         ledger = Ledger(self.counters, self.scene, self.step, notify if self.root else None)
+        self._loop.watched(progress_lines)
         stop, signals = self._integrate(files, ckp, start, ledger, log, catch_signals, until_step)
         if stop.signum is None and stop.blowup is None:  # a signal after the last step's check: the output is whole
             stop.signum = signals.asked() or None

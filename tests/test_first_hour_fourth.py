@@ -202,3 +202,30 @@ def test_a_bad_progress_interval_is_refused(capsys, value):
     code, out, err = cli_main(capsys, *RUN, "--progress-every", value, "--output", "p.nc")
     one_line(code, err, 2, "--progress-every must be a number of seconds >= 0", value)
     assert out == "" and list(Path().iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    "options, words",
+    [
+        (
+            ["--ne", "4", "--refine-box", "10", "50", "0", "40", "--levels", "20"],
+            [
+                "--levels 20 on --ne 4: 4194304 x 4194304 finest cells a face",
+                "about 1.05e+06 GiB",
+                "1 GiB is available",
+            ],
+        ),
+        (["--ne", "100000"], ["--ne 100000: a cube of 6e+10 elements", "about 5.59e+05 GiB"]),
+    ],
+)
+def test_a_mesh_too_large_to_make_is_refused_before_its_arrays(capsys, monkeypatch, options, words):
+    """`mesh --ne 4 --refine-box 10 50 0 40 --levels 20` and `mesh --ne 100000` ended in numpy's
+    out-of-memory text (exit 3), not a line naming the option."""
+    import swe_sphere.core.runtime as runtime
+    import swe_sphere.grid.refine as refine
+
+    monkeypatch.setattr(runtime, "available_memory", lambda: 2**30)
+    monkeypatch.setattr(refine, "make_mesh", _not_built)
+    code, out, err = cli_main(capsys, "mesh", *options, "--output", "m.g")
+    one_line(code, err, 2, *words)
+    assert out == "" and list(Path().iterdir()) == []

@@ -513,33 +513,72 @@ def resolve_hyperviscosity(
             f"tensor hyperviscosity: nu (dx / {2 * d_ref / (grid.np - 1) / 1e3:.4g} km)^{scaling:g} along each element "
             f"direction (HOMME's hypervis_scaling = {scaling:g}, nu = {nus['nu'] / (a**4 * (d_ref / a) ** scaling):.3g})"
         )
-    subcycle, every = table.get("subcycle", 1), table.get("every", 1)
-    for key, value in (("subcycle", subcycle), ("every", every)):
-        if value < 1:
-            raise SceneError(f"hyperviscosity.{key} must be >= 1 (got {value})")
+    subcycle = table.get("subcycle", 1)
+    if subcycle < 1:
+        raise SceneError(f"hyperviscosity.subcycle must be >= 1 (got {subcycle})")
+    every = table.get("every", 1)
+    if every != "auto" and (isinstance(every, str) or every < 1):
+        raise SceneError(f"hyperviscosity.every must be an integer >= 1 or 'auto' (got {got(every)})")
     scaling = None if scaling is None or "hyperviscosity" not in terms else float(scaling)
     hv = SceneHyperviscosity(
-        float(nus["nu"]), float(nus["nu_div"]), float(nus["nu_s"]), int(subcycle), scaling, int(every)
+        float(nus["nu"]),
+        float(nus["nu_div"]),
+        float(nus["nu_s"]),
+        int(subcycle),
+        scaling,
+        1 if every == "auto" else every,
     )
     return hv, tuple(notes)
 
 
-def check_every(hv: SceneHyperviscosity, stepper: str, controlled: bool) -> None:
-    """Whether the ∇⁴ every k = ``hv.every`` > 1 steps suits the run: a fixed Δt (kΔt is a span
-    of steps of one Δt) and a stepper whose ∇⁴ is one application over its step
-    (``Stepper.sparse_hyperviscosity``). Raises ``SceneError`` naming the key."""
-    if hv.every == 1:
-        return
-    if controlled:
+# ``every = "auto"``: the ∇⁴'s span kΔt at most this fraction of the e-folding time τ of the grid's
+# Nyquist degree (``efold_nu``). Measured (docs/efficiency.md, "A step's cost"; eq. 83 against T341):
+# galewsky ne12 np8 kgu35 (τ 3 h) day-6 vorticity +0.26 % at τ/11, +0.8 % at τ/5.7, +2.9 % at τ/2.9;
+# TC5 ne30 np4 rk4 (τ 3 h) day-15 h + hs +0.0 % at τ/12.8, +0.1 % at τ/6.4
+EVERY_SPAN = 1 / 6
+
+
+def resolve_every(
+    table: dict,
+    hv: SceneHyperviscosity,
+    grid: SceneGrid,
+    spacing: Spacing,
+    dt: float,
+    steps: tuple,
+    stepper: str,
+    controlled: bool,
+) -> tuple[int, tuple]:
+    """(k, notes): the steps between ∇⁴ applications of [hyperviscosity] ``every`` on the run's
+    grid and Δt (s). An integer is k as given; "auto" the largest k whose span kΔt is at most
+    ``EVERY_SPAN`` of τ, the e-folding time (``efold_nu``'s rule solved for τ) of the grid's
+    Nyquist degree under the largest of ν, ν_div, ν_s, preferring the largest k ≥ half that which
+    divides ``steps`` (the steps of an output interval, then of the whole run: the ∇⁴ then done at
+    those times), and 1 where k > 1 does not fit (a controlled Δt, a three-level scheme, no ∇⁴).
+    Raises ``SceneError`` naming the key: an integer k > 1 under a controlled Δt or with a stepper
+    whose ∇⁴ acts on a three-level scheme's new level (``Stepper.sparse_hyperviscosity``)."""
+    every = table.get("every", 1)
+    nu = max(hv.nu, hv.nu_div, hv.nu_s)
+    if every == "auto":
+        if controlled or not STEPPERS[stepper].sparse_hyperviscosity or nu == 0:
+            return 1, ()
+        tau = efold_nu(1.0, grid.record.mean_ne, grid.np, spacing.radii[0]) / nu * 3600.0  # s
+        most = max(1, math.floor(EVERY_SPAN * tau / dt * (1 + 1e-9)))
+        fits = [k for n in steps for k in range(most, (most + 1) // 2 - 1, -1) if n % k == 0]
+        k = fits[0] if fits else most
+        return k, (
+            f"hyperviscosity every {k} steps ({k * dt / 60:.3g} min; the grid scale's e-folding {tau / 3600:.3g} h)",
+        )
+    if every > 1 and controlled:
         raise SceneError(
-            f"hyperviscosity.every = {hv.every} needs a fixed dt (time.control is not 'fixed'): the ∇⁴ "
+            f"hyperviscosity.every = {every} needs a fixed dt (time.control is not 'fixed'): the ∇⁴ "
             "covers every steps of one dt"
         )
-    if not STEPPERS[stepper].sparse_hyperviscosity:
+    if every > 1 and not STEPPERS[stepper].sparse_hyperviscosity:
         raise SceneError(
-            f"hyperviscosity.every = {hv.every}: {stepper} applies its ∇⁴ to a three-level scheme's "
+            f"hyperviscosity.every = {every}: {stepper} applies its ∇⁴ to a three-level scheme's "
             "new level (1 only; a one-step method takes every > 1)"
         )
+    return every, ()
 
 
 def scene_title(case_name: str, file_case: str | None, stem: str, description: str) -> tuple[str, str]:

@@ -78,7 +78,7 @@ from ..cases.library import make_case
 from ..cases.reference import reference_path
 from ..core.arguments import instance_argument, mapping_argument
 from ..core.clock import Clock
-from ..core.constants import EARTH, Planet
+from ..core.constants import DAY, EARTH, Planet
 from ..core.errors import SceneError
 from ..io.initial_state import SCENE_CASES
 from ..mesh.records import MeshRecord, from_json, with_ne
@@ -93,8 +93,8 @@ from .resolve import (
     resolve_case,
     resolve_dt,
     resolve_ensemble,
-    resolve_grid,
     resolve_every,
+    resolve_grid,
     resolve_hyperviscosity,
     resolve_initialization,
     resolve_output_files,
@@ -528,7 +528,7 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict, rest
     options, stepper_notes = resolve_stepper_options(stepper, s.get(stepper, {}), overrides)
     control = resolve_control(time, stepper, options, dt)
     hv, hv_notes = resolve_hyperviscosity(s.get("hyperviscosity", {}), terms, grid, spacing)
-    steps = tuple(round(days * DAY / dt) for days in (every, days - start_day_of(s)))
+    steps = (round(every * DAY / dt), round(days * DAY / dt))  # an output interval's and the run's
     k, every_notes = resolve_every(s.get("hyperviscosity", {}), hv, grid, spacing, dt, steps, stepper, controlled)
     hv = dataclasses.replace(hv, every=k)
     name, description = scene_title(case.name, file_case, path.stem, s.get("description", ""))

@@ -89,7 +89,8 @@ def test_a_continued_run_is_bitwise_the_uninterrupted_one(tmp_path):
 @pytest.mark.parametrize(
     "overrides, words",
     [
-        ({"hyperviscosity.every": 0}, ("hyperviscosity.every", ">= 1", "got 0")),
+        ({"hyperviscosity.every": 0}, ("hyperviscosity.every", ">= 1 or 'auto'", "got 0")),
+        ({"hyperviscosity.every": "often"}, ("hyperviscosity.every", ">= 1 or 'auto'", "often")),
         ({"hyperviscosity.every": 2, "time.stepper": "leapfrog"}, ("hyperviscosity.every = 2", "leapfrog")),
         ({"hyperviscosity.every": 2, "time.control": "error"}, ("hyperviscosity.every = 2", "fixed dt")),
     ],
@@ -100,6 +101,27 @@ def test_a_misfit_every_is_one_line(overrides, words):
     with pytest.raises(SceneError) as err:
         load_scene("tc5_mountain", ne=2, stepper=stepper, overrides=overrides)
     assert all(w in str(err.value) for w in words), str(err.value)
+
+
+@pytest.mark.parametrize(
+    "scene, grid, tau, every",
+    [
+        ("tc5_mountain", {}, 3, 8),  # τ 3 h: at most 30 min, 8.5 steps; 8 divides a day's 408
+        ("tc6_rossby_haurwitz", {}, 6, 12),  # τ 6 h: 60 min, 12 steps of 300 s, dividing 288
+        ("galewsky", {}, 3, 8),  # 11 steps; none of 6..11 divides 548, 8 the 6 days' 3288
+        ("tc5_mountain", {"ne": 60}, 3, 17),  # 17 steps of 105.9 s, 17 divides 816
+        ("galewsky", {"stepper": "leapfrog"}, 3, 1),  # a three-level scheme: every step
+        ("galewsky", {"stepper": "dp54", "overrides": {"time.control": "error"}}, 3, 1),  # a controlled Δt
+    ],
+)
+def test_auto_takes_the_most_steps_within_a_sixth_of_the_grid_scale_e_folding(scene, grid, tau, every):
+    """``every = "auto"``: the largest k with kΔt ≤ τ/6 (τ the e-folding time at the grid's
+    Nyquist degree), k ≥ half that dividing an output interval's or the run's steps if one does."""
+    overrides = {"hyperviscosity.every": "auto", **grid.pop("overrides", {})}
+    s = load_scene(scene, overrides=overrides, **grid)
+    assert s.hypervis_every == every
+    assert every * s.dt <= tau * 3600 / 6 * (1 + 1e-9)  # the scene's efold_hours
+    assert any(f"every {every} steps" in n for n in s.notes) == (every > 1)
 
 
 def test_the_command_line_refuses_a_misfit_every(capsys, tmp_path):

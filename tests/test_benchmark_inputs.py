@@ -20,6 +20,7 @@ BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
         ("step_cost.py", ["--ne", "-3"], "step_cost.py: error: ne must be an integer >= 1 (got -3)"),
         ("gradient_cost.py", ["--ne", "2", "--steps", "-2"], "gradient_cost.py: error: --steps must be >= 1"),
         ("ensemble_cost.py", ["--steps", "0"], "ensemble_cost.py: error: argument --steps: must be > 0 (got 0)"),
+        ("kernel_roofline.py", ["--rounds", "0"], "kernel_roofline.py: error: argument --rounds: must be > 0 (got 0)"),
         (
             "hyperviscosity_every.py",
             ["--scene", "tc2_steady", "--ne", "2"],

@@ -229,3 +229,65 @@ def test_a_mesh_too_large_to_make_is_refused_before_its_arrays(capsys, monkeypat
     code, out, err = cli_main(capsys, "mesh", *options, "--output", "m.g")
     one_line(code, err, 2, *words)
     assert out == "" and list(Path().iterdir()) == []
+
+
+ENSEMBLE = (*RUN, "--members", "2", "--perturbation", "1")
+
+
+@pytest.mark.parametrize(
+    "options, words",
+    [
+        (
+            ["--perturbation-degrees", "20,1"],
+            ["--perturbation-degrees 20,1", "1 <= L_MIN <= L_MAX"],
+        ),  # was "(20, 1), a tuple"
+        (  # was accepted at ne 4, its noise aliased onto the 24 degrees the grid holds
+            ["--ne", "4", "--perturbation-degrees", "1,2000"],
+            ["--perturbation-degrees 1,2000", "ne=4 np=4 grid resolves degrees up to about 24"],
+        ),
+    ],
+)
+def test_a_perturbation_band_is_checked_against_the_grid(capsys, options, words):
+    code, out, err = cli_main(capsys, *ENSEMBLE, *options, "--output", "e.nc")
+    one_line(code, err, 2, *words)
+    assert out == "" and list(Path().iterdir()) == []
+
+
+def test_a_continuation_whose_restart_file_would_be_its_input_names_output(capsys):
+    """`--continue x.restart.nc --output x.nc` named the derived restart file as the clash."""
+    assert cli_main(capsys, *RUN, "--days", "0.05", "--restart-every", "0.05", "--output", "x.nc")[0] == 0
+    before = sorted(p.name for p in Path().iterdir())
+    code, out, err = cli_main(capsys, "run", "--continue", "x.restart.nc", "--output", "x.nc", "--days", "0.1")
+    one_line(code, err, 2, "--output x.nc: its restart file would be x.restart.nc, the file --continue reads")
+    assert sorted(p.name for p in Path().iterdir()) == before
+
+
+def test_a_name_too_long_is_bad_input(capsys):
+    """A 300-character output name exited 3 (an OSError), not 2."""
+    code, out, err = cli_main(capsys, *RUN, "--output", "a" * 300 + ".nc")
+    one_line(code, err, 2, "File name too long")
+    assert list(Path().iterdir()) == []
+
+
+def test_debug_keeps_bad_inputs_exit_status(capsys):
+    """`--debug` turned a bad input's exit 2 into 1 (the traceback raised out of main)."""
+    code, _, err = cli_main(capsys, "--debug", *RUN, "--ne", "-1")
+    assert code == 2 and "Traceback" in err and "SceneError: ne must be an integer >= 1 (got -1)" in err
+    assert err.rstrip().endswith("swe-sphere: error: ne must be an integer >= 1 (got -1)")
+
+
+def test_an_ensemble_says_its_restart_file_and_its_references_days(capsys):
+    """An ensemble with --restart-every printed no restart line; its reference line said "(9 errors)"."""
+    args = ("run", "tc5_mountain", "--ne", "2", "--days", "0.1", "--device", "cpu", "--members", "2")
+    code, out, _ = cli_main(capsys, *args, "--perturbation", "1", "--restart-every", "0.05", "--output", "e.nc")
+    assert code == 0 and "restart     e.restart.nc (every 0.05 days and at the end)" in out.splitlines()
+    assert "  reference             none at day 0.1: T213 stores days 0, 1, 2, 5, 10, 15" in out.splitlines()
+    assert "errors)" not in out
+
+
+@pytest.mark.parametrize("flag", ["--dt", "--days"])
+def test_an_infinite_step_or_length_is_named_as_not_finite(capsys, flag):
+    """`--dt inf` said "dt must be > 0 (got inf)"."""
+    code, out, err = cli_main(capsys, *RUN, flag, "inf", "--output", "x.nc")
+    one_line(code, err, 2, f"argument {flag}: must be a finite number > 0 (got inf)")
+    assert out == "" and list(Path().iterdir()) == []

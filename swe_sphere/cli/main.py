@@ -7,6 +7,7 @@ import errno
 import os
 import sys
 import time
+import traceback
 
 from ..core.errors import BlowUp, Interrupted, ResourceError, StepFailure
 from . import frontier, mesh, plot, remap, run, stability, sweep
@@ -63,8 +64,8 @@ def classify(err: BaseException) -> tuple[int, str]:
     if isinstance(err, MemoryError):
         return EXIT_BLOWUP, "out of memory" + (f" ({err})" if str(err) else "")
     if isinstance(err, (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError)) or (
-        isinstance(err, OSError) and err.errno == errno.EROFS  # a folder to make on a read-only file system
-    ):
+        isinstance(err, OSError) and err.errno in (errno.EROFS, errno.ENAMETOOLONG)
+    ):  # a folder to make on a read-only file system, a name longer than the file system takes
         return EXIT_BAD_INPUT, f"{err.filename}: {err.strerror}" if err.filename else str(err)
     if isinstance(err, OSError):
         return EXIT_BLOWUP, f"{err.filename + ': ' if err.filename else ''}{err.strerror or err}"
@@ -92,7 +93,9 @@ def main(argv=None) -> int:
         code = command(args)
     except (Exception, KeyboardInterrupt) as err:
         if debug:
-            raise
+            if classify(err)[0] != EXIT_BAD_INPUT:
+                raise
+            traceback.print_exc()  # the traceback asked for, and bad input's own exit status below
         if console:
             hold_signals()  # a second Ctrl-C does not break the report
         code = _report(err, args)

@@ -4,6 +4,7 @@ parsers for what several share (``--debug``; the scene flags; ``--overwrite``)."
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from .exits import EXIT_BAD_INPUT
@@ -46,6 +47,18 @@ def path(text: str) -> Path:
     return Path(text)
 
 
+def positive(text: str) -> float:
+    """A number argument that must be finite and > 0 (a step, a length): argparse's one line
+    names the option ("dt must be > 0 (got inf)" read as if inf were not > 0)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0 (got {text})")
+    return value
+
+
 def _scene_flags() -> argparse.ArgumentParser:
     """The flags that change the scene, shared by run, sweep and stability (a parent
     parser: its actions are shared, so none of its defaults may be set per command)."""
@@ -56,7 +69,7 @@ def _scene_flags() -> argparse.ArgumentParser:
         help=f"elements along a cube edge (stability: of the cases that do not fix their grid, default {STABILITY_NE})",
     )
     s.add_argument("--np", type=int, help="GLL points per element direction (2..8; default: the scene's)")
-    s.add_argument("--days", type=float, help="run length in days (default: the scene's)")
+    s.add_argument("--days", type=positive, help="run length in days (default: the scene's)")
     s.add_argument(
         "-s",
         "--set",
@@ -150,7 +163,7 @@ def _run(sub, parents) -> None:
         metavar="FILE.g",
         help="run on this Exodus II mesh (HOMME's mesh_file, ne = 0) instead of the scene's grid",
     )
-    r.add_argument("--dt", type=float, help="time step in seconds")
+    r.add_argument("--dt", type=positive, help="time step in seconds")
     r.add_argument("--stepper", help="time stepper (see `swe-sphere list`)")
     r.add_argument(
         "--output",

@@ -158,6 +158,8 @@ def command(args) -> int:
         if members is None and scene.ensemble is not None:  # the scene's [ensemble]
             members = scene.ensemble["members"]
         _check_ensemble_options(args, members)
+        if members is not None and args.perturbation_degrees is not None:
+            degree_band(args.perturbation_degrees, scene)  # before anything is written
         output = args.output or default_output(scene, members)
     else:
         _check_ensemble_options(args, members)
@@ -180,6 +182,11 @@ def command(args) -> int:
         if scene is not None:  # a continuation's: in _run
             check_restart_interval(scene, args.restart_every)
     initial = scene.case_params.get("path") if scene is not None else None  # a file case's initial state: an input too
+    if args.continue_from is not None and restart_path(output).resolve() == args.continue_from.resolve():
+        raise OutputError(
+            f"--output {output}: its restart file would be {restart_path(output)}, the file --continue reads "
+            "(give another --output, or none: <stem>_continued.nc)"
+        )
     check_distinct(
         [output, restart_path(output)],
         [args.continue_from, args.scene and resolve_path(str(args.scene)), initial, args.initial],
@@ -271,6 +278,7 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
     from ..ensemble import Ensemble, MemberFile, Perturbation, Variants
     from ..ensemble.ensemble import POLICIES
     from ..model.diagnostics import courant_numbers
+    from ..simulation.writers import restart_path
     from .report import courant_line, print_notes, terms_line
 
     t0 = time.perf_counter()
@@ -281,7 +289,7 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
         initial = None if args.initial is None else MemberFile(args.initial)
         if args.vary is not None:
             initial = Variants(varied(args.vary))
-        degrees = None if args.perturbation_degrees is None else degree_band(args.perturbation_degrees)
+        degrees = None if args.perturbation_degrees is None else degree_band(args.perturbation_degrees, scene)
         if args.perturbation or args.seed is not None or degrees is not None:
             initial = Perturbation(0.0 if args.perturbation is None else args.perturbation, args.seed or 0, degrees)
         # members None: the scene's [ensemble] members (and, without a start given, its perturbation)
@@ -320,6 +328,8 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
             file=sys.stderr,
         )
     print(f"output      {output} (every {scene.output_every_days:g} days)")
+    if args.restart_every is not None:  # as a run's header says it
+        print(f"restart     {restart_path(output)} (every {args.restart_every:g} days and at the end)")
     try:
         ens.run(
             output,
@@ -357,13 +367,22 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
         if key not in unscored:
             print(f"  {key:<21} {min(values):.3e} to {max(values):.3e} over the members (the run file's, by member)")
     if unscored:  # a reference's errors at a day it does not store
-        print(
-            f"  {'reference':<21} none at day {scene.days:g}: its reference stores other days ({len(unscored)} errors)"
-        )
+        print(f"  {'reference':<21} {_unscored(scene)}")
     spread = ens.h_spread_rms()
     print(f"  h spread    {spread:.4g} m (area-weighted RMS of the members' standard deviation at day {scene.days:g})")
     print(f"  output      {output}")
     return 0
+
+
+def _unscored(scene) -> str:
+    """An ensemble summary's words for a last day its reference does not store, as a run's say it."""
+    if scene.reference_file is None:
+        return f"none at day {scene.days:g}"
+    from ..cases.reference import stored_days
+
+    name = scene.reference_file.stem.rsplit("_", 1)[-1]  # the truncation ("T213")
+    days = ", ".join(f"{day:g}" for day in stored_days(scene.reference_file))
+    return f"none at day {scene.days:g}: {name} stores days {days}"
 
 
 def _note(line: str) -> None:

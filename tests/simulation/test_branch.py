@@ -187,7 +187,7 @@ def test_bad_branches_are_one_line_exit_2_and_write_nothing(spun_up, tmp_path, c
         2,
         "run length of 1 days is not a whole number of steps of dt = 7000 s",
     )
-    cli_one_line(capsys, [*cont, "--dt", "-5", "--days", "2"], 2, "dt must be > 0 (got -5)")
+    cli_one_line(capsys, [*cont, "--dt", "-5", "--days", "2"], 2, "--dt: must be a finite number > 0 (got -5)")
     cli_one_line(capsys, [*cont, "--stepper", "euler", "--days", "2"], 2, "unknown stepper 'euler'")
     cli_one_line(
         capsys,

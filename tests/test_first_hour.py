@@ -269,6 +269,9 @@ README_OUTPUTS = (  # what the README's commands write in a clone's top folder
     "figs/tc5_vorticity_day5.png",
     "tc5_series.png",
     "tc5_spectrum_day0_5.csv",
+    "galewsky.nc",
+    "docs/galewsky_series.png",
+    "galewsky_6h_vorticity_lat0to90.gif",
 )
 
 
@@ -285,6 +288,7 @@ def test_what_the_readme_writes_in_a_clone_is_ignored_by_git():
         "testcases/tc5_mountain.toml",
         "testcases/reference/tc5_mountain_T213.nc",
         "docs/efficiency/tc5_ne30_temporal_error.png",
+        "docs/galewsky_vorticity_day6_lat0to90.png",  # the README's picture
     ]
     assert (
         subprocess.run(["git", "-C", str(root), "check-ignore", "--no-index", *kept], capture_output=True).returncode

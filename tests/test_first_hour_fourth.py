@@ -7,6 +7,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from swe_sphere.config.scene import load_scene
@@ -142,7 +143,7 @@ def slow_clock(monkeypatch):
     import swe_sphere.simulation.progress as progress
 
     ticks = itertools.count(0.0, 100.0)
-    monkeypatch.setattr(progress, "_clock", lambda: next(ticks))
+    monkeypatch.setattr(progress, "clock", lambda: next(ticks))
 
 
 def _span(readings: int) -> str:
@@ -185,7 +186,7 @@ def test_a_progress_line_estimates_the_time_left(monkeypatch):
     import swe_sphere.simulation.progress as progress
 
     now, lines = [100.0], []
-    monkeypatch.setattr(progress, "_clock", lambda: now[0])
+    monkeypatch.setattr(progress, "clock", lambda: now[0])
     ticker = progress.ProgressLines(lines.append, 30)
     ticker.start(1.0, 11.0)  # a continued run, from day 1 to day 11
     for t, step, day in ((120.0, 5, 1.5), (140.0, 10, 3.0), (150.0, 12, 3.4), (4000.0, 99, 10.0)):
@@ -291,3 +292,80 @@ def test_an_infinite_step_or_length_is_named_as_not_finite(capsys, flag):
     code, out, err = cli_main(capsys, *RUN, flag, "inf", "--output", "x.nc")
     one_line(code, err, 2, f"argument {flag}: must be a finite number > 0 (got inf)")
     assert out == "" and list(Path().iterdir()) == []
+
+
+@pytest.fixture
+def three_times(capsys):
+    """A run file of TC2 at ne 2 with output times 0, 0.125 and 0.25 days."""
+    assert cli_main(capsys, *RUN, *QUARTER, "--output", "r.nc")[0] == 0
+    return Path("r.nc")
+
+
+def test_plot_animate_writes_a_gif_of_every_output_time(capsys, three_times):
+    """`plot` made still maps only: a user who ran galewsky could not watch the jet roll up."""
+    from PIL import Image
+
+    code, out, err = cli_main(capsys, "plot", three_times, "--animate", "--field", "vorticity", "--output", "anim")
+    assert code == 0, err
+    assert out.splitlines() == ["anim/r_vorticity.gif"]
+    with Image.open("anim/r_vorticity.gif") as gif:
+        assert gif.size == (800, 400) and gif.n_frames == 3 and gif.info["duration"] == 250  # 4 frames a second
+        frames = []
+        for k in range(3):
+            gif.seek(k)
+            frames.append(np.asarray(gif.convert("RGB")))
+    assert not np.array_equal(frames[0], frames[2])  # the title's day at least
+    # again: refused without --overwrite, nothing replaced; two days of three at 400 px wide with it
+    before = Path("anim/r_vorticity.gif").read_bytes()
+    code, _, err = cli_main(capsys, "plot", three_times, "--animate", "--field", "vorticity", "--output", "anim")
+    one_line(code, err, 2, "exists")
+    assert Path("anim/r_vorticity.gif").read_bytes() == before
+    args = ("plot", three_times, "--animate", "gif", "--field", "vorticity", "--day", "0", "0.25", "--width", "400")
+    assert cli_main(capsys, *args, "--output", "anim", "--overwrite")[0] == 0
+    with Image.open("anim/r_vorticity.gif") as gif:
+        assert gif.size == (400, 200) and gif.n_frames == 2
+
+
+@pytest.mark.parametrize(
+    "options, words",
+    [
+        (["--animate", "--field", "h", "u"], ["--animate draws one --field (got h u)"]),
+        (["--animate", "--diff", "T213"], ["--diff: not with --animate"]),
+        (["--animate", "--spectrum"], ["--spectrum: not with --animate"]),
+        (["--animate", "--day", "0.25"], ["an animation needs two output times or more (got 1)"]),
+        (["--animate", "--day", "0", "0.3"], ["day 0.3 not in"]),
+        (["--width", "10"], ["--width must be a whole number of pixels in 400..4000 (got 10)"]),
+    ],
+)
+def test_plot_animate_refuses_in_one_line(capsys, three_times, options, words):
+    code, out, err = cli_main(capsys, "plot", three_times, *options, "--output", "anim")
+    one_line(code, err, 2, *words)
+    assert not Path("anim").exists()
+
+
+def test_an_mp4_needs_ffmpeg(capsys, three_times, monkeypatch):
+    import shutil
+
+    monkeypatch.setattr(shutil, "which", lambda name: None)
+    code, out, err = cli_main(capsys, "plot", three_times, "--animate", "mp4", "--output", "anim")
+    one_line(code, err, 2, "--animate mp4: ffmpeg is not on PATH")
+    assert not Path("anim").exists()
+
+
+def test_plot_width_sizes_a_map(capsys, three_times):
+    from PIL import Image
+
+    code, out, err = cli_main(capsys, "plot", three_times, "--field", "vorticity", "--width", "720", "--output", "f")
+    assert code == 0, err
+    with Image.open(out.splitlines()[0]) as png:
+        assert png.size == (720, 360)
+
+
+def test_the_readmes_picture_is_small_and_named_by_its_command():
+    """The README opens with Galewsky's day-6 vorticity, made by the command it gives, under 200 kB."""
+    repo = Path(__file__).resolve().parents[1]
+    readme = (repo / "README.md").read_text()
+    picture = repo / "docs" / "galewsky_vorticity_day6_lat0to90.png"
+    assert readme.index("![") < readme.index("## What it is")
+    assert f"]({picture.relative_to(repo)})" in readme and picture.stat().st_size < 200_000
+    assert "swe-sphere plot galewsky.nc --field vorticity --day 6 --lat-range 0 90 --width 720 --output docs" in readme

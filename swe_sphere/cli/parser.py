@@ -269,6 +269,20 @@ def _plot(sub, parents) -> None:
         help="instead of maps: the kinetic-energy spectrum by spherical-harmonic degree (rotational, divergent, total; PNG and CSV)",
     )
     pl.add_argument(
+        "--animate",
+        nargs="?",
+        const="gif",
+        choices=("gif", "mp4"),
+        help="instead of maps: one --field over the run's output times (or the --day list) as a GIF "
+        "(matplotlib's PillowWriter), or an MP4 where ffmpeg is on PATH; one colour scale over every frame",
+    )
+    pl.add_argument(
+        "--width",
+        type=int,
+        metavar="PIXELS",
+        help="a map's width in pixels, its height half (400..4000; default 1200, --animate's 800)",
+    )
+    pl.add_argument(
         "--zonal-mean",
         action="store_true",
         help="instead of maps: the zonal mean of each --field against latitude (PNG)",

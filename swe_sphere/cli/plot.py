@@ -22,10 +22,23 @@ def _check_folder(folder: Path) -> None:
 
 
 def command(args) -> int:
-    from ..studies.plotting import plot_analyses, plot_run
+    from ..studies.plotting import animate_run, check_format, figure_size, plot_analyses, plot_run
 
     fields = args.field or ["h_surface"]
-    if args.spectrum or args.zonal_mean:
+    if args.width is not None:
+        if args.spectrum or args.zonal_mean:
+            raise ValueError(f"--width sizes maps: not with --{'spectrum' if args.spectrum else 'zonal-mean'}")
+        figure_size(args.width)
+    if args.animate is not None:
+        given = [
+            f for f, v in (("--diff", args.diff), ("--spectrum", args.spectrum), ("--zonal-mean", args.zonal_mean)) if v
+        ]
+        if given or args.force:
+            raise ValueError(f"{' and '.join(given or ['--force'])}: not with --animate (a field's maps over time)")
+        if len(fields) > 1:
+            raise ValueError(f"--animate draws one --field (got {' '.join(fields)})")
+        check_format(args.animate)
+    elif args.spectrum or args.zonal_mean:
         if args.diff is not None or args.force:
             raise ValueError("--diff and --force compare maps: not with --spectrum or --zonal-mean")
         if not args.zonal_mean and (args.field or args.lat_range):
@@ -33,7 +46,14 @@ def command(args) -> int:
                 f"--{'field' if args.field else 'lat-range'} applies to maps and --zonal-mean, not --spectrum"
             )
     _check_folder(args.output)  # after the options' own refusals
-    if args.spectrum or args.zonal_mean:
+    view = {"overwrite": args.overwrite, "member": args.member}
+    if args.animate is not None:
+        paths = [
+            animate_run(
+                args.run, fields[0], args.day, args.output, args.lat_range, fmt=args.animate, width=args.width, **view
+            )
+        ]
+    elif args.spectrum or args.zonal_mean:
         paths = plot_analyses(
             args.run,
             args.day,
@@ -41,8 +61,7 @@ def command(args) -> int:
             spectrum=args.spectrum,
             zonal_fields=fields if args.zonal_mean else (),
             lat_range=args.lat_range,
-            overwrite=args.overwrite,
-            member=args.member,
+            **view,
         )
     else:
         paths = plot_run(
@@ -53,8 +72,8 @@ def command(args) -> int:
             args.output,
             args.lat_range,
             force=args.force,
-            overwrite=args.overwrite,
-            member=args.member,
+            width=args.width,
+            **view,
         )
     for path in paths:
         print(path)

@@ -11,7 +11,7 @@ from collections.abc import Callable
 PROGRESS_SECONDS = 30.0  # the console script's interval off a terminal (``run --progress-every``)
 
 
-def _clock() -> float:
+def clock() -> float:
     """Seconds of wall time (monotonic); a test replaces it."""
     return time.monotonic()
 
@@ -30,10 +30,10 @@ class ProgressLines:
 
     def start(self, day: float, end_day: float) -> None:
         self.day0, self.end = day, end_day
-        self.t0 = self.last = _clock()
+        self.t0 = self.last = clock()
 
     def tick(self, step: int, day: float) -> None:
-        now = _clock()
+        now = clock()
         if now - self.last < self.every:
             return
         self.last = now

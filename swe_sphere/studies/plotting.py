@@ -4,7 +4,8 @@ spectral-element solution itself, each element's GLL polynomial evaluated
 (``remap.Remapper``) at the centres of a regular lat-lon grid finer than the GLL spacing and
 shown cell by cell on a plain longitude-latitude projection (no gaps, no seams at the cube
 edges, the date line or the poles), through matplotlib's Agg canvas (``figures``: no pyplot,
-headless); ``open_run`` and ``open_reference`` give a run's fields at its nodes, and the line
+headless); a field over the output times as a GIF or MP4 (``animate_run``, matplotlib's own
+writers); ``open_run`` and ``open_reference`` give a run's fields at its nodes, and the line
 plots (``line_plot``, ``sweep_plot``, ``label_log_axis``) are ``figures``'s, importable here."""
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from __future__ import annotations
 import functools
 import json
 import math
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -34,9 +36,10 @@ from .analysis import (
     field_at_nodes,
     kinetic_energy_spectrum,
     run_name,
+    time_index,
     zonal_mean,
 )
-from .figures import draw_lines, new_figure, png_bytes, save_png
+from .figures import DPI, draw_lines, new_figure, png_bytes, save_png
 
 # importable from here as before the line plots had a module of their own
 from .figures import error_label as error_label
@@ -47,6 +50,7 @@ from .figures import sweep_plot as sweep_plot
 INVARIANTS = ("mass_change", "total_energy_change", "potential_enstrophy_change")
 FIGSIZE = (12.0, 6.0)  # map: 1200 × 600 pixels
 SERIES_FIGSIZE = (12.0, 5.0)  # 1200 × 500 pixels
+MAP_WIDTHS = (400, 4000)  # pixels: a map's width may be chosen in this range (``figure_size``)
 
 
 # -- reading -----------------------------------------------------------------
@@ -192,13 +196,15 @@ def draw_map(fig, ax, lon_edges, lat_edges, values, *, cmap, symmetric, label, c
     ax.set_xlabel("longitude (°E)")
     ax.set_ylabel("latitude (°N)")
     cbar = fig.colorbar(mesh, ax=ax, shrink=0.85, pad=0.02)
-    cbar.set_label(label)
+    cbar.set_label(
+        label, **({"fontsize": 8} if fig.get_figheight() < 5 else {})
+    )  # a small map: the label fits its height
     return mesh
 
 
-def plot_map(ds, field: str, day: float, path=None, diff=None, lat_range=None) -> dict:
+def plot_map(ds, field: str, day: float, path=None, diff=None, lat_range=None, width: int | None = None) -> dict:
     """Draw ``field`` of the run ``ds`` (from :func:`open_run`) at ``day`` (model days, an
-    output time), and write it to the PNG ``path`` (1200 × 600 pixels) unless None. ``diff``: a source from :func:`open_reference`; then the map is
+    output time), and write it to the PNG ``path`` (1200 × 600 pixels, or ``width`` × ``width``/2) unless None. ``diff``: a source from :func:`open_reference`; then the map is
     run − reference with a symmetric colour map, and the title carries the normalized
     l2 of the difference over the run's nodes (area-weighted). ``lat_range`` (south, north)
     in degrees draws only that band (e.g. (0, 90) for Galewsky et al. 2004, Fig. 4).
@@ -246,7 +252,7 @@ def plot_map(ds, field: str, day: float, path=None, diff=None, lat_range=None) -
         title = f"{long_name}: {scene} − {diff.label}, day {day:g}; normalized l2 = {l2:.3e}"
         draw_symmetric, draw_cmap, label = True, "RdBu_r", f"Δ {field} ({units})"
     info["min"], info["max"] = float(np.nanmin(shown)), float(np.nanmax(shown))
-    fig = new_figure(FIGSIZE)
+    fig = new_figure(FIGSIZE if width is None else figure_size(width))
     ax = fig.add_subplot()
     info["colorbar_label"], info["title"] = label, title
     contours = interval = None
@@ -268,6 +274,15 @@ def plot_map(ds, field: str, day: float, path=None, diff=None, lat_range=None) -
     if path is not None:
         save_png(fig, path)
     return info
+
+
+def figure_size(width) -> tuple[float, float]:
+    """A map's figure size (inches) ``width`` pixels wide, half as high; ``ValueError`` for a
+    width that is not an integer in ``MAP_WIDTHS`` (pixels)."""
+    low, high = MAP_WIDTHS
+    if isinstance(width, bool) or not isinstance(width, int) or not low <= width <= high:
+        raise ValueError(f"--width must be a whole number of pixels in {low}..{high} (got {width})")
+    return width / DPI, width / 2 / DPI
 
 
 def _scene_label(ds) -> str:
@@ -416,10 +431,12 @@ def plot_run(
     force=False,
     overwrite=False,
     member=None,
+    width=None,
 ) -> list[Path]:
     """``swe-sphere plot``: maps of ``fields`` at ``days`` (default: the last output
-    time) and the time-series figure, PNGs in ``outdir`` (created if missing); of an
-    ensemble's file, of ``member`` (``open_run``; the files' names end in ``io.remap.member_label``).
+    time; ``width`` pixels wide, ``figure_size``) and the time-series figure, PNGs in ``outdir``
+    (created if missing); of an ensemble's file, of ``member`` (``open_run``; the files' names end
+    in ``io.remap.member_label``).
 
     Every input is checked before anything is written; raises ``SceneError`` (a ValueError) or
     ``ValueError`` (one line) for a missing file, an unknown field or a missing day,
@@ -460,7 +477,7 @@ def plot_run(
             for path in pngs[:-1] if same else pngs:
                 check_target(path, overwrite)
         outdir.mkdir(parents=True, exist_ok=True)
-        written = [plot_map(ds, field, day, path, diff, lat_range)["path"] for field, day, path in maps]
+        written = [plot_map(ds, field, day, path, diff, lat_range, width)["path"] for field, day, path in maps]
         if not same:
             save_png(series_fig, series)
         return written + [series]
@@ -591,3 +608,103 @@ def plot_analyses(
         for field, path in zip(zonal_fields, paths[2 if spectrum else 0 :]):
             plot_zonal_mean(zonal_mean(ds, field, days), path, lat_range, label)
     return paths
+
+
+# -- a field over the output times: ``swe-sphere plot --animate`` ------------------------
+FORMATS = ("gif", "mp4")
+ANIMATION_FIGSIZE = (8.0, 4.0)  # 800 x 400 pixels a frame: a GIF of a 6-day run's 25 frames in a few MB at most
+ANIMATION_FPS = 4  # frames a second: a day a second at output every 0.25 days
+
+
+def animation_name(run_path, field: str, fmt: str, lat_range=None) -> str:
+    band = f"_lat{lat_range[0]:g}to{lat_range[1]:g}" if lat_range is not None else ""
+    return f"{Path(run_path).stem}_{field}{band}.{fmt}"
+
+
+def check_format(fmt: str) -> str:
+    """``fmt`` ("gif" or "mp4"); ``ValueError`` (one line) for another, or for "mp4" without
+    ``ffmpeg`` on PATH (matplotlib's ``FFMpegWriter`` runs it)."""
+    if fmt not in FORMATS:
+        raise ValueError(f"--animate {fmt}: give gif or mp4")
+    if fmt == "mp4" and shutil.which("ffmpeg") is None:
+        raise ValueError("--animate mp4: ffmpeg is not on PATH (matplotlib writes an MP4 through it); gif needs none")
+    return fmt
+
+
+def animate_run(
+    run_path,
+    field: str = "h_surface",
+    days=None,
+    outdir=".",
+    lat_range=None,
+    *,
+    fmt: str = "gif",
+    fps: int = ANIMATION_FPS,
+    overwrite: bool = False,
+    member=None,
+    width: int | None = None,
+) -> Path:
+    """``swe-sphere plot --animate``: ``field`` of the run file ``run_path`` at ``days`` (default:
+    every output time; at least two), one frame each, into ``outdir``/``<run>_<field>.<fmt>``
+    (``animation_name``; of an ensemble's file, of ``member``), 800 pixels wide or ``width``. Every input is checked before
+    anything is written: ``ValueError`` (one line) for an unknown field or format, a day the run
+    does not store, fewer than two frames, a run file it cannot read; ``OutputError`` for a file
+    that exists (unless ``overwrite``) or would replace the input. Returns the file's path."""
+    from matplotlib.animation import FFMpegWriter, FuncAnimation, PillowWriter
+
+    check_format(fmt)
+    _check_view(member, [field])
+    if field not in MAP_FIELDS:
+        raise ValueError(f"unknown field {field!r} (known: {', '.join(MAP_FIELDS)})")
+    outdir = _check_outdir(outdir, lat_range)
+    ds = open_run(run_path, member)
+    try:
+        grid = run_grid(ds)
+        frames = [float(d) for d in (days_of(ds) if not days else days)]
+        for day in frames:
+            if not math.isfinite(day):
+                raise ValueError(f"day must be finite (got {day})")
+            time_index(ds, day)  # a day the run does not store: one line
+        if len(frames) < 2:
+            raise ValueError(f"{run_path}: an animation needs two output times or more (got {len(frames)})")
+        path = outdir / animation_name(_named(run_path, member), field, fmt, lat_range)
+        check_distinct([path], [run_path])
+        if outdir.is_dir():  # a folder still to be made holds none
+            check_target(path, overwrite)
+        long_name, units, scale, cmap, symmetric = MAP_FIELDS[field]
+        res = plot_resolution(grid)
+        lat_e, lon_e = plot_edges(res)
+        remapper = _plot_remapper(grid, res)
+        rows = slice(None)
+        if lat_range is not None:
+            south, north = check_lat_range(lat_range)
+            keep = np.flatnonzero((lat_e[1:] > south) & (lat_e[:-1] < north))
+            lat_e, rows = np.clip(lat_e[keep[0] : keep[-1] + 2], south, north), keep
+        values = np.stack([remapper(field_at_nodes(ds, field, day))[rows] * scale for day in frames])
+        scene = _scene_label(ds)
+    finally:
+        ds.close()
+    fig = new_figure(ANIMATION_FIGSIZE if width is None else figure_size(width))
+    ax = fig.add_subplot()
+    # one colour scale over every frame: the first frame drawn with the whole run's range
+    low, high = float(np.nanmin(values)), float(np.nanmax(values))
+    span = values[0].copy()
+    span.flat[0], span.flat[-1] = low, high
+    image = draw_map(fig, ax, lon_e, lat_e, span, cmap=cmap, symmetric=symmetric, label=f"{field} ({units})")
+    title = ax.set_title("", fontsize=10)
+
+    def frame(k: int):
+        image.set_data(values[k])
+        title.set_text(f"{long_name}, {scene}, day {frames[k]:g}")
+        return image, title
+
+    writer = PillowWriter(fps=fps) if fmt == "gif" else FFMpegWriter(fps=fps)
+    outdir.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + f".part.{fmt}")
+    try:
+        FuncAnimation(fig, frame, frames=len(frames), blit=False).save(tmp, writer=writer)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    tmp.replace(path)
+    return path

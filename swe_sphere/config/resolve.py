@@ -565,6 +565,8 @@ def resolve_every(
         most = max(1, math.floor(EVERY_SPAN * tau / dt * (1 + 1e-9)))
         fits = [k for n in steps for k in range(most, (most + 1) // 2 - 1, -1) if n % k == 0]
         k = fits[0] if fits else most
+        if k == 1:
+            return 1, ()
         return k, (
             f"hyperviscosity every {k} steps ({k * dt / 60:.3g} min; the grid scale's e-folding {tau / 3600:.3g} h)",
         )

@@ -41,8 +41,9 @@ def forward_states(x0, steps):
     x = wp.array(x0, dtype=wp.float64)
     stepper.prepare(x)
     out = [x.numpy().copy()]
-    for _ in range(steps):
-        stepper.advance(x)
+    for k in range(steps):
+        stepper.set_phase(k)  # the ∇⁴ every k steps goes by the step's index
+        stepper.step(x)
         out.append(x.numpy().copy())
     return out
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from swe_sphere.config.scene import load_scene
 from swe_sphere.core.errors import ArgumentError, BlowUp
 from swe_sphere.ensemble import Ensemble, MemberGrid, Perturbation
 from swe_sphere.grid.cubed_sphere import CubedSphere
@@ -58,12 +59,16 @@ def test_the_per_node_layout_too(scene, stepper):
 @pytest.mark.parametrize("layout", ["shared", "in_turn"])
 def test_graphed_steps_have_the_bits_of_plain_ones(one_thread, device, layout):
     """Each step a graph (on a CPU: one thread, graphs "on"; CUDA's default): the bits of the
-    same ensemble launched step by step, with its graph kept (in turn, one a member)."""
+    same ensemble launched step by step, with its graphs kept (in turn, one a member): with the
+    scene's ∇⁴ every k steps (``hyperviscosity.every``), a graph of the steps without it and one
+    of those that end with it."""
     states = Ensemble("galewsky", 2, Perturbation(1.0, seed=3), device="cpu", **SMALL).states()
     runs = [Ensemble("galewsky", 2, states, device=device, graphs=g, layout=layout, **SMALL) for g in ("off", "on")]
+    every = load_scene("galewsky", ne=2, np_=4, dt=900.0).hypervis_every
+    assert 1 < every <= 5  # both kinds of step in the five
     for ens in runs:
         ens.step(5)
-    assert (runs[0].graphs_kept, runs[1].graphs_kept) == (0, 1 if layout == "shared" else 2)
+    assert (runs[0].graphs_kept, runs[1].graphs_kept) == (0, 2 if layout == "shared" else 4)
     assert same_bits(runs[0].states(), runs[1].states())
 
 

@@ -84,8 +84,6 @@ def main(argv=None) -> int:
     try:  # start-up (the imports of Warp and the rest) included: a signal there is one line too
         args = parser().parse_args(argv)
         args.argv, args.console = argv, console
-        if console and not sys.stdout.isatty():  # a log (nohup, a pipe, CI) gets each line as it is printed
-            sys.stdout.reconfigure(line_buffering=True)
         debug = debug or args.debug
         command, module = COMMANDS[args.command]
         if console:

@@ -405,7 +405,12 @@ class Ensemble:
                         self.write_checkpoint(restart, overwrite=True, restart_every=restart_every)
         except BaseException as err:  # a blow-up or a signal: the good output times kept
             if writer is not None:
-                writer.set_attrs(stopped=str(err) or type(err).__name__)
+                if isinstance(err, Interrupted):  # as a run's file says it (``simulation.loop``)
+                    step = self.step_count
+                    name = signal.Signals(err.signum).name
+                    writer.set_attrs(interrupted=name, interrupted_at_step=step, interrupted_at_day=s.day(step))
+                else:
+                    writer.set_attrs(stopped=str(err) or type(err).__name__)
                 writer.close()
             raise
         drops = self.drops  # collective

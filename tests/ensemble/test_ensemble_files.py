@@ -117,7 +117,8 @@ def test_a_signal_stops_after_a_block_with_its_restart_file(tmp_path, monkeypatc
         ens.run(tmp_path / "e.nc")
     assert info.value.signum == signal.SIGINT and info.value.checkpoint == tmp_path / "e.restart.nc"
     with netCDF4.Dataset(tmp_path / "e.nc") as ds:
-        assert list(ds["time"][:]) == [0.0, 0.25, 0.5] and "SIGINT" in ds.stopped
+        assert list(ds["time"][:]) == [0.0, 0.25, 0.5] and "stopped" not in ds.ncattrs()
+        assert (ds.interrupted, ds.interrupted_at_step, ds.interrupted_at_day) == ("SIGINT", 48, 0.5)  # as a run's
     monkeypatch.setattr(Ensemble, "step", real)
     rest = Ensemble.from_checkpoint(tmp_path / "e.restart.nc")
     rest.step(96 - 48)

@@ -67,6 +67,9 @@ def test_verdicts_per_criterion_and_threshold():
     assert math.isnan(v[("total h+hs", 0.5, "b")]["dt"])
     text = report.format_verdicts(verdicts.verdicts(rows, info), info)
     assert "b                      no run qualifies" in text
+    # where both thresholds pick the same run, or none, one line says so (a line a threshold was 12)
+    assert "    total h+hs                     <= 10%, 50% b                      no run qualifies" in text
+    assert len(text.splitlines()) == 3 + 3 + 3 + 2, text  # 3 + 12 lines, one a threshold, before
     assert "  total h+hs: spatial error 1.000e-04\n" in text  # an exact solution: no floor
 
 

@@ -29,13 +29,20 @@ from .verdicts import (
 
 def format_verdicts(verdict_rows, info) -> str:
     """Per criterion a line with its spatial error and ``floor_note`` (``info``:
-    ``Sweep.run``'s), then one line per threshold × stepper."""
-    lines, criterion = [], None
+    ``Sweep.run``'s), then one line per stepper and the run it picks, its thresholds together
+    where they pick the same run (or none): "<= 10%, 50%"."""
+    picks: dict[tuple, tuple[list, dict]] = {}  # (criterion, stepper, the run picked) → (thresholds, a row)
     for v in verdict_rows:
+        tolerance = v["tolerance"] if math.isfinite(v["tolerance"]) else None
+        run = (v["dt"], tolerance) if math.isfinite(v["dt"]) else None  # a stepper's run: its dt (or tolerance)
+        picks.setdefault((v["criterion"], v["stepper"], run), ([], v))[0].append(v["threshold"])
+    lines, criterion = [], None
+    for thresholds, v in picks.values():
         if v["criterion"] != criterion:
             criterion, note = v["criterion"], floor_note(info, CRITERIA[v["criterion"]][1])
             lines.append(f"  {criterion}: spatial error {v['spatial_error']:.3e}" + (f", {note}" if note else ""))
-        head = f"    {v['criterion']:30s} <= {v['threshold']:3.0%} {v['stepper']:22s}"
+        within = ", ".join(f"{t:3.0%}" for t in thresholds)
+        head = f"    {v['criterion']:30s} <= {within} {v['stepper']:22s}"
         if math.isfinite(v["tolerance"]):  # a controlled run: the tolerance that qualifies
             head += f" {v['stepper'].partition('@')[2]} = {v['tolerance']:g}, mean"
         if not math.isfinite(v["dt"]):

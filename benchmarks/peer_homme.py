@@ -58,7 +58,7 @@ the balance at 6.376e6 m); its day-0 h is printed against ours at its points
 ``--runs neNE/STEPPER/DT``, STEPPER ``rkN`` (``integration = "runge_kutta"``,
 ``rk_stage_user = N``: N-stage second-order SSP Runge–Kutta, the ∇⁴ inside every stage) or
 ``lft`` (leapfrog-trapezoidal, the TC5 namelists'), ``nu = nu_s`` (``nu_div`` = ``nu``) the
-scene's 3-hour rule at ne and np 4 (``config.resolve.efold_nu``: 1.76e15 m⁴ s⁻¹ at ne16, the
+scene's 3-hour rule at ne and np 4 (``config.hyperviscosity.efold_nu``: 1.76e15 m⁴ s⁻¹ at ne16, the
 ∇⁴ coefficient as swe_sphere's), 6 days, output of ζ (``zeta``: HOMME's ``vorticity_sphere``
 + DSS) and h at days 0 and 6, interpolated by HOMME to a Gaussian ``--nlat`` × 2 ``--nlat``
 grid. Scored as ``peer_dinosaur`` scores every model (``peer_dinosaur.scores``: the T341
@@ -333,7 +333,7 @@ def homme_galewsky(sweqx: Path, base: str, config: str, args, rundir: Path) -> d
     CPU s a simulated day past the first, (T₆ − T₁)/5, and ``start_h_l2``: its day-0 h against
     the project's Galewsky h at its points (its set-up's distance from ours)."""
     from swe_sphere.cases.library import make_case
-    from swe_sphere.config.resolve import efold_nu
+    from swe_sphere.config.hyperviscosity import efold_nu
     from swe_sphere.core.constants import EARTH
 
     ne, _, dt = parse_homme(config)

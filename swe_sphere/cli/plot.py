@@ -22,7 +22,9 @@ def _check_folder(folder: Path) -> None:
 
 
 def command(args) -> int:
-    from ..studies.plotting import animate_run, check_format, figure_size, plot_analyses, plot_run
+    from ..studies.analysis_plots import plot_analyses
+    from ..studies.animation import animate_run, check_format
+    from ..studies.plotting import figure_size, plot_run
 
     fields = args.field or ["h_surface"]
     if args.width is not None:

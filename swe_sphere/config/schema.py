@@ -143,7 +143,7 @@ SCHEMA = {
         "nu_s": float,
         "subcycle": int,
         "scaling": float,
-        "every": int | str,  # or "auto" (``resolve.resolve_every``)
+        "every": int | str,  # or "auto" (``hyperviscosity.resolve_every``)
     },
     "dfi": {"span_hours": float, "cutoff_hours": float},
     "ensemble": {"members": int, "perturbation": float, "seed": int, "degrees": tuple},

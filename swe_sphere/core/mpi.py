@@ -131,3 +131,15 @@ class watch_failures:
         if self.active:
             self.stop.set()
             self.thread.join()
+
+
+class RankMax:
+    """Ranks as ``core.interrupts.StopSignals`` asks of a run's topology: their communicator
+    ``comm`` and the largest of a value over them (``max``, collective); an ensemble's, whose
+    members' ranks share no topology."""
+
+    def __init__(self, comm):
+        self.comm = comm
+
+    def max(self, value):
+        return max(self.comm.allgather(value))

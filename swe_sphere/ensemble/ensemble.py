@@ -29,6 +29,7 @@ from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, CheckpointError, Interrupted
 from ..core.graphs import default_mode, graphs_mode
 from ..core.interrupts import StopSignals
+from ..core.mpi import RankMax
 from ..grid.cubed_sphere import CubedSphere
 from ..io import restart_file
 from ..io.run_file import OUTPUT_FIELDS, RunWriter, area_rms, member_statistics
@@ -37,32 +38,16 @@ from ..model.shallow_water import ShallowWater
 from ..simulation import checkpoint
 from ..simulation.build import check_memory
 from ..simulation.schedules import at_its_end, check_restart_interval, output_steps, restart_steps
-from ..simulation.writers import restart_path, scene_attrs
+from ..simulation.writers import interrupted_attrs, restart_path, scene_attrs
 from .initial import Perturbation, Variants, checked_states, described, initial_states
 from .members import MemberGrid, member_part
-from .units import checked_scene, held_state, own_units, shared_unit, step_block, stepper_state
+from .units import checked_scene, held_state, own_units, shared_unit, step_block, stepper_state, unit_members
 from .units import layout as members_layout
 
 # a blow-up's policies: every member stopped, or the member dropped (no longer stepped, NaN in the
 # run file from then on) and the others going on
 POLICIES = {"stop": "stop all", "drop": "drop the member and go on"}
 MEMBER_SERIES = ("mass", "total_energy", "potential_enstrophy")  # each member's, at every output time (and errors)
-
-
-def _groups(layout: str, held) -> list:
-    """The members (indices) of each unit of a rank holding ``held``, in order."""
-    return [held] if layout == "shared" else list(held[:, None])
-
-
-class _Ranks:
-    """The members' ranks as ``core.interrupts.StopSignals`` asks of a run's topology: their
-    communicator and the largest of a value over them (collective)."""
-
-    def __init__(self, comm):
-        self.comm = comm
-
-    def max(self, value):
-        return max(self.comm.allgather(value))
 
 
 class Ensemble:
@@ -173,7 +158,6 @@ class Ensemble:
         self._variants = None if self.cases is None else {k: np.asarray(v).tolist() for k, v in initial.values.items()}
         starts = initial_states(initial, grid, case, members, self.cases)
         self.initial = described(initial)
-        # every member the same start (the case's, or a perturbation of 0 m): the members stay alike
         self.alike = members > 1 and (initial is None or isinstance(initial, Perturbation) and initial.amplitude == 0)
         if blow_up not in POLICIES:
             raise ArgumentError(f"blow_up must be one of {', '.join(map(repr, POLICIES))} (got {got(blow_up)})")
@@ -229,7 +213,9 @@ class Ensemble:
         if states.shape != shape:
             raise ArgumentError(f"states must have shape {shape} (got {states.shape})")
         going = [
-            (u, k) for i, (u, k) in enumerate(zip(self.units, _groups(self.layout, self.held))) if i not in self._out
+            (u, k)
+            for i, (u, k) in enumerate(zip(self.units, unit_members(self.layout, self.held)))
+            if i not in self._out
         ]
         kept = np.concatenate([k for _, k in going]) if going else np.zeros(0, int)  # a dropped member's left as it is
         checked_states(states[kept], self.case, "states", kept)
@@ -329,14 +315,13 @@ class Ensemble:
         run (not over an existing one unless ``overwrite``). A blow-up that stops all (``BlowUp``)
         or a signal (``Interrupted``, after a block of steps: the step reached written, and its
         restart file) closes the run file with every good output time (its attribute ``stopped``
-        says why) and raises; members dropped go as NaN, their lines in ``dropped_members``.
+        says why; a signal's ``interrupted*``, as a run's) and raises; members dropped go as NaN, their lines in ``dropped_members``.
         ``OutputError`` for a path that may not be written (``overwrite``: replace it); ``ArgumentError``
         at the run's end (``advance`` past it); ``SceneError`` for a restart interval that is not whole
         steps; ``compress``: the fields as float32 with zlib; ``progress``: a bar on stderr where it is a
         terminal; ``notify(line)``: told what the run file's cells cost or that they were left out
-        (``RunWriter.cells_notes``); ``progress_lines``: a ``simulation.progress.ProgressLines`` that
-        writes a line of the run's progress every so many seconds of wall time (rank 0). Returns
-        the run file's path."""
+        (``RunWriter.cells_notes``); ``progress_lines``: a ``simulation.progress.ProgressLines``
+        (rank 0's lines of progress). Returns the run file's path."""
         s = self.scene
         if self.step_count >= s.nsteps:
             raise ArgumentError(at_its_end("Ensemble", self.step_count, s))  # a file of no time
@@ -383,7 +368,7 @@ class Ensemble:
         try:
             with (
                 bar,
-                StopSignals(self.model.topology if self.comm is None else _Ranks(self.comm), catch=True) as signals,
+                StopSignals(self.model.topology if self.comm is None else RankMax(self.comm), catch=True) as signals,
             ):
                 if not self.step_count:  # as a run's: the two files join without a repeated time
                     self._write(writer, member_series, errors)
@@ -405,12 +390,9 @@ class Ensemble:
                         self.write_checkpoint(restart, overwrite=True, restart_every=restart_every)
         except BaseException as err:  # a blow-up or a signal: the good output times kept
             if writer is not None:
-                if isinstance(err, Interrupted):  # as a run's file says it (``simulation.loop``)
-                    step = self.step_count
-                    name = signal.Signals(err.signum).name
-                    writer.set_attrs(interrupted=name, interrupted_at_step=step, interrupted_at_day=s.day(step))
-                else:
-                    writer.set_attrs(stopped=str(err) or type(err).__name__)
+                step, why = self.step_count, {"stopped": str(err) or type(err).__name__}
+                signalled = isinstance(err, Interrupted)  # said as a run's file says it
+                writer.set_attrs(**(interrupted_attrs(err.signum, step, s.day(step)) if signalled else why))
                 writer.close()
             raise
         drops = self.drops  # collective
@@ -491,7 +473,7 @@ class Ensemble:
         ens = cls(scene, ck.members, initial, **options, layout=layout, blow_up=policy)
         dropped = {int(k): step for k, step in ck.initial.get("dropped", {}).items()}  # their last good states
         try:
-            for u, k in zip(ens.units, _groups(ens.layout, ens.held)):
+            for u, k in zip(ens.units, unit_members(ens.layout, ens.held)):
                 nodes = (k[:, None] * n + np.arange(n)).ravel()  # the unit's members' columns of the file's arrays
                 u.x.assign(ck.x[:, nodes])
                 prefix = None if ens.layout == "shared" else f"member{k[0]}_"

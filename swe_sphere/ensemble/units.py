@@ -183,3 +183,9 @@ def step_block(active: list, block: int, anywhere, drop: bool) -> tuple[list, bo
                 u.stepper.restore(saved[i])
             active = [(i, u) for i, u in active if all(i != j for j, _, _ in bad)]
     return events, False
+
+
+def unit_members(layout: str, held) -> list:
+    """The members (indices) of each unit of a rank holding ``held``, in order: all in one unit
+    ("shared"), or one a unit ("in_turn")."""
+    return [held] if layout == "shared" else list(held[:, None])

@@ -18,7 +18,7 @@ from ..core.interrupts import StepAbandoned, StopSignals
 from .activities import is_due
 from .guard import Guard
 from .summary import Ledger, RunResult, Stop, interruption
-from .writers import Checkpointer, RunFiles
+from .writers import Checkpointer, RunFiles, interrupted_attrs
 
 
 @contextlib.contextmanager
@@ -130,8 +130,7 @@ class StepLoop:
         if stop.blowup is not None:
             files.end(self.sim.step, self.sim.last_good, blowup=stop.blowup)
         elif stop.signum is not None:
-            name, day = signal.Signals(stop.signum).name, self.sim.time
-            files.end(self.sim.step, interrupted=name, interrupted_at_step=self.sim.step, interrupted_at_day=day)
+            files.end(self.sim.step, **interrupted_attrs(stop.signum, self.sim.step, self.sim.time))
             ckp.interrupted(self.sim.step, abandoned=stop.abandoned is not None)
 
     def outcome(self, stop: Stop, result: RunResult, output, ckp: Checkpointer) -> RunResult:

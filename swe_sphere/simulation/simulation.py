@@ -44,7 +44,6 @@ from .writers import Checkpointer, RunFiles, run_attrs
 # The names users catch and read from here (``swe_sphere.BlowUp``, ``swe_sphere.Interrupted``).
 __all__ = ["BlowUp", "Interrupted", "RunResult", "Simulation"]
 
-
 RUN_ACTIVITIES = ("run_file", "checkpointer", "log")  # the names ``run`` gives its own activities
 
 
@@ -496,8 +495,7 @@ class Simulation:
         until_step : int, optional
             Stop after this step (default: the scene's last; ``advance``; not under step control).
         progress_lines : progress.ProgressLines, optional
-            A line of the run's progress every so many seconds of wall time (rank 0), where no
-            bar is drawn (``swe-sphere run`` off a terminal).
+            Rank 0's lines of progress every so many wall seconds, where no bar is drawn.
 
         Returns
         -------

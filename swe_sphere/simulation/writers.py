@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import signal
 from pathlib import Path
 
 from ..cases.scoring import truth
@@ -23,6 +24,13 @@ def restart_path(output: Path) -> Path:
     """The restart file beside a run's output: ``run.nc`` → ``run.restart.nc``."""
     output = Path(output)
     return output.with_name(output.stem + ".restart.nc")
+
+
+def interrupted_attrs(signum: int, step: int, day: float) -> dict:
+    """The global attributes of a run file (a run's or an ensemble's) stopped by the signal
+    ``signum`` at ``step``, model day ``day``: ``interrupted`` (its name), ``interrupted_at_step``,
+    ``interrupted_at_day``."""
+    return {"interrupted": signal.Signals(signum).name, "interrupted_at_step": step, "interrupted_at_day": day}
 
 
 def _holds(sim, marks: set, step: int) -> bool:

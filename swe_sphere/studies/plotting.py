@@ -13,7 +13,6 @@ from __future__ import annotations
 import functools
 import json
 import math
-import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,7 +24,7 @@ from ..cases.library import make_case
 from ..cases.reference import Reference, cases_of, locate
 from ..core.constants import EARTH, PLANET_KEYS, Planet
 from ..io.initial_state import SCENE_CASES
-from ..io.output_files import atomic_path, check_distinct, check_target
+from ..io.output_files import check_distinct, check_target
 from ..io.remap import Remapper, member_label, member_view, open_netcdf, run_grid
 from ..io.run_file import member_statistics
 from .analysis import (
@@ -34,10 +33,7 @@ from .analysis import (
     MAP_FIELDS,
     days_of,
     field_at_nodes,
-    kinetic_energy_spectrum,
     run_name,
-    time_index,
-    zonal_mean,
 )
 from .figures import DPI, draw_lines, new_figure, png_bytes, save_png
 
@@ -136,7 +132,7 @@ def plot_resolution(grid) -> float:
 
 
 @functools.lru_cache(maxsize=2)
-def _plot_remapper(grid, res: float) -> Remapper:
+def plot_remapper(grid, res: float) -> Remapper:
     """Remapper of a run's grid (``run_grid``'s, built once a process) to the cell centres
     of the ``res``-degree plotting grid."""
     lat_c, lon_c = _centres(*plot_edges(res))
@@ -159,6 +155,14 @@ def check_lat_range(lat_range) -> tuple[float, float]:
     if not (-90 <= south < north <= 90):
         raise ValueError(f"latitude range must satisfy -90 <= south < north <= 90 (got {south:g} {north:g})")
     return south, north
+
+
+def latitude_band(lat_edges, lat_range) -> tuple[np.ndarray, np.ndarray]:
+    """(the edges clipped to the band ``lat_range`` (south, north) degrees, the indices of the rows
+    of cells it keeps): a map's or an animation's band (``check_lat_range``'s errors)."""
+    south, north = check_lat_range(lat_range)
+    rows = np.flatnonzero((lat_edges[1:] > south) & (lat_edges[:-1] < north))
+    return np.clip(lat_edges[rows[0] : rows[-1] + 2], south, north), rows
 
 
 def normalized_l2(area, f, ref) -> float:
@@ -225,18 +229,16 @@ def plot_map(ds, field: str, day: float, path=None, diff=None, lat_range=None, w
     res = plot_resolution(grid)
     lat_e, lon_e = plot_edges(res)
     lat_c, lon_c = _centres(lat_e, lon_e)
-    remapper = _plot_remapper(grid, res)
+    remapper = plot_remapper(grid, res)
     values = remapper(nodes)
     if "_ensemble" in ds.attrs:  # a spread: the drawn members' (``member_view``), not its nodes' interpolated
         members = ds.attrs["_ensemble"]
         drawn = [remapper(field_at_nodes(members.isel(member=k), field, day)) for k in range(members.sizes["member"])]
         values = member_statistics(np.stack(drawn))[1]
     if lat_range is not None:
-        south, north = check_lat_range(lat_range)
-        rows = np.flatnonzero((lat_e[1:] > south) & (lat_e[:-1] < north))
-        lat_e = np.clip(lat_e[rows[0] : rows[-1] + 2], south, north)
+        lat_e, rows = latitude_band(lat_e, lat_range)
         lat_c, values = lat_c[rows], values[rows]
-    scene = _scene_label(ds)
+    scene = scene_label(ds)
     info = {"path": None if path is None else Path(path)}
     if diff is None:
         title = f"{long_name}, {scene}, day {day:g}"
@@ -285,7 +287,7 @@ def figure_size(width) -> tuple[float, float]:
     return width / DPI, width / 2 / DPI
 
 
-def _scene_label(ds) -> str:
+def scene_label(ds) -> str:
     view = f", ensemble {ds.attrs['_member']}" if "_member" in ds.attrs else ""  # ``open_run``'s member
     try:
         s = json.loads(ds.attrs["scene"])
@@ -332,7 +334,7 @@ def plot_series(ds, path=None):
         )
     if days.size > 1 and days[-1] > days[0]:
         left.set_xlim(days[0], days[-1])
-    fig.suptitle(_scene_label(ds), fontsize=12)
+    fig.suptitle(scene_label(ds), fontsize=12)
     if path is not None:
         save_png(fig, path)
     return fig
@@ -400,7 +402,7 @@ def check_comparable(ds, diff) -> None:
             raise ValueError(f"{diff.label} is not a reference of case {case} (--force to compare anyway)")
 
 
-def _check_outdir(outdir, lat_range) -> Path:
+def check_outdir(outdir, lat_range) -> Path:
     """The output folder of ``plot``, refused (ValueError) if it is a file; ``lat_range`` checked."""
     outdir = Path(outdir)
     if lat_range is not None:
@@ -410,7 +412,7 @@ def _check_outdir(outdir, lat_range) -> Path:
     return outdir
 
 
-def _days_to_plot(ds, days) -> list[float]:
+def days_to_plot(ds, days) -> list[float]:
     """``days`` as floats, or the run's last output time when none are given; the run's
     grid checked. ValueError for a run that is not one or holds no output time."""
     run_grid(ds)
@@ -445,13 +447,13 @@ def plot_run(
     series figure depends on the run file alone: an existing one with the same
     picture is left as it is (so ``plot --diff`` or other fields after a plain
     ``plot`` go ahead); one with another picture is refused like a map."""
-    _check_view(member, fields, diff=diff_path is not None)
-    outdir = _check_outdir(outdir, lat_range)
+    check_view(member, fields, diff=diff_path is not None)
+    outdir = check_outdir(outdir, lat_range)
     ds = open_run(run_path, member)
-    named = _named(run_path, member)
+    named = named_after(run_path, member)
     diff = None
     try:
-        days = _days_to_plot(ds, days)
+        days = days_to_plot(ds, days)
         diff = open_reference(diff_path, _run_case(ds)) if diff_path is not None else None
         if diff is not None and not force:
             check_comparable(ds, diff)
@@ -488,69 +490,7 @@ def plot_run(
 
 
 # -- zonal means and kinetic-energy spectra (``swe_sphere.studies.analysis``) -----------
-def plot_spectrum(spectrum: xr.Dataset, path=None, title: str = ""):
-    """E_rot, E_div and E against degree l, log-log, one colour per output time
-    (E solid, E_rot dashed, E_div dotted; down to 1e-14 of the largest) of ``analysis.kinetic_energy_spectrum``'s
-    Dataset; written to the PNG ``path`` (800 × 500 pixels) unless None.
-    Returns the ``matplotlib.figure.Figure`` (Agg canvas, no pyplot)."""
-    fig = new_figure((8.0, 5.0))
-    ax = fig.add_subplot()
-    l, top = spectrum["l"].values, float(spectrum["E"].max())
-    for it, day in enumerate(spectrum["time"].values):
-        colour = f"C{it % 10}"
-        for name, style in (("E", "-"), ("E_rot", "--"), ("E_div", ":")):
-            y = spectrum[name].isel(time=it).values
-            ok = y > 0
-            ax.loglog(l[ok], y[ok], linestyle=style, color=colour, linewidth=1.2, label=f"{name}, day {day:g}")
-    if top > 0:  # 14 decades: below, the energy of a field at round-off (1e-30 of a symmetric flow's other parity)
-        ax.set_ylim(bottom=max(ax.get_ylim()[0], 1e-14 * top))
-    ax.set_xlabel("spherical-harmonic degree l")
-    ax.set_ylabel("kinetic energy per unit mass (m$^2$ s$^{-2}$)")
-    ax.set_title(f"{title + ': ' if title else ''}kinetic-energy spectrum", fontsize=11)
-    ax.grid(True, which="major", alpha=0.3)
-    ax.legend(fontsize=8)
-    if path is not None:
-        save_png(fig, path)
-    return fig
-
-
-def plot_zonal_mean(mean: xr.DataArray, path=None, lat_range=None, title: str = ""):
-    """``analysis.zonal_mean``'s (time, lat) profile against latitude, one line per
-    output time, over ``lat_range`` (south, north degrees; default the globe);
-    written to the PNG ``path`` (800 × 500 pixels) unless None. Returns the
-    ``matplotlib.figure.Figure``."""
-    fig = new_figure((8.0, 5.0))
-    ax = fig.add_subplot()
-    field = str(mean.name).removesuffix("_zonal_mean")
-    long_name, units, scale = MAP_FIELDS[field][:3]
-    lines = [
-        (f"day {day:g}", mean["lat"].values, mean.isel(time=it).values * scale)
-        for it, day in enumerate(mean["time"].values)
-    ]
-    draw_lines(
-        ax,
-        lines,
-        markers=False,
-        xlabel="latitude (°N)",
-        ylabel=f"{field} ({units})",
-        title=f"{title + ': ' if title else ''}zonal mean of the {long_name}",
-    )
-    ax.set_xlim(*(check_lat_range(lat_range) if lat_range is not None else (-90, 90)))
-    if path is not None:
-        save_png(fig, path)
-    return fig
-
-
-def analysis_names(run_path, days, fields=(), spectrum=False, lat_range=None) -> list[Path]:
-    """File names (no folder) of ``plot_analyses``: ``<run>_spectrum_day<D>[_<D>...].png``
-    and ``.csv`` when ``spectrum``, ``<run>_<field>_zonal_mean_day<D>[_<D>...][_lat<S>to<N>].png``."""
-    stem, when = Path(run_path).stem, "day" + "_".join(f"{d:g}" for d in days)
-    band = f"_lat{lat_range[0]:g}to{lat_range[1]:g}" if lat_range is not None else ""
-    names = [Path(f"{stem}_spectrum_{when}{ext}") for ext in (".png", ".csv")] if spectrum else []
-    return names + [Path(f"{stem}_{field}_zonal_mean_{when}{band}.png") for field in fields]
-
-
-def _check_view(member, fields=(), spectrum: bool = False, diff: bool = False) -> None:
+def check_view(member, fields=(), spectrum: bool = False, diff: bool = False) -> None:
     """``ValueError`` (one line) for what an ensemble's spread does not hold: the spread of the
     wind speed (not |spread of the wind|), a spectrum (of the spread of the wind) and a
     difference from a reference (a spread is not a state)."""
@@ -564,147 +504,8 @@ def _check_view(member, fields=(), spectrum: bool = False, diff: bool = False) -
         raise ValueError("--member spread: a kinetic-energy spectrum is of a wind, not of its spread")
 
 
-def _named(run_path, member) -> Path:
+def named_after(run_path, member) -> Path:
     """The path a plot's files are named after: the run file's, its stem followed by
     ``io.remap.member_label`` for an ensemble's member, mean or spread."""
     path = Path(run_path)
     return path if member is None else path.with_name(f"{path.stem}_{member_label(member)}{path.suffix}")
-
-
-def plot_analyses(
-    run_path, days=None, outdir=".", *, spectrum=False, zonal_fields=(), lat_range=None, overwrite=False, member=None
-) -> list[Path]:
-    """``swe-sphere plot --spectrum`` and ``--zonal-mean``: the kinetic-energy
-    spectrum (``analysis.kinetic_energy_spectrum``: a PNG, ``plot_spectrum``, and
-    its numbers as CSV, columns day, l, E_rot, E_div, E in m² s⁻²) and the zonal
-    means of ``zonal_fields`` (``plot_zonal_mean``, one PNG per field), at
-    ``days`` (default: the last output time), in ``outdir`` (created if missing).
-
-    Every input is checked before anything is written: ``SceneError`` (a ValueError) or
-    ``ValueError`` (one line) for a missing file, a day not stored, a field the
-    file lacks (vorticity and divergence for the spectrum); ``output.OutputError``
-    for an output that exists (unless ``overwrite``) or would replace the run. ``member``: an
-    ensemble's (``open_run``)."""
-    _check_view(member, zonal_fields, spectrum)
-    outdir = _check_outdir(outdir, lat_range)
-    with open_run(run_path, member) as ds:
-        days = _days_to_plot(ds, days)
-        for day in days:
-            for field in [*zonal_fields, *(("vorticity", "divergence") if spectrum else ())]:
-                field_at_nodes(ds, field, day)
-        named = _named(run_path, member)
-        paths = [outdir / name for name in analysis_names(named, days, zonal_fields, spectrum, lat_range)]
-        check_distinct(paths, [run_path])
-        for path in paths if outdir.is_dir() else ():  # a folder still to be made holds none
-            check_target(path, overwrite)
-        outdir.mkdir(parents=True, exist_ok=True)
-        label = _scene_label(ds)
-        if spectrum:
-            spec = kinetic_energy_spectrum(ds, days)
-            plot_spectrum(spec, paths[0], label)
-            table = spec[["E_rot", "E_div", "E"]].to_dataframe().reset_index().rename(columns={"time": "day"})
-            with atomic_path(paths[1], overwrite=overwrite) as tmp:
-                table.to_csv(tmp, index=False, float_format="%.10e")
-        for field, path in zip(zonal_fields, paths[2 if spectrum else 0 :]):
-            plot_zonal_mean(zonal_mean(ds, field, days), path, lat_range, label)
-    return paths
-
-
-# -- a field over the output times: ``swe-sphere plot --animate`` ------------------------
-FORMATS = ("gif", "mp4")
-ANIMATION_FIGSIZE = (8.0, 4.0)  # 800 x 400 pixels a frame: a GIF of a 6-day run's 25 frames in a few MB at most
-ANIMATION_FPS = 4  # frames a second: a day a second at output every 0.25 days
-
-
-def animation_name(run_path, field: str, fmt: str, lat_range=None) -> str:
-    band = f"_lat{lat_range[0]:g}to{lat_range[1]:g}" if lat_range is not None else ""
-    return f"{Path(run_path).stem}_{field}{band}.{fmt}"
-
-
-def check_format(fmt: str) -> str:
-    """``fmt`` ("gif" or "mp4"); ``ValueError`` (one line) for another, or for "mp4" without
-    ``ffmpeg`` on PATH (matplotlib's ``FFMpegWriter`` runs it)."""
-    if fmt not in FORMATS:
-        raise ValueError(f"--animate {fmt}: give gif or mp4")
-    if fmt == "mp4" and shutil.which("ffmpeg") is None:
-        raise ValueError("--animate mp4: ffmpeg is not on PATH (matplotlib writes an MP4 through it); gif needs none")
-    return fmt
-
-
-def animate_run(
-    run_path,
-    field: str = "h_surface",
-    days=None,
-    outdir=".",
-    lat_range=None,
-    *,
-    fmt: str = "gif",
-    fps: int = ANIMATION_FPS,
-    overwrite: bool = False,
-    member=None,
-    width: int | None = None,
-) -> Path:
-    """``swe-sphere plot --animate``: ``field`` of the run file ``run_path`` at ``days`` (default:
-    every output time; at least two), one frame each, into ``outdir``/``<run>_<field>.<fmt>``
-    (``animation_name``; of an ensemble's file, of ``member``), 800 pixels wide or ``width``. Every input is checked before
-    anything is written: ``ValueError`` (one line) for an unknown field or format, a day the run
-    does not store, fewer than two frames, a run file it cannot read; ``OutputError`` for a file
-    that exists (unless ``overwrite``) or would replace the input. Returns the file's path."""
-    from matplotlib.animation import FFMpegWriter, FuncAnimation, PillowWriter
-
-    check_format(fmt)
-    _check_view(member, [field])
-    if field not in MAP_FIELDS:
-        raise ValueError(f"unknown field {field!r} (known: {', '.join(MAP_FIELDS)})")
-    outdir = _check_outdir(outdir, lat_range)
-    ds = open_run(run_path, member)
-    try:
-        grid = run_grid(ds)
-        frames = [float(d) for d in (days_of(ds) if not days else days)]
-        for day in frames:
-            if not math.isfinite(day):
-                raise ValueError(f"day must be finite (got {day})")
-            time_index(ds, day)  # a day the run does not store: one line
-        if len(frames) < 2:
-            raise ValueError(f"{run_path}: an animation needs two output times or more (got {len(frames)})")
-        path = outdir / animation_name(_named(run_path, member), field, fmt, lat_range)
-        check_distinct([path], [run_path])
-        if outdir.is_dir():  # a folder still to be made holds none
-            check_target(path, overwrite)
-        long_name, units, scale, cmap, symmetric = MAP_FIELDS[field]
-        res = plot_resolution(grid)
-        lat_e, lon_e = plot_edges(res)
-        remapper = _plot_remapper(grid, res)
-        rows = slice(None)
-        if lat_range is not None:
-            south, north = check_lat_range(lat_range)
-            keep = np.flatnonzero((lat_e[1:] > south) & (lat_e[:-1] < north))
-            lat_e, rows = np.clip(lat_e[keep[0] : keep[-1] + 2], south, north), keep
-        values = np.stack([remapper(field_at_nodes(ds, field, day))[rows] * scale for day in frames])
-        scene = _scene_label(ds)
-    finally:
-        ds.close()
-    fig = new_figure(ANIMATION_FIGSIZE if width is None else figure_size(width))
-    ax = fig.add_subplot()
-    # one colour scale over every frame: the first frame drawn with the whole run's range
-    low, high = float(np.nanmin(values)), float(np.nanmax(values))
-    span = values[0].copy()
-    span.flat[0], span.flat[-1] = low, high
-    image = draw_map(fig, ax, lon_e, lat_e, span, cmap=cmap, symmetric=symmetric, label=f"{field} ({units})")
-    title = ax.set_title("", fontsize=10)
-
-    def frame(k: int):
-        image.set_data(values[k])
-        title.set_text(f"{long_name}, {scene}, day {frames[k]:g}")
-        return image, title
-
-    writer = PillowWriter(fps=fps) if fmt == "gif" else FFMpegWriter(fps=fps)
-    outdir.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + f".part.{fmt}")
-    try:
-        FuncAnimation(fig, frame, frames=len(frames), blit=False).save(tmp, writer=writer)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    tmp.replace(path)
-    return path

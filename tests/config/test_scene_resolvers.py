@@ -12,14 +12,12 @@ from pathlib import Path
 import pytest
 
 from swe_sphere.cases.library import make_case
+from swe_sphere.config.hyperviscosity import HYPERVIS_EXPONENT, efold_nu, resolve_hyperviscosity
 from swe_sphere.config.resolve import (
-    HYPERVIS_EXPONENT,
     Spacing,
-    efold_nu,
     resolve_case,
     resolve_dt,
     resolve_grid,
-    resolve_hyperviscosity,
     resolve_initialization,
     resolve_output_files,
     resolve_output_interval,

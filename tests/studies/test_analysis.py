@@ -18,7 +18,7 @@ from swe_sphere.core.errors import SceneError
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.io.run_file import RunWriter
 from swe_sphere.model.diagnostics import harmonic_state
-from swe_sphere.studies import plotting
+from swe_sphere.studies import analysis_plots
 from swe_sphere.studies.analysis import kinetic_energy_spectrum, zonal_mean
 
 from helpers import EIGHTH_DAY, TINY, cli_main, cli_one_line, png_size
@@ -212,9 +212,9 @@ def test_plot_spectrum_and_zonal_mean_files(tc2_file, tmp_path, capsys):
 
 
 def test_plot_functions_return_figures(tc2_file):
-    fig = plotting.plot_spectrum(kinetic_energy_spectrum(tc2_file))
+    fig = analysis_plots.plot_spectrum(kinetic_energy_spectrum(tc2_file))
     assert len(fig.axes[0].get_lines()) == 6  # E, E_rot, E_div at two days
-    fig = plotting.plot_zonal_mean(zonal_mean(tc2_file, "vorticity"), lat_range=(0, 90))
+    fig = analysis_plots.plot_zonal_mean(zonal_mean(tc2_file, "vorticity"), lat_range=(0, 90))
     assert fig.axes[0].get_xlim() == (0, 90) and fig.axes[0].get_ylabel() == "vorticity (10$^{-5}$ s$^{-1}$)"
 
 

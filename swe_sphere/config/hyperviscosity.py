@@ -1,0 +1,155 @@
+"""The resolvers of a scene's [hyperviscosity] table (``load_scene``'s, as ``resolve``'s for the
+other tables): the coefficients on the run's grid and planet (``resolve_hyperviscosity``, the
+e-folding rule ``efold_nu``) and the steps between applications (``resolve_every``). Every
+problem raises ``SceneError`` with a one-line message naming the key.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..core.arguments import got
+from ..core.errors import SceneError
+from ..steppers import STEPPERS
+from .resolve import Spacing
+from .schema import SceneGrid, SceneHyperviscosity
+
+HYPERVIS_EXPONENT = 3.2  # ν ∝ Δx^3.2 (HOMME's resolution scaling; Dennis et al. 2012)
+
+
+def efold_nu(hours: float, ne: float, np_: int, radius: float) -> float:
+    """ν (m⁴ s⁻¹) that e-folds a degree-L harmonic in ``hours``, L = 2 ne (np − 1)
+    the Nyquist degree of the 4 ne (np − 1) nodes around a great circle:
+    ν = a⁴ / (τ (L(L+1))²). The T213 references use the same rule (3 h at
+    l = 213: ν₄ = 7.34e13 m⁴ s⁻¹). On a mesh the rule is stated at the mean
+    spacing: ne is that of the uniform cube with as many elements (``mesh.records``' ``mean_ne``:
+    √(F/6) for a file of F elements; a stretched cube's own ne), so ν is the same for
+    the same element count, and elements smaller than the mean are damped faster, as
+    (mean spacing / their spacing)⁴; with the tensor ∇⁴ (``hyperviscosity.scaling = s``) as
+    that ratio to the power 4 − s, so s = 4 states the rule element by element."""
+    L = 2 * ne * (np_ - 1)
+    return radius**4 / (hours * 3600.0 * (L * (L + 1)) ** 2)
+
+
+def resolve_hyperviscosity(
+    table: dict, terms: tuple, grid: SceneGrid, spacing: Spacing
+) -> tuple[SceneHyperviscosity, tuple]:
+    """(nu, nu_div, nu_s (m⁴ s⁻¹) and subcycle; notes) of the [hyperviscosity] table on the
+    run's ``grid`` and planet. Coefficients given are for the scene file's grid and planet: they
+    scale as ``spacing.mean`` to ``HYPERVIS_EXPONENT`` and, keeping their damping time at the
+    grid scale, as ``spacing.scale``⁴ (the radii's ratio); ``efold_hours``
+    sets the others on the run's grid (``efold_nu``); without it nu_div and nu_s default to nu.
+    All are 0 without the hyperviscosity term. Raises ``SceneError`` naming the key: a negative
+    coefficient, efold_hours, subcycle or every not > 0, the term without a coefficient > 0."""
+    for key in ("efold_hours", "nu", "nu_div", "nu_s"):
+        if table.get(key, 0.0) < 0 or (key == "efold_hours" and key in table and table[key] == 0):
+            raise SceneError(
+                f"hyperviscosity.{key} must be {'> 0' if key == 'efold_hours' else '>= 0'} (got {table[key]})"
+            )
+    scaling = table.get("scaling")
+    if scaling is not None and not 0 <= scaling <= 4:
+        raise SceneError(
+            f"hyperviscosity.scaling must be in 0..4 (got {scaling}): the s of nu ~ dx^s per element "
+            "(HOMME's hypervis_scaling, E3SM's 3.2)"
+        )
+    # under the tensor, given coefficients scale as dx^s
+    exponent = HYPERVIS_EXPONENT if scaling is None else scaling
+    ratio, planet_factor = spacing.mean, spacing.scale**4
+    given = [k for k in ("nu", "nu_div", "nu_s") if k in table]
+    nus = {key: table[key] * ratio**exponent * planet_factor for key in given}
+    notes = []
+    if "efold_hours" in table:
+        mean_ne = grid.record.mean_ne
+        rule = efold_nu(table["efold_hours"], mean_ne, grid.np, spacing.radii[0])
+        nus = {key: nus.get(key, rule) for key in ("nu", "nu_div", "nu_s")}
+        if ratio != 1.0:
+            degree = round(2 * mean_ne * (grid.np - 1))
+            notes.append(f"nu = {rule:.3g} m^4/s: {table['efold_hours']:g} h e-folding at degree {degree}")
+    else:
+        nus = {key: nus.get(key, nus.get("nu", 0.0)) for key in ("nu", "nu_div", "nu_s")}
+    if "hyperviscosity" in terms and max(nus.values()) == 0:
+        raise SceneError("the hyperviscosity term needs hyperviscosity.nu, nu_div, nu_s or efold_hours > 0")
+    if "hyperviscosity" not in terms:
+        if given or scaling is not None:
+            notes.append("hyperviscosity coefficients given, but the scene's terms have no hyperviscosity: not used")
+        nus = dict.fromkeys(nus, 0.0)
+    elif (ratio != 1.0 or planet_factor != 1.0) and given and max(nus.values()) > 0:
+        notes.append(
+            f"nu scaled as dx^{exponent:g} and radius^4: nu, nu_div, nu_s = "
+            f"{nus['nu']:.3g}, {nus['nu_div']:.3g}, {nus['nu_s']:.3g} m^4/s"
+        )
+    if scaling is not None and "hyperviscosity" in terms:
+        a = spacing.radii[0]
+        d_ref = math.pi * a / (4 * grid.record.mean_ne)  # ``grid.quality.reference_spacing``
+        notes.append(
+            f"tensor hyperviscosity: nu (dx / {2 * d_ref / (grid.np - 1) / 1e3:.4g} km)^{scaling:g} along each element "
+            f"direction (HOMME's hypervis_scaling = {scaling:g}, nu = {nus['nu'] / (a**4 * (d_ref / a) ** scaling):.3g})"
+        )
+    subcycle = table.get("subcycle", 1)
+    if subcycle < 1:
+        raise SceneError(f"hyperviscosity.subcycle must be >= 1 (got {subcycle})")
+    every = table.get("every", 1)
+    if every != "auto" and (isinstance(every, str) or every < 1):
+        raise SceneError(f"hyperviscosity.every must be an integer >= 1 or 'auto' (got {got(every)})")
+    scaling = None if scaling is None or "hyperviscosity" not in terms else float(scaling)
+    hv = SceneHyperviscosity(
+        float(nus["nu"]),
+        float(nus["nu_div"]),
+        float(nus["nu_s"]),
+        int(subcycle),
+        scaling,
+        1 if every == "auto" else every,
+    )
+    return hv, tuple(notes)
+
+
+# ``every = "auto"``: the ∇⁴'s span kΔt at most this fraction of the e-folding time τ of the grid's
+# Nyquist degree (``efold_nu``). Measured (docs/efficiency.md, "A step's cost"; eq. 83 against T341):
+# galewsky ne12 np8 kgu35 (τ 3 h) day-6 vorticity +0.26 % at τ/11, +0.8 % at τ/5.7, +2.9 % at τ/2.9;
+# TC5 ne30 np4 rk4 (τ 3 h) day-15 h + hs +0.0 % at τ/12.8, +0.1 % at τ/6.4
+EVERY_SPAN = 1 / 6
+
+
+def resolve_every(
+    table: dict,
+    hv: SceneHyperviscosity,
+    grid: SceneGrid,
+    spacing: Spacing,
+    dt: float,
+    steps: tuple,
+    stepper: str,
+    controlled: bool,
+) -> tuple[int, tuple]:
+    """(k, notes): the steps between ∇⁴ applications of [hyperviscosity] ``every`` on the run's
+    grid and Δt (s). An integer is k as given; "auto" the largest k whose span kΔt is at most
+    ``EVERY_SPAN`` of τ, the e-folding time (``efold_nu``'s rule solved for τ) of the grid's
+    Nyquist degree under the largest of ν, ν_div, ν_s, preferring the largest k ≥ half that which
+    divides ``steps`` (the steps of an output interval, then of the whole run: the ∇⁴ then done at
+    those times), and 1 where k > 1 does not fit (a controlled Δt, a three-level scheme, no ∇⁴).
+    Raises ``SceneError`` naming the key: an integer k > 1 under a controlled Δt or with a stepper
+    whose ∇⁴ acts on a three-level scheme's new level (``Stepper.sparse_hyperviscosity``)."""
+    every = table.get("every", 1)
+    nu = max(hv.nu, hv.nu_div, hv.nu_s)
+    if every == "auto":
+        if controlled or not STEPPERS[stepper].sparse_hyperviscosity or nu == 0:
+            return 1, ()
+        tau = efold_nu(1.0, grid.record.mean_ne, grid.np, spacing.radii[0]) / nu * 3600.0  # s
+        most = max(1, math.floor(EVERY_SPAN * tau / dt * (1 + 1e-9)))
+        fits = [k for n in steps for k in range(most, (most + 1) // 2 - 1, -1) if n % k == 0]
+        k = fits[0] if fits else most
+        if k == 1:
+            return 1, ()
+        return k, (
+            f"hyperviscosity every {k} steps ({k * dt / 60:.3g} min; the grid scale's e-folding {tau / 3600:.3g} h)",
+        )
+    if every > 1 and controlled:
+        raise SceneError(
+            f"hyperviscosity.every = {every} needs a fixed dt (time.control is not 'fixed'): the ∇⁴ "
+            "covers every steps of one dt"
+        )
+    if every > 1 and not STEPPERS[stepper].sparse_hyperviscosity:
+        raise SceneError(
+            f"hyperviscosity.every = {every}: {stepper} applies its ∇⁴ to a three-level scheme's "
+            "new level (1 only; a one-step method takes every > 1)"
+        )
+    return every, ()

@@ -406,26 +406,50 @@ def laplacian_flux(cartesian: bool, tensor: bool, np_static: int = 0):
 
 
 @functools.cache
-def dss_apply(copies: int, ghosts: bool = False):
-    """The second DSS of the ∇⁴, applied as it sums: out += coef·Y₂ with
-    Y₂ = DSS(L) (``dss.gather``, unweighted, 4 rows: the weak-form Y₂ of
-    ``laplacian_element``/``laplacian_node``), its Cartesian wind taken back to
-    (east, north) components. Arguments: L (4, N), d (``dss.Copies``), coef,
-    f (``Frame``), out (3, N) (may be the state the Laplacians came from: only
-    L is read at other nodes), block, offset. Dim N/block (as ``dss.dss_rows``)."""
+def dss_apply(copies: int, ghosts: bool = False, mode: str = "add"):
+    """The second DSS of the ∇⁴, applied as it sums Y₂ = DSS(L) (``dss.gather``, unweighted,
+    4 rows: the weak-form Y₂ of ``laplacian_element``/``laplacian_node``), its Cartesian wind
+    taken back to (east, north) components, by ``mode``: "add", out += coef·Y₂ (out may be the
+    state the Laplacians came from: only L is read at other nodes); "euler", out = src +
+    coef·Y₂; "rkl", out = μ·(src + coef·Y₂) + ν·prev, an RKL1 stage (``Hyperviscosity.rkl1``)
+    summed as a forward-Euler step into a copy of src and ``blas.axpby`` after it were (the
+    same bits, without the copy and the pass). src is the state the Laplacians came from; out
+    may alias src and prev (each read at its own node). Arguments: L (4, N),
+    d (``dss.Copies``), coef, f (``Frame``), out (3, N), src (3, N; read by "euler" and "rkl"),
+    prev (3, N), mu, nu (read by "rkl"), block, offset. ValueError for another mode.
+    Dim N/block (as ``dss.dss_rows``)."""
+    if mode not in ("add", "euler", "rkl"):
+        raise ValueError(f"dss_apply's mode is 'add', 'euler' or 'rkl' (got {mode!r})")
     sum_copies = gather(4, False, copies, ghosts)
+    ADD, RKL = mode == "add", mode == "rkl"
 
     def dss_apply(
-        L: wp.array2d(dtype=f64), d: Copies, coef: f64, f: Frame, out: wp.array2d(dtype=f64), block: int, offset: int
+        L: wp.array2d(dtype=f64),
+        d: Copies,
+        coef: f64,
+        f: Frame,
+        out: wp.array2d(dtype=f64),
+        src: wp.array2d(dtype=f64),
+        prev: wp.array2d(dtype=f64),
+        mu: f64,
+        nu: f64,
+        block: int,
+        offset: int,
     ):
         start = (wp.tid() + offset) * block
         for p in range(start, start + block):
             y = sum_copies(L, d, p)
             ye = y[0] * f.east[0, p] + y[1] * f.east[1, p] + y[2] * f.east[2, p]
             yn = y[0] * f.north[0, p] + y[1] * f.north[1, p] + y[2] * f.north[2, p]
-            out[0, p] = out[0, p] + coef * ye
-            out[1, p] = out[1, p] + coef * yn
-            out[2, p] = out[2, p] + coef * y[3]
+            z = wp.vec3d(ye, yn, y[3])
+            for r in range(3):
+                if wp.static(ADD):
+                    out[r, p] = out[r, p] + coef * z[r]
+                else:
+                    t = src[r, p] + coef * z[r]
+                    if wp.static(RKL):
+                        t = mu * t + nu * prev[r, p]
+                    out[r, p] = t
 
-    dss_apply.__qualname__ = "dss_apply"  # the kernel's key
+    dss_apply.__qualname__ = "dss_apply" + ("" if ADD else "__" + mode)  # the kernel's key
     return wp.kernel(dss_apply, enable_backward=False, module="unique")

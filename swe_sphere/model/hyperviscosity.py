@@ -18,7 +18,7 @@ import warp as wp
 
 from ..core.parallel import array_key
 from ..grid.quality import element_bilinear, hypervis_tensor
-from ..kernels import blas, hyperviscosity, operators
+from ..kernels import hyperviscosity, operators
 from .transposes import HyperviscosityTranspose, TendencyTranspose
 
 f64 = wp.float64
@@ -49,12 +49,14 @@ class Hyperviscosity:
         self.hv_tensor = None if m.hypervis_scaling is None else self.tensor_metric(m.hypervis_scaling)
         self._plan: tuple[float, tuple[int, bool]] | None = None  # (dt, its plan): the last dt's only
         self._biharmonic_radius = None
-        self._rkl_buffers = None
+        self._rkl_buffer = None  # RKL1's Y_{j−1} or Y_{j−2} beside x (``rkl1``)
 
-    def build(self, x, coef, out=None, nus=None, transposed=False):
+    def build(self, x, coef, out=None, nus=None, transposed=False, mode="add", prev=None, weights=(1.0, 0.0)):
         """Launches of out += coef·B x, B = ν∇⁴ the hyperviscosity operator
         (``kernels.hyperviscosity``) with coefficients ``nus`` = (ν, ν_div, ν_s)
-        (None: the model's); out = x if None. Three passes on the per-element
+        (None: the model's); out = x if None. ``mode`` "euler": out = x + coef·B x instead;
+        "rkl": out = μ·(x + coef·B x) + ν·prev, (μ, ν) = ``weights``, an RKL1 stage (``rkl1``; out may alias x or
+        prev), each in the last pass (``kernels.hyperviscosity.dss_apply``). Three passes on the per-element
         layout (the second weak Laplacian sums the first DSS itself), six on the
         per-node one (a flux pass before each weak Laplacian, the first forming the
         Cartesian wind as it reads it, and the first DSS), and the divergence δ and
@@ -145,15 +147,14 @@ class Hyperviscosity:
                 return [*passes, m.launches.nodes(kernel, N, args)]
 
         def apply(rows, copies, ghosts):  # ``Topology.gathering``'s kernel factory
-            return hyperviscosity.dss_apply(copies, ghosts=ghosts)
+            return hyperviscosity.dss_apply(copies, ghosts=ghosts, mode=mode)
 
+        last = [f64(coef), self._frame("east", "north"), out, x, out if prev is None else prev, *map(f64, weights)]
         return [
             *launches,
             *laplacian(False),
             *laplacian(True),
-            *m.topology.gathering(
-                self.hv_L2 if m.operators.per_element else L, apply, [f64(coef), self._frame("east", "north"), out]
-            ),
+            *m.topology.gathering(self.hv_L2 if m.operators.per_element else L, apply, last),
         ]
 
     def transpose(
@@ -330,24 +331,24 @@ class Hyperviscosity:
         """One s-stage RKL1 step (Meyer, Balsara & Aslam 2014, eqs. 10–11) of
         dx/dt = M(x) = −B x over dt (s), in place on the state x (3, N): Y_0 = x, Y_1 = E(Y_0),
         Y_j = μ_j E(Y_{j−1}) + ν_j Y_{j−2}, μ_j = (2j − 1)/j, ν_j = −(j − 1)/j,
-        with E one forward-Euler step of w₁Δt, w₁ = 2/(s² + s) (so only the
-        recorded ∇⁴ step is used); first order, stable for ν dt λ ≤ s² + s. ``apply``'s
-        super-step with s = ``stages(dt)``; any s ≥ 2 here (a convergence study's)."""
+        with E one forward-Euler step of w₁Δt, w₁ = 2/(s² + s); first order, stable for
+        ν dt λ ≤ s² + s. ``apply``'s super-step with s = ``stages(dt)``; any s ≥ 2 here (a
+        convergence study's). Each stage is one ∇⁴ evaluation whose last pass forms Y_j
+        (``build``'s "euler" and "rkl" modes), in x and one work array: Y_j overwrites Y_{j−2},
+        or x at the last stage (each read at its own node only)."""
         m = self.model
-        if self._rkl_buffers is None:
-            self._rkl_buffers = [wp.zeros_like(x) for _ in range(3)]
-        ym2, ym1, e = self._rkl_buffers
+        if self._rkl_buffer is None:
+            self._rkl_buffer = wp.zeros_like(x)
         coef = -dt * 2.0 / (s * s + s)
 
-        def euler(src):  # e = E(src)
-            wp.copy(e, src)
-            m.launches.replay(("hv", e.ptr), (e,), lambda c: self.build(e, c[0]), (coef,))
+        def stage(src, out, prev, mode, mu=1.0, nu=0.0):
+            key = ("hv", mode, src.ptr, out.ptr, prev.ptr)
+            build = lambda c: self.build(src, c[0], out, mode=mode, prev=prev, weights=c[1:])  # noqa: E731
+            m.launches.replay(key, (src, out, prev), build, (coef, mu, nu))
 
-        wp.copy(ym2, x)
-        euler(x)
-        wp.copy(ym1, e)  # Y_1
+        prev, cur = x, self._rkl_buffer
+        stage(x, cur, x, "euler")  # Y_1
         for j in range(2, s + 1):
-            euler(ym1)
-            out = x if j == s else ym2  # Y_{j−2} is not needed after this stage
-            m.pointwise(blas.axpby, f64((2.0 * j - 1.0) / j), e, f64(-(j - 1.0) / j), ym2, out)
-            ym2, ym1 = ym1, out
+            out = x if j == s else prev  # Y_{j−2} is not needed after this stage
+            stage(cur, out, prev, "rkl", (2.0 * j - 1.0) / j, -(j - 1.0) / j)
+            prev, cur = cur, out

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# The packages the GPU machine lacks (Warp, netCDF4, cftime, ducc0, pyamg, and the peer Dinosaur's; benchmarks/GPU.md), as
+# The packages the GPU machine lacks (Warp, netCDF4, cftime, ducc0, pyamg, mpich and mpi4py, and the peer Dinosaur's;
+# benchmarks/GPU.md), as
 # three pieces that each fit the device tool's 64 MiB a call beside the checkout: a Warp wheel
 # alone is 149 MB (1.19.0), the four unpacked without Warp's tests and examples and
 # compressed with xz 116 MB. Run here, from the repository root (≈ 3 min on 2 cores):
@@ -29,7 +30,7 @@ python -m pip download -q --no-deps --only-binary=:all: --python-version "$PYV" 
     --platform manylinux_2_28_x86_64 --platform manylinux_2_27_x86_64 --platform manylinux_2_17_x86_64 \
     --platform manylinux2014_x86_64 --platform manylinux1_x86_64 -d "$work/whl" \
     "warp-lang==$(ver warp-lang)" "netCDF4==$(ver netCDF4)" "cftime==$(ver cftime)" "ducc0==$(ver ducc0)" "pyamg==$(ver pyamg)" \
-    $PEER
+    "mpich==$(ver mpich)" "mpi4py==$(ver mpi4py)" $PEER
 mkdir -p "$work/site"
 for w in "$work"/whl/*.whl; do python -m zipfile -e "$w" "$work/site"; done
 rm -rf "$work/site/warp/tests" "$work/site/warp/examples"

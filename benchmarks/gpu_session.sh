@@ -19,6 +19,8 @@
 #   benchmarks/gpu_session.sh floor                 # ≈ 1 min: where a small grid's step goes: the run's loop, a graph a step, k steps a graph
 #   benchmarks/gpu_session.sh kernels               # ≈ 1 min: each kernel's device time a step, galewsky and TC5 ne30, ne120
 #   benchmarks/gpu_session.sh ensemble              # ≈ 1 min: galewsky, 32 members in the same launches against one (issue 85)
+#   benchmarks/gpu_session.sh mpi                   # ≤ 5 min: 2 ranks sharing the card against 1: run files, a DSS, a gradient (issue 101)
+#   benchmarks/gpu_session.sh exchange              # ≈ 2 min: the staged exchange's cost at ne30/60/120, 2 ranks on the card (issue 101)
 #
 # With no part named it runs setup to iterations in that order (≈ 23 min); reads,
 # study and study_fine are named. The studies are `swe-sphere sweep --device cuda
@@ -232,12 +234,37 @@ part_iterations() {
     run iterations 180 "$PY" benchmarks/gpu_session.py iterations --device "$DEVICE" "$@"
 }
 
+mpi_env() {  # the payload's mpich wheel (unpacked into PYTHONPATH's first folder): its programs executable, found
+    command -v mpiexec >/dev/null && return 0
+    local d
+    d=$(ls -d "${PYTHONPATH%%:*}"/mpich-*.data/data 2>/dev/null | head -n 1)
+    if [ -z "$d" ]; then
+        echo "== mpi: no mpiexec here and no mpich in the payload (bash benchmarks/gpu_payload.sh)" | tee -a "$OUT/session.log"
+        failed="$failed mpi"
+        return 1
+    fi
+    chmod +x "$d"/bin/*  # a wheel unpacked by zipfile keeps no modes
+    export PATH="$d/bin:$PATH" LD_LIBRARY_PATH="$d/lib:${LD_LIBRARY_PATH:-}" MPI4PY_LIBMPI="$d/lib/libmpi.so.12"
+}
+
+part_mpi() {  # issue 101: 2 ranks sharing the card against 1 (run files, a DSS, a gradient; test_mpi_devices.py)
+    mpi_env || return 0
+    run mpi 300 "$PY" -m pytest -q -rs -p no:cacheprovider -n 0 tests/test_mpi_devices.py
+}
+
+part_exchange() {  # issue 101: a step and the bare staged exchange on 1 and 2 ranks of the card (benchmarks/scaling.py)
+    mpi_env || return 0
+    if [ "$small" = 1 ]; then set -- --ne 4 --steps 3; else set -- --ne 30 60 120 --steps 50; fi
+    run exchange 240 "$PY" benchmarks/scaling.py --device "$DEVICE" --ranks 1 2 --model-ranks --repeat "${ROUNDS:-1}" "$@"
+    cp benchmarks/results/scaling.json "$OUT/exchange.json" 2>/dev/null
+}
+
 parts=("$@")
 [ ${#parts[@]} -eq 0 ] && parts=(setup tests agreement throughput graphs tc5 iterations)
 for part in "${parts[@]}"; do
     case $part in
-        setup|tests_gpu|tests|agreement|throughput|graphs|bits|tc5|iterations|reads|study|study_ne60|study_fine|criterion_ne60|criterion_ne120|dinosaur|control|small|floor|kernels|ensemble) "part_$part" ;;
-        *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_ne60 study_fine criterion_ne60 criterion_ne120 dinosaur control small floor kernels ensemble)" >&2; exit 2 ;;
+        setup|tests_gpu|tests|agreement|throughput|graphs|bits|tc5|iterations|reads|study|study_ne60|study_fine|criterion_ne60|criterion_ne120|dinosaur|control|small|floor|kernels|ensemble|mpi|exchange) "part_$part" ;;
+        *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_ne60 study_fine criterion_ne60 criterion_ne120 dinosaur control small floor kernels ensemble mpi exchange)" >&2; exit 2 ;;
     esac
 done
 # every part ran (a failed one does not stop the rest: each is time-boxed on its own); the status says

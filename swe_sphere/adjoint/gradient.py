@@ -208,7 +208,7 @@ def gradient(
     clock = StepTimes(scene.start_day * DAY, scene.dt, history)
     if clock.steps is not None and len(clock.steps) < steps:
         raise ArgumentError(f"history holds {len(clock.steps)} steps, fewer than the {steps} asked for")
-    model, stepper, initial = scene_model(scene, pick_device(device), hs, comm)
+    model, stepper, initial = scene_model(scene, pick_device(device, comm=comm), hs, comm)
     topo = model.topology
     getattr(cost, "check_nodes", lambda n: None)(
         topo.nnodes_total

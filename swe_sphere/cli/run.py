@@ -175,7 +175,7 @@ def command(args) -> int:
     args.progress_lines = _progress_lines(args)
     # the options' own refusals before the file system is looked at ("output file exists")
     args.graphs = graphs_mode(args.graphs, "--graphs") if args.graphs is not None else default_mode()  # the flag wins
-    device = pick_device(args.device)
+    device = pick_device(args.device, comm=mpi.world())  # under mpiexec: each rank its own device
     if args.restart_every is not None:
         if not is_interval(args.restart_every):
             raise SceneError(f"--restart-every must be a number of days > 0 (got {args.restart_every!r})")

@@ -9,7 +9,7 @@ whose memory a run must fit in. Nothing outside this module asks whether a devic
 CPU or a GPU.
 
 ``pick_device`` chooses the device itself: the one asked for, else ``SWE_SPHERE_DEVICE``'s,
-else CUDA when present.
+else CUDA when present; over MPI ranks, each rank its node's GPU in turn (``rank_device``).
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import warp as wp
 
+from . import mpi
 from .errors import ResourceError, SceneError
 from .runtime import check_memory, gib, init_warp
 from .workers import cpus
@@ -76,20 +77,76 @@ def lives_on(array: wp.array, device: str) -> bool:
     return not where.is_cpu and where == device
 
 
-def pick_device(requested: str | None = None, *, verbose: bool = False) -> str:
+def rank_device(device: str, local_rank: int, gpus: int) -> str:
+    """The device of the rank ``local_rank`` (0-based among its node's ranks) of a run over MPI
+    ranks asked to run on ``device``, on a node where Warp sees ``gpus`` CUDA devices: bare
+    "cuda" deals the node's ranks round-robin over its GPUs, ``cuda:(local_rank mod gpus)``
+    (several ranks a GPU when there are more ranks than GPUs; one GPU a rank where the launcher
+    already shows each rank its own, as Slurm's ``--gpus-per-task``: gpus 1, cuda:0); "cpu"
+    and "cuda:N" (every rank on cuda:N) as given, and "cuda" too where gpus is 0 (refused by
+    ``pick_device`` as absent). HOMMEXX and ClimaComms make the same choice."""
+    if device != "cuda" or gpus < 1:
+        return device
+    return f"cuda:{local_rank % gpus}"
+
+
+def pick_device(requested: str | None = None, *, verbose: bool = False, comm=None) -> str:
     """The Warp device to run on: ``requested`` ("cpu", "cuda" or "cuda:N"), else
     ``default_device()``'s. Raises ``SceneError`` (a ValueError; one line) for another name
     (naming ``SWE_SPHERE_DEVICE`` where the name is its), and when the CUDA device asked
-    for is absent."""
+    for is absent.
+
+    With ``comm`` (an mpi4py communicator of several ranks; collective) each rank takes its
+    own device by ``rank_device`` (its place among the ranks of its node, ``mpi.node_rank``),
+    opens it and makes it Warp's default; when one rank cannot (no such device, or one it
+    cannot open: a GPU in exclusive-process mode that another rank holds), or the ranks would
+    run on CPUs and CUDA devices at once, every rank raises the same ``SceneError``, naming
+    the first such rank and its node, so the run stops in one line, none waiting for another."""
+    ranks = comm is not None and comm.size > 1
+    try:
+        device, error = _device(requested, verbose, mpi.node_rank(comm)[0] if ranks else None), None
+    except SceneError as err:
+        if not ranks:
+            raise
+        device, error = None, str(err)
+    if ranks:
+        _agree(comm, device, error)
+    return device
+
+
+def _device(requested: str | None, verbose: bool, local_rank: int | None) -> str:
+    """``pick_device``'s device on one process (``local_rank`` None) or one rank."""
     device, what = (requested, "device") if requested is not None else (default_device(), DEVICE_ENV)
     if not re.fullmatch(r"cpu|cuda(:\d+)?", str(device)):
         raise SceneError(f"{what} must be 'cpu', 'cuda' or 'cuda:N' (got {device!r})")
     warp = init_warp(verbose)
+    gpus = warp.get_cuda_device_count()
+    if local_rank is not None:
+        device = rank_device(device, local_rank, gpus)
     ordinal = int(device.partition(":")[2] or 0)
-    if device.startswith("cuda") and ordinal >= warp.get_cuda_device_count():
+    if device.startswith("cuda") and ordinal >= gpus:
         fix = "use --device cpu" if requested is not None else f"set {DEVICE_ENV}=cpu or unset it"
         raise SceneError(f"device {device} is not available on this machine ({fix})")
+    if local_rank is not None and device != "cpu":  # open it here, where a refusal can still be one line
+        try:
+            wp.zeros(1, device=device)
+        except RuntimeError as err:
+            raise SceneError(f"device {device} cannot be opened: {str(err).strip().splitlines()[0]}") from None
+        wp.set_device(device)  # what names no device (or "cuda") is this rank's
     return device
+
+
+def _agree(comm, device: str | None, error: str | None) -> None:
+    """Raise on every rank of ``comm`` the first rank's ``error``, or a refusal where some ranks
+    would run on a CPU and others on CUDA (their results could not have the same bits)."""
+    where = f"rank {comm.rank} of {comm.size} on {mpi.processor_name()}"
+    picks = comm.allgather((where, device, error))
+    failed = [f"{at}: {err}" for at, _, err in picks if err is not None]
+    if failed:
+        raise SceneError(failed[0])
+    kinds = {d.partition(":")[0]: f"{d} on {at}" for at, d, _ in picks}
+    if len(kinds) > 1:
+        raise SceneError(f"the ranks would run on a CPU and on CUDA ({kinds['cpu']}, {kinds['cuda']}): give --device")
 
 
 @dataclass(frozen=True)
@@ -192,10 +249,26 @@ class Backend:
         return threads == 1 if self.host else wp.is_conditional_graph_supported()
 
     # -- ranks and memory -----------------------------------------------------------
-    @property
-    def distributes(self) -> bool:
-        """Whether a run may span several MPI ranks (CPU only so far)."""
-        return self.host
+    def host_buffer(self, n: int) -> wp.array:
+        """A zeroed float64 host array of n entries that MPI reads or writes for this device
+        (``grid.halo``): page-locked on CUDA, so that copies to and from the device are DMAs
+        queued on its stream; plain host memory on a CPU, where the copies are memcpys."""
+        return wp.zeros(n, dtype=wp.float64, device="cpu", pinned=not self.host)
+
+    def drain(self) -> None:
+        """Wait until what was queued on this device's current stream has run (CUDA: kernels and
+        copies are asynchronous); nothing on a CPU, where a launch or a copy returns when done."""
+        if not self.host:
+            wp.synchronize_stream(wp.get_device(self.device).stream)
+
+    def sharing(self, comm) -> tuple[int, str]:
+        """(ranks of ``comm`` whose arrays share this rank's memory, where that is) for the memory
+        guard (collective): on a CPU the ranks on this node; on CUDA those on this node's GPU of
+        this rank (a node of 8 GPUs and 8 ranks: 1)."""
+        if self.host:
+            return mpi.node_local_size(comm), "on this node"
+        alias = wp.get_device(self.device).alias
+        return mpi.node_peers(comm, alias), f"on {alias} of this node"
 
     def reader(self, a: wp.array) -> HostRead:
         """A ``HostRead`` of the device array ``a`` (this backend's)."""
@@ -244,4 +317,4 @@ class HostRead:
         return self._view
 
 
-__all__ = ["Backend", "HostRead", "default_device", "pick_device", "requested_threads"]
+__all__ = ["Backend", "HostRead", "default_device", "pick_device", "rank_device", "requested_threads"]

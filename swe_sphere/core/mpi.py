@@ -55,15 +55,40 @@ def world():
     return MPI.COMM_WORLD
 
 
-def node_local_size(comm) -> int:
-    """Ranks of ``comm`` on this node (MPI shared-memory split)."""
+def node_rank(comm) -> tuple[int, int]:
+    """(this rank's place among the ranks of ``comm`` on its node, their number): an MPI
+    shared-memory split (collective), ordered as in ``comm``."""
     from mpi4py import MPI
 
     local = comm.Split_type(MPI.COMM_TYPE_SHARED)
     try:
-        return local.Get_size()
+        return local.Get_rank(), local.Get_size()
     finally:
         local.Free()
+
+
+def node_local_size(comm) -> int:
+    """Ranks of ``comm`` on this node (``node_rank``)."""
+    return node_rank(comm)[1]
+
+
+def node_peers(comm, key) -> int:
+    """Ranks of ``comm`` on this node, this one included, whose ``key`` (any picklable value:
+    their device) equals this rank's (collective)."""
+    from mpi4py import MPI
+
+    local = comm.Split_type(MPI.COMM_TYPE_SHARED)
+    try:
+        return local.allgather(key).count(key)
+    finally:
+        local.Free()
+
+
+def processor_name() -> str:
+    """The node this rank runs on, as MPI names it (for messages)."""
+    from mpi4py import MPI
+
+    return MPI.Get_processor_name()
 
 
 # A failure on one rank alone: the others would wait for it in their next collective

@@ -146,7 +146,7 @@ class Ensemble:
         self.held, self.root = np.array_split(np.arange(members), ranks)[rank], rank == 0
         graphs = graphs_mode(default_mode() if graphs is None else graphs)
         checked_scene(scene)
-        backend = Backend.of(pick_device(device))
+        backend = Backend.of(pick_device(device, comm=self.comm))
         check_memory(scene, self.comm, backend, members)  # before the grid and the members' states are made
         self.scene, self.members, self.dt = scene, members, scene.dt
         self.case = case = scene.make_case()

@@ -10,8 +10,8 @@ Over MPI (``comm`` with several ranks) each rank holds a contiguous piece of
 the elements' space-filling curve (``swe_sphere.grid.partition``). A DSS is then
 HOMME's ``edgeVpack`` → ``bndry_exchangeV`` → ``edgeVunpack``: the copies of
 shared nodes that neighbouring ranks need are packed (``kernels.dss.pack``),
-exchanged by persistent nonblocking point-to-point messages into a ghost
-buffer, and the DSS kernel sums local and ghost copies in the grid's one
+exchanged by nonblocking point-to-point messages into a ghost buffer
+(through host memory on any device: ``grid.halo``), and the DSS kernel sums local and ghost copies in the grid's one
 global order (``CubedSphere.dss_table``). Every copy is summed individually
 (not a neighbour's partial sum), so the result has the same bits on any
 number of ranks and explicit runs do too. A topology over the whole sphere
@@ -29,10 +29,10 @@ from ..core.errors import ArgumentError
 from ..core.parallel import record
 from ..kernels import blas, dss
 from .cubed_sphere import CubedSphere
+from .halo import MAX_ROWS, Exchange, Halo
 from .partition import level_chunks, mesh_order, mesh_partition, partition, sfc_order
 
 f64 = wp.float64
-MAX_ROWS = 4  # most rows a DSS assembles at once (the hyperviscosity's Cartesian wind + h)
 
 
 class SerialComm:
@@ -109,47 +109,6 @@ def _lookup(keys: np.ndarray, values: np.ndarray) -> np.ndarray:
     return np.where(keys[order][at] == values, order[at], -1)
 
 
-class _Exchange:
-    """One exchange of packed values with the neighbouring ranks (HOMME
-    ``bndry_exchangeV``): nonblocking receives into ``recv`` and sends from
-    ``send`` (``rows`` values per entry), all completed before ``launch()``
-    returns (run like a recorded launch)."""
-
-    def __init__(self, comm, halo: _Halo, rows: int, tag: int):
-        send, recv = halo.send_buffer.numpy(), halo.recv_buffer.numpy()  # CPU: zero-copy views
-        self.comm, self.tag = comm, tag
-        self.recvs = [(recv[a * rows : b * rows], int(s)) for s, (a, b) in zip(halo.neighbours, halo.recv_ranges)]
-        self.sends = [(send[a * rows : b * rows], int(s)) for s, (a, b) in zip(halo.neighbours, halo.send_ranges)]
-        self.kernel = type("exchange", (), {"key": "exchange"})  # named like a launch in launch lists
-
-    def launch(self) -> None:
-        from mpi4py import MPI
-
-        requests = [self.comm.Irecv(buf, source=s, tag=self.tag) for buf, s in self.recvs]
-        requests += [self.comm.Isend(buf, dest=s, tag=self.tag) for buf, s in self.sends]
-        MPI.Request.Waitall(requests)
-
-
-class _Halo:
-    """What one rank sends to and receives from each neighbour in one pattern
-    (the DSS's element copies, or unique-node values from their owners):
-    ``send_index`` (positions packed for the neighbours, in order),
-    ``send_ranges``/``recv_ranges`` (each neighbour's slice, in entries) and the
-    device buffers of up to ``MAX_ROWS`` rows per entry."""
-
-    def __init__(self, neighbours, send: list, recv: list, device: str):
-        self.neighbours = np.asarray(neighbours, dtype=np.int64)
-        ends = np.cumsum([0, *map(len, send)]), np.cumsum([0, *map(len, recv)])
-        self.send_ranges = list(zip(ends[0][:-1], ends[0][1:]))
-        self.recv_ranges = list(zip(ends[1][:-1], ends[1][1:]))
-        self.send_index_np = np.concatenate(send).astype(np.int32) if send else np.zeros(0, dtype=np.int32)
-        self.size = int(ends[1][-1])  # entries received
-        self.send_index = wp.array(self.send_index_np, dtype=wp.int32, device=device)
-        self.send_buffer = wp.zeros(max(1, self.send_index_np.size) * MAX_ROWS, dtype=f64, device=device)
-        self.recv_buffer = wp.zeros(max(1, self.size) * MAX_ROWS, dtype=f64, device=device)
-        self.exchanges: dict[int, _Exchange] = {}
-
-
 class Topology:
     """The assembly of ``grid``'s elements on ``device``, for rank ``comm.rank`` of ``comm.size``.
 
@@ -186,11 +145,12 @@ class Topology:
     first (nunique,) int32 : one local copy of each owned unique node
     area (nunique,) numpy : assembled spheremp of the owned unique nodes (m²)
     total_area : Σ area over the sphere (m²; 4πa²)
-    copies, owned : the DSS's halo and the unique-node halo (``_Halo``: what goes
+    copies, owned : the DSS's halo and the unique-node halo (``halo.Halo``: what goes
         to and comes from each neighbour); neighbours : ranks sharing nodes with
         this one; ghost : the DSS's receive buffer; halo_copies : copies received per DSS
 
-    Raises ValueError on a CUDA device with more than one rank (CPU only so far).
+    Over several ranks on CUDA each rank's arrays live on its own device (``core.backend.pick_device``:
+    rank r of a node on cuda:(r mod its GPUs)), and the exchanges go through host memory (``halo``).
     """
 
     def __init__(self, grid, device: str | Backend = "cpu", threads: int = 1, comm=None, parts=None):
@@ -201,8 +161,6 @@ class Topology:
         self._sum, self._max, self._min = _ops(self.comm)
         rank, size = self.comm.rank, self.comm.size
         self.distributed = size > 1
-        if size > 1 and not self.backend.distributes:
-            raise ValueError("runs over several MPI ranks are CPU-only so far (use --device cpu)")
         self.parts = parts = rank_parts(grid.ne, size, grid.mesh) if parts is None else parts
         if not np.array_equal(grid.elements, parts[rank]):
             grid = grid.part(parts[rank])
@@ -258,8 +216,8 @@ class Topology:
             into = np.unique(gid[owner == s])
             if out.size or into.size:
                 unique_nbrs.append(s), unique_send.append(np.searchsorted(owned_gid, out)), unique_recv.append(into)
-        self.copies = _Halo(neighbours, send, recv, self.device)
-        self.owned = _Halo(unique_nbrs, unique_send, unique_recv, self.device)
+        self.copies = Halo(neighbours, send, recv, self.backend)
+        self.owned = Halo(unique_nbrs, unique_send, unique_recv, self.backend)
         self.recv = np.concatenate(recv) if recv else np.zeros(0, dtype=np.int64)
         self._table = np.where(valid, _lookup(np.concatenate([grid.nodes, self.recv]), np.where(valid, table, -1)), -1)
         if np.any(valid & (self._table < 0)):
@@ -271,7 +229,7 @@ class Topology:
     def _record(self, kernel, dim, inputs):
         return record(kernel, dim, inputs, device=self.backend, threads=self.threads, block=self.grid.np**2)
 
-    def _exchange(self, x: wp.array2d, halo: _Halo | None = None) -> list:
+    def _exchange(self, x: wp.array2d, halo: Halo | None = None) -> list:
         """Launches that fill ``halo``'s receive buffer (default the DSS ghosts)
         with the neighbours' entries of x's rows (pack, then exchange); none
         without neighbours."""
@@ -284,7 +242,7 @@ class Topology:
         exchange = halo.exchanges.get(rows)
         if exchange is None:
             tag = rows if halo is self.copies else MAX_ROWS + rows
-            exchange = halo.exchanges[rows] = _Exchange(self.comm, halo, rows, tag)
+            exchange = halo.exchanges[rows] = Exchange(self.comm, halo, rows, tag, self.backend)
         if not halo.send_index_np.size:  # only receives from its neighbours
             return [exchange]
         return [self._record(dss.pack, halo.send_index_np.size, [x, rows, halo.send_index, halo.send_buffer]), exchange]

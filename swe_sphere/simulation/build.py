@@ -14,7 +14,6 @@ from ..config.parts import partition, scene_stepper
 from ..config.scene import Scene
 from ..core.backend import Backend
 from ..core.errors import ResourceError
-from ..core.mpi import node_local_size
 from ..core.runtime import run_bytes
 from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology
@@ -29,7 +28,8 @@ def check_memory(scene: Scene, comm, backend: Backend, members: int = 1) -> None
     """Refuse (``runtime.ResourceError``, one line, on every rank) a run whose
     estimated memory exceeds what is available on its device (a GPU's free memory,
     else the host's): the whole run on one process; over MPI ranks, the share of
-    the ranks on each node (each holds its elements, or an ensemble's members). An
+    the ranks on each node, or on CUDA on each GPU (each holds its elements, or an
+    ensemble's members; ``Backend.sharing``). An
     ensemble of ``members`` holds a run's arrays a member (its copies of the grid, or a
     model each)."""
     need = run_bytes(scene.ne, scene.np, scene.stepper, nelem=scene.nelem) * members
@@ -38,9 +38,9 @@ def check_memory(scene: Scene, comm, backend: Backend, members: int = 1) -> None
         what = f"an ensemble of {members} members of {what}"
     if comm is None or comm.size == 1:
         return backend.check_memory(need, what)
-    local = node_local_size(comm)
+    local, where = backend.sharing(comm)  # the ranks whose arrays share this rank's memory
     try:
-        backend.check_memory(need * local // comm.size, f"{what} over {comm.size} MPI ranks ({local} on this node)")
+        backend.check_memory(need * local // comm.size, f"{what} over {comm.size} MPI ranks ({local} {where})")
         error = None
     except ResourceError as err:
         error = str(err)

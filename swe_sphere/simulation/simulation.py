@@ -153,7 +153,7 @@ class Simulation:
         # Δt the simulation may fit to the user's intervals (``steps``): not given, restored or stated in a Scene
         own_dt = not isinstance(scene, Scene) and "dt" not in overrides and initial_diagnostics is None
         scene, inputs = resolve_scene(scene, overrides)
-        backend = Backend.of(pick_device(device))  # a name Warp does not know is refused in one line
+        backend = Backend.of(pick_device(device, comm=comm))  # a name Warp does not know is refused in one line
         if initial is not None and (start is not None or not callable(initial)):
             raise ArgumentError(
                 f"initial must be a function (lat, lon) -> (h, u, v), and not given with start (got {got(initial)})"

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from swe_sphere.core.backend import CHECK_EVERY_STEPS, CPU_CHUNK, DEVICE_TOTALS, Backend
+from swe_sphere.core.backend import CHECK_EVERY_STEPS, CPU_CHUNK, DEVICE_TOTALS, Backend, rank_device
 from swe_sphere.solvers.jacobian import HostPasses, KernelPasses
 from swe_sphere.solvers.krylov import HostVectors, KernelVectors
 
@@ -37,7 +37,7 @@ def test_only_the_backend_asks_what_the_device_is():
 
 def test_the_cpu_backend():
     cpu = Backend.of("cpu")
-    assert cpu.host and cpu.per_element and cpu.distributes and not cpu.graphs_pay
+    assert cpu.host and cpu.per_element and not cpu.graphs_pay
     assert cpu.nodes_per_thread(4) == 16 and cpu.launch_parts(3) == 3
     assert cpu.reduction_chunk(10**6) == CPU_CHUNK  # the bits do not depend on the length or threads
     assert cpu.direct_totals(10**6) and cpu.graph_name == "CPU graph"
@@ -49,7 +49,7 @@ def test_the_cuda_backend_without_a_gpu(monkeypatch):
     """The choices a CUDA device gets (those that ask the driver nothing), on any machine."""
     monkeypatch.setenv("SWE_SPHERE_THREADS", "4")
     cuda = Backend("cuda:0", host=False)
-    assert not (cuda.per_element or cuda.distributes) and cuda.graphs_pay
+    assert not cuda.per_element and cuda.graphs_pay
     assert cuda.threads() == 1 and cuda.threads_note() is None and cuda.launch_parts(4) == 1
     assert cuda.nodes_per_thread(4) == 1
     # about n / 4096 entries a partial sum, within 8 to 32
@@ -76,3 +76,15 @@ def test_a_bad_thread_count_is_named(monkeypatch, value):
     monkeypatch.setenv("SWE_SPHERE_THREADS", value)
     with pytest.raises(ValueError, match=f"SWE_SPHERE_THREADS must be .*{value!r}"):
         Backend.of("cpu").threads()
+
+
+def test_the_ranks_of_a_node_take_its_gpus_in_turn():
+    """Bare "cuda" over MPI ranks: rank r of a node on cuda:(r mod the node's GPUs), so 8 ranks
+    on 4 GPUs share each twice, 3 ranks on one card all take cuda:0, a launcher that shows each
+    rank one GPU gets cuda:0 everywhere; "cpu" and "cuda:N" are every rank's as given, and
+    "cuda" on a node without GPUs is left for ``pick_device`` to refuse as absent."""
+    assert [rank_device("cuda", r, 4) for r in range(8)] == [f"cuda:{r % 4}" for r in range(8)]
+    assert [rank_device("cuda", r, 1) for r in range(3)] == ["cuda:0"] * 3
+    assert [rank_device("cuda", r, 8) for r in (0, 7)] == ["cuda:0", "cuda:7"]
+    assert [rank_device(d, 5, 4) for d in ("cpu", "cuda:2", "cuda:0")] == ["cpu", "cuda:2", "cuda:0"]
+    assert rank_device("cuda", 3, 0) == "cuda"

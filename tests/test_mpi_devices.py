@@ -63,30 +63,31 @@ def test_a_rank_that_cannot_open_its_device_stops_every_rank_in_one_line(tmp_pat
 
 
 def assert_same_fields(one: Path, two: Path, rel: float = 0.0) -> None:
-    """Every variable of two run files but the wall time the same bits (``rel`` 0), or each within
-    ``rel`` of the largest |value| of one's; the second run on 2 ranks, the first on 1."""
+    """Every variable of two run files but the wall time the same bits (``rel`` 0); else the
+    state's wind and depth each within ``rel`` of their largest value (the diagnostics derived from
+    them scale with fields near zero, galewsky's divergence). The second run's on 2 ranks."""
     with xr.open_dataset(one, decode_times=False) as a, xr.open_dataset(two, decode_times=False) as b:
         assert set(a.data_vars) == set(b.data_vars) and {"u", "v", "h"} <= set(a.data_vars)
-        assert b.attrs["mpi_ranks"] == 2 and a.attrs.get("mpi_ranks", 1) == 1
-        for name in a.data_vars:
-            x, y = a[name].values, b[name].values
-            if name == "wall_time" or x.dtype.kind != "f":
-                continue
-            if rel == 0.0:
-                assert np.array_equal(x, y, equal_nan=True), name
-            else:
-                apart = np.nanmax(np.abs(x - y)) / max(np.nanmax(np.abs(x)), 1e-300)
-                print(f"{name}: 2 ranks against 1: {apart:.2e}")
-                assert apart <= rel, (name, apart)
+        assert b.attrs.get("mpi_ranks", 2) == 2  # an ensemble's file does not say
+        if rel == 0.0:
+            for name in a.data_vars:
+                if name != "wall_time" and a[name].dtype.kind == "f":
+                    assert np.array_equal(a[name].values, b[name].values, equal_nan=True), name
+            return
+        wind = max(np.abs(a[k].values - b[k].values).max() for k in "uv") / max(np.abs(a[k].values).max() for k in "uv")
+        depth = np.abs(a.h.values - b.h.values).max() / np.abs(a.h.values).max()
+        print(f"2 ranks against 1: wind {wind:.2e}, depth {depth:.2e}")
+        assert max(wind, depth) <= rel, (wind, depth)
 
 
 CUDA_RUNS = {  # run on one card: 1 rank, then 2 ranks sharing it
     "tc5": (["tc5_mountain", "--ne", "4", "--days", "0.25"], 0.0),
     "kgu35": (["galewsky", "--ne", "4", "--stepper", "kgu35", "--days", "0.25"], 0.0),
     "members": (["galewsky", "--ne", "4", "--days", "0.25", "--members", "4", "--perturbation", "1"], 0.0),
-    # its linear solves' inner products summed in another order over 2 ranks (test_mpi's IMEX on
-    # 3 CPU ranks: 1e-14 of the wind): round-off, not bits
-    "imex": (["galewsky", "--ne", "4", "--stepper", "imex", "--days", "0.25"], 1e-11),
+    # its Helmholtz CG's inner products summed in another order over 2 ranks, so its solves may stop
+    # an iteration apart: within their tolerance (1e-10 here) of each other, not the same bits (on
+    # 2 CPU ranks: wind 4e-13, depth 4e-14; at the default 1e-6, depth 4e-11)
+    "imex": (["galewsky", "--ne", "4", "--stepper", "imex", "-s", "imex.tol=1e-10", "--days", "0.25"], 1e-10),
 }
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -88,3 +89,38 @@ def test_the_ranks_of_a_node_take_its_gpus_in_turn():
     assert [rank_device("cuda", r, 8) for r in (0, 7)] == ["cuda:0", "cuda:7"]
     assert [rank_device(d, 5, 4) for d in ("cpu", "cuda:2", "cuda:0")] == ["cpu", "cuda:2", "cuda:0"]
     assert rank_device("cuda", 3, 0) == "cuda"
+
+
+class OtherRank:
+    """Rank 0 of 2 as ``pick_device`` meets it: ``allgather`` hands back this rank's pick beside
+    rank 1's ``theirs`` (where, device, error)."""
+
+    rank, size = 0, 2
+
+    def __init__(self, theirs):
+        self.theirs = theirs
+
+    def allgather(self, mine):
+        return [mine, self.theirs]
+
+
+@pytest.mark.parametrize(
+    "theirs, says",
+    [
+        (("rank 1 of 2 on b", None, "device cuda:3 is not available"), "rank 1 of 2 on b: device cuda:3 is not"),
+        (("rank 1 of 2 on b", "cuda:0", None), "on a CPU and on CUDA (cpu on rank 0 of 2 on a, cuda:0 on rank 1"),
+    ],
+    ids=["another-rank-fails", "cpu-and-cuda"],
+)
+def test_every_rank_refuses_what_one_rank_meets(monkeypatch, theirs, says):
+    """Over ranks a device refusal is collective: rank 0, whose own CPU is fine, raises the first
+    failing rank's line (naming it and its node), or refuses ranks on a CPU and on CUDA at once."""
+    from swe_sphere.core import mpi
+    from swe_sphere.core.backend import pick_device
+    from swe_sphere.core.errors import SceneError
+
+    monkeypatch.setattr(mpi, "node_rank", lambda comm: (0, 2))
+    monkeypatch.setattr(mpi, "processor_name", lambda: "a")
+    with pytest.raises(SceneError, match=re.escape(says)):
+        pick_device("cpu", comm=OtherRank(theirs))
+    assert pick_device("cpu", comm=OtherRank(("rank 1 of 2 on b", "cpu", None))) == "cpu"

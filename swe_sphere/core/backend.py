@@ -14,10 +14,12 @@ else CUDA when present; over MPI ranks, each rank its node's GPU in turn (``rank
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 from dataclasses import dataclass
 
+import numpy as np
 import warp as wp
 
 from . import mpi
@@ -254,6 +256,15 @@ class Backend:
         (``grid.halo``): page-locked on CUDA, so that copies to and from the device are DMAs
         queued on its stream; plain host memory on a CPU, where the copies are memcpys."""
         return wp.zeros(n, dtype=wp.float64, device="cpu", pinned=not self.host)
+
+    def copier(self, dest: wp.array, src: wp.array, count: int):
+        """A function of no arguments that copies the first ``count`` entries of the 1-D array ``src``
+        into ``dest`` (one of them a ``host_buffer``): on a CPU numpy's ``copyto`` on views made once,
+        a memcpy (``wp.copy`` took 15–20 µs of Python a call: a staged exchange on 2 ranks at ne30
+        44 → 80 µs); on CUDA ``wp.copy``, queued on the device's current stream."""
+        if self.host:
+            return functools.partial(np.copyto, dest.numpy()[:count], src.numpy()[:count])
+        return functools.partial(wp.copy, dest, src, count=count)
 
     def drain(self) -> None:
         """Wait until what was queued on this device's current stream has run (CUDA: kernels and

@@ -61,24 +61,25 @@ class Exchange:
     launch plainly (``core.graphs``)."""
 
     def __init__(self, comm, halo: Halo, rows: int, tag: int, backend: Backend):
-        self.comm, self.halo, self.tag, self.backend = comm, halo, tag, backend
+        self.comm, self.tag, self.backend = comm, tag, backend
         self.nsend, self.nrecv = halo.send_index_np.size * rows, halo.size * rows
         send, recv = halo.host_send.numpy(), halo.host_recv.numpy()  # views of host memory: zero-copy
         self.recvs = [(recv[a * rows : b * rows], int(s)) for s, (a, b) in zip(halo.neighbours, halo.recv_ranges)]
         self.sends = [(send[a * rows : b * rows], int(s)) for s, (a, b) in zip(halo.neighbours, halo.send_ranges)]
+        self.to_host = backend.copier(halo.host_send, halo.send_buffer, self.nsend) if self.nsend else None
+        self.to_device = backend.copier(halo.recv_buffer, halo.host_recv, self.nrecv) if self.nrecv else None
         self.kernel = type("exchange", (), {"key": "exchange"})  # named like a launch in launch lists
 
     def launch(self) -> None:
         from mpi4py import MPI
 
-        halo = self.halo
-        if self.nsend:
-            wp.copy(halo.host_send, halo.send_buffer, count=self.nsend)
+        if self.to_host is not None:
+            self.to_host()
         # the pack and its copy done before MPI reads the host buffer, and the last exchange's
         # copy out of the host receive buffer done before a message may overwrite it
         self.backend.drain()
         requests = [self.comm.Irecv(buf, source=s, tag=self.tag) for buf, s in self.recvs]
         requests += [self.comm.Isend(buf, dest=s, tag=self.tag) for buf, s in self.sends]
         MPI.Request.Waitall(requests)
-        if self.nrecv:  # queued on the stream, ahead of the kernels that read the ghosts
-            wp.copy(halo.recv_buffer, halo.host_recv, count=self.nrecv)
+        if self.to_device is not None:  # on CUDA queued on the stream, ahead of the kernels that read the ghosts
+            self.to_device()

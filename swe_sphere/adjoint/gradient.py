@@ -6,6 +6,7 @@ checkpointed reverse sweep (``revolve.sweep``, or ``revolve.two_level`` with sta
 
 from __future__ import annotations
 
+import sys
 from typing import NamedTuple
 
 import numpy as np
@@ -17,7 +18,8 @@ from ..core.arguments import comm_argument, flag_argument, instance_argument, in
 from ..core.backend import Backend, pick_device
 from ..core.clock import StepTimes
 from ..core.constants import DAY
-from ..core.errors import ArgumentError, BlowUp
+from ..core.errors import ArgumentError, BlowUp, StepFailure
+from ..integrator import Integrator, Observer, Rewind, Unit
 from ..model.shallow_water import ShallowWater
 from .costs import checked, run_cost
 from .disk import DiskTier
@@ -234,6 +236,34 @@ def gradient(
     return Gradient(total, mu, final, taken, steps, disk_bytes=used, costs=costs, **extra)
 
 
+class _Reload(Rewind):
+    """A sweep's block put back by loading its start, the state ``x`` it advances (``load``): the
+    sweep holds it, so nothing is kept."""
+
+    def __init__(self, load):
+        self.load, self.x = load, None
+
+    def keep(self, active: list, whole: bool) -> dict:
+        return {}
+
+    def put_back(self, active: list, saved: dict, whole: bool) -> None:
+        self.load(self.x)
+
+
+class _Sweep(Observer):
+    """A sweep's advance as one block, its states checked where not yet (``verified[0]``: the
+    steps checked so far; a recomputation's are not checked again)."""
+
+    def __init__(self, verified: list):
+        self.verified = verified
+
+    def block_end(self, b: int) -> int:
+        return sys.maxsize  # the advance's end (``Integrator.advance``'s stop step)
+
+    def checked(self, b: int, e: int) -> bool:
+        return e > self.verified[0]
+
+
 def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, disk, interval):
     """({"costs": {k: J_k}, "final": x(n)}, μ(0) numpy, forward steps, disk bytes) of
     ``gradient``: the run from x0 = ``work`` (3, N), the array the prepared stepper steps, and its
@@ -258,23 +288,28 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
 
     verified = [0]  # the steps whose states were checked: a recomputation's are not checked again
 
-    def advance(x, k, m=1):  # x = x(k) to x(k + m) in place, each state not yet checked watched on the device
+    def take(unit, j, watch):  # step j + 1, its state watched on the device where not yet checked
+        step(j)
+        if watch and j >= verified[0]:
+            model.bad_nodes.watch(work)
+
+    core = Integrator([Unit(model, stepper, work, work, None)], take, lone=False, rewind=_Reload(load))
+    sweep_blocks = _Sweep(verified)
+
+    def advance(x, k, m=1):  # x = x(k) to x(k + m) in place by the integrator: one block, checked once
         load(x)
-        for j in range(k, k + m):
-            step(j)
-            if j >= verified[0]:
-                model.bad_nodes.watch(work)
-        new, verified[0] = k + m > verified[0], max(verified[0], k + m)
-        if new and model.bad_nodes.watched_bad():  # one read: which step went bad, the steps again one by one
-            load(x)
-            for j in range(k, k + m):
-                step(j)
-                if (node := model.bad_nodes.first(work)) is not None:
-                    t0, dt = clock(j)
-                    raise BlowUp(
-                        f"blow-up at step {j + 1} (model time {(t0 + (j + 1) * dt) / DAY:.4f} days) of the "
-                        f"gradient's run: {model.bad_nodes.describe(work, node)}"
-                    )
+        core.step, core.rewind.x = k, x
+        stop = core.advance(k + m, sweep_blocks)
+        if stop.bad is not None:
+            j, trouble, detail = stop.bad
+            if trouble == "failure":
+                raise StepFailure(detail)
+            t0, dt = clock(j - 1)
+            raise BlowUp(
+                f"blow-up at step {j} (model time {(t0 + j * dt) / DAY:.4f} days) of the "
+                f"gradient's run: {model.bad_nodes.describe(work, detail[0][2])}"
+            )
+        verified[0] = max(verified[0], k + m)
         for a, held in [(work, x[X]), *carried(x)]:
             wp.copy(held, a)
 

@@ -26,11 +26,12 @@ from ..config.scene import resolve_scene, with_days
 from ..core.arguments import got, integer_argument, number_argument
 from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
 from ..core.constants import DAY
-from ..core.errors import ArgumentError, BlowUp, CheckpointError, Interrupted
+from ..core.errors import ArgumentError, BlowUp, CheckpointError, Interrupted, StepFailure
 from ..core.graphs import default_mode, graphs_mode
 from ..core.interrupts import StopSignals
 from ..core.mpi import RankMax
 from ..grid.cubed_sphere import CubedSphere
+from ..integrator import Integrator, core_property
 from ..io import restart_file
 from ..io.run_file import OUTPUT_FIELDS, RunWriter, area_rms, member_statistics
 from ..model.diagnostics import invariants
@@ -41,7 +42,7 @@ from ..simulation.schedules import at_its_end, check_restart_interval, output_st
 from ..simulation.writers import interrupted_attrs, restart_path, scene_attrs
 from .initial import Perturbation, Variants, checked_states, described, initial_states
 from .members import MemberGrid, member_part
-from .units import checked_scene, held_state, own_units, shared_unit, step_block, stepper_state, unit_members
+from .units import Members, checked_scene, held_state, member_step, own_units, shared_unit, stepper_state, unit_members
 from .units import layout as members_layout
 
 # a blow-up's policies: every member stopped, or the member dropped (no longer stepped, NaN in the
@@ -99,7 +100,7 @@ class Ensemble:
     alike : bool, more than one member and every one of them the same start (no perturbation
         or one of 0 m, no states, file or variants given): they stay alike, their spread 0.
     layout : "shared" (the held members in the same launches) or "in_turn" (each on a model of
-        its own; ``units``' module doc); units : the ``units.Unit`` s that step them (one, or one
+        its own; ``units``' module doc); units : the ``integrator.Unit`` s that step them (one, or one
         a member); model, stepper : the first unit's ``ShallowWater`` and stepper.
     step_count : int, the steps taken; graphs_kept : int, the step graphs replayed (``Simulation``'s).
 
@@ -162,7 +163,7 @@ class Ensemble:
         if blow_up not in POLICIES:
             raise ArgumentError(f"blow_up must be one of {', '.join(map(repr, POLICIES))} (got {got(blow_up)})")
         options = {"device": backend.device, "per_element": per_element, "threads": threads}
-        self.blow_up, self._out, self._drops = blow_up, {}, []  # dropped units: {unit index: step}, their lines
+        self.blow_up, self._drops = blow_up, []  # the lines of the members dropped
         self.layout = members_layout(scene, initial, layout, backend.device, own=blow_up == "drop")
         held = starts[self.held]
         # one BLAS thread, as ``Simulation``: the ∇⁴'s power iteration takes 40 norms
@@ -181,12 +182,13 @@ class Ensemble:
                 self.copies, self._one = None, self.units[0].model
         self.model, self.stepper = self.units[0].model, self.units[0].stepper
         # hs and f on the host, read at every output time (the grid's and the members' alone); g a member
-        self._hs, self._fcor = (
-            self._side(lambda u: u.model.operators.hs.numpy()),
-            self._side(lambda u: u.model.operators.fcor.numpy()),
-        )
+        self._hs = self._side(lambda u: u.model.operators.hs.numpy())
+        self._fcor = self._side(lambda u: u.model.operators.fcor.numpy())
         self._g = [u.model.g for u in self.units for _ in range(u.members)]
-        self.step_count = 0
+        # the one step loop over the units, each stepped a block at a time and checked at its end
+        drop = blow_up == "drop"
+        self.core = Integrator(self.units, member_step, anywhere=self._anywhere, drop=drop, lone=False)
+        self._out = self.core.out  # dropped units: {unit index: the step it blew up at}
         self.wall_time = 0.0  # s, of ``step``
         self._options, self._scorer = options, None
 
@@ -212,11 +214,8 @@ class Ensemble:
             raise ArgumentError(f"states must be numbers (m s⁻¹ and m) (got {got(states)})") from None
         if states.shape != shape:
             raise ArgumentError(f"states must have shape {shape} (got {states.shape})")
-        going = [
-            (u, k)
-            for i, (u, k) in enumerate(zip(self.units, unit_members(self.layout, self.held)))
-            if i not in self._out
-        ]
+        pairs = enumerate(zip(self.units, unit_members(self.layout, self.held)))
+        going = [(u, k) for i, (u, k) in pairs if i not in self._out]
         kept = np.concatenate([k for _, k in going]) if going else np.zeros(0, int)  # a dropped member's left as it is
         checked_states(states[kept], self.case, "states", kept)
         for u, k in going:
@@ -230,30 +229,24 @@ class Ensemble:
         to name the step. On CUDA each step is a graph (``core.graphs.GraphedSteps``, as
         ``Simulation``'s). A blow-up in any member raises ``BlowUp`` naming every member bad at
         that step, the states those of that step (``blow_up`` "stop"); or drops those members and
-        goes on (``blow_up`` "drop", ``step_block``), raising only when none is left."""
-        n = integer_argument("n", n, 0)
-        done, t0 = 0, time.perf_counter()
-        while done < n:
-            block = min(CHECK_EVERY_STEPS, n - done)
-            events, stopped = step_block(self._active(), block, self._anywhere, self.blow_up == "drop")
-            for k, bad in events[:-1] if stopped else events:
-                self._drop(bad, self.step_count + k)
-            if stopped:
-                self.step_count += events[-1][0]
-                raise BlowUp(self._blow_up(self.step_count))
-            self.step_count += block
-            done += block
+        goes on (``blow_up`` "drop", ``integrator.Integrator``), raising only when none is left;
+        ``StepFailure`` where a solve failed, the states those of the step before."""
+        n, t0 = integer_argument("n", n, 0), time.perf_counter()
+        stop = self.core.advance(self.step_count + n, Members(self._drop))
+        if stop.bad is not None:  # the states those of the step that went bad, for its report
+            step, trouble, detail = stop.bad
+            if trouble == "failure":
+                raise StepFailure(detail)
+            self.step_count = step
+            raise BlowUp(self._blow_up(step))
         wp.synchronize_device(self.model.topology.device)
         self.wall_time += time.perf_counter() - t0
 
-    def _active(self) -> list:
-        """(index, unit) of the units still stepped (all but those dropped at a blow-up)."""
-        return [(i, u) for i, u in enumerate(self.units) if i not in self._out]
+    step_count = core_property("step", "The steps taken (``Integrator.step``).")
 
     def _drop(self, bad: list, step: int) -> None:
         """Record the (index, unit, first bad node) ``bad`` dropped at ``step`` and their lines."""
         for i, _, node in bad:
-            self._out[i] = step
             lat, lon = np.degrees(self.grid.lat[node]), np.degrees(self.grid.lon[node])
             self._drops.append(
                 f"member {self.held[i]} of {self.members} blew up at step {step} (model time "

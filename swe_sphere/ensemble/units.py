@@ -15,42 +15,19 @@ Either way member k's steps are its single run's launches on its own numbers: th
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
-import warp as wp
 
 from ..config.parts import scene_stepper
 from ..core.arguments import got
+from ..core.backend import CHECK_EVERY_STEPS
 from ..core.errors import ArgumentError
-from ..core.graphs import GraphedSteps
 from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology
+from ..integrator import Observer, Unit
 from ..model.shallow_water import ShallowWater
 from ..steppers import STEPPERS
 from .initial import Variants
 from .members import MemberGrid
-
-
-@dataclasses.dataclass
-class Unit:
-    """Held members stepped together: their ``model`` and ``stepper``, their states side by side
-    ``x`` (3, members·n), a block's first state ``start`` (to re-run it step by step after a
-    blow-up) and the graphs of their steps ``graphed``."""
-
-    model: ShallowWater
-    stepper: object
-    x: wp.array
-    start: wp.array
-    graphed: GraphedSteps
-    members: int
-
-    @classmethod
-    def of(cls, model: ShallowWater, stepper, starts: np.ndarray, backend, graphs: str) -> Unit:
-        """The unit of ``model`` and ``stepper`` from ``starts`` (members, 3, n), prepared."""
-        x = model.new_state(*np.concatenate(list(starts), axis=1))
-        stepper.prepare(x)
-        return cls(model, stepper, x, wp.clone(x), GraphedSteps(backend, model.launches.guard, graphs), len(starts))
 
 
 def checked_scene(scene) -> None:
@@ -148,41 +125,25 @@ def held_state(state: dict, nodes, prefix: str | None) -> dict:
     return {**arrays, **{k[len(prefix) :]: v for k, v in state.items() if k.startswith(prefix)}}
 
 
-def step_block(active: list, block: int, anywhere, drop: bool) -> tuple[list, bool]:
-    """Step the (index, unit) ``active`` ``block`` steps, a unit's block and then the next's (its
-    arrays in the cache), the bad-state check read once at the end (``anywhere(flag)``: whether
-    it holds on any rank). Where a state went bad (a non-finite value, or h ≤ 0 where h is a
-    depth) the block is taken again step by step from its start to find the step. Returns
-    (events, stopped): each event (k, bad), the (index, unit, first bad node) ``bad`` at step k
-    (1 … block) of the block; ``stopped``: the last event stops every unit there (not ``drop``,
-    or none left going). Where ``drop``, an event's units go back to their last good state (their
-    steppers to the block's start) and are not stepped again, the others going on."""
-    saved = {i: u.stepper.state() for i, u in active}
-    for _, u in active:
-        wp.copy(u.start, u.x)
-        for _ in range(block):
-            u.graphed.step(u.stepper, u.model, u.x, True)
-    if not anywhere(any(u.model.bad_nodes.watched_bad() for _, u in active)):
-        return [], False
-    for i, u in active:
-        wp.copy(u.x, u.start)
-        u.stepper.restore(saved[i])
-    events = []
-    for k in range(1, block + 1):
-        for _, u in active:
-            if drop:
-                wp.copy(u.start, u.x)  # its last good state
-            u.stepper.step(u.x)
-        bad = [(i, u, node) for i, u in active if (node := u.model.bad_nodes.first(u.x)) is not None]
-        if anywhere(bool(bad)):
-            events.append((k, bad))
-            if not drop or not anywhere(len(bad) < len(active)):
-                return events, True
-            for i, u, _ in bad:
-                wp.copy(u.x, u.start)
-                u.stepper.restore(saved[i])
-            active = [(i, u) for i, u in active if all(i != j for j, _, _ in bad)]
-    return events, False
+class Members(Observer):
+    """An ensemble's hooks on its integrator (``integrator.Integrator``): blocks of
+    ``CHECK_EVERY_STEPS`` steps, each (index, unit, first bad node) dropped told to
+    ``dropped(bad, step)``."""
+
+    def __init__(self, dropped):
+        self._dropped = dropped
+
+    def block_end(self, b: int) -> int:
+        return b + CHECK_EVERY_STEPS
+
+    def dropped(self, step: int, bad: list) -> None:
+        self._dropped(bad, step)
+
+
+def member_step(unit: Unit, j: int, watch: bool):
+    """Step j + 1 of a unit's members: a block's watched as a graph where it may be
+    (``GraphedSteps``), a checked step's (a block taken again) launched plainly."""
+    return unit.graphed.step(unit.stepper, unit.model, unit.x, True) if watch else unit.stepper.step(unit.x)
 
 
 def unit_members(layout: str, held) -> list:

@@ -2,11 +2,11 @@
 
 ``simulation.Simulation`` (its loop, ``run``; its ``build``, ``restart`` and Python ``drive``), its
 activities (``activities``: one shape, a schedule and a call; ``writers``: run and restart
-files; ``schedules``), ``guard`` (the
-bad-state check), ``summary`` (counts and the result), ``state_diagnostics``, ``checkpoint``
+files; ``schedules``), ``guard`` (what a run adds to
+the integrator's bad-state check), ``summary`` (counts and the result), ``state_diagnostics``, ``checkpoint``
 (a restart file as a run; branches).
 
-May import: every layer below (``core`` to ``config``).
+May import: every layer below (``core`` to ``config``, the ``integrator``, ``adjoint``).
 """
 
 __all__ = [

@@ -9,7 +9,7 @@ good (``sim.step`` is that step).
 streams (``"run_file"``, ``writers.RunFiles``), the restart file (``"checkpointer"``,
 ``writers.Checkpointer``), then those the user added (``Simulation.add_callback``, or an output
 writer of one's own set as ``sim.activities[name] = writer``), then the log (``"log"``, ``Log``).
-Blocks of steps end at every step some activity is due (``guard.Guard.block_end``), so an
+Blocks of steps end at every step some activity is due (``guard.RunObserver.block_end``), so an
 activity always sees the state of its own step.
 """
 

@@ -52,11 +52,11 @@ from ..config.control import ESTIMATED
 from ..config.schema import SceneControl
 from ..core.constants import DAY
 from ..core.errors import BlowUp, StepFailure
+from ..integrator import Stop
 from ..steppers import StepStats
 from ..steppers.control import CflController, Controller, CourantMax, ErrorNorm, SpatialRate, capped
-from .guard import Guard
+from .guard import blowup_line
 from .schedules import AtDays
-from .summary import Stop
 
 # a target this close past a step's end (relative to Δt) is landed on by that step rather than
 # left to a sliver of a step after it
@@ -391,8 +391,8 @@ def steer(sim, signals, ledger, after) -> Stop:
     turn, each landed on exactly; every state checked at once (``BadNodes.first``, as the
     guard's single steps: the same blow-up report), then ``after()`` (the activities due, the
     progress bar). ``signals`` a ``StopSignals``, ``ledger`` the run's ``summary.Ledger``.
-    Returns why the loop stopped (``summary.Stop``)."""
-    ctl, guard = sim.control, Guard(sim, sim.step, ledger)
+    Returns why the loop stopped (``integrator.Stop``)."""
+    ctl = sim.control
     days = {float(sim.scene.days)}
     counted = []  # the schedules of whole steps (``EverySteps``, ``AtSteps``): due after a step, they read x
     for activity in sim.activities.values():
@@ -406,7 +406,7 @@ def steer(sim, signals, ledger, after) -> Stop:
                 if signum := signals.asked():  # every rank stops at the same step
                     return Stop(signum=signum)
                 quiet = not any(schedule.due(sim.step + 1) for schedule in counted)
-                blowup = _checked_step(sim, day, guard, ledger, quiet)
+                blowup = _checked_step(sim, day, ledger, quiet)
                 if blowup is not None:
                     return Stop(blowup=blowup)
                 after()
@@ -415,7 +415,7 @@ def steer(sim, signals, ledger, after) -> Stop:
         ctl.settle(sim.x)
 
 
-def _checked_step(sim, day: float, guard: Guard, ledger, quiet: bool) -> str | None:
+def _checked_step(sim, day: float, ledger, quiet: bool) -> str | None:
     """One accepted step of ``sim`` toward ``day`` (``StepControl.step_to``; ``quiet``: nothing
     reads the state after it, so the next may be launched ahead), counted in
     ``ledger``, its state checked; None when good (``sim.step`` moved on), else the blow-up's
@@ -444,7 +444,7 @@ def _checked_step(sim, day: float, guard: Guard, ledger, quiet: bool) -> str | N
         sim.step += 1
         return None
     detail = node if trouble is None else trouble
-    line = guard.message(sim.step + 1, "bad" if trouble is None else "failure", detail, ctl.day)
+    line = blowup_line(sim, sim.step + 1, "bad" if trouble is None else "failure", detail, ctl.day)
     ctl.settle(sim.x)
     wp.copy(sim.x, sim.last_good)
     ctl.restore(saved)

@@ -1,34 +1,32 @@
-"""The bad-state guard: blocks of steps checked once on the device, a failed block re-run step by step."""
+"""What a run adds to the integrator's guard (``integrator.Integrator``): where its blocks end,
+its signals, counts and activities (``RunObserver``), and a blow-up's line (``blowup_line``)."""
 
 from __future__ import annotations
 
-import warp as wp
+import time
 
-from ..core.errors import StepFailure
-from ..steppers import StepStats
+from ..integrator import Observer
 from .schedules import next_multiple
 
 
-class Guard:
-    """The bad-state check of one run of ``sim`` (``Simulation.check_every``).
+class RunObserver(Observer):
+    """``Simulation.run``'s hooks on ``sim``'s integrator (``Simulation.core``), to ``stop_step``.
 
-    The state is checked for a non-finite value or h <= 0 after every step on the
-    device (``ShallowWater.watch``) and the check read back once a block of steps
-    (``block_end``: every ``check_every`` steps and at every step an activity is due), so that a GPU step needs no host round trip; the solvers'
-    iteration counters of the semi-implicit and IMEX steps are read there too
-    (``Stepper.deferred``, ``Stepper.counts``), and a solve that missed its
-    tolerance fails the block like a bad state. A block whose check fails is
-    re-run from its start (state, stepper history and counters kept there), one
-    checked step at a time: the blow-up is reported at the step, time and place (a
-    failed solve at the step and time), and the output holds, as with a check every
-    step (the same bits either way). A single step is checked at once
-    (``BadNodes.first``), its solvers' counters read inside it."""
+    The state is flagged on the device after every step (``ShallowWater.watch``) and the flag
+    read back once a block of steps (``block_end``: every ``check_every`` steps and at every step
+    an activity is due), so that a GPU step needs no host round trip; the solvers' iteration
+    counters of the semi-implicit and IMEX steps are read there too (``Stepper.deferred``,
+    ``Stepper.counts``), and a solve that missed its tolerance fails the block like a bad state.
+    A block that fails is taken again from its start (state, stepper history and the run's
+    ``counters`` kept there), one checked step at a time: the blow-up is reported at the step,
+    time and place (a failed solve at the step and time), and the output holds, as with a check
+    every step (the same bits either way). ``signals`` a ``StopSignals``, ``ledger`` the run's
+    ``summary.Ledger``, ``after(n, done)`` the loop's activities and progress after good steps."""
 
-    def __init__(self, sim, stop_step: int, ledger):
-        """``stop_step``: the run's last step; ``ledger``: its ``summary.Ledger``."""
+    def __init__(self, sim, stop_step: int, ledger, signals=None, after=None):
         self.sim, self.first_step, self.stop_step, self.ledger = sim, sim.step, stop_step, ledger
+        self.signals, self._after = signals, after
         self.every = max(1, int(sim.check_every))
-        self._saved = None  # a block's stepper history and counters at its start
 
     def block_end(self, b: int) -> int:
         """The last step of the block that starts after step b: the next multiple of
@@ -42,53 +40,36 @@ class Guard:
             self.stop_step, next_multiple(b, self.every), *(n for n in due if n is not None), *self.ledger.next_steps(b)
         )
 
-    def begin(self, b: int, block: bool) -> None:
-        """Keep the state of step b in ``last_good`` and, for a block, the stepper's
-        history and counters there."""
-        sim = self.sim
-        c = sim.counters
-        self._saved = (sim.stepper.state(), c["rhs_evals"], dict(c["iterations"])) if block else None
-        wp.copy(sim.last_good, sim.x)
+    def asked(self) -> int:
+        return self.signals.asked() if self.signals is not None else 0
 
-    def end(self, b: int, trouble: str | None, ledger) -> tuple[str | None, int | None]:
-        """Read the check of the steps since ``begin(b)`` (the host's one read and
-        synchronisation) and the solvers' counters of a block (into ``ledger``).
-        ``trouble``: what the step path met, None, "failure" (a ``StepFailure``) or
-        "abandoned". Returns (trouble, node): trouble None when every state was good,
-        else that or "bad" (or, in a block, "unconverged": a solve missed its
-        tolerance); node the whole-grid index of a single step's bad node. After
-        trouble ``sim.step`` is b again; after a block's trouble or an abandoned step,
-        so are the state, and for a block the stepper history and counters; a single
-        step's bad state is kept for its report."""
-        sim, node = self.sim, None
-        if self._saved is not None:
-            if sim.model.bad_nodes.watched_bad() and trouble is None:
-                trouble = "bad"
-            try:  # the solvers' device counters of the block's steps (zeroed, also after trouble)
-                counts = sim.stepper.counts()
-            except StepFailure:  # a solve in the block failed: which one, the re-run tells
-                trouble = trouble or "unconverged"
-            if trouble is None:
-                ledger.add(StepStats(0, counts))
-        else:
-            node = sim.model.bad_nodes.first(sim.x) if trouble is None else None
-            wp.synchronize_device(sim.device)
-            trouble = "bad" if node is not None else trouble
-        if trouble is not None:
-            sim.step = b
-            if self._saved is not None or trouble == "abandoned":
-                wp.copy(sim.x, sim.last_good)
-            if self._saved is not None:
-                sim.stepper.restore(self._saved[0])
-                sim.counters["rhs_evals"], sim.counters["iterations"] = self._saved[1], self._saved[2]
-        return trouble, node
+    def stepping(self, on: bool) -> None:
+        if self.signals is not None:  # a step may be abandoned from here (``StopSignals``)
+            self.signals.in_step = time.perf_counter() if on else None
 
-    def message(self, step: int, trouble: str, detail, day: float | None = None) -> str:
-        """What went wrong in the single step ``step`` (at model ``day``, default the clock's):
-        where ``detail`` (its bad node, a whole-grid index) went bad, or for a "failure" the
-        solver's message ``detail``, on every rank (call on every rank)."""
-        sim = self.sim
-        day = sim.scene.day(step) if day is None else day
-        if trouble == "failure":
-            return f"step {step} failed (model time {day:.4f} days): {detail}"
-        return f"blow-up at step {step} (model time {day:.4f} days): {sim.model.bad_nodes.describe(sim.x, detail)}"
+    def add(self, stats) -> None:
+        self.ledger.add(stats)
+
+    def account(self, step: int, t0: float, cpu0: float) -> None:
+        self.ledger.account(step, t0, cpu0)
+
+    def after(self, step: int, done: int) -> None:
+        if self._after is not None:
+            self._after(step, done)
+
+    def keep(self):
+        c = self.sim.counters
+        return c["rhs_evals"], dict(c["iterations"])
+
+    def put_back(self, kept) -> None:
+        self.sim.counters["rhs_evals"], self.sim.counters["iterations"] = kept
+
+
+def blowup_line(sim, step: int, trouble: str, detail, day: float | None = None) -> str:
+    """What went wrong in the single step ``step`` of ``sim`` (at model ``day``, default the
+    clock's): where ``detail`` (its bad node, a whole-grid index) went bad, or for a "failure"
+    the solver's message ``detail``, on every rank (call on every rank)."""
+    day = sim.scene.day(step) if day is None else day
+    if trouble == "failure":
+        return f"step {step} failed (model time {day:.4f} days): {detail}"
+    return f"blow-up at step {step} (model time {day:.4f} days): {sim.model.bad_nodes.describe(sim.x, detail)}"

@@ -1,5 +1,5 @@
-"""``Simulation.run``'s loop: blocks of steps checked by the guard (``guard.Guard``), the
-activities due after each good step, the progress bar, a stopped run's files closed and its
+"""``Simulation.run``'s loop: its steps by the integrator (``integrator.Integrator``) under the
+run's hooks (``guard.RunObserver``), the activities due after each good step, the progress bar, a stopped run's files closed and its
 outcome (``StepLoop``, the object a ``Simulation`` holds); the run's arguments checked
 (``check_run_arguments``) and the seconds spent compiling Warp modules (``compile_timer``)."""
 
@@ -10,15 +10,22 @@ import signal
 import sys
 import time
 
+from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from ..core.arguments import flag_argument, number_argument, path_argument
-from ..core.errors import BlowUp, Interrupted, OutputError, SceneError, StepFailure
-from ..core.interrupts import StepAbandoned, StopSignals
-from .activities import is_due
-from .guard import Guard
-from .summary import Ledger, RunResult, Stop, interruption
-from .writers import Checkpointer, RunFiles, interrupted_attrs
+from ..core.errors import BlowUp, Interrupted, OutputError, SceneError
+from ..core.interrupts import StopSignals
+from ..integrator import Stop
+from ..io.output_files import check_distinct, check_target
+from .activities import Log, is_due
+from .adaptive import steer
+from .guard import RunObserver, blowup_line
+from .schedules import EverySteps
+from .summary import Ledger, RunResult, interruption
+from .writers import Checkpointer, RunFiles, interrupted_attrs, run_attrs
+
+RUN_ACTIVITIES = ("run_file", "checkpointer", "log")  # the names ``run`` gives its own activities
 
 
 @contextlib.contextmanager
@@ -62,11 +69,11 @@ def check_run_arguments(output, overwrite, restart_every, restart_file, compress
 
 
 class StepLoop:
-    """The steps of ``Simulation.run`` on ``sim``, each by ``take_step(watch)`` (its ``StepStats``),
-    its activities between them, and how it stopped."""
+    """The steps of ``Simulation.run`` on ``sim``, by its integrator (``Simulation.core``), its
+    activities between them, and how it stopped."""
 
-    def __init__(self, sim, take_step):
-        self.sim, self.take_step = sim, take_step
+    def __init__(self, sim, compiling: list):
+        self.sim, self.compiling = sim, compiling  # the seconds compiling Warp modules (``compile_timer``)
         self.lines = None  # a run's ``progress.ProgressLines``, where it was given one
 
     def watched(self, lines) -> None:
@@ -86,26 +93,16 @@ class StepLoop:
             dynamic_ncols=True,
         )
 
-    def blocks(self, guard: Guard, signals: StopSignals, ledger: Ledger, bar) -> Stop:
-        """Blocks of steps to ``guard.stop_step``, the activities due called after each good
-        step; a block that finds trouble is re-run a checked step at a time. Returns why
-        the loop stopped (``summary.Stop``: nothing, a signal, an abandoned step or a blow-up)."""
-        rerun_to = self.sim.step  # steps up to here are re-run one at a time: their block found trouble
-        while self.sim.step < guard.stop_step:
-            if self.sim.step >= rerun_to and (signum := signals.asked()):  # every rank stops at the same step
-                return Stop(signum=signum)
-            b = self.sim.step
-            e = guard.block_end(b) if b >= rerun_to else b + 1  # a re-run goes on to the trouble it looks for
-            m, trouble, detail = self.steps(b, e, guard, signals, ledger)
-            if trouble is None:  # m > b: a step without trouble was taken
-                self.after_steps(m, m - b, bar)
-            elif trouble == "abandoned":
-                return Stop(signum=detail, abandoned=(b, m))
-            elif e > b + 1:  # the block is re-run from b, a checked step at a time
-                rerun_to = m + 1 if trouble == "failure" else m  # a failure: in step m + 1
-            else:
-                return Stop(blowup=guard.message(b + 1, trouble, detail))
-        return Stop()
+    def blocks(self, signals: StopSignals, ledger: Ledger, bar, stop_step: int) -> Stop:
+        """The run's steps to ``stop_step`` by the integrator (``Simulation.core``) under its guard
+        (``guard.RunObserver``), the activities due called after each good step. Returns why the
+        loop stopped (``Stop``: nothing, a signal, an abandoned step or a blow-up)."""
+        observer = RunObserver(self.sim, stop_step, ledger, signals, lambda n, done: self.after_steps(n, done, bar))
+        stop = self.sim.core.advance(stop_step, observer)
+        if stop.bad is not None:
+            step, trouble, detail = stop.bad
+            stop.blowup = blowup_line(self.sim, step, trouble, detail if trouble == "failure" else detail[0][2])
+        return stop
 
     def after_steps(self, n: int, done: int, bar) -> None:
         """Step n (the last of ``done`` steps) is good: the activities due there, the progress bar."""
@@ -149,35 +146,69 @@ class StepLoop:
             raise err
         return result
 
-    def steps(self, b: int, e: int, guard: Guard, signals: StopSignals, ledger: Ledger):
-        """Steps b+1..e, the loop's one step path: a single step (e = b + 1) checked at
-        once, a block's steps each flagged on the device and the flag read at its end
-        (``guard.Guard``); a block stops early for a signal. Returns (m, trouble, detail): m the last step
-        taken; trouble None when every state to m was good, else "bad", "unconverged",
-        "failure" (a ``StepFailure`` in step m + 1) or "abandoned" (step m + 1), and then
-        ``step`` is b again (``Guard.end``); detail a single step's bad node or failure
-        message, or the signal that abandoned the step."""
-        block = e > b + 1
-        guard.begin(b, block)
-        t0, cpu0 = time.perf_counter(), time.process_time()
-        m, trouble, detail = b, None, None
-        while m < e:
-            if m > b and signals.asked():  # the loop stops at m, once checked
-                break
+    def integrate(self, files, ckp, start, ledger, log, catch_signals, until_step) -> tuple:
+        """``Simulation.run``'s loop with its files (``RunFiles``, ``Checkpointer``) and signals:
+        the fixed step's (``blocks``) or, under ``scene.control``, the step control's
+        (``adaptive.steer``); (why it stopped, ``Stop``; the ``StopSignals``). The files closed,
+        or dropped on an exception."""
+        sim, stop = self.sim, Stop()
+        # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
+        # pay, and on a busy machine OpenBLAS's spinning threads made a norm cost 10 ms
+        with StopSignals(sim.topology, catch_signals) as signals, threadpool_limits(limits=1, user_api="blas"):
             try:
-                signals.in_step = time.perf_counter()
-                stats = self.take_step(block)
-            except StepFailure as err:
-                trouble, detail = "failure", str(err)
-                break
-            except StepAbandoned as err:  # the state of the last complete step is kept
-                trouble, detail = "abandoned", err.signum
-                break
-            finally:
-                signals.in_step = None
-            ledger.add(stats)
-            m += 1
-            self.sim.step = m  # the steps x holds (not yet checked)
-        trouble, node = guard.end(b, trouble, ledger)
-        ledger.account(m if block else b + 1, t0, cpu0)
-        return m, trouble, node if trouble == "bad" else detail
+                with self.during_run(files, ckp, log), compile_timer(self.compiling):
+                    # a continuation's first time is the last of the file it continues (where its
+                    # restart file was written): not written again, so the two files join without a repeat
+                    files.record(sim.step, whole=start, final=True, write=not sim.step)
+                    with self.progress_bar() as bar:
+                        if sim.control is None:
+                            last = sim.scene.nsteps if until_step is None else until_step
+                            stop = self.blocks(signals, ledger, bar, last)
+                        elif until_step is None:
+                            stop = steer(sim, signals, ledger, lambda: self.after_steps(sim.step, 1, bar))
+                        else:
+                            raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
+                    self.stopped(stop, files, ckp)
+                files.close()  # under this run's handlers: a signal now waits, and is answered below
+            except BaseException:
+                files.abort()
+                raise
+        return stop, signals
+
+    def open(self, output, overwrite, restart_every, restart_file, compress, history, on_output, notify) -> tuple:
+        """A run's run files and checkpointer (paths checked; the files created on rank 0),
+        the start's gathered fields and its Courant numbers. ValueError for a user's
+        activity under a name the run gives its own."""
+        sim = self.sim
+        taken = sorted(set(sim.activities) & set(RUN_ACTIVITIES))
+        if taken:
+            raise ValueError(f"activities {', '.join(taken)}: a run's own names (choose another)")
+        ckp = Checkpointer(sim, output, restart_every, restart_file, overwrite)
+        files = RunFiles(sim, output, on_output)
+        if sim.root:
+            check_distinct([output, ckp.path, *files.paths], sim.inputs)
+            if ckp.path is not None:
+                check_target(ckp.path, overwrite)
+        with compile_timer(self.compiling):  # a continuation's first use of the diagnostic kernels
+            start = sim.diagnostics.gather_fields(divergence=files.divergence)  # the first output time's, every rank
+        courant = sim.courant(start)
+        if output is not None and sim.root:
+            files.open(run_attrs(sim, history, courant), overwrite=overwrite, compress=compress, notify=notify)
+        return files, ckp, start, courant
+
+    @contextlib.contextmanager
+    def during_run(self, files: RunFiles, ckp: Checkpointer, log):
+        """The run's own activities in ``activities`` (the run file and checkpointer before
+        the user's, the log after), and the stepper's solver counters read with the
+        bad-state check (``Stepper.deferred``), while the loop runs."""
+        sim = self.sim
+        own = sim.activities
+        sim.activities = {"run_file": files, "checkpointer": ckp, **own}
+        if log is not None and sim.scene.log_every_steps:
+            sim.activities["log"] = Log(log, EverySteps(sim.scene.log_every_steps), files)
+        sim.stepper.deferred = True
+        try:
+            yield
+        finally:
+            sim.stepper.deferred = False
+            sim.activities = own

@@ -12,7 +12,6 @@ and driving from Python (``drive.Drive``) behind its methods; the state's diagno
 
 from __future__ import annotations
 
-import contextlib
 import time
 from pathlib import Path
 
@@ -25,26 +24,20 @@ from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
 from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, Interrupted, SceneError
 from ..core.graphs import GraphedSteps, default_mode, graphs_mode
-from ..core.interrupts import StopSignals
-from ..io.output_files import check_distinct, check_target
+from ..integrator import Integrator, Unit, core_property
 from ..steppers import StepStats
-from .activities import Log
-from .adaptive import StepControl, steer
-from .build import ON_ROOT, build
+from .adaptive import StepControl
+from .build import ON_ROOT, Built, build
 from .checkpoint import Checkpoint
 from .drive import Drive
-from .guard import Guard
 from .loop import StepLoop, check_run_arguments, compile_timer
 from .restart import Restart, continued
 from .schedules import EverySteps, at_its_end
 from .state_diagnostics import StateDiagnostics
-from .summary import Ledger, RunResult, Stop
-from .writers import Checkpointer, RunFiles, run_attrs
+from .summary import Ledger, RunResult
 
 # The names users catch and read from here (``swe_sphere.BlowUp``, ``swe_sphere.Interrupted``).
 __all__ = ["BlowUp", "Interrupted", "RunResult", "Simulation"]
-
-RUN_ACTIVITIES = ("run_file", "checkpointer", "log")  # the names ``run`` gives its own activities
 
 
 class Simulation:
@@ -92,7 +85,7 @@ class Simulation:
     check_every : int
         ``run`` reads the device's bad-state check back once a block of so many steps
         (``core.backend.CHECK_EVERY_STEPS``, 64), a failed block re-run one
-        checked step at a time (``guard.Guard``; the same bits either way).
+        checked step at a time (``integrator.Integrator``; the same bits either way).
     dfi : FilterResult or None
         The digital-filter initialization's result, when the scene has one
         (``initialization``) and no ``start`` was given; its cost is in ``setup_time``.
@@ -153,12 +146,12 @@ class Simulation:
         # Δt the simulation may fit to the user's intervals (``steps``): not given, restored or stated in a Scene
         own_dt = not isinstance(scene, Scene) and "dt" not in overrides and initial_diagnostics is None
         scene, inputs = resolve_scene(scene, overrides)
+        comm_argument("comm", comm)
         backend = Backend.of(pick_device(device, comm=comm))  # a name Warp does not know is refused in one line
         if initial is not None and (start is not None or not callable(initial)):
             raise ArgumentError(
                 f"initial must be a function (lat, lon) -> (h, u, v), and not given with start (got {got(initial)})"
             )
-        comm_argument("comm", comm)
         if start is not None and start is not ON_ROOT:
             start = array_argument("start", start, (3, None), "m s⁻¹ and m")  # the grid's columns: ``distribute``
         if initial_diagnostics is not None:
@@ -166,13 +159,24 @@ class Simulation:
         t0 = time.perf_counter()
         self._compile = [0.0]
         # what the simulation holds: driving from Python, restarts, the run's loop
-        self._drive, self._restart, self._loop = Drive(self, own_dt), Restart(self), StepLoop(self, self._take_step)
+        self._drive, self._restart, self._loop = Drive(self, own_dt), Restart(self), StepLoop(self, self._compile)
         self.activities: dict = {}  # name -> activity (``activities``): the user's; ``run`` adds its own
         # single-threaded BLAS, as in ``run``: the ∇⁴'s power iteration (``config.parts.check_hyperviscosity``)
         # takes 40 norms, and OpenBLAS's threads spinning on a busy machine made them 0.3 s of CPU
         with compile_timer(self._compile), threadpool_limits(limits=1, user_api="blas"):
             self.scene, self.backend, self.device = scene, backend, backend.device
-            vars(self).update(vars(build(scene, backend, progress, comm, start, initial)))  # ``Built``'s fields
+            self.built: Built = build(scene, backend, progress, comm, start, initial)
+            b = self.built  # its parts the simulation's attributes; the state and stepper its integrator's
+            self.case, self.topology, self.root, self.progress, self.grid = (
+                b.case,
+                b.topology,
+                b.root,
+                b.progress,
+                b.grid,
+            )
+            self.model, self.fcor, self.hs, self.scorer, self.dfi = b.model, b.fcor, b.hs, b.scorer, b.dfi
+            graphed = GraphedSteps(backend, b.model.launches.guard, graphs)
+            self.core = Integrator([Unit(b.model, b.stepper, b.x, b.last_good, graphed)], self._take)
             self.g, self.check_every = self.model.g, CHECK_EVERY_STEPS
             self.diagnostics = StateDiagnostics(self)
             self.control = None  # made below: the start's Courant numbers at the scene's dt, its first step
@@ -181,14 +185,12 @@ class Simulation:
                 self.initial = self.diagnostics.diagnose(scene.start_day * DAY)
             # Δt chosen step to step (``Scene.control``): the loop's steps land on its times
             self.control = None if scene.control is None else StepControl(scene.control, self.stepper, self)
-            self.step = 0  # steps taken since t = 0 (a branched run: since its branch day, ``Scene.start_day``)
             self.counters = {
                 "rhs_evals": 0,
                 "wall_time": 0.0,
                 "cpu_time": 0.0,
                 "iterations": {k: 0 for k in self.stepper.solvers},
             }
-        self._graphed = GraphedSteps(backend, self.model.launches.guard, graphs)
         self.setup_time = time.perf_counter() - t0
         if inputs:
             self.inputs = inputs
@@ -405,7 +407,16 @@ class Simulation:
         """``StateDiagnostics.largest_dt_within_limit``: the Δt at the stepper's limit."""
         return self.diagnostics.largest_dt_within_limit()
 
-    # -- the step --------------------------------------------------------------
+    # -- the step: the integrator's (``integrator.Integrator``, one unit of one member) --
+    step = core_property("step", "Steps taken since t = 0 (a branched run: since its branch day, ``Scene.start_day``).")
+    stepper = core_property("stepper", "The stepper (``steppers``), prepared on ``x``.", unit=True)
+    x = core_property("x", "The state (3, N) on the device: rows u, v (m s⁻¹), h (m) on this rank's nodes.", unit=True)
+    last_good = core_property("start", "The state (3, N) at the start of the step or block in progress.", unit=True)
+
+    @property
+    def _graphed(self):
+        return self.core.units[0].graphed
+
     @property
     def graphs(self) -> str:
         """The graph mode: "auto", "on" or "off" (set also as True, False; see the class)."""
@@ -435,13 +446,13 @@ class Simulation:
         ``StepStats``."""
         return self._graphed.step(self.stepper, self.model, x, False)
 
-    def _take_step(self, watch: bool):
-        """One step of the stepper on x and, with ``watch``, the bad-state flag's launch
+    def _take(self, unit: Unit, j: int, watch: bool):
+        """Step j + 1 of the stepper on x and, with ``watch``, the bad-state flag's launch
         (``ShallowWater.watch``; the solvers' device counters left for the block's
         read), else with its solvers' counters read (``Stepper.counts``: raises
         ``StepFailure``); its ``StepStats``. With ``graphs``, steps replay as
         graphs (``graphs.GraphedSteps``)."""
-        stats = self._graphed.step(self.stepper, self.model, self.x, watch)
+        stats = unit.graphed.step(unit.stepper, unit.model, unit.x, watch)
         return stats if watch else StepStats(stats.rhs_evals, {**stats.iterations, **self.stepper.counts()})
 
     def run(
@@ -462,7 +473,7 @@ class Simulation:
     ) -> RunResult:
         """Integrate the scene from the current step; write ``output`` (netCDF) if given.
 
-        Blocks of steps, each checked by the guard (``guard.Guard``; under step control
+        Blocks of steps by the integrator, each checked by its guard (``integrator.Integrator``; under step control
         ``adaptive.steer``'s), then the activities due (``activities``): the run file and its
         ``[[output.streams]]``, the restart file, the callbacks and writers, the log.
 
@@ -519,82 +530,15 @@ class Simulation:
         check_run_arguments(output, overwrite, restart_every, restart_file, compress, catch_signals)
         if output is not None and self.control is None and self.step >= (until_step or self.scene.nsteps):
             raise ArgumentError(at_its_end("Simulation", self.step, self.scene))  # a file of no time
-        files, ckp, start, courant = self._open(
+        files, ckp, start, courant = self._loop.open(
             output, overwrite, restart_every, restart_file, compress, history, on_output, notify
         )
         ledger = Ledger(self.counters, self.scene, self.step, notify if self.root else None)
         self._loop.watched(progress_lines)
-        stop, signals = self._integrate(files, ckp, start, ledger, log, catch_signals, until_step)
+        stop, signals = self._loop.integrate(files, ckp, start, ledger, log, catch_signals, until_step)
         if stop.signum is None and stop.blowup is None:  # a signal after the last step's check: the output is whole
             stop.signum = signals.asked() or None
         result = ledger.result(
             self.step, files.history, courant, output, stop.blowup, ckp.written, self.setup_time, self._compile[0]
         )
         return self._loop.outcome(stop, result, output, ckp)
-
-    def _integrate(self, files, ckp, start, ledger, log, catch_signals, until_step) -> tuple:
-        """``run``'s loop with its files (``RunFiles``, ``Checkpointer``) and signals: the fixed
-        step's (``loop.StepLoop``) or, under ``scene.control``, the step control's (``adaptive.steer``);
-        (why it stopped, ``summary.Stop``; the ``StopSignals``). The files closed, or dropped
-        on an exception."""
-        stop = Stop()
-        # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
-        # pay, and on a busy machine OpenBLAS's spinning threads made a norm cost 10 ms
-        with StopSignals(self.topology, catch_signals) as signals, threadpool_limits(limits=1, user_api="blas"):
-            try:
-                with self._during_run(files, ckp, log), compile_timer(self._compile):
-                    # a continuation's first time is the last of the file it continues (where its
-                    # restart file was written): not written again, so the two files join without a repeat
-                    files.record(self.step, whole=start, final=True, write=not self.step)
-                    with self._loop.progress_bar() as bar:
-                        if self.control is None:
-                            last = self.scene.nsteps if until_step is None else until_step
-                            stop = self._loop.blocks(Guard(self, last, ledger), signals, ledger, bar)
-                        elif until_step is None:
-                            stop = steer(self, signals, ledger, lambda: self._loop.after_steps(self.step, 1, bar))
-                        else:
-                            raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
-                    self._loop.stopped(stop, files, ckp)
-                files.close()  # under this run's handlers: a signal now waits, and is answered below
-            except BaseException:
-                files.abort()
-                raise
-        return stop, signals
-
-    def _open(self, output, overwrite, restart_every, restart_file, compress, history, on_output, notify) -> tuple:
-        """A run's run files and checkpointer (paths checked; the files created on rank 0),
-        the start's gathered fields and its Courant numbers. ValueError for a user's
-        activity under a name the run gives its own."""
-        taken = sorted(set(self.activities) & set(RUN_ACTIVITIES))
-        if taken:
-            raise ValueError(f"activities {', '.join(taken)}: a run's own names (choose another)")
-        ckp = Checkpointer(self, output, restart_every, restart_file, overwrite)
-        files = RunFiles(self, output, on_output)
-        if self.root:
-            check_distinct([output, ckp.path, *files.paths], self.inputs)
-            if ckp.path is not None:
-                check_target(ckp.path, overwrite)
-        with compile_timer(self._compile):  # a continuation's first use of the diagnostic kernels
-            start = self.diagnostics.gather_fields(
-                divergence=files.divergence
-            )  # the first output time's, on every rank
-        courant = self.courant(start)
-        if output is not None and self.root:
-            files.open(run_attrs(self, history, courant), overwrite=overwrite, compress=compress, notify=notify)
-        return files, ckp, start, courant
-
-    @contextlib.contextmanager
-    def _during_run(self, files: RunFiles, ckp: Checkpointer, log):
-        """The run's own activities in ``activities`` (the run file and checkpointer before
-        the user's, the log after), and the stepper's solver counters read with the
-        bad-state check (``Stepper.deferred``), while the loop runs."""
-        own = self.activities
-        self.activities = {"run_file": files, "checkpointer": ckp, **own}
-        if log is not None and self.scene.log_every_steps:
-            self.activities["log"] = Log(log, EverySteps(self.scene.log_every_steps), files)
-        self.stepper.deferred = True
-        try:
-            yield
-        finally:
-            self.stepper.deferred = False
-            self.activities = own

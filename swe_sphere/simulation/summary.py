@@ -133,14 +133,3 @@ def interruption(name: str, step: int, day: float, scene, output, kept_restart, 
         when = f"at step {step} (model time {day:.4f} days){how}"
     kept += [f"restart file {checkpoint}"] if checkpoint is not None else []
     return "; ".join([f"interrupted by {name} {when}", *kept])
-
-
-@dataclass
-class Stop:
-    """Why a run's loop stopped before its last step (``Simulation.run``): nothing (it
-    did not), a signal ``signum`` (with ``abandoned`` = (b, m) when it abandoned step
-    m + 1 of a block from b), or a ``blowup`` (its one-line message)."""
-
-    signum: int | None = None
-    abandoned: tuple | None = None
-    blowup: str | None = None

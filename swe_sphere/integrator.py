@@ -1,0 +1,267 @@
+"""The package's one step loop (Oceananigans' ``time_step!`` and its callbacks; JAX codes' one
+step mapped over members): ``Integrator`` advances ``Unit`` s, each a state with its members
+side by side (one member, or an ensemble's copies of the grid, ``ensemble.members.MemberGrid``),
+its model and its stepper, a block of steps at a time under the one bad-state guard:
+
+- each state of a block is flagged on the device (``BadNodes.watch``) and the flag read once at
+  the block's end with the solvers' device counters (``Stepper.counts``), so that a step needs
+  no host round trip (a GPU step is its launches, or one graph);
+- a block that found trouble is put back to its start (states, stepper histories, the driver's
+  counters) and taken again a checked step at a time (``BadNodes.first``), to name the step and
+  the place: the same bits as a check every step;
+- with ``drop``, a member bad at a step goes back to its last good state and is not stepped
+  again while the others go on (an ensemble's ``blow_up="drop"``); else the loop stops there.
+
+What a driver adds around the steps is an ``Observer``'s (its hooks no-ops here): where a
+block ends (activities due), a stop asked (signals), what follows good steps (activities,
+progress), the steps' counts. ``Simulation.run``, ``Ensemble.step`` and the gradient's sweeps
+(``adjoint.gradient``) all advance through ``Integrator.advance``."""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+import warp as wp
+
+from .core.errors import StepFailure
+from .core.graphs import GraphedSteps
+from .core.interrupts import StepAbandoned
+from .model.shallow_water import ShallowWater
+from .steppers import StepStats
+
+
+@dataclasses.dataclass
+class Unit:
+    """Members stepped together: their ``model`` and ``stepper``, their states side by side ``x``
+    (3, members·n), the state at the start of the step or block in progress ``start`` (the last
+    good one: a block is taken again from it), the graphs of their steps ``graphed``."""
+
+    model: ShallowWater
+    stepper: object
+    x: wp.array
+    start: wp.array
+    graphed: GraphedSteps
+    members: int = 1
+
+    @classmethod
+    def of(cls, model: ShallowWater, stepper, starts: np.ndarray, backend, graphs: str) -> Unit:
+        """The unit of ``model`` and ``stepper`` from ``starts`` (members, 3, n), prepared."""
+        x = model.new_state(*np.concatenate(list(starts), axis=1))
+        stepper.prepare(x)
+        return cls(model, stepper, x, wp.clone(x), GraphedSteps(backend, model.launches.guard, graphs), len(starts))
+
+
+@dataclasses.dataclass
+class Stop:
+    """Why ``Integrator.advance`` stopped before its last step: nothing (it did not), a signal
+    ``signum`` (with ``abandoned`` = (b, m) when it abandoned step m + 1 of a block from b), or
+    trouble in a checked step, ``bad`` = (step, trouble, detail): trouble "bad" (detail the
+    [(unit index, unit, first bad whole-grid node)] bad there) or "failure" (detail the
+    solver's message); ``blowup`` the driver's line for it."""
+
+    signum: int | None = None
+    abandoned: tuple | None = None
+    blowup: str | None = None
+    bad: tuple | None = None
+
+
+class Observer:
+    """What a driver adds around ``Integrator.advance``'s steps; each hook a no-op here."""
+
+    def asked(self) -> int:
+        """A stop asked between blocks: the signal's number, 0 for none."""
+        return 0
+
+    def block_end(self, b: int) -> int:
+        """The last step of the block after step b (the state read then: activities due)."""
+        return b + 1
+
+    def checked(self, b: int, e: int) -> bool:
+        """Whether the states of steps b+1..e are checked (False: known good, taken again)."""
+        return True
+
+    def stepping(self, on: bool) -> None:
+        """A step begins (``on``) or ends: where a signal may abandon it."""
+
+    def add(self, stats: StepStats) -> None:
+        """A step's counts (``StepStats``), or a block's solver counters read at its end."""
+
+    def account(self, step: int, t0: float, cpu0: float) -> None:
+        """Steps to ``step`` taken since ``time.perf_counter()`` t0 and ``process_time()`` cpu0."""
+
+    def after(self, step: int, done: int) -> None:
+        """``done`` steps to ``step`` found good."""
+
+    def keep(self):
+        """The driver's counters at a block's start, handed back to ``put_back`` on trouble."""
+
+    def put_back(self, kept) -> None:
+        """The counters ``keep`` returned, back."""
+
+    def dropped(self, step: int, bad: list) -> None:
+        """Units (index, unit, first bad node) ``bad`` dropped at ``step`` (``Integrator.drop``)."""
+
+
+def core_property(name: str, doc: str, unit: bool = False) -> property:
+    """A driver's property (read and set) that is its integrator's (``self.core``) ``name``, or
+    with ``unit`` its first unit's (a run's one unit)."""
+
+    def owner(driver):
+        return driver.core.units[0] if unit else driver.core
+
+    return property(lambda d: getattr(owner(d), name), lambda d, value: setattr(owner(d), name, value), doc=doc)
+
+
+def graphed_step(unit: Unit, j: int, watch: bool) -> StepStats:
+    """Step j + 1 of ``unit``, a graph where its ``graphed`` lets it (``GraphedSteps.step``)."""
+    return unit.graphed.step(unit.stepper, unit.model, unit.x, watch)
+
+
+class Rewind:
+    """How a block's units are kept at its start and put back: x copied to ``start`` (the last good
+    state) and, for a block or where members drop, the steppers' ``state()``."""
+
+    def keep(self, active: list, whole: bool) -> dict:
+        for _, u in active:
+            wp.copy(u.start, u.x)
+        return {i: u.stepper.state() for i, u in active} if whole else {}
+
+    def put_back(self, active: list, saved: dict, whole: bool) -> None:
+        for i, u in active:
+            wp.copy(u.x, u.start)
+            if i in saved:
+                u.stepper.restore(saved[i])
+
+
+class Integrator:
+    """``units`` (``Unit`` s, the members of this process) advanced by ``take(unit, j, watch)``
+    (step j + 1 of a unit, the state flagged on the device where ``watch``; its ``StepStats``;
+    default ``graphed_step``) under one guard (module doc). ``anywhere(flag)``: whether ``flag``
+    holds on any process stepping members of the same run (default: here). ``drop``: a unit bad
+    at a checked step is dropped and the others go on (``out``: {unit index: step}). ``lone``: a
+    block of one step is checked at once (a run's first step, to time it alone) rather than
+    watched. ``rewind``: how a block is kept and put back (``Rewind``). ``step``: the steps
+    taken."""
+
+    def __init__(self, units: list, take=graphed_step, *, anywhere=bool, drop=False, lone=True, rewind=None):
+        self.units, self.take, self.anywhere = list(units), take, anywhere
+        self.drop, self.lone, self.rewind = drop, lone, rewind or Rewind()
+        self.out: dict[int, int] = {}
+        self.step = 0
+
+    def active(self) -> list:
+        """(index, unit) of the units still stepped (all but those dropped)."""
+        return [(i, u) for i, u in enumerate(self.units) if i not in self.out]
+
+    def advance(self, stop_step: int, observer: Observer | None = None) -> Stop:
+        """Blocks of steps to ``stop_step`` (``observer.block_end``), ``observer.after`` called
+        after each good block or checked step; a block that finds trouble is taken again from
+        its start a checked step at a time. Returns why it stopped (``Stop``): nothing, a
+        signal between blocks (``observer.asked``) or an abandoned step, or trouble in a checked
+        step (``step`` is then the last good step; a bad state is kept for its report)."""
+        observer = observer or Observer()
+        again_to = self.step  # steps up to here are taken again one at a time: their block found trouble
+        while self.step < stop_step:
+            b = self.step
+            if b >= again_to and (signum := observer.asked()):  # every rank stops at the same step
+                return Stop(signum=signum)
+            e = min(observer.block_end(b), stop_step) if b >= again_to else b + 1
+            watched = b >= again_to and (e > b + 1 or not self.lone)
+            m, trouble, detail = self.block(b, e, watched, observer)
+            if trouble is None:  # m > b: a step without trouble was taken
+                observer.after(m, m - b)
+            elif trouble == "abandoned":
+                return Stop(signum=detail, abandoned=(b, m))
+            elif watched:  # the block again from b, a checked step at a time (a failure: to step m + 1)
+                again_to = m + 1 if trouble == "failure" else m
+            else:
+                return Stop(bad=(b + 1, trouble, detail))
+        return Stop()
+
+    def block(self, b: int, e: int, watched: bool, observer: Observer) -> tuple:
+        """Steps b+1..e of the active units, the one step path: ``watched``, each state flagged on
+        the device and the flag read at the end, else each step checked at once (one step).
+        Returns (m, trouble, detail): m the last step taken; trouble None when every state to m
+        was good, else "bad", "unconverged", "failure" (a ``StepFailure`` in step m + 1) or
+        "abandoned" (step m + 1; detail the signal), and then ``step`` is b again and, but for
+        a checked step's bad state, the units are put back."""
+        active = self.active()
+        check = observer.checked(b, e)
+        saved = self.rewind.keep(active, watched and check or self.drop)
+        kept = observer.keep() if watched else None
+        t0, cpu0 = time.perf_counter(), time.process_time()
+        m, trouble, detail = self._steps(active, b, e, watched and check, observer)
+        if check and watched:
+            trouble = self._read(active, trouble, observer)
+        elif check and trouble is None:
+            trouble, detail = self._checked(active, b, observer, saved)
+        if trouble == "failure" and len(active) > 1:
+            m = e - 1  # which unit's step failed is not known: every step of the block again
+        observer.account(m if watched else b + 1, t0, cpu0)
+        if trouble is not None:
+            self.step = b
+            if watched or trouble == "abandoned":
+                self.rewind.put_back(active, saved, watched)
+            if watched:
+                observer.put_back(kept)
+        return m, trouble, detail
+
+    def _steps(self, active: list, b: int, e: int, watch: bool, observer: Observer) -> tuple:
+        """Steps b+1..e of ``active``, a unit's steps and then the next's (its arrays in the cache);
+        one unit's stop early for a signal (``observer.asked``). Returns (m, trouble, detail)."""
+        m, one = b, len(active) == 1
+        for _, u in active:
+            for j in range(b, e):
+                if one and j > b and observer.asked():  # the loop stops at j, once checked
+                    return m, None, None
+                try:
+                    observer.stepping(True)
+                    stats = self.take(u, j, watch)
+                except StepFailure as err:
+                    return j, "failure", str(err)
+                except StepAbandoned as err:  # the state of the last complete step is kept
+                    return j, "abandoned", err.signum
+                finally:
+                    observer.stepping(False)
+                observer.add(stats)
+                m = j + 1
+                self.step = m if one else self.step  # the steps x holds (not yet checked)
+        self.step = m
+        return m, None, None
+
+    def _read(self, active: list, trouble: str | None, observer: Observer) -> str | None:
+        """A block's check (``trouble`` what its steps met): each unit's flag (one read, resetting
+        it) and solver counters (added to ``observer`` where all is good). Returns the trouble:
+        that, else "bad" (a state flagged) or "unconverged" (a solve missed its tolerance)."""
+        flags = [u.model.bad_nodes.watched_bad() for _, u in active]
+        if self.anywhere(any(flags)) and trouble is None:
+            trouble = "bad"
+        for _, u in active:
+            if not u.stepper.deferred:  # its solvers' counters read in each step
+                continue
+            try:  # the solvers' device counters of the block's steps (zeroed, also after trouble)
+                counts = u.stepper.counts()
+            except StepFailure:  # a solve in the block failed: which one, the steps again tell
+                trouble = trouble or "unconverged"
+                continue
+            if trouble is None:
+                observer.add(StepStats(0, counts))
+        return trouble
+
+    def _checked(self, active: list, b: int, observer: Observer, saved: dict) -> tuple:
+        """A checked step's first bad nodes (one read a unit), members dropped there (``drop``)
+        while others are good. Returns (trouble, detail): (None, None) or ("bad", the
+        [(index, unit, node)] bad)."""
+        bad = [(i, u, node) for i, u in active if (node := u.model.bad_nodes.first(u.x)) is not None]
+        wp.synchronize_device(active[0][1].x.device)
+        if not self.anywhere(bool(bad)):
+            return None, None
+        if not self.drop or not self.anywhere(len(bad) < len(active)):
+            return "bad", bad
+        for i, u, _ in bad:  # back to its last good state, not stepped again
+            self.rewind.put_back([(i, u)], saved, True)
+            self.out[i] = b + 1
+        observer.dropped(b + 1, bad)
+        return None, None

@@ -17,6 +17,8 @@ from __future__ import annotations
 import argparse
 import math
 
+from results import positive, recorded
+
 T_ELEMENT = 12.3e-9  # s an element a step, bandwidth-bound (H100, TC5 rk4 at ne120)
 FLOOR_PLAIN = 142e-6  # s a step launched plainly (H100, TC5 rk4 at ne30): a run over ranks
 FLOOR_GRAPH = 91e-6  # s a step as one CUDA graph (H100): a run on one GPU
@@ -46,40 +48,50 @@ def step_time(ne: int, gpus: int, a) -> float:
     return compute + EXCHANGES * (a.stage_us * 1e-6 + copies + messages)
 
 
-def smallest_ne(gpus: int, a, efficiency: float) -> int:
-    """The smallest ne whose step on ``gpus`` GPUs is at least ``efficiency`` × gpus times as fast as
-    on one (``efficiency`` 1 / gpus: faster at all)."""
-    return next(ne for ne in range(4, 8192) if step_time(ne, 1, a) >= efficiency * gpus * step_time(ne, gpus, a))
+def smallest_ne(gpus: int, a, efficiency: float) -> int | None:
+    """The smallest ne (to 8192) whose step on ``gpus`` GPUs is at least ``efficiency`` × gpus times as
+    fast as on one (``efficiency`` 1 / gpus: faster at all); None where none is."""
+    fast = (ne for ne in range(4, 8193) if step_time(ne, 1, a) >= efficiency * gpus * step_time(ne, gpus, a))
+    return next(fast, None)
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--ne", type=int, nargs="+", default=[30, 60, 120, 240, 480])
-    p.add_argument("--gpus", type=int, nargs="+", default=[1, 2, 4, 8, 16, 32, 64])
-    p.add_argument("--stage-us", type=float, default=35.0, help="an exchange's fixed cost through the host, µs")
-    p.add_argument("--message-us", type=float, default=3.0, help="a message's cost in a node (MPI + mpi4py), µs")
-    p.add_argument("--pcie-gbs", type=float, default=25.0, help="a pinned copy's bandwidth, GB/s")
-    p.add_argument("--net-latency-us", type=float, default=2.0, help="a message's latency between nodes, µs")
-    p.add_argument("--net-gbs", type=float, default=50.0, help="a GPU's network bandwidth (NDR 400 Gb/s), GB/s")
-    a = p.parse_args()
+def tables(a) -> None:
     print("| ne | elements | " + " | ".join(f"{g} GPU{'s' if g > 1 else ''}" for g in a.gpus) + " |")
     print("|---:|---:|" + "---:|" * len(a.gpus))
     for ne in a.ne:
         one = step_time(ne, 1, a)
-        cells = [f"{1e3 * one:.2f} ms"]
-        for g in a.gpus[1:]:
+        cells = []
+        for g in a.gpus:
             t = step_time(ne, g, a)
-            cells.append(f"{1e3 * t:.2f} ms, {one / t:.1f}× ({one / t / g:.0%})")
+            cells.append(f"{1e3 * t:.2f} ms" + (f", {one / t:.1f}× ({one / t / g:.0%})" if g > 1 else ""))
         print(f"| {ne} | {6 * ne * ne} | " + " | ".join(cells) + " |")
     print("\nwhere a split pays: the smallest ne faster on P GPUs than on one, and the smallest at 50 % efficiency")
     print("| P | faster: ne | elements a GPU | 50 %: ne | elements a GPU | ne a GPU |")
     print("|---:|---:|---:|---:|---:|---:|")
-    for g in a.gpus[1:]:
+    for g in (g for g in a.gpus if g > 1):
         faster, half = smallest_ne(g, a, 1 / g), smallest_ne(g, a, 0.5)
-        share = 6 * half * half / g
-        print(
-            f"| {g} | {faster} | {6 * faster * faster / g:,.0f} | {half} | {share:,.0f} | {math.sqrt(share / 6):.0f} |"
-        )
+        share = [None if ne is None else 6 * ne * ne / g for ne in (faster, half)]
+        text = ["–" if v is None else f"{v:,.0f}" for v in share]
+        each = "–" if share[1] is None else f"{math.sqrt(share[1] / 6):.0f}"
+        print(f"| {g} | {faster or '–'} | {text[0]} | {half or '–'} | {text[1]} | {each} |")
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--ne", type=positive(int), nargs="+", default=[30, 60, 120, 240, 480])
+    p.add_argument("--gpus", type=positive(int), nargs="+", default=[1, 2, 4, 8, 16, 32, 64])
+    p.add_argument(
+        "--stage-us", type=positive(float), default=35.0, help="an exchange's fixed cost through the host, µs"
+    )
+    p.add_argument("--message-us", type=positive(float), default=3.0, help="a further message in a node, µs")
+    p.add_argument("--pcie-gbs", type=positive(float), default=25.0, help="a pinned copy's bandwidth, GB/s")
+    p.add_argument("--net-latency-us", type=positive(float), default=2.0, help="a message's latency between nodes, µs")
+    p.add_argument(
+        "--net-gbs", type=positive(float), default=50.0, help="a GPU's network bandwidth (NDR 400 Gb/s), GB/s"
+    )
+    a = p.parse_args()
+    with recorded(__file__):
+        tables(a)
 
 
 if __name__ == "__main__":

@@ -7,12 +7,13 @@ as in ``test_mpi.py``."""
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 import xarray as xr
-from test_mpi import _beside_python, assert_same_bits, mpirun, mpirun_python, needs_mpi  # noqa: F401 (a fixture)
+from test_mpi import mpirun, mpirun_python, needs_mpi  # noqa: F401 (a fixture)
 
 from helpers import one_line, requires_cuda
 
@@ -54,9 +55,9 @@ def test_a_rank_that_cannot_open_its_device_stops_every_rank_in_one_line(tmp_pat
     alone by mpiexec): both ranks stop before anything is built, rank 0 saying which rank and
     why in one line, exit 2, no output."""
     args = ["run", "tc2_steady", "--ne", "2", "--days", "0.1", "--no-progress", "--output", "o.nc"]
-    script = _beside_python("swe-sphere")
-    more = [":", "-n", "1", "-env", "SWE_SPHERE_DEVICE", "cuda:63", script, *args]  # rank 1's
-    proc = mpirun(1, [*args, *more], tmp_path, [script])
+    cli = [sys.executable, "-m", "swe_sphere.cli"]
+    more = [":", "-n", "1", "-env", "SWE_SPHERE_DEVICE", "cuda:63", *cli, *args]  # rank 1's
+    proc = mpirun(1, [*args, *more], tmp_path, cli)
     one_line(proc.returncode, proc.stderr, 2, "rank 1 of 2 on ")
     assert "device cuda:63 is not available on this machine (set SWE_SPHERE_DEVICE=cpu or unset it)" in proc.stderr
     assert not (tmp_path / "o.nc").exists()

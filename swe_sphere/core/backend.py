@@ -104,7 +104,7 @@ def pick_device(requested: str | None = None, *, verbose: bool = False, comm=Non
     cannot open: a GPU in exclusive-process mode that another rank holds), or the ranks would
     run on CPUs and CUDA devices at once, every rank raises the same ``SceneError``, naming
     the first such rank and its node, so the run stops in one line, none waiting for another."""
-    ranks = comm is not None and comm.size > 1
+    ranks = isinstance(getattr(comm, "size", None), int) and comm.size > 1  # else the caller's own check names comm
     try:
         device, error = _device(requested, verbose, mpi.node_rank(comm)[0] if ranks else None), None
     except SceneError as err:

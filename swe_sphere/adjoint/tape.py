@@ -187,10 +187,12 @@ class _TapedLaunches:
 class TapedModel:
     """A ``ShallowWater`` whose state-writing verbs are written on ``tape`` while it records
     (module doc); every other member is the model's. The gravity-wave operator and the Helmholtz
-    solver built on it find ``tape`` and write themselves there."""
+    solver built on it find ``tape`` as the model's ``recorder`` (``SteppingModel``) and write
+    themselves there."""
 
     def __init__(self, model: ShallowWater, tape: Tape):
         self._model, self.tape = model, tape
+        self.recorder = tape  # the operators built on this model write on it
         self.operators = _TapedOperators(model.operators, tape)
         self.launches = _TapedLaunches(model.launches, tape)
 

@@ -74,7 +74,7 @@ class GravityWaveOperator:
         Outputs may alias x and the terms (the element pass reads x first). Recorded once per arrays and H, the coefficients launch arguments
         (``LaunchRecorder.replay_updates``)."""
         m, updates = self.model, check_updates(updates)
-        tape = getattr(m, "tape", None)  # a gradient's (``adjoint.tape.TapedModel``): L written on it
+        tape = m.recorder  # a gradient's tape (``SteppingModel.recorder``): L written on it
         if tape is not None and not tape.linear(self, x, updates):
             return
         H = self.H

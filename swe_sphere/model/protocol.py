@@ -1,4 +1,4 @@
-"""What a stepper, a solver or the adjoint may ask of a model: ``SteppingModel``, the 15 members
+"""What a stepper, a solver or the adjoint may ask of a model: ``SteppingModel``, the 16 members
 of ``ShallowWater`` that ``steppers/``, ``solvers/`` and ``adjoint/`` use (``tests/test_layers.py``
 holds them to this list, as the privacy rule holds modules to public names).
 
@@ -19,7 +19,10 @@ A new stepper's author reads this first. The verbs, as Dinosaur's ``explicit_ter
   arrays the element kernels read);
 - **where and what**: ``topology`` (device, N, grid, the DSS, reductions), ``launches`` (the
   ``LaunchRecorder`` every launch goes through, its threads and graph guard), ``terms`` (the
-  scene's terms: what F holds), ``g`` (m s⁻²).
+  scene's terms: what F holds), ``g`` (m s⁻²);
+- **the recorder**: ``recorder``, None, or the tape a gradient injects (``adjoint.tape.TapedModel``)
+  on which the operators built on the model (the gravity-wave operator, the Helmholtz solver)
+  write their launches, so that they ask the model and not the adjoint.
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ class SteppingModel(Protocol):
     bad_nodes: object  # ``model.bad_nodes.BadNodes``
     terms: tuple
     g: float
+    recorder: object  # None, or a gradient's tape (``adjoint.tape.Tape``) the operators built on it write on
 
     def rhs(self, x: wp.array2d, out: wp.array2d, terms: tuple | None = None) -> None: ...
     def rhs_update(self, x: wp.array2d, updates, terms: tuple | None = None) -> None: ...

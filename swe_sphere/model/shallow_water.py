@@ -152,6 +152,11 @@ class ShallowWater:
     memory access on CUDA, issue 83).
     """
 
+    # what writes the launches of the operators built on this model (the gravity-wave operator,
+    # the Helmholtz solves) on a tape: None here; a gradient's ``adjoint.tape.TapedModel`` injects
+    # its tape, so that those operators need not know of the adjoint
+    recorder = None
+
     def __init__(
         self,
         grid: CubedSphere,

@@ -253,7 +253,7 @@ class HelmholtzSolver:
         from the projection onto the past solutions of the solves with the same a
         (``GuessHistory``)."""
         a = float(a)
-        tape = getattr(self.model, "tape", None)  # a gradient's (``adjoint.tape.TapedModel``): the solve written on it
+        tape = self.model.recorder  # a gradient's tape (``SteppingModel.recorder``): the solve written on it
         with nullcontext(True) if tape is None else tape.solving(self, r, a, z, scale, implicit) as run:
             if run:
                 self._use(a)

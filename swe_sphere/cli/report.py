@@ -40,7 +40,7 @@ def _mesh_lines(sim) -> list[str]:
     return lines
 
 
-def _control_line(c, dt: float) -> str:
+def control_line(c, dt: float) -> str:
     """The header's line of a scene's step control (a ``SceneControl``; ``dt`` the scene's, s)."""
     from ..config.control import CFL_FRACTION
 
@@ -95,7 +95,7 @@ def header(args, sim, output, device, comm) -> None:
     for line in sim.stepper.describe():
         print(f"{scene.stepper:11s} {line}")
     if scene.control is not None:
-        print(f"control     {_control_line(scene.control, scene.dt)}")
+        print(f"control     {control_line(scene.control, scene.dt)}")
     if comm is not None:
         sizes = [len(p) for p in sim.topology.parts]
         print(

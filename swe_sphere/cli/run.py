@@ -276,10 +276,6 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
     import time
 
     from ..ensemble import Ensemble, MemberFile, Perturbation, Variants
-    from ..ensemble.ensemble import POLICIES
-    from ..model.diagnostics import courant_numbers
-    from ..simulation.writers import restart_path
-    from .report import courant_line, print_notes, terms_line
 
     t0 = time.perf_counter()
     if args.continue_from is not None:
@@ -301,35 +297,7 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
         sys.stdout = open(os.devnull, "w")
     setup, first, before = time.perf_counter() - t0, ens.step_count, ens.wall_time
     start = ens.invariants()  # collective: the run's drift, as a single run's summary gives it
-    gravity_waves = "pressure_gradient" in scene.terms
-    states = [x for k, x in enumerate(ens.states()) if k not in ens.dropped]  # a continued run's dropped: NaN
-    courant = [courant_numbers(ens.grid, *x, scene.dt, scene.planet["gravity"], gravity_waves) for x in states]
-    print(f"scene       {scene.name}: {scene.description}")
-    print(f"grid        {scene.grid_text}: {scene.nelem} elements, {ens.grid.nunique} unique nodes")
-    print(terms_line(scene))
-    print(
-        f"stepper     {scene.stepper}, dt = {scene.dt:g} s, {scene.nsteps} steps to day {scene.days:g}, device {device}"
-    )
-    where = "in the same launches" if ens.layout == "shared" else "each on a model of its own, in turn"
-    if ens.comm is not None:
-        where += f", over {ens.comm.size} MPI ranks ({ens.held.size} on rank 0)"
-    print(
-        f"ensemble    {ens.members} members {where}; initial states {ens.initial}; a blow-up: {POLICIES[ens.blow_up]}"
-    )
-    if first:
-        print(f"continued   from {args.continue_from}, step {first} (day {scene.day(first):g})")
-    if courant:  # NaN gravity-wave numbers (h a tracer) stay NaN
-        print(courant_line({k: max(c[k] for c in courant) for k in courant[0]}, scene.day(first), "nodes and members"))
-    print_notes(scene.notes, ens.root)
-    if ens.alike and ens.root:  # a run of N copies: say so before it, not only by a spread of 0 m after it
-        print(
-            f"swe-sphere: warning: the {ens.members} members start alike (the case's state: no --perturbation M > 0, "
-            "--vary or --initial), so they stay alike and their spread is 0 m",
-            file=sys.stderr,
-        )
-    print(f"output      {output} (every {scene.output_every_days:g} days)")
-    if args.restart_every is not None:  # as a run's header says it
-        print(f"restart     {restart_path(output)} (every {args.restart_every:g} days and at the end)")
+    _ensemble_header(args, ens, scene, output, device)
     try:
         ens.run(
             output,
@@ -370,8 +338,52 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
         print(f"  {'reference':<21} {_unscored(scene)}")
     spread = ens.h_spread_rms()
     print(f"  h spread    {spread:.4g} m (area-weighted RMS of the members' standard deviation at day {scene.days:g})")
+    if ens.control is not None:
+        print(f"  steps       {ens.control.summary()}")
     print(f"  output      {output}")
     return 0
+
+
+def _ensemble_header(args, ens, scene, output: Path, device) -> None:
+    """``run --members N``'s header (before the run): the scene, grid, terms, stepper (and its
+    control), the members and how they step, a continuation's step, the Courant numbers, notes,
+    the output and restart files."""
+    from ..ensemble.ensemble import POLICIES
+    from ..model.diagnostics import courant_numbers
+    from ..simulation.writers import restart_path
+    from .report import control_line, courant_line, print_notes, terms_line
+
+    gravity_waves = "pressure_gradient" in scene.terms
+    states = [x for k, x in enumerate(ens.states()) if k not in ens.dropped]  # a continued run's dropped: NaN
+    courant = [courant_numbers(ens.grid, *x, scene.dt, scene.planet["gravity"], gravity_waves) for x in states]
+    print(f"scene       {scene.name}: {scene.description}")
+    print(f"grid        {scene.grid_text}: {scene.nelem} elements, {ens.grid.nunique} unique nodes")
+    print(terms_line(scene))
+    print(
+        f"stepper     {scene.stepper}, dt = {scene.dt:g} s, {scene.nsteps} steps to day {scene.days:g}, device {device}"
+    )
+    if scene.control is not None:
+        print(f"control     {control_line(scene.control, scene.dt)}; one dt for every member")
+    where = "in the same launches" if ens.layout == "shared" else "each on a model of its own, in turn"
+    if ens.comm is not None:
+        where += f", over {ens.comm.size} MPI ranks ({ens.held.size} on rank 0)"
+    print(
+        f"ensemble    {ens.members} members {where}; initial states {ens.initial}; a blow-up: {POLICIES[ens.blow_up]}"
+    )
+    if ens.step_count:
+        print(f"continued   from {args.continue_from}, step {ens.step_count} (day {ens.day:g})")
+    if courant:  # NaN gravity-wave numbers (h a tracer) stay NaN
+        print(courant_line({k: max(c[k] for c in courant) for k in courant[0]}, ens.day, "nodes and members"))
+    print_notes(scene.notes, ens.root)
+    if ens.alike and ens.root:  # a run of N copies: say so before it, not only by a spread of 0 m after it
+        print(
+            f"swe-sphere: warning: the {ens.members} members start alike (the case's state: no --perturbation M > 0, "
+            "--vary or --initial), so they stay alike and their spread is 0 m",
+            file=sys.stderr,
+        )
+    print(f"output      {output} (every {scene.output_every_days:g} days)")
+    if args.restart_every is not None:  # as a run's header says it
+        print(f"restart     {restart_path(output)} (every {args.restart_every:g} days and at the end)")
 
 
 def _unscored(scene) -> str:

@@ -1,5 +1,6 @@
 """N members of one scene advanced together, each with the bits of the single run from its
-initial state (issue 85, fixed Δt, any stepper).
+initial state (issue 85, any stepper at a fixed Δt; issue 100, a controlled Δt the same for every
+member, ``control``).
 
 An explicit stepper's members are N disjoint copies of the grid's elements
 (``members.MemberGrid``): one ``Topology``, one ``ShallowWater`` and one stepper over all of
@@ -31,23 +32,42 @@ from ..core.graphs import default_mode, graphs_mode
 from ..core.interrupts import StopSignals
 from ..core.mpi import RankMax
 from ..grid.cubed_sphere import CubedSphere
-from ..integrator import Integrator, core_property
+from ..integrator import Integrator, Stop, core_property
 from ..io import restart_file
 from ..io.run_file import OUTPUT_FIELDS, RunWriter, area_rms, member_statistics
 from ..model.diagnostics import invariants
 from ..model.shallow_water import ShallowWater
 from ..simulation import checkpoint
 from ..simulation.build import check_memory
-from ..simulation.schedules import at_its_end, check_restart_interval, output_steps, restart_steps
+from ..simulation.schedules import (
+    at_its_end,
+    check_restart_interval,
+    interval_days,
+    output_days,
+    output_steps,
+    restart_steps,
+)
 from ..simulation.writers import interrupted_attrs, restart_path, scene_attrs
+from .control import controlled_steps, member_control
+from .files import member_writer
 from .initial import Perturbation, Variants, checked_states, described, initial_states
 from .members import MemberGrid, member_part
-from .units import Members, checked_scene, held_state, member_step, own_units, shared_unit, stepper_state, unit_members
+from .units import (
+    POLICIES,
+    Members,
+    blow_up_line,
+    checked_scene,
+    drop_line,
+    held_state,
+    member_step,
+    on_rank_zero,
+    own_units,
+    shared_unit,
+    stepper_state,
+    unit_members,
+)
 from .units import layout as members_layout
 
-# a blow-up's policies: every member stopped, or the member dropped (no longer stepped, NaN in the
-# run file from then on) and the others going on
-POLICIES = {"stop": "stop all", "drop": "drop the member and go on"}
 MEMBER_SERIES = ("mass", "total_energy", "potential_enstrophy")  # each member's, at every output time (and errors)
 
 
@@ -60,7 +80,8 @@ class Ensemble:
     ----------
     scene : Scene, str or path
         As ``Simulation`` takes it, with ``overrides`` (``config.resolve_scene``): any stepper,
-        its Δt fixed, without a digital filter.
+        without a digital filter; its Δt fixed, or under ``time.control`` the same for every member
+        (``control.member_control``: in the same launches, on one rank).
     members : int ≥ 1, optional
         N, the number of members (None: the scene's [ensemble] ``members``).
     initial : None, array (N, 3, n), Perturbation, MemberFile or Variants
@@ -103,6 +124,8 @@ class Ensemble:
         its own; ``units``' module doc); units : the ``integrator.Unit`` s that step them (one, or one
         a member); model, stepper : the first unit's ``ShallowWater`` and stepper.
     step_count : int, the steps taken; graphs_kept : int, the step graphs replayed (``Simulation``'s).
+    control : the ``simulation.adaptive.StepControl`` of every member's Δt (None at a fixed Δt);
+        day : float, the model day reached.
 
     Raises
     ------
@@ -186,9 +209,9 @@ class Ensemble:
         self._fcor = self._side(lambda u: u.model.operators.fcor.numpy())
         self._g = [u.model.g for u in self.units for _ in range(u.members)]
         # the one step loop over the units, each stepped a block at a time and checked at its end
-        drop = blow_up == "drop"
-        self.core = Integrator(self.units, member_step, anywhere=self._anywhere, drop=drop, lone=False)
+        self.core = Integrator(self.units, member_step, anywhere=self._anywhere, drop=blow_up == "drop", lone=False)
         self._out = self.core.out  # dropped units: {unit index: the step it blew up at}
+        self.control = member_control(scene, self.units, self.layout, self.comm)  # None at a fixed Δt
         self.wall_time = 0.0  # s, of ``step``
         self._options, self._scorer = options, None
 
@@ -231,8 +254,21 @@ class Ensemble:
         that step, the states those of that step (``blow_up`` "stop"); or drops those members and
         goes on (``blow_up`` "drop", ``integrator.Integrator``), raising only when none is left;
         ``StepFailure`` where a solve failed, the states those of the step before."""
-        n, t0 = integer_argument("n", n, 0), time.perf_counter()
-        stop = self.core.advance(self.step_count + n, Members(self._drop))
+        n = integer_argument("n", n, 0)
+        if self.control is not None:
+            raise ArgumentError("Ensemble.step takes steps of a fixed dt: under step control, advance(days) or run")
+        self._ahead(self.step_count + n, n)
+
+    def _ahead(self, target, most: int) -> int:
+        """Steps toward ``target`` (a step; under step control a model day), ``most`` at the most:
+        their number. ``BlowUp`` and ``StepFailure`` as ``step``'s."""
+        t0, first = time.perf_counter(), self.step_count
+        if self.control is None:
+            stop = self.core.advance(min(target, first + most), Members(self._drop))
+        else:
+            taken, bad = controlled_steps(self.control, self.units[0], target, most)
+            self.step_count += taken
+            stop = Stop(bad=(self.step_count, "bad", None) if bad else None)
         if stop.bad is not None:  # the states those of the step that went bad, for its report
             step, trouble, detail = stop.bad
             if trouble == "failure":
@@ -241,18 +277,23 @@ class Ensemble:
             raise BlowUp(self._blow_up(step))
         wp.synchronize_device(self.model.topology.device)
         self.wall_time += time.perf_counter() - t0
+        return self.step_count - first
 
     step_count = core_property("step", "The steps taken (``Integrator.step``).")
 
+    @property
+    def day(self) -> float:
+        """The model time reached, days since t = 0 (under step control the control's)."""
+        return self.scene.day(self.step_count) if self.control is None else self.control.day
+
+    def _blow_up(self, step: int) -> str:
+        """The one line of a blow-up at ``step``: the members bad there, the first one's place (collective)."""
+        return blow_up_line(self.states(), self.dropped, self.grid, self.case, self.blow_up, step, self.day)
+
     def _drop(self, bad: list, step: int) -> None:
         """Record the (index, unit, first bad node) ``bad`` dropped at ``step`` and their lines."""
-        for i, _, node in bad:
-            lat, lon = np.degrees(self.grid.lat[node]), np.degrees(self.grid.lon[node])
-            self._drops.append(
-                f"member {self.held[i]} of {self.members} blew up at step {step} (model time "
-                f"{self.scene.day(step):.4f} days; first at lat {lat:.2f}, lon {lon:.2f} degrees): dropped, the "
-                "others go on (policy: drop the member and go on)"
-            )
+        day = self.scene.day(step)
+        self._drops += [drop_line(self.grid, self.held[i], self.members, node, step, day) for i, _, node in bad]
 
     def mark_dropped(self, dropped: dict) -> None:
         """Members dropped before ({member: step}, a restart file's): not stepped again, NaN in
@@ -281,6 +322,9 @@ class Ensemble:
         """Advance every member by ``days`` (whole steps of the scene's Δt, ``core.clock``'s rule;
         ``ArgumentError`` with its refusal otherwise), as ``step``."""
         days = number_argument("days", days, "days", low=0.0)
+        if self.control is not None:  # Δt the controller's, landing on the day reached
+            self._ahead(self.day + days, sys.maxsize)
+            return
         clock = self.scene.clock
         if days and not clock.is_whole(days):
             raise ArgumentError(str(clock.refusal("days", days)))
@@ -316,12 +360,12 @@ class Ensemble:
         (``RunWriter.cells_notes``); ``progress_lines``: a ``simulation.progress.ProgressLines``
         (rank 0's lines of progress). Returns the run file's path."""
         s = self.scene
-        if self.step_count >= s.nsteps:
+        if self.day >= s.days:
             raise ArgumentError(at_its_end("Ensemble", self.step_count, s))  # a file of no time
         restart, restarts = restart_path(output), set()
         if restart_every is not None:
             check_restart_interval(s, restart_every)
-            restarts = restart_steps(s, restart_every)
+            restarts = (restart_steps if self.control is None else interval_days)(s, restart_every)
         attrs = {
             **scene_attrs(s, "ensemble", history, "swe_sphere.Ensemble.run"),
             **self.stepper.attrs(),
@@ -330,30 +374,14 @@ class Ensemble:
             "members": self.members,
             "initial_states": self.initial,
             "blow_up_policy": POLICIES[self.blow_up],
-            **({"continued_from_day": s.day(self.step_count)} if self.step_count else {}),
+            **({"continued_from_day": self.day} if self.step_count else {}),
         }
         errors = self.errors()  # the first output's, and the errors the case has (collective)
-        member_series, outputs = (*MEMBER_SERIES, *errors[0]), output_steps(s)
-        writer = (
-            None
-            if not self.root
-            else RunWriter(
-                output,
-                self.grid,
-                self._member(self._hs, 0),
-                attrs,
-                ("steps", "wall_time"),
-                overwrite=overwrite,
-                compress=compress,
-                fields=s.output_fields or OUTPUT_FIELDS,
-                cells=s.output_cells,
-                members=self.members,
-                member_series=member_series,
-            )
-        )
-        if writer is not None and notify is not None:  # rank 0's
-            for line in writer.cells_notes(s.grid_text):
-                notify(line)
+        member_series = (*MEMBER_SERIES, *errors[0])
+        outputs = (output_steps if self.control is None else output_days)(s)
+        at = (lambda: self.step_count) if self.control is None else (lambda: self.day)  # steps, or days
+        hs, many = self._member(self._hs, 0), (self.members, member_series, overwrite, compress, notify)
+        writer = member_writer(output, s, self.grid, hs, attrs, *many) if self.root else None
         # disable=None: a bar only on a terminal (as ``Simulation``'s), updated once a block
         bar = tqdm(
             initial=self.step_count, total=s.nsteps, unit="step", disable=None if progress else True, file=sys.stderr
@@ -366,14 +394,17 @@ class Ensemble:
                 if not self.step_count:  # as a run's: the two files join without a repeated time
                     self._write(writer, member_series, errors)
                 if progress_lines is not None:
-                    progress_lines.start(s.day(self.step_count), s.days)
-                for target in sorted(k for k in outputs | restarts if k > self.step_count):
-                    while self.step_count < target:  # a stop asked is answered between blocks
-                        block = min(CHECK_EVERY_STEPS, target - self.step_count)
-                        self.step(block)
+                    progress_lines.start(self.day, s.days)
+                for target in sorted(k for k in outputs | restarts if k > at()):
+                    while at() < target:  # a stop asked is answered between blocks
+                        if self.control is None:  # by ``step``, the steps of a fixed Δt
+                            block = min(CHECK_EVERY_STEPS, target - self.step_count)
+                            self.step(block)
+                        else:
+                            block = self._ahead(target, CHECK_EVERY_STEPS)
                         bar.update(block)
                         if progress_lines is not None and self.root:
-                            progress_lines.tick(self.step_count, s.day(self.step_count))
+                            progress_lines.tick(self.step_count, self.day)
                         if signum := signals.asked():  # the step reached written, as a run's last
                             self._write(writer, member_series)
                             raise self._interrupted(signum, restart, restart_every is not None or overwrite)
@@ -385,7 +416,7 @@ class Ensemble:
             if writer is not None:
                 step, why = self.step_count, {"stopped": str(err) or type(err).__name__}
                 signalled = isinstance(err, Interrupted)  # said as a run's file says it
-                writer.set_attrs(**(interrupted_attrs(err.signum, step, s.day(step)) if signalled else why))
+                writer.set_attrs(**(interrupted_attrs(err.signum, step, self.day) if signalled else why))
                 writer.close()
             raise
         drops = self.drops  # collective
@@ -397,7 +428,7 @@ class Ensemble:
 
     def _interrupted(self, signum: int, restart: Path, write: bool) -> Interrupted:
         """``run``'s stop at a signal: the restart file written (``write``, or where none is there)."""
-        name, day = signal.Signals(signum).name, self.scene.day(self.step_count)
+        name, day = signal.Signals(signum).name, self.day
         kept = None
         if write or not self._from_root(restart.exists()):
             kept = self.write_checkpoint(restart, overwrite=True)
@@ -417,31 +448,18 @@ class Ensemble:
         x, state = self._side(lambda u: u.x.numpy()), stepper_state(self.units, self.layout, self.held)
         policy = {"blow_up": self.blow_up, "dropped": {str(k): step for k, step in self.dropped.items()}}
         if self.comm is not None:  # the ranks' members side by side, in member order; every rank's scalars
-            kinds = self.comm.allgather({k: isinstance(v, np.ndarray) for k, v in state.items()})
-            arrays = sorted({k for part in kinds for k, array in part.items() if array})
-            gathered = {k: self.comm.gather(state.get(k, np.zeros_like(x)), root=0) for k in arrays}
-            scalars, x = (
-                self.comm.gather({k: v for k, v in state.items() if k not in arrays}, root=0),
-                self.comm.gather(x),
-            )
+            x, state = on_rank_zero(self.comm, x, state)
             if not self.root:
                 return Path(path)
-            x = np.concatenate(x, axis=-1)
-            state = {k: v for part in scalars for k, v in part.items()}
-            state |= {k: np.concatenate(v, axis=-1) for k, v in gathered.items()}
-        return restart_file.write(
-            path,
-            self.scene,
-            self.step_count,
-            x,
-            state,
-            {"rhs_evals": 0, "wall_time": self.wall_time, "iterations": {}},
-            {"initial_states": self.initial, "layout": self.layout, "variants": self._variants, **policy},
-            grid=self.copies if self.copies is not None and self.comm is None else MemberGrid(self.grid, self.members),
-            overwrite=overwrite,
-            restart_every=restart_every,
-            members=self.members,
-        )
+        counters, kept = {"rhs_evals": 0, "wall_time": self.wall_time, "iterations": {}}, {"overwrite": overwrite}
+        kept |= {
+            "restart_every": restart_every,
+            "members": self.members,
+            "control": self.control and self.control.state(),
+        }
+        initial = {"initial_states": self.initial, "layout": self.layout, "variants": self._variants, **policy}
+        grid = self.copies if self.copies is not None and self.comm is None else MemberGrid(self.grid, self.members)
+        return restart_file.write(path, self.scene, self.step_count, x, state, counters, initial, grid=grid, **kept)
 
     @classmethod
     def from_checkpoint(cls, path, *, days=None, device=None, per_element=None, threads=None, graphs=None, comm=None):
@@ -474,6 +492,8 @@ class Ensemble:
         except ValueError as err:
             raise CheckpointError(f"checkpoint does not fit the stepper: {err}") from None
         ens.mark_dropped(dropped)
+        if ens.control is not None and ck.control is not None:  # the steps go on as if never stopped
+            ens.control.restore(ck.control)
         ens.step_count, ens.wall_time = ck.step, float(ck.counters.get("wall_time", 0.0))
         ens.initial = ck.initial.get("initial_states", ens.initial)
         return ens
@@ -495,7 +515,7 @@ class Ensemble:
                 self._scorer = [Scorer(self.case, one, one.topology, self.grid, hs, self.scene.reference_file)]
             else:  # each member's own truth: an exact solution (a reference holds the scene's values only)
                 self._scorer = [Scorer(case, one, one.topology, self.grid, hs, None) for case in self.cases]
-        t = self.scene.day(self.step_count) * DAY
+        t = self.day * DAY
         return self._everyone(self._scorer[k % len(self._scorer)].errors(t, xk, *xk) for k, xk in zip(self.held, held))
 
     def _write(self, writer: RunWriter | None, member_series, errors=None) -> None:
@@ -519,26 +539,8 @@ class Ensemble:
         each = np.stack(each)  # (N, rows, n)
         series = {"steps": self.step_count, "wall_time": self.wall_time}
         series.update({key: np.array([d[key] for d in per_member]) for key in member_series})
-        day = self.scene.day(self.step_count)
+        day = self.day
         writer.append(day, each[:, 0], each[:, 1], each[:, 2], series, each[:, 3], None if div is None else each[:, 4])
-
-    def _blow_up(self, step: int) -> str:
-        """The one line of a blow-up at ``step``: the members bad there, the first one's place."""
-        states = self.states()
-        bad = ~np.isfinite(states).all(axis=1)
-        if self.case.h_is_depth:
-            bad |= states[:, 2] <= 0
-        dropped = self.dropped  # collective: once
-        members = np.array([k for k in np.flatnonzero(bad.any(axis=1)) if k not in dropped])
-        k = int(members[0])
-        node = int(np.argmax(bad[k]))
-        lat, lon = np.degrees(self.grid.lat[node]), np.degrees(self.grid.lon[node])
-        which = ", ".join(map(str, members))
-        return (
-            f"member{'s' if members.size > 1 else ''} {which} of {self.members} blew up at step {step} "
-            f"(model time {self.scene.day(step):.4f} days; member {k} first at lat {lat:.2f}, lon {lon:.2f} degrees): "
-            f"every member stopped (policy: {POLICIES[self.blow_up]}{'; none left' if self.blow_up == 'drop' else ''})"
-        )
 
     def _from_root(self, value):
         """Rank 0's ``value`` on every rank (collective)."""

@@ -29,15 +29,17 @@ from ..steppers import STEPPERS
 from .initial import Variants
 from .members import MemberGrid
 
+# a blow-up's policies: every member stopped, or the member dropped (no longer stepped, NaN in the
+# run file from then on) and the others going on
+POLICIES = {"stop": "stop all", "drop": "drop the member and go on"}
+
 
 def checked_scene(scene) -> None:
     """``ArgumentError`` naming ``scene`` where the ensemble cannot give each member the single
     run's bits yet: a controlled Δt or a digital-filter start; or whose output it does not write
     yet (``[[output.streams]]``)."""
     why = None
-    if scene.control is not None:
-        why = "its dt is controlled (ensembles take a fixed dt)"
-    elif scene.digital_filter is not None:
+    if scene.digital_filter is not None:
         why = "it starts from a digital filter (not yet with ensembles)"
     elif scene.output_streams:
         why = "it names [[output.streams]] (an ensemble writes one run file, not yet its streams)"
@@ -63,7 +65,7 @@ def layout(scene, initial, asked: str | None, device, own: bool = False) -> str:
                 "or blow_up 'drop'): 'in_turn'"
             )
         return "in_turn"
-    return asked or ("shared" if str(device).startswith("cuda") else "in_turn")
+    return asked or ("shared" if str(device).startswith("cuda") or scene.control is not None else "in_turn")
 
 
 def shared_unit(scene, grid: CubedSphere, case, starts, fcor, backend, threads: int, options: dict, graphs: str):
@@ -115,6 +117,20 @@ def stepper_state(units: list, layout: str, held) -> dict:
     return out
 
 
+def on_rank_zero(comm, x: np.ndarray, state: dict) -> tuple:
+    """(x, state) of every rank's members (``stepper_state``'s arrays side by side in member
+    order, every rank's scalars) on rank 0 of ``comm``; (None, None) on the others (collective)."""
+    kinds = comm.allgather({k: isinstance(v, np.ndarray) for k, v in state.items()})
+    arrays = sorted({k for part in kinds for k, array in part.items() if array})
+    gathered = {k: comm.gather(state.get(k, np.zeros_like(x)), root=0) for k in arrays}
+    scalars = comm.gather({k: v for k, v in state.items() if k not in arrays}, root=0)
+    x = comm.gather(x)
+    if comm.rank != 0:
+        return None, None
+    state = {k: v for part in scalars for k, v in part.items()}
+    return np.concatenate(x, axis=-1), state | {k: np.concatenate(v, axis=-1) for k, v in gathered.items()}
+
+
 def held_state(state: dict, nodes, prefix: str | None) -> dict:
     """A unit's stepper state from a restart file's ``state`` (``stepper_state``): its members'
     columns ``nodes`` of the arrays; the scalars as they are (``prefix`` None) or those under
@@ -144,6 +160,33 @@ def member_step(unit: Unit, j: int, watch: bool):
     """Step j + 1 of a unit's members: a block's watched as a graph where it may be
     (``GraphedSteps``), a checked step's (a block taken again) launched plainly."""
     return unit.graphed.step(unit.stepper, unit.model, unit.x, True) if watch else unit.stepper.step(unit.x)
+
+
+def drop_line(grid: CubedSphere, member: int, members: int, node: int, step: int, day: float) -> str:
+    """The line of ``member`` (of ``members``) dropped at ``step`` (model ``day``), first bad at ``node``."""
+    lat, lon = np.degrees(grid.lat[node]), np.degrees(grid.lon[node])
+    return (
+        f"member {member} of {members} blew up at step {step} (model time {day:.4f} days; first at lat {lat:.2f}, "
+        f"lon {lon:.2f} degrees): dropped, the others go on (policy: {POLICIES['drop']})"
+    )
+
+
+def blow_up_line(states: np.ndarray, dropped: dict, grid: CubedSphere, case, policy: str, step: int, day: float) -> str:
+    """The one line of a blow-up at ``step`` (model ``day``) of the members' ``states`` (N, 3, n):
+    those bad there (a non-finite value, or h ≤ 0 where ``case`` has h a depth) but ``dropped``
+    ({member: step}), the first one's place; ``policy`` a key of ``POLICIES``."""
+    bad = ~np.isfinite(states).all(axis=1)
+    if case.h_is_depth:
+        bad |= states[:, 2] <= 0
+    members = np.array([k for k in np.flatnonzero(bad.any(axis=1)) if k not in dropped])
+    k = int(members[0])
+    node = int(np.argmax(bad[k]))
+    lat, lon = np.degrees(grid.lat[node]), np.degrees(grid.lon[node])
+    return (
+        f"member{'s' if members.size > 1 else ''} {', '.join(map(str, members))} of {len(states)} blew up at step "
+        f"{step} (model time {day:.4f} days; member {k} first at lat {lat:.2f}, lon {lon:.2f} degrees): every member "
+        f"stopped (policy: {POLICIES[policy]}{'; none left' if policy == 'drop' else ''})"
+    )
 
 
 def unit_members(layout: str, held) -> list:

@@ -189,7 +189,10 @@ def test_the_command_line_continues_an_ensemble(capsys, tmp_path):
         (("--layout", "shared"), "--layout only with --members N"),
         (("--members", "0"), "members must be an integer >= 1"),
         (("--members", "2", "--perturbation", "-1"), "perturbation amplitude"),
-        (("--members", "2", "--stepper", "bs32", "-s", "time.control=error"), "its dt is controlled"),
+        (
+            ("--members", "2", "--stepper", "bs32", "-s", "time.control=error", "--layout", "in_turn"),
+            "its dt is controlled",
+        ),
         (("--members", "2", "--perturbation-degrees", "1,8"), "--perturbation-degrees only with --perturbation M"),
         (("--members", "2", "--perturbation", "1", "--perturbation-degrees", "1,x"), "give L_MIN,L_MAX"),
         (("--members", "2", "--perturbation", "1", "--perturbation-degrees", "9,8"), "1 <= L_MIN <= L_MAX"),

@@ -1,0 +1,70 @@
+"""An ensemble under step control (issue 100): one Δt for every member, the controller's, its
+error norm over every member's nodes; a single member's run is the single run's, bit for bit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from swe_sphere.cli import main
+from swe_sphere.core.errors import ArgumentError
+from swe_sphere.ensemble import Ensemble, Perturbation
+from swe_sphere.simulation.simulation import Simulation
+
+CONTROLLED = {"ne": 2, "np": 4, "days": 0.25, "stepper": "bs32", "output.every_days": 0.125, "time.control": "error"}
+
+
+def test_one_member_under_error_control_is_the_single_run(tmp_path, one_thread):
+    """members=1: the same accepted and rejected steps, Δt and final state bits as
+    ``Simulation.run`` under the same control, landing on the same output days."""
+    sim = Simulation("galewsky", "cpu", progress=False, **CONTROLLED)
+    sim.run(tmp_path / "run.nc")
+    ens = Ensemble("galewsky", 1, device="cpu", **CONTROLLED)
+    ens.run(tmp_path / "ens.nc")
+    assert (ens.control.accepted, ens.control.rejected) == (sim.control.accepted, sim.control.rejected)
+    assert ens.control.history == sim.control.history and ens.step_count == sim.step
+    np.testing.assert_array_equal(ens.states()[0], sim.x.numpy())
+    with xr.open_dataset(tmp_path / "ens.nc", decode_times=False) as ds:
+        np.testing.assert_array_equal(ds.time.values, [0.0, 0.125, 0.25])
+
+
+def test_members_take_one_controlled_dt_and_advance_lands_on_the_day(one_thread):
+    """Two perturbed members: each accepted Δt is every member's (one history), ``advance``
+    lands on the day asked, ``step`` (a fixed Δt's) is refused in one line; the error norm's
+    tolerance tighter, more steps."""
+    ens = Ensemble("galewsky", 2, Perturbation(1.0, seed=1), device="cpu", **CONTROLLED)
+    ens.advance(0.1)
+    assert ens.day == 0.1 and ens.control.accepted == ens.step_count > 2
+    assert np.isfinite(ens.states()).all() and not np.array_equal(*ens.states())
+    with pytest.raises(ArgumentError, match=r"^Ensemble.step takes steps of a fixed dt: under step control"):
+        ens.step(1)
+    tight = Ensemble("galewsky", 2, Perturbation(1.0, seed=1), device="cpu", **CONTROLLED, **{"time.rtol": 1e-5})
+    tight.advance(0.1)
+    assert tight.control.accepted > ens.control.accepted
+
+
+def test_the_command_line_runs_a_controlled_ensemble(tmp_path, one_thread, capsys):
+    """``swe-sphere run galewsky --members 2 --perturbation 1 -s time.control=error`` (was refused:
+    "ensembles take a fixed dt"): exit 0, the run file's output times landed on."""
+    out = tmp_path / "e.nc"
+    args = "run galewsky --ne 2 --np 4 --days 0.25 --stepper bs32 --members 2 --perturbation 1".split()
+    args += ["-s", "time.control=error", "--device", "cpu", "--no-progress", "--output", str(out)]
+    assert main(args) == 0, capsys.readouterr().err
+    with xr.open_dataset(out, decode_times=False) as ds:
+        assert ds.sizes["member"] == 2 and ds.time.values[-1] == 0.25
+
+
+def test_a_controlled_ensemble_continues_from_its_restart_file_bitwise(tmp_path, one_thread):
+    """The restart file keeps the control's state (its next Δt, controller history, counts): the
+    continuation takes the same steps as the run never stopped, to the bit."""
+    members = ("galewsky", 2, Perturbation(1.0, seed=1))
+    whole = Ensemble(*members, device="cpu", **CONTROLLED)
+    whole.advance(0.125)
+    whole.write_checkpoint(tmp_path / "r.nc")
+    whole.advance(0.125)
+    again = Ensemble.from_checkpoint(tmp_path / "r.nc", device="cpu")
+    assert again.day == 0.125 and again.control.accepted == again.step_count > 0
+    again.advance(0.125)
+    np.testing.assert_array_equal(again.states(), whole.states())
+    assert again.control.state() == whole.control.state() and again.step_count == whole.step_count

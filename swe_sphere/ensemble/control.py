@@ -12,6 +12,9 @@ from ..core.errors import ArgumentError
 from ..integrator import Unit
 from ..simulation.adaptive import StepControl
 
+# ``Ensemble.add_callback``'s refusal of a callback every so many days under step control
+STEERED = "every_days: under step control the steps are the controller's (give every_steps)"
+
 
 class _Members:
     """What ``StepControl`` reads of a run, of the one ``Unit`` that steps every held member."""
@@ -50,15 +53,17 @@ def member_control(scene, units: list, layout: str, comm) -> StepControl | None:
     return StepControl(scene.control, units[0].stepper, _Members(units[0], scene))
 
 
-def controlled_steps(control: StepControl, unit: Unit, day: float, most: int) -> tuple[int, bool]:
+def controlled_steps(control: StepControl, unit: Unit, day: float, most: int, after) -> bool:
     """Accepted steps of ``unit``'s members toward model ``day`` (days from t = 0), ``most`` at
     the most, each landed on ``day`` where it reaches it; every state checked (the norm's finite
-    value, else ``BadNodes.first``). Returns (steps taken, whether the last went bad: then its
-    state is kept for the blow-up's report). ``BlowUp`` where Δt falls below ``time.dt_min``."""
-    taken = 0
-    while taken < most and control.t < day * DAY:
+    value, else ``BadNodes.first``), ``after()`` called after each good one. Returns whether the
+    last went bad (its state kept for the blow-up's report). ``BlowUp`` where Δt falls below
+    ``time.dt_min``."""
+    for _ in range(most):
+        if control.t >= day * DAY:
+            break
         control.step_to(unit.x, day)
-        taken += 1
         if not control.checked and unit.model.bad_nodes.first(unit.x) is not None:
-            return taken, True
-    return taken, False
+            return True
+        after()
+    return False

@@ -24,7 +24,7 @@ from tqdm import tqdm
 
 from ..cases.scoring import Scorer
 from ..config.scene import resolve_scene, with_days
-from ..core.arguments import got, integer_argument, number_argument
+from ..core.arguments import callable_argument, got, integer_argument, number_argument
 from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
 from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, CheckpointError, Interrupted, StepFailure
@@ -32,7 +32,7 @@ from ..core.graphs import default_mode, graphs_mode
 from ..core.interrupts import StopSignals
 from ..core.mpi import RankMax
 from ..grid.cubed_sphere import CubedSphere
-from ..integrator import Integrator, Stop, core_property
+from ..integrator import Integrator, core_property
 from ..io import restart_file
 from ..io.run_file import OUTPUT_FIELDS, RunWriter, area_rms, member_statistics
 from ..model.diagnostics import invariants
@@ -48,8 +48,8 @@ from ..simulation.schedules import (
     restart_steps,
 )
 from ..simulation.writers import interrupted_attrs, restart_path, scene_attrs
-from .control import controlled_steps, member_control
-from .files import member_writer
+from .control import STEERED, controlled_steps, member_control
+from .files import member_writer, resume
 from .initial import Perturbation, Variants, checked_states, described, initial_states
 from .members import MemberGrid, member_part
 from .units import (
@@ -58,7 +58,7 @@ from .units import (
     blow_up_line,
     checked_scene,
     drop_line,
-    held_state,
+    due_callbacks,
     member_step,
     on_rank_zero,
     own_units,
@@ -213,6 +213,7 @@ class Ensemble:
         self._out = self.core.out  # dropped units: {unit index: the step it blew up at}
         self.control = member_control(scene, self.units, self.layout, self.comm)  # None at a fixed Δt
         self.wall_time = 0.0  # s, of ``step``
+        self._callbacks: list = []  # (call, every so many steps): ``add_callback``
         self._options, self._scorer = options, None
 
     def _member(self, a: np.ndarray, k: int) -> np.ndarray:
@@ -246,14 +247,14 @@ class Ensemble:
 
     # -- stepping ------------------------------------------------------------------
     def step(self, n: int = 1) -> None:
-        """Advance every member n steps (n an integer ≥ 0). The members' bad-state check (a
-        non-finite value, or h ≤ 0 where h is a depth) runs on the device every step and is
-        read once every ``core.backend.CHECK_EVERY_STEPS`` steps; a failed block is re-run step by step
-        to name the step. On CUDA each step is a graph (``core.graphs.GraphedSteps``, as
-        ``Simulation``'s). A blow-up in any member raises ``BlowUp`` naming every member bad at
-        that step, the states those of that step (``blow_up`` "stop"); or drops those members and
-        goes on (``blow_up`` "drop", ``integrator.Integrator``), raising only when none is left;
-        ``StepFailure`` where a solve failed, the states those of the step before."""
+        """Advance every member n steps (n an integer ≥ 0), by the integrator (``integrator``): the
+        bad-state check (a non-finite value, or h ≤ 0 where h is a depth) runs on the device every
+        step, read once every ``CHECK_EVERY_STEPS`` steps, a failed block taken again step by step to
+        name the step; on CUDA each step a graph (``core.graphs.GraphedSteps``). A blow-up in any
+        member raises ``BlowUp`` naming every member bad at that step, the states those of that
+        step (``blow_up`` "stop"); or drops those members and goes on ("drop"), raising only when
+        none is left; ``StepFailure`` where a solve failed, the states those of the step before;
+        ``ArgumentError`` under step control (``advance``, ``run``)."""
         n = integer_argument("n", n, 0)
         if self.control is not None:
             raise ArgumentError("Ensemble.step takes steps of a fixed dt: under step control, advance(days) or run")
@@ -263,14 +264,13 @@ class Ensemble:
         """Steps toward ``target`` (a step; under step control a model day), ``most`` at the most:
         their number. ``BlowUp`` and ``StepFailure`` as ``step``'s."""
         t0, first = time.perf_counter(), self.step_count
-        if self.control is None:
-            stop = self.core.advance(min(target, first + most), Members(self._drop))
+        if self.control is None:  # (step, trouble, detail) of a checked step that went bad (``integrator.Stop``)
+            bad = self.core.advance(min(target, first + most), Members(self._drop, self._callbacks)).bad
         else:
-            taken, bad = controlled_steps(self.control, self.units[0], target, most)
-            self.step_count += taken
-            stop = Stop(bad=(self.step_count, "bad", None) if bad else None)
-        if stop.bad is not None:  # the states those of the step that went bad, for its report
-            step, trouble, detail = stop.bad
+            bad = controlled_steps(self.control, self.units[0], target, most, self._accepted)
+            bad = (self.step_count + 1, "bad", None) if bad else None
+        if bad is not None:  # the states those of the step that went bad, for its report
+            step, trouble, detail = bad
             if trouble == "failure":
                 raise StepFailure(detail)
             self.step_count = step
@@ -278,6 +278,25 @@ class Ensemble:
         wp.synchronize_device(self.model.topology.device)
         self.wall_time += time.perf_counter() - t0
         return self.step_count - first
+
+    def _accepted(self) -> None:
+        self.step_count += 1  # a step under step control taken and found good: the callbacks due then
+        due_callbacks(self._callbacks, self.step_count)
+
+    def add_callback(self, fn, *, every_steps: int | None = None, every_days: float | None = None) -> None:
+        """Call ``fn(self)`` after every ``every_steps``-th step from step 0 (under step control, of
+        the accepted steps), or every ``every_days`` (whole steps of a fixed Δt), in ``step``,
+        ``advance`` and ``run`` (``Simulation.add_callback``'s); what it raises ends the stepping.
+        ``ArgumentError`` (one line) for ``fn`` not callable, not one interval, or a bad one."""
+        callable_argument("fn", fn, "a callable fn(ensemble)", ArgumentError)
+        if (every_steps is None) == (every_days is None):
+            raise ArgumentError("an interval needs exactly one of every_steps, every_days")
+        if every_days is not None:
+            days, clock = number_argument("every_days", every_days, "days", low=0.0), self.scene.clock
+            if self.control is not None or not clock.is_whole(days):
+                raise ArgumentError(str(clock.refusal("every_days", days)) if self.control is None else STEERED)
+            every_steps = clock.steps_in(days)
+        self._callbacks.append((lambda: fn(self), integer_argument("every_steps", every_steps, 1)))
 
     step_count = core_property("step", "The steps taken (``Integrator.step``).")
 
@@ -296,8 +315,7 @@ class Ensemble:
         self._drops += [drop_line(self.grid, self.held[i], self.members, node, step, day) for i, _, node in bad]
 
     def mark_dropped(self, dropped: dict) -> None:
-        """Members dropped before ({member: step}, a restart file's): not stepped again, NaN in
-        the states and outputs (policy "drop")."""
+        """Members dropped before ({member: step}, a restart file's): not stepped again, NaN after."""
         self._out |= {i: int(dropped[k]) for i, k in enumerate(self.held) if k in dropped}
 
     @property
@@ -482,20 +500,7 @@ class Ensemble:
         options = {"device": device, "per_element": per_element, "threads": threads, "graphs": graphs, "comm": comm}
         layout, policy = ck.initial.get("layout", "shared"), ck.initial.get("blow_up", "stop")
         ens = cls(scene, ck.members, initial, **options, layout=layout, blow_up=policy)
-        dropped = {int(k): step for k, step in ck.initial.get("dropped", {}).items()}  # their last good states
-        try:
-            for u, k in zip(ens.units, unit_members(ens.layout, ens.held)):
-                nodes = (k[:, None] * n + np.arange(n)).ravel()  # the unit's members' columns of the file's arrays
-                u.x.assign(ck.x[:, nodes])
-                prefix = None if ens.layout == "shared" else f"member{k[0]}_"
-                u.stepper.restore(held_state(ck.stepper_state, nodes, prefix))
-        except ValueError as err:
-            raise CheckpointError(f"checkpoint does not fit the stepper: {err}") from None
-        ens.mark_dropped(dropped)
-        if ens.control is not None and ck.control is not None:  # the steps go on as if never stopped
-            ens.control.restore(ck.control)
-        ens.step_count, ens.wall_time = ck.step, float(ck.counters.get("wall_time", 0.0))
-        ens.initial = ck.initial.get("initial_states", ens.initial)
+        resume(ens, ck)
         return ens
 
     def errors(self) -> list[dict[str, float]]:

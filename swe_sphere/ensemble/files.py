@@ -1,8 +1,13 @@
-"""An ensemble's run file opened (``Ensemble.run``): its attributes and ``RunWriter``."""
+"""An ensemble's files: its run file's ``RunWriter`` opened (``Ensemble.run``), a restart file's
+members, steppers, drops, control and counts put back (``Ensemble.from_checkpoint``)."""
 
 from __future__ import annotations
 
+import numpy as np
+
+from ..core.errors import CheckpointError
 from ..io.run_file import OUTPUT_FIELDS, RunWriter
+from .units import held_state, unit_members
 
 
 def member_writer(output, scene, grid, hs, attrs: dict, members: int, series, overwrite: bool, compress: bool, notify):
@@ -26,3 +31,24 @@ def member_writer(output, scene, grid, hs, attrs: dict, members: int, series, ov
         for line in writer.cells_notes(scene.grid_text):
             notify(line)
     return writer
+
+
+def resume(ens, ck) -> None:
+    """Put the restart file ``ck``'s (a ``simulation.checkpoint.Checkpoint`` of ``ens.members``
+    members) states and stepper histories into ``ens``'s units, its dropped members, step
+    control, step count, wall time and initial states' description. ``CheckpointError`` where its
+    stepper state does not fit the ensemble's steppers."""
+    n = ck.x.shape[1] // ck.members
+    try:
+        for u, k in zip(ens.units, unit_members(ens.layout, ens.held)):
+            nodes = (k[:, None] * n + np.arange(n)).ravel()  # the unit's members' columns of the file's arrays
+            u.x.assign(ck.x[:, nodes])
+            prefix = None if ens.layout == "shared" else f"member{k[0]}_"
+            u.stepper.restore(held_state(ck.stepper_state, nodes, prefix))
+    except ValueError as err:
+        raise CheckpointError(f"checkpoint does not fit the stepper: {err}") from None
+    ens.mark_dropped({int(k): step for k, step in ck.initial.get("dropped", {}).items()})  # their last good states
+    if ens.control is not None and ck.control is not None:  # the steps go on as if never stopped
+        ens.control.restore(ck.control)
+    ens.step_count, ens.wall_time = ck.step, float(ck.counters.get("wall_time", 0.0))
+    ens.initial = ck.initial.get("initial_states", ens.initial)

@@ -143,17 +143,28 @@ def held_state(state: dict, nodes, prefix: str | None) -> dict:
 
 class Members(Observer):
     """An ensemble's hooks on its integrator (``integrator.Integrator``): blocks of
-    ``CHECK_EVERY_STEPS`` steps, each (index, unit, first bad node) dropped told to
-    ``dropped(bad, step)``."""
+    ``CHECK_EVERY_STEPS`` steps, ended at every step a callback is due (``callbacks``: (call,
+    every so many steps)) and the callbacks due called after it; each (index, unit, first bad
+    node) dropped told to ``dropped(bad, step)``."""
 
-    def __init__(self, dropped):
-        self._dropped = dropped
+    def __init__(self, dropped, callbacks: list):
+        self._dropped, self.callbacks = dropped, callbacks
 
     def block_end(self, b: int) -> int:
-        return b + CHECK_EVERY_STEPS
+        return min([b + CHECK_EVERY_STEPS, *((b // every + 1) * every for _, every in self.callbacks)])
+
+    def after(self, step: int, done: int) -> None:
+        due_callbacks(self.callbacks, step)
 
     def dropped(self, step: int, bad: list) -> None:
         self._dropped(bad, step)
+
+
+def due_callbacks(callbacks: list, step: int) -> None:
+    """Call each (call, every) of ``callbacks`` due at ``step`` (a multiple of its every)."""
+    for call, every in callbacks:
+        if step % every == 0:
+            call()
 
 
 def member_step(unit: Unit, j: int, watch: bool):

@@ -68,3 +68,28 @@ def test_a_controlled_ensemble_continues_from_its_restart_file_bitwise(tmp_path,
     again.advance(0.125)
     np.testing.assert_array_equal(again.states(), whole.states())
     assert again.control.state() == whole.control.state() and again.step_count == whole.step_count
+
+
+def test_an_ensemble_calls_back_at_its_steps_and_a_callback_leaves_the_bits(one_thread):
+    """``add_callback``: called after every 5th step (blocks end there; a fixed Δt) and every
+    3rd accepted step under control, reading the ensemble; the states the bits of an ensemble
+    without one. Bad intervals are one line each."""
+    fixed = {"ne": 2, "np": 4, "dt": 900.0}
+    seen, ens = [], Ensemble("galewsky", 2, Perturbation(1.0, seed=1), device="cpu", **fixed)
+    ens.add_callback(lambda e: seen.append((e.step_count, e.day)), every_steps=5)
+    ens.step(12)
+    ens.advance(0.0625)  # 6 steps more, to 18
+    assert seen == [(5, 5 * 900 / 86400), (10, 10 * 900 / 86400), (15, 15 * 900 / 86400)]
+    plain = Ensemble("galewsky", 2, Perturbation(1.0, seed=1), device="cpu", **fixed)
+    plain.step(18)
+    np.testing.assert_array_equal(ens.states(), plain.states())
+    with pytest.raises(ArgumentError, match=r"^an interval needs exactly one of every_steps, every_days$"):
+        ens.add_callback(print)
+    with pytest.raises(ArgumentError, match=r"every_days"):
+        ens.add_callback(print, every_days=0.001)
+    steered, counted = Ensemble("galewsky", 2, Perturbation(1.0, seed=1), device="cpu", **CONTROLLED), []
+    steered.add_callback(lambda e: counted.append(e.step_count), every_steps=3)
+    steered.advance(0.05)
+    assert counted == list(range(3, steered.step_count + 1, 3)) and counted
+    with pytest.raises(ArgumentError, match=r"^every_days: under step control the steps are the controller's"):
+        steered.add_callback(print, every_days=0.25)

@@ -1,14 +1,14 @@
 """A simulation driven from Python (Oceananigans' ``Simulation``: step, inspect, call back):
 ``Drive``, the object a ``Simulation`` holds behind its methods ``advance``, ``steps``,
-``state``, ``every``, ``add_callback`` and ``fit_dt`` (their contracts are the simulation's
-docstrings); the steps go by ``Simulation.run``'s loop."""
+``state``, ``every``, ``add_callback`` and ``fit_dt`` (the fitted scene, ``fitted``, which the
+simulation takes; their contracts are the simulation's docstrings); the steps go by
+``Simulation.run``'s loop."""
 
 from __future__ import annotations
 
 import dataclasses
 import itertools
 
-from ..config.parts import scene_stepper
 from ..config.scene import with_days
 from ..core.arguments import callable_argument, got
 from ..core.clock import is_interval
@@ -28,8 +28,10 @@ class Drive:
     def __init__(self, sim, own_dt: bool):
         self.sim, self.own_dt = sim, own_dt
 
-    def fit_dt(self, every: float, what: str) -> None:
-        """``Simulation.fit_dt``: Δt shortened, before the first step, to divide ``every`` and the run's intervals."""
+    def fitted(self, every: float, what: str):
+        """``Simulation.fit_dt``'s scene: its clock's Δt shortened to divide ``every`` and the run's
+        intervals (``Clock.fitted``), a note naming ``what``; nothing of the simulation written.
+        ``SceneError`` as ``Simulation.fit_dt``."""
         sim = self.sim
         s = sim.scene
         if sim.step != 0 or not is_interval(every):
@@ -47,16 +49,7 @@ class Drive:
                 "or an interval of whole steps"
             )
         note = f"dt shortened from {s.dt:g} s to {clock.dt:g} s to divide {what} = {every:g} days"
-        sim.scene = dataclasses.replace(s, dt=clock.dt, notes=(*s.notes, note), dt_source=clock.source)
-        if sim.stepper.variable_dt:  # its own ``set_dt`` (as step control's): what was built for the old Δt dropped
-            sim.stepper.set_dt(clock.dt)
-        else:  # Δt folded into what it builds (a Helmholtz operator, a history's weights, element levels): anew
-            sim.stepper = scene_stepper(sim.scene, sim.model)
-            sim.stepper.prepare(sim.x)
-        for activity in sim.activities.values():
-            if getattr(activity.schedule, "days", None) is not None:
-                activity.schedule = sim.every(days=activity.schedule.days)
-        sim.initial = sim.diagnostics.diagnose(sim.scene.start_day * DAY)
+        return dataclasses.replace(s, dt=clock.dt, notes=(*s.notes, note), dt_source=clock.source)
 
     def every(self, days: float | None, steps: int | None) -> EverySteps:
         """``Simulation.every``: the schedule of every ``steps`` steps, or of the steps in ``days``."""

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from ..config.parts import scene_stepper
 from ..config.scene import Scene, resolve_scene
 from ..core.arguments import array_argument, comm_argument, flag_argument, got, mapping_argument
 from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
@@ -271,7 +272,16 @@ class Simulation:
         (one line) after the first step, for ``every`` <= 0, and where that Δt is less than
         half the present one (an interval of odd decimals: give a dt, or an interval of
         whole steps)."""
-        self._drive.fit_dt(every, what)
+        self.scene = self._drive.fitted(every, what)
+        if self.stepper.variable_dt:  # its own ``set_dt`` (as step control's): what was built for the old Δt dropped
+            self.stepper.set_dt(self.scene.dt)
+        else:  # Δt folded into what it builds (a Helmholtz operator, a history's weights, element levels): anew
+            self.stepper = scene_stepper(self.scene, self.model)
+            self.stepper.prepare(self.x)
+        for activity in self.activities.values():  # the schedules in days: their steps at the new Δt
+            if getattr(activity.schedule, "days", None) is not None:
+                activity.schedule = self.every(days=activity.schedule.days)
+        self.initial = self.diagnostics.diagnose(self.scene.start_day * DAY)
 
     def every(self, *, days: float | None = None, steps: int | None = None) -> EverySteps:
         """The schedule of an activity (``activities``) due after every step that is a

@@ -14,11 +14,13 @@ its model and its stepper, a block of steps at a time under the one bad-state gu
 
 What a driver adds around the steps is an ``Observer``'s (its hooks no-ops here): where a
 block ends (activities due), a stop asked (signals), what follows good steps (activities,
-progress), the steps' counts. ``Simulation.run``, ``Ensemble.step`` and the gradient's sweeps
-(``adjoint.gradient``) all advance through ``Integrator.advance``."""
+progress), the steps' counts. ``Simulation.run`` (at a fixed Δt, and under step control each
+accepted step a block of its own, ``simulation.adaptive.steer``), ``Ensemble.step`` and the
+gradient's sweeps (``adjoint.gradient``) all advance through ``Integrator.advance``."""
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import time
 
@@ -103,6 +105,11 @@ class Observer:
     def dropped(self, step: int, bad: list) -> None:
         """Units (index, unit, first bad node) ``bad`` dropped at ``step`` (``Integrator.drop``)."""
 
+    def vouched(self) -> bool:
+        """Whether the step just taken found its own state good (a controlled step's error norm):
+        then it is not checked again."""
+        return False
+
 
 def core_property(name: str, doc: str, unit: bool = False) -> property:
     """A driver's property (read and set) that is its integrator's (``self.core``) ``name``, or
@@ -150,6 +157,17 @@ class Integrator:
         self.drop, self.lone, self.rewind = drop, lone, rewind or Rewind()
         self.out: dict[int, int] = {}
         self.step = 0
+
+    @contextlib.contextmanager
+    def stepping_by(self, take, rewind: Rewind):
+        """Steps taken by ``take`` and kept by ``rewind`` within (a controlled run's: the control's
+        accepted steps, its state kept), ``take`` and ``rewind`` as the constructor's."""
+        kept = self.take, self.rewind
+        self.take, self.rewind = take, rewind
+        try:
+            yield self
+        finally:
+            self.take, self.rewind = kept
 
     def active(self) -> list:
         """(index, unit) of the units still stepped (all but those dropped)."""
@@ -254,6 +272,8 @@ class Integrator:
         """A checked step's first bad nodes (one read a unit), members dropped there (``drop``)
         while others are good. Returns (trouble, detail): (None, None) or ("bad", the
         [(index, unit, node)] bad)."""
+        if observer.vouched():
+            return None, None
         bad = [(i, u, node) for i, u in active if (node := u.model.bad_nodes.first(u.x)) is not None]
         wp.synchronize_device(active[0][1].x.device)
         if not self.anywhere(bool(bad)):

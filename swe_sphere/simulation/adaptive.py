@@ -42,7 +42,6 @@ and bits as without it (a try launched ahead and undone is not counted: ``ahead_
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,8 +50,8 @@ import warp as wp
 from ..config.control import ESTIMATED
 from ..config.schema import SceneControl
 from ..core.constants import DAY
-from ..core.errors import BlowUp, StepFailure
-from ..integrator import Stop
+from ..core.errors import BlowUp
+from ..integrator import Observer, Rewind, Stop
 from ..steppers import StepStats
 from ..steppers.control import CflController, Controller, CourantMax, ErrorNorm, SpatialRate, capped
 from .guard import blowup_line
@@ -187,7 +186,7 @@ class StepControl:
         self._cap_seconds, self._since_pass = 0.0, 0  # the last pass's cap (s; 0: take one), steps since it
         self.dt = float(stepper.dt)
         sim.model.launches.limit, sim.model.launches.variants = LAUNCH_LISTS, LAUNCH_VARIANTS
-        self.x0 = sim.last_good  # a step's start: the guard's last good state (``_checked_step``)
+        self.x0 = sim.last_good  # a step's start: the guard's last good state (``steer``)
         # the next try launched before this one's norm is read: where the host's read would idle the card
         on_one_card = not sim.model.topology.backend.host and not sim.model.topology.distributed
         self.lookahead = on_one_card and self.norm is not None and self.balance is None and stepper.explicit
@@ -385,14 +384,64 @@ class StepControl:
         self._cap_seconds = 0.0  # the next step takes the Courant pass
 
 
+class _Tries(Rewind):
+    """A controlled step kept and put back by ``steer``: the control's state (``StepControl.state``;
+    the step's start is the control's own, ``last_good``)."""
+
+    def __init__(self, sim):
+        self.sim, self.saved = sim, None
+
+    def keep(self, active: list, whole: bool):
+        self.saved = self.sim.control.state()
+        return {}
+
+    def put_back(self, active: list, saved: dict, whole: bool) -> None:
+        sim = self.sim
+        sim.control.settle(sim.x)
+        wp.copy(sim.x, sim.last_good)
+        sim.control.restore(self.saved)
+
+
+class _Steered(Observer):
+    """``steer``'s hooks on the run's integrator: one accepted step a block, after a stop asked
+    (``signals``), counted in ``ledger``, ``after()`` then; a step whose norm or Courant pass found
+    every node good (``StepControl.checked``) vouched for, else checked as a run's."""
+
+    def __init__(self, sim, signals, ledger, after):
+        self.sim, self.signals, self.ledger, self._after = sim, signals, ledger, after
+
+    def asked(self) -> int:
+        return self.signals.asked()
+
+    def add(self, stats) -> None:
+        self.ledger.add(stats)
+
+    def account(self, step: int, t0: float, cpu0: float) -> None:
+        self.ledger.account(step, t0, cpu0)
+
+    def after(self, step: int, done: int) -> None:
+        self._after()
+
+    def vouched(self) -> bool:
+        ctl = self.sim.control
+        if not ctl.checked:  # its state read: no try may be running ahead
+            ctl.settle(self.sim.x)
+            return False
+        if ctl.ahead is None:  # else the next try runs on: the step's time is the host's
+            wp.synchronize_device(self.sim.device)
+        return True
+
+
 def steer(sim, signals, ledger, after) -> Stop:
     """``Simulation.run``'s loop under ``sim.control`` (a ``StepControl``): accepted steps to
     each day an ``AtDays`` activity is due at (output and restart times) and the scene's end in
-    turn, each landed on exactly; every state checked at once (``BadNodes.first``, as the
-    guard's single steps: the same blow-up report), then ``after()`` (the activities due, the
-    progress bar). ``signals`` a ``StopSignals``, ``ledger`` the run's ``summary.Ledger``.
-    Returns why the loop stopped (``integrator.Stop``)."""
-    ctl = sim.control
+    turn, each landed on exactly, each a block of the run's integrator (``Simulation.core``, its
+    steps the control's: ``StepControl.step_to``) checked at once (the norm's finite value, else
+    ``BadNodes.first``: the same blow-up report as a fixed Δt's), then ``after()`` (the
+    activities due, the progress bar). ``signals`` a ``StopSignals``, ``ledger`` the run's
+    ``summary.Ledger``. Returns why the loop stopped (``integrator.Stop``); after a blow-up the
+    state, the control and ``sim.step`` those of the step before (``last_good``)."""
+    ctl, goal = sim.control, {"day": None, "quiet": False}
     days = {float(sim.scene.days)}
     counted = []  # the schedules of whole steps (``EverySteps``, ``AtSteps``): due after a step, they read x
     for activity in sim.activities.values():
@@ -400,52 +449,29 @@ def steer(sim, signals, ledger, after) -> Stop:
             days.update(activity.schedule.days)
         else:
             counted.append(activity.schedule)
+
+    def take(unit, j, watch):  # an accepted step toward the day, its solvers' device counters read
+        stats = ctl.step_to(unit.x, goal["day"], goal["quiet"])
+        return StepStats(stats.rhs_evals, {**stats.iterations, **unit.stepper.counts()})
+
+    tries, observer = _Tries(sim), _Steered(sim, signals, ledger, after)
     try:
-        for day in sorted(d for d in days if d * DAY > ctl.t):
-            while ctl.t < day * DAY:
-                if signum := signals.asked():  # every rank stops at the same step
-                    return Stop(signum=signum)
-                quiet = not any(schedule.due(sim.step + 1) for schedule in counted)
-                blowup = _checked_step(sim, day, ledger, quiet)
-                if blowup is not None:
-                    return Stop(blowup=blowup)
-                after()
+        with sim.core.stepping_by(take, tries):
+            for day in sorted(d for d in days if d * DAY > ctl.t):
+                goal["day"] = day
+                while ctl.t < day * DAY:
+                    goal["quiet"] = not any(schedule.due(sim.step + 1) for schedule in counted)
+                    stop = sim.core.advance(sim.step + 1, observer)
+                    if stop.bad is not None:
+                        step, trouble, detail = stop.bad
+                        stop.blowup = blowup_line(
+                            sim, step, trouble, detail if trouble == "failure" else detail[0][2], ctl.day
+                        )
+                        tries.put_back([], {}, False)
+                    if stop.signum is not None or stop.bad is not None:
+                        return stop
         return Stop()
+    except BlowUp as err:  # Δt below dt_min: the rejected steps put the state back, the last good one
+        return Stop(blowup=str(err))
     finally:  # a try launched ahead undone: the state the run stops with is the last accepted step's
         ctl.settle(sim.x)
-
-
-def _checked_step(sim, day: float, ledger, quiet: bool) -> str | None:
-    """One accepted step of ``sim`` toward ``day`` (``StepControl.step_to``; ``quiet``: nothing
-    reads the state after it, so the next may be launched ahead), counted in
-    ``ledger``, its state checked; None when good (``sim.step`` moved on), else the blow-up's
-    line (a proposal below dt_min, a solver's failure, a bad state: its step, time and place)
-    with the state, the control and ``sim.step`` those of the step before (``last_good``)."""
-    ctl = sim.control
-    saved = ctl.state()  # the state itself: ``last_good``, where ``StepControl.step`` keeps its start
-    t0, cpu0 = time.perf_counter(), time.process_time()
-    trouble = node = None
-    try:
-        stats = ctl.step_to(sim.x, day, quiet)
-        # the solvers' device counters (``Stepper.deferred``): raises for a solve that missed its tolerance
-        stats = StepStats(stats.rhs_evals, {**stats.iterations, **sim.stepper.counts()})
-        if not ctl.checked:  # else the norm's or the Courant numbers' pass found every node good
-            ctl.settle(sim.x)
-            node = sim.model.bad_nodes.first(sim.x)
-    except BlowUp as err:  # the rejected steps put the state back: it is the last good one
-        return str(err)
-    except StepFailure as err:
-        trouble, stats = str(err), None
-    if ctl.ahead is None:  # else the next try runs on: the step's time is the host's
-        wp.synchronize_device(sim.device)
-    ledger.add(stats)
-    ledger.account(sim.step + 1, t0, cpu0)
-    if trouble is None and node is None:
-        sim.step += 1
-        return None
-    detail = node if trouble is None else trouble
-    line = blowup_line(sim, sim.step + 1, "bad" if trouble is None else "failure", detail, ctl.day)
-    ctl.settle(sim.x)
-    wp.copy(sim.x, sim.last_good)
-    ctl.restore(saved)
-    return line

@@ -160,14 +160,15 @@ class Integrator:
 
     @contextlib.contextmanager
     def stepping_by(self, take, rewind: Rewind):
-        """Steps taken by ``take`` and kept by ``rewind`` within (a controlled run's: the control's
-        accepted steps, its state kept), ``take`` and ``rewind`` as the constructor's."""
-        kept = self.take, self.rewind
-        self.take, self.rewind = take, rewind
+        """Steps taken by ``take`` and kept by ``rewind`` within, each checked at once (``lone``): a
+        controlled run's, the control's accepted steps (its state kept), ``take`` and ``rewind`` as
+        the constructor's."""
+        kept = self.take, self.rewind, self.lone
+        self.take, self.rewind, self.lone = take, rewind, True
         try:
             yield self
         finally:
-            self.take, self.rewind = kept
+            self.take, self.rewind, self.lone = kept
 
     def active(self) -> list:
         """(index, unit) of the units still stepped (all but those dropped)."""

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from ..core.constants import DAY
 from ..core.errors import ArgumentError
-from ..integrator import Unit
+from ..integrator import Integrator, Observer, Rewind, Stop, Unit
 from ..simulation.adaptive import StepControl
 
 # ``Ensemble.add_callback``'s refusal of a callback every so many days under step control
@@ -53,17 +53,24 @@ def member_control(scene, units: list, layout: str, comm) -> StepControl | None:
     return StepControl(scene.control, units[0].stepper, _Members(units[0], scene))
 
 
-def controlled_steps(control: StepControl, unit: Unit, day: float, most: int, after) -> bool:
-    """Accepted steps of ``unit``'s members toward model ``day`` (days from t = 0), ``most`` at
-    the most, each landed on ``day`` where it reaches it; every state checked (the norm's finite
-    value, else ``BadNodes.first``), ``after()`` called after each good one. Returns whether the
-    last went bad (its state kept for the blow-up's report). ``BlowUp`` where Δt falls below
-    ``time.dt_min``."""
-    for _ in range(most):
-        if control.t >= day * DAY:
-            break
-        control.step_to(unit.x, day)
-        if not control.checked and unit.model.bad_nodes.first(unit.x) is not None:
-            return True
-        after()
-    return False
+class _Kept(Rewind):
+    """A controlled step's start kept by the control itself (``StepControl.step``): nothing here."""
+
+    def keep(self, active: list, whole: bool) -> dict:
+        return {}
+
+
+def controlled_steps(core: Integrator, control: StepControl, day: float, most: int, observer: Observer) -> Stop:
+    """Accepted steps of ``core``'s one unit (every member) toward model ``day`` (days from t =
+    0), ``most`` at the most, each landed on ``day`` where it reaches it and each a block of the
+    integrator checked at once (``observer.vouched``: the norm's finite value, else
+    ``BadNodes.first``). Returns why it stopped (``integrator.Stop``; a bad state kept for the
+    blow-up's report). ``BlowUp`` where Δt falls below ``time.dt_min``."""
+    with core.stepping_by(lambda unit, j, watch: control.step_to(unit.x, day), _Kept()):
+        for _ in range(most):
+            if control.t >= day * DAY:
+                break
+            stop = core.advance(core.step + 1, observer)
+            if stop.bad is not None:
+                return stop
+    return Stop()

@@ -58,7 +58,6 @@ from .units import (
     blow_up_line,
     checked_scene,
     drop_line,
-    due_callbacks,
     member_step,
     on_rank_zero,
     own_units,
@@ -264,11 +263,11 @@ class Ensemble:
         """Steps toward ``target`` (a step; under step control a model day), ``most`` at the most:
         their number. ``BlowUp`` and ``StepFailure`` as ``step``'s."""
         t0, first = time.perf_counter(), self.step_count
+        observer = Members(self._drop, self._callbacks, self.control)
         if self.control is None:  # (step, trouble, detail) of a checked step that went bad (``integrator.Stop``)
-            bad = self.core.advance(min(target, first + most), Members(self._drop, self._callbacks)).bad
+            bad = self.core.advance(min(target, first + most), observer).bad
         else:
-            bad = controlled_steps(self.control, self.units[0], target, most, self._accepted)
-            bad = (self.step_count + 1, "bad", None) if bad else None
+            bad = controlled_steps(self.core, self.control, target, most, observer).bad
         if bad is not None:  # the states those of the step that went bad, for its report
             step, trouble, detail = bad
             if trouble == "failure":
@@ -278,10 +277,6 @@ class Ensemble:
         wp.synchronize_device(self.model.topology.device)
         self.wall_time += time.perf_counter() - t0
         return self.step_count - first
-
-    def _accepted(self) -> None:
-        self.step_count += 1  # a step under step control taken and found good: the callbacks due then
-        due_callbacks(self._callbacks, self.step_count)
 
     def add_callback(self, fn, *, every_steps: int | None = None, every_days: float | None = None) -> None:
         """Call ``fn(self)`` after every ``every_steps``-th step from step 0 (under step control, of

@@ -145,26 +145,25 @@ class Members(Observer):
     """An ensemble's hooks on its integrator (``integrator.Integrator``): blocks of
     ``CHECK_EVERY_STEPS`` steps, ended at every step a callback is due (``callbacks``: (call,
     every so many steps)) and the callbacks due called after it; each (index, unit, first bad
-    node) dropped told to ``dropped(bad, step)``."""
+    node) dropped told to ``dropped(bad, step)``; under step control (``control``) a step its norm
+    found good vouched for."""
 
-    def __init__(self, dropped, callbacks: list):
-        self._dropped, self.callbacks = dropped, callbacks
+    def __init__(self, dropped, callbacks: list, control=None):
+        self._dropped, self.callbacks, self.control = dropped, callbacks, control
+
+    def vouched(self) -> bool:
+        return self.control is not None and self.control.checked
 
     def block_end(self, b: int) -> int:
         return min([b + CHECK_EVERY_STEPS, *((b // every + 1) * every for _, every in self.callbacks)])
 
     def after(self, step: int, done: int) -> None:
-        due_callbacks(self.callbacks, step)
+        for call, every in self.callbacks:  # those due at this step, a multiple of their every
+            if step % every == 0:
+                call()
 
     def dropped(self, step: int, bad: list) -> None:
         self._dropped(bad, step)
-
-
-def due_callbacks(callbacks: list, step: int) -> None:
-    """Call each (call, every) of ``callbacks`` due at ``step`` (a multiple of its every)."""
-    for call, every in callbacks:
-        if step % every == 0:
-            call()
 
 
 def member_step(unit: Unit, j: int, watch: bool):

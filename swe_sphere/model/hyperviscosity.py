@@ -292,11 +292,11 @@ class Hyperviscosity:
 
     def plan(self, dt: float) -> tuple[int, bool]:
         """(∇⁴ evaluations, RKL1?) of one ``apply`` over dt: the forward-Euler
-        substeps, or the RKL1 stages where those are at most half as many (see
+        substeps, or the RKL1 stages where those are fewer (see
         ``apply``); the last dt's kept (a controlled run's dt changes every step)."""
         if self._plan is None or self._plan[0] != dt:
             n, s = self.substeps(dt), self.stages(dt)
-            self._plan = (dt, (s, True) if n >= 2 * s and n > self.model.hypervis_subcycle else (n, False))
+            self._plan = (dt, (s, True) if s < n and n > self.model.hypervis_subcycle else (n, False))
         return self._plan[1]
 
     def apply(self, x: wp.array2d, dt: float) -> None:
@@ -304,10 +304,10 @@ class Hyperviscosity:
         n = ``substeps(dt)`` forward-Euler steps of x −= (dt/n) B x
         (B: ``operator``, ν ∇⁴ with ν, ν_div, ν_s)
         (HOMME ``advance_hypervis`` with ``hypervis_subcycle``), or, when that
-        takes at least twice the ∇⁴ evaluations of an s-stage RKL1
-        super-time-step (``stages``; n ≥ 2s, n set by stability rather
-        than by the scene's subcycle: long steps only, so explicit steppers at
-        their steps keep forward Euler), the RKL1 step, whose cost grows as
+        takes more ∇⁴ evaluations than an s-stage RKL1 super-time-step
+        (``stages``; n > s, n set by stability rather than by the scene's
+        subcycle: from n = 3, so a step that needs one or two substeps keeps forward
+        Euler), the RKL1 step, whose cost grows as
         √(ν dt λ) instead of linearly (TC5 ne16, dt_g the gravity-wave limit:
         n / s = 6 / 3, 15 / 5, 45 / 9 at 4, 10, 30 dt_g).
         Why RKL1 and not the second-order RKL2: RKL2's amplification of the

@@ -58,7 +58,7 @@ def test_long_steps_use_rkl1_stably_and_conservatively(rng):
     T = 45 * dt_fe
     assert m.hv.substeps(T) in (45, 46) and m.hv.stages(T) == 9  # ceil(45 · (1 ± round-off))
     n, s = m.hv.substeps(sim.scene.dt), m.hv.stages(sim.scene.dt)
-    assert n < 2 * s  # forward Euler at the scene's step
+    assert n <= s  # forward Euler at the scene's step (RKL1 would take as many evaluations or more)
 
     x0 = sim.x.numpy().copy()
     x = wp.array(x0, dtype=wp.float64, device="cpu")

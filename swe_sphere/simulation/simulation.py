@@ -166,8 +166,9 @@ class Simulation:
         # takes 40 norms, and OpenBLAS's threads spinning on a busy machine made them 0.3 s of CPU
         with compile_timer(self._compile), threadpool_limits(limits=1, user_api="blas"):
             self.scene, self.backend, self.device = scene, backend, backend.device
-            self.built: Built = build(scene, backend, progress, comm, start, initial)
-            b = self.built  # its parts the simulation's attributes; the state and stepper its integrator's
+            # the build's parts the simulation's attributes, the state and stepper its integrator's (not kept
+            # whole: a stepper built anew, ``fit_dt``, would leave the first one's arrays held there)
+            b: Built = build(scene, backend, progress, comm, start, initial)
             self.case, self.topology, self.root, self.progress, self.grid = (
                 b.case,
                 b.topology,

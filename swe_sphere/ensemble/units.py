@@ -36,8 +36,8 @@ POLICIES = {"stop": "stop all", "drop": "drop the member and go on"}
 
 def checked_scene(scene) -> None:
     """``ArgumentError`` naming ``scene`` where the ensemble cannot give each member the single
-    run's bits yet: a controlled Δt or a digital-filter start; or whose output it does not write
-    yet (``[[output.streams]]``)."""
+    run's bits yet: a digital-filter start; or whose output it does not write yet
+    (``[[output.streams]]``). A controlled Δt is ``control.member_control``'s to refuse or take."""
     why = None
     if scene.digital_filter is not None:
         why = "it starts from a digital filter (not yet with ensembles)"

@@ -8,6 +8,7 @@ job size in the environment before ``MPI_Init``.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 import threading
@@ -55,16 +56,24 @@ def world():
     return MPI.COMM_WORLD
 
 
-def node_rank(comm) -> tuple[int, int]:
-    """(this rank's place among the ranks of ``comm`` on its node, their number): an MPI
-    shared-memory split (collective), ordered as in ``comm``."""
+@contextlib.contextmanager
+def _node(comm):
+    """The ranks of ``comm`` on this node as a communicator of their own (an MPI shared-memory
+    split, collective, ordered as in ``comm``), freed after."""
     from mpi4py import MPI
 
     local = comm.Split_type(MPI.COMM_TYPE_SHARED)
     try:
-        return local.Get_rank(), local.Get_size()
+        yield local
     finally:
         local.Free()
+
+
+def node_rank(comm) -> tuple[int, int]:
+    """(this rank's place among the ranks of ``comm`` on its node, their number): an MPI
+    shared-memory split (collective), ordered as in ``comm``."""
+    with _node(comm) as local:
+        return local.Get_rank(), local.Get_size()
 
 
 def node_local_size(comm) -> int:
@@ -75,13 +84,8 @@ def node_local_size(comm) -> int:
 def node_peers(comm, key) -> int:
     """Ranks of ``comm`` on this node, this one included, whose ``key`` (any picklable value:
     their device) equals this rank's (collective)."""
-    from mpi4py import MPI
-
-    local = comm.Split_type(MPI.COMM_TYPE_SHARED)
-    try:
+    with _node(comm) as local:
         return local.allgather(key).count(key)
-    finally:
-        local.Free()
 
 
 def processor_name() -> str:

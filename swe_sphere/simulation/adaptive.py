@@ -463,10 +463,7 @@ def steer(sim, signals, ledger, after) -> Stop:
                     goal["quiet"] = not any(schedule.due(sim.step + 1) for schedule in counted)
                     stop = sim.core.advance(sim.step + 1, observer)
                     if stop.bad is not None:
-                        step, trouble, detail = stop.bad
-                        stop.blowup = blowup_line(
-                            sim, step, trouble, detail if trouble == "failure" else detail[0][2], ctl.day
-                        )
+                        stop.blowup = blowup_line(sim.model, sim.x, stop.bad, ctl.day)
                         tries.put_back([], {}, False)
                     if stop.signum is not None or stop.bad is not None:
                         return stop

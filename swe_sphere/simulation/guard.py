@@ -10,7 +10,7 @@ from .schedules import next_multiple
 
 
 class RunObserver(Observer):
-    """``Simulation.run``'s hooks on ``sim``'s integrator (``Simulation.core``), to ``stop_step``.
+    """``Simulation.run``'s hooks on its integrator (``Simulation.core``), to ``stop_step``.
 
     The state is flagged on the device after every step (``ShallowWater.watch``) and the flag
     read back once a block of steps (``block_end``: every ``check_every`` steps and at every step
@@ -20,13 +20,15 @@ class RunObserver(Observer):
     A block that fails is taken again from its start (state, stepper history and the run's
     ``counters`` kept there), one checked step at a time: the blow-up is reported at the step,
     time and place (a failed solve at the step and time), and the output holds, as with a check
-    every step (the same bits either way). ``signals`` a ``StopSignals``, ``ledger`` the run's
-    ``summary.Ledger``, ``after(n, done)`` the loop's activities and progress after good steps."""
+    every step (the same bits either way). ``run`` the run's parts: its first step, check interval
+    (``Simulation.check_every``), ``activities`` and ``counters`` (``Simulation``'s) and
+    ``summary.Ledger``; ``signals`` a ``StopSignals``, ``after(n, done)`` the loop's activities
+    and progress after good steps."""
 
-    def __init__(self, sim, stop_step: int, ledger, signals=None, after=None):
-        self.sim, self.first_step, self.stop_step, self.ledger = sim, sim.step, stop_step, ledger
-        self.signals, self._after = signals, after
-        self.every = max(1, int(sim.check_every))
+    def __init__(self, run: tuple, stop_step: int, signals=None, after=None):
+        self.first_step, every, self.activities, self.counters, self.ledger = run
+        self.stop_step, self.signals, self._after = stop_step, signals, after
+        self.every = max(1, int(every))
 
     def block_end(self, b: int) -> int:
         """The last step of the block that starts after step b: the next multiple of
@@ -35,7 +37,7 @@ class RunObserver(Observer):
         or its end, whichever comes first."""
         if self.every == 1 or b == self.first_step:  # the first step alone: its time is first_step_time
             return b + 1
-        due = (a.schedule.next_after(b) for a in self.sim.activities.values())
+        due = (a.schedule.next_after(b) for a in self.activities.values())
         return min(
             self.stop_step, next_multiple(b, self.every), *(n for n in due if n is not None), *self.ledger.next_steps(b)
         )
@@ -58,18 +60,18 @@ class RunObserver(Observer):
             self._after(step, done)
 
     def keep(self):
-        c = self.sim.counters
-        return c["rhs_evals"], dict(c["iterations"])
+        return self.counters["rhs_evals"], dict(self.counters["iterations"])
 
     def put_back(self, kept) -> None:
-        self.sim.counters["rhs_evals"], self.sim.counters["iterations"] = kept
+        self.counters["rhs_evals"], self.counters["iterations"] = kept
 
 
-def blowup_line(sim, step: int, trouble: str, detail, day: float | None = None) -> str:
-    """What went wrong in the single step ``step`` of ``sim`` (at model ``day``, default the
-    clock's): where ``detail`` (its bad node, a whole-grid index) went bad, or for a "failure"
-    the solver's message ``detail``, on every rank (call on every rank)."""
-    day = sim.scene.day(step) if day is None else day
+def blowup_line(model, x, bad: tuple, day: float) -> str:
+    """What went wrong in a checked step, ``bad`` = (step, trouble, detail) of an
+    ``integrator.Stop``, at model ``day``: where the state ``x`` (3, N) of ``model`` went bad
+    (detail [(unit index, unit, whole-grid node)]), or for a "failure" the solver's message
+    ``detail``; the same line on every rank (call on every rank)."""
+    step, trouble, detail = bad
     if trouble == "failure":
         return f"step {step} failed (model time {day:.4f} days): {detail}"
-    return f"blow-up at step {step} (model time {day:.4f} days): {sim.model.bad_nodes.describe(sim.x, detail)}"
+    return f"blow-up at step {step} (model time {day:.4f} days): {model.bad_nodes.describe(x, detail[0][2])}"

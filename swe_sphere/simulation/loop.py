@@ -97,11 +97,12 @@ class StepLoop:
         """The run's steps to ``stop_step`` by the integrator (``Simulation.core``) under its guard
         (``guard.RunObserver``), the activities due called after each good step. Returns why the
         loop stopped (``Stop``: nothing, a signal, an abandoned step or a blow-up)."""
-        observer = RunObserver(self.sim, stop_step, ledger, signals, lambda n, done: self.after_steps(n, done, bar))
-        stop = self.sim.core.advance(stop_step, observer)
+        sim = self.sim
+        run = (sim.step, sim.check_every, sim.activities, sim.counters, ledger)
+        observer = RunObserver(run, stop_step, signals, lambda n, done: self.after_steps(n, done, bar))
+        stop = sim.core.advance(stop_step, observer)
         if stop.bad is not None:
-            step, trouble, detail = stop.bad
-            stop.blowup = blowup_line(self.sim, step, trouble, detail if trouble == "failure" else detail[0][2])
+            stop.blowup = blowup_line(sim.model, sim.x, stop.bad, sim.scene.day(stop.bad[0]))
         return stop
 
     def after_steps(self, n: int, done: int, bar) -> None:

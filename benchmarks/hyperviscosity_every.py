@@ -7,7 +7,9 @@ round holds whole cycles of the ∇⁴), ``--rounds`` rounds taken in turn so th
 hits every k alike; the median CPU ms a step (``time.process_time``, one thread: run it with
 ``SWE_SPHERE_THREADS=1``), its ratio to k = 1 and the ∇⁴'s plan over kΔt (evaluations, RKL1 or
 forward Euler; ``Hyperviscosity.plan``). The accuracy at each k is ``long_step.py``'s
-(``--runs STEPPER@DT:hyperviscosity.every=K``). Figures to
+(``--runs STEPPER@DT:hyperviscosity.every=K``). ``--filter MU ...``: beside them, the scene without
+its ∇⁴ and with the element filter ([filter] mu = MU) after every step instead (its accuracy:
+``long_step.py --runs STEPPER@DT:terms=...:filter.mu=MU``). Figures to
 ``benchmarks/results/hyperviscosity_every[_STEM].json``::
 
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/hyperviscosity_every.py --scene galewsky --every 1 6 12
@@ -30,6 +32,7 @@ wp.config.quiet = True
 
 from results import positive, recorded  # noqa: E402  (benchmarks/, the script's directory)
 
+from swe_sphere.config.scene import load_scene  # noqa: E402
 from swe_sphere.core.errors import ArgumentError  # noqa: E402
 from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 
@@ -40,6 +43,7 @@ def arguments():
     p.add_argument("--ne", type=positive(int), default=None)
     p.add_argument("--np", type=positive(int), default=None)
     p.add_argument("--every", type=positive(int), nargs="+", default=[1, 6, 12])
+    p.add_argument("--filter", type=positive(float), nargs="*", default=[], help="the element filter's mu instead")
     p.add_argument("--steps", type=positive(int), default=48, help="steps a round (a multiple of every k)")
     p.add_argument("--rounds", type=positive(int), default=5)
     p.add_argument("--results", default=None, help="results stem (default hyperviscosity_every)")
@@ -54,18 +58,19 @@ def main() -> None:
     grid = {k: v for k, v in (("ne", args.ne), ("np", args.np)) if v}
     with recorded(__file__, args.results) as figures, threadpool_limits(limits=1):
         print(f"load average at the start: {os.getloadavg()}")
+        inviscid = [t for t in load_scene(args.scene).terms if t != "hyperviscosity"]
+        runs = {k: {"hyperviscosity": {"every": k}} for k in ks}
+        runs |= {f"filter {mu:g}": {"terms": inviscid, "filter": {"mu": mu}} for mu in args.filter}
         sims = {
-            k: Simulation(
-                args.scene, "cpu", progress=False, days=1.0, graphs=False, hyperviscosity={"every": k}, **grid
-            )
-            for k in ks
+            k: Simulation(args.scene, "cpu", progress=False, days=1.0, graphs=False, **over, **grid)
+            for k, over in runs.items()
         }
         if sims[1].model.hv is None:
             raise ArgumentError(f"--scene {args.scene}: its terms have no hyperviscosity")
         for sim in sims.values():  # recorded and compiled: one whole cycle
             for _ in range(cycle):
                 sim.stepper.step(sim.x)
-        ms = {k: [] for k in ks}
+        ms = {k: [] for k in sims}
         for _ in range(args.rounds):
             for k, sim in sims.items():
                 start = time.process_time()
@@ -86,6 +91,9 @@ def main() -> None:
             rows.append({"every": k, "ms": med[k], "ratio": med[k] / med[1], "evaluations": evals, "rkl1": rkl})
             plan = f"{evals} {'RKL1 stages' if rkl else 'Euler substeps'}"
             print(f"{k:>6} {med[k]:9.3f} {med[k] / med[1]:6.3f} {plan:>20} {evals / k:14.3f}")
+        for k in [k for k in runs if k not in ks]:
+            rows.append({"run": k, "ms": med[k], "ratio": med[k] / med[1]})
+            print(f"{k:>6} {med[k]:9.3f} {med[k] / med[1]:6.3f} {'no ∇⁴':>20}")
         figures["steps"] = rows
         print(f"load average at the end: {os.getloadavg()}")
 

@@ -85,10 +85,13 @@ def _value(v: str):
 
 def simulation(args, stepper: str, dt: float, options: dict, days: float, **kw) -> Simulation:
     """The scene with this stepper, Δt and options (a table named as the stepper; a dotted key
-    ``table.key`` the scene's table's), on the CPU."""
+    ``table.key`` the scene's table's; ``terms`` the scene's terms, joined by "+"), on the CPU."""
     grid = {k: v for k, v in (("ne", args.ne), ("np", args.np)) if v}
     tables = {}
     for key, value in options.items():
+        if key == "terms":
+            tables["terms"] = value.split("+")
+            continue
         table, _, name = key.rpartition(".")
         tables.setdefault(table or stepper, {})[name] = value
     return Simulation(

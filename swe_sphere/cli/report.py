@@ -114,10 +114,12 @@ def header(args, sim, output, device, comm) -> None:
 
 
 def terms_line(scene) -> str:
-    """The header's ``terms`` line: the scene's terms and its ∇⁴ coefficient."""
+    """The header's ``terms`` line: the scene's terms, its ∇⁴ coefficient and its element filter."""
     every = f", every {scene.hypervis_every} steps" if scene.hypervis_every > 1 else ""
     nu = f" (nu = {scene.nu:.3g} m^4/s, subcycle {scene.hypervis_subcycle}{every})" if scene.nu else ""
-    return f"terms       {', '.join(scene.terms)}{nu}"
+    f = scene.element_filter
+    filt = "" if f is None else f"; element filter mu = {f[0]:g}, p_bv = {f[1]:g}, s_bv = {f[2]:.3g}{every}"
+    return f"terms       {', '.join(scene.terms)}{nu}{filt}"
 
 
 def courant_line(c: dict, day: float, over: str = "nodes") -> str:

@@ -153,3 +153,33 @@ def resolve_every(
             "new level (1 only; a one-step method takes every > 1)"
         )
     return every, ()
+
+
+def resolve_filter(table: dict, dt: float, every: int, controlled: bool) -> tuple[tuple | None, tuple]:
+    """(``Scene.element_filter``, notes) of [filter]: (mu, p_bv, s_bv) of the Boyd–Vandeven element
+    filter (``grid.gll.boyd_vandeven``; HOMME's ``filter_nl`` names), applied with the ∇⁴ (after
+    every step, or every ``every``-th); None for no table or an empty one. ``mu`` in (0, 1], the
+    weight of one application, or ``efold_hours`` τ > 0 instead: mu = 1 − exp(−every·dt/τ), so that
+    the elements' highest Legendre mode e-folds in τ whatever the (fixed) step; ``p_bv`` > 0 (12) and
+    ``s_bv`` in (0, 1) (2/3) have HOMME's shallow-water test defaults. Raises ``SceneError`` naming
+    the key."""
+    if not table:
+        return None, ()
+    mu, tau, p, s = table.get("mu"), table.get("efold_hours"), table.get("p_bv", 12.0), table.get("s_bv", 2.0 / 3.0)
+    notes = ()
+    if (mu is None) == (tau is None):
+        raise SceneError(f"[filter] needs one of filter.mu and filter.efold_hours (got {got(mu)} and {got(tau)})")
+    if tau is not None:
+        if not tau > 0.0:
+            raise SceneError(f"filter.efold_hours must be > 0 (got {got(tau)})")
+        if controlled:
+            raise SceneError("filter.efold_hours needs a fixed dt (time.control is not 'fixed'): give filter.mu")
+        mu = -math.expm1(-every * dt / (3600.0 * tau))
+        notes = (f"filter mu = {mu:.3g} an application: the elements' highest mode e-folds in {tau:g} h",)
+    if not 0.0 < mu <= 1.0:
+        raise SceneError(f"filter.mu must be in (0, 1], the weight of one application (got {got(mu)})")
+    if not p > 0.0:
+        raise SceneError(f"filter.p_bv must be > 0, the order of the filter's sigmoid (got {got(p)})")
+    if not 0.0 < s < 1.0:
+        raise SceneError(f"filter.s_bv must be in (0, 1), the fraction of the modes kept whole (got {got(s)})")
+    return (float(mu), float(p), float(s)), notes

@@ -62,6 +62,9 @@ class Scene:
         ([hyperviscosity] scaling; HOMME's ``hypervis_scaling``).
     hypervis_every : int
         k: the ∇⁴ over kΔt after every k-th step ([hyperviscosity] every; 1: every step).
+    element_filter : tuple or None
+        (mu, p_bv, s_bv) of the Boyd–Vandeven element filter applied with the ∇⁴ ([filter];
+        HOMME's ``filter_mu``, ``p_bv``, ``s_bv``); None: no filter.
     notes : tuple of str
         What resolving the scene changed (e.g. dt scaled to the grid), for the run's header.
     branch : dict or None
@@ -132,6 +135,7 @@ class Scene:
     output_cells: bool = True  # [output] cells: the run files hold the control volumes (``dual``)
     hypervis_scaling: float | None = None  # [hyperviscosity] scaling: the tensor ∇⁴'s s; None: constant ν
     hypervis_every: int = 1  # [hyperviscosity] every: the ∇⁴ over kΔt after every k-th step
+    element_filter: tuple | None = None  # [filter]: (mu, p_bv, s_bv); None: none
     control: SceneControl | None = None  # [time] control: None, a fixed dt
     ensemble: dict | None = None  # [ensemble]: members, perturbation (m), seed; None: one run
     # where dt comes from, for the refusals (``Clock.source``); not part of the scene's record (``as_dict``)
@@ -249,7 +253,7 @@ class Scene:
                 del d[key]
         if d["output_cells"]:  # the default
             del d["output_cells"]
-        for key in ("hypervis_scaling", "control", "ensemble"):
+        for key in ("hypervis_scaling", "control", "ensemble", "element_filter"):
             if d[key] is None:
                 del d[key]
         if d["hypervis_every"] == 1:  # the default: a scene's dict as before the key
@@ -283,6 +287,7 @@ def scene_from_dict(d: dict) -> Scene:
             "output_fields": tuple(d.get("output_fields", ())),
             "output_streams": streams,
             "control": None if d.get("control") is None else SceneControl(**d["control"]),
+            "element_filter": None if d.get("element_filter") is None else tuple(d["element_filter"]),
             "mesh": from_json(d["ne"], d.get("mesh")),
         }
     )

@@ -76,7 +76,7 @@ from ..core.arguments import instance_argument, mapping_argument
 from ..core.constants import DAY, EARTH
 from ..core.errors import SceneError
 from .control import cfl_notes, is_controlled, resolve_control
-from .hyperviscosity import HYPERVIS_EXPONENT, efold_nu, resolve_every, resolve_hyperviscosity
+from .hyperviscosity import HYPERVIS_EXPONENT, efold_nu, resolve_every, resolve_filter, resolve_hyperviscosity
 from .paths import list_scenes, resolve_path, scene_dir
 from .resolve import (
     DT_NOTES,
@@ -237,6 +237,7 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict, rest
     steps = (round(every * DAY / dt), round(days * DAY / dt))  # an output interval's and the run's
     k, every_notes = resolve_every(s.get("hyperviscosity", {}), hv, grid, spacing, dt, steps, stepper, controlled)
     hv = dataclasses.replace(hv, every=k)
+    element_filter, filter_notes = resolve_filter(s.get("filter", {}), dt, k, controlled)
     name, description = scene_title(case.name, file_case, path.stem, s.get("description", ""))
     given = [f"{k} = {v!r}" for k, v in overrides.items() if k.startswith("case.") and k[5:] in case.params]
     if given and name == path.stem:  # the file's description is of its own values: the header says what runs
@@ -258,7 +259,14 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict, rest
         hypervis_subcycle=hv.subcycle,
         nu_div=hv.nu_div,
         nu_s=hv.nu_s,
-        notes=case.notes + grid_notes + dt_notes + stepper_notes + cfl_notes(control, stepper) + hv_notes + every_notes,
+        notes=case.notes
+        + grid_notes
+        + dt_notes
+        + stepper_notes
+        + cfl_notes(control, stepper)
+        + hv_notes
+        + every_notes
+        + filter_notes,
         initialization=initialization,
         reference=case.reference,
         log_every_steps=int(log_every),
@@ -269,6 +277,7 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict, rest
         output_cells=output.get("cells", True),
         hypervis_scaling=hv.scaling,
         hypervis_every=hv.every,
+        element_filter=element_filter,
         control=control,
         ensemble=resolve_ensemble(s.get("ensemble")),
         dt_source=dt_source,

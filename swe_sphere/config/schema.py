@@ -145,6 +145,7 @@ SCHEMA = {
         "scaling": float,
         "every": int | str,  # or "auto" (``hyperviscosity.resolve_every``)
     },
+    "filter": {"mu": float, "efold_hours": float, "p_bv": float, "s_bv": float},
     "dfi": {"span_hours": float, "cutoff_hours": float},
     "ensemble": {"members": int, "perturbation": float, "seed": int, "degrees": tuple},
     "planet": {"radius": float, "omega": float, "gravity": float},

@@ -7,6 +7,7 @@ derivative); HOMME's ``quadrature_mod::gausslobatto`` and ``derivative_mod::dvv`
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -63,8 +64,35 @@ def truncation(np_: int) -> np.ndarray:
     projection onto the polynomials of degree ≤ np_ − 2; f − T f is the highest mode's part,
     the tail whose size estimates a spectral element's truncation error (Mavriplis 1994,
     J. Sci. Comput. 9:1; the "np − 1 projection"). Raises as ``gll``."""
-    x = gll(np_).points
-    V = legendre.legvander(x, np_ - 1)  # V[i, n] = P_n(x_i): nodal values of the Legendre modes
     keep = np.ones(np_)
     keep[-1] = 0.0
-    return V @ np.diag(keep) @ np.linalg.inv(V)
+    return modal(np_, keep)
+
+
+def modal(np_: int, sigma) -> np.ndarray:
+    """(np_, np_) matrix V diag(σ) V⁻¹, V[i, n] = P_n(x_i) the nodal values of the Legendre modes
+    at the GLL points: for f the values there, the values of f's interpolant with its Legendre term
+    of degree n multiplied by σ[n] (``sigma``, (np_,)). Raises as ``gll``."""
+    V = legendre.legvander(gll(np_).points, np_ - 1)
+    return V @ np.diag(np.asarray(sigma, dtype=float)) @ np.linalg.inv(V)
+
+
+def boyd_vandeven(np_: int, mu: float, p: float = 12.0, s: float = 2.0 / 3.0) -> np.ndarray:
+    """(np_, np_) matrix F = (1 − μ) I + μ V diag(σ) V⁻¹ (``modal``) of the Boyd–Vandeven (erfc-log)
+    filter, HOMME's ``filter_matrix_create_inv`` with ``bv_transfer`` (``filter_mod``; Boyd 1996,
+    Taylor, Tribbia & Iskandarani 1997, J. Comput. Phys. 130, 92, p. 98): the mode of degree k − 1
+    (k = 1 … np_) kept where k/np_ < s, else σ = erfc(2√p·ω·√(−ln(1 − 4ω²)/(4ω²)))/2 with
+    ω = (k/np_ − s)/(1 − s) − 1/2, 0 at the highest degree. ``mu`` in (0, 1] the weight of one
+    application (HOMME's ``filter_mu``), ``p`` > 0 the sigmoid's order (``p_bv``), ``s`` in (0, 1)
+    the lag (``s_bv``). F keeps constants: its rows sum to 1. Raises as ``gll``."""
+    sigma = np.ones(np_)
+    for k in range(1, np_ + 1):
+        rat = k / np_
+        if rat >= s:
+            om = min((rat - s) / (1.0 - s), 1.0) - 0.5
+            if om >= 0.5:
+                sigma[k - 1] = 0.0
+            elif om != -0.5:
+                fac = math.sqrt(-math.log(1.0 - 4.0 * om * om) / (4.0 * om * om)) if om != 0.0 else 1.0
+                sigma[k - 1] = 0.5 * math.erfc(2.0 * math.sqrt(p) * om * fac)
+    return (1.0 - mu) * np.eye(np_) + mu * modal(np_, sigma)

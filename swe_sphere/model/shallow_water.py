@@ -26,6 +26,7 @@ from ..grid.topology import Topology
 from ..kernels import operators, tendencies
 from .bad_nodes import BadNodes
 from .element_operators import ElementOperators
+from .filter import ElementFilter
 from .hyperviscosity import Hyperviscosity
 from .launches import LaunchRecorder, check_updates
 
@@ -123,6 +124,9 @@ class ShallowWater:
     hypervis_scaling : None (constant ν) or s ≥ 0: HOMME's tensor ∇⁴ (``hypervis_scaling``;
         Guba et al. 2014), effective ν·(Δx / Δx_ref)^s per element direction
         (``hyperviscosity.Hyperviscosity.tensor_metric``).
+    element_filter : None, or (mu, p, s) of a Boyd–Vandeven element filter applied with the ∇⁴
+        (``hyperviscosity``: every step, or every k-th with it; ``filter.ElementFilter``,
+        ``grid.gll.boyd_vandeven``): mu in (0, 1], p > 0, s in (0, 1); ValueError otherwise.
     forcing : (kernel, params) of the "forcing" term, supplied by the case
         (``cases.ForcedLow.forcing``): a pointwise kernel (xyz, east, north,
         params, t, tend, block, offset) that adds the forcing at model time t
@@ -170,6 +174,7 @@ class ShallowWater:
         hypervis_subcycle=1,
         hypervis_scaling=None,
         hypervis_every=1,
+        element_filter=None,
         g=EARTH.g,
         device="cpu",
         threads=None,
@@ -186,6 +191,12 @@ class ShallowWater:
                 number_argument(name, value, "m⁴ s⁻¹", low=0.0)
         integer_argument("hypervis_subcycle", hypervis_subcycle, low=1)
         integer_argument("hypervis_every", hypervis_every, low=1)
+        if element_filter is not None:
+            mu, p, s = element_filter
+            if not (0.0 < mu <= 1.0 and p > 0.0 and 0.0 < s < 1.0):
+                raise ValueError(
+                    f"element_filter (mu, p, s) needs 0 < mu <= 1, p > 0, 0 < s < 1 (got {element_filter})"
+                )
         number_argument("g", g, "m s⁻²", positive=True)
         if not isinstance(device, str) or not device:
             raise ArgumentError(f"device must be a device's name such as 'cpu' or 'cuda' (got {got(device)})")
@@ -234,6 +245,7 @@ class ShallowWater:
             forcing = -self.g * self.topo_forcing.numpy()
             self.topo_forcing.assign(forcing)
         self.hv = Hyperviscosity(self) if "hyperviscosity" in terms else None  # the ∇⁴: its plan, work arrays, launches
+        self.filter = None if element_filter is None else ElementFilter(self, *element_filter)  # a scene's [filter]
         self.bad_nodes = BadNodes(self)  # the check of a state for non-finite or dry nodes
 
     @classmethod
@@ -263,6 +275,7 @@ class ShallowWater:
             "hypervis_subcycle": scene.hypervis_subcycle,
             "hypervis_scaling": scene.hypervis_scaling,
             "hypervis_every": scene.hypervis_every,
+            "element_filter": scene.element_filter,
         }
         return cls.from_case(grid, case, scene.terms, **hyperviscosity, **options)
 
@@ -426,9 +439,12 @@ class ShallowWater:
     def hyperviscosity(self, x: wp.array2d, dt: float) -> None:
         """Apply ∇⁴ hyperviscosity over dt (s) in place, split from the dynamics
         (``hv.apply``: forward-Euler substeps or an RKL1 super-step, HOMME's
-        ``advance_hypervis``); nothing without the term."""
+        ``advance_hypervis``), then the element filter once (``filter.apply``, a scene's
+        [filter]; HOMME ``filter_P``); nothing without the term and the filter."""
         if self.hv is not None:
             self.hv.apply(x, dt)
+        if self.filter is not None:
+            self.filter.apply(x)
 
     def new_state(self, u=None, v=None, h=None) -> wp.array2d:
         """A (3, N) device state from element-local numpy rows (zeros where None)."""

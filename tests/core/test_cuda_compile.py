@@ -8,7 +8,7 @@ found, not listed: every ``wp.Kernel`` defined at module level in
 each bundled scene's model (both layouts: per node, CUDA's default, and per
 element) takes two steps of its stepper on ne = 2 np = 4 on the CPU, every
 stepper (its solvers are the same on every device) on the scene
-with the most terms, and the ∇⁴ with ν_div ≠ ν; the DSS kernels are also built with ghosts (MPI; the Helmholtz kernels
+with the most terms, the ∇⁴ with ν_div ≠ ν and the element filter; the DSS kernels are also built with ghosts (MPI; the Helmholtz kernels
 read ghosts at run time, one build for both). Warp's
 own modules (``warp.optim.linear``) are left to Warp's tests.
 """
@@ -124,6 +124,11 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
             grid, ["hyperviscosity"], z, z, nu=1e15, nu_div=3e15, device="cpu", per_element=per_element
         )
         model.hyperviscosity(model.new_state(), 100.0)
+    # the element filter ([filter]), which no bundled scene has
+    z = np.zeros(grid.nnodes)
+    ShallowWater(grid, ["continuity"], z, z, element_filter=(0.1, 12.0, 2 / 3), device="cpu").hyperviscosity(
+        model.new_state(), 100.0
+    )
     # the adjoint's kernels (a gradient's reverse sweep), on TC5's terms with the ∇⁴: the
     # element kernel of the CPU's layout, and the per-node pair of CUDA's
     tc5 = load_scene("tc5_mountain", ne=2, np_=4, dt=1800.0, stepper="rk4")

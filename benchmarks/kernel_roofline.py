@@ -91,7 +91,7 @@ TERMS = ("continuity", "momentum_advection", "coriolis", "pressure_gradient", "t
 GHOST = ("d.ghost",)  # one rank: no neighbours' copies
 UNREAD = {
     "tendency": {"forcing": "topography", "D": "momentum_advection", "fcor": "coriolis"},
-    "dss": GHOST,
+    "dss": ("d.spheremp", *GHOST),
     "laplacian_element__first": ("x", "d.table", "d.spheremp", "d.rspheremp", "Y", "delta", *GHOST),
     "laplacian_element__second": ("d.spheremp", "hs", "delta", *GHOST),
     "dss_apply": ("d.spheremp", *GHOST),
@@ -113,10 +113,10 @@ def flops(kernel: str, np_: int, copies: float, terms: tuple) -> float:
     if kernel == "tendency":
         fluxes = 9 * cont + 10 * adv + 2 * pg
         sweeps = 2 * np_ * 2 * (cont + grad + adv) + cont  # the divergence's two sweeps added
-        end = cont + 6 * grad + (3 * adv + cor) + 4 * (adv or cor) + 2 * topo
+        end = cont + 6 * grad + (3 * adv + cor) + 4 * (adv or cor) + 2 * topo + 3  # + 3: times the element mass
         return fluxes + sweeps + end
-    if kernel == "dss":
-        return 3 * (2 * copies + 1)
+    if kernel == "dss":  # unweighted: the tendency wrote spheremp·F
+        return 3 * (copies + 1)
     laplacians = 4 * (8 * np_ + 7)
     if kernel == "laplacian_element__first":
         return 20 + laplacians + 22

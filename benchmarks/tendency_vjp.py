@@ -102,6 +102,7 @@ def per_node_error(ne, np_):
         m.operators.metdet,
         m.operators.fcor,
         m.topo_forcing,
+        m.spheremp,  # read by the mass-weighted kernel only
         m.operators.dvv,
         np_,
         m.g,
@@ -109,7 +110,7 @@ def per_node_error(ne, np_):
         0,
     ]
     tb = wp.array(k * m.grid.spheremp, dtype=V.f64)
-    adj = [z[0], None, None, None, None, z[1], None, 0, 0.0, tb, 0]
+    adj = [z[0], None, None, None, None, z[1], None, None, 0, 0.0, tb, 0]
     wp.launch(kernel, m.N, args, adj_inputs=adj, adjoint=True)
     return float(np.abs(a - z[0].numpy()).max() / np.abs(a).max())
 

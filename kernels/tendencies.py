@@ -65,13 +65,14 @@ def absolute_vorticity(terms: tuple):
 
 
 @functools.cache
-def finish(terms: tuple):
+def finish(terms: tuple, weighted: bool = False):
     """The pointwise end of the tendency, shared by both layouts: from the
     reference derivatives div = Σ∂(metdet h c), (bx, by) = ∂(Bernoulli), and
-    cx − cy = ∂ξ v₂ − ∂η v₁ (covariant wind), write tend[:, p]. Generic: p is a
-    node and the values float64 (per-node kernel), or p is a row and the values
-    rows (``operators.row_vectors``, the element kernel)."""
+    cx − cy = ∂ξ v₂ − ∂η v₁ (covariant wind), write tend[:, p], times mass[p] (the element
+    mass spheremp) if ``weighted``. Generic: p is a node and the values float64 (per-node
+    kernel), or p is a row and the values rows (``operators.row_vectors``, the element kernel)."""
     CONT, ADV, COR, PG, TOPO = term_flags(terms)
+    W = bool(weighted)
     GRAD = ADV or PG
 
     def finish_terms(
@@ -86,6 +87,7 @@ def finish(terms: tuple):
         metdet: wp.array(dtype=Any),
         fcor: wp.array(dtype=Any),
         forcing: wp.array2d(dtype=Any),
+        mass: wp.array(dtype=Any),
         tend: wp.array2d(dtype=Any),
     ):
         zero = type(div)(f64(0.0))
@@ -104,19 +106,26 @@ def finish(terms: tuple):
         if wp.static(TOPO):
             du += forcing[0, p]
             dv += forcing[1, p]
+        if wp.static(W):
+            w = mass[p]
+            du = times(w, du)
+            dv = times(w, dv)
+            dh = times(w, dh)
         tend[0, p] = du
         tend[1, p] = dv
         tend[2, p] = dh
 
-    finish_terms.__qualname__ = finish_terms.__name__ = "finish__" + "__".join(terms)
+    finish_terms.__qualname__ = finish_terms.__name__ = "finish__" + "__".join(terms) + ("__mass" if W else "")
     return wp.func(finish_terms)
 
 
 @functools.cache
-def tendency(terms: tuple, np_static: int = 0):
+def tendency(terms: tuple, np_static: int = 0, weighted: bool = False):
     """The tendency kernel for ``terms`` (a tuple in ``TENDENCY_TERMS`` order). Arguments:
     x (3, N) state, D, Dinv (4, N), metdet, fcor (N), forcing (2, N) topographic −g∇hs,
-    dvv (np, np), np, g, tend (3, N) output, offset. ``np_static`` > 0: compiled for that np
+    mass (N) the element mass spheremp (read if ``weighted``: tend = spheremp·F, whose
+    unweighted DSS is F's weighted one), dvv (np, np), np, g, tend (3, N) output, offset.
+    ``np_static`` > 0: compiled for that np
     (the np argument unread): its loops along the element's rows unrolled, its node indices
     divided by a constant; 0: np read at run time. The same arithmetic either way."""
     CONT, ADV, _, PG, _ = term_flags(terms)
@@ -130,6 +139,7 @@ def tendency(terms: tuple, np_static: int = 0):
         metdet: wp.array(dtype=f64),
         fcor: wp.array(dtype=f64),
         forcing: wp.array2d(dtype=f64),
+        mass: wp.array(dtype=f64),
         dvv: wp.array2d(dtype=f64),
         np_: int,
         g: f64,
@@ -166,19 +176,21 @@ def tendency(terms: tuple, np_static: int = 0):
             if wp.static(ADV):
                 cx += dvv[i, m] * (D[1, q] * x[0, q] + D[3, q] * x[1, q])
                 cy += dvv[j, m] * (D[0, r] * x[0, r] + D[2, r] * x[1, r])
-        wp.static(finish(terms))(p, div, bx, by, cx, cy, x, Dinv, metdet, fcor, forcing, tend)
+        wp.static(finish(terms, weighted))(p, div, bx, by, cx, cy, x, Dinv, metdet, fcor, forcing, mass, tend)
 
-    kernel.__qualname__ = kernel.__name__ = "tendency__" + "__".join(terms) + (f"__np{NP}" if NP else "")
+    kernel.__qualname__ = kernel.__name__ = (
+        "tendency__" + "__".join(terms) + ("__mass" if weighted else "") + (f"__np{NP}" if NP else "")
+    )
     return wp.kernel(kernel, enable_backward=False, module="unique")
 
 
 @functools.cache
-def tendency_element(terms: tuple, np_: int):
+def tendency_element(terms: tuple, np_: int, weighted: bool = False):
     """The tendency kernel for ``terms``, one thread per element, on GLL rows
     (``operators.row_vectors`` views). Arguments: x (3, N/np) state, D, Dinv
-    (4, N/np), metdet, fcor (N/np), forcing (2, N/np) topographic −g∇hs, g,
-    dvv (``operators.dvv_matrix``), tend (3, N/np) output, offset (in
-    elements). Dim nelem."""
+    (4, N/np), metdet, fcor (N/np), forcing (2, N/np) topographic −g∇hs, mass (N/np)
+    (``weighted``: as ``tendency``'s), g, dvv (``operators.dvv_matrix``), tend (3, N/np)
+    output, offset (in elements). Dim nelem."""
     CONT, ADV, _, PG, _ = term_flags(terms)
     GRAD = ADV or PG
     NP = int(np_)
@@ -192,6 +204,7 @@ def tendency_element(terms: tuple, np_: int):
         metdet: wp.array(dtype=vec),
         fcor: wp.array(dtype=vec),
         forcing: wp.array2d(dtype=vec),
+        mass: wp.array(dtype=vec),
         g: f64,
         dvv: mat,
         tend: wp.array2d(dtype=vec),
@@ -247,7 +260,7 @@ def tendency_element(terms: tuple, np_: int):
                     cy = along(dvv[j], v1)
                 else:
                     cy = across(v1, j, dvv)
-            wp.static(finish(terms))(q, div, bx, by, cx, cy, x, Dinv, metdet, fcor, forcing, tend)
+            wp.static(finish(terms, weighted))(q, div, bx, by, cx, cy, x, Dinv, metdet, fcor, forcing, mass, tend)
 
-    kernel.__qualname__ = kernel.__name__ = "tendency__" + "__".join(terms)
+    kernel.__qualname__ = kernel.__name__ = "tendency__" + "__".join(terms) + ("__mass" if weighted else "")
     return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)

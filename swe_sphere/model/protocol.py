@@ -1,4 +1,4 @@
-"""What a stepper, a solver or the adjoint may ask of a model: ``SteppingModel``, the 16 members
+"""What a stepper, a solver or the adjoint may ask of a model: ``SteppingModel``, the 17 members
 of ``ShallowWater`` that ``steppers/``, ``solvers/`` and ``adjoint/`` use (``tests/test_layers.py``
 holds them to this list, as the privacy rule holds modules to public names).
 
@@ -40,6 +40,7 @@ class SteppingModel(Protocol):
     launches: object  # ``model.launches.LaunchRecorder``
     operators: object  # ``model.element_operators.ElementOperators``
     hv: object  # ``model.hyperviscosity.Hyperviscosity`` or None
+    filter: object  # ``model.filter.ElementFilter`` or None
     bad_nodes: object  # ``model.bad_nodes.BadNodes``
     terms: tuple
     g: float

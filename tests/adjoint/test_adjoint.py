@@ -57,6 +57,7 @@ def test_tendency_adjoint_is_the_derivative_of_the_per_node_kernel():
         model.operators.metdet,
         model.operators.fcor,
         model.topo_forcing,
+        model.spheremp,  # read by the mass-weighted kernel only
         model.operators.dvv,
         4,
         model.g,

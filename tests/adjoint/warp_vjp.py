@@ -104,10 +104,22 @@ class TendencyVJP:
         hand = tendency_adjoint.element(terms, np_, 1)
         args = [*map(R, (*metric, self.spheremp)), m.g, m.operators.dvv_rows, wp.vec3d(1.0, 0.0, 0.0), K, K, K]
         self._hand = wp.launch(hand, nelem, [*args, R(self.xbar), R(self.fbar), 0], record_cmd=True)
-        inputs = [*map(R, (*metric, forcing)), m.g, m.operators.dvv_rows, R(self.tend), 0]
+        inputs = [*map(R, (*metric, forcing, self.spheremp)), m.g, m.operators.dvv_rows, R(self.tend), 0]
         self._forward = wp.launch(tendencies.tendency_element(terms, np_), nelem, inputs, record_cmd=True)
         # adjoints of the metric terms not asked for: Warp skips a null adjoint array's adds
-        adj = [R(self.xbar_ad), None, None, None, None, R(self.fbar_ad), 0.0, m.operators.dvv_rows, R(self.adj_tend), 0]
+        adj = [
+            R(self.xbar_ad),
+            None,
+            None,
+            None,
+            None,
+            R(self.fbar_ad),
+            None,
+            0.0,
+            m.operators.dvv_rows,
+            R(self.adj_tend),
+            0,
+        ]
         kernel = autodiff_kernel(terms, np_)
         self._warp = wp.launch(kernel, nelem, inputs, adj_inputs=adj, adjoint=True, record_cmd=True)
         self._weight = wp.launch(weighted, (3, N), [self.kbar, self.spheremp, self.adj_tend], record_cmd=True)
@@ -142,7 +154,16 @@ def tendency(model: ShallowWater, x: np.ndarray) -> np.ndarray:
     tend, R = wp.zeros((3, m.N), dtype=f64), m.operators.as_rows
     args = [
         *map(
-            R, (wp.array(x, dtype=f64), m.operators.D, m.operators.Dinv, m.operators.metdet, m.operators.fcor, forcing)
+            R,
+            (
+                wp.array(x, dtype=f64),
+                m.operators.D,
+                m.operators.Dinv,
+                m.operators.metdet,
+                m.operators.fcor,
+                forcing,
+                wp.array(m.grid.spheremp, dtype=f64),
+            ),
         ),
         m.g,
         m.operators.dvv_rows,

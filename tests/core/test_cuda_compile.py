@@ -186,8 +186,10 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
     names = list(modules)
     scenes = [load_scene(p) for p in list_scenes()]
     for terms in {tuple(t for t in s.terms if t not in ("hyperviscosity", "forcing")) for s in scenes}:
-        tendency = [n for n in names if re.fullmatch("tendency__" + "__".join(terms) + "(__np4)?_[0-9a-f]{8}", n)]
-        assert len(tendency) == 2, (terms, tendency)  # per node (compiled for np 4) and per element
+        pattern = "tendency__" + "__".join(terms) + "(__mass)?(__np4)?_[0-9a-f]{8}"
+        tendency = [n for n in names if re.fullmatch(pattern, n)]
+        # per node (compiled for np 4) and per element, mass-weighted (unforced) or not (forced: TC4's)
+        assert sorted("__np4" in n for n in tendency) in ([False, True], [False, False, True, True]), (terms, tendency)
     keys = {k.key for k in launched}
     for key in (
         "laplacian_element__first",
@@ -242,7 +244,7 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
         "dss",
     ):
         assert key in keys, key
-    assert "tendency__continuity__momentum_advection__coriolis__pressure_gradient__topography__np4" in keys
+    assert "tendency__continuity__momentum_advection__coriolis__pressure_gradient__topography__mass__np4" in keys
     plain_dss = {k.module.name for k in launched if k.key == "dss" or k.key.startswith(("dss_update__", "dss_apply"))}
     assert any(k.key.startswith("dss_update__") for k in launched)  # the explicit stages' combinations
     assert len(ghosted) == len(plain_dss) >= 3 and not plain_dss & {k.module.name for k in ghosted}

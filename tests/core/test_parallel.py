@@ -70,7 +70,7 @@ def test_operators_bitwise_equal_to_one_thread(small_parts, threads, rng):
         out = wp.zeros_like(x)
         m.rhs(x, out)
         assert m.rhs_kernels(x, out) == [
-            "tendency__continuity__momentum_advection__coriolis__pressure_gradient__topography",
+            "tendency__continuity__momentum_advection__coriolis__pressure_gradient__topography__mass",
             "dss",
         ]
         if n > 1:

@@ -559,12 +559,12 @@ def launch_log(monkeypatch):
 @pytest.mark.parametrize(
     "terms,expected",
     [
-        (["continuity"], ["tendency__continuity", "dss"]),
-        (["pressure_gradient", "coriolis"], ["tendency__coriolis__pressure_gradient", "dss"]),
+        (["continuity"], ["tendency__continuity__mass", "dss"]),
+        (["pressure_gradient", "coriolis"], ["tendency__coriolis__pressure_gradient__mass", "dss"]),
         (["hyperviscosity"], ["dss"]),
         (
             list(UNFORCED),
-            ["tendency__continuity__momentum_advection__coriolis__pressure_gradient__topography", "dss"],
+            ["tendency__continuity__momentum_advection__coriolis__pressure_gradient__topography__mass", "dss"],
         ),
     ],
 )

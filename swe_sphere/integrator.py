@@ -12,11 +12,17 @@ its model and its stepper, a block of steps at a time under the one bad-state gu
 - with ``drop``, a member bad at a step goes back to its last good state and is not stepped
   again while the others go on (an ensemble's ``blow_up="drop"``); else the loop stops there.
 
-What a driver adds around the steps is an ``Observer``'s (its hooks no-ops here): where a
-block ends (activities due), a stop asked (signals), what follows good steps (activities,
-progress), the steps' counts. ``Simulation.run`` (at a fixed Δt, and under step control each
-accepted step a block of its own, ``simulation.adaptive.steer``), ``Ensemble.step`` and the
-gradient's sweeps (``adjoint.gradient``) all advance through ``Integrator.advance``."""
+Each step's Δt is the loop's one Δt policy's, an object with one method, ``take(unit, j,
+watch)``: step j + 1 at the Δt it decides (Oceananigans' fixed ``Δt``, ``aligned_time_step`` and
+``TimeStepWizard``): ``FixedDt`` the stepper's, a fixed or a fitted clock's (``Clock.fitted``:
+shortened to divide the output times), or a run's Δt replayed step by step (``StepTimes``: the
+gradient's sweeps); ``ControlledDt`` an accepted step of a step control
+(``simulation.adaptive.StepControl``), landed on the next of its days. What a driver adds around
+the steps is an ``Observer``'s (its hooks no-ops here): where a block ends (activities due, a
+controlled run's last day reached), a stop asked (signals), what follows good steps (activities,
+progress), the steps' counts. ``Simulation.run`` (at a fixed Δt and under step control, each
+accepted step a block of its own), ``Ensemble.step`` and ``advance`` and the gradient's sweeps
+(``adjoint.gradient``) all advance through ``Integrator.advance``."""
 
 from __future__ import annotations
 
@@ -27,6 +33,7 @@ import time
 import numpy as np
 import warp as wp
 
+from .core.constants import DAY
 from .core.errors import StepFailure
 from .core.graphs import GraphedSteps
 from .core.interrupts import StepAbandoned
@@ -54,6 +61,12 @@ class Unit:
         stepper.prepare(x)
         return cls(model, stepper, x, wp.clone(x), GraphedSteps(backend, model.launches.guard, graphs), len(starts))
 
+    def try_step(self, x: wp.array) -> StepStats:
+        """One step of the stepper on x (3, members·n) in place, a graph where ``graphed`` lets it,
+        the bad-state flag not watched and the solvers' counters not read: a controlled run's
+        tries (``simulation.adaptive.StepControl``). Its ``StepStats``."""
+        return self.graphed.step(self.stepper, self.model, x, False)
+
 
 @dataclasses.dataclass
 class Stop:
@@ -77,7 +90,8 @@ class Observer:
         return 0
 
     def block_end(self, b: int) -> int:
-        """The last step of the block after step b (the state read then: activities due)."""
+        """The last step of the block after step b (the state read then: activities due); b: no
+        step more (a controlled run's last day reached, ``ControlledDt.reached``)."""
         return b + 1
 
     def checked(self, b: int, e: int) -> bool:
@@ -126,6 +140,47 @@ def graphed_step(unit: Unit, j: int, watch: bool) -> StepStats:
     return unit.graphed.step(unit.stepper, unit.model, unit.x, watch)
 
 
+class FixedDt:
+    """The Δt policy of a fixed Δt: each step at its stepper's Δt, the clock's (a scene's, or one
+    fitted to the output times: ``Clock.fitted``, ``Simulation.fit_dt``), taken by ``step(unit,
+    j, watch)`` (default ``graphed_step``); with ``times`` (a ``core.clock.StepTimes``) a run's
+    Δt and model times replayed, step k's (t0_k, Δt_k) and phase k set first (the gradient's
+    sweeps: a fixed run's, or a controlled run's history)."""
+
+    def __init__(self, step=graphed_step, times=None):
+        self.step, self.times = step, times
+
+    def take(self, unit: Unit, j: int, watch: bool) -> StepStats:
+        """Step j + 1 of ``unit``, its state flagged on the device where ``watch``; its ``StepStats``."""
+        if self.times is not None:
+            self.times.set(unit.stepper, j)
+            unit.stepper.set_phase(j)  # its clock, t0_j + (j + c)·Δt_j at each stage as the run's
+        return self.step(unit, j, watch)
+
+
+class ControlledDt:
+    """The Δt policy of step control (Oceananigans' ``TimeStepWizard`` with ``aligned_time_step``):
+    each step an accepted step of ``control`` (a ``simulation.adaptive.StepControl``: its tries,
+    rejected ones retried) toward the first of ``days`` (model days from t = 0, increasing) after
+    the time it reached, landed on it exactly; ``quiet(j)`` whether nothing reads the state after
+    step j + 1, so that the next try may be launched ahead (``StepControl.lookahead``; None:
+    never). ``reached``: the last of ``days`` reached (a driver's blocks end there)."""
+
+    def __init__(self, control, days, quiet=None):
+        self.control, self.days, self.quiet = control, list(days), quiet
+
+    @property
+    def reached(self) -> bool:
+        return not self.days or self.control.t >= self.days[-1] * DAY
+
+    def take(self, unit: Unit, j: int, watch: bool) -> StepStats:
+        """An accepted step j + 1 of ``unit`` toward the next day, its solvers' device counters read
+        (``Stepper.counts``: raises ``StepFailure``); the ``StepStats`` of its tries."""
+        day = next(d for d in self.days if d * DAY > self.control.t)
+        stats = self.control.step_to(unit.x, day, self.quiet is not None and self.quiet(j))
+        return StepStats(stats.rhs_evals, {**stats.iterations, **unit.stepper.counts()})
+
+
 class Rewind:
     """How a block's units are kept at its start and put back: x copied to ``start`` (the last good
     state) and, for a block or where members drop, the steppers' ``state()``."""
@@ -143,32 +198,32 @@ class Rewind:
 
 
 class Integrator:
-    """``units`` (``Unit`` s, the members of this process) advanced by ``take(unit, j, watch)``
-    (step j + 1 of a unit, the state flagged on the device where ``watch``; its ``StepStats``;
-    default ``graphed_step``) under one guard (module doc). ``anywhere(flag)``: whether ``flag``
+    """``units`` (``Unit`` s, the members of this process) advanced by ``policy.take(unit, j,
+    watch)`` (the Δt policy's step j + 1 of a unit, the state flagged on the device where
+    ``watch``; its ``StepStats``; default ``FixedDt()``) under one guard (module doc). ``anywhere(flag)``: whether ``flag``
     holds on any process stepping members of the same run (default: here). ``drop``: a unit bad
     at a checked step is dropped and the others go on (``out``: {unit index: step}). ``lone``: a
     block of one step is checked at once (a run's first step, to time it alone) rather than
     watched. ``rewind``: how a block is kept and put back (``Rewind``). ``step``: the steps
     taken."""
 
-    def __init__(self, units: list, take=graphed_step, *, anywhere=bool, drop=False, lone=True, rewind=None):
-        self.units, self.take, self.anywhere = list(units), take, anywhere
+    def __init__(self, units: list, policy=None, *, anywhere=bool, drop=False, lone=True, rewind=None):
+        self.units, self.policy, self.anywhere = list(units), policy or FixedDt(), anywhere
         self.drop, self.lone, self.rewind = drop, lone, rewind or Rewind()
         self.out: dict[int, int] = {}
         self.step = 0
 
     @contextlib.contextmanager
-    def stepping_by(self, take, rewind: Rewind):
-        """Steps taken by ``take`` and kept by ``rewind`` within, each checked at once (``lone``): a
-        controlled run's, the control's accepted steps (its state kept), ``take`` and ``rewind`` as
-        the constructor's."""
-        kept = self.take, self.rewind, self.lone
-        self.take, self.rewind, self.lone = take, rewind, True
+    def stepping_by(self, policy, rewind: Rewind):
+        """Steps of the Δt policy ``policy`` kept by ``rewind`` within, each checked at once
+        (``lone``): a controlled run's, ``ControlledDt`` (the control's state kept); ``policy``
+        and ``rewind`` as the constructor's."""
+        kept = self.policy, self.rewind, self.lone
+        self.policy, self.rewind, self.lone = policy, rewind, True
         try:
             yield self
         finally:
-            self.take, self.rewind, self.lone = kept
+            self.policy, self.rewind, self.lone = kept
 
     def active(self) -> list:
         """(index, unit) of the units still stepped (all but those dropped)."""
@@ -187,6 +242,8 @@ class Integrator:
             if b >= again_to and (signum := observer.asked()):  # every rank stops at the same step
                 return Stop(signum=signum)
             e = min(observer.block_end(b), stop_step) if b >= again_to else b + 1
+            if e <= b:  # the driver's end (a controlled run's last day)
+                break
             watched = b >= again_to and (e > b + 1 or not self.lone)
             m, trouble, detail = self.block(b, e, watched, observer)
             if trouble is None:  # m > b: a step without trouble was taken
@@ -237,7 +294,7 @@ class Integrator:
                     return m, None, None
                 try:
                     observer.stepping(True)
-                    stats = self.take(u, j, watch)
+                    stats = self.policy.take(u, j, watch)
                 except StepFailure as err:
                     return j, "failure", str(err)
                 except StepAbandoned as err:  # the state of the last complete step is kept

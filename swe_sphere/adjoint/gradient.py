@@ -19,7 +19,7 @@ from ..core.backend import Backend, pick_device
 from ..core.clock import StepTimes
 from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, StepFailure
-from ..integrator import Integrator, Observer, Rewind, Unit
+from ..integrator import FixedDt, Integrator, Observer, Rewind, Unit
 from ..model.shallow_water import ShallowWater
 from .costs import checked, run_cost
 from .disk import DiskTier
@@ -281,19 +281,15 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
         for a, held in [(work, x[X]), *carried(x)]:
             wp.copy(a, held)
 
-    def step(j):  # x(j) to x(j + 1) in the stepper's arrays
-        clock.set(stepper, j)
-        stepper.set_phase(j)  # its clock, t0_j + (j + c)·Δt_j at each stage as the run's, and start
-        stepper.step(work)
-
     verified = [0]  # the steps whose states were checked: a recomputation's are not checked again
 
-    def take(unit, j, watch):  # step j + 1, its state watched on the device where not yet checked
-        step(j)
+    def step(unit, j, watch):  # x(j) to x(j + 1) in the stepper's arrays, watched where not yet checked
+        stepper.step(work)
         if watch and j >= verified[0]:
             model.bad_nodes.watch(work)
 
-    core = Integrator([Unit(model, stepper, work, work, None)], take, lone=False, rewind=_Reload(load))
+    # each step at the run's Δt and model time (``clock``), as ``FixedDt`` replays them
+    core = Integrator([Unit(model, stepper, work, work, None)], FixedDt(step, clock), lone=False, rewind=_Reload(load))
     sweep_blocks = _Sweep(verified)
 
     def advance(x, k, m=1):  # x = x(k) to x(k + m) in place by the integrator: one block, checked once

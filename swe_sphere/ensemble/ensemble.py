@@ -32,12 +32,13 @@ from ..core.graphs import default_mode, graphs_mode
 from ..core.interrupts import StopSignals
 from ..core.mpi import RankMax
 from ..grid.cubed_sphere import CubedSphere
-from ..integrator import Integrator, core_property
+from ..integrator import ControlledDt, FixedDt, Integrator, core_property
 from ..io import restart_file
 from ..io.run_file import OUTPUT_FIELDS, RunWriter, area_rms, member_statistics
 from ..model.diagnostics import invariants
 from ..model.shallow_water import ShallowWater
 from ..simulation import checkpoint
+from ..simulation.adaptive import Tries
 from ..simulation.build import check_memory
 from ..simulation.schedules import (
     at_its_end,
@@ -48,7 +49,7 @@ from ..simulation.schedules import (
     restart_steps,
 )
 from ..simulation.writers import interrupted_attrs, restart_path, scene_attrs
-from .control import STEERED, controlled_steps, member_control
+from .control import STEERED, member_control
 from .files import member_writer, resume
 from .initial import Perturbation, Variants, checked_states, described, initial_states
 from .members import MemberGrid, member_part
@@ -207,10 +208,14 @@ class Ensemble:
         self._hs = self._side(lambda u: u.model.operators.hs.numpy())
         self._fcor = self._side(lambda u: u.model.operators.fcor.numpy())
         self._g = [u.model.g for u in self.units for _ in range(u.members)]
-        # the one step loop over the units, each stepped a block at a time and checked at its end
-        self.core = Integrator(self.units, member_step, anywhere=self._anywhere, drop=blow_up == "drop", lone=False)
-        self._out = self.core.out  # dropped units: {unit index: the step it blew up at}
         self.control = member_control(scene, self.units, self.layout, self.comm)  # None at a fixed Δt
+        # the one step loop over the units, each stepped a block at a time and checked at its end; under step
+        # control each accepted step a block checked at once, toward the day ``_ahead`` gives the policy
+        steps = dict(policy=FixedDt(member_step), lone=False)
+        if self.control is not None:
+            steps = dict(policy=ControlledDt(self.control, []), lone=True, rewind=Tries(self.control))
+        self.core = Integrator(self.units, anywhere=self._anywhere, drop=blow_up == "drop", **steps)
+        self._out = self.core.out  # dropped units: {unit index: the step it blew up at}
         self.wall_time = 0.0  # s, of ``step``
         self._callbacks: list = []  # (call, every so many steps): ``add_callback``
         self._options, self._scorer = options, None
@@ -263,11 +268,12 @@ class Ensemble:
         """Steps toward ``target`` (a step; under step control a model day), ``most`` at the most:
         their number. ``BlowUp`` and ``StepFailure`` as ``step``'s."""
         t0, first = time.perf_counter(), self.step_count
-        observer = Members(self._drop, self._callbacks, self.control)
-        if self.control is None:  # (step, trouble, detail) of a checked step that went bad (``integrator.Stop``)
-            bad = self.core.advance(min(target, first + most), observer).bad
-        else:
-            bad = controlled_steps(self.core, self.control, target, most, observer).bad
+        steered = None if self.control is None else self.core.policy
+        if steered is not None:  # Δt the controller's, its steps landed on the day
+            steered.days, target = [target], sys.maxsize
+        observer = Members(self._drop, self._callbacks, steered)
+        # (step, trouble, detail) of a checked step that went bad (``integrator.Stop``)
+        bad = self.core.advance(min(target, first + most), observer).bad
         if bad is not None:  # the states those of the step that went bad, for its report
             step, trouble, detail = bad
             if trouble == "failure":

@@ -145,16 +145,19 @@ class Members(Observer):
     """An ensemble's hooks on its integrator (``integrator.Integrator``): blocks of
     ``CHECK_EVERY_STEPS`` steps, ended at every step a callback is due (``callbacks``: (call,
     every so many steps)) and the callbacks due called after it; each (index, unit, first bad
-    node) dropped told to ``dropped(bad, step)``; under step control (``control``) a step its norm
-    found good vouched for."""
+    node) dropped told to ``dropped(bad, step)``; under step control a step its norm
+    found good vouched for, each accepted step a block to the policy's day (``steered``, an
+    ``integrator.ControlledDt``)."""
 
-    def __init__(self, dropped, callbacks: list, control=None):
-        self._dropped, self.callbacks, self.control = dropped, callbacks, control
+    def __init__(self, dropped, callbacks: list, steered=None):
+        self._dropped, self.callbacks, self.steered = dropped, callbacks, steered
 
     def vouched(self) -> bool:
-        return self.control is not None and self.control.checked
+        return self.steered is not None and self.steered.control.vouched()
 
     def block_end(self, b: int) -> int:
+        if self.steered is not None:
+            return b if self.steered.reached else b + 1
         return min([b + CHECK_EVERY_STEPS, *((b // every + 1) * every for _, every in self.callbacks)])
 
     def after(self, step: int, done: int) -> None:

@@ -78,13 +78,7 @@ class Hyperviscosity:
         swap = transposed and self.hv_tensor is not None  # which pass reads the tensor: the second, or the first
         delta = m.operators.scalar_dss  # δ = DSS(∇·v), read only when divergent
         launches = m.operators.divergence_launches(x, delta) if divergent else []
-        # each pass is given the node frame's arrays it reads: the first the position (and the
-        # per-element one the wind's basis), ∇δ Dinv and the basis; the second none
-        names = (
-            "xyz",
-            *(("east", "north") if m.operators.per_element or divergent else ()),
-            *(("Dinv",) if divergent else ()),
-        )
+        names = self._first_names(divergent)
 
         if m.operators.per_element:
 
@@ -190,6 +184,13 @@ class Hyperviscosity:
             [w * (a11 * d0 + a12 * d1), w * (a11 * d2 + a12 * d3), w * (a21 * d2 + a22 * d3), w * (V11 + V22) / 2]
         )
         return wp.array(metric, dtype=f64, device=m.device)
+
+    def _first_names(self, divergent: bool) -> tuple:
+        """The node frame's arrays the first ∇⁴ pass reads (``_frame``): the position (and on the
+        per-element layout the wind's basis), with ``divergent`` ∇δ's Dinv and the basis; the
+        second pass reads none."""
+        basis = ("east", "north") if self.model.operators.per_element or divergent else ()
+        return ("xyz", *basis, *(("Dinv",) if divergent else ()))
 
     def _frame(self, *names, rows=False):
         """A ``kernels.hyperviscosity.Frame`` holding the model's geometry arrays of these

@@ -20,8 +20,9 @@ step's error estimate is held to a fraction of the spatial error an a-posteriori
 arises over the step, so that the temporal error stays a chosen fraction of the spatial one
 without a sweep over tolerances (issue 64's "a run that asks for an accuracy").
 
-``steer`` is ``Simulation.run``'s loop under control: accepted steps to each time an activity
-is due at (``schedules.AtDays``: output and restart times) and the end, each landed on exactly.
+``steered`` is ``Simulation.run``'s Δt policy under control (``integrator.ControlledDt``):
+accepted steps to each time an activity is due at (``schedules.AtDays``: output and restart
+times) and the end, each landed on exactly, through the run's one loop.
 Its tries replay as graphs where a fixed-Δt run's steps do (``Simulation.try_step``: on CUDA
 by default): a graph is keyed by Δt (``Stepper.graph_key``), and the controller's Δt are few,
 those of its grid (``on_grid``), so each keeps its graph (a step landed on a target, its Δt off
@@ -51,10 +52,9 @@ from ..config.control import ESTIMATED
 from ..config.schema import SceneControl
 from ..core.constants import DAY
 from ..core.errors import BlowUp
-from ..integrator import Observer, Rewind, Stop
+from ..integrator import ControlledDt, Rewind
 from ..steppers import StepStats
 from ..steppers.control import CflController, Controller, CourantMax, ErrorNorm, SpatialRate, capped
-from .guard import blowup_line
 from .schedules import AtDays
 
 # a target this close past a step's end (relative to Δt) is landed on by that step rather than
@@ -90,7 +90,7 @@ ATOL_FLOOR = 1e-12
 
 class Balance:
     """The balanced mode's tolerances (``control = "balanced"``) for ``norm`` (an ``ErrorNorm``
-    with rtol 0) on ``sim``'s model and grid, held to ``fraction`` (``SceneControl.balance``).
+    with rtol 0) on ``unit``'s model and grid (an ``integrator.Unit``), held to ``fraction`` (``SceneControl.balance``).
     ``tolerances(x0, t, dt)`` before a try's norm: every ``BALANCE_EVERY`` accepted steps the
     scales σ (3,) of ``SpatialRate`` from F(x0) at the step's start t (s), one RHS evaluation;
     then atol_r = max(fraction · Δt · σ_r, ``ATOL_FLOOR``): the step's error estimate held to
@@ -103,10 +103,10 @@ class Balance:
     tolerance). ``state``/``restore``: σ and the steps since its estimate (a restart continues
     bitwise)."""
 
-    def __init__(self, fraction: float, sim, norm: ErrorNorm):
-        self.fraction, self.model, self.norm = float(fraction), sim.model, norm
-        self.rate = SpatialRate(sim.topology)
-        self.F = wp.zeros_like(sim.x)
+    def __init__(self, fraction: float, unit, norm: ErrorNorm):
+        self.fraction, self.model, self.norm = float(fraction), unit.model, norm
+        self.rate = SpatialRate(unit.model.topology)
+        self.F = wp.zeros_like(unit.x)
         self.sigma, self.since = None, 0
 
     def tolerances(self, x0, t: float, dt: float) -> None:
@@ -147,28 +147,31 @@ class _Ahead:
 
 class StepControl:
     """The step control of ``control`` (a ``SceneControl``) over ``stepper`` (``variable_dt``;
-    under "error" with an ``error_estimate``) on ``sim``'s state and grid: ``sim.x`` (3, N),
-    ``sim.fields``, ``sim.grid``, ``sim.g``, ``sim.topology``, ``sim.scene``. The first proposal
+    under "error" with an ``error_estimate``) on ``unit`` (an ``integrator.Unit``: its model, stepper,
+    state x (3, N) and last good state ``start``, a try's start), from model day ``start_day`` (the
+    scene's: 0, or a branch's day). The first proposal
     is the stepper's Δt. Counts: ``accepted``, ``rejected``, the smallest, summed and largest
     accepted Δt (s); ``history``: (time (s), Δt (s), error norm or NaN) per accepted step.
     Where the steps are: ``t`` (s since t = 0, from the scene's start day), ``day`` (days;
     a target's day as given where a step landed on it, ``landed``), the last accepted ``dt_last``
     and its error norm ``error_last`` (NaN under "cfl")."""
 
-    def __init__(self, control: SceneControl, stepper, sim):
-        self.control, self.stepper, self.sim = control, stepper, sim
+    def __init__(self, control: SceneControl, unit, start_day: float = 0.0):
+        self.control, self.stepper, self.unit = control, unit.stepper, unit
+        stepper, model = unit.stepper, unit.model
+        topology = model.topology
         self.error = control.mode in ESTIMATED
         self.norm = self.controller = self.balance = None
         if self.error:
             # the estimate's order in Δt: p + 1 a step, p per unit step (p the pair's lower order)
             order = min(stepper.order, stepper.embedded_order) + (0 if control.per_unit_step else 1)
             self.controller = Controller(order, control.controller)
-            depth = "pressure_gradient" in sim.model.terms  # h a depth: h ≤ 0 is a bad state
+            depth = "pressure_gradient" in model.terms  # h a depth: h ≤ 0 is a bad state
             if control.mode == "balanced":  # absolute tolerances alone, set every try (``Balance``)
-                self.norm = ErrorNorm(sim.topology, 0.0, ATOL_FLOOR, ATOL_FLOOR, depth)
-                self.balance = Balance(control.balance, sim, self.norm)
+                self.norm = ErrorNorm(topology, 0.0, ATOL_FLOOR, ATOL_FLOOR, depth)
+                self.balance = Balance(control.balance, unit, self.norm)
             else:
-                self.norm = ErrorNorm(sim.topology, control.rtol, control.atol_wind, control.atol_h, depth)
+                self.norm = ErrorNorm(topology, control.rtol, control.atol_wind, control.atol_h, depth)
                 # an inner solve's error below the step's (atol 0: rtol in each field's units)
                 atol = min(control.atol_wind, control.atol_h) or control.rtol
                 stepper.follow_tolerance(atol, control.rtol, control.per_unit_step)
@@ -177,18 +180,18 @@ class StepControl:
         gravity_waves = stepper.courant_limit is not None  # explicit gravity waves: the signal's Courant number
         growth = math.inf if control.cfl_default else CflController.max_change  # the default cap: a bound only
         self.cfl = None if control.cfl is None else CflController(control.cfl, gravity_waves, growth)
-        pressure = "pressure_gradient" in sim.scene.terms
-        self.courant = None if self.cfl is None else CourantMax(sim.topology, sim.topology.grid.dx, sim.g, pressure)
+        pressure = "pressure_gradient" in model.terms
+        self.courant = None if self.cfl is None else CourantMax(topology, topology.grid.dx, model.g, pressure)
         self.checked = False  # the last try's state found good by the norm or the Courant numbers' pass
         self.courant_passes = 0  # the Courant numbers' passes taken; under "error", skipped where the cap cannot bind
         self.courant_queued = 0  # of them, those queued before the try launched ahead (``_pass_likely``)
         self._trend = 1.0  # the last accepted step's proposal over its Δt
         self._cap_seconds, self._since_pass = 0.0, 0  # the last pass's cap (s; 0: take one), steps since it
         self.dt = float(stepper.dt)
-        sim.model.launches.limit, sim.model.launches.variants = LAUNCH_LISTS, LAUNCH_VARIANTS
-        self.x0 = sim.last_good  # a step's start: the guard's last good state (``steer``)
+        model.launches.limit, model.launches.variants = LAUNCH_LISTS, LAUNCH_VARIANTS
+        self.x0 = unit.start  # a step's start: the guard's last good state (``steered``)
         # the next try launched before this one's norm is read: where the host's read would idle the card
-        on_one_card = not sim.model.topology.backend.host and not sim.model.topology.distributed
+        on_one_card = not topology.backend.host and not topology.distributed
         self.lookahead = on_one_card and self.norm is not None and self.balance is None and stepper.explicit
         self.xs = None  # the start of a try launched ahead (the end of the try before it), made at first use
         self.ahead: _Ahead | None = None  # the try launched ahead, not yet taken or undone
@@ -196,7 +199,7 @@ class StepControl:
         self.accepted = self.rejected = self.capped = 0  # capped: accepted steps whose next Δt the cap set
         self.dt_smallest, self.dt_sum, self.dt_largest = math.inf, 0.0, 0.0
         self.history: list[tuple[float, float, float]] = []
-        self.day, self.landed = float(sim.scene.start_day), True
+        self.day, self.landed = float(start_day), True
         self.t, self.dt_last, self.error_last = self.day * DAY, math.nan, math.nan
 
     def step_to(self, x, day: float, quiet: bool = False) -> StepStats:
@@ -219,7 +222,7 @@ class StepControl:
             wp.copy(self.x0, x)  # the tries' start
         else:  # the start of the try launched ahead is in xs: the two swap (a copy fewer a step)
             self.x0, self.xs = self.xs, self.x0
-            self.sim.last_good = self.x0
+            self.unit.start = self.x0
         while True:
             left = target - t
             dt = min(self.dt, c.dt_max or math.inf)
@@ -277,7 +280,7 @@ class StepControl:
         self.stepper.set_dt(dt)
         self.stepper.t0 = t - self.stepper.steps * dt  # the forcing's clock: the time reached, exactly
         saved = self.stepper.checkpoint() if self.error else None
-        return saved, self.sim.try_step(x)
+        return saved, self.unit.try_step(x)
 
     def _launch_ahead(self, x, t: float, dt: float) -> _Ahead:
         """The next try, of ``dt`` from t (s), launched on x, its start kept in ``xs``."""
@@ -299,6 +302,17 @@ class StepControl:
         if self.ahead is not None:
             self._undo(x, self.ahead, self.xs)
             self.ahead = None
+
+    def vouched(self) -> bool:
+        """Whether the last accepted step's state was found good by its norm or Courant pass
+        (``checked``), so that the integrator's guard need not read it; where not, a try
+        launched ahead is undone first (``settle``: the guard reads x)."""
+        if not self.checked:
+            self.settle(self.unit.x)
+            return False
+        if self.ahead is None:  # else the next try runs on: the step's time is the host's
+            wp.synchronize_device(self.unit.x.device)
+        return True
 
     def _propose(self, x, dt: float, queued: bool = False) -> tuple[bool, float, float]:
         """(accepted, the next Δt, the error norm or NaN) of a step of ``dt`` that ended in x
@@ -384,91 +398,36 @@ class StepControl:
         self._cap_seconds = 0.0  # the next step takes the Courant pass
 
 
-class _Tries(Rewind):
-    """A controlled step kept and put back by ``steer``: the control's state (``StepControl.state``;
-    the step's start is the control's own, ``last_good``)."""
+class Tries(Rewind):
+    """A controlled step kept and put back by the run's loop (``steered``): the state of its
+    ``control`` (a ``StepControl``; the step's start is the control's own, its unit's ``start``)."""
 
-    def __init__(self, sim):
-        self.sim, self.saved = sim, None
+    def __init__(self, control: StepControl):
+        self.control, self.saved = control, None
 
     def keep(self, active: list, whole: bool):
-        self.saved = self.sim.control.state()
+        self.saved = self.control.state()
         return {}
 
     def put_back(self, active: list, saved: dict, whole: bool) -> None:
-        sim = self.sim
-        sim.control.settle(sim.x)
-        wp.copy(sim.x, sim.last_good)
-        sim.control.restore(self.saved)
+        unit = self.control.unit
+        self.control.settle(unit.x)
+        wp.copy(unit.x, unit.start)
+        self.control.restore(self.saved)
 
 
-class _Steered(Observer):
-    """``steer``'s hooks on the run's integrator: one accepted step a block, after a stop asked
-    (``signals``), counted in ``ledger``, ``after()`` then; a step whose norm or Courant pass found
-    every node good (``StepControl.checked``) vouched for, else checked as a run's."""
-
-    def __init__(self, sim, signals, ledger, after):
-        self.sim, self.signals, self.ledger, self._after = sim, signals, ledger, after
-
-    def asked(self) -> int:
-        return self.signals.asked()
-
-    def add(self, stats) -> None:
-        self.ledger.add(stats)
-
-    def account(self, step: int, t0: float, cpu0: float) -> None:
-        self.ledger.account(step, t0, cpu0)
-
-    def after(self, step: int, done: int) -> None:
-        self._after()
-
-    def vouched(self) -> bool:
-        ctl = self.sim.control
-        if not ctl.checked:  # its state read: no try may be running ahead
-            ctl.settle(self.sim.x)
-            return False
-        if ctl.ahead is None:  # else the next try runs on: the step's time is the host's
-            wp.synchronize_device(self.sim.device)
-        return True
-
-
-def steer(sim, signals, ledger, after) -> Stop:
-    """``Simulation.run``'s loop under ``sim.control`` (a ``StepControl``): accepted steps to
-    each day an ``AtDays`` activity is due at (output and restart times) and the scene's end in
-    turn, each landed on exactly, each a block of the run's integrator (``Simulation.core``, its
-    steps the control's: ``StepControl.step_to``) checked at once (the norm's finite value, else
-    ``BadNodes.first``: the same blow-up report as a fixed Δt's), then ``after()`` (the
-    activities due, the progress bar). ``signals`` a ``StopSignals``, ``ledger`` the run's
-    ``summary.Ledger``. Returns why the loop stopped (``integrator.Stop``); after a blow-up the
-    state, the control and ``sim.step`` those of the step before (``last_good``)."""
-    ctl, goal = sim.control, {"day": None, "quiet": False}
-    days = {float(sim.scene.days)}
-    counted = []  # the schedules of whole steps (``EverySteps``, ``AtSteps``): due after a step, they read x
-    for activity in sim.activities.values():
+def steered(control: StepControl, last_day: float, activities: dict) -> ControlledDt:
+    """The Δt policy of ``Simulation.run`` under ``control`` (a ``StepControl``): accepted steps
+    (``integrator.ControlledDt``) to each day an ``AtDays`` activity of ``activities`` is due at
+    (output and restart times) and ``last_day`` in turn, each landed on exactly, a try launched
+    ahead only where no activity of whole steps (``EverySteps``, ``AtSteps``: they read x) is due
+    after the step."""
+    days = {float(last_day)}
+    counted = []  # the schedules of whole steps: due after a step, they read x
+    for activity in activities.values():
         if isinstance(activity.schedule, AtDays):
             days.update(activity.schedule.days)
         else:
             counted.append(activity.schedule)
-
-    def take(unit, j, watch):  # an accepted step toward the day, its solvers' device counters read
-        stats = ctl.step_to(unit.x, goal["day"], goal["quiet"])
-        return StepStats(stats.rhs_evals, {**stats.iterations, **unit.stepper.counts()})
-
-    tries, observer = _Tries(sim), _Steered(sim, signals, ledger, after)
-    try:
-        with sim.core.stepping_by(take, tries):
-            for day in sorted(d for d in days if d * DAY > ctl.t):
-                goal["day"] = day
-                while ctl.t < day * DAY:
-                    goal["quiet"] = not any(schedule.due(sim.step + 1) for schedule in counted)
-                    stop = sim.core.advance(sim.step + 1, observer)
-                    if stop.bad is not None:
-                        stop.blowup = blowup_line(sim.model, sim.x, stop.bad, ctl.day)
-                        tries.put_back([], {}, False)
-                    if stop.signum is not None or stop.bad is not None:
-                        return stop
-        return Stop()
-    except BlowUp as err:  # Δt below dt_min: the rejected steps put the state back, the last good one
-        return Stop(blowup=str(err))
-    finally:  # a try launched ahead undone: the state the run stops with is the last accepted step's
-        ctl.settle(sim.x)
+    ahead = sorted(d for d in days if d * DAY > control.t)
+    return ControlledDt(control, ahead, lambda j: not any(s.due(j + 1) for s in counted))

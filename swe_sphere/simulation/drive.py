@@ -1,14 +1,15 @@
 """A simulation driven from Python (Oceananigans' ``Simulation``: step, inspect, call back):
-``Drive``, the object a ``Simulation`` holds behind its methods ``advance``, ``steps``,
-``state``, ``every``, ``add_callback`` and ``fit_dt`` (the fitted scene, ``fitted``, which the
-simulation takes; their contracts are the simulation's docstrings); the steps go by
-``Simulation.run``'s loop."""
+``Driven``, the methods ``advance``, ``steps``, ``state``, ``every``, ``add_callback`` and
+``fit_dt`` of a ``Simulation`` (which is one), their steps by ``Simulation.run``'s loop; Δt
+fitted to the user's intervals (``_fitted``: the scene's clock ``Clock.fitted``) where it is the
+simulation's own (``_own_dt``: not given, restored or stated in a ``Scene``)."""
 
 from __future__ import annotations
 
 import dataclasses
 import itertools
 
+from ..config.parts import scene_stepper
 from ..config.scene import with_days
 from ..core.arguments import callable_argument, got
 from ..core.clock import is_interval
@@ -20,26 +21,23 @@ from .schedules import EverySteps, steps_of
 from .summary import RunResult
 
 
-class Drive:
-    """A simulation's steps driven from Python: Δt fitted to the user's intervals (where it is
-    the simulation's own, ``own_dt``: not given, restored or stated in a ``Scene``), schedules,
-    callbacks, steps to a day, the state as a dataset."""
+class Driven:
+    """A ``Simulation``'s steps driven from Python (module doc); its attributes are the
+    simulation's (``scene``, ``step``, ``stepper``, ``activities``, ``control``, ``run``, ...)."""
 
-    def __init__(self, sim, own_dt: bool):
-        self.sim, self.own_dt = sim, own_dt
+    _own_dt = False
 
-    def fitted(self, every: float, what: str):
-        """``Simulation.fit_dt``'s scene: its clock's Δt shortened to divide ``every`` and the run's
-        intervals (``Clock.fitted``), a note naming ``what``; nothing of the simulation written.
-        ``SceneError`` as ``Simulation.fit_dt``."""
-        sim = self.sim
-        s = sim.scene
-        if sim.step != 0 or not is_interval(every):
+    def _fitted(self, every: float, what: str):
+        """``fit_dt``'s scene: its clock's Δt shortened to divide ``every`` and the run's
+        intervals (``Clock.fitted``), a note naming ``what``; nothing written. ``SceneError`` as
+        ``fit_dt``."""
+        s = self.scene
+        if self.step != 0 or not is_interval(every):
             raise SceneError(
-                f"dt is fitted to an interval > 0 before the first step (got {every!r} at step {sim.step})"
+                f"dt is fitted to an interval > 0 before the first step (got {every!r} at step {self.step})"
             )
         outputs = [s.output_every_days, *(st["every_days"] for st in s.output_streams)]
-        days = [a.schedule.days for a in sim.activities.values() if getattr(a.schedule, "days", None) is not None]
+        days = [a.schedule.days for a in self.activities.values() if getattr(a.schedule, "days", None) is not None]
         spans = (every, s.run_days, *(d for d in outputs if d < s.run_days), *days)
         clock = s.clock.fitted(*spans, source=f"{s.dt_source}, shortened to divide {what} = {every:g} days")
         if clock.dt < s.dt / 2:
@@ -51,71 +49,168 @@ class Drive:
         note = f"dt shortened from {s.dt:g} s to {clock.dt:g} s to divide {what} = {every:g} days"
         return dataclasses.replace(s, dt=clock.dt, notes=(*s.notes, note), dt_source=clock.source)
 
-    def every(self, days: float | None, steps: int | None) -> EverySteps:
-        """``Simulation.every``: the schedule of every ``steps`` steps, or of the steps in ``days``."""
-        if (days is None) == (steps is None):
-            raise ValueError("an interval needs exactly one of every_days, every_steps")
-        if steps is not None and not (isinstance(steps, int) and steps >= 1):
-            raise ValueError(f"every_steps must be an integer >= 1 (got {steps!r})")
-        return EverySteps(steps) if days is None else EverySteps(self.steps_in(days, "every_days"), days)
-
-    def steps_in(self, days: float, what: str) -> int:
+    def _steps_in(self, days: float, what: str) -> int:
         """The whole number of steps in ``days`` (``what`` names it in a refusal), Δt first
-        fitted to it (``Simulation.fit_dt``) where Δt is the simulation's own and no step was taken."""
-        sim = self.sim
-        if self.own_dt and sim.step == 0 and is_interval(days) and not sim.scene.clock.is_whole(days):
-            sim.fit_dt(days, what)
-        return steps_of(sim.scene, days, f"the interval {what}")
+        fitted to it (``fit_dt``) where Δt is the simulation's own and no step was taken."""
+        if self._own_dt and self.step == 0 and is_interval(days) and not self.scene.clock.is_whole(days):
+            self.fit_dt(days, what)
+        return steps_of(self.scene, days, f"the interval {what}")
 
-    def add_callback(self, fn, every_days: float | None, every_steps: int | None, name: str | None) -> None:
-        """``Simulation.add_callback``: ``fn`` an activity under ``name`` (default "callback N")."""
-        sim = self.sim
-        callable_argument("fn", fn, "a callable fn(sim)", SceneError)
-        if name is not None and not isinstance(name, str):
-            raise SceneError(f"name must be a str or None (got {got(name)})")
-        schedule = sim.every(days=every_days, steps=every_steps)
-        if name is None:
-            name = next(f"callback {k}" for k in itertools.count(1) if f"callback {k}" not in sim.activities)
-        sim.activities[name] = Callback(fn, schedule)
-
-    def fixed_dt(self, what: str) -> None:
+    def _fixed_dt(self, what: str) -> None:
         """Refuse (``ArgumentError``) ``what`` (a call by whole steps) under step control."""
-        if self.sim.control is not None:
+        if self.control is not None:
             raise ArgumentError(
                 f"{what} steps a fixed dt: under step control ([time] control) the controller chooses the "
                 "steps, and a run goes to its end (Simulation.run)"
             )
 
+    def fit_dt(self, every: float, what: str = "every") -> None:
+        """Shorten Δt, before the first step, to the largest that divides ``every`` (days),
+        the run, its output intervals (where shorter than the run) and the intervals of
+        the activities scheduled in days (``every``; their steps follow): the scene's clock
+        fitted to them (``Clock.fitted``), set on the stepper (``set_dt``; a stepper that cannot
+        change its Δt, ``variable_dt`` False, built anew), and the start's diagnostics again
+        (their Courant numbers); a note in ``scene.notes`` naming ``what``. ``SceneError``
+        (one line) after the first step, for ``every`` <= 0, and where that Δt is less than
+        half the present one (an interval of odd decimals: give a dt, or an interval of
+        whole steps)."""
+        self.scene = self._fitted(every, what)
+        if self.stepper.variable_dt:  # its own ``set_dt`` (as step control's): what was built for the old Δt dropped
+            self.stepper.set_dt(self.scene.dt)
+        else:  # Δt folded into what it builds (a Helmholtz operator, a history's weights, element levels): anew
+            self.stepper = scene_stepper(self.scene, self.model)
+            self.stepper.prepare(self.x)
+        for activity in self.activities.values():  # the schedules in days: their steps at the new Δt
+            if getattr(activity.schedule, "days", None) is not None:
+                activity.schedule = self.every(days=activity.schedule.days)
+        self.initial = self.diagnostics.diagnose(self.scene.start_day * DAY)
+
+    def every(self, *, days: float | None = None, steps: int | None = None) -> EverySteps:
+        """The schedule of an activity (``activities``) due after every step that is a
+        multiple of ``steps``, or of the steps in ``days`` (whole steps), counted from
+        step 0 (Oceananigans' ``IterationInterval``); not at step 0, whose state the
+        caller has. ValueError for an interval that is not whole steps, or not exactly
+        one of the two."""
+        if (days is None) == (steps is None):
+            raise ValueError("an interval needs exactly one of every_days, every_steps")
+        if steps is not None and not (isinstance(steps, int) and steps >= 1):
+            raise ValueError(f"every_steps must be an integer >= 1 (got {steps!r})")
+        return EverySteps(steps) if days is None else EverySteps(self._steps_in(days, "every_days"), days)
+
+    def add_callback(
+        self, fn, *, every_days: float | None = None, every_steps: int | None = None, name: str | None = None
+    ) -> None:
+        """Call ``fn(self)`` after every ``every_steps``-th step, or every ``every_days``
+        (``every``), in ``run``, ``advance`` and ``steps`` (Oceananigans' ``add_callback!``):
+        an activity in ``activities`` under ``name`` (default "callback N"). ``fn`` may read
+        ``sim.step``, ``sim.time``, ``sim.state()``; what it raises ends the run (its
+        output files dropped). Under MPI add it on every rank. ``SceneError`` for ``fn`` not
+        callable, ``name`` not a str, and as ``every``."""
+        callable_argument("fn", fn, "a callable fn(sim)", SceneError)
+        if name is not None and not isinstance(name, str):
+            raise SceneError(f"name must be a str or None (got {got(name)})")
+        schedule = self.every(days=every_days, steps=every_steps)
+        if name is None:
+            name = next(f"callback {k}" for k in itertools.count(1) if f"callback {k}" not in self.activities)
+        self.activities[name] = Callback(fn, schedule)
+
     def advance(self, days: float) -> RunResult:
-        """``Simulation.advance``: ``days`` further by ``run``'s loop, the scene lengthened past its end."""
-        sim = self.sim
-        self.fixed_dt("Simulation.advance")
-        target = sim.step + self.steps_in(days, "days")
-        if target > sim.scene.nsteps:
-            sim.scene = with_days(sim.scene, sim.scene.start_day + target * sim.scene.dt / DAY, "the scene's")
-        return sim.run(None, until_step=target)
+        """Step ``days`` further with ``run``'s loop (the same bits as one run; blow-up,
+        signals and callbacks as there; no output file). Past the scene's end the run
+        is lengthened (``config.with_days``).
+
+        Parameters
+        ----------
+        days : float
+            Model days, a whole number of steps.
+
+        Returns
+        -------
+        RunResult
+            Of these steps.
+
+        Raises
+        ------
+        ValueError
+            ``days`` is not a whole number of steps.
+        ArgumentError
+            Under step control (``[time] control``): the controller chooses the steps; ``run``.
+        BlowUp, StepFailure, Interrupted
+            As ``run``.
+        """
+        self._fixed_dt("Simulation.advance")
+        target = self.step + self._steps_in(days, "days")
+        if target > self.scene.nsteps:
+            self.scene = with_days(self.scene, self.scene.start_day + target * self.scene.dt / DAY, "the scene's")
+        return self.run(None, until_step=target)
 
     def steps(self, every: float):
-        """``Simulation.steps``: the run to the scene's end, the model day after each multiple of ``every``."""
-        sim = self.sim
-        self.fixed_dt("Simulation.steps")
-        per = self.steps_in(every, "every")
-        while (target := (sim.step // per + 1) * per) <= sim.scene.nsteps:
-            sim.run(None, until_step=target)
-            yield sim.time
+        """Iterate the run to the scene's end, one multiple of ``every`` days from t = 0
+        at a time (``for t in sim.steps(every=0.5): ds = sim.state()``); stops at the last
+        multiple at or before the end.
 
-    def state(self, remap: float | None):
-        """``Simulation.state``: the current state as an ``xarray.Dataset`` (None on ranks other than 0)."""
-        sim = self.sim
-        whole = sim.diagnostics.gather_fields(divergence=True)
-        if not sim.root:
+        Where Δt is the simulation's own (no ``dt`` given, the scene named or a file:
+        ``swe-sphere run`` shortens it likewise to divide the output interval) and no step
+        has been taken, a Δt that does not divide ``every`` is first shortened to the
+        largest that divides ``every``, the run, its output intervals and the callbacks'
+        (``fit_dt``; so do ``advance`` and ``every`` for their intervals).
+
+        Parameters
+        ----------
+        every : float
+            Model days between yields, a whole number of steps.
+
+        Yields
+        ------
+        float
+            The model time reached (days since t = 0).
+
+        Raises
+        ------
+        ValueError
+            ``every`` is not then a whole number of steps (naming a Δt that was given).
+        ArgumentError
+            Under step control, as ``advance``.
+        BlowUp, StepFailure, Interrupted
+            As ``run``.
+        """
+        self._fixed_dt("Simulation.steps")
+        per = self._steps_in(every, "every")
+        while (target := (self.step // per + 1) * per) <= self.scene.nsteps:
+            self.run(None, until_step=target)
+            yield self.time
+
+    def state(self, remap: float | None = None):
+        """The current state as an ``xarray.Dataset``; call on every rank.
+
+        Parameters
+        ----------
+        remap : float, optional
+            Grid spacing in degrees: the state on a regular lat-lon grid
+            (``remap.remap_dataset``, with h_surface = h + hs). None: on the nodes.
+
+        Returns
+        -------
+        xarray.Dataset or None
+            On the nodes, as a run file holds one output time: h (m), u, v (m s⁻¹),
+            vorticity, divergence (s⁻¹) on ``ncol`` with hs, area, lat, lon and ``time``
+            in days (``run_file.node_dataset``); or on (lat, lon). None on ranks other
+            than 0.
+
+        Raises
+        ------
+        ValueError
+            A ``remap`` spacing that does not divide 180 degrees.
+        """
+        whole = self.diagnostics.gather_fields(divergence=True)
+        if not self.root:
             return None
         ds = node_dataset(
-            sim.grid,
-            sim.hs,
-            sim.time,
+            self.grid,
+            self.hs,
+            self.time,
             {k: getattr(whole, k) for k in OUTPUT_FIELDS},
-            {"scene": sim.scene.as_dict(), "ne": sim.scene.ne, "np": sim.scene.np, "step": sim.step},
+            {"scene": self.scene.as_dict(), "ne": self.scene.ne, "np": self.scene.np, "step": self.step},
         )
         if remap is None:
             return ds

@@ -23,18 +23,23 @@ class RunObserver(Observer):
     every step (the same bits either way). ``run`` the run's parts: its first step, check interval
     (``Simulation.check_every``), ``activities`` and ``counters`` (``Simulation``'s) and
     ``summary.Ledger``; ``signals`` a ``StopSignals``, ``after(n, done)`` the loop's activities
-    and progress after good steps."""
+    and progress after good steps. Under step control ``steered`` (an ``integrator.ControlledDt``):
+    each accepted step a block, to the policy's last day, its state vouched for where the
+    control's norm or Courant pass found it good (``StepControl.vouched``), not abandoned by a
+    signal (a try's state is the control's)."""
 
-    def __init__(self, run: tuple, stop_step: int, signals=None, after=None):
+    def __init__(self, run: tuple, stop_step: int, signals=None, after=None, steered=None):
         self.first_step, every, self.activities, self.counters, self.ledger = run
-        self.stop_step, self.signals, self._after = stop_step, signals, after
+        self.stop_step, self.signals, self._after, self.steered = stop_step, signals, after, steered
         self.every = max(1, int(every))
 
     def block_end(self, b: int) -> int:
         """The last step of the block that starts after step b: the next multiple of
         ``check_every``, the next step an activity is due (``Simulation.activities``:
         output, restart, callback, log), the last step of the run's wall-time estimate
-        or its end, whichever comes first."""
+        or its end, whichever comes first; under step control b + 1, or b at its last day."""
+        if self.steered is not None:
+            return b if self.steered.reached else b + 1
         if self.every == 1 or b == self.first_step:  # the first step alone: its time is first_step_time
             return b + 1
         due = (a.schedule.next_after(b) for a in self.activities.values())
@@ -45,8 +50,11 @@ class RunObserver(Observer):
     def asked(self) -> int:
         return self.signals.asked() if self.signals is not None else 0
 
+    def vouched(self) -> bool:
+        return self.steered is not None and self.steered.control.vouched()
+
     def stepping(self, on: bool) -> None:
-        if self.signals is not None:  # a step may be abandoned from here (``StopSignals``)
+        if self.signals is not None and self.steered is None:  # a step may be abandoned from here (``StopSignals``)
             self.signals.in_step = time.perf_counter() if on else None
 
     def add(self, stats) -> None:

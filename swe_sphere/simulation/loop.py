@@ -19,7 +19,7 @@ from ..core.interrupts import StopSignals
 from ..integrator import Stop
 from ..io.output_files import check_distinct, check_target
 from .activities import Log, is_due
-from .adaptive import steer
+from .adaptive import Tries, steered
 from .guard import RunObserver, blowup_line
 from .schedules import EverySteps
 from .summary import Ledger, RunResult, interruption
@@ -93,16 +93,38 @@ class StepLoop:
             dynamic_ncols=True,
         )
 
-    def blocks(self, signals: StopSignals, ledger: Ledger, bar, stop_step: int) -> Stop:
-        """The run's steps to ``stop_step`` by the integrator (``Simulation.core``) under its guard
-        (``guard.RunObserver``), the activities due called after each good step. Returns why the
-        loop stopped (``Stop``: nothing, a signal, an abandoned step or a blow-up)."""
-        sim = self.sim
+    def blocks(self, signals: StopSignals, ledger: Ledger, bar, until_step: int | None) -> Stop:
+        """The run's steps to ``until_step`` (None: the scene's end) by the integrator
+        (``Simulation.core``) under its guard (``guard.RunObserver``), each step's Δt its policy's:
+        the fixed Δt's, or under ``scene.control`` the step control's (``adaptive.steered``, each
+        accepted step a block, landed on the output and restart days; ``until_step`` refused
+        there, ValueError). The activities due called after each good step. Returns why the
+        loop stopped (``Stop``: nothing, a signal, an abandoned step or a blow-up; after a
+        controlled run's, the state, the control and ``step`` those of the step before)."""
+        sim, ctl = self.sim, self.sim.control
+        policy, rewind = sim.core.policy, sim.core.rewind
+        stop_step = sim.scene.nsteps if until_step is None else until_step
+        if ctl is not None:
+            if until_step is not None:
+                raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
+            policy, rewind, stop_step = steered(ctl, sim.scene.days, sim.activities), Tries(ctl), sys.maxsize
         run = (sim.step, sim.check_every, sim.activities, sim.counters, ledger)
-        observer = RunObserver(run, stop_step, signals, lambda n, done: self.after_steps(n, done, bar))
-        stop = sim.core.advance(stop_step, observer)
+        after = lambda n, done: self.after_steps(n, done, bar)  # noqa: E731
+        observer = RunObserver(run, stop_step, signals, after, policy if ctl else None)
+        try:
+            with sim.core.stepping_by(policy, rewind):
+                stop = sim.core.advance(stop_step, observer)
+        except BlowUp as err:  # the controller's Δt below dt_min: the rejected tries put the state back
+            if ctl is None:
+                raise
+            return Stop(blowup=str(err))
+        finally:  # a try launched ahead undone: the state the run stops with is the last accepted step's
+            if ctl is not None:
+                ctl.settle(sim.x)
         if stop.bad is not None:
-            stop.blowup = blowup_line(sim.model, sim.x, stop.bad, sim.scene.day(stop.bad[0]))
+            stop.blowup = blowup_line(sim.model, sim.x, stop.bad, sim.time if ctl else sim.scene.day(stop.bad[0]))
+            if ctl is not None:
+                rewind.put_back([], {}, False)
         return stop
 
     def after_steps(self, n: int, done: int, bar) -> None:
@@ -149,8 +171,7 @@ class StepLoop:
 
     def integrate(self, files, ckp, start, ledger, log, catch_signals, until_step) -> tuple:
         """``Simulation.run``'s loop with its files (``RunFiles``, ``Checkpointer``) and signals:
-        the fixed step's (``blocks``) or, under ``scene.control``, the step control's
-        (``adaptive.steer``); (why it stopped, ``Stop``; the ``StopSignals``). The files closed,
+        its steps (``blocks``); (why it stopped, ``Stop``; the ``StopSignals``). The files closed,
         or dropped on an exception."""
         sim, stop = self.sim, Stop()
         # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
@@ -162,13 +183,7 @@ class StepLoop:
                     # restart file was written): not written again, so the two files join without a repeat
                     files.record(sim.step, whole=start, final=True, write=not sim.step)
                     with self.progress_bar() as bar:
-                        if sim.control is None:
-                            last = sim.scene.nsteps if until_step is None else until_step
-                            stop = self.blocks(signals, ledger, bar, last)
-                        elif until_step is None:
-                            stop = steer(sim, signals, ledger, lambda: self.after_steps(sim.step, 1, bar))
-                        else:
-                            raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
+                        stop = self.blocks(signals, ledger, bar, until_step)
                     self.stopped(stop, files, ckp)
                 files.close()  # under this run's handlers: a signal now waits, and is answered below
             except BaseException:

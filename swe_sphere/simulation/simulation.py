@@ -7,7 +7,7 @@ called at the steps their schedules name (``activities``: the run files and rest
 files of ``writers``, callbacks, user writers, the log; all in ``Simulation.activities``),
 signals (``interrupts``), and the counts and result (``summary``). ``build`` returns what it
 makes; the simulation holds its run loop (``loop.StepLoop``), restarts (``restart.Restart``)
-and driving from Python (``drive.Drive``) behind its methods; the state's diagnostics a
+behind its methods, and is driven from Python by those of ``drive.Driven``; the state's diagnostics a
 ``state_diagnostics`` component, ``Simulation.diagnostics``."""
 
 from __future__ import annotations
@@ -18,22 +18,21 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ..config.parts import scene_stepper
 from ..config.scene import Scene, resolve_scene
 from ..core.arguments import array_argument, comm_argument, flag_argument, got, mapping_argument
 from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
 from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, Interrupted, SceneError
 from ..core.graphs import GraphedSteps, default_mode, graphs_mode
-from ..integrator import Integrator, Unit, core_property
+from ..integrator import FixedDt, Integrator, Unit, core_property
 from ..steppers import StepStats
 from .adaptive import StepControl
 from .build import ON_ROOT, Built, build
 from .checkpoint import Checkpoint
-from .drive import Drive
+from .drive import Driven
 from .loop import StepLoop, check_run_arguments, compile_timer
 from .restart import Restart, continued
-from .schedules import EverySteps, at_its_end
+from .schedules import at_its_end
 from .state_diagnostics import StateDiagnostics
 from .summary import Ledger, RunResult
 
@@ -41,7 +40,7 @@ from .summary import Ledger, RunResult
 __all__ = ["BlowUp", "Interrupted", "RunResult", "Simulation"]
 
 
-class Simulation:
+class Simulation(Driven):
     """Build the grid, case, model and stepper of a scene; ``run`` integrates it.
 
     A scene may be given as ``swe_sphere.run`` takes it, ``Simulation("tc2_steady", ne=4,
@@ -160,7 +159,7 @@ class Simulation:
         t0 = time.perf_counter()
         self._compile = [0.0]
         # what the simulation holds: driving from Python, restarts, the run's loop
-        self._drive, self._restart, self._loop = Drive(self, own_dt), Restart(self), StepLoop(self, self._compile)
+        self._own_dt, self._restart, self._loop = own_dt, Restart(self), StepLoop(self, self._compile)
         self.activities: dict = {}  # name -> activity (``activities``): the user's; ``run`` adds its own
         # single-threaded BLAS, as in ``run``: the ∇⁴'s power iteration (``config.parts.check_hyperviscosity``)
         # takes 40 norms, and OpenBLAS's threads spinning on a busy machine made them 0.3 s of CPU
@@ -178,7 +177,7 @@ class Simulation:
             )
             self.model, self.fcor, self.hs, self.scorer, self.dfi = b.model, b.fcor, b.hs, b.scorer, b.dfi
             graphed = GraphedSteps(backend, b.model.launches.guard, graphs)
-            self.core = Integrator([Unit(b.model, b.stepper, b.x, b.last_good, graphed)], self._take)
+            self.core = Integrator([Unit(b.model, b.stepper, b.x, b.last_good, graphed)], FixedDt(self._take))
             self.g, self.check_every = self.model.g, CHECK_EVERY_STEPS
             self.diagnostics = StateDiagnostics(self)
             self.control = None  # made below: the start's Courant numbers at the scene's dt, its first step
@@ -186,7 +185,9 @@ class Simulation:
             if initial_diagnostics is None:
                 self.initial = self.diagnostics.diagnose(scene.start_day * DAY)
             # Δt chosen step to step (``Scene.control``): the loop's steps land on its times
-            self.control = None if scene.control is None else StepControl(scene.control, self.stepper, self)
+            self.control = (
+                None if scene.control is None else StepControl(scene.control, self.core.units[0], scene.start_day)
+            )
             self.counters = {
                 "rhs_evals": 0,
                 "wall_time": 0.0,
@@ -197,7 +198,7 @@ class Simulation:
         if inputs:
             self.inputs = inputs
 
-    # -- restarts and branches (``restart.Restart``), driven from Python (``drive.Drive``) --
+    # -- restarts and branches (``restart.Restart``); driven from Python: ``drive.Driven`` --
     @classmethod
     def from_checkpoint(
         cls,
@@ -263,46 +264,6 @@ class Simulation:
         ``restart_every`` (days) recorded for a continuation to keep."""
         return self._restart.write(path, overwrite, restart_every)
 
-    def fit_dt(self, every: float, what: str = "every") -> None:
-        """Shorten Δt, before the first step, to the largest that divides ``every`` (days),
-        the run, its output intervals (where shorter than the run) and the intervals of
-        the activities scheduled in days (``every``; their steps follow): the scene's clock
-        fitted to them (``Clock.fitted``), set on the stepper (``set_dt``; a stepper that cannot
-        change its Δt, ``variable_dt`` False, built anew), and the start's diagnostics again
-        (their Courant numbers); a note in ``scene.notes`` naming ``what``. ``SceneError``
-        (one line) after the first step, for ``every`` <= 0, and where that Δt is less than
-        half the present one (an interval of odd decimals: give a dt, or an interval of
-        whole steps)."""
-        self.scene = self._drive.fitted(every, what)
-        if self.stepper.variable_dt:  # its own ``set_dt`` (as step control's): what was built for the old Δt dropped
-            self.stepper.set_dt(self.scene.dt)
-        else:  # Δt folded into what it builds (a Helmholtz operator, a history's weights, element levels): anew
-            self.stepper = scene_stepper(self.scene, self.model)
-            self.stepper.prepare(self.x)
-        for activity in self.activities.values():  # the schedules in days: their steps at the new Δt
-            if getattr(activity.schedule, "days", None) is not None:
-                activity.schedule = self.every(days=activity.schedule.days)
-        self.initial = self.diagnostics.diagnose(self.scene.start_day * DAY)
-
-    def every(self, *, days: float | None = None, steps: int | None = None) -> EverySteps:
-        """The schedule of an activity (``activities``) due after every step that is a
-        multiple of ``steps``, or of the steps in ``days`` (whole steps), counted from
-        step 0 (Oceananigans' ``IterationInterval``); not at step 0, whose state the
-        caller has. ValueError for an interval that is not whole steps, or not exactly
-        one of the two."""
-        return self._drive.every(days, steps)
-
-    def add_callback(
-        self, fn, *, every_days: float | None = None, every_steps: int | None = None, name: str | None = None
-    ) -> None:
-        """Call ``fn(self)`` after every ``every_steps``-th step, or every ``every_days``
-        (``every``), in ``run``, ``advance`` and ``steps`` (Oceananigans' ``add_callback!``):
-        an activity in ``activities`` under ``name`` (default "callback N"). ``fn`` may read
-        ``sim.step``, ``sim.time``, ``sim.state()``; what it raises ends the run (its
-        output files dropped). Under MPI add it on every rank. ``SceneError`` for ``fn`` not
-        callable, ``name`` not a str, and as ``every``."""
-        self._drive.add_callback(fn, every_days, every_steps, name)
-
     @property
     def time(self) -> float:
         """The model time of the current step, days since t = 0 (under step control the
@@ -314,88 +275,6 @@ class Simulation:
         """Under step control the day the current step landed on (an output, restart or end
         time; ``schedules.AtDays``), else None."""
         return self.control.day if self.control is not None and self.control.landed else None
-
-    def advance(self, days: float) -> RunResult:
-        """Step ``days`` further with ``run``'s loop (the same bits as one run; blow-up,
-        signals and callbacks as there; no output file). Past the scene's end the run
-        is lengthened (``config.with_days``).
-
-        Parameters
-        ----------
-        days : float
-            Model days, a whole number of steps.
-
-        Returns
-        -------
-        RunResult
-            Of these steps.
-
-        Raises
-        ------
-        ValueError
-            ``days`` is not a whole number of steps.
-        ArgumentError
-            Under step control (``[time] control``): the controller chooses the steps; ``run``.
-        BlowUp, StepFailure, Interrupted
-            As ``run``.
-        """
-        return self._drive.advance(days)
-
-    def steps(self, every: float):
-        """Iterate the run to the scene's end, one multiple of ``every`` days from t = 0
-        at a time (``for t in sim.steps(every=0.5): ds = sim.state()``); stops at the last
-        multiple at or before the end.
-
-        Where Δt is the simulation's own (no ``dt`` given, the scene named or a file:
-        ``swe-sphere run`` shortens it likewise to divide the output interval) and no step
-        has been taken, a Δt that does not divide ``every`` is first shortened to the
-        largest that divides ``every``, the run, its output intervals and the callbacks'
-        (``fit_dt``; so do ``advance`` and ``every`` for their intervals).
-
-        Parameters
-        ----------
-        every : float
-            Model days between yields, a whole number of steps.
-
-        Yields
-        ------
-        float
-            The model time reached (days since t = 0).
-
-        Raises
-        ------
-        ValueError
-            ``every`` is not then a whole number of steps (naming a Δt that was given).
-        ArgumentError
-            Under step control, as ``advance``.
-        BlowUp, StepFailure, Interrupted
-            As ``run``.
-        """
-        yield from self._drive.steps(every)
-
-    def state(self, remap: float | None = None):
-        """The current state as an ``xarray.Dataset``; call on every rank.
-
-        Parameters
-        ----------
-        remap : float, optional
-            Grid spacing in degrees: the state on a regular lat-lon grid
-            (``remap.remap_dataset``, with h_surface = h + hs). None: on the nodes.
-
-        Returns
-        -------
-        xarray.Dataset or None
-            On the nodes, as a run file holds one output time: h (m), u, v (m s⁻¹),
-            vorticity, divergence (s⁻¹) on ``ncol`` with hs, area, lat, lon and ``time``
-            in days (``run_file.node_dataset``); or on (lat, lon). None on ranks other
-            than 0.
-
-        Raises
-        ------
-        ValueError
-            A ``remap`` spacing that does not divide 180 degrees.
-        """
-        return self._drive.state(remap)
 
     # -- the state's diagnostics (``state_diagnostics``) --------------------------
     def fields(self, x=None):
@@ -455,7 +334,7 @@ class Simulation:
         the controller's grid each keep a graph), the bad-state flag not watched and the
         solvers' counters not read: a controlled run's tries (``adaptive.StepControl``). Its
         ``StepStats``."""
-        return self._graphed.step(self.stepper, self.model, x, False)
+        return self.core.units[0].try_step(x)
 
     def _take(self, unit: Unit, j: int, watch: bool):
         """Step j + 1 of the stepper on x and, with ``watch``, the bad-state flag's launch
@@ -484,8 +363,8 @@ class Simulation:
     ) -> RunResult:
         """Integrate the scene from the current step; write ``output`` (netCDF) if given.
 
-        Blocks of steps by the integrator, each checked by its guard (``integrator.Integrator``; under step control
-        ``adaptive.steer``'s), then the activities due (``activities``): the run file and its
+        Blocks of steps by the integrator, each checked by its guard (``integrator.Integrator``), Δt
+        the fixed one's or under step control the controller's (``adaptive.steered``), then the activities due (``activities``): the run file and its
         ``[[output.streams]]``, the restart file, the callbacks and writers, the log.
 
         Parameters

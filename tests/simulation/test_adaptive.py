@@ -26,7 +26,7 @@ from helpers import assert_same_runs, make_sim, watched_run
 def _sim(rtol, days=1.0, **keys):
     overrides = {"time.control": "error", "time.rtol": rtol, **{f"time.{k}": v for k, v in keys.items()}}
     sim = make_sim(load_scene("tc2_steady", ne=4, days=days, stepper="bs32", overrides=overrides))
-    return sim, StepControl(sim.scene.control, sim.stepper, sim)
+    return sim, StepControl(sim.scene.control, sim.core.units[0], sim.scene.start_day)
 
 
 def _run(sim, control, t, target):
@@ -92,7 +92,7 @@ def test_cfl_control_steps_at_the_requested_courant_number():
     controller's Δt grid (2^(−1/16)) below it."""
     overrides = {"time.control": "cfl", "time.cfl": 1.2}
     sim = make_sim(load_scene("tc2_steady", ne=2, days=10.0, stepper="ssprk3", dt=2000.0, overrides=overrides))
-    control = StepControl(sim.scene.control, sim.stepper, sim)
+    control = StepControl(sim.scene.control, sim.core.units[0], sim.scene.start_day)
     t = 0.0
     for _ in range(20):
         t, _ = control.step(sim.x, t, 10 * DAY)
@@ -221,7 +221,7 @@ def test_the_default_cap_keeps_a_loose_tolerance_stable():
     def tc5(**keys):
         overrides = {"time.control": "error", "time.rtol": 10.0, **{f"time.{k}": v for k, v in keys.items()}}
         sim = make_sim(load_scene("tc5_mountain", ne=8, np_=4, days=1.5, stepper="dp54", overrides=overrides))
-        return sim, StepControl(sim.scene.control, sim.stepper, sim)
+        return sim, StepControl(sim.scene.control, sim.core.units[0], sim.scene.start_day)
 
     sim, control = tc5(cfl=False)
     with pytest.raises(BlowUp, match=r"^step 48 at day 0.5370.* fell below time.dt_min"):
@@ -237,7 +237,7 @@ def test_the_default_cap_keeps_a_loose_tolerance_stable():
 def _balanced(balance, days=1.0):
     overrides = {"time.control": "balanced", "time.balance": balance}
     sim = make_sim(load_scene("tc5_mountain", ne=4, days=days, stepper="rk43", overrides=overrides))
-    return sim, StepControl(sim.scene.control, sim.stepper, sim)
+    return sim, StepControl(sim.scene.control, sim.core.units[0], sim.scene.start_day)
 
 
 def test_a_balanced_run_follows_its_fraction_and_continues_bitwise():
@@ -297,7 +297,7 @@ def test_a_controlled_step_reads_the_device_once_a_try(tally, mode):
     overrides = {"time.control": mode, **({"time.rtol": 1e-4} if mode == "error" else {})}
     scene = load_scene("tc5_mountain", ne=4, days=1.0, stepper="rk43", overrides=overrides)
     sim = make_sim(dataclasses.replace(scene, dt=5 * scene.dt))
-    control = StepControl(sim.scene.control, sim.stepper, sim)
+    control = StepControl(sim.scene.control, sim.core.units[0], sim.scene.start_day)
     with tally.counting():
         assert _run(sim, control, 0.0, DAY) == DAY
     tries = control.accepted + control.rejected
@@ -337,7 +337,7 @@ def _imex_day(rtol, loose=False):
     overrides = {"time.control": "error", "time.rtol": rtol}
     scene = load_scene("tc5_mountain", ne=4, days=1.0, stepper="ark436", overrides=overrides)
     sim = make_sim(scene)
-    control = StepControl(scene.control, sim.stepper, sim)
+    control = StepControl(scene.control, sim.core.units[0], scene.start_day)
     if loose:
         sim.stepper.helmholtz.tol = sim.stepper.options.tol
     _run(sim, control, 0.0, DAY / 4)
@@ -363,7 +363,7 @@ def _per_unit_step(name, rtol, days, solver_tolerance_kept=False):
     overrides = {"time.control": "error", "time.rtol": rtol, "time.per_unit_step": True}
     scene = load_scene("tc5_mountain", ne=4, days=days, stepper=name, overrides=overrides)
     sim = make_sim(scene)
-    control = StepControl(scene.control, sim.stepper, sim)
+    control = StepControl(scene.control, sim.core.units[0], scene.start_day)
     if solver_tolerance_kept:
         sim.stepper.helmholtz.tol = 0.01 * rtol
     _run(sim, control, 0.0, days * DAY)

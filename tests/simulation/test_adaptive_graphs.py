@@ -1,4 +1,4 @@
-"""A controlled run's tries replayed as graphs (``Simulation.try_step``, ``adaptive.StepControl``).
+"""A controlled run's tries replayed as graphs (``integrator.Unit.try_step``, ``adaptive.StepControl``).
 
 The controller's Δt are those of its grid (``on_grid``), so a few recur and each keeps a graph
 keyed by it (``Stepper.graph_key``; an FSAL pair's key also says whether its first stage was
@@ -18,6 +18,7 @@ import pytest
 import warp as wp
 
 from swe_sphere.config.scene import load_scene
+from swe_sphere.integrator import Unit
 from swe_sphere.simulation.simulation import Simulation
 
 from helpers import ON_CUDA
@@ -119,11 +120,11 @@ def test_a_graphed_try_reads_the_host_once(one_thread, tally, monkeypatch, name,
     inside, between = [], []
     sim = build(name, control, device, True, every=math.inf)
     sim.control.lookahead = False
-    real_try = Simulation.try_step
+    real_try = Unit.try_step
     last = {}
 
     def try_step(self, x):
-        syncs, passes = tally.syncs, self.control.courant_passes
+        syncs, passes = tally.syncs, sim.control.courant_passes
         if last:
             between.append((syncs - last["syncs"], passes - last["passes"]))
         stats = real_try(self, x)
@@ -131,7 +132,7 @@ def test_a_graphed_try_reads_the_host_once(one_thread, tally, monkeypatch, name,
         last.update(syncs=tally.syncs, passes=passes)
         return stats
 
-    monkeypatch.setattr(Simulation, "try_step", try_step)
+    monkeypatch.setattr(Unit, "try_step", try_step)
     with tally.counting():
         sim.run(None)
     tries = sim.control.accepted + sim.control.rejected

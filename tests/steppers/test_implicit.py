@@ -520,7 +520,7 @@ def test_under_error_control_newton_converges_below_the_step_s_tolerance():
 
     overrides = {"time.control": "error", "time.rtol": 1e-7}
     sim = make_sim(load_scene("tc2_steady", ne=4, days=0.5, stepper="implicit", overrides=overrides))
-    control = StepControl(sim.scene.control, sim.stepper, sim)
+    control = StepControl(sim.scene.control, sim.core.units[0], sim.scene.start_day)
     control.step(sim.x, 0.0, 0.5 * DAY)
     bound = 0.1 * 1e-7 / sim.stepper.dt
     assert bound < 1e-8 and sim.stepper.residual_history[-1] <= bound

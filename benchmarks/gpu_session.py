@@ -243,7 +243,7 @@ def reads(args):
         with instrumented(tally), tally.counting():
             for _ in range(args.steps):
                 stepper.step(sim.x)
-        graphed = "yes" if stepper.graph_key() is not None else "no"
+        graphed = "yes" if stepper.capturable and stepper.graph_key() is not None else "no"
         print(
             f"| {name} | {graphed} | {tally.syncs / args.steps:.1f} | {tally.total_launches / args.steps:.1f} |",
             flush=True,

@@ -1,7 +1,7 @@
 """CUDA against the CPU under error control (``simulation.adaptive.StepControl``): every
 embedded pair and the JFNK stepper on TC5 ne2 np4 over a quarter day at rtol 1e-6, and an
 IMEX pair's and the JFNK stepper's rejected tries put back from device copies
-(``Stepper.checkpoint``/``rollback``), as on the CPU (``tests/steppers/test_variable_dt.py``).
+(``TrialSteps.checkpoint``/``rollback``), as on the CPU (``tests/steppers/test_variable_dt.py``).
 Skipped without a CUDA device."""
 
 from __future__ import annotations

@@ -126,7 +126,7 @@ class _Snapshot:
     x: wp.array
     state: dict
     arrays: list
-    carried: object  # ``Stepper.carried``
+    carried: object  # ``GraphCapture.carried``
 
 
 @dataclass
@@ -140,12 +140,12 @@ class GraphedSteps:
 
     ``step(stepper, model, x, watch)`` advances x by one step of ``stepper`` (and,
     with ``watch``, ``model.bad_nodes.watch(x)``) and returns its ``StepStats``. A step whose
-    ``Stepper.graph_key`` was seen before runs as a graph: the key's first step
+    ``graph_key`` (a ``capturable`` stepper's, ``steppers.capabilities.GraphCapture``) was seen before runs as a graph: the key's first step
     runs plain (loading modules and allocating what its launches need, none of
     which a capture may do); its second runs plain (the solvers' own graphs off),
     is captured, replayed from the state before it and compared bit for bit
     (``_checked``); the later ones replay (one that raises: plain, as in
-    ``captured``). Keys of one ``Stepper.graph_family`` (a controlled run's Δt: the same
+    ``captured``). Keys of one ``graph_family`` (a controlled run's Δt: the same
     launches with other arguments) check only the family's first graph; the others are
     captured at their second step and replayed, not compared. The key holds the stepper and x's
     address, so a branch, a new dt or another state array captures anew; a
@@ -186,8 +186,8 @@ class GraphedSteps:
 
     def step(self, stepper, model, x, watch: bool):
         key = None
-        if self.active and model.threads == 1 and not model.topology.distributed:
-            key = stepper.graph_key()
+        if self.active and stepper.capturable and model.threads == 1 and not model.topology.distributed:
+            key = stepper.graph_key()  # a ``steppers.capabilities.GraphCapture``'s
         if key is None:
             return self._plain(stepper, model, x, watch)
         family = stepper.graph_family()
@@ -214,7 +214,7 @@ class GraphedSteps:
         return stats
 
     def _captured(self, key, stepper, model, x, watch: bool):
-        """The key's second step, of a family whose first graph was checked (``Stepper.graph_family``:
+        """The key's second step, of a family whose first graph was checked (``GraphCapture.graph_family``:
         the same launches, other arguments): captured and replayed, not compared (as a later replay;
         a capture or replay that raises: plain, as in ``captured``)."""
         state, carried = stepper.state(), stepper.carried()  # the capture moves the host's side on

@@ -32,13 +32,12 @@ from ..core.graphs import default_mode, graphs_mode
 from ..core.interrupts import StopSignals
 from ..core.mpi import RankMax
 from ..grid.cubed_sphere import CubedSphere
-from ..integrator import ControlledDt, FixedDt, Integrator, core_property
+from ..integrator import core_property
 from ..io import restart_file
 from ..io.run_file import OUTPUT_FIELDS, RunWriter, area_rms, member_statistics
 from ..model.diagnostics import invariants
 from ..model.shallow_water import ShallowWater
 from ..simulation import checkpoint
-from ..simulation.adaptive import Tries
 from ..simulation.build import check_memory
 from ..simulation.schedules import (
     at_its_end,
@@ -49,7 +48,7 @@ from ..simulation.schedules import (
     restart_steps,
 )
 from ..simulation.writers import interrupted_attrs, restart_path, scene_attrs
-from .control import STEERED, member_control
+from .control import STEERED, member_control, member_integrator
 from .files import member_writer, resume
 from .initial import Perturbation, Variants, checked_states, described, initial_states
 from .members import MemberGrid, member_part
@@ -59,7 +58,6 @@ from .units import (
     blow_up_line,
     checked_scene,
     drop_line,
-    member_step,
     on_rank_zero,
     own_units,
     shared_unit,
@@ -209,12 +207,7 @@ class Ensemble:
         self._fcor = self._side(lambda u: u.model.operators.fcor.numpy())
         self._g = [u.model.g for u in self.units for _ in range(u.members)]
         self.control = member_control(scene, self.units, self.layout, self.comm)  # None at a fixed Δt
-        # the one step loop over the units, each stepped a block at a time and checked at its end; under step
-        # control each accepted step a block checked at once, toward the day ``_ahead`` gives the policy
-        steps = dict(policy=FixedDt(member_step), lone=False)
-        if self.control is not None:
-            steps = dict(policy=ControlledDt(self.control, []), lone=True, rewind=Tries(self.control))
-        self.core = Integrator(self.units, anywhere=self._anywhere, drop=blow_up == "drop", **steps)
+        self.core = member_integrator(self.units, self.control, self._anywhere, blow_up == "drop")
         self._out = self.core.out  # dropped units: {unit index: the step it blew up at}
         self.wall_time = 0.0  # s, of ``step``
         self._callbacks: list = []  # (call, every so many steps): ``add_callback``

@@ -24,7 +24,7 @@ without a sweep over tolerances (issue 64's "a run that asks for an accuracy").
 accepted steps to each time an activity is due at (``schedules.AtDays``: output and restart
 times) and the end, each landed on exactly, through the run's one loop.
 Its tries replay as graphs where a fixed-Δt run's steps do (``Simulation.try_step``: on CUDA
-by default): a graph is keyed by Δt (``Stepper.graph_key``), and the controller's Δt are few,
+by default): a graph is keyed by Δt (``GraphCapture.graph_key``), and the controller's Δt are few,
 those of its grid (``on_grid``), so each keeps its graph (a step landed on a target, its Δt off
 the grid, runs plain); the norm's read is the one host read of a try, and the Courant numbers'
 pass, where it is taken, a second. The IMEX pairs' tries run plain (their solver copies its
@@ -51,9 +51,10 @@ import warp as wp
 from ..config.control import ESTIMATED
 from ..config.schema import SceneControl
 from ..core.constants import DAY
-from ..core.errors import BlowUp
+from ..core.errors import BlowUp, SceneError
 from ..integrator import ControlledDt, Rewind
 from ..steppers import StepStats
+from ..steppers.capabilities import ErrorEstimates, TrialSteps
 from ..steppers.control import CflController, Controller, CourantMax, ErrorNorm, SpatialRate, capped
 from .schedules import AtDays
 
@@ -163,6 +164,8 @@ class StepControl:
         self.error = control.mode in ESTIMATED
         self.norm = self.controller = self.balance = None
         if self.error:
+            if not isinstance(stepper, ErrorEstimates) or not isinstance(stepper, TrialSteps):
+                raise SceneError(f"stepper {stepper.name}: no error estimate or trial steps to control its steps by")
             # the estimate's order in Δt: p + 1 a step, p per unit step (p the pair's lower order)
             order = min(stepper.order, stepper.embedded_order) + (0 if control.per_unit_step else 1)
             self.controller = Controller(order, control.controller)

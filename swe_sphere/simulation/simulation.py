@@ -116,7 +116,7 @@ class Simulation(Driven):
     With ``graphs`` "on", and "auto" on CUDA, ``run`` replays each step of a
     ``capturable`` stepper (the explicit ones; semi-implicit and IMEX after their first
     step, their Helmholtz CG's loops conditional nodes inside, on CUDA where Warp has
-    them) as a graph captured of an earlier step with the same ``Stepper.graph_key``
+    them) as a graph captured of an earlier step with the same ``GraphCapture.graph_key``
     (on CUDA one host call a step instead of one a launch; the same bits as launched
     one by one), its first replay checked against the step launched plainly
     (``graphs.GraphedSteps``); a model with a time-dependent forcing runs plain. On a
@@ -325,7 +325,7 @@ class Simulation(Driven):
     @property
     def graphs_checked(self) -> int:
         """The step graphs compared bit for bit with the same step launched plainly so far
-        (``graphs.GraphedSteps``: each key's first, or a ``Stepper.graph_family``'s)."""
+        (``graphs.GraphedSteps``: each key's first, or a ``GraphCapture.graph_family``'s)."""
         return self._graphed.checked
 
     def try_step(self, x):

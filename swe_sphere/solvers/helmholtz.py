@@ -410,7 +410,7 @@ class HelmholtzSolver:
         if self._saving is not None and a in self._saving["recent"]:
             self._saving["dropped"].setdefault(a, dropped)
 
-    # -- a rejected step's rollback (``Stepper.checkpoint``) ---------------------------
+    # -- a rejected step's rollback (``TrialSteps.checkpoint``) ---------------------------
     def checkpoint(self) -> dict:
         """What ``rollback`` needs to put the solver back as it is now: the mean depth, the
         last solution, the a's held in their order; a guess history is copied on the device

@@ -15,14 +15,15 @@ bitwise as if it had never stopped (restart files, ``swe_sphere.simulation.check
 
 from __future__ import annotations
 
-import dataclasses
-import typing
 from dataclasses import dataclass, field
 
 import numpy as np
 import warp as wp
 
 from ..model.shallow_water import ShallowWater
+from .capabilities import Described, NoOptions, option_types
+
+__all__ = ["NoOptions", "StepStats", "Stepper", "option_types"]
 
 f64 = wp.float64
 
@@ -35,26 +36,20 @@ class StepStats:
     iterations: dict = field(default_factory=dict)
 
 
-@dataclass(frozen=True)
-class NoOptions:
-    """A stepper without options."""
-
-
-def option_types(options_cls) -> dict[str, type]:
-    """Option name → type (float, int, str; tuple: a TOML array) of an options dataclass (the scene schema's table)."""
-    hints = typing.get_type_hints(options_cls)
-    return {f.name: hints[f.name] for f in dataclasses.fields(options_cls)}
-
-
-class Stepper:
+class Stepper(Described):
     """Base class. Subclasses set ``name`` (the registry key and scene table),
     ``Options`` (a frozen dataclass; its ``__post_init__`` raises ValueError
     "<option> must ..."), ``explicit`` (True: stable only below a Courant
     limit), ``solvers`` (names of the iteration counts in StepStats) and
     implement ``advance(x)``; those with history extend ``state``/``restore``;
     explicit ones set ``courant_limit``, those with explicit advection only
-    ``advective_courant_limit``; those whose step can run as a captured graph
-    set ``capturable`` (``graph_key``).
+    ``advective_courant_limit``. The base holds stepping (``prepare``, ``step``, ``advance``,
+    ``counts``, the ∇⁴ and the stage's clock), Δt (``set_dt``), phase (``set_phase``) and
+    history (``state``, ``restore``, ``carried_arrays``); the rest are capabilities
+    (``steppers.capabilities``) a stepper takes where it has them and their users check:
+    ``GraphCapture`` (a step replayed as a graph, ``capturable``), ``ErrorEstimates`` and
+    ``TrialSteps`` (under error control), and ``Described`` (its name, options and lines, every
+    stepper's).
 
     What a stepper may ask of the model is ``model.protocol.SteppingModel``: the tendency
     (``rhs``, ``rhs_update``, ``rhs_part``, ``set_time``), the ∇⁴ (``hyperviscosity``, ``hv``),
@@ -66,8 +61,6 @@ class Stepper:
     (``DifferentiableStepper`` and each family's description of its step), held there too.
     """
 
-    name = ""
-    Options: type = NoOptions
     explicit = False
     # True: its step calls only the verbs the adjoint's tape reads (``steppers.protocol``), so
     # ``adjoint.gradient`` differentiates it: the explicit steppers, those that solve with L and
@@ -91,7 +84,6 @@ class Stepper:
     # True (``Simulation.run`` sets it): a step leaves its solvers' device counters
     # unread (``StepStats.iterations`` empty for them), read by ``counts`` once a block
     deferred = False
-    removed_options: dict[str, str] = {}  # option → why it is gone, for the error message
     # True: ``set_dt`` may change Δt between steps (a one-step method whose launches take Δt's
     # coefficients as arguments, or that reads Δt each step). False where Δt is part of the history (leapfrog's
     # x(n−1), BDF2's, a multirate split's substeps): those run at a fixed Δt only.
@@ -105,33 +97,6 @@ class Stepper:
     error_estimate = None
     embedded_order = 0  # the embedded solution's order (0: no embedded pair)
 
-    @classmethod
-    def removed(cls, key: str) -> str | None:
-        """'<key> was removed: <why>' for an option the stepper no longer has, else None."""
-        why = cls.removed_options.get(key)
-        return None if why is None else f"{key} was removed: {why}"
-
-    @classmethod
-    def make_options(cls, **options):
-        """The stepper's options from keyword values (defaults for the rest).
-        Raises ValueError naming an unknown option or an invalid value."""
-        known = option_types(cls.Options)
-        for key in options:
-            if key in cls.removed_options:
-                raise ValueError(cls.removed(key))
-            if key not in known:
-                raise ValueError(f"unknown option {key!r} for stepper {cls.name} (known: {', '.join(known) or 'none'})")
-        return cls.Options(**options)
-
-    @classmethod
-    def partition_levels(cls, whole_grid, options: dict) -> np.ndarray | None:
-        """(nelem,) int, a level for each element of the whole grid, for a stepper whose work
-        goes by levels: a run over several ranks gives each rank its share of every level
-        (``grid.topology.rank_parts``). None (here): a partition by element count.
-        ``whole_grid()`` builds the whole ``CubedSphere`` (called only where needed);
-        ``options`` the scene's ``[<name>]`` table. ValueError names a bad option."""
-        return None
-
     def __init__(self, model: ShallowWater, dt: float, options=None):
         if not dt > 0:
             raise ValueError(f"dt must be > 0 (got {dt})")
@@ -144,53 +109,10 @@ class Stepper:
         self.steps = 0  # steps taken since the initial state
         self.t0 = 0.0  # s, the model time of that state (a branched run's start; ``Simulation`` sets it)
 
-    @classmethod
-    def changes_dt(cls, options: dict) -> bool:
-        """Whether the stepper with these scene options can change its Δt between steps (what
-        step control needs): ``variable_dt``, unless its options tie its history to a Δt."""
-        return cls.variable_dt
-
-    @classmethod
-    def has_estimate(cls, options: dict) -> bool:
-        """Whether the stepper with these scene options gives an ``error_estimate`` (an
-        embedded pair): what error control needs. ValueError names a bad option."""
-        return cls.embedded_order > 0
-
-    def follow_tolerance(self, atol: float, rtol: float = 0.0, per_unit_step: bool = False) -> None:
-        """Under error control with absolute tolerances ≥ ``atol`` and the relative ``rtol``: an
-        iterative solve inside the step tightened to stay below the step's error
-        (``implicit.Implicit``, ``runge_kutta.ImexRK``); ``per_unit_step``: the tolerances are
-        a day's (``time.per_unit_step``: a step's error held to Δt / 1 day of them). Nothing
-        here."""
-
-    def estimate_errors(self) -> None:
-        """Under error control (the estimate read every step): make ``error_estimate`` from now
-        on where the stepper makes it only when asked (``implicit.Implicit``); nothing here."""
-
-    def carry_last_stage(self) -> bool:
-        """Under error control (the estimate read every step): carry an FSAL pair's last stage
-        over as the next step's first (``runge_kutta.ExplicitRK.carry_last_stage``); whether
-        the stepper does. False here."""
-        return False
-
-    @classmethod
-    def label(cls, options: dict) -> str:
-        """The stepper as ``swe-sphere list`` and a run name it with these scene options."""
-        return cls.name
-
-    def attrs(self) -> dict:
-        """Global attributes of the run file beyond the scene's (strings, numbers)."""
-        return {}
-
     def prepare(self, x: wp.array2d) -> None:
         """Called with the initial state x (3, N) before the first step and before any
         ``restore`` (``Simulation``): what a stepper fixes from the flow at the start
         (local time stepping's element levels). Nothing here."""
-
-    def describe(self) -> list[str]:
-        """Lines a run prints at its start about the stepper beyond its ``label`` (after
-        ``prepare``): none here."""
-        return []
 
     def set_phase(self, k: int) -> None:
         """Put the stepper at step k of its run (the gradient's sweep, taking step k again from a
@@ -212,35 +134,7 @@ class Stepper:
     def restore(self, state: dict) -> None:
         """Continue from ``state()`` of a stepper of the same kind, options, dt and grid.
         Raises ValueError naming a missing or misshapen entry."""
-        self.steps = int(self._entry(state, "steps"))
-
-    def checkpoint(self):
-        """What ``rollback`` needs to undo the next step (a try that error control rejects,
-        ``simulation.adaptive.StepControl``): ``state()`` here; a stepper whose state is dear
-        to gather keeps device copies instead (``helmholtz_steps.HelmholtzSteps``)."""
-        return self.state()
-
-    def rollback(self, saved) -> None:
-        """Back to where ``checkpoint()`` returned ``saved``: ``restore`` here."""
-        self.restore(saved)
-
-    def _entry(self, state, key):
-        if key not in state:
-            raise ValueError(f"{self.name} stepper state lacks {key!r}")
-        return state[key]
-
-    def _save(self, a: wp.array) -> np.ndarray:
-        """A whole-grid copy of a (rows, N) array, gathered from every rank on rank 0
-        (call on every rank; None on the others)."""
-        whole = self.model.topology.gather(a.numpy())
-        return None if whole is None else whole.copy()
-
-    def _load(self, a: wp.array, state, key) -> None:
-        """Set a (rows, N) array from a whole-grid entry of ``state`` (read on rank 0
-        when several ranks: None on the others; call on every rank)."""
-        a.assign(
-            self.model.topology.distribute(self._entry(state, key), a.shape[0], f"{self.name} stepper state {key!r}")
-        )
+        self.steps = int(entry(self, state, "steps"))
 
     # -- stepping ----------------------------------------------------------------------
     def step(self, x: wp.array2d) -> StepStats:
@@ -277,56 +171,6 @@ class Stepper:
         by one to name it). {} for steppers that count on the host (in ``StepStats``)."""
         return {}
 
-    def device_arrays(self) -> list:
-        """The device arrays a step adds to besides x and ``state()``: its solvers' counters
-        (``counts``), what it carries to the next step (``carried``), which a step run twice
-        (``graphs.GraphedSteps``' check) restores."""
-        return []
-
-    def carried(self):
-        """What a step leaves on the host for the next besides ``state()``, true only of the
-        ``device_arrays`` as the step left them (an FSAL pair's first stage written ahead,
-        ``ExplicitRK.carry_last_stage``): a step run twice (``graphs.GraphedSteps``' check)
-        puts it back with them (``resume``), where ``restore`` alone forgets it. None here."""
-        return None
-
-    def resume(self, carried) -> None:
-        """Take back ``carried()`` after ``restore``, the device arrays put back as they were."""
-
-    def _device_counts(self) -> dict:
-        """A step's device-counted iterations for its ``StepStats``: read now (``counts``,
-        the step's one host read), or {} when ``deferred``."""
-        return {} if self.deferred else self.counts()
-
-    def graph_key(self):
-        """What the next step's launches depend on besides the stepper, dt and x: steps with
-        equal keys launch the same kernels with the same arguments, so a graph captured of
-        one (``wp.ScopedCapture``) replays the others bit for bit. None: the next step
-        cannot be captured, because the stepper is not ``capturable`` or the model has a
-        time-dependent forcing (its time, ``_at``, is a launch argument a graph would freeze;
-        kept on the host, as a device scalar would need a launch per stage to set). With the ∇⁴
-        every k > 1 steps, whether this step applies it (``_hyperviscosity``): two graphs."""
-        if not self.capturable or "forcing" in self.model.terms:
-            return None
-        hv = self.model.hv
-        return (
-            ("step", self.dt) if hv is None or hv.every == 1 else ("step", self.dt, self._dissipates())
-        )  # Δt: ``set_dt``
-
-    def graph_family(self):
-        """``graph_key`` without Δt where the steps at any Δt take the same kinds of work,
-        Δt entering as launch arguments (the stages' coefficients) and counts (the ∇⁴'s
-        substeps), nothing read on the host, so that a graph checked against plain launches at
-        one Δt vouches for the capture at the others (``graphs.GraphedSteps``); None: each
-        key's graph checked."""
-        return None
-
-    def replayed(self, stats: StepStats) -> StepStats:
-        """Count a step that ran as the graph of an earlier step with the same ``graph_key``
-        (whose ``stats`` it returns)."""
-        self.steps += 1
-        return stats
-
     def _dissipates(self) -> bool:
         """Whether the step under way (index ``steps``) ends with the ∇⁴ (``_hyperviscosity``)."""
         return (self.steps + 1) % self.model.hv.every == 0
@@ -350,13 +194,35 @@ class Stepper:
         forcing reads it, nothing else does)."""
         self.model.set_time(self.t0 + (self.steps + c) * self.dt)
 
-    def _buffer(self):
-        return wp.zeros((3, self.N), dtype=f64, device=self.model.topology.device)
 
-    def _lincomb(self, out, *terms):
-        """``model.lincomb``: the recorded launch of out = Σ c·x over (c, x) terms."""
-        return self.model.lincomb(out, terms)
+# -- what a stepper's implementation builds on: its work arrays, its history's entries --------------
+def work_array(stepper: Stepper) -> wp.array:
+    """A (3, N) float64 array of zeros on ``stepper``'s device: a stage's, or a history's."""
+    return wp.zeros((3, stepper.N), dtype=f64, device=stepper.model.topology.device)
 
-    def _pointwise(self, kernel, *inputs, unique=False) -> None:
-        """``model.pointwise``: run a pointwise kernel, recorded once per set of arrays."""
-        self.model.pointwise(kernel, *inputs, unique=unique)
+
+def device_counts(stepper: Stepper) -> dict:
+    """A step's device-counted iterations for its ``StepStats``: read now (``counts``, the step's
+    one host read), or {} when ``deferred``."""
+    return {} if stepper.deferred else stepper.counts()
+
+
+def entry(stepper: Stepper, state: dict, key: str):
+    """``state[key]`` of ``stepper``'s ``state()``; ValueError naming a missing entry."""
+    if key not in state:
+        raise ValueError(f"{stepper.name} stepper state lacks {key!r}")
+    return state[key]
+
+
+def gathered_copy(stepper: Stepper, a: wp.array) -> np.ndarray | None:
+    """A whole-grid copy of a (rows, N) array of ``stepper``'s, gathered from every rank on rank 0
+    (call on every rank; None on the others)."""
+    whole = stepper.model.topology.gather(a.numpy())
+    return None if whole is None else whole.copy()
+
+
+def load_entry(stepper: Stepper, a: wp.array, state: dict, key: str) -> None:
+    """Set a (rows, N) array of ``stepper``'s from a whole-grid entry of ``state`` (read on rank 0
+    when several ranks: None on the others; call on every rank)."""
+    where = f"{stepper.name} stepper state {key!r}"
+    a.assign(stepper.model.topology.distribute(entry(stepper, state, key), a.shape[0], where))

@@ -15,10 +15,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..model.launches import Update
-from .base import Stepper, StepStats
+from .base import Stepper, StepStats, gathered_copy, load_entry, work_array
+from .capabilities import GraphCapture, TrialSteps
 
 
-class FBRK32(Stepper):
+class FBRK32(GraphCapture, TrialSteps, Stepper):
     """Forward–backward Runge–Kutta FB-RK(3,2), the depth advanced first in each of
     three stages (Lilly, Engwirda, Capodaglio, Higdon & Petersen 2023, MWR,
     doi:10.1175/MWR-D-23-0113.1). As in their swe-python ``step_RK32``:
@@ -62,7 +63,7 @@ class FBRK32(Stepper):
             raise ValueError("fbrk32 advances the depth first: it needs the continuity term (or a forcing)")
         # s: the momentum half's input (u⁽ⁱ⁻¹⁾, v⁽ⁱ⁻¹⁾, h̃); t: x⁽ⁱ⁾ of stages 1 and 2;
         # kh: the continuity half's wind rows (a forcing's; zero without one)
-        self.s, self.t, self.kh = self._buffer(), self._buffer(), self._buffer()
+        self.s, self.t, self.kh = work_array(self), work_array(self), work_array(self)
         self._x = None
 
     def _record(self, x):
@@ -87,10 +88,10 @@ class FBRK32(Stepper):
             depth += (Update(s, tilde, H), Update(out, ((1.0, x), (c * dt, None)), H))
             wind = ((1.0, x), *(((c * dt, kh),) if forced else ()), (c * dt, None))  # u⁽ⁱ⁾ = u(n) + cΔt (F_u)
             if self.momentum:
-                launches = [self._lincomb(s[U], (1.0, x[U]), (0.0, x[U]))] if i == 0 else []  # u⁽⁰⁾ = u(n)
+                launches = [self.model.lincomb(s[U], ((1.0, x[U]), (0.0, x[U])))] if i == 0 else []  # u⁽⁰⁾ = u(n)
                 momentum = (Update(out, wind, U),) + (() if last else (Update(s, wind, U),))
             else:
-                launches, momentum = [self._lincomb(out[U], (1.0, x[U]), (c * dt, kh[U]))], None
+                launches, momentum = [self.model.lincomb(out[U], ((1.0, x[U]), (c * dt, kh[U])))], None
             self._stages.append((self.C[i - 1] if i else 0.0, x if i == 0 else t, depth, launches, momentum))
 
     def _dt_changed(self):
@@ -111,7 +112,7 @@ class FBRK32(Stepper):
         return StepStats(3)
 
 
-class _LeapfrogFamily(Stepper):
+class _LeapfrogFamily(GraphCapture, Stepper):
     """Three-level schemes: keep x(n−1) (``old``; in ``state()`` as "previous");
     the first step (``steps == 0``) is the explicit midpoint rule (second order,
     2 RHS evaluations)."""
@@ -121,7 +122,7 @@ class _LeapfrogFamily(Stepper):
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
-        self.old, self.new = self._buffer(), self._buffer()
+        self.old, self.new = work_array(self), work_array(self)
         self._x = None
 
     def graph_key(self):
@@ -133,13 +134,13 @@ class _LeapfrogFamily(Stepper):
     def state(self):
         s = super().state()
         if self.steps:
-            s["previous"] = self._save(self.old)
+            s["previous"] = gathered_copy(self, self.old)
         return s
 
     def restore(self, state):
         super().restore(state)
         if self.steps:
-            self._load(self.old, state, "previous")
+            load_entry(self, self.old, state, "previous")
 
     def _record(self, x):
         """Record the launches on x (once per state array)."""
@@ -147,8 +148,8 @@ class _LeapfrogFamily(Stepper):
         self._x = x
         self._start_mid = (Update(self.new, ((1.0, x), (dt / 2, None))),)  # x(n + 1/2), from F(x(n))
         self._start_end = (Update(self.old, ((1.0, x),)), Update(x, ((1.0, x), (dt, None))))  # keep x(n); x(n+1)
-        self._start_keep = self._lincomb(self.old, (1.0, x), (0.0, x))  # the semi-implicit start's
-        self._copy_new = self._lincomb(x, (1.0, self.new), (0.0, self.new))
+        self._start_keep = self.model.lincomb(self.old, ((1.0, x), (0.0, x)))  # the semi-implicit start's
+        self._copy_new = self.model.lincomb(x, ((1.0, self.new), (0.0, self.new)))
         self._record_scheme(x)
 
     def advance(self, x):
@@ -188,7 +189,7 @@ class Leapfrog(_LeapfrogFamily):
     def _record_scheme(self, x):
         eps = self.options.robert_asselin
         self._lf = (Update(self.new, ((1.0, self.old), (2 * self.dt, None))),)
-        self._ra = self._lincomb(self.old, (1 - 2 * eps, x), (eps, self.old), (eps, self.new))
+        self._ra = self.model.lincomb(self.old, ((1 - 2 * eps, x), (eps, self.old), (eps, self.new)))
 
     def _step(self, x):
         m = self.model
@@ -211,7 +212,7 @@ class LeapfrogTrapezoidal(_LeapfrogFamily):
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
-        self.half = self._buffer()  # x(n) + Δt/2 F(x(n)), the corrector's first half
+        self.half = work_array(self)  # x(n) + Δt/2 F(x(n)), the corrector's first half
 
     def _record_scheme(self, x):
         dt = self.dt

@@ -54,7 +54,7 @@ import warp as wp
 from ..kernels import blas
 from ..solvers.jacobian import FiniteDifferenceJacobian
 from ..solvers.kiops import Kiops
-from .base import Stepper, StepStats
+from .base import Stepper, StepStats, entry, gathered_copy, load_entry
 
 f64 = wp.float64
 
@@ -129,16 +129,16 @@ class _Exponential(Stepper):
         s = super().state()
         s["krylov_size"] = self.m
         if self._uses_previous():
-            s["previous"] = self._save(self.xprev)
-            s["previous_rhs"] = self._save(self.Fprev)
+            s["previous"] = gathered_copy(self, self.xprev)
+            s["previous_rhs"] = gathered_copy(self, self.Fprev)
         return s
 
     def restore(self, state):
         super().restore(state)
-        self.m = int(self._entry(state, "krylov_size"))
+        self.m = int(entry(self, state, "krylov_size"))
         if self._uses_previous():
-            self._load(self.xprev, state, "previous")
-            self._load(self.Fprev, state, "previous_rhs")
+            load_entry(self, self.xprev, state, "previous")
+            load_entry(self, self.Fprev, state, "previous_rhs")
 
     # -- the step ----------------------------------------------------------------------
     def _forcing_rate(self, x, out) -> None:
@@ -152,7 +152,7 @@ class _Exponential(Stepper):
         self._at(-q)
         self._F(x, self.Fb)
         self._at(0.0)
-        self._pointwise(blas.axpby, f64(0.5 / q), self.Fa, f64(-0.5 / q), self.Fb, self.work)
+        self.model.pointwise(blas.axpby, f64(0.5 / q), self.Fa, f64(-0.5 / q), self.Fb, self.work)
         self.jacobian.gather(1.0, self.work, out)
 
     def advance(self, x):
@@ -168,7 +168,7 @@ class _Exponential(Stepper):
             lin(self.T, self._none, 1.0 / fnorm, T[0], self.rows_u[0])
             c = np.zeros(6)  # the φ₂ vector from the rows of T
             if self._uses_previous():  # ⅔ R(x(n−1)) / ‖F‖
-                self._pointwise(blas.axpby, f64(1.0), self.xprev, f64(-1.0), x, self.work)
+                self.model.pointwise(blas.axpby, f64(1.0), self.xprev, f64(-1.0), x, self.work)
                 jac.gather(1.0, self.work, T[3])
                 jac.gather(1.0, self.Fprev, T[1])
                 jac.apply(x, self.Fx, xnorm, T[3], T[2])
@@ -192,7 +192,7 @@ class _Exponential(Stepper):
             wp.copy(self.Fprev, self.Fx)
         if stats is not None:
             jac.scatter(self.w, self.work)
-            self._pointwise(blas.axpby, f64(1.0), x, f64(self.dt * fnorm), self.work, x)
+            self.model.pointwise(blas.axpby, f64(1.0), x, f64(self.dt * fnorm), self.work, x)
         self._hyperviscosity(x)
         counts = (stats.krylov, stats.substeps, stats.rejected) if stats else (0, 0, 0)
         return StepStats(self.rhs_evals, dict(zip(self.solvers, counts)))

@@ -3,8 +3,11 @@ its Helmholtz solver, and the solver options they no longer take."""
 
 from __future__ import annotations
 
+from functools import partial
+
 from ..model.gravity_wave import GravityWaveOperator
 from ..solvers.helmholtz import HelmholtzSolver
+from .base import entry
 
 # the solver options the semi-implicit, IMEX and JFNK steppers no longer have, and why (``Stepper.removed_options``)
 REMOVED_SOLVER_OPTIONS = {
@@ -17,7 +20,7 @@ class HelmholtzSteps:
     ``linear``, the ``GravityWaveOperator`` about their options' ``mean_depth``, and
     ``helmholtz``, its ``HelmholtzSolver`` with their ``HelmholtzOptions`` (``warm``); the
     mean depth and the CG's warm guess in ``state``/``restore``; the CG's device counters as
-    ``counts`` (read with the step when not ``deferred``, ``Stepper._device_counts``); and a
+    ``counts`` (read with the step when not ``deferred``, ``base.device_counts``); and a
     graph key once the step reads nothing: H fixed (the first step's host read,
     ``GravityWaveOperator.set_depth``), the counters ``deferred``, and the CG's loops able to
     be graph nodes (``HelmholtzSolver.graphable``: one rank; on CUDA conditional nodes).
@@ -48,7 +51,7 @@ class HelmholtzSteps:
 
     def restore(self, state):
         super().restore(state)
-        self.helmholtz.restore(state, self._entry)
+        self.helmholtz.restore(state, partial(entry, self))
 
     def checkpoint(self):
         # the solver's guess histories as device copies (``HelmholtzSolver.checkpoint``), not

@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from functools import partial
 
 import warp as wp
 
@@ -20,7 +21,8 @@ from ..model.gravity_wave import GravityWaveOperator, check_mean_depth
 from ..solvers.helmholtz import HelmholtzOptions, HelmholtzSolver, check_precision
 from ..solvers.jacobian import FiniteDifferenceJacobian, KernelPasses
 from ..solvers.krylov import FGMRES, KernelVectors
-from .base import Stepper, StepStats
+from .base import Stepper, StepStats, entry, gathered_copy, load_entry
+from .capabilities import ErrorEstimates, TrialSteps
 from .helmholtz_steps import REMOVED_SOLVER_OPTIONS
 
 f64 = wp.float64
@@ -65,7 +67,7 @@ class ImplicitOptions:
             raise ValueError(f"initial_guess must be 'extrapolate' or 'previous' (got {self.initial_guess!r})")
 
 
-class Implicit(Stepper):
+class Implicit(ErrorEstimates, TrialSteps, Stepper):
     """Fully implicit θ-method / BDF2 stepper by Jacobian-free Newton–Krylov.
 
     Each step solves R(x) = 0 on the DSS'd state, with F the model's DSS'd RHS:
@@ -194,14 +196,14 @@ class Implicit(Stepper):
         return self._norm(a) / math.sqrt(3 * self.topology.nnodes_total)
 
     def _axpby(self, a, x, b, y, out):
-        self._pointwise(blas.axpby, f64(a), x, f64(b), y, out)
+        self.model.pointwise(blas.axpby, f64(a), x, f64(b), y, out)
 
     def _F(self, x, out):
         self.model.rhs(x, out)
         self.rhs_evals += 1
 
     def _residual(self, x, F, R):
-        self._pointwise(ik.residual, x, self.b, F, f64(1.0 / self.dt), f64(self.beta), R)
+        self.model.pointwise(ik.residual, x, self.b, F, f64(1.0 / self.dt), f64(self.beta), R)
 
     # -- the linear operator: J P⁻¹ ----------------------------------------------
     def _precondition(self, r, z):
@@ -386,21 +388,21 @@ class Implicit(Stepper):
         if self.helmholtz is not None:
             s["mean_depth"] = self.helmholtz.H  # 0 until fixed by the first step
         if self._uses_previous():
-            s["previous"] = self._save(self.xprev)
+            s["previous"] = gathered_copy(self, self.xprev)
         if self.error_estimate is not None and math.isfinite(self.dt_old):  # the AB2 predictor's
-            s["rhs_previous"], s["dt_previous"] = self._save(self.Fprev), self.dt_old
+            s["rhs_previous"], s["dt_previous"] = gathered_copy(self, self.Fprev), self.dt_old
         return s
 
     def restore(self, state):
         super().restore(state)
         if self.helmholtz is not None:
-            self.helmholtz.restore(state, self._entry)
+            self.helmholtz.restore(state, partial(entry, self))
         if self._uses_previous():
-            self._load(self.xprev, state, "previous")
+            load_entry(self, self.xprev, state, "previous")
         if self.error_estimate is not None:
             self.dt_old = math.nan
             if "dt_previous" in state:
-                self._load(self.Fprev, state, "rhs_previous")
+                load_entry(self, self.Fprev, state, "rhs_previous")
                 self.dt_old = float(state["dt_previous"])
 
     def checkpoint(self):

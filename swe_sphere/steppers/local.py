@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 import warp as wp
@@ -43,7 +44,8 @@ import warp as wp
 from ..grid.levels import ElementLevels, element_levels, element_rates
 from ..grid.quality import element_sizes
 from ..model.shallow_water import ElementPart
-from .base import Stepper, StepStats
+from .base import Stepper, StepStats, entry, gathered_copy, load_entry
+from .capabilities import GraphCapture
 from .multirate import Mri
 from .multirate_ab import START_STEPS, MultirateAB3
 from .runge_kutta import explicit_steppers
@@ -296,23 +298,23 @@ class Lts(Mri):
             a[0] = np.repeat(self.levels.level[topology.elements], self.model.topology.grid.np**2)
         out = {**Stepper.state(self), "levels": topology.gather(a)}
         if self.mrab is not None:
-            out |= self.mrab.state(self._save)
+            out |= self.mrab.state(partial(gathered_copy, self))
         return out
 
     def restore(self, state):
         Stepper.restore(self, state)
-        topology, entry = self.model.topology, self._entry(state, "levels")
-        topology.distribute(entry, 3, f"{self.name} stepper state 'levels'")  # its shape checked on every rank
-        level = topology.bcast(None if entry is None else np.asarray(entry)[0, :: self.model.topology.grid.np**2])
+        topology, held = self.model.topology, entry(self, state, "levels")
+        topology.distribute(held, 3, f"{self.name} stepper state 'levels'")  # its shape checked on every rank
+        level = topology.bcast(None if held is None else np.asarray(held)[0, :: self.model.topology.grid.np**2])
         level = np.asarray(level).astype(np.int64)
         self._set_levels(ElementLevels(level, int(level.max()) + 1))
         if self.mrab is not None:
-            self.mrab.restore(state, self._load, self._entry)
+            self.mrab.restore(state, partial(load_entry, self), partial(entry, self))
 
     def graph_key(self):
-        if self.levels is None or Stepper.graph_key(self) is None:
+        if self.levels is None or GraphCapture.graph_key(self) is None:
             return None
-        return ("step", self.mrab.phase()) if self.mrab is not None else Stepper.graph_key(self)
+        return ("step", self.mrab.phase()) if self.mrab is not None else GraphCapture.graph_key(self)
 
     def replayed(self, stats):
         if self.mrab is not None:

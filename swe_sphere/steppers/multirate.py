@@ -14,8 +14,9 @@ import warp as wp
 
 from ..model.gravity_wave import GravityWaveOperator
 from ..model.launches import Update
-from .base import Stepper, StepStats
+from .base import Stepper, StepStats, entry, work_array
 from .butcher import TableauOptions, parse, stage_form, stage_terms
+from .capabilities import GraphCapture
 from .explicit import FBRK32
 from .multirate_options import MriOptions, SplitExplicitOptions, parse_mri, substeps_label
 from .tables import EXPLICIT
@@ -100,7 +101,7 @@ class GravitySplit:
         self.linear.apply(x, out, forcing)
 
 
-class _Multirate(Stepper):
+class _Multirate(GraphCapture, Stepper):
     """What both steppers share: the split, H in ``state()``, the step in h′, cached combinations."""
 
     capturable = differentiable = True
@@ -137,7 +138,7 @@ class _Multirate(Stepper):
 
     def restore(self, state):
         super().restore(state)
-        self.split.set_depth_value(self._entry(state, "mean_depth"))
+        self.split.set_depth_value(entry(self, state, "mean_depth"))
         self.n_fast = None
 
     def graph_key(self):
@@ -217,9 +218,9 @@ class SplitExplicit(_Multirate):
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
-        self.xn, self.z, self.S = self._buffer(), self._buffer(), self._buffer()
-        self.w = self._buffer()  # row 2: the next substep's forward-weighted depth h̃
-        self.W = self._buffer()  # rows 0, 1: the substeps' wind; row 2: the stage's full depth h
+        self.xn, self.z, self.S = work_array(self), work_array(self), work_array(self)
+        self.w = work_array(self)  # row 2: the next substep's forward-weighted depth h̃
+        self.W = work_array(self)  # rows 0, 1: the substeps' wind; row 2: the stage's full depth h
         # the continuity is the substeps' (about the stage's depth): its slow part is zero
         self.slow_terms = tuple(t for t in self.split.slow_terms if t != "continuity")
 
@@ -314,19 +315,19 @@ class Mri(_Multirate):
         o = self.options
         self.tab = parse_mri(o)
         s = len(self.tab.d)
-        self.xn, self.z, self.rho0, self.rho1, self.rho = (self._buffer() for _ in range(5))
-        self.S = [self._buffer() for _ in range(s)]
+        self.xn, self.z, self.rho0, self.rho1, self.rho = (work_array(self) for _ in range(5))
+        self.S = [work_array(self) for _ in range(s)]
         # Y_{j+1} − x(n), kept where a later solve that does not simply restart reads it
         used = ((self.tab.alpha != 0) | (self.tab.gamma != 0)) & ~np.array([[self._restarts(r)] for r in range(s)])
-        self.D = {j: self._buffer() for j in range(1, s) if used[j:, j].any()}
+        self.D = {j: work_array(self) for j in range(1, s) if used[j:, j].any()}
         self.inner = None  # the inner explicit table (None: fbrk32)
         if o.inner == "fbrk32":
-            self.t, self.s = self._buffer(), self._buffer()
+            self.t, self.s = work_array(self), work_array(self)
         else:
             table = self.inner = parse(TableauOptions(**EXPLICIT[o.inner]))
             names, self._form = stage_form(table.A_E, table.b_E, table.c)
-            self._rk = {name: self._buffer() for name in names}
-            self.K = self._buffer()
+            self._rk = {name: work_array(self) for name in names}
+            self.K = work_array(self)
 
     def _restarts(self, r: int) -> bool:
         """Whether solve r starts from Y_{r+1} with nothing else of the earlier stages (MRI-GARK)."""

@@ -233,7 +233,7 @@ class MultirateAB3:
                     self.comb(arrays[out], *stage_terms(terms, arrays[out], arrays, self.F, tau))
 
     def replayed(self) -> None:
-        """The host's part of a step that ran as a captured graph (``Stepper.replayed``):
+        """The host's part of a step that ran as a captured graph (``GraphCapture.replayed``):
         each level's history shifted 2^k times, as the step's evaluations shift it, and the
         start's progress counted."""
         for k, h in enumerate(self.history):

@@ -22,8 +22,9 @@ from ..core.constants import DAY
 from ..kernels import blas
 from ..model.launches import Update
 from ..solvers.helmholtz import HelmholtzOptions
-from .base import Stepper, StepStats
+from .base import Stepper, StepStats, device_counts, work_array
 from .butcher import PARTS, Table, TableauOptions, imaginary_axis_limit, parse, stage_form
+from .capabilities import ErrorEstimates, GraphCapture, TrialSteps
 from .helmholtz_steps import REMOVED_SOLVER_OPTIONS, HelmholtzSteps
 from .tables import COURANT_LIMITS, EXPLICIT, IMEX, IMEX_ADVECTIVE_LIMITS, IMEX_PAIRS
 
@@ -46,7 +47,7 @@ def _dt_times(q: Fraction, dt: float) -> float:
     return dt / q.denominator if q.numerator == 1 else float(q) * dt
 
 
-class ExplicitRK(Stepper):
+class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
     """An explicit Runge–Kutta step of the table ``table()`` (a ``butcher.Table``),
     recorded once from its ``stage_form``: s RHS evaluations a step.
 
@@ -71,7 +72,7 @@ class ExplicitRK(Stepper):
         table = self.table()
         estimate = table.estimate
         buffers, self._form = stage_form(table.A_E, table.b_E, table.c, None if estimate is None else estimate[0])
-        self._buffers = {name: self._buffer() for name in buffers}
+        self._buffers = {name: work_array(self) for name in buffers}
         self._x = None
         self._carried = None  # ``carry_last_stage``: the FSAL stage's weight d_s in the estimate
         self._ahead = None  # the Δt whose first stage the last step's FSAL evaluation wrote (None: not written)
@@ -113,7 +114,7 @@ class ExplicitRK(Stepper):
         s, d = len(t.b_E), t.estimate[0]
         cut = [row[: s - 1] for row in t.A_E[: s - 1]]
         buffers, self._form = stage_form(cut, t.b_E[: s - 1], t.c[: s - 1], d[: s - 1])
-        self._buffers = {name: self._buffer() for name in buffers}
+        self._buffers = {name: work_array(self) for name in buffers}
         self._carried, self._ahead, self._x = d[s - 1], None, None
         return True
 
@@ -211,7 +212,7 @@ def explicit_steppers() -> tuple[type[Stepper], ...]:
     return tuple(classes)
 
 
-class ImexRK(HelmholtzSteps, Stepper):
+class ImexRK(HelmholtzSteps, GraphCapture, ErrorEstimates, TrialSteps, Stepper):
     """An IMEX additive Runge–Kutta step of the pair ``table()`` (a ``butcher.Table``):
     gravity waves through A_I (one Helmholtz solve a stage with a_ii ≠ 0), the rest
     through A_E. Options: the Helmholtz solve's ``tol``, ``maxiter``,
@@ -286,12 +287,14 @@ class ImexRK(HelmholtzSteps, Stepper):
             bool(b_I[j] != b_E[j] or self.d_I[j] != self.d_E[j] or (A_I[j + 1 :, j] != A_E[j + 1 :, j]).any())
             for j in range(stages)
         ]
-        self.F = [self._buffer() for _ in range(stages)]  # F(Y_j), where a combination not written by its DSS needs it
-        self.L = [self._buffer() for _ in range(stages)]  # L Y_j (first the stage's right-hand side)
-        self.Y = self._buffer()
+        self.F = [
+            work_array(self) for _ in range(stages)
+        ]  # F(Y_j), where a combination not written by its DSS needs it
+        self.L = [work_array(self) for _ in range(stages)]  # L Y_j (first the stage's right-hand side)
+        self.Y = work_array(self)
         # an embedded pair's error estimate of the last step, e = Δt Σ_j (d_E,j S(Y_j) + d_I,j L Y_j)
         # (3, N; as ``ExplicitRK.error_estimate``), summed after x(n+1) from the stored F_j and L Y_j
-        self.error_estimate = None if estimate is None else self._buffer()
+        self.error_estimate = None if estimate is None else work_array(self)
 
     @staticmethod
     def _passes(terms) -> list:
@@ -303,7 +306,7 @@ class ImexRK(HelmholtzSteps, Stepper):
         """out = src + Σ c·a over ``passes``, one ``blas.axpbypcz``/``axpby`` a pass, each after the first from out."""
         for pair in passes:
             args = [a for c, x in pair for a in (f64(c), x)]
-            self._pointwise(blas.axpbypcz if len(pair) == 2 else blas.axpby, f64(1.0), src, *args, out)
+            self.model.pointwise(blas.axpbypcz if len(pair) == 2 else blas.axpby, f64(1.0), src, *args, out)
             src = out
 
     def advance(self, x):
@@ -347,10 +350,10 @@ class ImexRK(HelmholtzSteps, Stepper):
         if self.error_estimate is not None:  # e = the first pass, then the others added
             e, (first, *rest) = self.error_estimate, combos[s + 1]
             (c1, a1), (c2, a2) = first if len(first) == 2 else (*first, (0.0, first[0][1]))
-            self._pointwise(blas.axpby, f64(c1), a1, f64(c2), a2, e)
+            self.model.pointwise(blas.axpby, f64(c1), a1, f64(c2), a2, e)
             self._combine(e, e, rest)
         self._hyperviscosity(x)
-        return StepStats(evals, self._device_counts())
+        return StepStats(evals, device_counts(self))
 
     def _rhs(self, i, Y, combos, outs, x) -> bool:
         """F_i = F(Y), and the next combination's pass that F_i enters written by its DSS

@@ -25,7 +25,7 @@ import warp as wp
 
 from ..kernels import blas
 from ..solvers.helmholtz import HelmholtzOptions
-from .base import StepStats
+from .base import StepStats, device_counts, work_array
 from .explicit import Leapfrog, LeapfrogOptions
 from .helmholtz_steps import REMOVED_SOLVER_OPTIONS, HelmholtzSteps
 
@@ -71,7 +71,7 @@ class SemiImplicit(HelmholtzSteps, Leapfrog):
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
-        self.F, self.W, self.LW = self._buffer(), self._buffer(), self._buffer()
+        self.F, self.W, self.LW = work_array(self), work_array(self), work_array(self)
 
     @property
     def H(self) -> float:
@@ -85,9 +85,9 @@ class SemiImplicit(HelmholtzSteps, Leapfrog):
         self.linear.set_depth(cur)
         self._at(0.0)  # cur is x(n)
         m.rhs(cur, self.F)
-        self._pointwise(blas.axpby, f64(1.0), old, f64(-2.0), cur, self.W)
+        self.model.pointwise(blas.axpby, f64(1.0), old, f64(-2.0), cur, self.W)
         self.linear.apply(self.W, self.LW)
-        self._pointwise(blas.axpbypcz, f64(1.0), old, f64(2.0 * dt), self.F, f64(dt), self.LW, new)
+        self.model.pointwise(blas.axpbypcz, f64(1.0), old, f64(2.0 * dt), self.F, f64(dt), self.LW, new)
         self.helmholtz.solve(new, dt, new)
 
     def advance(self, x):
@@ -99,9 +99,9 @@ class SemiImplicit(HelmholtzSteps, Leapfrog):
             self._si(self.old, x, self.new, self.dt / 2)
             self._copy_new.launch()
             m.hyperviscosity(x, self.dt)
-            return StepStats(1, self._device_counts())
+            return StepStats(1, device_counts(self))
         self._si(self.old, x, self.new, self.dt)
         m.hyperviscosity(self.new, 2 * self.dt)
         self._ra.launch()
         self._copy_new.launch()
-        return StepStats(1, self._device_counts())
+        return StepStats(1, device_counts(self))

@@ -315,8 +315,8 @@ def test_capturable_steps_read_nothing_back(one_thread):
         counts[name] = tally.syncs
         if sim.stepper.capturable:
             assert tally.syncs == 0 and sim.stepper.graph_key() is not None, (name, tally.syncs)
-        else:
-            assert sim.stepper.graph_key() is None, name
+        else:  # no graph capture (``capabilities.GraphCapture``)
+            assert not hasattr(sim.stepper, "graph_key"), name
     print("host reads in one step:", counts)
     assert counts["implicit"] > 0  # the count sees the solvers' reads
     assert {"semi_implicit", "imex", "ssprk3"} <= {name for name, cls in STEPPERS.items() if cls.capturable}

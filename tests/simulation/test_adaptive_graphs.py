@@ -1,7 +1,7 @@
 """A controlled run's tries replayed as graphs (``integrator.Unit.try_step``, ``adaptive.StepControl``).
 
 The controller's Δt are those of its grid (``on_grid``), so a few recur and each keeps a graph
-keyed by it (``Stepper.graph_key``; an FSAL pair's key also says whether its first stage was
+keyed by it (``GraphCapture.graph_key``; an FSAL pair's key also says whether its first stage was
 written ahead at that Δt). Warp replays graphs on a CPU too (one thread a launch), so the path
 runs here as on CUDA, where it is the default: the same bits as plain launches, rejected tries
 included, and one host read a try (the error norm's), a second where the Courant numbers' pass
@@ -60,7 +60,7 @@ def test_controlled_tries_replayed_as_graphs_are_the_bits_of_plain_ones(
     """The same state, steps, Δt and error norms as plain launches; rejected tries under error
     control; every explicit run keeps graphs (at least one Δt and, for an FSAL pair, its first
     stage written ahead), replayed by most steps, and compares one graph with plain launches a
-    family (``Stepper.graph_family``: two for an FSAL pair, its first stage evaluated or not),
+    family (``GraphCapture.graph_family``: two for an FSAL pair, its first stage evaluated or not),
     not one a Δt; the IMEX pair's steps none."""
     plain = controlled(name, control, device, False)
     assert graph_launches[0] == 0

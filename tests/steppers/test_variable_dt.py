@@ -116,7 +116,7 @@ def _steps(sim, dts) -> list:
 
 
 def test_a_rejected_imex_try_leaves_no_trace():
-    """A try that error control rejects (``Stepper.checkpoint``/``rollback``, device copies):
+    """A try that error control rejects (``TrialSteps.checkpoint``/``rollback``, device copies):
     a new Δt's history made in it dropped, the least recently used one it pushed out (four
     a's kept) brought back, a basis it grew put back, the last solution too: the steps after
     are bit for bit those of a run that never tried."""

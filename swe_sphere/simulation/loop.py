@@ -1,7 +1,8 @@
 """``Simulation.run``'s loop: its steps by the integrator (``integrator.Integrator``) under the
-run's hooks (``guard.RunObserver``), the activities due after each good step, the progress bar, a stopped run's files closed and its
-outcome (``StepLoop``, the object a ``Simulation`` holds); the run's arguments checked
-(``check_run_arguments``) and the seconds spent compiling Warp modules (``compile_timer``)."""
+run's hooks (``guard.RunObserver``), the activities due after each good step, the progress bar,
+a stopped run's files closed and its outcome (``Looping``, methods of a ``Simulation``, which is
+one); the run's arguments checked (``check_run_arguments``) and the seconds spent compiling Warp
+modules (``compile_timer``)."""
 
 from __future__ import annotations
 
@@ -68,32 +69,31 @@ def check_run_arguments(output, overwrite, restart_every, restart_file, compress
         number_argument("restart_every", restart_every, "days", positive=True, error=SceneError)
 
 
-class StepLoop:
-    """The steps of ``Simulation.run`` on ``sim``, by its integrator (``Simulation.core``), its
-    activities between them, and how it stopped."""
+class Looping:
+    """The steps of a ``Simulation``'s ``run`` (it is one), by its integrator (``core``), its
+    activities between them, and how it stopped; ``_compile`` the seconds compiling Warp modules
+    (``compile_timer``), ``_progress_lines`` a run's ``progress.ProgressLines`` (None: none)."""
 
-    def __init__(self, sim, compiling: list):
-        self.sim, self.compiling = sim, compiling  # the seconds compiling Warp modules (``compile_timer``)
-        self.lines = None  # a run's ``progress.ProgressLines``, where it was given one
+    _progress_lines = None
 
-    def watched(self, lines) -> None:
+    def _watched(self, lines) -> None:
         """Write the run's progress as ``lines`` (a ``progress.ProgressLines``, or None: none) from now on."""
-        self.lines = lines
+        self._progress_lines = lines
         if lines is not None:
-            lines.start(self.sim.time, self.sim.scene.days)
+            lines.start(self.time, self.scene.days)
 
-    def progress_bar(self) -> tqdm:
+    def _progress_bar(self) -> tqdm:
         # disable=None: a bar only on a terminal, not redrawn into a log (or mpiexec's pipe)
         return tqdm(
-            initial=self.sim.step,
-            total=self.sim.scene.nsteps,
+            initial=self.step,
+            total=self.scene.nsteps,
             unit="step",
-            disable=None if self.sim.progress else True,
+            disable=None if self.progress else True,
             file=sys.stderr,
             dynamic_ncols=True,
         )
 
-    def blocks(self, signals: StopSignals, ledger: Ledger, bar, until_step: int | None) -> Stop:
+    def _blocks(self, signals: StopSignals, ledger: Ledger, bar, until_step: int | None) -> Stop:
         """The run's steps to ``until_step`` (None: the scene's end) by the integrator
         (``Simulation.core``) under its guard (``guard.RunObserver``), each step's Δt its policy's:
         the fixed Δt's, or under ``scene.control`` the step control's (``adaptive.steered``, each
@@ -101,7 +101,7 @@ class StepLoop:
         there, ValueError). The activities due called after each good step. Returns why the
         loop stopped (``Stop``: nothing, a signal, an abandoned step or a blow-up; after a
         controlled run's, the state, the control and ``step`` those of the step before)."""
-        sim, ctl = self.sim, self.sim.control
+        sim, ctl = self, self.control
         policy, rewind = sim.core.policy, sim.core.rewind
         stop_step = sim.scene.nsteps if until_step is None else until_step
         if ctl is not None:
@@ -109,7 +109,7 @@ class StepLoop:
                 raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
             policy, rewind, stop_step = steered(ctl, sim.scene.days, sim.activities), Tries(ctl), sys.maxsize
         run = (sim.step, sim.check_every, sim.activities, sim.counters, ledger)
-        after = lambda n, done: self.after_steps(n, done, bar)  # noqa: E731
+        after = lambda n, done: self._after_steps(n, done, bar)  # noqa: E731
         observer = RunObserver(run, stop_step, signals, after, policy if ctl else None)
         try:
             with sim.core.stepping_by(policy, rewind):
@@ -127,33 +127,33 @@ class StepLoop:
                 rewind.put_back([], {}, False)
         return stop
 
-    def after_steps(self, n: int, done: int, bar) -> None:
+    def _after_steps(self, n: int, done: int, bar) -> None:
         """Step n (the last of ``done`` steps) is good: the activities due there, the progress bar."""
-        sim = self.sim
+        sim = self
         sim.step = n
         for activity in list(sim.activities.values()):
             if is_due(activity.schedule, sim):
                 activity(sim)
         bar.update(done)
-        if self.lines is not None and sim.root:
-            self.lines.tick(n, sim.time)
+        if self._progress_lines is not None and sim.root:
+            self._progress_lines.tick(n, sim.time)
         if n % 50 < done or n == sim.scene.nsteps:  # a multiple of 50 in the steps done
             bar.set_postfix(
                 day=f"{sim.time:.2f}",
                 sim_days_per_s=f"{(sim.time - sim.scene.start_day) / max(sim.counters['wall_time'], 1e-9):.3g}",
             )
 
-    def stopped(self, stop: Stop, files: RunFiles, ckp: Checkpointer) -> None:
+    def _stopped(self, stop: Stop, files: RunFiles, ckp: Checkpointer) -> None:
         """Close the files of a run that stopped early: after a blow-up with the last good
         state (``step`` is the last good step again), after a signal with the current one
         and its restart file."""
         if stop.blowup is not None:
-            files.end(self.sim.step, self.sim.last_good, blowup=stop.blowup)
+            files.end(self.step, self.last_good, blowup=stop.blowup)
         elif stop.signum is not None:
-            files.end(self.sim.step, **interrupted_attrs(stop.signum, self.sim.step, self.sim.time))
-            ckp.interrupted(self.sim.step, abandoned=stop.abandoned is not None)
+            files.end(self.step, **interrupted_attrs(stop.signum, self.step, self.time))
+            ckp.interrupted(self.step, abandoned=stop.abandoned is not None)
 
-    def outcome(self, stop: Stop, result: RunResult, output, ckp: Checkpointer) -> RunResult:
+    def _outcome(self, stop: Stop, result: RunResult, output, ckp: Checkpointer) -> RunResult:
         """``result``, or ``BlowUp`` or ``Interrupted`` raised with it."""
         if stop.blowup is not None:
             err = BlowUp(stop.blowup)
@@ -161,41 +161,39 @@ class StepLoop:
             raise err
         if stop.signum is not None:
             name = signal.Signals(stop.signum).name
-            line = interruption(
-                name, self.sim.step, self.sim.time, self.sim.scene, output, ckp.kept, ckp.written, stop.abandoned
-            )
+            line = interruption(name, self.step, self.time, self.scene, output, ckp.kept, ckp.written, stop.abandoned)
             err = Interrupted(line)
             err.signum, err.result, err.checkpoint = stop.signum, result, ckp.written
             raise err
         return result
 
-    def integrate(self, files, ckp, start, ledger, log, catch_signals, until_step) -> tuple:
+    def _integrate(self, files, ckp, start, ledger, log, catch_signals, until_step) -> tuple:
         """``Simulation.run``'s loop with its files (``RunFiles``, ``Checkpointer``) and signals:
         its steps (``blocks``); (why it stopped, ``Stop``; the ``StopSignals``). The files closed,
         or dropped on an exception."""
-        sim, stop = self.sim, Stop()
+        sim, stop = self, Stop()
         # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
         # pay, and on a busy machine OpenBLAS's spinning threads made a norm cost 10 ms
         with StopSignals(sim.topology, catch_signals) as signals, threadpool_limits(limits=1, user_api="blas"):
             try:
-                with self.during_run(files, ckp, log), compile_timer(self.compiling):
+                with self._during_run(files, ckp, log), compile_timer(self._compile):
                     # a continuation's first time is the last of the file it continues (where its
                     # restart file was written): not written again, so the two files join without a repeat
                     files.record(sim.step, whole=start, final=True, write=not sim.step)
-                    with self.progress_bar() as bar:
-                        stop = self.blocks(signals, ledger, bar, until_step)
-                    self.stopped(stop, files, ckp)
+                    with self._progress_bar() as bar:
+                        stop = self._blocks(signals, ledger, bar, until_step)
+                    self._stopped(stop, files, ckp)
                 files.close()  # under this run's handlers: a signal now waits, and is answered below
             except BaseException:
                 files.abort()
                 raise
         return stop, signals
 
-    def open(self, output, overwrite, restart_every, restart_file, compress, history, on_output, notify) -> tuple:
+    def _open(self, output, overwrite, restart_every, restart_file, compress, history, on_output, notify) -> tuple:
         """A run's run files and checkpointer (paths checked; the files created on rank 0),
         the start's gathered fields and its Courant numbers. ValueError for a user's
         activity under a name the run gives its own."""
-        sim = self.sim
+        sim = self
         taken = sorted(set(sim.activities) & set(RUN_ACTIVITIES))
         if taken:
             raise ValueError(f"activities {', '.join(taken)}: a run's own names (choose another)")
@@ -205,7 +203,7 @@ class StepLoop:
             check_distinct([output, ckp.path, *files.paths], sim.inputs)
             if ckp.path is not None:
                 check_target(ckp.path, overwrite)
-        with compile_timer(self.compiling):  # a continuation's first use of the diagnostic kernels
+        with compile_timer(self._compile):  # a continuation's first use of the diagnostic kernels
             start = sim.diagnostics.gather_fields(divergence=files.divergence)  # the first output time's, every rank
         courant = sim.courant(start)
         if output is not None and sim.root:
@@ -213,11 +211,11 @@ class StepLoop:
         return files, ckp, start, courant
 
     @contextlib.contextmanager
-    def during_run(self, files: RunFiles, ckp: Checkpointer, log):
+    def _during_run(self, files: RunFiles, ckp: Checkpointer, log):
         """The run's own activities in ``activities`` (the run file and checkpointer before
         the user's, the log after), and the stepper's solver counters read with the
         bad-state check (``Stepper.deferred``), while the loop runs."""
-        sim = self.sim
+        sim = self
         own = sim.activities
         sim.activities = {"run_file": files, "checkpointer": ckp, **own}
         if log is not None and sim.scene.log_every_steps:

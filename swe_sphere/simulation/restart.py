@@ -1,8 +1,7 @@
 """A simulation's restarts: continued from a restart file, bitwise as if never stopped, or
 branched from it (another stepper or Δt); its state and history restored; a restart file
-written: ``continued`` behind ``Simulation.from_checkpoint``, and ``Restart``, the object a
-``Simulation`` holds behind ``restore``, ``restore_history`` and ``write_checkpoint`` (their
-contracts are the simulation's docstrings)."""
+written: ``continued`` behind ``Simulation.from_checkpoint``, and ``Restarts``, the methods
+``restore``, ``restore_history`` and ``write_checkpoint`` of a ``Simulation`` (which is one)."""
 
 from __future__ import annotations
 
@@ -57,50 +56,49 @@ def continued(cls, checkpoint, device, days, stepper, dt, progress, comm, graphs
     return sim
 
 
-class Restart:
-    """A simulation's state and history restored from a checkpoint, and its restart file written."""
-
-    def __init__(self, sim):
-        self.sim = sim
+class Restarts:
+    """A ``Simulation``'s state and history restored from a checkpoint, and its restart file
+    written (its attributes the simulation's: ``x``, ``stepper``, ``step``, ``counters``,
+    ``initial``, ``control``, ``topology``, ...)."""
 
     def restore(self, ck: ckpt.Checkpoint) -> None:
-        """``Simulation.restore``: the state, then ``restore_history``."""
-        sim = self.sim
+        """Set the state, stepper history, counters and t = 0 invariants from a checkpoint."""
         try:
             # ck.x on rank 0 only (``checkpoint.read_on_root``)
-            x = sim.topology.distribute(ck.x, 3, "checkpoint state")
+            x = self.topology.distribute(ck.x, 3, "checkpoint state")
         except ValueError as err:
             raise ckpt.CheckpointError(str(err)) from None
-        sim.x.assign(x)
-        sim.restore_history(ck)
+        self.x.assign(x)
+        self.restore_history(ck)
 
     def restore_history(self, ck: ckpt.Checkpoint) -> None:
-        """``Simulation.restore_history``: the stepper history, counters and t = 0 invariants."""
-        sim = self.sim
+        """``restore`` but the state (already ``ck.x``)."""
         try:
-            sim.stepper.restore(ck.stepper_state)
+            self.stepper.restore(ck.stepper_state)
         except ValueError as err:
             raise ckpt.CheckpointError(f"checkpoint does not fit the stepper: {err}") from None
-        sim.step, sim.counters, sim.initial = ck.step, ck.counters, ck.initial
-        if sim.control is not None and ck.control is not None:  # the steps go on as if never stopped
-            sim.control.restore(ck.control)
+        self.step, self.counters, self.initial = ck.step, ck.counters, ck.initial
+        if self.control is not None and ck.control is not None:  # the steps go on as if never stopped
+            self.control.restore(ck.control)
 
-    def write(self, path, overwrite: bool, restart_every: float | None) -> Path:
-        """``Simulation.write_checkpoint``: the current step's restart file, written by rank 0."""
-        sim = self.sim
-        x, state = sim.topology.gather(sim.x.numpy()), sim.stepper.state()
-        if not sim.root:
+    def write_checkpoint(self, path, *, overwrite: bool = True, restart_every: float | None = None) -> Path:
+        """Write a restart file of the current step (see ``checkpoint``): whole-grid
+        fields, gathered from every rank (call on all), written by rank 0;
+        ``restart_every`` (days) recorded for a continuation to keep."""
+        x, state = self.topology.gather(self.x.numpy()), self.stepper.state()
+        if not self.root:
             return Path(path)
+        control = None if self.control is None else self.control.state()
         return restart_file.write(
             path,
-            sim.scene,
-            sim.step,
+            self.scene,
+            self.step,
             x,
             state,
-            sim.counters,
-            sim.initial,
-            grid=sim.grid,
+            self.counters,
+            self.initial,
+            grid=self.grid,
             overwrite=overwrite,
             restart_every=restart_every,
-            control=None if sim.control is None else sim.control.state(),
+            control=control,
         )

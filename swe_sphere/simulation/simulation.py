@@ -6,9 +6,9 @@ itself (``graphs.GraphedSteps``), the bad-state guard (``guard``), the activitie
 called at the steps their schedules name (``activities``: the run files and restart
 files of ``writers``, callbacks, user writers, the log; all in ``Simulation.activities``),
 signals (``interrupts``), and the counts and result (``summary``). ``build`` returns what it
-makes; the simulation holds its run loop (``loop.StepLoop``), restarts (``restart.Restart``)
-behind its methods, and is driven from Python by those of ``drive.Driven``; the state's diagnostics a
-``state_diagnostics`` component, ``Simulation.diagnostics``."""
+makes; the simulation's run loop (``loop.Looping``), restarts (``restart.Restarts``) and
+driving from Python (``drive.Driven``) are its own methods, in those modules; the state's
+diagnostics a ``state_diagnostics`` component, ``Simulation.diagnostics``."""
 
 from __future__ import annotations
 
@@ -28,10 +28,9 @@ from ..integrator import FixedDt, Integrator, Unit, core_property
 from ..steppers import StepStats
 from .adaptive import StepControl
 from .build import ON_ROOT, Built, build
-from .checkpoint import Checkpoint
 from .drive import Driven
-from .loop import StepLoop, check_run_arguments, compile_timer
-from .restart import Restart, continued
+from .loop import Looping, check_run_arguments, compile_timer
+from .restart import Restarts, continued
 from .schedules import at_its_end
 from .state_diagnostics import StateDiagnostics
 from .summary import Ledger, RunResult
@@ -40,7 +39,7 @@ from .summary import Ledger, RunResult
 __all__ = ["BlowUp", "Interrupted", "RunResult", "Simulation"]
 
 
-class Simulation(Driven):
+class Simulation(Driven, Restarts, Looping):
     """Build the grid, case, model and stepper of a scene; ``run`` integrates it.
 
     A scene may be given as ``swe_sphere.run`` takes it, ``Simulation("tc2_steady", ne=4,
@@ -159,7 +158,7 @@ class Simulation(Driven):
         t0 = time.perf_counter()
         self._compile = [0.0]
         # what the simulation holds: driving from Python, restarts, the run's loop
-        self._own_dt, self._restart, self._loop = own_dt, Restart(self), StepLoop(self, self._compile)
+        self._own_dt = own_dt
         self.activities: dict = {}  # name -> activity (``activities``): the user's; ``run`` adds its own
         # single-threaded BLAS, as in ``run``: the ∇⁴'s power iteration (``config.parts.check_hyperviscosity``)
         # takes 40 norms, and OpenBLAS's threads spinning on a busy machine made them 0.3 s of CPU
@@ -198,7 +197,7 @@ class Simulation(Driven):
         if inputs:
             self.inputs = inputs
 
-    # -- restarts and branches (``restart.Restart``); driven from Python: ``drive.Driven`` --
+    # -- restarts and branches (``restart.Restarts``); driven from Python: ``drive.Driven`` --
     @classmethod
     def from_checkpoint(
         cls,
@@ -249,20 +248,6 @@ class Simulation(Driven):
             A branch it cannot make (unknown stepper, dt <= 0, a length not whole steps).
         """
         return continued(cls, checkpoint, device, days, stepper, dt, progress, comm, graphs)
-
-    def restore(self, ck: Checkpoint) -> None:
-        """Set the state, stepper history, counters and t = 0 invariants from a checkpoint."""
-        self._restart.restore(ck)
-
-    def restore_history(self, ck: Checkpoint) -> None:
-        """``restore`` but the state (already ``ck.x``)."""
-        self._restart.restore_history(ck)
-
-    def write_checkpoint(self, path, *, overwrite: bool = True, restart_every: float | None = None) -> Path:
-        """Write a restart file of the current step (see ``checkpoint``): whole-grid
-        fields, gathered from every rank (call on all), written by rank 0;
-        ``restart_every`` (days) recorded for a continuation to keep."""
-        return self._restart.write(path, overwrite, restart_every)
 
     @property
     def time(self) -> float:
@@ -420,15 +405,15 @@ class Simulation(Driven):
         check_run_arguments(output, overwrite, restart_every, restart_file, compress, catch_signals)
         if output is not None and self.control is None and self.step >= (until_step or self.scene.nsteps):
             raise ArgumentError(at_its_end("Simulation", self.step, self.scene))  # a file of no time
-        files, ckp, start, courant = self._loop.open(
+        files, ckp, start, courant = self._open(
             output, overwrite, restart_every, restart_file, compress, history, on_output, notify
         )
         ledger = Ledger(self.counters, self.scene, self.step, notify if self.root else None)
-        self._loop.watched(progress_lines)
-        stop, signals = self._loop.integrate(files, ckp, start, ledger, log, catch_signals, until_step)
+        self._watched(progress_lines)
+        stop, signals = self._integrate(files, ckp, start, ledger, log, catch_signals, until_step)
         if stop.signum is None and stop.blowup is None:  # a signal after the last step's check: the output is whole
             stop.signum = signals.asked() or None
         result = ledger.result(
             self.step, files.history, courant, output, stop.blowup, ckp.written, self.setup_time, self._compile[0]
         )
-        return self._loop.outcome(stop, result, output, ckp)
+        return self._outcome(stop, result, output, ckp)

@@ -31,6 +31,7 @@ from .build import ON_ROOT, Built, build
 from .drive import Driven
 from .loop import Looping, check_run_arguments, compile_timer
 from .restart import Restarts, continued
+from .run_state import RunState, run_property
 from .schedules import at_its_end
 from .state_diagnostics import StateDiagnostics
 from .summary import Ledger, RunResult
@@ -163,7 +164,7 @@ class Simulation(Driven, Restarts, Looping):
         # single-threaded BLAS, as in ``run``: the ∇⁴'s power iteration (``config.parts.check_hyperviscosity``)
         # takes 40 norms, and OpenBLAS's threads spinning on a busy machine made them 0.3 s of CPU
         with compile_timer(self._compile), threadpool_limits(limits=1, user_api="blas"):
-            self.scene, self.backend, self.device = scene, backend, backend.device
+            self.backend, self.device = backend, backend.device
             # the build's parts the simulation's attributes, the state and stepper its integrator's (not kept
             # whole: a stepper built anew, ``fit_dt``, would leave the first one's arrays held there)
             b: Built = build(scene, backend, progress, comm, start, initial)
@@ -177,10 +178,12 @@ class Simulation(Driven, Restarts, Looping):
             self.model, self.fcor, self.hs, self.scorer, self.dfi = b.model, b.fcor, b.hs, b.scorer, b.dfi
             graphed = GraphedSteps(backend, b.model.launches.guard, graphs)
             self.core = Integrator([Unit(b.model, b.stepper, b.x, b.last_good, graphed)], FixedDt(self._take))
+            # what the run's collaborators read of it: its step, state, scene, control, t = 0 diagnostics, counters
+            self.run_state = RunState(self.core, scene, initial=initial_diagnostics)
             self.g, self.check_every = self.model.g, CHECK_EVERY_STEPS
-            self.diagnostics = StateDiagnostics(self)
-            self.control = None  # made below: the start's Courant numbers at the scene's dt, its first step
-            self.initial = initial_diagnostics
+            parts = (self.model, self.topology, self.grid, self.case, self.scorer, self.hs, self.fcor, self.root)
+            self.diagnostics = StateDiagnostics(self.run_state, *parts)
+            # the step control made after the start's diagnostics: their Courant numbers at the scene's dt
             if initial_diagnostics is None:
                 self.initial = self.diagnostics.diagnose(scene.start_day * DAY)
             # Δt chosen step to step (``Scene.control``): the loop's steps land on its times
@@ -253,13 +256,19 @@ class Simulation(Driven, Restarts, Looping):
     def time(self) -> float:
         """The model time of the current step, days since t = 0 (under step control the
         control's: a day as given where the step landed on it)."""
-        return self.scene.day(self.step) if self.control is None else self.control.day
+        return self.run_state.time
 
     @property
     def event_day(self) -> float | None:
         """Under step control the day the current step landed on (an output, restart or end
         time; ``schedules.AtDays``), else None."""
-        return self.control.day if self.control is not None and self.control.landed else None
+        return self.run_state.event_day
+
+    # -- the run's state (``run_state.RunState``): the scene it runs, its step control, t = 0 diagnostics, counters
+    scene = run_property("scene", "The resolved ``Scene`` the run runs (a fitted Δt or a lengthened run replace it).")
+    control = run_property("control", "The step control (``adaptive.StepControl``) under ``Scene.control``, else None.")
+    initial = run_property("initial", "The t = 0 diagnostics relative changes are taken against.")
+    counters = run_property("counters", "RHS evaluations, wall and CPU seconds and solver iterations so far.")
 
     # -- the state's diagnostics (``state_diagnostics``) --------------------------
     def fields(self, x=None):

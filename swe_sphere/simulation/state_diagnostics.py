@@ -27,33 +27,36 @@ class WholeFields:
 
 
 class StateDiagnostics:
-    """The diagnostics of a ``Simulation``'s state, held by it as ``Simulation.diagnostics``:
-    they read its ``x``, ``model``, ``topology``, ``grid``, ``scorer``, ``scene``, ``stepper``,
-    ``step`` and ``initial`` as they are at the call (a fitted Δt, a restored state).
-    Fields are gathered on rank 0, which diagnoses the whole grid (the same
-    arithmetic on any number of ranks) and broadcasts the figures."""
+    """The diagnostics of a run's state, held by a ``Simulation`` as ``Simulation.diagnostics``:
+    they read the run's state ``run`` (a ``run_state.RunState``: its x, scene, stepper, step,
+    control and ``initial`` as they are at the call, a fitted Δt, a restored state) and its built
+    parts: ``model``, ``topology``, ``grid``, ``case``, ``scorer`` (the errors against the case's
+    truth), ``hs`` and ``fcor`` (nnodes,) on rank 0, ``root`` (this rank is 0). Fields are
+    gathered on rank 0, which diagnoses the whole grid (the same arithmetic on any number of
+    ranks) and broadcasts the figures."""
 
-    def __init__(self, sim):
-        self.sim = sim
+    def __init__(self, run, model, topology, grid, case, scorer, hs, fcor, root: bool):
+        self.run, self.model, self.topology, self.grid, self.case = run, model, topology, grid, case
+        self.scorer, self.hs, self.fcor, self.root = scorer, hs, fcor, root
 
     def fields(self, x=None):
         """u, v, h (nnodes,) of the whole grid, gathered on rank 0 (call on every rank;
         (None, None, None) on the others)."""
-        a = self.sim.topology.gather((self.sim.x if x is None else x).numpy())
+        a = self.topology.gather((self.run.x if x is None else x).numpy())
         return (None, None, None) if a is None else (a[0], a[1], a[2])
 
     def divergence(self, x=None) -> np.ndarray | None:
         """Divergence of the wind (nnodes,) of the whole grid, DSS'd (s⁻¹), on rank 0 (None elsewhere)."""
-        return self.sim.topology.gather(self.sim.model.operators.wind_divergence(self.sim.x if x is None else x))
+        return self.topology.gather(self.model.operators.wind_divergence(self.run.x if x is None else x))
 
     def gather_fields(self, x=None, divergence: bool = False) -> WholeFields:
         """u, v, h, the vorticity and (``divergence``) the divergence of state x
         (default the current one), in one gather on rank 0 (call on every rank)."""
-        x = self.sim.x if x is None else x
-        rows = [x.numpy(), self.sim.model.operators.vorticity(x)[None]]
+        x = self.run.x if x is None else x
+        rows = [x.numpy(), self.model.operators.vorticity(x)[None]]
         if divergence:
-            rows.append(self.sim.model.operators.wind_divergence(x)[None])
-        a = self.sim.topology.gather(np.concatenate(rows))
+            rows.append(self.model.operators.wind_divergence(x)[None])
+        a = self.topology.gather(np.concatenate(rows))
         if a is None:
             return WholeFields(None, None, None, None)
         return WholeFields(a[0], a[1], a[2], a[3], a[4] if divergence else None)
@@ -65,22 +68,20 @@ class StateDiagnostics:
         every rank, or on none)."""
         whole = self.gather_fields(x) if whole is None else whole
         u, v, h = whole.u, whole.v, whole.h
-        errors = self.sim.scorer.errors(t, (self.sim.x if x is None else x).numpy(), u, v, h)
+        errors = self.scorer.errors(t, (self.run.x if x is None else x).numpy(), u, v, h)
         d = None
-        if self.sim.root:
+        if self.root:
             d = self._invariants(whole)
             d.update(errors)
             d.update(self._courant_numbers(u, v, h))
-        return self.sim.topology.bcast(d)
+        return self.topology.bcast(d)
 
     def _invariants(self, whole: WholeFields) -> dict:
         """The invariants of ``whole`` and their change relative to ``initial`` (rank 0)."""
-        d = invariants(
-            self.sim.grid, whole.u, whole.v, whole.h, self.sim.hs, whole.vorticity, self.sim.fcor, self.sim.g
-        )
-        if not self.sim.case.h_is_depth:  # h is a tracer (TC1): only its mass is an invariant
+        d = invariants(self.grid, whole.u, whole.v, whole.h, self.hs, whole.vorticity, self.fcor, self.model.g)
+        if not self.case.h_is_depth:  # h is a tracer (TC1): only its mass is an invariant
             d = {"mass": d["mass"]}
-        start = self.sim.initial or d  # diagnosing the initial state itself
+        start = self.run.initial or d  # diagnosing the initial state itself
         for k in list(d):
             d[f"{k}_change"] = (d[k] - start[k]) / abs(start[k])
         return d
@@ -94,16 +95,16 @@ class StateDiagnostics:
         Call on every rank; None on the ranks > 0."""
         if d is None:
             whole = self.gather_fields()
-            if self.sim.root:
+            if self.root:
                 d = self._invariants(whole)
                 d.update(self._courant_numbers(whole.u, whole.v, whole.h))
-        if not self.sim.root:
+        if not self.root:
             return None
         names = {"mass_change": "mass", "total_energy_change": "energy", "potential_enstrophy_change": "enstrophy"}
         changes = "".join(f"  {name} {d[k]:+.3e}" for k, name in names.items() if k in d)
         grav = "" if math.isnan(d["courant_gravity"]) else f" gravity-wave {d['courant_gravity']:.3f}"
         return (
-            f"step {self.sim.step} day {self.sim.time:.4f}{changes}  Courant advective "
+            f"step {self.run.step} day {self.run.time:.4f}{changes}  Courant advective "
             f"{d['courant_advective']:.3f}{grav}"
         )
 
@@ -114,7 +115,7 @@ class StateDiagnostics:
         (``Stepper.courant_limit`` on (|v| + √(gh)) Δt/Δx for explicit steppers,
         ``Stepper.advective_courant_limit`` on |v| Δt/Δx for IMEX and multirate), or
         None for a stepper without one."""
-        kind = self.sim.stepper  # the instance: a table's limit is its own (``TableauRK``)
+        kind = self.run.stepper  # the instance: a table's limit is its own (``TableauRK``)
         c = self.courant()
         if kind.courant_limit is not None:
             speed = c["courant_advective"] + (0.0 if math.isnan(c["courant_gravity"]) else c["courant_gravity"])
@@ -142,7 +143,7 @@ class StateDiagnostics:
         if limit is None or limit[2] <= limit[0]:
             return None
         limit, what, speed, source = limit
-        stepper = self.sim.stepper.label(self.sim.scene.stepper_options)  # a table by its name
+        stepper = self.run.stepper.label(self.run.scene.stepper_options)  # a table by its name
         if limit == 0:
             return (
                 f"warning: {stepper} is stable on no stretch of the imaginary axis (its stability polynomial "
@@ -161,15 +162,15 @@ class StateDiagnostics:
         the current state (call on every rank; ``whole``: its ``gather_fields`` when the caller
         has them, on every rank or on none)."""
         u, v, h = self.fields() if whole is None else (whole.u, whole.v, whole.h)
-        return self.sim.topology.bcast(self._courant_numbers(u, v, h) if self.sim.root else None)
+        return self.topology.bcast(self._courant_numbers(u, v, h) if self.root else None)
 
     def _dt(self) -> float:
         """The run's dt (s): the scene's, or under step control the controller's current one (the
         step it goes on with, not one cut short to land on an output time)."""
-        control = self.sim.control
-        return self.sim.scene.dt if control is None else control.dt
+        control = self.run.control
+        return self.run.scene.dt if control is None else control.dt
 
     def _courant_numbers(self, u, v, h) -> dict:
         """``diagnostics.courant_numbers`` at the run's dt (``_dt``) on whole-grid fields (rank 0)."""
-        sim = self.sim
-        return courant_numbers(sim.grid, u, v, h, self._dt(), sim.g, "pressure_gradient" in sim.scene.terms)
+        pressure = "pressure_gradient" in self.run.scene.terms
+        return courant_numbers(self.grid, u, v, h, self._dt(), self.model.g, pressure)

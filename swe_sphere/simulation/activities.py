@@ -28,10 +28,10 @@ class Schedule(Protocol):
     def next_after(self, step: int) -> int | None: ...
 
 
-def is_due(schedule: Schedule, sim) -> bool:
-    """Whether ``schedule`` is due at ``sim``'s step (an ``AtDays`` at the day the step landed
-    on, ``Simulation.event_day``)."""
-    return schedule.due(sim.step, sim.event_day) if isinstance(schedule, AtDays) else schedule.due(sim.step)
+def is_due(schedule: Schedule, run) -> bool:
+    """Whether ``schedule`` is due at ``run``'s step (``run_state.RunState``; an ``AtDays`` at the
+    day the step landed on, ``RunState.event_day``)."""
+    return schedule.due(run.step, run.event_day) if isinstance(schedule, AtDays) else schedule.due(run.step)
 
 
 class Activity(Protocol):
@@ -65,6 +65,6 @@ class Log:
 
     def __call__(self, sim) -> None:
         files = self.files
-        line = sim.diagnostics.log_line(files.history[-1] if is_due(files.schedule, sim) else None)
+        line = sim.diagnostics.log_line(files.history[-1] if is_due(files.schedule, sim.run_state) else None)
         if line is not None:
             self.log(line)

@@ -132,7 +132,7 @@ class Looping:
         sim = self
         sim.step = n
         for activity in list(sim.activities.values()):
-            if is_due(activity.schedule, sim):
+            if is_due(activity.schedule, sim.run_state):
                 activity(sim)
         bar.update(done)
         if self._progress_lines is not None and sim.root:
@@ -197,8 +197,11 @@ class Looping:
         taken = sorted(set(sim.activities) & set(RUN_ACTIVITIES))
         if taken:
             raise ValueError(f"activities {', '.join(taken)}: a run's own names (choose another)")
-        ckp = Checkpointer(sim, output, restart_every, restart_file, overwrite)
-        files = RunFiles(sim, output, on_output)
+        run = sim.run_state
+        ckp = Checkpointer(
+            run, sim.write_checkpoint, sim.topology, sim.root, output, restart_every, restart_file, overwrite
+        )
+        files = RunFiles(run, sim.diagnostics, sim.grid, sim.hs, output, on_output)
         if sim.root:
             check_distinct([output, ckp.path, *files.paths], sim.inputs)
             if ckp.path is not None:
@@ -207,7 +210,8 @@ class Looping:
             start = sim.diagnostics.gather_fields(divergence=files.divergence)  # the first output time's, every rank
         courant = sim.courant(start)
         if output is not None and sim.root:
-            files.open(run_attrs(sim, history, courant), overwrite=overwrite, compress=compress, notify=notify)
+            attrs = run_attrs(run, sim.case, sim.dfi, sim.device, sim.topology.comm.size, history, courant)
+            files.open(attrs, overwrite=overwrite, compress=compress, notify=notify)
         return files, ckp, start, courant
 
     @contextlib.contextmanager

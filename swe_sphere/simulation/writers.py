@@ -33,10 +33,10 @@ def interrupted_attrs(signum: int, step: int, day: float) -> dict:
     return {"interrupted": signal.Signals(signum).name, "interrupted_at_step": step, "interrupted_at_day": day}
 
 
-def _holds(sim, marks: set, step: int) -> bool:
+def _holds(run, marks: set, step: int) -> bool:
     """Whether ``marks`` (steps; under step control days, ``output_days``) hold ``step``, the
-    current one under step control (``Simulation.event_day``)."""
-    return step in marks if sim.control is None else sim.event_day in marks
+    current one under step control (``run_state.RunState.event_day``)."""
+    return step in marks if run.control is None else run.event_day in marks
 
 
 # what the run file records of the step control at each output time (``SERIES_ATTRS``)
@@ -61,29 +61,32 @@ def scene_attrs(scene, kind: str, history: str | None, caller: str) -> dict:
     }
 
 
-def run_attrs(sim, history: str | None, courant: dict) -> dict:
-    """The global attributes of ``sim``'s run files: what ran, where, from which
-    start and command line (``history``), and its Courant numbers at the start."""
-    s = sim.scene
+def run_attrs(run, case, dfi, device: str, ranks: int, history: str | None, courant: dict) -> dict:
+    """The global attributes of a run's files (``run`` its ``run_state.RunState``, of ``case``,
+    started by the digital filter ``dfi`` or None, on ``device`` over ``ranks`` MPI ranks): what
+    ran, where, from which start and command line (``history``), and its Courant numbers at the
+    start."""
+    s = run.scene
     return {
         **scene_attrs(s, "run", history, "swe_sphere.Simulation.run"),
-        **sim.stepper.attrs(),  # e.g. which Butcher table ran
-        "device": sim.device,
-        "mpi_ranks": sim.topology.comm.size,
+        **run.stepper.attrs(),  # e.g. which Butcher table ran
+        "device": device,
+        "mpi_ranks": ranks,
         "initialization": "none" if s.initialization is None else s.initialization["method"],
-        "reference": truth(sim.case, s.reference_file),  # what the error series are against
+        "reference": truth(case, s.reference_file),  # what the error series are against
         **{
             f"planet_{k}": v for k, v in s.planet.items()
         },  # planet_radius (m), planet_omega (1/s), planet_gravity (m/s^2)
-        **(sim.dfi.attrs(s.digital_filter) if sim.dfi is not None else {}),
-        **({"continued_from_day": sim.time} if sim.step else {}),
+        **(dfi.attrs(s.digital_filter) if dfi is not None else {}),
+        **({"continued_from_day": run.time} if run.step else {}),
         **ckpt.branch_attrs(s),
         **{k: v for k, v in courant.items() if math.isfinite(v)},
     }
 
 
 class RunFiles:
-    """The run files of ``sim``'s run to ``output``: itself with the scene's
+    """The run files of a run (its ``run_state.RunState`` ``run``, its ``diagnostics``, ``grid`` and
+    ``hs``) to ``output``: itself with the scene's
     ``output.fields``, then each ``[[output.streams]]`` (``stream_path``), each at
     its own output steps (``schedules.output_steps``; under step control its days,
     ``output_days``, and the control's ``CONTROL_SERIES``); without ``output`` none, the
@@ -92,10 +95,11 @@ class RunFiles:
     with the (3, N) device state) and rank 0 appends it to the files. An activity
     (``activities``): ``files(sim)`` records ``sim.step`` at the steps of ``schedule``."""
 
-    def __init__(self, sim, output: Path | None, on_output=None):
-        s = sim.scene
-        self.sim, self.on_output, self.history = sim, on_output, []
-        marks = output_steps if sim.control is None else output_days
+    def __init__(self, run, diagnostics, grid, hs, output: Path | None, on_output=None):
+        s = run.scene
+        self.run, self.diagnostics, self.grid, self.hs = run, diagnostics, grid, hs
+        self.on_output, self.history = on_output, []
+        marks = output_steps if run.control is None else output_days
         self.streams = (
             []
             if output is None
@@ -109,15 +113,15 @@ class RunFiles:
         )
         self.paths = [path for path, _, _ in self.streams]
         self.steps = set().union(*(steps for _, _, steps in self.streams)) if self.streams else marks(s)
-        self.schedule = AtSteps.of(self.steps) if sim.control is None else AtDays.of(self.steps)
+        self.schedule = AtSteps.of(self.steps) if run.control is None else AtDays.of(self.steps)
         self.divergence = any("divergence" in fields for _, fields, _ in self.streams)
         self.series = [
             "steps",
             "rhs_evals",
-            *(f"{k}_iterations" for k in sim.stepper.solvers),
+            *(f"{k}_iterations" for k in run.stepper.solvers),
             "wall_time",
-            *sim.initial.keys(),
-            *(CONTROL_SERIES if sim.control is not None else ()),
+            *run.initial.keys(),
+            *(CONTROL_SERIES if run.control is not None else ()),
         ]
         self.writers = [None] * len(self.streams)  # rank 0's RunWriters, one a stream
         self.last = [None] * len(self.streams)  # the step each run file wrote last (on every rank)
@@ -131,20 +135,20 @@ class RunFiles:
             for i, (path, fields, _) in enumerate(self.streams):
                 self.writers[i] = RunWriter(
                     path,
-                    self.sim.grid,
-                    self.sim.hs,
+                    self.grid,
+                    self.hs,
                     attrs,
                     self.series,
                     overwrite=overwrite,
                     compress=compress,
                     fields=fields,
-                    cells=self.sim.scene.output_cells,
+                    cells=self.run.scene.output_cells,
                 )
         except BaseException:
             self.abort()
             raise
         if self.writers and notify is not None:
-            for line in self.writers[0].cells_notes(self.sim.scene.grid_text):
+            for line in self.writers[0].cells_notes(self.run.scene.grid_text):
                 notify(line)
 
     def record(self, step: int, x=None, whole=None, final: bool = False, write: bool = True) -> None:
@@ -152,22 +156,22 @@ class RunFiles:
         fields when the caller has them) and write it to the run files whose schedule
         holds it (``final``: to every one; ``write`` False: to none, the diagnostics
         kept in ``history`` alone). Call on every rank."""
-        sim, s, c = self.sim, self.sim.scene, self.sim.counters
+        run, s, c = self.run, self.run.scene, self.run.counters
         if whole is None:  # once per output time, on every rank
-            whole = sim.diagnostics.gather_fields(x, divergence=self.divergence)
-        ctl = sim.control
-        d = sim.diagnostics.diagnose(s.start_day * DAY + step * s.dt if ctl is None else ctl.t, x, whole)
-        day = s.day(step) if ctl is None else sim.time  # under control the steps are not the fixed plan's
+            whole = self.diagnostics.gather_fields(x, divergence=self.divergence)
+        ctl = run.control
+        d = self.diagnostics.diagnose(s.start_day * DAY + step * s.dt if ctl is None else ctl.t, x, whole)
+        day = s.day(step) if ctl is None else run.time  # under control the steps are not the fixed plan's
         d.update(steps=step, day=day, rhs_evals=c["rhs_evals"], wall_time=c["wall_time"], cpu_time=c["cpu_time"])
         if ctl is not None:
             d.update(dt=ctl.dt_last, rejected_steps=ctl.rejected, error_estimate=ctl.error_last)
             d.update(spatial_rate=math.nan if ctl.balance is None else ctl.balance.rate.last)
-        d.update({f"{k}_iterations": c["iterations"].get(k, 0) for k in sim.stepper.solvers})
+        d.update({f"{k}_iterations": c["iterations"].get(k, 0) for k in run.stepper.solvers})
         self.history.append(d)
         if self.on_output is not None:
-            self.on_output(step, sim.x if x is None else x)
+            self.on_output(step, run.x if x is None else x)
         for i, (_, _, steps) in enumerate(self.streams):
-            if write and (final or _holds(sim, steps, step)) and self.last[i] != step:
+            if write and (final or _holds(run, steps, step)) and self.last[i] != step:
                 self.last[i] = step
                 if self.writers[i] is not None:  # rank 0 (the fields DSS'd, element-local, s-1)
                     self.writers[i].append(
@@ -192,7 +196,7 @@ class RunFiles:
 
     def unwritten(self, step: int) -> bool:
         """Whether some run file (or, without one, the history) lacks ``step``."""
-        return not _holds(self.sim, self.steps, step) or any(at != step for at in self.last)
+        return not _holds(self.run, self.steps, step) or any(at != step for at in self.last)
 
     def set_attrs(self, **attrs) -> None:
         for w in self.writers:
@@ -212,26 +216,27 @@ class RunFiles:
 
 
 class Checkpointer:
-    """The restart files of ``sim``'s run: ``path`` (default ``restart_path(output)``)
+    """The restart files of a run (its ``run_state.RunState`` ``run``, written by ``write``, a
+    ``Simulation.write_checkpoint``, on ``topology``; ``root`` this rank is 0): ``path`` (default ``restart_path(output)``)
     every ``every_days`` (whole steps) and at the end, and on a signal. Without
     ``every_days`` and ``overwrite``, an existing default restart file is neither
     refused nor replaced (``kept``: no restart file on a signal). Raises ValueError
     for an interval that is not whole steps, or one with neither output nor path.
     An activity (``activities``): ``checkpointer(sim)`` saves at the steps of ``schedule``."""
 
-    def __init__(self, sim, output: Path | None, every_days: float | None, path: Path | None, overwrite: bool):
-        self.sim, self.overwrite, self.kept, self.written = sim, overwrite, None, None
+    def __init__(self, run, write, topology, root: bool, output, every_days: float | None, path, overwrite: bool):
+        self.run, self.write, self.overwrite, self.kept, self.written = run, write, overwrite, None, None
         self.every_days = every_days
         if path is None and output is not None:
             path = restart_path(output)
-            if every_days is None and not overwrite and sim.topology.bcast(sim.root and path.exists()):
+            if every_days is None and not overwrite and topology.bcast(root and path.exists()):
                 path, self.kept = None, path
         self.path = path
         self.steps = set()  # steps, or under step control days (``schedules.interval_days``)
         if every_days is not None:
-            sim.scene.clock.check_times("the restart interval", every_days)  # before the times are listed
-            self.steps = (restart_steps if sim.control is None else interval_days)(sim.scene, every_days)
-        self.schedule = AtSteps.of(self.steps) if sim.control is None else AtDays.of(self.steps)
+            run.scene.clock.check_times("the restart interval", every_days)  # before the times are listed
+            self.steps = (restart_steps if run.control is None else interval_days)(run.scene, every_days)
+        self.schedule = AtSteps.of(self.steps) if run.control is None else AtDays.of(self.steps)
         if every_days is not None and path is None:
             raise ValueError("a restart interval needs an output or restart file")
 
@@ -242,11 +247,11 @@ class Checkpointer:
         """Save the restart file of a run stopped by a signal at ``step``, unless it has
         none, already saved this step, or the step was ``abandoned`` (the stepper's history
         is then half updated)."""
-        if self.path is not None and not _holds(self.sim, self.steps, step) and not abandoned:
+        if self.path is not None and not _holds(self.run, self.steps, step) and not abandoned:
             self.save()
 
     def save(self) -> None:
         """Write the restart file of the current step (call on every rank)."""
-        self.written = self.sim.write_checkpoint(
+        self.written = self.write(
             self.path, overwrite=self.overwrite or self.written is not None, restart_every=self.every_days
         )

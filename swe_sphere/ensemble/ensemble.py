@@ -409,11 +409,7 @@ class Ensemble:
                     progress_lines.start(self.day, s.days)
                 for target in sorted(k for k in outputs | restarts if k > at()):
                     while at() < target:  # a stop asked is answered between blocks
-                        if self.control is None:  # by ``step``, the steps of a fixed Δt
-                            block = min(CHECK_EVERY_STEPS, target - self.step_count)
-                            self.step(block)
-                        else:
-                            block = self._ahead(target, CHECK_EVERY_STEPS)
+                        block = self._ahead(target, CHECK_EVERY_STEPS)  # a step, or under step control a day
                         bar.update(block)
                         if progress_lines is not None and self.root:
                             progress_lines.tick(self.step_count, self.day)

@@ -102,24 +102,23 @@ def test_a_restart_file_continues_bitwise(tmp_path, stepper):
     assert list(t_rest) == [0.75] and np.array_equal(h_rest, h_whole[3:])
 
 
-def test_a_signal_stops_after_a_block_with_its_restart_file(tmp_path, monkeypatch):
+def test_a_signal_stops_after_a_block_with_its_restart_file(tmp_path):
     ens = Ensemble("galewsky", 2, Perturbation(1.0, seed=3), device="cpu", **{**SMALL, "days": 1.0})
-    real = Ensemble.step
+    signalled = []
 
-    def step(self, n=1):  # SIGINT once 30 steps are done: the run stops at the end of that block
-        real(self, n)
-        if self.step_count >= 30 and not hasattr(self, "signalled"):
-            self.signalled = True
+    def signal_at_30(ens):  # SIGINT once 30 steps are done: the run stops at the end of that block (to 48)
+        if ens.step_count >= 30 and not signalled:
+            signalled.append(ens.step_count)
             os.kill(os.getpid(), signal.SIGINT)
 
-    monkeypatch.setattr(Ensemble, "step", step)
+    ens.add_callback(signal_at_30, every_steps=6)
     with pytest.raises(Interrupted, match=r"interrupted by SIGINT at step 48 .*continue it from") as info:
         ens.run(tmp_path / "e.nc")
     assert info.value.signum == signal.SIGINT and info.value.checkpoint == tmp_path / "e.restart.nc"
     with netCDF4.Dataset(tmp_path / "e.nc") as ds:
         assert list(ds["time"][:]) == [0.0, 0.25, 0.5] and "stopped" not in ds.ncattrs()
         assert (ds.interrupted, ds.interrupted_at_step, ds.interrupted_at_day) == ("SIGINT", 48, 0.5)  # as a run's
-    monkeypatch.setattr(Ensemble, "step", real)
+    assert signalled == [30]
     rest = Ensemble.from_checkpoint(tmp_path / "e.restart.nc")
     rest.step(96 - 48)
     whole = Ensemble("galewsky", 2, Perturbation(1.0, seed=3), device="cpu", **{**SMALL, "days": 1.0})

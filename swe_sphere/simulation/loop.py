@@ -101,46 +101,45 @@ class Looping:
         there, ValueError). The activities due called after each good step. Returns why the
         loop stopped (``Stop``: nothing, a signal, an abandoned step or a blow-up; after a
         controlled run's, the state, the control and ``step`` those of the step before)."""
-        sim, ctl = self, self.control
-        policy, rewind = sim.core.policy, sim.core.rewind
-        stop_step = sim.scene.nsteps if until_step is None else until_step
+        ctl = self.control
+        policy, rewind = self.core.policy, self.core.rewind
+        stop_step = self.scene.nsteps if until_step is None else until_step
         if ctl is not None:
             if until_step is not None:
                 raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
-            policy, rewind, stop_step = steered(ctl, sim.scene.days, sim.activities), Tries(ctl), sys.maxsize
-        run = (sim.step, sim.check_every, sim.activities, sim.counters, ledger)
+            policy, rewind, stop_step = steered(ctl, self.scene.days, self.activities), Tries(ctl), sys.maxsize
+        run = (self.step, self.check_every, self.activities, self.counters, ledger)
         after = lambda n, done: self._after_steps(n, done, bar)  # noqa: E731
         observer = RunObserver(run, stop_step, signals, after, policy if ctl else None)
         try:
-            with sim.core.stepping_by(policy, rewind):
-                stop = sim.core.advance(stop_step, observer)
+            with self.core.stepping_by(policy, rewind):
+                stop = self.core.advance(stop_step, observer)
         except BlowUp as err:  # the controller's Δt below dt_min: the rejected tries put the state back
             if ctl is None:
                 raise
             return Stop(blowup=str(err))
         finally:  # a try launched ahead undone: the state the run stops with is the last accepted step's
             if ctl is not None:
-                ctl.settle(sim.x)
+                ctl.settle(self.x)
         if stop.bad is not None:
-            stop.blowup = blowup_line(sim.model, sim.x, stop.bad, sim.time if ctl else sim.scene.day(stop.bad[0]))
+            stop.blowup = blowup_line(self.model, self.x, stop.bad, self.time if ctl else self.scene.day(stop.bad[0]))
             if ctl is not None:
                 rewind.put_back([], {}, False)
         return stop
 
     def _after_steps(self, n: int, done: int, bar) -> None:
         """Step n (the last of ``done`` steps) is good: the activities due there, the progress bar."""
-        sim = self
-        sim.step = n
-        for activity in list(sim.activities.values()):
-            if is_due(activity.schedule, sim.run_state):
-                activity(sim)
+        self.step = n
+        for activity in list(self.activities.values()):
+            if is_due(activity.schedule, self.run_state):
+                activity(self)
         bar.update(done)
-        if self._progress_lines is not None and sim.root:
-            self._progress_lines.tick(n, sim.time)
-        if n % 50 < done or n == sim.scene.nsteps:  # a multiple of 50 in the steps done
+        if self._progress_lines is not None and self.root:
+            self._progress_lines.tick(n, self.time)
+        if n % 50 < done or n == self.scene.nsteps:  # a multiple of 50 in the steps done
             bar.set_postfix(
-                day=f"{sim.time:.2f}",
-                sim_days_per_s=f"{(sim.time - sim.scene.start_day) / max(sim.counters['wall_time'], 1e-9):.3g}",
+                day=f"{self.time:.2f}",
+                sim_days_per_s=f"{(self.time - self.scene.start_day) / max(self.counters['wall_time'], 1e-9):.3g}",
             )
 
     def _stopped(self, stop: Stop, files: RunFiles, ckp: Checkpointer) -> None:
@@ -169,17 +168,17 @@ class Looping:
 
     def _integrate(self, files, ckp, start, ledger, log, catch_signals, until_step) -> tuple:
         """``Simulation.run``'s loop with its files (``RunFiles``, ``Checkpointer``) and signals:
-        its steps (``blocks``); (why it stopped, ``Stop``; the ``StopSignals``). The files closed,
+        its steps (``_blocks``); (why it stopped, ``Stop``; the ``StopSignals``). The files closed,
         or dropped on an exception."""
-        sim, stop = self, Stop()
+        stop = Stop()
         # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
         # pay, and on a busy machine OpenBLAS's spinning threads made a norm cost 10 ms
-        with StopSignals(sim.topology, catch_signals) as signals, threadpool_limits(limits=1, user_api="blas"):
+        with StopSignals(self.topology, catch_signals) as signals, threadpool_limits(limits=1, user_api="blas"):
             try:
                 with self._during_run(files, ckp, log), compile_timer(self._compile):
                     # a continuation's first time is the last of the file it continues (where its
                     # restart file was written): not written again, so the two files join without a repeat
-                    files.record(sim.step, whole=start, final=True, write=not sim.step)
+                    files.record(self.step, whole=start, final=True, write=not self.step)
                     with self._progress_bar() as bar:
                         stop = self._blocks(signals, ledger, bar, until_step)
                     self._stopped(stop, files, ckp)
@@ -193,24 +192,23 @@ class Looping:
         """A run's run files and checkpointer (paths checked; the files created on rank 0),
         the start's gathered fields and its Courant numbers. ValueError for a user's
         activity under a name the run gives its own."""
-        sim = self
-        taken = sorted(set(sim.activities) & set(RUN_ACTIVITIES))
+        taken = sorted(set(self.activities) & set(RUN_ACTIVITIES))
         if taken:
             raise ValueError(f"activities {', '.join(taken)}: a run's own names (choose another)")
-        run = sim.run_state
+        run = self.run_state
         ckp = Checkpointer(
-            run, sim.write_checkpoint, sim.topology, sim.root, output, restart_every, restart_file, overwrite
+            run, self.write_checkpoint, self.topology, self.root, output, restart_every, restart_file, overwrite
         )
-        files = RunFiles(run, sim.diagnostics, sim.grid, sim.hs, output, on_output)
-        if sim.root:
-            check_distinct([output, ckp.path, *files.paths], sim.inputs)
+        files = RunFiles(run, self.diagnostics, self.grid, self.hs, output, on_output)
+        if self.root:
+            check_distinct([output, ckp.path, *files.paths], self.inputs)
             if ckp.path is not None:
                 check_target(ckp.path, overwrite)
         with compile_timer(self._compile):  # a continuation's first use of the diagnostic kernels
-            start = sim.diagnostics.gather_fields(divergence=files.divergence)  # the first output time's, every rank
-        courant = sim.courant(start)
-        if output is not None and sim.root:
-            attrs = run_attrs(run, sim.case, sim.dfi, sim.device, sim.topology.comm.size, history, courant)
+            start = self.diagnostics.gather_fields(divergence=files.divergence)  # the first output time's, every rank
+        courant = self.courant(start)
+        if output is not None and self.root:
+            attrs = run_attrs(run, self.case, self.dfi, self.device, self.topology.comm.size, history, courant)
             files.open(attrs, overwrite=overwrite, compress=compress, notify=notify)
         return files, ckp, start, courant
 
@@ -219,14 +217,13 @@ class Looping:
         """The run's own activities in ``activities`` (the run file and checkpointer before
         the user's, the log after), and the stepper's solver counters read with the
         bad-state check (``Stepper.deferred``), while the loop runs."""
-        sim = self
-        own = sim.activities
-        sim.activities = {"run_file": files, "checkpointer": ckp, **own}
-        if log is not None and sim.scene.log_every_steps:
-            sim.activities["log"] = Log(log, EverySteps(sim.scene.log_every_steps), files)
-        sim.stepper.deferred = True
+        own = self.activities
+        self.activities = {"run_file": files, "checkpointer": ckp, **own}
+        if log is not None and self.scene.log_every_steps:
+            self.activities["log"] = Log(log, EverySteps(self.scene.log_every_steps), files)
+        self.stepper.deferred = True
         try:
             yield
         finally:
-            sim.stepper.deferred = False
-            sim.activities = own
+            self.stepper.deferred = False
+            self.activities = own

@@ -28,6 +28,7 @@ from ..core.backend import Backend
 from ..core.errors import ArgumentError
 from ..core.parallel import record
 from ..kernels import blas, dss
+from ..kernels.operators import row_vectors
 from .cubed_sphere import CubedSphere
 from .halo import MAX_ROWS, Exchange, Halo
 from .partition import level_chunks, mesh_order, mesh_partition, partition, sfc_order
@@ -189,6 +190,7 @@ class Topology:
             self.spheremp,
             self.rspheremp,
         )
+        self.edges = self._element_edges() if self.backend.host else None
 
     def _build_halos(self, parts, rank):
         """Local tables from the rank's own nodes' rows of the global DSS table and
@@ -226,6 +228,47 @@ class Topology:
         if np.any(self._gid < 0):
             raise RuntimeError("a node's unique value is neither owned nor received")
 
+    def _element_edges(self) -> dss.Edges | None:
+        """The element-row DSS's ``dss.Edges`` (the CPU's form of ``dss`` and ``dss_update``)
+        from the DSS table: for each node inside an element's edge the one other copy, and the
+        neighbour rows that run lane for lane beside the south and north edges. None where a
+        node inside an edge has other than two copies (np < 3, or a mesh that is not a
+        conforming one): there the node gather stays."""
+        NP, nelem = self.grid.np, self.grid.nelem
+        if NP < 3:
+            return None
+        inner = np.arange(1, NP - 1)
+        local = np.concatenate([inner, (NP - 1) * NP + inner, inner * NP, inner * NP + NP - 1])
+        nodes = np.arange(nelem)[:, None] * NP * NP + local[None, :]
+        table = self._table[nodes]  # (nelem, 4(np − 2), copies)
+        valid = table >= 0
+        if not np.all(valid.sum(axis=-1) == 2):
+            return None
+        other = np.where(valid & (table != nodes[..., None]), table, -1).max(axis=-1)
+        aligned = np.full((nelem, 2), -1, dtype=np.int64)
+        for side in (0, 1):
+            o = other[:, side * (NP - 2) : (side + 1) * (NP - 2)]
+            start = o[:, 0] - 1  # the neighbour's row's first node, if the lanes line up
+            ok = (start >= 0) & (o[:, -1] < self.N) & (start % NP == 0) & np.all(o == start[:, None] + inner, axis=1)
+            aligned[ok, side] = start[ok] // NP
+        g = dss.Edges()
+        g.other = wp.array(other.astype(np.int32), dtype=wp.int32, device=self.device)
+        g.aligned = wp.array(aligned.astype(np.int32), dtype=wp.int32, device=self.device)
+        self._mass_rows = row_vectors(self.spheremp[: self.N], NP), row_vectors(self.rspheremp, NP)
+        return g
+
+    def _by_element(self, x: wp.array2d, kernel, args) -> list:
+        """Launches for an element-row DSS kernel (``dss.dss_update_elements``) over x (rows, N), dim nelem, ``args`` as rows after
+        (xr, x, ``dss_copies``, ``edges``, wr, rsr); the neighbours' copies exchanged first."""
+        kernel = kernel(x.shape[0], self.table.shape[1], bool(len(self.neighbours)), self.grid.np)
+        NP = self.grid.np
+        inputs = [row_vectors(x, NP), x, self.dss_copies, self.edges, *self._mass_rows]
+        inputs += [row_vectors(a, NP) if isinstance(a, wp.array) else a for a in args]
+        launch = record(
+            kernel, self.grid.nelem, inputs, device=self.backend, threads=self.threads, nodes_per_index=NP * NP
+        )
+        return [*self._exchange(x), launch]
+
     def _record(self, kernel, dim, inputs):
         return record(kernel, dim, inputs, device=self.backend, threads=self.threads, block=self.grid.np**2)
 
@@ -260,7 +303,10 @@ class Topology:
         Σ over the copies c of p's node of (spheremp[c] if ``weighted`` else 1)·x[r, c]
         (``kernels.dss.dss_rows``), the neighbours' copies exchanged first.
         Weighted for a strong-form field (continuous result, integral kept),
-        unweighted for a weak form. ``out`` must not alias ``x``."""
+        unweighted for a weak form. ``out`` must not alias ``x``. On the CPU by element
+        on GLL rows (``kernels.dss.dss_update_elements``, the same bits)."""
+        if self.edges is not None:
+            return self.dss_update(x, [(out, [(1.0, None)])], weighted=weighted)
         return self.gathering(
             x, lambda rows, copies, ghosts: dss.dss_rows(rows, bool(weighted), copies, ghosts=ghosts), [out]
         )
@@ -316,6 +362,14 @@ class Topology:
             arrays += [*(srcs + [out] * (2 - len(srcs))), out]  # unused slots: any array of the shape
         coefs += [0.0] * (6 - len(coefs))
         arrays += arrays[-3:] * (2 - len(updates))
+        if self.edges is not None:
+            return self._by_element(
+                x,
+                lambda rows, copies, ghosts, np_: dss.dss_update_elements(
+                    rows, copies, tuple(patterns), ghosts, bool(weighted), np_
+                ),
+                [dss.vec6(*coefs), *arrays],
+            )
         return self.gathering(
             x,
             lambda rows, copies, ghosts: dss.dss_update(

@@ -1,0 +1,86 @@
+"""The DSS by element on GLL rows (``kernels.dss.dss_update_elements``: the
+CPU's form) gives the node gather's bits (``dss_rows``, ``dss_update``) on cubes and meshes."""
+
+from __future__ import annotations
+
+from unittest import mock
+
+import numpy as np
+import pytest
+import warp as wp
+
+from swe_sphere.grid.cubed_sphere import CubedSphere
+from swe_sphere.grid.topology import Topology
+
+from helpers import cached_grid
+from meshes import icosahedral_mesh, refined_equiangular
+
+f64 = wp.float64
+
+
+def launch_all(launches):
+    for launch in launches:
+        launch.launch()
+
+
+def assemblies(topo: Topology, x: np.ndarray, a: np.ndarray, b: np.ndarray) -> list[np.ndarray]:
+    """The weighted and unweighted DSS of x, and two ``dss_update`` combinations of it
+    (out0 = a + 0.3 k over a itself, then out1 = 0.5 out0 + 0.7 b + 0.2 k), each way."""
+    got = []
+    xw = wp.array(x, dtype=f64)
+    for weighted in (True, False):
+        out = wp.zeros(x.shape, dtype=f64)
+        launch_all(topo.dss(xw, weighted, out))
+        s0, s1 = wp.array(a, dtype=f64), wp.array(b, dtype=f64)
+        updates = [(s0, [(1.0, s0), (0.3, None)]), (s1, [(0.5, s0), (0.7, s1), (0.2, None)])]
+        launch_all(topo.dss_update(xw, updates, weighted=weighted))
+        got += [out.numpy(), s0.numpy(), s1.numpy()]
+    return got
+
+
+GRIDS = {
+    "cube ne3 np3": lambda: cached_grid(3, 3),
+    "cube ne2 np4": lambda: cached_grid(2, 4),
+    "cube ne2 np5": lambda: cached_grid(2, 5),
+    "cube ne3 np6": lambda: cached_grid(3, 6),
+    "cube ne2 np8": lambda: cached_grid(2, 8),
+    "refined ne4 np4 (valence 3-5)": lambda: CubedSphere(0, 4, mesh=refined_equiangular()),
+    "icosahedral np5 (valence 3-6)": lambda: CubedSphere(0, 5, mesh=icosahedral_mesh(1)),
+}
+
+
+@pytest.mark.parametrize("name", list(GRIDS))
+def test_element_rows_give_the_node_gathers_bits(name, rng):
+    """Every DSS and DSS update by element equals the node gather's, bit for bit (an edge
+    node's two copies summed (0 + own) + other commute into the table's order; a corner's
+    through the table), on rotated cube faces and on meshes whose neighbours' edges run in
+    any direction."""
+    g = GRIDS[name]()
+    x, a, b = (rng.standard_normal((3, g.nnodes)) for _ in range(3))
+    by_element = Topology(g, "cpu", threads=2)
+    assert by_element.edges is not None
+    with mock.patch.object(Topology, "_element_edges", lambda self: None):
+        by_node = Topology(g, "cpu", threads=2)
+    for got, want in zip(assemblies(by_element, x, a, b), assemblies(by_node, x, a, b)):
+        assert np.array_equal(got.view(np.int64), want.view(np.int64))
+
+
+def test_each_edge_nodes_other_copy(rng):
+    """``Edges.other`` holds the one other copy of each node inside an edge; ``aligned`` the
+    neighbour's row whose inner lanes are those copies, where it runs lane for lane."""
+    g = cached_grid(3, 4)
+    e = Topology(g, "cpu").edges
+    other, aligned = e.other.numpy(), e.aligned.numpy()
+    npp, gid = g.np**2, g.gid
+    south = np.arange(g.nelem)[:, None] * npp + np.arange(1, g.np - 1)[None, :]
+    assert np.array_equal(gid[other[:, : g.np - 2]], gid[south])  # the same unique node
+    assert np.all(other[:, : g.np - 2] // npp != south // npp)  # in another element
+    ok = aligned[:, 0] >= 0
+    rows = aligned[ok, 0][:, None] * g.np + np.arange(1, g.np - 1)[None, :]
+    assert np.array_equal(rows, other[ok, : g.np - 2])
+    assert 0.5 < ok.mean() < 1  # the faces' insides line up; the cube's edges turn
+
+
+def test_two_point_elements_keep_the_node_gather():
+    """np 2 has no node inside an edge: the node gather stays."""
+    assert Topology(cached_grid(2, 2), "cpu").edges is None

@@ -245,11 +245,11 @@ class Edges:
 
 @functools.cache
 def gather_row(rows: int, weighted: bool, copies: int, ghosts: bool, np_: int):
-    """A ``wp.func`` (xr, x, d: ``Copies``, g: ``Edges``, wr, e, j, r) → the sum over copies of
-    row j of element e of field r, (spheremp[c] if ``weighted`` else 1)·x[r, c] (a GLL row of
-    np, unscaled: times rspheremp's row it is the DSS, the bits of ``gather``'s). xr: x as
-    ``operators.row_vectors`` (rows, N/np); wr: spheremp's first N as rows (read if
-    ``weighted``). ``ghosts`` as in ``gather``."""
+    """A ``wp.func`` (xr, x, d: ``Copies``, g: ``Edges``, wr, rsr, e, j, r) → row j of element e
+    of the DSS of field r, rspheremp · Σ over copies c of (spheremp[c] if ``weighted`` else 1)
+    · x[r, c] (a GLL row of np values, the bits of ``gather``'s). xr: x as
+    ``operators.row_vectors`` (rows, N/np); wr, rsr: spheremp's first N and rspheremp as rows
+    (wr read if ``weighted``). ``ghosts`` as in ``gather``."""
     R, W, C, G, NP = int(rows), bool(weighted), int(copies), bool(ghosts), int(np_)
     NE = NP - 2
     vec = wp.types.vector(length=NP, dtype=f64)
@@ -282,11 +282,13 @@ def gather_row(rows: int, weighted: bool, copies: int, ghosts: bool, np_: int):
         d: Copies,
         g: Edges,
         wr: wp.array(dtype=vec),
+        rsr: wp.array(dtype=vec),
         e: int,
         j: int,
         r: int,
     ):
-        row = vec() + own(xr, wr, r, e * NP + j)
+        q = e * NP + j
+        row = vec() + own(xr, wr, r, q)
         if j == 0 or j == NP - 1:
             side = wp.where(j == 0, 0, 1)
             a = g.aligned[e, side]
@@ -295,13 +297,13 @@ def gather_row(rows: int, weighted: bool, copies: int, ghosts: bool, np_: int):
             else:
                 for i in range(1, NP - 1):
                     row[i] += value(x, d, g.other[e, side * NE + i - 1], r)
-            p = (e * NP + j) * NP
+            p = q * NP
             row[0] = corner(x, d, p, r)
             row[NP - 1] = corner(x, d, p + NP - 1, r)
         else:
             row[0] += value(x, d, g.other[e, 2 * NE + j - 1], r)
             row[NP - 1] += value(x, d, g.other[e, 3 * NE + j - 1], r)
-        return row
+        return wp.cw_mul(rsr[q], row)
 
     row_sum.__qualname__ = row_sum.__name__ = f"gather_row_{tag}"
     return wp.func(row_sum)
@@ -318,7 +320,7 @@ def dss_update_elements(rows: int, copies: int, patterns: tuple, ghosts: bool, w
         raise ValueError(f"one or two combinations (got {len(patterns)})")
     R, NP = int(rows), int(np_)
     vec = wp.types.vector(length=NP, dtype=f64)
-    row_sum = gather_row(rows, weighted, copies, ghosts, np_)
+    row_dss = gather_row(rows, weighted, copies, ghosts, np_)
     first = combination(patterns[0])
     second = combination(patterns[-1])
     TWO = len(patterns) == 2
@@ -342,15 +344,14 @@ def dss_update_elements(rows: int, copies: int, patterns: tuple, ghosts: bool, w
         e = wp.tid() + offset
         for j in range(NP):
             q = e * NP + j
-            rs = rsr[q]
             for r in range(R):
-                k = wp.cw_mul(rs, row_sum(xr, x, d, g, wr, e, j, r))
+                k = row_dss(xr, x, d, g, wr, rsr, e, j, r)
                 out0[r, q] = first(wp.vec3d(c[0], c[1], c[2]), k, s00, s01, r, q)
                 if wp.static(TWO):
                     out1[r, q] = second(wp.vec3d(c[3], c[4], c[5]), k, s10, s11, r, q)
 
     name = "dss_update__" + "__".join(patterns) + ("" if weighted else "__unweighted")
-    dss_update.__qualname__ = dss_update.__name__ = name
+    dss_update.__qualname__ = dss_update.__name__ = "dss" if patterns == ("k",) else name  # "k": the DSS's key
     return wp.kernel(dss_update, enable_backward=False, module="unique")
 
 

@@ -45,7 +45,7 @@ from typing import Any
 
 import warp as wp
 
-from .dss import Copies, gather
+from .dss import Copies, Edges, gather, gather_row
 from .operators import (
     CPU_FAST,
     across_as_along,
@@ -53,6 +53,7 @@ from .operators import (
     d_xi,
     element_node,
     row_derivatives,
+    row_type,
     times,
     weak_divergence,
     weak_flux,
@@ -125,7 +126,9 @@ def add_divergent(y: Any, a: Any, b: Any, cw: Any, q: int, f: Any):
 
 
 @functools.cache
-def laplacian_element(second: bool, divergent: bool, np_: int, copies: int = 0, ghosts: bool = False):
+def laplacian_element(
+    second: bool, divergent: bool, np_: int, copies: int = 0, ghosts: bool = False, rows: bool = False
+):
     """The weak form of Y₁ (``second=False``, from the state ``src`` = x (3, ·)
     and hs) or of Y₂ (``second=True``, from ``src`` = Y₁ (4, ·)) of the elements
     (the module docstring), one thread per element, on GLL rows
@@ -138,16 +141,21 @@ def laplacian_element(second: bool, divergent: bool, np_: int, copies: int = 0, 
     while it is in cache. Arguments: x (f64), d (``dss.Copies``), Y (f64), src, hs, delta,
     c (``scale_first``), f (``frame_type`` of rows), metric (4, ·) (``laplacian_metric``),
     dvv (``operators.dvv_matrix``), L (4, ·) output (aliasing neither x nor Y), block (np²),
-    offset (in elements); the first pass reads neither x, d, Y nor block. Dim nelem."""
+    offset (in elements); the first pass reads neither x, d, Y nor block. Dim nelem.
+    With ``rows`` (the second pass only) a ``Topology.by_element`` kernel instead: the DSS by
+    element on GLL rows (``dss.gather_row``, the same bits) written into src, Y's rows;
+    arguments xr, x, d, g (``dss.Edges``), wr, rsr, then src … L as above, offset."""
     NP = int(np_)
     vec, mat, along, across = row_derivatives(NP)
     ROW = across_as_along(NP)  # rolled rows, (M F)[j] as along(M[j], F)
     stack = wp.types.matrix(shape=(4, NP), dtype=f64)  # the four fields' values on one row
     S, DIV = bool(second), bool(divergent) and not second
+    ROWS = bool(rows) and S
     RowFrame = frame_type(vec)
     if S and copies < 1:
         raise ValueError(f"the second pass sums the copies of a node: copies must be at least 1 (got {copies})")
     sum_copies = gather(4, False, max(1, int(copies)), ghosts)
+    row_dss = gather_row(4, False, max(1, int(copies)), ghosts, NP)
 
     def weak_laplacian(F: mat, G11: mat, G12: mat, G22: mat, dvv: mat, dvvT: mat, lo: int):
         out = mat()  # −Σ ∂ᵀ(G ∇_ref f): G ∇_ref f is the quadrature-weighted contravariant gradient
@@ -187,10 +195,7 @@ def laplacian_element(second: bool, divergent: bool, np_: int, copies: int = 0, 
     field.__qualname__ = field.__name__ = f"laplacian_field_{'second' if S else 'first'}_np{NP}"
     field = wp.func(field)
 
-    def kernel(
-        x: wp.array2d(dtype=f64),
-        d: Copies,
-        Y: wp.array2d(dtype=f64),
+    def element(
         src: wp.array2d(dtype=vec),
         hs: wp.array(dtype=vec),
         delta: wp.array2d(dtype=vec),
@@ -199,15 +204,8 @@ def laplacian_element(second: bool, divergent: bool, np_: int, copies: int = 0, 
         metric: wp.array2d(dtype=vec),
         dvv: mat,
         L: wp.array2d(dtype=vec),
-        block: int,
-        offset: int,
+        e: int,
     ):
-        e = wp.tid() + offset
-        if wp.static(S):  # Y = the DSS of x at this element's nodes, read back below (as src) in cache
-            for p in range(e * block, e * block + block):
-                s = sum_copies(x, d, p)
-                for r in range(4):
-                    Y[r, p] = s[r]
         base = e * NP
         dvvT = wp.transpose(dvv)
         G11 = mat()  # the weak Laplacian's metric (``laplacian_metric``), once for all fields
@@ -246,6 +244,61 @@ def laplacian_element(second: bool, divergent: bool, np_: int, copies: int = 0, 
                     y = add_divergent(y, along(D[j], dvvT), across(D, j, dvv), c[1] * metric[3, q], q, f)
             for r in range(4):
                 L[r, q] = y[r]
+
+    element.__qualname__ = element.__name__ = (
+        f"laplacian_element_{'second' if S else 'first'}_{'div_' if DIV else ''}np{NP}"
+    )
+    one_element = wp.func(element)
+
+    if ROWS:  # the first DSS by element on GLL rows (``dss.gather_row``), written into src: Y's rows
+
+        def kernel(
+            xr: wp.array2d(dtype=vec),
+            x: wp.array2d(dtype=f64),
+            d: Copies,
+            g: Edges,
+            wr: wp.array(dtype=vec),
+            rsr: wp.array(dtype=vec),
+            src: wp.array2d(dtype=vec),
+            hs: wp.array(dtype=vec),
+            delta: wp.array2d(dtype=vec),
+            c: wp.vec4d,
+            f: RowFrame,
+            metric: wp.array2d(dtype=vec),
+            dvv: mat,
+            L: wp.array2d(dtype=vec),
+            offset: int,
+        ):
+            e = wp.tid() + offset
+            for j in range(NP):
+                for r in range(4):
+                    src[r, e * NP + j] = row_dss(xr, x, d, g, wr, rsr, e, j, r)
+            one_element(src, hs, delta, c, f, metric, dvv, L, e)
+
+    else:
+
+        def kernel(
+            x: wp.array2d(dtype=f64),
+            d: Copies,
+            Y: wp.array2d(dtype=f64),
+            src: wp.array2d(dtype=vec),
+            hs: wp.array(dtype=vec),
+            delta: wp.array2d(dtype=vec),
+            c: wp.vec4d,
+            f: RowFrame,
+            metric: wp.array2d(dtype=vec),
+            dvv: mat,
+            L: wp.array2d(dtype=vec),
+            block: int,
+            offset: int,
+        ):
+            e = wp.tid() + offset
+            if wp.static(S):  # Y = the DSS of x at this element's nodes, read back (as src) in cache
+                for p in range(e * block, e * block + block):
+                    s = sum_copies(x, d, p)
+                    for r in range(4):
+                        Y[r, p] = s[r]
+            one_element(src, hs, delta, c, f, metric, dvv, L, e)
 
     kernel.__qualname__ = kernel.__name__ = "laplacian_element__" + (
         "second" if S else "first__divergent" if DIV else "first"
@@ -406,6 +459,59 @@ def laplacian_flux(cartesian: bool, tensor: bool, np_static: int = 0):
 
 
 @functools.cache
+def _applied(mode: str):
+    """A ``wp.func`` (y, east, north, coef, out, src, prev, mu, nu, p): ``dss_apply``'s update at
+    node p from Y₂ there (y: the 4 values, a vec4d) or at row p from its rows (y: a (4, np)
+    matrix, east and north row views), the same sums lane by lane. ValueError for another mode."""
+    if mode not in ("add", "euler", "rkl"):
+        raise ValueError(f"dss_apply's mode is 'add', 'euler' or 'rkl' (got {mode!r})")
+    ADD, RKL = mode == "add", mode == "rkl"
+
+    def update(
+        out: wp.array2d(dtype=Any),
+        src: wp.array2d(dtype=Any),
+        prev: wp.array2d(dtype=Any),
+        r: int,
+        p: int,
+        z: Any,
+        coef: f64,
+        mu: f64,
+        nu: f64,
+    ):
+        if wp.static(ADD):
+            out[r, p] = out[r, p] + coef * z
+        else:
+            t = src[r, p] + coef * z
+            if wp.static(RKL):
+                t = mu * t + nu * prev[r, p]
+            out[r, p] = t
+
+    update.__qualname__ = update.__name__ = f"dss_apply_update_{mode}"
+    put = wp.func(update)
+
+    def applied(
+        y: Any,
+        east: wp.array2d(dtype=Any),
+        north: wp.array2d(dtype=Any),
+        coef: f64,
+        out: wp.array2d(dtype=Any),
+        src: wp.array2d(dtype=Any),
+        prev: wp.array2d(dtype=Any),
+        mu: f64,
+        nu: f64,
+        p: int,
+    ):
+        ye = times(y[0], east[0, p]) + times(y[1], east[1, p]) + times(y[2], east[2, p])
+        yn = times(y[0], north[0, p]) + times(y[1], north[1, p]) + times(y[2], north[2, p])
+        put(out, src, prev, 0, p, ye, coef, mu, nu)
+        put(out, src, prev, 1, p, yn, coef, mu, nu)
+        put(out, src, prev, 2, p, y[3], coef, mu, nu)
+
+    applied.__qualname__ = applied.__name__ = f"dss_applied_{mode}"
+    return wp.func(applied)
+
+
+@functools.cache
 def dss_apply(copies: int, ghosts: bool = False, mode: str = "add"):
     """The second DSS of the ∇⁴, applied as it sums Y₂ = DSS(L) (``dss.gather``, unweighted,
     4 rows: the weak-form Y₂ of ``laplacian_element``/``laplacian_node``), its Cartesian wind
@@ -418,10 +524,8 @@ def dss_apply(copies: int, ghosts: bool = False, mode: str = "add"):
     d (``dss.Copies``), coef, f (``Frame``), out (3, N), src (3, N; read by "euler" and "rkl"),
     prev (3, N), mu, nu (read by "rkl"), block, offset. ValueError for another mode.
     Dim N/block (as ``dss.dss_rows``)."""
-    if mode not in ("add", "euler", "rkl"):
-        raise ValueError(f"dss_apply's mode is 'add', 'euler' or 'rkl' (got {mode!r})")
     sum_copies = gather(4, False, copies, ghosts)
-    ADD, RKL = mode == "add", mode == "rkl"
+    applied = _applied(mode)
 
     def dss_apply(
         L: wp.array2d(dtype=f64),
@@ -438,18 +542,49 @@ def dss_apply(copies: int, ghosts: bool = False, mode: str = "add"):
     ):
         start = (wp.tid() + offset) * block
         for p in range(start, start + block):
-            y = sum_copies(L, d, p)
-            ye = y[0] * f.east[0, p] + y[1] * f.east[1, p] + y[2] * f.east[2, p]
-            yn = y[0] * f.north[0, p] + y[1] * f.north[1, p] + y[2] * f.north[2, p]
-            z = wp.vec3d(ye, yn, y[3])
-            for r in range(3):
-                if wp.static(ADD):
-                    out[r, p] = out[r, p] + coef * z[r]
-                else:
-                    t = src[r, p] + coef * z[r]
-                    if wp.static(RKL):
-                        t = mu * t + nu * prev[r, p]
-                    out[r, p] = t
+            applied(sum_copies(L, d, p), f.east, f.north, coef, out, src, prev, mu, nu, p)
 
-    dss_apply.__qualname__ = "dss_apply" + ("" if ADD else "__" + mode)  # the kernel's key
+    dss_apply.__qualname__ = "dss_apply" + ("" if mode == "add" else "__" + mode)  # the kernel's key
+    return wp.kernel(dss_apply, enable_backward=False, module="unique")
+
+
+@functools.cache
+def dss_apply_elements(copies: int, ghosts: bool, np_: int, mode: str = "add"):
+    """``dss_apply`` by element on GLL rows (``dss.gather_row``, the node gather's bits), for
+    the CPU (``Topology.by_element``): arguments Lr, L (L as rows and as it is), d
+    (``dss.Copies``), g (``dss.Edges``), wr, rsr (spheremp's first N and rspheremp as rows),
+    coef, f (``frame_type`` of rows), out, src, prev as rows, mu, nu, offset; dim nelem."""
+    NP = int(np_)
+    vec = row_type(NP)
+    RowFrame = frame_type(vec)
+    row_dss = gather_row(4, False, copies, ghosts, NP)
+    applied = _applied(mode)
+
+    def dss_apply(
+        Lr: wp.array2d(dtype=vec),
+        L: wp.array2d(dtype=f64),
+        d: Copies,
+        g: Edges,
+        wr: wp.array(dtype=vec),
+        rsr: wp.array(dtype=vec),
+        coef: f64,
+        f: RowFrame,
+        out: wp.array2d(dtype=vec),
+        src: wp.array2d(dtype=vec),
+        prev: wp.array2d(dtype=vec),
+        mu: f64,
+        nu: f64,
+        offset: int,
+    ):
+        e = wp.tid() + offset
+        for j in range(NP):
+            y = wp.matrix_from_rows(
+                row_dss(Lr, L, d, g, wr, rsr, e, j, 0),
+                row_dss(Lr, L, d, g, wr, rsr, e, j, 1),
+                row_dss(Lr, L, d, g, wr, rsr, e, j, 2),
+                row_dss(Lr, L, d, g, wr, rsr, e, j, 3),
+            )
+            applied(y, f.east, f.north, coef, out, src, prev, mu, nu, e * NP + j)
+
+    dss_apply.__qualname__ = "dss_apply" + ("" if mode == "add" else "__" + mode)  # the node kernel's key
     return wp.kernel(dss_apply, enable_backward=False, module="unique")

@@ -257,13 +257,18 @@ class Topology:
         self._mass_rows = row_vectors(self.spheremp[: self.N], NP), row_vectors(self.rspheremp, NP)
         return g
 
-    def _by_element(self, x: wp.array2d, kernel, args) -> list:
-        """Launches for an element-row DSS kernel (``dss.dss_update_elements``) over x (rows, N), dim nelem, ``args`` as rows after
-        (xr, x, ``dss_copies``, ``edges``, wr, rsr); the neighbours' copies exchanged first."""
+    def by_element(self, x: wp.array2d, kernel, args) -> list:
+        """Launches for a kernel that sums the DSS of x (rows, N) by element on GLL rows
+        itself (``kernels.dss.gather_row``; where ``edges`` is not None: the CPU), the form of
+        ``gathering`` there: ``kernel(rows, copies, ghosts, np)`` builds it; it takes (xr, x,
+        ``dss_copies``, ``edges``, wr, rsr, *args, offset), xr x's rows, wr and rsr spheremp's
+        first N and rspheremp as rows (``args`` as the kernel reads them: its arrays of nodes as
+        ``kernels.operators.row_vectors``); dim nelem. The neighbours'
+        copies are exchanged first."""
         kernel = kernel(x.shape[0], self.table.shape[1], bool(len(self.neighbours)), self.grid.np)
         NP = self.grid.np
         inputs = [row_vectors(x, NP), x, self.dss_copies, self.edges, *self._mass_rows]
-        inputs += [row_vectors(a, NP) if isinstance(a, wp.array) else a for a in args]
+        inputs += args
         launch = record(
             kernel, self.grid.nelem, inputs, device=self.backend, threads=self.threads, nodes_per_index=NP * NP
         )
@@ -363,12 +368,12 @@ class Topology:
         coefs += [0.0] * (6 - len(coefs))
         arrays += arrays[-3:] * (2 - len(updates))
         if self.edges is not None:
-            return self._by_element(
+            return self.by_element(
                 x,
                 lambda rows, copies, ghosts, np_: dss.dss_update_elements(
                     rows, copies, tuple(patterns), ghosts, bool(weighted), np_
                 ),
-                [dss.vec6(*coefs), *arrays],
+                [dss.vec6(*coefs), *(row_vectors(a, self.grid.np) for a in arrays)],
             )
         return self.gathering(
             x,

@@ -98,11 +98,20 @@ class Hyperviscosity:
                     head = [L, m.topology.dss_copies, Y, m.operators.as_rows(x)]
                     return [m.launches.elements(kernel, [*head, *args, m.operators.as_rows(L), m.launches.block])]
 
-                def gathered(rows, copies, ghosts):  # the first DSS in the second pass, element by element
-                    return hyperviscosity.laplacian_element(True, divergent, np_, copies, ghosts)
-
+                # the first DSS in the second pass, element by element: on rows where the topology has them
+                tail = [*args, m.operators.as_rows(self.hv_L2)]
+                if m.topology.edges is not None:
+                    return m.topology.by_element(
+                        L,
+                        lambda rows, copies, ghosts, np_: hyperviscosity.laplacian_element(
+                            True, divergent, np_, copies, ghosts, rows=True
+                        ),
+                        [m.operators.as_rows(Y), *tail],
+                    )
                 return m.topology.gathering(
-                    L, gathered, [Y, m.operators.as_rows(Y), *args, m.operators.as_rows(self.hv_L2)]
+                    L,
+                    lambda rows, copies, ghosts: hyperviscosity.laplacian_element(True, divergent, np_, copies, ghosts),
+                    [Y, m.operators.as_rows(Y), *tail],
                 )
         else:
 
@@ -140,16 +149,24 @@ class Hyperviscosity:
                 kernel = hyperviscosity.laplacian_node(second, divergent, m.operators.static_np)
                 return [*passes, m.launches.nodes(kernel, N, args)]
 
-        def apply(rows, copies, ghosts):  # ``Topology.gathering``'s kernel factory
-            return hyperviscosity.dss_apply(copies, ghosts=ghosts, mode=mode)
-
-        last = [f64(coef), self._frame("east", "north"), out, x, out if prev is None else prev, *map(f64, weights)]
-        return [
-            *launches,
-            *laplacian(False),
-            *laplacian(True),
-            *m.topology.gathering(self.hv_L2 if m.operators.per_element else L, apply, last),
-        ]
+        passes = [*launches, *laplacian(False), *laplacian(True)]
+        by_element = m.operators.per_element and m.topology.edges is not None
+        rows = m.operators.as_rows if by_element else (lambda a: a)
+        last = [f64(coef), self._frame("east", "north", rows=by_element)]
+        last += [rows(out), rows(x), rows(out if prev is None else prev), *map(f64, weights)]
+        if by_element:  # the CPU's element rows (``Topology.by_element``)
+            apply = m.topology.by_element(
+                self.hv_L2,
+                lambda rows, copies, ghosts, np_: hyperviscosity.dss_apply_elements(copies, ghosts, np_, mode),
+                last,
+            )
+        else:
+            apply = m.topology.gathering(
+                self.hv_L2 if m.operators.per_element else L,
+                lambda rows, copies, ghosts: hyperviscosity.dss_apply(copies, ghosts=ghosts, mode=mode),
+                last,
+            )
+        return [*passes, *apply]
 
     def transpose(
         self, tendency: TendencyTranspose, dt: float, shared: HyperviscosityTranspose | None = None

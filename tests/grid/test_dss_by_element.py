@@ -84,3 +84,27 @@ def test_each_edge_nodes_other_copy(rng):
 def test_two_point_elements_keep_the_node_gather():
     """np 2 has no node inside an edge: the node gather stays."""
     assert Topology(cached_grid(2, 2), "cpu").edges is None
+
+
+@pytest.mark.parametrize(
+    "scene,np_",
+    [("galewsky", 6), ("tc6_rossby_haurwitz", 4), ("tc5_mountain_homme", 4)],
+    ids=["rkl1-stages", "euler-substep", "leapfrog"],
+)
+def test_runs_with_the_hyperviscosity_are_the_node_gathers_bits(scene, np_):
+    """A run's steps (the stages' DSS updates, the ∇⁴'s two DSSs in its element passes: RKL1
+    stages at ne2 np6 Galewsky, a forward-Euler substep at TC6, the leapfrog's ∇⁴) give the
+    node gather's bits."""
+    from swe_sphere.simulation.simulation import Simulation
+
+    def steps():
+        sim = Simulation(scene, "cpu", progress=False, graphs=False, hyperviscosity={"every": 1}, ne=2, np=np_)
+        for _ in range(6):
+            sim.stepper.step(sim.x)
+        return sim.x.numpy(), sim.model.topology.edges
+
+    by_element, edges = steps()
+    with mock.patch.object(Topology, "_element_edges", lambda self: None):
+        by_node, none = steps()
+    assert edges is not None and none is None
+    assert np.all(np.isfinite(by_element)) and np.array_equal(by_element.view(np.int64), by_node.view(np.int64))

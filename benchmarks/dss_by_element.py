@@ -3,7 +3,7 @@ form since issue 99) against the node gather it replaced (``dss_rows``/``dss_upd
 CPU cost, both in one process, interleaved.
 
 For each ``--scene`` on its own grid (or ``--ne``/``--np``), at its own stepper and Δt, two models:
-one as shipped and one built with the node gather (``Topology`` without its ``edges``); each stepped
+one as shipped and one built with the node gather (``Topology.element_rows`` False); each stepped
 ``--steps`` steps a round, ``--rounds`` rounds taken in turn so that a change of load hits both
 alike; the median CPU ms a step (``time.process_time``, one thread) and the ratio. The two give
 the same bits (tests/grid/test_dss_by_element.py); the run checks it on the states after the
@@ -48,7 +48,7 @@ def arguments():
 def measure(scene: str, grid: dict, steps: int, rounds: int) -> dict:
     """CPU ms a step of ``scene`` with the DSS by element and by node, interleaved."""
     sims = {"element": Simulation(scene, "cpu", progress=False, days=1.0, graphs=False, **grid)}
-    with mock.patch.object(Topology, "_element_edges", lambda self: None):
+    with mock.patch.object(Topology, "element_rows", False):
         sims["node"] = Simulation(scene, "cpu", progress=False, days=1.0, graphs=False, **grid)
     assert sims["element"].model.topology.edges is not None and sims["node"].model.topology.edges is None
     for sim in sims.values():  # recorded and compiled

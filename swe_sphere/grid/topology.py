@@ -149,10 +149,17 @@ class Topology:
     copies, owned : the DSS's halo and the unique-node halo (``halo.Halo``: what goes
         to and comes from each neighbour); neighbours : ranks sharing nodes with
         this one; ghost : the DSS's receive buffer; halo_copies : copies received per DSS
+    edges : ``kernels.dss.Edges`` of the DSS by element on GLL rows (``by_element``), on
+        the CPU where ``element_rows`` (a class attribute, True) and the mesh allows; else None
+        and the DSS is the node gather (CUDA's form): the same bits either way
 
     Over several ranks on CUDA each rank's arrays live on its own device (``core.backend.pick_device``:
     rank r of a node on cuda:(r mod its GPUs)), and the exchanges go through host memory (``halo``).
     """
+
+    # False: the node gather on the CPU too (what benchmarks/dss_by_element.py compares the rows
+    # with, and how tests/core/test_cuda_compile.py finds the DSS kernels CUDA launches)
+    element_rows = True
 
     def __init__(self, grid, device: str | Backend = "cpu", threads: int = 1, comm=None, parts=None):
         self.backend = device if isinstance(device, Backend) else Backend.of(device)
@@ -190,7 +197,7 @@ class Topology:
             self.spheremp,
             self.rspheremp,
         )
-        self.edges = self._element_edges() if self.backend.host else None
+        self.edges = self._element_edges() if self.backend.host and self.element_rows else None
 
     def _build_halos(self, parts, rank):
         """Local tables from the rank's own nodes' rows of the global DSS table and

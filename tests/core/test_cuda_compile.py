@@ -29,6 +29,7 @@ import swe_sphere.kernels as kernels_pkg
 from swe_sphere.adjoint.gradient import step_adjoint
 from swe_sphere.config.scene import list_scenes, load_scene
 from swe_sphere.grid.cubed_sphere import CubedSphere
+from swe_sphere.grid.topology import Topology
 from swe_sphere.kernels import dss, hyperviscosity
 from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.solvers.jacobian import KernelPasses
@@ -76,6 +77,7 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
         return built
 
     monkeypatch.setattr(wp, "launch", launch)
+    monkeypatch.setattr(Topology, "element_rows", False)  # the DSS's node kernels, CUDA's, not the CPU's rows
     for module, name in ((dss, "dss_rows"), (dss, "dss_update"), (hyperviscosity, "dss_apply")):
         monkeypatch.setattr(module, name, noting(getattr(module, name)))
     scenes = [load_scene(p, ne=2, np_=4) for p in list_scenes()]

@@ -8,9 +8,7 @@ output and restart days as a run's do; ``StepControl.state`` goes in the restart
 from __future__ import annotations
 
 from ..core.errors import ArgumentError
-from ..integrator import ControlledDt, FixedDt, Integrator
-from ..simulation.adaptive import StepControl, Tries
-from .units import member_step
+from ..simulation.adaptive import StepControl
 
 # ``Ensemble.add_callback``'s refusal of a callback every so many days under step control
 STEERED = "every_days: under step control the steps are the controller's (give every_steps)"
@@ -30,13 +28,3 @@ def member_control(scene, units: list, layout: str, comm) -> StepControl | None:
             f"not {where}"
         )
     return StepControl(scene.control, units[0], scene.start_day)
-
-
-def member_integrator(units: list, control: StepControl | None, anywhere, drop: bool) -> Integrator:
-    """The one step loop over an ensemble's ``units`` (``integrator.Integrator``; ``anywhere`` and
-    ``drop`` its own): each stepped a block at a time and checked at its end (``units.member_step``),
-    or under step control (``control``) each accepted step a block checked at once, toward the day
-    ``Ensemble._ahead`` gives its policy (``ControlledDt``)."""
-    if control is None:
-        return Integrator(units, FixedDt(member_step), anywhere=anywhere, drop=drop, lone=False)
-    return Integrator(units, ControlledDt(control, []), anywhere=anywhere, drop=drop, rewind=Tries(control))

@@ -12,15 +12,13 @@ every member's invariants."""
 
 from __future__ import annotations
 
+import itertools
 import signal
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
-import warp as wp
 from threadpoolctl import threadpool_limits
-from tqdm import tqdm
 
 from ..cases.scoring import Scorer
 from ..config.scene import resolve_scene, with_days
@@ -32,23 +30,20 @@ from ..core.graphs import default_mode, graphs_mode
 from ..core.interrupts import StopSignals
 from ..core.mpi import RankMax
 from ..grid.cubed_sphere import CubedSphere
-from ..integrator import core_property
+from ..integrator import FixedDt, Integrator, Stop, core_property
 from ..io import restart_file
 from ..io.run_file import OUTPUT_FIELDS, RunWriter, area_rms, member_statistics
 from ..model.diagnostics import invariants
 from ..model.shallow_water import ShallowWater
 from ..simulation import checkpoint
+from ..simulation.activities import Callback, call_due
 from ..simulation.build import check_memory
-from ..simulation.schedules import (
-    at_its_end,
-    check_restart_interval,
-    interval_days,
-    output_days,
-    output_steps,
-    restart_steps,
-)
-from ..simulation.writers import interrupted_attrs, restart_path, scene_attrs
-from .control import STEERED, member_control, member_integrator
+from ..simulation.loop import progress_bar, progressed, run_steps
+from ..simulation.run_state import RunState
+from ..simulation.schedules import AtDays, AtSteps, EverySteps, at_its_end, output_days, output_steps
+from ..simulation.summary import Ledger, interruption
+from ..simulation.writers import Checkpointer, interrupted_attrs, scene_attrs
+from .control import STEERED, member_control
 from .files import member_writer, resume
 from .initial import Perturbation, Variants, checked_states, described, initial_states
 from .members import MemberGrid, member_part
@@ -58,6 +53,7 @@ from .units import (
     blow_up_line,
     checked_scene,
     drop_line,
+    member_step,
     on_rank_zero,
     own_units,
     shared_unit,
@@ -207,10 +203,13 @@ class Ensemble:
         self._fcor = self._side(lambda u: u.model.operators.fcor.numpy())
         self._g = [u.model.g for u in self.units for _ in range(u.members)]
         self.control = member_control(scene, self.units, self.layout, self.comm)  # None at a fixed Δt
-        self.core = member_integrator(self.units, self.control, self._anywhere, blow_up == "drop")
+        # the one step loop over the units (``integrator``): a block watched, a checked step plain (``member_step``)
+        drop = blow_up == "drop"
+        self.core = Integrator(self.units, FixedDt(member_step), anywhere=self._anywhere, drop=drop, lone=False)
         self._out = self.core.out  # dropped units: {unit index: the step it blew up at}
-        self.wall_time = 0.0  # s, of ``step``
-        self._callbacks: list = []  # (call, every so many steps): ``add_callback``
+        self.counters = {"rhs_evals": 0, "wall_time": 0.0, "cpu_time": 0.0, "iterations": {}}  # as a run's
+        self.run_state = RunState(self.core, scene, self.control, counters=self.counters)  # what activities read
+        self.activities: dict = {}  # name -> activity (``simulation.activities``): ``add_callback``'s; ``run``'s own
         self._options, self._scorer = options, None
 
     def _member(self, a: np.ndarray, k: int) -> np.ndarray:
@@ -255,27 +254,36 @@ class Ensemble:
         n = integer_argument("n", n, 0)
         if self.control is not None:
             raise ArgumentError("Ensemble.step takes steps of a fixed dt: under step control, advance(days) or run")
-        self._ahead(self.step_count + n, n)
+        self._steps(self.step_count + n)
 
-    def _ahead(self, target, most: int) -> int:
-        """Steps toward ``target`` (a step; under step control a model day), ``most`` at the most:
-        their number. ``BlowUp`` and ``StepFailure`` as ``step``'s."""
-        t0, first = time.perf_counter(), self.step_count
-        steered = None if self.control is None else self.core.policy
-        if steered is not None:  # Δt the controller's, its steps landed on the day
-            steered.days, target = [target], sys.maxsize
-        observer = Members(self._drop, self._callbacks, steered)
-        # (step, trouble, detail) of a checked step that went bad (``integrator.Stop``)
-        bad = self.core.advance(min(target, first + most), observer).bad
-        if bad is not None:  # the states those of the step that went bad, for its report
-            step, trouble, detail = bad
-            if trouble == "failure":
-                raise StepFailure(detail)
-            self.step_count = step
-            raise BlowUp(self._blow_up(step))
-        wp.synchronize_device(self.model.topology.device)
-        self.wall_time += time.perf_counter() - t0
-        return self.step_count - first
+    def _steps(self, stop_step: int, last_day=None, signals=None, after=None, notify=None) -> Stop:
+        """Steps to ``stop_step`` (under step control to the model day ``last_day``) by a run's
+        loop (``simulation.loop.run_steps``) under the ensemble's hooks (``units.Members``): the
+        activities due after each good step, then ``after(n, done)``; a stop ``signals`` asked
+        returned (``Stop``), ``notify(line)`` told a wall time estimated above a day
+        (``summary.Ledger``). ``BlowUp`` and ``StepFailure`` as ``step``'s."""
+        ledger = Ledger(self.counters, self.scene, self.step_count, notify)
+        run = (self.step_count, CHECK_EVERY_STEPS, self.activities, self.counters, ledger)
+
+        def good(n: int, done: int) -> None:
+            call_due(self.activities, self.run_state, self)
+            if after is not None:
+                after(n, done)
+
+        observer = Members(run, stop_step, signals, good, self._drop)
+        stop = run_steps(self.core, self.control, last_day, self.activities, observer, stop_step, self._bad)
+        if stop.blowup is not None:
+            raise BlowUp(stop.blowup)
+        return stop
+
+    def _bad(self, bad: tuple) -> str:
+        """The line of a checked step gone bad, ``bad`` = (step, trouble, detail) of an
+        ``integrator.Stop`` (the states those of that step); ``StepFailure`` for a failed solve."""
+        step, trouble, detail = bad
+        if trouble == "failure":
+            raise StepFailure(detail)
+        self.step_count = step
+        return self._blow_up(step)
 
     def add_callback(self, fn, *, every_steps: int | None = None, every_days: float | None = None) -> None:
         """Call ``fn(self)`` after every ``every_steps``-th step from step 0 (under step control, of
@@ -290,14 +298,21 @@ class Ensemble:
             if self.control is not None or not clock.is_whole(days):
                 raise ArgumentError(str(clock.refusal("every_days", days)) if self.control is None else STEERED)
             every_steps = clock.steps_in(days)
-        self._callbacks.append((lambda: fn(self), integer_argument("every_steps", every_steps, 1)))
+        every = EverySteps(integer_argument("every_steps", every_steps, 1))
+        name = next(f"callback {k}" for k in itertools.count(1) if f"callback {k}" not in self.activities)
+        self.activities[name] = Callback(fn, every)
 
     step_count = core_property("step", "The steps taken (``Integrator.step``).")
 
     @property
     def day(self) -> float:
         """The model time reached, days since t = 0 (under step control the control's)."""
-        return self.scene.day(self.step_count) if self.control is None else self.control.day
+        return self.run_state.time
+
+    @property
+    def wall_time(self) -> float:
+        """The seconds spent stepping (``step``, ``advance``, ``run``; over restarts)."""
+        return self.counters["wall_time"]
 
     def _blow_up(self, step: int) -> str:
         """The one line of a blow-up at ``step``: the members bad there, the first one's place (collective)."""
@@ -335,7 +350,7 @@ class Ensemble:
         ``ArgumentError`` with its refusal otherwise), as ``step``."""
         days = number_argument("days", days, "days", low=0.0)
         if self.control is not None:  # Δt the controller's, landing on the day reached
-            self._ahead(self.day + days, sys.maxsize)
+            self._steps(sys.maxsize, self.day + days)
             return
         clock = self.scene.clock
         if days and not clock.is_whole(days):
@@ -374,10 +389,11 @@ class Ensemble:
         s = self.scene
         if self.day >= s.days:
             raise ArgumentError(at_its_end("Ensemble", self.step_count, s))  # a file of no time
-        restart, restarts = restart_path(output), set()
-        if restart_every is not None:
-            check_restart_interval(s, restart_every)
-            restarts = (restart_steps if self.control is None else interval_days)(s, restart_every)
+        # the restart files as a run's (``writers.Checkpointer``), those at its interval written over an older one
+        rewrite = overwrite or restart_every is not None
+        ckp = Checkpointer(
+            self.run_state, self.write_checkpoint, self._from_root, self.root, output, restart_every, None, rewrite
+        )
         attrs = {
             **scene_attrs(s, "ensemble", history, "swe_sphere.Ensemble.run"),
             **self.stepper.attrs(),
@@ -390,36 +406,37 @@ class Ensemble:
         }
         errors = self.errors()  # the first output's, and the errors the case has (collective)
         member_series = (*MEMBER_SERIES, *errors[0])
-        outputs = (output_steps if self.control is None else output_days)(s)
-        at = (lambda: self.step_count) if self.control is None else (lambda: self.day)  # steps, or days
         hs, many = self._member(self._hs, 0), (self.members, member_series, overwrite, compress, notify)
         writer = member_writer(output, s, self.grid, hs, attrs, *many) if self.root else None
-        # disable=None: a bar only on a terminal (as ``Simulation``'s), updated once a block
-        bar = tqdm(
-            initial=self.step_count, total=s.nsteps, unit="step", disable=None if progress else True, file=sys.stderr
-        )
+        written = []  # the steps written to the run file
+
+        def write(ens, errors=None) -> None:  # the run file's activity (at its output times, as a run's)
+            self._write(writer, member_series, errors)
+            written.append(self.step_count)
+
+        marks = (output_steps if self.control is None else output_days)(s)
+        files = Callback(write, AtSteps.of(marks) if self.control is None else AtDays.of(marks))
+        own, self.activities = self.activities, {"run_file": files, "checkpointer": ckp, **self.activities}
+        lines = progress_lines if self.root else None
         try:
             with (
-                bar,
+                progress_bar(self.step_count, s.nsteps, progress) as bar,
                 StopSignals(self.model.topology if self.comm is None else RankMax(self.comm), catch=True) as signals,
             ):
                 if not self.step_count:  # as a run's: the two files join without a repeated time
-                    self._write(writer, member_series, errors)
+                    write(self, errors)
                 if progress_lines is not None:
                     progress_lines.start(self.day, s.days)
-                for target in sorted(k for k in outputs | restarts if k > at()):
-                    while at() < target:  # a stop asked is answered between blocks
-                        block = self._ahead(target, CHECK_EVERY_STEPS)  # a step, or under step control a day
-                        bar.update(block)
-                        if progress_lines is not None and self.root:
-                            progress_lines.tick(self.step_count, self.day)
-                        if signum := signals.asked():  # the step reached written, as a run's last
-                            self._write(writer, member_series)
-                            raise self._interrupted(signum, restart, restart_every is not None or overwrite)
-                    if target in outputs:
-                        self._write(writer, member_series)
-                    if target in restarts:
-                        self.write_checkpoint(restart, overwrite=True, restart_every=restart_every)
+                after = lambda n, done: progressed(bar, done, lines, n, self.day)  # noqa: E731
+                stop = self._steps(s.nsteps, s.days, signals, after, notify if self.root else None)
+                if stop.signum is not None:  # the step reached written, as a run's last, and its restart file
+                    if written[-1] != self.step_count:
+                        write(self)
+                    ckp.interrupted(self.step_count, abandoned=False)
+                    name, step, day = signal.Signals(stop.signum).name, self.step_count, self.day
+                    err = Interrupted(interruption(name, step, day, s, output, ckp.kept, ckp.written, None))
+                    err.signum, err.result, err.checkpoint = stop.signum, None, ckp.written
+                    raise err
         except BaseException as err:  # a blow-up or a signal: the good output times kept
             if writer is not None:
                 step, why = self.step_count, {"stopped": str(err) or type(err).__name__}
@@ -427,25 +444,14 @@ class Ensemble:
                 writer.set_attrs(**(interrupted_attrs(err.signum, step, self.day) if signalled else why))
                 writer.close()
             raise
+        finally:
+            self.activities = own
         drops = self.drops  # collective
         if writer is not None:
             if drops:
                 writer.set_attrs(dropped_members="; ".join(drops))
             writer.close()
         return Path(output)
-
-    def _interrupted(self, signum: int, restart: Path, write: bool) -> Interrupted:
-        """``run``'s stop at a signal: the restart file written (``write``, or where none is there)."""
-        name, day = signal.Signals(signum).name, self.day
-        kept = None
-        if write or not self._from_root(restart.exists()):
-            kept = self.write_checkpoint(restart, overwrite=True)
-        line = f"interrupted by {name} at step {self.step_count} (model time {day:.4f} days); " + (
-            f"continue it from {kept}" if kept is not None else f"no restart file written ({restart} exists)"
-        )
-        err = Interrupted(line)
-        err.signum, err.result, err.checkpoint = signum, None, kept
-        return err
 
     # -- restart files -------------------------------------------------------------
     def write_checkpoint(self, path, *, overwrite: bool = False, restart_every: float | None = None) -> Path:
@@ -459,7 +465,7 @@ class Ensemble:
             x, state = on_rank_zero(self.comm, x, state)
             if not self.root:
                 return Path(path)
-        counters, kept = {"rhs_evals": 0, "wall_time": self.wall_time, "iterations": {}}, {"overwrite": overwrite}
+        counters, kept = self.counters, {"overwrite": overwrite}
         kept |= {
             "restart_every": restart_every,
             "members": self.members,

@@ -36,7 +36,7 @@ def member_writer(output, scene, grid, hs, attrs: dict, members: int, series, ov
 def resume(ens, ck) -> None:
     """Put the restart file ``ck``'s (a ``simulation.checkpoint.Checkpoint`` of ``ens.members``
     members) states and stepper histories into ``ens``'s units, its dropped members, step
-    control, step count, wall time and initial states' description. ``CheckpointError`` where its
+    control, step count, counters and initial states' description. ``CheckpointError`` where its
     stepper state does not fit the ensemble's steppers."""
     n = ck.x.shape[1] // ck.members
     try:
@@ -50,5 +50,6 @@ def resume(ens, ck) -> None:
     ens.mark_dropped({int(k): step for k, step in ck.initial.get("dropped", {}).items()})  # their last good states
     if ens.control is not None and ck.control is not None:  # the steps go on as if never stopped
         ens.control.restore(ck.control)
-    ens.step_count, ens.wall_time = ck.step, float(ck.counters.get("wall_time", 0.0))
+    ens.step_count = ck.step
+    ens.counters.update(ck.counters)  # a file from before ensembles counted as runs: its wall time alone
     ens.initial = ck.initial.get("initial_states", ens.initial)

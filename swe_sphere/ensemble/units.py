@@ -19,12 +19,12 @@ import numpy as np
 
 from ..config.parts import scene_stepper
 from ..core.arguments import got
-from ..core.backend import CHECK_EVERY_STEPS
 from ..core.errors import ArgumentError
 from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology
-from ..integrator import Observer, Unit
+from ..integrator import Unit
 from ..model.shallow_water import ShallowWater
+from ..simulation.guard import RunObserver
 from ..steppers import STEPPERS
 from .initial import Variants
 from .members import MemberGrid
@@ -141,29 +141,22 @@ def held_state(state: dict, nodes, prefix: str | None) -> dict:
     return {**arrays, **{k[len(prefix) :]: v for k, v in state.items() if k.startswith(prefix)}}
 
 
-class Members(Observer):
-    """An ensemble's hooks on its integrator (``integrator.Integrator``): blocks of
-    ``CHECK_EVERY_STEPS`` steps, ended at every step a callback is due (``callbacks``: (call,
-    every so many steps)) and the callbacks due called after it; each (index, unit, first bad
-    node) dropped told to ``dropped(bad, step)``; under step control a step its norm
-    found good vouched for, each accepted step a block to the policy's day (``steered``, an
-    ``integrator.ControlledDt``)."""
+class Members(RunObserver):
+    """An ensemble's hooks on its integrator (``integrator.Integrator``): a run's
+    (``simulation.guard.RunObserver``: blocks ended where an activity is due, a stop asked between
+    blocks, the counts in its ledger), each (index, unit, first bad node) dropped told to
+    ``dropped(bad, step)``; a stop asked between blocks alone, and no step abandoned by a signal
+    (members stepped in turn are not put back a step)."""
 
-    def __init__(self, dropped, callbacks: list, steered=None):
-        self._dropped, self.callbacks, self.steered = dropped, callbacks, steered
+    def __init__(self, run: tuple, stop_step: int, signals, after, dropped):
+        super().__init__(run, stop_step, signals, after)
+        self._dropped = dropped
 
-    def vouched(self) -> bool:
-        return self.steered is not None and self.steered.control.vouched()
+    def stepping(self, on: bool) -> None:
+        pass
 
-    def block_end(self, b: int) -> int:
-        if self.steered is not None:
-            return b if self.steered.reached else b + 1
-        return min([b + CHECK_EVERY_STEPS, *((b // every + 1) * every for _, every in self.callbacks)])
-
-    def after(self, step: int, done: int) -> None:
-        for call, every in self.callbacks:  # those due at this step, a multiple of their every
-            if step % every == 0:
-                call()
+    def within(self) -> int:
+        return 0  # between blocks alone: ranks holding one unit and more ask as often
 
     def dropped(self, step: int, bad: list) -> None:
         self._dropped(bad, step)

@@ -34,6 +34,14 @@ def is_due(schedule: Schedule, run) -> bool:
     return schedule.due(run.step, run.event_day) if isinstance(schedule, AtDays) else schedule.due(run.step)
 
 
+def call_due(activities: dict, run, owner) -> None:
+    """Call each of ``activities`` (in order) due at ``run``'s step (``is_due``) with ``owner``
+    (the ``Simulation`` or ``Ensemble`` whose run it is)."""
+    for activity in list(activities.values()):
+        if is_due(activity.schedule, run):
+            activity(owner)
+
+
 class Activity(Protocol):
     """Something a run does at the steps of its ``schedule``: ``activity(sim)``."""
 

@@ -19,7 +19,7 @@ from ..core.errors import BlowUp, Interrupted, OutputError, SceneError
 from ..core.interrupts import StopSignals
 from ..integrator import Stop
 from ..io.output_files import check_distinct, check_target
-from .activities import Log, is_due
+from .activities import Log, call_due
 from .adaptive import Tries, steered
 from .guard import RunObserver, blowup_line
 from .schedules import EverySteps
@@ -69,6 +69,52 @@ def check_run_arguments(output, overwrite, restart_every, restart_file, compress
         number_argument("restart_every", restart_every, "days", positive=True, error=SceneError)
 
 
+def progress_bar(step: int, nsteps: int, progress: bool) -> tqdm:
+    """A run's tqdm bar of ``nsteps`` steps from ``step`` on stderr (``progress``: where it is a terminal)."""
+    # disable=None: a bar only on a terminal, not redrawn into a log (or mpiexec's pipe)
+    return tqdm(
+        initial=step, total=nsteps, unit="step", disable=None if progress else True, file=sys.stderr, dynamic_ncols=True
+    )
+
+
+def progressed(bar, done: int, lines, step: int, day: float) -> None:
+    """``done`` steps more to ``step`` (model ``day``) on the bar and, where given, ``lines``
+    (a ``progress.ProgressLines``: rank 0's)."""
+    bar.update(done)
+    if lines is not None:
+        lines.tick(step, day)
+
+
+def run_steps(core, control, last_day: float, activities: dict, observer, stop_step: int, describe) -> Stop:
+    """The steps of a run (a ``Simulation``'s or an ``Ensemble``'s) by its integrator ``core`` to
+    ``stop_step`` under ``observer`` (a ``guard.RunObserver``), each step's Δt its policy's: the
+    integrator's own at a fixed Δt, or under ``control`` (an ``adaptive.StepControl``) the
+    control's (``adaptive.steered``: each accepted step a block, landed on the days the
+    ``activities`` are due at and on ``last_day``; ``stop_step`` then unbounded). Returns why the
+    steps stopped (``Stop``: nothing, a signal, an abandoned step, a blow-up with ``describe(bad)``
+    its line, or the controller's Δt below dt_min); after a controlled run's blow-up, the state
+    and the control those of the step before."""
+    stepping, rewind = contextlib.nullcontext(), None  # a fixed Δt: the integrator's own policy
+    if control is not None:
+        observer.steered, rewind = steered(control, last_day, activities), Tries(control)
+        stepping, stop_step = core.stepping_by(observer.steered, rewind), sys.maxsize
+    try:
+        with stepping:
+            stop = core.advance(stop_step, observer)
+    except BlowUp as err:  # the controller's Δt below dt_min: the rejected tries put the state back
+        if control is None:
+            raise
+        return Stop(blowup=str(err))
+    finally:  # a try launched ahead undone: the state the run stops with is the last accepted step's
+        if control is not None:
+            control.settle(core.units[0].x)
+    if stop.bad is not None:
+        stop.blowup = describe(stop.bad)
+        if control is not None:
+            rewind.put_back([], {}, False)
+    return stop
+
+
 class Looping:
     """The steps of a ``Simulation``'s ``run`` (it is one), by its integrator (``core``), its
     activities between them, and how it stopped; ``_compile`` the seconds compiling Warp modules
@@ -82,60 +128,28 @@ class Looping:
         if lines is not None:
             lines.start(self.time, self.scene.days)
 
-    def _progress_bar(self) -> tqdm:
-        # disable=None: a bar only on a terminal, not redrawn into a log (or mpiexec's pipe)
-        return tqdm(
-            initial=self.step,
-            total=self.scene.nsteps,
-            unit="step",
-            disable=None if self.progress else True,
-            file=sys.stderr,
-            dynamic_ncols=True,
-        )
-
     def _blocks(self, signals: StopSignals, ledger: Ledger, bar, until_step: int | None) -> Stop:
-        """The run's steps to ``until_step`` (None: the scene's end) by the integrator
-        (``Simulation.core``) under its guard (``guard.RunObserver``), each step's Δt its policy's:
-        the fixed Δt's, or under ``scene.control`` the step control's (``adaptive.steered``, each
-        accepted step a block, landed on the output and restart days; ``until_step`` refused
-        there, ValueError). The activities due called after each good step. Returns why the
-        loop stopped (``Stop``: nothing, a signal, an abandoned step or a blow-up; after a
-        controlled run's, the state, the control and ``step`` those of the step before)."""
-        ctl = self.control
-        policy, rewind = self.core.policy, self.core.rewind
+        """The run's steps to ``until_step`` (None: the scene's end) by ``run_steps`` under the
+        run's guard (``guard.RunObserver``); ``until_step`` refused under step control
+        (ValueError). The activities due called after each good step. Returns why the loop
+        stopped (``Stop``)."""
+        if self.control is not None and until_step is not None:
+            raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
         stop_step = self.scene.nsteps if until_step is None else until_step
-        if ctl is not None:
-            if until_step is not None:
-                raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
-            policy, rewind, stop_step = steered(ctl, self.scene.days, self.activities), Tries(ctl), sys.maxsize
         run = (self.step, self.check_every, self.activities, self.counters, ledger)
-        after = lambda n, done: self._after_steps(n, done, bar)  # noqa: E731
-        observer = RunObserver(run, stop_step, signals, after, policy if ctl else None)
-        try:
-            with self.core.stepping_by(policy, rewind):
-                stop = self.core.advance(stop_step, observer)
-        except BlowUp as err:  # the controller's Δt below dt_min: the rejected tries put the state back
-            if ctl is None:
-                raise
-            return Stop(blowup=str(err))
-        finally:  # a try launched ahead undone: the state the run stops with is the last accepted step's
-            if ctl is not None:
-                ctl.settle(self.x)
-        if stop.bad is not None:
-            stop.blowup = blowup_line(self.model, self.x, stop.bad, self.time if ctl else self.scene.day(stop.bad[0]))
-            if ctl is not None:
-                rewind.put_back([], {}, False)
-        return stop
+        observer = RunObserver(run, stop_step, signals, lambda n, done: self._after_steps(n, done, bar))
+
+        def describe(bad: tuple) -> str:
+            day = self.time if self.control is not None else self.scene.day(bad[0])
+            return blowup_line(self.model, self.x, bad, day)
+
+        return run_steps(self.core, self.control, self.scene.days, self.activities, observer, stop_step, describe)
 
     def _after_steps(self, n: int, done: int, bar) -> None:
         """Step n (the last of ``done`` steps) is good: the activities due there, the progress bar."""
         self.step = n
-        for activity in list(self.activities.values()):
-            if is_due(activity.schedule, self.run_state):
-                activity(self)
-        bar.update(done)
-        if self._progress_lines is not None and self.root:
-            self._progress_lines.tick(n, self.time)
+        call_due(self.activities, self.run_state, self)
+        progressed(bar, done, self._progress_lines if self.root else None, n, self.time)
         if n % 50 < done or n == self.scene.nsteps:  # a multiple of 50 in the steps done
             bar.set_postfix(
                 day=f"{self.time:.2f}",
@@ -179,7 +193,7 @@ class Looping:
                     # a continuation's first time is the last of the file it continues (where its
                     # restart file was written): not written again, so the two files join without a repeat
                     files.record(self.step, whole=start, final=True, write=not self.step)
-                    with self._progress_bar() as bar:
+                    with progress_bar(self.step, self.scene.nsteps, self.progress) as bar:
                         stop = self._blocks(signals, ledger, bar, until_step)
                     self._stopped(stop, files, ckp)
                 files.close()  # under this run's handlers: a signal now waits, and is answered below
@@ -197,7 +211,7 @@ class Looping:
             raise ValueError(f"activities {', '.join(taken)}: a run's own names (choose another)")
         run = self.run_state
         ckp = Checkpointer(
-            run, self.write_checkpoint, self.topology, self.root, output, restart_every, restart_file, overwrite
+            run, self.write_checkpoint, self.topology.bcast, self.root, output, restart_every, restart_file, overwrite
         )
         files = RunFiles(run, self.diagnostics, self.grid, self.hs, output, on_output)
         if self.root:

@@ -217,19 +217,19 @@ class RunFiles:
 
 class Checkpointer:
     """The restart files of a run (its ``run_state.RunState`` ``run``, written by ``write``, a
-    ``Simulation.write_checkpoint``, on ``topology``; ``root`` this rank is 0): ``path`` (default ``restart_path(output)``)
+    ``Simulation.write_checkpoint``; ``bcast(value)`` rank 0's value on every rank; ``root`` this rank is 0): ``path`` (default ``restart_path(output)``)
     every ``every_days`` (whole steps) and at the end, and on a signal. Without
     ``every_days`` and ``overwrite``, an existing default restart file is neither
     refused nor replaced (``kept``: no restart file on a signal). Raises ValueError
     for an interval that is not whole steps, or one with neither output nor path.
     An activity (``activities``): ``checkpointer(sim)`` saves at the steps of ``schedule``."""
 
-    def __init__(self, run, write, topology, root: bool, output, every_days: float | None, path, overwrite: bool):
+    def __init__(self, run, write, bcast, root: bool, output, every_days: float | None, path, overwrite: bool):
         self.run, self.write, self.overwrite, self.kept, self.written = run, write, overwrite, None, None
         self.every_days = every_days
         if path is None and output is not None:
             path = restart_path(output)
-            if every_days is None and not overwrite and topology.bcast(root and path.exists()):
+            if every_days is None and not overwrite and bcast(root and path.exists()):
                 path, self.kept = None, path
         self.path = path
         self.steps = set()  # steps, or under step control days (``schedules.interval_days``)

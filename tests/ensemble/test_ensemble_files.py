@@ -106,21 +106,23 @@ def test_a_signal_stops_after_a_block_with_its_restart_file(tmp_path):
     ens = Ensemble("galewsky", 2, Perturbation(1.0, seed=3), device="cpu", **{**SMALL, "days": 1.0})
     signalled = []
 
-    def signal_at_30(ens):  # SIGINT once 30 steps are done: the run stops at the end of that block (to 48)
+    def signal_at_30(ens):  # SIGINT once 30 steps are done: as a run, the ensemble stops at the block's end (30)
         if ens.step_count >= 30 and not signalled:
             signalled.append(ens.step_count)
             os.kill(os.getpid(), signal.SIGINT)
 
     ens.add_callback(signal_at_30, every_steps=6)
-    with pytest.raises(Interrupted, match=r"interrupted by SIGINT at step 48 .*continue it from") as info:
+    with pytest.raises(
+        Interrupted, match=r"^interrupted by SIGINT at step 30 .*; restart file .*e\.restart\.nc$"
+    ) as info:
         ens.run(tmp_path / "e.nc")
     assert info.value.signum == signal.SIGINT and info.value.checkpoint == tmp_path / "e.restart.nc"
     with netCDF4.Dataset(tmp_path / "e.nc") as ds:
-        assert list(ds["time"][:]) == [0.0, 0.25, 0.5] and "stopped" not in ds.ncattrs()
-        assert (ds.interrupted, ds.interrupted_at_step, ds.interrupted_at_day) == ("SIGINT", 48, 0.5)  # as a run's
+        assert list(ds["time"][:]) == [0.0, 0.25, 0.3125] and "stopped" not in ds.ncattrs()
+        assert (ds.interrupted, ds.interrupted_at_step, ds.interrupted_at_day) == ("SIGINT", 30, 0.3125)  # as a run's
     assert signalled == [30]
     rest = Ensemble.from_checkpoint(tmp_path / "e.restart.nc")
-    rest.step(96 - 48)
+    rest.step(96 - 30)
     whole = Ensemble("galewsky", 2, Perturbation(1.0, seed=3), device="cpu", **{**SMALL, "days": 1.0})
     whole.step(96)
     assert np.array_equal(rest.states(), whole.states())

@@ -21,7 +21,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ..cases.scoring import Scorer
-from ..config.scene import resolve_scene, with_days
+from ..config.scene import resolve_scene
 from ..core.arguments import callable_argument, got, integer_argument, number_argument
 from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
 from ..core.constants import DAY
@@ -486,9 +486,7 @@ class Ensemble:
         ck = checkpoint.read(path)
         if ck.members is None:
             raise CheckpointError(f"{path}: a single run's restart file (continue it with Simulation.from_checkpoint)")
-        scene = ck.scene if days is None else with_days(ck.scene, days)
-        if scene.days < ck.day:
-            raise CheckpointError(f"the run length {scene.days:g} days ends before the checkpoint (day {ck.day:g})")
+        scene = checkpoint.continued_scene(ck, days)
         n = ck.x.shape[1] // ck.members
         states = ck.x.reshape(3, ck.members, n).transpose(1, 0, 2)
         variants = ck.initial.get("variants")  # the members' own scenes, then the file's states

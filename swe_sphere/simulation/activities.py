@@ -3,7 +3,9 @@ writers and callbacks): a ``schedule`` (``schedules.AtSteps``, ``schedules.Every
 object with ``due(step) -> bool`` and ``next_after(step) -> int | None``; under step control
 ``schedules.AtDays``, due at days the steps land on) and a call
 ``activity(sim)``, made after each step the schedule names once the state there is known to be
-good (``sim.step`` is that step).
+good (``sim.step`` is that step). A run's own activities (``writers.RunFiles``,
+``writers.Checkpointer``, ``Log``) read the run state and parts they were made with, not ``sim``;
+an ensemble's are called with the ``Ensemble``.
 
 ``Simulation.activities`` holds them by name, called in order: during ``run`` the run file and its
 streams (``"run_file"``, ``writers.RunFiles``), the restart file (``"checkpointer"``,
@@ -64,15 +66,15 @@ class Callback:
 @dataclass
 class Log:
     """``log(line)`` with ``StateDiagnostics.log_line`` every ``schedule`` steps (rank 0; the
-    fields are gathered on every rank), from the diagnostics ``files`` (a ``RunFiles``)
-    recorded at this step when it did."""
+    fields are gathered on every rank), from the diagnostics ``files`` (a ``RunFiles``: its run
+    state and diagnostics) recorded at this step when it did; the owner it is called with not read."""
 
     log: Callable
     schedule: EverySteps
     files: Activity
 
-    def __call__(self, sim) -> None:
+    def __call__(self, owner) -> None:
         files = self.files
-        line = sim.diagnostics.log_line(files.history[-1] if is_due(files.schedule, sim.run_state) else None)
+        line = files.diagnostics.log_line(files.history[-1] if is_due(files.schedule, files.run) else None)
         if line is not None:
             self.log(line)

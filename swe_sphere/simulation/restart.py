@@ -1,13 +1,12 @@
 """A simulation's restarts: continued from a restart file, bitwise as if never stopped, or
 branched from it (another stepper or Δt); its state and history restored; a restart file
-written: ``continued`` behind ``Simulation.from_checkpoint``, and ``Restarts``, the methods
+written: ``continued`` (what ``Simulation.from_checkpoint`` builds from), and ``Restarts``, the methods
 ``restore``, ``restore_history`` and ``write_checkpoint`` of a ``Simulation`` (which is one)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from ..config.scene import with_days
 from ..core.arguments import path_argument
 from ..core.errors import CheckpointError
 from ..io import restart_file
@@ -15,8 +14,10 @@ from . import checkpoint as ckpt
 from .build import ON_ROOT
 
 
-def continued(cls, checkpoint, device, days, stepper, dt, progress, comm, graphs):
-    """``Simulation.from_checkpoint`` (``cls``): a continuation of the restart file, or a branch from it."""
+def continued(checkpoint, days, stepper, dt, comm) -> tuple:
+    """What ``Simulation.from_checkpoint`` builds its simulation from: (the checkpoint read,
+    the scene, the constructor's ``start`` and ``initial_diagnostics``, and whether it continues
+    the file rather than branch from it: its stepper's history then restored, ``restore_history``)."""
     if not isinstance(checkpoint, ckpt.Checkpoint):
         path_argument("checkpoint", checkpoint, "a restart file's path (str or os.PathLike)", CheckpointError)
     ck = checkpoint if isinstance(checkpoint, ckpt.Checkpoint) else ckpt.read_on_root(checkpoint, comm)
@@ -27,33 +28,9 @@ def continued(cls, checkpoint, device, days, stepper, dt, progress, comm, graphs
         )
     start = ON_ROOT if ck.x is None else ck.x  # ranks > 0 of ``read_on_root`` have no arrays
     if (stepper is not None and stepper != ck.scene.stepper) or (dt is not None and dt != ck.scene.dt):
-        sim = cls(
-            ckpt.branch(ck, stepper=stepper, dt=dt, days=days),
-            device,
-            progress=progress,
-            comm=comm,
-            start=start,
-            graphs=graphs,
-        )
-    else:
-        scene = ck.scene if days is None else with_days(ck.scene, days)
-        if scene.days < ck.day:
-            raise ckpt.CheckpointError(
-                f"the run length {scene.days:g} days ends before the checkpoint (day {ck.day:g})"
-            )
-        sim = cls(
-            scene,
-            device,
-            progress=progress,
-            comm=comm,
-            start=start,
-            initial_diagnostics=ck.initial,  # the state handed out; no second digital filter
-            graphs=graphs,
-        )
-        sim.restore_history(ck)
-    if not isinstance(checkpoint, ckpt.Checkpoint):
-        sim.inputs = (Path(checkpoint),)
-    return sim
+        return ck, ckpt.branch(ck, stepper=stepper, dt=dt, days=days), start, None, False
+    # the state handed out with its t = 0 diagnostics; no second digital filter
+    return ck, ckpt.continued_scene(ck, days), start, ck.initial, True
 
 
 class Restarts:

@@ -28,6 +28,7 @@ from ..integrator import FixedDt, Integrator, Unit, core_property
 from ..steppers import StepStats
 from .adaptive import StepControl
 from .build import ON_ROOT, Built, build
+from .checkpoint import Checkpoint
 from .drive import Driven
 from .loop import Looping, check_run_arguments, compile_timer
 from .restart import Restarts, continued
@@ -250,7 +251,13 @@ class Simulation(Driven, Restarts, Looping):
         SceneError
             A branch it cannot make (unknown stepper, dt <= 0, a length not whole steps).
         """
-        return continued(cls, checkpoint, device, days, stepper, dt, progress, comm, graphs)
+        ck, scene, start, initial, whole = continued(checkpoint, days, stepper, dt, comm)
+        sim = cls(scene, device, progress=progress, comm=comm, start=start, initial_diagnostics=initial, graphs=graphs)
+        if whole:  # a continuation: the stepper's history, the counters and the step control as they were
+            sim.restore_history(ck)
+        if not isinstance(checkpoint, Checkpoint):
+            sim.inputs = (Path(checkpoint),)
+        return sim
 
     @property
     def time(self) -> float:

@@ -93,7 +93,7 @@ class RunFiles:
     diagnostics still taken at the scene's output steps. ``record`` diagnoses an
     output step on every rank (into ``history``; ``on_output(step, x)`` is called
     with the (3, N) device state) and rank 0 appends it to the files. An activity
-    (``activities``): ``files(sim)`` records ``sim.step`` at the steps of ``schedule``."""
+    (``activities``): ``files(owner)`` records the run's step at the steps of ``schedule``."""
 
     def __init__(self, run, diagnostics, grid, hs, output: Path | None, on_output=None):
         s = run.scene
@@ -184,8 +184,8 @@ class RunFiles:
                         divergence=whole.divergence,
                     )
 
-    def __call__(self, sim) -> None:
-        self.record(sim.step)
+    def __call__(self, owner) -> None:
+        self.record(self.run.step)
 
     def end(self, step: int, x=None, **attrs) -> None:
         """Close a run that stops early at ``step`` (state x, default the current one):
@@ -222,7 +222,7 @@ class Checkpointer:
     ``every_days`` and ``overwrite``, an existing default restart file is neither
     refused nor replaced (``kept``: no restart file on a signal). Raises ValueError
     for an interval that is not whole steps, or one with neither output nor path.
-    An activity (``activities``): ``checkpointer(sim)`` saves at the steps of ``schedule``."""
+    An activity (``activities``): ``checkpointer(owner)`` saves at the steps of ``schedule``."""
 
     def __init__(self, run, write, bcast, root: bool, output, every_days: float | None, path, overwrite: bool):
         self.run, self.write, self.overwrite, self.kept, self.written = run, write, overwrite, None, None
@@ -240,7 +240,7 @@ class Checkpointer:
         if every_days is not None and path is None:
             raise ValueError("a restart interval needs an output or restart file")
 
-    def __call__(self, sim) -> None:
+    def __call__(self, owner) -> None:
         self.save()
 
     def interrupted(self, step: int, abandoned: bool) -> None:

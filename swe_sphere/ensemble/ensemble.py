@@ -31,7 +31,6 @@ from ..core.interrupts import StopSignals
 from ..core.mpi import RankMax
 from ..grid.cubed_sphere import CubedSphere
 from ..integrator import FixedDt, Integrator, Stop, core_property
-from ..io import restart_file
 from ..io.run_file import OUTPUT_FIELDS, RunWriter, area_rms, member_statistics
 from ..model.diagnostics import invariants
 from ..model.shallow_water import ShallowWater
@@ -39,12 +38,13 @@ from ..simulation import checkpoint
 from ..simulation.activities import Callback, call_due
 from ..simulation.build import check_memory
 from ..simulation.loop import progress_bar, progressed, run_steps
+from ..simulation.restart import write_restart
 from ..simulation.run_state import RunState
 from ..simulation.schedules import AtDays, AtSteps, EverySteps, at_its_end, output_days, output_steps
 from ..simulation.summary import Ledger, interruption
-from ..simulation.writers import Checkpointer, interrupted_attrs, scene_attrs
+from ..simulation.writers import Checkpointer, interrupted_attrs, open_writer, scene_attrs
 from .control import STEERED, member_control
-from .files import member_writer, resume
+from .files import resume
 from .initial import Perturbation, Variants, checked_states, described, initial_states
 from .members import MemberGrid, member_part
 from .units import (
@@ -406,8 +406,12 @@ class Ensemble:
         }
         errors = self.errors()  # the first output's, and the errors the case has (collective)
         member_series = (*MEMBER_SERIES, *errors[0])
-        hs, many = self._member(self._hs, 0), (self.members, member_series, overwrite, compress, notify)
-        writer = member_writer(output, s, self.grid, hs, attrs, *many) if self.root else None
+        hs, fields = self._member(self._hs, 0), s.output_fields or OUTPUT_FIELDS
+        kw = {"overwrite": overwrite, "compress": compress, "notify": notify, "members": self.members}
+        kw |= {"member_series": member_series}
+        writer = (
+            open_writer(output, s, self.grid, hs, attrs, ("steps", "wall_time"), fields, **kw) if self.root else None
+        )
         written = []  # the steps written to the run file
 
         def write(ens, errors=None) -> None:  # the run file's activity (at its output times, as a run's)
@@ -465,15 +469,10 @@ class Ensemble:
             x, state = on_rank_zero(self.comm, x, state)
             if not self.root:
                 return Path(path)
-        counters, kept = self.counters, {"overwrite": overwrite}
-        kept |= {
-            "restart_every": restart_every,
-            "members": self.members,
-            "control": self.control and self.control.state(),
-        }
+        kept = {"overwrite": overwrite, "restart_every": restart_every, "members": self.members}
         initial = {"initial_states": self.initial, "layout": self.layout, "variants": self._variants, **policy}
         grid = self.copies if self.copies is not None and self.comm is None else MemberGrid(self.grid, self.members)
-        return restart_file.write(path, self.scene, self.step_count, x, state, counters, initial, grid=grid, **kept)
+        return write_restart(path, self.run_state, x, state, initial, grid, **kept)
 
     @classmethod
     def from_checkpoint(cls, path, *, days=None, device=None, per_element=None, threads=None, graphs=None, comm=None):

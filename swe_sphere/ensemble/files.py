@@ -1,36 +1,12 @@
-"""An ensemble's files: its run file's ``RunWriter`` opened (``Ensemble.run``), a restart file's
-members, steppers, drops, control and counts put back (``Ensemble.from_checkpoint``)."""
+"""An ensemble's restart file: its members, steppers, drops, control and counts put back
+(``Ensemble.from_checkpoint``)."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from ..core.errors import CheckpointError
-from ..io.run_file import OUTPUT_FIELDS, RunWriter
 from .units import held_state, unit_members
-
-
-def member_writer(output, scene, grid, hs, attrs: dict, members: int, series, overwrite: bool, compress: bool, notify):
-    """The ``RunWriter`` of ``members`` members of ``scene`` on ``grid`` (``hs`` (n,) m, one
-    member's surface height) at ``output`` with ``attrs`` and the per-member ``series``; what its
-    cells cost told to ``notify(line)`` (None: not told). ``OutputError`` as ``RunWriter``'s."""
-    writer = RunWriter(
-        output,
-        grid,
-        hs,
-        attrs,
-        ("steps", "wall_time"),
-        overwrite=overwrite,
-        compress=compress,
-        fields=scene.output_fields or OUTPUT_FIELDS,
-        cells=scene.output_cells,
-        members=members,
-        member_series=series,
-    )
-    if notify is not None:
-        for line in writer.cells_notes(scene.grid_text):
-            notify(line)
-    return writer
 
 
 def resume(ens, ck) -> None:

@@ -65,17 +65,16 @@ class Restarts:
         x, state = self.topology.gather(self.x.numpy()), self.stepper.state()
         if not self.root:
             return Path(path)
-        control = None if self.control is None else self.control.state()
-        return restart_file.write(
-            path,
-            self.scene,
-            self.step,
-            x,
-            state,
-            self.counters,
-            self.initial,
-            grid=self.grid,
-            overwrite=overwrite,
-            restart_every=restart_every,
-            control=control,
-        )
+        kept = {"overwrite": overwrite, "restart_every": restart_every}
+        return write_restart(path, self.run_state, x, state, self.initial, self.grid, **kept)
+
+
+def write_restart(path, run, x, state: dict, initial: dict, grid, **kept) -> Path:
+    """The restart file ``path`` (``io.restart_file.write``) of ``run``'s step (a
+    ``run_state.RunState``: its scene, step, counters and step control) with the whole state
+    ``x``, the stepper's ``state``, ``initial`` and ``grid``; ``kept`` as ``restart_file.write``
+    takes them (``overwrite``, ``restart_every``, an ensemble's ``members``). Rank 0's."""
+    control = None if run.control is None else run.control.state()
+    return restart_file.write(
+        path, run.scene, run.step, x, state, run.counters, initial, grid=grid, control=control, **kept
+    )

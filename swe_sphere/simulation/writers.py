@@ -84,6 +84,20 @@ def run_attrs(run, case, dfi, device: str, ranks: int, history: str | None, cour
     }
 
 
+def open_writer(
+    path, scene, grid, hs, attrs: dict, series, fields, *, overwrite: bool, compress: bool, notify=None, **members
+):
+    """The ``RunWriter`` of a run file of ``scene`` at ``path`` (``fields``, the per-time ``series``;
+    ``members``: an ensemble's ``members`` and ``member_series``), its cells the scene's; what they
+    cost told to ``notify(line)`` (``RunWriter.cells_notes``; None: not told). ``OutputError`` as
+    ``RunWriter``'s."""
+    kw = {"overwrite": overwrite, "compress": compress, "fields": fields, "cells": scene.output_cells}
+    writer = RunWriter(path, grid, hs, attrs, series, **kw, **members)
+    for line in writer.cells_notes(scene.grid_text) if notify is not None else ():
+        notify(line)
+    return writer
+
+
 class RunFiles:
     """The run files of a run (its ``run_state.RunState`` ``run``, its ``diagnostics``, ``grid`` and
     ``hs``) to ``output``: itself with the scene's
@@ -132,24 +146,14 @@ class RunFiles:
         read from the cache at some cost, or when their fit failed and the files were written
         without them (``RunWriter.cells_notes``)."""
         try:
-            for i, (path, fields, _) in enumerate(self.streams):
-                self.writers[i] = RunWriter(
-                    path,
-                    self.grid,
-                    self.hs,
-                    attrs,
-                    self.series,
-                    overwrite=overwrite,
-                    compress=compress,
-                    fields=fields,
-                    cells=self.run.scene.output_cells,
+            for i, (path, fields, _) in enumerate(self.streams):  # the run file's cells told, not its streams'
+                kw = {"overwrite": overwrite, "compress": compress, "notify": notify if i == 0 else None}
+                self.writers[i] = open_writer(
+                    path, self.run.scene, self.grid, self.hs, attrs, self.series, fields, **kw
                 )
         except BaseException:
             self.abort()
             raise
-        if self.writers and notify is not None:
-            for line in self.writers[0].cells_notes(self.run.scene.grid_text):
-                notify(line)
 
     def record(self, step: int, x=None, whole=None, final: bool = False, write: bool = True) -> None:
         """Diagnose ``step`` (state x, default the current one; ``whole`` its gathered

@@ -140,9 +140,17 @@ def core_property(name: str, doc: str, unit: bool = False) -> property:
     return property(lambda d: getattr(owner(d), name), lambda d, value: setattr(owner(d), name, value), doc=doc)
 
 
+def counted(stats: StepStats, stepper) -> StepStats:
+    """``stats`` with ``stepper``'s solver counters read (``Stepper.counts``: raises ``StepFailure``)."""
+    return StepStats(stats.rhs_evals, {**stats.iterations, **stepper.counts()})
+
+
 def graphed_step(unit: Unit, j: int, watch: bool) -> StepStats:
-    """Step j + 1 of ``unit``, a graph where its ``graphed`` lets it (``GraphedSteps.step``)."""
-    return unit.graphed.step(unit.stepper, unit.model, unit.x, watch)
+    """Step j + 1 of ``unit``, a graph where its ``graphed`` lets it (``GraphedSteps.step``), and
+    with ``watch`` the bad-state flag's launch (``ShallowWater.watch``; the solvers' device
+    counters left for the block's read), else its solvers' counters read (``counted``)."""
+    stats = unit.graphed.step(unit.stepper, unit.model, unit.x, watch)
+    return stats if watch else counted(stats, unit.stepper)
 
 
 class FixedDt:
@@ -182,8 +190,7 @@ class ControlledDt:
         """An accepted step j + 1 of ``unit`` toward the next day, its solvers' device counters read
         (``Stepper.counts``: raises ``StepFailure``); the ``StepStats`` of its tries."""
         day = next(d for d in self.days if d * DAY > self.control.t)
-        stats = self.control.step_to(unit.x, day, self.quiet is not None and self.quiet(j))
-        return StepStats(stats.rhs_evals, {**stats.iterations, **unit.stepper.counts()})
+        return counted(self.control.step_to(unit.x, day, self.quiet is not None and self.quiet(j)), unit.stepper)
 
 
 class Rewind:

@@ -2,7 +2,8 @@
 run's hooks (``guard.RunObserver``), the activities due after each good step, the progress bar,
 a stopped run's files closed and its outcome (``Looping``, methods of a ``Simulation``, which is
 one); the run's arguments checked (``check_run_arguments``) and the seconds spent compiling Warp
-modules (``compile_timer``)."""
+modules (``compile_timer``). The steps themselves (``run_steps``, at a fixed or a controlled Δt)
+and the progress (``progress_bar``, ``progressed``) are an ``Ensemble``'s too."""
 
 from __future__ import annotations
 

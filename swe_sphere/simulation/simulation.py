@@ -24,8 +24,7 @@ from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
 from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, Interrupted, SceneError
 from ..core.graphs import GraphedSteps, default_mode, graphs_mode
-from ..integrator import FixedDt, Integrator, Unit, core_property
-from ..steppers import StepStats
+from ..integrator import Integrator, Unit, core_property
 from .adaptive import StepControl
 from .build import ON_ROOT, Built, build
 from .checkpoint import Checkpoint
@@ -178,7 +177,7 @@ class Simulation(Driven, Restarts, Looping):
             )
             self.model, self.fcor, self.hs, self.scorer, self.dfi = b.model, b.fcor, b.hs, b.scorer, b.dfi
             graphed = GraphedSteps(backend, b.model.launches.guard, graphs)
-            self.core = Integrator([Unit(b.model, b.stepper, b.x, b.last_good, graphed)], FixedDt(self._take))
+            self.core = Integrator([Unit(b.model, b.stepper, b.x, b.last_good, graphed)])  # ``FixedDt``: graphed steps
             # what the run's collaborators read of it: its step, state, scene, control, t = 0 diagnostics, counters
             self.run_state = RunState(self.core, scene, initial=initial_diagnostics)
             self.g, self.check_every = self.model.g, CHECK_EVERY_STEPS
@@ -336,15 +335,6 @@ class Simulation(Driven, Restarts, Looping):
         solvers' counters not read: a controlled run's tries (``adaptive.StepControl``). Its
         ``StepStats``."""
         return self.core.units[0].try_step(x)
-
-    def _take(self, unit: Unit, j: int, watch: bool):
-        """Step j + 1 of the stepper on x and, with ``watch``, the bad-state flag's launch
-        (``ShallowWater.watch``; the solvers' device counters left for the block's
-        read), else with its solvers' counters read (``Stepper.counts``: raises
-        ``StepFailure``); its ``StepStats``. With ``graphs``, steps replay as
-        graphs (``graphs.GraphedSteps``)."""
-        stats = unit.graphed.step(unit.stepper, unit.model, unit.x, watch)
-        return stats if watch else StepStats(stats.rhs_evals, {**stats.iterations, **self.stepper.counts()})
 
     def run(
         self,

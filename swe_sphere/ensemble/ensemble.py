@@ -260,8 +260,8 @@ class Ensemble:
         """Steps to ``stop_step`` (under step control to the model day ``last_day``) by a run's
         loop (``simulation.loop.run_steps``) under the ensemble's hooks (``units.Members``): the
         activities due after each good step, then ``after(n, done)``; a stop ``signals`` asked
-        returned (``Stop``), ``notify(line)`` told a wall time estimated above a day
-        (``summary.Ledger``). ``BlowUp`` and ``StepFailure`` as ``step``'s."""
+        returned (``Stop``; with ``signals``, a run's blocks: ``Members.timed``), ``notify(line)``
+        told a wall time estimated above a day (``summary.Ledger``). ``BlowUp`` and ``StepFailure`` as ``step``'s."""
         ledger = Ledger(self.counters, self.scene, self.step_count, notify)
         run = (self.step_count, CHECK_EVERY_STEPS, self.activities, self.counters, ledger)
 
@@ -270,7 +270,7 @@ class Ensemble:
             if after is not None:
                 after(n, done)
 
-        observer = Members(run, stop_step, signals, good, self._drop)
+        observer = Members(run, stop_step, signals, good, self._drop, timed=signals is not None)
         stop = run_steps(self.core, self.control, last_day, self.activities, observer, stop_step, self._bad)
         if stop.blowup is not None:
             raise BlowUp(stop.blowup)

@@ -12,7 +12,6 @@ every member's invariants."""
 
 from __future__ import annotations
 
-import itertools
 import signal
 import sys
 from pathlib import Path
@@ -35,7 +34,7 @@ from ..io.run_file import OUTPUT_FIELDS, RunWriter, area_rms, member_statistics
 from ..model.diagnostics import invariants
 from ..model.shallow_water import ShallowWater
 from ..simulation import checkpoint
-from ..simulation.activities import Callback, call_due
+from ..simulation.activities import Callback, add_callback, call_due
 from ..simulation.build import check_memory
 from ..simulation.loop import progress_bar, progressed, run_steps
 from ..simulation.restart import write_restart
@@ -298,9 +297,7 @@ class Ensemble:
             if self.control is not None or not clock.is_whole(days):
                 raise ArgumentError(str(clock.refusal("every_days", days)) if self.control is None else STEERED)
             every_steps = clock.steps_in(days)
-        every = EverySteps(integer_argument("every_steps", every_steps, 1))
-        name = next(f"callback {k}" for k in itertools.count(1) if f"callback {k}" not in self.activities)
-        self.activities[name] = Callback(fn, every)
+        add_callback(self.activities, fn, EverySteps(integer_argument("every_steps", every_steps, 1)))
 
     step_count = core_property("step", "The steps taken (``Integrator.step``).")
 

@@ -17,6 +17,7 @@ activity always sees the state of its own step.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
@@ -34,6 +35,14 @@ def is_due(schedule: Schedule, run) -> bool:
     """Whether ``schedule`` is due at ``run``'s step (``run_state.RunState``; an ``AtDays`` at the
     day the step landed on, ``RunState.event_day``)."""
     return schedule.due(run.step, run.event_day) if isinstance(schedule, AtDays) else schedule.due(run.step)
+
+
+def add_callback(activities: dict, fn: Callable, schedule: Schedule, name: str | None = None) -> None:
+    """``fn(owner)`` at the steps of ``schedule`` (a ``Callback``) in ``activities`` under ``name``
+    (None: the first free "callback N"): ``Simulation.add_callback``'s and ``Ensemble.add_callback``'s."""
+    if name is None:
+        name = next(f"callback {k}" for k in itertools.count(1) if f"callback {k}" not in activities)
+    activities[name] = Callback(fn, schedule)
 
 
 def call_due(activities: dict, run, owner) -> None:

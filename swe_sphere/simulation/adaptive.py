@@ -420,11 +420,11 @@ class Tries(Rewind):
 
 
 def steered(control: StepControl, last_day: float, activities: dict) -> ControlledDt:
-    """The Δt policy of ``Simulation.run`` under ``control`` (a ``StepControl``): accepted steps
-    (``integrator.ControlledDt``) to each day an ``AtDays`` activity of ``activities`` is due at
-    (output and restart times) and ``last_day`` in turn, each landed on exactly, a try launched
-    ahead only where no activity of whole steps (``EverySteps``, ``AtSteps``: they read x) is due
-    after the step."""
+    """The Δt policy of a run (``loop.run_steps``: a ``Simulation``'s or an ``Ensemble``'s) under
+    ``control`` (a ``StepControl``): accepted steps (``integrator.ControlledDt``) to each day an
+    ``AtDays`` activity of ``activities`` is due at (output and restart times) and ``last_day`` in
+    turn, each landed on exactly, a try launched ahead only where no activity of whole steps
+    (``EverySteps``, ``AtSteps``: they read x) is due after the step."""
     days = {float(last_day)}
     counted = []  # the schedules of whole steps: due after a step, they read x
     for activity in activities.values():

@@ -7,7 +7,6 @@ simulation's own (``_own_dt``: not given, restored or stated in a ``Scene``)."""
 from __future__ import annotations
 
 import dataclasses
-import itertools
 
 from ..config.parts import scene_stepper
 from ..config.scene import with_days
@@ -16,7 +15,7 @@ from ..core.clock import is_interval
 from ..core.constants import DAY
 from ..core.errors import ArgumentError, SceneError
 from ..io.run_file import OUTPUT_FIELDS, node_dataset
-from .activities import Callback
+from .activities import add_callback
 from .schedules import EverySteps, steps_of
 from .summary import RunResult
 
@@ -109,10 +108,7 @@ class Driven:
         callable_argument("fn", fn, "a callable fn(sim)", SceneError)
         if name is not None and not isinstance(name, str):
             raise SceneError(f"name must be a str or None (got {got(name)})")
-        schedule = self.every(days=every_days, steps=every_steps)
-        if name is None:
-            name = next(f"callback {k}" for k in itertools.count(1) if f"callback {k}" not in self.activities)
-        self.activities[name] = Callback(fn, schedule)
+        add_callback(self.activities, fn, self.every(days=every_days, steps=every_steps), name)
 
     def advance(self, days: float) -> RunResult:
         """Step ``days`` further with ``run``'s loop (the same bits as one run; blow-up,

@@ -226,8 +226,9 @@ def dss_update(rows: int, copies: int, patterns: tuple, ghosts: bool = False, we
 # ``Edges`` (a whole row where the neighbour's edge row runs lane for lane beside it), and the
 # corners through the table. Summed as (0 + own) + other, an edge node's sum is the table
 # order's, bit for bit (addition commutes), and a corner's is the table's: the same bits as
-# ``gather``. The DSS update at ne16 np6 0.55×, ne12 np8 0.59×, ne30 np4 0.74× the node
-# gather's time (one thread).
+# ``gather``. Alone, the DSS update takes 0.55–0.74× the node gather's time (np 8 to 4, one
+# thread); a step's saving is benchmarks/dss_by_element.py's. Warp's CPU code indexes every
+# array through its run-time strides (an integer multiply an access): rows cut the accesses.
 
 
 @wp.struct

@@ -198,6 +198,8 @@ class Topology:
             self.rspheremp,
         )
         self.edges = self._element_edges() if self.backend.host and self.element_rows else None
+        if self.edges is not None:  # what the element-row kernels read beside x: spheremp and rspheremp as rows
+            self._mass_rows = row_vectors(self.spheremp[: self.N], grid.np), row_vectors(self.rspheremp, grid.np)
 
     def _build_halos(self, parts, rank):
         """Local tables from the rank's own nodes' rows of the global DSS table and
@@ -261,7 +263,6 @@ class Topology:
         g = dss.Edges()
         g.other = wp.array(other.astype(np.int32), dtype=wp.int32, device=self.device)
         g.aligned = wp.array(aligned.astype(np.int32), dtype=wp.int32, device=self.device)
-        self._mass_rows = row_vectors(self.spheremp[: self.N], NP), row_vectors(self.rspheremp, NP)
         return g
 
     def by_element(self, x: wp.array2d, kernel, args) -> list:
@@ -274,8 +275,7 @@ class Topology:
         copies are exchanged first."""
         kernel = kernel(x.shape[0], self.table.shape[1], bool(len(self.neighbours)), self.grid.np)
         NP = self.grid.np
-        inputs = [row_vectors(x, NP), x, self.dss_copies, self.edges, *self._mass_rows]
-        inputs += args
+        inputs = [row_vectors(x, NP), x, self.dss_copies, self.edges, *self._mass_rows, *args]
         launch = record(
             kernel, self.grid.nelem, inputs, device=self.backend, threads=self.threads, nodes_per_index=NP * NP
         )

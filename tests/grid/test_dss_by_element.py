@@ -11,6 +11,7 @@ import warp as wp
 
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.topology import Topology
+from swe_sphere.simulation.simulation import Simulation
 
 from helpers import cached_grid
 from meshes import icosahedral_mesh, refined_equiangular
@@ -95,7 +96,6 @@ def test_runs_with_the_hyperviscosity_are_the_node_gathers_bits(scene, np_):
     """A run's steps (the stages' DSS updates, the ∇⁴'s two DSSs in its element passes: RKL1
     stages at ne2 np6 Galewsky, a forward-Euler substep at TC6, the leapfrog's ∇⁴) give the
     node gather's bits."""
-    from swe_sphere.simulation.simulation import Simulation
 
     def steps():
         sim = Simulation(scene, "cpu", progress=False, graphs=False, hyperviscosity={"every": 1}, ne=2, np=np_)

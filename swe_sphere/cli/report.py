@@ -140,10 +140,21 @@ def print_notes(notes, root: bool) -> None:
             print(f"note        {note}")
 
 
+def print_streams(scene, output) -> None:
+    """A header's line for each ``[[output.streams]]`` of ``scene`` beside the run file ``output``
+    (a run's and an ensemble's)."""
+    from ..simulation.writers import stream_path
+
+    for st in scene.output_streams:
+        print(
+            f"stream      {stream_path(output, st['name'])} (every {st['every_days']:g} days: {', '.join(st['fields'])})"
+        )
+
+
 def _courant_notes_outputs(args, sim, output, c) -> None:
     """The header's lines from the Courant numbers ``c`` (``Simulation.courant``) on:
     notes and warnings, the output files, the log, the digital-filter start, setup time."""
-    from ..simulation.writers import restart_path, stream_path
+    from ..simulation.writers import restart_path
 
     scene = sim.scene
     print(courant_line(c, sim.time))
@@ -151,10 +162,7 @@ def _courant_notes_outputs(args, sim, output, c) -> None:
     print_notes((*scene.notes, *extra), sim.root)
     only = f": {', '.join(scene.output_fields)}" if scene.output_fields else ""
     print(f"output      {output} (every {scene.output_every_days:g} days{only})")
-    for st in scene.output_streams:
-        print(
-            f"stream      {stream_path(output, st['name'])} (every {st['every_days']:g} days: {', '.join(st['fields'])})"
-        )
+    print_streams(scene, output)
     if scene.log_every_steps:
         print(
             f"log         every {scene.log_every_steps} steps: relative change of mass, energy, enstrophy since t = 0; max Courant numbers"

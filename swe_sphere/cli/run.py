@@ -351,7 +351,7 @@ def _ensemble_header(args, ens, scene, output: Path, device) -> None:
     from ..ensemble.ensemble import POLICIES
     from ..model.diagnostics import courant_numbers
     from ..simulation.writers import restart_path
-    from .report import control_line, courant_line, print_notes, terms_line
+    from .report import control_line, courant_line, print_notes, print_streams, terms_line
 
     gravity_waves = "pressure_gradient" in scene.terms
     states = [x for k, x in enumerate(ens.states()) if k not in ens.dropped]  # a continued run's dropped: NaN
@@ -382,6 +382,7 @@ def _ensemble_header(args, ens, scene, output: Path, device) -> None:
             file=sys.stderr,
         )
     print(f"output      {output} (every {scene.output_every_days:g} days)")
+    print_streams(scene, output)
     if args.restart_every is not None:  # as a run's header says it
         print(f"restart     {restart_path(output)} (every {args.restart_every:g} days and at the end)")
 

@@ -30,7 +30,7 @@ from ..core.interrupts import StopSignals
 from ..core.mpi import RankMax
 from ..grid.cubed_sphere import CubedSphere
 from ..integrator import FixedDt, Integrator, Stop, core_property
-from ..io.run_file import OUTPUT_FIELDS, RunWriter, area_rms, member_statistics
+from ..io.run_file import area_rms, member_statistics
 from ..model.diagnostics import invariants
 from ..model.shallow_water import ShallowWater
 from ..simulation import checkpoint
@@ -39,9 +39,9 @@ from ..simulation.build import check_memory
 from ..simulation.loop import progress_bar, progressed, run_steps
 from ..simulation.restart import write_restart
 from ..simulation.run_state import RunState
-from ..simulation.schedules import AtDays, AtSteps, EverySteps, at_its_end, output_days, output_steps
+from ..simulation.schedules import EverySteps, at_its_end
 from ..simulation.summary import Ledger, interruption
-from ..simulation.writers import Checkpointer, interrupted_attrs, open_writer, scene_attrs
+from ..simulation.writers import Checkpointer, StreamFiles, interrupted_attrs, scene_attrs
 from .control import STEERED, member_control
 from .files import resume
 from .initial import Perturbation, Variants, checked_states, described, initial_states
@@ -370,12 +370,14 @@ class Ensemble:
         at the first step (not a continuation's, the last time of the file it continues) and every
         ``output.every_days`` (``simulation.schedules.output_steps``): each field (time, member,
         ncol) with its mean and spread, each member's mass, total energy, potential enstrophy and
-        errors against the case's truth (``errors``), the RMS spread of h (``RunWriter``). ``restart_every``
+        errors against the case's truth (``errors``), the RMS spread of h (``RunWriter``); and
+        each ``[[output.streams]]`` as a run writes it, ``<output stem>.<name>.nc`` with its own
+        fields at its own interval, the members as in the run file (``writers.StreamFiles``). ``restart_every``
         (days, whole steps): the restart file ``<output stem>.restart.nc`` (``write_checkpoint``)
         at those days and the last; without it, one is written when SIGINT or SIGTERM stops the
         run (not over an existing one unless ``overwrite``). A blow-up that stops all (``BlowUp``)
         or a signal (``Interrupted``, after a block of steps: the step reached written, and its
-        restart file) closes the run file with every good output time (its attribute ``stopped``
+        restart file) closes the run files with every good output time (its attribute ``stopped``
         says why; a signal's ``interrupted*``, as a run's) and raises; members dropped go as NaN, their lines in ``dropped_members``.
         ``OutputError`` for a path that may not be written (``overwrite``: replace it); ``ArgumentError``
         at the run's end (``advance`` past it); ``SceneError`` for a restart interval that is not whole
@@ -403,21 +405,21 @@ class Ensemble:
         }
         errors = self.errors()  # the first output's, and the errors the case has (collective)
         member_series = (*MEMBER_SERIES, *errors[0])
-        hs, fields = self._member(self._hs, 0), s.output_fields or OUTPUT_FIELDS
-        kw = {"overwrite": overwrite, "compress": compress, "notify": notify, "members": self.members}
-        kw |= {"member_series": member_series}
-        writer = (
-            open_writer(output, s, self.grid, hs, attrs, ("steps", "wall_time"), fields, **kw) if self.root else None
+        # the run file and its streams as a run's (``writers.StreamFiles``), the members along the member axis
+        files = StreamFiles(
+            s, output, self.control is not None, self.grid, self._member(self._hs, 0), ("steps", "wall_time")
         )
-        written = []  # the steps written to the run file
+        if self.root:
+            kw = {"overwrite": overwrite, "compress": compress, "notify": notify}
+            files.open(attrs, **kw, members=self.members, member_series=member_series)
 
-        def write(ens, errors=None) -> None:  # the run file's activity (at its output times, as a run's)
-            self._write(writer, member_series, errors)
-            written.append(self.step_count)
+        def write(ens, errors=None, final=False) -> None:  # the files' activity (at their output times, as a run's)
+            due = files.due(self.run_state, self.step_count, final)
+            if due:
+                self._write(files, due, member_series, errors)
 
-        marks = (output_steps if self.control is None else output_days)(s)
-        files = Callback(write, AtSteps.of(marks) if self.control is None else AtDays.of(marks))
-        own, self.activities = self.activities, {"run_file": files, "checkpointer": ckp, **self.activities}
+        own = self.activities
+        self.activities = {"run_file": Callback(write, files.schedule), "checkpointer": ckp, **own}
         lines = progress_lines if self.root else None
         try:
             with (
@@ -425,33 +427,30 @@ class Ensemble:
                 StopSignals(self.model.topology if self.comm is None else RankMax(self.comm), catch=True) as signals,
             ):
                 if not self.step_count:  # as a run's: the two files join without a repeated time
-                    write(self, errors)
+                    write(self, errors, final=True)
                 if progress_lines is not None:
                     progress_lines.start(self.day, s.days)
                 after = lambda n, done: progressed(bar, done, lines, n, self.day)  # noqa: E731
                 stop = self._steps(s.nsteps, s.days, signals, after, notify if self.root else None)
                 if stop.signum is not None:  # the step reached written, as a run's last, and its restart file
-                    if written[-1] != self.step_count:
-                        write(self)
+                    write(self, final=True)
                     ckp.interrupted(self.step_count, abandoned=False)
                     name, step, day = signal.Signals(stop.signum).name, self.step_count, self.day
                     err = Interrupted(interruption(name, step, day, s, output, ckp.kept, ckp.written, None))
                     err.signum, err.result, err.checkpoint = stop.signum, None, ckp.written
                     raise err
         except BaseException as err:  # a blow-up or a signal: the good output times kept
-            if writer is not None:
-                step, why = self.step_count, {"stopped": str(err) or type(err).__name__}
-                signalled = isinstance(err, Interrupted)  # said as a run's file says it
-                writer.set_attrs(**(interrupted_attrs(err.signum, step, self.day) if signalled else why))
-                writer.close()
+            step, why = self.step_count, {"stopped": str(err) or type(err).__name__}
+            signalled = isinstance(err, Interrupted)  # said as a run's file says it
+            files.set_attrs(**(interrupted_attrs(err.signum, step, self.day) if signalled else why))
+            files.close()
             raise
         finally:
             self.activities = own
         drops = self.drops  # collective
-        if writer is not None:
-            if drops:
-                writer.set_attrs(dropped_members="; ".join(drops))
-            writer.close()
+        if drops:
+            files.set_attrs(dropped_members="; ".join(drops))
+        files.close()
         return Path(output)
 
     # -- restart files -------------------------------------------------------------
@@ -513,12 +512,12 @@ class Ensemble:
         t = self.day * DAY
         return self._everyone(self._scorer[k % len(self._scorer)].errors(t, xk, *xk) for k, xk in zip(self.held, held))
 
-    def _write(self, writer: RunWriter | None, member_series, errors=None) -> None:
-        """The current step's output time (``run``): the held members' fields gathered on rank 0,
-        which writes them (collective); ``errors`` this step's ``errors()`` where they were taken."""
+    def _write(self, files: StreamFiles, due: list[int], member_series, errors=None) -> None:
+        """The current step's output time (``run``) in the run files ``due`` (indices of
+        ``files``' streams): the held members' fields gathered on rank 0, which writes them
+        (collective); ``errors`` this step's ``errors()`` where they were taken."""
         x, zeta = self._side(lambda u: u.x.numpy()), self._side(lambda u: u.model.operators.vorticity(u.x))
-        written = self.scene.output_fields or OUTPUT_FIELDS  # the same on every rank
-        div = self._side(lambda u: u.model.operators.wind_divergence(u.x)) if "divergence" in written else None
+        div = self._side(lambda u: u.model.operators.wind_divergence(u.x)) if files.divergence else None
         rows = [*(x[r] for r in range(3)), zeta, *(() if div is None else (div,))]
         local = [np.stack([self._member(a, k) for a in rows]) for k in range(self.held.size)]
         errors = self._errors(np.stack([m[:3] for m in local])) if errors is None else errors
@@ -527,15 +526,15 @@ class Ensemble:
             local[i] = np.full_like(local[i], np.nan)
             per_member[i] = dict.fromkeys(per_member[i], np.nan)
         each = self._everyone(local) if self.comm is None else self.comm.gather(local, root=0)
-        if writer is None:
+        if not self.root:
             return
         if self.comm is not None:
             each = [m for part in each for m in part]
         each = np.stack(each)  # (N, rows, n)
         series = {"steps": self.step_count, "wall_time": self.wall_time}
         series.update({key: np.array([d[key] for d in per_member]) for key in member_series})
-        day = self.day
-        writer.append(day, each[:, 0], each[:, 1], each[:, 2], series, each[:, 3], None if div is None else each[:, 4])
+        fields = (each[:, 0], each[:, 1], each[:, 2], series, each[:, 3], None if div is None else each[:, 4])
+        files.append(due, self.day, *fields)
 
     def _from_root(self, value):
         """Rank 0's ``value`` on every rank (collective)."""

@@ -37,15 +37,10 @@ POLICIES = {"stop": "stop all", "drop": "drop the member and go on"}
 
 def checked_scene(scene) -> None:
     """``ArgumentError`` naming ``scene`` where the ensemble cannot give each member the single
-    run's bits yet: a digital-filter start; or whose output it does not write yet
-    (``[[output.streams]]``). A controlled Δt is ``control.member_control``'s to refuse or take."""
-    why = None
+    run's bits yet: a digital-filter start. A controlled Δt is ``control.member_control``'s to
+    refuse or take."""
     if scene.digital_filter is not None:
-        why = "it starts from a digital filter (not yet with ensembles)"
-    elif scene.output_streams:
-        why = "it names [[output.streams]] (an ensemble writes one run file, not yet its streams)"
-    if why is not None:
-        raise ArgumentError(f"scene: {why}")
+        raise ArgumentError("scene: it starts from a digital filter (not yet with ensembles)")
 
 
 def layout(scene, initial, asked: str | None, device, own: bool = False) -> str:

@@ -98,50 +98,42 @@ def open_writer(
     return writer
 
 
-class RunFiles:
-    """The run files of a run (its ``run_state.RunState`` ``run``, its ``diagnostics``, ``grid`` and
-    ``hs``) to ``output``: itself with the scene's
-    ``output.fields``, then each ``[[output.streams]]`` (``stream_path``), each at
-    its own output steps (``schedules.output_steps``; under step control its days,
-    ``output_days``, and the control's ``CONTROL_SERIES``); without ``output`` none, the
-    diagnostics still taken at the scene's output steps. ``record`` diagnoses an
-    output step on every rank (into ``history``; ``on_output(step, x)`` is called
-    with the (3, N) device state) and rank 0 appends it to the files. An activity
-    (``activities``): ``files(owner)`` records the run's step at the steps of ``schedule``."""
+def run_streams(output, scene, controlled: bool) -> list:
+    """The run files of a run of ``scene`` to ``output`` (None: none), each (path, fields, marks):
+    the run file itself with the scene's ``output.fields``, then each ``[[output.streams]]``
+    (``stream_path``) with its own, each at its own output steps (``schedules.output_steps``;
+    under step control, ``controlled``, its days, ``output_days``)."""
+    if output is None:
+        return []
+    marks = output_days if controlled else output_steps
+    own = [
+        (stream_path(output, st["name"]), st["fields"], marks(scene, st["every_days"])) for st in scene.output_streams
+    ]
+    return [(Path(output), scene.output_fields or OUTPUT_FIELDS, marks(scene)), *own]
 
-    def __init__(self, run, diagnostics, grid, hs, output: Path | None, on_output=None):
-        s = run.scene
-        self.run, self.diagnostics, self.grid, self.hs = run, diagnostics, grid, hs
-        self.on_output, self.history = on_output, []
-        marks = output_steps if run.control is None else output_days
-        self.streams = (
-            []
-            if output is None
-            else [
-                (Path(output), s.output_fields or OUTPUT_FIELDS, marks(s)),
-                *(
-                    (stream_path(output, st["name"]), st["fields"], marks(s, st["every_days"]))
-                    for st in s.output_streams
-                ),
-            ]
-        )
+
+class StreamFiles:
+    """The run files of a run of ``scene`` to ``output`` (``run_streams``; without ``output``
+    none), of ``grid`` with surface height ``hs`` and the per-time ``series``: rank 0's
+    ``RunWriter`` s (``open``), the step each wrote last (on every rank), their output times
+    together (``steps``, and as the ``schedule`` of an activity; without ``output`` the scene's,
+    where a run still takes its diagnostics) and whether any holds the divergence. A run's
+    (``RunFiles``) and an ensemble's (``Ensemble.run``: the members along the member axis)."""
+
+    def __init__(self, scene, output, controlled: bool, grid, hs, series):
+        self.scene, self.grid, self.hs, self.series = scene, grid, hs, list(series)
+        self.streams = run_streams(output, scene, controlled)
         self.paths = [path for path, _, _ in self.streams]
-        self.steps = set().union(*(steps for _, _, steps in self.streams)) if self.streams else marks(s)
-        self.schedule = AtSteps.of(self.steps) if run.control is None else AtDays.of(self.steps)
+        marks = output_days if controlled else output_steps
+        self.steps = set().union(*(steps for _, _, steps in self.streams)) if self.streams else marks(scene)
+        self.schedule = AtDays.of(self.steps) if controlled else AtSteps.of(self.steps)
         self.divergence = any("divergence" in fields for _, fields, _ in self.streams)
-        self.series = [
-            "steps",
-            "rhs_evals",
-            *(f"{k}_iterations" for k in run.stepper.solvers),
-            "wall_time",
-            *run.initial.keys(),
-            *(CONTROL_SERIES if run.control is not None else ()),
-        ]
         self.writers = [None] * len(self.streams)  # rank 0's RunWriters, one a stream
         self.last = [None] * len(self.streams)  # the step each run file wrote last (on every rank)
 
-    def open(self, attrs: dict, *, overwrite: bool, compress: bool, notify=None) -> None:
-        """Create the files (rank 0) with the global attributes ``attrs``; on failure none is left.
+    def open(self, attrs: dict, *, overwrite: bool, compress: bool, notify=None, **members) -> None:
+        """Create the files (rank 0) with the global attributes ``attrs`` (``members``: an
+        ensemble's ``members`` and ``member_series``, ``open_writer``'s); on failure none is left.
         ``notify(line)``: told in one line when the run file's cells were built rather than
         read from the cache at some cost, or when their fit failed and the files were written
         without them (``RunWriter.cells_notes``)."""
@@ -149,11 +141,67 @@ class RunFiles:
             for i, (path, fields, _) in enumerate(self.streams):  # the run file's cells told, not its streams'
                 kw = {"overwrite": overwrite, "compress": compress, "notify": notify if i == 0 else None}
                 self.writers[i] = open_writer(
-                    path, self.run.scene, self.grid, self.hs, attrs, self.series, fields, **kw
+                    path, self.scene, self.grid, self.hs, attrs, self.series, fields, **kw, **members
                 )
         except BaseException:
             self.abort()
             raise
+
+    def due(self, run, step: int, final: bool = False) -> list[int]:
+        """The files (indices) that take ``step`` (``run``'s, a ``run_state.RunState``), marked as
+        written: those whose times hold it (``final``: every one) and that have not written it."""
+        due = [i for i, (_, _, marks) in enumerate(self.streams) if (final or _holds(run, marks, step))]
+        due = [i for i in due if self.last[i] != step]
+        for i in due:
+            self.last[i] = step
+        return due
+
+    def append(self, due: list[int], day: float, u, v, h, series: dict, vorticity=None, divergence=None) -> None:
+        """Append an output time (model ``day``; the fields (ncol) of a run, (members, ncol) of
+        an ensemble) to the files ``due`` (``due``) that rank 0 holds."""
+        for i in due:
+            if self.writers[i] is not None:
+                self.writers[i].append(day, u, v, h, series, vorticity=vorticity, divergence=divergence)
+
+    def set_attrs(self, **attrs) -> None:
+        for w in self.writers:
+            if w is not None:
+                w.set_attrs(**attrs)
+
+    def close(self) -> None:
+        for w in self.writers:
+            if w is not None:
+                w.close()
+
+    def abort(self) -> None:
+        """Drop the files (a failed run)."""
+        for w in self.writers:
+            if w is not None:
+                w.abort()
+
+
+class RunFiles(StreamFiles):
+    """The run files of a run (its ``run_state.RunState`` ``run``, its ``diagnostics``, ``grid`` and
+    ``hs``) to ``output`` (``StreamFiles``: itself with the scene's ``output.fields``, then each
+    ``[[output.streams]]``, each at its own output times, under step control with the
+    control's ``CONTROL_SERIES``); without ``output`` none, the diagnostics still taken at the
+    scene's output steps. ``record`` diagnoses an output step on every rank (into ``history``;
+    ``on_output(step, x)`` is called with the (3, N) device state) and rank 0 appends it to the
+    files. An activity (``activities``): ``files(owner)`` records the run's step at the steps of
+    ``schedule``."""
+
+    def __init__(self, run, diagnostics, grid, hs, output: Path | None, on_output=None):
+        series = [
+            "steps",
+            "rhs_evals",
+            *(f"{k}_iterations" for k in run.stepper.solvers),
+            "wall_time",
+            *run.initial.keys(),
+            *(CONTROL_SERIES if run.control is not None else ()),
+        ]
+        super().__init__(run.scene, output, run.control is not None, grid, hs, series)
+        self.run, self.diagnostics = run, diagnostics
+        self.on_output, self.history = on_output, []
 
     def record(self, step: int, x=None, whole=None, final: bool = False, write: bool = True) -> None:
         """Diagnose ``step`` (state x, default the current one; ``whole`` its gathered
@@ -174,19 +222,9 @@ class RunFiles:
         self.history.append(d)
         if self.on_output is not None:
             self.on_output(step, run.x if x is None else x)
-        for i, (_, _, steps) in enumerate(self.streams):
-            if write and (final or _holds(run, steps, step)) and self.last[i] != step:
-                self.last[i] = step
-                if self.writers[i] is not None:  # rank 0 (the fields DSS'd, element-local, s-1)
-                    self.writers[i].append(
-                        day,
-                        whole.u,
-                        whole.v,
-                        whole.h,
-                        {k: d[k] for k in self.series},
-                        vorticity=whole.vorticity,
-                        divergence=whole.divergence,
-                    )
+        due = self.due(run, step, final) if write else []
+        series = {k: d[k] for k in self.series}  # rank 0 writes the fields DSS'd, element-local, s-1
+        self.append(due, day, whole.u, whole.v, whole.h, series, whole.vorticity, whole.divergence)
 
     def __call__(self, owner) -> None:
         self.record(self.run.step)
@@ -201,22 +239,6 @@ class RunFiles:
     def unwritten(self, step: int) -> bool:
         """Whether some run file (or, without one, the history) lacks ``step``."""
         return not _holds(self.run, self.steps, step) or any(at != step for at in self.last)
-
-    def set_attrs(self, **attrs) -> None:
-        for w in self.writers:
-            if w is not None:
-                w.set_attrs(**attrs)
-
-    def close(self) -> None:
-        for w in self.writers:
-            if w is not None:
-                w.close()
-
-    def abort(self) -> None:
-        """Drop the files (a failed run)."""
-        for w in self.writers:
-            if w is not None:
-                w.abort()
 
 
 class Checkpointer:

@@ -108,9 +108,6 @@ def test_a_bad_perturbation_and_scene_are_refused():
         Perturbation(1.0, seed=0.5)
     with pytest.raises(ArgumentError, match=r"scene: its dt is controlled .* not each on a model of its own$"):
         Ensemble("galewsky", 2, device="cpu", stepper="bs32", layout="in_turn", **SMALL, **{"time.control": "error"})
-    streams = {"output.streams": [{"name": "h", "every_days": 0.125, "fields": ["h"]}]}
-    with pytest.raises(ArgumentError, match=r"scene: it names \[\[output.streams\]\]"):
-        Ensemble("galewsky", 2, device="cpu", **SMALL, **streams)
 
 
 def test_a_perturbation_of_a_band_of_degrees_holds_those_degrees_alone():

@@ -18,7 +18,7 @@ from swe_sphere.core.errors import BlowUp, CheckpointError, Interrupted, SceneEr
 from swe_sphere.ensemble import Ensemble, Perturbation
 from swe_sphere.simulation.simulation import Simulation
 
-from helpers import cli_main
+from helpers import cli_main, write_tc2_scene
 
 SMALL = {"ne": 2, "np": 4, "dt": 900.0, "days": 0.5, "output.every_days": 0.25}
 
@@ -68,6 +68,92 @@ def test_the_mean_and_spread_are_the_members(tmp_path):
         assert ds["member"].standard_name == "realization" and list(ds["member"][:]) == [0, 1, 2, 3]
         assert ds["h_spread"].cell_methods == "realization: standard_deviation"
         assert ds["h"].dimensions == ("time", "member", "ncol") and ds.members == 4
+
+
+# two streams beside the run file (every 0.25 days): h every 3 h, the wind and vorticity every 6 h
+STREAMS = [
+    {"name": "3h", "every_days": 0.125, "fields": ["h"]},
+    {"name": "q", "every_days": 0.25, "fields": ["vorticity", "u"]},
+]
+
+
+def test_an_ensemble_writes_its_streams_as_a_run_does(tmp_path):
+    """``[[output.streams]]`` (refused by ensembles before issue 100): RUN.NAME.nc each at its
+    own times with its own fields, the members along the member axis; at a time the run file
+    has too, the stream's values are the run file's, and each member's stream the bits of its
+    single run's stream."""
+    kw = {**SMALL, "output.streams": STREAMS}
+    ens = Ensemble("galewsky", 2, Perturbation(2.0, seed=5), device="cpu", **kw)
+    starts = ens.states()
+    ens.run(tmp_path / "ens.nc")
+    time, h, u, zeta, mass = read(tmp_path / "ens.nc", "time", "h", "u", "vorticity", "mass")
+    t3, h3, mass3 = read(tmp_path / "ens.3h.nc", "time", "h", "mass")
+    tq, uq, zq = read(tmp_path / "ens.q.nc", "time", "u", "vorticity")
+    assert list(time) == [0.0, 0.25, 0.5] and list(t3) == [0.0, 0.125, 0.25, 0.375, 0.5] and list(tq) == list(time)
+    assert h3.shape == (5, 2, ens.grid.nunique) and not np.array_equal(h3[1], h3[2])  # its own times
+    assert np.array_equal(h3[::2], h) and np.array_equal(mass3[::2], mass)  # bitwise at the run file's times
+    assert np.array_equal(uq, u) and np.array_equal(zq, zeta)
+    with netCDF4.Dataset(tmp_path / "ens.3h.nc") as ds, netCDF4.Dataset(tmp_path / "ens.q.nc") as q:
+        assert ds["h"].dimensions == ("time", "member", "ncol") and ds.members == 2
+        assert "u" not in ds.variables and "h" not in q.variables and "h_spread" in ds.variables
+    for k in range(2):
+        sim = Simulation("galewsky", "cpu", progress=False, start=starts[k], **kw)
+        sim.run(tmp_path / f"{k}.nc")
+        (one,) = read(tmp_path / f"{k}.3h.nc", "h")
+        assert np.array_equal(h3[:, k], one), k
+
+
+def test_a_controlled_ensemble_lands_on_its_streams_days(tmp_path, one_thread):
+    """Under step control the steps land on each stream's days too, as a run's do."""
+    controlled = {"ne": 2, "np": 4, "days": 0.25, "stepper": "bs32", "time.control": "error"}
+    kw = {**controlled, "output.every_days": 0.25, "output.streams": STREAMS[:1]}
+    ens = Ensemble("galewsky", 2, Perturbation(1.0, seed=1), device="cpu", **kw)
+    ens.run(tmp_path / "ens.nc")
+    time, h = read(tmp_path / "ens.nc", "time", "h")
+    t3, h3 = read(tmp_path / "ens.3h.nc", "time", "h")
+    assert list(time) == [0.0, 0.25] and list(t3) == [0.0, 0.125, 0.25]
+    assert np.array_equal(h3[[0, 2]], h) and not np.array_equal(h3[1], h3[2])
+    assert np.array_equal(ens.grid.to_unique(ens.states()[:, 2]), h[-1])
+
+
+def test_a_signal_writes_the_step_reached_to_every_stream(tmp_path):
+    """Stopped by a signal, the run file and each stream end with the step reached, their
+    global attributes saying so."""
+    kw = {**SMALL, "output.streams": STREAMS}
+    ens = Ensemble("galewsky", 2, Perturbation(1.0, seed=2), device="cpu", **kw)
+    signalled = []
+
+    def signal_at_10(ens):  # SIGINT once 10 steps are done: the ensemble stops at the block's end (10)
+        if ens.step_count >= 10 and not signalled:
+            signalled.append(ens.step_count)
+            os.kill(os.getpid(), signal.SIGINT)
+
+    ens.add_callback(signal_at_10, every_steps=5)
+    with pytest.raises(Interrupted, match=r"^interrupted by SIGINT at step 10 "):
+        ens.run(tmp_path / "ens.nc")
+    times = {"ens.nc": [0.0, 10 / 96], "ens.3h.nc": [0.0, 10 / 96], "ens.q.nc": [0.0, 10 / 96]}
+    for name, days in times.items():
+        with netCDF4.Dataset(tmp_path / name) as ds:
+            assert (ds.interrupted, ds.interrupted_at_step) == ("SIGINT", 10) and list(ds["time"][:]) == days, name
+    (h,), (h3,) = read(tmp_path / "ens.nc", "h"), read(tmp_path / "ens.3h.nc", "h")
+    assert np.array_equal(h3, h) and np.array_equal(h[-1], ens.grid.to_unique(ens.states()[:, 2]))
+
+
+def test_the_command_line_runs_an_ensemble_with_its_streams(capsys, tmp_path):
+    """``run --members`` of a scene file with ``[[output.streams]]``: its header names each stream."""
+    scene = write_tc2_scene(
+        tmp_path / "s.toml",
+        dt=1800.0,
+        days=0.25,
+        tables='[[output.streams]]\nname = "hourly"\nevery_days = 0.041666666666666664\nfields = ["h"]\n',
+    )
+    out = tmp_path / "e.nc"
+    code, said, err = cli_main(capsys, "run", scene, "--members", "2", "--perturbation", "1", "--output", out)
+    assert code == 0, err
+    assert f"stream      {tmp_path / 'e.hourly.nc'} (every 0.0416667 days: h)" in said
+    time, h = read(tmp_path / "e.hourly.nc", "time", "h")
+    assert np.allclose(time, np.arange(7) / 24, rtol=0, atol=1e-12) and h.shape[:2] == (7, 2)
+    assert np.array_equal(h[-1], read(out, "h")[0][-1])
 
 
 def test_a_blow_up_keeps_the_good_output_times(tmp_path):

@@ -155,7 +155,7 @@ def graphed_step(unit: Unit, j: int, watch: bool) -> StepStats:
 
 class FixedDt:
     """The Δt policy of a fixed Δt: each step at its stepper's Δt, the clock's (a scene's, or one
-    fitted to the output times: ``Clock.fitted``, ``Simulation.fit_dt``), taken by ``step(unit,
+    fitted to the output times: ``Clock.fitted``, ``Simulation.fitted_dt``), taken by ``step(unit,
     j, watch)`` (default ``graphed_step``); with ``times`` (a ``core.clock.StepTimes``) a run's
     Δt and model times replayed, step k's (t0_k, Δt_k) and phase k set first (the gradient's
     sweeps: a fixed run's, or a controlled run's history)."""

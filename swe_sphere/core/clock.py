@@ -4,7 +4,11 @@ the clock of a run replayed step by step (``StepTimes``: a gradient's, a control
 A ``Clock`` is decided once, where the scene is resolved (``config.resolve.resolve_dt``), and
 asked by everything that counts steps: the scene's schedule checks, the output and restart
 steps (``simulation.schedules``), the Python drive's intervals and its fitted Δt
-(``Simulation.fit_dt``), the run file's times (``day``). Oceananigans' ``Clock`` (time,
+(``Simulation.fitted_dt``: a new clock, made the run's by ``use_dt`` alone), the run file's
+times (``day``). Δt is decided in two places: here (the plan, and ``fitted``, its one rule for
+a Δt that divides given intervals: the scene's resolution, ``fitted_dt``, the sweep's
+``dt_for_day``), and by the one loop's Δt policy (``integrator.FixedDt``, the plan's Δt or a
+run's replayed, ``StepTimes``; ``integrator.ControlledDt``, a step control's accepted steps). Oceananigans' ``Clock`` (time,
 iteration, last Δt) and HOMME's ``timestep_make_parameters_consistent`` are the models.
 
 The clock is the plan of a fixed-Δt run: step n is at ``start + n Δt``. An adaptive run (a

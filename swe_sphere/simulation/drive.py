@@ -1,8 +1,10 @@
 """A simulation driven from Python (Oceananigans' ``Simulation``: step, inspect, call back):
 ``Driven``, the methods ``advance``, ``steps``, ``state``, ``every``, ``add_callback`` and
 ``fit_dt`` of a ``Simulation`` (which is one), their steps by ``Simulation.run``'s loop; Δt
-fitted to the user's intervals (``_fitted``: the scene's clock ``Clock.fitted``) where it is the
-simulation's own (``_own_dt``: not given, restored or stated in a ``Scene``)."""
+fitted to the user's intervals where it is the simulation's own (``_own_dt``: not given,
+restored or stated in a ``Scene``): ``fitted_dt`` returns the new scene (its clock,
+``Clock.fitted``) and stepper, writing nothing, and ``use_dt`` is the one place a run's Δt is
+rewritten."""
 
 from __future__ import annotations
 
@@ -26,10 +28,14 @@ class Driven:
 
     _own_dt = False
 
-    def _fitted(self, every: float, what: str):
-        """``fit_dt``'s scene: its clock's Δt shortened to divide ``every`` and the run's
-        intervals (``Clock.fitted``), a note naming ``what``; nothing written. ``SceneError`` as
-        ``fit_dt``."""
+    def fitted_dt(self, every: float, what: str = "every") -> tuple:
+        """(scene, stepper) at Δt shortened to the largest that divides ``every`` (days), the
+        run, its output intervals (where shorter than the run) and the intervals of the
+        activities scheduled in days: the scene with its clock fitted to them (``Clock.fitted``;
+        a note in its ``notes`` naming ``what``) and the stepper to step at it: one built anew
+        at that Δt where Δt is folded into what it builds (``variable_dt`` False), else this one
+        (its ``set_dt`` called where the pair is used, ``use_dt``). Nothing of the simulation
+        written. ``SceneError`` as ``fit_dt``."""
         s = self.scene
         if self.step != 0 or not is_interval(every):
             raise SceneError(
@@ -46,7 +52,25 @@ class Driven:
                 "or an interval of whole steps"
             )
         note = f"dt shortened from {s.dt:g} s to {clock.dt:g} s to divide {what} = {every:g} days"
-        return dataclasses.replace(s, dt=clock.dt, notes=(*s.notes, note), dt_source=clock.source)
+        scene = dataclasses.replace(s, dt=clock.dt, notes=(*s.notes, note), dt_source=clock.source)
+        # Δt folded into what it builds (a Helmholtz operator, a history's weights, element levels): anew
+        return scene, self.stepper if self.stepper.variable_dt else scene_stepper(scene, self.model)
+
+    def use_dt(self, scene, stepper) -> None:
+        """Step on at ``scene``'s Δt with ``stepper`` (``fitted_dt``'s pair): the one place a
+        simulation's Δt is rewritten. This stepper's Δt set in place (``set_dt``: what was
+        built for the old Δt dropped), a new one prepared from the state; the activities
+        scheduled in days rescheduled in its steps and the start's diagnostics taken again
+        (their Courant numbers)."""
+        if stepper is self.stepper:
+            stepper.set_dt(scene.dt)
+        else:
+            stepper.prepare(self.x)
+        self.scene, self.stepper = scene, stepper
+        for activity in self.activities.values():  # the schedules in days: their steps at the new Δt
+            if getattr(activity.schedule, "days", None) is not None:
+                activity.schedule = self.every(days=activity.schedule.days)
+        self.initial = self.diagnostics.diagnose(scene.start_day * DAY)
 
     def _steps_in(self, days: float, what: str) -> int:
         """The whole number of steps in ``days`` (``what`` names it in a refusal), Δt first
@@ -63,7 +87,7 @@ class Driven:
                 "steps, and a run goes to its end (Simulation.run)"
             )
 
-    def fit_dt(self, every: float, what: str = "every") -> None:
+    def fit_dt(self, every: float, what: str = "every") -> tuple:
         """Shorten Δt, before the first step, to the largest that divides ``every`` (days),
         the run, its output intervals (where shorter than the run) and the intervals of
         the activities scheduled in days (``every``; their steps follow): the scene's clock
@@ -72,17 +96,10 @@ class Driven:
         (their Courant numbers); a note in ``scene.notes`` naming ``what``. ``SceneError``
         (one line) after the first step, for ``every`` <= 0, and where that Δt is less than
         half the present one (an interval of odd decimals: give a dt, or an interval of
-        whole steps)."""
-        self.scene = self._fitted(every, what)
-        if self.stepper.variable_dt:  # its own ``set_dt`` (as step control's): what was built for the old Δt dropped
-            self.stepper.set_dt(self.scene.dt)
-        else:  # Δt folded into what it builds (a Helmholtz operator, a history's weights, element levels): anew
-            self.stepper = scene_stepper(self.scene, self.model)
-            self.stepper.prepare(self.x)
-        for activity in self.activities.values():  # the schedules in days: their steps at the new Δt
-            if getattr(activity.schedule, "days", None) is not None:
-                activity.schedule = self.every(days=activity.schedule.days)
-        self.initial = self.diagnostics.diagnose(self.scene.start_day * DAY)
+        whole steps). Returns the new (scene, stepper) (``fitted_dt``, then ``use_dt``)."""
+        scene, stepper = self.fitted_dt(every, what)
+        self.use_dt(scene, stepper)
+        return scene, stepper
 
     def every(self, *, days: float | None = None, steps: int | None = None) -> EverySteps:
         """The schedule of an activity (``activities``) due after every step that is a

@@ -119,6 +119,25 @@ def test_steps_fit_the_simulations_own_dt():
         next(Simulation("galewsky", "cpu", **kw).steps(every=0.0123))  # 0.0001-day multiples: refused
 
 
+def test_fitted_dt_writes_nothing_and_fit_dt_uses_its_pair():
+    """``fitted_dt`` returns the scene with the fitted clock and the stepper for it, the
+    simulation untouched (its scene, stepper and Δt as they were); ``fit_dt`` makes that pair
+    the simulation's (``use_dt``) and returns it. leapfrog (``variable_dt`` False): a new
+    stepper at the new Δt; kgu35: its own, its Δt set where used."""
+    kw = dict(ne=2, days=0.25, stepper="leapfrog", progress=False)
+    sim = Simulation("tc2_steady_alpha_pi4", "cpu", **kw)
+    scene, stepper = sim.scene, sim.stepper
+    fitted, new = sim.fitted_dt(0.125)
+    assert (fitted.dt, new.dt, new is stepper) == (2160.0, 2160.0, False)
+    assert sim.scene is scene and sim.stepper is stepper and stepper.dt == scene.dt == 2400.0
+    assert sim.fit_dt(0.125) == (sim.scene, sim.stepper) and sim.scene.dt == sim.stepper.dt == 2160.0
+    own = Simulation("galewsky", "cpu", ne=3, np=5, days=1, progress=False)
+    fitted, same = own.fitted_dt(0.5)
+    assert same is own.stepper and same.dt == own.scene.dt == 86400 / 51 and fitted.dt == 43200 / 26
+    own.use_dt(fitted, same)
+    assert own.scene is fitted and same.dt == 43200 / 26
+
+
 def test_a_stepper_that_cannot_change_dt_is_built_anew_at_the_fitted_dt():
     """leapfrog (``variable_dt`` False: its start and filter are its Δt's) is built anew when
     its own Δt is fitted: 2400 s is 4.5 steps in 1/8 day, fitted to 2160 s (5 steps); the run is

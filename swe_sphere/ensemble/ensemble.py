@@ -12,7 +12,6 @@ every member's invariants."""
 
 from __future__ import annotations
 
-import signal
 import sys
 from pathlib import Path
 
@@ -40,7 +39,7 @@ from ..simulation.loop import progress_bar, progressed, run_steps
 from ..simulation.restart import write_restart
 from ..simulation.run_state import RunState
 from ..simulation.schedules import EverySteps, at_its_end
-from ..simulation.summary import Ledger, interruption
+from ..simulation.summary import Ledger, interrupted
 from ..simulation.writers import Checkpointer, StreamFiles, interrupted_attrs, scene_attrs
 from .control import STEERED, member_control
 from .files import resume
@@ -435,10 +434,7 @@ class Ensemble:
                 if stop.signum is not None:  # the step reached written, as a run's last, and its restart file
                     write(self, final=True)
                     ckp.interrupted(self.step_count, abandoned=False)
-                    name, step, day = signal.Signals(stop.signum).name, self.step_count, self.day
-                    err = Interrupted(interruption(name, step, day, s, output, ckp.kept, ckp.written, None))
-                    err.signum, err.result, err.checkpoint = stop.signum, None, ckp.written
-                    raise err
+                    raise interrupted(stop.signum, self.step_count, self.day, s, output, ckp, None, None)
         except BaseException as err:  # a blow-up or a signal: the good output times kept
             step, why = self.step_count, {"stopped": str(err) or type(err).__name__}
             signalled = isinstance(err, Interrupted)  # said as a run's file says it

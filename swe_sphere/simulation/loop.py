@@ -8,7 +8,6 @@ and the progress (``progress_bar``, ``progressed``) are an ``Ensemble``'s too.""
 from __future__ import annotations
 
 import contextlib
-import signal
 import sys
 import time
 
@@ -16,7 +15,7 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from ..core.arguments import flag_argument, number_argument, path_argument
-from ..core.errors import BlowUp, Interrupted, OutputError, SceneError
+from ..core.errors import BlowUp, OutputError, SceneError
 from ..core.interrupts import StopSignals
 from ..integrator import Stop
 from ..io.output_files import check_distinct, check_target
@@ -24,7 +23,7 @@ from .activities import Log, call_due
 from .adaptive import Tries, steered
 from .guard import RunObserver, blowup_line
 from .schedules import EverySteps
-from .summary import Ledger, RunResult, interruption
+from .summary import Ledger, RunResult, interrupted
 from .writers import Checkpointer, RunFiles, interrupted_attrs, run_attrs
 
 RUN_ACTIVITIES = ("run_file", "checkpointer", "log")  # the names ``run`` gives its own activities
@@ -174,11 +173,7 @@ class Looping:
             err.result = result
             raise err
         if stop.signum is not None:
-            name = signal.Signals(stop.signum).name
-            line = interruption(name, self.step, self.time, self.scene, output, ckp.kept, ckp.written, stop.abandoned)
-            err = Interrupted(line)
-            err.signum, err.result, err.checkpoint = stop.signum, result, ckp.written
-            raise err
+            raise interrupted(stop.signum, self.step, self.time, self.scene, output, ckp, stop.abandoned, result)
         return result
 
     def _integrate(self, files, ckp, start, ledger, log, catch_signals, until_step) -> tuple:

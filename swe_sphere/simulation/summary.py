@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import math
+import signal
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..core.constants import DAY
+from ..core.errors import Interrupted
 from ..core.interrupts import ABANDON_AFTER
 
 # A run's wall time is estimated from the steps after its first (which compiles kernels):
@@ -110,6 +112,17 @@ class Ledger:
             loop_time=c["wall_time"] - self.wall0,
             checkpoint=checkpoint,
         )
+
+
+def interrupted(signum: int, step: int, day: float, scene, output, ckp, abandoned, result) -> Interrupted:
+    """The ``Interrupted`` a run (a ``Simulation``'s or an ``Ensemble``'s) raises when the signal
+    ``signum`` stopped it at ``step`` (model ``day``): its ``interruption`` line, with ``signum``,
+    ``result`` (the run's ``RunResult``, or None) and ``checkpoint`` (the restart file its
+    ``writers.Checkpointer`` ``ckp`` wrote, or None) on it."""
+    name = signal.Signals(signum).name
+    err = Interrupted(interruption(name, step, day, scene, output, ckp.kept, ckp.written, abandoned))
+    err.signum, err.result, err.checkpoint = signum, result, ckp.written
+    return err
 
 
 def interruption(name: str, step: int, day: float, scene, output, kept_restart, checkpoint, abandoned) -> str:

@@ -582,6 +582,7 @@ def test_an_ensemble_s_members_over_ranks_keep_their_bits(needs_mpi, tmp_path, m
     semi-implicit stepper, g per member; the stepper states gathered under each member's name)."""
     run = ["run", "galewsky", "--ne", "2", "--np", "4", "--dt", "900", "--days", "0.5", "--members", "3"]
     run += ["--vary", "case.hhat=60,120,180", "--restart-every", "0.25", *more]
+    run += ["-s", 'output.streams=[{name="q", every_days=0.125, fields=["h"]}]']  # rank 0 writes it, as the run file
     assert main([*run, "--output", str(tmp_path / "one.nc")]) == 0
     two = mpirun(2, [*run, "--output", "two.nc"], tmp_path)
     assert two.returncode == 0, two.stderr[-2000:]
@@ -594,6 +595,8 @@ def test_an_ensemble_s_members_over_ranks_keep_their_bits(needs_mpi, tmp_path, m
         for name in a.data_vars:
             if name != "wall_time":
                 assert np.array_equal(a[name].values, b[name].values, equal_nan=a[name].dtype.kind == "f"), name
+    with xr.open_dataset(tmp_path / "one.q.nc", decode_times=False) as a, xr.open_dataset(tmp_path / "two.q.nc") as b:
+        assert a.sizes["time"] == 5 and np.array_equal(a.h.values, b.h.values)
     with xr.open_dataset(tmp_path / "one.restart.nc") as a, xr.open_dataset(tmp_path / "two.restart.nc") as b:
         assert all(np.array_equal(a[k].values, b[k].values) for k in ("u", "v", "h"))
     more = ["run", "--continue", "two.restart.nc", "--days", "0.75"]

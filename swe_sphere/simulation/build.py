@@ -7,7 +7,6 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-import warp as wp
 
 from ..cases.scoring import Scorer
 from ..config.parts import partition, scene_stepper
@@ -56,8 +55,9 @@ class Built:
     """What ``build`` makes, which ``Simulation.__init__`` takes as its attributes of the same names
     (beside its scene and backend, and what follows from them): this rank's part of the grid
     (``topology``) and the whole grid on
-    rank 0 (``grid``; None elsewhere), the case, model, stepper (prepared on ``x``) and scorer,
-    the case's fcor and hs gathered, the start state ``x`` and a copy ``last_good`` (``guard``),
+    rank 0 (``grid``; None elsewhere), the case, model, stepper and scorer, the case's fcor and
+    hs gathered, the start state ``start`` (3, N) on this rank's nodes (u, v in m s⁻¹, h in m;
+    the integrator's ``Unit.of`` makes it the device state and prepares the stepper on it),
     and ``dfi``, the digital filter's result where it ran."""
 
     case: object
@@ -71,8 +71,7 @@ class Built:
     stepper: object
     scorer: Scorer
     dfi: object
-    x: wp.array
-    last_good: wp.array
+    start: np.ndarray
 
 
 def build(scene: Scene, backend: Backend, progress: bool, comm, start, initial) -> Built:
@@ -105,11 +104,8 @@ def build(scene: Scene, backend: Backend, progress: bool, comm, start, initial) 
             start = dfi.x
     else:
         start = topo.distribute(None if start is ON_ROOT else start, 3, "start state")
-    x = model.new_state(*start)
-    stepper.prepare(x)
     if not root:  # a fallback's warning once, from rank 0
         model.launches.guard.warn = lambda line: None
-    last_good = wp.clone(x)  # the state at the start of the block of steps in progress (``guard``)
     return Built(  # in the order of ``Built``'s fields
         case,
         topo,
@@ -122,6 +118,5 @@ def build(scene: Scene, backend: Backend, progress: bool, comm, start, initial) 
         stepper,
         scorer,
         dfi,
-        x,
-        last_good,
+        start,
     )

@@ -23,7 +23,7 @@ from ..core.arguments import array_argument, comm_argument, flag_argument, got, 
 from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
 from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, Interrupted, SceneError
-from ..core.graphs import GraphedSteps, default_mode, graphs_mode
+from ..core.graphs import default_mode, graphs_mode
 from ..integrator import Integrator, Unit, core_property
 from .adaptive import StepControl
 from .build import ON_ROOT, Built, build
@@ -176,8 +176,8 @@ class Simulation(Driven, Restarts, Looping):
                 b.grid,
             )
             self.model, self.fcor, self.hs, self.scorer, self.dfi = b.model, b.fcor, b.hs, b.scorer, b.dfi
-            graphed = GraphedSteps(backend, b.model.launches.guard, graphs)
-            self.core = Integrator([Unit(b.model, b.stepper, b.x, b.last_good, graphed)])  # ``FixedDt``: graphed steps
+            # the start on the device, the stepper prepared on it (``FixedDt``: graphed steps)
+            self.core = Integrator([Unit.of(b.model, b.stepper, b.start[None], backend, graphs)])
             # what the run's collaborators read of it: its step, state, scene, control, t = 0 diagnostics, counters
             self.run_state = RunState(self.core, scene, initial=initial_diagnostics)
             self.g, self.check_every = self.model.g, CHECK_EVERY_STEPS

@@ -150,8 +150,9 @@ class StreamFiles:
     def due(self, run, step: int, final: bool = False) -> list[int]:
         """The files (indices) that take ``step`` (``run``'s, a ``run_state.RunState``), marked as
         written: those whose times hold it (``final``: every one) and that have not written it."""
-        due = [i for i, (_, _, marks) in enumerate(self.streams) if (final or _holds(run, marks, step))]
-        due = [i for i in due if self.last[i] != step]
+        due = [
+            i for i, (_, _, at) in enumerate(self.streams) if (final or _holds(run, at, step)) and self.last[i] != step
+        ]
         for i in due:
             self.last[i] = step
         return due
@@ -163,21 +164,21 @@ class StreamFiles:
             if self.writers[i] is not None:
                 self.writers[i].append(day, u, v, h, series, vorticity=vorticity, divergence=divergence)
 
-    def set_attrs(self, **attrs) -> None:
+    def _each(self, verb: str, **kw) -> None:
+        """``RunWriter.<verb>(**kw)`` of every file rank 0 holds."""
         for w in self.writers:
             if w is not None:
-                w.set_attrs(**attrs)
+                getattr(w, verb)(**kw)
+
+    def set_attrs(self, **attrs) -> None:
+        self._each("set_attrs", **attrs)
 
     def close(self) -> None:
-        for w in self.writers:
-            if w is not None:
-                w.close()
+        self._each("close")
 
     def abort(self) -> None:
         """Drop the files (a failed run)."""
-        for w in self.writers:
-            if w is not None:
-                w.abort()
+        self._each("abort")
 
 
 class RunFiles(StreamFiles):

@@ -295,9 +295,9 @@ def test_memory_is_checked_on_the_device_that_runs(monkeypatch):
     monkeypatch.setattr(runtime, "available_memory", lambda: need // 2)
     with pytest.raises(runtime.ResourceError, match="of memory; .* is available"):
         build.check_memory(scene, None, Backend.of("cpu"))
-    monkeypatch.setattr(build.wp, "get_device", lambda d=None: FakeCuda(2 * need, 4 * need))
+    monkeypatch.setattr(wp, "get_device", lambda d=None: FakeCuda(2 * need, 4 * need))
     build.check_memory(scene, None, Backend.of("cuda"))  # the host's half is not the GPU's
     monkeypatch.setattr(runtime, "available_memory", lambda: 1 << 50)
-    monkeypatch.setattr(build.wp, "get_device", lambda d=None: FakeCuda(need // 2, 4 * need))
+    monkeypatch.setattr(wp, "get_device", lambda d=None: FakeCuda(need // 2, 4 * need))
     with pytest.raises(runtime.ResourceError, match=r"of GPU memory; .* free of .* on cuda"):
         build.check_memory(scene, None, Backend.of("cuda"))

@@ -68,7 +68,7 @@ def animate_run(
     anything is written: ``ValueError`` (one line) for an unknown field or format, a day the run
     does not store, fewer than two frames, a run file it cannot read; ``OutputError`` for a file
     that exists (unless ``overwrite``) or would replace the input. Returns the file's path."""
-    from matplotlib.animation import FFMpegWriter, FuncAnimation, PillowWriter
+    from matplotlib.animation import FFMpegWriter, PillowWriter
 
     check_format(fmt)
     check_view(member, [field])
@@ -109,16 +109,21 @@ def animate_run(
     image = draw_map(fig, ax, lon_e, lat_e, span, cmap=cmap, symmetric=symmetric, label=f"{field} ({units})")
     title = ax.set_title("", fontsize=10)
 
-    def frame(k: int):
-        image.set_data(values[k])
-        title.set_text(f"{long_name}, {scene}, day {frames[k]:g}")
-        return image, title
-
+    # the layout made once, on the first frame, and kept: the frames differ in their data and the
+    # title's day alone. A draw a frame, the writer's: FuncAnimation drew each frame three times,
+    # each with the constrained layout again (25 frames at ne3: 18 s of drawing, now about 5)
+    title.set_text(f"{long_name}, {scene}, day {frames[0]:g}")
+    fig.canvas.draw()
+    fig.set_layout_engine("none")
     writer = PillowWriter(fps=fps) if fmt == "gif" else FFMpegWriter(fps=fps)
     outdir.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + f".part.{fmt}")
     try:
-        FuncAnimation(fig, frame, frames=len(frames), blit=False).save(tmp, writer=writer)
+        with writer.saving(fig, tmp, fig.dpi):
+            for k, day in enumerate(frames):
+                image.set_data(values[k])
+                title.set_text(f"{long_name}, {scene}, day {day:g}")
+                writer.grab_frame()
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise

@@ -66,107 +66,122 @@ class Hyperviscosity:
         M⁻¹Bᵀ M = Pᵀ RQ K̃ Π RQ K̃_V P, the tensor's first (the constant ∇⁴ is its own);
         ValueError with ν_div ≠ ν (its ∇δ term is not symmetric)."""
         m = self.model
-        N, np_ = m.N, m.grid.np
         out = x if out is None else out
         nu, nu_div, nu_s = (m.nu, m.nu_div, m.nu_s) if nus is None else nus
-        Y, L = self.hv_Y, self.hv_L
         shift = 2.0 / m.grid.radius**2  # HOMME: "so we dont damp rigid rotation"
         c = wp.vec4d(nu, nu_div - nu, nu_s, shift)
         divergent = nu_div != nu
         if transposed and divergent:
             raise ValueError("the ∇⁴ with nu_div != nu has no transpose")
         swap = transposed and self.hv_tensor is not None  # which pass reads the tensor: the second, or the first
-        delta = m.operators.scalar_dss  # δ = DSS(∇·v), read only when divergent
-        launches = m.operators.divergence_launches(x, delta) if divergent else []
-        names = self._first_names(divergent)
+        # δ = DSS(∇·v), read only when divergent
+        launches = m.operators.divergence_launches(x, m.operators.scalar_dss) if divergent else []
+        laplacian = self._element_laplacian if m.operators.per_element else self._node_laplacian
+        passes = [*launches, *laplacian(x, c, divergent, swap, False), *laplacian(x, c, divergent, swap, True)]
+        return [*passes, *self._dss_apply(x, coef, out, mode, prev, weights)]
 
-        if m.operators.per_element:
+    def _element_laplacian(self, x, c, divergent: bool, swap: bool, second: bool) -> list:
+        """``build``'s launches of one weak Laplacian on the per-element layout: the first
+        (``second`` False) the weak form of Y₁ in L from ``x``, the second that of Y₂ in L2 from
+        the DSS of L, which it sums element by element itself (on rows where the topology has
+        them). ``c`` the kernels' coefficients (ν, ν_div − ν, ν_s, 2/a²), ``divergent`` ν_div ≠ ν,
+        ``swap`` the tensor's metric read by the first pass instead of the second."""
+        m = self.model
+        np_, L, Y, delta = m.grid.np, self.hv_L, self.hv_Y, m.operators.scalar_dss
+        frame = self._frame(*() if second else self._first_names(divergent), rows=True)
+        metric = self.hv_tensor if self.hv_tensor is not None and second != swap else self.hv_metric
+        args = [
+            m.operators.as_rows(m.operators.hs),
+            m.operators.as_rows(delta),
+            c,
+            frame,
+            m.operators.as_rows(metric),
+            m.operators.dvv_rows,
+        ]
+        if not second:  # x, d and Y are not read
+            kernel = hyperviscosity.laplacian_element(False, divergent, np_)
+            head = [L, m.topology.dss_copies, Y, m.operators.as_rows(x)]
+            return [m.launches.elements(kernel, [*head, *args, m.operators.as_rows(L), m.launches.block])]
 
-            def laplacian(second):  # → the weak form of Y₁ in L, or of Y₂ in L2 from the DSS of L
-                frame = self._frame(*() if second else names, rows=True)
-                metric = self.hv_tensor if self.hv_tensor is not None and second != swap else self.hv_metric
-                args = [
-                    m.operators.as_rows(m.operators.hs),
-                    m.operators.as_rows(delta),
-                    c,
-                    frame,
-                    m.operators.as_rows(metric),
-                    m.operators.dvv_rows,
-                ]
-                if not second:  # x, d and Y are not read
-                    kernel = hyperviscosity.laplacian_element(False, divergent, np_)
-                    head = [L, m.topology.dss_copies, Y, m.operators.as_rows(x)]
-                    return [m.launches.elements(kernel, [*head, *args, m.operators.as_rows(L), m.launches.block])]
+        # the first DSS in the second pass, element by element: on rows where the topology has them
+        tail = [*args, m.operators.as_rows(self.hv_L2)]
+        if m.topology.edges is not None:
+            return m.topology.by_element(
+                L,
+                lambda rows, copies, ghosts, np_: hyperviscosity.laplacian_element(
+                    True, divergent, np_, copies, ghosts, rows=True
+                ),
+                [m.operators.as_rows(Y), *tail],
+            )
+        return m.topology.gathering(
+            L,
+            lambda rows, copies, ghosts: hyperviscosity.laplacian_element(True, divergent, np_, copies, ghosts),
+            [Y, m.operators.as_rows(Y), *tail],
+        )
 
-                # the first DSS in the second pass, element by element: on rows where the topology has them
-                tail = [*args, m.operators.as_rows(self.hv_L2)]
-                if m.topology.edges is not None:
-                    return m.topology.by_element(
-                        L,
-                        lambda rows, copies, ghosts, np_: hyperviscosity.laplacian_element(
-                            True, divergent, np_, copies, ghosts, rows=True
-                        ),
-                        [m.operators.as_rows(Y), *tail],
-                    )
-                return m.topology.gathering(
-                    L,
-                    lambda rows, copies, ghosts: hyperviscosity.laplacian_element(True, divergent, np_, copies, ghosts),
-                    [Y, m.operators.as_rows(Y), *tail],
-                )
-        else:
+    def _node_laplacian(self, x, c, divergent: bool, swap: bool, second: bool) -> list:
+        """``build``'s launches of one weak Laplacian on the per-node layout, a flux pass and
+        then the Laplacian's: the first (``second`` False) the weak form of Y₁ in L from ``x``
+        (its flux pass forming the Cartesian wind in hv_X as it reads it), the second that of Y₂
+        in L from the DSS of L (Y₁), that DSS first. ``c``, ``divergent`` and ``swap`` as
+        ``_element_laplacian``'s."""
+        m = self.model
+        N, np_, L, Y = m.N, m.grid.np, self.hv_L, self.hv_Y
+        tensor = self.hv_tensor is not None and second != swap
+        src = Y if second else self.hv_X  # what laplacian_node reads at its node
+        # the first forms X, writes it in hv_X
+        flux = hyperviscosity.laplacian_flux(not second, tensor, m.operators.static_np)
+        flux_args = [
+            Y if second else x,
+            m.operators.hs,
+            self._frame("east", "north"),
+            m.operators.Dinv,
+            m.spheremp,
+            self.hv_tensor if tensor else m.operators.Dinv,  # the tensor's metric, else not read
+            m.operators.dvv,
+            np_,
+            self.hv_flux,
+            src,
+        ]
+        passes = list(m.topology.dss(L, 0, Y)) if second else []  # the first DSS: Y₁
+        passes.append(m.launches.nodes(flux, N, flux_args))
+        mass = self.hv_tensor[3] if tensor else m.spheremp  # the weight of the +2Y₁/a² shift
+        args = [
+            self.hv_flux,
+            src,
+            m.operators.scalar_dss,
+            c,
+            self._frame(*() if second else self._first_names(divergent)),
+            mass,
+            m.operators.dvv,
+            np_,
+            L,
+        ]
+        kernel = hyperviscosity.laplacian_node(second, divergent, m.operators.static_np)
+        return [*passes, m.launches.nodes(kernel, N, args)]
 
-            def laplacian(second):  # → the weak form of Y₁ in L, or of Y₂ in L from the DSS of L
-                tensor = self.hv_tensor is not None and second != swap
-                src = Y if second else self.hv_X  # what laplacian_node reads at its node
-                # the first forms X, writes it in hv_X
-                flux = hyperviscosity.laplacian_flux(not second, tensor, m.operators.static_np)
-                flux_args = [
-                    Y if second else x,
-                    m.operators.hs,
-                    self._frame("east", "north"),
-                    m.operators.Dinv,
-                    m.spheremp,
-                    self.hv_tensor if tensor else m.operators.Dinv,  # the tensor's metric, else not read
-                    m.operators.dvv,
-                    np_,
-                    self.hv_flux,
-                    src,
-                ]
-                passes = list(m.topology.dss(L, 0, Y)) if second else []  # the first DSS: Y₁
-                passes.append(m.launches.nodes(flux, N, flux_args))
-                mass = self.hv_tensor[3] if tensor else m.spheremp  # the weight of the +2Y₁/a² shift
-                args = [
-                    self.hv_flux,
-                    src,
-                    delta,
-                    c,
-                    self._frame(*() if second else names),
-                    mass,
-                    m.operators.dvv,
-                    np_,
-                    L,
-                ]
-                kernel = hyperviscosity.laplacian_node(second, divergent, m.operators.static_np)
-                return [*passes, m.launches.nodes(kernel, N, args)]
-
-        passes = [*launches, *laplacian(False), *laplacian(True)]
+    def _dss_apply(self, x, coef: float, out, mode: str, prev, weights) -> list:
+        """``build``'s last pass's launches: the second Laplacian's weak form (L2 on the
+        per-element layout, L on the per-node one) summed over its copies (the DSS) and applied,
+        out += coef·B x, or as ``mode`` says ("euler", "rkl" with ``prev`` and ``weights``;
+        ``kernels.hyperviscosity.dss_apply``), on the CPU's element rows where the topology has
+        them (``Topology.by_element``)."""
+        m = self.model
         by_element = m.operators.per_element and m.topology.edges is not None
         rows = m.operators.as_rows if by_element else (lambda a: a)
         last = [f64(coef), self._frame("east", "north", rows=by_element)]
         last += [rows(out), rows(x), rows(out if prev is None else prev), *map(f64, weights)]
         if by_element:  # the CPU's element rows (``Topology.by_element``)
-            apply = m.topology.by_element(
+            return m.topology.by_element(
                 self.hv_L2,
                 lambda rows, copies, ghosts, np_: hyperviscosity.dss_apply_elements(copies, ghosts, np_, mode),
                 last,
             )
-        else:
-            apply = m.topology.gathering(
-                self.hv_L2 if m.operators.per_element else L,
-                lambda rows, copies, ghosts: hyperviscosity.dss_apply(copies, ghosts=ghosts, mode=mode),
-                last,
-            )
-        return [*passes, *apply]
+        return m.topology.gathering(
+            self.hv_L2 if m.operators.per_element else self.hv_L,
+            lambda rows, copies, ghosts: hyperviscosity.dss_apply(copies, ghosts=ghosts, mode=mode),
+            last,
+        )
 
     def transpose(
         self, tendency: TendencyTranspose, dt: float, shared: HyperviscosityTranspose | None = None

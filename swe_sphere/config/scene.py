@@ -211,37 +211,20 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict, rest
     every, log_every = resolve_output_interval(output)
     stepper, days = resolve_stepper_days(time, stepper, days)
     controlled = is_controlled(time)
-    streams = tuple(  # the streams' intervals, for a scaled dt to divide (their values checked with them)
-        st["every_days"]
-        for st in output.get("streams", [])
-        if isinstance(st, dict) and is_number(st.get("every_days")) and st["every_days"] > 0
-    )
+    streams = _stream_intervals(output)
     restart = restart_every if is_number(restart_every) and restart_every > 0 and not controlled else None
     dt, dt_source, dt_notes = resolve_dt(
         time.get("dt"), dt, days, every, path.stem, grid, spacing, controlled, streams, restart
     )
     own_dt = dt
     if dt_source == "the dt given" or "time.dt" in overrides:  # the dt it would choose itself, all else as given
-        try:
-            own_spacing = resolve_spacing(scene_grid, grid, planet.a, own.get("planet", {}).get("radius", EARTH.a))
-            own_dt = resolve_dt(
-                own.get("time", {}).get("dt"), None, days, every, path.stem, grid, own_spacing, controlled, streams
-            )[0]
-        except SceneError:  # none that fits the output interval
-            own_dt = None
+        own_dt = _own_dt(own, scene_grid, grid, planet.a, days, every, path.stem, controlled, streams)
     own_planet, own_days = _own_planet_days(own)
     output_fields, streams = resolve_output_files(output, dt, days, dt_source, controlled)
     options, stepper_notes = resolve_stepper_options(stepper, s.get(stepper, {}), overrides)
     control = resolve_control(time, stepper, options, dt)
-    hv, hv_notes = resolve_hyperviscosity(s.get("hyperviscosity", {}), terms, grid, spacing)
-    steps = (round(every * DAY / dt), round(days * DAY / dt))  # an output interval's and the run's
-    k, every_notes = resolve_every(s.get("hyperviscosity", {}), hv, grid, spacing, dt, steps, stepper, controlled)
-    hv = dataclasses.replace(hv, every=k)
-    element_filter, filter_notes = resolve_filter(s.get("filter", {}), dt, k, controlled)
-    name, description = scene_title(case.name, file_case, path.stem, s.get("description", ""))
-    given = [f"{k} = {v!r}" for k, v in overrides.items() if k.startswith("case.") and k[5:] in case.params]
-    if given and name == path.stem:  # the file's description is of its own values: the header says what runs
-        description = f"{description}; run with {', '.join(given)}"
+    hv, element_filter, hv_notes = _dissipation(s, terms, grid, spacing, dt, (every, days), stepper, controlled)
+    name, description = _title(case, file_case, path.stem, s.get("description", ""), overrides)
     return Scene(
         name=name,
         description=description,
@@ -259,14 +242,7 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict, rest
         hypervis_subcycle=hv.subcycle,
         nu_div=hv.nu_div,
         nu_s=hv.nu_s,
-        notes=case.notes
-        + grid_notes
-        + dt_notes
-        + stepper_notes
-        + cfl_notes(control, stepper)
-        + hv_notes
-        + every_notes
-        + filter_notes,
+        notes=case.notes + grid_notes + dt_notes + stepper_notes + cfl_notes(control, stepper) + hv_notes,
         initialization=initialization,
         reference=case.reference,
         log_every_steps=int(log_every),
@@ -285,6 +261,54 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict, rest
         own_planet=own_planet,
         own_days=own_days,
     )
+
+
+def _stream_intervals(output: dict) -> tuple:
+    """The ``[[output.streams]]`` intervals (days) of the ``[output]`` table ``output`` that are
+    numbers > 0, for a scaled dt to divide (their values are checked with the streams,
+    ``resolve_output_files``)."""
+    return tuple(
+        st["every_days"]
+        for st in output.get("streams", [])
+        if isinstance(st, dict) and is_number(st.get("every_days")) and st["every_days"] > 0
+    )
+
+
+def _own_dt(own: dict, scene_grid, grid, radius: float, days, every, stem: str, controlled, streams) -> float | None:
+    """The dt (s) the scene file would choose itself from its own checked tables ``own``
+    (``read_scene``: its time.dt at its own planet's radius, scaled to the run's ``grid`` at
+    ``radius``), all else as given (``Scene.own_dt``); None where none fits the output interval."""
+    try:
+        own_spacing = resolve_spacing(scene_grid, grid, radius, own.get("planet", {}).get("radius", EARTH.a))
+        return resolve_dt(
+            own.get("time", {}).get("dt"), None, days, every, stem, grid, own_spacing, controlled, streams
+        )[0]
+    except SceneError:  # none that fits the output interval
+        return None
+
+
+def _dissipation(s: dict, terms, grid, spacing, dt: float, spans: tuple, stepper: str, controlled: bool) -> tuple:
+    """(the resolved ``[hyperviscosity]`` with its ``every``, the ``[filter]``'s element filter,
+    their notes) of the scene's tables ``s`` at ``dt`` (s), with ``spans`` = (the output
+    interval, the run) in days (``resolve_hyperviscosity``, ``resolve_every``, ``resolve_filter``)."""
+    every, days = spans
+    hv, hv_notes = resolve_hyperviscosity(s.get("hyperviscosity", {}), terms, grid, spacing)
+    steps = (round(every * DAY / dt), round(days * DAY / dt))  # an output interval's and the run's
+    k, every_notes = resolve_every(s.get("hyperviscosity", {}), hv, grid, spacing, dt, steps, stepper, controlled)
+    element_filter, filter_notes = resolve_filter(s.get("filter", {}), dt, k, controlled)
+    return dataclasses.replace(hv, every=k), element_filter, hv_notes + every_notes + filter_notes
+
+
+def _title(case, file_case: str | None, stem: str, description: str, overrides: dict) -> tuple[str, str]:
+    """(``Scene.name``, ``Scene.description``) of the scene file ``stem`` running the resolved
+    ``case`` (``scene_title``), the description naming the case parameters set by ``overrides``
+    where the file's own case runs (its description is of its own values: the header says what
+    runs)."""
+    name, description = scene_title(case.name, file_case, stem, description)
+    given = [f"{k} = {v!r}" for k, v in overrides.items() if k.startswith("case.") and k[5:] in case.params]
+    if given and name == stem:
+        description = f"{description}; run with {', '.join(given)}"
+    return name, description
 
 
 def _own_planet_days(own: dict) -> tuple[dict | None, float | None]:

@@ -354,6 +354,21 @@ def check_superseded(overrides: dict, given: dict) -> None:
             ) from None
 
 
+def resolve_dt_np(table: dict, file_np: int, run_np: int) -> float:
+    """The factor of the [time] table's ``dt_np`` (``{np = factor}``, TOML keys: a scaled dt is
+    ``factor`` times longer on grids of that np; 1 for an np it does not name) for a run at
+    ``run_np`` over the scene file's own ``file_np``: the file's dt is for its own np. Raises
+    ``SceneError`` naming ``time.dt_np``: a key that is not an np of ``NP_MIN``–``NP_MAX``, a
+    factor not a number > 0."""
+    factors = table.get("dt_np", {})
+    for key, factor in factors.items():
+        if not (key.isdigit() and NP_MIN <= int(key) <= NP_MAX):
+            raise SceneError(f"time.dt_np keys must be np values {NP_MIN}-{NP_MAX} (got {key!r})")
+        if not (is_number(factor) and factor > 0):
+            raise SceneError(f"time.dt_np.{key} must be a number > 0 (got {got(factor)})")
+    return factors.get(str(run_np), 1.0) / factors.get(str(file_np), 1.0)
+
+
 def resolve_dt(
     scene_dt,
     dt,
@@ -365,10 +380,11 @@ def resolve_dt(
     controlled: bool = False,
     streams: tuple = (),
     restart: float | None = None,
+    np_factor: float = 1.0,
 ) -> tuple[float, str, tuple]:
     """(dt (s), where it comes from for messages, notes): ``dt`` as given, else the time.dt of
     scene ``scene`` (``scene_dt``) times ``spacing.smallest`` (the run's smallest node spacing
-    on ``grid`` over the scene file's), shortened to divide the output interval ``every``, the
+    on ``grid`` over the scene file's) and ``np_factor`` (``resolve_dt_np``), shortened to divide the output interval ``every``, the
     streams' (``streams``, days: the numbers > 0 of ``[[output.streams]] every_days``, checked
     later), the restart interval ``restart`` (days, or None) and the run of ``days``
     (``Clock.fitted``). The schedule is checked (``Clock.check``; with
@@ -380,10 +396,10 @@ def resolve_dt(
         raise SceneError("time.dt is missing")
     elif not scene_dt > 0:
         raise SceneError(f"time.dt must be > 0 (got {scene_dt})")
-    elif spacing.smallest == 1.0:
+    elif spacing.smallest == 1.0 and np_factor == 1.0:
         dt, source, notes = scene_dt, f"time.dt of scene {scene}", ()
     else:
-        dt, source, notes = _scaled_dt(scene_dt, days, every, scene, grid, spacing, streams)
+        dt, source, notes = _scaled_dt(scene_dt, days, every, scene, grid, spacing, streams, np_factor)
         clock = Clock(dt, 0.0, days)
         if restart is not None and not clock.is_whole(restart):  # the run's restart files too
             cut = clock.fitted(days, restart, *(e for e in (every, *streams) if e < days)).dt
@@ -395,14 +411,17 @@ def resolve_dt(
     return dt, source, notes
 
 
-def _scaled_dt(scene_dt: float, days: float, every: float, scene: str, grid: SceneGrid, spacing: Spacing, streams=()):
-    """``resolve_dt``'s (dt, source, notes) of a scene's dt scaled to another spacing: the
-    longest that divides the run and, where shorter, the output interval and the streams'."""
+def _scaled_dt(
+    scene_dt: float, days: float, every: float, scene: str, grid: SceneGrid, spacing: Spacing, streams=(), np_factor=1.0
+):
+    """``resolve_dt``'s (dt, source, notes) of a scene's dt scaled to another spacing (and np,
+    ``np_factor``): the longest that divides the run and, where shorter, the output interval and
+    the streams'."""
     spans = (days,) if days <= every else (every, days)
     shorter = tuple(e for e in streams if e < days)  # a stream's interval writes within the run
     if shorter and common_interval(*spans, *shorter) != common_interval(*spans):
         spans, every = (*spans, *shorter), min(every, *shorter)  # the message names the shortest
-    scaled = scene_dt * spacing.smallest
+    scaled = scene_dt * spacing.smallest * np_factor
     dt = Clock(scaled, 0.0, days).fitted(*spans).dt
     radius, file_radius = spacing.radii
     moved = spacing.scale != 1.0  # the planet's radius; file_radius is a number then
@@ -412,6 +431,8 @@ def _scaled_dt(scene_dt: float, days: float, every: float, scene: str, grid: Sce
     changes = ["the smallest node spacing"] if spacing.smallest != spacing.scale else []
     if moved:
         changes.append(f"the planet's radius ({radius:g} m against the scene's {file_radius:g} m)")
+    if np_factor != 1.0:
+        changes.append(f"time.dt_np ({np_factor:g}x at np {grid.np})")
     why = " and ".join(changes)
     if scaled / dt <= 2:
         return dt, source, (f"dt scaled with {why} to {dt:g} s",)

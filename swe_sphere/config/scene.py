@@ -83,6 +83,7 @@ from .resolve import (
     check_superseded,
     resolve_case,
     resolve_dt,
+    resolve_dt_np,
     resolve_ensemble,
     resolve_grid,
     resolve_initialization,
@@ -213,8 +214,9 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict, rest
     controlled = is_controlled(time)
     streams = _stream_intervals(output)
     restart = restart_every if is_number(restart_every) and restart_every > 0 and not controlled else None
+    np_factor = resolve_dt_np(time, scene_grid.np, grid.np)
     dt, dt_source, dt_notes = resolve_dt(
-        time.get("dt"), dt, days, every, path.stem, grid, spacing, controlled, streams, restart
+        time.get("dt"), dt, days, every, path.stem, grid, spacing, controlled, streams, restart, np_factor
     )
     own_dt = dt
     if dt_source == "the dt given" or "time.dt" in overrides:  # the dt it would choose itself, all else as given
@@ -280,8 +282,10 @@ def _own_dt(own: dict, scene_grid, grid, radius: float, days, every, stem: str, 
     ``radius``), all else as given (``Scene.own_dt``); None where none fits the output interval."""
     try:
         own_spacing = resolve_spacing(scene_grid, grid, radius, own.get("planet", {}).get("radius", EARTH.a))
+        own_time = own.get("time", {})
+        np_factor = resolve_dt_np(own_time, scene_grid.np, grid.np)
         return resolve_dt(
-            own.get("time", {}).get("dt"), None, days, every, stem, grid, own_spacing, controlled, streams
+            own_time.get("dt"), None, days, every, stem, grid, own_spacing, controlled, streams, None, np_factor
         )[0]
     except SceneError:  # none that fits the output interval
         return None

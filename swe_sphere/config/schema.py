@@ -124,6 +124,7 @@ SCHEMA = {
     "time": {
         "stepper": str,
         "dt": float,
+        "dt_np": dict,  # {np = factor}: a scaled dt that much longer at that np (``resolve.resolve_dt_np``)
         "days": float,
         "control": str,
         "rtol": float,

@@ -17,6 +17,7 @@ from swe_sphere.config.resolve import (
     Spacing,
     resolve_case,
     resolve_dt,
+    resolve_dt_np,
     resolve_grid,
     resolve_initialization,
     resolve_output_files,
@@ -115,7 +116,7 @@ def test_read_scene_applies_overrides_and_keeps_the_files_own_radius_and_case(tm
     assert read_scene(path, {"time.dt": 30.0})[1] is None  # a dt of the override's own: no radius to scale from
     with pytest.raises(
         SceneError,
-        match=r"^unknown key time.length in scene \(known: stepper, dt, days, control, rtol, atol, per_unit_step, controller, cfl, dt_min, dt_max, balance\)$",
+        match=r"^unknown key time.length in scene \(known: stepper, dt, dt_np, days, control, rtol, atol, per_unit_step, controller, cfl, dt_min, dt_max, balance\)$",
     ):
         read_scene(path, {"time.length": 3.0})
     path.write_text("terms = [\n")
@@ -268,6 +269,28 @@ def test_resolve_dt_scales_and_cuts_the_scenes_dt():
         resolve_dt(None, None, 1.0, 1.0, "s", grid, SAME)
     with pytest.raises(SceneError, match=r"^the run length of 1 days is not a whole number of steps of dt = 7 s"):
         resolve_dt(None, 7.0, 1.0, 1.0, "s", grid, SAME)
+
+
+def test_time_dt_np_lengthens_a_scaled_dt_at_the_np_it_names():
+    """galewsky's ``dt_np = {6 = 1.2}``: at np 6 its scaled dt is 1.2x the spacing's (then cut to
+    divide a day), the note saying so; at its own np 8 and at np 4 the spacing's alone; a file
+    whose own np is named is scaled by the ratio of the two factors; bad keys are refused."""
+    plain = load_scene("galewsky", ne=25, np_=6, overrides={"time.dt_np": {}})
+    longer = load_scene("galewsky", ne=25, np_=6)
+    assert plain.dt == DAY / 624 and longer.dt == DAY / 520  # 624 / 1.2 = 520 steps a day
+    assert longer.notes[0] == "dt scaled with the smallest node spacing and time.dt_np (1.2x at np 6) to 166.154 s"
+    for ne, np_ in ((12, 8), (30, 4)):
+        assert (
+            load_scene("galewsky", ne=ne, np_=np_).dt
+            == load_scene("galewsky", ne=ne, np_=np_, overrides={"time.dt_np": {}}).dt
+        )
+    assert resolve_dt_np({"dt_np": {"6": 1.2}}, 8, 6) == 1.2
+    assert resolve_dt_np({"dt_np": {"6": 1.5, "4": 3.0}}, 6, 4) == 2.0
+    assert resolve_dt_np({}, 6, 4) == 1.0
+    with pytest.raises(SceneError, match=r"^time.dt_np keys must be np values 2-\d+ \(got 'six'\)$"):
+        resolve_dt_np({"dt_np": {"six": 1.2}}, 8, 6)
+    with pytest.raises(SceneError, match=r"^time.dt_np.6 must be a number > 0 \(got -1\)$"):
+        load_scene("galewsky", ne=4, np_=6, overrides={"time.dt_np": {"6": -1}})
 
 
 def test_resolve_output_files_orders_the_fields_and_checks_the_streams():

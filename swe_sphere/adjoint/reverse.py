@@ -42,7 +42,6 @@ from ..core.errors import ArgumentError
 from ..model.launches import Update
 from ..model.shallow_water import ShallowWater
 from ..model.transposes import Combinations, PlanetSums
-from ..solvers.helmholtz import HelmholtzSolver
 from .tape import (
     Combine,
     Divergence,
@@ -414,11 +413,12 @@ class TapeAdjoint:
 
     def _gravity_of(self, operator, solves: bool = False):
         """L's transposes (``GravityWaveOperator.transpose``); for a solve's (``solves``) with a
-        Helmholtz solver of their own (the twin's options: its ``tol`` and ``maxiter``)."""
+        Helmholtz solver of their own (the model's ``implicit_inverse`` with the twin's options: its
+        ``tol`` and ``maxiter``)."""
         key = (id(operator), solves)
         gravity = self._gravity.get(key)
         if gravity is None:
-            solver = HelmholtzSolver(operator, self.twin.options, warm=True) if solves else None
+            solver = self.model.implicit_inverse(self.twin.options, operator, warm=True) if solves else None
             gravity = self._gravity[key] = operator.transpose(solver)
         return gravity
 

@@ -201,6 +201,10 @@ class TapedModel:
     def __getattr__(self, name):
         return getattr(self._model, name)
 
+    # the implicit split built on this model, not on the one it wraps: L and its solves find the tape
+    implicit_terms = ShallowWater.implicit_terms
+    implicit_inverse = ShallowWater.implicit_inverse
+
     def _evaluates(self, x, updates, terms, part=None) -> bool:
         terms = self._model.terms if terms is None else tuple(terms)
         return self.tape.runs(lambda: Evaluate(x, self.tape.state(x), tuple(updates), terms, part))

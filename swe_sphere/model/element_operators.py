@@ -2,7 +2,7 @@
 
 ``ElementOperators`` is what a stepper, a solver or the adjoint applies to a state besides the
 tendency (``ShallowWater.rhs``): the gradient G = DSS∘grad and the divergence D = DSS∘div of the
-gravity-wave operator and the Helmholtz solves (``model.gravity_wave``, ``solvers.helmholtz``),
+gravity-wave operator and the Helmholtz solves (``model.gravity_wave``, ``model.helmholtz``),
 written into updates as their DSS makes them; the unique-node assembly and scatter; the
 vorticity and divergence the diagnostics report; and the arrays the element kernels take: the
 metric terms D, D⁻¹ and metdet (HOMME's ``D``, ``Dinv``, ``metdet``), ``fcor`` and ``hs``, the derivative matrix

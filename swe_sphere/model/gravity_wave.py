@@ -4,7 +4,7 @@
 
 with G = DSS∘grad and D = DSS∘div the model's own strong operators (so the split
 F = (F − L) + L of the model's RHS is exact). It is the implicit part of the
-semi-implicit, IMEX and JFNK steppers (inverted by ``solvers.helmholtz.HelmholtzSolver``)
+semi-implicit, IMEX and JFNK steppers (inverted by ``model.helmholtz.HelmholtzSolver``)
 and the fast part of the multirate split (``steppers.multirate.GravitySplit``): one
 element pass of both halves (``kernels.gravity_wave.linear``, ``linear_element``) and
 one DSS of its three rows into the combinations that use it. HOMME's
@@ -103,7 +103,7 @@ class GravityWaveOperator:
 
     def transpose(self, solver) -> GravityTranspose:
         """The transposes of L and of its implicit solve A_a⁻¹ = (I − aL)⁻¹ in the mass form, for
-        an adjoint (``model.transposes.GravityTranspose``): ``solver`` the ``solvers.helmholtz.
+        an adjoint (``model.transposes.GravityTranspose``): ``solver`` the ``model.helmholtz.
         HelmholtzSolver`` about this operator that the transposed solve solves with (the
         adjoint's own, the stepper's guesses untouched)."""
         return GravityTranspose(self, solver)

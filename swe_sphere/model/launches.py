@@ -3,7 +3,7 @@ argument packing in the time loop), and linear combinations of arrays as such la
 
 ``LaunchRecorder`` is what the model, its ∇⁴ (``hyperviscosity``), its bad-node check
 (``bad_nodes``), the gravity-wave operator (``gravity_wave``) and the Helmholtz CG
-(``solvers.helmholtz``) launch through: the launches split over the CPU threads
+(``model.helmholtz``) launch through: the launches split over the CPU threads
 (``core.parallel.record``), cached under a key with the arrays they were recorded on.
 ``Update`` names one linear combination written by an operator's DSS.
 """

@@ -27,6 +27,8 @@ from ..kernels import operators, tendencies
 from .bad_nodes import BadNodes
 from .element_operators import ElementOperators
 from .filter import ElementFilter
+from .gravity_wave import GravityWaveOperator
+from .helmholtz import HelmholtzOptions, HelmholtzSolver
 from .hyperviscosity import Hyperviscosity
 from .launches import LaunchRecorder, check_updates
 
@@ -448,6 +450,22 @@ class ShallowWater:
             self.hv.apply(x, dt)
         if self.filter is not None:
             self.filter.apply(x)
+
+    # -- the implicit split (Dinosaur's ``implicit_terms`` / ``implicit_inverse``) ----------
+    def implicit_terms(self, mean_depth: float = 0.0) -> GravityWaveOperator:
+        """L, the linear gravity-wave terms about the depth H (m; 0: the first state's mean,
+        ``GravityWaveOperator.set_depth``), a new operator on this model: the implicit part of
+        the semi-implicit, IMEX and JFNK steppers and the fast part of the multirate split.
+        ValueError without the continuity and pressure-gradient terms or for H < 0."""
+        return GravityWaveOperator(self, mean_depth)
+
+    def implicit_inverse(
+        self, options: HelmholtzOptions, linear: GravityWaveOperator | None = None, warm: bool = False
+    ) -> HelmholtzSolver:
+        """(I − aL)⁻¹ for any a: a new ``HelmholtzSolver`` about ``linear`` (None: the
+        ``implicit_terms`` about ``options.mean_depth``) with the solve's ``options``; ``warm``:
+        its solves start from the last (or the projection on past) solutions."""
+        return HelmholtzSolver(self.implicit_terms(options.mean_depth) if linear is None else linear, options, warm)
 
     def new_state(self, u=None, v=None, h=None) -> wp.array2d:
         """A (3, N) device state from element-local numpy rows (zeros where None)."""

@@ -181,7 +181,7 @@ class GravityTranspose:
     GravityWaveOperator`` about its depth H, m) and of its implicit solve A_a = I − aL in the
     mass form (μ = R Q λ, ⟨a, b⟩ = Σ spheremp·a·b), made by ``GravityWaveOperator.transpose``
     for the adjoints of the steps that solve with L (``adjoint.tape``: semi_implicit, the IMEX pairs);
-    ``solver`` the Helmholtz solver of A_a they solve with (a ``solvers.helmholtz.
+    ``solver`` the Helmholtz solver of A_a they solve with (a ``model.helmholtz.
     HelmholtzSolver`` about ``linear``: ``solve(r, a, z)``, ``iterations()``).
 
     Lᵀ: L is the Jacobian of F's pressure gradient and continuity at x_H = (0, 0, H), so
@@ -192,7 +192,7 @@ class GravityTranspose:
     (⟨D v, h⟩ = −⟨v, G h⟩) and Lᵀ (v, h) = (H G h, g D v) = −S L S⁻¹, S = diag(1, 1, g/H). With
     Z = diag(1, 1, −1) (Z L Z = −L): A_aᵀ = I + a S L S⁻¹ = S Z A_a Z S⁻¹, hence
     A_a⁻ᵀ μ = S Z A_a⁻¹ Z S⁻¹ μ: the h row times −H/g, the forward's Helmholtz solve at a (its
-    operator M + a²gH K is symmetric: ``solvers.helmholtz``), the h row times −g/H.
+    operator M + a²gH K is symmetric: ``model.helmholtz``), the h row times −g/H.
 
     Arrays (device): x_H (3, N), made and filled when H is first read (the stepper fixes H by
     its first step: piecewise constant, held); the h row's scalings recorded once per array."""

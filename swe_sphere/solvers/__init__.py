@@ -1,7 +1,7 @@
 """The solvers layer: linear and exponential solvers that know an operator, not a stepper.
 
-``helmholtz`` (the gravity-wave Helmholtz solve; its CG in ``helmholtz_cg``, its start in
-``guess_history``, its matrix for the tests in ``helmholtz_matrix``), ``krylov`` (the Krylov basis
+``helmholtz_matrix`` (the Helmholtz matrix, for the tests; the solve itself is the model's inverse,
+``model.helmholtz``, and ``helmholtz``, ``helmholtz_cg``, ``guess_history`` here name it there), ``krylov`` (the Krylov basis
 and FGMRES), ``jacobian`` (finite-difference Jacobian-vector products), ``kiops`` (φ-functions
 by KIOPS, Gaudreault, Rainwater & Tokman 2018).
 

@@ -10,7 +10,7 @@ explicit ``leapfrog``, ``leapfrog_trapezoidal``, ``fbrk32`` (``explicit``);
 ``semi_implicit`` (leapfrog, gravity waves averaged over n ± 1); ``implicit``
 (JFNK θ-method / BDF2). ``imex``, ``semi_implicit`` and ``implicit`` share the
 linear gravity-wave operator ``model.gravity_wave.GravityWaveOperator`` and its
-Helmholtz solve ``solvers.helmholtz.HelmholtzSolver`` (``helmholtz_steps``); the multirate split
+Helmholtz solve ``model.helmholtz.HelmholtzSolver`` (``helmholtz_steps``); the multirate split
 uses the operator.
 Exponential: ``epi2``, ``epi3`` (φ-functions of the Jacobian by KIOPS).
 Multirate (``multirate``: the gravity waves in explicit substeps of their own, no

@@ -32,7 +32,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from ..solvers.helmholtz import HelmholtzOptions
+from ..model.helmholtz import HelmholtzOptions
 from .tables import EXPLICIT
 
 TOL = 1e-9  # order conditions and row sums hold to this (rational entries exactly)

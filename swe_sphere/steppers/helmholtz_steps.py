@@ -1,12 +1,11 @@
 """What the steppers that solve with the linear gravity-wave operator share: the operator,
-its Helmholtz solver, and the solver options they no longer take."""
+its Helmholtz solver (the model's ``implicit_terms`` and ``implicit_inverse``), and the solver
+options they no longer take."""
 
 from __future__ import annotations
 
 from functools import partial
 
-from ..model.gravity_wave import GravityWaveOperator
-from ..solvers.helmholtz import HelmholtzSolver
 from .base import entry
 
 # the solver options the semi-implicit, IMEX and JFNK steppers no longer have, and why (``Stepper.removed_options``)
@@ -17,8 +16,9 @@ REMOVED_SOLVER_OPTIONS = {
 
 class HelmholtzSteps:
     """What the semi-implicit and IMEX steppers share, put before their ``Stepper`` base:
-    ``linear``, the ``GravityWaveOperator`` about their options' ``mean_depth``, and
-    ``helmholtz``, its ``HelmholtzSolver`` with their ``HelmholtzOptions`` (``warm``); the
+    ``linear``, the model's ``GravityWaveOperator`` about their options' ``mean_depth``
+    (``implicit_terms``), and ``helmholtz``, its ``HelmholtzSolver`` with their
+    ``HelmholtzOptions`` (``warm``; the model's ``implicit_inverse``); the
     mean depth and the CG's warm guess in ``state``/``restore``; the CG's device counters as
     ``counts`` (read with the step when not ``deferred``, ``base.device_counts``); and a
     graph key once the step reads nothing: H fixed (the first step's host read,
@@ -31,8 +31,8 @@ class HelmholtzSteps:
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
-        self.linear = GravityWaveOperator(model, self.options.mean_depth)
-        self.helmholtz = HelmholtzSolver(self.linear, self.options, warm=True)
+        self.linear = model.implicit_terms(self.options.mean_depth)
+        self.helmholtz = model.implicit_inverse(self.options, self.linear, warm=True)
 
     def counts(self):
         return {"helmholtz": self.helmholtz.iterations()}

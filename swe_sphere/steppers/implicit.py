@@ -17,8 +17,8 @@ import warp as wp
 from ..core.errors import StepFailure
 from ..kernels import blas
 from ..kernels import implicit as ik
-from ..model.gravity_wave import GravityWaveOperator, check_mean_depth
-from ..solvers.helmholtz import HelmholtzOptions, HelmholtzSolver, check_precision
+from ..model.gravity_wave import check_mean_depth
+from ..model.helmholtz import HelmholtzOptions, check_precision
 from ..solvers.jacobian import FiniteDifferenceJacobian, KernelPasses
 from ..solvers.krylov import FGMRES, KernelVectors
 from .base import Stepper, StepStats, entry, gathered_copy, load_entry
@@ -149,7 +149,7 @@ class Implicit(ErrorEstimates, TrialSteps, Stepper):
         self.helmholtz = None
         if o["preconditioner"] == "helmholtz":  # a loose solve from zero each time
             solve = HelmholtzOptions(o["helmholtz_tol"], 1000, o["mean_depth"], o["precision"], guess_history=0)
-            self.helmholtz = HelmholtzSolver(GravityWaveOperator(model, o["mean_depth"]), solve)
+            self.helmholtz = model.implicit_inverse(solve)
         for name in ("xn", "xprev", "b", "Fx", "R", "delta", "trial", "Ft", "Rt", "v", "z"):
             setattr(self, name, wp.zeros((3, N), dtype=f64, device=dev))
         self._spares: dict[str, wp.array] = {}  # what ``checkpoint`` copies into (``_saved``)

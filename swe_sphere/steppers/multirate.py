@@ -12,7 +12,6 @@ from fractions import Fraction
 import numpy as np
 import warp as wp
 
-from ..model.gravity_wave import GravityWaveOperator
 from ..model.launches import Update
 from .base import Stepper, StepStats, entry, work_array
 from .butcher import TableauOptions, parse, stage_form, stage_terms
@@ -54,7 +53,7 @@ class GravitySplit:
     pressure-gradient terms."""
 
     def __init__(self, model, mean_depth: float = 0.0):
-        self.linear = GravityWaveOperator(model, mean_depth)
+        self.linear = model.implicit_terms(mean_depth)
         self.model = model
         self.slow_terms = tuple(t for t in model.terms if t not in ("pressure_gradient", "hyperviscosity"))
         self.depth = wp.zeros((1, model.topology.N), dtype=f64, device=model.topology.device)  # H at every node

@@ -20,8 +20,8 @@ import warp as wp
 
 from ..core.constants import DAY
 from ..kernels import blas
+from ..model.helmholtz import HelmholtzOptions
 from ..model.launches import Update
-from ..solvers.helmholtz import HelmholtzOptions
 from .base import Stepper, StepStats, device_counts, work_array
 from .butcher import PARTS, Table, TableauOptions, imaginary_axis_limit, parse, stage_form
 from .capabilities import ErrorEstimates, GraphCapture, TrialSteps
@@ -263,7 +263,7 @@ class ImexRK(HelmholtzSteps, GraphCapture, ErrorEstimates, TrialSteps, Stepper):
 
     def follow_tolerance(self, atol: float, rtol: float = 0.0, per_unit_step: bool = False) -> None:
         """Under error control at the relative tolerance ``rtol`` > 0: the Helmholtz CG's relative
-        residual at most ``CG_PER_RTOL`` rtol (not below ``solvers.helmholtz.TIGHTEST``): a solve's
+        residual at most ``CG_PER_RTOL`` rtol (not below ``model.helmholtz.TIGHTEST``): a solve's
         error enters the stages' L Y_j, and through them the estimate, as is, so a CG looser than
         the step made the estimate its noise (TC5 ne8 over 5 days at the CG's 1e-6: ``ark436`` at
         rtol 1e-7 rejected 3435 tries for 2818 steps). ``per_unit_step`` (rtol a day's): times

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import warp as wp
 
 from ..kernels import blas
-from ..solvers.helmholtz import HelmholtzOptions
+from ..model.helmholtz import HelmholtzOptions
 from .base import StepStats, device_counts, work_array
 from .explicit import Leapfrog, LeapfrogOptions
 from .helmholtz_steps import REMOVED_SOLVER_OPTIONS, HelmholtzSteps

@@ -26,7 +26,6 @@ accepted step a block of its own), ``Ensemble.step`` and ``advance`` and the gra
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import time
 
@@ -224,18 +223,6 @@ class Integrator:
         self.drop, self.lone, self.rewind = drop, lone, rewind or Rewind()
         self.out: dict[int, int] = {}
         self.step = 0
-
-    @contextlib.contextmanager
-    def stepping_by(self, policy, rewind: Rewind):
-        """Steps of the Δt policy ``policy`` kept by ``rewind`` within, each checked at once
-        (``lone``): a controlled run's, ``ControlledDt`` (the control's state kept); ``policy``
-        and ``rewind`` as the constructor's."""
-        kept = self.policy, self.rewind, self.lone
-        self.policy, self.rewind, self.lone = policy, rewind, True
-        try:
-            yield self
-        finally:
-            self.policy, self.rewind, self.lone = kept
 
     def active(self) -> list:
         """(index, unit) of the units still stepped (all but those dropped)."""

@@ -25,7 +25,6 @@ from ..grid.topology import Topology
 from ..integrator import Unit
 from ..model.shallow_water import ShallowWater
 from ..simulation.guard import RunObserver
-from ..simulation.schedules import next_multiple
 from ..steppers import STEPPERS
 from .initial import Variants
 from .members import MemberGrid
@@ -145,17 +144,8 @@ class Members(RunObserver):
     (members stepped in turn are not put back a step)."""
 
     def __init__(self, run: tuple, stop_step: int, signals, after, dropped, timed: bool = False):
-        super().__init__(run, stop_step, signals, after)
-        self._dropped, self.timed = dropped, timed
-
-    def block_end(self, b: int) -> int:
-        """A run's (``RunObserver.block_end``) where ``timed`` (``Ensemble.run``), else without its
-        first step alone and the steps its wall time is estimated from: blocks as long as they may
-        be (``step(n)``, ``advance``). The same on every rank."""
-        if self.steered is not None or self.timed:
-            return super().block_end(b)
-        due = (a.schedule.next_after(b) for a in self.activities.values())
-        return min(self.stop_step, next_multiple(b, self.every), *(n for n in due if n is not None))
+        super().__init__(run, stop_step, signals, after, timed=timed)  # ``timed``: ``Ensemble.run``'s
+        self._dropped = dropped
 
     def stepping(self, on: bool) -> None:
         pass

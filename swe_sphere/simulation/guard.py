@@ -27,26 +27,28 @@ class RunObserver(Observer):
     and progress after good steps. Under step control ``steered`` (an ``integrator.ControlledDt``):
     each accepted step a block, to the policy's last day, its state vouched for where the
     control's norm or Courant pass found it good (``StepControl.vouched``), not abandoned by a
-    signal (a try's state is the control's)."""
+    signal (a try's state is the control's). ``timed`` False: no first step alone and no steps
+    the wall time is estimated from (an ensemble's ``step(n)`` and ``advance``: blocks as long as
+    they may be)."""
 
-    def __init__(self, run: tuple, stop_step: int, signals=None, after=None, steered=None):
+    def __init__(self, run: tuple, stop_step: int, signals=None, after=None, steered=None, timed: bool = True):
         self.first_step, every, self.activities, self.counters, self.ledger = run
         self.stop_step, self.signals, self._after, self.steered = stop_step, signals, after, steered
-        self.every = max(1, int(every))
+        self.every, self.timed = max(1, int(every)), timed
 
     def block_end(self, b: int) -> int:
         """The last step of the block that starts after step b: the next multiple of
         ``check_every``, the next step an activity is due (``Simulation.activities``:
         output, restart, callback, log), the last step of the run's wall-time estimate
-        or its end, whichever comes first; under step control b + 1, or b at its last day."""
+        or its end, whichever comes first (``timed`` False: not the first step alone nor the
+        estimate's steps); under step control b + 1, or b at its last day. The same on every rank."""
         if self.steered is not None:
             return b if self.steered.reached else b + 1
-        if self.every == 1 or b == self.first_step:  # the first step alone: its time is first_step_time
+        if self.every == 1 or (self.timed and b == self.first_step):  # the first step alone: first_step_time
             return b + 1
         due = (a.schedule.next_after(b) for a in self.activities.values())
-        return min(
-            self.stop_step, next_multiple(b, self.every), *(n for n in due if n is not None), *self.ledger.next_steps(b)
-        )
+        estimate = self.ledger.next_steps(b) if self.timed else ()
+        return min(self.stop_step, next_multiple(b, self.every), *(n for n in due if n is not None), *estimate)
 
     def asked(self) -> int:
         return self.signals.asked() if self.signals is not None else 0

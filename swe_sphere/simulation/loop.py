@@ -93,14 +93,14 @@ def run_steps(core, control, last_day: float, activities: dict, observer, stop_s
     ``activities`` are due at and on ``last_day``; ``stop_step`` then unbounded). Returns why the
     steps stopped (``Stop``: nothing, a signal, an abandoned step, a blow-up with ``describe(bad)``
     its line, or the controller's Δt below dt_min); after a controlled run's blow-up, the state
-    and the control those of the step before."""
-    stepping, rewind = contextlib.nullcontext(), None  # a fixed Δt: the integrator's own policy
-    if control is not None:
-        observer.steered, rewind = steered(control, last_day, activities), Tries(control)
-        stepping, stop_step = core.stepping_by(observer.steered, rewind), sys.maxsize
+    and the control those of the step before. At a fixed Δt the integrator's own policy; under
+    ``control`` its policy, rewind (``adaptive.Tries``) and lone steps the control's from then on
+    (a controlled run or ensemble steps by nothing else)."""
+    if control is not None:  # the control's Δt policy from now on, each accepted step a block checked at once
+        observer.steered = steered(control, last_day, activities)
+        core.policy, core.rewind, core.lone, stop_step = observer.steered, Tries(control), True, sys.maxsize
     try:
-        with stepping:
-            stop = core.advance(stop_step, observer)
+        stop = core.advance(stop_step, observer)
     except BlowUp as err:  # the controller's Δt below dt_min: the rejected tries put the state back
         if control is None:
             raise
@@ -111,7 +111,7 @@ def run_steps(core, control, last_day: float, activities: dict, observer, stop_s
     if stop.bad is not None:
         stop.blowup = describe(stop.bad)
         if control is not None:
-            rewind.put_back([], {}, False)
+            core.rewind.put_back([], {}, False)
     return stop
 
 

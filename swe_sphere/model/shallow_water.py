@@ -210,12 +210,7 @@ class ShallowWater:
         self.forcing = forcing if "forcing" in terms else None
         self.time = 0.0  # s, the model time of the next RHS evaluation (``set_time``)
         self._forcing_launches = []  # every recorded forcing launch, whose t set_time sets
-        nu_div = nu if nu_div is None else nu_div
-        nu_s = nu if nu_s is None else nu_s
-        for name, value in (("nu", nu), ("nu_div", nu_div), ("nu_s", nu_s)):
-            if value < 0:
-                raise ValueError(f"hyperviscosity {name} must be >= 0 (got {value})")
-        self.nu_div, self.nu_s = float(nu_div), float(nu_s)
+        self.nu_div, self.nu_s = float(nu if nu_div is None else nu_div), float(nu if nu_s is None else nu_s)
         self.grid, self.terms, self.device = grid, terms, device
         self.backend = Backend.of(device) if topology is None else topology.backend  # decided once
         self.threads = self.backend.threads() if threads is None else int(threads)
@@ -232,23 +227,24 @@ class ShallowWater:
 
         # every launch of the model and of what acts on its states, recorded once and replayed
         self.launches = LaunchRecorder(self.backend, self.threads, grid.np, N, topo.nunique, per_element)
-        self.operators = ops = ElementOperators(grid, topo, self.launches, per_element, device, fcor, hs)
+        self.operators = ElementOperators(grid, topo, self.launches, per_element, device, fcor, hs)
         self.tend = wp.zeros((3, N), dtype=f64, device=device)
-        self.topo_forcing = None
-        if "topography" in terms:
-            self.topo_forcing = wp.zeros((2, N), dtype=f64, device=device)
-            hs2 = wp.array(np.asarray(hs, dtype=float)[None, :], dtype=f64, device=device)
-            wp.launch(
-                operators.gradient_sphere,
-                N,
-                [hs2, 0, ops.Dinv, ops.dvv, grid.np, self.topo_forcing, 0],
-                device=device,
-            )
-            forcing = -self.g * self.topo_forcing.numpy()
-            self.topo_forcing.assign(forcing)
+        self.topo_forcing = self._topography_forcing(hs) if "topography" in terms else None
         self.hv = Hyperviscosity(self) if "hyperviscosity" in terms else None  # the ∇⁴: its plan, work arrays, launches
         self.filter = None if element_filter is None else ElementFilter(self, *element_filter)  # a scene's [filter]
         self.bad_nodes = BadNodes(self)  # the check of a state for non-finite or dry nodes
+
+    def _topography_forcing(self, hs) -> wp.array2d:
+        """(2, N) −g ∇hs (m s⁻², east/north) at the element-local nodes: the "topography" term's
+        constant forcing, the gradient of the surface height by the element's operators."""
+        ops, device = self.operators, self.device
+        forcing = wp.zeros((2, self.N), dtype=f64, device=device)
+        hs2 = wp.array(np.asarray(hs, dtype=float)[None, :], dtype=f64, device=device)
+        wp.launch(
+            operators.gradient_sphere, self.N, [hs2, 0, ops.Dinv, ops.dvv, self.grid.np, forcing, 0], device=device
+        )
+        forcing.assign(-self.g * forcing.numpy())
+        return forcing
 
     @classmethod
     def from_case(cls, grid: CubedSphere, case, terms, **options) -> ShallowWater:

@@ -13,6 +13,7 @@ every member's invariants."""
 from __future__ import annotations
 
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +23,6 @@ from ..cases.scoring import Scorer
 from ..config.scene import resolve_scene
 from ..core.arguments import callable_argument, got, integer_argument, number_argument
 from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
-from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, CheckpointError, Interrupted, StepFailure
 from ..core.graphs import default_mode, graphs_mode
 from ..core.interrupts import StopSignals
@@ -33,14 +33,15 @@ from ..io.run_file import area_rms, member_statistics
 from ..model.diagnostics import invariants
 from ..model.shallow_water import ShallowWater
 from ..simulation import checkpoint
-from ..simulation.activities import Callback, add_callback, call_due
+from ..simulation.activities import add_callback, call_due
 from ..simulation.build import check_memory
 from ..simulation.loop import progress_bar, progressed, run_steps
 from ..simulation.restart import write_restart
 from ..simulation.run_state import RunState
 from ..simulation.schedules import EverySteps, at_its_end
+from ..simulation.state_diagnostics import WholeFields
 from ..simulation.summary import Ledger, interrupted
-from ..simulation.writers import Checkpointer, StreamFiles, interrupted_attrs, scene_attrs
+from ..simulation.writers import Checkpointer, RunFiles, interrupted_attrs, scene_attrs
 from .control import STEERED, member_control
 from .files import resume
 from .initial import Perturbation, Variants, checked_states, described, initial_states
@@ -59,8 +60,6 @@ from .units import (
     unit_members,
 )
 from .units import layout as members_layout
-
-MEMBER_SERIES = ("mass", "total_energy", "potential_enstrophy")  # each member's, at every output time (and errors)
 
 
 class Ensemble:
@@ -371,7 +370,7 @@ class Ensemble:
         ncol) with its mean and spread, each member's mass, total energy, potential enstrophy and
         errors against the case's truth (``errors``), the RMS spread of h (``RunWriter``); and
         each ``[[output.streams]]`` as a run writes it, ``<output stem>.<name>.nc`` with its own
-        fields at its own interval, the members as in the run file (``writers.StreamFiles``). ``restart_every``
+        fields at its own interval, the members as in the run file (``writers.RunFiles``). ``restart_every``
         (days, whole steps): the restart file ``<output stem>.restart.nc`` (``write_checkpoint``)
         at those days and the last; without it, one is written when SIGINT or SIGTERM stops the
         run (not over an existing one unless ``overwrite``). A blow-up that stops all (``BlowUp``)
@@ -402,23 +401,18 @@ class Ensemble:
             "blow_up_policy": POLICIES[self.blow_up],
             **({"continued_from_day": self.day} if self.step_count else {}),
         }
-        errors = self.errors()  # the first output's, and the errors the case has (collective)
-        member_series = (*MEMBER_SERIES, *errors[0])
-        # the run file and its streams as a run's (``writers.StreamFiles``), the members along the member axis
-        files = StreamFiles(
-            s, output, self.control is not None, self.grid, self._member(self._hs, 0), ("steps", "wall_time")
+        # the run file and its streams as a run's (``writers.RunFiles``), the members along the member axis
+        files = RunFiles(
+            self.run_state, self, self.grid, self._member(self._hs, 0), output, series=("steps", "wall_time")
         )
+        start = self.gather_fields(divergence=files.divergence)  # the first output's fields and figures (collective)
+        first = self.diagnose(self.run_state.seconds(self.step_count), whole=start)
+        files.member_series = tuple(first)  # the invariants and the errors the case has
         if self.root:
             kw = {"overwrite": overwrite, "compress": compress, "notify": notify}
-            files.open(attrs, **kw, members=self.members, member_series=member_series)
-
-        def write(ens, errors=None, final=False) -> None:  # the files' activity (at their output times, as a run's)
-            due = files.due(self.run_state, self.step_count, final)
-            if due:
-                self._write(files, due, member_series, errors)
-
+            files.open(attrs, **kw, members=self.members, member_series=files.member_series)
         own = self.activities
-        self.activities = {"run_file": Callback(write, files.schedule), "checkpointer": ckp, **own}
+        self.activities = {"run_file": files, "checkpointer": ckp, **own}
         lines = progress_lines if self.root else None
         try:
             with (
@@ -426,13 +420,13 @@ class Ensemble:
                 StopSignals(self.model.topology if self.comm is None else RankMax(self.comm), catch=True) as signals,
             ):
                 if not self.step_count:  # as a run's: the two files join without a repeated time
-                    write(self, errors, final=True)
+                    files.record(0, whole=start, final=True, diagnosed=first)
                 if progress_lines is not None:
                     progress_lines.start(self.day, s.days)
                 after = lambda n, done: progressed(bar, done, lines, n, self.day)  # noqa: E731
                 stop = self._steps(s.nsteps, s.days, signals, after, notify if self.root else None)
                 if stop.signum is not None:  # the step reached written, as a run's last, and its restart file
-                    write(self, final=True)
+                    files.record(self.step_count, final=True)
                     ckp.interrupted(self.step_count, abandoned=False)
                     raise interrupted(stop.signum, self.step_count, self.day, s, output, ckp, None, None)
         except BaseException as err:  # a blow-up or a signal: the good output times kept
@@ -493,10 +487,10 @@ class Ensemble:
         (``cases.scoring.Scorer.errors``: Williamson et al. 1992's normalized l1, l2, l∞ of h and
         the wind against an exact solution, or against the scene's spectral reference where
         it stores this day); {} a member for a case with neither."""
-        return self._errors(self._held_states())
+        return self._everyone(self._errors(self._held_states(), self.run_state.seconds(self.step_count)))
 
-    def _errors(self, held: np.ndarray) -> list[dict[str, float]]:
-        """``errors`` of this rank's members' states ``held`` (held, 3, n) (collective)."""
+    def _errors(self, held, t: float) -> list[dict[str, float]]:
+        """``errors`` at ``t`` (s) of this rank's members' states ``held`` (held, 3, n)."""
         if self._scorer is None:  # one member's model for the wind errors' vorticity and divergence
             with threadpool_limits(limits=1, user_api="blas"):
                 one = self._one or ShallowWater.from_scene(self.scene, self.grid, self.case, **self._options)
@@ -505,32 +499,34 @@ class Ensemble:
                 self._scorer = [Scorer(self.case, one, one.topology, self.grid, hs, self.scene.reference_file)]
             else:  # each member's own truth: an exact solution (a reference holds the scene's values only)
                 self._scorer = [Scorer(case, one, one.topology, self.grid, hs, None) for case in self.cases]
-        t = self.day * DAY
-        return self._everyone(self._scorer[k % len(self._scorer)].errors(t, xk, *xk) for k, xk in zip(self.held, held))
+        return [self._scorer[k % len(self._scorer)].errors(t, xk, *xk) for k, xk in zip(self.held, held)]
 
-    def _write(self, files: StreamFiles, due: list[int], member_series, errors=None) -> None:
-        """The current step's output time (``run``) in the run files ``due`` (indices of
-        ``files``' streams): the held members' fields gathered on rank 0, which writes them
-        (collective); ``errors`` this step's ``errors()`` where they were taken."""
+    def gather_fields(self, x=None, divergence: bool = False) -> MemberFields:
+        """Every member's u, v, h, vorticity and (``divergence``) divergence now, (N, n) each on
+        rank 0 (a dropped member's NaN; None on the other ranks), as a run's
+        ``StateDiagnostics.gather_fields`` for its run files (``writers.RunFiles``), and this
+        rank's members' own (``MemberFields.held``) on every rank (collective; ``x`` unread)."""
         x, zeta = self._side(lambda u: u.x.numpy()), self._side(lambda u: u.model.operators.vorticity(u.x))
-        div = self._side(lambda u: u.model.operators.wind_divergence(u.x)) if files.divergence else None
+        div = self._side(lambda u: u.model.operators.wind_divergence(u.x)) if divergence else None
         rows = [*(x[r] for r in range(3)), zeta, *(() if div is None else (div,))]
-        local = [np.stack([self._member(a, k) for a in rows]) for k in range(self.held.size)]
-        errors = self._errors(np.stack([m[:3] for m in local])) if errors is None else errors
-        per_member = [{**d, **e} for d, e in zip(self._invariants(x, zeta), errors)]
-        for i in self._out:  # a dropped member: NaN from the step it blew up at
-            local[i] = np.full_like(local[i], np.nan)
-            per_member[i] = dict.fromkeys(per_member[i], np.nan)
-        each = self._everyone(local) if self.comm is None else self.comm.gather(local, root=0)
+        held = [np.stack([self._member(a, k) for a in rows]) for k in range(self.held.size)]
+        shown = [np.full_like(m, np.nan) if i in self._out else m for i, m in enumerate(held)]
+        each = shown if self.comm is None else self.comm.gather(shown, root=0)
         if not self.root:
-            return
-        if self.comm is not None:
-            each = [m for part in each for m in part]
-        each = np.stack(each)  # (N, rows, n)
-        series = {"steps": self.step_count, "wall_time": self.wall_time}
-        series.update({key: np.array([d[key] for d in per_member]) for key in member_series})
-        fields = (each[:, 0], each[:, 1], each[:, 2], series, each[:, 3], None if div is None else each[:, 4])
-        files.append(due, self.day, *fields)
+            return MemberFields(None, None, None, None, held=held)
+        each = np.stack(each if self.comm is None else [m for part in each for m in part])  # (N, rows, n)
+        return MemberFields(*(each[:, r] for r in range(4)), None if div is None else each[:, 4], held=held)
+
+    def diagnose(self, t: float, x=None, whole: MemberFields | None = None) -> dict:
+        """Each member's mass, total energy, potential enstrophy (``invariants``) and errors at
+        ``t`` (s) (``errors``), (N,) arrays by name (a dropped member's NaN) on every rank, as a
+        run's ``StateDiagnostics.diagnose`` for its run files (collective); ``whole`` this
+        step's ``gather_fields`` where taken (``x`` unread)."""
+        held = (self.gather_fields() if whole is None else whole).held
+        errors = self._errors([m[:3] for m in held], t)
+        each = [{**d, **e} for d, e in zip(self._invariants(held), errors)]
+        each = self._everyone(dict.fromkeys(d, np.nan) if i in self._out else d for i, d in enumerate(each))
+        return {key: np.array([d[key] for d in each]) for key in each[0]}
 
     def _from_root(self, value):
         """Rank 0's ``value`` on every rank (collective)."""
@@ -573,13 +569,21 @@ class Ensemble:
     def invariants(self) -> list[dict[str, float]]:
         """Each member's mass (m³), total energy (m⁵ s⁻²) and potential enstrophy (m s⁻²)
         (``model.diagnostics.invariants`` on the one grid: the bits of the single run's)."""
-        return self._invariants(
-            self._side(lambda u: u.x.numpy()), self._side(lambda u: u.model.operators.vorticity(u.x))
-        )
+        return self._everyone(self._invariants(self.gather_fields().held))
 
-    def _invariants(self, x: np.ndarray, zeta: np.ndarray) -> list[dict[str, float]]:
+    def _invariants(self, held: list) -> list[dict[str, float]]:
+        """``invariants`` of this rank's members' rows ``held`` (``MemberFields.held``)."""
         one = self._member
-        return self._everyone(
-            invariants(self.grid, *one(x, k), one(self._hs, k), one(zeta, k), one(self._fcor, k), self._g[k])
-            for k in range(self.held.size)
-        )
+        return [
+            invariants(self.grid, *rows[:3], one(self._hs, k), rows[3], one(self._fcor, k), self._g[k])
+            for k, rows in enumerate(held)
+        ]
+
+
+@dataclass
+class MemberFields(WholeFields):
+    """An ensemble's ``WholeFields`` (``Ensemble.gather_fields``): u, v, h, vorticity and divergence
+    (N, n) each on rank 0; ``held`` this rank's members' rows (u, v, h, vorticity[, divergence]),
+    (rows, n) a member, on every rank."""
+
+    held: list | None = None

@@ -8,6 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..config.scene import Scene
+from ..core.constants import DAY
 from ..integrator import Integrator
 
 
@@ -46,6 +47,10 @@ class RunState:
         """The model time of the step, days since t = 0 (under step control the control's: a day
         as given where the step landed on it)."""
         return self.scene.day(self.step) if self.control is None else self.control.day
+
+    def seconds(self, step: int) -> float:
+        """The model time of ``step`` (a fixed Δt's; under step control the control's), s since t = 0."""
+        return self.scene.start_day * DAY + step * self.scene.dt if self.control is None else self.control.t
 
     @property
     def event_day(self) -> float | None:

@@ -7,7 +7,6 @@ import signal
 from pathlib import Path
 
 from ..cases.scoring import truth
-from ..core.constants import DAY
 from ..core.runtime import package_version
 from ..io.run_file import OUTPUT_FIELDS, RunWriter, history_line
 from . import checkpoint as ckpt
@@ -189,31 +188,34 @@ class RunFiles(StreamFiles):
     scene's output steps. ``record`` diagnoses an output step on every rank (into ``history``;
     ``on_output(step, x)`` is called with the (3, N) device state) and rank 0 appends it to the
     files. An activity (``activities``): ``files(owner)`` records the run's step at the steps of
-    ``schedule``."""
+    ``schedule``. An ensemble's (``Ensemble.run``): ``diagnostics`` the ``Ensemble`` (its
+    ``gather_fields`` and ``diagnose`` over the member axis), ``series`` its per-time series and
+    ``member_series`` those of each member (time, member)."""
 
-    def __init__(self, run, diagnostics, grid, hs, output: Path | None, on_output=None):
-        series = [
-            "steps",
-            "rhs_evals",
-            *(f"{k}_iterations" for k in run.stepper.solvers),
-            "wall_time",
-            *run.initial.keys(),
-            *(CONTROL_SERIES if run.control is not None else ()),
-        ]
+    def __init__(self, run, diagnostics, grid, hs, output: Path | None, on_output=None, series=None, member_series=()):
+        if series is None:  # a run's
+            series = [
+                "steps",
+                "rhs_evals",
+                *(f"{k}_iterations" for k in run.stepper.solvers),
+                "wall_time",
+                *run.initial.keys(),
+                *(CONTROL_SERIES if run.control is not None else ()),
+            ]
         super().__init__(run.scene, output, run.control is not None, grid, hs, series)
-        self.run, self.diagnostics = run, diagnostics
+        self.run, self.diagnostics, self.member_series = run, diagnostics, tuple(member_series)
         self.on_output, self.history = on_output, []
 
-    def record(self, step: int, x=None, whole=None, final: bool = False, write: bool = True) -> None:
+    def record(self, step: int, x=None, whole=None, final: bool = False, write: bool = True, diagnosed=None) -> None:
         """Diagnose ``step`` (state x, default the current one; ``whole`` its gathered
-        fields when the caller has them) and write it to the run files whose schedule
-        holds it (``final``: to every one; ``write`` False: to none, the diagnostics
-        kept in ``history`` alone). Call on every rank."""
+        fields and ``diagnosed`` their ``diagnose`` when the caller has them) and write it
+        to the run files whose schedule holds it (``final``: to every one; ``write`` False:
+        to none, the diagnostics kept in ``history`` alone). Call on every rank."""
         run, s, c = self.run, self.run.scene, self.run.counters
         if whole is None:  # once per output time, on every rank
             whole = self.diagnostics.gather_fields(x, divergence=self.divergence)
         ctl = run.control
-        d = self.diagnostics.diagnose(s.start_day * DAY + step * s.dt if ctl is None else ctl.t, x, whole)
+        d = self.diagnostics.diagnose(run.seconds(step), x, whole) if diagnosed is None else diagnosed
         day = s.day(step) if ctl is None else run.time  # under control the steps are not the fixed plan's
         d.update(steps=step, day=day, rhs_evals=c["rhs_evals"], wall_time=c["wall_time"], cpu_time=c["cpu_time"])
         if ctl is not None:
@@ -224,7 +226,9 @@ class RunFiles(StreamFiles):
         if self.on_output is not None:
             self.on_output(step, run.x if x is None else x)
         due = self.due(run, step, final) if write else []
-        series = {k: d[k] for k in self.series}  # rank 0 writes the fields DSS'd, element-local, s-1
+        series = {
+            k: d[k] for k in (*self.series, *self.member_series)
+        }  # rank 0 writes the fields DSS'd, element-local, s-1
         self.append(due, day, whole.u, whole.v, whole.h, series, whole.vorticity, whole.divergence)
 
     def __call__(self, owner) -> None:

@@ -50,13 +50,8 @@ class Restarts:
 
     def restore_history(self, ck: ckpt.Checkpoint) -> None:
         """``restore`` but the state (already ``ck.x``)."""
-        try:
-            self.stepper.restore(ck.stepper_state)
-        except ValueError as err:
-            raise ckpt.CheckpointError(f"checkpoint does not fit the stepper: {err}") from None
-        self.step, self.counters, self.initial = ck.step, ck.counters, ck.initial
-        if self.control is not None and ck.control is not None:  # the steps go on as if never stopped
-            self.control.restore(ck.control)
+        restore_run(self.run_state, ck, lambda: self.stepper.restore(ck.stepper_state))
+        self.initial = ck.initial
 
     def write_checkpoint(self, path, *, overwrite: bool = True, restart_every: float | None = None) -> Path:
         """Write a restart file of the current step (see ``checkpoint``): whole-grid
@@ -67,6 +62,20 @@ class Restarts:
             return Path(path)
         kept = {"overwrite": overwrite, "restart_every": restart_every}
         return write_restart(path, self.run_state, x, state, self.initial, self.grid, **kept)
+
+
+def restore_run(run, ck: ckpt.Checkpoint, restore) -> None:
+    """Continue ``run`` (a ``run_state.RunState``: a ``Simulation``'s or an ``Ensemble``'s) from
+    the checkpoint ``ck``: its steppers' histories (``restore()``; ``CheckpointError`` where they
+    do not fit), then its step, counters and step control, as if never stopped."""
+    try:
+        restore()
+    except ValueError as err:
+        raise CheckpointError(f"checkpoint does not fit the stepper: {err}") from None
+    run.core.step = ck.step
+    run.counters.update(ck.counters)  # an ensemble's file from before ensembles counted as runs: its wall time alone
+    if run.control is not None and ck.control is not None:  # the steps go on as if never stopped
+        run.control.restore(ck.control)
 
 
 def write_restart(path, run, x, state: dict, initial: dict, grid, **kept) -> Path:

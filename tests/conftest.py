@@ -63,11 +63,20 @@ def pytest_configure(config):
 
 
 # The default run's longest work units (an xdist group, or a module), longest first: CPU s on
-# 2026-11-25 (mpi 131, the README's examples 61, methods.md's 47, test_multirate 44, ...). xdist
-# hands out units in the order of their test counts, which put the pages' one test each last:
-# one worker then ran the README's examples alone for the last minute and a half.
+# 2026-11-25 (mpi 131, the README's examples 61, methods.md's 47, test_multirate 44, ...); on
+# 2026-11-28 with a warm Warp kernel cache (-n 0): mpi 128, the README's 40, methods.md's 31,
+# test_multirate 30, reference.md's 26, test_sweep 24. xdist hands out units in the order of
+# their test counts, which put the pages' one test each last: one worker then ran the README's
+# examples alone for the last minute and a half. On a cold cache (a fresh CI machine) three
+# modules that take seconds warm are the longest of all, compiling: io/test_dual 263 s (uxarray's
+# numba), core/test_cuda_compile 219 s (the PTX of 131 modules), grid/test_mesh_cuda_compile 132 s
+# (wall, -n 0 on one core shared with another process, 2026-11-28); they go first too, so that no
+# worker starts one of them last (warm CPU s: 10, 1 and 0.3).
 HEAVY_FIRST = (
+    "tests/io/test_dual.py",
+    "tests/core/test_cuda_compile.py",
     "mpi",
+    "tests/grid/test_mesh_cuda_compile.py",
     "docs-readme",
     "docs-methods",
     "tests/steppers/test_multirate.py",

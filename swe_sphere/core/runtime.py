@@ -78,8 +78,12 @@ def _note_first_compilation(wp) -> None:
     except ImportError:
         return
     real = getattr(Module, "_run_codegen", None)
-    if real is None or getattr(real, "notes", False):  # Warp changed, or hooked already
+    # Warp changed, or hooked already in this process: init_warp runs more than once a run, and a
+    # hook that has spoken and put Warp's method back must not be put in again
+    global _compilation_hooked
+    if real is None or _compilation_hooked:
         return
+    _compilation_hooked = True
 
     def run_codegen(self, *args, **kwargs):
         Module._run_codegen = real  # once
@@ -90,8 +94,10 @@ def _note_first_compilation(wp) -> None:
         )
         return real(self, *args, **kwargs)
 
-    run_codegen.notes = True
     Module._run_codegen = run_codegen
+
+
+_compilation_hooked = False  # whether this process has hooked Warp's code generation (at most once)
 
 
 def available_memory() -> int:

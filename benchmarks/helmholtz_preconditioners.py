@@ -46,8 +46,8 @@ from swe_sphere.config.scene import load_scene  # noqa: E402
 from swe_sphere.core.constants import DAY  # noqa: E402
 from swe_sphere.grid.gll import gll  # noqa: E402
 from swe_sphere.model.gravity_wave import GravityWaveOperator  # noqa: E402
+from swe_sphere.model.helmholtz import HelmholtzOptions, HelmholtzSolver  # noqa: E402
 from swe_sphere.simulation.simulation import Simulation  # noqa: E402
-from swe_sphere.solvers.helmholtz import HelmholtzOptions, HelmholtzSolver  # noqa: E402
 from swe_sphere.solvers.helmholtz_matrix import helmholtz_matrix  # noqa: E402
 
 SGS = ("gauss_seidel", {"sweep": "symmetric"})

@@ -42,8 +42,8 @@ wp.config.quiet = True
 from results import recorded  # noqa: E402  (benchmarks/, the script's directory)
 
 from swe_sphere.config.scene import load_scene  # noqa: E402
+from swe_sphere.model.helmholtz_cg import HelmholtzCG  # noqa: E402
 from swe_sphere.simulation.simulation import Simulation  # noqa: E402
-from swe_sphere.solvers.helmholtz_cg import HelmholtzCG  # noqa: E402
 
 TYPES = {"f64": wp.float64, "f32": wp.float32}
 

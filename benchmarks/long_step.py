@@ -13,7 +13,7 @@ ledger, day 1 to the last), or the day it blew up.
 
 ``--parts cost``: on the same grid, CPU milliseconds (medians of ``--rounds`` interleaved
 rounds) of what a long step is made of: one RHS F(x) (the tendency and its DSS), one product
-of the Helmholtz operator M + cK (``solvers.helmholtz_cg``: its three element launches; also in
+of the Helmholtz operator M + cK (``model.helmholtz_cg``: its three element launches; also in
 float32, the kernels of the "mixed" solve: what cheaper arithmetic saves on this CPU), one
 forward-Euler ∇⁴ substep, and a whole step of each run (replayed outside graphs).
 
@@ -55,8 +55,8 @@ from swe_sphere.cases.reference import Reference, reference_path, stored_days  #
 from swe_sphere.config.scene import load_scene  # noqa: E402
 from swe_sphere.core.constants import DAY  # noqa: E402
 from swe_sphere.core.errors import ArgumentError, BlowUp  # noqa: E402
+from swe_sphere.model.helmholtz_cg import HelmholtzCG  # noqa: E402
 from swe_sphere.simulation.simulation import Simulation  # noqa: E402
-from swe_sphere.solvers.helmholtz_cg import HelmholtzCG  # noqa: E402
 
 ARS343_GAMMA = 0.4358665215084590  # ARS(3,4,3)'s diagonal (Ascher, Ruuth & Spiteri 1997, §2.7)
 

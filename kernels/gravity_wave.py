@@ -2,7 +2,7 @@
 ``linear_element``: both halves before their DSS; ``model.gravity_wave.GravityWaveOperator``):
 L_v = −g G h, L_h = −H D v, with G = DSS∘grad and D = DSS∘div the model's strong
 operators, and the two pointwise halves of the Schur-complement solve of (I − aL) z = s·r
-(``solvers.helmholtz.HelmholtzSolver``):
+(``model.helmholtz.HelmholtzSolver``):
 
     (I − a²gH DG) z_h = s (r_h − aH D r_v),    z_v = s r_v − a g G z_h,
 

@@ -1,4 +1,4 @@
-"""The Helmholtz operator M + cK on unique nodes, matrix-free (``solvers.helmholtz.HelmholtzSolver``;
+"""The Helmholtz operator M + cK on unique nodes, matrix-free (``model.helmholtz.HelmholtzSolver``;
 the preconditioned CG that inverts it is ``helmholtz_cg``'s).
 
 K = −M D G with G = DSS∘grad and D = DSS∘div the model's strong operators;

@@ -1,6 +1,6 @@
 """The preconditioned CG that inverts the Helmholtz operator (``helmholtz``), the float64
 refinement of a float32 solve and the projection of a solve's start onto past solutions
-(``solvers.helmholtz_cg``, ``solvers.helmholtz``, ``solvers.guess_history``).
+(``model.helmholtz_cg``, ``model.helmholtz``, ``model.guess_history``).
 
 The CG is Chronopoulos & Gear's (1989, J. Comput. Appl. Math. 25, 153)
 one-reduction form: one fused vector update (``cg_update``) and one operator

@@ -25,7 +25,7 @@ TOL, H = 1e-12, 5700.0  # the Helmholtz CG's relative residual and the mean dept
 @functools.cache
 def imex_tc5(stepper="imex", scheme=None, terms=None):
     """TC5 at ne 2 np 4 by ``stepper`` at Δt 1800 s (``scheme``: imex's pair; ``terms``: these
-    alone). The CG's ``tol`` near round-off (1e-12, ``solvers.helmholtz.TIGHTEST``): a step is
+    alone). The CG's ``tol`` near round-off (1e-12, ``model.helmholtz.TIGHTEST``): a step is
     linear in its solves only to that tolerance, as ``semi_implicit``'s (at its default the
     Taylor remainder below ε = 1e-3 is the solves'). H given: from x(0) it is rounded to 6 digits,
     and a perturbed x(0) could round to another (a jump in J)."""

@@ -14,7 +14,7 @@ from swe_sphere.adjoint import gradient
 from swe_sphere.adjoint.gradient import scene_model
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.backend import Backend
-from swe_sphere.solvers.helmholtz import HelmholtzSolver
+from swe_sphere.model.helmholtz import HelmholtzSolver
 
 import taylor
 from helpers import requires_cuda
@@ -25,7 +25,7 @@ TOL = 1e-12  # the Helmholtz CG's relative residual: see ``si_tc5``
 @functools.cache
 def si_tc5(ne=2):
     """TC5 at ne 2 np 4 by the semi-implicit leapfrog at Δt 1800 s. The CG's ``tol`` near
-    round-off (1e-12, ``solvers.helmholtz.TIGHTEST``): a step is linear in its solve only to that
+    round-off (1e-12, ``model.helmholtz.TIGHTEST``): a step is linear in its solve only to that
     tolerance, and at the default 1e-7 the Taylor remainder below ε = 1e-3 is the solve's
     (measured slopes 1.70 and 2.08 at 1e-4 … 1e-5, 2 and 6 steps). H given (the gravity waves' mean depth): from x(0)
     it is rounded to 6 digits, and a perturbed x(0) could round to another."""

@@ -23,9 +23,9 @@ from swe_sphere.config.scene import load_scene
 from swe_sphere.core import runtime
 from swe_sphere.core.backend import Backend
 from swe_sphere.core.constants import DAY
+from swe_sphere.model.helmholtz import HelmholtzCG
 from swe_sphere.simulation import build
 from swe_sphere.simulation.simulation import Simulation
-from swe_sphere.solvers.helmholtz import HelmholtzCG
 
 from helpers import ON_CUDA, cli_main, cli_one_line, one_line
 

@@ -1,4 +1,4 @@
-"""The Helmholtz solver (``solvers.helmholtz.HelmholtzSolver``, the compiled CG) on the shared
+"""The Helmholtz solver (``model.helmholtz.HelmholtzSolver``, the compiled CG) on the shared
 gravity-wave operator, apart from any stepper: the assembled matrix equals the matrix-free
 operator, the Schur solve inverts I − aL, a solve equals a direct sparse solve (float64, float32
 refined, float32 alone), the guess history's start, the same bits on 1 and 2 threads, nothing read
@@ -14,8 +14,8 @@ import warp as wp
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.errors import StepFailure
 from swe_sphere.model.gravity_wave import GravityWaveOperator
+from swe_sphere.model.helmholtz import HelmholtzOptions, HelmholtzSolver
 from swe_sphere.model.shallow_water import ShallowWater
-from swe_sphere.solvers.helmholtz import HelmholtzOptions, HelmholtzSolver
 from swe_sphere.solvers.helmholtz_matrix import helmholtz_matrix
 
 import roundoff

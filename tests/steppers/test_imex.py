@@ -24,9 +24,9 @@ import warp as wp
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
 from swe_sphere.model.gravity_wave import GravityWaveOperator
+from swe_sphere.model.helmholtz import HelmholtzOptions, HelmholtzSolver
 from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.simulation.simulation import Simulation
-from swe_sphere.solvers.helmholtz import HelmholtzOptions, HelmholtzSolver
 from swe_sphere.steppers.runge_kutta import TABLES
 from swe_sphere.steppers.tables import IMEX as SCHEMES
 

@@ -40,8 +40,8 @@ from swe_sphere.config.scene import load_scene
 from swe_sphere.core.backend import Backend
 from swe_sphere.core.constants import DAY
 from swe_sphere.model.gravity_wave import reference_depth
+from swe_sphere.model.helmholtz import HelmholtzOptions
 from swe_sphere.simulation.simulation import Simulation
-from swe_sphere.solvers.helmholtz import HelmholtzOptions
 from swe_sphere.steppers import STEPPERS
 
 import roundoff

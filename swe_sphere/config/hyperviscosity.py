@@ -9,7 +9,10 @@ from __future__ import annotations
 import math
 
 from ..core.arguments import got
+from ..core.clock import common_interval
+from ..core.constants import DAY
 from ..core.errors import SceneError
+from ..model.hyperviscosity import evaluations
 from ..steppers import STEPPERS
 from .resolve import Spacing
 from .schema import SceneGrid, SceneHyperviscosity
@@ -110,6 +113,67 @@ def resolve_hyperviscosity(
 EVERY_SPAN = 1 / 6
 
 
+# A ∇⁴ evaluation's cost against the rest of a step (one thread, CPU clock, medians of 9
+# interleaved rounds, benchmarks/hyperviscosity_every.py, results sparse_*.json): 0.76 for TC5 ne8
+# np4 rk4, 1.04 for galewsky ne12 np8 kgu35, 1.08 at ne22 np6
+HV_SHARE = 0.9
+# A dt shortened for a sparser ∇⁴ only where that saves more than the cost model's own error: 2 %
+SPARSE_GAIN = 0.98
+# ν λ τ on the uniform cube by np (λ the ∇⁴'s spectral radius, ``Hyperviscosity.biharmonic_radius``;
+# τ the e-folding time of the Nyquist degree, ``efold_nu``): measured at ne4, 8 and 12, within
+# 1.7 % of one another, growing with ne: the ne12 figures and 2 % more, so that the ∇⁴'s plan over
+# kΔt (``model.hyperviscosity.evaluations``) counted before the model is built is not below the
+# model's own
+CUBE_STIFFNESS = {np_: 1.02 * v for np_, v in {3: 3.17, 4: 7.42, 5: 16.43, 6: 32.64, 7: 59.11, 8: 99.46}.items()}
+
+
+def every_span(table: dict, hv: SceneHyperviscosity, grid: SceneGrid, spacing: Spacing, stepper: str, controlled: bool):
+    """(span (s), τ (s)): the longest span kΔt that ``every = "auto"`` gives the ∇⁴,
+    ``EVERY_SPAN`` of τ, the e-folding time (``efold_nu``'s rule solved for τ) of the grid's
+    Nyquist degree under the largest of ν, ν_div, ν_s; None where k is 1 whatever Δt (an integer
+    ``every``, a controlled Δt, a three-level scheme, no ∇⁴)."""
+    nu = max(hv.nu, hv.nu_div, hv.nu_s)
+    if table.get("every", 1) != "auto" or controlled or not STEPPERS[stepper].sparse_hyperviscosity or nu == 0:
+        return None
+    tau = efold_nu(1.0, grid.record.mean_ne, grid.np, spacing.radii[0]) / nu * 3600.0
+    return EVERY_SPAN * tau, tau
+
+
+def auto_every(span: float, dt: float, steps: tuple) -> int:
+    """The k of ``every = "auto"`` at ``dt`` (s): the largest k whose kΔt is at most ``span``
+    (s), preferring the largest k ≥ half that which divides one of ``steps`` (the steps of an
+    output interval and of the whole run: the ∇⁴ then done at those times)."""
+    most = max(1, math.floor(span / dt * (1 + 1e-9)))
+    # the largest that divides either: the output interval's alone took k = 3 where 6 of the
+    # run's fit (galewsky ne16 np6, 333 steps a day), the ∇⁴ twice as often for nothing
+    return max((k for n in steps for k in range(most, (most + 1) // 2 - 1, -1) if n % k == 0), default=most)
+
+
+def sparse_dt(dt: float, intervals: tuple, every: float, days: float, span: float, stiffness: float, subcycle: int):
+    """The Δt (s) no longer than ``dt`` that costs least a day with the ∇⁴ every ``auto_every``
+    steps: C/n' for n' ≥ n = C/Δt whole steps of C, the ``common_interval`` of ``intervals``
+    (days: the run and the intervals that Δt divides), minimising n'(1 + ``HV_SHARE`` e(n')/k(n')),
+    e the ∇⁴'s evaluations over kΔt (``evaluations`` at ν λ kΔt = ``stiffness`` kΔt, with
+    ``subcycle``), the fewest steps where two cost the same; ``dt`` itself where it is not C/n or
+    that saves less than ``SPARSE_GAIN``. A count of steps with few divisors takes a small k: TC5
+    ne8 np4's odd 109 a day k = 1, its 110 k = 2 (a step 0.785x, a day 0.84x); galewsky ne24 np6's
+    499, a prime, k = 6 in 2 RKL1 stages, its 500 k = 10 in 3 (0.333 to 0.300 evaluations a step)."""
+    common = common_interval(*intervals) * DAY
+    n = round(common / dt)
+    if n < 1 or abs(common / n - dt) > 1e-9 * dt:
+        return dt
+
+    def cost(m: int) -> float:
+        step = common / m
+        k = auto_every(span, step, (round(every * DAY / step), round(days * DAY / step)))
+        return m * (1 + HV_SHARE * evaluations(stiffness * k * step, subcycle)[0] / k)
+
+    # k(m) ≤ span·m/C and a ∇⁴ takes one evaluation at least: no more steps than this can pay
+    top = math.floor(cost(n) - HV_SHARE * common / (span * (1 + 1e-9)))
+    best = min(range(n, max(n, top) + 1), key=cost)  # the first, the fewest steps, of equal costs
+    return common / best if cost(best) <= SPARSE_GAIN * cost(n) else dt
+
+
 def resolve_every(
     table: dict,
     hv: SceneHyperviscosity,
@@ -121,28 +185,19 @@ def resolve_every(
     controlled: bool,
 ) -> tuple[int, tuple]:
     """(k, notes): the steps between ∇⁴ applications of [hyperviscosity] ``every`` on the run's
-    grid and Δt (s). An integer is k as given; "auto" the largest k whose span kΔt is at most
-    ``EVERY_SPAN`` of τ, the e-folding time (``efold_nu``'s rule solved for τ) of the grid's
-    Nyquist degree under the largest of ν, ν_div, ν_s, preferring the largest k ≥ half that which
-    divides one of ``steps`` (the steps of an output interval and of the whole run: the ∇⁴ then done
-    at those times), and 1 where k > 1 does not fit (a controlled Δt, a three-level scheme, no ∇⁴).
-    Raises ``SceneError`` naming the key: an integer k > 1 under a controlled Δt or with a stepper
-    whose ∇⁴ acts on a three-level scheme's new level (``Stepper.sparse_hyperviscosity``)."""
+    grid and Δt (s). An integer is k as given; "auto" ``auto_every``'s k within ``every_span``'s
+    span (``steps``: an output interval's and the whole run's), and 1 where k > 1 does not fit (a
+    controlled Δt, a three-level scheme, no ∇⁴). Raises ``SceneError`` naming the key: an integer
+    k > 1 under a controlled Δt or with a stepper whose ∇⁴ acts on a three-level scheme's new
+    level (``Stepper.sparse_hyperviscosity``)."""
     every = table.get("every", 1)
-    nu = max(hv.nu, hv.nu_div, hv.nu_s)
     if every == "auto":
-        if controlled or not STEPPERS[stepper].sparse_hyperviscosity or nu == 0:
-            return 1, ()
-        tau = efold_nu(1.0, grid.record.mean_ne, grid.np, spacing.radii[0]) / nu * 3600.0  # s
-        most = max(1, math.floor(EVERY_SPAN * tau / dt * (1 + 1e-9)))
-        # the largest that divides either: the output interval's alone took k = 3 where 6 of the
-        # run's fit (galewsky ne16 np6, 333 steps a day), the ∇⁴ twice as often for nothing
-        fits = [k for n in steps for k in range(most, (most + 1) // 2 - 1, -1) if n % k == 0]
-        k = max(fits, default=most)
+        limits = every_span(table, hv, grid, spacing, stepper, controlled)
+        k = 1 if limits is None else auto_every(limits[0], dt, steps)
         if k == 1:
             return 1, ()
         return k, (
-            f"hyperviscosity every {k} steps ({k * dt / 60:.3g} min; the grid scale's e-folding {tau / 3600:.3g} h)",
+            f"hyperviscosity every {k} steps ({k * dt / 60:.3g} min; the grid scale's e-folding {limits[1] / 3600:.3g} h)",
         )
     if every > 1 and controlled:
         raise SceneError(

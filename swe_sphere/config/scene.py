@@ -76,7 +76,16 @@ from ..core.arguments import instance_argument, mapping_argument
 from ..core.constants import DAY, EARTH
 from ..core.errors import SceneError
 from .control import cfl_notes, is_controlled, resolve_control
-from .hyperviscosity import HYPERVIS_EXPONENT, efold_nu, resolve_every, resolve_filter, resolve_hyperviscosity
+from .hyperviscosity import (
+    CUBE_STIFFNESS,
+    HYPERVIS_EXPONENT,
+    efold_nu,
+    every_span,
+    resolve_every,
+    resolve_filter,
+    resolve_hyperviscosity,
+    sparse_dt,
+)
 from .paths import list_scenes, resolve_path, scene_dir
 from .resolve import (
     DT_NOTES,
@@ -215,17 +224,25 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict, rest
     streams = _stream_intervals(output)
     restart = restart_every if is_number(restart_every) and restart_every > 0 and not controlled else None
     np_factor = resolve_dt_np(time, scene_grid.np, grid.np)
+    hv, hv_notes = resolve_hyperviscosity(s.get("hyperviscosity", {}), terms, grid, spacing)
+    span = every_span(s.get("hyperviscosity", {}), hv, grid, spacing, stepper, controlled)
+    # a dt the grid chose (scaled), shortened where a count of steps with more divisors takes the ∇⁴ less often
+    sparse = _sparser(span, hv, grid, (every, days, *streams, restart))
+    given = dt is not None or (spacing.smallest == 1.0 and np_factor == 1.0)
     dt, dt_source, dt_notes = resolve_dt(
         time.get("dt"), dt, days, every, path.stem, grid, spacing, controlled, streams, restart, np_factor
     )
+    if not given and (shorter := sparse(dt)) != dt:
+        dt_notes += (f"dt {dt:g} s shortened to {shorter:g} s: more steps, the ∇⁴ less often (cheaper a day)",)
+        dt = shorter
     own_dt = dt
     if dt_source == "the dt given" or "time.dt" in overrides:  # the dt it would choose itself, all else as given
-        own_dt = _own_dt(own, scene_grid, grid, planet.a, days, every, path.stem, controlled, streams)
+        own_dt = _own_dt(own, scene_grid, grid, planet.a, days, every, path.stem, controlled, streams, sparse)
     own_planet, own_days = _own_planet_days(own)
     output_fields, streams = resolve_output_files(output, dt, days, dt_source, controlled)
     options, stepper_notes = resolve_stepper_options(stepper, s.get(stepper, {}), overrides)
     control = resolve_control(time, stepper, options, dt)
-    hv, element_filter, hv_notes = _dissipation(s, terms, grid, spacing, dt, (every, days), stepper, controlled)
+    hv, element_filter, hv_notes = _dissipation(s, hv, hv_notes, grid, spacing, dt, (every, days), stepper, controlled)
     name, description = _title(case, file_case, path.stem, s.get("description", ""), overrides)
     return Scene(
         name=name,
@@ -276,27 +293,42 @@ def _stream_intervals(output: dict) -> tuple:
     )
 
 
-def _own_dt(own: dict, scene_grid, grid, radius: float, days, every, stem: str, controlled, streams) -> float | None:
+def _own_dt(own: dict, scene_grid, grid, radius: float, days, every, stem: str, controlled, streams, sparse):
     """The dt (s) the scene file would choose itself from its own checked tables ``own``
     (``read_scene``: its time.dt at its own planet's radius, scaled to the run's ``grid`` at
-    ``radius``), all else as given (``Scene.own_dt``); None where none fits the output interval."""
+    ``radius``, then ``sparse``'s: the run's ∇⁴'s), all else as given (``Scene.own_dt``); None
+    where none fits the output interval."""
     try:
         own_spacing = resolve_spacing(scene_grid, grid, radius, own.get("planet", {}).get("radius", EARTH.a))
         own_time = own.get("time", {})
         np_factor = resolve_dt_np(own_time, scene_grid.np, grid.np)
-        return resolve_dt(
+        dt = resolve_dt(
             own_time.get("dt"), None, days, every, stem, grid, own_spacing, controlled, streams, None, np_factor
         )[0]
     except SceneError:  # none that fits the output interval
         return None
+    return dt if own_spacing.smallest == 1.0 and np_factor == 1.0 else sparse(dt)
 
 
-def _dissipation(s: dict, terms, grid, spacing, dt: float, spans: tuple, stepper: str, controlled: bool) -> tuple:
-    """(the resolved ``[hyperviscosity]`` with its ``every``, the ``[filter]``'s element filter,
-    their notes) of the scene's tables ``s`` at ``dt`` (s), with ``spans`` = (the output
-    interval, the run) in days (``resolve_hyperviscosity``, ``resolve_every``, ``resolve_filter``)."""
+def _sparser(span, hv, grid, intervals: tuple):
+    """The dt (s) of a scaled ``dt`` for a sparser ∇⁴ (``hyperviscosity.sparse_dt``) dividing the
+    run and ``intervals`` (days: the output interval, the run, the streams', the restart
+    interval or None; those the run holds); ``span`` ``every_span``'s. On the uniform cube and
+    the constant ∇⁴ alone, where ``CUBE_STIFFNESS`` holds; elsewhere, and without a span, dt."""
+    if span is None or grid.mesh is not None or hv.scaling is not None or grid.np not in CUBE_STIFFNESS:
+        return lambda dt: dt
+    every, days = intervals[:2]
+    within = [d for d in intervals[1:] if d is not None and d < days] + ([every] if every < days else [])
+    stiffness = CUBE_STIFFNESS[grid.np] / span[1]  # ν λ (s⁻¹)
+    return lambda dt: sparse_dt(dt, (days, *within), every, days, span[0], stiffness, hv.subcycle)
+
+
+def _dissipation(s: dict, hv, hv_notes, grid, spacing, dt: float, spans: tuple, stepper: str, controlled: bool):
+    """(the resolved ``[hyperviscosity]`` ``hv`` (``resolve_hyperviscosity``'s, its ``hv_notes``)
+    with its ``every``, the ``[filter]``'s element filter, their notes) of the scene's tables
+    ``s`` at ``dt`` (s), with ``spans`` = (the output interval, the run) in days
+    (``resolve_every``, ``resolve_filter``)."""
     every, days = spans
-    hv, hv_notes = resolve_hyperviscosity(s.get("hyperviscosity", {}), terms, grid, spacing)
     steps = (round(every * DAY / dt), round(days * DAY / dt))  # an output interval's and the run's
     k, every_notes = resolve_every(s.get("hyperviscosity", {}), hv, grid, spacing, dt, steps, stepper, controlled)
     element_filter, filter_notes = resolve_filter(s.get("filter", {}), dt, k, controlled)

@@ -24,6 +24,27 @@ from .transposes import HyperviscosityTranspose, TendencyTranspose
 f64 = wp.float64
 
 
+def forward_euler_substeps(stiffness: float, subcycle: int) -> int:
+    """Forward-Euler substeps of the ∇⁴ over dt, ``stiffness`` = ν dt λ (max(ν, ν_div, ν_s)
+    and λ the ∇⁴'s spectral radius): at least ``subcycle``, and enough that ν (dt/n) λ ≤ 1.5."""
+    return max(subcycle, math.ceil(stiffness / 1.5))
+
+
+def rkl1_stages(stiffness: float) -> int:
+    """RKL1 stages s over dt at ``stiffness`` = ν dt λ: the fewest (≥ 2) whose stability
+    interval, (s² + s)/2 forward-Euler limits (Meyer, Balsara & Aslam 2014, §3), covers
+    ν dt λ / 1.5 (the same 1.5/2 margin as the substeps)."""
+    return max(2, math.ceil((math.sqrt(1.0 + 8.0 * stiffness / 1.5) - 1.0) / 2.0 - 1e-12))
+
+
+def evaluations(stiffness: float, subcycle: int) -> tuple[int, bool]:
+    """(∇⁴ evaluations, RKL1?) of one ``Hyperviscosity.apply`` over dt at ``stiffness`` = ν dt
+    λ: the forward-Euler substeps, or the RKL1 stages where those are fewer and the substeps
+    are set by stability, not by ``subcycle``."""
+    n, s = forward_euler_substeps(stiffness, subcycle), rkl1_stages(stiffness)
+    return (s, True) if s < n and n > subcycle else (n, False)
+
+
 class Hyperviscosity:
     """The ∇⁴ of ``model`` (a ``ShallowWater`` whose terms name "hyperviscosity";
     its ν, ν_div, ν_s and ``hypervis_subcycle``): ``operator`` B x, ``apply`` over a
@@ -312,24 +333,18 @@ class Hyperviscosity:
         return max(self.model.nu, self.model.nu_div, self.model.nu_s)
 
     def substeps(self, dt: float) -> int:
-        """Forward-Euler substeps for ``apply`` over dt: at least the
-        scene's ``hypervis_subcycle``, and enough that ν (Δt/n) λ ≤ 1.5."""
-        return max(self.model.hypervis_subcycle, math.ceil(self.nu_max * dt * self.biharmonic_radius() / 1.5))
+        """Forward-Euler substeps for ``apply`` over dt (``forward_euler_substeps``)."""
+        return forward_euler_substeps(self.nu_max * dt * self.biharmonic_radius(), self.model.hypervis_subcycle)
 
     def stages(self, dt: float) -> int:
-        """RKL1 stages s for ``apply`` over dt: the fewest (≥ 2) whose
-        stability interval, (s² + s)/2 forward-Euler limits (Meyer, Balsara &
-        Aslam 2014, §3), covers ν dt λ / 1.5 (the same 1.5/2 margin as the substeps)."""
-        n = self.nu_max * dt * self.biharmonic_radius() / 1.5
-        return max(2, math.ceil((math.sqrt(1.0 + 8.0 * n) - 1.0) / 2.0 - 1e-12))
+        """RKL1 stages for ``apply`` over dt (``rkl1_stages``)."""
+        return rkl1_stages(self.nu_max * dt * self.biharmonic_radius())
 
     def plan(self, dt: float) -> tuple[int, bool]:
-        """(∇⁴ evaluations, RKL1?) of one ``apply`` over dt: the forward-Euler
-        substeps, or the RKL1 stages where those are fewer (see
-        ``apply``); the last dt's kept (a controlled run's dt changes every step)."""
+        """(∇⁴ evaluations, RKL1?) of one ``apply`` over dt (``evaluations`` at ν dt λ, λ
+        ``biharmonic_radius``); the last dt's kept (a controlled run's dt changes every step)."""
         if self._plan is None or self._plan[0] != dt:
-            n, s = self.substeps(dt), self.stages(dt)
-            self._plan = (dt, (s, True) if s < n and n > self.model.hypervis_subcycle else (n, False))
+            self._plan = (dt, evaluations(self.nu_max * dt * self.biharmonic_radius(), self.model.hypervis_subcycle))
         return self._plan[1]
 
     def apply(self, x: wp.array2d, dt: float) -> None:

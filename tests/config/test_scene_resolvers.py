@@ -81,16 +81,21 @@ def test_a_dt_set_by_an_override_scales_with_another_grid():
 
 def test_every_way_of_choosing_the_mesh_scales_dt_alike(tmp_path):
     """The scene file's dt is for its own grid (tc5_mountain: ne30): -s grid.ne, -s grid.stretch_factor
-    and -s grid.mesh_file scale it with the smallest node spacing as ne= and mesh= do."""
-    assert load_scene("tc5_mountain", overrides={"grid.ne": 8}).dt == load_scene("tc5_mountain", ne=8).dt == 86400 / 109
+    and -s grid.mesh_file scale it with the smallest node spacing as ne= and mesh= do (the ∇⁴ every
+    step, so that the spacing's dt is not shortened for a sparser ∇⁴: ``sparse_dt``, where ne8's 109
+    steps a day become 110)."""
+    dense = {"hyperviscosity.every": 1}
+    by_key = load_scene("tc5_mountain", overrides={"grid.ne": 8, **dense})
+    assert by_key.dt == load_scene("tc5_mountain", ne=8, overrides=dense).dt == 86400 / 109
+    assert load_scene("tc5_mountain", overrides={"grid.ne": 8}).dt == load_scene("tc5_mountain", ne=8).dt == 86400 / 110
     stretch = {"grid.stretch_factor": 2.5, "grid.target_lat": 30.0, "grid.target_lon": 270.0}
-    stretched = load_scene("tc5_mountain", ne=8, overrides=stretch)
+    stretched = load_scene("tc5_mountain", ne=8, overrides={**stretch, **dense})
     # ne8 c = 2.5: its worst dx_short is 2.23x below ne8's cube: 243 steps a day where the cube takes 109
     ratio = smallest_dx(8, 4, make_mesh(8, stretch_factor=2.5, target_lat=30.0, target_lon=270.0)) / smallest_dx(30, 4)
     assert stretched.dt == 86400 / math.ceil(86400 / (211.76470588235293 * ratio)) == 86400 / 243
     path = write_exodus(tmp_path / "ne3.g", make_mesh(3))
-    by_key = load_scene("tc5_mountain", overrides={"grid.mesh_file": str(path), "grid.ne": 0})
-    assert by_key.dt == load_scene("tc5_mountain", mesh=path).dt == 86400 / 49
+    by_key = load_scene("tc5_mountain", overrides={"grid.mesh_file": str(path), "grid.ne": 0, **dense})
+    assert by_key.dt == load_scene("tc5_mountain", mesh=path, overrides=dense).dt == 86400 / 49
 
 
 A = EARTH.a
@@ -275,8 +280,9 @@ def test_time_dt_np_lengthens_a_scaled_dt_at_the_np_it_names():
     """galewsky's ``dt_np = {6 = 1.2}``: at np 6 its scaled dt is 1.2x the spacing's (then cut to
     divide a day), the note saying so; at its own np 8 and at np 4 the spacing's alone; a file
     whose own np is named is scaled by the ratio of the two factors; bad keys are refused."""
-    plain = load_scene("galewsky", ne=25, np_=6, overrides={"time.dt_np": {}})
-    longer = load_scene("galewsky", ne=25, np_=6)
+    dense = {"hyperviscosity.every": 1}  # the scaled dt alone, not shortened for a sparser ∇⁴ (``sparse_dt``)
+    plain = load_scene("galewsky", ne=25, np_=6, overrides={"time.dt_np": {}, **dense})
+    longer = load_scene("galewsky", ne=25, np_=6, overrides=dense)
     assert plain.dt == DAY / 624 and longer.dt == DAY / 520  # 624 / 1.2 = 520 steps a day
     assert longer.notes[0] == "dt scaled with the smallest node spacing and time.dt_np (1.2x at np 6) to 166.154 s"
     for ne, np_ in ((12, 8), (30, 4)):
@@ -347,8 +353,10 @@ def test_scene_title_says_when_the_case_is_switched():
 def test_the_nested_view_groups_the_flat_fields_by_table():
     scene = load_scene("tc6_rossby_haurwitz", ne=4, days=1.0, overrides={"output.fields": ["h"]})
     assert scene.grid == SceneGrid(4, 4, None)
-    assert scene.time == SceneTime("kgu35", {}, 86400 / 39, 1.0)  # ne30's 300 s: 2250 s at ne4, 39 a day
-    assert scene.hyperviscosity == SceneHyperviscosity(scene.nu, scene.nu_div, scene.nu_s, 1) and scene.nu > 0
+    # ne30's 300 s: 2250 s at ne4, 39 a day; 48 take the ∇⁴ every 2 steps for less (``sparse_dt``)
+    assert scene.time == SceneTime("kgu35", {}, 86400 / 48, 1.0)
+    hv = SceneHyperviscosity(scene.nu, scene.nu_div, scene.nu_s, 1, every=2)
+    assert scene.hyperviscosity == hv and scene.nu > 0
     assert scene.output == SceneOutput(1.0, 0, ("h",), ())
     with pytest.raises(AttributeError):
         scene.grid = SceneGrid(8, 4)

@@ -9,9 +9,11 @@ import dataclasses
 import numpy as np
 import pytest
 
+from swe_sphere.config.hyperviscosity import auto_every, sparse_dt
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
 from swe_sphere.core.errors import SceneError
+from swe_sphere.model.hyperviscosity import evaluations
 from swe_sphere.simulation.simulation import Simulation
 
 from helpers import cli_one_line, make_sim
@@ -140,3 +142,44 @@ def test_the_command_line_refuses_a_misfit_every(capsys, tmp_path):
         "hyperviscosity.every",
     )
     assert line and not list(tmp_path.iterdir())
+
+
+def test_a_scaled_dt_takes_the_step_count_whose_divisors_take_the_hyperviscosity_less_often():
+    """A dt the grid chose is shortened where more steps cost less a day with the ∇⁴'s k and plan
+    they give (``sparse_dt``): TC5 ne8 np4's odd 109 steps a day (k = 1) become 110 (k = 2);
+    galewsky ne24 np6's 499, a prime (k = 6, 2 RKL1 stages), 508 (k = 8, 2 stages). A dt given,
+    ``every`` not "auto", or a mesh, is not touched; the scene's own dt for naming a run's file
+    (``Scene.own_dt``) is the shortened one."""
+    s = load_scene("galewsky", ne=24, np_=6)
+    assert (s.dt, s.hypervis_every) == (DAY / 508, 8)
+    assert "dt 173.146 s shortened to 170.079 s: more steps, the ∇⁴ less often (cheaper a day)" in s.notes
+    assert load_scene("galewsky", ne=24, np_=6, overrides={"hyperviscosity.every": 1}).dt == DAY / 499
+    given = load_scene("galewsky", ne=24, np_=6, dt=DAY / 499)
+    assert (given.dt, given.hypervis_every, given.own_dt) == (DAY / 499, 6, DAY / 508)
+    tc5_ne8 = load_scene("tc5_mountain", ne=8, np_=4)
+    assert (tc5_ne8.dt, tc5_ne8.hypervis_every) == (DAY / 110, 2)
+    assert load_scene("tc5_mountain", ne=30, np_=4).dt == DAY / 408  # 408 already takes k = 8
+    stretched = {"grid.stretch_factor": 2.0, "grid.target_lat": 30.0, "grid.target_lon": 270.0}
+    dense = {**stretched, "hyperviscosity.every": 1}
+    assert (
+        load_scene("tc5_mountain", ne=8, overrides=stretched).dt == load_scene("tc5_mountain", ne=8, overrides=dense).dt
+    )
+
+
+def test_the_shortened_dt_is_the_cheapest_whole_count_and_leaves_a_small_gain():
+    """``sparse_dt`` itself: the least n'(1 + 0.9 e/k) over n' ≥ n whole steps of the intervals'
+    common interval, k ``auto_every``'s and e the ∇⁴'s evaluations over kΔt (``evaluations``);
+    n kept where the best saves < 2 % or dt is not a whole count of it."""
+    span = 1800.0  # s: k·dt at most 30 min
+    assert auto_every(span, DAY / 499, (499, 2994)) == 6  # 2994 = 2·3·499: 6 the largest of 5..10
+    assert auto_every(span, DAY / 500, (500, 3000)) == 10
+    soft = 1e-6  # ν λ (s⁻¹): one forward-Euler substep over 30 min (ν λ kΔt = 0.0018)
+    # a day: 499 (k 6) 499·(1 + 0.9/6) = 573.9; 500 (k 10) 500·1.09 = 545
+    assert sparse_dt(DAY / 499, (6.0, 1.0), 1.0, 6.0, span, soft, 1) == DAY / 500
+    assert sparse_dt(DAY / 416, (6.0, 1.0), 1.0, 6.0, span, soft, 1) == DAY / 416  # k 8 already: nothing pays 2 %
+    assert sparse_dt(DAY / 499.5, (6.0, 1.0), 1.0, 6.0, span, soft, 1) == DAY / 499.5  # not whole steps of a day
+    # stiff, ν λ = 3e-3 s⁻¹: k 6 over 17.3 min takes 2 RKL1 stages, k 10 over 28.8 min 3
+    stiff = 3e-3
+    assert evaluations(stiff * 6 * DAY / 499, 1) == (2, True) and evaluations(stiff * 10 * DAY / 500, 1) == (3, True)
+    # 499: 499·(1 + 0.9·2/6) = 648.7; 500: 500·(1 + 0.9·3/10) = 635; 508 (k 8, 2 stages): 622.3, the least
+    assert sparse_dt(DAY / 499, (6.0, 1.0), 1.0, 6.0, span, stiff, 1) == DAY / 508

@@ -23,7 +23,7 @@ from ..cases.scoring import Scorer
 from ..config.scene import resolve_scene
 from ..core.arguments import callable_argument, got, integer_argument, number_argument
 from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
-from ..core.errors import ArgumentError, BlowUp, CheckpointError, Interrupted, StepFailure
+from ..core.errors import ArgumentError, StepFailure
 from ..core.graphs import default_mode, graphs_mode
 from ..core.interrupts import StopSignals
 from ..core.mpi import RankMax
@@ -32,18 +32,16 @@ from ..integrator import FixedDt, Integrator, Stop, core_property
 from ..io.run_file import area_rms, member_statistics
 from ..model.diagnostics import invariants
 from ..model.shallow_water import ShallowWater
-from ..simulation import checkpoint
 from ..simulation.activities import add_callback, call_due
 from ..simulation.build import check_memory
-from ..simulation.loop import progress_bar, progressed, run_steps
-from ..simulation.restart import write_restart
+from ..simulation.loop import integrate, outcome, own_activities, progressed, run_steps
+from ..simulation.restart import continued, restore_run, write_restart
 from ..simulation.run_state import RunState
 from ..simulation.schedules import EverySteps, at_its_end
 from ..simulation.state_diagnostics import WholeFields
-from ..simulation.summary import Ledger, interrupted
-from ..simulation.writers import Checkpointer, RunFiles, interrupted_attrs, scene_attrs
+from ..simulation.summary import Ledger
+from ..simulation.writers import Checkpointer, RunFiles, scene_attrs
 from .control import STEERED, member_control
-from .files import resume
 from .initial import Perturbation, Variants, checked_states, described, initial_states
 from .members import MemberGrid, member_part
 from .units import (
@@ -52,6 +50,7 @@ from .units import (
     blow_up_line,
     checked_scene,
     drop_line,
+    held_state,
     member_step,
     on_rank_zero,
     own_units,
@@ -251,14 +250,15 @@ class Ensemble:
         n = integer_argument("n", n, 0)
         if self.control is not None:
             raise ArgumentError("Ensemble.step takes steps of a fixed dt: under step control, advance(days) or run")
-        self._steps(self.step_count + n)
+        self._stepped(self.step_count + n)
 
     def _steps(self, stop_step: int, last_day=None, signals=None, after=None, notify=None) -> Stop:
         """Steps to ``stop_step`` (under step control to the model day ``last_day``) by a run's
         loop (``simulation.loop.run_steps``) under the ensemble's hooks (``units.Members``): the
         activities due after each good step, then ``after(n, done)``; a stop ``signals`` asked
-        returned (``Stop``; with ``signals``, a run's blocks: ``Members.timed``), ``notify(line)``
-        told a wall time estimated above a day (``summary.Ledger``). ``BlowUp`` and ``StepFailure`` as ``step``'s."""
+        returned (``Stop``; with ``signals``, a run's blocks: ``Members.timed``; a blow-up's line
+        ``Stop.blowup``), ``notify(line)`` told a wall time estimated above a day
+        (``summary.Ledger``). ``StepFailure`` as ``step``'s."""
         ledger = Ledger(self.counters, self.scene, self.step_count, notify)
         run = (self.step_count, CHECK_EVERY_STEPS, self.activities, self.counters, ledger)
 
@@ -268,10 +268,11 @@ class Ensemble:
                 after(n, done)
 
         observer = Members(run, stop_step, signals, good, self._drop, timed=signals is not None)
-        stop = run_steps(self.core, self.control, last_day, self.activities, observer, stop_step, self._bad)
-        if stop.blowup is not None:
-            raise BlowUp(stop.blowup)
-        return stop
+        return run_steps(self.core, self.control, last_day, self.activities, observer, stop_step, self._bad)
+
+    def _stepped(self, stop_step: int, last_day=None) -> None:
+        """``_steps`` to ``stop_step`` (``last_day``) outside a run: ``BlowUp`` for a blow-up."""
+        outcome(self._steps(stop_step, last_day), self.run_state, None, None)
 
     def _bad(self, bad: tuple) -> str:
         """The line of a checked step gone bad, ``bad`` = (step, trouble, detail) of an
@@ -345,7 +346,7 @@ class Ensemble:
         ``ArgumentError`` with its refusal otherwise), as ``step``."""
         days = number_argument("days", days, "days", low=0.0)
         if self.control is not None:  # Δt the controller's, landing on the day reached
-            self._steps(sys.maxsize, self.day + days)
+            self._stepped(sys.maxsize, self.day + days)
             return
         clock = self.scene.clock
         if days and not clock.is_whole(days):
@@ -411,36 +412,20 @@ class Ensemble:
         if self.root:
             kw = {"overwrite": overwrite, "compress": compress, "notify": notify}
             files.open(attrs, **kw, members=self.members, member_series=files.member_series)
-        own = self.activities
-        self.activities = {"run_file": files, "checkpointer": ckp, **own}
-        lines = progress_lines if self.root else None
-        try:
-            with (
-                progress_bar(self.step_count, s.nsteps, progress) as bar,
-                StopSignals(self.model.topology if self.comm is None else RankMax(self.comm), catch=True) as signals,
-            ):
-                if not self.step_count:  # as a run's: the two files join without a repeated time
-                    files.record(0, whole=start, final=True, diagnosed=first)
-                if progress_lines is not None:
-                    progress_lines.start(self.day, s.days)
-                after = lambda n, done: progressed(bar, done, lines, n, self.day)  # noqa: E731
-                stop = self._steps(s.nsteps, s.days, signals, after, notify if self.root else None)
-                if stop.signum is not None:  # the step reached written, as a run's last, and its restart file
-                    files.record(self.step_count, final=True)
-                    ckp.interrupted(self.step_count, abandoned=False)
-                    raise interrupted(stop.signum, self.step_count, self.day, s, output, ckp, None, None)
-        except BaseException as err:  # a blow-up or a signal: the good output times kept
-            step, why = self.step_count, {"stopped": str(err) or type(err).__name__}
-            signalled = isinstance(err, Interrupted)  # said as a run's file says it
-            files.set_attrs(**(interrupted_attrs(err.signum, step, self.day) if signalled else why))
-            files.close()
-            raise
-        finally:
-            self.activities = own
-        drops = self.drops  # collective
-        if drops:
-            files.set_attrs(dropped_members="; ".join(drops))
-        files.close()
+        signals = StopSignals(self.model.topology if self.comm is None else RankMax(self.comm), catch=True)
+
+        def blocks(signals, bar) -> Stop:
+            after = lambda n, done: progressed(bar, done, progress_lines if self.root else None, n, self.day)  # noqa: E731
+            return self._steps(s.nsteps, s.days, signals, after, notify if self.root else None)
+
+        def dropped() -> dict:  # the members dropped (collective)
+            drops = self.drops
+            return {"dropped_members": "; ".join(drops)} if drops else {}
+
+        during, why = own_activities(self, files, ckp), lambda err: {"stopped": str(err) or type(err).__name__}
+        kw = {"progress": progress, "lines": progress_lines, "diagnosed": first, "why": "stopped", "kept": why}
+        stop = integrate(self.run_state, files, ckp, start, signals, blocks, during, **kw, closing=dropped)
+        outcome(stop, self.run_state, output, ckp)
         return Path(output)
 
     # -- restart files -------------------------------------------------------------
@@ -468,10 +453,7 @@ class Ensemble:
         (one line) for a file ``simulation.checkpoint.read`` refuses, a single run's restart
         file, or ``days`` before the file's day; the other arguments as the constructor's (the
         layout the file's)."""
-        ck = checkpoint.read(path)
-        if ck.members is None:
-            raise CheckpointError(f"{path}: a single run's restart file (continue it with Simulation.from_checkpoint)")
-        scene = checkpoint.continued_scene(ck, days)
+        ck, scene, *_ = continued(path, days, members=True)
         n = ck.x.shape[1] // ck.members
         states = ck.x.reshape(3, ck.members, n).transpose(1, 0, 2)
         variants = ck.initial.get("variants")  # the members' own scenes, then the file's states
@@ -479,7 +461,17 @@ class Ensemble:
         options = {"device": device, "per_element": per_element, "threads": threads, "graphs": graphs, "comm": comm}
         layout, policy = ck.initial.get("layout", "shared"), ck.initial.get("blow_up", "stop")
         ens = cls(scene, ck.members, initial, **options, layout=layout, blow_up=policy)
-        resume(ens, ck)
+
+        def restore() -> None:  # the file's states and stepper histories into the units
+            for u, k in zip(ens.units, unit_members(ens.layout, ens.held)):
+                nodes = (k[:, None] * n + np.arange(n)).ravel()  # the unit's members' columns of the file's arrays
+                u.x.assign(ck.x[:, nodes])
+                prefix = None if ens.layout == "shared" else f"member{k[0]}_"
+                u.stepper.restore(held_state(ck.stepper_state, nodes, prefix))
+
+        restore_run(ens.run_state, ck, restore)  # then its step, counters and step control, as a run's
+        ens.mark_dropped({int(k): step for k, step in ck.initial.get("dropped", {}).items()})  # their last good states
+        ens.initial = ck.initial.get("initial_states", ens.initial)
         return ens
 
     def errors(self) -> list[dict[str, float]]:

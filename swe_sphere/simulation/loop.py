@@ -23,7 +23,7 @@ from .activities import Log, call_due
 from .adaptive import Tries, steered
 from .guard import RunObserver, blowup_line
 from .schedules import EverySteps
-from .summary import Ledger, RunResult, interrupted
+from .summary import Ledger, interrupted
 from .writers import Checkpointer, RunFiles, interrupted_attrs, run_attrs
 
 RUN_ACTIVITIES = ("run_file", "checkpointer", "log")  # the names ``run`` gives its own activities
@@ -115,18 +115,70 @@ def run_steps(core, control, last_day: float, activities: dict, observer, stop_s
     return stop
 
 
+def integrate(run, files, ckp, start, signals, blocks, during, *, progress, **how) -> Stop:
+    """The run wrapper of ``Simulation.run`` and ``Ensemble.run``: ``run`` (a
+    ``run_state.RunState``) stepped by ``blocks(signals, bar)`` (``run_steps``; a ``Stop``) with
+    its files (``writers.RunFiles``, ``Checkpointer``) under ``signals`` (a ``StopSignals``), one
+    BLAS thread, ``during`` (a context: the run's own activities) and a progress bar (and
+    ``how["lines"]``, a ``progress.ProgressLines``). The first output time recorded first
+    (``start`` its gathered fields, ``how["diagnosed"]`` their diagnostics where taken), a
+    continuation's not written again: the two files join without a repeat. A blow-up's line the
+    files' attribute ``how["why"]`` (default "blowup"), the last good state recorded where the run
+    has one (``how["last_good"]()``); a signal's step recorded, its ``interrupted_attrs`` and its
+    restart file. The files closed with ``how["closing"]()``'s attributes; on an exception
+    dropped, or closed with ``how["kept"](err)``'s (an ensemble's). Returns why the steps
+    stopped, a signal after the last step's check taken as one (the output is whole)."""
+    step, stop, lines, last = run.step, Stop(), how.get("lines"), how.get("last_good")
+    # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
+    # pay, and on a busy machine OpenBLAS's spinning threads made a norm cost 10 ms
+    with signals, threadpool_limits(limits=1, user_api="blas"):
+        try:
+            with during, compile_timer(how.get("compiling", [0.0])):
+                files.record(step, whole=start, final=True, write=not step, diagnosed=how.get("diagnosed"))
+                if lines is not None:
+                    lines.start(run.time, run.scene.days)
+                with progress_bar(step, run.scene.nsteps, progress) as bar:
+                    stop = blocks(signals, bar)
+                why = {how.get("why", "blowup"): stop.blowup}
+                if stop.blowup is not None and last is not None:  # ``step`` is the last good step again
+                    files.end(run.step, last(), **why)
+                elif stop.blowup is not None:
+                    files.set_attrs(**why)
+                elif stop.signum is not None:
+                    files.end(run.step, **interrupted_attrs(stop.signum, run.step, run.time))
+                    ckp.interrupted(run.step, abandoned=stop.abandoned is not None)
+                files.set_attrs(**how.get("closing", dict)())
+            files.close()  # under this run's handlers: a signal now waits, and is answered below
+        except BaseException as err:
+            if how.get("kept") is None:
+                files.abort()
+            else:
+                files.set_attrs(**how["kept"](err))
+                files.close()
+            raise
+    if stop.signum is None and stop.blowup is None:  # a signal after the last step's check: the output is whole
+        stop.signum = signals.asked() or None
+    return stop
+
+
+def outcome(stop: Stop, run, output, ckp: Checkpointer, result=None):
+    """``result`` of ``run`` (a ``run_state.RunState``), or ``BlowUp`` or ``Interrupted``
+    (``summary.interrupted``) raised with it."""
+    if stop.blowup is not None:
+        err = BlowUp(stop.blowup)
+        err.result = result
+        raise err
+    if stop.signum is not None:
+        raise interrupted(stop.signum, run.step, run.time, run.scene, output, ckp, stop.abandoned, result)
+    return result
+
+
 class Looping:
     """The steps of a ``Simulation``'s ``run`` (it is one), by its integrator (``core``), its
     activities between them, and how it stopped; ``_compile`` the seconds compiling Warp modules
     (``compile_timer``), ``_progress_lines`` a run's ``progress.ProgressLines`` (None: none)."""
 
     _progress_lines = None
-
-    def _watched(self, lines) -> None:
-        """Write the run's progress as ``lines`` (a ``progress.ProgressLines``, or None: none) from now on."""
-        self._progress_lines = lines
-        if lines is not None:
-            lines.start(self.time, self.scene.days)
 
     def _blocks(self, signals: StopSignals, ledger: Ledger, bar, until_step: int | None) -> Stop:
         """The run's steps to ``until_step`` (None: the scene's end) by ``run_steps`` under the
@@ -156,48 +208,6 @@ class Looping:
                 sim_days_per_s=f"{(self.time - self.scene.start_day) / max(self.counters['wall_time'], 1e-9):.3g}",
             )
 
-    def _stopped(self, stop: Stop, files: RunFiles, ckp: Checkpointer) -> None:
-        """Close the files of a run that stopped early: after a blow-up with the last good
-        state (``step`` is the last good step again), after a signal with the current one
-        and its restart file."""
-        if stop.blowup is not None:
-            files.end(self.step, self.last_good, blowup=stop.blowup)
-        elif stop.signum is not None:
-            files.end(self.step, **interrupted_attrs(stop.signum, self.step, self.time))
-            ckp.interrupted(self.step, abandoned=stop.abandoned is not None)
-
-    def _outcome(self, stop: Stop, result: RunResult, output, ckp: Checkpointer) -> RunResult:
-        """``result``, or ``BlowUp`` or ``Interrupted`` raised with it."""
-        if stop.blowup is not None:
-            err = BlowUp(stop.blowup)
-            err.result = result
-            raise err
-        if stop.signum is not None:
-            raise interrupted(stop.signum, self.step, self.time, self.scene, output, ckp, stop.abandoned, result)
-        return result
-
-    def _integrate(self, files, ckp, start, ledger, log, catch_signals, until_step) -> tuple:
-        """``Simulation.run``'s loop with its files (``RunFiles``, ``Checkpointer``) and signals:
-        its steps (``_blocks``); (why it stopped, ``Stop``; the ``StopSignals``). The files closed,
-        or dropped on an exception."""
-        stop = Stop()
-        # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
-        # pay, and on a busy machine OpenBLAS's spinning threads made a norm cost 10 ms
-        with StopSignals(self.topology, catch_signals) as signals, threadpool_limits(limits=1, user_api="blas"):
-            try:
-                with self._during_run(files, ckp, log), compile_timer(self._compile):
-                    # a continuation's first time is the last of the file it continues (where its
-                    # restart file was written): not written again, so the two files join without a repeat
-                    files.record(self.step, whole=start, final=True, write=not self.step)
-                    with progress_bar(self.step, self.scene.nsteps, self.progress) as bar:
-                        stop = self._blocks(signals, ledger, bar, until_step)
-                    self._stopped(stop, files, ckp)
-                files.close()  # under this run's handlers: a signal now waits, and is answered below
-            except BaseException:
-                files.abort()
-                raise
-        return stop, signals
-
     def _open(self, output, overwrite, restart_every, restart_file, compress, history, on_output, notify) -> tuple:
         """A run's run files and checkpointer (paths checked; the files created on rank 0),
         the start's gathered fields and its Courant numbers. ValueError for a user's
@@ -224,16 +234,29 @@ class Looping:
 
     @contextlib.contextmanager
     def _during_run(self, files: RunFiles, ckp: Checkpointer, log):
-        """The run's own activities in ``activities`` (the run file and checkpointer before
-        the user's, the log after), and the stepper's solver counters read with the
-        bad-state check (``Stepper.deferred``), while the loop runs."""
-        own = self.activities
-        self.activities = {"run_file": files, "checkpointer": ckp, **own}
-        if log is not None and self.scene.log_every_steps:
-            self.activities["log"] = Log(log, EverySteps(self.scene.log_every_steps), files)
+        """The run's own activities in ``activities`` (``own_activities``, the log after the
+        user's), and the stepper's solver counters read with the bad-state check
+        (``Stepper.deferred``), while the loop runs."""
+        more = (
+            {"log": Log(log, EverySteps(self.scene.log_every_steps), files)}
+            if log is not None and self.scene.log_every_steps
+            else {}
+        )
         self.stepper.deferred = True
         try:
-            yield
+            with own_activities(self, files, ckp, **more):
+                yield
         finally:
             self.stepper.deferred = False
-            self.activities = own
+
+
+@contextlib.contextmanager
+def own_activities(owner, files: RunFiles, ckp: Checkpointer, **more):
+    """A run's own activities in ``owner.activities`` (a ``Simulation``'s or an ``Ensemble``'s)
+    while its loop runs: the run file and checkpointer before the user's, ``more`` after."""
+    own = owner.activities
+    owner.activities = {"run_file": files, "checkpointer": ckp, **own, **more}
+    try:
+        yield
+    finally:
+        owner.activities = own

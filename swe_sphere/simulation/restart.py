@@ -14,14 +14,21 @@ from . import checkpoint as ckpt
 from .build import ON_ROOT
 
 
-def continued(checkpoint, days, stepper, dt, comm) -> tuple:
-    """What ``Simulation.from_checkpoint`` builds its simulation from: (the checkpoint read,
-    the scene, the constructor's ``start`` and ``initial_diagnostics``, and whether it continues
-    the file rather than branch from it: its stepper's history then restored, ``restore_history``)."""
+def continued(checkpoint, days, stepper=None, dt=None, comm=None, members: bool = False) -> tuple:
+    """What ``Simulation.from_checkpoint`` (and, ``members``, ``Ensemble.from_checkpoint``) builds
+    from: (the checkpoint read, the scene, the constructor's ``start`` and ``initial_diagnostics``,
+    and whether it continues the file rather than branch from it: its stepper's history then
+    restored, ``restore_history``). ``CheckpointError`` (one line) for a path that is not one, a
+    file ``checkpoint.read`` refuses, or one of the other kind (an ensemble's, a single run's)."""
     if not isinstance(checkpoint, ckpt.Checkpoint):
         path_argument("checkpoint", checkpoint, "a restart file's path (str or os.PathLike)", CheckpointError)
-    ck = checkpoint if isinstance(checkpoint, ckpt.Checkpoint) else ckpt.read_on_root(checkpoint, comm)
-    if ck.members is not None:
+    if isinstance(checkpoint, ckpt.Checkpoint):
+        ck = checkpoint
+    else:  # an ensemble's members' states on every rank (each steps its own)
+        ck = ckpt.read(checkpoint) if members else ckpt.read_on_root(checkpoint, comm)
+    if members and ck.members is None:
+        raise CheckpointError(f"{ck.path}: a single run's restart file (continue it with Simulation.from_checkpoint)")
+    if not members and ck.members is not None:
         raise ckpt.CheckpointError(
             f"{ck.path or 'the checkpoint'} is an ensemble's restart file ({ck.members} members): continue it "
             "with swe_sphere.Ensemble.from_checkpoint (swe-sphere run --continue does)"

@@ -24,12 +24,13 @@ from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
 from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, Interrupted, SceneError
 from ..core.graphs import default_mode, graphs_mode
+from ..core.interrupts import StopSignals
 from ..integrator import Integrator, Unit, core_property
 from .adaptive import StepControl
 from .build import ON_ROOT, Built, build
 from .checkpoint import Checkpoint
 from .drive import Driven
-from .loop import Looping, check_run_arguments, compile_timer
+from .loop import Looping, check_run_arguments, compile_timer, integrate, outcome
 from .restart import Restarts, continued
 from .run_state import RunState, run_property
 from .schedules import at_its_end
@@ -415,11 +416,12 @@ class Simulation(Driven, Restarts, Looping):
             output, overwrite, restart_every, restart_file, compress, history, on_output, notify
         )
         ledger = Ledger(self.counters, self.scene, self.step, notify if self.root else None)
-        self._watched(progress_lines)
-        stop, signals = self._integrate(files, ckp, start, ledger, log, catch_signals, until_step)
-        if stop.signum is None and stop.blowup is None:  # a signal after the last step's check: the output is whole
-            stop.signum = signals.asked() or None
+        self._progress_lines, signals = progress_lines, StopSignals(self.topology, catch_signals)
+        blocks = lambda signals, bar: self._blocks(signals, ledger, bar, until_step)  # noqa: E731
+        kw = {"lines": progress_lines, "compiling": self._compile, "last_good": lambda: self.last_good}
+        during = self._during_run(files, ckp, log)
+        stop = integrate(self.run_state, files, ckp, start, signals, blocks, during, progress=self.progress, **kw)
         result = ledger.result(
             self.step, files.history, courant, output, stop.blowup, ckp.written, self.setup_time, self._compile[0]
         )
-        return self._outcome(stop, result, output, ckp)
+        return outcome(stop, self.run_state, output, ckp, result)

@@ -32,9 +32,9 @@ from ..integrator import FixedDt, Integrator, Stop, core_property
 from ..io.run_file import area_rms, member_statistics
 from ..model.diagnostics import invariants
 from ..model.shallow_water import ShallowWater
-from ..simulation.activities import add_callback, call_due
+from ..simulation.activities import add_callback
 from ..simulation.build import check_memory
-from ..simulation.loop import integrate, outcome, own_activities, progressed, run_steps
+from ..simulation.loop import integrate, outcome, own_activities, run_observer, run_steps
 from ..simulation.restart import continued, restore_run, write_restart
 from ..simulation.run_state import RunState
 from ..simulation.schedules import EverySteps, at_its_end
@@ -46,7 +46,6 @@ from .initial import Perturbation, Variants, checked_states, described, initial_
 from .members import MemberGrid, member_part
 from .units import (
     POLICIES,
-    Members,
     blow_up_line,
     checked_scene,
     drop_line,
@@ -252,22 +251,16 @@ class Ensemble:
             raise ArgumentError("Ensemble.step takes steps of a fixed dt: under step control, advance(days) or run")
         self._stepped(self.step_count + n)
 
-    def _steps(self, stop_step: int, last_day=None, signals=None, after=None, notify=None) -> Stop:
+    def _steps(self, stop_step: int, last_day=None, signals=None, bar=None, lines=None, notify=None) -> Stop:
         """Steps to ``stop_step`` (under step control to the model day ``last_day``) by a run's
-        loop (``simulation.loop.run_steps``) under the ensemble's hooks (``units.Members``): the
-        activities due after each good step, then ``after(n, done)``; a stop ``signals`` asked
-        returned (``Stop``; with ``signals``, a run's blocks: ``Members.timed``; a blow-up's line
-        ``Stop.blowup``), ``notify(line)`` told a wall time estimated above a day
-        (``summary.Ledger``). ``StepFailure`` as ``step``'s."""
+        loop (``simulation.loop.run_steps``) under a run's hooks (``loop.run_observer``: the
+        activities due after each good step, the progress on ``bar`` and ``lines``; members
+        dropped, ``_drop``); a stop ``signals`` asked returned (``Stop``; with ``signals``, a
+        run's blocks: ``RunObserver.timed``; a blow-up's line ``Stop.blowup``), ``notify(line)``
+        told a wall time estimated above a day (``summary.Ledger``). ``StepFailure`` as ``step``'s."""
         ledger = Ledger(self.counters, self.scene, self.step_count, notify)
-        run = (self.step_count, CHECK_EVERY_STEPS, self.activities, self.counters, ledger)
-
-        def good(n: int, done: int) -> None:
-            call_due(self.activities, self.run_state, self)
-            if after is not None:
-                after(n, done)
-
-        observer = Members(run, stop_step, signals, good, self._drop, timed=signals is not None)
+        kw = {"timed": signals is not None, "dropped": self._drop}
+        observer = run_observer(self, ledger, stop_step, CHECK_EVERY_STEPS, signals, bar, lines, **kw)
         return run_steps(self.core, self.control, last_day, self.activities, observer, stop_step, self._bad)
 
     def _stepped(self, stop_step: int, last_day=None) -> None:
@@ -415,8 +408,8 @@ class Ensemble:
         signals = StopSignals(self.model.topology if self.comm is None else RankMax(self.comm), catch=True)
 
         def blocks(signals, bar) -> Stop:
-            after = lambda n, done: progressed(bar, done, progress_lines if self.root else None, n, self.day)  # noqa: E731
-            return self._steps(s.nsteps, s.days, signals, after, notify if self.root else None)
+            lines = progress_lines if self.root else None
+            return self._steps(s.nsteps, s.days, signals, bar, lines, notify if self.root else None)
 
         def dropped() -> dict:  # the members dropped (collective)
             drops = self.drops

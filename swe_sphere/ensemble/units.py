@@ -24,7 +24,6 @@ from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology
 from ..integrator import Unit
 from ..model.shallow_water import ShallowWater
-from ..simulation.guard import RunObserver
 from ..steppers import STEPPERS
 from .initial import Variants
 from .members import MemberGrid
@@ -134,27 +133,6 @@ def held_state(state: dict, nodes, prefix: str | None) -> dict:
     if prefix is None:
         return {**state, **arrays}
     return {**arrays, **{k[len(prefix) :]: v for k, v in state.items() if k.startswith(prefix)}}
-
-
-class Members(RunObserver):
-    """An ensemble's hooks on its integrator (``integrator.Integrator``): a run's
-    (``simulation.guard.RunObserver``: blocks ended where an activity is due, a stop asked between
-    blocks, the counts in its ledger), each (index, unit, first bad node) dropped told to
-    ``dropped(bad, step)``; a stop asked between blocks alone, and no step abandoned by a signal
-    (members stepped in turn are not put back a step)."""
-
-    def __init__(self, run: tuple, stop_step: int, signals, after, dropped, timed: bool = False):
-        super().__init__(run, stop_step, signals, after, timed=timed)  # ``timed``: ``Ensemble.run``'s
-        self._dropped = dropped
-
-    def stepping(self, on: bool) -> None:
-        pass
-
-    def within(self) -> int:
-        return 0  # between blocks alone: ranks holding one unit and more ask as often
-
-    def dropped(self, step: int, bad: list) -> None:
-        self._dropped(bad, step)
 
 
 def member_step(unit: Unit, j: int, watch: bool):

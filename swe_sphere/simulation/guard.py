@@ -29,12 +29,14 @@ class RunObserver(Observer):
     control's norm or Courant pass found it good (``StepControl.vouched``), not abandoned by a
     signal (a try's state is the control's). ``timed`` False: no first step alone and no steps
     the wall time is estimated from (an ensemble's ``step(n)`` and ``advance``: blocks as long as
-    they may be)."""
+    they may be). An ensemble's (``dropped`` given): each (index, unit, first bad node) dropped
+    told to ``dropped(bad, step)``, a stop asked between blocks alone and no step abandoned by a
+    signal (members stepped in turn are not put back a step)."""
 
-    def __init__(self, run: tuple, stop_step: int, signals=None, after=None, steered=None, timed: bool = True):
+    def __init__(self, run: tuple, stop_step: int, signals=None, after=None, timed: bool = True, dropped=None):
         self.first_step, every, self.activities, self.counters, self.ledger = run
-        self.stop_step, self.signals, self._after, self.steered = stop_step, signals, after, steered
-        self.every, self.timed = max(1, int(every)), timed
+        self.stop_step, self.signals, self._after, self.steered = stop_step, signals, after, None
+        self.every, self.timed, self._dropped = max(1, int(every)), timed, dropped
 
     def block_end(self, b: int) -> int:
         """The last step of the block that starts after step b: the next multiple of
@@ -56,8 +58,16 @@ class RunObserver(Observer):
     def vouched(self) -> bool:
         return self.steered is not None and self.steered.control.vouched()
 
+    def within(self) -> int:
+        return self.asked() if self._dropped is None else 0  # an ensemble's ranks may hold units unalike
+
+    def dropped(self, step: int, bad: list) -> None:
+        self._dropped(bad, step)
+
     def stepping(self, on: bool) -> None:
-        if self.signals is not None and self.steered is None:  # a step may be abandoned from here (``StopSignals``)
+        if (
+            self.signals is not None and self.steered is None and self._dropped is None
+        ):  # a step may be abandoned from here (``StopSignals``)
             self.signals.in_step = time.perf_counter() if on else None
 
     def add(self, stats) -> None:

@@ -1,9 +1,10 @@
-"""``Simulation.run``'s loop: its steps by the integrator (``integrator.Integrator``) under the
-run's hooks (``guard.RunObserver``), the activities due after each good step, the progress bar,
-a stopped run's files closed and its outcome (``Looping``, methods of a ``Simulation``, which is
-one); the run's arguments checked (``check_run_arguments``) and the seconds spent compiling Warp
-modules (``compile_timer``). The steps themselves (``run_steps``, at a fixed or a controlled Δt)
-and the progress (``progress_bar``, ``progressed``) are an ``Ensemble``'s too."""
+"""The run loop of ``Simulation.run`` and ``Ensemble.run`` alike: the run wrapper (``integrate``:
+its files recorded, signals, progress bar, a stopped run's files closed) and its outcome
+(``outcome``), its steps by the integrator (``run_steps``, at a fixed or a controlled Δt) under
+the run's hooks (``run_observer``, a ``guard.RunObserver``: the activities due after each good
+step, the progress), the run's own activities (``own_activities``); a ``Simulation``'s part
+(``Looping``, methods of a ``Simulation``, which is one), the run's arguments checked
+(``check_run_arguments``) and the seconds spent compiling Warp modules (``compile_timer``)."""
 
 from __future__ import annotations
 
@@ -77,14 +78,6 @@ def progress_bar(step: int, nsteps: int, progress: bool) -> tqdm:
     )
 
 
-def progressed(bar, done: int, lines, step: int, day: float) -> None:
-    """``done`` steps more to ``step`` (model ``day``) on the bar and, where given, ``lines``
-    (a ``progress.ProgressLines``: rank 0's)."""
-    bar.update(done)
-    if lines is not None:
-        lines.tick(step, day)
-
-
 def run_steps(core, control, last_day: float, activities: dict, observer, stop_step: int, describe) -> Stop:
     """The steps of a run (a ``Simulation``'s or an ``Ensemble``'s) by its integrator ``core`` to
     ``stop_step`` under ``observer`` (a ``guard.RunObserver``), each step's Δt its policy's: the
@@ -113,6 +106,28 @@ def run_steps(core, control, last_day: float, activities: dict, observer, stop_s
         if control is not None:
             core.rewind.put_back([], {}, False)
     return stop
+
+
+def run_observer(owner, ledger: Ledger, stop_step: int, every: int, signals=None, bar=None, lines=None, **kw):
+    """The ``guard.RunObserver`` of ``owner``'s steps to ``stop_step`` (a ``Simulation``'s or an
+    ``Ensemble``'s: its ``run_state`` and ``activities``; ``kw`` as ``RunObserver`` takes them),
+    its state read every ``every`` steps: after each good step the activities due there
+    (``call_due``) and the progress: on ``bar`` where given, and ``lines`` (a
+    ``progress.ProgressLines``, rank 0's) where given."""
+    run = owner.run_state
+
+    def after(n: int, done: int) -> None:
+        call_due(owner.activities, run, owner)
+        if bar is None:
+            return
+        bar.update(done)
+        if lines is not None:
+            lines.tick(n, run.time)
+        if n % 50 < done or n == run.scene.nsteps:  # a multiple of 50 in the steps done
+            speed = (run.time - run.scene.start_day) / max(run.counters["wall_time"], 1e-9)
+            bar.set_postfix(day=f"{run.time:.2f}", sim_days_per_s=f"{speed:.3g}")
+
+    return RunObserver((run.step, every, owner.activities, run.counters, ledger), stop_step, signals, after, **kw)
 
 
 def integrate(run, files, ckp, start, signals, blocks, during, *, progress, **how) -> Stop:
@@ -188,25 +203,14 @@ class Looping:
         if self.control is not None and until_step is not None:
             raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
         stop_step = self.scene.nsteps if until_step is None else until_step
-        run = (self.step, self.check_every, self.activities, self.counters, ledger)
-        observer = RunObserver(run, stop_step, signals, lambda n, done: self._after_steps(n, done, bar))
+        lines = self._progress_lines if self.root else None
+        observer = run_observer(self, ledger, stop_step, self.check_every, signals, bar, lines)
 
         def describe(bad: tuple) -> str:
             day = self.time if self.control is not None else self.scene.day(bad[0])
             return blowup_line(self.model, self.x, bad, day)
 
         return run_steps(self.core, self.control, self.scene.days, self.activities, observer, stop_step, describe)
-
-    def _after_steps(self, n: int, done: int, bar) -> None:
-        """Step n (the last of ``done`` steps) is good: the activities due there, the progress bar."""
-        self.step = n
-        call_due(self.activities, self.run_state, self)
-        progressed(bar, done, self._progress_lines if self.root else None, n, self.time)
-        if n % 50 < done or n == self.scene.nsteps:  # a multiple of 50 in the steps done
-            bar.set_postfix(
-                day=f"{self.time:.2f}",
-                sim_days_per_s=f"{(self.time - self.scene.start_day) / max(self.counters['wall_time'], 1e-9):.3g}",
-            )
 
     def _open(self, output, overwrite, restart_every, restart_file, compress, history, on_output, notify) -> tuple:
         """A run's run files and checkpointer (paths checked; the files created on rank 0),

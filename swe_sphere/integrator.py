@@ -129,6 +129,17 @@ class Observer:
         return False
 
 
+def trouble_line(model, x, bad: tuple, day: float, of: str = "") -> str:
+    """What went wrong in a checked step, ``bad`` = (step, trouble, detail) of a ``Stop``, at model
+    ``day`` (``of``: whose run, said after the time): where the state ``x`` (3, N) of ``model`` went
+    bad (detail [(unit index, unit, whole-grid node)]), or for a "failure" the solver's message
+    ``detail``; the same line on every rank (call on every rank): a run's and a gradient's."""
+    step, trouble, detail = bad
+    if trouble == "failure":
+        return f"step {step} failed (model time {day:.4f} days){of}: {detail}"
+    return f"blow-up at step {step} (model time {day:.4f} days){of}: {model.bad_nodes.describe(x, detail[0][2])}"
+
+
 def core_property(name: str, doc: str, unit: bool = False) -> property:
     """A driver's property (read and set) that is its integrator's (``self.core``) ``name``, or
     with ``unit`` its first unit's (a run's one unit)."""

@@ -19,7 +19,7 @@ from ..core.backend import Backend, pick_device
 from ..core.clock import StepTimes
 from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, StepFailure
-from ..integrator import FixedDt, Integrator, Observer, Rewind, Unit
+from ..integrator import FixedDt, Integrator, Observer, Rewind, Unit, trouble_line
 from ..model.shallow_water import ShallowWater
 from .costs import checked, run_cost
 from .disk import DiskTier
@@ -301,10 +301,7 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
             if trouble == "failure":
                 raise StepFailure(detail)
             t0, dt = clock(j - 1)
-            raise BlowUp(
-                f"blow-up at step {j} (model time {(t0 + j * dt) / DAY:.4f} days) of the "
-                f"gradient's run: {model.bad_nodes.describe(work, detail[0][2])}"
-            )
+            raise BlowUp(trouble_line(model, work, stop.bad, (t0 + j * dt) / DAY, " of the gradient's run"))
         verified[0] = max(verified[0], k + m)
         for a, held in [(work, x[X]), *carried(x)]:
             wp.copy(held, a)

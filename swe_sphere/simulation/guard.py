@@ -1,5 +1,6 @@
 """What a run adds to the integrator's guard (``integrator.Integrator``): where its blocks end,
-its signals, counts and activities (``RunObserver``), and a blow-up's line (``blowup_line``)."""
+its signals, counts and activities (``RunObserver``); a blow-up's line is the integrator's
+(``integrator.trouble_line``)."""
 
 from __future__ import annotations
 
@@ -85,14 +86,3 @@ class RunObserver(Observer):
 
     def put_back(self, kept) -> None:
         self.counters["rhs_evals"], self.counters["iterations"] = kept
-
-
-def blowup_line(model, x, bad: tuple, day: float) -> str:
-    """What went wrong in a checked step, ``bad`` = (step, trouble, detail) of an
-    ``integrator.Stop``, at model ``day``: where the state ``x`` (3, N) of ``model`` went bad
-    (detail [(unit index, unit, whole-grid node)]), or for a "failure" the solver's message
-    ``detail``; the same line on every rank (call on every rank)."""
-    step, trouble, detail = bad
-    if trouble == "failure":
-        return f"step {step} failed (model time {day:.4f} days): {detail}"
-    return f"blow-up at step {step} (model time {day:.4f} days): {model.bad_nodes.describe(x, detail[0][2])}"

@@ -18,11 +18,11 @@ from tqdm import tqdm
 from ..core.arguments import flag_argument, number_argument, path_argument
 from ..core.errors import BlowUp, OutputError, SceneError
 from ..core.interrupts import StopSignals
-from ..integrator import Stop
+from ..integrator import Stop, trouble_line
 from ..io.output_files import check_distinct, check_target
 from .activities import Log, call_due
 from .adaptive import Tries, steered
-from .guard import RunObserver, blowup_line
+from .guard import RunObserver
 from .schedules import EverySteps
 from .summary import Ledger, interrupted
 from .writers import Checkpointer, RunFiles, interrupted_attrs, run_attrs
@@ -208,7 +208,7 @@ class Looping:
 
         def describe(bad: tuple) -> str:
             day = self.time if self.control is not None else self.scene.day(bad[0])
-            return blowup_line(self.model, self.x, bad, day)
+            return trouble_line(self.model, self.x, bad, day)
 
         return run_steps(self.core, self.control, self.scene.days, self.activities, observer, stop_step, describe)
 

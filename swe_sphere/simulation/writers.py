@@ -83,20 +83,6 @@ def run_attrs(run, case, dfi, device: str, ranks: int, history: str | None, cour
     }
 
 
-def open_writer(
-    path, scene, grid, hs, attrs: dict, series, fields, *, overwrite: bool, compress: bool, notify=None, **members
-):
-    """The ``RunWriter`` of a run file of ``scene`` at ``path`` (``fields``, the per-time ``series``;
-    ``members``: an ensemble's ``members`` and ``member_series``), its cells the scene's; what they
-    cost told to ``notify(line)`` (``RunWriter.cells_notes``; None: not told). ``OutputError`` as
-    ``RunWriter``'s."""
-    kw = {"overwrite": overwrite, "compress": compress, "fields": fields, "cells": scene.output_cells}
-    writer = RunWriter(path, grid, hs, attrs, series, **kw, **members)
-    for line in writer.cells_notes(scene.grid_text) if notify is not None else ():
-        notify(line)
-    return writer
-
-
 def run_streams(output, scene, controlled: bool) -> list:
     """The run files of a run of ``scene`` to ``output`` (None: none), each (path, fields, marks):
     the run file itself with the scene's ``output.fields``, then each ``[[output.streams]]``
@@ -111,57 +97,61 @@ def run_streams(output, scene, controlled: bool) -> list:
     return [(Path(output), scene.output_fields or OUTPUT_FIELDS, marks(scene)), *own]
 
 
-class StreamFiles:
-    """The run files of a run of ``scene`` to ``output`` (``run_streams``; without ``output``
-    none), of ``grid`` with surface height ``hs`` and the per-time ``series``: rank 0's
-    ``RunWriter`` s (``open``), the step each wrote last (on every rank), their output times
-    together (``steps``, and as the ``schedule`` of an activity; without ``output`` the scene's,
-    where a run still takes its diagnostics) and whether any holds the divergence. A run's
-    (``RunFiles``) and an ensemble's (``Ensemble.run``: the members along the member axis)."""
+class RunFiles:
+    """The run files of a run (its ``run_state.RunState`` ``run``, its ``diagnostics``, ``grid`` and
+    ``hs``) to ``output`` (``run_streams``: itself with the scene's ``output.fields``, then each
+    ``[[output.streams]]``, each at its own output times, under step control with the
+    control's ``CONTROL_SERIES``); without ``output`` none, the diagnostics still taken at the
+    scene's output steps. Rank 0's ``RunWriter`` s (``open``), the step each wrote last (on every
+    rank), their output times together (``steps``, and as the ``schedule`` of an activity) and
+    whether any holds the divergence. ``record`` diagnoses an output step on every rank (into
+    ``history``; ``on_output(step, x)`` is called with the (3, N) device state) and rank 0
+    appends it to the files. An activity (``activities``): ``files(owner)`` records the run's step
+    at the steps of ``schedule``. An ensemble's (``Ensemble.run``): ``diagnostics`` the
+    ``Ensemble`` (its ``gather_fields`` and ``diagnose`` over the member axis), ``series`` its
+    per-time series and ``member_series`` those of each member (time, member), the members along
+    the member axis."""
 
-    def __init__(self, scene, output, controlled: bool, grid, hs, series):
-        self.scene, self.grid, self.hs, self.series = scene, grid, hs, list(series)
-        self.streams = run_streams(output, scene, controlled)
+    def __init__(self, run, diagnostics, grid, hs, output: Path | None, on_output=None, series=None, member_series=()):
+        controlled = run.control is not None
+        if series is None:  # a run's
+            series = [
+                "steps",
+                "rhs_evals",
+                *(f"{k}_iterations" for k in run.stepper.solvers),
+                "wall_time",
+                *run.initial.keys(),
+                *(CONTROL_SERIES if controlled else ()),
+            ]
+        self.scene, self.grid, self.hs, self.series = run.scene, grid, hs, list(series)
+        self.streams = run_streams(output, run.scene, controlled)
         self.paths = [path for path, _, _ in self.streams]
         marks = output_days if controlled else output_steps
-        self.steps = set().union(*(steps for _, _, steps in self.streams)) if self.streams else marks(scene)
+        self.steps = set().union(*(steps for _, _, steps in self.streams)) if self.streams else marks(run.scene)
         self.schedule = AtDays.of(self.steps) if controlled else AtSteps.of(self.steps)
         self.divergence = any("divergence" in fields for _, fields, _ in self.streams)
         self.writers = [None] * len(self.streams)  # rank 0's RunWriters, one a stream
         self.last = [None] * len(self.streams)  # the step each run file wrote last (on every rank)
+        self.run, self.diagnostics, self.member_series = run, diagnostics, tuple(member_series)
+        self.on_output, self.history = on_output, []
 
     def open(self, attrs: dict, *, overwrite: bool, compress: bool, notify=None, **members) -> None:
         """Create the files (rank 0) with the global attributes ``attrs`` (``members``: an
-        ensemble's ``members`` and ``member_series``, ``open_writer``'s); on failure none is left.
-        ``notify(line)``: told in one line when the run file's cells were built rather than
-        read from the cache at some cost, or when their fit failed and the files were written
-        without them (``RunWriter.cells_notes``)."""
+        ensemble's ``members`` and ``member_series``, as ``RunWriter`` takes them), their cells the
+        scene's; on failure none is left (``OutputError`` as ``RunWriter``'s). ``notify(line)``:
+        told in one line when the run file's cells were built rather than read from the cache at
+        some cost, or when their fit failed and the files were written without them
+        (``RunWriter.cells_notes``; the run file's, not its streams')."""
+        s = self.scene
         try:
-            for i, (path, fields, _) in enumerate(self.streams):  # the run file's cells told, not its streams'
-                kw = {"overwrite": overwrite, "compress": compress, "notify": notify if i == 0 else None}
-                self.writers[i] = open_writer(
-                    path, self.scene, self.grid, self.hs, attrs, self.series, fields, **kw, **members
-                )
+            for i, (path, fields, _) in enumerate(self.streams):
+                kw = {"overwrite": overwrite, "compress": compress, "fields": fields, "cells": s.output_cells}
+                self.writers[i] = RunWriter(path, self.grid, self.hs, attrs, self.series, **kw, **members)
+                for line in self.writers[i].cells_notes(s.grid_text) if notify is not None and i == 0 else ():
+                    notify(line)
         except BaseException:
             self.abort()
             raise
-
-    def due(self, run, step: int, final: bool = False) -> list[int]:
-        """The files (indices) that take ``step`` (``run``'s, a ``run_state.RunState``), marked as
-        written: those whose times hold it (``final``: every one) and that have not written it."""
-        due = [
-            i for i, (_, _, at) in enumerate(self.streams) if (final or _holds(run, at, step)) and self.last[i] != step
-        ]
-        for i in due:
-            self.last[i] = step
-        return due
-
-    def append(self, due: list[int], day: float, u, v, h, series: dict, vorticity=None, divergence=None) -> None:
-        """Append an output time (model ``day``; the fields (ncol) of a run, (members, ncol) of
-        an ensemble) to the files ``due`` (``due``) that rank 0 holds."""
-        for i in due:
-            if self.writers[i] is not None:
-                self.writers[i].append(day, u, v, h, series, vorticity=vorticity, divergence=divergence)
 
     def _each(self, verb: str, **kw) -> None:
         """``RunWriter.<verb>(**kw)`` of every file rank 0 holds."""
@@ -178,33 +168,6 @@ class StreamFiles:
     def abort(self) -> None:
         """Drop the files (a failed run)."""
         self._each("abort")
-
-
-class RunFiles(StreamFiles):
-    """The run files of a run (its ``run_state.RunState`` ``run``, its ``diagnostics``, ``grid`` and
-    ``hs``) to ``output`` (``StreamFiles``: itself with the scene's ``output.fields``, then each
-    ``[[output.streams]]``, each at its own output times, under step control with the
-    control's ``CONTROL_SERIES``); without ``output`` none, the diagnostics still taken at the
-    scene's output steps. ``record`` diagnoses an output step on every rank (into ``history``;
-    ``on_output(step, x)`` is called with the (3, N) device state) and rank 0 appends it to the
-    files. An activity (``activities``): ``files(owner)`` records the run's step at the steps of
-    ``schedule``. An ensemble's (``Ensemble.run``): ``diagnostics`` the ``Ensemble`` (its
-    ``gather_fields`` and ``diagnose`` over the member axis), ``series`` its per-time series and
-    ``member_series`` those of each member (time, member)."""
-
-    def __init__(self, run, diagnostics, grid, hs, output: Path | None, on_output=None, series=None, member_series=()):
-        if series is None:  # a run's
-            series = [
-                "steps",
-                "rhs_evals",
-                *(f"{k}_iterations" for k in run.stepper.solvers),
-                "wall_time",
-                *run.initial.keys(),
-                *(CONTROL_SERIES if run.control is not None else ()),
-            ]
-        super().__init__(run.scene, output, run.control is not None, grid, hs, series)
-        self.run, self.diagnostics, self.member_series = run, diagnostics, tuple(member_series)
-        self.on_output, self.history = on_output, []
 
     def record(self, step: int, x=None, whole=None, final: bool = False, write: bool = True, diagnosed=None) -> None:
         """Diagnose ``step`` (state x, default the current one; ``whole`` its gathered
@@ -225,11 +188,17 @@ class RunFiles(StreamFiles):
         self.history.append(d)
         if self.on_output is not None:
             self.on_output(step, run.x if x is None else x)
-        due = self.due(run, step, final) if write else []
-        series = {
-            k: d[k] for k in (*self.series, *self.member_series)
-        }  # rank 0 writes the fields DSS'd, element-local, s-1
-        self.append(due, day, whole.u, whole.v, whole.h, series, whole.vorticity, whole.divergence)
+        # the files whose times hold it (``final``: every one) and that have not written it, marked as written
+        due = [
+            i for i, (_, _, at) in enumerate(self.streams) if (final or _holds(run, at, step)) and self.last[i] != step
+        ]
+        series = {k: d[k] for k in (*self.series, *self.member_series)}
+        for i in due if write else ():  # rank 0 writes the fields DSS'd, element-local, s-1
+            self.last[i] = step
+            if self.writers[i] is not None:
+                self.writers[i].append(
+                    day, whole.u, whole.v, whole.h, series, vorticity=whole.vorticity, divergence=whole.divergence
+                )
 
     def __call__(self, owner) -> None:
         self.record(self.run.step)

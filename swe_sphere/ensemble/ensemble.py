@@ -202,8 +202,8 @@ class Ensemble:
         drop = blow_up == "drop"
         self.core = Integrator(self.units, FixedDt(member_step), anywhere=self._anywhere, drop=drop, lone=False)
         self._out = self.core.out  # dropped units: {unit index: the step it blew up at}
-        self.counters = {"rhs_evals": 0, "wall_time": 0.0, "cpu_time": 0.0, "iterations": {}}  # as a run's
-        self.run_state = RunState(self.core, scene, self.control, counters=self.counters)  # what activities read
+        self.run_state = RunState(self.core, scene, self.control)  # what activities read; its counters a run's
+        self.counters = self.run_state.counters
         self.activities: dict = {}  # name -> activity (``simulation.activities``): ``add_callback``'s; ``run``'s own
         self._options, self._scorer = options, None
 

@@ -18,13 +18,15 @@ class RunState:
     state and stepper), ``scene`` the scene it runs (replaced by a fitted Δt or a lengthened run),
     ``control`` its step control (``adaptive.StepControl``; None at a fixed Δt), ``initial`` its
     t = 0 diagnostics (relative changes are taken against them), ``counters`` its RHS evaluations,
-    wall and CPU seconds and solver iterations."""
+    wall and CPU seconds and solver iterations (by name), from zero."""
 
     core: Integrator
     scene: Scene
     control: object = None
     initial: dict | None = None
-    counters: dict = field(default_factory=dict)
+    counters: dict = field(
+        default_factory=lambda: {"rhs_evals": 0, "wall_time": 0.0, "cpu_time": 0.0, "iterations": {}}
+    )
 
     @property
     def step(self) -> int:

@@ -191,12 +191,7 @@ class Simulation(Driven, Restarts, Looping):
             self.control = (
                 None if scene.control is None else StepControl(scene.control, self.core.units[0], scene.start_day)
             )
-            self.counters = {
-                "rhs_evals": 0,
-                "wall_time": 0.0,
-                "cpu_time": 0.0,
-                "iterations": {k: 0 for k in self.stepper.solvers},
-            }
+            self.counters["iterations"].update(dict.fromkeys(self.stepper.solvers, 0))
         self.setup_time = time.perf_counter() - t0
         if inputs:
             self.inputs = inputs

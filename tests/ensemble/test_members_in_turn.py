@@ -189,3 +189,21 @@ def test_a_member_that_blows_up_is_dropped_and_the_others_go_on(tmp_path):
         Ensemble("tc2_steady", 3, good, blow_up="drop", layout="shared", **kw)
     with pytest.raises(ValueError, match=r"^blow_up must be one of 'stop', 'drop' \(got 'skip', a str\)$"):
         Ensemble("tc2_steady", 3, good, blow_up="skip", **kw)
+
+
+def test_a_drop_run_stopped_when_none_is_left_keeps_its_dropped_members(tmp_path):
+    """``blow_up="drop"`` with every member blowing up in turn: the run stops at the last one
+    (``BlowUp``, "none left"), its file closed through the run's wrapper (``simulation.loop.integrate``)
+    with every good output time, why it stopped (``stopped``) and the member dropped before
+    (``dropped_members``), as a file that ran to its end names them."""
+    kw = {"device": "cpu", "ne": 2, "np": 4, "stepper": "rk4", "dt": 1800.0, "days": 5.0}
+    bad = Ensemble("tc2_steady", 2, **kw).states()
+    bad[0, :2] *= 8  # unstable within a few steps
+    bad[1, :2] *= 4  # within a few days
+    ens = Ensemble("tc2_steady", 2, bad, blow_up="drop", **kw)
+    with pytest.raises(BlowUp, match=r"^member 1 of 2 blew up at step \d+ .*none left\)$"):
+        ens.run(tmp_path / "e.nc")
+    with xr.open_dataset(tmp_path / "e.nc", decode_times=False) as ds:
+        assert ds.attrs["stopped"].startswith("member 1 of 2 blew up")
+        assert ds.attrs["dropped_members"].startswith(f"member 0 of 2 blew up at step {ens.dropped[0]} ")
+        assert np.isfinite(ds.h.isel(member=1)).all() and ds.time.size >= 2

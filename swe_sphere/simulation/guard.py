@@ -11,8 +11,8 @@ from .schedules import next_multiple
 
 
 class RunObserver(Observer):
-    """A run's hooks on its integrator (``Simulation.core``; an ensemble's, ``ensemble.units.Members``),
-    to ``stop_step``.
+    """A run's hooks on its integrator (``Simulation.core``, ``Ensemble.core``; made by
+    ``loop.run_observer``), to ``stop_step``.
 
     The state is flagged on the device after every step (``ShallowWater.watch``) and the flag
     read back once a block of steps (``block_end``: every ``check_every`` steps and at every step

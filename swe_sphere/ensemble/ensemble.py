@@ -34,7 +34,15 @@ from ..model.diagnostics import invariants
 from ..model.shallow_water import ShallowWater
 from ..simulation.activities import add_callback
 from ..simulation.build import check_memory
-from ..simulation.loop import integrate, outcome, own_activities, run_observer, run_steps
+from ..simulation.loop import (
+    check_run_arguments,
+    check_run_files,
+    integrate,
+    outcome,
+    own_activities,
+    run_observer,
+    run_steps,
+)
 from ..simulation.restart import continued, restore_run, write_restart
 from ..simulation.run_state import RunState
 from ..simulation.schedules import EverySteps, at_its_end
@@ -104,6 +112,8 @@ class Ensemble:
     Attributes
     ----------
     scene, members, dt : the resolved ``Scene``, N, Δt (s).
+    inputs : tuple of Path, the files the scene was read from (its file, a mesh's, a start's):
+        ``run`` writes over none of them.
     held : int array, the members this rank steps (all on one rank); root : whether it is rank 0.
     grid : the one ``CubedSphere``; copies : the ``MemberGrid`` of the held members' copies
         (None in turn: nothing steps on them).
@@ -144,7 +154,7 @@ class Ensemble:
         blow_up="stop",
         **overrides,
     ):
-        scene, _ = resolve_scene(scene, overrides)
+        scene, self.inputs = resolve_scene(scene, overrides)
         if members is None and scene.ensemble is None:
             raise ArgumentError("members must be given, or the scene name them ([ensemble] members)")
         members = integer_argument("members", scene.ensemble["members"] if members is None else members, 1)
@@ -371,13 +381,17 @@ class Ensemble:
         or a signal (``Interrupted``, after a block of steps: the step reached written, and its
         restart file) closes the run files with every good output time (its attribute ``stopped``
         says why; a signal's ``interrupted*``, as a run's) and raises; members dropped go as NaN, their lines in ``dropped_members``.
-        ``OutputError`` for a path that may not be written (``overwrite``: replace it); ``ArgumentError``
+        ``OutputError`` for a path that may not be written (``overwrite``: replace it) or that is one of
+        ``inputs``, ``OutputError`` and ``SceneError`` naming an argument of another kind
+        (``simulation.loop.check_run_arguments``), ValueError for an activity under a run's own
+        name (``run_file``, ``checkpointer``); ``ArgumentError``
         at the run's end (``advance`` past it); ``SceneError`` for a restart interval that is not whole
         steps; ``compress``: the fields as float32 with zlib; ``progress``: a bar on stderr where it is a
         terminal; ``notify(line)``: told what the run file's cells cost or that they were left out
         (``RunWriter.cells_notes``); ``progress_lines``: a ``simulation.progress.ProgressLines``
         (rank 0's lines of progress). Returns the run file's path."""
         s = self.scene
+        check_run_arguments(output, overwrite, restart_every, None, compress, True)
         if self.day >= s.days:
             raise ArgumentError(at_its_end("Ensemble", self.step_count, s))  # a file of no time
         # the restart files as a run's (``writers.Checkpointer``), those at its interval written over an older one
@@ -399,6 +413,7 @@ class Ensemble:
         files = RunFiles(
             self.run_state, self, self.grid, self._member(self._hs, 0), output, series=("steps", "wall_time")
         )
+        check_run_files(self, files, ckp, rewrite)
         start = self.gather_fields(divergence=files.divergence)  # the first output's fields and figures (collective)
         first = self.diagnose(self.run_state.seconds(self.step_count), whole=start)
         files.member_series = tuple(first)  # the invariants and the errors the case has

@@ -216,18 +216,12 @@ class Looping:
         """A run's run files and checkpointer (paths checked; the files created on rank 0),
         the start's gathered fields and its Courant numbers. ValueError for a user's
         activity under a name the run gives its own."""
-        taken = sorted(set(self.activities) & set(RUN_ACTIVITIES))
-        if taken:
-            raise ValueError(f"activities {', '.join(taken)}: a run's own names (choose another)")
         run = self.run_state
         ckp = Checkpointer(
             run, self.write_checkpoint, self.topology.bcast, self.root, output, restart_every, restart_file, overwrite
         )
         files = RunFiles(run, self.diagnostics, self.grid, self.hs, output, on_output)
-        if self.root:
-            check_distinct([output, ckp.path, *files.paths], self.inputs)
-            if ckp.path is not None:
-                check_target(ckp.path, overwrite)
+        check_run_files(self, files, ckp, overwrite)
         with compile_timer(self._compile):  # a continuation's first use of the diagnostic kernels
             start = self.diagnostics.gather_fields(divergence=files.divergence)  # the first output time's, every rank
         courant = self.courant(start)
@@ -252,6 +246,20 @@ class Looping:
                 yield
         finally:
             self.stepper.deferred = False
+
+
+def check_run_files(owner, files: RunFiles, ckp: Checkpointer, overwrite: bool) -> None:
+    """A run's files checked before any is opened (``owner`` a ``Simulation`` or an ``Ensemble``):
+    ValueError for a user's activity under a name the run gives its own (``RUN_ACTIVITIES``); on
+    rank 0 ``OutputError`` for a file of the run that is one of ``owner.inputs`` (``check_distinct``:
+    the scene file, a mesh, a start) or a restart file that exists and not ``overwrite``."""
+    taken = sorted(set(owner.activities) & set(RUN_ACTIVITIES))
+    if taken:
+        raise ValueError(f"activities {', '.join(taken)}: a run's own names (choose another)")
+    if owner.root:
+        check_distinct([ckp.path, *files.paths], owner.inputs)  # the paths: the run file and its streams
+        if ckp.path is not None:
+            check_target(ckp.path, overwrite)
 
 
 @contextlib.contextmanager

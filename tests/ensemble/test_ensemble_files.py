@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 import swe_sphere
-from swe_sphere.core.errors import BlowUp, CheckpointError, Interrupted, SceneError
+from swe_sphere.core.errors import BlowUp, CheckpointError, Interrupted, OutputError, SceneError
 from swe_sphere.ensemble import Ensemble, Perturbation
 from swe_sphere.simulation.simulation import Simulation
 
-from helpers import cli_main, write_tc2_scene
+from helpers import cli_main, digest, write_tc2_scene
 
 SMALL = {"ne": 2, "np": 4, "dt": 900.0, "days": 0.5, "output.every_days": 0.25}
 
@@ -426,3 +426,23 @@ def test_a_scene_s_ensemble_table_runs_its_ensemble(capsys, tmp_path):
     ]:
         code, _, err = cli_main(capsys, *run, *(w for v in sets for w in ("-s", v)), "--output", tmp_path / "c.nc")
         assert code == 2 and says in err and not (tmp_path / "c.nc").exists()
+
+
+def test_a_run_refuses_what_would_replace_its_inputs_or_its_own_names(tmp_path):
+    """As a run's (``simulation.loop.check_run_files``): an output that is the scene file, even
+    with ``overwrite``, is refused in one line and the file is left as it was; an activity under a
+    run's own name is refused; an argument of another kind is named; nothing is written."""
+    scene = write_tc2_scene(tmp_path / "tc2.toml", days=0.5)
+    before = digest(scene)
+    ens = Ensemble(scene, 2, device="cpu", ne=2)
+    with pytest.raises(OutputError, match=r"^the output .*tc2.toml is the input .*tc2.toml; writing it would"):
+        ens.run(scene, overwrite=True)
+    assert digest(scene) == before
+    ens.add_callback(lambda e: None, every_steps=1)
+    ens.activities["checkpointer"] = ens.activities.pop(next(iter(ens.activities)))
+    with pytest.raises(ValueError, match=r"^activities checkpointer: a run's own names \(choose another\)$"):
+        ens.run(tmp_path / "ens.nc")
+    del ens.activities["checkpointer"]
+    with pytest.raises(SceneError, match=r"^compress must be"):
+        ens.run(tmp_path / "ens.nc", compress="yes")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["tc2.toml"] and ens.step_count == 0

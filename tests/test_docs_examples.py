@@ -104,7 +104,8 @@ def programs(path: Path, inline: bool = True) -> list[list[str]]:
     earlier Python blocks (the page reads as one session; its runs are not made twice). Plain
     ``swe-sphere`` commands (``plain_words``) and Python blocks one after another (in a block, or
     blocks and inline commands in a row) run in one process (``docs_shortening.run_each``: each
-    block in a namespace of its own); a shell block that is more than plain commands runs between."""
+    block in a namespace of its own; ``a && b`` two commands, b after a, each ending the row where
+    it fails); a shell block that is more than plain commands runs between."""
     out, imports, row = [], [], []  # row: (the program of an item alone, the item for run_each)
 
     def flush():  # the items in a row: one process for two or more
@@ -124,9 +125,10 @@ def programs(path: Path, inline: bool = True) -> list[list[str]]:
         lines = [
             command for line in text.replace("\\\n", " ").splitlines() if (command := shell_line(line)) is not None
         ]
-        words = [plain_words(line) for line in lines]
-        if lines and None not in words:
-            row.extend((["bash", "-c", f"set -e\n{line}"], w) for line, w in zip(lines, words))
+        commands = [command.strip() for line in lines for command in line.split("&&")]  # a && b: a, then b
+        words = [plain_words(command) for command in commands]
+        if commands and None not in words:
+            row.extend((["bash", "-c", f"set -e\n{command}"], w) for command, w in zip(commands, words))
         elif lines:
             flush()
             out.append(["bash", "-c", "\n".join(["set -e", *lines])])
@@ -283,7 +285,7 @@ def test_plain_commands_and_python_blocks_in_a_row_run_in_one_process(tmp_path):
     with anything else the shell reads runs in bash between, and so does a plain command alone."""
     page = tmp_path / "page.md"
     page.write_text(
-        "```bash\nswe-sphere run tc5_mountain --output 'a b.nc'\nswe-sphere plot \"a b.nc\" --day 5  # a map\n"
+        "```bash\nswe-sphere run tc5_mountain --output 'a b.nc' && swe-sphere plot \"a b.nc\" --day 5  # a map\n"
         "# the same for galewsky\n```\nthen `swe-sphere plot o.nc --day 1`.\n"
         "```python\nimport swe_sphere\nx = 1\n```\n"
         "```bash\nswe-sphere run tc2_steady --output o.nc\nswe-sphere plot o.nc > o.txt\n```\n"

@@ -15,7 +15,8 @@ What changes, and why it keeps the pages' order meaningful:
 - A default file name in any argument (``…_ne8np4_ssprk3.nc``) says the shortened grid.
 - A sweep makes one run: the first of ``--runs``, or the first of ``--steppers`` at the
   first of ``--courant`` (``--dt``); ``stability`` bisects the first of ``--steppers`` on
-  the first of its cases (each case's bisection is the same code on another scene), into the
+  the first of its cases of the fewest GLL points (each case's bisection is the same code on
+  another scene; Galewsky's np 8 cost twice TC6's np 4, reference.md's ark324), into the
   folder the whole suite writes by default (``stability_<cases>_ne<N>``);
   ``--workers`` is dropped (each worker process imports the model again, which costs
   more than a tiny run).
@@ -70,6 +71,18 @@ def scene_ne(scene: str) -> int:
         return COARSE_NE
 
 
+def scene_np(case: str) -> int:
+    """The np of a stability case's scene (the case's name; 8, the largest, where it names none:
+    the real command then runs it or says why in one line)."""
+    from swe_sphere.config.scene import load_scene
+    from swe_sphere.core.errors import SweSphereError
+
+    try:
+        return load_scene(case).np
+    except SweSphereError:
+        return 8
+
+
 KEPT = {  # per command: option → how many of its comma-separated values stay
     "sweep": {"--runs": 1, "--steppers": 1, "--courant": 1, "--dt": 1},
     "stability": {"--steppers": 1},
@@ -96,6 +109,9 @@ def shorten(argv: list[str]) -> list[str]:
     cases = []
     if command == "stability":  # its first case: the cases are the arguments before the first option
         cases = args[: next((i for i, a in enumerate(args) if a.startswith("-")), len(args))]
+        if "--np" not in args[:-1]:  # the cases' own np: the first of the fewest points
+            cases_np = [scene_np(case) for case in cases]
+            args[0] = cases[cases_np.index(min(cases_np))]
         del args[1 : len(cases)]
     for option, n in KEPT.get(command, {}).items():
         if option in args[:-1]:

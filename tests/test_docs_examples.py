@@ -190,6 +190,12 @@ def test_a_page_grids_stay_apart():
             "stability_tc5_mountain_galewsky_ne2",
         )
     ]
+    ark = ["stability", "galewsky", "tc6_rossby_haurwitz", "tc5_mountain", "--steppers", "ark324,imex"]
+    assert shorten(ark) == [  # Galewsky's np 8 left for TC6's np 4
+        *("stability", "tc6_rossby_haurwitz", "--steppers", "ark324", "--ne", "2"),
+        *("--output", "stability_galewsky_tc6_rossby_haurwitz_tc5_mountain_ne2"),
+    ]
+    assert shorten([*ark, "--np", "3"])[1] == "galewsky"  # every case at one np: the first
     file_grids = (["run", "--continue", "r.restart.nc", "--days", "20"], ["run", "tc2_steady", "--mesh", "x.g"])
     for argv in (*file_grids, ["run", "tc2_steady", "-s", "grid.ne=0", "-s", 'grid.mesh_file="/m/x.g"']):
         assert shorten(argv) == argv

@@ -19,7 +19,9 @@ What changes, and why it keeps the pages' order meaningful:
   another scene; Galewsky's np 8 cost twice TC6's np 4, reference.md's ark324), into the
   folder the whole suite writes by default (``stability_<cases>_ne<N>``);
   ``--workers`` is dropped (each worker process imports the model again, which costs
-  more than a tiny run).
+  more than a tiny run); a sweep over N perturbed members (``--members N --perturbation M``)
+  sweeps two (each member's sweep is the same code from another start, and two make
+  members.csv's spread; reference.md's four cost 7 s).
 - A frontier keeps the first of its ``--ne`` (shortened as a run's) and ``--steppers`` and two of
   its ``--np`` (each grid is a sweep of its own: docs/efficiency/frontier.md's ladders at ne 12–24 and np
   7–8 ran for over 15 minutes at their own grids).
@@ -113,6 +115,9 @@ def shorten(argv: list[str]) -> list[str]:
             cases_np = [scene_np(case) for case in cases]
             args[0] = cases[cases_np.index(min(cases_np))]
         del args[1 : len(cases)]
+    if command == "sweep" and "--perturbation" in args and "--members" in args[:-1]:
+        i = args.index("--members") + 1
+        args[i] = str(min(int(args[i]), 2)) if args[i].isdigit() else args[i]
     for option, n in KEPT.get(command, {}).items():
         if option in args[:-1]:
             i = args.index(option) + 1

@@ -235,6 +235,10 @@ def test_a_sweep_makes_one_run_in_one_process():
         "600,900",
     ]
     assert shorten(steppers)[4:] == ["--steppers", "rk4", "--courant", "0.5", "--dt", "2400.0"]
+    members = ["sweep", "tc2_steady", "--ne", "4", "--members", "4", "--perturbation", "1", "--output", "m"]
+    assert shorten(members)[4:6] == ["--members", "2"]
+    varied = ["sweep", "tc2_steady", "--members", "3", "--vary", "case.h0=1,2,3"]  # a value a member: all three
+    assert shorten(varied)[:6] == varied
     frontier = ["frontier", "tc2_steady", "--ne", "2,4", "--np", "3,4,6", "--steppers", "rk4,kgu35", "--days", "1"]
     assert shorten(frontier) == [*frontier[:3], "2", "--np", "3,4", "--steppers", "rk4", "--days", "1"]
     assert shorten(["frontier", "galewsky", "--ne", "16", "--np", "7,8"]) == [

@@ -6,30 +6,12 @@ CI runs ``lint-imports`` too; this test makes ``python -m pytest`` alone catch a
 from __future__ import annotations
 
 import ast
-import functools
 import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
 REPO = Path(__file__).resolve().parents[1]
 LINT = "import sys; from importlinter.cli import lint_imports; sys.exit(lint_imports(no_cache=True, no_logo=True))"
-
-
-@functools.cache
-def nodes(source: str) -> tuple[ast.AST, ...]:
-    """Every node of ``source``'s syntax tree, in ``ast.walk``'s order: parsed and walked once
-    in this module, whose tests read the same files again and again (the suite's twice, the
-    package's in four tests: 1.9 s of CPU to parse them all once, 2026-11-28)."""
-    return tuple(ast.walk(ast.parse(source)))
-
-
-@pytest.fixture(autouse=True, scope="module")
-def parsed_once():
-    """The trees ``nodes`` keeps (120 MB) last this module's tests, not the worker's session."""
-    yield
-    nodes.cache_clear()
 
 
 def test_every_import_points_down_and_none_closes_a_circle():
@@ -90,7 +72,7 @@ def private_reaches(source: str) -> list[tuple[int, str]]:
         return None
 
     found = []
-    for node in nodes(source):
+    for node in ast.walk(ast.parse(source)):
         if isinstance(node, ast.Attribute) and private(node.attr):
             if not own(node.value):
                 found.append((node.lineno, ast.unparse(node)))
@@ -118,7 +100,7 @@ def private_names(files) -> set[str]:
     """The private names ``files`` define: functions, classes, assigned names and attributes."""
     names = set()
     for path in files:
-        for node in nodes(path.read_text()):
+        for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
                 names.add(node.name)
             elif isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store):
@@ -131,11 +113,11 @@ def private_names(files) -> set[str]:
 def named_in_strings(source: str, names: set[str]) -> list[tuple[int, str]]:
     """(line, name) of each string constant of ``source`` (not an f-string's part) that is one
     of ``names``: a reach by a name held in a variable (``setattr(owner, name, f)``)."""
-    tree = nodes(source)
-    parts = {id(v) for node in tree if isinstance(node, ast.JoinedStr) for v in node.values}
+    tree = ast.parse(source)
+    parts = {id(v) for node in ast.walk(tree) if isinstance(node, ast.JoinedStr) for v in node.values}
     return sorted(
         (node.lineno, node.value)
-        for node in tree
+        for node in ast.walk(tree)
         if isinstance(node, ast.Constant) and node.value in names and id(node) not in parts
     )
 
@@ -188,9 +170,9 @@ def model_reads(source: str) -> list[tuple[int, str]]:
     """(line, member) of each attribute read on a model in ``source``: on the names ``model``
     and ``m`` and on names bound to ``<something>.model``, and on ``<something>.model`` itself
     (``self.model.rhs``)."""
-    tree = nodes(source)
+    tree = ast.parse(source)
     names = {"model", "m"}
-    for node in tree:  # m = self.model, and m, topo = self.model, self.topology
+    for node in ast.walk(tree):  # m = self.model, and m, topo = self.model, self.topology
         if isinstance(node, ast.Assign):
             for target in node.targets:
                 pairs = [(target, node.value)]
@@ -203,7 +185,7 @@ def model_reads(source: str) -> list[tuple[int, str]]:
                 )
     return sorted(
         (node.lineno, node.attr)
-        for node in tree
+        for node in ast.walk(tree)
         if isinstance(node, ast.Attribute)
         and (
             (isinstance(node.value, ast.Name) and node.value.id in names)
@@ -248,7 +230,7 @@ def stepper_reads(source: str) -> list[tuple[int, str]]:
     """(line, member) of each attribute read or written on a stepper in ``source``: on the names
     ``stepper`` and ``st`` and on names bound to ``stepper`` or ``<something>.stepper``, on
     ``<something>.stepper`` itself (``self.stepper.multirate``), and ``getattr(stepper, "name")``."""
-    tree = nodes(source)
+    tree = ast.parse(source)
     names = {"stepper", "st"}
 
     def is_stepper(node) -> bool:
@@ -256,17 +238,21 @@ def stepper_reads(source: str) -> list[tuple[int, str]]:
             isinstance(node, ast.Attribute) and node.attr == "stepper"
         )
 
-    for node in tree:  # st = self.stepper, and st, m = stepper, self.model
+    for node in ast.walk(tree):  # st = self.stepper, and st, m = stepper, self.model
         if isinstance(node, ast.Assign):
             for target in node.targets:
                 pairs = [(target, node.value)]
                 if isinstance(target, ast.Tuple) and isinstance(node.value, ast.Tuple):
                     pairs = list(zip(target.elts, node.value.elts))
                 names.update(t.id for t, v in pairs if isinstance(t, ast.Name) and is_stepper(v))
-    reads = [(node.lineno, node.attr) for node in tree if isinstance(node, ast.Attribute) and is_stepper(node.value)]
+    reads = [
+        (node.lineno, node.attr)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Attribute) and is_stepper(node.value)
+    ]
     reads += [
         (node.lineno, node.args[1].value)
-        for node in tree
+        for node in ast.walk(tree)
         if isinstance(node, ast.Call)
         and isinstance(node.func, ast.Name)
         and node.func.id in ("getattr", "hasattr")
@@ -311,7 +297,7 @@ def test_the_adjoint_asks_a_stepper_for_its_protocol_alone():
     imports = [
         f"{path.relative_to(REPO)}:{node.lineno}: {node.module} {[a.name for a in node.names]}"
         for path in files
-        for node in nodes(path.read_text())
+        for node in ast.walk(ast.parse(path.read_text()))
         if isinstance(node, ast.ImportFrom)
         and "steppers" in (node.module or "").split(".")
         and not (node.module.endswith("steppers.protocol"))
@@ -320,7 +306,7 @@ def test_the_adjoint_asks_a_stepper_for_its_protocol_alone():
     imports += [
         f"{path.relative_to(REPO)}:{node.lineno}: import {a.name}"
         for path in files
-        for node in nodes(path.read_text())
+        for node in ast.walk(ast.parse(path.read_text()))
         if isinstance(node, ast.Import)
         for a in node.names
         if "steppers" in a.name.split(".")

@@ -381,13 +381,15 @@ def resolve_dt(
     streams: tuple = (),
     restart: float | None = None,
     np_factor: float = 1.0,
+    sparse=None,
 ) -> tuple[float, str, tuple]:
     """(dt (s), where it comes from for messages, notes): ``dt`` as given, else the time.dt of
     scene ``scene`` (``scene_dt``) times ``spacing.smallest`` (the run's smallest node spacing
     on ``grid`` over the scene file's) and ``np_factor`` (``resolve_dt_np``), shortened to divide the output interval ``every``, the
     streams' (``streams``, days: the numbers > 0 of ``[[output.streams]] every_days``, checked
     later), the restart interval ``restart`` (days, or None) and the run of ``days``
-    (``Clock.fitted``). The schedule is checked (``Clock.check``; with
+    (``Clock.fitted``), then ``sparse(dt)`` where given (a scaled dt alone: shortened for a
+    sparser ∇⁴, ``hyperviscosity.sparse_dt``). The schedule is checked (``Clock.check``; with
     ``controlled`` steps, ``is_controlled``, dt is the first and need not divide it).
     Raises ``SceneError``: no time.dt, dt ≤ 0, a run or output interval of no whole steps."""
     if dt is not None:
@@ -405,6 +407,9 @@ def resolve_dt(
             cut = clock.fitted(days, restart, *(e for e in (every, *streams) if e < days)).dt
             notes = (*notes, f"dt cut from {dt:g} s to {cut:g} s to divide the restart interval of {restart:g} days")
             dt = cut
+        if sparse is not None and (shorter := sparse(dt)) != dt:
+            notes = (*notes, f"dt {dt:g} s shortened to {shorter:g} s: more steps, the ∇⁴ less often (cheaper a day)")
+            dt = shorter
     if not (is_number(dt) and math.isfinite(dt) and dt > 0):
         raise SceneError(f"dt must be > 0 (got {got(dt)})")
     Clock(dt, 0.0, days, source, controlled).check({"the output interval (output.every_days)": every})

@@ -226,15 +226,11 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict, rest
     np_factor = resolve_dt_np(time, scene_grid.np, grid.np)
     hv, hv_notes = resolve_hyperviscosity(s.get("hyperviscosity", {}), terms, grid, spacing)
     span = every_span(s.get("hyperviscosity", {}), hv, grid, spacing, stepper, controlled)
-    # a dt the grid chose (scaled), shortened where a count of steps with more divisors takes the ∇⁴ less often
+    # a dt the grid chose (scaled) shortened where more steps take the ∇⁴ less often for less
     sparse = _sparser(span, hv, grid, (every, days, *streams, restart))
-    given = dt is not None or (spacing.smallest == 1.0 and np_factor == 1.0)
     dt, dt_source, dt_notes = resolve_dt(
-        time.get("dt"), dt, days, every, path.stem, grid, spacing, controlled, streams, restart, np_factor
+        time.get("dt"), dt, days, every, path.stem, grid, spacing, controlled, streams, restart, np_factor, sparse
     )
-    if not given and (shorter := sparse(dt)) != dt:
-        dt_notes += (f"dt {dt:g} s shortened to {shorter:g} s: more steps, the ∇⁴ less often (cheaper a day)",)
-        dt = shorter
     own_dt = dt
     if dt_source == "the dt given" or "time.dt" in overrides:  # the dt it would choose itself, all else as given
         own_dt = _own_dt(own, scene_grid, grid, planet.a, days, every, path.stem, controlled, streams, sparse)
@@ -302,12 +298,11 @@ def _own_dt(own: dict, scene_grid, grid, radius: float, days, every, stem: str, 
         own_spacing = resolve_spacing(scene_grid, grid, radius, own.get("planet", {}).get("radius", EARTH.a))
         own_time = own.get("time", {})
         np_factor = resolve_dt_np(own_time, scene_grid.np, grid.np)
-        dt = resolve_dt(
-            own_time.get("dt"), None, days, every, stem, grid, own_spacing, controlled, streams, None, np_factor
+        return resolve_dt(
+            own_time.get("dt"), None, days, every, stem, grid, own_spacing, controlled, streams, None, np_factor, sparse
         )[0]
     except SceneError:  # none that fits the output interval
         return None
-    return dt if own_spacing.smallest == 1.0 and np_factor == 1.0 else sparse(dt)
 
 
 def _sparser(span, hv, grid, intervals: tuple):

@@ -114,7 +114,7 @@ EVERY_SPAN = 1 / 6
 
 
 # A ∇⁴ evaluation's cost against the rest of a step (one thread, CPU clock, medians of 9
-# interleaved rounds, benchmarks/hyperviscosity_every.py, results sparse_*.json): 0.76 for TC5 ne8
+# interleaved rounds, benchmarks/hyperviscosity_every.py, results sparse_every_*.json): 0.76 for TC5 ne8
 # np4 rk4, 1.04 for galewsky ne12 np8 kgu35, 1.08 at ne22 np6
 HV_SHARE = 0.9
 # A dt shortened for a sparser ∇⁴ only where that saves more than the cost model's own error: 2 %
@@ -156,8 +156,9 @@ def sparse_dt(dt: float, intervals: tuple, every: float, days: float, span: floa
     e the ∇⁴'s evaluations over kΔt (``evaluations`` at ν λ kΔt = ``stiffness`` kΔt, with
     ``subcycle``), the fewest steps where two cost the same; ``dt`` itself where it is not C/n or
     that saves less than ``SPARSE_GAIN``. A count of steps with few divisors takes a small k: TC5
-    ne8 np4's odd 109 a day k = 1, its 110 k = 2 (a step 0.785x, a day 0.84x); galewsky ne24 np6's
-    499, a prime, k = 6 in 2 RKL1 stages, its 500 k = 10 in 3 (0.333 to 0.300 evaluations a step)."""
+    ne8 np4's odd 109 a day k = 1, its 110 k = 2 (a step 0.785x, a day 0.79x); galewsky ne24 np6's
+    499, a prime, k = 6 in 2 RKL1 stages, its 508 k = 8 in 2 (0.333 to 0.25 evaluations a step,
+    a day 0.865x; docs/efficiency.md, "A Δt for a sparser ∇⁴")."""
     common = common_interval(*intervals) * DAY
     n = round(common / dt)
     if n < 1 or abs(common / n - dt) > 1e-9 * dt:

@@ -59,8 +59,7 @@ def mpi_failure() -> str | None:
     return None
 
 
-@pytest.fixture
-def needs_mpi():
+def check_mpi() -> None:
     """Skip where mpiexec or mpi4py is not installed (saying so); fail where they are
     and MPI does not run."""
     if _beside_python("mpiexec") is None or importlib.util.find_spec("mpi4py") is None:
@@ -70,6 +69,12 @@ def needs_mpi():
     )
     failure = mpi_failure()
     assert failure is None, failure
+
+
+@pytest.fixture
+def needs_mpi():
+    """``check_mpi`` before the test."""
+    check_mpi()
 
 
 def mpirun(ranks: int, args: list[str], cwd: Path, program: list[str] | None = None) -> subprocess.CompletedProcess:
@@ -154,60 +159,144 @@ EXPLICIT_RUNS = [  # (scene, its options): each of these runs has the same bits 
     ),
 ]
 
-# the runs of EXPLICIT_RUNS one after another in one process: a rank's start-up (imports, kernels)
-# cost more than its run, eight times over
-RUN_ALL = """
-import json, sys
-from swe_sphere.cli import main
-sys.exit(max(main(args) for args in json.loads(sys.argv[1])))
-"""
+
+def explicit_argv(folder: Path, i: int, ranks: int) -> list[str]:
+    """``swe-sphere`` arguments of EXPLICIT_RUNS[i] on ``ranks`` ranks, its run file in ``folder``."""
+    scene, extra = EXPLICIT_RUNS[i]
+    return ["run", scene, "--ne", "2", *extra, "--no-progress", "--output", str(folder / f"{i}_r{ranks}.nc")]
 
 
-@pytest.mark.usefixtures("needs_mpi")
-def test_explicit_runs_same_bits_on_1_2_3_ranks(tmp_path):
-    def argv(i: int, ranks: int) -> list[str]:
-        scene, extra = EXPLICIT_RUNS[i]
-        return ["run", scene, "--ne", "2", *extra, "--no-progress", "--output", str(tmp_path / f"{i}_r{ranks}.nc")]
-
-    for i in range(len(EXPLICIT_RUNS)):
-        assert main(argv(i, 1)) == 0, EXPLICIT_RUNS[i]
-    for ranks in (2, 3):
-        runs = json.dumps([argv(i, ranks) for i in range(len(EXPLICIT_RUNS))])
-        proc = mpirun(ranks, [runs], tmp_path, [sys.executable, "-c", RUN_ALL])
-        assert proc.returncode == 0, proc.stderr[-2000:]
-        assert proc.stdout.count(f"ranks       {ranks} MPI ranks") == proc.stdout.count("summary") == len(EXPLICIT_RUNS)
-        for i, run in enumerate(EXPLICIT_RUNS):
-            try:
-                assert_same_bits(tmp_path / f"{i}_r1.nc", tmp_path / f"{i}_r{ranks}.nc")
-            except AssertionError as e:
-                raise AssertionError(f"{run} on {ranks} ranks: {e}") from e
-
-
-def assert_continues_on_three(tmp_path: Path, args: list[str], days: float) -> None:
-    """``swe-sphere run ARGS`` stopped at days/2 on 2 ranks (a restart file there) and
-    continued on 3 to ``days`` ends with the fields of one uninterrupted 1-rank run."""
-    assert main(["run", *args, "--days", str(days), "--output", str(tmp_path / "whole.nc")]) == 0
+def continue_on_three(folder: Path, args: list[str], days: float) -> dict[int, list[list[str]]]:
+    """The commands (by rank count) of ``swe-sphere run ARGS`` stopped at days/2 on 2 ranks (a
+    restart file there) and continued on 3 to ``days``, their files in ``folder``."""
     half = str(days / 2)
-    proc = mpirun(2, ["run", *args, "--days", half, "--restart-every", half, "--output", "half.nc"], tmp_path)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    assert (tmp_path / "half.restart.nc").is_file()
-    proc = mpirun(3, ["run", "--continue", "half.restart.nc", "--days", str(days), "--output", "rest.nc"], tmp_path)
-    assert proc.returncode == 0, proc.stderr[-2000:]
+    stop = ["run", *args, "--days", half, "--restart-every", half, "--output", str(folder / "half.nc")]
+    rest = ["run", "--continue", str(folder / "half.restart.nc"), "--days", str(days)]
+    return {2: [stop], 3: [[*rest, "--output", str(folder / "rest.nc")]]}
+
+
+def assert_continued(folder: Path, args: list[str], days: float) -> None:
+    """The run of ``continue_on_three`` (its commands run: a restart file at days/2) ends with the
+    fields of one uninterrupted 1-rank run."""
+    assert (folder / "half.restart.nc").is_file()
+    assert main(["run", *args, "--days", str(days), "--output", str(folder / "whole.nc")]) == 0
     with (
-        xr.open_dataset(tmp_path / "whole.nc", decode_times=False) as whole,
-        xr.open_dataset(tmp_path / "rest.nc", decode_times=False) as rest,
+        xr.open_dataset(folder / "whole.nc", decode_times=False) as whole,
+        xr.open_dataset(folder / "rest.nc", decode_times=False) as rest,
     ):
         for name in ("u", "v", "h"):
             assert np.array_equal(whole[name].values[-1], rest[name].values[-1]), name
 
 
-@pytest.mark.usefixtures("needs_mpi")
-def test_run_on_two_ranks_continues_on_three(tmp_path):
+def assert_continues_on_three(tmp_path: Path, args: list[str], days: float) -> None:
+    """``continue_on_three``'s commands, a launch each, then ``assert_continued``."""
+    for ranks, commands in continue_on_three(tmp_path, args, days).items():
+        for command in commands:
+            proc = mpirun(ranks, command, tmp_path)
+            assert proc.returncode == 0, proc.stderr[-2000:]
+    assert_continued(tmp_path, args, days)
+
+
+LEAPFROG = ["tc2_steady", "--ne", "2", "--stepper", "leapfrog", "--dt", "1800", "--no-progress"]  # continued
+BRANCH = ["--stepper", "rk4", "--days", "0.5", "--ne", "2", "--no-progress"]  # from the spin's restart file
+ENSEMBLE = ["run", "galewsky", "--ne", "2", "--np", "4", "--dt", "900", "--days", "0.5", "--members", "3"]
+ENSEMBLE += ["--vary", "case.hhat=60,120,180", "--restart-every", "0.25"]
+ENSEMBLE += ["-s", 'output.streams=[{name="q", every_days=0.125, fields=["h"]}]']  # rank 0 writes it, as the run file
+ENSEMBLES = {  # its layouts: shared, and in turn (each member its own model: semi-implicit, g per member)
+    "shared": ["--layout", "shared"],
+    "in-turn": ["--stepper", "semi_implicit", "--vary", "planet.gravity=9.8,9.7,9.6"],
+}
+
+
+def branch_commands(folder: Path) -> dict[int, list[list[str]]]:
+    """TC4 spun up to day 0.25 in this process (its restart file), and its branch on 2 ranks."""
+    spin = ["run", "tc4_forced_low", "--ne", "2", "--no-progress", "--days", "0.25", "--restart-every", "0.25"]
+    assert main([*spin, "--output", str(folder / "spin.nc")]) == 0
+    return {2: [["run", "--continue", str(folder / "spin.restart.nc"), *BRANCH, "--output", str(folder / "b2.nc")]]}
+
+
+def ensemble_commands(folder: Path, layout: str) -> dict[int, list[list[str]]]:
+    """An ensemble's run over 2 ranks, and its restart file continued on 3."""
+    more = ["run", "--continue", str(folder / "two.restart.nc"), "--days", "0.75", "--output", str(folder / "c3.nc")]
+    return {2: [[*ENSEMBLE, *ENSEMBLES[layout], "--output", str(folder / "two.nc")]], 3: [more]}
+
+
+# each test's commands on 2 and 3 ranks (``swe-sphere`` arguments, its files in a folder of its own)
+OVER_RANKS = {
+    "explicit": lambda d: {r: [explicit_argv(d, i, r) for i in range(len(EXPLICIT_RUNS))] for r in (2, 3)},
+    "continued": lambda d: continue_on_three(d, LEAPFROG, 0.5),
+    "branch": branch_commands,
+    **{f"ensemble-{layout}": functools.partial(ensemble_commands, layout=layout) for layout in ENSEMBLES},
+}
+
+# the commands of OVER_RANKS in one process a rank, one after another: a rank's start (imports,
+# Warp's kernels) costs more than most of these runs (about 3 s of this 2-core machine a launch,
+# nine launches of these tests before); each command's exit status and rank 0's output for its test
+RUN_EACH = """
+import contextlib, io, json, sys
+from mpi4py import MPI
+from swe_sphere.cli import main
+said = []
+for args in json.loads(sys.argv[1]):
+    with contextlib.redirect_stdout(io.StringIO()) as out:
+        code = main(args)
+    said.append([code, out.getvalue()])
+if MPI.COMM_WORLD.rank == 0:
+    with open(sys.argv[2], "w") as f:
+        json.dump(said, f)
+"""
+
+
+@pytest.fixture(scope="module")
+def over_ranks(tmp_path_factory) -> dict:
+    """OVER_RANKS run, one launch on 2 ranks, then one on 3 (a run stopped on 2 continues on 3):
+    {test: (its folder, {ranks: [(exit status, rank 0's output) a command]})}."""
+    check_mpi()
+    root = tmp_path_factory.mktemp("over_ranks")
+    commands = {}
+    for test, make in OVER_RANKS.items():
+        (root / test).mkdir()
+        commands[test] = make(root / test)
+    said = {test: (root / test, {}) for test in OVER_RANKS}
+    for ranks in (2, 3):
+        order = [(test, args) for test, by_ranks in commands.items() for args in by_ranks.get(ranks, [])]
+        proc = mpirun(
+            ranks, [json.dumps([args for _, args in order]), "said.json"], root, [sys.executable, "-c", RUN_EACH]
+        )
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        for (test, _), result in zip(order, json.loads((root / "said.json").read_text()), strict=True):
+            said[test][1].setdefault(ranks, []).append(tuple(result))
+    return said
+
+
+def ran_over_ranks(over_ranks: dict, test: str) -> tuple[Path, dict[int, list[str]]]:
+    """``test``'s folder and its commands' outputs by rank count in ``over_ranks``, each of which exited 0."""
+    folder, said = over_ranks[test]
+    for ranks, results in said.items():
+        for code, out in results:
+            assert code == 0, f"{test} on {ranks} ranks: exit status {code}\n{out[-2000:]}"
+    return folder, {ranks: [out for _, out in results] for ranks, results in said.items()}
+
+
+def test_explicit_runs_same_bits_on_1_2_3_ranks(over_ranks):
+    folder, said = ran_over_ranks(over_ranks, "explicit")
+    for i in range(len(EXPLICIT_RUNS)):
+        assert main(explicit_argv(folder, i, 1)) == 0, EXPLICIT_RUNS[i]
+    for ranks in (2, 3):
+        assert len(said[ranks]) == len(EXPLICIT_RUNS)
+        assert all(out.count(f"ranks       {ranks} MPI ranks") == out.count("summary") == 1 for out in said[ranks])
+        for i, run in enumerate(EXPLICIT_RUNS):
+            try:
+                assert_same_bits(folder / f"{i}_r1.nc", folder / f"{i}_r{ranks}.nc")
+            except AssertionError as e:
+                raise AssertionError(f"{run} on {ranks} ranks: {e}") from e
+
+
+def test_run_on_two_ranks_continues_on_three(over_ranks):
     """Leapfrog (its x(n-1) in the restart file) stopped after half the run on 2 ranks and
     continued on 3 ends with the bits of an uninterrupted 1-rank run."""
-    assert_continues_on_three(
-        tmp_path, ["tc2_steady", "--ne", "2", "--stepper", "leapfrog", "--dt", "1800", "--no-progress"], 0.5
-    )
+    folder, _ = ran_over_ranks(over_ranks, "continued")
+    assert_continued(folder, LEAPFROG, 0.5)
 
 
 @pytest.mark.usefixtures("needs_mpi")
@@ -539,54 +628,26 @@ def test_failure_on_rank_1_alone_ends_the_job_and_keeps_the_output(tmp_path, whe
         assert ck.attrs["step"] == 8
 
 
-@pytest.mark.usefixtures("needs_mpi")
-def test_a_branch_on_two_ranks_has_the_bits_of_one(tmp_path):
+def test_a_branch_on_two_ranks_has_the_bits_of_one(over_ranks):
     """``run --continue R --stepper rk4`` (a branch, TC4's time-dependent forcing read
     at the branch's clock) on 2 ranks gives the 1-rank branch's bits."""
-    args = ["--ne", "2", "--no-progress"]
-    assert (
-        main(
-            [
-                "run",
-                "tc4_forced_low",
-                *args,
-                "--days",
-                "0.25",
-                "--restart-every",
-                "0.25",
-                "--output",
-                str(tmp_path / "spin.nc"),
-            ]
-        )
-        == 0
-    )
-    branch = ["run", "--continue", str(tmp_path / "spin.restart.nc"), "--stepper", "rk4", "--days", "0.5", *args]
-    assert main([*branch, "--output", str(tmp_path / "b1.nc")]) == 0
-    proc = mpirun(2, [*branch, "--output", "b2.nc"], tmp_path)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    assert "branch      from" in proc.stdout
-    assert_same_bits(tmp_path / "b1.nc", tmp_path / "b2.nc")
-    with xr.open_dataset(tmp_path / "b2.nc", decode_times=False) as ds:
+    folder, said = ran_over_ranks(over_ranks, "branch")
+    assert main(["run", "--continue", str(folder / "spin.restart.nc"), *BRANCH, "--output", str(folder / "b1.nc")]) == 0
+    assert "branch      from" in said[2][0]
+    assert_same_bits(folder / "b1.nc", folder / "b2.nc")
+    with xr.open_dataset(folder / "b2.nc", decode_times=False) as ds:
         assert ds.attrs["branched_from_day"] == 0.25 and ds.time.values[0] == 0.25 and ds.time.values[-1] == 0.5
 
 
-@pytest.mark.parametrize(
-    "more",
-    [["--layout", "shared"], ["--stepper", "semi_implicit", "--vary", "planet.gravity=9.8,9.7,9.6"]],
-    ids=["shared", "in-turn"],
-)
-def test_an_ensemble_s_members_over_ranks_keep_their_bits(needs_mpi, tmp_path, more):
+@pytest.mark.parametrize("layout", ENSEMBLES)
+def test_an_ensemble_s_members_over_ranks_keep_their_bits(over_ranks, layout):
     """``run --members 3`` over 2 ranks (members 0, 1 on rank 0, member 2 on rank 1): the run and
     restart files of one process, bit for bit; its restart file continued on 3 ranks (one member
     a rank) as on one. In the same launches, and in turn (each member its own model: a
     semi-implicit stepper, g per member; the stepper states gathered under each member's name)."""
-    run = ["run", "galewsky", "--ne", "2", "--np", "4", "--dt", "900", "--days", "0.5", "--members", "3"]
-    run += ["--vary", "case.hhat=60,120,180", "--restart-every", "0.25", *more]
-    run += ["-s", 'output.streams=[{name="q", every_days=0.125, fields=["h"]}]']  # rank 0 writes it, as the run file
-    assert main([*run, "--output", str(tmp_path / "one.nc")]) == 0
-    two = mpirun(2, [*run, "--output", "two.nc"], tmp_path)
-    assert two.returncode == 0, two.stderr[-2000:]
-    assert "over 2 MPI ranks (2 on rank 0)" in two.stdout
+    tmp_path, said = ran_over_ranks(over_ranks, f"ensemble-{layout}")
+    assert main([*ENSEMBLE, *ENSEMBLES[layout], "--output", str(tmp_path / "one.nc")]) == 0
+    assert "over 2 MPI ranks (2 on rank 0)" in said[2][0]
     with (
         xr.open_dataset(tmp_path / "one.nc", decode_times=False) as a,
         xr.open_dataset(tmp_path / "two.nc", decode_times=False) as b,
@@ -599,10 +660,8 @@ def test_an_ensemble_s_members_over_ranks_keep_their_bits(needs_mpi, tmp_path, m
         assert a.sizes["time"] == 5 and np.array_equal(a.h.values, b.h.values)
     with xr.open_dataset(tmp_path / "one.restart.nc") as a, xr.open_dataset(tmp_path / "two.restart.nc") as b:
         assert all(np.array_equal(a[k].values, b[k].values) for k in ("u", "v", "h"))
-    more = ["run", "--continue", "two.restart.nc", "--days", "0.75"]
-    assert main([*more[:2], str(tmp_path / "two.restart.nc"), *more[3:], "--output", str(tmp_path / "c1.nc")]) == 0
-    three = mpirun(3, [*more, "--output", "c3.nc"], tmp_path)
-    assert three.returncode == 0, three.stderr[-2000:]
+    more = ["run", "--continue", str(tmp_path / "two.restart.nc"), "--days", "0.75"]
+    assert main([*more, "--output", str(tmp_path / "c1.nc")]) == 0
     with (
         xr.open_dataset(tmp_path / "c1.nc", decode_times=False) as a,
         xr.open_dataset(tmp_path / "c3.nc", decode_times=False) as b,

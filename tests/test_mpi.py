@@ -36,6 +36,9 @@ from helpers import cached_grid, one_line
 pytestmark = pytest.mark.xdist_group("mpi")
 
 
+HERE = Path(__file__).resolve().parent
+
+
 def _beside_python(name: str) -> str | None:
     beside = Path(sys.executable).with_name(name)
     return str(beside) if beside.is_file() else shutil.which(name)
@@ -221,45 +224,78 @@ def ensemble_commands(folder: Path, layout: str) -> dict[int, list[list[str]]]:
     return {2: [[*ENSEMBLE, *ENSEMBLES[layout], "--output", str(folder / "two.nc")]], 3: [more]}
 
 
-# each test's commands on 2 and 3 ranks (``swe-sphere`` arguments, its files in a folder of its own)
+def solver_commands(folder: Path) -> dict[int, list[list[str]]]:
+    """The solving steppers on 3 ranks (tests/mpi_steppers.py), with a semi-implicit run to DAYS
+    made in this process and continued from its restart file there; JFNK by the command line on 2."""
+    from mpi_steppers import DAYS, scene
+
+    Simulation(scene("semi_implicit", DAYS), "cpu", progress=False).run(folder / "half.nc", restart_every=DAYS)
+    three = [str(HERE / "mpi_steppers.py"), str(folder / "three.npz"), str(folder / "half.restart.nc")]
+    implicit = ["run", "tc5_mountain", "--ne", "2", "--stepper", "implicit", "--days", str(DAYS), "--no-progress"]
+    return {3: [three], 2: [[*implicit, "--output", str(folder / "two.nc")]]}
+
+
+# each test's commands on 2 and 3 ranks (``swe-sphere`` arguments, or a test script's path and its
+# arguments), its files in a folder of its own; the selected tests' run (``launches``)
 OVER_RANKS = {
-    "explicit": lambda d: {r: [explicit_argv(d, i, r) for i in range(len(EXPLICIT_RUNS))] for r in (2, 3)},
-    "continued": lambda d: continue_on_three(d, LEAPFROG, 0.5),
-    "branch": branch_commands,
-    **{f"ensemble-{layout}": functools.partial(ensemble_commands, layout=layout) for layout in ENSEMBLES},
+    "test_explicit_runs_same_bits_on_1_2_3_ranks": lambda d: {
+        r: [explicit_argv(d, i, r) for i in range(len(EXPLICIT_RUNS))] for r in (2, 3)
+    },
+    "test_run_on_two_ranks_continues_on_three": lambda d: continue_on_three(d, LEAPFROG, 0.5),
+    "test_a_branch_on_two_ranks_has_the_bits_of_one": branch_commands,
+    **{
+        f"test_an_ensemble_s_members_over_ranks_keep_their_bits[{layout}]": functools.partial(
+            ensemble_commands, layout=layout
+        )
+        for layout in ENSEMBLES
+    },
+    "test_solver_steppers_agree_with_one_rank": solver_commands,
+    "test_a_gradient_is_the_same_bits_on_one_two_and_three_ranks": lambda d: {
+        r: [[str(HERE / "mpi_gradient.py"), str(d / f"g{r}.npz")]] for r in (2, 3)
+    },
 }
 
 # the commands of OVER_RANKS in one process a rank, one after another: a rank's start (imports,
 # Warp's kernels) costs more than most of these runs (about 3 s of this 2-core machine a launch,
-# nine launches of these tests before); each command's exit status and rank 0's output for its test
+# thirteen launches of these tests before); each command's exit status and rank 0's output for its test
 RUN_EACH = """
-import contextlib, io, json, sys
+import contextlib, io, json, os, runpy, sys
 from mpi4py import MPI
 from swe_sphere.cli import main
-said = []
-for args in json.loads(sys.argv[1]):
+commands, path, said = json.loads(sys.argv[1]), sys.argv[2], []
+for args in commands:
     with contextlib.redirect_stdout(io.StringIO()) as out:
-        code = main(args)
+        if args[0].endswith(".py"):  # a test's script, as ``python SCRIPT ARGS`` runs it
+            sys.argv[:] = args
+            sys.path.insert(0, os.path.dirname(args[0]))
+            runpy.run_path(args[0], run_name="__main__")
+            code = 0
+        else:
+            code = main(args)
     said.append([code, out.getvalue()])
 if MPI.COMM_WORLD.rank == 0:
-    with open(sys.argv[2], "w") as f:
+    with open(path, "w") as f:
         json.dump(said, f)
 """
 
 
 @pytest.fixture(scope="module")
-def over_ranks(tmp_path_factory) -> dict:
-    """OVER_RANKS run, one launch on 2 ranks, then one on 3 (a run stopped on 2 continues on 3):
-    {test: (its folder, {ranks: [(exit status, rank 0's output) a command]})}."""
+def launches(request, tmp_path_factory) -> dict:
+    """The commands of the selected tests of OVER_RANKS, one launch on 2 ranks, then one on 3 (a
+    run stopped on 2 continues on 3): {test: (its folder, {ranks: [(exit status, rank 0's output)
+    a command]})}."""
     check_mpi()
     root = tmp_path_factory.mktemp("over_ranks")
+    selected = [item.name for item in request.session.items if item.name in OVER_RANKS]
     commands = {}
-    for test, make in OVER_RANKS.items():
-        (root / test).mkdir()
-        commands[test] = make(root / test)
-    said = {test: (root / test, {}) for test in OVER_RANKS}
+    for k, test in enumerate(selected):
+        (root / str(k)).mkdir()
+        commands[test] = OVER_RANKS[test](root / str(k))
+    said = {test: (root / str(k), {}) for k, test in enumerate(selected)}
     for ranks in (2, 3):
         order = [(test, args) for test, by_ranks in commands.items() for args in by_ranks.get(ranks, [])]
+        if not order:
+            continue
         proc = mpirun(
             ranks, [json.dumps([args for _, args in order]), "said.json"], root, [sys.executable, "-c", RUN_EACH]
         )
@@ -269,17 +305,18 @@ def over_ranks(tmp_path_factory) -> dict:
     return said
 
 
-def ran_over_ranks(over_ranks: dict, test: str) -> tuple[Path, dict[int, list[str]]]:
-    """``test``'s folder and its commands' outputs by rank count in ``over_ranks``, each of which exited 0."""
-    folder, said = over_ranks[test]
+@pytest.fixture
+def over_ranks(launches, request) -> tuple[Path, dict[int, list[str]]]:
+    """The test's folder and its commands' outputs by rank count (``launches``), each of which exited 0."""
+    folder, said = launches[request.node.name]
     for ranks, results in said.items():
         for code, out in results:
-            assert code == 0, f"{test} on {ranks} ranks: exit status {code}\n{out[-2000:]}"
+            assert code == 0, f"exit status {code} on {ranks} ranks\n{out[-2000:]}"
     return folder, {ranks: [out for _, out in results] for ranks, results in said.items()}
 
 
 def test_explicit_runs_same_bits_on_1_2_3_ranks(over_ranks):
-    folder, said = ran_over_ranks(over_ranks, "explicit")
+    folder, said = over_ranks
     for i in range(len(EXPLICIT_RUNS)):
         assert main(explicit_argv(folder, i, 1)) == 0, EXPLICIT_RUNS[i]
     for ranks in (2, 3):
@@ -295,7 +332,7 @@ def test_explicit_runs_same_bits_on_1_2_3_ranks(over_ranks):
 def test_run_on_two_ranks_continues_on_three(over_ranks):
     """Leapfrog (its x(n-1) in the restart file) stopped after half the run on 2 ranks and
     continued on 3 ends with the bits of an uninterrupted 1-rank run."""
-    folder, _ = ran_over_ranks(over_ranks, "continued")
+    folder, _ = over_ranks
     assert_continued(folder, LEAPFROG, 0.5)
 
 
@@ -447,8 +484,7 @@ def test_blow_up_inside_a_block_on_two_ranks(tmp_path):
 
 
 @pytest.mark.roundoff
-@pytest.mark.usefixtures("needs_mpi")
-def test_solver_steppers_agree_with_one_rank(tmp_path, rng):
+def test_solver_steppers_agree_with_one_rank(over_ranks, rng):
     """Semi-implicit, JFNK, IMEX and an IMEX Butcher pair (``tableau``, ARK3(2)4L[2]SA) on 3
     ranks (their Krylov inner products summed over ranks) end at one rank's state up to
     round-off (measured for the first three: 1e-14, 2e-13, 1e-14 of the wind), JFNK with
@@ -470,7 +506,7 @@ def test_solver_steppers_agree_with_one_rank(tmp_path, rng):
     only down to ``tol`` of the increment; each solve may then end 2 tol of the run's
     change apart (at the default tol = 1e-6 measured 2.1e-13 of the wind on -march=native,
     6.1e-11 on Warp's generic CPU target; run here at tol = 1e-10)."""
-    from mpi_steppers import DAYS, STEPPERS, continued_state, final_states, scene
+    from mpi_steppers import STEPPERS, continued_state, final_states
 
     runs = {}
     one = final_states(runs=runs)
@@ -483,12 +519,8 @@ def test_solver_steppers_agree_with_one_rank(tmp_path, rng):
         ops["semi_implicit"],
         floors["semi_implicit"],
     )  # the same run, one DAYS later
-    half = Simulation(scene("semi_implicit", DAYS), "cpu", progress=False)
-    result = half.run(tmp_path / "half.nc", restart_every=DAYS)
-    one["continued"] = continued_state(result.checkpoint)
-    script = Path(__file__).with_name("mpi_steppers.py")
-    proc = mpirun_python(3, [str(script), "three.npz", str(result.checkpoint)], tmp_path)
-    assert proc.returncode == 0, proc.stderr[-2000:]
+    tmp_path, _ = over_ranks
+    one["continued"] = continued_state(tmp_path / "half.restart.nc")
     with np.load(tmp_path / "three.npz") as three:
         assert three["ranks"] == 3
         for name, state in one.items():
@@ -501,9 +533,6 @@ def test_solver_steppers_agree_with_one_rank(tmp_path, rng):
                 stepper, options = STEPPERS[name]
                 limit = 2 * STEPPER_REGISTRY[stepper].make_options(**options).tol * ops[name] * runs[name][1]
             roundoff.within(max(wind, h), limit, f"{name}: |3 ranks − 1| (wind, depth)")
-    args = ["run", "tc5_mountain", "--ne", "2", "--stepper", "implicit", "--days", str(DAYS), "--no-progress"]
-    proc = mpirun(2, [*args, "--output", "two.nc"], tmp_path)
-    assert proc.returncode == 0, proc.stderr[-2000:]
     with xr.open_dataset(tmp_path / "two.nc", decode_times=False) as two:
         unique = one["implicit"][:, cached_grid(2, 4).first]  # the run file's columns
         wind, h = roundoff.state_difference(np.stack([two[n].values[-1] for n in ("u", "v", "h")]), unique)
@@ -511,8 +540,7 @@ def test_solver_steppers_agree_with_one_rank(tmp_path, rng):
         roundoff.within(max(wind, h), 2 * ops["implicit"] * floors["implicit"], "implicit: |2 ranks − 1| (wind, depth)")
 
 
-@pytest.mark.usefixtures("needs_mpi")
-def test_a_gradient_is_the_same_bits_on_one_two_and_three_ranks(tmp_path):
+def test_a_gradient_is_the_same_bits_on_one_two_and_three_ranks(over_ranks):
     """A run's gradient over ranks (``adjoint.gradient(..., comm=)``, issue 66's "Checks"): a
     cost of h at 40 points observed at three of TC5's six rk4 steps, reversed from two
     snapshots, and the same along a history of three Δt and by mri; their values, final states and gradients with
@@ -524,10 +552,8 @@ def test_a_gradient_is_the_same_bits_on_one_two_and_three_ranks(tmp_path):
     for name in ("rk4", "history", "mri"):
         assert np.all(np.abs(one[f"grad_{name}"]).max(axis=1) > 0), name  # every row moved
         assert np.all(one[f"numbers_{name}"][-4:] != 0), name  # ν, ν_s, g and Ω moved
-    script = Path(__file__).with_name("mpi_gradient.py")
+    tmp_path, _ = over_ranks
     for ranks in (2, 3):
-        proc = mpirun_python(ranks, [str(script), f"g{ranks}.npz"], tmp_path)
-        assert proc.returncode == 0, proc.stderr[-2000:]
         with np.load(tmp_path / f"g{ranks}.npz") as many:
             assert many["ranks"] == ranks
             for key, value in one.items():
@@ -631,7 +657,7 @@ def test_failure_on_rank_1_alone_ends_the_job_and_keeps_the_output(tmp_path, whe
 def test_a_branch_on_two_ranks_has_the_bits_of_one(over_ranks):
     """``run --continue R --stepper rk4`` (a branch, TC4's time-dependent forcing read
     at the branch's clock) on 2 ranks gives the 1-rank branch's bits."""
-    folder, said = ran_over_ranks(over_ranks, "branch")
+    folder, said = over_ranks
     assert main(["run", "--continue", str(folder / "spin.restart.nc"), *BRANCH, "--output", str(folder / "b1.nc")]) == 0
     assert "branch      from" in said[2][0]
     assert_same_bits(folder / "b1.nc", folder / "b2.nc")
@@ -645,7 +671,7 @@ def test_an_ensemble_s_members_over_ranks_keep_their_bits(over_ranks, layout):
     restart files of one process, bit for bit; its restart file continued on 3 ranks (one member
     a rank) as on one. In the same launches, and in turn (each member its own model: a
     semi-implicit stepper, g per member; the stepper states gathered under each member's name)."""
-    tmp_path, said = ran_over_ranks(over_ranks, f"ensemble-{layout}")
+    tmp_path, said = over_ranks
     assert main([*ENSEMBLE, *ENSEMBLES[layout], "--output", str(tmp_path / "one.nc")]) == 0
     assert "over 2 MPI ranks (2 on rank 0)" in said[2][0]
     with (

@@ -21,6 +21,7 @@ BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
         ("gradient_cost.py", ["--ne", "2", "--steps", "-2"], "gradient_cost.py: error: --steps must be >= 1"),
         ("ensemble_cost.py", ["--steps", "0"], "ensemble_cost.py: error: argument --steps: must be > 0 (got 0)"),
         ("kernel_roofline.py", ["--rounds", "0"], "kernel_roofline.py: error: argument --rounds: must be > 0 (got 0)"),
+        ("across_elements.py", ["--case", "9,2,4"], "across_elements.py: error: argument --case: --case 9,2,4: np 2-8"),
         (
             "hyperviscosity_every.py",
             ["--scene", "tc2_steady", "--ne", "2"],

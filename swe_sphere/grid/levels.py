@@ -20,11 +20,14 @@ their ratio E·2^K / Σ_e 2^(k_e) is what local stepping can save before its ove
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
 
 from .quality import element_sizes
+
+if TYPE_CHECKING:  # scipy.sparse is imported where used: every run's start imports this module (0.2-0.5 s)
+    import scipy.sparse as sp
 
 ROUNDOFF = 1e-9  # log₂ ratios this close below a whole number count as it (a rate λ_max/2^j exactly)
 
@@ -55,6 +58,8 @@ class ElementLevels:
 def element_neighbours(grid) -> sp.csr_matrix:
     """(E, E) boolean: elements of ``grid`` (the whole grid) that share a node, each with
     itself; from the unique-node index ``gid`` of every element-local node."""
+    import scipy.sparse as sp
+
     per = grid.np * grid.np
     rows = np.repeat(np.arange(grid.nelem), per)
     incidence = sp.csr_matrix(

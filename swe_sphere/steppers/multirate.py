@@ -14,11 +14,10 @@ import warp as wp
 
 from ..model.launches import Update
 from .base import Stepper, StepStats, entry, work_array
-from .butcher import TableauOptions, parse, stage_form, stage_terms
+from .butcher import built_in_table, stage_form, stage_terms
 from .capabilities import GraphCapture
 from .explicit import FBRK32
 from .multirate_options import MriOptions, SplitExplicitOptions, parse_mri, substeps_label
-from .tables import EXPLICIT
 
 f64 = wp.float64
 
@@ -323,7 +322,7 @@ class Mri(_Multirate):
         if o.inner == "fbrk32":
             self.t, self.s = work_array(self), work_array(self)
         else:
-            table = self.inner = parse(TableauOptions(**EXPLICIT[o.inner]))
+            table = self.inner = built_in_table(o.inner)
             names, self._form = stage_form(table.A_E, table.b_E, table.c)
             self._rk = {name: work_array(self) for name in names}
             self.K = work_array(self)

@@ -51,8 +51,7 @@ from fractions import Fraction
 import numpy as np
 import warp as wp
 
-from .butcher import TableauOptions, parse, stage_form, stage_terms
-from .tables import EXPLICIT
+from .butcher import built_in_table, stage_form, stage_terms
 
 f64 = wp.float64
 HISTORY = 3  # tendencies a level keeps: AB3's
@@ -130,7 +129,7 @@ class MultirateAB3:
         self.history = [[buffer() for _ in range(HISTORY)] for _ in parts]
         self.scratch = [buffer() for _ in parts]  # f_k off its own step times (the start)
         self.started = 0  # coarse steps of the start taken
-        table = self.inner = parse(TableauOptions(**EXPLICIT[inner]))  # the start's
+        table = self.inner = built_in_table(inner)  # the start's
         names, self.form = stage_form(table.A_E, table.b_E, table.c)
         self.rk = {name: buffer() for name in names}
         self.F = buffer()  # the start's stage tendency

@@ -12,6 +12,7 @@ table of this engine.
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from fractions import Fraction
 
@@ -23,15 +24,29 @@ from ..kernels import blas
 from ..model.helmholtz import HelmholtzOptions
 from ..model.launches import Update
 from .base import Stepper, StepStats, device_counts, work_array
-from .butcher import PARTS, Table, TableauOptions, imaginary_axis_limit, parse, stage_form
+from .butcher import BUILT_IN, PARTS, Table, TableauOptions, built_in_table, imaginary_axis_limit, parse, stage_form
 from .capabilities import ErrorEstimates, GraphCapture, TrialSteps
 from .helmholtz_steps import REMOVED_SOLVER_OPTIONS, HelmholtzSteps
 from .tables import COURANT_LIMITS, EXPLICIT, IMEX, IMEX_ADVECTIVE_LIMITS, IMEX_PAIRS
 
 f64 = wp.float64
 
-# the built-in tables, checked once
-TABLES = {key: parse(TableauOptions(**t)) for key, t in {**EXPLICIT, **IMEX, **IMEX_PAIRS}.items()}
+
+class _Tables(Mapping):
+    """The built-in tables by key (``butcher.built_in_table``: each checked when first read, not
+    at import)."""
+
+    def __getitem__(self, key: str) -> Table:
+        return built_in_table(key)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(BUILT_IN)
+
+    def __len__(self) -> int:
+        return len(BUILT_IN)
+
+
+TABLES = _Tables()
 
 
 # the IMEX pairs' Helmholtz CG residual under error control, per rtol (``ImexRK.follow_tolerance``):
@@ -61,11 +76,10 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
     """
 
     explicit = capturable = variable_dt = differentiable = True
-    TABLE: Table  # a built-in's (``explicit_steppers``)
 
     def table(self) -> Table:
-        """The checked table this stepper steps."""
-        return self.TABLE
+        """The checked table this stepper steps: a built-in's, its ``name``'s (``explicit_steppers``)."""
+        return TABLES[self.name]
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)
@@ -199,15 +213,16 @@ def explicit_steppers() -> tuple[type[Stepper], ...]:
     stability polynomial's estimate (as a ``tableau``'s, ``TableauRK.courant_limit``)."""
     classes = []
     for key, t in EXPLICIT.items():
-        table, limit = TABLES[key], {"courant_limit": COURANT_LIMITS.get(key)}
+        limit = {"courant_limit": COURANT_LIMITS.get(key)}
         if limit["courant_limit"] is None:
-            axis = imaginary_axis_limit(table.A_E, table.b_E)
+            axis = imaginary_axis_limit(TABLES[key].A_E, TABLES[key].b_E)
             limit = {
                 "courant_limit": axis * COURANT_PER_AXIS_LIMIT,
                 "courant_limit_source": f"its stability polynomial's imaginary-axis limit {axis:.3g} "
                 f"x {COURANT_PER_AXIS_LIMIT:.3g}, as rk4's measured limit is its own",
             }
-        attrs = {"name": key, "TABLE": table, "order": table.order, "embedded_order": table.embedded_order}
+        # the orders as declared (those the parsed table holds), the table parsed when first stepped
+        attrs = {"name": key, "order": t["order"], "embedded_order": t.get("embedded_order", 0)}
         classes.append(type(key.upper(), (ExplicitRK,), {**attrs, **limit, "__doc__": t["description"]}))
     return tuple(classes)
 
@@ -382,10 +397,9 @@ class ImexPair(ImexRK):
 
     Options = HelmholtzOptions
     removed_options = REMOVED_SOLVER_OPTIONS
-    TABLE: Table
 
     def table(self) -> Table:
-        return self.TABLE
+        return TABLES[self.name]
 
 
 def imex_pair_steppers() -> tuple[type[Stepper], ...]:
@@ -396,9 +410,8 @@ def imex_pair_steppers() -> tuple[type[Stepper], ...]:
             (ImexPair,),
             {
                 "name": key,
-                "TABLE": TABLES[key],
-                "order": TABLES[key].order,
-                "embedded_order": TABLES[key].embedded_order,
+                "order": t["order"],
+                "embedded_order": t.get("embedded_order", 0),
                 "advective_courant_limit": IMEX_ADVECTIVE_LIMITS[key],
                 "__doc__": t["description"],
             },

@@ -12,17 +12,11 @@ its model and its stepper, a block of steps at a time under the one bad-state gu
 - with ``drop``, a member bad at a step goes back to its last good state and is not stepped
   again while the others go on (an ensemble's ``blow_up="drop"``); else the loop stops there.
 
-Each step's Δt is the loop's one Δt policy's, an object with one method, ``take(unit, j,
-watch)``: step j + 1 at the Δt it decides (Oceananigans' fixed ``Δt``, ``aligned_time_step`` and
-``TimeStepWizard``): ``FixedDt`` the stepper's, a fixed or a fitted clock's (``Clock.fitted``:
-shortened to divide the output times), or a run's Δt replayed step by step (``StepTimes``: the
-gradient's sweeps); ``ControlledDt`` an accepted step of a step control
-(``simulation.adaptive.StepControl``), landed on the next of its days. What a driver adds around
-the steps is an ``Observer``'s (its hooks no-ops here): where a block ends (activities due, a
-controlled run's last day reached), a stop asked (signals), what follows good steps (activities,
-progress), the steps' counts. ``Simulation.run`` (at a fixed Δt and under step control, each
-accepted step a block of its own), ``Ensemble.step`` and ``advance`` and the gradient's sweeps
-(``adjoint.gradient``) all advance through ``Integrator.advance``."""
+Each step's Δt is the loop's Δt policy's (Oceananigans' fixed ``Δt``, ``aligned_time_step`` and
+``TimeStepWizard``), an object with one method, ``take(unit, j, watch)``: ``FixedDt`` (a fixed,
+fitted or replayed Δt) or ``ControlledDt`` (a step control's). What a driver adds around the
+steps is an ``Observer``'s. ``Simulation.run``, ``Ensemble.step`` and ``advance`` and the
+gradient's sweeps (``adjoint.gradient``) all advance through ``Integrator.advance``."""
 
 from __future__ import annotations
 
@@ -140,14 +134,18 @@ def trouble_line(model, x, bad: tuple, day: float, of: str = "") -> str:
     return f"blow-up at step {step} (model time {day:.4f} days){of}: {model.bad_nodes.describe(x, detail[0][2])}"
 
 
-def core_property(name: str, doc: str, unit: bool = False) -> property:
-    """A driver's property (read and set) that is its integrator's (``self.core``) ``name``, or
-    with ``unit`` its first unit's (a run's one unit)."""
+def forwarded(path: str, doc: str, settable: bool = True) -> property:
+    """A driver's property that is the attribute at the dotted ``path`` from it (a number an
+    index: ``"core.units.0.x"``, a run's one unit's state), read and, where ``settable``, set."""
+    *way, name = path.split(".")
 
-    def owner(driver):
-        return driver.core.units[0] if unit else driver.core
+    def owner(d):
+        for part in way:
+            d = d[int(part)] if part.isdigit() else getattr(d, part)
+        return d
 
-    return property(lambda d: getattr(owner(d), name), lambda d, value: setattr(owner(d), name, value), doc=doc)
+    setter = (lambda d, value: setattr(owner(d), name, value)) if settable else None
+    return property(lambda d: getattr(owner(d), name), setter, doc=doc)
 
 
 def counted(stats: StepStats, stepper) -> StepStats:

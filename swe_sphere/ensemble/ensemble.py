@@ -28,19 +28,19 @@ from ..core.graphs import default_mode, graphs_mode
 from ..core.interrupts import StopSignals
 from ..core.mpi import RankMax
 from ..grid.cubed_sphere import CubedSphere
-from ..integrator import FixedDt, Integrator, Stop, core_property
+from ..integrator import FixedDt, Integrator, Stop, forwarded
 from ..io.run_file import area_rms, member_statistics
 from ..model.diagnostics import invariants
 from ..model.shallow_water import ShallowWater
 from ..simulation.activities import add_callback
 from ..simulation.build import check_memory
+from ..simulation.guard import RunObserver
 from ..simulation.loop import (
     check_run_arguments,
     check_run_files,
     integrate,
     outcome,
     own_activities,
-    run_observer,
     run_steps,
 )
 from ..simulation.restart import continued, restore_run, write_restart
@@ -263,14 +263,12 @@ class Ensemble:
 
     def _steps(self, stop_step: int, last_day=None, signals=None, bar=None, lines=None, notify=None) -> Stop:
         """Steps to ``stop_step`` (under step control to the model day ``last_day``) by a run's
-        loop (``simulation.loop.run_steps``) under a run's hooks (``loop.run_observer``: the
-        activities due after each good step, the progress on ``bar`` and ``lines``; members
-        dropped, ``_drop``); a stop ``signals`` asked returned (``Stop``; with ``signals``, a
-        run's blocks: ``RunObserver.timed``; a blow-up's line ``Stop.blowup``), ``notify(line)``
-        told a wall time estimated above a day (``summary.Ledger``). ``StepFailure`` as ``step``'s."""
+        loop (``simulation.loop.run_steps``) under a run's hooks (``RunObserver``; members dropped,
+        ``_drop``; with ``signals``, a run's blocks: ``RunObserver.timed``); a stop asked returned
+        (``Stop``), ``notify(line)`` told a wall time estimated above a day (``summary.Ledger``)."""
         ledger = Ledger(self.counters, self.scene, self.step_count, notify)
         kw = {"timed": signals is not None, "dropped": self._drop}
-        observer = run_observer(self, ledger, stop_step, CHECK_EVERY_STEPS, signals, bar, lines, **kw)
+        observer = RunObserver(self, ledger, stop_step, CHECK_EVERY_STEPS, signals, bar, lines, **kw)
         return run_steps(self.core, self.control, last_day, self.activities, observer, stop_step, self._bad)
 
     def _stepped(self, stop_step: int, last_day=None) -> None:
@@ -301,7 +299,7 @@ class Ensemble:
             every_steps = clock.steps_in(days)
         add_callback(self.activities, fn, EverySteps(integer_argument("every_steps", every_steps, 1)))
 
-    step_count = core_property("step", "The steps taken (``Integrator.step``).")
+    step_count = forwarded("core.step", "The steps taken (``Integrator.step``).")
 
     @property
     def day(self) -> float:

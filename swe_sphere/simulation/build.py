@@ -92,11 +92,10 @@ def build(scene: Scene, backend: Backend, progress: bool, comm, start, initial) 
     scorer = Scorer(case, model, topo, grid, whole_hs, scene.reference_file)
     dfi = None
     if start is None:
-        start = (
-            np.stack(case.initial(local.lat, local.lon))
-            if initial is None
-            else from_function(initial, local.lat, local.lon)
-        )
+        if initial is None:
+            start = np.stack(case.initial(local.lat, local.lon))
+        else:
+            start = from_function(initial, local.lat, local.lon)
         if scene.digital_filter is not None:
             dfi = digital_filter(
                 scene.digital_filter, start, grid=local, terms=scene.terms, fcor=fcor, hs=hs, g=model.g, topology=topo
@@ -106,17 +105,5 @@ def build(scene: Scene, backend: Backend, progress: bool, comm, start, initial) 
         start = topo.distribute(None if start is ON_ROOT else start, 3, "start state")
     if not root:  # a fallback's warning once, from rank 0
         model.launches.guard.warn = lambda line: None
-    return Built(  # in the order of ``Built``'s fields
-        case,
-        topo,
-        root,
-        progress and root,
-        grid,
-        model,
-        whole_fcor,
-        whole_hs,
-        stepper,
-        scorer,
-        dfi,
-        start,
-    )
+    # in the order of ``Built``'s fields
+    return Built(case, topo, root, progress and root, grid, model, whole_fcor, whole_hs, stepper, scorer, dfi, start)

@@ -7,36 +7,32 @@ from __future__ import annotations
 import time
 
 from ..integrator import Observer
+from .activities import call_due
 from .schedules import next_multiple
 
 
 class RunObserver(Observer):
-    """A run's hooks on its integrator (``Simulation.core``, ``Ensemble.core``; made by
-    ``loop.run_observer``), to ``stop_step``.
+    """A run's hooks on its integrator (``Simulation.core``, ``Ensemble.core``) to ``stop_step``:
+    ``owner`` the ``Simulation`` or ``Ensemble`` (its ``run_state`` and ``activities``), ``ledger``
+    its ``summary.Ledger`` (the counts, kept at a block's start and put back where the block is
+    taken again), ``signals`` a ``StopSignals``; after good steps the activities due and the
+    progress on ``bar`` (tqdm) and ``lines`` (``progress.ProgressLines``). A block of steps, its
+    states flagged on the device and read once at its end (the integrator's guard: its module
+    doc), ends every ``every`` steps (``Simulation.check_every``) and at each step an activity is
+    due (``block_end``). Under step control ``steered`` (an ``integrator.ControlledDt``): each
+    accepted step a block, to the policy's last day, its state vouched for where the control's
+    norm or Courant pass found it good (``StepControl.vouched``), not abandoned by a signal (a
+    try's state is the control's). ``timed`` False: no first step alone and no steps the wall
+    time is estimated from (an ensemble's ``step(n)`` and ``advance``: blocks as long as they may
+    be). An ensemble's (``dropped`` given): each (index, unit, first bad node) dropped told to
+    ``dropped(bad, step)``, a stop asked between blocks alone and no step abandoned by a signal
+    (members stepped in turn are not put back a step)."""
 
-    The state is flagged on the device after every step (``ShallowWater.watch``) and the flag
-    read back once a block of steps (``block_end``: every ``check_every`` steps and at every step
-    an activity is due), so that a GPU step needs no host round trip; the solvers' iteration
-    counters of the semi-implicit and IMEX steps are read there too (``Stepper.deferred``,
-    ``Stepper.counts``), and a solve that missed its tolerance fails the block like a bad state.
-    A block that fails is taken again from its start (state, stepper history and the run's
-    ``counters`` kept there), one checked step at a time: the blow-up is reported at the step,
-    time and place (a failed solve at the step and time), and the output holds, as with a check
-    every step (the same bits either way). ``run`` the run's parts: its first step, check interval
-    (``Simulation.check_every``), ``activities`` and ``counters`` (``Simulation``'s) and
-    ``summary.Ledger``; ``signals`` a ``StopSignals``, ``after(n, done)`` the loop's activities
-    and progress after good steps. Under step control ``steered`` (an ``integrator.ControlledDt``):
-    each accepted step a block, to the policy's last day, its state vouched for where the
-    control's norm or Courant pass found it good (``StepControl.vouched``), not abandoned by a
-    signal (a try's state is the control's). ``timed`` False: no first step alone and no steps
-    the wall time is estimated from (an ensemble's ``step(n)`` and ``advance``: blocks as long as
-    they may be). An ensemble's (``dropped`` given): each (index, unit, first bad node) dropped
-    told to ``dropped(bad, step)``, a stop asked between blocks alone and no step abandoned by a
-    signal (members stepped in turn are not put back a step)."""
-
-    def __init__(self, run: tuple, stop_step: int, signals=None, after=None, timed: bool = True, dropped=None):
-        self.first_step, every, self.activities, self.counters, self.ledger = run
-        self.stop_step, self.signals, self._after, self.steered = stop_step, signals, after, None
+    def __init__(
+        self, owner, ledger, stop_step: int, every: int, signals=None, bar=None, lines=None, timed=True, dropped=None
+    ):
+        self.owner, self.run, self.ledger, self.first_step = owner, owner.run_state, ledger, owner.run_state.step
+        self.stop_step, self.signals, self.bar, self.lines, self.steered = stop_step, signals, bar, lines, None
         self.every, self.timed, self._dropped = max(1, int(every)), timed, dropped
 
     def block_end(self, b: int) -> int:
@@ -49,7 +45,7 @@ class RunObserver(Observer):
             return b if self.steered.reached else b + 1
         if self.every == 1 or (self.timed and b == self.first_step):  # the first step alone: first_step_time
             return b + 1
-        due = (a.schedule.next_after(b) for a in self.activities.values())
+        due = (a.schedule.next_after(b) for a in self.owner.activities.values())
         estimate = self.ledger.next_steps(b) if self.timed else ()
         return min(self.stop_step, next_multiple(b, self.every), *(n for n in due if n is not None), *estimate)
 
@@ -66,9 +62,7 @@ class RunObserver(Observer):
         self._dropped(bad, step)
 
     def stepping(self, on: bool) -> None:
-        if (
-            self.signals is not None and self.steered is None and self._dropped is None
-        ):  # a step may be abandoned from here (``StopSignals``)
+        if self.signals is not None and self.steered is None and self._dropped is None:  # abandoned from here
             self.signals.in_step = time.perf_counter() if on else None
 
     def add(self, stats) -> None:
@@ -78,11 +72,20 @@ class RunObserver(Observer):
         self.ledger.account(step, t0, cpu0)
 
     def after(self, step: int, done: int) -> None:
-        if self._after is not None:
-            self._after(step, done)
+        """The activities due (``call_due``), then the progress on ``bar`` and ``lines``, where given."""
+        run, bar = self.run, self.bar
+        call_due(self.owner.activities, run, self.owner)
+        if bar is None:
+            return
+        bar.update(done)
+        if self.lines is not None:
+            self.lines.tick(step, run.time)
+        if step % 50 < done or step == run.scene.nsteps:  # a multiple of 50 in the steps done
+            speed = (run.time - run.scene.start_day) / max(run.counters["wall_time"], 1e-9)
+            bar.set_postfix(day=f"{run.time:.2f}", sim_days_per_s=f"{speed:.3g}")
 
     def keep(self):
-        return self.counters["rhs_evals"], dict(self.counters["iterations"])
+        return self.run.counters["rhs_evals"], dict(self.run.counters["iterations"])
 
     def put_back(self, kept) -> None:
-        self.counters["rhs_evals"], self.counters["iterations"] = kept
+        self.run.counters["rhs_evals"], self.run.counters["iterations"] = kept

@@ -1,10 +1,10 @@
 """The run loop of ``Simulation.run`` and ``Ensemble.run`` alike: the run wrapper (``integrate``:
 its files recorded, signals, progress bar, a stopped run's files closed) and its outcome
 (``outcome``), its steps by the integrator (``run_steps``, at a fixed or a controlled Δt) under
-the run's hooks (``run_observer``, a ``guard.RunObserver``: the activities due after each good
-step, the progress), the run's own activities (``own_activities``); a ``Simulation``'s part
-(``Looping``, methods of a ``Simulation``, which is one), the run's arguments checked
-(``check_run_arguments``) and the seconds spent compiling Warp modules (``compile_timer``)."""
+the run's hooks (``guard.RunObserver``), the run's own activities (``own_activities``); a
+``Simulation``'s part (``Looping``, methods of a ``Simulation``, which is one), the run's
+arguments checked (``check_run_arguments``) and the seconds spent compiling Warp modules
+(``compile_timer``)."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ from ..core.errors import BlowUp, OutputError, SceneError
 from ..core.interrupts import StopSignals
 from ..integrator import Stop, trouble_line
 from ..io.output_files import check_distinct, check_target
-from .activities import Log, call_due
+from .activities import Log
 from .adaptive import Tries, steered
 from .guard import RunObserver
 from .schedules import EverySteps
@@ -108,28 +108,6 @@ def run_steps(core, control, last_day: float, activities: dict, observer, stop_s
     return stop
 
 
-def run_observer(owner, ledger: Ledger, stop_step: int, every: int, signals=None, bar=None, lines=None, **kw):
-    """The ``guard.RunObserver`` of ``owner``'s steps to ``stop_step`` (a ``Simulation``'s or an
-    ``Ensemble``'s: its ``run_state`` and ``activities``; ``kw`` as ``RunObserver`` takes them),
-    its state read every ``every`` steps: after each good step the activities due there
-    (``call_due``) and the progress: on ``bar`` where given, and ``lines`` (a
-    ``progress.ProgressLines``, rank 0's) where given."""
-    run = owner.run_state
-
-    def after(n: int, done: int) -> None:
-        call_due(owner.activities, run, owner)
-        if bar is None:
-            return
-        bar.update(done)
-        if lines is not None:
-            lines.tick(n, run.time)
-        if n % 50 < done or n == run.scene.nsteps:  # a multiple of 50 in the steps done
-            speed = (run.time - run.scene.start_day) / max(run.counters["wall_time"], 1e-9)
-            bar.set_postfix(day=f"{run.time:.2f}", sim_days_per_s=f"{speed:.3g}")
-
-    return RunObserver((run.step, every, owner.activities, run.counters, ledger), stop_step, signals, after, **kw)
-
-
 def integrate(run, files, ckp, start, signals, blocks, during, *, progress, **how) -> Stop:
     """The run wrapper of ``Simulation.run`` and ``Ensemble.run``: ``run`` (a
     ``run_state.RunState``) stepped by ``blocks(signals, bar)`` (``run_steps``; a ``Stop``) with
@@ -204,7 +182,7 @@ class Looping:
             raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
         stop_step = self.scene.nsteps if until_step is None else until_step
         lines = self._progress_lines if self.root else None
-        observer = run_observer(self, ledger, stop_step, self.check_every, signals, bar, lines)
+        observer = RunObserver(self, ledger, stop_step, self.check_every, signals, bar, lines)
 
         def describe(bad: tuple) -> str:
             day = self.time if self.control is not None else self.scene.day(bad[0])

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 from ..config.scene import Scene
 from ..core.constants import DAY
-from ..integrator import Integrator
+from ..integrator import Integrator, forwarded
 
 
 @dataclass
@@ -28,21 +28,10 @@ class RunState:
         default_factory=lambda: {"rhs_evals": 0, "wall_time": 0.0, "cpu_time": 0.0, "iterations": {}}
     )
 
-    @property
-    def step(self) -> int:
-        return self.core.step
-
-    @property
-    def x(self):
-        return self.core.units[0].x
-
-    @property
-    def last_good(self):
-        return self.core.units[0].start
-
-    @property
-    def stepper(self):
-        return self.core.units[0].stepper
+    step = forwarded("core.step", "The steps taken (the integrator's).", False)
+    x = forwarded("core.units.0.x", "The state (3, N) (the one unit's).", False)
+    last_good = forwarded("core.units.0.start", "The last good state (3, N) (the one unit's start).", False)
+    stepper = forwarded("core.units.0.stepper", "The stepper (the one unit's).", False)
 
     @property
     def time(self) -> float:
@@ -58,8 +47,3 @@ class RunState:
     def event_day(self) -> float | None:
         """Under step control the day the step landed on (an output, restart or end time), else None."""
         return self.control.day if self.control is not None and self.control.landed else None
-
-
-def run_property(name: str, doc: str) -> property:
-    """A simulation's property (read and set) that is its run state's (``Simulation.run_state``) ``name``."""
-    return property(lambda s: getattr(s.run_state, name), lambda s, value: setattr(s.run_state, name, value), doc=doc)

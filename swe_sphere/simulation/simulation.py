@@ -12,6 +12,7 @@ diagnostics a ``state_diagnostics`` component, ``Simulation.diagnostics``."""
 
 from __future__ import annotations
 
+import functools
 import time
 from pathlib import Path
 
@@ -25,20 +26,26 @@ from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, Interrupted, SceneError
 from ..core.graphs import default_mode, graphs_mode
 from ..core.interrupts import StopSignals
-from ..integrator import Integrator, Unit, core_property
+from ..integrator import Integrator, Unit, forwarded
 from .adaptive import StepControl
 from .build import ON_ROOT, Built, build
 from .checkpoint import Checkpoint
 from .drive import Driven
 from .loop import Looping, check_run_arguments, compile_timer, integrate, outcome
 from .restart import Restarts, continued
-from .run_state import RunState, run_property
+from .run_state import RunState
 from .schedules import at_its_end
 from .state_diagnostics import StateDiagnostics
 from .summary import Ledger, RunResult
 
 # The names users catch and read from here (``swe_sphere.BlowUp``, ``swe_sphere.Interrupted``).
 __all__ = ["BlowUp", "Interrupted", "RunResult", "Simulation"]
+
+
+def _diagnostic(name: str):
+    """The simulation's method ``name``, its diagnostics' (``StateDiagnostics.<name>``, whose doc it has)."""
+    method = getattr(StateDiagnostics, name)
+    return functools.wraps(method)(lambda sim, *args, **kw: method(sim.diagnostics, *args, **kw))
 
 
 class Simulation(Driven, Restarts, Looping):
@@ -169,14 +176,9 @@ class Simulation(Driven, Restarts, Looping):
             # the build's parts the simulation's attributes, the state and stepper its integrator's (not kept
             # whole: a stepper built anew, ``fit_dt``, would leave the first one's arrays held there)
             b: Built = build(scene, backend, progress, comm, start, initial)
-            self.case, self.topology, self.root, self.progress, self.grid = (
-                b.case,
-                b.topology,
-                b.root,
-                b.progress,
-                b.grid,
-            )
-            self.model, self.fcor, self.hs, self.scorer, self.dfi = b.model, b.fcor, b.hs, b.scorer, b.dfi
+            self.case, self.topology, self.root, self.progress = b.case, b.topology, b.root, b.progress
+            self.grid, self.model, self.fcor = b.grid, b.model, b.fcor
+            self.hs, self.scorer, self.dfi = b.hs, b.scorer, b.dfi
             # the start on the device, the stepper prepared on it (``FixedDt``: graphed steps)
             self.core = Integrator([Unit.of(b.model, b.stepper, b.start[None], backend, graphs)])
             # what the run's collaborators read of it: its step, state, scene, control, t = 0 diagnostics, counters
@@ -254,75 +256,35 @@ class Simulation(Driven, Restarts, Looping):
             sim.inputs = (Path(checkpoint),)
         return sim
 
-    @property
-    def time(self) -> float:
-        """The model time of the current step, days since t = 0 (under step control the
-        control's: a day as given where the step landed on it)."""
-        return self.run_state.time
-
-    @property
-    def event_day(self) -> float | None:
-        """Under step control the day the current step landed on (an output, restart or end
-        time; ``schedules.AtDays``), else None."""
-        return self.run_state.event_day
-
     # -- the run's state (``run_state.RunState``): the scene it runs, its step control, t = 0 diagnostics, counters
-    scene = run_property("scene", "The resolved ``Scene`` the run runs (a fitted Δt or a lengthened run replace it).")
-    control = run_property("control", "The step control (``adaptive.StepControl``) under ``Scene.control``, else None.")
-    initial = run_property("initial", "The t = 0 diagnostics relative changes are taken against.")
-    counters = run_property("counters", "RHS evaluations, wall and CPU seconds and solver iterations so far.")
+    scene = forwarded("run_state.scene", "The ``Scene`` run (resolved; a fitted Δt or a lengthened run replace it).")
+    control = forwarded("run_state.control", "The ``adaptive.StepControl`` under ``Scene.control``, else None.")
+    initial = forwarded("run_state.initial", "The t = 0 diagnostics relative changes are taken against.")
+    counters = forwarded("run_state.counters", "RHS evaluations, wall and CPU seconds and solver iterations so far.")
+    time = forwarded("run_state.time", "Days since t = 0 at the current step (``RunState.time``).")
+    event_day = forwarded("run_state.event_day", "The day a controlled step landed on (``RunState.event_day``).")
 
-    # -- the state's diagnostics (``state_diagnostics``) --------------------------
-    def fields(self, x=None):
-        """``StateDiagnostics.fields``: u, v, h of the whole grid on rank 0."""
-        return self.diagnostics.fields(x)
+    # -- the state's diagnostics (``state_diagnostics``): its fields, Courant numbers and stability limit
+    fields = _diagnostic("fields")
+    divergence = _diagnostic("divergence")
+    courant = _diagnostic("courant")
+    stability_warning = _diagnostic("stability_warning")
+    largest_dt_within_limit = _diagnostic("largest_dt_within_limit")
 
-    def divergence(self, x=None):
-        """``StateDiagnostics.divergence``: the wind's divergence on rank 0."""
-        return self.diagnostics.divergence(x)
-
-    def courant(self, whole=None) -> dict:
-        """``StateDiagnostics.courant``: the Courant numbers of the current state."""
-        return self.diagnostics.courant(whole)
-
-    def stability_warning(self) -> str | None:
-        """``StateDiagnostics.stability_warning``: a line when Δt exceeds the stepper's limit."""
-        return self.diagnostics.stability_warning()
-
-    def largest_dt_within_limit(self) -> float | None:
-        """``StateDiagnostics.largest_dt_within_limit``: the Δt at the stepper's limit."""
-        return self.diagnostics.largest_dt_within_limit()
-
-    # -- the step: the integrator's (``integrator.Integrator``, one unit of one member) --
-    step = core_property("step", "Steps taken since t = 0 (a branched run: since its branch day, ``Scene.start_day``).")
-    stepper = core_property("stepper", "The stepper (``steppers``), prepared on ``x``.", unit=True)
-    x = core_property("x", "The state (3, N) on the device: rows u, v (m s⁻¹), h (m) on this rank's nodes.", unit=True)
-    last_good = core_property("start", "The state (3, N) at the start of the step or block in progress.", unit=True)
-
-    @property
-    def _graphed(self):
-        return self.core.units[0].graphed
-
-    @property
-    def graphs(self) -> str:
-        """The graph mode: "auto", "on" or "off" (set also as True, False; see the class)."""
-        return self._graphed.mode
-
-    @graphs.setter
-    def graphs(self, value) -> None:
-        self._graphed.mode = value
-
-    @property
-    def graphs_kept(self) -> int:
-        """The step graphs checked and kept so far, each replayed by the later steps of its key
-        (``graphs.GraphedSteps.kept``); 0 where steps run plain."""
-        return self._graphed.kept
-
-    @property
-    def graphs_checked(self) -> int:
-        """The step graphs compared bit for bit with the same step launched plainly so far
-        (``graphs.GraphedSteps``: each key's first, or a ``GraphCapture.graph_family``'s)."""
-        return self._graphed.checked
+    # -- the step: the integrator's (``integrator.Integrator``, one unit of one member) and its graphs
+    step = forwarded("core.step", "Steps taken since t = 0 (a branch: since its day, ``Scene.start_day``).")
+    stepper = forwarded("core.units.0.stepper", "The stepper (``steppers``), prepared on ``x``.")
+    x = forwarded("core.units.0.x", "The state (3, N) on the device: rows u, v (m s⁻¹), h (m) on this rank's nodes.")
+    last_good = forwarded("core.units.0.start", "The state (3, N) at the start of the step or block in progress.")
+    graphs = forwarded("core.units.0.graphed.mode", 'Graph mode: "auto", "on", "off" (or True, False; see Notes).')
+    graphs_kept = forwarded(
+        "core.units.0.graphed.kept", "Step graphs checked and kept (``GraphedSteps.kept``); 0 where steps run plain."
+    )
+    graphs_checked = forwarded(
+        "core.units.0.graphed.checked",
+        "Step graphs compared bit for bit with plain launches (``GraphedSteps``).",
+        False,
+    )
 
     def try_step(self, x):
         """One step of the stepper on x (3, N) in place, replayed as a graph where ``graphs``

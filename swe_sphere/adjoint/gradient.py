@@ -212,9 +212,7 @@ def gradient(
         raise ArgumentError(f"history holds {len(clock.steps)} steps, fewer than the {steps} asked for")
     model, stepper, initial = scene_model(scene, pick_device(device, comm=comm), hs, comm)
     topo = model.topology
-    getattr(cost, "check_nodes", lambda n: None)(
-        topo.nnodes_total
-    )  # h_obs, the observation operator's grid: before the run
+    getattr(cost, "check_nodes", lambda n: None)(topo.nnodes_total)  # h_obs's grid, before the run
     if x0 is not None:
         x0 = topo.distribute(x0 if topo.comm.rank == 0 else None, 3, "x0")
         if "pressure_gradient" in model.terms and (low := -topo.max(-float(x0[2].min()))) <= 0:  # a depth

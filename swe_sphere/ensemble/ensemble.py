@@ -155,13 +155,12 @@ class Ensemble:
         **overrides,
     ):
         scene, self.inputs = resolve_scene(scene, overrides)
-        if members is None and scene.ensemble is None:
+        asked = scene.ensemble  # the scene's [ensemble] table, or None
+        if members is None and asked is None:
             raise ArgumentError("members must be given, or the scene name them ([ensemble] members)")
-        members = integer_argument("members", scene.ensemble["members"] if members is None else members, 1)
-        if initial is None and scene.ensemble is not None and scene.ensemble["perturbation"] > 0:
-            initial = Perturbation(
-                scene.ensemble["perturbation"], scene.ensemble["seed"], scene.ensemble.get("degrees")
-            )
+        members = integer_argument("members", asked["members"] if members is None else members, 1)
+        if initial is None and asked is not None and asked["perturbation"] > 0:
+            initial = Perturbation(asked["perturbation"], asked["seed"], asked.get("degrees"))
         self.comm = comm if comm is not None and comm.size > 1 else None
         ranks, rank = (1, 0) if self.comm is None else (self.comm.size, self.comm.rank)
         if members < ranks:
@@ -301,10 +300,7 @@ class Ensemble:
 
     step_count = forwarded("core.step", "The steps taken (``Integrator.step``).")
 
-    @property
-    def day(self) -> float:
-        """The model time reached, days since t = 0 (under step control the control's)."""
-        return self.run_state.time
+    day = forwarded("run_state.time", "The model time reached, days since t = 0 (under step control the control's).")
 
     @property
     def wall_time(self) -> float:

@@ -1,28 +1,19 @@
 """Steps that choose themselves (``Scene.control``): the step control the loop owns when a scene
 asks for an accuracy or a Courant number instead of a Δt.
 
-``StepControl.step`` takes one accepted step from time t toward a target time: Δt the
-controller's last proposal, held within [dt_min, dt_max] and shortened to land on the target
-exactly (an output, restart or end time); the stepper told the Δt (``Stepper.set_dt``). Under
-``error`` control a step whose error norm (``control.ErrorNorm`` of the pair's estimate) is
-above 1 is rejected: the state and the stepper's state (``Stepper.state``) put back, retried
-at the controller's shorter Δt (with ``per_unit_step``, the norm per unit step, ‖e‖ · 1 day / Δt,
-so that the error a run accumulates follows rtol: Shampine 2005, J. Sci. Comput. 25:3). A CFL
-target (``control.CflController``) is the whole control under ``cfl``, a cap under ``error``: by
-default (``SceneControl.cfl_default``) ``config.control.CFL_FRACTION`` × the pair's measured
-Courant limit, holding the Courant number only (no growth bound: where it does not bind, the
-steps are the error controller's, bit for bit); ``capped`` counts the accepted steps whose next Δt it set. A proposal below dt_min stops
-as a blow-up (``BlowUp``: step, time, Δt). ``state``/``restore`` keep the proposal, the controller's history and the
-counts, so that a restart continues bitwise.
+``StepControl.step`` takes one accepted step toward a target time (an output, restart or end
+time): Δt the controller's last proposal, held within [dt_min, dt_max] and shortened to land on
+the target exactly, told the stepper (``Stepper.set_dt``). Under ``error`` control a step whose
+error norm (``control.ErrorNorm`` of the pair's estimate) is above 1 is rejected: the state and
+the stepper's state put back, retried at the controller's shorter Δt (with ``per_unit_step`` the
+norm per unit step, ‖e‖ · 1 day / Δt, so that the error a run accumulates follows rtol:
+Shampine 2005, J. Sci. Comput. 25:3). A CFL target (``control.CflController``) is the whole
+control under ``cfl``, a cap under ``error``: by default (``SceneControl.cfl_default``)
+``config.control.CFL_FRACTION`` × the pair's measured Courant limit, holding the Courant number
+only (no growth bound: where it does not bind, the steps are the error controller's, bit for
+bit). Under ``balanced`` control the tolerances follow the grid (``Balance``: issue 64's "a run
+that asks for an accuracy"). ``steered`` is a run's Δt policy under control.
 
-Under ``balanced`` control the error control's tolerances follow the grid (``Balance``): a
-step's error estimate is held to a fraction of the spatial error an a-posteriori estimate says
-arises over the step, so that the temporal error stays a chosen fraction of the spatial one
-without a sweep over tolerances (issue 64's "a run that asks for an accuracy").
-
-``steered`` is ``Simulation.run``'s Δt policy under control (``integrator.ControlledDt``):
-accepted steps to each time an activity is due at (``schedules.AtDays``: output and restart
-times) and the end, each landed on exactly, through the run's one loop.
 Its tries replay as graphs where a fixed-Δt run's steps do (``Simulation.try_step``: on CUDA
 by default): a graph is keyed by Δt (``GraphCapture.graph_key``), and the controller's Δt are few,
 those of its grid (``on_grid``), so each keeps its graph (a step landed on a target, its Δt off
@@ -35,9 +26,10 @@ rank): a try's norm is queued with its read, then the next try at the same Δt i
 the try's end (kept in ``xs``) before the norm is read, so that the card steps while the host
 reads and decides; where the try is accepted and the next Δt is that one (Δt changes in about
 2 % of ``rk43``'s steps), the try launched ahead is the next step (its start, in ``xs``, swaps
-into ``x0``: no copy), else it is undone (x back from its start, the stepper rolled back). Only where nothing reads the state between the two steps
-(``quiet``: no activity due after the first, neither lands on a target). The same tries, counts
-and bits as without it (a try launched ahead and undone is not counted: ``ahead_dropped``).
+into ``x0``: no copy), else it is undone (x back from its start, the stepper rolled back), and
+only where nothing reads the state between the two steps (``quiet``: no activity due after the
+first, neither lands on a target): the same tries, counts and bits as without it (a try
+launched ahead and undone is not counted: ``ahead_dropped``).
 """
 
 from __future__ import annotations
@@ -130,6 +122,10 @@ class Balance:
 LAUNCH_LISTS = 64
 
 
+# the times and Δt (s; the day reached, days) a ``StepControl.state`` holds, restored as floats
+_TIMES = ("dt", "t", "day", "dt_smallest", "dt_sum", "dt_largest", "dt_last", "error_last")
+
+
 def on_grid(dt: float) -> float:
     """``dt`` (s, > 0) rounded down to 2^(k / DT_GRID) s, k an integer."""
     return 2.0 ** (math.floor(math.log2(dt) * DT_GRID) / DT_GRID)
@@ -150,17 +146,17 @@ class StepControl:
     """The step control of ``control`` (a ``SceneControl``) over ``stepper`` (``variable_dt``;
     under "error" with an ``error_estimate``) on ``unit`` (an ``integrator.Unit``: its model, stepper,
     state x (3, N) and last good state ``start``, a try's start), from model day ``start_day`` (the
-    scene's: 0, or a branch's day). The first proposal
-    is the stepper's Δt. Counts: ``accepted``, ``rejected``, the smallest, summed and largest
-    accepted Δt (s); ``history``: (time (s), Δt (s), error norm or NaN) per accepted step.
+    scene's: 0, or a branch's day). The first proposal is the stepper's Δt. Counts: ``accepted``,
+    ``rejected``, the smallest, summed and largest accepted Δt (s); ``history``: (time (s), Δt (s),
+    error norm or NaN) per accepted step.
     Where the steps are: ``t`` (s since t = 0, from the scene's start day), ``day`` (days;
     a target's day as given where a step landed on it, ``landed``), the last accepted ``dt_last``
     and its error norm ``error_last`` (NaN under "cfl")."""
 
     def __init__(self, control: SceneControl, unit, start_day: float = 0.0):
         self.control, self.stepper, self.unit = control, unit.stepper, unit
-        stepper, model = unit.stepper, unit.model
-        topology = model.topology
+        stepper, model, topology = unit.stepper, unit.model, unit.model.topology
+        pressure = "pressure_gradient" in model.terms  # h a depth: h ≤ 0 is a bad state
         self.error = control.mode in ESTIMATED
         self.norm = self.controller = self.balance = None
         if self.error:
@@ -169,12 +165,11 @@ class StepControl:
             # the estimate's order in Δt: p + 1 a step, p per unit step (p the pair's lower order)
             order = min(stepper.order, stepper.embedded_order) + (0 if control.per_unit_step else 1)
             self.controller = Controller(order, control.controller)
-            depth = "pressure_gradient" in model.terms  # h a depth: h ≤ 0 is a bad state
             if control.mode == "balanced":  # absolute tolerances alone, set every try (``Balance``)
-                self.norm = ErrorNorm(topology, 0.0, ATOL_FLOOR, ATOL_FLOOR, depth)
+                self.norm = ErrorNorm(topology, 0.0, ATOL_FLOOR, ATOL_FLOOR, pressure)
                 self.balance = Balance(control.balance, unit, self.norm)
             else:
-                self.norm = ErrorNorm(topology, control.rtol, control.atol_wind, control.atol_h, depth)
+                self.norm = ErrorNorm(topology, control.rtol, control.atol_wind, control.atol_h, pressure)
                 # an inner solve's error below the step's (atol 0: rtol in each field's units)
                 atol = min(control.atol_wind, control.atol_h) or control.rtol
                 stepper.follow_tolerance(atol, control.rtol, control.per_unit_step)
@@ -183,7 +178,6 @@ class StepControl:
         gravity_waves = stepper.courant_limit is not None  # explicit gravity waves: the signal's Courant number
         growth = math.inf if control.cfl_default else CflController.max_change  # the default cap: a bound only
         self.cfl = None if control.cfl is None else CflController(control.cfl, gravity_waves, growth)
-        pressure = "pressure_gradient" in model.terms
         self.courant = None if self.cfl is None else CourantMax(topology, topology.grid.dx, model.g, pressure)
         self.checked = False  # the last try's state found good by the norm or the Courant numbers' pass
         self.courant_passes = 0  # the Courant numbers' passes taken; under "error", skipped where the cap cannot bind
@@ -379,21 +373,17 @@ class StepControl:
 
     def state(self) -> dict:
         """The next proposal, the controller's history and the counts (a restart file's numbers)."""
-        s = {"dt": self.dt, "accepted": self.accepted, "rejected": self.rejected, "t": self.t, "day": self.day}
-        s |= {"capped": self.capped}
-        s |= {"dt_smallest": self.dt_smallest, "dt_sum": self.dt_sum, "dt_largest": self.dt_largest}
-        s |= {"landed": self.landed, "dt_last": self.dt_last, "error_last": self.error_last}
+        s = {k: getattr(self, k) for k in (*_TIMES, "accepted", "rejected", "capped", "landed")}
         s |= {"balance": self.balance.state()} if self.balance is not None else {}
         return s | ({"controller": self.controller.state()} if self.error else {})
 
     def restore(self, state: dict) -> None:
         """Continue from ``state()``: the same steps as the control it came from."""
-        self.dt, self.landed = float(state["dt"]), bool(state["landed"])
+        for k in _TIMES:
+            setattr(self, k, float(state[k]))
         self.accepted, self.rejected = int(state["accepted"]), int(state["rejected"])
+        self.landed = bool(state["landed"])
         self.capped = int(state.get("capped", 0))  # a restart file from before the count: 0
-        self.t, self.day, self.dt_smallest, self.dt_sum, self.dt_largest, self.dt_last, self.error_last = (
-            float(state[k]) for k in ("t", "day", "dt_smallest", "dt_sum", "dt_largest", "dt_last", "error_last")
-        )
         if self.error:
             self.controller.restore(state["controller"])
         if self.balance is not None:

@@ -1,16 +1,8 @@
-"""Checkpoints: everything a run needs to continue bitwise (HOMME's restart,
-Oceananigans' ``Checkpointer``), read from a restart file (``restart_file``: its
-layout, checks and writer) with its scene.
-
-Restoring a checkpoint into a fresh ``Simulation`` of the same scene is just
-another initial state: the continued run is bitwise the uninterrupted one.
-
-A checkpoint also starts other runs: ``branch`` makes the scene of a run from
-its state with another stepper or Δt (``Simulation.from_checkpoint``, ``swe-sphere
-run --continue R --stepper S --dt DT``, ``swe-sphere sweep --from R``).
-
-``read`` raises ``CheckpointError`` (a ValueError, one line) for a file that
-``restart_file.read`` refuses or whose scene this version cannot read.
+"""Checkpoints: everything a run needs to continue bitwise (HOMME's restart, Oceananigans'
+``Checkpointer``), read from a restart file (``restart_file``: its layout, checks and writer)
+with its scene. Restored into a fresh ``Simulation`` of the same scene it is just another
+initial state: the continued run is bitwise the uninterrupted one. A checkpoint also starts
+other runs (``branch``: ``swe-sphere run --continue R --stepper S --dt DT``, ``sweep --from R``).
 """
 
 from __future__ import annotations

@@ -2,9 +2,7 @@
 ``Driven``, the methods ``advance``, ``steps``, ``state``, ``every``, ``add_callback`` and
 ``fit_dt`` of a ``Simulation`` (which is one), their steps by ``Simulation.run``'s loop; Δt
 fitted to the user's intervals where it is the simulation's own (``_own_dt``: not given,
-restored or stated in a ``Scene``): ``fitted_dt`` returns the new scene (its clock,
-``Clock.fitted``) and stepper, writing nothing, and ``use_dt`` is the one place a run's Δt is
-rewritten."""
+restored or stated in a ``Scene``)."""
 
 from __future__ import annotations
 
@@ -35,7 +33,9 @@ class Driven:
         a note in its ``notes`` naming ``what``) and the stepper to step at it: one built anew
         at that Δt where Δt is folded into what it builds (``variable_dt`` False), else this one
         (its ``set_dt`` called where the pair is used, ``use_dt``). Nothing of the simulation
-        written. ``SceneError`` as ``fit_dt``."""
+        written. ``SceneError`` (one line) after the first step, for ``every`` <= 0, and where
+        that Δt is less than half the present one (an interval of odd decimals: give a dt, or an
+        interval of whole steps)."""
         s = self.scene
         if self.step != 0 or not is_interval(every):
             raise SceneError(
@@ -88,15 +88,9 @@ class Driven:
             )
 
     def fit_dt(self, every: float, what: str = "every") -> tuple:
-        """Shorten Δt, before the first step, to the largest that divides ``every`` (days),
-        the run, its output intervals (where shorter than the run) and the intervals of
-        the activities scheduled in days (``every``; their steps follow): the scene's clock
-        fitted to them (``Clock.fitted``), set on the stepper (``set_dt``; a stepper that cannot
-        change its Δt, ``variable_dt`` False, built anew), and the start's diagnostics again
-        (their Courant numbers); a note in ``scene.notes`` naming ``what``. ``SceneError``
-        (one line) after the first step, for ``every`` <= 0, and where that Δt is less than
-        half the present one (an interval of odd decimals: give a dt, or an interval of
-        whole steps). Returns the new (scene, stepper) (``fitted_dt``, then ``use_dt``)."""
+        """Shorten Δt before the first step (``fitted_dt``, with its ``SceneError``; then ``use_dt``:
+        set on the stepper, or one built anew, the activities' steps and the start's diagnostics
+        following); a note in ``scene.notes`` naming ``what``. Returns the new (scene, stepper)."""
         scene, stepper = self.fitted_dt(every, what)
         self.use_dt(scene, stepper)
         return scene, stepper

@@ -80,15 +80,14 @@ def progress_bar(step: int, nsteps: int, progress: bool) -> tqdm:
 
 def run_steps(core, control, last_day: float, activities: dict, observer, stop_step: int, describe) -> Stop:
     """The steps of a run (a ``Simulation``'s or an ``Ensemble``'s) by its integrator ``core`` to
-    ``stop_step`` under ``observer`` (a ``guard.RunObserver``), each step's Δt its policy's: the
-    integrator's own at a fixed Δt, or under ``control`` (an ``adaptive.StepControl``) the
-    control's (``adaptive.steered``: each accepted step a block, landed on the days the
-    ``activities`` are due at and on ``last_day``; ``stop_step`` then unbounded). Returns why the
+    ``stop_step`` under ``observer`` (a ``guard.RunObserver``), each step's Δt the integrator's
+    own policy's at a fixed Δt; under ``control`` (an ``adaptive.StepControl``) its policy
+    (``adaptive.steered``: each accepted step a block, landed on the days the ``activities`` are
+    due at and on ``last_day``; ``stop_step`` then unbounded), rewind (``adaptive.Tries``) and lone
+    steps the control's from then on (a controlled run steps by nothing else). Returns why the
     steps stopped (``Stop``: nothing, a signal, an abandoned step, a blow-up with ``describe(bad)``
     its line, or the controller's Δt below dt_min); after a controlled run's blow-up, the state
-    and the control those of the step before. At a fixed Δt the integrator's own policy; under
-    ``control`` its policy, rewind (``adaptive.Tries``) and lone steps the control's from then on
-    (a controlled run or ensemble steps by nothing else)."""
+    and the control those of the step before."""
     if control is not None:  # the control's Δt policy from now on, each accepted step a block checked at once
         observer.steered = steered(control, last_day, activities)
         core.policy, core.rewind, core.lone, stop_step = observer.steered, Tries(control), True, sys.maxsize
@@ -208,22 +207,12 @@ class Looping:
             files.open(attrs, overwrite=overwrite, compress=compress, notify=notify)
         return files, ckp, start, courant
 
-    @contextlib.contextmanager
     def _during_run(self, files: RunFiles, ckp: Checkpointer, log):
-        """The run's own activities in ``activities`` (``own_activities``, the log after the
-        user's), and the stepper's solver counters read with the bad-state check
-        (``Stepper.deferred``), while the loop runs."""
-        more = (
-            {"log": Log(log, EverySteps(self.scene.log_every_steps), files)}
-            if log is not None and self.scene.log_every_steps
-            else {}
-        )
-        self.stepper.deferred = True
-        try:
-            with own_activities(self, files, ckp, **more):
-                yield
-        finally:
-            self.stepper.deferred = False
+        """The run's own activities while the loop runs (``own_activities``, the log after the
+        user's), the stepper's solver counters read with the bad-state check."""
+        every = self.scene.log_every_steps
+        more = {"log": Log(log, EverySteps(every), files)} if log is not None and every else {}
+        return own_activities(self, files, ckp, self.stepper, **more)
 
 
 def check_run_files(owner, files: RunFiles, ckp: Checkpointer, overwrite: bool) -> None:
@@ -241,12 +230,17 @@ def check_run_files(owner, files: RunFiles, ckp: Checkpointer, overwrite: bool) 
 
 
 @contextlib.contextmanager
-def own_activities(owner, files: RunFiles, ckp: Checkpointer, **more):
+def own_activities(owner, files: RunFiles, ckp: Checkpointer, deferred=None, **more):
     """A run's own activities in ``owner.activities`` (a ``Simulation``'s or an ``Ensemble``'s)
-    while its loop runs: the run file and checkpointer before the user's, ``more`` after."""
-    own = owner.activities
+    while its loop runs: the run file and checkpointer before the user's, ``more`` after; the
+    stepper ``deferred``'s solver counters read with the bad-state check (``Stepper.deferred``)."""
+    own, steppers = owner.activities, [] if deferred is None else [deferred]
     owner.activities = {"run_file": files, "checkpointer": ckp, **own, **more}
+    for stepper in steppers:
+        stepper.deferred = True
     try:
         yield
     finally:
         owner.activities = own
+        for stepper in steppers:
+            stepper.deferred = False

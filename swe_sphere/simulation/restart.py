@@ -20,16 +20,15 @@ def continued(checkpoint, days, stepper=None, dt=None, comm=None, members: bool 
     and whether it continues the file rather than branch from it: its stepper's history then
     restored, ``restore_history``). ``CheckpointError`` (one line) for a path that is not one, a
     file ``checkpoint.read`` refuses, or one of the other kind (an ensemble's, a single run's)."""
-    if not isinstance(checkpoint, ckpt.Checkpoint):
-        path_argument("checkpoint", checkpoint, "a restart file's path (str or os.PathLike)", CheckpointError)
     if isinstance(checkpoint, ckpt.Checkpoint):
         ck = checkpoint
     else:  # an ensemble's members' states on every rank (each steps its own)
+        path_argument("checkpoint", checkpoint, "a restart file's path (str or os.PathLike)", CheckpointError)
         ck = ckpt.read(checkpoint) if members else ckpt.read_on_root(checkpoint, comm)
     if members and ck.members is None:
         raise CheckpointError(f"{ck.path}: a single run's restart file (continue it with Simulation.from_checkpoint)")
     if not members and ck.members is not None:
-        raise ckpt.CheckpointError(
+        raise CheckpointError(
             f"{ck.path or 'the checkpoint'} is an ensemble's restart file ({ck.members} members): continue it "
             "with swe_sphere.Ensemble.from_checkpoint (swe-sphere run --continue does)"
         )
@@ -51,7 +50,7 @@ class Restarts:
             # ck.x on rank 0 only (``checkpoint.read_on_root``)
             x = self.topology.distribute(ck.x, 3, "checkpoint state")
         except ValueError as err:
-            raise ckpt.CheckpointError(str(err)) from None
+            raise CheckpointError(str(err)) from None
         self.x.assign(x)
         self.restore_history(ck)
 

@@ -1,14 +1,8 @@
-"""The simulation: a scene's model, stepper and state, and the loop that steps them.
-
-On Oceananigans' pattern, the loop (``Simulation.run``) is short and takes its
-steps by one path; what happens around the steps is each a small part: the step
-itself (``graphs.GraphedSteps``), the bad-state guard (``guard``), the activities
-called at the steps their schedules name (``activities``: the run files and restart
-files of ``writers``, callbacks, user writers, the log; all in ``Simulation.activities``),
-signals (``interrupts``), and the counts and result (``summary``). ``build`` returns what it
-makes; the simulation's run loop (``loop.Looping``), restarts (``restart.Restarts``) and
-driving from Python (``drive.Driven``) are its own methods, in those modules; the state's
-diagnostics a ``state_diagnostics`` component, ``Simulation.diagnostics``."""
+"""The simulation: a scene's model, stepper and state, and the loop that steps them, on
+Oceananigans' pattern: one short loop (``Simulation.run``) and around its steps a small part each
+(the package's doc lists them). Its run loop (``loop.Looping``), restarts (``restart.Restarts``)
+and driving from Python (``drive.Driven``) are its own methods, in those modules; ``build`` makes
+its parts, and the state's diagnostics are a ``state_diagnostics`` component (``diagnostics``)."""
 
 from __future__ import annotations
 
@@ -152,7 +146,7 @@ class Simulation(Driven, Restarts, Looping):
         progress = flag_argument("progress", progress, SceneError)
         graphs = graphs_mode(default_mode() if graphs is None else graphs)
         # Δt the simulation may fit to the user's intervals (``steps``): not given, restored or stated in a Scene
-        own_dt = not isinstance(scene, Scene) and "dt" not in overrides and initial_diagnostics is None
+        self._own_dt = not isinstance(scene, Scene) and "dt" not in overrides and initial_diagnostics is None
         scene, inputs = resolve_scene(scene, overrides)
         comm_argument("comm", comm)
         backend = Backend.of(pick_device(device, comm=comm))  # a name Warp does not know is refused in one line
@@ -166,8 +160,6 @@ class Simulation(Driven, Restarts, Looping):
             mapping_argument("initial_diagnostics", initial_diagnostics)
         t0 = time.perf_counter()
         self._compile = [0.0]
-        # what the simulation holds: driving from Python, restarts, the run's loop
-        self._own_dt = own_dt
         self.activities: dict = {}  # name -> activity (``activities``): the user's; ``run`` adds its own
         # single-threaded BLAS, as in ``run``: the ∇⁴'s power iteration (``config.parts.check_hyperviscosity``)
         # takes 40 norms, and OpenBLAS's threads spinning on a busy machine made them 0.3 s of CPU
@@ -190,9 +182,8 @@ class Simulation(Driven, Restarts, Looping):
             if initial_diagnostics is None:
                 self.initial = self.diagnostics.diagnose(scene.start_day * DAY)
             # Δt chosen step to step (``Scene.control``): the loop's steps land on its times
-            self.control = (
-                None if scene.control is None else StepControl(scene.control, self.core.units[0], scene.start_day)
-            )
+            if scene.control is not None:
+                self.control = StepControl(scene.control, self.core.units[0], scene.start_day)
             self.counters["iterations"].update(dict.fromkeys(self.stepper.solvers, 0))
         self.setup_time = time.perf_counter() - t0
         if inputs:
@@ -378,7 +369,7 @@ class Simulation(Driven, Restarts, Looping):
         kw = {"lines": progress_lines, "compiling": self._compile, "last_good": lambda: self.last_good}
         during = self._during_run(files, ckp, log)
         stop = integrate(self.run_state, files, ckp, start, signals, blocks, during, progress=self.progress, **kw)
-        result = ledger.result(
-            self.step, files.history, courant, output, stop.blowup, ckp.written, self.setup_time, self._compile[0]
-        )
+        times = {"setup_time": self.setup_time, "compile_time": self._compile[0]}
+        done = {"courant": courant, "output": output, "blowup": stop.blowup, "checkpoint": ckp.written, **times}
+        result = ledger.result(self.step, files.history, **done)
         return outcome(stop, self.run_state, output, ckp, result)

@@ -82,35 +82,21 @@ class Ledger:
         end = self.first_step + 1 + ESTIMATE_STEPS
         return [end] if step < end else []
 
-    def result(
-        self,
-        step: int,
-        history: list,
-        courant: dict,
-        output,
-        blowup,
-        checkpoint,
-        setup_time: float,
-        compile_time: float,
-    ) -> RunResult:
-        """The ``RunResult`` of the run at ``step`` (the rest as ``RunResult`` names them)."""
+    def result(self, step: int, history: list, **rest) -> RunResult:
+        """The ``RunResult`` of the run at ``step`` with ``history`` (``rest`` as ``RunResult`` names
+        them: ``courant``, ``output``, ``blowup``, ``checkpoint``, ``setup_time``, ``compile_time``)."""
         c = self.c
         return RunResult(
             steps=step,
             rhs_evals=c["rhs_evals"],
             wall_time=c["wall_time"],
-            setup_time=setup_time,
             diagnostics=history[-1],
-            courant=courant,
-            output=output,
-            blowup=blowup,
             history=history,
             iterations=dict(c["iterations"]),
-            compile_time=compile_time,
             first_step_time=self.first_time,
             first_step=self.first_step,
             loop_time=c["wall_time"] - self.wall0,
-            checkpoint=checkpoint,
+            **rest,
         )
 
 

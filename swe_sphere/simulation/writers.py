@@ -73,9 +73,8 @@ def run_attrs(run, case, dfi, device: str, ranks: int, history: str | None, cour
         "mpi_ranks": ranks,
         "initialization": "none" if s.initialization is None else s.initialization["method"],
         "reference": truth(case, s.reference_file),  # what the error series are against
-        **{
-            f"planet_{k}": v for k, v in s.planet.items()
-        },  # planet_radius (m), planet_omega (1/s), planet_gravity (m/s^2)
+        # planet_radius (m), planet_omega (1/s), planet_gravity (m/s^2)
+        **{f"planet_{k}": v for k, v in s.planet.items()},
         **(dfi.attrs(s.digital_filter) if dfi is not None else {}),
         **({"continued_from_day": run.time} if run.step else {}),
         **ckpt.branch_attrs(s),
@@ -115,14 +114,9 @@ class RunFiles:
     def __init__(self, run, diagnostics, grid, hs, output: Path | None, on_output=None, series=None, member_series=()):
         controlled = run.control is not None
         if series is None:  # a run's
-            series = [
-                "steps",
-                "rhs_evals",
-                *(f"{k}_iterations" for k in run.stepper.solvers),
-                "wall_time",
-                *run.initial.keys(),
-                *(CONTROL_SERIES if controlled else ()),
-            ]
+            solvers = [f"{k}_iterations" for k in run.stepper.solvers]
+            control = CONTROL_SERIES if controlled else ()
+            series = ["steps", "rhs_evals", *solvers, "wall_time", *run.initial, *control]
         self.scene, self.grid, self.hs, self.series = run.scene, grid, hs, list(series)
         self.streams = run_streams(output, run.scene, controlled)
         self.paths = [path for path, _, _ in self.streams]

@@ -272,11 +272,11 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
     states' and adjoints' rows after x's, the cost reading rows 0–2."""
     topo, rows, X = model.topology, 3 * (1 + len(stepper.carried_arrays())), slice(0, 3)
 
-    def carried(x):  # (the stepper's array, the state's rows) pairs, in ``carried_arrays``' order now
-        return [(a, x[3 * i + 3 : 3 * i + 6]) for i, a in enumerate(stepper.carried_arrays())]
+    def pairs(x):  # (the stepper's array, x's rows): x's, then ``carried_arrays``' in their order now
+        return [(work, x[X]), *((a, x[3 * i + 3 : 3 * i + 6]) for i, a in enumerate(stepper.carried_arrays()))]
 
     def load(x):  # the stepper's arrays from x's rows
-        for a, held in [(work, x[X]), *carried(x)]:
+        for a, held in pairs(x):
             wp.copy(a, held)
 
     verified = [0]  # the steps whose states were checked: a recomputation's are not checked again
@@ -301,7 +301,7 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
             t0, dt = clock(j - 1)
             raise BlowUp(trouble_line(model, work, stop.bad, (t0 + j * dt) / DAY, " of the gradient's run"))
         verified[0] = max(verified[0], k + m)
-        for a, held in [(work, x[X]), *carried(x)]:
+        for a, held in pairs(x):
             wp.copy(held, a)
 
     mu = wp.zeros((rows, topo.N), dtype=f64, device=topo.device)

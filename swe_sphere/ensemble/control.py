@@ -1,9 +1,7 @@
 """An ensemble's Δt chosen step to step (``Scene.control``, issue 100): the run's step control
-(``simulation.adaptive.StepControl``) over the members in the same launches, so that every
-member takes the same Δt (member-uniform), its error norm the RMS over every member's nodes
-(``ErrorNorm`` on the ``MemberGrid``'s copies) and its Courant cap the largest over them; a step
-is rejected where the members' error together is above the tolerance. The steps land on the
-output and restart days as a run's do; ``StepControl.state`` goes in the restart file."""
+(``simulation.adaptive.StepControl``) over the members in the same launches, every member at the
+same Δt, its error norm the RMS over every member's nodes and its Courant cap the largest over
+them; the steps land on the output and restart days as a run's do."""
 
 from __future__ import annotations
 

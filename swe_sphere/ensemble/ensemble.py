@@ -132,11 +132,7 @@ class Ensemble:
         Naming ``members`` (not an integer ≥ 1), ``initial`` (another shape or kind, non-finite, or
         h ≤ 0 in a member where h is a depth: the member named) or ``scene``, before the model is built.
     SceneError
-        As ``Simulation``'s.
-
-    ``step`` and ``advance`` raise ``BlowUp`` naming the members that blew up (``blow_up`` "stop",
-    the default: stop all), or drop them ("drop", in turn: not stepped again, NaN in the states
-    and outputs from then, ``dropped`` and ``drops`` saying which and where) while any is left.
+        As ``Simulation``'s. A blow-up in ``step``, ``advance`` and ``run``: see ``step``.
     """
 
     def __init__(
@@ -252,8 +248,10 @@ class Ensemble:
         step, read once every ``CHECK_EVERY_STEPS`` steps, a failed block taken again step by step to
         name the step; on CUDA each step a graph (``core.graphs.GraphedSteps``). A blow-up in any
         member raises ``BlowUp`` naming every member bad at that step, the states those of that
-        step (``blow_up`` "stop"); or drops those members and goes on ("drop"), raising only when
-        none is left; ``StepFailure`` where a solve failed, the states those of the step before;
+        step (``blow_up`` "stop", the default); or drops those members and goes on ("drop", in
+        turn: not stepped again, NaN in the states and outputs from then, ``dropped`` and ``drops``
+        saying which and where), raising only when none is left; ``StepFailure`` where a solve
+        failed, the states those of the step before;
         ``ArgumentError`` under step control (``advance``, ``run``)."""
         n = integer_argument("n", n, 0)
         if self.control is not None:

@@ -1,14 +1,11 @@
-"""An ensemble's grid: N disjoint copies of one whole ``CubedSphere``, member after member.
-
-Member k holds the elements k·E … (k + 1)·E − 1 of the copies (E the grid's elements), its
-element-local nodes k·n … (k + 1)·n − 1 (n = E·np²) and its unique nodes k·u … (k + 1)·u − 1
-(u the grid's). Every per-node array is the grid's repeated, every index the grid's offset by
-its member's block, and each node's DSS copies are those of its own member, in the grid's
-order. A ``Topology`` and a ``ShallowWater`` built on it therefore compute each member as the
-grid alone would: element-local kernels see the same numbers, and the DSS sums the same
-copies in the same order (the same bits). What is global over the grid (a spectral radius,
-a mean, a norm) is the ensemble's over all members, not a member's: the caller takes those
-from the one grid (``ensemble.Ensemble``).
+"""An ensemble's grid: N disjoint copies of one whole ``CubedSphere``, member after member (member
+k's elements, element-local and unique nodes the k-th block of each). Every per-node array is the
+grid's repeated, every index the grid's offset by its member's block, and each node's DSS copies
+are those of its own member, in the grid's order. A ``Topology`` and a ``ShallowWater`` built on
+it therefore compute each member as the grid alone would: element-local kernels see the same
+numbers, and the DSS sums the same copies in the same order (the same bits). What is global over
+the grid (a spectral radius, a mean, a norm) is the ensemble's over all members, not a member's:
+the caller takes those from the one grid (``ensemble.Ensemble``).
 """
 
 from __future__ import annotations

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import functools
 import time
+from operator import attrgetter
 from pathlib import Path
 
 import numpy as np
@@ -36,10 +37,9 @@ from .summary import Ledger, RunResult
 __all__ = ["BlowUp", "Interrupted", "RunResult", "Simulation"]
 
 
-def _diagnostic(name: str):
-    """The simulation's method ``name``, its diagnostics' (``StateDiagnostics.<name>``, whose doc it has)."""
-    method = getattr(StateDiagnostics, name)
-    return functools.wraps(method)(lambda sim, *args, **kw: method(sim.diagnostics, *args, **kw))
+def _delegated(method, owner):
+    """A simulation's method that is its ``owner(sim)``'s ``method``, whose doc it has."""
+    return functools.wraps(method)(lambda sim, *args, **kw: method(owner(sim), *args, **kw))
 
 
 class Simulation(Driven, Restarts, Looping):
@@ -256,11 +256,11 @@ class Simulation(Driven, Restarts, Looping):
     event_day = forwarded("run_state.event_day", "The day a controlled step landed on (``RunState.event_day``).")
 
     # -- the state's diagnostics (``state_diagnostics``): its fields, Courant numbers and stability limit
-    fields = _diagnostic("fields")
-    divergence = _diagnostic("divergence")
-    courant = _diagnostic("courant")
-    stability_warning = _diagnostic("stability_warning")
-    largest_dt_within_limit = _diagnostic("largest_dt_within_limit")
+    fields = _delegated(StateDiagnostics.fields, attrgetter("diagnostics"))
+    divergence = _delegated(StateDiagnostics.divergence, attrgetter("diagnostics"))
+    courant = _delegated(StateDiagnostics.courant, attrgetter("diagnostics"))
+    stability_warning = _delegated(StateDiagnostics.stability_warning, attrgetter("diagnostics"))
+    largest_dt_within_limit = _delegated(StateDiagnostics.largest_dt_within_limit, attrgetter("diagnostics"))
 
     # -- the step: the integrator's (``integrator.Integrator``, one unit of one member) and its graphs
     step = forwarded("core.step", "Steps taken since t = 0 (a branch: since its day, ``Scene.start_day``).")
@@ -277,13 +277,8 @@ class Simulation(Driven, Restarts, Looping):
         False,
     )
 
-    def try_step(self, x):
-        """One step of the stepper on x (3, N) in place, replayed as a graph where ``graphs``
-        lets it (``graphs.GraphedSteps``; its key holds Δt, so a controlled run's few Δt of
-        the controller's grid each keep a graph), the bad-state flag not watched and the
-        solvers' counters not read: a controlled run's tries (``adaptive.StepControl``). Its
-        ``StepStats``."""
-        return self.core.units[0].try_step(x)
+    # a step of the stepper, not watched nor counted: a controlled run's tries (``adaptive.StepControl``)
+    try_step = _delegated(Unit.try_step, lambda sim: sim.core.units[0])
 
     def run(
         self,

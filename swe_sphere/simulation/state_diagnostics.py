@@ -109,12 +109,10 @@ class StateDiagnostics:
         )
 
     def _stability_limit(self) -> tuple[float, str, float, str] | None:
-        """(limit, what it limits, the scene dt's value of it on the current state,
-        where the limit comes from) of the stepper's stability limit (measured, or an
-        explicit table's from its stability polynomial)
+        """(limit, what it limits, its value at the scene's dt on the current state, its source) of
+        the stepper's stability limit, measured or a table's from its stability polynomial
         (``Stepper.courant_limit`` on (|v| + √(gh)) Δt/Δx for explicit steppers,
-        ``Stepper.advective_courant_limit`` on |v| Δt/Δx for IMEX and multirate), or
-        None for a stepper without one."""
+        ``advective_courant_limit`` on |v| Δt/Δx for IMEX and multirate), or None without one."""
         kind = self.run.stepper  # the instance: a table's limit is its own (``TableauRK``)
         c = self.courant()
         if kind.courant_limit is not None:

@@ -19,6 +19,7 @@ from ..core.backend import Backend, pick_device
 from ..core.clock import StepTimes
 from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, StepFailure
+from ..core.mpi import from_root
 from ..integrator import FixedDt, Integrator, Observer, Rewind, Unit, trouble_line
 from ..model.shallow_water import ShallowWater
 from .costs import checked, run_cost
@@ -96,20 +97,6 @@ def step_adjoint(model: ShallowWater, stepper, parameters: bool = False) -> Tape
     """The adjoint of one step of ``stepper`` (one with a gradient: ``differentiable``) on ``model``,
     its steps from the stepper's ``t0``. ``ArgumentError`` as ``TapeAdjoint``'s."""
     return TapeAdjoint(model, stepper, stepper.dt, parameters, stepper.t0)
-
-
-def _on_root(topo, check):
-    """``check()`` on rank 0, its ``ArgumentError`` raised on every rank (the others wait for it)."""
-    refusal, value = None, None
-    if topo.comm.rank == 0:
-        try:
-            value = check()
-        except ArgumentError as err:
-            refusal = str(err)
-    refusal = topo.bcast(refusal)
-    if refusal is not None:
-        raise ArgumentError(refusal)
-    return value
 
 
 def gradient(
@@ -198,7 +185,7 @@ def gradient(
     if disk is not None and disk is not True:
         path_argument("disk", disk, "None, True or an existing folder's path")
     if disk_interval is not None:
-        integer_argument("disk_interval", disk_interval, 1)
+        disk_interval = integer_argument("disk_interval", disk_interval, 1)
         if disk is None:
             raise ArgumentError(f"disk_interval needs a disk (got disk_interval={disk_interval!r}, disk=None)")
     comm_argument("comm", comm)
@@ -217,11 +204,10 @@ def gradient(
         x0 = topo.distribute(x0 if topo.comm.rank == 0 else None, 3, "x0")
         if "pressure_gradient" in model.terms and (low := -topo.max(-float(x0[2].min()))) <= 0:  # a depth
             raise ArgumentError(f"x0: its depth h is <= 0 somewhere (min {low:.4g} m)")
-    x0 = initial if x0 is None else x0
-    work = wp.array(x0, dtype=f64, device=topo.device)  # the stepper steps this array only
+    work = wp.array(initial if x0 is None else x0, dtype=f64, device=topo.device)  # the stepper steps this array only
     stepper.prepare(work)  # from x(0): lts fixes its levels by its flow
     adjoint = step_adjoint(model, stepper, parameters)
-    interval = snapshots if disk_interval is None else int(disk_interval)
+    interval = disk_interval or snapshots
     found, mu, taken, used = _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, disk, interval)
     extra = {}
     if parameters:
@@ -312,7 +298,7 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
 
     def observe(x, k):  # J_k at x(k) into found, μ += R Q λ_k: the cost on rank 0, the whole grid
         whole = topo.gather(np.array(x.numpy()[X]))
-        J, lam_k = _on_root(topo, lambda: checked(cost, k, whole, spheremp)) or (None, None)
+        J, lam_k = from_root(topo.comm, lambda: checked(cost, k, whole, spheremp), ArgumentError) or (None, None)
         found["costs"][k] = topo.bcast(J)
         lam.assign(topo.distribute(None if lam_k is None else np.asarray(lam_k, dtype=float), 3, "the cost's λ"))
         for launch in add:

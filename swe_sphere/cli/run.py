@@ -409,19 +409,10 @@ def _output_lock(output: Path, comm):
     """The writer's lock of ``output`` taken before the set-up and the header, on the rank
     that writes (rank 0; ``HeldLock``, which the run's writer takes over): every rank raises
     ``OutputError`` (one line) when another run writes ``output`` now."""
+    from ..core.mpi import from_root
     from ..io.output_files import HeldLock
 
-    held, refusal = contextlib.nullcontext(), None
-    if comm is None or comm.rank == 0:
-        try:
-            held = HeldLock(output)
-        except OutputError as err:
-            refusal = str(err)
-    if comm is not None:
-        refusal = comm.bcast(refusal, root=0)
-    if refusal is not None:
-        raise OutputError(refusal)
-    return held
+    return from_root(comm, lambda: HeldLock(output), OutputError) or contextlib.nullcontext()
 
 
 def _run(args, scene, output, device, comm) -> int:

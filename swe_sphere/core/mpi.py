@@ -172,3 +172,19 @@ class RankMax:
 
     def max(self, value):
         return max(self.comm.allgather(value))
+
+
+def from_root(comm, make, refused: type[BaseException] = Exception):
+    """``make()`` on rank 0 of ``comm`` (None: this process alone), what it raises of ``refused``
+    raised on every rank (else the others would wait for rank 0 forever): its value on rank 0,
+    None on the others (collective)."""
+    value = error = None
+    if comm is None or comm.rank == 0:
+        try:
+            value = make()
+        except refused as err:
+            error = err
+    error = error if comm is None else comm.bcast(error, root=0)
+    if error is not None:
+        raise error
+    return value

@@ -486,11 +486,9 @@ class Ensemble:
         if self._scorer is None:  # one member's model for the wind errors' vorticity and divergence
             with threadpool_limits(limits=1, user_api="blas"):
                 one = self._one or ShallowWater.from_scene(self.scene, self.grid, self.case, **self._options)
-            hs = self._member(self._hs, 0)
-            if self.cases is None:
-                self._scorer = [Scorer(self.case, one, one.topology, self.grid, hs, self.scene.reference_file)]
-            else:  # each member's own truth: an exact solution (a reference holds the scene's values only)
-                self._scorer = [Scorer(case, one, one.topology, self.grid, hs, None) for case in self.cases]
+            # each variant's own truth, an exact solution (a reference holds the scene's values only)
+            cases, ref = ([self.case], self.scene.reference_file) if self.cases is None else (self.cases, None)
+            self._scorer = [Scorer(c, one, one.topology, self.grid, self._member(self._hs, 0), ref) for c in cases]
         return [self._scorer[k % len(self._scorer)].errors(t, xk, *xk) for k, xk in zip(self.held, held)]
 
     def gather_fields(self, x=None, divergence: bool = False) -> MemberFields:
@@ -548,8 +546,7 @@ class Ensemble:
         member = integer_argument("member", member, 0)
         if member >= self.members:
             raise ArgumentError(f"member must be in 0..{self.members - 1} (got {member})")
-        u, v, h = self.states()[member]
-        return u.copy(), v.copy(), h.copy()
+        return tuple(self.states()[member].copy())
 
     def h_spread_rms(self) -> float:
         """The ensemble spread of h now (m): the area-weighted RMS over the sphere of the members'

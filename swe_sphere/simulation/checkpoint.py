@@ -15,6 +15,7 @@ import numpy as np
 
 from ..config.scene import DT_NOTES, Scene, scene_from_dict, with_days
 from ..core.errors import CheckpointError, SceneError
+from ..core.mpi import from_root
 from ..io import restart_file
 from ..steppers import STEPPERS
 
@@ -103,21 +104,9 @@ def read_on_root(path, comm) -> Checkpoint:
     the whole state. Raises what ``read`` raises, on every rank."""
     if comm is None or comm.size == 1:
         return read(path)
-    ck = error = None
-    if comm.rank == 0:
-        try:
-            ck = read(path)
-        except Exception as err:  # every rank must raise it, or the others wait for rank 0 forever
-            error = err
-    error = comm.bcast(error, root=0)
-    if error is not None:
-        raise error
-    light = None
-    if comm.rank == 0:
-        light = replace(
-            ck, x=None, stepper_state={k: None if isinstance(v, np.ndarray) else v for k, v in ck.stepper_state.items()}
-        )
-    light = comm.bcast(light, root=0)
+    ck = from_root(comm, lambda: read(path))
+    bare = {} if ck is None else {k: None if isinstance(v, np.ndarray) else v for k, v in ck.stepper_state.items()}
+    light = comm.bcast(None if ck is None else replace(ck, x=None, stepper_state=bare), root=0)
     return ck if comm.rank == 0 else light
 
 

@@ -70,14 +70,6 @@ def check_run_arguments(output, overwrite, restart_every, restart_file, compress
         number_argument("restart_every", restart_every, "days", positive=True, error=SceneError)
 
 
-def progress_bar(step: int, nsteps: int, progress: bool) -> tqdm:
-    """A run's tqdm bar of ``nsteps`` steps from ``step`` on stderr (``progress``: where it is a terminal)."""
-    # disable=None: a bar only on a terminal, not redrawn into a log (or mpiexec's pipe)
-    return tqdm(
-        initial=step, total=nsteps, unit="step", disable=None if progress else True, file=sys.stderr, dynamic_ncols=True
-    )
-
-
 def run_steps(core, control, last_day: float, activities: dict, observer, stop_step: int, describe) -> Stop:
     """The steps of a run (a ``Simulation``'s or an ``Ensemble``'s) by its integrator ``core`` to
     ``stop_step`` under ``observer`` (a ``guard.RunObserver``), each step's Δt the integrator's
@@ -129,7 +121,9 @@ def integrate(run, files, ckp, start, signals, blocks, during, *, progress, **ho
                 files.record(step, whole=start, final=True, write=not step, diagnosed=how.get("diagnosed"))
                 if lines is not None:
                     lines.start(run.time, run.scene.days)
-                with progress_bar(step, run.scene.nsteps, progress) as bar:
+                # a bar on a terminal only (disable=None), not redrawn into a log or mpiexec's pipe
+                on = {"disable": None if progress else True, "file": sys.stderr, "dynamic_ncols": True}
+                with tqdm(initial=step, total=run.scene.nsteps, unit="step", **on) as bar:
                     stop = blocks(signals, bar)
                 why = {how.get("why", "blowup"): stop.blowup}
                 if stop.blowup is not None and last is not None:  # ``step`` is the last good step again
@@ -168,20 +162,17 @@ def outcome(stop: Stop, run, output, ckp: Checkpointer, result=None):
 class Looping:
     """The steps of a ``Simulation``'s ``run`` (it is one), by its integrator (``core``), its
     activities between them, and how it stopped; ``_compile`` the seconds compiling Warp modules
-    (``compile_timer``), ``_progress_lines`` a run's ``progress.ProgressLines`` (None: none)."""
+    (``compile_timer``)."""
 
-    _progress_lines = None
-
-    def _blocks(self, signals: StopSignals, ledger: Ledger, bar, until_step: int | None) -> Stop:
+    def _blocks(self, signals: StopSignals, ledger: Ledger, bar, until_step: int | None, lines=None) -> Stop:
         """The run's steps to ``until_step`` (None: the scene's end) by ``run_steps`` under the
-        run's guard (``guard.RunObserver``); ``until_step`` refused under step control
-        (ValueError). The activities due called after each good step. Returns why the loop
-        stopped (``Stop``)."""
+        run's guard (``guard.RunObserver``: the activities due after each good step, progress on
+        ``bar`` and rank 0's ``lines``); ``until_step`` refused under step control (ValueError).
+        Returns why the loop stopped (``Stop``)."""
         if self.control is not None and until_step is not None:
             raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
         stop_step = self.scene.nsteps if until_step is None else until_step
-        lines = self._progress_lines if self.root else None
-        observer = RunObserver(self, ledger, stop_step, self.check_every, signals, bar, lines)
+        observer = RunObserver(self, ledger, stop_step, self.check_every, signals, bar, lines if self.root else None)
 
         def describe(bad: tuple) -> str:
             day = self.time if self.control is not None else self.scene.day(bad[0])

@@ -359,8 +359,8 @@ class Simulation(Driven, Restarts, Looping):
             output, overwrite, restart_every, restart_file, compress, history, on_output, notify
         )
         ledger = Ledger(self.counters, self.scene, self.step, notify if self.root else None)
-        self._progress_lines, signals = progress_lines, StopSignals(self.topology, catch_signals)
-        blocks = lambda signals, bar: self._blocks(signals, ledger, bar, until_step)  # noqa: E731
+        signals = StopSignals(self.topology, catch_signals)
+        blocks = lambda signals, bar: self._blocks(signals, ledger, bar, until_step, progress_lines)  # noqa: E731
         kw = {"lines": progress_lines, "compiling": self._compile, "last_good": lambda: self.last_good}
         during = self._during_run(files, ckp, log)
         stop = integrate(self.run_state, files, ckp, start, signals, blocks, during, progress=self.progress, **kw)

@@ -1,14 +1,8 @@
 """N members of one scene advanced together, each with the bits of the single run from its
 initial state (issue 85, any stepper at a fixed Δt; issue 100, a controlled Δt the same for every
-member, ``control``).
-
-An explicit stepper's members are N disjoint copies of the grid's elements
-(``members.MemberGrid``): one ``Topology``, one ``ShallowWater`` and one stepper over all of
-them, so a step is the single run's launches over N times the nodes (their start-up and the
-loop's Python paid once). A stepper that reduces over the grid, or members whose g or ν differ,
-step each member on a model of its own, in turn (``units``' module doc). What is global over a
-grid is taken from the one grid, not the copies: the ∇⁴'s spectral radius (its substeps) and
-every member's invariants."""
+member, ``control``): in the same launches on N copies of the grid (``members.MemberGrid``) or
+each on a model of its own (``units``' module doc), what is global over a grid (the ∇⁴'s spectral
+radius, every member's invariants) taken from the one grid, not the copies."""
 
 from __future__ import annotations
 
@@ -55,7 +49,6 @@ from .members import MemberGrid, member_part
 from .units import (
     POLICIES,
     blow_up_line,
-    checked_scene,
     drop_line,
     held_state,
     member_step,
@@ -163,7 +156,8 @@ class Ensemble:
             raise ArgumentError(f"members: {members} members over {ranks} MPI ranks (one a rank at least)")
         self.held, self.root = np.array_split(np.arange(members), ranks)[rank], rank == 0
         graphs = graphs_mode(default_mode() if graphs is None else graphs)
-        checked_scene(scene)
+        if scene.digital_filter is not None:  # not yet the single run's bits (a controlled Δt: ``member_control``'s)
+            raise ArgumentError("scene: it starts from a digital filter (not yet with ensembles)")
         backend = Backend.of(pick_device(device, comm=self.comm))
         check_memory(scene, self.comm, backend, members)  # before the grid and the members' states are made
         self.scene, self.members, self.dt = scene, members, scene.dt
@@ -402,9 +396,8 @@ class Ensemble:
             **({"continued_from_day": self.day} if self.step_count else {}),
         }
         # the run file and its streams as a run's (``writers.RunFiles``), the members along the member axis
-        files = RunFiles(
-            self.run_state, self, self.grid, self._member(self._hs, 0), output, series=("steps", "wall_time")
-        )
+        hs = self._member(self._hs, 0)
+        files = RunFiles(self.run_state, self, self.grid, hs, output, series=("steps", "wall_time"))
         check_run_files(self, files, ckp, rewrite)
         start = self.gather_fields(divergence=files.divergence)  # the first output's fields and figures (collective)
         first = self.diagnose(self.run_state.seconds(self.step_count), whole=start)

@@ -33,14 +33,6 @@ from .members import MemberGrid
 POLICIES = {"stop": "stop all", "drop": "drop the member and go on"}
 
 
-def checked_scene(scene) -> None:
-    """``ArgumentError`` naming ``scene`` where the ensemble cannot give each member the single
-    run's bits yet: a digital-filter start. A controlled Δt is ``control.member_control``'s to
-    refuse or take."""
-    if scene.digital_filter is not None:
-        raise ArgumentError("scene: it starts from a digital filter (not yet with ensembles)")
-
-
 def layout(scene, initial, asked: str | None, device, own: bool = False) -> str:
     """The layout of ``scene``'s members started from ``initial`` on ``device`` (module doc):
     "in_turn" where they need a model each, else ``asked``; None: "shared" on CUDA (its time a step

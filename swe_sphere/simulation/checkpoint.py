@@ -59,23 +59,13 @@ def branch(ck: Checkpoint, *, stepper: str | None = None, dt: float | None = Non
         raise SceneError(f"unknown stepper {stepper!r} (known: {', '.join(STEPPERS)})")
     if dt is not None and not (math.isfinite(dt) and dt > 0):
         raise SceneError(f"dt must be > 0 (got {dt:g})")
-    record = {
-        "restart": None if ck.path is None else str(ck.path),
-        "sha256": ck.sha256,
-        "step": ck.step,
-        "day": ck.day,
-        "stepper": s.stepper,
-        "dt": s.dt,
-    }
+    record = {"restart": None if ck.path is None else str(ck.path), "sha256": ck.sha256, "step": ck.step}
+    record |= {"day": ck.day, "stepper": s.stepper, "dt": s.dt}
     # the notes on how the scene's dt was chosen are stale once dt is given
     notes = s.notes if dt is None else tuple(n for n in s.notes if not n.startswith(DT_NOTES))
+    opts = s.stepper_options if stepper == s.stepper else {}
     scene = replace(
-        s,
-        stepper=stepper,
-        stepper_options=s.stepper_options if stepper == s.stepper else {},
-        dt=s.dt if dt is None else float(dt),
-        branch=record,
-        notes=notes,
+        s, stepper=stepper, stepper_options=opts, dt=s.dt if dt is None else float(dt), branch=record, notes=notes
     )
     return with_days(scene, s.days if days is None else days, "the restart file's" if dt is None else "the dt given")
 

@@ -212,13 +212,9 @@ class Driven:
         whole = self.diagnostics.gather_fields(divergence=True)
         if not self.root:
             return None
-        ds = node_dataset(
-            self.grid,
-            self.hs,
-            self.time,
-            {k: getattr(whole, k) for k in OUTPUT_FIELDS},
-            {"scene": self.scene.as_dict(), "ne": self.scene.ne, "np": self.scene.np, "step": self.step},
-        )
+        fields = {k: getattr(whole, k) for k in OUTPUT_FIELDS}
+        attrs = {"scene": self.scene.as_dict(), "ne": self.scene.ne, "np": self.scene.np, "step": self.step}
+        ds = node_dataset(self.grid, self.hs, self.time, fields, attrs)
         if remap is None:
             return ds
         from ..io.remap import remap_dataset  # here: xarray and scipy.sparse, for the Python API's maps only

@@ -272,9 +272,7 @@ class Simulation(Driven, Restarts, Looping):
         "core.units.0.graphed.kept", "Step graphs checked and kept (``GraphedSteps.kept``); 0 where steps run plain."
     )
     graphs_checked = forwarded(
-        "core.units.0.graphed.checked",
-        "Step graphs compared bit for bit with plain launches (``GraphedSteps``).",
-        False,
+        "core.units.0.graphed.checked", "Step graphs compared bit for bit with plain ones (``GraphedSteps``).", False
     )
 
     # a step of the stepper, not watched nor counted: a controlled run's tries (``adaptive.StepControl``)

@@ -119,12 +119,8 @@ class StateDiagnostics:
             speed = c["courant_advective"] + (0.0 if math.isnan(c["courant_gravity"]) else c["courant_gravity"])
             return kind.courant_limit, "a Courant number (|v| + sqrt(g h)) dt/dx", speed, kind.courant_limit_source
         if kind.advective_courant_limit is not None:
-            return (
-                kind.advective_courant_limit,
-                "an advective Courant number |v| dt/dx",
-                c["courant_advective"],
-                "its explicit advection's, measured on TC5, TC6 and Galewsky",
-            )
+            source = "its explicit advection's, measured on TC5, TC6 and Galewsky"
+            return kind.advective_courant_limit, "an advective Courant number |v| dt/dx", c["courant_advective"], source
         return None
 
     def largest_dt_within_limit(self) -> float | None:

@@ -101,11 +101,7 @@ class MemberFile:
         except (OSError, TypeError) as err:
             raise ArgumentError(f"{where}: not a readable netCDF file ({err})") from None
         with ds:
-            if (
-                "member" not in ds.dimensions
-                or "h" not in ds.variables
-                or ds["h"].dimensions != ("time", "member", "ncol")
-            ):
+            if "h" not in ds.variables or ds["h"].dimensions != ("time", "member", "ncol"):
                 raise ArgumentError(f"{where}: not an ensemble's run file (no h on time, member, ncol)")
             held, ncol = ds.dimensions["member"].size, ds.dimensions["ncol"].size
             if held != members:

@@ -103,9 +103,8 @@ class RunFiles:
     control's ``CONTROL_SERIES``); without ``output`` none, the diagnostics still taken at the
     scene's output steps. Rank 0's ``RunWriter`` s (``open``), the step each wrote last (on every
     rank), their output times together (``steps``, and as the ``schedule`` of an activity) and
-    whether any holds the divergence. ``record`` diagnoses an output step on every rank (into
-    ``history``; ``on_output(step, x)`` is called with the (3, N) device state) and rank 0
-    appends it to the files. An activity (``activities``): ``files(owner)`` records the run's step
+    whether any holds the divergence; ``record`` diagnoses an output step (into ``history``, and
+    ``on_output(step, x)``). An activity (``activities``): ``files(owner)`` records the run's step
     at the steps of ``schedule``. An ensemble's (``Ensemble.run``): ``diagnostics`` the
     ``Ensemble`` (its ``gather_fields`` and ``diagnose`` over the member axis), ``series`` its
     per-time series and ``member_series`` those of each member (time, member), the members along

@@ -107,10 +107,10 @@ class RunFiles:
     ``on_output(step, x)``). An activity (``activities``): ``files(owner)`` records the run's step
     at the steps of ``schedule``. An ensemble's (``Ensemble.run``): ``diagnostics`` the
     ``Ensemble`` (its ``gather_fields`` and ``diagnose`` over the member axis), ``series`` its
-    per-time series and ``member_series`` those of each member (time, member), the members along
-    the member axis."""
+    per-time series and ``member_series`` (set after its first diagnostics) those of each member
+    (time, member), the members along the member axis."""
 
-    def __init__(self, run, diagnostics, grid, hs, output: Path | None, on_output=None, series=None, member_series=()):
+    def __init__(self, run, diagnostics, grid, hs, output: Path | None, on_output=None, series=None):
         controlled = run.control is not None
         if series is None:  # a run's
             solvers = [f"{k}_iterations" for k in run.stepper.solvers]
@@ -125,7 +125,8 @@ class RunFiles:
         self.divergence = any("divergence" in fields for _, fields, _ in self.streams)
         self.writers = [None] * len(self.streams)  # rank 0's RunWriters, one a stream
         self.last = [None] * len(self.streams)  # the step each run file wrote last (on every rank)
-        self.run, self.diagnostics, self.member_series = run, diagnostics, tuple(member_series)
+        self.run, self.diagnostics = run, diagnostics
+        self.member_series = ()  # an ensemble's, set once its first diagnostics name them
         self.on_output, self.history = on_output, []
 
     def open(self, attrs: dict, *, overwrite: bool, compress: bool, notify=None, **members) -> None:

@@ -37,11 +37,13 @@ Two layouts, as for the tendency: on CUDA ``laplacian_flux`` (the first forming 
 wind as it reads it) and ``laplacian_node`` (dim N); on the CPU
 ``laplacian_element`` (dim nelem), the whole weak Laplacian of an element in
 one pass, on whole GLL rows (packed SIMD). Both finish a node, or a row, with
-the same ``scale_first`` / ``shift_second`` / ``add_divergent``.
+the same ``scale_first`` / ``shift_second`` / ``add_divergent``. At np ≥ 5 the CPU's weak
+Laplacians run with 16 elements a vector (``laplacian_across``: a thread a block of elements,
+the same bits), their DSS and pointwise parts still on rows.
 """
 
 import functools
-from typing import Any
+from typing import Any, NamedTuple
 
 import warp as wp
 
@@ -125,35 +127,32 @@ def add_divergent(y: Any, a: Any, b: Any, cw: Any, q: int, f: Any):
     return y
 
 
+class _ElementParts(NamedTuple):
+    """``laplacian_element``'s functions of one (second, divergent, np), shared with
+    ``laplacian_across``: the row and matrix types, ``field`` (src, hs, f, r, q) → row q of field
+    r, ``laplacians`` (src, hs, f, metric, dvv, L, e) the four weak Laplacians of element e into
+    L's rows, ``pointwise`` (src, hs, delta, c, f, metric, dvv, L, e) their pointwise part in
+    place, ``one_element`` the two, and ``row_dss`` (``dss.gather_row``, the second pass's)."""
+
+    vec: Any
+    mat: Any
+    field: Any
+    laplacians: Any
+    pointwise: Any
+    one_element: Any
+    row_dss: Any
+    sum_copies: Any
+
+
 @functools.cache
-def laplacian_element(
-    second: bool, divergent: bool, np_: int, copies: int = 0, ghosts: bool = False, rows: bool = False
-):
-    """The weak form of Y₁ (``second=False``, from the state ``src`` = x (3, ·)
-    and hs) or of Y₂ (``second=True``, from ``src`` = Y₁ (4, ·)) of the elements
-    (the module docstring), one thread per element, on GLL rows
-    (``operators.row_vectors`` views, N/np rows); ``divergent``: with the
-    (ν_div − ν)·spheremp·∇δ term, δ the DSS'd divergence in ``delta`` (1, ·)
-    (first only). The second pass does the first DSS itself, a ``Topology.gathering``
-    kernel (``copies``, ``ghosts`` as ``dss.gather``; ValueError for copies < 1): each
-    element writes Y₁ = the unweighted DSS of the first pass's weak form x (4, N) at its own
-    nodes into Y (4, N), the bits of ``dss.dss_rows``, and reads it back as ``src``, Y's rows,
-    while it is in cache. Arguments: x (f64), d (``dss.Copies``), Y (f64), src, hs, delta,
-    c (``scale_first``), f (``frame_type`` of rows), metric (4, ·) (``laplacian_metric``),
-    dvv (``operators.dvv_matrix``), L (4, ·) output (aliasing neither x nor Y), block (np²),
-    offset (in elements); the first pass reads neither x, d, Y nor block. Dim nelem.
-    With ``rows`` (the second pass only) a ``Topology.by_element`` kernel instead: the DSS by
-    element on GLL rows (``dss.gather_row``, the same bits) written into src, Y's rows;
-    arguments xr, x, d, g (``dss.Edges``), wr, rsr, then src … L as above, offset."""
+def _element_parts(second: bool, divergent: bool, np_: int, copies: int, ghosts: bool) -> _ElementParts:
+    """The functions ``laplacian_element`` and ``laplacian_across`` build their kernels of."""
     NP = int(np_)
     vec, mat, along, across = row_derivatives(NP)
     ROW = across_as_along(NP)  # rolled rows, (M F)[j] as along(M[j], F)
     stack = wp.types.matrix(shape=(4, NP), dtype=f64)  # the four fields' values on one row
     S, DIV = bool(second), bool(divergent) and not second
-    ROWS = bool(rows) and S
     RowFrame = frame_type(vec)
-    if S and copies < 1:
-        raise ValueError(f"the second pass sums the copies of a node: copies must be at least 1 (got {copies})")
     sum_copies = gather(4, False, max(1, int(copies)), ghosts)
     row_dss = gather_row(4, False, max(1, int(copies)), ghosts, NP)
 
@@ -195,11 +194,9 @@ def laplacian_element(
     field.__qualname__ = field.__name__ = f"laplacian_field_{'second' if S else 'first'}_np{NP}"
     field = wp.func(field)
 
-    def element(
+    def laplacians(
         src: wp.array2d(dtype=vec),
         hs: wp.array(dtype=vec),
-        delta: wp.array2d(dtype=vec),
-        c: wp.vec4d,
         f: RowFrame,
         metric: wp.array2d(dtype=vec),
         dvv: mat,
@@ -225,6 +222,23 @@ def laplacian_element(
             Lr = lap(X, G11, G12, G22, dvv, dvvT, base)
             for j in range(NP):
                 L[r, base + j] = Lr[j]
+
+    laplacians.__qualname__ = laplacians.__name__ = f"laplacian_rows_{'second' if S else 'first'}_np{NP}"
+    laplacians = wp.func(laplacians)
+
+    def pointwise(
+        src: wp.array2d(dtype=vec),
+        hs: wp.array(dtype=vec),
+        delta: wp.array2d(dtype=vec),
+        c: wp.vec4d,
+        f: RowFrame,
+        metric: wp.array2d(dtype=vec),
+        dvv: mat,
+        L: wp.array2d(dtype=vec),
+        e: int,
+    ):
+        base = e * NP
+        dvvT = wp.transpose(dvv)
         D = mat()  # δ
         if wp.static(DIV):
             for j in range(NP):
@@ -245,10 +259,67 @@ def laplacian_element(
             for r in range(4):
                 L[r, q] = y[r]
 
+    pointwise.__qualname__ = pointwise.__name__ = (
+        f"laplacian_pointwise_{'second' if S else 'first'}_{'div_' if DIV else ''}np{NP}"
+    )
+    pointwise = wp.func(pointwise)
+
+    def element(
+        src: wp.array2d(dtype=vec),
+        hs: wp.array(dtype=vec),
+        delta: wp.array2d(dtype=vec),
+        c: wp.vec4d,
+        f: RowFrame,
+        metric: wp.array2d(dtype=vec),
+        dvv: mat,
+        L: wp.array2d(dtype=vec),
+        e: int,
+    ):
+        laplacians(src, hs, f, metric, dvv, L, e)
+        pointwise(src, hs, delta, c, f, metric, dvv, L, e)
+
     element.__qualname__ = element.__name__ = (
         f"laplacian_element_{'second' if S else 'first'}_{'div_' if DIV else ''}np{NP}"
     )
-    one_element = wp.func(element)
+    return _ElementParts(vec, mat, field, laplacians, pointwise, wp.func(element), row_dss, sum_copies)
+
+
+@functools.cache
+def laplacian_element(
+    second: bool, divergent: bool, np_: int, copies: int = 0, ghosts: bool = False, rows: bool = False
+):
+    """The weak form of Y₁ (``second=False``, from the state ``src`` = x (3, ·)
+    and hs) or of Y₂ (``second=True``, from ``src`` = Y₁ (4, ·)) of the elements
+    (the module docstring), one thread per element, on GLL rows
+    (``operators.row_vectors`` views, N/np rows); ``divergent``: with the
+    (ν_div − ν)·spheremp·∇δ term, δ the DSS'd divergence in ``delta`` (1, ·)
+    (first only). The second pass does the first DSS itself, a ``Topology.gathering``
+    kernel (``copies``, ``ghosts`` as ``dss.gather``; ValueError for copies < 1): each
+    element writes Y₁ = the unweighted DSS of the first pass's weak form x (4, N) at its own
+    nodes into Y (4, N), the bits of ``dss.dss_rows``, and reads it back as ``src``, Y's rows,
+    while it is in cache. Arguments: x (f64), d (``dss.Copies``), Y (f64), src, hs, delta,
+    c (``scale_first``), f (``frame_type`` of rows), metric (4, ·) (``laplacian_metric``),
+    dvv (``operators.dvv_matrix``), L (4, ·) output (aliasing neither x nor Y), block (np²),
+    offset (in elements); the first pass reads neither x, d, Y nor block. Dim nelem.
+    With ``rows`` (the second pass only) a ``Topology.by_element`` kernel instead: the DSS by
+    element on GLL rows (``dss.gather_row``, the same bits) written into src, Y's rows;
+    arguments xr, x, d, g (``dss.Edges``), wr, rsr, then src … L as above, offset.
+    ``laplacian_across`` is the same with several elements a vector (np ≥ 5, the same bits)."""
+    NP = int(np_)
+    S = bool(second)
+    ROWS = bool(rows) and S
+    if S and copies < 1:
+        raise ValueError(f"the second pass sums the copies of a node: copies must be at least 1 (got {copies})")
+    parts = _element_parts(S, bool(divergent) and not S, NP, max(1, int(copies)), bool(ghosts))
+    vec, mat, row_dss, sum_copies, one_element = (
+        parts.vec,
+        parts.mat,
+        parts.row_dss,
+        parts.sum_copies,
+        parts.one_element,
+    )
+    RowFrame = frame_type(vec)
+    DIV = bool(divergent) and not S
 
     if ROWS:  # the first DSS by element on GLL rows (``dss.gather_row``), written into src: Y's rows
 
@@ -304,6 +375,168 @@ def laplacian_element(
         "second" if S else "first__divergent" if DIV else "first"
     )
     return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)
+
+
+@functools.cache
+def laplacian_across(second: bool, divergent: bool, np_: int, lanes: int, copies: int = 0, ghosts: bool = False):
+    """``laplacian_element`` (its ``rows`` form for the second pass, a ``Topology.by_element``
+    kernel) with the element index innermost in the weak Laplacians: a thread a block of W =
+    ``lanes`` consecutive elements e = W·(tid + offset) + w, w < W, each node's value a
+    ``wp.types.vector(W)`` of those elements' values, each derivative sweep dvv's scalars times
+    such vectors (the rows' products, commuted, summed in the same order: the same bits,
+    ``benchmarks/across_elements.py``). The state, Y, L and the DSS stay in today's layout:
+    each field's values (``field``, formed on rows as there) go lane by lane into the scratch X,
+    the sweeps go through the scratch fx, fy, and L is written back lane by lane; the second
+    pass's row DSS and both passes' pointwise part are ``laplacian_element``'s, element by
+    element. np ≥ 5 only (ValueError otherwise: np 4 keeps its unrolled rows and their bits);
+    the elements past the last whole block go through ``laplacian_element``.
+    Arguments: (second: xr, x, d, g, wr, rsr, as ``Topology.by_element`` gives them), src, hs,
+    delta, c, f, metric, dvv as ``laplacian_element``'s; Lr (4, N/np) L's rows; L (4, N) f64;
+    G (3, N_b) the metric's rows 0..2 in the across layout, G[k, b·np² + n][w] = metric[k,
+    (W b + w) np² + n] (``across_layout``); X, fx, fy (np²) vectors of W, a thread's private
+    scratch (``parallel.record``'s ``per_part``); offset (in blocks). Dim ⌊nelem/W⌋.
+    HOMME's ``laplace_sphere_wk`` (its quadrature-weighted contravariant metric)."""
+    NP, W = int(np_), int(lanes)
+    S = bool(second)
+    DIV = bool(divergent) and not S
+    if NP < 5 or W < 1:
+        raise ValueError(f"the weak Laplacian across elements is for np >= 5 and lanes >= 1 (got np {NP}, {W})")
+    if S and copies < 1:
+        raise ValueError(f"the second pass sums the copies of a node: copies must be at least 1 (got {copies})")
+    parts = _element_parts(S, DIV, NP, max(1, int(copies)), bool(ghosts))
+    vec, mat, field, pointwise, row_dss = parts.vec, parts.mat, parts.field, parts.pointwise, parts.row_dss
+    RowFrame = frame_type(vec)
+    vw = wp.types.vector(length=W, dtype=f64)
+    NN = NP * NP
+    tag = f"{'second' if S else 'first'}_{'div_' if DIV else ''}np{NP}_w{W}"
+
+    def block_laplacians(
+        src: wp.array2d(dtype=vec),
+        hs: wp.array(dtype=vec),
+        f: RowFrame,
+        dvv: mat,
+        L: wp.array2d(dtype=vec),
+        G: wp.array2d(dtype=vw),
+        X: wp.array(dtype=vw),
+        fx: wp.array(dtype=vw),
+        fy: wp.array(dtype=vw),
+        b: int,
+    ):
+        e0 = b * W
+        bn = b * NN
+        first = e0 * NN  # a run-time start for the sweeps' loops
+        for r in range(L.shape[0]):  # one field at a time, in a loop clang does not unroll
+            for e in range(e0, e0 + W):  # field r of the block's elements, lane by lane (not unrolled)
+                w = e - e0
+                base = e * NP
+                for k in range(base, base + NP):
+                    j = k - base
+                    row = field(src, hs, f, r, k)
+                    for i in range(NP):
+                        X[j * NP + i][w] = row[i]
+            for k in range(first, first + NP):  # −Σ ∂ᵀ(G ∇_ref f), the rows' sums
+                j = k - first
+                for h in range(first, first + NP):
+                    i = h - first
+                    a = vw()
+                    c = vw()
+                    for m in range(NP):
+                        a += dvv[i, m] * X[j * NP + m]
+                    for m in range(NP):
+                        c += dvv[j, m] * X[m * NP + i]
+                    n = j * NP + i
+                    fx[n] = wp.cw_mul(G[0, bn + n], a) + wp.cw_mul(G[1, bn + n], c)
+                    fy[n] = wp.cw_mul(G[1, bn + n], a) + wp.cw_mul(G[2, bn + n], c)
+            for k in range(first, first + NP):
+                j = k - first
+                for h in range(first, first + NP):
+                    i = h - first
+                    s = vw()
+                    t = vw()
+                    for m in range(NP):
+                        s += dvv[m, i] * fx[j * NP + m]
+                    for m in range(NP):
+                        t += dvv[m, j] * fy[m * NP + i]
+                    X[j * NP + i] = -(s + t)  # X is read no more: L in the across layout
+            for w in range(W):  # back into L's rows, lane by lane (strided stores cost 2.5x the sweeps)
+                base = (e0 + w) * NP
+                for k in range(base, base + NP):
+                    j = k - base
+                    row = vec()
+                    for i in range(NP):
+                        row[i] = X[j * NP + i][w]
+                    L[r, k] = row
+
+    block_laplacians.__qualname__ = block_laplacians.__name__ = f"laplacian_block_{tag}"
+    block = wp.func(block_laplacians)
+
+    if S:
+
+        def kernel(
+            xr: wp.array2d(dtype=vec),
+            x: wp.array2d(dtype=f64),
+            d: Copies,
+            g: Edges,
+            wr: wp.array(dtype=vec),
+            rsr: wp.array(dtype=vec),
+            src: wp.array2d(dtype=vec),
+            hs: wp.array(dtype=vec),
+            delta: wp.array2d(dtype=vec),
+            c: wp.vec4d,
+            f: RowFrame,
+            metric: wp.array2d(dtype=vec),
+            dvv: mat,
+            L: wp.array2d(dtype=vec),
+            G: wp.array2d(dtype=vw),
+            X: wp.array(dtype=vw),
+            fx: wp.array(dtype=vw),
+            fy: wp.array(dtype=vw),
+            offset: int,
+        ):
+            b = wp.tid() + offset
+            for e in range(b * W, b * W + W):  # Y₁ = the first DSS at the block's elements, as ``laplacian_element``
+                for j in range(NP):
+                    for r in range(4):
+                        src[r, e * NP + j] = row_dss(xr, x, d, g, wr, rsr, e, j, r)
+            block(src, hs, f, dvv, L, G, X, fx, fy, b)
+            for e in range(b * W, b * W + W):  # not unrolled
+                pointwise(src, hs, delta, c, f, metric, dvv, L, e)
+
+    else:
+
+        def kernel(
+            src: wp.array2d(dtype=vec),
+            hs: wp.array(dtype=vec),
+            delta: wp.array2d(dtype=vec),
+            c: wp.vec4d,
+            f: RowFrame,
+            metric: wp.array2d(dtype=vec),
+            dvv: mat,
+            L: wp.array2d(dtype=vec),
+            G: wp.array2d(dtype=vw),
+            X: wp.array(dtype=vw),
+            fx: wp.array(dtype=vw),
+            fy: wp.array(dtype=vw),
+            offset: int,
+        ):
+            b = wp.tid() + offset
+            block(src, hs, f, dvv, L, G, X, fx, fy, b)
+            for e in range(b * W, b * W + W):  # not unrolled
+                pointwise(src, hs, delta, c, f, metric, dvv, L, e)
+
+    kernel.__qualname__ = kernel.__name__ = "laplacian_across__" + (
+        "second" if S else "first__divergent" if DIV else "first"
+    )
+    return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)
+
+
+def across_layout(a, lanes: int, np_: int):
+    """The across layout of ``laplacian_across``'s G from a (rows, N) numpy array of element-local
+    values: (rows, ⌊nelem/W⌋ np², W), [k, b np² + n, w] = a[k, (W b + w) np² + n]."""
+    rows, nn = a.shape[0], int(np_) ** 2
+    nb = a.shape[1] // nn // int(lanes)
+    t = a[:, : nb * lanes * nn].reshape(rows, nb, lanes, nn)
+    return t.transpose(0, 1, 3, 2).reshape(rows, nb * nn, lanes).copy()
 
 
 @functools.cache

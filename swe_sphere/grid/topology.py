@@ -265,21 +265,49 @@ class Topology:
         g.aligned = wp.array(aligned.astype(np.int32), dtype=wp.int32, device=self.device)
         return g
 
-    def by_element(self, x: wp.array2d, kernel, args) -> list:
+    def by_element(self, x: wp.array2d, kernel, args, lanes: int = 1, per_part=None, rest=None) -> list:
         """Launches for a kernel that sums the DSS of x (rows, N) by element on GLL rows
         itself (``kernels.dss.gather_row``; where ``edges`` is not None: the CPU), the form of
         ``gathering`` there: ``kernel(rows, copies, ghosts, np)`` builds it; it takes (xr, x,
         ``dss_copies``, ``edges``, wr, rsr, *args, offset), xr x's rows, wr and rsr spheremp's
         first N and rspheremp as rows (``args`` as the kernel reads them: its arrays of nodes as
         ``kernels.operators.row_vectors``); dim nelem. The neighbours'
-        copies are exchanged first."""
-        kernel = kernel(x.shape[0], self.table.shape[1], bool(len(self.neighbours)), self.grid.np)
-        NP = self.grid.np
-        inputs = [row_vectors(x, NP), x, self.dss_copies, self.edges, *self._mass_rows, *args]
-        launch = record(
-            kernel, self.grid.nelem, inputs, device=self.backend, threads=self.threads, nodes_per_index=NP * NP
-        )
-        return [*self._exchange(x), launch]
+        copies are exchanged first. ``lanes`` > 1: the kernel takes that many consecutive
+        elements an index (``kernels.hyperviscosity.laplacian_across``; dim ⌊nelem/lanes⌋,
+        ``per_part`` as ``core.parallel.record``'s), and ``rest`` = (a builder, its args) as
+        ``kernel`` and ``args`` one element an index, launched over the elements past the last
+        whole block (with their offset)."""
+        NP, nelem, lanes = self.grid.np, self.grid.nelem, int(lanes)
+        build = (x.shape[0], self.table.shape[1], bool(len(self.neighbours)), NP)
+        head = [row_vectors(x, NP), x, self.dss_copies, self.edges, *self._mass_rows]
+        launches, blocks = self._exchange(x), nelem // lanes
+        if blocks:
+            launches.append(
+                record(
+                    kernel(*build),
+                    blocks,
+                    [*head, *args],
+                    device=self.backend,
+                    threads=self.threads,
+                    nodes_per_index=NP * NP * lanes,
+                    per_part=per_part,
+                )
+            )
+        if blocks * lanes < nelem:
+            tail, tail_args = rest
+            first = blocks * lanes
+            launches.append(
+                record(
+                    tail(*build),
+                    nelem - first,
+                    [*head, *tail_args],
+                    device=self.backend,
+                    threads=self.threads,
+                    nodes_per_index=NP * NP,
+                    start=first,
+                )
+            )
+        return launches
 
     def _record(self, kernel, dim, inputs):
         return record(kernel, dim, inputs, device=self.backend, threads=self.threads, block=self.grid.np**2)

@@ -50,7 +50,14 @@ class Hyperviscosity:
     its ν, ν_div, ν_s and ``hypervis_subcycle``): ``operator`` B x, ``apply`` over a
     step, and the step's plan (``substeps``, ``stages``, ``plan``) from the
     operator's spectral radius (``biharmonic_radius``). Allocates its work arrays
-    (12 rows of N and the fixed metric's 4 on the per-element layout, 20 on the per-node one) once."""
+    (12 rows of N and the fixed metric's 4 on the per-element layout, 20 on the per-node one) once.
+
+    ``across_elements``: W, the elements a vector of the CPU's weak Laplacians at np ≥ 5
+    (``kernels.hyperviscosity.laplacian_across``, the bits of the rows'; 0 or 1: a thread an
+    element, on rows, as at np ≤ 4), read when a model is built (a benchmark's switch); its
+    metric then also held in the across layout (3 rows of N more)."""
+
+    across_elements: int = 16
 
     def __init__(self, model):
         self.model = m = model
@@ -66,6 +73,13 @@ class Hyperviscosity:
         else:  # the Cartesian state and the weak Laplacian's flux of the per-node kernels
             self.hv_X = wp.zeros((4, N), dtype=f64, device=device)
             self.hv_flux = wp.zeros((8, N), dtype=f64, device=device)
+        self.lanes = self._lanes()  # W of ``laplacian_across``, 0: the rows
+        self._across_metrics: dict = {}  # a metric's rows 0..2 in the across layout, by its address
+        if self.lanes:  # each CPU thread's scratch X, fx, fy (``laplacian_across``)
+            vw = wp.types.vector(length=self.lanes, dtype=f64)
+            nn, slots = m.grid.np**2, max(1, m.launches.threads)
+            self._scratch = [wp.zeros((slots, nn), dtype=vw, device=device) for _ in range(3)]
+            self._per_part = {k: [a[i] for i in range(slots)] for k, a in zip(("X", "fx", "fy"), self._scratch)}
         # the tensor ∇⁴'s second Laplacian reads its own fixed metric (``tensor_metric``); None: constant ν
         self.hv_tensor = None if m.hypervis_scaling is None else self.tensor_metric(m.hypervis_scaling)
         self._plan: tuple[float, tuple[int, bool]] | None = None  # (dt, its plan): the last dt's only
@@ -101,6 +115,24 @@ class Hyperviscosity:
         passes = [*launches, *laplacian(x, c, divergent, swap, False), *laplacian(x, c, divergent, swap, True)]
         return [*passes, *self._dss_apply(x, coef, out, mode, prev, weights)]
 
+    def _lanes(self) -> int:
+        """W for ``laplacian_across`` (``across_elements``) where it applies: the per-element
+        layout at np ≥ 5 with at least W elements; else 0 (the rows, one element a thread)."""
+        m, w = self.model, int(self.across_elements)
+        np_ = m.grid.np
+        ok = m.operators.per_element and np_ >= 5 and w > 1 and m.N // np_**2 >= w
+        return w if ok else 0
+
+    def _across_metric(self, metric: wp.array2d) -> wp.array2d:
+        """``metric``'s rows 0..2 in ``laplacian_across``'s layout (``kernels.hyperviscosity.across_layout``),
+        made once for each fixed metric (the constant ∇⁴'s, the tensor's)."""
+        key = metric.ptr
+        if key not in self._across_metrics:
+            m, vw = self.model, wp.types.vector(length=self.lanes, dtype=f64)
+            values = hyperviscosity.across_layout(metric.numpy()[:3], self.lanes, m.grid.np)
+            self._across_metrics[key] = (wp.array(values, dtype=vw, device=m.device), metric)
+        return self._across_metrics[key][0]
+
     def _element_laplacian(self, x, c, divergent: bool, swap: bool, second: bool) -> list:
         """``build``'s launches of one weak Laplacian on the per-element layout: the first
         (``second`` False) the weak form of Y₁ in L from ``x``, the second that of Y₂ in L2 from
@@ -119,20 +151,44 @@ class Hyperviscosity:
             m.operators.as_rows(metric),
             m.operators.dvv_rows,
         ]
+        W, nelem = self.lanes, m.N // np_**2
+        across = [self._across_metric(metric), *(v[0] for v in self._per_part.values())] if W else []
         if not second:  # x, d and Y are not read
             kernel = hyperviscosity.laplacian_element(False, divergent, np_)
             head = [L, m.topology.dss_copies, Y, m.operators.as_rows(x)]
-            return [m.launches.elements(kernel, [*head, *args, m.operators.as_rows(L), m.launches.block])]
+            rows = [*head, *args, m.operators.as_rows(L), m.launches.block]
+            if not W:
+                return [m.launches.elements(kernel, rows)]
+            blocks = nelem // W
+            inputs = [m.operators.as_rows(x), *args, m.operators.as_rows(L), *across]
+            launches = [
+                m.launches.record(
+                    hyperviscosity.laplacian_across(False, divergent, np_, W),
+                    blocks,
+                    inputs,
+                    nodes_per_index=W * np_**2,
+                    per_part=self._per_part,
+                )
+            ]
+            if blocks * W < nelem:  # the elements past the last whole block: on rows
+                launches.append(m.launches.elements(kernel, rows, elements=(blocks * W, nelem)))
+            return launches
 
         # the first DSS in the second pass, element by element: on rows where the topology has them
         tail = [*args, m.operators.as_rows(self.hv_L2)]
         if m.topology.edges is not None:
+            rows = lambda rows, copies, ghosts, np_: hyperviscosity.laplacian_element(  # noqa: E731
+                True, divergent, np_, copies, ghosts, rows=True
+            )
+            if not W:
+                return m.topology.by_element(L, rows, [m.operators.as_rows(Y), *tail])
             return m.topology.by_element(
                 L,
-                lambda rows, copies, ghosts, np_: hyperviscosity.laplacian_element(
-                    True, divergent, np_, copies, ghosts, rows=True
-                ),
-                [m.operators.as_rows(Y), *tail],
+                lambda _, copies, ghosts, np_: hyperviscosity.laplacian_across(True, divergent, np_, W, copies, ghosts),
+                [m.operators.as_rows(Y), *tail, *across],
+                lanes=W,
+                per_part=self._per_part,
+                rest=(rows, [m.operators.as_rows(Y), *tail]),
             )
         return m.topology.gathering(
             L,

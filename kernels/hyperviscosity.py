@@ -458,7 +458,7 @@ def laplacian_across(second: bool, divergent: bool, np_: int, lanes: int, copies
                     for m in range(NP):
                         t += dvv[m, j] * fy[m * NP + i]
                     X[j * NP + i] = -(s + t)  # X is read no more: L in the across layout
-            for w in range(W):  # back into L's rows, lane by lane (strided stores cost 2.5x the sweeps)
+            for w in range(W):  # back into L's rows, the lane fixed (stores strided by np² cost what the sweeps saved)
                 base = (e0 + w) * NP
                 for k in range(base, base + NP):
                     j = k - base

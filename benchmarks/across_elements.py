@@ -8,7 +8,8 @@ vector, both in one process, interleaved.
   sweep a sum of dvv's scalars times such vectors, through a scratch array between the passes.
 
 The passes: one field's **weak Laplacian** −Σ ∂ᵀ(G ∇_ref f) (the ∇⁴'s element pass, the arithmetic
-of ``kernels.hyperviscosity.laplacian_element`` for one field, written here for both layouts), and
+of ``kernels.hyperviscosity.laplacian_element`` for one field, written here on rows; across, the
+package's ``weak_laplacian_across``, which the ∇⁴ runs at np ≥ 5 since it was measured here), and
 the **tendency** of `galewsky`'s terms (continuity, momentum advection, Coriolis, the pressure
 gradient; mass-weighted): rows the package's own ``kernels.tendencies.tendency_element``, across
 the same sums and its pointwise end (``tendencies.finish``, generic over the value type). The
@@ -37,6 +38,7 @@ wp.config.quiet = True
 
 from results import positive, recorded  # noqa: E402  (benchmarks/, the script's directory)
 
+from swe_sphere.kernels.hyperviscosity import weak_laplacian_across  # noqa: E402
 from swe_sphere.kernels.operators import CPU_FAST, covariant, dvv_matrix, row_derivatives, times  # noqa: E402
 from swe_sphere.kernels.tendencies import finish, tendency_element  # noqa: E402
 
@@ -109,36 +111,25 @@ def laplacian_kernels(NP: int, W: int):
         for j in range(NP):
             L[base + j] = Lr[j]
 
+    sweeps = weak_laplacian_across(NP, W)  # the package's (the ∇⁴'s own with W elements a vector)
+    NN = NP * NP
+
     def across(
         F: wp.array2d(dtype=vw),
-        g: wp.array3d(dtype=vw),
+        g: wp.array2d(dtype=vw),
         dvv: mat,
-        fx: wp.array2d(dtype=vw),
-        fy: wp.array2d(dtype=vw),
+        X: wp.array(dtype=vw),
+        fx: wp.array(dtype=vw),
+        fy: wp.array(dtype=vw),
         L: wp.array2d(dtype=vw),
         n0: int,
     ):
         b = wp.tid()
-        for j in range(n0, n0 + NP):  # n0 = 0 at run time: only the sums over m unrolled (compile time)
-            for i in range(n0, n0 + NP):
-                a = vw()
-                c = vw()
-                for m in range(NP):
-                    a += dvv[i, m] * F[b, j * NP + m]
-                for m in range(NP):
-                    c += dvv[j, m] * F[b, m * NP + i]
-                n = j * NP + i
-                fx[b, n] = wp.cw_mul(g[0, b, n], a) + wp.cw_mul(g[1, b, n], c)
-                fy[b, n] = wp.cw_mul(g[1, b, n], a) + wp.cw_mul(g[2, b, n], c)
-        for j in range(n0, n0 + NP):
-            for i in range(n0, n0 + NP):
-                s = vw()
-                t = vw()
-                for m in range(NP):
-                    s += dvv[m, i] * fx[b, j * NP + m]
-                for m in range(NP):
-                    t += dvv[m, j] * fy[b, m * NP + i]
-                L[b, j * NP + i] = -(s + t)
+        for n in range(n0, n0 + NN):  # the block into the scratch, as the ∇⁴'s kernel forms it there
+            X[n] = F[b, n]
+        sweeps(X, g, fx, fy, dvv, b * NN, n0)
+        for n in range(n0, n0 + NN):
+            L[b, n] = X[n]
 
     made = []
     for k in (rows, across):
@@ -245,10 +236,11 @@ def measure(kind: str, NP: int, ne: int, W: int, rounds: int) -> dict:
         _, vw, (k_rows, k_across) = laplacian_kernels(NP, W)
         f, G = rng.standard_normal((nelem, NP, NP)), rng.standard_normal((3, nelem, NP, NP))
         src, g, Fa, ga = rows(f), rows(G), across(f), across(G)
-        L, (fx, fy, La) = wp.zeros(nelem * NP, dtype=src.dtype), (wp.zeros((nb, nn), dtype=vw) for _ in range(3))
-        Fa, ga = Fa.reshape((nb, nn)), ga.reshape((3, nb, nn))
+        L, La = wp.zeros(nelem * NP, dtype=src.dtype), wp.zeros((nb, nn), dtype=vw)
+        X, fx, fy = (wp.zeros(nn, dtype=vw) for _ in range(3))  # one thread: one scratch
+        Fa = Fa.reshape((nb, nn))
         go_rows = lambda: wp.launch(k_rows, dim=nelem, inputs=[src, g, dvv, L], device="cpu")  # noqa: E731
-        go_across = lambda: wp.launch(k_across, dim=nb, inputs=[Fa, ga, dvv, fx, fy, La, 0], device="cpu")  # noqa: E731
+        go_across = lambda: wp.launch(k_across, dim=nb, inputs=[Fa, ga, dvv, X, fx, fy, La, 0], device="cpu")  # noqa: E731
         outs = (L, La.reshape((nb * nn,)))
     else:
         k_rows, k_across = tendency_element(TERMS, NP, True), tendency_across(NP, W)

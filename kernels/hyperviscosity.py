@@ -378,6 +378,58 @@ def laplacian_element(
 
 
 @functools.cache
+def weak_laplacian_across(np_: int, lanes: int):
+    """One field's weak Laplacian −Σ ∂ᵀ(G ∇_ref f) with the element index innermost, a
+    ``wp.func`` (X, G, fx, fy, dvv, bn, first): X (np²) ``wp.types.vector(lanes)`` the field at an
+    element block's nodes (node n = j·np + i; lane w element w of the block), overwritten by its
+    weak Laplacian; G (3, ·) the metric's rows 0..2 in the across layout from node bn (the
+    block's first); fx, fy (np²) scratch; dvv as ``operators.dvv_matrix``; first a run-time 0
+    (the sweeps' loops start there, so Warp keeps them rolled and unrolls only the sums). Each
+    sum is ``laplacian_element``'s along a row, its products commuted, in the same order: the
+    same bits (``benchmarks/across_elements.py``). HOMME's ``laplace_sphere_wk``."""
+    NP, W = int(np_), int(lanes)
+    mat = row_derivatives(NP)[1]
+    vw = wp.types.vector(length=W, dtype=f64)
+
+    def sweeps(
+        X: wp.array(dtype=vw),
+        G: wp.array2d(dtype=vw),
+        fx: wp.array(dtype=vw),
+        fy: wp.array(dtype=vw),
+        dvv: mat,
+        bn: int,
+        first: int,
+    ):
+        for k in range(first, first + NP):  # the contravariant gradient, quadrature-weighted
+            j = k - first
+            for h in range(first, first + NP):
+                i = h - first
+                a = vw()
+                c = vw()
+                for m in range(NP):
+                    a += dvv[i, m] * X[j * NP + m]
+                for m in range(NP):
+                    c += dvv[j, m] * X[m * NP + i]
+                n = j * NP + i
+                fx[n] = wp.cw_mul(G[0, bn + n], a) + wp.cw_mul(G[1, bn + n], c)
+                fy[n] = wp.cw_mul(G[1, bn + n], a) + wp.cw_mul(G[2, bn + n], c)
+        for k in range(first, first + NP):  # minus its weak divergence
+            j = k - first
+            for h in range(first, first + NP):
+                i = h - first
+                s = vw()
+                t = vw()
+                for m in range(NP):
+                    s += dvv[m, i] * fx[j * NP + m]
+                for m in range(NP):
+                    t += dvv[m, j] * fy[m * NP + i]
+                X[j * NP + i] = -(s + t)
+
+    sweeps.__qualname__ = sweeps.__name__ = f"weak_laplacian_across_np{NP}_w{W}"
+    return wp.func(sweeps)
+
+
+@functools.cache
 def laplacian_across(second: bool, divergent: bool, np_: int, lanes: int, copies: int = 0, ghosts: bool = False):
     """``laplacian_element`` (its ``rows`` form for the second pass, a ``Topology.by_element``
     kernel) with the element index innermost in the weak Laplacians: a thread a block of W =
@@ -410,6 +462,8 @@ def laplacian_across(second: bool, divergent: bool, np_: int, lanes: int, copies
     NN = NP * NP
     tag = f"{'second' if S else 'first'}_{'div_' if DIV else ''}np{NP}_w{W}"
 
+    sweeps = weak_laplacian_across(NP, W)
+
     def block_laplacians(
         src: wp.array2d(dtype=vec),
         hs: wp.array(dtype=vec),
@@ -434,30 +488,7 @@ def laplacian_across(second: bool, divergent: bool, np_: int, lanes: int, copies
                     row = field(src, hs, f, r, k)
                     for i in range(NP):
                         X[j * NP + i][w] = row[i]
-            for k in range(first, first + NP):  # −Σ ∂ᵀ(G ∇_ref f), the rows' sums
-                j = k - first
-                for h in range(first, first + NP):
-                    i = h - first
-                    a = vw()
-                    c = vw()
-                    for m in range(NP):
-                        a += dvv[i, m] * X[j * NP + m]
-                    for m in range(NP):
-                        c += dvv[j, m] * X[m * NP + i]
-                    n = j * NP + i
-                    fx[n] = wp.cw_mul(G[0, bn + n], a) + wp.cw_mul(G[1, bn + n], c)
-                    fy[n] = wp.cw_mul(G[1, bn + n], a) + wp.cw_mul(G[2, bn + n], c)
-            for k in range(first, first + NP):
-                j = k - first
-                for h in range(first, first + NP):
-                    i = h - first
-                    s = vw()
-                    t = vw()
-                    for m in range(NP):
-                        s += dvv[m, i] * fx[j * NP + m]
-                    for m in range(NP):
-                        t += dvv[m, j] * fy[m * NP + i]
-                    X[j * NP + i] = -(s + t)  # X is read no more: L in the across layout
+            sweeps(X, G, fx, fy, dvv, bn, first)  # X becomes its weak Laplacian: L in the across layout
             for w in range(W):  # back into L's rows, the lane fixed (stores strided by np² cost what the sweeps saved)
                 base = (e0 + w) * NP
                 for k in range(base, base + NP):

@@ -51,7 +51,8 @@ from results import positive, recorded
 def partition_table(ne: int, np_: int, ranks: list[int]) -> None:
     from swe_sphere.grid.cubed_sphere import CubedSphere
     from swe_sphere.grid.partition import edge_cut
-    from swe_sphere.grid.topology import SerialComm, Topology, rank_parts
+    from swe_sphere.grid.reductions import SerialComm
+    from swe_sphere.grid.topology import Topology, rank_parts
 
     class RankOf(SerialComm):  # build one rank's tables without MPI
         def __init__(self, rank, size):

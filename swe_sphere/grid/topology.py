@@ -4,7 +4,7 @@ The model, the steppers and the Krylov solvers reach the grid's connectivity
 only through a ``Topology``: the direct stiffness summation (HOMME
 ``bndry_exchangeV`` with ``rspheremp`` scaling), ``assemble``/``scatter``
 between element-local fields and vectors on unique nodes (what Krylov solvers
-iterate on), and area integrals, norms and maxima.
+iterate on), and area integrals, norms and maxima (``reductions.RankReductions``).
 
 Over MPI (``comm`` with several ranks) each rank holds a contiguous piece of
 the elements' space-filling curve (``swe_sphere.grid.partition``). A DSS is then
@@ -27,34 +27,14 @@ import warp as wp
 from ..core.backend import Backend
 from ..core.errors import ArgumentError
 from ..core.parallel import record
-from ..kernels import blas, dss
+from ..kernels import dss
 from ..kernels.operators import row_vectors
 from .cubed_sphere import CubedSphere
 from .halo import MAX_ROWS, Exchange, Halo
 from .partition import level_chunks, mesh_order, mesh_partition, partition, sfc_order
+from .reductions import RankReductions, SerialComm, reduction_ops
 
 f64 = wp.float64
-
-
-class SerialComm:
-    """What a topology needs of an MPI communicator, for one process (no MPI needed)."""
-
-    rank, size = 0, 1
-
-    def allreduce(self, value, op=None):
-        return value
-
-    def bcast(self, value, root=0):
-        return value
-
-
-def _ops(comm):
-    """(SUM, MAX, MIN) reduction operations of ``comm``."""
-    if isinstance(comm, SerialComm):
-        return None, None, None
-    from mpi4py import MPI
-
-    return MPI.SUM, MPI.MAX, MPI.MIN
 
 
 class GatheredGrid:
@@ -110,7 +90,7 @@ def _lookup(keys: np.ndarray, values: np.ndarray) -> np.ndarray:
     return np.where(keys[order][at] == values, order[at], -1)
 
 
-class Topology:
+class Topology(RankReductions):
     """The assembly of ``grid``'s elements on ``device``, for rank ``comm.rank`` of ``comm.size``.
 
     Parameters
@@ -166,7 +146,7 @@ class Topology:
         self.device = device = self.backend.device  # the name
         self.threads = int(threads)
         self.comm = comm if comm is not None else SerialComm()
-        self._sum, self._max, self._min = _ops(self.comm)
+        self._sum, self._max, self._min = reduction_ops(self.comm)
         rank, size = self.comm.rank, self.comm.size
         self.distributed = size > 1
         self.parts = parts = rank_parts(grid.ne, size, grid.mesh) if parts is None else parts
@@ -543,24 +523,6 @@ class Topology:
         g = int(self.comm.allreduce(g, self._min))
         return None if g == self.nnodes_total else g
 
-    # -- global reductions (numpy in, Python float out) ------------------------------
-    def sum(self, value: float) -> float:
-        """Σ of a per-process value over all processes (as ``sums``)."""
-        return float(self.sums(np.float64(value)))
-
-    def max(self, value: float) -> float:
-        """Maximum of a per-process value over all processes."""
-        return float(self.comm.allreduce(value, self._max))
-
-    def integrate(self, f: np.ndarray) -> float:
-        """Area integral ∫ f dA (m² × units of f) of a continuous element-local field f (N,)
-        (HOMME ``global_integral``)."""
-        return self.sum(float(np.sum(self.grid.spheremp * f)))  # not np.dot: the same bits whatever BLAS's threads
-
-    def mean(self, f: np.ndarray) -> float:
-        """Area mean of a continuous element-local field f (N,)."""
-        return self.integrate(f) / self.total_area
-
     def whole_sums(self, rows) -> np.ndarray:
         """Σ of each row of ``rows`` ((k, N), or k arrays (N,): this rank's element-local
         nodes) over every rank's nodes, added on rank 0 in the whole grid's element-local
@@ -570,57 +532,3 @@ class Topology:
             return np.array([np.sum(r) for r in rows])
         whole = self.gather(np.stack(rows))
         return self.bcast(None if whole is None else np.array([np.sum(r) for r in whole]))
-
-    def sums(self, values: np.ndarray) -> np.ndarray:
-        """Elementwise Σ of a per-process numpy array over all processes: gathered
-        and added in rank order, so every rank gets the same bits whatever MPI's
-        reduction algorithm (a Krylov solver's ranks must take the same branches)."""
-        values = np.array(values, dtype=np.float64)  # C-contiguous, 0-d stays 0-d
-        if self._sum is None:  # one process
-            return values
-        parts = np.empty((self.comm.size, *values.shape))
-        self.comm.Allgather(values, parts)
-        total = parts[0].copy()
-        for part in parts[1:]:
-            total += part
-        return total
-
-    def device_sums(self, partial: wp.array2d, rows: int, out: wp.array) -> list:
-        """Recorded launches that put the totals of the first ``rows`` rows of per-chunk
-        partial sums into the float64 device array ``out`` (rows,), added in index order
-        on the device (``blas.row_totals``, one thread): no host read. Where the backend
-        says so (``Backend.direct_totals``: CUDA, long rows) they are first added in chunks of
-        about √n (``blas.chunk_sums``), so that the one thread adds ≈ 2√n values. The totals are
-        this process's: ``allreduce`` adds them over ranks."""
-        n, src, launches = partial.shape[1], partial[:rows], []
-        if not self.backend.direct_totals(n):
-            chunk = int(np.ceil(np.sqrt(n)))
-            mid = wp.zeros((rows, (n + chunk - 1) // chunk), dtype=f64, device=self.device)
-            launches.append(
-                wp.launch(blas.chunk_sums, mid.shape, [src, chunk, mid], device=self.device, record_cmd=True)
-            )
-            src = mid
-        launches.append(wp.launch(blas.row_totals, 1, [src, out], device=self.device, record_cmd=True))
-        return launches
-
-    def allreduce(self, out: wp.array) -> None:
-        """The float64 device array ``out`` of this process's totals (``device_sums``)
-        summed over all ranks in place (``sums``: rank order, the same bits on every
-        rank): one host read and write with several ranks; nothing with one, where the
-        totals stay on the device."""
-        if self.distributed:
-            out.assign(self.sums(out.numpy()))
-
-    def dot(self, a, b) -> float:
-        """Σ a·b of two arrays of one shape (device or numpy) over all processes
-        (element-local arrays count every copy; unique-node vectors each owned
-        node once): the inner product a Krylov solver over the topology's vectors needs."""
-        if isinstance(a, np.ndarray):
-            local = float(a.ravel().dot(b.ravel()))
-        else:
-            local = self.backend.inner(a, b)
-        return self.sum(local)
-
-    def norm(self, a) -> float:
-        """Euclidean norm of a device array over all processes (as ``dot``)."""
-        return float(np.sqrt(self.dot(a, a)))

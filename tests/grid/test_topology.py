@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 import warp as wp
 
-from swe_sphere.grid.topology import SerialComm, Topology
+from swe_sphere.grid.reductions import SerialComm
+from swe_sphere.grid.topology import Topology
 
 import roundoff
 from helpers import cached_grid

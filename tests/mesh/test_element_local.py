@@ -14,7 +14,8 @@ from scipy.spatial import cKDTree
 
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.partition import mesh_order, mesh_partition
-from swe_sphere.grid.topology import GatheredGrid, SerialComm, Topology
+from swe_sphere.grid.reductions import SerialComm
+from swe_sphere.grid.topology import GatheredGrid, Topology
 from swe_sphere.mesh.cube import Numbering, cube_mesh
 from swe_sphere.mesh.element_local import MeshNumbering, locate
 from swe_sphere.mesh.mesh import element_areas, read_exodus, write_exodus

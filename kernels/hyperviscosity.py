@@ -145,16 +145,11 @@ class _ElementParts(NamedTuple):
 
 
 @functools.cache
-def _element_parts(second: bool, divergent: bool, np_: int, copies: int, ghosts: bool) -> _ElementParts:
-    """The functions ``laplacian_element`` and ``laplacian_across`` build their kernels of."""
+def _weak_laplacian_rows(np_: int):
+    """One field's weak Laplacian on an element's rows (F, G11, G12, G22, dvv, dvvT, lo) → mat."""
     NP = int(np_)
     vec, mat, along, across = row_derivatives(NP)
     ROW = across_as_along(NP)  # rolled rows, (M F)[j] as along(M[j], F)
-    stack = wp.types.matrix(shape=(4, NP), dtype=f64)  # the four fields' values on one row
-    S, DIV = bool(second), bool(divergent) and not second
-    RowFrame = frame_type(vec)
-    sum_copies = gather(4, False, max(1, int(copies)), ghosts)
-    row_dss = gather_row(4, False, max(1, int(copies)), ghosts, NP)
 
     def weak_laplacian(F: mat, G11: mat, G12: mat, G22: mat, dvv: mat, dvvT: mat, lo: int):
         out = mat()  # −Σ ∂ᵀ(G ∇_ref f): G ∇_ref f is the quadrature-weighted contravariant gradient
@@ -181,7 +176,15 @@ def _element_parts(second: bool, divergent: bool, np_: int, copies: int, ghosts:
         return out
 
     weak_laplacian.__qualname__ = weak_laplacian.__name__ = f"weak_laplacian_rows_np{NP}"
-    lap = wp.func(weak_laplacian)
+    return wp.func(weak_laplacian)
+
+
+@functools.cache
+def _row_field(second: bool, np_: int):
+    """``field`` (src, hs, f, r, q) → row q of field r (``_ElementParts``)."""
+    NP, S = int(np_), bool(second)
+    vec = row_derivatives(NP)[0]
+    RowFrame = frame_type(vec)
 
     def field(src: wp.array2d(dtype=vec), hs: wp.array(dtype=vec), f: RowFrame, r: int, q: int):
         """Row q of field r of X (first: the Cartesian wind, h + hs) or of Y₁ (second)."""
@@ -192,7 +195,16 @@ def _element_parts(second: bool, divergent: bool, np_: int, copies: int, ghosts:
         return src[2, q] + hs[q]
 
     field.__qualname__ = field.__name__ = f"laplacian_field_{'second' if S else 'first'}_np{NP}"
-    field = wp.func(field)
+    return wp.func(field)
+
+
+@functools.cache
+def _row_laplacians(second: bool, np_: int):
+    """``laplacians`` (src, hs, f, metric, dvv, L, e): the four weak Laplacians of element e into L's rows."""
+    NP, S = int(np_), bool(second)
+    vec, mat = row_derivatives(NP)[:2]
+    RowFrame = frame_type(vec)
+    field, lap = _row_field(S, NP), _weak_laplacian_rows(NP)
 
     def laplacians(
         src: wp.array2d(dtype=vec),
@@ -224,7 +236,17 @@ def _element_parts(second: bool, divergent: bool, np_: int, copies: int, ghosts:
                 L[r, base + j] = Lr[j]
 
     laplacians.__qualname__ = laplacians.__name__ = f"laplacian_rows_{'second' if S else 'first'}_np{NP}"
-    laplacians = wp.func(laplacians)
+    return wp.func(laplacians)
+
+
+@functools.cache
+def _row_pointwise(second: bool, divergent: bool, np_: int):
+    """``pointwise`` (src, hs, delta, c, f, metric, dvv, L, e): the weak Laplacians' pointwise part in place."""
+    NP, S, DIV = int(np_), bool(second), bool(divergent) and not second
+    vec, mat, along, across = row_derivatives(NP)
+    stack = wp.types.matrix(shape=(4, NP), dtype=f64)  # the four fields' values on one row
+    RowFrame = frame_type(vec)
+    field = _row_field(S, NP)
 
     def pointwise(
         src: wp.array2d(dtype=vec),
@@ -262,7 +284,19 @@ def _element_parts(second: bool, divergent: bool, np_: int, copies: int, ghosts:
     pointwise.__qualname__ = pointwise.__name__ = (
         f"laplacian_pointwise_{'second' if S else 'first'}_{'div_' if DIV else ''}np{NP}"
     )
-    pointwise = wp.func(pointwise)
+    return wp.func(pointwise)
+
+
+@functools.cache
+def _element_parts(second: bool, divergent: bool, np_: int, copies: int, ghosts: bool) -> _ElementParts:
+    """The functions ``laplacian_element`` and ``laplacian_across`` build their kernels of."""
+    NP = int(np_)
+    vec, mat = row_derivatives(NP)[:2]
+    S, DIV = bool(second), bool(divergent) and not second
+    RowFrame = frame_type(vec)
+    sum_copies = gather(4, False, max(1, int(copies)), ghosts)
+    row_dss = gather_row(4, False, max(1, int(copies)), ghosts, NP)
+    field, laplacians, pointwise = _row_field(S, NP), _row_laplacians(S, NP), _row_pointwise(S, DIV, NP)
 
     def element(
         src: wp.array2d(dtype=vec),
@@ -430,38 +464,16 @@ def weak_laplacian_across(np_: int, lanes: int):
 
 
 @functools.cache
-def laplacian_across(second: bool, divergent: bool, np_: int, lanes: int, copies: int = 0, ghosts: bool = False):
-    """``laplacian_element`` (its ``rows`` form for the second pass, a ``Topology.by_element``
-    kernel) with the element index innermost in the weak Laplacians: a thread a block of W =
-    ``lanes`` consecutive elements e = W·(tid + offset) + w, w < W, each node's value a
-    ``wp.types.vector(W)`` of those elements' values, each derivative sweep dvv's scalars times
-    such vectors (the rows' products, commuted, summed in the same order: the same bits,
-    ``benchmarks/across_elements.py``). The state, Y, L and the DSS stay in today's layout:
-    each field's values (``field``, formed on rows as there) go lane by lane into the scratch X,
-    the sweeps go through the scratch fx, fy, and L is written back lane by lane; the second
-    pass's row DSS and both passes' pointwise part are ``laplacian_element``'s, element by
-    element. np ≥ 5 only (ValueError otherwise: np 4 keeps its unrolled rows and their bits);
-    the elements past the last whole block go through ``laplacian_element``.
-    Arguments: (second: xr, x, d, g, wr, rsr, as ``Topology.by_element`` gives them), src, hs,
-    delta, c, f, metric, dvv as ``laplacian_element``'s; Lr (4, N/np) L's rows; L (4, N) f64;
-    G (3, N_b) the metric's rows 0..2 in the across layout, G[k, b·np² + n][w] = metric[k,
-    (W b + w) np² + n] (``across_layout``); X, fx, fy (np²) vectors of W, a thread's private
-    scratch (``parallel.record``'s ``per_part``); offset (in blocks). Dim ⌊nelem/W⌋.
-    HOMME's ``laplace_sphere_wk`` (its quadrature-weighted contravariant metric)."""
-    NP, W = int(np_), int(lanes)
-    S = bool(second)
-    DIV = bool(divergent) and not S
-    if NP < 5 or W < 1:
-        raise ValueError(f"the weak Laplacian across elements is for np >= 5 and lanes >= 1 (got np {NP}, {W})")
-    if S and copies < 1:
-        raise ValueError(f"the second pass sums the copies of a node: copies must be at least 1 (got {copies})")
-    parts = _element_parts(S, DIV, NP, max(1, int(copies)), bool(ghosts))
-    vec, mat, field, pointwise, row_dss = parts.vec, parts.mat, parts.field, parts.pointwise, parts.row_dss
+def _block_laplacians(second: bool, divergent: bool, np_: int, lanes: int):
+    """``laplacian_across``'s weak Laplacians of a block of W = ``lanes`` elements (src, hs, f, dvv,
+    L, G, X, fx, fy, b): each field lane by lane into X, ``weak_laplacian_across``, back into L's rows."""
+    NP, W, S, DIV = int(np_), int(lanes), bool(second), bool(divergent) and not second
+    vec, mat = row_derivatives(NP)[:2]
     RowFrame = frame_type(vec)
     vw = wp.types.vector(length=W, dtype=f64)
     NN = NP * NP
+    field = _row_field(S, NP)
     tag = f"{'second' if S else 'first'}_{'div_' if DIV else ''}np{NP}_w{W}"
-
     sweeps = weak_laplacian_across(NP, W)
 
     def block_laplacians(
@@ -499,7 +511,40 @@ def laplacian_across(second: bool, divergent: bool, np_: int, lanes: int, copies
                     L[r, k] = row
 
     block_laplacians.__qualname__ = block_laplacians.__name__ = f"laplacian_block_{tag}"
-    block = wp.func(block_laplacians)
+    return wp.func(block_laplacians)
+
+
+@functools.cache
+def laplacian_across(second: bool, divergent: bool, np_: int, lanes: int, copies: int = 0, ghosts: bool = False):
+    """``laplacian_element`` (its ``rows`` form for the second pass, a ``Topology.by_element``
+    kernel) with the element index innermost in the weak Laplacians: a thread a block of W =
+    ``lanes`` consecutive elements e = W·(tid + offset) + w, w < W, each node's value a
+    ``wp.types.vector(W)`` of those elements' values, each derivative sweep dvv's scalars times
+    such vectors (the rows' products, commuted, summed in the same order: the same bits,
+    ``benchmarks/across_elements.py``). The state, Y, L and the DSS stay in today's layout:
+    each field's values (``field``, formed on rows as there) go lane by lane into the scratch X,
+    the sweeps go through the scratch fx, fy, and L is written back lane by lane; the second
+    pass's row DSS and both passes' pointwise part are ``laplacian_element``'s, element by
+    element. np ≥ 5 only (ValueError otherwise: np 4 keeps its unrolled rows and their bits);
+    the elements past the last whole block go through ``laplacian_element``.
+    Arguments: (second: xr, x, d, g, wr, rsr, as ``Topology.by_element`` gives them), src, hs,
+    delta, c, f, metric, dvv as ``laplacian_element``'s; Lr (4, N/np) L's rows; L (4, N) f64;
+    G (3, N_b) the metric's rows 0..2 in the across layout, G[k, b·np² + n][w] = metric[k,
+    (W b + w) np² + n] (``across_layout``); X, fx, fy (np²) vectors of W, a thread's private
+    scratch (``parallel.record``'s ``per_part``); offset (in blocks). Dim ⌊nelem/W⌋.
+    HOMME's ``laplace_sphere_wk`` (its quadrature-weighted contravariant metric)."""
+    NP, W = int(np_), int(lanes)
+    S = bool(second)
+    DIV = bool(divergent) and not S
+    if NP < 5 or W < 1:
+        raise ValueError(f"the weak Laplacian across elements is for np >= 5 and lanes >= 1 (got np {NP}, {W})")
+    if S and copies < 1:
+        raise ValueError(f"the second pass sums the copies of a node: copies must be at least 1 (got {copies})")
+    parts = _element_parts(S, DIV, NP, max(1, int(copies)), bool(ghosts))
+    vec, mat, pointwise, row_dss = parts.vec, parts.mat, parts.pointwise, parts.row_dss
+    RowFrame = frame_type(vec)
+    vw = wp.types.vector(length=W, dtype=f64)
+    block = _block_laplacians(S, DIV, NP, W)
 
     if S:
 

@@ -47,14 +47,19 @@ NODE_FIELDS = ("h", "hs", "u", "v", "vorticity", "divergence")
 def lagrange_basis(nodes: np.ndarray, x: np.ndarray) -> np.ndarray:
     """ℓ_k(x) for the Lagrange basis on ``nodes`` (n,): (M, n) for x (M,).
 
-    Product form, exact 1/0 at the nodes themselves (n ≤ 8, so no loss of accuracy)."""
+    Product form, exact 1/0 at the nodes themselves (n ≤ 8, so no loss of accuracy): ℓ_k(x) =
+    Π_{m≠k} (x − x_m)/(x_k − x_m), the factors multiplied in order of m (all k at once, a factor of
+    exactly 1 for m = k: the bits of the product taken k by k)."""
     x = np.asarray(x, dtype=np.float64)
+    nodes = np.asarray(nodes, dtype=np.float64)
     n = len(nodes)
     out = np.ones(x.shape + (n,))
-    for k in range(n):
-        for m in range(n):
-            if m != k:
-                out[..., k] *= (x - nodes[m]) / (nodes[k] - nodes[m])
+    for m in range(n):
+        gap = nodes - nodes[m]  # x_k − x_m for every k
+        gap[m] = 1.0
+        factor = (x - nodes[m])[..., None] / gap
+        factor[..., m] = 1.0
+        out *= factor
     return out
 
 
@@ -87,27 +92,38 @@ class Remapper:
 
     ``remapper(f)``: f (..., nunique) on unique nodes (a run file's ``ncol``) →
     (..., *shape). ``remapper.local(f)``: f (N,) element-local (need not be
-    continuous: each target takes its own element's polynomial).
+    continuous: each target takes its own element's polynomial). ``matrix``: the (M, nunique) CSR
+    matrix ``remapper(f)`` applies (M targets); ``weights``, ``nodes``: each target's np² weights and
+    the element-local nodes they weigh (M, np²).
     """
 
     def __init__(self, grid: CubedSphere, lat, lon):
         lat, lon = np.broadcast_arrays(np.asarray(lat, dtype=np.float64), np.asarray(lon, dtype=np.float64))
         self.shape = lat.shape
         self.grid = grid
-        n = grid.np
         if grid.mesh is None:
             elem, xi, eta = locate(grid.ne, lat, lon)
         else:
             cos_lat = np.cos(lat.ravel())
             xyz = np.stack([cos_lat * np.cos(lon.ravel()), cos_lat * np.sin(lon.ravel()), np.sin(lat.ravel())], axis=1)
             elem, xi, eta = locate_on_mesh(grid.mesh, xyz)
-        li = lagrange_basis(grid.rule.points, xi)  # (M, n) along ξ (index i)
-        lj = lagrange_basis(grid.rule.points, eta)  # (M, n) along η (index j)
-        m = elem.size
-        self.weights = (lj[:, :, None] * li[:, None, :]).reshape(m, n * n)  # [j*n + i]
-        self.nodes = elem[:, None] * n * n + np.arange(n * n)[None, :]  # element-local p
-        rows = np.repeat(np.arange(m), n * n)
-        self.matrix = csr_matrix((self.weights.ravel(), (rows, grid.gid[self.nodes].ravel())), shape=(m, grid.nunique))
+        self._li = lagrange_basis(grid.rule.points, xi)  # (M, n) along ξ (index i)
+        self._lj = lagrange_basis(grid.rule.points, eta)  # (M, n) along η (index j)
+        self._elem = elem
+        self.matrix = _gather_matrix(grid, elem, self._lj, self._li)
+
+    @functools.cached_property
+    def weights(self) -> np.ndarray:
+        """(M, np²) float64: each target's weights ℓ_j(η) ℓ_i(ξ) at [j np + i] (made when first asked for:
+        the matrix holds them)."""
+        n = self.grid.np
+        return (self._lj[:, :, None] * self._li[:, None, :]).reshape(self._elem.size, n * n)
+
+    @functools.cached_property
+    def nodes(self) -> np.ndarray:
+        """(M, np²) int64: the element-local node (element × np² + j np + i) of each of ``weights``."""
+        n2 = self.grid.np**2
+        return self._elem[:, None] * n2 + np.arange(n2)[None, :]
 
     def __call__(self, f) -> np.ndarray:
         f = np.asarray(f, dtype=np.float64)
@@ -119,6 +135,31 @@ class Remapper:
     def local(self, f) -> np.ndarray:
         f = np.asarray(f, dtype=np.float64)
         return np.einsum("mk,mk->m", self.weights, f[self.nodes]).reshape(self.shape)
+
+
+def _gather_matrix(grid: CubedSphere, elem: np.ndarray, lj: np.ndarray, li: np.ndarray) -> csr_matrix:
+    """The (M, nunique) CSR matrix of the targets' weights ℓ_j(η) ℓ_i(ξ) (``lj``, ``li`` (M, np)) on the
+    unique nodes of their elements ``elem`` (M,), in scipy's canonical form (each row's columns
+    ascending) built directly: the same arrays, bit for bit, as ``csr_matrix((weights, (rows, gid)))``
+    makes by sorting all M np² entries (several times this), for an element's np² nodes are distinct
+    unique nodes; each element's order of its columns is found once, not once a target."""
+    m, n = li.shape
+    weights = (lj[:, :, None] * li[:, None, :]).reshape(m, n * n)  # as ``Remapper.weights``
+    gid = grid.gid.reshape(-1, n * n)  # (elements, np²): the unique node of each element-local node
+    order = np.argsort(gid, axis=1, kind="stable")
+    columns = np.take_along_axis(gid, order, axis=1)
+    if np.any(columns[:, 1:] == columns[:, :-1]):  # an element that meets one node twice: scipy sums them
+        rows = np.repeat(np.arange(m), n * n)
+        return csr_matrix((weights.ravel(), (rows, gid[elem].ravel())), shape=(m, grid.nunique))
+    data = np.take_along_axis(weights, order[elem], axis=1)
+    indices = columns[elem].ravel()
+    index = np.int32 if max(grid.nunique, indices.size) <= np.iinfo(np.int32).max else np.int64  # as scipy picks
+    matrix = csr_matrix(
+        (data.ravel(), indices.astype(index, copy=False), np.arange(0, indices.size + 1, n * n, dtype=index)),
+        shape=(m, grid.nunique),
+    )
+    matrix.has_canonical_format = True  # sorted, no duplicates: as scipy leaves its own
+    return matrix
 
 
 def grid_name(grid: CubedSphere) -> str:

@@ -53,6 +53,13 @@ def point_angles(lat, lon):
 def test_lagrange_basis_is_cardinal_and_reproduces_polynomials(grid_factory, np_):
     x = grid_factory(1, np_).rule.points
     assert np.array_equal(lagrange_basis(x, x), np.eye(np_))  # exactly 1/0 at the nodes
+    t = np.random.default_rng(np_).uniform(-1, 1, 301)
+    by_k = np.ones((t.size, np_))  # the product k by k, factor by factor in order of m: the same bits
+    for k in range(np_):
+        for m in range(np_):
+            if m != k:
+                by_k[:, k] *= (t - x[m]) / (x[k] - x[m])
+    assert np.array_equal(lagrange_basis(x, t), by_k)
     t = np.linspace(-1, 1, 37)
     L = lagrange_basis(x, t)
     for k in range(np_):  # monomials of degree < np
@@ -106,6 +113,44 @@ def test_remap_reproduces_polynomials_of_degree_below_np_exactly(grid_factory, r
         f_hi = f_local + node_angles(grid)[1] ** np_
         _, a_t, _ = point_angles(lat, lon)
         assert np.abs(Remapper(grid, lat, lon).local(f_hi) - exact - a_t**np_).max() > 1e-9
+
+
+@pytest.mark.parametrize("np_", [3, 4, 5, 8])
+def test_remap_matrix_is_scipys_canonical_matrix_bit_for_bit(grid_factory, rng, np_):
+    """The matrix the remapper builds row by row is, array for array and bit for bit, the one scipy
+    makes from the (target, node) pairs of ``weights`` and ``nodes`` (sorted, duplicates summed), on
+    the cube and on a stretched mesh; so the remapped values are too. On the cube ``weights`` is the
+    product ℓ_j(η) ℓ_i(ξ) at [j np + i] of ``lagrange_basis``'s factors; and a part of the targets
+    alone gives their bits (on a mesh, their values to round-off)."""
+    from scipy.sparse import csr_matrix
+
+    from swe_sphere.grid.cubed_sphere import CubedSphere
+    from swe_sphere.mesh.schmidt import schmidt_cube
+
+    lat, lon = random_points(rng, 3000)
+    lat[:3], lon[:3] = (math.pi / 2, -math.pi / 2, 0.0), (0.0, 0.0, math.pi / 4)  # the poles, a cube edge
+    m, n2 = lat.size, np_**2
+    cube = grid_factory(3, np_)
+    elem, xi, eta = locate(3, lat, lon)
+    rm = Remapper(cube, lat, lon)
+    li, lj = lagrange_basis(cube.rule.points, xi), lagrange_basis(cube.rule.points, eta)
+    assert np.array_equal(rm.weights, (lj[:, :, None] * li[:, None, :]).reshape(m, n2))
+    assert np.array_equal(rm.nodes, elem[:, None] * n2 + np.arange(n2))
+    for grid in (cube, CubedSphere(2, np_, mesh=schmidt_cube(2, 2.0, 40.0, 270.0))):
+        rm = Remapper(grid, lat, lon)
+        rows = np.repeat(np.arange(m), n2)
+        want = csr_matrix((rm.weights.ravel(), (rows, grid.gid[rm.nodes].ravel())), shape=(m, grid.nunique))
+        for name in ("data", "indices", "indptr"):
+            a, b = getattr(rm.matrix, name), getattr(want, name)
+            assert a.dtype == b.dtype and np.array_equal(a.view(np.uint8), b.view(np.uint8)), name
+        assert rm.matrix.has_canonical_format
+        f = rng.normal(size=(2, grid.nunique))
+        assert np.array_equal(rm(f), np.asarray(want @ f.T).T)
+        part = Remapper(grid, lat[100:200], lon[100:200])
+        if grid.mesh is None:
+            assert np.array_equal(part(f), rm(f)[:, 100:200])
+        else:  # Newton's method on a mesh iterates until the batch's worst point converges
+            assert np.abs(part(f) - rm(f)[:, 100:200]).max() < 1e-14 * np.abs(f).max()
 
 
 def test_remap_is_spectrally_accurate_on_smooth_fields(grid_factory, rng):

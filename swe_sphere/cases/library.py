@@ -30,7 +30,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.constants import DAY, EARTH, Planet
-from ..kernels import forcing as forcing_kernels
 
 
 def _xyz(lat, lon):
@@ -291,6 +290,9 @@ class ForcedLow(Case):
         return self.u0 * np.sin(2 * lat) ** 14
 
     def forcing(self):
+        # imported here: Warp's import (about 0.4 s) is a run's, not a plot's or a reference's
+        from ..kernels import forcing as forcing_kernels
+
         p = self.planet
         params = (self.psi0, self.sigma, self.lat0, self.lon0, self.u0, p.omega, p.a, p.g)
         return forcing_kernels.translating_low, forcing_kernels.TranslatingLowParams(*params)

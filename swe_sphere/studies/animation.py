@@ -16,6 +16,7 @@ from .analysis import days_of, field_at_nodes, time_index
 from .figures import new_figure
 from .plotting import (
     MAP_FIELDS,
+    band_rows,
     check_outdir,
     check_view,
     draw_map,
@@ -92,11 +93,12 @@ def animate_run(
         long_name, units, scale, cmap, symmetric = MAP_FIELDS[field]
         res = plot_resolution(grid)
         lat_e, lon_e = plot_edges(res)
-        remapper = plot_remapper(grid, res)
-        rows = slice(None)
-        if lat_range is not None:
+        band = None
+        if lat_range is not None:  # the band's rows alone remapped
             lat_e, rows = latitude_band(lat_e, lat_range)
-        values = np.stack([remapper(field_at_nodes(ds, field, day))[rows] * scale for day in frames])
+            band = band_rows(rows)
+        remapper = plot_remapper(grid, res, band)
+        values = np.stack([remapper(field_at_nodes(ds, field, day)) * scale for day in frames])
         scene = scene_label(ds)
     finally:
         ds.close()

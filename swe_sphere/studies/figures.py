@@ -32,12 +32,16 @@ def png_bytes(fig) -> bytes:
     return buf.getvalue()
 
 
-def save_png(fig, path) -> Path:
-    """Write ``fig`` as the PNG ``path`` (figsize × ``DPI`` pixels) through a temporary name; returns the path."""
+def save_png(fig, path, png: bytes | None = None) -> Path:
+    """Write ``fig`` as the PNG ``path`` (figsize × ``DPI`` pixels) through a temporary name; returns the path.
+    ``png``: the figure already drawn (``png_bytes``'s), written as it is rather than drawn again."""
     path = Path(path)
     tmp = path.with_name(path.name + ".part.png")
     try:
-        fig.savefig(tmp, dpi=DPI)  # no bbox_inches: the pixel size is figsize × DPI
+        if png is not None:
+            tmp.write_bytes(png)
+        else:
+            fig.savefig(tmp, dpi=DPI)  # no bbox_inches: the pixel size is figsize × DPI
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise

@@ -132,11 +132,18 @@ def plot_resolution(grid) -> float:
 
 
 @functools.lru_cache(maxsize=2)
-def plot_remapper(grid, res: float) -> Remapper:
+def plot_remapper(grid, res: float, rows: tuple[int, int] | None = None) -> Remapper:
     """Remapper of a run's grid (``run_grid``'s, built once a process) to the cell centres
-    of the ``res``-degree plotting grid."""
+    of the ``res``-degree plotting grid, (nlat, nlon), or of its rows ``start`` to ``stop`` − 1 alone
+    (``rows`` (start, stop): a latitude band's, ``band_rows``; on the cube the same bits as those rows
+    of the whole grid's, on a mesh the same values to round-off)."""
     lat_c, lon_c = _centres(*plot_edges(res))
-    return Remapper(grid, lat_c, lon_c)
+    return Remapper(grid, lat_c if rows is None else lat_c[rows[0] : rows[1]], lon_c)
+
+
+def band_rows(rows: np.ndarray) -> tuple[int, int]:
+    """(start, stop) of the consecutive rows ``latitude_band`` keeps, as ``plot_remapper`` takes them."""
+    return int(rows[0]), int(rows[-1]) + 1
 
 
 def plot_edges(res: float) -> tuple[np.ndarray, np.ndarray]:
@@ -229,15 +236,16 @@ def plot_map(ds, field: str, day: float, path=None, diff=None, lat_range=None, w
     res = plot_resolution(grid)
     lat_e, lon_e = plot_edges(res)
     lat_c, lon_c = _centres(lat_e, lon_e)
-    remapper = plot_remapper(grid, res)
+    band = None
+    if lat_range is not None:  # the band's rows alone remapped
+        lat_e, rows = latitude_band(lat_e, lat_range)
+        lat_c, band = lat_c[rows], band_rows(rows)
+    remapper = plot_remapper(grid, res, band)
     values = remapper(nodes)
     if "_ensemble" in ds.attrs:  # a spread: the drawn members' (``member_view``), not its nodes' interpolated
         members = ds.attrs["_ensemble"]
         drawn = [remapper(field_at_nodes(members.isel(member=k), field, day)) for k in range(members.sizes["member"])]
         values = member_statistics(np.stack(drawn))[1]
-    if lat_range is not None:
-        lat_e, rows = latitude_band(lat_e, lat_range)
-        lat_c, values = lat_c[rows], values[rows]
     scene = scene_label(ds)
     info = {"path": None if path is None else Path(path)}
     if diff is None:
@@ -472,7 +480,9 @@ def plot_run(
         ]
         series = outdir / f"{named.stem}_series.png"
         series_fig = plot_series(ds)
-        same = series.is_file() and not series.is_symlink() and series.read_bytes() == png_bytes(series_fig)
+        # drawn here only to compare with a file there, and then written as drawn, not drawn again
+        series_png = png_bytes(series_fig) if series.is_file() and not series.is_symlink() else None
+        same = series_png is not None and series.read_bytes() == series_png
         pngs = [path for *_, path in maps] + [series]
         check_distinct(pngs, [run_path, diff_path])
         if outdir.is_dir():  # a folder still to be made holds none
@@ -481,7 +491,7 @@ def plot_run(
         outdir.mkdir(parents=True, exist_ok=True)
         written = [plot_map(ds, field, day, path, diff, lat_range, width)["path"] for field, day, path in maps]
         if not same:
-            save_png(series_fig, series)
+            save_png(series_fig, series, series_png)
         return written + [series]
     finally:
         ds.close()

@@ -60,6 +60,26 @@ def test_plot_default_is_h_surface_at_the_last_day(run_file, tmp_path, capsys, m
     assert sorted(p.name for p in tmp_path.iterdir()) == ["tc5_h_surface_day1.png", "tc5_series.png"]
 
 
+def test_a_series_written_over_another_is_drawn_once_as_a_fresh_plot_draws_it(run_file, tmp_path, capsys, monkeypatch):
+    """The series figure drawn to compare with a file there is the one written over it, not drawn
+    again: a second draw costs as much as the first, and under the constrained layout its pixels
+    need not be the first's (tc5 ne2 np8's 5 days: the legend's "best" place moved), so a later
+    plot found the file changed and refused it without --overwrite."""
+    from matplotlib.figure import Figure
+
+    fresh, out = tmp_path / "fresh", tmp_path / "out"
+    assert cli_main(capsys, "plot", run_file, "--output", fresh)[0] == 0
+    out.mkdir()
+    (out / "tc5_series.png").write_bytes(b"another picture")
+    drawn, savefig = [], Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: drawn.append(fig) or savefig(fig, *a, **k))
+    assert cli_main(capsys, "plot", run_file, "--output", out, "--overwrite")[0] == 0
+    assert len(drawn) == 2 and len(set(map(id, drawn))) == 2  # the map and the series, once each
+    assert (out / "tc5_series.png").read_bytes() == (fresh / "tc5_series.png").read_bytes()
+    code, _, err = cli_main(capsys, "plot", run_file, "--field", "u", "--output", out)  # the series kept as it is
+    assert code == 0, err
+
+
 def test_plot_map_values_and_colour_bar_units(run_file, tmp_path):
     ds = plotting.open_run(run_file)
     with ds:
@@ -128,8 +148,13 @@ def test_lat_range_draws_a_band(run_file, tmp_path, capsys):
     with ds:
         band = plotting.plot_map(ds, "h", 1.0, tmp_path / "band.png", lat_range=(-90, 0))
         whole = plotting.plot_map(ds, "h", 1.0, tmp_path / "whole.png")
+        grid = plotting.run_grid(ds)
     # the shallowest water is over the mountain (30°N), outside the southern band
     assert whole["min"] < band["min"] - 500 and band["max"] <= whole["max"]
+    # the band's rows alone remapped (``plot_remapper``): the whole map's rows, bit for bit
+    rows = plotting.latitude_band(plotting.plot_edges(plotting.plot_resolution(grid))[0], (-90, 0))[1]
+    image = [np.asarray(info["figure"].axes[0].images[0].get_array()) for info in (band, whole)]
+    assert image[0].shape == (rows.size, image[1].shape[1]) and np.array_equal(image[0], image[1][rows])
     for bad in (("90", "0"), ("-100", "10")):
         code, out, err = cli_main(capsys, "plot", run_file, "--lat-range", *bad, "--output", tmp_path / "bad")
         assert code == 2 and "latitude range" in err and not (tmp_path / "bad").exists()

@@ -3,7 +3,7 @@ tiny-grid CLI arguments and the calls that run the command line in this process
 (``cli_main``, ``cli_ok``, ``cli_one_line``, ``one_line``, ``console_script``), the CUDA marks,
 the session's cached grids and runs (``cached_grid``, ``tc6_final``, ``tc6_error``),
 ``make_sim``, ``run``, ``watched_run`` and ``assert_same_runs``, a TC2 scene file
-(``write_tc2_scene``) and a file's ``digest``."""
+(``write_tc2_scene``), a file's ``digest`` and a sweep without its figures (``without_sweep_figures``)."""
 
 from __future__ import annotations
 
@@ -240,3 +240,17 @@ def png_size(path: Path) -> tuple[int, int]:
     data = Path(path).read_bytes()[:24]
     assert data[:8] == b"\x89PNG\r\n\x1a\n" and data[12:16] == b"IHDR"
     return struct.unpack(">II", data[16:24])
+
+
+def without_sweep_figures(monkeypatch) -> None:
+    """A sweep's five figures (``report.PLOTS``) left empty files at their names: for a test of
+    a sweep's runs, rows, reuse or refusals, not its figures, which cost 1.3 s of CPU a sweep
+    (warm, 2026-11-28; a frontier's sweep each grid). test_sweep.py's ``swept`` and its figure
+    tests draw and check them."""
+    from swe_sphere.studies.sweep import report
+
+    def placeholder(path, *args, **kwargs) -> Path:
+        Path(path).write_bytes(b"")
+        return Path(path)
+
+    monkeypatch.setattr(report, "sweep_plot", placeholder)

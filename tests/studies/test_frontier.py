@@ -13,6 +13,8 @@ from swe_sphere.core.errors import OutputError
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.studies import frontier
 
+from helpers import without_sweep_figures
+
 LADDER = dict(ne=[3, 2], np_=[4, 3], steppers=["kgu35", "rk4@0.8"], days=0.1)
 
 
@@ -67,9 +69,13 @@ def test_the_plan_orders_the_ladder_and_picks_the_error():
 
 @pytest.fixture(scope="module")
 def ladder(tmp_path_factory):
+    """The ladder run once: its rows, files and frontier.png; each grid's sweep without its own
+    figures (four sweeps' twenty PNGs no test here reads: test_sweep.py draws a sweep's)."""
     out = tmp_path_factory.mktemp("frontier")
     f = frontier.plan("tc2_steady", **LADDER)
-    rows, paths = f.run(out, "cpu", log=lambda line: None)
+    with pytest.MonkeyPatch.context() as mp:
+        without_sweep_figures(mp)
+        rows, paths = f.run(out, "cpu", log=lambda line: None)
     return f, out, rows, paths
 
 
@@ -158,6 +164,7 @@ def test_a_rerun_reuses_every_run(ladder, monkeypatch):
     monkeypatch.setattr(
         Simulation, "run", lambda self, output=None, **kw: runs.append(self.scene.dt) or real_run(self, output, **kw)
     )
+    without_sweep_figures(monkeypatch)
     again, _ = f.run(out, "cpu", targets=(5e-4, 1e-5), overwrite=True, log=lines.append)
     assert runs == []  # no run, no reference run, no warm-up
     assert sum(line.startswith("runs: 2 reused, 0 made") for line in lines) == 4

@@ -19,7 +19,7 @@ from swe_sphere.studies.sweep import report, store, verdicts
 from swe_sphere.studies.sweep.plan import REFERENCE_MAX_GRAVITY_COURANT
 
 import roundoff
-from helpers import cached_grid
+from helpers import cached_grid, without_sweep_figures
 
 
 @pytest.fixture(scope="module")
@@ -137,10 +137,11 @@ def test_rhs_equivalents_are_the_cpu_time_in_rhs_evaluations(swept):
         verdicts.table(rows, limits, "tsc")
 
 
-def test_sweep_with_two_workers_gives_the_serial_rows(swept, tmp_path):
+def test_sweep_with_two_workers_gives_the_serial_rows(swept, tmp_path, monkeypatch):
     """--workers 2 (a spawned process pool) writes the same rows as the serial sweep;
     only the timings and the thread count (each worker gets cpus // 2) differ."""
     out, args = swept
+    without_sweep_figures(monkeypatch)
     parallel = tmp_path / "parallel"
     assert main([*args[:-1], str(parallel), "--workers", "2"]) == 0
     pd.testing.assert_frame_equal(_rows(parallel), _rows(out), check_exact=True)
@@ -155,6 +156,7 @@ def test_a_sweep_against_another_reference_makes_its_own_runs(tmp_path, capsys, 
     another file (``case.reference``; here the same data under another name): the
     second reads back none of the first's runs (its files carry ``_ref<stem>``),
     and each records and prints what it was scored against and its floor."""
+    without_sweep_figures(monkeypatch)
     out = tmp_path / "sweep"
     args = [
         "sweep",
@@ -219,11 +221,12 @@ def test_tiny_sweep_verdicts(swept, capsys):
         assert (out / f"error_vs_wall_time_{part}.png").stat().st_size > 10_000
 
 
-def test_sweep_of_the_forced_low_scores_against_its_exact_solution(tmp_path):
+def test_sweep_of_the_forced_low_scores_against_its_exact_solution(tmp_path, monkeypatch):
     """TC4 (unsteady, forced, exact): the total error is against the exact
     solution (a direct run's l2(h)), the temporal error against the RK4
     reference falls at each stepper's order (measured: rk4 3.96, 4.01;
     ssprk3 2.76, 2.95 at 900, 450, 225 s on ne4)."""
+    without_sweep_figures(monkeypatch)
     out = tmp_path / "tc4"
     assert (
         main(
@@ -326,10 +329,11 @@ def test_a_sweep_whose_reference_run_blows_up_exits_3_with_its_place(tmp_path, c
     assert "blow-up at step" in err and "model time" in err and "lat " in err
 
 
-def test_sweep_of_chosen_runs_makes_only_those(tmp_path, capsys):
+def test_sweep_of_chosen_runs_makes_only_those(tmp_path, capsys, monkeypatch):
     """--runs STEPPER@COURANT,...: only the named (stepper, Δt) runs, the reference at a
     quarter of the smallest; sweep.nc holds those runs alone; --runs with --steppers,
     an unknown stepper or a bad multiple exit 2 with one line; a pair named twice runs once."""
+    without_sweep_figures(monkeypatch)
     out = tmp_path / "sweep"
     args = [
         "sweep",

@@ -16,7 +16,7 @@ from swe_sphere.ensemble import Ensemble, MemberFile, Perturbation
 from swe_sphere.studies.sweep import Members
 from swe_sphere.studies.sweep.members import FIGURES
 
-from helpers import cli_main, png_size
+from helpers import cli_main, png_size, without_sweep_figures
 
 pytestmark = pytest.mark.xdist_group("sweep_members")  # one module fixture, one worker
 
@@ -26,8 +26,12 @@ MEMBERS = ["--members", "2", "--perturbation", "1", "--device", "cpu"]
 
 @pytest.fixture(scope="module")
 def swept(tmp_path_factory):
+    """The members' sweep, made once: members.csv and its figures; each member's own sweep without
+    its figures (none read here; test_sweep.py draws a sweep's)."""
     out = tmp_path_factory.mktemp("members")
-    assert main([*ARGS, *MEMBERS, "--output", str(out)]) == 0
+    with pytest.MonkeyPatch.context() as mp:
+        without_sweep_figures(mp)
+        assert main([*ARGS, *MEMBERS, "--output", str(out)]) == 0
     return out
 
 
@@ -58,7 +62,8 @@ def test_member_k_starts_where_an_ensemble_s_member_k_does(swept):
     assert (first["total_error"] != second["total_error"]).all()
 
 
-def test_a_rerun_reuses_a_member_s_runs_and_another_seed_makes_them_again(swept, capsys):
+def test_a_rerun_reuses_a_member_s_runs_and_another_seed_makes_them_again(swept, capsys, monkeypatch):
+    without_sweep_figures(monkeypatch)
     code, out, _ = cli_main(capsys, *ARGS, *MEMBERS, "--output", str(swept), "--overwrite")
     assert code == 0 and out.count("runs: 2 reused, 0 made") == 2 and "other settings" not in out
     code, out, _ = cli_main(capsys, *ARGS, *MEMBERS, "--seed", "3", "--output", str(swept), "--overwrite")
@@ -90,9 +95,10 @@ def test_bad_member_options_are_one_line_and_exit_2(capsys, tmp_path, more, says
     assert not (tmp_path / "s").exists()
 
 
-def test_members_from_an_ensemble_s_file_start_where_its_members_are(tmp_path, capsys):
+def test_members_from_an_ensemble_s_file_start_where_its_members_are(tmp_path, capsys, monkeypatch):
     """--initial: member k's sweep starts from the file's member k (``MemberFile``, as an ensemble
     continued from it starts), its runs keyed by that start's SHA-256."""
+    without_sweep_figures(monkeypatch)
     ens = tmp_path / "ens.nc"
     assert (
         main(
@@ -126,9 +132,10 @@ def test_members_from_an_ensemble_s_file_start_where_its_members_are(tmp_path, c
     assert list(spread["stable"]) == [2, 2] and (spread["temporal_error_spread"] > 0).all()
 
 
-def test_a_varied_member_s_sweep_is_the_sweep_of_its_own_scene(tmp_path):
+def test_a_varied_member_s_sweep_is_the_sweep_of_its_own_scene(tmp_path, monkeypatch):
     """--vary: member k's sweep is the single sweep of the scene with member k's value (its runs
     and reference run at its g), the same errors to the bit."""
+    without_sweep_figures(monkeypatch)
     vary = tmp_path / "vary"
     assert (
         main(

@@ -6,47 +6,72 @@ from __future__ import annotations
 
 import importlib.util
 import math
-import os
+import runpy
 import shutil
-import subprocess
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 
 from swe_sphere.cli import main
 
+from helpers import without_sweep_figures
+
 SCRIPT = Path(__file__).resolve().parents[2] / "docs" / "efficiency" / "tables.py"
 
 
 @pytest.fixture(scope="module")
 def sweep(tmp_path_factory) -> Path:
-    """A TC2 sweep (ne = 2, 1 day, ssprk3 at three steps), in a folder named as the study's."""
+    """A TC2 sweep (ne = 2, 1 day, ssprk3 at three steps), in a folder named as the study's; its
+    own figures left empty (the script reads its tables, not its PNGs)."""
     out = tmp_path_factory.mktemp("study") / "tc2_ne2"
     args = ["sweep", "tc2_steady", "--ne", "2", "--days", "1", "--steppers", "ssprk3", "--dt", "900,1800,3600"]
-    assert main([*args, "--device", "cpu", "--output", str(out)]) == 0
+    with pytest.MonkeyPatch.context() as mp:
+        without_sweep_figures(mp)
+        assert main([*args, "--device", "cpu", "--output", str(out)]) == 0
     return out
 
 
-def tables(cwd, *args) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, str(SCRIPT), *map(str, args)],
-        cwd=cwd,
-        capture_output=True,
-        text=True,
-        timeout=300,
-        env={**os.environ, "MPLBACKEND": "Agg"},
-    )
+@dataclass
+class Done:
+    """What the script ended with: its exit status and what it wrote."""
+
+    returncode: int
+    stdout: str
+    stderr: str
 
 
-def test_the_tables_and_a_missing_figures_folder_made(sweep, tmp_path):
+@pytest.fixture
+def tables(monkeypatch, capsys):
+    """``tables(cwd, *args)``: the script run as ``python tables.py ARGS`` runs it, in ``cwd``,
+    in this process (a process of its own imported pandas, xarray and matplotlib again, a second
+    or more each call): its exit status (argparse's exit, else 0; a traceback fails the test) and
+    its output."""
+
+    def run(cwd, *args) -> Done:
+        monkeypatch.chdir(cwd)
+        monkeypatch.setattr(sys, "argv", [str(SCRIPT), *map(str, args)])
+        capsys.readouterr()
+        try:
+            runpy.run_path(str(SCRIPT), run_name="__main__")
+            code = 0
+        except SystemExit as stop:
+            code = stop.code
+        out, err = capsys.readouterr()
+        return Done(code, out, err)
+
+    return run
+
+
+def test_the_tables_and_a_missing_figures_folder_made(sweep, tmp_path, tables):
     proc = tables(tmp_path, sweep, "--figures", "figs/new")
     assert proc.returncode == 0, proc.stderr
     assert "| tc2 | 2 | total h+hs |" in proc.stdout
     assert (tmp_path / "figs" / "new" / "tc2_ne2_temporal_error.png").is_file()
 
 
-def test_a_sweep_folder_of_another_name_takes_case_and_grid_from_its_table(sweep, tmp_path):
+def test_a_sweep_folder_of_another_name_takes_case_and_grid_from_its_table(sweep, tmp_path, tables):
     shutil.copytree(sweep, tmp_path / "my sweep")
     proc = tables(tmp_path, "my sweep", "--temporal-regions")
     assert proc.returncode == 0, proc.stderr
@@ -77,7 +102,7 @@ def test_reach_interpolates_at_the_bracketing_runs_order_and_extrapolates_at_the
     ],
     ids=["not_a_sweep", "figures_is_a_file"],
 )
-def test_what_is_refused_is_one_line_before_any_table(sweep, tmp_path, make, args, words):
+def test_what_is_refused_is_one_line_before_any_table(sweep, tmp_path, tables, make, args, words):
     make(tmp_path)
     proc = tables(tmp_path, *[sweep if a == "SWEEP" else a for a in args])
     lines = [line for line in proc.stderr.splitlines() if line.strip()]

@@ -8,12 +8,13 @@ import pandas as pd
 
 from swe_sphere.studies.frontier import pareto_front
 
-from helpers import cli_main
+from helpers import cli_main, without_sweep_figures
 
 PEERS = "model,label,error,cost_per_day\nDinosaur,T42,1e-3,0.1\n"
 
 
-def test_a_tiny_frontier_runs_and_writes_its_table(capsys, tmp_path):
+def test_a_tiny_frontier_runs_and_writes_its_table(capsys, tmp_path, monkeypatch):
+    without_sweep_figures(monkeypatch)  # each grid's sweep's: the frontier's own figure is drawn and checked
     out, peers = tmp_path / "fr", tmp_path / "peers.csv"
     peers.write_text(PEERS)
     code, stdout, _ = cli_main(

@@ -25,7 +25,7 @@ from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.simulation import checkpoint as ckpt
 from swe_sphere.simulation.simulation import Simulation
 
-from helpers import cli_main, cli_ok, cli_one_line, digest, make_sim, write_tc2_scene
+from helpers import cli_main, cli_ok, cli_one_line, digest, make_sim, without_sweep_figures, write_tc2_scene
 
 EVERY = "[output]\nevery_days = 0.25\n"
 RUN = ("--device", "cpu", "--no-progress")
@@ -213,11 +213,12 @@ def test_bad_branches_are_one_line_exit_2_and_write_nothing(spun_up, tmp_path, c
 # -- sweep --from -------------------------------------------------------------------
 
 
-def test_sweep_from_a_restart_file_branches_every_run_there(spun_up, tmp_path, capsys):
+def test_sweep_from_a_restart_file_branches_every_run_there(spun_up, tmp_path, capsys, monkeypatch):
     """``sweep --from``: every run and the small-Δt reference start from the restart
     file's state (a run's total error is that of a plain run from it, not of one from
     the case's initial state); each run's key names the file and its SHA-256, so a
     rerun reuses them, and a restart file rewritten in place makes them again."""
+    without_sweep_figures(monkeypatch)
     _, restart = spun_up("rk4")
     sweep = (
         "sweep",

@@ -2,10 +2,19 @@
 named, scored and costed as the fixed-Δt runs are."""
 
 import numpy as np
+import pytest
 
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.studies.sweep import verdicts
 from swe_sphere.studies.sweep.plan import REFERENCE_MAX_GRAVITY_COURANT, plan
+
+from helpers import without_sweep_figures
+
+
+@pytest.fixture(autouse=True)
+def no_figures(monkeypatch):
+    """The sweeps' rows are this module's, not their figures (test_sweep.py's)."""
+    without_sweep_figures(monkeypatch)
 
 
 def test_a_sweep_s_controlled_runs_are_named_by_their_tolerance_and_scored_as_the_others(tmp_path):

@@ -10,7 +10,7 @@ from swe_sphere.cli import main
 from swe_sphere.studies.sweep.plan import plan
 from swe_sphere.studies.sweep.report import OUTPUTS
 
-from helpers import cli_one_line
+from helpers import cli_one_line, without_sweep_figures
 
 
 def test_sweep_bad_input_exits_2(tmp_path, capsys):
@@ -38,12 +38,13 @@ def test_runs_names_the_value_that_is_not_a_number(tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
-def test_the_plan_is_what_the_cli_runs(tmp_path, capsys):
+def test_the_plan_is_what_the_cli_runs(tmp_path, capsys, monkeypatch):
     """``plan`` with the options of ``swe-sphere sweep --runs rk4@0.77`` resolves to the
     Δt the command ran (the largest at or below 0.77 × the gravity-wave limit that divides
     the 6 h run) and to the notes it printed before its runs, the first saying the multiple
     that ran (sweep.csv's), not the 0.77 asked for; ``Plan.run`` on a copy of
     the command's runs reuses them and writes the same sweep.csv, logging the same lines."""
+    without_sweep_figures(monkeypatch)
     cli = tmp_path / "cli"
     args = ["sweep", "tc2_steady", "--ne", "2", "--days", "0.25", "--runs", "rk4@0.77"]
     assert main([*args, "--device", "cpu", "--output", str(cli)]) == 0

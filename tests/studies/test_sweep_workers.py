@@ -10,7 +10,7 @@ from swe_sphere.core import workers as workers_mod
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.studies.sweep import runs
 
-from helpers import TINY_SWEEP, cli_one_line
+from helpers import TINY_SWEEP, cli_one_line, without_sweep_figures
 
 
 def _blas_threads():
@@ -51,6 +51,7 @@ def test_an_interrupted_sweep_says_what_it_kept_and_a_rerun_reuses_it(tmp_path, 
     """SIGINT in the second of two runs: exit 130, one line saying the small-Δt run and
     1 of 2 runs are kept (not "no output was written"); the rerun reuses them. SIGINT
     in the small-Δt run: the line says it is not kept and will be made again."""
+    without_sweep_figures(monkeypatch)
     out = tmp_path / "sweep"
     args = [
         *TINY_SWEEP,

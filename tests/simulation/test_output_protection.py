@@ -1,9 +1,11 @@
-"""No output replaces an input or an earlier result, through the installed console script
-as a real subprocess and through the API: an output named as an input (the same name, a link or
-a hard link) is refused whatever the command; an earlier sweep's, stability suite's, plot's or
-restart file is kept unless --overwrite; a second sweep into a folder is refused at its start;
-a damaged restart file or a runaway ∇⁴ is refused before anything is written. Each refusal is
-one line, exit 2, the input's bytes unchanged."""
+"""No output replaces an input or an earlier result, through the command line (in this process:
+its exit status and one line; tests/cli/test_console_script.py runs the installed console script)
+and through the API: an output named as an input (the same name, a link or a hard link) is
+refused whatever the command; an earlier sweep's, stability suite's, plot's or restart file is
+kept unless --overwrite; a second sweep into a folder is refused at its start, the two sweeps
+real processes (the folder's lock between them); a damaged restart file or a runaway ∇⁴ is
+refused before anything is written. Each refusal is one line, exit 2, the input's bytes
+unchanged."""
 
 from __future__ import annotations
 
@@ -14,9 +16,10 @@ from pathlib import Path
 
 import pytest
 
+from swe_sphere.cli import main
 from swe_sphere.studies import stability, sweep
 
-from helpers import TINY, TINY_SWEEP, cli_one_line, console_script, digest, one_line
+from helpers import TINY, TINY_SWEEP, cli_main, cli_one_line, console_script, digest, one_line
 
 
 @pytest.mark.parametrize("name", sweep.OUTPUTS)
@@ -57,11 +60,26 @@ def test_stability_keeps_an_earlier_suites_results(tmp_path, capsys, name, monke
     assert sorted(p.name for p in earlier.parent.iterdir()) == [name]
 
 
-def cli(cwd, *args, timeout=120):
+def console(cwd, *args, timeout=120):
+    """The installed console script in ``cwd``: a process of its own."""
     env = {**os.environ, "SWE_SPHERE_THREADS": "1"}
     return subprocess.run(
         [console_script(), *map(str, args)], cwd=cwd, capture_output=True, text=True, timeout=timeout, env=env
     )
+
+
+@pytest.fixture
+def cli(capsys, monkeypatch):
+    """``cli(cwd, *args)``: the command line in this process, run in ``cwd``, as a finished
+    process (its exit status, stdout and stderr): a process of its own imported the model
+    again, a second of CPU each (the refusals are the command's, not the process's)."""
+
+    def run(cwd, *args) -> subprocess.CompletedProcess:
+        monkeypatch.chdir(cwd)
+        code, out, err = cli_main(capsys, *args)
+        return subprocess.CompletedProcess(args, code, out, err)
+
+    return run
 
 
 def refused(proc, *words):
@@ -72,8 +90,7 @@ def refused(proc, *words):
 def run_dir(tmp_path_factory):
     """A one-day ne2 run with its restart file."""
     d = tmp_path_factory.mktemp("run")
-    proc = cli(d, "run", "tc5_mountain", *TINY, "--days", "1", "--restart-every", "1", "--output", "a.nc")
-    assert proc.returncode == 0, proc.stderr
+    assert main(["run", "tc5_mountain", *TINY, "--days", "1", "--restart-every", "1", "--output", str(d / "a.nc")]) == 0
     return d
 
 
@@ -87,7 +104,7 @@ def run_dir(tmp_path_factory):
         ("remap", "a.nc", "--output", "hard.nc", "--overwrite"),
     ],
 )
-def test_an_output_never_replaces_an_input(run_dir, argv):
+def test_an_output_never_replaces_an_input(run_dir, cli, argv):
     for name, make in (("link.nc", os.symlink), ("hard.nc", os.link)):
         if not (run_dir / name).exists():
             make(run_dir / "a.nc", run_dir / name)
@@ -122,14 +139,14 @@ def test_a_second_sweep_into_one_folder_is_refused_at_its_start(tmp_path, paused
     first = paused("step:1", tmp_path, *argv)
     lock = tmp_path / "deep" / "sw" / "sweep.lock"
     assert lock.exists()
-    refused(cli(tmp_path, *argv, timeout=120), "another run is writing", "sweep.lock")
+    refused(console(tmp_path, *argv, timeout=120), "another run is writing", "sweep.lock")
     first.go()
     err = first.communicate(timeout=300)[1]
     assert first.returncode == 0, err
     assert (tmp_path / "deep" / "sw" / "sweep.nc").is_file() and not lock.exists()
 
 
-def test_stability_creates_its_output_folder(tmp_path):
+def test_stability_creates_its_output_folder(tmp_path, cli):
     # one day, not the scene's 15: the folder and its two files are the same (3.0 -> 2.2 s of CPU)
     proc = cli(
         tmp_path,
@@ -150,7 +167,7 @@ def test_stability_creates_its_output_folder(tmp_path):
     assert sorted(p.name for p in (tmp_path / "new" / "dir").iterdir()) == ["stability.csv", "stability.nc"]
 
 
-def test_a_runaway_hyperviscosity_is_refused_before_the_run(tmp_path):
+def test_a_runaway_hyperviscosity_is_refused_before_the_run(tmp_path, cli):
     refused(
         cli(tmp_path, "run", "tc5_mountain", *TINY, "-s", "hyperviscosity.nu=1e30", "--output", "nu.nc"),
         "explicit bound",
@@ -159,7 +176,7 @@ def test_a_runaway_hyperviscosity_is_refused_before_the_run(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
-def test_a_scrambled_restart_file_is_refused(run_dir, tmp_path):
+def test_a_scrambled_restart_file_is_refused(run_dir, tmp_path, cli):
     """400 bytes of the state's data scrambled: the Fletcher-32 checksum names the variable."""
     import netCDF4
     import numpy as np
@@ -189,7 +206,7 @@ def test_a_scrambled_restart_file_is_refused(run_dir, tmp_path):
         (1, float("nan"), "variable v holds 1 non-finite"),
     ],
 )
-def test_a_restart_file_with_a_bad_state_is_refused(run_dir, tmp_path, row, value, words):
+def test_a_restart_file_with_a_bad_state_is_refused(run_dir, tmp_path, cli, row, value, words):
     """A checkpoint whose hash matches (as the API would write it) but whose state
     no run makes: a negative depth, a wind far beyond the gravity-wave speed, a NaN."""
     import netCDF4
@@ -208,10 +225,10 @@ def test_a_restart_file_with_a_bad_state_is_refused(run_dir, tmp_path, row, valu
     assert not (tmp_path / "o.nc").exists()
 
 
-def test_plot_refuses_existing_pngs_unless_overwrite(run_dir, tmp_path):
+def test_plot_refuses_existing_pngs_unless_overwrite(run_dir, tmp_path, cli):
     """A second plot into one folder replaced its PNGs silently: now one line, exit 2,
     the PNGs' bytes unchanged; --overwrite replaces them (divergence maps included). The
-    earlier plot's PNGs are stand-ins of the names it writes (one plot process fewer, 4 s of
+    earlier plot's PNGs are stand-ins of the names it writes (one plot fewer, 4 s of
     CPU of this test's 12.5): the refusal reads the names; the plot with --overwrite then
     writes exactly those files, each replaced."""
     argv = ("plot", run_dir / "a.nc", "--field", "h", "divergence", "--output", tmp_path)
@@ -226,7 +243,7 @@ def test_plot_refuses_existing_pngs_unless_overwrite(run_dir, tmp_path):
     assert sorted(replaced) == names and all(replaced[n] != pngs[n] for n in names)
 
 
-def test_an_existing_restart_file_blocks_only_a_run_that_writes_one(run_dir, tmp_path):
+def test_an_existing_restart_file_blocks_only_a_run_that_writes_one(run_dir, tmp_path, cli):
     """Without --restart-every a run writes its restart file only on a signal: an
     existing one beside the output neither blocks it nor is replaced; with
     --restart-every it is refused in one line. The API alike."""

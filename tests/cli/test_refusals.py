@@ -21,7 +21,7 @@ from cli_helpers import (
     run_cli,
     stderr_lines,
 )
-from helpers import TINY, one_line
+from helpers import TINY, cli_main, one_line
 
 # ---------------------------------------------------------------------------
 # Bad input: exit 2, one line naming the field or value, no file
@@ -158,6 +158,63 @@ def test_output_into_a_folder_reported_read_only(monkeypatch, capsys, tmp_path):
     monkeypatch.setattr(os, "access", access)
     code, out, err = run_cli(capsys, "tc2_steady", *TINY, "--days", "1", "--output", folder / "o.nc")
     assert_bad_input(code, out, err, tmp_path, "locked")
+
+
+def _not_a_reference(folder: Path) -> Path:
+    """A netCDF file of a reference's coefficients without its vorticity."""
+    from swe_sphere.cases.reference import find_reference
+
+    path = folder / "no_vorticity.nc"
+    with xr.open_dataset(find_reference("galewsky", perturbed=False), decode_times=False) as ds:
+        ds.drop_vars(["vort_spec_re", "vort_spec_im"]).to_netcdf(path)
+    return path
+
+
+@pytest.mark.parametrize(
+    "command, scene, value, why",
+    [
+        ("sweep", "tc5_mountain", "missing.nc", "reference file not found: missing.nc"),
+        ("run", "tc5_mountain", "junk.nc", "junk.nc: not a readable netCDF file"),
+        (
+            "run",
+            "tc5_mountain",
+            "NOT_A_REFERENCE",
+            "not a reference file: missing variable(s) 'vort_spec_re', 'vort_spec_im'",
+        ),
+        (
+            "run",
+            "tc2_steady",
+            "tc5_mountain_T213.nc",
+            "case tc2_steady is scored against its exact solution, not a reference file",
+        ),
+        (
+            "sweep",
+            "tc5_mountain",
+            "tc6_rossby_haurwitz_T213.nc",
+            "the file is a tc6_rossby_haurwitz reference (its title), not one of tc5_mountain",
+        ),
+        (
+            "run",
+            "galewsky",
+            "galewsky_balanced_T213.nc",
+            "the file is a galewsky_balanced reference (its title), not one of galewsky",
+        ),
+    ],
+    ids=["missing-sweep", "not-netcdf", "not-a-reference", "exact-solution", "other-case", "other-galewsky"],
+)
+def test_a_bad_case_reference_is_refused(capsys, tmp_path, command, scene, value, why):
+    """-s case.reference=...: exit 2, one line naming the key, the value and why; nothing written."""
+    (tmp_path / "junk.nc").write_text("not netCDF")
+    if value == "NOT_A_REFERENCE":
+        value = str(_not_a_reference(tmp_path))
+    code, _, err = cli_main(
+        capsys, command, scene, "--ne", "2", "--device", "cpu", "-s", f"case.reference={value}",
+        "--output", tmp_path / "out",
+    )  # fmt: skip
+    lines = stderr_lines(err)
+    assert code == 2 and len(lines) == 1, err
+    assert lines[0].startswith(f"swe-sphere: error: case.reference = {value!r}: ") and why in lines[0], lines[0]
+    assert not (tmp_path / "out").exists()
 
 
 @pytest.mark.skipif(cuda_available(), reason="CUDA is available here")

@@ -7,7 +7,10 @@ What changes, and why it keeps the pages' order meaningful:
 - ``--ne N`` of ``run``, ``sweep`` and ``stability`` becomes ``small_ne(N)``: 2 for
   N ≤ 8 and one more a doubling (16 → 3, 30 → 4, 60 → 5), so that runs a page tells
   apart by their grid (``run tc5_mountain_homme`` and ``… --ne 60``) still write
-  different default files; a command without ``--ne`` gets that of its scene's grid
+  different default files; at np above 4 (``--np``, else the scene's) fewer, about the
+  GLL points of np 4's (``small_ne(N, np)``: Galewsky's ne12 np8 → ne2 np8, 654 steps for
+  6 days where ne3 took 978 at 2.6x the CPU; ``… --ne 30 --np 8`` → ne2, 1.6 s of CPU
+  where ne4 took 4.9; the np tells its files apart); a command without ``--ne`` gets that of its scene's grid
   (``stability``: of its default ne 8), but for a run on a mesh file (``--mesh``,
   ``-s grid.mesh_file=…``, a scene whose ``[grid]`` names one) or from a restart file
   (``--continue``, ``--from``), whose grid is the file's. A ``--dt`` given with a known grid grows as the grid coarsens
@@ -48,17 +51,19 @@ DAY = 86400.0  # s
 EACH = "--each"  # this file's first argument for a page's commands and Python blocks run in one process (``run_each``)
 
 
-def small_ne(ne: int) -> int:
+def small_ne(ne: int, np_: int = 4) -> int:
     """The shortened grid of ``ne``: 2 for ne ≤ 8, one more a doubling (16 → 3, 30 → 4,
-    60 → 5), so that the grids a page tells apart stay apart."""
-    return 2 + max(0, round(math.log2(ne / 8)))
+    60 → 5), so that the grids a page tells apart stay apart; at ``np_`` above 4, as many
+    elements as keep about that grid's GLL points (ne · (np − 1)), 2 at least (ne12 np8: 2)."""
+    small = 2 + max(0, round(math.log2(ne / 8)))
+    return small if np_ <= 4 else max(2, round(small * 3 / (np_ - 1)))
 
 
-def coarser_dt(dt: float, ne: int) -> float:
-    """A Δt (s) given for grid ``ne`` on the grid ``small_ne(ne)``: as many times longer as
-    the grid is coarser (the same Courant number), then the nearest that divides the day
-    (a given Δt the page chose to divide its output interval still does)."""
-    return DAY / max(1, round(DAY / dt * small_ne(ne) / ne))
+def coarser_dt(dt: float, ne: int, np_: int = 4) -> float:
+    """A Δt (s) given for grid ``ne`` (at ``np_``) on the grid ``small_ne(ne, np_)``: as many
+    times longer as the grid is coarser (the same Courant number), then the nearest that
+    divides the day (a given Δt the page chose to divide its output interval still does)."""
+    return DAY / max(1, round(DAY / dt * small_ne(ne, np_) / ne))
 
 
 def scene_ne(scene: str) -> int:
@@ -73,16 +78,17 @@ def scene_ne(scene: str) -> int:
         return COARSE_NE
 
 
-def scene_np(case: str) -> int:
-    """The np of a stability case's scene (the case's name; 8, the largest, where it names none:
-    the real command then runs it or says why in one line)."""
+def scene_np(case: str, unknown: int = 8) -> int:
+    """The np of a stability case's or a run's scene (its name or file; ``unknown`` where it
+    names none, by default 8, the largest: the real command then runs it or says why in one
+    line)."""
     from swe_sphere.config.scene import load_scene
     from swe_sphere.core.errors import SweSphereError
 
     try:
         return load_scene(case).np
     except SweSphereError:
-        return 8
+        return unknown
 
 
 KEPT = {  # per command: option → how many of its comma-separated values stay
@@ -93,8 +99,8 @@ KEPT = {  # per command: option → how many of its comma-separated values stay
 
 
 def _file_names(args: list[str]) -> list[str]:
-    """``args`` with each default file name's grid (``_ne<N>np``) shortened."""
-    return [re.sub(r"_ne(\d+)np", lambda m: f"_ne{small_ne(int(m[1]))}np", a) for a in args]
+    """``args`` with each default file name's grid (``_ne<N>np<P>``) shortened."""
+    return [re.sub(r"_ne(\d+)np(\d+)", lambda m: f"_ne{small_ne(int(m[1]), int(m[2]))}np{m[2]}", a) for a in args]
 
 
 def shorten(argv: list[str]) -> list[str]:
@@ -122,15 +128,21 @@ def shorten(argv: list[str]) -> list[str]:
         if option in args[:-1]:
             i = args.index(option) + 1
             args[i] = ",".join(args[i].split(",")[:n])
+    np_ = 4  # a frontier's: its --np is a list, each grid's ne shortened alike
+    if command != "frontier":
+        if "--np" in args[:-1]:
+            np_ = int(args[args.index("--np") + 1])
+        elif args and not args[0].startswith("-"):
+            np_ = scene_np(args[0], unknown=4)  # a grid as np 4's where the scene does not load
     if "--ne" in args[:-1]:  # a frontier's one grid too (each grid is a sweep of its own)
         i = args.index("--ne") + 1
         ne = int(args[i])
-        args[i] = str(small_ne(ne))
+        args[i] = str(small_ne(ne, np_))
     elif command == "frontier":  # its own ladder's grids
         ne = None
     elif command == "stability":
         ne = COARSE_NE
-        args += ["--ne", str(small_ne(ne))]
+        args += ["--ne", str(small_ne(ne, np_))]
     elif (
         args
         and not args[0].startswith("-")
@@ -138,7 +150,7 @@ def shorten(argv: list[str]) -> list[str]:
         and not _mesh_file(args)
         and (ne := scene_ne(args[0]))  # 0: a scene on a mesh file
     ):
-        args += ["--ne", str(small_ne(ne))]
+        args += ["--ne", str(small_ne(ne, np_))]
     else:
         ne = None  # the file's grid, not known here: its Δt stays
     if command == "frontier":
@@ -147,7 +159,7 @@ def shorten(argv: list[str]) -> list[str]:
         args += ["--output", f"stability_{'_'.join(cases)}_ne{args[args.index('--ne') + 1]}"]
     if ne is not None and "--dt" in args[:-1]:
         i = args.index("--dt") + 1
-        args[i] = ",".join(str(coarser_dt(float(dt), ne)) for dt in args[i].split(","))
+        args[i] = ",".join(str(coarser_dt(float(dt), ne, np_)) for dt in args[i].split(","))
     return [command, *_file_names(args)]
 
 

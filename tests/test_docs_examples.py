@@ -174,6 +174,11 @@ def run_examples(path: Path, folder: Path, inline: bool = True) -> None:
 
 def test_a_page_grids_stay_apart():
     assert [small_ne(ne) for ne in (2, 4, 8, 16, 30, 60, 120)] == [2, 2, 2, 3, 4, 5, 6]
+    # at np above 4 the GLL points of np 4's grid, 2 elements at least: np tells the files apart
+    assert [small_ne(ne, 8) for ne in (8, 12, 30, 60, 120)] == [2, 2, 2, 2, 3]
+    assert [small_ne(ne, 6) for ne in (8, 16, 30, 60)] == [2, 2, 2, 3] and small_ne(30, 3) == 4
+    assert shorten(["run", "galewsky"]) == ["run", "galewsky", "--ne", "2"]  # the scene's ne12 np8
+    assert shorten(["run", "tc5_mountain_homme", "--ne", "30", "--np", "8"])[2:] == ["--ne", "2", "--np", "8"]
     assert shorten(["run", "tc5_mountain_homme", "--ne", "60"]) == ["run", "tc5_mountain_homme", "--ne", "5"]
     assert shorten(["run", "tc5_mountain_homme"]) == ["run", "tc5_mountain_homme", "--ne", "4"]  # the scene's 30
     assert shorten(["run", "tc2_steady", "-s", "a.b=1"]) == ["run", "tc2_steady", "-s", "a.b=1", "--ne", "3"]
@@ -202,6 +207,7 @@ def test_a_page_grids_stay_apart():
     refine = ["mesh", "--ne", "10", "--refine-box", "10", "50", "246.7", "293.3", "--levels", "2", "--output", "x4.g"]
     assert shorten(refine) == [*refine[:-3], "1", *refine[-2:]]  # one level: the box's transitions need ne10
     assert shorten(["plot", "tc2_steady_ne8np4_ssprk3_2d.nc"]) == ["plot", "tc2_steady_ne2np4_ssprk3_2d.nc"]
+    assert shorten(["plot", "galewsky_ne12np8_kgu35.nc"]) == ["plot", "galewsky_ne2np8_kgu35.nc"]
     assert shorten(["run", "tc2_steady", "--ne", "8", "-s", "case.path=tc5_mountain_ne16np4_rk4.nc"])[-1] == (
         "case.path=tc5_mountain_ne3np4_rk4.nc"
     )
@@ -253,8 +259,10 @@ def test_a_given_dt_keeps_its_courant_number_and_divides_the_day():
     assert coarser_dt(90.0, 30) == 86400 / 128  # 960 steps a day on ne30 → 128 on ne4 (7.5x coarser)
     assert coarser_dt(257.14285714285717, 30) == 86400 / 45  # 336 a day → 44.8 → 45
     assert coarser_dt(3600.0, 4) == 7200.0  # ne4 → ne2: twice as coarse
-    galewsky = shorten(["run", "galewsky", "--stepper", "fbrk32", "--dt", "216"])  # 400 a day on its ne12
-    assert galewsky[-4:] == ["--dt", str(86400 / 100), "--ne", "3"]  # 400 · 3/12 = 100 a day on ne3
+    galewsky = shorten(["run", "galewsky", "--stepper", "fbrk32", "--dt", "216"])  # 400 a day on its ne12 np8
+    assert galewsky[-4:] == ["--dt", str(86400 / 67), "--ne", "2"]  # 400 · 2/12 = 66.7 → 67 a day on ne2 np8
+    homme = shorten(["run", "tc5_mountain_homme", "--ne", "30", "--np", "8", "--dt", "41.73913043478261"])
+    assert homme[-2:] == ["--dt", str(86400 / 138)] and coarser_dt(41.73913043478261, 30, 8) == 86400 / 138
     given = shorten(["run", "galewsky", "--ne", "30", "--np", "4", "--dt", "216"])  # ne30: 53.3 a day on ne4
     assert given[2:] == ["--ne", "4", "--np", "4", "--dt", str(86400 / 53)]
     assert shorten(["run", "--continue", "r.restart.nc", "--dt", "360"])[-1] == "360"  # the file's grid: unknown

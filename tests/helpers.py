@@ -245,8 +245,8 @@ def png_size(path: Path) -> tuple[int, int]:
 def without_sweep_figures(monkeypatch) -> None:
     """A sweep's five figures (``report.PLOTS``) left empty files at their names: for a test of
     a sweep's runs, rows, reuse or refusals, not its figures, which cost 1.3 s of CPU a sweep
-    (warm, 2026-11-28; a frontier's sweep each grid). test_sweep.py's ``swept`` and its figure
-    tests draw and check them."""
+    (warm, 2026-11-28; a frontier's sweep each grid). test_sweep.py's ``swept`` (their sizes)
+    and its large-steps test (no zero-width log axis) draw them."""
     from swe_sphere.studies.sweep import report
 
     def placeholder(path, *args, **kwargs) -> Path:

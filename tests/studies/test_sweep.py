@@ -487,6 +487,7 @@ def test_sweep_nc_describes_itself(swept):
 def test_sweep_figures_are_titled_with_case_grid_and_days(swept, monkeypatch, tmp_path):
     out, _ = swept
     titles = []
+    without_sweep_figures(monkeypatch)  # the titles they are given; ``swept``'s are drawn with theirs
     real = report.sweep_plot
     monkeypatch.setattr(report, "sweep_plot", lambda *a, **k: titles.append(k["title"]) or real(*a, **k))
     rows = verdicts.table(

@@ -3,6 +3,7 @@
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 
@@ -79,11 +80,17 @@ def test_sweep_rows_and_files(swept):
         assert (out / png).stat().st_size > 10_000
 
 
-def test_an_unchanged_sweep_reuses_every_run_and_says_so(swept, monkeypatch, capsys):
+def test_an_unchanged_sweep_reuses_every_run_and_says_so(swept, monkeypatch, capsys, tmp_path):
     """The same command again: the small-Δt run and every (stepper, Δt) run are read
     back (their files hold the key this sweep would make), nothing runs, not even a
-    warm-up, the files stay as they are and each run's line says it was reused."""
-    out, args = swept
+    warm-up, the files stay as they are and each run's line says it was reused. (Into a
+    copy of the folder, its figures left empty: ``swept``'s stay as drawn, for the tests
+    that read them.)"""
+    first, args = swept
+    out = tmp_path / "again"
+    shutil.copytree(first, out)
+    args = [*args[:-1], str(out)]
+    without_sweep_figures(monkeypatch)
     before = {p.name: p.read_bytes() for p in (out / "runs").iterdir()}
     assert (
         len([n for n in before if n.endswith(".json")]) == 4

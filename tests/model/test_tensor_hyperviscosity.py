@@ -16,8 +16,9 @@ import math
 import numpy as np
 import pytest
 import warp as wp
-from test_mpi import assert_same_bits, mpirun_python, needs_mpi  # noqa: F401 (a fixture)
+from test_mpi import assert_same_bits, launches, over_ranks  # noqa: F401 (fixtures)
 
+from swe_sphere.cli import main
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.quality import dinv_singular_values, hypervis_tensor, reference_spacing
 from swe_sphere.mesh.schmidt import schmidt_cube
@@ -240,14 +241,22 @@ def test_a_scene_s_scaling_reaches_the_model_and_scales_its_nu_as_dx_to_the_s():
     assert ratio == pytest.approx(2.0**3.0, rel=1e-12)
 
 
-@pytest.mark.usefixtures("needs_mpi")
-def test_a_tensor_run_on_a_stretched_cube_has_the_same_bits_on_3_ranks(tmp_path):
+STRETCHED = ["run", "tc5_mountain", "--ne", "3", "--days", "0.25", "--no-progress", "-s", "hyperviscosity.scaling=3.2"]
+STRETCHED += ["-s", "grid.stretch_factor=2.0", "--device", "cpu"]
+# its run on 3 ranks, launched with test_mpi's (``launches``: a rank's start costs more than the run)
+OVER_RANKS = {
+    "test_a_tensor_run_on_a_stretched_cube_has_the_same_bits_on_3_ranks": lambda d: {
+        3: [[*STRETCHED, "--output", str(d / "r3.nc")]]
+    }
+}
+
+
+@pytest.mark.xdist_group("mpi")  # test_mpi's launches: on the worker that runs the MPI tests
+def test_a_tensor_run_on_a_stretched_cube_has_the_same_bits_on_3_ranks(request, capsys):
     """The tensor V is made continuous by a DSS over the ranks before each element interpolates
     it: TC5 on a stretched ne 3 cube with s = 3.2 on 3 ranks is the one process's, bit for bit."""
-    args = ["-m", "swe_sphere.cli", "run", "tc5_mountain", "--ne", "3", "--days", "0.25", "--no-progress"]
-    args += ["-s", "hyperviscosity.scaling=3.2", "-s", "grid.stretch_factor=2.0", "--device", "cpu"]
-    for ranks in (1, 3):
-        proc = mpirun_python(ranks, [*args, "--output", f"r{ranks}.nc"], tmp_path)
-        assert proc.returncode == 0, proc.stderr[-2000:]
-        assert "hypervis_scaling = 3.2" in proc.stdout
-    assert_same_bits(tmp_path / "r1.nc", tmp_path / "r3.nc")
+    folder, said = request.getfixturevalue("over_ranks")  # test_mpi's
+    assert main([*STRETCHED, "--output", str(folder / "r1.nc")]) == 0
+    assert "hypervis_scaling = 3.2" in capsys.readouterr().out
+    assert "hypervis_scaling = 3.2" in said[3][0]
+    assert_same_bits(folder / "r1.nc", folder / "r3.nc")

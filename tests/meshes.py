@@ -6,6 +6,7 @@ mesh."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from pathlib import Path
 
@@ -13,7 +14,7 @@ import numpy as np
 
 from swe_sphere.cases.library import make_case
 from swe_sphere.grid.cubed_sphere import CubedSphere
-from swe_sphere.grid.refine import Box, make_mesh
+from swe_sphere.grid.refine import Box, make_mesh, refined_cube
 from swe_sphere.mesh.mesh import Mesh, check
 from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.steppers import make_stepper
@@ -37,6 +38,25 @@ def case_model(grid, case_name: str, terms: list, **options):
 def equiangular(mesh: Mesh) -> Mesh:
     """``mesh`` through the equiangular map in each element's cube face (``face_map``)."""
     return dataclasses.replace(mesh, map="equiangular")
+
+
+MOUNTAIN_BOX4 = Box(15.0, 45.0, 255.0, 285.0)  # 2×2 elements of the ne4 cube about TC5's mountain
+
+
+@functools.cache
+def refined_ne4() -> Mesh:
+    """The ne4 cube refined 2× over ``MOUNTAIN_BOX4`` (124 elements; two levels, 66 and 58, at np 4),
+    made once a process and read-only: ``refine.smooth``'s sweeps take 0.7 s, and the grid, level,
+    local-time-stepping, gradient and MPI tests each used to make it again."""
+    mesh = refined_cube(4, MOUNTAIN_BOX4, 1)
+    mesh.coords.flags.writeable = mesh.quads.flags.writeable = False
+    return mesh
+
+
+@functools.cache
+def refined_ne4_grid() -> CubedSphere:
+    """``refined_ne4``'s CubedSphere at np 4, one a process (treat as read-only)."""
+    return CubedSphere(0, 4, mesh=refined_ne4())
 
 
 def refined_equiangular() -> Mesh:

@@ -13,9 +13,10 @@ from mpi_mesh import final_state
 from test_mpi import assert_continued, assert_same_bits, continue_on_three, launches, over_ranks  # noqa: F401 (fixtures)
 
 from swe_sphere.cli import main
-from swe_sphere.grid.refine import Box, refined_cube
 from swe_sphere.mesh.cube import cube_mesh
 from swe_sphere.mesh.mesh import write_exodus
+
+from meshes import refined_ne4
 
 # one worker runs the MPI tests one after another: each starts up to 4 ranks on this
 # machine, and two such jobs at once would share its CPUs with each other as well
@@ -34,7 +35,7 @@ def mesh_file_args(folder: Path) -> list[str]:
 def lts_args(folder: Path, method: str) -> list[str]:
     """lts (``method``) on the ne4 cube refined 2x over TC5's mountain (written in ``folder``), no days, no output."""
     if not (folder / "r4.g").exists():
-        write_exodus(folder / "r4.g", refined_cube(4, Box(15.0, 45.0, 255.0, 285.0), 1))
+        write_exodus(folder / "r4.g", refined_ne4())
     args = ["tc5_mountain", "--mesh", str(folder / "r4.g"), "--stepper", "lts", "-s", f"lts.method={method}"]
     return [*args, "--dt", "720", "--no-progress"]
 

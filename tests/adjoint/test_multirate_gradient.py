@@ -15,12 +15,12 @@ from swe_sphere.adjoint import HeightMisfit, gradient
 from swe_sphere.adjoint.gradient import scene_model, step_adjoint
 from swe_sphere.adjoint.tape import Smooth
 from swe_sphere.config.scene import load_scene
-from swe_sphere.grid.refine import Box, refined_cube
 from swe_sphere.mesh.mesh import write_exodus
 from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.steppers import make_stepper
 
 import taylor
+from meshes import refined_ne4
 
 
 @pytest.mark.parametrize("damping", [0.1, 0.0])
@@ -40,8 +40,7 @@ def test_a_split_explicit_run_s_gradient_falls_as_eps_squared(damping):
 @pytest.fixture(scope="module")
 def refined_mesh(tmp_path_factory):
     """The ne4 cube refined 2× about TC5's mountain (124 elements), as a .g file."""
-    box = Box(15.0, 45.0, 255.0, 285.0)
-    return write_exodus(tmp_path_factory.mktemp("mesh") / "r4.g", refined_cube(4, box, 1))
+    return write_exodus(tmp_path_factory.mktemp("mesh") / "r4.g", refined_ne4())
 
 
 @pytest.fixture(scope="module")

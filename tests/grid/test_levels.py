@@ -2,23 +2,19 @@
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 import pytest
 
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.levels import element_levels, element_neighbours, element_rates
 from swe_sphere.grid.quality import element_sizes
-from swe_sphere.grid.refine import Box, refined_cube
 
-BOX = Box(15.0, 45.0, 255.0, 285.0)  # 2×2 elements of the ne4 cube about TC5's mountain
+from meshes import refined_ne4_grid
 
 
-@functools.cache
 def refined_grid():
-    """The ne4 cube refined 2× over ``BOX`` (124 elements), np 4."""
-    return CubedSphere(0, 4, mesh=refined_cube(4, BOX, 1))
+    """The ne4 cube refined 2× about TC5's mountain (124 elements), np 4 (``meshes.refined_ne4_grid``)."""
+    return refined_ne4_grid()
 
 
 def test_levels_follow_the_element_sizes_and_keep_neighbours_one_apart():

@@ -3,27 +3,23 @@ f = Σ_k f_k, f_k = M⁻¹ DSS(level k's elements' contributions), on a refined 
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 import pytest
 import warp as wp
 
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.levels import element_levels, element_rates
-from swe_sphere.grid.refine import Box, refined_cube
 from swe_sphere.model.shallow_water import ElementPart
 
 import roundoff
-from meshes import case_model
+from meshes import case_model, refined_ne4_grid
 
 TC5_TERMS = ["continuity", "momentum_advection", "coriolis", "pressure_gradient", "topography"]
 
 
-@functools.cache
 def refined_grid():
-    """The ne4 cube refined 2× about TC5's mountain (124 elements), np 4."""
-    return CubedSphere(0, 4, mesh=refined_cube(4, Box(15.0, 45.0, 255.0, 285.0), 1))
+    """The ne4 cube refined 2× about TC5's mountain (124 elements), np 4 (``meshes.refined_ne4_grid``)."""
+    return refined_ne4_grid()
 
 
 @pytest.mark.parametrize("per_element, gap", [(True, 0), (False, 0), (True, 16)])

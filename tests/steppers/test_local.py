@@ -12,21 +12,22 @@ import numpy as np
 import pytest
 
 from swe_sphere.config.scene import load_scene
-from swe_sphere.grid.refine import Box, refined_cube
+from swe_sphere.grid.refine import refined_cube
 from swe_sphere.mesh.mesh import write_exodus
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers.multirate_ab import ab3_weights
 
 from helpers import cli_main, one_line
+from meshes import MOUNTAIN_BOX4, refined_ne4
 from roundoff import bound
 
-BOX = Box(15.0, 45.0, 255.0, 285.0)  # 2×2 elements of the ne4 cube about TC5's mountain
+BOX = MOUNTAIN_BOX4  # 2×2 elements of the ne4 cube about TC5's mountain
 
 
 @pytest.fixture(scope="module")
 def refined(tmp_path_factory):
     """The ne4 cube refined 2× over ``BOX`` (124 elements; two levels at np 4), as a .g file."""
-    return write_exodus(tmp_path_factory.mktemp("mesh") / "r4.g", refined_cube(4, BOX, 1))
+    return write_exodus(tmp_path_factory.mktemp("mesh") / "r4.g", refined_ne4())
 
 
 def sim_of(case, stepper, dt, days, options=None, mesh=None, ne=None):

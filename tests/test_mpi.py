@@ -82,7 +82,11 @@ def needs_mpi():
 
 def mpirun(ranks: int, args: list[str], cwd: Path, program: list[str] | None = None) -> subprocess.CompletedProcess:
     """``mpiexec -n ranks swe-sphere args`` (or ``program args``), one thread per rank."""
-    env = {**os.environ, "SWE_SPHERE_THREADS": "1"}
+    # MPICH's waits spin, yielding by sched_yield after 1000 polls: 3 ranks on this 2-core machine
+    # (and the other xdist worker) spent a third of their CPU spinning. With heavy yield a waiting
+    # rank sleeps instead (nanosleep): rk43's 315 balanced steps on 3 ranks took 5.8-6.6 s of wall
+    # and 5.4-6.1 s of CPU, against 6.8-8.2 s and 8.1-9.5 s (2026-11-28); the same bits
+    env = {"MPIR_CVAR_ENABLE_HEAVY_YIELD": "1", **os.environ, "SWE_SPHERE_THREADS": "1"}
     return subprocess.run(
         [_beside_python("mpiexec"), "-n", str(ranks), *(program or [_beside_python("swe-sphere")]), *args],
         cwd=cwd,

@@ -80,13 +80,17 @@ def needs_mpi():
     check_mpi()
 
 
+# MPICH's waits spin, yielding by sched_yield after 1000 polls: 3 ranks on this 2-core machine
+# (and the other xdist worker) spent a third of their CPU spinning. With heavy yield a waiting
+# rank sleeps instead (nanosleep): rk43's 315 balanced steps on 3 ranks took 5.8-6.6 s of wall
+# and 5.4-6.1 s of CPU, against 6.8-8.2 s and 8.1-9.5 s (2026-11-28); the same bits. The
+# developer's own setting wins.
+MPICH_ENV = {"MPIR_CVAR_ENABLE_HEAVY_YIELD": "1"}
+
+
 def mpirun(ranks: int, args: list[str], cwd: Path, program: list[str] | None = None) -> subprocess.CompletedProcess:
     """``mpiexec -n ranks swe-sphere args`` (or ``program args``), one thread per rank."""
-    # MPICH's waits spin, yielding by sched_yield after 1000 polls: 3 ranks on this 2-core machine
-    # (and the other xdist worker) spent a third of their CPU spinning. With heavy yield a waiting
-    # rank sleeps instead (nanosleep): rk43's 315 balanced steps on 3 ranks took 5.8-6.6 s of wall
-    # and 5.4-6.1 s of CPU, against 6.8-8.2 s and 8.1-9.5 s (2026-11-28); the same bits
-    env = {"MPIR_CVAR_ENABLE_HEAVY_YIELD": "1", **os.environ, "SWE_SPHERE_THREADS": "1"}
+    env = {**MPICH_ENV, **os.environ, "SWE_SPHERE_THREADS": "1"}
     return subprocess.run(
         [_beside_python("mpiexec"), "-n", str(ranks), *(program or [_beside_python("swe-sphere")]), *args],
         cwd=cwd,
@@ -417,6 +421,7 @@ def test_sigint_on_two_ranks_is_one_line(tmp_path, paused):
         "--output",
         "o.nc",
         launcher=[_beside_python("mpiexec"), "-n", "2"],
+        env={key: os.environ.get(key, value) for key, value in MPICH_ENV.items()},  # as mpirun's
     )
     proc.send_signal(signal.SIGINT)
     err = proc.communicate(timeout=120)[1]

@@ -71,19 +71,21 @@ def pytest_configure(config):
 # modules that take seconds warm are the longest of all, compiling: io/test_dual 263 s (uxarray's
 # numba), core/test_cuda_compile 219 s (the PTX of 131 modules), grid/test_mesh_cuda_compile 132 s
 # (wall, -n 0 on one core shared with another process, 2026-11-28); they go first too, so that no
-# worker starts one of them last (warm CPU s: 10, 1 and 0.3).
+# worker starts one of them last (warm CPU s: 10, 1 and 0.3). Summed s of the default run (-n 2, idle,
+# 2026-11-28, after the suite's cuts): mpi 63, the README's 44, test_multirate 32, methods.md's 30,
+# reference.md's 20, test_plotting 20, test_multirate_gradient 17, experiments.md's 14.
 HEAVY_FIRST = (
     "tests/io/test_dual.py",
     "tests/core/test_cuda_compile.py",
     "mpi",
     "tests/grid/test_mesh_cuda_compile.py",
     "docs-readme",
-    "docs-methods",
     "tests/steppers/test_multirate.py",
-    "tests/simulation/test_output_protection.py",
-    "tests/studies/test_sweep.py",
-    "docs-experiments",
+    "docs-methods",
     "docs-reference",
+    "tests/studies/test_plotting.py",
+    "tests/adjoint/test_multirate_gradient.py",
+    "docs-experiments",
 )
 
 

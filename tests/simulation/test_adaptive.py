@@ -245,7 +245,8 @@ def test_a_balanced_run_follows_its_fraction_and_continues_bitwise():
     fraction × Δt × the spatial rate's scales (``Balance``), re-estimated every
     ``BALANCE_EVERY`` accepted steps; a smaller fraction takes more steps and comes nearer a
     run at a third of it; and a run stopped at day 0.5 (mid-way between two estimates) and
-    continued from the control's state gives the bits of one that did not stop."""
+    continued from the control's state (a fresh simulation and control restored from it) gives
+    the bits of the run that went on."""
     runs = {}
     for balance in (0.3, 0.03, 0.01):
         sim, control = _balanced(balance)
@@ -258,16 +259,14 @@ def test_a_balanced_run_follows_its_fraction_and_continues_bitwise():
     far, near = (np.abs(runs[b][0][2] - runs[0.01][0][2]).max() for b in (0.3, 0.03))
     assert runs[0.03][1] > runs[0.3][1] and near < far / 3, (near, far)
     whole, control = _balanced(0.03)
-    first, control1 = _balanced(0.03)
-    _run(first, control1, 0.0, 0.5 * DAY)
-    assert control1.balance.since not in (0, BALANCE_EVERY)
-    state, stepper_state, x = control1.state(), first.stepper.state(), first.x.numpy()
+    t = _run(whole, control, 0.0, 0.5 * DAY)  # stopped at day 0.5: its state (copies) seeds a fresh run
+    assert control.balance.since not in (0, BALANCE_EVERY)
+    state, stepper_state, x = control.state(), whole.stepper.state(), whole.x.numpy().copy()
     second, control2 = _balanced(0.03)
     second.x.assign(x)
     second.stepper.restore(stepper_state)
     control2.restore(state)
     _run(second, control2, 0.5 * DAY, DAY)
-    t = _run(whole, control, 0.0, 0.5 * DAY)
     _run(whole, control, t, DAY)
     assert np.array_equal(second.x.numpy(), whole.x.numpy())
     assert control2.state() == control.state()

@@ -46,8 +46,9 @@ MOUNTAIN_BOX4 = Box(15.0, 45.0, 255.0, 285.0)  # 2×2 elements of the ne4 cube a
 @functools.cache
 def refined_ne4() -> Mesh:
     """The ne4 cube refined 2× over ``MOUNTAIN_BOX4`` (124 elements; two levels, 66 and 58, at np 4),
-    made once a process and read-only: ``refine.smooth``'s sweeps take 0.7 s, and the grid, level,
-    local-time-stepping, gradient and MPI tests each used to make it again."""
+    made once a process and read-only: ``refine.smooth``'s sweeps took 0.7 s (0.2 s since they build no
+    ``CubedSphere``), and the grid, level, local-time-stepping, gradient and MPI tests each used to
+    make it again."""
     mesh = refined_cube(4, MOUNTAIN_BOX4, 1)
     mesh.coords.flags.writeable = mesh.quads.flags.writeable = False
     return mesh

@@ -53,22 +53,21 @@ def test_plot_cli_writes_maps_and_series(run_file, tmp_path, capsys):
         assert distinct_colours(path) > 100, name  # a picture, not a blank canvas
 
 
-def test_plot_default_is_h_surface_at_the_last_day(run_file, tmp_path, capsys, monkeypatch):
-    monkeypatch.chdir(tmp_path)
-    code, out, err = cli_main(capsys, "plot", run_file)
-    assert code == 0, err
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["tc5_h_surface_day1.png", "tc5_series.png"]
-
-
 def test_a_series_written_over_another_is_drawn_once_as_a_fresh_plot_draws_it(run_file, tmp_path, capsys, monkeypatch):
     """The series figure drawn to compare with a file there is the one written over it, not drawn
     again: a second draw costs as much as the first, and under the constrained layout its pixels
     need not be the first's (tc5 ne2 np8's 5 days: the legend's "best" place moved), so a later
-    plot found the file changed and refused it without --overwrite."""
+    plot found the file changed and refused it without --overwrite. The fresh plot is the plain
+    ``plot RUN``: h_surface at the last day and the series, into the current folder (what
+    test_plot_default_is_h_surface_at_the_last_day checked with a plot of its own)."""
     from matplotlib.figure import Figure
 
     fresh, out = tmp_path / "fresh", tmp_path / "out"
-    assert cli_main(capsys, "plot", run_file, "--output", fresh)[0] == 0
+    fresh.mkdir()
+    monkeypatch.chdir(fresh)
+    code, _, err = cli_main(capsys, "plot", run_file)
+    assert code == 0, err
+    assert sorted(p.name for p in fresh.iterdir()) == ["tc5_h_surface_day1.png", "tc5_series.png"]
     out.mkdir()
     (out / "tc5_series.png").write_bytes(b"another picture")
     drawn, savefig = [], Figure.savefig
@@ -80,25 +79,28 @@ def test_a_series_written_over_another_is_drawn_once_as_a_fresh_plot_draws_it(ru
     assert code == 0, err
 
 
-def test_plot_map_values_and_colour_bar_units(run_file, tmp_path):
+def test_plot_map_values_and_colour_bar_units(run_file):
+    """The values and labels ``plot_map`` returns. Its figures are drawn, not written (no path):
+    writing a PNG costs more than the map, and the CLI tests here write each field's (and
+    tests/studies/test_maps.py ``plot_map``'s own, given a path)."""
     ds = plotting.open_run(run_file)
     with ds:
-        info = plotting.plot_map(ds, "h_surface", 1.0, tmp_path / "h.png")
+        info = plotting.plot_map(ds, "h_surface", 1.0)
         nodes = ds.h.isel(time=1).values + ds.hs.values
         # the drawn field (GLL interpolant at cell centres) stays within the node range up to
         # the interpolant's small over/undershoot
         span = nodes.max() - nodes.min()
         assert nodes.min() - 0.02 * span < info["min"] < nodes.min() + 0.05 * span
         assert nodes.max() - 0.05 * span < info["max"] < nodes.max() + 0.02 * span
-        info = plotting.plot_map(ds, "vorticity", 1.0, tmp_path / "z.png")
+        info = plotting.plot_map(ds, "vorticity", 1.0)
         assert abs(info["max"]) < 1e-3 and info["max"] > 0 > info["min"]  # s-1, both signs
         # drawn scaled, labelled so, with the contour interval stated (2e-5 s-1)
         assert info["colorbar_label"] == "vorticity (10$^{-5}$ s$^{-1}$); contours every 2 × 10$^{-5}$ s$^{-1}$"
         assert "day 1" in info["title"] and "tc5_mountain ne2 np4" in info["title"]
-        info = plotting.plot_map(ds, "divergence", 1.0, tmp_path / "d.png")
+        info = plotting.plot_map(ds, "divergence", 1.0)
         assert abs(info["max"]) < 1e-4 and info["max"] > 0 > info["min"]
         assert info["colorbar_label"] == "divergence (10$^{-6}$ s$^{-1}$)"
-        infos = {f: plotting.plot_map(ds, f, 0.0, tmp_path / f"{f}.png") for f in ("h", "u", "speed")}
+        infos = {f: plotting.plot_map(ds, f, 0.0) for f in ("h", "u", "speed")}
     interval = infos["h"]["contour_interval"]  # about 14 round levels over the drawn range
     assert 10 <= (infos["h"]["max"] - infos["h"]["min"]) / interval <= 15 and interval in (100.0, 200.0, 250.0, 500.0)
     labels = {f: info["colorbar_label"] for f, info in infos.items()}
@@ -113,7 +115,7 @@ def test_diff_to_t213_carries_the_runs_own_normalized_l2(run_file, tmp_path, cap
     ds = plotting.open_run(run_file)
     with ds:
         ref = plotting.open_reference(TC5_REF)
-        info = plotting.plot_map(ds, "h_surface", 1.0, tmp_path / "d.png", diff=ref)
+        info = plotting.plot_map(ds, "h_surface", 1.0, diff=ref)
         # the same number the run wrote for day 1 (ref_l2_h_surface, measured 1.30e-3)
         assert info["l2"] == pytest.approx(float(ds.ref_l2_h_surface.values[1]), rel=1e-10)
         assert 1e-4 < info["l2"] < 1e-2
@@ -124,12 +126,12 @@ def test_diff_to_t213_carries_the_runs_own_normalized_l2(run_file, tmp_path, cap
     assert png_size(path) == (1200, 600) and distinct_colours(path) > 100
 
 
-def test_diff_to_itself_is_zero(run_file, tmp_path):
+def test_diff_to_itself_is_zero(run_file):
     ds = plotting.open_run(run_file)
     with ds:
         ref = plotting.open_reference(run_file)
         for field in ("h", "vorticity", "u"):
-            info = plotting.plot_map(ds, field, 1.0, tmp_path / f"{field}.png", diff=ref)
+            info = plotting.plot_map(ds, field, 1.0, diff=ref)
             # the run interpolated to its own nodes: zero up to round-off
             assert info["l2"] < 1e-14 and max(abs(info["min"]), abs(info["max"])) < 1e-12 * (
                 1e-5 if field == "vorticity" else 1e4
@@ -146,8 +148,8 @@ def test_lat_range_draws_a_band(run_file, tmp_path, capsys):
     assert png_size(path) == (1200, 600) and distinct_colours(path) > 100
     ds = plotting.open_run(run_file)
     with ds:
-        band = plotting.plot_map(ds, "h", 1.0, tmp_path / "band.png", lat_range=(-90, 0))
-        whole = plotting.plot_map(ds, "h", 1.0, tmp_path / "whole.png")
+        band = plotting.plot_map(ds, "h", 1.0, lat_range=(-90, 0))
+        whole = plotting.plot_map(ds, "h", 1.0)
         grid = plotting.run_grid(ds)
     # the shallowest water is over the mountain (30°N), outside the southern band
     assert whole["min"] < band["min"] - 500 and band["max"] <= whole["max"]

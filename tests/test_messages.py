@@ -114,12 +114,14 @@ def test_stability_help_lists_its_case_labels(capsys):
 
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory):
-    """a/run.nc and b/run.nc: TC5 ne2 runs of 1 day and 0.5 days (another picture, the same name)."""
+def runs(tmp_path_factory, tc5_run_file):
+    """a/run.nc and b/run.nc: TC5 ne2 runs of 1 day and 0.5 days (another picture, the same name);
+    the day's run is the session's (tests/conftest.py ``tc5_run_file``: the same command), copied."""
     d = tmp_path_factory.mktemp("msg")
-    for folder, days in (("a", "1"), ("b", "0.5")):
+    for folder in ("a", "b"):
         (d / folder).mkdir()
-        assert main(["run", "tc5_mountain", *TINY, "--days", days, "--output", str(d / folder / "run.nc")]) == 0
+    shutil.copy(tc5_run_file, d / "a" / "run.nc")
+    assert main(["run", "tc5_mountain", *TINY, "--days", "0.5", "--output", str(d / "b" / "run.nc")]) == 0
     return d
 
 

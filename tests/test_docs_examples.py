@@ -5,7 +5,7 @@ Python code block, and each command written inline (`` `swe-sphere run galewsky 
 collide (a default file name taken twice, a study folder written twice) fails here.
 
 The runs are shortened: ``swe-sphere`` is tests/docs_shortening.py in front of the real
-tool (tiny grids that keep the page's grids apart, at most two runs a sweep; plain commands and
+tool (tiny grids that keep the page's grids apart, one run a sweep (two members for a perturbed one); plain commands and
 Python blocks in a row run in one process, ``docs_shortening.run_each``); a Python
 block's ``ne=N`` becomes ``ne=small_ne(N)`` likewise, and a ``dt=`` beside it keeps its
 Courant number, and a ``frontier.plan``'s lists keep what ``swe-sphere frontier`` keeps

@@ -219,10 +219,10 @@ def _build(ne: int, rule, radius: float, elements: np.ndarray, mesh: Mesh | None
     else:
         gid, table = MeshNumbering(mesh, np_).rows(elements)
         reference_map = (FaceMap if mesh.map == "equiangular" else ElementLocalMap)(mesh, rule)
-    ext, rep = _held(table)
-    xyz, lat, lon, east, north, D = _held_metric(reference_map, radius, ext, rep)
+    ext, rep = held_nodes(table)
+    xyz, lat, lon, east, north, D = held_metric(reference_map, radius, ext, rep)
     here = np.searchsorted(ext, nodes)
-    metdet = _area_corrected(np.linalg.det(D), D, ne, rule, radius, elements, mesh, reference_map, ext, here)
+    metdet = area_corrected(np.linalg.det(D), D, ne, rule, radius, elements, mesh, reference_map, ext, here)
     spheremp = metdet * np.outer(rule.weights, rule.weights).ravel()[ext % npe]  # weights at index j*np + i
 
     mass = np.zeros(nodes.size)  # Σ over the copies in table order, one add at a time
@@ -255,10 +255,11 @@ def _build(ne: int, rule, radius: float, elements: np.ndarray, mesh: Mesh | None
     )
 
 
-def _held(table: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The nodes held and the other elements' copies of them (for the assembled mass), distinct
-    and ascending, and for each the first copy in ``table``'s rows: every copy gets the
-    coordinates of its first copy, so lat/lon/basis agree bit for bit."""
+def held_nodes(table: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(ext, rep), int64 (n,) each: the element-local nodes held and the other elements' copies of
+    them (for the assembled mass), distinct and ascending, and for each the first copy in the rows
+    of ``table`` (rows of element-local node ids, −1 for none): every copy gets the coordinates of
+    its first copy, so lat/lon/basis agree bit for bit. Shared with ``refine.WorstDistortion``."""
     valid = table >= 0
     ext = np.sort(table[valid])
     ext = ext[
@@ -269,9 +270,10 @@ def _held(table: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return ext, rep
 
 
-def _held_metric(reference_map, radius: float, ext: np.ndarray, rep: np.ndarray):
-    """(xyz, lat, lon, east, north, D) at the nodes ``ext`` (their first copies ``rep``), in
-    pieces of ``_CHUNK`` nodes to bound the temporaries."""
+def held_metric(reference_map, radius: float, ext: np.ndarray, rep: np.ndarray):
+    """(xyz (n, 3) in units of ``radius``, lat, lon (n,) radians, east, north (n, 3) unit
+    vectors, D (n, 2, 2)) at the n nodes ``ext`` (their first copies ``rep``, ``held_nodes``) of
+    ``reference_map``, in pieces of ``_CHUNK`` nodes to bound the temporaries."""
     n = ext.size
     xyz, east, north, lat, lon = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty(n)
     D = np.empty((n, 2, 2))
@@ -283,8 +285,9 @@ def _held_metric(reference_map, radius: float, ext: np.ndarray, rep: np.ndarray)
     return xyz, lat, lon, east, north, D
 
 
-def _area_corrected(metdet, D, ne: int, rule, radius: float, elements, mesh, reference_map, ext, here) -> np.ndarray:
-    """The metric determinant with the area correction, ``D`` scaled to match in place.
+def area_corrected(metdet, D, ne: int, rule, radius: float, elements, mesh, reference_map, ext, here) -> np.ndarray:
+    """The metric determinant ``metdet`` (n,) with the area correction (HOMME's
+    ``set_area_correction_map0`` on the cube), ``D`` (n, 2, 2) scaled to match in place.
     Raises ValueError where the map folds (metdet ≤ 0 at a node)."""
     np_ = rule.np
     if np.any(metdet <= 0):  # an element-local element whose corners span too much of the sphere: p/|p| folds

@@ -27,7 +27,7 @@ from ..mesh.element_local import ElementLocalMap, MeshNumbering
 from ..mesh.face_map import FaceMap
 from ..mesh.mesh import Mesh, check
 from ..mesh.schmidt import rotation_to, schmidt_cube
-from .cubed_sphere import _area_corrected, _held, _held_metric
+from .cubed_sphere import area_corrected, held_metric, held_nodes
 from .gll import gll
 from .quality import dinv_singular_values
 
@@ -160,7 +160,7 @@ def smooth(mesh: Mesh, free: np.ndarray, iterations: int = SMOOTHING) -> Mesh:
     edges, _ = mesh.edges()
     moving = np.flatnonzero(np.isin(mesh.quads, free).any(axis=1))
     count = np.bincount(edges.ravel(), minlength=mesh.nnodes)[free, None]
-    distortion = _WorstDistortion(mesh, moving)
+    distortion = WorstDistortion(mesh, moving)
     coords, best, least = mesh.coords.copy(), mesh.coords, distortion(mesh)
     for _ in range(iterations):
         total = np.zeros_like(coords)
@@ -174,7 +174,7 @@ def smooth(mesh: Mesh, free: np.ndarray, iterations: int = SMOOTHING) -> Mesh:
     return Mesh(best, mesh.quads, mesh.name)
 
 
-class _WorstDistortion:
+class WorstDistortion:
     """The largest Dinv-based distortion of ``elements`` of a mesh with ``mesh``'s quads at
     np = 4 (inf for a folded element): ``element_sizes(CubedSphere(0, 4, 1.0,
     elements=elements, mesh=m)).distortion.max()`` bit for bit (the same ``cubed_sphere``
@@ -186,14 +186,14 @@ class _WorstDistortion:
         self.rule, self.elements = gll(4), np.asarray(elements, dtype=np.int64)
         npe = self.rule.np**2
         _, table = MeshNumbering(mesh, self.rule.np).rows(self.elements)
-        self.ext, self.rep = _held(table)
+        self.ext, self.rep = held_nodes(table)
         self.here = np.searchsorted(self.ext, (self.elements[:, None] * npe + np.arange(npe)).ravel())
 
     def __call__(self, mesh: Mesh) -> float:
         reference_map = (FaceMap if mesh.map == "equiangular" else ElementLocalMap)(mesh, self.rule)
-        D = _held_metric(reference_map, 1.0, self.ext, self.rep)[5]
+        D = held_metric(reference_map, 1.0, self.ext, self.rep)[5]
         try:
-            _area_corrected(
+            area_corrected(
                 np.linalg.det(D), D, 0, self.rule, 1.0, self.elements, mesh, reference_map, self.ext, self.here
             )
         except ValueError:  # a folded map: a sweep that folds an element is never the best

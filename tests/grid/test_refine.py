@@ -141,14 +141,14 @@ def test_an_existing_file_is_kept_without_overwrite(tmp_path, capsys):
 
 
 def test_the_smoothing_s_distortion_is_the_grid_s_bit_for_bit():
-    """``smooth`` picks its sweep by ``_WorstDistortion``, which builds the node numbering once
+    """``smooth`` picks its sweep by ``WorstDistortion``, which builds the node numbering once
     for all the sweeps: it gives the bits of ``element_sizes`` of the grid built on the
     elements that hold a moving node, on the unsmoothed and the smoothed refined mesh."""
-    from swe_sphere.grid.refine import _WorstDistortion
+    from swe_sphere.grid.refine import WorstDistortion
 
     rough = refined_cube(4, Box(20.0, 40.0, 260.0, 280.0), 1, iterations=0)
     moving = np.flatnonzero(np.isin(rough.quads, np.arange(cube_mesh(4).nnodes, rough.nnodes)).any(axis=1))
-    worst = _WorstDistortion(rough, moving)
+    worst = WorstDistortion(rough, moving)
     for mesh in (rough, refined_cube(4, Box(20.0, 40.0, 260.0, 280.0), 1)):
         grid = CubedSphere(0, 4, 1.0, elements=moving, mesh=mesh)
         assert worst(mesh) == float(element_sizes(grid).distortion.max())

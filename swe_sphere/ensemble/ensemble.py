@@ -259,7 +259,8 @@ class Ensemble:
         (``Stop``), ``notify(line)`` told a wall time estimated above a day (``summary.Ledger``)."""
         ledger = Ledger(self.counters, self.scene, self.step_count, notify)
         kw = {"timed": signals is not None, "dropped": self._drop}
-        observer = RunObserver(self, ledger, stop_step, CHECK_EVERY_STEPS, signals, bar, lines, **kw)
+        parts = (self.run_state, self.activities, self, ledger, stop_step, CHECK_EVERY_STEPS, signals, bar, lines)
+        observer = RunObserver(*parts, **kw)
         return run_steps(self.core, self.control, last_day, self.activities, observer, stop_step, self._bad)
 
     def _stepped(self, stop_step: int, last_day=None) -> None:
@@ -398,7 +399,7 @@ class Ensemble:
         # the run file and its streams as a run's (``writers.RunFiles``), the members along the member axis
         hs = self._member(self._hs, 0)
         files = RunFiles(self.run_state, self, self.grid, hs, output, series=("steps", "wall_time"))
-        check_run_files(self, files, ckp, rewrite)
+        check_run_files(self.activities, self.root, self.inputs, files, ckp, rewrite)
         start = self.gather_fields(divergence=files.divergence)  # the first output's fields and figures (collective)
         first = self.diagnose(self.run_state.seconds(self.step_count), whole=start)
         files.member_series = tuple(first)  # the invariants and the errors the case has
@@ -415,7 +416,8 @@ class Ensemble:
             drops = self.drops
             return {"dropped_members": "; ".join(drops)} if drops else {}
 
-        during, why = own_activities(self, files, ckp), lambda err: {"stopped": str(err) or type(err).__name__}
+        during = own_activities(self.activities, files, ckp)
+        why = lambda err: {"stopped": str(err) or type(err).__name__}  # noqa: E731
         kw = {"progress": progress, "lines": progress_lines, "diagnosed": first, "why": "stopped", "kept": why}
         stop = integrate(self.run_state, files, ckp, start, signals, blocks, during, **kw, closing=dropped)
         outcome(stop, self.run_state, output, ckp)

@@ -13,7 +13,9 @@ from .schedules import next_multiple
 
 class RunObserver(Observer):
     """A run's hooks on its integrator (``Simulation.core``, ``Ensemble.core``) to ``stop_step``:
-    ``owner`` the ``Simulation`` or ``Ensemble`` (its ``run_state`` and ``activities``), ``ledger``
+    ``run`` its ``run_state.RunState``, ``activities`` its activities by name (the dict itself,
+    read as it is at each step), each called with ``caller`` (the ``Simulation`` or ``Ensemble``:
+    what a user's callback is handed, read by nothing here), ``ledger``
     its ``summary.Ledger`` (the counts, kept at a block's start and put back where the block is
     taken again), ``signals`` a ``StopSignals``; after good steps the activities due and the
     progress on ``bar`` (tqdm) and ``lines`` (``progress.ProgressLines``). A block of steps, its
@@ -29,9 +31,20 @@ class RunObserver(Observer):
     (members stepped in turn are not put back a step)."""
 
     def __init__(
-        self, owner, ledger, stop_step: int, every: int, signals=None, bar=None, lines=None, timed=True, dropped=None
+        self,
+        run,
+        activities: dict,
+        caller,
+        ledger,
+        stop_step: int,
+        every: int,
+        signals=None,
+        bar=None,
+        lines=None,
+        timed=True,
+        dropped=None,
     ):
-        self.owner, self.run, self.ledger, self.first_step = owner, owner.run_state, ledger, owner.run_state.step
+        self.run, self.activities, self.caller, self.ledger, self.first_step = run, activities, caller, ledger, run.step
         self.stop_step, self.signals, self.bar, self.lines, self.steered = stop_step, signals, bar, lines, None
         self.every, self.timed, self._dropped = max(1, int(every)), timed, dropped
 
@@ -45,7 +58,7 @@ class RunObserver(Observer):
             return b if self.steered.reached else b + 1
         if self.every == 1 or (self.timed and b == self.first_step):  # the first step alone: first_step_time
             return b + 1
-        due = (a.schedule.next_after(b) for a in self.owner.activities.values())
+        due = (a.schedule.next_after(b) for a in self.activities.values())
         estimate = self.ledger.next_steps(b) if self.timed else ()
         return min(self.stop_step, next_multiple(b, self.every), *(n for n in due if n is not None), *estimate)
 
@@ -74,7 +87,7 @@ class RunObserver(Observer):
     def after(self, step: int, done: int) -> None:
         """The activities due (``call_due``), then the progress on ``bar`` and ``lines``, where given."""
         run, bar = self.run, self.bar
-        call_due(self.owner.activities, run, self.owner)
+        call_due(self.activities, run, self.caller)
         if bar is None:
             return
         bar.update(done)

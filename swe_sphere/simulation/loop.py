@@ -172,7 +172,10 @@ class Looping:
         if self.control is not None and until_step is not None:
             raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
         stop_step = self.scene.nsteps if until_step is None else until_step
-        observer = RunObserver(self, ledger, stop_step, self.check_every, signals, bar, lines if self.root else None)
+        lines = lines if self.root else None
+        observer = RunObserver(
+            self.run_state, self.activities, self, ledger, stop_step, self.check_every, signals, bar, lines
+        )
 
         def describe(bad: tuple) -> str:
             day = self.time if self.control is not None else self.scene.day(bad[0])
@@ -189,7 +192,7 @@ class Looping:
             run, self.write_checkpoint, self.topology.bcast, self.root, output, restart_every, restart_file, overwrite
         )
         files = RunFiles(run, self.diagnostics, self.grid, self.hs, output, on_output)
-        check_run_files(self, files, ckp, overwrite)
+        check_run_files(self.activities, self.root, self.inputs, files, ckp, overwrite)
         with compile_timer(self._compile):  # a continuation's first use of the diagnostic kernels
             start = self.diagnostics.gather_fields(divergence=files.divergence)  # the first output time's, every rank
         courant = self.courant(start)
@@ -203,35 +206,38 @@ class Looping:
         user's), the stepper's solver counters read with the bad-state check."""
         every = self.scene.log_every_steps
         more = {"log": Log(log, EverySteps(every), files)} if log is not None and every else {}
-        return own_activities(self, files, ckp, self.stepper, **more)
+        return own_activities(self.activities, files, ckp, self.stepper, **more)
 
 
-def check_run_files(owner, files: RunFiles, ckp: Checkpointer, overwrite: bool) -> None:
-    """A run's files checked before any is opened (``owner`` a ``Simulation`` or an ``Ensemble``):
-    ValueError for a user's activity under a name the run gives its own (``RUN_ACTIVITIES``); on
-    rank 0 ``OutputError`` for a file of the run that is one of ``owner.inputs`` (``check_distinct``:
-    the scene file, a mesh, a start) or a restart file that exists and not ``overwrite``."""
-    taken = sorted(set(owner.activities) & set(RUN_ACTIVITIES))
+def check_run_files(activities: dict, root: bool, inputs, files: RunFiles, ckp: Checkpointer, overwrite: bool) -> None:
+    """A run's files checked before any is opened: ValueError for a user's activity in
+    ``activities`` under a name the run gives its own (``RUN_ACTIVITIES``); on rank 0 (``root``)
+    ``OutputError`` for a file of the run that is one of ``inputs`` (``check_distinct``: the
+    scene file, a mesh, a start) or a restart file that exists and not ``overwrite``."""
+    taken = sorted(set(activities) & set(RUN_ACTIVITIES))
     if taken:
         raise ValueError(f"activities {', '.join(taken)}: a run's own names (choose another)")
-    if owner.root:
-        check_distinct([ckp.path, *files.paths], owner.inputs)  # the paths: the run file and its streams
+    if root:
+        check_distinct([ckp.path, *files.paths], inputs)  # the paths: the run file and its streams
         if ckp.path is not None:
             check_target(ckp.path, overwrite)
 
 
 @contextlib.contextmanager
-def own_activities(owner, files: RunFiles, ckp: Checkpointer, deferred=None, **more):
-    """A run's own activities in ``owner.activities`` (a ``Simulation``'s or an ``Ensemble``'s)
-    while its loop runs: the run file and checkpointer before the user's, ``more`` after; the
-    stepper ``deferred``'s solver counters read with the bad-state check (``Stepper.deferred``)."""
-    own, steppers = owner.activities, [] if deferred is None else [deferred]
-    owner.activities = {"run_file": files, "checkpointer": ckp, **own, **more}
+def own_activities(activities: dict, files: RunFiles, ckp: Checkpointer, deferred=None, **more):
+    """A run's own activities in ``activities`` (a ``Simulation``'s or an ``Ensemble``'s, changed
+    in place) while its loop runs: the run file and checkpointer before the user's, ``more``
+    after; the stepper ``deferred``'s solver counters read with the bad-state check
+    (``Stepper.deferred``). The user's alone again after."""
+    own, steppers = dict(activities), [] if deferred is None else [deferred]
+    activities.clear()
+    activities.update({"run_file": files, "checkpointer": ckp, **own, **more})
     for stepper in steppers:
         stepper.deferred = True
     try:
         yield
     finally:
-        owner.activities = own
+        activities.clear()
+        activities.update(own)
         for stepper in steppers:
             stepper.deferred = False

@@ -162,6 +162,143 @@ def gather(terms: tuple, np_: int):
 
 
 @functools.cache
+def _combined(np_: int, nk: int):
+    """``element``'s k̄ = Σ c[t]·kt over the first ``nk`` of k0, k1, k2 at row q, a ``wp.func``
+    (c, k0, k1, k2, q) → k̄'s rows 0, 1, 2 there (three rows)."""
+    NP, NK = int(np_), int(nk)
+    vec = row_derivatives(NP)[0]
+
+    def combined(
+        c: wp.vec3d,
+        k0: wp.array2d(dtype=vec),
+        k1: wp.array2d(dtype=vec),
+        k2: wp.array2d(dtype=vec),
+        q: int,
+    ):
+        kb = c[0] * k0[0, q]
+        kv = c[0] * k0[1, q]
+        kh = c[0] * k0[2, q]
+        if wp.static(NK > 1):
+            kb = kb + c[1] * k1[0, q]
+            kv = kv + c[1] * k1[1, q]
+            kh = kh + c[1] * k1[2, q]
+        if wp.static(NK > 2):
+            kb = kb + c[2] * k2[0, q]
+            kv = kv + c[2] * k2[1, q]
+            kh = kh + c[2] * k2[2, q]
+        return kb, kv, kh
+
+    combined.__qualname__ = combined.__name__ = f"tendency_adjoint_kbar_np{NP}_k{NK}"
+    return wp.func(combined, inline=True)
+
+
+@functools.cache
+def _point_row(terms: tuple, np_: int, nk: int):
+    """``point`` at row q of an element, a ``wp.func`` (x, Dinv, metdet, fcor, spheremp, c, k0,
+    k1, k2, fbar, q, cx, cy) → (sd, sx, sy, rb, ub, vb) rows: from λ = spheremp·k̄
+    (``_combined``) and the curl's reference derivatives cx, cy, the adjoints sd, sx, sy, rb of
+    div, bx, by and cx (cy's is −rb) and x̄'s pointwise part ub, vb; fbar += λ's wind rows
+    with topography."""
+    CONT, ADV, COR, PG, TOPO = term_flags(terms)
+    GRAD = ADV or PG
+    NP = int(np_)
+    vec = row_derivatives(NP)[0]
+    kbar = _combined(NP, nk)
+
+    def point_row(
+        x: wp.array2d(dtype=vec),
+        Dinv: wp.array2d(dtype=vec),
+        metdet: wp.array(dtype=vec),
+        fcor: wp.array(dtype=vec),
+        spheremp: wp.array(dtype=vec),
+        c: wp.vec3d,
+        k0: wp.array2d(dtype=vec),
+        k1: wp.array2d(dtype=vec),
+        k2: wp.array2d(dtype=vec),
+        fbar: wp.array2d(dtype=vec),
+        q: int,
+        cx: vec,
+        cy: vec,
+    ):
+        w = spheremp[q]
+        kb, kv, kh = kbar(c, k0, k1, k2, q)
+        lu = times(w, kb)
+        lv = times(w, kv)
+        lh = times(w, kh)
+        sd = vec()
+        sx = vec()
+        sy = vec()
+        rb = vec()
+        ub = vec()
+        vb = vec()
+        if wp.static(CONT):  # dh = −div/metdet
+            sd = -over(lh, metdet[q])
+        if wp.static(GRAD):
+            sx = -(times(Dinv[0, q], lu) + times(Dinv[1, q], lv))
+            sy = -(times(Dinv[2, q], lu) + times(Dinv[3, q], lv))
+        if wp.static(ADV or COR):  # du += rot·v, dv −= rot·u
+            if wp.static(ADV):
+                rb = over(times(lu, x[1, q]) - times(lv, x[0, q]), metdet[q])
+            rot = wp.static(absolute_vorticity(terms))(q, cx, cy, metdet, fcor)
+            ub = -times(rot, lv)
+            vb = times(rot, lu)
+        if wp.static(TOPO):
+            fbar[0, q] = fbar[0, q] + lu
+            fbar[1, q] = fbar[1, q] + lv
+        return sd, sx, sy, rb, ub, vb
+
+    point_row.__qualname__ = point_row.__name__ = f"tendency_adjoint_point_row_np{NP}_k{int(nk)}__" + "__".join(terms)
+    return wp.func(point_row, inline=True)
+
+
+@functools.cache
+def _gather_row(terms: tuple, np_: int):
+    """``gather`` at row q of an element, a ``wp.func`` (x, D, Dinv, metdet, g, q, uq, vq, a1, a2,
+    e, w1, w2) → x̄'s rows 0, 1, 2 there: x̄'s pointwise part uq, vq + what the transposed
+    derivatives of the adjoints (a1, a2 of div's along ξ and η, e of the Bernoulli's, w1, w2 of
+    the curl's) send back through the products they differentiate."""
+    CONT, ADV, _, PG, _ = term_flags(terms)
+    vec = row_derivatives(int(np_))[0]
+
+    def gather_row(
+        x: wp.array2d(dtype=vec),
+        D: wp.array2d(dtype=vec),
+        Dinv: wp.array2d(dtype=vec),
+        metdet: wp.array(dtype=vec),
+        g: f64,
+        q: int,
+        uq: vec,
+        vq: vec,
+        a1: vec,
+        a2: vec,
+        e: vec,
+        w1: vec,
+        w2: vec,
+    ):
+        u = x[0, q]
+        v = x[1, q]
+        hq = vec()
+        if wp.static(CONT):  # metdet h (Dinv₀ u + Dinv₁ v) along ξ, (Dinv₂ u + Dinv₃ v) along η
+            h = x[2, q]
+            uq += times(h, times(a1, Dinv[0, q]) + times(a2, Dinv[2, q]))
+            vq += times(h, times(a1, Dinv[1, q]) + times(a2, Dinv[3, q]))
+            hq += times(a1, times(Dinv[0, q], u) + times(Dinv[1, q], v))
+            hq += times(a2, times(Dinv[2, q], u) + times(Dinv[3, q], v))
+        if wp.static(ADV):  # ½|v|²
+            uq += times(e, u)
+            vq += times(e, v)
+        if wp.static(PG):  # g h
+            hq += g * e
+        if wp.static(ADV):  # the covariant wind: v₁ = D₀u + D₂v, v₂ = D₁u + D₃v
+            uq += times(D[1, q], w2) - times(D[0, q], w1)
+            vq += times(D[3, q], w2) - times(D[2, q], w1)
+        return uq, vq, hq
+
+    gather_row.__qualname__ = gather_row.__name__ = f"tendency_adjoint_gather_row_np{int(np_)}__" + "__".join(terms)
+    return wp.func(gather_row, inline=True)
+
+
+@functools.cache
 def element(terms: tuple, np_: int, nk: int):
     """``point`` and ``gather`` fused, one thread per element on GLL rows (``operators.row_vectors``
     views, as ``tendencies.tendency_element``), k̄ = Σ c[t]·kt over the first ``nk`` (1–3) of
@@ -175,6 +312,12 @@ def element(terms: tuple, np_: int, nk: int):
     if not 1 <= NK <= 3:
         raise ValueError(f"k̄ is a combination of one to three arrays (got {nk})")
     vec, mat, along, _ = row_derivatives(NP)  # (M F)[j] as along(M[j], F) at every np: no frozen bits here
+    # a row at a time through Warp functions (the project's 80 lines a function), forced inline,
+    # the element matrices kept in the kernel: two passes as functions passing the matrices
+    # between them copied them (1.05–1.15× the time at np 6 and 8). The same sums as in one body,
+    # but clang contracts other products into FMAs: x̄ and f̄ changed in the last bits (at np 3, 6
+    # and 8, as with every split tried; the generic target's bits the same)
+    point_row, gather_row = _point_row(terms, NP, NK), _gather_row(terms, NP)
 
     def kernel(
         x: wp.array2d(dtype=vec),
@@ -209,67 +352,34 @@ def element(terms: tuple, np_: int, nk: int):
                 v1[j] = c1
                 v2[j] = c2
         for j in range(NP):
-            q = base + j
-            w = spheremp[q]
-            kb = c[0] * k0[0, q]
-            kv = c[0] * k0[1, q]
-            kh = c[0] * k0[2, q]
-            if wp.static(NK > 1):
-                kb = kb + c[1] * k1[0, q]
-                kv = kv + c[1] * k1[1, q]
-                kh = kh + c[1] * k1[2, q]
-            if wp.static(NK > 2):
-                kb = kb + c[2] * k2[0, q]
-                kv = kv + c[2] * k2[1, q]
-                kh = kh + c[2] * k2[2, q]
-            lu = times(w, kb)
-            lv = times(w, kv)
-            lh = times(w, kh)
-            if wp.static(CONT):  # dh = −div/metdet
-                sd[j] = -over(lh, metdet[q])
-            if wp.static(GRAD):
-                sx[j] = -(times(Dinv[0, q], lu) + times(Dinv[1, q], lv))
-                sy[j] = -(times(Dinv[2, q], lu) + times(Dinv[3, q], lv))
-            if wp.static(ADV or COR):  # du += rot·v, dv −= rot·u
-                cx = vec()
-                cy = vec()
-                if wp.static(ADV):
-                    cx = along(v2[j], dvvT)
-                    cy = along(dvv[j], v1)
-                    rb[j] = over(times(lu, x[1, q]) - times(lv, x[0, q]), metdet[q])
-                rot = wp.static(absolute_vorticity(terms))(q, cx, cy, metdet, fcor)
-                ub[j] = -times(rot, lv)
-                vb[j] = times(rot, lu)
-            if wp.static(TOPO):
-                fbar[0, q] = fbar[0, q] + lu
-                fbar[1, q] = fbar[1, q] + lv
+            cx = vec()
+            cy = vec()
+            if wp.static(ADV):
+                cx = along(v2[j], dvvT)
+                cy = along(dvv[j], v1)
+            a, b, d, r, u, v = point_row(x, Dinv, metdet, fcor, spheremp, c, k0, k1, k2, fbar, base + j, cx, cy)
+            sd[j] = a
+            sx[j] = b
+            sy[j] = d
+            rb[j] = r
+            ub[j] = u
+            vb[j] = v
         for q in range(base, base + NP):  # the transposed derivatives: along(s[j], dvv), along(dvvᵀ[j], s)
             j = q - base
-            u = x[0, q]
-            v = x[1, q]
-            uq = ub[j]
-            vq = vb[j]
-            hq = vec()
-            if wp.static(CONT):  # metdet h (Dinv₀ u + Dinv₁ v) along ξ, (Dinv₂ u + Dinv₃ v) along η
+            a1 = vec()
+            a2 = vec()
+            e = vec()
+            w1 = vec()
+            w2 = vec()
+            if wp.static(CONT):
                 a1 = times(metdet[q], along(sd[j], dvv))
                 a2 = times(metdet[q], along(dvvT[j], sd))
-                h = x[2, q]
-                uq += times(h, times(a1, Dinv[0, q]) + times(a2, Dinv[2, q]))
-                vq += times(h, times(a1, Dinv[1, q]) + times(a2, Dinv[3, q]))
-                hq += times(a1, times(Dinv[0, q], u) + times(Dinv[1, q], v))
-                hq += times(a2, times(Dinv[2, q], u) + times(Dinv[3, q], v))
-            if wp.static(GRAD):  # ½|v|² and g h
+            if wp.static(GRAD):
                 e = along(sx[j], dvv) + along(dvvT[j], sy)
-                if wp.static(ADV):
-                    uq += times(e, u)
-                    vq += times(e, v)
-                if wp.static(PG):
-                    hq += g * e
-            if wp.static(ADV):  # the covariant wind: v₁ = D₀u + D₂v, v₂ = D₁u + D₃v
+            if wp.static(ADV):
                 w1 = along(dvvT[j], rb)
                 w2 = along(rb[j], dvv)
-                uq += times(D[1, q], w2) - times(D[0, q], w1)
-                vq += times(D[3, q], w2) - times(D[2, q], w1)
+            uq, vq, hq = gather_row(x, D, Dinv, metdet, g, q, ub[j], vb[j], a1, a2, e, w1, w2)
             xbar[0, q] = uq
             xbar[1, q] = vq
             xbar[2, q] = hq

@@ -362,3 +362,31 @@ def test_animation_frames_are_the_bits_of_a_full_draw(tmp_path, lat_range, width
     frames = animation.drawn_frames(fig, ax, image, title, values, titles)
     ours = animation.write_gif(tmp_path / "ours.gif", frames, animation.ANIMATION_FPS)
     assert ours.read_bytes() == (tmp_path / "matplotlib.gif").read_bytes()
+
+
+def test_a_figure_is_laid_out_once_to_the_bytes_of_matplotlibs_savefig(run_file):
+    """``figures.png_bytes`` and ``save_png`` make the constrained layout and draw once
+    (``figures.laid_out``), where matplotlib's ``savefig`` draws twice, and every figure's renderer
+    shares one mathtext parser (``new_figure``): the same PNG bytes as matplotlib's own savefig with
+    a parser of the figure's own, of a map (a colour bar, equal aspect) and of the series (two log
+    panels of 10⁻ᵏ labels, legends), each figure drawn fresh; the figure keeps its layout engine."""
+    import io
+
+    from matplotlib.layout_engine import ConstrainedLayoutEngine
+    from matplotlib.mathtext import MathTextParser
+
+    def map_figure():
+        return plotting.plot_map(ds, "vorticity", 1.0, lat_range=(0, 90))["figure"]
+
+    with plotting.open_run(run_file) as ds:
+        for make in (map_figure, lambda: plotting.plot_series(ds)):
+            theirs, fig = io.BytesIO(), make()
+            fig.canvas.get_renderer().mathtext_parser = MathTextParser("path")  # as RendererAgg makes its own
+            fig.savefig(theirs, format="png", dpi=figures.DPI)
+            fig = make()
+            assert (
+                fig.canvas.get_renderer().mathtext_parser
+                is figures.new_figure((1, 1)).canvas.get_renderer().mathtext_parser
+            )
+            assert figures.png_bytes(fig) == theirs.getvalue()
+            assert isinstance(fig.get_layout_engine(), ConstrainedLayoutEngine)

@@ -73,14 +73,15 @@ def pytest_configure(config):
 # (wall, -n 0 on one core shared with another process, 2026-11-28); they go first too, so that no
 # worker starts one of them last (warm CPU s: 10, 1 and 0.3). Summed s of the default run (-n 2, idle,
 # 2026-11-28, after the suite's cuts): mpi 63, the README's 44, test_multirate 32, methods.md's 30,
-# reference.md's 20, test_plotting 20, test_multirate_gradient 17, experiments.md's 14.
+# reference.md's 20, test_plotting 20, test_multirate_gradient 17, experiments.md's 14; after the
+# plots' cuts (2026-11-29, idle): mpi 55, test_multirate 33, the README's 31, methods.md's 20.
 HEAVY_FIRST = (
     "tests/io/test_dual.py",
     "tests/core/test_cuda_compile.py",
     "mpi",
     "tests/grid/test_mesh_cuda_compile.py",
-    "docs-readme",
     "tests/steppers/test_multirate.py",
+    "docs-readme",
     "docs-methods",
     "docs-reference",
     "tests/studies/test_plotting.py",

@@ -274,7 +274,7 @@ def _plot(sub, parents) -> None:
         const="gif",
         choices=("gif", "mp4"),
         help="instead of maps: one --field over the run's output times (or the --day list) as a GIF "
-        "(as matplotlib's PillowWriter writes one), or an MP4 where ffmpeg is on PATH; one colour scale over every frame",
+        "(matplotlib's PillowWriter), or an MP4 where ffmpeg is on PATH; one colour scale over every frame",
     )
     pl.add_argument(
         "--width",

@@ -1,7 +1,6 @@
 """A field of a run file over its output times as one animation: ``swe-sphere plot --animate``
-(a GIF written as matplotlib's ``PillowWriter`` writes one, by Pillow, each frame drawn over the
-map's background drawn once: ``drawn_frames``; an MP4 by matplotlib's ``FFMpegWriter`` where
-``ffmpeg`` is on PATH), each frame drawn as ``plotting.plot_map`` draws a map, on one colour scale."""
+(a GIF by matplotlib's ``PillowWriter``, an MP4 by its ``FFMpegWriter`` where ``ffmpeg`` is on
+PATH), each frame drawn as ``plotting.plot_map`` draws a map, on one colour scale."""
 
 from __future__ import annotations
 
@@ -70,7 +69,7 @@ def animate_run(
     anything is written: ``ValueError`` (one line) for an unknown field or format, a day the run
     does not store, fewer than two frames, a run file it cannot read; ``OutputError`` for a file
     that exists (unless ``overwrite``) or would replace the input. Returns the file's path."""
-    from matplotlib.animation import FFMpegWriter
+    from matplotlib.animation import FFMpegWriter, PillowWriter
 
     check_format(fmt)
     check_view(member, [field])
@@ -114,84 +113,23 @@ def animate_run(
     title = ax.set_title("", fontsize=10)
 
     # the layout made once, on the first frame, and kept: the frames differ in their data and the
-    # title's day alone (FuncAnimation drew each frame three times, each with the constrained layout)
+    # title's day alone. A draw a frame, the writer's: FuncAnimation drew each frame three times,
+    # each with the constrained layout again (25 frames at ne3: 18 s of drawing, now about 5), and
+    # the "none" placeholder engine had savefig draw a frame twice (None: once, the same bytes)
     title.set_text(f"{long_name}, {scene}, day {frames[0]:g}")
     fig.canvas.draw()
-    fig.set_layout_engine(None)  # not "none", whose placeholder engine has savefig draw a frame twice
-    titles = [f"{long_name}, {scene}, day {day:g}" for day in frames]
+    fig.set_layout_engine(None)
+    writer = PillowWriter(fps=fps) if fmt == "gif" else FFMpegWriter(fps=fps)
     outdir.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + f".part.{fmt}")
     try:
-        if fmt == "gif":
-            write_gif(tmp, drawn_frames(fig, ax, image, title, values, titles), fps)
-        else:  # ffmpeg reads each frame as matplotlib's writer draws it, the whole figure
-            writer = FFMpegWriter(fps=fps)
-            with writer.saving(fig, tmp, fig.dpi):
-                for data, text in zip(values, titles):
-                    image.set_data(data)
-                    title.set_text(text)
-                    writer.grab_frame()
+        with writer.saving(fig, tmp, fig.dpi):
+            for k, day in enumerate(frames):
+                image.set_data(values[k])
+                title.set_text(f"{long_name}, {scene}, day {day:g}")
+                writer.grab_frame()
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
     tmp.replace(path)
     return path
-
-
-def drawn_frames(fig, ax, image, title, values, titles):
-    """The frames of an animation of the map ``ax`` of ``fig`` (drawn once, its layout kept): for each
-    of ``values`` and ``titles``, the RGBA pixels (h, w, 4) of the figure with ``image`` showing those
-    values and ``title`` that text, the bits a full draw of the figure makes. The axes' labels and
-    tick labels, the colour bar and the rest are drawn once, into a background kept; a frame restores
-    it and draws, in ``Axes.draw``'s order, the image, what a full draw puts over it (the tick marks,
-    then the axes' frame) and the title. The pixels those touch are touched by nothing else (the tick
-    labels stand a pad off the tick marks, the colour bar a pad off the axes), so the order in which
-    the two sets are drawn does not change a bit; laying out the tick labels again, each frame, was
-    most of a frame's drawing."""
-    canvas = fig.canvas
-    moving = []
-    for child in sorted(ax.get_children(), key=lambda artist: artist.get_zorder()):  # ``Axes.draw``'s order
-        if child is image or child is title or child in ax.spines.values():
-            moving.append(child)
-        elif child in (ax.xaxis, ax.yaxis):  # below the frame: the axes' zorder 1.5 to its 2.5
-            moving += [line for tick in drawn_ticks(child) for line in (tick.gridline, tick.tick1line, tick.tick2line)]
-    moving = [artist for artist in moving if artist.get_visible()]
-    for artist in moving:
-        artist.set_visible(False)
-    try:
-        canvas.draw()
-        background = canvas.copy_from_bbox(fig.bbox)
-    finally:
-        for artist in moving:
-            artist.set_visible(True)
-    renderer = canvas.get_renderer()
-    for data, text in zip(values, titles):
-        canvas.restore_region(background)
-        image.set_data(data)
-        title.set_text(text)
-        for artist in moving:
-            artist.draw(renderer)
-        yield np.asarray(canvas.buffer_rgba())
-
-
-def drawn_ticks(axis) -> list:
-    """The ticks of ``axis`` (major, then minor) a draw of it draws: those at its locations within its view (as
-    ``matplotlib.axis.Axis`` picks them)."""
-    low, high = sorted(axis.get_view_interval())
-    close = 1e-10 * max(abs(low), abs(high), 1.0)
-    ticks = [*axis.get_major_ticks(len(axis.get_majorticklocs())), *axis.get_minor_ticks(len(axis.get_minorticklocs()))]
-    return [tick for tick in ticks if low - close <= tick.get_loc() <= high + close]
-
-
-def write_gif(path, frames, fps: int) -> Path:
-    """The RGBA ``frames`` as the GIF ``path``, ``fps`` a second, looping, as matplotlib's ``PillowWriter``
-    writes them (the same bytes): a frame without transparency as RGB, Pillow's quantizing."""
-    from PIL import Image
-
-    images = []
-    for rgba in frames:
-        height, width = rgba.shape[:2]
-        im = Image.frombytes("RGBA", (width, height), rgba.tobytes())
-        images.append(im if im.getextrema()[3][0] < 255 else im.convert("RGB"))
-    images[0].save(path, format="GIF", save_all=True, append_images=images[1:], duration=int(1000 / fps), loop=0)
-    return Path(path)

@@ -315,55 +315,6 @@ def test_the_series_panels_span_the_runs_days(run_file):
     assert left.get_xlim() == right.get_xlim() == (days[0], days[-1])
 
 
-@pytest.mark.parametrize("lat_range, width", [((0.0, 90.0), 400), (None, 800)])
-def test_animation_frames_are_the_bits_of_a_full_draw(tmp_path, lat_range, width):
-    """``plot --animate`` draws a frame over the map's background drawn once (``drawn_frames``):
-    each frame's pixels are those of the whole figure drawn with that frame's data and title, and
-    its GIF has the bytes of matplotlib's ``PillowWriter`` (a band map at 400 pixels and a global
-    one at 800: a corner's tick mark, drawn before the axes' frame as ``Axes.draw`` draws them,
-    changed a pixel at each corner drawn after it)."""
-    from matplotlib.animation import PillowWriter
-
-    from swe_sphere.studies import animation
-
-    lat_e, lon_e = plotting.plot_edges(2.0)
-    if lat_range is not None:
-        lat_e = plotting.latitude_band(lat_e, lat_range)[0]
-    lat, lon = np.meshgrid(0.5 * (lat_e[1:] + lat_e[:-1]), 0.5 * (lon_e[1:] + lon_e[:-1]), indexing="ij")
-    values = np.stack([np.sin(np.radians(2 * lon + 40 * k)) * np.cos(np.radians(lat)) for k in range(3)])
-    titles = [f"a wave, day {k}" for k in range(3)]
-
-    def figure():
-        fig = figures.new_figure(plotting.figure_size(width))
-        ax = fig.add_subplot()
-        image = plotting.draw_map(fig, ax, lon_e, lat_e, values[0], cmap="RdBu_r", symmetric=True, label="x (m)")
-        title = ax.set_title(titles[0], fontsize=10)
-        fig.canvas.draw()
-        fig.set_layout_engine(None)
-        return fig, ax, image, title
-
-    fig, ax, image, title = figure()
-    full = []
-    writer = PillowWriter(fps=animation.ANIMATION_FPS)
-    with writer.saving(fig, tmp_path / "matplotlib.gif", fig.dpi):
-        for data, text in zip(values, titles):
-            image.set_data(data)
-            title.set_text(text)
-            fig.canvas.draw()
-            full.append(np.array(fig.canvas.buffer_rgba()))
-            writer.grab_frame()
-    fig, ax, image, title = figure()
-    drawn = [frame.copy() for frame in animation.drawn_frames(fig, ax, image, title, values, titles)]
-    assert len(drawn) == 3 and drawn[0].shape == (width // 2, width, 4)
-    for k in range(3):
-        assert np.array_equal(drawn[k], full[k]), f"frame {k}: {np.sum(np.any(drawn[k] != full[k], axis=-1))} pixels"
-    assert not np.array_equal(drawn[0], drawn[1])
-    fig, ax, image, title = figure()
-    frames = animation.drawn_frames(fig, ax, image, title, values, titles)
-    ours = animation.write_gif(tmp_path / "ours.gif", frames, animation.ANIMATION_FPS)
-    assert ours.read_bytes() == (tmp_path / "matplotlib.gif").read_bytes()
-
-
 def test_a_figure_is_laid_out_once_to_the_bytes_of_matplotlibs_savefig(run_file):
     """``figures.png_bytes`` and ``save_png`` make the constrained layout and draw once
     (``figures.laid_out``), where matplotlib's ``savefig`` draws twice, and every figure's renderer
@@ -372,8 +323,8 @@ def test_a_figure_is_laid_out_once_to_the_bytes_of_matplotlibs_savefig(run_file)
     panels of 10⁻ᵏ labels, legends), each figure drawn fresh; the figure keeps its layout engine."""
     import io
 
+    from matplotlib.backends.backend_agg import RendererAgg
     from matplotlib.layout_engine import ConstrainedLayoutEngine
-    from matplotlib.mathtext import MathTextParser
 
     def map_figure():
         return plotting.plot_map(ds, "vorticity", 1.0, lat_range=(0, 90))["figure"]
@@ -381,7 +332,7 @@ def test_a_figure_is_laid_out_once_to_the_bytes_of_matplotlibs_savefig(run_file)
     with plotting.open_run(run_file) as ds:
         for make in (map_figure, lambda: plotting.plot_series(ds)):
             theirs, fig = io.BytesIO(), make()
-            fig.canvas.get_renderer().mathtext_parser = MathTextParser("path")  # as RendererAgg makes its own
+            fig.canvas.get_renderer().mathtext_parser = RendererAgg(1, 1, figures.DPI).mathtext_parser  # its own
             fig.savefig(theirs, format="png", dpi=figures.DPI)
             fig = make()
             assert (

@@ -12,6 +12,9 @@ from typing import Any
 
 import warp as wp
 
+from . import operators
+from .operators import suffix
+
 f64 = wp.float64
 vec6 = wp.types.vector(length=6, dtype=f64)  # the coefficients of two combinations (``dss_update``)
 wp.set_module_options({"enable_backward": False})
@@ -33,31 +36,32 @@ class Copies:
 
 
 @functools.cache
-def copy_value(rows: int, weighted: bool, ghosts: bool):
+def copy_value(rows: int, weighted: bool, ghosts: bool, dtype=f64):
     """A ``wp.func`` (x, d: ``Copies``, c, r) → (spheremp[c] if ``weighted`` else 1)·x[r, c], one
-    copy's term of the DSS; with ``ghosts`` a copy c ≥ ``nlocal`` is another process's, read
-    from ghost[(c − nlocal)·rows + r] (``pack``'s layout)."""
+    copy's term of the DSS, in float64 whatever x's ``dtype`` (a float32 tendency's copies are
+    summed in float64: ``ShallowWater``'s precision); with ``ghosts`` a copy c ≥ ``nlocal`` is
+    another process's, read from ghost[(c − nlocal)·rows + r] (``pack``'s layout)."""
     R, W, G = int(rows), bool(weighted), bool(ghosts)
 
-    def value(x: wp.array2d(dtype=f64), d: Copies, c: int, r: int):
+    def value(x: wp.array2d(dtype=dtype), d: Copies, c: int, r: int):
         v = f64(0.0)
         if wp.static(G):
             if c >= d.nlocal:
                 v = d.ghost[(c - d.nlocal) * R + r]
             else:
-                v = x[r, c]
+                v = f64(x[r, c])
         else:
-            v = x[r, c]
+            v = f64(x[r, c])
         if wp.static(W):
             v = d.spheremp[c] * v
         return v
 
-    value.__qualname__ = value.__name__ = f"copy_value_{R}_{'w' if W else 'u'}{'_ghosts' if G else ''}"
+    value.__qualname__ = value.__name__ = f"copy_value_{R}_{'w' if W else 'u'}{'_ghosts' if G else ''}" + suffix(dtype)
     return wp.func(value)
 
 
 @functools.cache
-def gather(rows: int, weighted: bool, copies: int, ghosts: bool = False):
+def gather(rows: int, weighted: bool, copies: int, ghosts: bool = False, dtype=f64):
     """A ``wp.func`` (x, d: ``Copies``, p) → the vector of ``rows`` values
     rspheremp[p] · Σ_copies c of p's node (spheremp[c] if ``weighted`` else 1)
     · x[r, c]: the DSS at node p, summed in the table's order, so every copy
@@ -66,13 +70,14 @@ def gather(rows: int, weighted: bool, copies: int, ghosts: bool = False):
     than a CSR gather. ``copies``: the table's columns.
 
     With ``ghosts``, a copy c ≥ ``nlocal`` is another process's, read from
-    ghost[(c − nlocal)·rows + r]. Without, ghost and nlocal are not read."""
+    ghost[(c − nlocal)·rows + r]. Without, ghost and nlocal are not read. x of ``dtype``, the
+    sums float64 (``copy_value``)."""
     R, W, C, G = int(rows), bool(weighted), int(copies), bool(ghosts)
     acc = wp.types.vector(length=R, dtype=f64)
 
-    value = copy_value(R, W, G)
+    value = copy_value(R, W, G, dtype)
 
-    def gather_copies(x: wp.array2d(dtype=f64), d: Copies, p: int):
+    def gather_copies(x: wp.array2d(dtype=dtype), d: Copies, p: int):
         s = acc()
         for k in range(C):
             c = d.table[p, k]
@@ -84,12 +89,14 @@ def gather(rows: int, weighted: bool, copies: int, ghosts: bool = False):
             s[r] = rs * s[r]
         return s
 
-    gather_copies.__qualname__ = gather_copies.__name__ = f"gather_{R}_{'w' if W else 'u'}_{C}{'_ghosts' if G else ''}"
+    gather_copies.__qualname__ = gather_copies.__name__ = (
+        f"gather_{R}_{'w' if W else 'u'}_{C}{'_ghosts' if G else ''}" + suffix(dtype)
+    )
     return wp.func(gather_copies)
 
 
 @functools.cache
-def dss_rows(rows: int, weighted: bool, copies: int, ghosts: bool = False):
+def dss_rows(rows: int, weighted: bool, copies: int, ghosts: bool = False, dtype=f64):
     """The DSS kernel for ``rows`` rows and ``copies`` columns of the
     ``dss_table`` (its own Warp module, kernel key ``dss``):
     out[r, p] = rspheremp[p] · Σ_copies c of p's node (spheremp[c] if weighted
@@ -99,38 +106,39 @@ def dss_rows(rows: int, weighted: bool, copies: int, ghosts: bool = False):
     x, d (``Copies``), out, block, offset; ``out`` must not alias ``x``.
     Dim N/block: ``block`` consecutive nodes a thread (``Topology.gathering``),
     ``offset`` in blocks.
-    ``ghosts``: copies held by other processes, as in ``gather``."""
-    sum_copies = gather(rows, weighted, copies, ghosts)
+    ``ghosts``: copies held by other processes, and x's ``dtype``, as in ``gather``."""
+    sum_copies = gather(rows, weighted, copies, ghosts, dtype)
 
-    def dss(x: wp.array2d(dtype=f64), d: Copies, out: wp.array2d(dtype=f64), block: int, offset: int):
+    def dss(x: wp.array2d(dtype=dtype), d: Copies, out: wp.array2d(dtype=f64), block: int, offset: int):
         start = (wp.tid() + offset) * block
         for p in range(start, start + block):
             s = sum_copies(x, d, p)
             for r in range(wp.static(rows)):
                 out[r, p] = s[r]
 
-    dss.__qualname__ = "dss"  # the kernel's key, as the generic kernel's
+    dss.__qualname__ = "dss" + suffix(dtype)  # the kernel's key, as the generic kernel's
     return wp.kernel(dss, enable_backward=False, module="unique")
 
 
 @functools.cache
-def dss_rows_at(rows: int, weighted: bool, copies: int, ghosts: bool = False):
+def dss_rows_at(rows: int, weighted: bool, copies: int, ghosts: bool = False, dtype=f64):
     """``dss_rows`` at the listed nodes only: out[r, p] = the DSS of x at p (``gather``)
     for p = nodes[i], i the thread index + offset; out's other nodes are not written (a
     local time step's level: the copies of the nodes its elements touch,
     ``Topology.dss_at``). Arguments: x, d (``Copies``), nodes (int32), out, offset.
-    ``ghosts``: copies held by other processes, as in ``gather``. ``out`` must not alias ``x``."""
-    sum_copies = gather(rows, weighted, copies, ghosts)
+    ``ghosts``: copies held by other processes, and x's ``dtype``, as in ``gather``. ``out`` must
+    not alias ``x``."""
+    sum_copies = gather(rows, weighted, copies, ghosts, dtype)
 
     def dss_at(
-        x: wp.array2d(dtype=f64), d: Copies, nodes: wp.array(dtype=wp.int32), out: wp.array2d(dtype=f64), offset: int
+        x: wp.array2d(dtype=dtype), d: Copies, nodes: wp.array(dtype=wp.int32), out: wp.array2d(dtype=f64), offset: int
     ):
         p = nodes[wp.tid() + offset]
         s = sum_copies(x, d, p)
         for r in range(wp.static(rows)):
             out[r, p] = s[r]
 
-    dss_at.__qualname__ = "dss_at"
+    dss_at.__qualname__ = "dss_at" + suffix(dtype)
     return wp.kernel(dss_at, enable_backward=False, module="unique")
 
 
@@ -174,7 +182,7 @@ def combination(pattern: str):
 
 
 @functools.cache
-def dss_update(rows: int, copies: int, patterns: tuple, ghosts: bool = False, weighted: bool = True):
+def dss_update(rows: int, copies: int, patterns: tuple, ghosts: bool = False, weighted: bool = True, dtype=f64):
     """The weighted DSS k of ``rows`` rows (``gather``; ``weighted`` False: the unweighted
     DSS of a weak form, as ``dss_rows``') not stored but used by
     one or two linear combinations, node by node (a Runge–Kutta stage's
@@ -185,16 +193,16 @@ def dss_update(rows: int, copies: int, patterns: tuple, ghosts: bool = False, we
     ``dss_rows``), c (6 coefficients),
     s00, s01, out0, s10, s11, out1 (rows, N) (the unused ones any such array),
     block, offset. Outputs and terms may alias each other, not x. Dim N/block
-    (as ``dss_rows``)."""
+    (as ``dss_rows``). x of ``dtype`` (``gather``), the rest float64."""
     if not 1 <= len(patterns) <= 2:
         raise ValueError(f"one or two combinations (got {len(patterns)})")
-    sum_copies = gather(rows, bool(weighted), copies, ghosts)
+    sum_copies = gather(rows, bool(weighted), copies, ghosts, dtype)
     first = combination(patterns[0])
     second = combination(patterns[-1])
     TWO = len(patterns) == 2
 
     def dss_update(
-        x: wp.array2d(dtype=f64),
+        x: wp.array2d(dtype=dtype),
         d: Copies,
         c: vec6,
         s00: wp.array2d(dtype=f64),
@@ -214,7 +222,7 @@ def dss_update(rows: int, copies: int, patterns: tuple, ghosts: bool = False, we
                 if wp.static(TWO):
                     out1[r, p] = second(wp.vec3d(c[3], c[4], c[5]), k[r], s10, s11, r, p)
 
-    name = "dss_update__" + "__".join(patterns) + ("" if weighted else "__unweighted")
+    name = "dss_update__" + "__".join(patterns) + ("" if weighted else "__unweighted") + suffix(dtype)
     dss_update.__qualname__ = dss_update.__name__ = name
     return wp.kernel(dss_update, enable_backward=False, module="unique")
 
@@ -245,20 +253,21 @@ class Edges:
 
 
 @functools.cache
-def gather_row(rows: int, weighted: bool, copies: int, ghosts: bool, np_: int):
+def gather_row(rows: int, weighted: bool, copies: int, ghosts: bool, np_: int, dtype=f64):
     """A ``wp.func`` (xr, x, d: ``Copies``, g: ``Edges``, wr, rsr, e, j, r) → row j of element e
     of the DSS of field r, rspheremp · Σ over copies c of (spheremp[c] if ``weighted`` else 1)
     · x[r, c] (a GLL row of np values, the bits of ``gather``'s). xr: x as
     ``operators.row_vectors`` (rows, N/np); wr, rsr: spheremp's first N and rspheremp as rows
-    (wr read if ``weighted``). ``ghosts`` as in ``gather``."""
+    (wr read if ``weighted``). ``ghosts`` and x's ``dtype`` as in ``gather`` (the row float64)."""
     R, W, C, G, NP = int(rows), bool(weighted), int(copies), bool(ghosts), int(np_)
     NE = NP - 2
     vec = wp.types.vector(length=NP, dtype=f64)
-    tag = f"{R}_{'w' if W else 'u'}_{C}{'_ghosts' if G else ''}_np{NP}"
+    xvec = operators.row_type(NP, dtype)
+    tag = f"{R}_{'w' if W else 'u'}_{C}{'_ghosts' if G else ''}_np{NP}" + suffix(dtype)
 
-    value = copy_value(R, W, G)
+    value = copy_value(R, W, G, dtype)
 
-    def corner_sum(x: wp.array2d(dtype=f64), d: Copies, p: int, r: int):
+    def corner_sum(x: wp.array2d(dtype=dtype), d: Copies, p: int, r: int):
         s = f64(0.0)
         for k in range(C):
             c = d.table[p, k]
@@ -269,17 +278,17 @@ def gather_row(rows: int, weighted: bool, copies: int, ghosts: bool, np_: int):
     corner_sum.__qualname__ = corner_sum.__name__ = f"corner_sum_{tag}"
     corner = wp.func(corner_sum)
 
-    def own_row(xr: wp.array2d(dtype=vec), wr: wp.array(dtype=vec), r: int, q: int):
+    def own_row(xr: wp.array2d(dtype=xvec), wr: wp.array(dtype=vec), r: int, q: int):
         if wp.static(W):
-            return wp.cw_mul(wr[q], xr[r, q])
-        return xr[r, q]
+            return wp.cw_mul(wr[q], vec(xr[r, q]))
+        return vec(xr[r, q])
 
     own_row.__qualname__ = own_row.__name__ = f"own_row_{tag}"
     own = wp.func(own_row)
 
     def row_sum(
-        xr: wp.array2d(dtype=vec),
-        x: wp.array2d(dtype=f64),
+        xr: wp.array2d(dtype=xvec),
+        x: wp.array2d(dtype=dtype),
         d: Copies,
         g: Edges,
         wr: wp.array(dtype=vec),
@@ -311,24 +320,25 @@ def gather_row(rows: int, weighted: bool, copies: int, ghosts: bool, np_: int):
 
 
 @functools.cache
-def dss_update_elements(rows: int, copies: int, patterns: tuple, ghosts: bool, weighted: bool, np_: int):
+def dss_update_elements(rows: int, copies: int, patterns: tuple, ghosts: bool, weighted: bool, np_: int, dtype=f64):
     """``dss_update`` by element on GLL rows (``gather_row``; the same bits), for the CPU, and
     with the one pattern "k" and c[0] = 1 ``dss_rows`` (1·k is k): arguments xr, x (x as rows
     and as it is), d (``Copies``), g (``Edges``), wr, rsr (spheremp's first N and rspheremp as
     rows), c, then s00, s01, out0, s10, s11, out1 as rows, offset; dim nelem. Outputs and terms
-    may alias each other, not x."""
+    may alias each other, not x. x of ``dtype`` (``gather_row``), the rest float64."""
     if not 1 <= len(patterns) <= 2:
         raise ValueError(f"one or two combinations (got {len(patterns)})")
     R, NP = int(rows), int(np_)
     vec = wp.types.vector(length=NP, dtype=f64)
-    row_dss = gather_row(rows, weighted, copies, ghosts, np_)
+    xvec = operators.row_type(NP, dtype)
+    row_dss = gather_row(rows, weighted, copies, ghosts, np_, dtype)
     first = combination(patterns[0])
     second = combination(patterns[-1])
     TWO = len(patterns) == 2
 
     def dss_update(
-        xr: wp.array2d(dtype=vec),
-        x: wp.array2d(dtype=f64),
+        xr: wp.array2d(dtype=xvec),
+        x: wp.array2d(dtype=dtype),
         d: Copies,
         g: Edges,
         wr: wp.array(dtype=vec),
@@ -352,7 +362,8 @@ def dss_update_elements(rows: int, copies: int, patterns: tuple, ghosts: bool, w
                     out1[r, q] = second(wp.vec3d(c[3], c[4], c[5]), k, s10, s11, r, q)
 
     name = "dss_update__" + "__".join(patterns) + ("" if weighted else "__unweighted")
-    dss_update.__qualname__ = dss_update.__name__ = "dss" if patterns == ("k",) else name  # "k": the DSS's key
+    name = ("dss" if patterns == ("k",) else name) + suffix(dtype)  # "k": the DSS's key
+    dss_update.__qualname__ = dss_update.__name__ = name
     return wp.kernel(dss_update, enable_backward=False, module="unique")
 
 

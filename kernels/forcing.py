@@ -25,6 +25,8 @@ keeps it exact and finite at the poles: with ψ_C, ψ_CC the C-derivatives of
 Jᵀv, J the Jacobian of the wind's extension off the sphere.
 """
 
+from typing import Any
+
 import warp as wp
 
 from .operators import CPU_FAST
@@ -43,13 +45,14 @@ def translating_low(
     north: wp.array2d(dtype=f64),
     c: TranslatingLowParams,
     t: f64,
-    tend: wp.array2d(dtype=f64),
+    tend: wp.array2d(dtype=Any),
     block: int,
     offset: int,
 ):
     """tend[:, p] += (F_u, F_v, F_h) of case 4 at time t (s) (module docstring),
     F_u, F_v in m s⁻², F_h in m s⁻¹, at ``block`` consecutive nodes a thread
-    (as ``blas.axpby``). Dim N/block."""
+    (as ``blas.axpby``), computed in float64 and added in tend's type (float64, or a float32
+    tendency: ``ShallowWater``'s precision). Dim N/block."""
     psi0, sigma, lat0, lon0 = c[0], c[1], c[2], c[3]
     u0, omega, a, g = c[4], c[5], c[6], c[7]
     rate = u0 / a
@@ -99,6 +102,10 @@ def translating_low(
         fv = vt + (zeta + f) * wp.cross(r, v) + grad_k + grad_phi
         e = wp.vec3d(east[0, p], east[1, p], east[2, p])
         n = wp.vec3d(north[0, p], north[1, p], north[2, p])
-        tend[0, p] = tend[0, p] + wp.dot(fv, e)
-        tend[1, p] = tend[1, p] + wp.dot(fv, n)
-        tend[2, p] = tend[2, p] + (f * psi_c * Cdot + wp.dot(v, grad_phi)) / g
+        tend[0, p] = tend[0, p] + type(tend[0, p])(wp.dot(fv, e))
+        tend[1, p] = tend[1, p] + type(tend[1, p])(wp.dot(fv, n))
+        tend[2, p] = tend[2, p] + type(tend[2, p])((f * psi_c * Cdot + wp.dot(v, grad_phi)) / g)
+
+
+for _t in (f64, wp.float32):  # the tendency's float types
+    wp.overload(translating_low, {"tend": wp.array2d(dtype=_t)})

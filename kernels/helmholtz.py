@@ -19,7 +19,7 @@ layout: ``helmholtz_rhs`` (with ``helmholtz_assemble``) builds its right-hand si
 and ``helmholtz_gradient`` with ``helmholtz_back_substitution`` the state from its
 solution (and, for an IMEX stage, its implicit tendency L z).
 
-The kernels made for a float type (the factories' ``dtype``) are keyed by ``keyed``;
+The kernels made for a float type (the factories' ``dtype``) are keyed by ``operators.keyed``;
 ``helmholtz_cg``'s share it.
 """
 
@@ -27,7 +27,7 @@ import functools
 
 import warp as wp
 
-from .operators import CPU_FAST, over, row_derivatives, times
+from .operators import CPU_FAST, keyed, over, row_derivatives, times
 
 f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
@@ -137,12 +137,6 @@ def scaled_divergence(np_: int, dtype=f64):
         "" if dtype is f64 else f"_{dtype.__name__}"
     )
     return wp.func(scaled_divergence)
-
-
-def keyed(kernel, name: str, dtype):
-    """Key a factory's kernel by its name and float type (Warp keys kernels by qualname)."""
-    kernel.__qualname__ = name + ("" if dtype is f64 else f"_{dtype.__name__}")
-    return kernel
 
 
 @functools.cache

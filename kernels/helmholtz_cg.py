@@ -29,7 +29,7 @@ from typing import Any
 import warp as wp
 
 from . import helmholtz
-from .helmholtz import keyed
+from .operators import keyed
 
 f64 = wp.float64
 # The module-level kernels and functions here stay in the operator's Warp module (no backward):

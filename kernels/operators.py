@@ -205,6 +205,18 @@ def laplace_wk_div(
 # stayed scalar. The metric work reads its rows the same way (``times``/``over``).
 
 
+def suffix(dtype) -> str:
+    """What a kernel's or function's key adds for its float type: nothing for float64, else
+    "_float32" (Warp keys kernels by qualname: one key a type)."""
+    return "" if dtype is f64 else f"_{dtype.__name__}"
+
+
+def keyed(kernel, name: str, dtype):
+    """Key a factory's kernel by its name and float type (``suffix``)."""
+    kernel.__qualname__ = name + suffix(dtype)
+    return kernel
+
+
 @functools.cache
 def row_type(np_: int, dtype=f64):
     """The type of one GLL row of an element: ``wp.types.vector(np, dtype)`` (float64 but in
@@ -265,6 +277,12 @@ def over(a: f64, b: f64):
 
 
 @wp.func
+def over(a: wp.float32, b: wp.float32):
+    """a / b at a float32 node (a float32 tendency's)."""
+    return a / b
+
+
+@wp.func
 def over(a: wp.types.vector(length=Any, dtype=f64), b: wp.types.vector(length=Any, dtype=f64)):
     """a / b on rows of node values, componentwise."""
     return wp.cw_div(a, b)
@@ -278,9 +296,10 @@ def over(a: wp.types.vector(length=Any, dtype=wp.float32), b: wp.types.vector(le
 
 @wp.func
 def covariant(D: wp.array2d(dtype=Any), x: wp.array2d(dtype=Any), q: int):
-    """The covariant wind (v₁, v₂) = Dᵀ (u, v) at row q of the wind in rows 0, 1 of x."""
-    u = x[0, q]
-    v = x[1, q]
+    """The covariant wind (v₁, v₂) = Dᵀ (u, v) at row q of the wind in rows 0, 1 of x, in D's
+    float type (x float64 under a float32 tendency: ``ShallowWater``'s precision)."""
+    u = type(D[0, q])(x[0, q])
+    v = type(D[0, q])(x[1, q])
     return times(D[0, q], u) + times(D[2, q], v), times(D[1, q], u) + times(D[3, q], v)
 
 
@@ -321,7 +340,7 @@ def row_derivatives(np_: int, dtype=f64):
 
     funcs = []
     for f in (along, across):
-        f.__qualname__ = f.__name__ = f"{f.__name__}_np{NP}" + ("" if dtype is f64 else f"_{dtype.__name__}")
+        f.__qualname__ = f.__name__ = f"{f.__name__}_np{NP}" + suffix(dtype)
         funcs.append(wp.func(f))
     return (vec, mat, *funcs)
 

@@ -23,7 +23,17 @@ from typing import Any
 
 import warp as wp
 
-from .operators import CPU_FAST, across_as_along, covariant, element_node, over, row_derivatives, times
+from .operators import (
+    CPU_FAST,
+    across_as_along,
+    covariant,
+    element_node,
+    over,
+    row_derivatives,
+    row_type,
+    suffix,
+    times,
+)
 
 f64 = wp.float64
 
@@ -53,7 +63,7 @@ def absolute_vorticity(terms: tuple):
         metdet: wp.array(dtype=Any),
         fcor: wp.array(dtype=Any),
     ):
-        rot = type(cx)(f64(0.0))
+        rot = type(cx)(0.0)
         if wp.static(ADV):
             rot += over(cx - cy, metdet[p])
         if wp.static(COR):
@@ -69,8 +79,9 @@ def finish(terms: tuple, weighted: bool = False):
     """The pointwise end of the tendency, shared by both layouts: from the
     reference derivatives div = Σ∂(metdet h c), (bx, by) = ∂(Bernoulli), and
     cx − cy = ∂ξ v₂ − ∂η v₁ (covariant wind), write tend[:, p], times mass[p] (the element
-    mass spheremp) if ``weighted``. Generic: p is a node and the values float64 (per-node
-    kernel), or p is a row and the values rows (``operators.row_vectors``, the element kernel)."""
+    mass spheremp) if ``weighted``. Generic: p is a node and the values scalars (per-node
+    kernel), or p is a row and the values rows (``operators.row_vectors``, the element kernel),
+    of the tendency's float type; the state x float64, its wind read in that type."""
     CONT, ADV, COR, PG, TOPO = term_flags(terms)
     W = bool(weighted)
     GRAD = ADV or PG
@@ -90,7 +101,7 @@ def finish(terms: tuple, weighted: bool = False):
         mass: wp.array(dtype=Any),
         tend: wp.array2d(dtype=Any),
     ):
-        zero = type(div)(f64(0.0))
+        zero = type(div)(0.0)
         du = zero
         dv = zero
         dh = zero
@@ -101,8 +112,8 @@ def finish(terms: tuple, weighted: bool = False):
             dv = -(times(Dinv[1, p], bx) + times(Dinv[3, p], by))
         if wp.static(ADV or COR):  # −(ζ + f) k×v
             rot = wp.static(absolute_vorticity(terms))(p, cx, cy, metdet, fcor)
-            du += times(rot, x[1, p])
-            dv -= times(rot, x[0, p])
+            du += times(rot, type(rot)(x[1, p]))  # the state's wind in the tendency's float type
+            dv -= times(rot, type(rot)(x[0, p]))
         if wp.static(TOPO):
             du += forcing[0, p]
             dv += forcing[1, p]
@@ -120,30 +131,36 @@ def finish(terms: tuple, weighted: bool = False):
 
 
 @functools.cache
-def tendency(terms: tuple, np_static: int = 0, weighted: bool = False):
+def tendency(terms: tuple, np_static: int = 0, weighted: bool = False, dtype=f64):
     """The tendency kernel for ``terms`` (a tuple in ``TENDENCY_TERMS`` order). Arguments:
     x (3, N) state, D, Dinv (4, N), metdet, fcor (N), forcing (2, N) topographic −g∇hs,
     mass (N) the element mass spheremp (read if ``weighted``: tend = spheremp·F, whose
-    unweighted DSS is F's weighted one), dvv (np, np), np, g, tend (3, N) output, offset.
+    unweighted DSS is F's weighted one), dvv (np, np), np, g, h0, tend (3, N) output, offset.
     ``np_static`` > 0: compiled for that np
     (the np argument unread): its loops along the element's rows unrolled, its node indices
-    divided by a constant; 0: np read at run time. The same arithmetic either way."""
+    divided by a constant; 0: np read at run time. The same arithmetic either way. ``dtype``:
+    the float type of every array but the state x (float64) and of g (float64, or float32:
+    ``ShallowWater``'s precision). Under float32 the Bernoulli function's g h is g (h − h0), h0
+    (m) a reference depth subtracted in float64 before the rounding (∇(g h0) = 0: the pressure
+    gradient keeps the digits of h's variation, not of its 10 km); under float64 h0 is unread."""
     CONT, ADV, _, PG, _ = term_flags(terms)
     GRAD = ADV or PG  # ∇ of the Bernoulli function ½|v|² + g h
     NP = int(np_static)
+    SHIFT = dtype is not f64
 
     def kernel(
         x: wp.array2d(dtype=f64),
-        D: wp.array2d(dtype=f64),
-        Dinv: wp.array2d(dtype=f64),
-        metdet: wp.array(dtype=f64),
-        fcor: wp.array(dtype=f64),
-        forcing: wp.array2d(dtype=f64),
-        mass: wp.array(dtype=f64),
-        dvv: wp.array2d(dtype=f64),
+        D: wp.array2d(dtype=dtype),
+        Dinv: wp.array2d(dtype=dtype),
+        metdet: wp.array(dtype=dtype),
+        fcor: wp.array(dtype=dtype),
+        forcing: wp.array2d(dtype=dtype),
+        mass: wp.array(dtype=dtype),
+        dvv: wp.array2d(dtype=dtype),
         np_: int,
-        g: f64,
-        tend: wp.array2d(dtype=f64),
+        g: dtype,
+        h0: f64,
+        tend: wp.array2d(dtype=dtype),
         offset: int,
     ):
         p = wp.tid() + offset
@@ -151,61 +168,71 @@ def tendency(terms: tuple, np_static: int = 0, weighted: bool = False):
         if wp.static(NP > 0):
             n = wp.static(NP)
         base, i, j = element_node(p, n)
-        div = f64(0.0)  # Σ ∂(metdet c)        (continuity)
-        bx = f64(0.0)  # ∂ξ, ∂η of the Bernoulli function
-        by = f64(0.0)
-        cx = f64(0.0)  # ∂ξ v₂, ∂η v₁ of the covariant wind (vorticity)
-        cy = f64(0.0)
+        div = dtype(0.0)  # Σ ∂(metdet c)        (continuity)
+        bx = dtype(0.0)  # ∂ξ, ∂η of the Bernoulli function
+        by = dtype(0.0)
+        cx = dtype(0.0)  # ∂ξ v₂, ∂η v₁ of the covariant wind (vorticity)
+        cy = dtype(0.0)
         for m in range(n):
             q = base + j * n + m  # along ξ through (i, j)
             r = base + m * n + i  # along η
+            uq, vq, hq = dtype(x[0, q]), dtype(x[1, q]), dtype(x[2, q])  # the state in the tendency's type
+            ur, vr, hr = dtype(x[0, r]), dtype(x[1, r]), dtype(x[2, r])
             if wp.static(CONT):
-                div += dvv[i, m] * metdet[q] * x[2, q] * (Dinv[0, q] * x[0, q] + Dinv[1, q] * x[1, q])
-                div += dvv[j, m] * metdet[r] * x[2, r] * (Dinv[2, r] * x[0, r] + Dinv[3, r] * x[1, r])
+                div += dvv[i, m] * metdet[q] * hq * (Dinv[0, q] * uq + Dinv[1, q] * vq)
+                div += dvv[j, m] * metdet[r] * hr * (Dinv[2, r] * ur + Dinv[3, r] * vr)
             if wp.static(GRAD):
-                eq = f64(0.0)
-                er = f64(0.0)
+                eq = dtype(0.0)
+                er = dtype(0.0)
                 if wp.static(ADV):
-                    eq += f64(0.5) * (x[0, q] * x[0, q] + x[1, q] * x[1, q])
-                    er += f64(0.5) * (x[0, r] * x[0, r] + x[1, r] * x[1, r])
+                    eq += dtype(0.5) * (uq * uq + vq * vq)
+                    er += dtype(0.5) * (ur * ur + vr * vr)
                 if wp.static(PG):
-                    eq += g * x[2, q]
-                    er += g * x[2, r]
+                    if wp.static(SHIFT):  # h − H₀ formed in float64 before it is rounded
+                        eq += g * dtype(x[2, q] - h0)
+                        er += g * dtype(x[2, r] - h0)
+                    else:
+                        eq += g * hq
+                        er += g * hr
                 bx += dvv[i, m] * eq
                 by += dvv[j, m] * er
             if wp.static(ADV):
-                cx += dvv[i, m] * (D[1, q] * x[0, q] + D[3, q] * x[1, q])
-                cy += dvv[j, m] * (D[0, r] * x[0, r] + D[2, r] * x[1, r])
+                cx += dvv[i, m] * (D[1, q] * uq + D[3, q] * vq)
+                cy += dvv[j, m] * (D[0, r] * ur + D[2, r] * vr)
         wp.static(finish(terms, weighted))(p, div, bx, by, cx, cy, x, Dinv, metdet, fcor, forcing, mass, tend)
 
     kernel.__qualname__ = kernel.__name__ = (
-        "tendency__" + "__".join(terms) + ("__mass" if weighted else "") + (f"__np{NP}" if NP else "")
+        "tendency__" + "__".join(terms) + ("__mass" if weighted else "") + (f"__np{NP}" if NP else "") + suffix(dtype)
     )
     return wp.kernel(kernel, enable_backward=False, module="unique")
 
 
 @functools.cache
-def tendency_element(terms: tuple, np_: int, weighted: bool = False):
+def tendency_element(terms: tuple, np_: int, weighted: bool = False, dtype=f64):
     """The tendency kernel for ``terms``, one thread per element, on GLL rows
     (``operators.row_vectors`` views). Arguments: x (3, N/np) state, D, Dinv
     (4, N/np), metdet, fcor (N/np), forcing (2, N/np) topographic −g∇hs, mass (N/np)
-    (``weighted``: as ``tendency``'s), g, dvv (``operators.dvv_matrix``), tend (3, N/np)
-    output, offset (in elements). Dim nelem."""
+    (``weighted``: as ``tendency``'s), g, h0 (a float64 row of the reference depth),
+    dvv (``operators.dvv_matrix``), tend (3, N/np) output, offset (in elements). Dim nelem.
+    ``dtype`` and h0 as ``tendency``'s."""
     CONT, ADV, _, PG, _ = term_flags(terms)
     GRAD = ADV or PG
     NP = int(np_)
-    vec, mat, along, across = row_derivatives(NP)
+    vec, mat, along, across = row_derivatives(NP, dtype)
+    state = row_type(NP)  # the state's rows, float64
+    SHIFT = dtype is not f64
     ROW = across_as_along(NP)  # ∂η as along(dvv[j], F)
 
     def kernel(
-        x: wp.array2d(dtype=vec),
+        x: wp.array2d(dtype=state),
         D: wp.array2d(dtype=vec),
         Dinv: wp.array2d(dtype=vec),
         metdet: wp.array(dtype=vec),
         fcor: wp.array(dtype=vec),
         forcing: wp.array2d(dtype=vec),
         mass: wp.array(dtype=vec),
-        g: f64,
+        g: dtype,
+        h0: state,
         dvv: mat,
         tend: wp.array2d(dtype=vec),
         offset: int,
@@ -219,20 +246,23 @@ def tendency_element(terms: tuple, np_: int, weighted: bool = False):
         v2 = mat()
         for j in range(NP):
             q = base + j
-            u = x[0, q]
-            v = x[1, q]
-            h = x[2, q]
+            u = vec(x[0, q])  # the state's rows in the tendency's type
+            v = vec(x[1, q])
+            h = vec(x[2, q])
             if wp.static(CONT):
                 Jh = times(metdet[q], h)
                 f1[j] = times(Jh, times(Dinv[0, q], u) + times(Dinv[1, q], v))
                 f2[j] = times(Jh, times(Dinv[2, q], u) + times(Dinv[3, q], v))
             if wp.static(ADV):
-                E[j] = f64(0.5) * (times(u, u) + times(v, v))
+                E[j] = dtype(0.5) * (times(u, u) + times(v, v))
                 c1, c2 = covariant(D, x, q)
                 v1[j] = c1
                 v2[j] = c2
             if wp.static(PG):
-                E[j] = E[j] + g * h
+                if wp.static(SHIFT):  # h − H₀ formed in float64 before it is rounded
+                    E[j] = E[j] + g * vec(x[2, q] - h0)
+                else:
+                    E[j] = E[j] + g * h
         # a loop over the rows with a run-time start, which Warp does not unroll: unrolled,
         # the four rows' derivatives and finish in one block were half scalar after
         # clang's SLP vectorizer (measured: 0.6 of the scalar kernel's time, rolled 0.5)
@@ -262,5 +292,7 @@ def tendency_element(terms: tuple, np_: int, weighted: bool = False):
                     cy = across(v1, j, dvv)
             wp.static(finish(terms, weighted))(q, div, bx, by, cx, cy, x, Dinv, metdet, fcor, forcing, mass, tend)
 
-    kernel.__qualname__ = kernel.__name__ = "tendency__" + "__".join(terms) + ("__mass" if weighted else "")
+    kernel.__qualname__ = kernel.__name__ = (
+        "tendency__" + "__".join(terms) + ("__mass" if weighted else "") + suffix(dtype)
+    )
     return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)

@@ -328,7 +328,9 @@ class Topology(RankReductions):
         if self.edges is not None:
             return self.dss_update(x, [(out, [(1.0, None)])], weighted=weighted)
         return self.gathering(
-            x, lambda rows, copies, ghosts: dss.dss_rows(rows, bool(weighted), copies, ghosts=ghosts), [out]
+            x,
+            lambda rows, copies, ghosts: dss.dss_rows(rows, bool(weighted), copies, ghosts=ghosts, dtype=x.dtype),
+            [out],
         )
 
     def part_copies(self, elements: np.ndarray, whole: np.ndarray | None = None) -> tuple[wp.array, dss.Copies]:
@@ -363,7 +365,7 @@ class Topology(RankReductions):
         a part of the elements contributes, assembled over the nodes it touches. The
         neighbours' copies are exchanged first (all of them: the table picks the part's)."""
         ghosts = bool(len(self.neighbours))
-        kernel = dss.dss_rows_at(x.shape[0], bool(weighted), self.table.shape[1], ghosts)
+        kernel = dss.dss_rows_at(x.shape[0], bool(weighted), self.table.shape[1], ghosts, x.dtype)
         launch = record(kernel, nodes.shape[0], [x, copies, nodes, out], device=self.backend, threads=self.threads)
         return [*self._exchange(x), launch]
 
@@ -386,14 +388,14 @@ class Topology(RankReductions):
             return self.by_element(
                 x,
                 lambda rows, copies, ghosts, np_: dss.dss_update_elements(
-                    rows, copies, tuple(patterns), ghosts, bool(weighted), np_
+                    rows, copies, tuple(patterns), ghosts, bool(weighted), np_, x.dtype
                 ),
                 [dss.vec6(*coefs), *(row_vectors(a, self.grid.np) for a in arrays)],
             )
         return self.gathering(
             x,
             lambda rows, copies, ghosts: dss.dss_update(
-                rows, copies, tuple(patterns), ghosts=ghosts, weighted=bool(weighted)
+                rows, copies, tuple(patterns), ghosts=ghosts, weighted=bool(weighted), dtype=x.dtype
             ),
             [dss.vec6(*coefs), *arrays],
         )

@@ -31,6 +31,7 @@ from .gravity_wave import GravityWaveOperator
 from .helmholtz import HelmholtzOptions, HelmholtzSolver
 from .hyperviscosity import Hyperviscosity
 from .launches import LaunchRecorder, check_updates
+from .precision import TendencyArrays, precision_dtype, reference_depth
 
 TERMS = (
     "continuity",
@@ -51,7 +52,7 @@ class ElementPart(NamedTuple):
     launch less is worth computing), ``nelem`` its elements, ``nodes`` (int32 device array)
     the element-local nodes whose unique node one of them touches (every copy), ``copies``
     the DSS's table of its own copies alone (``Topology.part_copies``), ``tend`` (3, N) the
-    element-local tendency its kernels write, ``exact`` the ranges of its elements alone (a
+    element-local tendency its kernels write (in the model's precision), ``exact`` the ranges of its elements alone (a
     gradient's transposes run over these: a gap's elements are computed, not assembled)."""
 
     runs: list
@@ -62,14 +63,14 @@ class ElementPart(NamedTuple):
     exact: list
 
     @classmethod
-    def of(cls, topology, elements, gap: int = 0, whole=None) -> ElementPart:
+    def of(cls, topology, elements, gap: int = 0, whole=None, dtype=f64) -> ElementPart:
         """The part of ``elements`` (indices of elements ``topology`` holds, ascending, distinct):
         its tendency kernels run over ranges of consecutive elements that hold them, two
         ranges merged where at most ``gap`` other elements lie between (computed, and left
         out of the assembly: a launch's fixed cost against theirs); its DSS gathers its
         own elements' copies alone (``Topology.part_copies``), with ``whole`` (nelem_total,)
         bool, the part over the whole grid, those other ranks hold too (needed on several
-        ranks). ValueError for indices that are not ascending, distinct elements held;
+        ranks); ``dtype`` its tendency's float type (the model's ``TendencyArrays.dtype``). ValueError for indices that are not ascending, distinct elements held;
         ``gap`` < 0; several ranks without ``whole``."""
         e = np.asarray(elements, dtype=np.int64)
         nelem = topology.grid.nelem
@@ -78,7 +79,7 @@ class ElementPart(NamedTuple):
         if isinstance(gap, bool) or int(gap) != gap or gap < 0:
             raise ValueError(f"gap must be an integer >= 0 (got {gap})")
         nodes, copies = topology.part_copies(e, whole)
-        tend = wp.zeros((3, topology.N), dtype=f64, device=topology.device)
+        tend = wp.zeros((3, topology.N), dtype=dtype, device=topology.device)
         return cls(element_runs(e, gap), int(e.size), nodes, copies, tend, element_runs(e, 0))
 
 
@@ -145,6 +146,10 @@ class ShallowWater:
         unique-node vectors, global reductions); None: one over the whole grid.
         Its ``backend`` (``core.backend``) is the model's ``backend``, the device's
         choices decided once.
+    precision : "float64" (default) or "float32": the float type the tendency is computed in
+        (``model.precision``: the state, its updates, the ∇⁴ and every sum stay float64).
+    depth : a float32 tendency's reference depth H₀ (m; ``precision.TendencyArrays``): None, 0
+        (no shift); ``from_case`` gives the midpoint of its initial depth's extremes.
 
     The state is a ``wp.array2d`` (3, N) of rows u, v (m s⁻¹, east/north) and h
     (fluid depth, m), element-local and continuous (equal on all copies).
@@ -183,6 +188,8 @@ class ShallowWater:
         per_element=None,
         topology=None,
         forcing=None,
+        precision="float64",
+        depth=None,
     ):
         if not isinstance(grid, CubedSphere):
             raise ArgumentError(f"grid must be a CubedSphere (got {got(grid)})")
@@ -207,6 +214,7 @@ class ShallowWater:
                 f"device {device!r} is not its topology's ({topology.backend.device!r}): give the topology's device"
             )
         terms = _checked_terms(terms, forcing)
+        dtype = precision_dtype(precision)
         self.forcing = forcing if "forcing" in terms else None
         self.time = 0.0  # s, the model time of the next RHS evaluation (``set_time``)
         self._forcing_launches = []  # every recorded forcing launch, whose t set_time sets
@@ -230,6 +238,12 @@ class ShallowWater:
         self.operators = ElementOperators(grid, topo, self.launches, per_element, device, fcor, hs)
         self.tend = wp.zeros((3, N), dtype=f64, device=device)
         self.topo_forcing = self._topography_forcing(hs) if "topography" in terms else None
+        self.precision = precision
+        # what the tendency kernels read and write, in the precision's float type
+        depth = 0.0 if depth is None else number_argument("depth", depth, "m")
+        self.tendency_arrays = TendencyArrays.of(
+            dtype, self.operators, self.spheremp[:N], self.topo_forcing, self.tend, depth
+        )
         self.hv = Hyperviscosity(self) if "hyperviscosity" in terms else None  # the ∇⁴: its plan, work arrays, launches
         self.filter = None if element_filter is None else ElementFilter(self, *element_filter)  # a scene's [filter]
         self.bad_nodes = BadNodes(self)  # the check of a state for non-finite or dry nodes
@@ -255,6 +269,9 @@ class ShallowWater:
         (nu…, device, threads, per_element, topology). Raises as the constructor."""
         fcor, hs = case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon)
         forcing = case.forcing() if "forcing" in terms else None
+        if options.get("precision", "float64") != "float64" and options.get("depth") is None:
+            topology = options.get("topology") or Topology(grid, Backend.of(options.get("device", "cpu")))
+            options["depth"] = reference_depth(case.initial(grid.lat, grid.lon)[2], topology)
         return cls(grid, terms, fcor, hs, g=case.planet.g, forcing=forcing, **options)
 
     @classmethod
@@ -275,6 +292,7 @@ class ShallowWater:
             "hypervis_every": scene.hypervis_every,
             "element_filter": scene.element_filter,
         }
+        options.setdefault("precision", getattr(scene, "precision", "float64"))
         return cls.from_case(grid, case, scene.terms, **hyperviscosity, **options)
 
     # -- the recorder's (``launches.LaunchRecorder``) -----------------------
@@ -296,20 +314,22 @@ class ShallowWater:
         DSS then reads no copy's mass (0.72–0.84× a DSS update at ne30 np4 and ne12 np8); a
         forcing adds F_forcing after it, so there F and the weighted DSS."""
         terms = tuple(term for term in tendencies.TENDENCY_TERMS if term in named)
-        tend, runs = (self.tend, [None]) if part is None else (part.tend, part.runs)
+        t = self.tendency_arrays
+        tend, runs = (t.tend, [None]) if part is None else (part.tend, part.runs)
         launches, ops = [], self.operators
         forced = self.forcing is not None and "forcing" in named
         if terms:
-            forcing = self.topo_forcing if self.topo_forcing is not None else ops.vec_work  # read only with topography
-            args = [x, ops.D, ops.Dinv, ops.metdet, ops.fcor, forcing, self.spheremp[: self.N]]
+            forcing = t.forcing if t.forcing is not None else t.D[0:2]  # read only with topography
+            args = [x, t.D, t.Dinv, t.metdet, t.fcor, forcing, t.mass]
             for run in runs:
                 if ops.per_element:
-                    kernel = tendencies.tendency_element(terms, self.grid.np, not forced)
-                    inputs = [*map(ops.as_rows, args), self.g, ops.dvv_rows, ops.as_rows(tend)]
+                    kernel = tendencies.tendency_element(terms, self.grid.np, not forced, t.dtype)
+                    h0 = operators.row_type(self.grid.np)(t.depth)
+                    inputs = [*map(ops.as_rows, args), self.g, h0, t.dvv_rows, ops.as_rows(tend)]
                     launches.append(self.launches.elements(kernel, inputs, run))
                 else:
-                    kernel = tendencies.tendency(terms, ops.static_np, not forced)
-                    inputs = [*args, ops.dvv, self.grid.np, self.g, tend]
+                    kernel = tendencies.tendency(terms, ops.static_np, not forced, t.dtype)
+                    inputs = [*args, t.dvv, self.grid.np, self.g, t.depth, tend]
                     launches.append(self.launches.nodes(kernel, self.N, inputs, elements=run))
         if forced:
             kernel, params = self.forcing
@@ -325,7 +345,7 @@ class ShallowWater:
 
     def _build_rhs(self, x, out, named, part=None):
         launches, lo, hi, weighted = self._build_tendency(x, named, part)
-        tend = self.tend if part is None else part.tend
+        tend = self.tendency_arrays.tend if part is None else part.tend
         rows = (lambda a: a) if (lo, hi) == (0, 3) else (lambda a: a[lo:hi])
         if part is None:
             launches.extend(self.topology.dss(rows(tend), not weighted, rows(out)))
@@ -356,7 +376,7 @@ class ShallowWater:
             else:
                 groups.append(((r0, r1), [sliced]))
         for (r0, r1), group in groups:
-            launches.extend(self.topology.dss_update(self.tend[r0:r1], group, weighted=not weighted))
+            launches.extend(self.topology.dss_update(self.tendency_arrays.tend[r0:r1], group, weighted=not weighted))
         return launches + rest  # after the tendency, which may read their outputs
 
     def set_time(self, t: float) -> None:

@@ -6,7 +6,8 @@ branches, the solver kernels) fails here on every machine. The modules are
 found, not listed: every ``wp.Kernel`` defined at module level in
 ``swe_sphere.kernels``'s submodules, plus every project kernel launched while
 each bundled scene's model (both layouts: per node, CUDA's default, and per
-element) takes two steps of its stepper on ne = 2 np = 4 on the CPU, every
+element; float64 and a float32 tendency) takes two steps of its stepper on ne = 2 np = 4 on
+the CPU, every
 stepper (its solvers are the same on every device) on the scene
 with the most terms, the ∇⁴ with ν_div ≠ ν and the element filter; the DSS kernels are also built with ghosts (MPI; the Helmholtz kernels
 read ghosts at run time, one build for both). Warp's
@@ -84,11 +85,11 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
     richest = max((s for s in scenes if "pressure_gradient" in s.terms), key=lambda s: len(s.terms))
     grid = CubedSphere(2, 4)
     done = set()
-    for scene in scenes:
+    for scene, precision in [*((s, "float64") for s in scenes), *((s, "float32") for s in scenes)]:
         case = scene.make_case()
         for per_element in (False, True):
-            steppers = STEPPERS if scene is richest else (scene.stepper,)
-            todo = [name for name in steppers if (scene.terms, name, per_element) not in done]
+            steppers = STEPPERS if scene is richest and precision == "float64" else (scene.stepper,)
+            todo = [name for name in steppers if (scene.terms, name, per_element, precision) not in done]
             if not todo:
                 continue
             model = ShallowWater(
@@ -104,14 +105,17 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
                 device="cpu",
                 per_element=per_element,
                 forcing=case.forcing() if "forcing" in scene.terms else None,
+                precision=precision,
             )
             for name in todo:
-                done.add((scene.terms, name, per_element))
+                done.add((scene.terms, name, per_element, precision))
                 stepper = make_stepper(name, model, scene.dt)
                 x = model.new_state(*np.stack(case.initial(grid.lat, grid.lon)))
                 stepper.step(x)  # two steps: a leapfrog's first is its one-step start
                 stepper.step(x)
-            if scene is richest:  # the float32 Helmholtz solves (refined and alone) of "mixed" precision
+            if (
+                scene is richest and precision == "float64"
+            ):  # the float32 Helmholtz solves (refined and alone) of "mixed" precision
                 for name in ("imex", "implicit"):
                     stepper = make_stepper(name, model, scene.dt, precision="mixed")
                     stepper.step(model.new_state(*np.stack(case.initial(grid.lat, grid.lon))))
@@ -188,10 +192,12 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
     names = list(modules)
     scenes = [load_scene(p) for p in list_scenes()]
     for terms in {tuple(t for t in s.terms if t not in ("hyperviscosity", "forcing")) for s in scenes}:
-        pattern = "tendency__" + "__".join(terms) + "(__mass)?(__np4)?_[0-9a-f]{8}"
-        tendency = [n for n in names if re.fullmatch(pattern, n)]
-        # per node (compiled for np 4) and per element, mass-weighted (unforced) or not (forced: TC4's)
-        assert sorted("__np4" in n for n in tendency) in ([False, True], [False, False, True, True]), (terms, tendency)
+        for precision in ("", "_float32"):
+            pattern = "tendency__" + "__".join(terms) + f"(__mass)?(__np4)?{precision}_[0-9a-f]{{8}}"
+            tendency = [n for n in names if re.fullmatch(pattern, n)]
+            # per node (compiled for np 4) and per element, mass-weighted (unforced) or not (forced: TC4's)
+            both = ([False, True], [False, False, True, True])
+            assert sorted("__np4" in n for n in tendency) in both, (terms, precision, tendency)
     keys = {k.key for k in launched}
     for key in (
         "laplacian_element__first",
@@ -247,7 +253,11 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
     ):
         assert key in keys, key
     assert "tendency__continuity__momentum_advection__coriolis__pressure_gradient__topography__mass__np4" in keys
-    plain_dss = {k.module.name for k in launched if k.key == "dss" or k.key.startswith(("dss_update__", "dss_apply"))}
+    plain_dss = {
+        k.module.name
+        for k in launched
+        if k.key in ("dss", "dss_float32") or k.key.startswith(("dss_update__", "dss_apply"))
+    }
     assert any(k.key.startswith("dss_update__") for k in launched)  # the explicit stages' combinations
     assert len(ghosted) == len(plain_dss) >= 3 and not plain_dss & {k.module.name for k in ghosted}
     files = {k.func.__module__ for k in module_level + launched}

@@ -1,0 +1,88 @@
+"""The model's precision: the float type its tendency is computed in.
+
+``precision = "float32"`` computes the shallow-water tendency (``kernels.tendencies``) in
+float32 from the float64 state, and its DSS sums the float32 element tendencies in float64
+into the float64 stage and step updates (``kernels.dss``). What stays float64, as the ports
+that work keep it (IFS, FESOM2, Klöwer et al. 2022, J. Adv. Model. Earth Syst. 14,
+e2021MS002684): the grid's geometry, computed in float64 and rounded once to float32 for the
+tendency; the state and the accumulation of every increment, small against it (a step changes
+h of 10 km by centimetres: float32's 6e-8 relative spacing would swallow them); the clock;
+the ∇⁴ and the solvers; global sums, invariants and error norms. A float32 tendency reads
+half the geometry's and the tendency's bytes, and on a GPU without fast float64 runs at
+float32's rate.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+import warp as wp
+
+from ..core.arguments import got
+from ..core.errors import ArgumentError
+from ..kernels import operators
+
+PRECISIONS = {"float64": wp.float64, "float32": wp.float32}
+
+
+def precision_dtype(precision: str):
+    """The Warp float type of ``precision`` ("float64" or "float32"); ``ArgumentError``
+    naming ``precision`` otherwise."""
+    if not isinstance(precision, str) or precision not in PRECISIONS:
+        raise ArgumentError(f"precision must be one of {', '.join(PRECISIONS)} (got {got(precision)})")
+    return PRECISIONS[precision]
+
+
+class TendencyArrays(NamedTuple):
+    """What the tendency kernels read and write besides the state, in the model's float type
+    ``dtype``: the metric terms ``D``, ``Dinv`` (4, N), ``metdet``, ``fcor``, the element mass
+    ``mass`` (spheremp, N) and the topographic forcing −g∇hs ``forcing`` (2, N; None without
+    topography), the derivative matrix ``dvv`` (np, np) and ``dvv_rows`` (the per-element
+    kernels'), the element-local tendency ``tend`` (3, N) they write, and ``depth`` H₀ (m) the
+    reference depth the pressure gradient's g h is taken from (``kernels.tendencies.tendency``:
+    ∇(g(h − H₀)) with h − H₀ formed in float64, so that float32 carries h's variation, not its
+    mean: SpeedyWeather's scaling of its variables). Under float64 these are the model's own
+    arrays (nothing is copied) and H₀ is unread; under float32 copies rounded once from the
+    float64 arrays."""
+
+    dtype: object
+    D: wp.array2d
+    Dinv: wp.array2d
+    metdet: wp.array
+    fcor: wp.array
+    mass: wp.array
+    forcing: wp.array2d | None
+    dvv: wp.array2d
+    dvv_rows: object
+    tend: wp.array2d
+    depth: float
+
+    @classmethod
+    def of(
+        cls, dtype, ops, mass: wp.array, forcing: wp.array2d | None, tend: wp.array2d, depth: float
+    ) -> TendencyArrays:
+        """The arrays of ``ops`` (the model's ``ElementOperators``), ``mass``, ``forcing`` and
+        ``tend`` (float64) as the tendency reads them in ``dtype``, and the reference ``depth`` (m)."""
+        if dtype is wp.float64:
+            return cls(dtype, ops.D, ops.Dinv, ops.metdet, ops.fcor, mass, forcing, ops.dvv, ops.dvv_rows, tend, 0.0)
+
+        def rounded(a):
+            return None if a is None else wp.array(a.numpy(), dtype=dtype, device=a.device)
+
+        dvv = np.asarray(ops.grid.rule.dvv)
+        return cls(
+            dtype,
+            *map(rounded, (ops.D, ops.Dinv, ops.metdet, ops.fcor, mass, forcing, ops.dvv)),
+            operators.dvv_matrix(dvv, dtype),
+            wp.zeros(tend.shape, dtype=dtype, device=tend.device),
+            float(depth),
+        )
+
+
+def reference_depth(h: np.ndarray, topology) -> float:
+    """H₀ (m) for a float32 tendency: the midpoint of the global extremes of ``h`` (this rank's
+    element-local depths; ``topology`` reduces over the ranks). Max and min are exact in any
+    order, so every rank count gets the same H₀, and the same bits."""
+    h = np.asarray(h, dtype=float)
+    return 0.5 * (topology.max(float(h.max())) - topology.max(float(-h.min())))

@@ -55,7 +55,8 @@ def run(
         Steps as captured graphs (``Simulation``'s; default ``SWE_SPHERE_GRAPHS``, else "auto").
     **overrides
         As on the command line: ``ne``, ``np``, ``dt`` (s), ``days``, ``stepper``, ``mesh`` (an
-        Exodus II file, as ``--mesh``; dt and ν rescale with a new grid as for ``--ne``), and any
+        Exodus II file, as ``--mesh``; dt and ν rescale with a new grid as for ``--ne``),
+        ``precision`` ("float64" or "float32": the RHS tendency's, as ``--precision``), and any
         scene value by its table, e.g. ``hyperviscosity={"nu": 5e14}``,
         ``implicit={"preconditioner": "helmholtz"}``, ``output={"every_days": 0.25}``,
         ``terms=[...]``, ``planet={"radius": 637122.0, "omega": 7.292e-4}`` (m, s⁻¹; ``gravity``

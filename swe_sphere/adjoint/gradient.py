@@ -77,8 +77,14 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
     its ``ShallowWater`` (``model.topology`` assembles the ranks' parts), its stepper (at the
     scene's Δt, under no step control) and its case's initial state (3, N) numpy on this rank's
     nodes; ``hs`` (nnodes_total,) m: the whole grid's surface height instead of the case's (read
-    on rank 0). ``ArgumentError`` for a stepper without a gradient (not ``differentiable``) or hs of
-    another shape or not finite (on every rank); ``SceneError`` for a ν the ∇⁴ cannot step."""
+    on rank 0). ``ArgumentError`` for a scene in float32 (``Scene.precision``: gradients stay
+    float64), a stepper without a gradient (not ``differentiable``) or hs of another shape or not
+    finite (on every rank); ``SceneError`` for a ν the ∇⁴ cannot step."""
+    if scene.precision != "float64":
+        raise ArgumentError(
+            f"scene.precision = {scene.precision!r}: gradients stay float64 (the adjoint transposes the "
+            'float64 tendency); give the scene numerics.precision = "float64"'
+        )
     case = scene.make_case()
     topo = partition(scene, case, comm, Backend.of(device))
     if hs is not None:
@@ -164,7 +170,7 @@ def gradient(
     that is not callable, does not fit the grid (``check_nodes``), returns other than (J, λ (3,
     N)) or a non-finite J, at_steps outside 0 … n, a controlled scene without a history, a
     history shorter than n or with a bad step, a disk_interval without a disk, a disk that is
-    not an existing folder, x0 or hs of another shape or not finite, x0's h ≤ 0 where it is a
+    not an existing folder, a scene in float32 (gradients stay float64), x0 or hs of another shape or not finite, x0's h ≤ 0 where it is a
     depth, ``parameters`` not a bool or True with a stepper that solves with L, ``comm`` not a
     communicator, or a scene the adjoint cannot serve (``reverse.refusal``; the JFNK implicit, an
     exponential stepper); ``SceneError`` for another device; ``BlowUp`` where a state of the run

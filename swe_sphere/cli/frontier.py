@@ -3,7 +3,7 @@ Pareto front (``studies.frontier``)."""
 
 from __future__ import annotations
 
-from .values import integers, numbers, overrides
+from .values import integers, numbers, scene_overrides
 
 
 def command(args) -> int:
@@ -19,7 +19,7 @@ def command(args) -> int:
         error=args.error,
         reference=args.reference,
         days=args.days,
-        overrides=overrides(args.set),
+        overrides=scene_overrides(args),
     )
     device = pick_device(args.device)
     targets = numbers(args.target, "target") if args.target else ()

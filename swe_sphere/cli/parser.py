@@ -38,6 +38,11 @@ STABILITY_CASES = (
     "tc6_inviscid_ne30",
 )  # = the labels of stability.HARD_CASES (not imported: Warp)
 STABILITY_NE = 8  # the stability suite's grid for the cases that do not fix one
+PRECISIONS = ("float64", "float32")  # = config.resolve.PRECISIONS (not imported: Warp)
+PRECISION_HELP = (
+    "the RHS tendency's floating-point type, the state float64 either way (the scene's numerics.precision; "
+    "default float64); float32 is refused with implicit, epi2 and epi3"
+)
 
 
 def path(text: str) -> Path:
@@ -84,6 +89,7 @@ def _scene_flags() -> argparse.ArgumentParser:
         choices=("cpu", "cuda"),
         help="Warp device (default: SWE_SPHERE_DEVICE where set, else cuda when present, else cpu)",
     )
+    s.add_argument("--precision", choices=PRECISIONS, help=PRECISION_HELP)
     return s
 
 
@@ -399,6 +405,7 @@ def _frontier(sub, parents) -> None:
         choices=("cpu", "cuda"),
         help="Warp device (default: SWE_SPHERE_DEVICE where set, else cuda when present, else cpu)",
     )
+    fr.add_argument("--precision", choices=PRECISIONS, help=PRECISION_HELP)
     fr.add_argument(
         "--cost", choices=("cpu", "wall"), default="cpu", help="the clock that costs the runs (default cpu)"
     )

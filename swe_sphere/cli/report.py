@@ -94,6 +94,7 @@ def header(args, sim, output, device, comm) -> None:
     )
     for line in sim.stepper.describe():
         print(f"{scene.stepper:11s} {line}")
+    print(precision_line(scene))
     if scene.control is not None:
         print(f"control     {control_line(scene.control, scene.dt)}")
     if comm is not None:
@@ -111,6 +112,12 @@ def header(args, sim, output, device, comm) -> None:
             f"{scene.stepper} starts there afresh"
         )
     _courant_notes_outputs(args, sim, output, c)
+
+
+def precision_line(scene) -> str:
+    """The header's ``precision`` line: the scene's (``Scene.precision``), float32 the tendency's alone."""
+    state = " (tendency; state float64)" if scene.precision != "float64" else ""
+    return f"precision   {scene.precision}{state}"
 
 
 def terms_line(scene) -> str:

@@ -12,7 +12,7 @@ from pathlib import Path
 from ..core.errors import BlowUp, CheckpointError, OutputError, SceneError
 from .exits import EXIT_BLOWUP, hold_signals
 from .report import header, summary
-from .values import degree_band, netcdf_output, overrides, varied
+from .values import degree_band, netcdf_output, restart_precision, scene_overrides, varied
 
 
 def _continued(args, device, comm):
@@ -34,6 +34,7 @@ def _continued(args, device, comm):
         raise CheckpointError(
             f"{args.continue_from} is a run on {ck.scene.grid_text}; it continues on its own mesh, not on --mesh {args.mesh}"
         )
+    restart_precision(args.precision, ck.scene, args.continue_from)
     if args.set:
         raise CheckpointError(
             f"-s {args.set[0]}: a checkpointed scene continues as it was written (-s cannot change it)"
@@ -79,11 +80,11 @@ def _continued(args, device, comm):
 
 def default_output(scene, members: int | None = None) -> Path:
     """The run file's default name, in the working folder:
-    ``<scene>_<grid>np<np>_<stepper>[_a<radius>][_omega<Ω>][_g<gravity>][_<days>d][_dt<dt>].nc``,
+    ``<scene>_<grid>np<np>_<stepper>[_a<radius>][_omega<Ω>][_g<gravity>][_<days>d][_dt<dt>][_float32].nc``,
     where the planet's values (SI units) appear when they are not the scene file's, the
-    run length when it is not the scene file's, and Δt when one was given (``--dt``,
+    run length when it is not the scene file's, Δt when one was given (``--dt``,
     ``-s time.dt``) that is not the one the scene would take itself for that grid and
-    length. Runs of a scene that differ in these get different files, so a page's
+    length, and a float32 tendency (``Scene.precision``). Runs of a scene that differ in these get different files, so a page's
     commands run in order do not meet "output file exists". ``<grid>``: ``ne<ne>``, or
     the mesh's label (``Scene.grid_label``: the mesh file's stem, ``ne4c2.5``, …). The scene file's own
     values are the scene's (``Scene.own_planet``, ``own_days``, ``own_dt``): it is loaded once. An
@@ -97,6 +98,8 @@ def default_output(scene, members: int | None = None) -> Path:
         parts.append(f"{scene.days:g}d")
     if scene.dt != scene.own_dt:
         parts.append(f"dt{scene.dt:g}")
+    if scene.precision != "float64":
+        parts.append(scene.precision)
     if members is not None:
         parts.append(f"{members}members")
     return Path("_".join(parts) + ".nc")
@@ -151,7 +154,7 @@ def command(args) -> int:
             days=args.days,
             stepper=args.stepper,
             mesh=args.mesh,
-            overrides={**overrides(args.set), **({"output.cells": False} if args.no_cells else {})},
+            overrides={**scene_overrides(args), **({"output.cells": False} if args.no_cells else {})},
             restart_every=args.restart_every,  # a dt the scene scales is cut to divide it too
         )
         scene = load_scene(args.scene, **given)
@@ -281,6 +284,7 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
     if args.continue_from is not None:
         ens = Ensemble.from_checkpoint(args.continue_from, days=args.days, device=device, graphs=args.graphs, comm=comm)
         scene = ens.scene
+        restart_precision(args.precision, scene, args.continue_from)
     else:
         initial = None if args.initial is None else MemberFile(args.initial)
         if args.vary is not None:
@@ -345,13 +349,13 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
 
 
 def _ensemble_header(args, ens, scene, output: Path, device) -> None:
-    """``run --members N``'s header (before the run): the scene, grid, terms, stepper (and its
-    control), the members and how they step, a continuation's step, the Courant numbers, notes,
+    """``run --members N``'s header (before the run): the scene, grid, terms, stepper (its
+    precision and control), the members and how they step, a continuation's step, the Courant numbers, notes,
     the output and restart files."""
     from ..ensemble.ensemble import POLICIES
     from ..model.diagnostics import courant_numbers
     from ..simulation.writers import restart_path
-    from .report import control_line, courant_line, print_notes, print_streams, terms_line
+    from .report import control_line, courant_line, precision_line, print_notes, print_streams, terms_line
 
     gravity_waves = "pressure_gradient" in scene.terms
     states = [x for k, x in enumerate(ens.states()) if k not in ens.dropped]  # a continued run's dropped: NaN
@@ -362,6 +366,7 @@ def _ensemble_header(args, ens, scene, output: Path, device) -> None:
     print(
         f"stepper     {scene.stepper}, dt = {scene.dt:g} s, {scene.nsteps} steps to day {scene.days:g}, device {device}"
     )
+    print(precision_line(scene))
     if scene.control is not None:
         print(f"control     {control_line(scene.control, scene.dt)}; one dt for every member")
     where = "in the same launches" if ens.layout == "shared" else "each on a model of its own, in turn"

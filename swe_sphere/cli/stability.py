@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from .parser import STABILITY_NE
-from .values import overrides, steppers
+from .values import scene_overrides, steppers
 
 
 def command(args) -> int:
@@ -19,7 +19,7 @@ def command(args) -> int:
         np_=args.np,
         days=args.days,
         mesh=args.mesh,
-        overrides=overrides(args.set),
+        overrides=scene_overrides(args),
     )
     device = pick_device(args.device)
     output = args.output or suite.default_output

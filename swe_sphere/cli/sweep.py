@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .values import degree_band, numbers, overrides, runs, steppers, varied
+from .values import degree_band, numbers, overrides, restart_precision, runs, scene_overrides, steppers, varied
 
 
 def command(args) -> int:
@@ -20,12 +20,14 @@ def command(args) -> int:
         ne=args.ne,
         np_=args.np,
         days=args.days,
-        overrides=overrides(args.set),
+        overrides=scene_overrides(args) if args.branch_from is None else overrides(args.set),
         restart=args.branch_from,
         filter_days=args.filter_days,
         filter_every=args.filter_every,
         filter_window=args.filter_window,
     )
+    if plan.checkpoint is not None:  # --from: the runs in the restart file's precision
+        restart_precision(args.precision, plan.checkpoint.scene, args.branch_from)
     members = _members(args)
     device = pick_device(args.device)
     with executor(args.workers) as pool:

@@ -1,5 +1,5 @@
-"""The values of flags that argparse cannot check alone: ``-s`` overrides, stepper
-lists, comma-separated numbers, ``--runs`` pairs, ``--vary`` values and a perturbation's degrees."""
+"""The values of flags that argparse cannot check alone: ``-s`` overrides (and
+``--precision``'s), stepper lists, comma-separated numbers, ``--runs`` pairs, ``--vary`` values and a perturbation's degrees."""
 
 from __future__ import annotations
 
@@ -23,6 +23,26 @@ def overrides(pairs) -> dict:
             value = text.strip()
         out[key] = value
     return out
+
+
+def scene_overrides(args) -> dict:
+    """A command's ``-s`` overrides (``overrides``) with ``--precision P`` as ``numerics.precision``;
+    ValueError for a ``-s numerics.precision`` that --precision contradicts."""
+    out = overrides(args.set)
+    if args.precision is not None:
+        given = out.setdefault("numerics.precision", args.precision)
+        if given != args.precision:
+            raise ValueError(f"--precision {args.precision} and -s numerics.precision={given}: give one of them")
+    return out
+
+
+def restart_precision(precision: str | None, scene, path: Path) -> None:
+    """Refuse (``CheckpointError``, one line) a ``--precision`` other than that of the scene of the
+    restart file ``path`` (``run --continue``, ``sweep --from``): its runs go on in their own."""
+    from ..core.errors import CheckpointError
+
+    if precision is not None and precision != scene.precision:
+        raise CheckpointError(f"{path} is a run in {scene.precision} and continues in it: no --precision {precision}")
 
 
 def numbers(text: str, name: str) -> list[float]:

@@ -12,6 +12,7 @@ from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology, on_ranks
 from ..model.shallow_water import ShallowWater
 from ..steppers import STEPPERS, make_stepper
+from .resolve import refuse_precision
 from .scene import Scene
 
 MAX_HYPERVIS_EVALUATIONS = 10_000  # ∇⁴ evaluations a step; beyond, ν is ~10⁷ times its explicit bound or more
@@ -37,8 +38,10 @@ def check_hyperviscosity(model: ShallowWater, scene: Scene) -> None:
 
 def scene_stepper(scene: Scene, model: ShallowWater):
     """The scene's stepper on ``model`` at the scene's Δt, its clock at the scene's start
-    day (not yet ``prepare``d); ``SceneError`` first for a ν the ∇⁴ cannot step
-    (``check_hyperviscosity``)."""
+    day (not yet ``prepare``d); ``SceneError`` first for a stepper that cannot step the scene's
+    precision (``refuse_precision``: a ``Scene`` changed by ``dataclasses.replace`` too) and a
+    ν the ∇⁴ cannot step (``check_hyperviscosity``)."""
+    refuse_precision(scene.precision, scene.stepper)
     check_hyperviscosity(model, scene)
     stepper = make_stepper(scene.stepper, model, scene.dt, **scene.stepper_options)
     stepper.t0 = scene.start_day * DAY

@@ -326,13 +326,44 @@ def resolve_stepper_days(table: dict, stepper=None, days=None) -> tuple[str, flo
     return name, days
 
 
+# the precisions of the RHS tendency ([numerics] precision, ``--precision``); the state stays float64
+PRECISIONS = ("float64", "float32")
+
+
+def resolve_precision(table: dict, stepper: str, precision=None) -> str:
+    """``Scene.precision`` of the [numerics] table and ``load_scene``'s ``precision`` (default
+    "float64") for ``stepper``. Raises ``SceneError`` naming the key: a value not of
+    ``PRECISIONS``; "float32" with a stepper that refuses it (``Described.float32_refusal``)."""
+    value = table.get("precision", "float64") if precision is None else precision
+    if value not in PRECISIONS:
+        raise SceneError(f"numerics.precision must be one of {', '.join(PRECISIONS)} (got {got(value)})")
+    refuse_precision(value, stepper)
+    return value
+
+
+def refuse_precision(precision: str, stepper: str) -> None:
+    """Refuse (``SceneError``, one line) a ``precision`` that ``stepper`` cannot step in: float32
+    with a stepper whose ``float32_refusal`` says why (its Jacobian-vector products difference the
+    RHS); a scene resolved (``resolve_precision``) and one branched (``checkpoint.branch``)."""
+    why = STEPPERS[stepper].float32_refusal if precision == "float32" else None
+    if why is not None:
+        raise SceneError(f'numerics.precision = "float32" with stepper {stepper}: {why}; it runs in float64 only')
+
+
 # the keywords of ``load_scene`` (``--ne``, ``--days``, ...) and the values they replace
-SUPERSEDED = {"grid.ne": "ne", "grid.np": "np_", "time.days": "days", "time.stepper": "stepper", "time.dt": "dt"}
+SUPERSEDED = {
+    "grid.ne": "ne",
+    "grid.np": "np_",
+    "time.days": "days",
+    "time.stepper": "stepper",
+    "time.dt": "dt",
+    "numerics.precision": "precision",
+}
 
 
 def check_superseded(overrides: dict, given: dict) -> None:
     """Check the overrides (``-s``) that a keyword of ``given`` (``load_scene``'s: ``--ne``,
-    ``--np``, ``--days``, ``--stepper``, ``--dt``) replaces, as the file's own values are checked:
+    ``--np``, ``--days``, ``--stepper``, ``--dt``, ``--precision``) replaces, as the file's own values are checked:
     a wrong one is refused, not dropped unread. Raises ``SceneError`` naming the key and value."""
     for key, keyword in SUPERSEDED.items():
         if key not in overrides or given.get(keyword) is None:
@@ -347,6 +378,8 @@ def check_superseded(overrides: dict, given: dict) -> None:
                 raise SceneError(f"must be > 0 (got {got(value)})")
             if keyword in ("days", "stepper"):
                 resolve_stepper_days({keyword: value})
+            if keyword == "precision" and value not in PRECISIONS:
+                raise SceneError(f"must be one of {', '.join(PRECISIONS)} (got {got(value)})")
         except SceneError as err:
             raise SceneError(
                 f"{key} = {value!r}: {str(err).removeprefix('days ')} (though {keyword.rstrip('_')} = "

@@ -94,6 +94,9 @@ class Scene:
         first (``schema.SceneControl``); None: a fixed dt.
     ensemble : dict or None
         [ensemble] (``resolve.resolve_ensemble``): {"members", "perturbation", "seed"[, "degrees"]}; None: a single run.
+    precision : str
+        [numerics] precision: "float64" (the default) or "float32", the RHS tendency's type
+        (``ShallowWater.from_scene`` reads it); the state and its accumulation stay float64.
     dt_source : str
         Where ``dt`` comes from, for messages ("the scene's", "the dt given", ...): not part
         of the scene's identity (left out of comparisons and of ``as_dict``).
@@ -146,6 +149,7 @@ class Scene:
     own_dt: float | None = field(default=None, compare=False)
     own_planet: dict | None = field(default=None, compare=False)
     own_days: float | None = field(default=None, compare=False)
+    precision: str = "float64"  # [numerics] precision: the RHS tendency's type; the state stays float64
 
     def __post_init__(self):
         # a cube's record follows ne (``dataclasses.replace(scene, ne=...)``), as its JSON does
@@ -258,6 +262,8 @@ class Scene:
                 del d[key]
         if d["hypervis_every"] == 1:  # the default: a scene's dict as before the key
             del d["hypervis_every"]
+        if d["precision"] == "float64":  # the default, likewise
+            del d["precision"]
         return d
 
 

@@ -61,6 +61,10 @@ the run length, the output interval and the hyperviscosity. Layout::
                       at the grid scale). A run on another planet than
                       Williamson's Earth is not scored against the bundled
                       spectral references (the Earth's).
+    [numerics]        precision = "float64" | "float32" (the RHS tendency computed in
+                      float32, the state and its accumulation float64; ``Scene.precision``):
+                      refused with a stepper that differences the RHS
+                      (``Described.float32_refusal``)
 
 Every problem raises ``SceneError`` (a ValueError) with a one-line message
 naming the offending key or value.
@@ -99,6 +103,7 @@ from .resolve import (
     resolve_output_files,
     resolve_output_interval,
     resolve_planet,
+    resolve_precision,
     resolve_spacing,
     resolve_stepper_days,
     resolve_stepper_options,
@@ -143,6 +148,7 @@ def load_scene(
     overrides: dict | None = None,
     restart_every: float | None = None,
     np=None,
+    precision: str | None = None,
 ) -> Scene:
     """Read, validate and resolve a scene file, applying command-line overrides.
 
@@ -150,7 +156,7 @@ def load_scene(
     wins): ``read_scene`` (the file, the overrides, keys and types), ``resolve_planet``,
     ``resolve_case``, ``resolve_terms``, ``resolve_initialization`` ([dfi]),
     ``resolve_grid``, ``resolve_spacing``, ``resolve_output_interval``,
-    ``resolve_stepper_days``, ``resolve_dt``, ``resolve_output_files``,
+    ``resolve_stepper_days``, ``resolve_precision``, ``resolve_dt``, ``resolve_output_files``,
     ``resolve_stepper_options`` and ``resolve_hyperviscosity``.
 
     Parameters
@@ -170,6 +176,10 @@ def load_scene(
         Run length (days).
     stepper : str, optional
         Time stepper (``steppers.STEPPERS``).
+    precision : {"float64", "float32"}, optional
+        The RHS tendency's floating-point type (``--precision``; the scene's
+        ``numerics.precision``, default "float64"); the state stays float64. "float32" is
+        refused with a stepper that differences the RHS (``implicit``, ``epi2``, ``epi3``).
     mesh : str or path, optional
         An Exodus II file (relative to the current folder) to run on instead of the
         scene's grid (``--mesh``; ne = 0); where the mesh differs from the scene file's own
@@ -204,13 +214,16 @@ def load_scene(
         if np_ is not None:
             raise SceneError(f"np = {np} and np_ = {np_}: give one of them (np_ is np's other name)")
         np_ = np
-    return _resolve(resolve_path(str(path)), ne, np_, dt, days, stepper, mesh, overrides, restart_every)
+    given = {"ne": ne, "np_": np_, "dt": dt, "days": days, "stepper": stepper, "precision": precision}
+    return _resolve(resolve_path(str(path)), given, mesh, overrides, restart_every)
 
 
-def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict, restart_every=None) -> Scene:
-    """``load_scene``'s work on the scene file ``path``: its tables resolved in order."""
+def _resolve(path: Path, given: dict, mesh, overrides: dict, restart_every=None) -> Scene:
+    """``load_scene``'s work on the scene file ``path`` with its keywords ``given`` (ne, np_, dt,
+    days, stepper, precision; None: the file's): its tables resolved in order."""
+    ne, np_, dt, days, stepper = (given[k] for k in ("ne", "np_", "dt", "days", "stepper"))
     s, file_radius, file_case, file_grid, own = read_scene(path, overrides)
-    check_superseded(overrides, {"ne": ne, "np_": np_, "dt": dt, "days": days, "stepper": stepper})
+    check_superseded(overrides, given)
     planet = resolve_planet(s.get("planet"))
     case = resolve_case(s.get("case", {}), planet, path)
     terms = resolve_terms(s.get("terms"), case.case, case.name)
@@ -220,6 +233,7 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict, rest
     output, time = s.get("output", {}), s.get("time", {})
     every, log_every = resolve_output_interval(output)
     stepper, days = resolve_stepper_days(time, stepper, days)
+    precision = resolve_precision(s.get("numerics", {}), stepper, given["precision"])
     controlled = is_controlled(time)
     streams = _stream_intervals(output)
     restart = restart_every if is_number(restart_every) and restart_every > 0 and not controlled else None
@@ -275,6 +289,7 @@ def _resolve(path: Path, ne, np_, dt, days, stepper, mesh, overrides: dict, rest
         own_dt=own_dt,
         own_planet=own_planet,
         own_days=own_days,
+        precision=precision,
     )
 
 
@@ -356,15 +371,23 @@ def _own_planet_days(own: dict) -> tuple[dict | None, float | None]:
 
 
 # ``load_scene``'s own keywords among the overrides, by their command-line names (``np`` is its ``np_``)
-LOAD_KEYWORDS = {"ne": "ne", "np": "np_", "dt": "dt", "days": "days", "stepper": "stepper", "mesh": "mesh"}
+LOAD_KEYWORDS = {
+    "ne": "ne",
+    "np": "np_",
+    "dt": "dt",
+    "days": "days",
+    "stepper": "stepper",
+    "mesh": "mesh",
+    "precision": "precision",
+}
 
 
 def resolve_scene(scene, overrides: dict) -> tuple[Scene, tuple]:
     """(Scene, its input files) of ``swe_sphere.run``'s and ``Simulation``'s
     ``scene`` and ``overrides``: a ``Scene`` as it is (no overrides: change it with
     ``dataclasses.replace``), else a scene file or bundled name loaded with the
-    overrides as on the command line (``ne``, ``np``, ``dt``, ``days``, ``stepper``, ``mesh``
-    and tables such as ``hyperviscosity={"nu": 5e14}`` or values ``terms=[...]``).
+    overrides as on the command line (``ne``, ``np``, ``dt``, ``days``, ``stepper``, ``mesh``,
+    ``precision`` and tables such as ``hyperviscosity={"nu": 5e14}`` or values ``terms=[...]``).
     The inputs are the scene file (outputs must not replace it). Raises ``SceneError``."""
     if isinstance(scene, Scene):
         if overrides:

@@ -8,7 +8,8 @@ state ``x`` (3, N) as the variables ``u``, ``v`` (m s⁻¹) and ``h`` (m) on
 (arrays (3, N) as variables ``stepper_<key>`` on (``row``, ``node``), scalars as
 attributes ``stepper_<key>``), the run's counters
 (step, RHS evaluations, solver iterations, wall time), the invariants at t = 0
-(so relative changes keep their origin), the resolved scene (JSON), under step control
+(so relative changes keep their origin), the resolved scene (JSON; its precision also as the
+attribute ``precision``, "float64" or "float32": the tendency's, which a continuation keeps), under step control
 the control's state (``StepControl.state()``: the next Δt, the controller's history, the
 counts and the time reached; JSON, attribute ``step_control``), an ensemble's member count
 (attribute ``ensemble_members``: its state is every member's, side by side) and the package version.
@@ -123,6 +124,7 @@ def write(
             ds.swe_sphere_checkpoint = np.int32(FORMAT)
             ds.swe_sphere_version = package_version()
             ds.scene = json.dumps(scene.as_dict())
+            ds.precision = scene.precision  # for tools: the scene (JSON) holds it for a continuation
             ds.step = np.int32(step)  # no 64-bit attributes: `nccopy -k classic` copies the file
             ds.time_days = scene.day(step) if control is None else control["day"]
             ds.counters = json.dumps(counters)

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..config.resolve import refuse_precision
 from ..config.scene import DT_NOTES, Scene, scene_from_dict, with_days
 from ..core.errors import CheckpointError, SceneError
 from ..core.mpi import from_root
@@ -50,13 +51,15 @@ def branch(ck: Checkpoint, *, stepper: str | None = None, dt: float | None = Non
     step 0 at the checkpoint's day (``Scene.start_day``), output every output
     interval from there, and ``Scene.branch`` recording the source (its path and
     SHA-256, step, day, stepper and dt). The stepper's options are the
-    checkpoint's for its own stepper, else the defaults. Raises ``SceneError``
-    (one line) for an unknown stepper, a dt <= 0, or a run from the branch day to
+    checkpoint's for its own stepper, else the defaults; its precision the checkpoint's.
+    Raises ``SceneError`` (one line) for an unknown stepper, one that cannot step the
+    checkpoint's precision (``refuse_precision``), a dt <= 0, or a run from the branch day to
     ``days`` or an output interval that is not whole steps of dt."""
     s = ck.scene
     stepper = s.stepper if stepper is None else stepper
     if stepper not in STEPPERS:
         raise SceneError(f"unknown stepper {stepper!r} (known: {', '.join(STEPPERS)})")
+    refuse_precision(s.precision, stepper)
     if dt is not None and not (math.isfinite(dt) and dt > 0):
         raise SceneError(f"dt must be > 0 (got {dt:g})")
     record = {"restart": None if ck.path is None else str(ck.path), "sha256": ck.sha256, "step": ck.step}

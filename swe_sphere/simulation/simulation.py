@@ -79,8 +79,8 @@ class Simulation(Driven, Restarts, Looping):
         Steps replayed as captured graphs (see Notes); default the environment's
         ``SWE_SPHERE_GRAPHS``, else "auto". Also an attribute to set.
     **overrides
-        As for ``swe_sphere.run``: ``ne``, ``np``, ``dt``, ``days``, ``stepper`` and
-        any scene value by its table.
+        As for ``swe_sphere.run``: ``ne``, ``np``, ``dt``, ``days``, ``stepper``, ``precision``
+        and any scene value by its table.
 
     Attributes
     ----------

@@ -45,7 +45,8 @@ CONTROL_SERIES = ("dt", "rejected_steps", "error_estimate", "spatial_rate")
 def scene_attrs(scene, kind: str, history: str | None, caller: str) -> dict:
     """The global attributes every run file of ``scene`` opens with: its title (a ``kind`` of
     scene, "run" or "ensemble"), ``history`` (the command line; None: ``caller`` of scene …),
-    the package, the scene (JSON) and its case, grid, stepper and Δt."""
+    the package, the scene (JSON) and its case, grid, stepper, Δt and ``precision`` (the
+    tendency's, ``Scene.precision``)."""
     return {
         "title": f"swe_sphere {kind} of scene {scene.name}",
         "history": history_line(history or f"{caller} of scene {scene.name}"),
@@ -57,6 +58,7 @@ def scene_attrs(scene, kind: str, history: str | None, caller: str) -> dict:
         "np": scene.np,
         "stepper": scene.stepper,
         "dt": scene.dt,
+        "precision": scene.precision,
     }
 
 

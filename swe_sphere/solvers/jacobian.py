@@ -29,6 +29,12 @@ from .krylov import NumpyViews
 
 f64 = wp.float64
 _SQRT_EPS = math.sqrt(np.finfo(float).eps)
+# why a stepper on these products cannot step a float32 tendency (``Described.float32_refusal``):
+# F's round-off, ~6e-8 of it in float32, is above the difference's step ε, ~1.5e-8 of x
+FLOAT32_REFUSAL = (
+    "its Jacobian-vector products difference the RHS over a step of 1.5e-8 (relative), which float32 "
+    "round-off in F (6e-8) swamps"
+)
 
 
 class KernelPasses:

@@ -3,7 +3,7 @@ capability of its own that its users check, as the adjoint checks ``protocol.Dif
 
 - ``Described``: the stepper named and its options made and checked (``make_options``, ``label``,
   ``removed``), what error and step control need of its options (``changes_dt``,
-  ``has_estimate``), its partition (``partition_levels``), its lines and run-file attributes
+  ``has_estimate``), whether it steps a float32 tendency (``float32_refusal``), its partition (``partition_levels``), its lines and run-file attributes
   (``describe``, ``attrs``): every stepper's (``base.Stepper`` is one), asked by ``config``,
   ``cli`` and the run file.
 - ``GraphCapture``: a step replayed as a captured graph (``graph_key``, ``graph_family``,
@@ -38,12 +38,16 @@ def option_types(options_cls) -> dict[str, type]:
 
 
 class Described:
-    """A stepper's description (module doc): its ``name``, ``Options`` (a frozen dataclass) and
-    ``removed_options`` here; its ``variable_dt`` and ``embedded_order`` the stepper's."""
+    """A stepper's description (module doc): its ``name``, ``Options`` (a frozen dataclass),
+    ``removed_options`` and ``float32_refusal`` here; its ``variable_dt`` and ``embedded_order``
+    the stepper's."""
 
     name = ""
     Options: type = NoOptions
     removed_options: dict[str, str] = {}  # option → why it is gone, for the error message
+    # why the stepper cannot step a float32 tendency (a scene's numerics.precision, refused in one
+    # line by ``config.resolve.refuse_precision``); None: it can
+    float32_refusal: str | None = None
 
     @classmethod
     def removed(cls, key: str) -> str | None:

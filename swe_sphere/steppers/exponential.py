@@ -52,7 +52,7 @@ import numpy as np
 import warp as wp
 
 from ..kernels import blas
-from ..solvers.jacobian import FiniteDifferenceJacobian
+from ..solvers.jacobian import FLOAT32_REFUSAL, FiniteDifferenceJacobian
 from ..solvers.kiops import Kiops
 from .base import Stepper, StepStats, entry, gathered_copy, load_entry
 
@@ -87,6 +87,7 @@ class _Exponential(Stepper):
 
     Options = ExponentialOptions
     solvers = ("krylov", "substeps", "rejected")
+    float32_refusal = FLOAT32_REFUSAL
     multistep = False
 
     def __init__(self, model, dt, options=None):

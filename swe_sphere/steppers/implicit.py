@@ -19,7 +19,7 @@ from ..kernels import blas
 from ..kernels import implicit as ik
 from ..model.gravity_wave import check_mean_depth
 from ..model.helmholtz import HelmholtzOptions, check_precision
-from ..solvers.jacobian import FiniteDifferenceJacobian, KernelPasses
+from ..solvers.jacobian import FLOAT32_REFUSAL, FiniteDifferenceJacobian, KernelPasses
 from ..solvers.krylov import FGMRES, KernelVectors
 from .base import Stepper, StepStats, entry, gathered_copy, load_entry
 from .capabilities import ErrorEstimates, TrialSteps
@@ -136,6 +136,7 @@ class Implicit(ErrorEstimates, TrialSteps, Stepper):
     variable_dt = True  # the θ-method: its residual, Jacobian and preconditioner read Δt each call
     order = embedded_order = 2  # Crank–Nicolson, and the estimate's (TR against AB2)
     solvers = ("newton", "gmres", "precond", "helmholtz")
+    float32_refusal = FLOAT32_REFUSAL
     removed_options = {
         **REMOVED_SOLVER_OPTIONS,
         "chebyshev_degree": REMOVED_SOLVER_OPTIONS["helmholtz_solver"],

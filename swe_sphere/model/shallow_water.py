@@ -292,7 +292,7 @@ class ShallowWater:
             "hypervis_every": scene.hypervis_every,
             "element_filter": scene.element_filter,
         }
-        options.setdefault("precision", getattr(scene, "precision", "float64"))
+        options.setdefault("precision", scene.precision)
         return cls.from_case(grid, case, scene.terms, **hyperviscosity, **options)
 
     # -- the recorder's (``launches.LaunchRecorder``) -----------------------

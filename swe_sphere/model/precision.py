@@ -59,11 +59,11 @@ class TendencyArrays(NamedTuple):
     depth: float
 
     @classmethod
-    def of(
-        cls, dtype, ops, mass: wp.array, forcing: wp.array2d | None, tend: wp.array2d, depth: float
-    ) -> TendencyArrays:
-        """The arrays of ``ops`` (the model's ``ElementOperators``), ``mass``, ``forcing`` and
-        ``tend`` (float64) as the tendency reads them in ``dtype``, and the reference ``depth`` (m)."""
+    def of(cls, dtype, ops, mass: wp.array, forcing: wp.array2d | None, depth: float) -> TendencyArrays:
+        """The arrays of ``ops`` (the model's ``ElementOperators``), ``mass`` and ``forcing``
+        (float64) as the tendency reads them in ``dtype``, a new ``tend``, and the reference
+        ``depth`` (m)."""
+        tend = wp.zeros((3, ops.N), dtype=dtype, device=ops.D.device)
         if dtype is wp.float64:
             return cls(dtype, ops.D, ops.Dinv, ops.metdet, ops.fcor, mass, forcing, ops.dvv, ops.dvv_rows, tend, 0.0)
 
@@ -75,7 +75,7 @@ class TendencyArrays(NamedTuple):
             dtype,
             *map(rounded, (ops.D, ops.Dinv, ops.metdet, ops.fcor, mass, forcing, ops.dvv)),
             operators.dvv_matrix(dvv, dtype),
-            wp.zeros(tend.shape, dtype=dtype, device=tend.device),
+            tend,
             float(depth),
         )
 

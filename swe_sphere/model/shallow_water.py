@@ -12,6 +12,7 @@ scene names ``forcing``. Mirrors HOMME's ``compute_and_apply_rhs`` + ``advance_h
 
 from __future__ import annotations
 
+import functools
 from typing import NamedTuple
 
 import numpy as np
@@ -236,17 +237,22 @@ class ShallowWater:
         # every launch of the model and of what acts on its states, recorded once and replayed
         self.launches = LaunchRecorder(self.backend, self.threads, grid.np, N, topo.nunique, per_element)
         self.operators = ElementOperators(grid, topo, self.launches, per_element, device, fcor, hs)
-        self.tend = wp.zeros((3, N), dtype=f64, device=device)
         self.topo_forcing = self._topography_forcing(hs) if "topography" in terms else None
         self.precision = precision
         # what the tendency kernels read and write, in the precision's float type
         depth = 0.0 if depth is None else number_argument("depth", depth, "m")
-        self.tendency_arrays = TendencyArrays.of(
-            dtype, self.operators, self.spheremp[:N], self.topo_forcing, self.tend, depth
-        )
+        self.tendency_arrays = TendencyArrays.of(dtype, self.operators, self.spheremp[:N], self.topo_forcing, depth)
         self.hv = Hyperviscosity(self) if "hyperviscosity" in terms else None  # the ∇⁴: its plan, work arrays, launches
         self.filter = None if element_filter is None else ElementFilter(self, *element_filter)  # a scene's [filter]
         self.bad_nodes = BadNodes(self)  # the check of a state for non-finite or dry nodes
+
+    @functools.cached_property
+    def tend(self) -> wp.array2d:
+        """(3, N) float64 element-local work array of the operators built on the model (the
+        gravity-wave operator's): the tendency's own under float64; under float32 an array of
+        its own, made on first use (a float32 run of an explicit stepper never holds it)."""
+        t = self.tendency_arrays
+        return t.tend if t.dtype is f64 else wp.zeros((3, self.N), dtype=f64, device=self.device)
 
     def _topography_forcing(self, hs) -> wp.array2d:
         """(2, N) −g ∇hs (m s⁻², east/north) at the element-local nodes: the "topography" term's
@@ -307,7 +313,7 @@ class ShallowWater:
     # -- right-hand side ----------------------------------------------------
     def _build_tendency(self, x, named, part=None):
         """Launches that write the element-local tendency of the terms ``named``
-        into ``self.tend`` (or, given an ``ElementPart``, into its ``tend`` over its
+        into ``tendency_arrays.tend`` (or, given an ``ElementPart``, into its ``tend`` over its
         elements only), the rows (lo, hi) they write (a continuity half
         writes dh alone, a momentum half du, dv) and whether it is mass-weighted. Without a
         forcing the kernel writes spheremp·F, whose unweighted DSS is F's weighted one: the

@@ -12,7 +12,7 @@ in a virtual environment of its own, made once with::
 (``--python`` names that environment's interpreter; where it cannot import dinosaur the script
 prints one line and exits 0). The measured versions: dinosaur 1.5.1, jax/jaxlib 0.10.2.
 
-**The peer's run.** Float64 (``jax_enable_x64``), one layer, ``ShallowWaterEquations`` (no
+**The peer's run.** Float64 (``jax_enable_x64``; ``--precision float32``: both models in float32, the peer's JAX without x64 and swe_sphere's float32 tendency), one layer, ``ShallowWaterEquations`` (no
 orography on Galewsky; on TC5 below), ``imex_rk_sil3`` (Whitaker & Kar 2013: the gravity-wave terms implicit) and the filter
 Dinosaur's own shallow-water tests and examples pair with it, ``exponential_step_filter(grid, dt)``
 at its defaults (τ = 0.010938 in Dinosaur's units of 1/(2Ω), i.e. 75 s; order 18, cutoff 0: each
@@ -223,10 +223,10 @@ def peer_child(inp: Path, out: Path, transforms: str) -> None:
 
     import jax
 
-    jax.config.update("jax_enable_x64", True)
+    d = np.load(inp)
+    jax.config.update("jax_enable_x64", bool(d["x64"]))  # float32: JAX's default, Dinosaur's NeuralGCM use
     from dinosaur import coordinate_systems, layer_coordinates, scales, spherical_harmonic, time_integration, units
 
-    d = np.load(inp)
     truncation, nodes, dt, days = int(d["truncation"]), int(d["nodes"]), float(d["dt"]), float(d["days"])
     impl = (
         functools.partial(spherical_harmonic.FastSphericalHarmonics, fourier_method="fft")
@@ -426,10 +426,18 @@ def run_child(python: str, args: list[str], device: str = "cpu") -> None:
 
 
 def run_peer(
-    python: str, study: str, truncation: str, transforms: str, tmp: Path, dt: float | None = None, device: str = "cpu"
+    python: str,
+    study: str,
+    truncation: str,
+    transforms: str,
+    tmp: Path,
+    dt: float | None = None,
+    device: str = "cpu",
+    precision: str = "float64",
 ) -> dict:
     """The peer at ``truncation`` (a key of ``GRIDS``) from the project's initial state of
-    ``study``'s case at its nodes, at Δt ``dt`` s (None: ``GRIDS``'), under JAX on ``device``:
+    ``study``'s case at its nodes, at Δt ``dt`` s (None: ``GRIDS``'), under JAX on ``device`` in
+    ``precision`` (float64: ``jax_enable_x64``; float32: JAX's default):
     its last day's fields (``peer_fields``), its start's (``start_`` + name), points, weights
     and CPU and wall seconds a simulated day."""
     from swe_sphere.cases.library import make_case
@@ -444,7 +452,8 @@ def run_peer(
     mean_depth = getattr(case, "mean_depth", None) or float(np.sum(w * h) / np.sum(w))
     inp, out = tmp / f"{truncation}_in.npz", tmp / f"{truncation}_out.npz"
     state = dict(u=u, v=v, h=h, hs=hs, lat=lat, lon=lon, mean_depth=mean_depth)
-    np.savez(inp, truncation=int(truncation[1:]), nodes=nodes, dt=dt, days=st.days, **state)
+    x64 = precision == "float64"
+    np.savez(inp, truncation=int(truncation[1:]), nodes=nodes, dt=dt, days=st.days, x64=x64, **state)
     run_child(python, ["--peer-child", str(inp), str(out), transforms], device)
     r = dict(np.load(out))
     per_day = {"cpu_per_day": float(r["cpu"]) / st.days, "wall_per_day": float(r["wall"]) / st.days}
@@ -533,6 +542,13 @@ def arguments():
     ap.add_argument("--rounds", type=int, default=1)
     ap.add_argument("--list", action="store_true", help="print swe_sphere's rows (Δt resolved) and run nothing")
     ap.add_argument("--transforms", choices=["fft", "real"], default="fft")
+    ap.add_argument(
+        "--precision",
+        choices=["float64", "float32"],
+        default="float64",
+        help="both models' precision: the peer's JAX with or without x64, swe_sphere's numerics.precision "
+        "(a float32 tendency) (default: %(default)s)",
+    )
     ap.add_argument("--python", default=str(DEFAULT_PYTHON), help="the peer's interpreter (default: %(default)s)")
     ap.add_argument(
         "--device",
@@ -542,6 +558,8 @@ def arguments():
     )
     args = ap.parse_args()
     args.swe = list(STUDIES[args.case].swe) if args.swe is None else args.swe
+    if args.precision != "float64":
+        args.swe = [f"{config},numerics.precision={args.precision}" for config in args.swe]
     rows = []
     for config in args.swe:
         try:
@@ -593,7 +611,10 @@ def main() -> None:
         clock = "wall" if args.device == "cuda" else "cpu"  # a GPU run's CPU time is the host's waiting
         where = "one NVIDIA GPU" if args.device == "cuda" else "one thread"
         print(f"{st.scene} day {st.days:g}, l2 against T341 at each model's points; {where}, host core 0")
-        print(f"peer: dinosaur, imex_rk_sil3 + exponential_step_filter defaults, float64, {args.transforms} transforms")
+        print(
+            f"peer: dinosaur, imex_rk_sil3 + exponential_step_filter defaults, {args.precision}, "
+            f"{args.transforms} transforms"
+        )
         table: dict[str, dict] = {}
         search: dict[str, dict] = {}  # truncation -> its best-step search (``best_step``)
         peers: dict[str, str] = {}  # truncation -> the name of its row the summary compares against
@@ -608,7 +629,9 @@ def main() -> None:
                 name, dt = f"swe_sphere {what}", parse_swe(what)[3]
             try:
                 if kind == "peer":
-                    run = run_peer(args.python, args.case, what, args.transforms, Path(tmp), dt, args.device)
+                    run = run_peer(
+                        args.python, args.case, what, args.transforms, Path(tmp), dt, args.device, args.precision
+                    )
                 else:
                     run = run_swe(args.case, what, Path(tmp), args.device)
             except RuntimeError as e:  # a blow-up the model refuses, a refused option: the row says so

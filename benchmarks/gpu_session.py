@@ -34,6 +34,17 @@
 * ``iterations``: the semi_implicit, imex and implicit steppers at
   ``--dt-factor`` × TC5's Δt: solver iterations per step on ``--device``
   (their device solvers) against the CPU (its defaults).
+* ``precision``: float32 and float64 side by side (issue 114 item 7; ``--precisions``): ``--scene`` at
+  each ``--ne`` (default the scene's grid), one run a precision built at once, ``--warmup`` steps
+  (compiles, records, captures), then ``--runs`` rounds of ``--graph-steps`` steps, the
+  precisions in turn and their order swapped each round: ms a step (medians; a Simulation's the
+  run's time loop, graphs on as a user's run on the card; with ``--members`` N > 1 an ensemble of N
+  in the same launches, 1 m perturbations of h, wall clock around its ``step``) and simulated days a
+  wall day; then max |h − h_float64| / max |h_float64| after the same steps, and (a Simulation)
+  ``floor``'s bare replays of one step's graph and of ``--chain`` steps a graph.
+* ``card``: the summary of ``gpu_session.sh card``'s items in ``--folder`` (their results files,
+  ``mpi.xml``, ``exchange.txt``, ``session.log``): one markdown table against issue 99's and 114's
+  targets, the figures as ``--results``.
 
 Medians of ``--repeat`` timings after a warm-up, synchronised; wall clock.
 Runs on the CPU too (``--device cpu``, small ``--ne``) to check the script.
@@ -41,12 +52,14 @@ Runs on the CPU too (``--device cpu``, small ``--ne``) to check the script.
     python benchmarks/gpu_session.py throughput --ne 30 60 120 240
     python benchmarks/gpu_session.py agreement --ne 4 --days 0.2 --device cpu
     python benchmarks/gpu_session.py graphs --ne 30
+    python benchmarks/gpu_session.py precision --scene tc5_mountain --ne 120 --graph-steps 1000 --chain
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import statistics
 import sys
 import time
@@ -56,14 +69,16 @@ import numpy as np
 import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from ensemble_cost import clock  # noqa: E402
 from gpu_model import IMPLICIT  # noqa: E402
 from implicit_cost import use_krylov  # noqa: E402
-from results import recorded  # noqa: E402  (benchmarks/, the script's directory)
+from results import positive, recorded  # noqa: E402  (benchmarks/, the script's directory)
 from rhs_throughput import build, median_time, rhs_compulsory_bytes  # noqa: E402
 
 from swe_sphere.config.scene import load_scene  # noqa: E402
 from swe_sphere.core.constants import DAY  # noqa: E402
 from swe_sphere.core.tally import Tally, instrumented  # noqa: E402
+from swe_sphere.ensemble import Ensemble, Perturbation  # noqa: E402
 from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 from swe_sphere.steppers import STEPPERS  # noqa: E402
 
@@ -359,15 +374,212 @@ def kernels(args):
             print(f"| {k} | {count[k] / args.steps:g} | {spent[k]:.1f} | {spent[k] / (total or 1):.0%} |", flush=True)
 
 
+PRECISION_COLUMNS = [
+    "scene",
+    "ne np",
+    "stepper",
+    "members",
+    "precision",
+    "graphs kept",
+    "Δt s",
+    "build s",
+    "ms a step",
+    "ms a member",
+    "days a wall day",
+    "× float64",
+    "graph a step µs",
+    "chained µs",
+    "max|Δh| / max h",
+    "target",
+]
+
+
+def precision_row(r: dict) -> str:
+    """A ``precision`` row (its figures' dict) as a markdown row of ``PRECISION_COLUMNS``."""
+    chained = ", ".join(f"{k}: {us:.1f}" for k, us in r["chained_us"].items()) or "–"
+    graph = "–" if r["graph_step_us"] is None else f"{r['graph_step_us']:.1f}"
+    met = "" if r["target"] is None else f"{r['target']}: {'met' if r['met'] else 'NOT met'}"
+    return (
+        f"| {r['scene']} | {r['ne']} {r['np']} | {r['stepper']} | {r['members']} | {r['precision']} | {r['graphs_kept']} | "
+        f"{r['dt']:.4g} | {r['build_s']:.1f} | {r['ms_a_step']:.4f} | {r['ms_a_member']:.4f} | {r['days_a_wall_day']:,.0f} | "
+        f"{r['speedup']:.2f} | {graph} | {chained} | {r['h_rel_diff']:.2e} | {met} |"
+    )
+
+
+def _precision_run(args, ne, precision, steps):
+    """``args.scene`` at ``ne`` (None: the scene's) and ``precision`` with room for ``steps`` steps: the
+    scene, the Simulation (or with ``--members`` N > 1 the ensemble of N in the same launches, 1 m
+    perturbations of h seeded alike) and a call that steps it n steps and returns the seconds a step.
+    Graphs "on": the card's default, and on a CPU (one thread) the same path."""
+    scene = load_scene(args.scene, ne=ne, precision=precision)
+    days = steps * scene.dt / DAY
+    scene = dataclasses.replace(scene, days=days, output_every_days=days)
+    if args.members > 1:
+        run = Ensemble(scene, args.members, Perturbation(1.0, seed=1), device=args.device, layout="shared", graphs="on")
+
+        def advance(n):
+            t = clock(args.device)
+            run.step(n)
+            return (clock(args.device) - t) / n
+
+        return scene, run, advance
+    run, done = Simulation(scene, args.device, progress=False, graphs="on"), [0]
+
+    def advance(n):  # the run's time loop, as ``graphs`` and ``floor`` time it
+        done[0] += n
+        return run.run(None, until_step=done[0]).loop_time / n
+
+    return scene, run, advance
+
+
+def precision(args, figures):
+    dev, n, names = wp.get_device(args.device), args.graph_steps, args.precisions
+    steps = args.warmup + args.runs * n
+    figures.update(device=dev.name, warp=wp.config.version, rows=[])
+    kind = f"{args.members} members in the same launches" if args.members > 1 else "one run"
+    _header(
+        f"{args.scene}, {kind}, {' and '.join(names)} ({args.device}: {dev.name}): {args.warmup} steps, then "
+        f"{args.runs} rounds of {n} steps, the precisions in turn (order swapped each round), medians",
+        PRECISION_COLUMNS,
+        len(PRECISION_COLUMNS) - 5,
+    )
+    for ne in args.ne or [None]:
+        runs, build = {}, {}
+        for name in names:
+            t0 = time.perf_counter()
+            runs[name] = _precision_run(args, ne, name, steps)
+            runs[name][2](args.warmup)  # compiles, records and captures
+            build[name] = time.perf_counter() - t0
+        per_step = {name: [] for name in names}
+        for k in range(args.runs):
+            for name in names if k % 2 == 0 else names[::-1]:
+                per_step[name].append(runs[name][2](n))
+        h = {name: (run.fields(0) if args.members > 1 else run.fields())[2] for name, (_, run, _) in runs.items()}
+        base = names[0]
+        for name in names:
+            scene, run, _ = runs[name]
+            t = statistics.median(per_step[name])
+            chained = {}  # floor's bare replays, after h: they step the state further
+            for chain in (1, *args.chain) if args.members == 1 and args.chain else ():
+                g = _captured(run.stepper, run.x, dev, chain)
+                replays = [_replayed(g, dev, max(1, n // chain), chain) for _ in range(args.runs)]
+                chained[chain] = 1e6 * statistics.median(replays)
+            graph = chained.pop(1, None)
+            row = {
+                "scene": args.scene,
+                "ne": scene.ne,
+                "np": scene.np,
+                "stepper": scene.stepper,
+                "members": args.members,
+                "precision": name,
+                "graphs_kept": run.graphs_kept,  # 0: its steps launched plainly (a capture or check failed: stderr says)
+                "dt": scene.dt,
+                "build_s": build[name],
+                "ms_a_step": 1e3 * t,
+                "ms_a_member": 1e3 * t / args.members,
+                "days_a_wall_day": scene.dt / t,
+                "speedup": statistics.median(per_step[base]) / t,
+                "graph_step_us": graph,
+                "chained_us": chained,
+                "h_rel_diff": float(np.max(np.abs(h[name] - h[base])) / np.max(np.abs(h[base]))),
+                "rounds_ms": [1e3 * x for x in per_step[name]],
+                "target": None,
+                "met": None,
+            }
+            if args.target_ms is not None:
+                row.update(target=f"≤ {args.target_ms:g} ms a step", met=row["ms_a_step"] <= args.target_ms)
+            if args.target_days is not None:
+                row.update(
+                    target=f"≥ {args.target_days:,.0f} days a wall day", met=row["days_a_wall_day"] >= args.target_days
+                )
+            figures["rows"].append(row)
+            print(precision_row(row), flush=True)
+
+
+def _log_items(text: str) -> dict:
+    """``gpu_session.sh``'s session.log: each part's exit status and seconds (the last of a name)."""
+    items = {}
+    for line in text.splitlines():
+        words = line.split()
+        if len(words) == 7 and words[0] == "==" and words[2] == "exit" and words[4] == "after":  # run()'s line
+            items[words[1].rstrip(":")] = {"exit": int(words[3]), "s": int(words[5])}
+    return items
+
+
+def _junit(path: Path) -> dict | None:
+    """pytest's junit file: the counts and each test's outcome (None: no file, the part not run or stopped)."""
+    import xml.etree.ElementTree as ET
+
+    if not path.is_file():
+        return None
+    suite = ET.parse(path).getroot()
+    suite = suite if suite.tag == "testsuite" else suite.find("testsuite")
+    tests = {}
+    for case in suite.iter("testcase"):
+        outcome = next((c.tag for c in case if c.tag in ("failure", "error", "skipped")), "passed")
+        tests[case.get("name")] = outcome
+    counts = {k: int(suite.get(k, 0)) for k in ("tests", "failures", "errors", "skipped")}
+    return {**counts, "outcomes": tests}
+
+
+def _exchange_tables(text: str) -> list[str]:
+    """``scaling.py``'s time tables (ms a step, the exchange's share, the bare exchange µs) from its output."""
+    lines, keep = [], False
+    for line in text.splitlines():
+        keep = keep and bool(line.strip()) and not line.startswith("figures written") or "RK4 TC5 on" in line
+        if keep:
+            lines.append(line)
+    return lines
+
+
+def card(args, figures):
+    folder = Path(args.folder)
+    items = _log_items((folder / "session.log").read_text()) if (folder / "session.log").is_file() else {}
+    rows, devices = [], set()  # in the order the items ran
+    for path in sorted(folder.glob("precision_*.json"), key=lambda p: [*items, p.stem].index(p.stem)):
+        record = json.loads(path.read_text())
+        rows += [{"item": path.stem, **r} for r in record["figures"]["rows"]]
+        devices.add(f"{record['figures']['device']} (Warp {record['figures']['warp']}, {record['commit']})")
+    mpi = _junit(folder / "mpi.xml")
+    exchange = _exchange_tables((folder / "exchange.txt").read_text()) if (folder / "exchange.txt").is_file() else []
+    figures.update(items=items, precision=rows, mpi=mpi, exchange=exchange, devices=sorted(devices))
+    print(f"On {', '.join(sorted(devices)) or 'no device (no precision item ended)'}\n")
+    _header("The card's items (session.log): exit status and seconds", ["item", "exit", "s"], 2)
+    for name, item in items.items():
+        print(f"| {name} | {item['exit']} | {item['s']} |")
+    print()
+    _header(
+        "float32 against float64 (gpu_session.py precision)", ["item", *PRECISION_COLUMNS], len(PRECISION_COLUMNS) - 5
+    )
+    for r in rows:
+        print(f"| {r['item']} {precision_row(r)}")
+    print()
+    if mpi is None:
+        print(
+            "2 ranks on one card against 1 (tests/test_mpi_devices.py): no results (not run, or stopped by its time box)"
+        )
+    else:
+        print(
+            f"2 ranks on one card against 1 (tests/test_mpi_devices.py): {mpi['tests']} tests, {mpi['failures']} failed, "
+            f"{mpi['errors']} errors, {mpi['skipped']} skipped (a skip on the card is a failure)"
+        )
+        for name, outcome in mpi["outcomes"].items():
+            print(f"- {name}: {outcome}")
+    print()
+    print("The staged exchange (benchmarks/scaling.py; bare exch us: docs/scaling.md's S)")
+    print("\n".join(exchange) if exchange else "no time table (not run, or stopped by its time box)")
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument(
-        "part",
-        choices=("agreement", "throughput", "graphs", "bits", "reads", "iterations", "floor", "kernels"),
-    )
+    p.add_argument("part", choices=(*PARTS, "precision", "card"))
     p.add_argument("--device", default="cuda")
     p.add_argument(
-        "--ne", type=int, nargs="+", default=None, help="grid(s), np 4 (default per part: 16 / 30 60 120 240 / 30 / 30)"
+        "--ne",
+        type=int,
+        nargs="+",
+        default=None,
+        help="grid(s), np 4 (default per part: 16 / 30 60 120 240 / 30 / 30; precision: the scene's)",
     )
     p.add_argument("--days", type=float, default=5.0)
     p.add_argument("--steppers", nargs="*", default=None)
@@ -376,40 +588,71 @@ def main(argv=None):
         "--steps", type=int, default=None, help="reads, iterations: steps timed (default 3); bits: steps run (10)"
     )
     p.add_argument("--repeat", type=int, default=20)
-    p.add_argument("--graph-steps", type=int, default=2000, help="graphs: steps a timed run")
-    p.add_argument("--runs", type=int, default=5, help="graphs: timed runs a stepper and mode")
+    p.add_argument(
+        "--graph-steps", type=positive(int), default=2000, help="graphs, floor, precision: steps a timed run"
+    )
+    p.add_argument("--runs", type=positive(int), default=5, help="graphs, floor: timed runs; precision: rounds")
     p.add_argument("--copy-mib", type=int, default=1024)
-    p.add_argument("--chain", type=int, nargs="+", default=[10, 50], help="floor: steps captured as one graph")
+    p.add_argument(
+        "--chain",
+        type=int,
+        nargs="*",
+        default=[10, 50],
+        help="floor, precision: steps captured as one graph (none: no replays)",
+    )
     p.add_argument(
         "--krylov",
         choices=("host", "kernels"),
         default=None,
         help="reads: the Krylov vector work's backend (default: the device's)",
     )
+    p.add_argument("--scene", default="tc5_mountain", help="precision: the scene")
+    p.add_argument("--members", type=positive(int), default=1, help="precision: an ensemble of so many (1: a run)")
+    p.add_argument("--warmup", type=positive(int), default=100, help="precision: steps before the rounds")
+    p.add_argument(
+        "--precisions",
+        nargs="+",
+        choices=("float64", "float32"),
+        default=["float64", "float32"],
+        help="precision: the first the baseline",
+    )
+    p.add_argument("--target-ms", type=float, default=None, help="precision: a target, ms a step at most")
+    p.add_argument("--target-days", type=float, default=None, help="precision: a target, simulated days a wall day")
+    p.add_argument("--folder", default=".", help="card: the folder of the card's items")
+    p.add_argument("--results", help="results/<STEM>.json (default: the script's stem; a path: there)")
     args = p.parse_args(argv)
     args.steps = args.steps or {"bits": 10, "kernels": 20}.get(args.part, 3)
-    args.ne = args.ne or {
-        "agreement": [16],
-        "throughput": [30, 60, 120, 240],
-        "floor": [8, 30],
-        "kernels": [30, 120],
-    }.get(args.part, [30])
+    if args.part != "precision":
+        args.ne = args.ne or {
+            "agreement": [16],
+            "throughput": [30, 60, 120, 240],
+            "floor": [8, 30],
+            "kernels": [30, 120],
+        }.get(args.part, [30])
     wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level (as tests/conftest.py)
     if hasattr(wp, "LOG_WARNING"):
         wp.config.log_level = wp.LOG_WARNING
-    wp.init()
-    {
-        "agreement": agreement,
-        "throughput": throughput,
-        "graphs": graphs,
-        "bits": bits,
-        "reads": reads,
-        "iterations": iterations,
-        "floor": floor,
-        "kernels": kernels,
-    }[args.part](args)
+    with recorded(__file__, stem=args.results) as figures:
+        if args.part == "card":  # reads files: no device
+            card(args, figures)
+            return
+        wp.init()
+        if args.part == "precision":
+            precision(args, figures)
+        else:
+            PARTS[args.part](args)
 
+
+PARTS = {
+    "agreement": agreement,
+    "throughput": throughput,
+    "graphs": graphs,
+    "bits": bits,
+    "reads": reads,
+    "iterations": iterations,
+    "floor": floor,
+    "kernels": kernels,
+}
 
 if __name__ == "__main__":
-    with recorded(__file__):
-        main()
+    main()

@@ -21,6 +21,9 @@
 #   benchmarks/gpu_session.sh ensemble              # ≈ 1 min: galewsky, 32 members in the same launches against one (issue 85)
 #   benchmarks/gpu_session.sh mpi                   # ≤ 5 min: 2 ranks sharing the card against 1: run files, a DSS, a gradient (issue 101)
 #   benchmarks/gpu_session.sh exchange              # ≈ 2 min: the staged exchange's cost at ne30/60/120, 2 ranks on the card (issue 101)
+#   benchmarks/gpu_session.sh card                  # ≤ 6.7 min (CARD_S), first on a card (issue 114 item 7): float32 against float64 (TC5
+#                                                   # ne120, galewsky, TC5 ne30 and ne8, 32 galewsky members), then issue 101's
+#                                                   # mpi and exchange; $OUT/card.json, card.md, card.tgz (CARD, CARD_S)
 #
 # With no part named it runs setup to iterations in that order (≈ 23 min); reads,
 # study and study_fine are named. The studies are `swe-sphere sweep --device cuda
@@ -248,23 +251,74 @@ mpi_env() {  # the payload's mpich wheel (unpacked into PYTHONPATH's first folde
 }
 
 part_mpi() {  # issue 101: 2 ranks sharing the card against 1 (run files, a DSS, a gradient; test_mpi_devices.py)
+    # [LIMIT] [PYTEST ARGS...]: the card part's time box and a choice of its tests
+    local limit=${1:-300}
+    shift $(($# > 0))
     mpi_env || return 0
-    run mpi 300 "$PY" -m pytest -q -rs -p no:cacheprovider -n 0 tests/test_mpi_devices.py
+    run mpi "$limit" "$PY" -m pytest -q -rs -p no:cacheprovider -n 0 --junitxml="$OUT/mpi.xml" tests/test_mpi_devices.py "$@"
+    if [ "$DEVICE" != cpu ] && grep -q "SKIPPED" "$OUT/mpi.txt"; then
+        echo "== mpi: tests skipped on the GPU machine" | tee -a "$OUT/session.log"
+        failed="$failed mpi"
+    fi
 }
 
 part_exchange() {  # issue 101: a step and the bare staged exchange on 1 and 2 ranks of the card (benchmarks/scaling.py)
+    local limit=${1:-240}  # [LIMIT]: the card part's time box
     mpi_env || return 0
-    if [ "$small" = 1 ]; then set -- --ne 4 --steps 3; else set -- --ne 30 60 120 --steps 50; fi
-    run exchange 240 "$PY" benchmarks/scaling.py --device "$DEVICE" --ranks 1 2 --model-ranks --repeat "${ROUNDS:-1}" "$@"
-    cp benchmarks/results/scaling.json "$OUT/exchange.json" 2>/dev/null
+    if [ "$small" = 1 ]; then set -- --ne 4 --steps 3; else set -- --ne ${EXCHANGE_NE:-30 60 120} --steps 50; fi
+    run exchange "$limit" "$PY" benchmarks/scaling.py --device "$DEVICE" --ranks 1 2 --model-ranks --repeat "${ROUNDS:-1}" \
+        --results "$OUT/exchange" "$@"
+}
+
+# issue 114 item 7: float32 against float64 on the card, then what issues 99 and 101 left for one, each
+# item time-boxed and all within CARD_S (default 400 s: the device tool's 10 min a command with the
+# setup and a margin); CARD names the items to run (default all, in this order: the most important
+# first). Their output under $OUT/card/, bundled at the end as $OUT/card.tgz (at most 8 files come
+# back from a call) beside card.json and card.md, the summary (`gpu_session.py card`)
+part_card() {
+    local deadline=$((SECONDS + ${CARD_S:-400})) item limit left outer=$OUT
+    local OUT=$OUT/card  # run() and the parts write here
+    mkdir -p "$OUT"
+    local p="$PY benchmarks/gpu_session.py precision --device $DEVICE"
+    for item in ${CARD:-tc5_ne120 galewsky small members mpi exchange}; do
+        case $item in  # the item's time box, its command's grids and steps (NE_SMALL: tiny, on a CPU)
+            tc5_ne120) limit=180 ;; galewsky|small) limit=60 ;; members) limit=90 ;; mpi) limit=150 ;; exchange) limit=120 ;;
+            *) echo "== card: unknown item '$item' (tc5_ne120 galewsky small members mpi exchange)" | tee -a "$OUT/session.log"
+               failed="$failed card"; continue ;;
+        esac
+        left=$((deadline - SECONDS))
+        if [ "$left" -lt 30 ]; then
+            echo "== card: $item not run, CARD_S spent" | tee -a "$OUT/session.log"
+            failed="$failed $item"
+            continue
+        fi
+        [ "$limit" -gt "$left" ] && limit=$left
+        local r="--results $OUT/precision_$item"
+        case $item in
+            tc5_ne120) if [ "$small" = 1 ]; then set -- --ne 2 --warmup 3 --graph-steps 2 --runs 2; else set -- --ne 120 --warmup 100 --graph-steps 1000 --runs 5; fi
+                run "precision_$item" "$limit" $p --scene tc5_mountain $r --chain --target-days 80000 "$@" ;;
+            galewsky) if [ "$small" = 1 ]; then set -- --ne 2 --warmup 3 --graph-steps 2 --runs 2 --chain 2; else set -- --graph-steps 2000 --runs 5 --chain 50; fi
+                run "precision_$item" "$limit" $p --scene galewsky $r --target-ms 0.05 "$@" ;;
+            small) if [ "$small" = 1 ]; then set -- --ne 2 --warmup 3 --graph-steps 2 --runs 2 --chain 2; else set -- --ne 30 8 --graph-steps 2000 --runs 5 --chain 50; fi
+                run "precision_$item" "$limit" $p --scene tc5_mountain $r --target-ms 0.05 "$@" ;;
+            members) if [ "$small" = 1 ]; then set -- --ne 2 --members 2 --warmup 3 --graph-steps 2 --runs 2; else set -- --members "${MEMBERS:-32}" --warmup 20 --graph-steps 200 --runs 5; fi
+                run "precision_$item" "$limit" $p --scene galewsky $r --chain "$@" ;;
+            mpi) part_mpi "$limit" -k "card or gpu" ;;  # the CUDA tests alone (on a CPU: skipped)
+            exchange) part_exchange "$limit" ;;
+        esac
+    done
+    "$PY" benchmarks/gpu_session.py card --folder "$OUT" --results "$outer/card" >"$outer/card.md" 2>"$OUT/card_summary.txt" \
+        || { cat "$OUT/card_summary.txt"; failed="$failed card"; }
+    tar -C "$outer" -czf "$outer/card.tgz" card && rm -rf "$OUT"
+    cat "$outer/card.md"
 }
 
 parts=("$@")
 [ ${#parts[@]} -eq 0 ] && parts=(setup tests agreement throughput graphs tc5 iterations)
 for part in "${parts[@]}"; do
     case $part in
-        setup|tests_gpu|tests|agreement|throughput|graphs|bits|tc5|iterations|reads|study|study_ne60|study_fine|criterion_ne60|criterion_ne120|dinosaur|control|small|floor|kernels|ensemble|mpi|exchange) "part_$part" ;;
-        *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_ne60 study_fine criterion_ne60 criterion_ne120 dinosaur control small floor kernels ensemble mpi exchange)" >&2; exit 2 ;;
+        setup|tests_gpu|tests|agreement|throughput|graphs|bits|tc5|iterations|reads|study|study_ne60|study_fine|criterion_ne60|criterion_ne120|dinosaur|control|small|floor|kernels|ensemble|mpi|exchange|card) "part_$part" ;;
+        *) echo "unknown part '$part' (setup tests_gpu tests agreement throughput graphs bits tc5 iterations reads study study_ne60 study_fine criterion_ne60 criterion_ne120 dinosaur control small floor kernels ensemble mpi exchange card)" >&2; exit 2 ;;
     esac
 done
 # every part ran (a failed one does not stop the rest: each is time-boxed on its own); the status says

@@ -38,6 +38,7 @@ import argparse
 import json
 import os
 import resource
+import shutil
 import statistics
 import subprocess
 import sys
@@ -148,7 +149,12 @@ def worker(ne: int, steps: int, device: str) -> None:
 
 
 def time_table(ne_list, ranks, steps, repeat, device) -> None:
-    mpiexec = Path(sys.executable).with_name("mpiexec")
+    beside = Path(sys.executable).with_name(
+        "mpiexec"
+    )  # the mpich wheel's, else PATH's (the card's payload: gpu_session.sh)
+    mpiexec = beside if beside.is_file() else shutil.which("mpiexec")
+    if mpiexec is None:
+        raise SystemExit("scaling.py: no mpiexec beside this Python or on PATH (pip install mpich mpi4py)")
     env = {**os.environ, "SWE_SPHERE_THREADS": "1"}
     cores = len(os.sched_getaffinity(0))
     for ne in ne_list:
@@ -188,6 +194,7 @@ def main() -> None:
     p.add_argument("--steps", type=positive(int), default=10)
     p.add_argument("--repeat", type=positive(int), default=3)
     p.add_argument("--device", choices=["cpu", "cuda"], default="cpu", help="the ranks' device (default cpu)")
+    p.add_argument("--results", help="results/<STEM>.json (default: the script's stem; a path: there)")
     p.add_argument("--worker", nargs=3, help=argparse.SUPPRESS)
     a = p.parse_args()
     if a.worker:
@@ -196,7 +203,7 @@ def main() -> None:
     from swe_sphere.core.runtime import init_warp
 
     init_warp()  # quietly, before the first table: the topology would init Warp with its banner inside it
-    with recorded(__file__):
+    with recorded(__file__, stem=a.results):
         for ne in a.ne:
             partition_table(ne, a.np, sorted(set(a.ranks) | set(a.model_ranks)))
         if a.ranks:

@@ -39,3 +39,44 @@ def test_a_bad_input_is_one_line_and_exit_2(tmp_path, script, args, says):
     assert done.stderr.strip().splitlines()[-1].startswith(says), done.stderr
     assert "Traceback" not in done.stderr
     assert {p: p.stat().st_mtime_ns for p in (BENCHMARKS / "results").iterdir()} == results
+
+
+def test_the_card_s_items_run_on_the_cpu_at_tiny_size(tmp_path):
+    """``benchmarks/gpu_session.sh card`` (issue 114 item 7: float32 against float64, first on a lent
+    card) as a session checks it here: ``DEVICE=cpu NE_SMALL=1``, its ensemble item and an unknown
+    one. The item's two precisions time the same steps (the float32 run's h within round-off of
+    float32 of the float64 one's, not the same), the summary's table and figures under $OUT beside
+    the bundle of the items' files, an unknown item one line and the status 1, nothing written
+    under benchmarks/results."""
+    import json
+    import tarfile
+
+    results = {p: p.stat().st_mtime_ns for p in (BENCHMARKS / "results").iterdir()}
+    root = str(BENCHMARKS.parent)
+    env = {
+        **os.environ,
+        "OMP_NUM_THREADS": "1",
+        "SWE_SPHERE_THREADS": "1",
+        "PYTHONPATH": os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])),
+        "PYTHON": sys.executable,
+        "OUT": str(tmp_path),
+        "DEVICE": "cpu",
+        "NE_SMALL": "1",
+        "CARD": "members bogus",
+    }
+    done = subprocess.run(
+        ["bash", str(BENCHMARKS / "gpu_session.sh"), "card"], cwd=tmp_path, env=env, capture_output=True, text=True
+    )
+    assert done.returncode == 1, done.stdout + done.stderr
+    assert "== card: unknown item 'bogus'" in done.stdout
+    figures = json.loads((tmp_path / "card.json").read_text())["figures"]
+    rows = {r["precision"]: r for r in figures["precision"]}
+    assert list(rows) == ["float64", "float32"] and {r["members"] for r in rows.values()} == {2}
+    assert all(r["graphs_kept"] > 0 for r in rows.values())  # the card's path: each step a graph
+    assert rows["float64"]["h_rel_diff"] == 0.0 and 0.0 < rows["float32"]["h_rel_diff"] < 1e-6
+    assert figures["items"]["precision_members"]["exit"] == 0 and figures["mpi"] is None
+    assert "| precision_members | galewsky | 2 8 | kgu35 | 2 | float32 |" in (tmp_path / "card.md").read_text()
+    with tarfile.open(tmp_path / "card.tgz") as bundle:
+        assert {"card/precision_members.json", "card/session.log"} <= set(bundle.getnames())
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["card.json", "card.md", "card.tgz", "session.log"]
+    assert {p: p.stat().st_mtime_ns for p in (BENCHMARKS / "results").iterdir()} == results

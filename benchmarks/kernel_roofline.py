@@ -57,6 +57,8 @@ divides), by latency, or by the loop Warp's CPU backend makes of it.
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/kernel_roofline.py \\
         --ne 30 12 --np 4 8 --rounds 41 --inner 2
 
+``--precisions float64 float32`` adds each grid's model with a float32 tendency (the tendency's
+kernel and the DSS reading it in float32; its % peak of float32's 16 lanes, twice float64's).
 Written to ``results/kernel_roofline.json`` (``--results``: another stem).
 """
 
@@ -146,9 +148,11 @@ class Grid:
     """One scene on one grid: its model's recorded launches of an RHS and a ∇⁴ substep, each
     with its name, flops and bytes a node; ``parts`` name → a call to time."""
 
-    def __init__(self, scene: str, ne: int, np_: int):
-        self.scene, self.ne, self.np = scene, ne, np_
-        sim = Simulation(SCENES[scene], "cpu", progress=False, ne=ne, np=np_, days=1.0, graphs=False)
+    def __init__(self, scene: str, ne: int, np_: int, precision: str = "float64"):
+        self.scene, self.ne, self.np, self.precision = scene, ne, np_, precision
+        sim = Simulation(
+            SCENES[scene], "cpu", progress=False, ne=ne, np=np_, days=1.0, graphs=False, precision=precision
+        )
         m, x = sim.model, sim.x
         if not m.operators.per_element or m.hv is None or m.nu_div != m.nu:
             raise SystemExit(f"{scene} ne{ne} np{np_}: not the CPU element layout with a ∇⁴ of ν_div = ν")
@@ -165,7 +169,7 @@ class Grid:
         for group, launches in (("rhs", rhs), ("∇⁴ substep", hv)):
             total = [0.0, 0]
             for launch in launches:
-                key = launch.kernel.key
+                key = launch.kernel.key.removesuffix("_float32")  # a float32 kernel's: its flops are its type's
                 kernel = "tendency" if key.startswith("tendency__") else key
                 unread = UNREAD[kernel]
                 if isinstance(unread, dict):
@@ -207,6 +211,13 @@ def parse() -> argparse.Namespace:
     p.add_argument("--triad-l2", type=positive(int), default=40_000, help="elements of the L2 triad (for scale)")
     p.add_argument("--triad-cache", type=positive(int), default=500_000, help="elements of the in-cache (L3) triad")
     p.add_argument("--triad-dram", type=positive(int), default=20_000_000, help="elements of the DRAM triad")
+    p.add_argument(
+        "--precisions",
+        nargs="+",
+        choices=["float64", "float32"],
+        default=["float64"],
+        help="the models' precisions (float32: a float32 tendency; its peak twice float64's lanes)",
+    )
     p.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")
     args = p.parse_args()
     if len(args.ne) != len(args.np):
@@ -221,7 +232,12 @@ def main(args: argparse.Namespace, figures: dict) -> None:
         f"one process, SWE_SPHERE_THREADS={os.environ['SWE_SPHERE_THREADS']}, CPU clock; "
         f"load average {os.getloadavg()[0]:.2f}; {args.rounds} rounds of {args.inner} calls a launch"
     )
-    grids = [Grid(scene, ne, np_) for scene in args.scenes for ne, np_ in zip(args.ne, args.np)]
+    grids = [
+        Grid(scene, ne, np_, precision)
+        for scene in args.scenes
+        for ne, np_ in zip(args.ne, args.np)
+        for precision in args.precisions
+    ]
     machine = {
         "dgemm": lambda: dgemm_rate(args.dgemm),
         "triad L2": lambda: rhs_throughput.triad_bandwidth(1, args.triad_l2, 25) / 1e9,
@@ -249,23 +265,25 @@ def main(args: argparse.Namespace, figures: dict) -> None:
         f"for scale {rate['triad L2']:.1f} GB/s in L2 ({24 * args.triad_l2 / 1e6:.2f} MB)"
     )
     head = (
-        f"{'scene':<9} {'kernel':<22} {'ne':>3} {'np':>2} {'flop/node':>9} {'B/node':>6} {'flop/B':>6} "
+        f"{'scene':<9} {'type':<7} {'kernel':<22} {'ne':>3} {'np':>2} {'flop/node':>9} {'B/node':>6} {'flop/B':>6} "
         f"{'ns/node':>8} {'GFLOP/s':>7} {'% peak':>6} {'GB/s':>6} {'% L3 triad':>10} {'% DRAM triad':>12}"
     )
     print(f"\nper element-local node; medians of {args.rounds} rounds\n{head}\n{'-' * len(head)}")
     rows = []
     for g, grid in enumerate(grids):
+        own = peak * (2 if grid.precision == "float32" else 1)  # the type's lanes: float32 twice float64's
         for k, (fl, nbytes) in grid.rows.items():
             ns = statistics.median(ms[(g, k)]) * 1e6 / grid.N
             gflops, gbs = fl / ns, nbytes / ns
             print(
-                f"{grid.scene:<9} {k:<22} {grid.ne:>3} {grid.np:>2} {fl:>9.1f} {nbytes:>6.1f} {fl / nbytes:>6.2f} "
-                f"{ns:>8.2f} {gflops:>7.2f} {100 * gflops / peak:>6.1f} {gbs:>6.2f} {100 * gbs / l3:>10.1f} "
+                f"{grid.scene:<9} {grid.precision:<7} {k:<22} {grid.ne:>3} {grid.np:>2} {fl:>9.1f} {nbytes:>6.1f} "
+                f"{fl / nbytes:>6.2f} {ns:>8.2f} {gflops:>7.2f} {100 * gflops / own:>6.1f} {gbs:>6.2f} {100 * gbs / l3:>10.1f} "
                 f"{100 * gbs / dram:>12.1f}"
             )
             rows.append(
                 {
                     "scene": grid.scene,
+                    "precision": grid.precision,
                     "kernel": k,
                     "ne": grid.ne,
                     "np": grid.np,
@@ -275,7 +293,7 @@ def main(args: argparse.Namespace, figures: dict) -> None:
                     "bytes_per_node": nbytes,
                     "ns_per_node": round(ns, 3),
                     "gflops": round(gflops, 3),
-                    "percent_peak": round(100 * gflops / peak, 2),
+                    "percent_peak": round(100 * gflops / own, 2),
                     "gbs": round(gbs, 3),
                     "percent_triad_cache": round(100 * gbs / l3, 1),
                     "percent_triad_dram": round(100 * gbs / dram, 1),
